@@ -1,0 +1,109 @@
+"""Built-in exemplar textures, made by code (no image files ship with tghop).
+
+They let the CLI, the tests and the README gallery run on any machine. Each function
+returns a float ``(H, W, 3)`` image in [0, 1] and is deterministic for a given ``rng``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ._common import TGHopError, check_rng
+
+__all__ = ["bricks", "cells", "builtin", "BUILTIN"]
+
+
+def _smooth_noise(rng, shape, sigma):
+    """Gaussian-filtered white noise scaled to unit standard deviation."""
+    noise = ndimage.gaussian_filter(rng.standard_normal(shape), sigma, mode="wrap")
+    return noise / (noise.std() + 1e-12)
+
+
+def bricks(size: int = 256, *, rng=0) -> np.ndarray:
+    """A running-bond red brick wall with mortar lines, per-brick colour and fine grain.
+
+    Parameters
+    ----------
+    size : int
+        Height and width in pixels (at least 32).
+    rng : int or numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (size, size, 3), float64 in [0, 1]
+    """
+    if size < 32:
+        raise TGHopError(f"size must be at least 32, got {size}")
+    rng = check_rng(rng)
+    brick_h, brick_w, mortar = 20, 44, 4
+    yy, xx = np.mgrid[0:size, 0:size].astype(np.float64)
+    # Slightly wavy courses so that no two bricks are identical.
+    yy_w = yy + 1.2 * _smooth_noise(rng, (size, size), 12)
+    row = np.floor(yy_w / brick_h).astype(int)
+    xx_w = xx + (row % 2) * (brick_w / 2) + 1.2 * _smooth_noise(rng, (size, size), 12)
+    col = np.floor(xx_w / brick_w).astype(int)
+    in_y = yy_w - row * brick_h
+    in_x = xx_w - col * brick_w
+    # Distance to the brick edge gives mortar and a bevel.
+    edge = np.minimum.reduce([in_y, brick_h - in_y, in_x, brick_w - in_x])
+    is_mortar = edge < mortar / 2
+    # Per-brick colour: hash of (row, col) into a table of random tints.
+    n_ids = 4096
+    tints = rng.normal(0.0, 1.0, size=(n_ids, 3))
+    brick_id = (row * 131 + col * 17) % n_ids
+    tint = tints[brick_id]
+    base = np.array([0.62, 0.28, 0.20])
+    colour = base + tint * np.array([0.07, 0.04, 0.03]) + 0.05 * tint[:, :, :1]
+    grain = 0.045 * _smooth_noise(rng, (size, size), 0.8)[..., None]
+    blotch = 0.04 * _smooth_noise(rng, (size, size), 5)[..., None]
+    bevel = np.clip(edge / 3.0, 0, 1)[..., None]
+    img = colour * (0.75 + 0.25 * bevel) + grain + blotch
+    mortar_col = np.array([0.70, 0.68, 0.63]) + 0.05 * _smooth_noise(rng, (size, size), 1.0)[..., None]
+    img = np.where(is_mortar[..., None], mortar_col, img)
+    return np.clip(img, 0.0, 1.0)
+
+
+def cells(size: int = 256, *, rng=0) -> np.ndarray:
+    """Irregular green cells (a Voronoi pattern with dark walls), a stochastic texture.
+
+    Parameters
+    ----------
+    size : int
+        Height and width in pixels (at least 32).
+    rng : int or numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (size, size, 3), float64 in [0, 1]
+    """
+    if size < 32:
+        raise TGHopError(f"size must be at least 32, got {size}")
+    rng = check_rng(rng)
+    n_seeds = max(8, (size * size) // 500)
+    seeds = rng.uniform(0, size, size=(n_seeds, 2))
+    yy, xx = np.mgrid[0:size, 0:size].astype(np.float64)
+    pts = np.stack([yy.ravel(), xx.ravel()], axis=1)
+    # Periodic distances so that the exemplar itself tiles.
+    d = np.abs(pts[:, None, :] - seeds[None, :, :])
+    d = np.minimum(d, size - d)
+    dist = np.sqrt((d ** 2).sum(-1))
+    two = np.partition(dist, 1, axis=1)[:, :2]
+    wall = np.clip((two[:, 1] - two[:, 0]) / 3.0, 0, 1).reshape(size, size)
+    owner = dist.argmin(1).reshape(size, size)
+    shade = rng.uniform(0.8, 1.2, n_seeds)[owner][..., None]
+    base = np.array([0.35, 0.62, 0.25]) * shade
+    grain = 0.03 * _smooth_noise(rng, (size, size), 1.0)[..., None]
+    img = base * (0.25 + 0.75 * wall[..., None]) + grain
+    return np.clip(img, 0.0, 1.0)
+
+
+#: name -> function(size, rng) of the built-in exemplars.
+BUILTIN = {"bricks": bricks, "cells": cells}
+
+
+def builtin(name: str, size: int = 256, *, rng=0) -> np.ndarray:
+    """A built-in exemplar by name (see :data:`BUILTIN`)."""
+    if name not in BUILTIN:
+        raise TGHopError(f"unknown built-in exemplar {name!r}; choose one of {', '.join(sorted(BUILTIN))}")
+    return BUILTIN[name](size, rng=rng)
