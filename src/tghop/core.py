@@ -1,0 +1,464 @@
+"""The core generative model: spatial dimension reduction (SDR) and independent-components
+histogram matching (ICHM), paper section IV.C.
+
+``SpatialReduction`` turns core responses ``(n, 8, 8, K2)`` into vectors ``z`` of
+dimension ``D_r``; ``ICHM`` learns the distribution of ``z`` and samples new vectors.
+
+Choices the paper leaves open (see also the notes in the docs):
+
+* ``gamma`` is an absolute variance threshold on each channel's spatial PCA components,
+  for images scaled to [0, 1] (``gamma_mode="absolute"``, the paper's wording "variances
+  lower than threshold gamma"); ``gamma_mode="relative"`` instead compares with the
+  channel's total variance.
+* Per-cluster PCA keeps the fewest components that reach ``cluster_energy`` of the
+  cluster's variance, at most ``max_cluster_components`` and fewer than the cluster has
+  samples (the paper's Table 4, F = 2,518 CDFs for N = 50, is about 50 per cluster).
+* Clusters with fewer than ``min_cluster_size`` members are merged into the nearest
+  larger cluster before modelling (ICA of a handful of points is meaningless).
+* Each CDF is a 256-bin histogram between the component's training minimum and maximum,
+  so a sampled value never leaves the range seen in training. The inverse CDF is linear
+  between bin edges.
+* The rejection step (iv) is off by default (``reject_threshold=None``); when set, a draw
+  whose matched independent components are all <= the threshold is redrawn.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from scipy.special import ndtr
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.cluster import KMeans
+from sklearn.utils.validation import check_is_fitted
+from threadpoolctl import threadpool_limits
+
+from ._common import TGHopError, check_rng, report
+
+__all__ = ["SpatialReduction", "ICHM", "fast_ica"]
+
+#: Resolution of the tabulated inverse CDFs used for sampling.
+QUANTILE_STEPS = 1024
+
+
+def _seed(rng) -> int:
+    """A 31-bit seed for scikit-learn components, drawn from ``rng``."""
+    return int(rng.integers(0, 2**31 - 1))
+
+
+def _flip_signs(components):
+    """Make the entry of largest magnitude of each row positive (deterministic PCA)."""
+    pivot = np.argmax(np.abs(components), axis=1)
+    return components * np.sign(components[np.arange(len(components)), pivot])[:, None]
+
+
+def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
+    """Symmetric FastICA (Hyvarinen 1999) with the logcosh contrast on whitened data.
+
+    Parameters
+    ----------
+    white : ndarray, shape (n, k)
+        Zero-mean data with identity covariance.
+    max_iter : int
+    tol : float
+        Stop when every unmixing direction changes by less than this.
+    rng : int or numpy.random.Generator, optional
+        Initial rotation.
+
+    Returns
+    -------
+    unmix : ndarray, shape (k, k)
+        Orthogonal matrix; the independent components are ``white @ unmix.T``.
+    converged : bool
+    """
+    n, k = white.shape
+    if k == 1:
+        return np.ones((1, 1)), True
+
+    def decorrelate(w):
+        vals, vecs = np.linalg.eigh(w @ w.T)
+        return (vecs / np.sqrt(np.maximum(vals, 1e-300))) @ vecs.T @ w
+
+    w = decorrelate(check_rng(rng).standard_normal((k, k)))
+    xt = white.T
+    for _ in range(int(max_iter)):
+        g = np.tanh(w @ xt)
+        w_new = decorrelate(g @ white / n - (1.0 - g**2).mean(axis=1)[:, None] * w)
+        change = np.max(np.abs(np.abs(np.einsum("ij,ij->i", w_new, w)) - 1.0))
+        w = w_new
+        if change < tol:
+            return w, True
+    return w, False
+
+
+class SpatialReduction(TransformerMixin, BaseEstimator):
+    """Spatial dimension reduction: per-channel PCA of each core channel's spatial map.
+
+    Parameters
+    ----------
+    gamma : float, default=0.01
+        PCA components whose variance is below ``gamma`` are dropped (the same threshold
+        for every channel). 0 keeps all of them.
+    gamma_mode : {"absolute", "relative"}, default="absolute"
+        Compare ``gamma`` with the component variance itself, or with its fraction of
+        the channel's total variance.
+
+    Attributes
+    ----------
+    mean_ : ndarray, shape (K, h * w)
+        Mean spatial map of each channel.
+    components_ : ndarray, shape (D_r, h * w)
+        Kept components of all channels, grouped by channel.
+    channel_ : ndarray of int, shape (D_r,)
+        Channel of each kept component.
+    explained_variance_ : ndarray, shape (D_r,)
+    kept_per_channel_ : ndarray of int, shape (K,)
+    """
+
+    def __init__(self, gamma=0.01, gamma_mode="absolute"):
+        self.gamma = gamma
+        self.gamma_mode = gamma_mode
+
+    def fit(self, Y, y=None):
+        """Learn from core responses ``Y`` of shape (n, h, w, K).
+
+        Returns
+        -------
+        self
+        """
+        self.fit_transform(Y)
+        return self
+
+    def fit_transform(self, Y, y=None):
+        """Fit, then return ``z`` of shape (n, D_r)."""
+        if not isinstance(self.gamma, numbers.Real) or self.gamma < 0:
+            raise TGHopError(f"gamma must be a number >= 0, got {self.gamma!r}")
+        if self.gamma_mode not in ("absolute", "relative"):
+            raise TGHopError(f"gamma_mode must be 'absolute' or 'relative', got {self.gamma_mode!r}")
+        Y = np.asarray(Y, dtype=np.float64)
+        n, h, w, k = Y.shape
+        flat = Y.reshape(n, h * w, k)
+        self.shape_ = (h, w, k)
+        self.mean_ = flat.mean(axis=0).T
+        comps, var, chan = [], [], []
+        for c in range(k):
+            centred = flat[:, :, c] - self.mean_[c]
+            vals, vecs = np.linalg.eigh(centred.T @ centred / n)
+            vals, vecs = vals[::-1], vecs[:, ::-1].T
+            limit = self.gamma * (vals.sum() if self.gamma_mode == "relative" else 1.0)
+            keep = vals > limit if self.gamma > 0 else vals > 1e-12 * max(vals.sum(), 1e-300)
+            comps.append(_flip_signs(vecs[keep]))
+            var.append(vals[keep])
+            chan.append(np.full(int(keep.sum()), c))
+        self.components_ = np.vstack(comps)
+        self.explained_variance_ = np.concatenate(var)
+        self.channel_ = np.concatenate(chan).astype(np.int64)
+        self.kept_per_channel_ = np.bincount(self.channel_, minlength=k)
+        if self.components_.shape[0] == 0:
+            raise TGHopError(f"gamma={self.gamma} drops every spatial component; use a smaller gamma")
+        return self.transform(Y)
+
+    @property
+    def n_components_(self) -> int:
+        """D_r, the dimension after SDR."""
+        check_is_fitted(self, "components_")
+        return self.components_.shape[0]
+
+    def transform(self, Y):
+        """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r)."""
+        check_is_fitted(self, "components_")
+        Y = np.asarray(Y, dtype=np.float64)
+        n = Y.shape[0]
+        maps = Y.reshape(n, -1, self.shape_[2])
+        z = np.empty((n, self.components_.shape[0]))
+        for c in range(self.shape_[2]):
+            sel = self.channel_ == c
+            if sel.any():
+                z[:, sel] = (maps[:, :, c] - self.mean_[c]) @ self.components_[sel].T
+        return z
+
+    def inverse_transform(self, Z):
+        """``z`` (n, D_r) -> core responses (n, h, w, K); dropped components are zero."""
+        check_is_fitted(self, "components_")
+        Z = np.asarray(Z, dtype=np.float64)
+        h, w, k = self.shape_
+        out = np.repeat(self.mean_.T[None], Z.shape[0], axis=0)
+        for c in range(k):
+            sel = self.channel_ == c
+            if sel.any():
+                out[:, :, c] += Z[:, sel] @ self.components_[sel]
+        return out.reshape(Z.shape[0], h, w, k)
+
+
+class ICHM(BaseEstimator):
+    """Independent-components histogram matching: a mixture of per-cluster ICA models.
+
+    Parameters
+    ----------
+    n_clusters : int, default=50
+        N, the number of K-means clusters (paper: 50 in Table 4; quality improves up to
+        about 100).
+    n_codewords : int, default=200
+        W, the size of the vector-quantised codebook of CDF shapes.
+    n_bins : int, default=256
+        Histogram bins per CDF.
+    cluster_energy : float, default=0.95
+        Fraction of a cluster's variance its PCA keeps before FastICA.
+    max_cluster_components : int, default=50
+        Upper bound of components per cluster.
+    min_cluster_size : int, default=10
+        Smaller clusters are merged into their nearest larger one.
+    reject_threshold : float or None, default=None
+        Sampling step (iv): redraw a sample none of whose matched components exceeds it.
+    max_iter : int, default=200
+        FastICA iterations per cluster.
+    rng : int or numpy.random.Generator, optional
+        For K-means and FastICA initialisation.
+
+    Attributes
+    ----------
+    p_ : ndarray, shape (N,)
+        Cluster probabilities (the interval representation).
+    means_ : ndarray, shape (N, D_r)
+    mixing_ : ndarray, shape (F, D_r)
+        Row block ``i`` maps cluster ``i``'s independent components back to ``z``
+        (inverse ICA and inverse PCA in one matrix).
+    n_components_ : ndarray of int, shape (N,)
+        Independent components per cluster; ``F = n_components_.sum()``.
+    cdf_index_ : ndarray of int, shape (F,)
+        Codeword of each component's CDF.
+    cdf_min_, cdf_max_ : ndarray, shape (F,)
+        Range of each component (the CDF's bin structure spans it).
+    codebook_ : ndarray, shape (W, n_bins)
+        Quantised CDF shapes: the CDF at the right edge of each bin (last value 1).
+    n_ica_unconverged_ : int
+        Clusters whose FastICA hit ``max_iter`` (sampling stays exact for them; the
+        components are just less independent).
+    """
+
+    def __init__(
+        self,
+        n_clusters=50,
+        n_codewords=200,
+        n_bins=256,
+        cluster_energy=0.95,
+        max_cluster_components=50,
+        min_cluster_size=10,
+        reject_threshold=None,
+        max_iter=200,
+        rng=None,
+    ):
+        self.n_clusters = n_clusters
+        self.n_codewords = n_codewords
+        self.n_bins = n_bins
+        self.cluster_energy = cluster_energy
+        self.max_cluster_components = max_cluster_components
+        self.min_cluster_size = min_cluster_size
+        self.reject_threshold = reject_threshold
+        self.max_iter = max_iter
+        self.rng = rng
+
+    def _check_params(self, n_samples):
+        def whole(name, value, low):
+            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low:
+                raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+
+        whole("n_clusters (N)", self.n_clusters, 1)
+        whole("n_codewords (W)", self.n_codewords, 1)
+        whole("n_bins", self.n_bins, 2)
+        whole("max_cluster_components", self.max_cluster_components, 1)
+        whole("min_cluster_size", self.min_cluster_size, 2)
+        whole("max_iter", self.max_iter, 1)
+        if not isinstance(self.cluster_energy, numbers.Real) or not 0 < self.cluster_energy <= 1:
+            raise TGHopError(f"cluster_energy must be in (0, 1], got {self.cluster_energy!r}")
+        if self.n_clusters * self.min_cluster_size > n_samples:
+            raise TGHopError(
+                f"n_clusters={self.n_clusters} needs at least {self.n_clusters * self.min_cluster_size} "
+                f"training patches but there are {n_samples}; lower N or use a larger exemplar"
+            )
+        if self.reject_threshold is not None and not isinstance(self.reject_threshold, numbers.Real):
+            raise TGHopError(f"reject_threshold must be a number or None, got {self.reject_threshold!r}")
+
+    def fit(self, Z, y=None, *, progress=None):
+        """Learn the mixture from vectors ``Z`` of shape (n, D_r).
+
+        ``progress(stage, done, total)`` reports "clusters" (K-means), "ICA" (per
+        cluster) and "CDF codebook".
+
+        Returns
+        -------
+        self
+        """
+        Z = np.asarray(Z, dtype=np.float64)
+        self._check_params(Z.shape[0])
+        rng = check_rng(self.rng)
+        report(progress, "clusters", 0, 1)
+        labels = self._cluster(Z, rng)
+        report(progress, "clusters", 1, 1)
+        n_clusters = labels.max() + 1
+        counts = np.bincount(labels, minlength=n_clusters)
+        self.p_ = counts / counts.sum()
+        self.means_ = np.zeros((n_clusters, Z.shape[1]))
+        mixing, n_comp, sources = [], [], []
+        self.n_ica_unconverged_ = 0
+        # Many small matrices: one BLAS thread each is faster than contended threads.
+        with threadpool_limits(limits=1, user_api="blas"):
+            for i in range(n_clusters):
+                report(progress, "ICA", i, n_clusters)
+                members = Z[labels == i]
+                self.means_[i] = members.mean(axis=0)
+                m, s = self._fit_cluster(members - self.means_[i], rng)
+                mixing.append(m)
+                sources.append(s)
+                n_comp.append(m.shape[0])
+        report(progress, "ICA", n_clusters, n_clusters)
+        self.mixing_ = np.vstack(mixing)
+        self.n_components_ = np.asarray(n_comp, dtype=np.int64)
+        report(progress, "CDF codebook", 0, 1)
+        self._fit_cdfs(sources, rng)
+        report(progress, "CDF codebook", 1, 1)
+        return self
+
+    def _cluster(self, Z, rng):
+        # float32 halves K-means time; the clustering only routes samples to clusters.
+        km = KMeans(n_clusters=self.n_clusters, n_init=1, max_iter=100, random_state=_seed(rng))
+        labels = km.fit_predict(Z.astype(np.float32))
+        centres = km.cluster_centers_.astype(np.float64)
+        counts = np.bincount(labels, minlength=self.n_clusters)
+        small = counts < self.min_cluster_size
+        if small.any():
+            big = np.flatnonzero(~small)
+            moved = small[labels]
+            d = ((Z[moved, None, :] - centres[None, big, :]) ** 2).sum(-1)
+            labels[moved] = big[np.argmin(d, axis=1)]
+        # Renumber 0..N'-1 in order of first appearance of the kept clusters.
+        _, labels = np.unique(labels, return_inverse=True)
+        return labels
+
+    def _fit_cluster(self, centred, rng):
+        """PCA-whiten one cluster, run FastICA; return (mixing (k, D_r), sources (n_i, k))."""
+        n = centred.shape[0]
+        _, sing, vt = np.linalg.svd(centred, full_matrices=False)
+        var = sing**2 / n
+        cum = np.cumsum(var) / max(var.sum(), 1e-300)
+        k = int(np.searchsorted(cum, self.cluster_energy - 1e-12)) + 1
+        k = max(1, min(k, self.max_cluster_components, n - 1, int(np.count_nonzero(var > 1e-12 * var[0]))))
+        std = np.sqrt(var[:k])
+        basis = _flip_signs(vt[:k])
+        white = centred @ basis.T / std
+        unmix, converged = fast_ica(white, max_iter=self.max_iter, rng=rng)
+        self.n_ica_unconverged_ += not converged
+        sources = white @ unmix.T
+        # z - mean = white * std @ basis = sources @ inv(unmix).T * std @ basis
+        mixing = np.linalg.inv(unmix).T @ (std[:, None] * basis)
+        return mixing, sources
+
+    def _fit_cdfs(self, sources, rng):
+        """Histogram CDFs of all components, vector-quantised into the codebook."""
+        nb = self.n_bins
+        cdfs, lo, hi = [], [], []
+        for s in sources:
+            smin, smax = s.min(axis=0), s.max(axis=0)
+            width = np.where(smax > smin, smax - smin, 1.0)
+            idx = np.clip(((s - smin) / width * nb).astype(np.int64), 0, nb - 1)
+            k = s.shape[1]
+            hist = np.bincount((idx + nb * np.arange(k)).ravel(), minlength=k * nb).reshape(k, nb)
+            cdfs.append(np.cumsum(hist, axis=1) / s.shape[0])
+            lo.append(smin)
+            hi.append(smax)
+        cdfs = np.vstack(cdfs)
+        self.cdf_min_ = np.concatenate(lo)
+        self.cdf_max_ = np.concatenate(hi)
+        if cdfs.shape[0] <= self.n_codewords:
+            self.codebook_ = cdfs
+            self.cdf_index_ = np.arange(cdfs.shape[0], dtype=np.int64)
+        else:
+            km = KMeans(n_clusters=self.n_codewords, n_init=1, max_iter=100, random_state=_seed(rng))
+            self.cdf_index_ = km.fit_predict(cdfs.astype(np.float32)).astype(np.int64)
+            centres = km.cluster_centers_.astype(np.float64)
+            self.codebook_ = np.maximum.accumulate(np.clip(centres, 0.0, 1.0), axis=1)
+            self.codebook_[:, -1] = 1.0
+
+    # ------------------------------------------------------------------ sampling
+    @property
+    def n_cdfs_(self) -> int:
+        """F, the number of CDFs (independent components over all clusters)."""
+        check_is_fitted(self, "mixing_")
+        return int(self.n_components_.sum())
+
+    def _quantile_table(self):
+        """Inverse CDF of each codeword on a regular grid of probabilities, in [0, 1]."""
+        if getattr(self, "_quantiles", None) is None:
+            nb = self.codebook_.shape[1]
+            edges = np.linspace(0.0, 1.0, nb + 1)
+            grid = np.linspace(0.0, 1.0, QUANTILE_STEPS + 1)
+            cdf = np.hstack([np.zeros((len(self.codebook_), 1)), self.codebook_])
+            self._quantiles = np.vstack([np.interp(grid, c, edges) for c in cdf])
+        return self._quantiles
+
+    def sample_sources(self, n, *, rng=None):
+        """Draw clusters and matched independent components (steps i-iv).
+
+        Parameters
+        ----------
+        n : int
+        rng : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        labels : ndarray of int, shape (n,)
+            Cluster of each sample.
+        sources : list of ndarray
+            ``sources[i]`` has shape (count of label i, n_components_[i]): the samples
+            of cluster ``i`` in order of their position in ``labels``.
+        """
+        check_is_fitted(self, "mixing_")
+        rng = check_rng(rng)
+        n = int(n)
+        # (i) the interval representation: a uniform number picks the segment.
+        labels = np.minimum(np.searchsorted(np.cumsum(self.p_), rng.random(n), side="right"), len(self.p_) - 1)
+        table = self._quantile_table()
+        offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
+        sources = []
+        for i in range(len(self.p_)):
+            m = int(np.count_nonzero(labels == i))
+            comp = slice(offsets[i], offsets[i + 1])
+            s = self._match(rng.standard_normal((m, self.n_components_[i])), comp, table)
+            if self.reject_threshold is not None:
+                for _ in range(100):  # (iv) redraw samples with no value above the threshold
+                    bad = ~(s > self.reject_threshold).any(axis=1)
+                    if not bad.any():
+                        break
+                    s[bad] = self._match(rng.standard_normal((int(bad.sum()), s.shape[1])), comp, table)
+            sources.append(s)
+        return labels, sources
+
+    def _match(self, gauss, comp, table):
+        """(ii-iii) Map standard normals through Phi and each component's inverse CDF."""
+        u = ndtr(gauss) * QUANTILE_STEPS
+        lo = np.minimum(u.astype(np.int64), QUANTILE_STEPS - 1)
+        frac = u - lo
+        codes = self.cdf_index_[comp]
+        t = table[codes, lo] * (1.0 - frac) + table[codes, lo + 1] * frac
+        return self.cdf_min_[comp] + (self.cdf_max_[comp] - self.cdf_min_[comp]) * t
+
+    def sample(self, n, *, rng=None):
+        """Draw ``n`` new vectors ``z`` (steps i-v): shape (n, D_r)."""
+        labels, sources = self.sample_sources(n, rng=rng)
+        return self.mix(labels, sources)
+
+    def mix(self, labels, sources, *, mixing=None, means=None):
+        """(v) Inverse ICA and PCA: independent components -> vectors.
+
+        ``mixing`` and ``means`` default to :attr:`mixing_` and :attr:`means_`; a caller
+        may pass them already multiplied by a later linear map (one matrix product per
+        cluster then yields patches directly).
+        """
+        mixing = self.mixing_ if mixing is None else mixing
+        means = self.means_ if means is None else means
+        out = np.empty((len(labels), mixing.shape[1]))
+        offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
+        for i, s in enumerate(sources):
+            rows = labels == i
+            out[rows] = means[i] + s @ mixing[offsets[i]: offsets[i + 1]]
+        return out

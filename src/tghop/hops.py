@@ -1,0 +1,238 @@
+"""Stages 1..n: the hops, successive (channel-wise) Saab transforms on 2x2 blocks.
+
+Hop 1 is a joint Saab transform of each 2x2xC block (12 values for RGB). Every later hop
+is *channel-wise* (c/w Saab): each kept channel of the previous hop gets its own Saab
+transform of its 2x2 blocks (4 values), and the hop keeps a chosen number of channels in
+total over all parents. Each hop halves the spatial size: 32x32x3 -> 16x16xK1 -> 8x8xK2.
+
+Channel choice in a c/w hop: the DC child of every parent is always kept (paper, Fig. 5:
+"each group of channels is composed of one DC channel and several low-frequency AC
+channels"); the AC children of all parents compete by energy, the mean squared response,
+which is the squared error per block that dropping the channel would cost. The count
+rule therefore counts the DC children too, so ``K2 >= K1``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.utils.validation import check_is_fitted
+
+from ._common import TGHopError, report
+from .patches import depth_to_space, space_to_depth
+from .saab import Saab, check_channel_rule, select_channels
+
+__all__ = ["Hop", "HopStack"]
+
+
+class Hop(TransformerMixin, BaseEstimator):
+    """One hop: a (channel-wise) Saab transform of non-overlapping 2x2 blocks.
+
+    Parameters
+    ----------
+    n_channels : None, int, float or "knee", default=None
+        Output channels to keep (see :func:`tghop.saab.select_channels`); None keeps all,
+        which makes the hop exactly invertible.
+    channelwise : bool, default=False
+        False: one Saab transform of whole 2x2xC blocks (hop 1). True: one Saab transform
+        per input channel on its 2x2 blocks (hops 2, 3, ...).
+
+    Attributes
+    ----------
+    saabs_ : list of Saab
+        One transform (joint) or one per input channel (channel-wise).
+    kernels_ : ndarray, shape (K, 4 * C)
+        All kept kernels of the hop as one matrix (block-structured for a c/w hop), acting
+        on 2x2 blocks flattened as (row, column, channel).
+    bias_ : ndarray, shape (K,)
+        Bias of each output channel (zero for DC channels).
+    channels_ : ndarray of int, shape (K, 2)
+        For each output channel: (parent input channel, kernel index in that parent's
+        Saab transform; 0 is DC). Parent is 0 for a joint hop. Grouped by parent.
+    energy_ : ndarray, shape (K,)
+        Energy of each output channel.
+    n_channels_in_ : int
+    """
+
+    def __init__(self, n_channels=None, channelwise=False):
+        self.n_channels = n_channels
+        self.channelwise = channelwise
+
+    def fit(self, X, y=None):
+        """Learn the hop from ``X`` of shape (n, H, W, C), ``H`` and ``W`` even.
+
+        Returns
+        -------
+        self
+        """
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 4:
+            raise TGHopError(f"a hop takes an array (n, H, W, C), got shape {X.shape}")
+        rule = check_channel_rule(self.n_channels, "channels per hop")
+        c = self.n_channels_in_ = X.shape[3]
+        blocks = space_to_depth(X).reshape(-1, 4 * c)
+        mean, moment, max_sq = _block_statistics(blocks, 1 if self.channelwise else c)
+        if not self.channelwise:
+            saab = Saab(n_components=rule).fit_moments(mean, moment, max_sq[0])
+            self.saabs_ = [saab]
+            self.channels_ = np.column_stack([np.zeros_like(saab.channels_), saab.channels_])
+        else:
+            # Parent k's 2x2 block is at positions k, c + k, 2c + k, 3c + k of a block row.
+            self.saabs_ = [
+                Saab().fit_moments(mean[k::c], moment[k::c, k::c], max_sq[k]) for k in range(c)
+            ]
+            # Candidates: every AC child of every parent; DC children are always kept.
+            parent = np.repeat(np.arange(c), 3)
+            child = np.tile(np.arange(1, 4), c)
+            energy = np.concatenate([s.energy_[1:4] for s in self.saabs_])
+            chosen = select_channels(energy, rule, n_fixed=c)
+            for k, saab in enumerate(self.saabs_):
+                saab.keep([0] + child[chosen][parent[chosen] == k].tolist())
+            self.channels_ = np.array(
+                [(k, j) for k, s in enumerate(self.saabs_) for j in s.channels_], dtype=np.int64
+            )
+        self.energy_ = np.array([self.saabs_[k].energy_[j] for k, j in self.channels_])
+        self._build_matrix()
+        return self
+
+    def _build_matrix(self):
+        """One (K, 4C) kernel matrix and (K,) bias for the whole hop (block-diagonal if c/w)."""
+        c = self.n_channels_in_
+        if not self.channelwise:
+            self.kernels_ = self.saabs_[0].kernels_
+            self.bias_ = self.saabs_[0].bias_ * (self.channels_[:, 1] != 0)
+            return
+        kernels = np.zeros((len(self.channels_), 4 * c))
+        row = 0
+        for k, saab in enumerate(self.saabs_):
+            kept = saab.kernels_.shape[0]
+            kernels[row: row + kept, k::c] = saab.kernels_
+            row += kept
+        self.kernels_ = kernels
+        self.bias_ = np.array([self.saabs_[k].bias_ * (j != 0) for k, j in self.channels_])
+
+    @property
+    def n_channels_out_(self) -> int:
+        """Number of output channels K."""
+        check_is_fitted(self, "channels_")
+        return len(self.channels_)
+
+    def transform(self, X):
+        """``(n, H, W, C)`` -> ``(n, H/2, W/2, K)``."""
+        check_is_fitted(self, "kernels_")
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 4 or X.shape[3] != self.n_channels_in_:
+            raise TGHopError(f"this hop takes (n, H, W, {self.n_channels_in_}) arrays, got shape {X.shape}")
+        blocks = space_to_depth(X)
+        return blocks @ self.kernels_.T + self.bias_
+
+    def inverse_transform(self, Y):
+        """``(n, h, w, K)`` -> ``(n, 2h, 2w, C)``; discarded channels are zero."""
+        check_is_fitted(self, "kernels_")
+        Y = np.asarray(Y, dtype=np.float64)
+        if Y.ndim != 4 or Y.shape[3] != self.n_channels_out_:
+            raise TGHopError(f"this hop inverts (n, h, w, {self.n_channels_out_}) arrays, got shape {Y.shape}")
+        return depth_to_space((Y - self.bias_) @ self.kernels_)
+
+
+def _block_statistics(blocks, group, chunk=1 << 18):
+    """Mean, second moment and the largest squared norm per channel group, in one pass.
+
+    Parameters
+    ----------
+    blocks : ndarray, shape (m, 4 * C)
+    group : int
+        1 for per-channel norms (c/w hops: norm of each channel's 4 values), ``C`` for
+        the norm of the whole block (joint hop).
+
+    Returns
+    -------
+    mean : (4C,), moment : (4C, 4C), max_sq : (C // group,)
+    """
+    m, d = blocks.shape
+    c = d // 4
+    total = np.zeros(d)
+    moment = np.zeros((d, d))
+    max_sq = np.zeros(c // group)
+    for start in range(0, m, chunk):
+        b = blocks[start: start + chunk]
+        total += b.sum(axis=0)
+        moment += b.T @ b
+        sq = (b * b).reshape(-1, 4, c // group, group).sum(axis=(1, 3))
+        np.maximum(max_sq, sq.max(axis=0), out=max_sq)
+    return total / m, moment / m, max_sq
+
+
+class HopStack(TransformerMixin, BaseEstimator):
+    """Successive hops from patches (S0) to the core (Sn).
+
+    Parameters
+    ----------
+    n_channels : sequence of (None, int, float or "knee")
+        One rule per hop, e.g. the paper's ``(9, 22)`` for 32x32 patches (K1, K2). Hop 1
+        is joint, the others channel-wise. Each hop halves the patch side.
+
+    Attributes
+    ----------
+    hops_ : list of Hop
+    dims_ : list of int
+        Dimension of each space: ``[D0, D1, ..., Dn]``.
+    """
+
+    def __init__(self, n_channels=(9, 22)):
+        self.n_channels = n_channels
+
+    def fit(self, X, y=None, *, progress=None):
+        """Learn every hop from patches ``X`` of shape (n, P, P, C).
+
+        ``progress(stage, done, total)`` is called once per hop.
+
+        Returns
+        -------
+        self
+        """
+        X = np.asarray(X, dtype=np.float64)
+        rules = list(self.n_channels)
+        side = X.shape[1]
+        if X.ndim != 4 or side % (2 ** len(rules)) or X.shape[2] != side:
+            raise TGHopError(
+                f"{len(rules)} hops need square patches whose side is divisible by {2 ** len(rules)}, "
+                f"got shape {X.shape[1:]}"
+            )
+        self.hops_ = []
+        self.dims_ = [int(np.prod(X.shape[1:]))]
+        for i, rule in enumerate(rules):
+            report(progress, f"hop {i + 1}", 0, 1)
+            hop = Hop(n_channels=rule, channelwise=i > 0).fit(X)
+            X = hop.transform(X)
+            self.hops_.append(hop)
+            self.dims_.append(int(np.prod(X.shape[1:])))
+            report(progress, f"hop {i + 1}", 1, 1)
+        self._fit_output_ = X  # the core responses of the training patches, reused by fit_transform
+        return self
+
+    def fit_transform(self, X, y=None, *, progress=None):
+        """Fit and return the core responses ``(n, P / 2**n, P / 2**n, Kn)``."""
+        self.fit(X, progress=progress)
+        out = self._fit_output_
+        del self._fit_output_
+        return out
+
+    def transform(self, X, *, return_all=False):
+        """Patches ``(n, P, P, C)`` -> core ``(n, p, p, Kn)`` (or every space with ``return_all``)."""
+        check_is_fitted(self, "hops_")
+        spaces = [np.asarray(X, dtype=np.float64)]
+        for hop in self.hops_:
+            spaces.append(hop.transform(spaces[-1]))
+        return spaces if return_all else spaces[-1]
+
+    def inverse_transform(self, Y, *, return_all=False):
+        """Core ``(n, p, p, Kn)`` -> patches ``(n, P, P, C)``.
+
+        With ``return_all``, the list ``[Sn, ..., S1, S0]`` of every intermediate space.
+        """
+        check_is_fitted(self, "hops_")
+        spaces = [np.asarray(Y, dtype=np.float64)]
+        for hop in reversed(self.hops_):
+            spaces.append(hop.inverse_transform(spaces[-1]))
+        return spaces if return_all else spaces[-1]

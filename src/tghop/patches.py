@@ -1,0 +1,113 @@
+"""Stage 0: source patches, and the 2x2 block reshaping every hop uses.
+
+The data flow of tghop: ``patches`` -> ``hops`` (``saab``) -> ``core`` -> back through
+``hops`` -> ``quilting``; :mod:`tghop.synthesis` drives it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from ._common import TGHopError, check_image, check_rng
+
+__all__ = ["extract_patches", "count_patches", "space_to_depth", "depth_to_space", "patch_grid"]
+
+
+def count_patches(shape, patch_size: int, stride: int) -> int:
+    """Number of ``patch_size`` patches at ``stride`` in an image of ``shape`` (H, W, ...)."""
+    h, w = shape[:2]
+    return ((h - patch_size) // stride + 1) * ((w - patch_size) // stride + 1)
+
+
+def extract_patches(image, patch_size: int = 32, *, stride: int = 2, max_patches=None, rng=None) -> np.ndarray:
+    """All ``patch_size`` x ``patch_size`` patches of an image at a given stride.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, C)
+        Float in [0, 1], ``H, W >= patch_size``.
+    patch_size : int
+        Side of the square patches (paper: 32).
+    stride : int
+        Step between patch origins (paper: 2, giving 113 x 113 = 12,769 patches of a
+        256 x 256 exemplar).
+    max_patches : int, optional
+        If there are more patches than this, a random subset of this size is returned
+        (in raster order), drawn with ``rng``. Bounds memory for large exemplars.
+    rng : int or numpy.random.Generator, optional
+
+    Returns
+    -------
+    ndarray, shape (n, patch_size, patch_size, C), float64
+        Raster order of the patch origins.
+    """
+    if int(patch_size) < 2 or int(stride) < 1:
+        raise TGHopError(f"patch_size must be >= 2 and stride >= 1, got {patch_size} and {stride}")
+    img = check_image(image, min_size=patch_size)
+    windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))[::stride, ::stride]
+    # windows: (nh, nw, C, P, P) -> (n, P, P, C)
+    nh, nw, c = windows.shape[:3]
+    index = np.arange(nh * nw)
+    if max_patches is not None and index.size > int(max_patches):
+        index = np.sort(check_rng(rng).choice(index.size, size=int(max_patches), replace=False))
+    rows, cols = np.divmod(index, nw)
+    return np.ascontiguousarray(windows[rows, cols].transpose(0, 2, 3, 1))
+
+
+def space_to_depth(x: np.ndarray, block: int = 2) -> np.ndarray:
+    """Split each image into non-overlapping ``block`` x ``block`` blocks, flattened into channels.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, H, W, C)
+        ``H`` and ``W`` divisible by ``block``.
+
+    Returns
+    -------
+    ndarray, shape (n, H // block, W // block, block * block * C)
+        The last axis is ordered (row in block, column in block, channel).
+    """
+    n, h, w, c = x.shape
+    if h % block or w % block:
+        raise TGHopError(f"spatial size {h}x{w} is not divisible by the block size {block}")
+    y = x.reshape(n, h // block, block, w // block, block, c).transpose(0, 1, 3, 2, 4, 5)
+    return y.reshape(n, h // block, w // block, block * block * c)
+
+
+def depth_to_space(y: np.ndarray, block: int = 2) -> np.ndarray:
+    """Inverse of :func:`space_to_depth`: ``(n, h, w, b*b*C)`` -> ``(n, h*b, w*b, C)``."""
+    n, h, w, d = y.shape
+    c = d // (block * block)
+    x = y.reshape(n, h, w, block, block, c).transpose(0, 1, 3, 2, 4, 5)
+    return x.reshape(n, h * block, w * block, c)
+
+
+def patch_grid(patches, *, n_cols=None, gap: int = 2, background: float = 1.0) -> np.ndarray:
+    """Lay patches out in a grid image (for looking at generated samples).
+
+    Parameters
+    ----------
+    patches : ndarray, shape (n, P, P, C) or (n, P, P)
+    n_cols : int, optional
+        Columns of the grid; default about sqrt(n).
+    gap : int
+        Pixels between patches.
+    background : float
+        Grey level of the gaps.
+
+    Returns
+    -------
+    ndarray, shape (rows*(P+gap)-gap, n_cols*(P+gap)-gap, C)
+    """
+    p = np.asarray(patches, dtype=np.float64)
+    if p.ndim == 3:
+        p = p[..., None]
+    n, ph, pw, c = p.shape
+    n_cols = int(n_cols or max(1, int(np.ceil(np.sqrt(n)))))
+    n_rows = int(np.ceil(n / n_cols))
+    out = np.full((n_rows * (ph + gap) - gap, n_cols * (pw + gap) - gap, c), background)
+    for i in range(n):  # one copy per patch, for display only
+        r, q = divmod(i, n_cols)
+        out[r * (ph + gap): r * (ph + gap) + ph, q * (pw + gap): q * (pw + gap) + pw] = p[i]
+    return out

@@ -1,0 +1,378 @@
+"""TGHop end to end: fit one exemplar, generate patches, synthesize images.
+
+The data flows one way::
+
+    exemplar --patches--> S0 --hops--> S1 --> ... --> Sn (core)
+             --core.SpatialReduction--> z --core.ICHM--> p(z)
+
+and back for generation::
+
+    ICHM.sample -> z -> inverse SDR -> inverse hops -> patches --quilting--> image
+
+Example
+-------
+>>> from tghop import TGHop, data
+>>> model = TGHop(rng=0).fit(data.bricks())                     # doctest: +SKIP
+>>> image = model.synthesize((512, 512), rng=7)                 # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
+
+from ._common import TGHopError, check_image, check_rng, report
+from .core import ICHM, SpatialReduction
+from .hops import HopStack
+from .patches import extract_patches
+from .quilting import quilt
+
+__all__ = ["TGHop", "default_channels", "PAPER_TABLE4"]
+
+#: The paper's Table 4 setting (brick_wall): K1=9, K2=22, gamma=0.01, N=50, W=200.
+PAPER_TABLE4 = dict(patch_size=32, n_channels=(9, 22), gamma=0.01, n_clusters=50, n_codewords=200)
+
+#: Pool of generated patches quilted into one image (paper: 5,000-10,000).
+DEFAULT_POOL = 10_000
+
+
+def default_channels(patch_size: int):
+    """Channels kept per hop when none are given: the paper's K1=9, K2=22 for 32x32
+    patches; for 64x64 patches a third hop keeps 40 channels (our choice: the paper gives
+    no K3). The core is then 8x8 spatially in both cases."""
+    if patch_size == 32:
+        return (9, 22)
+    if patch_size == 64:
+        return (9, 22, 40)
+    raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
+
+
+class TGHop(BaseEstimator):
+    """Texture generation by successive subspace learning (Lei, Zhao, Zhang, Kuo 2021).
+
+    Parameters
+    ----------
+    patch_size : int, default=32
+        Side of the generated patches (paper: 32; 64 with three hops).
+    stride : int, default=2
+        Step between training patches (paper: 2).
+    n_channels : sequence or None, default=None
+        Channels kept per hop, e.g. ``(9, 22)`` for (K1, K2); each entry an int (a count,
+        DC included), a float in (0, 1] (a fraction of the AC energy), or "knee" (the
+        knee of the energy curve, texture-dependent). None: :func:`default_channels`.
+    gamma : float, default=0.01
+        SDR threshold on the variance of spatial PCA components (absolute, for images in
+        [0, 1]; reproduces the paper's Table 5 D_r values on brick_wall).
+    gamma_mode : {"absolute", "relative"}, default="absolute"
+    n_clusters : int, default=50
+        N, K-means clusters in ICHM.
+    n_codewords : int, default=200
+        W, size of the CDF codebook.
+    n_bins : int, default=256
+        Histogram bins per CDF.
+    cluster_energy : float, default=0.95
+        Variance fraction each cluster's PCA keeps before FastICA.
+    max_cluster_components : int, default=50
+        Cap on components per cluster (gives the paper's F of about 2,500 for N=50).
+    min_cluster_size : int, default=10
+    reject_threshold : float or None, default=None
+        Sampling step (iv), off by default.
+    max_patches : int or None, default=20000
+        Training patches beyond this are subsampled at random (bounds memory for large
+        exemplars; a 256x256 exemplar at stride 2 has 12,769).
+    rng : int or numpy.random.Generator, optional
+        Randomness of fitting (patch subsampling, K-means, FastICA).
+
+    Attributes
+    ----------
+    hops_ : HopStack
+    sdr_ : SpatialReduction
+    ichm_ : ICHM
+    exemplar_shape_ : tuple
+    n_patches_ : int
+        Training patches used.
+    """
+
+    def __init__(
+        self,
+        patch_size=32,
+        stride=2,
+        n_channels=None,
+        gamma=0.01,
+        gamma_mode="absolute",
+        n_clusters=50,
+        n_codewords=200,
+        n_bins=256,
+        cluster_energy=0.95,
+        max_cluster_components=50,
+        min_cluster_size=10,
+        reject_threshold=None,
+        max_patches=20000,
+        rng=None,
+    ):
+        self.patch_size = patch_size
+        self.stride = stride
+        self.n_channels = n_channels
+        self.gamma = gamma
+        self.gamma_mode = gamma_mode
+        self.n_clusters = n_clusters
+        self.n_codewords = n_codewords
+        self.n_bins = n_bins
+        self.cluster_energy = cluster_energy
+        self.max_cluster_components = max_cluster_components
+        self.min_cluster_size = min_cluster_size
+        self.reject_threshold = reject_threshold
+        self.max_patches = max_patches
+        self.rng = rng
+
+    # ---------------------------------------------------------------- fitting
+    def _channel_rules(self):
+        for name in ("patch_size", "stride"):
+            value = getattr(self, name)
+            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 1:
+                raise TGHopError(f"{name} must be a positive integer, got {value!r}")
+        rules = default_channels(self.patch_size) if self.n_channels is None else tuple(self.n_channels)
+        if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
+            raise TGHopError(
+                f"{len(rules)} hops need a patch size divisible by {2 ** len(rules)} leaving a core of at "
+                f"least 2x2, got patch_size={self.patch_size}"
+            )
+        return rules
+
+    def fit(self, image, y=None, *, progress=None):
+        """Learn the model from one exemplar.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, C)
+            Float in [0, 1] (or uint8), ``H, W >= patch_size``; C is 1 or 3.
+        progress : callable, optional
+            ``progress(stage, done, total)``; stages "patches", "hop 1", "hop 2", ...,
+            "SDR", "clusters", "ICA", "CDF codebook".
+
+        Returns
+        -------
+        self
+        """
+        rules = self._channel_rules()
+        rng = check_rng(self.rng)
+        image = check_image(image, min_size=self.patch_size, name="exemplar")
+        ichm = ICHM(
+            n_clusters=self.n_clusters,
+            n_codewords=self.n_codewords,
+            n_bins=self.n_bins,
+            cluster_energy=self.cluster_energy,
+            max_cluster_components=self.max_cluster_components,
+            min_cluster_size=self.min_cluster_size,
+            reject_threshold=self.reject_threshold,
+            rng=rng,
+        )
+        sdr = SpatialReduction(gamma=self.gamma, gamma_mode=self.gamma_mode)
+        report(progress, "patches", 0, 1)
+        patches = extract_patches(
+            image, self.patch_size, stride=self.stride, max_patches=self.max_patches, rng=rng
+        )
+        ichm._check_params(patches.shape[0])  # fail before the expensive stages
+        report(progress, "patches", 1, 1)
+        self.exemplar_shape_ = image.shape
+        self.n_patches_ = patches.shape[0]
+        self.hops_ = HopStack(n_channels=rules)
+        core = self.hops_.fit_transform(patches, progress=progress)
+        del patches
+        report(progress, "SDR", 0, 1)
+        z = sdr.fit_transform(core)
+        self.sdr_ = sdr
+        report(progress, "SDR", 1, 1)
+        del core
+        self.ichm_ = ichm.fit(z, progress=progress)
+        self._decoder = None
+        return self
+
+    # ------------------------------------------------------------- dimensions
+    @property
+    def dims_(self) -> dict:
+        """Dimensions of every space: D0, D1, ..., Dn, D_r, and N, F, W of the core model."""
+        check_is_fitted(self, "ichm_")
+        out = {f"D{i}": d for i, d in enumerate(self.hops_.dims_)}
+        out.update(
+            D_r=self.sdr_.n_components_,
+            N=len(self.ichm_.p_),
+            F=self.ichm_.n_cdfs_,
+            W=self.ichm_.codebook_.shape[0],
+        )
+        return out
+
+    @property
+    def channels_(self) -> list:
+        """Kept channels per hop (K1, K2, ...)."""
+        check_is_fitted(self, "hops_")
+        return [hop.n_channels_out_ for hop in self.hops_.hops_]
+
+    def n_parameters(self) -> dict:
+        """Parameter count broken down as in the paper's Table 4.
+
+        Returns
+        -------
+        dict
+            ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
+            "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
+            "(ii)", "(iii)", and "total". "paper" applies the paper's formula to this
+            model's dimensions; "stored" counts the numbers this model actually stores
+            (the arrays of its model file, index bookkeeping excluded). They differ where
+            the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
+            channel is one 4-tap kernel; the paper writes ``4 K1 K2 + K1``), SDR also
+            stores each channel's mean map (``64 K2``), and ICHM (ii) also stores each
+            cluster's mean (``N D_r``).
+        """
+        from .modelfile import model_arrays, parameter_groups  # no cycle at import time
+
+        d = self.dims_
+        k = self.channels_
+        c_in = self.exemplar_shape_[2]
+        k1, d_r, n, f, w = k[0], d["D_r"], d["N"], d["F"], d["W"]
+        k_rest = sum(k[1:])
+        nb = self.ichm_.codebook_.shape[1]
+        block = (self.sdr_.shape_[0] * self.sdr_.shape_[1])
+        paper = {
+            "transform stage 1": (f"{4 * c_in}*K1 + 1", 4 * c_in * k1 + 1),
+            "transform stage 2": ("4*K1*K2 + K1", 4 * k1 * k_rest + k1 if len(k) == 2 else
+                                  sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
+            "core SDR": (f"{block}*D_r", block * d_r),
+            "core ICHM (i)": ("N", n),
+            "core ICHM (ii)": ("F*D_r", f * d_r),
+            "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
+        }
+        stored = parameter_groups(model_arrays(self))
+        out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
+        out["total"] = {
+            "formula": "sum",
+            "paper": sum(v["paper"] for v in out.values()),
+            "stored": sum(v["stored"] for v in out.values()),
+        }
+        return out
+
+    # ------------------------------------------------------------- generation
+    def _check_n(self, n, name="n"):
+        if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 1:
+            raise TGHopError(f"{name} must be a positive integer, got {n!r}")
+        if n > 10_000_000:
+            raise TGHopError(f"{name}={n} is too many; generate at most 10,000,000 patches per call")
+        return int(n)
+
+    def decode(self, z, *, return_stages=False):
+        """Core-model vectors ``z`` (n, D_r) -> patches (n, P, P, C), clipped to [0, 1].
+
+        With ``return_stages``, also the list of spaces ``[Sn, ..., S1, S0]`` before
+        clipping (the inverse c/w Saab path of the paper, section IV.D).
+        """
+        check_is_fitted(self, "ichm_")
+        spaces = self.hops_.inverse_transform(self.sdr_.inverse_transform(z), return_all=True)
+        patches = np.clip(spaces[-1], 0.0, 1.0)
+        return (patches, spaces) if return_stages else patches
+
+    def _affine_decoder(self):
+        """The generation path from ICHM sources to pixels is affine; fold it per cluster.
+
+        Returns ``(mixing, means)`` so that a cluster-``i`` sample with components ``s``
+        is the patch ``means[i] + s @ mixing[rows of i]`` (flattened), exactly what the
+        step-by-step inverse gives, at one matrix product per cluster.
+        """
+        if getattr(self, "_decoder", None) is None:
+            d_r = self.sdr_.n_components_
+            origin = self.hops_.inverse_transform(self.sdr_.inverse_transform(np.zeros((1, d_r))))
+            basis = self.hops_.inverse_transform(self.sdr_.inverse_transform(np.eye(d_r)))
+            shift = origin.reshape(1, -1)
+            linear = basis.reshape(d_r, -1) - shift
+            self._decoder = (self.ichm_.mixing_ @ linear, self.ichm_.means_ @ linear + shift)
+        return self._decoder
+
+    def sample_patches(self, n, *, rng=None, return_stages=False):
+        """Generate new patches.
+
+        Parameters
+        ----------
+        n : int
+        rng : int or numpy.random.Generator, optional
+            Same seed, same patches (on the same machine).
+        return_stages : bool
+            Also return the stage views of the paper's Fig. 6 (see :meth:`stage_views`).
+
+        Returns
+        -------
+        patches : ndarray, shape (n, P, P, C), float64 in [0, 1]
+        stages : dict, only with ``return_stages``
+        """
+        check_is_fitted(self, "ichm_")
+        n = self._check_n(n)
+        labels, sources = self.ichm_.sample_sources(n, rng=rng)
+        if return_stages:
+            patches, spaces = self.decode(self.ichm_.mix(labels, sources), return_stages=True)
+            return patches, self.stage_views(spaces)
+        shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
+        if n > self.ichm_.n_cdfs_:  # folding the decoder pays off for large batches
+            mixing, means = self._affine_decoder()
+            flat = self.ichm_.mix(labels, sources, mixing=mixing, means=means)
+            return np.clip(flat.reshape(shape), 0.0, 1.0)
+        return self.decode(self.ichm_.mix(labels, sources))
+
+    def stage_views(self, spaces):
+        """The three views of the paper's Fig. 6 for generated samples.
+
+        Parameters
+        ----------
+        spaces : list of ndarray
+            ``[Sn, ..., S1, S0]`` as returned by :meth:`decode` with ``return_stages``.
+
+        Returns
+        -------
+        dict of ndarray
+            ``"core_dc"`` (n, h, w): the DC map in the core (the channel that descends
+            from the DC of every hop, a grey low-resolution pattern); ``"S1_dc"`` (n, 2h,
+            2w) etc.: the DC map in each intermediate space; ``"S0"`` (n, P, P, C): the
+            patch. DC maps are divided by their DC gain, so they are in pixel units.
+        """
+        views = {}
+        n_hops = len(self.hops_.hops_)
+        c_in = self.exemplar_shape_[2]
+        for level, space in zip(range(n_hops, 0, -1), spaces[:-1]):
+            # DC channel of the hop: index 0 (DC is kept first in every group).
+            gain = np.sqrt(4.0 ** level * c_in)  # a DC kernel has entries 1/sqrt(block size)
+            name = "core_dc" if level == n_hops else f"S{level}_dc"
+            views[name] = space[..., 0] / gain
+        views["S0"] = np.clip(spaces[-1], 0.0, 1.0)
+        return views
+
+    def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
+                   tolerance=0.1, progress=None):
+        """Generate a texture image of any size: a patch pool quilted together.
+
+        Parameters
+        ----------
+        size : (int, int)
+            Output (height, width).
+        rng : int or numpy.random.Generator, optional
+        n_patches : int
+            Pool size (paper: 5,000-10,000).
+        tile : bool
+            Make the output wrap around seamlessly.
+        overlap : int, optional
+            Quilting overlap (default ``patch_size // 6``).
+        tolerance : float
+            Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
+        progress : callable, optional
+            Stages "patch pool" and "quilting".
+
+        Returns
+        -------
+        ndarray, shape (H, W, C), float64 in [0, 1]
+        """
+        check_is_fitted(self, "ichm_")
+        rng = check_rng(rng)
+        n_patches = self._check_n(n_patches, "n_patches")
+        report(progress, "patch pool", 0, 1)
+        pool = self.sample_patches(n_patches, rng=rng)
+        report(progress, "patch pool", 1, 1)
+        return quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
