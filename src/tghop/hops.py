@@ -70,6 +70,16 @@ class Hop(TransformerMixin, BaseEstimator):
             raise TGHopError(f"a hop takes an array (n, H, W, C), got shape {X.shape}")
         rule = check_channel_rule(self.n_channels, "channels per hop")
         c = self.n_channels_in_ = X.shape[3]
+        if isinstance(rule, int) and rule > 4 * c:
+            raise TGHopError(
+                f"a hop on {c} input channels has at most {4 * c} channels, {rule} were asked for; "
+                f"choose at most {4 * c}"
+            )
+        if isinstance(rule, int) and self.channelwise and rule < c:
+            raise TGHopError(
+                f"a channel-wise hop on {c} channels keeps at least {c} (one DC child each), "
+                f"{rule} were asked for; choose at least {c}"
+            )
         blocks = space_to_depth(X).reshape(-1, 4 * c)
         mean, moment, max_sq = _block_statistics(blocks, 1 if self.channelwise else c)
         if not self.channelwise:
@@ -203,7 +213,10 @@ class HopStack(TransformerMixin, BaseEstimator):
         self.dims_ = [int(np.prod(X.shape[1:]))]
         for i, rule in enumerate(rules):
             report(progress, f"hop {i + 1}", 0, 1)
-            hop = Hop(n_channels=rule, channelwise=i > 0).fit(X)
+            try:
+                hop = Hop(n_channels=rule, channelwise=i > 0).fit(X)
+            except TGHopError as exc:
+                raise TGHopError(f"K{i + 1}: {exc}") from None
             X = hop.transform(X)
             self.hops_.append(hop)
             self.dims_.append(int(np.prod(X.shape[1:])))

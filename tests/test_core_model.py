@@ -1,0 +1,241 @@
+import json
+import zipfile
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from tghop import ModelFileError, NotFittedError, TGHopError
+from tghop.core import ICHM, SpatialReduction, fast_ica
+from tghop.modelfile import FORMAT_VERSION, load_model, save_model
+from tghop.synthesis import TGHop
+
+from conftest import SMALL
+
+
+def test_sdr_gamma_and_exact_inverse(small_model, bricks96, rng):
+    from tghop.patches import extract_patches
+
+    core = small_model.hops_.transform(extract_patches(bricks96, 32, stride=2))
+    full = SpatialReduction(gamma=0).fit(core)
+    assert full.n_components_ == 8 * 8 * 22
+    np.testing.assert_allclose(full.inverse_transform(full.transform(core)), core, atol=1e-9)
+    reduced = SpatialReduction(gamma=0.01).fit(core)
+    assert 0 < reduced.n_components_ < full.n_components_
+    assert np.all(reduced.explained_variance_ >= 0.01)
+    with pytest.raises(TGHopError, match="smaller gamma"):
+        SpatialReduction(gamma=1e9).fit(core)
+    with pytest.raises(TGHopError):
+        SpatialReduction(gamma=-1).fit(core)
+
+
+def test_fast_ica_recovers_independent_sources():
+    r = np.random.default_rng(0)
+    s = np.column_stack([r.uniform(-1, 1, 4000), r.laplace(size=4000), np.sign(r.standard_normal(4000))])
+    x = s @ r.standard_normal((3, 3))
+    x -= x.mean(0)
+    vals, vecs = np.linalg.eigh(np.cov(x.T))
+    white = x @ vecs / np.sqrt(vals)
+    unmix, converged = fast_ica(white, rng=0)
+    assert converged
+    est = white @ unmix.T
+    corr = np.abs(np.corrcoef(est.T, s.T)[:3, 3:])
+    assert np.all(corr.max(axis=1) > 0.98)
+
+
+@pytest.fixture(scope="module")
+def ichm_fit():
+    r = np.random.default_rng(3)
+    # Two well separated clusters with skewed, independent coordinates.
+    a = r.exponential(size=(3000, 6))
+    b = 20 + r.uniform(-1, 1, size=(2000, 6)) @ r.standard_normal((6, 6))
+    z = np.vstack([a, b])
+    return z, ICHM(n_clusters=2, n_codewords=500, cluster_energy=1.0, rng=0).fit(z)
+
+
+def test_ichm_interval_representation(ichm_fit):
+    z, model = ichm_fit
+    assert sorted(np.round(model.p_, 2).tolist()) == [0.4, 0.6]
+    labels, _ = model.sample_sources(20000, rng=1)
+    freq = np.bincount(labels, minlength=2) / 20000
+    np.testing.assert_allclose(freq, model.p_, atol=0.015)
+
+
+def test_ichm_sampled_components_follow_fitted_cdfs(ichm_fit):
+    """KS test: each matched component follows its (quantised) fitted CDF."""
+    _, model = ichm_fit
+    labels, sources = model.sample_sources(30000, rng=2)
+    offsets = np.concatenate([[0], np.cumsum(model.n_components_)])
+    edges = np.linspace(0, 1, model.n_bins + 1)
+    for i, s in enumerate(sources):
+        for j in range(s.shape[1]):
+            f = offsets[i] + j
+            cdf_vals = np.concatenate([[0], model.codebook_[model.cdf_index_[f]]])
+            lo, hi = model.cdf_min_[f], model.cdf_max_[f]
+            fitted = lambda x: np.interp((x - lo) / (hi - lo), edges, cdf_vals)  # noqa: E731
+            result = stats.kstest(s[:, j], fitted)
+            assert result.statistic < 0.02, (i, j, result)
+            assert lo - 1e-12 <= s[:, j].min() and s[:, j].max() <= hi + 1e-12
+
+
+def test_ichm_samples_match_training_moments(ichm_fit):
+    z, model = ichm_fit
+    sample = model.sample(20000, rng=4)
+    np.testing.assert_allclose(sample.mean(0), z.mean(0), atol=0.15)
+    np.testing.assert_allclose(sample.std(0), z.std(0), rtol=0.1)
+
+
+def test_ichm_reject_threshold(ichm_fit):
+    _, model = ichm_fit
+    model.set_params(reject_threshold=1.0)
+    try:
+        _, sources = model.sample_sources(2000, rng=5)
+    finally:
+        model.set_params(reject_threshold=None)
+    for s in sources:
+        assert np.all((s > 1.0).any(axis=1))
+
+
+def test_ichm_bad_params():
+    z = np.random.default_rng(0).random((100, 4))
+    with pytest.raises(TGHopError, match="lower N"):
+        ICHM(n_clusters=50).fit(z)
+    with pytest.raises(TGHopError, match="n_clusters"):
+        ICHM(n_clusters=0).fit(z)
+
+
+def test_same_seed_same_patches_different_seed_different(small_model):
+    a = small_model.sample_patches(300, rng=7)
+    b = small_model.sample_patches(300, rng=7)
+    c = small_model.sample_patches(300, rng=8)
+    assert a.shape == (300, 32, 32, 3) and a.min() >= 0 and a.max() <= 1
+    assert np.array_equal(a, b)
+    assert not np.allclose(a, c)
+
+
+def test_folded_decoder_equals_stepwise_inverse(small_model):
+    # Large batches go through the folded affine decoder; it must equal the paper's path.
+    n = small_model.ichm_.n_cdfs_ + 5
+    fast = small_model.sample_patches(n, rng=11)
+    labels, sources = small_model.ichm_.sample_sources(n, rng=11)
+    slow = small_model.decode(small_model.ichm_.mix(labels, sources))
+    np.testing.assert_allclose(fast, slow, atol=1e-9)
+
+
+def test_fit_deterministic(bricks96):
+    a = TGHop(**SMALL).fit(bricks96).sample_patches(20, rng=0)
+    b = TGHop(**SMALL).fit(bricks96).sample_patches(20, rng=0)
+    assert np.array_equal(a, b)
+
+
+def test_stage_views(small_model):
+    patches, views = small_model.sample_patches(5, rng=1, return_stages=True)
+    assert views["core_dc"].shape == (5, 8, 8)
+    assert views["S1_dc"].shape == (5, 16, 16)
+    assert np.array_equal(views["S0"], patches)
+    # The core DC map is the 4x4-block mean luminance of the patch (in pixel units).
+    mean4 = patches.reshape(5, 8, 4, 8, 4, 3).mean(axis=(2, 4, 5))
+    np.testing.assert_allclose(views["core_dc"], mean4, atol=0.05)
+
+
+def test_grey_exemplar(bricks96):
+    grey = bricks96.mean(axis=2)
+    m = TGHop(**{**SMALL, "n_channels": (4, 10)}).fit(grey)
+    p = m.sample_patches(10, rng=0)
+    assert p.shape == (10, 32, 32, 1)
+
+
+def test_three_hops_for_64_patches():
+    from tghop.data import bricks
+
+    m = TGHop(patch_size=64, stride=8, n_clusters=4, n_codewords=20, rng=0).fit(bricks(128))
+    assert m.dims_["D0"] == 64 * 64 * 3 and m.dims_["D3"] == 8 * 8 * 40
+    assert m.sample_patches(3, rng=0).shape == (3, 64, 64, 3)
+
+
+def test_not_fitted():
+    with pytest.raises(NotFittedError):
+        TGHop().sample_patches(3)
+
+
+def test_bad_settings(bricks96):
+    with pytest.raises(TGHopError, match="at least 32x32"):
+        TGHop().fit(bricks96[:20])
+    with pytest.raises(TGHopError, match="patch_size must be 32 or 64"):
+        TGHop(patch_size=48).fit(bricks96)
+    with pytest.raises(TGHopError, match="divisible by 8"):
+        TGHop(patch_size=36, n_channels=(9, 22, 30)).fit(bricks96)
+    with pytest.raises(TGHopError, match="K1"):
+        TGHop(**{**SMALL, "n_channels": (0, 22)}).fit(bricks96)
+
+
+# ------------------------------------------------------------------ model file
+def test_save_load_identical_output(small_model, tmp_path):
+    path = tmp_path / "any.name"
+    save_model(small_model, path)
+    loaded = load_model(path)
+    for n in (10, small_model.ichm_.n_cdfs_ + 10):  # both generation paths
+        assert np.array_equal(loaded.sample_patches(n, rng=3), small_model.sample_patches(n, rng=3))
+    assert loaded.dims_ == small_model.dims_
+    assert loaded.n_parameters() == small_model.n_parameters()
+    with zipfile.ZipFile(path) as zf:  # arrays plus JSON, no pickled objects
+        assert all(name.endswith(".npy") for name in zf.namelist())
+
+
+def test_parameter_count_matches_stored_arrays(small_model, tmp_path):
+    path = tmp_path / "m.npz"
+    save_model(small_model, path)
+    counts = small_model.n_parameters()
+    with np.load(path, allow_pickle=False) as f:
+        sizes = {name: f[name].size for name in f.files if name != "__meta__"}
+    assert counts["total"]["stored"] == sum(v for k, v in sizes.items() if not k.startswith("index."))
+    d, (k1, k2) = small_model.dims_, small_model.channels_
+    f_, n, w = d["F"], d["N"], d["W"]
+    # Rows where the paper's formula is exactly what is stored.
+    assert counts["transform stage 1"]["paper"] == counts["transform stage 1"]["stored"] == 12 * k1 + 1
+    assert counts["core ICHM (i)"]["stored"] == n
+    assert counts["core ICHM (iii)"]["paper"] == counts["core ICHM (iii)"]["stored"] == 3 * f_ + 256 * w
+    # Documented differences: compact c/w kernels, SDR channel means, cluster means.
+    assert counts["transform stage 2"] == {"formula": "4*K1*K2 + K1", "paper": 4 * k1 * k2 + k1, "stored": 4 * k2 + k1}
+    assert counts["core SDR"]["stored"] == 64 * d["D_r"] + 64 * k2
+    assert counts["core ICHM (ii)"]["stored"] == f_ * d["D_r"] + n * d["D_r"]
+
+
+def test_paper_table4_formula():
+    # Table 4 with the paper's own numbers: K1=9, K2=22, D_r=909, N=50, F=2518, W=200.
+    k1, k2, d_r, n, f, w = 9, 22, 909, 50, 2518, 200
+    total = (12 * k1 + 1) + (4 * k1 * k2 + k1) + 64 * d_r + n + f * d_r + 3 * f + 256 * w
+    assert total == 2_406_752
+
+
+def _write_npz(path, **arrays):
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def test_load_errors(small_model, tmp_path):
+    with pytest.raises(ModelFileError, match="no such model file"):
+        load_model(tmp_path / "missing.npz")
+    (tmp_path / "text.npz").write_text("hello")
+    with pytest.raises(ModelFileError, match="not a tghop model"):
+        load_model(tmp_path / "text.npz")
+    _write_npz(tmp_path / "foreign.npz", a=np.zeros(3))
+    with pytest.raises(ModelFileError, match="not a tghop model"):
+        load_model(tmp_path / "foreign.npz")
+    path = tmp_path / "m.npz"
+    save_model(small_model, path)
+    with np.load(path) as f:
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["__meta__"]))
+    meta["format_version"] = FORMAT_VERSION + 1
+    _write_npz(tmp_path / "newer.npz", **{**arrays, "__meta__": np.array(json.dumps(meta))})
+    with pytest.raises(ModelFileError, match=f"version {FORMAT_VERSION + 1}.*refit"):
+        load_model(tmp_path / "newer.npz")
+    broken = {k: v for k, v in arrays.items() if k != "ichm_ii.mixing"}
+    _write_npz(tmp_path / "broken.npz", **broken)
+    with pytest.raises(ModelFileError, match="corrupt"):
+        load_model(tmp_path / "broken.npz")
+    truncated = path.read_bytes()[: path.stat().st_size // 2]
+    (tmp_path / "cut.npz").write_bytes(truncated)
+    with pytest.raises(ModelFileError):
+        load_model(tmp_path / "cut.npz")

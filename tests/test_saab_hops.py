@@ -1,0 +1,140 @@
+import numpy as np
+import pytest
+
+from tghop import TGHopError
+from tghop.hops import Hop, HopStack
+from tghop.patches import count_patches, depth_to_space, extract_patches, space_to_depth
+from tghop.saab import Saab, knee_point, select_channels
+from sklearn.exceptions import NotFittedError
+
+
+def test_extract_patches_count_and_content(bricks96):
+    p = extract_patches(bricks96, 32, stride=2)
+    assert p.shape == (count_patches(bricks96.shape, 32, 2), 32, 32, 3) == (33 * 33, 32, 32, 3)
+    assert np.array_equal(p[0], bricks96[:32, :32])
+    assert np.array_equal(p[34], bricks96[2:34, 2:34])  # second row, second column
+    assert extract_patches(np.zeros((256, 256, 3)), 32, stride=2).shape[0] == 12769  # the paper's count
+
+
+def test_extract_patches_subsample_and_grey(bricks96):
+    p = extract_patches(bricks96[..., 0], 32, stride=1, max_patches=100, rng=0)
+    assert p.shape == (100, 32, 32, 1)
+    q = extract_patches(bricks96[..., 0], 32, stride=1, max_patches=100, rng=0)
+    assert np.array_equal(p, q)
+
+
+def test_extract_patches_too_small():
+    with pytest.raises(TGHopError, match="at least 32x32"):
+        extract_patches(np.zeros((20, 40, 3)), 32)
+
+
+def test_space_to_depth_roundtrip(rng):
+    x = rng.random((3, 8, 6, 5))
+    y = space_to_depth(x)
+    assert y.shape == (3, 4, 3, 20)
+    assert np.array_equal(y[0, 1, 2, :5], x[0, 2, 4])  # block (1, 2), top-left pixel
+    assert np.array_equal(depth_to_space(y), x)
+
+
+def test_saab_exact_inverse_and_orthonormal(rng):
+    x = rng.random((500, 12))
+    s = Saab().fit(x)
+    assert s.kernels_.shape == (12, 12)
+    np.testing.assert_allclose(s.kernels_ @ s.kernels_.T, np.eye(12), atol=1e-12)
+    np.testing.assert_allclose(s.kernels_[0], np.full(12, 1 / np.sqrt(12)))
+    np.testing.assert_allclose(s.inverse_transform(s.transform(x)), x, atol=1e-10)
+    assert np.all(s.transform(x)[:, 1:] >= 0)  # the adjusted bias makes AC responses non-negative
+
+
+def test_saab_energy_order_and_meaning(rng):
+    x = rng.random((800, 12)) * np.linspace(2, 0.1, 12)
+    s = Saab().fit(x)
+    assert np.all(np.diff(s.energy_[1:]) <= 1e-12)  # AC by decreasing energy
+    y = s.transform(x) - s._ac_bias()
+    np.testing.assert_allclose(np.mean(y**2, axis=0), s.energy_[s.channels_], rtol=1e-9)
+    # Dropping channel j costs exactly its energy in mean squared error.
+    part = Saab(n_components=6).fit(x)
+    err = np.mean(np.sum((part.inverse_transform(part.transform(x)) - x) ** 2, axis=1))
+    assert err == pytest.approx(s.energy_[6:].sum(), rel=1e-9)
+
+
+def test_saab_deterministic_signs(rng):
+    x = rng.random((300, 12))
+    a = Saab().fit(x).kernels_
+    b = Saab().fit(x[::-1].copy()).kernels_  # same data, other order
+    np.testing.assert_allclose(a, b, atol=1e-10)
+
+
+def test_saab_rank_deficient_grey_as_rgb(rng):
+    grey = rng.random((400, 4))
+    x = np.repeat(grey, 3, axis=1)  # a grey image stored as RGB: 8 of 12 directions are empty
+    s = Saab(n_components=10).fit(x)
+    assert len(s.channels_) == 4  # empty channels are never kept
+    np.testing.assert_allclose(s.inverse_transform(s.transform(x)), x, atol=1e-10)
+
+
+def test_saab_not_fitted():
+    with pytest.raises(NotFittedError):
+        Saab().transform(np.zeros((2, 4)))
+
+
+def test_select_channels_rules():
+    e = np.array([5.0, 3.0, 1.0, 0.5, 0.0])
+    assert select_channels(e, 3, n_fixed=1).tolist() == [0, 1]
+    assert select_channels(e, None).tolist() == [0, 1, 2, 3]  # the empty channel is dropped
+    assert select_channels(e, 0.85).tolist() == [0, 1, 2]  # 9/9.5 >= 0.85 > 8/9.5
+    assert knee_point([100, 10, 1, 0.9, 0.8, 0.7]) == 3
+    with pytest.raises(TGHopError):
+        select_channels(e, 0)
+    with pytest.raises(TGHopError):
+        select_channels(e, "elbow")
+
+
+@pytest.mark.parametrize("channels", [(None, None), (None, None, None)])
+def test_hop_stack_exact_inverse_all_channels(bricks96, channels):
+    p = extract_patches(bricks96, 32, stride=8)
+    stack = HopStack(n_channels=channels).fit(p)
+    core = stack.transform(p)
+    assert core.shape[1] == 32 // 2 ** len(channels)
+    np.testing.assert_allclose(stack.inverse_transform(core), p, atol=1e-10)
+
+
+def test_hop_stack_dims_and_channel_record(bricks96):
+    p = extract_patches(bricks96, 32, stride=4)
+    stack = HopStack(n_channels=(9, 22)).fit(p)
+    assert stack.dims_ == [3072, 16 * 16 * 9, 8 * 8 * 22]
+    hop2 = stack.hops_[1]
+    assert hop2.channels_.shape == (22, 2)
+    # Every parent keeps its DC child; channels are grouped by parent.
+    assert set(hop2.channels_[hop2.channels_[:, 1] == 0, 0]) == set(range(9))
+    assert np.all(np.diff(hop2.channels_[:, 0]) >= 0)
+    # The kept AC children are the strongest ones over all parents.
+    kept = {tuple(c) for c in hop2.channels_ if c[1] > 0}
+    all_ac = [(k, j, s.energy_[j]) for k, s in enumerate(hop2.saabs_) for j in range(1, 4)]
+    dropped = [e for k, j, e in all_ac if (k, j) not in kept]
+    kept_e = [e for k, j, e in all_ac if (k, j) in kept]
+    assert min(kept_e) >= max(dropped)
+
+
+def test_discarded_channels_are_zero_on_the_way_back(bricks96):
+    p = extract_patches(bricks96, 32, stride=8)
+    hop = Hop(n_channels=4).fit(p)
+    full = Hop().fit(p)
+    y = full.transform(p)
+    y[..., 4:] = full.bias_[4:]  # response zero (bias only) in the dropped channels
+    np.testing.assert_allclose(hop.inverse_transform(hop.transform(p)), full.inverse_transform(y), atol=1e-10)
+
+
+def test_hop_channel_limits(bricks96):
+    p = extract_patches(bricks96, 32, stride=8)
+    with pytest.raises(TGHopError, match="K1.*at most 12"):
+        HopStack(n_channels=(13, 22)).fit(p)
+    with pytest.raises(TGHopError, match="K2.*at least 9"):
+        HopStack(n_channels=(9, 5)).fit(p)
+
+
+def test_knee_selection_is_texture_dependent(bricks96):
+    p = extract_patches(bricks96, 32, stride=4)
+    stack = HopStack(n_channels=("knee", "knee")).fit(p)
+    k1, k2 = (h.n_channels_out_ for h in stack.hops_)
+    assert 2 <= k1 <= 12 and k1 <= k2 <= 4 * k1
