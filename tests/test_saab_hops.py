@@ -138,3 +138,24 @@ def test_knee_selection_is_texture_dependent(bricks96):
     stack = HopStack(n_channels=("knee", "knee")).fit(p)
     k1, k2 = (h.n_channels_out_ for h in stack.hops_)
     assert 2 <= k1 <= 12 and k1 <= k2 <= 4 * k1
+
+
+@pytest.mark.parametrize("stride, channels, size", [(2, (9, 22), 32), (3, (6, 14), 32), (4, (9, 22, 40), 64)])
+def test_fit_image_equals_fit_on_cut_patches(stride, channels, size):
+    """The phase-map shortcut gives exactly the patch-based fit and core."""
+    from tghop.data import bricks
+    from tghop.patches import patch_origins
+
+    img = bricks(128, rng=5)
+    origins = patch_origins(img.shape, size, stride=stride, max_patches=1500, rng=1)
+    patches = extract_patches(img, size, stride=stride, max_patches=1500, rng=1)
+    a = HopStack(n_channels=channels)
+    core_a = a.fit_transform(patches)
+    b = HopStack(n_channels=channels)
+    core_b = b.fit_image(img, size, origins)
+    assert a.dims_ == b.dims_
+    for ha, hb in zip(a.hops_, b.hops_):
+        assert np.array_equal(ha.channels_, hb.channels_)
+        np.testing.assert_allclose(ha.kernels_, hb.kernels_, atol=1e-8)
+        np.testing.assert_allclose(ha.bias_, hb.bias_, rtol=1e-12)
+    np.testing.assert_allclose(core_a, core_b, atol=1e-8)

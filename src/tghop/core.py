@@ -29,7 +29,7 @@ import numbers
 import numpy as np
 from scipy.special import ndtr
 from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.cluster import KMeans
+from sklearn.cluster import KMeans, kmeans_plusplus
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
@@ -44,6 +44,17 @@ QUANTILE_STEPS = 1024
 def _seed(rng) -> int:
     """A 31-bit seed for scikit-learn components, drawn from ``rng``."""
     return int(rng.integers(0, 2**31 - 1))
+
+
+def _kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
+    """K-means (Lloyd) seeded by k-means++ on a random subsample: the full k-means++ pass
+    costs several times the whole Lloyd iteration here for the same final inertia."""
+    X = np.asarray(X, dtype=np.float32)
+    sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
+    centres, _ = kmeans_plusplus(sub, n_clusters, random_state=_seed(rng))
+    km = KMeans(n_clusters=n_clusters, init=centres, n_init=1, max_iter=max_iter, random_state=_seed(rng))
+    labels = km.fit_predict(X)
+    return labels, km.cluster_centers_.astype(np.float64)
 
 
 def _flip_signs(components):
@@ -89,6 +100,12 @@ def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
         if change < tol:
             return w, True
     return w, False
+
+
+def _channel_major(Y):
+    """(n, h, w, K) -> contiguous (K, n, h * w): one channel's maps side by side."""
+    n, h, w, k = Y.shape
+    return np.ascontiguousarray(Y.reshape(n, h * w, k).transpose(2, 0, 1))
 
 
 class SpatialReduction(TransformerMixin, BaseEstimator):
@@ -137,12 +154,12 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
             raise TGHopError(f"gamma_mode must be 'absolute' or 'relative', got {self.gamma_mode!r}")
         Y = np.asarray(Y, dtype=np.float64)
         n, h, w, k = Y.shape
-        flat = Y.reshape(n, h * w, k)
+        maps = _channel_major(Y)
         self.shape_ = (h, w, k)
-        self.mean_ = flat.mean(axis=0).T
+        self.mean_ = maps.mean(axis=1)
         comps, var, chan = [], [], []
         for c in range(k):
-            centred = flat[:, :, c] - self.mean_[c]
+            centred = maps[c] - self.mean_[c]
             vals, vecs = np.linalg.eigh(centred.T @ centred / n)
             vals, vecs = vals[::-1], vecs[:, ::-1].T
             limit = self.gamma * (vals.sum() if self.gamma_mode == "relative" else 1.0)
@@ -156,7 +173,7 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         self.kept_per_channel_ = np.bincount(self.channel_, minlength=k)
         if self.components_.shape[0] == 0:
             raise TGHopError(f"gamma={self.gamma} drops every spatial component; use a smaller gamma")
-        return self.transform(Y)
+        return self._project(maps)
 
     @property
     def n_components_(self) -> int:
@@ -167,14 +184,14 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
     def transform(self, Y):
         """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r)."""
         check_is_fitted(self, "components_")
-        Y = np.asarray(Y, dtype=np.float64)
-        n = Y.shape[0]
-        maps = Y.reshape(n, -1, self.shape_[2])
-        z = np.empty((n, self.components_.shape[0]))
+        return self._project(_channel_major(np.asarray(Y, dtype=np.float64)))
+
+    def _project(self, maps):
+        z = np.empty((maps.shape[1], self.components_.shape[0]))
         for c in range(self.shape_[2]):
             sel = self.channel_ == c
             if sel.any():
-                z[:, sel] = (maps[:, :, c] - self.mean_[c]) @ self.components_[sel].T
+                z[:, sel] = (maps[c] - self.mean_[c]) @ self.components_[sel].T
         return z
 
     def inverse_transform(self, Z):
@@ -321,9 +338,7 @@ class ICHM(BaseEstimator):
 
     def _cluster(self, Z, rng):
         # float32 halves K-means time; the clustering only routes samples to clusters.
-        km = KMeans(n_clusters=self.n_clusters, n_init=1, max_iter=100, random_state=_seed(rng))
-        labels = km.fit_predict(Z.astype(np.float32))
-        centres = km.cluster_centers_.astype(np.float64)
+        labels, centres = _kmeans(Z, self.n_clusters, rng)
         counts = np.bincount(labels, minlength=self.n_clusters)
         small = counts < self.min_cluster_size
         if small.any():
@@ -373,9 +388,8 @@ class ICHM(BaseEstimator):
             self.codebook_ = cdfs
             self.cdf_index_ = np.arange(cdfs.shape[0], dtype=np.int64)
         else:
-            km = KMeans(n_clusters=self.n_codewords, n_init=1, max_iter=100, random_state=_seed(rng))
-            self.cdf_index_ = km.fit_predict(cdfs.astype(np.float32)).astype(np.int64)
-            centres = km.cluster_centers_.astype(np.float64)
+            labels, centres = _kmeans(cdfs, self.n_codewords, rng)
+            self.cdf_index_ = labels.astype(np.int64)
             self.codebook_ = np.maximum.accumulate(np.clip(centres, 0.0, 1.0), axis=1)
             self.codebook_[:, -1] = 1.0
 
@@ -456,7 +470,7 @@ class ICHM(BaseEstimator):
         """
         mixing = self.mixing_ if mixing is None else mixing
         means = self.means_ if means is None else means
-        out = np.empty((len(labels), mixing.shape[1]))
+        out = np.empty((len(labels), mixing.shape[1]), dtype=mixing.dtype)
         offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
         for i, s in enumerate(sources):
             rows = labels == i

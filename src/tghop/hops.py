@@ -68,8 +68,25 @@ class Hop(TransformerMixin, BaseEstimator):
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 4:
             raise TGHopError(f"a hop takes an array (n, H, W, C), got shape {X.shape}")
+        return self.fit_blocks(space_to_depth(X).reshape(-1, 4 * X.shape[3]))
+
+    def fit_blocks(self, blocks, weights=None):
+        """Learn the hop from flattened 2x2 blocks.
+
+        Parameters
+        ----------
+        blocks : ndarray, shape (m, 4 * C)
+            Blocks as :func:`tghop.patches.space_to_depth` flattens them.
+        weights : ndarray, shape (m,), optional
+            How often each block occurs (a block shared by several training patches
+            counts once per patch); blocks of weight 0 are ignored.
+
+        Returns
+        -------
+        self
+        """
         rule = check_channel_rule(self.n_channels, "channels per hop")
-        c = self.n_channels_in_ = X.shape[3]
+        c = self.n_channels_in_ = blocks.shape[1] // 4
         if isinstance(rule, int) and rule > 4 * c:
             raise TGHopError(
                 f"a hop on {c} input channels has at most {4 * c} channels, {rule} were asked for; "
@@ -80,8 +97,7 @@ class Hop(TransformerMixin, BaseEstimator):
                 f"a channel-wise hop on {c} channels keeps at least {c} (one DC child each), "
                 f"{rule} were asked for; choose at least {c}"
             )
-        blocks = space_to_depth(X).reshape(-1, 4 * c)
-        mean, moment, max_sq = _block_statistics(blocks, 1 if self.channelwise else c)
+        mean, moment, max_sq = _block_statistics(blocks, 1 if self.channelwise else c, weights)
         if not self.channelwise:
             saab = Saab(n_components=rule).fit_moments(mean, moment, max_sq[0])
             self.saabs_ = [saab]
@@ -145,7 +161,7 @@ class Hop(TransformerMixin, BaseEstimator):
         return depth_to_space((Y - self.bias_) @ self.kernels_)
 
 
-def _block_statistics(blocks, group, chunk=1 << 18):
+def _block_statistics(blocks, group, weights=None, chunk=1 << 18):
     """Mean, second moment and the largest squared norm per channel group, in one pass.
 
     Parameters
@@ -154,6 +170,8 @@ def _block_statistics(blocks, group, chunk=1 << 18):
     group : int
         1 for per-channel norms (c/w hops: norm of each channel's 4 values), ``C`` for
         the norm of the whole block (joint hop).
+    weights : ndarray, shape (m,), optional
+        Multiplicity of each block (default 1).
 
     Returns
     -------
@@ -164,13 +182,35 @@ def _block_statistics(blocks, group, chunk=1 << 18):
     total = np.zeros(d)
     moment = np.zeros((d, d))
     max_sq = np.zeros(c // group)
+    count = 0.0
     for start in range(0, m, chunk):
         b = blocks[start: start + chunk]
-        total += b.sum(axis=0)
-        moment += b.T @ b
-        sq = (b * b).reshape(-1, 4, c // group, group).sum(axis=(1, 3))
-        np.maximum(max_sq, sq.max(axis=0), out=max_sq)
-    return total / m, moment / m, max_sq
+        if weights is not None:
+            w = weights[start: start + chunk]
+            b = b[w > 0]
+            w = w[w > 0]
+            count += w.sum()
+            total += w @ b
+            moment += (b * w[:, None]).T @ b
+        else:
+            count += b.shape[0]
+            total += b.sum(axis=0)
+            moment += b.T @ b
+        if b.shape[0]:
+            sq = (b * b).reshape(-1, 4, c // group, group).sum(axis=(1, 3))
+            np.maximum(max_sq, sq.max(axis=0), out=max_sq)
+    return total / count, moment / count, max_sq
+
+
+def _coverage(shape, starts, side):
+    """How many windows of ``side x side`` starting at ``starts`` (k, 2) cover each cell."""
+    marks = np.zeros((shape[0] + 1, shape[1] + 1))
+    np.add.at(marks, (starts[:, 0], starts[:, 1]), 1.0)
+    cum = marks.cumsum(axis=0).cumsum(axis=1)
+    # Count of starts in [u - side + 1, u] x [v - side + 1, v], from the 2-D prefix sums.
+    pad = np.pad(cum, ((side, 0), (side, 0)))
+    total = pad[side:, side:] - pad[:-side, side:] - pad[side:, :-side] + pad[:-side, :-side]
+    return total[: shape[0], : shape[1]]
 
 
 class HopStack(TransformerMixin, BaseEstimator):
@@ -223,6 +263,75 @@ class HopStack(TransformerMixin, BaseEstimator):
             report(progress, f"hop {i + 1}", 1, 1)
         self._fit_output_ = X  # the core responses of the training patches, reused by fit_transform
         return self
+
+    def fit_image(self, image, patch_size, origins, *, progress=None):
+        """Fit on the patches of one image without cutting them out; return their core.
+
+        Every training patch's 2x2 blocks at hop ``L`` are blocks of one of a few
+        *phase maps* of the whole image (the image shifted by the patch origin modulo
+        ``2**L`` and transformed by hops 1..L). So each hop is fitted on the blocks of
+        those maps, each weighted by the number of patches that contain it: exactly the
+        statistics of fitting on the cut-out patches, at a fraction of the cost and
+        memory. The result equals ``fit_transform(extract_patches(...))``.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W, C)
+        patch_size : int
+        origins : ndarray of int, shape (n, 2)
+            Top-left corners of the training patches (see
+            :func:`tghop.patches.patch_origins`).
+        progress : callable, optional
+
+        Returns
+        -------
+        ndarray, shape (n, p, p, Kn)
+            Core responses of the patches, ``p = patch_size / 2**n_hops``.
+        """
+        from numpy.lib.stride_tricks import sliding_window_view
+
+        rules = list(self.n_channels)
+        origins = np.asarray(origins, dtype=np.int64)
+        if patch_size % (2 ** len(rules)):
+            raise TGHopError(f"{len(rules)} hops need a patch size divisible by {2 ** len(rules)}, got {patch_size}")
+        maps = {(0, 0): np.asarray(image, dtype=np.float64)[None]}
+        self.hops_ = []
+        self.dims_ = [patch_size * patch_size * image.shape[2]]
+        for level, rule in enumerate(rules, start=1):
+            report(progress, f"hop {level}", 0, 1)
+            step, side = 2**level, patch_size // 2**level
+            phase = origins % step
+            inputs, all_blocks, all_weights = {}, [], []
+            for r in map(tuple, np.unique(phase, axis=0)):
+                parent = (r[0] % (step // 2), r[1] % (step // 2))
+                shift = (r[0] // (step // 2), r[1] // (step // 2))
+                src = maps[parent][:, shift[0]:, shift[1]:]
+                src = src[:, : src.shape[1] // 2 * 2, : src.shape[2] // 2 * 2]
+                blocks = space_to_depth(src)[0]
+                starts = (origins[np.all(phase == r, axis=1)] - np.array(r)) // step
+                inputs[r] = (blocks, starts)
+                all_blocks.append(blocks.reshape(-1, blocks.shape[-1]))
+                all_weights.append(_coverage(blocks.shape[:2], starts, side).ravel())
+            try:
+                hop = Hop(n_channels=rule, channelwise=level > 1).fit_blocks(
+                    np.concatenate(all_blocks), np.concatenate(all_weights)
+                )
+            except TGHopError as exc:
+                raise TGHopError(f"K{level}: {exc}") from None
+            del all_blocks
+            maps = {r: (b @ hop.kernels_.T + hop.bias_)[None] for r, (b, _) in inputs.items()}
+            self.hops_.append(hop)
+            self.dims_.append(side * side * hop.n_channels_out_)
+            report(progress, f"hop {level}", 1, 1)
+        side = patch_size // 2 ** len(rules)
+        core = np.empty((len(origins), side, side, self.hops_[-1].n_channels_out_))
+        phase = origins % 2 ** len(rules)
+        for r, m in maps.items():
+            rows = np.flatnonzero(np.all(phase == np.array(r), axis=1))
+            starts = (origins[rows] - np.array(r)) // 2 ** len(rules)
+            windows = sliding_window_view(m[0], (side, side), axis=(0, 1))
+            core[rows] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
+        return core
 
     def fit_transform(self, X, y=None, *, progress=None):
         """Fit and return the core responses ``(n, P / 2**n, P / 2**n, Kn)``."""

@@ -11,7 +11,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._common import TGHopError, check_image, check_rng
 
-__all__ = ["extract_patches", "count_patches", "space_to_depth", "depth_to_space", "patch_grid"]
+__all__ = ["extract_patches", "patch_origins", "count_patches", "space_to_depth", "depth_to_space", "patch_grid"]
 
 
 def count_patches(shape, patch_size: int, stride: int) -> int:
@@ -45,14 +45,28 @@ def extract_patches(image, patch_size: int = 32, *, stride: int = 2, max_patches
     if int(patch_size) < 2 or int(stride) < 1:
         raise TGHopError(f"patch_size must be >= 2 and stride >= 1, got {patch_size} and {stride}")
     img = check_image(image, min_size=patch_size)
-    windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))[::stride, ::stride]
-    # windows: (nh, nw, C, P, P) -> (n, P, P, C)
-    nh, nw, c = windows.shape[:3]
-    index = np.arange(nh * nw)
+    origins = patch_origins(img.shape, patch_size, stride=stride, max_patches=max_patches, rng=rng)
+    windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))
+    # windows: (H-P+1, W-P+1, C, P, P) -> (n, P, P, C)
+    return np.ascontiguousarray(windows[origins[:, 0], origins[:, 1]].transpose(0, 2, 3, 1))
+
+
+def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, rng=None) -> np.ndarray:
+    """Top-left corners of the patches :func:`extract_patches` takes, in raster order.
+
+    Returns
+    -------
+    ndarray of int, shape (n, 2)
+        (row, column) of each patch origin.
+    """
+    h, w = shape[:2]
+    ys = np.arange(0, h - patch_size + 1, stride)
+    xs = np.arange(0, w - patch_size + 1, stride)
+    index = np.arange(ys.size * xs.size)
     if max_patches is not None and index.size > int(max_patches):
         index = np.sort(check_rng(rng).choice(index.size, size=int(max_patches), replace=False))
-    rows, cols = np.divmod(index, nw)
-    return np.ascontiguousarray(windows[rows, cols].transpose(0, 2, 3, 1))
+    rows, cols = np.divmod(index, xs.size)
+    return np.column_stack([ys[rows], xs[cols]])
 
 
 def space_to_depth(x: np.ndarray, block: int = 2) -> np.ndarray:

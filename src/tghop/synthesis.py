@@ -27,7 +27,7 @@ from sklearn.utils.validation import check_is_fitted
 from ._common import TGHopError, check_image, check_rng, report
 from .core import ICHM, SpatialReduction
 from .hops import HopStack
-from .patches import extract_patches
+from .patches import patch_origins
 from .quilting import quilt
 
 __all__ = ["TGHop", "default_channels", "PAPER_TABLE4"]
@@ -150,7 +150,7 @@ class TGHop(BaseEstimator):
         image : ndarray, shape (H, W) or (H, W, C)
             Float in [0, 1] (or uint8), ``H, W >= patch_size``; C is 1 or 3.
         progress : callable, optional
-            ``progress(stage, done, total)``; stages "patches", "hop 1", "hop 2", ...,
+            ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
             "SDR", "clusters", "ICA", "CDF codebook".
 
         Returns
@@ -171,17 +171,14 @@ class TGHop(BaseEstimator):
             rng=rng,
         )
         sdr = SpatialReduction(gamma=self.gamma, gamma_mode=self.gamma_mode)
-        report(progress, "patches", 0, 1)
-        patches = extract_patches(
-            image, self.patch_size, stride=self.stride, max_patches=self.max_patches, rng=rng
-        )
-        ichm._check_params(patches.shape[0])  # fail before the expensive stages
-        report(progress, "patches", 1, 1)
+        origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
+                                max_patches=self.max_patches, rng=rng)
+        ichm._check_params(len(origins))  # fail before the expensive stages
         self.exemplar_shape_ = image.shape
-        self.n_patches_ = patches.shape[0]
+        self.n_patches_ = len(origins)
+        # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
-        core = self.hops_.fit_transform(patches, progress=progress)
-        del patches
+        core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
         report(progress, "SDR", 0, 1)
         z = sdr.fit_transform(core)
         self.sdr_ = sdr
@@ -273,23 +270,26 @@ class TGHop(BaseEstimator):
         patches = np.clip(spaces[-1], 0.0, 1.0)
         return (patches, spaces) if return_stages else patches
 
-    def _affine_decoder(self):
+    def _affine_decoder(self, dtype=np.float64):
         """The generation path from ICHM sources to pixels is affine; fold it per cluster.
 
         Returns ``(mixing, means)`` so that a cluster-``i`` sample with components ``s``
         is the patch ``means[i] + s @ mixing[rows of i]`` (flattened), exactly what the
-        step-by-step inverse gives, at one matrix product per cluster.
+        step-by-step inverse gives, at one matrix product per cluster. Cached per dtype.
         """
+        dtype = np.dtype(dtype)
         if getattr(self, "_decoder", None) is None:
             d_r = self.sdr_.n_components_
             origin = self.hops_.inverse_transform(self.sdr_.inverse_transform(np.zeros((1, d_r))))
             basis = self.hops_.inverse_transform(self.sdr_.inverse_transform(np.eye(d_r)))
             shift = origin.reshape(1, -1)
             linear = basis.reshape(d_r, -1) - shift
-            self._decoder = (self.ichm_.mixing_ @ linear, self.ichm_.means_ @ linear + shift)
-        return self._decoder
+            self._decoder = {np.dtype(np.float64): (self.ichm_.mixing_ @ linear, self.ichm_.means_ @ linear + shift)}
+        if dtype not in self._decoder:
+            self._decoder[dtype] = tuple(a.astype(dtype) for a in self._decoder[np.dtype(np.float64)])
+        return self._decoder[dtype]
 
-    def sample_patches(self, n, *, rng=None, return_stages=False):
+    def sample_patches(self, n, *, rng=None, return_stages=False, dtype=np.float64):
         """Generate new patches.
 
         Parameters
@@ -299,24 +299,29 @@ class TGHop(BaseEstimator):
             Same seed, same patches (on the same machine).
         return_stages : bool
             Also return the stage views of the paper's Fig. 6 (see :meth:`stage_views`).
+        dtype : {numpy.float64, numpy.float32}
+            float32 halves memory and time for large pools (quilting works in float32).
 
         Returns
         -------
-        patches : ndarray, shape (n, P, P, C), float64 in [0, 1]
+        patches : ndarray, shape (n, P, P, C), in [0, 1]
         stages : dict, only with ``return_stages``
         """
         check_is_fitted(self, "ichm_")
         n = self._check_n(n)
+        dtype = np.dtype(dtype)
+        if dtype not in (np.float32, np.float64):
+            raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
         labels, sources = self.ichm_.sample_sources(n, rng=rng)
         if return_stages:
             patches, spaces = self.decode(self.ichm_.mix(labels, sources), return_stages=True)
-            return patches, self.stage_views(spaces)
+            return patches.astype(dtype, copy=False), self.stage_views(spaces)
         shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
         if n > self.ichm_.n_cdfs_:  # folding the decoder pays off for large batches
-            mixing, means = self._affine_decoder()
-            flat = self.ichm_.mix(labels, sources, mixing=mixing, means=means)
-            return np.clip(flat.reshape(shape), 0.0, 1.0)
-        return self.decode(self.ichm_.mix(labels, sources))
+            mixing, means = self._affine_decoder(dtype)
+            flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
+            return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
+        return self.decode(self.ichm_.mix(labels, sources)).astype(dtype, copy=False)
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -373,6 +378,6 @@ class TGHop(BaseEstimator):
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
         report(progress, "patch pool", 0, 1)
-        pool = self.sample_patches(n_patches, rng=rng)
+        pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
         return quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
