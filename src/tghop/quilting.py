@@ -1,0 +1,726 @@
+"""Image quilting (Efros & Freeman 2001) of a pool of patches into an image of any size.
+
+TGHop generates a *pool* of texture patches; :func:`quilt` stitches them into the output
+image. It does not care where the patches come from: any ``(n, P, P, C)`` array works.
+
+How it works
+------------
+Blocks of ``P x P`` pixels are laid on a grid with step ``P - overlap``. Each block takes
+the pool patch whose *overlap* with the pixels already placed (a left strip, a top strip,
+an L shape, and for tileable output also right/bottom strips) has a small squared error,
+and is pasted along a minimum-error boundary cut through each overlap strip.
+
+Speed: the overlap error of every pool patch at once is
+``||o||^2 - 2 p.o + ||p||^2``; the pool's squared norms are precomputed for each of the
+few possible overlap shapes, so a block costs one matrix product. Blocks are placed in
+*wavefronts* ``2 * row + col``: a block only overlaps its 8 neighbours, and those that come
+before it in raster order are all on earlier wavefronts, so every block of a wavefront is
+matched at once with one matrix-matrix product (GEMM) and the result is the same as
+placing them one by one in raster order.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ._common import ProgressCallback, TGHopError, check_rng, report
+
+__all__ = [
+    "MAX_BLOCKS",
+    "MAX_PIXELS",
+    "QuiltingPlan",
+    "boundary_cut_mask",
+    "default_overlap",
+    "min_error_boundary_cut",
+    "quilt",
+    "quilting_plan",
+]
+
+#: Largest output accepted by :func:`quilt`, in pixels (8192 x 8192). A float64 RGB
+#: image of that size already takes 1.5 GiB.
+MAX_PIXELS = 2**26
+
+#: Largest number of blocks in one quilt (e.g. 2048 x 2048 pixels of 4 x 4 patches); the
+#: plan keeps a few integers per block and quilting runs one step per wavefront.
+MAX_BLOCKS = 2**22
+
+# The 8 neighbours of a block, in a fixed order (the bits of a mask signature).
+_OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+# Pool patches are converted to float32 in chunks of this many patches (small enough for
+# the chunk to stay in cache between the steps that read it).
+_POOL_CHUNK = 512
+
+
+def default_overlap(patch_size: int) -> int:
+    """The default overlap for ``patch_size``: ``round(P / 6)``, at least 1."""
+    return max(1, int(round(patch_size / 6)))
+
+
+# ----------------------------------------------------------------------------- validation
+
+
+def _check_size(size) -> Tuple[int, int]:
+    if isinstance(size, (numbers.Integral, np.integer)) and not isinstance(size, (bool, np.bool_)):
+        size = (size, size)
+    try:
+        dims = tuple(size)
+    except TypeError:
+        raise TGHopError(f"size must be (height, width) in pixels, got {size!r}") from None
+    if len(dims) != 2 or not all(
+        isinstance(d, (numbers.Integral, np.integer)) and not isinstance(d, (bool, np.bool_)) for d in dims
+    ):
+        raise TGHopError(f"size must be two integers (height, width), got {size!r}")
+    h, w = int(dims[0]), int(dims[1])
+    if h < 1 or w < 1:
+        raise TGHopError(f"size must be positive, got {h}x{w}; give a height and width of at least 1 pixel")
+    if h * w > MAX_PIXELS:
+        side = int(math.isqrt(MAX_PIXELS))
+        raise TGHopError(
+            f"size {h}x{w} is {h * w} pixels, above the limit of {MAX_PIXELS} ({side}x{side}); "
+            "ask for a smaller image"
+        )
+    return h, w
+
+
+def _check_patch_overlap(patch_size, overlap) -> Tuple[int, int]:
+    if not isinstance(patch_size, (numbers.Integral, np.integer)) or int(patch_size) < 2:
+        raise TGHopError(f"patch size must be an integer of at least 2, got {patch_size!r}")
+    p = int(patch_size)
+    if overlap is None:
+        return p, default_overlap(p)
+    if isinstance(overlap, (bool, np.bool_)) or not isinstance(overlap, (numbers.Integral, np.integer)):
+        raise TGHopError(f"overlap must be an integer number of pixels, got {overlap!r}")
+    o = int(overlap)
+    if not 1 <= o <= p // 2:
+        raise TGHopError(f"overlap must be between 1 and {p // 2} (half the patch size {p}), got {o}")
+    return p, o
+
+
+def _check_values(values: np.ndarray) -> None:
+    """Raise unless ``values`` are finite and in [0, 1]."""
+    if values.size == 0:
+        return
+    lo, hi = float(values.min()), float(values.max())
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        raise TGHopError("pool contains NaN or infinite values; clean it first")
+    if lo < -1e-6 or hi > 1 + 1e-6:
+        raise TGHopError(f"pool values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; divide by 255 for 8-bit data")
+
+
+def _check_pool(pool) -> np.ndarray:
+    """Return the pool as a float32/float64 ``(n, P, P, C)`` array (no copy if possible).
+
+    Values are checked where they are read (:func:`_check_values`), which saves a pass
+    over a large pool.
+    """
+    arr = np.asarray(pool)
+    if arr.ndim == 3:
+        arr = arr[..., None]
+    if arr.ndim != 4 or arr.shape[1] != arr.shape[2] or arr.shape[3] not in (1, 3):
+        raise TGHopError(
+            f"pool must have shape (n, P, P, C) with square P x P patches and C = 1 or 3, got {arr.shape}"
+        )
+    n, p = arr.shape[0], arr.shape[1]
+    if n < 1:
+        raise TGHopError("pool is empty; give at least one patch")
+    if p < 2:
+        raise TGHopError(f"pool patches are {p}x{p} pixels; they must be at least 2x2")
+    if arr.dtype == np.uint8:
+        arr = arr / np.float32(255.0)
+    elif arr.dtype == np.uint16:
+        arr = arr / np.float32(65535.0)
+    elif arr.dtype not in (np.float32, np.float64):
+        if arr.dtype.kind not in "biuf":
+            raise TGHopError(f"pool has unsupported dtype {arr.dtype}; pass a float array in [0, 1]")
+        arr = arr.astype(np.float64)
+    return arr
+
+
+# ----------------------------------------------------------------------------- boundary cut
+
+
+def _dp_cut(error: np.ndarray) -> np.ndarray:
+    """Minimum-cost top-to-bottom paths through ``error`` of shape ``(b, h, w)``.
+
+    A path takes one column per row and moves at most one column between rows. Returns
+    the ``(b, h)`` column indices. ``+inf`` entries are never used unless a row has no
+    finite entry. Ties prefer going straight, then left.
+    """
+    b, h, w = error.shape
+    # Cumulative cost with an +inf column on each side (so that neighbours always exist).
+    cum = np.full((b, h, w + 2), np.inf)
+    cum[:, 0, 1:-1] = error[:, 0]
+    best = np.empty((b, w))
+    for r in range(1, h):
+        prev = cum[:, r - 1]
+        np.minimum(prev[:, :-2], prev[:, 1:-1], out=best)
+        np.minimum(best, prev[:, 2:], out=best)
+        np.add(error[:, r], best, out=cum[:, r, 1:-1])
+    path = np.empty((b, h), dtype=np.intp)
+    path[:, -1] = np.argmin(cum[:, -1, 1:-1], axis=1)
+    step = np.array([0, -1, 1])  # straight first, then left, then right
+    for r in range(h - 2, -1, -1):
+        c = path[:, r + 1]
+        # Padded column c + 1 + step holds original column c + step.
+        cand = np.take_along_axis(cum[:, r], c[:, None] + 1 + step, axis=1)
+        path[:, r] = c + step[np.argmin(cand, axis=1)]
+    return path
+
+
+def min_error_boundary_cut(error) -> np.ndarray:
+    """Minimum-error boundary cut through a vertical overlap strip (dynamic programming).
+
+    Parameters
+    ----------
+    error : array_like, shape (h, w) or (b, h, w)
+        Per-pixel error (e.g. the squared difference summed over channels) between the
+        old and the new patch over a vertical overlap strip ``h`` pixels high and ``w``
+        wide. ``+inf`` marks pixels the cut must avoid. A batch of strips may be given.
+
+    Returns
+    -------
+    ndarray of int, shape (h,) or (b, h)
+        The column of the cut in each row: a connected path (consecutive rows differ by at
+        most one column) with the smallest total error. Pixels left of the cut belong to
+        the old patch (on the left), the cut pixel and those right of it to the new one.
+        For a horizontal strip pass ``error.T``; for a strip whose old patch lies on the
+        right pass ``error[:, ::-1]`` and mirror the result (``w - 1 - cut``).
+    """
+    arr = np.asarray(error, dtype=np.float64)
+    if arr.ndim not in (2, 3) or arr.shape[-1] < 1 or arr.shape[-2] < 1:
+        raise TGHopError(f"error must be a non-empty (h, w) or (b, h, w) array, got shape {arr.shape}")
+    if np.isnan(arr).any():
+        raise TGHopError("error contains NaN; compute it from finite images")
+    path = _dp_cut(arr if arr.ndim == 3 else arr[None])
+    return path if arr.ndim == 3 else path[0]
+
+
+def _orient(x: np.ndarray, side: int) -> np.ndarray:
+    """View ``(b, P, P)`` blocks so that overlap strip ``side`` (0 left, 1 top, 2 right,
+    3 bottom) becomes a left strip: rows along axis 1, the old pixels towards column 0.
+    The map is its own inverse."""
+    if side == 1:
+        return x.transpose(0, 2, 1)
+    if side == 2:
+        return x[:, :, ::-1]
+    if side == 3:
+        return x.transpose(0, 2, 1)[:, :, ::-1]
+    return x
+
+
+def _unorient(x: np.ndarray, side: int) -> np.ndarray:
+    """Inverse of :func:`_orient`."""
+    if side == 3:
+        return x[:, :, ::-1].transpose(0, 2, 1)
+    return _orient(x, side)
+
+
+def _cut_masks(err: np.ndarray, strips: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Where each new block is pasted: ``(b, P, P)`` bool from pixel errors ``(b, P, P)``.
+
+    ``strips`` ``(b, 4)`` are the (left, top, right, bottom) overlap widths (0 = none);
+    ``keep`` ``(b, P, P)`` marks old pixels outside every strip, which stay as they are.
+    All strips of all blocks go through one batched dynamic programme.
+    """
+    new = ~keep
+    block, side = np.nonzero(strips > 0)
+    if block.size == 0:
+        return new
+    p = err.shape[1]
+    widths = strips[block, side]
+    wmax = int(widths.max())
+    batch = np.empty((block.size, p, wmax))
+    for s in range(4):
+        sel = np.flatnonzero(side == s)
+        if sel.size:
+            batch[sel] = _orient(err[block[sel]], s)[:, :, :wmax]
+    batch[np.broadcast_to(np.arange(wmax) >= widths[:, None, None], batch.shape)] = np.inf
+    cut = _dp_cut(batch)  # (k, p)
+    keep_new = np.arange(p)[None, None, :] >= cut[:, :, None]  # (k, p, p), left-strip orientation
+    for s in range(4):
+        sel = np.flatnonzero(side == s)
+        if sel.size:
+            # A block has at most one strip per side, so block[sel] has no repeats.
+            new[block[sel]] &= _unorient(keep_new[sel], s)
+    return new
+
+
+def boundary_cut_mask(error, *, left: int = 0, top: int = 0, right: int = 0, bottom: int = 0) -> np.ndarray:
+    """Where a new block replaces the old pixels, given overlaps on up to four sides.
+
+    Cuts each overlap strip along its minimum-error boundary
+    (:func:`min_error_boundary_cut`) and combines them: ``left=o, top=o`` is the classic
+    L-shaped overlap of image quilting.
+
+    Parameters
+    ----------
+    error : array_like, shape (h, w)
+        Per-pixel error between the old and new block; only the overlap strips are read.
+    left, top, right, bottom : int
+        Width in pixels of the overlap with already placed pixels on each side (0: none).
+
+    Returns
+    -------
+    ndarray of bool, shape (h, w)
+        True where the new block is kept, False where the old pixels stay.
+    """
+    arr = np.asarray(error, dtype=np.float64)
+    if arr.ndim != 2 or arr.size == 0:
+        raise TGHopError(f"error must be a non-empty (h, w) array, got shape {arr.shape}")
+    if np.isnan(arr).any():
+        raise TGHopError("error contains NaN; compute it from finite images")
+    h, w = arr.shape
+    mask = np.ones((h, w), dtype=bool)
+    rows, cols = np.arange(h)[:, None], np.arange(w)[None, :]
+    for name, value, limit in (("left", left, w), ("top", top, h), ("right", right, w), ("bottom", bottom, h)):
+        if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or not 0 <= value <= limit:
+            raise TGHopError(f"{name} overlap must be an integer between 0 and {limit}, got {value!r}")
+    if left:
+        cut = _dp_cut(arr[None, :, :left])[0]
+        mask &= cols >= cut[:, None]
+    if top:
+        cut = _dp_cut(arr[None, :top, :].transpose(0, 2, 1))[0]
+        mask &= rows >= cut[None, :]
+    if right:
+        cut = _dp_cut(arr[None, :, ::-1][:, :, :right])[0]
+        mask &= cols <= (w - 1 - cut)[:, None]
+    if bottom:
+        cut = _dp_cut(arr[None, ::-1, :][:, :bottom, :].transpose(0, 2, 1))[0]
+        mask &= rows <= (h - 1 - cut)[None, :]
+    return mask
+
+
+# ----------------------------------------------------------------------------- plan
+
+
+@dataclass(frozen=True, eq=False)
+class QuiltingPlan:
+    """Where the blocks of a quilt go, in which order, and what each one overlaps.
+
+    Blocks form a ``ny x nx`` grid; block ``(i, j)`` covers rows ``ys[i] : ys[i] + P`` and
+    columns ``xs[j] : xs[j] + P`` of the canvas (modulo the canvas size when ``tile``).
+
+    Attributes
+    ----------
+    size : (int, int)
+        Output height and width.
+    patch_size, overlap : int
+        ``P`` and the requested overlap (with ``tile``, actual overlaps may be a pixel or
+        so larger so that the blocks fit the period exactly).
+    tile : bool
+        Whether the output wraps around (the canvas is a torus of exactly ``size``).
+    canvas_shape : (int, int)
+        Working canvas; the output is its top-left ``size`` corner.
+    ys, xs : ndarray of int, shapes (ny,), (nx,)
+        Block positions.
+    level : ndarray of int, shape (ny, nx)
+        Wavefront of each block: blocks of one level do not overlap and only overlap
+        blocks of earlier levels that come before them in raster order.
+    n_levels : int
+    mask_id : ndarray of int, shape (ny, nx)
+        Index into ``masks`` of each block's overlap shape.
+    masks : ndarray of bool, shape (m, P, P)
+        Pixels of a block already covered when it is placed (its overlap).
+    strips : ndarray of int, shape (m, 4)
+        Widths of the (left, top, right, bottom) overlap strips cut by dynamic programming.
+    keep : ndarray of bool, shape (m, P, P)
+        Covered pixels in no strip (corners of diagonal neighbours only); they stay old.
+    frame : (int, int, int, int)
+        (left, top, right, bottom) widths of the frame of the block that holds every
+        overlap; only these pixels of the pool patches are compared.
+    """
+
+    size: Tuple[int, int]
+    patch_size: int
+    overlap: int
+    tile: bool
+    canvas_shape: Tuple[int, int]
+    ys: np.ndarray
+    xs: np.ndarray
+    level: np.ndarray
+    n_levels: int
+    mask_id: np.ndarray
+    masks: np.ndarray
+    strips: np.ndarray
+    keep: np.ndarray
+    frame: Tuple[int, int, int, int]
+
+    @property
+    def n_blocks(self) -> int:
+        return int(self.level.size)
+
+    @property
+    def region(self) -> np.ndarray:
+        """``(P, P)`` bool: the pixels of :attr:`frame`, which contain every overlap."""
+        out = np.zeros((self.patch_size, self.patch_size), dtype=bool)
+        for rows, cols in _frame_slices(self.patch_size, self.frame):
+            out[rows, cols] = True
+        return out
+
+
+def _frame_slices(p: int, frame) -> list:
+    """(rows, cols) slices of the 4 disjoint rectangles making up a frame (l, t, r, b).
+
+    The top band and the left band come first: they hold every overlap except the
+    wrap-around ones of tileable output (right and bottom).
+    """
+    left, top, right, bottom = frame
+    parts = [
+        (slice(0, top), slice(0, p)),
+        (slice(top, p - bottom), slice(0, left)),
+        (slice(p - bottom, p), slice(0, p)),
+        (slice(top, p - bottom), slice(p - right, p)),
+    ]
+    return [(r, c) for r, c in parts if r.stop > r.start and c.stop > c.start]
+
+
+def _frame_features(x: np.ndarray, slices, out: Optional[np.ndarray] = None) -> np.ndarray:
+    """Flatten the frame pixels of blocks ``x`` ``(N, P, P, C)`` into ``(N, K)`` rows."""
+    n = x.shape[0]
+    parts = [x[:, r, c].reshape(n, -1) for r, c in slices]
+    if out is None:
+        return np.concatenate(parts, axis=1) if parts else np.zeros((n, 0), dtype=x.dtype)
+    start = 0
+    for part in parts:
+        out[:, start : start + part.shape[1]] = part
+        start += part.shape[1]
+    return out
+
+
+def _axis_positions(length: int, p: int, overlap: int, tile: bool, name: str):
+    """Block starts along one axis and, per block, the overlap widths before and after it."""
+    step = p - overlap
+    if not tile:
+        count = max(1, -(-(length - overlap) // step))
+        starts = np.arange(count, dtype=np.int64) * step
+        widths = np.full(count, overlap, dtype=np.int64)
+        return starts, widths, widths, int((count - 1) * step + p)
+    if length < p:
+        raise TGHopError(
+            f"tile=True needs an output {name} of at least the patch size {p}, got {length}; "
+            "ask for a larger image or use smaller patches"
+        )
+    # The blocks must fit the period exactly: spread `count` blocks evenly over `length`
+    # (steps differ by at most one pixel). Use as many as needed for overlaps >= `overlap`,
+    # and fewer if then a block would reach past its neighbour (two consecutive steps
+    # shorter than a patch): each block must overlap only the next and previous ones.
+    for count in range(-(-length // step), 1, -1):
+        starts = (np.arange(count, dtype=np.int64) * length) // count
+        steps = np.diff(np.append(starts, length))  # steps[k]: from block k to block k+1 (wrapping)
+        if steps.max() <= p - 1 and (steps + np.roll(steps, -1)).min() >= p:
+            after = p - steps
+            before = np.roll(after, 1)
+            return starts, before, after, length
+    raise TGHopError(
+        f"cannot tile an output {name} of {length} pixels with {p}-pixel patches and overlap {overlap}; "
+        "change the size or the overlap"
+    )
+
+
+def _tile_levels(ny: int, nx: int) -> np.ndarray:
+    """Wavefront levels on a torus: the longest chain of overlapping predecessors.
+
+    Blocks are ordered by ``(2 i + j, i)`` (raster-like); each gets one more than the
+    largest level of its overlapping predecessors. Runs one vectorised step per wavefront.
+    """
+    ii_all, jj_all = np.mgrid[0:ny, 0:nx]
+    key = 2 * ii_all + jj_all
+    rank = key * ny + ii_all
+    level = np.full((ny, nx), -1, dtype=np.int64)
+    for k in range(int(key.max()) + 1):
+        ii = np.arange(max(0, -(-(k - nx + 1) // 2)), min(ny - 1, k // 2) + 1)
+        if ii.size == 0:
+            continue
+        jj = k - 2 * ii
+        lv = np.zeros(ii.size, dtype=np.int64)
+        same_key = []
+        for di, dj in _OFFSETS:
+            ni, nj = (ii + di) % ny, (jj + dj) % nx
+            earlier = rank[ni, nj] < rank[ii, jj]
+            done = earlier & (key[ni, nj] < k)
+            lv = np.where(done, np.maximum(lv, level[ni, nj] + 1), lv)
+            same = earlier & (key[ni, nj] == k)
+            if same.any():
+                same_key.append((ni, nj, same))
+        if same_key:  # rare (e.g. nx == 2 * ny - 1): resolve in order of increasing row
+            for t in range(ii.size):
+                for ni, nj, same in same_key:
+                    if same[t]:
+                        lv[t] = max(lv[t], level[ni[t], nj[t]] + 1)
+                level[ii[t], jj[t]] = lv[t]
+        else:
+            level[ii, jj] = lv
+    return level
+
+
+def quilting_plan(size, patch_size: int, *, overlap: Optional[int] = None, tile: bool = False) -> QuiltingPlan:
+    """Lay out the blocks of a quilt (no pixels involved).
+
+    Parameters
+    ----------
+    size : (int, int) or int
+        Output height and width.
+    patch_size : int
+        Side ``P`` of the square blocks.
+    overlap : int, optional
+        Overlap between neighbouring blocks, in ``[1, P // 2]``; default ``round(P / 6)``.
+    tile : bool
+        Plan a toroidal canvas so that the output wraps around seamlessly.
+
+    Returns
+    -------
+    QuiltingPlan
+    """
+    h, w = _check_size(size)
+    p, o = _check_patch_overlap(patch_size, overlap)
+    tile = bool(tile)
+    ys, up, down, hc = _axis_positions(h, p, o, tile, "height")
+    xs, lw, rw, wc = _axis_positions(w, p, o, tile, "width")
+    ny, nx = ys.size, xs.size
+    if ny * nx > MAX_BLOCKS:
+        raise TGHopError(
+            f"a {h}x{w} quilt of {p}x{p} patches needs {ny * nx} blocks, above the limit of {MAX_BLOCKS}; "
+            "use larger patches or a smaller size"
+        )
+    ii, jj = np.mgrid[0:ny, 0:nx]
+    if tile:
+        level = _tile_levels(ny, nx)
+        rank = (2 * ii + jj) * ny + ii
+    else:
+        level = 2 * ii + jj
+        rank = level
+    # Which of the 8 neighbours are placed before each block -> bits of its overlap shape.
+    bits = np.zeros((ny, nx), dtype=np.int64)
+    for bit, (di, dj) in enumerate(_OFFSETS):
+        ni, nj = ii + di, jj + dj
+        if tile:
+            earlier = rank[ni % ny, nj % nx] < rank
+        else:
+            inside = (ni >= 0) & (ni < ny) & (nj >= 0) & (nj < nx)
+            earlier = inside & (rank[np.clip(ni, 0, ny - 1), np.clip(nj, 0, nx - 1)] < rank)
+        bits |= earlier.astype(np.int64) << bit
+    # Overlap shape of a block = (neighbour bits, row overlaps, column overlaps); the
+    # overlaps depend only on the block's row (resp. column), so number those classes.
+    row_cls, row_id = np.unique(np.stack([up, down], axis=1), axis=0, return_inverse=True)
+    col_cls, col_id = np.unique(np.stack([lw, rw], axis=1), axis=0, return_inverse=True)
+    n_col = col_cls.shape[0]
+    code = bits + 256 * (row_id.reshape(-1)[ii] * n_col + col_id.reshape(-1)[jj])
+    uniq, inverse = np.unique(code.ravel(), return_inverse=True)
+    mask_id = inverse.reshape(ny, nx).astype(np.int32)
+
+    m = uniq.size
+    masks = np.zeros((m, p, p), dtype=bool)
+    keep = np.zeros((m, p, p), dtype=bool)
+    strips = np.zeros((m, 4), dtype=np.int64)
+    frame = [0, 0, 0, 0]  # the smallest (left, top, right, bottom) frame holding every mask
+    for k, c in enumerate(uniq.tolist()):
+        b, rc = c % 256, c // 256
+        wt, wb = (int(v) for v in row_cls[rc // n_col])
+        wl, wr = (int(v) for v in col_cls[rc % n_col])
+        for bit, (di, dj) in enumerate(_OFFSETS):
+            if b >> bit & 1:
+                # Corner rectangles lie in the full-width top and bottom bands.
+                if di < 0:
+                    frame[1] = max(frame[1], wt)
+                elif di > 0:
+                    frame[3] = max(frame[3], wb)
+                elif dj < 0:
+                    frame[0] = max(frame[0], wl)
+                else:
+                    frame[2] = max(frame[2], wr)
+        row_span = {-1: slice(0, wt), 0: slice(0, p), 1: slice(p - wb, p)}
+        col_span = {-1: slice(0, wl), 0: slice(0, p), 1: slice(p - wr, p)}
+        for bit, (di, dj) in enumerate(_OFFSETS):
+            if b >> bit & 1:
+                masks[k, row_span[di], col_span[dj]] = True
+        covered = np.zeros((p, p), dtype=bool)
+        for side, (bit, width, span) in enumerate(
+            ((3, wl, (slice(None), slice(0, wl))), (1, wt, (slice(0, wt), slice(None))),
+             (4, wr, (slice(None), slice(p - wr, p))), (6, wb, (slice(p - wb, p), slice(None))))
+        ):
+            if b >> bit & 1:
+                strips[k, side] = width
+                covered[span] = True
+        keep[k] = masks[k] & ~covered
+    if frame[0] + frame[2] > p or frame[1] + frame[3] > p:
+        # Opposite overlaps share pixels (tileable output about one patch wide): compare
+        # whole patches.
+        frame = [0, p, 0, 0]
+    return QuiltingPlan(
+        size=(h, w), patch_size=p, overlap=o, tile=tile, canvas_shape=(int(hc), int(wc)),
+        ys=ys, xs=xs, level=level.astype(np.int32), n_levels=int(level.max()) + 1,
+        mask_id=mask_id, masks=masks, strips=strips, keep=keep, frame=tuple(frame),
+    )
+
+
+# ----------------------------------------------------------------------------- quilting
+
+
+def _window(y: int, x: int, p: int, hc: int, wc: int):
+    """Index of the ``p x p`` block at ``(y, x)`` of a canvas, wrapping around its edges."""
+    rows = slice(y, y + p) if y + p <= hc else np.arange(y, y + p) % hc
+    cols = slice(x, x + p) if x + p <= wc else np.arange(x, x + p) % wc
+    if not isinstance(rows, slice) and not isinstance(cols, slice):
+        rows = rows[:, None]  # both wrap: index the outer product
+    return rows, cols
+
+
+def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray) -> np.ndarray:
+    """``(n, m + k)`` float32: each patch's squared norm over each of the ``m`` overlap
+    shapes, then its ``k`` frame values (channels innermost)."""
+    n = arr.shape[0]
+    m, k = masks_fc.shape
+    table = np.empty((n, m + k), dtype=np.float32)
+    squares = np.empty((min(n, _POOL_CHUNK), k), dtype=np.float32)
+    for a in range(0, n, _POOL_CHUNK):
+        rows = table[a : a + _POOL_CHUNK, m:]
+        _frame_features(arr[a : a + _POOL_CHUNK], slices, out=rows)
+        _check_values(rows)
+        sq = np.square(rows, out=squares[: rows.shape[0]])
+        np.matmul(sq, masks_fc.T, out=table[a : a + _POOL_CHUNK, :m])
+    return table
+
+
+def quilt(
+    pool,
+    size,
+    *,
+    overlap: Optional[int] = None,
+    tolerance: float = 0.1,
+    tile: bool = False,
+    rng=None,
+    progress: Optional[ProgressCallback] = None,
+) -> np.ndarray:
+    """Stitch patches from ``pool`` into an image by image quilting (Efros & Freeman 2001).
+
+    Parameters
+    ----------
+    pool : array_like, shape (n, P, P, C) or (n, P, P)
+        Candidate patches, floats in [0, 1] (uint8 is rescaled), ``C`` = 1 or 3, ``P >= 2``.
+        float32 pools are used without a copy.
+    size : (int, int) or int
+        Output height and width, any size up to :data:`MAX_PIXELS` pixels (also smaller
+        than a patch). With ``tile`` both must be at least ``P``.
+    overlap : int, optional
+        Overlap between neighbouring blocks in pixels, in ``[1, P // 2]``; default
+        ``round(P / 6)`` (at least 1).
+    tolerance : float
+        Each block takes a patch chosen uniformly at random among those whose overlap error
+        is at most ``(1 + tolerance)`` times the best one; 0 takes the best match.
+    tile : bool
+        Make the output tileable: it wraps around seamlessly (the last blocks of each row
+        and column also overlap, are matched with and cut into the first ones).
+    rng : None, int or numpy.random.Generator
+        Seed; the same seed gives the same image.
+    progress : callable, optional
+        ``progress("quilting", done, total)`` after each wavefront of blocks.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), float64 in [0, 1]
+
+    Raises
+    ------
+    TGHopError
+        For a pool of the wrong shape or with values outside [0, 1] or NaN (values are
+        checked where they are read: the overlap frame of every patch and each patch
+        used), a size that is not positive or above :data:`MAX_PIXELS`, an overlap outside
+        ``[1, P // 2]``, a negative tolerance, or ``tile`` with a size smaller than ``P``.
+
+    Notes
+    -----
+    Cost: one pass over the pool's overlap pixels (float32) per wavefront, about
+    ``2 * ny + nx`` of them for a ``ny x nx`` grid of blocks; the products go through
+    BLAS, whose threads can be limited with ``threadpoolctl`` (on a busy machine one
+    thread is often faster). Memory: the float32 overlap table of the pool (``n`` rows of
+    about ``2 P overlap C`` values, twice that with ``tile``), ``n x`` (blocks per
+    wavefront) errors, a float32 canvas and the float64 result; per block the plan keeps
+    only a few integers.
+    """
+    arr = _check_pool(pool)
+    n, p, c = arr.shape[0], arr.shape[1], arr.shape[3]
+    if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not (
+        math.isfinite(tolerance) and tolerance >= 0
+    ):
+        raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+    tolerance = float(tolerance)
+    plan = quilting_plan(size, p, overlap=overlap, tile=tile)
+    rng = check_rng(rng)
+
+    # One float32 row per pool patch: [squared norm over each of the m overlap shapes |
+    # the patch's pixels in the overlap frame]. With a block's query row
+    # [one-hot of its shape | -2 * its masked overlap pixels], a single matrix product gives
+    # ||p||^2 - 2 p.o for every patch p; adding ||o||^2 gives the overlap error.
+    slices = _frame_slices(p, plan.frame)
+    masks_f = _frame_features(plan.masks[..., None], slices).astype(np.float32)  # (m, nf)
+    masks_fc = np.repeat(masks_f, c, axis=1)  # (m, nf * c), matches the (pixel, channel) layout
+    m, k = masks_fc.shape
+    table = _pool_table(arr, slices, masks_fc)
+    norm_max = table[:, :m].max(axis=0)  # (m,)
+    one_hot = np.eye(m, dtype=np.float32)
+    # Columns [0, k1) hold the norms, the top band and the left band; only wrap-around
+    # blocks of tileable output overlap the others, so most blocks skip them.
+    left, top, _, bottom = plan.frame
+    k1 = m + (top * p + (p - top - bottom) * left) * c
+    wraps = masks_fc[:, k1 - m :].any(axis=1)  # (m,)
+
+    hc, wc = plan.canvas_shape
+    canvas = np.zeros((hc, wc, c), dtype=np.float32)
+    order = np.argsort(plan.level.ravel(), kind="stable")
+    bounds = np.cumsum(np.bincount(plan.level.ravel(), minlength=plan.n_levels))
+    nx = plan.xs.size
+    done, start = 0, 0
+    for stop in bounds.tolist():
+        blocks = order[start:stop]
+        start = stop
+        if blocks.size == 0:
+            continue
+        b = blocks.size
+        bi, bj = blocks // nx, blocks % nx
+        windows = [_window(y, x, p, hc, wc) for y, x in zip(plan.ys[bi].tolist(), plan.xs[bj].tolist())]
+        old = np.stack([canvas[win] for win in windows])  # (b, p, p, c)
+        mid = plan.mask_id[bi, bj]
+
+        # Overlap errors of all pool patches for all blocks (minus ||o||^2): (n, b).
+        o = _frame_features(old, slices)
+        o *= masks_fc[mid]
+        onorm = np.einsum("ij,ij->i", o, o)
+        query = np.empty((b, m + k), dtype=np.float32)
+        query[:, :m] = one_hot[mid]
+        np.multiply(o, -2.0, out=query[:, m:])
+        err = table[:, :k1] @ query[:, :k1].T
+        sel = np.flatnonzero(wraps[mid])
+        if sel.size:
+            err[:, sel] += table[:, k1:] @ query[sel, k1:].T
+        # Candidates: error <= (1 + tolerance) * best error, with a little slack for the
+        # float32 round-off of the expansion; the best match always qualifies.
+        best = np.maximum(err.min(axis=0) + onorm, 0.0)
+        slack = 1e-5 * (onorm + norm_max[mid])
+        cand = err <= best * (1.0 + tolerance) + slack - onorm
+        pool_idx, block_idx = np.nonzero(cand)
+        counts = np.bincount(block_idx, minlength=b)
+        by_block = np.argsort(block_idx, kind="stable")  # block-major, pool index ascending
+        pick = rng.integers(0, counts)
+        chosen = pool_idx[by_block[np.concatenate(([0], np.cumsum(counts)[:-1])) + pick]]
+
+        new = np.asarray(arr[chosen], dtype=np.float32)
+        _check_values(new)
+        pix_err = np.square(old - new).sum(axis=3)
+        paste = _cut_masks(pix_err, plan.strips[mid], plan.keep[mid])
+        np.copyto(old, new, where=paste[..., None])
+        for t, win in enumerate(windows):
+            canvas[win] = old[t]
+        done += b
+        report(progress, "quilting", done, plan.n_blocks)
+
+    del table
+    h, w = plan.size
+    out = canvas[:h, :w].astype(np.float64)
+    del canvas
+    np.clip(out, 0.0, 1.0, out=out)
+    return out

@@ -1,0 +1,153 @@
+"""The command line end to end, in a subprocess as a user runs it, on textures made in code."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from tghop import data
+from tghop.imageio import save_image
+
+FAST = ["--clusters", "6", "--codewords", "30", "--stride", "4", "-q"]
+
+
+def run(*args, cwd=None, stdin=None):
+    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning"}
+    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], cwd=cwd, capture_output=True,
+                          env=env, timeout=300, input=stdin)
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    save_image(data.bricks(80, rng=2), d / "bricks.png")
+    return d
+
+
+@pytest.fixture(scope="module")
+def model_path(workdir):
+    r = run("fit", workdir / "bricks.png", "-o", workdir / "model.bin", *FAST)
+    assert r.returncode == 0, r.stderr.decode()
+    err = r.stderr.decode()
+    assert "D0=3072 -> D1=2304 -> D2=1408" in err and "D_r=" in err and "F=" in err
+    assert "parameters:" in err
+    return workdir / "model.bin"
+
+
+def assert_user_error(r, *fragments):
+    """Non-zero exit, one 'Error:' line naming the problem, no traceback."""
+    err = r.stderr.decode()
+    assert r.returncode != 0
+    assert "Traceback" not in err
+    lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
+    assert len(lines) == 1, err
+    for fragment in fragments:
+        assert fragment in lines[0], err
+
+
+def test_info(model_path):
+    r = run("info", model_path)
+    assert r.returncode == 0
+    out = r.stdout.decode()
+    assert "transform stage 1" in out and "core ICHM (ii)" in out and "12*K1 + 1" in out
+
+
+def test_patches_grid_and_stages(model_path, workdir):
+    r = run("patches", model_path, "-n", "9", "-o", workdir / "grid.png", "--seed", "3", "--stages")
+    assert r.returncode == 0, r.stderr.decode()
+    grid = np.asarray(Image.open(workdir / "grid.png"))
+    assert grid.shape == (3 * 34 - 2, 3 * 34 - 2, 3)
+    stages = np.asarray(Image.open(workdir / "grid_stages.png"))
+    assert stages.shape == (9 * 34 - 2, 3 * 34 - 2, 3)
+    again = workdir / "grid2.png"
+    run("patches", model_path, "-n", "9", "-o", again, "--seed", "3")
+    assert np.array_equal(np.asarray(Image.open(again)), grid)
+
+
+def test_synth_from_model_numbered_and_tiled(model_path, workdir):
+    r = run("synth", model_path, "-o", workdir / "out.png", "--size", "70x90", "--count", "2", "--seed", "5",
+            "--tile", "--pool", "500", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    a = np.asarray(Image.open(workdir / "out_1.png"))
+    b = np.asarray(Image.open(workdir / "out_2.png"))
+    assert a.shape == b.shape == (70, 90, 3)
+    assert not np.array_equal(a, b)
+
+
+def test_synth_from_image_saves_model_and_jpeg(workdir):
+    r = run("synth", workdir / "bricks.png", "-o", workdir / "o.jpg", "--size", "64", "--pool", "300",
+            "--save-model", workdir / "saved.npz", "--seed", "1", *FAST)
+    assert r.returncode == 0, r.stderr.decode()
+    assert Image.open(workdir / "o.jpg").format == "JPEG"
+    assert (workdir / "saved.npz").exists()
+
+
+def test_synth_stdout_is_png(model_path):
+    r = run("synth", model_path, "-o", "-", "--size", "40x50", "--pool", "200", "--seed", "2", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert r.stdout[:8] == b"\x89PNG\r\n\x1a\n"
+    import io
+
+    assert np.asarray(Image.open(io.BytesIO(r.stdout))).shape == (40, 50, 3)
+
+
+def test_synth_same_seed_same_image(model_path, workdir):
+    for name in ("s1.png", "s2.png"):
+        assert run("synth", model_path, "-o", workdir / name, "--size", "48", "--pool", "300", "--seed", "9",
+                   "-q").returncode == 0
+    assert np.array_equal(np.asarray(Image.open(workdir / "s1.png")), np.asarray(Image.open(workdir / "s2.png")))
+
+
+def test_builtin_exemplar(workdir):
+    r = run("fit", "builtin:nope", "-o", workdir / "x.npz")
+    assert_user_error(r, "unknown built-in exemplar", "bricks")
+
+
+# ------------------------------------------------------------------ bad input
+@pytest.mark.parametrize(
+    "args, fragments",
+    [
+        (["fit", "missing.png", "-o", "m.npz"], ["missing.png", "no such file"]),
+        (["fit", "notimage.png", "-o", "m.npz"], ["not a readable image"]),
+        (["fit", "tiny.png", "-o", "m.npz"], ["at least 32x32"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--k1", "13"], ["K1", "at most 12"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--k1", "0"], ["--k1"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--k2", "5"], ["K2", "at least 9"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--k2", "lots"], ["--k2"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--clusters", "0"], ["--clusters"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--clusters", "4000"], ["lower N"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--gamma", "-1"], ["--gamma"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--gamma", "1e9"], ["smaller gamma"]),
+        (["fit", "bricks.png", "-o", "nofolder/m.npz"], ["does not exist"]),
+        (["patches", "foreign.npz", "-o", "g.png"], ["not a tghop model"]),
+        (["patches", "notimage.png", "-o", "g.png"], ["not a tghop model"]),
+        (["patches", "missing.npz", "-o", "g.png"], ["no such model file"]),
+        (["info", "foreign.npz"], ["not a tghop model"]),
+        (["synth", "bricks.png", "-o", "out.gif"], ["extension"]),
+        (["synth", "bricks.png", "-o", "out.png", "--size", "0x10"], ["--size"]),
+        (["synth", "bricks.png", "-o", "out.png", "--size", "-5"], ["--size"]),
+        (["synth", "bricks.png", "-o", "out.png", "--size", "100000x100000"], ["exceeds the limit"]),
+        (["synth", "bricks.png", "-o", "-", "--count", "2"], ["stdout"]),
+        (["synth", "bricks.png", "-o", "out.png", "--pool", "0"], ["--pool"]),
+    ],
+)
+def test_bad_input(workdir, args, fragments):
+    (workdir / "notimage.png").write_text("this is not an image")
+    save_image(np.zeros((20, 20, 3)), workdir / "tiny.png")
+    with open(workdir / "foreign.npz", "wb") as fh:
+        np.savez(fh, x=np.zeros(2))
+    before = set(os.listdir(workdir))
+    r = run(*args, *(["-q"] if args[0] in ("fit", "synth") else []), cwd=workdir)
+    assert_user_error(r, *fragments)
+    assert set(os.listdir(workdir)) == before  # no output, no half-written file
+
+
+def test_rgba_warns_and_works(workdir):
+    rgba = np.concatenate([data.bricks(64, rng=3), np.ones((64, 64, 1))], axis=2)
+    Image.fromarray((rgba * 255).astype(np.uint8), "RGBA").save(workdir / "rgba.png")
+    r = run("fit", workdir / "rgba.png", "-o", workdir / "rgba.npz", *FAST)
+    assert r.returncode == 0, r.stderr.decode()
+    assert "alpha channel dropped" in r.stderr.decode()
