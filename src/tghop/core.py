@@ -29,7 +29,7 @@ import numbers
 import numpy as np
 from scipy.special import ndtr
 from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.cluster import KMeans, kmeans_plusplus
+from sklearn.cluster import KMeans
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
@@ -46,14 +46,38 @@ def _seed(rng) -> int:
     return int(rng.integers(0, 2**31 - 1))
 
 
+def _kmeans_plusplus(X, n_clusters, rng, n_trials=None):
+    """Greedy k-means++ seeding (Arthur & Vassilvitskii 2007), vectorised over candidates."""
+    n = len(X)
+    n_trials = n_trials or 2 + int(np.log(n_clusters))
+    sq = np.einsum("nd,nd->n", X, X)
+    centres = np.empty((n_clusters, X.shape[1]))
+    centres[0] = X[rng.integers(n)]
+    closest = np.maximum(sq - 2 * X @ centres[0] + centres[0] @ centres[0], 0)
+    for k in range(1, n_clusters):
+        total = closest.sum()
+        if total <= 0:  # fewer distinct points than clusters: repeat points
+            centres[k:] = X[rng.integers(n, size=n_clusters - k)]
+            break
+        cand = np.searchsorted(np.cumsum(closest), rng.random(n_trials) * total)
+        cand = np.minimum(cand, n - 1)
+        d = np.maximum(sq[cand, None] - 2 * X[cand] @ X.T + sq[None, :], 0)
+        d = np.minimum(d, closest)
+        best = np.argmin(d.sum(axis=1))
+        centres[k] = X[cand[best]]
+        closest = d[best]
+    return centres
+
+
 def _kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
-    """K-means (Lloyd) seeded by k-means++ on a random subsample: the full k-means++ pass
-    costs several times the whole Lloyd iteration here for the same final inertia."""
-    X = np.asarray(X, dtype=np.float32)
+    """K-means (Lloyd, scikit-learn) seeded by k-means++ on a random subsample: seeding
+    on all points costs several times the whole Lloyd iteration for the same inertia."""
     sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
-    centres, _ = kmeans_plusplus(sub, n_clusters, random_state=_seed(rng))
-    km = KMeans(n_clusters=n_clusters, init=centres, n_init=1, max_iter=max_iter, random_state=_seed(rng))
-    labels = km.fit_predict(X)
+    with threadpool_limits(limits=1, user_api="blas"):
+        centres = _kmeans_plusplus(np.asarray(sub, dtype=np.float64), n_clusters, rng)
+    km = KMeans(n_clusters=n_clusters, init=centres.astype(np.float32), n_init=1, max_iter=max_iter,
+                random_state=_seed(rng))
+    labels = km.fit_predict(np.asarray(X, dtype=np.float32))
     return labels, km.cluster_centers_.astype(np.float64)
 
 
@@ -353,13 +377,15 @@ class ICHM(BaseEstimator):
     def _fit_cluster(self, centred, rng):
         """PCA-whiten one cluster, run FastICA; return (mixing (k, D_r), sources (n_i, k))."""
         n = centred.shape[0]
-        _, sing, vt = np.linalg.svd(centred, full_matrices=False)
-        var = sing**2 / n
+        # PCA through the n x n Gram matrix (clusters have fewer members than dimensions).
+        gram_vals, gram_vecs = np.linalg.eigh(centred @ centred.T)
+        gram_vals, gram_vecs = np.maximum(gram_vals[::-1], 0), gram_vecs[:, ::-1]
+        var = gram_vals / n
         cum = np.cumsum(var) / max(var.sum(), 1e-300)
         k = int(np.searchsorted(cum, self.cluster_energy - 1e-12)) + 1
         k = max(1, min(k, self.max_cluster_components, n - 1, int(np.count_nonzero(var > 1e-12 * var[0]))))
         std = np.sqrt(var[:k])
-        basis = _flip_signs(vt[:k])
+        basis = _flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
         white = centred @ basis.T / std
         unmix, converged = fast_ica(white, max_iter=self.max_iter, rng=rng)
         self.n_ica_unconverged_ += not converged
