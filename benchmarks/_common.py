@@ -78,3 +78,50 @@ def timed(out: dict, key: str):
 def peak_rss_mb() -> float:
     """Peak resident memory of this process so far, in MB."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def image_sheet(columns, labels=None, *, height=256, gap=6):
+    """Images side by side at one height (nearest-neighbour scaled), labels underneath.
+
+    Parameters
+    ----------
+    columns : list of ndarray (H, W, C) in [0, 1]
+    labels : list of str, optional
+
+    Returns
+    -------
+    ndarray (h, w, 3) in [0, 1]
+    """
+    import numpy as np
+    from PIL import Image, ImageDraw
+
+    tiles = []
+    for img in columns:
+        arr = np.asarray(img, dtype=np.float64)
+        if arr.ndim == 2:
+            arr = arr[..., None]
+        if arr.shape[2] == 1:
+            arr = np.repeat(arr, 3, axis=2)
+        pil = Image.fromarray(np.round(np.clip(arr, 0, 1) * 255).astype(np.uint8))
+        width = max(1, round(pil.width * height / pil.height))
+        tiles.append(pil.resize((width, height), Image.NEAREST))
+    label_h = 16 if labels else 0
+    total_w = sum(t.width for t in tiles) + gap * (len(tiles) - 1)
+    sheet = Image.new("RGB", (total_w, height + label_h), "white")
+    draw = ImageDraw.Draw(sheet)
+    x = 0
+    for i, t in enumerate(tiles):
+        sheet.paste(t, (x, 0))
+        if labels:
+            draw.text((x + 2, height + 2), labels[i], fill="black")
+        x += t.width + gap
+    return np.asarray(sheet) / 255.0
+
+
+def stack_rows(rows, gap=6):
+    """Stack sheets vertically (padded to the widest)."""
+    import numpy as np
+
+    width = max(r.shape[1] for r in rows)
+    padded = [np.pad(r, ((0, gap), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]
+    return np.concatenate(padded, axis=0)
