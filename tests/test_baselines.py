@@ -1,0 +1,168 @@
+"""Tests of tghop.baselines on tiny textures made in code."""
+
+from __future__ import annotations
+
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from tghop import baselines, data
+from tghop._common import InvalidImageError, TGHopError
+from tghop.baselines import BASELINES, MissingExtraError
+
+NUMPY_BASELINES = ["crop", "blurred-crop", "colour-noise"]
+
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_torch_thread():
+    """Tiny tensors: on a loaded machine, torch's spinning worker threads made these tests 40x slower."""
+    try:
+        import torch
+    except ImportError:
+        yield
+        return
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return data.bricks(48)
+
+
+@pytest.mark.parametrize("name", NUMPY_BASELINES)
+@pytest.mark.parametrize("size, shape", [(None, (48, 48)), (32, (32, 32)), ((20, 40), (20, 40))])
+def test_reference_points_size_range_and_seed(name, size, shape, exemplar):
+    fn = BASELINES[name]
+    out = fn(exemplar, size, rng=3)
+    assert out.shape == shape + (3,)
+    assert out.dtype == np.float64 and out.min() >= 0 and out.max() <= 1
+    np.testing.assert_array_equal(out, fn(exemplar, size, rng=3))
+
+
+def test_crop_is_a_piece_of_the_exemplar(exemplar):
+    out = baselines.crop(exemplar, 16, rng=0)
+    windows = np.lib.stride_tricks.sliding_window_view(exemplar, (16, 16), axis=(0, 1))
+    found = (windows.transpose(0, 1, 3, 4, 2) == out).all(axis=(2, 3, 4))
+    assert found.any()
+    assert not np.array_equal(out, baselines.crop(exemplar, 16, rng=1))
+    np.testing.assert_array_equal(baselines.crop(exemplar, rng=0), exemplar)
+
+
+def test_crops_larger_than_the_exemplar_are_refused(exemplar):
+    with pytest.raises(TGHopError, match="does not fit"):
+        baselines.crop(exemplar, 64)
+    with pytest.raises(TGHopError):
+        baselines.blurred_crop(exemplar, (10, 49))
+    with pytest.raises(TGHopError):
+        baselines.crop(exemplar, 0)
+    with pytest.raises(TGHopError):
+        baselines.blurred_crop(exemplar, 16, sigma=0)
+
+
+def test_blurred_crop_is_smoother(exemplar):
+    sharp = baselines.crop(exemplar, rng=0)
+    soft = baselines.blurred_crop(exemplar, rng=0, sigma=1.5)
+    assert np.abs(np.diff(soft, axis=1)).mean() < 0.7 * np.abs(np.diff(sharp, axis=1)).mean()
+
+
+def test_colour_noise_matches_colour_statistics(exemplar):
+    soft = 0.25 + 0.5 * exemplar  # no clipping of the noise at 0 and 1
+    noise = baselines.colour_noise(soft, 256, rng=0)
+    px, pn = soft.reshape(-1, 3), noise.reshape(-1, 3)
+    np.testing.assert_allclose(pn.mean(axis=0), px.mean(axis=0), atol=0.01)
+    np.testing.assert_allclose(np.cov(pn, rowvar=False), np.cov(px, rowvar=False), atol=0.003)
+    # Greyscale (and grey stored as RGB: a singular covariance) work too.
+    grey = exemplar.mean(axis=2)
+    assert baselines.colour_noise(grey, 16, rng=0).shape == (16, 16, 1)
+    grey_rgb = np.repeat(grey[..., None], 3, axis=2)
+    out = baselines.colour_noise(grey_rgb, 16, rng=0)
+    np.testing.assert_allclose(out[..., 0], out[..., 2], atol=1e-6)
+
+
+def test_greyscale_reference_points(exemplar):
+    grey = exemplar.mean(axis=2)
+    for name in NUMPY_BASELINES:
+        assert BASELINES[name](grey, 16, rng=0).shape == (16, 16, 1)
+
+
+def test_progress_is_reported(exemplar):
+    calls = []
+    baselines.crop(exemplar, 8, rng=0, progress=lambda *a: calls.append(a))
+    assert calls[-1][1] == calls[-1][2]
+
+
+def test_quilting_builds_the_pool_from_all_exemplar_patches(exemplar, monkeypatch):
+    seen = {}
+
+    def fake_quilt(pool, size, *, overlap=None, tolerance=0.1, tile=False, rng=None, progress=None):
+        seen.update(pool=pool, size=size, overlap=overlap, tolerance=tolerance, tile=tile)
+        return np.zeros(tuple(size) + (pool.shape[3],))
+
+    monkeypatch.setitem(sys.modules, "tghop.quilting", types.SimpleNamespace(quilt=fake_quilt))
+    out = baselines.quilting(exemplar, (40, 30), patch_size=16, max_patches=None, tolerance=0.2, rng=0)
+    assert out.shape == (40, 30, 3)
+    assert seen["pool"].shape == (33 * 33, 16, 16, 3) and seen["pool"].dtype == np.float32
+    np.testing.assert_allclose(seen["pool"][0], exemplar[:16, :16], atol=1e-6)
+    np.testing.assert_allclose(seen["pool"][-1], exemplar[-16:, -16:], atol=1e-6)
+    assert seen["tolerance"] == 0.2
+    baselines.quilting(exemplar, 40, patch_size=16, max_patches=100, rng=0)
+    assert seen["pool"].shape == (100, 16, 16, 3)
+    with pytest.raises(InvalidImageError):
+        baselines.quilting(exemplar, 40, patch_size=64)
+
+
+def test_quilting_runs(exemplar):
+    pytest.importorskip("tghop.quilting")
+    out = baselines.quilting(exemplar, 40, patch_size=16, rng=0)
+    assert out.shape == (40, 40, 3) and 0 <= out.min() and out.max() <= 1
+    np.testing.assert_array_equal(out, baselines.quilting(exemplar, 40, patch_size=16, rng=0))
+
+
+def test_ustyuzhaninov_reduces_its_gram_loss(exemplar):
+    pytest.importorskip("torch")
+    small = exemplar[:32, :32]
+    calls = []
+    out, info = baselines.ustyuzhaninov(
+        small, 24, n_iter=8, scales=(3, 7, 15), n_maps=16, rng=0, return_info=True,
+        progress=lambda *a: calls.append(a),
+    )
+    assert out.shape == (24, 24, 3) and out.dtype == np.float64
+    assert 0 <= out.min() and out.max() <= 1
+    assert info["n_iter"] == 8 and info["n_evals"] >= 8 and info["n_features"] == 3 * 16
+    assert info["loss"] < 0.5 * info["initial_loss"]
+    assert calls[0] == ("ustyuzhaninov", 0, 8) and calls[-1] == ("ustyuzhaninov", 8, 8)
+    again = baselines.ustyuzhaninov(small, 24, n_iter=8, scales=(3, 7, 15), n_maps=16, rng=0)
+    np.testing.assert_allclose(again, out, atol=1e-3)
+
+
+def test_ustyuzhaninov_greyscale_and_zero_iterations(exemplar):
+    pytest.importorskip("torch")
+    grey = exemplar[:32, :32].mean(axis=2)
+    out, info = baselines.ustyuzhaninov(grey, n_iter=0, scales=(3, 5), n_maps=4, rng=0, return_info=True)
+    assert out.shape == (32, 32, 1) and info["n_iter"] == 0 and info["n_evals"] == 0
+    with pytest.raises(TGHopError):
+        baselines.ustyuzhaninov(grey, n_iter=1, scales=(4,))
+
+
+def test_ustyuzhaninov_without_torch_raises_install_hint(exemplar, monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    with pytest.raises(MissingExtraError, match=r"needs PyTorch; install it with: pip install 'tghop\[metrics\]'"):
+        baselines.ustyuzhaninov(exemplar, n_iter=1)
+
+
+def test_ustyuzhaninov_default_model_runs(exemplar):
+    pytest.importorskip("torch")
+    out = baselines.ustyuzhaninov(exemplar[:24, :24], n_iter=1, rng=0)  # 8 scales x 128 maps
+    assert out.shape == (24, 24, 3)
+
+
+def test_registry_has_a_uniform_signature(exemplar):
+    assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"}
+    for fn in BASELINES.values():
+        assert callable(fn) and fn.__doc__

