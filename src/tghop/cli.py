@@ -1,4 +1,4 @@
-"""The ``tghop`` command line: fit, patches, synth, info, evaluate, baseline.
+"""The ``tghop`` command line: synth, fit, patches, info, evaluate, baseline.
 
 Every command reports bad input as one line on stderr and a non-zero exit status, never
 a traceback, and never leaves a half-written output file. Progress bars go to stderr.
@@ -388,6 +388,80 @@ def info(model_file, as_json):
     click.echo(f"  {'module':<20}{'formula':<16}{'paper formula':>14}{'stored':>12}")
     for name, row in params.items():
         click.echo(f"  {name:<20}{row['formula']:<16}{row['paper']:>14,}{row['stored']:>12,}")
+
+
+@main.command()
+@click.argument("exemplar")
+@click.argument("results", nargs=-1, required=True)
+@click.option("--json", "as_json", is_flag=True, help="One JSON object per result (JSON lines).")
+@click.option("--metrics", "names", default=None,
+              help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty (default all).")
+def evaluate(exemplar, results, as_json, names):
+    """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
+
+    With two or more results, also their diversity (higher: more different from each other).
+    SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
+    """
+    from . import metrics as M
+
+    with user_errors():
+        chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
+        ex = load_exemplar(exemplar)
+        images = [load_exemplar(r) for r in results]
+        rows = [(path, M.evaluate(ex, img, metrics=chosen)) for path, img in zip(results, images)]
+        div = M.diversity(*images) if len(images) > 1 else None
+    skipped = rows[0][1].skipped if rows else {}
+    if as_json:
+        for path, scores in rows:
+            click.echo(json.dumps({"exemplar": exemplar, "result": path, **scores}))
+        if div is not None:
+            click.echo(json.dumps({"exemplar": exemplar, "results": list(results), "diversity": div}))
+    else:
+        cols = list(rows[0][1])
+        width = max(len("result"), *(len(p) for p, _ in rows))
+        click.echo(f"{'result':<{width}}" + "".join(f"{c:>14}" for c in cols))
+        for path, scores in rows:
+            click.echo(f"{path:<{width}}" + "".join(f"{scores[c]:>14.4g}" for c in cols))
+        if div is not None:
+            click.echo(f"diversity of the {len(images)} results: {div:.4g}")
+    for name, why in skipped.items():
+        click.echo(f"Note: {name} skipped: {why}", err=True)
+
+
+@main.command()
+@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"]))
+@click.argument("exemplar")
+@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
+@click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
+@click.option("--seed", type=click.IntRange(min=0), default=None)
+@click.option("--iterations", type=click.IntRange(min=1), default=None,
+              help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+def baseline(name, exemplar, output, size, seed, iterations, quiet):
+    """Make a reference texture from EXEMPLAR with baseline NAME.
+
+    \b
+    crop           a random crop of the exemplar (best case)
+    blurred-crop   a blurred crop
+    colour-noise   noise with the exemplar's colour mean and covariance (worst case)
+    quilting       classic image quilting of the exemplar's own patches
+    ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
+    """
+    from .baselines import BASELINES
+    from .imageio import save_image
+
+    progress = Progress(not quiet)
+    with user_errors(progress):
+        check_output(output, allow_stdout=True)
+        if iterations is not None and name != "ustyuzhaninov":
+            raise TGHopError("--iterations applies to the ustyuzhaninov baseline only")
+        ex = load_exemplar(exemplar)
+        kwargs = {"n_iter": iterations} if iterations is not None else {}
+        image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
+        progress.close()
+        save_image(image, output)
+    if output != "-":
+        click.echo(f"{name} result written to {output}", err=True)
 
 
 if __name__ == "__main__":  # pragma: no cover
