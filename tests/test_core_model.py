@@ -193,6 +193,7 @@ def test_parameter_count_matches_stored_arrays(small_model, tmp_path):
     f_, n, w = d["F"], d["N"], d["W"]
     # Rows where the paper's formula is exactly what is stored.
     assert counts["transform stage 1"]["paper"] == counts["transform stage 1"]["stored"] == 12 * k1 + 1
+    assert counts["colour matching (ours)"] == {"formula": "C*257 (not in the paper)", "paper": 0, "stored": 3 * 257}
     assert counts["core ICHM (i)"]["stored"] == n
     assert counts["core ICHM (iii)"]["paper"] == counts["core ICHM (iii)"]["stored"] == 3 * f_ + 256 * w
     # Documented differences: compact c/w kernels, SDR channel means, cluster means.
@@ -239,3 +240,26 @@ def test_load_errors(small_model, tmp_path):
     (tmp_path / "cut.npz").write_bytes(truncated)
     with pytest.raises(ModelFileError):
         load_model(tmp_path / "cut.npz")
+
+
+def test_match_histograms_gives_reference_marginals(rng):
+    from tghop.colour import channel_quantiles, match_histograms
+
+    ref = np.stack([rng.beta(2, 5, (80, 90)), rng.uniform(0.2, 0.9, (80, 90)), rng.beta(5, 1, (80, 90))], axis=2)
+    img = rng.random((50, 40, 3)) ** 2
+    out = match_histograms(img, channel_quantiles(ref))
+    for k in range(3):
+        assert stats.ks_2samp(out[..., k].ravel(), ref[..., k].ravel()).statistic < 0.02
+        # Monotone: pixel order within each channel is kept.
+        order = np.argsort(img[..., k].ravel(), kind="stable")
+        assert np.all(np.diff(out[..., k].ravel()[order]) >= 0)
+
+
+def test_synthesize_matches_colours_only_when_asked(small_model, bricks96):
+    plain = small_model.synthesize((64, 64), rng=1, n_patches=300, match_colours=False)
+    matched = small_model.synthesize((64, 64), rng=1, n_patches=300)
+    assert not np.allclose(plain, matched)
+    # Same ranks: matching is a monotone per-channel remap of the same quilt.
+    for k in range(3):
+        assert stats.spearmanr(plain[..., k].ravel(), matched[..., k].ravel()).statistic > 0.999
+    assert abs(matched.mean() - bricks96.mean()) < abs(plain.mean() - bricks96.mean()) + 1e-3

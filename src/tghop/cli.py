@@ -319,11 +319,14 @@ def stage_sheet(views, patch_size):
 @click.option("--overlap", type=click.IntRange(min=1), default=None, help="Quilting overlap (default patch/6).")
 @click.option("--tolerance", type=click.FloatRange(min=0), default=0.1, show_default=True,
               help="Quilting: choose among patches within (1+tolerance) of the best match.")
+@click.option("--match-colours/--no-match-colours", default=True, show_default=True,
+              help="Match the result's colour histograms to the exemplar's (off: the paper's pipeline).")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
 @model_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, save_model, quiet, **options):
+def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, save_model, quiet,
+          **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from .imageio import save_image
     from .modelfile import load_model, save_model as write_model
@@ -347,7 +350,7 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, sav
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
             image = model.synthesize(size, rng=rng, n_patches=pool, tile=tile, overlap=overlap,
-                                     tolerance=tolerance, progress=progress)
+                                     tolerance=tolerance, match_colours=match_colours, progress=progress)
             progress.close()
             save_image(image, path)
     if output != "-":

@@ -41,6 +41,7 @@ GROUPS = {
     "ichm_i": "core ICHM (i)",
     "ichm_ii": "core ICHM (ii)",
     "ichm_iii": "core ICHM (iii)",
+    "colour": "colour matching (ours)",
 }
 
 
@@ -93,6 +94,7 @@ def model_arrays(model) -> dict:
     out["ichm_iii.cdf_min"] = ichm.cdf_min_
     out["ichm_iii.cdf_max"] = ichm.cdf_max_
     out["ichm_iii.codebook"] = ichm.codebook_
+    out["colour.quantiles"] = model.colour_quantiles_
     return out
 
 
@@ -177,6 +179,7 @@ def load_model(path):
         model = TGHop(**meta["params"])
         model.exemplar_shape_ = tuple(meta["exemplar_shape"])
         model.n_patches_ = int(meta["n_patches"])
+        model.colour_quantiles_ = arrays["colour.quantiles"]
         stack = HopStack(n_channels=model._channel_rules())
         stack.hops_ = []
         for i, info in enumerate(meta["hops"], start=1):

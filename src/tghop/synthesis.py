@@ -27,6 +27,7 @@ from sklearn.utils.validation import check_is_fitted
 from ._common import TGHopError, check_image, check_rng, report
 from .core import ICHM, SpatialReduction
 from .hops import HopStack
+from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .quilting import quilt
 
@@ -92,6 +93,8 @@ class TGHop(BaseEstimator):
     sdr_ : SpatialReduction
     ichm_ : ICHM
     exemplar_shape_ : tuple
+    colour_quantiles_ : ndarray, shape (C, 257)
+        The exemplar's per-channel quantiles, for colour matching after quilting.
     n_patches_ : int
         Training patches used.
     """
@@ -176,6 +179,7 @@ class TGHop(BaseEstimator):
         ichm._check_params(len(origins))  # fail before the expensive stages
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
+        self.colour_quantiles_ = channel_quantiles(image)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -216,7 +220,7 @@ class TGHop(BaseEstimator):
         dict
             ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
             "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", and "total". "paper" applies the paper's formula to this
+            "(ii)", "(iii)", "colour matching (ours)" and "total". "paper" applies the paper's formula to this
             model's dimensions; "stored" counts the numbers this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
             the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
@@ -242,6 +246,7 @@ class TGHop(BaseEstimator):
             "core ICHM (ii)": ("F*D_r", f * d_r),
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
+        paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
         stored = parameter_groups(model_arrays(self))
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
@@ -351,7 +356,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, progress=None):
+                   tolerance=0.1, match_colours=True, progress=None):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -367,6 +372,9 @@ class TGHop(BaseEstimator):
             Quilting overlap (default ``patch_size // 6``).
         tolerance : float
             Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
+        match_colours : bool
+            Match each channel's histogram to the exemplar's after quilting (our
+            addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
         progress : callable, optional
             Stages "patch pool" and "quilting".
 
@@ -380,4 +388,5 @@ class TGHop(BaseEstimator):
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
-        return quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        return match_histograms(image, self.colour_quantiles_) if match_colours else image
