@@ -222,3 +222,16 @@ def test_bad_input_metrics(workdir, args, fragments):
     before = set(os.listdir(workdir))
     assert_user_error(run(*args, cwd=workdir), *fragments)
     assert set(os.listdir(workdir)) == before
+
+
+def test_paper_flag_selects_paper_core_model(workdir):
+    import json
+
+    for flag, energy, cap in (("--paper", 0.95, 50), (None, 0.99, 100)):
+        path = workdir / f"paper_{flag is not None}.npz"
+        r = run("fit", workdir / "bricks.png", "-o", path, *FAST, *([flag] if flag else []))
+        assert r.returncode == 0, r.stderr.decode()
+        params = json.loads(run("info", path, "--json").stdout)["params"]
+        assert (params["cluster_energy"], params["max_cluster_components"]) == (energy, cap)
+    r = run("fit", workdir / "bricks.png", "-o", workdir / "p2.npz", *FAST, "--paper", "--max-cluster-components", "7")
+    assert json.loads(run("info", workdir / "p2.npz", "--json").stdout)["params"]["max_cluster_components"] == 7

@@ -146,9 +146,12 @@ def model_options(func):
                      show_default=True, help="K-means clusters in ICHM."),
         click.option("--codewords", "-W", "n_codewords", type=click.IntRange(min=1, max=100000), default=200,
                      show_default=True, help="CDF codebook size."),
-        click.option("--cluster-energy", type=click.FloatRange(min=0, max=1, min_open=True), default=0.95,
-                     show_default=True, help="Variance fraction kept by each cluster's PCA."),
-        click.option("--max-cluster-components", type=click.IntRange(min=1), default=50, show_default=True),
+        click.option("--cluster-energy", type=click.FloatRange(min=0, max=1, min_open=True), default=None,
+                     help="Variance fraction kept by each cluster's PCA [default: 0.99; --paper: 0.95]."),
+        click.option("--max-cluster-components", type=click.IntRange(min=1), default=None,
+                     help="Components per cluster at most [default: 100; --paper: 50]."),
+        click.option("--paper", is_flag=True,
+                     help="The paper's pipeline exactly: Table 4 core model (F about 2,500) and no colour matching."),
         click.option("--reject-threshold", type=float, default=None,
                      help="Sampling step (iv): redraw samples with no component above this."),
         click.option("--max-patches", type=click.IntRange(min=1), default=20000, show_default=True,
@@ -162,8 +165,14 @@ def model_options(func):
 
 
 def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, cluster_energy,
-                max_cluster_components, reject_threshold, max_patches, fit_seed):
-    from .synthesis import TGHop, default_channels
+                max_cluster_components, paper, reject_threshold, max_patches, fit_seed):
+    from .synthesis import PAPER_TABLE4, TGHop, default_channels
+
+    defaults_from = PAPER_TABLE4 if paper else TGHop().get_params()
+    if cluster_energy is None:
+        cluster_energy = defaults_from["cluster_energy"]
+    if max_cluster_components is None:
+        max_cluster_components = defaults_from["max_cluster_components"]
 
     patch_size = int(patch_size)
     defaults = default_channels(patch_size)
@@ -319,8 +328,8 @@ def stage_sheet(views, patch_size):
 @click.option("--overlap", type=click.IntRange(min=1), default=None, help="Quilting overlap (default patch/6).")
 @click.option("--tolerance", type=click.FloatRange(min=0), default=0.1, show_default=True,
               help="Quilting: choose among patches within (1+tolerance) of the best match.")
-@click.option("--match-colours/--no-match-colours", default=True, show_default=True,
-              help="Match the result's colour histograms to the exemplar's (off: the paper's pipeline).")
+@click.option("--match-colours/--no-match-colours", default=None,
+              help="Match the result's colour histograms to the exemplar's [default: on; off with --paper].")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
 @model_options
@@ -346,6 +355,8 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, mat
             model.fit(load_exemplar(source), progress=progress)
             if save_model:
                 write_model(model, save_model)
+        if match_colours is None:
+            match_colours = not options["paper"]
         rng = np.random.default_rng(seed)
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
