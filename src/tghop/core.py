@@ -25,6 +25,8 @@ Choices the paper leaves open (see also the notes in the docs):
 from __future__ import annotations
 
 import numbers
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy.special import ndtr
@@ -340,18 +342,26 @@ class ICHM(BaseEstimator):
         counts = np.bincount(labels, minlength=n_clusters)
         self.p_ = counts / counts.sum()
         self.means_ = np.zeros((n_clusters, Z.shape[1]))
-        mixing, n_comp, sources = [], [], []
-        self.n_ica_unconverged_ = 0
-        # Many small matrices: one BLAS thread each is faster than contended threads.
-        with threadpool_limits(limits=1, user_api="blas"):
-            for i in range(n_clusters):
+        for i in range(n_clusters):
+            self.means_[i] = Z[labels == i].mean(axis=0)
+        # Clusters are independent: fit them on all cores (LAPACK releases the GIL), one
+        # BLAS thread each (many small matrices). Seeds are drawn in cluster order, so the
+        # result does not depend on scheduling.
+        seeds = rng.integers(0, 2**63 - 1, size=n_clusters)
+
+        def one(i):
+            return self._fit_cluster(Z[labels == i] - self.means_[i], np.random.default_rng(seeds[i]))
+
+        workers = max(1, min(n_clusters, os.cpu_count() or 1))
+        with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=workers) as pool:
+            fitted = []
+            for i, result in enumerate(pool.map(one, range(n_clusters))):
                 report(progress, "ICA", i, n_clusters)
-                members = Z[labels == i]
-                self.means_[i] = members.mean(axis=0)
-                m, s = self._fit_cluster(members - self.means_[i], rng)
-                mixing.append(m)
-                sources.append(s)
-                n_comp.append(m.shape[0])
+                fitted.append(result)
+        mixing = [m for m, _, _ in fitted]
+        sources = [s for _, s, _ in fitted]
+        n_comp = [m.shape[0] for m in mixing]
+        self.n_ica_unconverged_ = sum(not ok for _, _, ok in fitted)
         report(progress, "ICA", n_clusters, n_clusters)
         self.mixing_ = np.vstack(mixing)
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
@@ -375,7 +385,7 @@ class ICHM(BaseEstimator):
         return labels
 
     def _fit_cluster(self, centred, rng):
-        """PCA-whiten one cluster, run FastICA; return (mixing (k, D_r), sources (n_i, k))."""
+        """PCA-whiten one cluster, run FastICA; return (mixing (k, D_r), sources (n_i, k), converged)."""
         n = centred.shape[0]
         # PCA through the n x n Gram matrix (clusters have fewer members than dimensions).
         gram_vals, gram_vecs = np.linalg.eigh(centred @ centred.T)
@@ -388,11 +398,10 @@ class ICHM(BaseEstimator):
         basis = _flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
         white = centred @ basis.T / std
         unmix, converged = fast_ica(white, max_iter=self.max_iter, rng=rng)
-        self.n_ica_unconverged_ += not converged
         sources = white @ unmix.T
         # z - mean = white * std @ basis = sources @ inv(unmix).T * std @ basis
         mixing = np.linalg.inv(unmix).T @ (std[:, None] * basis)
-        return mixing, sources
+        return mixing, sources, converged
 
     def _fit_cdfs(self, sources, rng):
         """Histogram CDFs of all components, vector-quantised into the codebook."""
