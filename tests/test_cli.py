@@ -235,3 +235,12 @@ def test_paper_flag_selects_paper_core_model(workdir):
         assert (params["cluster_energy"], params["max_cluster_components"]) == (energy, cap)
     r = run("fit", workdir / "bricks.png", "-o", workdir / "p2.npz", *FAST, "--paper", "--max-cluster-components", "7")
     assert json.loads(run("info", workdir / "p2.npz", "--json").stdout)["params"]["max_cluster_components"] == 7
+
+
+def test_grey_exemplar_stored_as_rgb(workdir):
+    grey = data.bricks(80, rng=4).mean(axis=2, keepdims=True)
+    save_image(np.repeat(grey, 3, axis=2), workdir / "grey_rgb.png")
+    r = run("synth", workdir / "grey_rgb.png", "-o", workdir / "grey_out.png", "--size", "48", "--pool", "300",
+            "--seed", "1", *FAST)
+    assert r.returncode == 0, r.stderr.decode()
+    assert Image.open(workdir / "grey_out.png").mode == "L"

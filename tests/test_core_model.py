@@ -138,11 +138,16 @@ def test_stage_views(small_model):
     np.testing.assert_allclose(views["core_dc"], mean4, atol=0.05)
 
 
-def test_grey_exemplar(bricks96):
+@pytest.mark.parametrize("as_rgb", [False, True])
+def test_grey_exemplar_with_default_channels(bricks96, as_rgb):
     grey = bricks96.mean(axis=2)
-    m = TGHop(**{**SMALL, "n_channels": (4, 10)}).fit(grey)
-    p = m.sample_patches(10, rng=0)
-    assert p.shape == (10, 32, 32, 1)
+    image = np.repeat(grey[..., None], 3, axis=2) if as_rgb else grey
+    m = TGHop(**{**SMALL, "n_channels": None}).fit(image)
+    assert m.channels_ == [4, 10] and m.exemplar_shape_ == (96, 96, 1)
+    assert m.sample_patches(10, rng=0).shape == (10, 32, 32, 1)
+    assert m.synthesize((40, 50), rng=0, n_patches=200).shape == (40, 50, 1)
+    with pytest.raises(TGHopError, match="K1.*at most 4"):
+        TGHop(**{**SMALL, "n_channels": (9, 22)}).fit(image)
 
 
 def test_three_hops_for_64_patches():

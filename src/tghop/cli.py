@@ -165,7 +165,7 @@ def model_options(func):
 
 
 def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, cluster_energy,
-                max_cluster_components, paper, reject_threshold, max_patches, fit_seed):
+                max_cluster_components, paper, reject_threshold, max_patches, fit_seed, n_colours=3):
     from .synthesis import PAPER_TABLE4, TGHop, default_channels
 
     defaults_from = PAPER_TABLE4 if paper else TGHop().get_params()
@@ -175,7 +175,7 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
         max_cluster_components = defaults_from["max_cluster_components"]
 
     patch_size = int(patch_size)
-    defaults = default_channels(patch_size)
+    defaults = default_channels(patch_size, n_colours)
     given = [k1, k2, k3][: len(defaults)]
     if patch_size == 32 and k3 is not None:
         raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
@@ -185,6 +185,12 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
         n_codewords=n_codewords, cluster_energy=cluster_energy, max_cluster_components=max_cluster_components,
         reject_threshold=reject_threshold, max_patches=max_patches, rng=fit_seed,
     )
+
+
+def prepare_exemplar(image):
+    from .synthesis import prepare_exemplar as prepare
+
+    return prepare(image)
 
 
 def load_exemplar(spec: str):
@@ -253,8 +259,8 @@ def fit(exemplar, output, quiet, **options):
 
     progress = Progress(not quiet)
     with user_errors(progress):
-        model = build_model(**options)
-        image = load_exemplar(exemplar)
+        image = prepare_exemplar(load_exemplar(exemplar))
+        model = build_model(**options, n_colours=image.shape[2])
         if Path(output).is_dir():
             raise TGHopError(f"{output} is a folder; give a file name for the model")
         if str(Path(output).parent) and not Path(output).parent.is_dir():
@@ -351,8 +357,9 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, mat
         if not source.startswith("builtin:") and is_model_file(source):
             model = load_model(source)
         else:
-            model = build_model(**options)
-            model.fit(load_exemplar(source), progress=progress)
+            image = prepare_exemplar(load_exemplar(source))
+            model = build_model(**options, n_colours=image.shape[2])
+            model.fit(image, progress=progress)
             if save_model:
                 write_model(model, save_model)
         if match_colours is None:

@@ -180,7 +180,7 @@ def load_model(path):
         model.exemplar_shape_ = tuple(meta["exemplar_shape"])
         model.n_patches_ = int(meta["n_patches"])
         model.colour_quantiles_ = arrays["colour.quantiles"]
-        stack = HopStack(n_channels=model._channel_rules())
+        stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
         stack.hops_ = []
         for i, info in enumerate(meta["hops"], start=1):
             stack.hops_.append(_rebuild_hop(info, arrays, i))

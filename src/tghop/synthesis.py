@@ -31,7 +31,7 @@ from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .quilting import quilt
 
-__all__ = ["TGHop", "default_channels", "PAPER_TABLE4"]
+__all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
 #: The paper's Table 4 setting (brick_wall): K1=9, K2=22, gamma=0.01, N=50, W=200, with the
 #: per-cluster PCA size that reproduces its F = 2,518 CDFs (95 % of the variance, at most 50
@@ -44,15 +44,34 @@ PAPER_TABLE4 = dict(patch_size=32, n_channels=(9, 22), gamma=0.01, n_clusters=50
 DEFAULT_POOL = 10_000
 
 
-def default_channels(patch_size: int):
-    """Channels kept per hop when none are given: the paper's K1=9, K2=22 for 32x32
-    patches; for 64x64 patches a third hop keeps 40 channels (our choice: the paper gives
-    no K3). The core is then 8x8 spatially in both cases."""
-    if patch_size == 32:
-        return (9, 22)
-    if patch_size == 64:
-        return (9, 22, 40)
-    raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
+def default_channels(patch_size: int, n_colours: int = 3):
+    """Channels kept per hop when none are given.
+
+    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps
+    40 channels (our choice: the paper gives no K3), so the core is 8x8 spatially in both
+    cases. Grey (one channel, 4 hop-1 channels in all): K1=4, K2=10 (, K3=20), our choice
+    in the same proportions.
+    """
+    if patch_size not in (32, 64):
+        raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
+    channels = (9, 22, 40) if n_colours == 3 else (4, 10, 20)
+    return channels[: 2 if patch_size == 32 else 3]
+
+
+def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
+    """A validated float exemplar; a grey image stored as RGB becomes single-channel.
+
+    Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
+    channel is the same texture at a third of the cost, and the output is grey.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), float64 in [0, 1], C in {1, 3}
+    """
+    img = check_image(image, min_size=min_size, name="exemplar")
+    if img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512:
+        img = np.ascontiguousarray(img[..., :1])
+    return img
 
 
 class TGHop(BaseEstimator):
@@ -67,7 +86,8 @@ class TGHop(BaseEstimator):
     n_channels : sequence or None, default=None
         Channels kept per hop, e.g. ``(9, 22)`` for (K1, K2); each entry an int (a count,
         DC included), a float in (0, 1] (a fraction of the AC energy), or "knee" (the
-        knee of the energy curve, texture-dependent). None: :func:`default_channels`.
+        knee of the energy curve, texture-dependent). None: :func:`default_channels`
+        (the paper's (9, 22) for colour, (4, 10) for grey exemplars).
     gamma : float, default=0.01
         SDR threshold on the variance of spatial PCA components (absolute, for images in
         [0, 1]; reproduces the paper's Table 5 D_r values on brick_wall).
@@ -138,12 +158,15 @@ class TGHop(BaseEstimator):
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
-    def _channel_rules(self):
+    def _channel_rules(self, n_colours=3):
         for name in ("patch_size", "stride"):
             value = getattr(self, name)
             if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 1:
                 raise TGHopError(f"{name} must be a positive integer, got {value!r}")
-        rules = default_channels(self.patch_size) if self.n_channels is None else tuple(self.n_channels)
+        if self.n_channels is None:
+            rules = default_channels(self.patch_size, n_colours)
+        else:
+            rules = tuple(self.n_channels)
         if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
             raise TGHopError(
                 f"{len(rules)} hops need a patch size divisible by {2 ** len(rules)} leaving a core of at "
@@ -157,7 +180,8 @@ class TGHop(BaseEstimator):
         Parameters
         ----------
         image : ndarray, shape (H, W) or (H, W, C)
-            Float in [0, 1] (or uint8), ``H, W >= patch_size``; C is 1 or 3.
+            Float in [0, 1] (or uint8), ``H, W >= patch_size``; C is 1 or 3. A grey
+            image stored as RGB is modelled as one channel (see :func:`prepare_exemplar`).
         progress : callable, optional
             ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
             "SDR", "clusters", "ICA", "CDF codebook".
@@ -166,9 +190,10 @@ class TGHop(BaseEstimator):
         -------
         self
         """
-        rules = self._channel_rules()
+        self._channel_rules()  # parameter errors before touching the image
+        image = prepare_exemplar(image, min_size=self.patch_size)
+        rules = self._channel_rules(image.shape[2])
         rng = check_rng(self.rng)
-        image = check_image(image, min_size=self.patch_size, name="exemplar")
         ichm = ICHM(
             n_clusters=self.n_clusters,
             n_codewords=self.n_codewords,
