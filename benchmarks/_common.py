@@ -125,3 +125,24 @@ def stack_rows(rows, gap=6):
     width = max(r.shape[1] for r in rows)
     padded = [np.pad(r, ((0, gap), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in rows]
     return np.concatenate(padded, axis=0)
+
+
+#: File extensions of exemplar images among the shared textures (MANIFEST.tsv etc. are skipped).
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".pgm", ".ppm", ".pnm", ".bmp", ".tif", ".tiff", ".webp")
+
+
+def texture_names() -> list:
+    """Names (file stems) of every exemplar image in the shared textures folder, sorted."""
+    if not TEXTURES.is_dir():
+        return []
+    return sorted(p.stem for p in TEXTURES.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def write_results_to(folder, name: str, payload, markdown: str | None = None):
+    """:func:`write_results` into another folder: ``folder/name.json`` (and ``.md``)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{name}.json").write_text(json.dumps(payload, indent=2, default=str))
+    if markdown is not None:
+        (folder / f"{name}.md").write_text(markdown + "\n")
+    return folder / f"{name}.json"
