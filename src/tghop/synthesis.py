@@ -420,4 +420,4 @@ class TGHop(BaseEstimator):
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
         image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
-        return match_histograms(image, self.colour_quantiles_) if match_colours else image
+        return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
