@@ -45,6 +45,25 @@ GROUPS = {
 }
 
 
+#: Arrays of the core model and colour matching: (file name, estimator part, attribute,
+#: dtype on loading). Saving and loading both follow this one table.
+CORE_ARRAYS = [
+    ("sdr.components", "sdr_", "components_", np.float64),
+    ("sdr.mean", "sdr_", "mean_", np.float64),
+    ("index.sdr_channel", "sdr_", "channel_", np.int64),
+    ("index.sdr_variance", "sdr_", "explained_variance_", np.float64),
+    ("ichm_i.p", "ichm_", "p_", np.float64),
+    ("ichm_ii.mixing", "ichm_", "mixing_", np.float64),
+    ("ichm_ii.means", "ichm_", "means_", np.float64),
+    ("index.ichm_n_components", "ichm_", "n_components_", np.int64),
+    ("ichm_iii.cdf_index", "ichm_", "cdf_index_", np.int64),
+    ("ichm_iii.cdf_min", "ichm_", "cdf_min_", np.float64),
+    ("ichm_iii.cdf_max", "ichm_", "cdf_max_", np.float64),
+    ("ichm_iii.codebook", "ichm_", "codebook_", np.float64),
+    ("colour.quantiles", None, "colour_quantiles_", np.float64),
+]
+
+
 def _group(name: str):
     part = name.split(".", 1)[0]
     if part == "index":
@@ -81,20 +100,8 @@ def model_arrays(model) -> dict:
             out[f"hop{i}.bias"] = np.array([hop.saabs_[0].bias_])
         out[f"index.hop{i}_channels"] = hop.channels_
         out[f"index.hop{i}_energy"] = hop.energy_
-    sdr, ichm = model.sdr_, model.ichm_
-    out["sdr.components"] = sdr.components_
-    out["sdr.mean"] = sdr.mean_
-    out["index.sdr_channel"] = sdr.channel_
-    out["index.sdr_variance"] = sdr.explained_variance_
-    out["ichm_i.p"] = ichm.p_
-    out["ichm_ii.mixing"] = ichm.mixing_
-    out["ichm_ii.means"] = ichm.means_
-    out["index.ichm_n_components"] = ichm.n_components_
-    out["ichm_iii.cdf_index"] = ichm.cdf_index_
-    out["ichm_iii.cdf_min"] = ichm.cdf_min_
-    out["ichm_iii.cdf_max"] = ichm.cdf_max_
-    out["ichm_iii.codebook"] = ichm.codebook_
-    out["colour.quantiles"] = model.colour_quantiles_
+    for name, part, attribute, _ in CORE_ARRAYS:
+        out[name] = getattr(getattr(model, part) if part else model, attribute)
     return out
 
 
@@ -179,36 +186,23 @@ def load_model(path):
         model = TGHop(**meta["params"])
         model.exemplar_shape_ = tuple(meta["exemplar_shape"])
         model.n_patches_ = int(meta["n_patches"])
-        model.colour_quantiles_ = arrays["colour.quantiles"]
         stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
         stack.hops_ = []
         for i, info in enumerate(meta["hops"], start=1):
             stack.hops_.append(_rebuild_hop(info, arrays, i))
         stack.dims_ = [int(d) for d in meta["hop_dims"]]
         model.hops_ = stack
-        sdr = SpatialReduction(gamma=model.gamma, gamma_mode=model.gamma_mode)
-        sdr.shape_ = tuple(meta["sdr_shape"])
-        sdr.components_ = arrays["sdr.components"]
-        sdr.mean_ = arrays["sdr.mean"]
-        sdr.channel_ = arrays["index.sdr_channel"].astype(np.int64)
-        sdr.explained_variance_ = arrays["index.sdr_variance"]
-        sdr.kept_per_channel_ = np.bincount(sdr.channel_, minlength=sdr.shape_[2])
-        model.sdr_ = sdr
-        ichm = ICHM(
+        model.sdr_ = SpatialReduction(gamma=model.gamma, gamma_mode=model.gamma_mode)
+        model.sdr_.shape_ = tuple(meta["sdr_shape"])
+        model.ichm_ = ICHM(
             n_clusters=model.n_clusters, n_codewords=model.n_codewords, n_bins=model.n_bins,
             cluster_energy=model.cluster_energy, max_cluster_components=model.max_cluster_components,
             min_cluster_size=model.min_cluster_size, reject_threshold=model.reject_threshold,
         )
-        ichm.p_ = arrays["ichm_i.p"]
-        ichm.mixing_ = arrays["ichm_ii.mixing"]
-        ichm.means_ = arrays["ichm_ii.means"]
-        ichm.n_components_ = arrays["index.ichm_n_components"].astype(np.int64)
-        ichm.cdf_index_ = arrays["ichm_iii.cdf_index"].astype(np.int64)
-        ichm.cdf_min_ = arrays["ichm_iii.cdf_min"]
-        ichm.cdf_max_ = arrays["ichm_iii.cdf_max"]
-        ichm.codebook_ = arrays["ichm_iii.codebook"]
-        ichm.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
-        model.ichm_ = ichm
+        model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+        for name, part, attribute, dtype in CORE_ARRAYS:
+            setattr(getattr(model, part) if part else model, attribute, arrays[name].astype(dtype, copy=False))
+        model.sdr_.kept_per_channel_ = np.bincount(model.sdr_.channel_, minlength=model.sdr_.shape_[2])
         _check_consistent(model)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); fit the model again") from None
