@@ -18,6 +18,7 @@ import numpy as np
 
 from . import __version__
 from ._common import TGHopError
+from .synthesis import prepare_exemplar
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -185,12 +186,6 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
         n_codewords=n_codewords, cluster_energy=cluster_energy, max_cluster_components=max_cluster_components,
         reject_threshold=reject_threshold, max_patches=max_patches, rng=fit_seed,
     )
-
-
-def prepare_exemplar(image):
-    from .synthesis import prepare_exemplar as prepare
-
-    return prepare(image)
 
 
 def load_exemplar(spec: str):
