@@ -219,15 +219,13 @@ def summary(model) -> str:
 
 
 def check_output(path: str, allow_stdout=False):
-    from .imageio import output_format
+    from .imageio import check_output_path, output_format
 
     if path == "-" and not allow_stdout:
         raise TGHopError("this command cannot write to stdout; give a file name with -o")
     output_format(path)
     if path != "-":
-        parent = Path(path).parent
-        if str(parent) and not parent.is_dir():
-            raise TGHopError(f"{parent}: output folder does not exist; create it first")
+        check_output_path(path)
 
 
 # ------------------------------------------------------------------ commands
@@ -250,16 +248,15 @@ def main():
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def fit(exemplar, output, quiet, **options):
     """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it."""
+    from .imageio import check_output_path
+    from ._common import ModelFileError
     from .modelfile import save_model
 
     progress = Progress(not quiet)
     with user_errors(progress):
         image = prepare_exemplar(load_exemplar(exemplar))
         model = build_model(**options, n_colours=image.shape[2])
-        if Path(output).is_dir():
-            raise TGHopError(f"{output} is a folder; give a file name for the model")
-        if str(Path(output).parent) and not Path(output).parent.is_dir():
-            raise TGHopError(f"{Path(output).parent}: output folder does not exist; create it first")
+        check_output_path(output, what="model", error=ModelFileError)  # before the fit, not after
         model.fit(image, progress=progress)
         progress.close()
         save_model(model, output)

@@ -14,7 +14,7 @@ from PIL import Image, UnidentifiedImageError
 
 from ._common import InvalidImageError, check_image
 
-__all__ = ["load_image", "save_image", "to_uint8", "write_atomic"]
+__all__ = ["load_image", "save_image", "to_uint8", "write_atomic", "check_output_path"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
@@ -68,15 +68,27 @@ def to_uint8(image) -> np.ndarray:
     return out
 
 
+def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> Path:
+    """Refuse an output path that is a folder or whose folder does not exist.
+
+    Returns the folder the file will be written to; ``error`` is the exception class raised.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise error(f"{path} is a folder; give a file name for the {what}")
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise error(f"{directory}: output folder does not exist; create it first")
+    return directory
+
+
 def write_atomic(path, write) -> None:
     """Call ``write(fileobj)`` on a temporary file next to ``path``, then move it into place.
 
     If ``write`` raises, no file (and no partial file) is left at ``path``.
     """
     path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise InvalidImageError(f"{directory}: output folder does not exist; create it first")
+    directory = check_output_path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
         with os.fdopen(fd, "wb") as fh:

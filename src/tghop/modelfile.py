@@ -14,7 +14,6 @@ loading a file cannot run code. It holds:
 
 from __future__ import annotations
 
-import io
 import json
 import zipfile
 from pathlib import Path
@@ -25,7 +24,7 @@ from . import __version__
 from ._common import ModelFileError
 from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
-from .imageio import write_atomic
+from .imageio import check_output_path, write_atomic
 from .saab import Saab
 
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
@@ -132,9 +131,7 @@ def save_model(model, path) -> None:
     }
     arrays = model_arrays(model)
     arrays["__meta__"] = np.array(json.dumps(meta))
-    path = Path(path)
-    if path.is_dir():
-        raise ModelFileError(f"{path} is a folder; give a file name for the model")
+    check_output_path(path, what="model", error=ModelFileError)
     write_atomic(path, lambda fh: np.savez(fh, **arrays))
 
 

@@ -643,7 +643,7 @@ def quilt(
     only a few integers.
     """
     arr = _check_pool(pool)
-    n, p, c = arr.shape[0], arr.shape[1], arr.shape[3]
+    p, c = arr.shape[1], arr.shape[3]
     if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not (
         math.isfinite(tolerance) and tolerance >= 0
     ):
