@@ -343,16 +343,15 @@ class ICHM(BaseEstimator):
         n_clusters = labels.max() + 1
         counts = np.bincount(labels, minlength=n_clusters)
         self.p_ = counts / counts.sum()
-        self.means_ = np.zeros((n_clusters, Z.shape[1]))
-        for i in range(n_clusters):
-            self.means_[i] = Z[labels == i].mean(axis=0)
         # Clusters are independent: fit them on all cores (LAPACK releases the GIL), one
         # BLAS thread each (many small matrices). Seeds are drawn in cluster order, so the
         # result does not depend on scheduling.
         seeds = rng.integers(0, 2**63 - 1, size=n_clusters)
 
         def one(i):
-            return self._fit_cluster(Z[labels == i] - self.means_[i], np.random.default_rng(seeds[i]))
+            members = Z[labels == i]
+            mean = members.mean(axis=0)
+            return (mean, *self._fit_cluster(members - mean, np.random.default_rng(seeds[i])))
 
         workers = max(1, min(n_clusters, os.cpu_count() or 1))
         with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=workers) as pool:
@@ -360,10 +359,11 @@ class ICHM(BaseEstimator):
             for i, result in enumerate(pool.map(one, range(n_clusters))):
                 report(progress, "ICA", i, n_clusters)
                 fitted.append(result)
-        mixing = [m for m, _, _ in fitted]
-        sources = [s for _, s, _ in fitted]
+        self.means_ = np.array([mean for mean, _, _, _ in fitted])
+        mixing = [m for _, m, _, _ in fitted]
+        sources = [s for _, _, s, _ in fitted]
         n_comp = [m.shape[0] for m in mixing]
-        self.n_ica_unconverged_ = sum(not ok for _, _, ok in fitted)
+        self.n_ica_unconverged_ = sum(not ok for _, _, _, ok in fitted)
         report(progress, "ICA", n_clusters, n_clusters)
         self.mixing_ = np.vstack(mixing)
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
