@@ -265,13 +265,12 @@ class TGHop(BaseEstimator):
         k = self.channels_
         c_in = self.exemplar_shape_[2]
         k1, d_r, n, f, w = k[0], d["D_r"], d["N"], d["F"], d["W"]
-        k_rest = sum(k[1:])
         nb = self.ichm_.codebook_.shape[1]
         block = (self.sdr_.shape_[0] * self.sdr_.shape_[1])
         paper = {
             "transform stage 1": (f"{4 * c_in}*K1 + 1", 4 * c_in * k1 + 1),
-            "transform stage 2": ("4*K1*K2 + K1", 4 * k1 * k_rest + k1 if len(k) == 2 else
-                                  sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
+            # Per c/w hop, the paper's 4 * K_parent * K_child + K_parent (two hops: 4 K1 K2 + K1).
+            "transform stage 2": ("4*K1*K2 + K1", sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
             "core SDR": (f"{block}*D_r", block * d_r),
             "core ICHM (i)": ("N", n),
             "core ICHM (ii)": ("F*D_r", f * d_r),
