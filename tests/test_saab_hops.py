@@ -140,9 +140,11 @@ def test_knee_selection_is_texture_dependent(bricks96):
     assert 2 <= k1 <= 12 and k1 <= k2 <= 4 * k1
 
 
-@pytest.mark.parametrize("stride, channels, size", [(2, (9, 22), 32), (3, (6, 14), 32), (4, (9, 22, 40), 64)])
-def test_fit_image_equals_fit_on_cut_patches(stride, channels, size):
-    """The phase-map shortcut gives exactly the patch-based fit and core."""
+@pytest.mark.parametrize("stride, channels, size, tile", [(2, (9, 22), 32, 1024), (3, (6, 14), 32, 1024),
+                                                         (4, (9, 22, 40), 64, 1024), (2, (9, 22), 32, 20),
+                                                         (3, (6, 14), 32, 40), (4, (9, 22, 40), 64, 8)])
+def test_fit_image_equals_fit_on_cut_patches(stride, channels, size, tile):
+    """The phase-map shortcut gives exactly the patch-based fit and core, whole or in tiles."""
     from tghop.data import bricks
     from tghop.patches import patch_origins
 
@@ -152,10 +154,16 @@ def test_fit_image_equals_fit_on_cut_patches(stride, channels, size):
     a = HopStack(n_channels=channels)
     core_a = a.fit_transform(patches)
     b = HopStack(n_channels=channels)
-    core_b = b.fit_image(img, size, origins)
+    core_b = b.fit_image(img, size, origins, tile=tile)
     assert a.dims_ == b.dims_
     for ha, hb in zip(a.hops_, b.hops_):
         assert np.array_equal(ha.channels_, hb.channels_)
         np.testing.assert_allclose(ha.kernels_, hb.kernels_, atol=1e-8)
         np.testing.assert_allclose(ha.bias_, hb.bias_, rtol=1e-12)
     np.testing.assert_allclose(core_a, core_b, atol=1e-8)
+    if tile == 1024:  # a uint8 image gives the fit of its float version
+        img8 = np.round(img * 255).astype(np.uint8)
+        c = HopStack(n_channels=channels)
+        core_c = c.fit_image(img8, size, origins, tile=tile // 16)
+        d = HopStack(n_channels=channels)
+        np.testing.assert_allclose(core_c, d.fit_image(img8 / 255.0, size, origins), atol=1e-8)

@@ -1,10 +1,40 @@
 """tghop: explainable, fast texture synthesis from one exemplar (TGHop, Lei et al. 2021)."""
 
+import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _interrupted_while_starting(signum, frame):  # pragma: no cover - timing dependent
+    _sys.stderr.write("Error: interrupted\n")
+    _os._exit(130)
+
+
+# Ctrl-C while the `tghop` command starts (its modules and click being imported): one line,
+# no traceback. Only when running as the command, never when a program imports tghop;
+# tghop.cli puts the usual handler back inside the try block that reports Ctrl-C.
+_argv0 = (_sys.argv[0] if _sys.argv else "") or ""
+if (_os.path.basename(_argv0) == "tghop" or _argv0.endswith(_os.path.join("tghop", "__main__.py"))) and \
+        _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
+    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
+
 __version__ = "0.1.0"
 
-from ._common import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: E402
-from .synthesis import TGHop  # noqa: E402
-from . import data  # noqa: E402
+from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: E402
 
 __all__ = ["TGHop", "data", "InvalidImageError", "MissingExtraError", "ModelFileError", "NotFittedError",
            "TGHopError", "__version__"]
+
+
+def __getattr__(name):
+    """``tghop.TGHop`` and ``tghop.data`` on first use: ``import tghop`` stays cheap (the CLI's
+    ``--help`` and ``--version`` need nothing else)."""
+    if name == "TGHop":
+        from .synthesis import TGHop
+
+        return TGHop
+    if name in ("data", "settings"):
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'tghop' has no attribute {name!r}")

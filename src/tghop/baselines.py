@@ -524,6 +524,8 @@ def ustyuzhaninov(
         feats.backward(grad_feats)
         n_evals += 1
         losses[1:] = [float(loss)]
+        # L-BFGS counts its iterations in its state: the bar moves every iteration, not every chunk.
+        report(progress, "ustyuzhaninov", min(int(optimizer.state[x].get("n_iter", 0)), n_iter), n_iter)
         return loss
 
     def relative_loss() -> float:

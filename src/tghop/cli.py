@@ -6,22 +6,33 @@ a traceback, and never leaves a half-written output file. Progress bars go to st
 
 from __future__ import annotations
 
-import json
-import re
+import os
+import signal
 import sys
-import warnings
+
+
+from . import _interrupted_while_starting  # noqa: E402  (installed by tghop/__init__ when run as `tghop`)
+
+import json  # noqa: E402
+import re  # noqa: E402
+import warnings  # noqa: E402
 from contextlib import contextmanager
 from pathlib import Path
 
 import click
-import numpy as np
 
 from . import __version__
-from ._common import TGHopError
-from .synthesis import prepare_exemplar
+from ._errors import TGHopError
+
+# Heavy modules (NumPy's linear algebra users, Pillow, scikit-learn, SciPy) are imported
+# inside the commands that need them: --help, --version and `info` answer at once, and
+# generating from a saved model never imports scikit-learn or SciPy.
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
+
+DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downscale they are reduced to "
+                  "64 Mpx instead (with a warning).")
 
 
 # ------------------------------------------------------------------ helpers
@@ -74,6 +85,11 @@ def user_errors(progress=None):
             if progress:
                 progress.close()
             fail("out of memory; use a smaller output size, pool or exemplar")
+        except OSError as exc:  # a file system error the checks above did not foresee
+            if progress:
+                progress.close()
+            where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
+            fail(f"{where}{exc.strerror or exc}")
         except KeyboardInterrupt:
             if progress:
                 progress.close()
@@ -248,22 +264,27 @@ def given_options(ctx, names):
     return out
 
 
-def load_exemplar(spec: str):
+def load_exemplar(spec: str, *, downscale=False, dtype="float64"):
     """An image file, or ``builtin:NAME`` for a built-in exemplar."""
     from .data import builtin
     from .imageio import load_image
 
     if spec.startswith("builtin:"):
         return builtin(spec.split(":", 1)[1])
-    return load_image(spec)
+    if is_model_file(spec):
+        raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
+    return load_image(spec, downscale=downscale, dtype=dtype)
 
 
 def is_model_file(path: str) -> bool:
-    """True if ``path`` is a zip archive (an ``.npz``), which only a model can be here."""
-    import zipfile
-
+    """True if ``path`` starts like a zip archive (an ``.npz``), which only a model can be
+    here; a truncated model file still counts (and is then reported as truncated)."""
     p = Path(path)
-    return p.is_file() and zipfile.is_zipfile(p)
+    try:
+        with open(p, "rb") as fh:
+            return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
+    except OSError:
+        return False
 
 
 def summary(model) -> str:
@@ -289,7 +310,30 @@ def check_output(path: str, allow_stdout=False):
 
 
 # ------------------------------------------------------------------ commands
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class OneLineGroup(click.Group):
+    """Every failure of the command line, click's usage errors and Ctrl-C included, is one
+    line on stderr (``Error: ...``) and a non-zero exit status, never a traceback."""
+
+    def main(self, args=None, prog_name=None, **extra):
+        try:
+            if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+                signal.signal(signal.SIGINT, signal.default_int_handler)
+            rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+        except click.exceptions.Abort:  # Ctrl-C or EOF inside click
+            fail("interrupted", 130)
+        except click.UsageError as exc:
+            command = exc.ctx.command_path if exc.ctx is not None else "tghop"
+            fail(f"{exc.format_message()} (see '{command} --help')", exc.exit_code)
+        except click.ClickException as exc:
+            fail(exc.format_message(), exc.exit_code)
+        except KeyboardInterrupt:
+            fail("interrupted", 130)
+        except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
+            sys.exit(1)
+        sys.exit(rc if isinstance(rc, int) else 0)
+
+
+@click.group(cls=OneLineGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="tghop")
 def main():
     """tghop: explainable, fast texture synthesis from one exemplar (TGHop).
@@ -305,18 +349,21 @@ def main():
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Model file to write (any name, e.g. model.npz).")
 @model_options
+@click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def fit(exemplar, output, quiet, **options):
+def fit(exemplar, output, downscale, quiet, **options):
     """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it."""
-    from .imageio import check_output_path
-    from ._common import ModelFileError
-    from .modelfile import save_model
-
     progress = Progress(not quiet)
     with user_errors(progress):
-        image = prepare_exemplar(load_exemplar(exemplar))
+        from ._common import ModelFileError
+        from .imageio import check_output_path
+        from .modelfile import save_model
+        from .synthesis import prepare_exemplar
+
+        check_output_path(output, what="model", error=ModelFileError)  # before any work
+        image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None),
+                                 min_size=options.get("patch_size") or 32)
         model = build_model(options, n_colours=image.shape[2])
-        check_output_path(output, what="model", error=ModelFileError)  # before the fit, not after
         model.fit(image, progress=progress)
         progress.close()
         save_model(model, output)
@@ -357,6 +404,8 @@ def patches(model_file, n, output, seed, stages):
 
 def stage_sheet(views, patch_size):
     """One row per sample: each DC map (grey, enlarged to the patch size) then the patch."""
+    import numpy as np
+
     from .patches import patch_grid
 
     columns = []
@@ -376,23 +425,29 @@ def stage_sheet(views, patch_size):
 @click.argument("source")
 @click.option("-o", "--output", required=True,
               help="Image to write (.png/.jpg); with --count > 1 numbered name_1.png, ...; - writes PNG to stdout.")
-@click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
+@click.option("--size", type=Size(), default="256x256", show_default=True,
+              help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
+                   "At most 8192x8192; memory grows with the area: about 0.1 GB at 1024x1024, 0.4 GB at "
+                   "2048x2048, 5 GB at 8192x8192.")
 @click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
               help="Number of images.")
-@click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed of generation.")
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of generation: the same seed gives the same image; without it every run differs.")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
 @generation_options
 @model_options
+@click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def synth(ctx, source, output, size, count, seed, save_model, quiet, **options):
+def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from ._common import ModelFileError
     from .imageio import check_output_path, save_image
     from .modelfile import load_model, save_model as write_model
     from .quilting import MAX_PIXELS
     from .settings import BY_NAME, generate_settings
+    from .synthesis import prepare_exemplar
 
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -403,7 +458,8 @@ def synth(ctx, source, output, size, count, seed, save_model, quiet, **options):
             raise TGHopError(f"--size {size[0]}x{size[1]} exceeds the limit of {MAX_PIXELS:,} pixels; choose a smaller size")
         from_model = not source.startswith("builtin:") and is_model_file(source)
         if from_model:
-            fit_only = [s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS) + ["save_model"]
+            fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
+                        + ["save_model", "downscale"])
             refused = given_options(ctx, fit_only)
             if refused:
                 raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
@@ -413,16 +469,19 @@ def synth(ctx, source, output, size, count, seed, save_model, quiet, **options):
             value = options.pop(s.name)
             generation[s.name] = value if value is not None else (
                 s.paper if options.get("paper") and s.has_paper else s.default)
+        if save_model and not from_model:
+            check_output_path(save_model, what="model", error=ModelFileError)  # before the fit
         if from_model:
             model = load_model(source)
         else:
-            image = prepare_exemplar(load_exemplar(source))
+            image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None),
+                                     min_size=options.get("patch_size") or 32)
             model = build_model(options, n_colours=image.shape[2])
-            if save_model:
-                check_output_path(save_model, what="model", error=ModelFileError)  # before the fit
             model.fit(image, progress=progress)
             if save_model:
                 write_model(model, save_model)
+        import numpy as np
+
         rng = np.random.default_rng(seed)
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
@@ -456,7 +515,7 @@ def info(model_file, as_json):
         click.echo(json.dumps({"params": {k: v for k, v in model.get_params().items() if k != "rng"},
                                "dims": model.dims_, "channels": model.channels_,
                                "exemplar_shape": list(model.exemplar_shape_),
-                               "n_parameters": params}, indent=2, default=str))
+                               "n_parameters": params}, indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
     click.echo(f"tghop model {model_file}")
@@ -464,9 +523,11 @@ def info(model_file, as_json):
                f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
     click.echo(summary(model))
     click.echo("\nparameters (paper Table 4):")
-    click.echo(f"  {'module':<20}{'formula':<16}{'paper formula':>14}{'stored':>12}")
-    for name, row in params.items():
-        click.echo(f"  {name:<20}{row['formula']:<16}{row['paper']:>14,}{row['stored']:>12,}")
+    rows = [("module", "formula", "paper formula", "stored")] + [
+        (name, row["formula"], f"{row['paper']:,}", f"{row['stored']:,}") for name, row in params.items()]
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    for r in rows:
+        click.echo(f"  {r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]:>{widths[3]}}")
 
 
 @main.command()
@@ -541,6 +602,7 @@ def baseline(name, exemplar, output, size, seed, iterations, quiet):
         save_image(image, output)
     if output != "-":
         click.echo(f"{name} result written to {output}", err=True)
+
 
 
 if __name__ == "__main__":  # pragma: no cover

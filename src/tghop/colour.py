@@ -32,9 +32,22 @@ def channel_quantiles(image, n: int = N_QUANTILES) -> np.ndarray:
     -------
     ndarray, shape (C, n)
     """
-    image = np.asarray(image, dtype=np.float64)
-    flat = image.reshape(-1, image.shape[2])
-    return np.quantile(flat, np.linspace(0.0, 1.0, n), axis=0).T
+    image = np.asarray(image)
+    probs = np.linspace(0.0, 1.0, n)
+    if image.dtype == np.uint8:  # from the histogram: no float copy of a large exemplar
+        out = np.empty((image.shape[2], n))
+        for c in range(image.shape[2]):
+            hist = np.bincount(image[..., c].ravel(), minlength=256)
+            ends = np.cumsum(hist)  # order statistics k < ends[v] have value v
+            pos = probs * (ends[-1] - 1)  # numpy's default (linear) quantile positions
+            lo = np.floor(pos).astype(np.int64)
+            hi = np.minimum(lo + 1, ends[-1] - 1)
+            vlo = np.searchsorted(ends, lo, side="right")
+            vhi = np.searchsorted(ends, hi, side="right")
+            out[c] = (vlo + (pos - lo) * (vhi - vlo)) / 255.0
+        return out
+    flat = np.asarray(image, dtype=np.float64).reshape(-1, image.shape[2])
+    return np.quantile(flat, probs, axis=0).T
 
 
 #: Resolution of the rank computation: values are binned to 1/65535 (finer than 16-bit).

@@ -29,13 +29,8 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from scipy.special import ndtr
-from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.cluster import KMeans
-from sklearn.utils.validation import check_is_fitted
-from threadpoolctl import threadpool_limits
 
-from ._common import TGHopError, check_rng, report
+from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, check_rng, report
 from .settings import BY_NAME as _SETTINGS
 
 __all__ = ["SpatialReduction", "ICHM", "fast_ica"]
@@ -75,6 +70,9 @@ def _kmeans_plusplus(X, n_clusters, rng, n_trials=None):
 def _kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
     """K-means (Lloyd, scikit-learn) seeded by k-means++ on a random subsample: seeding
     on all points costs several times the whole Lloyd iteration for the same inertia."""
+    from sklearn.cluster import KMeans  # fitting only: never imported when generating
+    from threadpoolctl import threadpool_limits
+
     sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
     with threadpool_limits(limits=1, user_api="blas"):
         centres = _kmeans_plusplus(np.asarray(sub, dtype=np.float64), n_clusters, rng)
@@ -372,6 +370,8 @@ class ICHM(BaseEstimator):
             mean = members.mean(axis=0)
             return (mean, *self._fit_cluster(members - mean, np.random.default_rng(seeds[i])))
 
+        from threadpoolctl import threadpool_limits
+
         workers = max(1, min(n_clusters, os.cpu_count() or 1))
         with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=workers) as pool:
             fitted = []
@@ -521,19 +521,24 @@ class ICHM(BaseEstimator):
         for i in range(len(self.weights_)):
             m = int(np.count_nonzero(labels == i))
             comp = slice(offsets[i], offsets[i + 1])
-            s = self._match(rng.standard_normal((m, self.n_components_[i])), comp, table)
+            s = self._match(rng.random((m, self.n_components_[i])), comp, table)
             if self.reject_threshold is not None:
                 for _ in range(100):  # (iv) redraw samples with no value above the threshold
                     bad = ~(s > self.reject_threshold).any(axis=1)
                     if not bad.any():
                         break
-                    s[bad] = self._match(rng.standard_normal((int(bad.sum()), s.shape[1])), comp, table)
+                    s[bad] = self._match(rng.random((int(bad.sum()), s.shape[1])), comp, table)
             sources.append(s)
         return labels, sources
 
-    def _match(self, gauss, comp, table):
-        """(ii-iii) Map standard normals through Phi and each component's inverse CDF."""
-        u = ndtr(gauss) * QUANTILE_STEPS
+    def _match(self, uniform, comp, table):
+        """(ii-iii) Map probabilities through each component's inverse CDF.
+
+        The paper draws standard normals and maps them through Phi; Phi of a standard
+        normal is uniform on [0, 1), so we draw the uniform numbers directly (the same
+        distribution, without SciPy's ``ndtr`` on the generation path).
+        """
+        u = uniform * QUANTILE_STEPS
         lo = np.minimum(u.astype(np.int64), QUANTILE_STEPS - 1)
         frac = u - lo
         codes = self.cdf_index_[comp]

@@ -7,7 +7,6 @@ returns a float ``(H, W, 3)`` image in [0, 1] and is deterministic for a given `
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from ._common import TGHopError, check_rng
 
@@ -16,6 +15,8 @@ __all__ = ["bricks", "cells", "builtin", "BUILTIN"]
 
 def _smooth_noise(rng, shape, sigma):
     """Gaussian-filtered white noise scaled to unit standard deviation."""
+    from scipy import ndimage  # only when a built-in exemplar is made
+
     noise = ndimage.gaussian_filter(rng.standard_normal(shape), sigma, mode="wrap")
     return noise / (noise.std() + 1e-12)
 

@@ -15,10 +15,8 @@ rule therefore counts the DC children too, so ``K2 >= K1``.
 from __future__ import annotations
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.utils.validation import check_is_fitted
 
-from ._common import TGHopError, report
+from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, report
 from .patches import depth_to_space, space_to_depth
 from .saab import Saab, check_channel_rule, select_channels
 
@@ -85,8 +83,20 @@ class Hop(TransformerMixin, BaseEstimator):
         -------
         self
         """
+        c = blocks.shape[1] // 4
+        return self.fit_sums(_block_sums(blocks, 1 if self.channelwise else c, weights))
+
+    def fit_sums(self, sums):
+        """Learn the hop from block statistics accumulated by :func:`_block_sums` (summed
+        over any number of image tiles: the fit is the same as on all blocks at once).
+
+        Returns
+        -------
+        self
+        """
+        total, moment_sum, max_sq, count = sums
         rule = check_channel_rule(self.n_channels, "channels per hop")
-        c = self.n_channels_in_ = blocks.shape[1] // 4
+        c = self.n_channels_in_ = len(total) // 4
         if isinstance(rule, int) and rule > 4 * c:
             raise TGHopError(
                 f"a hop on {c} input channels has at most {4 * c} channels, {rule} were asked for; "
@@ -97,7 +107,7 @@ class Hop(TransformerMixin, BaseEstimator):
                 f"a channel-wise hop on {c} channels keeps at least {c} (one DC child each), "
                 f"{rule} were asked for; choose at least {c}"
             )
-        mean, moment, max_sq = _block_statistics(blocks, 1 if self.channelwise else c, weights)
+        mean, moment = total / count, moment_sum / count
         if not self.channelwise:
             saab = Saab(n_components=rule).fit_moments(mean, moment, max_sq[0])
             self.saabs_ = [saab]
@@ -195,7 +205,21 @@ class Hop(TransformerMixin, BaseEstimator):
 
 
 def _block_statistics(blocks, group, weights=None, chunk=1 << 18):
-    """Mean, second moment and the largest squared norm per channel group, in one pass.
+    """Mean, second moment and the largest squared norm per channel group (see :func:`_block_sums`)."""
+    total, moment, max_sq, count = _block_sums(blocks, group, weights, chunk)
+    return total / count, moment / count, max_sq
+
+
+def _add_sums(a, b):
+    """Combine two :func:`_block_sums` results (None is empty)."""
+    if a is None:
+        return b
+    return a[0] + b[0], a[1] + b[1], np.maximum(a[2], b[2]), a[3] + b[3]
+
+
+def _block_sums(blocks, group, weights=None, chunk=1 << 18):
+    """Weighted sum, sum of outer products, largest squared norm per channel group, and
+    total weight of blocks, in one pass.
 
     Parameters
     ----------
@@ -208,7 +232,7 @@ def _block_statistics(blocks, group, weights=None, chunk=1 << 18):
 
     Returns
     -------
-    mean : (4C,), moment : (4C, 4C), max_sq : (C // group,)
+    total : (4C,), moment : (4C, 4C), max_sq : (C // group,), count : float
     """
     m, d = blocks.shape
     c = d // 4
@@ -232,7 +256,77 @@ def _block_statistics(blocks, group, weights=None, chunk=1 << 18):
         if b.shape[0]:
             sq = (b * b).reshape(-1, 4, c // group, group).sum(axis=(1, 3))
             np.maximum(max_sq, sq.max(axis=0), out=max_sq)
-    return total / count, moment / count, max_sq
+    return total, moment, max_sq, count
+
+
+#: Side of the image tiles :meth:`HopStack.fit_image` works on (memory per tile: about
+#: 250 bytes per pixel of a (TILE + patch)^2 square at the second hop).
+TILE = 1024
+
+
+def _tiles(image, origins, patch_size, tile):
+    """Group patch origins by tile: a list of (crop function, local origins, rows)."""
+    h, w = image.shape[:2]
+    key = origins // tile
+    if len(origins) == 0:
+        return []
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    bounds = np.flatnonzero(np.any(np.diff(key[order], axis=0) != 0, axis=1)) + 1
+    out = []
+    for rows in np.split(order, bounds):
+        y0, x0 = (key[rows[0]] * tile).tolist()
+        y1 = min(h, int(origins[rows, 0].max()) + patch_size)
+        x1 = min(w, int(origins[rows, 1].max()) + patch_size)
+
+        def crop(y0=y0, x0=x0, y1=y1, x1=x1):
+            part = image[y0:y1, x0:x1]
+            if part.dtype == np.uint8:
+                return part / 255.0
+            return np.asarray(part, dtype=np.float64)
+
+        out.append((crop, origins[rows] - np.array([y0, x0]), rows))
+    return out
+
+
+def _phase_inputs(image, patch_size, origins, hops, level):
+    """Blocks at hop ``level`` of every phase map, with the block origins of the patches.
+
+    Applies the fitted ``hops[: level - 1]``; returns ``{phase: (blocks (h, w, 4C), starts)}``.
+    """
+    maps = {(0, 0): image[None]}
+    for lv in range(1, level + 1):
+        step = 2**lv
+        phase = origins % step
+        inputs = {}
+        for r in map(tuple, np.unique(phase, axis=0)):
+            parent = (r[0] % (step // 2), r[1] % (step // 2))
+            shift = (r[0] // (step // 2), r[1] // (step // 2))
+            src = maps[parent][:, shift[0]:, shift[1]:]
+            src = src[:, : src.shape[1] // 2 * 2, : src.shape[2] // 2 * 2]
+            starts = (origins[np.all(phase == r, axis=1)] - np.array(r)) // step
+            inputs[r] = (space_to_depth(src)[0], starts)
+        if lv == level:
+            return inputs
+        hop = hops[lv - 1]
+        maps = {r: (b @ hop.kernels_.T + hop.bias_)[None] for r, (b, _) in inputs.items()}
+
+
+def _core_of(image, patch_size, origins, hops):
+    """Core responses (n, p, p, Kn) of the patches at ``origins`` of ``image``, through ``hops``."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    n_hops = len(hops)
+    inputs = _phase_inputs(image, patch_size, origins, hops, n_hops)
+    hop = hops[-1]
+    side = patch_size // 2**n_hops
+    core = np.empty((len(origins), side, side, hop.n_channels_out_))
+    phase = origins % 2**n_hops
+    for r, (blocks, starts) in inputs.items():
+        m = blocks @ hop.kernels_.T + hop.bias_
+        rows = np.flatnonzero(np.all(phase == np.array(r), axis=1))
+        windows = sliding_window_view(m, (side, side), axis=(0, 1))
+        core[rows] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
+    return core
 
 
 def _coverage(shape, starts, side):
@@ -297,73 +391,70 @@ class HopStack(TransformerMixin, BaseEstimator):
         self._fit_output_ = X  # the core responses of the training patches, reused by fit_transform
         return self
 
-    def fit_image(self, image, patch_size, origins, *, progress=None):
+    def fit_image(self, image, patch_size, origins, *, progress=None, tile=TILE):
         """Fit on the patches of one image without cutting them out; return their core.
 
         Every training patch's 2x2 blocks at hop ``L`` are blocks of one of a few
-        *phase maps* of the whole image (the image shifted by the patch origin modulo
-        ``2**L`` and transformed by hops 1..L). So each hop is fitted on the blocks of
-        those maps, each weighted by the number of patches that contain it: exactly the
+        *phase maps* of the image (the image shifted by the patch origin modulo ``2**L``
+        and transformed by hops 1..L). So each hop is fitted on the blocks of those
+        maps, each weighted by the number of patches that contain it: exactly the
         statistics of fitting on the cut-out patches, at a fraction of the cost and
         memory. The result equals ``fit_transform(extract_patches(...))``.
+
+        Memory is bounded by the tile, not the image: the patches are grouped by the
+        ``tile`` x ``tile`` square their origin falls in, each square (plus a patch
+        margin) is processed on its own and the statistics are summed, so a 64 Mpx
+        exemplar costs what a few tiles do. Pixels are converted to float one tile at a
+        time, so ``image`` may be uint8 (0-255).
 
         Parameters
         ----------
         image : ndarray, shape (H, W, C)
+            Float in [0, 1], or uint8.
         patch_size : int
         origins : ndarray of int, shape (n, 2)
             Top-left corners of the training patches (see
             :func:`tghop.patches.patch_origins`).
         progress : callable, optional
+        tile : int
+            Side of the tiles (rounded up to a multiple of ``2**n_hops``).
 
         Returns
         -------
         ndarray, shape (n, p, p, Kn)
             Core responses of the patches, ``p = patch_size / 2**n_hops``.
         """
-        from numpy.lib.stride_tricks import sliding_window_view
-
         rules = list(self.n_channels)
+        n_hops = len(rules)
         origins = np.asarray(origins, dtype=np.int64)
-        if patch_size % (2 ** len(rules)):
-            raise TGHopError(f"{len(rules)} hops need a patch size divisible by {2 ** len(rules)}, got {patch_size}")
-        maps = {(0, 0): np.asarray(image, dtype=np.float64)[None]}
+        if patch_size % (2 ** n_hops):
+            raise TGHopError(f"{n_hops} hops need a patch size divisible by {2 ** n_hops}, got {patch_size}")
+        unit = 2 ** n_hops
+        tile = max(unit, -(-int(tile) // unit) * unit)
+        tiles = _tiles(image, origins, patch_size, tile)
         self.hops_ = []
         self.dims_ = [patch_size * patch_size * image.shape[2]]
         for level, rule in enumerate(rules, start=1):
-            report(progress, f"hop {level}", 0, 1)
-            step, side = 2**level, patch_size // 2**level
-            phase = origins % step
-            inputs, all_blocks, all_weights = {}, [], []
-            for r in map(tuple, np.unique(phase, axis=0)):
-                parent = (r[0] % (step // 2), r[1] % (step // 2))
-                shift = (r[0] // (step // 2), r[1] // (step // 2))
-                src = maps[parent][:, shift[0]:, shift[1]:]
-                src = src[:, : src.shape[1] // 2 * 2, : src.shape[2] // 2 * 2]
-                blocks = space_to_depth(src)[0]
-                starts = (origins[np.all(phase == r, axis=1)] - np.array(r)) // step
-                inputs[r] = (blocks, starts)
-                all_blocks.append(blocks.reshape(-1, blocks.shape[-1]))
-                all_weights.append(_coverage(blocks.shape[:2], starts, side).ravel())
+            report(progress, f"hop {level}", 0, len(tiles))
+            side = patch_size // 2**level
+            sums = None
+            for i, (crop, local, _) in enumerate(tiles):
+                inputs = _phase_inputs(crop(), patch_size, local, self.hops_, level)
+                group = 1 if level > 1 else image.shape[2]
+                for blocks, starts in inputs.values():
+                    weights = _coverage(blocks.shape[:2], starts, side).ravel()
+                    sums = _add_sums(sums, _block_sums(blocks.reshape(-1, blocks.shape[-1]), group, weights))
+                report(progress, f"hop {level}", i + 1, len(tiles))
             try:
-                hop = Hop(n_channels=rule, channelwise=level > 1).fit_blocks(
-                    np.concatenate(all_blocks), np.concatenate(all_weights)
-                )
+                hop = Hop(n_channels=rule, channelwise=level > 1).fit_sums(sums)
             except TGHopError as exc:
                 raise TGHopError(f"K{level}: {exc}") from None
-            del all_blocks
-            maps = {r: (b @ hop.kernels_.T + hop.bias_)[None] for r, (b, _) in inputs.items()}
             self.hops_.append(hop)
             self.dims_.append(side * side * hop.n_channels_out_)
-            report(progress, f"hop {level}", 1, 1)
-        side = patch_size // 2 ** len(rules)
+        side = patch_size // unit
         core = np.empty((len(origins), side, side, self.hops_[-1].n_channels_out_))
-        phase = origins % 2 ** len(rules)
-        for r, m in maps.items():
-            rows = np.flatnonzero(np.all(phase == np.array(r), axis=1))
-            starts = (origins[rows] - np.array(r)) // 2 ** len(rules)
-            windows = sliding_window_view(m[0], (side, side), axis=(0, 1))
-            core[rows] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
+        for crop, local, rows in tiles:
+            core[rows] = _core_of(crop(), patch_size, local, self.hops_)
         return core
 
     def fit_transform(self, X, y=None, *, progress=None):

@@ -10,7 +10,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from struct import error as struct_error
 
 from ._common import InvalidImageError, check_image
 
@@ -19,8 +19,13 @@ __all__ = ["load_image", "save_image", "to_uint8", "write_atomic", "check_output
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
 
+#: Largest image :func:`load_image` reads (pixels), checked from the file's header before
+#: decoding: 64 Mpx (8192x8192, the largest output tghop writes). A larger file is refused
+#: (``max_pixels`` or ``downscale`` change that).
+MAX_IMAGE_PIXELS = 8192 * 8192
 
-def load_image(path) -> np.ndarray:
+
+def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.float64) -> np.ndarray:
     """Read an image file as a float array.
 
     Parameters
@@ -28,35 +33,82 @@ def load_image(path) -> np.ndarray:
     path : str or os.PathLike
         Any format Pillow reads. Palette and 16-bit images are converted; an alpha
         channel is dropped with a warning.
+    max_pixels : int
+        Images with more pixels (read from the header, before decoding) are refused
+        with :class:`InvalidImageError`, or, with ``downscale``, reduced to at most this
+        many pixels (aspect ratio kept) with a warning.
+    downscale : bool
+    dtype : {numpy.float64, numpy.float32, None}
+        None keeps 8-bit images as uint8 (0-255, an eighth of the memory; what
+        :meth:`TGHop.fit` takes for large exemplars) and gives float64 for deeper ones.
 
     Returns
     -------
-    ndarray, shape (H, W, C), float64 in [0, 1]
+    ndarray, shape (H, W, C), in [0, 1] (0-255 for uint8)
         ``C`` is 1 for greyscale images and 3 for colour ones.
     """
+    from PIL import Image, UnidentifiedImageError  # imported on first use: not needed by `tghop info`
+
     path = Path(path)
     if not path.exists():
         raise InvalidImageError(f"{path}: no such file; check the path")
     if path.is_dir():
         raise InvalidImageError(f"{path} is a folder, not an image; give an image file")
     try:
-        with Image.open(path) as im:
-            im.load()
-            mode = im.mode
-            if mode in ("RGBA", "LA", "PA") or (mode == "P" and "transparency" in im.info):
-                warnings.warn(f"{path.name}: alpha channel dropped", UserWarning, stacklevel=2)
-            if mode in ("L", "LA", "1"):
-                arr = np.asarray(im.convert("L"))
-            elif mode in ("I;16", "I;16B", "I;16L", "I"):
-                arr = np.asarray(im, dtype=np.float64)
-                arr = arr / (65535.0 if arr.max() > 255 else 255.0)
-            else:
-                arr = np.asarray(im.convert("RGB"))
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit applies
+            with Image.open(path) as im:
+                arr, mode = _decode(im, path, max_pixels, downscale)
+    except InvalidImageError:
+        raise
+    except Image.DecompressionBombError:
+        raise InvalidImageError(f"{path}: the image header declares too many pixels to decode safely; "
+                                f"tghop reads at most {max_pixels:,} pixels") from None
+    except MemoryError:
+        raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
+            struct_error, ZeroDivisionError) as exc:
         raise InvalidImageError(
             f"{path}: not a readable image ({exc.__class__.__name__}); give a PNG, JPEG or other common image file"
         ) from None
-    return check_image(arr, name=str(path))
+    if mode in ("RGBA", "LA", "PA") or mode == "P+transparency":
+        warnings.warn(f"{path.name}: alpha channel dropped", UserWarning, stacklevel=2)
+    if dtype is None and arr.dtype == np.uint8:
+        return arr[:, :, None] if arr.ndim == 2 else arr
+    return check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype)
+
+
+def _decode(im, path, max_pixels, downscale):
+    """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode)."""
+    width, height = im.size
+    if width < 1 or height < 1:
+        raise ValueError("empty image")
+    if width * height > max_pixels:
+        if not downscale:
+            raise InvalidImageError(
+                f"{path}: the image is {width}x{height} pixels, more than the {max_pixels:,} tghop reads; "
+                "pass --downscale to reduce it (or downscale it yourself)")
+        factor = (width * height / max_pixels) ** 0.5
+        size = (max(1, int(width / factor)), max(1, int(height / factor)))
+        im.draft(im.mode, size)  # JPEG: decode at reduced size directly
+        warnings.warn(f"{path.name}: {width}x{height} pixels downscaled to {size[0]}x{size[1]} "
+                      f"(at most {max_pixels:,} pixels)", UserWarning, stacklevel=3)
+        im = im.resize(size, resample=1, reducing_gap=2.0) if im.size != size else im  # 1 = LANCZOS
+    else:
+        im.load()
+    mode = im.mode
+    if mode == "P" and "transparency" in im.info:
+        mode = "P+transparency"
+    if im.mode in ("L", "LA", "1"):
+        arr = np.asarray(im.convert("L"))
+    elif im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+        arr = np.asarray(im, dtype=np.float64)
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("non-finite pixel values")
+        arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
+    else:
+        arr = np.asarray(im.convert("RGB"))
+    return arr, mode
 
 
 def to_uint8(image) -> np.ndarray:
@@ -69,27 +121,44 @@ def to_uint8(image) -> np.ndarray:
 
 
 def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> Path:
-    """Refuse an output path that is a folder or whose folder does not exist.
+    """Refuse an output path that is a folder, whose folder does not exist, or where no
+    file can be created (read-only or unwritable folder, name too long): checked by
+    creating and removing a probe file, before any long work.
 
     Returns the folder the file will be written to; ``error`` is the exception class raised.
     """
     path = Path(path)
-    if path.is_dir():
+    try:
+        is_dir = path.is_dir()
+    except OSError as exc:  # e.g. a name too long
+        raise error(f"{str(path)[:80]}: cannot write the {what} there ({exc.strerror}); choose another name") from None
+    if is_dir:
         raise error(f"{path} is a folder; give a file name for the {what}")
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise error(f"{directory}: output folder does not exist; create it first")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=directory)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise error(f"{path}: cannot write the {what} there ({exc.strerror or exc.__class__.__name__}); "
+                    "choose another folder or name") from None
     return directory
 
 
-def write_atomic(path, write) -> None:
+def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -> None:
     """Call ``write(fileobj)`` on a temporary file next to ``path``, then move it into place.
 
-    If ``write`` raises, no file (and no partial file) is left at ``path``.
+    If ``write`` raises, no file (and no partial file) is left at ``path``; an operating
+    system error (disk full, ...) becomes one ``error`` line.
     """
     path = Path(path)
-    directory = check_output_path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    directory = check_output_path(path, what=what, error=error)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__})") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
@@ -97,11 +166,14 @@ def write_atomic(path, write) -> None:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        if isinstance(exc, OSError):
+            raise error(f"{path}: writing the {what} failed ({exc.strerror or exc.__class__.__name__}); "
+                        "nothing was written") from None
         raise
 
 
@@ -124,6 +196,8 @@ def save_image(image, path) -> None:
     path : str or os.PathLike
         The file appears complete or not at all.
     """
+    from PIL import Image
+
     fmt = output_format(path)
     pil = Image.fromarray(to_uint8(image))
     options = {"quality": 95} if fmt == "JPEG" else {}

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +45,7 @@ def save_model(model, path) -> None:
             **model._state_meta()}
     arrays["__meta__"] = np.array(json.dumps(meta))
     check_output_path(path, what="model", error=ModelFileError)
-    write_atomic(path, lambda fh: np.savez(fh, **arrays))
+    write_atomic(path, lambda fh: np.savez(fh, **arrays), what="model", error=ModelFileError)
 
 
 def _read(path):
@@ -58,10 +59,11 @@ def _read(path):
             if not hasattr(data, "files"):
                 raise ValueError("not an archive")
             arrays = {name: data[name] for name in data.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, NotImplementedError, MemoryError,
+            zlib.error, RuntimeError) as exc:
         raise ModelFileError(
-            f"{path}: not a tghop model file (cannot read it as one: {exc.__class__.__name__}); "
-            "fit a model with 'tghop fit'"
+            f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); "
+            "fit the model again with 'tghop fit'"
         ) from None
     if "__meta__" not in arrays:
         raise ModelFileError(f"{path}: a NumPy archive but not a tghop model file; fit a model with 'tghop fit'")
@@ -92,6 +94,10 @@ def load_model(path):
         The file is missing, not a tghop model, corrupt, or of another format version.
     """
     meta, arrays = _read(path)
+    for name, arr in arrays.items():
+        if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
+            raise ModelFileError(f"{path}: corrupt tghop model (array {name} holds NaN or infinite values); "
+                                 "fit the model again")
     try:
         return TGHop._from_state(meta, arrays)
     except TGHopError as exc:

@@ -62,9 +62,11 @@ def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, 
     h, w = shape[:2]
     ys = np.arange(0, h - patch_size + 1, stride)
     xs = np.arange(0, w - patch_size + 1, stride)
-    index = np.arange(ys.size * xs.size)
-    if max_patches is not None and index.size > int(max_patches):
-        index = np.sort(check_rng(rng).choice(index.size, size=int(max_patches), replace=False))
+    total = ys.size * xs.size
+    if max_patches is not None and total > int(max_patches):
+        index = np.sort(check_rng(rng).choice(total, size=int(max_patches), replace=False))
+    else:
+        index = np.arange(total)
     rows, cols = np.divmod(index, xs.size)
     return np.column_stack([ys[rows], xs[cols]])
 

@@ -25,10 +25,8 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.utils.validation import check_is_fitted
 
-from ._common import TGHopError
+from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
 
 __all__ = ["Saab", "select_channels", "knee_point"]
 

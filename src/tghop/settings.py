@@ -38,7 +38,7 @@ import numbers
 from dataclasses import dataclass, field
 from typing import Any, Optional, Tuple
 
-from ._common import TGHopError
+from ._errors import TGHopError
 
 __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "fit_settings", "generate_settings", "check_settings",
            "component_params", "numpydoc_parameters", "make_init"]

@@ -21,11 +21,9 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
-from sklearn.base import BaseEstimator
-from sklearn.utils.validation import check_is_fitted
 
 from . import settings
-from ._common import TGHopError, check_image, check_rng, report
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, report
 from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
@@ -60,19 +58,56 @@ def default_channels(patch_size: int, n_colours: int = 3):
 
 
 def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
-    """A validated float exemplar; a grey image stored as RGB becomes single-channel.
+    """A validated exemplar; a grey image stored as RGB becomes single-channel.
 
     Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
-    channel is the same texture at a third of the cost, and the output is grey.
+    channel is the same texture at a third of the cost, and the output is grey. A flat
+    exemplar (every channel's standard deviation below a quarter of an 8-bit grey level)
+    has nothing to learn and is refused at once.
 
     Returns
     -------
-    ndarray, shape (H, W, C), float64 in [0, 1], C in {1, 3}
+    ndarray, shape (H, W, C), C in {1, 3}
+        float64 in [0, 1]; a uint8 image stays uint8 (0-255), so that a large exemplar
+        costs one byte per pixel and channel (:meth:`TGHop.fit` converts tile by tile).
     """
-    img = check_image(image, min_size=min_size, name="exemplar")
-    if img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512:
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8:
+        img = image[:, :, None] if image.ndim == 2 else image
+        if img.ndim != 3 or img.shape[2] not in (1, 3):
+            check_image(img[:1, :1], name="exemplar")  # the usual shape error
+        h, w = img.shape[:2]
+        if h < min_size or w < min_size:
+            check_image(np.zeros((h, w, 1), dtype=np.uint8), min_size=min_size, name="exemplar")
+        spread = _std_uint8(img) / 255.0
+        grey = img.shape[2] == 3 and all(
+            np.array_equal(img[y: y + 512, :, 1:], np.repeat(img[y: y + 512, :, :1], 2, axis=2))
+            for y in range(0, h, 512))
+    else:
+        img = check_image(image, min_size=min_size, name="exemplar")
+        spread = float(img.reshape(-1, img.shape[2]).std(axis=0).max()) if img.size else 0.0
+        grey = img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512
+    if spread < 1 / 1024:
+        raise TGHopError(
+            "the exemplar has no texture: its pixels are all (nearly) the same colour; "
+            "give an image with a visible pattern"
+        )
+    if grey:
         img = np.ascontiguousarray(img[..., :1])
     return img
+
+
+def _std_uint8(img) -> float:
+    """Largest per-channel standard deviation of a uint8 image (exact, from histograms)."""
+    levels = np.arange(256.0)
+    out = 0.0
+    for c in range(img.shape[2]):
+        hist = np.zeros(256)
+        for y in range(0, img.shape[0], 1024):
+            hist += np.bincount(img[y: y + 1024, :, c].ravel(), minlength=256)
+        n = hist.sum()
+        mean = hist @ levels / n
+        out = max(out, float(np.sqrt(max(hist @ (levels - mean) ** 2 / n, 0.0))))
+    return out
 
 
 class TGHop(BaseEstimator):
@@ -125,8 +160,11 @@ class TGHop(BaseEstimator):
         Parameters
         ----------
         image : ndarray, shape (H, W) or (H, W, C)
-            Float in [0, 1] (or uint8), ``H, W >= patch_size``; C is 1 or 3. A grey
+            Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3. A grey
             image stored as RGB is modelled as one channel (see :func:`prepare_exemplar`).
+            Memory depends on the training patches used (``max_patches``), not on the
+            exemplar's size: the hops see the image tile by tile, and a uint8 image is
+            never converted whole.
         progress : callable, optional
             ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
             "SDR", "clusters", "ICA", "CDF codebook".

