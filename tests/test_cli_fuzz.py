@@ -1,0 +1,149 @@
+"""Property: whatever the input file's bytes and the option values, the CLI either exits 0
+with a valid result or exits != 0 with one ``Error:`` line, no traceback and no file left.
+
+Mutated PNG, JPEG and model (.npz) bytes and random option values, in-process (click's
+CliRunner). The suite runs a couple of hundred cases; ``python scripts/fuzz_cli.py`` runs
+thousands.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from functools import lru_cache
+
+import numpy as np
+import pytest
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+#: Tiny, fast fits: a 40x40 exemplar, every patch (stride 1), two clusters.
+FAST = ["--clusters", "2", "--codewords", "5", "--stride", "1", "--max-patches", "300", "-q"]
+
+
+@lru_cache(maxsize=None)
+def seeds():
+    """Valid PNG, JPEG and model bytes to mutate (made in code, once)."""
+    from PIL import Image
+
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    img = data.bricks(40, rng=3)
+    pil = Image.fromarray((img * 255).astype(np.uint8))
+    png, jpg = io.BytesIO(), io.BytesIO()
+    pil.save(png, format="PNG")
+    pil.save(jpg, format="JPEG", quality=80)
+    with tempfile.TemporaryDirectory() as d:
+        model = TGHop(n_clusters=2, n_codewords=5, stride=1, rng=0).fit(img)
+        save_model(model, os.path.join(d, "m.npz"))
+        with open(os.path.join(d, "m.npz"), "rb") as fh:
+            npz = fh.read()
+    return {"png": png.getvalue(), "jpg": jpg.getvalue(), "npz": npz}
+
+
+@st.composite
+def mutated_file(draw):
+    kind = draw(st.sampled_from(["png", "jpg", "npz"]))
+    data = bytearray(seeds()[kind])
+    for _ in range(draw(st.integers(0, 4))):
+        op = draw(st.sampled_from(["flip", "truncate", "insert", "header", "delete"]))
+        if not data:
+            break
+        at = draw(st.integers(0, len(data) - 1))
+        if op == "flip":
+            data[at] ^= draw(st.integers(1, 255))
+        elif op == "truncate":
+            del data[at:]
+        elif op == "insert":
+            data[at:at] = draw(st.binary(min_size=1, max_size=16))
+        elif op == "delete":
+            del data[at: at + draw(st.integers(1, 64))]
+        else:  # overwrite bytes near the start: sizes, magic numbers, headers
+            at = draw(st.integers(0, min(len(data) - 1, 64)))
+            chunk = draw(st.binary(min_size=1, max_size=8))
+            data[at: at + len(chunk)] = chunk
+    return kind, bytes(data)
+
+
+NUMBERS = st.one_of(
+    st.integers(-3, 300).map(str),
+    st.sampled_from(["nan", "inf", "-inf", "1e309", "0", "-0", "1e-320", "10000000000000", "0x10", "", " ", "1.5",
+                     "knee", "none", "3x", "x3", "7x9", "64x48", "2,3", "\x00", "é"]),
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.text(max_size=6),
+)
+
+OPTIONS = ["--size", "--pool", "--tolerance", "--overlap", "--seed", "--gamma", "--reject-threshold",
+           "--clusters", "--codewords", "--cluster-energy", "--k1", "--k2", "--count", "--bins", "--fit-seed",
+           "--max-cluster-components", "--ica-iterations", "--patch-size", "--gamma-mode"]
+
+
+@st.composite
+def command(draw):
+    kind, blob = draw(mutated_file())
+    name = {"png": "in.png", "jpg": "in.jpg", "npz": "in.npz"}[kind]
+    verb = draw(st.sampled_from(["synth", "synth", "info", "patches", "evaluate", "fit"]))
+    if verb == "synth":
+        args = ["synth", name, "-o", draw(st.sampled_from(["out.png", "out.jpg"])), "--size", "40", "--pool", "60"]
+        if kind != "npz":
+            args += FAST
+        else:
+            args += ["-q"]
+    elif verb == "info":
+        args = ["info", name] + draw(st.sampled_from([[], ["--json"]]))
+    elif verb == "patches":
+        args = ["patches", name, "-n", "4", "-o", "grid.png"]
+    elif verb == "evaluate":
+        args = ["evaluate", name, name, "--metrics", "swd,cooccurrence"]
+    else:
+        args = ["fit", name, "-o", "model.npz"] + FAST
+    for _ in range(draw(st.integers(0, 3))):
+        args += [draw(st.sampled_from(OPTIONS)), draw(NUMBERS)]
+    return blob, name, args
+
+
+def check(blob, name, args):
+    """Run one command in a fresh folder and assert the property."""
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from tghop.cli import main
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, name)
+        with open(path, "wb") as fh:
+            fh.write(blob)
+        old = os.getcwd()
+        os.chdir(folder)
+        try:
+            result = CliRunner().invoke(main, args, catch_exceptions=True)
+        finally:
+            os.chdir(old)
+        err = result.stderr
+        left = sorted(set(os.listdir(folder)) - {name})
+        assert result.exception is None or isinstance(result.exception, SystemExit), (args, repr(result.exception))
+        assert "Traceback" not in err, (args, err)
+        if result.exit_code == 0:
+            for f in left:
+                assert not f.startswith("."), (args, left)  # no temporary file
+                if f.endswith((".png", ".jpg")):
+                    with Image.open(os.path.join(folder, f)) as im:
+                        im.load()
+                        assert im.size[0] >= 1 and im.size[1] >= 1
+            if args[0] in ("synth", "patches", "fit"):
+                assert left, (args, err)
+        else:
+            errors = [line for line in err.splitlines() if line.startswith("Error: ")]
+            assert len(errors) == 1, (args, err)
+            assert left == [], (args, left, err)
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
+@given(command())
+def test_cli_fuzz(case):
+    check(*case)
