@@ -15,7 +15,8 @@ The table gives medians over exemplars (of the two seeds' mean), the maximum of
 A variant is ``name:fit.KEY=VALUE,synth.KEY=VALUE,...`` (VALUE a Python literal), or one
 of the named VARIANTS below. ``--sheets`` writes one image per exemplar (exemplar | each
 variant, seed 0). With ``--ust``, the Ustyuzhaninov baseline runs on those exemplars at
-``--ust-size`` next to every variant at the same size (slow: minutes per exemplar).
+``--ust-size`` next to every variant at the same size (slow: minutes per exemplar; its
+images are kept in ``results/ust-cache/`` and reused, since they do not depend on tghop).
 
 Writes ``benchmarks/results/quality[-TAG].{json,md}`` (and ``quality[-TAG]/*.png``).
 """
@@ -147,9 +148,17 @@ def ust_task(name, variants, size, n_iter, metrics):
     from tghop import TGHop
     from tghop.baselines import ustyuzhaninov
 
+    from tghop.imageio import load_image, save_image
+
     exemplar = prepare(name)
+    cached = RESULTS / "ust-cache" / f"{name}-{size}-{n_iter}.png"  # the baseline does not change with tghop
     t = time.perf_counter()
-    ust = ustyuzhaninov(exemplar, size, n_iter=n_iter, rng=0)
+    if cached.exists():
+        ust = load_image(cached)
+    else:
+        ust = ustyuzhaninov(exemplar, size, n_iter=n_iter, rng=0)
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        save_image(ust, cached)
     row = {"texture": name, "ust_s": time.perf_counter() - t, "Ustyuzhaninov": score(exemplar, ust, metrics)}
     for vname, fit_kw, synth_kw in variants:
         model = TGHop(**fit_kwargs(fit_kw, exemplar), rng=0).fit(exemplar)
