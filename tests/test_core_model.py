@@ -55,10 +55,10 @@ def ichm_fit():
 
 def test_ichm_interval_representation(ichm_fit):
     z, model = ichm_fit
-    assert sorted(np.round(model.p_, 2).tolist()) == [0.4, 0.6]
+    assert sorted(np.round(model.weights_, 2).tolist()) == [0.4, 0.6]
     labels, _ = model.sample_sources(20000, rng=1)
     freq = np.bincount(labels, minlength=2) / 20000
-    np.testing.assert_allclose(freq, model.p_, atol=0.015)
+    np.testing.assert_allclose(freq, model.weights_, atol=0.015)
 
 
 def test_ichm_sampled_components_follow_fitted_cdfs(ichm_fit):
@@ -80,7 +80,9 @@ def test_ichm_sampled_components_follow_fitted_cdfs(ichm_fit):
 
 def test_ichm_samples_match_training_moments(ichm_fit):
     z, model = ichm_fit
-    sample = model.sample(20000, rng=4)
+    sample, labels = model.sample(20000, rng=4)
+    assert sample.shape == (20000, z.shape[1]) and labels.shape == (20000,)
+    assert set(np.unique(labels)) <= set(range(len(model.weights_)))
     np.testing.assert_allclose(sample.mean(0), z.mean(0), atol=0.15)
     np.testing.assert_allclose(sample.std(0), z.std(0), rtol=0.1)
 

@@ -5,7 +5,7 @@ from tghop import TGHopError
 from tghop.hops import Hop, HopStack
 from tghop.patches import count_patches, depth_to_space, extract_patches, space_to_depth
 from tghop.saab import Saab, knee_point, select_channels
-from sklearn.exceptions import NotFittedError
+from tghop import NotFittedError
 
 
 def test_extract_patches_count_and_content(bricks96):

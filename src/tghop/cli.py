@@ -131,61 +131,121 @@ class Size(click.ParamType):
         return (h, w)
 
 
-def model_options(func):
-    """The fitting options shared by ``fit`` and ``synth`` (paper defaults)."""
-    options = [
-        click.option("--patch-size", type=click.Choice(["32", "64"]), default="32", show_default=True,
-                     help="Patch side (64 uses three hops)."),
-        click.option("--stride", type=click.IntRange(min=1), default=2, show_default=True,
-                     help="Step between training patches."),
+class SettingType(click.ParamType):
+    """A command-line value of one setting of :data:`tghop.settings.SETTINGS`."""
+
+    def __init__(self, setting):
+        self.setting = setting
+        self.name = setting.kind.upper()
+
+    def convert(self, value, param, ctx):
+        if not isinstance(value, str):
+            return value
+        s = self.setting
+        try:
+            out = s.check(s.parse(value), label=repr(value))
+            if s.cli_high is not None and out is not None and out > s.cli_high:
+                raise TGHopError(f"{value!r} is more than the command line allows ({s.cli_high:,g})")
+        except TGHopError as exc:
+            self.fail(str(exc), param, ctx)
+        return out
+
+
+def _setting_option(s):
+    """A click option for setting ``s``, its help and default taken from the table."""
+    names = list(s.option_names)
+    default = s.default
+    shown = {True: "on", False: "off", None: "none"}.get(default, default) if not isinstance(default, int) or \
+        isinstance(default, bool) else default
+    extra = f"default: {shown}"
+    if s.kind == "rng":
+        return click.option(*names, "rng", type=click.IntRange(min=0), default=None,
+                            help=f"Seed of fitting (K-means, FastICA). [default: 0]")
+    if s.has_paper and s.paper != s.default:
+        extra += f"; --paper: {s.paper}"
+    if s.kind == "bool":
+        flag = names[0]
+        return click.option(f"{flag}/--no-{flag[2:]}", s.name, default=None, help=f"{s.help} [{extra}]")
+    return click.option(*names, s.name, type=SettingType(s), default=None, help=f"{s.help} [{extra}]")
+
+
+def _channel_options():
+    return [
         click.option("--k1", type=ChannelRule(), default=None, help="Hop-1 channels (paper: 9): count, energy fraction or 'knee'."),
         click.option("--k2", type=ChannelRule(), default=None, help="Hop-2 channels in total (paper: 22)."),
         click.option("--k3", type=ChannelRule(), default=None, help="Hop-3 channels (64x64 patches; default 40)."),
-        click.option("--gamma", type=click.FloatRange(min=0), default=0.01, show_default=True,
-                     help="SDR variance threshold."),
-        click.option("--clusters", "-N", "n_clusters", type=click.IntRange(min=1, max=5000), default=50,
-                     show_default=True, help="K-means clusters in ICHM."),
-        click.option("--codewords", "-W", "n_codewords", type=click.IntRange(min=1, max=100000), default=200,
-                     show_default=True, help="CDF codebook size."),
-        click.option("--cluster-energy", type=click.FloatRange(min=0, max=1, min_open=True), default=None,
-                     help="Variance fraction kept by each cluster's PCA [default: 0.99; --paper: 0.95]."),
-        click.option("--max-cluster-components", type=click.IntRange(min=1), default=None,
-                     help="Components per cluster at most [default: 100; --paper: 50]."),
-        click.option("--paper", is_flag=True,
-                     help="The paper's pipeline exactly: Table 4 core model (F about 2,500) and no colour matching."),
-        click.option("--reject-threshold", type=float, default=None,
-                     help="Sampling step (iv): redraw samples with no component above this."),
-        click.option("--max-patches", type=click.IntRange(min=1), default=20000, show_default=True,
-                     help="Subsample training patches beyond this many."),
-        click.option("--fit-seed", type=click.IntRange(min=0), default=0, show_default=True,
-                     help="Seed of fitting (K-means, FastICA)."),
     ]
-    for option in reversed(options):
+
+
+def _fit_options():
+    from .settings import fit_settings
+
+    options = []
+    for s in fit_settings():
+        if s.name == "n_channels":
+            options += _channel_options()
+        elif s.option_names:
+            options.append(_setting_option(s))
+    options.append(click.option("--paper", is_flag=True,
+                                help="The paper's pipeline exactly: Table 4 core model (F about 2,500) and no "
+                                     "colour matching; options given as well override it."))
+    return options
+
+
+#: Options of ``fit`` that only matter when fitting (refused by ``synth`` with a saved model).
+FIT_OPTION_PARAMS = ("k1", "k2", "k3", "paper")
+
+
+def model_options(func):
+    """The fitting options shared by ``fit`` and ``synth``, from the settings table."""
+    for option in reversed(_fit_options()):
         func = option(func)
     return func
 
 
-def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, cluster_energy,
-                max_cluster_components, paper, reject_threshold, max_patches, fit_seed, n_colours=3):
-    from .synthesis import PAPER_TABLE4, TGHop, default_channels
+def generation_options(func):
+    """The generation options of ``synth``, from the settings table."""
+    from .settings import generate_settings
 
-    defaults_from = PAPER_TABLE4 if paper else TGHop().get_params()
-    if cluster_energy is None:
-        cluster_energy = defaults_from["cluster_energy"]
-    if max_cluster_components is None:
-        max_cluster_components = defaults_from["max_cluster_components"]
+    for s in reversed(generate_settings()):
+        func = _setting_option(s)(func)
+    return func
 
-    patch_size = int(patch_size)
-    defaults = default_channels(patch_size, n_colours)
-    given = [k1, k2, k3][: len(defaults)]
+
+def build_model(options, n_colours=3):
+    """A TGHop from the fit options (unset ones: the table's default, or its paper value with --paper)."""
+    from .settings import fit_settings
+    from .synthesis import TGHop, default_channels
+
+    paper = options.get("paper", False)
+    params = {}
+    for s in fit_settings():
+        if s.name in ("n_channels", "rng"):
+            continue
+        value = options.get(s.name)
+        params[s.name] = value if value is not None else (s.paper if paper and s.has_paper else s.default)
+    patch_size = int(params["patch_size"])
+    if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
+        raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")
+    k1, k2, k3 = options.get("k1"), options.get("k2"), options.get("k3")
     if patch_size == 32 and k3 is not None:
         raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
+    defaults = default_channels(patch_size, n_colours) if patch_size in (32, 64) else (None, None)
+    given = [k1, k2, k3][: len(defaults)]
     channels = tuple(d if g is None else g for g, d in zip(given, defaults))
-    return TGHop(
-        patch_size=patch_size, stride=stride, n_channels=channels, gamma=gamma, n_clusters=n_clusters,
-        n_codewords=n_codewords, cluster_energy=cluster_energy, max_cluster_components=max_cluster_components,
-        reject_threshold=reject_threshold, max_patches=max_patches, rng=fit_seed,
-    )
+    rng = options.get("rng")
+    return TGHop(**params, n_channels=channels, rng=0 if rng is None else rng)
+
+
+def given_options(ctx, names):
+    """The option flags of ``names`` that were typed on the command line."""
+    from click.core import ParameterSource
+
+    out = []
+    for param in ctx.command.params:
+        if param.name in names and ctx.get_parameter_source(param.name) == ParameterSource.COMMANDLINE:
+            out.append(param.opts[0] if param.opts else param.name)
+    return out
 
 
 def load_exemplar(spec: str):
@@ -255,7 +315,7 @@ def fit(exemplar, output, quiet, **options):
     progress = Progress(not quiet)
     with user_errors(progress):
         image = prepare_exemplar(load_exemplar(exemplar))
-        model = build_model(**options, n_colours=image.shape[2])
+        model = build_model(options, n_colours=image.shape[2])
         check_output_path(output, what="model", error=ModelFileError)  # before the fit, not after
         model.fit(image, progress=progress)
         progress.close()
@@ -320,24 +380,19 @@ def stage_sheet(views, patch_size):
 @click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
               help="Number of images.")
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed of generation.")
-@click.option("--tile", is_flag=True, help="Make the images wrap around seamlessly (tileable).")
-@click.option("--pool", type=click.IntRange(min=1, max=200000), default=10000, show_default=True,
-              help="Generated patches quilted into each image.")
-@click.option("--overlap", type=click.IntRange(min=1), default=None, help="Quilting overlap (default patch/6).")
-@click.option("--tolerance", type=click.FloatRange(min=0), default=0.1, show_default=True,
-              help="Quilting: choose among patches within (1+tolerance) of the best match.")
-@click.option("--match-colours/--no-match-colours", default=None,
-              help="Match the result's colour histograms to the exemplar's [default: on; off with --paper].")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
+@generation_options
 @model_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, save_model, quiet,
-          **options):
+@click.pass_context
+def synth(ctx, source, output, size, count, seed, save_model, quiet, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
-    from .imageio import save_image
+    from ._common import ModelFileError
+    from .imageio import check_output_path, save_image
     from .modelfile import load_model, save_model as write_model
     from .quilting import MAX_PIXELS
+    from .settings import BY_NAME, generate_settings
 
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -346,27 +401,38 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, mat
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
         if size[0] * size[1] > MAX_PIXELS:
             raise TGHopError(f"--size {size[0]}x{size[1]} exceeds the limit of {MAX_PIXELS:,} pixels; choose a smaller size")
-        if not source.startswith("builtin:") and is_model_file(source):
+        from_model = not source.startswith("builtin:") and is_model_file(source)
+        if from_model:
+            fit_only = [s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS) + ["save_model"]
+            refused = given_options(ctx, fit_only)
+            if refused:
+                raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
+                                 f"is a saved model; refit with 'tghop fit' or drop {'them' if len(refused) > 1 else 'it'}")
+        generation = {}
+        for s in generate_settings():
+            value = options.pop(s.name)
+            generation[s.name] = value if value is not None else (
+                s.paper if options.get("paper") and s.has_paper else s.default)
+        if from_model:
             model = load_model(source)
         else:
             image = prepare_exemplar(load_exemplar(source))
-            model = build_model(**options, n_colours=image.shape[2])
+            model = build_model(options, n_colours=image.shape[2])
+            if save_model:
+                check_output_path(save_model, what="model", error=ModelFileError)  # before the fit
             model.fit(image, progress=progress)
             if save_model:
                 write_model(model, save_model)
-        if match_colours is None:
-            match_colours = not options["paper"]
         rng = np.random.default_rng(seed)
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
-            image = model.synthesize(size, rng=rng, n_patches=pool, tile=tile, overlap=overlap,
-                                     tolerance=tolerance, match_colours=match_colours, progress=progress)
+            image = model.synthesize(size, rng=rng, progress=progress, **generation)
             progress.close()
             save_image(image, path)
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
-        if save_model and not is_model_file(source):
+        if save_model and not from_model:
             click.echo(f"model written to {save_model}", err=True)
 
 

@@ -25,7 +25,6 @@ Choices the paper leaves open (see also the notes in the docs):
 
 from __future__ import annotations
 
-import numbers
 import os
 from concurrent.futures import ThreadPoolExecutor
 
@@ -37,6 +36,7 @@ from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
 from ._common import TGHopError, check_rng, report
+from .settings import BY_NAME as _SETTINGS
 
 __all__ = ["SpatialReduction", "ICHM", "fast_ica"]
 
@@ -175,10 +175,8 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
 
     def fit_transform(self, Y, y=None):
         """Fit, then return ``z`` of shape (n, D_r)."""
-        if not isinstance(self.gamma, numbers.Real) or self.gamma < 0:
-            raise TGHopError(f"gamma must be a number >= 0, got {self.gamma!r}")
-        if self.gamma_mode not in ("absolute", "relative"):
-            raise TGHopError(f"gamma_mode must be 'absolute' or 'relative', got {self.gamma_mode!r}")
+        _SETTINGS["gamma"].check(self.gamma)
+        _SETTINGS["gamma_mode"].check(self.gamma_mode)
         Y = np.asarray(Y, dtype=np.float64)
         n, h, w, k = Y.shape
         maps = _channel_major(Y)
@@ -201,6 +199,25 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         if self.components_.shape[0] == 0:
             raise TGHopError(f"gamma={self.gamma} drops every spatial component; use a smaller gamma")
         return self._project(maps)
+
+    #: (file name, attribute, dtype): the arrays of a model file that belong to SDR.
+    _ARRAYS = (
+        ("sdr.components", "components_", np.float64),
+        ("sdr.mean", "mean_", np.float64),
+        ("index.sdr_channel", "channel_", np.int64),
+        ("index.sdr_variance", "explained_variance_", np.float64),
+    )
+
+    def _to_arrays(self) -> dict:
+        return {name: getattr(self, attr) for name, attr, _ in self._ARRAYS}
+
+    def _from_arrays(self, arrays, shape):
+        """Restore the fitted state from :meth:`_to_arrays` output and ``shape_``; returns self."""
+        for name, attr, dtype in self._ARRAYS:
+            setattr(self, attr, arrays[name].astype(dtype, copy=False))
+        self.shape_ = tuple(shape)
+        self.kept_per_channel_ = np.bincount(self.channel_, minlength=self.shape_[2])
+        return self
 
     @property
     def n_components_(self) -> int:
@@ -262,12 +279,17 @@ class ICHM(BaseEstimator):
 
     Attributes
     ----------
-    p_ : ndarray, shape (N,)
-        Cluster probabilities (the interval representation).
+    weights_ : ndarray, shape (N,)
+        Cluster probabilities (the paper's interval representation; the name of
+        scikit-learn's ``GaussianMixture.weights_``). ``p_`` is an alias.
     means_ : ndarray, shape (N, D_r)
     mixing_ : ndarray, shape (F, D_r)
         Row block ``i`` maps cluster ``i``'s independent components back to ``z``
-        (inverse ICA and inverse PCA in one matrix).
+        (inverse ICA and inverse PCA in one matrix). This is the transpose of
+        scikit-learn's ``FastICA.mixing_`` (n_features, n_components), kept on purpose:
+        it stacks N per-cluster models by rows, so a cluster's block is one contiguous
+        slice and generation is ``sources @ mixing_[block]`` (the convention of
+        ``PCA.components_``, which is (n_components, n_features)).
     n_components_ : ndarray of int, shape (N,)
         Independent components per cluster; ``F = n_components_.sum()``.
     cdf_index_ : ndarray of int, shape (F,)
@@ -303,26 +325,22 @@ class ICHM(BaseEstimator):
         self.max_iter = max_iter
         self.rng = rng
 
-    def _check_params(self, n_samples):
-        def whole(name, value, low):
-            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low:
-                raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+    #: (parameter, label in messages, setting of the table that defines its type and range)
+    _CHECKS = (("n_clusters", "n_clusters (N)", "n_clusters"), ("n_codewords", "n_codewords (W)", "n_codewords"),
+               ("n_bins", "n_bins", "n_bins"), ("cluster_energy", "cluster_energy", "cluster_energy"),
+               ("max_cluster_components", "max_cluster_components", "max_cluster_components"),
+               ("min_cluster_size", "min_cluster_size", "min_cluster_size"),
+               ("reject_threshold", "reject_threshold", "reject_threshold"),
+               ("max_iter", "max_iter", "ica_max_iter"))
 
-        whole("n_clusters (N)", self.n_clusters, 1)
-        whole("n_codewords (W)", self.n_codewords, 1)
-        whole("n_bins", self.n_bins, 2)
-        whole("max_cluster_components", self.max_cluster_components, 1)
-        whole("min_cluster_size", self.min_cluster_size, 2)
-        whole("max_iter", self.max_iter, 1)
-        if not isinstance(self.cluster_energy, numbers.Real) or not 0 < self.cluster_energy <= 1:
-            raise TGHopError(f"cluster_energy must be in (0, 1], got {self.cluster_energy!r}")
+    def _check_params(self, n_samples):
+        for param, label, setting in self._CHECKS:
+            _SETTINGS[setting].check(getattr(self, param), label=label)
         if self.n_clusters * self.min_cluster_size > n_samples:
             raise TGHopError(
                 f"n_clusters={self.n_clusters} needs at least {self.n_clusters * self.min_cluster_size} "
                 f"training patches but there are {n_samples}; lower N or use a larger exemplar"
             )
-        if self.reject_threshold is not None and not isinstance(self.reject_threshold, numbers.Real):
-            raise TGHopError(f"reject_threshold must be a number or None, got {self.reject_threshold!r}")
 
     def fit(self, Z, y=None, *, progress=None):
         """Learn the mixture from vectors ``Z`` of shape (n, D_r).
@@ -336,13 +354,14 @@ class ICHM(BaseEstimator):
         """
         Z = np.asarray(Z, dtype=np.float64)
         self._check_params(Z.shape[0])
+        self._quantiles = None  # derived from the codebook: never reuse a previous fit's
         rng = check_rng(self.rng)
         report(progress, "clusters", 0, 1)
         labels = self._cluster(Z, rng)
         report(progress, "clusters", 1, 1)
         n_clusters = labels.max() + 1
         counts = np.bincount(labels, minlength=n_clusters)
-        self.p_ = counts / counts.sum()
+        self.weights_ = counts / counts.sum()
         # Clusters are independent: fit them on all cores (LAPACK releases the GIL), one
         # BLAS thread each (many small matrices). Seeds are drawn in cluster order, so the
         # result does not depend on scheduling.
@@ -430,6 +449,33 @@ class ICHM(BaseEstimator):
             self.codebook_ = np.maximum.accumulate(np.clip(centres, 0.0, 1.0), axis=1)
             self.codebook_[:, -1] = 1.0
 
+    @property
+    def p_(self):
+        """Alias of :attr:`weights_` (the paper's cluster probabilities p)."""
+        return self.weights_
+
+    #: (file name, attribute, dtype): the arrays of a model file that belong to ICHM.
+    _ARRAYS = (
+        ("ichm_i.p", "weights_", np.float64),
+        ("ichm_ii.mixing", "mixing_", np.float64),
+        ("ichm_ii.means", "means_", np.float64),
+        ("index.ichm_n_components", "n_components_", np.int64),
+        ("ichm_iii.cdf_index", "cdf_index_", np.int64),
+        ("ichm_iii.cdf_min", "cdf_min_", np.float64),
+        ("ichm_iii.cdf_max", "cdf_max_", np.float64),
+        ("ichm_iii.codebook", "codebook_", np.float64),
+    )
+
+    def _to_arrays(self) -> dict:
+        return {name: getattr(self, attr) for name, attr, _ in self._ARRAYS}
+
+    def _from_arrays(self, arrays):
+        """Restore the fitted state from :meth:`_to_arrays` output; returns self."""
+        for name, attr, dtype in self._ARRAYS:
+            setattr(self, attr, arrays[name].astype(dtype, copy=False))
+        self._quantiles = None
+        return self
+
     # ------------------------------------------------------------------ sampling
     @property
     def n_cdfs_(self) -> int:
@@ -467,11 +513,12 @@ class ICHM(BaseEstimator):
         rng = check_rng(rng)
         n = int(n)
         # (i) the interval representation: a uniform number picks the segment.
-        labels = np.minimum(np.searchsorted(np.cumsum(self.p_), rng.random(n), side="right"), len(self.p_) - 1)
+        labels = np.minimum(np.searchsorted(np.cumsum(self.weights_), rng.random(n), side="right"),
+                            len(self.weights_) - 1)
         table = self._quantile_table()
         offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
         sources = []
-        for i in range(len(self.p_)):
+        for i in range(len(self.weights_)):
             m = int(np.count_nonzero(labels == i))
             comp = slice(offsets[i], offsets[i + 1])
             s = self._match(rng.standard_normal((m, self.n_components_[i])), comp, table)
@@ -494,9 +541,16 @@ class ICHM(BaseEstimator):
         return self.cdf_min_[comp] + (self.cdf_max_[comp] - self.cdf_min_[comp]) * t
 
     def sample(self, n, *, rng=None):
-        """Draw ``n`` new vectors ``z`` (steps i-v): shape (n, D_r)."""
+        """Draw ``n`` new vectors (steps i-v).
+
+        Returns
+        -------
+        Z : ndarray, shape (n, D_r)
+        labels : ndarray of int, shape (n,)
+            The cluster of each sample (as scikit-learn's ``GaussianMixture.sample``).
+        """
         labels, sources = self.sample_sources(n, rng=rng)
-        return self.mix(labels, sources)
+        return self.mix(labels, sources), labels
 
     def mix(self, labels, sources, *, mixing=None, means=None):
         """(v) Inverse ICA and PCA: independent components -> vectors.

@@ -137,6 +137,39 @@ class Hop(TransformerMixin, BaseEstimator):
         self.kernels_ = kernels
         self.bias_ = np.array([self.saabs_[k].bias_ * (j != 0) for k, j in self.channels_])
 
+    def _to_arrays(self, i) -> dict:
+        """This hop's learned arrays, named ``hop<i>.*`` (parameters) and ``index.hop<i>_*``."""
+        if self.channelwise:
+            # Each kept channel: one 4-tap kernel of its parent's Saab transform.
+            kernels = np.array([self.saabs_[p].kernels_[list(self.saabs_[p].channels_).index(j)]
+                                for p, j in self.channels_])
+            bias = np.array([s.bias_ for s in self.saabs_])
+        else:
+            kernels, bias = self.saabs_[0].kernels_, np.array([self.saabs_[0].bias_])
+        return {f"hop{i}.kernels": kernels, f"hop{i}.bias": bias,
+                f"index.hop{i}_channels": self.channels_, f"index.hop{i}_energy": self.energy_}
+
+    @classmethod
+    def _from_arrays(cls, i, info, arrays):
+        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise" and "n_channels_in"."""
+        hop = cls(channelwise=bool(info["channelwise"]))
+        c = hop.n_channels_in_ = int(info["n_channels_in"])
+        hop.channels_ = arrays[f"index.hop{i}_channels"].astype(np.int64)
+        hop.energy_ = arrays[f"index.hop{i}_energy"].astype(np.float64)
+        kernels = arrays[f"hop{i}.kernels"].astype(np.float64)
+        bias = arrays[f"hop{i}.bias"].astype(np.float64)
+        hop.saabs_ = []
+        for p in (range(c) if hop.channelwise else [0]):
+            saab = Saab()
+            rows = hop.channels_[:, 0] == p
+            saab.channels_ = hop.channels_[rows, 1]
+            saab.kernels_ = kernels[rows]
+            saab.bias_ = float(bias[p])
+            saab.n_features_in_ = kernels.shape[1]
+            hop.saabs_.append(saab)
+        hop._build_matrix()
+        return hop
+
     @property
     def n_channels_out_(self) -> int:
         """Number of output channels K."""

@@ -24,9 +24,10 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from . import settings
 from ._common import TGHopError, check_image, check_rng, report
 from .core import ICHM, SpatialReduction
-from .hops import HopStack
+from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .quilting import quilt
@@ -36,12 +37,12 @@ __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 #: The paper's Table 4 setting (brick_wall): K1=9, K2=22, gamma=0.01, N=50, W=200, with the
 #: per-cluster PCA size that reproduces its F = 2,518 CDFs (95 % of the variance, at most 50
 #: components). Our default keeps more (99 %, at most 100): sharper patches, about twice
-#: the model size (docs/choices.md).
-PAPER_TABLE4 = dict(patch_size=32, n_channels=(9, 22), gamma=0.01, n_clusters=50, n_codewords=200,
-                    cluster_energy=0.95, max_cluster_components=50)
+#: the model size (docs/choices.md). From the ``paper`` column of the settings table.
+PAPER_TABLE4 = {"n_channels": (9, 22),
+                **{s.name: s.paper for s in settings.fit_settings() if s.has_paper}}
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
-DEFAULT_POOL = 10_000
+DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -77,41 +78,13 @@ def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
 class TGHop(BaseEstimator):
     """Texture generation by successive subspace learning (Lei, Zhao, Zhang, Kuo 2021).
 
+    The parameters are the fit-time settings of :data:`tghop.settings.SETTINGS` (one
+    table for the estimator, the model file and the CLI); generation-time settings are
+    keywords of :meth:`synthesize`.
+
     Parameters
     ----------
-    patch_size : int, default=32
-        Side of the generated patches (paper: 32; 64 with three hops).
-    stride : int, default=2
-        Step between training patches (paper: 2).
-    n_channels : sequence or None, default=None
-        Channels kept per hop, e.g. ``(9, 22)`` for (K1, K2); each entry an int (a count,
-        DC included), a float in (0, 1] (a fraction of the AC energy), or "knee" (the
-        knee of the energy curve, texture-dependent). None: :func:`default_channels`
-        (the paper's (9, 22) for colour, (4, 10) for grey exemplars).
-    gamma : float, default=0.01
-        SDR threshold on the variance of spatial PCA components (absolute, for images in
-        [0, 1]; reproduces the paper's Table 5 D_r values on brick_wall).
-    gamma_mode : {"absolute", "relative"}, default="absolute"
-    n_clusters : int, default=50
-        N, K-means clusters in ICHM.
-    n_codewords : int, default=200
-        W, size of the CDF codebook.
-    n_bins : int, default=256
-        Histogram bins per CDF.
-    cluster_energy : float, default=0.99
-        Variance fraction each cluster's PCA keeps before FastICA.
-    max_cluster_components : int, default=100
-        Cap on components per cluster. The paper's F = 2,518 for N = 50 corresponds to
-        0.95 and 50 (:data:`PAPER_TABLE4`); our default halves the median SIFID on six
-        test textures at about twice the model size and fit time.
-    min_cluster_size : int, default=10
-    reject_threshold : float or None, default=None
-        Sampling step (iv), off by default.
-    max_patches : int or None, default=20000
-        Training patches beyond this are subsampled at random (bounds memory for large
-        exemplars; a 256x256 exemplar at stride 2 has 12,769).
-    rng : int or numpy.random.Generator, optional
-        Randomness of fitting (patch subsampling, K-means, FastICA).
+{parameters}
 
     Attributes
     ----------
@@ -125,44 +98,16 @@ class TGHop(BaseEstimator):
         Training patches used.
     """
 
-    def __init__(
-        self,
-        patch_size=32,
-        stride=2,
-        n_channels=None,
-        gamma=0.01,
-        gamma_mode="absolute",
-        n_clusters=50,
-        n_codewords=200,
-        n_bins=256,
-        cluster_energy=0.99,
-        max_cluster_components=100,
-        min_cluster_size=10,
-        reject_threshold=None,
-        max_patches=20000,
-        rng=None,
-    ):
-        self.patch_size = patch_size
-        self.stride = stride
-        self.n_channels = n_channels
-        self.gamma = gamma
-        self.gamma_mode = gamma_mode
-        self.n_clusters = n_clusters
-        self.n_codewords = n_codewords
-        self.n_bins = n_bins
-        self.cluster_energy = cluster_energy
-        self.max_cluster_components = max_cluster_components
-        self.min_cluster_size = min_cluster_size
-        self.reject_threshold = reject_threshold
-        self.max_patches = max_patches
-        self.rng = rng
+    __init__ = settings.make_init(settings.fit_settings())
 
     # ---------------------------------------------------------------- fitting
+    def _check_settings(self):
+        """Every fit setting against the table (one-line errors, before any work)."""
+        settings.check_settings({s.name: getattr(self, s.name) for s in settings.fit_settings()})
+
     def _channel_rules(self, n_colours=3):
         for name in ("patch_size", "stride"):
-            value = getattr(self, name)
-            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 1:
-                raise TGHopError(f"{name} must be a positive integer, got {value!r}")
+            settings.BY_NAME[name].check(getattr(self, name))
         if self.n_channels is None:
             rules = default_channels(self.patch_size, n_colours)
         else:
@@ -190,21 +135,13 @@ class TGHop(BaseEstimator):
         -------
         self
         """
-        self._channel_rules()  # parameter errors before touching the image
+        self._check_settings()  # parameter errors before touching the image
+        self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size)
         rules = self._channel_rules(image.shape[2])
         rng = check_rng(self.rng)
-        ichm = ICHM(
-            n_clusters=self.n_clusters,
-            n_codewords=self.n_codewords,
-            n_bins=self.n_bins,
-            cluster_energy=self.cluster_energy,
-            max_cluster_components=self.max_cluster_components,
-            min_cluster_size=self.min_cluster_size,
-            reject_threshold=self.reject_threshold,
-            rng=rng,
-        )
-        sdr = SpatialReduction(gamma=self.gamma, gamma_mode=self.gamma_mode)
+        ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
+        sdr = SpatialReduction(**settings.component_params(self, "sdr"))
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
                                 max_patches=self.max_patches, rng=rng)
         ichm._check_params(len(origins))  # fail before the expensive stages
@@ -223,6 +160,78 @@ class TGHop(BaseEstimator):
         self._decoder = None
         return self
 
+    # ------------------------------------------------------------- state (model files)
+    def _to_arrays(self) -> dict:
+        """Every learned array by file name; each part names its own (see :mod:`tghop.modelfile`)."""
+        check_is_fitted(self, "ichm_")
+        out = {}
+        for i, hop in enumerate(self.hops_.hops_, start=1):
+            out.update(hop._to_arrays(i))
+        out.update(self.sdr_._to_arrays())
+        out.update(self.ichm_._to_arrays())
+        out["colour.quantiles"] = self.colour_quantiles_
+        return out
+
+    def _state_meta(self) -> dict:
+        """JSON-ready settings and shapes needed, with :meth:`_to_arrays`, to rebuild the model."""
+        params = {s.name: getattr(self, s.name) for s in settings.fit_settings()}
+        params["rng"] = None  # a Generator is not data; the fitted state already holds its effect
+        if params["n_channels"] is not None:
+            params["n_channels"] = list(params["n_channels"])
+        return {
+            "params": params,
+            "exemplar_shape": list(self.exemplar_shape_),
+            "n_patches": self.n_patches_,
+            "hops": [{"channelwise": hop.channelwise, "n_channels_in": hop.n_channels_in_} for hop in self.hops_.hops_],
+            "hop_dims": self.hops_.dims_,
+            "sdr_shape": list(self.sdr_.shape_),
+            "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
+        }
+
+    @classmethod
+    def _from_state(cls, meta, arrays):
+        """Inverse of :meth:`_state_meta` and :meth:`_to_arrays`.
+
+        Settings missing from ``meta`` (files written before they existed) take their
+        defaults; unknown or invalid ones raise :class:`TGHopError`.
+        """
+        params = dict(meta["params"])
+        if params.get("n_channels") is not None:
+            params["n_channels"] = tuple(params["n_channels"])
+        model = cls(**settings.check_settings(params, prefix="setting "))
+        model.exemplar_shape_ = tuple(int(v) for v in meta["exemplar_shape"])
+        model.n_patches_ = int(meta["n_patches"])
+        stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
+        stack.hops_ = [Hop._from_arrays(i, info, arrays) for i, info in enumerate(meta["hops"], start=1)]
+        stack.dims_ = [int(d) for d in meta["hop_dims"]]
+        model.hops_ = stack
+        model.sdr_ = SpatialReduction(**settings.component_params(model, "sdr"))._from_arrays(
+            arrays, tuple(int(v) for v in meta["sdr_shape"]))
+        model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
+        model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+        model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
+        model._check_consistent()
+        model._decoder = None
+        return model
+
+    def _check_consistent(self):
+        """Shapes that must agree; a mismatch means a damaged or hand-edited file."""
+        ichm, sdr = self.ichm_, self.sdr_
+        d_r = sdr.components_.shape[0]
+        f = int(ichm.n_components_.sum())
+        checks = [
+            ichm.mixing_.shape == (f, d_r),
+            ichm.means_.shape == (len(ichm.weights_), d_r),
+            len(ichm.n_components_) == len(ichm.weights_),
+            ichm.cdf_index_.shape == (f,) and ichm.cdf_min_.shape == (f,) and ichm.cdf_max_.shape == (f,),
+            ichm.cdf_index_.size == 0 or (0 <= ichm.cdf_index_.min() and ichm.cdf_index_.max() < len(ichm.codebook_)),
+            self.hops_.hops_[-1].n_channels_out_ == sdr.shape_[2],
+            abs(float(ichm.weights_.sum()) - 1.0) < 1e-6,
+            self.colour_quantiles_.shape[0] == self.exemplar_shape_[2],
+        ]
+        if not all(checks):
+            raise ValueError("array shapes disagree")
+
     # ------------------------------------------------------------- dimensions
     @property
     def dims_(self) -> dict:
@@ -231,7 +240,7 @@ class TGHop(BaseEstimator):
         out = {f"D{i}": d for i, d in enumerate(self.hops_.dims_)}
         out.update(
             D_r=self.sdr_.n_components_,
-            N=len(self.ichm_.p_),
+            N=len(self.ichm_.weights_),
             F=self.ichm_.n_cdfs_,
             W=self.ichm_.codebook_.shape[0],
         )
@@ -259,8 +268,6 @@ class TGHop(BaseEstimator):
             stores each channel's mean map (``64 K2``), and ICHM (ii) also stores each
             cluster's mean (``N D_r``).
         """
-        from .modelfile import model_arrays, parameter_groups  # no cycle at import time
-
         d = self.dims_
         k = self.channels_
         c_in = self.exemplar_shape_[2]
@@ -277,7 +284,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
-        stored = parameter_groups(model_arrays(self))
+        stored = parameter_groups(self._to_arrays())
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
             "formula": "sum",
@@ -387,6 +394,7 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, match_colours=True, progress=None):
+        # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -413,6 +421,8 @@ class TGHop(BaseEstimator):
         ndarray, shape (H, W, C), float64 in [0, 1]
         """
         check_is_fitted(self, "ichm_")
+        settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
+                                     match_colours=match_colours))
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
         report(progress, "patch pool", 0, 1)
@@ -420,3 +430,45 @@ class TGHop(BaseEstimator):
         report(progress, "patch pool", 1, 1)
         image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
+
+
+TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
+
+
+# ------------------------------------------------------------------ arrays (model files)
+#: Table 4 row of each array-name prefix (``index.*`` arrays are bookkeeping, not parameters).
+GROUPS = {
+    "hop1": "transform stage 1",
+    "hop": "transform stage 2",  # hop2, hop3, ...
+    "sdr": "core SDR",
+    "ichm_i": "core ICHM (i)",
+    "ichm_ii": "core ICHM (ii)",
+    "ichm_iii": "core ICHM (iii)",
+    "colour": "colour matching (ours)",
+}
+
+
+def _group(name: str):
+    part = name.split(".", 1)[0]
+    if part == "index":
+        return None
+    if part in GROUPS:
+        return GROUPS[part]
+    if part.startswith("hop"):
+        return GROUPS["hop"]
+    raise KeyError(name)
+
+
+def parameter_groups(arrays) -> dict:
+    """Count the numbers in ``arrays`` (name -> array) per Table 4 row; bookkeeping excluded."""
+    counts = {}
+    for name, arr in arrays.items():
+        group = _group(name)
+        if group is not None:
+            counts[group] = counts.get(group, 0) + int(np.asarray(arr).size)
+    return counts
+
+
+def model_arrays(model) -> dict:
+    """Every array a fitted model stores, by file name (see :mod:`tghop.modelfile`)."""
+    return model._to_arrays()

@@ -1,0 +1,325 @@
+"""One table of every TGHop setting: the estimator, the model file and the CLI read it.
+
+Each :class:`Setting` says once: its name, default, type and allowed range, its help
+text, its command-line option, whether it is a fit-time setting (a :class:`TGHop`
+constructor parameter, stored in the model file) or a generation-time one (a keyword of
+:meth:`TGHop.synthesize`, a ``tghop synth`` option, not stored), which fitted component
+receives it, and its value under ``--paper``. From the table come:
+
+* ``TGHop.__init__`` (generated, so ``get_params``/``clone`` see every fit setting) and
+  the "Parameters" section of its docstring;
+* checks of every value (one-line :class:`~tghop.TGHopError`; non-finite numbers are
+  always refused) before any work starts, in ``TGHop.fit``, ``TGHop.synthesize``, when a
+  model file is read, and on the command line;
+* the forwarding of fit settings to the components (``ICHM``, ``SpatialReduction``), at
+  fit and when a model file is loaded;
+* the ``tghop fit`` / ``tghop synth`` options, their help and defaults, ``--paper``, and
+  the refusal of fit options when ``synth`` reads a saved model.
+
+How to add a setting
+--------------------
+Append one :class:`Setting` to :data:`SETTINGS`, then use it where it acts:
+
+* fit time (``when="fit"``): read ``self.<name>`` in ``TGHop.fit`` (or give
+  ``target="ichm"`` / ``"ichm.<parameter>"`` / ``"sdr"`` and the component receives it);
+  it becomes a constructor parameter, is saved in and restored from model files (older
+  files get the default), and appears as a ``fit``/``synth`` option;
+* generation time (``when="generate"``): add the keyword, with the same default, to
+  ``TGHop.synthesize`` (``tests/test_settings.py`` checks the two agree); it appears as a
+  ``synth`` option and is checked on every call.
+
+Nothing here imports scikit-learn or SciPy.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass, field
+from typing import Any, Optional, Tuple
+
+from ._common import TGHopError
+
+__all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "fit_settings", "generate_settings", "check_settings",
+           "component_params", "numpydoc_parameters", "make_init"]
+
+_MISSING = object()
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One setting of TGHop.
+
+    Parameters
+    ----------
+    name : str
+        Python name: a ``TGHop`` constructor parameter (fit) or ``synthesize`` keyword
+        (generate).
+    default : object
+    kind : {"int", "float", "bool", "choice", "channels", "rng"}
+    help : str
+        One or two sentences; used for the docstring and ``--help``.
+    when : {"fit", "generate"}
+        "fit": part of the model (constructor parameter, stored in model files, needs a
+        refit to change). "generate": a ``synthesize`` keyword, given per call.
+    low, high : float, optional
+        Allowed range (inclusive unless ``low_open`` / ``high_open``).
+    none_ok : bool
+        None is allowed (meaning "off" or "automatic", see the help).
+    choices : tuple
+        Allowed values of a "choice" setting.
+    cli : tuple of str or None
+        Command-line option names; ``()`` gives ``--name-with-dashes``; None keeps the
+        setting off the command line (or handled specially there, as ``n_channels``).
+    cli_high : float, optional
+        A tighter upper bound on the command line only.
+    paper : object, optional
+        Value under ``--paper`` (the paper's Table 4 setting) where it differs from or
+        pins the default.
+    target : str, optional
+        ``"ichm"`` or ``"sdr"`` (same parameter name) or ``"ichm.max_iter"``: the
+        fitted component that receives this setting.
+    """
+
+    name: str
+    default: Any
+    kind: str
+    help: str
+    when: str = "fit"
+    low: Optional[float] = None
+    high: Optional[float] = None
+    low_open: bool = False
+    high_open: bool = False
+    none_ok: bool = False
+    choices: Tuple = ()
+    cli: Optional[Tuple[str, ...]] = ()
+    cli_high: Optional[float] = None
+    paper: Any = field(default=_MISSING)
+    target: Optional[str] = None
+
+    # ------------------------------------------------------------ checking
+    @property
+    def has_paper(self) -> bool:
+        return self.paper is not _MISSING
+
+    def range_text(self) -> str:
+        if self.kind == "choice":
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        parts = []
+        if self.low is not None:
+            parts.append(f"{'>' if self.low_open else '>='} {self.low:g}")
+        if self.high is not None:
+            parts.append(f"{'<' if self.high_open else '<='} {self.high:g}")
+        noun = {"int": "an integer", "float": "a finite number", "bool": "True or False"}.get(self.kind, "")
+        text = noun + (" " + " and ".join(parts) if parts else "")
+        return text + (" or None" if self.none_ok else "")
+
+    def check(self, value, *, label=None):
+        """Return ``value`` (normalised) or raise a one-line :class:`TGHopError`."""
+        label = label or self.name
+        if self.kind == "rng":
+            return value  # checked where it is used (check_rng)
+        if value is None:
+            if self.none_ok:
+                return None
+            raise TGHopError(f"{label} must be {self.range_text()}, got None")
+        if self.kind == "channels":
+            return _check_channels(value, label)
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+            return value
+        if self.kind == "bool":
+            if type(value).__name__ not in ("bool", "bool_") and not (
+                    isinstance(value, numbers.Integral) and value in (0, 1)):
+                raise TGHopError(f"{label} must be True or False, got {value!r}")
+            return bool(value)
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+        if self.kind == "int":
+            if not isinstance(value, numbers.Integral):
+                if not (math.isfinite(value) and float(value).is_integer()):
+                    raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+            value = int(value)
+        else:
+            value = float(value)
+            if not math.isfinite(value):
+                raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+        bad_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
+        bad_high = self.high is not None and (value >= self.high if self.high_open else value > self.high)
+        if bad_low or bad_high:
+            raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+        return value
+
+    def parse(self, text: str):
+        """A command-line string -> value (then :meth:`check`); raises TGHopError."""
+        text = str(text).strip()
+        if self.none_ok and text.lower() in ("none", "off"):
+            return None
+        if self.kind == "int":
+            try:
+                return int(text)
+            except ValueError:
+                raise TGHopError(f"{text!r} is not an integer") from None
+        if self.kind == "float":
+            try:
+                return float(text)
+            except ValueError:
+                raise TGHopError(f"{text!r} is not a number") from None
+        if self.kind == "choice":
+            for c in self.choices:
+                if str(c) == text:
+                    return c
+            raise TGHopError(f"{text!r} is not {self.range_text()}")
+        raise TGHopError(f"{self.name} cannot be parsed from text")
+
+    # ------------------------------------------------------------ presentation
+    @property
+    def option_names(self) -> Tuple[str, ...]:
+        if self.cli is None:
+            return ()
+        return self.cli or ("--" + self.name.replace("_", "-"),)
+
+    def doc_type(self) -> str:
+        kinds = {"int": "int", "float": "float", "bool": "bool", "channels": "sequence or None",
+                 "rng": "int or numpy.random.Generator, optional",
+                 "choice": "{" + ", ".join(repr(c) for c in self.choices) + "}"}
+        text = kinds[self.kind]
+        if self.kind == "rng":
+            return text
+        if self.none_ok and self.kind != "channels":
+            text += " or None"
+        return f"{text}, default={self.default!r}"
+
+
+def _check_channels(value, label):
+    """A sequence of per-hop rules: an int count, a fraction in (0, 1], or "knee"."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise TGHopError(f"{label} must be a sequence of per-hop rules, e.g. (9, 22), got {value!r}")
+    rules = tuple(value)
+    if not rules:
+        raise TGHopError(f"{label} must name at least one hop, got {value!r}")
+    for i, rule in enumerate(rules, start=1):
+        ok = (rule == "knee" if isinstance(rule, str) else
+              isinstance(rule, numbers.Real) and not isinstance(rule, bool) and math.isfinite(rule) and rule > 0)
+        if not ok:
+            raise TGHopError(f"{label}: K{i} must be a count >= 1, a fraction in (0, 1] or 'knee', got {rule!r}")
+    return tuple(int(r) if isinstance(r, numbers.Integral) else r for r in rules)
+
+
+# The table. Order = order of the constructor's parameters and of the options in --help.
+SETTINGS: Tuple[Setting, ...] = (
+    # ---------------------------------------------------------------- fit time
+    Setting("patch_size", 32, "int", "Side of the generated patches (paper: 32; 64 uses three hops).",
+            low=4, paper=32),
+    Setting("stride", 2, "int", "Step between training patches (paper: 2).", low=1),
+    Setting("n_channels", None, "channels",
+            "Channels kept per hop, e.g. ``(9, 22)`` for (K1, K2); each entry an int (a count, DC "
+            "included), a float in (0, 1] (a fraction of the AC energy), or \"knee\" (the knee of the "
+            "energy curve). None: :func:`default_channels` (the paper's (9, 22) for colour, (4, 10) "
+            "for grey exemplars).", none_ok=True, cli=None),
+    Setting("gamma", 0.01, "float",
+            "SDR threshold on the variance of spatial PCA components (absolute, for images in [0, 1]).",
+            low=0, target="sdr", paper=0.01),
+    Setting("gamma_mode", "absolute", "choice",
+            "Compare gamma with each component's variance (absolute) or its share of the channel's.",
+            choices=("absolute", "relative"), target="sdr"),
+    Setting("n_clusters", 50, "int", "N, K-means clusters in ICHM.", low=1, cli=("--clusters", "-N"),
+            cli_high=5000, target="ichm", paper=50),
+    Setting("n_codewords", 200, "int", "W, size of the CDF codebook.", low=1, cli=("--codewords", "-W"),
+            cli_high=100000, target="ichm", paper=200),
+    Setting("n_bins", 256, "int", "Histogram bins per CDF.", low=2, cli=("--bins",), cli_high=65536,
+            target="ichm"),
+    Setting("cluster_energy", 0.99, "float",
+            "Variance fraction each cluster's PCA keeps before FastICA (the paper's F = 2,518 for "
+            "N = 50 corresponds to 0.95 with at most 50 components).",
+            low=0, high=1, low_open=True, target="ichm", paper=0.95),
+    Setting("max_cluster_components", 100, "int", "Components per cluster at most.", low=1,
+            target="ichm", paper=50),
+    Setting("min_cluster_size", 10, "int", "Clusters with fewer training patches are merged into the nearest one.",
+            low=2, target="ichm"),
+    Setting("reject_threshold", None, "float",
+            "Sampling step (iv): redraw samples with no independent component above this (None: off).",
+            none_ok=True, target="ichm"),
+    Setting("ica_max_iter", 200, "int", "FastICA iterations per cluster at most.", low=1,
+            cli=("--ica-iterations",), target="ichm.max_iter"),
+    Setting("max_patches", 20000, "int",
+            "Training patches beyond this are subsampled at random (a 256x256 exemplar at stride 2 has "
+            "12,769).", low=1, none_ok=True),
+    Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
+            cli=("--fit-seed",)),
+    # ---------------------------------------------------------------- generation time
+    Setting("n_patches", 10000, "int", "Generated patches quilted into each image (paper: 5,000-10,000).",
+            when="generate", low=1, high=10_000_000, cli=("--pool",), cli_high=200_000),
+    Setting("tile", False, "bool", "Make the output wrap around seamlessly (tileable).", when="generate"),
+    Setting("overlap", None, "int", "Quilting overlap in pixels (None: patch_size // 6).", when="generate",
+            low=1, none_ok=True),
+    Setting("tolerance", 0.1, "float",
+            "Quilting picks among pool patches within (1 + tolerance) of the best match.",
+            when="generate", low=0),
+    Setting("match_colours", True, "bool",
+            "Match each channel's histogram to the exemplar's after quilting (ours; False: the paper's "
+            "pipeline).", when="generate", paper=False),
+)
+
+BY_NAME = {s.name: s for s in SETTINGS}
+
+
+def fit_settings():
+    """Settings that are constructor parameters of TGHop (stored in model files)."""
+    return [s for s in SETTINGS if s.when == "fit"]
+
+
+def generate_settings():
+    """Settings that are keywords of ``TGHop.synthesize``."""
+    return [s for s in SETTINGS if s.when == "generate"]
+
+
+#: The paper's pipeline (Table 4 on brick_wall, no colour matching): the ``paper`` values.
+PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
+
+
+def check_settings(values: dict, *, prefix: str = "") -> dict:
+    """Check every ``name: value`` against the table; unknown names are refused."""
+    out = {}
+    for name, value in values.items():
+        if name not in BY_NAME:
+            raise TGHopError(f"unknown setting {prefix}{name!r}")
+        out[name] = BY_NAME[name].check(value, label=prefix + name)
+    return out
+
+
+def component_params(estimator, component: str) -> dict:
+    """The constructor arguments of fitted component ``component`` ("ichm", "sdr")."""
+    out = {}
+    for s in fit_settings():
+        if s.target and s.target.split(".")[0] == component:
+            out[s.target.split(".", 1)[1] if "." in s.target else s.name] = getattr(estimator, s.name)
+    return out
+
+
+def numpydoc_parameters(settings, indent: str = "    ") -> str:
+    """The "Parameters" entries of ``settings`` in numpydoc form."""
+    import textwrap
+
+    lines = []
+    for s in settings:
+        lines.append(f"{indent}{s.name} : {s.doc_type()}")
+        lines.extend(textwrap.wrap(s.help, 88, initial_indent=indent * 2, subsequent_indent=indent * 2))
+    return "\n".join(lines)
+
+
+def make_init(settings):
+    """A constructor storing ``settings`` as attributes (as scikit-learn expects: no logic).
+
+    Generated, so the signature (which ``get_params`` inspects) always matches the table.
+    """
+    names = [s.name for s in settings]
+    body = "\n".join(f"    self.{n} = {n}" for n in names) or "    pass"
+    args = ", ".join(f"{n}=_defaults[{n!r}]" for n in names)
+    source = f"def __init__(self, {args}):\n{body}\n"
+    namespace = {"_defaults": {s.name: s.default for s in settings}}
+    exec(source, namespace)  # noqa: S102 - generated from the table above, no user input
+    init = namespace["__init__"]
+    init.__doc__ = "Store the settings; see the class docstring. Nothing is checked until ``fit``."
+    return init
