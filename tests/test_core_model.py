@@ -122,6 +122,9 @@ def test_folded_decoder_equals_stepwise_inverse(small_model):
     labels, sources = small_model.ichm_.sample_sources(n, rng=11)
     slow = small_model.decode(small_model.ichm_.mix(labels, sources))
     np.testing.assert_allclose(fast, slow, atol=1e-9)
+    single = small_model.sample_patches(n, rng=11, dtype=np.float32)
+    assert single.dtype == np.float32
+    np.testing.assert_allclose(single, slow, atol=1e-4)
 
 
 def test_fit_deterministic(bricks96):
