@@ -93,13 +93,18 @@ def _decode(im, path, max_pixels, downscale):
         im.draft(im.mode, size)  # JPEG: decode at reduced size directly
         warnings.warn(f"{path.name}: {width}x{height} pixels downscaled to {size[0]}x{size[1]} "
                       f"(at most {max_pixels:,} pixels)", UserWarning, stacklevel=3)
-        im = im.resize(size, resample=1, reducing_gap=2.0) if im.size != size else im  # 1 = LANCZOS
+        if im.size != size:
+            small = im.resize(size, resample=1, reducing_gap=2.0)  # 1 = LANCZOS
+            im.close()  # frees the full-size pixels before the copies below
+            im = small
     else:
         im.load()
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"
-    if im.mode in ("L", "LA", "1"):
+    if im.mode in ("L", "RGB"):
+        arr = np.asarray(im)  # no converted copy of a large image
+    elif im.mode in ("LA", "1"):
         arr = np.asarray(im.convert("L"))
     elif im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
         arr = np.asarray(im, dtype=np.float64)
