@@ -754,8 +754,9 @@ class CoocGAN:
         cooc = (self._cooc((fake + 1.0) * 0.5) - cond).abs().sum(1).mean()  # L1 per cell, averaged
         return adv + self.settings_["lambda_cooc"] * cooc, adv, cooc
 
-    def _generator_step(self, torch, cond):
-        noise = self._noise(torch, len(cond), cond.shape[2], cond.shape[3])
+    def _generator_step(self, torch, cond, noise=None):
+        if noise is None:
+            noise = self._noise(torch, len(cond), cond.shape[2], cond.shape[3])
         for q in self.critic_.parameters():
             q.requires_grad_(False)
         total, adv, cooc = self._generator_loss(torch, cond, noise)
@@ -910,6 +911,26 @@ class CoocGAN:
             z = torch.as_tensor(noise, device=self._device)
             out = self.generator_(c, z)
         return np.clip((out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5, 0.0, 1.0)
+
+    def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
+        """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
+
+        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``
+        are rounded down to multiples of ``s``; default size ``crop_size``).
+
+        Returns
+        -------
+        ndarray, shape (k*k, size // s, size // s)
+        """
+        self._check_fitted()
+        s = self.s
+        size = int(self.settings_["crop_size"] if size is None else size)
+        t = self.exemplar_cooc_
+        cy, cx, n = int(y) // s, int(x) // s, max(1, size // s)
+        if min(cy, cx) < 0 or cy + n > t.shape[1] or cx + n > t.shape[2]:
+            raise TGHopError(f"a {size}x{size} crop at ({y}, {x}) is not inside the "
+                             f"{self.exemplar_shape_[0]}x{self.exemplar_shape_[1]} exemplar")
+        return t[:, cy : cy + n, cx : cx + n].copy()
 
     def condition_for(self, size, *, rng=None) -> np.ndarray:
         """The exemplar's own co-occurrence tensor, mirror-tiled from a random offset to cover ``size``.
@@ -1109,3 +1130,36 @@ def load(path, *, device: str = "auto") -> CoocGAN:
         raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({exc.__class__.__name__}); "
                              "train it again") from None
     return model
+
+
+def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None) -> np.ndarray:
+    """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
+
+    Parameters
+    ----------
+    exemplar : array_like, shape (H, W) or (H, W, C)
+    size : int or (int, int), optional
+        Output size (any); default the exemplar's.
+    rng : int or numpy.random.Generator, optional
+        Seeds training (when ``model`` is None) and generation.
+    progress : callable, optional
+    model : CoocGAN, optional
+        A trained model to use instead of training one.
+    n_steps : int, optional
+        Generator steps of the training (default :data:`SMALL`'s).
+
+    Returns
+    -------
+    ndarray, shape (h, w, C), float64 in [0, 1]
+    """
+    from .baselines import _output_size
+
+    img = check_image(exemplar, name="exemplar")
+    r = check_rng(rng)
+    if model is None:
+        model = CoocGAN(rng=r)
+        if n_steps is not None:
+            model.set_params(n_steps=n_steps)
+        model.fit(img, progress=progress)
+    return model.sample(_output_size(size, img.shape), rng=r, progress=progress)
