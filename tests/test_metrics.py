@@ -12,7 +12,8 @@ from tghop._common import InvalidImageError, TGHopError
 from tghop.metrics import MissingExtraError
 
 TORCH_METRICS = [name for name, info in metrics.METRICS.items() if info.needs_torch]
-FIDELITY = [name for name, info in metrics.METRICS.items() if not info.higher_is_better]
+# "copied" is lower-is-better too, but measures copying, not fidelity (a crop scores 1).
+FIDELITY = [name for name, info in metrics.METRICS.items() if not info.higher_is_better and name != "copied"]
 
 
 def _needs(name):
@@ -52,7 +53,7 @@ def scores(exemplar, references):
     return out
 
 
-@pytest.mark.parametrize("name", list(metrics.METRICS))
+@pytest.mark.parametrize("name", [m for m in metrics.METRICS if m != "copied"])
 def test_identical_images_score_zero(name, exemplar):
     _needs(name)
     assert metrics.METRICS[name].function(exemplar, exemplar) == pytest.approx(0.0, abs=1e-6)
@@ -88,7 +89,10 @@ def test_greyscale_and_mixed_channels(name, exemplar, references):
     grey_res = references["crop"].mean(axis=2, keepdims=True)
     assert f(grey_ex, grey_res) >= 0
     # Colour against grey works (grey is repeated to RGB) and costs something for colour.
-    assert f(exemplar, grey_res) > f(exemplar, references["crop"]) - 1e-12
+    if name == "copied":  # a grey crop of a colour exemplar is no copy of it
+        assert f(exemplar, grey_res) < f(exemplar, references["crop"])
+    else:
+        assert f(exemplar, grey_res) > f(exemplar, references["crop"]) - 1e-12
 
 
 def test_sliced_wasserstein_options_and_errors(exemplar, references):
@@ -121,6 +125,24 @@ def test_novelty_and_diversity(exemplar, references):
     assert three > 0
     with pytest.raises(TGHopError):
         metrics.diversity(references["noise"])
+
+
+def test_copied_tells_copies_from_new_texture(exemplar, references):
+    assert metrics.copied(exemplar, exemplar) == 1.0
+    assert metrics.copied(exemplar, references["crop"]) == 1.0
+    assert metrics.copied(exemplar, references["noise"]) == 0.0
+    # A crop with faint noise is still a copy; with visible noise (RMS 0.05) it is not.
+    rng = np.random.default_rng(0)
+    crop = references["crop"]
+    faint = np.clip(crop + rng.normal(0, 0.01, crop.shape), 0, 1)
+    strong = np.clip(crop + rng.normal(0, 0.05, crop.shape), 0, 1)
+    assert metrics.copied(exemplar, faint) == 1.0
+    assert metrics.copied(exemplar, strong) < 0.05
+    # Quilting the exemplar copies the inside of every block, not the seams.
+    quilted = baselines.quilting(exemplar, (96, 96), rng=0)
+    assert 0.1 < metrics.copied(exemplar, quilted) < 0.9
+    with pytest.raises(TGHopError):
+        metrics.copied(exemplar, crop, threshold=float("nan"))
 
 
 def test_invalid_images_are_rejected(exemplar):

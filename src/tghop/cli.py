@@ -408,9 +408,11 @@ def info(model_file, as_json):
 @click.argument("results", nargs=-1, required=True)
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per result (JSON lines).")
 @click.option("--metrics", "names", default=None,
-              help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty (default all).")
+              help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied (default all).")
 def evaluate(exemplar, results, as_json, names):
     """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
+
+    copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
 
     With two or more results, also their diversity (higher: more different from each other).
     SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.

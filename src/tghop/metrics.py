@@ -22,6 +22,10 @@ Two more say how *new* the results are, and **higher means more novel / diverse*
   (0 for a verbatim crop or for quilting the exemplar itself);
 * :func:`diversity` -- the same nearest-patch distance between results of different seeds.
 
+And one says how much of a result is *copied* (lower is better): :func:`copied`, the
+fraction of the result's 16 x 16 patches that nearly equal some exemplar patch (1 for a
+crop, about 0.4 for image quilting of the exemplar, 0 for a texture made anew).
+
 :func:`evaluate` computes the fidelity metrics and novelty at once (``tghop evaluate``).
 All metrics are deterministic: randomness (projections, sampled patches, filters,
 k-means) comes from a fixed ``seed`` argument, so scores of different results computed
@@ -69,6 +73,7 @@ __all__ = [
     "sliced_wasserstein",
     "cooccurrence_distance",
     "novelty",
+    "copied",
     "diversity",
     "evaluate",
 ]
@@ -515,6 +520,46 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     return float(_nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed)).mean())
 
 
+def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, max_patches: int = 1024,
+           seed: int = 0) -> float:
+    """Fraction of the result that is verbatim exemplar; LOWER is better (0: nothing copied).
+
+    For up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of the result,
+    the nearest exemplar patch at every offset (stride 1, native resolution) is found; a
+    result patch counts as copied when its RMS difference to it is below ``threshold``.
+    A crop of the exemplar scores 1, image quilting of the exemplar about 0.4 (its
+    patches away from the seams are verbatim), a texture generated anew 0. The mean
+    nearest distance (:func:`novelty`) does not separate these: quilting's 32 x 32
+    windows straddle seams.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], at least ``patch_size`` on each side.
+    patch_size : int
+        Side of the compared patches (default 16).
+    threshold : float
+        RMS difference (intensity units, 0 to 1) below which a patch is a copy
+        (default 0.03, about 8 grey levels of 255).
+    max_patches : int
+        Result patches sampled (default 1,024); every exemplar patch is searched.
+    seed : int
+        Seed of the patch sample.
+
+    Returns
+    -------
+    float
+        Fraction in [0, 1].
+    """
+    patch_size = _check_patch_size(patch_size)
+    threshold = float(threshold)
+    if not math.isfinite(threshold) or threshold <= 0:
+        raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    ex, res = _pair(exemplar, result, min_size=patch_size)
+    rms = _nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed))
+    return float(np.mean(rms < threshold))
+
+
 def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int = 0) -> float:
     """How different results of different seeds are; HIGHER means more diverse.
 
@@ -574,6 +619,7 @@ METRICS = {
     "swd": MetricInfo(sliced_wasserstein, False, False, "sliced Wasserstein distance of 7x7 patches, 3 scales"),
     "cooccurrence": MetricInfo(cooccurrence_distance, False, False, "L1 of soft colour co-occurrences"),
     "novelty": MetricInfo(novelty, True, False, "RMS distance to the nearest exemplar patch (higher: more novel)"),
+    "copied": MetricInfo(copied, False, False, "fraction of 16x16 patches within RMSE 0.03 of an exemplar patch"),
 }
 
 
@@ -600,7 +646,7 @@ def evaluate(exemplar, result, *, metrics=None) -> Scores:
         Float in [0, 1]; sizes may differ.
     metrics : sequence of str, optional
         Names from :data:`METRICS` (``sifid``, ``gram``, ``swd``, ``cooccurrence``,
-        ``novelty``). Default: all of them; then the PyTorch ones are *skipped* (recorded
+        ``novelty``, ``copied``). Default: all of them; then the PyTorch ones are *skipped* (recorded
         in ``Scores.skipped`` with the install hint) if PyTorch is missing. Metrics named
         explicitly are never skipped: a missing dependency raises
         :class:`MissingExtraError`.

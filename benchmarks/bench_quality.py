@@ -1,0 +1,251 @@
+"""Picture quality over many exemplars: TGHop variants side by side, medians, ablations.
+
+Every exemplar (``../shared/textures``; larger than 512 px: its centre 256x256, as in
+``bench_paper.py``) is fitted once per distinct fit setting; each variant then makes a
+256x256 image with seed 0 and one with seed 1, and ``tghop.metrics`` scores both against
+the exemplar (SIFID, SWD, co-occurrence, copied) plus the diversity between the two.
+The table gives medians over exemplars (of the two seeds' mean), the maximum of
+``copied``, and the fit and per-image times.
+
+    python benchmarks/bench_quality.py                                 # all exemplars, paper + default
+    python benchmarks/bench_quality.py --textures knit,brick_wall --variants default
+    python benchmarks/bench_quality.py --variant 'n100:fit.n_clusters=100'  # an ad-hoc variant
+    python benchmarks/bench_quality.py --ust knit,brick_wall --ust-size 128 --ust-iterations 100
+
+A variant is ``name:fit.KEY=VALUE,synth.KEY=VALUE,...`` (VALUE a Python literal), or one
+of the named VARIANTS below. ``--sheets`` writes one image per exemplar (exemplar | each
+variant, seed 0). With ``--ust``, the Ustyuzhaninov baseline runs on those exemplars at
+``--ust-size`` next to every variant at the same size (slow: minutes per exemplar; its
+images are kept in ``results/ust-cache/`` and reused, since they do not depend on tghop).
+
+Writes ``benchmarks/results/quality[-TAG].{json,md}`` (and ``quality[-TAG]/*.png``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, image_sheet, markdown_table, texture, texture_names, write_results  # noqa: E402
+
+EXEMPLAR_MAX = 512  # larger exemplars are replaced by their centre crop (as bench_paper.py)
+CENTRE_CROP = 256
+METRICS = ("sifid", "swd", "cooccurrence", "copied")
+
+#: Named variants: (fit keyword arguments of TGHop, synthesize keyword arguments).
+VARIANTS = {
+    "paper": ("PAPER", {"match_colours": False}),
+    "default": ({}, {}),
+}
+
+
+def log(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def parse_variant(spec: str):
+    """``name:fit.k=v,synth.k=v`` -> (name, fit kwargs, synth kwargs); a bare name looks up VARIANTS."""
+    if ":" not in spec:
+        if spec not in VARIANTS:
+            raise SystemExit(f"unknown variant {spec!r}; named ones: {', '.join(VARIANTS)} (or name:fit.k=v,...)")
+        return (spec, *VARIANTS[spec])
+    name, _, body = spec.partition(":")
+    fit_kw, synth_kw = {}, {}
+    for item in filter(None, (s.strip() for s in body.split(","))):
+        key, _, value = item.partition("=")
+        where, _, key = key.partition(".")
+        if where not in ("fit", "synth") or not key:
+            raise SystemExit(f"bad variant item {item!r}: use fit.KEY=VALUE or synth.KEY=VALUE")
+        try:
+            value = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            pass  # a bare word stays a string
+        (fit_kw if where == "fit" else synth_kw)[key] = value
+    return name, fit_kw, synth_kw
+
+
+def prepare(name: str):
+    img = texture(name)
+    h, w = img.shape[:2]
+    if max(h, w) > EXEMPLAR_MAX:
+        y, x = (h - CENTRE_CROP) // 2, (w - CENTRE_CROP) // 2
+        return img[y:y + CENTRE_CROP, x:x + CENTRE_CROP].copy()
+    return img
+
+
+def fit_kwargs(fit_kw, exemplar):
+    from tghop.synthesis import PAPER_TABLE4, prepare_exemplar
+
+    kw = dict(PAPER_TABLE4) if fit_kw == "PAPER" else dict(fit_kw)
+    if kw.get("n_channels") and prepare_exemplar(exemplar).shape[2] == 1:
+        kw.pop("n_channels")  # K1 = 9 cannot be on one channel: the default grey channels
+    return kw
+
+
+def score(exemplar, image, metrics):
+    from tghop.metrics import evaluate
+
+    return dict(evaluate(exemplar, image, metrics=list(metrics)))
+
+
+def _init_worker():
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:
+        pass
+
+
+def task(name, variants, size, metrics, sheets):
+    """Fit ``name`` once per distinct fit setting, run every variant with seeds 0 and 1, score."""
+    from tghop import TGHop
+    from tghop.metrics import diversity
+
+    exemplar = prepare(name)
+    models, out, images = {}, {}, {}
+    for vname, fit_kw, synth_kw in variants:
+        kw = fit_kwargs(fit_kw, exemplar)
+        key = repr(sorted(kw.items()))
+        if key not in models:
+            t = time.perf_counter()
+            models[key] = (TGHop(**kw, rng=0).fit(exemplar), time.perf_counter() - t)
+        model, fit_s = models[key]
+        results, synth_s = [], []
+        for seed in (0, 1):
+            t = time.perf_counter()
+            results.append(model.synthesize(size, rng=seed, **synth_kw))
+            synth_s.append(time.perf_counter() - t)
+        per_seed = [score(exemplar, r, metrics) for r in results]
+        out[vname] = {
+            **{m: float(np.mean([s[m] for s in per_seed])) for m in metrics},
+            "diversity": diversity(*results),
+            "fit_s": fit_s,
+            "synth_s": float(np.median(synth_s)),
+        }
+        images[vname] = results[0]
+    sheet = None
+    if sheets:
+        from tghop.imageio import save_image
+
+        folder = Path(sheets)
+        folder.mkdir(parents=True, exist_ok=True)
+        sheet = folder / f"{name}.png"
+        save_image(image_sheet([exemplar, *images.values()], ["exemplar", *images]), sheet)
+    return {"texture": name, "shape": list(exemplar.shape), "variants": out, "sheet": str(sheet) if sheet else None}
+
+
+def ust_task(name, variants, size, n_iter, metrics):
+    """The Ustyuzhaninov baseline next to each variant, all at ``size`` x ``size``, seed 0."""
+    from tghop import TGHop
+    from tghop.baselines import ustyuzhaninov
+
+    from tghop.imageio import load_image, save_image
+
+    exemplar = prepare(name)
+    cached = RESULTS / "ust-cache" / f"{name}-{size}-{n_iter}.png"  # the baseline does not change with tghop
+    t = time.perf_counter()
+    if cached.exists():
+        ust = load_image(cached)
+    else:
+        ust = ustyuzhaninov(exemplar, size, n_iter=n_iter, rng=0)
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        save_image(ust, cached)
+    row = {"texture": name, "ust_s": time.perf_counter() - t, "Ustyuzhaninov": score(exemplar, ust, metrics)}
+    for vname, fit_kw, synth_kw in variants:
+        model = TGHop(**fit_kwargs(fit_kw, exemplar), rng=0).fit(exemplar)
+        row[vname] = score(exemplar, model.synthesize((size, size), rng=0, **synth_kw), metrics)
+    return row
+
+
+def medians(entries, vname, metrics):
+    rows = [e["variants"][vname] for e in entries if vname in e["variants"]]
+    med = {k: float(np.median([r[k] for r in rows])) for k in (*metrics, "diversity", "fit_s", "synth_s")}
+    if "copied" in metrics:
+        med["copied_max"] = float(np.max([r["copied"] for r in rows]))
+    return med
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--textures", default=None, help="comma-separated exemplar names (default: all)")
+    ap.add_argument("--variants", default="paper,default", help="comma-separated named variants")
+    ap.add_argument("--variant", action="append", default=[], help="an ad-hoc variant name:fit.k=v,synth.k=v (repeatable)")
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--metrics", default=",".join(METRICS))
+    ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    ap.add_argument("--sheets", action="store_true", help="one sheet per exemplar")
+    ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--ust", default="", help="exemplars for the Ustyuzhaninov comparison (comma-separated)")
+    ap.add_argument("--ust-size", type=int, default=128)
+    ap.add_argument("--ust-iterations", type=int, default=100)
+    args = ap.parse_args(argv)
+
+    names = args.textures.split(",") if args.textures else texture_names()
+    variants = [parse_variant(v) for v in filter(None, args.variants.split(","))] + [parse_variant(v) for v in args.variant]
+    metrics = tuple(m for m in args.metrics.split(",") if m)
+    stem = "quality" + (f"-{args.tag}" if args.tag else "")
+    sheets = str(RESULTS / stem) if args.sheets else None
+    size = (args.size, args.size)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    log(f"{len(names)} exemplars x {len(variants)} variants ({', '.join(v[0] for v in variants)}), "
+        f"{args.jobs} workers")
+
+    entries, ust_rows, failed = [], [], {}
+    with ProcessPoolExecutor(max_workers=args.jobs, initializer=_init_worker) as pool:
+        futures = {pool.submit(task, n, variants, size, metrics, sheets): n for n in names}
+        futures.update({pool.submit(ust_task, n, variants, args.ust_size, args.ust_iterations, metrics): f"ust:{n}"
+                        for n in filter(None, args.ust.split(","))})
+        for fut in as_completed(futures):
+            label = futures[fut]
+            try:
+                res = fut.result()
+            except Exception as exc:  # one bad exemplar must not lose the others
+                failed[label] = f"{type(exc).__name__}: {exc}"
+                log(f"{label} FAILED: {failed[label]}")
+                continue
+            (ust_rows if label.startswith("ust:") else entries).append(res)
+            log(f"{label} done")
+
+    entries.sort(key=lambda e: e["texture"])
+    cols = [*metrics, "diversity", "fit_s", "synth_s"]
+    head = ["variant", *("median " + m for m in metrics)] + (["max copied"] if "copied" in metrics else [])
+    head += ["median diversity", "fit (s)", "image (s)"]
+    table_rows, summary = [], {}
+    for vname, *_ in variants:
+        med = medians(entries, vname, metrics)
+        summary[vname] = med
+        table_rows.append([vname, *(med[m] for m in metrics)] + ([med["copied_max"]] if "copied" in metrics else [])
+                          + [med["diversity"], med["fit_s"], med["synth_s"]])
+    text = (f"## Quality, {args.size}x{args.size}, seeds 0 and 1, medians over {len(entries)} exemplars\n\n"
+            + markdown_table(head, table_rows))
+    per_tex = [[e["texture"], vname, *(e["variants"][vname][c] for c in cols)]
+               for e in entries for vname in e["variants"]]
+    text += "\n\n### Per exemplar\n\n" + markdown_table(["exemplar", "variant", *cols], per_tex)
+    if ust_rows:
+        names_v = ["Ustyuzhaninov", *(v[0] for v in variants)]
+        rows = []
+        for m in metrics:
+            rows.append([m, *(float(np.median([r[n][m] for r in ust_rows])) for n in names_v)])
+        text += (f"\n\n### Against Ustyuzhaninov et al. ({args.ust_size}x{args.ust_size}, {args.ust_iterations} "
+                 f"L-BFGS iterations, seed 0), medians over {len(ust_rows)} exemplars "
+                 f"({', '.join(sorted(r['texture'] for r in ust_rows))})\n\n" + markdown_table(["metric", *names_v], rows))
+    if failed:
+        text += "\n\nFailed: " + "; ".join(f"{k}: {v}" for k, v in failed.items())
+    print(text)
+    variants_json = [{"name": n, "fit": f, "synth": s} for n, f, s in variants]
+    path = write_results(stem, {"size": args.size, "variants": variants_json, "summary": summary,
+                                "entries": entries, "ust": ust_rows, "failed": failed}, text)
+    log(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
