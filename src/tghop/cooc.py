@@ -346,7 +346,9 @@ def cooccurrence_tensor(images, centres, spreads, *, patch: int = 65, window: in
         weights = weights.reshape(n, hh * ww, h * w).swapaxes(1, 2)
         pooled = (pairs.reshape(n, k * k, h * w) @ weights).reshape(n, k, k, hh, ww) / (s * s)
     else:
-        local = _box_sum2(pairs, r) / total[:, None]  # each pixel's matrix, summing to 1
+        local = _box_sum2(pairs, r)
+        # Differences of cumulative sums: clip the round-off below 0 of entries near 0.
+        local = (np.maximum(local, 0.0) if isinstance(local, np.ndarray) else local.clamp(min=0.0)) / total[:, None]
         pooled = local[:, :, : hh * s, : ww * s].reshape(n, k, k, hh, s, ww, s).mean((4, 6))
     pooled = 0.5 * (pooled + pooled.swapaxes(1, 2))
     return pooled.reshape(n, k * k, hh, ww)
@@ -632,8 +634,8 @@ class CoocGAN:
     def _cooc(self, images):
         """Co-occurrence tensor of a ``(N, C, H, W)`` tensor in [0, 1] with this model's clusters."""
         p = self.settings_
-        return cooccurrence_tensor(images, self._centres_t, self._spreads_t, patch=p["patch"], window=p["window"],
-                                   sigma=p["sigma"], s=self.s)
+        return cooccurrence_tensor(images, self._centres_t.to(images.dtype), self._spreads_t.to(images.dtype),
+                                   patch=p["patch"], window=p["window"], sigma=p["sigma"], s=self.s)
 
     def cooccurrence(self, image) -> np.ndarray:
         """Co-occurrence tensor of an image with this model's colour clusters.
@@ -651,9 +653,9 @@ class CoocGAN:
         self._check_fitted()
         torch = _import_torch()
         img = self._check_colours(check_image(image, min_size=self.s, name="image"))
-        x = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float32, device=self._device)
+        x = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
         with torch.no_grad():
-            return self._cooc(x)[0].double().cpu().numpy()
+            return self._cooc(x)[0].cpu().numpy()
 
     def _check_colours(self, img: np.ndarray) -> np.ndarray:
         c = self.exemplar_shape_[2]
@@ -691,8 +693,8 @@ class CoocGAN:
         self.cond_std_ = np.maximum(flat.std(1).cpu().numpy(), 1e-4)
         self._to_device(torch)
         with torch.no_grad():
-            whole = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float32, device=self._device)
-            self.exemplar_cooc_ = self._cooc(whole)[0].double().cpu().numpy()
+            whole = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
+            self.exemplar_cooc_ = self._cooc(whole)[0].cpu().numpy()
         torch.manual_seed(seed)
         self.generator_, self.critic_ = _networks(torch, img.shape[2], self._conds.shape[1], p)
         self.generator_.to(self._device)
