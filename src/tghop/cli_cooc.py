@@ -109,18 +109,19 @@ def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
     with user_errors(progress):
         from .cooc import PAPER, CoocGAN, _import_torch
 
-        _import_torch()  # the one-line hint before anything else
+        overrides = parse_settings(settings)
+        _import_torch()  # the one-line hint before the exemplar is read
         check_output_path(output, what="checkpoint", error=ModelFileError)
         image = load_exemplar(exemplar)
         if resume:
-            if paper or settings:
+            if paper or overrides:
                 raise TGHopError("--resume continues a checkpoint with its own settings; drop --paper and --set")
             model = load_checkpoint(output)
             if steps is not None:
                 model.set_params(n_steps=steps)
             model.fit(image, resume=True, progress=progress, log=progress.log)
         else:
-            model = CoocGAN(**(PAPER if paper else {}), rng=seed).set_params(**parse_settings(settings))
+            model = CoocGAN(**(PAPER if paper else {}), rng=seed).set_params(**overrides)
             if steps is not None:
                 model.set_params(n_steps=steps)
             model.fit(image, progress=progress, log=progress.log)

@@ -1084,10 +1084,10 @@ def load(path, *, device: str = "auto") -> CoocGAN:
     ModelFileError
         Missing file, not a tghop co-occurrence checkpoint, or another format version.
     """
-    torch = _import_torch()
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such checkpoint; train one with: tghop cooc train EXEMPLAR -o {path.name}")
+    torch = _import_torch()
     try:
         tensors = torch.load(path, map_location="cpu", weights_only=True)
         settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())
