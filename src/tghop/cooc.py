@@ -245,8 +245,20 @@ def cooccurrence_matrix(images, centres, spreads, *, sigma: float = math.sqrt(51
 
 def _box_sum2(x, radius: int):
     """Sum over the ``(2 radius + 1)`` square around each pixel of the last two axes (clipped
-    to the image), by cumulative sums: the cost does not grow with the square."""
+    to the image).
+
+    Up to 512 pixels a side: products with 0/1 band matrices (sums of non-negative terms,
+    exact to round-off even where values span many orders of magnitude -- a generated
+    colour far from every cluster has tiny assignments next to large ones). Larger: by
+    cumulative sums (cost independent of the square, but differences of large sums; the
+    callers use float64 there and clip at 0).
+    """
     size = 2 * radius + 1
+    h, w = x.shape[-2:]
+    if max(h, w) <= 512:
+        band_h = (np.abs(np.arange(h)[:, None] - np.arange(h)[None, :]) <= radius).astype(np.float64)
+        band_w = (np.abs(np.arange(w)[:, None] - np.arange(w)[None, :]) <= radius).astype(np.float64)
+        return _like(x, band_h) @ x @ _like(x, band_w)
     for axis in (-1, -2):
         n = x.shape[axis]
         if isinstance(x, np.ndarray):
@@ -334,6 +346,8 @@ def cooccurrence_tensor(images, centres, spreads, *, patch: int = 65, window: in
     pairs = (assign[:, :, None] * spread[:, None, :]).reshape(n, k * k, h, w)  # Eq. 1 summand of p'
     # The total of a pixel's matrix, sum_ab, from one channel: sum_ab K_a S_b = (sum_a K_a)(sum_b S_b).
     total = _box_sum2((assign.sum(1) * spread.sum(1))[:, None], r)[:, 0]  # (N, H, W)
+    tiny = 1e-30  # never 0: 1 / total multiplies zeros of the band matrices below
+    total = np.maximum(total, tiny) if isinstance(total, np.ndarray) else total.clamp(min=tiny)
     if n * hh * ww * h * w <= _MAX_CELL_WEIGHTS:
         # Cell c averages pixels p of its s x s block, each the box sum over its patch
         # divided by total(p); by linearity that is sum_p' pairs(p') V_c(p'), with weight
@@ -827,6 +841,9 @@ class CoocGAN:
             if log is not None:
                 log(self.step_, {"critic": d_loss, "adversarial": adv, "consistency": cooc, "gp": gp})
             report(progress, "training", self.step_, total)
+            if not all(math.isfinite(v) for v in (d_loss, adv, cooc)):
+                raise TGHopError(f"training diverged at step {self.step_} (a loss is not finite); "
+                                 "train again with a lower lr or another seed")
             if max_seconds is not None and time.perf_counter() - start > max_seconds:
                 break
         if self.step_ < total:
