@@ -124,6 +124,22 @@ def test_tensor_is_differentiable():
     assert img.grad is not None and torch.isfinite(img.grad).all() and img.grad.abs().sum() > 0
 
 
+def test_far_colours_give_finite_values_and_gradients():
+    """A generated crop with saturated colours far from every cluster (tiny assignments next to
+    large ones) once made a patch total cancel to 0 and the training loss NaN."""
+    c = torch.tensor([[0.3, 0.4, 0.1], [0.5, 0.6, 0.35]])
+    s = torch.full((2, 3), 0.025)
+    x = torch.full((2, 3, 64, 64), 0.45)
+    x[:, :, :20] = 1.0
+    x[:, 0, 50:] = 0.0
+    x.requires_grad_(True)
+    t = cooc.cooccurrence_tensor(x, c, s, patch=33, window=25, sigma=13**0.5, s=16)
+    assert torch.isfinite(t).all() and (t >= 0).all()
+    torch.testing.assert_close(t.sum(1), torch.ones(2, 4, 4))
+    t[:, 1].sum().backward()
+    assert torch.isfinite(x.grad).all()
+
+
 def test_metric_uses_the_shared_statistics():
     from tghop.metrics import cooccurrence_distance
 
