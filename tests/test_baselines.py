@@ -152,6 +152,6 @@ def test_ustyuzhaninov_default_model_runs(exemplar):
 
 
 def test_registry_has_a_uniform_signature(exemplar):
-    assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"}
+    assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"}
     for fn in BASELINES.values():
         assert callable(fn) and fn.__doc__

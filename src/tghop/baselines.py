@@ -15,6 +15,8 @@ Synthesis baselines:
   generate natural textures?": match the Gram matrix of a single convolutional layer of
   random filters at eight scales by L-BFGS. TGHop's paper benchmarks against it
   (its reference [25]). Needs PyTorch (``pip install 'tghop[metrics]'``).
+* :func:`cooc` -- Darzi et al.'s co-occurrence cGAN (:mod:`tghop.cooc`): trains its small
+  configuration on the exemplar (minutes), then generates. Needs PyTorch.
 
 :data:`BASELINES` maps a name to each of them, for ``tghop baseline NAME``. Every entry
 is called as ``fn(exemplar, size=None, *, rng=None, progress=None)`` and returns a float
@@ -46,6 +48,7 @@ __all__ = [
     "colour_noise",
     "quilting",
     "ustyuzhaninov",
+    "cooc",
 ]
 
 #: Filter sizes of Ustyuzhaninov et al.'s "RandomMultiscale" model (128 maps each).
@@ -560,6 +563,13 @@ def ustyuzhaninov(
     return out, info
 
 
+def cooc(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None, **options) -> np.ndarray:
+    """The co-occurrence cGAN of Darzi et al.: see :func:`tghop.cooc.baseline` (needs PyTorch)."""
+    from .cooc import baseline
+
+    return baseline(exemplar, size, rng=rng, progress=progress, **options)
+
+
 #: name -> baseline, each called as ``fn(exemplar, size=None, *, rng=None, progress=None)``.
 BASELINES = {
     "crop": crop,
@@ -567,4 +577,5 @@ BASELINES = {
     "colour-noise": colour_noise,
     "quilting": quilting,
     "ustyuzhaninov": ustyuzhaninov,
+    "cooc": cooc,
 }

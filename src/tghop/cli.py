@@ -571,15 +571,18 @@ def evaluate(exemplar, results, as_json, names):
 
 
 @main.command()
-@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"]))
+@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"]))
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
 @click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
 @click.option("--seed", type=click.IntRange(min=0), default=None)
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
-              help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000).")
+              help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
+                   "cooc: training steps (default 800).")
+@click.option("--model", "model_file", default=None,
+              help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def baseline(name, exemplar, output, size, seed, iterations, quiet):
+def baseline(name, exemplar, output, size, seed, iterations, model_file, quiet):
     """Make a reference texture from EXEMPLAR with baseline NAME.
 
     \b
@@ -588,6 +591,7 @@ def baseline(name, exemplar, output, size, seed, iterations, quiet):
     colour-noise   noise with the exemplar's colour mean and covariance (worst case)
     quilting       classic image quilting of the exemplar's own patches
     ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
+    cooc           co-occurrence cGAN (Darzi et al.): trains ~15 min, or --model (metrics extra)
     """
     from .baselines import BASELINES
     from .imageio import save_image
@@ -595,10 +599,16 @@ def baseline(name, exemplar, output, size, seed, iterations, quiet):
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
-        if iterations is not None and name != "ustyuzhaninov":
-            raise TGHopError("--iterations applies to the ustyuzhaninov baseline only")
+        if iterations is not None and name not in ("ustyuzhaninov", "cooc"):
+            raise TGHopError("--iterations applies to the ustyuzhaninov and cooc baselines only")
+        if model_file is not None and name != "cooc":
+            raise TGHopError("--model applies to the cooc baseline only")
         ex = load_exemplar(exemplar)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
+        if name == "cooc":
+            from .cooc import load
+
+            kwargs = {"n_steps": iterations, "model": None if model_file is None else load(model_file)}
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
         save_image(image, output)
@@ -606,6 +616,9 @@ def baseline(name, exemplar, output, size, seed, iterations, quiet):
         click.echo(f"{name} result written to {output}", err=True)
 
 
+from .cli_cooc import cooc as _cooc_commands  # noqa: E402  (needs the helpers above; imports no torch)
+
+main.add_command(_cooc_commands)
 
 if __name__ == "__main__":  # pragma: no cover
     main()

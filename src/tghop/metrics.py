@@ -389,31 +389,6 @@ def sliced_wasserstein(
 # ---------------------------------------------------------------------------------------
 
 
-def _soft_assign(img: np.ndarray, centres: np.ndarray, spreads: np.ndarray) -> np.ndarray:
-    """Eq. 2 of Darzi et al.: ``K(I_p, tau_l) = exp(-sum_i (I_p^i - tau_l^i)^2 / (sigma_l^i)^2)``.
-
-    Returns
-    -------
-    ndarray, shape (H, W, k)
-    """
-    diff = img[:, :, None, :] - centres[None, None]  # (H, W, k, C)
-    return np.exp(-np.sum((diff / spreads[None, None]) ** 2, axis=-1))
-
-
-def _cooccurrence(assign: np.ndarray, sigma: float, radius: int) -> np.ndarray:
-    """Eq. 1: ``M(a, b) = 1/Z sum_{p,q} exp(-d(p,q)^2 / (2 sigma^2)) K_a(p) K_b(q)``.
-
-    The sum over ``q`` is a Gaussian filter of each assignment map, truncated to a
-    ``(2 radius + 1)`` window; pairs with ``q`` outside the image are left out.
-    """
-    spread = ndimage.gaussian_filter(
-        assign, sigma=(sigma, sigma, 0), mode="constant", cval=0.0, truncate=radius / sigma
-    )
-    m = np.einsum("hwa,hwb->ab", assign, spread)
-    m = 0.5 * (m + m.T)
-    return m / m.sum()
-
-
 def cooccurrence_distance(
     exemplar,
     result,
@@ -456,31 +431,19 @@ def cooccurrence_distance(
     float
         In [0, 2]; 0 for identical images.
     """
-    from sklearn.cluster import KMeans
-    from threadpoolctl import threadpool_limits
+    from .cooc import cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
 
     if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
         raise TGHopError("sigma, window and n_clusters must be positive")
     ex, res = _pair(exemplar, result)
-    pixels = ex.reshape(-1, ex.shape[2])
-    rng = np.random.default_rng(int(seed))
-    if pixels.shape[0] > int(max_fit_pixels):
-        pixels = pixels[rng.choice(pixels.shape[0], size=int(max_fit_pixels), replace=False)]
-    k = int(min(n_clusters, np.unique(np.round(pixels, 6), axis=0).shape[0]))
-    # A few thousand 3-vectors: one thread is fast, and OpenMP threads busy-waiting on a
-    # loaded machine made this 40 times slower.
-    with threadpool_limits(1, user_api="openmp"):
-        kmeans = KMeans(n_clusters=k, n_init=3, random_state=int(seed)).fit(pixels)
-    centres = kmeans.cluster_centers_
-    spreads = np.full_like(centres, 0.01)
-    for label in range(k):
-        members = pixels[kmeans.labels_ == label]
-        if len(members) > 1:
-            spreads[label] = np.maximum(members.std(axis=0), 0.01)
-    radius = int(window) // 2
+    centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=int(max_fit_pixels),
+                                           seed=int(seed))
     # A tiny floor keeps the matrix defined for a result far from every exemplar colour.
-    m_ex = _cooccurrence(_soft_assign(ex, centres, spreads) + 1e-12, float(sigma), radius)
-    m_res = _cooccurrence(_soft_assign(res, centres, spreads) + 1e-12, float(sigma), radius)
+    m_ex, m_res = (
+        cooccurrence_matrix(img.transpose(2, 0, 1)[None], centres, spreads, sigma=float(sigma), window=int(window),
+                            floor=1e-12)[0]
+        for img in (ex, res)
+    )
     return float(np.abs(m_ex - m_res).sum())
 
 

@@ -1,0 +1,135 @@
+"""The co-occurrence cGAN (Darzi et al., tghop.cooc) on this machine: training, speed, the paper's checks.
+
+    python benchmarks/bench_cooc.py train brick_wall grass_lawn red_peppers   # ~15 min each
+    python benchmarks/bench_cooc.py report brick_wall grass_lawn red_peppers
+
+``train NAME...`` trains the small configuration (tghop.cooc.SMALL) on each exemplar, one
+process per texture (so its peak memory is its own), and writes
+``results/cooc/NAME.pt`` and ``NAME_train.json`` (wall time, steps, peak RSS, load
+average before and after, loss history).
+
+``report NAME...`` loads those checkpoints and writes ``results/cooc/report.md`` with:
+
+1. training time and peak memory of each run;
+2. generation speed (images/second at 256x256 and 1024x1024, CPU, torch threads as set);
+3. the stability loop (Sec. 4.2): a held-out crop's tensor -> generate -> its tensor ->
+   generate ... 10 rounds, with one noise tensor; L1 between each round's input and
+   output tensor, drift of that in % against round 1 (paper: within 2 %);
+4. the nearest-neighbour novelty check (Sec. 4.2, Fig. 5): for generated crops, the
+   nearest training crop in RGB L1 and in co-occurrence L1, against the distance
+   between two real crops;
+5. the quality table: SIFID, SWD, co-occurrence distance, novelty and "copied" of a
+   128x128 and a 256x256 cGAN result next to TGHop (tghop defaults) and Ustyuzhaninov
+   et al. (100 L-BFGS iterations at 128x128, as bench_paper.py) on the same textures;
+6. image sheets: samples, a morph strip, a Fig. 2 grid, an edit (two crops' statistics
+   painted left/right) and the stability sequence.
+
+Options: ``--threads N`` (torch threads, default 2), ``--steps N`` (train: override
+n_steps), ``--max-minutes M`` (train: stop each run after M minutes of training and
+report the steps done), ``--out DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import (  # noqa: E402
+    RESULTS,
+    image_sheet,
+    markdown_table,
+    peak_rss_mb,
+    stack_rows,
+    texture,
+    write_results_to,
+)
+
+OUT = RESULTS / "cooc"
+
+
+def load_average() -> float:
+    return os.getloadavg()[0]
+
+
+# ----------------------------------------------------------------------------- training
+def train_one(name: str, out: Path, threads: int, steps, max_seconds) -> dict:
+    """Train the small configuration on ``name`` in this process (called in a child)."""
+    import torch
+
+    from tghop.cooc import CoocGAN
+
+    torch.set_num_threads(threads)
+    img = texture(name)
+    if max(img.shape[:2]) > 512:  # as bench_paper.py: the centre 256x256 of a large exemplar
+        y, x = (img.shape[0] - 256) // 2, (img.shape[1] - 256) // 2
+        img = img[y : y + 256, x : x + 256]
+    model = CoocGAN(rng=0)
+    if steps is not None:
+        model.set_params(n_steps=int(steps))
+    load_before = load_average()
+    stages = {}
+    last = {"t": time.perf_counter(), "stage": None}
+
+    def progress(stage, done, total):
+        now = time.perf_counter()
+        if last["stage"] is not None:
+            stages[last["stage"]] = stages.get(last["stage"], 0.0) + now - last["t"]
+        last.update(t=now, stage=stage)
+        if stage == "training" and done % 50 == 0:
+            print(f"{name}: step {done}/{total} at {now - t0:.0f} s, load {load_average():.1f}", flush=True)
+
+    t0 = time.perf_counter()
+    model.fit(img, progress=progress, max_seconds=max_seconds)
+    seconds = time.perf_counter() - t0
+    progress(None, 0, 0)
+    model.save(out / f"{name}.pt")
+    entry = {"texture": name, "exemplar_shape": list(img.shape), "seconds": seconds, "stages": stages,
+             "steps": model.step_, "settings": model.settings_, "threads": threads,
+             "peak_rss_mb": peak_rss_mb(), "load_before": load_before, "load_after": load_average(),
+             "history": model.history_.tolist()}
+    write_results_to(out, f"{name}_train", entry)
+    return entry
+
+
+# ----------------------------------------------------------------------------- report
+def main(argv=None):
+    warnings.filterwarnings("ignore")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("command", choices=["train", "train-one", "report"])
+    ap.add_argument("textures", nargs="+")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--steps", type=int, default=None)
+    ap.add_argument("--max-minutes", type=float, default=None,
+                    help="train: stop each training after this many minutes (its steps are reported)")
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.command == "train-one":
+        max_s = None if args.max_minutes is None else 60 * args.max_minutes
+        train_one(args.textures[0], args.out, args.threads, args.steps, max_s)
+        return
+    if args.command == "train":
+        for name in args.textures:
+            cmd = [sys.executable, __file__, "train-one", name, "--threads", str(args.threads), "--out", str(args.out)]
+            if args.steps is not None:
+                cmd += ["--steps", str(args.steps)]
+            if args.max_minutes is not None:
+                cmd += ["--max-minutes", str(args.max_minutes)]
+            subprocess.run(cmd, check=True)
+        return
+    from bench_cooc_report import report  # the evaluation half lives beside this file
+
+    report(args.textures, args.out, args.threads)
+
+
+if __name__ == "__main__":
+    main()

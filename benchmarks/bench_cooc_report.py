@@ -1,0 +1,257 @@
+"""Evaluation half of bench_cooc.py: baselines, speed, stability, novelty, quality, sheets.
+
+    python benchmarks/bench_cooc_report.py baselines brick_wall grass_lawn red_peppers
+    python benchmarks/bench_cooc.py report brick_wall grass_lawn red_peppers
+
+``baselines`` makes (and caches as PNG in results/cooc/) the TGHop (tghop defaults, seed
+0, 128x128 and 256x256) and Ustyuzhaninov (100 L-BFGS iterations, 128x128, seed 0) images
+the quality table compares with; ``report`` (run through bench_cooc.py) makes them too
+if missing.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, image_sheet, markdown_table, stack_rows, texture, write_results_to  # noqa: E402
+
+OUT = RESULTS / "cooc"
+METRICS = ("sifid", "swd", "cooccurrence", "copied")
+UST_SIZE, UST_ITERS = 128, 100
+
+
+def log(msg):
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def prepare(name):
+    img = texture(name)
+    if max(img.shape[:2]) > 512:
+        y, x = (img.shape[0] - 256) // 2, (img.shape[1] - 256) // 2
+        img = img[y : y + 256, x : x + 256]
+    return img
+
+
+def score(exemplar, result) -> dict:
+    from tghop import metrics as M
+
+    return {m: float(M.METRICS[m].function(exemplar, result)) for m in METRICS}
+
+
+def cached(path: Path, make):
+    from tghop.imageio import load_image, save_image
+
+    if path.exists():
+        return load_image(path), None
+    t = time.perf_counter()
+    img = make()
+    seconds = time.perf_counter() - t
+    save_image(img, path)
+    (path.with_suffix(".json")).write_text(json.dumps({"seconds": seconds}))
+    return img, seconds
+
+
+def baselines(name, out: Path) -> dict:
+    """TGHop (defaults) at 128 and 256, Ustyuzhaninov at 128: images cached in ``out``."""
+    from tghop import TGHop
+    from tghop.baselines import ustyuzhaninov
+
+    img = prepare(name)
+    model = {}
+
+    def tg(size):
+        if "m" not in model:
+            model["m"] = TGHop(rng=0).fit(img)
+        return model["m"].synthesize((size, size), rng=0)
+
+    images = {
+        "TGHop 128": cached(out / f"tghop-{name}-128.png", lambda: tg(128))[0],
+        "TGHop 256": cached(out / f"tghop-{name}-256.png", lambda: tg(256))[0],
+        "Ustyuzhaninov 128": cached(out / f"ust-{name}-{UST_SIZE}-{UST_ITERS}.png",
+                                    lambda: ustyuzhaninov(img, UST_SIZE, n_iter=UST_ITERS, rng=0))[0],
+    }
+    log(f"baselines {name}: done")
+    return images
+
+
+# ----------------------------------------------------------------------------- checks
+def stability(model, img, *, n_rounds=10, n_crops=8, seed=0) -> dict:
+    """Sec. 4.2: tensor of a held-out crop -> generate -> its tensor -> generate ..., one noise per crop.
+
+    L1 of round r = mean over crops of sum |input tensor - tensor of the output| per cell.
+    """
+    rng = np.random.default_rng(seed)
+    n = model.settings_["crop_size"]
+    l1 = np.zeros((n_rounds, n_crops))
+    first_seq = []
+    for j in range(n_crops):
+        y, x = rng.integers(img.shape[0] - n + 1), rng.integers(img.shape[1] - n + 1)
+        crop = img[y : y + n, x : x + n]
+        cond = model.cooccurrence(crop)
+        z = model.noise(cond.shape[1:], rng=rng)
+        seq = [crop]
+        for r in range(n_rounds):
+            out = model.generate(cond, noise=z)
+            new = model.cooccurrence(out)
+            l1[r, j] = np.abs(new - cond / cond.sum(0)).sum(0).mean()
+            cond = new
+            seq.append(out)
+        if j == 0:
+            first_seq = seq
+    per_round = l1.mean(axis=1)
+    drift = 100.0 * (per_round - per_round[0]) / per_round[0]
+    return {"l1": per_round.tolist(), "drift_pct": drift.tolist(), "max_abs_drift_pct": float(np.abs(drift).max()),
+            "sequence": first_seq}
+
+
+def nearest_neighbours(model, img, *, n_gen=8, n_train=400, seed=0) -> dict:
+    """Sec. 4.2 / Fig. 5: generated crops against their nearest training crop, in RGB L1 and in co-occurrence L1.
+
+    Reference: the same distances for real held-out crops (a real crop is near other real
+    crops that overlap it; a generated crop that copies would be as near).
+    """
+    rng = np.random.default_rng(seed)
+    n = model.settings_["crop_size"]
+
+    def crops(k):
+        ys, xs = rng.integers(img.shape[0] - n + 1, size=k), rng.integers(img.shape[1] - n + 1, size=k)
+        return np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)])
+
+    train = crops(n_train)
+    train_c = np.stack([model.cooccurrence(c) for c in train])
+    held = crops(n_gen)
+    gen = np.stack([model.generate(model.cooccurrence(c), rng=rng) for c in held])
+
+    def nn(batch):
+        rgb = np.abs(batch[:, None] - train[None]).mean(axis=(2, 3, 4))  # (b, n_train)
+        bc = np.stack([model.cooccurrence(c) for c in batch])
+        co = np.abs(bc[:, None] - train_c[None]).sum(axis=2).mean(axis=(2, 3))
+        return rgb.min(1), co.min(1), rgb.argmin(1)
+
+    g_rgb, g_co, g_idx = nn(gen)
+    r_rgb, r_co, _ = nn(held)
+    return {"gen_rgb_l1": float(g_rgb.mean()), "gen_cooc_l1": float(g_co.mean()), "real_rgb_l1": float(r_rgb.mean()),
+            "real_cooc_l1": float(r_co.mean()), "pairs": [gen[:4], train[g_idx[:4]]]}
+
+
+def gen_speed(model, size, n=3) -> float:
+    """Images per second of :meth:`sample` at ``size`` x ``size`` (after one warm-up)."""
+    model.sample((size, size), rng=0)
+    t = time.perf_counter()
+    for i in range(n):
+        model.sample((size, size), rng=i + 1)
+    return n / (time.perf_counter() - t)
+
+
+# ----------------------------------------------------------------------------- report
+def report(names, out: Path, threads: int):
+    import torch
+
+    from tghop.cooc import load
+    from tghop.imageio import save_image
+
+    warnings.filterwarnings("ignore")
+    torch.set_num_threads(threads)
+    rows_train, rows_speed, rows_stab, rows_nn, rows_q = [], [], [], [], []
+    payload = {"textures": {}}
+    sheets = []
+    for name in names:
+        ck = out / f"{name}.pt"
+        if not ck.exists():
+            log(f"{name}: no checkpoint {ck}; run bench_cooc.py train {name} first")
+            continue
+        train = json.loads((out / f"{name}_train.json").read_text())
+        model = load(ck, device="cpu")
+        img = prepare(name)
+        rows_train.append([name, train["steps"], train["seconds"] / 60, train["stages"].get("co-occurrences", 0.0),
+                           train["seconds"] / max(train["steps"], 1), train["peak_rss_mb"],
+                           f"{train['load_before']:.1f} / {train['load_after']:.1f}"])
+        log(f"{name}: speed")
+        speed = {s: gen_speed(model, s, n=3 if s == 256 else 1) for s in (256, 1024)}
+        rows_speed.append([name, speed[256], speed[1024]])
+        log(f"{name}: stability")
+        stab = stability(model, img)
+        rows_stab.append([name] + [f"{v:.3f}" for v in stab["l1"][:1]] + [f"{d:+.1f}" for d in stab["drift_pct"][1:]]
+                         + [stab["max_abs_drift_pct"]])
+        log(f"{name}: nearest neighbours")
+        nn = nearest_neighbours(model, img)
+        rows_nn.append([name, nn["gen_rgb_l1"], nn["real_rgb_l1"], nn["gen_cooc_l1"], nn["real_cooc_l1"]])
+        log(f"{name}: baselines and quality")
+        base = baselines(name, out)
+        ours = {"cooc 128": model.sample((128, 128), rng=0), "cooc 256": model.sample((256, 256), rng=0)}
+        for label, im in ours.items():
+            save_image(im, out / f"{label.replace(' ', '-')}-{name}.png")
+        crop128 = img[:128, :128]
+        results = {"crop 128": crop128, **base, **ours}
+        scores = {label: score(img, im) for label, im in results.items()}
+        for label, sc in scores.items():
+            rows_q.append([name, label] + [sc[m] for m in METRICS])
+        # sheets: exemplar | samples; morph strip; grid; edit; stability sequence
+        a, b = model.crop_condition(0, 0), model.crop_condition(img.shape[0] - model.settings_["crop_size"],
+                                                                img.shape[1] - model.settings_["crop_size"])
+        strip = model.morph_strip(a, b, length=16, rng=0)
+        grid = model.morph_grid(a, b, n_cols=5, n_rows=3, rng=0)
+        from tghop.cooc import paint_condition
+        from tghop.patches import patch_grid
+
+        labels = np.zeros((8, 16), dtype=int)
+        labels[:, 8:] = 1
+        edit = model.generate(paint_condition([a, b], labels), rng=0)
+        save_image(strip, out / f"morph-{name}.png")
+        save_image(patch_grid(grid.reshape((-1,) + grid.shape[2:]), n_cols=5), out / f"grid-{name}.png")
+        save_image(edit, out / f"edit-{name}.png")
+        sheet = stack_rows([
+            image_sheet([img] + list(results.values()), ["exemplar"] + list(results), height=160),
+            image_sheet([strip], [f"morph crop(0,0) -> crop(bottom right), {strip.shape[1]} px"], height=96),
+            image_sheet([edit], ["edit: the two crops' statistics painted left | right"], height=128),
+            image_sheet(stab["sequence"], ["crop"] + [f"round {i + 1}" for i in range(len(stab["sequence"]) - 1)],
+                        height=64),
+            image_sheet(nn["pairs"][0].tolist() and list(nn["pairs"][0]) + list(nn["pairs"][1]),
+                        ["generated"] * 4 + ["nearest train crop"] * 4, height=64),
+        ])
+        save_image(sheet, out / f"sheet-{name}.png")
+        sheets.append(sheet)
+        payload["textures"][name] = {"train": {k: v for k, v in train.items() if k != "history"},
+                                     "speed_images_per_s": speed,
+                                     "stability": {k: v for k, v in stab.items() if k != "sequence"},
+                                     "nearest": {k: v for k, v in nn.items() if k != "pairs"}, "scores": scores}
+        log(f"{name}: done")
+    md = ["# Co-occurrence cGAN (Darzi et al.), small configuration, on this machine\n",
+          f"torch threads: {threads}. Peak RSS is the training process's own.\n",
+          "## Training\n",
+          markdown_table(["texture", "steps", "minutes", "co-occurrence setup s", "s / step", "peak RSS MB",
+                          "load avg before / after"], rows_train),
+          "\n## Generation speed (CPU, images per second)\n",
+          markdown_table(["texture", "256x256", "1024x1024"], rows_speed),
+          "\n## Stability loop (paper: within 2 % of round 1 over 10 rounds)\n",
+          "L1 = mean over 8 held-out crops and cells of sum |input - output co-occurrence|; "
+          "drift of rounds 2-10 in % of round 1.\n",
+          markdown_table(["texture", "L1 round 1"] + [f"r{i}" for i in range(2, 11)] + ["max |drift| %"], rows_stab),
+          "\n## Nearest training crop (paper Fig. 5)\n",
+          "Mean over 8 crops of the distance to the nearest of 400 training crops: generated "
+          "(from held-out crops' tensors) vs the held-out real crops themselves.\n",
+          markdown_table(["texture", "RGB L1 generated", "RGB L1 real", "cooc L1 generated", "cooc L1 real"], rows_nn),
+          "\n## Quality (lower is better; copied: fraction of verbatim 16x16 patches)\n",
+          markdown_table(["texture", "method"] + list(METRICS), rows_q)]
+    text = "\n".join(md)
+    write_results_to(out, "report", payload, text)
+    print(text)
+
+
+if __name__ == "__main__":
+    warnings.filterwarnings("ignore")
+    import torch
+
+    torch.set_num_threads(1)
+    if len(sys.argv) < 3 or sys.argv[1] != "baselines":
+        raise SystemExit("usage: bench_cooc_report.py baselines NAME...")
+    OUT.mkdir(parents=True, exist_ok=True)
+    for texture_name in sys.argv[2:]:
+        baselines(texture_name, OUT)

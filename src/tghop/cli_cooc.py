@@ -1,0 +1,229 @@
+"""``tghop cooc ...``: train the co-occurrence cGAN (Darzi et al.) and use its controls.
+
+Registered on the main group by :mod:`tghop.cli`; torch is imported only when a command
+runs (through :mod:`tghop.cooc`), so ``tghop --help`` stays fast and torch-free.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import click
+import numpy as np
+
+from ._common import TGHopError
+from .cli import Progress, Size, check_output, load_exemplar, user_errors
+
+#: Longest morph strip, in condition cells.
+MAX_CELLS = 4096
+
+
+class LossProgress(Progress):
+    """A progress bar that also shows the latest training losses."""
+
+    def __init__(self, enabled: bool):
+        super().__init__(enabled)
+        self.note = ""
+
+    def __call__(self, stage, done, total):
+        if not self.enabled:
+            return
+        if stage != self.stage:
+            self.close()
+            self.stage, self.done = stage, 0
+            self.bar = click.progressbar(length=max(total, 1), label=f"{stage:<14}", file=__import__("sys").stderr,
+                                         show_eta=True, show_percent=True, item_show_func=lambda _: self.note)
+            self.bar.__enter__()
+        if done > self.done:
+            self.bar.update(done - self.done, current_item=self.note)
+            self.done = done
+
+    def log(self, step, losses):
+        self.note = (f"D {losses['critic']:+.3f}  G {losses['adversarial']:+.3f}  "
+                     f"cooc {losses['consistency']:.3f}")
+
+
+def parse_settings(pairs) -> dict:
+    """``KEY=VALUE`` strings -> dict (VALUE parsed as JSON: numbers, lists)."""
+    from .cooc import SMALL
+
+    out = {}
+    for item in pairs:
+        key, sep, value = item.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or key not in SMALL:
+            raise TGHopError(f"--set {item!r}: write KEY=VALUE with KEY one of {', '.join(SMALL)}")
+        try:
+            out[key] = json.loads(value)
+        except ValueError:
+            raise TGHopError(f"--set {item!r}: the value must be a number or a JSON list, e.g. g_widths=[64,32,16]") from None
+    return out
+
+
+def load_checkpoint(path):
+    from .cooc import load
+
+    return load(path)
+
+
+def condition(model, spec: str) -> np.ndarray:
+    """A co-occurrence tensor from ``crop:Y,X`` (a crop of the training exemplar) or an image."""
+    m = re.fullmatch(r"crop:(\d+),(\d+)", spec.strip())
+    if m:
+        return model.crop_condition(int(m.group(1)), int(m.group(2)))
+    if spec.startswith("crop:"):
+        raise TGHopError(f"{spec!r}: write crop:ROW,COL (pixel position of a crop in the training exemplar)")
+    return model.cooccurrence(load_exemplar(spec))
+
+
+@click.group("cooc")
+def cooc():
+    """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
+
+    \b
+    tghop cooc train texture.jpg -o model.pt            (small config: ~15 min on a CPU)
+    tghop cooc morph model.pt crop:0,0 crop:128,128 -o strip.png
+    tghop cooc morph model.pt crop:0,0 crop:128,128 --grid 5x3 -o grid.png
+    tghop cooc edit model.pt crop:0,0 crop:128,128 --size 256x512 -o edit.png
+    tghop baseline cooc texture.jpg --model model.pt -o out.png --size 512x512
+    """
+
+
+@cooc.command()
+@click.argument("exemplar")
+@click.option("-o", "--output", required=True, help="Checkpoint to write (.pt).")
+@click.option("--paper", is_flag=True, help="The paper's configuration (128 px crops, s = 32, 2,000 crops; hours, GPU).")
+@click.option("--steps", type=click.IntRange(min=0), default=None, help="Generator steps (default: the configuration's).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override a setting, e.g. --set crop_size=32 --set g_widths=[32,16] (repeatable).")
+@click.option("--resume", is_flag=True, help="Continue the checkpoint at OUTPUT (same exemplar) up to --steps.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
+    """Train the co-occurrence cGAN on EXEMPLAR (an image file or builtin:NAME)."""
+    from ._common import ModelFileError
+    from .imageio import check_output_path
+
+    progress = LossProgress(not quiet)
+    with user_errors(progress):
+        from .cooc import PAPER, CoocGAN, _import_torch
+
+        overrides = parse_settings(settings)
+        _import_torch()  # the one-line hint before the exemplar is read
+        check_output_path(output, what="checkpoint", error=ModelFileError)
+        image = load_exemplar(exemplar)
+        if resume:
+            if paper or overrides:
+                raise TGHopError("--resume continues a checkpoint with its own settings; drop --paper and --set")
+            model = load_checkpoint(output)
+            if steps is not None:
+                model.set_params(n_steps=steps)
+            model.fit(image, resume=True, progress=progress, log=progress.log)
+        else:
+            model = CoocGAN(**(PAPER if paper else {}), rng=seed).set_params(**overrides)
+            if steps is not None:
+                model.set_params(n_steps=steps)
+            model.fit(image, progress=progress, log=progress.log)
+        progress.close()
+        model.save(output)
+    click.echo(f"{model.step_} steps trained; checkpoint written to {output}", err=True)
+
+
+@cooc.command()
+@click.argument("model_file", metavar="MODEL")
+@click.argument("a")
+@click.argument("b")
+@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg).")
+@click.option("--length", type=click.IntRange(min=2, max=MAX_CELLS), default=8, show_default=True,
+              help="Strip length in co-occurrence cells (s pixels each).")
+@click.option("--grid", default=None, metavar="COLSxROWS",
+              help="Write the paper's Fig. 2 grid instead: co-occurrence A->B across, noise down, e.g. 5x3.")
+@click.option("--seed", type=click.IntRange(min=0), default=None)
+def morph(model_file, a, b, output, length, grid, seed):
+    """Morph from A to B: a strip (or a grid) whose co-occurrence moves from A to B.
+
+    A and B are crop:ROW,COL (a crop of the training exemplar at that pixel) or images
+    (files or builtin:NAME) whose statistics are measured with the model's colours.
+    """
+    from .imageio import save_image
+    from .patches import patch_grid
+
+    with user_errors():
+        check_output(output)
+        cols = rows = None
+        if grid is not None:
+            m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", grid)
+            if not m or not (1 <= int(m.group(1)) <= 32 and 1 <= int(m.group(2)) <= 32):
+                raise TGHopError(f"--grid {grid!r}: write COLSxROWS with 1 to 32 each, e.g. 5x3")
+            cols, rows = int(m.group(1)), int(m.group(2))
+        model = load_checkpoint(model_file)
+        ca, cb = condition(model, a), condition(model, b)
+        if grid is None:
+            image = model.morph_strip(ca, cb, length=length, rng=seed)
+        else:
+            h = min(ca.shape[1], cb.shape[1])
+            w = min(ca.shape[2], cb.shape[2])
+            tiles = model.morph_grid(ca[:, :h, :w], cb[:, :h, :w], n_cols=cols, n_rows=rows, rng=seed)
+            image = patch_grid(tiles.reshape((-1,) + tiles.shape[2:]), n_cols=cols)
+        save_image(image, output)
+    click.echo(f"morph written to {output}", err=True)
+
+
+@cooc.command()
+@click.argument("model_file", metavar="MODEL")
+@click.argument("sources", nargs=-1)
+@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg).")
+@click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
+@click.option("--mask", default=None,
+              help="Grey image: its levels, quantised to the number of SOURCES, say which source goes where "
+                   "(default: SOURCES side by side, left to right).")
+@click.option("--boost", default=None, metavar="A,B,FACTOR",
+              help="Multiply bin M(A, B) (and M(B, A)) by FACTOR everywhere, then re-normalise (paper Fig. 11).")
+@click.option("--seed", type=click.IntRange(min=0), default=None)
+def edit(model_file, sources, output, size, mask, boost, seed):
+    """Generate from edited co-occurrence: SOURCES' statistics painted where you want them.
+
+    SOURCES are crop:ROW,COL or images, as for morph; none: the exemplar's own tensor.
+    """
+    from .cooc import paint_condition
+    from .imageio import save_image
+    from .quilting import MAX_PIXELS
+
+    with user_errors():
+        check_output(output)
+        if size[0] * size[1] > MAX_PIXELS:
+            raise TGHopError(f"--size {size[0]}x{size[1]} exceeds the limit of {MAX_PIXELS:,} pixels; choose a smaller size")
+        model = load_checkpoint(model_file)
+        s = model.s
+        hh, ww = -(-size[0] // s), -(-size[1] // s)
+        if not sources:
+            cond = model.condition_for(size, rng=seed)
+        else:
+            tensors = [condition(model, spec) for spec in sources]
+            if mask is None:
+                labels = np.minimum(np.arange(ww) * len(tensors) // ww, len(tensors) - 1)
+                labels = np.broadcast_to(labels[None], (hh, ww))
+            else:
+                from PIL import Image
+
+                grey = load_exemplar(mask).mean(axis=2)
+                pil = Image.fromarray(np.round(grey * 255).astype(np.uint8)).resize((ww, hh), Image.BILINEAR)
+                labels = np.minimum((np.asarray(pil) / 256.0 * len(tensors)).astype(int), len(tensors) - 1)
+            cond = paint_condition(tensors, labels)
+        if boost is not None:
+            k = int(round(np.sqrt(cond.shape[0])))
+            try:
+                ia, ib, factor = boost.split(",")
+                ia, ib, factor = int(ia), int(ib), float(factor)
+            except ValueError:
+                raise TGHopError(f"--boost {boost!r}: write A,B,FACTOR, e.g. 0,0,2") from None
+            if not (0 <= ia < k and 0 <= ib < k) or not factor >= 0:
+                raise TGHopError(f"--boost: A and B must lie in 0..{k - 1} and FACTOR be >= 0")
+            cond = cond.copy()
+            cond[ia * k + ib] *= factor
+            if ia != ib:
+                cond[ib * k + ia] *= factor
+        image = model.generate(cond, rng=seed)[: size[0], : size[1]]
+        save_image(image, output)
+    click.echo(f"edited texture written to {output}", err=True)

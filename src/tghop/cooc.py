@@ -1,0 +1,1184 @@
+"""Co-occurrence based texture synthesis (Darzi et al.): a conditional GAN and its controls.
+
+After A. Darzi, I. Lang, A. Taklikar, H. Averbuch-Elor, S. Avidan, "Co-occurrence based
+texture synthesis" (``../shared/papers/003_db2109f0a38f9c15.txt``). A texture is
+described locally by soft colour co-occurrence matrices; a generator turns a grid of
+them (a *co-occurrence tensor*) plus noise into texture, so the user controls the local
+statistics: morph between two textures by interpolating their tensors, walk through
+variations by interpolating the noise, paint statistics where they are wanted.
+
+Co-occurrence (NumPy or PyTorch; this is also what :func:`tghop.metrics.cooccurrence_distance`
+measures, with the same functions):
+
+* :func:`fit_colour_clusters` -- k-means colour centres ``tau_l`` and per-cluster,
+  per-channel spreads ``sigma_l`` (Eq. 2);
+* :func:`soft_assign` -- ``K(I_p, tau_l)`` for every pixel and cluster (Eq. 2);
+* :func:`cooccurrence_matrix` -- one ``k x k`` matrix of a whole image (Eq. 1);
+* :func:`cooccurrence_tensor` -- a matrix per pixel over a patch around it, row-stacked
+  to ``k*k`` channels and average-pooled by ``s`` (Sec. 3): ``(k*k, H/s, W/s)``.
+
+All are vectorised (separable convolutions and integral images) and, on tensors,
+differentiable -- the generator is trained through them.
+
+The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
+
+* :class:`CoocGAN` -- ``fit(exemplar)`` trains it (WGAN-GP plus the paper's co-occurrence
+  consistency loss); ``sample``, ``generate``, ``morph_strip``, ``morph_grid`` and
+  :func:`paint_condition` are the controls; ``save`` / :func:`load` write and read a
+  ``.pt`` checkpoint of tensors only (JSON settings inside), and ``fit(..., resume=True)``
+  continues a loaded one.
+* :data:`SMALL` (the default: trains in minutes on a CPU) and :data:`PAPER` (the paper's
+  setting: hours on a GPU) are the two configurations; ``CoocGAN(**PAPER)`` selects the
+  latter.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import math
+import numbers
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from ._common import (
+    MissingExtraError,
+    ModelFileError,
+    NotFittedError,
+    ProgressCallback,
+    TGHopError,
+    check_image,
+    check_rng,
+    report,
+)
+
+__all__ = [
+    "SMALL",
+    "PAPER",
+    "CoocGAN",
+    "fit_colour_clusters",
+    "soft_assign",
+    "cooccurrence_matrix",
+    "cooccurrence_tensor",
+    "paint_condition",
+    "load",
+]
+
+#: ``kind`` field of a checkpoint's settings; a ``.pt`` without it is not ours.
+KIND = "tghop.cooc"
+#: Checkpoint format version.
+FORMAT = 1
+
+_INSTALL_HINT = "pip install 'tghop[metrics]'"
+
+
+def _import_torch(what: str = "The co-occurrence cGAN"):
+    try:
+        import torch
+    except ImportError:
+        raise MissingExtraError(f"{what} needs PyTorch; install it with: {_INSTALL_HINT}") from None
+    return torch
+
+
+# =======================================================================================
+# Co-occurrence statistics (Eq. 1-2), on NumPy arrays or torch tensors
+# =======================================================================================
+
+
+def fit_colour_clusters(image, *, n_clusters: int = 8, max_fit_pixels: int = 20_000, seed: int = 0):
+    """K-means colour clusters of an image with per-cluster, per-channel spreads (Eq. 2).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1].
+    n_clusters : int
+        k (the paper uses 2, 4 or 8). Fewer if the image has fewer distinct colours.
+    max_fit_pixels : int
+        Pixels sampled for k-means (default 20,000).
+    seed : int
+        Seed of the pixel sample and of k-means.
+
+    Returns
+    -------
+    centres : ndarray, shape (k, C), float64
+        ``tau_l``.
+    spreads : ndarray, shape (k, C), float64
+        ``sigma_l``: standard deviation of each channel among the pixels of cluster l,
+        floored at 0.01.
+    """
+    from sklearn.cluster import KMeans
+    from threadpoolctl import threadpool_limits
+
+    if int(n_clusters) < 1:
+        raise TGHopError(f"n_clusters must be positive, got {n_clusters}")
+    img = check_image(image)
+    pixels = img.reshape(-1, img.shape[2])
+    rng = np.random.default_rng(int(seed))
+    if pixels.shape[0] > int(max_fit_pixels):
+        pixels = pixels[rng.choice(pixels.shape[0], size=int(max_fit_pixels), replace=False)]
+    k = int(min(n_clusters, np.unique(np.round(pixels, 6), axis=0).shape[0]))
+    # A few thousand 3-vectors: one thread is fast, and OpenMP threads busy-waiting on a
+    # loaded machine made this 40 times slower.
+    with threadpool_limits(1, user_api="openmp"):
+        kmeans = KMeans(n_clusters=k, n_init=3, random_state=int(seed)).fit(pixels)
+    centres = kmeans.cluster_centers_
+    spreads = np.full_like(centres, 0.01)
+    for label in range(k):
+        members = pixels[kmeans.labels_ == label]
+        if len(members) > 1:
+            spreads[label] = np.maximum(members.std(axis=0), 0.01)
+    return centres, spreads
+
+
+def _backend(x):
+    """``numpy`` for arrays, ``torch`` for tensors."""
+    if isinstance(x, np.ndarray):
+        return np
+    return _import_torch("Co-occurrence on tensors")
+
+
+def soft_assign(images, centres, spreads):
+    """Eq. 2: ``K(I_p, tau_l) = exp(-sum_i (I_p^i - tau_l^i)^2 / (sigma_l^i)^2)``.
+
+    Parameters
+    ----------
+    images : ndarray or torch.Tensor, shape (N, C, H, W)
+        Float in [0, 1] (channel-first, a batch).
+    centres, spreads : same type as ``images``, shape (k, C)
+
+    Returns
+    -------
+    same type, shape (N, k, H, W)
+    """
+    diff = (images[:, None] - centres[None, :, :, None, None]) / spreads[None, :, :, None, None]
+    xp = _backend(images)
+    return xp.exp(-(diff * diff).sum(2))
+
+
+def _gauss_kernel(sigma: float, radius: int) -> np.ndarray:
+    """``exp(-d^2 / (2 sigma^2))`` for d = -radius..radius (unnormalised, as in Eq. 1)."""
+    d = np.arange(-radius, radius + 1, dtype=np.float64)
+    return np.exp(-(d * d) / (2.0 * sigma * sigma))
+
+
+def _spread(assign, sigma: float, radius: int):
+    """``S_b(p) = sum_{q in window(p), q in image} exp(-|p - q|^2 / (2 sigma^2)) K_b(q)``.
+
+    The 2-D Gaussian over a square window is separable, so two 1-D passes give it
+    exactly; pixels outside the image contribute nothing (zero padding).
+    """
+    g = _gauss_kernel(sigma, radius)
+    if isinstance(assign, np.ndarray):
+        from scipy import ndimage
+
+        out = ndimage.correlate1d(assign, g, axis=-1, mode="constant", cval=0.0)
+        return ndimage.correlate1d(out, g, axis=-2, mode="constant", cval=0.0)
+    torch = _import_torch()
+    n, k, h, w = assign.shape
+    if max(h, w) <= 512:
+        # Banded Gaussian matrices: S = Gy A Gx^T, a matrix product (much faster than a
+        # long 1-D convolution, forward and backward, at these sizes).
+        d_y = np.arange(h)[:, None] - np.arange(h)[None, :]
+        d_x = np.arange(w)[:, None] - np.arange(w)[None, :]
+        gy = np.where(np.abs(d_y) <= radius, np.exp(-(d_y * d_y) / (2.0 * sigma * sigma)), 0.0)
+        gx = np.where(np.abs(d_x) <= radius, np.exp(-(d_x * d_x) / (2.0 * sigma * sigma)), 0.0)
+        return _like(assign, gy) @ assign @ _like(assign, gx.T)
+    f = torch.nn.functional
+    kern = torch.as_tensor(g, dtype=assign.dtype, device=assign.device)
+    x = assign.reshape(n * k, 1, h, w)
+    x = f.conv2d(f.pad(x, (radius, radius, 0, 0)), kern.view(1, 1, 1, -1))
+    x = f.conv2d(f.pad(x, (0, 0, radius, radius)), kern.view(1, 1, -1, 1))
+    return x.reshape(n, k, h, w)
+
+
+def _pair_maps(assign, sigma: float, radius: int):
+    """``P_ab(p) = K_a(p) * S_b(p)``: the Eq. 1 summand of pixel p, summed over its window.
+
+    Returns
+    -------
+    shape (N, k, k, H, W)
+    """
+    spread = _spread(assign, sigma, radius)
+    return assign[:, :, None] * spread[:, None, :]
+
+
+def _symmetric_normalised(m):
+    """``(M + M^T) / 2`` over the last two axes, scaled to sum to 1."""
+    m = 0.5 * (m + m.swapaxes(-1, -2))
+    return m / m.sum((-2, -1))[..., None, None]
+
+
+def cooccurrence_matrix(images, centres, spreads, *, sigma: float = math.sqrt(51.0), window: int = 51,
+                        floor: float = 0.0):
+    """Eq. 1 over a whole image: ``M(a, b) = 1/Z sum_{p, q} exp(-d(p, q)^2 / (2 sigma^2)) K_a(p) K_b(q)``.
+
+    The sum runs over every pixel ``p`` and every ``q`` in the ``window`` x ``window``
+    square around it that lies inside the image. The matrix is symmetric and sums to 1.
+
+    Parameters
+    ----------
+    images : ndarray or torch.Tensor, shape (N, C, H, W)
+        Float in [0, 1].
+    centres, spreads : same type, shape (k, C)
+        From :func:`fit_colour_clusters`.
+    sigma : float
+        Spatial scale in pixels (paper: sigma^2 = 51).
+    window : int
+        Side of the window (paper: 51; an even value acts as the next odd one down).
+    floor : float
+        Added to every soft assignment, so that an image far from every cluster colour
+        still has a defined matrix (the metric uses 1e-12).
+
+    Returns
+    -------
+    same type, shape (N, k, k)
+    """
+    assign = soft_assign(images, centres, spreads) + floor
+    pairs = _pair_maps(assign, float(sigma), int(window) // 2)
+    return _symmetric_normalised(pairs.sum((-2, -1)))
+
+
+def _box_sum2(x, radius: int):
+    """Sum over the ``(2 radius + 1)`` square around each pixel of the last two axes (clipped
+    to the image).
+
+    Up to 512 pixels a side: products with 0/1 band matrices (sums of non-negative terms,
+    exact to round-off even where values span many orders of magnitude -- a generated
+    colour far from every cluster has tiny assignments next to large ones). Larger: by
+    cumulative sums (cost independent of the square, but differences of large sums; the
+    callers use float64 there and clip at 0).
+    """
+    size = 2 * radius + 1
+    h, w = x.shape[-2:]
+    if max(h, w) <= 512:
+        band_h = (np.abs(np.arange(h)[:, None] - np.arange(h)[None, :]) <= radius).astype(np.float64)
+        band_w = (np.abs(np.arange(w)[:, None] - np.arange(w)[None, :]) <= radius).astype(np.float64)
+        return _like(x, band_h) @ x @ _like(x, band_w)
+    for axis in (-1, -2):
+        n = x.shape[axis]
+        if isinstance(x, np.ndarray):
+            pad = [(0, 0)] * x.ndim
+            pad[axis] = (radius + 1, radius)
+            c = np.pad(x, pad).cumsum(axis)
+            x = np.take(c, np.arange(size, size + n), axis=axis) - np.take(c, np.arange(n), axis=axis)
+        else:
+            torch = _import_torch()
+            pad = (radius + 1, radius, 0, 0) if axis == -1 else (0, 0, radius + 1, radius)
+            c = torch.nn.functional.pad(x, pad).cumsum(axis)
+            x = c.narrow(axis, size, n) - c.narrow(axis, 0, n)
+    return x
+
+
+def _like(x, arr: np.ndarray):
+    """``arr`` as the type of ``x`` (same dtype and device for a tensor)."""
+    if isinstance(x, np.ndarray):
+        return arr.astype(x.dtype)
+    torch = _import_torch()
+    return torch.as_tensor(arr, dtype=x.dtype, device=x.device)
+
+
+def _cell_bands(n: int, s: int, cells: int, radius: int) -> np.ndarray:
+    """``B[i, y', y] = 1`` if pixel y is in cell i (of ``s`` pixels) and ``|y - y'| <= radius``.
+
+    Returns
+    -------
+    ndarray, shape (cells, n, n)
+    """
+    y = np.arange(n)
+    near = np.abs(y[:, None] - y[None, :]) <= radius  # (y', y)
+    in_cell = (y[None, :] // s == np.arange(cells)[:, None]) & (y[None, :] < cells * s)  # (i, y)
+    return (near[None] & in_cell[:, None, :]).astype(np.float64)
+
+
+#: Above this many weights (images x cells x pixels), :func:`cooccurrence_tensor` normalises
+#: pixel by pixel instead of through per-cell weight maps (same result, less memory).
+_MAX_CELL_WEIGHTS = 2**24
+
+
+def cooccurrence_tensor(images, centres, spreads, *, patch: int = 65, window: int = 51,
+                        sigma: float = math.sqrt(51.0), s: int = 32, floor: float = 1e-6):
+    """Co-occurrence tensor of image crops (Sec. 3 and 4.1 of Darzi et al.).
+
+    For every pixel ``p`` a ``k x k`` matrix counts the Eq. 1 pairs ``(p', q)`` with
+    ``p'`` in the ``patch`` x ``patch`` square around ``p`` and ``q`` in the ``window`` x
+    ``window`` square around ``p'`` (both clipped to the image; the paper: 65 and 51,
+    sigma^2 = 51). It is symmetrised (``(M + M^T) / 2``: a pair counts for ``(a, b)`` and
+    ``(b, a)`` alike) and normalised to sum to 1. The ``k*k`` entries, row-stacked, form
+    a volume that is average-pooled by ``s`` (every cell still sums to 1).
+
+    Everything is computed on the crop alone, so a generated crop and a real one are
+    measured identically (the paper takes the patches from the whole exemplar).
+
+    Parameters
+    ----------
+    images : ndarray or torch.Tensor, shape (N, C, H, W)
+        Float in [0, 1]. ``H`` and ``W`` at least ``s``; rows and columns beyond the last
+        whole multiple of ``s`` are left out of the pooling.
+    centres, spreads : same type, shape (k, C)
+    patch, window : int
+        Odd sides of the squares (an even value acts as the next odd one down).
+    sigma : float
+    s : int
+        Downsampling factor.
+    floor : float
+        Added to every soft assignment (keeps the matrix defined, and its gradient finite,
+        for colours far from every cluster).
+
+    Returns
+    -------
+    same type, shape (N, k*k, H // s, W // s)
+        Channel ``a * k + b`` is ``M(tau_a, tau_b)``.
+    """
+    n, _, h, w = images.shape
+    s = int(s)
+    if s < 1 or h < s or w < s:
+        raise TGHopError(f"images of {h}x{w} pixels are smaller than the downsampling factor s={s}")
+    assign = soft_assign(images, centres, spreads) + floor  # (N, k, H, W)
+    spread = _spread(assign, float(sigma), int(window) // 2)
+    k = assign.shape[1]
+    r = int(patch) // 2
+    hh, ww = h // s, w // s
+    pairs = (assign[:, :, None] * spread[:, None, :]).reshape(n, k * k, h, w)  # Eq. 1 summand of p'
+    # The total of a pixel's matrix, sum_ab, from one channel: sum_ab K_a S_b = (sum_a K_a)(sum_b S_b).
+    total = _box_sum2((assign.sum(1) * spread.sum(1))[:, None], r)[:, 0]  # (N, H, W)
+    tiny = 1e-30  # never 0: 1 / total multiplies zeros of the band matrices below
+    total = np.maximum(total, tiny) if isinstance(total, np.ndarray) else total.clamp(min=tiny)
+    if n * hh * ww * h * w <= _MAX_CELL_WEIGHTS:
+        # Cell c averages pixels p of its s x s block, each the box sum over its patch
+        # divided by total(p); by linearity that is sum_p' pairs(p') V_c(p'), with weight
+        # maps V_c = box sum of (1[p in c] / total(p)) = By_i (1 / total) Bx_j^T.
+        inv = 1.0 / total
+        by = _like(inv, _cell_bands(h, s, hh, r))  # (hh, H, H)
+        bx = _like(inv, _cell_bands(w, s, ww, r))  # (ww, W, W)
+        rows = by[None] @ inv[:, None]  # (N, hh, H, W)
+        weights = rows[:, :, None] @ bx.swapaxes(-1, -2)[None, None]  # (N, hh, ww, H, W)
+        weights = weights.reshape(n, hh * ww, h * w).swapaxes(1, 2)
+        pooled = (pairs.reshape(n, k * k, h * w) @ weights).reshape(n, k, k, hh, ww) / (s * s)
+    else:
+        local = _box_sum2(pairs, r)
+        # Differences of cumulative sums: clip the round-off below 0 of entries near 0.
+        local = (np.maximum(local, 0.0) if isinstance(local, np.ndarray) else local.clamp(min=0.0)) / total[:, None]
+        pooled = local[:, :, : hh * s, : ww * s].reshape(n, k, k, hh, s, ww, s).mean((4, 6))
+    pooled = 0.5 * (pooled + pooled.swapaxes(1, 2))
+    return pooled.reshape(n, k * k, hh, ww)
+
+
+def paint_condition(tensors, labels):
+    """Compose a co-occurrence tensor from several, cell by cell: ``out[:, y, x] = tensors[labels[y, x]][:, y, x]``.
+
+    Each source is tiled (repeated periodically) to the label map's size first, so a
+    source may be one crop's tensor. This is the paper's Sec. 5.2 / Fig. 14 control:
+    spatially varying statistics for one generated image.
+
+    Parameters
+    ----------
+    tensors : sequence of ndarray, each shape (k*k, h_i, w_i)
+    labels : array_like of int, shape (h, w)
+        Index of the source of each cell.
+
+    Returns
+    -------
+    ndarray, shape (k*k, h, w), float64
+    """
+    labels = np.asarray(labels)
+    if labels.ndim != 2 or labels.dtype.kind not in "iu":
+        raise TGHopError(f"labels must be a 2-D integer array, got shape {labels.shape} and dtype {labels.dtype}")
+    srcs = [np.asarray(t, dtype=np.float64) for t in tensors]
+    if not srcs or any(t.ndim != 3 for t in srcs) or len({t.shape[0] for t in srcs}) > 1:
+        raise TGHopError("tensors must be one or more (k*k, h, w) co-occurrence tensors with the same k")
+    if labels.min() < 0 or labels.max() >= len(srcs):
+        raise TGHopError(f"labels must lie in 0..{len(srcs) - 1}, got {labels.min()}..{labels.max()}")
+    h, w = labels.shape
+    tiled = np.stack([_tile(t, h, w) for t in srcs])  # (n, k*k, h, w)
+    return np.take_along_axis(tiled, labels[None, None], axis=0)[0]
+
+
+def _tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
+    """Periodic tiling of a ``(c, th, tw)`` tensor to ``(c, h, w)`` from ``offset``."""
+    rows = (np.arange(h) + offset[0]) % t.shape[1]
+    cols = (np.arange(w) + offset[1]) % t.shape[2]
+    return t[:, rows][:, :, cols]
+
+
+def _reflect_tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
+    """Mirror tiling (..., a b c c b a a b ...) of ``(c, th, tw)`` to ``(c, h, w)``: no jumps at the joins."""
+
+    def index(n, size, start):
+        period = 2 * size
+        i = (np.arange(n) + start) % period
+        return np.where(i < size, i, period - 1 - i)
+
+    return t[:, index(h, t.shape[1], offset[0])][:, :, index(w, t.shape[2], offset[1])]
+
+
+# =======================================================================================
+# The cGAN
+# =======================================================================================
+
+#: The small configuration, the default of :class:`CoocGAN`: trains on a 2-core CPU in
+#: about 15 minutes for a 256 x 256 exemplar. Everything spatial is at half the paper's
+#: scale (64 px crops, 33 px patches, 25 px windows, sigma^2 = 13), the networks have 4
+#: layers instead of 5 (so s = 16 keeps a 4 x 4 condition) and 8 to 16 times fewer
+#: filters, 800 generator steps of 16 crops with 2 critic steps each.
+SMALL = dict(
+    n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
+    g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
+    n_crops=1000, batch_size=16, n_steps=800, n_critic=2,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+)
+
+#: The paper's configuration (Sec. 4.1): k = 8, 2,000 crops of 128 x 128, s = 32 (5 layers,
+#: a 4 x 4 condition), 65 px patches, 51 px windows, sigma^2 = 51, 120 epochs, Adam
+#: (lr 2e-4, beta1 0.5), gradient penalty weight 1. From PSGAN (Bergmann et al. 2017,
+#: the paper's base): 5 x 5 filters, widths 512-256-128-64 (generator) and 64-128-256-512
+#: (critic), batch 64, Adam beta2 = 0.999, N(0, 0.02) initialisation, tanh output, leaky
+#: ReLU 0.2 in the critic; 30 noise channels (PSGAN's released model uses 30 local noise
+#: dimensions). From WGAN-GP (Gulrajani et al.): 5 critic steps per generator step, no
+#: batch norm in the critic. Not in any of them: the consistency weight 10.
+#: One epoch is n_crops / batch_size generator steps: 120 epochs = 3,750 steps.
+PAPER = dict(
+    n_clusters=8, crop_size=128, n_layers=5, patch=65, window=51, sigma=math.sqrt(51.0),
+    g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
+    n_crops=2000, batch_size=64, n_steps=3750, n_critic=5,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+)
+
+_PARAMS = tuple(SMALL) + ("device", "rng")
+
+
+def _networks(torch, n_colours: int, n_cond: int, p: dict):
+    """Generator and critic modules for settings ``p``."""
+    nn = torch.nn
+    n_layers = int(p["n_layers"])
+
+    class Generator(nn.Module):
+        """``n_layers`` x (nearest upsampling x2, 5x5 conv, batch norm, ReLU); the last conv -> tanh."""
+
+        def __init__(self):
+            super().__init__()
+            widths = list(p["g_widths"]) + [n_colours]
+            layers, cin = [], n_cond + int(p["noise_channels"])
+            for i, cout in enumerate(widths):
+                layers += [nn.Upsample(scale_factor=2, mode="nearest"), nn.Conv2d(cin, cout, 5, padding=2)]
+                layers += [nn.BatchNorm2d(cout), nn.ReLU()] if i < len(widths) - 1 else [nn.Tanh()]
+                cin = cout
+            self.net = nn.Sequential(*layers)
+
+        def forward(self, cond, noise):
+            return self.net(torch.cat([cond, noise], dim=1))
+
+    class Critic(nn.Module):
+        """``n_layers`` 5x5 stride-2 convs (leaky ReLU); the condition joins after the third."""
+
+        def __init__(self):
+            super().__init__()
+            self.join = min(3, n_layers - 1)
+            widths = list(p["d_widths"]) + [1]
+            self.convs = nn.ModuleList()
+            cin = n_colours
+            for i, cout in enumerate(widths):
+                if i == self.join:
+                    cin += n_cond
+                self.convs.append(nn.Conv2d(cin, cout, 5, stride=2, padding=2))
+                cin = cout
+            self.act = nn.LeakyReLU(0.2)
+
+        def forward(self, x, cond):
+            for i, conv in enumerate(self.convs):
+                if i == self.join:
+                    c = nn.functional.interpolate(cond, size=x.shape[-2:], mode="nearest")
+                    x = torch.cat([x, c], dim=1)
+                x = conv(x)
+                if i < len(self.convs) - 1:
+                    x = self.act(x)
+            return x.mean((1, 2, 3))  # one critic value per crop (the map of a fully convolutional critic)
+
+    if len(p["g_widths"]) != n_layers - 1 or len(p["d_widths"]) != n_layers - 1:
+        raise TGHopError(f"g_widths and d_widths need n_layers - 1 = {n_layers - 1} entries each")
+    gen, critic = Generator(), Critic()
+    for module in list(gen.modules()) + list(critic.modules()):  # DCGAN / PSGAN initialisation
+        if isinstance(module, nn.Conv2d):
+            nn.init.normal_(module.weight, 0.0, 0.02)
+            nn.init.zeros_(module.bias)
+        elif isinstance(module, nn.BatchNorm2d):
+            nn.init.normal_(module.weight, 1.0, 0.02)
+            nn.init.zeros_(module.bias)
+    return gen, critic
+
+
+def _exemplar_hash(img: np.ndarray) -> str:
+    return hashlib.sha1(np.round(img * 255).astype(np.uint8).tobytes()).hexdigest()[:16]
+
+
+class CoocGAN:
+    """Co-occurrence conditional GAN of Darzi et al. (texture from local statistics and noise).
+
+    Parameters are those of :data:`SMALL` (the defaults) and :data:`PAPER`; ``CoocGAN(**PAPER)``
+    is the paper's setting. Settings are stored as given; :meth:`fit` checks them.
+
+    Parameters
+    ----------
+    n_clusters : int
+        k colour clusters (the condition has k*k channels).
+    crop_size : int
+        Side n of the training crops; a multiple of ``2**n_layers``.
+    n_layers : int
+        Layers of the generator (each upsamples by 2) and of the critic (each halves);
+        the co-occurrence downsampling is ``s = 2**n_layers``.
+    patch, window, sigma
+        Co-occurrence patch side, pair window side, spatial sigma (:func:`cooccurrence_tensor`).
+    g_widths, d_widths : tuple of int
+        Filters of the hidden generator and critic layers (``n_layers - 1`` each).
+    noise_channels : int
+        Channels of the N(0, 1) noise tensor, same spatial size as the condition.
+    n_crops : int
+        Training crops cut at random positions from the exemplar.
+    batch_size, n_steps, n_critic : int
+        Crops per batch, generator steps, critic steps per generator step.
+    lr, beta1, beta2 : float
+        Adam settings of both networks.
+    lambda_gp, lambda_cooc : float
+        Weights of the gradient penalty (Eq. 4) and the co-occurrence consistency loss (Eq. 3).
+    device : str
+        ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
+    rng : int or numpy.random.Generator, optional
+        Seeds k-means, the crops, the initial weights and the training noise.
+
+    Attributes
+    ----------
+    centres_, spreads_ : ndarray, shape (k, C)
+        Colour clusters.
+    cond_mean_, cond_std_ : ndarray, shape (k*k,)
+        Per-channel statistics of the training tensors; the networks see normalised ones.
+    exemplar_cooc_ : ndarray, shape (k*k, H // s, W // s)
+        The exemplar's own co-occurrence tensor (the default condition of :meth:`sample`).
+    exemplar_shape_ : tuple
+    step_ : int
+        Generator steps trained.
+    history_ : ndarray, shape (n, 5)
+        Per logged step: step, critic loss, generator adversarial loss, consistency loss
+        (the mean L1 per cell), gradient penalty.
+    generator_, critic_ : torch.nn.Module
+    """
+
+    def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
+                 g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=16,
+                 n_steps=800, n_critic=2, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+                 device="auto", rng=None):
+        self.n_clusters = n_clusters
+        self.crop_size = crop_size
+        self.n_layers = n_layers
+        self.patch = patch
+        self.window = window
+        self.sigma = sigma
+        self.g_widths = g_widths
+        self.d_widths = d_widths
+        self.noise_channels = noise_channels
+        self.n_crops = n_crops
+        self.batch_size = batch_size
+        self.n_steps = n_steps
+        self.n_critic = n_critic
+        self.lr = lr
+        self.beta1 = beta1
+        self.beta2 = beta2
+        self.lambda_gp = lambda_gp
+        self.lambda_cooc = lambda_cooc
+        self.device = device
+        self.rng = rng
+
+    # ------------------------------------------------------------------ parameters
+    def get_params(self) -> dict:
+        return {name: getattr(self, name) for name in _PARAMS}
+
+    def set_params(self, **params) -> "CoocGAN":
+        for name, value in params.items():
+            if name not in _PARAMS:
+                raise TGHopError(f"unknown CoocGAN parameter {name!r}")
+            setattr(self, name, value)
+        return self
+
+    @property
+    def s(self) -> int:
+        """Co-occurrence downsampling factor ``2**n_layers``."""
+        return 2 ** int(self.n_layers)
+
+    def _settings(self) -> dict:
+        """The parameters as plain JSON values, checked."""
+        p = {name: getattr(self, name) for name in SMALL}
+        ints = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "n_crops",
+                "batch_size", "n_steps", "n_critic")
+        try:
+            for name in ints:
+                p[name] = int(p[name])
+            for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc"):
+                p[name] = float(p[name])
+            p["g_widths"] = [int(v) for v in p["g_widths"]]
+            p["d_widths"] = [int(v) for v in p["d_widths"]]
+        except (TypeError, ValueError):
+            raise TGHopError(f"CoocGAN settings must be numbers (widths: sequences of int), got {p}") from None
+        if any(p[name] < 1 for name in ints if name != "n_steps") or p["n_steps"] < 0:
+            raise TGHopError("CoocGAN integer settings must be positive (n_steps may be 0)")
+        if p["n_layers"] < 2:
+            raise TGHopError(f"n_layers must be at least 2, got {p['n_layers']}")
+        if p["crop_size"] % (2 ** p["n_layers"]):
+            raise TGHopError(f"crop_size ({p['crop_size']}) must be a multiple of 2**n_layers = {2 ** p['n_layers']}")
+        if not (p["sigma"] > 0 and p["lr"] > 0 and 0 <= p["beta1"] < 1 and 0 <= p["beta2"] < 1
+                and p["lambda_gp"] >= 0 and p["lambda_cooc"] >= 0):
+            raise TGHopError("sigma and lr must be positive, betas in [0, 1), the loss weights >= 0")
+        return p
+
+    def _check_fitted(self):
+        if not hasattr(self, "generator_"):
+            raise NotFittedError("This CoocGAN is not trained yet; call fit(exemplar) or load a checkpoint first")
+
+    def _torch_device(self, torch):
+        if self.device in (None, "auto"):
+            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        try:
+            return torch.device(self.device)
+        except (RuntimeError, TypeError):
+            raise TGHopError(f"device must be 'auto', 'cpu', 'cuda' or a torch device name, got {self.device!r}") from None
+
+    # ------------------------------------------------------------------ statistics
+    def _cooc(self, images):
+        """Co-occurrence tensor of a ``(N, C, H, W)`` tensor in [0, 1] with this model's clusters."""
+        p = self.settings_
+        return cooccurrence_tensor(images, self._centres_t.to(images.dtype), self._spreads_t.to(images.dtype),
+                                   patch=p["patch"], window=p["window"], sigma=p["sigma"], s=self.s)
+
+    def cooccurrence(self, image) -> np.ndarray:
+        """Co-occurrence tensor of an image with this model's colour clusters.
+
+        Parameters
+        ----------
+        image : array_like, shape (H, W) or (H, W, C)
+            Float in [0, 1], at least ``s`` pixels on each side; C as the exemplar's.
+
+        Returns
+        -------
+        ndarray, shape (k*k, H // s, W // s), float64
+            Unnormalised (each cell sums to 1): the form :meth:`generate` takes.
+        """
+        self._check_fitted()
+        torch = _import_torch()
+        img = self._check_colours(check_image(image, min_size=self.s, name="image"))
+        x = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
+        with torch.no_grad():
+            return self._cooc(x)[0].cpu().numpy()
+
+    def _check_colours(self, img: np.ndarray) -> np.ndarray:
+        c = self.exemplar_shape_[2]
+        if img.shape[2] != c:
+            if c == 3 and img.shape[2] == 1:
+                return np.repeat(img, 3, axis=2)
+            raise TGHopError(f"the model was trained on {c}-channel images, got a {img.shape[2]}-channel one; "
+                             "convert it first")
+        return img
+
+    # ------------------------------------------------------------------ training
+    def _build(self, torch, img: np.ndarray, rng: np.random.Generator, progress):
+        """Clusters, training crops and their tensors, networks and optimisers (a fresh fit)."""
+        p = self.settings_
+        seed = int(rng.integers(2**31))
+        self.centres_, self.spreads_ = fit_colour_clusters(img, n_clusters=p["n_clusters"], seed=seed)
+        self._to_device(torch)
+        n = p["crop_size"]
+        if img.shape[0] < n or img.shape[1] < n:
+            raise TGHopError(f"the exemplar is {img.shape[0]}x{img.shape[1]} pixels but crop_size is {n}; "
+                             "use a larger exemplar or a smaller crop_size")
+        ys = rng.integers(img.shape[0] - n + 1, size=p["n_crops"])
+        xs = rng.integers(img.shape[1] - n + 1, size=p["n_crops"])
+        crops = np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)]).transpose(0, 3, 1, 2)
+        self._crops = torch.as_tensor(crops, dtype=torch.float32, device=self._device)
+        conds = []
+        chunk = 64
+        with torch.no_grad():
+            for i in range(0, len(crops), chunk):
+                conds.append(self._cooc(self._crops[i : i + chunk]))
+                report(progress, "co-occurrences", min(i + chunk, len(crops)), len(crops))
+        self._conds = torch.cat(conds)
+        flat = self._conds.double().transpose(0, 1).reshape(self._conds.shape[1], -1)
+        self.cond_mean_ = flat.mean(1).cpu().numpy()
+        self.cond_std_ = np.maximum(flat.std(1).cpu().numpy(), 1e-4)
+        self._to_device(torch)
+        with torch.no_grad():
+            whole = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
+            self.exemplar_cooc_ = self._cooc(whole)[0].cpu().numpy()
+        torch.manual_seed(seed)
+        self.generator_, self.critic_ = _networks(torch, img.shape[2], self._conds.shape[1], p)
+        self.generator_.to(self._device)
+        self.critic_.to(self._device)
+        self._make_optimisers(torch)
+        self.step_ = 0
+        self.history_ = np.zeros((0, 5))
+        self._torch_gen = torch.Generator(device=self._device).manual_seed(seed + 1)
+
+    def _make_optimisers(self, torch):
+        p = self.settings_
+        betas = (p["beta1"], p["beta2"])
+        self._opt_g = torch.optim.Adam(self.generator_.parameters(), lr=p["lr"], betas=betas)
+        self._opt_d = torch.optim.Adam(self.critic_.parameters(), lr=p["lr"], betas=betas)
+
+    def _to_device(self, torch):
+        self._device = self._torch_device(torch)
+        self._centres_t = torch.as_tensor(self.centres_, dtype=torch.float32, device=self._device)
+        self._spreads_t = torch.as_tensor(self.spreads_, dtype=torch.float32, device=self._device)
+        if hasattr(self, "cond_mean_"):
+            self._mean_t = torch.as_tensor(self.cond_mean_, dtype=torch.float32, device=self._device)[:, None, None]
+            self._std_t = torch.as_tensor(self.cond_std_, dtype=torch.float32, device=self._device)[:, None, None]
+
+    def _normalise(self, cond):
+        return (cond - self._mean_t) / self._std_t
+
+    def _noise(self, torch, n, h, w, generator=None):
+        return torch.randn((n, int(self.settings_["noise_channels"]), h, w), generator=generator or self._torch_gen,
+                           device=self._device)
+
+    def _batch(self, torch):
+        idx = torch.randint(len(self._crops), (self.settings_["batch_size"],), generator=self._torch_gen,
+                            device=self._device)
+        return self._crops[idx] * 2.0 - 1.0, self._conds[idx]
+
+    def _critic_step(self, torch, real, cond):
+        p = self.settings_
+        cn = self._normalise(cond)
+        with torch.no_grad():
+            fake = self.generator_(cn, self._noise(torch, len(real), cn.shape[2], cn.shape[3]))
+        u = torch.rand((len(real), 1, 1, 1), generator=self._torch_gen, device=self._device)
+        mix = (u * real + (1 - u) * fake).requires_grad_(True)
+        d_real, d_fake, d_mix = self.critic_(real, cn), self.critic_(fake, cn), self.critic_(mix, cn)
+        (grad,) = torch.autograd.grad(d_mix.sum(), mix, create_graph=True)
+        gp = ((grad.flatten(1).norm(dim=1) - 1.0) ** 2).mean()
+        # Eq. 4 as written is E[D(x_r)] - E[D(x_g)]: a critic that scores real crops high
+        # must *maximise* it, so its loss is the negative (Gulrajani et al.'s sign).
+        loss = d_fake.mean() - d_real.mean() + p["lambda_gp"] * gp
+        self._opt_d.zero_grad(set_to_none=True)
+        loss.backward()
+        self._opt_d.step()
+        return float(loss.detach()), float(gp.detach())
+
+    def _generator_loss(self, torch, cond, noise):
+        """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency)."""
+        cn = self._normalise(cond)
+        fake = self.generator_(cn, noise)
+        adv = -self.critic_(fake, cn).mean()
+        cooc = (self._cooc((fake + 1.0) * 0.5) - cond).abs().sum(1).mean()  # L1 per cell, averaged
+        return adv + self.settings_["lambda_cooc"] * cooc, adv, cooc
+
+    def _generator_step(self, torch, cond, noise=None):
+        if noise is None:
+            noise = self._noise(torch, len(cond), cond.shape[2], cond.shape[3])
+        for q in self.critic_.parameters():
+            q.requires_grad_(False)
+        total, adv, cooc = self._generator_loss(torch, cond, noise)
+        self._opt_g.zero_grad(set_to_none=True)
+        total.backward()
+        self._opt_g.step()
+        for q in self.critic_.parameters():
+            q.requires_grad_(True)
+        return float(adv.detach()), float(cooc.detach())
+
+    def fit(self, exemplar, *, resume: bool = False, max_seconds: Optional[float] = None,
+            progress: Optional[ProgressCallback] = None,
+            log: Optional[Callable[[int, dict], None]] = None) -> "CoocGAN":
+        """Train on one exemplar.
+
+        Parameters
+        ----------
+        exemplar : array_like, shape (H, W) or (H, W, C)
+            Float in [0, 1], at least ``crop_size`` on each side.
+        resume : bool
+            Continue a loaded checkpoint (or an earlier fit) up to ``n_steps`` instead of
+            starting afresh; the exemplar must be the one it was trained on. Crops are cut
+            again from the same seed; optimiser and random-number states come from the
+            checkpoint.
+        max_seconds : float, optional
+            Stop after this much training time (the steps done are in ``step_``).
+        progress : callable, optional
+            ``progress("co-occurrences", done, total)`` then ``progress("training", step, n_steps)``.
+        log : callable, optional
+            ``log(step, losses)`` after every generator step, ``losses`` a dict with
+            ``critic``, ``adversarial``, ``consistency`` and ``gp``.
+
+        Returns
+        -------
+        self
+        """
+        torch = _import_torch()
+        img = check_image(exemplar, name="exemplar")
+        if resume:
+            self._check_fitted()
+            if _exemplar_hash(img) != self.exemplar_hash_:
+                raise TGHopError("resume: this exemplar is not the one the checkpoint was trained on; "
+                                 "give the same image, or train afresh")
+            self.settings_ = {**self.settings_, "n_steps": self._settings()["n_steps"]}
+            self._rebuild_crops(torch, img, progress)
+        else:
+            self.settings_ = self._settings()
+            self.exemplar_shape_ = tuple(int(v) for v in img.shape)
+            self.exemplar_hash_ = _exemplar_hash(img)
+            self._seed_ = int(check_rng(self.rng).integers(2**31))
+            self._build(torch, img, np.random.default_rng(self._seed_), progress)
+        total = self.settings_["n_steps"]
+        self.generator_.train()
+        self.critic_.train()
+        history = [self.history_]
+        start = time.perf_counter()
+        report(progress, "training", self.step_, max(total, self.step_))
+        while self.step_ < total:
+            for _ in range(self.settings_["n_critic"]):
+                real, cond = self._batch(torch)
+                d_loss, gp = self._critic_step(torch, real, cond)
+            _, cond = self._batch(torch)
+            adv, cooc = self._generator_step(torch, cond)
+            self.step_ += 1
+            history.append(np.array([[self.step_, d_loss, adv, cooc, gp]]))
+            if log is not None:
+                log(self.step_, {"critic": d_loss, "adversarial": adv, "consistency": cooc, "gp": gp})
+            report(progress, "training", self.step_, total)
+            if not all(math.isfinite(v) for v in (d_loss, adv, cooc)):
+                raise TGHopError(f"training diverged at step {self.step_} (a loss is not finite); "
+                                 "train again with a lower lr or another seed")
+            if max_seconds is not None and time.perf_counter() - start > max_seconds:
+                break
+        if self.step_ < total:
+            report(progress, "training", total, total)
+        self.history_ = np.concatenate(history)
+        self.generator_.eval()
+        self.critic_.eval()
+        return self
+
+    def _rebuild_crops(self, torch, img, progress):
+        """The training crops of a fresh fit with this seed (a resumed fit needs them again)."""
+        p = self.settings_
+        rng = np.random.default_rng(self._seed_)
+        rng.integers(2**31)  # the clustering seed of _build
+        n = p["crop_size"]
+        ys = rng.integers(img.shape[0] - n + 1, size=p["n_crops"])
+        xs = rng.integers(img.shape[1] - n + 1, size=p["n_crops"])
+        crops = np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)]).transpose(0, 3, 1, 2)
+        self._crops = torch.as_tensor(crops, dtype=torch.float32, device=self._device)
+        conds = []
+        with torch.no_grad():
+            for i in range(0, len(crops), 64):
+                conds.append(self._cooc(self._crops[i : i + 64]))
+                report(progress, "co-occurrences", min(i + 64, len(crops)), len(crops))
+        self._conds = torch.cat(conds)
+
+    # ------------------------------------------------------------------ generation
+    def _check_cond(self, cond) -> np.ndarray:
+        k2 = len(self.cond_mean_)
+        cond = np.asarray(cond, dtype=np.float64)
+        if cond.ndim != 3 or cond.shape[0] != k2:
+            raise TGHopError(f"a co-occurrence tensor of this model has shape ({k2}, h, w), got {cond.shape}")
+        if not np.all(np.isfinite(cond)) or cond.min() < 0:
+            raise TGHopError("a co-occurrence tensor must be finite and non-negative")
+        sums = cond.sum(axis=0)
+        if np.any(sums <= 0):
+            raise TGHopError("every cell of a co-occurrence tensor needs a positive sum")
+        return cond / sums  # each cell a distribution, as after the paper's re-normalisation
+
+    def noise(self, shape, *, rng=None) -> np.ndarray:
+        """A noise tensor for a condition of spatial ``shape = (h, w)``.
+
+        Returns
+        -------
+        ndarray, shape (noise_channels, h, w), float32, N(0, 1)
+        """
+        self._check_fitted()
+        h, w = (int(v) for v in shape)
+        return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
+
+    def generate(self, cond, *, noise=None, rng=None) -> np.ndarray:
+        """Texture from a co-occurrence tensor (and noise).
+
+        Parameters
+        ----------
+        cond : array_like, shape (k*k, h, w)
+            Co-occurrence tensor (from :meth:`cooccurrence`, :func:`paint_condition`, an
+            interpolation or an edit); each cell is re-normalised to sum to 1.
+        noise : array_like, shape (noise_channels, h, w), optional
+            Noise tensor (:meth:`noise`); default drawn from ``rng``.
+        rng : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        ndarray, shape (h * s, w * s, C), float64 in [0, 1]
+        """
+        return self.generate_batch(np.asarray(cond)[None], None if noise is None else np.asarray(noise)[None],
+                                   rng=rng)[0]
+
+    def generate_batch(self, conds, noise=None, *, rng=None) -> np.ndarray:
+        """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``."""
+        self._check_fitted()
+        torch = _import_torch()
+        conds = np.stack([self._check_cond(c) for c in conds])
+        n, _, h, w = conds.shape
+        if noise is None:
+            r = check_rng(rng)
+            noise = np.stack([self.noise((h, w), rng=r) for _ in range(n)])
+        noise = np.asarray(noise, dtype=np.float32)
+        if noise.shape != (n, int(self.settings_["noise_channels"]), h, w):
+            raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
+        with torch.no_grad():
+            c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
+            z = torch.as_tensor(noise, device=self._device)
+            out = self.generator_(c, z)
+        return np.clip((out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5, 0.0, 1.0)
+
+    def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
+        """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
+
+        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``
+        are rounded down to multiples of ``s``; default size ``crop_size``).
+
+        Returns
+        -------
+        ndarray, shape (k*k, size // s, size // s)
+        """
+        self._check_fitted()
+        s = self.s
+        size = int(self.settings_["crop_size"] if size is None else size)
+        t = self.exemplar_cooc_
+        cy, cx, n = int(y) // s, int(x) // s, max(1, size // s)
+        if min(cy, cx) < 0 or cy + n > t.shape[1] or cx + n > t.shape[2]:
+            raise TGHopError(f"a {size}x{size} crop at ({y}, {x}) is not inside the "
+                             f"{self.exemplar_shape_[0]}x{self.exemplar_shape_[1]} exemplar")
+        return t[:, cy : cy + n, cx : cx + n].copy()
+
+    def condition_for(self, size, *, rng=None) -> np.ndarray:
+        """The exemplar's own co-occurrence tensor, mirror-tiled from a random offset to cover ``size``.
+
+        Returns
+        -------
+        ndarray, shape (k*k, ceil(h / s), ceil(w / s))
+        """
+        self._check_fitted()
+        h, w = (int(v) for v in size)
+        s = self.s
+        hh, ww = -(-h // s), -(-w // s)
+        t = self.exemplar_cooc_
+        r = check_rng(rng)
+        offset = (int(r.integers(2 * t.shape[1])), int(r.integers(2 * t.shape[2])))
+        return _reflect_tile(t, hh, ww, offset)
+
+    def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None) -> np.ndarray:
+        """A texture of any size with the exemplar's statistics (:meth:`condition_for` and :meth:`generate`).
+
+        Parameters
+        ----------
+        size : int or (int, int)
+        rng : int or numpy.random.Generator, optional
+            Chooses the condition's offset and the noise.
+        progress : callable, optional
+
+        Returns
+        -------
+        ndarray, shape (h, w, C), float64 in [0, 1]
+        """
+        from .baselines import _output_size
+
+        h, w = _output_size(size, (1, 1))
+        r = check_rng(rng)
+        out = self.generate(self.condition_for((h, w), rng=r), rng=r)
+        report(progress, "generate", 1, 1)
+        return out[:h, :w]
+
+    def morph_strip(self, a, b, *, length: int = 8, rng=None) -> np.ndarray:
+        """One image whose co-occurrence moves from ``a`` to ``b`` left to right, under one noise tensor.
+
+        Parameters
+        ----------
+        a, b : array_like, shape (k*k, h, w)
+            Co-occurrence tensors (e.g. of two crops); tiled along the strip.
+        length : int
+            Strip length in condition cells (the image is ``length * s`` pixels wide).
+        rng : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        ndarray, shape (h * s, length * s, C)
+        """
+        a, b = self._check_cond(a), self._check_cond(b)
+        if a.shape[1] != b.shape[1]:
+            raise TGHopError(f"the two tensors need the same height, got {a.shape[1]} and {b.shape[1]}")
+        length = int(length)
+        if length < 2:
+            raise TGHopError(f"length must be at least 2 cells, got {length}")
+        t = np.linspace(0.0, 1.0, length)[None, None, :]
+        cond = (1 - t) * _tile(a, a.shape[1], length) + t * _tile(b, b.shape[1], length)
+        return self.generate(cond, rng=rng)
+
+    def morph_grid(self, a, b, *, n_cols: int = 5, n_rows: int = 3, rng=None) -> np.ndarray:
+        """The paper's Fig. 2: co-occurrence interpolated across (``a`` to ``b``), noise interpolated down.
+
+        Parameters
+        ----------
+        a, b : array_like, shape (k*k, h, w)
+        n_cols, n_rows : int
+            Interpolation steps of the co-occurrence and of the noise (between two random
+            noise tensors, on the great circle so every row's noise is N(0, 1)-like).
+        rng : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        ndarray, shape (n_rows, n_cols, h * s, w * s, C)
+        """
+        a, b = self._check_cond(a), self._check_cond(b)
+        if a.shape != b.shape:
+            raise TGHopError(f"the two tensors need the same shape, got {a.shape} and {b.shape}")
+        n_cols, n_rows = int(n_cols), int(n_rows)
+        if n_cols < 1 or n_rows < 1:
+            raise TGHopError("n_cols and n_rows must be positive")
+        r = check_rng(rng)
+        z0, z1 = self.noise(a.shape[1:], rng=r), self.noise(a.shape[1:], rng=r)
+        rows = []
+        for v in np.linspace(0.0, 1.0, n_rows):
+            z = (math.cos(v * math.pi / 2) * z0 + math.sin(v * math.pi / 2) * z1).astype(np.float32)
+            conds = [(1 - u) * a + u * b for u in np.linspace(0.0, 1.0, n_cols)]
+            rows.append(self.generate_batch(np.stack(conds), np.stack([z] * n_cols)))
+        return np.stack(rows)
+
+    # ------------------------------------------------------------------ files
+    def save(self, path) -> None:
+        """Write a ``.pt`` checkpoint: tensors only (networks, optimisers, statistics, random
+        states) and the settings as JSON bytes inside; loads with ``weights_only=True``.
+        """
+        self._check_fitted()
+        torch = _import_torch()
+        from .imageio import check_output_path, write_atomic
+
+        check_output_path(path, what="checkpoint", error=ModelFileError)
+        tensors = {}
+        for prefix, module in (("generator", self.generator_), ("critic", self.critic_)):
+            for name, value in module.state_dict().items():
+                tensors[f"{prefix}.{name}"] = value.detach().cpu()
+        groups = {}
+        for prefix, opt in (("opt_g", self._opt_g), ("opt_d", self._opt_d)):
+            sd = opt.state_dict()
+            groups[prefix] = sd["param_groups"]
+            for index, state in sd["state"].items():
+                for name, value in state.items():
+                    tensors[f"{prefix}.{index}.{name}"] = torch.as_tensor(value).detach().cpu()
+        for name in ("centres_", "spreads_", "cond_mean_", "cond_std_", "exemplar_cooc_", "history_"):
+            tensors[name] = torch.as_tensor(np.asarray(getattr(self, name), dtype=np.float64))
+        tensors["torch_rng"] = self._torch_gen.get_state().cpu()
+        settings = {"kind": KIND, "format": FORMAT, "settings": self.settings_, "step": int(self.step_),
+                    "seed": int(self._seed_), "exemplar_shape": list(self.exemplar_shape_),
+                    "exemplar_hash": self.exemplar_hash_, "optimiser_groups": groups,
+                    "device": self.device if isinstance(self.device, str) else "auto"}
+        tensors["settings_json"] = torch.frombuffer(bytearray(json.dumps(settings).encode()), dtype=torch.uint8)
+
+        def write(f):
+            buffer = io.BytesIO()
+            torch.save(tensors, buffer)
+            f.write(buffer.getvalue())
+
+        write_atomic(path, write)
+
+
+def load(path, *, device: str = "auto") -> CoocGAN:
+    """Read a checkpoint written by :meth:`CoocGAN.save`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    device : str
+        Where to put the networks (``"auto"``: CUDA when present).
+
+    Returns
+    -------
+    CoocGAN
+        Trained, in evaluation mode; ``fit(exemplar, resume=True)`` continues it.
+
+    Raises
+    ------
+    ModelFileError
+        Missing file, not a tghop co-occurrence checkpoint, or another format version.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ModelFileError(f"{path}: no such checkpoint; train one with: tghop cooc train EXEMPLAR -o {path.name}")
+    torch = _import_torch()
+    try:
+        tensors = torch.load(path, map_location="cpu", weights_only=True)
+        settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())
+    except Exception:
+        raise ModelFileError(f"{path}: not a tghop co-occurrence checkpoint (written by 'tghop cooc train')") from None
+    if not isinstance(settings, dict) or settings.get("kind") != KIND:
+        raise ModelFileError(f"{path}: a checkpoint of another kind ({settings.get('kind') if isinstance(settings, dict) else '?'!r}), "
+                             "not a tghop co-occurrence model; train one with 'tghop cooc train'")
+    if settings.get("format") != FORMAT:
+        raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
+                             "train it again with this version")
+    try:
+        p = settings["settings"]
+        model = CoocGAN(**p, device=device)
+        model.settings_ = model._settings()
+        model.exemplar_shape_ = tuple(settings["exemplar_shape"])
+        model.exemplar_hash_ = settings["exemplar_hash"]
+        model._seed_ = int(settings["seed"])
+        model.rng = model._seed_
+        model.step_ = int(settings["step"])
+        for name in ("centres_", "spreads_", "cond_mean_", "cond_std_", "exemplar_cooc_", "history_"):
+            setattr(model, name, tensors[name].numpy())
+        model._to_device(torch)
+        gen, critic = _networks(torch, model.exemplar_shape_[2], len(model.cond_mean_), model.settings_)
+        for prefix, module in (("generator", gen), ("critic", critic)):
+            module.load_state_dict({k[len(prefix) + 1 :]: v for k, v in tensors.items() if k.startswith(prefix + ".")})
+            module.to(model._device).eval()
+        model.generator_, model.critic_ = gen, critic
+        model._make_optimisers(torch)
+        for prefix, opt in (("opt_g", model._opt_g), ("opt_d", model._opt_d)):
+            state: dict = {}
+            for key, value in tensors.items():
+                if key.startswith(prefix + "."):
+                    _, index, name = key.split(".", 2)
+                    state.setdefault(int(index), {})[name] = value
+            opt.load_state_dict({"state": state, "param_groups": settings["optimiser_groups"][prefix]})
+        model._torch_gen = torch.Generator(device=model._device)
+        model._torch_gen.set_state(tensors["torch_rng"])
+    except ModelFileError:
+        raise
+    except Exception as exc:
+        raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({exc.__class__.__name__}); "
+                             "train it again") from None
+    return model
+
+
+def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None) -> np.ndarray:
+    """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
+
+    Parameters
+    ----------
+    exemplar : array_like, shape (H, W) or (H, W, C)
+    size : int or (int, int), optional
+        Output size (any); default the exemplar's.
+    rng : int or numpy.random.Generator, optional
+        Seeds training (when ``model`` is None) and generation.
+    progress : callable, optional
+    model : CoocGAN, optional
+        A trained model to use instead of training one.
+    n_steps : int, optional
+        Generator steps of the training (default :data:`SMALL`'s).
+
+    Returns
+    -------
+    ndarray, shape (h, w, C), float64 in [0, 1]
+    """
+    from .baselines import _output_size
+
+    img = check_image(exemplar, name="exemplar")
+    r = check_rng(rng)
+    if model is None:
+        model = CoocGAN(rng=r)
+        if n_steps is not None:
+            model.set_params(n_steps=n_steps)
+        model.fit(img, progress=progress)
+    return model.sample(_output_size(size, img.shape), rng=r, progress=progress)

@@ -1,0 +1,352 @@
+"""The co-occurrence statistics and cGAN of tghop.cooc (Darzi et al.), on tiny inputs."""
+
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tghop import cooc, data
+from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
+
+torch = pytest.importorskip("torch")
+
+#: A tiny configuration: 32 x 32 crops, s = 8, a few filters, two steps.
+TINY = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
+            noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _threads(one_torch_thread):
+    yield
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return data.bricks(48, rng=3)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(exemplar):
+    return cooc.CoocGAN(**TINY, device="cpu", rng=0).fit(exemplar)
+
+
+def clusters(img, k=3):
+    c, s = cooc.fit_colour_clusters(img, n_clusters=k, seed=0)
+    return c, s
+
+
+# ------------------------------------------------------------------ statistics
+def direct_tensor(img, centres, spreads, patch, window, sigma, s):
+    """Eq. 1-2 by loops: per pixel p, pairs (p', q) with p' in the patch around p and q in
+    the window around p' (both inside the image); symmetrised, normalised, pooled by s."""
+    h, w, _ = img.shape
+    k = len(centres)
+    assign = np.exp(-(((img[:, :, None, :] - centres) / spreads) ** 2).sum(-1)) + 1e-6  # (H, W, k)
+    rp, rw = patch // 2, window // 2
+    per_pixel = np.zeros((h, w, k, k))
+    for y in range(h):
+        for x in range(w):
+            m = np.zeros((k, k))
+            for y1 in range(max(0, y - rp), min(h, y + rp + 1)):
+                for x1 in range(max(0, x - rp), min(w, x + rp + 1)):
+                    for y2 in range(max(0, y1 - rw), min(h, y1 + rw + 1)):
+                        for x2 in range(max(0, x1 - rw), min(w, x1 + rw + 1)):
+                            g = math.exp(-((y1 - y2) ** 2 + (x1 - x2) ** 2) / (2 * sigma * sigma))
+                            m += g * np.outer(assign[y1, x1], assign[y2, x2])
+            m = 0.5 * (m + m.T)
+            per_pixel[y, x] = m / m.sum()
+    hh, ww = h // s, w // s
+    pooled = per_pixel[: hh * s, : ww * s].reshape(hh, s, ww, s, k * k).mean((1, 3))
+    return pooled.transpose(2, 0, 1)
+
+
+def test_tensor_matches_direct_loops_in_numpy_and_torch(monkeypatch):
+    img = data.bricks(32, rng=4)[5:15, 3:15]
+    c, s = clusters(img)
+    expected = direct_tensor(img, c, s, patch=5, window=3, sigma=1.5, s=4)
+    x = img.transpose(2, 0, 1)[None]
+    got_np = cooc.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
+    xt, ct, st = (torch.as_tensor(a, dtype=torch.float64) for a in (x, c, s))
+    got_t = cooc.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
+    assert got_np.shape == (9, 2, 3)
+    np.testing.assert_allclose(got_np, expected, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got_t, expected, rtol=1e-9, atol=1e-12)
+    # The per-pixel path (large images) gives the same numbers as the per-cell weights.
+    monkeypatch.setattr(cooc, "_MAX_CELL_WEIGHTS", 0)
+    np.testing.assert_allclose(cooc.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0], expected,
+                               rtol=1e-9, atol=1e-12)
+    got_t2 = cooc.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
+    np.testing.assert_allclose(got_t2, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_matrix_matches_direct_loops_sums_to_one_and_is_symmetric():
+    img = data.bricks(32, rng=5)[:10, :10]
+    c, s = clusters(img)
+    m = cooc.cooccurrence_matrix(img.transpose(2, 0, 1)[None], c, s, sigma=1.2, window=5)[0]
+    assign = np.exp(-(((img[:, :, None, :] - c) / s) ** 2).sum(-1))
+    expected = np.zeros_like(m)
+    for y in range(10):
+        for x in range(10):
+            for y2 in range(max(0, y - 2), min(10, y + 3)):
+                for x2 in range(max(0, x - 2), min(10, x + 3)):
+                    g = math.exp(-((y - y2) ** 2 + (x - x2) ** 2) / (2 * 1.2**2))
+                    expected += g * np.outer(assign[y, x], assign[y2, x2])
+    np.testing.assert_allclose(m, expected / expected.sum(), rtol=1e-9)
+    assert m.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(m, m.T, atol=1e-15)
+    # Isotropic: the transposed image has the same matrix.
+    mt = cooc.cooccurrence_matrix(img.transpose(2, 1, 0)[None], c, s, sigma=1.2, window=5)[0]
+    np.testing.assert_allclose(mt, m, rtol=1e-9)
+
+
+def test_tensor_cells_sum_to_one_and_are_symmetric():
+    img = data.bricks(64, rng=6)
+    c, s = clusters(img, k=4)
+    t = cooc.cooccurrence_tensor(img.transpose(2, 0, 1)[None], c, s, patch=17, window=9, sigma=3.0, s=16)[0]
+    assert t.shape == (16, 4, 4)
+    np.testing.assert_allclose(t.sum(0), 1.0, rtol=1e-9)
+    k = t.reshape(4, 4, 4, 4)
+    np.testing.assert_allclose(k, k.transpose(1, 0, 2, 3), atol=1e-15)
+    # Different parts of a brick texture have different local statistics.
+    assert np.abs(t[:, 0, 0] - t[:, 1, 2]).sum() > 1e-3
+
+
+def test_tensor_is_differentiable():
+    img = torch.rand(2, 3, 16, 16, dtype=torch.float64, requires_grad=True)
+    c = torch.rand(3, 3, dtype=torch.float64)
+    s = torch.full((3, 3), 0.2, dtype=torch.float64)
+    t = cooc.cooccurrence_tensor(img, c, s, patch=5, window=5, sigma=1.0, s=8)
+    assert t.shape == (2, 9, 2, 2)
+    t[:, 0].sum().backward()
+    assert img.grad is not None and torch.isfinite(img.grad).all() and img.grad.abs().sum() > 0
+
+
+def test_far_colours_give_finite_values_and_gradients():
+    """A generated crop with saturated colours far from every cluster (tiny assignments next to
+    large ones) once made a patch total cancel to 0 and the training loss NaN."""
+    c = torch.tensor([[0.3, 0.4, 0.1], [0.5, 0.6, 0.35]])
+    s = torch.full((2, 3), 0.025)
+    x = torch.full((2, 3, 64, 64), 0.45)
+    x[:, :, :20] = 1.0
+    x[:, 0, 50:] = 0.0
+    x.requires_grad_(True)
+    t = cooc.cooccurrence_tensor(x, c, s, patch=33, window=25, sigma=13**0.5, s=16)
+    assert torch.isfinite(t).all() and (t >= 0).all()
+    torch.testing.assert_close(t.sum(1), torch.ones(2, 4, 4))
+    t[:, 1].sum().backward()
+    assert torch.isfinite(x.grad).all()
+
+
+def test_metric_uses_the_shared_statistics():
+    from tghop.metrics import cooccurrence_distance
+
+    a, b = data.bricks(40, rng=1), data.bricks(40, rng=2)
+    assert cooccurrence_distance(a, a) == 0.0
+    assert 0 < cooccurrence_distance(a, b, n_clusters=3) <= 2
+
+
+def test_paint_condition_places_sources():
+    a, b = np.zeros((4, 1, 1)), np.ones((4, 2, 2))
+    labels = np.array([[0, 1, 1], [0, 0, 1]])
+    out = cooc.paint_condition([a, b], labels)
+    assert out.shape == (4, 2, 3)
+    np.testing.assert_array_equal(out[0], labels.astype(float))
+    with pytest.raises(TGHopError, match="labels"):
+        cooc.paint_condition([a, b], labels + 1)
+
+
+# ------------------------------------------------------------------ the cGAN
+def test_not_fitted_and_bad_settings(exemplar):
+    with pytest.raises(NotFittedError):
+        cooc.CoocGAN().sample(32)
+    with pytest.raises(TGHopError, match="multiple of"):
+        cooc.CoocGAN(**{**TINY, "crop_size": 30}).fit(exemplar)
+    with pytest.raises(TGHopError, match="crop_size"):
+        cooc.CoocGAN(**{**TINY, "crop_size": 64}).fit(exemplar)
+
+
+def test_generator_is_fully_convolutional(tiny_model):
+    s = tiny_model.s
+    assert s == 8
+    cond = tiny_model.crop_condition(0, 0)
+    assert cond.shape == (9, 4, 4)
+    for h, w in [(1, 1), (3, 5), (6, 2)]:
+        out = tiny_model.generate(cooc._tile(cond, h, w), rng=0)
+        assert out.shape == (h * s, w * s, 3)
+        assert out.min() >= 0 and out.max() <= 1
+    assert tiny_model.sample((50, 37), rng=1).shape == (50, 37, 3)
+
+
+def test_generation_is_seeded_and_noise_matters(tiny_model):
+    cond = tiny_model.crop_condition(8, 8)
+    a, b = tiny_model.generate(cond, rng=3), tiny_model.generate(cond, rng=3)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, tiny_model.generate(cond, rng=4))
+
+
+def test_one_step_lowers_the_consistency_loss(exemplar):
+    model = cooc.CoocGAN(**{**TINY, "n_steps": 0, "lr": 1e-3}, device="cpu", rng=1).fit(exemplar)
+    model.generator_.train()
+    cond = model._conds[:4]
+    noise = model._noise(torch, 4, cond.shape[2], cond.shape[3])
+    with torch.no_grad():
+        before = float(model._generator_loss(torch, cond, noise)[2])
+    model._generator_step(torch, cond, noise)
+    with torch.no_grad():
+        after = float(model._generator_loss(torch, cond, noise)[2])
+    assert after < before
+
+
+def test_training_logs_losses_and_progress(exemplar):
+    logs, stages = [], []
+    model = cooc.CoocGAN(**TINY, device="cpu", rng=2).fit(
+        exemplar, log=lambda step, losses: logs.append((step, losses)), progress=lambda *a: stages.append(a))
+    assert [s for s, _ in logs] == [1, 2]
+    assert set(logs[0][1]) == {"critic", "adversarial", "consistency", "gp"}
+    assert ("training", 2, 2) in stages and any(s[0] == "co-occurrences" for s in stages)
+    assert model.history_.shape == (2, 5) and model.step_ == 2
+
+
+def test_checkpoint_roundtrip_and_resume(tiny_model, exemplar, tmp_path):
+    path = tmp_path / "m.pt"
+    tiny_model.save(path)
+    again = cooc.load(path, device="cpu")
+    cond = tiny_model.crop_condition(16, 0)
+    np.testing.assert_array_equal(again.generate(cond, rng=5), tiny_model.generate(cond, rng=5))
+    np.testing.assert_array_equal(again.exemplar_cooc_, tiny_model.exemplar_cooc_)
+    # weights_only loading: only tensors inside.
+    raw = torch.load(path, weights_only=True)
+    assert all(isinstance(v, torch.Tensor) for v in raw.values())
+    # Resuming 2 + 2 steps equals training 4 steps at once.
+    direct = cooc.CoocGAN(**{**TINY, "n_steps": 4}, device="cpu", rng=0).fit(exemplar)
+    resumed = cooc.load(path, device="cpu").set_params(n_steps=4).fit(exemplar, resume=True)
+    assert resumed.step_ == 4
+    for p, q in zip(direct.generator_.state_dict().values(), resumed.generator_.state_dict().values()):
+        torch.testing.assert_close(p, q)
+    with pytest.raises(TGHopError, match="not the one"):
+        cooc.load(path, device="cpu").fit(data.bricks(48, rng=9), resume=True)
+
+
+def test_bad_checkpoints(tmp_path):
+    with pytest.raises(ModelFileError, match="no such checkpoint"):
+        cooc.load(tmp_path / "missing.pt")
+    other = tmp_path / "other.pt"
+    torch.save({"weight": torch.zeros(3)}, other)
+    with pytest.raises(ModelFileError, match="not a tghop co-occurrence checkpoint"):
+        cooc.load(other)
+    foreign = tmp_path / "foreign.pt"
+    settings = b'{"kind": "something.else", "format": 1}'
+    torch.save({"settings_json": torch.frombuffer(bytearray(settings), dtype=torch.uint8)}, foreign)
+    with pytest.raises(ModelFileError, match="another kind"):
+        cooc.load(foreign)
+    text = tmp_path / "text.pt"
+    text.write_text("hello")
+    with pytest.raises(ModelFileError, match="not a tghop"):
+        cooc.load(text)
+
+
+def test_condition_checks(tiny_model):
+    with pytest.raises(TGHopError, match="shape"):
+        tiny_model.generate(np.ones((4, 2, 2)))
+    with pytest.raises(TGHopError, match="non-negative"):
+        tiny_model.generate(-np.ones((9, 2, 2)))
+    with pytest.raises(TGHopError, match="not inside"):
+        tiny_model.crop_condition(40, 40)
+
+
+def test_morph_strip_and_grid(tiny_model):
+    a, b = tiny_model.crop_condition(0, 0), tiny_model.crop_condition(16, 16)
+    strip = tiny_model.morph_strip(a, b, length=6, rng=0)
+    assert strip.shape == (32, 48, 3)
+    grid = tiny_model.morph_grid(a, b, n_cols=3, n_rows=2, rng=0)
+    assert grid.shape == (2, 3, 32, 32, 3)
+    # The first column of the first row is generated from a, the last from b, under one noise.
+    z = tiny_model.noise(a.shape[1:], rng=np.random.default_rng(0))
+    np.testing.assert_allclose(grid[0, 0], tiny_model.generate(a, noise=z), atol=1e-6)
+
+
+def test_without_torch(monkeypatch, exemplar):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    with pytest.raises(MissingExtraError, match=r"pip install 'tghop\[metrics\]'"):
+        cooc.CoocGAN(**TINY).fit(exemplar)
+    with pytest.raises(MissingExtraError):
+        cooc.load(__file__)  # an existing file: the torch check comes after the existence check
+    # The NumPy statistics (and the metric) do not need torch.
+    c, s = clusters(exemplar)
+    assert cooc.cooccurrence_matrix(exemplar.transpose(2, 0, 1)[None], c, s)[0].sum() == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------ command line
+def run(*args, env_extra=None):
+    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning", **(env_extra or {})}
+    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
+
+
+def assert_user_error(r, *fragments):
+    err = r.stderr.decode()
+    assert r.returncode != 0
+    assert "Traceback" not in err
+    lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
+    assert len(lines) == 1, err
+    for fragment in fragments:
+        assert fragment in lines[0], err
+
+
+TINY_SET = ["--set", "n_clusters=3", "--set", "crop_size=32", "--set", "n_layers=3", "--set", "patch=9",
+            "--set", "window=7", "--set", "sigma=2", "--set", "g_widths=[8,4]", "--set", "d_widths=[4,8]",
+            "--set", "noise_channels=2", "--set", "n_crops=8", "--set", "batch_size=4", "--set", "n_critic=1"]
+
+
+def test_cli_end_to_end(tmp_path):
+    from PIL import Image
+
+    from tghop.imageio import save_image
+
+    save_image(data.bricks(48, rng=3), tmp_path / "ex.png")
+    model = tmp_path / "m.pt"
+    r = run("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "1", "-q", *TINY_SET)
+    assert r.returncode == 0, r.stderr.decode()
+    assert "1 steps trained" in r.stderr.decode()
+    r = run("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "2", "--resume", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert "2 steps trained" in r.stderr.decode()
+    r = run("baseline", "cooc", tmp_path / "ex.png", "--model", model, "-o", tmp_path / "b.png", "--size", "40x70",
+            "--seed", "1", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(tmp_path / "b.png")).shape == (40, 70, 3)
+    r = run("cooc", "morph", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "strip.png", "--length", "5")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(tmp_path / "strip.png")).shape == (32, 40, 3)
+    r = run("cooc", "morph", model, "crop:0,0", tmp_path / "ex.png", "-o", tmp_path / "grid.png", "--grid", "3x2")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(tmp_path / "grid.png")).shape == (2 * 34 - 2, 3 * 34 - 2, 3)
+    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "edit.png", "--size", "24x64",
+            "--boost", "0,1,2")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(tmp_path / "edit.png")).shape == (24, 64, 3)
+
+
+def test_cli_errors(tmp_path):
+    import torch as _torch
+
+    out = tmp_path / "o.png"
+    assert_user_error(run("cooc", "morph", tmp_path / "none.pt", "crop:0,0", "crop:0,0", "-o", out),
+                      "no such checkpoint")
+    other = tmp_path / "other.pt"
+    _torch.save({"w": _torch.zeros(2)}, other)
+    assert_user_error(run("cooc", "edit", other, "-o", out), "not a tghop co-occurrence checkpoint")
+    assert_user_error(run("cooc", "train", "builtin:bricks", "-o", tmp_path / "m.pt", "--set", "bogus=1"), "--set")
+    assert not out.exists()
+    # Without torch: a fake package that fails to import stands in for a missing install.
+    fake = tmp_path / "fake"
+    (fake / "torch").mkdir(parents=True)
+    (fake / "torch" / "__init__.py").write_text("raise ImportError('no torch here')\n")
+    path = os.pathsep.join([str(fake), os.environ.get("PYTHONPATH", "")])
+    r = run("cooc", "train", "builtin:bricks", "-o", tmp_path / "m.pt", env_extra={"PYTHONPATH": path})
+    assert_user_error(r, "needs PyTorch", "pip install 'tghop[metrics]'")
+    r = run("baseline", "cooc", "builtin:bricks", "-o", out, env_extra={"PYTHONPATH": path})
+    assert_user_error(r, "needs PyTorch")
+    assert not out.exists()
