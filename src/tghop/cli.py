@@ -152,7 +152,7 @@ def model_options(func):
         click.option("--max-cluster-components", type=click.IntRange(min=1), default=None,
                      help="Components per cluster at most [default: 100; --paper: 50]."),
         click.option("--paper", is_flag=True,
-                     help="The paper's pipeline exactly: Table 4 core model (F about 2,500) and no colour matching."),
+                     help="The paper's pipeline exactly: Table 4 core model (F about 2,500), no colour matching, no refinement."),
         click.option("--reject-threshold", type=float, default=None,
                      help="Sampling step (iv): redraw samples with no component above this."),
         click.option("--max-patches", type=click.IntRange(min=1), default=20000, show_default=True,
@@ -328,11 +328,13 @@ def stage_sheet(views, patch_size):
               help="Quilting: choose among patches within (1+tolerance) of the best match.")
 @click.option("--match-colours/--no-match-colours", default=None,
               help="Match the result's colour histograms to the exemplar's [default: on; off with --paper].")
+@click.option("--refine", type=click.IntRange(min=0, max=20), default=None,
+              help="Rounds of multi-scale histogram matching after quilting, 0 = off [default: 3; 0 with --paper].")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
 @model_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, save_model, quiet,
+def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, refine, save_model, quiet,
           **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from .imageio import save_image
@@ -356,11 +358,14 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, mat
                 write_model(model, save_model)
         if match_colours is None:
             match_colours = not options["paper"]
+        if refine is None:
+            refine = 0 if options["paper"] else 3
         rng = np.random.default_rng(seed)
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
             image = model.synthesize(size, rng=rng, n_patches=pool, tile=tile, overlap=overlap,
-                                     tolerance=tolerance, match_colours=match_colours, progress=progress)
+                                     tolerance=tolerance, match_colours=match_colours, refine=refine,
+                                     progress=progress)
             progress.close()
             save_image(image, path)
     if output != "-":

@@ -23,6 +23,7 @@ import numpy as np
 from . import __version__
 from ._common import ModelFileError
 from .core import ICHM, SpatialReduction
+from .refine import BandStatistics
 from .hops import Hop, HopStack
 from .imageio import check_output_path, write_atomic
 from .saab import Saab
@@ -30,7 +31,7 @@ from .saab import Saab
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: refinement statistics (refine.*)
 
 #: Table 4 row of each array-name prefix.
 GROUPS = {
@@ -41,6 +42,7 @@ GROUPS = {
     "ichm_ii": "core ICHM (ii)",
     "ichm_iii": "core ICHM (iii)",
     "colour": "colour matching (ours)",
+    "refine": "refinement (ours)",
 }
 
 
@@ -60,6 +62,10 @@ CORE_ARRAYS = [
     ("ichm_iii.cdf_max", "ichm_", "cdf_max_", np.float64),
     ("ichm_iii.codebook", "ichm_", "codebook_", np.float64),
     ("colour.quantiles", None, "colour_quantiles_", np.float64),
+    ("refine.colour_mean", "bands_", "colour_mean_", np.float64),
+    ("refine.colour_basis", "bands_", "colour_basis_", np.float64),
+    ("refine.band_quantiles", "bands_", "band_quantiles_", np.float64),
+    ("refine.pixel_quantiles", "bands_", "pixel_quantiles_", np.float64),
 ]
 
 
@@ -197,6 +203,7 @@ def load_model(path):
             min_cluster_size=model.min_cluster_size, reject_threshold=model.reject_threshold,
         )
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+        model.bands_ = BandStatistics(n_levels=model.band_levels)
         for name, part, attribute, dtype in CORE_ARRAYS:
             setattr(getattr(model, part) if part else model, attribute, arrays[name].astype(dtype, copy=False))
         model.sdr_.kept_per_channel_ = np.bincount(model.sdr_.channel_, minlength=model.sdr_.shape_[2])

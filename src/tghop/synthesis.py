@@ -30,6 +30,7 @@ from .hops import HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .quilting import quilt
+from .refine import BandStatistics, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
@@ -110,6 +111,9 @@ class TGHop(BaseEstimator):
     max_patches : int or None, default=20000
         Training patches beyond this are subsampled at random (bounds memory for large
         exemplars; a 256x256 exemplar at stride 2 has 12,769).
+    band_levels : int, default=4
+        Laplacian bands whose distributions are learned for the refinement after
+        stitching (:mod:`tghop.refine`, our addition; used when ``synthesize(refine=...)``).
     rng : int or numpy.random.Generator, optional
         Randomness of fitting (patch subsampling, K-means, FastICA).
 
@@ -121,6 +125,9 @@ class TGHop(BaseEstimator):
     exemplar_shape_ : tuple
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
+    bands_ : tghop.refine.BandStatistics
+        The exemplar's band and pixel distributions in its decorrelated colour space, for
+        the refinement after stitching.
     n_patches_ : int
         Training patches used.
     """
@@ -140,6 +147,7 @@ class TGHop(BaseEstimator):
         min_cluster_size=10,
         reject_threshold=None,
         max_patches=20000,
+        band_levels=4,
         rng=None,
     ):
         self.patch_size = patch_size
@@ -155,6 +163,7 @@ class TGHop(BaseEstimator):
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.max_patches = max_patches
+        self.band_levels = band_levels
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -211,6 +220,7 @@ class TGHop(BaseEstimator):
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
         self.colour_quantiles_ = channel_quantiles(image)
+        self.bands_ = BandStatistics(n_levels=self.band_levels).fit(image)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -277,6 +287,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+        paper["refinement (ours)"] = ("(levels+1)*C*257 + C*(C+1) (not in the paper)", 0)
         stored = parameter_groups(model_arrays(self))
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
@@ -386,7 +397,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, progress=None):
+                   tolerance=0.1, match_colours=True, refine=3, progress=None):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -405,8 +416,12 @@ class TGHop(BaseEstimator):
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
+        refine : int
+            Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style,
+            our addition, see :mod:`tghop.refine`): sharpens the soft quilted image; 0 is
+            off, as in the paper.
         progress : callable, optional
-            Stages "patch pool" and "quilting".
+            Stages "patch pool", "quilting" and "refine".
 
         Returns
         -------
@@ -419,4 +434,8 @@ class TGHop(BaseEstimator):
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
         image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        if refine:
+            report(progress, "refine", 0, 1)
+            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
+            report(progress, "refine", 1, 1)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
