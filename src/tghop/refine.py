@@ -184,10 +184,16 @@ class BandStatistics:
         return self
 
     def to_decorrelated(self, img):
-        return (img - self.colour_mean_) @ self.colour_basis_.T
+        """(H, W, C) colours -> coordinates on the principal axes (same dtype)."""
+        img = np.asarray(img)
+        mean, basis = (a.astype(img.dtype) for a in (self.colour_mean_, self.colour_basis_))
+        return ((img - mean).reshape(-1, img.shape[-1]) @ basis.T).reshape(img.shape)
 
     def from_decorrelated(self, dec):
-        return dec @ self.colour_basis_ + self.colour_mean_
+        """Inverse of :meth:`to_decorrelated`."""
+        dec = np.asarray(dec)
+        mean, basis = (a.astype(dec.dtype) for a in (self.colour_mean_, self.colour_basis_))
+        return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
 def refine(image, stats, *, n_iter=3, levels=None, tile=False):
@@ -221,7 +227,7 @@ def refine(image, stats, *, n_iter=3, levels=None, tile=False):
     q = stats.band_quantiles_
     n_levels = len(q) if levels is None else min(levels, len(q))
     qlev = np.linspace(0.0, 1.0, q.shape[2])
-    dec = stats.to_decorrelated(image).astype(np.float32)
+    dec = stats.to_decorrelated(image.astype(np.float32))
     c = dec.shape[2]
     for _ in range(n_iter):
         bands = laplacian_pyramid(dec, n_levels, mode=mode)
@@ -231,4 +237,4 @@ def refine(image, stats, *, n_iter=3, levels=None, tile=False):
         dec = reconstruct(bands, mode=mode)
         for k in range(c):
             dec[..., k] = _match(dec[..., k], stats.pixel_quantiles_[k], qlev)
-    return np.clip(stats.from_decorrelated(dec.astype(np.float64)), 0.0, 1.0)
+    return np.clip(stats.from_decorrelated(dec), 0.0, 1.0).astype(np.float64)
