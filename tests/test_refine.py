@@ -6,7 +6,7 @@ from scipy import ndimage
 
 from tghop import data
 from tghop._common import TGHopError
-from tghop.refine import BandStatistics, laplacian_pyramid, reconstruct, refine
+from tghop.refine import BandStatistics, laplacian_pyramid, oriented_parts, reconstruct, refine
 
 
 @pytest.fixture(scope="module")
@@ -27,17 +27,34 @@ def test_pyramid_is_exact(shape, mode, rng):
     assert np.abs(reconstruct(bands, mode=mode) - img).max() < 1e-5
 
 
-def test_band_statistics_shapes(cells):
-    st = BandStatistics(n_levels=3, n_quantiles=65).fit(cells)
-    assert st.band_quantiles_.shape == (3, 3, 65) and st.pixel_quantiles_.shape == (3, 65)
+@pytest.mark.parametrize("n", [0, 1, 2, 4])
+def test_oriented_parts_sum_to_band(n, rng):
+    band = rng.standard_normal((20, 33, 3)).astype(np.float32)
+    parts = oriented_parts(band, n)
+    assert len(parts) == max(n, 1)
+    assert np.abs(np.sum(parts, axis=0) - band).max() < 1e-4
+
+
+def test_oriented_parts_separate_directions():
+    y, x = np.mgrid[:64, :64]
+    vertical_stripes = np.sin(2 * np.pi * x / 8.0)[..., None]
+    energy = [float(np.sum(p ** 2)) for p in oriented_parts(vertical_stripes, 4)]
+    assert np.argmax(energy) == 0 and energy[2] < 1e-6 * energy[0]
+
+
+@pytest.mark.parametrize("n_orientations", [0, 4])
+def test_band_statistics_shapes(cells, n_orientations):
+    st = BandStatistics(n_levels=3, n_orientations=n_orientations, n_quantiles=65).fit(cells)
+    assert st.band_quantiles_.shape == (3, max(n_orientations, 1), 3, 65) and st.pixel_quantiles_.shape == (3, 65)
     assert np.allclose(st.colour_basis_ @ st.colour_basis_.T, np.eye(3))
-    assert np.all(np.diff(st.band_quantiles_, axis=2) >= 0)
+    assert np.all(np.diff(st.band_quantiles_, axis=-1) >= 0)
     assert np.allclose(st.from_decorrelated(st.to_decorrelated(cells)), cells)
 
 
-def test_refine_restores_fine_detail(cells):
+@pytest.mark.parametrize("n_orientations", [0, 4])
+def test_refine_restores_fine_detail(cells, n_orientations):
     """A blurred copy regains the exemplar's fine-band contrast and pixel distribution."""
-    st = BandStatistics().fit(cells)
+    st = BandStatistics(n_orientations=n_orientations).fit(cells)
     soft = _blurred(cells)
     out = refine(soft, st, n_iter=3)
     assert out.shape == soft.shape and out.dtype == np.float64 and 0 <= out.min() and out.max() <= 1
@@ -78,6 +95,8 @@ def test_refine_errors(cells):
         refine(cells, st, n_iter=-1)
     with pytest.raises(TGHopError, match="channels"):
         refine(cells[..., :1], st)
+    with pytest.raises(TGHopError, match="n_orientations"):
+        BandStatistics(n_orientations=-1).fit(cells)
 
 
 def test_synthesize_refine_switch(small_model, bricks96):
@@ -97,4 +116,4 @@ def test_refine_survives_save_and_load(small_model, tmp_path):
     loaded = load_model(path)
     assert np.array_equal(loaded.synthesize((48, 48), rng=4, n_patches=200),
                           small_model.synthesize((48, 48), rng=4, n_patches=200))
-    assert small_model.n_parameters()["refinement (ours)"]["stored"] == 5 * 3 * 257 + 3 + 9
+    assert small_model.n_parameters()["refinement (ours)"]["stored"] == (4 * 4 + 1) * 3 * 257 + 3 + 9

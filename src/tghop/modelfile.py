@@ -203,7 +203,7 @@ def load_model(path):
             min_cluster_size=model.min_cluster_size, reject_threshold=model.reject_threshold,
         )
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
-        model.bands_ = BandStatistics(n_levels=model.band_levels)
+        model.bands_ = BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)
         for name, part, attribute, dtype in CORE_ARRAYS:
             setattr(getattr(model, part) if part else model, attribute, arrays[name].astype(dtype, copy=False))
         model.sdr_.kept_per_channel_ = np.bincount(model.sdr_.channel_, minlength=model.sdr_.shape_[2])

@@ -19,10 +19,11 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from scipy import fft as sp_fft
 
 from ._common import TGHopError
 
-__all__ = ["BandStatistics", "refine", "laplacian_pyramid", "reconstruct"]
+__all__ = ["BandStatistics", "refine", "laplacian_pyramid", "reconstruct", "oriented_parts"]
 
 #: Values used to estimate an image band's quantiles (a strided subset beyond this).
 _MAX_VALUES = 1 << 16
@@ -139,6 +140,32 @@ def _match(values, target, levels, out=None):
     return out
 
 
+def _orientation_masks(shape, n_orientations):
+    """Angular windows ``cos^2(theta - k pi / n) * 2 / n`` over the rfft2 grid; they sum to 1."""
+    fy = np.fft.fftfreq(shape[0])[:, None]
+    fx = np.fft.rfftfreq(shape[1])[None, :]
+    theta = np.arctan2(fy, fx)
+    return [(np.cos(theta - k * np.pi / n_orientations) ** 2 * (2.0 / n_orientations))[..., None]
+            for k in range(n_orientations)]
+
+
+def oriented_parts(band, n_orientations):
+    """Split an (h, w, C) band into ``n_orientations`` oriented parts that sum to it.
+
+    Each part keeps the band's spatial frequencies weighted by an angular window
+    (steerable-pyramid style, in the Fourier domain, periodic boundaries). 0 or 1: the
+    band itself.
+    """
+    if n_orientations <= 1:
+        return [band]
+    spectrum = sp_fft.rfft2(band, axes=(0, 1))  # complex64 for float32 bands
+    masks = _orientation_masks(band.shape, n_orientations)
+    parts = [sp_fft.irfft2(spectrum * m.astype(band.dtype), s=band.shape[:2], axes=(0, 1)).astype(band.dtype, copy=False)
+             for m in masks[:-1]]
+    parts.append(band - np.sum(parts, axis=0))  # the windows sum to 1
+    return parts
+
+
 class BandStatistics:
     """What the refinement learns from the exemplar.
 
@@ -146,27 +173,33 @@ class BandStatistics:
     ----------
     n_levels : int, default=4
         Laplacian bands matched (finest first).
+    n_orientations : int, default=4
+        Oriented parts per band (0: the Laplacian band as a whole).
     n_quantiles : int, default=257
-        Quantile levels per band and channel.
+        Quantile levels per band, orientation and channel.
 
     Attributes
     ----------
     colour_mean_ : ndarray, shape (C,)
     colour_basis_ : ndarray, shape (C, C)
         Rows: principal axes of the exemplar's colours.
-    band_quantiles_ : ndarray, shape (n_levels, C, n_quantiles)
-        Quantiles of each band of the exemplar in the decorrelated space.
+    band_quantiles_ : ndarray, shape (n_levels, max(n_orientations, 1), C, n_quantiles)
+        Quantiles of each band (and oriented part) of the exemplar in the decorrelated space.
     pixel_quantiles_ : ndarray, shape (C, n_quantiles)
         Quantiles of the exemplar's pixels in the decorrelated space.
     """
 
-    def __init__(self, n_levels=4, n_quantiles=257, decorrelate=True):
+    def __init__(self, n_levels=4, n_orientations=4, n_quantiles=257):
         self.n_levels = n_levels
+        self.n_orientations = n_orientations
         self.n_quantiles = n_quantiles
-        self.decorrelate = decorrelate
 
     def fit(self, exemplar):
         """Learn from an (H, W, C) exemplar in [0, 1]; returns self."""
+        for name in ("n_levels", "n_orientations"):
+            value = getattr(self, name)
+            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
+                raise TGHopError(f"{name} must be a non-negative integer, got {value!r}")
         img = np.asarray(exemplar, dtype=np.float64)
         c = img.shape[2]
         flat = img.reshape(-1, c)
@@ -175,11 +208,13 @@ class BandStatistics:
         _, vecs = np.linalg.eigh(cov)
         vecs = vecs[:, ::-1]
         vecs *= np.where(vecs.sum(axis=0) < 0, -1.0, 1.0)  # deterministic signs
-        self.colour_basis_ = vecs.T if self.decorrelate else np.eye(c)
+        self.colour_basis_ = vecs.T
         levels = np.linspace(0.0, 1.0, self.n_quantiles)
-        dec = self.to_decorrelated(img)
+        dec = self.to_decorrelated(img.astype(np.float32))
         bands = laplacian_pyramid(dec, self.n_levels)[:-1]
-        self.band_quantiles_ = np.array([[_quantiles(b[..., k], levels) for k in range(c)] for b in bands])
+        self.band_quantiles_ = np.array(
+            [[[_quantiles(part[..., k], levels) for k in range(c)] for part in oriented_parts(b, self.n_orientations)]
+             for b in bands]).reshape(len(bands), max(self.n_orientations, 1), c, self.n_quantiles)
         self.pixel_quantiles_ = np.array([_quantiles(dec[..., k], levels) for k in range(c)])
         return self
 
@@ -196,18 +231,21 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=3, levels=None, tile=False):
+def refine(image, stats, *, n_iter=3, tile=False):
     """Heeger-Bergen refinement of a synthesised image.
+
+    Each round gives every band (every oriented part of it) of the image's Laplacian
+    pyramid, in the exemplar's decorrelated colour space, the exemplar's distribution,
+    rebuilds the image and gives its pixels the exemplar's distribution. Monotone maps
+    only: the layout stays, the contrast of detail at each scale becomes the exemplar's.
 
     Parameters
     ----------
     image : ndarray, shape (H, W, C), in [0, 1]
     stats : BandStatistics
-        Fitted on the exemplar.
+        Fitted on the exemplar (same C).
     n_iter : int
-        Rounds of (match every band, rebuild, match pixels).
-    levels : int, optional
-        Bands matched (default: all the stats hold).
+        Rounds (0: the image, clipped).
     tile : bool
         Periodic boundaries (for tileable output).
 
@@ -225,15 +263,18 @@ def refine(image, stats, *, n_iter=3, levels=None, tile=False):
         return np.clip(image, 0.0, 1.0)
     mode = "wrap" if tile else "reflect"
     q = stats.band_quantiles_
-    n_levels = len(q) if levels is None else min(levels, len(q))
-    qlev = np.linspace(0.0, 1.0, q.shape[2])
+    n_parts = q.shape[1]
+    qlev = np.linspace(0.0, 1.0, q.shape[-1])
     dec = stats.to_decorrelated(image.astype(np.float32))
     c = dec.shape[2]
     for _ in range(n_iter):
-        bands = laplacian_pyramid(dec, n_levels, mode=mode)
-        for i, band in enumerate(bands[:-1]):
-            for k in range(c):
-                band[..., k] = _match(band[..., k], q[i, k], qlev)
+        bands = laplacian_pyramid(dec, len(q), mode=mode)
+        for i in range(len(bands) - 1):
+            parts = oriented_parts(bands[i], n_parts)
+            for j, part in enumerate(parts):
+                for k in range(c):
+                    part[..., k] = _match(part[..., k], q[i, j, k], qlev)
+            bands[i] = parts[0] if n_parts == 1 else np.sum(parts, axis=0)
         dec = reconstruct(bands, mode=mode)
         for k in range(c):
             dec[..., k] = _match(dec[..., k], stats.pixel_quantiles_[k], qlev)

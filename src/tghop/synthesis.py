@@ -114,6 +114,8 @@ class TGHop(BaseEstimator):
     band_levels : int, default=4
         Laplacian bands whose distributions are learned for the refinement after
         stitching (:mod:`tghop.refine`, our addition; used when ``synthesize(refine=...)``).
+    band_orientations : int, default=4
+        Oriented parts per band for the refinement (0: whole Laplacian bands).
     rng : int or numpy.random.Generator, optional
         Randomness of fitting (patch subsampling, K-means, FastICA).
 
@@ -148,6 +150,7 @@ class TGHop(BaseEstimator):
         reject_threshold=None,
         max_patches=20000,
         band_levels=4,
+        band_orientations=4,
         rng=None,
     ):
         self.patch_size = patch_size
@@ -164,6 +167,7 @@ class TGHop(BaseEstimator):
         self.reject_threshold = reject_threshold
         self.max_patches = max_patches
         self.band_levels = band_levels
+        self.band_orientations = band_orientations
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -220,7 +224,7 @@ class TGHop(BaseEstimator):
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
         self.colour_quantiles_ = channel_quantiles(image)
-        self.bands_ = BandStatistics(n_levels=self.band_levels).fit(image)
+        self.bands_ = BandStatistics(n_levels=self.band_levels, n_orientations=self.band_orientations).fit(image)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -287,7 +291,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
-        paper["refinement (ours)"] = ("(levels+1)*C*257 + C*(C+1) (not in the paper)", 0)
+        paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
         stored = parameter_groups(model_arrays(self))
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
