@@ -70,36 +70,38 @@ def _up_axis(img, axis, n, mode):
     return _take(out, axis, 0, n)
 
 
-def _down(img, mode):
-    return _down_axis(_down_axis(img, 0, mode), 1, mode)
+def _down(img, mode, axes):
+    return _down_axis(_down_axis(img, axes[0], mode), axes[1], mode)
 
 
-def _up(img, shape, mode):
-    return _up_axis(_up_axis(img, 0, shape[0], mode), 1, shape[1], mode)
+def _up(img, shape, mode, axes):
+    return _up_axis(_up_axis(img, axes[0], shape[axes[0]], mode), axes[1], shape[axes[1]], mode)
 
 
-def laplacian_pyramid(img, n_levels, *, mode="reflect"):
-    """Bands ``[L0 (finest), ..., L{n-1}, low-pass]`` of an (H, W, C) image.
+def laplacian_pyramid(img, n_levels, *, mode="reflect", axes=(0, 1)):
+    """Bands ``[L0 (finest), ..., L{n-1}, low-pass]`` of an image.
 
-    Exact: :func:`reconstruct` returns the image (up to rounding).
+    ``axes`` are the spatial axes: (0, 1) for (H, W, C), (1, 2) for (C, H, W). Fewer
+    levels when the image gets smaller than 2 pixels. Exact: :func:`reconstruct`
+    returns the image (up to rounding).
     """
     bands = []
     cur = img
     for _ in range(n_levels):
-        if min(cur.shape[:2]) < 2:
+        if min(cur.shape[axes[0]], cur.shape[axes[1]]) < 2:
             break
-        low = _down(cur, mode)
-        bands.append(cur - _up(low, cur.shape, mode))
+        low = _down(cur, mode, axes)
+        bands.append(cur - _up(low, cur.shape, mode, axes))
         cur = low
     bands.append(cur)
     return bands
 
 
-def reconstruct(bands, *, mode="reflect"):
+def reconstruct(bands, *, mode="reflect", axes=(0, 1)):
     """Inverse of :func:`laplacian_pyramid`."""
     cur = bands[-1]
     for band in reversed(bands[:-1]):
-        cur = band + _up(cur, band.shape, mode)
+        cur = band + _up(cur, band.shape, mode, axes)
     return cur
 
 
@@ -140,27 +142,30 @@ def _match(values, target, levels, out=None):
     return out
 
 
-def _orientation_masks(shape, n_orientations):
+def _orientation_masks(h, w, n_orientations, dtype):
     """Angular windows ``cos^2(theta - k pi / n) * 2 / n`` over the rfft2 grid; they sum to 1."""
-    fy = np.fft.fftfreq(shape[0])[:, None]
-    fx = np.fft.rfftfreq(shape[1])[None, :]
+    fy = np.fft.fftfreq(h)[:, None]
+    fx = np.fft.rfftfreq(w)[None, :]
     theta = np.arctan2(fy, fx)
-    return [(np.cos(theta - k * np.pi / n_orientations) ** 2 * (2.0 / n_orientations))[..., None]
+    return [(np.cos(theta - k * np.pi / n_orientations) ** 2 * (2.0 / n_orientations)).astype(dtype)
             for k in range(n_orientations)]
 
 
-def oriented_parts(band, n_orientations):
-    """Split an (h, w, C) band into ``n_orientations`` oriented parts that sum to it.
+def oriented_parts(band, n_orientations, *, axes=(0, 1)):
+    """Split a band into ``n_orientations`` oriented parts that sum to it.
 
     Each part keeps the band's spatial frequencies weighted by an angular window
     (steerable-pyramid style, in the Fourier domain, periodic boundaries). 0 or 1: the
-    band itself.
+    band itself. ``axes``: the spatial axes, as in :func:`laplacian_pyramid`.
     """
     if n_orientations <= 1:
         return [band]
-    spectrum = sp_fft.rfft2(band, axes=(0, 1))  # complex64 for float32 bands
-    masks = _orientation_masks(band.shape, n_orientations)
-    parts = [sp_fft.irfft2(spectrum * m.astype(band.dtype), s=band.shape[:2], axes=(0, 1)).astype(band.dtype, copy=False)
+    h, w = band.shape[axes[0]], band.shape[axes[1]]
+    spectrum = sp_fft.rfft2(band, axes=axes)  # complex64 for float32 bands
+    masks = _orientation_masks(h, w, n_orientations, band.dtype)
+    if tuple(axes) == (0, 1):
+        masks = [m[..., None] for m in masks]
+    parts = [sp_fft.irfft2(spectrum * m, s=(h, w), axes=axes).astype(band.dtype, copy=False)
              for m in masks[:-1]]
     parts.append(band - np.sum(parts, axis=0))  # the windows sum to 1
     return parts
@@ -210,12 +215,13 @@ class BandStatistics:
         vecs *= np.where(vecs.sum(axis=0) < 0, -1.0, 1.0)  # deterministic signs
         self.colour_basis_ = vecs.T
         levels = np.linspace(0.0, 1.0, self.n_quantiles)
-        dec = self.to_decorrelated(img.astype(np.float32))
-        bands = laplacian_pyramid(dec, self.n_levels)[:-1]
+        dec = np.ascontiguousarray(np.moveaxis(self.to_decorrelated(img.astype(np.float32)), 2, 0))
+        bands = laplacian_pyramid(dec, self.n_levels, axes=(1, 2))[:-1]
         self.band_quantiles_ = np.array(
-            [[[_quantiles(part[..., k], levels) for k in range(c)] for part in oriented_parts(b, self.n_orientations)]
+            [[[_quantiles(part[k], levels) for k in range(c)]
+              for part in oriented_parts(b, self.n_orientations, axes=(1, 2))]
              for b in bands]).reshape(len(bands), max(self.n_orientations, 1), c, self.n_quantiles)
-        self.pixel_quantiles_ = np.array([_quantiles(dec[..., k], levels) for k in range(c)])
+        self.pixel_quantiles_ = np.array([_quantiles(dec[k], levels) for k in range(c)])
         return self
 
     def to_decorrelated(self, img):
@@ -265,17 +271,18 @@ def refine(image, stats, *, n_iter=3, tile=False):
     q = stats.band_quantiles_
     n_parts = q.shape[1]
     qlev = np.linspace(0.0, 1.0, q.shape[-1])
-    dec = stats.to_decorrelated(image.astype(np.float32))
-    c = dec.shape[2]
+    # Channel-first inside: every band of every channel is one contiguous array.
+    dec = np.ascontiguousarray(np.moveaxis(stats.to_decorrelated(image.astype(np.float32)), 2, 0))
+    c = dec.shape[0]
     for _ in range(n_iter):
-        bands = laplacian_pyramid(dec, len(q), mode=mode)
+        bands = laplacian_pyramid(dec, len(q), mode=mode, axes=(1, 2))
         for i in range(len(bands) - 1):
-            parts = oriented_parts(bands[i], n_parts)
+            parts = oriented_parts(bands[i], n_parts, axes=(1, 2))
             for j, part in enumerate(parts):
                 for k in range(c):
-                    part[..., k] = _match(part[..., k], q[i, j, k], qlev)
+                    _match(part[k], q[i, j, k], qlev, out=part[k])
             bands[i] = parts[0] if n_parts == 1 else np.sum(parts, axis=0)
-        dec = reconstruct(bands, mode=mode)
+        dec = reconstruct(bands, mode=mode, axes=(1, 2))
         for k in range(c):
-            dec[..., k] = _match(dec[..., k], stats.pixel_quantiles_[k], qlev)
-    return np.clip(stats.from_decorrelated(dec), 0.0, 1.0).astype(np.float64)
+            _match(dec[k], stats.pixel_quantiles_[k], qlev, out=dec[k])
+    return np.clip(stats.from_decorrelated(np.moveaxis(dec, 0, 2)), 0.0, 1.0).astype(np.float64)
