@@ -42,7 +42,7 @@ METRICS = ("sifid", "swd", "cooccurrence", "copied")
 
 #: Named variants: (fit keyword arguments of TGHop, synthesize keyword arguments).
 VARIANTS = {
-    "paper": ("PAPER", {"match_colours": False}),
+    "paper": ("PAPER", {"match_colours": False, "refine": 0}),
     "default": ({}, {}),
 }
 

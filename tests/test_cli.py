@@ -101,6 +101,14 @@ def test_synth_same_seed_same_image(model_path, workdir):
     assert np.array_equal(np.asarray(Image.open(workdir / "s1.png")), np.asarray(Image.open(workdir / "s2.png")))
 
 
+def test_synth_refine_switch(model_path, workdir):
+    for name, extra in (("r3.png", []), ("r0.png", ["--refine", "0"])):
+        r = run("synth", model_path, "-o", workdir / name, "--size", "48", "--pool", "300", "--seed", "9", "-q", *extra)
+        assert r.returncode == 0, r.stderr.decode()
+    assert not np.array_equal(np.asarray(Image.open(workdir / "r3.png")), np.asarray(Image.open(workdir / "r0.png")))
+    assert_user_error(run("synth", model_path, "-o", workdir / "x.png", "--refine", "-1"), "--refine")
+
+
 def test_builtin_exemplar(workdir):
     r = run("fit", "builtin:nope", "-o", workdir / "x.npz")
     assert_user_error(r, "unknown built-in exemplar", "bricks")

@@ -246,6 +246,11 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("max_patches", 20000, "int",
             "Training patches beyond this are subsampled at random (a 256x256 exemplar at stride 2 has "
             "12,769).", low=1, none_ok=True),
+    Setting("band_levels", 4, "int",
+            "Laplacian bands whose distributions are learned for the refinement after stitching "
+            "(:mod:`tghop.refine`, ours).", low=1, high=8),
+    Setting("band_orientations", 4, "int",
+            "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
             cli=("--fit-seed",)),
     # ---------------------------------------------------------------- generation time
@@ -260,6 +265,10 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("match_colours", True, "bool",
             "Match each channel's histogram to the exemplar's after quilting (ours; False: the paper's "
             "pipeline).", when="generate", paper=False),
+    Setting("refine", 3, "int",
+            "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
+            ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
+            when="generate", low=0, high=20, paper=0),
 )
 
 BY_NAME = {s.name: s for s in SETTINGS}

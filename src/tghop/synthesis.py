@@ -29,6 +29,7 @@ from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .quilting import quilt
+from .refine import BandStatistics, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
@@ -129,6 +130,9 @@ class TGHop(BaseEstimator):
     exemplar_shape_ : tuple
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
+    bands_ : tghop.refine.BandStatistics
+        The exemplar's band and pixel distributions in its decorrelated colour space, for
+        the refinement after stitching.
     n_patches_ : int
         Training patches used.
     """
@@ -186,6 +190,7 @@ class TGHop(BaseEstimator):
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
         self.colour_quantiles_ = channel_quantiles(image)
+        self.bands_ = BandStatistics(n_levels=self.band_levels, n_orientations=self.band_orientations).fit(image)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -208,6 +213,7 @@ class TGHop(BaseEstimator):
         out.update(self.sdr_._to_arrays())
         out.update(self.ichm_._to_arrays())
         out["colour.quantiles"] = self.colour_quantiles_
+        out.update(self.bands_._to_arrays())
         return out
 
     def _state_meta(self) -> dict:
@@ -248,6 +254,8 @@ class TGHop(BaseEstimator):
         model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
+        model.bands_ = BandStatistics(n_levels=model.band_levels,
+                                      n_orientations=model.band_orientations)._from_arrays(arrays)
         model._check_consistent()
         model._decoder = None
         return model
@@ -266,6 +274,7 @@ class TGHop(BaseEstimator):
             self.hops_.hops_[-1].n_channels_out_ == sdr.shape_[2],
             abs(float(ichm.weights_.sum()) - 1.0) < 1e-6,
             self.colour_quantiles_.shape[0] == self.exemplar_shape_[2],
+            self.bands_.colour_basis_.shape == (self.exemplar_shape_[2],) * 2,
         ]
         if not all(checks):
             raise ValueError("array shapes disagree")
@@ -298,7 +307,7 @@ class TGHop(BaseEstimator):
         dict
             ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
             "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", "colour matching (ours)" and "total". "paper" applies the paper's formula to this
+            "(ii)", "(iii)", "colour matching (ours)", "refinement (ours)" and "total". "paper" applies the paper's formula to this
             model's dimensions; "stored" counts the numbers this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
             the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
@@ -322,6 +331,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+        paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
         stored = parameter_groups(self._to_arrays())
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
@@ -452,7 +462,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, progress=None):
+                   tolerance=0.1, match_colours=True, refine=3, progress=None):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -472,8 +482,12 @@ class TGHop(BaseEstimator):
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
+        refine : int
+            Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style,
+            our addition, see :mod:`tghop.refine`): restores the contrast of fine detail;
+            0 is off, as in the paper.
         progress : callable, optional
-            Stages "patch pool" and "quilting".
+            Stages "patch pool", "quilting" and "refine".
 
         Returns
         -------
@@ -481,13 +495,17 @@ class TGHop(BaseEstimator):
         """
         check_is_fitted(self, "ichm_")
         settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                     match_colours=match_colours))
+                                     match_colours=match_colours, refine=refine))
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
         image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        if refine:
+            report(progress, "refine", 0, 1)
+            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
+            report(progress, "refine", 1, 1)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
 
 
@@ -504,6 +522,7 @@ GROUPS = {
     "ichm_ii": "core ICHM (ii)",
     "ichm_iii": "core ICHM (iii)",
     "colour": "colour matching (ours)",
+    "refine": "refinement (ours)",
 }
 
 
