@@ -104,7 +104,7 @@ def test_synthesize_refine_switch(small_model, bricks96):
     refined = small_model.synthesize((64, 64), rng=1, n_patches=300)
     assert refined.shape == plain.shape and not np.allclose(plain, refined)
     assert np.array_equal(refined, small_model.synthesize((64, 64), rng=1, n_patches=300))
-    with pytest.raises(TGHopError, match="n_iter"):
+    with pytest.raises(TGHopError, match="refine"):
         small_model.synthesize((64, 64), rng=1, n_patches=300, refine=-2)
 
 
