@@ -157,6 +157,9 @@ def model_options(func):
                      help="Sampling step (iv): redraw samples with no component above this."),
         click.option("--max-patches", type=click.IntRange(min=1), default=20000, show_default=True,
                      help="Subsample training patches beyond this many."),
+        click.option("--layout", "layout_factor", type=click.IntRange(min=0), default=None,
+                     help="Coarse-to-fine: also model the layout on the exemplar downsampled by this factor "
+                          "and quilt guided by it; 0 turns it off [default: the estimator's; --paper: off]."),
         click.option("--fit-seed", type=click.IntRange(min=0), default=0, show_default=True,
                      help="Seed of fitting (K-means, FastICA)."),
     ]
@@ -166,7 +169,8 @@ def model_options(func):
 
 
 def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, cluster_energy,
-                max_cluster_components, paper, reject_threshold, max_patches, fit_seed, n_colours=3):
+                max_cluster_components, paper, reject_threshold, max_patches, fit_seed, layout_factor=None,
+                n_colours=3):
     from .synthesis import PAPER_TABLE4, TGHop, default_channels
 
     defaults_from = PAPER_TABLE4 if paper else TGHop().get_params()
@@ -174,6 +178,12 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
         cluster_energy = defaults_from["cluster_energy"]
     if max_cluster_components is None:
         max_cluster_components = defaults_from["max_cluster_components"]
+    if layout_factor is None:
+        layout_factor = None if paper else TGHop().get_params()["layout_factor"]
+    elif layout_factor == 0:
+        layout_factor = None
+    elif layout_factor == 1:
+        raise TGHopError("--layout must be 0 (off) or a downsampling factor of at least 2")
 
     patch_size = int(patch_size)
     defaults = default_channels(patch_size, n_colours)
@@ -184,7 +194,7 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
     return TGHop(
         patch_size=patch_size, stride=stride, n_channels=channels, gamma=gamma, n_clusters=n_clusters,
         n_codewords=n_codewords, cluster_energy=cluster_energy, max_cluster_components=max_cluster_components,
-        reject_threshold=reject_threshold, max_patches=max_patches, rng=fit_seed,
+        reject_threshold=reject_threshold, max_patches=max_patches, layout_factor=layout_factor, rng=fit_seed,
     )
 
 
@@ -328,12 +338,14 @@ def stage_sheet(views, patch_size):
               help="Quilting: choose among patches within (1+tolerance) of the best match.")
 @click.option("--match-colours/--no-match-colours", default=None,
               help="Match the result's colour histograms to the exemplar's [default: on; off with --paper].")
+@click.option("--layout-weight", type=click.FloatRange(min=0), default=1.0, show_default=True,
+              help="Weight of the coarse layout's guide in quilting (models fitted with --layout; 0 ignores it).")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
 @model_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, save_model, quiet,
-          **options):
+def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, layout_weight, save_model,
+          quiet, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from .imageio import save_image
     from .modelfile import load_model, save_model as write_model
@@ -360,7 +372,8 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, mat
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
             image = model.synthesize(size, rng=rng, n_patches=pool, tile=tile, overlap=overlap,
-                                     tolerance=tolerance, match_colours=match_colours, progress=progress)
+                                     tolerance=tolerance, match_colours=match_colours, layout_weight=layout_weight,
+                                     progress=progress)
             progress.close()
             save_image(image, path)
     if output != "-":

@@ -41,6 +41,7 @@ GROUPS = {
     "ichm_ii": "core ICHM (ii)",
     "ichm_iii": "core ICHM (iii)",
     "colour": "colour matching (ours)",
+    "layout": "coarse layout (ours)",
 }
 
 
@@ -64,7 +65,9 @@ CORE_ARRAYS = [
 
 
 def _group(name: str):
-    part = name.split(".", 1)[0]
+    part, _, rest = name.partition(".")
+    if part == "layout":  # the coarse model's arrays: one row, its bookkeeping excluded
+        return None if rest.startswith("index.") else GROUPS["layout"]
     if part == "index":
         return None
     if part in GROUPS:
@@ -101,6 +104,8 @@ def model_arrays(model) -> dict:
         out[f"index.hop{i}_energy"] = hop.energy_
     for name, part, attribute, _ in CORE_ARRAYS:
         out[name] = getattr(getattr(model, part) if part else model, attribute)
+    if getattr(model, "layout_", None) is not None:
+        out.update({f"layout.{k}": v for k, v in model_arrays(model.layout_.model_).items()})
     return out
 
 
@@ -117,10 +122,16 @@ def save_model(model, path) -> None:
     from sklearn.utils.validation import check_is_fitted
 
     check_is_fitted(model, "ichm_")
+    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "tghop_version": __version__, **_meta(model)}
+    arrays = model_arrays(model)
+    arrays["__meta__"] = np.array(json.dumps(meta))
+    check_output_path(path, what="model", error=ModelFileError)
+    write_atomic(path, lambda fh: np.savez(fh, **arrays))
+
+
+def _meta(model) -> dict:
+    """The JSON metadata of a fitted model (and of its coarse layout model, if any)."""
     meta = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "tghop_version": __version__,
         "params": _params_json(model),
         "exemplar_shape": list(model.exemplar_shape_),
         "n_patches": model.n_patches_,
@@ -129,10 +140,12 @@ def save_model(model, path) -> None:
         "sdr_shape": list(model.sdr_.shape_),
         "ica_unconverged": int(model.ichm_.n_ica_unconverged_),
     }
-    arrays = model_arrays(model)
-    arrays["__meta__"] = np.array(json.dumps(meta))
-    check_output_path(path, what="model", error=ModelFileError)
-    write_atomic(path, lambda fh: np.savez(fh, **arrays))
+    layout = getattr(model, "layout_", None)
+    if layout is not None:
+        params = layout.get_params()
+        params["rng"] = None
+        meta["layout"] = {"params": params, "model": _meta(layout.model_)}
+    return meta
 
 
 def _read(path):
@@ -176,33 +189,46 @@ def load_model(path):
     ModelFileError
         The file is missing, not a tghop model, corrupt, or of another format version.
     """
-    from .synthesis import TGHop
-
     meta, arrays = _read(path)
     try:
-        model = TGHop(**meta["params"])
-        model.exemplar_shape_ = tuple(meta["exemplar_shape"])
-        model.n_patches_ = int(meta["n_patches"])
-        stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
-        stack.hops_ = []
-        for i, info in enumerate(meta["hops"], start=1):
-            stack.hops_.append(_rebuild_hop(info, arrays, i))
-        stack.dims_ = [int(d) for d in meta["hop_dims"]]
-        model.hops_ = stack
-        model.sdr_ = SpatialReduction(gamma=model.gamma, gamma_mode=model.gamma_mode)
-        model.sdr_.shape_ = tuple(meta["sdr_shape"])
-        model.ichm_ = ICHM(
-            n_clusters=model.n_clusters, n_codewords=model.n_codewords, n_bins=model.n_bins,
-            cluster_energy=model.cluster_energy, max_cluster_components=model.max_cluster_components,
-            min_cluster_size=model.min_cluster_size, reject_threshold=model.reject_threshold,
-        )
-        model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
-        for name, part, attribute, dtype in CORE_ARRAYS:
-            setattr(getattr(model, part) if part else model, attribute, arrays[name].astype(dtype, copy=False))
-        model.sdr_.kept_per_channel_ = np.bincount(model.sdr_.channel_, minlength=model.sdr_.shape_[2])
-        _check_consistent(model)
+        model = _build(meta, arrays)
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); fit the model again") from None
+    return model
+
+
+def _build(meta, arrays):
+    """A fitted TGHop from its metadata and arrays (recursing into the coarse layout)."""
+    from .layout import CoarseLayout
+    from .synthesis import TGHop
+
+    model = TGHop(**meta["params"])
+    model.exemplar_shape_ = tuple(meta["exemplar_shape"])
+    model.n_patches_ = int(meta["n_patches"])
+    stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
+    stack.hops_ = []
+    for i, info in enumerate(meta["hops"], start=1):
+        stack.hops_.append(_rebuild_hop(info, arrays, i))
+    stack.dims_ = [int(d) for d in meta["hop_dims"]]
+    model.hops_ = stack
+    model.sdr_ = SpatialReduction(gamma=model.gamma, gamma_mode=model.gamma_mode)
+    model.sdr_.shape_ = tuple(meta["sdr_shape"])
+    model.ichm_ = ICHM(
+        n_clusters=model.n_clusters, n_codewords=model.n_codewords, n_bins=model.n_bins,
+        cluster_energy=model.cluster_energy, max_cluster_components=model.max_cluster_components,
+        min_cluster_size=model.min_cluster_size, reject_threshold=model.reject_threshold,
+    )
+    model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+    for name, part, attribute, dtype in CORE_ARRAYS:
+        setattr(getattr(model, part) if part else model, attribute, arrays[name].astype(dtype, copy=False))
+    model.sdr_.kept_per_channel_ = np.bincount(model.sdr_.channel_, minlength=model.sdr_.shape_[2])
+    _check_consistent(model)
+    model.layout_ = None
+    if meta.get("layout") is not None:
+        model.layout_ = CoarseLayout(**meta["layout"]["params"])
+        prefix = "layout."
+        sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
+        model.layout_.model_ = _build(meta["layout"]["model"], sub)
     model._decoder = None
     return model
 

@@ -27,6 +27,7 @@ from sklearn.utils.validation import check_is_fitted
 from ._common import TGHopError, check_image, check_rng, report
 from .core import ICHM, SpatialReduction
 from .hops import HopStack
+from .layout import CoarseLayout
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .quilting import quilt
@@ -110,6 +111,11 @@ class TGHop(BaseEstimator):
     max_patches : int or None, default=20000
         Training patches beyond this are subsampled at random (bounds memory for large
         exemplars; a 256x256 exemplar at stride 2 has 12,769).
+    layout_factor : int or None, default=None
+        Also fit a coarse model of the layout on the exemplar downsampled by this factor
+        (:class:`tghop.layout.CoarseLayout`); :meth:`synthesize` then quilts guided by a
+        coarse synthesis (coarse to fine, our addition). None: off (the paper). Skipped
+        (``layout_ = None``) for an exemplar smaller than ``layout_factor * patch_size``.
     rng : int or numpy.random.Generator, optional
         Randomness of fitting (patch subsampling, K-means, FastICA).
 
@@ -123,6 +129,8 @@ class TGHop(BaseEstimator):
         The exemplar's per-channel quantiles, for colour matching after quilting.
     n_patches_ : int
         Training patches used.
+    layout_ : CoarseLayout or None
+        The coarse layout model (``layout_factor`` set).
     """
 
     def __init__(
@@ -140,6 +148,7 @@ class TGHop(BaseEstimator):
         min_cluster_size=10,
         reject_threshold=None,
         max_patches=20000,
+        layout_factor=None,
         rng=None,
     ):
         self.patch_size = patch_size
@@ -155,6 +164,7 @@ class TGHop(BaseEstimator):
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.max_patches = max_patches
+        self.layout_factor = layout_factor
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -191,6 +201,9 @@ class TGHop(BaseEstimator):
         self
         """
         self._channel_rules()  # parameter errors before touching the image
+        f = self.layout_factor
+        if f is not None and (isinstance(f, bool) or not isinstance(f, numbers.Integral) or f < 2):
+            raise TGHopError(f"layout_factor must be None or an integer >= 2, got {f!r}")
         image = prepare_exemplar(image, min_size=self.patch_size)
         rules = self._channel_rules(image.shape[2])
         rng = check_rng(self.rng)
@@ -220,6 +233,11 @@ class TGHop(BaseEstimator):
         report(progress, "SDR", 1, 1)
         del core
         self.ichm_ = ichm.fit(z, progress=progress)
+        self.layout_ = None
+        if self.layout_factor is not None and min(image.shape[:2]) >= self.layout_factor * self.patch_size:
+            report(progress, "layout", 0, 1)
+            self.layout_ = CoarseLayout(factor=self.layout_factor, rng=rng).fit(image)
+            report(progress, "layout", 1, 1)
         self._decoder = None
         return self
 
@@ -251,7 +269,8 @@ class TGHop(BaseEstimator):
         dict
             ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
             "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", "colour matching (ours)" and "total". "paper" applies the paper's formula to this
+            "(ii)", "(iii)", "colour matching (ours)", "coarse layout (ours)" (0 without
+            ``layout_factor``) and "total". "paper" applies the paper's formula to this
             model's dimensions; "stored" counts the numbers this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
             the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
@@ -277,6 +296,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+        paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
         stored = parameter_groups(model_arrays(self))
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
@@ -386,7 +406,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, progress=None):
+                   tolerance=0.1, match_colours=True, layout_weight=1.0, progress=None):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -415,8 +435,14 @@ class TGHop(BaseEstimator):
         check_is_fitted(self, "ichm_")
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
+        guide = None
+        if getattr(self, "layout_", None) is not None and layout_weight:
+            report(progress, "layout", 0, 1)
+            guide = self.layout_.guide(size, rng=rng, tile=tile)
+            report(progress, "layout", 1, 1)
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
-        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress,
+                      guide=guide, guide_weight=layout_weight)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
