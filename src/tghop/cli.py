@@ -338,7 +338,7 @@ def stage_sheet(views, patch_size):
               help="Quilting: choose among patches within (1+tolerance) of the best match.")
 @click.option("--match-colours/--no-match-colours", default=None,
               help="Match the result's colour histograms to the exemplar's [default: on; off with --paper].")
-@click.option("--layout-weight", type=click.FloatRange(min=0), default=1.0, show_default=True,
+@click.option("--layout-weight", type=click.FloatRange(min=0), default=3.0, show_default=True,
               help="Weight of the coarse layout's guide in quilting (models fitted with --layout; 0 ignores it).")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")

@@ -406,7 +406,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, layout_weight=1.0, progress=None):
+                   tolerance=0.1, match_colours=True, layout_weight=3.0, progress=None):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
