@@ -95,8 +95,9 @@ def test_layout_guide_shape_range_determinism(layout):
 
 
 def test_layout_errors(layout):
-    with pytest.raises(TGHopError, match="at least 128x128"):
+    with pytest.raises(TGHopError, match="at least 192x192"):
         CoarseLayout(factor=4).fit(data.bricks(96, rng=1))
+    assert not CoarseLayout(factor=2).fits((95, 200)) and CoarseLayout(factor=2).fits((96, 96, 3))
     with pytest.raises(TGHopError, match="factor"):
         CoarseLayout(factor=1).fit(data.bricks(96, rng=1))
     with pytest.raises(TGHopError, match="divisible by 2"):
@@ -138,7 +139,7 @@ def test_tghop_layout_save_load_identical(layout_model, tmp_path):
 def test_tghop_layout_off_by_default_small_exemplar_and_errors(small_model):
     assert small_model.layout_factor is None and small_model.layout_ is None
     assert small_model.n_parameters()["coarse layout (ours)"]["stored"] == 0
-    m = TGHop(**SMALL, layout_factor=4).fit(data.bricks(96, rng=1))  # smaller than 4 * 32: skipped
+    m = TGHop(**SMALL, layout_factor=4).fit(data.bricks(96, rng=1))  # smaller than 4 * 48: skipped
     assert m.layout_ is None
     with pytest.raises(TGHopError, match="layout_factor"):
         TGHop(**SMALL, layout_factor=1).fit(data.bricks(96, rng=1))

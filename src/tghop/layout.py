@@ -123,6 +123,11 @@ class CoarseLayout(BaseEstimator):
         f = _positive_int(self.factor, "factor", 2)
         return shape[0] // f, shape[1] // f
 
+    def fits(self, shape) -> bool:
+        """Whether an exemplar of ``shape`` (H, W, ...) is large enough for this layout."""
+        p = _positive_int(self.patch_size, "patch_size", 4)
+        return min(self._small_shape(shape)) >= p + p // 2
+
     def fit(self, image, y=None):
         """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.
 
@@ -136,9 +141,9 @@ class CoarseLayout(BaseEstimator):
         f = _positive_int(self.factor, "factor", 2)
         p = _positive_int(self.patch_size, "patch_size", 4)
         hs, ws = self._small_shape(img.shape)
-        if min(hs, ws) < p:
+        if min(hs, ws) < p + p // 2:  # at least (p/2 + 1)^2 training patches at stride 1
             raise TGHopError(
-                f"a coarse layout at factor {f} needs an exemplar of at least {p * f}x{p * f} pixels, "
+                f"a coarse layout at factor {f} needs an exemplar of at least {(p + p // 2) * f}x{(p + p // 2) * f} pixels, "
                 f"got {img.shape[0]}x{img.shape[1]}; use a smaller layout factor or none"
             )
         small = downsample(img, f)

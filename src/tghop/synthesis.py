@@ -115,7 +115,7 @@ class TGHop(BaseEstimator):
         Also fit a coarse model of the layout on the exemplar downsampled by this factor
         (:class:`tghop.layout.CoarseLayout`); :meth:`synthesize` then quilts guided by a
         coarse synthesis (coarse to fine, our addition). None: off (the paper). Skipped
-        (``layout_ = None``) for an exemplar smaller than ``layout_factor * patch_size``.
+        (``layout_ = None``) for an exemplar smaller than ``48 * layout_factor`` pixels.
     rng : int or numpy.random.Generator, optional
         Randomness of fitting (patch subsampling, K-means, FastICA).
 
@@ -234,9 +234,10 @@ class TGHop(BaseEstimator):
         del core
         self.ichm_ = ichm.fit(z, progress=progress)
         self.layout_ = None
-        if self.layout_factor is not None and min(image.shape[:2]) >= self.layout_factor * self.patch_size:
+        layout = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
+        if layout is not None and layout.fits(image.shape):
             report(progress, "layout", 0, 1)
-            self.layout_ = CoarseLayout(factor=self.layout_factor, rng=rng).fit(image)
+            self.layout_ = layout.fit(image)
             report(progress, "layout", 1, 1)
         self._decoder = None
         return self
