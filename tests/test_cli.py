@@ -250,9 +250,12 @@ def test_layout_option_fits_and_saves_a_coarse_model(workdir):
     import json
 
     path = workdir / "layout.npz"
-    r = run("fit", workdir / "bricks.png", "-o", path, *FAST, "--layout", "2")
+    save_image(data.bricks(112, rng=2), workdir / "bricks112.png")  # >= 48 * 2: the coarse model is fitted
+    r = run("fit", workdir / "bricks112.png", "-o", path, *FAST, "--layout", "2")
     assert r.returncode == 0, r.stderr.decode()
     assert json.loads(run("info", path, "--json").stdout)["params"]["layout_factor"] == 2
+    with np.load(path) as archive:
+        assert any(name.startswith("layout.") for name in archive.files)
     for weight in ("0", "2.5"):
         r = run("synth", path, "-o", workdir / f"lay_{weight}.png", "--size", "48x40", "--seed", "1",
                 "--layout-weight", weight, "--pool", "300", "-q")
