@@ -44,6 +44,7 @@ METRICS = ("sifid", "swd", "cooccurrence", "copied")
 VARIANTS = {
     "paper": ("PAPER", {"match_colours": False, "refine": 0}),
     "default": ({}, {}),
+    "layout": ({"layout_factor": 2}, {"layout_weight": 3.0}),  # coarse-to-fine (tghop.layout)
 }
 
 

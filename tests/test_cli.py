@@ -252,3 +252,23 @@ def test_grey_exemplar_stored_as_rgb(workdir):
             "--seed", "1", *FAST)
     assert r.returncode == 0, r.stderr.decode()
     assert Image.open(workdir / "grey_out.png").mode == "L"
+
+
+def test_layout_option_fits_and_saves_a_coarse_model(workdir):
+    import json
+
+    path = workdir / "layout.npz"
+    save_image(data.bricks(112, rng=2), workdir / "bricks112.png")  # >= 48 * 2: the coarse model is fitted
+    r = run("fit", workdir / "bricks112.png", "-o", path, *FAST, "--layout", "2")
+    assert r.returncode == 0, r.stderr.decode()
+    assert json.loads(run("info", path, "--json").stdout)["params"]["layout_factor"] == 2
+    with np.load(path) as archive:
+        assert any(name.startswith("layout.") for name in archive.files)
+    for weight in ("0", "2.5"):
+        r = run("synth", path, "-o", workdir / f"lay_{weight}.png", "--size", "48x40", "--seed", "1",
+                "--layout-weight", weight, "--pool", "300", "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        assert Image.open(workdir / f"lay_{weight}.png").size == (40, 48)
+    r = run("fit", workdir / "bricks.png", "-o", workdir / "nolayout.npz", *FAST, "--paper")
+    assert json.loads(run("info", workdir / "nolayout.npz", "--json").stdout)["params"]["layout_factor"] is None
+    assert_user_error(run("fit", workdir / "bricks.png", "-o", workdir / "bad.npz", *FAST, "--layout", "1"), "--layout")

@@ -251,6 +251,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "(:mod:`tghop.refine`, ours).", low=1, high=8),
     Setting("band_orientations", 4, "int",
             "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
+    Setting("layout_factor", None, "int",
+            "Coarse to fine (ours, :mod:`tghop.layout`): also model the layout on the exemplar "
+            "downsampled by this factor, and quilt guided by a coarse synthesis (None: off; skipped "
+            "for exemplars smaller than 48 times the factor).", low=2, high=16, none_ok=True,
+            cli=("--layout",), paper=None),
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
             cli=("--fit-seed",)),
     # ---------------------------------------------------------------- generation time
@@ -265,6 +270,9 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("match_colours", True, "bool",
             "Match each channel's histogram to the exemplar's after quilting (ours; False: the paper's "
             "pipeline).", when="generate", paper=False),
+    Setting("layout_weight", 3.0, "float",
+            "Weight of the coarse layout's guide in quilting, per pixel relative to the overlap error "
+            "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0),
     Setting("refine", 3, "int",
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",

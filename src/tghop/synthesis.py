@@ -28,6 +28,7 @@ from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
+from .layout import CoarseLayout
 from .quilting import quilt
 from .refine import BandStatistics, refine as refine_bands
 
@@ -135,6 +136,8 @@ class TGHop(BaseEstimator):
         the refinement after stitching.
     n_patches_ : int
         Training patches used.
+    layout_ : tghop.layout.CoarseLayout or None
+        The coarse layout model (``layout_factor`` set and the exemplar large enough).
     """
 
     __init__ = settings.make_init(settings.fit_settings())
@@ -200,6 +203,12 @@ class TGHop(BaseEstimator):
         report(progress, "SDR", 1, 1)
         del core
         self.ichm_ = ichm.fit(z, progress=progress)
+        self.layout_ = None
+        layout = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
+        if layout is not None and layout.fits(image.shape):
+            report(progress, "layout", 0, 1)
+            self.layout_ = layout.fit(image)
+            report(progress, "layout", 1, 1)
         self._decoder = None
         return self
 
@@ -214,6 +223,8 @@ class TGHop(BaseEstimator):
         out.update(self.ichm_._to_arrays())
         out["colour.quantiles"] = self.colour_quantiles_
         out.update(self.bands_._to_arrays())
+        if self.layout_ is not None:  # the coarse model's arrays, prefixed
+            out.update({f"layout.{k}": v for k, v in self.layout_.model_._to_arrays().items()})
         return out
 
     def _state_meta(self) -> dict:
@@ -230,6 +241,8 @@ class TGHop(BaseEstimator):
             "hop_dims": self.hops_.dims_,
             "sdr_shape": list(self.sdr_.shape_),
             "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
+            "layout": None if self.layout_ is None else {
+                "params": {**self.layout_.get_params(), "rng": None}, "model": self.layout_.model_._state_meta()},
         }
 
     @classmethod
@@ -256,6 +269,11 @@ class TGHop(BaseEstimator):
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
         model.bands_ = BandStatistics(n_levels=model.band_levels,
                                       n_orientations=model.band_orientations)._from_arrays(arrays)
+        model.layout_ = None
+        if meta.get("layout") is not None:
+            model.layout_ = CoarseLayout(**meta["layout"]["params"])
+            sub = {k[len("layout."):]: v for k, v in arrays.items() if k.startswith("layout.")}
+            model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
         model._check_consistent()
         model._decoder = None
         return model
@@ -307,7 +325,8 @@ class TGHop(BaseEstimator):
         dict
             ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
             "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", "colour matching (ours)", "refinement (ours)" and "total". "paper" applies the paper's formula to this
+            "(ii)", "(iii)", "colour matching (ours)", "coarse layout (ours)" (0 without ``layout_factor``),
+            "refinement (ours)" and "total". "paper" applies the paper's formula to this
             model's dimensions; "stored" counts the numbers this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
             the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
@@ -331,6 +350,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+        paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
         paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
         stored = parameter_groups(self._to_arrays())
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
@@ -462,7 +482,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, refine=3, progress=None):
+                   tolerance=0.1, match_colours=True, layout_weight=3.0, refine=3, progress=None):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -482,12 +502,15 @@ class TGHop(BaseEstimator):
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
+        layout_weight : float
+            Weight of the coarse layout's guide in quilting (models fitted with
+            ``layout_factor``, see :mod:`tghop.layout`); 0 ignores it.
         refine : int
             Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style,
             our addition, see :mod:`tghop.refine`): restores the contrast of fine detail;
             0 is off, as in the paper.
         progress : callable, optional
-            Stages "patch pool", "quilting" and "refine".
+            Stages "layout" (with a coarse layout), "patch pool", "quilting" and "refine".
 
         Returns
         -------
@@ -495,13 +518,19 @@ class TGHop(BaseEstimator):
         """
         check_is_fitted(self, "ichm_")
         settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                     match_colours=match_colours, refine=refine))
+                                     match_colours=match_colours, layout_weight=layout_weight, refine=refine))
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
+        guide = None
+        if self.layout_ is not None and layout_weight:
+            report(progress, "layout", 0, 1)
+            guide = self.layout_.guide(size, rng=rng, tile=tile)
+            report(progress, "layout", 1, 1)
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
-        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress,
+                      guide=guide, guide_weight=layout_weight)
         if refine:
             report(progress, "refine", 0, 1)
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
@@ -523,11 +552,14 @@ GROUPS = {
     "ichm_iii": "core ICHM (iii)",
     "colour": "colour matching (ours)",
     "refine": "refinement (ours)",
+    "layout": "coarse layout (ours)",
 }
 
 
 def _group(name: str):
-    part = name.split(".", 1)[0]
+    part, _, rest = name.partition(".")
+    if part == "layout":  # the coarse model's arrays: one row, its bookkeeping excluded
+        return None if rest.startswith("index.") else GROUPS["layout"]
     if part == "index":
         return None
     if part in GROUPS:
