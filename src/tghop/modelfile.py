@@ -59,8 +59,14 @@ CORE_ARRAYS = [
     ("ichm_iii.cdf_min", "ichm_", "cdf_min_", np.float64),
     ("ichm_iii.cdf_max", "ichm_", "cdf_max_", np.float64),
     ("ichm_iii.codebook", "ichm_", "codebook_", np.float64),
+    ("ichm_ii.residual_factor", "ichm_", "residual_factor_", np.float64),
+    ("index.ichm_residual_group", "ichm_", "residual_group_", np.int64),
     ("colour.quantiles", None, "colour_quantiles_", np.float64),
 ]
+
+
+#: Arrays that older files of the same format version may lack (read as empty).
+OPTIONAL_ARRAYS = {"ichm_ii.residual_factor", "index.ichm_residual_group"}
 
 
 def _group(name: str):
@@ -195,10 +201,13 @@ def load_model(path):
             n_clusters=model.n_clusters, n_codewords=model.n_codewords, n_bins=model.n_bins,
             cluster_energy=model.cluster_energy, max_cluster_components=model.max_cluster_components,
             min_cluster_size=model.min_cluster_size, reject_threshold=model.reject_threshold,
+            residual=bool(model.residual),
         )
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
         for name, part, attribute, dtype in CORE_ARRAYS:
-            setattr(getattr(model, part) if part else model, attribute, arrays[name].astype(dtype, copy=False))
+            # Files written before the residual Gaussian existed have none: empty.
+            value = arrays[name] if name in arrays or name not in OPTIONAL_ARRAYS else np.zeros(0)
+            setattr(getattr(model, part) if part else model, attribute, value.astype(dtype, copy=False))
         model.sdr_.kept_per_channel_ = np.bincount(model.sdr_.channel_, minlength=model.sdr_.shape_[2])
         _check_consistent(model)
     except (KeyError, TypeError, ValueError, IndexError) as exc:

@@ -28,7 +28,7 @@ from ._common import TGHopError, check_image, check_rng, report
 from .core import ICHM, SpatialReduction
 from .hops import HopStack
 from .colour import channel_quantiles, match_histograms
-from .patches import patch_origins
+from .patches import depth_to_space, patch_origins
 from .quilting import quilt
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -38,7 +38,7 @@ __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 #: components). Our default keeps more (99 %, at most 100): sharper patches, about twice
 #: the model size (docs/choices.md).
 PAPER_TABLE4 = dict(patch_size=32, n_channels=(9, 22), gamma=0.01, n_clusters=50, n_codewords=200,
-                    cluster_energy=0.95, max_cluster_components=50)
+                    cluster_energy=0.95, max_cluster_components=50, residual=False)
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = 10_000
@@ -110,6 +110,11 @@ class TGHop(BaseEstimator):
     max_patches : int or None, default=20000
         Training patches beyond this are subsampled at random (bounds memory for large
         exemplars; a 256x256 exemplar at stride 2 has 12,769).
+    residual : bool, default=True
+        Also model the detail each cluster's PCA drops, as a Gaussian per core channel,
+        and add a draw of it to every generated patch (ours; off in the paper's
+        pipeline, :data:`PAPER_TABLE4`). Restores the fine grain: on brick_wall the pool
+        patches' gradient energy goes from 0.5 to 0.85 of the exemplar's.
     rng : int or numpy.random.Generator, optional
         Randomness of fitting (patch subsampling, K-means, FastICA).
 
@@ -140,6 +145,7 @@ class TGHop(BaseEstimator):
         min_cluster_size=10,
         reject_threshold=None,
         max_patches=20000,
+        residual=True,
         rng=None,
     ):
         self.patch_size = patch_size
@@ -155,6 +161,7 @@ class TGHop(BaseEstimator):
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.max_patches = max_patches
+        self.residual = residual
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -202,6 +209,7 @@ class TGHop(BaseEstimator):
             max_cluster_components=self.max_cluster_components,
             min_cluster_size=self.min_cluster_size,
             reject_threshold=self.reject_threshold,
+            residual=bool(self.residual),
             rng=rng,
         )
         sdr = SpatialReduction(gamma=self.gamma, gamma_mode=self.gamma_mode)
@@ -219,7 +227,7 @@ class TGHop(BaseEstimator):
         self.sdr_ = sdr
         report(progress, "SDR", 1, 1)
         del core
-        self.ichm_ = ichm.fit(z, progress=progress)
+        self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
         self._decoder = None
         return self
 
@@ -347,16 +355,48 @@ class TGHop(BaseEstimator):
         dtype = np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
+        rng = check_rng(rng)
         labels, sources = self.ichm_.sample_sources(n, rng=rng)
-        if return_stages:
-            patches, spaces = self.decode(self.ichm_.mix(labels, sources), return_stages=True)
-            return patches.astype(dtype, copy=False), self.stage_views(spaces)
+        residual = self.ichm_.residual_factor_.size > 0
+        if return_stages or n <= self.ichm_.n_cdfs_:
+            z = self.ichm_.mix(labels, sources)
+            if residual:
+                z += self.ichm_.sample_residual(n, rng=rng)
+            if return_stages:
+                patches, spaces = self.decode(z, return_stages=True)
+                return patches.astype(dtype, copy=False), self.stage_views(spaces)
+            return self.decode(z).astype(dtype, copy=False)
+        # Folding the decoder pays off for large batches.
         shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
-        if n > self.ichm_.n_cdfs_:  # folding the decoder pays off for large batches
-            mixing, means = self._affine_decoder(dtype)
-            flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
-            return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
-        return self.decode(self.ichm_.mix(labels, sources)).astype(dtype, copy=False)
+        mixing, means = self._affine_decoder(dtype)
+        flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
+        if residual:
+            self._add_residual(flat, rng)
+        return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
+
+    def _add_residual(self, flat, rng, chunk=2048):
+        """Add residual draws, decoded, to flattened patches ``flat`` (n, P * P * C), in place.
+
+        The residual is decoded through the linear part of the inverse SDR (one small
+        product per core channel) and of the inverse hops, in ``flat``'s dtype: far fewer
+        operations than the dense ``D_r x P*P*C`` map of :meth:`_affine_decoder`. Same
+        draws as :meth:`ICHM.sample_residual` (the decode path of small batches).
+        """
+        n, dtype = len(flat), flat.dtype
+        h, w, k = self.sdr_.shape_
+        maps = np.zeros((n, h * w, k), dtype=dtype)
+        for dims, normals, factor in self.ichm_.residual_draws(n, rng=rng):
+            channels = np.unique(self.sdr_.channel_[dims])
+            if channels.size != 1:
+                raise TGHopError("each residual group must lie in one core channel")
+            fold = (factor.T @ self.sdr_.components_[dims]).astype(dtype)  # (k_g, h * w)
+            maps[:, :, channels[0]] += normals.astype(dtype) @ fold
+        kernels = [hop.kernels_.astype(dtype) for hop in reversed(self.hops_.hops_)]
+        for a in range(0, n, chunk):
+            y = maps[a: a + chunk].reshape(-1, h, w, k)
+            for kern in kernels:
+                y = depth_to_space(y @ kern)
+            flat[a: a + chunk] += y.reshape(len(y), -1)
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -386,7 +426,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, progress=None):
+                   tolerance=0.1, detail=0.0, match_colours=True, progress=None):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -402,6 +442,10 @@ class TGHop(BaseEstimator):
             Quilting overlap (default ``patch_size // 6``).
         tolerance : float
             Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
+        detail : float in [0, 1)
+            Quilting picks only among those candidates whose gradient energy is at or
+            above this quantile of theirs (0: the paper's uniform choice; see
+            :func:`tghop.quilting.quilt`).
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
@@ -418,5 +462,6 @@ class TGHop(BaseEstimator):
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
-        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, detail=detail, rng=rng,
+                      progress=progress)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
