@@ -157,6 +157,9 @@ def model_options(func):
                      help="Sampling step (iv): redraw samples with no component above this."),
         click.option("--max-patches", type=click.IntRange(min=1), default=20000, show_default=True,
                      help="Subsample training patches beyond this many."),
+        click.option("--residual/--no-residual", default=None,
+                     help="Model the detail each cluster's PCA drops (a Gaussian per core channel) and add it "
+                          "to every patch [default: on; off with --paper]."),
         click.option("--fit-seed", type=click.IntRange(min=0), default=0, show_default=True,
                      help="Seed of fitting (K-means, FastICA)."),
     ]
@@ -166,7 +169,7 @@ def model_options(func):
 
 
 def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, cluster_energy,
-                max_cluster_components, paper, reject_threshold, max_patches, fit_seed, n_colours=3):
+                max_cluster_components, paper, reject_threshold, max_patches, fit_seed, residual=None, n_colours=3):
     from .synthesis import PAPER_TABLE4, TGHop, default_channels
 
     defaults_from = PAPER_TABLE4 if paper else TGHop().get_params()
@@ -174,6 +177,8 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
         cluster_energy = defaults_from["cluster_energy"]
     if max_cluster_components is None:
         max_cluster_components = defaults_from["max_cluster_components"]
+    if residual is None:
+        residual = defaults_from["residual"]
 
     patch_size = int(patch_size)
     defaults = default_channels(patch_size, n_colours)
@@ -184,7 +189,8 @@ def build_model(patch_size, stride, k1, k2, k3, gamma, n_clusters, n_codewords, 
     return TGHop(
         patch_size=patch_size, stride=stride, n_channels=channels, gamma=gamma, n_clusters=n_clusters,
         n_codewords=n_codewords, cluster_energy=cluster_energy, max_cluster_components=max_cluster_components,
-        reject_threshold=reject_threshold, max_patches=max_patches, rng=fit_seed,
+        reject_threshold=reject_threshold, max_patches=max_patches, residual=residual,
+        detail=defaults_from["detail"], rng=fit_seed,
     )
 
 
@@ -326,14 +332,17 @@ def stage_sheet(views, patch_size):
 @click.option("--overlap", type=click.IntRange(min=1), default=None, help="Quilting overlap (default patch/6).")
 @click.option("--tolerance", type=click.FloatRange(min=0), default=0.1, show_default=True,
               help="Quilting: choose among patches within (1+tolerance) of the best match.")
+@click.option("--detail", type=click.FloatRange(min=0, max=1, max_open=True), default=None,
+              help="Quilting: choose only among candidates whose gradient energy is at or above this quantile "
+                   "of theirs [default: the model's, 0.5; 0 (the paper's uniform choice) with --paper].")
 @click.option("--match-colours/--no-match-colours", default=None,
               help="Match the result's colour histograms to the exemplar's [default: on; off with --paper].")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here.")
 @model_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, match_colours, save_model, quiet,
-          **options):
+def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, detail, match_colours, save_model,
+          quiet, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from .imageio import save_image
     from .modelfile import load_model, save_model as write_model
@@ -356,11 +365,14 @@ def synth(source, output, size, count, seed, tile, pool, overlap, tolerance, mat
                 write_model(model, save_model)
         if match_colours is None:
             match_colours = not options["paper"]
+        if detail is None and options["paper"]:
+            detail = 0.0
         rng = np.random.default_rng(seed)
         outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
             image = model.synthesize(size, rng=rng, n_patches=pool, tile=tile, overlap=overlap,
-                                     tolerance=tolerance, match_colours=match_colours, progress=progress)
+                                     tolerance=tolerance, detail=detail, match_colours=match_colours,
+                                     progress=progress)
             progress.close()
             save_image(image, path)
     if output != "-":

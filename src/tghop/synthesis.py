@@ -38,10 +38,13 @@ __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 #: components). Our default keeps more (99 %, at most 100): sharper patches, about twice
 #: the model size (docs/choices.md).
 PAPER_TABLE4 = dict(patch_size=32, n_channels=(9, 22), gamma=0.01, n_clusters=50, n_codewords=200,
-                    cluster_energy=0.95, max_cluster_components=50, residual=False)
+                    cluster_energy=0.95, max_cluster_components=50, residual=False, detail=0.0)
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = 10_000
+
+#: Quilting's default ``detail`` quantile (ours; the paper's uniform choice is 0).
+DEFAULT_DETAIL = 0.5
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -115,6 +118,11 @@ class TGHop(BaseEstimator):
         and add a draw of it to every generated patch (ours; off in the paper's
         pipeline, :data:`PAPER_TABLE4`). Restores the fine grain: on brick_wall the pool
         patches' gradient energy goes from 0.5 to 0.85 of the exemplar's.
+    detail : float in [0, 1), default=DEFAULT_DETAIL
+        Quilting default of :meth:`synthesize`: choose among the near-best candidates
+        only those whose gradient energy is at or above this quantile of theirs, against
+        the overlap error's preference for smooth patches (ours; the paper's 0 in
+        :data:`PAPER_TABLE4`).
     rng : int or numpy.random.Generator, optional
         Randomness of fitting (patch subsampling, K-means, FastICA).
 
@@ -146,6 +154,7 @@ class TGHop(BaseEstimator):
         reject_threshold=None,
         max_patches=20000,
         residual=True,
+        detail=DEFAULT_DETAIL,
         rng=None,
     ):
         self.patch_size = patch_size
@@ -162,6 +171,7 @@ class TGHop(BaseEstimator):
         self.reject_threshold = reject_threshold
         self.max_patches = max_patches
         self.residual = residual
+        self.detail = detail
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -374,29 +384,35 @@ class TGHop(BaseEstimator):
             self._add_residual(flat, rng)
         return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
 
-    def _add_residual(self, flat, rng, chunk=2048):
+    def _add_residual(self, flat, rng):
         """Add residual draws, decoded, to flattened patches ``flat`` (n, P * P * C), in place.
 
-        The residual is decoded through the linear part of the inverse SDR (one small
-        product per core channel) and of the inverse hops, in ``flat``'s dtype: far fewer
-        operations than the dense ``D_r x P*P*C`` map of :meth:`_affine_decoder`. Same
-        draws as :meth:`ICHM.sample_residual` (the decode path of small batches).
+        The residual is decoded through the linear parts of the inverse SDR (one product
+        per core channel) and of the inverse hops (one ``K x (2^hops)^2 C`` map from a core
+        position to its pixel block, applied at every position), in ``flat``'s dtype: far
+        fewer operations than the dense ``D_r x P*P*C`` map of :meth:`_affine_decoder`.
+        Same draws as :meth:`ICHM.sample_residual` (the decode path of small batches).
         """
         n, dtype = len(flat), flat.dtype
         h, w, k = self.sdr_.shape_
-        maps = np.zeros((n, h * w, k), dtype=dtype)
+        maps = np.empty((k, n, h * w), dtype=dtype)
+        filled = np.zeros(k, dtype=bool)
         for dims, normals, factor in self.ichm_.residual_draws(n, rng=rng):
             channels = np.unique(self.sdr_.channel_[dims])
-            if channels.size != 1:
-                raise TGHopError("each residual group must lie in one core channel")
+            if channels.size != 1 or filled[channels[0]]:
+                raise TGHopError("each residual group must be one whole core channel")
             fold = (factor.T @ self.sdr_.components_[dims]).astype(dtype)  # (k_g, h * w)
-            maps[:, :, channels[0]] += normals.astype(dtype) @ fold
-        kernels = [hop.kernels_.astype(dtype) for hop in reversed(self.hops_.hops_)]
-        for a in range(0, n, chunk):
-            y = maps[a: a + chunk].reshape(-1, h, w, k)
-            for kern in kernels:
-                y = depth_to_space(y @ kern)
-            flat[a: a + chunk] += y.reshape(len(y), -1)
+            np.matmul(normals.astype(dtype), fold, out=maps[channels[0]])
+            filled[channels[0]] = True
+        maps[~filled] = 0.0
+        # Linear part of the inverse hops for one core position: (K, b, b, C).
+        y = np.eye(k).reshape(k, 1, 1, k)
+        for hop in reversed(self.hops_.hops_):
+            y = depth_to_space(y @ hop.kernels_)
+        b, c = y.shape[1], y.shape[3]
+        blocks = y.reshape(k, -1).T.astype(dtype) @ maps.reshape(k, -1)  # (b * b * C, n * h * w)
+        out = flat.reshape(n, h, b, w, b, c)
+        out += blocks.reshape(b, b, c, n, h, w).transpose(3, 4, 0, 5, 1, 2)
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -426,7 +442,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, detail=0.0, match_colours=True, progress=None):
+                   tolerance=0.1, detail=None, match_colours=True, progress=None):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -442,10 +458,10 @@ class TGHop(BaseEstimator):
             Quilting overlap (default ``patch_size // 6``).
         tolerance : float
             Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
-        detail : float in [0, 1)
+        detail : float in [0, 1), optional
             Quilting picks only among those candidates whose gradient energy is at or
             above this quantile of theirs (0: the paper's uniform choice; see
-            :func:`tghop.quilting.quilt`).
+            :func:`tghop.quilting.quilt`). None: the model's ``detail`` parameter.
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
@@ -462,6 +478,7 @@ class TGHop(BaseEstimator):
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
+        detail = self.detail if detail is None else detail
         image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, detail=detail, rng=rng,
                       progress=progress)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
