@@ -43,6 +43,10 @@ METRICS = ("sifid", "swd", "cooccurrence", "copied")
 VARIANTS = {
     "paper": ("PAPER", {"match_colours": False}),
     "default": ({}, {}),
+    # Ablation of the steps against soft output (docs/choices.md).
+    "no-residual": ({"residual": False}, {}),
+    "no-detail": ({}, {"detail": 0.0}),
+    "tghop-0.1": ({"residual": False}, {"detail": 0.0}),
 }
 
 
