@@ -245,6 +245,25 @@ def test_paper_flag_selects_paper_core_model(workdir):
     assert json.loads(run("info", workdir / "p2.npz", "--json").stdout)["params"]["max_cluster_components"] == 7
 
 
+def test_residual_and_detail_switches(workdir):
+    import json
+
+    for flags, residual, detail in (([], True, 0.5), (["--paper"], False, 0.0), (["--no-residual"], False, 0.5)):
+        path = workdir / f"switch_{len(flags)}_{residual}.npz"
+        r = run("fit", workdir / "bricks.png", "-o", path, *FAST, *flags)
+        assert r.returncode == 0, r.stderr.decode()
+        params = json.loads(run("info", path, "--json").stdout)["params"]
+        assert (params["residual"], params["detail"]) == (residual, detail)
+    images = []
+    for detail in ("0", "0.6", "0.6"):
+        out = workdir / f"detail_{len(images)}.png"
+        r = run("synth", path, "-o", out, "--size", "64", "--pool", "300", "--seed", "3", "--detail", detail, "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        images.append(np.asarray(Image.open(out)))
+    assert not np.array_equal(images[0], images[1]) and np.array_equal(images[1], images[2])
+    assert_user_error(run("synth", path, "-o", workdir / "x.png", "--detail", "1", "-q"), "--detail")
+
+
 def test_grey_exemplar_stored_as_rgb(workdir):
     grey = data.bricks(80, rng=4).mean(axis=2, keepdims=True)
     save_image(np.repeat(grey, 3, axis=2), workdir / "grey_rgb.png")

@@ -632,6 +632,16 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray) -> np.ndarray:
     return table
 
 
+def _gradient_energy(arr: np.ndarray) -> np.ndarray:
+    """``(n,)`` float32: mean squared difference of neighbouring pixels of each patch."""
+    out = np.empty(arr.shape[0], dtype=np.float32)
+    for a in range(0, arr.shape[0], _POOL_CHUNK):
+        x = np.asarray(arr[a : a + _POOL_CHUNK], dtype=np.float32)
+        out[a : a + _POOL_CHUNK] = (np.square(np.diff(x, axis=1)).mean(axis=(1, 2, 3))
+                                    + np.square(np.diff(x, axis=2)).mean(axis=(1, 2, 3)))
+    return out
+
+
 def quilt(
     pool,
     size,
@@ -639,6 +649,7 @@ def quilt(
     overlap: Optional[int] = None,
     tolerance: float = 0.1,
     tile: bool = False,
+    detail: float = 0.0,
     rng=None,
     progress: Optional[ProgressCallback] = None,
     guide=None,
@@ -664,6 +675,11 @@ def quilt(
     tile : bool
         Make the output tileable: it wraps around seamlessly (the last blocks of each row
         and column also overlap, are matched with and cut into the first ones).
+    detail : float in [0, 1)
+        Counter the preference of the overlap error for smooth patches: among the
+        candidates within the tolerance, choose only from those whose gradient energy
+        (mean squared difference of neighbouring pixels over the whole patch) is at or
+        above this quantile of the candidates' (0: all candidates, Efros & Freeman).
     rng : None, int or numpy.random.Generator
         Seed; the same seed gives the same image.
     progress : callable, optional
@@ -708,6 +724,9 @@ def quilt(
     ):
         raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     tolerance = float(tolerance)
+    if isinstance(detail, bool) or not isinstance(detail, numbers.Real) or not 0 <= detail < 1:
+        raise TGHopError(f"detail must be a number in [0, 1), got {detail!r}")
+    detail = float(detail)
     plan = quilting_plan(size, p, overlap=overlap, tile=tile)
     rng = check_rng(rng)
 
@@ -720,6 +739,7 @@ def quilt(
     masks_fc = np.repeat(masks_f, c, axis=1)  # (m, nf * c), matches the (pixel, channel) layout
     m, k = masks_fc.shape
     table = _pool_table(arr, slices, masks_fc)
+    energy = _gradient_energy(arr) if detail > 0 else None
     norm_max = table[:, :m].max(axis=0)  # (m,)
     one_hot = np.eye(m, dtype=np.float32)
     # Columns [0, k1) hold the norms, the top band and the left band; only wrap-around
@@ -766,9 +786,15 @@ def quilt(
         cand = err <= best * (1.0 + tolerance) + slack - onorm
         pool_idx, block_idx = np.nonzero(cand)
         counts = np.bincount(block_idx, minlength=b)
-        by_block = np.argsort(block_idx, kind="stable")  # block-major, pool index ascending
-        pick = rng.integers(0, counts)
-        chosen = pool_idx[by_block[np.concatenate(([0], np.cumsum(counts)[:-1])) + pick]]
+        first = np.concatenate(([0], np.cumsum(counts)[:-1]))
+        if energy is None:
+            by_block = np.argsort(block_idx, kind="stable")  # block-major, pool index ascending
+            pick = rng.integers(0, counts)
+        else:  # block-major, gradient energy ascending: skip the smoothest candidates
+            by_block = np.lexsort((energy[pool_idx], block_idx))
+            skip = np.minimum((detail * counts).astype(np.int64), counts - 1)
+            pick = skip + rng.integers(0, counts - skip)
+        chosen = pool_idx[by_block[first + pick]]
 
         new = np.asarray(arr[chosen], dtype=np.float32)
         _check_values(new)

@@ -243,6 +243,10 @@ SETTINGS: Tuple[Setting, ...] = (
             none_ok=True, target="ichm"),
     Setting("ica_max_iter", 200, "int", "FastICA iterations per cluster at most.", low=1,
             cli=("--ica-iterations",), target="ichm.max_iter"),
+    Setting("residual", True, "bool",
+            "Also model the detail each cluster's PCA drops, as a Gaussian per core channel, and add a "
+            "draw of it to every generated patch (ours; restores the fine grain).", target="ichm",
+            paper=False),
     Setting("max_patches", 20000, "int",
             "Training patches beyond this are subsampled at random (a 256x256 exemplar at stride 2 has "
             "12,769).", low=1, none_ok=True),
@@ -267,6 +271,10 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("tolerance", 0.1, "float",
             "Quilting picks among pool patches within (1 + tolerance) of the best match.",
             when="generate", low=0),
+    Setting("detail", 0.5, "float",
+            "Quilting chooses only among the near-best candidates whose gradient energy is at or above "
+            "this quantile of theirs, against the overlap error's preference for smooth patches (ours; "
+            "0: the paper's uniform choice).", when="generate", low=0, high=1, high_open=True, paper=0.0),
     Setting("match_colours", True, "bool",
             "Match each channel's histogram to the exemplar's after quilting (ours; False: the paper's "
             "pipeline).", when="generate", paper=False),

@@ -202,7 +202,7 @@ class TGHop(BaseEstimator):
         self.sdr_ = sdr
         report(progress, "SDR", 1, 1)
         del core
-        self.ichm_ = ichm.fit(z, progress=progress)
+        self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
         self.layout_ = None
         layout = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
         if layout is not None and layout.fits(image.shape):
@@ -325,7 +325,8 @@ class TGHop(BaseEstimator):
         dict
             ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
             "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", "colour matching (ours)", "coarse layout (ours)" (0 without ``layout_factor``),
+            "(ii)", "(iii)", "colour matching (ours)", "residual Gaussian (ours)", "coarse layout (ours)" (0
+            without ``layout_factor``),
             "refinement (ours)" and "total". "paper" applies the paper's formula to this
             model's dimensions; "stored" counts the numbers this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
@@ -350,6 +351,7 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+        paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
         paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
         paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
         stored = parameter_groups(self._to_arrays())
@@ -443,16 +445,56 @@ class TGHop(BaseEstimator):
         dtype = np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
+        rng = check_rng(rng)
         labels, sources = self.ichm_.sample_sources(n, rng=rng)
-        if return_stages:
-            patches, spaces = self.decode(self.ichm_.mix(labels, sources), return_stages=True)
-            return patches.astype(dtype, copy=False), self.stage_views(spaces)
+        residual = self.ichm_.residual_factor_.size > 0
+        if return_stages or n <= self.ichm_.n_cdfs_ // 10:
+            z = self.ichm_.mix(labels, sources)
+            if residual:
+                z += self.ichm_.sample_residual(n, rng=rng)
+            if return_stages:
+                patches, spaces = self.decode(z, return_stages=True)
+                return patches.astype(dtype, copy=False), self.stage_views(spaces)
+            return self.decode(z).astype(dtype, copy=False)
+        # The fold (about F decoded rows) pays off for larger batches.
         shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
-        if n > self.ichm_.n_cdfs_ // 10:  # the fold (about F decoded rows) pays off for larger batches
-            mixing, means = self._affine_decoder(dtype)
-            flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
-            return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
-        return self.decode(self.ichm_.mix(labels, sources)).astype(dtype, copy=False)
+        mixing, means = self._affine_decoder(dtype)
+        flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
+        if residual:
+            self._add_residual(flat, rng)
+        return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
+
+    def _add_residual(self, flat, rng):
+        """Add residual draws, decoded, to flattened patches ``flat`` (n, P * P * C), in place.
+
+        The residual is decoded through the linear parts of the inverse SDR (one product
+        per core channel) and of the inverse hops (one ``K x (2^hops)^2 C`` map from a core
+        position to its pixel block, applied at every position), in ``flat``'s dtype: far
+        fewer operations than the dense ``D_r x P*P*C`` map of :meth:`_affine_decoder`.
+        Same draws as :meth:`ICHM.sample_residual` (the decode path of small batches).
+        """
+        from .patches import depth_to_space
+
+        n, dtype = len(flat), flat.dtype
+        h, w, k = self.sdr_.shape_
+        maps = np.empty((k, n, h * w), dtype=dtype)
+        filled = np.zeros(k, dtype=bool)
+        for dims, normals, factor in self.ichm_.residual_draws(n, rng=rng):
+            channels = np.unique(self.sdr_.channel_[dims])
+            if channels.size != 1 or filled[channels[0]]:
+                raise TGHopError("each residual group must be one whole core channel")
+            fold = (factor.T @ self.sdr_.components_[dims]).astype(dtype)  # (k_g, h * w)
+            np.matmul(normals.astype(dtype), fold, out=maps[channels[0]])
+            filled[channels[0]] = True
+        maps[~filled] = 0.0
+        # Linear part of the inverse hops for one core position: (K, b, b, C).
+        y = np.eye(k).reshape(k, 1, 1, k)
+        for hop in reversed(self.hops_.hops_):
+            y = depth_to_space(y @ hop.kernels_)
+        b, c = y.shape[1], y.shape[3]
+        blocks = y.reshape(k, -1).T.astype(dtype) @ maps.reshape(k, -1)  # (b * b * C, n * h * w)
+        out = flat.reshape(n, h, b, w, b, c)
+        out += blocks.reshape(b, b, c, n, h, w).transpose(3, 4, 0, 5, 1, 2)
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -482,7 +524,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, layout_weight=3.0, refine=3, progress=None):
+                   tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, progress=None):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -499,6 +541,10 @@ class TGHop(BaseEstimator):
             Quilting overlap (default ``patch_size // 6``).
         tolerance : float
             Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
+        detail : float in [0, 1)
+            Quilting picks only among those candidates whose gradient energy is at or
+            above this quantile of theirs (ours, against the overlap error's preference for
+            smooth patches; 0: the paper's uniform choice; see :func:`tghop.quilting.quilt`).
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
@@ -518,7 +564,7 @@ class TGHop(BaseEstimator):
         """
         check_is_fitted(self, "ichm_")
         settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                     match_colours=match_colours, layout_weight=layout_weight, refine=refine))
+                                     detail=detail, match_colours=match_colours, layout_weight=layout_weight, refine=refine))
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
         guide = None
@@ -529,8 +575,8 @@ class TGHop(BaseEstimator):
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
-        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress,
-                      guide=guide, guide_weight=layout_weight)
+        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, detail=detail, rng=rng,
+                      progress=progress, guide=guide, guide_weight=layout_weight)
         if refine:
             report(progress, "refine", 0, 1)
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
@@ -553,6 +599,7 @@ GROUPS = {
     "colour": "colour matching (ours)",
     "refine": "refinement (ours)",
     "layout": "coarse layout (ours)",
+    "residual": "residual Gaussian (ours)",
 }
 
 
