@@ -152,11 +152,14 @@ def fit(img, mode="paper", **kw):
 
 
 def synth(model, size, rng, mode="paper", **kw):
-    """``model.synthesize``; in paper mode without tghop's colour matching (not in the paper)."""
+    """``model.synthesize``; in paper mode without tghop's colour matching and refinement (not in the paper)."""
     import inspect
 
-    if mode == "paper" and "match_colours" in inspect.signature(model.synthesize).parameters:
+    params = inspect.signature(model.synthesize).parameters
+    if mode == "paper" and "match_colours" in params:
         kw["match_colours"] = False
+    if mode == "paper" and "refine" in params:
+        kw["refine"] = 0
     return model.synthesize(size, rng=rng, **kw)
 
 

@@ -42,8 +42,15 @@ METRICS = ("sifid", "swd", "cooccurrence", "copied")
 
 #: Named variants: (fit keyword arguments of TGHop, synthesize keyword arguments).
 VARIANTS = {
-    "paper": ("PAPER", {"match_colours": False}),
+    "paper": ("PAPER", "PAPER"),  # the paper values of tghop.settings (fit and generation)
     "default": ({}, {}),
+    "layout": ({"layout_factor": 2}, {}),  # coarse-to-fine (tghop.layout)
+    # Ablation: each step of tghop's pipeline beyond the paper switched off alone.
+    "no-refine": ({}, {"refine": 0}),
+    "no-residual": ({"residual": False}, {}),
+    "no-detail": ({}, {"detail": 0.0}),
+    "no-colour": ({}, {"match_colours": False}),
+    "tghop-0.1": ({"residual": False}, {"detail": 0.0, "refine": 0}),  # the defaults of tghop 0.1
 }
 
 
@@ -90,6 +97,14 @@ def fit_kwargs(fit_kw, exemplar):
     return kw
 
 
+def synth_kwargs(synth_kw):
+    from tghop.settings import generate_settings
+
+    if synth_kw == "PAPER":
+        return {s.name: s.paper for s in generate_settings() if s.has_paper}
+    return dict(synth_kw)
+
+
 def score(exemplar, image, metrics):
     from tghop.metrics import evaluate
 
@@ -122,7 +137,7 @@ def task(name, variants, size, metrics, sheets):
         results, synth_s = [], []
         for seed in (0, 1):
             t = time.perf_counter()
-            results.append(model.synthesize(size, rng=seed, **synth_kw))
+            results.append(model.synthesize(size, rng=seed, **synth_kwargs(synth_kw)))
             synth_s.append(time.perf_counter() - t)
         per_seed = [score(exemplar, r, metrics) for r in results]
         out[vname] = {
@@ -162,7 +177,7 @@ def ust_task(name, variants, size, n_iter, metrics):
     row = {"texture": name, "ust_s": time.perf_counter() - t, "Ustyuzhaninov": score(exemplar, ust, metrics)}
     for vname, fit_kw, synth_kw in variants:
         model = TGHop(**fit_kwargs(fit_kw, exemplar), rng=0).fit(exemplar)
-        row[vname] = score(exemplar, model.synthesize((size, size), rng=0, **synth_kw), metrics)
+        row[vname] = score(exemplar, model.synthesize((size, size), rng=0, **synth_kwargs(synth_kw)), metrics)
     return row
 
 

@@ -101,6 +101,14 @@ def test_synth_same_seed_same_image(model_path, workdir):
     assert np.array_equal(np.asarray(Image.open(workdir / "s1.png")), np.asarray(Image.open(workdir / "s2.png")))
 
 
+def test_synth_refine_switch(model_path, workdir):
+    for name, extra in (("r3.png", []), ("r0.png", ["--refine", "0"])):
+        r = run("synth", model_path, "-o", workdir / name, "--size", "48", "--pool", "300", "--seed", "9", "-q", *extra)
+        assert r.returncode == 0, r.stderr.decode()
+    assert not np.array_equal(np.asarray(Image.open(workdir / "r3.png")), np.asarray(Image.open(workdir / "r0.png")))
+    assert_user_error(run("synth", model_path, "-o", workdir / "x.png", "--refine", "-1"), "--refine")
+
+
 def test_builtin_exemplar(workdir):
     r = run("fit", "builtin:nope", "-o", workdir / "x.npz")
     assert_user_error(r, "unknown built-in exemplar", "bricks")
@@ -237,6 +245,25 @@ def test_paper_flag_selects_paper_core_model(workdir):
     assert json.loads(run("info", workdir / "p2.npz", "--json").stdout)["params"]["max_cluster_components"] == 7
 
 
+def test_residual_and_detail_switches(workdir):
+    import json
+
+    for flags, residual, detail in (([], True, 0.5), (["--paper"], False, 0.0), (["--no-residual"], False, 0.5)):
+        path = workdir / f"switch_{len(flags)}_{residual}.npz"
+        r = run("fit", workdir / "bricks.png", "-o", path, *FAST, *flags)
+        assert r.returncode == 0, r.stderr.decode()
+        params = json.loads(run("info", path, "--json").stdout)["params"]
+        assert (params["residual"], params["detail"]) == (residual, detail)
+    images = []
+    for detail in ("0", "0.6", "0.6"):
+        out = workdir / f"detail_{len(images)}.png"
+        r = run("synth", path, "-o", out, "--size", "64", "--pool", "300", "--seed", "3", "--detail", detail, "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        images.append(np.asarray(Image.open(out)))
+    assert not np.array_equal(images[0], images[1]) and np.array_equal(images[1], images[2])
+    assert_user_error(run("synth", path, "-o", workdir / "x.png", "--detail", "1", "-q"), "--detail")
+
+
 def test_grey_exemplar_stored_as_rgb(workdir):
     grey = data.bricks(80, rng=4).mean(axis=2, keepdims=True)
     save_image(np.repeat(grey, 3, axis=2), workdir / "grey_rgb.png")
@@ -244,3 +271,23 @@ def test_grey_exemplar_stored_as_rgb(workdir):
             "--seed", "1", *FAST)
     assert r.returncode == 0, r.stderr.decode()
     assert Image.open(workdir / "grey_out.png").mode == "L"
+
+
+def test_layout_option_fits_and_saves_a_coarse_model(workdir):
+    import json
+
+    path = workdir / "layout.npz"
+    save_image(data.bricks(112, rng=2), workdir / "bricks112.png")  # >= 48 * 2: the coarse model is fitted
+    r = run("fit", workdir / "bricks112.png", "-o", path, *FAST, "--layout", "2")
+    assert r.returncode == 0, r.stderr.decode()
+    assert json.loads(run("info", path, "--json").stdout)["params"]["layout_factor"] == 2
+    with np.load(path) as archive:
+        assert any(name.startswith("layout.") for name in archive.files)
+    for weight in ("0", "2.5"):
+        r = run("synth", path, "-o", workdir / f"lay_{weight}.png", "--size", "48x40", "--seed", "1",
+                "--layout-weight", weight, "--pool", "300", "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        assert Image.open(workdir / f"lay_{weight}.png").size == (40, 48)
+    r = run("fit", workdir / "bricks.png", "-o", workdir / "nolayout.npz", *FAST, "--paper")
+    assert json.loads(run("info", workdir / "nolayout.npz", "--json").stdout)["params"]["layout_factor"] is None
+    assert_user_error(run("fit", workdir / "bricks.png", "-o", workdir / "bad.npz", *FAST, "--layout", "1"), "--layout")

@@ -35,7 +35,7 @@ from .synthesis import TGHop, model_arrays, parameter_groups  # noqa: F401 (re-e
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: refinement statistics (refine.*)
 
 
 def save_model(model, path) -> None:

@@ -558,6 +558,52 @@ def quilting_plan(size, patch_size: int, *, overlap: Optional[int] = None, tile:
     )
 
 
+# ----------------------------------------------------------------------------- guidance
+
+
+def _box_means(x: np.ndarray, s: int) -> np.ndarray:
+    """``(n, P, P, C)`` -> ``(n, (P/s)^2 C)`` float32 means of ``s x s`` boxes."""
+    n, p, _, c = x.shape
+    q = p // s
+    return x.reshape(n, q, s, q, s, c).mean(axis=(2, 4), dtype=np.float32).reshape(n, -1)
+
+
+def _guide_setup(guide, weight, scale, arr, plan, masks_f):
+    """Low-pass features of the pool and the (padded) guide canvas for guided quilting."""
+    p, c = arr.shape[1], arr.shape[3]
+    g = np.asarray(guide, dtype=np.float32)
+    if g.ndim == 2:
+        g = g[..., None]
+    if g.shape != (*plan.size, c):
+        raise TGHopError(f"guide must have the output's shape {(*plan.size, c)}, got {g.shape}")
+    if isinstance(weight, bool) or not isinstance(weight, numbers.Real) or not (math.isfinite(weight) and weight >= 0):
+        raise TGHopError(f"guide_weight must be a finite number >= 0, got {weight!r}")
+    if isinstance(scale, bool) or not isinstance(scale, (numbers.Integral, np.integer)) or scale < 1 or p % scale:
+        raise TGHopError(f"guide_scale must be a positive integer dividing the patch size {p}, got {scale!r}")
+    scale = int(scale)
+    hc, wc = plan.canvas_shape
+    h, w = plan.size
+    if (hc, wc) != (h, w):  # the canvas of a non-tileable quilt may be larger: extend the edges
+        g = np.pad(g, ((0, hc - h), (0, wc - w), (0, 0)), mode="edge")
+    low = np.concatenate([_box_means(arr[a : a + _POOL_CHUNK], scale) for a in range(0, arr.shape[0], _POOL_CHUNK)])
+    # Per-pixel weights: overlap SSE + weight * (overlap pixels / low-pass values) * guide SSE.
+    n_overlap = np.maximum(masks_f.sum(axis=1), p * plan.overlap)  # (m,)
+    factor = (float(weight) * n_overlap / (p // scale) ** 2).astype(np.float32)
+    return {"low": low, "low_norm": np.einsum("ij,ij->i", low, low), "canvas": g, "scale": scale,
+            "factor": factor}
+
+
+def _add_guide_error(err, guided, windows, mid):
+    """Add each block's weighted guide distance ``(n, b)`` to ``err`` in place."""
+    g = guided["canvas"]
+    target = _box_means(np.stack([g[win] for win in windows]), guided["scale"])  # (b, k)
+    dist = guided["low"] @ (-2.0 * target).T
+    dist += guided["low_norm"][:, None]
+    dist += np.einsum("ij,ij->i", target, target)[None, :]
+    dist *= guided["factor"][mid][None, :]
+    err += dist
+
+
 # ----------------------------------------------------------------------------- quilting
 
 
@@ -586,6 +632,16 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray) -> np.ndarray:
     return table
 
 
+def _gradient_energy(arr: np.ndarray) -> np.ndarray:
+    """``(n,)`` float32: mean squared difference of neighbouring pixels of each patch."""
+    out = np.empty(arr.shape[0], dtype=np.float32)
+    for a in range(0, arr.shape[0], _POOL_CHUNK):
+        x = np.asarray(arr[a : a + _POOL_CHUNK], dtype=np.float32)
+        out[a : a + _POOL_CHUNK] = (np.square(np.diff(x, axis=1)).mean(axis=(1, 2, 3))
+                                    + np.square(np.diff(x, axis=2)).mean(axis=(1, 2, 3)))
+    return out
+
+
 def quilt(
     pool,
     size,
@@ -593,8 +649,12 @@ def quilt(
     overlap: Optional[int] = None,
     tolerance: float = 0.1,
     tile: bool = False,
+    detail: float = 0.0,
     rng=None,
     progress: Optional[ProgressCallback] = None,
+    guide=None,
+    guide_weight: float = 1.0,
+    guide_scale: int = 4,
 ) -> np.ndarray:
     """Stitch patches from ``pool`` into an image by image quilting (Efros & Freeman 2001).
 
@@ -615,10 +675,25 @@ def quilt(
     tile : bool
         Make the output tileable: it wraps around seamlessly (the last blocks of each row
         and column also overlap, are matched with and cut into the first ones).
+    detail : float in [0, 1)
+        Counter the preference of the overlap error for smooth patches: among the
+        candidates within the tolerance, choose only from those whose gradient energy
+        (mean squared difference of neighbouring pixels over the whole patch) is at or
+        above this quantile of the candidates' (0: all candidates, Efros & Freeman).
     rng : None, int or numpy.random.Generator
         Seed; the same seed gives the same image.
     progress : callable, optional
         ``progress("quilting", done, total)`` after each wavefront of blocks.
+    guide : array_like, shape (H, W, C), optional
+        A target layout (e.g. an upsampled coarse synthesis, :mod:`tghop.layout`): guided
+        quilting as in Efros & Freeman's texture transfer. Each candidate's error also
+        counts the squared distance between its low-pass version (``guide_scale`` x
+        ``guide_scale`` box means) and the guide's at the block's place.
+    guide_weight : float
+        Weight of the guide term per pixel relative to the overlap error per pixel
+        (0: the guide is ignored).
+    guide_scale : int
+        Box size of the low pass compared with the guide; divides ``P``.
 
     Returns
     -------
@@ -649,6 +724,9 @@ def quilt(
     ):
         raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     tolerance = float(tolerance)
+    if isinstance(detail, bool) or not isinstance(detail, numbers.Real) or not 0 <= detail < 1:
+        raise TGHopError(f"detail must be a number in [0, 1), got {detail!r}")
+    detail = float(detail)
     plan = quilting_plan(size, p, overlap=overlap, tile=tile)
     rng = check_rng(rng)
 
@@ -661,6 +739,7 @@ def quilt(
     masks_fc = np.repeat(masks_f, c, axis=1)  # (m, nf * c), matches the (pixel, channel) layout
     m, k = masks_fc.shape
     table = _pool_table(arr, slices, masks_fc)
+    energy = _gradient_energy(arr) if detail > 0 else None
     norm_max = table[:, :m].max(axis=0)  # (m,)
     one_hot = np.eye(m, dtype=np.float32)
     # Columns [0, k1) hold the norms, the top band and the left band; only wrap-around
@@ -671,6 +750,7 @@ def quilt(
 
     hc, wc = plan.canvas_shape
     canvas = np.zeros((hc, wc, c), dtype=np.float32)
+    guided = _guide_setup(guide, guide_weight, guide_scale, arr, plan, masks_f) if guide is not None else None
     order = np.argsort(plan.level.ravel(), kind="stable")
     bounds = np.cumsum(np.bincount(plan.level.ravel(), minlength=plan.n_levels))
     nx = plan.xs.size
@@ -697,6 +777,8 @@ def quilt(
         sel = np.flatnonzero(wraps[mid])
         if sel.size:
             err[:, sel] += table[:, k1:] @ query[sel, k1:].T
+        if guided is not None:
+            _add_guide_error(err, guided, windows, mid)
         # Candidates: error <= (1 + tolerance) * best error, with a little slack for the
         # float32 round-off of the expansion; the best match always qualifies.
         best = np.maximum(err.min(axis=0) + onorm, 0.0)
@@ -704,9 +786,15 @@ def quilt(
         cand = err <= best * (1.0 + tolerance) + slack - onorm
         pool_idx, block_idx = np.nonzero(cand)
         counts = np.bincount(block_idx, minlength=b)
-        by_block = np.argsort(block_idx, kind="stable")  # block-major, pool index ascending
-        pick = rng.integers(0, counts)
-        chosen = pool_idx[by_block[np.concatenate(([0], np.cumsum(counts)[:-1])) + pick]]
+        first = np.concatenate(([0], np.cumsum(counts)[:-1]))
+        if energy is None:
+            by_block = np.argsort(block_idx, kind="stable")  # block-major, pool index ascending
+            pick = rng.integers(0, counts)
+        else:  # block-major, gradient energy ascending: skip the smoothest candidates
+            by_block = np.lexsort((energy[pool_idx], block_idx))
+            skip = np.minimum((detail * counts).astype(np.int64), counts - 1)
+            pick = skip + rng.integers(0, counts - skip)
+        chosen = pool_idx[by_block[first + pick]]
 
         new = np.asarray(arr[chosen], dtype=np.float32)
         _check_values(new)

@@ -243,9 +243,23 @@ SETTINGS: Tuple[Setting, ...] = (
             none_ok=True, target="ichm"),
     Setting("ica_max_iter", 200, "int", "FastICA iterations per cluster at most.", low=1,
             cli=("--ica-iterations",), target="ichm.max_iter"),
+    Setting("residual", True, "bool",
+            "Also model the detail each cluster's PCA drops, as a Gaussian per core channel, and add a "
+            "draw of it to every generated patch (ours; restores the fine grain).", target="ichm",
+            paper=False),
     Setting("max_patches", 20000, "int",
             "Training patches beyond this are subsampled at random (a 256x256 exemplar at stride 2 has "
             "12,769).", low=1, none_ok=True),
+    Setting("band_levels", 4, "int",
+            "Laplacian bands whose distributions are learned for the refinement after stitching "
+            "(:mod:`tghop.refine`, ours).", low=1, high=8),
+    Setting("band_orientations", 4, "int",
+            "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
+    Setting("layout_factor", None, "int",
+            "Coarse to fine (ours, :mod:`tghop.layout`): also model the layout on the exemplar "
+            "downsampled by this factor, and quilt guided by a coarse synthesis (None: off; skipped "
+            "for exemplars smaller than 48 times the factor).", low=2, high=16, none_ok=True,
+            cli=("--layout",), paper=None),
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
             cli=("--fit-seed",)),
     # ---------------------------------------------------------------- generation time
@@ -257,9 +271,20 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("tolerance", 0.1, "float",
             "Quilting picks among pool patches within (1 + tolerance) of the best match.",
             when="generate", low=0),
+    Setting("detail", 0.5, "float",
+            "Quilting chooses only among the near-best candidates whose gradient energy is at or above "
+            "this quantile of theirs, against the overlap error's preference for smooth patches (ours; "
+            "0: the paper's uniform choice).", when="generate", low=0, high=1, high_open=True, paper=0.0),
     Setting("match_colours", True, "bool",
             "Match each channel's histogram to the exemplar's after quilting (ours; False: the paper's "
             "pipeline).", when="generate", paper=False),
+    Setting("layout_weight", 3.0, "float",
+            "Weight of the coarse layout's guide in quilting, per pixel relative to the overlap error "
+            "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0),
+    Setting("refine", 3, "int",
+            "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
+            ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
+            when="generate", low=0, high=20, paper=0),
 )
 
 BY_NAME = {s.name: s for s in SETTINGS}

@@ -28,7 +28,9 @@ from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
+from .layout import CoarseLayout
 from .quilting import quilt
+from .refine import BandStatistics, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
@@ -129,8 +131,13 @@ class TGHop(BaseEstimator):
     exemplar_shape_ : tuple
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
+    bands_ : tghop.refine.BandStatistics
+        The exemplar's band and pixel distributions in its decorrelated colour space, for
+        the refinement after stitching.
     n_patches_ : int
         Training patches used.
+    layout_ : tghop.layout.CoarseLayout or None
+        The coarse layout model (``layout_factor`` set and the exemplar large enough).
     """
 
     __init__ = settings.make_init(settings.fit_settings())
@@ -186,6 +193,7 @@ class TGHop(BaseEstimator):
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
         self.colour_quantiles_ = channel_quantiles(image)
+        self.bands_ = BandStatistics(n_levels=self.band_levels, n_orientations=self.band_orientations).fit(image)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -194,7 +202,13 @@ class TGHop(BaseEstimator):
         self.sdr_ = sdr
         report(progress, "SDR", 1, 1)
         del core
-        self.ichm_ = ichm.fit(z, progress=progress)
+        self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
+        self.layout_ = None
+        layout = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
+        if layout is not None and layout.fits(image.shape):
+            report(progress, "layout", 0, 1)
+            self.layout_ = layout.fit(image)
+            report(progress, "layout", 1, 1)
         self._decoder = None
         return self
 
@@ -208,6 +222,9 @@ class TGHop(BaseEstimator):
         out.update(self.sdr_._to_arrays())
         out.update(self.ichm_._to_arrays())
         out["colour.quantiles"] = self.colour_quantiles_
+        out.update(self.bands_._to_arrays())
+        if self.layout_ is not None:  # the coarse model's arrays, prefixed
+            out.update({f"layout.{k}": v for k, v in self.layout_.model_._to_arrays().items()})
         return out
 
     def _state_meta(self) -> dict:
@@ -224,6 +241,8 @@ class TGHop(BaseEstimator):
             "hop_dims": self.hops_.dims_,
             "sdr_shape": list(self.sdr_.shape_),
             "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
+            "layout": None if self.layout_ is None else {
+                "params": {**self.layout_.get_params(), "rng": None}, "model": self.layout_.model_._state_meta()},
         }
 
     @classmethod
@@ -248,6 +267,13 @@ class TGHop(BaseEstimator):
         model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
+        model.bands_ = BandStatistics(n_levels=model.band_levels,
+                                      n_orientations=model.band_orientations)._from_arrays(arrays)
+        model.layout_ = None
+        if meta.get("layout") is not None:
+            model.layout_ = CoarseLayout(**meta["layout"]["params"])
+            sub = {k[len("layout."):]: v for k, v in arrays.items() if k.startswith("layout.")}
+            model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
         model._check_consistent()
         model._decoder = None
         return model
@@ -266,6 +292,7 @@ class TGHop(BaseEstimator):
             self.hops_.hops_[-1].n_channels_out_ == sdr.shape_[2],
             abs(float(ichm.weights_.sum()) - 1.0) < 1e-6,
             self.colour_quantiles_.shape[0] == self.exemplar_shape_[2],
+            self.bands_.colour_basis_.shape == (self.exemplar_shape_[2],) * 2,
         ]
         if not all(checks):
             raise ValueError("array shapes disagree")
@@ -298,7 +325,9 @@ class TGHop(BaseEstimator):
         dict
             ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
             "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", "colour matching (ours)" and "total". "paper" applies the paper's formula to this
+            "(ii)", "(iii)", "colour matching (ours)", "residual Gaussian (ours)", "coarse layout (ours)" (0
+            without ``layout_factor``),
+            "refinement (ours)" and "total". "paper" applies the paper's formula to this
             model's dimensions; "stored" counts the numbers this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
             the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
@@ -322,6 +351,9 @@ class TGHop(BaseEstimator):
             "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
         }
         paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+        paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
+        paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
+        paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
         stored = parameter_groups(self._to_arrays())
         out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
         out["total"] = {
@@ -413,16 +445,56 @@ class TGHop(BaseEstimator):
         dtype = np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
+        rng = check_rng(rng)
         labels, sources = self.ichm_.sample_sources(n, rng=rng)
-        if return_stages:
-            patches, spaces = self.decode(self.ichm_.mix(labels, sources), return_stages=True)
-            return patches.astype(dtype, copy=False), self.stage_views(spaces)
+        residual = self.ichm_.residual_factor_.size > 0
+        if return_stages or n <= self.ichm_.n_cdfs_ // 10:
+            z = self.ichm_.mix(labels, sources)
+            if residual:
+                z += self.ichm_.sample_residual(n, rng=rng)
+            if return_stages:
+                patches, spaces = self.decode(z, return_stages=True)
+                return patches.astype(dtype, copy=False), self.stage_views(spaces)
+            return self.decode(z).astype(dtype, copy=False)
+        # The fold (about F decoded rows) pays off for larger batches.
         shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
-        if n > self.ichm_.n_cdfs_ // 10:  # the fold (about F decoded rows) pays off for larger batches
-            mixing, means = self._affine_decoder(dtype)
-            flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
-            return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
-        return self.decode(self.ichm_.mix(labels, sources)).astype(dtype, copy=False)
+        mixing, means = self._affine_decoder(dtype)
+        flat = self.ichm_.mix(labels, [s.astype(dtype, copy=False) for s in sources], mixing=mixing, means=means)
+        if residual:
+            self._add_residual(flat, rng)
+        return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
+
+    def _add_residual(self, flat, rng):
+        """Add residual draws, decoded, to flattened patches ``flat`` (n, P * P * C), in place.
+
+        The residual is decoded through the linear parts of the inverse SDR (one product
+        per core channel) and of the inverse hops (one ``K x (2^hops)^2 C`` map from a core
+        position to its pixel block, applied at every position), in ``flat``'s dtype: far
+        fewer operations than the dense ``D_r x P*P*C`` map of :meth:`_affine_decoder`.
+        Same draws as :meth:`ICHM.sample_residual` (the decode path of small batches).
+        """
+        from .patches import depth_to_space
+
+        n, dtype = len(flat), flat.dtype
+        h, w, k = self.sdr_.shape_
+        maps = np.empty((k, n, h * w), dtype=dtype)
+        filled = np.zeros(k, dtype=bool)
+        for dims, normals, factor in self.ichm_.residual_draws(n, rng=rng):
+            channels = np.unique(self.sdr_.channel_[dims])
+            if channels.size != 1 or filled[channels[0]]:
+                raise TGHopError("each residual group must be one whole core channel")
+            fold = (factor.T @ self.sdr_.components_[dims]).astype(dtype)  # (k_g, h * w)
+            np.matmul(normals.astype(dtype), fold, out=maps[channels[0]])
+            filled[channels[0]] = True
+        maps[~filled] = 0.0
+        # Linear part of the inverse hops for one core position: (K, b, b, C).
+        y = np.eye(k).reshape(k, 1, 1, k)
+        for hop in reversed(self.hops_.hops_):
+            y = depth_to_space(y @ hop.kernels_)
+        b, c = y.shape[1], y.shape[3]
+        blocks = y.reshape(k, -1).T.astype(dtype) @ maps.reshape(k, -1)  # (b * b * C, n * h * w)
+        out = flat.reshape(n, h, b, w, b, c)
+        out += blocks.reshape(b, b, c, n, h, w).transpose(3, 4, 0, 5, 1, 2)
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -452,7 +524,7 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, match_colours=True, progress=None):
+                   tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, progress=None):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -469,11 +541,22 @@ class TGHop(BaseEstimator):
             Quilting overlap (default ``patch_size // 6``).
         tolerance : float
             Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
+        detail : float in [0, 1)
+            Quilting picks only among those candidates whose gradient energy is at or
+            above this quantile of theirs (ours, against the overlap error's preference for
+            smooth patches; 0: the paper's uniform choice; see :func:`tghop.quilting.quilt`).
         match_colours : bool
             Match each channel's histogram to the exemplar's after quilting (our
             addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
+        layout_weight : float
+            Weight of the coarse layout's guide in quilting (models fitted with
+            ``layout_factor``, see :mod:`tghop.layout`); 0 ignores it.
+        refine : int
+            Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style,
+            our addition, see :mod:`tghop.refine`): restores the contrast of fine detail;
+            0 is off, as in the paper.
         progress : callable, optional
-            Stages "patch pool" and "quilting".
+            Stages "layout" (with a coarse layout), "patch pool", "quilting" and "refine".
 
         Returns
         -------
@@ -481,13 +564,23 @@ class TGHop(BaseEstimator):
         """
         check_is_fitted(self, "ichm_")
         settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                     match_colours=match_colours))
+                                     detail=detail, match_colours=match_colours, layout_weight=layout_weight, refine=refine))
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
+        guide = None
+        if self.layout_ is not None and layout_weight:
+            report(progress, "layout", 0, 1)
+            guide = self.layout_.guide(size, rng=rng, tile=tile)
+            report(progress, "layout", 1, 1)
         report(progress, "patch pool", 0, 1)
         pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
-        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, rng=rng, progress=progress)
+        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, detail=detail, rng=rng,
+                      progress=progress, guide=guide, guide_weight=layout_weight)
+        if refine:
+            report(progress, "refine", 0, 1)
+            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
+            report(progress, "refine", 1, 1)
         return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
 
 
@@ -504,11 +597,16 @@ GROUPS = {
     "ichm_ii": "core ICHM (ii)",
     "ichm_iii": "core ICHM (iii)",
     "colour": "colour matching (ours)",
+    "refine": "refinement (ours)",
+    "layout": "coarse layout (ours)",
+    "residual": "residual Gaussian (ours)",
 }
 
 
 def _group(name: str):
-    part = name.split(".", 1)[0]
+    part, _, rest = name.partition(".")
+    if part == "layout":  # the coarse model's arrays: one row, its bookkeeping excluded
+        return None if rest.startswith("index.") else GROUPS["layout"]
     if part == "index":
         return None
     if part in GROUPS:

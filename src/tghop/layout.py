@@ -1,0 +1,188 @@
+"""Coarse-to-fine layout: a TGHop model of the exemplar at a coarser scale guides quilting.
+
+32x32 patches cannot hold structures larger than themselves (brick courses, knit cables,
+large cells), and quilting alone only matches overlaps, so nothing keeps the arrangement
+above the patch scale. :class:`CoarseLayout` fits a second, small TGHop model on the
+exemplar downsampled by ``factor`` (box means): its 32x32 patches then cover
+``32 * factor`` exemplar pixels. At generation, :meth:`CoarseLayout.guide` quilts a coarse
+image from that model (new content, not a copy) and upsamples it to the output size; the
+fine level is quilted from the fine model's pool *guided* by it
+(:func:`tghop.quilting.quilt` with ``guide``: each candidate's overlap error plus the
+distance between its low-pass version and the guide there, Efros & Freeman's texture
+transfer).
+
+Example
+-------
+>>> from tghop import data
+>>> from tghop.layout import CoarseLayout
+>>> layout = CoarseLayout(factor=2, rng=0).fit(data.bricks())        # doctest: +SKIP
+>>> guide = layout.guide((256, 256), rng=1)                           # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
+
+__all__ = ["CoarseLayout", "downsample", "upsample"]
+
+
+def downsample(image, factor: int) -> np.ndarray:
+    """Box-mean downsampling by an integer ``factor`` (trailing rows/columns dropped).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+    factor : int
+
+    Returns
+    -------
+    ndarray, shape (H // factor, W // factor, C)
+    """
+    img = np.asarray(image, dtype=np.float64)
+    h, w, c = img.shape
+    hs, ws = h // factor, w // factor
+    return img[: hs * factor, : ws * factor].reshape(hs, factor, ws, factor, c).mean(axis=(1, 3))
+
+
+def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
+    """Bilinear upsampling by ``factor`` (pixel-centre aligned), cropped to ``size``.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w, C)
+    factor : int
+    size : (int, int)
+        Output (H, W), at most ``(h * factor, w * factor)``.
+    wrap : bool
+        Treat the image as periodic (for tileable output).
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), float64 in [0, 1]
+    """
+    from scipy import ndimage  # generation from a saved model needs SciPy only here
+
+    img = np.asarray(image, dtype=np.float64)
+    mode = "grid-wrap" if wrap else "nearest"
+    out = ndimage.zoom(img, (factor, factor, 1), order=1, mode=mode, grid_mode=True)
+    return np.clip(out[: size[0], : size[1]], 0.0, 1.0)
+
+
+def _positive_int(value, name, low=1):
+    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
+        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+class CoarseLayout(BaseEstimator):
+    """A TGHop model of the exemplar downsampled by ``factor``: the layout above patch scale.
+
+    Parameters
+    ----------
+    factor : int, default=2
+        Downsampling of the exemplar (2: coarse patches cover 64x64 exemplar pixels).
+    patch_size : int, default=32
+        Patch size of the coarse model.
+    n_clusters : int, default=50
+        ICHM clusters of the coarse model (fewer if it has few training patches: at least
+        about 40 patches per cluster).
+    min_patches : int, default=2000
+        Below this many training patches at stride 2, the coarse model uses stride 1.
+    max_patches : int, default=4000
+        Training patches of the coarse model (a random subset beyond this): it only needs
+        the low-pass layout, so it is kept cheap (with the two settings below, about a
+        third of the fine model's fit time).
+    cluster_energy, max_cluster_components : float, int, default=0.95, 50
+        Per-cluster PCA of the coarse model (the paper's Table 4 values).
+    rng : int or numpy.random.Generator, optional
+
+    Attributes
+    ----------
+    model_ : TGHop
+        The coarse model (fitted on the downsampled exemplar).
+    """
+
+    def __init__(self, factor=2, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000,
+                 cluster_energy=0.95, max_cluster_components=50, rng=None):
+        self.factor = factor
+        self.patch_size = patch_size
+        self.n_clusters = n_clusters
+        self.min_patches = min_patches
+        self.max_patches = max_patches
+        self.cluster_energy = cluster_energy
+        self.max_cluster_components = max_cluster_components
+        self.rng = rng
+
+    def _small_shape(self, shape):
+        f = _positive_int(self.factor, "factor", 2)
+        return shape[0] // f, shape[1] // f
+
+    def fits(self, shape) -> bool:
+        """Whether an exemplar of ``shape`` (H, W, ...) is large enough for this layout."""
+        p = _positive_int(self.patch_size, "patch_size", 4)
+        return min(self._small_shape(shape)) >= p + p // 2
+
+    def fit(self, image, y=None):
+        """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.
+
+        Returns
+        -------
+        self
+        """
+        from .synthesis import TGHop  # synthesis imports this module
+
+        img = check_image(image, name="exemplar")
+        f = _positive_int(self.factor, "factor", 2)
+        p = _positive_int(self.patch_size, "patch_size", 4)
+        hs, ws = self._small_shape(img.shape)
+        if min(hs, ws) < p + p // 2:  # at least (p/2 + 1)^2 training patches at stride 1
+            raise TGHopError(
+                f"a coarse layout at factor {f} needs an exemplar of at least {(p + p // 2) * f}x{(p + p // 2) * f} pixels, "
+                f"got {img.shape[0]}x{img.shape[1]}; use a smaller layout factor or none"
+            )
+        small = downsample(img, f)
+        count = lambda s: ((hs - p) // s + 1) * ((ws - p) // s + 1)  # noqa: E731
+        stride = 2 if count(2) >= self.min_patches else 1
+        n_train = min(count(stride), _positive_int(self.max_patches, "max_patches", 100))
+        n_clusters = max(2, min(_positive_int(self.n_clusters, "n_clusters", 2), n_train // 40))
+        self.model_ = TGHop(
+            patch_size=p, stride=stride, n_clusters=n_clusters, cluster_energy=self.cluster_energy,
+            max_cluster_components=self.max_cluster_components, max_patches=n_train, layout_factor=None,
+            rng=check_rng(self.rng),
+        ).fit(small)
+        return self
+
+    def guide(self, size, *, rng=None, n_patches=4000, tile=False):
+        """A coarse synthesis upsampled to ``size``: the layout the fine level follows.
+
+        Parameters
+        ----------
+        size : (int, int) or int
+            Output (H, W).
+        rng : int or numpy.random.Generator, optional
+        n_patches : int
+            Pool of coarse patches.
+        tile : bool
+            Make the coarse image wrap around (for tileable output).
+
+        Returns
+        -------
+        ndarray, shape (H, W, C), float64 in [0, 1]
+        """
+        check_is_fitted(self, "model_")
+        from .quilting import _check_size
+
+        f = int(self.factor)
+        h, w = _check_size(size)
+        small = (math.ceil(h / f), math.ceil(w / f))
+        if tile and (h % f or w % f):
+            raise TGHopError(f"a tileable output with a coarse layout needs a size divisible by {f}, got {h}x{w}")
+        p = self.model_.patch_size
+        if tile and min(small) < p:
+            raise TGHopError(f"a tileable output with a coarse layout at factor {f} needs at least {p * f} pixels a side")
+        coarse = self.model_.synthesize(small, rng=rng, n_patches=n_patches, tile=tile)
+        return upsample(coarse, f, (h, w), wrap=tile)

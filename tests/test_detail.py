@@ -1,0 +1,116 @@
+"""The two steps against soft output: the residual Gaussian of the core model and the
+quilting choice that does not favour smooth patches."""
+
+import numpy as np
+import pytest
+
+from tghop import TGHop
+from tghop._common import TGHopError
+from tghop.core import ICHM
+from tghop.modelfile import load_model, save_model
+from tghop.quilting import quilt
+from tghop.synthesis import PAPER_TABLE4
+
+from conftest import SMALL
+
+
+def _gradient_energy(x):
+    x = np.asarray(x, dtype=np.float64)
+    return float(np.square(np.diff(x, axis=-3)).mean() + np.square(np.diff(x, axis=-2)).mean())
+
+
+# ----------------------------------------------------------------------------- residual
+
+
+@pytest.fixture(scope="module")
+def residual_fit():
+    rng = np.random.default_rng(0)
+    # Two clusters of 6-dimensional data; the per-cluster PCA keeps 2 components.
+    centres = np.array([[5.0] * 6, [-5.0] * 6])
+    z = centres[rng.integers(0, 2, 2000)] + rng.standard_normal((2000, 6)) * np.array([3, 2, 1, 1, 0.5, 0.5])
+    groups = np.array([0, 0, 0, 1, 1, 1])
+    model = ICHM(n_clusters=2, n_codewords=4, max_cluster_components=2, residual=True, rng=0)
+    return model.fit(z, groups=groups), z, groups
+
+
+def test_residual_gaussian_has_the_covariance_of_what_the_pca_drops(residual_fit):
+    model, z, groups = residual_fit
+    assert model.residual_factor_.shape == (9 + 9,) and np.array_equal(model.residual_group_, groups)
+    draws = model.sample_residual(40000, rng=1)
+    assert draws.shape == (40000, 6)
+    cov = np.cov(draws.T)
+    assert abs(cov[0, 4]) < 0.05 and abs(cov[2, 3]) < 0.05  # groups are independent
+    # Total residual variance: what 2 of 6 components per cluster leave out.
+    assert 0.3 * z.var(axis=0).sum() > np.trace(cov) > 1.0
+    # The factors reproduce the draws' covariance within each group.
+    f0 = model.residual_factor_[:9].reshape(3, 3)
+    np.testing.assert_allclose(cov[:3, :3], f0 @ f0.T, atol=0.05)
+
+
+def test_residual_off_is_empty_and_the_mixture_unchanged(residual_fit):
+    _, z, groups = residual_fit
+    kw = dict(n_clusters=2, n_codewords=4, max_cluster_components=2, rng=0)
+    off = ICHM(**kw).fit(z, groups=groups)
+    on = ICHM(**kw, residual=True).fit(z, groups=groups)
+    assert off.residual_factor_.size == 0 and not off.sample_residual(5, rng=0).any()
+    np.testing.assert_array_equal(off.mixing_, on.mixing_)
+    np.testing.assert_array_equal(off.sample(50, rng=3), on.sample(50, rng=3))
+
+
+def test_residual_restores_gradient_energy(bricks96):
+    # Few components per cluster: the PCA drops much of the fine grain.
+    few = dict(SMALL, max_cluster_components=10)
+    n = 600
+    with_residual = _gradient_energy(TGHop(**few, residual=True).fit(bricks96).sample_patches(n, rng=0))
+    without = _gradient_energy(TGHop(**few, residual=False).fit(bricks96).sample_patches(n, rng=0))
+    exemplar = _gradient_energy(bricks96[None])
+    assert with_residual > 1.1 * without
+    assert with_residual < 1.5 * exemplar
+
+
+def test_residual_same_seed_same_patches_and_survives_save_load(small_model, tmp_path):
+    n = small_model.ichm_.n_cdfs_ + 7  # the folded path
+    a = small_model.sample_patches(n, rng=5, dtype=np.float32)
+    assert np.array_equal(a, small_model.sample_patches(n, rng=5, dtype=np.float32))
+    path = tmp_path / "m.npz"
+    save_model(small_model, path)
+    loaded = load_model(path)
+    assert loaded.ichm_.residual_factor_.size > 0
+    assert np.array_equal(loaded.sample_patches(n, rng=5, dtype=np.float32), a)
+
+
+def test_paper_mode_has_no_residual():
+    assert PAPER_TABLE4["residual"] is False
+    assert TGHop().residual is True
+
+
+# ----------------------------------------------------------------------------- quilting
+
+
+def _mixed_pool(n=400, p=12, seed=0):
+    """Half flat grey patches (they match any overlap best), half grey noise."""
+    rng = np.random.default_rng(seed)
+    flat = np.full((n // 2, p, p, 1), 0.5)
+    noisy = np.clip(0.5 + 0.15 * rng.standard_normal((n // 2, p, p, 1)), 0, 1)
+    return np.concatenate([flat, noisy]).astype(np.float32)
+
+
+def test_detail_zero_is_the_classic_choice():
+    pool = _mixed_pool()
+    a = quilt(pool, (40, 40), rng=2)
+    b = quilt(pool, (40, 40), rng=2, detail=0.0)
+    assert np.array_equal(a, b)
+
+
+def test_detail_prefers_patches_with_gradient_energy():
+    pool = _mixed_pool()
+    smooth = quilt(pool, (60, 60), tolerance=2.0, rng=0)
+    sharp = quilt(pool, (60, 60), tolerance=2.0, detail=0.5, rng=0)
+    assert _gradient_energy(sharp) > 2 * _gradient_energy(smooth)
+    assert np.array_equal(sharp, quilt(pool, (60, 60), tolerance=2.0, detail=0.5, rng=0))
+
+
+@pytest.mark.parametrize("detail", [-0.1, 1.0, True, "high", float("nan")])
+def test_bad_detail(detail):
+    with pytest.raises(TGHopError, match="detail"):
+        quilt(_mixed_pool(20), (20, 20), detail=detail)

@@ -1,0 +1,145 @@
+"""Tests of coarse-to-fine layout: tghop.layout and guided quilting (tghop.quilting)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tghop import TGHop, TGHopError, data
+from tghop.layout import CoarseLayout, downsample, upsample
+from tghop.modelfile import load_model, save_model
+from tghop.quilting import quilt
+
+from conftest import SMALL
+
+
+def two_tone_pool(n=200, p=16, seed=0):
+    """Half dark, half bright flat patches with a little noise."""
+    rng = np.random.default_rng(seed)
+    levels = np.where(np.arange(n) % 2 == 0, 0.2, 0.8)[:, None, None, None]
+    return np.clip(levels + 0.02 * rng.standard_normal((n, p, p, 1)), 0, 1)
+
+
+def half_guide(size=(64, 96)):
+    """Dark on the left half, bright on the right."""
+    g = np.full((*size, 1), 0.2)
+    g[:, size[1] // 2:] = 0.8
+    return g
+
+
+# ----------------------------------------------------------------------------- guided quilting
+
+
+def test_guided_quilting_follows_the_guide():
+    pool, guide = two_tone_pool(), half_guide()
+    out = quilt(pool, guide.shape[:2], guide=guide, guide_weight=1.0, rng=0)
+    # Blocks away from the middle column take the guide's tone.
+    assert np.abs(out[:, :32] - 0.2).mean() < 0.05
+    assert np.abs(out[:, 64:] - 0.8).mean() < 0.05
+    free = quilt(pool, guide.shape[:2], rng=0)  # unguided: the first block's tone everywhere
+    assert abs(free[:, :32].mean() - free[:, 64:].mean()) < 0.1
+
+
+def test_zero_weight_is_unguided_and_seeded():
+    pool, guide = two_tone_pool(), half_guide()
+    free = quilt(pool, guide.shape[:2], rng=5)
+    assert np.array_equal(quilt(pool, guide.shape[:2], guide=guide, guide_weight=0.0, rng=5), free)
+    a = quilt(pool, guide.shape[:2], guide=guide, rng=5)
+    assert np.array_equal(a, quilt(pool, guide.shape[:2], guide=guide, rng=5))
+
+
+def test_guided_tileable_and_grey_2d_guide():
+    pool, guide = two_tone_pool(), half_guide((48, 48))
+    out = quilt(pool, (48, 48), guide=guide[..., 0], tile=True, guide_scale=2, rng=0)
+    assert out.shape == (48, 48, 1) and 0 <= out.min() and out.max() <= 1
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(guide=np.zeros((10, 10, 1))), "shape"),
+    (dict(guide=np.zeros((64, 96, 1)), guide_weight=-1), "guide_weight"),
+    (dict(guide=np.zeros((64, 96, 1)), guide_scale=3), "guide_scale"),
+])
+def test_bad_guide(kw, match):
+    with pytest.raises(TGHopError, match=match):
+        quilt(two_tone_pool(), (64, 96), **kw)
+
+
+# ----------------------------------------------------------------------------- resampling
+
+
+def test_downsample_upsample():
+    img = np.random.default_rng(0).random((9, 8, 3))
+    small = downsample(img, 2)
+    assert small.shape == (4, 4, 3)
+    assert np.allclose(small[0, 0], img[:2, :2].reshape(-1, 3).mean(axis=0))
+    flat = np.full((4, 4, 1), 0.3)
+    assert np.allclose(upsample(flat, 4, (15, 16)), 0.3) and upsample(flat, 4, (15, 16)).shape == (15, 16, 1)
+
+
+# ----------------------------------------------------------------------------- CoarseLayout
+
+
+@pytest.fixture(scope="module")
+def layout():
+    return CoarseLayout(factor=2, n_clusters=6, rng=0).fit(data.bricks(128, rng=1))
+
+
+def test_layout_guide_shape_range_determinism(layout):
+    assert layout.model_.exemplar_shape_[:2] == (64, 64)
+    assert layout.model_.layout_factor is None  # no recursion
+    g = layout.guide((70, 90), rng=3, n_patches=300)
+    assert g.shape == (70, 90, 3) and 0 <= g.min() and g.max() <= 1
+    assert np.array_equal(g, layout.guide((70, 90), rng=3, n_patches=300))
+    assert not np.array_equal(g, layout.guide((70, 90), rng=4, n_patches=300))
+    assert layout.guide(64, rng=0, n_patches=300, tile=True).shape == (64, 64, 3)
+
+
+def test_layout_errors(layout):
+    with pytest.raises(TGHopError, match="at least 192x192"):
+        CoarseLayout(factor=4).fit(data.bricks(96, rng=1))
+    assert not CoarseLayout(factor=2).fits((95, 200)) and CoarseLayout(factor=2).fits((96, 96, 3))
+    with pytest.raises(TGHopError, match="factor"):
+        CoarseLayout(factor=1).fit(data.bricks(96, rng=1))
+    with pytest.raises(TGHopError, match="divisible by 2"):
+        layout.guide((65, 64), tile=True)
+
+
+# ----------------------------------------------------------------------------- in TGHop
+
+
+@pytest.fixture(scope="module")
+def layout_model():
+    return TGHop(**SMALL, layout_factor=2).fit(data.bricks(128, rng=1))
+
+
+def test_tghop_with_layout_follows_its_guide(layout_model):
+    """The output's low pass is closer to the guide drawn with the same seed than without guidance."""
+    size = (96, 96)
+    guide = layout_model.layout_.guide(size, rng=np.random.default_rng(7))
+    on = layout_model.synthesize(size, rng=7, n_patches=800, layout_weight=3.0, match_colours=False)
+    off = layout_model.synthesize(size, rng=7, n_patches=800, layout_weight=0.0, match_colours=False)
+
+    def dist(img):
+        return np.abs(downsample(img, 8) - downsample(guide, 8)).mean()
+
+    assert dist(on) < 0.8 * dist(off)
+
+
+def test_tghop_layout_save_load_identical(layout_model, tmp_path):
+    a = layout_model.synthesize((64, 64), rng=2, n_patches=400)
+    save_model(layout_model, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz")
+    assert loaded.layout_ is not None and loaded.layout_.factor == 2
+    assert np.array_equal(a, loaded.synthesize((64, 64), rng=2, n_patches=400))
+    rows = layout_model.n_parameters()
+    assert rows["coarse layout (ours)"]["stored"] > 0
+    assert rows["total"]["stored"] == sum(v["stored"] for k, v in rows.items() if k != "total")
+
+
+def test_tghop_layout_off_by_default_small_exemplar_and_errors(small_model):
+    assert small_model.layout_factor is None and small_model.layout_ is None
+    assert small_model.n_parameters()["coarse layout (ours)"]["stored"] == 0
+    m = TGHop(**SMALL, layout_factor=4).fit(data.bricks(96, rng=1))  # smaller than 4 * 48: skipped
+    assert m.layout_ is None
+    with pytest.raises(TGHopError, match="layout_factor"):
+        TGHop(**SMALL, layout_factor=1).fit(data.bricks(96, rng=1))
