@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import json
 import os
 import sys
 import time
@@ -44,13 +45,15 @@ METRICS = ("sifid", "swd", "cooccurrence", "copied")
 VARIANTS = {
     "paper": ("PAPER", "PAPER"),  # the paper values of tghop.settings (fit and generation)
     "default": ({}, {}),
-    "layout": ({"layout_factor": 2}, {}),  # coarse-to-fine (tghop.layout)
-    # Ablation: each step of tghop's pipeline beyond the paper switched off alone.
+    # Ablation: each step of tghop's pipeline beyond the paper switched off (or on) alone.
+    "no-layout": ({"layout_factor": None}, {}),
     "no-refine": ({}, {"refine": 0}),
-    "no-residual": ({"residual": False}, {}),
     "no-detail": ({}, {"detail": 0.0}),
     "no-colour": ({}, {"match_colours": False}),
-    "tghop-0.1": ({"residual": False}, {"detail": 0.0, "refine": 0}),  # the defaults of tghop 0.1
+    "pool10k": ({}, {"n_patches": 10000}),
+    "residual": ({"residual": True}, {}),
+    # The defaults of tghop 0.1: colour matching and the larger per-cluster model only.
+    "tghop-0.1": ({"layout_factor": None}, {"detail": 0.0, "refine": 0, "n_patches": 10000}),
 }
 
 
@@ -211,6 +214,8 @@ def main(argv=None):
     sheets = str(RESULTS / stem) if args.sheets else None
     size = (args.size, args.size)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / f"{stem}.partial.jsonl").unlink(missing_ok=True)
     log(f"{len(names)} exemplars x {len(variants)} variants ({', '.join(v[0] for v in variants)}), "
         f"{args.jobs} workers")
 
@@ -228,6 +233,8 @@ def main(argv=None):
                 log(f"{label} FAILED: {failed[label]}")
                 continue
             (ust_rows if label.startswith("ust:") else entries).append(res)
+            with open(RESULTS / f"{stem}.partial.jsonl", "a") as fh:  # survives a crash of the run
+                fh.write(json.dumps(res, default=str) + "\n")
             log(f"{label} done")
 
     entries.sort(key=lambda e: e["texture"])

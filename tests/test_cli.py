@@ -248,12 +248,12 @@ def test_paper_flag_selects_paper_core_model(workdir):
 def test_residual_and_detail_switches(workdir):
     import json
 
-    for flags, residual, detail in (([], True, 0.5), (["--paper"], False, 0.0), (["--no-residual"], False, 0.5)):
+    for flags, residual in (([], False), (["--paper"], False), (["--residual"], True)):
         path = workdir / f"switch_{len(flags)}_{residual}.npz"
         r = run("fit", workdir / "bricks.png", "-o", path, *FAST, *flags)
         assert r.returncode == 0, r.stderr.decode()
         params = json.loads(run("info", path, "--json").stdout)["params"]
-        assert (params["residual"], params["detail"]) == (residual, detail)
+        assert params["residual"] is residual
     images = []
     for detail in ("0", "0.6", "0.6"):
         out = workdir / f"detail_{len(images)}.png"

@@ -54,7 +54,8 @@ def test_residual_off_is_empty_and_the_mixture_unchanged(residual_fit):
     on = ICHM(**kw, residual=True).fit(z, groups=groups)
     assert off.residual_factor_.size == 0 and not off.sample_residual(5, rng=0).any()
     np.testing.assert_array_equal(off.mixing_, on.mixing_)
-    np.testing.assert_array_equal(off.sample(50, rng=3), on.sample(50, rng=3))
+    for a, b in zip(off.sample(50, rng=3), on.sample(50, rng=3)):  # (Z, labels)
+        np.testing.assert_array_equal(a, b)
 
 
 def test_residual_restores_gradient_energy(bricks96):
@@ -68,12 +69,17 @@ def test_residual_restores_gradient_energy(bricks96):
     assert with_residual < 1.5 * exemplar
 
 
-def test_residual_same_seed_same_patches_and_survives_save_load(small_model, tmp_path):
-    n = small_model.ichm_.n_cdfs_ + 7  # the folded path
-    a = small_model.sample_patches(n, rng=5, dtype=np.float32)
-    assert np.array_equal(a, small_model.sample_patches(n, rng=5, dtype=np.float32))
+@pytest.fixture(scope="module")
+def residual_model(bricks96):
+    return TGHop(**SMALL, residual=True).fit(bricks96)
+
+
+def test_residual_same_seed_same_patches_and_survives_save_load(residual_model, tmp_path):
+    n = residual_model.ichm_.n_cdfs_ + 7  # the folded path
+    a = residual_model.sample_patches(n, rng=5, dtype=np.float32)
+    assert np.array_equal(a, residual_model.sample_patches(n, rng=5, dtype=np.float32))
     path = tmp_path / "m.npz"
-    save_model(small_model, path)
+    save_model(residual_model, path)
     loaded = load_model(path)
     assert loaded.ichm_.residual_factor_.size > 0
     assert np.array_equal(loaded.sample_patches(n, rng=5, dtype=np.float32), a)
@@ -81,7 +87,7 @@ def test_residual_same_seed_same_patches_and_survives_save_load(small_model, tmp
 
 def test_paper_mode_has_no_residual():
     assert PAPER_TABLE4["residual"] is False
-    assert TGHop().residual is True
+    assert TGHop().residual is False  # on top of the refinement it adds noise (docs/choices.md)
 
 
 # ----------------------------------------------------------------------------- quilting

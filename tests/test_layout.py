@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tghop.synthesis import PAPER_TABLE4
+
 from tghop import TGHop, TGHopError, data
 from tghop.layout import CoarseLayout, downsample, upsample
 from tghop.modelfile import load_model, save_model
@@ -136,9 +138,11 @@ def test_tghop_layout_save_load_identical(layout_model, tmp_path):
     assert rows["total"]["stored"] == sum(v["stored"] for k, v in rows.items() if k != "total")
 
 
-def test_tghop_layout_off_by_default_small_exemplar_and_errors(small_model):
-    assert small_model.layout_factor is None and small_model.layout_ is None
-    assert small_model.n_parameters()["coarse layout (ours)"]["stored"] == 0
+def test_tghop_layout_on_by_default_off_in_paper_small_exemplar_and_errors(small_model):
+    assert small_model.layout_factor == 2 and small_model.layout_ is not None  # 96 px >= 48 * 2
+    assert PAPER_TABLE4["layout_factor"] is None
+    off = TGHop(**SMALL, layout_factor=None).fit(data.bricks(96, rng=1))
+    assert off.layout_ is None and off.n_parameters()["coarse layout (ours)"]["stored"] == 0
     m = TGHop(**SMALL, layout_factor=4).fit(data.bricks(96, rng=1))  # smaller than 4 * 48: skipped
     assert m.layout_ is None
     with pytest.raises(TGHopError, match="layout_factor"):

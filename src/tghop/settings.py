@@ -243,10 +243,10 @@ SETTINGS: Tuple[Setting, ...] = (
             none_ok=True, target="ichm"),
     Setting("ica_max_iter", 200, "int", "FastICA iterations per cluster at most.", low=1,
             cli=("--ica-iterations",), target="ichm.max_iter"),
-    Setting("residual", True, "bool",
+    Setting("residual", False, "bool",
             "Also model the detail each cluster's PCA drops, as a Gaussian per core channel, and add a "
-            "draw of it to every generated patch (ours; restores the fine grain).", target="ichm",
-            paper=False),
+            "draw of it to every generated patch (ours; restores fine grain without the refinement, "
+            "but adds noise on top of it, so off by default).", target="ichm", paper=False),
     Setting("max_patches", 20000, "int",
             "Training patches beyond this are subsampled at random (a 256x256 exemplar at stride 2 has "
             "12,769).", low=1, none_ok=True),
@@ -255,7 +255,7 @@ SETTINGS: Tuple[Setting, ...] = (
             "(:mod:`tghop.refine`, ours).", low=1, high=8),
     Setting("band_orientations", 4, "int",
             "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
-    Setting("layout_factor", None, "int",
+    Setting("layout_factor", 2, "int",
             "Coarse to fine (ours, :mod:`tghop.layout`): also model the layout on the exemplar "
             "downsampled by this factor, and quilt guided by a coarse synthesis (None: off; skipped "
             "for exemplars smaller than 48 times the factor).", low=2, high=16, none_ok=True,
@@ -263,7 +263,7 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
             cli=("--fit-seed",)),
     # ---------------------------------------------------------------- generation time
-    Setting("n_patches", 10000, "int", "Generated patches quilted into each image (paper: 5,000-10,000).",
+    Setting("n_patches", 5000, "int", "Generated patches quilted into each image (paper: 5,000-10,000).",
             when="generate", low=1, high=10_000_000, cli=("--pool",), cli_high=200_000),
     Setting("tile", False, "bool", "Make the output wrap around seamlessly (tileable).", when="generate"),
     Setting("overlap", None, "int", "Quilting overlap in pixels (None: patch_size // 6).", when="generate",
