@@ -556,7 +556,8 @@ class TGHop(BaseEstimator):
             our addition, see :mod:`tghop.refine`): restores the contrast of fine detail;
             0 is off, as in the paper.
         progress : callable, optional
-            Stages "layout" (with a coarse layout), "patch pool", "quilting" and "refine".
+            Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine" and
+            "colour".
 
         Returns
         -------
@@ -581,7 +582,10 @@ class TGHop(BaseEstimator):
             report(progress, "refine", 0, 1)
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
             report(progress, "refine", 1, 1)
-        return match_histograms(image, self.colour_quantiles_, out=image) if match_colours else image
+        if not match_colours:
+            return image
+        report(progress, "colour", 0, 1)
+        return match_histograms(image, self.colour_quantiles_, out=image)
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
