@@ -76,6 +76,12 @@ def test_downsample_upsample():
     assert np.allclose(small[0, 0], img[:2, :2].reshape(-1, 3).mean(axis=0))
     flat = np.full((4, 4, 1), 0.3)
     assert np.allclose(upsample(flat, 4, (15, 16)), 0.3) and upsample(flat, 4, (15, 16)).shape == (15, 16, 1)
+    # The same bilinear, pixel-centre-aligned interpolation as SciPy's (generation does not import SciPy).
+    from scipy import ndimage
+
+    for wrap in (False, True):
+        ref = ndimage.zoom(img, (2, 2, 1), order=1, mode="grid-wrap" if wrap else "nearest", grid_mode=True)
+        assert np.allclose(upsample(img, 2, (17, 15), wrap=wrap), np.clip(ref[:17, :15], 0, 1), atol=1e-12)
 
 
 # ----------------------------------------------------------------------------- CoarseLayout

@@ -64,12 +64,17 @@ def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
     -------
     ndarray, shape (H, W, C), float64 in [0, 1]
     """
-    from scipy import ndimage  # generation from a saved model needs SciPy only here
-
     img = np.asarray(image, dtype=np.float64)
-    mode = "grid-wrap" if wrap else "nearest"
-    out = ndimage.zoom(img, (factor, factor, 1), order=1, mode=mode, grid_mode=True)
-    return np.clip(out[: size[0], : size[1]], 0.0, 1.0)
+    for axis, n in ((0, size[0]), (1, size[1])):
+        # Output sample i sits at input coordinate (i + 0.5) / factor - 0.5 (pixel centres).
+        pos = (np.arange(n) + 0.5) / factor - 0.5
+        lo = np.floor(pos).astype(np.int64)
+        frac = (pos - lo).reshape([-1 if a == axis else 1 for a in range(img.ndim)])
+        m = img.shape[axis]
+        hi = lo + 1
+        lo, hi = (np.mod(lo, m), np.mod(hi, m)) if wrap else (np.clip(lo, 0, m - 1), np.clip(hi, 0, m - 1))
+        img = (1.0 - frac) * np.take(img, lo, axis=axis) + frac * np.take(img, hi, axis=axis)
+    return np.clip(img, 0.0, 1.0)
 
 
 def _positive_int(value, name, low=1):

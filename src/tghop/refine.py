@@ -19,7 +19,6 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
-from scipy import fft as sp_fft
 
 from ._common import TGHopError
 
@@ -161,11 +160,11 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     if n_orientations <= 1:
         return [band]
     h, w = band.shape[axes[0]], band.shape[axes[1]]
-    spectrum = sp_fft.rfft2(band, axes=axes)  # complex64 for float32 bands
+    spectrum = np.fft.rfft2(band, axes=axes)  # complex64 for float32 bands (NumPy >= 2)
     masks = _orientation_masks(h, w, n_orientations, band.dtype)
     if tuple(axes) == (0, 1):
         masks = [m[..., None] for m in masks]
-    parts = [sp_fft.irfft2(spectrum * m, s=(h, w), axes=axes).astype(band.dtype, copy=False)
+    parts = [np.fft.irfft2(spectrum * m, s=(h, w), axes=axes).astype(band.dtype, copy=False)
              for m in masks[:-1]]
     parts.append(band - np.sum(parts, axis=0))  # the windows sum to 1
     return parts
