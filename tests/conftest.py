@@ -37,3 +37,14 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(threads)
+
+
+def assert_user_error(r, *fragments):
+    """Non-zero exit, one 'Error:' line naming the problem, no traceback."""
+    err = r.stderr.decode()
+    assert r.returncode != 0
+    assert "Traceback" not in err
+    lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
+    assert len(lines) == 1, err
+    for fragment in fragments:
+        assert fragment in lines[0], err

@@ -11,6 +11,8 @@ from PIL import Image
 from tghop import data
 from tghop.imageio import save_image
 
+from conftest import assert_user_error
+
 FAST = ["--clusters", "6", "--codewords", "30", "--stride", "4", "-q"]
 
 
@@ -35,17 +37,6 @@ def model_path(workdir):
     assert "D0=3072 -> D1=2304 -> D2=1408" in err and "D_r=" in err and "F=" in err
     assert "parameters:" in err
     return workdir / "model.bin"
-
-
-def assert_user_error(r, *fragments):
-    """Non-zero exit, one 'Error:' line naming the problem, no traceback."""
-    err = r.stderr.decode()
-    assert r.returncode != 0
-    assert "Traceback" not in err
-    lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
-    assert len(lines) == 1, err
-    for fragment in fragments:
-        assert fragment in lines[0], err
 
 
 def test_info(model_path):

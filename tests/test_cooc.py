@@ -11,6 +11,8 @@ import pytest
 from tghop import cooc, data
 from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
+from conftest import assert_user_error
+
 torch = pytest.importorskip("torch")
 
 #: A tiny configuration: 32 x 32 crops, s = 8, a few filters, two steps.
@@ -283,16 +285,6 @@ def test_without_torch(monkeypatch, exemplar):
 def run(*args, env_extra=None):
     env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning", **(env_extra or {})}
     return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
-
-
-def assert_user_error(r, *fragments):
-    err = r.stderr.decode()
-    assert r.returncode != 0
-    assert "Traceback" not in err
-    lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
-    assert len(lines) == 1, err
-    for fragment in fragments:
-        assert fragment in lines[0], err
 
 
 TINY_SET = ["--set", "n_clusters=3", "--set", "crop_size=32", "--set", "n_layers=3", "--set", "patch=9",
