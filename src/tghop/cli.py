@@ -37,10 +37,16 @@ DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downsca
 
 # ------------------------------------------------------------------ helpers
 class Progress:
-    """Renders the library's ``progress(stage, done, total)`` calls as click progress bars."""
+    """Renders the library's ``progress(stage, done, total)`` calls as click progress bars.
 
-    def __init__(self, enabled: bool):
+    ``show_eta`` adds the remaining time; a subclass may set ``note`` (a string) to show it
+    after the bar.
+    """
+
+    def __init__(self, enabled: bool, *, show_eta: bool = False):
         self.enabled = enabled
+        self.show_eta = show_eta
+        self.note = None
         self.bar = None
         self.stage = None
         self.done = 0
@@ -52,10 +58,11 @@ class Progress:
             self.close()
             self.stage, self.done = stage, 0
             self.bar = click.progressbar(length=max(total, 1), label=f"{stage:<14}", file=sys.stderr,
-                                         show_eta=False, show_percent=True)
+                                         show_eta=self.show_eta, show_percent=True,
+                                         item_show_func=None if self.note is None else lambda _: self.note)
             self.bar.__enter__()
         if done > self.done:
-            self.bar.update(done - self.done)
+            self.bar.update(done - self.done, current_item=self.note)
             self.done = done
 
     def close(self):

@@ -23,21 +23,8 @@ class LossProgress(Progress):
     """A progress bar that also shows the latest training losses."""
 
     def __init__(self, enabled: bool):
-        super().__init__(enabled)
+        super().__init__(enabled, show_eta=True)
         self.note = ""
-
-    def __call__(self, stage, done, total):
-        if not self.enabled:
-            return
-        if stage != self.stage:
-            self.close()
-            self.stage, self.done = stage, 0
-            self.bar = click.progressbar(length=max(total, 1), label=f"{stage:<14}", file=__import__("sys").stderr,
-                                         show_eta=True, show_percent=True, item_show_func=lambda _: self.note)
-            self.bar.__enter__()
-        if done > self.done:
-            self.bar.update(done - self.done, current_item=self.note)
-            self.done = done
 
     def log(self, step, losses):
         self.note = (f"D {losses['critic']:+.3f}  G {losses['adversarial']:+.3f}  "
