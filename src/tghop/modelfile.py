@@ -35,7 +35,9 @@ from .synthesis import TGHop, model_arrays, parameter_groups  # noqa: F401 (re-e
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 2  # 2: refinement statistics (refine.*)
+FORMAT_VERSION = 3  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each
+#: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
+READABLE_VERSIONS = (2, 3)
 
 
 def save_model(model, path) -> None:
@@ -77,10 +79,11 @@ def _read(path):
     if not isinstance(version, int) or isinstance(version, bool):
         raise ModelFileError(f"{path}: corrupt model metadata (format_version {version!r} is not an integer); "
                              "fit the model again")
-    if version != FORMAT_VERSION:
+    if version not in READABLE_VERSIONS:
         raise ModelFileError(
             f"{path}: written in model format version {version} (by tghop {meta.get('tghop_version', '?')}), "
-            f"but this tghop {__version__} reads version {FORMAT_VERSION}; refit the model with this version"
+            f"but this tghop {__version__} reads versions {READABLE_VERSIONS[0]} to {READABLE_VERSIONS[-1]}; "
+            "refit the model with this version"
         )
     return meta, arrays
 
