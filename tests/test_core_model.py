@@ -300,3 +300,19 @@ def test_mixing_stored_as_float16_rows_and_version_2_files_still_load(small_mode
     old["__meta__"] = np.array(json.dumps(meta))
     _write_npz(tmp_path / "v2.npz", **old)
     np.testing.assert_allclose(load_model(tmp_path / "v2.npz").ichm_.mixing_, small_model.ichm_.mixing_, rtol=1e-6)
+
+
+def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
+    from tghop.core import _kmeans
+
+    truth = rng.normal(0, 10, (6, 20))
+    member = rng.integers(0, 6, 3000)
+    X = truth[member] + rng.normal(0, 0.5, (3000, 20))
+    labels, centres = _kmeans(X, 6, np.random.default_rng(0))
+    # The same partition as the truth (up to renaming).
+    pairs = set(zip(labels.tolist(), member.tolist()))
+    assert len(pairs) == 6
+    for j in range(6):
+        np.testing.assert_allclose(centres[j], X[labels == j].mean(axis=0), atol=1e-4)
+    nearest = np.argmin(((X[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
+    assert np.array_equal(nearest, labels)

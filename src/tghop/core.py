@@ -69,39 +69,47 @@ def _kmeans_plusplus(X, n_clusters, rng, n_trials=None):
 
 
 def _lloyd(X, centres, max_iter=100, tol=1e-4):
-    """Lloyd iterations from ``centres`` (float32, one matrix product per step).
+    """Lloyd iterations from ``centres`` (float32 points, one matrix product per step).
 
     Stops when no label changes or the centres move less than ``tol`` times the mean
     per-dimension variance of ``X`` (scikit-learn's criterion), after ``max_iter`` steps
-    at the latest. An emptied cluster is re-seeded with the point farthest from its
-    centre. Returns ``(labels, centres)``.
+    at the latest. The cluster sums are updated with the points that changed cluster
+    only (few after the first steps). An emptied cluster is re-seeded with the point
+    farthest from its centre. Returns ``(labels, centres)``.
     """
     n, k = len(X), len(centres)
-    sq = np.einsum("nd,nd->n", X, X)
-    threshold = tol * float(X.var(axis=0).mean())
-    labels = None
+    threshold = tol * float(X.var(axis=0, dtype=np.float64).mean())
+    labels = np.full(n, -1)
+    sums = np.zeros((k, X.shape[1]))
+    counts = np.zeros(k, dtype=np.int64)
     for _ in range(int(max_iter)):
-        d = sq[:, None] - 2.0 * (X @ centres.T) + np.einsum("kd,kd->k", centres, centres)[None, :]
+        # argmin_j |x - c_j|^2 = argmin_j (|c_j|^2 - 2 x.c_j): |x|^2 is the same for all j.
+        d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
         new = np.argmin(d, axis=1)
-        if labels is not None and np.array_equal(new, labels):
+        changed = np.flatnonzero(new != labels)
+        if changed.size == 0:
             break
+        # +1 where a point joins a cluster, -1 where it leaves one: one product updates the sums.
+        moves = np.zeros((k, changed.size), dtype=X.dtype)
+        moves[new[changed], np.arange(changed.size)] = 1.0
+        old = labels[changed]
+        was = np.flatnonzero(old >= 0)
+        moves[old[was], was] = -1.0
+        sums += moves @ X[changed]
+        counts += np.bincount(new[changed], minlength=k) - np.bincount(old[was], minlength=k)
         labels = new
-        counts = np.bincount(labels, minlength=k)
-        # Sums per cluster: one product with the one-hot matrix (as fast as the distances,
-        # and faster than gathering the points cluster by cluster).
-        onehot = np.zeros((k, n), dtype=X.dtype)
-        onehot[labels, np.arange(n)] = 1.0
-        moved = onehot @ X
-        empty = counts == 0
-        if empty.any():
-            far = np.argsort(d[np.arange(n), labels])[::-1][: int(empty.sum())]
-            moved[empty], counts[empty] = X[far], 1
-        moved /= counts[:, None]
+        moved = centres.astype(np.float64)
+        full = counts > 0
+        moved[full] = sums[full] / counts[full, None]
+        empty = np.flatnonzero(~full)
+        if empty.size:  # re-seed with the points farthest from their centres
+            far = np.argsort(d[np.arange(n), labels] + np.einsum("nd,nd->n", X, X))[::-1][: empty.size]
+            moved[empty] = X[far]
         shift = float(((moved - centres) ** 2).sum())
-        centres = moved
+        centres = moved.astype(np.float32)
         if shift <= threshold:
             break
-    d = sq[:, None] - 2.0 * (X @ centres.T) + np.einsum("kd,kd->k", centres, centres)[None, :]
+    d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
     return np.argmin(d, axis=1), centres
 
 
@@ -161,18 +169,23 @@ def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
 
     def decorrelate(w):
         vals, vecs = np.linalg.eigh(w @ w.T)
-        return (vecs / np.sqrt(np.maximum(vals, 1e-300))) @ vecs.T @ w
+        return (vecs / np.sqrt(np.maximum(vals, np.finfo(vals.dtype).tiny))) @ vecs.T @ w
 
-    w = decorrelate(check_rng(rng).standard_normal((k, k)))
-    xt = white.T
+    # The iterations run in float32 (tanh and the products cost a fifth of float64's; the
+    # tolerance is far above float32's resolution); the result is orthogonalised in float64.
+    w = decorrelate(check_rng(rng).standard_normal((k, k))).astype(np.float32)
+    x = np.asarray(white, dtype=np.float32)
+    xt = np.ascontiguousarray(x.T)
+    converged = False
     for _ in range(int(max_iter)):
         g = np.tanh(w @ xt)
-        w_new = decorrelate(g @ white / n - (1.0 - g**2).mean(axis=1)[:, None] * w)
+        w_new = decorrelate(g @ x / n - (1.0 - g**2).mean(axis=1)[:, None] * w)
         change = np.max(np.abs(np.abs(np.einsum("ij,ij->i", w_new, w)) - 1.0))
         w = w_new
         if change < tol:
-            return w, True
-    return w, False
+            converged = True
+            break
+    return decorrelate(w.astype(np.float64)), converged
 
 
 def _channel_major(Y):
@@ -320,6 +333,8 @@ class ICHM(BaseEstimator):
         Sampling step (iv): redraw a sample none of whose matched components exceeds it.
     max_iter : int, default=200
         FastICA iterations per cluster.
+    tol : float, default=1e-3
+        FastICA's convergence tolerance (scikit-learn's default and the paper's: 1e-4).
     residual : bool, default=False
         Model the residual of the per-cluster PCA by a Gaussian per group of dimensions
         (``groups`` of :meth:`fit`) and add a draw of it to every sample (ours).
@@ -367,6 +382,7 @@ class ICHM(BaseEstimator):
         min_cluster_size=10,
         reject_threshold=None,
         max_iter=200,
+        tol=1e-3,
         residual=False,
         rng=None,
     ):
@@ -378,6 +394,7 @@ class ICHM(BaseEstimator):
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.max_iter = max_iter
+        self.tol = tol
         self.residual = residual
         self.rng = rng
 
@@ -387,7 +404,7 @@ class ICHM(BaseEstimator):
                ("max_cluster_components", "max_cluster_components", "max_cluster_components"),
                ("min_cluster_size", "min_cluster_size", "min_cluster_size"),
                ("reject_threshold", "reject_threshold", "reject_threshold"),
-               ("max_iter", "max_iter", "ica_max_iter"))
+               ("max_iter", "max_iter", "ica_max_iter"), ("tol", "tol", "ica_tol"))
 
     def _check_params(self, n_samples):
         for param, label, setting in self._CHECKS:
@@ -487,7 +504,7 @@ class ICHM(BaseEstimator):
         std = np.sqrt(var[:k])
         basis = _flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
         white = centred @ basis.T / std
-        unmix, converged = fast_ica(white, max_iter=self.max_iter, rng=rng)
+        unmix, converged = fast_ica(white, max_iter=self.max_iter, tol=self.tol, rng=rng)
         sources = white @ unmix.T
         # z - mean = white * std @ basis = sources @ inv(unmix).T * std @ basis
         mixing = np.linalg.inv(unmix).T @ (std[:, None] * basis)

@@ -97,6 +97,8 @@ def load_model(path):
         The file is missing, not a tghop model, corrupt, or of another format version.
     """
     meta, arrays = _read(path)
+    if meta["format_version"] == 2 and isinstance(meta.get("params"), dict):
+        meta["params"].setdefault("ica_tol", 1e-4)  # what version 2 (tghop 0.2.0) fitted with
     for name, arr in arrays.items():
         if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
             raise ModelFileError(f"{path}: corrupt tghop model (array {name} holds NaN or infinite values); "
