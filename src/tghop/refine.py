@@ -16,6 +16,7 @@ repeats a few rounds. Everything it needs at generation time is in :class:`BandS
 
 from __future__ import annotations
 
+import functools
 import numbers
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -160,13 +161,20 @@ def _fft_module(n_pixels):
     return np.fft
 
 
+@functools.lru_cache(maxsize=16)
 def _orientation_masks(h, w, n_orientations, dtype):
-    """Angular windows ``cos^2(theta - k pi / n) * 2 / n`` over the rfft2 grid; they sum to 1."""
+    """Angular windows ``cos^2(theta - k pi / n) * 2 / n`` over the rfft2 grid; they sum to 1.
+
+    Cached: every round of :func:`refine` and every channel uses the same few shapes (the
+    arrays are read-only)."""
     fy = np.fft.fftfreq(h)[:, None]
     fx = np.fft.rfftfreq(w)[None, :]
     theta = np.arctan2(fy, fx)
-    return [(np.cos(theta - k * np.pi / n_orientations) ** 2 * (2.0 / n_orientations)).astype(dtype)
-            for k in range(n_orientations)]
+    masks = tuple((np.cos(theta - k * np.pi / n_orientations) ** 2 * (2.0 / n_orientations)).astype(dtype)
+                  for k in range(n_orientations))
+    for m in masks:
+        m.flags.writeable = False
+    return masks
 
 
 def oriented_parts(band, n_orientations, *, axes=(0, 1)):
@@ -181,7 +189,7 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     h, w = band.shape[axes[0]], band.shape[axes[1]]
     fft = _fft_module(h * w)
     spectrum = fft.rfft2(band, axes=axes)  # complex64 for float32 bands (NumPy >= 2, SciPy)
-    masks = _orientation_masks(h, w, n_orientations, band.dtype)
+    masks = _orientation_masks(h, w, n_orientations, np.dtype(band.dtype))
     if tuple(axes) == (0, 1):
         masks = [m[..., None] for m in masks]
     parts = [fft.irfft2(spectrum * m, s=(h, w), axes=axes).astype(band.dtype, copy=False)
