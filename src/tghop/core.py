@@ -119,7 +119,10 @@ def _kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
     (the clustering only routes samples to clusters). NumPy only: importing
     scikit-learn's KMeans cost more than a second of every fit."""
     sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
-    centres = _kmeans_plusplus(np.asarray(sub, dtype=np.float64), n_clusters, rng)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):  # small products: BLAS threads only wait
+        centres = _kmeans_plusplus(np.asarray(sub, dtype=np.float64), n_clusters, rng)
     labels, centres = _lloyd(np.asarray(X, dtype=np.float32), centres.astype(np.float32), max_iter=max_iter)
     return labels, centres.astype(np.float64)
 
