@@ -316,3 +316,8 @@ def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
         np.testing.assert_allclose(centres[j], X[labels == j].mean(axis=0), atol=1e-4)
     nearest = np.argmin(((X[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
     assert np.array_equal(nearest, labels)
+    # Scales that do not fit the rows: one clear error, not a huge broadcast.
+    for bad in (arrays["index.ichm_mixing_scale"][:5], arrays["index.ichm_mixing_scale"][:, None]):
+        _write_npz(tmp_path / "bad.npz", **{**arrays, "index.ichm_mixing_scale": bad})
+        with pytest.raises(ModelFileError, match="mixing scales"):
+            load_model(tmp_path / "bad.npz")

@@ -613,7 +613,11 @@ class ICHM(BaseEstimator):
         for name, attr, dtype in self._ARRAYS:
             setattr(self, attr, arrays[name].astype(dtype, copy=False))
         if "index.ichm_mixing_scale" in arrays:
-            self.mixing_ = _dequantize(arrays["ichm_ii.mixing"], arrays["index.ichm_mixing_scale"])
+            scale = arrays["index.ichm_mixing_scale"]
+            if scale.shape != self.mixing_.shape[:1] or scale.dtype.kind != "f":
+                raise TGHopError(f"mixing scales of shape {scale.shape} and type {scale.dtype} for "
+                                 f"{self.mixing_.shape[0]} mixing rows")
+            self.mixing_ = _dequantize(arrays["ichm_ii.mixing"], scale)
         self._quantiles = None
         return self
 
