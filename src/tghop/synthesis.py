@@ -541,11 +541,23 @@ class TGHop(BaseEstimator):
         n_patches = self._check_n(n_patches, "n_patches")
         guide = None
         if self.layout_ is not None and layout_weight:
+            # The coarse guide and the pool are independent: the guide is made in a second
+            # thread (its own random stream) while the pool is generated, one BLAS thread each.
+            from concurrent.futures import ThreadPoolExecutor
+
+            from threadpoolctl import threadpool_limits
+
+            layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             report(progress, "layout", 0, 1)
-            guide = self.layout_.guide(size, rng=rng, tile=tile)
+            with ThreadPoolExecutor(max_workers=1) as worker, threadpool_limits(limits=1, user_api="blas"):
+                pending = worker.submit(self.layout_.guide, size, rng=layout_rng, tile=tile)
+                pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
+                guide = pending.result()
             report(progress, "layout", 1, 1)
-        report(progress, "patch pool", 0, 1)
-        pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
+            report(progress, "patch pool", 0, 1)
+        else:
+            report(progress, "patch pool", 0, 1)
+            pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
         report(progress, "patch pool", 1, 1)
         image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, detail=detail, rng=rng,
                       progress=progress, guide=guide, guide_weight=layout_weight)
