@@ -117,3 +117,18 @@ def test_refine_survives_save_and_load(small_model, tmp_path):
     assert np.array_equal(loaded.synthesize((48, 48), rng=4, n_patches=200),
                           small_model.synthesize((48, 48), rng=4, n_patches=200))
     assert small_model.n_parameters()["refinement (ours)"]["stored"] == (4 * 4 + 1) * 3 * 257 + 3 + 9
+
+
+def test_large_exemplar_is_measured_on_crops_with_the_same_statistics(monkeypatch):
+    from tghop import data, refine as refine_module
+
+    tile = data.bricks(128, rng=1)
+    small = BandStatistics().fit(tile)
+    seen = []
+    crops = refine_module._crops
+    monkeypatch.setattr(refine_module, "_crops", lambda h, w, side: seen.append(crops(h, w, side)) or seen[-1])
+    big = BandStatistics().fit((np.tile(tile, (12, 12, 1)) * 255 + 0.5).astype(np.uint8))  # 1536 x 1536, uint8
+    assert [c[2:] for c in seen[0]] == [(1024, 1024)] * 4  # four crops, never the whole image
+    # A periodic texture has the same band statistics over any large region.
+    assert np.median(np.abs(big.band_quantiles_ - small.band_quantiles_)) < 0.005
+    assert np.median(np.abs(big.pixel_quantiles_ - small.pixel_quantiles_)) < 0.02

@@ -13,6 +13,15 @@ import sys
 
 from . import _interrupted_while_starting  # noqa: E402  (installed by tghop/__init__ when run as `tghop`)
 
+# OpenBLAS's worker threads spin for up to 2**28 cycles between calls before they sleep. When
+# other programs keep the cores busy, that spinning takes the CPU from the thread with the
+# work: on 2 cores with one other busy program, a 256x256 image took 1.7 s with the default
+# and 1.1 s with a short spin (2**4 cycles); on a quiet machine both are the same
+# (benchmarks/bench_cli.py). Only for the command, and only when NumPy is not loaded yet
+# and the user has not chosen: a program that imports tghop keeps its own settings.
+if "numpy" not in sys.modules:
+    os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+
 import json  # noqa: E402
 import re  # noqa: E402
 import warnings  # noqa: E402

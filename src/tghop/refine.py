@@ -17,6 +17,7 @@ repeats a few rounds. Everything it needs at generation time is in :class:`BandS
 from __future__ import annotations
 
 import functools
+import math
 import numbers
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -26,6 +27,10 @@ import numpy as np
 from ._common import TGHopError
 
 __all__ = ["BandStatistics", "refine", "laplacian_pyramid", "reconstruct", "oriented_parts"]
+
+#: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
+#: up to four crops of this size), so that fitting memory does not grow with the exemplar.
+_FIT_SIDE = 1024
 
 #: Values used to estimate an image band's quantiles (a strided subset beyond this).
 _MAX_VALUES = 1 << 16
@@ -111,6 +116,24 @@ def reconstruct(bands, *, mode="reflect", axes=(0, 1)):
     for band in reversed(bands[:-1]):
         cur = band + _up(cur, band.shape, mode, axes)
     return cur
+
+
+def _crops(h, w, side):
+    """``(y, x, height, width)`` of the regions :meth:`BandStatistics.fit` measures: the whole
+    image when both sides are at most ``side``, else up to 2 x 2 crops of at most
+    ``side x side`` spread evenly over it (first and last rows and columns included)."""
+    ch, cw = min(h, side), min(w, side)
+    ys = sorted({0, h - ch}) if h > side else [0]
+    xs = sorted({0, w - cw}) if w > side else [0]
+    return [(y, x, ch, cw) for y in ys for x in xs]
+
+
+def _subset(values, n_crops):
+    """A strided subset of ``values`` (flattened), so that ``n_crops`` crops together keep
+    about _MAX_VALUES values (what :func:`_quantiles` would use of one image)."""
+    values = values.ravel()
+    limit = max(1, _MAX_VALUES // n_crops)
+    return values[:: -(-values.size // limit)] if values.size > limit else values
 
 
 def _quantiles(values, levels):
@@ -227,14 +250,23 @@ class BandStatistics:
         self.n_quantiles = n_quantiles
 
     def fit(self, exemplar):
-        """Learn from an (H, W, C) exemplar in [0, 1]; returns self."""
+        """Learn from an (H, W, C) exemplar (float in [0, 1], or uint8); returns self.
+
+        Exemplars larger than :data:`_FIT_SIDE` squared are measured on up to four crops of
+        that size spread over the image (one at a time, the values pooled), so memory does
+        not grow with the exemplar.
+        """
         for name in ("n_levels", "n_orientations"):
             value = getattr(self, name)
             if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
                 raise TGHopError(f"{name} must be a non-negative integer, got {value!r}")
-        img = np.asarray(exemplar, dtype=np.float64)
-        c = img.shape[2]
-        flat = img.reshape(-1, c)
+        exemplar = np.asarray(exemplar)
+        scale = 1.0 / 255.0 if exemplar.dtype == np.uint8 else 1.0
+        h, w, c = exemplar.shape
+        crops = list(_crops(h, w, _FIT_SIDE))
+        # Colour axes from a strided subset of at most about a million pixels.
+        step = max(1, int(math.ceil(math.sqrt(h * w / 2**20))))
+        flat = exemplar[::step, ::step].reshape(-1, c).astype(np.float64) * scale
         self.colour_mean_ = flat.mean(axis=0)
         cov = np.cov(flat - self.colour_mean_, rowvar=False).reshape(c, c)
         _, vecs = np.linalg.eigh(cov)
@@ -242,13 +274,23 @@ class BandStatistics:
         vecs *= np.where(vecs.sum(axis=0) < 0, -1.0, 1.0)  # deterministic signs
         self.colour_basis_ = vecs.T
         levels = np.linspace(0.0, 1.0, self.n_quantiles)
-        dec = np.ascontiguousarray(np.moveaxis(self.to_decorrelated(img.astype(np.float32)), 2, 0))
-        bands = laplacian_pyramid(dec, self.n_levels, axes=(1, 2))[:-1]
+        n_parts = max(self.n_orientations, 1)
+        band_values, pixel_values = {}, [[] for _ in range(c)]
+        for y, x, ch, cw in crops:
+            crop = exemplar[y:y + ch, x:x + cw].astype(np.float32) * np.float32(scale)
+            dec = np.ascontiguousarray(np.moveaxis(self.to_decorrelated(crop), 2, 0))
+            bands = laplacian_pyramid(dec, self.n_levels, axes=(1, 2))[:-1]
+            for i, b in enumerate(bands):
+                for j, part in enumerate(oriented_parts(b, self.n_orientations, axes=(1, 2))):
+                    for k in range(c):
+                        band_values.setdefault((i, j, k), []).append(_subset(part[k], len(crops)))
+            for k in range(c):
+                pixel_values[k].append(_subset(dec[k], len(crops)))
+        n_bands = 1 + max((i for i, _, _ in band_values), default=-1)
         self.band_quantiles_ = np.array(
-            [[[_quantiles(part[k], levels) for k in range(c)]
-              for part in oriented_parts(b, self.n_orientations, axes=(1, 2))]
-             for b in bands]).reshape(len(bands), max(self.n_orientations, 1), c, self.n_quantiles)
-        self.pixel_quantiles_ = np.array([_quantiles(dec[k], levels) for k in range(c)])
+            [[[_quantiles(np.concatenate(band_values[i, j, k]), levels) for k in range(c)]
+              for j in range(n_parts)] for i in range(n_bands)]).reshape(n_bands, n_parts, c, self.n_quantiles)
+        self.pixel_quantiles_ = np.array([_quantiles(np.concatenate(v), levels) for v in pixel_values])
         return self
 
     #: Fitted arrays in model files: (file name, attribute).
