@@ -42,10 +42,18 @@ def downsample(image, factor: int) -> np.ndarray:
     -------
     ndarray, shape (H // factor, W // factor, C)
     """
-    img = np.asarray(image, dtype=np.float64)
+    img = np.asarray(image)
+    scale = 1.0 / 255.0 if img.dtype == np.uint8 else 1.0  # uint8 (0-255) -> [0, 1]
     h, w, c = img.shape
     hs, ws = h // factor, w // factor
-    return img[: hs * factor, : ws * factor].reshape(hs, factor, ws, factor, c).mean(axis=(1, 3))
+    out = np.empty((hs, ws, c))
+    rows = max(1, (1 << 22) // max(1, factor * ws * factor * c))  # bands of about 4 M values: no whole-image copy
+    for y in range(0, hs, rows):
+        band = img[y * factor: min(hs, y + rows) * factor, : ws * factor].astype(np.float64)
+        out[y: y + rows] = band.reshape(-1, factor, ws, factor, c).mean(axis=(1, 3))
+    if scale != 1.0:
+        out *= scale
+    return out
 
 
 def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
@@ -140,7 +148,11 @@ class CoarseLayout(BaseEstimator):
         """
         from .synthesis import TGHop  # synthesis imports this module
 
-        img = check_image(image, name="exemplar")
+        img = np.asarray(image)
+        if img.dtype != np.uint8:  # uint8 (a large exemplar) is downsampled without a float copy
+            img = check_image(image, name="exemplar")
+        elif img.ndim == 2:
+            img = img[:, :, None]
         f = _positive_int(self.factor, "factor", 2)
         p = _positive_int(self.patch_size, "patch_size", 4)
         hs, ws = self._small_shape(img.shape)
