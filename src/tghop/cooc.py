@@ -424,11 +424,12 @@ def _reflect_tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
 #: about 15 minutes for a 256 x 256 exemplar. Everything spatial is at half the paper's
 #: scale (64 px crops, 33 px patches, 25 px windows, sigma^2 = 13), the networks have 4
 #: layers instead of 5 (so s = 16 keeps a 4 x 4 condition) and 8 to 16 times fewer
-#: filters, 800 generator steps of 16 crops with 2 critic steps each.
+#: filters, 3,000 generator steps of 16 crops with one critic step each (as the authors'
+#: released code, ``dIter=1``; about 0.25 s per step on one core).
 SMALL = dict(
     n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
     g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
-    n_crops=1000, batch_size=16, n_steps=800, n_critic=2,
+    n_crops=1000, batch_size=16, n_steps=3000, n_critic=1,
     lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
 )
 
@@ -568,7 +569,7 @@ class CoocGAN:
 
     def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
                  g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=16,
-                 n_steps=800, n_critic=2, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+                 n_steps=3000, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
                  device="auto", rng=None):
         self.n_clusters = n_clusters
         self.crop_size = crop_size
@@ -825,6 +826,7 @@ class CoocGAN:
             self._seed_ = int(check_rng(self.rng).integers(2**31))
             self._build(torch, img, np.random.default_rng(self._seed_), progress)
         total = self.settings_["n_steps"]
+        self._memory_format(torch, train=True)
         self.generator_.train()
         self.critic_.train()
         history = [self.history_]
@@ -849,9 +851,21 @@ class CoocGAN:
         if self.step_ < total:
             report(progress, "training", total, total)
         self.history_ = np.concatenate(history)
+        self._memory_format(torch, train=False)
         self.generator_.eval()
         self.critic_.eval()
         return self
+
+    def _memory_format(self, torch, *, train: bool):
+        """Channels-last networks and crops while training on a CPU (oneDNN convolutions about
+        20 % faster per step); back to the default layout afterwards, so that a trained model
+        and one loaded from its checkpoint compute identically."""
+        if self._device.type != "cpu":
+            return
+        fmt = torch.channels_last if train else torch.contiguous_format
+        self.generator_.to(memory_format=fmt)
+        self.critic_.to(memory_format=fmt)
+        self._crops = self._crops.contiguous(memory_format=fmt)
 
     def _rebuild_crops(self, torch, img, progress):
         """The training crops of a fresh fit with this seed (a resumed fit needs them again)."""
