@@ -27,9 +27,9 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
   :func:`paint_condition` are the controls; ``save`` / :func:`load` write and read a
   ``.pt`` checkpoint of tensors only (JSON settings inside), and ``fit(..., resume=True)``
   continues a loaded one.
-* :data:`SMALL` (the default: trains in minutes on a CPU) and :data:`PAPER` (the paper's
-  setting: hours on a GPU) are the two configurations; ``CoocGAN(**PAPER)`` selects the
-  latter.
+* :data:`SMALL` (the default: about 14 minutes on a 2-core CPU) and :data:`PAPER` (the
+  paper's setting: about 10 minutes on an H100 GPU) are the two configurations;
+  ``CoocGAN(**PAPER)`` selects the latter.
 """
 
 from __future__ import annotations
@@ -441,7 +441,11 @@ SMALL = dict(
 #: ReLU 0.2 in the critic; 30 noise channels (PSGAN's released model uses 30 local noise
 #: dimensions). From WGAN-GP (Gulrajani et al.): 5 critic steps per generator step, no
 #: batch norm in the critic. Not in any of them: the consistency weight 10.
-#: One epoch is n_crops / batch_size generator steps: 120 epochs = 3,750 steps.
+#: One epoch is n_crops / batch_size generator steps: 120 epochs = 3,750 steps (6.2 steps
+#: per second on an H100: about 10 minutes). The authors' released code
+#: (github.com/Ashu7397/cooc_texture) differs from these borrowed values: batch 16, one
+#: critic step, widths 960-480-240-120 / 120-240-480-960, 64 noise channels, so 120 epochs
+#: are 15,000 steps there; see docs/choices.md.
 PAPER = dict(
     n_clusters=8, crop_size=128, n_layers=5, patch=65, window=51, sigma=math.sqrt(51.0),
     g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
