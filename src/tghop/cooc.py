@@ -830,6 +830,8 @@ class CoocGAN:
             self._seed_ = int(check_rng(self.rng).integers(2**31))
             self._build(torch, img, np.random.default_rng(self._seed_), progress)
         total = self.settings_["n_steps"]
+        if self._device.type == "cpu":
+            self._fixed_mmap_threshold()
         self._memory_format(torch, train=True)
         self.generator_.train()
         self.critic_.train()
@@ -859,6 +861,26 @@ class CoocGAN:
         self.generator_.eval()
         self.critic_.eval()
         return self
+
+    @staticmethod
+    def _fixed_mmap_threshold():
+        """Keep glibc's mmap threshold at its initial 128 KiB for the whole process.
+
+        glibc raises the threshold whenever a large mmapped block is freed; from then on
+        the step's large temporary tensors come from the heap, whose free pieces are not
+        given back, and the resident memory of a CPU training grew by about 5 MB per step
+        after the first 500-1,000 steps (4.2 GB after 3,000 steps, 8.6 GB in one run).
+        With the threshold fixed it stays flat (440 MB over 700 steps, same code). The same
+        as ``MALLOC_MMAP_THRESHOLD_=131072`` in the environment; nothing elsewhere.
+        """
+        import ctypes
+        import ctypes.util
+
+        try:
+            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+            libc.mallopt(-3, 128 * 1024)  # M_MMAP_THRESHOLD
+        except (OSError, AttributeError):
+            pass
 
     def _memory_format(self, torch, *, train: bool):
         """Channels-last networks and crops while training on a CPU (oneDNN convolutions about
