@@ -95,6 +95,7 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds) -> dict:
     entry = {"texture": name, "exemplar_shape": list(img.shape), "seconds": seconds, "stages": stages,
              "steps": model.step_, "settings": model.settings_, "threads": threads,
              "peak_rss_mb": peak_rss_mb(), "load_before": load_before, "load_after": load_average(),
+             "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
              "history": model.history_.tolist()}
     write_results_to(out, f"{name}_train", entry)
     return entry
@@ -124,7 +125,10 @@ def main(argv=None):
                 cmd += ["--steps", str(args.steps)]
             if args.max_minutes is not None:
                 cmd += ["--max-minutes", str(args.max_minutes)]
-            subprocess.run(cmd, check=True)
+            # Passive OpenMP waiting: with the default spinning, 2 torch threads on a machine
+            # that is busy with other work ran a training step up to 20 times slower than 1.
+            env = {**os.environ, "OMP_WAIT_POLICY": os.environ.get("OMP_WAIT_POLICY", "PASSIVE")}
+            subprocess.run(cmd, check=True, env=env)
         return
     from bench_cooc_report import report  # the evaluation half lives beside this file
 

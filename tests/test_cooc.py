@@ -210,6 +210,9 @@ def test_training_logs_losses_and_progress(exemplar):
     assert set(logs[0][1]) == {"critic", "adversarial", "consistency", "gp"}
     assert ("training", 2, 2) in stages and any(s[0] == "co-occurrences" for s in stages)
     assert model.history_.shape == (2, 5) and model.step_ == 2
+    # Trained channels-last on a CPU, handed back in the default layout (as a loaded checkpoint).
+    assert all(p.is_contiguous() for p in model.generator_.parameters())
+    assert all(p.is_contiguous() for p in model.critic_.parameters())
 
 
 def test_checkpoint_roundtrip_and_resume(tiny_model, exemplar, tmp_path):

@@ -594,7 +594,7 @@ def evaluate(exemplar, results, as_json, names):
 @click.option("--seed", type=click.IntRange(min=0), default=None)
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
-                   "cooc: training steps (default 800).")
+                   "cooc: training steps (default 3000).")
 @click.option("--model", "model_file", default=None,
               help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
@@ -607,7 +607,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, quiet):
     colour-noise   noise with the exemplar's colour mean and covariance (worst case)
     quilting       classic image quilting of the exemplar's own patches
     ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
-    cooc           co-occurrence cGAN (Darzi et al.): trains ~15 min, or --model (metrics extra)
+    cooc           co-occurrence cGAN (Darzi et al.): trains ~15 min on 2 cores, or --model (metrics extra)
     """
     from .baselines import BASELINES
     from .imageio import save_image

@@ -69,7 +69,7 @@ def cooc():
     """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
 
     \b
-    tghop cooc train texture.jpg -o model.pt            (small config: ~15 min on a CPU)
+    tghop cooc train texture.jpg -o model.pt            (small config: ~14 min on a 2-core CPU)
     tghop cooc morph model.pt crop:0,0 crop:128,128 -o strip.png
     tghop cooc morph model.pt crop:0,0 crop:128,128 --grid 5x3 -o grid.png
     tghop cooc edit model.pt crop:0,0 crop:128,128 --size 256x512 -o edit.png
@@ -80,7 +80,7 @@ def cooc():
 @cooc.command()
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Checkpoint to write (.pt).")
-@click.option("--paper", is_flag=True, help="The paper's configuration (128 px crops, s = 32, 2,000 crops; hours, GPU).")
+@click.option("--paper", is_flag=True, help="The paper's configuration (128 px crops, s = 32, 2,000 crops; ~10 min on an H100 GPU, far too slow for a CPU).")
 @click.option("--steps", type=click.IntRange(min=0), default=None, help="Generator steps (default: the configuration's).")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a setting, e.g. --set crop_size=32 --set g_widths=[32,16] (repeatable).")
