@@ -300,6 +300,11 @@ def test_mixing_stored_as_float16_rows_and_version_2_files_still_load(small_mode
     old["__meta__"] = np.array(json.dumps(meta))
     _write_npz(tmp_path / "v2.npz", **old)
     np.testing.assert_allclose(load_model(tmp_path / "v2.npz").ichm_.mixing_, small_model.ichm_.mixing_, rtol=1e-6)
+    # Scales that do not fit the rows: one clear error, not a huge broadcast.
+    for bad in (arrays["index.ichm_mixing_scale"][:5], arrays["index.ichm_mixing_scale"][:, None]):
+        _write_npz(tmp_path / "bad.npz", **{**arrays, "index.ichm_mixing_scale": bad})
+        with pytest.raises(ModelFileError, match="mixing scales"):
+            load_model(tmp_path / "bad.npz")
 
 
 def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
@@ -316,8 +321,3 @@ def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
         np.testing.assert_allclose(centres[j], X[labels == j].mean(axis=0), atol=1e-4)
     nearest = np.argmin(((X[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
     assert np.array_equal(nearest, labels)
-    # Scales that do not fit the rows: one clear error, not a huge broadcast.
-    for bad in (arrays["index.ichm_mixing_scale"][:5], arrays["index.ichm_mixing_scale"][:, None]):
-        _write_npz(tmp_path / "bad.npz", **{**arrays, "index.ichm_mixing_scale": bad})
-        with pytest.raises(ModelFileError, match="mixing scales"):
-            load_model(tmp_path / "bad.npz")

@@ -473,7 +473,9 @@ class ICHM(BaseEstimator):
         # Model files store the mixing matrix (most of the model) as float16 rows with a
         # float32 scale each (a quarter of float64's size); rounding here keeps a fitted
         # model and its saved copy generating the same patches.
-        self.mixing_ = _dequantize(*_quantize(np.vstack(mixing)))
+        self._stored_mixing = _quantize(np.vstack(mixing))
+        self.mixing_ = _dequantize(*self._stored_mixing)
+        self._stored_for = self.mixing_
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
         report(progress, "CDF codebook", 0, 1)
         self._fit_cdfs(sources, rng)
@@ -603,7 +605,12 @@ class ICHM(BaseEstimator):
 
     def _to_arrays(self) -> dict:
         out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS}
-        out["ichm_ii.mixing"], out["index.ichm_mixing_scale"] = _quantize(self.mixing_)  # exact: rounded at fit
+        # The float16 rows as fitted or loaded (mixing_ was made from them), unless mixing_ was
+        # replaced since; quantising again gives the same numbers, it only costs time.
+        stored = getattr(self, "_stored_mixing", None)
+        if stored is None or getattr(self, "_stored_for", None) is not self.mixing_:
+            stored = _quantize(self.mixing_)
+        out["ichm_ii.mixing"], out["index.ichm_mixing_scale"] = stored
         return out
 
     def _from_arrays(self, arrays):
@@ -617,7 +624,9 @@ class ICHM(BaseEstimator):
             if scale.shape != self.mixing_.shape[:1] or scale.dtype.kind != "f":
                 raise TGHopError(f"mixing scales of shape {scale.shape} and type {scale.dtype} for "
                                  f"{self.mixing_.shape[0]} mixing rows")
-            self.mixing_ = _dequantize(arrays["ichm_ii.mixing"], scale)
+            self._stored_mixing = (arrays["ichm_ii.mixing"], scale)
+            self.mixing_ = _dequantize(*self._stored_mixing)
+            self._stored_for = self.mixing_
         self._quantiles = None
         return self
 
