@@ -617,13 +617,15 @@ class ICHM(BaseEstimator):
         """Restore the fitted state from :meth:`_to_arrays` output; returns self.
 
         Files of format version 2 hold the mixing matrix in float32 and no scale."""
+        quantised = "index.ichm_mixing_scale" in arrays
         for name, attr, dtype in self._ARRAYS:
-            setattr(self, attr, arrays[name].astype(dtype, copy=False))
-        if "index.ichm_mixing_scale" in arrays:
-            scale = arrays["index.ichm_mixing_scale"]
-            if scale.shape != self.mixing_.shape[:1] or scale.dtype.kind != "f":
+            if not (quantised and attr == "mixing_"):
+                setattr(self, attr, arrays[name].astype(dtype, copy=False))
+        if quantised:
+            scale, rows = arrays["index.ichm_mixing_scale"], arrays["ichm_ii.mixing"]
+            if rows.ndim != 2 or scale.shape != rows.shape[:1] or scale.dtype.kind != "f":
                 raise TGHopError(f"mixing scales of shape {scale.shape} and type {scale.dtype} for "
-                                 f"{self.mixing_.shape[0]} mixing rows")
+                                 f"mixing rows of shape {rows.shape}")
             self._stored_mixing = (arrays["ichm_ii.mixing"], scale)
             self.mixing_ = _dequantize(*self._stored_mixing)
             self._stored_for = self.mixing_
