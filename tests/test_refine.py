@@ -132,3 +132,18 @@ def test_large_exemplar_is_measured_on_crops_with_the_same_statistics(monkeypatc
     # A periodic texture has the same band statistics over any large region.
     assert np.median(np.abs(big.band_quantiles_ - small.band_quantiles_)) < 0.005
     assert np.median(np.abs(big.pixel_quantiles_ - small.pixel_quantiles_)) < 0.02
+
+
+def test_uint8_exemplar_gives_the_statistics_of_its_float_version():
+    # tghop 0.2 measured a uint8 exemplar (what `tghop fit` loads) on the 0-255 scale, and
+    # its refinement turned every image flat grey.
+    from tghop import TGHop
+
+    tile = data.bricks(96, rng=2)
+    as_uint8 = (tile * 255 + 0.5).astype(np.uint8)
+    a, b = BandStatistics().fit(as_uint8 / 255.0), BandStatistics().fit(as_uint8)
+    np.testing.assert_allclose(b.band_quantiles_, a.band_quantiles_, atol=1e-5)
+    np.testing.assert_allclose(b.colour_mean_, a.colour_mean_, atol=1e-6)
+    model = TGHop(n_clusters=4, n_codewords=20, max_patches=400, layout_factor=None).fit(as_uint8)
+    out = model.synthesize(64, rng=0, n_patches=200)
+    assert out.std() > 0.5 * tile.std()

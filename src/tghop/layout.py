@@ -36,23 +36,24 @@ def downsample(image, factor: int) -> np.ndarray:
     Parameters
     ----------
     image : ndarray, shape (H, W, C)
+        Float, or uint8 (0-255).
     factor : int
 
     Returns
     -------
     ndarray, shape (H // factor, W // factor, C)
+        float64, or uint8 (rounded box means) for a uint8 image.
     """
     img = np.asarray(image)
-    scale = 1.0 / 255.0 if img.dtype == np.uint8 else 1.0  # uint8 (0-255) -> [0, 1]
     h, w, c = img.shape
     hs, ws = h // factor, w // factor
-    out = np.empty((hs, ws, c))
+    eight_bit = img.dtype == np.uint8
+    out = np.empty((hs, ws, c), dtype=np.uint8 if eight_bit else np.float64)
     rows = max(1, (1 << 22) // max(1, factor * ws * factor * c))  # bands of about 4 M values: no whole-image copy
     for y in range(0, hs, rows):
         band = img[y * factor: min(hs, y + rows) * factor, : ws * factor].astype(np.float64)
-        out[y: y + rows] = band.reshape(-1, factor, ws, factor, c).mean(axis=(1, 3))
-    if scale != 1.0:
-        out *= scale
+        mean = band.reshape(-1, factor, ws, factor, c).mean(axis=(1, 3))
+        out[y: y + rows] = np.round(mean) if eight_bit else mean
     return out
 
 
@@ -161,7 +162,7 @@ class CoarseLayout(BaseEstimator):
                 f"a coarse layout at factor {f} needs an exemplar of at least {(p + p // 2) * f}x{(p + p // 2) * f} pixels, "
                 f"got {img.shape[0]}x{img.shape[1]}; use a smaller layout factor or none"
             )
-        small = downsample(img, f)
+        small = downsample(img, f)  # 8-bit stays 8-bit: the coarse fit of a large exemplar costs a byte per value
         count = lambda s: ((hs - p) // s + 1) * ((ws - p) // s + 1)  # noqa: E731
         stride = 2 if count(2) >= self.min_patches else 1
         n_train = min(count(stride), _positive_int(self.max_patches, "max_patches", 100))
