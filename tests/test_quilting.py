@@ -442,3 +442,14 @@ def test_error_messages_are_one_line(brick_pool):
         with pytest.raises(TGHopError) as info:
             quilt(brick_pool, **kwargs)
         assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("s", [1, 2, 4, 8])
+def test_box_means_are_the_means_of_the_boxes(s):
+    from tghop.quilting import _box_means
+
+    x = np.random.default_rng(s).random((5, 16, 16, 3)).astype(np.float32)
+    ref = x.reshape(5, 16 // s, s, 16 // s, s, 3).astype(np.float64).mean(axis=(2, 4)).reshape(5, -1)
+    out = _box_means(x, s)
+    assert out.dtype == np.float32 and out.shape == ref.shape
+    np.testing.assert_allclose(out, ref, atol=1e-6)

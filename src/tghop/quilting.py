@@ -565,7 +565,18 @@ def _box_means(x: np.ndarray, s: int) -> np.ndarray:
     """``(n, P, P, C)`` -> ``(n, (P/s)^2 C)`` float32 means of ``s x s`` boxes."""
     n, p, _, c = x.shape
     q = p // s
-    return x.reshape(n, q, s, q, s, c).mean(axis=(2, 4), dtype=np.float32).reshape(n, -1)
+    # Sums of strided views, columns then rows: three times faster than ``mean`` over the
+    # two short axes of a 6-d reshape (NumPy reduces short strided axes slowly).
+    cols = x.reshape(n, p, q, s, c)
+    acc = cols[:, :, :, 0].astype(np.float32)
+    for k in range(1, s):
+        acc += cols[:, :, :, k]
+    rows = acc.reshape(n, q, s, q, c)
+    out = rows[:, :, 0].copy()
+    for k in range(1, s):
+        out += rows[:, :, k]
+    out *= np.float32(1.0 / (s * s))
+    return out.reshape(n, -1)
 
 
 def _guide_setup(guide, weight, scale, arr, plan, masks_f):
