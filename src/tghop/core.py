@@ -626,7 +626,7 @@ class ICHM(BaseEstimator):
             if rows.ndim != 2 or scale.shape != rows.shape[:1] or scale.dtype.kind != "f":
                 raise TGHopError(f"mixing scales of shape {scale.shape} and type {scale.dtype} for "
                                  f"mixing rows of shape {rows.shape}")
-            self._stored_mixing = (arrays["ichm_ii.mixing"], scale)
+            self._stored_mixing = (rows, scale)
             self.mixing_ = _dequantize(*self._stored_mixing)
             self._stored_for = self.mixing_
         self._quantiles = None

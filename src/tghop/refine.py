@@ -138,10 +138,7 @@ def _subset(values, n_crops):
 
 def _quantiles(values, levels):
     """Quantiles at ``levels`` of ``values`` (of a strided subset of at most _MAX_VALUES)."""
-    values = values.ravel()
-    if values.size > _MAX_VALUES:
-        values = values[:: -(-values.size // _MAX_VALUES)]
-    ordered = np.sort(values.astype(np.float64))
+    ordered = np.sort(_subset(values, 1).astype(np.float64))
     return np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
 
 
@@ -213,7 +210,7 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     fft = _fft_module(h * w)
     spectrum = fft.rfft2(band, axes=axes)  # complex64 for float32 bands (NumPy >= 2, SciPy)
     masks = _orientation_masks(h, w, n_orientations, np.dtype(band.dtype))
-    if tuple(axes) == (0, 1):
+    if band.ndim == 3 and tuple(axes) == (0, 1):  # (H, W, C): the windows broadcast over C
         masks = [m[..., None] for m in masks]
     parts = [fft.irfft2(spectrum * m, s=(h, w), axes=axes).astype(band.dtype, copy=False)
              for m in masks[:-1]]
@@ -380,10 +377,10 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode):
     for _ in range(n_iter):
         bands = laplacian_pyramid(x, len(band_q), mode=mode)
         for i in range(len(bands) - 1):
-            parts = oriented_parts(bands[i][..., None], n_parts)
+            parts = oriented_parts(bands[i], n_parts)
             for j, part in enumerate(parts):
                 _match(part, band_q[i, j], qlev, out=part)
-            bands[i] = (parts[0] if n_parts == 1 else np.sum(parts, axis=0))[..., 0]
+            bands[i] = parts[0] if n_parts == 1 else np.sum(parts, axis=0)
         x = reconstruct(bands, mode=mode)
         _match(x, pixel_q, qlev, out=x)
     return x

@@ -452,17 +452,15 @@ class TGHop(BaseEstimator):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
         rng = check_rng(rng)
         labels, sources = self.ichm_.sample_sources(n, rng=rng)
+        ichm = self.ichm_
+        zt = np.dtype(np.float64) if return_stages else dtype  # the stage views keep float64
+        z = ichm.mix(labels, [s.astype(zt, copy=False) for s in sources],
+                     mixing=ichm.mixing_.astype(zt, copy=False), means=ichm.means_.astype(zt, copy=False))
+        if ichm.residual_factor_.size > 0:
+            z += ichm.sample_residual(n, rng=rng).astype(zt, copy=False)
         if return_stages:  # the paper's step-by-step inverse, keeping every space
-            z = self.ichm_.mix(labels, sources)
-            if self.ichm_.residual_factor_.size > 0:
-                z += self.ichm_.sample_residual(n, rng=rng)
             patches, spaces = self.decode(z, return_stages=True)
             return patches.astype(dtype, copy=False), self.stage_views(spaces)
-        ichm = self.ichm_
-        z = ichm.mix(labels, [s.astype(dtype, copy=False) for s in sources],
-                     mixing=ichm.mixing_.astype(dtype, copy=False), means=ichm.means_.astype(dtype, copy=False))
-        if ichm.residual_factor_.size > 0:
-            z += ichm.sample_residual(n, rng=rng).astype(dtype, copy=False)
         flat = self._decode_fast(z, dtype)
         shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
         return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
