@@ -348,8 +348,9 @@ def refine(image, stats, *, n_iter=3, tile=False):
         return np.clip(image, 0.0, 1.0)
     mode = "wrap" if tile else "reflect"
     # The decorrelated channels are refined independently (each band of each channel has
-    # its own quantiles): one task per channel, in threads for large images (NumPy's FFT
-    # and element-wise loops release the GIL).
+    # its own quantiles): one thread per channel for large images (NumPy's FFT and
+    # element-wise loops release the GIL), even on fewer cores: three channels on two
+    # workers would leave one core idle while the last channel runs alone.
     dec = np.moveaxis(stats.to_decorrelated(image.astype(np.float32)), 2, 0)
     q = stats.band_quantiles_
     tasks = [(np.ascontiguousarray(dec[k]), q[:, :, k], stats.pixel_quantiles_[k]) for k in range(dec.shape[0])]
@@ -357,8 +358,8 @@ def refine(image, stats, *, n_iter=3, tile=False):
     def one(task):
         return _refine_channel(*task, n_iter=n_iter, mode=mode)
 
-    workers = min(len(tasks), os.cpu_count() or 1)
-    if workers > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
+    workers = len(tasks)
+    if workers > 1 and (os.cpu_count() or 1) > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             dec = np.stack(list(pool.map(one, tasks)))
     else:
