@@ -27,6 +27,7 @@ import argparse
 import ast
 import json
 import os
+import re
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -69,7 +70,8 @@ def parse_variant(spec: str):
         return (spec, *VARIANTS[spec])
     name, _, body = spec.partition(":")
     fit_kw, synth_kw = {}, {}
-    for item in filter(None, (s.strip() for s in body.split(","))):
+    # Items are split at commas that start a new item, so a value may be a tuple: fit.n_channels=(12,30).
+    for item in filter(None, (s.strip() for s in re.split(r",(?=\s*(?:fit|synth)\.)", body))):
         key, _, value = item.partition("=")
         where, _, key = key.partition(".")
         if where not in ("fit", "synth") or not key:

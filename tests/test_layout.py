@@ -82,6 +82,10 @@ def test_downsample_upsample():
     for wrap in (False, True):
         ref = ndimage.zoom(img, (2, 2, 1), order=1, mode="grid-wrap" if wrap else "nearest", grid_mode=True)
         assert np.allclose(upsample(img, 2, (17, 15), wrap=wrap), np.clip(ref[:17, :15], 0, 1), atol=1e-12)
+    # float32 in, float32 out (the guide of a large image), the same numbers to float32 precision.
+    up32 = upsample(img.astype(np.float32), 2, (17, 15))
+    assert up32.dtype == np.float32 and upsample(img, 2, (17, 15)).dtype == np.float64
+    assert np.allclose(up32, upsample(img, 2, (17, 15)), atol=1e-6)
 
 
 # ----------------------------------------------------------------------------- CoarseLayout
@@ -96,7 +100,7 @@ def test_layout_guide_shape_range_determinism(layout):
     assert layout.model_.exemplar_shape_[:2] == (64, 64)
     assert layout.model_.layout_factor is None  # no recursion
     g = layout.guide((70, 90), rng=3, n_patches=300)
-    assert g.shape == (70, 90, 3) and 0 <= g.min() and g.max() <= 1
+    assert g.shape == (70, 90, 3) and g.dtype == np.float32 and 0 <= g.min() and g.max() <= 1
     assert np.array_equal(g, layout.guide((70, 90), rng=3, n_patches=300))
     assert not np.array_equal(g, layout.guide((70, 90), rng=4, n_patches=300))
     assert layout.guide(64, rng=0, n_patches=300, tile=True).shape == (64, 64, 3)

@@ -89,6 +89,19 @@ def test_refine_deterministic_grey_and_tiled(rng):
     assert np.array_equal(refine(img, st, n_iter=0), np.clip(img, 0, 1))
 
 
+def test_threaded_refine_equals_one_thread(cells, monkeypatch):
+    """Large images are refined one thread per channel: the same numbers as one by one."""
+    from tghop import refine as refine_module
+
+    st = BandStatistics().fit(cells)
+    img = _blurred(cells) * 0.8 + 0.1
+    monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1)
+    monkeypatch.setattr(refine_module.os, "cpu_count", lambda: 2)
+    threaded = refine(img, st)
+    monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1 << 62)
+    assert np.array_equal(threaded, refine(img, st))
+
+
 def test_refine_errors(cells):
     st = BandStatistics().fit(cells)
     with pytest.raises(TGHopError, match="n_iter"):
