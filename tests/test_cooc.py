@@ -189,6 +189,72 @@ def test_generation_is_seeded_and_noise_matters(tiny_model):
     assert not np.array_equal(a, tiny_model.generate(cond, rng=4))
 
 
+class _PointwiseGenerator(torch.nn.Module):
+    """A stand-in generator without any spatial context: each cell's output depends only on
+    that cell's condition and noise, so windows agree wherever they overlap."""
+
+    def __init__(self, s):
+        super().__init__()
+        self.s = s
+
+    def forward(self, cond, noise):
+        x = torch.tanh(noise[:, [0, 1, 0]] * 0.5 + cond[:, :3] * 0.1)
+        return torch.nn.functional.interpolate(x, scale_factor=self.s, mode="nearest")
+
+
+def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
+    s, n = tiny_model.s, tiny_model._window_cells
+    assert n == 4
+    cond = tiny_model.crop_condition(0, 0)
+    for h, w in [(5, 9), (4, 7), (9, 3), (12, 12)]:
+        big = cooc._tile(cond, h, w)
+        out = tiny_model.generate(big, rng=0)
+        assert out.shape == (h * s, w * s, 3) and out.min() >= 0 and out.max() <= 1
+        np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0))
+        assert not np.array_equal(out, tiny_model.generate(big, rng=1))
+        assert not np.array_equal(out, tiny_model.generate(big, rng=0, whole=True))
+    assert tiny_model.sample((70, 45), rng=2).shape == (70, 45, 3)
+    # Up to the training size: one window, exactly the plain (whole) generation.
+    for shape in [(4, 4), (2, 3)]:
+        small = cond[:, : shape[0], : shape[1]]
+        z = tiny_model.noise(shape, rng=0)
+        np.testing.assert_array_equal(tiny_model.generate(small, noise=z),
+                                      tiny_model.generate(small, noise=z, whole=True))
+        np.testing.assert_array_equal(tiny_model.generate(small, rng=3), tiny_model.generate(small, rng=3, whole=True))
+    with pytest.raises(TGHopError, match="feather"):
+        tiny_model.generate(cooc._tile(cond, 8, 8), rng=0, feather=17)
+
+
+def test_windows_blend_into_one_image(tiny_model, monkeypatch):
+    # With a generator that has no spatial context every window agrees with the others
+    # where they overlap: the blend weights sum to one, so windows == one whole pass.
+    monkeypatch.setattr(tiny_model, "generator_", _PointwiseGenerator(tiny_model.s))
+    cond = cooc._tile(tiny_model.crop_condition(0, 0), 11, 6)
+    z = tiny_model.noise(cond.shape[1:], rng=4)
+    whole = tiny_model.generate(cond, noise=z, whole=True)
+    for feather in (0, 5, 16):
+        np.testing.assert_allclose(tiny_model.generate(cond, noise=z, feather=feather), whole, atol=1e-12)
+    np.testing.assert_allclose(tiny_model.generate_batch(np.stack([cond] * 2), np.stack([z] * 2)),
+                               np.stack([whole] * 2), atol=1e-12)
+
+
+def test_blend_weights_are_a_continuous_partition_of_unity():
+    n, stride, s = 4, 2, 8
+    starts, (before, after), size = cooc._window_layout(13, n, stride)
+    assert size == n and before == 1 and starts == list(range(0, 14, 2))
+    assert starts[-1] + n == before + 13 + after  # the last window ends at the padded edge
+    for feather in (0, 7, 16):
+        w = cooc._blend_weights(n * s, before * s, (before + stride) * s, feather, True)
+        total = np.zeros((before + 13 + after) * s)
+        for t in starts:
+            total[t * s : (t + n) * s] += w
+        core = total[before * s + s : (before + 13) * s - s]  # away from the image's two ends
+        np.testing.assert_allclose(core, 1.0, atol=1e-12)
+        if feather:  # raised-cosine ramps: no step larger than pi / (2 feather)
+            assert np.abs(np.diff(w)).max() <= np.pi / (2 * feather) + 1e-12
+    assert cooc._window_layout(3, n, stride) == ([0], (0, 0), 3)
+
+
 def test_one_step_lowers_the_consistency_loss(exemplar):
     model = cooc.CoocGAN(**{**TINY, "n_steps": 0, "lr": 1e-3}, device="cpu", rng=1).fit(exemplar)
     model.generator_.train()

@@ -416,6 +416,59 @@ def _reflect_tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
     return t[:, index(h, t.shape[1], offset[0])][:, :, index(w, t.shape[2], offset[1])]
 
 
+#: Default blend width of :meth:`CoocGAN.generate_windows`, as a fraction of the windows'
+#: stride (1: the whole overlap, a sin^2 window; 0: hard seams).
+FEATHER = 0.5
+
+
+def _window_layout(length: int, n: int, stride: int):
+    """Windows along one axis of ``length`` cells: ``(starts, (pad_before, pad_after), window)``.
+
+    Windows are ``n`` cells long and ``stride`` apart; window ``t`` contributes the cells
+    ``[t*stride, (t+1)*stride)`` of the image (its centre), so the axis is padded by the
+    margin ``(n - stride) // 2`` before and up to the last window's end after. An axis of
+    at most ``n`` cells is one window of its own length, unpadded.
+    """
+    if length <= n:
+        return [0], (0, 0), length
+    margin = (n - stride) // 2
+    count = -(-length // stride)
+    after = (count - 1) * stride + n - margin - length
+    return [t * stride for t in range(count)], (margin, after), n
+
+
+def _blend_weights(size: int, lo: int, hi: int, feather: int, blend: bool) -> np.ndarray:
+    """Per-pixel weight of a window along one axis: 1 on ``[lo, hi)``, raised-cosine ramps
+    ``feather`` pixels wide centred on ``lo`` and ``hi``; a neighbour's ramp is the
+    complement, so overlapping windows' weights sum to one. All ones if ``not blend``."""
+    if not blend:
+        return np.ones(size)
+    x = np.arange(size) + 0.5
+
+    def ramp(t):
+        if feather <= 0:
+            return (t >= 0).astype(np.float64)
+        return 0.5 - 0.5 * np.cos(np.pi * np.clip(t / feather + 0.5, 0.0, 1.0))
+
+    return ramp(x - lo) * ramp(hi - x)
+
+
+def _mirror_pad(t: np.ndarray, pads_y, pads_x) -> np.ndarray:
+    """Mirror padding (edge cell repeated, as :func:`_reflect_tile`) of a ``(c, h, w)`` array."""
+    if not any(pads_y) and not any(pads_x):
+        return t
+    c, h, w = t.shape
+    rows = _mirror_index(h, pads_y[0], h + sum(pads_y))
+    cols = _mirror_index(w, pads_x[0], w + sum(pads_x))
+    return t[:, rows][:, :, cols]
+
+
+def _mirror_index(size: int, before: int, total: int) -> np.ndarray:
+    period = 2 * size
+    i = (np.arange(total) - before) % period
+    return np.where(i < size, i, period - 1 - i)
+
+
 # =======================================================================================
 # The cGAN
 # =======================================================================================
@@ -934,8 +987,15 @@ class CoocGAN:
         h, w = (int(v) for v in shape)
         return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
 
-    def generate(self, cond, *, noise=None, rng=None) -> np.ndarray:
+    def generate(self, cond, *, noise=None, rng=None, whole: bool = False, feather: Optional[int] = None) -> np.ndarray:
         """Texture from a co-occurrence tensor (and noise).
+
+        By default a condition larger than the training crops' (``crop_size // s`` cells
+        a side) is generated in overlapping training-size windows (:meth:`generate_windows`):
+        the generator only ever runs at the size it was trained at, where it is good.
+        ``whole=True`` runs it once on the whole condition (the paper's way; a generator
+        trained on small crops with zero padding then shows its border behaviour as
+        streaks and nested rectangles).
 
         Parameters
         ----------
@@ -945,16 +1005,27 @@ class CoocGAN:
         noise : array_like, shape (noise_channels, h, w), optional
             Noise tensor (:meth:`noise`); default drawn from ``rng``.
         rng : int or numpy.random.Generator, optional
+        whole : bool
+            One generator pass over the whole condition instead of windows.
+        feather : int, optional
+            Width in pixels of the raised-cosine blend between windows (default
+            :data:`FEATHER` of the window's stride; see :meth:`generate_windows`).
 
         Returns
         -------
         ndarray, shape (h * s, w * s, C), float64 in [0, 1]
         """
+        if not whole:
+            return self.generate_windows(cond, noise=noise, rng=rng, feather=feather)
         return self.generate_batch(np.asarray(cond)[None], None if noise is None else np.asarray(noise)[None],
-                                   rng=rng)[0]
+                                   rng=rng, whole=True)[0]
 
-    def generate_batch(self, conds, noise=None, *, rng=None) -> np.ndarray:
-        """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``."""
+    def generate_batch(self, conds, noise=None, *, rng=None, whole: bool = False) -> np.ndarray:
+        """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``.
+
+        ``whole=False`` (the default) generates each item in windows (:meth:`generate_windows`);
+        conditions no larger than the training crops' are one window, i.e. one pass.
+        """
         self._check_fitted()
         torch = _import_torch()
         conds = np.stack([self._check_cond(c) for c in conds])
@@ -965,11 +1036,99 @@ class CoocGAN:
         noise = np.asarray(noise, dtype=np.float32)
         if noise.shape != (n, int(self.settings_["noise_channels"]), h, w):
             raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
+        if not whole and (h > self._window_cells or w > self._window_cells):
+            return np.stack([self.generate_windows(c, noise=z) for c, z in zip(conds, noise)])
         with torch.no_grad():
             c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
             z = torch.as_tensor(noise, device=self._device)
             out = self.generator_(c, z)
         return np.clip((out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5, 0.0, 1.0)
+
+    @property
+    def _window_cells(self) -> int:
+        """Side of the training crops' condition in cells (``crop_size // s``)."""
+        return max(1, int(self.settings_["crop_size"]) // self.s)
+
+    def generate_windows(self, cond, *, noise=None, rng=None, feather: Optional[int] = None,
+                         batch: int = 64) -> np.ndarray:
+        """Texture from a condition of any size, generated in overlapping training-size windows.
+
+        The condition (and one noise field for the whole image) is cut into windows of
+        ``n = crop_size // s`` cells a side -- the size the generator was trained at --
+        with a stride of ``max(1, n // 2)`` cells, each window is generated on its own,
+        and each window contributes its central ``stride x stride`` cells, cross-faded
+        into its neighbours' with raised-cosine ramps ``feather`` pixels wide (the ramps
+        sum to one, so the blend is a partition of unity). Adjacent windows see the same
+        noise and condition where they overlap, so they mostly agree there. The condition
+        and noise are mirror-padded by the window's margin so that the image border, too,
+        comes from windows' centres. Along an axis of at most ``n`` cells there is one
+        window of that axis's length; a condition of at most ``n x n`` cells is one
+        window, i.e. exactly ``generate(cond, noise=noise, rng=rng, whole=True)``.
+
+        Parameters
+        ----------
+        cond : array_like, shape (k*k, h, w)
+            Co-occurrence tensor, as for :meth:`generate`.
+        noise : array_like, shape (noise_channels, h, w), optional
+            Noise tensor; mirror-padded with the condition. Default: drawn from ``rng``
+            for the padded grid.
+        rng : int or numpy.random.Generator, optional
+        feather : int, optional
+            Blend width in pixels, from 0 (hard seams between the windows' centres) to
+            ``min(stride, 2 * margin) * s`` with ``margin = (n - stride) // 2`` (for
+            ``n = 4``: 2 cells, the window's whole margin, a sin^2 window). Default
+            :data:`FEATHER` times that.
+        batch : int
+            Windows per generator call.
+
+        Returns
+        -------
+        ndarray, shape (h * s, w * s, C), float64 in [0, 1]
+        """
+        self._check_fitted()
+        torch = _import_torch()
+        cond = self._check_cond(cond)
+        k2, h, w = cond.shape
+        n, s = self._window_cells, self.s
+        if h <= n and w <= n:
+            return self.generate(cond, noise=noise, rng=rng, whole=True)
+        stride = max(1, n // 2)
+        limit = min(stride, 2 * ((n - stride) // 2)) * s  # ramps within the overlap and the window
+        feather = int(round(FEATHER * limit)) if feather is None else int(feather)
+        if not 0 <= feather <= limit:
+            raise TGHopError(f"feather must lie in 0..{limit} pixels (the windows' overlap), got {feather}")
+        ys, pads_y, wy = _window_layout(h, n, stride)
+        xs, pads_x, wx = _window_layout(w, n, stride)
+        channels = int(self.settings_["noise_channels"])
+        padded_shape = (h + sum(pads_y), w + sum(pads_x))
+        if noise is None:
+            z = self.noise(padded_shape, rng=rng)
+        else:
+            z = np.asarray(noise, dtype=np.float32)
+            if z.shape != (channels, h, w):
+                raise TGHopError(f"noise must have shape {(channels, h, w)}, got {z.shape}")
+            z = _mirror_pad(z, pads_y, pads_x)
+        c = _mirror_pad(cond, pads_y, pads_x)
+        weight_y = _blend_weights(wy * s, pads_y[0] * s, (pads_y[0] + stride) * s, feather, h > n)
+        weight_x = _blend_weights(wx * s, pads_x[0] * s, (pads_x[0] + stride) * s, feather, w > n)
+        weight = (weight_y[:, None] * weight_x[None, :])[:, :, None]
+        canvas = np.zeros((padded_shape[0] * s, padded_shape[1] * s, self.exemplar_shape_[2]))
+        total = np.zeros(canvas.shape[:2] + (1,))
+        starts = [(y, x) for y in ys for x in xs]
+        for i in range(0, len(starts), int(batch)):
+            part = starts[i : i + int(batch)]
+            conds = np.stack([c[:, y : y + wy, x : x + wx] for y, x in part])
+            noises = np.stack([z[:, y : y + wy, x : x + wx] for y, x in part])
+            with torch.no_grad():
+                ct = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
+                out = self.generator_(ct, torch.as_tensor(noises, device=self._device))
+            tiles = (out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5
+            for (y, x), tile in zip(part, tiles):
+                canvas[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight * tile
+                total[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight
+        out = canvas / np.maximum(total, 1e-12)
+        y0, x0 = pads_y[0] * s, pads_x[0] * s
+        return np.clip(out[y0 : y0 + h * s, x0 : x0 + w * s], 0.0, 1.0)
 
     def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
         """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
