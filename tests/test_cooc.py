@@ -388,6 +388,12 @@ def test_cli_end_to_end(tmp_path):
             "--boost", "0,1,2")
     assert r.returncode == 0, r.stderr.decode()
     assert np.asarray(Image.open(tmp_path / "edit.png")).shape == (24, 64, 3)
+    # --whole: the paper's single pass; another image of the same size.
+    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "whole.png", "--size", "24x64",
+            "--boost", "0,1,2", "--whole")
+    assert r.returncode == 0, r.stderr.decode()
+    whole = np.asarray(Image.open(tmp_path / "whole.png"))
+    assert whole.shape == (24, 64, 3) and not np.array_equal(whole, np.asarray(Image.open(tmp_path / "edit.png")))
 
 
 def test_cli_errors(tmp_path):

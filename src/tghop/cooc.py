@@ -1166,7 +1166,8 @@ class CoocGAN:
         offset = (int(r.integers(2 * t.shape[1])), int(r.integers(2 * t.shape[2])))
         return _reflect_tile(t, hh, ww, offset)
 
-    def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None) -> np.ndarray:
+    def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None,
+               whole: bool = False) -> np.ndarray:
         """A texture of any size with the exemplar's statistics (:meth:`condition_for` and :meth:`generate`).
 
         Parameters
@@ -1175,6 +1176,9 @@ class CoocGAN:
         rng : int or numpy.random.Generator, optional
             Chooses the condition's offset and the noise.
         progress : callable, optional
+        whole : bool
+            One generator pass over the whole condition (the paper's way) instead of
+            training-size windows (:meth:`generate_windows`, the default).
 
         Returns
         -------
@@ -1184,11 +1188,11 @@ class CoocGAN:
 
         h, w = _output_size(size, (1, 1))
         r = check_rng(rng)
-        out = self.generate(self.condition_for((h, w), rng=r), rng=r)
+        out = self.generate(self.condition_for((h, w), rng=r), rng=r, whole=whole)
         report(progress, "generate", 1, 1)
         return out[:h, :w]
 
-    def morph_strip(self, a, b, *, length: int = 8, rng=None) -> np.ndarray:
+    def morph_strip(self, a, b, *, length: int = 8, rng=None, whole: bool = False) -> np.ndarray:
         """One image whose co-occurrence moves from ``a`` to ``b`` left to right, under one noise tensor.
 
         Parameters
@@ -1198,6 +1202,8 @@ class CoocGAN:
         length : int
             Strip length in condition cells (the image is ``length * s`` pixels wide).
         rng : int or numpy.random.Generator, optional
+        whole : bool
+            One generator pass instead of training-size windows (see :meth:`generate`).
 
         Returns
         -------
@@ -1211,7 +1217,7 @@ class CoocGAN:
             raise TGHopError(f"length must be at least 2 cells, got {length}")
         t = np.linspace(0.0, 1.0, length)[None, None, :]
         cond = (1 - t) * _tile(a, a.shape[1], length) + t * _tile(b, b.shape[1], length)
-        return self.generate(cond, rng=rng)
+        return self.generate(cond, rng=rng, whole=whole)
 
     def morph_grid(self, a, b, *, n_cols: int = 5, n_rows: int = 3, rng=None) -> np.ndarray:
         """The paper's Fig. 2: co-occurrence interpolated across (``a`` to ``b``), noise interpolated down.
@@ -1351,7 +1357,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
 
 
 def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
-             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None) -> np.ndarray:
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, whole: bool = False) -> np.ndarray:
     """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
 
     Parameters
@@ -1366,6 +1372,9 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         A trained model to use instead of training one.
     n_steps : int, optional
         Generator steps of the training (default :data:`SMALL`'s).
+    whole : bool
+        Generate in one pass over the whole condition (the paper's way) instead of
+        training-size windows (the default; see :meth:`CoocGAN.generate`).
 
     Returns
     -------
@@ -1380,4 +1389,4 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         if n_steps is not None:
             model.set_params(n_steps=n_steps)
         model.fit(img, progress=progress)
-    return model.sample(_output_size(size, img.shape), rng=r, progress=progress)
+    return model.sample(_output_size(size, img.shape), rng=r, progress=progress, whole=whole)
