@@ -255,6 +255,24 @@ def test_blend_weights_are_a_continuous_partition_of_unity():
     assert cooc._window_layout(3, n, stride) == ([0], (0, 0), 3)
 
 
+def test_tiled_training(exemplar):
+    x = torch.arange(2 * 4 * 3 * 6 * 4, dtype=torch.float32).reshape(2 * 4, 3, 6, 4)
+    joined = cooc._join_tiles(x, 2)
+    assert joined.shape == (2, 3, 12, 8)
+    torch.testing.assert_close(joined[1, :, 6:, :4], x[6])  # crop 1, tile (1, 0)
+    torch.testing.assert_close(cooc._split_tiles(joined, 2), x)
+    with pytest.raises(TGHopError, match="tiles"):
+        cooc.CoocGAN(**{**TINY, "tiles": 2}, device="cpu").fit(exemplar)  # 48 px < 2 x 32
+    logs = []
+    model = cooc.CoocGAN(**{**TINY, "tiles": 2}, device="cpu", rng=0).fit(
+        data.bricks(72, rng=3), log=lambda step, losses: logs.append(losses))
+    assert len(logs) == 2 and all(np.isfinite(list(v.values())).all() for v in logs)
+    assert model._crops.shape == (4 * TINY["n_crops"], 3, 32, 32) and model._window_cells == 8
+    real, cond = model._batch(torch)
+    assert real.shape == (4, 3, 32, 32) and cond.shape == (1, 9, 8, 8)  # batch 4 = one 2 x 2 crop
+    assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0).shape == (96, 80, 3)
+
+
 def test_one_step_lowers_the_consistency_loss(exemplar):
     model = cooc.CoocGAN(**{**TINY, "n_steps": 0, "lr": 1e-3}, device="cpu", rng=1).fit(exemplar)
     model.generator_.train()

@@ -483,7 +483,7 @@ SMALL = dict(
     n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
     g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
     n_crops=1000, batch_size=16, n_steps=3000, n_critic=1,
-    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1,
 )
 
 #: The paper's configuration (Sec. 4.1): k = 8, 2,000 crops of 128 x 128, s = 32 (5 layers,
@@ -503,7 +503,7 @@ PAPER = dict(
     n_clusters=8, crop_size=128, n_layers=5, patch=65, window=51, sigma=math.sqrt(51.0),
     g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
     n_crops=2000, batch_size=64, n_steps=3750, n_critic=5,
-    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1,
 )
 
 _PARAMS = tuple(SMALL) + ("device", "rng")
@@ -569,6 +569,24 @@ def _networks(torch, n_colours: int, n_cond: int, p: dict):
     return gen, critic
 
 
+def _split_tiles(x, t: int):
+    """``(m, c, t*a, t*b)`` -> ``(m*t*t, c, a, b)``: each item's t x t tiles, row by row."""
+    if t == 1:
+        return x
+    m, c, h, w = x.shape
+    x = x.reshape(m, c, t, h // t, t, w // t).permute(0, 2, 4, 1, 3, 5)
+    return x.reshape(m * t * t, c, h // t, w // t)
+
+
+def _join_tiles(x, t: int):
+    """The inverse of :func:`_split_tiles`: ``(m*t*t, c, a, b)`` -> ``(m, c, t*a, t*b)``."""
+    if t == 1:
+        return x
+    n, c, a, b = x.shape
+    x = x.reshape(n // (t * t), t, t, c, a, b).permute(0, 3, 1, 4, 2, 5)
+    return x.reshape(n // (t * t), c, t * a, t * b)
+
+
 def _exemplar_hash(img: np.ndarray) -> str:
     return hashlib.sha1(np.round(img * 255).astype(np.uint8).tobytes()).hexdigest()[:16]
 
@@ -602,6 +620,12 @@ class CoocGAN:
         Adam settings of both networks.
     lambda_gp, lambda_cooc : float
         Weights of the gradient penalty (Eq. 4) and the co-occurrence consistency loss (Eq. 3).
+    tiles : int
+        The generator trains on crops of ``tiles x tiles`` training crops (conditions of
+        ``tiles * crop_size / s`` cells a side, ``batch_size / tiles**2`` of them per
+        batch); the critic and the consistency loss see their ``crop_size`` tiles, each
+        with its own tensor, so a step costs about the same as with ``tiles=1`` while the
+        generator also learns the inside of a larger grid. 1: the paper's training.
     device : str
         ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
     rng : int or numpy.random.Generator, optional
@@ -627,7 +651,7 @@ class CoocGAN:
     def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
                  g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=16,
                  n_steps=3000, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
-                 device="auto", rng=None):
+                 tiles=1, device="auto", rng=None):
         self.n_clusters = n_clusters
         self.crop_size = crop_size
         self.n_layers = n_layers
@@ -646,6 +670,7 @@ class CoocGAN:
         self.beta2 = beta2
         self.lambda_gp = lambda_gp
         self.lambda_cooc = lambda_cooc
+        self.tiles = tiles
         self.device = device
         self.rng = rng
 
@@ -669,7 +694,7 @@ class CoocGAN:
         """The parameters as plain JSON values, checked."""
         p = {name: getattr(self, name) for name in SMALL}
         ints = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "n_crops",
-                "batch_size", "n_steps", "n_critic")
+                "batch_size", "n_steps", "n_critic", "tiles")
         try:
             for name in ints:
                 p[name] = int(p[name])
@@ -745,21 +770,7 @@ class CoocGAN:
         seed = int(rng.integers(2**31))
         self.centres_, self.spreads_ = fit_colour_clusters(img, n_clusters=p["n_clusters"], seed=seed)
         self._to_device(torch)
-        n = p["crop_size"]
-        if img.shape[0] < n or img.shape[1] < n:
-            raise TGHopError(f"the exemplar is {img.shape[0]}x{img.shape[1]} pixels but crop_size is {n}; "
-                             "use a larger exemplar or a smaller crop_size")
-        ys = rng.integers(img.shape[0] - n + 1, size=p["n_crops"])
-        xs = rng.integers(img.shape[1] - n + 1, size=p["n_crops"])
-        crops = np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)]).transpose(0, 3, 1, 2)
-        self._crops = torch.as_tensor(crops, dtype=torch.float32, device=self._device)
-        conds = []
-        chunk = 64
-        with torch.no_grad():
-            for i in range(0, len(crops), chunk):
-                conds.append(self._cooc(self._crops[i : i + chunk]))
-                report(progress, "co-occurrences", min(i + chunk, len(crops)), len(crops))
-        self._conds = torch.cat(conds)
+        self._cut_crops(torch, img, rng, progress)
         flat = self._conds.double().transpose(0, 1).reshape(self._conds.shape[1], -1)
         self.cond_mean_ = flat.mean(1).cpu().numpy()
         self.cond_std_ = np.maximum(flat.std(1).cpu().numpy(), 1e-4)
@@ -798,15 +809,22 @@ class CoocGAN:
                            device=self._device)
 
     def _batch(self, torch):
-        idx = torch.randint(len(self._crops), (self.settings_["batch_size"],), generator=self._torch_gen,
-                            device=self._device)
-        return self._crops[idx] * 2.0 - 1.0, self._conds[idx]
+        """Real tiles in [-1, 1] and the generator's conditions: ``max(1, batch_size // tiles**2)``
+        crops, i.e. their ``tiles**2`` tiles each and their tiles' tensors joined into one grid."""
+        t = self.settings_["tiles"]
+        m = max(1, self.settings_["batch_size"] // (t * t))
+        idx = torch.randint(len(self._crops) // (t * t), (m,), generator=self._torch_gen, device=self._device)
+        if t > 1:
+            idx = (idx[:, None] * (t * t) + torch.arange(t * t, device=self._device)).reshape(-1)
+        return self._crops[idx] * 2.0 - 1.0, _join_tiles(self._conds[idx], t)
 
     def _critic_step(self, torch, real, cond):
         p = self.settings_
+        t = p["tiles"]
         cn = self._normalise(cond)
         with torch.no_grad():
-            fake = self.generator_(cn, self._noise(torch, len(real), cn.shape[2], cn.shape[3]))
+            fake = _split_tiles(self.generator_(cn, self._noise(torch, len(cn), cn.shape[2], cn.shape[3])), t)
+        cn = _split_tiles(cn, t)
         u = torch.rand((len(real), 1, 1, 1), generator=self._torch_gen, device=self._device)
         mix = (u * real + (1 - u) * fake).requires_grad_(True)
         d_real, d_fake, d_mix = self.critic_(real, cn), self.critic_(fake, cn), self.critic_(mix, cn)
@@ -821,9 +839,16 @@ class CoocGAN:
         return float(loss.detach()), float(gp.detach())
 
     def _generator_loss(self, torch, cond, noise):
-        """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency)."""
+        """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency).
+
+        With ``tiles > 1`` the generator draws whole ``tiles x tiles``-crop conditions and
+        the critic and the consistency loss see the generated image's training-size tiles,
+        each with its own part of the condition.
+        """
+        t = self.settings_["tiles"]
         cn = self._normalise(cond)
-        fake = self.generator_(cn, noise)
+        fake = _split_tiles(self.generator_(cn, noise), t)
+        cn, cond = _split_tiles(cn, t), _split_tiles(cond, t)
         adv = -self.critic_(fake, cn).mean()
         cooc = (self._cooc((fake + 1.0) * 0.5) - cond).abs().sum(1).mean()  # L1 per cell, averaged
         return adv + self.settings_["lambda_cooc"] * cooc, adv, cooc
@@ -948,19 +973,33 @@ class CoocGAN:
 
     def _rebuild_crops(self, torch, img, progress):
         """The training crops of a fresh fit with this seed (a resumed fit needs them again)."""
-        p = self.settings_
         rng = np.random.default_rng(self._seed_)
         rng.integers(2**31)  # the clustering seed of _build
-        n = p["crop_size"]
-        ys = rng.integers(img.shape[0] - n + 1, size=p["n_crops"])
-        xs = rng.integers(img.shape[1] - n + 1, size=p["n_crops"])
-        crops = np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)]).transpose(0, 3, 1, 2)
+        self._cut_crops(torch, img, rng, progress)
+
+    def _cut_crops(self, torch, img, rng, progress):
+        """``n_crops`` random crops of ``tiles x tiles`` training crops each, cut into their
+        ``crop_size`` tiles, and each tile's own co-occurrence tensor.
+
+        ``_crops`` is ``(n_crops * tiles**2, C, n, n)`` and ``_conds`` ``(n_crops * tiles**2, k*k, n/s, n/s)``,
+        crop by crop, each crop's tiles row by row (the order of :func:`_split_tiles`).
+        """
+        p = self.settings_
+        n, t = p["crop_size"], p["tiles"]
+        if img.shape[0] < n * t or img.shape[1] < n * t:
+            raise TGHopError(f"the exemplar is {img.shape[0]}x{img.shape[1]} pixels but the training crops are "
+                             f"{n * t} (crop_size {n} x tiles {t}); use a larger exemplar or a smaller crop_size")
+        ys = rng.integers(img.shape[0] - n * t + 1, size=p["n_crops"])
+        xs = rng.integers(img.shape[1] - n * t + 1, size=p["n_crops"])
+        crops = np.stack([img[y + i * n : y + (i + 1) * n, x + j * n : x + (j + 1) * n]
+                          for y, x in zip(ys, xs) for i in range(t) for j in range(t)]).transpose(0, 3, 1, 2)
         self._crops = torch.as_tensor(crops, dtype=torch.float32, device=self._device)
         conds = []
+        chunk = 64
         with torch.no_grad():
-            for i in range(0, len(crops), 64):
-                conds.append(self._cooc(self._crops[i : i + 64]))
-                report(progress, "co-occurrences", min(i + 64, len(crops)), len(crops))
+            for i in range(0, len(crops), chunk):
+                conds.append(self._cooc(self._crops[i : i + chunk]))
+                report(progress, "co-occurrences", min(i + chunk, len(crops)), len(crops))
         self._conds = torch.cat(conds)
 
     # ------------------------------------------------------------------ generation
@@ -990,8 +1029,8 @@ class CoocGAN:
     def generate(self, cond, *, noise=None, rng=None, whole: bool = False, feather: Optional[int] = None) -> np.ndarray:
         """Texture from a co-occurrence tensor (and noise).
 
-        By default a condition larger than the training crops' (``crop_size // s`` cells
-        a side) is generated in overlapping training-size windows (:meth:`generate_windows`):
+        By default a condition larger than the generator's training conditions
+        (``tiles * crop_size // s`` cells a side) is generated in overlapping training-size windows (:meth:`generate_windows`):
         the generator only ever runs at the size it was trained at, where it is good.
         ``whole=True`` runs it once on the whole condition (the paper's way; a generator
         trained on small crops with zero padding then shows its border behaviour as
@@ -1046,15 +1085,15 @@ class CoocGAN:
 
     @property
     def _window_cells(self) -> int:
-        """Side of the training crops' condition in cells (``crop_size // s``)."""
-        return max(1, int(self.settings_["crop_size"]) // self.s)
+        """Side of the generator's training condition in cells (``tiles * crop_size // s``)."""
+        return max(1, int(self.settings_["tiles"]) * int(self.settings_["crop_size"]) // self.s)
 
     def generate_windows(self, cond, *, noise=None, rng=None, feather: Optional[int] = None,
                          batch: int = 64) -> np.ndarray:
         """Texture from a condition of any size, generated in overlapping training-size windows.
 
         The condition (and one noise field for the whole image) is cut into windows of
-        ``n = crop_size // s`` cells a side -- the size the generator was trained at --
+        ``n = tiles * crop_size // s`` cells a side -- the size the generator was trained at --
         with a stride of ``max(1, n // 2)`` cells, each window is generated on its own,
         and each window contributes its central ``stride x stride`` cells, cross-faded
         into its neighbours' with raised-cosine ramps ``feather`` pixels wide (the ramps
@@ -1322,7 +1361,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
         raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
                              "train it again with this version")
     try:
-        p = settings["settings"]
+        p = {"tiles": 1, **settings["settings"]}
         model = CoocGAN(**p, device=device)
         model.settings_ = model._settings()
         model.exemplar_shape_ = tuple(settings["exemplar_shape"])
