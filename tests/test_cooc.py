@@ -208,21 +208,21 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
     cond = tiny_model.crop_condition(0, 0)
     for h, w in [(5, 9), (4, 7), (9, 3), (12, 12)]:
         big = cooc._tile(cond, h, w)
-        out = tiny_model.generate(big, rng=0)
+        out = tiny_model.generate(big, rng=0, windows=True)
         assert out.shape == (h * s, w * s, 3) and out.min() >= 0 and out.max() <= 1
-        np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0))
-        assert not np.array_equal(out, tiny_model.generate(big, rng=1))
-        assert not np.array_equal(out, tiny_model.generate(big, rng=0, whole=True))
-    assert tiny_model.sample((70, 45), rng=2).shape == (70, 45, 3)
+        np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0, windows=True))
+        assert not np.array_equal(out, tiny_model.generate(big, rng=1, windows=True))
+        assert not np.array_equal(out, tiny_model.generate(big, rng=0))
+    assert tiny_model.sample((70, 45), rng=2, windows=True).shape == (70, 45, 3)
     # Up to the training size: one window, exactly the plain (whole) generation.
     for shape in [(4, 4), (2, 3)]:
         small = cond[:, : shape[0], : shape[1]]
         z = tiny_model.noise(shape, rng=0)
-        np.testing.assert_array_equal(tiny_model.generate(small, noise=z),
-                                      tiny_model.generate(small, noise=z, whole=True))
-        np.testing.assert_array_equal(tiny_model.generate(small, rng=3), tiny_model.generate(small, rng=3, whole=True))
+        np.testing.assert_array_equal(tiny_model.generate(small, noise=z, windows=True),
+                                      tiny_model.generate(small, noise=z))
+        np.testing.assert_array_equal(tiny_model.generate(small, rng=3, windows=True), tiny_model.generate(small, rng=3))
     with pytest.raises(TGHopError, match="feather"):
-        tiny_model.generate(cooc._tile(cond, 8, 8), rng=0, feather=17)
+        tiny_model.generate(cooc._tile(cond, 8, 8), rng=0, windows=True, feather=17)
 
 
 def test_windows_blend_into_one_image(tiny_model, monkeypatch):
@@ -231,10 +231,10 @@ def test_windows_blend_into_one_image(tiny_model, monkeypatch):
     monkeypatch.setattr(tiny_model, "generator_", _PointwiseGenerator(tiny_model.s))
     cond = cooc._tile(tiny_model.crop_condition(0, 0), 11, 6)
     z = tiny_model.noise(cond.shape[1:], rng=4)
-    whole = tiny_model.generate(cond, noise=z, whole=True)
+    whole = tiny_model.generate(cond, noise=z)
     for feather in (0, 5, 16):
-        np.testing.assert_allclose(tiny_model.generate(cond, noise=z, feather=feather), whole, atol=1e-12)
-    np.testing.assert_allclose(tiny_model.generate_batch(np.stack([cond] * 2), np.stack([z] * 2)),
+        np.testing.assert_allclose(tiny_model.generate(cond, noise=z, windows=True, feather=feather), whole, atol=1e-12)
+    np.testing.assert_allclose(tiny_model.generate_batch(np.stack([cond] * 2), np.stack([z] * 2), windows=True),
                                np.stack([whole] * 2), atol=1e-12)
 
 
@@ -270,7 +270,7 @@ def test_tiled_training(exemplar):
     assert model._crops.shape == (4 * TINY["n_crops"], 3, 32, 32) and model._window_cells == 8
     real, cond = model._batch(torch)
     assert real.shape == (4, 3, 32, 32) and cond.shape == (1, 9, 8, 8)  # batch 4 = one 2 x 2 crop
-    assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0).shape == (96, 80, 3)
+    assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
 
 
 def test_one_step_lowers_the_consistency_loss(exemplar):
@@ -406,12 +406,12 @@ def test_cli_end_to_end(tmp_path):
             "--boost", "0,1,2")
     assert r.returncode == 0, r.stderr.decode()
     assert np.asarray(Image.open(tmp_path / "edit.png")).shape == (24, 64, 3)
-    # --whole: the paper's single pass; another image of the same size.
-    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "whole.png", "--size", "24x64",
-            "--boost", "0,1,2", "--whole")
+    # --windows: training-size windows; another image of the same size.
+    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "win.png", "--size", "24x64",
+            "--boost", "0,1,2", "--windows")
     assert r.returncode == 0, r.stderr.decode()
-    whole = np.asarray(Image.open(tmp_path / "whole.png"))
-    assert whole.shape == (24, 64, 3) and not np.array_equal(whole, np.asarray(Image.open(tmp_path / "edit.png")))
+    win = np.asarray(Image.open(tmp_path / "win.png"))
+    assert win.shape == (24, 64, 3) and not np.array_equal(win, np.asarray(Image.open(tmp_path / "edit.png")))
 
 
 def test_cli_errors(tmp_path):

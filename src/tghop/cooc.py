@@ -27,6 +27,10 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
   :func:`paint_condition` are the controls; ``save`` / :func:`load` write and read a
   ``.pt`` checkpoint of tensors only (JSON settings inside), and ``fit(..., resume=True)``
   continues a loaded one.
+* ``generate(..., windows=True)`` (:meth:`CoocGAN.generate_windows`) generates a large
+  condition in overlapping training-size windows, and ``tiles=2`` trains the generator on
+  2 x 2 training crops at once; both are options (docs/choices.md: neither was clearly
+  better on the small configuration).
 * :data:`SMALL` (the default: about 14 minutes on a 2-core CPU) and :data:`PAPER` (the
   paper's setting: about 10 minutes on an H100 GPU) are the two configurations;
   ``CoocGAN(**PAPER)`` selects the latter.
@@ -1026,15 +1030,15 @@ class CoocGAN:
         h, w = (int(v) for v in shape)
         return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
 
-    def generate(self, cond, *, noise=None, rng=None, whole: bool = False, feather: Optional[int] = None) -> np.ndarray:
+    def generate(self, cond, *, noise=None, rng=None, windows: bool = False,
+                 feather: Optional[int] = None) -> np.ndarray:
         """Texture from a co-occurrence tensor (and noise).
 
-        By default a condition larger than the generator's training conditions
-        (``tiles * crop_size // s`` cells a side) is generated in overlapping training-size windows (:meth:`generate_windows`):
-        the generator only ever runs at the size it was trained at, where it is good.
-        ``whole=True`` runs it once on the whole condition (the paper's way; a generator
-        trained on small crops with zero padding then shows its border behaviour as
-        streaks and nested rectangles).
+        The generator runs once on the whole condition (the paper's way). With
+        ``windows=True`` a condition larger than the generator's training conditions
+        (``tiles * crop_size // s`` cells a side) is generated in overlapping
+        training-size windows instead (:meth:`generate_windows`); on the models tried
+        that gave no better images (docs/choices.md), so it is not the default.
 
         Parameters
         ----------
@@ -1044,25 +1048,25 @@ class CoocGAN:
         noise : array_like, shape (noise_channels, h, w), optional
             Noise tensor (:meth:`noise`); default drawn from ``rng``.
         rng : int or numpy.random.Generator, optional
-        whole : bool
-            One generator pass over the whole condition instead of windows.
+        windows : bool
+            Generate in overlapping training-size windows (:meth:`generate_windows`).
         feather : int, optional
-            Width in pixels of the raised-cosine blend between windows (default
-            :data:`FEATHER` of the window's stride; see :meth:`generate_windows`).
+            With ``windows``: width in pixels of the raised-cosine blend between windows
+            (see :meth:`generate_windows`).
 
         Returns
         -------
         ndarray, shape (h * s, w * s, C), float64 in [0, 1]
         """
-        if not whole:
+        if windows:
             return self.generate_windows(cond, noise=noise, rng=rng, feather=feather)
         return self.generate_batch(np.asarray(cond)[None], None if noise is None else np.asarray(noise)[None],
-                                   rng=rng, whole=True)[0]
+                                   rng=rng)[0]
 
-    def generate_batch(self, conds, noise=None, *, rng=None, whole: bool = False) -> np.ndarray:
+    def generate_batch(self, conds, noise=None, *, rng=None, windows: bool = False) -> np.ndarray:
         """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``.
 
-        ``whole=False`` (the default) generates each item in windows (:meth:`generate_windows`);
+        ``windows=True`` generates each item in windows (:meth:`generate_windows`);
         conditions no larger than the training crops' are one window, i.e. one pass.
         """
         self._check_fitted()
@@ -1075,7 +1079,7 @@ class CoocGAN:
         noise = np.asarray(noise, dtype=np.float32)
         if noise.shape != (n, int(self.settings_["noise_channels"]), h, w):
             raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
-        if not whole and (h > self._window_cells or w > self._window_cells):
+        if windows and (h > self._window_cells or w > self._window_cells):
             return np.stack([self.generate_windows(c, noise=z) for c, z in zip(conds, noise)])
         with torch.no_grad():
             c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
@@ -1102,7 +1106,7 @@ class CoocGAN:
         and noise are mirror-padded by the window's margin so that the image border, too,
         comes from windows' centres. Along an axis of at most ``n`` cells there is one
         window of that axis's length; a condition of at most ``n x n`` cells is one
-        window, i.e. exactly ``generate(cond, noise=noise, rng=rng, whole=True)``.
+        window, i.e. exactly ``generate(cond, noise=noise, rng=rng)``.
 
         Parameters
         ----------
@@ -1130,7 +1134,7 @@ class CoocGAN:
         k2, h, w = cond.shape
         n, s = self._window_cells, self.s
         if h <= n and w <= n:
-            return self.generate(cond, noise=noise, rng=rng, whole=True)
+            return self.generate(cond, noise=noise, rng=rng)
         stride = max(1, n // 2)
         limit = min(stride, 2 * ((n - stride) // 2)) * s  # ramps within the overlap and the window
         feather = int(round(FEATHER * limit)) if feather is None else int(feather)
@@ -1206,7 +1210,7 @@ class CoocGAN:
         return _reflect_tile(t, hh, ww, offset)
 
     def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None,
-               whole: bool = False) -> np.ndarray:
+               windows: bool = False) -> np.ndarray:
         """A texture of any size with the exemplar's statistics (:meth:`condition_for` and :meth:`generate`).
 
         Parameters
@@ -1215,9 +1219,9 @@ class CoocGAN:
         rng : int or numpy.random.Generator, optional
             Chooses the condition's offset and the noise.
         progress : callable, optional
-        whole : bool
-            One generator pass over the whole condition (the paper's way) instead of
-            training-size windows (:meth:`generate_windows`, the default).
+        windows : bool
+            Generate in overlapping training-size windows (:meth:`generate_windows`)
+            instead of one pass over the whole condition (the paper's way, the default).
 
         Returns
         -------
@@ -1227,11 +1231,11 @@ class CoocGAN:
 
         h, w = _output_size(size, (1, 1))
         r = check_rng(rng)
-        out = self.generate(self.condition_for((h, w), rng=r), rng=r, whole=whole)
+        out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=windows)
         report(progress, "generate", 1, 1)
         return out[:h, :w]
 
-    def morph_strip(self, a, b, *, length: int = 8, rng=None, whole: bool = False) -> np.ndarray:
+    def morph_strip(self, a, b, *, length: int = 8, rng=None, windows: bool = False) -> np.ndarray:
         """One image whose co-occurrence moves from ``a`` to ``b`` left to right, under one noise tensor.
 
         Parameters
@@ -1241,8 +1245,8 @@ class CoocGAN:
         length : int
             Strip length in condition cells (the image is ``length * s`` pixels wide).
         rng : int or numpy.random.Generator, optional
-        whole : bool
-            One generator pass instead of training-size windows (see :meth:`generate`).
+        windows : bool
+            Training-size windows instead of one generator pass (see :meth:`generate`).
 
         Returns
         -------
@@ -1256,7 +1260,7 @@ class CoocGAN:
             raise TGHopError(f"length must be at least 2 cells, got {length}")
         t = np.linspace(0.0, 1.0, length)[None, None, :]
         cond = (1 - t) * _tile(a, a.shape[1], length) + t * _tile(b, b.shape[1], length)
-        return self.generate(cond, rng=rng, whole=whole)
+        return self.generate(cond, rng=rng, windows=windows)
 
     def morph_grid(self, a, b, *, n_cols: int = 5, n_rows: int = 3, rng=None) -> np.ndarray:
         """The paper's Fig. 2: co-occurrence interpolated across (``a`` to ``b``), noise interpolated down.
@@ -1396,7 +1400,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
 
 
 def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
-             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, whole: bool = False) -> np.ndarray:
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, windows: bool = False) -> np.ndarray:
     """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
 
     Parameters
@@ -1411,9 +1415,9 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         A trained model to use instead of training one.
     n_steps : int, optional
         Generator steps of the training (default :data:`SMALL`'s).
-    whole : bool
-        Generate in one pass over the whole condition (the paper's way) instead of
-        training-size windows (the default; see :meth:`CoocGAN.generate`).
+    windows : bool
+        Generate in overlapping training-size windows instead of one pass over the whole
+        condition (the paper's way, the default; see :meth:`CoocGAN.generate`).
 
     Returns
     -------
@@ -1428,4 +1432,4 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         if n_steps is not None:
             model.set_params(n_steps=n_steps)
         model.fit(img, progress=progress)
-    return model.sample(_output_size(size, img.shape), rng=r, progress=progress, whole=whole)
+    return model.sample(_output_size(size, img.shape), rng=r, progress=progress, windows=windows)
