@@ -87,12 +87,14 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds) -> dict:
         if stage == "training" and done % 50 == 0:
             print(f"{name}: step {done}/{total} at {now - t0:.0f} s, load {load_average():.1f}", flush=True)
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     model.fit(img, progress=progress, max_seconds=max_seconds)
     seconds = time.perf_counter() - t0
+    cpu_seconds = time.process_time() - c0  # all threads; the machine is shared, wall time alone misleads
     progress(None, 0, 0)
     model.save(out / f"{name}.pt")
-    entry = {"texture": name, "exemplar_shape": list(img.shape), "seconds": seconds, "stages": stages,
+    entry = {"texture": name, "exemplar_shape": list(img.shape), "seconds": seconds, "cpu_seconds": cpu_seconds,
+             "stages": stages,
              "steps": model.step_, "settings": model.settings_, "threads": threads,
              "peak_rss_mb": peak_rss_mb(), "load_before": load_before, "load_after": load_average(),
              "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),

@@ -141,12 +141,12 @@ def nearest_neighbours(model, img, *, n_gen=8, n_train=400, seed=0) -> dict:
             "real_cooc_l1": float(r_co.mean()), "pairs": [gen[:4], train[g_idx[:4]]]}
 
 
-def gen_speed(model, size, n=3) -> float:
+def gen_speed(model, size, n=3, windows=False) -> float:
     """Images per second of :meth:`sample` at ``size`` x ``size`` (after one warm-up)."""
-    model.sample((size, size), rng=0)
+    model.sample((size, size), rng=0, windows=windows)
     t = time.perf_counter()
     for i in range(n):
-        model.sample((size, size), rng=i + 1)
+        model.sample((size, size), rng=i + 1, windows=windows)
     return n / (time.perf_counter() - t)
 
 
@@ -170,12 +170,15 @@ def report(names, out: Path, threads: int):
         train = json.loads((out / f"{name}_train.json").read_text())
         model = load(ck, device="cpu")
         img = prepare(name)
-        rows_train.append([name, train["steps"], train["seconds"] / 60, train["stages"].get("co-occurrences", 0.0),
-                           train["seconds"] / max(train["steps"], 1), train["peak_rss_mb"],
-                           f"{train['load_before']:.1f} / {train['load_after']:.1f}"])
+        cpu = train.get("cpu_seconds")
+        loads = (f"{train['load_before']:.1f} / {train['load_after']:.1f}" if "load_before" in train else "-")
+        rows_train.append([name, train["steps"], train["seconds"] / 60, "-" if cpu is None else cpu / 60,
+                           train.get("stages", {}).get("co-occurrences", "-"),
+                           train["seconds"] / max(train["steps"], 1), train.get("peak_rss_mb", "-"), loads])
         log(f"{name}: speed")
         speed = {s: gen_speed(model, s, n=3 if s == 256 else 1) for s in (256, 1024)}
-        rows_speed.append([name, speed[256], speed[1024]])
+        speed.update({f"{s} windows": gen_speed(model, s, n=3 if s == 256 else 1, windows=True) for s in (256, 1024)})
+        rows_speed.append([name, speed[256], speed[1024], speed["256 windows"], speed["1024 windows"]])
         log(f"{name}: stability")
         stab = stability(model, img)
         rows_stab.append([name] + [f"{v:.3f}" for v in stab["l1"][:1]] + [f"{d:+.1f}" for d in stab["drift_pct"][1:]]
@@ -185,7 +188,10 @@ def report(names, out: Path, threads: int):
         rows_nn.append([name, nn["gen_rgb_l1"], nn["real_rgb_l1"], nn["gen_cooc_l1"], nn["real_cooc_l1"]])
         log(f"{name}: baselines and quality")
         base = baselines(name, out)
-        ours = {"cooc 128": model.sample((128, 128), rng=0), "cooc 256": model.sample((256, 256), rng=0)}
+        ours = {"cooc 128": model.sample((128, 128), rng=0), "cooc 256": model.sample((256, 256), rng=0),
+                "cooc 256 windows": model.sample((256, 256), rng=0, windows=True),
+                "cooc 512": model.sample((512, 512), rng=0),
+                "cooc 512 windows": model.sample((512, 512), rng=0, windows=True)}
         for label, im in ours.items():
             save_image(im, out / f"{label.replace(' ', '-')}-{name}.png")
         crop128 = img[:128, :128]
@@ -208,7 +214,8 @@ def report(names, out: Path, threads: int):
         save_image(patch_grid(grid.reshape((-1,) + grid.shape[2:]), n_cols=5), out / f"grid-{name}.png")
         save_image(edit, out / f"edit-{name}.png")
         sheet = stack_rows([
-            image_sheet([img] + list(results.values()), ["exemplar"] + list(results), height=160),
+            image_sheet([img] + list(results.values())[:-4], ["exemplar"] + list(results)[:-4], height=160),
+            image_sheet([img] + list(ours.values())[1:], ["exemplar"] + list(ours)[1:], height=256),
             image_sheet([strip], [f"morph crop(0,0) -> crop(bottom right), {strip.shape[1]} px"], height=96),
             image_sheet([edit], ["edit: the two crops' statistics painted left | right"], height=128),
             image_sheet(stab["sequence"], ["crop"] + [f"round {i + 1}" for i in range(len(stab["sequence"]) - 1)],
@@ -226,10 +233,11 @@ def report(names, out: Path, threads: int):
     md = ["# Co-occurrence cGAN (Darzi et al.), small configuration, on this machine\n",
           f"torch threads: {threads}. Peak RSS is the training process's own.\n",
           "## Training\n",
-          markdown_table(["texture", "steps", "minutes", "co-occurrence setup s", "s / step", "peak RSS MB",
-                          "load avg before / after"], rows_train),
+          markdown_table(["texture", "steps", "minutes", "CPU minutes", "co-occurrence setup s", "s / step",
+                          "peak RSS MB", "load avg before / after"], rows_train),
           "\n## Generation speed (CPU, images per second)\n",
-          markdown_table(["texture", "256x256", "1024x1024"], rows_speed),
+          "Default: one generator pass (the paper's); windows: overlapping training-size windows.\n",
+          markdown_table(["texture", "256x256", "1024x1024", "256 windows", "1024 windows"], rows_speed),
           "\n## Stability loop (paper: within 2 % of round 1 over 10 rounds)\n",
           "L1 = mean over 8 held-out crops and cells of sum |input - output co-occurrence|; "
           "drift of rounds 2-10 in % of round 1.\n",
@@ -239,6 +247,8 @@ def report(names, out: Path, threads: int):
           "(from held-out crops' tensors) vs the held-out real crops themselves.\n",
           markdown_table(["texture", "RGB L1 generated", "RGB L1 real", "cooc L1 generated", "cooc L1 real"], rows_nn),
           "\n## Quality (lower is better; copied: fraction of verbatim 16x16 patches)\n",
+          "cooc N: sample((N, N), rng=0), one generator pass (the default, the paper's way); cooc N "
+          "windows: the same condition in overlapping training-size windows (windows=True).\n",
           markdown_table(["texture", "method"] + list(METRICS), rows_q)]
     text = "\n".join(md)
     write_results_to(out, "report", payload, text)

@@ -189,6 +189,90 @@ def test_generation_is_seeded_and_noise_matters(tiny_model):
     assert not np.array_equal(a, tiny_model.generate(cond, rng=4))
 
 
+class _PointwiseGenerator(torch.nn.Module):
+    """A stand-in generator without any spatial context: each cell's output depends only on
+    that cell's condition and noise, so windows agree wherever they overlap."""
+
+    def __init__(self, s):
+        super().__init__()
+        self.s = s
+
+    def forward(self, cond, noise):
+        x = torch.tanh(noise[:, [0, 1, 0]] * 0.5 + cond[:, :3] * 0.1)
+        return torch.nn.functional.interpolate(x, scale_factor=self.s, mode="nearest")
+
+
+def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
+    s, n = tiny_model.s, tiny_model._window_cells
+    assert n == 4
+    cond = tiny_model.crop_condition(0, 0)
+    for h, w in [(5, 9), (4, 7), (9, 3), (12, 12)]:
+        big = cooc._tile(cond, h, w)
+        out = tiny_model.generate(big, rng=0, windows=True)
+        assert out.shape == (h * s, w * s, 3) and out.min() >= 0 and out.max() <= 1
+        np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0, windows=True))
+        assert not np.array_equal(out, tiny_model.generate(big, rng=1, windows=True))
+        assert not np.array_equal(out, tiny_model.generate(big, rng=0))
+    assert tiny_model.sample((70, 45), rng=2, windows=True).shape == (70, 45, 3)
+    # Up to the training size: one window, exactly the plain (whole) generation.
+    for shape in [(4, 4), (2, 3)]:
+        small = cond[:, : shape[0], : shape[1]]
+        z = tiny_model.noise(shape, rng=0)
+        np.testing.assert_array_equal(tiny_model.generate(small, noise=z, windows=True),
+                                      tiny_model.generate(small, noise=z))
+        np.testing.assert_array_equal(tiny_model.generate(small, rng=3, windows=True), tiny_model.generate(small, rng=3))
+    with pytest.raises(TGHopError, match="feather"):
+        tiny_model.generate(cooc._tile(cond, 8, 8), rng=0, windows=True, feather=17)
+
+
+def test_windows_blend_into_one_image(tiny_model, monkeypatch):
+    # With a generator that has no spatial context every window agrees with the others
+    # where they overlap: the blend weights sum to one, so windows == one whole pass.
+    monkeypatch.setattr(tiny_model, "generator_", _PointwiseGenerator(tiny_model.s))
+    cond = cooc._tile(tiny_model.crop_condition(0, 0), 11, 6)
+    z = tiny_model.noise(cond.shape[1:], rng=4)
+    whole = tiny_model.generate(cond, noise=z)
+    for feather in (0, 5, 16):
+        np.testing.assert_allclose(tiny_model.generate(cond, noise=z, windows=True, feather=feather), whole, atol=1e-12)
+    np.testing.assert_allclose(tiny_model.generate_batch(np.stack([cond] * 2), np.stack([z] * 2), windows=True),
+                               np.stack([whole] * 2), atol=1e-12)
+
+
+def test_blend_weights_are_a_continuous_partition_of_unity():
+    n, stride, s = 4, 2, 8
+    starts, (before, after), size = cooc._window_layout(13, n, stride)
+    assert size == n and before == 1 and starts == list(range(0, 14, 2))
+    assert starts[-1] + n == before + 13 + after  # the last window ends at the padded edge
+    for feather in (0, 7, 16):
+        w = cooc._blend_weights(n * s, before * s, (before + stride) * s, feather, True)
+        total = np.zeros((before + 13 + after) * s)
+        for t in starts:
+            total[t * s : (t + n) * s] += w
+        core = total[before * s + s : (before + 13) * s - s]  # away from the image's two ends
+        np.testing.assert_allclose(core, 1.0, atol=1e-12)
+        if feather:  # raised-cosine ramps: no step larger than pi / (2 feather)
+            assert np.abs(np.diff(w)).max() <= np.pi / (2 * feather) + 1e-12
+    assert cooc._window_layout(3, n, stride) == ([0], (0, 0), 3)
+
+
+def test_tiled_training(exemplar):
+    x = torch.arange(2 * 4 * 3 * 6 * 4, dtype=torch.float32).reshape(2 * 4, 3, 6, 4)
+    joined = cooc._join_tiles(x, 2)
+    assert joined.shape == (2, 3, 12, 8)
+    torch.testing.assert_close(joined[1, :, 6:, :4], x[6])  # crop 1, tile (1, 0)
+    torch.testing.assert_close(cooc._split_tiles(joined, 2), x)
+    with pytest.raises(TGHopError, match="tiles"):
+        cooc.CoocGAN(**{**TINY, "tiles": 2}, device="cpu").fit(exemplar)  # 48 px < 2 x 32
+    logs = []
+    model = cooc.CoocGAN(**{**TINY, "tiles": 2}, device="cpu", rng=0).fit(
+        data.bricks(72, rng=3), log=lambda step, losses: logs.append(losses))
+    assert len(logs) == 2 and all(np.isfinite(list(v.values())).all() for v in logs)
+    assert model._crops.shape == (4 * TINY["n_crops"], 3, 32, 32) and model._window_cells == 8
+    real, cond = model._batch(torch)
+    assert real.shape == (4, 3, 32, 32) and cond.shape == (1, 9, 8, 8)  # batch 4 = one 2 x 2 crop
+    assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
+
+
 def test_one_step_lowers_the_consistency_loss(exemplar):
     model = cooc.CoocGAN(**{**TINY, "n_steps": 0, "lr": 1e-3}, device="cpu", rng=1).fit(exemplar)
     model.generator_.train()
@@ -322,6 +406,12 @@ def test_cli_end_to_end(tmp_path):
             "--boost", "0,1,2")
     assert r.returncode == 0, r.stderr.decode()
     assert np.asarray(Image.open(tmp_path / "edit.png")).shape == (24, 64, 3)
+    # --windows: training-size windows; another image of the same size.
+    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "win.png", "--size", "24x64",
+            "--boost", "0,1,2", "--windows")
+    assert r.returncode == 0, r.stderr.decode()
+    win = np.asarray(Image.open(tmp_path / "win.png"))
+    assert win.shape == (24, 64, 3) and not np.array_equal(win, np.asarray(Image.open(tmp_path / "edit.png")))
 
 
 def test_cli_errors(tmp_path):

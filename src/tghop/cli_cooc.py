@@ -127,7 +127,10 @@ def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
 @click.option("--grid", default=None, metavar="COLSxROWS",
               help="Write the paper's Fig. 2 grid instead: co-occurrence A->B across, noise down, e.g. 5x3.")
 @click.option("--seed", type=click.IntRange(min=0), default=None)
-def morph(model_file, a, b, output, length, grid, seed):
+@click.option("--windows", is_flag=True,
+              help="Generate in overlapping training-size windows instead of one generator pass over the "
+                   "whole condition (the paper's way).")
+def morph(model_file, a, b, output, length, grid, seed, windows):
     """Morph from A to B: a strip (or a grid) whose co-occurrence moves from A to B.
 
     A and B are crop:ROW,COL (a crop of the training exemplar at that pixel) or images
@@ -147,7 +150,7 @@ def morph(model_file, a, b, output, length, grid, seed):
         model = load_checkpoint(model_file)
         ca, cb = condition(model, a), condition(model, b)
         if grid is None:
-            image = model.morph_strip(ca, cb, length=length, rng=seed)
+            image = model.morph_strip(ca, cb, length=length, rng=seed, windows=windows)
         else:
             h = min(ca.shape[1], cb.shape[1])
             w = min(ca.shape[2], cb.shape[2])
@@ -168,7 +171,10 @@ def morph(model_file, a, b, output, length, grid, seed):
 @click.option("--boost", default=None, metavar="A,B,FACTOR",
               help="Multiply bin M(A, B) (and M(B, A)) by FACTOR everywhere, then re-normalise (paper Fig. 11).")
 @click.option("--seed", type=click.IntRange(min=0), default=None)
-def edit(model_file, sources, output, size, mask, boost, seed):
+@click.option("--windows", is_flag=True,
+              help="Generate in overlapping training-size windows instead of one generator pass over the "
+                   "whole condition (the paper's way).")
+def edit(model_file, sources, output, size, mask, boost, seed, windows):
     """Generate from edited co-occurrence: SOURCES' statistics painted where you want them.
 
     SOURCES are crop:ROW,COL or images, as for morph; none: the exemplar's own tensor.
@@ -211,6 +217,6 @@ def edit(model_file, sources, output, size, mask, boost, seed):
             cond[ia * k + ib] *= factor
             if ia != ib:
                 cond[ib * k + ia] *= factor
-        image = model.generate(cond, rng=seed)[: size[0], : size[1]]
+        image = model.generate(cond, rng=seed, windows=windows)[: size[0], : size[1]]
         save_image(image, output)
     click.echo(f"edited texture written to {output}", err=True)

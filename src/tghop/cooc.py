@@ -27,6 +27,10 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
   :func:`paint_condition` are the controls; ``save`` / :func:`load` write and read a
   ``.pt`` checkpoint of tensors only (JSON settings inside), and ``fit(..., resume=True)``
   continues a loaded one.
+* ``generate(..., windows=True)`` (:meth:`CoocGAN.generate_windows`) generates a large
+  condition in overlapping training-size windows, and ``tiles=2`` trains the generator on
+  2 x 2 training crops at once; both are options (docs/choices.md: neither was clearly
+  better on the small configuration).
 * :data:`SMALL` (the default: about 14 minutes on a 2-core CPU) and :data:`PAPER` (the
   paper's setting: about 10 minutes on an H100 GPU) are the two configurations;
   ``CoocGAN(**PAPER)`` selects the latter.
@@ -416,6 +420,59 @@ def _reflect_tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
     return t[:, index(h, t.shape[1], offset[0])][:, :, index(w, t.shape[2], offset[1])]
 
 
+#: Default blend width of :meth:`CoocGAN.generate_windows`, as a fraction of the windows'
+#: stride (1: the whole overlap, a sin^2 window; 0: hard seams).
+FEATHER = 0.5
+
+
+def _window_layout(length: int, n: int, stride: int):
+    """Windows along one axis of ``length`` cells: ``(starts, (pad_before, pad_after), window)``.
+
+    Windows are ``n`` cells long and ``stride`` apart; window ``t`` contributes the cells
+    ``[t*stride, (t+1)*stride)`` of the image (its centre), so the axis is padded by the
+    margin ``(n - stride) // 2`` before and up to the last window's end after. An axis of
+    at most ``n`` cells is one window of its own length, unpadded.
+    """
+    if length <= n:
+        return [0], (0, 0), length
+    margin = (n - stride) // 2
+    count = -(-length // stride)
+    after = (count - 1) * stride + n - margin - length
+    return [t * stride for t in range(count)], (margin, after), n
+
+
+def _blend_weights(size: int, lo: int, hi: int, feather: int, blend: bool) -> np.ndarray:
+    """Per-pixel weight of a window along one axis: 1 on ``[lo, hi)``, raised-cosine ramps
+    ``feather`` pixels wide centred on ``lo`` and ``hi``; a neighbour's ramp is the
+    complement, so overlapping windows' weights sum to one. All ones if ``not blend``."""
+    if not blend:
+        return np.ones(size)
+    x = np.arange(size) + 0.5
+
+    def ramp(t):
+        if feather <= 0:
+            return (t >= 0).astype(np.float64)
+        return 0.5 - 0.5 * np.cos(np.pi * np.clip(t / feather + 0.5, 0.0, 1.0))
+
+    return ramp(x - lo) * ramp(hi - x)
+
+
+def _mirror_pad(t: np.ndarray, pads_y, pads_x) -> np.ndarray:
+    """Mirror padding (edge cell repeated, as :func:`_reflect_tile`) of a ``(c, h, w)`` array."""
+    if not any(pads_y) and not any(pads_x):
+        return t
+    c, h, w = t.shape
+    rows = _mirror_index(h, pads_y[0], h + sum(pads_y))
+    cols = _mirror_index(w, pads_x[0], w + sum(pads_x))
+    return t[:, rows][:, :, cols]
+
+
+def _mirror_index(size: int, before: int, total: int) -> np.ndarray:
+    period = 2 * size
+    i = (np.arange(total) - before) % period
+    return np.where(i < size, i, period - 1 - i)
+
+
 # =======================================================================================
 # The cGAN
 # =======================================================================================
@@ -430,7 +487,7 @@ SMALL = dict(
     n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
     g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
     n_crops=1000, batch_size=16, n_steps=3000, n_critic=1,
-    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1,
 )
 
 #: The paper's configuration (Sec. 4.1): k = 8, 2,000 crops of 128 x 128, s = 32 (5 layers,
@@ -450,7 +507,7 @@ PAPER = dict(
     n_clusters=8, crop_size=128, n_layers=5, patch=65, window=51, sigma=math.sqrt(51.0),
     g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
     n_crops=2000, batch_size=64, n_steps=3750, n_critic=5,
-    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1,
 )
 
 _PARAMS = tuple(SMALL) + ("device", "rng")
@@ -516,6 +573,24 @@ def _networks(torch, n_colours: int, n_cond: int, p: dict):
     return gen, critic
 
 
+def _split_tiles(x, t: int):
+    """``(m, c, t*a, t*b)`` -> ``(m*t*t, c, a, b)``: each item's t x t tiles, row by row."""
+    if t == 1:
+        return x
+    m, c, h, w = x.shape
+    x = x.reshape(m, c, t, h // t, t, w // t).permute(0, 2, 4, 1, 3, 5)
+    return x.reshape(m * t * t, c, h // t, w // t)
+
+
+def _join_tiles(x, t: int):
+    """The inverse of :func:`_split_tiles`: ``(m*t*t, c, a, b)`` -> ``(m, c, t*a, t*b)``."""
+    if t == 1:
+        return x
+    n, c, a, b = x.shape
+    x = x.reshape(n // (t * t), t, t, c, a, b).permute(0, 3, 1, 4, 2, 5)
+    return x.reshape(n // (t * t), c, t * a, t * b)
+
+
 def _exemplar_hash(img: np.ndarray) -> str:
     return hashlib.sha1(np.round(img * 255).astype(np.uint8).tobytes()).hexdigest()[:16]
 
@@ -549,6 +624,12 @@ class CoocGAN:
         Adam settings of both networks.
     lambda_gp, lambda_cooc : float
         Weights of the gradient penalty (Eq. 4) and the co-occurrence consistency loss (Eq. 3).
+    tiles : int
+        The generator trains on crops of ``tiles x tiles`` training crops (conditions of
+        ``tiles * crop_size / s`` cells a side, ``batch_size / tiles**2`` of them per
+        batch); the critic and the consistency loss see their ``crop_size`` tiles, each
+        with its own tensor, so a step costs about the same as with ``tiles=1`` while the
+        generator also learns the inside of a larger grid. 1: the paper's training.
     device : str
         ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
     rng : int or numpy.random.Generator, optional
@@ -574,7 +655,7 @@ class CoocGAN:
     def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
                  g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=16,
                  n_steps=3000, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
-                 device="auto", rng=None):
+                 tiles=1, device="auto", rng=None):
         self.n_clusters = n_clusters
         self.crop_size = crop_size
         self.n_layers = n_layers
@@ -593,6 +674,7 @@ class CoocGAN:
         self.beta2 = beta2
         self.lambda_gp = lambda_gp
         self.lambda_cooc = lambda_cooc
+        self.tiles = tiles
         self.device = device
         self.rng = rng
 
@@ -616,7 +698,7 @@ class CoocGAN:
         """The parameters as plain JSON values, checked."""
         p = {name: getattr(self, name) for name in SMALL}
         ints = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "n_crops",
-                "batch_size", "n_steps", "n_critic")
+                "batch_size", "n_steps", "n_critic", "tiles")
         try:
             for name in ints:
                 p[name] = int(p[name])
@@ -692,21 +774,7 @@ class CoocGAN:
         seed = int(rng.integers(2**31))
         self.centres_, self.spreads_ = fit_colour_clusters(img, n_clusters=p["n_clusters"], seed=seed)
         self._to_device(torch)
-        n = p["crop_size"]
-        if img.shape[0] < n or img.shape[1] < n:
-            raise TGHopError(f"the exemplar is {img.shape[0]}x{img.shape[1]} pixels but crop_size is {n}; "
-                             "use a larger exemplar or a smaller crop_size")
-        ys = rng.integers(img.shape[0] - n + 1, size=p["n_crops"])
-        xs = rng.integers(img.shape[1] - n + 1, size=p["n_crops"])
-        crops = np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)]).transpose(0, 3, 1, 2)
-        self._crops = torch.as_tensor(crops, dtype=torch.float32, device=self._device)
-        conds = []
-        chunk = 64
-        with torch.no_grad():
-            for i in range(0, len(crops), chunk):
-                conds.append(self._cooc(self._crops[i : i + chunk]))
-                report(progress, "co-occurrences", min(i + chunk, len(crops)), len(crops))
-        self._conds = torch.cat(conds)
+        self._cut_crops(torch, img, rng, progress)
         flat = self._conds.double().transpose(0, 1).reshape(self._conds.shape[1], -1)
         self.cond_mean_ = flat.mean(1).cpu().numpy()
         self.cond_std_ = np.maximum(flat.std(1).cpu().numpy(), 1e-4)
@@ -745,15 +813,22 @@ class CoocGAN:
                            device=self._device)
 
     def _batch(self, torch):
-        idx = torch.randint(len(self._crops), (self.settings_["batch_size"],), generator=self._torch_gen,
-                            device=self._device)
-        return self._crops[idx] * 2.0 - 1.0, self._conds[idx]
+        """Real tiles in [-1, 1] and the generator's conditions: ``max(1, batch_size // tiles**2)``
+        crops, i.e. their ``tiles**2`` tiles each and their tiles' tensors joined into one grid."""
+        t = self.settings_["tiles"]
+        m = max(1, self.settings_["batch_size"] // (t * t))
+        idx = torch.randint(len(self._crops) // (t * t), (m,), generator=self._torch_gen, device=self._device)
+        if t > 1:
+            idx = (idx[:, None] * (t * t) + torch.arange(t * t, device=self._device)).reshape(-1)
+        return self._crops[idx] * 2.0 - 1.0, _join_tiles(self._conds[idx], t)
 
     def _critic_step(self, torch, real, cond):
         p = self.settings_
+        t = p["tiles"]
         cn = self._normalise(cond)
         with torch.no_grad():
-            fake = self.generator_(cn, self._noise(torch, len(real), cn.shape[2], cn.shape[3]))
+            fake = _split_tiles(self.generator_(cn, self._noise(torch, len(cn), cn.shape[2], cn.shape[3])), t)
+        cn = _split_tiles(cn, t)
         u = torch.rand((len(real), 1, 1, 1), generator=self._torch_gen, device=self._device)
         mix = (u * real + (1 - u) * fake).requires_grad_(True)
         d_real, d_fake, d_mix = self.critic_(real, cn), self.critic_(fake, cn), self.critic_(mix, cn)
@@ -768,9 +843,16 @@ class CoocGAN:
         return float(loss.detach()), float(gp.detach())
 
     def _generator_loss(self, torch, cond, noise):
-        """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency)."""
+        """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency).
+
+        With ``tiles > 1`` the generator draws whole ``tiles x tiles``-crop conditions and
+        the critic and the consistency loss see the generated image's training-size tiles,
+        each with its own part of the condition.
+        """
+        t = self.settings_["tiles"]
         cn = self._normalise(cond)
-        fake = self.generator_(cn, noise)
+        fake = _split_tiles(self.generator_(cn, noise), t)
+        cn, cond = _split_tiles(cn, t), _split_tiles(cond, t)
         adv = -self.critic_(fake, cn).mean()
         cooc = (self._cooc((fake + 1.0) * 0.5) - cond).abs().sum(1).mean()  # L1 per cell, averaged
         return adv + self.settings_["lambda_cooc"] * cooc, adv, cooc
@@ -895,19 +977,33 @@ class CoocGAN:
 
     def _rebuild_crops(self, torch, img, progress):
         """The training crops of a fresh fit with this seed (a resumed fit needs them again)."""
-        p = self.settings_
         rng = np.random.default_rng(self._seed_)
         rng.integers(2**31)  # the clustering seed of _build
-        n = p["crop_size"]
-        ys = rng.integers(img.shape[0] - n + 1, size=p["n_crops"])
-        xs = rng.integers(img.shape[1] - n + 1, size=p["n_crops"])
-        crops = np.stack([img[y : y + n, x : x + n] for y, x in zip(ys, xs)]).transpose(0, 3, 1, 2)
+        self._cut_crops(torch, img, rng, progress)
+
+    def _cut_crops(self, torch, img, rng, progress):
+        """``n_crops`` random crops of ``tiles x tiles`` training crops each, cut into their
+        ``crop_size`` tiles, and each tile's own co-occurrence tensor.
+
+        ``_crops`` is ``(n_crops * tiles**2, C, n, n)`` and ``_conds`` ``(n_crops * tiles**2, k*k, n/s, n/s)``,
+        crop by crop, each crop's tiles row by row (the order of :func:`_split_tiles`).
+        """
+        p = self.settings_
+        n, t = p["crop_size"], p["tiles"]
+        if img.shape[0] < n * t or img.shape[1] < n * t:
+            raise TGHopError(f"the exemplar is {img.shape[0]}x{img.shape[1]} pixels but the training crops are "
+                             f"{n * t} (crop_size {n} x tiles {t}); use a larger exemplar or a smaller crop_size")
+        ys = rng.integers(img.shape[0] - n * t + 1, size=p["n_crops"])
+        xs = rng.integers(img.shape[1] - n * t + 1, size=p["n_crops"])
+        crops = np.stack([img[y + i * n : y + (i + 1) * n, x + j * n : x + (j + 1) * n]
+                          for y, x in zip(ys, xs) for i in range(t) for j in range(t)]).transpose(0, 3, 1, 2)
         self._crops = torch.as_tensor(crops, dtype=torch.float32, device=self._device)
         conds = []
+        chunk = 64
         with torch.no_grad():
-            for i in range(0, len(crops), 64):
-                conds.append(self._cooc(self._crops[i : i + 64]))
-                report(progress, "co-occurrences", min(i + 64, len(crops)), len(crops))
+            for i in range(0, len(crops), chunk):
+                conds.append(self._cooc(self._crops[i : i + chunk]))
+                report(progress, "co-occurrences", min(i + chunk, len(crops)), len(crops))
         self._conds = torch.cat(conds)
 
     # ------------------------------------------------------------------ generation
@@ -934,8 +1030,15 @@ class CoocGAN:
         h, w = (int(v) for v in shape)
         return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
 
-    def generate(self, cond, *, noise=None, rng=None) -> np.ndarray:
+    def generate(self, cond, *, noise=None, rng=None, windows: bool = False,
+                 feather: Optional[int] = None) -> np.ndarray:
         """Texture from a co-occurrence tensor (and noise).
+
+        The generator runs once on the whole condition (the paper's way). With
+        ``windows=True`` a condition larger than the generator's training conditions
+        (``tiles * crop_size // s`` cells a side) is generated in overlapping
+        training-size windows instead (:meth:`generate_windows`); on the models tried
+        that gave no better images (docs/choices.md), so it is not the default.
 
         Parameters
         ----------
@@ -945,16 +1048,27 @@ class CoocGAN:
         noise : array_like, shape (noise_channels, h, w), optional
             Noise tensor (:meth:`noise`); default drawn from ``rng``.
         rng : int or numpy.random.Generator, optional
+        windows : bool
+            Generate in overlapping training-size windows (:meth:`generate_windows`).
+        feather : int, optional
+            With ``windows``: width in pixels of the raised-cosine blend between windows
+            (see :meth:`generate_windows`).
 
         Returns
         -------
         ndarray, shape (h * s, w * s, C), float64 in [0, 1]
         """
+        if windows:
+            return self.generate_windows(cond, noise=noise, rng=rng, feather=feather)
         return self.generate_batch(np.asarray(cond)[None], None if noise is None else np.asarray(noise)[None],
                                    rng=rng)[0]
 
-    def generate_batch(self, conds, noise=None, *, rng=None) -> np.ndarray:
-        """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``."""
+    def generate_batch(self, conds, noise=None, *, rng=None, windows: bool = False) -> np.ndarray:
+        """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``.
+
+        ``windows=True`` generates each item in windows (:meth:`generate_windows`);
+        conditions no larger than the training crops' are one window, i.e. one pass.
+        """
         self._check_fitted()
         torch = _import_torch()
         conds = np.stack([self._check_cond(c) for c in conds])
@@ -965,11 +1079,99 @@ class CoocGAN:
         noise = np.asarray(noise, dtype=np.float32)
         if noise.shape != (n, int(self.settings_["noise_channels"]), h, w):
             raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
+        if windows and (h > self._window_cells or w > self._window_cells):
+            return np.stack([self.generate_windows(c, noise=z) for c, z in zip(conds, noise)])
         with torch.no_grad():
             c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
             z = torch.as_tensor(noise, device=self._device)
             out = self.generator_(c, z)
         return np.clip((out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5, 0.0, 1.0)
+
+    @property
+    def _window_cells(self) -> int:
+        """Side of the generator's training condition in cells (``tiles * crop_size // s``)."""
+        return max(1, int(self.settings_["tiles"]) * int(self.settings_["crop_size"]) // self.s)
+
+    def generate_windows(self, cond, *, noise=None, rng=None, feather: Optional[int] = None,
+                         batch: int = 64) -> np.ndarray:
+        """Texture from a condition of any size, generated in overlapping training-size windows.
+
+        The condition (and one noise field for the whole image) is cut into windows of
+        ``n = tiles * crop_size // s`` cells a side -- the size the generator was trained at --
+        with a stride of ``max(1, n // 2)`` cells, each window is generated on its own,
+        and each window contributes its central ``stride x stride`` cells, cross-faded
+        into its neighbours' with raised-cosine ramps ``feather`` pixels wide (the ramps
+        sum to one, so the blend is a partition of unity). Adjacent windows see the same
+        noise and condition where they overlap, so they mostly agree there. The condition
+        and noise are mirror-padded by the window's margin so that the image border, too,
+        comes from windows' centres. Along an axis of at most ``n`` cells there is one
+        window of that axis's length; a condition of at most ``n x n`` cells is one
+        window, i.e. exactly ``generate(cond, noise=noise, rng=rng)``.
+
+        Parameters
+        ----------
+        cond : array_like, shape (k*k, h, w)
+            Co-occurrence tensor, as for :meth:`generate`.
+        noise : array_like, shape (noise_channels, h, w), optional
+            Noise tensor; mirror-padded with the condition. Default: drawn from ``rng``
+            for the padded grid.
+        rng : int or numpy.random.Generator, optional
+        feather : int, optional
+            Blend width in pixels, from 0 (hard seams between the windows' centres) to
+            ``min(stride, 2 * margin) * s`` with ``margin = (n - stride) // 2`` (for
+            ``n = 4``: 2 cells, the window's whole margin, a sin^2 window). Default
+            :data:`FEATHER` times that.
+        batch : int
+            Windows per generator call.
+
+        Returns
+        -------
+        ndarray, shape (h * s, w * s, C), float64 in [0, 1]
+        """
+        self._check_fitted()
+        torch = _import_torch()
+        cond = self._check_cond(cond)
+        k2, h, w = cond.shape
+        n, s = self._window_cells, self.s
+        if h <= n and w <= n:
+            return self.generate(cond, noise=noise, rng=rng)
+        stride = max(1, n // 2)
+        limit = min(stride, 2 * ((n - stride) // 2)) * s  # ramps within the overlap and the window
+        feather = int(round(FEATHER * limit)) if feather is None else int(feather)
+        if not 0 <= feather <= limit:
+            raise TGHopError(f"feather must lie in 0..{limit} pixels (the windows' overlap), got {feather}")
+        ys, pads_y, wy = _window_layout(h, n, stride)
+        xs, pads_x, wx = _window_layout(w, n, stride)
+        channels = int(self.settings_["noise_channels"])
+        padded_shape = (h + sum(pads_y), w + sum(pads_x))
+        if noise is None:
+            z = self.noise(padded_shape, rng=rng)
+        else:
+            z = np.asarray(noise, dtype=np.float32)
+            if z.shape != (channels, h, w):
+                raise TGHopError(f"noise must have shape {(channels, h, w)}, got {z.shape}")
+            z = _mirror_pad(z, pads_y, pads_x)
+        c = _mirror_pad(cond, pads_y, pads_x)
+        weight_y = _blend_weights(wy * s, pads_y[0] * s, (pads_y[0] + stride) * s, feather, h > n)
+        weight_x = _blend_weights(wx * s, pads_x[0] * s, (pads_x[0] + stride) * s, feather, w > n)
+        weight = (weight_y[:, None] * weight_x[None, :])[:, :, None]
+        canvas = np.zeros((padded_shape[0] * s, padded_shape[1] * s, self.exemplar_shape_[2]))
+        total = np.zeros(canvas.shape[:2] + (1,))
+        starts = [(y, x) for y in ys for x in xs]
+        for i in range(0, len(starts), int(batch)):
+            part = starts[i : i + int(batch)]
+            conds = np.stack([c[:, y : y + wy, x : x + wx] for y, x in part])
+            noises = np.stack([z[:, y : y + wy, x : x + wx] for y, x in part])
+            with torch.no_grad():
+                ct = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
+                out = self.generator_(ct, torch.as_tensor(noises, device=self._device))
+            tiles = (out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5
+            for (y, x), tile in zip(part, tiles):
+                canvas[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight * tile
+                total[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight
+        out = canvas / np.maximum(total, 1e-12)
+        y0, x0 = pads_y[0] * s, pads_x[0] * s
+        return np.clip(out[y0 : y0 + h * s, x0 : x0 + w * s], 0.0, 1.0)
 
     def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
         """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
@@ -1007,7 +1209,8 @@ class CoocGAN:
         offset = (int(r.integers(2 * t.shape[1])), int(r.integers(2 * t.shape[2])))
         return _reflect_tile(t, hh, ww, offset)
 
-    def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None) -> np.ndarray:
+    def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None,
+               windows: bool = False) -> np.ndarray:
         """A texture of any size with the exemplar's statistics (:meth:`condition_for` and :meth:`generate`).
 
         Parameters
@@ -1016,6 +1219,9 @@ class CoocGAN:
         rng : int or numpy.random.Generator, optional
             Chooses the condition's offset and the noise.
         progress : callable, optional
+        windows : bool
+            Generate in overlapping training-size windows (:meth:`generate_windows`)
+            instead of one pass over the whole condition (the paper's way, the default).
 
         Returns
         -------
@@ -1025,11 +1231,11 @@ class CoocGAN:
 
         h, w = _output_size(size, (1, 1))
         r = check_rng(rng)
-        out = self.generate(self.condition_for((h, w), rng=r), rng=r)
+        out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=windows)
         report(progress, "generate", 1, 1)
         return out[:h, :w]
 
-    def morph_strip(self, a, b, *, length: int = 8, rng=None) -> np.ndarray:
+    def morph_strip(self, a, b, *, length: int = 8, rng=None, windows: bool = False) -> np.ndarray:
         """One image whose co-occurrence moves from ``a`` to ``b`` left to right, under one noise tensor.
 
         Parameters
@@ -1039,6 +1245,8 @@ class CoocGAN:
         length : int
             Strip length in condition cells (the image is ``length * s`` pixels wide).
         rng : int or numpy.random.Generator, optional
+        windows : bool
+            Training-size windows instead of one generator pass (see :meth:`generate`).
 
         Returns
         -------
@@ -1052,7 +1260,7 @@ class CoocGAN:
             raise TGHopError(f"length must be at least 2 cells, got {length}")
         t = np.linspace(0.0, 1.0, length)[None, None, :]
         cond = (1 - t) * _tile(a, a.shape[1], length) + t * _tile(b, b.shape[1], length)
-        return self.generate(cond, rng=rng)
+        return self.generate(cond, rng=rng, windows=windows)
 
     def morph_grid(self, a, b, *, n_cols: int = 5, n_rows: int = 3, rng=None) -> np.ndarray:
         """The paper's Fig. 2: co-occurrence interpolated across (``a`` to ``b``), noise interpolated down.
@@ -1157,7 +1365,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
         raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
                              "train it again with this version")
     try:
-        p = settings["settings"]
+        p = {"tiles": 1, **settings["settings"]}
         model = CoocGAN(**p, device=device)
         model.settings_ = model._settings()
         model.exemplar_shape_ = tuple(settings["exemplar_shape"])
@@ -1192,7 +1400,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
 
 
 def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
-             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None) -> np.ndarray:
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, windows: bool = False) -> np.ndarray:
     """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
 
     Parameters
@@ -1207,6 +1415,9 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         A trained model to use instead of training one.
     n_steps : int, optional
         Generator steps of the training (default :data:`SMALL`'s).
+    windows : bool
+        Generate in overlapping training-size windows instead of one pass over the whole
+        condition (the paper's way, the default; see :meth:`CoocGAN.generate`).
 
     Returns
     -------
@@ -1221,4 +1432,4 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         if n_steps is not None:
             model.set_params(n_steps=n_steps)
         model.fit(img, progress=progress)
-    return model.sample(_output_size(size, img.shape), rng=r, progress=progress)
+    return model.sample(_output_size(size, img.shape), rng=r, progress=progress, windows=windows)
