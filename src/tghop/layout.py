@@ -114,6 +114,9 @@ class CoarseLayout(BaseEstimator):
         third of the fine model's fit time).
     cluster_energy, max_cluster_components : float, int, default=0.95, 50
         Per-cluster PCA of the coarse model (the paper's Table 4 values).
+    gamma : float, default=0.01
+        SDR threshold of the coarse model (the paper's value: the layout needs no fine
+        detail, so it keeps the smaller core of the paper, unlike the fine model's 0.003).
     rng : int or numpy.random.Generator, optional
 
     Attributes
@@ -123,7 +126,7 @@ class CoarseLayout(BaseEstimator):
     """
 
     def __init__(self, factor=2, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000,
-                 cluster_energy=0.95, max_cluster_components=50, rng=None):
+                 cluster_energy=0.95, max_cluster_components=50, gamma=0.01, rng=None):
         self.factor = factor
         self.patch_size = patch_size
         self.n_clusters = n_clusters
@@ -131,6 +134,7 @@ class CoarseLayout(BaseEstimator):
         self.max_patches = max_patches
         self.cluster_energy = cluster_energy
         self.max_cluster_components = max_cluster_components
+        self.gamma = gamma
         self.rng = rng
 
     def _small_shape(self, shape):
@@ -171,7 +175,8 @@ class CoarseLayout(BaseEstimator):
         n_clusters = max(2, min(_positive_int(self.n_clusters, "n_clusters", 2), n_train // 40))
         self.model_ = TGHop(
             patch_size=p, stride=stride, n_clusters=n_clusters, cluster_energy=self.cluster_energy,
-            max_cluster_components=self.max_cluster_components, max_patches=n_train, layout_factor=None,
+            max_cluster_components=self.max_cluster_components, gamma=self.gamma, max_patches=n_train,
+            layout_factor=None,
             rng=check_rng(self.rng),
         ).fit(small)
         return self
