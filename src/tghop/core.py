@@ -138,7 +138,9 @@ def _quantize(mixing):
 
 def _dequantize(rows, scale):
     """Inverse of :func:`_quantize`, in float64 (the same numbers at fit and after loading)."""
-    return rows.astype(np.float64) * np.asarray(scale, dtype=np.float32).astype(np.float64)[:, None]
+    out = rows.astype(np.float64)
+    out *= np.asarray(scale, dtype=np.float32).astype(np.float64)[:, None]  # in place: no second matrix
+    return out
 
 
 def _flip_signs(components):
