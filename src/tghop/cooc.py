@@ -458,19 +458,12 @@ def _blend_weights(size: int, lo: int, hi: int, feather: int, blend: bool) -> np
 
 
 def _mirror_pad(t: np.ndarray, pads_y, pads_x) -> np.ndarray:
-    """Mirror padding (edge cell repeated, as :func:`_reflect_tile`) of a ``(c, h, w)`` array."""
+    """Mirror padding (edge cell repeated) of a ``(c, h, w)`` array: :func:`_reflect_tile`
+    started ``pads_y[0]`` rows and ``pads_x[0]`` columns before the array."""
     if not any(pads_y) and not any(pads_x):
         return t
-    c, h, w = t.shape
-    rows = _mirror_index(h, pads_y[0], h + sum(pads_y))
-    cols = _mirror_index(w, pads_x[0], w + sum(pads_x))
-    return t[:, rows][:, :, cols]
-
-
-def _mirror_index(size: int, before: int, total: int) -> np.ndarray:
-    period = 2 * size
-    i = (np.arange(total) - before) % period
-    return np.where(i < size, i, period - 1 - i)
+    _, h, w = t.shape
+    return _reflect_tile(t, h + sum(pads_y), w + sum(pads_x), offset=(-pads_y[0], -pads_x[0]))
 
 
 # =======================================================================================
@@ -1081,11 +1074,15 @@ class CoocGAN:
             raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
         if windows and (h > self._window_cells or w > self._window_cells):
             return np.stack([self.generate_windows(c, noise=z) for c, z in zip(conds, noise)])
+        return np.clip(self._run_generator(torch, conds, noise), 0.0, 1.0)
+
+    def _run_generator(self, torch, conds, noise) -> np.ndarray:
+        """The generator on raw conditions ``(N, k*k, h, w)`` and float32 noise ``(N, noise_channels,
+        h, w)``: ``(N, h*s, w*s, C)`` float64, mapped from [-1, 1] to [0, 1] but not clipped."""
         with torch.no_grad():
             c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
-            z = torch.as_tensor(noise, device=self._device)
-            out = self.generator_(c, z)
-        return np.clip((out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5, 0.0, 1.0)
+            out = self.generator_(c, torch.as_tensor(noise, device=self._device))
+        return (out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5
 
     @property
     def _window_cells(self) -> int:
@@ -1162,11 +1159,7 @@ class CoocGAN:
             part = starts[i : i + int(batch)]
             conds = np.stack([c[:, y : y + wy, x : x + wx] for y, x in part])
             noises = np.stack([z[:, y : y + wy, x : x + wx] for y, x in part])
-            with torch.no_grad():
-                ct = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
-                out = self.generator_(ct, torch.as_tensor(noises, device=self._device))
-            tiles = (out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5
-            for (y, x), tile in zip(part, tiles):
+            for (y, x), tile in zip(part, self._run_generator(torch, conds, noises)):
                 canvas[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight * tile
                 total[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight
         out = canvas / np.maximum(total, 1e-12)
