@@ -214,7 +214,9 @@ def report(names, out: Path, threads: int):
         save_image(patch_grid(grid.reshape((-1,) + grid.shape[2:]), n_cols=5), out / f"grid-{name}.png")
         save_image(edit, out / f"edit-{name}.png")
         sheet = stack_rows([
-            image_sheet([img] + list(results.values())[:-4], ["exemplar"] + list(results)[:-4], height=160),
+            # 128 px results in one row; the larger cooc samples (all of ``ours`` but the first) in the next.
+            image_sheet([img] + [v for k, v in results.items() if k not in list(ours)[1:]],
+                        ["exemplar"] + [k for k in results if k not in list(ours)[1:]], height=160),
             image_sheet([img] + list(ours.values())[1:], ["exemplar"] + list(ours)[1:], height=256),
             image_sheet([strip], [f"morph crop(0,0) -> crop(bottom right), {strip.shape[1]} px"], height=96),
             image_sheet([edit], ["edit: the two crops' statistics painted left | right"], height=128),
