@@ -106,6 +106,18 @@ def test_layout_guide_shape_range_determinism(layout):
     assert layout.guide(64, rng=0, n_patches=300, tile=True).shape == (64, 64, 3)
 
 
+def test_layout_guide_refine_rounds(layout):
+    """The guide is the coarse model's synthesis (with ``refine`` rounds of refinement) upsampled."""
+    from tghop.layout import upsample
+
+    for rounds in (0, 2):
+        coarse = layout.model_.synthesize((35, 45), rng=3, n_patches=300, refine=rounds)
+        expect = upsample(coarse.astype(np.float32), 2, (70, 90))
+        assert np.array_equal(layout.guide((70, 90), rng=3, n_patches=300, refine=rounds), expect)
+    assert not np.array_equal(layout.guide((70, 90), rng=3, n_patches=300, refine=0),
+                              layout.guide((70, 90), rng=3, n_patches=300, refine=2))
+
+
 def test_layout_errors(layout):
     with pytest.raises(TGHopError, match="at least 192x192"):
         CoarseLayout(factor=4).fit(data.bricks(96, rng=1))
@@ -138,6 +150,17 @@ def test_tghop_with_layout_follows_its_guide(layout_model, monkeypatch):
         return np.abs(downsample(img, 8) - downsample(guide, 8)).mean()
 
     assert dist(on) < 0.8 * dist(off)
+
+
+def test_tghop_layout_refine_reaches_the_guide(layout_model, monkeypatch):
+    seen = []
+    guide_of = layout_model.layout_.guide
+    monkeypatch.setattr(layout_model.layout_, "guide", lambda *a, **k: seen.append(k["refine"]) or guide_of(*a, **k))
+    for rounds in (0, 2):
+        layout_model.synthesize((64, 64), rng=2, n_patches=300, layout_refine=rounds)
+    assert seen == [0, 2]
+    with pytest.raises(TGHopError, match="layout_refine"):
+        layout_model.synthesize((64, 64), rng=2, n_patches=300, layout_refine=-1)
 
 
 def test_tghop_layout_save_load_identical(layout_model, tmp_path):

@@ -35,6 +35,22 @@ def test_oriented_parts_sum_to_band(n, rng):
     assert np.abs(np.sum(parts, axis=0) - band).max() < 1e-4
 
 
+@pytest.mark.parametrize("n", [2, 3, 4, 6])
+@pytest.mark.parametrize("shape, axes", [((24, 31), (0, 1)), ((20, 33, 3), (0, 1)), ((2, 20, 33), (1, 2))])
+def test_oriented_parts_are_the_angular_windows(n, shape, axes, rng):
+    """Part k is the band filtered by cos^2(theta - k pi / n) * 2 / n in the Fourier domain."""
+    band = rng.standard_normal(shape)
+    h, w = shape[axes[0]], shape[axes[1]]
+    theta = np.arctan2(np.fft.fftfreq(h)[:, None], np.fft.rfftfreq(w)[None, :])
+    spectrum = np.fft.rfft2(band, axes=axes)
+    for k, part in enumerate(oriented_parts(band.astype(np.float32), n, axes=axes)):
+        window = np.cos(theta - k * np.pi / n) ** 2 * 2.0 / n
+        if len(shape) == 3:
+            window = window[..., None] if axes == (0, 1) else window[None]
+        expect = np.fft.irfft2(spectrum * window, s=(h, w), axes=axes)
+        assert part.dtype == np.float32 and np.abs(part - expect).max() < 1e-5
+
+
 def test_oriented_parts_separate_directions():
     y, x = np.mgrid[:64, :64]
     vertical_stripes = np.sin(2 * np.pi * x / 8.0)[..., None]

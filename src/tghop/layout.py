@@ -181,7 +181,7 @@ class CoarseLayout(BaseEstimator):
         ).fit(small)
         return self
 
-    def guide(self, size, *, rng=None, n_patches=4000, tile=False):
+    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3):
         """A coarse synthesis upsampled to ``size``: the layout the fine level follows.
 
         Parameters
@@ -193,6 +193,8 @@ class CoarseLayout(BaseEstimator):
             Pool of coarse patches.
         tile : bool
             Make the coarse image wrap around (for tileable output).
+        refine : int
+            Rounds of the refinement after quilting (:mod:`tghop.refine`) of the coarse image.
 
         Returns
         -------
@@ -210,5 +212,5 @@ class CoarseLayout(BaseEstimator):
         p = self.model_.patch_size
         if tile and min(small) < p:
             raise TGHopError(f"a tileable output with a coarse layout at factor {f} needs at least {p * f} pixels a side")
-        coarse = self.model_.synthesize(small, rng=rng, n_patches=n_patches, tile=tile)
+        coarse = self.model_.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=refine)
         return upsample(coarse.astype(np.float32), f, (h, w), wrap=tile)

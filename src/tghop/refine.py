@@ -64,7 +64,14 @@ def _down_axis(img, axis, mode):
     m = (n + 1) // 2
     p = _pad(img, axis, 2, mode)
     taps = [_take(p, axis, t, t + 2 * m - 1, 2) for t in range(5)]
-    return (taps[0] + taps[4] + 4.0 * (taps[1] + taps[3]) + 6.0 * taps[2]) * (1.0 / 16.0)
+    # (taps0 + taps4 + 4 (taps1 + taps3) + 6 taps2) / 16, in that order, in two arrays.
+    out = np.add(taps[0], taps[4])
+    tmp = np.add(taps[1], taps[3])
+    tmp *= 4.0
+    out += tmp
+    out += np.multiply(taps[2], 6.0, out=tmp)
+    out *= 1.0 / 16.0
+    return out
 
 
 def _up_axis(img, axis, n, mode):
@@ -78,8 +85,11 @@ def _up_axis(img, axis, n, mode):
     even = [slice(None)] * img.ndim
     odd = [slice(None)] * img.ndim
     even[axis], odd[axis] = slice(0, None, 2), slice(1, None, 2)
-    out[tuple(even)] = (left + right + 6.0 * mid) * 0.125
-    out[tuple(odd)] = (mid + right) * 0.5
+    tmp = np.add(left, right)
+    tmp += np.multiply(mid, 6.0, out=out[tuple(odd)])  # the odd samples are written last
+    np.multiply(tmp, 0.125, out=out[tuple(even)])
+    np.add(mid, right, out=tmp)
+    np.multiply(tmp, 0.5, out=out[tuple(odd)])
     return _take(out, axis, 0, n)
 
 
@@ -159,14 +169,19 @@ def _match(values, target, levels, out=None):
     grid = np.linspace(lo, source[-1], _LUT_SIZE)
     table = np.interp(grid, source, target).astype(values.dtype)
     scale = (_LUT_SIZE - 1) / (source[-1] - lo)
-    pos = (values - lo) * values.dtype.type(scale)
+    # Table position: index (intp: NumPy gathers with int32 indices after converting them,
+    # at twice the cost) and fraction (``pos - floor(pos)``, exact, in the values' dtype).
+    # ``values`` is not read after ``pos``, so ``out`` may be ``values``.
+    pos = np.subtract(values, lo, dtype=values.dtype)
+    pos *= values.dtype.type(scale)
     np.clip(pos, 0, _LUT_SIZE - 1.001, out=pos)
-    idx = pos.astype(np.int32)
-    pos -= idx
-    step = np.diff(table)
+    whole = np.floor(pos)
+    idx = whole.astype(np.intp)
+    pos -= whole
+    del whole
     out = np.empty_like(values) if out is None else out
-    np.multiply(pos, step[idx], out=out)
-    out += table[idx]
+    np.multiply(pos, np.take(np.diff(table), idx), out=out)
+    out += np.take(table, idx)
     return out
 
 
@@ -182,39 +197,68 @@ def _fft_module(n_pixels):
 
 
 @functools.lru_cache(maxsize=16)
-def _orientation_masks(h, w, n_orientations, dtype):
-    """Angular windows ``cos^2(theta - k pi / n) * 2 / n`` over the rfft2 grid; they sum to 1.
+def _double_angle(h, w, dtype):
+    """``cos(2 theta)`` and ``sin(2 theta)`` over the rfft2 grid (``theta``: the frequency's
+    direction).
 
-    Cached: every round of :func:`refine` and every channel uses the same few shapes (the
-    arrays are read-only)."""
+    The oriented windows ``cos^2(theta - k pi / n) * 2 / n`` are
+    ``(1 + cos(2 k pi / n) cos(2 theta) + sin(2 k pi / n) sin(2 theta)) / n``, so every part
+    is a combination of the band and of its two filtered versions: two inverse transforms
+    for any number of orientations. Cached: every round of :func:`refine` and every channel
+    uses the same few shapes (the arrays are read-only)."""
     fy = np.fft.fftfreq(h)[:, None]
     fx = np.fft.rfftfreq(w)[None, :]
     theta = np.arctan2(fy, fx)
-    masks = tuple((np.cos(theta - k * np.pi / n_orientations) ** 2 * (2.0 / n_orientations)).astype(dtype)
-                  for k in range(n_orientations))
-    for m in masks:
+    out = (np.cos(2.0 * theta).astype(dtype), np.sin(2.0 * theta).astype(dtype))
+    for m in out:
         m.flags.writeable = False
-    return masks
+    return out
 
 
 def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     """Split a band into ``n_orientations`` oriented parts that sum to it.
 
-    Each part keeps the band's spatial frequencies weighted by an angular window
-    (steerable-pyramid style, in the Fourier domain, periodic boundaries). 0 or 1: the
-    band itself. ``axes``: the spatial axes, as in :func:`laplacian_pyramid`.
+    Part ``k`` keeps the band's spatial frequencies weighted by the angular window
+    ``cos^2(theta - k pi / n) * 2 / n`` (steerable-pyramid style, in the Fourier domain,
+    periodic boundaries; the windows sum to 1). 0 or 1: the band itself. ``axes``: the
+    spatial axes, as in :func:`laplacian_pyramid`.
     """
     if n_orientations <= 1:
         return [band]
+    n = int(n_orientations)
     h, w = band.shape[axes[0]], band.shape[axes[1]]
     fft = _fft_module(h * w)
     spectrum = fft.rfft2(band, axes=axes)  # complex64 for float32 bands (NumPy >= 2, SciPy)
-    masks = _orientation_masks(h, w, n_orientations, np.dtype(band.dtype))
+    harmonics = _double_angle(h, w, np.dtype(band.dtype))
     if band.ndim == 3 and tuple(axes) == (0, 1):  # (H, W, C): the windows broadcast over C
-        masks = [m[..., None] for m in masks]
-    parts = [fft.irfft2(spectrum * m, s=(h, w), axes=axes).astype(band.dtype, copy=False)
-             for m in masks[:-1]]
-    parts.append(band - np.sum(parts, axis=0))  # the windows sum to 1
+        harmonics = [m[..., None] for m in harmonics]
+    angles = 2.0 * np.pi * np.arange(n - 1) / n
+    cos, sin = np.cos(angles), np.sin(angles)
+    cos[np.abs(cos) < 1e-12] = 0.0  # exact zeros: skip those terms
+    sin[np.abs(sin) < 1e-12] = 0.0
+    extra = {"overwrite_x": True} if fft is not np.fft else {}  # the products are scratch
+    filtered = [fft.irfft2(np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
+                           s=(h, w), axes=axes, **extra).astype(band.dtype, copy=False)
+                for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
+    del spectrum
+    scale = band.dtype.type(1.0 / n)
+    parts = []
+    for k in range(n - 1):
+        part = band.copy()
+        for coef, f in zip((cos[k], sin[k]), filtered):
+            if coef == 1.0:
+                part += f
+            elif coef == -1.0:
+                part -= f
+            elif coef:
+                part += band.dtype.type(coef) * f
+        part *= scale
+        parts.append(part)
+    # The last part is the rest, so that the parts sum to the band: band - (p0 + p1 + ...).
+    rest = parts[0] + parts[1] if len(parts) > 1 else parts[0].copy()
+    for part in parts[2:]:
+        rest += part
+    parts.append(np.subtract(band, rest, out=rest))
     return parts
 
 
@@ -381,7 +425,9 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode):
             parts = oriented_parts(bands[i], n_parts)
             for j, part in enumerate(parts):
                 _match(part, band_q[i, j], qlev, out=part)
-            bands[i] = parts[0] if n_parts == 1 else np.sum(parts, axis=0)
+            for part in parts[1:]:  # summed in order, into the first part
+                parts[0] += part
+            bands[i] = parts[0]
         x = reconstruct(bands, mode=mode)
         _match(x, pixel_q, qlev, out=x)
     return x

@@ -290,6 +290,9 @@ SETTINGS: Tuple[Setting, ...] = (
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
             when="generate", low=0, high=20, paper=0),
+    Setting("layout_refine", 3, "int",
+            "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "
+            "(models fitted with a layout factor).", when="generate", low=0, high=20),
 )
 
 BY_NAME = {s.name: s for s in SETTINGS}

@@ -493,7 +493,8 @@ class TGHop(BaseEstimator):
         return views
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, progress=None):
+                   tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
+                   progress=None):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -524,6 +525,8 @@ class TGHop(BaseEstimator):
             Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style,
             our addition, see :mod:`tghop.refine`): restores the contrast of fine detail;
             0 is off, as in the paper.
+        layout_refine : int
+            Rounds of that refinement for the coarse layout's guide.
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine" and
             "colour".
@@ -534,7 +537,8 @@ class TGHop(BaseEstimator):
         """
         check_is_fitted(self, "ichm_")
         settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                     detail=detail, match_colours=match_colours, layout_weight=layout_weight, refine=refine))
+                                     detail=detail, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
+                                     layout_refine=layout_refine))
         rng = check_rng(rng)
         n_patches = self._check_n(n_patches, "n_patches")
         guide = None
@@ -548,7 +552,7 @@ class TGHop(BaseEstimator):
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             report(progress, "layout", 0, 1)
             with ThreadPoolExecutor(max_workers=1) as worker, threadpool_limits(limits=1, user_api="blas"):
-                pending = worker.submit(self.layout_.guide, size, rng=layout_rng, tile=tile)
+                pending = worker.submit(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
                 pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
                 guide = pending.result()
             report(progress, "layout", 1, 1)
