@@ -68,17 +68,20 @@ def _kmeans_plusplus(X, n_clusters, rng, n_trials=None):
     return centres
 
 
-def _lloyd(X, centres, max_iter=100, tol=1e-4):
+def _lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
     """Lloyd iterations from ``centres`` (float32 points, one matrix product per step).
 
-    Stops when no label changes or the centres move less than ``tol`` times the mean
-    per-dimension variance of ``X`` (scikit-learn's criterion), after ``max_iter`` steps
-    at the latest. The cluster sums are updated with the points that changed cluster
-    only (few after the first steps). An emptied cluster is re-seeded with the point
-    farthest from its centre. Returns ``(labels, centres)``.
+    Stops when the centres move less than ``tol`` times the mean per-dimension variance
+    of ``X`` (scikit-learn's criterion) or when at most a fraction ``settled`` of the
+    points changed cluster in a step (the long tail of steps that move a handful of
+    points: 35 steps instead of 72 on brick_wall's core vectors, inertia 0.07 % higher), after
+    ``max_iter`` steps at the latest. The cluster sums are updated with the points that
+    changed cluster only (few after the first steps). An emptied cluster is re-seeded with
+    the point farthest from its centre. Returns ``(labels, centres)``.
     """
     n, k = len(X), len(centres)
     threshold = tol * float(X.var(axis=0, dtype=np.float64).mean())
+    few = int(settled * n)
     labels = np.full(n, -1)
     sums = np.zeros((k, X.shape[1]))
     counts = np.zeros(k, dtype=np.int64)
@@ -107,7 +110,7 @@ def _lloyd(X, centres, max_iter=100, tol=1e-4):
             moved[empty] = X[far]
         shift = float(((moved - centres) ** 2).sum())
         centres = moved.astype(np.float32)
-        if shift <= threshold:
+        if shift <= threshold or changed.size <= few:
             break
     d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
     return np.argmin(d, axis=1), centres
