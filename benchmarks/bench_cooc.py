@@ -24,6 +24,13 @@ average before and after, loss history).
 6. image sheets: samples, a morph strip, a Fig. 2 grid, an edit (two crops' statistics
    painted left/right) and the stability sequence.
 
+``seeds RUN...`` (``RUN``: ``NAME`` or ``NAME-seedS``, trained with ``train --seed S
+--extra-ema D...``) compares the raw and the averaged generators of each run (``ema``:
+the model's own average, the ``--extra-ema`` decays, and the model's average with its
+batch-norm statistics recomputed): four 256 px samples each, the same conditions and
+noise for every variant, scored against the exemplar; writes ``results/cooc/seeds.md``
+(per run and the median over seeds) and ``seeds-RUN.png`` sheets.
+
 Options: ``--threads N`` (torch threads, default 2), ``--steps N`` (train: override
 n_steps), ``--max-minutes M`` (train: stop each run after M minutes of training and
 report the steps done), ``--out DIR``.
@@ -138,7 +145,7 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds, seed: int 
 def main(argv=None):
     warnings.filterwarnings("ignore")
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("command", choices=["train", "train-one", "report"])
+    ap.add_argument("command", choices=["train", "train-one", "report", "seeds"])
     ap.add_argument("textures", nargs="+")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--steps", type=int, default=None)
@@ -167,8 +174,11 @@ def main(argv=None):
             env = {**os.environ, "OMP_WAIT_POLICY": os.environ.get("OMP_WAIT_POLICY", "PASSIVE")}
             subprocess.run(cmd, check=True, env=env)
         return
-    from bench_cooc_report import report  # the evaluation half lives beside this file
+    from bench_cooc_report import report, seed_study  # the evaluation half lives beside this file
 
+    if args.command == "seeds":
+        seed_study([run_name(t, args.seed) if "-seed" not in t else t for t in args.textures], args.out, args.threads)
+        return
     report(args.textures, args.out, args.threads)
 
 

@@ -150,6 +150,115 @@ def gen_speed(model, size, n=3, windows=False) -> float:
     return n / (time.perf_counter() - t)
 
 
+# ----------------------------------------------------------------------------- seeds: raw vs averaged generator
+def _with_average(model, state):
+    """``model`` generating with another average of the same run (a state dict of ``RUN_ema.pt``)."""
+    import copy
+
+    other = copy.copy(model)
+    other.generator_ema_ = copy.deepcopy(model.generator_ema_)
+    other.generator_ema_.load_state_dict(state)
+    return other
+
+
+def _recalibrated(model, *, n_batches=64, batch=16, seed=0):
+    """``model`` whose averaged generator's batch-norm statistics are recomputed for its own
+    weights (train-mode passes over the exemplar's tensor's training-size windows; as SWA's
+    ``update_bn``) instead of copied from the raw generator."""
+    import copy
+
+    import torch
+
+    other = copy.copy(model)
+    gen = copy.deepcopy(model.generator_ema_)
+    for m in gen.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.reset_running_stats()
+            m.momentum = None  # cumulative average over the passes
+    rng = np.random.default_rng(seed)
+    t, n = model.exemplar_cooc_, model._window_cells
+    gen.train()
+    with torch.no_grad():
+        for _ in range(n_batches):
+            ys, xs = rng.integers(t.shape[1] - n + 1, size=batch), rng.integers(t.shape[2] - n + 1, size=batch)
+            conds = np.stack([model._check_cond(t[:, y : y + n, x : x + n]) for y, x in zip(ys, xs)])
+            c = model._normalise(torch.as_tensor(conds, dtype=torch.float32))
+            gen(c, torch.as_tensor(rng.standard_normal((batch, model.settings_["noise_channels"], n, n)),
+                                   dtype=torch.float32))
+    other.generator_ema_ = gen.eval()
+    return other
+
+
+def seed_study(stems, out: Path, threads: int, n_images: int = 4):
+    """Each run ``STEM`` (``NAME`` or ``NAME-seedS``): raw and averaged generators of the same
+    training, ``n_images`` 256 px samples each (``sample(rng=i)``: the same conditions and
+    noise for every variant), scored against the exemplar. Writes ``seeds.json/.md`` and
+    ``seeds-STEM.png`` (exemplar | raw | average, two samples each)."""
+    import torch
+
+    from tghop.cooc import load
+    from tghop.imageio import save_image
+
+    warnings.filterwarnings("ignore")
+    torch.set_num_threads(threads)
+    path = out / "seeds.json"
+    payload = json.loads(path.read_text()) if path.exists() else {"runs": {}}
+    for stem in stems:
+        name = stem.split("-seed")[0]
+        model = load(out / f"{stem}.pt", device="cpu")
+        train = json.loads((out / f"{stem}_train.json").read_text())
+        img = prepare(name)
+        variants = {"raw": model.raw()}
+        if hasattr(model, "generator_ema_"):
+            variants[f"ema {model.settings_['ema']:g}"] = model
+            variants[f"ema {model.settings_['ema']:g} bn-recomputed"] = _recalibrated(model)
+        extra = out / f"{stem}_ema.pt"
+        if extra.exists():
+            for decay, state in torch.load(extra, weights_only=True).items():
+                variants[f"ema {float(decay):g}"] = _with_average(model, state)
+        run = {"texture": name, "seed": train.get("seed", 0), "steps": train["steps"],
+               "s_per_step": train["seconds"] / max(train["steps"], 1), "load": [train.get("load_before"), train.get("load_after")],
+               "variants": {}}
+        shown = {}
+        for label, v in variants.items():
+            images = [v.sample((256, 256), rng=i) for i in range(n_images)]
+            scores = [score(img, im) for im in images]
+            run["variants"][label] = {m: [sc[m] for sc in scores] for m in METRICS}
+            shown[label] = images[:2]
+            log(f"{stem} {label}: SIFID {np.round(run['variants'][label]['sifid'], 2).tolist()}")
+        payload["runs"][stem] = run
+        ema_label = next((k for k in variants if k.startswith("ema") and "bn" not in k), None)
+        cols = [img] + shown["raw"] + (shown[ema_label] if ema_label else [])
+        labels = ["exemplar", "raw rng 0", "raw rng 1"] + ([f"{ema_label} rng 0", f"{ema_label} rng 1"] if ema_label else [])
+        save_image(image_sheet(cols, labels, height=256), out / f"seeds-{stem}.png")
+        for label, ims in shown.items():
+            save_image(ims[0], out / f"seeds-{stem}-{label.replace(' ', '_')}.png")
+        path.write_text(json.dumps(payload, indent=1))
+    write_results_to(out, "seeds", payload, seeds_markdown(payload))
+    print(seeds_markdown(payload))
+    return payload
+
+
+def seeds_markdown(payload) -> str:
+    """Per run: the mean over its samples of each metric, per variant; then per texture the
+    median over runs."""
+    rows, per_texture = [], {}
+    for stem, run in payload["runs"].items():
+        for label, sc in run["variants"].items():
+            means = [float(np.mean(sc[m])) for m in METRICS]
+            rows.append([run["texture"], run["seed"], label] + means + [f"{min(sc['sifid']):.2f}-{max(sc['sifid']):.2f}"])
+            per_texture.setdefault((run["texture"], label), []).append(means)
+    med = [[t, label, len(v)] + [float(np.median([r[i] for r in v])) for i in range(len(METRICS))]
+           for (t, label), v in per_texture.items()]
+    return "\n".join([
+        "## Seeds: raw and averaged generator of the same runs (256 px, lower is better)\n",
+        "Each run: mean over its samples (`sample((256, 256), rng=i)`, the same condition and noise for every "
+        "variant) of each metric; the SIFID range over the samples.\n",
+        markdown_table(["texture", "seed", "generator", *METRICS, "SIFID range"], rows),
+        "\nMedian over the runs (seeds) of each texture:\n",
+        markdown_table(["texture", "generator", "runs", *METRICS], med)])
+
+
 # ----------------------------------------------------------------------------- report
 def report(names, out: Path, threads: int):
     import torch
