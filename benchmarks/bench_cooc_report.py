@@ -361,6 +361,8 @@ def report(names, out: Path, threads: int):
           "cooc N: sample((N, N), rng=0), one generator pass (the default, the paper's way); cooc N "
           "windows: the same condition in overlapping training-size windows (windows=True).\n",
           markdown_table(["texture", "method"] + list(METRICS), rows_q)]
+    if (out / "seeds.json").exists():  # bench_cooc.py seeds: raw vs averaged generator over seeds
+        md += ["", seeds_markdown(json.loads((out / "seeds.json").read_text()))]
     text = "\n".join(md)
     write_results_to(out, "report", payload, text)
     print(text)

@@ -31,6 +31,8 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
   condition in overlapping training-size windows, and ``tiles=2`` trains the generator on
   2 x 2 training crops at once; both are options (docs/choices.md: neither was clearly
   better on the small configuration).
+* ``ema`` keeps an exponential moving average of the generator's weights while training
+  and generates with it (:data:`SMALL`: on; :data:`PAPER`: off, as the paper).
 * :data:`SMALL` (the default: about 14 minutes on a 2-core CPU) and :data:`PAPER` (the
   paper's setting: about 10 minutes on an H100 GPU) are the two configurations;
   ``CoocGAN(**PAPER)`` selects the latter.
@@ -623,6 +625,13 @@ class CoocGAN:
         batch); the critic and the consistency loss see their ``crop_size`` tiles, each
         with its own tensor, so a step costs about the same as with ``tiles=1`` while the
         generator also learns the inside of a larger grid. 1: the paper's training.
+    ema : float
+        Decay of an exponential moving average of the generator's weights, updated after
+        every generator step (Karras et al.'s ProGAN / StyleGAN, Yazici et al. 2019);
+        generation uses the averaged generator (:meth:`raw` the last weights). 0.999 is a
+        half-life of 693 steps (about 11,000 crops at batch 16, StyleGAN's 10k images).
+        The average is bias-corrected (no share of the initial weights) and takes the
+        generator's batch-norm statistics as they are. 0: no average (the paper's).
     device : str
         ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
     rng : int or numpy.random.Generator, optional
@@ -643,6 +652,8 @@ class CoocGAN:
         Per logged step: step, critic loss, generator adversarial loss, consistency loss
         (the mean L1 per cell), gradient penalty.
     generator_, critic_ : torch.nn.Module
+    generator_ema_ : torch.nn.Module
+        The averaged generator (only with ``ema > 0``); :meth:`generate` and the controls use it.
     """
 
     def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
