@@ -151,41 +151,34 @@ def gen_speed(model, size, n=3, windows=False) -> float:
 
 
 # ----------------------------------------------------------------------------- seeds: raw vs averaged generator
-def _with_average(model, state):
-    """``model`` generating with another average of the same run (a state dict of ``RUN_ema.pt``)."""
-    import copy
-
-    other = copy.copy(model)
-    other.generator_ema_ = copy.deepcopy(model.generator_ema_)
-    other.generator_ema_.load_state_dict(state)
-    return other
-
-
-def _recalibrated(model, *, n_batches=64, batch=16, seed=0):
-    """``model`` whose averaged generator's batch-norm statistics are recomputed for its own
-    weights (train-mode passes over the exemplar's tensor's training-size windows; as SWA's
-    ``update_bn``) instead of copied from the raw generator."""
+def _with_average(model, state=None, *, recompute=True):
+    """``model`` generating with an average of the same run (``state``: a state dict of
+    ``RUN_ema.pt``; default the model's own), its batch-norm statistics recomputed for the
+    averaged weights (as ``fit`` does since this session) or, ``recompute=False``, as
+    stored (checkpoints of the first version: copied from the raw generator)."""
     import copy
 
     import torch
 
     other = copy.copy(model)
-    gen = copy.deepcopy(model.generator_ema_)
-    for m in gen.modules():
-        if isinstance(m, torch.nn.BatchNorm2d):
-            m.reset_running_stats()
-            m.momentum = None  # cumulative average over the passes
-    rng = np.random.default_rng(seed)
-    t, n = model.exemplar_cooc_, model._window_cells
-    gen.train()
-    with torch.no_grad():
-        for _ in range(n_batches):
-            ys, xs = rng.integers(t.shape[1] - n + 1, size=batch), rng.integers(t.shape[2] - n + 1, size=batch)
-            conds = np.stack([model._check_cond(t[:, y : y + n, x : x + n]) for y, x in zip(ys, xs)])
-            c = model._normalise(torch.as_tensor(conds, dtype=torch.float32))
-            gen(c, torch.as_tensor(rng.standard_normal((batch, model.settings_["noise_channels"], n, n)),
-                                   dtype=torch.float32))
-    other.generator_ema_ = gen.eval()
+    other.generator_ema_ = copy.deepcopy(model.generator_ema_)
+    if state is not None:
+        other.generator_ema_.load_state_dict(state)
+    if recompute:
+        other._recompute_average_statistics(torch, model._conds)
+    return other
+
+
+def _raw_recomputed(model):
+    """The raw generator with its batch-norm statistics recomputed the same way (a control:
+    is a gain the average's or the recomputation's?)."""
+    import copy
+
+    import torch
+
+    other = copy.copy(model)
+    other.generator_ema_ = copy.deepcopy(model.generator_)
+    other._recompute_average_statistics(torch, model._conds)
     return other
 
 
@@ -208,14 +201,16 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
         model = load(out / f"{stem}.pt", device="cpu")
         train = json.loads((out / f"{stem}_train.json").read_text())
         img = prepare(name)
-        variants = {"raw": model.raw()}
+        model._rebuild_crops(torch, img, None)  # the training tensors, for the batch-norm passes
+        variants = {"raw": model.raw(), "raw, bn recomputed": _raw_recomputed(model)}
         if hasattr(model, "generator_ema_"):
-            variants[f"ema {model.settings_['ema']:g}"] = model
-            variants[f"ema {model.settings_['ema']:g} bn-recomputed"] = _recalibrated(model)
+            variants[f"ema {model.settings_['ema']:g}, bn copied"] = _with_average(model, recompute=False)
+            variants[f"ema {model.settings_['ema']:g}"] = _with_average(model)
         extra = out / f"{stem}_ema.pt"
         if extra.exists():
             for decay, state in torch.load(extra, weights_only=True).items():
                 variants[f"ema {float(decay):g}"] = _with_average(model, state)
+        variants = dict(sorted(variants.items(), key=lambda kv: (kv[0] != "raw", "bn" not in kv[0], kv[0])))
         run = {"texture": name, "seed": train.get("seed", 0), "steps": train["steps"],
                "s_per_step": train["seconds"] / max(train["steps"], 1), "load": [train.get("load_before"), train.get("load_after")],
                "variants": {}}
@@ -227,7 +222,7 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
             shown[label] = images[:2]
             log(f"{stem} {label}: SIFID {np.round(run['variants'][label]['sifid'], 2).tolist()}")
         payload["runs"][stem] = run
-        ema_label = next((k for k in variants if k.startswith("ema") and "bn" not in k), None)
+        ema_label = f"ema {model.settings_['ema']:g}" if hasattr(model, "generator_ema_") else None
         cols = [img] + shown["raw"] + (shown[ema_label] if ema_label else [])
         labels = ["exemplar", "raw rng 0", "raw rng 1"] + ([f"{ema_label} rng 0", f"{ema_label} rng 1"] if ema_label else [])
         save_image(image_sheet(cols, labels, height=256), out / f"seeds-{stem}.png")
@@ -235,8 +230,23 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
             save_image(ims[0], out / f"seeds-{stem}-{label.replace(' ', '_')}.png")
         path.write_text(json.dumps(payload, indent=1))
     write_results_to(out, "seeds", payload, seeds_markdown(payload))
+    merge_seeds_into_report(out, payload)
     print(seeds_markdown(payload))
     return payload
+
+
+def merge_seeds_into_report(out: Path, payload) -> None:
+    """Put the seeds section into an existing ``report.md`` / ``report.json`` (replacing an
+    earlier seeds section; the rest of the report is left as it is)."""
+    md, js = out / "report.md", out / "report.json"
+    if md.exists():
+        text = md.read_text()
+        head = text.split("\n## Seeds:")[0].rstrip("\n")
+        md.write_text(head + "\n\n" + seeds_markdown(payload) + "\n")
+    if js.exists():
+        data = json.loads(js.read_text())
+        data["seeds"] = payload
+        js.write_text(json.dumps(data, indent=2))
 
 
 def seeds_markdown(payload) -> str:

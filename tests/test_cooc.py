@@ -334,11 +334,23 @@ def test_average_is_the_weighted_mean_of_the_steps(exemplar):
     assert len(seen) == 2
     avg = _state(model.generator_ema_)
     for name, value in avg.items():
-        if name.endswith("num_batches_tracked") or "running_" in name:  # batch-norm buffers: copied
-            torch.testing.assert_close(value, seen[1][name])
-        else:  # weights b^(t-i) normalised: (b theta_1 + theta_2) / (1 + b)
+        if not (name.endswith("num_batches_tracked") or "running_" in name):
+            # weights b^(t-i) normalised: (b theta_1 + theta_2) / (1 + b)
             torch.testing.assert_close(value, (b * seen[0][name] + seen[1][name]) / (1 + b))
     assert not torch.equal(avg["net.1.weight"], seen[1]["net.1.weight"])
+    # Batch-norm statistics: recomputed for the averaged weights (train-mode passes over the
+    # 12 training tensors in batches of 4), repeatably.
+    bn = next(m for m in model.generator_ema_.modules() if isinstance(m, torch.nn.BatchNorm2d))
+    inputs = []
+    hook = bn.register_forward_hook(lambda module, args, out: inputs.append(args[0].detach().clone()))
+    model._recompute_average_statistics(torch)
+    hook.remove()
+    assert len(inputs) == 3 and int(bn.num_batches_tracked) == 3 and bn.momentum == 0.1
+    torch.testing.assert_close(bn.running_mean, torch.stack([x.mean((0, 2, 3)) for x in inputs]).mean(0))
+    torch.testing.assert_close(bn.running_var, torch.stack([x.var((0, 2, 3)) for x in inputs]).mean(0))
+    for name, value in _state(model.generator_ema_).items():
+        torch.testing.assert_close(value, avg[name], rtol=0, atol=0)
+    assert not torch.equal(bn.running_mean, model.generator_.state_dict()["net.2.running_mean"])
     # Generation uses the average; raw() the last weights; both in the default layout, eval mode.
     cond = model.crop_condition(0, 0)
     assert not np.array_equal(model.generate(cond, rng=1), model.raw().generate(cond, rng=1))
