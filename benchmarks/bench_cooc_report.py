@@ -222,7 +222,10 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
             shown[label] = images[:2]
             log(f"{stem} {label}: SIFID {np.round(run['variants'][label]['sifid'], 2).tolist()}")
         payload["runs"][stem] = run
-        ema_label = f"ema {model.settings_['ema']:g}" if hasattr(model, "generator_ema_") else None
+        from tghop.cooc import SMALL
+
+        # the sheet shows the default average (SMALL's decay) where the run kept it, else the model's own
+        ema_label = next((k for k in (f"ema {SMALL['ema']:g}", f"ema {model.settings_['ema']:g}") if k in variants), None)
         cols = [img] + shown["raw"] + (shown[ema_label] if ema_label else [])
         labels = ["exemplar", "raw rng 0", "raw rng 1"] + ([f"{ema_label} rng 0", f"{ema_label} rng 1"] if ema_label else [])
         save_image(image_sheet(cols, labels, height=256), out / f"seeds-{stem}.png")
