@@ -265,6 +265,11 @@ def seeds_markdown(payload) -> str:
            for (t, label), v in per_texture.items()]
     return "\n".join([
         "## Seeds: raw and averaged generator of the same runs (256 px, lower is better)\n",
+        "New SMALL runs, 3,000 steps each, one per seed (`bench_cooc.py train NAME --seed S --extra-ema ...`, "
+        "then `bench_cooc.py seeds`; the sections above are earlier runs without an average). Generators of one "
+        "run: raw (the last weights), the raw one with its batch-norm statistics recomputed (a control), the "
+        "model's own average with the statistics copied from the raw generator (the first version) and, for "
+        "every decay, the average with its statistics recomputed (as `fit` does now). "
         "Each run: mean over its samples (`sample((256, 256), rng=i)`, the same condition and noise for every "
         "variant) of each metric; the SIFID range over the samples.\n",
         markdown_table(["texture", "seed", "generator", *METRICS, "SIFID range"], rows),
