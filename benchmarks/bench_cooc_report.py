@@ -150,6 +150,133 @@ def gen_speed(model, size, n=3, windows=False) -> float:
     return n / (time.perf_counter() - t)
 
 
+# ----------------------------------------------------------------------------- seeds: raw vs averaged generator
+def _with_average(model, state=None, *, recompute=True):
+    """``model`` generating with an average of the same run (``state``: a state dict of
+    ``RUN_ema.pt``; default the model's own), its batch-norm statistics recomputed for the
+    averaged weights (as ``fit`` does since this session) or, ``recompute=False``, as
+    stored (checkpoints of the first version: copied from the raw generator)."""
+    import copy
+
+    import torch
+
+    other = copy.copy(model)
+    other.generator_ema_ = copy.deepcopy(model.generator_ema_)
+    if state is not None:
+        other.generator_ema_.load_state_dict(state)
+    if recompute:
+        other._recompute_average_statistics(torch, model._conds)
+    return other
+
+
+def _raw_recomputed(model):
+    """The raw generator with its batch-norm statistics recomputed the same way (a control:
+    is a gain the average's or the recomputation's?)."""
+    import copy
+
+    import torch
+
+    other = copy.copy(model)
+    other.generator_ema_ = copy.deepcopy(model.generator_)
+    other._recompute_average_statistics(torch, model._conds)
+    return other
+
+
+def seed_study(stems, out: Path, threads: int, n_images: int = 4):
+    """Each run ``STEM`` (``NAME`` or ``NAME-seedS``): raw and averaged generators of the same
+    training, ``n_images`` 256 px samples each (``sample(rng=i)``: the same conditions and
+    noise for every variant), scored against the exemplar. Writes ``seeds.json/.md`` and
+    ``seeds-STEM.png`` (exemplar | raw | average, two samples each)."""
+    import torch
+
+    from tghop.cooc import load
+    from tghop.imageio import save_image
+
+    warnings.filterwarnings("ignore")
+    torch.set_num_threads(threads)
+    path = out / "seeds.json"
+    payload = json.loads(path.read_text()) if path.exists() else {"runs": {}}
+    for stem in stems:
+        name = stem.split("-seed")[0]
+        model = load(out / f"{stem}.pt", device="cpu")
+        train = json.loads((out / f"{stem}_train.json").read_text())
+        img = prepare(name)
+        model._rebuild_crops(torch, img, None)  # the training tensors, for the batch-norm passes
+        variants = {"raw": model.raw(), "raw, bn recomputed": _raw_recomputed(model)}
+        if hasattr(model, "generator_ema_"):
+            variants[f"ema {model.settings_['ema']:g}, bn copied"] = _with_average(model, recompute=False)
+            variants[f"ema {model.settings_['ema']:g}"] = _with_average(model)
+        extra = out / f"{stem}_ema.pt"
+        if extra.exists():
+            for decay, state in torch.load(extra, weights_only=True).items():
+                variants[f"ema {float(decay):g}"] = _with_average(model, state)
+        variants = dict(sorted(variants.items(), key=lambda kv: (kv[0] != "raw", "bn" not in kv[0], kv[0])))
+        run = {"texture": name, "seed": train.get("seed", 0), "steps": train["steps"],
+               "s_per_step": train["seconds"] / max(train["steps"], 1), "load": [train.get("load_before"), train.get("load_after")],
+               "variants": {}}
+        shown = {}
+        for label, v in variants.items():
+            images = [v.sample((256, 256), rng=i) for i in range(n_images)]
+            scores = [score(img, im) for im in images]
+            run["variants"][label] = {m: [sc[m] for sc in scores] for m in METRICS}
+            shown[label] = images[:2]
+            log(f"{stem} {label}: SIFID {np.round(run['variants'][label]['sifid'], 2).tolist()}")
+        payload["runs"][stem] = run
+        from tghop.cooc import SMALL
+
+        # the sheet shows the default average (SMALL's decay) where the run kept it, else the model's own
+        ema_label = next((k for k in (f"ema {SMALL['ema']:g}", f"ema {model.settings_['ema']:g}") if k in variants), None)
+        cols = [img] + shown["raw"] + (shown[ema_label] if ema_label else [])
+        labels = ["exemplar", "raw rng 0", "raw rng 1"] + ([f"{ema_label} rng 0", f"{ema_label} rng 1"] if ema_label else [])
+        save_image(image_sheet(cols, labels, height=256), out / f"seeds-{stem}.png")
+        for label, ims in shown.items():
+            save_image(ims[0], out / f"seeds-{stem}-{label.replace(' ', '_')}.png")
+        path.write_text(json.dumps(payload, indent=1))
+    write_results_to(out, "seeds", payload, seeds_markdown(payload))
+    merge_seeds_into_report(out, payload)
+    print(seeds_markdown(payload))
+    return payload
+
+
+def merge_seeds_into_report(out: Path, payload) -> None:
+    """Put the seeds section into an existing ``report.md`` / ``report.json`` (replacing an
+    earlier seeds section; the rest of the report is left as it is)."""
+    md, js = out / "report.md", out / "report.json"
+    if md.exists():
+        text = md.read_text()
+        head = text.split("\n## Seeds:")[0].rstrip("\n")
+        md.write_text(head + "\n\n" + seeds_markdown(payload) + "\n")
+    if js.exists():
+        data = json.loads(js.read_text())
+        data["seeds"] = payload
+        js.write_text(json.dumps(data, indent=2))
+
+
+def seeds_markdown(payload) -> str:
+    """Per run: the mean over its samples of each metric, per variant; then per texture the
+    median over runs."""
+    rows, per_texture = [], {}
+    for stem, run in payload["runs"].items():
+        for label, sc in run["variants"].items():
+            means = [float(np.mean(sc[m])) for m in METRICS]
+            rows.append([run["texture"], run["seed"], label] + means + [f"{min(sc['sifid']):.2f}-{max(sc['sifid']):.2f}"])
+            per_texture.setdefault((run["texture"], label), []).append(means)
+    med = [[t, label, len(v)] + [float(np.median([r[i] for r in v])) for i in range(len(METRICS))]
+           for (t, label), v in per_texture.items()]
+    return "\n".join([
+        "## Seeds: raw and averaged generator of the same runs (256 px, lower is better)\n",
+        "New SMALL runs, 3,000 steps each, one per seed (`bench_cooc.py train NAME --seed S --extra-ema ...`, "
+        "then `bench_cooc.py seeds`; the sections above are earlier runs without an average). Generators of one "
+        "run: raw (the last weights), the raw one with its batch-norm statistics recomputed (a control), the "
+        "model's own average with the statistics copied from the raw generator (the first version) and, for "
+        "every decay, the average with its statistics recomputed (as `fit` does now). "
+        "Each run: mean over its samples (`sample((256, 256), rng=i)`, the same condition and noise for every "
+        "variant) of each metric; the SIFID range over the samples.\n",
+        markdown_table(["texture", "seed", "generator", *METRICS, "SIFID range"], rows),
+        "\nMedian over the runs (seeds) of each texture:\n",
+        markdown_table(["texture", "generator", "runs", *METRICS], med)])
+
+
 # ----------------------------------------------------------------------------- report
 def report(names, out: Path, threads: int):
     import torch
@@ -252,6 +379,8 @@ def report(names, out: Path, threads: int):
           "cooc N: sample((N, N), rng=0), one generator pass (the default, the paper's way); cooc N "
           "windows: the same condition in overlapping training-size windows (windows=True).\n",
           markdown_table(["texture", "method"] + list(METRICS), rows_q)]
+    if (out / "seeds.json").exists():  # bench_cooc.py seeds: raw vs averaged generator over seeds
+        md += ["", seeds_markdown(json.loads((out / "seeds.json").read_text()))]
     text = "\n".join(md)
     write_results_to(out, "report", payload, text)
     print(text)

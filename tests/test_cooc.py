@@ -1,5 +1,6 @@
 """The co-occurrence statistics and cGAN of tghop.cooc (Darzi et al.), on tiny inputs."""
 
+import json
 import math
 import os
 import subprocess
@@ -228,6 +229,7 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
 def test_windows_blend_into_one_image(tiny_model, monkeypatch):
     # With a generator that has no spatial context every window agrees with the others
     # where they overlap: the blend weights sum to one, so windows == one whole pass.
+    tiny_model = tiny_model.raw()  # generates with generator_, not the average
     monkeypatch.setattr(tiny_model, "generator_", _PointwiseGenerator(tiny_model.s))
     cond = cooc._tile(tiny_model.crop_condition(0, 0), 11, 6)
     z = tiny_model.noise(cond.shape[1:], rng=4)
@@ -317,6 +319,92 @@ def test_checkpoint_roundtrip_and_resume(tiny_model, exemplar, tmp_path):
         torch.testing.assert_close(p, q)
     with pytest.raises(TGHopError, match="not the one"):
         cooc.load(path, device="cpu").fit(data.bricks(48, rng=9), resume=True)
+
+
+# ------------------------------------------------------------------ generator average (ema)
+def _state(module):
+    return {k: v.detach().clone().contiguous() for k, v in module.state_dict().items()}
+
+
+def test_average_is_the_weighted_mean_of_the_steps(exemplar):
+    b = 0.9
+    seen = []
+    model = cooc.CoocGAN(**{**TINY, "ema": b}, device="cpu", rng=4)
+    model.fit(exemplar, log=lambda step, losses: seen.append(_state(model.generator_)))
+    assert len(seen) == 2
+    avg = _state(model.generator_ema_)
+    for name, value in avg.items():
+        if not (name.endswith("num_batches_tracked") or "running_" in name):
+            # weights b^(t-i) normalised: (b theta_1 + theta_2) / (1 + b)
+            torch.testing.assert_close(value, (b * seen[0][name] + seen[1][name]) / (1 + b))
+    assert not torch.equal(avg["net.1.weight"], seen[1]["net.1.weight"])
+    # Batch-norm statistics: recomputed for the averaged weights (train-mode passes over the
+    # 12 training tensors in batches of 4), repeatably.
+    bn = next(m for m in model.generator_ema_.modules() if isinstance(m, torch.nn.BatchNorm2d))
+    inputs = []
+    hook = bn.register_forward_hook(lambda module, args, out: inputs.append(args[0].detach().clone()))
+    model._recompute_average_statistics(torch)
+    hook.remove()
+    assert len(inputs) == 3 and int(bn.num_batches_tracked) == 3 and bn.momentum == 0.1
+    torch.testing.assert_close(bn.running_mean, torch.stack([x.mean((0, 2, 3)) for x in inputs]).mean(0))
+    torch.testing.assert_close(bn.running_var, torch.stack([x.var((0, 2, 3)) for x in inputs]).mean(0))
+    for name, value in _state(model.generator_ema_).items():
+        torch.testing.assert_close(value, avg[name], rtol=0, atol=0)
+    assert not torch.equal(bn.running_mean, model.generator_.state_dict()["net.2.running_mean"])
+    # Generation uses the average; raw() the last weights; both in the default layout, eval mode.
+    cond = model.crop_condition(0, 0)
+    assert not np.array_equal(model.generate(cond, rng=1), model.raw().generate(cond, rng=1))
+    assert not model.generator_ema_.training and all(p.is_contiguous() for p in model.generator_ema_.parameters())
+    assert not any(p.requires_grad for p in model.generator_ema_.parameters())
+
+
+def test_no_average_is_the_old_training(exemplar):
+    plain = cooc.CoocGAN(**{**TINY, "ema": 0}, device="cpu", rng=4).fit(exemplar)
+    averaged = cooc.CoocGAN(**{**TINY, "ema": 0.9}, device="cpu", rng=4).fit(exemplar)
+    assert not hasattr(plain, "generator_ema_")
+    # The average takes no random numbers and does not touch training.
+    for p, q in zip(_state(plain.generator_).values(), _state(averaged.generator_).values()):
+        torch.testing.assert_close(p, q, rtol=0, atol=0)
+    cond = plain.crop_condition(0, 0)
+    np.testing.assert_array_equal(plain.generate(cond, rng=1), averaged.raw().generate(cond, rng=1))
+    np.testing.assert_array_equal(plain.generate(cond, rng=1), plain.raw().generate(cond, rng=1))
+    with pytest.raises(TGHopError, match="ema"):
+        cooc.CoocGAN(**{**TINY, "ema": 1.0}).fit(exemplar)
+    with pytest.raises(TGHopError, match="ema"):
+        cooc.CoocGAN(**{**TINY, "ema": -0.1}).fit(exemplar)
+    assert cooc.SMALL["ema"] > 0 and cooc.PAPER["ema"] == 0  # the paper has no average
+
+
+def test_average_checkpoint_roundtrip_resume_and_old_files(exemplar, tmp_path):
+    model = cooc.CoocGAN(**{**TINY, "ema": 0.9}, device="cpu", rng=0).fit(exemplar)
+    path = tmp_path / "m.pt"
+    model.save(path)
+    raw = torch.load(path, weights_only=True)
+    assert all(isinstance(v, torch.Tensor) for v in raw.values()) and "generator_ema.net.1.weight" in raw
+    again = cooc.load(path, device="cpu")
+    cond = model.crop_condition(16, 0)
+    np.testing.assert_array_equal(again.generate(cond, rng=5), model.generate(cond, rng=5))
+    np.testing.assert_array_equal(again.raw().generate(cond, rng=5), model.raw().generate(cond, rng=5))
+    # Resuming 2 + 2 steps continues the average: equal to 4 steps at once.
+    direct = cooc.CoocGAN(**{**TINY, "ema": 0.9, "n_steps": 4}, device="cpu", rng=0).fit(exemplar)
+    resumed = cooc.load(path, device="cpu").set_params(n_steps=4).fit(exemplar, resume=True)
+    for p, q in zip(_state(direct.generator_ema_).values(), _state(resumed.generator_ema_).values()):
+        torch.testing.assert_close(p, q)
+    assert not torch.equal(direct.generator_ema_.state_dict()["net.1.weight"], model.generator_ema_.state_dict()["net.1.weight"])
+    # A checkpoint written before the setting (no "ema" in its settings, no average) loads without one.
+    settings = json.loads(bytes(raw["settings_json"].numpy().tobytes()).decode())
+    del settings["settings"]["ema"]
+    old = {k: v for k, v in raw.items() if not k.startswith("generator_ema.")}
+    old["settings_json"] = torch.frombuffer(bytearray(json.dumps(settings).encode()), dtype=torch.uint8)
+    torch.save(old, tmp_path / "old.pt")
+    loaded = cooc.load(tmp_path / "old.pt", device="cpu")
+    assert loaded.settings_["ema"] == 0 and not hasattr(loaded, "generator_ema_")
+    np.testing.assert_array_equal(loaded.generate(cond, rng=5), model.raw().generate(cond, rng=5))
+    # An average announced by the settings but missing from the file is a corrupt checkpoint.
+    broken = {k: v for k, v in raw.items() if not k.startswith("generator_ema.")}
+    torch.save(broken, tmp_path / "broken.pt")
+    with pytest.raises(ModelFileError, match="corrupt"):
+        cooc.load(tmp_path / "broken.pt", device="cpu")
 
 
 def test_bad_checkpoints(tmp_path):

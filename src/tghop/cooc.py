@@ -31,6 +31,8 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
   condition in overlapping training-size windows, and ``tiles=2`` trains the generator on
   2 x 2 training crops at once; both are options (docs/choices.md: neither was clearly
   better on the small configuration).
+* ``ema`` keeps an exponential moving average of the generator's weights while training
+  and generates with it (:data:`SMALL`: on; :data:`PAPER`: off, as the paper).
 * :data:`SMALL` (the default: about 14 minutes on a 2-core CPU) and :data:`PAPER` (the
   paper's setting: about 10 minutes on an H100 GPU) are the two configurations;
   ``CoocGAN(**PAPER)`` selects the latter.
@@ -475,12 +477,15 @@ def _mirror_pad(t: np.ndarray, pads_y, pads_x) -> np.ndarray:
 #: scale (64 px crops, 33 px patches, 25 px windows, sigma^2 = 13), the networks have 4
 #: layers instead of 5 (so s = 16 keeps a 4 x 4 condition) and 8 to 16 times fewer
 #: filters, 3,000 generator steps of 16 crops with one critic step each (as the authors'
-#: released code, ``dIter=1``; about 0.25 s per step on one core).
+#: released code, ``dIter=1``; about 0.25 s per step on one core). Not in the paper: it
+#: generates with an exponential moving average of the generator's weights, ``ema=0.995``
+#: (a half-life of 138 steps; docs/choices.md: better than the raw generator on the brick_wall
+#: seeds measured, longer averages worse).
 SMALL = dict(
     n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
     g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
     n_crops=1000, batch_size=16, n_steps=3000, n_critic=1,
-    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1, ema=0.995,
 )
 
 #: The paper's configuration (Sec. 4.1): k = 8, 2,000 crops of 128 x 128, s = 32 (5 layers,
@@ -500,7 +505,7 @@ PAPER = dict(
     n_clusters=8, crop_size=128, n_layers=5, patch=65, window=51, sigma=math.sqrt(51.0),
     g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
     n_crops=2000, batch_size=64, n_steps=3750, n_critic=5,
-    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1, ema=0.0,
 )
 
 _PARAMS = tuple(SMALL) + ("device", "rng")
@@ -623,6 +628,16 @@ class CoocGAN:
         batch); the critic and the consistency loss see their ``crop_size`` tiles, each
         with its own tensor, so a step costs about the same as with ``tiles=1`` while the
         generator also learns the inside of a larger grid. 1: the paper's training.
+    ema : float
+        Decay of an exponential moving average of the generator's weights, updated after
+        every generator step (Karras et al.'s ProGAN / StyleGAN, Yazici et al. 2019);
+        generation uses the averaged generator (:meth:`raw` the last weights). The default
+        0.995 is a half-life of 138 steps (2,200 crops at batch 16); 0.999 (693 steps,
+        StyleGAN's 10k images) and 0.9995 averaged in too many of the weights of 3,000
+        steps that still improve and were worse than the raw generator (docs/choices.md).
+        The average is bias-corrected (no share of the initial weights); its batch-norm
+        statistics are recomputed for its weights at the end of :meth:`fit`. 0: no
+        average (the paper's).
     device : str
         ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
     rng : int or numpy.random.Generator, optional
@@ -643,12 +658,14 @@ class CoocGAN:
         Per logged step: step, critic loss, generator adversarial loss, consistency loss
         (the mean L1 per cell), gradient penalty.
     generator_, critic_ : torch.nn.Module
+    generator_ema_ : torch.nn.Module
+        The averaged generator (only with ``ema > 0``); :meth:`generate` and the controls use it.
     """
 
     def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
                  g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=16,
                  n_steps=3000, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
-                 tiles=1, device="auto", rng=None):
+                 tiles=1, ema=0.995, device="auto", rng=None):
         self.n_clusters = n_clusters
         self.crop_size = crop_size
         self.n_layers = n_layers
@@ -668,6 +685,7 @@ class CoocGAN:
         self.lambda_gp = lambda_gp
         self.lambda_cooc = lambda_cooc
         self.tiles = tiles
+        self.ema = ema
         self.device = device
         self.rng = rng
 
@@ -695,7 +713,7 @@ class CoocGAN:
         try:
             for name in ints:
                 p[name] = int(p[name])
-            for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc"):
+            for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc", "ema"):
                 p[name] = float(p[name])
             p["g_widths"] = [int(v) for v in p["g_widths"]]
             p["d_widths"] = [int(v) for v in p["d_widths"]]
@@ -708,8 +726,8 @@ class CoocGAN:
         if p["crop_size"] % (2 ** p["n_layers"]):
             raise TGHopError(f"crop_size ({p['crop_size']}) must be a multiple of 2**n_layers = {2 ** p['n_layers']}")
         if not (p["sigma"] > 0 and p["lr"] > 0 and 0 <= p["beta1"] < 1 and 0 <= p["beta2"] < 1
-                and p["lambda_gp"] >= 0 and p["lambda_cooc"] >= 0):
-            raise TGHopError("sigma and lr must be positive, betas in [0, 1), the loss weights >= 0")
+                and p["lambda_gp"] >= 0 and p["lambda_cooc"] >= 0 and 0 <= p["ema"] < 1):
+            raise TGHopError("sigma and lr must be positive, betas and ema in [0, 1), the loss weights >= 0")
         return p
 
     def _check_fitted(self):
@@ -779,10 +797,90 @@ class CoocGAN:
         self.generator_, self.critic_ = _networks(torch, img.shape[2], self._conds.shape[1], p)
         self.generator_.to(self._device)
         self.critic_.to(self._device)
+        self._make_averaged(torch)
         self._make_optimisers(torch)
         self.step_ = 0
         self.history_ = np.zeros((0, 5))
         self._torch_gen = torch.Generator(device=self._device).manual_seed(seed + 1)
+
+    def _make_averaged(self, torch):
+        """The averaged generator (``ema > 0``): a copy of the generator, outside autograd."""
+        import copy
+
+        if self.settings_["ema"] > 0:
+            self.generator_ema_ = copy.deepcopy(self.generator_).requires_grad_(False).eval()
+        elif hasattr(self, "generator_ema_"):
+            del self.generator_ema_
+
+    def _update_average(self, torch):
+        """After generator step ``t = step_``: ``avg <- beta_t avg + (1 - beta_t) theta_t``.
+
+        ``beta_t = ema (1 - ema**(t-1)) / (1 - ema**t)`` makes the average exactly the
+        normalised exponentially weighted mean of the weights after steps 1..t (weights
+        ``ema**(t-i)``; Adam's bias correction): no share of the random initialisation is
+        left in it, and ``t = 1`` gives the weights themselves. Batch-norm buffers (running
+        statistics) are copied from the generator while training; :meth:`fit` recomputes
+        them for the averaged weights at its end (:meth:`_recompute_average_statistics`).
+        """
+        if not hasattr(self, "generator_ema_"):
+            return
+        b, t = self.settings_["ema"], self.step_
+        beta = b * (1.0 - b ** (t - 1)) / (1.0 - b**t)
+        with torch.no_grad():
+            for avg, cur in zip(self.generator_ema_.parameters(), self.generator_.parameters()):
+                avg.mul_(beta).add_(cur, alpha=1.0 - beta)
+            for avg, cur in zip(self.generator_ema_.buffers(), self.generator_.buffers()):
+                avg.copy_(cur)
+
+    def _recompute_average_statistics(self, torch, conds=None):
+        """Batch-norm running statistics of the averaged generator, recomputed for its own weights.
+
+        The raw generator's statistics (which :meth:`_update_average` copies) belong to
+        other weights: on brick_wall the averaged generator with them gave SIFID 10-22
+        against 4-5 for the raw one (docs/choices.md). So, as for stochastic weight
+        averaging (Izmailov et al. 2018, ``update_bn``), one train-mode pass over the
+        training conditions (``conds``, default the training crops' tensors, in
+        generator batches, tiles joined as in training) with fresh noise sets them to the
+        plain average of the batch statistics. The noise comes from its own seeded
+        generator, so training's random numbers are untouched and the result is repeatable.
+        """
+        gen = self.generator_ema_
+        conds = self._conds if conds is None else conds
+        t = int(self.settings_["tiles"])
+        per = max(1, int(self.settings_["batch_size"]) // (t * t)) * t * t
+        noise_gen = torch.Generator(device=self._device).manual_seed(int(self._seed_) + 2)
+        norms = [m for m in gen.modules() if isinstance(m, torch.nn.BatchNorm2d)]
+        momenta = [m.momentum for m in norms]
+        for m in norms:
+            m.reset_running_stats()
+            m.momentum = None  # cumulative: the mean over the batches
+        gen.train()
+        with torch.no_grad():
+            for i in range(0, len(conds) - t * t + 1, per):
+                cn = self._normalise(_join_tiles(conds[i : i + per], t))
+                gen(cn, self._noise(torch, len(cn), cn.shape[2], cn.shape[3], generator=noise_gen))
+        for m, momentum in zip(norms, momenta):
+            m.momentum = momentum
+        gen.eval()
+
+    @property
+    def _output_generator(self):
+        """The generator that generation uses: the averaged one when there is one."""
+        return getattr(self, "generator_ema_", self.generator_)
+
+    def raw(self) -> "CoocGAN":
+        """This model generating with the raw (last, not averaged) generator.
+
+        A shallow copy sharing the networks and statistics; without an average (``ema=0``)
+        the same as this model. For comparing the two (benchmarks/bench_cooc.py).
+        """
+        import copy
+
+        self._check_fitted()
+        other = copy.copy(self)
+        if hasattr(other, "generator_ema_"):
+            del other.generator_ema_
+        return other
 
     def _make_optimisers(self, torch):
         p = self.settings_
@@ -920,6 +1018,7 @@ class CoocGAN:
             _, cond = self._batch(torch)
             adv, cooc = self._generator_step(torch, cond)
             self.step_ += 1
+            self._update_average(torch)
             history.append(np.array([[self.step_, d_loss, adv, cooc, gp]]))
             if log is not None:
                 log(self.step_, {"critic": d_loss, "adversarial": adv, "consistency": cooc, "gp": gp})
@@ -935,6 +1034,8 @@ class CoocGAN:
         self._memory_format(torch, train=False)
         self.generator_.eval()
         self.critic_.eval()
+        if hasattr(self, "generator_ema_"):
+            self._recompute_average_statistics(torch)
         return self
 
     @staticmethod
@@ -964,8 +1065,9 @@ class CoocGAN:
         if self._device.type != "cpu":
             return
         fmt = torch.channels_last if train else torch.contiguous_format
-        self.generator_.to(memory_format=fmt)
-        self.critic_.to(memory_format=fmt)
+        for module in (self.generator_, self.critic_, getattr(self, "generator_ema_", None)):
+            if module is not None:
+                module.to(memory_format=fmt)
         self._crops = self._crops.contiguous(memory_format=fmt)
 
     def _rebuild_crops(self, torch, img, progress):
@@ -1081,7 +1183,7 @@ class CoocGAN:
         h, w)``: ``(N, h*s, w*s, C)`` float64, mapped from [-1, 1] to [0, 1] but not clipped."""
         with torch.no_grad():
             c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
-            out = self.generator_(c, torch.as_tensor(noise, device=self._device))
+            out = self._output_generator(c, torch.as_tensor(noise, device=self._device))
         return (out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5
 
     @property
@@ -1296,7 +1398,10 @@ class CoocGAN:
 
         check_output_path(path, what="checkpoint", error=ModelFileError)
         tensors = {}
-        for prefix, module in (("generator", self.generator_), ("critic", self.critic_)):
+        modules = [("generator", self.generator_), ("critic", self.critic_)]
+        if hasattr(self, "generator_ema_"):
+            modules.append(("generator_ema", self.generator_ema_))
+        for prefix, module in modules:
             for name, value in module.state_dict().items():
                 tensors[f"{prefix}.{name}"] = value.detach().cpu()
         groups = {}
@@ -1358,7 +1463,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
         raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
                              "train it again with this version")
     try:
-        p = {"tiles": 1, **settings["settings"]}
+        p = {"tiles": 1, "ema": 0.0, **settings["settings"]}  # checkpoints from before these settings
         model = CoocGAN(**p, device=device)
         model.settings_ = model._settings()
         model.exemplar_shape_ = tuple(settings["exemplar_shape"])
@@ -1374,6 +1479,10 @@ def load(path, *, device: str = "auto") -> CoocGAN:
             module.load_state_dict({k[len(prefix) + 1 :]: v for k, v in tensors.items() if k.startswith(prefix + ".")})
             module.to(model._device).eval()
         model.generator_, model.critic_ = gen, critic
+        model._make_averaged(torch)
+        if hasattr(model, "generator_ema_"):
+            model.generator_ema_.load_state_dict(
+                {k[len("generator_ema.") :]: v for k, v in tensors.items() if k.startswith("generator_ema.")})
         model._make_optimisers(torch)
         for prefix, opt in (("opt_g", model._opt_g), ("opt_d", model._opt_d)):
             state: dict = {}
