@@ -84,7 +84,7 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds, seed: int 
 
     import torch
 
-    from tghop.cooc import CoocGAN
+    from tghop.cooc import CoocGAN, average_step
 
     torch.set_num_threads(threads)
     img = texture(name)
@@ -110,15 +110,10 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds, seed: int 
 
     def log(step, losses):
         gen = model.generator_
-        with torch.no_grad():
-            for decay in extra_ema:
-                if decay not in averages:
-                    averages[decay] = copy.deepcopy(gen).requires_grad_(False)
-                beta = decay * (1.0 - decay ** (step - 1)) / (1.0 - decay**step)
-                for avg, cur in zip(averages[decay].parameters(), gen.parameters()):
-                    avg.mul_(beta).add_(cur, alpha=1.0 - beta)
-                for avg, cur in zip(averages[decay].buffers(), gen.buffers()):
-                    avg.copy_(cur)
+        for decay in extra_ema:
+            if decay not in averages:
+                averages[decay] = copy.deepcopy(gen).requires_grad_(False)
+            average_step(torch, averages[decay], gen, decay, step)
 
     t0, c0 = time.perf_counter(), time.process_time()
     model.fit(img, progress=progress, max_seconds=max_seconds, log=log if extra_ema else None)

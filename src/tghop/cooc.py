@@ -511,6 +511,22 @@ PAPER = dict(
 _PARAMS = tuple(SMALL) + ("device", "rng")
 
 
+def average_step(torch, average, module, decay: float, step: int) -> None:
+    """One bias-corrected update of a weight average after training step ``step`` (from 1).
+
+    ``average <- beta average + (1 - beta) module`` for every parameter, with
+    ``beta = decay (1 - decay**(step-1)) / (1 - decay**step)``: the average is then exactly
+    the normalised mean of the weights after steps 1..step with weights
+    ``decay**(step-i)``. Buffers (batch-norm statistics) are copied from ``module``.
+    """
+    beta = decay * (1.0 - decay ** (step - 1)) / (1.0 - decay**step)
+    with torch.no_grad():
+        for avg, cur in zip(average.parameters(), module.parameters()):
+            avg.mul_(beta).add_(cur, alpha=1.0 - beta)
+        for avg, cur in zip(average.buffers(), module.buffers()):
+            avg.copy_(cur)
+
+
 def _networks(torch, n_colours: int, n_cond: int, p: dict):
     """Generator and critic modules for settings ``p``."""
     nn = torch.nn
@@ -822,15 +838,8 @@ class CoocGAN:
         statistics) are copied from the generator while training; :meth:`fit` recomputes
         them for the averaged weights at its end (:meth:`_recompute_average_statistics`).
         """
-        if not hasattr(self, "generator_ema_"):
-            return
-        b, t = self.settings_["ema"], self.step_
-        beta = b * (1.0 - b ** (t - 1)) / (1.0 - b**t)
-        with torch.no_grad():
-            for avg, cur in zip(self.generator_ema_.parameters(), self.generator_.parameters()):
-                avg.mul_(beta).add_(cur, alpha=1.0 - beta)
-            for avg, cur in zip(self.generator_ema_.buffers(), self.generator_.buffers()):
-                avg.copy_(cur)
+        if hasattr(self, "generator_ema_"):
+            average_step(torch, self.generator_ema_, self.generator_, self.settings_["ema"], self.step_)
 
     def _recompute_average_statistics(self, torch, conds=None):
         """Batch-norm running statistics of the averaged generator, recomputed for its own weights.
