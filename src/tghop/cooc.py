@@ -872,6 +872,13 @@ class CoocGAN:
             m.momentum = momentum
         gen.eval()
 
+    def _checkpoint_modules(self):
+        """``(prefix, module)`` of the networks a checkpoint stores (the average with ``ema > 0``)."""
+        modules = [("generator", self.generator_), ("critic", self.critic_)]
+        if hasattr(self, "generator_ema_"):
+            modules.append(("generator_ema", self.generator_ema_))
+        return modules
+
     @property
     def _output_generator(self):
         """The generator that generation uses: the averaged one when there is one."""
@@ -1407,10 +1414,7 @@ class CoocGAN:
 
         check_output_path(path, what="checkpoint", error=ModelFileError)
         tensors = {}
-        modules = [("generator", self.generator_), ("critic", self.critic_)]
-        if hasattr(self, "generator_ema_"):
-            modules.append(("generator_ema", self.generator_ema_))
-        for prefix, module in modules:
+        for prefix, module in self._checkpoint_modules():
             for name, value in module.state_dict().items():
                 tensors[f"{prefix}.{name}"] = value.detach().cpu()
         groups = {}
@@ -1483,15 +1487,12 @@ def load(path, *, device: str = "auto") -> CoocGAN:
         for name in ("centres_", "spreads_", "cond_mean_", "cond_std_", "exemplar_cooc_", "history_"):
             setattr(model, name, tensors[name].numpy())
         model._to_device(torch)
-        gen, critic = _networks(torch, model.exemplar_shape_[2], len(model.cond_mean_), model.settings_)
-        for prefix, module in (("generator", gen), ("critic", critic)):
+        model.generator_, model.critic_ = _networks(torch, model.exemplar_shape_[2], len(model.cond_mean_),
+                                                    model.settings_)
+        model._make_averaged(torch)
+        for prefix, module in model._checkpoint_modules():
             module.load_state_dict({k[len(prefix) + 1 :]: v for k, v in tensors.items() if k.startswith(prefix + ".")})
             module.to(model._device).eval()
-        model.generator_, model.critic_ = gen, critic
-        model._make_averaged(torch)
-        if hasattr(model, "generator_ema_"):
-            model.generator_ema_.load_state_dict(
-                {k[len("generator_ema.") :]: v for k, v in tensors.items() if k.startswith("generator_ema.")})
         model._make_optimisers(torch)
         for prefix, opt in (("opt_g", model._opt_g), ("opt_d", model._opt_d)):
             state: dict = {}
