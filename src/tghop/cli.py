@@ -303,9 +303,11 @@ def is_model_file(path: str) -> bool:
         return False
 
 
-def summary(model) -> str:
+def summary(model, params=None) -> str:
+    """Dimensions, core model and parameter total of a fitted model (``params``: its
+    :meth:`~tghop.TGHop.n_parameters`, when the caller already has it)."""
     d = model.dims_
-    params = model.n_parameters()
+    params = model.n_parameters() if params is None else params
     dims = " -> ".join(f"D{i}={d[f'D{i}']}" for i in range(len(model.channels_) + 1))
     ks = ", ".join(f"K{i + 1}={k}" for i, k in enumerate(model.channels_))
     return (
@@ -537,7 +539,7 @@ def info(model_file, as_json):
     click.echo(f"tghop model {model_file}")
     click.echo(f"exemplar: {h}x{w}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
                f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
-    click.echo(summary(model))
+    click.echo(summary(model, params))
     click.echo("\nparameters (paper Table 4):")
     rows = [("module", "formula", "paper formula", "stored")] + [
         (name, row["formula"], f"{row['paper']:,}", f"{row['stored']:,}") for name, row in params.items()]
