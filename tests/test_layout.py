@@ -10,7 +10,7 @@ from tghop.synthesis import PAPER_TABLE4
 from tghop import TGHop, TGHopError, data
 from tghop.layout import CoarseLayout, downsample, upsample
 from tghop.modelfile import load_model, save_model
-from tghop.quilting import quilt
+from tghop.quilting import prepare_pool, quilt, quilt_prepared
 
 from conftest import SMALL
 
@@ -64,6 +64,28 @@ def test_guided_tileable_and_grey_2d_guide():
 def test_bad_guide(kw, match):
     with pytest.raises(TGHopError, match=match):
         quilt(two_tone_pool(), (64, 96), **kw)
+
+
+def test_prepared_pool_is_reusable_and_equals_quilt():
+    # synthesize prepares the pool while the guide is being made; quilting must not
+    # change the prepared pool, so the same preparation gives the same image again.
+    pool, guide = two_tone_pool(), half_guide()
+    prepared = prepare_pool(pool, guide.shape[:2], detail=0.5, guide_scale=4)
+    a = quilt_prepared(prepared, guide=guide, rng=3)
+    other = quilt_prepared(prepared, guide=guide, rng=4)
+    assert np.array_equal(quilt_prepared(prepared, guide=guide, rng=3), a)
+    assert not np.array_equal(a, other)
+    assert np.array_equal(a, quilt(pool, guide.shape[:2], detail=0.5, guide=guide, rng=3))
+
+
+def test_prepared_pool_errors():
+    pool, guide = two_tone_pool(), half_guide()
+    with pytest.raises(TGHopError, match="prepared without a guide_scale"):
+        quilt_prepared(prepare_pool(pool, guide.shape[:2]), guide=guide, rng=0)
+    with pytest.raises(TGHopError, match="result of prepare_pool"):
+        quilt_prepared(pool, rng=0)
+    with pytest.raises(TGHopError, match="guide_scale"):
+        prepare_pool(pool, guide.shape[:2], guide_scale=5)
 
 
 # ----------------------------------------------------------------------------- resampling

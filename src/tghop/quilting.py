@@ -31,13 +31,17 @@ import numpy as np
 from ._common import ProgressCallback, TGHopError, check_rng, report
 
 __all__ = [
+    "GUIDE_SCALE",
     "MAX_BLOCKS",
     "MAX_PIXELS",
+    "PreparedPool",
     "QuiltingPlan",
     "boundary_cut_mask",
     "default_overlap",
     "min_error_boundary_cut",
+    "prepare_pool",
     "quilt",
+    "quilt_prepared",
     "quilting_plan",
 ]
 
@@ -51,6 +55,9 @@ MAX_BLOCKS = 2**22
 
 # The 8 neighbours of a block, in a fixed order (the bits of a mask signature).
 _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+#: Default box size of the low pass that guided quilting compares with the guide.
+GUIDE_SCALE = 4
+
 # Pool patches are converted to float32 in chunks of this many patches (small enough for
 # the chunk to stay in cache between the steps that read it).
 _POOL_CHUNK = 512
@@ -579,8 +586,15 @@ def _box_means(x: np.ndarray, s: int) -> np.ndarray:
     return out.reshape(n, -1)
 
 
-def _guide_setup(guide, weight, scale, arr, plan, masks_f):
-    """Low-pass features of the pool and the (padded) guide canvas for guided quilting."""
+def _check_guide_scale(scale, p: int) -> int:
+    if isinstance(scale, bool) or not isinstance(scale, (numbers.Integral, np.integer)) or scale < 1 or p % scale:
+        raise TGHopError(f"guide_scale must be a positive integer dividing the patch size {p}, got {scale!r}")
+    return int(scale)
+
+
+def _guide_setup(guide, weight, prepared):
+    """The (padded) guide canvas and per-shape weights for guided quilting."""
+    arr, plan, scale = prepared.patches, prepared.plan, prepared.guide_scale
     p, c = arr.shape[1], arr.shape[3]
     g = np.asarray(guide, dtype=np.float32)
     if g.ndim == 2:
@@ -589,19 +603,16 @@ def _guide_setup(guide, weight, scale, arr, plan, masks_f):
         raise TGHopError(f"guide must have the output's shape {(*plan.size, c)}, got {g.shape}")
     if isinstance(weight, bool) or not isinstance(weight, numbers.Real) or not (math.isfinite(weight) and weight >= 0):
         raise TGHopError(f"guide_weight must be a finite number >= 0, got {weight!r}")
-    if isinstance(scale, bool) or not isinstance(scale, (numbers.Integral, np.integer)) or scale < 1 or p % scale:
-        raise TGHopError(f"guide_scale must be a positive integer dividing the patch size {p}, got {scale!r}")
-    scale = int(scale)
+    if scale is None:
+        raise TGHopError("this pool was prepared without a guide_scale; give prepare_pool a guide_scale to quilt with a guide")
     hc, wc = plan.canvas_shape
     h, w = plan.size
     if (hc, wc) != (h, w):  # the canvas of a non-tileable quilt may be larger: extend the edges
         g = np.pad(g, ((0, hc - h), (0, wc - w), (0, 0)), mode="edge")
-    low = np.concatenate([_box_means(arr[a : a + _POOL_CHUNK], scale) for a in range(0, arr.shape[0], _POOL_CHUNK)])
     # Per-pixel weights: overlap SSE + weight * (overlap pixels / low-pass values) * guide SSE.
-    n_overlap = np.maximum(masks_f.sum(axis=1), p * plan.overlap)  # (m,)
+    n_overlap = np.maximum(prepared._masks_f.sum(axis=1), p * plan.overlap)  # (m,)
     factor = (float(weight) * n_overlap / (p // scale) ** 2).astype(np.float32)
-    return {"low": low, "low_norm": np.einsum("ij,ij->i", low, low), "canvas": g, "scale": scale,
-            "factor": factor}
+    return {"low": prepared._low, "low_norm": prepared._low_norm, "canvas": g, "scale": scale, "factor": factor}
 
 
 def _add_guide_error(err, guided, windows, mid):
@@ -665,7 +676,7 @@ def quilt(
     progress: Optional[ProgressCallback] = None,
     guide=None,
     guide_weight: float = 1.0,
-    guide_scale: int = 4,
+    guide_scale: int = GUIDE_SCALE,
 ) -> np.ndarray:
     """Stitch patches from ``pool`` into an image by image quilting (Efros & Freeman 2001).
 
@@ -728,19 +739,74 @@ def quilt(
     wavefront) errors, a float32 canvas and the float64 result; per block the plan keeps
     only a few integers.
     """
-    arr = _check_pool(pool)
-    p, c = arr.shape[1], arr.shape[3]
+    _check_tolerance(tolerance)
+    prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail,
+                            guide_scale=None if guide is None else guide_scale)
+    return quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
+                          guide_weight=guide_weight)
+
+
+def _check_tolerance(tolerance) -> float:
     if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not (
         math.isfinite(tolerance) and tolerance >= 0
     ):
         raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
-    tolerance = float(tolerance)
+    return float(tolerance)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedPool:
+    """A patch pool made ready for quilting one image: :func:`prepare_pool`'s result.
+
+    What depends only on the pool and the block layout (each patch's values in the
+    overlap frame and squared norms, gradient energy, low-pass values for a guide) is
+    computed once here, so that it can be done while something else (e.g. the guide) is
+    still being made; :func:`quilt_prepared` then places the blocks.
+
+    Attributes
+    ----------
+    patches : ndarray, shape (n, P, P, C)
+        The pool as given (float32 or float64; no copy).
+    plan : QuiltingPlan
+    detail : float
+    guide_scale : int or None
+        Box size of the low pass compared with a guide; None: quilting without a guide.
+    """
+
+    patches: np.ndarray
+    plan: QuiltingPlan
+    detail: float
+    guide_scale: Optional[int]
+    _slices: list
+    _masks_f: np.ndarray
+    _masks_fc: np.ndarray
+    _table: np.ndarray
+    _energy: Optional[np.ndarray]
+    _low: Optional[np.ndarray]
+    _low_norm: Optional[np.ndarray]
+
+
+def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = False, detail: float = 0.0,
+                 guide_scale: Optional[int] = None) -> PreparedPool:
+    """Precompute what quilting ``pool`` into an image of ``size`` needs from the pool alone.
+
+    Parameters are those of :func:`quilt` (``guide_scale=None``: no guide will be used).
+    ``quilt(pool, size, ...)`` is ``quilt_prepared(prepare_pool(pool, size, ...), ...)``.
+
+    Returns
+    -------
+    PreparedPool
+        Holds the float32 overlap table of the pool (``n`` rows of about ``2 P overlap
+        C`` values) and, with ``detail > 0`` / ``guide_scale``, ``n`` gradient energies /
+        ``n (P / guide_scale)^2 C`` low-pass values.
+    """
+    arr = _check_pool(pool)
+    p, c = arr.shape[1], arr.shape[3]
     if isinstance(detail, bool) or not isinstance(detail, numbers.Real) or not 0 <= detail < 1:
         raise TGHopError(f"detail must be a number in [0, 1), got {detail!r}")
     detail = float(detail)
     plan = quilting_plan(size, p, overlap=overlap, tile=tile)
-    rng = check_rng(rng)
-
+    scale = None if guide_scale is None else _check_guide_scale(guide_scale, p)
     # One float32 row per pool patch: [squared norm over each of the m overlap shapes |
     # the patch's pixels in the overlap frame]. With a block's query row
     # [one-hot of its shape | -2 * its masked overlap pixels], a single matrix product gives
@@ -748,9 +814,34 @@ def quilt(
     slices = _frame_slices(p, plan.frame)
     masks_f = _frame_features(plan.masks[..., None], slices).astype(np.float32)  # (m, nf)
     masks_fc = np.repeat(masks_f, c, axis=1)  # (m, nf * c), matches the (pixel, channel) layout
-    m, k = masks_fc.shape
     table = _pool_table(arr, slices, masks_fc)
     energy = _gradient_energy(arr) if detail > 0 else None
+    low = low_norm = None
+    if scale is not None:
+        low = np.concatenate([_box_means(arr[a : a + _POOL_CHUNK], scale) for a in range(0, arr.shape[0], _POOL_CHUNK)])
+        low_norm = np.einsum("ij,ij->i", low, low)
+    return PreparedPool(patches=arr, plan=plan, detail=detail, guide_scale=scale, _slices=slices, _masks_f=masks_f,
+                        _masks_fc=masks_fc, _table=table, _energy=energy, _low=low, _low_norm=low_norm)
+
+
+def quilt_prepared(
+    prepared: PreparedPool,
+    *,
+    tolerance: float = 0.1,
+    rng=None,
+    progress: Optional[ProgressCallback] = None,
+    guide=None,
+    guide_weight: float = 1.0,
+) -> np.ndarray:
+    """Quilt a pool made ready by :func:`prepare_pool`; parameters and result as :func:`quilt`."""
+    if not isinstance(prepared, PreparedPool):
+        raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
+    tolerance = _check_tolerance(tolerance)
+    rng = check_rng(rng)
+    arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
+    p, c = arr.shape[1], arr.shape[3]
+    slices, masks_fc, table, energy = prepared._slices, prepared._masks_fc, prepared._table, prepared._energy
+    m, k = masks_fc.shape
     norm_max = table[:, :m].max(axis=0)  # (m,)
     one_hot = np.eye(m, dtype=np.float32)
     # Columns [0, k1) hold the norms, the top band and the left band; only wrap-around
@@ -761,7 +852,7 @@ def quilt(
 
     hc, wc = plan.canvas_shape
     canvas = np.zeros((hc, wc, c), dtype=np.float32)
-    guided = _guide_setup(guide, guide_weight, guide_scale, arr, plan, masks_f) if guide is not None else None
+    guided = _guide_setup(guide, guide_weight, prepared) if guide is not None else None
     order = np.argsort(plan.level.ravel(), kind="stable")
     bounds = np.cumsum(np.bincount(plan.level.ravel(), minlength=plan.n_levels))
     nx = plan.xs.size
@@ -817,7 +908,6 @@ def quilt(
         done += b
         report(progress, "quilting", done, plan.n_blocks)
 
-    del table
     h, w = plan.size
     out = canvas[:h, :w].astype(np.float64)
     del canvas

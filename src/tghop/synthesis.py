@@ -29,7 +29,7 @@ from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .layout import CoarseLayout
-from .quilting import quilt
+from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
 from .refine import BandStatistics, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -502,6 +502,11 @@ class TGHop(BaseEstimator):
         views["S0"] = np.clip(spaces[-1], 0.0, 1.0)
         return views
 
+    def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):
+        """A new pool of ``n_patches`` (float32) made ready for quilting (:func:`tghop.quilting.prepare_pool`)."""
+        pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
+        return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
+
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
                    progress=None):
@@ -554,7 +559,8 @@ class TGHop(BaseEstimator):
         guide = None
         if self.layout_ is not None and layout_weight:
             # The coarse guide and the pool are independent: the guide is made in a second
-            # thread (its own random stream) while the pool is generated, one BLAS thread each.
+            # thread (its own random stream) while the pool is generated and made ready
+            # for quilting, one BLAS thread each.
             from concurrent.futures import ThreadPoolExecutor
 
             from threadpoolctl import threadpool_limits
@@ -563,16 +569,17 @@ class TGHop(BaseEstimator):
             report(progress, "layout", 0, 1)
             with ThreadPoolExecutor(max_workers=1) as worker, threadpool_limits(limits=1, user_api="blas"):
                 pending = worker.submit(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
-                pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
+                prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
                 guide = pending.result()
             report(progress, "layout", 1, 1)
             report(progress, "patch pool", 0, 1)
         else:
             report(progress, "patch pool", 0, 1)
-            pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
+            prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=None)
         report(progress, "patch pool", 1, 1)
-        image = quilt(pool, size, overlap=overlap, tolerance=tolerance, tile=tile, detail=detail, rng=rng,
-                      progress=progress, guide=guide, guide_weight=layout_weight)
+        image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
+                               guide_weight=layout_weight)
+        del prepared  # the pool and its tables: not needed from here on
         if refine:
             report(progress, "refine", 0, 1)
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
