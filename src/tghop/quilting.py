@@ -2,6 +2,9 @@
 
 TGHop generates a *pool* of texture patches; :func:`quilt` stitches them into the output
 image. It does not care where the patches come from: any ``(n, P, P, C)`` array works.
+:func:`quilt` is :func:`prepare_pool` (what quilting needs from the pool alone) followed
+by :func:`quilt_prepared` (placing the blocks), for callers that prepare the pool while
+something else is being computed.
 
 How it works
 ------------
