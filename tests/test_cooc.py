@@ -557,6 +557,16 @@ def test_cli_end_to_end(tmp_path):
     assert win.shape == (24, 64, 3) and not np.array_equal(win, np.asarray(Image.open(tmp_path / "edit.png")))
 
 
+def test_set_parses_words_for_word_settings():
+    import tghop.cli  # noqa: F401  (cli_cooc is loaded by, and imports helpers from, the main command module)
+    from tghop.cli_cooc import parse_settings
+
+    assert parse_settings(["padding=replicate", "gp_every=2", "context=true", "g_widths=[8,4]"]) == {
+        "padding": "replicate", "gp_every": 2, "context": True, "g_widths": [8, 4]}
+    with pytest.raises(TGHopError, match="number or a JSON list"):
+        parse_settings(["lr=fast"])
+
+
 def test_cli_errors(tmp_path):
     import torch as _torch
 
