@@ -265,7 +265,8 @@ def seeds_markdown(payload) -> str:
            for (t, label), v in per_texture.items()]
     return "\n".join([
         "## Seeds: raw and averaged generator of the same runs (256 px, lower is better)\n",
-        "New SMALL runs, 3,000 steps each, one per seed (`bench_cooc.py train NAME --seed S --extra-ema ...`, "
+        "SMALL runs, one per seed, steps as `seeds.json` records them (3,000 of batch 16 before issue 9's session 14, "
+        "5,500 of batch 8 since; `bench_cooc.py train NAME --seed S --extra-ema ...`, "
         "then `bench_cooc.py seeds`; the sections above are earlier runs without an average). Generators of one "
         "run: raw (the last weights), the raw one with its batch-norm statistics recomputed (a control), the "
         "model's own average with the statistics copied from the raw generator (the first version) and, for "

@@ -275,6 +275,61 @@ def test_tiled_training(exemplar):
     assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
 
 
+def test_context_conditions(exemplar):
+    """``context``: the generator's and critic's conditions see the pixels around each crop,
+    the consistency targets stay the crops' own tensors."""
+    plain = cooc.CoocGAN(**TINY, device="cpu", rng=0).fit(exemplar)
+    model = cooc.CoocGAN(**{**TINY, "context": True}, device="cpu", rng=0).fit(exemplar)
+    assert model._targets is not model._conds and plain._targets is plain._conds
+    torch.testing.assert_close(model._targets, plain._conds)  # the same crops, measured alone
+    assert model._conds.shape == model._targets.shape == (TINY["n_crops"], 9, 4, 4)
+    torch.testing.assert_close(model._conds.sum(1), torch.ones(TINY["n_crops"], 4, 4))
+    # Inner cells' patches (radius 4 < s = 8) and pair windows lie inside the crop: the same
+    # numbers; the border cells' patches reach outside it: other numbers.
+    torch.testing.assert_close(model._conds[:, :, 1:3, 1:3], model._targets[:, :, 1:3, 1:3])
+    assert (model._conds[:, :, 0] - model._targets[:, :, 0]).abs().amax() > 1e-3
+    # The exemplar's tensor: same cells, its border cells from the mirror-padded exemplar.
+    assert model.exemplar_cooc_.shape == plain.exemplar_cooc_.shape == (9, 6, 6)
+    np.testing.assert_allclose(model.exemplar_cooc_[:, 1:-1, 1:-1], plain.exemplar_cooc_[:, 1:-1, 1:-1], atol=1e-6)
+    assert not np.allclose(model.exemplar_cooc_[:, 0], plain.exemplar_cooc_[:, 0], atol=1e-3)
+    real, cond, target = model._batch(torch, targets=True)
+    assert cond.shape == target.shape == (4, 9, 4, 4) and not torch.equal(cond, target)
+    assert model.sample((40, 24), rng=0).shape == (40, 24, 3)
+
+
+def test_lazy_penalty_learning_rate_decay_kernel_and_padding(exemplar, tmp_path):
+    settings = {**TINY, "n_steps": 4, "gp_every": 2, "lr_decay": 0.5, "kernel": 3, "padding": "replicate"}
+    model = cooc.CoocGAN(**settings, device="cpu", rng=0).fit(exemplar)
+    h = model.history_
+    assert h.shape == (4, 5) and np.isfinite(h).all()
+    assert h[0, 4] == h[1, 4] and h[2, 4] == h[3, 4]  # penalties at critic steps 0 and 2 only
+    # lr constant for the first half, then down linearly: lr / 2 for the last step.
+    assert model._opt_g.param_groups[0]["lr"] == model._opt_d.param_groups[0]["lr"] == pytest.approx(TINY.get("lr", 2e-4) / 2)
+    convs = [m for m in model.generator_.modules() if isinstance(m, torch.nn.Conv2d)]
+    assert all(c.kernel_size == (3, 3) and c.padding_mode == "replicate" for c in convs)
+    assert all(c.kernel_size == (3, 3) and c.padding_mode == "zeros"
+               for c in model.critic_.modules() if isinstance(c, torch.nn.Conv2d))
+    assert model.generate(cooc._tile(model.crop_condition(0, 0), 3, 5), rng=0).shape == (24, 40, 3)
+    # A skipped penalty: no mix, no random number.
+    real, cond = model._batch(torch)
+    state = model._torch_gen.get_state()
+    model._noise(torch, len(cond), cond.shape[2], cond.shape[3])
+    after_noise = model._torch_gen.get_state()
+    model._torch_gen.set_state(state)
+    assert math.isnan(model._critic_step(torch, real, cond, with_gp=False)[1])
+    assert torch.equal(model._torch_gen.get_state(), after_noise)
+    # The schedule is a function of the step: resuming 2 + 2 steps equals 4 at once.
+    half = cooc.CoocGAN(**{**settings, "n_steps": 2}, device="cpu", rng=0).fit(exemplar)
+    half.save(tmp_path / "half.pt")
+    resumed = cooc.load(tmp_path / "half.pt", device="cpu").set_params(n_steps=4).fit(exemplar, resume=True)
+    for p, q in zip(_state(model.generator_).values(), _state(resumed.generator_).values()):
+        torch.testing.assert_close(p, q)
+    for bad, match in [({"kernel": 4}, "kernel"), ({"padding": "circular"}, "padding"), ({"lr_decay": 1.5}, "lr_decay"),
+                       ({"gp_every": 0}, "positive")]:
+        with pytest.raises(TGHopError, match=match):
+            cooc.CoocGAN(**{**TINY, **bad}).fit(exemplar)
+
+
 def test_one_step_lowers_the_consistency_loss(exemplar):
     model = cooc.CoocGAN(**{**TINY, "n_steps": 0, "lr": 1e-3}, device="cpu", rng=1).fit(exemplar)
     model.generator_.train()
@@ -500,6 +555,16 @@ def test_cli_end_to_end(tmp_path):
     assert r.returncode == 0, r.stderr.decode()
     win = np.asarray(Image.open(tmp_path / "win.png"))
     assert win.shape == (24, 64, 3) and not np.array_equal(win, np.asarray(Image.open(tmp_path / "edit.png")))
+
+
+def test_set_parses_words_for_word_settings():
+    import tghop.cli  # noqa: F401  (cli_cooc is loaded by, and imports helpers from, the main command module)
+    from tghop.cli_cooc import parse_settings
+
+    assert parse_settings(["padding=replicate", "gp_every=2", "context=true", "g_widths=[8,4]"]) == {
+        "padding": "replicate", "gp_every": 2, "context": True, "g_widths": [8, 4]}
+    with pytest.raises(TGHopError, match="number or a JSON list"):
+        parse_settings(["lr=fast"])
 
 
 def test_cli_errors(tmp_path):

@@ -596,7 +596,7 @@ def evaluate(exemplar, results, as_json, names):
 @click.option("--seed", type=click.IntRange(min=0), default=None)
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
-                   "cooc: training steps (default 3000).")
+                   "cooc: training steps (default 5500).")
 @click.option("--model", "model_file", default=None,
               help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")

@@ -44,6 +44,9 @@ def parse_settings(pairs) -> dict:
         try:
             out[key] = json.loads(value)
         except ValueError:
+            if isinstance(SMALL[key], str):  # a word setting: padding=replicate
+                out[key] = value.strip()
+                continue
             raise TGHopError(f"--set {item!r}: the value must be a number or a JSON list, e.g. g_widths=[64,32,16]") from None
     return out
 

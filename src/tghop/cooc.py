@@ -476,16 +476,19 @@ def _mirror_pad(t: np.ndarray, pads_y, pads_x) -> np.ndarray:
 #: about 15 minutes for a 256 x 256 exemplar. Everything spatial is at half the paper's
 #: scale (64 px crops, 33 px patches, 25 px windows, sigma^2 = 13), the networks have 4
 #: layers instead of 5 (so s = 16 keeps a 4 x 4 condition) and 8 to 16 times fewer
-#: filters, 3,000 generator steps of 16 crops with one critic step each (as the authors'
-#: released code, ``dIter=1``; about 0.25 s per step on one core). Not in the paper: it
-#: generates with an exponential moving average of the generator's weights, ``ema=0.995``
-#: (a half-life of 138 steps; docs/choices.md: better than the raw generator on the brick_wall
-#: seeds measured, longer averages worse).
+#: filters, one critic step per generator step (as the authors' released code, ``dIter=1``).
+#: Not in the paper (issue 9, docs/choices.md): 5,500 generator steps of 8 crops with a
+#: lazy gradient penalty (``gp_every=4``; about 0.15 s per step with 2 threads), which
+#: in a GPU sweep at equal CPU time beat 3,000 steps of 16 crops on brick_wall, grass_lawn
+#: and red_peppers (3 seeds each); and it generates with an exponential moving average of
+#: the generator's weights, ``ema=0.995`` (a half-life of 138 steps; better than the raw
+#: generator on the brick_wall seeds measured, longer averages worse).
 SMALL = dict(
     n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
     g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
-    n_crops=1000, batch_size=16, n_steps=3000, n_critic=1,
+    n_crops=1000, batch_size=8, n_steps=5500, n_critic=1,
     lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1, ema=0.995,
+    kernel=5, padding="zeros", gp_every=4, lr_decay=0.0, context=False,
 )
 
 #: The paper's configuration (Sec. 4.1): k = 8, 2,000 crops of 128 x 128, s = 32 (5 layers,
@@ -506,6 +509,7 @@ PAPER = dict(
     g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
     n_crops=2000, batch_size=64, n_steps=3750, n_critic=5,
     lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1, ema=0.0,
+    kernel=5, padding="zeros", gp_every=1, lr_decay=0.0, context=False,
 )
 
 _PARAMS = tuple(SMALL) + ("device", "rng")
@@ -531,16 +535,19 @@ def _networks(torch, n_colours: int, n_cond: int, p: dict):
     """Generator and critic modules for settings ``p``."""
     nn = torch.nn
     n_layers = int(p["n_layers"])
+    kernel = int(p.get("kernel", 5))
 
     class Generator(nn.Module):
-        """``n_layers`` x (nearest upsampling x2, 5x5 conv, batch norm, ReLU); the last conv -> tanh."""
+        """``n_layers`` x (nearest upsampling x2, ``kernel`` x ``kernel`` conv with ``padding``,
+        batch norm, ReLU); the last conv -> tanh."""
 
         def __init__(self):
             super().__init__()
             widths = list(p["g_widths"]) + [n_colours]
             layers, cin = [], n_cond + int(p["noise_channels"])
             for i, cout in enumerate(widths):
-                layers += [nn.Upsample(scale_factor=2, mode="nearest"), nn.Conv2d(cin, cout, 5, padding=2)]
+                layers += [nn.Upsample(scale_factor=2, mode="nearest"),
+                           nn.Conv2d(cin, cout, kernel, padding=kernel // 2, padding_mode=p["padding"])]
                 layers += [nn.BatchNorm2d(cout), nn.ReLU()] if i < len(widths) - 1 else [nn.Tanh()]
                 cin = cout
             self.net = nn.Sequential(*layers)
@@ -549,7 +556,8 @@ def _networks(torch, n_colours: int, n_cond: int, p: dict):
             return self.net(torch.cat([cond, noise], dim=1))
 
     class Critic(nn.Module):
-        """``n_layers`` 5x5 stride-2 convs (leaky ReLU); the condition joins after the third."""
+        """``n_layers`` ``kernel`` x ``kernel`` stride-2 convs (zero padding, leaky ReLU); the
+        condition joins after the third."""
 
         def __init__(self):
             super().__init__()
@@ -560,7 +568,7 @@ def _networks(torch, n_colours: int, n_cond: int, p: dict):
             for i, cout in enumerate(widths):
                 if i == self.join:
                     cin += n_cond
-                self.convs.append(nn.Conv2d(cin, cout, 5, stride=2, padding=2))
+                self.convs.append(nn.Conv2d(cin, cout, kernel, stride=2, padding=kernel // 2))
                 cin = cout
             self.act = nn.LeakyReLU(0.2)
 
@@ -648,12 +656,32 @@ class CoocGAN:
         Decay of an exponential moving average of the generator's weights, updated after
         every generator step (Karras et al.'s ProGAN / StyleGAN, Yazici et al. 2019);
         generation uses the averaged generator (:meth:`raw` the last weights). The default
-        0.995 is a half-life of 138 steps (2,200 crops at batch 16); 0.999 (693 steps,
+        0.995 is a half-life of 138 steps (1,100 crops at :data:`SMALL`'s batch 8); 0.999 (693 steps,
         StyleGAN's 10k images) and 0.9995 averaged in too many of the weights of 3,000
         steps that still improve and were worse than the raw generator (docs/choices.md).
         The average is bias-corrected (no share of the initial weights); its batch-norm
         statistics are recomputed for its weights at the end of :meth:`fit`. 0: no
         average (the paper's).
+    kernel : int
+        Side of the convolution kernels of both networks (odd; 5 as PSGAN).
+    padding : str
+        Padding of the generator's convolutions: ``"zeros"`` (the paper's), ``"reflect"``
+        (needs conditions of at least 2 cells a side) or ``"replicate"``. The critic pads with zeros.
+    gp_every : int
+        Lazy gradient penalty (as StyleGAN2's lazy R1): the penalty only on every
+        ``gp_every``-th critic step, weighted ``gp_every * lambda_gp``; the other critic
+        steps skip its extra forward pass and double backward. 1: every step (WGAN-GP's).
+    lr_decay : float
+        Share of the ``n_steps`` at the end over which both learning rates fall linearly
+        to 0 (0: constant, the paper's).
+    context : bool
+        Compute the *condition* of a training crop (what the generator and the critic see)
+        with the exemplar's pixels around the crop (patches not clipped at the crop's
+        border; the exemplar mirror-padded by ``s`` at its own border), and the
+        exemplar's tensor (:meth:`sample`'s condition) likewise, so that the cells at a
+        crop's border look like the inside cells of a large condition. The consistency
+        loss still compares the crop-only tensors of the generated and the real crop
+        (measured identically). False: one crop-only tensor for both (as before).
     device : str
         ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
     rng : int or numpy.random.Generator, optional
@@ -679,9 +707,10 @@ class CoocGAN:
     """
 
     def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
-                 g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=16,
-                 n_steps=3000, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
-                 tiles=1, ema=0.995, device="auto", rng=None):
+                 g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=8,
+                 n_steps=5500, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+                 tiles=1, ema=0.995, kernel=5, padding="zeros", gp_every=4, lr_decay=0.0, context=False,
+                 device="auto", rng=None):
         self.n_clusters = n_clusters
         self.crop_size = crop_size
         self.n_layers = n_layers
@@ -702,6 +731,11 @@ class CoocGAN:
         self.lambda_cooc = lambda_cooc
         self.tiles = tiles
         self.ema = ema
+        self.kernel = kernel
+        self.padding = padding
+        self.gp_every = gp_every
+        self.lr_decay = lr_decay
+        self.context = context
         self.device = device
         self.rng = rng
 
@@ -725,11 +759,11 @@ class CoocGAN:
         """The parameters as plain JSON values, checked."""
         p = {name: getattr(self, name) for name in SMALL}
         ints = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "n_crops",
-                "batch_size", "n_steps", "n_critic", "tiles")
+                "batch_size", "n_steps", "n_critic", "tiles", "kernel", "gp_every")
         try:
             for name in ints:
                 p[name] = int(p[name])
-            for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc", "ema"):
+            for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc", "ema", "lr_decay"):
                 p[name] = float(p[name])
             p["g_widths"] = [int(v) for v in p["g_widths"]]
             p["d_widths"] = [int(v) for v in p["d_widths"]]
@@ -744,6 +778,13 @@ class CoocGAN:
         if not (p["sigma"] > 0 and p["lr"] > 0 and 0 <= p["beta1"] < 1 and 0 <= p["beta2"] < 1
                 and p["lambda_gp"] >= 0 and p["lambda_cooc"] >= 0 and 0 <= p["ema"] < 1):
             raise TGHopError("sigma and lr must be positive, betas and ema in [0, 1), the loss weights >= 0")
+        if p["kernel"] % 2 == 0:
+            raise TGHopError(f"kernel must be odd, got {p['kernel']}")
+        if p["padding"] not in ("zeros", "reflect", "replicate"):
+            raise TGHopError(f"padding must be 'zeros', 'reflect' or 'replicate', got {p['padding']!r}")
+        p["context"] = bool(p["context"])
+        if not 0 <= p["lr_decay"] <= 1:
+            raise TGHopError(f"lr_decay must be in [0, 1], got {p['lr_decay']}")
         return p
 
     def _check_fitted(self):
@@ -764,6 +805,22 @@ class CoocGAN:
         p = self.settings_
         return cooccurrence_tensor(images, self._centres_t.to(images.dtype), self._spreads_t.to(images.dtype),
                                    patch=p["patch"], window=p["window"], sigma=p["sigma"], s=self.s)
+
+    def _cooc_context(self, images, cells_h: int, cells_w: int):
+        """Tensor of the cells of ``images`` that lie inside a margin of ``s`` pixels (one
+        cell) on every side: ``(N, k*k, cells_h, cells_w)``, patches reaching into the margin."""
+        return self._cooc(images)[:, :, 1 : 1 + cells_h, 1 : 1 + cells_w]
+
+    def _exemplar_tensor(self, torch, img: np.ndarray) -> np.ndarray:
+        """The exemplar's own tensor (with ``context``: from the exemplar mirror-padded by ``s``)."""
+        s = self.s
+        hh, ww = img.shape[0] // s, img.shape[1] // s
+        if self.settings_["context"]:
+            img = np.pad(img, ((s, s), (s, s), (0, 0)), mode="symmetric")
+        with torch.no_grad():
+            whole = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
+            t = self._cooc(whole)
+            return (t[:, :, 1 : 1 + hh, 1 : 1 + ww] if self.settings_["context"] else t)[0].cpu().numpy()
 
     def cooccurrence(self, image) -> np.ndarray:
         """Co-occurrence tensor of an image with this model's colour clusters.
@@ -806,9 +863,7 @@ class CoocGAN:
         self.cond_mean_ = flat.mean(1).cpu().numpy()
         self.cond_std_ = np.maximum(flat.std(1).cpu().numpy(), 1e-4)
         self._to_device(torch)
-        with torch.no_grad():
-            whole = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
-            self.exemplar_cooc_ = self._cooc(whole)[0].cpu().numpy()
+        self.exemplar_cooc_ = self._exemplar_tensor(torch, img)
         torch.manual_seed(seed)
         self.generator_, self.critic_ = _networks(torch, img.shape[2], self._conds.shape[1], p)
         self.generator_.to(self._device)
@@ -898,6 +953,16 @@ class CoocGAN:
             del other.generator_ema_
         return other
 
+    def _set_learning_rate(self, total: int) -> None:
+        """``lr`` until the last ``lr_decay`` share of ``total`` steps, then linearly down to
+        0 at step ``total`` (both networks); a function of the step, so resume continues it."""
+        p = self.settings_
+        span = p["lr_decay"] * total
+        lr = p["lr"] if span <= 0 else p["lr"] * min(1.0, max(0.0, (total - self.step_) / span))
+        for opt in (self._opt_g, self._opt_d):
+            for group in opt.param_groups:
+                group["lr"] = lr
+
     def _make_optimisers(self, torch):
         p = self.settings_
         betas = (p["beta1"], p["beta2"])
@@ -919,38 +984,49 @@ class CoocGAN:
         return torch.randn((n, int(self.settings_["noise_channels"]), h, w), generator=generator or self._torch_gen,
                            device=self._device)
 
-    def _batch(self, torch):
+    def _batch(self, torch, targets: bool = False):
         """Real tiles in [-1, 1] and the generator's conditions: ``max(1, batch_size // tiles**2)``
-        crops, i.e. their ``tiles**2`` tiles each and their tiles' tensors joined into one grid."""
+        crops, i.e. their ``tiles**2`` tiles each and their tiles' tensors joined into one grid;
+        ``targets=True`` adds the consistency targets (joined likewise)."""
         t = self.settings_["tiles"]
         m = max(1, self.settings_["batch_size"] // (t * t))
         idx = torch.randint(len(self._crops) // (t * t), (m,), generator=self._torch_gen, device=self._device)
         if t > 1:
             idx = (idx[:, None] * (t * t) + torch.arange(t * t, device=self._device)).reshape(-1)
+        if targets:
+            return self._crops[idx] * 2.0 - 1.0, _join_tiles(self._conds[idx], t), _join_tiles(self._targets[idx], t)
         return self._crops[idx] * 2.0 - 1.0, _join_tiles(self._conds[idx], t)
 
-    def _critic_step(self, torch, real, cond):
+    def _critic_step(self, torch, real, cond, with_gp: bool = True):
+        """One critic update; ``with_gp=False`` leaves the gradient penalty out (lazy
+        regularisation, ``gp_every > 1``: the penalty, weighted ``gp_every`` times, only on
+        every ``gp_every``-th critic step) and returns NaN for it."""
         p = self.settings_
         t = p["tiles"]
         cn = self._normalise(cond)
         with torch.no_grad():
             fake = _split_tiles(self.generator_(cn, self._noise(torch, len(cn), cn.shape[2], cn.shape[3])), t)
         cn = _split_tiles(cn, t)
-        u = torch.rand((len(real), 1, 1, 1), generator=self._torch_gen, device=self._device)
-        mix = (u * real + (1 - u) * fake).requires_grad_(True)
-        d_real, d_fake, d_mix = self.critic_(real, cn), self.critic_(fake, cn), self.critic_(mix, cn)
-        (grad,) = torch.autograd.grad(d_mix.sum(), mix, create_graph=True)
-        gp = ((grad.flatten(1).norm(dim=1) - 1.0) ** 2).mean()
+        d_real, d_fake = self.critic_(real, cn), self.critic_(fake, cn)
         # Eq. 4 as written is E[D(x_r)] - E[D(x_g)]: a critic that scores real crops high
         # must *maximise* it, so its loss is the negative (Gulrajani et al.'s sign).
-        loss = d_fake.mean() - d_real.mean() + p["lambda_gp"] * gp
+        loss = d_fake.mean() - d_real.mean()
+        gp = None
+        if with_gp:
+            u = torch.rand((len(real), 1, 1, 1), generator=self._torch_gen, device=self._device)
+            mix = (u * real + (1 - u) * fake).requires_grad_(True)
+            (grad,) = torch.autograd.grad(self.critic_(mix, cn).sum(), mix, create_graph=True)
+            gp = ((grad.flatten(1).norm(dim=1) - 1.0) ** 2).mean()
+            loss = loss + p["lambda_gp"] * p["gp_every"] * gp
         self._opt_d.zero_grad(set_to_none=True)
         loss.backward()
         self._opt_d.step()
-        return float(loss.detach()), float(gp.detach())
+        return float(loss.detach()), (float(gp.detach()) if gp is not None else float("nan"))
 
-    def _generator_loss(self, torch, cond, noise):
+    def _generator_loss(self, torch, cond, noise, target=None):
         """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency).
+
+        ``target``: the crop-only tensors ``M_r`` (default ``cond``; they differ with ``context``).
 
         With ``tiles > 1`` the generator draws whole ``tiles x tiles``-crop conditions and
         the critic and the consistency loss see the generated image's training-size tiles,
@@ -959,17 +1035,17 @@ class CoocGAN:
         t = self.settings_["tiles"]
         cn = self._normalise(cond)
         fake = _split_tiles(self.generator_(cn, noise), t)
-        cn, cond = _split_tiles(cn, t), _split_tiles(cond, t)
+        cn, target = _split_tiles(cn, t), _split_tiles(cond if target is None else target, t)
         adv = -self.critic_(fake, cn).mean()
-        cooc = (self._cooc((fake + 1.0) * 0.5) - cond).abs().sum(1).mean()  # L1 per cell, averaged
+        cooc = (self._cooc((fake + 1.0) * 0.5) - target).abs().sum(1).mean()  # L1 per cell, averaged
         return adv + self.settings_["lambda_cooc"] * cooc, adv, cooc
 
-    def _generator_step(self, torch, cond, noise=None):
+    def _generator_step(self, torch, cond, noise=None, target=None):
         if noise is None:
             noise = self._noise(torch, len(cond), cond.shape[2], cond.shape[3])
         for q in self.critic_.parameters():
             q.requires_grad_(False)
-        total, adv, cooc = self._generator_loss(torch, cond, noise)
+        total, adv, cooc = self._generator_loss(torch, cond, noise, target)
         self._opt_g.zero_grad(set_to_none=True)
         total.backward()
         self._opt_g.step()
@@ -1027,12 +1103,17 @@ class CoocGAN:
         history = [self.history_]
         start = time.perf_counter()
         report(progress, "training", self.step_, max(total, self.step_))
+        n_critic, gp_every = self.settings_["n_critic"], self.settings_["gp_every"]
+        gp = float("nan")
         while self.step_ < total:
-            for _ in range(self.settings_["n_critic"]):
+            self._set_learning_rate(total)
+            for i in range(n_critic):
                 real, cond = self._batch(torch)
-                d_loss, gp = self._critic_step(torch, real, cond)
-            _, cond = self._batch(torch)
-            adv, cooc = self._generator_step(torch, cond)
+                # critic steps are counted from the start (so resume keeps the schedule)
+                d_loss, gp_now = self._critic_step(torch, real, cond, (self.step_ * n_critic + i) % gp_every == 0)
+                gp = gp_now if math.isfinite(gp_now) else gp
+            _, cond, target = self._batch(torch, targets=True)
+            adv, cooc = self._generator_step(torch, cond, target=target)
             self.step_ += 1
             self._update_average(torch)
             history.append(np.array([[self.step_, d_loss, adv, cooc, gp]]))
@@ -1097,7 +1178,9 @@ class CoocGAN:
         ``crop_size`` tiles, and each tile's own co-occurrence tensor.
 
         ``_crops`` is ``(n_crops * tiles**2, C, n, n)`` and ``_conds`` ``(n_crops * tiles**2, k*k, n/s, n/s)``,
-        crop by crop, each crop's tiles row by row (the order of :func:`_split_tiles`).
+        crop by crop, each crop's tiles row by row (the order of :func:`_split_tiles`);
+        ``_targets`` (the consistency targets, the crops' own tensors) is ``_conds`` unless
+        ``context``, where ``_conds`` are computed with the pixels around each crop.
         """
         p = self.settings_
         n, t = p["crop_size"], p["tiles"]
@@ -1115,7 +1198,18 @@ class CoocGAN:
             for i in range(0, len(crops), chunk):
                 conds.append(self._cooc(self._crops[i : i + chunk]))
                 report(progress, "co-occurrences", min(i + chunk, len(crops)), len(crops))
-        self._conds = torch.cat(conds)
+        self._targets = self._conds = torch.cat(conds)
+        if p["context"]:  # each t x t block with one cell of the (mirror-padded) exemplar around it
+            s, cells = self.s, n * t // self.s
+            padded = np.pad(img, ((s, s), (s, s), (0, 0)), mode="symmetric")
+            side = n * t + 2 * s
+            ctx = []
+            with torch.no_grad():
+                for i in range(0, len(ys), chunk):
+                    block = np.stack([padded[y : y + side, x : x + side] for y, x in zip(ys[i : i + chunk], xs[i : i + chunk])])
+                    block = torch.as_tensor(block.transpose(0, 3, 1, 2), dtype=torch.float32, device=self._device)
+                    ctx.append(_split_tiles(self._cooc_context(block, cells, cells), t))
+            self._conds = torch.cat(ctx)
 
     # ------------------------------------------------------------------ generation
     def _check_cond(self, cond) -> np.ndarray:
@@ -1476,7 +1570,8 @@ def load(path, *, device: str = "auto") -> CoocGAN:
         raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
                              "train it again with this version")
     try:
-        p = {"tiles": 1, "ema": 0.0, **settings["settings"]}  # checkpoints from before these settings
+        p = {"tiles": 1, "ema": 0.0, "kernel": 5, "padding": "zeros", "gp_every": 1, "lr_decay": 0.0,
+             "context": False, **settings["settings"]}  # checkpoints from before these settings
         model = CoocGAN(**p, device=device)
         model.settings_ = model._settings()
         model.exemplar_shape_ = tuple(settings["exemplar_shape"])
