@@ -303,11 +303,17 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         check_is_fitted(self, "components_")
         return self._project(_channel_major(np.asarray(Y, dtype=np.float64)))
 
+    def channel_ranges(self):
+        """``[(start, stop), ...]``: each core channel's rows of :attr:`components_` (and
+        columns of ``z``); fit keeps the components in channel order, so each channel's are
+        one range (empty where a channel keeps none)."""
+        check_is_fitted(self, "components_")
+        bounds = np.searchsorted(self.channel_, np.arange(self.shape_[2] + 1))
+        return list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
+
     def _project(self, maps):
         z = np.empty((maps.shape[1], self.components_.shape[0]))
-        # Each channel's components are one range of rows (fit keeps channel order).
-        bounds = np.searchsorted(self.channel_, np.arange(self.shape_[2] + 1))
-        for c, (a, e) in enumerate(zip(bounds[:-1], bounds[1:])):
+        for c, (a, e) in enumerate(self.channel_ranges()):
             if a < e:
                 z[:, a:e] = (maps[c] - self.mean_[c]) @ self.components_[a:e].T
         return z
@@ -318,10 +324,9 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         Z = np.asarray(Z, dtype=np.float64)
         h, w, k = self.shape_
         out = np.repeat(self.mean_.T[None], Z.shape[0], axis=0)
-        for c in range(k):
-            sel = self.channel_ == c
-            if sel.any():
-                out[:, :, c] += Z[:, sel] @ self.components_[sel]
+        for c, (a, e) in enumerate(self.channel_ranges()):
+            if a < e:
+                out[:, :, c] += Z[:, a:e] @ self.components_[a:e]
         return out.reshape(Z.shape[0], h, w, k)
 
 

@@ -416,9 +416,8 @@ class TGHop(BaseEstimator):
         n = len(z)
         z = np.asarray(z, dtype=dtype)
         linear, constant = self._block_decoder()
-        # Each channel's components are one range of z's columns (SDR keeps channel order).
-        bounds = np.searchsorted(sdr.channel_, np.arange(k + 1))
-        comps = [sdr.components_[a:e].astype(dtype) for a, e in zip(bounds[:-1], bounds[1:])]
+        ranges = sdr.channel_ranges()  # each channel's columns of z
+        comps = [sdr.components_[a:e].astype(dtype) for a, e in ranges]
         offset = (sdr.mean_.T @ linear + constant).astype(dtype)  # (h * w, b * b * C)
         linear = linear.astype(dtype)
         b = self.patch_size // h
@@ -427,9 +426,9 @@ class TGHop(BaseEstimator):
         for s in range(0, n, chunk):
             e = min(n, s + chunk)
             core = np.empty((k, e - s, h * w), dtype=dtype)  # channel-major: contiguous writes
-            for c in range(k):
-                if bounds[c] < bounds[c + 1]:
-                    np.matmul(z[s:e, bounds[c] : bounds[c + 1]], comps[c], out=core[c])
+            for c, (a, stop) in enumerate(ranges):
+                if a < stop:
+                    np.matmul(z[s:e, a:stop], comps[c], out=core[c])
                 else:
                     core[c] = 0.0
             blocks = (core.reshape(k, -1).T @ linear).reshape(e - s, h * w, -1)
