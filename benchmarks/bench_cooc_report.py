@@ -141,12 +141,12 @@ def nearest_neighbours(model, img, *, n_gen=8, n_train=400, seed=0) -> dict:
             "real_cooc_l1": float(r_co.mean()), "pairs": [gen[:4], train[g_idx[:4]]]}
 
 
-def gen_speed(model, size, n=3, windows=False) -> float:
+def gen_speed(model, size, n=3, assembly="quilt") -> float:
     """Images per second of :meth:`sample` at ``size`` x ``size`` (after one warm-up)."""
-    model.sample((size, size), rng=0, windows=windows)
+    model.sample((size, size), rng=0, assembly=assembly)
     t = time.perf_counter()
     for i in range(n):
-        model.sample((size, size), rng=i + 1, windows=windows)
+        model.sample((size, size), rng=i + 1, assembly=assembly)
     return n / (time.perf_counter() - t)
 
 
@@ -216,7 +216,8 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
                "variants": {}}
         shown = {}
         for label, v in variants.items():
-            images = [v.sample((256, 256), rng=i) for i in range(n_images)]
+            # One generator pass (the paper's assembly), as the GPU sweeps in docs/choices.md.
+            images = [v.sample((256, 256), rng=i, assembly="pass") for i in range(n_images)]
             scores = [score(img, im) for im in images]
             run["variants"][label] = {m: [sc[m] for sc in scores] for m in METRICS}
             shown[label] = images[:2]
@@ -305,8 +306,8 @@ def report(names, out: Path, threads: int):
                            train["seconds"] / max(train["steps"], 1), train.get("peak_rss_mb", "-"), loads])
         log(f"{name}: speed")
         speed = {s: gen_speed(model, s, n=3 if s == 256 else 1) for s in (256, 1024)}
-        speed.update({f"{s} windows": gen_speed(model, s, n=3 if s == 256 else 1, windows=True) for s in (256, 1024)})
-        rows_speed.append([name, speed[256], speed[1024], speed["256 windows"], speed["1024 windows"]])
+        speed.update({f"{s} pass": gen_speed(model, s, n=3 if s == 256 else 1, assembly="pass") for s in (256, 1024)})
+        rows_speed.append([name, speed[256], speed[1024], speed["256 pass"], speed["1024 pass"]])
         log(f"{name}: stability")
         stab = stability(model, img)
         rows_stab.append([name] + [f"{v:.3f}" for v in stab["l1"][:1]] + [f"{d:+.1f}" for d in stab["drift_pct"][1:]]
@@ -317,9 +318,9 @@ def report(names, out: Path, threads: int):
         log(f"{name}: baselines and quality")
         base = baselines(name, out)
         ours = {"cooc 128": model.sample((128, 128), rng=0), "cooc 256": model.sample((256, 256), rng=0),
-                "cooc 256 windows": model.sample((256, 256), rng=0, windows=True),
+                "cooc 256 pass": model.sample((256, 256), rng=0, assembly="pass"),
                 "cooc 512": model.sample((512, 512), rng=0),
-                "cooc 512 windows": model.sample((512, 512), rng=0, windows=True)}
+                "cooc 512 pass": model.sample((512, 512), rng=0, assembly="pass")}
         for label, im in ours.items():
             save_image(im, out / f"{label.replace(' ', '-')}-{name}.png")
         crop128 = img[:128, :128]
@@ -366,8 +367,9 @@ def report(names, out: Path, threads: int):
           markdown_table(["texture", "steps", "minutes", "CPU minutes", "co-occurrence setup s", "s / step",
                           "peak RSS MB", "load avg before / after"], rows_train),
           "\n## Generation speed (CPU, images per second)\n",
-          "Default: one generator pass (the paper's); windows: overlapping training-size windows.\n",
-          markdown_table(["texture", "256x256", "1024x1024", "256 windows", "1024 windows"], rows_speed),
+          "Default: generated training-size crops quilted together (ours, `assembly=\"quilt\"`); "
+          "pass: one generator pass over the whole condition (the paper's).\n",
+          markdown_table(["texture", "256x256", "1024x1024", "256 pass", "1024 pass"], rows_speed),
           "\n## Stability loop (paper: within 2 % of round 1 over 10 rounds)\n",
           "L1 = mean over 8 held-out crops and cells of sum |input - output co-occurrence|; "
           "drift of rounds 2-10 in % of round 1.\n",
@@ -377,8 +379,9 @@ def report(names, out: Path, threads: int):
           "(from held-out crops' tensors) vs the held-out real crops themselves.\n",
           markdown_table(["texture", "RGB L1 generated", "RGB L1 real", "cooc L1 generated", "cooc L1 real"], rows_nn),
           "\n## Quality (lower is better; copied: fraction of verbatim 16x16 patches)\n",
-          "cooc N: sample((N, N), rng=0), one generator pass (the default, the paper's way); cooc N "
-          "windows: the same condition in overlapping training-size windows (windows=True).\n",
+          "cooc N: sample((N, N), rng=0): generated training-size crops quilted together (the default, "
+          "ours); cooc N pass: one generator pass over the exemplar's mirror-tiled tensor (the paper's way, "
+          "assembly=\"pass\").\n",
           markdown_table(["texture", "method"] + list(METRICS), rows_q)]
     if (out / "seeds.json").exists():  # bench_cooc.py seeds: raw vs averaged generator over seeds
         md += ["", seeds_markdown(json.loads((out / "seeds.json").read_text()))]

@@ -212,6 +212,9 @@ def test_evaluate_without_torch_skips_with_note(workdir):
     [
         (["baseline", "nope", "bricks.png", "-o", "b.png"], ["nope"]),
         (["baseline", "crop", "bricks.png", "-o", "b.png", "--iterations", "3"], ["--iterations"]),
+        (["baseline", "crop", "bricks.png", "-o", "b.png", "--model", "m.pt"], ["--model", "cooc baseline only"]),
+        (["baseline", "quilting", "bricks.png", "-o", "b.png", "--assembly", "pass"], ["--assembly", "cooc baseline only"]),
+        (["baseline", "cooc", "bricks.png", "-o", "b.png", "--assembly", "tiles"], ["--assembly", "tiles"]),
         (["baseline", "crop", "missing.png", "-o", "b.png"], ["no such file"]),
         (["evaluate", "bricks.png", "missing.png"], ["no such file"]),
         (["evaluate", "bricks.png", "bricks.png", "--metrics", "foo"], ["unknown metric"]),

@@ -190,6 +190,44 @@ def test_generation_is_seeded_and_noise_matters(tiny_model):
     assert not np.array_equal(a, tiny_model.generate(cond, rng=4))
 
 
+def test_crop_pool_generates_from_exemplar_crops(tiny_model, monkeypatch):
+    pool = tiny_model.crop_pool(10, rng=0, batch=4)
+    assert pool.shape == (10, 32, 32, 3) and pool.dtype == np.float32
+    assert pool.min() >= 0 and pool.max() <= 1
+    np.testing.assert_array_equal(pool, tiny_model.crop_pool(10, rng=0))  # the batch size does not matter
+    assert not np.array_equal(pool, tiny_model.crop_pool(10, rng=1))
+    # Every condition the generator sees is a training-size exemplar crop's tensor, each cell a distribution.
+    crops = [tiny_model._check_cond(tiny_model.crop_condition(y, x)) for y in (0, 8, 16) for x in (0, 8, 16)]
+    seen = []
+    run = cooc.CoocGAN._run_generator
+    monkeypatch.setattr(cooc.CoocGAN, "_run_generator",
+                        lambda self, torch_, conds, noise: seen.append(conds) or run(self, torch_, conds, noise))
+    tiny_model.crop_pool(30, rng=2)
+    conds = np.concatenate(seen)
+    assert conds.shape == (30, 9, 4, 4)
+    for c in conds:
+        assert min(np.abs(c - crop).max() for crop in crops) < 1e-12
+    assert len({np.argmin([np.abs(c - crop).max() for crop in crops]) for c in conds}) > 3  # many positions
+    with pytest.raises(TGHopError, match="positive integer"):
+        tiny_model.crop_pool(0)
+
+
+def test_quilted_sample_is_seeded_and_assemblies_differ(tiny_model, exemplar):
+    a = tiny_model.sample((50, 37), rng=5)
+    assert a.shape == (50, 37, 3) and a.dtype == np.float64 and a.min() >= 0 and a.max() <= 1
+    np.testing.assert_array_equal(a, tiny_model.sample((50, 37), rng=5))
+    assert not np.array_equal(a, tiny_model.sample((50, 37), rng=6))
+    assert not np.array_equal(a, tiny_model.sample((50, 37), rng=5, assembly="pass"))
+    # The default is the quilted assembly; the baseline passes its choice on.
+    np.testing.assert_array_equal(a, tiny_model.sample((50, 37), rng=5, assembly="quilt"))
+    np.testing.assert_array_equal(cooc.baseline(exemplar, (50, 37), rng=5, model=tiny_model, assembly="pass"),
+                                  tiny_model.sample((50, 37), rng=5, assembly="pass"))
+    with pytest.raises(TGHopError, match="assembly must be one of quilt, pass, windows"):
+        tiny_model.sample(32, assembly="whole")
+    with pytest.raises(TGHopError, match="assembly"):  # at once, before any training
+        cooc.baseline(exemplar, 32, assembly="tiles")
+
+
 class _PointwiseGenerator(torch.nn.Module):
     """A stand-in generator without any spatial context: each cell's output depends only on
     that cell's condition and noise, so windows agree wherever they overlap."""
@@ -214,7 +252,7 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
         np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0, windows=True))
         assert not np.array_equal(out, tiny_model.generate(big, rng=1, windows=True))
         assert not np.array_equal(out, tiny_model.generate(big, rng=0))
-    assert tiny_model.sample((70, 45), rng=2, windows=True).shape == (70, 45, 3)
+    assert tiny_model.sample((70, 45), rng=2, assembly="windows").shape == (70, 45, 3)
     # Up to the training size: one window, exactly the plain (whole) generation.
     for shape in [(4, 4), (2, 3)]:
         small = cond[:, : shape[0], : shape[1]]
@@ -539,6 +577,11 @@ def test_cli_end_to_end(tmp_path):
             "--seed", "1", "-q")
     assert r.returncode == 0, r.stderr.decode()
     assert np.asarray(Image.open(tmp_path / "b.png")).shape == (40, 70, 3)
+    r = run("baseline", "cooc", tmp_path / "ex.png", "--model", model, "-o", tmp_path / "p.png", "--size", "40x70",
+            "--seed", "1", "-q", "--assembly", "pass")
+    assert r.returncode == 0, r.stderr.decode()
+    one_pass = np.asarray(Image.open(tmp_path / "p.png"))
+    assert one_pass.shape == (40, 70, 3) and not np.array_equal(one_pass, np.asarray(Image.open(tmp_path / "b.png")))
     r = run("cooc", "morph", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "strip.png", "--length", "5")
     assert r.returncode == 0, r.stderr.decode()
     assert np.asarray(Image.open(tmp_path / "strip.png")).shape == (32, 40, 3)

@@ -599,8 +599,12 @@ def evaluate(exemplar, results, as_json, names):
                    "cooc: training steps (default 5500).")
 @click.option("--model", "model_file", default=None,
               help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
+@click.option("--assembly", type=click.Choice(["quilt", "pass", "windows"]), default=None,
+              help="cooc: how the image is made from the generator: quilt (default: generated training-size "
+                   "crops stitched by image quilting), pass (the paper's: one pass over the whole condition), "
+                   "windows (that condition in training-size windows).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def baseline(name, exemplar, output, size, seed, iterations, model_file, quiet):
+def baseline(name, exemplar, output, size, seed, iterations, model_file, assembly, quiet):
     """Make a reference texture from EXEMPLAR with baseline NAME.
 
     \b
@@ -619,14 +623,16 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, quiet):
         check_output(output, allow_stdout=True)
         if iterations is not None and name not in ("ustyuzhaninov", "cooc"):
             raise TGHopError("--iterations applies to the ustyuzhaninov and cooc baselines only")
-        if model_file is not None and name != "cooc":
-            raise TGHopError("--model applies to the cooc baseline only")
+        for option, value in (("--model", model_file), ("--assembly", assembly)):
+            if value is not None and name != "cooc":
+                raise TGHopError(f"{option} applies to the cooc baseline only")
         ex = load_exemplar(exemplar)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
         if name == "cooc":
             from .cooc import load
 
-            kwargs = {"n_steps": iterations, "model": None if model_file is None else load(model_file)}
+            kwargs = {"n_steps": iterations, "model": None if model_file is None else load(model_file),
+                      "assembly": assembly or "quilt"}
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
         save_image(image, output)

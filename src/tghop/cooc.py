@@ -27,6 +27,9 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
   :func:`paint_condition` are the controls; ``save`` / :func:`load` write and read a
   ``.pt`` checkpoint of tensors only (JSON settings inside), and ``fit(..., resume=True)``
   continues a loaded one.
+* ``sample`` quilts generated training-size crops by default (``assembly="quilt"``,
+  :meth:`CoocGAN.crop_pool` and :func:`tghop.quilting.quilt`; ours: the generator never
+  runs at a size it was not trained at); ``assembly="pass"`` is the paper's one pass.
 * ``generate(..., windows=True)`` (:meth:`CoocGAN.generate_windows`) generates a large
   condition in overlapping training-size windows, and ``tiles=2`` trains the generator on
   2 x 2 training crops at once; both are options (docs/choices.md: neither was clearly
@@ -425,6 +428,17 @@ def _reflect_tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
 #: Default blend width of :meth:`CoocGAN.generate_windows`, as a fraction of the windows'
 #: stride (1: the whole overlap, a sin^2 window; 0: hard seams).
 FEATHER = 0.5
+
+#: How :meth:`CoocGAN.sample` makes an image from the generator.
+ASSEMBLIES = ("quilt", "pass", "windows")
+
+#: Generated crops quilted by :meth:`CoocGAN.sample` (``assembly="quilt"``).
+QUILT_POOL = 1000
+
+#: Quilting's tolerance and detail preference for that assembly (see
+#: :func:`tghop.quilting.quilt`; the values TGHop generates with).
+QUILT_TOLERANCE = 0.1
+QUILT_DETAIL = 0.5
 
 
 def _window_layout(length: int, n: int, stride: int):
@@ -1415,18 +1429,28 @@ class CoocGAN:
         return _reflect_tile(t, hh, ww, offset)
 
     def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None,
-               windows: bool = False) -> np.ndarray:
-        """A texture of any size with the exemplar's statistics (:meth:`condition_for` and :meth:`generate`).
+               assembly: str = "quilt") -> np.ndarray:
+        """A texture of any size with the exemplar's statistics.
 
         Parameters
         ----------
         size : int or (int, int)
         rng : int or numpy.random.Generator, optional
-            Chooses the condition's offset and the noise.
+            Chooses the conditions and the noise (and, with ``"quilt"``, the quilting).
         progress : callable, optional
-        windows : bool
-            Generate in overlapping training-size windows (:meth:`generate_windows`)
-            instead of one pass over the whole condition (the paper's way, the default).
+            Stage "generate" (and "quilting" with ``"quilt"``).
+        assembly : {"quilt", "pass", "windows"}
+            How the image is made from the generator (see :data:`ASSEMBLIES`):
+
+            - ``"quilt"`` (ours, the default): :meth:`crop_pool` generates
+              :data:`QUILT_POOL` crops of the training size, each from a random exemplar
+              crop's tensor, and image quilting (:func:`tghop.quilting.quilt`, overlap a
+              quarter of a crop, preferring detailed candidates as TGHop does) stitches
+              them, so the generator only ever runs at the size it was trained at;
+            - ``"pass"`` (the paper's): one generator pass over the exemplar's tensor,
+              mirror-tiled from a random offset to the output size (:meth:`condition_for`);
+            - ``"windows"``: that tensor in overlapping training-size windows
+              (:meth:`generate_windows`).
 
         Returns
         -------
@@ -1434,11 +1458,60 @@ class CoocGAN:
         """
         from .baselines import _output_size
 
+        if assembly not in ASSEMBLIES:
+            raise TGHopError(f"assembly must be one of {', '.join(ASSEMBLIES)}, got {assembly!r}")
         h, w = _output_size(size, (1, 1))
         r = check_rng(rng)
-        out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=windows)
+        if assembly == "quilt":
+            from .quilting import quilt
+
+            pool = self.crop_pool(QUILT_POOL, rng=r)
+            report(progress, "generate", 1, 1)
+            side = pool.shape[1]
+            return quilt(pool, (h, w), overlap=max(1, side // 4), tolerance=QUILT_TOLERANCE, detail=QUILT_DETAIL,
+                         rng=r, progress=progress).astype(np.float64)
+        out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=assembly == "windows")
         report(progress, "generate", 1, 1)
         return out[:h, :w]
+
+    def crop_pool(self, n: int, *, rng=None, batch: int = 64) -> np.ndarray:
+        """``n`` generated crops of the training size, each from a random exemplar crop's tensor.
+
+        Each crop's condition is the tensor of an exemplar crop of the generator's training
+        size (``tiles * crop_size`` px) at a random cell-aligned position
+        (:meth:`crop_condition`): the distribution the generator was trained on. Each has
+        its own noise.
+
+        Parameters
+        ----------
+        n : int
+        rng : int or numpy.random.Generator, optional
+        batch : int
+            Crops per generator call.
+
+        Returns
+        -------
+        ndarray, shape (n, side, side, C), float32 in [0, 1]
+        """
+        self._check_fitted()
+        torch = _import_torch()
+        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
+            raise TGHopError(f"n must be a positive integer, got {n!r}")
+        r = check_rng(rng)
+        cells = self._window_cells
+        _, hc, wc = self.exemplar_cooc_.shape
+        cy = r.integers(0, max(1, hc - cells + 1), size=int(n))
+        cx = r.integers(0, max(1, wc - cells + 1), size=int(n))
+        channels = int(self.settings_["noise_channels"])
+        side = cells * self.s
+        out = np.empty((int(n), side, side, self.exemplar_shape_[2]), dtype=np.float32)
+        t = self.exemplar_cooc_
+        for a in range(0, int(n), int(batch)):
+            conds = np.stack([t[:, y : y + cells, x : x + cells] for y, x in zip(cy[a : a + batch], cx[a : a + batch])])
+            conds = conds / conds.sum(axis=1, keepdims=True)
+            noise = r.standard_normal((len(conds), channels, cells, cells)).astype(np.float32)
+            out[a : a + len(conds)] = np.clip(self._run_generator(torch, conds, noise), 0.0, 1.0)
+        return out
 
     def morph_strip(self, a, b, *, length: int = 8, rng=None, windows: bool = False) -> np.ndarray:
         """One image whose co-occurrence moves from ``a`` to ``b`` left to right, under one noise tensor.
@@ -1607,7 +1680,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
 
 
 def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
-             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, windows: bool = False) -> np.ndarray:
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, assembly: str = "quilt") -> np.ndarray:
     """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
 
     Parameters
@@ -1622,9 +1695,9 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         A trained model to use instead of training one.
     n_steps : int, optional
         Generator steps of the training (default :data:`SMALL`'s).
-    windows : bool
-        Generate in overlapping training-size windows instead of one pass over the whole
-        condition (the paper's way, the default; see :meth:`CoocGAN.generate`).
+    assembly : {"quilt", "pass", "windows"}
+        How the image is made from the generator (see :meth:`CoocGAN.sample`; ``"pass"``
+        is the paper's way).
 
     Returns
     -------
@@ -1632,6 +1705,8 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
     """
     from .baselines import _output_size
 
+    if assembly not in ASSEMBLIES:  # before a quarter of an hour of training
+        raise TGHopError(f"assembly must be one of {', '.join(ASSEMBLIES)}, got {assembly!r}")
     img = check_image(exemplar, name="exemplar")
     r = check_rng(rng)
     if model is None:
@@ -1639,4 +1714,4 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         if n_steps is not None:
             model.set_params(n_steps=n_steps)
         model.fit(img, progress=progress)
-    return model.sample(_output_size(size, img.shape), rng=r, progress=progress, windows=windows)
+    return model.sample(_output_size(size, img.shape), rng=r, progress=progress, assembly=assembly)
