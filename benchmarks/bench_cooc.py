@@ -18,16 +18,17 @@ average before and after, loss history).
 4. the nearest-neighbour novelty check (Sec. 4.2, Fig. 5): for generated crops, the
    nearest training crop in RGB L1 and in co-occurrence L1, against the distance
    between two real crops;
-5. the quality table: SIFID, SWD, co-occurrence distance, novelty and "copied" of a
-   128x128 and a 256x256 cGAN result next to TGHop (tghop defaults) and Ustyuzhaninov
-   et al. (100 L-BFGS iterations at 128x128, as bench_paper.py) on the same textures;
+5. the quality table: SIFID, SWD, co-occurrence distance, novelty and "copied" of
+   128x128, 256x256 and 512x512 cGAN results (quilted, the default, and at 256 and 512
+   also the paper's one pass) next to TGHop (tghop defaults) and Ustyuzhaninov et al.
+   (100 L-BFGS iterations at 128x128, as bench_paper.py) on the same textures;
 6. image sheets: samples, a morph strip, a Fig. 2 grid, an edit (two crops' statistics
    painted left/right) and the stability sequence.
 
 ``seeds RUN...`` (``RUN``: ``NAME`` or ``NAME-seedS``, trained with ``train --seed S
 --extra-ema D...``) compares the raw and the averaged generators of each run (``ema``:
 the model's own average, the ``--extra-ema`` decays, and the model's average with its
-batch-norm statistics recomputed): four 256 px samples each, the same conditions and
+batch-norm statistics recomputed): four 256 px samples each (one generator pass, as the GPU sweeps), the same conditions and
 noise for every variant, scored against the exemplar; writes ``results/cooc/seeds.md``
 (per run and the median over seeds) and ``seeds-RUN.png`` sheets.
 
