@@ -28,9 +28,10 @@ average before and after, loss history).
 ``seeds RUN...`` (``RUN``: ``NAME`` or ``NAME-seedS``, trained with ``train --seed S
 --extra-ema D...``) compares the raw and the averaged generators of each run (``ema``:
 the model's own average, the ``--extra-ema`` decays, and the model's average with its
-batch-norm statistics recomputed): four 256 px samples each (one generator pass, as the GPU sweeps), the same conditions and
-noise for every variant, scored against the exemplar; writes ``results/cooc/seeds.md``
-(per run and the median over seeds) and ``seeds-RUN.png`` sheets.
+batch-norm statistics recomputed): four 256 px samples each (one generator pass, as the
+GPU sweeps), the same conditions and noise for every variant, scored against the
+exemplar; writes ``results/cooc/seeds.md`` (per run and the median over seeds) and
+``seeds-RUN.png`` sheets.
 
 Options: ``--threads N`` (torch threads, default 2), ``--steps N`` (train: override
 n_steps), ``--max-minutes M`` (train: stop each run after M minutes of training and
