@@ -310,6 +310,7 @@ def test_tiled_training(exemplar):
     assert model._crops.shape == (4 * TINY["n_crops"], 3, 32, 32) and model._window_cells == 8
     real, cond = model._batch(torch)
     assert real.shape == (4, 3, 32, 32) and cond.shape == (1, 9, 8, 8)  # batch 4 = one 2 x 2 crop
+    assert model.crop_pool(3, rng=0).shape == (3, 64, 64, 3)  # the quilted assembly's crops: 2 x 2 tiles' size
     assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
 
 

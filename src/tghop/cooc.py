@@ -441,6 +441,11 @@ QUILT_TOLERANCE = 0.1
 QUILT_DETAIL = 0.5
 
 
+def _check_assembly(assembly) -> None:
+    if assembly not in ASSEMBLIES:
+        raise TGHopError(f"assembly must be one of {', '.join(ASSEMBLIES)}, got {assembly!r}")
+
+
 def _window_layout(length: int, n: int, stride: int):
     """Windows along one axis of ``length`` cells: ``(starts, (pad_before, pad_after), window)``.
 
@@ -1465,8 +1470,7 @@ class CoocGAN:
         """
         from .baselines import _output_size
 
-        if assembly not in ASSEMBLIES:
-            raise TGHopError(f"assembly must be one of {', '.join(ASSEMBLIES)}, got {assembly!r}")
+        _check_assembly(assembly)
         h, w = _output_size(size, (1, 1))
         r = check_rng(rng)
         if assembly == "quilt":
@@ -1507,8 +1511,8 @@ class CoocGAN:
         r = check_rng(rng)
         cells = self._window_cells
         _, hc, wc = self.exemplar_cooc_.shape
-        cy = r.integers(0, max(1, hc - cells + 1), size=int(n))
-        cx = r.integers(0, max(1, wc - cells + 1), size=int(n))
+        cy = r.integers(0, hc - cells + 1, size=int(n))  # fit makes sure that a window fits
+        cx = r.integers(0, wc - cells + 1, size=int(n))
         channels = int(self.settings_["noise_channels"])
         side = cells * self.s
         out = np.empty((int(n), side, side, self.exemplar_shape_[2]), dtype=np.float32)
@@ -1713,8 +1717,7 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
     """
     from .baselines import _output_size
 
-    if assembly not in ASSEMBLIES:  # before a quarter of an hour of training
-        raise TGHopError(f"assembly must be one of {', '.join(ASSEMBLIES)}, got {assembly!r}")
+    _check_assembly(assembly)  # before a quarter of an hour of training
     img = check_image(exemplar, name="exemplar")
     r = check_rng(rng)
     if model is None:
