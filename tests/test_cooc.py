@@ -191,7 +191,9 @@ def test_generation_is_seeded_and_noise_matters(tiny_model):
 
 
 def test_crop_pool_generates_from_exemplar_crops(tiny_model, monkeypatch):
-    pool = tiny_model.crop_pool(10, rng=0, batch=4)
+    stages = []
+    pool = tiny_model.crop_pool(10, rng=0, batch=4, progress=lambda *a: stages.append(a))
+    assert stages == [("generate", 4, 10), ("generate", 8, 10), ("generate", 10, 10)]
     assert pool.shape == (10, 32, 32, 3) and pool.dtype == np.float32
     assert pool.min() >= 0 and pool.max() <= 1
     np.testing.assert_array_equal(pool, tiny_model.crop_pool(10, rng=0))  # the batch size does not matter

@@ -1476,8 +1476,7 @@ class CoocGAN:
         if assembly == "quilt":
             from .quilting import quilt
 
-            pool = self.crop_pool(QUILT_POOL, rng=r)
-            report(progress, "generate", 1, 1)
+            pool = self.crop_pool(QUILT_POOL, rng=r, progress=progress)
             side = pool.shape[1]
             return quilt(pool, (h, w), overlap=max(1, side // 4), tolerance=QUILT_TOLERANCE, detail=QUILT_DETAIL,
                          rng=r, progress=progress).astype(np.float64)
@@ -1485,7 +1484,8 @@ class CoocGAN:
         report(progress, "generate", 1, 1)
         return out[:h, :w]
 
-    def crop_pool(self, n: int, *, rng=None, batch: int = 64) -> np.ndarray:
+    def crop_pool(self, n: int, *, rng=None, batch: int = 64,
+                  progress: Optional[ProgressCallback] = None) -> np.ndarray:
         """``n`` generated crops of the training size, each from a random exemplar crop's tensor.
 
         Each crop's condition is the tensor of an exemplar crop of the generator's training
@@ -1499,6 +1499,8 @@ class CoocGAN:
         rng : int or numpy.random.Generator, optional
         batch : int
             Crops per generator call.
+        progress : callable, optional
+            Stage "generate", crops done of ``n``.
 
         Returns
         -------
@@ -1522,6 +1524,7 @@ class CoocGAN:
             conds = conds / conds.sum(axis=1, keepdims=True)
             noise = r.standard_normal((len(conds), channels, cells, cells)).astype(np.float32)
             out[a : a + len(conds)] = np.clip(self._run_generator(torch, conds, noise), 0.0, 1.0)
+            report(progress, "generate", a + len(conds), int(n))
         return out
 
     def morph_strip(self, a, b, *, length: int = 8, rng=None, windows: bool = False) -> np.ndarray:
