@@ -228,6 +228,20 @@ def test_quilted_sample_is_seeded_and_assemblies_differ(tiny_model, exemplar):
                                   tiny_model.sample((50, 37), rng=5, assembly="pass"))
     with pytest.raises(TGHopError, match="assembly must be one of quilt, pass, windows"):
         tiny_model.sample(32, assembly="whole")
+
+
+@pytest.mark.parametrize("cells, pool", [(4, 1000), (8, 1000), (16, 250), (64, 100)])
+def test_quilted_pool_is_about_4_mpx_of_crops(tiny_model, monkeypatch, cells, pool):
+    asked = []
+
+    def fake_pool(self, n, *, rng=None, batch=64, progress=None):
+        asked.append(n)
+        return np.full((n, cells * 8, cells * 8, 3), 0.5, dtype=np.float32)
+
+    monkeypatch.setattr(cooc.CoocGAN, "_window_cells", property(lambda self: cells))
+    monkeypatch.setattr(cooc.CoocGAN, "crop_pool", fake_pool)
+    assert tiny_model.sample((40, 40), rng=0).shape == (40, 40, 3)
+    assert asked == [pool]  # s = 8: crops of 32, 64, 128 and 512 px
     with pytest.raises(TGHopError, match="assembly"):  # at once, before any training
         cooc.baseline(exemplar, 32, assembly="tiles")
 

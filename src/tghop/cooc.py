@@ -432,7 +432,9 @@ FEATHER = 0.5
 #: How :meth:`CoocGAN.sample` makes an image from the generator.
 ASSEMBLIES = ("quilt", "pass", "windows")
 
-#: Generated crops quilted by :meth:`CoocGAN.sample` (``assembly="quilt"``).
+#: Generated crops quilted by :meth:`CoocGAN.sample` (``assembly="quilt"``) for 64 px
+#: crops (:data:`SMALL`); larger crops get proportionally fewer, so that the pool is
+#: always about 4 Mpx of generator work (:data:`PAPER`'s 128 px crops: 250).
 QUILT_POOL = 1000
 
 #: Quilting's tolerance and detail preference for that assembly (see
@@ -1455,10 +1457,11 @@ class CoocGAN:
             How the image is made from the generator (see :data:`ASSEMBLIES`):
 
             - ``"quilt"`` (ours, the default): :meth:`crop_pool` generates
-              :data:`QUILT_POOL` crops of the training size, each from a random exemplar
-              crop's tensor, and image quilting (:func:`tghop.quilting.quilt`, overlap a
-              quarter of a crop, preferring detailed candidates as TGHop does) stitches
-              them, so the generator only ever runs at the size it was trained at;
+              :data:`QUILT_POOL` crops of the training size (fewer for crops larger
+              than 64 px), each from a random exemplar crop's tensor, and image
+              quilting (:func:`tghop.quilting.quilt`, overlap a quarter of a crop,
+              preferring detailed candidates as TGHop does) stitches them, so the
+              generator only ever runs at the size it was trained at;
             - ``"pass"`` (the paper's): one generator pass over the exemplar's tensor,
               mirror-tiled from a random offset to the output size (:meth:`condition_for`);
             - ``"windows"``: that tensor in overlapping training-size windows
@@ -1476,8 +1479,9 @@ class CoocGAN:
         if assembly == "quilt":
             from .quilting import quilt
 
-            pool = self.crop_pool(QUILT_POOL, rng=r, progress=progress)
-            side = pool.shape[1]
+            side = self._window_cells * self.s
+            n = min(QUILT_POOL, max(100, QUILT_POOL * 64 * 64 // (side * side)))
+            pool = self.crop_pool(n, rng=r, progress=progress)
             return quilt(pool, (h, w), overlap=max(1, side // 4), tolerance=QUILT_TOLERANCE, detail=QUILT_DETAIL,
                          rng=r, progress=progress).astype(np.float64)
         out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=assembly == "windows")
