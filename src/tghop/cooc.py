@@ -1473,6 +1473,7 @@ class CoocGAN:
         """
         from .baselines import _output_size
 
+        self._check_fitted()
         _check_assembly(assembly)
         h, w = _output_size(size, (1, 1))
         r = check_rng(rng)
