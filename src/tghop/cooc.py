@@ -432,9 +432,9 @@ FEATHER = 0.5
 #: How :meth:`CoocGAN.sample` makes an image from the generator.
 ASSEMBLIES = ("quilt", "pass", "windows")
 
-#: Generated crops quilted by :meth:`CoocGAN.sample` (``assembly="quilt"``) for 64 px
-#: crops (:data:`SMALL`); larger crops get proportionally fewer, so that the pool is
-#: always about 4 Mpx of generator work (:data:`PAPER`'s 128 px crops: 250).
+#: Generated crops quilted by :meth:`CoocGAN.sample` (``assembly="quilt"``) for crops of
+#: up to 64 px (:data:`SMALL`); larger crops get proportionally fewer, the same 4 Mpx of
+#: generator work, and at least 100 (:data:`PAPER`'s 128 px crops: 250).
 QUILT_POOL = 1000
 
 #: Quilting's tolerance and detail preference for that assembly (see
