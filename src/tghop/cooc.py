@@ -1512,23 +1512,18 @@ class CoocGAN:
         ndarray, shape (n, side, side, C), float32 in [0, 1]
         """
         self._check_fitted()
-        torch = _import_torch()
         if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
             raise TGHopError(f"n must be a positive integer, got {n!r}")
         r = check_rng(rng)
-        cells = self._window_cells
+        cells, s = self._window_cells, self.s
         _, hc, wc = self.exemplar_cooc_.shape
-        cy = r.integers(0, hc - cells + 1, size=int(n))  # fit makes sure that a window fits
-        cx = r.integers(0, wc - cells + 1, size=int(n))
-        channels = int(self.settings_["noise_channels"])
-        side = cells * self.s
+        ys = r.integers(0, hc - cells + 1, size=int(n)) * s  # fit makes sure that a window fits
+        xs = r.integers(0, wc - cells + 1, size=int(n)) * s
+        side = cells * s
         out = np.empty((int(n), side, side, self.exemplar_shape_[2]), dtype=np.float32)
-        t = self.exemplar_cooc_
         for a in range(0, int(n), int(batch)):
-            conds = np.stack([t[:, y : y + cells, x : x + cells] for y, x in zip(cy[a : a + batch], cx[a : a + batch])])
-            conds = conds / conds.sum(axis=1, keepdims=True)
-            noise = r.standard_normal((len(conds), channels, cells, cells)).astype(np.float32)
-            out[a : a + len(conds)] = np.clip(self._run_generator(torch, conds, noise), 0.0, 1.0)
+            conds = [self.crop_condition(y, x, side) for y, x in zip(ys[a : a + batch], xs[a : a + batch])]
+            out[a : a + len(conds)] = self.generate_batch(conds, rng=r)
             report(progress, "generate", a + len(conds), int(n))
         return out
 
