@@ -190,6 +190,7 @@ def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
         "    pass\n"
         "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'sklearn', 'scipy', 'threadpoolctl', 'torch'})\n"
         "print('HEAVY', heavy, file=sys.stderr)\n"
+        "print('NUMPY', 'numpy' in sys.modules, file=sys.stderr)\n"
     )
     for args in (["--help"], ["--version"], ["info", "model.npz"],
                  ["synth", "model.npz", "-o", "lazy.png", "--size", "40", "--pool", "100", "-q"],
@@ -198,3 +199,5 @@ def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
         _, err = p.communicate(timeout=120)
         assert p.returncode == 0
         assert "HEAVY []" in err.decode(), (args, err.decode())
+        if args[0].startswith("--"):  # help and version do not even import NumPy
+            assert "NUMPY False" in err.decode(), (args, err.decode())

@@ -254,6 +254,14 @@ def test_load_errors(small_model, tmp_path):
     _write_npz(tmp_path / "broken.npz", **broken)
     with pytest.raises(ModelFileError, match="corrupt"):
         load_model(tmp_path / "broken.npz")
+    # NaN or infinity anywhere: in the float16 mixing rows (checked on their bits) or a float64 array.
+    for name, value in (("ichm_ii.mixing", np.inf), ("ichm_ii.mixing", -np.inf), ("ichm_ii.mixing", np.nan),
+                        ("sdr.components", np.nan)):
+        bad = arrays[name].copy()
+        bad.flat[bad.size // 2] = value
+        _write_npz(tmp_path / "nan.npz", **{**arrays, name: bad})
+        with pytest.raises(ModelFileError, match=f"array {name} holds NaN or infinite"):
+            load_model(tmp_path / "nan.npz")
     truncated = path.read_bytes()[: path.stat().st_size // 2]
     (tmp_path / "cut.npz").write_bytes(truncated)
     with pytest.raises(ModelFileError):

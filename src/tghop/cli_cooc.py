@@ -1,7 +1,8 @@
 """``tghop cooc ...``: train the co-occurrence cGAN (Darzi et al.) and use its controls.
 
 Registered on the main group by :mod:`tghop.cli`; torch is imported only when a command
-runs (through :mod:`tghop.cooc`), so ``tghop --help`` stays fast and torch-free.
+runs (through :mod:`tghop.cooc`), and NumPy only inside the commands, so ``tghop --help``
+stays fast and torch-free.
 """
 
 from __future__ import annotations
@@ -10,9 +11,8 @@ import json
 import re
 
 import click
-import numpy as np
 
-from ._common import TGHopError
+from ._errors import TGHopError
 from .cli import Progress, Size, check_output, load_exemplar, user_errors
 
 #: Longest morph strip, in condition cells.
@@ -57,7 +57,7 @@ def load_checkpoint(path):
     return load(path)
 
 
-def condition(model, spec: str) -> np.ndarray:
+def condition(model, spec: str):
     """A co-occurrence tensor from ``crop:Y,X`` (a crop of the training exemplar) or an image."""
     m = re.fullmatch(r"crop:(\d+),(\d+)", spec.strip())
     if m:
@@ -182,6 +182,8 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows):
 
     SOURCES are crop:ROW,COL or images, as for morph; none: the exemplar's own tensor.
     """
+    import numpy as np
+
     from .cooc import paint_condition
     from .imageio import save_image
     from .quilting import MAX_PIXELS

@@ -32,7 +32,6 @@ Choices the paper leaves open (see also the notes in the docs):
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -467,6 +466,8 @@ class ICHM(BaseEstimator):
             members = Z[labels == i]
             mean = members.mean(axis=0)
             return (mean, *self._fit_cluster(members - mean, np.random.default_rng(seeds[i])))
+
+        from concurrent.futures import ThreadPoolExecutor  # not at module level: loading a model needs none
 
         from threadpoolctl import threadpool_limits
 

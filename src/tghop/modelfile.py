@@ -88,6 +88,16 @@ def _read(path):
     return meta, arrays
 
 
+def _all_finite(arr) -> bool:
+    """No NaN or infinity in ``arr`` (any dtype). Float16 arrays (the mixing rows, most of
+    a file) are checked on their bits, all exponent bits set meaning NaN or infinity: NumPy
+    has no fast float16 ``isfinite`` (31 ms against 2 ms for a brick_wall model)."""
+    if arr.dtype == np.float16:
+        exponent = np.uint16(0x7C00)
+        return not np.any(np.bitwise_and(arr.view(np.uint16), exponent) == exponent)
+    return arr.dtype.kind not in "fc" or bool(np.all(np.isfinite(arr)))
+
+
 def load_model(path):
     """Read a model written by :func:`save_model`.
 
@@ -100,7 +110,7 @@ def load_model(path):
     if meta["format_version"] == 2 and isinstance(meta.get("params"), dict):
         meta["params"].setdefault("ica_tol", 1e-4)  # what version 2 (tghop 0.2.0) fitted with
     for name, arr in arrays.items():
-        if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
+        if not _all_finite(arr):
             raise ModelFileError(f"{path}: corrupt tghop model (array {name} holds NaN or infinite values); "
                                  "fit the model again")
     try:

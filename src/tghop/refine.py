@@ -20,7 +20,6 @@ import functools
 import math
 import numbers
 import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -426,6 +425,8 @@ def refine(image, stats, *, n_iter=3, tile=False):
 
     workers = len(tasks)
     if workers > 1 and (os.cpu_count() or 1) > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
+        from concurrent.futures import ThreadPoolExecutor
+
         with ThreadPoolExecutor(max_workers=workers) as pool:
             dec = np.stack(list(pool.map(one, tasks)))
     else:
