@@ -153,6 +153,15 @@ def test_help_says_what_sizes_cost_and_the_size_order():
     assert "HEIGHTxWIDTH" in flat and "--seed" in flat
 
 
+@pytest.mark.parametrize("command", [[], ["fit"], ["synth"], ["info"], ["evaluate"], ["patches"], ["baseline"],
+                                     ["cooc"], ["cooc", "train"], ["cooc", "morph"], ["cooc", "edit"]])
+def test_help_is_plain_text(command):
+    # The settings table's help is reStructuredText for the docstrings; --help shows it plain.
+    result = CliRunner().invoke(main, [*command, "--help"])
+    assert result.exit_code == 0
+    assert "`" not in result.stdout and ":mod:" not in result.stdout, result.stdout
+
+
 def _python(code, *args, **kwargs):
     return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, **kwargs)

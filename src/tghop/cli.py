@@ -183,9 +183,15 @@ class SettingType(click.ParamType):
         return out
 
 
+def _plain(text: str) -> str:
+    """The table's help text without its reStructuredText roles and literals (for ``--help``)."""
+    return re.sub(r"``([^`]+)``", r"\1", re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text))
+
+
 def _setting_option(s):
     """A click option for setting ``s``, its help and default taken from the table."""
     names = list(s.option_names)
+    help_text = _plain(s.help)
     default = s.default
     shown = {True: "on", False: "off", None: "none"}.get(default, default) if not isinstance(default, int) or \
         isinstance(default, bool) else default
@@ -197,8 +203,8 @@ def _setting_option(s):
         extra += f"; --paper: {s.paper}"
     if s.kind == "bool":
         flag = names[0]
-        return click.option(f"{flag}/--no-{flag[2:]}", s.name, default=None, help=f"{s.help} [{extra}]")
-    return click.option(*names, s.name, type=SettingType(s), default=None, help=f"{s.help} [{extra}]")
+        return click.option(f"{flag}/--no-{flag[2:]}", s.name, default=None, help=f"{help_text} [{extra}]")
+    return click.option(*names, s.name, type=SettingType(s), default=None, help=f"{help_text} [{extra}]")
 
 
 def _channel_options():
