@@ -91,6 +91,9 @@ CASES = [
     (["fit", "bricks.png", "-o", "m.npz", "--reject-threshold", "-inf"], ["--reject-threshold", "finite"]),
     (["fit", "bricks.png", "-o", "m.npz", "--cluster-energy", "nan"], ["--cluster-energy"]),
     (["synth", "model.npz", "-o", "o.png", "--tolerance", "nan"], ["--tolerance", "finite"]),
+    (["synth", "model.npz", "-o", "o.png", "--pool", "0"], ["--pool", "<= 10,000,000"]),  # not 1e+07
+    # an image where a model is expected
+    (["info", "bricks.png"], ["bricks.png is an image", "tghop fit bricks.png"]),
     # truncated model files
     (["synth", "trunc.npz", "-o", "o.png"], ["trunc.npz", "truncated"]),
     (["info", "trunc.npz"], ["trunc.npz", "truncated"]),

@@ -262,6 +262,19 @@ def test_load_errors(small_model, tmp_path):
         _write_npz(tmp_path / "nan.npz", **{**arrays, name: bad})
         with pytest.raises(ModelFileError, match=f"array {name} holds NaN or infinite"):
             load_model(tmp_path / "nan.npz")
+    # An image or a PyTorch checkpoint (a zip too) given as a model: said so, with what to do instead.
+    from PIL import Image
+
+    Image.new("RGB", (8, 8)).save(tmp_path / "image.npz", format="PNG")
+    with pytest.raises(ModelFileError, match="is an image, not a model file; .*tghop fit"):
+        load_model(tmp_path / "image.npz")
+    import zipfile
+
+    with zipfile.ZipFile(tmp_path / "net.pt", "w") as z:
+        z.writestr("net/data.pkl", b"\x80\x02}q\x00.")
+        z.writestr("net/version", b"3")
+    with pytest.raises(ModelFileError, match="PyTorch checkpoint.*tghop cooc"):
+        load_model(tmp_path / "net.pt")
     truncated = path.read_bytes()[: path.stat().st_size // 2]
     (tmp_path / "cut.npz").write_bytes(truncated)
     with pytest.raises(ModelFileError):

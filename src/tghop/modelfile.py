@@ -63,11 +63,17 @@ def _read(path):
             arrays = {name: data[name] for name in data.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, NotImplementedError, MemoryError,
             zlib.error, RuntimeError) as exc:
+        if _is_image(path):
+            raise ModelFileError(f"{path} is an image, not a model file; fit a model from it with "
+                                 f"'tghop fit {path} -o model.npz'") from None
         raise ModelFileError(
             f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); "
             "fit the model again with 'tghop fit'"
         ) from None
     if "__meta__" not in arrays:
+        if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout
+            raise ModelFileError(f"{path}: a PyTorch checkpoint, not a tghop model file (co-occurrence cGAN "
+                                 "checkpoints are used with 'tghop cooc morph' or 'edit' and 'tghop baseline cooc --model')")
         raise ModelFileError(f"{path}: a NumPy archive but not a tghop model file; fit a model with 'tghop fit'")
     try:
         meta = json.loads(str(arrays.pop("__meta__")))
@@ -96,6 +102,19 @@ def _all_finite(arr) -> bool:
         exponent = np.uint16(0x7C00)
         return not np.any(np.bitwise_and(arr.view(np.uint16), exponent) == exponent)
     return arr.dtype.kind not in "fc" or bool(np.all(np.isfinite(arr)))
+
+
+def _is_image(path) -> bool:
+    """Whether Pillow recognises ``path`` as an image (asked only once reading it as a model failed)."""
+    from PIL import Image
+
+    try:
+        with Image.open(path):
+            return True
+    except Image.DecompressionBombError:
+        return True
+    except Exception:  # noqa: BLE001 (any failure: not an image Pillow can open)
+        return False
 
 
 def load_model(path):

@@ -46,6 +46,13 @@ __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "fit_settings", "generate_
 _MISSING = object()
 
 
+def _number(value) -> str:
+    """A bound as people write it: 10,000,000 rather than 1e+07; 0.5 stays 0.5."""
+    if float(value).is_integer() and abs(value) >= 1000:
+        return f"{int(value):,}"
+    return f"{value:g}"
+
+
 @dataclass(frozen=True)
 class Setting:
     """One setting of TGHop.
@@ -107,9 +114,9 @@ class Setting:
             return "one of " + ", ".join(repr(c) for c in self.choices)
         parts = []
         if self.low is not None:
-            parts.append(f"{'>' if self.low_open else '>='} {self.low:g}")
+            parts.append(f"{'>' if self.low_open else '>='} {_number(self.low)}")
         if self.high is not None:
-            parts.append(f"{'<' if self.high_open else '<='} {self.high:g}")
+            parts.append(f"{'<' if self.high_open else '<='} {_number(self.high)}")
         noun = {"int": "an integer", "float": "a finite number", "bool": "True or False"}.get(self.kind, "")
         text = noun + (" " + " and ".join(parts) if parts else "")
         return text + (" or None" if self.none_ok else "")
