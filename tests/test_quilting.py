@@ -466,3 +466,15 @@ def test_gradient_energy_is_the_mean_squared_neighbour_difference(dtype):
     out = _gradient_energy(x)
     assert out.dtype == np.float32 and out.shape == (len(x),)
     np.testing.assert_allclose(out, ref, rtol=1e-5)
+
+
+def test_quilt_prepared_in_float32_is_the_same_canvas(brick_pool):
+    from tghop.quilting import prepare_pool, quilt_prepared
+
+    prepared = prepare_pool(brick_pool.astype(np.float32), (50, 70))
+    wide = quilt_prepared(prepared, rng=3)
+    narrow = quilt_prepared(prepared, rng=3, dtype=np.float32)
+    assert wide.dtype == np.float64 and narrow.dtype == np.float32
+    assert np.array_equal(wide, narrow.astype(np.float64))
+    with pytest.raises(TGHopError, match="dtype"):
+        quilt_prepared(prepared, rng=3, dtype=np.int32)

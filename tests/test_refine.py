@@ -118,6 +118,36 @@ def test_threaded_refine_equals_one_thread(cells, monkeypatch):
     assert np.array_equal(threaded, refine(img, st))
 
 
+def test_refine_threads_are_limited_by_memory(cells, monkeypatch):
+    """Channels refined at once: as many as their working memory allows (at least one),
+    with the same numbers whatever the number."""
+    import concurrent.futures
+
+    from tghop import refine as refine_module
+
+    st = BandStatistics().fit(cells)
+    img = _blurred(cells) * 0.8 + 0.1
+    one_channel = refine_module._CHANNEL_ARRAYS * 4 * img.shape[0] * img.shape[1]
+    monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1)
+    monkeypatch.setattr(refine_module.os, "cpu_count", lambda: 2)
+    started = []
+    real = concurrent.futures.ThreadPoolExecutor
+
+    def spy(max_workers):
+        started.append(max_workers)
+        return real(max_workers=max_workers)
+
+    monkeypatch.setattr(concurrent.futures, "ThreadPoolExecutor", spy)
+    results = {}
+    for budget, threads in ((10 * one_channel, 3), (2 * one_channel, 2), (one_channel, None), (1, None)):
+        monkeypatch.setattr(refine_module, "_REFINE_MEMORY", budget)
+        started.clear()
+        results[budget] = refine(img, st)
+        assert started == ([threads] if threads else []), (budget, started)
+    first = next(iter(results.values()))
+    assert all(np.array_equal(first, r) for r in results.values())
+
+
 def test_refine_errors(cells):
     st = BandStatistics().fit(cells)
     with pytest.raises(TGHopError, match="n_iter"):
@@ -201,3 +231,12 @@ def test_matching_in_chunks_is_pointwise_and_handles_strided_outputs(monkeypatch
     order = np.argsort(values, axis=None)
     assert np.all(np.diff(whole.ravel()[order]) >= 0)
     assert whole.min() >= target[0] - 1e-6 and whole.max() <= target[-1] + 1e-6
+
+
+def test_refine_takes_float32_without_changing_the_result(cells):
+    st = BandStatistics().fit(cells)
+    img = (_blurred(cells) * 0.8 + 0.1).astype(np.float32)
+    out = refine(img, st)
+    assert out.dtype == np.float64
+    assert np.array_equal(out, refine(img.astype(np.float64), st))
+    assert refine(img, st, n_iter=0).dtype == np.float64

@@ -37,6 +37,13 @@ _MAX_VALUES = 1 << 16
 #: Images from this many pixels on are refined with one thread per colour channel.
 _THREADED_PIXELS = 512 * 512
 
+#: Working memory of one channel's refinement in image-sized float32 arrays (measured at
+#: 4096x4096: the pyramid, the spectrum and the filtered versions of the finest band at once).
+_CHANNEL_ARRAYS = 10
+#: The channels refined at the same time use at most about this much working memory
+#: together: 3 threads up to about 4096x4096, fewer above (8192x8192: one at a time).
+_REFINE_MEMORY = 3 << 30
+
 #: Bands from this many pixels on are transformed with ``scipy.fft`` (see :func:`_fft_module`).
 _SCIPY_FFT_PIXELS = 512 * 512
 
@@ -244,8 +251,19 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     periodic boundaries; the windows sum to 1). 0 or 1: the band itself. ``axes``: the
     spatial axes, as in :func:`laplacian_pyramid`.
     """
+    return list(iter_oriented_parts(band, n_orientations, axes=axes))
+
+
+def iter_oriented_parts(band, n_orientations, *, axes=(0, 1)):
+    """:func:`oriented_parts` one part at a time, each a new array the caller may change
+    in place (the parts that follow do not depend on it).
+
+    Holding one part at a time instead of all of them keeps about two fewer band-sized
+    arrays alive: the refinement of a large image matches each part as it comes.
+    """
     if n_orientations <= 1:
-        return [band]
+        yield band
+        return
     n = int(n_orientations)
     h, w = band.shape[axes[0]], band.shape[axes[1]]
     fft = _fft_module(h * w)
@@ -263,7 +281,7 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
                 for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
     del spectrum
     scale = band.dtype.type(1.0 / n)
-    parts = []
+    rest = None  # the sum of the parts so far, in order: p0 + p1 + ...
     for k in range(n - 1):
         part = band.copy()
         for coef, f in zip((cos[k], sin[k]), filtered):
@@ -274,13 +292,14 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
             elif coef:
                 part += band.dtype.type(coef) * f
         part *= scale
-        parts.append(part)
+        if rest is None:
+            rest = part.copy()
+        else:
+            rest += part
+        yield part
     # The last part is the rest, so that the parts sum to the band: band - (p0 + p1 + ...).
-    rest = parts[0] + parts[1] if len(parts) > 1 else parts[0].copy()
-    for part in parts[2:]:
-        rest += part
-    parts.append(np.subtract(band, rest, out=rest))
-    return parts
+    del filtered
+    yield np.subtract(band, rest, out=rest)
 
 
 class BandStatistics:
@@ -392,6 +411,7 @@ def refine(image, stats, *, n_iter=3, tile=False):
     Parameters
     ----------
     image : ndarray, shape (H, W, C), in [0, 1]
+        Refined in float32 (a float32 image is not copied to float64 first).
     stats : BandStatistics
         Fitted on the exemplar (same C).
     n_iter : int
@@ -405,33 +425,46 @@ def refine(image, stats, *, n_iter=3, tile=False):
     """
     if not isinstance(n_iter, numbers.Integral) or isinstance(n_iter, bool) or n_iter < 0:
         raise TGHopError(f"refine: n_iter must be a non-negative integer, got {n_iter!r}")
-    image = np.asarray(image, dtype=np.float64)
+    image = np.asarray(image)
+    if image.dtype not in (np.float32, np.float64):  # float32 stays float32: refined in float32 anyway
+        image = image.astype(np.float64)
     if image.ndim != 3 or image.shape[2] != len(stats.colour_mean_):
         raise TGHopError(f"refine: image of shape {image.shape} but the statistics have "
                          f"{len(stats.colour_mean_)} channels")
     if n_iter == 0:
-        return np.clip(image, 0.0, 1.0)
+        return np.clip(image.astype(np.float64), 0.0, 1.0)
     mode = "wrap" if tile else "reflect"
     # The decorrelated channels are refined independently (each band of each channel has
     # its own quantiles): one thread per channel for large images (NumPy's FFT and
     # element-wise loops release the GIL), even on fewer cores: three channels on two
     # workers would leave one core idle while the last channel runs alone.
-    dec = np.moveaxis(stats.to_decorrelated(image.astype(np.float32)), 2, 0)
+    # Memory (a large image): each channel is copied out once and then belongs to its
+    # task alone, and each result is written straight into the (H, W, C) array that goes
+    # back to colours, so that no stacked copies of all channels are made.
+    dec = stats.to_decorrelated(image.astype(np.float32, copy=False))
+    channels = [np.ascontiguousarray(dec[..., k]) for k in range(dec.shape[2])]
     q = stats.band_quantiles_
-    tasks = [(np.ascontiguousarray(dec[k]), q[:, :, k], stats.pixel_quantiles_[k]) for k in range(dec.shape[0])]
 
-    def one(task):
-        return _refine_channel(*task, n_iter=n_iter, mode=mode)
+    def take(k):  # the channel's only reference moves into _refine_channel, which lets go of it early
+        x, channels[k] = channels[k], None
+        return x
 
-    workers = len(tasks)
-    if workers > 1 and (os.cpu_count() or 1) > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
+    def one(k):
+        dec[..., k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode)
+
+    pixels = image.shape[0] * image.shape[1]
+    workers = min(len(channels), max(1, _REFINE_MEMORY // (_CHANNEL_ARRAYS * 4 * pixels)))
+    if workers > 1 and (os.cpu_count() or 1) > 1 and pixels >= _THREADED_PIXELS:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            dec = np.stack(list(pool.map(one, tasks)))
+            list(pool.map(one, range(len(channels))))
     else:
-        dec = np.stack([one(t) for t in tasks])
-    return np.clip(stats.from_decorrelated(np.moveaxis(dec, 0, 2)), 0.0, 1.0).astype(np.float64)
+        for k in range(len(channels)):
+            one(k)
+    out = stats.from_decorrelated(dec)
+    del dec
+    return np.clip(out, 0.0, 1.0, out=out).astype(np.float64)
 
 
 def _refine_channel(x, band_q, pixel_q, *, n_iter, mode):
@@ -444,13 +477,16 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode):
     qlev = np.linspace(0.0, 1.0, band_q.shape[-1])
     for _ in range(n_iter):
         bands = laplacian_pyramid(x, len(band_q), mode=mode)
+        x = None  # the bands hold it now (one band-sized array less while the parts are made)
         for i in range(len(bands) - 1):
-            parts = oriented_parts(bands[i], n_parts)
-            for j, part in enumerate(parts):
+            total = None  # the matched parts summed in order, into the first one
+            for j, part in enumerate(iter_oriented_parts(bands[i], n_parts)):
                 _match(part, band_q[i, j], qlev, out=part)
-            for part in parts[1:]:  # summed in order, into the first part
-                parts[0] += part
-            bands[i] = parts[0]
+                if total is None:
+                    total = part
+                else:
+                    total += part
+            bands[i] = total
         x = reconstruct(bands, mode=mode)
         _match(x, pixel_q, qlev, out=x)
     return x

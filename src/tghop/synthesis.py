@@ -576,9 +576,10 @@ class TGHop(BaseEstimator):
             report(progress, "patch pool", 0, 1)
             prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=None)
         report(progress, "patch pool", 1, 1)
+        # float32 when refined (the refinement works in float32): half the memory of a large image.
         image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
-                               guide_weight=layout_weight)
-        del prepared  # the pool and its tables: not needed from here on
+                               guide_weight=layout_weight, dtype=np.float32 if refine else np.float64)
+        del prepared, guide  # the pool, its tables and the guide: not needed from here on
         if refine:
             report(progress, "refine", 0, 1)
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
