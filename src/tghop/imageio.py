@@ -119,7 +119,14 @@ def _decode(im, path, max_pixels, downscale):
 def to_uint8(image) -> np.ndarray:
     """Convert a float image in [0, 1] to ``uint8`` (rounding), dropping a singleton channel."""
     arr = np.asarray(image, dtype=np.float64)
-    out = np.round(np.clip(arr, 0.0, 1.0) * 255.0).astype(np.uint8)
+    out = np.empty(arr.shape, dtype=np.uint8)
+    # A few rows at a time: the temporaries of a large image stay small (an 8192x8192
+    # RGB image is 1.6 GB in float64; whole-image steps made two more of those).
+    step = max(1, (1 << 20) // max(1, arr[:1].size))
+    for a in range(0, arr.shape[0], step):
+        tmp = np.clip(arr[a : a + step], 0.0, 1.0)
+        tmp *= 255.0
+        out[a : a + step] = np.round(tmp, out=tmp)
     if out.ndim == 3 and out.shape[2] == 1:
         out = out[:, :, 0]
     return out
