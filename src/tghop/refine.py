@@ -23,7 +23,7 @@ import os
 
 import numpy as np
 
-from ._common import TGHopError
+from ._common import TGHopError, report
 
 __all__ = ["BandStatistics", "refine", "laplacian_pyramid", "reconstruct", "oriented_parts"]
 
@@ -402,7 +402,7 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=3, tile=False):
+def refine(image, stats, *, n_iter=3, tile=False, progress=None):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
@@ -420,6 +420,9 @@ def refine(image, stats, *, n_iter=3, tile=False):
         Rounds (0: the image, clipped).
     tile : bool
         Periodic boundaries (for tileable output).
+    progress : callable, optional
+        ``progress("refine", done, total)``, ``total`` = channels x rounds: after each
+        round (channels one at a time) or each channel (channels in threads).
 
     Returns
     -------
@@ -451,33 +454,40 @@ def refine(image, stats, *, n_iter=3, tile=False):
         x, channels[k] = channels[k], None
         return x
 
-    def one(k):
-        dec[..., k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode)
+    def one(k, on_round=None):
+        dec[..., k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode,
+                                      on_round=on_round)
 
+    n_channels = len(channels)
+    total = n_channels * n_iter
+    report(progress, "refine", 0, total)
     pixels = image.shape[0] * image.shape[1]
-    workers = min(len(channels), max(1, _REFINE_MEMORY // (_CHANNEL_ARRAYS * 4 * pixels)))
+    workers = min(n_channels, max(1, _REFINE_MEMORY // (_CHANNEL_ARRAYS * 4 * pixels)))
     if workers > 1 and (os.cpu_count() or 1) > 1 and pixels >= _THREADED_PIXELS:
-        from concurrent.futures import ThreadPoolExecutor
+        from concurrent.futures import ThreadPoolExecutor, as_completed
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(one, range(len(channels))))
+            # Progress is reported from this thread, as channels finish.
+            for done, future in enumerate(as_completed([pool.submit(one, k) for k in range(n_channels)]), start=1):
+                future.result()
+                report(progress, "refine", done * n_iter, total)
     else:
-        for k in range(len(channels)):
-            one(k)
+        for k in range(n_channels):
+            one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total))
     out = stats.from_decorrelated(dec)
     del dec
     return np.clip(out, 0.0, 1.0, out=out).astype(np.float64)
 
 
-def _refine_channel(x, band_q, pixel_q, *, n_iter, mode):
+def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None):
     """``n_iter`` rounds of band and pixel histogram matching of one (H, W) channel.
 
     ``band_q`` (n_levels, n_parts, n_quantiles) and ``pixel_q`` (n_quantiles,) are the
-    exemplar's quantiles of this channel.
+    exemplar's quantiles of this channel; ``on_round(r)`` is called after round r (1, 2, ...).
     """
     n_parts = band_q.shape[1]
     qlev = np.linspace(0.0, 1.0, band_q.shape[-1])
-    for _ in range(n_iter):
+    for r in range(1, n_iter + 1):
         bands = laplacian_pyramid(x, len(band_q), mode=mode)
         x = None  # the bands hold it now (one band-sized array less while the parts are made)
         for i in range(len(bands) - 1):
@@ -491,4 +501,6 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode):
             bands[i] = total
         x = reconstruct(bands, mode=mode)
         _match(x, pixel_q, qlev, out=x)
+        if on_round is not None:
+            on_round(r)
     return x

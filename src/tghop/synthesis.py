@@ -581,9 +581,7 @@ class TGHop(BaseEstimator):
                                guide_weight=layout_weight, dtype=np.float32 if refine else np.float64)
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
         if refine:
-            report(progress, "refine", 0, 1)
-            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile)
-            report(progress, "refine", 1, 1)
+            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress)
         if not match_colours:
             return image
         report(progress, "colour", 0, 1)
