@@ -238,8 +238,15 @@ def _double_angle(h, w, dtype):
     uses the same few shapes (the arrays are read-only)."""
     fy = np.fft.fftfreq(h)[:, None]
     fx = np.fft.rfftfreq(w)[None, :]
-    theta = np.arctan2(fy, fx)
-    out = (np.cos(2.0 * theta).astype(dtype), np.sin(2.0 * theta).astype(dtype))
+    # cos 2theta = (fx^2 - fy^2) / r^2 and sin 2theta = 2 fx fy / r^2: no trigonometry (a
+    # 4096x4096 band: 0.56 -> 0.16 s, once per shape); the origin counts as theta = 0.
+    fx2, fy2 = fx * fx, fy * fy
+    r2 = fx2 + fy2
+    r2[0, 0] = 1.0
+    cos2 = (fx2 - fy2) / r2
+    sin2 = (2.0 * fx * fy) / r2
+    cos2[0, 0], sin2[0, 0] = 1.0, 0.0
+    out = (cos2.astype(dtype), sin2.astype(dtype))
     for m in out:
         m.flags.writeable = False
     return out
