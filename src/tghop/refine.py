@@ -263,12 +263,14 @@ def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     return list(iter_oriented_parts(band, n_orientations, axes=axes))
 
 
-def iter_oriented_parts(band, n_orientations, *, axes=(0, 1)):
+def iter_oriented_parts(band, n_orientations, *, axes=(0, 1), workers=1):
     """:func:`oriented_parts` one part at a time, each a new array the caller may change
     in place (the parts that follow do not depend on it).
 
     Holding one part at a time instead of all of them keeps about two fewer band-sized
     arrays alive: the refinement of a large image matches each part as it comes.
+    ``workers``: threads of each Fourier transform of a large band (``scipy.fft``; the
+    same numbers for any count).
     """
     if n_orientations <= 1:
         yield band
@@ -276,7 +278,8 @@ def iter_oriented_parts(band, n_orientations, *, axes=(0, 1)):
     n = int(n_orientations)
     h, w = band.shape[axes[0]], band.shape[axes[1]]
     fft = _fft_module(h * w)
-    spectrum = fft.rfft2(band, axes=axes)  # complex64 for float32 bands (NumPy >= 2, SciPy)
+    threads = {"workers": int(workers)} if fft is not np.fft else {}
+    spectrum = fft.rfft2(band, axes=axes, **threads)  # complex64 for float32 bands (NumPy >= 2, SciPy)
     harmonics = _double_angle(h, w, np.dtype(band.dtype))
     if band.ndim == 3 and tuple(axes) == (0, 1):  # (H, W, C): the windows broadcast over C
         harmonics = [m[..., None] for m in harmonics]
@@ -284,7 +287,7 @@ def iter_oriented_parts(band, n_orientations, *, axes=(0, 1)):
     cos, sin = np.cos(angles), np.sin(angles)
     cos[np.abs(cos) < 1e-12] = 0.0  # exact zeros: skip those terms
     sin[np.abs(sin) < 1e-12] = 0.0
-    extra = {"overwrite_x": True} if fft is not np.fft else {}  # the products are scratch
+    extra = {"overwrite_x": True, **threads} if fft is not np.fft else {}  # the products are scratch
     filtered = [fft.irfft2(np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
                            s=(h, w), axes=axes, **extra).astype(band.dtype, copy=False)
                 for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
@@ -461,9 +464,9 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
         x, channels[k] = channels[k], None
         return x
 
-    def one(k, on_round=None):
+    def one(k, on_round=None, fft_workers=1):
         dec[..., k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode,
-                                      on_round=on_round)
+                                      on_round=on_round, fft_workers=fft_workers)
 
     n_channels = len(channels)
     total = n_channels * n_iter
@@ -479,18 +482,22 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
                 future.result()
                 report(progress, "refine", done * n_iter, total)
     else:
+        # One channel at a time (small images, or too large for several at once): a large
+        # image's Fourier transforms then use every core.
+        fft_workers = (os.cpu_count() or 1) if pixels >= _THREADED_PIXELS else 1
         for k in range(n_channels):
-            one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total))
+            one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total), fft_workers=fft_workers)
     out = stats.from_decorrelated(dec)
     del dec
     return np.clip(out, 0.0, 1.0, out=out).astype(np.float64)
 
 
-def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None):
+def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None, fft_workers=1):
     """``n_iter`` rounds of band and pixel histogram matching of one (H, W) channel.
 
     ``band_q`` (n_levels, n_parts, n_quantiles) and ``pixel_q`` (n_quantiles,) are the
-    exemplar's quantiles of this channel; ``on_round(r)`` is called after round r (1, 2, ...).
+    exemplar's quantiles of this channel; ``on_round(r)`` is called after round r (1, 2, ...);
+    ``fft_workers``: threads of each Fourier transform (when the channels run one at a time).
     """
     n_parts = band_q.shape[1]
     qlev = np.linspace(0.0, 1.0, band_q.shape[-1])
@@ -499,7 +506,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None):
         x = None  # the bands hold it now (one band-sized array less while the parts are made)
         for i in range(len(bands) - 1):
             total = None  # the matched parts summed in order, into the first one
-            for j, part in enumerate(iter_oriented_parts(bands[i], n_parts)):
+            for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, workers=fft_workers)):
                 _match(part, band_q[i, j], qlev, out=part)
                 if total is None:
                     total = part
