@@ -850,6 +850,8 @@ def quilt_prepared(
     """
     if not isinstance(prepared, PreparedPool):
         raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
+    if np.dtype(dtype) not in (np.float32, np.float64):
+        raise TGHopError(f"dtype must be float32 or float64, got {np.dtype(dtype)}")
     tolerance = _check_tolerance(tolerance)
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
@@ -923,8 +925,6 @@ def quilt_prepared(
         report(progress, "quilting", done, plan.n_blocks)
 
     h, w = plan.size
-    if np.dtype(dtype) not in (np.float32, np.float64):
-        raise TGHopError(f"dtype must be float32 or float64, got {np.dtype(dtype)}")
     out = canvas[:h, :w].astype(dtype)
     del canvas
     np.clip(out, 0.0, 1.0, out=out)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ._common import TGHopError, report
 
-__all__ = ["BandStatistics", "refine", "laplacian_pyramid", "reconstruct", "oriented_parts"]
+__all__ = ["BandStatistics", "refine", "laplacian_pyramid", "reconstruct", "oriented_parts", "iter_oriented_parts"]
 
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
