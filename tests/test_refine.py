@@ -257,3 +257,19 @@ def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, thread
     assert done[0] == 0 and done[-1] == 6 and done == sorted(done)
     assert len(done) == (4 if threaded else 7)  # start, then each channel or each round
     assert np.array_equal(out, refine(img, st, n_iter=2))
+
+
+@pytest.mark.parametrize("mode", ["wrap", "reflect"])
+def test_pad_is_numpys_wrap_or_symmetric_padding(mode):
+    from tghop.refine import _pad
+
+    rng = np.random.default_rng(0)
+    for shape in [(1, 5), (2, 3), (3, 7), (4, 4, 3), (7, 2)]:  # also widths beyond the axis
+        x = rng.random(shape).astype(np.float32)
+        for axis in range(x.ndim):
+            for width in (1, 2, 3):
+                pad = [(0, 0)] * x.ndim
+                pad[axis] = (width, width)
+                expected = np.pad(x, pad, mode="wrap" if mode == "wrap" else "symmetric")
+                out = _pad(x, axis, width, mode)
+                assert out.dtype == x.dtype and np.array_equal(out, expected), (shape, axis, width)

@@ -55,9 +55,20 @@ _MATCH_CHUNK = 1 << 16
 
 
 def _pad(img, axis, width, mode):
-    pad = [(0, 0)] * img.ndim
-    pad[axis] = (width, width)
-    return np.pad(img, pad, mode="wrap" if mode == "wrap" else "symmetric")
+    """``width`` samples added at both ends of ``axis``: periodic ("wrap") or mirrored with
+    the edge sample repeated (``np.pad``'s "symmetric"). Slices and one concatenation: a
+    refinement pads about 200 times, and ``np.pad``'s own overhead was a fifth of
+    refining a 128x128 image."""
+    n = img.shape[axis]
+    if width > n:  # tiny arrays: np.pad repeats the pattern
+        pad = [(0, 0)] * img.ndim
+        pad[axis] = (width, width)
+        return np.pad(img, pad, mode="wrap" if mode == "wrap" else "symmetric")
+    if mode == "wrap":
+        head, tail = _take(img, axis, n - width, n), _take(img, axis, 0, width)
+    else:
+        head, tail = np.flip(_take(img, axis, 0, width), axis), np.flip(_take(img, axis, n - width, n), axis)
+    return np.concatenate([head, img, tail], axis=axis)
 
 
 def _take(img, axis, start, stop, step=1):
