@@ -1484,7 +1484,7 @@ class CoocGAN:
             n = min(QUILT_POOL, max(100, QUILT_POOL * 64 * 64 // (side * side)))
             pool = self.crop_pool(n, rng=r, progress=progress)
             return quilt(pool, (h, w), overlap=max(1, side // 4), tolerance=QUILT_TOLERANCE, detail=QUILT_DETAIL,
-                         rng=r, progress=progress).astype(np.float64)
+                         rng=r, progress=progress)  # float64 already
         out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=assembly == "windows")
         report(progress, "generate", 1, 1)
         return out[:h, :w]
@@ -1514,17 +1514,18 @@ class CoocGAN:
         self._check_fitted()
         if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
             raise TGHopError(f"n must be a positive integer, got {n!r}")
+        n, batch = int(n), int(batch)
         r = check_rng(rng)
         cells, s = self._window_cells, self.s
         _, hc, wc = self.exemplar_cooc_.shape
-        ys = r.integers(0, hc - cells + 1, size=int(n)) * s  # fit makes sure that a window fits
-        xs = r.integers(0, wc - cells + 1, size=int(n)) * s
+        ys = r.integers(0, hc - cells + 1, size=n) * s  # fit makes sure that a window fits
+        xs = r.integers(0, wc - cells + 1, size=n) * s
         side = cells * s
-        out = np.empty((int(n), side, side, self.exemplar_shape_[2]), dtype=np.float32)
-        for a in range(0, int(n), int(batch)):
+        out = np.empty((n, side, side, self.exemplar_shape_[2]), dtype=np.float32)
+        for a in range(0, n, batch):
             conds = [self.crop_condition(y, x, side) for y, x in zip(ys[a : a + batch], xs[a : a + batch])]
             out[a : a + len(conds)] = self.generate_batch(conds, rng=r)
-            report(progress, "generate", a + len(conds), int(n))
+            report(progress, "generate", a + len(conds), n)
         return out
 
     def morph_strip(self, a, b, *, length: int = 8, rng=None, windows: bool = False) -> np.ndarray:
