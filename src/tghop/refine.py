@@ -237,6 +237,20 @@ def _fft_module(n_pixels):
     return np.fft
 
 
+def _irfft2(fft, spectrum, shape, axes, threads):
+    """Inverse of ``rfft2`` over ``axes``; ``spectrum`` is scratch (overwritten).
+
+    With ``scipy.fft``, as its two passes written out (the complex pass along ``axes[0]`` in
+    place, then the real pass along ``axes[1]``): ``scipy.fft.irfft2`` copies the spectrum
+    first (a 2048x2048 band: 39 -> 25 ms; 4096x4096: 184 -> 125 ms). The same numbers for
+    power-of-two sides, else up to float32 round-off (5e-7).
+    """
+    if fft is np.fft:
+        return np.fft.irfft2(spectrum, s=shape, axes=axes)
+    half = fft.ifft(spectrum, axis=axes[0], overwrite_x=True, **threads)
+    return fft.irfft(half, n=shape[1], axis=axes[1], overwrite_x=True, **threads)
+
+
 @functools.lru_cache(maxsize=16)
 def _double_angle(h, w, dtype):
     """``cos(2 theta)`` and ``sin(2 theta)`` over the rfft2 grid (``theta``: the frequency's
@@ -298,9 +312,8 @@ def iter_oriented_parts(band, n_orientations, *, axes=(0, 1), workers=1):
     cos, sin = np.cos(angles), np.sin(angles)
     cos[np.abs(cos) < 1e-12] = 0.0  # exact zeros: skip those terms
     sin[np.abs(sin) < 1e-12] = 0.0
-    extra = {"overwrite_x": True, **threads} if fft is not np.fft else {}  # the products are scratch
-    filtered = [fft.irfft2(np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
-                           s=(h, w), axes=axes, **extra).astype(band.dtype, copy=False)
+    filtered = [_irfft2(fft, np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
+                        (h, w), axes, threads).astype(band.dtype, copy=False)
                 for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
     del spectrum
     scale = band.dtype.type(1.0 / n)
