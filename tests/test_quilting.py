@@ -478,3 +478,39 @@ def test_quilt_prepared_in_float32_is_the_same_canvas(brick_pool):
     assert np.array_equal(wide, narrow.astype(np.float64))
     with pytest.raises(TGHopError, match="dtype"):
         quilt_prepared(prepared, rng=3, dtype=np.int32)
+
+
+# ----------------------------------------------------------------------------- error bound
+
+
+@pytest.mark.parametrize("tile", [False, True])
+def test_box_sums_bound_the_overlap_error_from_below(brick_pool, tile):
+    # The lower bound that prunes the pool: for every overlap shape, the squared box sums
+    # of a masked difference never exceed its squared norm, and equal it for a difference
+    # that is constant over each box.
+    prepared = quilting.prepare_pool(brick_pool, (120, 120), tile=tile)
+    boxes, masks = prepared._boxes, prepared._masks_fc
+    rng = np.random.default_rng(0)
+    for j in range(masks.shape[0]):
+        d = rng.standard_normal((50, masks.shape[1])).astype(np.float32) * masks[j]
+        bound = np.square(quilting._box_sums(d, boxes)).sum(axis=1)
+        assert np.all(bound <= np.square(d).sum(axis=1) * (1 + 1e-5))
+        values = rng.standard_normal(boxes.scale.size).astype(np.float32) * boxes.in_mask[j]
+        d = np.full((1, masks.shape[1]), np.nan, dtype=np.float32)
+        start = 0
+        for members in boxes.members:  # constant over each box
+            d[0, members] = values[start : start + len(members), None]
+            start += len(members)
+        assert not np.isnan(d).any()  # the boxes cover the frame
+        assert np.allclose(np.square(quilting._box_sums(d, boxes)).sum(), np.square(d).sum(), rtol=1e-5)
+
+
+@pytest.mark.parametrize("tile", [False, True])
+def test_pruned_candidates_give_the_same_quilt_as_full_errors(monkeypatch, brick_pool, tile):
+    # Full errors are computed only for the patches the bound cannot rule out; the quilt is
+    # the one every patch's full error gives (with a guide, and with detail selection).
+    guide = ndimage.uniform_filter(crops(bricks(256), 1, 96, seed=5)[0], (9, 9, 1))
+    kwargs = dict(tile=tile, detail=0.5, guide=guide, guide_weight=3.0, rng=4)
+    pruned = quilt(brick_pool, (96, 96), **kwargs)
+    monkeypatch.setattr(quilting, "_bounded_candidates", lambda *args: None)
+    np.testing.assert_array_equal(pruned, quilt(brick_pool, (96, 96), **kwargs))

@@ -20,6 +20,11 @@ few possible overlap shapes, so a block costs one matrix product. Blocks are pla
 before it in raster order are all on earlier wavefronts, so every block of a wavefront is
 matched at once with one matrix-matrix product (GEMM) and the result is the same as
 placing them one by one in raster order.
+
+Most of the pool is ruled out cheaply: a lower bound of each patch's error from sums over
+2 x 2 boxes of the overlap (a tenth of its values) leaves, typically, a dozen of 5,000
+patches whose full error could be within the tolerance of the best, and only theirs are
+computed (:class:`_Boxes`; the same candidates, up to float32 round-off).
 """
 
 from __future__ import annotations
@@ -619,15 +624,79 @@ def _guide_setup(guide, weight, prepared):
     return {"low": prepared._low, "low_norm": prepared._low_norm, "canvas": g, "scale": scale, "factor": factor}
 
 
-def _add_guide_error(err, guided, windows, mid):
-    """Add each block's weighted guide distance ``(n, b)`` to ``err`` in place."""
+def _guide_targets(guided, windows):
+    """``(b, L)``: the guide's low-pass values at each of ``b`` blocks."""
     g = guided["canvas"]
-    target = _box_means(np.stack([g[win] for win in windows]), guided["scale"])  # (b, k)
+    return _box_means(np.stack([g[win] for win in windows]), guided["scale"])
+
+
+def _guide_distances(guided, target, factor):
+    """``(n, b)``: each pool patch's guide distance to ``target`` (b, L), times ``factor`` (b,)."""
     dist = guided["low"] @ (-2.0 * target).T
     dist += guided["low_norm"][:, None]
     dist += np.einsum("ij,ij->i", target, target)[None, :]
-    dist *= guided["factor"][mid][None, :]
-    err += dist
+    dist *= factor[None, :]
+    return dist
+
+
+# ----------------------------------------------------------------------------- error bound
+
+
+@dataclass(frozen=True, eq=False)
+class _Boxes:
+    """Small boxes of the overlap frame, for a cheap lower bound of the overlap error.
+
+    The frame's pixels (all channels) are grouped into boxes of at most 2 x 2 pixels that
+    lie wholly inside or outside each overlap shape. The box sums of a difference ``d``,
+    each divided by the square root of its box's size, are its coordinates along
+    orthonormal directions, so their squares add up to at most ``||d||^2`` (Cauchy-Schwarz
+    per box): a lower bound of the overlap error at a tenth of the columns.
+
+    Attributes
+    ----------
+    members : list of ndarray of int, shapes (g_s, s)
+        The frame features of each box, for the boxes of each size ``s`` (g boxes in all,
+        in this order).
+    scale : ndarray of float32, shape (g,)
+        ``1 / sqrt(box size)``.
+    in_mask : ndarray of float32, shape (m, g)
+        1 where the box lies in overlap shape ``j``.
+    """
+
+    members: list
+    scale: np.ndarray
+    in_mask: np.ndarray
+
+
+def _overlap_boxes(masks_fc: np.ndarray, slices, p: int, c: int) -> _Boxes:
+    """The boxes of the frame given by ``slices`` for overlap shapes ``masks_fc`` (m, k)."""
+    rows, cols = np.mgrid[0:p, 0:p]
+    y = _frame_features(np.broadcast_to(rows[None, :, :, None], (1, p, p, c)), slices)[0]
+    x = _frame_features(np.broadcast_to(cols[None, :, :, None], (1, p, p, c)), slices)[0]
+    covered = masks_fc > 0  # (m, k)
+    # The shapes a pixel belongs to, as bytes, then its 2 x 2 cell: a box per distinct key.
+    key = np.concatenate([np.packbits(covered, axis=0).T.astype(np.int64), (y // 2)[:, None], (x // 2)[:, None]], axis=1)
+    box = np.unique(key, axis=0, return_inverse=True)[1].ravel()
+    order = np.argsort(box, kind="stable")  # features box by box
+    sizes = np.bincount(box)
+    starts = np.cumsum(sizes) - sizes
+    members, firsts = [], []
+    for size in np.unique(sizes):  # one gather-and-sum per box size
+        which = np.flatnonzero(sizes == size)
+        members.append(order[starts[which, None] + np.arange(size)])
+        firsts.append(members[-1][:, 0])
+    first = np.concatenate(firsts) if firsts else np.zeros(0, dtype=np.intp)
+    scale = np.concatenate([np.full(len(mb), 1.0 / math.sqrt(mb.shape[1])) for mb in members]) if members else np.zeros(0)
+    return _Boxes(members=members, scale=scale.astype(np.float32), in_mask=covered[:, first].astype(np.float32))
+
+
+def _box_sums(features: np.ndarray, boxes: _Boxes) -> np.ndarray:
+    """``(N, k)`` frame features -> ``(N, g)`` scaled box sums (float32)."""
+    if not boxes.members:  # no frame (an output within one patch)
+        return np.zeros((features.shape[0], 0), dtype=np.float32)
+    out = np.concatenate([features[:, mb].sum(axis=2) for mb in boxes.members], axis=1)
+    out *= boxes.scale
+    return out
 
 
 # ----------------------------------------------------------------------------- quilting
@@ -642,12 +711,18 @@ def _window(y: int, x: int, p: int, hc: int, wc: int):
     return rows, cols
 
 
-def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray) -> np.ndarray:
-    """``(n, m + k)`` float32: each patch's squared norm over each of the ``m`` overlap
-    shapes, then its ``k`` frame values (channels innermost)."""
+def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes):
+    """The pool's rows for the overlap error and for its lower bound.
+
+    Returns ``table`` ``(n, m + k)`` float32: each patch's squared norm over each of the
+    ``m`` overlap shapes, then its ``k`` frame values (channels innermost); and ``bound``
+    ``(n, m + g)``: the same for its ``g`` scaled box sums (:class:`_Boxes`).
+    """
     n = arr.shape[0]
     m, k = masks_fc.shape
+    g = boxes.scale.size
     table = np.empty((n, m + k), dtype=np.float32)
+    bound = np.empty((n, m + g), dtype=np.float32)
     squares = np.empty((min(n, _POOL_CHUNK), k), dtype=np.float32)
     for a in range(0, n, _POOL_CHUNK):
         rows = table[a : a + _POOL_CHUNK, m:]
@@ -655,7 +730,10 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray) -> np.ndarray:
         _check_values(rows)
         sq = np.square(rows, out=squares[: rows.shape[0]])
         np.matmul(sq, masks_fc.T, out=table[a : a + _POOL_CHUNK, :m])
-    return table
+        sums = bound[a : a + _POOL_CHUNK, m:]
+        sums[...] = _box_sums(rows, boxes)
+        np.matmul(np.square(sums), boxes.in_mask.T, out=bound[a : a + _POOL_CHUNK, :m])
+    return table, bound
 
 
 def _gradient_energy(arr: np.ndarray) -> np.ndarray:
@@ -671,6 +749,67 @@ def _gradient_energy(arr: np.ndarray) -> np.ndarray:
         out[a : a + n] = (np.einsum("ij,ij->i", dy, dy) / np.float32(dy.shape[1])
                           + np.einsum("ij,ij->i", dx, dx) / np.float32(dx.shape[1]))
     return out
+
+
+def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx):
+    """Overlap error (plus guide distance) of pool patch ``pool_idx[i]`` at block ``block_idx[i]``;
+    ``wraps`` (b,): the blocks that also overlap the columns from ``k1`` on."""
+    table = prepared._table
+    err = np.einsum("ij,ij->i", table[pool_idx, :k1], query[block_idx, :k1])
+    err += onorm[block_idx]
+    w = np.flatnonzero(wraps[block_idx])
+    if w.size:
+        err[w] += np.einsum("ij,ij->i", table[pool_idx[w], k1:], query[block_idx[w], k1:])
+    if target is not None:
+        diff = prepared._low[pool_idx] - target[block_idx]
+        err += factor[block_idx] * np.einsum("ij,ij->i", diff, diff)
+    return err
+
+
+def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack):
+    """The candidates of :func:`quilt_prepared`'s rule, with full errors only where needed.
+
+    A lower bound of every pool patch's error (the box sums of :class:`_Boxes` instead of
+    the overlap pixels: a tenth of the columns; the guide distance in full, to ``target``
+    (b, L) times ``factor`` (b,)) is compared with the full error of the patch with the
+    smallest bound, an upper bound of the best error. Only the patches whose lower bound
+    is within the tolerance of it (typically a dozen of 5,000) can be candidates; their
+    full errors decide, by the same rule as without the bound, so the candidates are the
+    same (up to float32 round-off).
+
+    Returns
+    -------
+    (pool_idx, block_idx) : ndarrays of int
+        The candidates, ordered by pool index then block; None when the bound leaves more
+        than an eighth of all (patch, block) pairs (e.g. the first block, which overlaps
+        nothing).
+    """
+    boxes, bound = prepared._boxes, prepared._bound
+    m, g = boxes.in_mask.shape
+    n, b = bound.shape[0], o.shape[0]
+    sums = _box_sums(o, boxes)  # zero outside each block's own shape (o is masked)
+    # One product against the pool's [norms per shape | box sums | low pass | its norm].
+    lb_query = np.empty((b, bound.shape[1]), dtype=np.float32)
+    lb_query[:, :m] = query[:, :m]
+    np.multiply(sums, -2.0, out=lb_query[:, m : m + g])
+    offset = np.einsum("ij,ij->i", sums, sums)
+    if target is not None:
+        np.multiply(target, (-2.0 * factor)[:, None], out=lb_query[:, m + g : -1])
+        lb_query[:, -1] = factor
+        offset += factor * np.einsum("ij,ij->i", target, target)
+    lower = bound @ lb_query.T
+    lower += offset[None, :]
+    first = lower.argmin(axis=0)
+    upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, np.arange(b))
+    # Twice the slack: the bound's own round-off.
+    pool_idx, block_idx = np.nonzero(lower <= np.maximum(upper, 0.0) * (1.0 + tolerance) + 2.0 * slack)
+    if pool_idx.size > n * b // 8:
+        return None
+    err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx)
+    best = np.full(b, np.inf, dtype=err.dtype)
+    np.minimum.at(best, block_idx, err)
+    keep = err <= np.maximum(best, 0.0)[block_idx] * (1.0 + tolerance) + slack[block_idx]
+    return pool_idx[keep], block_idx[keep]
 
 
 def quilt(
@@ -740,13 +879,13 @@ def quilt(
 
     Notes
     -----
-    Cost: one pass over the pool's overlap pixels (float32) per wavefront, about
-    ``2 * ny + nx`` of them for a ``ny x nx`` grid of blocks; the products go through
-    BLAS, whose threads can be limited with ``threadpoolctl`` (on a busy machine one
-    thread is often faster). Memory: the float32 overlap table of the pool (``n`` rows of
-    about ``2 P overlap C`` values, twice that with ``tile``), ``n x`` (blocks per
-    wavefront) errors, a float32 canvas and the float64 result; per block the plan keeps
-    only a few integers.
+    Cost: one pass over a tenth of the pool's overlap values (their box sums, float32)
+    per wavefront, about ``2 * ny + nx`` of them for a ``ny x nx`` grid of blocks, and
+    the full errors of the few patches that bound leaves; the products go through BLAS,
+    whose threads can be limited with ``threadpoolctl``. Memory: the float32 overlap
+    table of the pool (``n`` rows of about ``2 P overlap C`` values, twice that with
+    ``tile``) and its box sums, ``n x`` (blocks per wavefront) bounds, a float32 canvas
+    and the float64 result; per block the plan keeps only a few integers.
     """
     _check_tolerance(tolerance)
     prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail,
@@ -768,7 +907,8 @@ class PreparedPool:
     """A patch pool made ready for quilting one image: :func:`prepare_pool`'s result.
 
     What depends only on the pool and the block layout (each patch's values in the
-    overlap frame and squared norms, gradient energy, low-pass values for a guide) is
+    overlap frame and squared norms, their box sums for the error bound, gradient
+    energy, low-pass values for a guide) is
     computed once here, so that it can be done while something else (e.g. the guide) is
     still being made; :func:`quilt_prepared` then places the blocks.
 
@@ -790,6 +930,8 @@ class PreparedPool:
     _masks_f: np.ndarray
     _masks_fc: np.ndarray
     _table: np.ndarray
+    _boxes: _Boxes
+    _bound: np.ndarray
     _energy: Optional[np.ndarray]
     _low: Optional[np.ndarray]
     _low_norm: Optional[np.ndarray]
@@ -806,8 +948,9 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     -------
     PreparedPool
         Holds the float32 overlap table of the pool (``n`` rows of about ``2 P overlap
-        C`` values) and, with ``detail > 0`` / ``guide_scale``, ``n`` gradient energies /
-        ``n (P / guide_scale)^2 C`` low-pass values.
+        C`` values), its box sums (about a tenth of that) and, with ``detail > 0`` /
+        ``guide_scale``, ``n`` gradient energies / ``n (P / guide_scale)^2 C`` low-pass
+        values.
     """
     arr = _check_pool(pool)
     p, c = arr.shape[1], arr.shape[3]
@@ -823,14 +966,20 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     slices = _frame_slices(p, plan.frame)
     masks_f = _frame_features(plan.masks[..., None], slices).astype(np.float32)  # (m, nf)
     masks_fc = np.repeat(masks_f, c, axis=1)  # (m, nf * c), matches the (pixel, channel) layout
-    table = _pool_table(arr, slices, masks_fc)
+    boxes = _overlap_boxes(masks_fc, slices, p, c)
+    table, bound = _pool_table(arr, slices, masks_fc, boxes)
     energy = _gradient_energy(arr) if detail > 0 else None
     low = low_norm = None
-    if scale is not None:
-        low = np.concatenate([_box_means(arr[a : a + _POOL_CHUNK], scale) for a in range(0, arr.shape[0], _POOL_CHUNK)])
-        low_norm = np.einsum("ij,ij->i", low, low)
+    if scale is not None:  # the low pass and its norm join the bound's columns (views into them)
+        n_low = (p // scale) ** 2 * c
+        bound = np.concatenate([bound, np.empty((arr.shape[0], n_low + 1), dtype=np.float32)], axis=1)
+        low, low_norm = bound[:, -1 - n_low : -1], bound[:, -1]
+        for a in range(0, arr.shape[0], _POOL_CHUNK):
+            low[a : a + _POOL_CHUNK] = _box_means(arr[a : a + _POOL_CHUNK], scale)
+        np.einsum("ij,ij->i", low, low, out=low_norm)
     return PreparedPool(patches=arr, plan=plan, detail=detail, guide_scale=scale, _slices=slices, _masks_f=masks_f,
-                        _masks_fc=masks_fc, _table=table, _energy=energy, _low=low, _low_norm=low_norm)
+                        _masks_fc=masks_fc, _table=table, _boxes=boxes, _bound=bound, _energy=energy, _low=low,
+                        _low_norm=low_norm)
 
 
 def quilt_prepared(
@@ -884,25 +1033,30 @@ def quilt_prepared(
         old = np.stack([canvas[win] for win in windows])  # (b, p, p, c)
         mid = plan.mask_id[bi, bj]
 
-        # Overlap errors of all pool patches for all blocks (minus ||o||^2): (n, b).
+        # The blocks' masked overlap pixels o and query rows [one-hot of the shape | -2 o].
         o = _frame_features(old, slices)
         o *= masks_fc[mid]
         onorm = np.einsum("ij,ij->i", o, o)
         query = np.empty((b, m + k), dtype=np.float32)
         query[:, :m] = one_hot[mid]
         np.multiply(o, -2.0, out=query[:, m:])
-        err = table[:, :k1] @ query[:, :k1].T
-        sel = np.flatnonzero(wraps[mid])
-        if sel.size:
-            err[:, sel] += table[:, k1:] @ query[sel, k1:].T
+        target = factor = None
         if guided is not None:
-            _add_guide_error(err, guided, windows, mid)
+            target, factor = _guide_targets(guided, windows), guided["factor"][mid]
         # Candidates: error <= (1 + tolerance) * best error, with a little slack for the
         # float32 round-off of the expansion; the best match always qualifies.
-        best = np.maximum(err.min(axis=0) + onorm, 0.0)
         slack = 1e-5 * (onorm + norm_max[mid])
-        cand = err <= best * (1.0 + tolerance) + slack - onorm
-        pool_idx, block_idx = np.nonzero(cand)
+        found = _bounded_candidates(prepared, o, query, onorm, k1, wraps[mid], target, factor, tolerance, slack)
+        if found is None:  # the bound rules out too few patches: every error in full
+            err = table[:, :k1] @ query[:, :k1].T
+            sel = np.flatnonzero(wraps[mid])
+            if sel.size:
+                err[:, sel] += table[:, k1:] @ query[sel, k1:].T
+            if target is not None:
+                err += _guide_distances(guided, target, factor)
+            best = np.maximum(err.min(axis=0) + onorm, 0.0)
+            found = np.nonzero(err <= best * (1.0 + tolerance) + slack - onorm)
+        pool_idx, block_idx = found  # ordered by pool index, then block
         counts = np.bincount(block_idx, minlength=b)
         first = np.concatenate(([0], np.cumsum(counts)[:-1]))
         if energy is None:
