@@ -47,9 +47,11 @@ _REFINE_MEMORY = 3 << 30
 #: Bands from this many pixels on are transformed with ``scipy.fft`` (see :func:`_fft_module`).
 _SCIPY_FFT_PIXELS = 512 * 512
 
-#: Resolution of the lookup table that applies a matching map (uniform steps over the
-#: band's range; the map is piecewise linear between its quantiles).
-_LUT_SIZE = 4096
+#: Entries of the lookup table that applies a matching map (uniform steps over the band's
+#: range; the map is piecewise linear between its quantiles): a quarter of the values
+#: matched, within these bounds (65,536 entries: at most 6e-5 of the band's range from the
+#: piecewise-linear map).
+_LUT_MIN, _LUT_MAX = 4096, 1 << 16
 # Values mapped per step of a table lookup (the temporaries of one step fit in L2 cache).
 _MATCH_CHUNK = 1 << 16
 
@@ -176,8 +178,9 @@ def _quantiles(values, levels):
 def _match(values, target, levels, out=None):
     """Monotone map of ``values`` giving them the quantiles ``target`` (at ``levels``).
 
-    The map (piecewise linear through the pairs of quantiles) is tabulated at _LUT_SIZE
-    uniform steps over the values' range and applied by table lookup: linear time.
+    The map (piecewise linear through the pairs of quantiles) is tabulated at uniform
+    steps over the values' range (a quarter as many as values, within _LUT_MIN and
+    _LUT_MAX) and applied by looking up the nearest entry: linear time.
     """
     source = _quantiles(values, levels)
     lo, hi = float(source[0]), float(source[-1])
@@ -187,43 +190,42 @@ def _match(values, target, levels, out=None):
         return out
     # Strictly increasing breakpoints for interp (flat runs in sparse bands).
     source = source + np.arange(len(source)) * (1e-9 * (hi - lo))
-    grid = np.linspace(lo, source[-1], _LUT_SIZE)
+    size = min(_LUT_MAX, max(_LUT_MIN, values.size // 4))
+    grid = np.linspace(lo, source[-1], size)
     table = np.interp(grid, source, target).astype(values.dtype)
     out = np.empty_like(values) if out is None else out
     src = np.ascontiguousarray(values).reshape(-1)
     dst = out.reshape(-1) if out.flags.c_contiguous else np.empty(out.size, dtype=out.dtype)
-    _apply_table(src, lo, (_LUT_SIZE - 1) / (source[-1] - lo), table, dst)
+    _apply_table(src, lo, (size - 1) / (source[-1] - lo), table, dst)
     if not out.flags.c_contiguous:
         out[...] = dst.reshape(out.shape)
     return out
 
 
 def _apply_table(src, lo, scale, table, dst):
-    """``dst = table`` linearly interpolated at ``(src - lo) * scale`` (1-d arrays; ``dst``
-    may be ``src``), _MATCH_CHUNK values at a time so that the temporaries of the nine
-    passes stay in cache (a 2048x2048 band: 35 -> 18 ms)."""
+    """``dst = table[round((src - lo) * scale)]``, the index clipped to the table: the
+    nearest entry (1-d arrays; ``dst`` may be ``src``).
+
+    _MATCH_CHUNK values at a time, so that the temporaries stay in cache. Four passes:
+    against nine for linear interpolation in a table of 4,096 entries, which was less
+    accurate than the nearest of 65,536 (a 2048x2048 band: 19 -> 11 ms)."""
     dtype = src.dtype
-    scale, top = dtype.type(scale), _LUT_SIZE - 1.001
-    steps = np.diff(table)
+    scale = dtype.type(scale)
+    offset = dtype.type(0.5 - lo * float(scale))  # + 0.5: truncation then rounds to nearest
+    top = len(table) - 1
     n = src.size
     pos = np.empty(min(_MATCH_CHUNK, n), dtype=dtype)
-    whole = np.empty_like(pos)
     # Table index as intp (NumPy gathers with int32 indices after converting them, at
-    # twice the cost) and fraction ``pos - floor(pos)`` (exact, in the values' dtype).
+    # twice the cost).
     idx = np.empty(pos.shape, dtype=np.intp)
     for a in range(0, n, _MATCH_CHUNK):
         e = min(n, a + _MATCH_CHUNK)
-        p, w, i = pos[: e - a], whole[: e - a], idx[: e - a]
-        np.subtract(src[a:e], lo, out=p, dtype=dtype)
-        p *= scale
+        p, i = pos[: e - a], idx[: e - a]
+        np.multiply(src[a:e], scale, out=p)
+        p += offset
         np.clip(p, 0, top, out=p)
-        np.floor(p, out=w)
-        i[...] = w
-        p -= w
-        np.take(steps, i, out=w)
-        np.multiply(p, w, out=dst[a:e])
-        np.take(table, i, out=w)
-        dst[a:e] += w
+        i[...] = p  # truncation: p >= 0
+        np.take(table, i, out=dst[a:e])
 
 
 def _fft_module(n_pixels):
