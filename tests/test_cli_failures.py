@@ -126,12 +126,16 @@ def test_full_disk_leaves_no_file(folder, monkeypatch):
     def full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(Image.Image, "save", full)
+    from tghop import imageio
+
+    monkeypatch.setattr(Image.Image, "save", full)  # JPEG
+    monkeypatch.setattr(imageio, "write_png", full)
     before = sorted(os.listdir(folder))
-    code, _, err, exc = invoke("synth", "model.npz", "-o", "full.png", "--size", "40", "--pool", "100", "-q",
-                               cwd=folder)
-    assert_one_line(code, err, "full.png", "No space left", exception=exc)
-    assert sorted(os.listdir(folder)) == before
+    for name in ("full.png", "full.jpg"):
+        code, _, err, exc = invoke("synth", "model.npz", "-o", name, "--size", "40", "--pool", "100", "-q",
+                                   cwd=folder)
+        assert_one_line(code, err, name, "No space left", exception=exc)
+        assert sorted(os.listdir(folder)) == before
 
     monkeypatch.setattr(np, "savez", full)
     code, _, err, exc = invoke("fit", "bricks.png", "-o", "full.npz", *FAST, cwd=folder)

@@ -1,6 +1,10 @@
 """Image conversion for writing."""
 
+import io
+
 import numpy as np
+import pytest
+from PIL import Image
 
 from tghop.imageio import to_uint8
 
@@ -15,3 +19,29 @@ def test_to_uint8_rounds_clips_and_works_in_row_blocks():
         assert out.dtype == np.uint8
         assert np.array_equal(out, expected[..., 0] if shape[-1:] == (1,) else expected)
     assert to_uint8(np.float32([[0.0, 1.0]])).tolist() == [[0, 255]]
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (6, 1), (37, 53), (37, 53, 1), (40, 29, 3), (1, 5, 3)])
+@pytest.mark.parametrize("part", [1 << 20, 64])
+def test_png_writer_gives_pillow_the_same_pixels(monkeypatch, shape, part):
+    # One part, or several compressed on threads (small parts, more "cores" than parts):
+    # Pillow reads back every pixel, from a file that passes its checks.
+    from tghop import imageio
+
+    monkeypatch.setattr(imageio, "_PNG_PART", part)
+    monkeypatch.setattr(imageio.os, "cpu_count", lambda: 5)
+    pixels = np.random.default_rng(sum(shape)).integers(0, 256, shape, dtype=np.uint8)
+    pixels[:, : shape[1] // 2] = 255 - pixels[:, : shape[1] // 2] // 7  # runs that compress
+    buf = io.BytesIO()
+    imageio.write_png(buf, pixels)
+    Image.open(io.BytesIO(buf.getvalue())).verify()
+    back = np.asarray(Image.open(io.BytesIO(buf.getvalue())))
+    np.testing.assert_array_equal(back, pixels[..., 0] if pixels.ndim == 3 and shape[2] == 1 else pixels)
+
+
+def test_png_writer_refuses_what_png_cannot_hold():
+    from tghop.imageio import write_png
+
+    for bad in (np.zeros((4, 4), dtype=np.float32), np.zeros((4, 4, 2), dtype=np.uint8), np.zeros(4, dtype=np.uint8)):
+        with pytest.raises(ValueError, match="write_png takes"):
+            write_png(io.BytesIO(), bad)

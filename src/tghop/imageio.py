@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import io
 import os
+import struct
 import sys
 import tempfile
 import warnings
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +17,7 @@ from struct import error as struct_error
 
 from ._common import InvalidImageError, check_image
 
-__all__ = ["load_image", "save_image", "to_uint8", "write_atomic", "check_output_path"]
+__all__ = ["load_image", "save_image", "to_uint8", "write_atomic", "write_png", "check_output_path"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
@@ -199,6 +202,77 @@ def output_format(path) -> str:
     return FORMATS[ext]
 
 
+#: Raw bytes per part of a PNG compressed in parallel (smaller images: one part).
+_PNG_PART = 1 << 20
+
+
+def _png_chunk(fh, kind: bytes, *pieces) -> None:
+    """Write one PNG chunk: length, type, data (given in ``pieces``), CRC."""
+    crc = zlib.crc32(kind)
+    for piece in pieces:
+        crc = zlib.crc32(piece, crc)
+    fh.write(struct.pack(">I", sum(len(piece) for piece in pieces)) + kind)
+    for piece in pieces:
+        fh.write(piece)
+    fh.write(struct.pack(">I", crc))
+
+
+def write_png(fh, pixels, *, level: int = 1) -> None:
+    """Write a uint8 image as an 8-bit PNG, its compression spread over the processor's cores.
+
+    Parameters
+    ----------
+    fh : binary file object
+    pixels : ndarray of uint8, shape (H, W), (H, W, 1) or (H, W, 3)
+        Grey or RGB.
+    level : int
+        zlib level (1: synthesised texture is noise-like, so higher levels barely shrink
+        it, a 2048x2048 image 9.3 MB against 9.9 MB at Pillow's default 6, but cost 0.1-0.3
+        s more).
+
+    Notes
+    -----
+    Every row uses PNG's "Sub" filter (the byte one pixel to the left subtracted). The rows
+    are compressed in parts of about :data:`_PNG_PART` bytes on as many threads (zlib
+    lets go of the interpreter lock), each part a separate deflate stream ended at a
+    byte boundary, and the parts are joined into one zlib stream, as ``pigz`` does: the
+    same image as Pillow's writer (tested), a 2048x2048 RGB image in 0.16 s against 0.40 s.
+    """
+    px = np.asarray(pixels)
+    if px.dtype != np.uint8 or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] not in (1, 3)):
+        raise ValueError(f"write_png takes a uint8 (H, W), (H, W, 1) or (H, W, 3) array, got {px.dtype} {px.shape}")
+    h, w = px.shape[:2]
+    c = 1 if px.ndim == 2 else px.shape[2]
+    rows = px.reshape(h, w * c)
+    raw = np.empty((h, 1 + w * c), dtype=np.uint8)
+    raw[:, 0] = 1  # filter type Sub
+    raw[:, 1 : 1 + c] = rows[:, :c]
+    np.subtract(rows[:, c:], rows[:, :-c], out=raw[:, 1 + c :])  # modulo 256
+    n_parts = max(1, min(os.cpu_count() or 1, raw.nbytes // _PNG_PART, h))
+    bounds = [h * i // n_parts for i in range(n_parts + 1)]
+    blobs = [b""] * n_parts
+
+    def compress(i):
+        stream = zlib.compressobj(level, zlib.DEFLATED, -15)  # raw deflate: the header comes once
+        blobs[i] = stream.compress(raw[bounds[i] : bounds[i + 1]].data) + stream.flush(
+            zlib.Z_FINISH if i == n_parts - 1 else zlib.Z_SYNC_FLUSH)
+
+    if n_parts == 1:
+        compress(0)
+    else:
+        import threading
+
+        threads = [threading.Thread(target=compress, args=(i,)) for i in range(n_parts)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    fh.write(b"\x89PNG\r\n\x1a\n")
+    _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0 if c == 1 else 2, 0, 0, 0))
+    _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))
+    _png_chunk(fh, b"IEND")
+
+
 def save_image(image, path) -> None:
     """Write a float image in [0, 1] to ``path`` (PNG or JPEG by extension; ``-`` is PNG on stdout).
 
@@ -208,18 +282,19 @@ def save_image(image, path) -> None:
     path : str or os.PathLike
         The file appears complete or not at all.
     """
-    from PIL import Image
-
     fmt = output_format(path)
-    pil = Image.fromarray(to_uint8(image))
-    # PNG: zlib level 1. Synthesised texture is noise-like, so higher levels barely shrink
-    # it (a 2048x2048 image: 9.2 MB at level 1, 9.8 MB at Pillow's default 6) but cost
-    # 0.1-0.3 s more.
-    options = {"quality": 95} if fmt == "JPEG" else {"compress_level": 1}
+    pixels = to_uint8(image)
+    if fmt == "PNG":
+        write = functools.partial(write_png, pixels=pixels)
+    else:
+        from PIL import Image
+
+        pil = Image.fromarray(pixels)
+        write = functools.partial(pil.save, format=fmt, quality=95)
     if str(path) == "-":
         buf = io.BytesIO()
-        pil.save(buf, format=fmt, **options)
+        write(buf)
         sys.stdout.buffer.write(buf.getvalue())
         sys.stdout.buffer.flush()
         return
-    write_atomic(path, lambda fh: pil.save(fh, format=fmt, **options))
+    write_atomic(path, write)
