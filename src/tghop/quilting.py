@@ -178,12 +178,17 @@ def _dp_cut(error: np.ndarray) -> np.ndarray:
         np.add(error[:, r], best, out=cum[:, r, 1:-1])
     path = np.empty((b, h), dtype=np.intp)
     path[:, -1] = np.argmin(cum[:, -1, 1:-1], axis=1)
-    step = np.array([0, -1, 1])  # straight first, then left, then right
+    # The way back: above column c of row r + 1 are the padded columns c + 1 (straight),
+    # c (left) and c + 2 (right) of row r, in the order ties are broken; one gather of
+    # flat indices per row (a third of the time of take_along_axis).
+    flat = cum.reshape(-1)
+    row_start = np.arange(b) * (h * (w + 2))
+    above = np.array([1, 0, 2])
+    step = np.array([0, -1, 1])
     for r in range(h - 2, -1, -1):
         c = path[:, r + 1]
-        # Padded column c + 1 + step holds original column c + step.
-        cand = np.take_along_axis(cum[:, r], c[:, None] + 1 + step, axis=1)
-        path[:, r] = c + step[np.argmin(cand, axis=1)]
+        cand = flat[(row_start + r * (w + 2) + c)[:, None] + above]
+        path[:, r] = c + step[cand.argmin(axis=1)]
     return path
 
 
