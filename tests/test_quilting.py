@@ -514,3 +514,10 @@ def test_pruned_candidates_give_the_same_quilt_as_full_errors(monkeypatch, brick
     pruned = quilt(brick_pool, (96, 96), **kwargs)
     monkeypatch.setattr(quilting, "_bounded_candidates", lambda *args: None)
     np.testing.assert_array_equal(pruned, quilt(brick_pool, (96, 96), **kwargs))
+
+
+def test_boundary_cut_breaks_ties_straight_then_left():
+    # Equal costs: the path goes straight; left and right equal (straight dearer): left.
+    assert min_error_boundary_cut(np.zeros((4, 3))).tolist() == [0, 0, 0, 0]
+    assert min_error_boundary_cut(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0]])).tolist() == [0, 1]
+    assert min_error_boundary_cut(np.array([[1.0, 0.0, 1.0], [0.0, 0.0, 0.0]])).tolist() == [1, 0]  # first column, then right
