@@ -791,7 +791,7 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     Returns
     -------
     (pool_idx, block_idx) : ndarrays of int
-        The candidates, ordered by pool index then block; None when the bound leaves more
+        The candidates, ordered by block then pool index; None when the bound leaves more
         than an eighth of all (patch, block) pairs (e.g. the first block, which overlaps
         nothing).
     """
@@ -808,12 +808,12 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
         np.multiply(target, (-2.0 * factor)[:, None], out=lb_query[:, m + g : -1])
         lb_query[:, -1] = factor
         offset += factor * np.einsum("ij,ij->i", target, target)
-    lower = bound @ lb_query.T
-    lower += offset[None, :]
-    first = lower.argmin(axis=0)
+    lower = lb_query @ bound.T  # (b, n): each block's bounds contiguous
+    lower += offset[:, None]
+    first = lower.argmin(axis=1)
     upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, np.arange(b))
     # Twice the slack: the bound's own round-off.
-    pool_idx, block_idx = np.nonzero(lower <= np.maximum(upper, 0.0) * (1.0 + tolerance) + 2.0 * slack)
+    block_idx, pool_idx = np.nonzero(lower <= (np.maximum(upper, 0.0) * (1.0 + tolerance) + 2.0 * slack)[:, None])
     if pool_idx.size > n * b // 8:
         return None
     err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx)
@@ -1067,7 +1067,7 @@ def quilt_prepared(
                 err += _guide_distances(guided, target, factor)
             best = np.maximum(err.min(axis=0) + onorm, 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack - onorm)
-        pool_idx, block_idx = found  # ordered by pool index, then block
+        pool_idx, block_idx = found  # in pool order within each block (the choice below depends on that only)
         counts = np.bincount(block_idx, minlength=b)
         first = np.concatenate(([0], np.cumsum(counts)[:-1]))
         if energy is None:
