@@ -294,6 +294,22 @@ def test_match_histograms_gives_reference_marginals(rng):
         assert np.all(np.diff(out[..., k].ravel()[order]) >= 0)
 
 
+def test_match_histograms_in_chunks_and_threads_is_the_same_map(rng, monkeypatch):
+    # Rows in small chunks and a thread per channel: the same numbers as one step per
+    # channel (also in place).
+    from tghop import colour
+
+    quantiles = colour.channel_quantiles(rng.beta(2, 5, (60, 70, 3)))
+    img = rng.random((41, 37, 3))
+    whole = colour.match_histograms(img, quantiles)
+    monkeypatch.setattr(colour, "_CHUNK", 50)  # one row (37 values) at a time
+    monkeypatch.setattr(colour, "_THREADED_PIXELS", 1)
+    np.testing.assert_array_equal(colour.match_histograms(img, quantiles), whole)
+    inplace = img.copy()
+    assert colour.match_histograms(inplace, quantiles, out=inplace) is inplace
+    np.testing.assert_array_equal(inplace, whole)
+
+
 def test_synthesize_matches_colours_only_when_asked(small_model, bricks96):
     plain = small_model.synthesize((64, 64), rng=1, n_patches=300, match_colours=False, refine=0)
     matched = small_model.synthesize((64, 64), rng=1, n_patches=300, refine=0)

@@ -11,6 +11,8 @@ paper exactly.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES"]
@@ -53,6 +55,11 @@ def channel_quantiles(image, n: int = N_QUANTILES) -> np.ndarray:
 #: Resolution of the rank computation: values are binned to 1/65535 (finer than 16-bit).
 RANK_BINS = 65536
 
+# Values per step of :func:`match_histograms`, and the images from which it runs a thread
+# per channel.
+_CHUNK = 1 << 16
+_THREADED_PIXELS = 512 * 512
+
 
 def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     """Give each channel of ``image`` the distribution described by ``quantiles``.
@@ -79,10 +86,36 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     if out is None:
         out = np.empty((h, w, c))
     levels = np.linspace(0.0, 1.0, quantiles.shape[1])
-    for k in range(c):
-        bins = np.clip(image[..., k] * (RANK_BINS - 1) + 0.5, 0, RANK_BINS - 1).astype(np.uint16)
+    rows = max(1, _CHUNK // max(1, w))
+
+    def one(k):
+        # A few rows at a time, each step in place: the temporaries stay in cache.
+        tmp = np.empty((min(rows, h), w))
+        bins = np.empty((h, w), dtype=np.uint16)
+        for a in range(0, h, rows):
+            t = tmp[: min(rows, h - a)]
+            np.multiply(image[a : a + rows, :, k], RANK_BINS - 1, out=t)
+            t += 0.5
+            np.clip(t, 0, RANK_BINS - 1, out=t)
+            bins[a : a + rows] = t  # truncation: t >= 0
         counts = np.bincount(bins.ravel(), minlength=RANK_BINS)
         mid_rank = (np.cumsum(counts) - 0.5 * counts) / bins.size
         table = np.clip(np.interp(mid_rank, levels, quantiles[k]), 0.0, 1.0)
-        out[..., k] = table[bins]
+        for a in range(0, h, rows):
+            t = tmp[: min(rows, h - a)]
+            np.take(table, bins[a : a + rows], out=t)
+            out[a : a + rows, :, k] = t
+
+    # Large images: a thread per channel (NumPy lets go of the interpreter lock in these
+    # steps). A 2048x2048 image: 194 ms in whole-channel steps, 132 ms in chunks, 94 ms
+    # with threads; the same numbers.
+    if c > 1 and h * w >= _THREADED_PIXELS and (os.cpu_count() or 1) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=c) as pool:
+            for future in [pool.submit(one, k) for k in range(c)]:
+                future.result()
+    else:
+        for k in range(c):
+            one(k)
     return out
