@@ -104,6 +104,11 @@ def test_downsample_upsample():
     for wrap in (False, True):
         ref = ndimage.zoom(img, (2, 2, 1), order=1, mode="grid-wrap" if wrap else "nearest", grid_mode=True)
         assert np.allclose(upsample(img, 2, (17, 15), wrap=wrap), np.clip(ref[:17, :15], 0, 1), atol=1e-12)
+    # A large guide (rows split between two threads): still SciPy's interpolation.
+    big = np.random.default_rng(1).random((513, 520, 1))
+    for wrap in (False, True):
+        ref = ndimage.zoom(big, (2, 2, 1), order=1, mode="grid-wrap" if wrap else "nearest", grid_mode=True)
+        assert np.allclose(upsample(big, 2, (1025, 1040), wrap=wrap), np.clip(ref[:1025, :1040], 0, 1), atol=1e-12)
     # float32 in, float32 out (the guide of a large image), the same numbers to float32 precision.
     up32 = upsample(img.astype(np.float32), 2, (17, 15))
     assert up32.dtype == np.float32 and upsample(img, 2, (17, 15)).dtype == np.float64

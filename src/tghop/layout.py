@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 
 import numpy as np
 from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
@@ -76,16 +77,34 @@ def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
     """
     img = np.asarray(image)
     img = img.astype(np.float32 if img.dtype == np.float32 else np.float64, copy=False)
-    for axis, n in ((0, size[0]), (1, size[1])):
-        # Output sample i sits at input coordinate (i + 0.5) / factor - 0.5 (pixel centres).
-        pos = (np.arange(n) + 0.5) / factor - 0.5
-        lo = np.floor(pos).astype(np.int64)
-        frac = (pos - lo).astype(img.dtype).reshape([-1 if a == axis else 1 for a in range(img.ndim)])
-        m = img.shape[axis]
-        hi = lo + 1
-        lo, hi = (np.mod(lo, m), np.mod(hi, m)) if wrap else (np.clip(lo, 0, m - 1), np.clip(hi, 0, m - 1))
-        img = (1.0 - frac) * np.take(img, lo, axis=axis) + frac * np.take(img, hi, axis=axis)
-    return np.clip(img, 0.0, 1.0)
+    h, w = int(size[0]), int(size[1])
+    out = np.empty((h, w, *img.shape[2:]), dtype=img.dtype)
+
+    def rows(start, stop):  # output rows [start, stop)
+        part = img
+        for axis, index in ((0, np.arange(start, stop)), (1, np.arange(w))):
+            # Output sample i sits at input coordinate (i + 0.5) / factor - 0.5 (pixel centres).
+            pos = (index + 0.5) / factor - 0.5
+            lo = np.floor(pos).astype(np.int64)
+            frac = (pos - lo).astype(img.dtype).reshape([-1 if a == axis else 1 for a in range(img.ndim)])
+            m = img.shape[axis]
+            hi = lo + 1
+            lo, hi = (np.mod(lo, m), np.mod(hi, m)) if wrap else (np.clip(lo, 0, m - 1), np.clip(hi, 0, m - 1))
+            part = (1.0 - frac) * np.take(part, lo, axis=axis) + frac * np.take(part, hi, axis=axis)
+        np.clip(part, 0.0, 1.0, out=out[start:stop])
+
+    # A large guide: the two halves of the rows on two threads (a 2048x2048 one is made
+    # while the other thread waits for it: 113 -> 65 ms).
+    if h * w >= 1 << 20 and h > 1 and (os.cpu_count() or 1) > 1:
+        import threading
+
+        worker = threading.Thread(target=rows, args=(h // 2, h))
+        worker.start()
+        rows(0, h // 2)
+        worker.join()
+    else:
+        rows(0, h)
+    return out
 
 
 def _positive_int(value, name, low=1):
