@@ -242,20 +242,26 @@ def test_refine_takes_float32_without_changing_the_result(cells):
     assert refine(img, st, n_iter=0).dtype == np.float64
 
 
-@pytest.mark.parametrize("threaded", [False, True])
-def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, threaded):
+@pytest.mark.parametrize("path", ["stacked", "threads", "one by one"])
+def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, path):
+    # Small images: all channels at once, after each round; large ones: a thread per
+    # channel, after each channel; too large for several at once: after each round of
+    # each channel. The same numbers on every path.
     from tghop import refine as refine_module
 
     st = BandStatistics().fit(cells)
     img = _blurred(cells) * 0.8 + 0.1
-    monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1 if threaded else 1 << 62)
+    monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1 << 62 if path == "stacked" else 1)
+    if path == "one by one":
+        monkeypatch.setattr(refine_module, "_REFINE_MEMORY", 1)
     monkeypatch.setattr(refine_module.os, "cpu_count", lambda: 2)
     calls = []
     out = refine(img, st, n_iter=2, progress=lambda *a: calls.append(a))
     assert {c[0] for c in calls} == {"refine"} and {c[2] for c in calls} == {6}  # 3 channels x 2 rounds
     done = [c[1] for c in calls]
     assert done[0] == 0 and done[-1] == 6 and done == sorted(done)
-    assert len(done) == (4 if threaded else 7)  # start, then each channel or each round
+    assert len(done) == {"stacked": 3, "threads": 4, "one by one": 7}[path]  # start, then each step
+    monkeypatch.undo()
     assert np.array_equal(out, refine(img, st, n_iter=2))
 
 

@@ -458,7 +458,8 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
         Periodic boundaries (for tileable output).
     progress : callable, optional
         ``progress("refine", done, total)``, ``total`` = channels x rounds: after each
-        round (channels one at a time) or each channel (channels in threads).
+        round (small images: all channels at once; very large ones: one channel at a
+        time) or each channel (channels in threads).
 
     Returns
     -------
@@ -507,10 +508,17 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
             for done, future in enumerate(as_completed([pool.submit(one, k) for k in range(n_channels)]), start=1):
                 future.result()
                 report(progress, "refine", done * n_iter, total)
+    elif pixels < _THREADED_PIXELS:
+        # A small image: all channels at once, stacked (one NumPy call per step instead of
+        # one per channel: a 256x256 image 98 -> 85-89 ms, 128x128 46 -> 32-38 ms; the
+        # same numbers).
+        stack = np.stack([take(k) for k in range(n_channels)])
+        results[:] = _refine_channel(stack, q, stats.pixel_quantiles_, n_iter=n_iter, mode=mode,
+                                     on_round=lambda r: report(progress, "refine", r * n_channels, total))
     else:
-        # One channel at a time (small images, or too large for several at once): a large
+        # One channel at a time (too large for several at once, or one core): a large
         # image's Fourier transforms then use every core.
-        fft_workers = (os.cpu_count() or 1) if pixels >= _THREADED_PIXELS else 1
+        fft_workers = os.cpu_count() or 1
         for k in range(n_channels):
             one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total), fft_workers=fft_workers)
     return _colours(stats, results)
@@ -549,28 +557,38 @@ def _colours(stats, channels):
 
 
 def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None, fft_workers=1):
-    """``n_iter`` rounds of band and pixel histogram matching of one (H, W) channel.
+    """``n_iter`` rounds of band and pixel histogram matching of one (H, W) channel, or of
+    several stacked as (C, H, W).
 
     ``band_q`` (n_levels, n_parts, n_quantiles) and ``pixel_q`` (n_quantiles,) are the
-    exemplar's quantiles of this channel; ``on_round(r)`` is called after round r (1, 2, ...);
-    ``fft_workers``: threads of each Fourier transform (when the channels run one at a time).
+    exemplar's quantiles of this channel (with C channels: (n_levels, n_parts, C,
+    n_quantiles) and (C, n_quantiles)); ``on_round(r)`` is called after round r (1, 2,
+    ...); ``fft_workers``: threads of each Fourier transform (when the channels run one at
+    a time).
     """
-    n_parts = band_q.shape[1]
+    single = x.ndim == 2
+    if single:  # as one channel of a stack: the same numbers
+        x, band_q, pixel_q = x[None], band_q[:, :, None], pixel_q[None]
+    n_parts, n_channels = band_q.shape[1], band_q.shape[2]
     qlev = np.linspace(0.0, 1.0, band_q.shape[-1])
+    axes = (1, 2)
     for r in range(1, n_iter + 1):
-        bands = laplacian_pyramid(x, len(band_q), mode=mode)
+        bands = laplacian_pyramid(x, len(band_q), mode=mode, axes=axes)
         x = None  # the bands hold it now (one band-sized array less while the parts are made)
         for i in range(len(bands) - 1):
             total = None  # the matched parts summed in order, into the first one
-            for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, workers=fft_workers)):
-                _match(part, band_q[i, j], qlev, out=part)
+            for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=axes, workers=fft_workers)):
+                for k in range(n_channels):
+                    _match(part[k], band_q[i, j, k], qlev, out=part[k])
                 if total is None:
                     total = part
                 else:
                     total += part
             bands[i] = total
-        x = reconstruct(bands, mode=mode)
-        _match(x, pixel_q, qlev, out=x)
+        x = reconstruct(bands, mode=mode, axes=axes)
+        for k in range(n_channels):
+            _match(x[k], pixel_q[k], qlev, out=x[k])
         if on_round is not None:
             on_round(r)
+    x = x[0] if single else x
     return x
