@@ -279,3 +279,20 @@ def test_pad_is_numpys_wrap_or_symmetric_padding(mode):
                 expected = np.pad(x, pad, mode="wrap" if mode == "wrap" else "symmetric")
                 out = _pad(x, axis, width, mode)
                 assert out.dtype == x.dtype and np.array_equal(out, expected), (shape, axis, width)
+
+
+def test_prepare_tabulates_what_refine_needs(cells):
+    # synthesize prepares the refinement while the coarse guide is made: afterwards the
+    # refinement finds every table it needs, and a bad size is refused before any work.
+    from tghop import refine as refine_module
+
+    st = BandStatistics().fit(cells)
+    img = _blurred(cells)[:70, :90] * 0.8 + 0.1
+    refine_module._double_angle.cache_clear()
+    refine_module.prepare(img.shape[:2], st)
+    made = refine_module._double_angle.cache_info().misses
+    assert made == st.band_quantiles_.shape[0]  # one per band size
+    refine(img, st, n_iter=1)
+    assert refine_module._double_angle.cache_info().misses == made
+    with pytest.raises(TGHopError, match="size must be positive"):
+        refine_module.prepare((0, 5), st)

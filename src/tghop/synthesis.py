@@ -30,7 +30,7 @@ from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .layout import CoarseLayout
 from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
-from .refine import BandStatistics, refine as refine_bands
+from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
@@ -568,6 +568,8 @@ class TGHop(BaseEstimator):
             report(progress, "layout", 0, 1)
             with ThreadPoolExecutor(max_workers=1) as worker, threadpool_limits(limits=1, user_api="blas"):
                 pending = worker.submit(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
+                if refine:  # imports SciPy's FFT for a large image here, not on the guide's path
+                    prepare_refinement(size, self.bands_)
                 prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
                 guide = pending.result()
             report(progress, "layout", 1, 1)
