@@ -45,3 +45,18 @@ def test_png_writer_refuses_what_png_cannot_hold():
     for bad in (np.zeros((4, 4), dtype=np.float32), np.zeros((4, 4, 2), dtype=np.uint8), np.zeros(4, dtype=np.uint8)):
         with pytest.raises(ValueError, match="write_png takes"):
             write_png(io.BytesIO(), bad)
+
+
+def test_png_writer_raises_a_parts_error(monkeypatch):
+    # A part compressed on another thread that fails (e.g. out of memory) fails the write:
+    # no PNG with a part missing.
+    from tghop import imageio
+
+    def boom(*args):
+        raise MemoryError("no memory for this part")
+
+    monkeypatch.setattr(imageio, "_PNG_PART", 64)
+    monkeypatch.setattr(imageio.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(imageio.zlib, "compressobj", boom)
+    with pytest.raises(MemoryError, match="this part"):
+        imageio.write_png(io.BytesIO(), np.zeros((40, 30, 3), dtype=np.uint8))

@@ -260,13 +260,11 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     if n_parts == 1:
         compress(0)
     else:
-        import threading
+        from concurrent.futures import ThreadPoolExecutor
 
-        threads = [threading.Thread(target=compress, args=(i,)) for i in range(n_parts)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
+        with ThreadPoolExecutor(max_workers=n_parts) as pool:
+            for future in [pool.submit(compress, i) for i in range(n_parts)]:
+                future.result()  # a part's error (e.g. out of memory) is raised here
     fh.write(b"\x89PNG\r\n\x1a\n")
     _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0 if c == 1 else 2, 0, 0, 0))
     _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))

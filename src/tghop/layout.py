@@ -96,12 +96,12 @@ def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
     # A large guide: the two halves of the rows on two threads (a 2048x2048 one is made
     # while the other thread waits for it: 113 -> 65 ms).
     if h * w >= 1 << 20 and h > 1 and (os.cpu_count() or 1) > 1:
-        import threading
+        from concurrent.futures import ThreadPoolExecutor
 
-        worker = threading.Thread(target=rows, args=(h // 2, h))
-        worker.start()
-        rows(0, h // 2)
-        worker.join()
+        with ThreadPoolExecutor(max_workers=1) as worker:
+            lower = worker.submit(rows, h // 2, h)
+            rows(0, h // 2)
+            lower.result()  # its error, if any, is raised here
     else:
         rows(0, h)
     return out
