@@ -113,8 +113,7 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=c) as pool:
-            for future in [pool.submit(one, k) for k in range(c)]:
-                future.result()
+            list(pool.map(one, range(c)))  # a channel's error is raised here
     else:
         for k in range(c):
             one(k)

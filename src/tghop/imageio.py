@@ -263,8 +263,7 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=n_parts) as pool:
-            for future in [pool.submit(compress, i) for i in range(n_parts)]:
-                future.result()  # a part's error (e.g. out of memory) is raised here
+            list(pool.map(compress, range(n_parts)))  # a part's error (e.g. out of memory) is raised here
     fh.write(b"\x89PNG\r\n\x1a\n")
     _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0 if c == 1 else 2, 0, 0, 0))
     _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))
