@@ -344,6 +344,31 @@ def test_mixing_stored_as_float16_rows_and_version_2_files_still_load(small_mode
             load_model(tmp_path / "bad.npz")
 
 
+def test_generation_uses_float32_mixing_made_from_the_stored_rows(small_model, tmp_path):
+    path = tmp_path / "m.npz"
+    save_model(small_model, path)
+    loaded = load_model(path)
+    ichm = loaded.ichm_
+    # Generation takes float32 straight from the float16 rows: the float64 matrix is never made.
+    a = loaded.sample_patches(50, rng=3, dtype=np.float32)
+    held = [v for v in vars(ichm).values() if isinstance(v, np.ndarray) and v.dtype == np.float64]
+    assert all(v.shape != small_model.ichm_.mixing_.shape for v in held)
+    assert ichm.mixing_shape_ == small_model.ichm_.mixing_.shape
+    np.testing.assert_array_equal(a, small_model.sample_patches(50, rng=3, dtype=np.float32))
+    # The same numbers as rounding the float64 matrix.
+    np.testing.assert_array_equal(ichm.mixing_as(np.float32), small_model.ichm_.mixing_.astype(np.float32))
+    assert ichm.mixing_as(np.float32) is ichm.mixing_as(np.float32)  # kept for later calls
+    np.testing.assert_array_equal(ichm.mixing_, small_model.ichm_.mixing_)
+    # A matrix set by hand replaces the stored rows: used for generation, quantised when saved.
+    ichm.mixing_ = ichm.mixing_ * 0.5
+    np.testing.assert_array_equal(ichm.mixing_as(np.float32), (small_model.ichm_.mixing_ * 0.5).astype(np.float32))
+    save_model(loaded, tmp_path / "half.npz")
+    np.testing.assert_allclose(load_model(tmp_path / "half.npz").ichm_.mixing_, ichm.mixing_, rtol=1e-3, atol=1e-6)
+    # Not fitted: the usual error, not an AttributeError from the property.
+    with pytest.raises(NotFittedError):
+        ICHM().sample(3)
+
+
 def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
     from tghop.core import _kmeans
 

@@ -491,9 +491,7 @@ class ICHM(BaseEstimator):
         # Model files store the mixing matrix (most of the model) as float16 rows with a
         # float32 scale each (a quarter of float64's size); rounding here keeps a fitted
         # model and its saved copy generating the same patches.
-        self._stored_mixing = _quantize(np.vstack(mixing))
-        self.mixing_ = _dequantize(*self._stored_mixing)
-        self._stored_for = self.mixing_
+        self._set_stored_mixing(*_quantize(np.vstack(mixing)))
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
         report(progress, "CDF codebook", 0, 1)
         self._fit_cdfs(sources, rng)
@@ -559,7 +557,7 @@ class ICHM(BaseEstimator):
         Yields ``(dims, normals, factor)``: the group's dimensions (k,), normals (n, k)
         and its factor (k, k); the group's residuals are ``normals @ factor.T``.
         """
-        check_is_fitted(self, "mixing_")
+        check_is_fitted(self, "means_")
         rng = check_rng(rng)
         groups = getattr(self, "residual_group_", np.zeros(0, dtype=np.int64))
         start = 0
@@ -572,7 +570,7 @@ class ICHM(BaseEstimator):
 
     def sample_residual(self, n, *, rng=None):
         """Draw ``n`` residual vectors (n, D_r) from the Gaussian (zeros without ``residual``)."""
-        out = np.zeros((int(n), self.mixing_.shape[1]))
+        out = np.zeros((int(n), self.means_.shape[1]))
         for dims, normals, factor in self.residual_draws(n, rng=rng):
             out[:, dims] = normals @ factor.T
         return out
@@ -602,6 +600,57 @@ class ICHM(BaseEstimator):
             self.codebook_ = np.maximum.accumulate(np.clip(centres, 0.0, 1.0), axis=1)
             self.codebook_[:, -1] = 1.0
 
+    # ------------------------------------------------------------------ mixing matrix
+    # The fitted (or loaded) mixing matrix is kept as what the model file stores: float16
+    # rows and a float32 scale per row. ``mixing_`` (float64) is made from them on first
+    # use and generation takes a float32 copy made straight from them: a model loaded for
+    # generation never holds the float64 matrix (brick_wall: 42 MB, and 0.05 s of page
+    # faults and conversions in a fresh process).
+    def _set_stored_mixing(self, rows, scale):
+        self._stored_mixing = (rows, scale)
+        self._mixing = self._mixing32 = None
+
+    @property
+    def mixing_(self):
+        mixing = vars(self).get("_mixing")
+        if mixing is None:
+            stored = vars(self).get("_stored_mixing")
+            if stored is None:
+                raise AttributeError(f"this {type(self).__name__} has no mixing_: it is not fitted")
+            mixing = self._mixing = _dequantize(*stored)
+        return mixing
+
+    @mixing_.setter
+    def mixing_(self, value):
+        # Set by hand (or from a version 2 file): saved by quantising it again.
+        self._mixing = np.asarray(value)
+        self._stored_mixing = self._mixing32 = None
+
+    @property
+    def mixing_shape_(self):
+        """``mixing_.shape`` (F, D_r), without making the float64 matrix."""
+        stored = vars(self).get("_stored_mixing")
+        return tuple(stored[0].shape) if stored is not None else self.mixing_.shape
+
+    def mixing_as(self, dtype):
+        """:attr:`mixing_` in ``dtype`` (float32 or float64).
+
+        float32 is made straight from the stored float16 rows and float32 scales, and kept
+        for later calls: the same numbers as ``mixing_.astype(float32)`` (a float16 times a
+        float32 is exact in float64, so rounding the product to float32 once is the same
+        either way), without making the float64 matrix."""
+        dtype = np.dtype(dtype)
+        if dtype != np.float32:
+            return self.mixing_.astype(dtype, copy=False)
+        if vars(self).get("_mixing32") is None:
+            stored = vars(self).get("_stored_mixing")
+            if stored is None:
+                self._mixing32 = self.mixing_.astype(np.float32)
+            else:
+                rows, scale = stored
+                self._mixing32 = np.multiply(rows, np.asarray(scale, dtype=np.float32)[:, None], dtype=np.float32)
+        return self._mixing32
+
     @property
     def p_(self):
         """Alias of :attr:`weights_` (the paper's cluster probabilities p)."""
@@ -622,11 +671,11 @@ class ICHM(BaseEstimator):
     )
 
     def _to_arrays(self) -> dict:
-        out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS}
-        # The float16 rows as fitted or loaded (mixing_ was made from them), unless mixing_ was
-        # replaced since; quantising again gives the same numbers, it only costs time.
-        stored = getattr(self, "_stored_mixing", None)
-        if stored is None or getattr(self, "_stored_for", None) is not self.mixing_:
+        out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS if attr != "mixing_"}
+        # The float16 rows as fitted or loaded (mixing_ is made from them), unless mixing_ was
+        # set since; quantising again gives the same numbers, it only costs time.
+        stored = vars(self).get("_stored_mixing")
+        if stored is None:
             stored = _quantize(self.mixing_)
         out["ichm_ii.mixing"], out["index.ichm_mixing_scale"] = stored
         return out
@@ -644,9 +693,7 @@ class ICHM(BaseEstimator):
             if rows.ndim != 2 or scale.shape != rows.shape[:1] or scale.dtype.kind != "f":
                 raise TGHopError(f"mixing scales of shape {scale.shape} and type {scale.dtype} for "
                                  f"mixing rows of shape {rows.shape}")
-            self._stored_mixing = (rows, scale)
-            self.mixing_ = _dequantize(*self._stored_mixing)
-            self._stored_for = self.mixing_
+            self._set_stored_mixing(rows, scale)
         self._quantiles = None
         return self
 
@@ -654,7 +701,7 @@ class ICHM(BaseEstimator):
     @property
     def n_cdfs_(self) -> int:
         """F, the number of CDFs (independent components over all clusters)."""
-        check_is_fitted(self, "mixing_")
+        check_is_fitted(self, "means_")
         return int(self.n_components_.sum())
 
     def _quantile_table(self):
@@ -683,7 +730,7 @@ class ICHM(BaseEstimator):
             ``sources[i]`` has shape (count of label i, n_components_[i]): the samples
             of cluster ``i`` in order of their position in ``labels``.
         """
-        check_is_fitted(self, "mixing_")
+        check_is_fitted(self, "means_")
         rng = check_rng(rng)
         n = int(n)
         # (i) the interval representation: a uniform number picks the segment.

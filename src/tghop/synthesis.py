@@ -282,7 +282,7 @@ class TGHop(BaseEstimator):
         d_r = sdr.components_.shape[0]
         f = int(ichm.n_components_.sum())
         checks = [
-            ichm.mixing_.shape == (f, d_r),
+            ichm.mixing_shape_ == (f, d_r),
             ichm.means_.shape == (len(ichm.weights_), d_r),
             len(ichm.n_components_) == len(ichm.weights_),
             ichm.cdf_index_.shape == (f,) and ichm.cdf_min_.shape == (f,) and ichm.cdf_max_.shape == (f,),
@@ -464,7 +464,7 @@ class TGHop(BaseEstimator):
         ichm = self.ichm_
         zt = np.dtype(np.float64) if return_stages else dtype  # the stage views keep float64
         z = ichm.mix(labels, [s.astype(zt, copy=False) for s in sources],
-                     mixing=ichm.mixing_.astype(zt, copy=False), means=ichm.means_.astype(zt, copy=False))
+                     mixing=ichm.mixing_as(zt), means=ichm.means_.astype(zt, copy=False))
         if ichm.residual_factor_.size > 0:
             z += ichm.sample_residual(n, rng=rng).astype(zt, copy=False)
         if return_stages:  # the paper's step-by-step inverse, keeping every space
