@@ -233,6 +233,28 @@ def test_matching_in_chunks_is_pointwise_and_handles_strided_outputs(monkeypatch
     assert whole.min() >= target[0] - 1e-6 and whole.max() <= target[-1] + 1e-6
 
 
+def test_matching_maps_values_beyond_the_sampled_range_to_the_ends_of_the_target():
+    # The quantiles come from a strided subset, so values outside its range (here far
+    # outliers the subset misses) occur; with the largest table (65,536 entries) they take
+    # the first and last entries, and the rest follows the map within a table step.
+    from tghop import refine as R
+
+    rng = np.random.default_rng(5)
+    values = rng.standard_normal(1 << 18).astype(np.float32)
+    values[1::1024] = 1e6
+    values[3::1024] = -1e6
+    levels = np.linspace(0.0, 1.0, 65)
+    target = np.sort(rng.uniform(-2.0, 3.0, 65))
+    out = R._match(values, target, levels)
+    assert np.all(out[1::1024] == np.float32(target[-1])) and np.all(out[3::1024] == np.float32(target[0]))
+    inside = np.abs(values) < 1e6
+    source = R._quantiles(values, levels)
+    expected = np.interp(values[inside], source, target)
+    # Nearest of 65,536 entries: within half a grid step times the map's steepest slope.
+    half_step = 0.5 * (source[-1] - source[0]) / 65535 * np.max(np.diff(target) / np.diff(source))
+    assert np.max(np.abs(out[inside] - expected)) <= half_step * 1.01 + 1e-6
+
+
 def test_refine_takes_float32_without_changing_the_result(cells):
     st = BandStatistics().fit(cells)
     img = (_blurred(cells) * 0.8 + 0.1).astype(np.float32)
