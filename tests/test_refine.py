@@ -255,6 +255,33 @@ def test_matching_maps_values_beyond_the_sampled_range_to_the_ends_of_the_target
     assert np.max(np.abs(out[inside] - expected)) <= half_step * 1.01 + 1e-6
 
 
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 4, 5])
+def test_oriented_parts_matched_in_chunks_equal_matching_each_part(n, monkeypatch):
+    # _match_oriented makes, matches and sums the parts a chunk at a time; it must give
+    # exactly what matching each whole part (iter_oriented_parts) and summing gives.
+    from tghop import refine as R
+
+    rng = np.random.default_rng(n)
+    band = rng.standard_normal((2, 45, 38)).astype(np.float32)
+    q = np.sort(rng.standard_normal((max(n, 1), 2, 33)), axis=-1)
+    levels = np.linspace(0.0, 1.0, 33)
+    total = None
+    for j, part in enumerate(R.iter_oriented_parts(band.copy(), n, axes=(1, 2))):
+        for k in range(2):
+            R._match(part[k], q[j, k], levels, out=part[k])
+        total = part if total is None else total + part
+    monkeypatch.setattr(R, "_PARTS_CHUNK", 256)  # several chunks and a short last one
+    got = band.copy()
+    assert R._match_oriented(got, q, levels) is got
+    np.testing.assert_array_equal(got, total)
+    # The refinement takes that path for bands above one chunk: the same image either way.
+    img = np.clip(rng.random((50, 60, 3)) * 0.5 + 0.2, 0, 1)
+    st = BandStatistics(n_orientations=n).fit(np.clip(rng.random((64, 64, 3)), 0, 1))
+    chunked = refine(img, st, n_iter=2)
+    monkeypatch.setattr(R, "_PARTS_CHUNK", 1 << 30)
+    np.testing.assert_array_equal(refine(img, st, n_iter=2), chunked)
+
+
 def test_refine_takes_float32_without_changing_the_result(cells):
     st = BandStatistics().fit(cells)
     img = (_blurred(cells) * 0.8 + 0.1).astype(np.float32)

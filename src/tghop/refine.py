@@ -170,9 +170,14 @@ def _subset(values, n_crops):
 
 def _quantiles(values, levels):
     """Quantiles at ``levels`` of ``values`` (of a strided subset of at most _MAX_VALUES)."""
+    return _sample_quantiles(_subset(values, 1), levels)
+
+
+def _sample_quantiles(sample, levels):
+    """Quantiles at ``levels`` of the values in ``sample``."""
     # Sorted in the values' own dtype, then widened: the same numbers, and NumPy's SIMD sort
     # of float32 is about three times faster than of float64 (65,536 values: 1.2 -> 0.4 ms).
-    ordered = np.sort(_subset(values, 1)).astype(np.float64)
+    ordered = np.sort(sample).astype(np.float64)
     return np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
 
 
@@ -183,24 +188,39 @@ def _match(values, target, levels, out=None):
     steps over the values' range (a quarter as many as values, within _LUT_MIN and
     _LUT_MAX) and applied by looking up the nearest entry: linear time.
     """
-    source = _quantiles(values, levels)
-    lo, hi = float(source[0]), float(source[-1])
-    if hi <= lo:
-        out = np.empty_like(values) if out is None else out
-        out[...] = np.interp(0.5, levels, target)
-        return out
-    # Strictly increasing breakpoints for interp (flat runs in sparse bands).
-    source = source + np.arange(len(source)) * (1e-9 * (hi - lo))
-    size = min(_LUT_MAX, max(_LUT_MIN, values.size // 4))
-    grid = np.linspace(lo, source[-1], size)
-    table = np.interp(grid, source, target).astype(values.dtype)
+    matching = _matching(_subset(values, 1), values.size, target, levels, values.dtype)
     out = np.empty_like(values) if out is None else out
     src = np.ascontiguousarray(values).reshape(-1)
     dst = out.reshape(-1) if out.flags.c_contiguous else np.empty(out.size, dtype=out.dtype)
-    _apply_table(src, lo, (size - 1) / (source[-1] - lo), table, dst)
+    _apply_matching(matching, src, dst)
     if not out.flags.c_contiguous:
         out[...] = dst.reshape(out.shape)
     return out
+
+
+def _matching(sample, n_values, target, levels, dtype):
+    """The map :func:`_match` applies to ``n_values`` values whose strided subset
+    (:func:`_subset`) is ``sample``: ``(lo, scale, table)``, or ``(value, None, None)``
+    when the values are flat (all map to one value)."""
+    source = _sample_quantiles(sample, levels)
+    lo, hi = float(source[0]), float(source[-1])
+    if hi <= lo:
+        return float(np.interp(0.5, levels, target)), None, None
+    # Strictly increasing breakpoints for interp (flat runs in sparse bands).
+    source = source + np.arange(len(source)) * (1e-9 * (hi - lo))
+    size = min(_LUT_MAX, max(_LUT_MIN, n_values // 4))
+    grid = np.linspace(lo, source[-1], size)
+    table = np.interp(grid, source, target).astype(dtype)
+    return lo, (size - 1) / (source[-1] - lo), table
+
+
+def _apply_matching(matching, src, dst):
+    """Apply a :func:`_matching` map to the 1-d array ``src``, into ``dst`` (may be ``src``)."""
+    lo, scale, table = matching
+    if table is None:
+        dst[...] = lo
+    else:
+        _apply_table(src, lo, scale, table, dst)
 
 
 def _apply_table(src, lo, scale, table, dst):
@@ -324,33 +344,10 @@ def iter_oriented_parts(band, n_orientations, *, axes=(0, 1), workers=1):
         yield band
         return
     n = int(n_orientations)
-    h, w = band.shape[axes[0]], band.shape[axes[1]]
-    fft = _fft_module(h * w)
-    threads = {"workers": int(workers)} if fft is not np.fft else {}
-    spectrum = fft.rfft2(band, axes=axes, **threads)  # complex64 for float32 bands (NumPy >= 2, SciPy)
-    harmonics = _double_angle(h, w, np.dtype(band.dtype))
-    if band.ndim == 3 and tuple(axes) == (0, 1):  # (H, W, C): the windows broadcast over C
-        harmonics = [m[..., None] for m in harmonics]
-    angles = 2.0 * np.pi * np.arange(n - 1) / n
-    cos, sin = np.cos(angles), np.sin(angles)
-    cos[np.abs(cos) < 1e-12] = 0.0  # exact zeros: skip those terms
-    sin[np.abs(sin) < 1e-12] = 0.0
-    filtered = [_irfft2(fft, np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
-                        (h, w), axes, threads).astype(band.dtype, copy=False)
-                for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
-    del spectrum
-    scale = band.dtype.type(1.0 / n)
+    filtered = _filtered(band, n, axes, workers)
     rest = None  # the sum of the parts so far, in order: p0 + p1 + ...
-    for k in range(n - 1):
-        part = band.copy()
-        for coef, f in zip((cos[k], sin[k]), filtered):
-            if coef == 1.0:
-                part += f
-            elif coef == -1.0:
-                part -= f
-            elif coef:
-                part += band.dtype.type(coef) * f
-        part *= scale
+    for coefs in _part_coefficients(n):
+        part = _part(band, filtered, coefs, n)
         if rest is None:
             rest = part.copy()
         else:
@@ -359,6 +356,119 @@ def iter_oriented_parts(band, n_orientations, *, axes=(0, 1), workers=1):
     # The last part is the rest, so that the parts sum to the band: band - (p0 + p1 + ...).
     del filtered
     yield np.subtract(band, rest, out=rest)
+
+
+def _part_coefficients(n):
+    """``(cos 2 theta_k, sin 2 theta_k)`` of parts ``k = 0 .. n - 2`` (``theta_k = k pi / n``),
+    with exact zeros where they vanish (those terms are skipped)."""
+    angles = 2.0 * np.pi * np.arange(n - 1) / n
+    cos, sin = np.cos(angles), np.sin(angles)
+    cos[np.abs(cos) < 1e-12] = 0.0
+    sin[np.abs(sin) < 1e-12] = 0.0
+    return list(zip(cos.tolist(), sin.tolist()))
+
+
+def _filtered(band, n, axes, workers):
+    """The band filtered by the windows ``cos 2 theta`` (and ``sin 2 theta`` for ``n > 2``):
+    every oriented part is ``(band + cos 2 theta_k f_cos + sin 2 theta_k f_sin) / n``."""
+    h, w = band.shape[axes[0]], band.shape[axes[1]]
+    fft = _fft_module(h * w)
+    threads = {"workers": int(workers)} if fft is not np.fft else {}
+    spectrum = fft.rfft2(band, axes=axes, **threads)  # complex64 for float32 bands (NumPy >= 2, SciPy)
+    harmonics = _double_angle(h, w, np.dtype(band.dtype))
+    if band.ndim == 3 and tuple(axes) == (0, 1):  # (H, W, C): the windows broadcast over C
+        harmonics = [m[..., None] for m in harmonics]
+    return [_irfft2(fft, np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
+                    (h, w), axes, threads).astype(band.dtype, copy=False)
+            for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
+
+
+def _part(band, filtered, coefs, n, out=None):
+    """Oriented part ``(band + cos f_cos + sin f_sin) / n`` (``coefs``: :func:`_part_coefficients`
+    entry), in this order of operations whatever the slice of the arrays it is given."""
+    if out is None:
+        part = band.copy()
+    else:
+        part = out
+        np.copyto(part, band)
+    for coef, f in zip(coefs, filtered):
+        if coef == 1.0:
+            part += f
+        elif coef == -1.0:
+            part -= f
+        elif coef:
+            part += band.dtype.type(coef) * f
+    part *= band.dtype.type(1.0 / n)
+    return part
+
+
+#: Values per step of :func:`_match_oriented` (fewer steps cost more calls, larger ones
+#: more cache misses: 2**14 and 2**18 were slower); bands of at most this many values
+#: per channel are matched part by part instead.
+_PARTS_CHUNK = 1 << 16
+
+
+def _match_oriented(band, band_q, levels, *, workers=1):
+    """Match every oriented part of a ``(C, H, W)`` band to its quantiles and sum them:
+    the band's new value, written into ``band`` (a C-contiguous one; else into a copy) and
+    returned.
+
+    What ``for part in iter_oriented_parts(band): match part; sum`` does, with the same
+    numbers, but in one pass over the band, _PARTS_CHUNK values at a time: each part's
+    map comes from the strided subset of its values (made from the subsets of the band
+    and of its filtered versions, with the same operations), then every chunk's parts are
+    made, mapped and summed while in cache, without band-sized parts. One channel alone
+    (as for very large images, and on one core): a 2048x2048 band 224 -> 180 ms, three
+    rounds 0.83-0.87 of the time. Three channels in threads on two cores: no faster (the
+    steps are shorter, the threads wait for each other more), but the parts no longer
+    take memory: ``tghop synth --size 4096x4096`` peaks at 1.66 GB instead of 2.26 GB.
+
+    ``band_q``: ``(n_parts, C, n_quantiles)``.
+    """
+    n, n_channels = band_q.shape[0], band.shape[0]
+    if not band.flags.c_contiguous:  # the channels are worked on as flat views
+        band = band.copy()
+    if n <= 1:
+        for k in range(n_channels):
+            _match(band[k], band_q[0, k], levels, out=band[k])
+        return band
+    filtered = _filtered(band, n, (1, 2), workers)
+    coefs = _part_coefficients(n)
+    size = band[0].size
+    for k in range(n_channels):
+        flat_band = band[k].reshape(-1)  # a view: written in place
+        flat_f = [f[k].reshape(-1) for f in filtered]
+        # Each part's map, from the strided subsets (the positions _subset takes of the part).
+        sub_band = _subset(flat_band, 1)
+        sub_f = [_subset(f, 1) for f in flat_f]
+        maps = []
+        rest = None
+        for j, c in enumerate(coefs):
+            part = _part(sub_band, sub_f, c, n)
+            rest = part.copy() if rest is None else np.add(rest, part, out=rest)
+            maps.append(_matching(part, size, band_q[j, k], levels, band.dtype))
+        maps.append(_matching(sub_band - rest, size, band_q[n - 1, k], levels, band.dtype))
+        # The chunks: parts made, mapped and summed in the order of the loop above.
+        chunk = min(size, _PARTS_CHUNK)
+        parts = np.empty((n, chunk), dtype=band.dtype)
+        for a in range(0, size, chunk):
+            e = min(size, a + chunk)
+            p = parts[:, : e - a]
+            b = flat_band[a:e]
+            for j, c in enumerate(coefs):
+                _part(b, [f[a:e] for f in flat_f], c, n, out=p[j])
+            last = p[n - 1]
+            np.copyto(last, p[0])
+            for j in range(1, n - 1):
+                last += p[j]
+            np.subtract(b, last, out=last)
+            for j in range(n):
+                _apply_matching(maps[j], p[j], p[j])
+            total = p[0]
+            for j in range(1, n):
+                total += p[j]
+            b[...] = total
+    return band
 
 
 class BandStatistics:
@@ -597,6 +707,11 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None, fft_work
         bands = laplacian_pyramid(x, len(band_q), mode=mode, axes=axes)
         x = None  # the bands hold it now (one band-sized array less while the parts are made)
         for i in range(len(bands) - 1):
+            # Every oriented part matched, the matched parts summed: the new band.
+            if bands[i][0].size > _PARTS_CHUNK:
+                bands[i] = _match_oriented(bands[i], band_q[i], qlev, workers=fft_workers)
+                continue
+            # A small band (one chunk): part by part, all channels in each step (fewer calls).
             total = None  # the matched parts summed in order, into the first one
             for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=axes, workers=fft_workers)):
                 for k in range(n_channels):
