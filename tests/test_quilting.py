@@ -521,3 +521,21 @@ def test_boundary_cut_breaks_ties_straight_then_left():
     assert min_error_boundary_cut(np.zeros((4, 3))).tolist() == [0, 0, 0, 0]
     assert min_error_boundary_cut(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0]])).tolist() == [0, 1]
     assert min_error_boundary_cut(np.array([[1.0, 0.0, 1.0], [0.0, 0.0, 0.0]])).tolist() == [1, 0]  # first column, then right
+
+
+@pytest.mark.parametrize("size, tile", [((100, 130), False), ((96, 120), True), ((70, 70), False)])
+def test_guide_targets_of_all_blocks_equal_the_box_means_of_their_windows(size, tile):
+    # The guide's low pass is taken once for every block (row sums, then column sums);
+    # it must be exactly the box means of each block's window of the canvas (wrapped for
+    # tileable output, edge-extended where the canvas is larger than the output).
+    rng = np.random.default_rng(2)
+    guide = rng.random((*size, 3)).astype(np.float32)
+    plan = quilting_plan(size, 16, overlap=3, tile=tile)
+    hc, wc = plan.canvas_shape
+    canvas = guide if tile else np.pad(guide, ((0, hc - size[0]), (0, wc - size[1]), (0, 0)), mode="edge")
+    got = quilting._all_targets(guide, plan, 4)
+    assert got.shape == (plan.ys.size, plan.xs.size, 4 * 4 * 3)
+    for i, y in enumerate(plan.ys.tolist()):
+        for j, x in enumerate(plan.xs.tolist()):
+            window = canvas[quilting._window(y, x, 16, hc, wc)]
+            np.testing.assert_array_equal(got[i, j], quilting._box_means(window[None], 4)[0])
