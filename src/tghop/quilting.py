@@ -632,9 +632,9 @@ def _all_targets(guide, plan, s):
 
     One block row at a time: its rows of boxes summed over the whole width, then the
     boxes of every block of the row (a 2048x2048 quilt: 65-81 ms of window copies and
-    box means while quilting -> 35 ms here; quilting 0.91 of its time in all). Windows past the canvas wrap around
-    (tileable output) or, past a larger canvas than the output, take the edge rows and
-    columns (as the canvas's own edge padding would).
+    box means while quilting -> 35 ms here; quilting takes 0.91 of its time). Windows
+    past the canvas wrap around (tileable output) or, past a larger canvas than the
+    output, take the edge rows and columns (as the canvas's own edge padding would).
     """
     p = plan.patch_size
     hc, wc = plan.canvas_shape
