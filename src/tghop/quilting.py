@@ -67,8 +67,9 @@ _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)
 GUIDE_SCALE = 4
 
 # Pool patches are converted to float32 in chunks of this many patches (small enough for
-# the chunk to stay in cache between the steps that read it).
-_POOL_CHUNK = 512
+# the chunk to stay in cache between the steps that read it: preparing 5,000 patches took
+# 87 ms in chunks of 512, 82 in 256, 76 in 128, 80 in 64; the same numbers).
+_POOL_CHUNK = 128
 
 
 def default_overlap(patch_size: int) -> int:
