@@ -282,6 +282,24 @@ def test_oriented_parts_matched_in_chunks_equal_matching_each_part(n, monkeypatc
     np.testing.assert_array_equal(refine(img, st, n_iter=2), chunked)
 
 
+def test_bands_finer_than_first_level_keep_their_values(cells):
+    # first_level=1 leaves the finest band as it is: only the coarser bands move, so the
+    # result differs from matching every band, and skipping every band leaves only the
+    # pixel matching (what statistics without bands do).
+    st = BandStatistics().fit(cells)
+    img = _blurred(cells) * 0.8 + 0.1
+    every = refine(img, st, n_iter=1)
+    coarse_only = refine(img, st, n_iter=1, first_level=1)
+    assert not np.allclose(every, coarse_only, atol=1e-3)
+    fine = lambda x: x - _blurred(x, 1.0)  # noqa: E731 (high-pass: the finest detail)
+    assert np.abs(fine(coarse_only) - fine(img)).mean() < np.abs(fine(every) - fine(img)).mean()
+    pixels_only = BandStatistics(n_levels=0).fit(cells)
+    np.testing.assert_allclose(refine(img, st, n_iter=2, first_level=4), refine(img, pixels_only, n_iter=2), atol=1e-5)
+    for bad in (-1, 1.5, True):
+        with pytest.raises(TGHopError, match="first_level"):
+            refine(img, st, first_level=bad)
+
+
 def test_refine_takes_float32_without_changing_the_result(cells):
     st = BandStatistics().fit(cells)
     img = (_blurred(cells) * 0.8 + 0.1).astype(np.float32)

@@ -569,7 +569,7 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=3, tile=False, progress=None):
+def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
@@ -587,6 +587,10 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
         Rounds (0: the image, clipped).
     tile : bool
         Periodic boundaries (for tileable output).
+    first_level : int
+        Bands finer than this level keep their values (0: every band is matched). The
+        coarse layout's guide leaves its finest band, which the fine level hardly sees
+        (:meth:`tghop.layout.CoarseLayout.guide`).
     progress : callable, optional
         ``progress("refine", done, total)``, ``total`` = channels x rounds: after each
         round (small images: all channels at once; very large ones: one channel at a
@@ -596,8 +600,9 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
     -------
     ndarray, shape (H, W, C), float64 in [0, 1]
     """
-    if not isinstance(n_iter, numbers.Integral) or isinstance(n_iter, bool) or n_iter < 0:
-        raise TGHopError(f"refine: n_iter must be a non-negative integer, got {n_iter!r}")
+    for name, value in (("n_iter", n_iter), ("first_level", first_level)):
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
+            raise TGHopError(f"refine: {name} must be a non-negative integer, got {value!r}")
     image = np.asarray(image)
     if image.dtype not in (np.float32, np.float64):  # float32 stays float32: refined in float32 anyway
         image = image.astype(np.float64)
@@ -624,7 +629,7 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
 
     def one(k, on_round=None, fft_workers=1):
         results[k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode,
-                                     on_round=on_round, fft_workers=fft_workers)
+                                     first_level=first_level, on_round=on_round, fft_workers=fft_workers)
 
     n_channels = len(channels)
     total = n_channels * n_iter
@@ -645,6 +650,7 @@ def refine(image, stats, *, n_iter=3, tile=False, progress=None):
         # same numbers).
         stack = np.stack([take(k) for k in range(n_channels)])
         results[:] = _refine_channel(stack, q, stats.pixel_quantiles_, n_iter=n_iter, mode=mode,
+                                     first_level=first_level,
                                      on_round=lambda r: report(progress, "refine", r * n_channels, total))
     else:
         # One channel at a time (too large for several at once, or one core): a large
@@ -687,7 +693,7 @@ def _colours(stats, channels):
     return out
 
 
-def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None, fft_workers=1):
+def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round=None, fft_workers=1):
     """``n_iter`` rounds of band and pixel histogram matching of one (H, W) channel, or of
     several stacked as (C, H, W).
 
@@ -695,7 +701,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None, fft_work
     exemplar's quantiles of this channel (with C channels: (n_levels, n_parts, C,
     n_quantiles) and (C, n_quantiles)); ``on_round(r)`` is called after round r (1, 2,
     ...); ``fft_workers``: threads of each Fourier transform (when the channels run one at
-    a time).
+    a time); bands finer than ``first_level`` are not matched.
     """
     single = x.ndim == 2
     if single:  # as one channel of a stack: the same numbers
@@ -706,7 +712,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, on_round=None, fft_work
     for r in range(1, n_iter + 1):
         bands = laplacian_pyramid(x, len(band_q), mode=mode, axes=axes)
         x = None  # the bands hold it now (one band-sized array less while the parts are made)
-        for i in range(len(bands) - 1):
+        for i in range(first_level, len(bands) - 1):
             # Every oriented part matched, the matched parts summed: the new band.
             if bands[i][0].size > _PARTS_CHUNK:
                 bands[i] = _match_oriented(bands[i], band_q[i], qlev, workers=fft_workers)
