@@ -242,11 +242,10 @@ class CoarseLayout(BaseEstimator):
         # GUIDE_SCALE x GUIDE_SCALE box means, which at factor 2 average 2x2 coarse pixels
         # of the bilinear upsampling and pass at most half of that band (none at its top).
         # Measured on 20 exemplars at 256x256, seeds 0-3: better on 10 of 20 in SIFID, SWD
-        # and co-occurrence alike (median changes -0.4 %, -0.2 %, -0.2 %); a third less
-        # time for the guide of a 2048x2048 image (docs/choices.md).
+        # and co-occurrence alike (median changes -0.4 %, -0.2 %, -0.2 %); the guide of a
+        # 2048x2048 image 1.37 -> 1.11 s (docs/choices.md).
         coarse = self.model_.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False)
-        if refine:
-            coarse = refine_bands(coarse, self.model_.bands_, n_iter=refine, tile=tile,
-                                  first_level=1 if GUIDE_SCALE // f >= 2 else 0)
+        coarse = refine_bands(coarse, self.model_.bands_, n_iter=refine, tile=tile,  # checks refine too
+                              first_level=1 if GUIDE_SCALE // f >= 2 else 0)
         coarse = match_histograms(coarse, self.model_.colour_quantiles_, out=coarse)
         return upsample(coarse.astype(np.float32), f, (h, w), wrap=tile)
