@@ -226,6 +226,20 @@ def test_boundary_cut_is_optimal_against_brute_force():
         assert error[np.arange(h), cut].sum() == pytest.approx(best[0])
 
 
+def test_batched_boundary_cuts_do_not_see_each_other():
+    # The batch is worked on side by side: each strip's cut must be its own alone, with
+    # neighbours of zero cost, +inf columns, rows of ties and strips one column wide.
+    rng = np.random.default_rng(5)
+    for w in (1, 2, 5):
+        error = rng.integers(0, 3, size=(7, 9, w)).astype(float)
+        error[rng.random(error.shape) < 0.15] = np.inf
+        error[1::2, :, 0] = 0.0  # a free column at the left edge of every other strip
+        error[2] = np.inf  # a strip with no finite entry
+        alone = np.stack([min_error_boundary_cut(e) for e in error])
+        np.testing.assert_array_equal(min_error_boundary_cut(error), alone)
+        assert ((alone >= 0) & (alone < w)).all()
+
+
 def test_boundary_cut_avoids_infinite_cost():
     error = np.zeros((5, 4))
     error[:, 0] = np.inf

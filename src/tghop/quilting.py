@@ -168,29 +168,32 @@ def _dp_cut(error: np.ndarray) -> np.ndarray:
     finite entry. Ties prefer going straight, then left.
     """
     b, h, w = error.shape
-    # Cumulative cost with an +inf column on each side (so that neighbours always exist).
-    cum = np.full((b, h, w + 2), np.inf)
-    cum[:, 0, 1:-1] = error[:, 0]
-    best = np.empty((b, w))
+    n = b * (w + 2)
+    # Each row of all strips laid out flat, every strip between two +inf columns, so that
+    # a row's three neighbours above are shifts of one contiguous array (a strip never
+    # reaches into the next; the same sums and minima: 50 strips of 32 x 6 0.85 -> 0.48 ms).
+    cost = np.full((h, b, w + 2), np.inf)
+    cost[:, :, 1:-1] = error.transpose(1, 0, 2)
+    cost = cost.reshape(h, n)
+    cum = np.full((h, n), np.inf)
+    cum[0] = cost[0]
+    best = np.empty(n - 2)
     for r in range(1, h):
-        prev = cum[:, r - 1]
-        np.minimum(prev[:, :-2], prev[:, 1:-1], out=best)
-        np.minimum(best, prev[:, 2:], out=best)
-        np.add(error[:, r], best, out=cum[:, r, 1:-1])
-    path = np.empty((b, h), dtype=np.intp)
-    path[:, -1] = np.argmin(cum[:, -1, 1:-1], axis=1)
-    # The way back: above column c of row r + 1 are the padded columns c + 1 (straight),
-    # c (left) and c + 2 (right) of row r, in the order ties are broken; one gather of
-    # flat indices per row (a third of the time of take_along_axis).
-    flat = cum.reshape(-1)
-    row_start = np.arange(b) * (h * (w + 2))
-    above = np.array([1, 0, 2])
+        prev = cum[r - 1]
+        np.minimum(prev[:-2], prev[1:-1], out=best)
+        np.minimum(best, prev[2:], out=best)
+        np.add(cost[r, 1:-1], best, out=cum[r, 1:-1])
+    # The way back, as flat positions: straight, left or right, in the order ties are broken.
+    start = np.arange(b) * (w + 2) + 1
+    pos = start + np.argmin(cum[-1].reshape(b, w + 2)[:, 1:-1], axis=1)
+    path = np.empty((h, b), dtype=np.intp)
+    path[-1] = pos
     step = np.array([0, -1, 1])
     for r in range(h - 2, -1, -1):
-        c = path[:, r + 1]
-        cand = flat[(row_start + r * (w + 2) + c)[:, None] + above]
-        path[:, r] = c + step[cand.argmin(axis=1)]
-    return path
+        pos = pos + step[cum[r][pos[:, None] + step].argmin(axis=1)]
+        path[r] = pos
+    path -= start
+    return path.T
 
 
 def min_error_boundary_cut(error) -> np.ndarray:
@@ -1128,7 +1131,5 @@ def quilt_prepared(
         report(progress, "quilting", done, plan.n_blocks)
 
     h, w = plan.size
-    out = canvas[:h, :w].astype(dtype)
-    del canvas
-    np.clip(out, 0.0, 1.0, out=out)
-    return out
+    # Cropped, clipped and converted in one pass (the bounds are exact in float32).
+    return np.clip(canvas[:h, :w], 0.0, 1.0, out=np.empty((h, w, c), dtype=dtype))
