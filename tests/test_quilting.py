@@ -473,7 +473,7 @@ def test_box_means_are_the_means_of_the_boxes(s):
 def test_gradient_energy_is_the_mean_squared_neighbour_difference(dtype):
     from tghop.quilting import _POOL_CHUNK, _gradient_energy
 
-    x = np.random.default_rng(3).random((_POOL_CHUNK + 7, 8, 6, 3)).astype(dtype)  # two chunks, not square
+    x = np.random.default_rng(3).random((_POOL_CHUNK + 7, 8, 6, 3)).astype(dtype)  # not square
     x[:, :, :, 1] **= 3
     ref = (np.square(np.diff(x.astype(np.float64), axis=1)).mean(axis=(1, 2, 3))
            + np.square(np.diff(x.astype(np.float64), axis=2)).mean(axis=(1, 2, 3)))
