@@ -115,6 +115,24 @@ def test_same_seed_same_patches_different_seed_different(small_model):
     assert not np.allclose(a, c)
 
 
+def test_mix_by_cluster_rows_are_each_samples_own_mixture(small_model):
+    ichm = small_model.ichm_
+    labels, sources = ichm.sample_sources(300, rng=4)
+    z, position = ichm.mix_by_cluster(labels, sources)
+    assert sorted(position.tolist()) == list(range(300))  # a permutation
+    offsets = np.concatenate([[0], np.cumsum(ichm.n_components_)])
+    seen = np.zeros(len(sources), dtype=int)
+    for j, label in enumerate(labels):  # sample j: the next row of its cluster's sources
+        s = sources[label][seen[label]]
+        seen[label] += 1
+        expected = ichm.means_[label] + s @ ichm.mixing_[offsets[label]: offsets[label + 1]]
+        np.testing.assert_allclose(z[position[j]], expected, rtol=1e-10, atol=1e-12)
+    assert np.array_equal(labels[np.argsort(position)], np.sort(labels))  # grouped by cluster
+    np.testing.assert_array_equal(ichm.mix(labels, sources), z[position])
+    with pytest.raises(TGHopError, match="do not match"):
+        ichm.mix_by_cluster(labels[1:], sources)
+
+
 @pytest.mark.parametrize("n", [7, 400])
 def test_fast_decoder_equals_stepwise_inverse(small_model, n):
     # sample_patches decodes through the folded block map; it must equal the paper's path.

@@ -782,14 +782,41 @@ class ICHM(BaseEstimator):
         """(v) Inverse ICA and PCA: independent components -> vectors.
 
         ``mixing`` and ``means`` default to :attr:`mixing_` and :attr:`means_`; a caller
-        may pass them already multiplied by a later linear map (one matrix product per
-        cluster then yields patches directly).
+        may pass them in another dtype (float32 for generation).
+        """
+        z, position = self.mix_by_cluster(labels, sources, mixing=mixing, means=means)
+        return z[position]
+
+    def mix_by_cluster(self, labels, sources, *, mixing=None, means=None):
+        """:meth:`mix` with the vectors grouped by cluster, as the matrix products make them.
+
+        Each cluster's block is written by one product straight into its rows (no scatter
+        into the samples' order: a 5,000-sample float32 pool 24-57 -> 19-22 ms).
+
+        Returns
+        -------
+        Z : ndarray, shape (n, D_r)
+            Cluster 0's samples first, each cluster's in the order of ``labels``.
+        position : ndarray of int, shape (n,)
+            ``Z[position]`` is :meth:`mix`'s result: the row of ``Z`` of each sample.
         """
         mixing = self.mixing_ if mixing is None else mixing
         means = self.means_ if means is None else means
+        labels = np.asarray(labels)
+        counts = np.bincount(labels, minlength=len(sources)) if len(labels) else np.zeros(len(sources), dtype=int)
+        if len(counts) != len(sources) or any(len(s) != k for s, k in zip(sources, counts)):
+            raise TGHopError(f"mix: source rows per cluster {[len(s) for s in sources]} do not match the "
+                             f"labels' counts {counts.tolist()}")
         out = np.empty((len(labels), mixing.shape[1]), dtype=mixing.dtype)
         offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
+        start = 0
         for i, s in enumerate(sources):
-            rows = labels == i
-            out[rows] = means[i] + s @ mixing[offsets[i]: offsets[i + 1]]
-        return out
+            stop = start + len(s)
+            if stop > start:
+                block = out[start:stop]
+                np.matmul(s, mixing[offsets[i]: offsets[i + 1]], out=block)
+                block += means[i]
+            start = stop
+        position = np.empty(len(labels), dtype=np.intp)
+        position[np.argsort(labels, kind="stable")] = np.arange(len(labels))
+        return out, position
