@@ -328,6 +328,47 @@ def test_match_histograms_in_chunks_and_threads_is_the_same_map(rng, monkeypatch
     np.testing.assert_array_equal(inplace, whole)
 
 
+def test_match_histograms_into_float32_and_uint8_out(rng):
+    # float32 / uint8 out: the float64 result rounded to float32 / to_uint8 of it, exactly;
+    # a float32 image gives the float64 copy's result (its bins are taken in float64).
+    from tghop.colour import channel_quantiles, match_histograms
+    from tghop.imageio import to_uint8
+
+    quantiles = channel_quantiles(rng.beta(2, 5, (60, 70, 3)))
+    img = (rng.random((41, 37, 3)) ** 2).astype(np.float32)
+    wide = match_histograms(img.astype(np.float64), quantiles)
+    np.testing.assert_array_equal(match_histograms(img, quantiles), wide)
+    narrow = np.empty(img.shape, dtype=np.float32)
+    assert match_histograms(img, quantiles, out=narrow) is narrow
+    np.testing.assert_array_equal(narrow, wide.astype(np.float32))
+    inplace = img.copy()
+    np.testing.assert_array_equal(match_histograms(inplace, quantiles, out=inplace), narrow)
+    eight = match_histograms(img, quantiles, out=np.empty(img.shape, dtype=np.uint8))
+    assert eight.dtype == np.uint8
+    np.testing.assert_array_equal(eight, to_uint8(wide))
+    for bad in (np.empty((41, 37, 3), dtype=np.int32), np.empty((41, 36, 3))):
+        with pytest.raises(TGHopError, match="out must be"):
+            match_histograms(img, quantiles, out=bad)
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"refine": 0}, {"match_colours": False}, {"refine": 0, "match_colours": False}])
+def test_synthesize_dtype_gives_the_float64_image_rounded(small_model, kwargs):
+    # float32: the float64 image rounded to float32; uint8: what to_uint8 makes of it (what
+    # the CLI writes), without making it.
+    from tghop.imageio import to_uint8
+
+    wide = small_model.synthesize((40, 56), rng=5, n_patches=300, **kwargs)
+    assert wide.dtype == np.float64
+    narrow = small_model.synthesize((40, 56), rng=5, n_patches=300, dtype=np.float32, **kwargs)
+    assert narrow.dtype == np.float32
+    np.testing.assert_array_equal(narrow, wide.astype(np.float32))
+    eight = small_model.synthesize((40, 56), rng=5, n_patches=300, dtype=np.uint8, **kwargs)
+    assert eight.dtype == np.uint8 and eight.shape == wide.shape
+    np.testing.assert_array_equal(eight, to_uint8(wide))
+    with pytest.raises(TGHopError, match="dtype must be"):
+        small_model.synthesize((40, 56), rng=5, n_patches=300, dtype=np.int16, **kwargs)
+
+
 def test_synthesize_matches_colours_only_when_asked(small_model, bricks96):
     plain = small_model.synthesize((64, 64), rng=1, n_patches=300, match_colours=False, refine=0)
     matched = small_model.synthesize((64, 64), rng=1, n_patches=300, refine=0)

@@ -21,6 +21,16 @@ def test_to_uint8_rounds_clips_and_works_in_row_blocks():
     assert to_uint8(np.float32([[0.0, 1.0]])).tolist() == [[0, 255]]
 
 
+def test_uint8_images_are_written_as_they_are(tmp_path):
+    from tghop.imageio import save_image
+
+    pixels = np.random.default_rng(1).integers(0, 256, (9, 7, 3), dtype=np.uint8)
+    assert to_uint8(pixels) is pixels
+    np.testing.assert_array_equal(to_uint8(pixels[..., :1]), pixels[..., 0])  # as for floats
+    save_image(pixels, tmp_path / "a.png")
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "a.png")), pixels)
+
+
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (6, 1), (37, 53), (37, 53, 1), (40, 29, 3), (1, 5, 3)])
 @pytest.mark.parametrize("part", [1 << 20, 64])
 def test_png_writer_gives_pillow_the_same_pixels(monkeypatch, shape, part):

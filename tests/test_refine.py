@@ -307,6 +307,13 @@ def test_refine_takes_float32_without_changing_the_result(cells):
     assert out.dtype == np.float64
     assert np.array_equal(out, refine(img.astype(np.float64), st))
     assert refine(img, st, n_iter=0).dtype == np.float64
+    # A float32 result: the same numbers (they are computed in float32).
+    narrow = refine(img, st, dtype=np.float32)
+    assert narrow.dtype == np.float32
+    assert np.array_equal(narrow, out)
+    assert refine(img, st, n_iter=0, dtype=np.float32).dtype == np.float32
+    with pytest.raises(TGHopError, match="dtype"):
+        refine(img, st, dtype=np.uint8)
 
 
 @pytest.mark.parametrize("path", ["stacked", "threads", "one by one"])

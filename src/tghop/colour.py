@@ -15,6 +15,8 @@ import os
 
 import numpy as np
 
+from ._common import TGHopError
+
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES"]
 
 #: Quantile levels stored per channel (0, 1/256, ..., 1).
@@ -75,16 +77,23 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     quantiles : ndarray, shape (C, n)
         From :func:`channel_quantiles` of the reference.
     out : ndarray, shape (H, W, C), optional
-        Where to write the result (may be ``image`` itself, to match in place).
+        Where to write the result (may be ``image`` itself, to match in place): float64
+        by default; a float32 ``out`` gets the float64 values rounded to float32, a uint8
+        one the 8-bit values :func:`tghop.imageio.to_uint8` would make of them (without
+        the float image: an 8192x8192 RGB image is 1.6 GB in float64, 0.2 GB in uint8).
 
     Returns
     -------
-    ndarray, shape (H, W, C), in [0, 1]
+    ndarray, shape (H, W, C), in [0, 1] (uint8 ``out``: 0 to 255)
     """
     image = np.asarray(image)
     h, w, c = image.shape
     if out is None:
         out = np.empty((h, w, c))
+    elif out.shape != image.shape or out.dtype not in (np.float64, np.float32, np.uint8):
+        raise TGHopError(f"match_histograms: out must be a float64, float32 or uint8 array of shape {image.shape}, "
+                         f"got {out.dtype} {out.shape}")
+    eight_bit = out.dtype == np.uint8
     levels = np.linspace(0.0, 1.0, quantiles.shape[1])
     rows = max(1, _CHUNK // max(1, w))
 
@@ -94,13 +103,16 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
         bins = np.empty((h, w), dtype=np.uint16)
         for a in range(0, h, rows):
             t = tmp[: min(rows, h - a)]
-            np.multiply(image[a : a + rows, :, k], RANK_BINS - 1, out=t)
+            np.multiply(image[a : a + rows, :, k], RANK_BINS - 1, out=t, dtype=np.float64)  # float32 images too
             t += 0.5
             np.clip(t, 0, RANK_BINS - 1, out=t)
             bins[a : a + rows] = t  # truncation: t >= 0
         counts = np.bincount(bins.ravel(), minlength=RANK_BINS)
         mid_rank = (np.cumsum(counts) - 0.5 * counts) / bins.size
         table = np.clip(np.interp(mid_rank, levels, quantiles[k]), 0.0, 1.0)
+        if eight_bit:  # to_uint8 of each table entry: to_uint8 of every pixel, in one lookup
+            table = np.round(table * 255.0).astype(np.uint8)
+            tmp = np.empty(tmp.shape, dtype=np.uint8)
         for a in range(0, h, rows):
             t = tmp[: min(rows, h - a)]
             # mode "clip": no bounds check that raises (uint16 bins always index the table),

@@ -120,8 +120,12 @@ def _decode(im, path, max_pixels, downscale):
 
 
 def to_uint8(image) -> np.ndarray:
-    """Convert a float image in [0, 1] to ``uint8`` (rounding), dropping a singleton channel."""
-    arr = np.asarray(image, dtype=np.float64)
+    """Convert a float image in [0, 1] to ``uint8`` (rounding), dropping a singleton channel.
+    A uint8 image is taken as it is (e.g. from ``TGHop.synthesize(..., dtype=numpy.uint8)``)."""
+    arr = np.asarray(image)
+    if arr.dtype == np.uint8:
+        return arr[:, :, 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr
+    arr = np.asarray(arr, dtype=np.float64)
     out = np.empty(arr.shape, dtype=np.uint8)
     # A few rows at a time: the temporaries of a large image stay small (an 8192x8192
     # RGB image is 1.6 GB in float64; whole-image steps made two more of those).
@@ -276,6 +280,7 @@ def save_image(image, path) -> None:
     Parameters
     ----------
     image : ndarray, shape (H, W) or (H, W, C)
+        Floats in [0, 1], or uint8 (written as they are).
     path : str or os.PathLike
         The file appears complete or not at all.
     """

@@ -244,8 +244,9 @@ class CoarseLayout(BaseEstimator):
         # Measured on 20 exemplars at 256x256, seeds 0-3: better on 10 of 20 in SIFID, SWD
         # and co-occurrence alike (median changes -0.4 %, -0.2 %, -0.2 %); the guide of a
         # 2048x2048 image 1.37 -> 1.11 s (docs/choices.md).
-        coarse = self.model_.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False)
+        coarse = self.model_.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False,
+                                       dtype=np.float32)
         coarse = refine_bands(coarse, self.model_.bands_, n_iter=refine, tile=tile,  # checks refine too
-                              first_level=1 if GUIDE_SCALE // f >= 2 else 0)
+                              first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
         coarse = match_histograms(coarse, self.model_.colour_quantiles_, out=coarse)
-        return upsample(coarse.astype(np.float32), f, (h, w), wrap=tile)
+        return upsample(coarse, f, (h, w), wrap=tile)

@@ -569,7 +569,7 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None):
+def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, dtype=np.float64):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
@@ -595,10 +595,13 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None):
         ``progress("refine", done, total)``, ``total`` = channels x rounds: after each
         round (small images: all channels at once; very large ones: one channel at a
         time) or each channel (channels in threads).
+    dtype : {numpy.float64, numpy.float32}
+        Of the result; the values are computed in float32 either way, so float32 gives
+        the same numbers in half the memory.
 
     Returns
     -------
-    ndarray, shape (H, W, C), float64 in [0, 1]
+    ndarray, shape (H, W, C), ``dtype``, in [0, 1]
     """
     for name, value in (("n_iter", n_iter), ("first_level", first_level)):
         if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
@@ -609,8 +612,11 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None):
     if image.ndim != 3 or image.shape[2] != len(stats.colour_mean_):
         raise TGHopError(f"refine: image of shape {image.shape} but the statistics have "
                          f"{len(stats.colour_mean_)} channels")
+    dtype = np.dtype(dtype)
+    if dtype not in (np.float32, np.float64):
+        raise TGHopError(f"refine: dtype must be float32 or float64, got {dtype}")
     if n_iter == 0:
-        return np.clip(image.astype(np.float64), 0.0, 1.0)
+        return np.clip(image.astype(dtype), 0.0, 1.0)
     mode = "wrap" if tile else "reflect"
     # The decorrelated channels are refined independently (each band of each channel has
     # its own quantiles): one thread per channel for large images (NumPy's FFT and
@@ -658,7 +664,7 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None):
         fft_workers = os.cpu_count() or 1
         for k in range(n_channels):
             one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total), fft_workers=fft_workers)
-    return _colours(stats, results)
+    return _colours(stats, results, dtype)
 
 
 # Values per step of the colour conversions around the refinement (in cache).
@@ -680,12 +686,13 @@ def _decorrelated_channels(stats, image):
     return channels
 
 
-def _colours(stats, channels):
-    """Inverse of :func:`_decorrelated_channels`, clipped to [0, 1]: (H, W, C) float64."""
+def _colours(stats, channels, dtype=np.float64):
+    """Inverse of :func:`_decorrelated_channels`, clipped to [0, 1]: (H, W, C) ``dtype``
+    (computed in float32)."""
     h, w = channels[0].shape
     c = len(channels)
     mean, basis = (a.astype(np.float32) for a in (stats.colour_mean_, stats.colour_basis_))
-    out = np.empty((h, w, c))
+    out = np.empty((h, w, c), dtype=dtype)
     rows = max(1, _ROWS_CHUNK // w)
     for a in range(0, h, rows):
         block = np.stack([x[a : a + rows] for x in channels], axis=2).reshape(-1, c) @ basis + mean

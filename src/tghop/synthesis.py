@@ -514,7 +514,7 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
-                   progress=None):
+                   progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -550,12 +550,20 @@ class TGHop(BaseEstimator):
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine" and
             "colour".
+        dtype : {numpy.float64, numpy.float32, numpy.uint8}
+            Of the image. float32 holds the same values as float64 rounded to float32;
+            uint8 the 8-bit values 0-255 that :func:`tghop.imageio.to_uint8` makes of the
+            float64 image (what ``tghop synth`` writes), without making that image (an
+            8192x8192 RGB image is 1.6 GB in float64, 0.2 GB in uint8).
 
         Returns
         -------
-        ndarray, shape (H, W, C), float64 in [0, 1]
+        ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
         """
         check_is_fitted(self, "ichm_")
+        dtype = np.dtype(dtype)
+        if dtype not in (np.float64, np.float32, np.uint8):
+            raise TGHopError(f"dtype must be float64, float32 or uint8, got {dtype}")
         settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
                                      detail=detail, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
                                      layout_refine=layout_refine))
@@ -584,16 +592,24 @@ class TGHop(BaseEstimator):
             report(progress, "patch pool", 0, 1)
             prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=None)
         report(progress, "patch pool", 1, 1)
-        # float32 when refined (the refinement works in float32): half the memory of a large image.
+        # float32 unless a float64 image is wanted unrefined (the refinement works in
+        # float32; quilting's canvas is float32): half the memory of a large image.
+        wide = np.float64 if dtype == np.float64 and not refine else np.float32
         image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
-                               guide_weight=layout_weight, dtype=np.float32 if refine else np.float64)
+                               guide_weight=layout_weight, dtype=wide)
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
-        if refine:
-            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress)
+        if refine:  # float64 only for a float64 image, whose colours are then matched in place
+            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
+                                 dtype=np.float64 if dtype == np.float64 else np.float32)
         if not match_colours:
-            return image
+            if dtype == np.uint8:
+                from .imageio import to_uint8
+
+                return to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
+            return image.astype(dtype, copy=False)
         report(progress, "colour", 0, 1)
-        return match_histograms(image, self.colour_quantiles_, out=image)
+        out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
+        return match_histograms(image, self.colour_quantiles_, out=out)
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
