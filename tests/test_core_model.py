@@ -147,6 +147,10 @@ def test_fast_decoder_equals_stepwise_inverse(small_model, n):
     np.testing.assert_allclose(single, slow, atol=1e-4)
     staged, _ = small_model.sample_patches(n, rng=11, return_stages=True)
     np.testing.assert_allclose(staged, slow, atol=1e-12)
+    # Some rows of z, in a given order (sample_patches passes the pool's order of grouped rows).
+    rows = np.arange(n)[::-2]
+    some = small_model._decode_fast(z, np.float64, rows=rows).reshape((len(rows),) + slow.shape[1:])
+    np.testing.assert_allclose(np.clip(some, 0.0, 1.0), slow[rows], atol=1e-9)
 
 
 def test_fit_deterministic(bricks96):

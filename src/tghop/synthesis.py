@@ -413,7 +413,7 @@ class TGHop(BaseEstimator):
         """
         sdr = self.sdr_
         h, w, k = sdr.shape_
-        n = len(z)
+        n = len(z) if rows is None else len(rows)
         z = np.asarray(z, dtype=dtype)
         linear, constant = self._block_decoder()
         ranges = sdr.channel_ranges()  # each channel's columns of z
