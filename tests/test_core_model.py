@@ -147,10 +147,42 @@ def test_fast_decoder_equals_stepwise_inverse(small_model, n):
     np.testing.assert_allclose(single, slow, atol=1e-4)
     staged, _ = small_model.sample_patches(n, rng=11, return_stages=True)
     np.testing.assert_allclose(staged, slow, atol=1e-12)
-    # Some rows of z, in a given order (sample_patches passes the pool's order of grouped rows).
+    # A pool generated when read: ranges and chosen patches, in any order.
+    from tghop.synthesis import _GeneratedPool
+
+    pool = _GeneratedPool(small_model, z, np.arange(n))
     rows = np.arange(n)[::-2]
-    some = small_model._decode_fast(z, np.float64, rows=rows).reshape((len(rows),) + slow.shape[1:])
-    np.testing.assert_allclose(np.clip(some, 0.0, 1.0), slow[rows], atol=1e-9)
+    np.testing.assert_allclose(pool[rows], slow[rows], atol=1e-9)
+    np.testing.assert_allclose(pool[n // 3 :], slow[n // 3 :], atol=1e-9)
+    np.testing.assert_array_equal(pool.all(), fast)  # as sample_patches decodes it
+
+
+def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
+    # Few blocks per pool patch: the pool is generated as read, never whole; its tables are
+    # those of the whole pool, and the placed patches differ by float32 round-off at most.
+    from tghop import synthesis
+    from tghop.synthesis import _GeneratedPool
+
+    whole = []
+    all_of = _GeneratedPool.all
+    monkeypatch.setattr(_GeneratedPool, "all", lambda self: whole.append(1) or all_of(self))
+    args = (1000, None, False, 0.5, None)
+    on_demand = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
+    assert isinstance(on_demand.patches, _GeneratedPool) and not whole
+    monkeypatch.setattr(synthesis, "_ON_DEMAND_BLOCKS", 0.0)
+    stored = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
+    assert isinstance(stored.patches, np.ndarray) and whole
+    for name in ("_table", "_bound", "_energy"):
+        np.testing.assert_array_equal(getattr(on_demand, name), getattr(stored, name))
+    some = np.array([999, 3, 500, 3])
+    np.testing.assert_allclose(on_demand.patches[some], stored.patches[some], atol=1e-6)
+    # The quilt: the same blocks, their pixels up to round-off (the refinement and colour
+    # matching then move values by a little more: ranks shift).
+    plain = dict(rng=2, n_patches=1000, refine=0, match_colours=False)
+    a, full_a = small_model.synthesize((48, 48), **plain), small_model.synthesize((48, 48), rng=2, n_patches=1000)
+    monkeypatch.setattr(synthesis, "_ON_DEMAND_BLOCKS", 1.0)
+    np.testing.assert_allclose(small_model.synthesize((48, 48), **plain), a, atol=1e-5)
+    assert np.abs(small_model.synthesize((48, 48), rng=2, n_patches=1000) - full_a).mean() < 1e-3
 
 
 def test_fit_deterministic(bricks96):

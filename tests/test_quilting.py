@@ -494,6 +494,59 @@ def test_quilt_prepared_in_float32_is_the_same_canvas(brick_pool):
         quilt_prepared(prepared, rng=3, dtype=np.int32)
 
 
+class _ReadOnDemand:
+    """A pool read as quilting reads one generated on demand: ranges into a reused buffer
+    (scribbled over after use), chosen patches as new arrays; the reads are recorded."""
+
+    def __init__(self, arr):
+        self._arr, self.shape, self.dtype, self.reads = arr, arr.shape, arr.dtype, []
+        self._buffer = np.empty_like(arr)
+
+    def __getitem__(self, index):
+        self.reads.append(index)
+        self._buffer[...] = -7.0  # a range read earlier must not be used any more
+        if isinstance(index, slice):
+            out = self._buffer[index]
+            out[...] = self._arr[index]
+            return out
+        return self._arr[np.asarray(index)].copy()
+
+
+@pytest.mark.parametrize("guided", [False, True])
+@pytest.mark.parametrize("tile", [False, True])
+def test_a_pool_read_on_demand_quilts_as_its_array(brick_pool, guided, tile):
+    from tghop.quilting import prepare_pool, quilt_prepared
+
+    arr = brick_pool.astype(np.float32)
+    size = (48, 64)
+    guide = np.random.default_rng(2).random((*size, 3)) if guided else None
+    kwargs = dict(detail=0.5, tile=tile, guide_scale=4 if guided else None)
+    expected = quilt_prepared(prepare_pool(arr, size, **kwargs), rng=5, guide=guide)
+    pool = _ReadOnDemand(arr)
+    prepared = prepare_pool(pool, size, **kwargs)
+    ranges = [r for r in pool.reads if isinstance(r, slice)]
+    assert [(r.start, r.stop) for r in ranges] == [(a, min(a + 128, len(arr))) for a in range(0, len(arr), 128)]
+    assert np.array_equal(quilt_prepared(prepared, rng=5, guide=guide), expected)
+    assert not any(isinstance(r, slice) for r in pool.reads[len(ranges):])  # quilting reads chosen patches only
+
+
+def test_a_pool_read_on_demand_is_checked():
+    from tghop.quilting import prepare_pool
+
+    class Pool:
+        def __init__(self, shape, dtype=np.float32):
+            self.shape, self.dtype = shape, np.dtype(dtype)
+
+        def __getitem__(self, index):
+            return np.full((5,) + self.shape[1:], np.nan, dtype=self.dtype)[: self.shape[0]]
+
+    for bad in (Pool((5, 8, 6, 3)), Pool((5, 8, 8, 2)), Pool((0, 8, 8, 3)), Pool((5, 8, 8, 3), np.uint8)):
+        with pytest.raises(TGHopError, match="read on demand"):
+            prepare_pool(bad, (20, 20))
+    with pytest.raises(TGHopError, match="NaN"):  # values are checked where they are read
+        prepare_pool(Pool((5, 8, 8, 3)), (20, 20))
+
+
 # ----------------------------------------------------------------------------- error bound
 
 

@@ -129,11 +129,21 @@ def _check_values(values: np.ndarray) -> None:
 
 
 def _check_pool(pool) -> np.ndarray:
-    """Return the pool as a float32/float64 ``(n, P, P, C)`` array (no copy if possible).
+    """Return the pool as a float32/float64 ``(n, P, P, C)`` array (no copy if possible),
+    or a pool object read on demand as it is.
 
     Values are checked where they are read (:func:`_check_values`), which saves a pass
     over a large pool.
     """
+    if not isinstance(pool, (np.ndarray, list, tuple)) and hasattr(pool, "shape") and hasattr(pool, "dtype"):
+        # A pool read as it is used (e.g. generated on demand): ``pool[a:b]`` in order while
+        # preparing (the array may be reused by the next read) and ``pool[indices]``.
+        shape = tuple(pool.shape)
+        if (len(shape) != 4 or shape[1] != shape[2] or shape[3] not in (1, 3) or shape[0] < 1 or shape[1] < 2
+                or np.dtype(pool.dtype) not in (np.float32, np.float64)):
+            raise TGHopError(f"a pool read on demand must have shape (n, P, P, C) (n >= 1, P >= 2, C = 1 or 3) "
+                             f"and dtype float32 or float64, got {shape} {pool.dtype}")
+        return pool
     arr = np.asarray(pool)
     if arr.ndim == 3:
         arr = arr[..., None]
@@ -973,7 +983,7 @@ class PreparedPool:
     Attributes
     ----------
     patches : ndarray, shape (n, P, P, C)
-        The pool as given (float32 or float64; no copy).
+        The pool as given (float32 or float64; no copy), or a pool object read on demand.
     plan : QuiltingPlan
     detail : float
     guide_scale : int or None

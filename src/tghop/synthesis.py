@@ -18,6 +18,7 @@ Example
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -29,7 +30,7 @@ from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .layout import CoarseLayout
-from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
+from .quilting import _POOL_CHUNK, GUIDE_SCALE, _check_size, default_overlap, prepare_pool, quilt_prepared
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -43,6 +44,13 @@ PAPER_TABLE4 = {"n_channels": (9, 22),
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
+#: Patches decoded per step (the intermediate arrays stay in cache).
+_DECODE_CHUNK = 64
+#: Pools are generated on demand (:class:`_GeneratedPool`) for images of at most this many
+#: blocks per pool patch (256x256 and 512x512 images from a pool of 5,000). Larger images
+#: place more patches, decoded again one wavefront at a time on quilting's path: a coarse
+#: 1024x1024 image from 4,000 patches took 1.03 of the time on demand (in a warm process).
+_ON_DEMAND_BLOCKS = 0.125
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -399,22 +407,22 @@ class TGHop(BaseEstimator):
             constant = depth_to_space((constant - hop.bias_) @ hop.kernels_)
         return linear.reshape(k, -1), constant.reshape(-1)
 
-    def _decode_fast(self, z, dtype, chunk=64, rows=None):
-        """Core-model vectors ``z`` (n, D_r) -> flattened patches (n, P*P*C) in ``dtype``.
+    def _patch_decoder(self, dtype):
+        """A function ``decode(z, out)``: core-model vectors ``z`` (m, D_r) -> patches
+        written into ``out`` (m, P, P, C), a C-contiguous array of ``dtype``, clipped to
+        [0, 1].
 
         The same affine path as :meth:`decode` (tested equal), arranged for speed: the
         inverse SDR per channel into a channel-major core, then the inverse hops as one
         matrix product from each core position to its pixel block (:meth:`_block_decoder`)
         and one transpose into patch order. The channel means go through the block map
-        once, as one offset per core position. ``chunk`` patches at a time, so that the
-        intermediate arrays stay in the processor's cache (5,000 patches: 0.105 -> 0.054
-        s); no cache between calls, so the first call from a loaded model costs what
-        every later one does. ``rows``: decode ``z[rows]`` (gathered a chunk at a time).
+        once, as one offset per core position. Given :data:`_DECODE_CHUNK` patches at a
+        time its intermediate arrays stay in the processor's cache (5,000 patches: 0.105
+        -> 0.054 s). Made for each pool, not cached, so the first pool from a loaded model
+        costs what every later one does.
         """
         sdr = self.sdr_
         h, w, k = sdr.shape_
-        n = len(z) if rows is None else len(rows)
-        z = np.asarray(z, dtype=dtype)
         linear, constant = self._block_decoder()
         ranges = sdr.channel_ranges()  # each channel's columns of z
         comps = [sdr.components_[a:e].astype(dtype) for a, e in ranges]
@@ -422,24 +430,38 @@ class TGHop(BaseEstimator):
         linear = linear.astype(dtype)
         b = self.patch_size // h
         c_out = self.exemplar_shape_[2]
-        out = np.empty((n, h, b, w, b, c_out), dtype=dtype)
         # A block row's b * C values move as one item: the transpose into patch order
         # copies items of that size instead of runs of a few floats (half the time).
-        row = np.dtype((np.void, b * c_out * out.itemsize))
-        dst = out.reshape(n, h, b, w, b * c_out).view(row)[..., 0]  # (n, h, b, w)
-        for s in range(0, n, chunk):
-            e = min(n, s + chunk)
-            zc = z[s:e] if rows is None else z[rows[s:e]]
-            core = np.empty((k, e - s, h * w), dtype=dtype)  # channel-major: contiguous writes
+        row = np.dtype((np.void, b * c_out * np.dtype(dtype).itemsize))
+
+        def decode(z, out):
+            m = len(z)
+            z = np.asarray(z, dtype=dtype)
+            core = np.empty((k, m, h * w), dtype=dtype)  # channel-major: contiguous writes
             for c, (a, stop) in enumerate(ranges):
                 if a < stop:
-                    np.matmul(zc[:, a:stop], comps[c], out=core[c])
+                    np.matmul(z[:, a:stop], comps[c], out=core[c])
                 else:
                     core[c] = 0.0
-            blocks = (core.reshape(k, -1).T @ linear).reshape(e - s, h * w, -1)
+            blocks = (core.reshape(k, -1).T @ linear).reshape(m, h * w, -1)
             blocks += offset
-            dst[s:e] = blocks.reshape(e - s, h, w, b, b * c_out).view(row)[..., 0].transpose(0, 1, 3, 2)
-        return out.reshape(n, -1)
+            dst = out.reshape(m, h, b, w, b * c_out).view(row)[..., 0]  # (m, h, b, w)
+            dst[...] = blocks.reshape(m, h, w, b, b * c_out).view(row)[..., 0].transpose(0, 1, 3, 2)
+            np.clip(out, 0.0, 1.0, out=out)
+
+        return decode
+
+    def _sample_vectors(self, n, rng, dtype):
+        """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
+        cluster as mixed (:meth:`ICHM.mix_by_cluster`), and ``position``: ``z[position]``
+        are the samples in order."""
+        ichm = self.ichm_
+        labels, sources = ichm.sample_sources(n, rng=rng)
+        z, position = ichm.mix_by_cluster(labels, [s.astype(dtype, copy=False) for s in sources],
+                                          mixing=ichm.mixing_as(dtype), means=ichm.means_.astype(dtype, copy=False))
+        if ichm.residual_factor_.size > 0:
+            z[position] += ichm.sample_residual(n, rng=rng).astype(dtype, copy=False)
+        return z, position
 
     def sample_patches(self, n, *, rng=None, return_stages=False, dtype=np.float64):
         """Generate new patches.
@@ -465,20 +487,11 @@ class TGHop(BaseEstimator):
         if dtype not in (np.float32, np.float64):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
         rng = check_rng(rng)
-        labels, sources = self.ichm_.sample_sources(n, rng=rng)
-        ichm = self.ichm_
-        zt = np.dtype(np.float64) if return_stages else dtype  # the stage views keep float64
-        # Grouped by cluster as mixed; ``z[position]`` are the samples in order.
-        z, position = ichm.mix_by_cluster(labels, [s.astype(zt, copy=False) for s in sources],
-                                          mixing=ichm.mixing_as(zt), means=ichm.means_.astype(zt, copy=False))
-        if ichm.residual_factor_.size > 0:
-            z[position] += ichm.sample_residual(n, rng=rng).astype(zt, copy=False)
-        if return_stages:  # the paper's step-by-step inverse, keeping every space
+        if return_stages:  # the paper's step-by-step inverse, keeping every space (in float64)
+            z, position = self._sample_vectors(n, rng, np.dtype(np.float64))
             patches, spaces = self.decode(z[position], return_stages=True)
             return patches.astype(dtype, copy=False), self.stage_views(spaces)
-        flat = self._decode_fast(z, dtype, rows=position)
-        shape = (n, self.patch_size, self.patch_size, self.exemplar_shape_[2])
-        return np.clip(flat, 0.0, 1.0, out=flat).reshape(shape)
+        return _GeneratedPool(self, *self._sample_vectors(n, rng, dtype)).all()
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -508,8 +521,20 @@ class TGHop(BaseEstimator):
         return views
 
     def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):
-        """A new pool of ``n_patches`` (float32) made ready for quilting (:func:`tghop.quilting.prepare_pool`)."""
-        pool = self.sample_patches(n_patches, rng=rng, dtype=np.float32)
+        """A new pool of ``n_patches`` (float32) made ready for quilting (:func:`tghop.quilting.prepare_pool`).
+
+        When quilting will place few blocks (at most :data:`_ON_DEMAND_BLOCKS` per pool
+        patch: a 256x256 image places about 100 of 5,000 patches), the pool is not kept:
+        its patches are generated a chunk at a time as their tables are made, and again
+        for the few that are placed (:class:`_GeneratedPool`). Else they are generated
+        once, into an array.
+        """
+        pool = _GeneratedPool(self, *self._sample_vectors(n_patches, rng, np.dtype(np.float32)))
+        p = self.patch_size
+        step = p - (default_overlap(p) if overlap is None else overlap)
+        blocks = math.prod(-(-side // max(step, 1)) for side in _check_size(size))  # about quilting_plan's count
+        if blocks > _ON_DEMAND_BLOCKS * n_patches:
+            pool = pool.all()
         return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
@@ -613,6 +638,63 @@ class TGHop(BaseEstimator):
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
+
+
+class _GeneratedPool:
+    """A pool of patches generated from core-model vectors when they are read.
+
+    What quilting reads of a pool (:func:`tghop.quilting.prepare_pool`): ``shape``,
+    ``dtype``, contiguous ranges ``pool[a:b]`` (in order, while its tables are made) and
+    the chosen patches ``pool[indices]``. A range is decoded into one reused buffer, valid
+    until the next read, so it is used while it is in cache and the pool never takes
+    memory (5,000 patches: 61 MB in float32); the chosen patches are decoded again. Ranges
+    are decoded :data:`_DECODE_CHUNK` patches at a time from multiples of it, as
+    :meth:`all` decodes the whole pool, so they hold the same numbers; chosen patches
+    decoded in other groups can differ from them by float32 round-off (4e-7; BLAS sums
+    in an order that depends on the number of rows).
+
+    Parameters
+    ----------
+    model : TGHop
+    z, position : ndarray
+        :meth:`TGHop._sample_vectors`: patch ``i`` is decoded from ``z[position[i]]``.
+    """
+
+    ndim = 4
+
+    def __init__(self, model, z, position):
+        self._z, self._position = z, position
+        self.dtype = z.dtype
+        self.shape = (len(position), model.patch_size, model.patch_size, model.exemplar_shape_[2])
+        self._decode = model._patch_decoder(self.dtype)
+        self._buffer = None
+
+    def __len__(self):
+        return self.shape[0]
+
+    def _fill(self, rows, out):
+        """Decode the patches ``rows`` (their indices in the pool, ascending from a multiple
+        of _DECODE_CHUNK for ranges) into ``out``, _DECODE_CHUNK at a time."""
+        for a in range(0, len(rows), _DECODE_CHUNK):
+            e = min(len(rows), a + _DECODE_CHUNK)
+            self._decode(self._z[self._position[rows[a:e]]], out[a:e])
+        return out
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            start, stop, step = index.indices(self.shape[0])
+            rows = np.arange(start, stop, step)
+            if self._buffer is None or len(self._buffer) < len(rows):
+                self._buffer = np.empty((max(len(rows), _POOL_CHUNK),) + self.shape[1:], dtype=self.dtype)
+            return self._fill(rows, self._buffer[: len(rows)])
+        rows = np.asarray(index)
+        if rows.dtype.kind not in "iu" or rows.ndim != 1:
+            raise TypeError("a generated pool is read by a slice or a 1-d array of indices")
+        return self._fill(rows, np.empty((len(rows),) + self.shape[1:], dtype=self.dtype))
+
+    def all(self):
+        """The whole pool as an array (n, P, P, C)."""
+        return self._fill(np.arange(self.shape[0]), np.empty(self.shape, dtype=self.dtype))
 
 
 # ------------------------------------------------------------------ arrays (model files)
