@@ -18,7 +18,7 @@ if (_os.path.basename(_argv0) == "tghop" or _argv0.endswith(_os.path.join("tghop
         _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
     _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
-__version__ = "0.11.0"
+__version__ = "0.12.0"
 
 from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: E402
 
