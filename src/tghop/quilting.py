@@ -128,6 +128,18 @@ def _check_values(values: np.ndarray) -> None:
         raise TGHopError(f"pool values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; divide by 255 for 8-bit data")
 
 
+def _read_on_demand(pool) -> bool:
+    """Whether ``pool`` is a pool object read on demand (shape, a NumPy dtype, indexing)
+    rather than something to turn into an array."""
+    if isinstance(pool, (np.ndarray, list, tuple)) or not all(hasattr(pool, a) for a in ("shape", "dtype", "__getitem__")):
+        return False
+    try:
+        np.dtype(pool.dtype)
+    except TypeError:  # e.g. a PyTorch tensor: read as an array
+        return False
+    return True
+
+
 def _check_pool(pool) -> np.ndarray:
     """Return the pool as a float32/float64 ``(n, P, P, C)`` array (no copy if possible),
     or a pool object read on demand as it is.
@@ -135,7 +147,7 @@ def _check_pool(pool) -> np.ndarray:
     Values are checked where they are read (:func:`_check_values`), which saves a pass
     over a large pool.
     """
-    if not isinstance(pool, (np.ndarray, list, tuple)) and hasattr(pool, "shape") and hasattr(pool, "dtype"):
+    if _read_on_demand(pool):
         # A pool read as it is used (e.g. generated on demand): ``pool[a:b]`` in order while
         # preparing (the array may be reused by the next read) and ``pool[indices]``.
         shape = tuple(pool.shape)
@@ -772,7 +784,7 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
 
     The pool is worked through :data:`_POOL_CHUNK` patches at a time, every step of a
     chunk done while it is in cache: the pool is read from memory once, not once per step
-    (a 5,000-patch pool, each step in its own pass: 122 ms).
+    (a 5,000-patch pool 78-89 -> 67-84 ms; a pool generated on demand is never whole).
     """
     n, p, _, c = arr.shape
     m, k = masks_fc.shape
