@@ -415,6 +415,21 @@ def test_synthesize_matches_colours_only_when_asked(small_model, bricks96):
     assert abs(matched.mean() - bricks96.mean()) < abs(plain.mean() - bricks96.mean()) + 1e-3
 
 
+def test_float16_finiteness_is_checked_in_every_chunk(monkeypatch):
+    from tghop import modelfile
+
+    monkeypatch.setattr(modelfile, "_CHECK_CHUNK", 7)
+    rows = np.random.default_rng(0).standard_normal((5, 9)).astype(np.float16)  # 45 values: 6 chunks and 3
+    assert modelfile._all_finite(rows) and modelfile._all_finite(rows[:, ::2])
+    for where in (0, 6, 7, 44):
+        for value in (np.inf, -np.inf, np.nan):
+            bad = rows.copy()
+            bad.flat[where] = value
+            assert not modelfile._all_finite(bad)
+    big = np.float16([65504.0, -65504.0, 6e-8, -0.0])  # the largest, a subnormal, minus zero: finite
+    assert modelfile._all_finite(big)
+
+
 def test_mixing_stored_as_float16_rows_and_version_2_files_still_load(small_model, tmp_path):
     path = tmp_path / "m.npz"
     save_model(small_model, path)
