@@ -606,3 +606,13 @@ def test_guide_targets_of_all_blocks_equal_the_box_means_of_their_windows(size, 
         for j, x in enumerate(plan.xs.tolist()):
             window = canvas[quilting._window(y, x, 16, hc, wc)]
             np.testing.assert_array_equal(got[i, j], quilting._box_means(window[None], 4)[0])
+
+
+@pytest.mark.parametrize("size,tile", [((256, 256), False), ((50, 70), False), ((10, 10), False), ((96, 160), True),
+                                       ((33, 200), True)])
+def test_block_count_is_the_plans(size, tile):
+    from tghop.quilting import _block_count, quilting_plan
+
+    for overlap in (None, 3, 8):
+        assert _block_count(size, 32 if not tile else 16, overlap=overlap, tile=tile) == quilting_plan(
+            size, 32 if not tile else 16, overlap=overlap, tile=tile).n_blocks

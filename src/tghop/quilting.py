@@ -468,6 +468,13 @@ def _axis_positions(length: int, p: int, overlap: int, tile: bool, name: str):
     )
 
 
+def _block_count(size, patch_size: int, *, overlap: Optional[int] = None, tile: bool = False) -> int:
+    """How many blocks :func:`quilting_plan` lays out (without the plan's masks)."""
+    h, w = _check_size(size)
+    p, o = _check_patch_overlap(patch_size, overlap)
+    return len(_axis_positions(h, p, o, tile, "height")[0]) * len(_axis_positions(w, p, o, tile, "width")[0])
+
+
 def _tile_levels(ny: int, nx: int) -> np.ndarray:
     """Wavefront levels on a torus: the longest chain of overlapping predecessors.
 

@@ -18,7 +18,6 @@ Example
 
 from __future__ import annotations
 
-import math
 import numbers
 
 import numpy as np
@@ -30,7 +29,7 @@ from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .layout import CoarseLayout
-from .quilting import _POOL_CHUNK, GUIDE_SCALE, _check_size, default_overlap, prepare_pool, quilt_prepared
+from .quilting import _POOL_CHUNK, GUIDE_SCALE, _block_count, prepare_pool, quilt_prepared
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -530,10 +529,7 @@ class TGHop(BaseEstimator):
         once, into an array.
         """
         pool = _GeneratedPool(self, *self._sample_vectors(n_patches, rng, np.dtype(np.float32)))
-        p = self.patch_size
-        step = p - (default_overlap(p) if overlap is None else overlap)
-        blocks = math.prod(-(-side // max(step, 1)) for side in _check_size(size))  # about quilting_plan's count
-        if blocks > _ON_DEMAND_BLOCKS * n_patches:
+        if _block_count(size, self.patch_size, overlap=overlap, tile=tile) > _ON_DEMAND_BLOCKS * n_patches:
             pool = pool.all()
         return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
 
