@@ -1057,9 +1057,9 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     # The low pass and its norm (with a guide) are the bound's last columns (views into them).
     table, bound, energy = _pool_table(arr, slices, masks_fc, boxes, energy=detail > 0, guide_scale=scale)
     low = low_norm = None
-    if scale is not None:
-        n_low = (p // scale) ** 2 * c
-        low, low_norm = bound[:, -1 - n_low : -1], bound[:, -1]
+    if scale is not None:  # the columns after the m overlap shapes' bounds and the g box sums
+        start = len(masks_fc) + boxes.scale.size
+        low, low_norm = bound[:, start:-1], bound[:, -1]
     return PreparedPool(patches=arr, plan=plan, detail=detail, guide_scale=scale, _slices=slices, _masks_f=masks_f,
                         _masks_fc=masks_fc, _table=table, _boxes=boxes, _bound=bound, _energy=energy, _low=low,
                         _low_norm=low_norm)
