@@ -184,34 +184,78 @@ def _sample_quantiles(sample, levels):
 def _match(values, target, levels, out=None):
     """Monotone map of ``values`` giving them the quantiles ``target`` (at ``levels``).
 
-    The map (piecewise linear through the pairs of quantiles) is tabulated at uniform
-    steps over the values' range (a quarter as many as values, within _LUT_MIN and
-    _LUT_MAX) and applied by looking up the nearest entry: linear time.
+    Histogram matching by ranks (:func:`_matching`), tabulated at uniform steps over the
+    values' range (a quarter as many as values, within _LUT_MIN and _LUT_MAX) and applied
+    by looking up the nearest entry: linear time, no sort. When the ranks come from every
+    value (at most _MAX_VALUES of them), each value's table entry is found once and used
+    for both the ranks and the lookup.
     """
-    matching = _matching(_subset(values, 1), values.size, target, levels, values.dtype)
     out = np.empty_like(values) if out is None else out
     src = np.ascontiguousarray(values).reshape(-1)
     dst = out.reshape(-1) if out.flags.c_contiguous else np.empty(out.size, dtype=out.dtype)
-    _apply_matching(matching, src, dst)
+    sample = _subset(src, 1)
+    if sample.size < src.size:
+        _apply_matching(_matching(sample, src.size, target, levels, src.dtype), src, dst)
+    else:
+        lo, scale, size = _grid(src, src.size)
+        if scale is None:
+            dst[...] = _flat_value(target, levels)
+        else:
+            index = _table_index(src, lo, scale, size - 1)
+            np.take(_rank_table(index, size, target, levels, src.dtype), index, out=dst, mode="clip")
     if not out.flags.c_contiguous:
         out[...] = dst.reshape(out.shape)
     return out
 
 
+def _grid(sample, n_values):
+    """``(lo, scale, size)`` of the table for ``n_values`` values whose strided subset is
+    ``sample``: entry ``i`` stands for ``lo + i / scale``; ``scale`` is None when the
+    values are flat (or not finite)."""
+    lo, hi = float(np.min(sample)), float(np.max(sample))
+    if not hi > lo:
+        return lo, None, 0
+    size = min(_LUT_MAX, max(_LUT_MIN, n_values // 4))
+    return lo, (size - 1) / (hi - lo), size
+
+
+def _flat_value(target, levels):
+    """What flat values map to: the target's median."""
+    return float(np.interp(0.5, levels, target))
+
+
+def _rank_table(index, size, target, levels, dtype):
+    """Each table entry's value: the target quantile at the mid-rank of the values that
+    take that entry (``index``: their entries).
+
+    A value of rank ``r`` among ``n`` (ties share their middle rank) takes the target's
+    quantile at level ``r / (n - 1)``, where NumPy's quantiles put the ``r``-th order
+    statistic: the smallest value gets ``target[0]``, the largest ``target[-1]``. Entries
+    no value takes lie between their neighbours (the map stays monotone).
+    """
+    counts = np.bincount(index, minlength=size)
+    mid_rank = np.cumsum(counts) - 0.5 * (counts + 1)
+    mid_rank *= 1.0 / max(index.size - 1, 1)
+    return np.interp(mid_rank, levels, target).astype(dtype)
+
+
 def _matching(sample, n_values, target, levels, dtype):
     """The map :func:`_match` applies to ``n_values`` values whose strided subset
     (:func:`_subset`) is ``sample``: ``(lo, scale, table)``, or ``(value, None, None)``
-    when the values are flat (all map to one value)."""
-    source = _sample_quantiles(sample, levels)
-    lo, hi = float(source[0]), float(source[-1])
-    if hi <= lo:
-        return float(np.interp(0.5, levels, target)), None, None
-    # Strictly increasing breakpoints for interp (flat runs in sparse bands).
-    source = source + np.arange(len(source)) * (1e-9 * (hi - lo))
-    size = min(_LUT_MAX, max(_LUT_MIN, n_values // 4))
-    grid = np.linspace(lo, source[-1], size)
-    table = np.interp(grid, source, target).astype(dtype)
-    return lo, (size - 1) / (source[-1] - lo), table
+    when the values are flat (all map to one value).
+
+    Histogram matching by ranks: the sample's values are put on the table's grid, counted
+    (``bincount``), and each entry takes the target quantile at the mid-rank of its values
+    (:func:`_rank_table`), as :func:`tghop.colour.match_histograms` does. That is the
+    sample's exact distribution at the table's resolution, in linear time: the quantiles
+    of each band used to come from a sort, most of the refinement's time (a 256x256
+    image: 0.09 of 0.14 s).
+    """
+    lo, scale, size = _grid(sample, n_values)
+    if scale is None:
+        return _flat_value(target, levels), None, None
+    index = _table_index(sample, lo, scale, size - 1)
+    return lo, scale, _rank_table(index, size, target, levels, dtype)
 
 
 def _apply_matching(matching, src, dst):
@@ -223,6 +267,30 @@ def _apply_matching(matching, src, dst):
         _apply_table(src, lo, scale, table, dst)
 
 
+def _table_index(src, lo, scale, top, out=None, scratch=None):
+    """The nearest table entry of each value of the 1-d array ``src``:
+    ``round((src - lo) * scale)`` clipped to ``[0, top]``, as int32 (into ``out``).
+
+    Computed in ``src``'s dtype, _MATCH_CHUNK values at a time (the temporaries stay in
+    cache; ``scratch``: a buffer of at least that many values, or of ``src``'s size).
+    int32: float32 -> int32 is a SIMD conversion and float32 -> int64 is not.
+    """
+    dtype = src.dtype
+    scale = dtype.type(scale)
+    offset = dtype.type(0.5 - lo * float(scale))  # + 0.5: truncation then rounds to nearest
+    n = src.size
+    out = np.empty(n, dtype=np.int32) if out is None else out
+    pos = np.empty(min(_MATCH_CHUNK, n), dtype=dtype) if scratch is None else scratch
+    for a in range(0, n, _MATCH_CHUNK):
+        e = min(n, a + _MATCH_CHUNK)
+        p = pos[: e - a]
+        np.multiply(src[a:e], scale, out=p)
+        p += offset
+        np.clip(p, 0, top, out=p)
+        out[a:e] = p  # truncation: p >= 0
+    return out
+
+
 def _apply_table(src, lo, scale, table, dst):
     """``dst = table[round((src - lo) * scale)]``, the index clipped to the table: the
     nearest entry (1-d arrays; ``dst`` may be ``src``).
@@ -230,24 +298,14 @@ def _apply_table(src, lo, scale, table, dst):
     _MATCH_CHUNK values at a time, so that the temporaries stay in cache. Four passes,
     against nine for linear interpolation in a table of 4,096 entries, whose largest
     errors were of the same size (a 2048x2048 band: 19 -> 11 ms)."""
-    dtype = src.dtype
-    scale = dtype.type(scale)
-    offset = dtype.type(0.5 - lo * float(scale))  # + 0.5: truncation then rounds to nearest
-    top = len(table) - 1
     n = src.size
-    pos = np.empty(min(_MATCH_CHUNK, n), dtype=dtype)
-    # The table index as int32 (a table has at most 65,536 entries): float32 -> int32 is a
-    # SIMD conversion and float32 -> int64 is not; and ``take`` with mode "clip" skips
-    # the bounds check that raises (the index is in range already). Matching a 2048x2048
-    # band: 13.7 -> 9.8 ms, the same numbers.
-    idx = np.empty(pos.shape, dtype=np.int32)
+    # ``take`` with mode "clip" skips the bounds check that raises (the index is in range
+    # already). Matching a 2048x2048 band: 13.7 -> 9.8 ms with int32 indices.
+    idx = np.empty(min(_MATCH_CHUNK, n), dtype=np.int32)
+    pos = np.empty(idx.shape, dtype=src.dtype)
     for a in range(0, n, _MATCH_CHUNK):
         e = min(n, a + _MATCH_CHUNK)
-        p, i = pos[: e - a], idx[: e - a]
-        np.multiply(src[a:e], scale, out=p)
-        p += offset
-        np.clip(p, 0, top, out=p)
-        i[...] = p  # truncation: p >= 0
+        i = _table_index(src[a:e], lo, scale, len(table) - 1, out=idx[: e - a], scratch=pos)
         np.take(table, i, out=dst[a:e], mode="clip")
 
 
