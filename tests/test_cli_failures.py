@@ -196,6 +196,26 @@ def test_ctrl_c_during_start_up_is_one_line(folder):
         assert not name.endswith(".tmp"), name
 
 
+def test_only_the_command_freezes_its_objects(folder):
+    # Run as `tghop` (the console script, or `python -m tghop`, which imports the package
+    # while argv[0] is "-m"), the objects that exist after the imports and at exit go to
+    # the garbage collector's permanent generation (fewer objects to walk); a program that
+    # runs the command line in-process keeps its collector as it was.
+    code = ("import sys, gc\nsys.argv[0] = sys.argv.pop(1)\nimport tghop\nfrom tghop.cli import main\n"
+            "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+            "print('FROZEN', gc.get_freeze_count() > 0, file=sys.stderr)\n")
+    for argv0, frozen in (("tghop", True), ("-m", True), (os.path.join("bin", "tghop"), True), ("my_script.py", False)):
+        for args in (["info", "model.npz"], ["info", "no_such_model.npz"]):  # success and failure alike
+            p = _python(code, argv0, *args, cwd=folder)
+            _, err = p.communicate(timeout=120)
+            assert f"FROZEN {frozen}" in err.decode(), (argv0, args, err.decode())
+    import gc
+
+    before = gc.get_freeze_count()
+    assert CliRunner().invoke(main, ["info", str(folder / "model.npz")]).exit_code == 0
+    assert gc.get_freeze_count() == before
+
+
 def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
     code = (
         "import sys\n"

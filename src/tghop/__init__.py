@@ -10,12 +10,17 @@ def _interrupted_while_starting(signum, frame):  # pragma: no cover - timing dep
     _os._exit(130)
 
 
-# Ctrl-C while the `tghop` command starts (its modules and click being imported): one line,
-# no traceback. Only when running as the command, never when a program imports tghop;
-# tghop.cli puts the usual handler back inside the try block that reports Ctrl-C.
+# Whether this process is the `tghop` command (the console script or `python -m tghop`),
+# not a program that imports tghop: some process-wide settings are the command's alone.
+# (`python -m tghop` imports this package while its argv[0] is still "-m".)
 _argv0 = (_sys.argv[0] if _sys.argv else "") or ""
-if (_os.path.basename(_argv0) == "tghop" or _argv0.endswith(_os.path.join("tghop", "__main__.py"))) and \
-        _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
+_AS_COMMAND = (_os.path.basename(_argv0) == "tghop" or _argv0 == "-m"
+               or _argv0.endswith(_os.path.join("tghop", "__main__.py")))
+
+# Ctrl-C while the `tghop` command starts (its modules and click being imported): one line,
+# no traceback. tghop.cli puts the usual handler back inside the try block that reports
+# Ctrl-C.
+if _AS_COMMAND and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
     _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 __version__ = "0.12.0"

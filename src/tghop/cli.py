@@ -6,12 +6,13 @@ a traceback, and never leaves a half-written output file. Progress bars go to st
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import sys
 
 
-from . import _interrupted_while_starting  # noqa: E402  (installed by tghop/__init__ when run as `tghop`)
+from . import _AS_COMMAND, _interrupted_while_starting  # noqa: E402  (installed by tghop/__init__ as `tghop`)
 
 # OpenBLAS's worker threads spin for up to 2**28 cycles between calls before they sleep. When
 # other programs keep the cores busy, that spinning takes the CPU from the thread with the
@@ -79,6 +80,18 @@ class Progress:
             self.bar.__exit__(None, None, None)
             self.bar = None
             self.stage = None
+
+
+def freeze_objects():
+    """Running as the ``tghop`` command, hand every object that exists now to the garbage
+    collector's permanent generation (``gc.freeze``), so that its collections no longer
+    walk them: after a command's imports (the modules' functions and tables, most of the
+    objects the process will have) and before the interpreter exits, whose collections
+    walked them all again (a 2048x2048 ``synth`` spent about 0.1 s exiting, 0.03 s with
+    this). Not when a program runs the command line in-process: its garbage then would
+    never be collected."""
+    if _AS_COMMAND:
+        gc.freeze()
 
 
 def fail(message: str, code: int = 1):
@@ -354,6 +367,8 @@ class OneLineGroup(click.Group):
             fail("interrupted", 130)
         except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
             sys.exit(1)
+        finally:
+            freeze_objects()  # nothing left for the collections at exit to walk
         sys.exit(rc if isinstance(rc, int) else 0)
 
 
@@ -473,6 +488,7 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
     from .settings import BY_NAME, generate_settings
     from .synthesis import prepare_exemplar
 
+    freeze_objects()
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
