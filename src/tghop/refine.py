@@ -32,7 +32,8 @@ __all__ = ["BandStatistics", "refine", "prepare", "laplacian_pyramid", "reconstr
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
 _FIT_SIDE = 1024
 
-#: Values used to estimate an image band's quantiles (a strided subset beyond this).
+#: Values ranked to make a band's matching map, and used to estimate an exemplar band's
+#: quantiles at fit time (a strided subset beyond this).
 _MAX_VALUES = 1 << 16
 
 #: Images from this many pixels on are refined with one thread per colour channel.
@@ -49,9 +50,8 @@ _REFINE_MEMORY = 3 << 30
 _SCIPY_FFT_PIXELS = 512 * 512
 
 #: Entries of the lookup table that applies a matching map (uniform steps over the band's
-#: range; the map is piecewise linear between its quantiles): a quarter of the values
-#: matched, within these bounds. Over every match of six 512x512 syntheses the nearest
-#: entry was at most 9.4e-4 from the piecewise-linear map (docs/choices.md).
+#: range; each value takes the nearest entry, whose rank among the values gives its new
+#: value): a quarter of the values matched, within these bounds (docs/choices.md).
 _LUT_MIN, _LUT_MAX = 4096, 1 << 16
 # Values mapped per step of a table lookup (the temporaries of one step fit in L2 cache).
 _MATCH_CHUNK = 1 << 16
