@@ -879,7 +879,9 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
         np.multiply(target, (-2.0 * factor)[:, None], out=lb_query[:, m + g : -1])
         lb_query[:, -1] = factor
         offset += factor * np.einsum("ij,ij->i", target, target)
-    lower = lb_query @ bound.T  # (b, n): each block's bounds contiguous
+    # (b, n), as the transpose of (n, b): the pool's matrix as the product's left operand
+    # is read faster (a wavefront of 2-4 blocks 0.65 -> 0.23 ms, of 25 blocks 1.33 -> 1.0 ms).
+    lower = (bound @ lb_query.T).T
     lower += offset[:, None]
     first = lower.argmin(axis=1)
     blocks = np.arange(b)
