@@ -198,6 +198,29 @@ def test_tghop_layout_refine_reaches_the_guide(layout_model, monkeypatch):
         layout_model.synthesize((64, 64), rng=2, n_patches=300, layout_refine=-1)
 
 
+def test_an_error_in_the_guides_thread_reaches_the_caller(layout_model, monkeypatch):
+    # The guide is made in a thread of its own while the pool is made: its error is
+    # raised by synthesize, as the guide's own exception.
+    def broken(*args, **kwargs):
+        raise TGHopError("the guide broke")
+
+    monkeypatch.setattr(layout_model.layout_, "guide", broken)
+    with pytest.raises(TGHopError, match="the guide broke"):
+        layout_model.synthesize((64, 64), rng=2, n_patches=300)
+
+
+def test_in_thread_returns_the_result_or_raises_the_error():
+    import threading
+
+    from tghop._common import in_thread
+
+    main = threading.get_ident()
+    assert in_thread(lambda a, b=0: (a + b, threading.get_ident() != main), 2, b=3)() == (5, True)
+    wait = in_thread(lambda: {}["missing"])
+    with pytest.raises(KeyError, match="missing"):
+        wait()
+
+
 def test_tghop_layout_save_load_identical(layout_model, tmp_path):
     a = layout_model.synthesize((64, 64), rng=2, n_patches=400)
     save_model(layout_model, tmp_path / "m.npz")

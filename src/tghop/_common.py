@@ -27,6 +27,7 @@ __all__ = [
     "check_rng",
     "check_image",
     "report",
+    "in_thread",
 ]
 
 
@@ -187,3 +188,33 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
             "use a larger exemplar or a smaller patch size"
         )
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
+
+
+# ------------------------------------------------------------------ threads
+def in_thread(fn, *args, **kwargs) -> Callable:
+    """Start ``fn(*args, **kwargs)`` in a thread of its own; return a function that waits
+    for it and returns its result (or raises its exception).
+
+    The thread is a daemon: an interrupted caller does not wait for it. (``threading``
+    alone: ``concurrent.futures`` imports ``logging``, 7 ms of a 256x256 ``tghop synth``.)
+    """
+    import threading
+
+    outcome = {}
+
+    def run():
+        try:
+            outcome["result"] = fn(*args, **kwargs)
+        except BaseException as exc:  # handed to the caller, who raises it
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+
+    def result():
+        thread.join()
+        if "error" in outcome:
+            raise outcome.pop("error")
+        return outcome["result"]
+
+    return result

@@ -23,7 +23,7 @@ import numbers
 import numpy as np
 
 from . import settings
-from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, report
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, in_thread, report
 from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
@@ -595,18 +595,16 @@ class TGHop(BaseEstimator):
             # The coarse guide and the pool are independent: the guide is made in a second
             # thread (its own random stream) while the pool is generated and made ready
             # for quilting, one BLAS thread each.
-            from concurrent.futures import ThreadPoolExecutor
-
             from threadpoolctl import threadpool_limits
 
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             report(progress, "layout", 0, 1)
-            with ThreadPoolExecutor(max_workers=1) as worker, threadpool_limits(limits=1, user_api="blas"):
-                pending = worker.submit(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
+            with threadpool_limits(limits=1, user_api="blas"):
+                pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
                 if refine:  # imports SciPy's FFT for a large image here, not on the guide's path
                     prepare_refinement(size, self.bands_)
                 prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
-                guide = pending.result()
+                guide = pending()
             report(progress, "layout", 1, 1)
             report(progress, "patch pool", 0, 1)
         else:
