@@ -23,7 +23,7 @@ _AS_COMMAND = (_os.path.basename(_argv0) == "tghop" or _argv0 == "-m"
 if _AS_COMMAND and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
     _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
-__version__ = "0.12.0"
+__version__ = "0.13.0"
 
 from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: E402
 
