@@ -200,15 +200,20 @@ def test_only_the_command_freezes_its_objects(folder):
     # Run as `tghop` (the console script, or `python -m tghop`, which imports the package
     # while argv[0] is "-m"), the objects that exist after the imports and at exit go to
     # the garbage collector's permanent generation (fewer objects to walk); a program that
-    # runs the command line in-process keeps its collector as it was.
-    code = ("import sys, gc\nsys.argv[0] = sys.argv.pop(1)\nimport tghop\nfrom tghop.cli import main\n"
+    # runs the command line in-process, or another module run with -m, keeps its collector
+    # as it was.
+    code = ("import sys, gc\nsys.argv[0] = sys.argv.pop(1)\nrun = sys.argv.pop(1)\n"
+            "sys.orig_argv = [sys.executable] + (['-m', run] if run else ['-c'])\n"
+            "import tghop\nfrom tghop.cli import main\n"
             "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
             "print('FROZEN', gc.get_freeze_count() > 0, file=sys.stderr)\n")
-    for argv0, frozen in (("tghop", True), ("-m", True), (os.path.join("bin", "tghop"), True), ("my_script.py", False)):
+    cases = (("tghop", "", True), ("-m", "tghop", True), (os.path.join("bin", "tghop"), "", True),
+             ("my_script.py", "", False), ("-m", "my_package", False))
+    for argv0, module, frozen in cases:
         for args in (["info", "model.npz"], ["info", "no_such_model.npz"]):  # success and failure alike
-            p = _python(code, argv0, *args, cwd=folder)
+            p = _python(code, argv0, module, *args, cwd=folder)
             _, err = p.communicate(timeout=120)
-            assert f"FROZEN {frozen}" in err.decode(), (argv0, args, err.decode())
+            assert f"FROZEN {frozen}" in err.decode(), (argv0, module, args, err.decode())
     import gc
 
     before = gc.get_freeze_count()

@@ -12,10 +12,13 @@ def _interrupted_while_starting(signum, frame):  # pragma: no cover - timing dep
 
 # Whether this process is the `tghop` command (the console script or `python -m tghop`),
 # not a program that imports tghop: some process-wide settings are the command's alone.
-# (`python -m tghop` imports this package while its argv[0] is still "-m".)
+# (`python -m tghop` imports this package while its argv[0] is still "-m"; the
+# interpreter's own arguments say which module it runs.)
 _argv0 = (_sys.argv[0] if _sys.argv else "") or ""
-_AS_COMMAND = (_os.path.basename(_argv0) == "tghop" or _argv0 == "-m"
-               or _argv0.endswith(_os.path.join("tghop", "__main__.py")))
+_orig = list(getattr(_sys, "orig_argv", []))
+_AS_COMMAND = (_os.path.basename(_argv0) == "tghop" or _argv0.endswith(_os.path.join("tghop", "__main__.py"))
+               or (_argv0 == "-m" and ("-mtghop" in _orig or ["-m", "tghop"] in
+                                       [_orig[i: i + 2] for i in range(len(_orig) - 1)])))
 
 # Ctrl-C while the `tghop` command starts (its modules and click being imported): one line,
 # no traceback. tghop.cli puts the usual handler back inside the try block that reports
