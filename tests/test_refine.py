@@ -1,5 +1,7 @@
 """The refinement after stitching (tghop.refine): pyramid, statistics, matching, wiring."""
 
+import sys
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -406,3 +408,74 @@ def test_prepare_tabulates_what_refine_needs(cells):
     assert refine_module._double_angle.cache_info().misses == made
     with pytest.raises(TGHopError, match="size must be positive"):
         refine_module.prepare((0, 5), st)
+
+
+@pytest.mark.parametrize("shape, axes", [((64, 70), (0, 1)), ((3, 33, 40), (1, 2)), ((2, 17, 5), (1, 2))])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_pocketfft_without_scipy_fft_gives_scipy_fft_numbers(shape, axes, dtype, rng):
+    # Large bands are transformed by SciPy's compiled pocketfft module loaded alone (no
+    # 0.2-0.3 s import of scipy.fft): bit for bit what scipy.fft gives.
+    import scipy.fft
+
+    from tghop import refine as R
+
+    fft = R._PocketFFT(R._load_pocketfft())
+    x = rng.standard_normal(shape).astype(dtype)
+    spectrum = fft.rfft2(x, axes=axes, workers=2)
+    np.testing.assert_array_equal(spectrum, scipy.fft.rfft2(x, axes=axes))
+    half = fft.ifft(spectrum.copy(), axis=axes[0], overwrite_x=True)
+    np.testing.assert_array_equal(half, scipy.fft.ifft(spectrum, axis=axes[0]))
+    back = fft.irfft(half.copy(), n=shape[axes[1]], axis=axes[1])
+    np.testing.assert_array_equal(back, scipy.fft.irfft(half, n=shape[axes[1]], axis=axes[1]))
+    assert back.dtype == dtype and np.abs(back - x).max() < 1e-4
+
+
+def test_large_images_are_refined_without_importing_scipy_fft():
+    # In a new process: the refinement of a 512x512 image loads the compiled module only,
+    # and a later `import scipy.fft` takes that very module.
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "from tghop.refine import BandStatistics, refine\n"
+        "st = BandStatistics().fit(np.random.default_rng(1).random((96, 96, 3)))\n"
+        "out = refine(np.random.default_rng(0).random((512, 512, 3)) * 0.5 + 0.2, st, n_iter=1)\n"
+        "print('SCIPY_FFT', 'scipy.fft' in sys.modules, 'scipy' in sys.modules)\n"
+        "import scipy.fft\n"
+        "print('SAME', scipy.fft._pocketfft.basic.pfft is sys.modules['scipy.fft._pocketfft.pypocketfft'])\n"
+    )
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert "SCIPY_FFT False False" in p.stdout and "SAME True" in p.stdout, p.stdout
+
+
+def test_refinement_falls_back_to_scipy_fft(cells, monkeypatch):
+    # If SciPy's files are laid out otherwise, scipy.fft itself is used: the same image as
+    # through the compiled module alone.
+    import scipy.fft
+
+    from tghop import refine as R
+
+    st = BandStatistics().fit(cells)
+    img = _blurred(cells) * 0.8 + 0.1
+    monkeypatch.setattr(R, "_SCIPY_FFT_PIXELS", 1)
+    real_load = R._load_pocketfft
+
+    def missing():
+        raise StopIteration("no such file")
+
+    try:
+        monkeypatch.delitem(sys.modules, "scipy.fft")  # as if not imported yet (put back after the test)
+        monkeypatch.setattr(R, "_load_pocketfft", missing)
+        R._scipy_fft.cache_clear()
+        fallback = R._scipy_fft()
+        assert fallback is sys.modules["scipy.fft"] and fallback.rfft2 is scipy.fft.rfft2  # imported (again)
+        through_scipy = R.refine(img, st, n_iter=2)
+        monkeypatch.setattr(R, "_load_pocketfft", real_load)
+        monkeypatch.delitem(sys.modules, "scipy.fft")
+        R._scipy_fft.cache_clear()
+        assert isinstance(R._scipy_fft(), R._PocketFFT)
+        np.testing.assert_array_equal(R.refine(img, st, n_iter=2), through_scipy)
+    finally:
+        R._scipy_fft.cache_clear()
