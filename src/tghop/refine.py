@@ -432,8 +432,8 @@ def _double_angle(h, w, dtype):
 
 def prepare(size, stats):
     """Do ahead of time what refining an image of ``size`` (H, W) first needs: SciPy's FFT
-    imported for large bands (0.2 s) and the oriented windows of every band size
-    tabulated (a 2048x2048 image: 60 ms). :meth:`tghop.TGHop.synthesize` calls it while
+    module loaded for large bands (:func:`_scipy_fft`) and the oriented windows of every
+    band size tabulated (a 2048x2048 image: 60 ms). :meth:`tghop.TGHop.synthesize` calls it while
     the coarse guide is made in another thread, so that neither is on the guide's path.
     """
     from .quilting import _check_size  # the size checks of quilting, before any work

@@ -601,7 +601,7 @@ class TGHop(BaseEstimator):
             report(progress, "layout", 0, 1)
             with threadpool_limits(limits=1, user_api="blas"):
                 pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
-                if refine:  # imports SciPy's FFT for a large image here, not on the guide's path
+                if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
                     prepare_refinement(size, self.bands_)
                 prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
                 guide = pending()
