@@ -347,6 +347,30 @@ def check_output(path: str, allow_stdout=False):
 
 
 # ------------------------------------------------------------------ commands
+#: The modules each command imports when it runs (besides those of the command line).
+_COMMAND_MODULES = {
+    "synth": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
+    "fit": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
+    "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
+    "info": ("numpy", "tghop.modelfile"),
+}
+
+
+def _import_for(args):
+    """Import what the command named in ``args`` will import (nothing for ``--help``)."""
+    import importlib
+
+    words = [a for a in args if isinstance(a, str)]
+    if any(a in ("-h", "--help", "--version") for a in words):
+        return
+    command = next((a for a in words if not a.startswith("-")), None)
+    for name in _COMMAND_MODULES.get(command, ()):
+        try:
+            importlib.import_module(name)
+        except ImportError:  # reported where the command needs it
+            pass
+
+
 class OneLineGroup(click.Group):
     """Every failure of the command line, click's usage errors and Ctrl-C included, is one
     line on stderr (``Error: ...``) and a non-zero exit status, never a traceback."""
@@ -354,6 +378,11 @@ class OneLineGroup(click.Group):
     def main(self, args=None, prog_name=None, **extra):
         try:
             if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+                # Still under the start-up handler (one line, exit 130): the modules the
+                # command will import. Python loses a KeyboardInterrupt that arrives at the
+                # end of an import ("Exception ignored in ... _get_module_lock"), and the
+                # command would then go on as if nothing had happened.
+                _import_for(sys.argv[1:] if args is None else list(args))
                 signal.signal(signal.SIGINT, signal.default_int_handler)
             rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
         except click.exceptions.Abort:  # Ctrl-C or EOF inside click
