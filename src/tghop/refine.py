@@ -21,6 +21,7 @@ import math
 import numbers
 import os
 import sys
+import threading
 
 import numpy as np
 
@@ -324,6 +325,9 @@ def _fft_module(n_pixels):
 _POCKETFFT = "scipy.fft._pocketfft.pypocketfft"
 
 
+_LOADING = threading.Lock()
+
+
 @functools.lru_cache(maxsize=1)
 def _scipy_fft():
     """What the refinement uses of ``scipy.fft`` (``rfft2``, ``ifft``, ``irfft``), from SciPy's
@@ -337,20 +341,21 @@ def _scipy_fft():
     (tested). If SciPy lays its files out otherwise, or the module does not give what
     ``scipy.fft`` gives on a small array, ``scipy.fft`` itself is used.
     """
-    if "scipy.fft" not in sys.modules:
-        try:
-            fft = _PocketFFT(_load_pocketfft())
-            x = np.linspace(0.0, 1.0, 12, dtype=np.float32).reshape(3, 4) ** 2
-            spectrum = fft.rfft2(x, axes=(0, 1))
-            back = fft.irfft(fft.ifft(spectrum.copy(), axis=0, overwrite_x=True), n=4, axis=1, overwrite_x=True)
-            if (np.allclose(spectrum, np.fft.rfft2(x), atol=1e-5) and np.allclose(back, x, atol=1e-5)
-                    and back.dtype == np.float32):
-                return fft
-        except Exception:  # noqa: BLE001 - any surprise: the public module below
-            pass
-    import scipy.fft
+    with _LOADING:  # one load, whichever thread asks first
+        if "scipy.fft" not in sys.modules:
+            try:
+                fft = _PocketFFT(_load_pocketfft())
+                x = np.linspace(0.0, 1.0, 12, dtype=np.float32).reshape(3, 4) ** 2
+                spectrum = fft.rfft2(x, axes=(0, 1))
+                back = fft.irfft(fft.ifft(spectrum.copy(), axis=0, overwrite_x=True), n=4, axis=1)
+                if (np.allclose(spectrum, np.fft.rfft2(x), atol=1e-5) and np.allclose(back, x, atol=1e-5)
+                        and back.dtype == np.float32):
+                    return fft
+            except Exception:  # noqa: BLE001 - any surprise: the public module below
+                pass
+        import scipy.fft
 
-    return scipy.fft
+        return scipy.fft
 
 
 def _load_pocketfft():
@@ -386,7 +391,8 @@ class _PocketFFT:
     def ifft(self, x, axis=-1, overwrite_x=False, workers=1):
         return self._m.c2c(x, (axis,), False, 2, x if overwrite_x else None, int(workers))
 
-    def irfft(self, x, n=None, axis=-1, overwrite_x=False, workers=1):  # scipy.fft does not use overwrite_x here either
+    def irfft(self, x, n=None, axis=-1, overwrite_x=False, workers=1):
+        # (scipy.fft does not use overwrite_x here either)
         return self._m.c2r(x, (axis,), (x.shape[axis] - 1) * 2 if n is None else n, False, 2, None, int(workers))
 
 
