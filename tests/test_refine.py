@@ -434,7 +434,6 @@ def test_large_images_are_refined_without_importing_scipy_fft():
     # In a new process: the refinement of a 512x512 image loads the compiled module only,
     # and a later `import scipy.fft` takes that very module.
     import subprocess
-    import sys
 
     code = (
         "import sys, numpy as np\n"
