@@ -471,9 +471,9 @@ def test_box_means_are_the_means_of_the_boxes(s):
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_gradient_energy_is_the_mean_squared_neighbour_difference(dtype):
-    from tghop.quilting import _POOL_CHUNK, _gradient_energy
+    from tghop.quilting import POOL_CHUNK, _gradient_energy
 
-    x = np.random.default_rng(3).random((_POOL_CHUNK + 7, 8, 6, 3)).astype(dtype)  # not square
+    x = np.random.default_rng(3).random((POOL_CHUNK + 7, 8, 6, 3)).astype(dtype)  # not square
     x[:, :, :, 1] **= 3
     ref = (np.square(np.diff(x.astype(np.float64), axis=1)).mean(axis=(1, 2, 3))
            + np.square(np.diff(x.astype(np.float64), axis=2)).mean(axis=(1, 2, 3)))
@@ -610,9 +610,9 @@ def test_guide_targets_of_all_blocks_equal_the_box_means_of_their_windows(size, 
 
 @pytest.mark.parametrize("size,tile", [((256, 256), False), ((50, 70), False), ((10, 10), False), ((96, 160), True),
                                        ((33, 200), True)])
-def test_block_count_is_the_plans(size, tile):
-    from tghop.quilting import _block_count, quilting_plan
+def testblock_count_is_the_plans(size, tile):
+    from tghop.quilting import block_count, quilting_plan
 
     for overlap in (None, 3, 8):
-        assert _block_count(size, 32 if not tile else 16, overlap=overlap, tile=tile) == quilting_plan(
+        assert block_count(size, 32 if not tile else 16, overlap=overlap, tile=tile) == quilting_plan(
             size, 32 if not tile else 16, overlap=overlap, tile=tile).n_blocks

@@ -9,6 +9,7 @@ here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`
 from __future__ import annotations
 
 import inspect
+import math
 import numbers
 from typing import Callable, Optional, Union
 
@@ -28,6 +29,10 @@ __all__ = [
     "check_image",
     "report",
     "in_thread",
+    "MAX_PIXELS",
+    "check_size",
+    "INSTALL_HINT",
+    "import_torch",
 ]
 
 
@@ -188,6 +193,72 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
             "use a larger exemplar or a smaller patch size"
         )
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
+
+
+# ------------------------------------------------------------------ sizes
+#: Largest image tghop makes, in pixels (8192x8192): every output size is checked
+#: against it (:func:`check_size`) before any work.
+MAX_PIXELS = 2**26
+
+
+def check_size(size, *, default=None, limit: Optional[int] = MAX_PIXELS, name: str = "size") -> tuple:
+    """An output size as ``(height, width)``, or a one-line :class:`TGHopError`.
+
+    The one check of an output size in tghop (the library's functions, the baselines and
+    the command line all call it).
+
+    Parameters
+    ----------
+    size : int, (int, int) or None
+        ``n`` means ``(n, n)``; None means ``default``.
+    default : (int, int), optional
+        The size None stands for (a baseline's exemplar size); None refuses None.
+    limit : int or None
+        Most pixels allowed (:data:`MAX_PIXELS`); None: no limit.
+    name : str
+        How the size is called in error messages (``"--size"`` on the command line).
+
+    Returns
+    -------
+    (int, int)
+    """
+    if size is None and default is not None:
+        size = default
+    if isinstance(size, (numbers.Integral, np.integer)) and not isinstance(size, (bool, np.bool_)):
+        size = (size, size)
+    try:
+        dims = tuple(size)
+    except TypeError:
+        raise TGHopError(f"{name} must be (height, width) in pixels, got {size!r}") from None
+    if len(dims) != 2 or not all(
+        isinstance(d, (numbers.Integral, np.integer)) and not isinstance(d, (bool, np.bool_)) for d in dims
+    ):
+        raise TGHopError(f"{name} must be two integers (height, width), got {size!r}")
+    h, w = int(dims[0]), int(dims[1])
+    if h < 1 or w < 1:
+        raise TGHopError(f"{name} must be positive, got {h}x{w}; give a height and width of at least 1 pixel")
+    if limit is not None and h * w > limit:
+        side = int(math.isqrt(limit))
+        raise TGHopError(
+            f"{name} {h}x{w} is {h * w:,} pixels, above the limit of {limit:,} ({side}x{side}); "
+            "ask for a smaller image"
+        )
+    return h, w
+
+
+# ------------------------------------------------------------------ optional extras
+#: How to install what the neural baselines, the cGAN and the network metrics need.
+INSTALL_HINT = "pip install 'tghop[metrics]'"
+
+
+def import_torch(what: str):
+    """``torch``, or a one-line :class:`MissingExtraError` saying that ``what`` needs it
+    and how to install it."""
+    try:
+        import torch
+    except ImportError:
+        raise MissingExtraError(f"{what} needs PyTorch; install it with: {INSTALL_HINT}") from None
+    return torch
 
 
 # ------------------------------------------------------------------ threads

@@ -26,7 +26,7 @@ import numbers
 import os
 
 import numpy as np
-from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_size
 
 __all__ = ["CoarseLayout", "downsample", "upsample"]
 
@@ -223,10 +223,9 @@ class CoarseLayout(BaseEstimator):
             (float32: quilting compares it in float32; half the memory of a large guide.)
         """
         check_is_fitted(self, "model_")
-        from .quilting import _check_size
-
+        
         f = int(self.factor)
-        h, w = _check_size(size)
+        h, w = check_size(size)
         small = (math.ceil(h / f), math.ceil(w / f))
         if tile and (h % f or w % f):
             raise TGHopError(f"a tileable output with a coarse layout needs a size divisible by {f}, got {h}x{w}")

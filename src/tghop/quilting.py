@@ -36,14 +36,16 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ._common import ProgressCallback, TGHopError, check_rng, report
+from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
 
 __all__ = [
     "GUIDE_SCALE",
     "MAX_BLOCKS",
     "MAX_PIXELS",
+    "POOL_CHUNK",
     "PreparedPool",
     "QuiltingPlan",
+    "block_count",
     "boundary_cut_mask",
     "default_overlap",
     "min_error_boundary_cut",
@@ -52,10 +54,6 @@ __all__ = [
     "quilt_prepared",
     "quilting_plan",
 ]
-
-#: Largest output accepted by :func:`quilt`, in pixels (8192 x 8192). A float64 RGB
-#: image of that size already takes 1.5 GiB.
-MAX_PIXELS = 2**26
 
 #: Largest number of blocks in one quilt (e.g. 2048 x 2048 pixels of 4 x 4 patches); the
 #: plan keeps a few integers per block and quilting runs one step per wavefront.
@@ -69,7 +67,7 @@ GUIDE_SCALE = 4
 # Pool patches are converted to float32 in chunks of this many patches (small enough for
 # the chunk to stay in cache between the steps that read it: preparing 5,000 patches took
 # 87 ms in chunks of 512, 82 in 256, 76 in 128, 80 in 64; the same numbers).
-_POOL_CHUNK = 128
+POOL_CHUNK = 128
 
 
 def default_overlap(patch_size: int) -> int:
@@ -78,29 +76,6 @@ def default_overlap(patch_size: int) -> int:
 
 
 # ----------------------------------------------------------------------------- validation
-
-
-def _check_size(size) -> Tuple[int, int]:
-    if isinstance(size, (numbers.Integral, np.integer)) and not isinstance(size, (bool, np.bool_)):
-        size = (size, size)
-    try:
-        dims = tuple(size)
-    except TypeError:
-        raise TGHopError(f"size must be (height, width) in pixels, got {size!r}") from None
-    if len(dims) != 2 or not all(
-        isinstance(d, (numbers.Integral, np.integer)) and not isinstance(d, (bool, np.bool_)) for d in dims
-    ):
-        raise TGHopError(f"size must be two integers (height, width), got {size!r}")
-    h, w = int(dims[0]), int(dims[1])
-    if h < 1 or w < 1:
-        raise TGHopError(f"size must be positive, got {h}x{w}; give a height and width of at least 1 pixel")
-    if h * w > MAX_PIXELS:
-        side = int(math.isqrt(MAX_PIXELS))
-        raise TGHopError(
-            f"size {h}x{w} is {h * w} pixels, above the limit of {MAX_PIXELS} ({side}x{side}); "
-            "ask for a smaller image"
-        )
-    return h, w
 
 
 def _check_patch_overlap(patch_size, overlap) -> Tuple[int, int]:
@@ -468,9 +443,9 @@ def _axis_positions(length: int, p: int, overlap: int, tile: bool, name: str):
     )
 
 
-def _block_count(size, patch_size: int, *, overlap: Optional[int] = None, tile: bool = False) -> int:
+def block_count(size, patch_size: int, *, overlap: Optional[int] = None, tile: bool = False) -> int:
     """How many blocks :func:`quilting_plan` lays out (without the plan's masks)."""
-    h, w = _check_size(size)
+    h, w = check_size(size)
     p, o = _check_patch_overlap(patch_size, overlap)
     return len(_axis_positions(h, p, o, tile, "height")[0]) * len(_axis_positions(w, p, o, tile, "width")[0])
 
@@ -529,7 +504,7 @@ def quilting_plan(size, patch_size: int, *, overlap: Optional[int] = None, tile:
     -------
     QuiltingPlan
     """
-    h, w = _check_size(size)
+    h, w = check_size(size)
     p, o = _check_patch_overlap(patch_size, overlap)
     tile = bool(tile)
     ys, up, down, hc = _axis_positions(h, p, o, tile, "height")
@@ -789,7 +764,7 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
     then with ``guide_scale`` its ``l`` low-pass values (:func:`_box_means`) and their
     squared norm; and ``energy`` ``(n,)`` (:func:`_gradient_energy`) or None.
 
-    The pool is worked through :data:`_POOL_CHUNK` patches at a time, every step of a
+    The pool is worked through :data:`POOL_CHUNK` patches at a time, every step of a
     chunk done while it is in cache: the pool is read from memory once, not once per step
     (a 5,000-patch pool 78-89 -> 67-84 ms; a pool generated on demand is never whole).
     """
@@ -800,9 +775,9 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
     table = np.empty((n, m + k), dtype=np.float32)
     bound = np.empty((n, m + g + (n_low + 1 if guide_scale is not None else 0)), dtype=np.float32)
     energies = np.empty(n, dtype=np.float32) if energy else None
-    squares = np.empty((min(n, _POOL_CHUNK), k), dtype=np.float32)
-    for a in range(0, n, _POOL_CHUNK):
-        e = min(n, a + _POOL_CHUNK)
+    squares = np.empty((min(n, POOL_CHUNK), k), dtype=np.float32)
+    for a in range(0, n, POOL_CHUNK):
+        e = min(n, a + POOL_CHUNK)
         chunk = arr[a:e]
         rows = table[a:e, m:]
         _frame_features(chunk, slices, out=rows)

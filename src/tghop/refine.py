@@ -25,7 +25,7 @@ import threading
 
 import numpy as np
 
-from ._common import TGHopError, report
+from ._common import TGHopError, check_size, report
 
 __all__ = ["BandStatistics", "refine", "prepare", "laplacian_pyramid", "reconstruct", "oriented_parts",
            "iter_oriented_parts"]
@@ -442,9 +442,8 @@ def prepare(size, stats):
     band size tabulated (a 2048x2048 image: 60 ms). :meth:`tghop.TGHop.synthesize` calls it while
     the coarse guide is made in another thread, so that neither is on the guide's path.
     """
-    from .quilting import _check_size  # the size checks of quilting, before any work
-
-    h, w = _check_size(size)
+    
+    h, w = check_size(size)
     for _ in range(stats.band_quantiles_.shape[0]):
         if min(h, w) < 2:
             break

@@ -29,7 +29,7 @@ from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
 from .layout import CoarseLayout
-from .quilting import _POOL_CHUNK, GUIDE_SCALE, _block_count, prepare_pool, quilt_prepared
+from .quilting import POOL_CHUNK, GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -529,7 +529,7 @@ class TGHop(BaseEstimator):
         once, into an array.
         """
         pool = _GeneratedPool(self, *self._sample_vectors(n_patches, rng, np.dtype(np.float32)))
-        if _block_count(size, self.patch_size, overlap=overlap, tile=tile) > _ON_DEMAND_BLOCKS * n_patches:
+        if block_count(size, self.patch_size, overlap=overlap, tile=tile) > _ON_DEMAND_BLOCKS * n_patches:
             pool = pool.all()
         return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
 
@@ -679,7 +679,7 @@ class _GeneratedPool:
             start, stop, step = index.indices(self.shape[0])
             rows = np.arange(start, stop, step)
             if self._buffer is None or len(self._buffer) < len(rows):
-                self._buffer = np.empty((max(len(rows), _POOL_CHUNK),) + self.shape[1:], dtype=self.dtype)
+                self._buffer = np.empty((max(len(rows), POOL_CHUNK),) + self.shape[1:], dtype=self.dtype)
             return self._fill(rows, self._buffer[: len(rows)])
         rows = np.asarray(index)
         if rows.dtype.kind not in "iu" or rows.ndim != 1:
