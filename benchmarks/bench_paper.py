@@ -480,7 +480,7 @@ def section_params(model):
 
 
 def section_stages(model, out):
-    from tghop.cli import stage_sheet
+    from tghop.patches import stage_sheet
 
     _, views = model.sample_patches(8, rng=5, return_stages=True)
     halves = [{k: v[i:i + 4] for k, v in views.items()} for i in (0, 4)]

@@ -18,9 +18,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from _common import image_sheet  # noqa: E402
 
 from tghop import data  # noqa: E402
-from tghop.cli import stage_sheet  # noqa: E402
+from tghop.patches import patch_grid, stage_sheet  # noqa: E402
 from tghop.imageio import save_image  # noqa: E402
-from tghop.patches import patch_grid  # noqa: E402
 from tghop.synthesis import TGHop  # noqa: E402
 
 

@@ -176,11 +176,11 @@ def _python(code, *args, **kwargs):
 
 def test_ctrl_c_during_start_up_is_one_line(folder):
     # Python's own start-up is not ours: the child says "go" once it is over, then runs
-    # `tghop synth` as the console script does (`from tghop.cli import main`, imports included).
-    # (Finding the tghop package on sys.path precedes any tghop code: the child says "go"
-    # once `import tghop` has run.)
+    # `tghop synth` as the console script does (`from tghop.__main__ import run`, the
+    # command line's imports included). (Finding the tghop package on sys.path precedes
+    # any tghop code: the child says "go" once `import tghop` has run.)
     code = ("import sys\nsys.argv[0] = 'tghop'\nimport tghop\nprint('go', flush=True)\n"
-            "from tghop.cli import main\nsys.exit(main())\n")
+            "from tghop.__main__ import run\nsys.exit(run())\n")
     for delay in (0.05, 0.15, 0.4, 0.8):
         p = subprocess.Popen([sys.executable, "-c", code, "synth", "builtin:bricks", "-o", "ctrlc.png", *FAST],
                              cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -197,28 +197,34 @@ def test_ctrl_c_during_start_up_is_one_line(folder):
 
 
 def test_only_the_command_freezes_its_objects(folder):
-    # Run as `tghop` (the console script, or `python -m tghop`, which imports the package
-    # while argv[0] is "-m"), the objects that exist after the imports and at exit go to
-    # the garbage collector's permanent generation (fewer objects to walk); a program that
-    # runs the command line in-process, or another module run with -m, keeps its collector
-    # as it was.
-    code = ("import sys, gc\nsys.argv[0] = sys.argv.pop(1)\nrun = sys.argv.pop(1)\n"
-            "sys.orig_argv = [sys.executable] + (['-m', run] if run else ['-c'])\n"
-            "import tghop\nfrom tghop.cli import main\n"
-            "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
-            "print('FROZEN', gc.get_freeze_count() > 0, file=sys.stderr)\n")
-    cases = (("tghop", "", True), ("-m", "tghop", True), (os.path.join("bin", "tghop"), "", True),
-             ("my_script.py", "", False), ("-m", "my_package", False))
-    for argv0, module, frozen in cases:
+    # Run as `tghop` (the console script and `python -m tghop` both call
+    # tghop.__main__.run), the objects that exist after the imports and at exit go to the
+    # garbage collector's permanent generation (fewer objects to walk); a program that runs
+    # the command line in-process keeps its collector as it was.
+    report = "print('FROZEN', gc.get_freeze_count() > 0, file=sys.stderr)\n"
+    as_command = ("import sys, gc, atexit\natexit.register(lambda: " + report.strip() + ")\n"
+                  "from tghop.__main__ import run\nrun()\n")
+    in_process = ("import sys, gc\nfrom tghop.cli import main\n"
+                  "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n" + report)
+    for code, frozen in ((as_command, True), (in_process, False)):
         for args in (["info", "model.npz"], ["info", "no_such_model.npz"]):  # success and failure alike
-            p = _python(code, argv0, module, *args, cwd=folder)
+            p = _python(code, *args, cwd=folder)
             _, err = p.communicate(timeout=120)
-            assert f"FROZEN {frozen}" in err.decode(), (argv0, module, args, err.decode())
+            assert f"FROZEN {frozen}" in err.decode(), (frozen, args, err.decode())
     import gc
 
     before = gc.get_freeze_count()
     assert CliRunner().invoke(main, ["info", str(folder / "model.npz")]).exit_code == 0
     assert gc.get_freeze_count() == before
+
+
+def test_python_m_tghop_is_the_command(folder):
+    p = subprocess.run([sys.executable, "-m", "tghop", "info", "model.npz"], cwd=folder, capture_output=True,
+                       timeout=120)
+    assert p.returncode == 0 and b"parameters" in p.stdout, p.stderr
+    p = subprocess.run([sys.executable, "-m", "tghop", "info", "missing.npz"], cwd=folder, capture_output=True,
+                       timeout=120)
+    assert p.returncode == 1 and p.stderr.decode().startswith("Error: ") and b"Traceback" not in p.stderr
 
 
 def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):

@@ -148,9 +148,9 @@ def test_fast_decoder_equals_stepwise_inverse(small_model, n):
     staged, _ = small_model.sample_patches(n, rng=11, return_stages=True)
     np.testing.assert_allclose(staged, slow, atol=1e-12)
     # A pool generated when read: ranges and chosen patches, in any order.
-    from tghop.synthesis import _GeneratedPool
+    from tghop.pool import GeneratedPool
 
-    pool = _GeneratedPool(small_model, z, np.arange(n))
+    pool = GeneratedPool(small_model, z, np.arange(n))
     rows = np.arange(n)[::-2]
     np.testing.assert_allclose(pool[rows], slow[rows], atol=1e-9)
     np.testing.assert_allclose(pool[n // 3 :], slow[n // 3 :], atol=1e-9)
@@ -161,14 +161,14 @@ def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
     # Few blocks per pool patch: the pool is generated as read, never whole; its tables are
     # those of the whole pool, and the placed patches differ by float32 round-off at most.
     from tghop import synthesis
-    from tghop.synthesis import _GeneratedPool
+    from tghop.pool import GeneratedPool
 
     whole = []
-    all_of = _GeneratedPool.all
-    monkeypatch.setattr(_GeneratedPool, "all", lambda self: whole.append(1) or all_of(self))
+    all_of = GeneratedPool.all
+    monkeypatch.setattr(GeneratedPool, "all", lambda self: whole.append(1) or all_of(self))
     args = (1000, None, False, 0.5, None)
     on_demand = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
-    assert isinstance(on_demand.patches, _GeneratedPool) and not whole
+    assert isinstance(on_demand.patches, GeneratedPool) and not whole
     monkeypatch.setattr(synthesis, "_ON_DEMAND_BLOCKS", 0.0)
     stored = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
     assert isinstance(stored.patches, np.ndarray) and whole

@@ -8,7 +8,8 @@ import pytest
 from tghop.synthesis import PAPER_TABLE4
 
 from tghop import TGHop, TGHopError, data
-from tghop.layout import CoarseLayout, downsample, upsample
+from tghop.layout import downsample, upsample
+from tghop.synthesis import CoarseLayout
 from tghop.modelfile import load_model, save_model
 from tghop.quilting import prepare_pool, quilt, quilt_prepared
 

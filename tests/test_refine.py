@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from tghop import _fft as F
 from tghop import data
 from tghop._common import TGHopError
 from tghop.refine import BandStatistics, laplacian_pyramid, oriented_parts, reconstruct, refine
@@ -419,7 +420,7 @@ def test_pocketfft_without_scipy_fft_gives_scipy_fft_numbers(shape, axes, dtype,
 
     from tghop import refine as R
 
-    fft = R._PocketFFT(R._load_pocketfft())
+    fft = F.PocketFFT(F.load_pocketfft())
     x = rng.standard_normal(shape).astype(dtype)
     spectrum = fft.rfft2(x, axes=axes, workers=2)
     np.testing.assert_array_equal(spectrum, scipy.fft.rfft2(x, axes=axes))
@@ -458,23 +459,23 @@ def test_refinement_falls_back_to_scipy_fft(cells, monkeypatch):
 
     st = BandStatistics().fit(cells)
     img = _blurred(cells) * 0.8 + 0.1
-    monkeypatch.setattr(R, "_SCIPY_FFT_PIXELS", 1)
-    real_load = R._load_pocketfft
+    monkeypatch.setattr(F, "SCIPY_FFT_PIXELS", 1)
+    real_load = F.load_pocketfft
 
     def missing():
         raise StopIteration("no such file")
 
     try:
         monkeypatch.delitem(sys.modules, "scipy.fft")  # as if not imported yet (put back after the test)
-        monkeypatch.setattr(R, "_load_pocketfft", missing)
-        R._scipy_fft.cache_clear()
-        fallback = R._scipy_fft()
+        monkeypatch.setattr(F, "load_pocketfft", missing)
+        F.scipy_fft.cache_clear()
+        fallback = F.scipy_fft()
         assert fallback is sys.modules["scipy.fft"] and fallback.rfft2 is scipy.fft.rfft2  # imported (again)
         through_scipy = R.refine(img, st, n_iter=2)
-        monkeypatch.setattr(R, "_load_pocketfft", real_load)
+        monkeypatch.setattr(F, "load_pocketfft", real_load)
         monkeypatch.delitem(sys.modules, "scipy.fft")
-        R._scipy_fft.cache_clear()
-        assert isinstance(R._scipy_fft(), R._PocketFFT)
+        F.scipy_fft.cache_clear()
+        assert isinstance(F.scipy_fft(), F.PocketFFT)
         np.testing.assert_array_equal(R.refine(img, st, n_iter=2), through_scipy)
     finally:
-        R._scipy_fft.cache_clear()
+        F.scipy_fft.cache_clear()

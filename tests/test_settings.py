@@ -16,6 +16,9 @@ from tghop.synthesis import PAPER_TABLE4, TGHop
 
 
 def test_constructor_and_synthesize_follow_the_table():
+    # An explicit constructor a reader and a type checker see, agreeing with the table
+    # (names, order, defaults), as scikit-learn keeps _parameter_constraints.
+    assert inspect.getsourcefile(TGHop.__init__).endswith("synthesis.py")
     params = inspect.signature(TGHop).parameters
     assert list(params) == [s.name for s in settings.fit_settings()]
     for s in settings.fit_settings():

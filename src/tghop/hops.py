@@ -18,7 +18,8 @@ import numpy as np
 
 from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, report
 from .patches import depth_to_space, space_to_depth
-from .saab import Saab, check_channel_rule, select_channels
+from .saab import Saab, select_channels
+from .settings import check_channel_rule
 
 __all__ = ["Hop", "HopStack"]
 
@@ -95,7 +96,7 @@ class Hop(TransformerMixin, BaseEstimator):
         self
         """
         total, moment_sum, max_sq, count = sums
-        rule = check_channel_rule(self.n_channels, "channels per hop")
+        rule = check_channel_rule(self.n_channels, "channels per hop", none_ok=True)
         c = self.n_channels_in_ = len(total) // 4
         if isinstance(rule, int) and rule > 4 * c:
             raise TGHopError(

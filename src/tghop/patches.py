@@ -11,7 +11,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._common import TGHopError, check_image, check_rng
 
-__all__ = ["extract_patches", "patch_origins", "count_patches", "space_to_depth", "depth_to_space", "patch_grid"]
+__all__ = ["extract_patches", "patch_origins", "count_patches", "space_to_depth", "depth_to_space", "patch_grid", "stage_sheet"]
 
 
 def count_patches(shape, patch_size: int, stride: int) -> int:
@@ -127,3 +127,32 @@ def patch_grid(patches, *, n_cols=None, gap: int = 2, background: float = 1.0) -
         r, q = divmod(i, n_cols)
         out[r * (ph + gap): r * (ph + gap) + ph, q * (pw + gap): q * (pw + gap) + pw] = p[i]
     return out
+
+
+def stage_sheet(views, patch_size):
+    """The paper's Fig. 6 as one image: a row per sample, each DC map (grey, enlarged to
+    the patch size) then the patch.
+
+    Parameters
+    ----------
+    views : dict of ndarray
+        :meth:`tghop.TGHop.stage_views`: DC maps (n, h, w) by name, then ``"S0"``, the
+        patches (n, P, P, C).
+    patch_size : int
+
+    Returns
+    -------
+    ndarray, shape (H, W, C)
+        The sheet (:func:`patch_grid` of the rows).
+    """
+    columns = []
+    for name, maps in views.items():
+        if name == "S0":
+            columns.append(maps)
+            continue
+        scale = patch_size // maps.shape[1]
+        big = np.repeat(np.repeat(maps, scale, axis=1), scale, axis=2)
+        grey = np.clip(big, 0.0, 1.0)[..., None]
+        columns.append(np.repeat(grey, views["S0"].shape[3], axis=3))
+    rows = np.stack(columns, axis=1).reshape((-1,) + views["S0"].shape[1:])
+    return patch_grid(rows, n_cols=len(columns))

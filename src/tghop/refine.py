@@ -20,12 +20,11 @@ import functools
 import math
 import numbers
 import os
-import sys
-import threading
 
 import numpy as np
 
 from ._common import TGHopError, check_size, report
+from ._fft import fft_for
 
 __all__ = ["BandStatistics", "refine", "prepare", "laplacian_pyramid", "reconstruct", "oriented_parts",
            "iter_oriented_parts"]
@@ -48,8 +47,6 @@ _CHANNEL_ARRAYS = 10
 #: together: 3 threads up to about 4096x4096, fewer above (8192x8192: one at a time).
 _REFINE_MEMORY = 3 << 30
 
-#: Bands from this many pixels on are transformed with SciPy's pocketfft (see :func:`_fft_module`).
-_SCIPY_FFT_PIXELS = 512 * 512
 
 #: Entries of the lookup table that applies a matching map (uniform steps over the band's
 #: range; each value takes the nearest entry, whose rank among the values gives its new
@@ -311,91 +308,6 @@ def _apply_table(src, lo, scale, table, dst):
         np.take(table, i, out=dst[a:e], mode="clip")
 
 
-def _fft_module(n_pixels):
-    """``numpy.fft`` for small bands; SciPy's pocketfft (with SIMD over several rows at once:
-    two to three times faster on large float32 arrays) from _SCIPY_FFT_PIXELS on
-    (:func:`_scipy_fft`), so that generating small images never loads SciPy."""
-    if n_pixels >= _SCIPY_FFT_PIXELS:
-        return _scipy_fft()
-    return np.fft
-
-
-#: The compiled module behind ``scipy.fft`` (its functions are what the refinement uses of
-#: ``scipy.fft``, less the argument checks).
-_POCKETFFT = "scipy.fft._pocketfft.pypocketfft"
-
-
-_LOADING = threading.Lock()
-
-
-@functools.lru_cache(maxsize=1)
-def _scipy_fft():
-    """What the refinement uses of ``scipy.fft`` (``rfft2``, ``ifft``, ``irfft``), from SciPy's
-    compiled pocketfft module loaded alone when ``scipy.fft`` is not imported yet.
-
-    Importing ``scipy.fft`` takes 0.2-0.3 s on a 2-core machine (SciPy's array-API layer,
-    which loads ``numpy.f2py`` and ``numpy.testing``, and ``scipy.special``), nearly all of it
-    holding the interpreter lock while the coarse guide's thread works; the compiled module
-    alone loads in 1 ms, and ``scipy.fft``, when a program imports it later, takes this
-    very module (it is registered under its own name). The same transforms, bit for bit
-    (tested). If SciPy lays its files out otherwise, or the module does not give what
-    ``scipy.fft`` gives on a small array, ``scipy.fft`` itself is used.
-    """
-    with _LOADING:  # one load, whichever thread asks first
-        if "scipy.fft" not in sys.modules:
-            try:
-                fft = _PocketFFT(_load_pocketfft())
-                x = np.linspace(0.0, 1.0, 12, dtype=np.float32).reshape(3, 4) ** 2
-                spectrum = fft.rfft2(x, axes=(0, 1))
-                back = fft.irfft(fft.ifft(spectrum.copy(), axis=0, overwrite_x=True), n=4, axis=1)
-                if (np.allclose(spectrum, np.fft.rfft2(x), atol=1e-5) and np.allclose(back, x, atol=1e-5)
-                        and back.dtype == np.float32):
-                    return fft
-            except Exception:  # noqa: BLE001 - any surprise: the public module below
-                pass
-        import scipy.fft
-
-        return scipy.fft
-
-
-def _load_pocketfft():
-    """SciPy's compiled pocketfft module, loaded from its file without ``scipy.fft``'s
-    package (registered under its own name, so that a later ``import scipy.fft`` takes it)."""
-    import importlib.machinery
-    import importlib.util
-
-    if _POCKETFFT in sys.modules:
-        return sys.modules[_POCKETFFT]
-    spec = importlib.util.find_spec("scipy")  # finds the package without importing it
-    folder = os.path.join(os.path.dirname(spec.origin), "fft", "_pocketfft")
-    name = next(f for f in sorted(os.listdir(folder))
-                if f.startswith("pypocketfft.") and f.endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)))
-    path = os.path.join(folder, name)
-    loader = importlib.machinery.ExtensionFileLoader(_POCKETFFT, path)
-    module = importlib.util.module_from_spec(importlib.util.spec_from_file_location(_POCKETFFT, path, loader=loader))
-    loader.exec_module(module)
-    sys.modules[_POCKETFFT] = module
-    return module
-
-
-class _PocketFFT:
-    """``rfft2``, ``ifft`` and ``irfft`` as ``scipy.fft`` has them (default normalisation),
-    calling its compiled module as ``scipy.fft`` does."""
-
-    def __init__(self, module):
-        self._m = module
-
-    def rfft2(self, x, axes=(-2, -1), workers=1):
-        return self._m.r2c(np.asarray(x), tuple(axes), True, 0, None, int(workers))
-
-    def ifft(self, x, axis=-1, overwrite_x=False, workers=1):
-        return self._m.c2c(x, (axis,), False, 2, x if overwrite_x else None, int(workers))
-
-    def irfft(self, x, n=None, axis=-1, overwrite_x=False, workers=1):
-        # (scipy.fft does not use overwrite_x here either)
-        return self._m.c2r(x, (axis,), (x.shape[axis] - 1) * 2 if n is None else n, False, 2, None, int(workers))
-
-
 def _irfft2(fft, spectrum, shape, axes, threads):
     """Inverse of ``rfft2`` over ``axes``; ``spectrum`` is scratch (overwritten).
 
@@ -438,7 +350,7 @@ def _double_angle(h, w, dtype):
 
 def prepare(size, stats):
     """Do ahead of time what refining an image of ``size`` (H, W) first needs: SciPy's FFT
-    module loaded for large bands (:func:`_scipy_fft`) and the oriented windows of every
+    module loaded for large bands (:func:`tghop._fft.fft_for`) and the oriented windows of every
     band size tabulated (a 2048x2048 image: 60 ms). :meth:`tghop.TGHop.synthesize` calls it while
     the coarse guide is made in another thread, so that neither is on the guide's path.
     """
@@ -447,7 +359,7 @@ def prepare(size, stats):
     for _ in range(stats.band_quantiles_.shape[0]):
         if min(h, w) < 2:
             break
-        _fft_module(h * w)
+        fft_for(h * w)
         if stats.band_quantiles_.shape[1] > 1:
             _double_angle(h, w, np.dtype(np.float32))
         h, w = (h + 1) // 2, (w + 1) // 2
@@ -505,7 +417,7 @@ def _filtered(band, n, axes, workers):
     """The band filtered by the windows ``cos 2 theta`` (and ``sin 2 theta`` for ``n > 2``):
     every oriented part is ``(band + cos 2 theta_k f_cos + sin 2 theta_k f_sin) / n``."""
     h, w = band.shape[axes[0]], band.shape[axes[1]]
-    fft = _fft_module(h * w)
+    fft = fft_for(h * w)
     threads = {"workers": int(workers)} if fft is not np.fft else {}
     spectrum = fft.rfft2(band, axes=axes, **threads)  # complex64 for float32 bands (NumPy >= 2, SciPy)
     harmonics = _double_angle(h, w, np.dtype(band.dtype))

@@ -27,6 +27,7 @@ import numbers
 import numpy as np
 
 from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
+from .settings import check_channel_rule
 
 __all__ = ["Saab", "select_channels", "knee_point"]
 
@@ -61,19 +62,6 @@ def knee_point(energy) -> int:
     return int(np.argmax((1.0 - x) - y)) + 1
 
 
-def check_channel_rule(rule, name="channel count"):
-    """Validate a channel-selection rule (int >= 1, float in (0, 1], "knee" or None)."""
-    if rule is None or (isinstance(rule, str) and rule == "knee"):
-        return rule
-    if isinstance(rule, numbers.Integral) and not isinstance(rule, bool):
-        if rule < 1:
-            raise TGHopError(f"{name} must be at least 1, got {rule}")
-        return int(rule)
-    if isinstance(rule, numbers.Real) and 0.0 < rule <= 1.0:
-        return float(rule)
-    raise TGHopError(f"{name} must be an integer >= 1, a fraction in (0, 1] or 'knee', got {rule!r}")
-
-
 def select_channels(energy, rule, *, n_fixed=0) -> np.ndarray:
     """Choose AC channels by energy, strongest first.
 
@@ -96,7 +84,7 @@ def select_channels(energy, rule, *, n_fixed=0) -> np.ndarray:
         never chosen.
     """
     energy = np.asarray(energy, dtype=np.float64)
-    rule = check_channel_rule(rule)
+    rule = check_channel_rule(rule, none_ok=True)
     order = np.argsort(-energy, kind="stable")
     total = energy.sum()
     nonzero = int(np.count_nonzero(energy[order] > ZERO_ENERGY * max(total, 1e-300)))

@@ -6,8 +6,9 @@ constructor parameter, stored in the model file) or a generation-time one (a key
 :meth:`TGHop.synthesize`, a ``tghop synth`` option, not stored), which fitted component
 receives it, and its value under ``--paper``. From the table come:
 
-* ``TGHop.__init__`` (generated, so ``get_params``/``clone`` see every fit setting) and
-  the "Parameters" section of its docstring;
+* the "Parameters" section of ``TGHop``'s docstring (its ``__init__`` is written out,
+  with the table's names, order and defaults, and ``tests/test_settings.py`` checks that
+  the two agree, as scikit-learn checks ``_parameter_constraints``);
 * checks of every value (one-line :class:`~tghop.TGHopError`; non-finite numbers are
   always refused) before any work starts, in ``TGHop.fit``, ``TGHop.synthesize``, when a
   model file is read, and on the command line;
@@ -22,8 +23,9 @@ Append one :class:`Setting` to :data:`SETTINGS`, then use it where it acts:
 
 * fit time (``when="fit"``): read ``self.<name>`` in ``TGHop.fit`` (or give
   ``target="ichm"`` / ``"ichm.<parameter>"`` / ``"sdr"`` and the component receives it);
-  it becomes a constructor parameter, is saved in and restored from model files (older
-  files get the default), and appears as a ``fit``/``synth`` option;
+  add it, with the same default, to ``TGHop.__init__`` (the test checks the two agree);
+  it is saved in and restored from model files (older files get the default), and
+  appears as a ``fit``/``synth`` option;
 * generation time (``when="generate"``): add the keyword, with the same default, to
   ``TGHop.synthesize`` (``tests/test_settings.py`` checks the two agree); it appears as a
   ``synth`` option and is checked on every call.
@@ -41,7 +43,7 @@ from typing import Any, Optional, Tuple
 from ._errors import TGHopError
 
 __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "fit_settings", "generate_settings", "check_settings",
-           "component_params", "numpydoc_parameters", "make_init"]
+           "component_params", "numpydoc_parameters", "check_channel_rule"]
 
 _MISSING = object()
 
@@ -199,19 +201,34 @@ class Setting:
         return f"{text}, default={self.default!r}"
 
 
+def check_channel_rule(rule, name: str = "channel count", *, none_ok: bool = False):
+    """One hop's channel rule: an int count >= 1, a fraction in (0, 1], or "knee".
+
+    The one check of a channel rule (the settings table, :mod:`tghop.saab` and the
+    command line's ``--k1``/``--k2``/``--k3`` call it). ``none_ok``: None ("keep every
+    non-empty channel") is allowed too.
+    """
+    if rule is None and none_ok:
+        return None
+    if isinstance(rule, str) and rule == "knee":
+        return rule
+    if isinstance(rule, numbers.Integral) and not isinstance(rule, bool):
+        if rule < 1:
+            raise TGHopError(f"{name} must be at least 1 (or a fraction in (0, 1], or 'knee'), got {rule}")
+        return int(rule)
+    if isinstance(rule, numbers.Real) and not isinstance(rule, bool) and 0.0 < rule <= 1.0:
+        return float(rule)
+    raise TGHopError(f"{name} must be an integer >= 1, a fraction in (0, 1] or 'knee', got {rule!r}")
+
+
 def _check_channels(value, label):
-    """A sequence of per-hop rules: an int count, a fraction in (0, 1], or "knee"."""
+    """A sequence of per-hop rules (:func:`check_channel_rule`)."""
     if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
         raise TGHopError(f"{label} must be a sequence of per-hop rules, e.g. (9, 22), got {value!r}")
     rules = tuple(value)
     if not rules:
         raise TGHopError(f"{label} must name at least one hop, got {value!r}")
-    for i, rule in enumerate(rules, start=1):
-        ok = (rule == "knee" if isinstance(rule, str) else
-              isinstance(rule, numbers.Real) and not isinstance(rule, bool) and math.isfinite(rule) and rule > 0)
-        if not ok:
-            raise TGHopError(f"{label}: K{i} must be a count >= 1, a fraction in (0, 1] or 'knee', got {rule!r}")
-    return tuple(int(r) if isinstance(r, numbers.Integral) else r for r in rules)
+    return tuple(check_channel_rule(rule, f"{label}: K{i}") for i, rule in enumerate(rules, start=1))
 
 
 # The table. Order = order of the constructor's parameters and of the options in --help.
@@ -347,19 +364,3 @@ def numpydoc_parameters(settings, indent: str = "    ") -> str:
         lines.append(f"{indent}{s.name} : {s.doc_type()}")
         lines.extend(textwrap.wrap(s.help, 88, initial_indent=indent * 2, subsequent_indent=indent * 2))
     return "\n".join(lines)
-
-
-def make_init(settings):
-    """A constructor storing ``settings`` as attributes (as scikit-learn expects: no logic).
-
-    Generated, so the signature (which ``get_params`` inspects) always matches the table.
-    """
-    names = [s.name for s in settings]
-    body = "\n".join(f"    self.{n} = {n}" for n in names) or "    pass"
-    args = ", ".join(f"{n}=_defaults[{n!r}]" for n in names)
-    source = f"def __init__(self, {args}):\n{body}\n"
-    namespace = {"_defaults": {s.name: s.default for s in settings}}
-    exec(source, namespace)  # noqa: S102 - generated from the table above, no user input
-    init = namespace["__init__"]
-    init.__doc__ = "Store the settings; see the class docstring. Nothing is checked until ``fit``."
-    return init

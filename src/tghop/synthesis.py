@@ -28,11 +28,12 @@ from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import patch_origins
-from .layout import CoarseLayout
-from .quilting import POOL_CHUNK, GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
+from . import layout
+from .pool import GeneratedPool
+from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
-__all__ = ["TGHop", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
+__all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
 #: The paper's Table 4 setting (brick_wall): K1=9, K2=22, gamma=0.01, N=50, W=200, with the
 #: per-cluster PCA size that reproduces its F = 2,518 CDFs (95 % of the variance, at most 50
@@ -43,9 +44,7 @@ PAPER_TABLE4 = {"n_channels": (9, 22),
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
-#: Patches decoded per step (the intermediate arrays stay in cache).
-_DECODE_CHUNK = 64
-#: Pools are generated on demand (:class:`_GeneratedPool`) for images of at most this many
+#: Pools are generated on demand (:class:`GeneratedPool`) for images of at most this many
 #: blocks per pool patch (256x256 and 512x512 images from a pool of 5,000). Larger images
 #: place more patches, decoded again one wavefront at a time on quilting's path: a coarse
 #: 1024x1024 image from 4,000 patches took 1.03 of the time on demand (in a warm process).
@@ -147,7 +146,32 @@ class TGHop(BaseEstimator):
         The coarse layout model (``layout_factor`` set and the exemplar large enough).
     """
 
-    __init__ = settings.make_init(settings.fit_settings())
+    # The fit settings of tghop.settings.SETTINGS, in its order and with its defaults
+    # (tests/test_settings.py checks that they agree). Nothing is checked until ``fit``.
+    def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
+                 n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
+                 min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
+                 max_patches=20000, band_levels=4, band_orientations=4, layout_factor=2, rng=None):
+        self.patch_size = patch_size
+        self.stride = stride
+        self.n_channels = n_channels
+        self.gamma = gamma
+        self.gamma_mode = gamma_mode
+        self.n_clusters = n_clusters
+        self.n_codewords = n_codewords
+        self.n_bins = n_bins
+        self.cluster_energy = cluster_energy
+        self.max_cluster_components = max_cluster_components
+        self.min_cluster_size = min_cluster_size
+        self.reject_threshold = reject_threshold
+        self.ica_max_iter = ica_max_iter
+        self.ica_tol = ica_tol
+        self.residual = residual
+        self.max_patches = max_patches
+        self.band_levels = band_levels
+        self.band_orientations = band_orientations
+        self.layout_factor = layout_factor
+        self.rng = rng
 
     # ---------------------------------------------------------------- fitting
     def _check_settings(self):
@@ -211,10 +235,10 @@ class TGHop(BaseEstimator):
         del core
         self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
         self.layout_ = None
-        layout = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
-        if layout is not None and layout.fits(image.shape):
+        coarse = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
+        if coarse is not None and coarse.fits(image.shape):
             report(progress, "layout", 0, 1)
-            self.layout_ = layout.fit(image)
+            self.layout_ = coarse.fit(image)
             report(progress, "layout", 1, 1)
         return self
 
@@ -370,13 +394,6 @@ class TGHop(BaseEstimator):
         return out
 
     # ------------------------------------------------------------- generation
-    def _check_n(self, n, name="n"):
-        if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 1:
-            raise TGHopError(f"{name} must be a positive integer, got {n!r}")
-        if n > 10_000_000:
-            raise TGHopError(f"{name}={n} is too many; generate at most 10,000,000 patches per call")
-        return int(n)
-
     def decode(self, z, *, return_stages=False):
         """Core-model vectors ``z`` (n, D_r) -> patches (n, P, P, C), clipped to [0, 1].
 
@@ -406,7 +423,7 @@ class TGHop(BaseEstimator):
             constant = depth_to_space((constant - hop.bias_) @ hop.kernels_)
         return linear.reshape(k, -1), constant.reshape(-1)
 
-    def _patch_decoder(self, dtype):
+    def patch_decoder(self, dtype):
         """A function ``decode(z, out)``: core-model vectors ``z`` (m, D_r) -> patches
         written into ``out`` (m, P, P, C), a C-contiguous array of ``dtype``, clipped to
         [0, 1].
@@ -415,7 +432,7 @@ class TGHop(BaseEstimator):
         inverse SDR per channel into a channel-major core, then the inverse hops as one
         matrix product from each core position to its pixel block (:meth:`_block_decoder`)
         and one transpose into patch order. The channel means go through the block map
-        once, as one offset per core position. Given :data:`_DECODE_CHUNK` patches at a
+        once, as one offset per core position. Given :data:`tghop.pool.DECODE_CHUNK` patches at a
         time its intermediate arrays stay in the processor's cache (5,000 patches: 0.105
         -> 0.054 s). Made for each pool, not cached, so the first pool from a loaded model
         costs what every later one does.
@@ -450,7 +467,7 @@ class TGHop(BaseEstimator):
 
         return decode
 
-    def _sample_vectors(self, n, rng, dtype):
+    def sample_vectors(self, n, rng, dtype):
         """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
         cluster as mixed (:meth:`ICHM.mix_by_cluster`), and ``position``: ``z[position]``
         are the samples in order."""
@@ -481,16 +498,16 @@ class TGHop(BaseEstimator):
         stages : dict, only with ``return_stages``
         """
         check_is_fitted(self, "ichm_")
-        n = self._check_n(n)
+        n = settings.BY_NAME["n_patches"].check(n, label="n")
         dtype = np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
         rng = check_rng(rng)
         if return_stages:  # the paper's step-by-step inverse, keeping every space (in float64)
-            z, position = self._sample_vectors(n, rng, np.dtype(np.float64))
+            z, position = self.sample_vectors(n, rng, np.dtype(np.float64))
             patches, spaces = self.decode(z[position], return_stages=True)
             return patches.astype(dtype, copy=False), self.stage_views(spaces)
-        return _GeneratedPool(self, *self._sample_vectors(n, rng, dtype)).all()
+        return GeneratedPool(self, *self.sample_vectors(n, rng, dtype)).all()
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples.
@@ -525,10 +542,10 @@ class TGHop(BaseEstimator):
         When quilting will place few blocks (at most :data:`_ON_DEMAND_BLOCKS` per pool
         patch: a 256x256 image places about 100 of 5,000 patches), the pool is not kept:
         its patches are generated a chunk at a time as their tables are made, and again
-        for the few that are placed (:class:`_GeneratedPool`). Else they are generated
+        for the few that are placed (:class:`GeneratedPool`). Else they are generated
         once, into an array.
         """
-        pool = _GeneratedPool(self, *self._sample_vectors(n_patches, rng, np.dtype(np.float32)))
+        pool = GeneratedPool(self, *self.sample_vectors(n_patches, rng, np.dtype(np.float32)))
         if block_count(size, self.patch_size, overlap=overlap, tile=tile) > _ON_DEMAND_BLOCKS * n_patches:
             pool = pool.all()
         return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
@@ -585,11 +602,11 @@ class TGHop(BaseEstimator):
         dtype = np.dtype(dtype)
         if dtype not in (np.float64, np.float32, np.uint8):
             raise TGHopError(f"dtype must be float64, float32 or uint8, got {dtype}")
-        settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                     detail=detail, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
-                                     layout_refine=layout_refine))
+        checked = settings.check_settings(dict(
+            n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
+            match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine))
+        n_patches = checked["n_patches"]
         rng = check_rng(rng)
-        n_patches = self._check_n(n_patches, "n_patches")
         guide = None
         if self.layout_ is not None and layout_weight:
             # The coarse guide and the pool are independent: the guide is made in a second
@@ -634,61 +651,98 @@ class TGHop(BaseEstimator):
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
 
 
-class _GeneratedPool:
-    """A pool of patches generated from core-model vectors when they are read.
+class CoarseLayout(BaseEstimator):
+    """The coarse layout of :class:`TGHop` (ours): a small TGHop model of the exemplar
+    downsampled by ``factor``, whose quilted images guide the fine level above patch scale.
 
-    What quilting reads of a pool (:func:`tghop.quilting.prepare_pool`): ``shape``,
-    ``dtype``, contiguous ranges ``pool[a:b]`` (in order, while its tables are made) and
-    the chosen patches ``pool[indices]``. A range is decoded into one reused buffer, valid
-    until the next read, so it is used while it is in cache and the pool never takes
-    memory (5,000 patches: 61 MB in float32); the chosen patches are decoded again. Ranges
-    are decoded :data:`_DECODE_CHUNK` patches at a time from multiples of it, as
-    :meth:`all` decodes the whole pool, so they hold the same numbers; chosen patches
-    decoded in other groups can differ from them by float32 round-off (4e-7; BLAS sums
-    in an order that depends on the number of rows).
+    A fine model owns its coarse one (``TGHop.layout_``); the scales, the coarse model's
+    training settings and the guide are the plain functions of :mod:`tghop.layout`.
 
     Parameters
     ----------
-    model : TGHop
-    z, position : ndarray
-        :meth:`TGHop._sample_vectors`: patch ``i`` is decoded from ``z[position[i]]``.
+    factor : int, default=2
+        Downsampling of the exemplar (2: coarse patches cover 64x64 exemplar pixels).
+    patch_size : int, default=32
+        Patch size of the coarse model.
+    n_clusters : int, default=50
+        ICHM clusters of the coarse model (fewer if it has few training patches: at least
+        about 40 patches per cluster).
+    min_patches : int, default=2000
+        Below this many training patches at stride 2, the coarse model uses stride 1.
+    max_patches : int, default=4000
+        Training patches of the coarse model (a random subset beyond this): it only needs
+        the low-pass layout, so it is kept cheap (with the two settings below, about a
+        third of the fine model's fit time).
+    cluster_energy, max_cluster_components : float, int, default=0.95, 50
+        Per-cluster PCA of the coarse model (the paper's Table 4 values).
+    gamma : float, default=0.01
+        SDR threshold of the coarse model (the paper's value: the layout needs no fine
+        detail, so it keeps the smaller core of the paper, unlike the fine model's 0.003).
+    rng : int or numpy.random.Generator, optional
+
+    Attributes
+    ----------
+    model_ : TGHop
+        The coarse model (fitted on the downsampled exemplar).
+
+    Example
+    -------
+    >>> from tghop import data
+    >>> from tghop.synthesis import CoarseLayout
+    >>> coarse = CoarseLayout(factor=2, rng=0).fit(data.bricks())          # doctest: +SKIP
+    >>> guide = coarse.guide((256, 256), rng=1)                             # doctest: +SKIP
     """
 
-    ndim = 4
+    def __init__(self, factor=2, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000,
+                 cluster_energy=0.95, max_cluster_components=50, gamma=0.01, rng=None):
+        self.factor = factor
+        self.patch_size = patch_size
+        self.n_clusters = n_clusters
+        self.min_patches = min_patches
+        self.max_patches = max_patches
+        self.cluster_energy = cluster_energy
+        self.max_cluster_components = max_cluster_components
+        self.gamma = gamma
+        self.rng = rng
 
-    def __init__(self, model, z, position):
-        self._z, self._position = z, position
-        self.dtype = z.dtype
-        self.shape = (len(position), model.patch_size, model.patch_size, model.exemplar_shape_[2])
-        self._decode = model._patch_decoder(self.dtype)
-        self._buffer = None
+    def fits(self, shape) -> bool:
+        """Whether an exemplar of ``shape`` (H, W, ...) is large enough for this layout."""
+        return layout.fits(shape, self.factor, self.patch_size)
 
-    def __len__(self):
-        return self.shape[0]
+    def fit(self, image, y=None):
+        """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.
 
-    def _fill(self, rows, out):
-        """Decode the patches ``rows`` (their indices in the pool, ascending from a multiple
-        of _DECODE_CHUNK for ranges) into ``out``, _DECODE_CHUNK at a time."""
-        for a in range(0, len(rows), _DECODE_CHUNK):
-            e = min(len(rows), a + _DECODE_CHUNK)
-            self._decode(self._z[self._position[rows[a:e]]], out[a:e])
-        return out
+        Returns
+        -------
+        self
+        """
+        img = np.asarray(image)
+        if img.dtype != np.uint8:  # uint8 (a large exemplar) is downsampled without a float copy
+            img = check_image(image, name="exemplar")
+        elif img.ndim == 2:
+            img = img[:, :, None]
+        training = layout.coarse_training(img.shape, self.factor, patch_size=self.patch_size,
+                                          n_clusters=self.n_clusters, min_patches=self.min_patches,
+                                          max_patches=self.max_patches)
+        small = layout.downsample(img, int(self.factor))  # 8-bit stays 8-bit: a byte per value
+        self.model_ = TGHop(
+            patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
+            max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None,
+            rng=check_rng(self.rng), **training,
+        ).fit(small)
+        return self
 
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            start, stop, step = index.indices(self.shape[0])
-            rows = np.arange(start, stop, step)
-            if self._buffer is None or len(self._buffer) < len(rows):
-                self._buffer = np.empty((max(len(rows), POOL_CHUNK),) + self.shape[1:], dtype=self.dtype)
-            return self._fill(rows, self._buffer[: len(rows)])
-        rows = np.asarray(index)
-        if rows.dtype.kind not in "iu" or rows.ndim != 1:
-            raise TypeError("a generated pool is read by a slice or a 1-d array of indices")
-        return self._fill(rows, np.empty((len(rows),) + self.shape[1:], dtype=self.dtype))
+    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3):
+        """A coarse synthesis upsampled to ``size``: the layout the fine level follows
+        (:func:`tghop.layout.coarse_guide`).
 
-    def all(self):
-        """The whole pool as an array (n, P, P, C)."""
-        return self._fill(np.arange(self.shape[0]), np.empty(self.shape, dtype=self.dtype))
+        Returns
+        -------
+        ndarray, shape (H, W, C), float32 in [0, 1]
+        """
+        check_is_fitted(self, "model_")
+        return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
+                                   refine=refine)
 
 
 # ------------------------------------------------------------------ arrays (model files)

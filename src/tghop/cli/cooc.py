@@ -1,8 +1,8 @@
 """``tghop cooc ...``: train the co-occurrence cGAN (Darzi et al.) and use its controls.
 
-Registered on the main group by :mod:`tghop.cli`; torch is imported only when a command
-runs (through :mod:`tghop.cooc`), and NumPy only inside the commands, so ``tghop --help``
-stays fast and torch-free.
+Registered on the main group by :mod:`tghop.cli.group`; torch is imported only when a
+command runs (through :mod:`tghop.cooc`), and NumPy only inside the commands, so
+``tghop --help`` stays fast and torch-free.
 """
 
 from __future__ import annotations
@@ -12,8 +12,9 @@ import re
 
 import click
 
-from ._errors import TGHopError
-from .cli import Progress, Size, check_output, load_exemplar, user_errors
+from .._errors import TGHopError
+from .common import Progress, check_output, load_exemplar, user_errors
+from .options import Size
 
 #: Longest morph strip, in condition cells.
 MAX_CELLS = 4096
@@ -33,7 +34,7 @@ class LossProgress(Progress):
 
 def parse_settings(pairs) -> dict:
     """``KEY=VALUE`` strings -> dict (VALUE parsed as JSON: numbers, lists)."""
-    from .cooc import SMALL
+    from ..cooc import SMALL
 
     out = {}
     for item in pairs:
@@ -52,7 +53,7 @@ def parse_settings(pairs) -> dict:
 
 
 def load_checkpoint(path):
-    from .cooc import load
+    from ..cooc import load
 
     return load(path)
 
@@ -92,15 +93,16 @@ def cooc():
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
     """Train the co-occurrence cGAN on EXEMPLAR (an image file or builtin:NAME)."""
-    from ._common import ModelFileError
-    from .imageio import check_output_path
+    from .._common import ModelFileError
+    from ..imageio import check_output_path
 
     progress = LossProgress(not quiet)
     with user_errors(progress):
-        from .cooc import PAPER, CoocGAN, _import_torch
+        from .._common import import_torch
+        from ..cooc import PAPER, CoocGAN
 
         overrides = parse_settings(settings)
-        _import_torch()  # the one-line hint before the exemplar is read
+        import_torch("The co-occurrence cGAN")  # the one-line hint before the exemplar is read
         check_output_path(output, what="checkpoint", error=ModelFileError)
         image = load_exemplar(exemplar)
         if resume:
@@ -139,8 +141,8 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
     A and B are crop:ROW,COL (a crop of the training exemplar at that pixel) or images
     (files or builtin:NAME) whose statistics are measured with the model's colours.
     """
-    from .imageio import save_image
-    from .patches import patch_grid
+    from ..imageio import save_image
+    from ..patches import patch_grid
 
     with user_errors():
         check_output(output)
@@ -184,14 +186,11 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows):
     """
     import numpy as np
 
-    from .cooc import paint_condition
-    from .imageio import save_image
-    from .quilting import MAX_PIXELS
+    from ..cooc import paint_condition
+    from ..imageio import save_image
 
     with user_errors():
         check_output(output)
-        if size[0] * size[1] > MAX_PIXELS:
-            raise TGHopError(f"--size {size[0]}x{size[1]} exceeds the limit of {MAX_PIXELS:,} pixels; choose a smaller size")
         model = load_checkpoint(model_file)
         s = model.s
         hh, ww = -(-size[0] // s), -(-size[1] // s)

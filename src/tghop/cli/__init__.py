@@ -1,0 +1,13 @@
+"""The ``tghop`` command line.
+
+:mod:`~tghop.cli.group` holds the command group (``main``) and how every command fails;
+one module per family of commands stands below it (:mod:`~tghop.cli.texture`: fit,
+synth, patches, info; :mod:`~tghop.cli.evaluation`: evaluate, baseline;
+:mod:`~tghop.cli.cooc`: the co-occurrence cGAN), and below them the shared helpers
+(:mod:`~tghop.cli.options`, :mod:`~tghop.cli.common`). The ``tghop`` command itself
+starts in :func:`tghop.__main__.run`.
+"""
+
+from .group import main
+
+__all__ = ["main"]

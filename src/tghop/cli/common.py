@@ -1,0 +1,149 @@
+"""What every command of the ``tghop`` command line shares: progress bars, one-line
+errors, reading exemplars and checking output paths.
+
+The commands (:mod:`tghop.cli.texture`, :mod:`tghop.cli.evaluation`,
+:mod:`tghop.cli.cooc`) stand on this module and on :mod:`tghop.cli.options`; the group
+(:mod:`tghop.cli.group`) stands on them. Heavy modules (NumPy's linear algebra users,
+Pillow, scikit-learn, SciPy) are imported inside the functions that need them, so
+``--help``, ``--version`` and ``info`` answer at once.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from contextlib import contextmanager
+from pathlib import Path
+
+import click
+
+from .._errors import TGHopError
+
+__all__ = ["Progress", "fail", "user_errors", "load_exemplar", "is_model_file", "summary", "check_output",
+           "numbered"]
+
+
+class Progress:
+    """Renders the library's ``progress(stage, done, total)`` calls as click progress bars.
+
+    ``show_eta`` adds the remaining time; a subclass may set ``note`` (a string) to show it
+    after the bar.
+    """
+
+    def __init__(self, enabled: bool, *, show_eta: bool = False):
+        self.enabled = enabled
+        self.show_eta = show_eta
+        self.note = None
+        self.bar = None
+        self.stage = None
+        self.done = 0
+
+    def __call__(self, stage, done, total):
+        if not self.enabled:
+            return
+        if stage != self.stage:
+            self.close()
+            self.stage, self.done = stage, 0
+            self.bar = click.progressbar(length=max(total, 1), label=f"{stage:<14}", file=sys.stderr,
+                                         show_eta=self.show_eta, show_percent=True,
+                                         item_show_func=None if self.note is None else lambda _: self.note)
+            self.bar.__enter__()
+        if done > self.done:
+            self.bar.update(done - self.done, current_item=self.note)
+            self.done = done
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+            self.stage = None
+
+
+def fail(message: str, code: int = 1):
+    click.echo(f"Error: {message}", err=True)
+    sys.exit(code)
+
+
+@contextmanager
+def user_errors(progress=None):
+    """Turn library errors into one line on stderr; show warnings as one line each."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except TGHopError as exc:
+            if progress:
+                progress.close()
+            fail(str(exc))
+        except MemoryError:
+            if progress:
+                progress.close()
+            fail("out of memory; use a smaller output size, pool or exemplar")
+        except OSError as exc:  # a file system error the checks above did not foresee
+            if progress:
+                progress.close()
+            where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
+            fail(f"{where}{exc.strerror or exc}")
+        except KeyboardInterrupt:
+            if progress:
+                progress.close()
+            fail("interrupted", 130)
+        finally:
+            if progress:
+                progress.close()
+            for w in caught:
+                if issubclass(w.category, (UserWarning, RuntimeWarning)):
+                    click.echo(f"Warning: {w.message}", err=True)
+
+
+def load_exemplar(spec: str, *, downscale=False, dtype="float64"):
+    """An image file, or ``builtin:NAME`` for a built-in exemplar."""
+    from ..data import builtin
+    from ..imageio import load_image
+
+    if spec.startswith("builtin:"):
+        return builtin(spec.split(":", 1)[1])
+    if is_model_file(spec):
+        raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
+    return load_image(spec, downscale=downscale, dtype=dtype)
+
+
+def is_model_file(path: str) -> bool:
+    """True if ``path`` starts like a zip archive (an ``.npz``), which only a model can be
+    here; a truncated model file still counts (and is then reported as truncated)."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as fh:
+            return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
+    except OSError:
+        return False
+
+
+def summary(model, params=None) -> str:
+    """Dimensions, core model and parameter total of a fitted model (``params``: its
+    :meth:`~tghop.TGHop.n_parameters`, when the caller already has it)."""
+    d = model.dims_
+    params = model.n_parameters() if params is None else params
+    dims = " -> ".join(f"D{i}={d[f'D{i}']}" for i in range(len(model.channels_) + 1))
+    ks = ", ".join(f"K{i + 1}={k}" for i, k in enumerate(model.channels_))
+    return (
+        f"dimensions: {dims}, D_r={d['D_r']}  ({ks})\n"
+        f"core model: N={d['N']} clusters, F={d['F']} CDFs, W={d['W']} codewords\n"
+        f"parameters: {params['total']['stored']:,} stored ({params['total']['paper']:,} by the paper's formulas)"
+    )
+
+
+def check_output(path: str, allow_stdout=False):
+    from ..imageio import check_output_path, output_format
+
+    if path == "-" and not allow_stdout:
+        raise TGHopError("this command cannot write to stdout; give a file name with -o")
+    output_format(path)
+    if path != "-":
+        check_output_path(path)
+
+
+def numbered(path: str, count: int):
+    p = Path(path)
+    width = len(str(count))
+    return [str(p.with_name(f"{p.stem}_{i:0{width}d}{p.suffix}")) for i in range(1, count + 1)]

@@ -1,0 +1,106 @@
+"""``tghop evaluate`` and ``tghop baseline``: texture metrics, and the reference points
+tghop is compared with."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from .._errors import TGHopError
+from .common import Progress, check_output, load_exemplar, user_errors
+from .options import Size
+
+__all__ = ["evaluate", "baseline"]
+
+
+@click.command()
+@click.argument("exemplar")
+@click.argument("results", nargs=-1, required=True)
+@click.option("--json", "as_json", is_flag=True, help="One JSON object per result (JSON lines).")
+@click.option("--metrics", "names", default=None,
+              help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied (default all).")
+def evaluate(exemplar, results, as_json, names):
+    """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
+
+    copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
+
+    With two or more results, also their diversity (higher: more different from each other).
+    SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
+    """
+    from .. import metrics as M
+
+    with user_errors():
+        chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
+        ex = load_exemplar(exemplar)
+        images = [load_exemplar(r) for r in results]
+        rows = [(path, M.evaluate(ex, img, metrics=chosen)) for path, img in zip(results, images)]
+        div = M.diversity(*images) if len(images) > 1 else None
+    skipped = rows[0][1].skipped if rows else {}
+    if as_json:
+        for path, scores in rows:
+            click.echo(json.dumps({"exemplar": exemplar, "result": path, **scores}))
+        if div is not None:
+            click.echo(json.dumps({"exemplar": exemplar, "results": list(results), "diversity": div}))
+    else:
+        cols = list(rows[0][1])
+        width = max(len("result"), *(len(p) for p, _ in rows))
+        click.echo(f"{'result':<{width}}" + "".join(f"{c:>14}" for c in cols))
+        for path, scores in rows:
+            click.echo(f"{path:<{width}}" + "".join(f"{scores[c]:>14.4g}" for c in cols))
+        if div is not None:
+            click.echo(f"diversity of the {len(images)} results: {div:.4g}")
+    for name, why in skipped.items():
+        click.echo(f"Note: {name} skipped: {why}", err=True)
+
+
+@click.command()
+@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"]))
+@click.argument("exemplar")
+@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
+@click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
+@click.option("--seed", type=click.IntRange(min=0), default=None)
+@click.option("--iterations", type=click.IntRange(min=1), default=None,
+              help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
+                   "cooc: training steps (default 5500).")
+@click.option("--model", "model_file", default=None,
+              help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
+@click.option("--assembly", type=click.Choice(["quilt", "pass", "windows"]), default=None,
+              help="cooc: how the image is made from the generator: quilt (default: generated training-size "
+                   "crops stitched by image quilting), pass (the paper's: one pass over the whole condition), "
+                   "windows (that condition in training-size windows).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+def baseline(name, exemplar, output, size, seed, iterations, model_file, assembly, quiet):
+    """Make a reference texture from EXEMPLAR with baseline NAME.
+
+    \b
+    crop           a random crop of the exemplar (best case)
+    blurred-crop   a blurred crop
+    colour-noise   noise with the exemplar's colour mean and covariance (worst case)
+    quilting       classic image quilting of the exemplar's own patches
+    ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
+    cooc           co-occurrence cGAN (Darzi et al.): trains ~15 min on 2 cores, or --model (metrics extra)
+    """
+    from ..baselines import BASELINES
+    from ..imageio import save_image
+
+    progress = Progress(not quiet)
+    with user_errors(progress):
+        check_output(output, allow_stdout=True)
+        if iterations is not None and name not in ("ustyuzhaninov", "cooc"):
+            raise TGHopError("--iterations applies to the ustyuzhaninov and cooc baselines only")
+        for option, value in (("--model", model_file), ("--assembly", assembly)):
+            if value is not None and name != "cooc":
+                raise TGHopError(f"{option} applies to the cooc baseline only")
+        ex = load_exemplar(exemplar)
+        kwargs = {"n_iter": iterations} if iterations is not None else {}
+        if name == "cooc":
+            from ..cooc import load
+
+            kwargs = {"n_steps": iterations, "model": None if model_file is None else load(model_file),
+                      "assembly": assembly or "quilt"}
+        image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
+        progress.close()
+        save_image(image, output)
+    if output != "-":
+        click.echo(f"{name} result written to {output}", err=True)

@@ -1,0 +1,104 @@
+"""The ``tghop`` command group: every command of the command line, and how it fails.
+
+Every command reports bad input as one line on stderr and a non-zero exit status, never
+a traceback, and never leaves a half-written output file. Progress bars go to stderr.
+
+Running as the ``tghop`` command (:func:`tghop.__main__.run`, the console script and
+``python -m tghop``) adds what only the command may do to its process: see
+:meth:`OneLineGroup.main` with ``as_command=True``.
+"""
+
+from __future__ import annotations
+
+import gc
+import signal
+import sys
+
+import click
+
+from .. import __version__
+from .common import fail
+from .cooc import cooc
+from .evaluation import baseline, evaluate
+from .texture import fit, info, patches, synth
+
+__all__ = ["OneLineGroup", "main"]
+
+#: The modules each command imports when it runs (besides those of the command line).
+_COMMAND_MODULES = {
+    "synth": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
+    "fit": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
+    "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
+    "info": ("numpy", "tghop.modelfile"),
+}
+
+
+def _import_for(args):
+    """Import what the command named in ``args`` will import (nothing for ``--help``)."""
+    import importlib
+
+    words = [a for a in args if isinstance(a, str)]
+    if any(a in ("-h", "--help", "--version") for a in words):
+        return
+    command = next((a for a in words if not a.startswith("-")), None)
+    for name in _COMMAND_MODULES.get(command, ()):
+        try:
+            importlib.import_module(name)
+        except ImportError:  # reported where the command needs it
+            pass
+
+
+class OneLineGroup(click.Group):
+    """Every failure of the command line, click's usage errors and Ctrl-C included, is one
+    line on stderr (``Error: ...``) and a non-zero exit status, never a traceback."""
+
+    def main(self, args=None, prog_name=None, as_command=False, **extra):
+        """Run the command line and exit.
+
+        ``as_command``: this process is the ``tghop`` command (:func:`tghop.__main__.run`,
+        which installed a start-up Ctrl-C handler). Then, still under that handler, the
+        modules the command will import are imported (Python loses a KeyboardInterrupt
+        that arrives at the end of an import, "Exception ignored in ... _get_module_lock",
+        and the command would go on as if nothing had happened); the usual handler is put
+        back; and the objects that exist after the imports and at exit are handed to the
+        garbage collector's permanent generation (``gc.freeze``), so that its collections
+        during the run and at exit do not walk them. A program that runs the command line
+        in-process keeps its signal handling and its collector as they were.
+        """
+        try:
+            if as_command:
+                _import_for(sys.argv[1:] if args is None else list(args))
+                gc.freeze()
+                signal.signal(signal.SIGINT, signal.default_int_handler)
+            rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+        except click.exceptions.Abort:  # Ctrl-C or EOF inside click
+            fail("interrupted", 130)
+        except click.UsageError as exc:
+            command = exc.ctx.command_path if exc.ctx is not None else "tghop"
+            fail(f"{exc.format_message()} (see '{command} --help')", exc.exit_code)
+        except click.ClickException as exc:
+            fail(exc.format_message(), exc.exit_code)
+        except KeyboardInterrupt:
+            fail("interrupted", 130)
+        except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
+            sys.exit(1)
+        finally:
+            if as_command:
+                gc.freeze()  # nothing left for the collections at exit to walk
+        sys.exit(rc if isinstance(rc, int) else 0)
+
+
+@click.group(cls=OneLineGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="tghop")
+def main():
+    """tghop: explainable, fast texture synthesis from one exemplar (TGHop).
+
+    \b
+    Quick start:
+      tghop synth builtin:bricks -o bricks.png --size 512x512
+      tghop synth my_texture.jpg -o out.png --count 4 --seed 7 --tile
+    """
+
+
+for _command in (synth, fit, patches, info, evaluate, baseline, cooc):
+    main.add_command(_command)

@@ -1,0 +1,74 @@
+"""The pool of generated patches that quilting reads, made from core-model vectors as it is read.
+
+A 256x256 image places about 100 of a 5,000-patch pool; :class:`GeneratedPool` decodes
+the pool a chunk at a time while quilting prepares its tables, and again for the few
+patches it places, so the pool itself never takes memory.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .quilting import POOL_CHUNK
+
+__all__ = ["GeneratedPool", "DECODE_CHUNK"]
+
+#: Patches decoded per step (the intermediate arrays stay in cache).
+DECODE_CHUNK = 64
+
+
+class GeneratedPool:
+    """A pool of patches generated from core-model vectors when they are read.
+
+    What quilting reads of a pool (:func:`tghop.quilting.prepare_pool`): ``shape``,
+    ``dtype``, contiguous ranges ``pool[a:b]`` (in order, while its tables are made) and
+    the chosen patches ``pool[indices]``. A range is decoded into one reused buffer, valid
+    until the next read, so it is used while it is in cache and the pool never takes
+    memory (5,000 patches: 61 MB in float32); the chosen patches are decoded again. Ranges
+    are decoded :data:`DECODE_CHUNK` patches at a time from multiples of it, as
+    :meth:`all` decodes the whole pool, so they hold the same numbers; chosen patches
+    decoded in other groups can differ from them by float32 round-off (4e-7; BLAS sums
+    in an order that depends on the number of rows).
+
+    Parameters
+    ----------
+    model : TGHop
+    z, position : ndarray
+        :meth:`tghop.TGHop.sample_vectors`: patch ``i`` is decoded from ``z[position[i]]``.
+    """
+
+    ndim = 4
+
+    def __init__(self, model, z, position):
+        self._z, self._position = z, position
+        self.dtype = z.dtype
+        self.shape = (len(position), model.patch_size, model.patch_size, model.exemplar_shape_[2])
+        self._decode = model.patch_decoder(self.dtype)
+        self._buffer = None
+
+    def __len__(self):
+        return self.shape[0]
+
+    def _fill(self, rows, out):
+        """Decode the patches ``rows`` (their indices in the pool, ascending from a multiple
+        of DECODE_CHUNK for ranges) into ``out``, DECODE_CHUNK at a time."""
+        for a in range(0, len(rows), DECODE_CHUNK):
+            e = min(len(rows), a + DECODE_CHUNK)
+            self._decode(self._z[self._position[rows[a:e]]], out[a:e])
+        return out
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            start, stop, step = index.indices(self.shape[0])
+            rows = np.arange(start, stop, step)
+            if self._buffer is None or len(self._buffer) < len(rows):
+                self._buffer = np.empty((max(len(rows), POOL_CHUNK),) + self.shape[1:], dtype=self.dtype)
+            return self._fill(rows, self._buffer[: len(rows)])
+        rows = np.asarray(index)
+        if rows.dtype.kind not in "iu" or rows.ndim != 1:
+            raise TypeError("a generated pool is read by a slice or a 1-d array of indices")
+        return self._fill(rows, np.empty((len(rows),) + self.shape[1:], dtype=self.dtype))
+
+    def all(self):
+        """The whole pool as an array (n, P, P, C)."""
+        return self._fill(np.arange(self.shape[0]), np.empty(self.shape, dtype=self.dtype))
