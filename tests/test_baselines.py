@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import types
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 
 from tghop import baselines, data
-from tghop._common import InvalidImageError, TGHopError
+from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
 from tghop.baselines import BASELINES, MissingExtraError
 
 NUMPY_BASELINES = ["crop", "blurred-crop", "colour-noise"]
@@ -52,6 +53,22 @@ def test_crops_larger_than_the_exemplar_are_refused(exemplar):
         baselines.crop(exemplar, 0)
     with pytest.raises(TGHopError):
         baselines.blurred_crop(exemplar, 16, sigma=0)
+
+
+@pytest.mark.parametrize("name", ["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"])
+def test_sizes_above_the_pixel_limit_are_refused_before_any_work(name, exemplar, monkeypatch):
+    if name == "ustyuzhaninov":
+        pytest.importorskip("torch")
+
+    def no_quilt(*args, **kwargs):
+        raise AssertionError("quilting started")
+
+    monkeypatch.setitem(sys.modules, "tghop.quilting", types.SimpleNamespace(quilt=no_quilt))
+    side = math.isqrt(MAX_PIXELS) + 1
+    with pytest.raises(TGHopError, match="above the limit"):
+        BASELINES[name](exemplar, side, rng=0)
+    with pytest.raises(TGHopError, match="above the limit"):
+        BASELINES[name](exemplar, (2, MAX_PIXELS), rng=0)
 
 
 def test_blurred_crop_is_smoother(exemplar):

@@ -20,7 +20,9 @@ Synthesis baselines:
 
 :data:`BASELINES` maps a name to each of them, for ``tghop baseline NAME``. Every entry
 is called as ``fn(exemplar, size=None, *, rng=None, progress=None)`` and returns a float
-``(h, w, C)`` image in [0, 1]; ``size=None`` means the exemplar's own size.
+``(h, w, C)`` image in [0, 1]; ``size=None`` means the exemplar's own size. Sizes are
+checked by :func:`tghop._common.check_size` before any work: above
+:data:`tghop._common.MAX_PIXELS` (8192x8192) they are refused.
 
 The random multiscale CNN of :func:`ustyuzhaninov` (:mod:`tghop._random_cnn`) is also the
 texture model behind :func:`tghop.metrics.gram_distance`.
@@ -29,14 +31,22 @@ texture model behind :func:`tghop.metrics.gram_distance`.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Optional
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 
-from ._common import MissingExtraError, ProgressCallback, TGHopError, check_image, check_rng, import_torch, report
+from ._common import (
+    MissingExtraError,
+    ProgressCallback,
+    TGHopError,
+    check_image,
+    check_rng,
+    check_size,
+    import_torch,
+    report,
+)
 from ._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 
 __all__ = [
@@ -62,22 +72,6 @@ USTYUZHANINOV_N_ITER = 500
 # ---------------------------------------------------------------------------------------
 # Shared helpers
 # ---------------------------------------------------------------------------------------
-
-
-def _output_size(size, exemplar_shape) -> tuple[int, int]:
-    """``None`` -> the exemplar's (H, W); an int n -> (n, n); a pair -> (h, w)."""
-    if size is None:
-        return int(exemplar_shape[0]), int(exemplar_shape[1])
-    if isinstance(size, (numbers.Integral, np.integer)):
-        h = w = int(size)
-    else:
-        try:
-            h, w = (int(s) for s in size)
-        except (TypeError, ValueError):
-            raise TGHopError(f"size must be an int or a (height, width) pair, got {size!r}") from None
-    if h < 1 or w < 1:
-        raise TGHopError(f"size must be positive, got {h}x{w}")
-    return h, w
 
 
 def _random_offset(rng: np.random.Generator, image_shape, size) -> tuple[int, int]:
@@ -116,7 +110,7 @@ def crop(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] 
     ndarray, shape (h, w, C), float64 in [0, 1]
     """
     img = check_image(exemplar, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))
     report(progress, "crop", 1, 1)
     return img[y : y + h, x : x + w].copy()
@@ -151,7 +145,7 @@ def blurred_crop(
     img = check_image(exemplar, name="exemplar")
     if not sigma > 0:
         raise TGHopError(f"sigma must be positive, got {sigma}")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))
     blurred = ndimage.gaussian_filter(img, sigma=(sigma, sigma, 0), mode="reflect")
     report(progress, "blurred crop", 1, 1)
@@ -168,7 +162,7 @@ def colour_noise(exemplar, size=None, *, rng=None, progress: Optional[ProgressCa
     ----------
     exemplar : array_like, shape (H, W) or (H, W, C)
     size : int or (int, int), optional
-        Output size (any); default the exemplar's size.
+        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
     rng : int or numpy.random.Generator, optional
     progress : callable, optional
         Accepted for a uniform baseline signature.
@@ -178,7 +172,7 @@ def colour_noise(exemplar, size=None, *, rng=None, progress: Optional[ProgressCa
     ndarray, shape (h, w, C), float64 in [0, 1]
     """
     img = check_image(exemplar, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     rng = check_rng(rng)
     pixels = img.reshape(-1, img.shape[2])
     mean = pixels.mean(axis=0)
@@ -236,7 +230,7 @@ def quilting(
     exemplar : array_like, shape (H, W) or (H, W, C)
         At least ``patch_size`` pixels on each side.
     size : int or (int, int), optional
-        Output size; default the exemplar's size.
+        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
     patch_size : int
         Side of the quilted patches (default 32, TGHop's patch size).
     overlap : int, optional
@@ -266,7 +260,7 @@ def quilting(
     if max_patches is not None and int(max_patches) < 1:
         raise TGHopError(f"max_patches must be positive or None, got {max_patches}")
     img = check_image(exemplar, min_size=patch_size, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     rng = check_rng(rng)
     pool = _all_patches(img, patch_size, None if max_patches is None else int(max_patches), rng)
     out = quilt(pool.astype(np.float32), (h, w), overlap=overlap, tolerance=tolerance, tile=tile,
@@ -309,7 +303,7 @@ def ustyuzhaninov(
     exemplar : array_like, shape (H, W) or (H, W, C)
         Float in [0, 1]; C = 1 synthesises greyscale.
     size : int or (int, int), optional
-        Output size (any); default the exemplar's size.
+        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
     n_iter : int
         L-BFGS iterations (default :data:`USTYUZHANINOV_N_ITER` = 500; the paper runs
         2,000 function evaluations). Each iteration takes one or a few evaluations.
@@ -339,7 +333,7 @@ def ustyuzhaninov(
     """
     torch = import_torch("The Ustyuzhaninov et al. baseline")
     img = check_image(exemplar, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     scales = check_scales(scales)
     n_iter, n_maps = int(n_iter), int(n_maps)
     if n_iter < 0 or n_maps < 1:
