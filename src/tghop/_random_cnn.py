@@ -30,8 +30,8 @@ __all__ = [
 #: Filter sizes of Ustyuzhaninov et al.'s "RandomMultiscale" model (128 maps each).
 USTYUZHANINOV_SCALES = (3, 5, 7, 11, 15, 23, 37, 55)
 
-#: Filters up to this size are applied by direct convolution, larger ones by FFT
-#: (measured break-even on a 256 x 256 image, forward and backward, between 11 and 15).
+#: Filters up to this size are applied by direct convolution, larger ones by FFT: the
+#: measured break-even of the two, forward and backward (the figures: docs/choices.md).
 DIRECT_MAX = 11
 
 

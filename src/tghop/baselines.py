@@ -63,9 +63,9 @@ __all__ = [
 
 #: Default L-BFGS iteration budget of :func:`ustyuzhaninov`. The paper runs 2,000
 #: (scipy's ``maxfun``); on a CPU one iteration of the full 1,024-map model takes about
-#: 1.2 s at 128 x 128 and 7 s at 256 x 256 (one core of a 2-core machine), so the
-#: default is a compromise: at 128 x 128, 300 iterations already reduce the relative Gram
-#: loss from about 9 to 1e-4 and give clean brick courses.
+#: a second at 128 x 128 and several at 256 x 256, so the default is a compromise: at
+#: 128 x 128, 300 iterations already reduce the relative Gram loss from about 9 to 1e-4
+#: and give clean brick courses.
 USTYUZHANINOV_N_ITER = 500
 
 
