@@ -172,3 +172,19 @@ def test_registry_has_a_uniform_signature(exemplar):
     assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"}
     for fn in BASELINES.values():
         assert callable(fn) and fn.__doc__
+
+
+@pytest.mark.parametrize("mode", ["same", "valid"])
+def test_random_cnn_fft_and_direct_convolution_agree(mode, exemplar, monkeypatch):
+    torch = pytest.importorskip("torch")
+    from tghop import _random_cnn
+
+    filters = _random_cnn.random_filters((3, 15), 4, 3, np.random.default_rng(0))
+    x = _random_cnn.to_tensor(torch, exemplar[:40, :36], exemplar.reshape(-1, 3).mean(axis=0))
+    fft = _random_cnn.RandomCNN(torch, filters).features(x, mode)  # 15 > DIRECT_MAX: by FFT
+    monkeypatch.setattr(_random_cnn, "DIRECT_MAX", 15)
+    direct = _random_cnn.RandomCNN(torch, filters).features(x, mode)
+    assert fft.shape == direct.shape == (8, 40 * 36 if mode == "same" else 26 * 22)
+    np.testing.assert_allclose(fft.numpy(), direct.numpy(), atol=1e-5)
+    with pytest.raises(TGHopError, match="odd"):
+        _random_cnn.check_scales((3, 4))
