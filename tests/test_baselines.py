@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import types
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 
 from tghop import baselines, data
-from tghop._common import InvalidImageError, TGHopError
+from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
 from tghop.baselines import BASELINES, MissingExtraError
 
 NUMPY_BASELINES = ["crop", "blurred-crop", "colour-noise"]
@@ -52,6 +53,22 @@ def test_crops_larger_than_the_exemplar_are_refused(exemplar):
         baselines.crop(exemplar, 0)
     with pytest.raises(TGHopError):
         baselines.blurred_crop(exemplar, 16, sigma=0)
+
+
+@pytest.mark.parametrize("name", ["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"])
+def test_sizes_above_the_pixel_limit_are_refused_before_any_work(name, exemplar, monkeypatch):
+    if name == "ustyuzhaninov":
+        pytest.importorskip("torch")
+
+    def no_quilt(*args, **kwargs):
+        raise AssertionError("quilting started")
+
+    monkeypatch.setitem(sys.modules, "tghop.quilting", types.SimpleNamespace(quilt=no_quilt))
+    side = math.isqrt(MAX_PIXELS) + 1
+    with pytest.raises(TGHopError, match="above the limit"):
+        BASELINES[name](exemplar, side, rng=0)
+    with pytest.raises(TGHopError, match="above the limit"):
+        BASELINES[name](exemplar, (2, MAX_PIXELS), rng=0)
 
 
 def test_blurred_crop_is_smoother(exemplar):
@@ -155,3 +172,19 @@ def test_registry_has_a_uniform_signature(exemplar):
     assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"}
     for fn in BASELINES.values():
         assert callable(fn) and fn.__doc__
+
+
+@pytest.mark.parametrize("mode", ["same", "valid"])
+def test_random_cnn_fft_and_direct_convolution_agree(mode, exemplar, monkeypatch):
+    torch = pytest.importorskip("torch")
+    from tghop import _random_cnn
+
+    filters = _random_cnn.random_filters((3, 15), 4, 3, np.random.default_rng(0))
+    x = _random_cnn.to_tensor(torch, exemplar[:40, :36], exemplar.reshape(-1, 3).mean(axis=0))
+    fft = _random_cnn.RandomCNN(torch, filters).features(x, mode)  # 15 > DIRECT_MAX: by FFT
+    monkeypatch.setattr(_random_cnn, "DIRECT_MAX", 15)
+    direct = _random_cnn.RandomCNN(torch, filters).features(x, mode)
+    assert fft.shape == direct.shape == (8, 40 * 36 if mode == "same" else 26 * 22)
+    np.testing.assert_allclose(fft.numpy(), direct.numpy(), atol=1e-5)
+    with pytest.raises(TGHopError, match="odd"):
+        _random_cnn.check_scales((3, 4))

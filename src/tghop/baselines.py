@@ -20,24 +20,34 @@ Synthesis baselines:
 
 :data:`BASELINES` maps a name to each of them, for ``tghop baseline NAME``. Every entry
 is called as ``fn(exemplar, size=None, *, rng=None, progress=None)`` and returns a float
-``(h, w, C)`` image in [0, 1]; ``size=None`` means the exemplar's own size.
+``(h, w, C)`` image in [0, 1]; ``size=None`` means the exemplar's own size. Sizes are
+checked by :func:`tghop._common.check_size` before any work: above
+:data:`tghop._common.MAX_PIXELS` (8192x8192) they are refused.
 
-The random multiscale CNN (:func:`_random_filters`, :class:`_RandomCNN`) is also the
+The random multiscale CNN of :func:`ustyuzhaninov` (:mod:`tghop._random_cnn`) is also the
 texture model behind :func:`tghop.metrics.gram_distance`.
 """
 
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Optional
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
-from scipy.fft import next_fast_len
 
-from ._common import MissingExtraError, ProgressCallback, TGHopError, check_image, check_rng, report
+from ._common import (
+    MissingExtraError,
+    ProgressCallback,
+    TGHopError,
+    check_image,
+    check_rng,
+    check_size,
+    import_torch,
+    report,
+)
+from ._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 
 __all__ = [
     "MissingExtraError",
@@ -51,51 +61,17 @@ __all__ = [
     "cooc",
 ]
 
-#: Filter sizes of Ustyuzhaninov et al.'s "RandomMultiscale" model (128 maps each).
-USTYUZHANINOV_SCALES = (3, 5, 7, 11, 15, 23, 37, 55)
-
 #: Default L-BFGS iteration budget of :func:`ustyuzhaninov`. The paper runs 2,000
 #: (scipy's ``maxfun``); on a CPU one iteration of the full 1,024-map model takes about
-#: 1.2 s at 128 x 128 and 7 s at 256 x 256 (one core of a 2-core machine), so the
-#: default is a compromise: at 128 x 128, 300 iterations already reduce the relative Gram
-#: loss from about 9 to 1e-4 and give clean brick courses.
+#: a second at 128 x 128 and several at 256 x 256, so the default is a compromise: at
+#: 128 x 128, 300 iterations already reduce the relative Gram loss from about 9 to 1e-4
+#: and give clean brick courses.
 USTYUZHANINOV_N_ITER = 500
-
-_INSTALL_HINT = "pip install 'tghop[metrics]'"
-
-#: Filters up to this size are applied by direct convolution, larger ones by FFT
-#: (measured break-even on a 256 x 256 image, forward and backward, between 11 and 15).
-_DIRECT_MAX = 11
-
-
-def _import_torch(what: str):
-    """Import and return ``torch``, or raise :class:`MissingExtraError` naming ``what``."""
-    try:
-        import torch
-    except ImportError:
-        raise MissingExtraError(f"{what} needs PyTorch; install it with: {_INSTALL_HINT}") from None
-    return torch
 
 
 # ---------------------------------------------------------------------------------------
 # Shared helpers
 # ---------------------------------------------------------------------------------------
-
-
-def _output_size(size, exemplar_shape) -> tuple[int, int]:
-    """``None`` -> the exemplar's (H, W); an int n -> (n, n); a pair -> (h, w)."""
-    if size is None:
-        return int(exemplar_shape[0]), int(exemplar_shape[1])
-    if isinstance(size, (numbers.Integral, np.integer)):
-        h = w = int(size)
-    else:
-        try:
-            h, w = (int(s) for s in size)
-        except (TypeError, ValueError):
-            raise TGHopError(f"size must be an int or a (height, width) pair, got {size!r}") from None
-    if h < 1 or w < 1:
-        raise TGHopError(f"size must be positive, got {h}x{w}")
-    return h, w
 
 
 def _random_offset(rng: np.random.Generator, image_shape, size) -> tuple[int, int]:
@@ -134,7 +110,7 @@ def crop(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] 
     ndarray, shape (h, w, C), float64 in [0, 1]
     """
     img = check_image(exemplar, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))
     report(progress, "crop", 1, 1)
     return img[y : y + h, x : x + w].copy()
@@ -169,7 +145,7 @@ def blurred_crop(
     img = check_image(exemplar, name="exemplar")
     if not sigma > 0:
         raise TGHopError(f"sigma must be positive, got {sigma}")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))
     blurred = ndimage.gaussian_filter(img, sigma=(sigma, sigma, 0), mode="reflect")
     report(progress, "blurred crop", 1, 1)
@@ -186,7 +162,7 @@ def colour_noise(exemplar, size=None, *, rng=None, progress: Optional[ProgressCa
     ----------
     exemplar : array_like, shape (H, W) or (H, W, C)
     size : int or (int, int), optional
-        Output size (any); default the exemplar's size.
+        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
     rng : int or numpy.random.Generator, optional
     progress : callable, optional
         Accepted for a uniform baseline signature.
@@ -196,7 +172,7 @@ def colour_noise(exemplar, size=None, *, rng=None, progress: Optional[ProgressCa
     ndarray, shape (h, w, C), float64 in [0, 1]
     """
     img = check_image(exemplar, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     rng = check_rng(rng)
     pixels = img.reshape(-1, img.shape[2])
     mean = pixels.mean(axis=0)
@@ -254,7 +230,7 @@ def quilting(
     exemplar : array_like, shape (H, W) or (H, W, C)
         At least ``patch_size`` pixels on each side.
     size : int or (int, int), optional
-        Output size; default the exemplar's size.
+        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
     patch_size : int
         Side of the quilted patches (default 32, TGHop's patch size).
     overlap : int, optional
@@ -284,7 +260,7 @@ def quilting(
     if max_patches is not None and int(max_patches) < 1:
         raise TGHopError(f"max_patches must be positive or None, got {max_patches}")
     img = check_image(exemplar, min_size=patch_size, name="exemplar")
-    h, w = _output_size(size, img.shape)
+    h, w = check_size(size, default=img.shape[:2])
     rng = check_rng(rng)
     pool = _all_patches(img, patch_size, None if max_patches is None else int(max_patches), rng)
     out = quilt(pool.astype(np.float32), (h, w), overlap=overlap, tolerance=tolerance, tile=tile,
@@ -293,142 +269,8 @@ def quilting(
 
 
 # ---------------------------------------------------------------------------------------
-# Random multiscale single-layer CNN (Ustyuzhaninov et al. 2017)
+# Ustyuzhaninov et al. 2017: Gram matching in a random multiscale CNN
 # ---------------------------------------------------------------------------------------
-
-
-def _random_filters(scales, n_maps: int, channels: int, rng: np.random.Generator) -> list:
-    """Random convolution filters, Glorot-uniform as in Ustyuzhaninov et al.
-
-    Filters of size ``k`` are drawn from ``U(-b, b)`` with
-    ``b = sqrt(6 / ((channels + n_maps) * k * k))`` (Glorot & Bengio 2010, as Lasagne
-    initialises a convolution; the authors' code leaves them at that initialisation).
-    The squared norm of a filter is then about ``2 * channels / (channels + n_maps)`` at
-    every scale, so no scale is weighted by hand.
-
-    Returns
-    -------
-    list of ndarray, each shape (n_maps, channels, k, k), float32
-    """
-    out = []
-    for k in scales:
-        bound = math.sqrt(6.0 / ((channels + n_maps) * k * k))
-        out.append(rng.uniform(-bound, bound, size=(n_maps, channels, k, k)).astype(np.float32))
-    return out
-
-
-def _check_scales(scales) -> tuple:
-    try:
-        scales = tuple(int(k) for k in scales)
-    except (TypeError, ValueError):
-        raise TGHopError(f"scales must be a sequence of odd filter sizes, got {scales!r}") from None
-    if not scales or any(k < 1 or k % 2 == 0 for k in scales):
-        raise TGHopError(f"scales must be odd positive filter sizes, got {scales}")
-    return scales
-
-
-class _RandomCNN:
-    """One convolutional layer of random filters at several sizes, ReLU, and its Gram matrix.
-
-    The layer is a cross-correlation with stride 1 and no bias, as in the paper (Lasagne,
-    ``flip_filters=False``). Filters up to :data:`_DIRECT_MAX` pixels are applied
-    directly (``conv2d``); larger ones by FFT, which is much faster for the 23 to 55 pixel
-    filters of the paper. Inputs are ``(C, H, W)`` float32 tensors, already centred (the
-    caller subtracts the exemplar's mean colour, so zero padding means "mean colour").
-
-    ``mode="same"``: outputs at all ``H x W`` positions, zero padding at the borders (the
-    paper's model, used for synthesis). ``mode="valid"``: only positions where the largest
-    filter lies inside the image, so every feature is a true texture statistic (used by
-    the metric, where border effects would make images of different sizes incomparable).
-    """
-
-    def __init__(self, torch, filters):
-        self.torch = torch
-        self.filters = [torch.from_numpy(np.ascontiguousarray(f)) for f in filters]
-        self.sizes = [int(f.shape[-1]) for f in filters]
-        self.n_features = sum(int(f.shape[0]) for f in filters)
-        self._cache: dict = {}
-
-    def margin(self, mode: str) -> int:
-        return max(self.sizes) // 2 if mode == "valid" else 0
-
-    def _spectra(self, h: int, w: int, mode: str):
-        """FFT sizes and spectra of the large filters for an ``h x w`` input (two sizes cached)."""
-        key = (h, w, mode)
-        if key not in self._cache:
-            torch = self.torch
-            m = self.margin(mode)
-            entries = {}
-            for i, (k, filt) in enumerate(zip(self.sizes, self.filters)):
-                if k <= _DIRECT_MAX:
-                    continue
-                # Output rows m..h-m-1 (in "same" coordinates) are free of circular
-                # wrap-around iff the FFT length is at least h + k//2 - m.
-                fh = next_fast_len(max(h, h + k // 2 - m), real=True)
-                fw = next_fast_len(max(w, w + k // 2 - m), real=True)
-                with torch.no_grad():
-                    # Flipped: FFT products convolve, the layer cross-correlates.
-                    spec = torch.fft.rfft2(torch.flip(filt, dims=(-2, -1)), s=(fh, fw))  # (M, C, fh, fw//2+1)
-                entries[i] = (fh, fw, spec)
-            if len(self._cache) >= 2:  # exemplar and result: bound the memory to two sizes
-                self._cache.pop(next(iter(self._cache)))
-            self._cache[key] = entries
-        return self._cache[key]
-
-    def forget(self, h: int, w: int, mode: str) -> None:
-        """Free the cached filter spectra for one input size."""
-        self._cache.pop((h, w, mode), None)
-
-    def features(self, x, mode: str = "same"):
-        """ReLU feature maps.
-
-        Parameters
-        ----------
-        x : torch.Tensor, shape (C, H, W), float32
-        mode : {"same", "valid"}
-
-        Returns
-        -------
-        torch.Tensor, shape (n_features, P), float32
-            ``P`` is ``H * W`` ("same") or the number of valid positions.
-        """
-        torch = self.torch
-        c, h, w = x.shape
-        m = self.margin(mode)
-        if h - 2 * m < 1 or w - 2 * m < 1:
-            raise TGHopError(f"a {h}x{w} image is smaller than the largest filter ({max(self.sizes)})")
-        spectra = self._spectra(h, w, mode)
-        outs = []
-        for i, (k, filt) in enumerate(zip(self.sizes, self.filters)):
-            if i in spectra:
-                fh, fw, spec = spectra[i]
-                xs = torch.fft.rfft2(x, s=(fh, fw))  # (C, fh, fw//2+1)
-                ys = xs[0] * spec[:, 0]
-                for ch in range(1, c):
-                    ys = ys + xs[ch] * spec[:, ch]
-                y = torch.fft.irfft2(ys, s=(fh, fw))  # (M, fh, fw): full linear convolution
-                off = k // 2 + m
-            else:
-                y = torch.nn.functional.conv2d(x[None], filt, padding=k // 2)[0]  # (M, H, W)
-                off = m
-            y = y[:, off : off + h - 2 * m, off : off + w - 2 * m]
-            outs.append(torch.relu(y).reshape(y.shape[0], -1))
-        return torch.cat(outs, dim=0)
-
-    def gram(self, x, mode: str = "same"):
-        """Gram matrix ``F F^T / P`` (the mean outer product of the feature vectors).
-
-        Returns
-        -------
-        torch.Tensor, shape (n_features, n_features), float32
-        """
-        f = self.features(x, mode)
-        return (f @ f.T) / f.shape[1]
-
-
-def _to_tensor(torch, img: np.ndarray, mean: np.ndarray):
-    """``(H, W, C)`` float image minus ``mean`` -> ``(C, H, W)`` float32 tensor."""
-    return torch.from_numpy(np.ascontiguousarray((img - mean).transpose(2, 0, 1), dtype=np.float32))
 
 
 def ustyuzhaninov(
@@ -461,7 +303,7 @@ def ustyuzhaninov(
     exemplar : array_like, shape (H, W) or (H, W, C)
         Float in [0, 1]; C = 1 synthesises greyscale.
     size : int or (int, int), optional
-        Output size (any); default the exemplar's size.
+        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
     n_iter : int
         L-BFGS iterations (default :data:`USTYUZHANINOV_N_ITER` = 500; the paper runs
         2,000 function evaluations). Each iteration takes one or a few evaluations.
@@ -489,24 +331,24 @@ def ustyuzhaninov(
     on one busy CPU core about 1.2 s per iteration at 128 x 128 and 7 s at 256 x 256, and
     about 2 GB of memory at 256 x 256. PyTorch's thread count is left as configured.
     """
-    torch = _import_torch("The Ustyuzhaninov et al. baseline")
+    torch = import_torch("The Ustyuzhaninov et al. baseline")
     img = check_image(exemplar, name="exemplar")
-    h, w = _output_size(size, img.shape)
-    scales = _check_scales(scales)
+    h, w = check_size(size, default=img.shape[:2])
+    scales = check_scales(scales)
     n_iter, n_maps = int(n_iter), int(n_maps)
     if n_iter < 0 or n_maps < 1:
         raise TGHopError(f"n_iter must be >= 0 and n_maps >= 1, got {n_iter} and {n_maps}")
     rng = check_rng(rng)
     c = img.shape[2]
-    cnn = _RandomCNN(torch, _random_filters(scales, n_maps, c, rng))
+    cnn = RandomCNN(torch, random_filters(scales, n_maps, c, rng))
     mean = img.reshape(-1, c).mean(axis=0)
     with torch.no_grad():
-        target = cnn.gram(_to_tensor(torch, img, mean), "same")
+        target = cnn.gram(to_tensor(torch, img, mean), "same")
         norm = float((target * target).sum()) or 1.0
     if (h, w) != img.shape[:2]:
         cnn.forget(img.shape[0], img.shape[1], "same")  # the exemplar's filter spectra are done with
     start = rng.uniform(0.0, 1.0, size=(h, w, c))
-    x = _to_tensor(torch, start, mean).requires_grad_(True)
+    x = to_tensor(torch, start, mean).requires_grad_(True)
     optimizer = torch.optim.LBFGS(
         [x], lr=1.0, max_iter=1, history_size=100, tolerance_grad=0.0, tolerance_change=0.0,
         line_search_fn="strong_wolfe",

