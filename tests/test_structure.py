@@ -1,0 +1,212 @@
+"""The shape of the package: every module imports on its own, no import cycles, no module
+reaching for another's private names, no side effects on import, no overlong files.
+
+These read the source (ast) and run fresh interpreters; they need nothing of ../shared/.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import tghop
+
+SRC = Path(tghop.__file__).resolve().parent
+PACKAGE = "tghop"
+
+#: Files allowed over MAX_LINES, each one coherent algorithm (why it stays whole).
+LONG_FILES = {
+    "quilting.py": "image quilting: the plan, the bounded candidate search and the boundary cuts are one "
+                   "algorithm whose parts share its tables",
+}
+MAX_LINES = 850
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+MODULES = {_module_name(p): p for p in sorted(SRC.rglob("*.py"))}
+
+
+def _is_package(name: str) -> bool:
+    return MODULES[name].name == "__init__.py"
+
+
+def _resolve(module: str, node: ast.ImportFrom) -> str:
+    """The absolute name of what ``from ... import`` names (relative imports resolved)."""
+    if node.level == 0:
+        return node.module or ""
+    base = module.split(".") if _is_package(module) else module.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _imports(module: str):
+    """Yield (imported module, names taken from it or None) for every import in ``module``,
+    function-level imports included; only tghop's own modules."""
+    tree = ast.parse(MODULES[module].read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == PACKAGE:
+                    yield alias.name, None
+        elif isinstance(node, ast.ImportFrom):
+            target = _resolve(module, node)
+            if target.split(".")[0] != PACKAGE:
+                continue
+            for alias in node.names:
+                sub = f"{target}.{alias.name}"
+                if sub in MODULES:  # `from . import layout`: the module itself
+                    yield sub, None
+                else:
+                    yield target, alias.name
+
+
+def _graph():
+    graph = {m: set() for m in MODULES}
+    for module in MODULES:
+        for target, _ in _imports(module):
+            if target in MODULES and target != module:
+                graph[module].add(target)
+    return graph
+
+
+def test_the_package_import_graph_has_no_cycle():
+    graph = _graph()
+    # A submodule runs its package's __init__ first; that implicit edge is not a cycle of
+    # the code's own (the package's face imports its parts), so only explicit imports count.
+    state, stack, cycles = {}, [], []
+
+    def visit(node):
+        state[node] = "open"
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == "open":
+                cycles.append(stack[stack.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt)
+        stack.pop()
+        state[node] = "done"
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node)
+    assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+
+
+def test_no_module_imports_a_private_name_of_another():
+    bad = []
+    for module in MODULES:
+        for target, name in _imports(module):
+            if name and name.startswith("_") and not name.startswith("__") and target != module:
+                bad.append(f"{module}: from {target} import {name}")
+        # module._name on a module imported as a whole (`from . import layout`, `import tghop.x as y`)
+        tree = ast.parse(MODULES[module].read_text())
+        aliases = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and _resolve(module, node).split(".")[0] == PACKAGE:
+                for alias in node.names:
+                    if f"{_resolve(module, node)}.{alias.name}" in MODULES:
+                        aliases[alias.asname or alias.name] = alias.name
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith(PACKAGE + ".") and alias.asname:
+                        aliases[alias.asname] = alias.name
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases
+                    and node.attr.startswith("_") and not node.attr.startswith("__")):
+                bad.append(f"{module}: {node.value.id}.{node.attr}")
+    assert not bad, "private names used across modules:\n" + "\n".join(bad)
+
+
+def test_every_module_imports_on_its_own_in_a_fresh_interpreter():
+    names = [m for m in MODULES if not m.endswith("__main__")]
+    running = [(m, subprocess.Popen([sys.executable, "-c", f"import {m}"], stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE)) for m in names]
+    failed = []
+    for name, p in running:
+        _, err = p.communicate(timeout=300)
+        if p.returncode != 0:
+            failed.append(f"{name}: {err.decode().strip().splitlines()[-1]}")
+    assert not failed, "\n".join(failed)
+
+
+def test_importing_tghop_changes_no_signal_handler_environment_or_collector():
+    # A program that imports tghop (every module of it) keeps its own signal handling,
+    # environment and garbage collector: what the command does to its process is done in
+    # tghop.__main__.run only.
+    modules = [m for m in MODULES if not m.endswith("__main__")]
+    code = (
+        "import gc, json, os, signal, sys\n"
+        "def state():\n"
+        "    handlers = {s.name: repr(signal.getsignal(s)) for s in signal.valid_signals()\n"
+        "                if isinstance(s, signal.Signals)}\n"
+        "    return {'signals': handlers, 'env': dict(os.environ), 'frozen': gc.get_freeze_count(),\n"
+        "            'argv': list(sys.argv)}\n"
+        "before = state()\n"
+        f"for name in {modules!r}:\n"
+        "    __import__(name)\n"
+        "print(json.dumps([before, state()]))\n"
+    )
+    p = subprocess.run([sys.executable, "-c", code, "tghop"], capture_output=True, text=True, timeout=300,
+                       env={k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"})
+    assert p.returncode == 0, p.stderr
+    before, after = json.loads(p.stdout)
+    assert after["signals"] == before["signals"]
+    assert after["env"] == before["env"]
+    assert after["frozen"] == before["frozen"] and after["argv"] == before["argv"]
+
+
+def test_the_command_sets_its_process_up():
+    # ... and run() does: the start-up Ctrl-C handler and OPENBLAS_THREAD_TIMEOUT (the
+    # latter only while NumPy is not loaded and the user has not chosen), then the command
+    # line as the command.
+    code = (
+        "import os, signal, sys\n"
+        "import tghop.cli.group as g\n"
+        "seen = {}\n"
+        "def fake_main(self, **kw):\n"
+        "    seen['handler'] = signal.getsignal(signal.SIGINT).__name__\n"
+        "    seen['timeout'] = os.environ.get('OPENBLAS_THREAD_TIMEOUT')\n"
+        "    seen['as_command'] = kw.get('as_command')\n"
+        "g.OneLineGroup.main = fake_main\n"
+        "from tghop.__main__ import run\n"
+        "run()\n"
+        "print(seen)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 0, p.stderr
+    seen = eval(p.stdout)  # noqa: S307 - our own print of a small dict
+    assert seen["handler"] == "_interrupted_while_starting" and seen["as_command"] is True
+    assert seen["timeout"] == "4"
+
+
+@pytest.mark.parametrize("user_value", [None, "7"])
+def test_the_command_sets_openblas_timeout_only_when_unset(user_value, tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    if user_value is not None:
+        env["OPENBLAS_THREAD_TIMEOUT"] = user_value
+    code = ("import os, sys\nimport tghop.__main__ as m\n"
+            "sys.argv = ['tghop', '--version']\n"
+            "try:\n    m.run()\nexcept SystemExit:\n    pass\n"
+            "print('TIMEOUT', os.environ.get('OPENBLAS_THREAD_TIMEOUT'))\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 0, p.stderr
+    assert f"TIMEOUT {user_value or '4'}" in p.stdout
+
+
+def test_no_file_is_overlong():
+    long = {p.relative_to(SRC).as_posix(): len(p.read_text().splitlines()) for p in MODULES.values()}
+    over = {name: n for name, n in long.items() if n > MAX_LINES and name not in LONG_FILES}
+    assert not over, f"files over {MAX_LINES} lines (split them, or say in LONG_FILES why one stays whole): {over}"
