@@ -3,7 +3,7 @@ small estimator base class.
 
 Nothing here knows about TGHop itself; each pipeline module imports from here. Nothing
 here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`` and
-``--help`` must not pay for them (about 1.5 s of imports on a 2-core machine).
+``--help`` must not pay for their (long) import time.
 """
 
 from __future__ import annotations
@@ -267,7 +267,8 @@ def in_thread(fn, *args, **kwargs) -> Callable:
     for it and returns its result (or raises its exception).
 
     The thread is a daemon: an interrupted caller does not wait for it. (``threading``
-    alone: ``concurrent.futures`` imports ``logging``, 7 ms of a 256x256 ``tghop synth``.)
+    alone: ``concurrent.futures`` imports ``logging``, a noticeable part of a small
+    ``tghop synth``.)
     """
     import threading
 

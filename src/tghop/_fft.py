@@ -32,7 +32,8 @@ def fft_for(n_pixels):
     """The FFT module for arrays of ``n_pixels``: ``numpy.fft`` below
     :data:`SCIPY_FFT_PIXELS`, so that generating small images never loads SciPy; SciPy's
     pocketfft from there on (:func:`scipy_fft`: it vectorises over several rows at once,
-    several times faster than ``numpy.fft`` on large float32 arrays).
+    which makes it faster than ``numpy.fft`` on large float32 arrays; measured:
+    docs/choices.md).
 
     Either gives ``rfft2``, ``ifft`` and ``irfft`` with ``scipy.fft``'s arguments
     (``workers``, ``overwrite_x``) or NumPy's.

@@ -72,8 +72,8 @@ def _lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
 
     Stops when the centres move less than ``tol`` times the mean per-dimension variance
     of ``X`` (scikit-learn's criterion) or when at most a fraction ``settled`` of the
-    points changed cluster in a step (the long tail of steps that move a handful of
-    points: 35 steps instead of 72 on brick_wall's core vectors, inertia 0.07 % higher), after
+    points changed cluster in a step (cutting the long tail of steps that move a handful
+    of points, at a negligible rise in inertia; measured: docs/choices.md), after
     ``max_iter`` steps at the latest. The cluster sums are updated with the points that
     changed cluster only (few after the first steps). An emptied cluster is re-seeded with
     the point farthest from its centre. Returns ``(labels, centres)``.
@@ -120,7 +120,7 @@ def _kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
     several times the whole Lloyd iteration for the same inertia), then Lloyd, both in
     float32 (the clustering only routes samples to clusters; each seeding step reads the
     whole subsample, so half the bytes is about half the time). NumPy only: importing
-    scikit-learn's KMeans cost more than a second of every fit."""
+    scikit-learn's KMeans would add its long import time to every fit."""
     sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
     centres = _kmeans_plusplus(np.asarray(sub, dtype=np.float32), n_clusters, rng)
     labels, centres = _lloyd(np.asarray(X, dtype=np.float32), centres, max_iter=max_iter)
@@ -197,8 +197,8 @@ def _channel_major(Y, chunk=64):
     """(n, h, w, K) -> contiguous (K, n, h * w): one channel's maps side by side.
 
     Copied ``chunk`` samples at a time: the source rows of a chunk stay in cache while
-    they are scattered over the K channels (2.5 times faster than one transposing copy
-    of brick_wall's 144 MB core)."""
+    they are scattered over the K channels (faster than one transposing copy of a large
+    core, whose strided accesses miss the cache)."""
     n, h, w, k = Y.shape
     src = Y.reshape(n, h * w, k)
     out = np.empty((k, n, h * w), dtype=Y.dtype)
@@ -604,8 +604,8 @@ class ICHM(BaseEstimator):
     # The fitted (or loaded) mixing matrix is kept as what the model file stores: float16
     # rows and a float32 scale per row. ``mixing_`` (float64) is made from them on first
     # use and generation takes a float32 copy made straight from them: a model loaded for
-    # generation never holds the float64 matrix (brick_wall: 42 MB; `tghop synth --size
-    # 256x256` peaks at 267 instead of 294 MB).
+    # generation never holds the float64 matrix, which would raise the peak memory of a
+    # small synthesis.
     def _set_stored_mixing(self, rows, scale):
         self._stored_mixing = (rows, scale)
         self._mixing = self._mixing32 = None
@@ -791,7 +791,7 @@ class ICHM(BaseEstimator):
         """:meth:`mix` with the vectors grouped by cluster, as the matrix products make them.
 
         Each cluster's block is written by one product straight into its rows (no scatter
-        into the samples' order: a 5,000-sample float32 pool 24-57 -> 19-22 ms).
+        into the samples' order, a pass over the whole output saved).
 
         Returns
         -------

@@ -101,9 +101,9 @@ _CHECK_CHUNK = 1 << 16
 def _all_finite(arr) -> bool:
     """No NaN or infinity in ``arr`` (any dtype). Float16 arrays (the mixing rows, most of
     a file) are checked on their bits, all exponent bits set meaning NaN or infinity: NumPy
-    has no fast float16 ``isfinite`` (31 ms against 2 ms for a brick_wall model). A chunk
-    at a time into one small buffer: whole-array temporaries took fresh memory, which a
-    new process pays for (loading a brick_wall model 52 -> 37 ms)."""
+    has no fast float16 ``isfinite``. A chunk at a time into one small buffer:
+    whole-array temporaries take fresh memory, which a new process pays for in page
+    faults."""
     if arr.dtype == np.float16:
         bits = arr.reshape(-1).view(np.uint16)
         exponent = np.uint16(0x7C00)

@@ -65,8 +65,8 @@ _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)
 GUIDE_SCALE = 4
 
 # Pool patches are converted to float32 in chunks of this many patches (small enough for
-# the chunk to stay in cache between the steps that read it: preparing 5,000 patches took
-# 87 ms in chunks of 512, 82 in 256, 76 in 128, 80 in 64; the same numbers).
+# the chunk to stay in cache between the steps that read it, large enough that the
+# per-chunk overhead stays small; any chunk size gives the same numbers).
 POOL_CHUNK = 128
 
 
@@ -168,7 +168,8 @@ def _dp_cut(error: np.ndarray) -> np.ndarray:
     n = b * (w + 2)
     # Each row of all strips laid out flat, every strip between two +inf columns, so that
     # a row's three neighbours above are shifts of one contiguous array (a strip never
-    # reaches into the next; the same sums and minima: 50 strips of 32 x 6 0.85 -> 0.48 ms).
+    # reaches into the next; the same sums and minima as strip by strip, in fewer, larger
+    # NumPy calls).
     cost = np.full((h, b, w + 2), np.inf)
     cost[:, :, 1:-1] = error.transpose(1, 0, 2)
     cost = cost.reshape(h, n)
@@ -593,9 +594,9 @@ def _box_means(x: np.ndarray, s: int) -> np.ndarray:
     """``(n, P, P, C)`` -> ``(n, (P/s)^2 C)`` float32 means of ``s x s`` boxes."""
     n, p, _, c = x.shape
     q = p // s
-    # Sums of strided views, rows then columns: three times faster than ``mean`` over the
-    # two short axes of a 6-d reshape (NumPy reduces short strided axes slowly), and rows
-    # first (whole contiguous pixel rows added) twice as fast as columns first.
+    # Sums of strided views, rows then columns: faster than ``mean`` over the two short
+    # axes of a 6-d reshape (NumPy reduces short strided axes slowly), and rows first
+    # (whole contiguous pixel rows added) faster than columns first.
     rows = x.reshape(n, q, s, p * c)
     acc = rows[:, :, 0].astype(np.float32)
     for k in range(1, s):
@@ -639,8 +640,8 @@ def _all_targets(guide, plan, s):
     block's window, as :func:`_box_means` of the window: the same sums in the same order).
 
     One block row at a time: its rows of boxes summed over the whole width, then the
-    boxes of every block of the row (a 2048x2048 quilt: 65-81 ms of window copies and
-    box means while quilting -> 35 ms here; quilting takes 0.91 of its time). Windows
+    boxes of every block of the row, made ahead of quilting instead of window copies and
+    box means on quilting's path. Windows
     past the canvas wrap around (tileable output) or, past a larger canvas than the
     output, take the edge rows and columns (as the canvas's own edge padding would).
     """
@@ -714,7 +715,7 @@ def _overlap_boxes(masks_fc: np.ndarray, slices, p: int, c: int) -> _Boxes:
     x = _frame_features(np.broadcast_to(cols[None, :, :, None], (1, p, p, c)), slices)[0]
     covered = masks_fc > 0  # (m, k)
     # Key of a feature: the shapes its pixel belongs to (as bytes), then its 2 x 2 cell; a
-    # box per distinct key. (Sorted, not np.unique, which imports numpy.ma: 10 ms.)
+    # box per distinct key. (Sorted, not np.unique, which imports numpy.ma, a slow import.)
     keys = np.vstack([np.packbits(covered, axis=0).astype(np.int64), y[None] // 2, x[None] // 2])
     order = np.lexsort(keys)  # features box by box
     ordered = keys[:, order]
@@ -766,7 +767,7 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
 
     The pool is worked through :data:`POOL_CHUNK` patches at a time, every step of a
     chunk done while it is in cache: the pool is read from memory once, not once per step
-    (a 5,000-patch pool 78-89 -> 67-84 ms; a pool generated on demand is never whole).
+    (and a pool generated on demand is never whole).
     """
     n, p, _, c = arr.shape
     m, k = masks_fc.shape
@@ -803,7 +804,7 @@ def _gradient_energy(arr: np.ndarray) -> np.ndarray:
     dy = (x[:, 1:] - x[:, :-1]).reshape(n, -1)  # vertical neighbours
     dx = (x[:, :, 1:] - x[:, :, :-1]).reshape(n, -1)  # horizontal
     # Means of squares as row-wise dot products: one pass each, no squared copies
-    # (2.5 times faster than square and mean; the same up to float32 round-off).
+    # (the same as square and mean up to float32 round-off).
     return (np.einsum("ij,ij->i", dy, dy) / np.float32(dy.shape[1])
             + np.einsum("ij,ij->i", dx, dx) / np.float32(dx.shape[1]))
 
@@ -854,8 +855,8 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
         np.multiply(target, (-2.0 * factor)[:, None], out=lb_query[:, m + g : -1])
         lb_query[:, -1] = factor
         offset += factor * np.einsum("ij,ij->i", target, target)
-    # (b, n), as the transpose of (n, b): the pool's matrix as the product's left operand
-    # is read faster (a wavefront of 2-4 blocks 0.65 -> 0.23 ms, of 25 blocks 1.33 -> 1.0 ms).
+    # (b, n), as the transpose of (n, b): the pool's matrix, the large operand, on the
+    # product's left, which OpenBLAS reads faster (measured: docs/choices.md).
     lower = (bound @ lb_query.T).T
     lower += offset[:, None]
     first = lower.argmin(axis=1)
@@ -864,8 +865,8 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     # Twice the slack: the bound's own round-off; and never below the smallest bound, so
     # that every block keeps at least that patch.
     limit = np.maximum(np.maximum(upper, 0.0) * (1.0 + tolerance) + 2.0 * slack, lower[blocks, first])
-    # Flat indices, then (block, patch): np.nonzero of a 2-d array is ten times slower
-    # than of a flat one (a 25 x 5,000 mask: 0.29 -> 0.02 ms), the same pairs in the same order.
+    # Flat indices, then (block, patch): np.nonzero of a 2-d array is much slower than of a
+    # flat one; the same pairs in the same order.
     block_idx, pool_idx = np.divmod(np.flatnonzero(lower <= limit[:, None]), n)
     if pool_idx.size > n * b // 8:
         return None
@@ -1078,7 +1079,7 @@ def quilt_prepared(
     hc, wc = plan.canvas_shape
     canvas = np.zeros((hc, wc, c), dtype=np.float32)
     # Pasting copies whole pixels, each as one item of the C channels (a bool mask
-    # broadcast over the channels takes NumPy's slow path: 0.63 -> 0.11 ms a wavefront).
+    # broadcast over the channels takes NumPy's slow path).
     pixel = np.dtype((np.void, canvas.itemsize * c))
     guided = _guide_setup(guide, guide_weight, prepared) if guide is not None else None
     order = np.argsort(plan.level.ravel(), kind="stable")
@@ -1135,7 +1136,7 @@ def quilt_prepared(
         _check_values(new)
         diff = old - new
         # Squared differences summed over the channels, in channel order (as einsum sums
-        # them, a quarter of its time for three channels).
+        # them, and faster than einsum for a few channels).
         diff *= diff
         pix_err = diff[..., 0].copy()
         for channel in range(1, c):

@@ -175,7 +175,7 @@ def _quantiles(values, levels):
 def _sample_quantiles(sample, levels):
     """Quantiles at ``levels`` of the values in ``sample``."""
     # Sorted in the values' own dtype, then widened: the same numbers, and NumPy's SIMD sort
-    # of float32 is about three times faster than of float64 (65,536 values: 1.2 -> 0.4 ms).
+    # of float32 is faster than of float64 (twice as many values per SIMD register).
     ordered = np.sort(sample).astype(np.float64)
     return np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
 
@@ -247,8 +247,7 @@ def _matching(sample, n_values, target, levels, dtype):
     (``bincount``), and each entry takes the target quantile at the mid-rank of its values
     (:func:`_rank_table`), as :func:`tghop.colour.match_histograms` does. That is the
     sample's exact distribution at the table's resolution, in linear time: the quantiles
-    of each band used to come from a sort, most of the refinement's time (a 256x256
-    image: 0.09 of 0.14 s).
+    of each band used to come from a sort, most of the refinement's time.
     """
     lo, scale, size = _grid(sample, n_values)
     if scale is None:
@@ -296,10 +295,10 @@ def _apply_table(src, lo, scale, table, dst):
 
     _MATCH_CHUNK values at a time, so that the temporaries stay in cache. Four passes,
     against nine for linear interpolation in a table of 4,096 entries, whose largest
-    errors were of the same size (a 2048x2048 band: 19 -> 11 ms)."""
+    errors were of the same size."""
     n = src.size
     # ``take`` with mode "clip" skips the bounds check that raises (the index is in range
-    # already). Matching a 2048x2048 band: 13.7 -> 9.8 ms with int32 indices.
+    # already), which NumPy does slowly for indices that are not intp, as these int32 ones.
     idx = np.empty(min(_MATCH_CHUNK, n), dtype=np.int32)
     pos = np.empty(idx.shape, dtype=src.dtype)
     for a in range(0, n, _MATCH_CHUNK):
@@ -313,7 +312,7 @@ def _irfft2(fft, spectrum, shape, axes, threads):
 
     With ``scipy.fft``, as its two passes written out (the complex pass along ``axes[0]`` in
     place, then the real pass along ``axes[1]``): ``scipy.fft.irfft2`` copies the spectrum
-    first (a 2048x2048 band: 39 -> 25 ms; 4096x4096: 184 -> 125 ms). The same numbers for
+    first, an extra pass over a large array. The same numbers for
     power-of-two sides, else up to float32 round-off (5e-7).
     """
     if fft is np.fft:
@@ -334,8 +333,9 @@ def _double_angle(h, w, dtype):
     uses the same few shapes (the arrays are read-only)."""
     fy = np.fft.fftfreq(h)[:, None]
     fx = np.fft.rfftfreq(w)[None, :]
-    # cos 2theta = (fx^2 - fy^2) / r^2 and sin 2theta = 2 fx fy / r^2: no trigonometry (a
-    # 4096x4096 band: 0.56 -> 0.16 s, once per shape); the origin counts as theta = 0.
+    # cos 2theta = (fx^2 - fy^2) / r^2 and sin 2theta = 2 fx fy / r^2: no trigonometry
+    # (arctan2, cos and sin over a band-sized grid cost far more than these products;
+    # made once per shape); the origin counts as theta = 0.
     fx2, fy2 = fx * fx, fy * fy
     r2 = fx2 + fy2
     r2[0, 0] = 1.0
@@ -351,7 +351,7 @@ def _double_angle(h, w, dtype):
 def prepare(size, stats):
     """Do ahead of time what refining an image of ``size`` (H, W) first needs: SciPy's FFT
     module loaded for large bands (:func:`tghop._fft.fft_for`) and the oriented windows of every
-    band size tabulated (a 2048x2048 image: 60 ms). :meth:`tghop.TGHop.synthesize` calls it while
+    band size tabulated. :meth:`tghop.TGHop.synthesize` calls it while
     the coarse guide is made in another thread, so that neither is on the guide's path.
     """
     
@@ -447,9 +447,9 @@ def _part(band, filtered, coefs, n, out=None):
     return part
 
 
-#: Values per step of :func:`_match_oriented` (smaller steps cost more calls: 2**14 was
-#: slower; 2**17 and 2**18 were no faster, in threads either); bands of at most this many
-#: values per channel are matched part by part instead.
+#: Values per step of :func:`_match_oriented` (smaller steps cost more calls; larger
+#: ones gain nothing, in threads either; measured: docs/choices.md); bands of at most
+#: this many values per channel are matched part by part instead.
 _PARTS_CHUNK = 1 << 16
 
 
@@ -463,10 +463,10 @@ def _match_oriented(band, band_q, levels, *, workers=1):
     map comes from the strided subset of its values (made from the subsets of the band
     and of its filtered versions, with the same operations), then every chunk's parts are
     made, mapped and summed while in cache, without band-sized parts. One channel alone
-    (as for very large images, and on one core): a 2048x2048 band 224 -> 180 ms, three
-    rounds 0.83-0.87 of the time. Three channels in threads on two cores: no faster (the
-    steps are shorter, the threads wait for each other more), but the parts no longer
-    take memory: ``tghop synth --size 4096x4096`` peaks at 1.66 GB instead of 2.26 GB.
+    (as for very large images, and on one core): faster, as the band is read once. Three
+    channels in threads: no faster (the steps are shorter, the threads wait for each
+    other more), but the parts no longer take memory, which lowers the peak memory of
+    large images (measured: docs/choices.md).
 
     ``band_q``: ``(n_parts, C, n_quantiles)``.
     """
@@ -697,8 +697,8 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, 
                 report(progress, "refine", done * n_iter, total)
     elif pixels < _THREADED_PIXELS:
         # A small image: all channels at once, stacked (one NumPy call per step instead of
-        # one per channel: a 256x256 image 98 -> 85-89 ms, 128x128 46 -> 32-38 ms; the
-        # same numbers).
+        # one per channel, whose call overhead dominates on small arrays; the same
+        # numbers).
         stack = np.stack([take(k) for k in range(n_channels)])
         results[:] = _refine_channel(stack, q, stats.pixel_quantiles_, n_iter=n_iter, mode=mode,
                                      first_level=first_level,
@@ -718,8 +718,8 @@ _ROWS_CHUNK = 1 << 16
 
 def _decorrelated_channels(stats, image):
     """:meth:`BandStatistics.to_decorrelated` of an (H, W, C) image in float32, as C
-    separate (H, W) arrays, a few rows at a time (a 2048x2048 image: 87 -> 57 ms; the same
-    numbers)."""
+    separate (H, W) arrays, a few rows at a time, so that the temporaries stay in cache
+    (the same numbers)."""
     h, w, c = image.shape
     mean, basis = (a.astype(np.float32) for a in (stats.colour_mean_, stats.colour_basis_))
     channels = [np.empty((h, w), dtype=np.float32) for _ in range(c)]

@@ -46,8 +46,8 @@ PAPER_TABLE4 = {"n_channels": (9, 22),
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 #: Pools are generated on demand (:class:`GeneratedPool`) for images of at most this many
 #: blocks per pool patch (256x256 and 512x512 images from a pool of 5,000). Larger images
-#: place more patches, decoded again one wavefront at a time on quilting's path: a coarse
-#: 1024x1024 image from 4,000 patches took 1.03 of the time on demand (in a warm process).
+#: place more patches, decoded again one wavefront at a time on quilting's path, which
+#: then costs more than it saves (measured: docs/choices.md).
 _ON_DEMAND_BLOCKS = 0.125
 
 
@@ -433,8 +433,8 @@ class TGHop(BaseEstimator):
         matrix product from each core position to its pixel block (:meth:`_block_decoder`)
         and one transpose into patch order. The channel means go through the block map
         once, as one offset per core position. Given :data:`tghop.pool.DECODE_CHUNK` patches at a
-        time its intermediate arrays stay in the processor's cache (5,000 patches: 0.105
-        -> 0.054 s). Made for each pool, not cached, so the first pool from a loaded model
+        time its intermediate arrays stay in the processor's cache. Made for each pool,
+        not cached, so the first pool from a loaded model
         costs what every later one does.
         """
         sdr = self.sdr_
@@ -447,7 +447,7 @@ class TGHop(BaseEstimator):
         b = self.patch_size // h
         c_out = self.exemplar_shape_[2]
         # A block row's b * C values move as one item: the transpose into patch order
-        # copies items of that size instead of runs of a few floats (half the time).
+        # copies items of that size instead of runs of a few floats (fewer, larger copies).
         row = np.dtype((np.void, b * c_out * np.dtype(dtype).itemsize))
 
         def decode(z, out):
