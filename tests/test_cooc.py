@@ -1,4 +1,4 @@
-"""The co-occurrence statistics and cGAN of tghop.cooc (Darzi et al.), on tiny inputs."""
+"""The co-occurrence statistics (tghop.cooccurrence) and cGAN (tghop.cooc) of Darzi et al., on tiny inputs."""
 
 import json
 import math
@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from tghop import cooc, data
+from tghop import cooc, cooccurrence, data
 from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
 from conftest import assert_user_error
@@ -37,7 +37,7 @@ def tiny_model(exemplar):
 
 
 def clusters(img, k=3):
-    c, s = cooc.fit_colour_clusters(img, n_clusters=k, seed=0)
+    c, s = cooccurrence.fit_colour_clusters(img, n_clusters=k, seed=0)
     return c, s
 
 
@@ -71,24 +71,24 @@ def test_tensor_matches_direct_loops_in_numpy_and_torch(monkeypatch):
     c, s = clusters(img)
     expected = direct_tensor(img, c, s, patch=5, window=3, sigma=1.5, s=4)
     x = img.transpose(2, 0, 1)[None]
-    got_np = cooc.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
+    got_np = cooccurrence.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
     xt, ct, st = (torch.as_tensor(a, dtype=torch.float64) for a in (x, c, s))
-    got_t = cooc.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
+    got_t = cooccurrence.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
     assert got_np.shape == (9, 2, 3)
     np.testing.assert_allclose(got_np, expected, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got_t, expected, rtol=1e-9, atol=1e-12)
     # The per-pixel path (large images) gives the same numbers as the per-cell weights.
-    monkeypatch.setattr(cooc, "_MAX_CELL_WEIGHTS", 0)
-    np.testing.assert_allclose(cooc.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0], expected,
-                               rtol=1e-9, atol=1e-12)
-    got_t2 = cooc.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
+    monkeypatch.setattr(cooccurrence, "_MAX_CELL_WEIGHTS", 0)
+    got_np2 = cooccurrence.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
+    np.testing.assert_allclose(got_np2, expected, rtol=1e-9, atol=1e-12)
+    got_t2 = cooccurrence.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
     np.testing.assert_allclose(got_t2, expected, rtol=1e-9, atol=1e-12)
 
 
 def test_matrix_matches_direct_loops_sums_to_one_and_is_symmetric():
     img = data.bricks(32, rng=5)[:10, :10]
     c, s = clusters(img)
-    m = cooc.cooccurrence_matrix(img.transpose(2, 0, 1)[None], c, s, sigma=1.2, window=5)[0]
+    m = cooccurrence.cooccurrence_matrix(img.transpose(2, 0, 1)[None], c, s, sigma=1.2, window=5)[0]
     assign = np.exp(-(((img[:, :, None, :] - c) / s) ** 2).sum(-1))
     expected = np.zeros_like(m)
     for y in range(10):
@@ -101,14 +101,14 @@ def test_matrix_matches_direct_loops_sums_to_one_and_is_symmetric():
     assert m.sum() == pytest.approx(1.0)
     np.testing.assert_allclose(m, m.T, atol=1e-15)
     # Isotropic: the transposed image has the same matrix.
-    mt = cooc.cooccurrence_matrix(img.transpose(2, 1, 0)[None], c, s, sigma=1.2, window=5)[0]
+    mt = cooccurrence.cooccurrence_matrix(img.transpose(2, 1, 0)[None], c, s, sigma=1.2, window=5)[0]
     np.testing.assert_allclose(mt, m, rtol=1e-9)
 
 
 def test_tensor_cells_sum_to_one_and_are_symmetric():
     img = data.bricks(64, rng=6)
     c, s = clusters(img, k=4)
-    t = cooc.cooccurrence_tensor(img.transpose(2, 0, 1)[None], c, s, patch=17, window=9, sigma=3.0, s=16)[0]
+    t = cooccurrence.cooccurrence_tensor(img.transpose(2, 0, 1)[None], c, s, patch=17, window=9, sigma=3.0, s=16)[0]
     assert t.shape == (16, 4, 4)
     np.testing.assert_allclose(t.sum(0), 1.0, rtol=1e-9)
     k = t.reshape(4, 4, 4, 4)
@@ -121,7 +121,7 @@ def test_tensor_is_differentiable():
     img = torch.rand(2, 3, 16, 16, dtype=torch.float64, requires_grad=True)
     c = torch.rand(3, 3, dtype=torch.float64)
     s = torch.full((3, 3), 0.2, dtype=torch.float64)
-    t = cooc.cooccurrence_tensor(img, c, s, patch=5, window=5, sigma=1.0, s=8)
+    t = cooccurrence.cooccurrence_tensor(img, c, s, patch=5, window=5, sigma=1.0, s=8)
     assert t.shape == (2, 9, 2, 2)
     t[:, 0].sum().backward()
     assert img.grad is not None and torch.isfinite(img.grad).all() and img.grad.abs().sum() > 0
@@ -136,7 +136,7 @@ def test_far_colours_give_finite_values_and_gradients():
     x[:, :, :20] = 1.0
     x[:, 0, 50:] = 0.0
     x.requires_grad_(True)
-    t = cooc.cooccurrence_tensor(x, c, s, patch=33, window=25, sigma=13**0.5, s=16)
+    t = cooccurrence.cooccurrence_tensor(x, c, s, patch=33, window=25, sigma=13**0.5, s=16)
     assert torch.isfinite(t).all() and (t >= 0).all()
     torch.testing.assert_close(t.sum(1), torch.ones(2, 4, 4))
     t[:, 1].sum().backward()
@@ -572,7 +572,7 @@ def test_without_torch(monkeypatch, exemplar):
         cooc.load(__file__)  # an existing file: the torch check comes after the existence check
     # The NumPy statistics (and the metric) do not need torch.
     c, s = clusters(exemplar)
-    assert cooc.cooccurrence_matrix(exemplar.transpose(2, 0, 1)[None], c, s)[0].sum() == pytest.approx(1.0)
+    assert cooccurrence.cooccurrence_matrix(exemplar.transpose(2, 0, 1)[None], c, s)[0].sum() == pytest.approx(1.0)
 
 
 # ------------------------------------------------------------------ command line
