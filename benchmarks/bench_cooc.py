@@ -86,7 +86,8 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds, seed: int 
 
     import torch
 
-    from tghop.cooc import CoocGAN, average_step
+    from tghop.cooc import CoocGAN
+    from tghop.cooc.networks import average_step
 
     torch.set_num_threads(threads)
     img = texture(name)

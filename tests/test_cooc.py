@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from tghop import cooc, cooccurrence, data
+from tghop.cooc import assembly, networks
 from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
 from conftest import assert_user_error
@@ -177,7 +178,7 @@ def test_generator_is_fully_convolutional(tiny_model):
     cond = tiny_model.crop_condition(0, 0)
     assert cond.shape == (9, 4, 4)
     for h, w in [(1, 1), (3, 5), (6, 2)]:
-        out = tiny_model.generate(cooc._tile(cond, h, w), rng=0)
+        out = tiny_model.generate(assembly.tile(cond, h, w), rng=0)
         assert out.shape == (h * s, w * s, 3)
         assert out.min() >= 0 and out.max() <= 1
     assert tiny_model.sample((50, 37), rng=1).shape == (50, 37, 3)
@@ -264,7 +265,7 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
     assert n == 4
     cond = tiny_model.crop_condition(0, 0)
     for h, w in [(5, 9), (4, 7), (9, 3), (12, 12)]:
-        big = cooc._tile(cond, h, w)
+        big = assembly.tile(cond, h, w)
         out = tiny_model.generate(big, rng=0, windows=True)
         assert out.shape == (h * s, w * s, 3) and out.min() >= 0 and out.max() <= 1
         np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0, windows=True))
@@ -279,7 +280,7 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
                                       tiny_model.generate(small, noise=z))
         np.testing.assert_array_equal(tiny_model.generate(small, rng=3, windows=True), tiny_model.generate(small, rng=3))
     with pytest.raises(TGHopError, match="feather"):
-        tiny_model.generate(cooc._tile(cond, 8, 8), rng=0, windows=True, feather=17)
+        tiny_model.generate(assembly.tile(cond, 8, 8), rng=0, windows=True, feather=17)
 
 
 def test_windows_blend_into_one_image(tiny_model, monkeypatch):
@@ -287,7 +288,7 @@ def test_windows_blend_into_one_image(tiny_model, monkeypatch):
     # where they overlap: the blend weights sum to one, so windows == one whole pass.
     tiny_model = tiny_model.raw()  # generates with generator_, not the average
     monkeypatch.setattr(tiny_model, "generator_", _PointwiseGenerator(tiny_model.s))
-    cond = cooc._tile(tiny_model.crop_condition(0, 0), 11, 6)
+    cond = assembly.tile(tiny_model.crop_condition(0, 0), 11, 6)
     z = tiny_model.noise(cond.shape[1:], rng=4)
     whole = tiny_model.generate(cond, noise=z)
     for feather in (0, 5, 16):
@@ -298,11 +299,11 @@ def test_windows_blend_into_one_image(tiny_model, monkeypatch):
 
 def test_blend_weights_are_a_continuous_partition_of_unity():
     n, stride, s = 4, 2, 8
-    starts, (before, after), size = cooc._window_layout(13, n, stride)
+    starts, (before, after), size = assembly.window_layout(13, n, stride)
     assert size == n and before == 1 and starts == list(range(0, 14, 2))
     assert starts[-1] + n == before + 13 + after  # the last window ends at the padded edge
     for feather in (0, 7, 16):
-        w = cooc._blend_weights(n * s, before * s, (before + stride) * s, feather, True)
+        w = assembly.blend_weights(n * s, before * s, (before + stride) * s, feather, True)
         total = np.zeros((before + 13 + after) * s)
         for t in starts:
             total[t * s : (t + n) * s] += w
@@ -310,15 +311,15 @@ def test_blend_weights_are_a_continuous_partition_of_unity():
         np.testing.assert_allclose(core, 1.0, atol=1e-12)
         if feather:  # raised-cosine ramps: no step larger than pi / (2 feather)
             assert np.abs(np.diff(w)).max() <= np.pi / (2 * feather) + 1e-12
-    assert cooc._window_layout(3, n, stride) == ([0], (0, 0), 3)
+    assert assembly.window_layout(3, n, stride) == ([0], (0, 0), 3)
 
 
 def test_tiled_training(exemplar):
     x = torch.arange(2 * 4 * 3 * 6 * 4, dtype=torch.float32).reshape(2 * 4, 3, 6, 4)
-    joined = cooc._join_tiles(x, 2)
+    joined = networks.join_tiles(x, 2)
     assert joined.shape == (2, 3, 12, 8)
     torch.testing.assert_close(joined[1, :, 6:, :4], x[6])  # crop 1, tile (1, 0)
-    torch.testing.assert_close(cooc._split_tiles(joined, 2), x)
+    torch.testing.assert_close(networks.split_tiles(joined, 2), x)
     with pytest.raises(TGHopError, match="tiles"):
         cooc.CoocGAN(**{**TINY, "tiles": 2}, device="cpu").fit(exemplar)  # 48 px < 2 x 32
     logs = []
@@ -329,7 +330,7 @@ def test_tiled_training(exemplar):
     real, cond = model._batch(torch)
     assert real.shape == (4, 3, 32, 32) and cond.shape == (1, 9, 8, 8)  # batch 4 = one 2 x 2 crop
     assert model.crop_pool(3, rng=0).shape == (3, 64, 64, 3)  # the quilted assembly's crops: 2 x 2 tiles' size
-    assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
+    assert model.generate(assembly.tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
 
 
 def test_context_conditions(exemplar):
@@ -366,7 +367,7 @@ def test_lazy_penalty_learning_rate_decay_kernel_and_padding(exemplar, tmp_path)
     assert all(c.kernel_size == (3, 3) and c.padding_mode == "replicate" for c in convs)
     assert all(c.kernel_size == (3, 3) and c.padding_mode == "zeros"
                for c in model.critic_.modules() if isinstance(c, torch.nn.Conv2d))
-    assert model.generate(cooc._tile(model.crop_condition(0, 0), 3, 5), rng=0).shape == (24, 40, 3)
+    assert model.generate(assembly.tile(model.crop_condition(0, 0), 3, 5), rng=0).shape == (24, 40, 3)
     # A skipped penalty: no mix, no random number.
     real, cond = model._batch(torch)
     state = model._torch_gen.get_state()
