@@ -100,6 +100,12 @@ class TrainingMixin:
         Returns
         -------
         self
+
+        Notes
+        -----
+        A long training on a CPU should call :func:`keep_mmap_threshold` first (``tghop
+        cooc train`` does): without it the process's memory can grow step after step.
+        ``fit`` leaves that process-wide setting to its caller.
         """
         torch = import_torch("The co-occurrence cGAN")
         img = check_image(exemplar, name="exemplar")
@@ -117,8 +123,6 @@ class TrainingMixin:
             self._seed_ = int(check_rng(self.rng).integers(2**31))
             self._build(torch, img, np.random.default_rng(self._seed_), progress)
         total = self.settings_["n_steps"]
-        if self._device.type == "cpu":
-            keep_mmap_threshold()
         self._memory_format(torch, train=True)
         self.generator_.train()
         self.critic_.train()
