@@ -33,7 +33,6 @@ from .._common import (
     report,
 )
 from ..cooccurrence import cooccurrence_tensor
-from . import checkpoints
 from .assembly import (
     FEATHER,
     QUILT_DETAIL,
@@ -46,6 +45,8 @@ from .assembly import (
     tile,
     window_layout,
 )
+from .checkpoints import read as read_checkpoint
+from .checkpoints import save as save_checkpoint
 from .config import PARAMS, check_settings
 from .training import TrainingMixin
 
@@ -647,7 +648,7 @@ class CoocGAN(TrainingMixin):
         states) and the settings as JSON bytes inside; loads with ``weights_only=True``
         (:func:`load`; the format: :mod:`tghop.cooc.checkpoints`).
         """
-        checkpoints.save(self, path)
+        save_checkpoint(self, path)
 
 
 def load(path, *, device: str = "auto") -> CoocGAN:
@@ -669,7 +670,7 @@ def load(path, *, device: str = "auto") -> CoocGAN:
     ModelFileError
         Missing file, not a tghop co-occurrence checkpoint, or another format version.
     """
-    return checkpoints.read(path, CoocGAN, device=device)
+    return read_checkpoint(path, CoocGAN, device=device)
 
 
 def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
