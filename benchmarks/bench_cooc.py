@@ -86,7 +86,9 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds, seed: int 
 
     import torch
 
-    from tghop.cooc import CoocGAN, average_step
+    from tghop.cooc import CoocGAN
+    from tghop.cooc.networks import average_step
+    from tghop.cooc.training import keep_mmap_threshold
 
     torch.set_num_threads(threads)
     img = texture(name)
@@ -117,6 +119,8 @@ def train_one(name: str, out: Path, threads: int, steps, max_seconds, seed: int 
                 averages[decay] = copy.deepcopy(gen).requires_grad_(False)
             average_step(torch, averages[decay], gen, decay, step)
 
+    if not torch.cuda.is_available():  # the model's device is "auto": a CPU training, as tghop cooc train
+        keep_mmap_threshold()
     t0, c0 = time.perf_counter(), time.process_time()
     model.fit(img, progress=progress, max_seconds=max_seconds, log=log if extra_ema else None)
     seconds = time.perf_counter() - t0

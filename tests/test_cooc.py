@@ -1,4 +1,4 @@
-"""The co-occurrence statistics and cGAN of tghop.cooc (Darzi et al.), on tiny inputs."""
+"""The co-occurrence statistics (tghop.cooccurrence) and cGAN (tghop.cooc) of Darzi et al., on tiny inputs."""
 
 import json
 import math
@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from tghop import cooc, data
+from tghop import cooc, cooccurrence, data
+from tghop.cooc import assembly, networks
 from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
 from conftest import assert_user_error
@@ -37,7 +38,7 @@ def tiny_model(exemplar):
 
 
 def clusters(img, k=3):
-    c, s = cooc.fit_colour_clusters(img, n_clusters=k, seed=0)
+    c, s = cooccurrence.fit_colour_clusters(img, n_clusters=k, seed=0)
     return c, s
 
 
@@ -71,24 +72,24 @@ def test_tensor_matches_direct_loops_in_numpy_and_torch(monkeypatch):
     c, s = clusters(img)
     expected = direct_tensor(img, c, s, patch=5, window=3, sigma=1.5, s=4)
     x = img.transpose(2, 0, 1)[None]
-    got_np = cooc.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
+    got_np = cooccurrence.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
     xt, ct, st = (torch.as_tensor(a, dtype=torch.float64) for a in (x, c, s))
-    got_t = cooc.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
+    got_t = cooccurrence.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
     assert got_np.shape == (9, 2, 3)
     np.testing.assert_allclose(got_np, expected, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got_t, expected, rtol=1e-9, atol=1e-12)
     # The per-pixel path (large images) gives the same numbers as the per-cell weights.
-    monkeypatch.setattr(cooc, "_MAX_CELL_WEIGHTS", 0)
-    np.testing.assert_allclose(cooc.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0], expected,
-                               rtol=1e-9, atol=1e-12)
-    got_t2 = cooc.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
+    monkeypatch.setattr(cooccurrence, "_MAX_CELL_WEIGHTS", 0)
+    got_np2 = cooccurrence.cooccurrence_tensor(x, c, s, patch=5, window=3, sigma=1.5, s=4)[0]
+    np.testing.assert_allclose(got_np2, expected, rtol=1e-9, atol=1e-12)
+    got_t2 = cooccurrence.cooccurrence_tensor(xt, ct, st, patch=5, window=3, sigma=1.5, s=4)[0].numpy()
     np.testing.assert_allclose(got_t2, expected, rtol=1e-9, atol=1e-12)
 
 
 def test_matrix_matches_direct_loops_sums_to_one_and_is_symmetric():
     img = data.bricks(32, rng=5)[:10, :10]
     c, s = clusters(img)
-    m = cooc.cooccurrence_matrix(img.transpose(2, 0, 1)[None], c, s, sigma=1.2, window=5)[0]
+    m = cooccurrence.cooccurrence_matrix(img.transpose(2, 0, 1)[None], c, s, sigma=1.2, window=5)[0]
     assign = np.exp(-(((img[:, :, None, :] - c) / s) ** 2).sum(-1))
     expected = np.zeros_like(m)
     for y in range(10):
@@ -101,14 +102,14 @@ def test_matrix_matches_direct_loops_sums_to_one_and_is_symmetric():
     assert m.sum() == pytest.approx(1.0)
     np.testing.assert_allclose(m, m.T, atol=1e-15)
     # Isotropic: the transposed image has the same matrix.
-    mt = cooc.cooccurrence_matrix(img.transpose(2, 1, 0)[None], c, s, sigma=1.2, window=5)[0]
+    mt = cooccurrence.cooccurrence_matrix(img.transpose(2, 1, 0)[None], c, s, sigma=1.2, window=5)[0]
     np.testing.assert_allclose(mt, m, rtol=1e-9)
 
 
 def test_tensor_cells_sum_to_one_and_are_symmetric():
     img = data.bricks(64, rng=6)
     c, s = clusters(img, k=4)
-    t = cooc.cooccurrence_tensor(img.transpose(2, 0, 1)[None], c, s, patch=17, window=9, sigma=3.0, s=16)[0]
+    t = cooccurrence.cooccurrence_tensor(img.transpose(2, 0, 1)[None], c, s, patch=17, window=9, sigma=3.0, s=16)[0]
     assert t.shape == (16, 4, 4)
     np.testing.assert_allclose(t.sum(0), 1.0, rtol=1e-9)
     k = t.reshape(4, 4, 4, 4)
@@ -121,7 +122,7 @@ def test_tensor_is_differentiable():
     img = torch.rand(2, 3, 16, 16, dtype=torch.float64, requires_grad=True)
     c = torch.rand(3, 3, dtype=torch.float64)
     s = torch.full((3, 3), 0.2, dtype=torch.float64)
-    t = cooc.cooccurrence_tensor(img, c, s, patch=5, window=5, sigma=1.0, s=8)
+    t = cooccurrence.cooccurrence_tensor(img, c, s, patch=5, window=5, sigma=1.0, s=8)
     assert t.shape == (2, 9, 2, 2)
     t[:, 0].sum().backward()
     assert img.grad is not None and torch.isfinite(img.grad).all() and img.grad.abs().sum() > 0
@@ -136,7 +137,7 @@ def test_far_colours_give_finite_values_and_gradients():
     x[:, :, :20] = 1.0
     x[:, 0, 50:] = 0.0
     x.requires_grad_(True)
-    t = cooc.cooccurrence_tensor(x, c, s, patch=33, window=25, sigma=13**0.5, s=16)
+    t = cooccurrence.cooccurrence_tensor(x, c, s, patch=33, window=25, sigma=13**0.5, s=16)
     assert torch.isfinite(t).all() and (t >= 0).all()
     torch.testing.assert_close(t.sum(1), torch.ones(2, 4, 4))
     t[:, 1].sum().backward()
@@ -177,7 +178,7 @@ def test_generator_is_fully_convolutional(tiny_model):
     cond = tiny_model.crop_condition(0, 0)
     assert cond.shape == (9, 4, 4)
     for h, w in [(1, 1), (3, 5), (6, 2)]:
-        out = tiny_model.generate(cooc._tile(cond, h, w), rng=0)
+        out = tiny_model.generate(assembly.tile(cond, h, w), rng=0)
         assert out.shape == (h * s, w * s, 3)
         assert out.min() >= 0 and out.max() <= 1
     assert tiny_model.sample((50, 37), rng=1).shape == (50, 37, 3)
@@ -264,7 +265,7 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
     assert n == 4
     cond = tiny_model.crop_condition(0, 0)
     for h, w in [(5, 9), (4, 7), (9, 3), (12, 12)]:
-        big = cooc._tile(cond, h, w)
+        big = assembly.tile(cond, h, w)
         out = tiny_model.generate(big, rng=0, windows=True)
         assert out.shape == (h * s, w * s, 3) and out.min() >= 0 and out.max() <= 1
         np.testing.assert_array_equal(out, tiny_model.generate(big, rng=0, windows=True))
@@ -279,7 +280,7 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
                                       tiny_model.generate(small, noise=z))
         np.testing.assert_array_equal(tiny_model.generate(small, rng=3, windows=True), tiny_model.generate(small, rng=3))
     with pytest.raises(TGHopError, match="feather"):
-        tiny_model.generate(cooc._tile(cond, 8, 8), rng=0, windows=True, feather=17)
+        tiny_model.generate(assembly.tile(cond, 8, 8), rng=0, windows=True, feather=17)
 
 
 def test_windows_blend_into_one_image(tiny_model, monkeypatch):
@@ -287,7 +288,7 @@ def test_windows_blend_into_one_image(tiny_model, monkeypatch):
     # where they overlap: the blend weights sum to one, so windows == one whole pass.
     tiny_model = tiny_model.raw()  # generates with generator_, not the average
     monkeypatch.setattr(tiny_model, "generator_", _PointwiseGenerator(tiny_model.s))
-    cond = cooc._tile(tiny_model.crop_condition(0, 0), 11, 6)
+    cond = assembly.tile(tiny_model.crop_condition(0, 0), 11, 6)
     z = tiny_model.noise(cond.shape[1:], rng=4)
     whole = tiny_model.generate(cond, noise=z)
     for feather in (0, 5, 16):
@@ -298,11 +299,11 @@ def test_windows_blend_into_one_image(tiny_model, monkeypatch):
 
 def test_blend_weights_are_a_continuous_partition_of_unity():
     n, stride, s = 4, 2, 8
-    starts, (before, after), size = cooc._window_layout(13, n, stride)
+    starts, (before, after), size = assembly.window_layout(13, n, stride)
     assert size == n and before == 1 and starts == list(range(0, 14, 2))
     assert starts[-1] + n == before + 13 + after  # the last window ends at the padded edge
     for feather in (0, 7, 16):
-        w = cooc._blend_weights(n * s, before * s, (before + stride) * s, feather, True)
+        w = assembly.blend_weights(n * s, before * s, (before + stride) * s, feather, True)
         total = np.zeros((before + 13 + after) * s)
         for t in starts:
             total[t * s : (t + n) * s] += w
@@ -310,15 +311,15 @@ def test_blend_weights_are_a_continuous_partition_of_unity():
         np.testing.assert_allclose(core, 1.0, atol=1e-12)
         if feather:  # raised-cosine ramps: no step larger than pi / (2 feather)
             assert np.abs(np.diff(w)).max() <= np.pi / (2 * feather) + 1e-12
-    assert cooc._window_layout(3, n, stride) == ([0], (0, 0), 3)
+    assert assembly.window_layout(3, n, stride) == ([0], (0, 0), 3)
 
 
 def test_tiled_training(exemplar):
     x = torch.arange(2 * 4 * 3 * 6 * 4, dtype=torch.float32).reshape(2 * 4, 3, 6, 4)
-    joined = cooc._join_tiles(x, 2)
+    joined = networks.join_tiles(x, 2)
     assert joined.shape == (2, 3, 12, 8)
     torch.testing.assert_close(joined[1, :, 6:, :4], x[6])  # crop 1, tile (1, 0)
-    torch.testing.assert_close(cooc._split_tiles(joined, 2), x)
+    torch.testing.assert_close(networks.split_tiles(joined, 2), x)
     with pytest.raises(TGHopError, match="tiles"):
         cooc.CoocGAN(**{**TINY, "tiles": 2}, device="cpu").fit(exemplar)  # 48 px < 2 x 32
     logs = []
@@ -329,7 +330,7 @@ def test_tiled_training(exemplar):
     real, cond = model._batch(torch)
     assert real.shape == (4, 3, 32, 32) and cond.shape == (1, 9, 8, 8)  # batch 4 = one 2 x 2 crop
     assert model.crop_pool(3, rng=0).shape == (3, 64, 64, 3)  # the quilted assembly's crops: 2 x 2 tiles' size
-    assert model.generate(cooc._tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
+    assert model.generate(assembly.tile(model.crop_condition(0, 0), 12, 10), rng=0, windows=True).shape == (96, 80, 3)
 
 
 def test_context_conditions(exemplar):
@@ -366,7 +367,7 @@ def test_lazy_penalty_learning_rate_decay_kernel_and_padding(exemplar, tmp_path)
     assert all(c.kernel_size == (3, 3) and c.padding_mode == "replicate" for c in convs)
     assert all(c.kernel_size == (3, 3) and c.padding_mode == "zeros"
                for c in model.critic_.modules() if isinstance(c, torch.nn.Conv2d))
-    assert model.generate(cooc._tile(model.crop_condition(0, 0), 3, 5), rng=0).shape == (24, 40, 3)
+    assert model.generate(assembly.tile(model.crop_condition(0, 0), 3, 5), rng=0).shape == (24, 40, 3)
     # A skipped penalty: no mix, no random number.
     real, cond = model._batch(torch)
     state = model._torch_gen.get_state()
@@ -572,7 +573,7 @@ def test_without_torch(monkeypatch, exemplar):
         cooc.load(__file__)  # an existing file: the torch check comes after the existence check
     # The NumPy statistics (and the metric) do not need torch.
     c, s = clusters(exemplar)
-    assert cooc.cooccurrence_matrix(exemplar.transpose(2, 0, 1)[None], c, s)[0].sum() == pytest.approx(1.0)
+    assert cooccurrence.cooccurrence_matrix(exemplar.transpose(2, 0, 1)[None], c, s)[0].sum() == pytest.approx(1.0)
 
 
 # ------------------------------------------------------------------ command line

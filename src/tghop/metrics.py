@@ -421,7 +421,7 @@ def cooccurrence_distance(
     float
         In [0, 2]; 0 for identical images.
     """
-    from .cooc import cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
+    from .cooccurrence import cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
 
     if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
         raise TGHopError("sigma, window and n_clusters must be positive")

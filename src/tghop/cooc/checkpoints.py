@@ -1,0 +1,160 @@
+"""The co-occurrence cGAN's checkpoint file (``.pt``): :func:`save` writes one, :func:`read` reads it.
+
+A checkpoint is a ``torch.save`` dict of tensors only, so that it loads with
+``weights_only=True``:
+
+* ``generator.*``, ``critic.*`` and, with ``ema > 0``, ``generator_ema.*``: the networks'
+  state dicts;
+* ``opt_g.INDEX.NAME``, ``opt_d.INDEX.NAME``: the two Adam optimisers' per-parameter state;
+* ``centres_``, ``spreads_``, ``cond_mean_``, ``cond_std_``, ``exemplar_cooc_``,
+  ``history_``: the model's statistics (float64);
+* ``torch_rng``: the state of training's random numbers;
+* ``settings_json``: UTF-8 JSON bytes with ``kind`` (:data:`KIND`), ``format``
+  (:data:`FORMAT`), the checked ``settings``, ``step``, ``seed``, ``exemplar_shape``,
+  ``exemplar_hash``, the optimisers' ``optimiser_groups`` and ``device``.
+
+This module does not import the model: :meth:`tghop.cooc.model.CoocGAN.save` calls
+:func:`save`, and :func:`tghop.cooc.model.load` calls :func:`read` with the class to build.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .._common import ModelFileError, import_torch
+from .networks import build_networks
+
+__all__ = ["KIND", "FORMAT", "save", "read"]
+
+#: ``kind`` field of a checkpoint's settings; a ``.pt`` without it is not ours.
+KIND = "tghop.cooc"
+#: Checkpoint format version.
+FORMAT = 1
+
+#: The model's statistics, stored as float64 tensors under their own names.
+_STATISTICS = ("centres_", "spreads_", "cond_mean_", "cond_std_", "exemplar_cooc_", "history_")
+
+
+def _networks_of(model):
+    """``(prefix, module)`` of the networks a checkpoint stores (the average with ``ema > 0``)."""
+    modules = [("generator", model.generator_), ("critic", model.critic_)]
+    if hasattr(model, "generator_ema_"):
+        modules.append(("generator_ema", model.generator_ema_))
+    return modules
+
+
+def save(model, path) -> None:
+    """Write a trained :class:`~tghop.cooc.model.CoocGAN` to ``path`` (atomically).
+
+    See the module's docstring for what is stored.
+    """
+    model._check_fitted()
+    torch = import_torch("The co-occurrence cGAN")
+    from ..imageio import check_output_path, write_atomic
+
+    check_output_path(path, what="checkpoint", error=ModelFileError)
+    tensors = {}
+    for prefix, module in _networks_of(model):
+        for name, value in module.state_dict().items():
+            tensors[f"{prefix}.{name}"] = value.detach().cpu()
+    groups = {}
+    for prefix, opt in (("opt_g", model._opt_g), ("opt_d", model._opt_d)):
+        sd = opt.state_dict()
+        groups[prefix] = sd["param_groups"]
+        for index, state in sd["state"].items():
+            for name, value in state.items():
+                tensors[f"{prefix}.{index}.{name}"] = torch.as_tensor(value).detach().cpu()
+    for name in _STATISTICS:
+        tensors[name] = torch.as_tensor(np.asarray(getattr(model, name), dtype=np.float64))
+    tensors["torch_rng"] = model._torch_gen.get_state().cpu()
+    settings = {"kind": KIND, "format": FORMAT, "settings": model.settings_, "step": int(model.step_),
+                "seed": int(model._seed_), "exemplar_shape": list(model.exemplar_shape_),
+                "exemplar_hash": model.exemplar_hash_, "optimiser_groups": groups,
+                "device": model.device if isinstance(model.device, str) else "auto"}
+    tensors["settings_json"] = torch.frombuffer(bytearray(json.dumps(settings).encode()), dtype=torch.uint8)
+
+    def write(f):
+        buffer = io.BytesIO()
+        torch.save(tensors, buffer)
+        f.write(buffer.getvalue())
+
+    write_atomic(path, write)
+
+
+def read(path, model_class, *, device: str = "auto"):
+    """A model of ``model_class`` (:class:`~tghop.cooc.model.CoocGAN`) from the checkpoint at ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    model_class : type
+        The class to build (passed in: this module does not import the model, which
+        imports it).
+    device : str
+        Where to put the networks (``"auto"``: CUDA when present).
+
+    Returns
+    -------
+    model_class
+        Trained, in evaluation mode; ``fit(exemplar, resume=True)`` continues it.
+
+    Raises
+    ------
+    ModelFileError
+        Missing file, not a tghop co-occurrence checkpoint, or another format version.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ModelFileError(f"{path}: no such checkpoint; train one with: tghop cooc train EXEMPLAR -o {path.name}")
+    torch = import_torch("The co-occurrence cGAN")
+    try:
+        tensors = torch.load(path, map_location="cpu", weights_only=True)
+        settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())
+    except Exception:
+        raise ModelFileError(f"{path}: not a tghop co-occurrence checkpoint (written by 'tghop cooc train')") from None
+    if not isinstance(settings, dict) or settings.get("kind") != KIND:
+        raise ModelFileError(f"{path}: a checkpoint of another kind ({settings.get('kind') if isinstance(settings, dict) else '?'!r}), "
+                             "not a tghop co-occurrence model; train one with 'tghop cooc train'")
+    if settings.get("format") != FORMAT:
+        raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
+                             "train it again with this version")
+    try:
+        p = {"tiles": 1, "ema": 0.0, "kernel": 5, "padding": "zeros", "gp_every": 1, "lr_decay": 0.0,
+             "context": False, **settings["settings"]}  # checkpoints from before these settings
+        model = model_class(**p, device=device)
+        model.settings_ = model._settings()
+        model.exemplar_shape_ = tuple(settings["exemplar_shape"])
+        model.exemplar_hash_ = settings["exemplar_hash"]
+        model._seed_ = int(settings["seed"])
+        model.rng = model._seed_
+        model.step_ = int(settings["step"])
+        for name in _STATISTICS:
+            setattr(model, name, tensors[name].numpy())
+        model._to_device(torch)
+        model.generator_, model.critic_ = build_networks(torch, model.exemplar_shape_[2], len(model.cond_mean_),
+                                                         model.settings_)
+        model._make_averaged(torch)
+        for prefix, module in _networks_of(model):
+            module.load_state_dict({k[len(prefix) + 1 :]: v for k, v in tensors.items() if k.startswith(prefix + ".")})
+            module.to(model._device).eval()
+        model._memory_format(torch, train=False)
+        model._make_optimisers(torch)
+        for prefix, opt in (("opt_g", model._opt_g), ("opt_d", model._opt_d)):
+            state: dict = {}
+            for key, value in tensors.items():
+                if key.startswith(prefix + "."):
+                    _, index, name = key.split(".", 2)
+                    state.setdefault(int(index), {})[name] = value
+            opt.load_state_dict({"state": state, "param_groups": settings["optimiser_groups"][prefix]})
+        model._torch_gen = torch.Generator(device=model._device)
+        model._torch_gen.set_state(tensors["torch_rng"])
+    except ModelFileError:
+        raise
+    except Exception as exc:
+        raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({exc.__class__.__name__}); "
+                             "train it again") from None
+    return model

@@ -1,0 +1,99 @@
+"""The two configurations of the co-occurrence cGAN and the check of its settings.
+
+:data:`SMALL` (the default: made for a 2-core CPU) and :data:`PAPER` (the paper's setting,
+for a GPU) list every training setting of :class:`tghop.cooc.model.CoocGAN` with its
+value; :func:`check_settings` turns a model's settings into plain, checked JSON values
+(what :meth:`~tghop.cooc.model.CoocGAN.fit` trains with and a checkpoint stores).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._common import TGHopError
+
+__all__ = ["SMALL", "PAPER", "PARAMS", "check_settings"]
+
+#: The small configuration, the default of :class:`~tghop.cooc.model.CoocGAN`: made to
+#: train on a 2-core CPU for a 256 x 256 exemplar. Everything spatial is at half the paper's
+#: scale (64 px crops, 33 px patches, 25 px windows, sigma^2 = 13), the networks have 4
+#: layers instead of 5 (so s = 16 keeps a 4 x 4 condition) and 8 to 16 times fewer
+#: filters, one critic step per generator step (as the authors' released code, ``dIter=1``).
+#: Not in the paper (issue 9, docs/choices.md): 5,500 generator steps of 8 crops with a
+#: lazy gradient penalty (``gp_every=4``), which in a GPU sweep at equal CPU time beat
+#: 3,000 steps of 16 crops on brick_wall, grass_lawn and red_peppers (3 seeds each);
+#: and it generates with an exponential moving average of
+#: the generator's weights, ``ema=0.995`` (a half-life of 138 steps; better than the raw
+#: generator on the brick_wall seeds measured, longer averages worse).
+SMALL = dict(
+    n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
+    g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16,
+    n_crops=1000, batch_size=8, n_steps=5500, n_critic=1,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1, ema=0.995,
+    kernel=5, padding="zeros", gp_every=4, lr_decay=0.0, context=False,
+)
+
+#: The paper's configuration (Sec. 4.1): k = 8, 2,000 crops of 128 x 128, s = 32 (5 layers,
+#: a 4 x 4 condition), 65 px patches, 51 px windows, sigma^2 = 51, 120 epochs, Adam
+#: (lr 2e-4, beta1 0.5), gradient penalty weight 1. From PSGAN (Bergmann et al. 2017,
+#: the paper's base): 5 x 5 filters, widths 512-256-128-64 (generator) and 64-128-256-512
+#: (critic), batch 64, Adam beta2 = 0.999, N(0, 0.02) initialisation, tanh output, leaky
+#: ReLU 0.2 in the critic; 30 noise channels (PSGAN's released model uses 30 local noise
+#: dimensions). From WGAN-GP (Gulrajani et al.): 5 critic steps per generator step, no
+#: batch norm in the critic. Not in any of them: the consistency weight 10.
+#: One epoch is n_crops / batch_size generator steps: 120 epochs = 3,750 steps (minutes on
+#: a GPU; docs/choices.md has the times). The authors' released code
+#: (github.com/Ashu7397/cooc_texture) differs from these borrowed values: batch 16, one
+#: critic step, widths 960-480-240-120 / 120-240-480-960, 64 noise channels, so 120 epochs
+#: are 15,000 steps there; see docs/choices.md.
+PAPER = dict(
+    n_clusters=8, crop_size=128, n_layers=5, patch=65, window=51, sigma=math.sqrt(51.0),
+    g_widths=(512, 256, 128, 64), d_widths=(64, 128, 256, 512), noise_channels=30,
+    n_crops=2000, batch_size=64, n_steps=3750, n_critic=5,
+    lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0, tiles=1, ema=0.0,
+    kernel=5, padding="zeros", gp_every=1, lr_decay=0.0, context=False,
+)
+
+#: Every parameter of :class:`~tghop.cooc.model.CoocGAN`: the settings, then where and from
+#: which seed it trains.
+PARAMS = tuple(SMALL) + ("device", "rng")
+
+
+def check_settings(values) -> dict:
+    """The training settings in ``values`` (a mapping with every key of :data:`SMALL`) as
+    plain JSON values, checked: a one-line :class:`TGHopError` for a bad one.
+
+    Returns
+    -------
+    dict
+        The keys of :data:`SMALL`, ints, floats, lists of int, a str and a bool.
+    """
+    p = {name: values[name] for name in SMALL}
+    ints = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "n_crops",
+            "batch_size", "n_steps", "n_critic", "tiles", "kernel", "gp_every")
+    try:
+        for name in ints:
+            p[name] = int(p[name])
+        for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc", "ema", "lr_decay"):
+            p[name] = float(p[name])
+        p["g_widths"] = [int(v) for v in p["g_widths"]]
+        p["d_widths"] = [int(v) for v in p["d_widths"]]
+    except (TypeError, ValueError):
+        raise TGHopError(f"CoocGAN settings must be numbers (widths: sequences of int), got {p}") from None
+    if any(p[name] < 1 for name in ints if name != "n_steps") or p["n_steps"] < 0:
+        raise TGHopError("CoocGAN integer settings must be positive (n_steps may be 0)")
+    if p["n_layers"] < 2:
+        raise TGHopError(f"n_layers must be at least 2, got {p['n_layers']}")
+    if p["crop_size"] % (2 ** p["n_layers"]):
+        raise TGHopError(f"crop_size ({p['crop_size']}) must be a multiple of 2**n_layers = {2 ** p['n_layers']}")
+    if not (p["sigma"] > 0 and p["lr"] > 0 and 0 <= p["beta1"] < 1 and 0 <= p["beta2"] < 1
+            and p["lambda_gp"] >= 0 and p["lambda_cooc"] >= 0 and 0 <= p["ema"] < 1):
+        raise TGHopError("sigma and lr must be positive, betas and ema in [0, 1), the loss weights >= 0")
+    if p["kernel"] % 2 == 0:
+        raise TGHopError(f"kernel must be odd, got {p['kernel']}")
+    if p["padding"] not in ("zeros", "reflect", "replicate"):
+        raise TGHopError(f"padding must be 'zeros', 'reflect' or 'replicate', got {p['padding']!r}")
+    p["context"] = bool(p["context"])
+    if not 0 <= p["lr_decay"] <= 1:
+        raise TGHopError(f"lr_decay must be in [0, 1], got {p['lr_decay']}")
+    return p

@@ -1,0 +1,709 @@
+"""The co-occurrence cGAN model: its settings, its statistics and generation from it.
+
+:class:`CoocGAN` holds a trained generator and the statistics it was trained with (colour
+clusters, the exemplar's co-occurrence tensor); training is in :mod:`tghop.cooc.training`
+(mixed in), the networks in :mod:`tghop.cooc.networks`, the checkpoint file in
+:mod:`tghop.cooc.checkpoints`, the pieces of the assemblies in :mod:`tghop.cooc.assembly`.
+Generation and the controls:
+
+* :meth:`CoocGAN.generate` -- texture from a co-occurrence tensor and noise (one generator
+  pass, or overlapping training-size windows: :meth:`CoocGAN.generate_windows`);
+* :meth:`CoocGAN.sample` -- a texture of any size with the exemplar's statistics, by one of
+  the :data:`~tghop.cooc.assembly.ASSEMBLIES`;
+* :meth:`CoocGAN.morph_strip`, :meth:`CoocGAN.morph_grid` -- interpolated conditions and noise;
+* :func:`load` reads a checkpoint, :func:`baseline` is the model as one of tghop's baselines.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Optional
+
+import numpy as np
+
+from .._common import (
+    NotFittedError,
+    ProgressCallback,
+    TGHopError,
+    check_image,
+    check_rng,
+    check_size,
+    import_torch,
+    report,
+)
+from ..cooccurrence import cooccurrence_tensor
+from .assembly import (
+    FEATHER,
+    QUILT_DETAIL,
+    QUILT_POOL,
+    QUILT_TOLERANCE,
+    blend_weights,
+    check_assembly,
+    mirror_pad,
+    reflect_tile,
+    tile,
+    window_layout,
+)
+from .checkpoints import read as read_checkpoint
+from .checkpoints import save as save_checkpoint
+from .config import PARAMS, check_settings
+from .training import TrainingMixin
+
+__all__ = ["CoocGAN", "load", "baseline"]
+
+
+class CoocGAN(TrainingMixin):
+    """Co-occurrence conditional GAN of Darzi et al. (texture from local statistics and noise).
+
+    Parameters are those of :data:`~tghop.cooc.config.SMALL` (the defaults) and
+    :data:`~tghop.cooc.config.PAPER`; ``CoocGAN(**PAPER)`` is the paper's setting. Settings
+    are stored as given; :meth:`fit` checks them (:func:`~tghop.cooc.config.check_settings`).
+
+    Parameters
+    ----------
+    n_clusters : int
+        k colour clusters (the condition has k*k channels).
+    crop_size : int
+        Side n of the training crops; a multiple of ``2**n_layers``.
+    n_layers : int
+        Layers of the generator (each upsamples by 2) and of the critic (each halves);
+        the co-occurrence downsampling is ``s = 2**n_layers``.
+    patch, window, sigma
+        Co-occurrence patch side, pair window side, spatial sigma (:func:`cooccurrence_tensor`).
+    g_widths, d_widths : tuple of int
+        Filters of the hidden generator and critic layers (``n_layers - 1`` each).
+    noise_channels : int
+        Channels of the N(0, 1) noise tensor, same spatial size as the condition.
+    n_crops : int
+        Training crops cut at random positions from the exemplar.
+    batch_size, n_steps, n_critic : int
+        Crops per batch, generator steps, critic steps per generator step.
+    lr, beta1, beta2 : float
+        Adam settings of both networks.
+    lambda_gp, lambda_cooc : float
+        Weights of the gradient penalty (Eq. 4) and the co-occurrence consistency loss (Eq. 3).
+    tiles : int
+        The generator trains on crops of ``tiles x tiles`` training crops (conditions of
+        ``tiles * crop_size / s`` cells a side, ``batch_size / tiles**2`` of them per
+        batch); the critic and the consistency loss see their ``crop_size`` tiles, each
+        with its own tensor, so a step costs about the same as with ``tiles=1`` while the
+        generator also learns the inside of a larger grid. 1: the paper's training.
+    ema : float
+        Decay of an exponential moving average of the generator's weights, updated after
+        every generator step (Karras et al.'s ProGAN / StyleGAN, Yazici et al. 2019);
+        generation uses the averaged generator (:meth:`raw` the last weights). The default
+        0.995 is a half-life of 138 steps (1,100 crops at ``SMALL``'s batch 8); 0.999 (693 steps,
+        StyleGAN's 10k images) and 0.9995 averaged in too many of the weights of 3,000
+        steps that still improve and were worse than the raw generator (docs/choices.md).
+        The average is bias-corrected (no share of the initial weights); its batch-norm
+        statistics are recomputed for its weights at the end of :meth:`fit`. 0: no
+        average (the paper's).
+    kernel : int
+        Side of the convolution kernels of both networks (odd; 5 as PSGAN).
+    padding : str
+        Padding of the generator's convolutions: ``"zeros"`` (the paper's), ``"reflect"``
+        (needs conditions of at least 2 cells a side) or ``"replicate"``. The critic pads with zeros.
+    gp_every : int
+        Lazy gradient penalty (as StyleGAN2's lazy R1): the penalty only on every
+        ``gp_every``-th critic step, weighted ``gp_every * lambda_gp``; the other critic
+        steps skip its extra forward pass and double backward. 1: every step (WGAN-GP's).
+    lr_decay : float
+        Share of the ``n_steps`` at the end over which both learning rates fall linearly
+        to 0 (0: constant, the paper's).
+    context : bool
+        Compute the *condition* of a training crop (what the generator and the critic see)
+        with the exemplar's pixels around the crop (patches not clipped at the crop's
+        border; the exemplar mirror-padded by ``s`` at its own border), and the
+        exemplar's tensor (:meth:`sample`'s condition) likewise, so that the cells at a
+        crop's border look like the inside cells of a large condition. The consistency
+        loss still compares the crop-only tensors of the generated and the real crop
+        (measured identically). False: one crop-only tensor for both (as before).
+    device : str
+        ``"auto"`` (CUDA when present), ``"cpu"`` or a torch device name.
+    rng : int or numpy.random.Generator, optional
+        Seeds k-means, the crops, the initial weights and the training noise.
+
+    Attributes
+    ----------
+    centres_, spreads_ : ndarray, shape (k, C)
+        Colour clusters.
+    cond_mean_, cond_std_ : ndarray, shape (k*k,)
+        Per-channel statistics of the training tensors; the networks see normalised ones.
+    exemplar_cooc_ : ndarray, shape (k*k, H // s, W // s)
+        The exemplar's own co-occurrence tensor (the default condition of :meth:`sample`).
+    exemplar_shape_ : tuple
+    step_ : int
+        Generator steps trained.
+    history_ : ndarray, shape (n, 5)
+        Per logged step: step, critic loss, generator adversarial loss, consistency loss
+        (the mean L1 per cell), gradient penalty.
+    generator_, critic_ : torch.nn.Module
+    generator_ema_ : torch.nn.Module
+        The averaged generator (only with ``ema > 0``); :meth:`generate` and the controls use it.
+    """
+
+    def __init__(self, *, n_clusters=8, crop_size=64, n_layers=4, patch=33, window=25, sigma=math.sqrt(13.0),
+                 g_widths=(64, 32, 16), d_widths=(16, 32, 64), noise_channels=16, n_crops=1000, batch_size=8,
+                 n_steps=5500, n_critic=1, lr=2e-4, beta1=0.5, beta2=0.999, lambda_gp=1.0, lambda_cooc=10.0,
+                 tiles=1, ema=0.995, kernel=5, padding="zeros", gp_every=4, lr_decay=0.0, context=False,
+                 device="auto", rng=None):
+        self.n_clusters = n_clusters
+        self.crop_size = crop_size
+        self.n_layers = n_layers
+        self.patch = patch
+        self.window = window
+        self.sigma = sigma
+        self.g_widths = g_widths
+        self.d_widths = d_widths
+        self.noise_channels = noise_channels
+        self.n_crops = n_crops
+        self.batch_size = batch_size
+        self.n_steps = n_steps
+        self.n_critic = n_critic
+        self.lr = lr
+        self.beta1 = beta1
+        self.beta2 = beta2
+        self.lambda_gp = lambda_gp
+        self.lambda_cooc = lambda_cooc
+        self.tiles = tiles
+        self.ema = ema
+        self.kernel = kernel
+        self.padding = padding
+        self.gp_every = gp_every
+        self.lr_decay = lr_decay
+        self.context = context
+        self.device = device
+        self.rng = rng
+
+    # ------------------------------------------------------------------ parameters
+    def get_params(self) -> dict:
+        return {name: getattr(self, name) for name in PARAMS}
+
+    def set_params(self, **params) -> "CoocGAN":
+        for name, value in params.items():
+            if name not in PARAMS:
+                raise TGHopError(f"unknown CoocGAN parameter {name!r}")
+            setattr(self, name, value)
+        return self
+
+    @property
+    def s(self) -> int:
+        """Co-occurrence downsampling factor ``2**n_layers``."""
+        return 2 ** int(self.n_layers)
+
+    def _settings(self) -> dict:
+        """The parameters as plain JSON values, checked (:func:`~tghop.cooc.config.check_settings`)."""
+        return check_settings(self.get_params())
+
+    def _check_fitted(self):
+        if not hasattr(self, "generator_"):
+            raise NotFittedError("This CoocGAN is not trained yet; call fit(exemplar) or load a checkpoint first")
+
+    def _torch_device(self, torch):
+        if self.device in (None, "auto"):
+            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        try:
+            return torch.device(self.device)
+        except (RuntimeError, TypeError):
+            raise TGHopError(f"device must be 'auto', 'cpu', 'cuda' or a torch device name, got {self.device!r}") from None
+
+    # ------------------------------------------------------------------ statistics
+    def _cooc(self, images):
+        """Co-occurrence tensor of a ``(N, C, H, W)`` tensor in [0, 1] with this model's clusters."""
+        p = self.settings_
+        return cooccurrence_tensor(images, self._centres_t.to(images.dtype), self._spreads_t.to(images.dtype),
+                                   patch=p["patch"], window=p["window"], sigma=p["sigma"], s=self.s)
+
+    def _cooc_context(self, images, cells_h: int, cells_w: int):
+        """Tensor of the cells of ``images`` that lie inside a margin of ``s`` pixels (one
+        cell) on every side: ``(N, k*k, cells_h, cells_w)``, patches reaching into the margin."""
+        return self._cooc(images)[:, :, 1 : 1 + cells_h, 1 : 1 + cells_w]
+
+    def _exemplar_tensor(self, torch, img: np.ndarray) -> np.ndarray:
+        """The exemplar's own tensor (with ``context``: from the exemplar mirror-padded by ``s``)."""
+        s = self.s
+        hh, ww = img.shape[0] // s, img.shape[1] // s
+        if self.settings_["context"]:
+            img = np.pad(img, ((s, s), (s, s), (0, 0)), mode="symmetric")
+        with torch.no_grad():
+            whole = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
+            t = self._cooc(whole)
+            return (t[:, :, 1 : 1 + hh, 1 : 1 + ww] if self.settings_["context"] else t)[0].cpu().numpy()
+
+    def cooccurrence(self, image) -> np.ndarray:
+        """Co-occurrence tensor of an image with this model's colour clusters.
+
+        Parameters
+        ----------
+        image : array_like, shape (H, W) or (H, W, C)
+            Float in [0, 1], at least ``s`` pixels on each side; C as the exemplar's.
+
+        Returns
+        -------
+        ndarray, shape (k*k, H // s, W // s), float64
+            Unnormalised (each cell sums to 1): the form :meth:`generate` takes.
+        """
+        self._check_fitted()
+        torch = import_torch("The co-occurrence cGAN")
+        img = self._check_colours(check_image(image, min_size=self.s, name="image"))
+        x = torch.as_tensor(img.transpose(2, 0, 1)[None], dtype=torch.float64, device=self._device)
+        with torch.no_grad():
+            return self._cooc(x)[0].cpu().numpy()
+
+    def _check_colours(self, img: np.ndarray) -> np.ndarray:
+        c = self.exemplar_shape_[2]
+        if img.shape[2] != c:
+            if c == 3 and img.shape[2] == 1:
+                return np.repeat(img, 3, axis=2)
+            raise TGHopError(f"the model was trained on {c}-channel images, got a {img.shape[2]}-channel one; "
+                             "convert it first")
+        return img
+
+    # ------------------------------------------------------------------ tensors on the device
+    def _to_device(self, torch):
+        """The torch device, the clusters and the condition statistics on it."""
+        self._device = self._torch_device(torch)
+        self._centres_t = torch.as_tensor(self.centres_, dtype=torch.float32, device=self._device)
+        self._spreads_t = torch.as_tensor(self.spreads_, dtype=torch.float32, device=self._device)
+        if hasattr(self, "cond_mean_"):
+            self._mean_t = torch.as_tensor(self.cond_mean_, dtype=torch.float32, device=self._device)[:, None, None]
+            self._std_t = torch.as_tensor(self.cond_std_, dtype=torch.float32, device=self._device)[:, None, None]
+
+    def _normalise(self, cond):
+        """A co-occurrence tensor as the networks see it (per-channel standardised)."""
+        return (cond - self._mean_t) / self._std_t
+
+    def _noise(self, torch, n, h, w, generator=None):
+        """N(0, 1) noise ``(n, noise_channels, h, w)`` on the device (default: training's generator)."""
+        return torch.randn((n, int(self.settings_["noise_channels"]), h, w), generator=generator or self._torch_gen,
+                           device=self._device)
+
+    @property
+    def _output_generator(self):
+        """The generator that generation uses: the averaged one when there is one."""
+        return getattr(self, "generator_ema_", self.generator_)
+
+    def raw(self) -> "CoocGAN":
+        """This model generating with the raw (last, not averaged) generator.
+
+        A shallow copy sharing the networks and statistics; without an average (``ema=0``)
+        the same as this model. For comparing the two (benchmarks/bench_cooc.py).
+        """
+        import copy
+
+        self._check_fitted()
+        other = copy.copy(self)
+        if hasattr(other, "generator_ema_"):
+            del other.generator_ema_
+        return other
+
+    # ------------------------------------------------------------------ generation
+    def _check_cond(self, cond) -> np.ndarray:
+        k2 = len(self.cond_mean_)
+        cond = np.asarray(cond, dtype=np.float64)
+        if cond.ndim != 3 or cond.shape[0] != k2:
+            raise TGHopError(f"a co-occurrence tensor of this model has shape ({k2}, h, w), got {cond.shape}")
+        if not np.all(np.isfinite(cond)) or cond.min() < 0:
+            raise TGHopError("a co-occurrence tensor must be finite and non-negative")
+        sums = cond.sum(axis=0)
+        if np.any(sums <= 0):
+            raise TGHopError("every cell of a co-occurrence tensor needs a positive sum")
+        return cond / sums  # each cell a distribution, as after the paper's re-normalisation
+
+    def noise(self, shape, *, rng=None) -> np.ndarray:
+        """A noise tensor for a condition of spatial ``shape = (h, w)``.
+
+        Returns
+        -------
+        ndarray, shape (noise_channels, h, w), float32, N(0, 1)
+        """
+        self._check_fitted()
+        h, w = (int(v) for v in shape)
+        return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
+
+    def generate(self, cond, *, noise=None, rng=None, windows: bool = False,
+                 feather: Optional[int] = None) -> np.ndarray:
+        """Texture from a co-occurrence tensor (and noise).
+
+        The generator runs once on the whole condition (the paper's way). With
+        ``windows=True`` a condition larger than the generator's training conditions
+        (``tiles * crop_size // s`` cells a side) is generated in overlapping
+        training-size windows instead (:meth:`generate_windows`); on the models tried
+        that gave no better images (docs/choices.md), so it is not the default.
+
+        Parameters
+        ----------
+        cond : array_like, shape (k*k, h, w)
+            Co-occurrence tensor (from :meth:`cooccurrence`, :func:`paint_condition`, an
+            interpolation or an edit); each cell is re-normalised to sum to 1.
+        noise : array_like, shape (noise_channels, h, w), optional
+            Noise tensor (:meth:`noise`); default drawn from ``rng``.
+        rng : int or numpy.random.Generator, optional
+        windows : bool
+            Generate in overlapping training-size windows (:meth:`generate_windows`).
+        feather : int, optional
+            With ``windows``: width in pixels of the raised-cosine blend between windows
+            (see :meth:`generate_windows`).
+
+        Returns
+        -------
+        ndarray, shape (h * s, w * s, C), float64 in [0, 1]
+        """
+        if windows:
+            return self.generate_windows(cond, noise=noise, rng=rng, feather=feather)
+        return self.generate_batch(np.asarray(cond)[None], None if noise is None else np.asarray(noise)[None],
+                                   rng=rng)[0]
+
+    def generate_batch(self, conds, noise=None, *, rng=None, windows: bool = False) -> np.ndarray:
+        """:meth:`generate` for a batch: ``conds (N, k*k, h, w)`` -> ``(N, h*s, w*s, C)``.
+
+        ``windows=True`` generates each item in windows (:meth:`generate_windows`);
+        conditions no larger than the training crops' are one window, i.e. one pass.
+        """
+        self._check_fitted()
+        torch = import_torch("The co-occurrence cGAN")
+        conds = np.stack([self._check_cond(c) for c in conds])
+        n, _, h, w = conds.shape
+        if noise is None:
+            r = check_rng(rng)
+            noise = np.stack([self.noise((h, w), rng=r) for _ in range(n)])
+        noise = np.asarray(noise, dtype=np.float32)
+        if noise.shape != (n, int(self.settings_["noise_channels"]), h, w):
+            raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
+        if windows and (h > self._window_cells or w > self._window_cells):
+            return np.stack([self.generate_windows(c, noise=z) for c, z in zip(conds, noise)])
+        return np.clip(self._run_generator(torch, conds, noise), 0.0, 1.0)
+
+    def _run_generator(self, torch, conds, noise) -> np.ndarray:
+        """The generator on raw conditions ``(N, k*k, h, w)`` and float32 noise ``(N, noise_channels,
+        h, w)``: ``(N, h*s, w*s, C)`` float64, mapped from [-1, 1] to [0, 1] but not clipped."""
+        with torch.no_grad():
+            c = self._normalise(torch.as_tensor(conds, dtype=torch.float32, device=self._device))
+            out = self._output_generator(c, torch.as_tensor(noise, device=self._device))
+        return (out.double().cpu().numpy().transpose(0, 2, 3, 1) + 1.0) * 0.5
+
+    @property
+    def _window_cells(self) -> int:
+        """Side of the generator's training condition in cells (``tiles * crop_size // s``)."""
+        return max(1, int(self.settings_["tiles"]) * int(self.settings_["crop_size"]) // self.s)
+
+    def generate_windows(self, cond, *, noise=None, rng=None, feather: Optional[int] = None,
+                         batch: int = 64) -> np.ndarray:
+        """Texture from a condition of any size, generated in overlapping training-size windows.
+
+        The condition (and one noise field for the whole image) is cut into windows of
+        ``n = tiles * crop_size // s`` cells a side -- the size the generator was trained at --
+        with a stride of ``max(1, n // 2)`` cells, each window is generated on its own,
+        and each window contributes its central ``stride x stride`` cells, cross-faded
+        into its neighbours' with raised-cosine ramps ``feather`` pixels wide (the ramps
+        sum to one, so the blend is a partition of unity). Adjacent windows see the same
+        noise and condition where they overlap, so they mostly agree there. The condition
+        and noise are mirror-padded by the window's margin so that the image border, too,
+        comes from windows' centres. Along an axis of at most ``n`` cells there is one
+        window of that axis's length; a condition of at most ``n x n`` cells is one
+        window, i.e. exactly ``generate(cond, noise=noise, rng=rng)``.
+
+        Parameters
+        ----------
+        cond : array_like, shape (k*k, h, w)
+            Co-occurrence tensor, as for :meth:`generate`.
+        noise : array_like, shape (noise_channels, h, w), optional
+            Noise tensor; mirror-padded with the condition. Default: drawn from ``rng``
+            for the padded grid.
+        rng : int or numpy.random.Generator, optional
+        feather : int, optional
+            Blend width in pixels, from 0 (hard seams between the windows' centres) to
+            ``min(stride, 2 * margin) * s`` with ``margin = (n - stride) // 2`` (for
+            ``n = 4``: 2 cells, the window's whole margin, a sin^2 window). Default
+            :data:`~tghop.cooc.assembly.FEATHER` times that.
+        batch : int
+            Windows per generator call.
+
+        Returns
+        -------
+        ndarray, shape (h * s, w * s, C), float64 in [0, 1]
+        """
+        self._check_fitted()
+        torch = import_torch("The co-occurrence cGAN")
+        cond = self._check_cond(cond)
+        k2, h, w = cond.shape
+        n, s = self._window_cells, self.s
+        if h <= n and w <= n:
+            return self.generate(cond, noise=noise, rng=rng)
+        stride = max(1, n // 2)
+        limit = min(stride, 2 * ((n - stride) // 2)) * s  # ramps within the overlap and the window
+        feather = int(round(FEATHER * limit)) if feather is None else int(feather)
+        if not 0 <= feather <= limit:
+            raise TGHopError(f"feather must lie in 0..{limit} pixels (the windows' overlap), got {feather}")
+        ys, pads_y, wy = window_layout(h, n, stride)
+        xs, pads_x, wx = window_layout(w, n, stride)
+        channels = int(self.settings_["noise_channels"])
+        padded_shape = (h + sum(pads_y), w + sum(pads_x))
+        if noise is None:
+            z = self.noise(padded_shape, rng=rng)
+        else:
+            z = np.asarray(noise, dtype=np.float32)
+            if z.shape != (channels, h, w):
+                raise TGHopError(f"noise must have shape {(channels, h, w)}, got {z.shape}")
+            z = mirror_pad(z, pads_y, pads_x)
+        c = mirror_pad(cond, pads_y, pads_x)
+        weight_y = blend_weights(wy * s, pads_y[0] * s, (pads_y[0] + stride) * s, feather, h > n)
+        weight_x = blend_weights(wx * s, pads_x[0] * s, (pads_x[0] + stride) * s, feather, w > n)
+        weight = (weight_y[:, None] * weight_x[None, :])[:, :, None]
+        canvas = np.zeros((padded_shape[0] * s, padded_shape[1] * s, self.exemplar_shape_[2]))
+        total = np.zeros(canvas.shape[:2] + (1,))
+        starts = [(y, x) for y in ys for x in xs]
+        for i in range(0, len(starts), int(batch)):
+            part = starts[i : i + int(batch)]
+            conds = np.stack([c[:, y : y + wy, x : x + wx] for y, x in part])
+            noises = np.stack([z[:, y : y + wy, x : x + wx] for y, x in part])
+            for (y, x), tile in zip(part, self._run_generator(torch, conds, noises)):
+                canvas[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight * tile
+                total[y * s : (y + wy) * s, x * s : (x + wx) * s] += weight
+        out = canvas / np.maximum(total, 1e-12)
+        y0, x0 = pads_y[0] * s, pads_x[0] * s
+        return np.clip(out[y0 : y0 + h * s, x0 : x0 + w * s], 0.0, 1.0)
+
+    def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
+        """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
+
+        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``
+        are rounded down to multiples of ``s``; default size ``crop_size``).
+
+        Returns
+        -------
+        ndarray, shape (k*k, size // s, size // s)
+        """
+        self._check_fitted()
+        s = self.s
+        size = int(self.settings_["crop_size"] if size is None else size)
+        t = self.exemplar_cooc_
+        cy, cx, n = int(y) // s, int(x) // s, max(1, size // s)
+        if min(cy, cx) < 0 or cy + n > t.shape[1] or cx + n > t.shape[2]:
+            raise TGHopError(f"a {size}x{size} crop at ({y}, {x}) is not inside the "
+                             f"{self.exemplar_shape_[0]}x{self.exemplar_shape_[1]} exemplar")
+        return t[:, cy : cy + n, cx : cx + n].copy()
+
+    def condition_for(self, size, *, rng=None) -> np.ndarray:
+        """The exemplar's own co-occurrence tensor, mirror-tiled from a random offset to cover ``size``.
+
+        Returns
+        -------
+        ndarray, shape (k*k, ceil(h / s), ceil(w / s))
+        """
+        self._check_fitted()
+        h, w = (int(v) for v in size)
+        s = self.s
+        hh, ww = -(-h // s), -(-w // s)
+        t = self.exemplar_cooc_
+        r = check_rng(rng)
+        offset = (int(r.integers(2 * t.shape[1])), int(r.integers(2 * t.shape[2])))
+        return reflect_tile(t, hh, ww, offset)
+
+    def sample(self, size=(256, 256), *, rng=None, progress: Optional[ProgressCallback] = None,
+               assembly: str = "quilt") -> np.ndarray:
+        """A texture of any size with the exemplar's statistics.
+
+        Parameters
+        ----------
+        size : int or (int, int)
+        rng : int or numpy.random.Generator, optional
+            Chooses the conditions and the noise (and, with ``"quilt"``, the quilting).
+        progress : callable, optional
+            Stage "generate" (and "quilting" with ``"quilt"``).
+        assembly : {"quilt", "pass", "windows"}
+            How the image is made from the generator (see :data:`~tghop.cooc.assembly.ASSEMBLIES`):
+
+            - ``"quilt"`` (ours, the default): :meth:`crop_pool` generates
+              :data:`~tghop.cooc.assembly.QUILT_POOL` crops of the training size (fewer
+              for crops larger than 64 px), each from a random exemplar crop's tensor, and image
+              quilting (:func:`tghop.quilting.quilt`, overlap a quarter of a crop,
+              preferring detailed candidates as TGHop does) stitches them, so the
+              generator only ever runs at the size it was trained at;
+            - ``"pass"`` (the paper's): one generator pass over the exemplar's tensor,
+              mirror-tiled from a random offset to the output size (:meth:`condition_for`);
+            - ``"windows"``: that tensor in overlapping training-size windows
+              (:meth:`generate_windows`).
+
+        Returns
+        -------
+        ndarray, shape (h, w, C), float64 in [0, 1]
+        """
+        self._check_fitted()
+        check_assembly(assembly)
+        h, w = check_size(size, default=(1, 1))
+        r = check_rng(rng)
+        if assembly == "quilt":
+            from ..quilting import quilt
+
+            side = self._window_cells * self.s
+            n = min(QUILT_POOL, max(100, QUILT_POOL * 64 * 64 // (side * side)))
+            pool = self.crop_pool(n, rng=r, progress=progress)
+            return quilt(pool, (h, w), overlap=max(1, side // 4), tolerance=QUILT_TOLERANCE, detail=QUILT_DETAIL,
+                         rng=r, progress=progress)  # float64 already
+        out = self.generate(self.condition_for((h, w), rng=r), rng=r, windows=assembly == "windows")
+        report(progress, "generate", 1, 1)
+        return out[:h, :w]
+
+    def crop_pool(self, n: int, *, rng=None, batch: int = 64,
+                  progress: Optional[ProgressCallback] = None) -> np.ndarray:
+        """``n`` generated crops of the training size, each from a random exemplar crop's tensor.
+
+        Each crop's condition is the tensor of an exemplar crop of the generator's training
+        size (``tiles * crop_size`` px) at a random cell-aligned position
+        (:meth:`crop_condition`): the distribution the generator was trained on. Each has
+        its own noise.
+
+        Parameters
+        ----------
+        n : int
+        rng : int or numpy.random.Generator, optional
+        batch : int
+            Crops per generator call.
+        progress : callable, optional
+            Stage "generate", crops done of ``n``.
+
+        Returns
+        -------
+        ndarray, shape (n, side, side, C), float32 in [0, 1]
+        """
+        self._check_fitted()
+        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
+            raise TGHopError(f"n must be a positive integer, got {n!r}")
+        n, batch = int(n), int(batch)
+        r = check_rng(rng)
+        cells, s = self._window_cells, self.s
+        _, hc, wc = self.exemplar_cooc_.shape
+        ys = r.integers(0, hc - cells + 1, size=n) * s  # fit makes sure that a window fits
+        xs = r.integers(0, wc - cells + 1, size=n) * s
+        side = cells * s
+        out = np.empty((n, side, side, self.exemplar_shape_[2]), dtype=np.float32)
+        for a in range(0, n, batch):
+            conds = [self.crop_condition(y, x, side) for y, x in zip(ys[a : a + batch], xs[a : a + batch])]
+            out[a : a + len(conds)] = self.generate_batch(conds, rng=r)
+            report(progress, "generate", a + len(conds), n)
+        return out
+
+    def morph_strip(self, a, b, *, length: int = 8, rng=None, windows: bool = False) -> np.ndarray:
+        """One image whose co-occurrence moves from ``a`` to ``b`` left to right, under one noise tensor.
+
+        Parameters
+        ----------
+        a, b : array_like, shape (k*k, h, w)
+            Co-occurrence tensors (e.g. of two crops); tiled along the strip.
+        length : int
+            Strip length in condition cells (the image is ``length * s`` pixels wide).
+        rng : int or numpy.random.Generator, optional
+        windows : bool
+            Training-size windows instead of one generator pass (see :meth:`generate`).
+
+        Returns
+        -------
+        ndarray, shape (h * s, length * s, C)
+        """
+        a, b = self._check_cond(a), self._check_cond(b)
+        if a.shape[1] != b.shape[1]:
+            raise TGHopError(f"the two tensors need the same height, got {a.shape[1]} and {b.shape[1]}")
+        length = int(length)
+        if length < 2:
+            raise TGHopError(f"length must be at least 2 cells, got {length}")
+        t = np.linspace(0.0, 1.0, length)[None, None, :]
+        cond = (1 - t) * tile(a, a.shape[1], length) + t * tile(b, b.shape[1], length)
+        return self.generate(cond, rng=rng, windows=windows)
+
+    def morph_grid(self, a, b, *, n_cols: int = 5, n_rows: int = 3, rng=None) -> np.ndarray:
+        """The paper's Fig. 2: co-occurrence interpolated across (``a`` to ``b``), noise interpolated down.
+
+        Parameters
+        ----------
+        a, b : array_like, shape (k*k, h, w)
+        n_cols, n_rows : int
+            Interpolation steps of the co-occurrence and of the noise (between two random
+            noise tensors, on the great circle so every row's noise is N(0, 1)-like).
+        rng : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        ndarray, shape (n_rows, n_cols, h * s, w * s, C)
+        """
+        a, b = self._check_cond(a), self._check_cond(b)
+        if a.shape != b.shape:
+            raise TGHopError(f"the two tensors need the same shape, got {a.shape} and {b.shape}")
+        n_cols, n_rows = int(n_cols), int(n_rows)
+        if n_cols < 1 or n_rows < 1:
+            raise TGHopError("n_cols and n_rows must be positive")
+        r = check_rng(rng)
+        z0, z1 = self.noise(a.shape[1:], rng=r), self.noise(a.shape[1:], rng=r)
+        rows = []
+        for v in np.linspace(0.0, 1.0, n_rows):
+            z = (math.cos(v * math.pi / 2) * z0 + math.sin(v * math.pi / 2) * z1).astype(np.float32)
+            conds = [(1 - u) * a + u * b for u in np.linspace(0.0, 1.0, n_cols)]
+            rows.append(self.generate_batch(np.stack(conds), np.stack([z] * n_cols)))
+        return np.stack(rows)
+
+    # ------------------------------------------------------------------ files
+    def save(self, path) -> None:
+        """Write a ``.pt`` checkpoint: tensors only (networks, optimisers, statistics, random
+        states) and the settings as JSON bytes inside; loads with ``weights_only=True``
+        (:func:`load`; the format: :mod:`tghop.cooc.checkpoints`).
+        """
+        save_checkpoint(self, path)
+
+
+def load(path, *, device: str = "auto") -> CoocGAN:
+    """Read a checkpoint written by :meth:`CoocGAN.save`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    device : str
+        Where to put the networks (``"auto"``: CUDA when present).
+
+    Returns
+    -------
+    CoocGAN
+        Trained, in evaluation mode; ``fit(exemplar, resume=True)`` continues it.
+
+    Raises
+    ------
+    ModelFileError
+        Missing file, not a tghop co-occurrence checkpoint, or another format version.
+    """
+    return read_checkpoint(path, CoocGAN, device=device)
+
+
+def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None,
+             model: Optional[CoocGAN] = None, n_steps: Optional[int] = None, assembly: str = "quilt") -> np.ndarray:
+    """The co-occurrence cGAN as a baseline: train the small configuration, then :meth:`CoocGAN.sample`.
+
+    Parameters
+    ----------
+    exemplar : array_like, shape (H, W) or (H, W, C)
+    size : int or (int, int), optional
+        Output size (any, up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's.
+    rng : int or numpy.random.Generator, optional
+        Seeds training (when ``model`` is None) and generation.
+    progress : callable, optional
+    model : CoocGAN, optional
+        A trained model to use instead of training one.
+    n_steps : int, optional
+        Generator steps of the training (default :data:`~tghop.cooc.config.SMALL`'s).
+    assembly : {"quilt", "pass", "windows"}
+        How the image is made from the generator (see :meth:`CoocGAN.sample`; ``"pass"``
+        is the paper's way).
+
+    Returns
+    -------
+    ndarray, shape (h, w, C), float64 in [0, 1]
+    """
+    check_assembly(assembly)  # before any training
+    img = check_image(exemplar, name="exemplar")
+    h, w = check_size(size, default=img.shape[:2])  # likewise
+    r = check_rng(rng)
+    if model is None:
+        model = CoocGAN(rng=r)
+        if n_steps is not None:
+            model.set_params(n_steps=n_steps)
+        model.fit(img, progress=progress)
+    return model.sample((h, w), rng=r, progress=progress, assembly=assembly)
