@@ -628,8 +628,7 @@ def test_cli_end_to_end(tmp_path):
 
 
 def test_set_parses_words_for_word_settings():
-    import tghop.cli  # noqa: F401  (cli_cooc is loaded by, and imports helpers from, the main command module)
-    from tghop.cli_cooc import parse_settings
+    from tghop.cli.cooc import parse_settings
 
     assert parse_settings(["padding=replicate", "gp_every=2", "context=true", "g_widths=[8,4]"]) == {
         "padding": "replicate", "gp_every": 2, "context": True, "g_widths": [8, 4]}

@@ -105,6 +105,9 @@ def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
         import_torch("The co-occurrence cGAN")  # the one-line hint before the exemplar is read
         check_output_path(output, what="checkpoint", error=ModelFileError)
         image = load_exemplar(exemplar)
+        from ..cooc.training import keep_mmap_threshold
+
+        keep_mmap_threshold()  # the command's process only: a long CPU training's memory stays flat
         if resume:
             if paper or overrides:
                 raise TGHopError("--resume continues a checkpoint with its own settings; drop --paper and --set")

@@ -56,7 +56,6 @@ The modules, in the order data flows through them (none imports this package's
 
 from __future__ import annotations
 
-from .._common import import_torch
 from ..cooccurrence import cooccurrence_matrix, cooccurrence_tensor, fit_colour_clusters, soft_assign
 from .assembly import ASSEMBLIES, FEATHER, QUILT_DETAIL, QUILT_POOL, QUILT_TOLERANCE, paint_condition
 from .checkpoints import FORMAT, KIND
@@ -85,9 +84,3 @@ __all__ = [
     "QUILT_TOLERANCE",
     "QUILT_DETAIL",
 ]
-
-
-def _import_torch(what: str = "The co-occurrence cGAN"):
-    """Kept only for ``tghop cooc train`` (cli_cooc.py) until it calls
-    :func:`tghop._common.import_torch` itself; remove it then."""
-    return import_torch(what)
