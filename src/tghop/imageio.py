@@ -174,18 +174,20 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
     """
     path = Path(path)
     directory = check_output_path(path, what=what, error=error)
+    tmp = None
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__})") from None
-    try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
         os.replace(tmp, path)
-    except BaseException as exc:
+    except BaseException as exc:  # Ctrl-C and the command's SIGTERM/SIGHUP (tghop.cli.common.Terminated) too
+        if tmp is None:  # mkstemp failed: nothing to remove
+            if isinstance(exc, OSError):
+                raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__})") from None
+            raise
         try:
             os.unlink(tmp)
         except FileNotFoundError:

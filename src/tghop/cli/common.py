@@ -19,8 +19,33 @@ import click
 
 from .._errors import TGHopError
 
-__all__ = ["Progress", "fail", "user_errors", "load_exemplar", "is_model_file", "summary", "check_output",
-           "numbered"]
+__all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
+           "summary", "check_output", "numbered"]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP to the ``tghop`` command (raised by the handlers that
+    :meth:`tghop.cli.group.OneLineGroup.main` installs with ``as_command=True``).
+
+    A KeyboardInterrupt, so that everything that cleans up after Ctrl-C (the temporary
+    file of :func:`tghop.imageio.write_atomic`, progress bars) does so here too; the
+    command then exits with ``128 + signum`` and ``Error: terminated``.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def stop_message(exc: BaseException):
+    """The one line and exit status for a Ctrl-C or a :class:`Terminated` (or click's
+    Abort that wraps one)."""
+    for e in (exc, getattr(exc, "__cause__", None), getattr(exc, "__context__", None)):
+        if isinstance(e, Terminated):
+            return "terminated", 128 + e.signum
+    return "interrupted", 130
+
+
 
 
 class Progress:
@@ -84,10 +109,10 @@ def user_errors(progress=None):
                 progress.close()
             where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
             fail(f"{where}{exc.strerror or exc}")
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
             if progress:
                 progress.close()
-            fail("interrupted", 130)
+            fail(*stop_message(exc))
         finally:
             if progress:
                 progress.close()
