@@ -43,6 +43,74 @@ def snapshot(d):
     return {name: None if (d / name).is_dir() else (d / name).read_bytes() for name in sorted(os.listdir(d))}
 
 
+CASES = [
+    # item 2: an output that is an input, or another output of the same command
+    (["synth", "keep.png", "-o", "x.png", "--save-model", "keep.png", *FAST], ["--save-model", "keep.npz"]),
+    (["fit", "keep.png", "-o", "keep.png", *FAST], ["-o keep.png", "image extension", "keep.npz"]),
+    (["synth", "keep.png", "-o", "yy.png", "--save-model", "yy.png", *FAST], ["--save-model yy.png", "yy.npz"]),
+    (["synth", "keep.png", "-o", "keep.png", *FAST], ["keep.png", "-o would overwrite SOURCE"]),
+    (["synth", "keep.png", "-o", "./keep.png", *FAST], ["-o would overwrite SOURCE"]),
+    (["synth", "keep_2.png", "-o", "keep.png", "--count", "3", *FAST], ["keep_2.png", "-o would overwrite SOURCE"]),
+    (["fit", "model.npz", "-o", "model.npz", *FAST], ["model.npz", "-o would overwrite EXEMPLAR"]),
+    (["fit", "keep.png", "-o", "model", *FAST], ["-o model", ".npz", "name it model.npz"]),
+    (["fit", "keep.png", "-o", "model.v2", *FAST], ["name it model.v2.npz"]),
+    (["fit", "keep.png", "-o", "m.jpg", *FAST], ["image extension", "name it m.npz"]),
+    (["synth", "keep.png", "-o", "o.png", "--save-model", "m", *FAST], ["--save-model m", "name it m.npz"]),
+    # item 10: models cannot go to stdout
+    (["fit", "keep.png", "-o", "-", *FAST], ["-o -", "stdout", "file name"]),
+    (["synth", "keep.png", "-o", "o.png", "--save-model", "-", *FAST], ["--save-model -", "stdout"]),
+    # item 8: every file of a set is checked before the first is written
+    (["synth", "model.npz", "-o", "cnt.png", "--count", "3", "--size", "40"], ["cnt_2.png", "folder"]),
+    (["synth", "keep.png", "-o", "cnt.png", "--count", "3", *FAST], ["cnt_2.png", "folder"]),
+    (["patches", "model.npz", "-n", "4", "-o", "sheet.png", "--stages"], ["sheet_stages.png", "folder"]),
+]
+
+
+@pytest.mark.parametrize("args, fragments", CASES, ids=[" ".join(a[:6]) for a, f in CASES])
+def test_refused_before_anything_is_written(folder, args, fragments):
+    before = snapshot(folder)
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, exception=exc)
+    assert snapshot(folder) == before  # nothing written, nothing replaced, no temporary file
+
+
+def test_an_output_may_replace_a_file_that_is_not_an_input(folder):
+    code, _, err, _ = invoke("synth", "model.npz", "-o", "victim.png", "--size", "40", "-q", cwd=folder)
+    assert code == 0, err
+    first = (folder / "victim.png").read_bytes()
+    code, _, err, _ = invoke("synth", "model.npz", "-o", "victim.png", "--size", "48", "-q", cwd=folder)
+    assert code == 0, err
+    assert (folder / "victim.png").read_bytes() != first
+    os.unlink(folder / "victim.png")
+
+
+def test_a_model_output_named_npz_is_written(folder):
+    code, _, err, _ = invoke("fit", "keep.png", "-o", "new.NPZ", *FAST, cwd=folder)
+    assert code == 0, err
+    assert (folder / "new.NPZ").read_bytes()[:2] == b"PK"
+    code, _, err, _ = invoke("info", "new.NPZ", cwd=folder)
+    assert code == 0, err
+    os.unlink(folder / "new.NPZ")
+
+
+def test_check_outputs_sees_links_and_spellings(tmp_path):
+    (tmp_path / "a.png").write_bytes(b"x")
+    os.link(tmp_path / "a.png", tmp_path / "hard.png")
+    os.symlink(tmp_path / "a.png", tmp_path / "soft.png")
+    from tghop._errors import TGHopError
+    from tghop.cli.common import check_outputs
+
+    for out in ("hard.png", "soft.png", "a.png", "./a.png", str(tmp_path / "a.png")):
+        with pytest.raises(TGHopError, match="would overwrite IN"):
+            check_outputs([("-o", tmp_path / out if not os.path.isabs(out) else out)], [("IN", tmp_path / "a.png")])
+    # two outputs that do not exist yet, spelled differently
+    with pytest.raises(TGHopError, match="-o and --stages"):
+        check_outputs([("-o", tmp_path / "n.png"), ("--stages", tmp_path / "sub" / ".." / "n.png")])
+    # not files: stdout, built-in exemplars, options not given
+    check_outputs([("-o", "-"), ("--save-model", None)], [("SOURCE", "builtin:bricks"), ("IN", "-")])
+    check_outputs([("-o", tmp_path / "b.png")], [("IN", tmp_path / "a.png")])
+
+
 def test_in_process_runs_keep_the_signal_handlers(folder):
     before = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
     assert CliRunner().invoke(main, ["info", str(folder / "model.npz")]).exit_code == 0

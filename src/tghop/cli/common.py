@@ -10,6 +10,7 @@ Pillow, scikit-learn, SciPy) are imported inside the functions that need them, s
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from contextlib import contextmanager
@@ -20,7 +21,7 @@ import click
 from .._errors import TGHopError
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "numbered"]
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -44,8 +45,6 @@ def stop_message(exc: BaseException):
         if isinstance(e, Terminated):
             return "terminated", 128 + e.signum
     return "interrupted", 130
-
-
 
 
 class Progress:
@@ -166,6 +165,79 @@ def check_output(path: str, allow_stdout=False):
     output_format(path)
     if path != "-":
         check_output_path(path)
+
+
+def _same_path(a: str, b: str) -> bool:
+    """Whether two paths name the same file: ``os.path.samefile`` when both exist (hard
+    and symbolic links, ``./x`` and ``x``), otherwise their resolved absolute paths."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    try:
+        return Path(a).resolve() == Path(b).resolve()
+    except (OSError, RuntimeError):  # a symlink loop, a name too long: compare as written
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
+def check_outputs(outputs, inputs=()):
+    """Refuse an output that is one of the command's inputs or another of its outputs,
+    before anything is read or written.
+
+    Parameters
+    ----------
+    outputs, inputs : sequences of (label, path)
+        ``label`` says where the path came from on the command line (``"-o"``,
+        ``"--save-model"``, ``"--stages"``, ``"EXEMPLAR"``, ...). ``None``, ``-`` (stdout
+        or stdin) and ``builtin:NAME`` are not files and are skipped.
+
+    Raises
+    ------
+    TGHopError
+        One line naming both and the fix.
+    """
+    def files(pairs):
+        return [(label, str(path)) for label, path in pairs
+                if path is not None and str(path) != "-" and not str(path).startswith("builtin:")]
+
+    outs, ins = files(outputs), files(inputs)
+    for i, (label, path) in enumerate(outs):
+        for in_label, in_path in ins:
+            if _same_path(path, in_path):
+                raise TGHopError(f"{path}: {label} would overwrite {in_label}, an input of this command; "
+                                 f"give {label} another name")
+        for other_label, other in outs[:i]:
+            if _same_path(path, other):
+                what = f"{other_label} and {label}" if other_label != label else f"two outputs of {label}"
+                raise TGHopError(f"{path} is {what}: one would be written over the other; give each its own name")
+
+
+#: Image extensions refused as a model's name with their own words.
+_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm")
+
+
+def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", what: str = "model"):
+    """Refuse a model (or checkpoint) output that cannot be one, before any work: ``-``
+    (a model cannot go to stdout), a name without ``suffix`` (an image extension or none:
+    ``-o model`` is refused, not renamed, so the name the user gave is the file there is),
+    a folder or an unwritable place (:func:`tghop.imageio.check_output_path`).
+
+    ``tghop cooc train`` calls it with ``suffix=".pt", what="checkpoint"``.
+    """
+    from .._errors import ModelFileError
+    from ..imageio import check_output_path
+
+    if str(path) == "-":
+        raise ModelFileError(f"{label} -: a {what} cannot go to stdout; give a file name, e.g. {label} {what}{suffix}")
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext != suffix:
+        fixed = p.with_suffix(suffix) if ext in _IMAGE_EXTENSIONS else p.with_name(p.name + suffix)
+        why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in _IMAGE_EXTENSIONS
+               else f"a {what} file's name ends in {suffix}")
+        raise ModelFileError(f"{label} {path}: {why}; name it {fixed}")
+    check_output_path(path, what=what, error=ModelFileError)
 
 
 def numbered(path: str, count: int):
