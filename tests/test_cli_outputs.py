@@ -63,6 +63,16 @@ CASES = [
     (["synth", "model.npz", "-o", "cnt.png", "--count", "3", "--size", "40"], ["cnt_2.png", "folder"]),
     (["synth", "keep.png", "-o", "cnt.png", "--count", "3", *FAST], ["cnt_2.png", "folder"]),
     (["patches", "model.npz", "-n", "4", "-o", "sheet.png", "--stages"], ["sheet_stages.png", "folder"]),
+    # item 9: what is wrong, in the command's own words
+    (["synth", "garbage.npz", "-o", "o.png"], ["garbage.npz", "not a tghop model file"]),
+    (["synth", "notes.npz", "-o", "o.png"], ["notes.npz", "not a tghop model file"]),
+    (["synth", "plain.npz", "-o", "o.png"], ["plain.npz", "not a tghop model file"]),
+    (["patches", "model.npz", "-o", "-", "--stages"], ["--stages needs a file name"]),
+    (["fit", "big.png", "-o", "m.npz"], ["9000x9000", "pass --downscale"]),
+    (["synth", "big.png", "-o", "o.png"], ["9000x9000", "pass --downscale"]),
+    (["evaluate", "big.png", "keep.png"], ["9000x9000", "downscale it first"]),
+    (["evaluate", "keep.png", "big.png"], ["9000x9000", "downscale it first"]),
+    (["baseline", "crop", "big.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
 ]
 
 
@@ -71,6 +81,8 @@ def test_refused_before_anything_is_written(folder, args, fragments):
     before = snapshot(folder)
     code, _, err, exc = invoke(*args, cwd=folder)
     assert_one_line(code, err, *fragments, exception=exc)
+    if args[0] in ("evaluate", "baseline"):  # no --downscale there: the advice does not name it
+        assert "--downscale" not in err
     assert snapshot(folder) == before  # nothing written, nothing replaced, no temporary file
 
 

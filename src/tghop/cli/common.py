@@ -120,8 +120,17 @@ def user_errors(progress=None):
                     click.echo(f"Warning: {w.message}", err=True)
 
 
-def load_exemplar(spec: str, *, downscale=False, dtype="float64"):
-    """An image file, or ``builtin:NAME`` for a built-in exemplar."""
+#: What to do about an image over the size limit, in a command with ``--downscale`` and in one without.
+HINT_DOWNSCALE_OPTION = "pass --downscale to reduce it (or downscale it yourself)"
+HINT_DOWNSCALE_YOURSELF = "downscale it first (e.g. to 8192x8192)"
+
+
+def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False):
+    """An image file, or ``builtin:NAME`` for a built-in exemplar.
+
+    ``has_downscale``: the command has a ``--downscale`` option, so an image over the size
+    limit is answered with "pass --downscale"; otherwise with "downscale it first".
+    """
     from ..data import builtin
     from ..imageio import load_image
 
@@ -129,7 +138,8 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64"):
         return builtin(spec.split(":", 1)[1])
     if is_model_file(spec):
         raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
-    return load_image(spec, downscale=downscale, dtype=dtype)
+    return load_image(spec, downscale=downscale, dtype=dtype,
+                      too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
 
 
 def is_model_file(path: str) -> bool:

@@ -31,7 +31,7 @@ def fit(exemplar, output, downscale, quiet, **options):
 
         check_model_output(output, "-o")  # before any work
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar)])
-        image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None),
+        image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None, has_downscale=True),
                                  min_size=options.get("patch_size") or 32)
         model = build_model(options, n_colours=image.shape[2])
         model.fit(image, progress=progress)
@@ -56,7 +56,10 @@ def patches(model_file, n, output, seed, stages):
     from ..patches import patch_grid, stage_sheet
 
     with user_errors():
-        check_output(output, allow_stdout=not stages)
+        if stages and output == "-":
+            raise TGHopError("--stages needs a file name: it writes OUTPUT_stages next to -o's image, "
+                             "so give -o a file name (e.g. -o patches.png) or drop --stages")
+        check_output(output, allow_stdout=True)
         stage_path = None
         if stages:  # checked with the grid, before anything is generated or written
             path = Path(output)
@@ -107,7 +110,9 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
         check_output(output, allow_stdout=True)
         if output == "-" and count > 1:
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
-        from_model = not source.startswith("builtin:") and is_model_file(source)
+        # A .npz SOURCE is read as a model whatever its bytes ("not a tghop model file", not
+        # "not a readable image"); other names as a model when they start like one.
+        from_model = not source.startswith("builtin:") and (source.lower().endswith(".npz") or is_model_file(source))
         if from_model:
             fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
                         + ["save_model", "downscale"])
@@ -131,7 +136,7 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
         if from_model:
             model = load_model(source)
         else:
-            image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None),
+            image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None, has_downscale=True),
                                      min_size=options.get("patch_size") or 32)
             model = build_model(options, n_colours=image.shape[2])
             model.fit(image, progress=progress)
