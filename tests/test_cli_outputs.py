@@ -121,6 +121,15 @@ def test_check_outputs_sees_links_and_spellings(tmp_path):
     # not files: stdout, built-in exemplars, options not given
     check_outputs([("-o", "-"), ("--save-model", None)], [("SOURCE", "builtin:bricks"), ("IN", "-")])
     check_outputs([("-o", tmp_path / "b.png")], [("IN", tmp_path / "a.png")])
+    # --count's largest set: each name looked at once, not every pair (1000 names: 38 s pairwise)
+    from tghop.cli.common import numbered
+
+    start = time.perf_counter()
+    check_outputs([("-o", path) for path in numbered(str(tmp_path / "n.png"), 1000)], [("IN", tmp_path / "a.png")])
+    assert time.perf_counter() - start < 5
+    with pytest.raises(TGHopError, match="would overwrite IN"):
+        check_outputs([("-o", path) for path in numbered(str(tmp_path / "a.png"), 1000)],
+                      [("IN", tmp_path / "a_0500.png")])
 
 
 def test_in_process_runs_keep_the_signal_handlers(folder):

@@ -177,18 +177,18 @@ def check_output(path: str, allow_stdout=False):
         check_output_path(path)
 
 
-def _same_path(a: str, b: str) -> bool:
-    """Whether two paths name the same file: ``os.path.samefile`` when both exist (hard
-    and symbolic links, ``./x`` and ``x``), otherwise their resolved absolute paths."""
+def _file_key(path: str):
+    """What names one file: device and inode of an existing file (so hard and symbolic
+    links, ``./x`` and ``x`` are the same), otherwise the resolved absolute path."""
     try:
-        if os.path.exists(a) and os.path.exists(b):
-            return os.path.samefile(a, b)
+        st = os.stat(path)
+        return ("inode", st.st_dev, st.st_ino)
     except OSError:
         pass
     try:
-        return Path(a).resolve() == Path(b).resolve()
-    except (OSError, RuntimeError):  # a symlink loop, a name too long: compare as written
-        return os.path.abspath(a) == os.path.abspath(b)
+        return ("path", str(Path(path).resolve()))
+    except (OSError, RuntimeError):  # a symlink loop, a name too long: as written
+        return ("path", os.path.abspath(path))
 
 
 def check_outputs(outputs, inputs=()):
@@ -198,9 +198,10 @@ def check_outputs(outputs, inputs=()):
     Parameters
     ----------
     outputs, inputs : sequences of (label, path)
-        ``label`` says where the path came from on the command line (``"-o"``,
-        ``"--save-model"``, ``"--stages"``, ``"EXEMPLAR"``, ...). ``None``, ``-`` (stdout
-        or stdin) and ``builtin:NAME`` are not files and are skipped.
+        Compared as files (:func:`_file_key`: the same inode when they exist, else the
+        same resolved path). ``label`` says where the path came from on the command line
+        (``"-o"``, ``"--save-model"``, ``"--stages"``, ``"EXEMPLAR"``, ...). ``None``,
+        ``-`` (stdout or stdin) and ``builtin:NAME`` are not files and are skipped.
 
     Raises
     ------
@@ -211,16 +212,19 @@ def check_outputs(outputs, inputs=()):
         return [(label, str(path)) for label, path in pairs
                 if path is not None and str(path) != "-" and not str(path).startswith("builtin:")]
 
-    outs, ins = files(outputs), files(inputs)
-    for i, (label, path) in enumerate(outs):
-        for in_label, in_path in ins:
-            if _same_path(path, in_path):
-                raise TGHopError(f"{path}: {label} would overwrite {in_label}, an input of this command; "
+    seen = {}
+    for label, path in files(inputs):
+        seen.setdefault(_file_key(path), (label, path, True))
+    for label, path in files(outputs):  # one key each: --count 1000 stays linear
+        key = _file_key(path)
+        if key in seen:
+            other_label, other, is_input = seen[key]
+            if is_input:
+                raise TGHopError(f"{path}: {label} would overwrite {other_label}, an input of this command; "
                                  f"give {label} another name")
-        for other_label, other in outs[:i]:
-            if _same_path(path, other):
-                what = f"{other_label} and {label}" if other_label != label else f"two outputs of {label}"
-                raise TGHopError(f"{path} is {what}: one would be written over the other; give each its own name")
+            what = f"{other_label} and {label}" if other_label != label else f"two outputs of {label}"
+            raise TGHopError(f"{path} is {what}: one would be written over the other; give each its own name")
+        seen[key] = (label, path, False)
 
 
 #: Image extensions refused as a model's name with their own words.
