@@ -31,12 +31,12 @@ def workdir(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def model_path(workdir):
-    r = run("fit", workdir / "bricks.png", "-o", workdir / "model.bin", *FAST)
+    r = run("fit", workdir / "bricks.png", "-o", workdir / "model.npz", *FAST)
     assert r.returncode == 0, r.stderr.decode()
     err = r.stderr.decode()
     assert "D0=3072 -> D1=2304 -> D2=1408" in err and "D_r=" in err and "F=" in err
     assert "parameters:" in err
-    return workdir / "model.bin"
+    return workdir / "model.npz"
 
 
 def test_info(model_path):

@@ -28,7 +28,8 @@ FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
 MAX_IMAGE_PIXELS = 8192 * 8192
 
 
-def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.float64) -> np.ndarray:
+def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.float64,
+               too_large_hint: str = "pass downscale=True to reduce it (or downscale it yourself)") -> np.ndarray:
     """Read an image file as a float array.
 
     Parameters
@@ -44,6 +45,9 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     dtype : {numpy.float64, numpy.float32, None}
         None keeps 8-bit images as uint8 (0-255, an eighth of the memory; what
         :meth:`TGHop.fit` takes for large exemplars) and gives float64 for deeper ones.
+    too_large_hint : str
+        The advice that ends the error for an image over ``max_pixels`` (the command line
+        says "pass --downscale" only in the commands that have that option).
 
     Returns
     -------
@@ -61,7 +65,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit applies
             with Image.open(path) as im:
-                arr, mode = _decode(im, path, max_pixels, downscale)
+                arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint)
     except InvalidImageError:
         raise
     except Image.DecompressionBombError:
@@ -81,7 +85,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     return check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype)
 
 
-def _decode(im, path, max_pixels, downscale):
+def _decode(im, path, max_pixels, downscale, too_large_hint):
     """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode)."""
     width, height = im.size
     if width < 1 or height < 1:
@@ -90,7 +94,7 @@ def _decode(im, path, max_pixels, downscale):
         if not downscale:
             raise InvalidImageError(
                 f"{path}: the image is {width}x{height} pixels, more than the {max_pixels:,} tghop reads; "
-                "pass --downscale to reduce it (or downscale it yourself)")
+                f"{too_large_hint}")
         factor = (width * height / max_pixels) ** 0.5
         size = (max(1, int(width / factor)), max(1, int(height / factor)))
         im.draft(im.mode, size)  # JPEG: decode at reduced size directly
@@ -174,18 +178,20 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
     """
     path = Path(path)
     directory = check_output_path(path, what=what, error=error)
+    tmp = None
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__})") from None
-    try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
         os.replace(tmp, path)
-    except BaseException as exc:
+    except BaseException as exc:  # Ctrl-C and the command's SIGTERM/SIGHUP (tghop.cli.common.Terminated) too
+        if tmp is None:  # mkstemp failed: nothing to remove
+            if isinstance(exc, OSError):
+                raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__})") from None
+            raise
         try:
             os.unlink(tmp)
         except FileNotFoundError:

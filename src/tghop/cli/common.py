@@ -10,6 +10,7 @@ Pillow, scikit-learn, SciPy) are imported inside the functions that need them, s
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from contextlib import contextmanager
@@ -19,8 +20,31 @@ import click
 
 from .._errors import TGHopError
 
-__all__ = ["Progress", "fail", "user_errors", "load_exemplar", "is_model_file", "summary", "check_output",
-           "numbered"]
+__all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered"]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP to the ``tghop`` command (raised by the handlers that
+    :meth:`tghop.cli.group.OneLineGroup.main` installs with ``as_command=True``).
+
+    A KeyboardInterrupt, so that everything that cleans up after Ctrl-C (the temporary
+    file of :func:`tghop.imageio.write_atomic`, progress bars) does so here too; the
+    command then exits with ``128 + signum`` and ``Error: terminated``.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def stop_message(exc: BaseException):
+    """The one line and exit status for a Ctrl-C or a :class:`Terminated` (or click's
+    Abort that wraps one)."""
+    for e in (exc, getattr(exc, "__cause__", None), getattr(exc, "__context__", None)):
+        if isinstance(e, Terminated):
+            return "terminated", 128 + e.signum
+    return "interrupted", 130
 
 
 class Progress:
@@ -84,10 +108,10 @@ def user_errors(progress=None):
                 progress.close()
             where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
             fail(f"{where}{exc.strerror or exc}")
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
             if progress:
                 progress.close()
-            fail("interrupted", 130)
+            fail(*stop_message(exc))
         finally:
             if progress:
                 progress.close()
@@ -96,8 +120,17 @@ def user_errors(progress=None):
                     click.echo(f"Warning: {w.message}", err=True)
 
 
-def load_exemplar(spec: str, *, downscale=False, dtype="float64"):
-    """An image file, or ``builtin:NAME`` for a built-in exemplar."""
+#: What to do about an image over the size limit, in a command with ``--downscale`` and in one without.
+HINT_DOWNSCALE_OPTION = "pass --downscale to reduce it (or downscale it yourself)"
+HINT_DOWNSCALE_YOURSELF = "downscale it first (e.g. to 8192x8192)"
+
+
+def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False):
+    """An image file, or ``builtin:NAME`` for a built-in exemplar.
+
+    ``has_downscale``: the command has a ``--downscale`` option, so an image over the size
+    limit is answered with "pass --downscale"; otherwise with "downscale it first".
+    """
     from ..data import builtin
     from ..imageio import load_image
 
@@ -105,7 +138,8 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64"):
         return builtin(spec.split(":", 1)[1])
     if is_model_file(spec):
         raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
-    return load_image(spec, downscale=downscale, dtype=dtype)
+    return load_image(spec, downscale=downscale, dtype=dtype,
+                      too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
 
 
 def is_model_file(path: str) -> bool:
@@ -141,6 +175,83 @@ def check_output(path: str, allow_stdout=False):
     output_format(path)
     if path != "-":
         check_output_path(path)
+
+
+def _file_key(path: str):
+    """What names one file: device and inode of an existing file (so hard and symbolic
+    links, ``./x`` and ``x`` are the same), otherwise the resolved absolute path."""
+    try:
+        st = os.stat(path)
+        return ("inode", st.st_dev, st.st_ino)
+    except OSError:
+        pass
+    try:
+        return ("path", str(Path(path).resolve()))
+    except (OSError, RuntimeError):  # a symlink loop, a name too long: as written
+        return ("path", os.path.abspath(path))
+
+
+def check_outputs(outputs, inputs=()):
+    """Refuse an output that is one of the command's inputs or another of its outputs,
+    before anything is read or written.
+
+    Parameters
+    ----------
+    outputs, inputs : sequences of (label, path)
+        Compared as files (:func:`_file_key`: the same inode when they exist, else the
+        same resolved path). ``label`` says where the path came from on the command line
+        (``"-o"``, ``"--save-model"``, ``"--stages"``, ``"EXEMPLAR"``, ...). ``None``,
+        ``-`` (stdout or stdin) and ``builtin:NAME`` are not files and are skipped.
+
+    Raises
+    ------
+    TGHopError
+        One line naming both and the fix.
+    """
+    def files(pairs):
+        return [(label, str(path)) for label, path in pairs
+                if path is not None and str(path) != "-" and not str(path).startswith("builtin:")]
+
+    seen = {}
+    for label, path in files(inputs):
+        seen.setdefault(_file_key(path), (label, path, True))
+    for label, path in files(outputs):  # one key each: --count 1000 stays linear
+        key = _file_key(path)
+        if key in seen:
+            other_label, other, is_input = seen[key]
+            if is_input:
+                raise TGHopError(f"{path}: {label} would overwrite {other_label}, an input of this command; "
+                                 f"give {label} another name")
+            what = f"{other_label} and {label}" if other_label != label else f"two outputs of {label}"
+            raise TGHopError(f"{path} is {what}: one would be written over the other; give each its own name")
+        seen[key] = (label, path, False)
+
+
+#: Image extensions refused as a model's name with their own words.
+_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm")
+
+
+def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", what: str = "model"):
+    """Refuse a model (or checkpoint) output that cannot be one, before any work: ``-``
+    (a model cannot go to stdout), a name without ``suffix`` (an image extension or none:
+    ``-o model`` is refused, not renamed, so the name the user gave is the file there is),
+    a folder or an unwritable place (:func:`tghop.imageio.check_output_path`).
+
+    ``tghop cooc train`` calls it with ``suffix=".pt", what="checkpoint"``.
+    """
+    from .._errors import ModelFileError
+    from ..imageio import check_output_path
+
+    if str(path) == "-":
+        raise ModelFileError(f"{label} -: a {what} cannot go to stdout; give a file name, e.g. {label} {what}{suffix}")
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext != suffix:
+        fixed = p.with_suffix(suffix) if ext in _IMAGE_EXTENSIONS else p.with_name(p.name + suffix)
+        why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in _IMAGE_EXTENSIONS
+               else f"a {what} file's name ends in {suffix}")
+        raise ModelFileError(f"{label} {path}: {why}; name it {fixed}")
+    check_output_path(path, what=what, error=ModelFileError)
 
 
 def numbered(path: str, count: int):

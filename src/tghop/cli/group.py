@@ -17,7 +17,7 @@ import sys
 import click
 
 from .. import __version__
-from .common import fail
+from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
 from .texture import fit, info, patches, synth
@@ -31,6 +31,24 @@ _COMMAND_MODULES = {
     "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
     "info": ("numpy", "tghop.modelfile"),
 }
+
+
+#: Signals that stop the command as Ctrl-C does (with their own line and exit status).
+_STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _terminated(signum, frame):
+    raise Terminated(signum)
+
+
+def _stop_on_signals():
+    """SIGTERM and SIGHUP raise :class:`~tghop.cli.common.Terminated` (a KeyboardInterrupt)
+    in the command, so that they clean up as Ctrl-C does (no temporary file left) and end
+    with one ``Error: terminated`` line and exit status 128 + the signal's number. A signal
+    the caller set to be ignored (``nohup`` ignores SIGHUP) stays ignored."""
+    for signum in _STOP_SIGNALS:
+        if signal.getsignal(signum) == signal.SIG_DFL:
+            signal.signal(signum, _terminated)
 
 
 def _import_for(args):
@@ -70,16 +88,17 @@ class OneLineGroup(click.Group):
                 _import_for(sys.argv[1:] if args is None else list(args))
                 gc.freeze()
                 signal.signal(signal.SIGINT, signal.default_int_handler)
+                _stop_on_signals()
             rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
-        except click.exceptions.Abort:  # Ctrl-C or EOF inside click
-            fail("interrupted", 130)
+        except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
+            fail(*stop_message(exc))
         except click.UsageError as exc:
             command = exc.ctx.command_path if exc.ctx is not None else "tghop"
             fail(f"{exc.format_message()} (see '{command} --help')", exc.exit_code)
         except click.ClickException as exc:
             fail(exc.format_message(), exc.exit_code)
-        except KeyboardInterrupt:
-            fail("interrupted", 130)
+        except KeyboardInterrupt as exc:
+            fail(*stop_message(exc))
         except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
             sys.exit(1)
         finally:

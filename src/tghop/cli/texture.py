@@ -8,7 +8,8 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .common import Progress, check_output, is_model_file, load_exemplar, numbered, summary, user_errors
+from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file, load_exemplar,
+                     numbered, summary, user_errors)
 from .options import (DOWNSCALE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, build_model, generation_options,
                       given_options, model_options)
 
@@ -17,7 +18,7 @@ __all__ = ["fit", "synth", "patches", "info"]
 
 @click.command()
 @click.argument("exemplar")
-@click.option("-o", "--output", required=True, help="Model file to write (any name, e.g. model.npz).")
+@click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
 @model_options
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
@@ -25,13 +26,12 @@ def fit(exemplar, output, downscale, quiet, **options):
     """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it."""
     progress = Progress(not quiet)
     with user_errors(progress):
-        from .._common import ModelFileError
-        from ..imageio import check_output_path
         from ..modelfile import save_model
         from ..synthesis import prepare_exemplar
 
-        check_output_path(output, what="model", error=ModelFileError)  # before any work
-        image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None),
+        check_model_output(output, "-o")  # before any work
+        check_outputs([("-o", output)], [("EXEMPLAR", exemplar)])
+        image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None, has_downscale=True),
                                  min_size=options.get("patch_size") or 32)
         model = build_model(options, n_colours=image.shape[2])
         model.fit(image, progress=progress)
@@ -56,7 +56,16 @@ def patches(model_file, n, output, seed, stages):
     from ..patches import patch_grid, stage_sheet
 
     with user_errors():
-        check_output(output, allow_stdout=not stages)
+        if stages and output == "-":
+            raise TGHopError("--stages needs a file name: it writes OUTPUT_stages next to -o's image, "
+                             "so give -o a file name (e.g. -o patches.png) or drop --stages")
+        check_output(output, allow_stdout=True)
+        stage_path = None
+        if stages:  # checked with the grid, before anything is generated or written
+            path = Path(output)
+            stage_path = str(path.with_name(f"{path.stem}_stages{path.suffix}"))
+            check_output(stage_path)
+        check_outputs([("-o", output), ("--stages", stage_path)], [("MODEL", model_file)])
         model = load_model(model_file)
         if stages:
             samples, views = model.sample_patches(n, rng=seed, return_stages=True)
@@ -64,8 +73,6 @@ def patches(model_file, n, output, seed, stages):
             samples = model.sample_patches(n, rng=seed)
         save_image(patch_grid(samples), output)
         if stages:
-            path = Path(output)
-            stage_path = path.with_name(f"{path.stem}_stages{path.suffix}")
             save_image(stage_sheet(views, model.patch_size), stage_path)
             click.echo(f"stage views written to {stage_path}", err=True)
     if output != "-":
@@ -85,7 +92,7 @@ def patches(model_file, n, output, seed, stages):
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of generation: the same seed gives the same image; without it every run differs.")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
-              help="When SOURCE is an image, also save the fitted model here.")
+              help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
 @generation_options
 @model_options
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
@@ -93,8 +100,7 @@ def patches(model_file, n, output, seed, stages):
 @click.pass_context
 def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
-    from .._common import ModelFileError
-    from ..imageio import check_output_path, save_image
+    from ..imageio import save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME, generate_settings
     from ..synthesis import prepare_exemplar
@@ -104,7 +110,9 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
         check_output(output, allow_stdout=True)
         if output == "-" and count > 1:
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
-        from_model = not source.startswith("builtin:") and is_model_file(source)
+        # A .npz SOURCE is read as a model whatever its bytes ("not a tghop model file", not
+        # "not a readable image"); other names as a model when they start like one.
+        from_model = not source.startswith("builtin:") and (source.lower().endswith(".npz") or is_model_file(source))
         if from_model:
             fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
                         + ["save_model", "downscale"])
@@ -117,12 +125,18 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
             value = options.pop(s.name)
             generation[s.name] = value if value is not None else (
                 s.paper if options.get("paper") and s.has_paper else s.default)
+        # Every output checked before the fit and before the first image is written.
+        outputs = [output] if count == 1 else numbered(output, count)
+        if count > 1:
+            for path in outputs:
+                check_output(path)
         if save_model and not from_model:
-            check_output_path(save_model, what="model", error=ModelFileError)  # before the fit
+            check_model_output(save_model, "--save-model")
+        check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)], [("SOURCE", source)])
         if from_model:
             model = load_model(source)
         else:
-            image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None),
+            image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None, has_downscale=True),
                                      min_size=options.get("patch_size") or 32)
             model = build_model(options, n_colours=image.shape[2])
             model.fit(image, progress=progress)
@@ -131,7 +145,6 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
         import numpy as np
 
         rng = np.random.default_rng(seed)
-        outputs = [output] if count == 1 else numbered(output, count)
         for path in outputs:
             # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
             image = model.synthesize(size, rng=rng, progress=progress, dtype=np.uint8, **generation)

@@ -1,0 +1,199 @@
+"""The command line never writes over the user's files, never writes half a set, and a
+SIGTERM or SIGHUP leaves no temporary file (issue #26, items 2, 7, 8, 9, 10).
+
+Outputs are checked before any work: an output that is an input or another output of the
+same command, a model output that is not NAME.npz (or is stdout), and every file of a set
+(--count, --stages) are refused with one line, the folder left as it was.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from tghop import data
+from tghop.cli import main
+from tghop.imageio import save_image
+from tghop.modelfile import save_model
+
+from test_cli_failures import FAST, assert_one_line, invoke, png_header
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory, small_model):
+    d = tmp_path_factory.mktemp("outputs")
+    save_image(data.bricks(72, rng=2), d / "keep.png")
+    save_model(small_model, d / "model.npz")
+    (d / "big.png").write_bytes(png_header(9000, 9000))  # over 64 Mpx, under Pillow's bomb limit
+    (d / "garbage.npz").write_bytes(b"not a zip, not an image")
+    (d / "notes.npz").write_bytes(b"PK\x03\x04 and then nothing a zip reader wants")
+    np.savez(d / "plain.npz", a=np.arange(3))
+    os.mkdir(d / "cnt_2.png")  # the second file of a --count 3 set is a folder
+    os.mkdir(d / "sheet_stages.png")  # the --stages file is a folder
+    return d
+
+
+def snapshot(d):
+    """Every entry of ``d`` with its bytes (folders as None): what a refused command must not change."""
+    return {name: None if (d / name).is_dir() else (d / name).read_bytes() for name in sorted(os.listdir(d))}
+
+
+CASES = [
+    # item 2: an output that is an input, or another output of the same command
+    (["synth", "keep.png", "-o", "x.png", "--save-model", "keep.png", *FAST], ["--save-model", "keep.npz"]),
+    (["fit", "keep.png", "-o", "keep.png", *FAST], ["-o keep.png", "image extension", "keep.npz"]),
+    (["synth", "keep.png", "-o", "yy.png", "--save-model", "yy.png", *FAST], ["--save-model yy.png", "yy.npz"]),
+    (["synth", "keep.png", "-o", "keep.png", *FAST], ["keep.png", "-o would overwrite SOURCE"]),
+    (["synth", "keep.png", "-o", "./keep.png", *FAST], ["-o would overwrite SOURCE"]),
+    (["synth", "keep_2.png", "-o", "keep.png", "--count", "3", *FAST], ["keep_2.png", "-o would overwrite SOURCE"]),
+    (["fit", "model.npz", "-o", "model.npz", *FAST], ["model.npz", "-o would overwrite EXEMPLAR"]),
+    (["fit", "keep.png", "-o", "model", *FAST], ["-o model", ".npz", "name it model.npz"]),
+    (["fit", "keep.png", "-o", "model.v2", *FAST], ["name it model.v2.npz"]),
+    (["fit", "keep.png", "-o", "m.jpg", *FAST], ["image extension", "name it m.npz"]),
+    (["synth", "keep.png", "-o", "o.png", "--save-model", "m", *FAST], ["--save-model m", "name it m.npz"]),
+    # item 10: models cannot go to stdout
+    (["fit", "keep.png", "-o", "-", *FAST], ["-o -", "stdout", "file name"]),
+    (["synth", "keep.png", "-o", "o.png", "--save-model", "-", *FAST], ["--save-model -", "stdout"]),
+    # item 8: every file of a set is checked before the first is written
+    (["synth", "model.npz", "-o", "cnt.png", "--count", "3", "--size", "40"], ["cnt_2.png", "folder"]),
+    (["synth", "keep.png", "-o", "cnt.png", "--count", "3", *FAST], ["cnt_2.png", "folder"]),
+    (["patches", "model.npz", "-n", "4", "-o", "sheet.png", "--stages"], ["sheet_stages.png", "folder"]),
+    # item 9: what is wrong, in the command's own words
+    (["synth", "garbage.npz", "-o", "o.png"], ["garbage.npz", "not a tghop model file"]),
+    (["synth", "notes.npz", "-o", "o.png"], ["notes.npz", "not a tghop model file"]),
+    (["synth", "plain.npz", "-o", "o.png"], ["plain.npz", "not a tghop model file"]),
+    (["patches", "model.npz", "-o", "-", "--stages"], ["--stages needs a file name"]),
+    (["fit", "big.png", "-o", "m.npz"], ["9000x9000", "pass --downscale"]),
+    (["synth", "big.png", "-o", "o.png"], ["9000x9000", "pass --downscale"]),
+    (["evaluate", "big.png", "keep.png"], ["9000x9000", "downscale it first"]),
+    (["evaluate", "keep.png", "big.png"], ["9000x9000", "downscale it first"]),
+    (["baseline", "crop", "big.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
+]
+
+
+@pytest.mark.parametrize("args, fragments", CASES, ids=[" ".join(a[:6]) for a, f in CASES])
+def test_refused_before_anything_is_written(folder, args, fragments):
+    before = snapshot(folder)
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, exception=exc)
+    if args[0] in ("evaluate", "baseline"):  # no --downscale there: the advice does not name it
+        assert "--downscale" not in err
+    assert snapshot(folder) == before  # nothing written, nothing replaced, no temporary file
+
+
+def test_an_output_may_replace_a_file_that_is_not_an_input(folder):
+    code, _, err, _ = invoke("synth", "model.npz", "-o", "victim.png", "--size", "40", "-q", cwd=folder)
+    assert code == 0, err
+    first = (folder / "victim.png").read_bytes()
+    code, _, err, _ = invoke("synth", "model.npz", "-o", "victim.png", "--size", "48", "-q", cwd=folder)
+    assert code == 0, err
+    assert (folder / "victim.png").read_bytes() != first
+    os.unlink(folder / "victim.png")
+
+
+def test_a_model_output_named_npz_is_written(folder):
+    code, _, err, _ = invoke("fit", "keep.png", "-o", "new.NPZ", *FAST, cwd=folder)
+    assert code == 0, err
+    assert (folder / "new.NPZ").read_bytes()[:2] == b"PK"
+    code, _, err, _ = invoke("info", "new.NPZ", cwd=folder)
+    assert code == 0, err
+    os.unlink(folder / "new.NPZ")
+
+
+def test_check_outputs_sees_links_and_spellings(tmp_path):
+    (tmp_path / "a.png").write_bytes(b"x")
+    os.link(tmp_path / "a.png", tmp_path / "hard.png")
+    os.symlink(tmp_path / "a.png", tmp_path / "soft.png")
+    from tghop._errors import TGHopError
+    from tghop.cli.common import check_outputs
+
+    for out in ("hard.png", "soft.png", "a.png", "./a.png", str(tmp_path / "a.png")):
+        with pytest.raises(TGHopError, match="would overwrite IN"):
+            check_outputs([("-o", tmp_path / out if not os.path.isabs(out) else out)], [("IN", tmp_path / "a.png")])
+    # two outputs that do not exist yet, spelled differently
+    with pytest.raises(TGHopError, match="-o and --stages"):
+        check_outputs([("-o", tmp_path / "n.png"), ("--stages", tmp_path / "sub" / ".." / "n.png")])
+    # not files: stdout, built-in exemplars, options not given
+    check_outputs([("-o", "-"), ("--save-model", None)], [("SOURCE", "builtin:bricks"), ("IN", "-")])
+    check_outputs([("-o", tmp_path / "b.png")], [("IN", tmp_path / "a.png")])
+    # --count's largest set: each name looked at once, not every pair (1000 names: 38 s pairwise)
+    from tghop.cli.common import numbered
+
+    start = time.perf_counter()
+    check_outputs([("-o", path) for path in numbered(str(tmp_path / "n.png"), 1000)], [("IN", tmp_path / "a.png")])
+    assert time.perf_counter() - start < 5
+    with pytest.raises(TGHopError, match="would overwrite IN"):
+        check_outputs([("-o", path) for path in numbered(str(tmp_path / "a.png"), 1000)],
+                      [("IN", tmp_path / "a_0500.png")])
+
+
+def test_in_process_runs_keep_the_signal_handlers(folder):
+    before = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
+    assert CliRunner().invoke(main, ["info", str(folder / "model.npz")]).exit_code == 0
+    assert {s: signal.getsignal(s) for s in before} == before
+
+
+#: The command as the console script runs it, its PNG writing slowed down: the child says
+#: "writing" once the temporary file exists and is half written, then waits for the signal.
+SLOW_WRITE = (
+    "import sys, time\n"
+    "import tghop.imageio as io\n"
+    "delay = float(sys.argv.pop(1))\n"
+    "def slow(fh, pixels, **kw):\n"
+    "    fh.write(b'\\x89PNG partial')\n"
+    "    fh.flush()\n"
+    "    print('writing', flush=True)\n"
+    "    time.sleep(delay)\n"
+    "    return original(fh, pixels, **kw)\n"
+    "original, io.write_png = io.write_png, slow\n"
+    "if sys.argv[1] == 'ignore-hup':\n"
+    "    import signal\n"
+    "    sys.argv.pop(1)\n"
+    "    signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup does\n"
+    "sys.argv[0] = 'tghop'\n"
+    "from tghop.__main__ import run\n"
+    "run()\n"
+)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_sigterm_and_sighup_during_the_write_leave_no_temporary_file(folder, tmp_path, signum):
+    p = subprocess.Popen([sys.executable, "-c", SLOW_WRITE, "60", "synth", str(folder / "model.npz"), "-o",
+                          "out.png", "--size", "64", "-q"], cwd=tmp_path, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    assert p.stdout.readline() == b"writing\n"
+    assert any(name.endswith(".tmp") for name in os.listdir(tmp_path))  # the write is under way
+    p.send_signal(signum)
+    _, err = p.communicate(timeout=60)
+    err = err.decode()
+    assert p.returncode == 128 + signum, err
+    assert err.strip() == "Error: terminated", err
+    assert os.listdir(tmp_path) == []  # no out.png, no hidden .out.png.XXXX.tmp
+
+
+def test_an_ignored_sighup_stays_ignored(folder, tmp_path):
+    p = subprocess.Popen([sys.executable, "-c", SLOW_WRITE, "1", "ignore-hup", "synth", str(folder / "model.npz"),
+                          "-o", "out.png", "--size", "64", "-q"], cwd=tmp_path, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    assert p.stdout.readline() == b"writing\n"
+    p.send_signal(signal.SIGHUP)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 0, err.decode()
+    assert os.listdir(tmp_path) == ["out.png"]
+
+
+def test_ctrl_c_during_the_write_still_says_interrupted(folder, tmp_path):
+    p = subprocess.Popen([sys.executable, "-c", SLOW_WRITE, "60", "synth", str(folder / "model.npz"), "-o",
+                          "out.png", "--size", "64", "-q"], cwd=tmp_path, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    assert p.stdout.readline() == b"writing\n"
+    time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and err.decode().strip() == "Error: interrupted", err.decode()
+    assert os.listdir(tmp_path) == []
