@@ -73,6 +73,13 @@ CASES = [
     (["evaluate", "big.png", "keep.png"], ["9000x9000", "downscale it first"]),
     (["evaluate", "keep.png", "big.png"], ["9000x9000", "downscale it first"]),
     (["baseline", "crop", "big.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
+    # the other commands: baseline and the cGAN's (checked before torch or a checkpoint is read)
+    (["baseline", "crop", "keep.png", "-o", "keep.png"], ["-o would overwrite EXEMPLAR"]),
+    (["cooc", "train", "keep.png", "-o", "-"], ["-o -", "checkpoint cannot go to stdout"]),
+    (["cooc", "train", "keep.png", "-o", "ck.png"], ["image extension", "name it ck.pt"]),
+    (["cooc", "train", "keep.png", "-o", "ck"], ["name it ck.pt"]),
+    (["cooc", "morph", "model.npz", "keep.png", "crop:0,0", "-o", "keep.png"], ["-o would overwrite A"]),
+    (["cooc", "edit", "model.npz", "crop:0,0", "keep.png", "-o", "keep.png"], ["-o would overwrite SOURCE"]),
 ]
 
 

@@ -13,7 +13,7 @@ import re
 import click
 
 from .._errors import TGHopError
-from .common import Progress, check_output, load_exemplar, user_errors
+from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
 from .options import Size
 
 #: Longest morph strip, in condition cells.
@@ -93,9 +93,6 @@ def cooc():
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
     """Train the co-occurrence cGAN on EXEMPLAR (an image file or builtin:NAME)."""
-    from .._common import ModelFileError
-    from ..imageio import check_output_path
-
     progress = LossProgress(not quiet)
     with user_errors(progress):
         from .._common import import_torch
@@ -103,7 +100,8 @@ def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
 
         overrides = parse_settings(settings)
         import_torch("The co-occurrence cGAN")  # the one-line hint before the exemplar is read
-        check_output_path(output, what="checkpoint", error=ModelFileError)
+        check_model_output(output, "-o", suffix=".pt", what="checkpoint")
+        check_outputs([("-o", output)], [("EXEMPLAR", exemplar)])  # (--resume reads and rewrites -o on purpose)
         image = load_exemplar(exemplar)
         from ..cooc.training import keep_mmap_threshold
 
@@ -149,6 +147,8 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
 
     with user_errors():
         check_output(output)
+        check_outputs([("-o", output)], [("MODEL", model_file), *[(label, spec) for label, spec in (("A", a), ("B", b))
+                                                                   if not spec.startswith("crop:")]])
         cols = rows = None
         if grid is not None:
             m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", grid)
@@ -194,6 +194,8 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows):
 
     with user_errors():
         check_output(output)
+        check_outputs([("-o", output)], [("MODEL", model_file), ("--mask", mask),
+                                         *[("SOURCE", spec) for spec in sources if not spec.startswith("crop:")]])
         model = load_checkpoint(model_file)
         s = model.s
         hh, ww = -(-size[0] // s), -(-size[1] // s)

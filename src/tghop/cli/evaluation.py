@@ -8,7 +8,7 @@ import json
 import click
 
 from .._errors import TGHopError
-from .common import Progress, check_output, load_exemplar, user_errors
+from .common import Progress, check_output, check_outputs, load_exemplar, user_errors
 from .options import Size
 
 __all__ = ["evaluate", "baseline"]
@@ -87,6 +87,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
+        check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--model", model_file)])
         if iterations is not None and name not in ("ustyuzhaninov", "cooc"):
             raise TGHopError("--iterations applies to the ustyuzhaninov and cooc baselines only")
         for option, value in (("--model", model_file), ("--assembly", assembly)):
