@@ -302,7 +302,8 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
             ("sdr.mean", (k, h * w), "f", f"the metadata says {k} core channels of {h}x{w}", ()),
             ("index.sdr_channel", ("D_r",), "i", "one channel per row of sdr.components",
              (("index", k), ("nondecreasing",))),
-            ("index.sdr_variance", ("D_r",), "f", "one variance per row of sdr.components", (("range", 0, None),)),
+            ("index.sdr_variance", ("D_r",), "f", "one variance per row of sdr.components",
+             (("range", 0, None), ("unbounded",))),
         )
 
     @property

@@ -193,7 +193,7 @@ class Hop(TransformerMixin, BaseEstimator):
              f"the metadata says one bias per input channel, {c}" if channelwise else "one bias", ()),
             (f"index.hop{i}_channels", (k, 2), "i", f"{says}, each (parent, kernel)",
              (("index", c if channelwise else 1, 0), ("index", inputs, 1), ("nondecreasing", 0))),
-            (f"index.hop{i}_energy", (k,), "f", f"{says}, one energy each", ()),
+            (f"index.hop{i}_energy", (k,), "f", f"{says}, one energy each", (("unbounded",),)),
         )
 
     @property

@@ -141,6 +141,10 @@ def _is_image(path) -> bool:
 
 #: Slack of the value checks of float arrays (rounding of fitted quantiles).
 _TOL = 1e-9
+#: Largest magnitude of a float array used in generation (fitted ones stay below 100: pixels
+#: are in [0, 1]); beyond it float32 generation can overflow into NaN. Specs with the rule
+#: ("unbounded",) (energies, variances: not used in generation) are exempt.
+_LIMIT = 1e4
 
 
 def _bound(value, dims):
@@ -246,11 +250,17 @@ def _check_array(spec, arrays, dims, prefix):
     for d, n in zip(shape, arr.shape):
         if isinstance(d, str):
             dims.setdefault(d, n)
-    if kind == "f" and not _all_finite(arr):
-        return f"array {full} holds NaN or infinite values"
+    if kind == "f":
+        if not _all_finite(arr):
+            return f"array {full} holds NaN or infinite values"
+        # float16 values are at most 65504; larger ones overflow float32 generation.
+        if arr.dtype != np.float16 and ("unbounded",) not in rules and arr.size and np.abs(arr).max() > _LIMIT:
+            return f"{full} holds {np.abs(arr).max()!r} in magnitude, beyond {_LIMIT:g}: no fitted model comes near"
     for rule in rules:
         if callable(rule):
             problem = rule(arr, dims)
+        elif rule[0] == "unbounded":
+            problem = None
         elif rule[0] == "not_below":
             problem = _rule_not_below(arr, dims, prefix + rule[1], arrays)
         else:
