@@ -1,8 +1,10 @@
 """Property: whatever the input file's bytes and the option values, the CLI either exits 0
 with a valid result or exits != 0 with one ``Error:`` line, no traceback and no file left.
 
-Mutated PNG, JPEG and model (.npz) bytes and random option values, in-process (click's
-CliRunner). The suite runs a couple of hundred cases; ``python scripts/fuzz_cli.py`` runs
+Mutated PNG, JPEG and model (.npz) bytes, model files with changed arrays (shapes, types,
+values, order; deleted, swapped or unknown arrays) and random option values, in-process
+(click's CliRunner); the changed model files also straight through ``load_model`` and
+``synthesize`` (a valid image or one ModelFileError line). The suite runs a couple of hundred cases; ``python scripts/fuzz_cli.py`` runs
 thousands.
 """
 
@@ -45,6 +47,112 @@ def seeds():
     return {"png": png.getvalue(), "jpg": jpg.getvalue(), "npz": npz}
 
 
+@lru_cache(maxsize=None)
+def seed_arrays():
+    """The arrays of a small model with a coarse layout model (layout.*), to mutate."""
+    from tghop import TGHop, data
+
+    from tghop.modelfile import save_model
+
+    model = TGHop(n_clusters=2, n_codewords=5, stride=4, max_patches=300, rng=0).fit(data.bricks(96, rng=3))
+    assert model.layout_ is not None
+    with tempfile.TemporaryDirectory() as d:
+        save_model(model, os.path.join(d, "m.npz"))
+        with np.load(os.path.join(d, "m.npz")) as f:
+            return {k: f[k] for k in f.files}
+
+
+#: Values written into arrays: specials, extremes and ordinary numbers.
+VALUES = [np.nan, np.inf, -np.inf, 0.0, -0.0, -1.0, 1.0, 0.5, 2.0, 1e30, -1e30, 1e300, 7.0, 255.0, -3.0, 1e-300]
+DTYPES = ["float16", "float32", "float64", "int64", "int32", "uint8", "uint64", "complex128", "bool", "<U3"]
+
+
+@st.composite
+def mutated_arrays(draw):
+    """A model file with some of its arrays changed: shapes, types, values, order; deleted,
+    swapped or unknown arrays. Returns the .npz bytes."""
+    arrays = dict(seed_arrays())
+    names = sorted(k for k in arrays if k != "__meta__")
+    for _ in range(draw(st.integers(1, 3))):
+        name = draw(st.sampled_from(names))
+        if name not in arrays:
+            continue
+        a = arrays[name]
+        op = draw(st.sampled_from(["shape", "shape", "dtype", "value", "value", "value", "reverse", "permute",
+                                   "scale", "delete", "extra", "swap"]))
+        axis = draw(st.integers(0, max(a.ndim - 1, 0)))
+        if op == "shape":
+            how = draw(st.sampled_from(["drop", "add", "newaxis", "ravel", "empty"]))
+            if how == "drop" and a.ndim and a.shape[axis]:
+                a = np.delete(a, draw(st.integers(0, a.shape[axis] - 1)), axis=axis)
+            elif how == "add" and a.ndim and a.shape[axis]:
+                a = np.concatenate([a, np.take(a, [0], axis=axis)], axis=axis)
+            elif how == "newaxis":
+                a = a[None]
+            elif how == "ravel":
+                a = a.ravel()
+            else:
+                a = a[:0]
+        elif op == "dtype":
+            with np.errstate(all="ignore"):
+                a = a.astype(draw(st.sampled_from(DTYPES)))
+        elif op == "value" and a.size:
+            a = a.copy()
+            where = draw(st.integers(0, a.size - 1))
+            value = draw(st.sampled_from(VALUES + [float(draw(st.floats(-10, 10)))]))
+            if a.dtype.kind in "iu":
+                value = draw(st.sampled_from([-1, 0, 1, 2, 3, 8, 21, 22, 99, 2**31, -(2**31)]))
+                if a.dtype.kind == "u":
+                    value = abs(value)
+                with np.errstate(all="ignore"):
+                    value = np.array(value).astype(a.dtype)
+            with np.errstate(all="ignore"):
+                a.flat[where] = value
+        elif op == "reverse" and a.ndim:
+            a = np.flip(a, axis=axis).copy()
+        elif op == "permute" and a.ndim and a.shape[axis] > 1:
+            order = draw(st.permutations(range(a.shape[axis])))
+            a = np.take(a, order, axis=axis)
+        elif op == "scale" and a.dtype.kind == "f":
+            with np.errstate(all="ignore"):
+                a = a * draw(st.sampled_from([-1.0, 0.0, 0.5, 2.0, 1e6]))
+        elif op == "delete":
+            del arrays[name]
+            continue
+        elif op == "extra":
+            arrays[draw(st.sampled_from(["extra", "hop3.kernels", "layout.layout.sdr.mean"]))] = a
+        elif op == "swap":
+            other = draw(st.sampled_from(names))
+            if other in arrays:
+                arrays[name], a = arrays[other], arrays[name]
+                name = other
+        arrays[name] = a
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def check_model(blob):
+    """The library side: a mutated model file loads and synthesizes a valid image, or
+    :func:`load_model` raises one ModelFileError line (and nothing else)."""
+    from tghop import ModelFileError
+    from tghop.modelfile import load_model
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, "m.npz")
+        with open(path, "wb") as fh:
+            fh.write(blob)
+        try:
+            model = load_model(path)
+        except ModelFileError as exc:
+            assert "\n" not in str(exc) and str(exc), str(exc)
+            return "refused"
+    image = model.synthesize((40, 40), rng=0, n_patches=60)
+    assert image.shape == (40, 40, model.exemplar_shape_[2]), image.shape
+    assert np.isfinite(image).all() and image.min() >= 0 and image.max() <= 1
+    return "loaded"
+
+
 @st.composite
 def mutated_file(draw):
     kind = draw(st.sampled_from(["png", "jpg", "npz"]))
@@ -84,7 +192,10 @@ OPTIONS = ["--size", "--pool", "--tolerance", "--overlap", "--seed", "--gamma", 
 
 @st.composite
 def command(draw):
-    kind, blob = draw(mutated_file())
+    if draw(st.integers(0, 3)) == 0:  # a model file with changed arrays
+        kind, blob = "npz", draw(mutated_arrays())
+    else:
+        kind, blob = draw(mutated_file())
     name = {"png": "in.png", "jpg": "in.jpg", "npz": "in.npz"}[kind]
     verb = draw(st.sampled_from(["synth", "synth", "info", "patches", "evaluate", "fit"]))
     if verb == "synth":
@@ -147,3 +258,10 @@ def check(blob, name, args):
 @given(command())
 def test_cli_fuzz(case):
     check(*case)
+
+
+@settings(max_examples=120, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
+@given(mutated_arrays())
+def test_model_array_fuzz(blob):
+    check_model(blob)

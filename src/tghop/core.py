@@ -291,6 +291,21 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         self.kept_per_channel_ = np.bincount(self.channel_, minlength=self.shape_[2])
         return self
 
+    @staticmethod
+    def _array_specs(shape):
+        """SDR's arrays for core maps of ``shape`` (h, w, K), for the checks of
+        :mod:`tghop.modelfile`: ``(name, shape, kind, says, rules)`` each; sets D_r."""
+        h, w, k = shape
+        return (
+            ("sdr.components", ("D_r", h * w), "f", f"the metadata says {h}x{w} core maps",
+             (("dim", 0, 1, None),)),
+            ("sdr.mean", (k, h * w), "f", f"the metadata says {k} core channels of {h}x{w}", ()),
+            ("index.sdr_channel", ("D_r",), "i", "one channel per row of sdr.components",
+             (("index", k), ("nondecreasing",))),
+            ("index.sdr_variance", ("D_r",), "f", "one variance per row of sdr.components",
+             (("range", 0, None), ("unbounded",))),
+        )
+
     @property
     def n_components_(self) -> int:
         """D_r, the dimension after SDR."""
@@ -696,6 +711,48 @@ class ICHM(BaseEstimator):
             self._set_stored_mixing(rows, scale)
         self._quantiles = None
         return self
+
+    def _array_specs(self, quantised=True):
+        """ICHM's arrays for the checks of :mod:`tghop.modelfile` (``quantised``: float16
+        mixing rows with a scale each, format version 3): ``(name, shape, kind, says,
+        rules)`` each; needs D_r, sets N, F, W."""
+        n_codewords = self.n_codewords
+
+        def codewords(arr, dims):
+            w = min(dims["F"], n_codewords)
+            return None if len(arr) == w else f"has {len(arr)} CDFs, not {w} (the smaller of F and n_codewords)"
+
+        specs = [
+            ("ichm_i.p", ("N",), "f", "one probability per cluster",
+             (("dim", 0, 1, self.n_clusters), ("positive",), ("sum", 1.0, 1e-6))),
+            ("ichm_ii.means", ("N", "D_r"), "f", "a mean per cluster of ichm_i.p, of D_r values", ()),
+            ("index.ichm_n_components", ("N",), "i", "a component count per cluster of ichm_i.p",
+             (("range", 1, self.max_cluster_components), ("sum_defines", "F"))),
+            ("ichm_ii.mixing", ("F", "D_r"), "f", "F = the sum of index.ichm_n_components rows of D_r values", ()),
+        ]
+        if quantised:
+            specs.append(("index.ichm_mixing_scale", ("F",), "f", "one of the mixing scales per row of ichm_ii.mixing",
+                          (("positive",),)))
+        specs += [
+            ("ichm_iii.codebook", ("W", self.n_bins), "f", f"the metadata says CDFs of n_bins={self.n_bins}",
+             (("range", 0.0, 1.0), ("nondecreasing",), ("last", 1.0, 1e-6), codewords)),
+            ("ichm_iii.cdf_index", ("F",), "i", "one codeword per component", (("index", "W"),)),
+            ("ichm_iii.cdf_min", ("F",), "f", "one minimum per component", ()),
+            ("ichm_iii.cdf_max", ("F",), "f", "one maximum per component", (("not_below", "ichm_iii.cdf_min"),)),
+        ]
+
+        def group_sizes(arr, dims):
+            _, counts = np.unique(arr, return_counts=True)
+            dims["R"] = int((counts.astype(np.int64) ** 2).sum())
+
+        if self.residual:
+            specs += [("index.ichm_residual_group", ("D_r",), "i", "the metadata says residual: one group per dimension",
+                       (("range", 0, None), group_sizes)),
+                      ("residual.factor", ("R",), "f", "the squared sizes of the groups of index.ichm_residual_group", ())]
+        else:
+            specs += [("index.ichm_residual_group", (0,), "i", "the metadata says no residual", ()),
+                      ("residual.factor", (0,), "f", "the metadata says no residual", ())]
+        return tuple(specs)
 
     # ------------------------------------------------------------------ sampling
     @property

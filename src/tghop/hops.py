@@ -181,6 +181,21 @@ class Hop(TransformerMixin, BaseEstimator):
         hop._build_matrix()
         return hop
 
+    @staticmethod
+    def _array_specs(i, channelwise, c, k):
+        """The arrays of hop ``i`` (``c`` input, ``k`` output channels) for the checks of
+        :mod:`tghop.modelfile`: ``(name, shape, kind, says, rules)`` each."""
+        inputs = 4 if channelwise else 4 * c
+        says = f"the metadata says {k} channels"
+        return (
+            (f"hop{i}.kernels", (k, inputs), "f", f"{says} of {inputs} inputs", ()),
+            (f"hop{i}.bias", (c if channelwise else 1,), "f",
+             f"the metadata says one bias per input channel, {c}" if channelwise else "one bias", ()),
+            (f"index.hop{i}_channels", (k, 2), "i", f"{says}, each (parent, kernel)",
+             (("index", c if channelwise else 1, 0), ("index", inputs, 1), ("nondecreasing", 0))),
+            (f"index.hop{i}_energy", (k,), "f", f"{says}, one energy each", (("unbounded",),)),
+        )
+
     @property
     def n_channels_out_(self) -> int:
         """Number of output channels K."""

@@ -129,8 +129,173 @@ def _is_image(path) -> bool:
         return False
 
 
+# ------------------------------------------------------------------ array checks
+# Each part of a model declares its arrays (``Hop``, ``SpatialReduction``, ``ICHM``,
+# ``BandStatistics`` ``_array_specs``, gathered by ``TGHop._array_specs``): one spec per
+# array, ``(name, shape, kind, says, rules)``. ``shape`` holds numbers from the metadata
+# and names of dimensions the file itself sets ("D_r", "N", "F", "W": bound by the first
+# array that has them, then required of every later one); ``kind`` is "f" (real floating
+# point) or "i" (integer); ``says`` is what the metadata or other arrays say, for the
+# message; ``rules`` are tuples run by :data:`_RULES` or callables ``rule(arr, dims)``
+# returning a problem (or None; they may bind dimensions). One function runs them all.
+
+#: Slack of the value checks of float arrays (rounding of fitted quantiles).
+_TOL = 1e-9
+#: Largest magnitude of a float array used in generation (fitted ones stay below 100: pixels
+#: are in [0, 1]); beyond it float32 generation can overflow into NaN. Specs with the rule
+#: ("unbounded",) (energies, variances: not used in generation) are exempt.
+_LIMIT = 1e4
+
+
+def _bound(value, dims):
+    return dims[value] if isinstance(value, str) else value
+
+
+def _column(arr, column):
+    return arr if column is None else arr[:, column]
+
+
+def _rule_range(arr, dims, lo, hi, column=None):
+    """Values within [lo, hi] (None: unbounded; a name: a dimension)."""
+    values = _column(arr, column)
+    if values.size == 0:
+        return None
+    slack = _TOL if arr.dtype.kind == "f" else 0
+    lo, hi = _bound(lo, dims), _bound(hi, dims)
+    where = "" if column is None else f" in column {column}"
+    if lo is not None and values.min() < lo - slack:
+        return f"holds {values.min()!r}{where}, below {lo}"
+    if hi is not None and values.max() > hi + slack:
+        return f"holds {values.max()!r}{where}, above {hi}"
+    return None
+
+
+def _rule_index(arr, dims, bound, column=None):
+    """Indices in 0 .. bound - 1."""
+    n = _bound(bound, dims)
+    values = _column(arr, column)
+    if values.size and (values.min() < 0 or values.max() >= n):
+        bad = values.min() if values.min() < 0 else values.max()
+        return f"holds index {bad}{'' if column is None else f' in column {column}'}, outside 0..{n - 1}"
+    return None
+
+
+def _rule_nondecreasing(arr, dims, column=None):
+    """Non-decreasing along the last axis (or down ``column``)."""
+    values = _column(arr, column)
+    if values.shape[-1] > 1 and (np.diff(values, axis=-1) < -_TOL).any():
+        return "is not non-decreasing" + ("" if column is None else f" in column {column}") + " (reversed or shuffled)"
+    return None
+
+
+def _rule_positive(arr, dims):
+    return f"holds {arr.min()!r}, not positive" if arr.size and arr.min() <= 0 else None
+
+
+def _rule_sum(arr, dims, total, tol):
+    s = float(arr.sum(dtype=np.float64))
+    return None if abs(s - total) <= tol else f"sums to {s!r}, not {total}"
+
+
+def _rule_dim(arr, dims, axis, lo, hi):
+    """``lo <= arr.shape[axis] <= hi`` (None: unbounded)."""
+    n = arr.shape[axis]
+    if n < lo or (hi is not None and n > hi):
+        return f"has {n} entries along axis {axis}; the metadata allows {lo} to {'any' if hi is None else hi}"
+    return None
+
+
+def _rule_sum_defines(arr, dims, name):
+    """Bind dimension ``name`` to the array's sum (after its range was checked)."""
+    dims[name] = int(arr.sum(dtype=np.int64))
+    return None
+
+
+def _rule_last(arr, dims, value, tol):
+    """Every row ends at ``value``."""
+    if arr.size and (np.abs(arr[..., -1] - value) > tol).any():
+        return f"has rows that do not end at {value}"
+    return None
+
+
+def _rule_not_below(arr, dims, other, arrays):
+    if (arr < arrays[other]).any():
+        return f"holds values below those of {other}"
+    return None
+
+
+_RULES = {"range": _rule_range, "index": _rule_index, "nondecreasing": _rule_nondecreasing,
+          "positive": _rule_positive, "sum": _rule_sum, "dim": _rule_dim, "sum_defines": _rule_sum_defines,
+          "last": _rule_last}
+
+
+def _shape_text(shape, dims):
+    parts = [str(d) if not isinstance(d, str) else (f"{d}={dims[d]}" if d in dims else d) for d in shape]
+    return "(" + ", ".join(parts) + ("," if len(parts) == 1 else "") + ")"
+
+
+def _check_array(spec, arrays, dims, prefix):
+    """The problem with one array (a phrase naming it), or None."""
+    name, shape, kind, says, rules = spec
+    full = prefix + name
+    arr = arrays.get(full)
+    if arr is None:
+        return f"array {full} is missing ({says})"
+    if arr.dtype.kind not in ("f" if kind == "f" else "iu"):
+        return (f"array {full} holds values of type {arr.dtype}, not "
+                f"{'real floating-point numbers' if kind == 'f' else 'integers'}")
+    if arr.ndim != len(shape) or any(not (isinstance(d, str) and d not in dims) and _bound(d, dims) != n
+                                     for d, n in zip(shape, arr.shape)):
+        return f"{full} has shape {arr.shape} but should be {_shape_text(shape, dims)} ({says})"
+    for d, n in zip(shape, arr.shape):
+        if isinstance(d, str):
+            dims.setdefault(d, n)
+    if kind == "f":
+        if not _all_finite(arr):
+            return f"array {full} holds NaN or infinite values"
+        # float16 values are at most 65504; larger ones overflow float32 generation.
+        if arr.dtype != np.float16 and ("unbounded",) not in rules and arr.size and np.abs(arr).max() > _LIMIT:
+            return f"{full} holds {np.abs(arr).max()!r} in magnitude, beyond {_LIMIT:g}: no fitted model comes near"
+    for rule in rules:
+        if callable(rule):
+            problem = rule(arr, dims)
+        elif rule[0] == "unbounded":
+            problem = None
+        elif rule[0] == "not_below":
+            problem = _rule_not_below(arr, dims, prefix + rule[1], arrays)
+        else:
+            problem = _RULES[rule[0]](arr, dims, *rule[1:])
+        if problem:
+            return f"{full} {problem}"
+    return None
+
+
+def _check_arrays(path, groups, arrays):
+    """Every array of ``arrays`` against its spec; :class:`ModelFileError` naming the first
+    bad one. ``groups``: ``[(prefix, specs), ...]`` (the model and its coarse layout model,
+    each with its own dimensions). An array no spec names is refused too: what a format
+    version holds is fixed (a new array means a new version), so an unknown one is an
+    edited file or another program's, and ignoring it would hide that."""
+    known = set()
+    for prefix, specs in groups:
+        dims = {}
+        for spec in specs:
+            known.add(prefix + spec[0])
+            problem = _check_array(spec, arrays, dims, prefix)
+            if problem:
+                raise ModelFileError(f"{path}: {problem}; the model file is corrupt or was edited: "
+                                     "fit the model again with 'tghop fit'")
+    unknown = sorted(set(arrays) - known)
+    if unknown:
+        raise ModelFileError(f"{path}: array {unknown[0]} is not part of a tghop model of this format version "
+                             "(an edited file or another program's); fit the model again with 'tghop fit'")
+
+
 def load_model(path):
     """Read a model written by :func:`save_model`.
+
+    Every array is checked against the metadata before it is used (shape, type, finite
+    values, ranges; see :func:`_check_arrays`).
 
     Raises
     ------
@@ -140,10 +305,16 @@ def load_model(path):
     meta, arrays = _read(path)
     if meta["format_version"] == 2 and isinstance(meta.get("params"), dict):
         meta["params"].setdefault("ica_tol", 1e-4)  # what version 2 (tghop 0.2.0) fitted with
-    for name, arr in arrays.items():
-        if not _all_finite(arr):
-            raise ModelFileError(f"{path}: corrupt tghop model (array {name} holds NaN or infinite values); "
-                                 "fit the model again")
+    try:
+        # Version 3 scales every mixing matrix; version 2 none (read as _from_arrays does: by what is there).
+        quantised = meta["format_version"] >= 3 or {p for p in ("", "layout.") if f"{p}index.ichm_mixing_scale" in arrays}
+        groups = TGHop._array_specs(meta, quantised=quantised)
+    except TGHopError as exc:
+        raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
+        raise ModelFileError(f"{path}: corrupt or incomplete tghop model metadata ({exc!r}); "
+                             "fit the model again") from None
+    _check_arrays(path, groups, arrays)
     try:
         return TGHop._from_state(meta, arrays)
     except TGHopError as exc:

@@ -601,6 +601,25 @@ class BandStatistics:
             setattr(self, attr, arrays[name].astype(np.float64, copy=False))
         return self
 
+    def _array_specs(self, c):
+        """The arrays of statistics of ``c`` colour channels for the checks of
+        :mod:`tghop.modelfile`: ``(name, shape, kind, says, rules)`` each."""
+        def orthonormal(arr, dims):
+            if np.abs(arr @ arr.T - np.eye(len(arr))).max() > 1e-6:
+                return "is not an orthonormal basis"
+            return None
+
+        parts = max(int(self.n_orientations), 1)
+        return (
+            ("refine.colour_mean", (c,), "f", f"the metadata says {c} colour channels", (("range", 0.0, 1.0),)),
+            ("refine.colour_basis", (c, c), "f", f"the metadata says {c} colour channels", (orthonormal,)),
+            ("refine.band_quantiles", ("L", parts, c, "Q"), "f",
+             f"the metadata says at most {self.n_levels} levels of {parts} parts and {c} channels",
+             (("dim", 0, 0, self.n_levels), ("dim", 3, 2, None), ("nondecreasing",))),
+            ("refine.pixel_quantiles", (c, "Q"), "f", f"the metadata says {c} channels",
+             (("dim", 1, 2, None), ("nondecreasing",))),
+        )
+
     def to_decorrelated(self, img):
         """(H, W, C) colours -> coordinates on the principal axes (same dtype)."""
         img = np.asarray(img)

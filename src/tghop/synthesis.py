@@ -307,6 +307,73 @@ class TGHop(BaseEstimator):
         model._check_consistent()
         return model
 
+    @classmethod
+    def _array_specs(cls, meta, *, quantised=True, prefix=""):
+        """The arrays a model file with metadata ``meta`` holds, for the checks of
+        :mod:`tghop.modelfile`: ``[(prefix, specs), ...]``, this model's and its coarse
+        layout model's (prefixed "layout."). The metadata is checked first: the numbers
+        it gives must agree with each other (:class:`TGHopError` naming them).
+        ``quantised``: whether the mixing rows come with scales (format version 3), or
+        the set of prefixes whose do (version 2 files: float32 rows, no scales)."""
+        params = dict(meta["params"])
+        if params.get("n_channels") is not None:
+            params["n_channels"] = tuple(params["n_channels"])
+        model = cls(**settings.check_settings(params, prefix="setting "))
+        where = f"the {prefix or 'model'} metadata's"
+
+        def count(value, what, low=1):
+            if not isinstance(value, int) or isinstance(value, bool) or value < low:
+                raise TGHopError(f"{where} {what} is {value!r}, not an integer of at least {low}")
+            return value
+
+        shape = meta["exemplar_shape"]
+        if not isinstance(shape, list) or len(shape) != 3:
+            raise TGHopError(f"{where} exemplar_shape {shape!r} is not [height, width, channels]")
+        h, w, c = (count(v, "exemplar_shape") for v in shape)
+        if c not in (1, 3):
+            raise TGHopError(f"{where} exemplar_shape {shape!r} has {c} channels, not 1 or 3")
+        count(meta["n_patches"], "n_patches")
+        p = model.patch_size
+        n = len(model._channel_rules(c))
+        hops, dims = meta["hops"], meta["hop_dims"]
+        if not isinstance(hops, list) or len(hops) != n or not isinstance(dims, list) or len(dims) != n + 1:
+            raise TGHopError(f"{where} hops and hop_dims do not describe {n} hops")
+        if count(dims[0], "hop_dims") != p * p * c:
+            raise TGHopError(f"{where} hop_dims[0] is {dims[0]}, not {p * p * c} for {p}x{p}x{c} patches")
+        specs, c_in = [], c
+        for i, info in enumerate(hops, start=1):
+            side = p >> i
+            k = count(dims[i], "hop_dims") // (side * side)
+            channelwise = info["channelwise"]
+            if (channelwise is not (i > 1) or count(info["n_channels_in"], "n_channels_in") != c_in
+                    or dims[i] != k * side * side or not (c_in if channelwise else 1) <= k <= 4 * c_in):
+                raise TGHopError(f"{where} hop {i} ({info!r}, hop_dims {dims[i]}) does not follow from "
+                                 f"{c_in} input channels and {side}x{side} outputs")
+            specs += Hop._array_specs(i, channelwise, c_in, k)
+            c_in = k
+        side = p >> n
+        if meta["sdr_shape"] != [side, side, c_in]:
+            raise TGHopError(f"{where} sdr_shape {meta['sdr_shape']!r} is not [{side}, {side}, {c_in}] "
+                             "(the last hop's output)")
+        specs += SpatialReduction._array_specs((side, side, c_in))
+        specs += ICHM(**settings.component_params(model, "ichm"))._array_specs(
+            quantised if isinstance(quantised, bool) else prefix in quantised)
+        specs.append(("colour.quantiles", (c, "Qc"), "f", f"the metadata says {c} colour channels",
+                      (("dim", 1, 2, None), ("range", 0.0, 1.0), ("nondecreasing",))))
+        specs += BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)._array_specs(c)
+        groups = [(prefix, tuple(specs))]
+        layout_meta = meta.get("layout")
+        if layout_meta is not None:
+            if prefix:
+                raise TGHopError("a coarse layout model has a layout of its own")
+            sub = layout_meta["model"]
+            CoarseLayout(**layout_meta["params"])  # unknown parameters: TypeError
+            settings.BY_NAME["layout_factor"].check(layout_meta["params"].get("factor"), label="layout factor")
+            if not isinstance(sub, dict) or sub.get("exemplar_shape", [None] * 3)[2:] != [c]:
+                raise TGHopError(f"the coarse layout model's exemplar_shape is not of {c} channels")
+            groups += cls._array_specs(sub, quantised=quantised, prefix="layout.")
+        return groups
+
     def _check_consistent(self):
         """Shapes that must agree; a mismatch means a damaged or hand-edited file."""
         ichm, sdr = self.ichm_, self.sdr_

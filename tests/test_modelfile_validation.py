@@ -1,0 +1,222 @@
+"""Tampered model files (issue #26, item 5): every array is checked against the metadata at
+load. Each case saves a small fitted model, rewrites the .npz with one array changed
+(np.load, then np.savez of the modified dict) and expects one ModelFileError naming the
+array, and from ``tghop synth`` / ``tghop patches`` one ``Error:`` line, exit 1, no
+traceback and no output file.
+
+Unknown arrays are refused, not ignored: what a format version holds is fixed (a new array
+means a new version), so an array no part names is an edited file or another program's.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from tghop import ModelFileError
+from tghop.modelfile import load_model, save_model
+
+
+@pytest.fixture(scope="module")
+def saved(small_model, tmp_path_factory):
+    path = tmp_path_factory.mktemp("valid") / "m.npz"
+    save_model(small_model, path)
+    with np.load(path) as f:
+        arrays = {k: f[k] for k in f.files}
+    assert any(k.startswith("layout.") for k in arrays)  # the nested model is covered too
+    return path, arrays
+
+
+def _write(path, arrays):
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _set(name, where, value):
+    def change(a):
+        a = a.copy()
+        a[where] = value
+        return a
+    return name, change
+
+
+def _complex(a):
+    return a.astype(np.complex128) + 1j
+
+
+#: (array, change of that array (None: delete it), fragment of the message)
+CASES = {
+    # wrong shape, every group
+    "hop1 kernels": ("hop1.kernels", lambda a: a[:, :5], "has shape (9, 5)"),
+    "hop2 bias": ("hop2.bias", lambda a: a[:-1], "has shape"),
+    "hop2 channels": ("index.hop2_channels", lambda a: a[:-1], "has shape"),
+    "hop1 energy": ("index.hop1_energy", lambda a: a[:, None], "has shape"),
+    "sdr components": ("sdr.components", lambda a: a[:, :-1], "has shape"),
+    "sdr mean": ("sdr.mean", lambda a: a[:-1], "has shape"),
+    "sdr variance": ("index.sdr_variance", lambda a: a[:-1], "has shape"),
+    "p": ("ichm_i.p", lambda a: a[:-1], "sums to"),  # the first array with N: its sum is wrong
+    "means": ("ichm_ii.means", lambda a: a[:, :-1], "has shape"),
+    "mixing rows": ("ichm_ii.mixing", lambda a: a[:-1], "has shape"),
+    "mixing scale": ("index.ichm_mixing_scale", lambda a: a[:5], "mixing scales"),
+    "cdf min": ("ichm_iii.cdf_min", lambda a: a[:-1], "has shape"),
+    "residual": ("residual.factor", lambda a: np.ones(3), "has shape"),
+    "residual group": ("index.ichm_residual_group", lambda a: np.zeros(4, dtype=np.int64), "has shape"),
+    "colour quantiles": ("colour.quantiles", lambda a: a[:2], "has shape"),
+    "colour basis": ("refine.colour_basis", lambda a: a[:2], "has shape"),
+    "band quantiles": ("refine.band_quantiles", lambda a: a[:, :3], "has shape"),
+    "pixel quantiles": ("refine.pixel_quantiles", lambda a: a[:, :-1], "has shape"),
+    "layout sdr mean": ("layout.sdr.mean", lambda a: a[:-1], "has shape"),
+    "layout hop2 kernels": ("layout.hop2.kernels", lambda a: a[:, :3], "has shape"),
+    # bad index
+    "hop1 parent": _set("index.hop1_channels", (0, 0), 5) + ("outside 0..0",),
+    "hop2 parent": _set("index.hop2_channels", (-1, 0), 99) + ("outside 0..8",),
+    "hop2 kernel": _set("index.hop2_channels", (0, 1), 4) + ("outside 0..3",),
+    "hop1 kernel": _set("index.hop1_channels", (2, 1), -1) + ("outside 0..11",),
+    "hop2 ungrouped": ("index.hop2_channels", lambda a: a[::-1].copy(), "not non-decreasing"),
+    "sdr channel": _set("index.sdr_channel", -1, 22) + ("outside 0..21",),
+    "cdf index": ("ichm_iii.cdf_index", lambda a: a + 100, "outside 0.."),
+    "cdf index negative": _set("ichm_iii.cdf_index", 0, -1) + ("index -1",),
+    "no components": _set("index.ichm_n_components", 0, 0) + ("below 1",),
+    "too many components": _set("index.ichm_n_components", 0, 10_000) + ("above 100",),
+    "layout cdf index": ("layout.ichm_iii.cdf_index", lambda a: a + 1000, "outside"),
+    # truncated codebook (bins or codewords)
+    "codebook bins": ("ichm_iii.codebook", lambda a: a[:, :128], "has shape (40, 128)"),
+    "codebook words": ("ichm_iii.codebook", lambda a: a[:-1], "CDFs"),
+    # reversed quantiles and CDFs
+    "colour reversed": ("colour.quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
+    "pixel reversed": ("refine.pixel_quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
+    "band reversed": ("refine.band_quantiles", lambda a: a[..., ::-1].copy(), "not non-decreasing"),
+    "codebook reversed": ("ichm_iii.codebook", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
+    "layout colour reversed": ("layout.colour.quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
+    # complex, wrong dtype
+    "complex kernels": ("hop1.kernels", _complex, "complex128, not real"),
+    "complex mixing": ("ichm_ii.mixing", lambda a: a.astype(np.complex64), "complex64, not real"),
+    "complex layout p": ("layout.ichm_i.p", _complex, "complex128"),
+    "float index": ("index.hop1_channels", lambda a: a.astype(np.float64), "not integers"),
+    "integer p": ("ichm_i.p", lambda a: (a * 0).astype(np.int64), "not real"),
+    "bool kernels": ("hop2.kernels", lambda a: a > 0, "bool"),
+    "text codebook": ("ichm_iii.codebook", lambda a: a.astype(str), "not real"),
+    # NaN or infinity
+    "nan bias": _set("hop1.bias", 0, np.nan) + ("NaN",),
+    "inf cdf max": _set("ichm_iii.cdf_max", 3, np.inf) + ("NaN or infinite",),
+    "nan colour mean": _set("refine.colour_mean", 1, np.nan) + ("NaN",),
+    "nan mixing": _set("ichm_ii.mixing", (2, 2), np.nan) + ("NaN",),
+    "nan layout means": _set("layout.ichm_ii.means", (0, 0), np.nan) + ("NaN",),
+    # values out of range
+    "p sum": ("ichm_i.p", lambda a: a * 2, "sums to"),
+    "p negative": ("ichm_i.p", lambda a: a + np.r_[0.5, np.zeros(len(a) - 2), -0.5], "not positive"),
+    "zero scale": _set("index.ichm_mixing_scale", 0, 0.0) + ("not positive",),
+    "cdf range": ("ichm_iii.cdf_max", lambda a: a - 1e3, "below those of ichm_iii.cdf_min"),
+    "codebook above 1": ("ichm_iii.codebook", lambda a: a * 2, "above 1.0"),
+    "codebook end": ("ichm_iii.codebook", lambda a: a * 0.5, "do not end at 1.0"),
+    "colour basis": ("refine.colour_basis", lambda a: a * 2, "not an orthonormal basis"),
+    "colour above 1": ("colour.quantiles", lambda a: a + 2, "above 1.0"),
+    "negative variance": _set("index.sdr_variance", 0, -1.0) + ("below 0",),
+    "huge means": _set("ichm_ii.means", (0, 0), 1e30) + ("beyond 10000",),
+    "huge layout cdf": ("layout.ichm_iii.cdf_max", lambda a: a * 1e6, "beyond 10000"),
+    # missing and unknown arrays
+    "missing mixing": ("ichm_ii.mixing", None, "array ichm_ii.mixing is missing"),
+    "missing kernels": ("hop2.kernels", None, "array hop2.kernels is missing"),
+    "missing quantiles": ("refine.band_quantiles", None, "is missing"),
+    "missing layout": ("layout.ichm_iii.codebook", None, "array layout.ichm_iii.codebook is missing"),
+    "unknown": ("extra.thing", lambda a: np.zeros(3), "array extra.thing is not part of a tghop model"),
+}
+
+
+def _tampered(saved, tmp_path, case):
+    name, change, fragment = CASES[case]
+    arrays = dict(saved[1])
+    if change is None:
+        del arrays[name]
+    else:
+        arrays[name] = change(arrays.get(name))
+    path = tmp_path / "t.npz"
+    _write(path, arrays)
+    return path, name, fragment
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_tampered_array_is_one_model_file_error_naming_it(saved, tmp_path, case):
+    path, name, fragment = _tampered(saved, tmp_path, case)
+    with pytest.raises(ModelFileError) as info:
+        load_model(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert name in message and fragment in message, message
+    assert "fit the model again" in message
+
+
+@pytest.mark.parametrize("case", ["hop1 kernels", "hop2 parent", "codebook bins", "colour reversed",
+                                  "complex kernels", "nan layout means", "missing mixing", "unknown",
+                                  "text codebook", "p sum"])
+@pytest.mark.parametrize("verb", ["synth", "patches"])
+def test_cli_on_tampered_model_gives_one_error_line(saved, tmp_path, case, verb):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    path, name, _ = _tampered(saved, tmp_path, case)
+    out = tmp_path / "out.png"
+    args = [verb, str(path), "-o", str(out)] + (["--size", "48", "-q"] if verb == "synth" else ["-n", "4"])
+    result = CliRunner().invoke(main, args, catch_exceptions=True)
+    assert result.exit_code == 1, (result.output, repr(result.exception))
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    assert "Traceback" not in result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith("Error: ")]
+    assert len(errors) == 1 and name in errors[0], result.stderr
+    assert sorted(os.listdir(tmp_path)) == ["t.npz"]
+
+
+def test_cli_subprocess_on_tampered_model(saved, tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import assert_user_error
+
+    path, name, _ = _tampered(saved, tmp_path, "hop1 kernels")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(p) for p in sys.path if p])}
+    for args in (["synth", str(path), "-o", str(tmp_path / "o.png"), "--size", "48"],
+                 ["patches", str(path), "-n", "4", "-o", str(tmp_path / "g.png")]):
+        r = subprocess.run([sys.executable, "-m", "tghop", *args], capture_output=True, env=env)
+        assert_user_error(r, "hop1.kernels has shape (9, 5)", "the metadata says 9 channels of 12 inputs")
+        assert r.returncode == 1
+    assert sorted(os.listdir(tmp_path)) == ["t.npz"]
+
+
+def test_metadata_that_disagrees_with_itself_is_refused(saved, tmp_path):
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    for change, fragment in ((lambda m: m["hop_dims"].__setitem__(1, 7), "hop 1"),
+                             (lambda m: m["hops"][1].__setitem__("n_channels_in", 8), "hop 2"),
+                             (lambda m: m.__setitem__("sdr_shape", [4, 4, 22]), "sdr_shape"),
+                             (lambda m: m.__setitem__("exemplar_shape", [96, 96, 4]), "exemplar_shape"),
+                             (lambda m: m.__setitem__("hops", m["hops"][:1]), "hops"),
+                             (lambda m: m["layout"]["model"].__setitem__("exemplar_shape", [48, 48, 1]), "layout")):
+        bad = json.loads(json.dumps(meta))
+        change(bad)
+        _write(tmp_path / "t.npz", {**arrays, "__meta__": np.array(json.dumps(bad))})
+        with pytest.raises(ModelFileError, match=fragment):
+            load_model(tmp_path / "t.npz")
+
+
+def test_valid_files_still_load_and_generate_the_same_image(small_model, saved, tmp_path):
+    # Saved and loaded: bit for bit the image of the fitted model; version 2 files load.
+    path, arrays = saved
+    loaded = load_model(path)
+    np.testing.assert_array_equal(loaded.synthesize((48, 40), rng=3, n_patches=200),
+                                  small_model.synthesize((48, 40), rng=3, n_patches=200))
+    meta = json.loads(str(arrays["__meta__"]))
+    meta["format_version"] = 2
+    old = {k: v for k, v in arrays.items() if not k.endswith("index.ichm_mixing_scale")}
+    old["ichm_ii.mixing"] = small_model.ichm_.mixing_.astype(np.float32)
+    old["layout.ichm_ii.mixing"] = small_model.layout_.model_.ichm_.mixing_.astype(np.float32)
+    old["__meta__"] = np.array(json.dumps(meta))
+    _write(tmp_path / "v2.npz", old)
+    assert load_model(tmp_path / "v2.npz").synthesize((32, 32), rng=1, n_patches=100).shape == (32, 32, 3)
+    # A version 3 file must have its scales.
+    _write(tmp_path / "noscale.npz", {k: v for k, v in arrays.items() if k != "index.ichm_mixing_scale"})
+    with pytest.raises(ModelFileError, match="index.ichm_mixing_scale is missing"):
+        load_model(tmp_path / "noscale.npz")
