@@ -480,7 +480,7 @@ def test_generation_uses_float32_mixing_made_from_the_stored_rows(small_model, t
 
 
 def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
-    from tghop.core import _kmeans
+    from tghop.unsupervised import kmeans as _kmeans
 
     truth = rng.normal(0, 10, (6, 20))
     member = rng.integers(0, 6, 3000)

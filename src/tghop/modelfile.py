@@ -30,7 +30,8 @@ import numpy as np
 from . import __version__
 from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
-from .synthesis import TGHop, model_arrays, parameter_groups  # noqa: F401 (re-exported)
+from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
+from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
 

@@ -31,6 +31,7 @@ from .patches import patch_origins
 from . import layout
 from .pool import GeneratedPool
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
+from .parameter_count import parameter_groups
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -810,45 +811,6 @@ class CoarseLayout(BaseEstimator):
         check_is_fitted(self, "model_")
         return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
                                    refine=refine)
-
-
-# ------------------------------------------------------------------ arrays (model files)
-#: Table 4 row of each array-name prefix (``index.*`` arrays are bookkeeping, not parameters).
-GROUPS = {
-    "hop1": "transform stage 1",
-    "hop": "transform stage 2",  # hop2, hop3, ...
-    "sdr": "core SDR",
-    "ichm_i": "core ICHM (i)",
-    "ichm_ii": "core ICHM (ii)",
-    "ichm_iii": "core ICHM (iii)",
-    "colour": "colour matching (ours)",
-    "refine": "refinement (ours)",
-    "layout": "coarse layout (ours)",
-    "residual": "residual Gaussian (ours)",
-}
-
-
-def _group(name: str):
-    part, _, rest = name.partition(".")
-    if part == "layout":  # the coarse model's arrays: one row, its bookkeeping excluded
-        return None if rest.startswith("index.") else GROUPS["layout"]
-    if part == "index":
-        return None
-    if part in GROUPS:
-        return GROUPS[part]
-    if part.startswith("hop"):
-        return GROUPS["hop"]
-    raise KeyError(name)
-
-
-def parameter_groups(arrays) -> dict:
-    """Count the numbers in ``arrays`` (name -> array) per Table 4 row; bookkeeping excluded."""
-    counts = {}
-    for name, arr in arrays.items():
-        group = _group(name)
-        if group is not None:
-            counts[group] = counts.get(group, 0) + int(np.asarray(arr).size)
-    return counts
 
 
 def model_arrays(model) -> dict:

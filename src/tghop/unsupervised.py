@@ -1,0 +1,142 @@
+"""K-means and FastICA in NumPy: the unsupervised steps of the core model (ICHM).
+
+NumPy only, so that fitting never imports scikit-learn's estimators (their import alone
+is a large part of a fit's time) and generation never imports scikit-learn at all.
+:class:`tghop.core.ICHM` clusters the core vectors with :func:`kmeans` and finds each
+cluster's independent components with :func:`fast_ica`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._common import check_rng
+
+__all__ = ["kmeans", "kmeans_plusplus", "lloyd", "fast_ica"]
+
+
+def kmeans_plusplus(X, n_clusters, rng, n_trials=None):
+    """Greedy k-means++ seeding (Arthur & Vassilvitskii 2007), vectorised over candidates."""
+    n = len(X)
+    n_trials = n_trials or 2 + int(np.log(n_clusters))
+    sq = np.einsum("nd,nd->n", X, X)
+    centres = np.empty((n_clusters, X.shape[1]), dtype=X.dtype)
+    centres[0] = X[rng.integers(n)]
+    closest = np.maximum(sq - 2 * X @ centres[0] + centres[0] @ centres[0], 0)
+    for k in range(1, n_clusters):
+        total = closest.sum()
+        if total <= 0:  # fewer distinct points than clusters: repeat points
+            centres[k:] = X[rng.integers(n, size=n_clusters - k)]
+            break
+        cand = np.searchsorted(np.cumsum(closest), rng.random(n_trials) * total)
+        cand = np.minimum(cand, n - 1)
+        d = np.maximum(sq[cand, None] - 2 * X[cand] @ X.T + sq[None, :], 0)
+        d = np.minimum(d, closest)
+        best = np.argmin(d.sum(axis=1))
+        centres[k] = X[cand[best]]
+        closest = d[best]
+    return centres
+
+
+def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
+    """Lloyd iterations from ``centres`` (float32 points, one matrix product per step).
+
+    Stops when the centres move less than ``tol`` times the mean per-dimension variance
+    of ``X`` (scikit-learn's criterion) or when at most a fraction ``settled`` of the
+    points changed cluster in a step (cutting the long tail of steps that move a handful
+    of points, at a negligible rise in inertia; measured: docs/choices.md), after
+    ``max_iter`` steps at the latest. The cluster sums are updated with the points that
+    changed cluster only (few after the first steps). An emptied cluster is re-seeded with
+    the point farthest from its centre. Returns ``(labels, centres)``.
+    """
+    n, k = len(X), len(centres)
+    threshold = tol * float(X.var(axis=0, dtype=np.float64).mean())
+    few = int(settled * n)
+    labels = np.full(n, -1)
+    sums = np.zeros((k, X.shape[1]))
+    counts = np.zeros(k, dtype=np.int64)
+    for _ in range(int(max_iter)):
+        # argmin_j |x - c_j|^2 = argmin_j (|c_j|^2 - 2 x.c_j): |x|^2 is the same for all j.
+        d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
+        new = np.argmin(d, axis=1)
+        changed = np.flatnonzero(new != labels)
+        if changed.size == 0:
+            break
+        # +1 where a point joins a cluster, -1 where it leaves one: one product updates the sums.
+        moves = np.zeros((k, changed.size), dtype=X.dtype)
+        moves[new[changed], np.arange(changed.size)] = 1.0
+        old = labels[changed]
+        was = np.flatnonzero(old >= 0)
+        moves[old[was], was] = -1.0
+        sums += moves @ X[changed]
+        counts += np.bincount(new[changed], minlength=k) - np.bincount(old[was], minlength=k)
+        labels = new
+        moved = centres.astype(np.float64)
+        full = counts > 0
+        moved[full] = sums[full] / counts[full, None]
+        empty = np.flatnonzero(~full)
+        if empty.size:  # re-seed with the points farthest from their centres
+            far = np.argsort(d[np.arange(n), labels] + np.einsum("nd,nd->n", X, X))[::-1][: empty.size]
+            moved[empty] = X[far]
+        shift = float(((moved - centres) ** 2).sum())
+        centres = moved.astype(np.float32)
+        if shift <= threshold or changed.size <= few:
+            break
+    d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
+    return np.argmin(d, axis=1), centres
+
+
+def kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
+    """K-means: k-means++ seeding on a random subsample (seeding on all points costs
+    several times the whole Lloyd iteration for the same inertia), then Lloyd, both in
+    float32 (the clustering only routes samples to clusters; each seeding step reads the
+    whole subsample, so half the bytes is about half the time). NumPy only: importing
+    scikit-learn's KMeans would add its long import time to every fit."""
+    sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
+    centres = kmeans_plusplus(np.asarray(sub, dtype=np.float32), n_clusters, rng)
+    labels, centres = lloyd(np.asarray(X, dtype=np.float32), centres, max_iter=max_iter)
+    return labels, centres.astype(np.float64)
+
+
+def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
+    """Symmetric FastICA (Hyvarinen 1999) with the logcosh contrast on whitened data.
+
+    Parameters
+    ----------
+    white : ndarray, shape (n, k)
+        Zero-mean data with identity covariance.
+    max_iter : int
+    tol : float
+        Stop when every unmixing direction changes by less than this.
+    rng : int or numpy.random.Generator, optional
+        Initial rotation.
+
+    Returns
+    -------
+    unmix : ndarray, shape (k, k)
+        Orthogonal matrix; the independent components are ``white @ unmix.T``.
+    converged : bool
+    """
+    n, k = white.shape
+    if k == 1:
+        return np.ones((1, 1)), True
+
+    def decorrelate(w):
+        vals, vecs = np.linalg.eigh(w @ w.T)
+        return (vecs / np.sqrt(np.maximum(vals, np.finfo(vals.dtype).tiny))) @ vecs.T @ w
+
+    # The iterations run in float32 (tanh and the products cost a fifth of float64's; the
+    # tolerance is far above float32's resolution); the result is orthogonalised in float64.
+    w = decorrelate(check_rng(rng).standard_normal((k, k))).astype(np.float32)
+    x = np.asarray(white, dtype=np.float32)
+    xt = np.ascontiguousarray(x.T)
+    converged = False
+    for _ in range(int(max_iter)):
+        g = np.tanh(w @ xt)
+        w_new = decorrelate(g @ x / n - (1.0 - g**2).mean(axis=1)[:, None] * w)
+        change = np.max(np.abs(np.abs(np.einsum("ij,ij->i", w_new, w)) - 1.0))
+        w = w_new
+        if change < tol:
+            converged = True
+            break
+    return decorrelate(w.astype(np.float64)), converged
