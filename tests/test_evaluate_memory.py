@@ -190,3 +190,15 @@ def test_cli_shows_progress_unless_quiet(images):
     assert r.returncode == 0 and r.stderr.decode().strip() == ""
     r = run("evaluate", "--help")
     assert "512x512" in r.stdout.decode() and "8192x8192" in r.stdout.decode()
+
+
+def test_evaluate_checks_the_size_before_copying_the_image(monkeypatch):
+    side = int(np.sqrt(MAX_PIXELS)) + 1
+    huge = np.broadcast_to(np.zeros((1, 1, 3)), (side, side, 3))  # no memory behind it
+
+    def no_copy(*args, **kwargs):
+        raise AssertionError("the images were copied before their size was checked")
+
+    monkeypatch.setattr(metrics, "_pair", no_copy)
+    with pytest.raises(InvalidImageError, match="above the"):
+        metrics.evaluate(data.bricks(64), huge, metrics=["cooccurrence"])
