@@ -8,6 +8,7 @@ sizes are read from disk. Large exemplars are made by tiling a shared texture.
     python benchmarks/bench_cli.py                 # all rows, 5 runs each
     python benchmarks/bench_cli.py --quick         # 3 runs, no 8192^2 synthesis, no 8000^2 / 12000^2 fits
     python benchmarks/bench_cli.py --src /path/to/other/checkout/src   # time another version
+    python benchmarks/bench_cli.py --only 12,13,14 --runs 1               # the evaluate rows only
 
 Writes benchmarks/results/bench_cli.{json,md} (or bench_cli_<label>.* with --label).
 """
@@ -75,17 +76,22 @@ big = Image.new("RGB", (width, height))
 for y in range(0, height, tile.height):
     for x in range(0, width, tile.width):
         big.paste(tile, (x, y))
+if len(sys.argv) > 5:  # crop LEFT TOP off: the same texture at another offset
+    left, top = int(sys.argv[5]), int(sys.argv[6])
+    big = big.crop((left, top, width, height))
 big.save(sys.argv[2], quality=90)
 """
 
 
-def big_exemplar(folder, name, width, height):
+def big_exemplar(folder, name, width, height, crop=None):
     """A ``width`` x ``height`` JPEG tiled from brick_wall, made in a separate process (a
-    child inherits its parent's peak memory in the accounting, so this process stays small)."""
+    child inherits its parent's peak memory in the accounting, so this process stays small).
+    ``crop=(left, top)`` cuts that much off the top-left corner."""
     path = Path(folder) / f"{name}.jpg"
     if not path.exists():
-        subprocess.run([sys.executable, "-c", BIG, TEXTURES / "brick_wall.jpg", path, str(width), str(height)],
-                       check=True)
+        extra = [] if crop is None else [str(crop[0]), str(crop[1])]
+        subprocess.run([sys.executable, "-c", BIG, TEXTURES / "brick_wall.jpg", path, str(width), str(height),
+                        *extra], check=True)
     return path
 
 
@@ -129,6 +135,13 @@ def main():
             ("tghop fit 12000x12000 photo", ["fit", "big12000x12000.jpg", "-o", "f.npz", "-q"], 1),
             ("tghop fit 12000x12000 photo --downscale",
              ["fit", "big12000x12000.jpg", "-o", "f.npz", "-q", "--downscale"], 1),
+            # Issue #26: evaluate's memory (one result against an exemplar of the same size;
+            # the result is the exemplar tiled at another offset).
+            ("tghop evaluate 512x512 vs 512x512", ["evaluate", "big512x512.jpg", "res512x512.jpg", "-q"], 1),
+            ("tghop evaluate 1024x1024 vs 1024x1024", ["evaluate", "big1024x1024.jpg", "res1024x1024.jpg", "-q"],
+             1),
+            ("tghop evaluate 2048x2048 vs 2048x2048", ["evaluate", "big2048x2048.jpg", "res2048x2048.jpg", "-q"],
+             1),
         ]
         only = None if args.only is None else {int(i) for i in args.only.split(",")}
         results = []
@@ -136,6 +149,13 @@ def main():
             if only is not None and i not in only:
                 continue
             if args.quick and "8192x8192" in label:
+                continue
+            if label.startswith("tghop evaluate"):
+                size = label.split()[2]
+                height, width = map(int, size.split("x"))
+                big_exemplar(w, f"big{size}", width, height)
+                big_exemplar(w, f"res{size}", width + 37, height + 23, crop=(37, 23))
+                results.append(measure(label, cmd, src, w, n, warmup=0))
                 continue
             size = label.split("fit ")[-1].split(" ")[0]
             if "x" in size and size[0].isdigit():

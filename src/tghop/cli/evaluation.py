@@ -20,22 +20,45 @@ __all__ = ["evaluate", "baseline"]
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per result (JSON lines).")
 @click.option("--metrics", "names", default=None,
               help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied (default all).")
-def evaluate(exemplar, results, as_json, names):
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+def evaluate(exemplar, results, as_json, names, quiet):
     """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
 
     copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
 
     With two or more results, also their diversity (higher: more different from each other).
     SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
+
+    Large images: memory stays bounded. Images above 512x512 pixels are scored in strips
+    (sifid, cooccurrence) or tiles of 256x256 positions (gram, above 310x310), which gives
+    the same scores up to float rounding; smaller images are scored in one piece. swd,
+    novelty, copied and diversity sample a fixed number of patches (seed 0) at any size;
+    novelty, copied and diversity search every exemplar patch, so their time grows with
+    the exemplar. Images over 8192x8192 pixels are refused.
     """
     from .. import metrics as M
 
-    with user_errors():
+    progress = Progress(not quiet)
+    with user_errors(progress):
         chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
+        if chosen == []:
+            raise TGHopError(f"--metrics is empty; give one or more of: {', '.join(M.METRICS)}")
+        if chosen is not None:
+            M.check_sizes({}, chosen)  # unknown names: refused before any image is read
         ex = load_exemplar(exemplar)
         images = [load_exemplar(r) for r in results]
-        rows = [(path, M.evaluate(ex, img, metrics=chosen)) for path, img in zip(results, images)]
-        div = M.diversity(*images) if len(images) > 1 else None
+        M.check_sizes({exemplar: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, chosen,
+                      diversity=len(images) > 1)
+        rows = []
+        for i, (path, img) in enumerate(zip(results, images), start=1):
+            if len(images) > 1:
+                def step(stage, done, total, _i=i):
+                    progress(f"{stage} {_i}/{len(images)}", done, total)
+            else:
+                step = progress
+            rows.append((path, M.evaluate(ex, img, metrics=chosen, progress=step)))
+        div = M.diversity(*images, progress=progress) if len(images) > 1 else None
+        progress.close()
     skipped = rows[0][1].skipped if rows else {}
     if as_json:
         for path, scores in rows:

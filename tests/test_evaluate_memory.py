@@ -1,0 +1,204 @@
+"""Bounded memory of the metrics on large images (issue #26): the strip and tile paths give
+the scores of the one-piece paths, small images are untouched, sizes are checked before
+any work, and evaluate reports progress. Images are made in code and kept small: the
+thresholds are lowered with monkeypatch so that the bounded paths run on them."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tghop import data, metrics
+from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
+from tghop.imageio import save_image
+
+from conftest import assert_user_error
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
+
+@pytest.fixture(scope="module")
+def pair():
+    rng = np.random.default_rng(3)
+    ex = data.bricks(150, rng=1)[:, :140]
+    res = np.clip(data.bricks(130, rng=2) + 0.05 * rng.standard_normal((130, 130, 3)), 0, 1)
+    return ex, res
+
+
+# ------------------------------------------------------------------ the bounded paths agree with one piece
+
+
+def test_gram_tiles_give_the_one_piece_gram(pair, monkeypatch):
+    pytest.importorskip("torch")
+    ex, res = pair
+    plain = metrics.gram_distance(ex, res)
+    monkeypatch.setattr(metrics, "GRAM_TILE", 30)  # 96x86 valid positions: 4x3 tiles
+    assert len(metrics._gram_tiles(ex, 27)) == 12
+    tiled = metrics.gram_distance(ex, res)
+    assert tiled == pytest.approx(plain, rel=1e-5)
+    assert metrics.gram_distance(ex, res) == tiled  # deterministic
+    assert metrics.gram_distance(ex, ex) == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("before_pool", [False, True])
+def test_sifid_strips_give_every_feature_row_once(pair, before_pool):
+    torch = pytest.importorskip("torch")
+    img = pair[0]
+    blocks = metrics._inception_blocks(torch, before_pool)
+    full = metrics._inception_run(torch, blocks, img)
+    old = metrics.PLAIN_MAX_PIXELS
+    try:
+        metrics.PLAIN_MAX_PIXELS = 12 * img.shape[1]
+        strips = list(metrics._inception_strips(img, before_pool))
+    finally:
+        metrics.PLAIN_MAX_PIXELS = old
+    assert len(strips) > 3
+    pieces = [metrics._inception_run(torch, blocks, img[r0:r1])[:, lo:hi] for r0, r1, lo, hi in strips]
+    joined = torch.cat(pieces, dim=1)
+    assert joined.shape == full.shape
+    assert torch.allclose(joined, full, atol=1e-4, rtol=1e-4)
+
+
+@pytest.mark.parametrize("before_pool", [False, True])
+def test_sifid_strips_give_the_one_piece_score(pair, monkeypatch, before_pool):
+    pytest.importorskip("torch")
+    ex, res = pair
+    plain = metrics.sifid(ex, res, before_pool=before_pool)
+    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 40 * 140)
+    strips = metrics.sifid(ex, res, before_pool=before_pool)
+    assert strips == pytest.approx(plain, rel=1e-5)
+    assert metrics.sifid(ex, res, before_pool=before_pool) == strips
+
+
+def test_cooccurrence_strips_give_the_one_piece_score(pair, monkeypatch):
+    ex, res = pair
+    plain = metrics.cooccurrence_distance(ex, res)
+    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 20 * 140)
+    assert len(metrics._cooc_strips(ex, 51)) == 8
+    strips = metrics.cooccurrence_distance(ex, res)
+    assert strips == pytest.approx(plain, rel=1e-9)
+    assert metrics.cooccurrence_distance(ex, res) == strips
+
+
+@pytest.mark.parametrize("name", ["sifid", "gram", "cooccurrence"])
+def test_small_images_take_the_one_piece_path_bit_for_bit(pair, monkeypatch, name):
+    """Below the thresholds nothing changes: raising them changes no bit of the score."""
+    if metrics.METRICS[name].needs_torch:
+        pytest.importorskip("torch")
+    ex, res = pair
+    fn = metrics.METRICS[name].function
+    value = fn(ex, res)
+    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 10**9)
+    monkeypatch.setattr(metrics, "GRAM_TILE", 10**6)
+    assert fn(ex, res) == value
+
+
+# ------------------------------------------------------------------ checks before the work
+
+
+def test_sizes_are_checked_before_any_work():
+    side = int(np.sqrt(MAX_PIXELS)) + 1
+    with pytest.raises(InvalidImageError, match="above the"):
+        metrics.check_sizes({"result": (side, side, 3)})
+    with pytest.raises(InvalidImageError, match="swd needs at least 28x28"):
+        metrics.check_sizes({"result": (20, 100, 3)})
+    metrics.check_sizes({"result": (20, 100, 3)}, ["sifid", "novelty"])  # 16 and 8 are enough
+    with pytest.raises(InvalidImageError, match="diversity needs at least 8x8"):
+        metrics.check_sizes({"result": (5, 5, 3)}, ["cooccurrence"], diversity=True)
+
+
+def test_evaluate_refuses_a_tiny_image_saying_what_size_is_needed():
+    with pytest.raises(InvalidImageError) as info:
+        metrics.evaluate(data.bricks(64), np.zeros((1, 1, 3)))
+    message = str(info.value)
+    assert "28x28" in message and "1x1" in message and "patch size" not in message
+    assert "\n" not in message
+
+
+@pytest.mark.parametrize("chosen", [[], ()])
+def test_evaluate_refuses_no_metrics(chosen):
+    with pytest.raises(TGHopError, match="sifid, gram, swd"):
+        metrics.evaluate(data.bricks(64), data.bricks(64), metrics=chosen)
+
+
+# ------------------------------------------------------------------ progress
+
+
+def test_evaluate_reports_progress_per_metric(pair, monkeypatch):
+    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 40 * 140)
+    ex, res = pair
+    calls = []
+    names = ["swd", "cooccurrence", "novelty", "copied"]
+    metrics.evaluate(ex, res, metrics=names, progress=lambda *a: calls.append(a))
+    assert [c[0] for c in calls if c[1] == 0] == names  # one stage per metric, in order
+    for name in names:
+        seen = [(done, total) for stage, done, total in calls if stage == name]
+        assert seen[-1][0] == seen[-1][1] > 0  # every stage ends complete
+        assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+    assert len([c for c in calls if c[0] == "cooccurrence"]) > 3  # strips counted
+
+
+def test_diversity_reports_progress(pair):
+    calls = []
+    value = metrics.diversity(pair[0], pair[1], progress=lambda *a: calls.append(a))
+    assert value == metrics.diversity(pair[0], pair[1])
+    assert calls[0][1] == 0 and calls[-1][1] == calls[-1][2] and {c[0] for c in calls} == {"diversity"}
+
+
+# ------------------------------------------------------------------ the command line
+
+
+def run(*args):
+    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning"}
+    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env,
+                          timeout=300)
+
+
+@pytest.fixture(scope="module")
+def images(tmp_path_factory):
+    d = tmp_path_factory.mktemp("evaluate")
+    save_image(data.bricks(64, rng=1), d / "ex.png")
+    save_image(data.bricks(48, rng=2), d / "res.png")
+    save_image(np.zeros((1, 1, 3)), d / "dot.png")
+    return d
+
+
+def test_cli_refuses_empty_metrics(images):
+    r = run("evaluate", images / "ex.png", images / "res.png", "--metrics", "")
+    assert_user_error(r, "--metrics", "sifid, gram, swd, cooccurrence, novelty, copied")
+    assert r.stdout == b""
+
+
+def test_cli_refuses_a_tiny_image_naming_the_size(images):
+    r = run("evaluate", images / "ex.png", images / "dot.png")
+    assert_user_error(r, "dot.png", "1x1", "28x28")
+    assert "patch size" not in r.stderr.decode()
+    r = run("evaluate", images / "ex.png", images / "res.png", images / "dot.png", "--metrics", "cooccurrence")
+    assert_user_error(r, "dot.png", "diversity needs at least 8x8")
+
+
+def test_cli_shows_progress_unless_quiet(images):
+    r = run("evaluate", images / "ex.png", images / "res.png", "--metrics", "swd,cooccurrence")
+    assert r.returncode == 0, r.stderr.decode()
+    assert "swd" in r.stderr.decode() and "cooccurrence" in r.stderr.decode()
+    assert "res.png" in r.stdout.decode()
+    r = run("evaluate", images / "ex.png", images / "res.png", "--metrics", "swd,cooccurrence", "-q")
+    assert r.returncode == 0 and r.stderr.decode().strip() == ""
+    r = run("evaluate", "--help")
+    assert "512x512" in r.stdout.decode() and "8192x8192" in r.stdout.decode()
+
+
+def test_evaluate_checks_the_size_before_copying_the_image(monkeypatch):
+    side = int(np.sqrt(MAX_PIXELS)) + 1
+    huge = np.broadcast_to(np.zeros((1, 1, 3)), (side, side, 3))  # no memory behind it
+
+    def no_copy(*args, **kwargs):
+        raise AssertionError("the images were copied before their size was checked")
+
+    monkeypatch.setattr(metrics, "_pair", no_copy)
+    with pytest.raises(InvalidImageError, match="above the"):
+        metrics.evaluate(data.bricks(64), huge, metrics=["cooccurrence"])
