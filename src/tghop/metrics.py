@@ -81,6 +81,9 @@ __all__ = [
     "copied",
     "diversity",
     "evaluate",
+    "TEXTURED_STD",
+    "copied_textured",
+    "self_repetition",
 ]
 
 
@@ -1006,3 +1009,192 @@ def evaluate(exemplar, result, *, metrics=None, progress=None) -> Scores:
                 raise
             scores.skipped[name] = str(exc)
     return scores
+
+
+# ---------------------------------------------------------------------------------------
+# Copies and repetition of textured windows
+# ---------------------------------------------------------------------------------------
+
+#: Standard deviation (over a window's pixels and channels) from which a window counts as
+#: textured in :func:`copied_textured` and :func:`self_repetition`: a flat window nearly
+#: equals any flat window, which says nothing about copying.
+TEXTURED_STD = 0.06
+
+
+def _window_std(img: np.ndarray, size: int) -> np.ndarray:
+    """``(H - size + 1, W - size + 1)`` standard deviation of every stride-1 ``size`` x
+    ``size`` window over its pixels and channels (float64 summed-area tables)."""
+    c = img.shape[2]
+    n = float(size * size * c)
+
+    def box_sums(x):
+        s = np.zeros((x.shape[0] + 1, x.shape[1] + 1))
+        np.cumsum(x, axis=0, out=s[1:, 1:])
+        np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
+        return s[size:, size:] - s[:-size, size:] - s[size:, :-size] + s[:-size, :-size]
+
+    x = np.asarray(img, dtype=np.float64)
+    mean = box_sums(x.sum(axis=2)) / n
+    var = box_sums(np.einsum("ijk,ijk->ij", x, x)) / n - mean * mean
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _textured_positions(img: np.ndarray, size: int, min_std: float, max_windows: int, rng) -> np.ndarray:
+    """Up to ``max_windows`` random ``(k, 2)`` (row, col) of textured windows, in raster order."""
+    flat = np.flatnonzero(_window_std(img, size).ravel() >= min_std)
+    nw = img.shape[1] - size + 1
+    if flat.size > max_windows:
+        flat = np.sort(rng.choice(flat, size=max_windows, replace=False))
+    return np.stack(np.divmod(flat, nw), axis=1)
+
+
+def _windows_at(img: np.ndarray, pos: np.ndarray, size: int) -> np.ndarray:
+    """``(k, size * size * C)`` float64 windows of ``img`` at ``pos`` (row, col)."""
+    windows = sliding_window_view(img, (size, size), axis=(0, 1))  # (nh, nw, C, P, P)
+    return windows[pos[:, 0], pos[:, 1]].reshape(len(pos), -1).astype(np.float64)
+
+
+def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
+                    max_patches: int = 1024, seed: int = 0) -> float:
+    """:func:`copied` over the result's *textured* windows only; LOWER is better.
+
+    A flat window (a smooth sky, a mortar line) nearly equals any flat exemplar window,
+    so :func:`copied` counts it as copied whatever the method. Here only the result's
+    ``patch_size`` x ``patch_size`` windows whose own standard deviation (over pixels and
+    channels) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and
+    each counts as copied when some exemplar window (stride 1) is within RMS ``threshold``.
+
+    Returns
+    -------
+    float
+        The fraction of sampled textured windows that are copies, in [0, 1]; **0 when the
+        result has no textured window** (nothing textured was copied).
+    """
+    patch_size = _check_patch_size(patch_size)
+    threshold = float(threshold)
+    if not math.isfinite(threshold) or threshold <= 0:
+        raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    ex, res = _pair(exemplar, result, min_size=patch_size)
+    rng = np.random.default_rng((int(seed), 3))
+    pos = _textured_positions(res, patch_size, float(min_std), int(max_patches), rng)
+    if len(pos) == 0:
+        return 0.0
+    q = _windows_at(res, pos, patch_size)
+    q32 = q.astype(np.float32)
+    q_norm = np.einsum("ij,ij->i", q32, q32)
+    windows = sliding_window_view(ex, (patch_size, patch_size), axis=(0, 1))
+    nh, nw = windows.shape[:2]
+    best = np.full(len(q), np.inf, dtype=np.float32)
+    best_index = np.zeros(len(q), dtype=np.int64)
+    rows_per_chunk = max(1, 8192 // nw)
+    for r0 in range(0, nh, rows_per_chunk):
+        r1 = min(nh, r0 + rows_per_chunk)
+        ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
+        d2 = np.einsum("ij,ij->i", ref, ref)[None, :] - 2.0 * (q32 @ ref.T)
+        local = d2.argmin(axis=1)
+        value = d2[np.arange(len(q)), local] + q_norm
+        better = value < best
+        best[better] = value[better]
+        best_index[better] = local[better] + r0 * nw
+    rows, cols = np.divmod(best_index, nw)
+    nearest = windows[rows, cols].reshape(len(q), -1)
+    rms = np.sqrt(np.mean((q - nearest) ** 2, axis=1))
+    return float(np.mean(rms < threshold))
+
+
+def _box_features(img: np.ndarray) -> np.ndarray:
+    """``(H - 3, W - 3, C)`` float32 means of every stride-1 4 x 4 box of ``img``."""
+    s = np.zeros((img.shape[0] + 1, img.shape[1] + 1, img.shape[2]))
+    np.cumsum(img, axis=0, out=s[1:, 1:])
+    np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
+    return ((s[4:, 4:] - s[:-4, 4:] - s[4:, :-4] + s[:-4, :-4]) / 16.0).astype(np.float32)
+
+
+def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
+                    region: int = 1024, search: int = 1024, max_windows: int = 500, seed: int = 0) -> float:
+    """How much of an image repeats itself; LOWER is better (0: no window recurs).
+
+    Up to ``max_windows`` textured ``patch_size`` x ``patch_size`` windows (standard
+    deviation at least ``min_std``, as :func:`copied_textured`) are sampled (seeded) from
+    the central ``region`` x ``region`` pixels (the whole image if smaller); a window
+    *repeats* when another window of the central ``search`` x ``search`` pixels that does
+    not overlap it (at least ``patch_size`` pixels away along a row or a column) is within
+    RMS ``threshold`` of it. Returns the fraction of sampled windows that repeat (0 when
+    none is textured): about 1 for a tiling of a crop, about 0 for noise. Quilting a small
+    pool into a large image scores high: every reuse of a patch repeats its windows.
+
+    Cost: the sampled windows are compared with every window of the search area (stride
+    1) by their 4 x 4 box means of each channel first, which bound the RMS difference
+    from below (an RMS of box means never exceeds that of the pixels), with one float32
+    matrix product per chunk of rows; only pairs that pass are compared pixel by pixel.
+    About ``search^2 * max_windows`` products of ``(patch_size / 4)^2 C + 1`` values
+    (seconds at the defaults, whatever the image size: only the central ``search``
+    square is read); memory is bounded by the chunks (tens of MB) and the search area's
+    box means. Windows of a larger image outside the search area are not compared.
+    """
+    patch_size = _check_patch_size(patch_size)
+    if patch_size % 4:
+        raise TGHopError(f"patch_size must be a multiple of 4, got {patch_size}")
+    threshold = float(threshold)
+    if not math.isfinite(threshold) or threshold <= 0:
+        raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    img = check_image(image, min_size=patch_size, name="image", dtype=np.float32)
+    h, w = img.shape[:2]
+    region = min(int(region), int(search))  # the sampled windows lie in the search area
+
+    def centre(length, size):
+        size = max(patch_size, min(length, int(size)))
+        start = (length - size) // 2
+        return start, start + size
+
+    (qy0, qy1), (qx0, qx1) = centre(h, region), centre(w, region)
+    (sy0, sy1), (sx0, sx1) = centre(h, search), centre(w, search)
+    rng = np.random.default_rng((int(seed), 4))
+    pos = _textured_positions(img[qy0:qy1, qx0:qx1], patch_size, float(min_std), int(max_windows), rng)
+    if len(pos) == 0:
+        return 0.0
+    pos = pos + [qy0, qx0]  # image coordinates
+    area = img[sy0:sy1, sx0:sx1]
+    box = _box_features(area)
+    offsets = [(4 * i, 4 * j) for i in range(patch_size // 4) for j in range(patch_size // 4)]
+    nb = len(offsets) * img.shape[2]
+    nh, nw = sy1 - sy0 - patch_size + 1, sx1 - sx0 - patch_size + 1
+    qy, qx = pos[:, 0] - sy0, pos[:, 1] - sx0
+    q = np.concatenate([box[qy + dy, qx + dx] for dy, dx in offsets], axis=1).astype(np.float64)  # (k, nb)
+    # Augmented rows: ref [f | |f|^2], query [2 q | -1] give 2 f.q - |f|^2; a pair passes
+    # when that is >= |q|^2 - limit (its squared box-mean distance <= limit).
+    limit = nb * threshold * threshold * (1.0 + 1e-3) + 1e-4
+    qa = np.empty((len(q), nb + 1), dtype=np.float32)
+    qa[:, :nb] = 2.0 * q
+    qa[:, nb] = -1.0
+    need = (np.einsum("ij,ij->i", q, q) - limit).astype(np.float32)
+    found = np.zeros(len(q), dtype=bool)
+    qwin = _windows_at(img, pos, patch_size)
+    awin = sliding_window_view(area, (patch_size, patch_size), axis=(0, 1))
+    c = img.shape[2]
+    rows_per_chunk = max(1, 8192 // nw)
+    for r0 in range(0, nh, rows_per_chunk):
+        live = np.flatnonzero(~found)
+        if live.size == 0:
+            break
+        r1 = min(nh, r0 + rows_per_chunk)
+        f = np.empty(((r1 - r0) * nw, nb + 1), dtype=np.float32)
+        for t, (dy, dx) in enumerate(offsets):
+            f[:, t * c : (t + 1) * c] = box[r0 + dy : r1 + dy, dx : dx + nw].reshape(-1, c)
+        f[:, nb] = np.einsum("ij,ij->i", f[:, :nb], f[:, :nb])
+        score = f @ qa[live].T  # (refs, live queries)
+        score -= need[live]
+        ref, col = np.nonzero(score >= 0)
+        if ref.size == 0:
+            continue
+        t = live[col]
+        ry, rx = np.divmod(ref, nw)
+        ry += r0
+        far = (np.abs(ry - qy[t]) >= patch_size) | (np.abs(rx - qx[t]) >= patch_size)
+        t, ry, rx = t[far], ry[far], rx[far]
+        for a in range(0, t.size, 4096):
+            sl = slice(a, a + 4096)
+            cand = awin[ry[sl], rx[sl]].reshape(len(t[sl]), -1)
+            close = np.mean((cand - qwin[t[sl]]) ** 2, axis=1) < threshold * threshold
+            found[t[sl][close]] = True
+    return float(np.mean(found))

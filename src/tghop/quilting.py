@@ -824,7 +824,7 @@ def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, b
     return err
 
 
-def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack):
+def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack, penalty=None):
     """The candidates of :func:`quilt_prepared`'s rule, with full errors only where needed.
 
     A lower bound of every pool patch's error (the box sums of :class:`_Boxes` instead of
@@ -834,6 +834,11 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     is within the tolerance of it (typically a dozen of 5,000) can be candidates; their
     full errors decide, by the same rule as without the bound, so the candidates are the
     same (up to float32 round-off).
+
+    With ``penalty`` (n,) (factors >= 1 of each patch's error, for reuse), the rule
+    applies to the penalised errors: a factor >= 1 times a lower bound is a lower bound
+    of the penalised error (also where the bound is negative), and the penalised full
+    error of the patch with the smallest penalised bound an upper bound of the best.
 
     Returns
     -------
@@ -859,9 +864,14 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     # product's left, which OpenBLAS reads faster (measured: docs/choices.md).
     lower = (bound @ lb_query.T).T
     lower += offset[:, None]
+    if penalty is not None:
+        lower *= penalty
+        slack = slack * penalty.max()
     first = lower.argmin(axis=1)
     blocks = np.arange(b)
     upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, blocks)
+    if penalty is not None:
+        upper *= penalty[first]
     # Twice the slack: the bound's own round-off; and never below the smallest bound, so
     # that every block keeps at least that patch.
     limit = np.maximum(np.maximum(upper, 0.0) * (1.0 + tolerance) + 2.0 * slack, lower[blocks, first])
@@ -871,6 +881,8 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     if pool_idx.size > n * b // 8:
         return None
     err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx)
+    if penalty is not None:
+        err *= penalty[pool_idx]
     best = np.full(b, np.inf, dtype=err.dtype)
     np.minimum.at(best, block_idx, err)
     keep = err <= np.maximum(best, 0.0)[block_idx] * (1.0 + tolerance) + slack[block_idx]
@@ -890,6 +902,7 @@ def quilt(
     guide=None,
     guide_weight: float = 1.0,
     guide_scale: int = GUIDE_SCALE,
+    reuse: float = 0.0,
 ) -> np.ndarray:
     """Stitch patches from ``pool`` into an image by image quilting (Efros & Freeman 2001).
 
@@ -929,6 +942,11 @@ def quilt(
         (0: the guide is ignored).
     guide_scale : int
         Box size of the low pass compared with the guide; divides ``P``.
+    reuse : float
+        Reuse penalty (ours; 0: none, Efros & Freeman): every error of a patch already
+        placed ``u`` times is multiplied by ``1 + reuse * u`` (counted after each
+        wavefront), so that a large image does not repeat the same few (mostly smooth)
+        patches; the tolerance then applies to the penalised errors.
 
     Returns
     -------
@@ -956,7 +974,7 @@ def quilt(
     prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail,
                             guide_scale=None if guide is None else guide_scale)
     return quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
-                          guide_weight=guide_weight)
+                          guide_weight=guide_weight, reuse=reuse)
 
 
 def _check_tolerance(tolerance) -> float:
@@ -1052,6 +1070,7 @@ def quilt_prepared(
     guide=None,
     guide_weight: float = 1.0,
     dtype=np.float64,
+    reuse: float = 0.0,
 ) -> np.ndarray:
     """Quilt a pool made ready by :func:`prepare_pool`; parameters and result as :func:`quilt`.
 
@@ -1063,8 +1082,14 @@ def quilt_prepared(
     if np.dtype(dtype) not in (np.float32, np.float64):
         raise TGHopError(f"dtype must be float32 or float64, got {np.dtype(dtype)}")
     tolerance = _check_tolerance(tolerance)
+    if isinstance(reuse, bool) or not isinstance(reuse, numbers.Real) or not (math.isfinite(reuse) and reuse >= 0):
+        raise TGHopError(f"reuse must be a finite number >= 0, got {reuse!r}")
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
+    # Uses of each pool patch and the factors (1 + reuse * uses) of its errors; None
+    # without a penalty (the same arithmetic as before it existed).
+    uses = np.zeros(arr.shape[0], dtype=np.int64) if reuse else None
+    penalty = None
     p, c = arr.shape[1], arr.shape[3]
     slices, masks_fc, table, energy = prepared._slices, prepared._masks_fc, prepared._table, prepared._energy
     m, k = masks_fc.shape
@@ -1110,7 +1135,19 @@ def quilt_prepared(
         # Candidates: error <= (1 + tolerance) * best error, with a little slack for the
         # float32 round-off of the expansion; the best match always qualifies.
         slack = 1e-5 * (onorm + norm_max[mid])
-        found = _bounded_candidates(prepared, o, query, onorm, k1, wraps[mid], target, factor, tolerance, slack)
+        found = _bounded_candidates(prepared, o, query, onorm, k1, wraps[mid], target, factor, tolerance, slack,
+                                    penalty)
+        if found is None and penalty is not None:  # every error in full, penalised
+            err = table[:, :k1] @ query[:, :k1].T
+            sel = np.flatnonzero(wraps[mid])
+            if sel.size:
+                err[:, sel] += table[:, k1:] @ query[sel, k1:].T
+            if target is not None:
+                err += _guide_distances(guided, target, factor)
+            err += onorm
+            err *= penalty[:, None]
+            best = np.maximum(err.min(axis=0), 0.0)
+            found = np.nonzero(err <= best * (1.0 + tolerance) + slack * penalty.max())
         if found is None:  # the bound rules out too few patches: every error in full
             err = table[:, :k1] @ query[:, :k1].T
             sel = np.flatnonzero(wraps[mid])
@@ -1131,6 +1168,9 @@ def quilt_prepared(
             skip = np.minimum((detail * counts).astype(np.int64), counts - 1)
             pick = skip + rng.integers(0, counts - skip)
         chosen = pool_idx[by_block[first + pick]]
+        if uses is not None:
+            np.add.at(uses, chosen, 1)
+            penalty = (1.0 + reuse * uses).astype(np.float32)
 
         new = np.ascontiguousarray(arr[chosen], dtype=np.float32)
         _check_values(new)

@@ -314,6 +314,15 @@ SETTINGS: Tuple[Setting, ...] = (
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
             when="generate", low=0, high=20, paper=0),
+    Setting("reuse", 1.0, "float",
+            "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "
+            "against repeating the same patches in large images (ours; not applied where there are 8 "
+            "pool patches per block or more, e.g. 256x256; 0: the paper's rule).",
+            when="generate", low=0, paper=0.0),
+    Setting("pool_per_block", 1.5, "float",
+            "Grow the pool to this many patches per quilted block when that is more than n_patches, up "
+            "to 30,000 (ours, for large images; 0: the pool is n_patches).", when="generate", low=0,
+            paper=0.0),
     Setting("layout_refine", 3, "int",
             "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "
             "(models fitted with a layout factor).", when="generate", low=0, high=20),

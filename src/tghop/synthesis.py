@@ -19,6 +19,7 @@ Example
 from __future__ import annotations
 
 import numbers
+import math
 
 import numpy as np
 
@@ -50,6 +51,8 @@ DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 #: place more patches, decoded again one wavefront at a time on quilting's path, which
 #: then costs more than it saves (measured: docs/choices.md).
 _ON_DEMAND_BLOCKS = 0.125
+#: Largest pool that ``pool_per_block`` grows to (a 4096x4096 image has 23,104 blocks).
+_MAX_GROWN_POOL = 30_000
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -620,7 +623,7 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
-                   progress=None, dtype=np.float64):
+                   reuse=1.0, pool_per_block=1.5, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -653,6 +656,13 @@ class TGHop(BaseEstimator):
             0 is off, as in the paper.
         layout_refine : int
             Rounds of that refinement for the coarse layout's guide.
+        reuse : float
+            Quilting multiplies the error of a pool patch placed ``u`` times by ``1 + reuse
+            * u`` (ours, against repeated patches in large images; not applied to images of
+            at most one block per 8 pool patches; 0: the paper's rule).
+        pool_per_block : float
+            Generate this many pool patches per quilted block where that is more than
+            ``n_patches`` (at most 30,000; ours; 0: always ``n_patches``).
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine" and
             "colour".
@@ -672,8 +682,19 @@ class TGHop(BaseEstimator):
             raise TGHopError(f"dtype must be float64, float32 or uint8, got {dtype}")
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
-            match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine))
+            match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
+            reuse=reuse, pool_per_block=pool_per_block))
         n_patches = checked["n_patches"]
+        if checked["pool_per_block"]:  # a larger pool for a large image, up to _MAX_GROWN_POOL
+            blocks = block_count(size, self.patch_size, overlap=overlap, tile=tile)
+            grown = min(_MAX_GROWN_POOL, int(math.ceil(checked["pool_per_block"] * blocks)))
+            n_patches = max(n_patches, grown)
+        # Small images (at most one block per 8 pool patches: 256x256 and 512x512 from
+        # 5,000) hardly reuse a patch (100 blocks: 81 patches, at most 3 uses): no penalty,
+        # the same images as without it.
+        reuse = checked["reuse"]
+        if block_count(size, self.patch_size, overlap=overlap, tile=tile) <= _ON_DEMAND_BLOCKS * n_patches:
+            reuse = 0.0
         rng = check_rng(rng)
         guide = None
         if self.layout_ is not None and layout_weight:
@@ -700,7 +721,7 @@ class TGHop(BaseEstimator):
         # float32; quilting's canvas is float32): half the memory of a large image.
         wide = np.float64 if dtype == np.float64 and not refine else np.float32
         image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
-                               guide_weight=layout_weight, dtype=wide)
+                               guide_weight=layout_weight, dtype=wide, reuse=reuse)
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,

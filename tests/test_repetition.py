@@ -1,0 +1,105 @@
+"""Repetition: copied_textured and self_repetition (tghop.metrics), quilting's reuse penalty."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from tghop import metrics
+from tghop._common import TGHopError
+from tghop.quilting import quilt
+
+
+def _texture(shape, seed=0, sigma=1.0):
+    rng = np.random.default_rng(seed)
+    img = ndimage.gaussian_filter(rng.random(shape), (sigma, sigma, 0))
+    img -= img.min()
+    return img / img.max()
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return _texture((96, 96, 3))
+
+
+def test_copied_textured_crop_noise_and_flat(exemplar):
+    crop = exemplar[10:74, 20:84]
+    assert metrics.copied_textured(exemplar, crop) == 1.0
+    noise = np.random.default_rng(5).random((64, 64, 3))
+    assert metrics.copied_textured(exemplar, noise) == 0.0
+    # A flat result has no textured window: 0, though every window nearly equals a flat one.
+    flat_ex = exemplar.copy()
+    flat_ex[:40, :40] = 0.5
+    flat = np.full((48, 48, 3), 0.5)
+    assert metrics.copied(flat_ex, flat) == 1.0
+    assert metrics.copied_textured(flat_ex, flat) == 0.0
+    # Flat windows are left out: a result half flat (no copy of the exemplar) and half
+    # a crop counts only the crop's windows and those that straddle the two.
+    half = np.concatenate([np.full((64, 32, 3), 0.5), crop[:, :32]], axis=1)
+    assert metrics.copied_textured(exemplar, half) > metrics.copied(exemplar, half) + 0.1
+    assert metrics.copied_textured(flat_ex, flat_ex[8:72, 8:72]) == 1.0
+
+
+def test_self_repetition_tiled_noise_and_determinism(exemplar):
+    tiled = np.tile(exemplar[:40, :40], (4, 4, 1))  # 160 x 160
+    assert metrics.self_repetition(tiled) >= 0.95
+    noise = np.random.default_rng(1).random((160, 160, 3))
+    assert metrics.self_repetition(noise) <= 0.01
+    smooth = _texture((160, 160, 3), seed=2, sigma=1.5)
+    a = metrics.self_repetition(smooth, max_windows=200, seed=3)
+    assert a == metrics.self_repetition(smooth, max_windows=200, seed=3)
+    assert 0.0 <= a <= 0.05
+    assert metrics.self_repetition(np.full((64, 64), 0.3)) == 0.0  # nothing textured
+    # Grey images, a region and search area smaller than the image.
+    grey = np.tile(exemplar[:40, :40].mean(axis=2), (5, 5))
+    assert metrics.self_repetition(grey, region=64, search=128) >= 0.95
+
+
+def test_self_repetition_does_not_count_overlapping_shifts():
+    # A smooth texture matches its own 1-pixel shifts, which overlap it: not repetition.
+    img = _texture((128, 128, 3), seed=4, sigma=6.0)
+    shift = np.sqrt(np.mean((img[20:36, 20:36] - img[21:37, 20:36]) ** 2))
+    assert shift < 0.03
+    assert metrics.self_repetition(img) <= 0.05
+
+
+def test_self_repetition_errors():
+    img = np.zeros((32, 32, 3))
+    with pytest.raises(TGHopError):
+        metrics.self_repetition(img, patch_size=10)
+    with pytest.raises(TGHopError):
+        metrics.self_repetition(img, threshold=0)
+
+
+def _flat_and_noisy_pool(seed=0):
+    rng = np.random.default_rng(seed)
+    pool = np.clip(0.5 + 0.15 * rng.standard_normal((40, 12, 12, 1)), 0, 1)
+    pool[0] = 0.5  # a flat patch: the overlap error prefers it everywhere
+    return pool
+
+
+def test_reuse_penalty_spreads_the_choice():
+    pool = _flat_and_noisy_pool()
+    plain = quilt(pool, (120, 120), rng=0, tolerance=0.0)
+    assert np.array_equal(plain, quilt(pool, (120, 120), rng=0, tolerance=0.0, reuse=0.0))
+    spread = quilt(pool, (120, 120), rng=0, tolerance=0.0, reuse=1.0)
+    flat_plain = np.mean(plain == 0.5)
+    flat_spread = np.mean(spread == 0.5)
+    assert flat_plain > 0.5 and flat_spread < flat_plain / 2, (flat_plain, flat_spread)
+    assert np.array_equal(spread, quilt(pool, (120, 120), rng=0, tolerance=0.0, reuse=1.0))
+    with pytest.raises(TGHopError):
+        quilt(pool, (60, 60), reuse=-1.0)
+
+
+def test_reuse_penalty_without_the_bound_agrees():
+    """The bounded candidate search and the full errors pick the same with a penalty."""
+    from tghop import quilting
+
+    pool = _flat_and_noisy_pool(1)
+    a = quilt(pool, (90, 90), rng=2, reuse=0.5)
+    old = quilting._bounded_candidates
+    try:
+        quilting._bounded_candidates = lambda *args, **kw: None  # every error in full
+        b = quilt(pool, (90, 90), rng=2, reuse=0.5)
+    finally:
+        quilting._bounded_candidates = old
+    assert np.allclose(a, b)
