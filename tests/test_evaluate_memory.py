@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tghop import data, metrics
+from tghop.metrics import common, distributions, evaluation, networks
 from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
 from tghop.imageio import save_image
 
@@ -36,8 +37,8 @@ def test_gram_tiles_give_the_one_piece_gram(pair, monkeypatch):
     pytest.importorskip("torch")
     ex, res = pair
     plain = metrics.gram_distance(ex, res)
-    monkeypatch.setattr(metrics, "GRAM_TILE", 30)  # 96x86 valid positions: 4x3 tiles
-    assert len(metrics._gram_tiles(ex, 27)) == 12
+    monkeypatch.setattr(networks, "GRAM_TILE", 30)  # 96x86 valid positions: 4x3 tiles
+    assert len(networks._gram_tiles(ex, 27)) == 12
     tiled = metrics.gram_distance(ex, res)
     assert tiled == pytest.approx(plain, rel=1e-5)
     assert metrics.gram_distance(ex, res) == tiled  # deterministic
@@ -48,16 +49,16 @@ def test_gram_tiles_give_the_one_piece_gram(pair, monkeypatch):
 def test_sifid_strips_give_every_feature_row_once(pair, before_pool):
     torch = pytest.importorskip("torch")
     img = pair[0]
-    blocks = metrics._inception_blocks(torch, before_pool)
-    full = metrics._inception_run(torch, blocks, img)
-    old = metrics.PLAIN_MAX_PIXELS
+    blocks = networks._inception_blocks(torch, before_pool)
+    full = networks._inception_run(torch, blocks, img)
+    old = common.PLAIN_MAX_PIXELS
     try:
-        metrics.PLAIN_MAX_PIXELS = 12 * img.shape[1]
-        strips = list(metrics._inception_strips(img, before_pool))
+        common.PLAIN_MAX_PIXELS = 12 * img.shape[1]
+        strips = list(networks._inception_strips(img, before_pool))
     finally:
-        metrics.PLAIN_MAX_PIXELS = old
+        common.PLAIN_MAX_PIXELS = old
     assert len(strips) > 3
-    pieces = [metrics._inception_run(torch, blocks, img[r0:r1])[:, lo:hi] for r0, r1, lo, hi in strips]
+    pieces = [networks._inception_run(torch, blocks, img[r0:r1])[:, lo:hi] for r0, r1, lo, hi in strips]
     joined = torch.cat(pieces, dim=1)
     assert joined.shape == full.shape
     assert torch.allclose(joined, full, atol=1e-4, rtol=1e-4)
@@ -68,7 +69,7 @@ def test_sifid_strips_give_the_one_piece_score(pair, monkeypatch, before_pool):
     pytest.importorskip("torch")
     ex, res = pair
     plain = metrics.sifid(ex, res, before_pool=before_pool)
-    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 40 * 140)
+    monkeypatch.setattr(common, "PLAIN_MAX_PIXELS", 40 * 140)
     strips = metrics.sifid(ex, res, before_pool=before_pool)
     assert strips == pytest.approx(plain, rel=1e-5)
     assert metrics.sifid(ex, res, before_pool=before_pool) == strips
@@ -77,8 +78,8 @@ def test_sifid_strips_give_the_one_piece_score(pair, monkeypatch, before_pool):
 def test_cooccurrence_strips_give_the_one_piece_score(pair, monkeypatch):
     ex, res = pair
     plain = metrics.cooccurrence_distance(ex, res)
-    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 20 * 140)
-    assert len(metrics._cooc_strips(ex, 51)) == 8
+    monkeypatch.setattr(common, "PLAIN_MAX_PIXELS", 20 * 140)
+    assert len(distributions._cooc_strips(ex, 51)) == 8
     strips = metrics.cooccurrence_distance(ex, res)
     assert strips == pytest.approx(plain, rel=1e-9)
     assert metrics.cooccurrence_distance(ex, res) == strips
@@ -92,8 +93,8 @@ def test_small_images_take_the_one_piece_path_bit_for_bit(pair, monkeypatch, nam
     ex, res = pair
     fn = metrics.METRICS[name].function
     value = fn(ex, res)
-    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 10**9)
-    monkeypatch.setattr(metrics, "GRAM_TILE", 10**6)
+    monkeypatch.setattr(common, "PLAIN_MAX_PIXELS", 10**9)
+    monkeypatch.setattr(networks, "GRAM_TILE", 10**6)
     assert fn(ex, res) == value
 
 
@@ -129,7 +130,7 @@ def test_evaluate_refuses_no_metrics(chosen):
 
 
 def test_evaluate_reports_progress_per_metric(pair, monkeypatch):
-    monkeypatch.setattr(metrics, "PLAIN_MAX_PIXELS", 40 * 140)
+    monkeypatch.setattr(common, "PLAIN_MAX_PIXELS", 40 * 140)
     ex, res = pair
     calls = []
     names = ["swd", "cooccurrence", "novelty", "copied"]
@@ -199,6 +200,6 @@ def test_evaluate_checks_the_size_before_copying_the_image(monkeypatch):
     def no_copy(*args, **kwargs):
         raise AssertionError("the images were copied before their size was checked")
 
-    monkeypatch.setattr(metrics, "_pair", no_copy)
+    monkeypatch.setattr(evaluation, "pair", no_copy)
     with pytest.raises(InvalidImageError, match="above the"):
         metrics.evaluate(data.bricks(64), huge, metrics=["cooccurrence"])

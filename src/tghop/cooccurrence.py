@@ -25,7 +25,8 @@ import numpy as np
 
 from ._common import TGHopError, check_image, import_torch
 
-__all__ = ["fit_colour_clusters", "soft_assign", "cooccurrence_matrix", "cooccurrence_tensor"]
+__all__ = ["fit_colour_clusters", "soft_assign", "spread_pairs", "symmetric_normalised", "cooccurrence_matrix",
+           "cooccurrence_tensor"]
 
 
 def _torch():
@@ -110,7 +111,7 @@ def _gauss_kernel(sigma: float, radius: int) -> np.ndarray:
     return np.exp(-(d * d) / (2.0 * sigma * sigma))
 
 
-def _spread(assign, sigma: float, radius: int):
+def spread_pairs(assign, sigma: float, radius: int):
     """``S_b(p) = sum_{q in window(p), q in image} exp(-|p - q|^2 / (2 sigma^2)) K_b(q)``.
 
     The 2-D Gaussian over a square window is separable, so two 1-D passes give it
@@ -147,11 +148,11 @@ def _pair_maps(assign, sigma: float, radius: int):
     -------
     shape (N, k, k, H, W)
     """
-    spread = _spread(assign, sigma, radius)
+    spread = spread_pairs(assign, sigma, radius)
     return assign[:, :, None] * spread[:, None, :]
 
 
-def _symmetric_normalised(m):
+def symmetric_normalised(m):
     """``(M + M^T) / 2`` over the last two axes, scaled to sum to 1."""
     m = 0.5 * (m + m.swapaxes(-1, -2))
     return m / m.sum((-2, -1))[..., None, None]
@@ -184,7 +185,7 @@ def cooccurrence_matrix(images, centres, spreads, *, sigma: float = math.sqrt(51
     """
     assign = soft_assign(images, centres, spreads) + floor
     pairs = _pair_maps(assign, float(sigma), int(window) // 2)
-    return _symmetric_normalised(pairs.sum((-2, -1)))
+    return symmetric_normalised(pairs.sum((-2, -1)))
 
 
 def _box_sum2(x, radius: int):
@@ -283,7 +284,7 @@ def cooccurrence_tensor(images, centres, spreads, *, patch: int = 65, window: in
     if s < 1 or h < s or w < s:
         raise TGHopError(f"images of {h}x{w} pixels are smaller than the downsampling factor s={s}")
     assign = soft_assign(images, centres, spreads) + floor  # (N, k, H, W)
-    spread = _spread(assign, float(sigma), int(window) // 2)
+    spread = spread_pairs(assign, float(sigma), int(window) // 2)
     k = assign.shape[1]
     r = int(patch) // 2
     hh, ww = h // s, w // s

@@ -1,0 +1,61 @@
+"""What the metrics share: checking a pair of images, progress, patch sizes and samples."""
+
+from __future__ import annotations
+
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from .._common import TGHopError, check_image, report
+
+__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "sample_patches"]
+
+
+#: Images up to this many pixels (512 x 512) are scored in one piece by :func:`sifid` and
+#: :func:`cooccurrence_distance`, exactly as before; larger ones in full-width row strips of
+#: about this many pixels, so the memory stays bounded (the same score up to float
+#: rounding: both are sums over pixels, accumulated strip by strip).
+PLAIN_MAX_PIXELS = 512 * 512
+
+def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Validate two images and give them the same number of channels (grey -> RGB if mixed)."""
+    ex = check_image(exemplar, min_size=min_size, name="exemplar")
+    res = check_image(result, min_size=min_size, name="result")
+    if ex.shape[2] != res.shape[2]:
+        ex, res = (np.repeat(a, 3, axis=2) if a.shape[2] == 1 else a for a in (ex, res))
+    return ex, res
+
+
+
+def counter(progress, stage: str, total: int):
+    """A ``tick()`` that reports ``stage`` one unit further each call (out of ``total``)."""
+    done = [0]
+    report(progress, stage, 0, total)
+
+    def tick():
+        done[0] += 1
+        report(progress, stage, min(done[0], total), total)
+
+    return tick
+
+
+def check_patch_size(patch_size) -> int:
+    patch_size = int(patch_size)
+    if patch_size < 1:
+        raise TGHopError(f"patch_size must be positive, got {patch_size}")
+    return patch_size
+
+
+def sample_patches(img: np.ndarray, patch_size: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` random stride-1 patches of ``img`` (all, in raster order, if ``n`` is the total).
+
+    Returns
+    -------
+    ndarray, shape (n, patch_size * patch_size * C), float64
+    """
+    windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))  # (nh, nw, C, P, P)
+    nh, nw = windows.shape[:2]
+    total = nh * nw
+    index = np.arange(total) if n >= total else rng.choice(total, size=n, replace=False)
+    rows, cols = np.divmod(index, nw)
+    return windows[rows, cols].reshape(len(index), -1)

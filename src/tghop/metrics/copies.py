@@ -1,0 +1,391 @@
+"""How new a result is: nearest-patch distances to the exemplar (novelty, copied,
+copied_textured), between results (diversity), and within one image (self_repetition)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from .._common import TGHopError, check_image
+from .common import pair, counter, check_patch_size, sample_patches
+
+__all__ = ["novelty", "copied", "diversity", "TEXTURED_STD", "copied_textured", "self_repetition"]
+
+# ---------------------------------------------------------------------------------------
+# Novelty and diversity: nearest-patch distances
+# ---------------------------------------------------------------------------------------
+
+
+_NEAREST_CHUNK = 8192  # reference patches compared at once: a (max_patches, 8192) float32 block
+
+
+def _nearest_chunks(reference: np.ndarray, patch_size: int) -> int:
+    """How many chunks :func:`_nearest_patch_rms` searches ``reference`` in."""
+    nh, nw = reference.shape[0] - patch_size + 1, reference.shape[1] - patch_size + 1
+    return -(-nh // max(1, _NEAREST_CHUNK // nw))
+
+
+def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int, max_patches: int, seed: int,
+                       tick=None):
+    """RMS distance of sampled ``query`` patches to their nearest ``reference`` patch.
+
+    Every stride-1 patch of ``reference`` is a candidate. Neighbours are found with
+    float32 matrix products (``|q|^2 - 2 q.r + |r|^2``, chunked over the reference rows
+    to bound memory: about ``max_patches x 8192`` floats at a time, whatever the image
+    sizes) and their distances recomputed exactly in float64, so a verbatim copy scores
+    exactly 0. ``tick()`` is called after each chunk.
+
+    Returns
+    -------
+    ndarray, shape (n_query,), float64
+    """
+    n_total = (query.shape[0] - patch_size + 1) * (query.shape[1] - patch_size + 1)
+    rng = np.random.default_rng((int(seed), 2))
+    q = sample_patches(query, patch_size, min(int(max_patches), n_total), rng)  # (n, d) float64
+    q32 = q.astype(np.float32)
+    q_norm = (q32 * q32).sum(axis=1)
+    windows = sliding_window_view(reference, (patch_size, patch_size), axis=(0, 1))  # (nh, nw, C, P, P)
+    nh, nw = windows.shape[:2]
+    best = np.full(q.shape[0], np.inf, dtype=np.float32)
+    best_index = np.zeros(q.shape[0], dtype=np.int64)
+    rows_per_chunk = max(1, _NEAREST_CHUNK // nw)
+    for r0 in range(0, nh, rows_per_chunk):
+        r1 = min(nh, r0 + rows_per_chunk)
+        ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
+        d2 = (ref * ref).sum(axis=1)[None, :] - 2.0 * (q32 @ ref.T)
+        local = d2.argmin(axis=1)
+        value = d2[np.arange(q.shape[0]), local] + q_norm
+        better = value < best
+        best[better] = value[better]
+        best_index[better] = local[better] + r0 * nw
+        if tick is not None:
+            tick()
+    rows, cols = np.divmod(best_index, nw)
+    nearest = windows[rows, cols].reshape(q.shape[0], -1)
+    return np.sqrt(np.mean((q - nearest) ** 2, axis=1))
+
+
+def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, seed: int = 0,
+            progress=None) -> float:
+    """How far the result's patches are from any exemplar patch; HIGHER means more novel.
+
+    For up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of the result,
+    the nearest patch of the exemplar at every offset (stride 1) is found, and the
+    root-mean-square pixel difference to it is averaged. A verbatim crop of the exemplar
+    (or image quilting of the exemplar itself, away from its seams) scores 0; a result
+    that re-creates the texture rather than copying it scores about as much as the
+    texture's own fine-grain variation. Read it together with the fidelity metrics:
+    noise is very "novel" too.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], at least ``patch_size`` on each side.
+    patch_size : int
+        Side of the compared patches (default 8).
+    max_patches : int
+        Result patches sampled (default 2,048); every exemplar patch is searched.
+    seed : int
+        Seed of the patch sample.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"novelty"``, one unit per chunk of
+        exemplar patches searched.
+
+    Returns
+    -------
+    float
+        Mean RMS distance in intensity units (0 to 1), >= 0.
+
+    Notes
+    -----
+    Memory is bounded (the exemplar's patches are searched in chunks); the time grows
+    with the exemplar's pixels (about 10 s per megapixel on 2 cores).
+    """
+    patch_size = check_patch_size(patch_size)
+    ex, res = pair(exemplar, result, min_size=patch_size)
+    tick = counter(progress, "novelty", _nearest_chunks(ex, patch_size))
+    return float(_nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed), tick).mean())
+
+
+def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, max_patches: int = 1024,
+           seed: int = 0, progress=None) -> float:
+    """Fraction of the result that is verbatim exemplar; LOWER is better (0: nothing copied).
+
+    For up to ``max_patches`` random ``patch_size`` x ``patch_size`` patches of the result,
+    the nearest exemplar patch at every offset (stride 1, native resolution) is found; a
+    result patch counts as copied when its RMS difference to it is below ``threshold``.
+    A crop of the exemplar scores 1, image quilting of the exemplar about 0.4 (its
+    patches away from the seams are verbatim), a texture generated anew 0. The mean
+    nearest distance (:func:`novelty`) does not separate these: quilting's 32 x 32
+    windows straddle seams.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], at least ``patch_size`` on each side.
+    patch_size : int
+        Side of the compared patches (default 16).
+    threshold : float
+        RMS difference (intensity units, 0 to 1) below which a patch is a copy
+        (default 0.03, about 8 grey levels of 255).
+    max_patches : int
+        Result patches sampled (default 1,024); every exemplar patch is searched.
+    seed : int
+        Seed of the patch sample.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"copied"``, one unit per chunk of
+        exemplar patches searched.
+
+    Returns
+    -------
+    float
+        Fraction in [0, 1].
+
+    Notes
+    -----
+    Memory is bounded, as for :func:`novelty`.
+    """
+    patch_size = check_patch_size(patch_size)
+    threshold = float(threshold)
+    if not math.isfinite(threshold) or threshold <= 0:
+        raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    ex, res = pair(exemplar, result, min_size=patch_size)
+    tick = counter(progress, "copied", _nearest_chunks(ex, patch_size))
+    rms = _nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed), tick)
+    return float(np.mean(rms < threshold))
+
+
+def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int = 0, progress=None) -> float:
+    """How different results of different seeds are; HIGHER means more diverse.
+
+    Pixel-aligned differences say nothing for textures (two good samples differ
+    everywhere; a shifted copy differs too), so this is the symmetric :func:`novelty` of
+    one result with respect to another -- the mean RMS distance of each result's patches
+    to their nearest patch in the other -- averaged over all pairs. Results that are
+    crops of one another score 0.
+
+    Parameters
+    ----------
+    *results : array_like, shape (H, W) or (H, W, C)
+        Two or more results, or a single sequence of them: ``diversity(a, b)`` or
+        ``diversity([a, b, c])``.
+    patch_size, max_patches, seed
+        As for :func:`novelty`.
+    progress : callable, optional
+        ``progress(stage, done, total)``: stage ``"diversity"``, one unit per chunk of
+        patches searched, over all pairs. Memory is bounded as for :func:`novelty`.
+
+    Returns
+    -------
+    float
+        Mean RMS distance in intensity units, >= 0.
+    """
+    if len(results) == 1 and not (isinstance(results[0], np.ndarray) and results[0].ndim <= 3):
+        results = tuple(results[0])
+    if len(results) < 2:
+        raise TGHopError(f"diversity needs at least two results, got {len(results)}")
+    patch_size = check_patch_size(patch_size)
+    images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
+    if len({img.shape[2] for img in images}) > 1:
+        images = [np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img for img in images]
+    pairs = list(itertools.combinations(images, 2))
+    tick = counter(progress, "diversity",
+                    sum(_nearest_chunks(a, patch_size) + _nearest_chunks(b, patch_size) for a, b in pairs))
+    values = []
+    for a, b in pairs:
+        values.append(_nearest_patch_rms(a, b, patch_size, int(max_patches), int(seed), tick).mean())
+        values.append(_nearest_patch_rms(b, a, patch_size, int(max_patches), int(seed), tick).mean())
+    return float(np.mean(values))
+
+
+
+# ---------------------------------------------------------------------------------------
+# Copies and repetition of textured windows
+# ---------------------------------------------------------------------------------------
+
+#: Standard deviation (over a window's pixels and channels) from which a window counts as
+#: textured in :func:`copied_textured` and :func:`self_repetition`: a flat window nearly
+#: equals any flat window, which says nothing about copying.
+TEXTURED_STD = 0.06
+
+
+def _window_std(img: np.ndarray, size: int) -> np.ndarray:
+    """``(H - size + 1, W - size + 1)`` standard deviation of every stride-1 ``size`` x
+    ``size`` window over its pixels and channels (float64 summed-area tables)."""
+    c = img.shape[2]
+    n = float(size * size * c)
+
+    def box_sums(x):
+        s = np.zeros((x.shape[0] + 1, x.shape[1] + 1))
+        np.cumsum(x, axis=0, out=s[1:, 1:])
+        np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
+        return s[size:, size:] - s[:-size, size:] - s[size:, :-size] + s[:-size, :-size]
+
+    x = np.asarray(img, dtype=np.float64)
+    mean = box_sums(x.sum(axis=2)) / n
+    var = box_sums(np.einsum("ijk,ijk->ij", x, x)) / n - mean * mean
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _textured_positions(img: np.ndarray, size: int, min_std: float, max_windows: int, rng) -> np.ndarray:
+    """Up to ``max_windows`` random ``(k, 2)`` (row, col) of textured windows, in raster order."""
+    flat = np.flatnonzero(_window_std(img, size).ravel() >= min_std)
+    nw = img.shape[1] - size + 1
+    if flat.size > max_windows:
+        flat = np.sort(rng.choice(flat, size=max_windows, replace=False))
+    return np.stack(np.divmod(flat, nw), axis=1)
+
+
+def _windows_at(img: np.ndarray, pos: np.ndarray, size: int) -> np.ndarray:
+    """``(k, size * size * C)`` float64 windows of ``img`` at ``pos`` (row, col)."""
+    windows = sliding_window_view(img, (size, size), axis=(0, 1))  # (nh, nw, C, P, P)
+    return windows[pos[:, 0], pos[:, 1]].reshape(len(pos), -1).astype(np.float64)
+
+
+def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
+                    max_patches: int = 1024, seed: int = 0) -> float:
+    """:func:`copied` over the result's *textured* windows only; LOWER is better.
+
+    A flat window (a smooth sky, a mortar line) nearly equals any flat exemplar window,
+    so :func:`copied` counts it as copied whatever the method. Here only the result's
+    ``patch_size`` x ``patch_size`` windows whose own standard deviation (over pixels and
+    channels) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and
+    each counts as copied when some exemplar window (stride 1) is within RMS ``threshold``.
+
+    Returns
+    -------
+    float
+        The fraction of sampled textured windows that are copies, in [0, 1]; **0 when the
+        result has no textured window** (nothing textured was copied).
+    """
+    patch_size = check_patch_size(patch_size)
+    threshold = float(threshold)
+    if not math.isfinite(threshold) or threshold <= 0:
+        raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    ex, res = pair(exemplar, result, min_size=patch_size)
+    rng = np.random.default_rng((int(seed), 3))
+    pos = _textured_positions(res, patch_size, float(min_std), int(max_patches), rng)
+    if len(pos) == 0:
+        return 0.0
+    q = _windows_at(res, pos, patch_size)
+    q32 = q.astype(np.float32)
+    q_norm = np.einsum("ij,ij->i", q32, q32)
+    windows = sliding_window_view(ex, (patch_size, patch_size), axis=(0, 1))
+    nh, nw = windows.shape[:2]
+    best = np.full(len(q), np.inf, dtype=np.float32)
+    best_index = np.zeros(len(q), dtype=np.int64)
+    rows_per_chunk = max(1, 8192 // nw)
+    for r0 in range(0, nh, rows_per_chunk):
+        r1 = min(nh, r0 + rows_per_chunk)
+        ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
+        d2 = np.einsum("ij,ij->i", ref, ref)[None, :] - 2.0 * (q32 @ ref.T)
+        local = d2.argmin(axis=1)
+        value = d2[np.arange(len(q)), local] + q_norm
+        better = value < best
+        best[better] = value[better]
+        best_index[better] = local[better] + r0 * nw
+    rows, cols = np.divmod(best_index, nw)
+    nearest = windows[rows, cols].reshape(len(q), -1)
+    rms = np.sqrt(np.mean((q - nearest) ** 2, axis=1))
+    return float(np.mean(rms < threshold))
+
+
+def _box_features(img: np.ndarray) -> np.ndarray:
+    """``(H - 3, W - 3, C)`` float32 means of every stride-1 4 x 4 box of ``img``."""
+    s = np.zeros((img.shape[0] + 1, img.shape[1] + 1, img.shape[2]))
+    np.cumsum(img, axis=0, out=s[1:, 1:])
+    np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
+    return ((s[4:, 4:] - s[:-4, 4:] - s[4:, :-4] + s[:-4, :-4]) / 16.0).astype(np.float32)
+
+
+def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
+                    region: int = 1024, search: int = 1024, max_windows: int = 500, seed: int = 0) -> float:
+    """How much of an image repeats itself; LOWER is better (0: no window recurs).
+
+    Up to ``max_windows`` textured ``patch_size`` x ``patch_size`` windows (standard
+    deviation at least ``min_std``, as :func:`copied_textured`) are sampled (seeded) from
+    the central ``region`` x ``region`` pixels (the whole image if smaller); a window
+    *repeats* when another window of the central ``search`` x ``search`` pixels that does
+    not overlap it (at least ``patch_size`` pixels away along a row or a column) is within
+    RMS ``threshold`` of it. Returns the fraction of sampled windows that repeat (0 when
+    none is textured): about 1 for a tiling of a crop, about 0 for noise. Quilting a small
+    pool into a large image scores high: every reuse of a patch repeats its windows.
+
+    Cost: the sampled windows are compared with every window of the search area (stride
+    1) by their 4 x 4 box means of each channel first, which bound the RMS difference
+    from below (an RMS of box means never exceeds that of the pixels), with one float32
+    matrix product per chunk of rows; only pairs that pass are compared pixel by pixel.
+    About ``search^2 * max_windows`` products of ``(patch_size / 4)^2 C + 1`` values
+    (seconds at the defaults, whatever the image size: only the central ``search``
+    square is read); memory is bounded by the chunks (tens of MB) and the search area's
+    box means. Windows of a larger image outside the search area are not compared.
+    """
+    patch_size = check_patch_size(patch_size)
+    if patch_size % 4:
+        raise TGHopError(f"patch_size must be a multiple of 4, got {patch_size}")
+    threshold = float(threshold)
+    if not math.isfinite(threshold) or threshold <= 0:
+        raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    img = check_image(image, min_size=patch_size, name="image", dtype=np.float32)
+    h, w = img.shape[:2]
+    region = min(int(region), int(search))  # the sampled windows lie in the search area
+
+    def centre(length, size):
+        size = max(patch_size, min(length, int(size)))
+        start = (length - size) // 2
+        return start, start + size
+
+    (qy0, qy1), (qx0, qx1) = centre(h, region), centre(w, region)
+    (sy0, sy1), (sx0, sx1) = centre(h, search), centre(w, search)
+    rng = np.random.default_rng((int(seed), 4))
+    pos = _textured_positions(img[qy0:qy1, qx0:qx1], patch_size, float(min_std), int(max_windows), rng)
+    if len(pos) == 0:
+        return 0.0
+    pos = pos + [qy0, qx0]  # image coordinates
+    area = img[sy0:sy1, sx0:sx1]
+    box = _box_features(area)
+    offsets = [(4 * i, 4 * j) for i in range(patch_size // 4) for j in range(patch_size // 4)]
+    nb = len(offsets) * img.shape[2]
+    nh, nw = sy1 - sy0 - patch_size + 1, sx1 - sx0 - patch_size + 1
+    qy, qx = pos[:, 0] - sy0, pos[:, 1] - sx0
+    q = np.concatenate([box[qy + dy, qx + dx] for dy, dx in offsets], axis=1).astype(np.float64)  # (k, nb)
+    # Augmented rows: ref [f | |f|^2], query [2 q | -1] give 2 f.q - |f|^2; a pair passes
+    # when that is >= |q|^2 - limit (its squared box-mean distance <= limit).
+    limit = nb * threshold * threshold * (1.0 + 1e-3) + 1e-4
+    qa = np.empty((len(q), nb + 1), dtype=np.float32)
+    qa[:, :nb] = 2.0 * q
+    qa[:, nb] = -1.0
+    need = (np.einsum("ij,ij->i", q, q) - limit).astype(np.float32)
+    found = np.zeros(len(q), dtype=bool)
+    qwin = _windows_at(img, pos, patch_size)
+    awin = sliding_window_view(area, (patch_size, patch_size), axis=(0, 1))
+    c = img.shape[2]
+    rows_per_chunk = max(1, 8192 // nw)
+    for r0 in range(0, nh, rows_per_chunk):
+        live = np.flatnonzero(~found)
+        if live.size == 0:
+            break
+        r1 = min(nh, r0 + rows_per_chunk)
+        f = np.empty(((r1 - r0) * nw, nb + 1), dtype=np.float32)
+        for t, (dy, dx) in enumerate(offsets):
+            f[:, t * c : (t + 1) * c] = box[r0 + dy : r1 + dy, dx : dx + nw].reshape(-1, c)
+        f[:, nb] = np.einsum("ij,ij->i", f[:, :nb], f[:, :nb])
+        score = f @ qa[live].T  # (refs, live queries)
+        score -= need[live]
+        ref, col = np.nonzero(score >= 0)
+        if ref.size == 0:
+            continue
+        t = live[col]
+        ry, rx = np.divmod(ref, nw)
+        ry += r0
+        far = (np.abs(ry - qy[t]) >= patch_size) | (np.abs(rx - qx[t]) >= patch_size)
+        t, ry, rx = t[far], ry[far], rx[far]
+        for a in range(0, t.size, 4096):
+            sl = slice(a, a + 4096)
+            cand = awin[ry[sl], rx[sl]].reshape(len(t[sl]), -1)
+            close = np.mean((cand - qwin[t[sl]]) ** 2, axis=1) < threshold * threshold
+            found[t[sl][close]] = True
+    return float(np.mean(found))

@@ -1,0 +1,169 @@
+"""All metrics at once: the table of metrics (:data:`METRICS`), the size check before any
+work, and :func:`evaluate` (``tghop evaluate``)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .._common import MAX_PIXELS, InvalidImageError, MissingExtraError, TGHopError
+from .._random_cnn import USTYUZHANINOV_SCALES
+from .common import pair
+from .copies import copied, novelty
+from .distributions import cooccurrence_distance, sliced_wasserstein
+from .networks import gram_distance, sifid
+
+__all__ = ["MetricInfo", "METRICS", "DIVERSITY_MIN_SIZE", "check_sizes", "Scores", "evaluate"]
+
+# ---------------------------------------------------------------------------------------
+# All at once
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    """A metric of :func:`evaluate`: its function, direction and optional dependency."""
+
+    function: Callable[..., float]
+    higher_is_better: bool
+    needs_torch: bool
+    description: str
+    #: Smallest height and width (pixels) it accepts with its default options.
+    min_size: int = 1
+
+
+#: name -> :class:`MetricInfo`, in the order :func:`evaluate` reports them.
+METRICS = {
+    "sifid": MetricInfo(sifid, False, True, "single-image FID, InceptionV3 first-pool features", 16),
+    "gram": MetricInfo(gram_distance, False, True, "relative Gram distance, random multiscale CNN",
+                       2 * min(USTYUZHANINOV_SCALES)),
+    "swd": MetricInfo(sliced_wasserstein, False, False, "sliced Wasserstein distance of 7x7 patches, 3 scales", 7 * 4),
+    "cooccurrence": MetricInfo(cooccurrence_distance, False, False, "L1 of soft colour co-occurrences"),
+    "novelty": MetricInfo(novelty, True, False, "RMS distance to the nearest exemplar patch (higher: more novel)", 8),
+    "copied": MetricInfo(copied, False, False, "fraction of 16x16 patches within RMSE 0.03 of an exemplar patch",
+                         16),
+}
+
+#: Smallest side :func:`diversity` accepts with its default patch size.
+DIVERSITY_MIN_SIZE = 8
+
+
+def _metric_names(metrics) -> list:
+    """The chosen metric names (all for None), or a one-line :class:`TGHopError`."""
+    if metrics is None:
+        return list(METRICS)
+    if isinstance(metrics, str):
+        metrics = [metrics]
+    names = [str(m) for m in metrics]
+    if not names:
+        raise TGHopError(f"no metrics chosen; choose one or more of {', '.join(METRICS)}")
+    unknown = [m for m in names if m not in METRICS]
+    if unknown:
+        raise TGHopError(f"unknown metric {unknown[0]!r}; choose from {', '.join(METRICS)}")
+    return names
+
+
+def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
+    """Check image sizes for :func:`evaluate` before any work; a one-line :class:`TGHopError` if not.
+
+    Parameters
+    ----------
+    shapes : dict of str to tuple
+        ``name -> shape`` of each image (``"exemplar"``, ``"result"``, or file names).
+    metrics : sequence of str, optional
+        The metrics that will be computed (default all).
+    diversity : bool
+        Whether :func:`diversity` will be computed too.
+
+    Raises
+    ------
+    InvalidImageError
+        If an image has more than :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192),
+        or is smaller than a chosen metric needs (saying how large it must be).
+    """
+    names = _metric_names(metrics)
+    needs = [(METRICS[n].min_size, n) for n in names]
+    if diversity:
+        needs.append((DIVERSITY_MIN_SIZE, "diversity"))
+    need, which = max(needs)
+    for name, shape in shapes.items():
+        h, w = int(shape[0]), int(shape[1])
+        if h * w > MAX_PIXELS:
+            side = math.isqrt(MAX_PIXELS)
+            raise InvalidImageError(
+                f"{name} is {h}x{w} = {h * w:,} pixels, above the {MAX_PIXELS:,} ({side}x{side}) that evaluation "
+                "supports; crop or downscale it"
+            )
+        if h < need or w < need:
+            raise InvalidImageError(
+                f"{name} is {h}x{w} pixels but {which} needs at least {need}x{need}; "
+                f"give images of at least {need}x{need} pixels or leave {which} out of the metrics"
+            )
+
+
+class Scores(dict):
+    """``name -> value`` of the metrics :func:`evaluate` computed, plus what it skipped.
+
+    Attributes
+    ----------
+    skipped : dict of str to str
+        Metrics left out and why (e.g. PyTorch missing), each a one-line message.
+    """
+
+    def __init__(self, *args, skipped=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.skipped = dict(skipped or {})
+
+
+def evaluate(exemplar, result, *, metrics=None, progress=None) -> Scores:
+    """Compute several metrics of one result against its exemplar.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1]; sizes may differ.
+    metrics : sequence of str, optional
+        Names from :data:`METRICS` (``sifid``, ``gram``, ``swd``, ``cooccurrence``,
+        ``novelty``, ``copied``). Default: all of them; then the PyTorch ones are *skipped* (recorded
+        in ``Scores.skipped`` with the install hint) if PyTorch is missing. Metrics named
+        explicitly are never skipped: a missing dependency raises
+        :class:`MissingExtraError`. An empty sequence is refused.
+    progress : callable, optional
+        ``progress(stage, done, total)``: one stage per metric, named after it, counting
+        the pieces (strips, tiles, chunks or scales) it is computed in.
+
+    Notes
+    -----
+    Every metric's memory is bounded whatever the image sizes (see each metric's Notes:
+    images above 512 x 512 pixels are scored in strips or tiles, which gives the same
+    value up to float rounding; the results of smaller images are unchanged). Images of
+    more than :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192) are refused, and so
+    are images smaller than a chosen metric needs, before any work (:func:`check_sizes`).
+
+    Returns
+    -------
+    Scores
+        A dict ``name -> float`` in :data:`METRICS` order, with a ``skipped`` attribute.
+        Lower is better for all but ``novelty``.
+    """
+    explicit = metrics is not None
+    names = _metric_names(metrics)
+    shapes = {"exemplar": np.shape(exemplar), "result": np.shape(result)}
+    if all(len(shape) >= 2 for shape in shapes.values()):  # before any copy of a huge array
+        check_sizes(shapes, names)
+    ex, res = pair(exemplar, result)
+    check_sizes({"exemplar": ex.shape, "result": res.shape}, names)
+    scores = Scores()
+    for name in METRICS:
+        if name not in names:
+            continue
+        try:
+            scores[name] = float(METRICS[name].function(ex, res, progress=progress))
+        except MissingExtraError as exc:
+            if explicit:
+                raise
+            scores.skipped[name] = str(exc)
+    return scores
