@@ -11,7 +11,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._common import TGHopError, check_image, check_rng
 
-__all__ = ["extract_patches", "patch_origins", "count_patches", "space_to_depth", "depth_to_space", "patch_grid", "stage_sheet"]
+__all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches", "downsample_mask", "count_patches", "space_to_depth", "depth_to_space", "patch_grid", "stage_sheet"]
 
 
 def count_patches(shape, patch_size: int, stride: int) -> int:
@@ -51,8 +51,20 @@ def extract_patches(image, patch_size: int = 32, *, stride: int = 2, max_patches
     return np.ascontiguousarray(windows[origins[:, 0], origins[:, 1]].transpose(0, 2, 3, 1))
 
 
-def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, rng=None) -> np.ndarray:
+def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, rng=None,
+                  exclude=None) -> np.ndarray:
     """Top-left corners of the patches :func:`extract_patches` takes, in raster order.
+
+    Parameters
+    ----------
+    shape : tuple
+        (H, W, ...) of the image.
+    patch_size, stride, max_patches, rng
+        As :func:`extract_patches`.
+    exclude : ndarray of bool, shape (H, W), optional
+        Pixels no patch may touch (a sample mask: a logo, a label, a hole to inpaint):
+        patches that overlap them are dropped before the ``max_patches`` subset is drawn.
+        None: every patch (the same origins and the same draws as without the argument).
 
     Returns
     -------
@@ -62,13 +74,75 @@ def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, 
     h, w = shape[:2]
     ys = np.arange(0, h - patch_size + 1, stride)
     xs = np.arange(0, w - patch_size + 1, stride)
-    total = ys.size * xs.size
-    if max_patches is not None and total > int(max_patches):
-        index = np.sort(check_rng(rng).choice(total, size=int(max_patches), replace=False))
+    if exclude is None:
+        allowed = np.arange(ys.size * xs.size)
     else:
-        index = np.arange(total)
+        clean = clean_windows(exclude, patch_size)  # (H - P + 1, W - P + 1)
+        allowed = np.flatnonzero(clean[ys[:, None], xs[None, :]].ravel())
+    total = allowed.size
+    if max_patches is not None and total > int(max_patches):
+        index = allowed[np.sort(check_rng(rng).choice(total, size=int(max_patches), replace=False))]
+    else:
+        index = allowed
     rows, cols = np.divmod(index, xs.size)
     return np.column_stack([ys[rows], xs[cols]])
+
+
+def clean_windows(exclude, size: int) -> np.ndarray:
+    """Which ``size`` x ``size`` windows of a mask hold no excluded pixel.
+
+    Parameters
+    ----------
+    exclude : array_like of bool, shape (H, W)
+    size : int
+
+    Returns
+    -------
+    ndarray of bool, shape (H - size + 1, W - size + 1)
+        True at the top-left corner of every window without a True pixel of ``exclude``
+        (from a summed-area table: linear time).
+    """
+    mask = np.asarray(exclude, dtype=bool)
+    table = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), dtype=np.int64)
+    np.cumsum(np.cumsum(mask, axis=0, dtype=np.int64), axis=1, out=table[1:, 1:])
+    sums = table[size:, size:] - table[:-size, size:] - table[size:, :-size] + table[:-size, :-size]
+    return sums == 0
+
+
+def check_exclude(exclude, shape, *, name="exclude"):
+    """A sample mask as an (H, W) bool array for an image of ``shape``, or None.
+
+    None or a mask without a True pixel give None (nothing excluded: the same model as
+    without a mask). Raises :class:`TGHopError` for a mask of another size or not 2-d.
+    """
+    if exclude is None:
+        return None
+    mask = np.asarray(exclude)
+    if mask.ndim == 3 and mask.shape[2] == 1:
+        mask = mask[..., 0]
+    if mask.ndim != 2 or mask.shape != tuple(shape[:2]):
+        raise TGHopError(f"{name} must be a boolean (H, W) mask of the image's size {shape[0]}x{shape[1]}, "
+                         f"got shape {mask.shape}; resize the mask to the image")
+    if mask.dtype != bool:
+        if mask.dtype.kind not in "biuf" or not np.isfinite(mask).all():
+            raise TGHopError(f"{name} must be a boolean mask (True: excluded), got dtype {mask.dtype}")
+        mask = mask > 0
+    return mask if mask.any() else None
+
+
+def enough_patches(n_patches, need, patch_size):
+    """Raise a one-line :class:`TGHopError` when a mask leaves fewer than ``need`` training patches."""
+    if n_patches < need:
+        raise TGHopError(
+            f"too little texture outside the mask: {n_patches} training patches of {patch_size}x{patch_size} "
+            f"avoid it, at least {need} are needed; use a smaller mask or a larger image "
+            f"(or, to inpaint, fit on another exemplar)")
+
+
+def downsample_mask(mask, factor):
+    """(H // factor, W // factor) bool: True where any pixel of the box is."""
+    h, w = mask.shape[0] // factor, mask.shape[1] // factor
+    return mask[: h * factor, : w * factor].reshape(h, factor, w, factor).any(axis=(1, 3))
 
 
 def space_to_depth(x: np.ndarray, block: int = 2) -> np.ndarray:

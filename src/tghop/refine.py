@@ -25,6 +25,7 @@ import numpy as np
 
 from ._common import TGHopError, check_size, report
 from ._fft import fft_for
+from .patches import clean_windows
 
 __all__ = ["BandStatistics", "refine", "prepare", "laplacian_pyramid", "reconstruct", "oriented_parts",
            "iter_oriented_parts"]
@@ -165,6 +166,19 @@ def _subset(values, n_crops):
     values = values.ravel()
     limit = max(1, _MAX_VALUES // n_crops)
     return values[:: -(-values.size // limit)] if values.size > limit else values
+
+
+def _clean_band(hole, level, shape, radius=3):
+    """Where band ``level`` (of ``shape``) of an image with excluded pixels ``hole`` (H, W)
+    is not reached by them: no excluded pixel within ``radius`` of the band's pixels.
+    None when nothing would be left (all values are then used)."""
+    step = 2 ** level
+    reach = (2 * radius + 1) * step
+    padded = np.pad(hole, reach // 2, mode="edge")
+    clean = clean_windows(padded, reach)[::step, ::step][: shape[0], : shape[1]]
+    if clean.shape != tuple(shape):
+        clean = np.pad(clean, [(0, shape[0] - clean.shape[0]), (0, shape[1] - clean.shape[1])])
+    return clean if clean.any() else None
 
 
 def _quantiles(values, levels):
@@ -544,12 +558,17 @@ class BandStatistics:
         self.n_orientations = n_orientations
         self.n_quantiles = n_quantiles
 
-    def fit(self, exemplar):
+    def fit(self, exemplar, *, exclude=None):
         """Learn from an (H, W, C) exemplar (float in [0, 1], or uint8); returns self.
 
         Exemplars larger than :data:`_FIT_SIDE` squared are measured on up to four crops of
         that size spread over the image (one at a time, the values pooled), so memory does
         not grow with the exemplar.
+
+        ``exclude`` (H, W) bool, optional: pixels left out (a sample mask). The colour axes
+        and pixel quantiles come from the other pixels; excluded pixels are set to the
+        mean colour before the pyramid, and each band's values are taken only where no
+        excluded pixel lies within a few of that band's pixels (all of them if none is left).
         """
         for name in ("n_levels", "n_orientations"):
             value = getattr(self, name)
@@ -562,6 +581,9 @@ class BandStatistics:
         # Colour axes from a strided subset of at most about a million pixels.
         step = max(1, int(math.ceil(math.sqrt(h * w / 2**20))))
         flat = exemplar[::step, ::step].reshape(-1, c).astype(np.float64) * scale
+        if exclude is not None:
+            exclude = np.asarray(exclude, dtype=bool)
+            flat = flat[~exclude[::step, ::step].ravel()]
         self.colour_mean_ = flat.mean(axis=0)
         cov = np.cov(flat - self.colour_mean_, rowvar=False).reshape(c, c)
         _, vecs = np.linalg.eigh(cov)
@@ -574,13 +596,19 @@ class BandStatistics:
         for y, x, ch, cw in crops:
             crop = exemplar[y:y + ch, x:x + cw].astype(np.float32) * np.float32(scale)
             dec = np.ascontiguousarray(np.moveaxis(self.to_decorrelated(crop), 2, 0))
+            hole = None if exclude is None else exclude[y:y + ch, x:x + cw]
+            if hole is not None:
+                dec[:, hole] = 0.0  # the mean colour
             bands = laplacian_pyramid(dec, self.n_levels, axes=(1, 2))[:-1]
             for i, b in enumerate(bands):
+                keep = None if hole is None else _clean_band(hole, i, b.shape[1:])
                 for j, part in enumerate(oriented_parts(b, self.n_orientations, axes=(1, 2))):
                     for k in range(c):
-                        band_values.setdefault((i, j, k), []).append(_subset(part[k], len(crops)))
+                        values = part[k] if keep is None else part[k][keep]
+                        band_values.setdefault((i, j, k), []).append(_subset(values, len(crops)))
             for k in range(c):
-                pixel_values[k].append(_subset(dec[k], len(crops)))
+                values = dec[k] if hole is None or hole.all() else dec[k][~hole]
+                pixel_values[k].append(_subset(values, len(crops)))
         n_bands = 1 + max((i for i, _, _ in band_values), default=-1)
         self.band_quantiles_ = np.array(
             [[[_quantiles(np.concatenate(band_values[i, j, k]), levels) for k in range(c)]

@@ -28,7 +28,7 @@ from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, ch
 from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
-from .patches import patch_origins
+from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
 from . import layout
 from .pool import GeneratedPool
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
@@ -196,7 +196,7 @@ class TGHop(BaseEstimator):
             )
         return rules
 
-    def fit(self, image, y=None, *, progress=None):
+    def fit(self, image, y=None, *, exclude=None, progress=None):
         """Learn the model from one exemplar.
 
         Parameters
@@ -207,6 +207,12 @@ class TGHop(BaseEstimator):
             Memory depends on the training patches used (``max_patches``), not on the
             exemplar's size: the hops see the image tile by tile, and a uint8 image is
             never converted whole.
+        exclude : array_like of bool, shape (H, W), optional
+            A sample mask: True where the model must not learn (a logo, a label, a stain,
+            a hole to inpaint). Training patches that overlap it are dropped, and the
+            colour and band statistics come from the other pixels (the coarse layout's
+            model too; it is left out when too few of its patches remain). Too few
+            training patches left is a :class:`TGHopError` naming the minimum.
         progress : callable, optional
             ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
             "SDR", "clusters", "ICA", "CDF codebook".
@@ -219,16 +225,21 @@ class TGHop(BaseEstimator):
         self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size)
         rules = self._channel_rules(image.shape[2])
+        exclude = check_exclude(exclude, image.shape)
         rng = check_rng(self.rng)
         ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
         sdr = SpatialReduction(**settings.component_params(self, "sdr"))
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
-                                max_patches=self.max_patches, rng=rng)
+                                max_patches=self.max_patches, rng=rng, exclude=exclude)
+        if exclude is not None:
+            enough_patches(len(origins), ichm.n_clusters * ichm.min_cluster_size, self.patch_size)
         ichm._check_params(len(origins))  # fail before the expensive stages
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
-        self.colour_quantiles_ = channel_quantiles(image)
-        self.bands_ = BandStatistics(n_levels=self.band_levels, n_orientations=self.band_orientations).fit(image)
+        # Colour quantiles of the pixels kept only (a (n, 1, C) "image" of them).
+        self.colour_quantiles_ = channel_quantiles(image if exclude is None else image[~exclude][:, None, :])
+        self.bands_ = BandStatistics(n_levels=self.band_levels,
+                                     n_orientations=self.band_orientations).fit(image, exclude=exclude)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -240,9 +251,9 @@ class TGHop(BaseEstimator):
         self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
         self.layout_ = None
         coarse = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
-        if coarse is not None and coarse.fits(image.shape):
+        if coarse is not None and coarse.fits(image.shape) and coarse.fits_excluding(exclude):
             report(progress, "layout", 0, 1)
-            self.layout_ = coarse.fit(image)
+            self.layout_ = coarse.fit(image, exclude=exclude)
             report(progress, "layout", 1, 1)
         return self
 
@@ -798,8 +809,22 @@ class CoarseLayout(BaseEstimator):
         """Whether an exemplar of ``shape`` (H, W, ...) is large enough for this layout."""
         return layout.fits(shape, self.factor, self.patch_size)
 
-    def fit(self, image, y=None):
+    def fits_excluding(self, exclude) -> bool:
+        """Whether enough coarse training patches avoid ``exclude`` ((H, W) bool or None)."""
+        if exclude is None:
+            return True
+        training = layout.coarse_training(exclude.shape + (1,), self.factor, patch_size=self.patch_size,
+                                          n_clusters=self.n_clusters, min_patches=self.min_patches,
+                                          max_patches=self.max_patches)
+        small = downsample_mask(exclude, int(self.factor))
+        n = len(patch_origins(small.shape, int(self.patch_size), stride=training["stride"], exclude=small))
+        return n >= training["n_clusters"] * settings.BY_NAME["min_cluster_size"].default
+
+    def fit(self, image, y=None, *, exclude=None):
         """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.
+
+        ``exclude`` (H, W) bool, optional: pixels to leave out (:meth:`TGHop.fit`); a
+        coarse pixel is left out when any of its pixels is.
 
         Returns
         -------
@@ -814,11 +839,13 @@ class CoarseLayout(BaseEstimator):
                                           n_clusters=self.n_clusters, min_patches=self.min_patches,
                                           max_patches=self.max_patches)
         small = layout.downsample(img, int(self.factor))  # 8-bit stays 8-bit: a byte per value
+        small_exclude = None if exclude is None else downsample_mask(np.asarray(exclude, dtype=bool),
+                                                                      int(self.factor))
         self.model_ = TGHop(
             patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
             max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None,
             rng=check_rng(self.rng), **training,
-        ).fit(small)
+        ).fit(small, exclude=small_exclude)
         return self
 
     def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3):

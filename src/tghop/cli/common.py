@@ -21,7 +21,7 @@ import click
 from .._errors import TGHopError
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "check_outputs", "check_model_output", "numbered"]
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -140,6 +140,20 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
         raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
     return load_image(spec, downscale=downscale, dtype=dtype,
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
+
+
+def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image"):
+    """A mask image as an (H, W) bool array: True where its pixels are white (channel mean
+    > 0.5). One line when it cannot be read or is not ``shape``'s size (H, W, ...)."""
+    from ..imageio import load_image
+
+    if is_model_file(path):
+        raise TGHopError(f"{label} {path} is a model file, not an image; give a black and white image")
+    mask = load_image(path, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+    if mask.shape[:2] != tuple(shape[:2]):
+        raise TGHopError(f"{label} {path} is {mask.shape[0]}x{mask.shape[1]} but {image_label} is "
+                         f"{shape[0]}x{shape[1]}; give a mask of the same size")
+    return mask.mean(axis=2) > 0.5
 
 
 def is_model_file(path: str) -> bool:

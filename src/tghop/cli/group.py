@@ -20,6 +20,7 @@ from .. import __version__
 from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
+from .inpaint import inpaint
 from .texture import fit, info, patches, synth
 
 __all__ = ["OneLineGroup", "main"]
@@ -30,6 +31,7 @@ _COMMAND_MODULES = {
     "fit": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
     "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
     "info": ("numpy", "tghop.modelfile"),
+    "inpaint": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.inpaint"),
 }
 
 
@@ -119,5 +121,5 @@ def main():
     """
 
 
-for _command in (synth, fit, patches, info, evaluate, baseline, cooc):
+for _command in (synth, fit, inpaint, patches, info, evaluate, baseline, cooc):
     main.add_command(_command)

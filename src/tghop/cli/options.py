@@ -14,11 +14,14 @@ import click
 
 from .._errors import TGHopError
 
-__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
+__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
            "generation_options", "FIT_OPTION_PARAMS", "build_model", "given_options"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
+
+EXCLUDE_HELP = ("A mask image of the exemplar's size: its white parts (a logo, a label, a stain) are not learnt "
+                "(training patches touching them are dropped; colour and band statistics leave them out).")
 
 DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downscale they are reduced to "
                   "64 Mpx instead (with a warning).")
@@ -138,7 +141,7 @@ def _fit_options():
 
 
 #: Options of ``fit`` that only matter when fitting (refused by ``synth`` with a saved model).
-FIT_OPTION_PARAMS = ("k1", "k2", "k3", "paper")
+FIT_OPTION_PARAMS = ("k1", "k2", "k3", "paper", "exclude")
 
 
 def model_options(func):

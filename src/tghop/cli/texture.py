@@ -9,8 +9,8 @@ import click
 
 from .._errors import TGHopError
 from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file, load_exemplar,
-                     numbered, summary, user_errors)
-from .options import (DOWNSCALE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, build_model, generation_options,
+                     load_mask, numbered, summary, user_errors)
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, build_model, generation_options,
                       given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "info"]
@@ -20,9 +20,10 @@ __all__ = ["fit", "synth", "patches", "info"]
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
 @model_options
+@click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def fit(exemplar, output, downscale, quiet, **options):
+def fit(exemplar, output, exclude, downscale, quiet, **options):
     """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it."""
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -30,11 +31,13 @@ def fit(exemplar, output, downscale, quiet, **options):
         from ..synthesis import prepare_exemplar
 
         check_model_output(output, "-o")  # before any work
-        check_outputs([("-o", output)], [("EXEMPLAR", exemplar)])
+        check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)])
         image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None, has_downscale=True),
                                  min_size=options.get("patch_size") or 32)
+        mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude",
+                                                      image_label="the exemplar")
         model = build_model(options, n_colours=image.shape[2])
-        model.fit(image, progress=progress)
+        model.fit(image, exclude=mask, progress=progress)
         progress.close()
         save_model(model, output)
     click.echo(summary(model), err=True)
@@ -95,10 +98,11 @@ def patches(model_file, n, output, seed, stages):
               help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
 @generation_options
 @model_options
+@click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, **options):
+def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale, quiet, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from ..imageio import save_image
     from ..modelfile import load_model, save_model as write_model
@@ -132,14 +136,17 @@ def synth(ctx, source, output, size, count, seed, save_model, downscale, quiet, 
                 check_output(path)
         if save_model and not from_model:
             check_model_output(save_model, "--save-model")
-        check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)], [("SOURCE", source)])
+        check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)],
+                      [("SOURCE", source), ("--exclude", exclude)])
         if from_model:
             model = load_model(source)
         else:
             image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None, has_downscale=True),
                                      min_size=options.get("patch_size") or 32)
+            mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude",
+                                                          image_label="the exemplar")
             model = build_model(options, n_colours=image.shape[2])
-            model.fit(image, progress=progress)
+            model.fit(image, exclude=mask, progress=progress)
             if save_model:
                 write_model(model, save_model)
         import numpy as np

@@ -1,0 +1,197 @@
+"""Inpainting (tghop.inpaint, ``tghop inpaint``) and sample masks (``TGHop.fit(exclude=)``,
+``--exclude``), on textures made in code."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from tghop import TGHopError, data
+from tghop.imageio import save_image, to_uint8
+from tghop.inpaint import check_hole, inpaint
+from tghop.modelfile import save_model
+from tghop.synthesis import TGHop
+
+from conftest import assert_user_error
+
+#: A small model, fast to fit.
+FAST = dict(n_clusters=10, n_codewords=40, max_patches=1200, layout_factor=None)
+POOL = dict(n_patches=600, refine=2)
+
+
+@pytest.fixture(scope="module")
+def cells():
+    return to_uint8(data.cells(96, rng=3))  # (96, 96, 3) uint8
+
+
+@pytest.fixture(scope="module")
+def square(cells):
+    hole = np.zeros(cells.shape[:2], dtype=bool)
+    hole[30:62, 34:66] = True
+    return hole
+
+
+@pytest.fixture(scope="module")
+def model(cells, square):
+    return TGHop(rng=0, **FAST).fit(cells, exclude=square)
+
+
+def _red(x):
+    x = np.asarray(x, dtype=np.float64)
+    x = x / 255.0 if x.max() > 1 else x
+    return float((x[..., 0] - np.maximum(x[..., 1], x[..., 2]) > 0.3).mean())
+
+
+def test_known_pixels_are_kept_bit_for_bit_and_the_hole_looks_like_its_surroundings(model, cells, square):
+    out = inpaint(model, cells, square, rng=1, **POOL)
+    assert out.dtype == np.uint8 and out.shape == cells.shape
+    assert np.array_equal(out[~square], cells[~square])
+    ring = np.zeros_like(square)
+    ring[14:78, 18:82] = True
+    ring &= ~square
+    filled, around = out[square] / 255.0, cells[ring] / 255.0
+    assert np.all(np.abs(filled.mean(axis=0) - around.mean(axis=0)) < 0.08)
+    assert np.all(filled.std(axis=0) > 0.5 * around.std(axis=0))
+    # Float images: the known values are the same floats.
+    image = data.cells(96, rng=3)
+    out = inpaint(model, image, square, rng=1, **POOL)
+    assert out.dtype == np.float64 and np.array_equal(out[~square], image[~square])
+
+
+def test_the_same_seed_gives_the_same_image(model, cells, square):
+    a = inpaint(model, cells, square, rng=5, **POOL)
+    b = inpaint(model, cells, square, rng=5, **POOL)
+    c = inpaint(model, cells, square, rng=6, **POOL)
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+def test_odd_shapes_holes_at_the_border_and_nearly_everything(model, cells):
+    yy, xx = np.mgrid[:96, :96]
+    shapes = {
+        "ring": (np.hypot(yy - 48, xx - 48) > 20) & (np.hypot(yy - 48, xx - 48) < 28),
+        "corner": (yy < 20) & (xx > 70),
+        "line": np.abs(yy - xx) < 2,
+        "pixel": (yy == 95) & (xx == 0),
+        "almost all": ~((yy < 8) & (xx < 8)),
+    }
+    for name, hole in shapes.items():
+        out = inpaint(model, cells, hole, rng=2, **POOL)
+        assert np.array_equal(out[~hole], cells[~hole]), name
+        assert out[hole].std() > 5, name  # texture, not a flat colour
+
+
+def test_tile_fills_across_the_edges(model, cells):
+    image = np.roll(cells, 48, axis=(0, 1))  # a tileable image
+    hole = np.zeros((96, 96), dtype=bool)
+    hole[:, :12] = hole[:, -12:] = True  # straddles the left and right edges
+    out = inpaint(model, image, hole, rng=3, tile=True, **POOL).astype(np.float64)
+    assert np.array_equal(out[~hole], image[~hole])
+    seam = np.abs(out[:, 0] - out[:, -1]).mean()
+    inside = np.abs(np.diff(out[:, 20:76], axis=1)).mean()
+    assert seam < 2.0 * inside
+
+
+def test_a_greyscale_model_fills_a_grey_rgb_image(cells):
+    grey = np.repeat(cells.mean(axis=2, keepdims=True).astype(np.uint8), 3, axis=2)
+    hole = np.zeros((96, 96), dtype=bool)
+    hole[40:60, 40:60] = True
+    model = TGHop(rng=0, **FAST).fit(grey, exclude=hole)
+    out = inpaint(model, grey, hole, rng=1, **POOL)
+    assert np.array_equal(out[~hole], grey[~hole])
+    assert np.array_equal(out[..., 0], out[..., 1]) and np.array_equal(out[..., 0], out[..., 2])
+
+
+def test_bad_input_is_one_line(model, cells, square):
+    with pytest.raises(TGHopError, match="the mask is 10x10 but the image is 96x96"):
+        inpaint(model, cells, np.zeros((10, 10), bool))
+    with pytest.raises(TGHopError, match="greyscale"):
+        inpaint(model, cells[..., :1], square)
+    with pytest.raises(TGHopError, match="at least 32x32"):
+        inpaint(model, cells[:20, :20], square[:20, :20])
+    assert check_hole(np.full((4, 4, 3), 200, np.uint8), (4, 4)).all()
+
+
+def test_too_large_a_hole_is_refused_naming_the_minimum(cells):
+    hole = np.ones((96, 96), dtype=bool)
+    hole[:40, :40] = False
+    with pytest.raises(TGHopError, match=r"too little texture outside the mask: \d+ training patches .* at least 100"):
+        TGHop(rng=0, **FAST).fit(cells, exclude=hole)
+
+
+def test_an_excluded_red_label_is_not_learnt():
+    image = data.cells(128, rng=1)
+    image[30:70, 40:80] = (1.0, 0.0, 0.0)
+    label = np.zeros((128, 128), dtype=bool)
+    label[30:70, 40:80] = True
+    plain = TGHop(rng=0, **FAST).fit(image)
+    assert _red(plain.sample_patches(200, rng=1)) > 0.01  # learnt without the mask
+    model = TGHop(rng=0, **FAST).fit(image, exclude=label)
+    assert _red(model.sample_patches(300, rng=1)) == 0.0
+    assert _red(model.synthesize((96, 96), rng=1, n_patches=600)) == 0.0
+    assert model.colour_quantiles_[0, -1] < 0.9  # no red in the colour statistics either
+
+
+def test_an_empty_exclude_mask_gives_the_same_model(cells):
+    a = TGHop(rng=0, **FAST).fit(cells)
+    b = TGHop(rng=0, **FAST).fit(cells, exclude=np.zeros((96, 96), bool))
+    assert np.array_equal(a.synthesize((64, 64), rng=1, n_patches=300), b.synthesize((64, 64), rng=1, n_patches=300))
+    with pytest.raises(TGHopError, match="exclude must be a boolean"):
+        TGHop(rng=0, **FAST).fit(cells, exclude=np.zeros((5, 5), bool))
+
+
+# ---------------------------------------------------------------- command line
+def run(*args):
+    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning"}
+    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, cells, square, model):
+    d = tmp_path_factory.mktemp("inpaint")
+    save_image(cells, d / "cells.png")
+    mask = np.zeros((96, 96), dtype=np.uint8)
+    mask[40:52, 40:52] = 255
+    Image.fromarray(mask).save(d / "mask.png")
+    Image.fromarray(np.zeros((50, 96), np.uint8)).save(d / "small_mask.png")
+    (d / "notes.txt").write_text("not an image")
+    save_model(model, d / "model.npz")
+    return d
+
+
+def test_cli_without_source_fits_on_the_image(files):
+    r = run("inpaint", files / "cells.png", files / "mask.png", "-o", files / "out.png", "--seed", "1", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    src, out = (np.asarray(Image.open(files / n)) for n in ("cells.png", "out.png"))
+    hole = np.asarray(Image.open(files / "mask.png")) > 127
+    assert np.array_equal(out[~hole], src[~hole]) and not np.array_equal(out[hole], src[hole])
+
+
+def test_cli_with_a_model_and_tile(files):
+    args = ("inpaint", files / "cells.png", files / "mask.png", "--source", files / "model.npz", "--seed", "2", "-q")
+    r = run(*args, "-o", files / "a.png", "--tile")
+    assert r.returncode == 0, r.stderr.decode()
+    r = run(*args, "-o", files / "b.png", "--tile")
+    src, a, b = (np.asarray(Image.open(files / n)) for n in ("cells.png", "a.png", "b.png"))
+    hole = np.asarray(Image.open(files / "mask.png")) > 127
+    assert np.array_equal(a[~hole], src[~hole]) and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("mask, words", [("small_mask.png", "is 50x96 but IMAGE"), ("notes.txt", "notes.txt"),
+                                         ("model.npz", "is a model file")])
+def test_cli_bad_masks_are_one_line(files, mask, words):
+    r = run("inpaint", files / "cells.png", files / mask, "-o", files / "bad.png", "--source", files / "model.npz")
+    assert_user_error(r, words)
+    assert not (files / "bad.png").exists()
+
+
+def test_cli_exclude_on_fit_and_synth(files):
+    r = run("fit", files / "cells.png", "-o", files / "ex.npz", "--exclude", files / "small_mask.png", "-q")
+    assert_user_error(r, "--exclude", "is 50x96 but the exemplar is 96x96")
+    r = run("synth", files / "model.npz", "-o", files / "s.png", "--exclude", files / "mask.png")
+    assert_user_error(r, "--exclude")
+    r = run("synth", files / "cells.png", "-o", files / "s.png", "--exclude", files / "mask.png", "--size", "64",
+            "--clusters", "10", "--max-patches", "1000", "--layout", "none", "--seed", "1", "-q")
+    assert r.returncode == 0, r.stderr.decode()
