@@ -20,6 +20,7 @@ from .. import __version__
 from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
+from .serve import serve
 from .texture import fit, info, patches, synth
 
 __all__ = ["OneLineGroup", "main"]
@@ -119,5 +120,5 @@ def main():
     """
 
 
-for _command in (synth, fit, patches, info, evaluate, baseline, cooc):
+for _command in (synth, fit, patches, info, evaluate, baseline, cooc, serve):
     main.add_command(_command)
