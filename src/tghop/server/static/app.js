@@ -180,6 +180,8 @@ function generation(seed, size) {
   const refine = $("refine").value.trim();
   if ($("paper-gen").checked) body.paper = true;
   if (refine !== "") body.refine = Number(refine);
+  const pool = $("n_patches").value.trim();
+  if (pool !== "") body.n_patches = Number(pool);
   return body;
 }
 
