@@ -48,3 +48,52 @@ def assert_user_error(r, *fragments):
     assert len(lines) == 1, err
     for fragment in fragments:
         assert fragment in lines[0], err
+
+
+class LiveServer:
+    """``tghop serve``'s application on a real uvicorn server, in a thread, on a free port."""
+
+    def __init__(self, cache, max_fits=1):
+        import socket
+        import threading
+
+        import uvicorn
+
+        from tghop.server.app import create_app
+
+        self.cache = cache
+        self.app = create_app(cache, max_fits=max_fits)
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(64)
+        self.url = f"http://127.0.0.1:{self.sock.getsockname()[1]}"
+        self.server = uvicorn.Server(uvicorn.Config(self.app, log_level="warning", lifespan="on",
+                                                    timeout_graceful_shutdown=2))
+        self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]}, daemon=True)
+        self.thread.start()
+        import time
+
+        deadline = time.monotonic() + 30
+        while not self.server.started:
+            if time.monotonic() > deadline or not self.thread.is_alive():
+                raise RuntimeError("uvicorn did not start")
+            time.sleep(0.02)
+
+    def stop(self):
+        self.server.should_exit = True
+        self.thread.join(timeout=30)
+        self.sock.close()
+
+
+@pytest.fixture(scope="module")
+def live_server(tmp_path_factory):
+    """A real server (uvicorn on a free port) with an empty model cache; skipped without the web extra."""
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    pytest.importorskip("starlette", reason="the web extra is not installed: pip install -e '.[web]'")
+    server = LiveServer(tmp_path_factory.mktemp("cache"))
+    yield server
+    server.stop()
+
+
+#: Fit settings that make a fit of a built-in exemplar take a few seconds (form fields).
+FAST_FIT = {"n_clusters": "8", "n_codewords": "40", "stride": "4", "max_patches": "1500", "layout_factor": "none"}

@@ -105,3 +105,14 @@ def test_synthesis_does_not_import_modelfile():
     code = "import sys, tghop.synthesis; print('tghop.modelfile' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_an_explicit_none_on_the_command_line_is_off_not_the_default():
+    # `--layout none` fits without the coarse layout (it used to give the default factor 2).
+    from tghop.cli.options import SettingType, build_model
+    from tghop.settings import BY_NAME
+
+    off = SettingType(BY_NAME["layout_factor"]).convert("none", None, None)
+    assert build_model({"layout_factor": off}).layout_factor is None
+    assert build_model({"layout_factor": None}).layout_factor == BY_NAME["layout_factor"].default
+    assert build_model({"layout_factor": SettingType(BY_NAME["layout_factor"]).convert("3", None, None)}).layout_factor == 3

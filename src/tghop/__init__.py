@@ -2,9 +2,9 @@
 
 __version__ = "0.13.0"
 
-from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError
+from ._errors import ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
-__all__ = ["TGHop", "data", "InvalidImageError", "MissingExtraError", "ModelFileError", "NotFittedError",
+__all__ = ["TGHop", "data", "ImageTooLargeError", "InvalidImageError", "MissingExtraError", "ModelFileError", "NotFittedError",
            "TGHopError", "__version__"]
 
 

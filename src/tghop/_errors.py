@@ -1,6 +1,7 @@
 """tghop's exception classes (no imports: the CLI's --help and --version load only this)."""
 
-__all__ = ["TGHopError", "InvalidImageError", "MissingExtraError", "ModelFileError", "NotFittedError"]
+__all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
+           "NotFittedError"]
 
 
 class TGHopError(ValueError):
@@ -12,6 +13,14 @@ class TGHopError(ValueError):
 
 class InvalidImageError(TGHopError):
     """An image is missing, unreadable, of the wrong shape or too small."""
+
+
+class ImageTooLargeError(InvalidImageError):
+    """An image has more pixels than tghop reads (:data:`tghop.imageio.MAX_IMAGE_PIXELS`).
+
+    Its own class so that a caller can answer it apart from an unreadable file (the web
+    server's 413 against 400).
+    """
 
 
 class MissingExtraError(TGHopError):

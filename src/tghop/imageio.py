@@ -16,6 +16,7 @@ import numpy as np
 from struct import error as struct_error
 
 from ._common import InvalidImageError, check_image
+from ._errors import ImageTooLargeError
 
 __all__ = ["load_image", "save_image", "to_uint8", "write_atomic", "write_png", "check_output_path"]
 
@@ -92,7 +93,7 @@ def _decode(im, path, max_pixels, downscale, too_large_hint):
         raise ValueError("empty image")
     if width * height > max_pixels:
         if not downscale:
-            raise InvalidImageError(
+            raise ImageTooLargeError(
                 f"{path}: the image is {width}x{height} pixels, more than the {max_pixels:,} tghop reads; "
                 f"{too_large_hint}")
         factor = (width * height / max_pixels) ** 0.5

@@ -21,7 +21,7 @@ import click
 from .._errors import TGHopError
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
+           "summary", "info_dict", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -179,6 +179,15 @@ def summary(model, params=None) -> str:
         f"core model: N={d['N']} clusters, F={d['F']} CDFs, W={d['W']} codewords\n"
         f"parameters: {params['total']['stored']:,} stored ({params['total']['paper']:,} by the paper's formulas)"
     )
+
+
+def info_dict(model, params=None) -> dict:
+    """What ``tghop info --json`` prints (and the web server's model summary): the
+    settings, dimensions, channels, exemplar shape and parameter count of a fitted model."""
+    params = model.n_parameters() if params is None else params
+    return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
+            "dims": model.dims_, "channels": model.channels_,
+            "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params}
 
 
 def check_output(path: str, allow_stdout=False):

@@ -21,6 +21,7 @@ from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
 from .inpaint import inpaint
+from .serve import serve
 from .texture import fit, info, patches, synth
 
 __all__ = ["OneLineGroup", "main"]
@@ -121,5 +122,5 @@ def main():
     """
 
 
-for _command in (synth, fit, inpaint, patches, info, evaluate, baseline, cooc):
+for _command in (synth, fit, inpaint, patches, info, evaluate, baseline, cooc, serve):
     main.add_command(_command)

@@ -14,7 +14,7 @@ import click
 
 from .._errors import TGHopError
 
-__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
+__all__ = ["OFF", "MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
            "generation_options", "FIT_OPTION_PARAMS", "build_model", "given_options"]
 
 #: Largest accepted --count.
@@ -25,6 +25,18 @@ EXCLUDE_HELP = ("A mask image of the exemplar's size: its white parts (a logo, a
 
 DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downscale they are reduced to "
                   "64 Mpx instead (with a warning).")
+
+
+class _Off:
+    """An explicit "none" / "off" for a setting that allows None (``--layout none``), told
+    apart from an option not given (None), whose value is the table's default."""
+
+    def __repr__(self):
+        return "OFF"
+
+
+#: What :class:`SettingType` makes of "none" / "off"; :func:`build_model` and ``synth`` read it as None.
+OFF = _Off()
 
 
 class ChannelRule(click.ParamType):
@@ -90,7 +102,7 @@ class SettingType(click.ParamType):
                 raise TGHopError(f"{value!r} is more than the command line allows ({s.cli_high:,g})")
         except TGHopError as exc:
             self.fail(str(exc), param, ctx)
-        return out
+        return OFF if out is None else out
 
 
 def _plain(text: str) -> str:
@@ -171,7 +183,8 @@ def build_model(options, n_colours=3):
         if s.name in ("n_channels", "rng"):
             continue
         value = options.get(s.name)
-        params[s.name] = value if value is not None else (s.paper if paper and s.has_paper else s.default)
+        params[s.name] = None if value is OFF else value if value is not None else (
+            s.paper if paper and s.has_paper else s.default)
     patch_size = int(params["patch_size"])
     if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
         raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")

@@ -8,10 +8,10 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file, load_exemplar,
-                     load_mask, numbered, summary, user_errors)
-from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, build_model, generation_options,
-                      given_options, model_options)
+from .common import (Progress, check_model_output, check_output, check_outputs, info_dict, is_model_file,
+                     load_exemplar, load_mask, numbered, summary, user_errors)
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, OFF, Size, build_model,
+                      generation_options, given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "info"]
 
@@ -127,7 +127,7 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
         generation = {}
         for s in generate_settings():
             value = options.pop(s.name)
-            generation[s.name] = value if value is not None else (
+            generation[s.name] = None if value is OFF else value if value is not None else (
                 s.paper if options.get("paper") and s.has_paper else s.default)
         # Every output checked before the fit and before the first image is written.
         outputs = [output] if count == 1 else numbered(output, count)
@@ -175,10 +175,7 @@ def info(model_file, as_json):
         model = load_model(model_file)
         params = model.n_parameters()
     if as_json:
-        click.echo(json.dumps({"params": {k: v for k, v in model.get_params().items() if k != "rng"},
-                               "dims": model.dims_, "channels": model.channels_,
-                               "exemplar_shape": list(model.exemplar_shape_),
-                               "n_parameters": params}, indent=2, default=str, allow_nan=False))
+        click.echo(json.dumps(info_dict(model, params), indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
     click.echo(f"tghop model {model_file}")

@@ -1,0 +1,101 @@
+"""``tghop serve``: the local web server (:mod:`tghop.server`), on uvicorn.
+
+Starlette and uvicorn (the ``web`` extra) are imported only when the command runs.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import click
+
+from .._errors import TGHopError
+from .common import user_errors
+
+__all__ = ["serve", "default_cache_dir"]
+
+
+def default_cache_dir() -> Path:
+    """The user's cache folder for tghop: ``$XDG_CACHE_HOME/tghop`` or ``~/.cache/tghop``
+    (Linux and others), ``~/Library/Caches/tghop`` (macOS), ``%LOCALAPPDATA%\\tghop\\Cache``
+    (Windows)."""
+    if sys.platform.startswith("win"):
+        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(base) / "tghop" / "Cache"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "tghop"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg and os.path.isabs(xdg) else Path.home() / ".cache") / "tghop"
+
+
+def _bind(host: str, port: int):
+    """A listening socket (``port`` 0: a free one), or a one-line error."""
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as exc:
+        raise TGHopError(f"--host {host}: not an address of this machine ({exc.strerror}); "
+                         "use 127.0.0.1 or 0.0.0.0") from None
+    family, kind, proto, _, address = infos[0]
+    sock = socket.socket(family, kind, proto)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind(address)
+        sock.listen(128)
+    except OSError as exc:
+        sock.close()
+        raise TGHopError(f"cannot listen on {host}:{port} ({exc.strerror}); "
+                         "choose another --port (0 picks a free one)") from None
+    sock.set_inheritable(True)
+    return sock
+
+
+@click.command()
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on. Other than 127.0.0.1 (localhost) lets other machines use the server: "
+                   "a warning is printed.")
+@click.option("--port", type=click.IntRange(0, 65535), default=8000, show_default=True,
+              help="Port to listen on (0: a free one).")
+@click.option("--open", "open_browser", is_flag=True, help="Open the page in a web browser.")
+@click.option("--cache", "cache", type=click.Path(file_okay=False), default=None,
+              help="Folder for fitted models. [default: the user's cache folder, e.g. ~/.cache/tghop]")
+@click.option("--max-fits", type=click.IntRange(min=1, max=256), default=None,
+              help="Fits that run at once; the rest wait. [default: the number of cores]")
+def serve(host, port, open_browser, cache, max_fits):
+    """Start a local web server: fit, generate and download textures in a browser.
+
+    Prints the page's address; the same HTTP API the page uses is under /api
+    (docs/serve.md). Stop it with Ctrl-C.
+    """
+    with user_errors():
+        from ..server.app import create_app, require_web
+
+        require_web(server=True)
+        import uvicorn
+        cache_dir = Path(cache) if cache else default_cache_dir()
+        app = create_app(cache_dir, max_fits=max_fits)
+        sock = _bind(host, port)
+    bound = sock.getsockname()[1]
+    shown = f"[{host}]" if ":" in host else host
+    url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::', '') else shown}:{bound}/"
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        click.echo(f"Warning: listening on {host}: other machines on the network can use this server "
+                   "(it has no login); use --host 127.0.0.1 to keep it to this machine", err=True)
+    click.echo(f"tghop serving on {url} (models in {cache_dir}; Ctrl-C stops it)")
+    sys.stdout.flush()
+    if open_browser:
+        import webbrowser
+
+        webbrowser.open(url)
+    config = uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on")
+    server = uvicorn.Server(config)
+    try:
+        server.run(sockets=[sock])
+    except KeyboardInterrupt:  # a second Ctrl-C, or SIGTERM through the command's handler
+        pass
+    finally:
+        sock.close()
+    click.echo("tghop server stopped", err=True)

@@ -1,0 +1,15 @@
+"""tghop's local web server (``tghop serve``): a page to fit, generate and download
+textures, and the HTTP API under ``/api`` that the page uses (docs/serve.md).
+
+* :mod:`tghop.server.app`: the Starlette application (:func:`~tghop.server.app.create_app`),
+  its routes and the model cache (files named by content hashes, written atomically);
+* :mod:`tghop.server.jobs`: the fit queue (a thread pool, progress through the library's
+  callback, cancellation by an exception raised from it);
+* ``static/``: the page (HTML, CSS and JavaScript; no build step, nothing fetched from
+  the network).
+
+Starlette, uvicorn and python-multipart come with the ``web`` extra
+(``pip install 'tghop[web]'``); the rest of tghop never needs them, and importing these
+modules does not import them either (:func:`~tghop.server.app.create_app` does, or
+says in one line how to install them).
+"""

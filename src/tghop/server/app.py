@@ -1,0 +1,612 @@
+"""The web server's Starlette application: the page, the HTTP API under ``/api`` and the
+model cache (see docs/serve.md for the API).
+
+The cache is one folder, ``<cache>/models``, of model files named ``<id>.npz``. An id is
+a content hash (SHA-256 of the exemplar's bytes and the fit settings, or of an uploaded
+model file), so the same exemplar with the same settings is fitted once. Every file
+appears whole or not at all (:func:`tghop.modelfile.save_model` writes atomically; an
+upload is checked in a temporary file that is removed whatever happens); leftovers of a
+killed server (``.*.tmp``) are removed at start.
+
+Everything tghop does here is the library's own code: :func:`tghop.imageio.load_image`
+(with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
+:func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with their
+checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
+status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
+request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
+422 (a setting out of range, a size over the output limit).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import io
+import json
+import os
+import re
+import secrets
+import tempfile
+import threading
+import warnings
+from collections import OrderedDict
+from pathlib import Path
+
+from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
+from .jobs import FitQueue
+
+try:  # the web extra; create_app says how to install it when it is missing
+    from starlette.applications import Starlette
+    from starlette.concurrency import run_in_threadpool
+    from starlette.exceptions import HTTPException
+    from starlette.formparsers import MultiPartException, MultiPartParser
+    from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+    from starlette.routing import Mount, Route
+    from starlette.staticfiles import StaticFiles
+except ImportError:  # pragma: no cover - tested by the missing-extra test in a fresh interpreter
+    Starlette = None
+
+__all__ = ["create_app", "require_web", "WEB_HINT", "MAX_UPLOAD_BYTES", "STATIC", "model_id_for"]
+
+#: How to install what the server needs.
+WEB_HINT = "pip install 'tghop[web]'"
+#: Largest request body accepted (an exemplar or a model file).
+MAX_UPLOAD_BYTES = 50 * 1024 * 1024
+#: The page's files.
+STATIC = Path(__file__).resolve().parent / "static"
+#: Fit settings the API takes as form fields (besides ``paper`` and ``k1``/``k2``/``k3``).
+_NOT_FIELDS = ("n_channels", "rng")
+_ID = re.compile(r"[0-9a-f]{64}\Z")
+_JOB = re.compile(r"[0-9a-f]{32}\Z")
+#: An upload over the limit is read (and dropped) up to this many times the limit, then the
+#: connection is closed.
+_DRAIN = 4
+#: Fitted models kept in memory (the last used ones).
+_LOADED = 4
+
+
+class RequestError(Exception):
+    """A bad request: answered with ``status`` and ``{"error": message}`` (one line)."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status = status
+        self.message = " ".join(str(message).split())
+
+
+def require_web(*, server: bool = False):
+    """Raise a one-line :class:`MissingExtraError` unless Starlette and python-multipart (and,
+    with ``server``, uvicorn) are installed."""
+    import importlib.util
+
+    def present(name):
+        try:
+            return importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError):  # a module set to None in sys.modules
+            return False
+
+    if (Starlette is None or not any(present(m) for m in ("python_multipart", "multipart"))
+            or (server and not present("uvicorn"))):
+        raise MissingExtraError(f"tghop serve needs Starlette, uvicorn and python-multipart; "
+                                f"install them with: {WEB_HINT}")
+
+
+def _error(status: int, message: str):
+    return JSONResponse({"error": " ".join(str(message).split())}, status_code=status)
+
+
+def _json(data, status: int = 200):
+    return Response(json.dumps(data, default=str, allow_nan=False), status_code=status,
+                    media_type="application/json")
+
+
+def model_id_for(content: bytes, settings: dict) -> str:
+    """The content hash naming a model: SHA-256 of the exemplar's bytes (or ``builtin:NAME``)
+    and the fit settings (as sorted JSON)."""
+    digest = hashlib.sha256(content)
+    digest.update(b"\0tghop-fit-settings\0")
+    digest.update(json.dumps(settings, sort_keys=True, default=str).encode())
+    return digest.hexdigest()
+
+
+def _safe_name(name, default: str) -> str:
+    """An uploaded file's name as it may appear in a message and a temporary file: the
+    last part of the path, only letters, digits, ``.``, ``_`` and ``-``."""
+    base = re.split(r"[\\/]", str(name or ""))[-1]
+    base = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")[:80]
+    return base or default
+
+
+# ------------------------------------------------------------------ settings
+def fit_fields():
+    """Names of the fit settings the API takes (form fields of ``POST /api/models``)."""
+    from ..settings import fit_settings
+
+    return [s.name for s in fit_settings() if s.name not in _NOT_FIELDS] + ["k1", "k2", "k3", "paper"]
+
+
+def _parse_bool(name, value) -> bool:
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "on", "yes"):
+        return True
+    if text in ("0", "false", "off", "no", ""):
+        return False
+    raise RequestError(422, f"{name} must be true or false, got {value!r}")
+
+
+def parse_fit_settings(fields: dict) -> dict:
+    """Form fields -> the options :func:`tghop.cli.options.build_model` takes, each checked by
+    the settings table (422 with its one line)."""
+    from ..cli.options import OFF
+    from ..settings import BY_NAME, check_channel_rule
+
+    known = fit_fields()
+    options = {}
+    for name, raw in fields.items():
+        if name not in known:
+            raise RequestError(422, f"unknown fit setting {name!r}; known: {', '.join(known)}")
+        text = str(raw).strip()
+        try:
+            if name == "paper":
+                options[name] = _parse_bool(name, text)
+            elif name in ("k1", "k2", "k3"):
+                if text == "":
+                    continue
+                rule = text if text == "knee" else (float(text) if "." in text else int(text))
+                options[name] = check_channel_rule(rule, name)
+            else:
+                s = BY_NAME[name]
+                if text == "" and not s.none_ok:
+                    continue
+                if s.kind == "bool":
+                    options[name] = _parse_bool(name, text)
+                else:
+                    value = s.check(None if text == "" else s.parse(text), label=name)
+                    if s.cli_high is not None and value is not None and value > s.cli_high:
+                        raise TGHopError(f"{name} {text} is more than the server allows ({s.cli_high:,g})")
+                    options[name] = OFF if value is None else value  # "none": off, not the default
+        except ValueError as exc:  # TGHopError is one
+            message = str(exc) if isinstance(exc, TGHopError) else f"{name}: {text!r} is not a channel count"
+            raise RequestError(422, message) from None
+    return options
+
+
+def parse_generation(body) -> tuple:
+    """The JSON of ``POST /api/models/{id}/images`` -> ``(size, seed, settings)`` (422 for a
+    bad value, with the library's one line)."""
+    from .._common import MAX_PIXELS, check_size
+    from ..settings import BY_NAME, generate_settings
+
+    if not isinstance(body, dict):
+        raise RequestError(400, "the body must be a JSON object, e.g. {\"size\": [256, 256], \"seed\": 1}")
+    names = [s.name for s in generate_settings()]
+    unknown = [k for k in body if k not in names + ["size", "seed", "paper"]]
+    if unknown:
+        raise RequestError(422, f"unknown setting {unknown[0]!r}; known: size, seed, paper, {', '.join(names)}")
+    try:
+        size = check_size(body.get("size", [256, 256]), limit=MAX_PIXELS, name="size")
+        seed = body.get("seed")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63):
+            raise TGHopError(f"seed must be an integer from 0 to 2**63 - 1 or null, got {seed!r}")
+        paper = _parse_bool("paper", body.get("paper", False))
+        settings = {}
+        for s in generate_settings():
+            if s.name in body and (body[s.name] is not None or s.none_ok):
+                value = s.check(body[s.name], label=s.name)
+                if s.cli_high is not None and value is not None and value > s.cli_high:
+                    raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
+                settings[s.name] = value
+            elif paper and s.has_paper:
+                settings[s.name] = s.paper
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    except RequestError:
+        raise
+    return size, seed, settings
+
+
+# ------------------------------------------------------------------ the cache
+class ModelCache:
+    """Model files named by id in ``<cache>/models``, the last used models in memory."""
+
+    def __init__(self, cache_dir):
+        self.root = Path(cache_dir).expanduser()
+        self.models = self.root / "models"
+        try:
+            self.models.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise TGHopError(f"{self.models}: cannot create the cache folder ({exc.strerror}); "
+                             "choose another with --cache") from None
+        for stale in self.models.glob(".*.tmp"):  # left by a server killed while writing
+            try:
+                stale.unlink()
+            except OSError:
+                pass
+        self._loaded = OrderedDict()
+        self._lock = threading.Lock()
+
+    def path(self, model_id: str) -> Path:
+        if not _ID.match(model_id):
+            raise RequestError(404, f"no model {model_id[:80]!r}; fit one with POST /api/models")
+        return self.models / f"{model_id}.npz"
+
+    def has(self, model_id: str) -> bool:
+        return self.path(model_id).is_file()
+
+    def remember(self, model_id: str, model) -> None:
+        with self._lock:
+            self._loaded[model_id] = model
+            self._loaded.move_to_end(model_id)
+            while len(self._loaded) > _LOADED:
+                self._loaded.popitem(last=False)
+
+    def load(self, model_id: str):
+        """The fitted model (404 if there is none)."""
+        from ..modelfile import load_model
+
+        path = self.path(model_id)
+        with self._lock:
+            if model_id in self._loaded:
+                self._loaded.move_to_end(model_id)
+                return self._loaded[model_id]
+        if not path.is_file():
+            raise RequestError(404, f"no model {model_id}; fit one with POST /api/models "
+                                    "(or it is still being fitted: see its job)")
+        model = load_model(path)
+        self.remember(model_id, model)
+        return model
+
+
+# ------------------------------------------------------------------ requests
+async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
+    """The request's body, or 413 as soon as it is over ``limit`` bytes."""
+    too_large = RequestError(413, f"the upload is over the limit of {limit // (1024 * 1024)} MB; "
+                                  "send a smaller file")
+    declared = request.headers.get("content-length")
+    over = bool(declared and declared.isdigit() and int(declared) > limit)
+    chunks, n = [], 0
+    async for chunk in request.stream():
+        n += len(chunk)
+        if n > limit:
+            over = True
+        if over:  # the rest is read and dropped, so that the client gets the answer and not a reset
+            chunks = []
+            if n > _DRAIN * limit:
+                break
+            continue
+        chunks.append(chunk)
+    if over:
+        raise too_large
+    return b"".join(chunks)
+
+
+async def read_form(request, body: bytes) -> dict:
+    """A multipart body -> ``{name: str or (filename, bytes)}`` (400 when malformed)."""
+    async def stream():
+        yield body
+
+    if not request.headers.get("content-type", "").startswith("multipart/form-data"):
+        raise RequestError(400, "send the fields as multipart/form-data (a form with an 'image' file "
+                                "or a 'builtin' name)")
+    try:
+        form = await MultiPartParser(request.headers, stream(), max_files=4, max_fields=64).parse()
+    except (MultiPartException, ValueError) as exc:
+        raise RequestError(400, f"malformed multipart request ({getattr(exc, 'message', exc)})") from None
+    out = {}
+    for name, value in form.multi_items():
+        if hasattr(value, "read"):
+            out[name] = (value.filename, await value.read())
+            await value.close()
+        else:
+            out[name] = value
+    return out
+
+
+class Server:
+    """The state behind the routes: the cache, the fit queue, a bound on generations."""
+
+    def __init__(self, cache_dir, max_fits: int):
+        self.cache = ModelCache(cache_dir)
+        self.queue = FitQueue(max_fits)
+        self.generating = threading.BoundedSemaphore(max_fits)
+
+    # ---------------------------------------------------------------- fitting
+    def prepare_fit(self, fields: dict):
+        """Check the request and read the exemplar (in a worker thread): returns
+        ``(model id, TGHop, image)``; ``image`` is None when the model is in the cache."""
+        from ..cli.common import HINT_DOWNSCALE_YOURSELF
+        from ..cli.options import build_model
+        from ..data import builtin
+        from ..imageio import load_image
+        from ..synthesis import prepare_exemplar
+
+        upload = fields.pop("image", None)
+        name = fields.pop("builtin", None)
+        if isinstance(upload, str):
+            raise RequestError(400, "the field 'image' must be a file upload")
+        if upload is not None and name:
+            raise RequestError(400, "give either an 'image' file or a 'builtin' name, not both")
+        if upload is None and not name:
+            raise RequestError(400, "no exemplar: send an 'image' file or a 'builtin' name (bricks or cells)")
+        options = parse_fit_settings({k: v for k, v in fields.items() if isinstance(v, str)})
+        if name:
+            name = str(name).removeprefix("builtin:")
+            try:
+                image, content = builtin(name), f"builtin:{name}".encode()
+            except TGHopError as exc:
+                raise RequestError(400, str(exc)) from None
+        else:
+            filename, content = upload
+            if not content:
+                raise RequestError(400, f"{_safe_name(filename, 'the upload')} is empty; send an image file")
+            image = self._read_image(content, _safe_name(filename, "exemplar"),
+                                     lambda p: load_image(p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF))
+        try:
+            image = prepare_exemplar(image, min_size=options.get("patch_size") or 32)
+            model = build_model(options, n_colours=image.shape[2])
+        except TGHopError as exc:
+            raise RequestError(400, str(exc)) from None
+        params = {k: v for k, v in model.get_params().items()}
+        model_id = model_id_for(content, params)
+        return model_id, model, (None if self.cache.has(model_id) else image)
+
+    @staticmethod
+    def _read_image(content: bytes, filename: str, load):
+        with tempfile.TemporaryDirectory(prefix="tghop-upload-") as folder:
+            path = Path(folder) / filename
+            path.write_bytes(content)
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # an alpha channel dropped: not an error
+                    return load(path)
+            except ImageTooLargeError as exc:
+                raise RequestError(413, str(exc).replace(f"{folder}{os.sep}", "")) from None
+            except TGHopError as exc:
+                raise RequestError(400, str(exc).replace(f"{folder}{os.sep}", "")) from None
+            except MemoryError:
+                raise RequestError(413, f"{filename}: not enough memory to decode this image; "
+                                        "downscale it first") from None
+
+    def fit_work(self, model_id: str, model, image):
+        """What a fit job runs: fit, then save atomically into the cache."""
+        from ..modelfile import save_model
+
+        def work(job):
+            model.fit(image, progress=job.progress)
+            job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
+            save_model(model, self.cache.path(model_id))
+            self.cache.remember(model_id, model)
+            job.progress("saving", 1, 1, cancellable=False)  # the file is there: the job is done
+
+        return work
+
+    async def create_model(self, request):
+        body = await read_body(request)
+        fields = await read_form(request, body)
+        model_id, model, image = await run_in_threadpool(self.prepare_fit, fields)
+        if image is None:
+            job = self.queue.finished(model_id)
+        else:
+            job = self.queue.submit(model_id, self.fit_work(model_id, model, image))
+        return _json({"id": model_id, "job": job.id, "state": job.state}, status=202 if not job.final else 200)
+
+    # ---------------------------------------------------------------- jobs
+    def job(self, request):
+        job_id = request.path_params["job"]
+        job = self.queue.get(job_id) if _JOB.match(job_id) else None
+        if job is None:
+            raise RequestError(404, f"no job {job_id[:80]!r}; POST /api/models starts one")
+        return job
+
+    async def job_state(self, request):
+        return _json(self.job(request).snapshot())
+
+    async def cancel_job(self, request):
+        job = self.queue.cancel(self.job(request).id)
+        return _json(job.snapshot())
+
+    async def job_events(self, request):
+        job = self.job(request)
+
+        async def events():
+            version, idle = -1, 0.0
+            while True:
+                snap = job.snapshot()
+                if snap["version"] != version:
+                    version, idle = snap["version"], 0.0
+                    yield f"event: progress\ndata: {json.dumps(snap)}\n\n"
+                if job.final:
+                    yield f"event: end\ndata: {json.dumps(snap)}\n\n"
+                    return
+                if idle >= 15.0:  # a comment now and then keeps proxies from closing the stream
+                    idle = 0.0
+                    yield ": waiting\n\n"
+                await asyncio.sleep(0.1)
+                idle += 0.1
+
+        return StreamingResponse(events(), media_type="text/event-stream",
+                                 headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+    # ---------------------------------------------------------------- models
+    def _summary(self, model_id: str) -> dict:
+        from ..cli.common import info_dict
+
+        model = self.cache.load(model_id)
+        return {"id": model_id, "file_bytes": self.cache.path(model_id).stat().st_size,
+                "layout": model.layout_ is not None, **info_dict(model)}
+
+    async def model_summary(self, request):
+        return _json(await run_in_threadpool(self._summary, request.path_params["id"]))
+
+    async def model_file(self, request):
+        model_id = request.path_params["id"]
+        path = self.cache.path(model_id)
+        if not path.is_file():
+            raise RequestError(404, f"no model {model_id}; fit one with POST /api/models")
+        return FileResponse(path, media_type="application/octet-stream",
+                            filename=f"tghop-{model_id[:12]}.npz")
+
+    def _store_upload(self, content: bytes, filename: str) -> str:
+        """Check an uploaded model file and keep it under its content hash (400 if it is not
+        a good tghop model; nothing is left in the cache either way)."""
+        from ..modelfile import load_model
+
+        if not content:
+            raise RequestError(400, f"{filename} is empty; send a model file written by 'tghop fit'")
+        model_id = hashlib.sha256(content).hexdigest()
+        final = self.cache.path(model_id)
+        if final.is_file():
+            return model_id
+        fd, tmp = tempfile.mkstemp(prefix=f".upload-{model_id[:12]}.", suffix=".tmp", dir=self.cache.models)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(content)
+            try:
+                model = load_model(tmp)
+            except TGHopError as exc:
+                raise RequestError(400, str(exc).replace(tmp, filename)) from None
+            except MemoryError:
+                raise RequestError(413, f"{filename}: not enough memory to read this model") from None
+            os.replace(tmp, final)
+            tmp = None
+        finally:
+            if tmp is not None:
+                try:
+                    os.unlink(tmp)
+                except FileNotFoundError:
+                    pass
+        self.cache.remember(model_id, model)
+        return model_id
+
+    async def upload_model(self, request):
+        body = await read_body(request)
+        if request.headers.get("content-type", "").startswith("multipart/form-data"):
+            fields = await read_form(request, body)
+            files = [v for v in fields.values() if isinstance(v, tuple)]
+            if not files:
+                raise RequestError(400, "no model file: send it as the field 'model' (or as the whole body)")
+            filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
+        else:
+            filename, content = "the upload", body
+        model_id = await run_in_threadpool(self._store_upload, content, _safe_name(filename, "the upload"))
+        return _json({"id": model_id})
+
+    def _generate(self, model_id: str, size, seed, settings) -> bytes:
+        import numpy as np
+
+        from ..imageio import write_png
+
+        model = self.cache.load(model_id)
+        with self.generating:
+            try:
+                image = model.synthesize(size, rng=seed, dtype=np.uint8, **settings)
+            except MemoryError:
+                raise RequestError(422, "out of memory; ask for a smaller image") from None
+            except TGHopError as exc:
+                raise RequestError(422, str(exc)) from None
+        buf = io.BytesIO()
+        write_png(buf, image)
+        return buf.getvalue()
+
+    async def generate(self, request):
+        model_id = request.path_params["id"]
+        self.cache.path(model_id)  # 404 for a malformed id before the body is read
+        body = await read_body(request, limit=1024 * 1024)
+        try:
+            data = json.loads(body or b"{}")
+        except ValueError:
+            raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
+        size, seed, settings = parse_generation(data)
+        if seed is None:
+            seed = secrets.randbelow(2**31)
+        png = await run_in_threadpool(self._generate, model_id, size, seed, settings)
+        return Response(png, media_type="image/png",
+                        headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
+                                 "Cache-Control": "no-store"})
+
+    # ---------------------------------------------------------------- the rest
+    async def builtin_image(self, request):
+        from ..data import BUILTIN, builtin
+        from ..imageio import to_uint8, write_png
+
+        name = request.path_params["name"]
+        if name not in BUILTIN:
+            raise RequestError(404, f"no built-in exemplar {name[:40]!r}; choose one of {', '.join(sorted(BUILTIN))}")
+        buf = io.BytesIO()
+        write_png(buf, to_uint8(await run_in_threadpool(builtin, name)))
+        return Response(buf.getvalue(), media_type="image/png")
+
+    async def builtins(self, request):
+        from ..data import BUILTIN
+
+        return _json({"builtins": sorted(BUILTIN), "fit_settings": fit_fields()})
+
+    async def index(self, request):
+        return FileResponse(STATIC / "index.html", media_type="text/html")
+
+
+def _wrap(handler):
+    """A route that answers :class:`RequestError` and library errors with one JSON line."""
+    async def route(request):
+        try:
+            return await handler(request)
+        except RequestError as exc:
+            return _error(exc.status, exc.message)
+        except TGHopError as exc:  # a library check the route did not foresee: the input's fault
+            return _error(400, str(exc))
+
+    return route
+
+
+def create_app(cache_dir, max_fits: int | None = None):
+    """The Starlette application of ``tghop serve``.
+
+    Parameters
+    ----------
+    cache_dir : str or os.PathLike
+        Where fitted and uploaded models are kept (``<cache_dir>/models/<id>.npz``);
+        created if needed.
+    max_fits : int, optional
+        Fits that run at once (the rest wait in order); default: the number of cores.
+
+    Raises
+    ------
+    MissingExtraError
+        Starlette or python-multipart is not installed (one line naming ``tghop[web]``).
+    """
+    require_web()
+    server = Server(cache_dir, max_fits or os.cpu_count() or 1)
+    routes = [
+        Route("/", _wrap(server.index)),
+        Route("/api", _wrap(server.builtins)),
+        Route("/api/builtins/{name}.png", _wrap(server.builtin_image)),
+        Route("/api/models", _wrap(server.create_model), methods=["POST"]),
+        Route("/api/models/upload", _wrap(server.upload_model), methods=["POST"]),
+        Route("/api/models/{id}", _wrap(server.model_summary)),
+        Route("/api/models/{id}/file", _wrap(server.model_file)),
+        Route("/api/models/{id}/images", _wrap(server.generate), methods=["POST"]),
+        Route("/api/jobs/{job}", _wrap(server.job_state)),
+        Route("/api/jobs/{job}", _wrap(server.cancel_job), methods=["DELETE"]),
+        Route("/api/jobs/{job}/events", _wrap(server.job_events)),
+        Mount("/static", app=StaticFiles(directory=STATIC), name="static"),
+    ]
+
+    async def http_error(request, exc):
+        return _error(exc.status_code, exc.detail if exc.status_code != 404 else
+                      f"nothing at {request.url.path[:200]}; the API is under /api (docs/serve.md)")
+
+    async def lifespan(app):
+        yield
+        await run_in_threadpool(server.queue.shutdown)
+
+    app = Starlette(routes=routes, exception_handlers={HTTPException: http_error}, lifespan=_lifespan(lifespan))
+    app.state.server = server
+    return app
+
+
+def _lifespan(fn):
+    from contextlib import asynccontextmanager
+
+    return asynccontextmanager(fn)

@@ -1,0 +1,192 @@
+"""The fit queue of the web server: fits run on a pool of threads, at most ``max_fits`` at
+once (the rest wait in order), report progress through the library's ``progress``
+callback and stop when cancelled (the callback raises :class:`Cancelled`).
+
+Nothing here knows about HTTP; :mod:`tghop.server.app` turns jobs into JSON and
+server-sent events. Only the standard library is imported.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from concurrent.futures import ThreadPoolExecutor
+
+__all__ = ["Cancelled", "Job", "FitQueue", "STATES", "FIT_STAGES"]
+
+#: Job states; the last three are final.
+STATES = ("queued", "running", "done", "failed", "cancelled")
+FINAL = ("done", "failed", "cancelled")
+
+#: The stages :meth:`tghop.TGHop.fit` reports, in order, and their share of the whole fit
+#: (rough times of a small fit): the progress bar's fraction.
+FIT_STAGES = {"hop 1": 0.15, "hop 2": 0.1, "hop 3": 0.05, "SDR": 0.05, "clusters": 0.15, "ICA": 0.3,
+              "CDF codebook": 0.1, "layout": 0.1, "saving": 0.05}
+
+
+class Cancelled(Exception):
+    """Raised from a cancelled job's progress callback: the fit stops there."""
+
+
+class Job:
+    """One fit: its state, its progress and, when it failed, the one-line reason.
+
+    Attributes
+    ----------
+    id : str
+    model_id : str
+        The model the fit makes (its file appears in the cache when the job is done).
+    state : str
+        One of :data:`STATES`.
+    stage, done, total : str, int, int
+        The last ``progress(stage, done, total)`` call.
+    error : str or None
+    version : int
+        Grows with every change (what the event stream waits on).
+    """
+
+    def __init__(self, model_id: str, state: str = "queued"):
+        self.id = uuid.uuid4().hex
+        self.model_id = model_id
+        self.state = state
+        self.stage = ""
+        self.done = 0
+        self.total = 0
+        self.error = None
+        self.version = 0
+        self.created = time.time()
+        self.cancel_requested = False
+        self.future = None
+        self._seen = []  # stages in the order they came
+        self._changed = threading.Condition()
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def final(self) -> bool:
+        return self.state in FINAL
+
+    def fraction(self) -> float:
+        """Progress of the whole fit in [0, 1] (1 when done)."""
+        if self.state == "done":
+            return 1.0
+        if not self._seen:
+            return 0.0
+        finished = sum(FIT_STAGES.get(s, 0.05) for s in self._seen[:-1])
+        current = FIT_STAGES.get(self.stage, 0.05) * (self.done / self.total if self.total else 0.0)
+        whole = sum(FIT_STAGES.values()) - (0 if "layout" in self._seen else FIT_STAGES["layout"])
+        return max(0.0, min(0.99, (finished + current) / whole))
+
+    def snapshot(self) -> dict:
+        """The job as JSON-ready data."""
+        with self._changed:
+            out = {"job": self.id, "id": self.model_id, "state": self.state, "stage": self.stage,
+                   "done": self.done, "total": self.total, "progress": round(self.fraction(), 4),
+                   "version": self.version}
+            if self.error:
+                out["error"] = self.error
+            return out
+
+    def wait_change(self, version: int, timeout: float) -> int:
+        """Wait until the version differs from ``version`` (or ``timeout`` seconds); return it."""
+        with self._changed:
+            self._changed.wait_for(lambda: self.version != version, timeout=timeout)
+            return self.version
+
+    # ------------------------------------------------------------------ writing
+    def _update(self, **changes):
+        with self._changed:
+            for key, value in changes.items():
+                setattr(self, key, value)
+            self.version += 1
+            self._changed.notify_all()
+
+    def progress(self, stage: str, done: int, total: int, *, cancellable: bool = True) -> None:
+        """The library's progress callback; raises :class:`Cancelled` once cancelled (unless
+        not ``cancellable``: past the point of no return, such as a file written)."""
+        if self.cancel_requested and cancellable:
+            raise Cancelled()
+        if stage != self.stage and stage not in self._seen:
+            self._seen.append(stage)
+        self._update(stage=stage, done=int(done), total=int(total))
+
+
+class FitQueue:
+    """At most ``max_fits`` fits at once on a thread pool; jobs by id.
+
+    ``submit(model_id, work)`` runs ``work(job)`` (which calls ``job.progress``) in turn;
+    a second submit of a model that is still queued or running returns the same job.
+    """
+
+    def __init__(self, max_fits: int):
+        if max_fits < 1:
+            raise ValueError(f"max_fits must be at least 1, got {max_fits}")
+        self.max_fits = max_fits
+        self._pool = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-fit")
+        self._jobs = {}
+        self._active = {}  # model id -> job still queued or running
+        self._lock = threading.Lock()
+
+    def finished(self, model_id: str) -> Job:
+        """A job that is already done (the model was in the cache)."""
+        job = Job(model_id, state="done")
+        with self._lock:
+            self._jobs[job.id] = job
+        return job
+
+    def submit(self, model_id: str, work) -> Job:
+        with self._lock:
+            active = self._active.get(model_id)
+            if active is not None and not active.final:
+                return active
+            job = Job(model_id)
+            self._jobs[job.id] = job
+            self._active[model_id] = job
+        job.future = self._pool.submit(self._run, job, work)
+        return job
+
+    def _run(self, job: Job, work) -> None:
+        if job.cancel_requested:
+            job._update(state="cancelled")
+            return
+        job._update(state="running")
+        try:
+            work(job)
+        except Cancelled:
+            job._update(state="cancelled")
+        except BaseException as exc:  # one line for the client; the thread goes on serving
+            message = str(exc).strip().splitlines()[0] if str(exc).strip() else exc.__class__.__name__
+            if isinstance(exc, MemoryError):
+                message = "out of memory; use a smaller exemplar or fewer training patches"
+            job._update(state="failed", error=message)
+        else:
+            job._update(state="done")
+        finally:
+            with self._lock:
+                if self._active.get(job.model_id) is job:
+                    del self._active[job.model_id]
+
+    def get(self, job_id: str):
+        """The job, or None."""
+        return self._jobs.get(job_id)
+
+    def cancel(self, job_id: str):
+        """Ask the job to stop (a queued one never starts); returns the job or None."""
+        job = self._jobs.get(job_id)
+        if job is None or job.final:
+            return job
+        job.cancel_requested = True
+        if job.future is not None and job.future.cancel():  # still waiting: it never runs
+            job._update(state="cancelled")
+            with self._lock:
+                if self._active.get(job.model_id) is job:
+                    del self._active[job.model_id]
+        else:
+            job._update()  # wake the event streams; the fit stops at its next progress call
+        return job
+
+    def shutdown(self) -> None:
+        """Cancel every job and wait for the running ones to stop."""
+        for job_id in list(self._jobs):
+            self.cancel(job_id)
+        self._pool.shutdown(wait=True, cancel_futures=True)

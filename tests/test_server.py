@@ -1,0 +1,299 @@
+"""``tghop serve``'s HTTP API against a real uvicorn server on a free port (httpx as the
+client): fit a built-in exemplar, follow the job (polling and server-sent events),
+generate, download and upload models, cancel, and every kind of bad input."""
+
+import hashlib
+import io
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zlib
+
+import pytest
+
+httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+from conftest import FAST_FIT  # noqa: E402
+
+from tghop.modelfile import load_model  # noqa: E402
+
+
+def png_header(width, height):
+    """A PNG whose header declares ``width`` x ``height`` (with almost no pixel data)."""
+    def chunk(kind, payload):
+        return struct.pack(">I", len(payload)) + kind + payload + struct.pack(">I", zlib.crc32(kind + payload))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\x00" * 10)) + chunk(b"IEND", b""))
+
+
+def exemplar_png(size=96):
+    from PIL import Image
+
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    buf = io.BytesIO()
+    Image.fromarray(to_uint8(data.bricks(size, rng=3))).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def client(live_server):
+    with httpx.Client(base_url=live_server.url, timeout=120) as c:
+        yield c
+
+
+def events(client, job):
+    """The job's server-sent events until the stream ends: a list of (event, data)."""
+    out = []
+    with client.stream("GET", f"/api/jobs/{job}/events") as response:
+        assert response.status_code == 200
+        assert response.headers["content-type"].startswith("text/event-stream")
+        kind = None
+        for line in response.iter_lines():
+            if line.startswith("event: "):
+                kind = line[7:]
+            elif line.startswith("data: "):
+                out.append((kind, json.loads(line[6:])))
+    return out
+
+
+def assert_error(response, status, *fragments):
+    assert response.status_code == status, response.text
+    message = response.json()["error"]
+    assert message and "\n" not in message and "Traceback" not in message
+    for fragment in fragments:
+        assert fragment in message, message
+    return message
+
+
+def model_files(cache):
+    return sorted(os.listdir(cache / "models"))
+
+
+@pytest.fixture(scope="module")
+def fitted(client):
+    """A fit of builtin:bricks followed by its event stream and polled: (model id, events)."""
+    r = client.post("/api/models", files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert r.status_code == 202, r.text
+    body = r.json()
+    assert set(body) >= {"id", "job"} and len(body["id"]) == 64
+    polled = client.get(f"/api/jobs/{body['job']}").json()
+    assert polled["state"] in ("queued", "running", "done") and polled["id"] == body["id"]
+    stream = events(client, body["job"])
+    return body["id"], body["job"], stream
+
+
+def test_a_fit_reports_progress_and_ends_done(client, fitted):
+    model_id, job, stream = fitted
+    assert stream[-1][0] == "end" and stream[-1][1]["state"] == "done"
+    progress = [data["progress"] for kind, data in stream]
+    assert progress == sorted(progress) and progress[-1] == 1.0
+    stages = {data["stage"] for _, data in stream}  # the stream shows the latest state: some may be skipped
+    assert "saving" in stages and len(stages & {"hop 1", "hop 2", "SDR", "clusters", "ICA", "CDF codebook"}) >= 2
+    final = client.get(f"/api/jobs/{job}").json()
+    assert final["state"] == "done" and final["progress"] == 1.0
+
+
+def test_the_summary_is_what_info_json_gives(client, fitted, live_server):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    model_id, _, _ = fitted
+    r = client.get(f"/api/models/{model_id}")
+    assert r.status_code == 200
+    summary = r.json()
+    assert summary["id"] == model_id and summary["layout"] is False
+    assert summary["params"]["n_clusters"] == 8 and summary["params"]["layout_factor"] is None
+    cli = CliRunner().invoke(main, ["info", "--json", str(live_server.cache / "models" / f"{model_id}.npz")])
+    assert cli.exit_code == 0, cli.output
+    info = json.loads(cli.stdout)
+    for key in ("params", "dims", "channels", "exemplar_shape", "n_parameters"):
+        assert summary[key] == info[key], key
+
+
+def test_generate_png_of_the_asked_size_and_same_seed_same_bytes(client, fitted):
+    from PIL import Image
+
+    model_id, _, _ = fitted
+    ask = {"size": [48, 80], "seed": 5, "tile": True, "refine": 1, "n_patches": 400}
+    a = client.post(f"/api/models/{model_id}/images", json=ask)
+    assert a.status_code == 200, a.text
+    assert a.headers["content-type"] == "image/png" and a.headers["x-tghop-seed"] == "5"
+    image = Image.open(io.BytesIO(a.content))
+    assert image.size == (80, 48) and image.mode == "RGB"
+    b = client.post(f"/api/models/{model_id}/images", json=ask)
+    assert b.content == a.content
+    c = client.post(f"/api/models/{model_id}/images", json={**ask, "seed": 6})
+    assert c.status_code == 200 and c.content != a.content
+    d = client.post(f"/api/models/{model_id}/images", json={"size": [40, 40], "paper": True, "n_patches": 300})
+    assert d.status_code == 200 and int(d.headers["x-tghop-seed"]) >= 0
+
+
+def test_the_same_exemplar_and_settings_reuse_the_model(client, fitted, live_server):
+    model_id, _, _ = fitted
+    before = model_files(live_server.cache)
+    r = client.post("/api/models", files={"builtin": (None, "builtin:bricks"),
+                                          **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert r.status_code == 200 and r.json()["id"] == model_id and r.json()["state"] == "done"
+    assert client.get(f"/api/jobs/{r.json()['job']}").json()["state"] == "done"
+    assert model_files(live_server.cache) == before
+
+
+def test_download_the_model_and_upload_it_back(client, fitted, live_server, tmp_path):
+    model_id, _, _ = fitted
+    r = client.get(f"/api/models/{model_id}/file")
+    assert r.status_code == 200 and r.content[:2] == b"PK"
+    path = tmp_path / "downloaded.npz"
+    path.write_bytes(r.content)
+    assert load_model(path).dims_ == client.get(f"/api/models/{model_id}").json()["dims"]
+    up = client.post("/api/models/upload", content=r.content, headers={"content-type": "application/octet-stream"})
+    assert up.status_code == 200, up.text
+    uploaded = up.json()["id"]
+    assert uploaded == hashlib.sha256(r.content).hexdigest()
+    as_form = client.post("/api/models/upload", files={"model": ("mine.npz", r.content)})
+    assert as_form.status_code == 200 and as_form.json()["id"] == uploaded
+    ask = {"size": [48, 80], "seed": 5, "refine": 1, "n_patches": 400}
+    again = client.post(f"/api/models/{uploaded}/images", json=ask)
+    original = client.post(f"/api/models/{model_id}/images", json=ask)
+    assert again.status_code == 200 and again.content == original.content
+
+
+def test_an_uploaded_image_is_fitted(client, live_server):
+    png = exemplar_png()
+    fields = {**FAST_FIT, "stride": "6"}
+    r = client.post("/api/models", files={"image": ("my bricks.png", png, "image/png"),
+                                          **{k: (None, v) for k, v in fields.items()}})
+    assert r.status_code == 202, r.text
+    first = r.json()
+    again = client.post("/api/models", files={"image": ("other name.png", png, "image/png"),
+                                              **{k: (None, v) for k, v in fields.items()}})
+    assert again.json()["id"] == first["id"]  # the content decides, not the name
+    assert events(client, first["job"])[-1][1]["state"] == "done"
+    assert client.get(f"/api/models/{first['id']}").json()["exemplar_shape"] == [96, 96, 3]
+
+
+def test_fits_queue_and_cancel(client, live_server):
+    # max_fits=1: the second fit waits; cancelled while queued it never runs, and the
+    # running one stops at its next progress call. Neither leaves a file.
+    before = model_files(live_server.cache)
+    form = {"builtin": (None, "cells"), **{k: (None, v) for k, v in FAST_FIT.items()}}
+    slow = {"stride": (None, "2"), "max_patches": (None, "20000")}  # still running when the cancel comes
+    a = client.post("/api/models", files={**form, **slow, "n_clusters": (None, "9")}).json()
+    b = client.post("/api/models", files={**form, "n_clusters": (None, "10")}).json()
+    assert client.get(f"/api/jobs/{b['job']}").json()["state"] == "queued"
+    cancelled = client.delete(f"/api/jobs/{b['job']}")
+    assert cancelled.status_code == 200 and cancelled.json()["state"] == "cancelled"
+    deadline = time.monotonic() + 60
+    while client.get(f"/api/jobs/{a['job']}").json()["state"] != "running":
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    assert client.delete(f"/api/jobs/{a['job']}").status_code == 200
+    stream = events(client, a["job"])
+    assert stream[-1][1]["state"] == "cancelled", stream
+    for job in (a, b):
+        assert_error(client.get(f"/api/models/{job['id']}"), 404, "no model")
+    assert model_files(live_server.cache) == before
+
+
+def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
+    model_id, _, _ = fitted
+    before = model_files(live_server.cache)
+    post = client.post
+    # 413: over the exemplar pixel limit (the CLI's words), over 50 MB
+    message = assert_error(post("/api/models", files={"image": ("big.png", png_header(9000, 9000))}), 413,
+                           "big.png: the image is 9000x9000 pixels, more than the 67,108,864 tghop reads")
+    assert "tghop-upload" not in message
+    assert_error(post("/api/models", files={"image": ("huge.png", b"\0" * (50 * 1024 * 1024 + 10))}), 413, "50 MB")
+    assert_error(post("/api/models/upload", content=b"\0" * (50 * 1024 * 1024 + 10)), 413, "50 MB")
+    # 400: a decompression bomb, not an image, no exemplar, a flat one, an unknown built-in, corrupt models
+    assert_error(post("/api/models", files={"image": ("bomb.png", png_header(30000, 30000))}), 400,
+                 "bomb.png", "too many pixels")
+    assert_error(post("/api/models", files={"image": ("notes.txt", b"hello")}), 400, "notes.txt: not a readable image")
+    assert_error(post("/api/models", files={"n_clusters": (None, "8")}), 400, "no exemplar")
+    assert_error(post("/api/models", data={"builtin": "bricks"}), 400, "multipart")
+    assert_error(post("/api/models", files={"builtin": (None, "marble")}), 400, "unknown built-in exemplar")
+    from PIL import Image
+
+    flat = io.BytesIO()
+    Image.new("RGB", (64, 64), (120, 120, 120)).save(flat, format="PNG")
+    assert_error(post("/api/models", files={"image": ("flat.png", flat.getvalue())}), 400, "no texture")
+    good = client.get(f"/api/models/{model_id}/file").content
+    assert_error(post("/api/models/upload", files={"model": ("cut.npz", good[: len(good) // 2])}), 400,
+                 "cut.npz: truncated, corrupt")
+    assert_error(post("/api/models/upload", files={"model": ("pic.npz", exemplar_png(40))}), 400,
+                 "pic.npz is an image, not a model file")
+    assert_error(post("/api/models/upload", content=b""), 400, "empty")
+    # 422: settings out of range, sizes over the output limit
+    assert_error(post("/api/models", files={"builtin": (None, "bricks"), "n_clusters": (None, "0")}), 422,
+                 "n_clusters must be")
+    assert_error(post("/api/models", files={"builtin": (None, "bricks"), "colour": (None, "1")}), 422,
+                 "unknown fit setting 'colour'")
+    images = f"/api/models/{model_id}/images"
+    assert_error(post(images, json={"size": [10000, 10000]}), 422, "above the limit of 67,108,864")
+    assert_error(post(images, json={"size": [0, 5]}), 422, "size must be positive")
+    assert_error(post(images, json={"size": [64, 64], "refine": 99}), 422, "refine must be")
+    assert_error(post(images, json={"size": [64, 64], "seed": -1}), 422, "seed")
+    assert_error(post(images, json={"size": [64, 64], "zoom": 2}), 422, "unknown setting 'zoom'")
+    assert_error(post(images, content=b"{not json"), 400, "not JSON")
+    # 404: no such model, job, or path; never a file outside the static folder and the cache
+    missing = "0" * 64
+    assert_error(client.get(f"/api/models/{missing}"), 404, "no model")
+    assert_error(client.get(f"/api/models/{missing}/file"), 404, "no model")
+    assert_error(post(f"/api/models/{missing}/images", json={"size": [8, 8]}), 404, "no model")
+    assert_error(client.get("/api/models/..%2F..%2Fetc%2Fpasswd"), 404)
+    assert_error(client.get("/api/jobs/nope"), 404, "no job")
+    assert_error(client.delete("/api/jobs/" + "a" * 32), 404, "no job")
+    for path in ("/static/../app.py", "/static/%2e%2e/app.py", "/static/..%2fapp.py", "/nothing"):
+        assert client.get(path).status_code == 404, path
+    # nothing was written, nothing half-written is left
+    assert model_files(live_server.cache) == before
+    assert all(name.endswith(".npz") and not name.startswith(".") for name in before)
+
+
+def test_the_page_and_its_files_are_served(client):
+    page = client.get("/")
+    assert page.status_code == 200 and "text/html" in page.headers["content-type"]
+    for name in ("app.js", "style.css"):
+        assert f"/static/{name}" in page.text
+        assert client.get(f"/static/{name}").status_code == 200
+    assert "http" not in client.get("/static/app.js").text.replace("HTTP API", "")  # nothing from the network
+    assert client.get("/api/builtins/bricks.png").content[:4] == b"\x89PNG"
+    assert client.get("/api").json()["builtins"] == ["bricks", "cells"]
+
+
+def test_the_serve_command_prints_its_address_and_stops_on_ctrl_c(tmp_path):
+    p = subprocess.Popen([sys.executable, "-m", "tghop", "serve", "--port", "0", "--host", "0.0.0.0",
+                          "--cache", str(tmp_path / "cache")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = p.stdout.readline()
+        assert line.startswith("tghop serving on http://127.0.0.1:"), line
+        url = line.split()[3]
+        assert httpx.get(url + "api", timeout=30).json()["builtins"] == ["bricks", "cells"]
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert "Warning: listening on 0.0.0.0" in err
+    assert "Traceback" not in err and p.returncode == 0, err
+    assert (tmp_path / "cache" / "models").is_dir()
+
+
+def test_without_the_web_extra_serve_says_how_to_install_it(tmp_path):
+    code = ("import sys\n"
+            "sys.modules['starlette'] = None\nsys.modules['uvicorn'] = None\n"
+            "from tghop.cli import main\n"
+            f"main.main(['serve', '--cache', {str(tmp_path)!r}], prog_name='tghop')\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 1
+    assert p.stderr.strip().splitlines() == ["Error: tghop serve needs Starlette, uvicorn and python-multipart; "
+                                             "install them with: pip install 'tghop[web]'"]
