@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["GROUPS", "parameter_groups"]
+__all__ = ["GROUPS", "parameter_groups", "table4"]
 
 #: Table 4 row of each array-name prefix (``index.*`` arrays are bookkeeping, not parameters).
 GROUPS = {
@@ -47,3 +47,47 @@ def parameter_groups(arrays) -> dict:
         if group is not None:
             counts[group] = counts.get(group, 0) + int(np.asarray(arr).size)
     return counts
+
+
+def table4(dims, channels, n_colours, n_bins, sdr_shape, stored) -> dict:
+    """The rows of :meth:`tghop.TGHop.n_parameters`: each module's formula, the paper's
+    count for these dimensions and the numbers stored.
+
+    Parameters
+    ----------
+    dims : dict
+        ``TGHop.dims_`` (D_r, N, F, W).
+    channels : list of int
+        Kept channels per hop (K1, K2, ...).
+    n_colours : int
+        Exemplar channels C.
+    n_bins : int
+        Bins per CDF.
+    sdr_shape : tuple
+        The core's (h, w, K).
+    stored : dict
+        :func:`parameter_groups` of the model's arrays.
+    """
+    d, k, c_in, nb = dims, channels, n_colours, n_bins
+    k1, d_r, n, f, w = k[0], d["D_r"], d["N"], d["F"], d["W"]
+    block = sdr_shape[0] * sdr_shape[1]
+    paper = {
+        "transform stage 1": (f"{4 * c_in}*K1 + 1", 4 * c_in * k1 + 1),
+        # Per c/w hop, the paper's 4 * K_parent * K_child + K_parent (two hops: 4 K1 K2 + K1).
+        "transform stage 2": ("4*K1*K2 + K1", sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
+        "core SDR": (f"{block}*D_r", block * d_r),
+        "core ICHM (i)": ("N", n),
+        "core ICHM (ii)": ("F*D_r", f * d_r),
+        "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
+    }
+    paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
+    paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
+    paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
+    paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
+    out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
+    out["total"] = {
+        "formula": "sum",
+        "paper": sum(v["paper"] for v in out.values()),
+        "stored": sum(v["stored"] for v in out.values()),
+    }
+    return out

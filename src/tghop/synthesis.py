@@ -32,7 +32,7 @@ from .patches import check_exclude, downsample_mask, enough_patches, patch_origi
 from . import layout
 from .pool import GeneratedPool
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
-from .parameter_count import parameter_groups
+from .parameter_count import parameter_groups, table4
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -447,33 +447,8 @@ class TGHop(BaseEstimator):
             stores each channel's mean map (``64 K2``), and ICHM (ii) also stores each
             cluster's mean (``N D_r``).
         """
-        d = self.dims_
-        k = self.channels_
-        c_in = self.exemplar_shape_[2]
-        k1, d_r, n, f, w = k[0], d["D_r"], d["N"], d["F"], d["W"]
-        nb = self.ichm_.codebook_.shape[1]
-        block = (self.sdr_.shape_[0] * self.sdr_.shape_[1])
-        paper = {
-            "transform stage 1": (f"{4 * c_in}*K1 + 1", 4 * c_in * k1 + 1),
-            # Per c/w hop, the paper's 4 * K_parent * K_child + K_parent (two hops: 4 K1 K2 + K1).
-            "transform stage 2": ("4*K1*K2 + K1", sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
-            "core SDR": (f"{block}*D_r", block * d_r),
-            "core ICHM (i)": ("N", n),
-            "core ICHM (ii)": ("F*D_r", f * d_r),
-            "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
-        }
-        paper["colour matching (ours)"] = ("C*257 (not in the paper)", 0)
-        paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
-        paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
-        paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
-        stored = parameter_groups(self._to_arrays())
-        out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
-        out["total"] = {
-            "formula": "sum",
-            "paper": sum(v["paper"] for v in out.values()),
-            "stored": sum(v["stored"] for v in out.values()),
-        }
-        return out
+        return table4(self.dims_, self.channels_, self.exemplar_shape_[2], self.ichm_.codebook_.shape[1],
+                      self.sdr_.shape_, parameter_groups(self._to_arrays()))
 
     # ------------------------------------------------------------- generation
     def decode(self, z, *, return_stages=False):
