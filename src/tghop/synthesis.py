@@ -18,7 +18,6 @@ Example
 
 from __future__ import annotations
 
-import numbers
 import math
 
 import numpy as np
