@@ -22,7 +22,6 @@ Choices not fixed by the paper (documented here and in the notes):
 
 from __future__ import annotations
 
-import numbers
 
 import numpy as np
 

@@ -120,7 +120,7 @@ def _setting_option(s):
     extra = f"default: {shown}"
     if s.kind == "rng":
         return click.option(*names, "rng", type=click.IntRange(min=0), default=None,
-                            help=f"Seed of fitting (K-means, FastICA). [default: 0]")
+                            help="Seed of fitting (K-means, FastICA). [default: 0]")
     if s.has_paper and s.paper != s.default:
         extra += f"; --paper: {s.paper}"
     if s.kind == "bool":

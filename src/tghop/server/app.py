@@ -177,7 +177,7 @@ def parse_generation(body) -> tuple:
     """The JSON of ``POST /api/models/{id}/images`` -> ``(size, seed, settings)`` (422 for a
     bad value, with the library's one line)."""
     from .._common import MAX_PIXELS, check_size
-    from ..settings import BY_NAME, generate_settings
+    from ..settings import generate_settings
 
     if not isinstance(body, dict):
         raise RequestError(400, "the body must be a JSON object, e.g. {\"size\": [256, 256], \"seed\": 1}")
