@@ -199,7 +199,7 @@ def find_work(source, outdir=None):
     name in OUTDIR) and ``settings`` (the row's own settings). A bad manifest row is a
     :class:`TGHopError` naming its line, before any work.
     """
-    source = Path(source)
+    source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
     if source.is_dir():
         items = _scan_folder(source, outdir if outdir is not None else source / ".none")
     elif source.is_file():
@@ -393,7 +393,7 @@ def _append_ledger(outdir: Path, record: dict):
 def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
     if not prev or prev.get("status") != "ok" or prev.get("sha256") != job["sha256"]:
         return False
-    if prev.get("settings") != job["settings"] or prev.get("source") != job["source"]:
+    if prev.get("settings") != job["settings"]:
         return False
     files = list(prev.get("outputs") or []) + [prev.get("model")]
     return all(f and (outdir / f).is_file() for f in files)
@@ -409,7 +409,7 @@ def _import_distributed():
     return distributed
 
 
-def local_cluster(n_workers=None, *, retries=2, memory_limit="auto"):
+def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     """A local ``dask.distributed`` cluster of ``n_workers`` worker processes (default:
     one per available core), one thread each, BLAS limited to one thread per worker, no
     dashboard, a worker's death allowed ``retries`` times per task."""
@@ -446,7 +446,8 @@ def _jsonable(value):
 
 
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
-        workers=None, client=None, scheduler=None, retries=2, progress=None, on_result=None, contact_sheet=True):
+        workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
+        task=None):
     """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
 
     Parameters
@@ -479,6 +480,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     on_result : callable(record, counts), optional
         Called with each finished exemplar's record and ``counts`` (done, failed,
         running, total, skipped).
+    contact_sheet : bool
+        Write ``OUTDIR/index.html`` at the end (also after an interruption).
+    task : callable(job) -> record, optional
+        What runs per exemplar (default :func:`process_exemplar`); a wrapper of it, e.g.
+        to log or to test what a dying worker does. Dask must be able to pickle it.
 
     Returns
     -------
@@ -487,7 +493,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         (``name``, ``source``, ``sha256``, ``settings``, ``status``, ``error``,
         ``outputs``, ``model``, times, ...) and ``skipped`` (True: done by an earlier run).
     """
-    outdir = Path(outdir)
+    outdir = Path(os.path.abspath(outdir))
     items = find_work(source, outdir)
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
@@ -502,6 +508,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     fit = _jsonable(dict(fit or {}))
     generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
     in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
+    if not in_process and client is None:
+        _import_distributed()  # a missing extra is said before any work
+    task = process_exemplar if task is None else task
     previous = read_ledger(outdir)
     jobs, results = [], {}
     for it in items:
@@ -535,14 +544,18 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if in_process:
             for job in jobs:
                 counts["running"] = 1
-                finish(job, process_exemplar(job))
+                finish(job, task(job))
             counts["running"] = 0
         elif jobs:
-            _run_distributed(jobs, finish, counts, workers=workers, client=client, scheduler=scheduler,
+            _run_distributed(jobs, finish, counts, task, workers=workers, client=client, scheduler=scheduler,
                              retries=retries)
     finally:
         for job in jobs:
             remove_temporaries(job["folder"])
+            try:
+                os.rmdir(job["folder"])  # only when empty: a failed exemplar's
+            except OSError:
+                pass
         ordered = [results[it["name"]] for it in items if it["name"] in results]
         if contact_sheet:
             write_contact_sheet(outdir, ordered)
@@ -560,7 +573,7 @@ def _died_record(job, exc, retries) -> dict:
             "seed_used": job.get("seed"), "started": None, "seconds": None}
 
 
-def _run_distributed(jobs, finish, counts, *, workers, client, scheduler, retries):
+def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, retries):
     distributed = _import_distributed()
     own_cluster = own_client = None
     futures = []
@@ -568,7 +581,7 @@ def _run_distributed(jobs, finish, counts, *, workers, client, scheduler, retrie
         if client is None:
             if scheduler is not None:
                 try:
-                    client = own_client = distributed.Client(scheduler, timeout="10s")
+                    client = own_client = distributed.Client(scheduler, timeout="5s")
                 except (OSError, TimeoutError) as exc:
                     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
             else:
@@ -577,7 +590,7 @@ def _run_distributed(jobs, finish, counts, *, workers, client, scheduler, retrie
         by_key = {}
         for job in jobs:
             key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
-            fut = client.submit(process_exemplar, job, key=key, pure=False)
+            fut = client.submit(task, job, key=key, pure=False)
             by_key[fut.key] = job
             futures.append(fut)
         slots = max(1, sum(client.nthreads().values())) if hasattr(client, "nthreads") else len(jobs)

@@ -17,6 +17,7 @@ import sys
 import click
 
 from .. import __version__
+from .batch import batch
 from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
@@ -30,6 +31,7 @@ _COMMAND_MODULES = {
     "fit": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
     "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
     "info": ("numpy", "tghop.modelfile"),
+    "batch": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.batch"),
 }
 
 
@@ -119,5 +121,5 @@ def main():
     """
 
 
-for _command in (synth, fit, patches, info, evaluate, baseline, cooc):
+for _command in (synth, fit, patches, info, batch, evaluate, baseline, cooc):
     main.add_command(_command)

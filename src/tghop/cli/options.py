@@ -15,7 +15,7 @@ import click
 from .._errors import TGHopError
 
 __all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
-           "generation_options", "FIT_OPTION_PARAMS", "build_model", "given_options"]
+           "generation_options", "FIT_OPTION_PARAMS", "build_model", "fit_params", "generation_params", "given_options"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -180,6 +180,42 @@ def build_model(options, n_colours=3):
     channels = tuple(d if g is None else g for g, d in zip(given, defaults))
     rng = options.get("rng")
     return TGHop(**params, n_channels=channels, rng=0 if rng is None else rng)
+
+
+def fit_params(options):
+    """TGHop's parameters from the fit options, for a model fitted later (``tghop batch``):
+    as :func:`build_model`, but channel counts not given stay None (each exemplar's
+    default for its colours, :func:`tghop.batch.run`)."""
+    from ..settings import fit_settings
+
+    paper = options.get("paper", False)
+    params = {}
+    for s in fit_settings():
+        if s.name in ("n_channels", "rng"):
+            continue
+        value = options.get(s.name)
+        params[s.name] = value if value is not None else (s.paper if paper and s.has_paper else s.default)
+    patch_size = int(params["patch_size"])
+    if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
+        raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")
+    if patch_size == 32 and options.get("k3") is not None:
+        raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
+    given = [options.get(k) for k in ("k1", "k2", "k3")][: 3 if patch_size == 64 else 2]
+    params["n_channels"] = None if all(g is None for g in given) else given
+    params["rng"] = options.get("rng") or 0
+    return params
+
+
+def generation_params(options):
+    """The keywords of ``TGHop.synthesize`` from the generation options (popped from
+    ``options``; unset ones: the table's default, or its paper value with --paper)."""
+    from ..settings import generate_settings
+
+    out = {}
+    for s in generate_settings():
+        value = options.pop(s.name, None)
+        out[s.name] = value if value is not None else (s.paper if options.get("paper") and s.has_paper else s.default)
+    return out
 
 
 def given_options(ctx, names):
