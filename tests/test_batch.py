@@ -195,25 +195,30 @@ def test_without_dask_one_line_and_workers_1_still_works(tmp_path):
     assert_one_line(p.returncode, err.decode(), "1 of 1 exemplars failed", "flat")
 
 
-def test_ctrl_c_stops_cleanly_and_a_rerun_finishes(tmp_path):
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ctrl_c_stops_cleanly_and_a_rerun_finishes(tmp_path, workers):
+    # Ctrl-C in a terminal reaches the whole process group: Dask's worker processes too.
+    if workers != "1":
+        pytest.importorskip("distributed")
     src = make_folder(tmp_path / "src", bad=False)
-    save_image(data.bricks(64, rng=7), src / "c.png")
-    args = ["batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--seed", "1", *CLI_FAST]
-    p = _run_cli(args, tmp_path)
+    for i in range(2):
+        save_image(data.bricks(64, rng=7 + i), src / f"c{i}.png")
+    args = ["batch", "src", "-o", "out", "--size", "48", "--seed", "1", *CLI_FAST]
+    p = _run_cli(args + ["--workers", workers], tmp_path, start_new_session=True)
     deadline = time.time() + 60
     ledger_file = tmp_path / "out" / "batch.jsonl"
     while time.time() < deadline and not (ledger_file.exists() and ledger_file.read_text().endswith("\n")):
         time.sleep(0.05)
-    p.send_signal(signal.SIGINT)
+    os.killpg(p.pid, signal.SIGINT)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err.decode()
     assert_one_line(p.returncode, err.decode(), "interrupted after", "run the same command again")
     done = len(ledger(tmp_path / "out"))
-    assert 1 <= done < 3 and not leftovers(tmp_path / "out")
-    p = _run_cli(args, tmp_path)
+    assert 1 <= done < 4 and not leftovers(tmp_path / "out")
+    p = _run_cli(args + ["--workers", "1"], tmp_path)
     _, err = p.communicate(timeout=120)
     assert p.returncode == 0, err.decode()
-    assert f"3 of 3 exemplars done ({done} by an earlier run)" in err.decode()
+    assert f"4 of 4 exemplars done ({done} by an earlier run)" in err.decode()
 
 
 # ------------------------------------------------------------------ on Dask

@@ -425,7 +425,19 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
                           "distributed.nanny.pre-spawn-environ": environ}):
         return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                         dashboard_address=None, memory_limit=memory_limit,
-                                        silence_logs=logging.CRITICAL)
+                                        silence_logs=logging.CRITICAL, preload=[__name__])
+
+
+def dask_setup(worker):
+    """Run in each worker process of :func:`local_cluster` (a Dask preload): Ctrl-C in a
+    terminal reaches the whole process group, but only the caller stops the batch (it
+    closes the cluster, which ends the workers), so the workers ignore it instead of each
+    printing a traceback."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _cores() -> int:
