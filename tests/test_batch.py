@@ -72,6 +72,11 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
         (tmp_path / rel).write_bytes(b"x")
     names = sorted(it["name"] for it in batch.find_work(tmp_path))
     assert names == ["a", "b_jpg", "b_png", "sub__a"]
+    assert sorted(it["name"] for it in batch.find_work(tmp_path, outdir=tmp_path / "sub")) == ["a", "b_jpg", "b_png"]
+    twice = tmp_path / "twice.csv"
+    twice.write_text("path,size\na.png,32\na.png,64\nsub/a.png,\n")
+    first, second, third = [it["name"] for it in batch.find_work(twice)]
+    assert first.startswith("a_png_") and second == first + "_2" and third == "sub__a"
     bad = tmp_path / "m.csv"
     bad.write_text("path,colour\na.png,red\n")
     with pytest.raises(TGHopError, match="m.csv line 2: unknown column colour"):

@@ -170,7 +170,8 @@ def _safe(text: str) -> str:
 
 def _unique_names(items):
     """A folder name per exemplar: its path without the extension, folders joined by
-    ``__`` (``a/x.png`` -> ``a__x``); equal names get their extension, then a short hash."""
+    ``__`` (``a/x.png`` -> ``a__x``); equal names get their extension, then a short hash
+    of the path, then a number."""
     for it in items:
         rel = it["rel"]
         it["name"] = _safe(it["name"]) if it["name"] else _safe("__".join(rel.parts[:-1] + (rel.stem,)))
@@ -186,6 +187,11 @@ def _unique_names(items):
                     it["name"] += "_" + _safe(it["rel"].suffix[1:])
                 elif step == "hash":
                     it["name"] += "_" + hashlib.sha256(str(it["rel"]).encode()).hexdigest()[:8]
+    seen = {}
+    for it in items:  # a manifest that lists one file twice (or gives one name twice): _2, _3, ...
+        n = seen[it["name"].lower()] = seen.get(it["name"].lower(), 0) + 1
+        if n > 1:
+            it["name"] += f"_{n}"
     return items
 
 
