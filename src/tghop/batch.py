@@ -551,10 +551,12 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         results[job["name"]] = {**rec, "skipped": False}
         counts["done"] += 1
         counts["failed"] += rec["status"] != "ok"
+        if counts["done"] == counts["total"]:
+            counts["running"] = 0
+        if on_result is not None:  # first: a progress bar shows the counts it sets
+            on_result(results[job["name"]], dict(counts))
         if progress is not None:
             progress("exemplars", counts["done"], counts["total"])
-        if on_result is not None:
-            on_result(results[job["name"]], dict(counts))
 
     if progress is not None and jobs:
         progress("exemplars", 0, len(jobs))
