@@ -17,6 +17,7 @@ import sys
 import click
 
 from .. import __version__
+from .batch import batch
 from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
@@ -33,6 +34,7 @@ _COMMAND_MODULES = {
     "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
     "info": ("numpy", "tghop.modelfile"),
     "inpaint": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.inpaint"),
+    "batch": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.batch"),
 }
 
 
@@ -122,5 +124,5 @@ def main():
     """
 
 
-for _command in (synth, fit, inpaint, patches, info, evaluate, baseline, cooc, serve):
+for _command in (synth, fit, inpaint, patches, info, batch, evaluate, baseline, cooc, serve):
     main.add_command(_command)

@@ -15,7 +15,7 @@ import click
 from .._errors import TGHopError
 
 __all__ = ["OFF", "MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
-           "generation_options", "FIT_OPTION_PARAMS", "build_model", "given_options"]
+           "generation_options", "FIT_OPTION_PARAMS", "build_model", "fit_params", "generation_params", "given_options"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -172,30 +172,59 @@ def generation_options(func):
     return func
 
 
-def build_model(options, n_colours=3):
-    """A TGHop from the fit options (unset ones: the table's default, or its paper value with --paper)."""
+def _setting_value(s, options, paper):
+    """The value of setting ``s`` from the options: the one typed (``none``/``off`` is
+    :data:`OFF`: None), else the table's default, or its paper value with --paper."""
+    value = options.get(s.name)
+    if value is OFF:
+        return None
+    if value is not None:
+        return value
+    return s.paper if paper and s.has_paper else s.default
+
+
+def fit_params(options):
+    """TGHop's parameters from the fit options. Channel counts not given stay None in
+    ``n_channels`` (the default for the exemplar's colours: :func:`build_model` fills
+    them in when the exemplar is known; ``tghop batch`` fits many exemplars)."""
     from ..settings import fit_settings
-    from ..synthesis import TGHop, default_channels
 
     paper = options.get("paper", False)
-    params = {}
-    for s in fit_settings():
-        if s.name in ("n_channels", "rng"):
-            continue
-        value = options.get(s.name)
-        params[s.name] = None if value is OFF else value if value is not None else (
-            s.paper if paper and s.has_paper else s.default)
+    params = {s.name: _setting_value(s, options, paper) for s in fit_settings() if s.name not in ("n_channels", "rng")}
     patch_size = int(params["patch_size"])
     if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
         raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")
-    k1, k2, k3 = options.get("k1"), options.get("k2"), options.get("k3")
-    if patch_size == 32 and k3 is not None:
+    if patch_size == 32 and options.get("k3") is not None:
         raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
-    defaults = default_channels(patch_size, n_colours) if patch_size in (32, 64) else (None, None)
-    given = [k1, k2, k3][: len(defaults)]
-    channels = tuple(d if g is None else g for g, d in zip(given, defaults))
+    given = [options.get(k) for k in ("k1", "k2", "k3")][: 3 if patch_size == 64 else 2]
+    params["n_channels"] = None if all(g is None for g in given) else tuple(given)
     rng = options.get("rng")
-    return TGHop(**params, n_channels=channels, rng=0 if rng is None else rng)
+    params["rng"] = 0 if rng is None else rng
+    return params
+
+
+def build_model(options, n_colours=3):
+    """A TGHop from the fit options, for an exemplar of ``n_colours`` channels (channel
+    counts not given: :func:`tghop.synthesis.default_channels`)."""
+    from ..synthesis import TGHop, default_channels
+
+    params = fit_params(options)
+    patch_size = int(params["patch_size"])
+    defaults = default_channels(patch_size, n_colours) if patch_size in (32, 64) else (None, None)
+    given = params["n_channels"] or (None,) * len(defaults)
+    params["n_channels"] = tuple(d if g is None else g for g, d in zip(given, defaults))
+    return TGHop(**params)
+
+
+def generation_params(options):
+    """The keywords of ``TGHop.synthesize`` from the generation options (popped from
+    ``options``; unset ones: the table's default, or its paper value with --paper)."""
+    from ..settings import generate_settings
+
+    out = {s.name: _setting_value(s, options, options.get("paper", False)) for s in generate_settings()}
+    for s in generate_settings():
+        options.pop(s.name, None)
+    return out
 
 
 def given_options(ctx, names):

@@ -10,8 +10,8 @@ import click
 from .._errors import TGHopError
 from .common import (Progress, check_model_output, check_output, check_outputs, info_dict, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
-from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, OFF, Size, build_model,
-                      generation_options, given_options, model_options)
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, build_model,
+                      generation_options, generation_params, given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "info"]
 
@@ -106,7 +106,7 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
     from ..imageio import save_image
     from ..modelfile import load_model, save_model as write_model
-    from ..settings import BY_NAME, generate_settings
+    from ..settings import BY_NAME
     from ..synthesis import prepare_exemplar
 
     progress = Progress(not quiet)
@@ -124,11 +124,7 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
             if refused:
                 raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
                                  f"is a saved model; refit with 'tghop fit' or drop {'them' if len(refused) > 1 else 'it'}")
-        generation = {}
-        for s in generate_settings():
-            value = options.pop(s.name)
-            generation[s.name] = None if value is OFF else value if value is not None else (
-                s.paper if options.get("paper") and s.has_paper else s.default)
+        generation = generation_params(options)
         # Every output checked before the fit and before the first image is written.
         outputs = [output] if count == 1 else numbered(output, count)
         if count > 1:

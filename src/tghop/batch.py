@@ -1,0 +1,680 @@
+"""Many exemplars at once: a model and N images per exemplar, in process or on Dask.
+
+:func:`run` finds the work (every image of a folder, or the rows of a manifest), skips
+what a previous run finished (the ledger ``OUTDIR/batch.jsonl``: one JSON line per
+finished exemplar with its input's SHA-256, its settings and its outputs), runs
+:func:`process_exemplar` for the rest, in this process (``workers=1``), on a local
+``dask.distributed`` cluster of worker processes (the default), or on a given
+:class:`distributed.Client`, and writes an HTML contact sheet ``OUTDIR/index.html``.
+
+* Every file is written atomically (:func:`tghop.imageio.write_atomic`); a worker killed
+  mid-task leaves at most a temporary file, which the retry (or the end of the run)
+  removes. A task whose worker dies is run again elsewhere, up to ``retries`` times
+  (distributed's ``allowed-failures``), then recorded as failed.
+* A bad exemplar (not an image, flat, too small) is recorded with its one-line error and
+  the others go on.
+* Dask is an optional extra (``pip install 'tghop[batch]'``): it is imported inside the
+  functions that use it, and ``workers=1`` never needs it.
+
+The library never prints: ``progress(stage, done, total)`` reports exemplars finished,
+``on_result(record, counts)`` each finished exemplar with the running counts.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import html
+import json
+import os
+import re
+import time
+from pathlib import Path
+from urllib.parse import quote
+
+from ._errors import MissingExtraError, TGHopError
+
+__all__ = ["run", "find_work", "process_exemplar", "read_ledger", "write_contact_sheet", "local_cluster",
+           "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT"]
+
+#: File extensions taken as exemplars when SOURCE is a folder.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
+#: The ledger and the contact sheet, in OUTDIR.
+LEDGER = "batch.jsonl"
+CONTACT_SHEET = "index.html"
+#: Per-exemplar settings a manifest row may give.
+ROW_SETTINGS = ("size", "count", "seed", "tile")
+INSTALL_HINT = "pip install 'tghop[batch]'"
+#: Longest side of the exemplar thumbnail of the contact sheet.
+THUMBNAIL = 128
+
+
+# ------------------------------------------------------------------ finding work
+def _parse_size(value, where):
+    from ._common import check_size
+
+    if isinstance(value, (list, tuple)):
+        h, w = (value * 2)[:2] if len(value) == 1 else value
+    else:
+        m = re.fullmatch(r"\s*(\d+)\s*(?:[xX*,]\s*(\d+)\s*)?", str(value))
+        if not m:
+            raise TGHopError(f"{where}: size {value!r} is not HEIGHTxWIDTH (e.g. 512x512)")
+        h, w = int(m.group(1)), int(m.group(2) or m.group(1))
+    return list(check_size((int(h), int(w)), name=f"{where}: size"))
+
+
+def _parse_bool(value, where):
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off"):
+        return False
+    raise TGHopError(f"{where}: tile {value!r} is not true or false")
+
+
+def _parse_int(value, where, what, low, high=None):
+    try:
+        if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+            raise ValueError
+        out = int(str(value).strip()) if not isinstance(value, (int, float)) else int(value)
+    except ValueError:
+        raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
+    if out < low or (high is not None and out > high):
+        raise TGHopError(f"{where}: {what} {out} is out of range ({low} to {high if high else 'any'})")
+    return out
+
+
+def _row_settings(row: dict, where: str) -> dict:
+    """The settings a manifest row gives (empty cells left out), checked."""
+    out = {}
+    for key in ROW_SETTINGS:
+        value = row.get(key)
+        if value is None or (isinstance(value, str) and not value.strip()):
+            continue
+        if key == "size":
+            out["size"] = _parse_size(value, where)
+        elif key == "count":
+            out["count"] = _parse_int(value, where, "count", 1, 1000)
+        elif key == "seed":
+            out["seed"] = _parse_int(value, where, "seed", 0)
+        else:
+            out["tile"] = _parse_bool(value, where)
+    return out
+
+
+def _manifest_rows(path: Path):
+    """(line number, row dict) of a CSV or JSON-lines manifest."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TGHopError(f"{path}: cannot read the manifest ({getattr(exc, 'strerror', None) or exc})") from None
+    if path.suffix.lower() in (".jsonl", ".json", ".ndjson"):
+        for number, line in enumerate(text.splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                row = json.loads(line)
+            except ValueError:
+                raise TGHopError(f"{path} line {number}: not a JSON object; write one "
+                                 '{"path": ..., "size": ..., ...} per line') from None
+            if not isinstance(row, dict):
+                raise TGHopError(f"{path} line {number}: not a JSON object; write one per line")
+            yield number, row
+        return
+    reader = csv.DictReader(text.splitlines())
+    if not reader.fieldnames or "path" not in [f.strip() for f in reader.fieldnames]:
+        raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
+                         f"(and optionally {', '.join(ROW_SETTINGS)})")
+    for number, row in enumerate(reader, 2):
+        yield number, {(k or "").strip(): v for k, v in row.items()}
+
+
+def _read_manifest(path: Path):
+    items = []
+    for number, row in _manifest_rows(path):
+        where = f"{path.name} line {number}"
+        unknown = sorted(k for k in row if k and k not in ("path", "name") + ROW_SETTINGS)
+        if unknown:
+            raise TGHopError(f"{where}: unknown column {', '.join(unknown)}; a manifest gives path, name, "
+                             f"{', '.join(ROW_SETTINGS)}")
+        source = str(row.get("path") or "").strip()
+        if not source:
+            raise TGHopError(f"{where}: no path")
+        file = Path(source) if os.path.isabs(source) else path.parent / source
+        name = str(row.get("name") or "").strip() or None
+        items.append({"path": file, "rel": Path(source), "name": name, "settings": _row_settings(row, where)})
+    if not items:
+        raise TGHopError(f"{path}: the manifest lists no exemplar")
+    return items
+
+
+def _scan_folder(folder: Path, outdir: Path):
+    out = Path(outdir).resolve()
+    items = []
+    for root, dirs, files in os.walk(folder):
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(root, d).resolve() != out)
+        for f in sorted(files):
+            if not f.startswith(".") and Path(f).suffix.lower() in IMAGE_SUFFIXES:
+                p = Path(root, f)
+                items.append({"path": p, "rel": p.relative_to(folder), "name": None, "settings": {}})
+    if not items:
+        raise TGHopError(f"{folder}: no image files in this folder ({', '.join(IMAGE_SUFFIXES[:3])}, ...)")
+    return items
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "exemplar"
+
+
+def _unique_names(items):
+    """A folder name per exemplar: its path without the extension, folders joined by
+    ``__`` (``a/x.png`` -> ``a__x``); equal names get their extension, then a short hash
+    of the path, then a number."""
+    for it in items:
+        rel = it["rel"]
+        it["name"] = _safe(it["name"]) if it["name"] else _safe("__".join(rel.parts[:-1] + (rel.stem,)))
+    for step in ("suffix", "hash"):
+        seen = {}
+        for it in items:
+            seen.setdefault(it["name"].lower(), []).append(it)
+        for group in seen.values():
+            if len(group) < 2:
+                continue
+            for it in group:
+                if step == "suffix" and it["rel"].suffix:
+                    it["name"] += "_" + _safe(it["rel"].suffix[1:])
+                elif step == "hash":
+                    it["name"] += "_" + hashlib.sha256(str(it["rel"]).encode()).hexdigest()[:8]
+    seen = {}
+    for it in items:  # a manifest that lists one file twice (or gives one name twice): _2, _3, ...
+        n = seen[it["name"].lower()] = seen.get(it["name"].lower(), 0) + 1
+        if n > 1:
+            it["name"] += f"_{n}"
+    return items
+
+
+def find_work(source, outdir=None):
+    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files
+    and ``outdir`` skipped) or a manifest (``.csv`` with a ``path`` column, or JSON lines
+    ``{"path": ...}``; optional ``name``, ``size``, ``count``, ``seed``, ``tile``; paths
+    relative to the manifest's folder).
+
+    Returns a list of dicts: ``path`` (Path), ``rel`` (as listed), ``name`` (unique folder
+    name in OUTDIR) and ``settings`` (the row's own settings). A bad manifest row is a
+    :class:`TGHopError` naming its line, before any work.
+    """
+    source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
+    if source.is_dir():
+        items = _scan_folder(source, outdir if outdir is not None else source / ".none")
+    elif source.is_file():
+        if source.suffix.lower() not in (".csv", ".jsonl", ".json", ".ndjson"):
+            raise TGHopError(f"{source}: SOURCE is a folder of images or a manifest (.csv or .jsonl)")
+        items = _read_manifest(source)
+    else:
+        raise TGHopError(f"{source}: no such folder or manifest; check the path")
+    return _unique_names(items)
+
+
+def file_sha256(path) -> str | None:
+    """SHA-256 of a file's bytes (None when it cannot be read)."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError:
+        return None
+    return h.hexdigest()
+
+
+# ------------------------------------------------------------------ the task
+def _numbered(name: str, count: int):
+    if count == 1:
+        return [f"{name}.png"]
+    width = len(str(count))
+    return [f"{name}_{i:0{width}d}.png" for i in range(1, count + 1)]
+
+
+def remove_temporaries(folder) -> int:
+    """Remove what :func:`tghop.imageio.write_atomic` leaves when its process is killed
+    (``.NAME.*.tmp``) in ``folder``; returns how many."""
+    removed = 0
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    for entry in entries:
+        if entry.name.startswith(".") and entry.name.endswith((".tmp", ".probe")) and entry.is_file():
+            try:
+                os.unlink(entry.path)
+                removed += 1
+            except OSError:
+                pass
+    return removed
+
+
+def _model_for(fit: dict, n_colours: int):
+    """A TGHop from ``fit`` (its parameters; ``None`` entries of ``n_channels`` take the
+    default for the exemplar's colours)."""
+    from .synthesis import TGHop, default_channels
+
+    params = dict(fit)
+    channels = params.get("n_channels")
+    if channels is not None and any(c is None for c in channels):
+        defaults = default_channels(params.get("patch_size", 32), n_colours)
+        params["n_channels"] = tuple(d if c is None else c for c, d in zip(channels, defaults))
+    if params.get("rng") is None:
+        params["rng"] = 0
+    return TGHop(**params)
+
+
+def _thumbnail(image, path):
+    import numpy as np
+    from PIL import Image
+
+    from .imageio import save_image
+
+    arr = np.asarray(image)
+    pil = Image.fromarray(arr[..., 0] if arr.shape[2] == 1 else arr)
+    pil.thumbnail((THUMBNAIL, THUMBNAIL))
+    save_image(np.asarray(pil), path)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text if isinstance(exc, TGHopError) else f"{exc.__class__.__name__}: {text}"
+
+
+def process_exemplar(job: dict) -> dict:
+    """Fit one exemplar and write its model, images and thumbnail (a plain top-level
+    function, so that Dask pickles it by reference).
+
+    ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``,
+    ``size``, ``count``, ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's
+    parameters), ``generate`` (keywords of :meth:`TGHop.synthesize`), ``threads`` (BLAS
+    threads at most; None: no limit).
+
+    Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line),
+    ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times,
+    the worker and its peak memory. Bad input is a "failed" record, never an exception;
+    what was written for a failed exemplar is removed.
+    """
+    import resource
+    import socket
+
+    start = time.time()
+    folder = Path(job["folder"])
+    name = job["name"]
+    record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
+              "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
+              "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    written = []
+    try:
+        import numpy as np
+        from threadpoolctl import threadpool_limits
+
+        from .imageio import load_image, save_image
+        from .modelfile import save_model
+        from .synthesis import prepare_exemplar
+
+        folder.mkdir(parents=True, exist_ok=True)
+        remove_temporaries(folder)  # left by a worker killed while writing here
+        with threadpool_limits(limits=job.get("threads")):
+            fit = job.get("fit") or {}
+            raw = load_image(job["source"], dtype=None)
+            image = prepare_exemplar(raw, min_size=fit.get("patch_size") or 32)
+            model = _model_for(fit, image.shape[2])
+            t = time.time()
+            model.fit(image)
+            record["fit_seconds"] = time.time() - t
+            thumb = folder / "exemplar.png"
+            _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8), thumb)
+            written.append(thumb)
+            model_path = folder / f"{name}.npz"
+            save_model(model, model_path)
+            written.append(model_path)
+            seed = job.get("seed")
+            if seed is None:
+                seed = int(np.random.SeedSequence().generate_state(1)[0])
+            record["seed_used"] = seed
+            rng = np.random.default_rng(seed)
+            t = time.time()
+            outputs = []
+            for file in _numbered(name, job.get("count", 1)):
+                img = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.uint8, **(job.get("generate") or {}))
+                save_image(img, folder / file)
+                written.append(folder / file)
+                outputs.append(file)
+            record["synth_seconds"] = time.time() - t
+        prefix = folder.name
+        record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_path.name}",
+                      thumbnail=f"{prefix}/{thumb.name}")
+    except MemoryError:
+        record["error"] = "out of memory; use a smaller size or exemplar, or fewer workers per machine"
+    except Exception as exc:  # noqa: BLE001 - one exemplar's failure is recorded, the batch goes on
+        record["error"] = _one_line(exc)
+    if record["status"] != "ok":
+        for path in written:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+        try:
+            folder.rmdir()  # only when empty
+        except OSError:
+            pass
+    record["seconds"] = time.time() - start
+    record["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return record
+
+
+# ------------------------------------------------------------------ the ledger
+def read_ledger(outdir) -> dict:
+    """The last ledger line of each exemplar (by name); unreadable lines are skipped."""
+    records = {}
+    try:
+        text = (Path(outdir) / LEDGER).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return records
+    for line in text.splitlines():
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            continue  # a line torn by a crash
+        if isinstance(rec, dict) and isinstance(rec.get("name"), str):
+            records[rec["name"]] = rec
+    return records
+
+
+def _append_ledger(outdir: Path, record: dict):
+    line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
+    with open(outdir / LEDGER, "a", encoding="utf-8") as fh:
+        fh.write(line)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
+    if not prev or prev.get("status") != "ok" or prev.get("sha256") != job["sha256"]:
+        return False
+    if prev.get("settings") != job["settings"]:
+        return False
+    files = list(prev.get("outputs") or []) + [prev.get("model")]
+    return all(f and (outdir / f).is_file() for f in files)
+
+
+# ------------------------------------------------------------------ running
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise MissingExtraError(f"running on Dask needs dask.distributed; install it with: {INSTALL_HINT} "
+                                "(or run in this process with workers=1 / --workers 1)") from None
+    return distributed
+
+
+def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
+    """A local ``dask.distributed`` cluster of ``n_workers`` worker processes (default:
+    one per available core), one thread each, BLAS limited to one thread per worker, no
+    dashboard, a worker's death allowed ``retries`` times per task."""
+    distributed = _import_distributed()
+    import logging
+
+    import dask
+
+    n = n_workers or _cores()
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    environ.update({v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
+    with dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
+                          "distributed.nanny.pre-spawn-environ": environ}):
+        return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                        dashboard_address=None, memory_limit=memory_limit,
+                                        silence_logs=logging.CRITICAL, preload=[__name__])
+
+
+def dask_setup(worker):
+    """Run in each worker process of :func:`local_cluster` (a Dask preload): Ctrl-C in a
+    terminal reaches the whole process group, but only the caller stops the batch (it
+    closes the cluster, which ends the workers), so the workers ignore it instead of each
+    printing a traceback."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _settings(item_settings, defaults, fit, generate):
+    s = {**defaults, **item_settings}
+    return {"size": list(s["size"]), "count": int(s["count"]), "seed": s["seed"], "tile": bool(s["tile"]),
+            "fit": fit, "generate": generate}
+
+
+def _jsonable(value):
+    return json.loads(json.dumps(value, default=str, allow_nan=False))
+
+
+def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
+        workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
+        task=None):
+    """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
+
+    Parameters
+    ----------
+    source : str or Path
+        A folder of images (recursively) or a manifest (:func:`find_work`).
+    outdir : str or Path
+        Created if needed. ``OUTDIR/<name>/`` gets ``<name>.npz``, ``<name>.png`` (or
+        ``<name>_1.png`` ...) and ``exemplar.png`` (a thumbnail); ``OUTDIR/batch.jsonl``
+        one line per finished exemplar; ``OUTDIR/index.html`` the contact sheet.
+    count, size, seed, tile
+        Defaults for every exemplar (a manifest row may give its own). ``seed`` None: a
+        fresh seed per exemplar, recorded in the ledger.
+    fit : dict
+        :class:`~tghop.synthesis.TGHop` parameters; ``n_channels`` entries may be None
+        (the default for the exemplar's colours).
+    generate : dict
+        Other keywords of :meth:`TGHop.synthesize` (``tile`` comes from ``tile``).
+    workers : int, optional
+        1: in this process, without Dask. Otherwise a local cluster of that many worker
+        processes (None: one per core). Ignored when ``client`` or ``scheduler`` is given.
+    client : distributed.Client, optional
+        Run on this client's cluster. ``scheduler``: the address of one to connect to.
+    retries : int
+        How often a task whose worker died (killed, out of memory) is run again elsewhere
+        before it is recorded as failed: ``distributed.scheduler.allowed-failures`` of the
+        local cluster this function starts. A given ``client`` or ``scheduler`` keeps its
+        own setting (Dask's default: 3). The task itself never raises for bad input.
+    progress : callable(stage, done, total), optional
+    on_result : callable(record, counts), optional
+        Called with each finished exemplar's record and ``counts`` (done, failed,
+        running, total, skipped).
+    contact_sheet : bool
+        Write ``OUTDIR/index.html`` at the end (also after an interruption).
+    task : callable(job) -> record, optional
+        What runs per exemplar (default :func:`process_exemplar`); a wrapper of it, e.g.
+        to log or to test what a dying worker does. Dask must be able to pickle it.
+
+    Returns
+    -------
+    list of dict
+        One record per exemplar, in the order of ``source``: the ledger's fields
+        (``name``, ``source``, ``sha256``, ``settings``, ``status``, ``error``,
+        ``outputs``, ``model``, times, ...) and ``skipped`` (True: done by an earlier run).
+    """
+    outdir = Path(os.path.abspath(outdir))
+    items = find_work(source, outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        from .imageio import check_output_path
+
+        check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)
+    except OSError as exc:
+        raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
+    defaults = {"size": list(_parse_size(size, "size")), "count": count, "seed": seed, "tile": tile}
+    fit = _jsonable(dict(fit or {}))
+    generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
+    in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
+    if not in_process and client is None:
+        _import_distributed()  # a missing extra is said before any work
+    task = process_exemplar if task is None else task
+    previous = read_ledger(outdir)
+    jobs, results = [], {}
+    for it in items:
+        settings = _settings(it["settings"], defaults, fit, generate)
+        job = {"name": it["name"], "source": str(it["path"]), "folder": str(outdir / it["name"]),
+               "sha256": file_sha256(it["path"]), "settings": settings, "size": settings["size"],
+               "count": settings["count"], "seed": settings["seed"], "fit": fit,
+               "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1}
+        if _is_done(previous.get(it["name"]), job, outdir):
+            results[it["name"]] = {**previous[it["name"]], "skipped": True}
+        else:
+            jobs.append(job)
+    counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results)}
+
+    def finish(job, record):
+        rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
+               **record}
+        rec["finished"] = time.time()
+        _append_ledger(outdir, rec)
+        results[job["name"]] = {**rec, "skipped": False}
+        counts["done"] += 1
+        counts["failed"] += rec["status"] != "ok"
+        if counts["done"] == counts["total"]:
+            counts["running"] = 0
+        if on_result is not None:  # first: a progress bar shows the counts it sets
+            on_result(results[job["name"]], dict(counts))
+        if progress is not None:
+            progress("exemplars", counts["done"], counts["total"])
+
+    if progress is not None and jobs:
+        progress("exemplars", 0, len(jobs))
+    try:
+        if in_process:
+            for job in jobs:
+                counts["running"] = 1
+                finish(job, task(job))
+            counts["running"] = 0
+        elif jobs:
+            _run_distributed(jobs, finish, counts, task, workers=workers, client=client, scheduler=scheduler,
+                             retries=retries)
+    finally:
+        for job in jobs:
+            remove_temporaries(job["folder"])
+            try:
+                os.rmdir(job["folder"])  # only when empty: a failed exemplar's
+            except OSError:
+                pass
+        ordered = [results[it["name"]] for it in items if it["name"] in results]
+        if contact_sheet:
+            write_contact_sheet(outdir, ordered)
+    return ordered
+
+
+def _died_record(job, exc, retries) -> dict:
+    name = exc.__class__.__name__
+    if name == "KilledWorker":
+        error = ("the worker running it died on every try (killed or out of memory; "
+                 f"{retries + 1} tries on a local cluster); use fewer workers per machine or a smaller size")
+    else:
+        error = _one_line(exc)
+    return {"status": "failed", "error": error, "outputs": [], "model": None, "thumbnail": None,
+            "seed_used": job.get("seed"), "started": None, "seconds": None}
+
+
+def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, retries):
+    distributed = _import_distributed()
+    own_cluster = own_client = None
+    futures = []
+    try:
+        if client is None:
+            if scheduler is not None:
+                try:
+                    client = own_client = distributed.Client(scheduler, timeout="5s")
+                except (OSError, TimeoutError) as exc:
+                    raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
+            else:
+                own_cluster = local_cluster(workers, retries=retries)
+                client = own_client = distributed.Client(own_cluster)
+        by_key = {}
+        for job in jobs:
+            key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
+            fut = client.submit(task, job, key=key, pure=False)
+            by_key[fut.key] = job
+            futures.append(fut)
+        slots = max(1, sum(client.nthreads().values())) if hasattr(client, "nthreads") else len(jobs)
+        counts["running"] = min(slots, len(jobs))
+        for fut in distributed.as_completed(futures):
+            job = by_key[fut.key]
+            try:
+                record = fut.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
+                record = _died_record(job, exc, retries)
+            fut.release()
+            counts["running"] = min(slots, counts["total"] - counts["done"] - 1)
+            finish(job, record)
+    except BaseException:
+        try:
+            if client is not None:
+                client.cancel([f for f in futures if not f.done()])
+        except Exception:  # noqa: BLE001 - stopping anyway
+            pass
+        raise
+    finally:
+        if own_client is not None:
+            own_client.close()
+        if own_cluster is not None:
+            own_cluster.close()
+
+
+# ------------------------------------------------------------------ the contact sheet
+def _href(path: str) -> str:
+    return quote(path, safe="/")
+
+
+def write_contact_sheet(outdir, records) -> Path:
+    """``OUTDIR/index.html``: per exemplar its thumbnail, name, source, status (with the
+    error), time and outputs (linked, relative paths; no external resources)."""
+    from .imageio import write_atomic
+
+    outdir = Path(outdir)
+    ok = sum(r.get("status") == "ok" for r in records)
+    rows = []
+    for r in records:
+        esc = html.escape
+        thumb = (f'<img src="{_href(r["thumbnail"])}" alt="{esc(r["name"])}" width="96">'
+                 if r.get("thumbnail") else "")
+        outputs = " ".join(f'<a href="{_href(f)}"><img src="{_href(f)}" alt="{esc(f)}" height="96"></a>'
+                           for f in r.get("outputs") or [])
+        model = f'<a href="{_href(r["model"])}">model</a>' if r.get("model") else ""
+        status = esc(r.get("status", "?")) + (" (earlier run)" if r.get("skipped") else "")
+        error = f'<div class="error">{esc(r["error"])}</div>' if r.get("error") else ""
+        seconds = f"{r['seconds']:.1f} s" if isinstance(r.get("seconds"), (int, float)) else ""
+        rows.append(f'<tr class="{esc(r.get("status", ""))}"><td>{thumb}</td><td><b>{esc(r["name"])}</b><br>'
+                    f'<small>{esc(str(r.get("source", "")))}</small></td><td>{status}{error}</td>'
+                    f"<td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok} of {len(records)} done</title>
+<style>body{{font-family:sans-serif;margin:1em}}table{{border-collapse:collapse}}
+td,th{{border:1px solid #ccc;padding:4px;vertical-align:top}}tr.failed{{background:#fee}}
+.error{{color:#a00;max-width:30em}}img{{image-rendering:pixelated}}</style></head>
+<body><h1>tghop batch</h1><p>{ok} of {len(records)} exemplars done, {len(records) - ok} failed.
+Ledger: <a href="{LEDGER}">{LEDGER}</a>.</p>
+<table><tr><th>exemplar</th><th>name</th><th>status</th><th>time</th><th>outputs</th><th>model</th></tr>
+{chr(10).join(rows)}
+</table></body></html>
+"""
+    path = outdir / CONTACT_SHEET
+    write_atomic(path, lambda fh: fh.write(page.encode("utf-8")), what="contact sheet", error=TGHopError)
+    return path

@@ -1,0 +1,93 @@
+"""``tghop batch``: a model and N images for every exemplar of a folder or manifest
+(:func:`tghop.batch.run`), in this process or on Dask."""
+
+from __future__ import annotations
+
+import click
+
+from .._errors import TGHopError
+from .common import Progress, fail, stop_message, user_errors
+from .options import MAX_COUNT, Size, fit_params, generation_options, generation_params, model_options
+
+__all__ = ["batch"]
+
+
+class BatchProgress(Progress):
+    """The bar over exemplars, with how many failed and are running, and the time left."""
+
+    def __init__(self, enabled):
+        super().__init__(enabled, show_eta=True)
+        self.note = ""
+
+        self.last = None
+
+    def __call__(self, stage, done, total):
+        self.last = {"done": done, "total": total}  # for the line after Ctrl-C, with or without a bar
+        super().__call__(stage, done, total)
+
+    def result(self, record, counts):
+        self.note = f"{counts['failed']} failed, {counts['running']} running"
+
+
+@click.command()
+@click.argument("source")
+@click.option("-o", "--outdir", required=True,
+              help="Folder for the results: OUTDIR/NAME/ per exemplar, the ledger batch.jsonl, the contact "
+                   "sheet index.html.")
+@click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
+              help="Images per exemplar (a manifest row may give its own).")
+@click.option("--size", type=Size(), default="256x256", show_default=True,
+              help="Output HEIGHTxWIDTH (a manifest row may give its own).")
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of generation for every exemplar; without it each gets a fresh one, recorded in the ledger.")
+@generation_options
+@model_options
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes of the local Dask cluster [default: one per core]; 1 runs in this "
+                   "process, without Dask.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run on an existing dask.distributed scheduler (e.g. tcp://host:8786) instead.")
+@click.option("--retries", type=click.IntRange(min=0, max=20), default=3, show_default=True,
+              help="Tries again elsewhere for a task whose worker died (local cluster), then recorded as failed.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet, **options):
+    """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.
+
+    SOURCE is a folder (every image in it, recursively) or a manifest: a CSV file with a
+    'path' column, or JSON lines {"path": ...}; optional per-exemplar size, count, seed,
+    tile and name. A rerun skips exemplars already done with the same input and settings.
+    Exit status 1 when any exemplar failed (the ledger and the summary say why).
+    """
+    from .. import batch as library
+
+    progress = BatchProgress(not quiet)
+    with user_errors(progress):
+        if scheduler is not None and workers is not None:
+            raise TGHopError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
+        generate = generation_params(options)
+        fit = fit_params(options)
+        if workers != 1 or scheduler is not None:
+            import logging
+
+            logging.getLogger("distributed").setLevel(logging.ERROR)  # workers' deaths are in the ledger
+        try:
+            results = library.run(source, outdir, count=count, size=size, seed=seed, tile=generate.pop("tile"),
+                                  fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,
+                                  progress=progress, on_result=progress.result)
+        except KeyboardInterrupt as exc:
+            progress.close()
+            message, code = stop_message(exc)
+            done = progress.last
+            where = f" after {done['done']} of {done['total']} exemplars" if done else ""
+            fail(f"{message}{where}; run the same command again to finish the rest", code)
+    failed = [r for r in results if r["status"] != "ok"]
+    skipped = sum(bool(r.get("skipped")) for r in results)
+    ok = len(results) - len(failed)
+    earlier = f" ({skipped} by an earlier run)" if skipped else ""
+    click.echo(f"{ok} of {len(results)} exemplars done{earlier}; results in {outdir}, "
+               f"contact sheet {outdir}/index.html", err=True)
+    if failed:
+        for r in failed:
+            click.echo(f"failed: {r['name']}: {r['error']}", err=True)
+        fail(f"{len(failed)} of {len(results)} exemplars failed: {', '.join(r['name'] for r in failed[:10])}"
+             f"{' ...' if len(failed) > 10 else ''} (see {outdir}/batch.jsonl)", 1)

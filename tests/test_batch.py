@@ -1,0 +1,313 @@
+"""``tghop batch`` and :func:`tghop.batch.run` (issue #29): in process and on a real local
+Dask cluster of worker processes, resumable, bad exemplars recorded, dead workers retried.
+
+Exemplars are made in code (no ../shared); fits use tiny settings. The Dask tests share
+one LocalCluster(n_workers=2, processes=True, threads_per_worker=1) whose scheduler lets a
+task's worker die twice (``allowed-failures`` 2: a task queued on a worker that another task kills counts a death too).
+"""
+
+import hashlib
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from tghop import batch, data
+from tghop._errors import TGHopError
+from tghop.imageio import save_image
+
+from test_cli_failures import assert_one_line, invoke
+
+FIT = dict(n_clusters=6, n_codewords=30, stride=4)
+GEN = dict(n_patches=300)
+CLI_FAST = ["--clusters", "6", "--codewords", "30", "--stride", "4", "--pool", "300", "-q"]
+
+
+def make_folder(d, *, bad=True):
+    """Two good exemplars with equal stems in different folders (and a bad and a flat one)."""
+    (d / "sub").mkdir(parents=True, exist_ok=True)
+    save_image(data.bricks(64, rng=3), d / "a.png")
+    save_image(data.cells(64, rng=4), d / "sub" / "a.png")
+    if bad:
+        (d / "bad.png").write_bytes(b"not an image at all")
+        save_image(np.full((64, 64, 3), 0.5), d / "flat.png")
+    return d
+
+
+def ledger(out):
+    return [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+
+
+def leftovers(out):
+    return [p for p in out.rglob("*") if p.name.endswith((".tmp", ".probe"))]
+
+
+def check_sheet(out, results):
+    page = (out / "index.html").read_text()
+    assert "http://" not in page and "https://" not in page and "<script" not in page
+    links = re.findall(r'(?:href|src)="([^"]+)"', page)
+    assert links
+    for link in links:
+        assert not link.startswith("/") and (out / link).is_file(), link
+    for r in results:
+        assert r["name"] in page
+
+
+def run(src, out, **kw):
+    return batch.run(src, out, size=(48, 48), seed=1, fit=FIT, generate=GEN, **kw)
+
+
+# ------------------------------------------------------------------ finding work
+def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
+    for rel in ("a.png", "sub/a.png", "b.png", "b.jpg", "sub/.hidden.png", "notes.txt"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_bytes(b"x")
+    names = sorted(it["name"] for it in batch.find_work(tmp_path))
+    assert names == ["a", "b_jpg", "b_png", "sub__a"]
+    assert sorted(it["name"] for it in batch.find_work(tmp_path, outdir=tmp_path / "sub")) == ["a", "b_jpg", "b_png"]
+    twice = tmp_path / "twice.csv"
+    twice.write_text("path,size\na.png,32\na.png,64\nsub/a.png,\n")
+    first, second, third = [it["name"] for it in batch.find_work(twice)]
+    assert first.startswith("a_png_") and second == first + "_2" and third == "sub__a"
+    bad = tmp_path / "m.csv"
+    bad.write_text("path,colour\na.png,red\n")
+    with pytest.raises(TGHopError, match="m.csv line 2: unknown column colour"):
+        batch.find_work(bad)
+    bad.write_text("path,size\na.png,big\n")
+    with pytest.raises(TGHopError, match="line 2: size 'big'"):
+        batch.find_work(bad)
+    bad = tmp_path / "m.jsonl"
+    bad.write_text('{"path": "a.png"}\n[1, 2]\n')
+    with pytest.raises(TGHopError, match="m.jsonl line 2"):
+        batch.find_work(bad)
+
+
+# ------------------------------------------------------------------ in process
+def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    seen = []
+    results = run(src, out, count=2, workers=1, on_result=lambda r, c: seen.append(dict(c)))
+    by = {r["name"]: r for r in results}
+    assert sorted(by) == ["a", "bad", "flat", "sub__a"]
+    assert seen[-1]["done"] == 4 and seen[-1]["failed"] == 2
+    for name in ("a", "sub__a"):
+        r = by[name]
+        assert r["status"] == "ok" and r["error"] is None and not r["skipped"]
+        assert r["outputs"] == [f"{name}/{name}_1.png", f"{name}/{name}_2.png"]
+        for f in r["outputs"]:
+            assert np.asarray(Image.open(out / f)).shape[:2] == (48, 48)
+        assert (out / r["model"]).is_file()
+    assert "not a readable image" in by["bad"]["error"] and "no texture" in by["flat"]["error"]
+    assert not (out / "bad").exists() and not (out / "flat").exists()
+    lines = ledger(out)
+    assert len(lines) == 4
+    a = next(line for line in lines if line["name"] == "a")
+    assert a["sha256"] == hashlib.sha256((src / "a.png").read_bytes()).hexdigest()
+    assert a["settings"]["size"] == [48, 48] and a["settings"]["count"] == 2 and a["seconds"] > 0
+    check_sheet(out, results)
+
+    # a rerun skips what is done; failed exemplars are tried again
+    again = {r["name"]: r for r in run(src, out, count=2, workers=1)}
+    assert again["a"]["skipped"] and again["sub__a"]["skipped"]
+    assert not again["bad"]["skipped"] and len(ledger(out)) == 6
+    # a changed input is redone, the unchanged one is not
+    save_image(data.bricks(64, rng=9), src / "a.png")
+    again = {r["name"]: r for r in run(src, out, count=2, workers=1)}
+    assert not again["a"]["skipped"] and again["sub__a"]["skipped"]
+    assert again["a"]["sha256"] == hashlib.sha256((src / "a.png").read_bytes()).hexdigest()
+    # changed settings redo everything
+    again = {r["name"]: r for r in run(src, out, count=1, workers=1)}
+    assert not again["a"]["skipped"] and not again["sub__a"]["skipped"]
+    assert again["a"]["outputs"] == ["a/a.png"]
+    assert not leftovers(out)
+
+
+def test_manifests_give_per_row_settings(tmp_path):
+    make_folder(tmp_path / "img", bad=False)
+    csv_file = tmp_path / "list.csv"
+    csv_file.write_text("path,size,count,seed,tile\nimg/a.png,40x56,2,5,true\nimg/sub/a.png,,,,\n")
+    results = run(csv_file, tmp_path / "out_csv", workers=1)
+    a, b = results
+    assert (a["name"], b["name"]) == ("img__a", "img__sub__a")
+    assert a["settings"]["size"] == [40, 56] and a["settings"]["tile"] and a["seed_used"] == 5
+    assert len(a["outputs"]) == 2 and np.asarray(Image.open(tmp_path / "out_csv" / a["outputs"][0])).shape[:2] == (40, 56)
+    assert b["settings"]["size"] == [48, 48] and len(b["outputs"]) == 1 and b["seed_used"] == 1
+    jsonl = tmp_path / "list.jsonl"
+    jsonl.write_text(json.dumps({"path": str(tmp_path / "img" / "a.png"), "name": "first", "size": [40, 40]}) + "\n"
+                     + json.dumps({"path": "img/missing.png", "count": 3}) + "\n")
+    first, missing = run(jsonl, tmp_path / "out_jsonl", workers=1)
+    assert first["name"] == "first" and first["status"] == "ok" and first["settings"]["size"] == [40, 40]
+    assert missing["status"] == "failed" and "no such file" in missing["error"] and missing["sha256"] is None
+
+
+# ------------------------------------------------------------------ the command line
+def test_cli_end_to_end_in_process(tmp_path):
+    src = make_folder(tmp_path / "src")
+    code, _, err, exc = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--count", "2",
+                               "--seed", "3", *CLI_FAST, cwd=tmp_path)
+    assert_one_line(code, err, "2 of 4 exemplars failed", "bad", "flat", exception=exc)
+    assert code == 1
+    assert "failed: bad:" in err and "not a readable image" in err and "2 of 4 exemplars done" in err
+    out = tmp_path / "out"
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a_1.png", "a_2.png", "exemplar.png"]
+    check_sheet(out, [{"name": n} for n in ("a", "sub__a", "bad", "flat")])
+    # all good: exit 0, nothing redone
+    (src / "bad.png").unlink()
+    (src / "flat.png").unlink()
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--count", "2",
+                             "--seed", "3", *CLI_FAST, cwd=tmp_path)
+    assert code == 0, err
+    assert "2 of 2 exemplars done (2 by an earlier run)" in err
+    code, _, err, exc = invoke("batch", "src", "-o", "o2", "--workers", "2", "--scheduler", "tcp://x:1", cwd=tmp_path)
+    assert_one_line(code, err, "--workers and --scheduler", exception=exc)
+    code, _, err, exc = invoke("batch", "nothere", "-o", "o3", cwd=tmp_path)
+    assert_one_line(code, err, "nothere", "no such folder or manifest", exception=exc)
+
+
+def _run_cli(args, cwd, block_dask=False, **kw):
+    code = ("import sys\n"
+            "class Block:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name.split('.')[0] in ('dask', 'distributed'):\n"
+            "            raise ImportError(f'No module named {name!r}')\n"
+            f"if {block_dask}:\n"
+            "    sys.meta_path.insert(0, Block())\n"
+            "import tghop.batch\n"
+            "from tghop.__main__ import run\n"
+            "sys.argv[0] = 'tghop'\n"
+            "run()\n")
+    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=cwd, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, **kw)
+
+
+def test_without_dask_one_line_and_workers_1_still_works(tmp_path):
+    (tmp_path / "src").mkdir()
+    save_image(np.full((64, 64, 3), 0.5), tmp_path / "src" / "flat.png")
+    p = _run_cli(["batch", "src", "-o", "out", "--workers", "2"], tmp_path, block_dask=True)
+    _, err = p.communicate(timeout=120)
+    assert_one_line(p.returncode, err.decode(), "needs dask.distributed", "pip install 'tghop[batch]'")
+    assert not (tmp_path / "out" / "batch.jsonl").exists()
+    p = _run_cli(["batch", "src", "-o", "out", "--workers", "1", "-q"], tmp_path, block_dask=True)
+    _, err = p.communicate(timeout=120)
+    assert_one_line(p.returncode, err.decode(), "1 of 1 exemplars failed", "flat")
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ctrl_c_stops_cleanly_and_a_rerun_finishes(tmp_path, workers):
+    # Ctrl-C in a terminal reaches the whole process group: Dask's worker processes too.
+    if workers != "1":
+        pytest.importorskip("distributed")
+    src = make_folder(tmp_path / "src", bad=False)
+    for i in range(2):
+        save_image(data.bricks(64, rng=7 + i), src / f"c{i}.png")
+    args = ["batch", "src", "-o", "out", "--size", "48", "--seed", "1", *CLI_FAST]
+    p = _run_cli(args + ["--workers", workers], tmp_path, start_new_session=True)
+    deadline = time.time() + 60
+    ledger_file = tmp_path / "out" / "batch.jsonl"
+    while time.time() < deadline and not (ledger_file.exists() and ledger_file.read_text().endswith("\n")):
+        time.sleep(0.05)
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err.decode()
+    assert_one_line(p.returncode, err.decode(), "interrupted after", "run the same command again")
+    done = len(ledger(tmp_path / "out"))
+    assert 1 <= done < 4 and not leftovers(tmp_path / "out")
+    p = _run_cli(args + ["--workers", "1"], tmp_path)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 0, err.decode()
+    assert f"4 of 4 exemplars done ({done} by an earlier run)" in err.decode()
+
+
+# ------------------------------------------------------------------ on Dask
+@pytest.fixture(scope="module")
+def cluster():
+    dask = pytest.importorskip("dask")
+    distributed = pytest.importorskip("distributed")
+    import logging
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 2}):
+        cluster = distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                           dashboard_address=None, silence_logs=logging.CRITICAL)
+    client = distributed.Client(cluster)
+    yield cluster, client
+    client.close()
+    cluster.close()
+
+
+def test_local_cluster_run(tmp_path, cluster):
+    _, client = cluster
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    results = run(src, out, count=2, client=client)
+    by = {r["name"]: r for r in results}
+    assert [by[n]["status"] for n in ("a", "bad", "flat", "sub__a")] == ["ok", "failed", "failed", "ok"]
+    workers = {by[n]["worker"].split(":")[1] for n in by}
+    assert str(os.getpid()) not in workers  # ran in the worker processes
+    for name in ("a", "sub__a"):
+        assert all((out / f).is_file() for f in by[name]["outputs"])
+    assert len(ledger(out)) == 4
+    check_sheet(out, results)
+    again = run(src, out, count=2, client=client)
+    assert [r["skipped"] for r in again] == [True, False, False, True]
+
+
+def test_cli_to_a_scheduler_address(tmp_path, cluster):
+    local, _ = cluster
+    make_folder(tmp_path / "src", bad=False)
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--scheduler", local.scheduler_address, "--size", "48",
+                             "--seed", "2", *CLI_FAST, cwd=tmp_path)
+    assert code == 0, err
+    assert "2 of 2 exemplars done" in err
+    assert {line["worker"].split(":")[1] for line in ledger(tmp_path / "out")} != {str(os.getpid())}
+    code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,
+                               cwd=tmp_path)
+    assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)
+
+
+def _partial_file(job):
+    """What a worker killed in the middle of write_atomic leaves: a temporary file."""
+    folder = Path(job["folder"])
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f".{job['name']}.png.abc123.tmp").write_bytes(b"\x89PNG half")
+
+
+def crash_once(job):
+    marker = Path(job["folder"]).parent / f".died-{job['name']}"
+    if not marker.exists():
+        marker.write_text(str(os.getpid()))
+        _partial_file(job)
+        os._exit(1)  # the worker process dies mid-task
+    return batch.process_exemplar(job)
+
+
+def crash_always(job):
+    _partial_file(job)
+    os._exit(1)
+
+
+def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    _, client = cluster
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    results = run(src, out, client=client, task=crash_once)
+    assert [r["status"] for r in results] == ["ok", "ok"], results
+    for r in results:
+        died = int((out / f".died-{r['name']}").read_text())
+        assert int(r["worker"].split(":")[1]) != died  # the second try ran in another process
+        assert (out / r["outputs"][0]).is_file()
+    assert not leftovers(out)
+    (src / "sub" / "a.png").unlink()
+    out2 = tmp_path / "out2"
+    (failed,) = run(src, out2, client=client, task=crash_always)
+    assert failed["status"] == "failed" and "died on every try" in failed["error"]
+    assert not leftovers(out2) and not (out2 / "a").exists()
+    assert ledger(out2)[0]["status"] == "failed"
