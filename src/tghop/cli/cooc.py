@@ -68,6 +68,13 @@ def condition(model, spec: str):
     return model.cooccurrence(load_exemplar(spec))
 
 
+#: ``--windows`` of morph and edit.
+WINDOWS_OPTION = click.option(
+    "--windows", is_flag=True,
+    help="Generate in overlapping training-size windows instead of one generator pass over the whole condition "
+         "(the paper's way).")
+
+
 @click.group("cooc")
 def cooc():
     """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
@@ -133,9 +140,7 @@ def train(exemplar, output, paper, steps, settings, resume, seed, quiet):
 @click.option("--grid", default=None, metavar="COLSxROWS",
               help="Write the paper's Fig. 2 grid instead: co-occurrence A->B across, noise down, e.g. 5x3.")
 @click.option("--seed", type=click.IntRange(min=0), default=None)
-@click.option("--windows", is_flag=True,
-              help="Generate in overlapping training-size windows instead of one generator pass over the "
-                   "whole condition (the paper's way).")
+@WINDOWS_OPTION
 def morph(model_file, a, b, output, length, grid, seed, windows):
     """Morph from A to B: a strip (or a grid) whose co-occurrence moves from A to B.
 
@@ -179,9 +184,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
 @click.option("--boost", default=None, metavar="A,B,FACTOR",
               help="Multiply bin M(A, B) (and M(B, A)) by FACTOR everywhere, then re-normalise (paper Fig. 11).")
 @click.option("--seed", type=click.IntRange(min=0), default=None)
-@click.option("--windows", is_flag=True,
-              help="Generate in overlapping training-size windows instead of one generator pass over the "
-                   "whole condition (the paper's way).")
+@WINDOWS_OPTION
 def edit(model_file, sources, output, size, mask, boost, seed, windows):
     """Generate from edited co-occurrence: SOURCES' statistics painted where you want them.
 

@@ -16,6 +16,18 @@ from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT
 __all__ = ["fit", "synth", "patches", "info"]
 
 
+def fit_exemplar(spec, options, *, exclude, downscale, progress):
+    """A TGHop fitted on exemplar ``spec`` (a file or builtin:NAME) with the fit options,
+    leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``)."""
+    from ..synthesis import prepare_exemplar
+
+    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True),
+                             min_size=options.get("patch_size") or 32)
+    mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar")
+    model = build_model(options, n_colours=image.shape[2])
+    return model.fit(image, exclude=mask, progress=progress)
+
+
 @click.command()
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
@@ -28,16 +40,10 @@ def fit(exemplar, output, exclude, downscale, quiet, **options):
     progress = Progress(not quiet)
     with user_errors(progress):
         from ..modelfile import save_model
-        from ..synthesis import prepare_exemplar
 
         check_model_output(output, "-o")  # before any work
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)])
-        image = prepare_exemplar(load_exemplar(exemplar, downscale=downscale, dtype=None, has_downscale=True),
-                                 min_size=options.get("patch_size") or 32)
-        mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude",
-                                                      image_label="the exemplar")
-        model = build_model(options, n_colours=image.shape[2])
-        model.fit(image, exclude=mask, progress=progress)
+        model = fit_exemplar(exemplar, options, exclude=exclude, downscale=downscale, progress=progress)
         progress.close()
         save_model(model, output)
     click.echo(summary(model), err=True)
@@ -107,7 +113,6 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
     from ..imageio import save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
-    from ..synthesis import prepare_exemplar
 
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -137,12 +142,7 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
         if from_model:
             model = load_model(source)
         else:
-            image = prepare_exemplar(load_exemplar(source, downscale=downscale, dtype=None, has_downscale=True),
-                                     min_size=options.get("patch_size") or 32)
-            mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude",
-                                                          image_label="the exemplar")
-            model = build_model(options, n_colours=image.shape[2])
-            model.fit(image, exclude=mask, progress=progress)
+            model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
             if save_model:
                 write_model(model, save_model)
         import numpy as np
