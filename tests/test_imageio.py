@@ -70,3 +70,20 @@ def test_png_writer_raises_a_parts_error(monkeypatch):
     monkeypatch.setattr(imageio.zlib, "compressobj", boom)
     with pytest.raises(MemoryError, match="this part"):
         imageio.write_png(io.BytesIO(), np.zeros((40, 30, 3), dtype=np.uint8))
+
+
+def test_float_tiff_in_unit_range_is_read_as_is(tmp_path):
+    # A float32 TIFF with values in [0, 1] (issue #26, item 9) keeps its values: it was
+    # divided by 255 and then refused as "no texture".
+    from PIL import Image
+
+    from tghop.imageio import load_image
+
+    values = np.random.default_rng(0).random((40, 30)).astype(np.float32)
+    Image.fromarray(values, mode="F").save(tmp_path / "f.tif")
+    got = load_image(tmp_path / "f.tif")
+    assert got.shape == (40, 30, 1)
+    np.testing.assert_allclose(got[..., 0], values, atol=1e-7)
+    levels = (values * 255).round().astype(np.float32)  # a float image of 8-bit levels: scaled as before
+    Image.fromarray(levels, mode="F").save(tmp_path / "g.tif")
+    np.testing.assert_allclose(load_image(tmp_path / "g.tif")[..., 0], levels / 255.0, atol=1e-7)

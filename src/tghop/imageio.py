@@ -118,7 +118,10 @@ def _decode(im, path, max_pixels, downscale, too_large_hint):
         arr = np.asarray(im, dtype=np.float64)
         if not np.all(np.isfinite(arr)):
             raise ValueError("non-finite pixel values")
-        arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
+        if im.mode == "F" and arr.size and arr.min() >= 0.0 and arr.max() <= 1.0:
+            pass  # a float image (TIFF, PFM) in [0, 1]: already in tghop's units
+        else:  # integer levels: 8-bit range, else 16-bit
+            arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
     else:
         arr = np.asarray(im.convert("RGB"))
     return arr, mode
