@@ -192,6 +192,15 @@ class TGHop(BaseEstimator):
         -------
         self
         """
+        from threadpoolctl import threadpool_limits
+
+        # One BLAS / OpenMP thread: the model is the same bit for bit on every machine
+        # (OpenBLAS's results change with its thread count) and a busy machine is not
+        # oversubscribed; ICHM.fit runs its clusters in threads of its own (free_cores).
+        with threadpool_limits(limits=1):
+            return self._fit(image, progress=progress)
+
+    def _fit(self, image, *, progress=None):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size)
