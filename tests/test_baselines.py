@@ -188,3 +188,74 @@ def test_random_cnn_fft_and_direct_convolution_agree(mode, exemplar, monkeypatch
     np.testing.assert_allclose(fft.numpy(), direct.numpy(), atol=1e-5)
     with pytest.raises(TGHopError, match="odd"):
         _random_cnn.check_scales((3, 4))
+
+
+# ------------------------------------------------------------------ memory
+def _largest(message):
+    import re
+
+    m = re.search(r"largest size that fits is about (\d+)x(\d+)", message)
+    assert m, message
+    return int(m.group(1)), int(m.group(2))
+
+
+@pytest.mark.parametrize("name, asked", [("crop", (40, 40)), ("blurred-crop", (40, 40)), ("colour-noise", (600, 300)),
+                                         ("quilting", (600, 300)), ("ustyuzhaninov", (800, 400))])
+def test_sizes_beyond_the_available_memory_are_refused_naming_one_that_fits(name, asked, exemplar, monkeypatch):
+    from tghop import _common, _random_cnn
+
+    estimate = baselines.memory_estimate(name, exemplar.shape)
+    base = estimate(1, 1)  # the fixed costs (blurred-crop: the blurred exemplar; quilting: the pool)
+    avail = base + (estimate(*asked) - base) / 3
+    monkeypatch.setattr(_common, "available_memory", lambda: avail)
+    if name == "ustyuzhaninov":
+        pytest.importorskip("torch")
+        monkeypatch.setattr(_random_cnn.RandomCNN, "__init__", lambda *a, **k: pytest.fail("work started"))
+    monkeypatch.setattr("tghop.quilting.quilt", lambda *a, **k: pytest.fail("work started"))
+    with pytest.raises(TGHopError, match="of memory but only") as info:
+        BASELINES[name](exemplar, asked, rng=0)
+    h, w = _largest(str(info.value))
+    assert 0 < h < asked[0] and 0 < w < asked[1]
+    assert abs(h / w - asked[0] / asked[1]) < 0.05  # the asked aspect ratio
+    assert estimate(h, w) <= avail < estimate(h + 2, w + 2)  # the largest, give or take a pixel of rounding
+    monkeypatch.undo()
+    if name in NUMPY_BASELINES:  # the size named runs
+        monkeypatch.setattr(_common, "available_memory", lambda: avail)
+        assert BASELINES[name](exemplar, (h, w), rng=0).shape[:2] == (h, w)
+
+
+def test_memory_is_not_checked_where_unknown(exemplar, monkeypatch):
+    from tghop import _common
+
+    monkeypatch.setattr(_common, "available_memory", lambda: None)
+    assert baselines.colour_noise(exemplar, 64, rng=0).shape == (64, 64, 3)
+
+
+def test_available_memory_reads_the_machine():
+    from tghop._common import available_memory
+
+    avail = available_memory()
+    assert avail is None or avail > 0
+
+
+def test_ustyuzhaninov_estimate_grows_with_the_size_and_the_maps(exemplar):
+    small = baselines.memory_estimate("ustyuzhaninov", exemplar.shape)
+    fewer = baselines.memory_estimate("ustyuzhaninov", exemplar.shape, n_maps=8, scales=(3, 5))
+    assert small(8192, 8192) > 1e12 > small(256, 256) > small(128, 128)  # 8192: the 114 GB allocation and more
+    assert fewer(256, 256) < small(256, 256) / 10
+
+
+def test_cli_refuses_a_size_beyond_the_memory_in_one_line(tmp_path, monkeypatch):
+    pytest.importorskip("torch")
+    from click.testing import CliRunner
+
+    from tghop import _common
+    from tghop.cli import main
+
+    monkeypatch.setattr(_common, "available_memory", lambda: 2e9)
+    out = tmp_path / "u.png"
+    result = CliRunner().invoke(main, ["baseline", "ustyuzhaninov", "builtin:bricks", "--size", "8192", "-o", str(out)])
+    assert result.exit_code != 0 and not out.exists()
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("Error: the ustyuzhaninov baseline at size 8192x8192"), result.output
+    assert "largest size that fits" in lines[0] and "Traceback" not in result.output

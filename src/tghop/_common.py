@@ -27,10 +27,14 @@ __all__ = [
     "ProgressCallback",
     "check_rng",
     "check_image",
+    "check_texture",
     "report",
     "in_thread",
+    "free_cores",
     "MAX_PIXELS",
     "check_size",
+    "available_memory",
+    "check_memory",
     "INSTALL_HINT",
     "import_torch",
 ]
@@ -195,6 +199,50 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
 
 
+#: Largest per-channel standard deviation (in [0, 1] units) below which an exemplar is
+#: flat: a quarter of an 8-bit grey level.
+FLAT_SPREAD = 1 / 1024
+
+
+def check_texture(image, *, name: str = "exemplar") -> None:
+    """Refuse an exemplar with no texture (every channel's standard deviation below
+    :data:`FLAT_SPREAD`, a quarter of an 8-bit grey level): a one-line :class:`TGHopError`.
+
+    The one flat-image check of tghop: :func:`tghop.synthesis.prepare_exemplar` (``fit``)
+    and :meth:`tghop.cooc.CoocGAN.fit` (``tghop cooc train``, ``tghop baseline cooc``)
+    call it before any work. ``image`` is ``(H, W, C)``: float in [0, 1], or uint8
+    (measured exactly from histograms, without a float copy).
+    """
+    img = np.asarray(image)
+    if img.ndim == 2:
+        img = img[:, :, None]
+    if img.dtype == np.uint8:
+        spread = _std_uint8(img) / 255.0
+    else:
+        spread = float(img.reshape(-1, img.shape[-1]).std(axis=0).max()) if img.size else 0.0
+    if not spread >= FLAT_SPREAD:
+        raise TGHopError(
+            f"the {name} has no texture: its pixels are all (nearly) the same colour; "
+            "give an image with a visible pattern"
+        )
+
+
+def _std_uint8(img) -> float:
+    """Largest per-channel standard deviation of a uint8 image (exact, from histograms)."""
+    levels = np.arange(256.0)
+    out = 0.0
+    for c in range(img.shape[2]):
+        hist = np.zeros(256)
+        for y in range(0, img.shape[0], 1024):
+            hist += np.bincount(img[y: y + 1024, :, c].ravel(), minlength=256)
+        n = hist.sum()
+        if n == 0:
+            return 0.0
+        mean = hist @ levels / n
+        out = max(out, float(np.sqrt(max(hist @ (levels - mean) ** 2 / n, 0.0))))
+    return out
+
+
 # ------------------------------------------------------------------ sizes
 #: Largest image tghop makes, in pixels (8192x8192): every output size is checked
 #: against it (:func:`check_size`) before any work.
@@ -246,6 +294,75 @@ def check_size(size, *, default=None, limit: Optional[int] = MAX_PIXELS, name: s
     return h, w
 
 
+# ------------------------------------------------------------------ memory
+def available_memory() -> Optional[int]:
+    """Bytes of memory available to a new allocation now, or None where unknown.
+
+    Linux's ``MemAvailable`` (``/proc/meminfo``: free memory plus the page cache and
+    buffers that can be reclaimed), else ``os.sysconf('SC_PAGE_SIZE') *
+    os.sysconf('SC_AVPHYS_PAGES')`` (free pages only: an underestimate). Containers'
+    cgroup limits are not read.
+    """
+    import os
+
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_AVPHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _format_bytes(n: float) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n / 1e6:.2g} MB"
+
+
+def check_memory(estimate: Callable[[int, int], float], size, *, what: str, name: str = "size") -> None:
+    """Refuse, before any work, a ``size`` whose memory ``estimate(h, w)`` (bytes) exceeds
+    :func:`available_memory`; the one-line :class:`TGHopError` names the largest size of
+    the same aspect ratio that fits. Nothing is checked where the available memory is unknown.
+
+    Parameters
+    ----------
+    estimate : callable
+        ``estimate(h, w)``: bytes the work needs for an ``h x w`` result, non-decreasing in both.
+    size : (int, int)
+    what : str
+        The work, for the message (``"ustyuzhaninov"``).
+    name : str
+        How the size is called (``"size"``; ``"--size"`` on the command line).
+    """
+    avail = available_memory()
+    if avail is None:
+        return
+    h, w = (int(v) for v in size)
+    need = float(estimate(h, w))
+    if need <= avail:
+        return
+    lo, hi = 0.0, 1.0  # largest scale f with estimate(f h, f w) <= avail, by bisection
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        if estimate(max(1, int(mid * h)), max(1, int(mid * w))) <= avail:
+            lo = mid
+        else:
+            hi = mid
+    fh, fw = int(lo * h), int(lo * w)
+    if fh < 1 or fw < 1 or estimate(max(1, fh), max(1, fw)) > avail:
+        raise TGHopError(f"{what} needs about {_format_bytes(need)} of memory for {h}x{w} and still "
+                         f"{_format_bytes(estimate(1, 1))} for the smallest result, but only "
+                         f"{_format_bytes(avail)} is available; use a smaller exemplar or free some memory")
+    raise TGHopError(f"{what} at {name} {h}x{w} needs about {_format_bytes(need)} of memory but only "
+                     f"{_format_bytes(avail)} is available; the largest {name} that fits is about {fh}x{fw}")
+
+
 # ------------------------------------------------------------------ optional extras
 #: How to install what the neural baselines, the cGAN and the network metrics need.
 INSTALL_HINT = "pip install 'tghop[metrics]'"
@@ -262,6 +379,28 @@ def import_torch(what: str):
 
 
 # ------------------------------------------------------------------ threads
+def free_cores() -> int:
+    """Cores this process may use that other work does not keep busy now, at least 1.
+
+    The cores of the process's affinity mask (``os.sched_getaffinity``, else
+    ``os.cpu_count()``) less the one-minute load average (``os.getloadavg``, where the
+    system has one), rounded. On a loaded machine threads beyond it only compete for the
+    busy cores (a ``tghop fit`` took 24 s with two BLAS threads beside other work against
+    4.9 s with one).
+    """
+    import os
+
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        usable = os.cpu_count() or 1
+    try:
+        busy = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        busy = 0.0
+    return max(1, min(usable, int(round(usable - busy))))
+
+
 def in_thread(fn, *args, **kwargs) -> Callable:
     """Start ``fn(*args, **kwargs)`` in a thread of its own; return a function that waits
     for it and returns its result (or raises its exception).

@@ -22,7 +22,10 @@ Synthesis baselines:
 is called as ``fn(exemplar, size=None, *, rng=None, progress=None)`` and returns a float
 ``(h, w, C)`` image in [0, 1]; ``size=None`` means the exemplar's own size. Sizes are
 checked by :func:`tghop._common.check_size` before any work: above
-:data:`tghop._common.MAX_PIXELS` (8192x8192) they are refused.
+:data:`tghop._common.MAX_PIXELS` (8192x8192) they are refused; and so is a size whose
+estimated memory (:func:`memory_estimate`, measured peaks plus a margin) exceeds the
+memory available now (:func:`tghop._common.check_memory`, which names the largest size
+that fits).
 
 The random multiscale CNN of :func:`ustyuzhaninov` (:mod:`tghop._random_cnn`) is also the
 texture model behind :func:`tghop.metrics.gram_distance`.
@@ -42,6 +45,7 @@ from ._common import (
     ProgressCallback,
     TGHopError,
     check_image,
+    check_memory,
     check_rng,
     check_size,
     import_torch,
@@ -59,6 +63,7 @@ __all__ = [
     "quilting",
     "ustyuzhaninov",
     "cooc",
+    "memory_estimate",
 ]
 
 #: Default L-BFGS iteration budget of :func:`ustyuzhaninov`. The paper runs 2,000
@@ -83,6 +88,54 @@ def _random_offset(rng: np.random.Generator, image_shape, size) -> tuple[int, in
             "ask for a smaller size"
         )
     return int(rng.integers(image_shape[0] - h + 1)), int(rng.integers(image_shape[1] - w + 1))
+
+
+_MB = 1e6
+
+
+def memory_estimate(name: str, exemplar_shape, *, patch_size: int = 32, max_patches: Optional[int] = 10_000,
+                    scales=USTYUZHANINOV_SCALES, n_maps: int = 128):
+    """``estimate(h, w)``: about how many bytes baseline ``name`` needs for an ``h x w`` result.
+
+    From measured peaks (resident memory, bricks exemplars) with a margin:
+
+    * crop, blurred-crop: the float64 result (blurred-crop: and the blurred exemplar);
+    * colour-noise: about 17 bytes per output pixel and channel (the normal draws, their
+      colour transform, the clipped result: 50 B/px measured for RGB);
+    * quilting: the patch pool (float64 patches and a float32 copy: 12 bytes per value)
+      and about 45 bytes per output pixel and channel (overlap tables, canvas, result:
+      125 B/px measured for RGB);
+    * ustyuzhaninov: every feature map (``n_maps * len(scales)``, 1,024 by default) at every
+      position of the FFT-padded image (side + the largest filter): 24 bytes per map and
+      padded pixel for the result (features, their gradient, the products of the Gram
+      loss; 3.5 GB measured at 384 x 384) and 12 for the exemplar's Gram matrix, plus 150 MB.
+    * cooc: see :func:`tghop.cooc.model.memory_estimate`.
+    """
+    eh, ew = int(exemplar_shape[0]), int(exemplar_shape[1])
+    c = int(exemplar_shape[2]) if len(exemplar_shape) > 2 else 1
+    if name == "crop":
+        return lambda h, w: 8.0 * c * h * w + _MB
+    if name == "blurred-crop":
+        return lambda h, w: 16.0 * c * eh * ew + 8.0 * c * h * w + _MB
+    if name == "colour-noise":
+        return lambda h, w: 17.0 * c * h * w + _MB
+    if name == "quilting":
+        p = int(patch_size)
+        n = max(1, eh - p + 1) * max(1, ew - p + 1)
+        if max_patches is not None:
+            n = min(n, int(max_patches))
+        pool = 12.0 * n * p * p * c
+        return lambda h, w: pool + 45.0 * c * h * w + 50 * _MB
+    if name == "ustyuzhaninov":
+        k = max(check_scales(scales))
+        maps = int(n_maps) * len(check_scales(scales))
+        exemplar = 12.0 * maps * (eh + k) * (ew + k)
+        return lambda h, w: 150 * _MB + max(exemplar, 24.0 * maps * (h + k) * (w + k))
+    if name == "cooc":
+        from .cooc.model import memory_estimate as cooc_estimate
+
+        return cooc_estimate(exemplar_shape)
+    raise TGHopError(f"unknown baseline {name!r}; one of {', '.join(BASELINES)}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -111,6 +164,7 @@ def crop(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] 
     """
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
+    check_memory(memory_estimate("crop", img.shape), (h, w), what="the crop baseline")
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))
     report(progress, "crop", 1, 1)
     return img[y : y + h, x : x + w].copy()
@@ -146,6 +200,7 @@ def blurred_crop(
     if not sigma > 0:
         raise TGHopError(f"sigma must be positive, got {sigma}")
     h, w = check_size(size, default=img.shape[:2])
+    check_memory(memory_estimate("blurred-crop", img.shape), (h, w), what="the blurred-crop baseline")
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))
     blurred = ndimage.gaussian_filter(img, sigma=(sigma, sigma, 0), mode="reflect")
     report(progress, "blurred crop", 1, 1)
@@ -173,6 +228,7 @@ def colour_noise(exemplar, size=None, *, rng=None, progress: Optional[ProgressCa
     """
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
+    check_memory(memory_estimate("colour-noise", img.shape), (h, w), what="the colour-noise baseline")
     rng = check_rng(rng)
     pixels = img.reshape(-1, img.shape[2])
     mean = pixels.mean(axis=0)
@@ -261,6 +317,8 @@ def quilting(
         raise TGHopError(f"max_patches must be positive or None, got {max_patches}")
     img = check_image(exemplar, min_size=patch_size, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
+    check_memory(memory_estimate("quilting", img.shape, patch_size=patch_size, max_patches=max_patches), (h, w),
+                 what="image quilting")
     rng = check_rng(rng)
     pool = _all_patches(img, patch_size, None if max_patches is None else int(max_patches), rng)
     out = quilt(pool.astype(np.float32), (h, w), overlap=overlap, tolerance=tolerance, tile=tile,
@@ -329,7 +387,8 @@ def ustyuzhaninov(
     -----
     Cost grows with ``n_features**2 * h * w`` (the Gram matrix) and the FFTs of 1,024 maps:
     on one busy CPU core about 1.2 s per iteration at 128 x 128 and 7 s at 256 x 256, and
-    about 2 GB of memory at 256 x 256. PyTorch's thread count is left as configured.
+    about 2 GB of memory at 256 x 256 (:func:`memory_estimate`; larger sizes than the
+    memory available are refused before any work). PyTorch's thread count is left as configured.
     """
     torch = import_torch("The Ustyuzhaninov et al. baseline")
     img = check_image(exemplar, name="exemplar")
@@ -338,6 +397,8 @@ def ustyuzhaninov(
     n_iter, n_maps = int(n_iter), int(n_maps)
     if n_iter < 0 or n_maps < 1:
         raise TGHopError(f"n_iter must be >= 0 and n_maps >= 1, got {n_iter} and {n_maps}")
+    check_memory(memory_estimate("ustyuzhaninov", img.shape, scales=scales, n_maps=n_maps), (h, w),
+                 what="the ustyuzhaninov baseline")
     rng = check_rng(rng)
     c = img.shape[2]
     cnn = RandomCNN(torch, random_filters(scales, n_maps, c, rng))

@@ -23,7 +23,8 @@ import math
 import numpy as np
 
 from . import settings
-from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, in_thread, report
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
+                      report)
 from .core import ICHM, SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
@@ -89,36 +90,16 @@ def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
         h, w = img.shape[:2]
         if h < min_size or w < min_size:
             check_image(np.zeros((h, w, 1), dtype=np.uint8), min_size=min_size, name="exemplar")
-        spread = _std_uint8(img) / 255.0
         grey = img.shape[2] == 3 and all(
             np.array_equal(img[y: y + 512, :, 1:], np.repeat(img[y: y + 512, :, :1], 2, axis=2))
             for y in range(0, h, 512))
     else:
         img = check_image(image, min_size=min_size, name="exemplar")
-        spread = float(img.reshape(-1, img.shape[2]).std(axis=0).max()) if img.size else 0.0
         grey = img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512
-    if spread < 1 / 1024:
-        raise TGHopError(
-            "the exemplar has no texture: its pixels are all (nearly) the same colour; "
-            "give an image with a visible pattern"
-        )
+    check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
     if grey:
         img = np.ascontiguousarray(img[..., :1])
     return img
-
-
-def _std_uint8(img) -> float:
-    """Largest per-channel standard deviation of a uint8 image (exact, from histograms)."""
-    levels = np.arange(256.0)
-    out = 0.0
-    for c in range(img.shape[2]):
-        hist = np.zeros(256)
-        for y in range(0, img.shape[0], 1024):
-            hist += np.bincount(img[y: y + 1024, :, c].ravel(), minlength=256)
-        n = hist.sum()
-        mean = hist @ levels / n
-        out = max(out, float(np.sqrt(max(hist @ (levels - mean) ** 2 / n, 0.0))))
-    return out
 
 
 class TGHop(BaseEstimator):
@@ -220,6 +201,15 @@ class TGHop(BaseEstimator):
         -------
         self
         """
+        from threadpoolctl import threadpool_limits
+
+        # One BLAS / OpenMP thread: the model is the same bit for bit on every machine
+        # (OpenBLAS's results change with its thread count) and a busy machine is not
+        # oversubscribed; ICHM.fit runs its clusters in threads of its own (free_cores).
+        with threadpool_limits(limits=1):
+            return self._fit(image, progress=progress)
+
+    def _fit(self, image, *, progress=None):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size)

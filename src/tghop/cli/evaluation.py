@@ -102,7 +102,10 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     colour-noise   noise with the exemplar's colour mean and covariance (worst case)
     quilting       classic image quilting of the exemplar's own patches
     ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
-    cooc           co-occurrence cGAN (Darzi et al.): trains ~15 min on 2 cores, or --model (metrics extra)
+    cooc           co-occurrence cGAN (Darzi et al.): trains first (about 15 min on a 2-core CPU),
+                   or --model (a checkpoint of 'tghop cooc train'); metrics extra
+
+    Sizes whose estimated memory exceeds the memory available are refused at once.
     """
     from ..baselines import BASELINES
     from ..imageio import save_image
@@ -119,10 +122,24 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
         ex = load_exemplar(exemplar)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
         if name == "cooc":
-            from ..cooc import load
+            from .._common import check_memory, check_size, check_texture, import_torch
+            from ..cooc import SMALL, load
+            from ..cooc.model import memory_estimate
 
             kwargs = {"n_steps": iterations, "model": None if model_file is None else load(model_file),
                       "assembly": assembly or "quilt"}
+            if model_file is None:
+                # the checks baseline() makes, made here first so that the note comes only before a training
+                import_torch("The co-occurrence cGAN")
+                check_texture(ex)
+                check_memory(memory_estimate(ex.shape, assembly=kwargs["assembly"]),
+                             check_size(size, default=ex.shape[:2], name="--size"), what="the cooc baseline",
+                             name="--size")
+                steps = SMALL["n_steps"] if iterations is None else iterations
+                minutes = 15.0 * steps / SMALL["n_steps"]
+                when = f"about {minutes:.0f} minutes" if minutes >= 1.5 else "about a minute or less"
+                click.echo(f"Note: no --model: training the co-occurrence cGAN first ({steps} steps, {when} on a "
+                           "2-core CPU); to reuse it, train once with 'tghop cooc train' and pass --model", err=True)
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
         save_image(image, output)

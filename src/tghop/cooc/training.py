@@ -31,7 +31,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .._common import ProgressCallback, TGHopError, check_image, check_rng, import_torch, report
+from .._common import ProgressCallback, TGHopError, check_image, check_rng, check_texture, import_torch, report
 from ..cooccurrence import fit_colour_clusters
 from .networks import average_step, build_networks, join_tiles, split_tiles
 
@@ -83,7 +83,8 @@ class TrainingMixin:
         Parameters
         ----------
         exemplar : array_like, shape (H, W) or (H, W, C)
-            Float in [0, 1], at least ``crop_size`` on each side.
+            Float in [0, 1], at least ``crop_size`` on each side, not flat
+            (:func:`tghop._common.check_texture`).
         resume : bool
             Continue a loaded checkpoint (or an earlier fit) up to ``n_steps`` instead of
             starting afresh; the exemplar must be the one it was trained on. Crops are cut
@@ -109,6 +110,7 @@ class TrainingMixin:
         """
         torch = import_torch("The co-occurrence cGAN")
         img = check_image(exemplar, name="exemplar")
+        check_texture(img)  # a flat image has nothing to learn: refused before any training, as fit's
         if resume:
             self._check_fitted()
             if _exemplar_hash(img) != self.exemplar_hash_:

@@ -1,0 +1,197 @@
+"""The cGAN's commands on bad and unusual input (issue #26): images as morph and edit
+sources, flat exemplars, --max-minutes, the note before a baseline's training."""
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tghop import cooc, data
+from tghop._common import TGHopError
+
+from conftest import assert_user_error
+
+torch = pytest.importorskip("torch")
+
+#: As test_cooc.TINY: 32 x 32 crops, s = 8, a few filters, two steps.
+TINY = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
+            noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+TINY_SET = [a for key, value in (("n_clusters", 3), ("crop_size", 32), ("n_layers", 3), ("patch", 9), ("window", 7),
+                                 ("sigma", 2), ("g_widths", "[8,4]"), ("d_widths", "[4,8]"), ("noise_channels", 2),
+                                 ("n_crops", 8), ("batch_size", 4), ("n_critic", 1))
+            for a in ("--set", f"{key}={value}")]
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _threads(one_torch_thread):
+    yield
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return data.bricks(48, rng=3)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(exemplar):
+    return cooc.CoocGAN(**TINY, device="cpu", rng=0).fit(exemplar)
+
+
+@pytest.fixture(scope="module")
+def files(tiny_model, exemplar, tmp_path_factory):
+    from tghop.imageio import save_image
+
+    d = tmp_path_factory.mktemp("cooc_cli")
+    tiny_model.save(d / "m.pt")
+    save_image(exemplar, d / "ex.png")
+    save_image(data.bricks(72, rng=5)[:40], d / "wide.png")  # 40 x 72: not the 32 px crop size
+    save_image(data.bricks(32, rng=6)[:, :, ::-1], d / "other.png")
+    save_image(np.full((48, 48, 3), 0.5), d / "flat.png")
+    return d
+
+
+def run(*args):
+    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning", "PYTHONPATH": str(ROOT / "src")}
+    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
+
+
+def png(path):
+    from PIL import Image
+
+    return np.asarray(Image.open(path))
+
+
+# ------------------------------------------------------------------ images as sources (item 3)
+def test_image_condition_is_the_tensor_averaged_to_a_crop(tiny_model, exemplar):
+    img = data.bricks(100, rng=5)[:, :90]
+    whole = tiny_model.cooccurrence(img)
+    cond = tiny_model.image_condition(img)
+    assert whole.shape == (9, 12, 11) and cond.shape == (9, 4, 4)
+    np.testing.assert_allclose(cond.sum(0), 1.0)
+    np.testing.assert_allclose(cond.mean((1, 2)), whole.mean((1, 2)), atol=0.02)  # the same statistics, pooled
+    crop = exemplar[:32, :32]
+    np.testing.assert_allclose(tiny_model.image_condition(crop), tiny_model.cooccurrence(crop))  # a crop: itself
+    assert tiny_model.image_condition(exemplar[:8, :8]).shape == (9, 4, 4)  # one cell, repeated
+
+
+def test_large_images_are_measured_in_tiles_with_the_same_values(tiny_model, monkeypatch):
+    img = data.bricks(100, rng=5)[:, :90]
+    whole = tiny_model.cooccurrence(img)
+    monkeypatch.setattr(type(tiny_model), "TILE", 16)
+    np.testing.assert_allclose(tiny_model.cooccurrence(img), whole, rtol=0, atol=1e-12)
+
+
+def test_morph_takes_images_of_any_size(files):
+    out = files / "strip.png"
+    for a, b in (("crop:0,0", files / "wide.png"), (files / "wide.png", files / "other.png"),
+                 (files / "other.png", "crop:8,8")):
+        r = run("cooc", "morph", files / "m.pt", a, b, "-o", out, "--length", "5", "--seed", "1")
+        assert r.returncode == 0, r.stderr.decode()
+        assert png(out).shape == (32, 40, 3)
+    r = run("cooc", "morph", files / "m.pt", files / "wide.png", "crop:0,0", "-o", out, "--grid", "2x2")
+    assert r.returncode == 0, r.stderr.decode()
+    assert png(out).shape == (2 * 34 - 2, 2 * 34 - 2, 3)
+
+
+def test_edit_takes_images_of_any_size(files):
+    out = files / "edit.png"
+    r = run("cooc", "edit", files / "m.pt", files / "wide.png", "crop:0,0", files / "other.png", "-o", out,
+            "--size", "24x64", "--seed", "2")
+    assert r.returncode == 0, r.stderr.decode()
+    assert png(out).shape == (24, 64, 3)
+
+
+def test_sources_too_small_or_of_other_channels_are_refused(files, tmp_path):
+    from tghop.imageio import save_image
+
+    save_image(data.bricks(32, rng=1)[:4, :4], tmp_path / "tiny.png")
+    out = tmp_path / "o.png"
+    assert_user_error(run("cooc", "morph", files / "m.pt", "crop:0,0", tmp_path / "tiny.png", "-o", out),
+                      "4x4", "8x8")
+    assert not out.exists()
+
+
+def test_help_says_what_an_image_stands_for():
+    for command in ("morph", "edit"):
+        r = run("cooc", command, "--help")
+        text = " ".join(r.stdout.decode().split())
+        assert "averaged" in text and "training crop's grid of cells" in text, text
+
+
+# ------------------------------------------------------------------ flat exemplars (item 6)
+def test_flat_exemplar_refused_by_fit_and_cooc_alike(files, tmp_path, monkeypatch):
+    from tghop._common import check_texture
+    from tghop.synthesis import TGHop
+
+    flat = np.full((48, 48, 3), 0.5)
+    with pytest.raises(TGHopError) as fit_error:
+        TGHop().fit(flat)
+    monkeypatch.setattr(cooc.CoocGAN, "_build", lambda *a: pytest.fail("training started"))
+    with pytest.raises(TGHopError) as cooc_error:
+        cooc.CoocGAN(**TINY).fit(flat)
+    assert str(fit_error.value) == str(cooc_error.value) and "no texture" in str(fit_error.value)
+    with pytest.raises(TGHopError, match="no texture"):
+        check_texture(np.full((8, 8, 1), 7, dtype=np.uint8))
+    check_texture(data.bricks(32))  # a texture passes
+    out = tmp_path / "m.pt"
+    r = run("cooc", "train", files / "flat.png", "-o", out, *TINY_SET)
+    assert_user_error(r, "no texture")
+    assert not out.exists() and "co-occurrences" not in r.stderr.decode()  # refused before any work
+    r = run("baseline", "cooc", files / "flat.png", "-o", tmp_path / "b.png")
+    assert_user_error(r, "no texture")
+    assert "Note:" not in r.stderr.decode()
+
+
+# ------------------------------------------------------------------ --max-minutes
+def test_max_minutes_stops_saves_and_resume_continues(files, tmp_path):
+    model = tmp_path / "m.pt"
+    # 1e-6 minutes: stopped after the first step, whatever the machine's speed.
+    r = run("cooc", "train", files / "ex.png", "-o", model, "--steps", "50", "--max-minutes", "1e-6", "-q", *TINY_SET)
+    assert r.returncode == 0, r.stderr.decode()
+    last = r.stderr.decode().strip().splitlines()[-1]
+    assert re.search(r"stopped early .* at step 1 of 50; checkpoint written to", last), last
+    assert "--resume" in last and cooc.load(model).step_ == 1
+    r = run("cooc", "train", files / "ex.png", "-o", model, "--steps", "3", "--resume", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert "3 steps trained" in r.stderr.decode() and cooc.load(model).step_ == 3
+    for bad in ("0", "-1", "soon"):
+        assert_user_error(run("cooc", "train", files / "ex.png", "-o", tmp_path / "x.pt", "--max-minutes", bad),
+                          "--max-minutes")
+    assert not (tmp_path / "x.pt").exists()
+
+
+# ------------------------------------------------------------------ baseline cooc's note
+def test_baseline_cooc_says_it_trains_first(files, tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from tghop import baselines
+    from tghop.cli import main
+
+    calls = []
+
+    def fake(exemplar, size, **kwargs):
+        calls.append(kwargs)
+        return np.zeros((8, 8, 3))
+
+    monkeypatch.setitem(baselines.BASELINES, "cooc", fake)
+    result = CliRunner().invoke(main, ["baseline", "cooc", str(files / "ex.png"), "-o", str(tmp_path / "b.png"), "-q"])
+    assert result.exit_code == 0, result.output
+    first = result.output.splitlines()[0]
+    assert first.startswith("Note: no --model: training") and "about 15 minutes on a 2-core CPU" in first
+    assert len(calls) == 1 and calls[0]["model"] is None
+    result = CliRunner().invoke(main, ["baseline", "cooc", str(files / "ex.png"), "-o", str(tmp_path / "c.png"), "-q",
+                                       "--model", str(files / "m.pt")])
+    assert result.exit_code == 0 and "Note:" not in result.output, result.output
+
+
+def test_help_and_readme_agree_on_the_training_time():
+    readme = (ROOT / "README.md").read_text()
+    for text in (" ".join(run("cooc", "--help").stdout.decode().split()),
+                 " ".join(run("baseline", "--help").stdout.decode().split()), readme):
+        assert "about 15 min" in text and "2-core CPU" in text
+        assert "~14 min" not in text
