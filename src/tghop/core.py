@@ -31,8 +31,6 @@ Choices the paper leaves open (see also the notes in the docs):
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, check_rng, free_cores, report

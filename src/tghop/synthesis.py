@@ -207,9 +207,9 @@ class TGHop(BaseEstimator):
         # (OpenBLAS's results change with its thread count) and a busy machine is not
         # oversubscribed; ICHM.fit runs its clusters in threads of its own (free_cores).
         with threadpool_limits(limits=1):
-            return self._fit(image, progress=progress)
+            return self._fit(image, exclude=exclude, progress=progress)
 
-    def _fit(self, image, *, progress=None):
+    def _fit(self, image, *, exclude=None, progress=None):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size)
