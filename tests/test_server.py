@@ -258,6 +258,98 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert all(name.endswith(".npz") and not name.startswith(".") for name in before)
 
 
+def png_of(pixels):
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def decoded(content):
+    import numpy as np
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(content)).convert("RGB"))
+
+
+@pytest.fixture(scope="module")
+def to_fill(client, fitted):
+    """A generated image (PNG bytes) and a mask (PNG bytes, a white square) of its size."""
+    import numpy as np
+
+    model_id, _, _ = fitted
+    r = client.post(f"/api/models/{model_id}/images", json={"size": [64, 80], "seed": 2, "n_patches": 400})
+    assert r.status_code == 200, r.text
+    hole = np.zeros((64, 80), np.uint8)
+    hole[20:44, 28:56] = 255
+    return r.content, png_of(hole), hole > 0
+
+
+def test_inpaint_keeps_the_pixels_outside_the_mask_and_fills_the_inside(client, fitted, to_fill):
+    model_id, _, _ = fitted
+    image, mask, hole = to_fill
+    url = f"/api/models/{model_id}/inpaint"
+    ask = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png"),
+           "seed": (None, "3")}
+    a = client.post(url, files=ask)
+    assert a.status_code == 200, a.text
+    assert a.headers["content-type"] == "image/png" and a.headers["x-tghop-seed"] == "3"
+    before, after = decoded(image), decoded(a.content)
+    assert after.shape == before.shape
+    assert (after[~hole] == before[~hole]).all()  # every pixel outside the hole, byte for byte
+    assert (after[hole] != before[hole]).any(axis=1).mean() > 0.5
+    assert client.post(url, files=ask).content == a.content  # same seed, same bytes
+    other = client.post(url, files={**ask, "seed": (None, "4")})
+    assert other.status_code == 200 and other.content != a.content
+    assert (decoded(other.content)[~hole] == before[~hole]).all()
+    tiled = client.post(url, files={**ask, "tile": (None, "true")})
+    assert tiled.status_code == 200 and (decoded(tiled.content)[~hole] == before[~hole]).all()
+    jpeg = io.BytesIO()  # a JPEG picture: its decoded pixels are kept
+    from PIL import Image
+
+    Image.open(io.BytesIO(image)).save(jpeg, format="JPEG", quality=90)
+    j = client.post(url, files={**ask, "image": ("photo.jpg", jpeg.getvalue(), "image/jpeg")})
+    assert j.status_code == 200, j.text
+    assert (decoded(j.content)[~hole] == decoded(jpeg.getvalue())[~hole]).all()
+    unseeded = client.post(url, files={k: v for k, v in ask.items() if k != "seed"})
+    assert unseeded.status_code == 200 and int(unseeded.headers["x-tghop-seed"]) >= 0
+
+
+def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fill, live_server):
+    import numpy as np
+
+    model_id, _, _ = fitted
+    image, mask, _ = to_fill
+    url = f"/api/models/{model_id}/inpaint"
+    good = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png")}
+    post = client.post
+    # 400: not an image, a mask of another size, a picture too small for the model's patches, no mask
+    assert_error(post(url, files={**good, "image": ("notes.txt", b"hello")}), 400, "notes.txt: not a readable image")
+    assert_error(post(url, files={**good, "mask": ("mask.txt", b"hello")}), 400, "mask.txt: not a readable image")
+    small = png_of(np.zeros((32, 40), np.uint8))
+    assert_error(post(url, files={**good, "mask": ("small.png", small)}), 400,
+                 "the mask is 32x40 but the image is 64x80")
+    tiny = png_of(np.full((4, 4, 3), 128, np.uint8))
+    tiny_hole = png_of(np.full((4, 4), 255, np.uint8))
+    assert_error(post(url, files={"image": ("tiny.png", tiny), "mask": ("m.png", tiny_hole)}), 400,
+                 "the image is 4x4; inpainting with")
+    assert_error(post(url, files={"image": good["image"]}), 400, "no mask")
+    assert_error(post(url, data={"seed": "1"}), 400, "multipart")
+    # 413: over the pixel limit, over 50 MB
+    assert_error(post(url, files={**good, "image": ("big.png", png_header(9000, 9000))}), 413,
+                 "big.png: the image is 9000x9000 pixels")
+    assert_error(post(url, files={**good, "image": ("huge.png", b"\0" * (50 * 1024 * 1024 + 10))}), 413, "50 MB")
+    # 422: a bad seed or tile, an unknown field
+    for seed in ("-1", "x", "1.5", str(2**63)):
+        assert_error(post(url, files={**good, "seed": (None, seed)}), 422, "seed must be")
+    assert_error(post(url, files={**good, "tile": (None, "maybe")}), 422, "tile must be true or false")
+    assert_error(post(url, files={**good, "refine": (None, "2")}), 422, "unknown field 'refine'")
+    # 404: no such model
+    assert_error(post(f"/api/models/{'0' * 64}/inpaint", files=good), 404, "no model")
+    assert_error(post("/api/models/nope/inpaint", files=good), 404, "no model")
+
+
 def test_the_page_and_its_files_are_served(client):
     page = client.get("/")
     assert page.status_code == 200 and "text/html" in page.headers["content-type"]

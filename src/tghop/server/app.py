@@ -10,7 +10,7 @@ killed server (``.*.tmp``) are removed at start.
 
 Everything tghop does here is the library's own code: :func:`tghop.imageio.load_image`
 (with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
-:func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with their
+:func:`tghop.inpaint.inpaint`, :func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with their
 checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
 status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
@@ -526,6 +526,69 @@ class Server:
                         headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                                  "Cache-Control": "no-store"})
 
+    def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
+        """Read the picture and its mask, fill the mask's white pixels with the model's
+        texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes."""
+        import numpy as np
+
+        from ..cli.common import HINT_DOWNSCALE_YOURSELF
+        from ..imageio import load_image, to_uint8, write_png
+        from ..inpaint import check_hole, inpaint
+
+        model = self.cache.load(model_id)
+        picture = mask = None
+        for name, default in (("image", "image"), ("mask", "mask")):
+            upload = fields.get(name)
+            if not isinstance(upload, tuple):
+                raise RequestError(400, f"no {name}: send the picture as the file field 'image' and its mask "
+                                        "(white: the hole) as the file field 'mask'")
+            filename, content = upload
+            filename = _safe_name(filename, default)
+            if not content:
+                raise RequestError(400, f"{filename} is empty; send an image file")
+            read = self._read_image(content, filename, lambda p: load_image(
+                p, dtype=None if name == "image" else np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
+            if name == "image":
+                picture = read
+            else:
+                mask = read.mean(axis=2)
+        try:
+            hole = check_hole(mask, picture.shape)
+        except TGHopError as exc:
+            raise RequestError(400, str(exc)) from None
+        with self.generating:
+            try:
+                filled = inpaint(model, picture, hole, rng=seed, tile=tile)
+            except MemoryError:
+                raise RequestError(413, "out of memory; send a smaller picture") from None
+            except TGHopError as exc:
+                raise RequestError(400, str(exc)) from None
+        buf = io.BytesIO()
+        write_png(buf, filled if filled.dtype == np.uint8 else to_uint8(filled))
+        return buf.getvalue()
+
+    async def inpaint(self, request):
+        model_id = request.path_params["id"]
+        self.cache.path(model_id)  # 404 for a malformed id before the body is read
+        body = await read_body(request)
+        fields = await read_form(request, body)
+        unknown = [k for k in fields if k not in ("image", "mask", "seed", "tile")]
+        if unknown:
+            raise RequestError(422, f"unknown field {unknown[0]!r}; known: image, mask, seed, tile")
+        seed, tile = fields.get("seed"), fields.get("tile", "false")
+        if isinstance(seed, tuple) or isinstance(tile, tuple):
+            raise RequestError(422, "seed and tile are plain fields, not files")
+        seed = (seed or "").strip()
+        if seed == "":
+            seed = secrets.randbelow(2**31)
+        elif not re.fullmatch(r"[0-9]{1,19}", seed) or int(seed) >= 2**63:
+            raise RequestError(422, f"seed must be an integer from 0 to 2**63 - 1, got {seed[:40]!r}")
+        else:
+            seed = int(seed)
+        tile = _parse_bool("tile", tile)
+        png = await run_in_threadpool(self._inpaint, model_id, fields, seed, tile)
+        return Response(png, media_type="image/png", headers={"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"})
+
     # ---------------------------------------------------------------- the rest
     async def builtin_image(self, request):
         from ..data import BUILTIN, builtin
@@ -587,6 +650,7 @@ def create_app(cache_dir, max_fits: int | None = None):
         Route("/api/models/{id}", _wrap(server.model_summary)),
         Route("/api/models/{id}/file", _wrap(server.model_file)),
         Route("/api/models/{id}/images", _wrap(server.generate), methods=["POST"]),
+        Route("/api/models/{id}/inpaint", _wrap(server.inpaint), methods=["POST"]),
         Route("/api/jobs/{job}", _wrap(server.job_state)),
         Route("/api/jobs/{job}", _wrap(server.cancel_job), methods=["DELETE"]),
         Route("/api/jobs/{job}/events", _wrap(server.job_events)),
