@@ -1,6 +1,7 @@
 """``tghop serve``'s page in a real browser (Chromium through Playwright) against a real
 uvicorn server: pick builtin:bricks, watch the fit's progress bar finish, generate, and
-check the result's natural size and the 3x3 tiled preview."""
+check the result's natural size and the 3x3 tiled preview; paint a hole with the brush in
+Inpaint mode and fill it."""
 
 import os
 import shutil
@@ -20,6 +21,7 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-f
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_SCREENSHOT", "/tmp/tghop-serve-page.png")
+INPAINT_SCREENSHOT = os.environ.get("TGHOP_INPAINT_SCREENSHOT", "/tmp/tghop-inpaint-page.png")
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +41,8 @@ def page(live_server):
             browser.close()
 
 
-def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
+def fit_bricks(page):
+    """Fit builtin:bricks with the fast settings (from the server's cache when it is there)."""
     page.click("#fit-settings summary")
     page.uncheck("#layout")
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
@@ -47,6 +50,10 @@ def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
     page.select_option("#builtin", "bricks")
     page.wait_for_selector("#fit-status:not([hidden])")
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
+
+
+def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
+    fit_bricks(page)
     assert page.eval_on_selector("#progress", "p => p.value") == 1
     assert page.is_enabled("#go")
     page.wait_for_selector("#summary:not([hidden])")
@@ -77,4 +84,72 @@ def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
     page.check("#zoom")
     assert "zoom" in page.eval_on_selector("body", "b => b.className")
     page.screenshot(path=SCREENSHOT, full_page=True)
+    assert not page.errors, page.errors
+
+
+#: The result's pixels (RGBA, row by row), drawn on a canvas.
+PIXELS = ("i => { const c = document.createElement('canvas'); c.width = i.naturalWidth; c.height = i.naturalHeight;"
+          " const x = c.getContext('2d'); x.drawImage(i, 0, 0);"
+          " return Array.from(x.getImageData(0, 0, c.width, c.height).data); }")
+RESULT_SHOWN = ("(() => { const i = document.getElementById('result');"
+                " return !i.hidden && i.complete && i.naturalWidth > 0 && "
+                "document.getElementById('result-caption').textContent.startsWith('%s'); })()")
+
+
+def mode(page, name):
+    """Click the mode's label (its radio button is hidden behind it), as a user does."""
+    page.locator("label", has=page.locator(f"#mode-{name}")).click()
+    assert page.is_checked(f"#mode-{name}")
+
+
+def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
+    import numpy as np
+
+    mode(page, "view")
+    if not page.is_enabled("#go"):  # run alone: fit first
+        fit_bricks(page)
+    page.fill("#height", "96")
+    page.fill("#width", "128")
+    page.fill("#seed", "3")
+    page.fill("#n_patches", "400")
+    page.uncheck("#tile")
+    page.click("#go")
+    page.wait_for_function(RESULT_SHOWN % "result: 96x128, seed 3", timeout=60_000)
+    before = np.array(page.eval_on_selector("#result", PIXELS)).reshape(96, 128, 4)
+    assert page.is_hidden("#inpaint")
+    mode(page, "inpaint")
+    assert page.is_visible("#inpaint") and page.is_hidden("#pair")
+    page.wait_for_selector("#editor[data-ready='1']")
+    assert page.eval_on_selector("#mask", "c => [c.height, c.width]") == [96, 128]
+    page.fill("#inpaint-seed", "5")
+    page.eval_on_selector("#brush", "b => { b.value = '10'; b.dispatchEvent(new Event('input')); }")
+    assert page.text_content("#brush-size") == "10 px"
+    box = page.locator("#mask").bounding_box()
+    x0, y0, sx, sy = box["x"], box["y"], box["width"] / 128, box["height"] / 96
+    page.mouse.move(x0 + 40 * sx, y0 + 40 * sy)  # a stroke from (40, 40) to (88, 56) in image pixels
+    page.mouse.down()
+    for t in np.linspace(0, 1, 12)[1:]:
+        page.mouse.move(x0 + (40 + 48 * t) * sx, y0 + (40 + 16 * t) * sy)
+    page.mouse.up()
+    alpha = np.array(page.eval_on_selector(
+        "#mask", "c => Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data)")).reshape(96, 128, 4)
+    painted = alpha[..., 3] > 127
+    assert painted[48, 64] and not painted[:30].any() and not painted[70:].any() and 300 < painted.sum() < 1500
+    page.screenshot(path=INPAINT_SCREENSHOT, full_page=True)
+    page.click("#fill")
+    page.wait_for_function(RESULT_SHOWN % "inpainted: 96x128, seed 5", timeout=60_000)
+    assert page.eval_on_selector("#result", "i => [i.naturalHeight, i.naturalWidth]") == [96, 128]
+    after = np.array(page.eval_on_selector("#result", PIXELS)).reshape(96, 128, 4)
+    changed = (after != before).any(axis=2)
+    assert changed[painted].mean() > 0.5  # the painted stroke is filled...
+    assert not changed[:28].any() and not changed[72:].any()  # ...and far from it nothing changed
+    assert page.get_attribute("#download-png", "download") == "tghop-inpainted-seed5.png"
+    assert page.get_attribute("#download-png", "href") == page.get_attribute("#result", "src")
+    page.wait_for_selector("#editor[data-ready='1']")  # the filled picture is the one to paint on next
+    assert page.eval_on_selector("#mask", "c => c.getContext('2d').getImageData(0, 0, c.width, c.height)"
+                                          ".data.every((v, k) => k % 4 !== 3 || v === 0)")
+    page.click("#fill")  # nothing painted: said, not sent
+    page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('paint the hole')")
+    mode(page, "view")
+    assert page.is_visible("#pair") and page.is_hidden("#inpaint")
     assert not page.errors, page.errors

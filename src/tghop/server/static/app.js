@@ -3,6 +3,9 @@
 
 const $ = (id) => document.getElementById(id);
 const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false };
+// The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
+// and the brush's last point while painting.
+const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false };
 
 function say(text, isError) {
   const el = $("message");
@@ -25,10 +28,14 @@ function setExemplar(url) {
   if (url) { img.src = url; img.hidden = false; } else { img.removeAttribute("src"); img.hidden = true; }
 }
 
+function updateButtons() {
+  $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId;
+  $("fill").disabled = state.busy || !state.modelId || !editor.blob;
+}
+
 function setModel(id) {
   state.modelId = id;
-  $("go").disabled = !id;
-  $("strip-go").disabled = !id;
+  updateButtons();
   const link = $("download-model");
   if (id) {
     link.href = `/api/models/${id}/file`;
@@ -190,23 +197,24 @@ async function generate(body) {
     method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
   });
   if (!response.ok) throw new Error(await errorOf(response));
-  return URL.createObjectURL(await response.blob());
+  return response.blob();
 }
 
-function showResult(url, seed) {
+function showResult(url, seed, blob, what) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   state.resultUrl = url;
   const img = $("result");
   img.onload = () => {
-    $("result-caption").textContent = `result: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
+    $("result-caption").textContent = `${what || "result"}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
     drawTiled(img);
   };
   img.src = url;
   img.hidden = false;
   const link = $("download-png");
   link.href = url;
-  link.setAttribute("download", `tghop-seed${seed}.png`);
+  link.setAttribute("download", what ? `tghop-${what}-seed${seed}.png` : `tghop-seed${seed}.png`);
   link.hidden = false;
+  if (blob) setEditorPicture(blob, `tghop-seed${seed}.png`);
 }
 
 function drawTiled(img) {
@@ -219,20 +227,20 @@ function drawTiled(img) {
   canvas.dataset.ready = "1";
 }
 
-async function withBusy(button, work) {
+async function withBusy(button, work, report) {
   if (state.busy) return;
   state.busy = true;
   const old = button.textContent;
   button.textContent = "working...";
-  $("go").disabled = $("strip-go").disabled = true;
+  updateButtons();
   try {
     await work();
   } catch (e) {
-    say(e.message, true);
+    (report || say)(e.message, true);
   } finally {
     button.textContent = old;
     state.busy = false;
-    $("go").disabled = $("strip-go").disabled = !state.modelId;
+    updateButtons();
   }
 }
 
@@ -242,7 +250,8 @@ function onGenerate(event) {
   withBusy($("go"), async () => {
     const seed = Number($("seed").value);
     say("generating");
-    showResult(await generate(generation(seed)), seed);
+    const blob = await generate(generation(seed));
+    showResult(URL.createObjectURL(blob), seed, blob);
     say("");
   });
 }
@@ -258,7 +267,7 @@ function onStrip() {
     for (let i = 0; i < 8; i++) {
       const seed = first + i;
       say(`seed ${seed} (${i + 1} of 8)`);
-      const url = await generate(generation(seed, [h, w]));
+      const url = URL.createObjectURL(await generate(generation(seed, [h, w])));
       const figure = document.createElement("figure");
       const img = document.createElement("img");
       img.src = url;
@@ -269,7 +278,8 @@ function onStrip() {
         for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
         img.classList.add("chosen");
         $("seed").value = String(seed);
-        showResult(URL.createObjectURL(await (await fetch(url)).blob()), seed);
+        const blob = await (await fetch(url)).blob();
+        showResult(URL.createObjectURL(blob), seed, blob);
       });
       const caption = document.createElement("figcaption");
       caption.textContent = `seed ${seed}`;
@@ -278,6 +288,138 @@ function onStrip() {
     }
     say("click a seed to pick it");
   });
+}
+
+// ------------------------------------------------------------------ inpainting
+function sayInpaint(text, isError) {
+  const el = $("inpaint-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+function setMode(mode) {
+  const inpaint = mode === "inpaint";
+  document.body.classList.toggle("inpaint", inpaint);
+  $("inpaint").hidden = !inpaint;
+  if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
+}
+
+// The picture to paint on: the latest result, or a picture the user chose.
+function setEditorPicture(blob, name) {
+  if (editor.url) URL.revokeObjectURL(editor.url);
+  editor.blob = blob;
+  editor.name = name || "picture.png";
+  editor.url = URL.createObjectURL(blob);
+  const img = $("editor-base");
+  img.onload = () => {
+    const canvas = $("mask");
+    const w = img.naturalWidth, h = img.naturalHeight;
+    canvas.width = w;  // a new size clears the mask
+    canvas.height = h;
+    clearMask();
+    // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on.
+    $("editor").style.width = `${Math.max(w, Math.min(3 * w, 640))}px`;
+    $("editor").hidden = false;
+    $("editor").dataset.ready = "1";
+  };
+  img.onerror = () => sayInpaint(`the browser cannot show ${editor.name}; use a PNG or JPEG picture`, true);
+  $("editor").dataset.ready = "";
+  img.src = editor.url;
+  updateButtons();
+  sayInpaint("");
+}
+
+function clearMask() {
+  const canvas = $("mask");
+  canvas.getContext("2d").clearRect(0, 0, canvas.width, canvas.height);
+}
+
+function brushPoint(event) {
+  const canvas = $("mask");
+  const rect = canvas.getBoundingClientRect();
+  return [(event.clientX - rect.left) * canvas.width / rect.width,
+    (event.clientY - rect.top) * canvas.height / rect.height];
+}
+
+function paint(from, to) {
+  const ctx = $("mask").getContext("2d");
+  ctx.globalCompositeOperation = $("erase").checked ? "destination-out" : "source-over";
+  ctx.strokeStyle = ctx.fillStyle = "#ff00e6";  // shown at 60 % over the picture
+  ctx.lineWidth = Number($("brush").value);
+  ctx.lineCap = ctx.lineJoin = "round";
+  ctx.beginPath();
+  ctx.moveTo(from[0], from[1]);
+  ctx.lineTo(to[0], to[1]);
+  ctx.stroke();
+}
+
+function onBrushDown(event) {
+  if (event.button !== 0 || !editor.blob) return;
+  event.preventDefault();
+  $("mask").setPointerCapture(event.pointerId);
+  editor.painting = true;
+  editor.last = brushPoint(event);
+  paint(editor.last, editor.last);
+}
+
+function onBrushMove(event) {
+  if (!editor.painting) return;
+  const point = brushPoint(event);
+  paint(editor.last, point);
+  editor.last = point;
+}
+
+function onBrushUp() {
+  editor.painting = false;
+  editor.last = null;
+}
+
+// The mask as the API wants it: white where painted (more than half opaque), black elsewhere.
+function maskBlob() {
+  const canvas = $("mask");
+  const w = canvas.width, h = canvas.height;
+  const pixels = canvas.getContext("2d").getImageData(0, 0, w, h).data;
+  let painted = false;
+  for (let i = 3; i < pixels.length; i += 4) if (pixels[i] > 127) { painted = true; break; }
+  if (!painted) return Promise.resolve(null);
+  const out = document.createElement("canvas");
+  out.width = w;
+  out.height = h;
+  const ctx = out.getContext("2d");
+  ctx.drawImage(canvas, 0, 0);
+  ctx.globalCompositeOperation = "source-in";
+  ctx.fillStyle = "#fff";
+  ctx.fillRect(0, 0, w, h);
+  ctx.globalCompositeOperation = "destination-over";
+  ctx.fillStyle = "#000";
+  ctx.fillRect(0, 0, w, h);
+  return new Promise((resolve) => out.toBlob(resolve, "image/png"));
+}
+
+function onFill() {
+  if (!state.modelId || !editor.blob) return;
+  withBusy($("fill"), async () => {
+    const mask = await maskBlob();
+    if (!mask) { sayInpaint("paint the hole first: drag the brush over the picture", true); return; }
+    const seed = $("inpaint-seed").value.trim();
+    const form = new FormData();
+    form.append("image", editor.blob, editor.name);
+    form.append("mask", mask, "mask.png");
+    if (seed !== "") form.append("seed", seed);
+    form.append("tile", $("inpaint-tile").checked ? "true" : "false");
+    sayInpaint("filling");
+    const response = await fetch(`/api/models/${state.modelId}/inpaint`, { method: "POST", body: form });
+    if (!response.ok) throw new Error(await errorOf(response));
+    const blob = await response.blob();
+    const used = response.headers.get("X-Tghop-Seed");
+    showResult(URL.createObjectURL(blob), used, blob, "inpainted");
+    sayInpaint(`filled (seed ${used}): paint again to fill more, or download it`);
+  }, sayInpaint);
+}
+
+function onPicture(file) {
+  if (!file) return;
+  setEditorPicture(file, file.name);
 }
 
 // ------------------------------------------------------------------ wiring
@@ -300,6 +442,18 @@ async function init() {
   $("cancel").addEventListener("click", cancelFit);
   $("gen-form").addEventListener("submit", onGenerate);
   $("strip-go").addEventListener("click", onStrip);
+  for (const radio of document.querySelectorAll("input[name=mode]")) {
+    radio.addEventListener("change", () => { if (radio.checked) setMode(radio.value); });
+  }
+  $("brush").addEventListener("input", () => { $("brush-size").textContent = `${$("brush").value} px`; });
+  $("clear").addEventListener("click", clearMask);
+  $("fill").addEventListener("click", onFill);
+  $("picture").addEventListener("change", (e) => onPicture(e.target.files[0]));
+  const mask = $("mask");
+  mask.addEventListener("pointerdown", onBrushDown);
+  mask.addEventListener("pointermove", onBrushMove);
+  mask.addEventListener("pointerup", onBrushUp);
+  mask.addEventListener("pointercancel", onBrushUp);
   $("zoom").addEventListener("change", (e) => document.body.classList.toggle("zoom", e.target.checked));
   const drop = $("drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
