@@ -3,6 +3,7 @@ uvicorn server: pick builtin:bricks, watch the fit's progress bar finish, genera
 check the result's natural size and the 3x3 tiled preview; paint a hole with the brush in
 Inpaint mode and fill it."""
 
+import io
 import os
 import shutil
 
@@ -96,6 +97,28 @@ RESULT_SHOWN = ("(() => { const i = document.getElementById('result');"
                 "document.getElementById('result-caption').textContent.startsWith('%s'); })()")
 
 
+def stroke(page, start, end):
+    """Drag the mouse over the mask from ``start`` to ``end`` (x, y in the picture's pixels)."""
+    box = page.locator("#mask").bounding_box()
+    width, height = page.eval_on_selector("#mask", "c => [c.width, c.height]")
+    sx, sy = box["width"] / width, box["height"] / height
+    page.mouse.move(box["x"] + start[0] * sx, box["y"] + start[1] * sy)
+    page.mouse.down()
+    for t in (i / 10 for i in range(1, 11)):
+        x, y = start[0] + (end[0] - start[0]) * t, start[1] + (end[1] - start[1]) * t
+        page.mouse.move(box["x"] + x * sx, box["y"] + y * sy)
+    page.mouse.up()
+
+
+def mask_of(page, shape=(96, 128)):
+    """The painted pixels of the mask canvas (more than half opaque), as bool (H, W)."""
+    import numpy as np
+
+    alpha = page.eval_on_selector("#mask", "c => Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height)"
+                                           ".data.filter((v, k) => k % 4 === 3))")
+    return np.array(alpha).reshape(shape) > 127
+
+
 def mode(page, name):
     """Click the mode's label (its radio button is hidden behind it), as a user does."""
     page.locator("label", has=page.locator(f"#mode-{name}")).click()
@@ -124,18 +147,17 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     page.fill("#inpaint-seed", "5")
     page.eval_on_selector("#brush", "b => { b.value = '10'; b.dispatchEvent(new Event('input')); }")
     assert page.text_content("#brush-size") == "10 px"
-    box = page.locator("#mask").bounding_box()
-    x0, y0, sx, sy = box["x"], box["y"], box["width"] / 128, box["height"] / 96
-    page.mouse.move(x0 + 40 * sx, y0 + 40 * sy)  # a stroke from (40, 40) to (88, 56) in image pixels
-    page.mouse.down()
-    for t in np.linspace(0, 1, 12)[1:]:
-        page.mouse.move(x0 + (40 + 48 * t) * sx, y0 + (40 + 16 * t) * sy)
-    page.mouse.up()
-    alpha = np.array(page.eval_on_selector(
-        "#mask", "c => Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data)")).reshape(96, 128, 4)
-    painted = alpha[..., 3] > 127
+    stroke(page, (40, 40), (88, 56))
+    assert page.is_visible("#brush-cursor")
+    painted = mask_of(page)
     assert painted[48, 64] and not painted[:30].any() and not painted[70:].any() and 300 < painted.sum() < 1500
     page.screenshot(path=INPAINT_SCREENSHOT, full_page=True)
+    page.check("#erase")  # erase the stroke's right end
+    stroke(page, (84, 54), (90, 57))
+    page.uncheck("#erase")
+    erased = painted & ~mask_of(page)
+    assert erased[55, 86] and erased.sum() > 20 and not (mask_of(page) & ~painted).any()
+    painted = mask_of(page)
     page.click("#fill")
     page.wait_for_function(RESULT_SHOWN % "inpainted: 96x128, seed 5", timeout=60_000)
     assert page.eval_on_selector("#result", "i => [i.naturalHeight, i.naturalWidth]") == [96, 128]
@@ -146,10 +168,32 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     assert page.get_attribute("#download-png", "download") == "tghop-inpainted-seed5.png"
     assert page.get_attribute("#download-png", "href") == page.get_attribute("#result", "src")
     page.wait_for_selector("#editor[data-ready='1']")  # the filled picture is the one to paint on next
-    assert page.eval_on_selector("#mask", "c => c.getContext('2d').getImageData(0, 0, c.width, c.height)"
-                                          ".data.every((v, k) => k % 4 !== 3 || v === 0)")
+    assert not mask_of(page).any()
     page.click("#fill")  # nothing painted: said, not sent
     page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('paint the hole')")
+    stroke(page, (10, 10), (30, 20))
+    assert mask_of(page).any()
+    page.click("#clear")
+    assert not mask_of(page).any()
+    # A picture of the user's own: painted and filled the same way.
+    from PIL import Image
+
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    own = to_uint8(data.bricks(96, rng=5))[:64, :80]
+    buf = io.BytesIO()
+    Image.fromarray(own).save(buf, format="PNG")
+    page.set_input_files("#picture", files=[{"name": "mine.png", "mimeType": "image/png", "buffer": buf.getvalue()}])
+    page.wait_for_function("document.getElementById('mask').width === 80 && "
+                           "document.getElementById('editor').dataset.ready === '1'")
+    stroke(page, (20, 30), (60, 30))
+    hole = mask_of(page, (64, 80))
+    page.click("#fill")
+    page.wait_for_function(RESULT_SHOWN % "inpainted: 64x80, seed 5", timeout=60_000)
+    filled = np.array(page.eval_on_selector("#result", PIXELS)).reshape(64, 80, 4)[..., :3]
+    assert (filled[~hole] == own[~hole]).all()  # the picture's pixels outside the stroke, as they were
+    assert (filled[hole] != own[hole]).any(axis=1).mean() > 0.5
     mode(page, "view")
     assert page.is_visible("#pair") and page.is_hidden("#inpaint")
     assert not page.errors, page.errors

@@ -362,7 +362,19 @@ function onBrushDown(event) {
   paint(editor.last, editor.last);
 }
 
+// A circle of the brush's size follows the pointer over the picture.
+function moveCursor(event) {
+  const canvas = $("mask"), cursor = $("brush-cursor");
+  const rect = canvas.getBoundingClientRect();
+  const size = Number($("brush").value) * rect.width / canvas.width;
+  cursor.style.width = cursor.style.height = `${size}px`;
+  cursor.style.left = `${event.clientX - rect.left}px`;
+  cursor.style.top = `${event.clientY - rect.top}px`;
+  cursor.hidden = false;
+}
+
 function onBrushMove(event) {
+  moveCursor(event);
   if (!editor.painting) return;
   const point = brushPoint(event);
   paint(editor.last, point);
@@ -454,6 +466,7 @@ async function init() {
   mask.addEventListener("pointermove", onBrushMove);
   mask.addEventListener("pointerup", onBrushUp);
   mask.addEventListener("pointercancel", onBrushUp);
+  mask.addEventListener("pointerleave", () => { $("brush-cursor").hidden = true; });
   $("zoom").addEventListener("change", (e) => document.body.classList.toggle("zoom", e.target.checked));
   const drop = $("drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
