@@ -56,7 +56,9 @@ def gpdm_memory(exemplar_shape, size, *, n_projections: int = 64, patch_size: in
     Per pixel of the exemplar: its projections onto every direction, their sorted copy
     and sort indices (int64), and the convolution's unfolded patches; per pixel of the
     output the same twice over (forward and backward), plus the interpolated target
-    quantiles, the gradient and Adam's two moments. An over-estimate by design.
+    quantiles, the gradient and Adam's two moments. Measured peaks (growth of the
+    process's resident memory, 256 x 256 exemplar): 162 MB at 128 x 128 (estimate 158 MB),
+    268 MB at 256 x 256 (estimate 326 MB).
     """
     (h, w), (eh, ew) = tuple(size), tuple(exemplar_shape[:2])
     c = exemplar_shape[2] if len(exemplar_shape) > 2 else 1
