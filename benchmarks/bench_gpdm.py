@@ -67,7 +67,16 @@ def main(argv=None):
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--steps", type=int, default=300, help="GPDM Adam steps per level (paper: 300)")
     parser.add_argument("--tag", default="")
+    parser.add_argument("--render", action="store_true", help="only rewrite the .md from the .json of a run")
     args = parser.parse_args(argv)
+    if args.render:
+        import json
+
+        name = "gpdm" + (f"-{args.tag}" if args.tag else "")
+        payload = json.loads((RESULTS / f"{name}.json").read_text())
+        write_results(name, payload, render(payload))
+        print(render(payload))
+        return
 
     from tghop.baselines import gpdm
     from tghop.imageio import save_image
@@ -75,7 +84,7 @@ def main(argv=None):
     name = "gpdm" + (f"-{args.tag}" if args.tag else "")
     images = RESULTS / name
     images.mkdir(parents=True, exist_ok=True)
-    rows, payload = [], []
+    payload = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for tex in filter(None, args.textures.split(",")):
@@ -99,20 +108,24 @@ def main(argv=None):
             ):
                 s = scores(ex, img)
                 log(f"{tex} {method}: {seconds:.1f} s {s}")
-                rows.append([tex, method, round(seconds, 1), detail, *(s[m] for m in METRICS)])
                 payload.append({"texture": tex, "method": method, "seconds": seconds, "detail": detail, **s,
                                 "size": args.size, "steps": args.steps if method == "gpdm" else None})
-            write_results(name, payload)  # after every texture: a partial table survives an interruption
-    md = (
-        f"# GPDM vs tghop ({args.size}x{args.size} from the centre 256x256 of each exemplar)\n\n"
-        f"GPDM: `tghop.baselines.gpdm`, seed 0, {args.steps} Adam steps per level (paper: 300), 64 projections, "
+            write_results(name, payload, render(payload))  # after every texture: a partial table survives
+    print(render(payload))
+
+
+def render(payload) -> str:
+    """The markdown table of a (possibly partial) list of rows."""
+    size, steps = payload[0]["size"], max(p["steps"] or 0 for p in payload)
+    rows = [[p["texture"], p["method"], round(p["seconds"], 1), p["detail"], *(p[m] for m in METRICS)] for p in payload]
+    return (
+        f"# GPDM vs tghop ({size}x{size} from the centre 256x256 of each exemplar)\n\n"
+        f"GPDM: `tghop.baselines.gpdm`, seed 0, {steps} Adam steps per level (paper: 300), 64 projections, "
         "7x7 patches, scale factor 0.85, coarsest side 21. tghop: `tghop fit` (defaults), `tghop synth --seed 0`. "
         "Seconds: wall clock on a shared 2-core machine (tghop: fit + synth). Lower is better for every metric; "
         "copied and copied_textured are fractions of 16x16 result windows within RMS 0.03 of an exemplar window.\n\n"
         + markdown_table(["texture", "method", "seconds", "detail", *METRICS], rows)
     )
-    write_results(name, payload, md)
-    print(md)
 
 
 if __name__ == "__main__":
