@@ -159,12 +159,20 @@ def gpdm(
 
     Notes
     -----
+    The output's border pixels lie in fewer patches (a corner pixel in one), so they get
+    little gradient and traces of the starting noise can stay along the borders. Large
+    rounded elements (beach pebbles) come out as soft, cloud-like blobs at these
+    defaults; regular ones (brick courses, knit holes) are reproduced
+    (``benchmarks/results/gpdm*.md``).
+
     Cost: every step convolves both the output and the exemplar with ``n_projections``
     filters of ``C * patch_size**2`` weights, sorts the projections, and back-propagates
     through the output's side: about ``2 * n_projections * C * patch_size**2 * (H W + 3 h w)``
     flops per step at the finest level, and the whole pyramid costs about 3.6 times its
-    finest level (``1 / (1 - 0.85**2)``). On 2 busy CPU cores a 128 x 128 output from a
-    256 x 256 exemplar (12 levels x 300 steps) takes minutes. Memory is dominated by the
+    finest level (``1 / (1 - 0.85**2)``). A 128 x 128 output from a 256 x 256 exemplar
+    (12 levels) took 12 minutes at 300 steps per level on 2 CPU cores shared with other
+    work, and 1.7 minutes at 100 steps when they were less loaded
+    (``benchmarks/results/gpdm*.md``). Memory is dominated by the
     finest level's projections (:func:`gpdm_memory`); sizes whose estimate exceeds this
     machine's memory are refused before any work, as are sizes above
     :data:`tghop._common.MAX_PIXELS`.

@@ -119,7 +119,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
     cooc           co-occurrence cGAN (Darzi et al.): trains ~15 min on 2 cores, or --model (metrics extra)
     gpdm           GPDM (Elnekave & Weiss): patch sliced-Wasserstein matching, coarse to fine, Adam on the
-                   pixels; 12 levels x 300 steps: ~15 min at 128x128 on 2 busy cores (metrics extra)
+                   pixels; 12 levels x 300 steps: ~12 min at 128x128 on 2 busy cores (metrics extra)
     """
     from ..baselines import BASELINES
     from ..imageio import save_image
