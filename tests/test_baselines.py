@@ -55,9 +55,9 @@ def test_crops_larger_than_the_exemplar_are_refused(exemplar):
         baselines.blurred_crop(exemplar, 16, sigma=0)
 
 
-@pytest.mark.parametrize("name", ["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov"])
+@pytest.mark.parametrize("name", ["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "gpdm"])
 def test_sizes_above_the_pixel_limit_are_refused_before_any_work(name, exemplar, monkeypatch):
-    if name == "ustyuzhaninov":
+    if name in ("ustyuzhaninov", "gpdm"):
         pytest.importorskip("torch")
 
     def no_quilt(*args, **kwargs):
@@ -169,7 +169,7 @@ def test_ustyuzhaninov_default_model_runs(exemplar):
 
 
 def test_registry_has_a_uniform_signature(exemplar):
-    assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"}
+    assert set(BASELINES) == {"crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc", "gpdm"}
     for fn in BASELINES.values():
         assert callable(fn) and fn.__doc__
 
@@ -259,3 +259,88 @@ def test_cli_refuses_a_size_beyond_the_memory_in_one_line(tmp_path, monkeypatch)
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("Error: the ustyuzhaninov baseline at size 8192x8192"), result.output
     assert "largest size that fits" in lines[0] and "Traceback" not in result.output
+
+
+# ---------------------------------------------------------------------------------------
+# GPDM
+# ---------------------------------------------------------------------------------------
+
+
+def _patch_swd(a, b, patch_size=7, n_projections=256):
+    """Sliced Wasserstein distance of two images' patches, fixed projections (numpy)."""
+    def patches(img):
+        w = np.lib.stride_tricks.sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))
+        return w.reshape(-1, w.shape[2] * patch_size * patch_size)
+
+    pa, pb = patches(a), patches(b)
+    d = np.random.default_rng(0).standard_normal((pa.shape[1], n_projections))
+    d /= np.linalg.norm(d, axis=0)
+    qa, qb = np.sort(pa @ d, axis=0), np.sort(pb @ d, axis=0)
+    q = (np.arange(len(qa)) + 0.5) / len(qa)
+    qb = np.stack([np.quantile(qb[:, j], q) for j in range(n_projections)], axis=1)
+    return float(np.abs(qa - qb).mean())
+
+
+def test_gpdm_levels_and_memory():
+    from tghop.gpdm import gpdm_levels, gpdm_memory
+
+    levels = gpdm_levels((256, 256, 3), (128, 128))
+    assert levels[0][0] == (21, 21) and levels[-1] == ((128, 128), (256, 256)) and len(levels) == 12
+    assert all(a[0][0] < b[0][0] for a, b in zip(levels, levels[1:]))
+    assert gpdm_levels((20, 20, 3), (16, 16)) == [((16, 16), (20, 20))]
+    assert gpdm_levels((24, 24, 3), (24, 24), coarsest=20) == [((20, 20), (20, 20)), ((24, 24), (24, 24))]
+    assert gpdm_memory((256, 256, 3), (512, 512)) > 4 * gpdm_memory((256, 256, 3), (128, 128)) / 2
+
+
+def test_gpdm_shapes_range_seed_and_progress(exemplar):
+    pytest.importorskip("torch")
+    calls = []
+    out, info = baselines.gpdm(exemplar[:24, :24], (24, 20), n_steps=3, coarsest=16, rng=0, n_threads=1,
+                               progress=lambda *a: calls.append(a), return_info=True)
+    assert out.shape == (24, 20, 3) and out.dtype == np.float64 and 0 <= out.min() and out.max() <= 1
+    assert len(info["levels"]) == 2 and info["levels"][-1] == ((24, 20), (24, 24))
+    assert calls[0] == ("gpdm level 1/2", 0, 3) and calls[-1] == ("gpdm level 2/2", 3, 3)
+    again = baselines.gpdm(exemplar[:24, :24], (24, 20), n_steps=3, coarsest=16, rng=0, n_threads=1)
+    np.testing.assert_array_equal(again, out)
+    other = baselines.gpdm(exemplar[:24, :24], (24, 20), n_steps=3, coarsest=16, rng=1, n_threads=1)
+    assert not np.array_equal(other, out)
+    grey = baselines.gpdm(exemplar[:16, :16].mean(axis=2), 12, n_steps=1, rng=0, n_threads=1)
+    assert grey.shape == (12, 12, 1)
+
+
+def test_gpdm_reduces_the_patch_swd(exemplar):
+    pytest.importorskip("torch")
+    small = exemplar[:24, :24]
+    kwargs = dict(coarsest=20, rng=0, n_threads=1, lr=0.05)
+    start = baselines.gpdm(small, 24, n_steps=0, **kwargs)  # the initial noise, upsampled
+    out, info = baselines.gpdm(small, 24, n_steps=5, return_info=True, **kwargs)
+    assert len(info["levels"]) == 2
+    assert _patch_swd(out, small) < 0.8 * _patch_swd(start, small)
+    assert all(last < first for first, last in info["losses"])
+
+
+def test_gpdm_restores_the_thread_count(exemplar):
+    torch = pytest.importorskip("torch")
+    before = torch.get_num_threads()
+    baselines.gpdm(exemplar[:12, :12], 12, n_steps=1, rng=0, n_threads=2)
+    assert torch.get_num_threads() == before
+
+
+def test_gpdm_refusals(exemplar, monkeypatch):
+    from tghop import gpdm as module
+
+    with pytest.raises(TGHopError, match="at least 7x7"):
+        baselines.gpdm(exemplar, 6)
+    with pytest.raises(TGHopError, match="scale_factor"):
+        baselines.gpdm(exemplar, 16, scale_factor=1.0)
+    with pytest.raises(TGHopError, match="init"):
+        baselines.gpdm(exemplar, 16, init="zeros")
+    monkeypatch.setattr(module, "machine_memory", lambda: 2**20)  # a 1 MB machine
+    with pytest.raises(TGHopError, match="GB of memory, more than this machine"):
+        baselines.gpdm(exemplar, 64)
+
+
+def test_gpdm_without_torch_raises_install_hint(exemplar, monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    with pytest.raises(MissingExtraError, match=r"GPDM baseline needs PyTorch; install it with: pip install 'tghop\[metrics\]'"):
+        baselines.gpdm(exemplar, n_steps=1)

@@ -196,6 +196,19 @@ def test_ustyuzhaninov_cli_with_and_without_torch(workdir):
     assert not (workdir / "u2.png").exists()
 
 
+def test_gpdm_cli_with_and_without_torch(workdir):
+    pytest.importorskip("torch")
+    r = run("baseline", "gpdm", workdir / "bricks.png", "-o", workdir / "g.png", "--size", "24",
+            "--iterations", "2", "--seed", "0", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(workdir / "g.png")).shape == (24, 24, 3)
+    r = run_without_torch("baseline", "gpdm", workdir / "bricks.png", "-o", workdir / "g2.png", "--size", "24")
+    assert_user_error(r, "GPDM baseline needs PyTorch", "pip install 'tghop[metrics]'")
+    assert not (workdir / "g2.png").exists()
+    r = run("baseline", "gpdm", workdir / "bricks.png", "-o", workdir / "g3.png", "--size", "6", "-q")
+    assert_user_error(r, "at least 7x7")
+
+
 def test_evaluate_without_torch_skips_with_note(workdir):
     save_image(data.bricks(64, rng=2), workdir / "r.png")
     r = run_without_torch("evaluate", workdir / "bricks.png", workdir / "r.png")

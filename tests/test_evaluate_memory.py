@@ -174,6 +174,24 @@ def test_cli_refuses_empty_metrics(images):
     assert r.stdout == b""
 
 
+def test_cli_self_repetition_is_opt_in(images):
+    import json
+
+    r = run("evaluate", images / "ex.png", images / "res.png", "--json", "--metrics", "swd,copied_textured", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    line = json.loads(r.stdout)
+    assert set(line) == {"exemplar", "result", "swd", "copied_textured"}
+    for extra in (["--repetition"], ["--metrics", "swd,self_repetition"]):
+        args = ["--metrics", "swd"] if extra == ["--repetition"] else []
+        r = run("evaluate", images / "ex.png", images / "res.png", "--json", "-q", *args, *extra)
+        assert r.returncode == 0, r.stderr.decode()
+        line = json.loads(r.stdout)
+        assert set(line) == {"exemplar", "result", "swd", "self_repetition"}
+        assert 0.0 <= line["self_repetition"] <= 1.0
+    r = run("evaluate", "--help")
+    assert "--repetition" in r.stdout.decode() and "self_repetition" in r.stdout.decode()
+
+
 def test_cli_refuses_a_tiny_image_naming_the_size(images):
     r = run("evaluate", images / "ex.png", images / "dot.png")
     assert_user_error(r, "dot.png", "1x1", "28x28")

@@ -13,8 +13,9 @@ from tghop._common import InvalidImageError, TGHopError
 from tghop.metrics import MissingExtraError
 
 TORCH_METRICS = [name for name, info in metrics.METRICS.items() if info.needs_torch]
-# "copied" is lower-is-better too, but measures copying, not fidelity (a crop scores 1).
-FIDELITY = [name for name, info in metrics.METRICS.items() if not info.higher_is_better and name != "copied"]
+# "copied" and "copied_textured" are lower-is-better too, but measure copying, not fidelity (a crop scores 1).
+COPIES = ("copied", "copied_textured")
+FIDELITY = [name for name, info in metrics.METRICS.items() if not info.higher_is_better and name not in COPIES]
 
 
 def _needs(name):
@@ -54,7 +55,7 @@ def scores(exemplar, references):
     return out
 
 
-@pytest.mark.parametrize("name", [m for m in metrics.METRICS if m != "copied"])
+@pytest.mark.parametrize("name", [m for m in metrics.METRICS if m not in COPIES])
 def test_identical_images_score_zero(name, exemplar):
     _needs(name)
     assert metrics.METRICS[name].function(exemplar, exemplar) == pytest.approx(0.0, abs=1e-6)
@@ -90,7 +91,7 @@ def test_greyscale_and_mixed_channels(name, exemplar, references):
     grey_res = references["crop"].mean(axis=2, keepdims=True)
     assert f(grey_ex, grey_res) >= 0
     # Colour against grey works (grey is repeated to RGB) and costs something for colour.
-    if name == "copied":  # a grey crop of a colour exemplar is no copy of it
+    if name in COPIES:  # a grey crop of a colour exemplar is no copy of it
         assert f(exemplar, grey_res) < f(exemplar, references["crop"])
     else:
         assert f(exemplar, grey_res) > f(exemplar, references["crop"]) - 1e-12
@@ -170,6 +171,38 @@ def test_evaluate_all_metrics(exemplar, references):
     assert only["swd"] == scores["swd"]
     with pytest.raises(TGHopError, match="unknown metric"):
         metrics.evaluate(exemplar, exemplar, metrics=["psnr"])
+
+
+def test_evaluate_copied_textured_by_default_self_repetition_when_asked(exemplar, references):
+    scores = metrics.evaluate(exemplar, references["crop"], metrics=["copied", "copied_textured"])
+    assert scores == {"copied": 1.0, "copied_textured": 1.0}
+    assert "copied_textured" in metrics.evaluate(exemplar, references["noise"], metrics=None)
+    assert metrics.evaluate(exemplar, references["noise"], metrics=["copied_textured"])["copied_textured"] == 0.0
+    assert "self_repetition" not in metrics.METRICS and "self_repetition" in metrics.RESULT_METRICS
+    assert "self_repetition" not in metrics.evaluate(exemplar, references["noise"], metrics=["swd"])
+    tiled = np.tile(references["crop"][:32, :32], (3, 3, 1))  # a tiling: its windows recur
+    rep = metrics.evaluate(exemplar, tiled, metrics=["swd", "self_repetition"])
+    assert list(rep) == ["swd", "self_repetition"]
+    assert rep["self_repetition"] == metrics.self_repetition(tiled) > 0.9
+    other = np.zeros((64, 64, 3))  # the exemplar plays no part
+    assert metrics.evaluate(other, tiled, metrics=["self_repetition"])["self_repetition"] == rep["self_repetition"]
+    both = metrics.evaluate(exemplar, tiled, metrics=["swd"], repetition=True)
+    assert both == rep
+    default = metrics.evaluate(exemplar, tiled, repetition=True)
+    assert list(default)[-1] == "self_repetition"
+    assert metrics.evaluate(exemplar, references["noise"], metrics=["self_repetition"])["self_repetition"] < 0.1
+
+
+def test_copied_textured_and_self_repetition_report_progress(exemplar, references):
+    for name in ("copied_textured", "self_repetition"):
+        calls = []
+        metrics.evaluate(exemplar, references["blurred"], metrics=[name], progress=lambda *a: calls.append(a))
+        assert {c[0] for c in calls} == {name}
+        assert calls[0][1] == 0 and calls[-1][1] == calls[-1][2] > 0
+    flat = np.full((40, 40, 3), 0.5)  # no textured window: the stage still ends complete
+    calls = []
+    assert metrics.copied_textured(exemplar, flat, progress=lambda *a: calls.append(a)) == 0.0
+    assert calls[-1][1] == calls[-1][2] > 0
 
 
 @pytest.mark.parametrize("name", TORCH_METRICS)

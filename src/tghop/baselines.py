@@ -17,6 +17,10 @@ Synthesis baselines:
   (its reference [25]). Needs PyTorch (``pip install 'tghop[metrics]'``).
 * :func:`cooc` -- Darzi et al.'s co-occurrence cGAN (:mod:`tghop.cooc`): trains its small
   configuration on the exemplar (minutes), then generates. Needs PyTorch.
+* :func:`gpdm` -- Elnekave & Weiss (ECCV 2022), "Generating natural images with direct
+  patch distributions matching" (:mod:`tghop.gpdm`): coarse to fine, Adam optimises the
+  output's pixels to match the exemplar's 7 x 7 patch distribution in sliced
+  Wasserstein distance (minutes on a CPU). Needs PyTorch.
 
 :data:`BASELINES` maps a name to each of them, for ``tghop baseline NAME``. Every entry
 is called as ``fn(exemplar, size=None, *, rng=None, progress=None)`` and returns a float
@@ -64,6 +68,7 @@ __all__ = [
     "ustyuzhaninov",
     "cooc",
     "memory_estimate",
+    "gpdm",
 ]
 
 #: Default L-BFGS iteration budget of :func:`ustyuzhaninov`. The paper runs 2,000
@@ -473,6 +478,22 @@ def cooc(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] 
     return baseline(exemplar, size, rng=rng, progress=progress, **options)
 
 
+def gpdm(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None, n_steps: int = 300,
+         n_projections: int = 64, patch_size: int = 7, scale_factor: float = 0.85, coarsest: int = 21,
+         lr: float = 0.01, **options):
+    """GPDM, direct patch distribution matching (Elnekave & Weiss 2022): see :func:`tghop.gpdm.gpdm`.
+
+    Coarse to fine over a pyramid of the exemplar (scale factor 0.85, from about 21 pixels),
+    the output's pixels are optimised by Adam (``n_steps`` = 300 per level) to lower the
+    sliced Wasserstein distance between its 7 x 7 patches and the exemplar's (64 random
+    projections per step). Needs PyTorch; minutes on a CPU at 128 x 128.
+    """
+    from .gpdm import gpdm as run
+
+    return run(exemplar, size, rng=rng, progress=progress, n_steps=n_steps, n_projections=n_projections,
+               patch_size=patch_size, scale_factor=scale_factor, coarsest=coarsest, lr=lr, **options)
+
+
 #: name -> baseline, each called as ``fn(exemplar, size=None, *, rng=None, progress=None)``.
 BASELINES = {
     "crop": crop,
@@ -481,4 +502,5 @@ BASELINES = {
     "quilting": quilting,
     "ustyuzhaninov": ustyuzhaninov,
     "cooc": cooc,
+    "gpdm": gpdm,
 }

@@ -19,12 +19,22 @@ __all__ = ["evaluate", "baseline"]
 @click.argument("results", nargs=-1, required=True)
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per result (JSON lines).")
 @click.option("--metrics", "names", default=None,
-              help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied (default all).")
+              help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied, copied_textured "
+                   "(default all of these), and self_repetition (only when named).")
+@click.option("--repetition", is_flag=True,
+              help="Also score each result's self_repetition (added to --metrics or to the default set).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def evaluate(exemplar, results, as_json, names, quiet):
+def evaluate(exemplar, results, as_json, names, repetition, quiet):
     """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
 
     copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
+
+    copied_textured: the same over the result's textured 16x16 windows only (standard
+    deviation at least 0.06): flat windows match any flat window and say nothing of copying.
+
+    self_repetition (opt-in: --repetition or --metrics self_repetition): the fraction of a
+    result's textured 16x16 windows that recur elsewhere in the same result (about 1 for a
+    tiling of one crop, 0 for no repetition). It looks at the result alone, not the exemplar.
 
     With two or more results, also their diversity (higher: more different from each other).
     SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
@@ -32,9 +42,11 @@ def evaluate(exemplar, results, as_json, names, quiet):
     Large images: memory stays bounded. Images above 512x512 pixels are scored in strips
     (sifid, cooccurrence) or tiles of 256x256 positions (gram, above 310x310), which gives
     the same scores up to float rounding; smaller images are scored in one piece. swd,
-    novelty, copied and diversity sample a fixed number of patches (seed 0) at any size;
-    novelty, copied and diversity search every exemplar patch, so their time grows with
-    the exemplar. Images over 8192x8192 pixels are refused.
+    novelty, copied, copied_textured and diversity sample a fixed number of patches
+    (seed 0) at any size; novelty, copied, copied_textured and diversity search every
+    exemplar patch, so their time grows with the exemplar. self_repetition samples 500
+    windows and searches the central 1024x1024 of the result (seconds at any size).
+    Images over 8192x8192 pixels are refused.
     """
     from .. import metrics as M
 
@@ -42,12 +54,15 @@ def evaluate(exemplar, results, as_json, names, quiet):
     with user_errors(progress):
         chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
         if chosen == []:
-            raise TGHopError(f"--metrics is empty; give one or more of: {', '.join(M.METRICS)}")
+            raise TGHopError(f"--metrics is empty; give one or more of: {', '.join([*M.METRICS, *M.RESULT_METRICS])}")
         if chosen is not None:
             M.check_sizes({}, chosen)  # unknown names: refused before any image is read
+        checked = None if chosen is None and not repetition else [*(chosen or M.METRICS)]
+        if repetition and "self_repetition" not in checked:
+            checked.append("self_repetition")
         ex = load_exemplar(exemplar)
         images = [load_exemplar(r) for r in results]
-        M.check_sizes({exemplar: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, chosen,
+        M.check_sizes({exemplar: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, checked,
                       diversity=len(images) > 1)
         rows = []
         for i, (path, img) in enumerate(zip(results, images), start=1):
@@ -56,7 +71,7 @@ def evaluate(exemplar, results, as_json, names, quiet):
                     progress(f"{stage} {_i}/{len(images)}", done, total)
             else:
                 step = progress
-            rows.append((path, M.evaluate(ex, img, metrics=chosen, progress=step)))
+            rows.append((path, M.evaluate(ex, img, metrics=chosen, repetition=repetition, progress=step)))
         div = M.diversity(*images, progress=progress) if len(images) > 1 else None
         progress.close()
     skipped = rows[0][1].skipped if rows else {}
@@ -78,14 +93,14 @@ def evaluate(exemplar, results, as_json, names, quiet):
 
 
 @click.command()
-@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc"]))
+@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc", "gpdm"]))
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
 @click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
 @click.option("--seed", type=click.IntRange(min=0), default=None)
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
-                   "cooc: training steps (default 5500).")
+                   "cooc: training steps (default 5500). gpdm: Adam steps per pyramid level (default 300).")
 @click.option("--model", "model_file", default=None,
               help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
 @click.option("--assembly", type=click.Choice(["quilt", "pass", "windows"]), default=None,
@@ -104,6 +119,8 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
     cooc           co-occurrence cGAN (Darzi et al.): trains first (about 15 min on a 2-core CPU),
                    or --model (a checkpoint of 'tghop cooc train'); metrics extra
+    gpdm           GPDM (Elnekave & Weiss): patch sliced-Wasserstein matching, coarse to fine, Adam on the
+                   pixels; 12 levels x 300 steps: ~12 min at 128x128 on 2 busy cores (metrics extra)
 
     Sizes whose estimated memory exceeds the memory available are refused at once.
     """
@@ -114,13 +131,15 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     with user_errors(progress):
         check_output(output, allow_stdout=True)
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--model", model_file)])
-        if iterations is not None and name not in ("ustyuzhaninov", "cooc"):
-            raise TGHopError("--iterations applies to the ustyuzhaninov and cooc baselines only")
+        if iterations is not None and name not in ("ustyuzhaninov", "cooc", "gpdm"):
+            raise TGHopError("--iterations applies to the ustyuzhaninov, cooc and gpdm baselines only")
         for option, value in (("--model", model_file), ("--assembly", assembly)):
             if value is not None and name != "cooc":
                 raise TGHopError(f"{option} applies to the cooc baseline only")
         ex = load_exemplar(exemplar)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
+        if name == "gpdm":
+            kwargs = {"n_steps": iterations} if iterations is not None else {}
         if name == "cooc":
             from .._common import check_memory, check_size, check_texture, import_torch
             from ..cooc import SMALL, load

@@ -22,11 +22,15 @@ Two more say how *new* the results are, and **higher means more novel / diverse*
   (0 for a verbatim crop or for quilting the exemplar itself);
 * :func:`diversity` -- the same nearest-patch distance between results of different seeds.
 
-And one says how much of a result is *copied* (lower is better): :func:`copied`, the
+And two say how much of a result is *copied* (lower is better): :func:`copied`, the
 fraction of the result's 16 x 16 patches that nearly equal some exemplar patch (1 for a
-crop, about 0.4 for image quilting of the exemplar, 0 for a texture made anew).
+crop, about 0.4 for image quilting of the exemplar, 0 for a texture made anew), and
+:func:`copied_textured`, the same over the result's textured windows only (a flat window
+nearly equals any flat window). :func:`self_repetition` looks at the result alone: the
+fraction of its textured windows that recur elsewhere in it (1 for a tiling of a crop).
 
-:func:`evaluate` computes the fidelity metrics and novelty at once (``tghop evaluate``).
+:func:`evaluate` computes the fidelity metrics, novelty, copied and copied_textured at
+once (``tghop evaluate``), and self_repetition of the result when named.
 All metrics are deterministic: randomness (projections, sampled patches, filters,
 k-means) comes from a fixed ``seed`` argument, so scores of different results computed
 with the same seed are comparable. Compare a result with reference points of the same
@@ -41,7 +45,7 @@ from .._common import MissingExtraError
 from .common import PLAIN_MAX_PIXELS
 from .copies import TEXTURED_STD, copied, copied_textured, diversity, novelty, self_repetition
 from .distributions import cooccurrence_distance, sliced_wasserstein
-from .evaluation import DIVERSITY_MIN_SIZE, METRICS, MetricInfo, Scores, check_sizes, evaluate
+from .evaluation import DIVERSITY_MIN_SIZE, METRICS, RESULT_METRICS, MetricInfo, Scores, check_sizes, evaluate
 from .networks import GRAM_N_MAPS, GRAM_TILE, gram_distance, sifid
 
 __all__ = [
@@ -49,6 +53,7 @@ __all__ = [
     "Scores",
     "MetricInfo",
     "METRICS",
+    "RESULT_METRICS",
     "DIVERSITY_MIN_SIZE",
     "check_sizes",
     "GRAM_N_MAPS",

@@ -61,6 +61,7 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
         better = value < best
         best[better] = value[better]
         best_index[better] = local[better] + r0 * nw
+        tick()
         if tick is not None:
             tick()
     rows, cols = np.divmod(best_index, nw)
@@ -246,7 +247,7 @@ def _windows_at(img: np.ndarray, pos: np.ndarray, size: int) -> np.ndarray:
 
 
 def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
-                    max_patches: int = 1024, seed: int = 0) -> float:
+                    max_patches: int = 1024, seed: int = 0, progress=None) -> float:
     """:func:`copied` over the result's *textured* windows only; LOWER is better.
 
     A flat window (a smooth sky, a mortar line) nearly equals any flat exemplar window,
@@ -260,6 +261,11 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     float
         The fraction of sampled textured windows that are copies, in [0, 1]; **0 when the
         result has no textured window** (nothing textured was copied).
+
+    Notes
+    -----
+    ``progress(stage, done, total)``: stage ``"copied_textured"``, one unit per chunk of
+    exemplar rows searched. Memory is bounded as for :func:`copied`.
     """
     patch_size = check_patch_size(patch_size)
     threshold = float(threshold)
@@ -268,7 +274,13 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     ex, res = pair(exemplar, result, min_size=patch_size)
     rng = np.random.default_rng((int(seed), 3))
     pos = _textured_positions(res, patch_size, float(min_std), int(max_patches), rng)
+    nh_ex, nw_ex = ex.shape[0] - patch_size + 1, ex.shape[1] - patch_size + 1
+    rows_per_chunk = max(1, 8192 // nw_ex)
+    n_chunks = -(-nh_ex // rows_per_chunk)
+    tick = counter(progress, "copied_textured", n_chunks)
     if len(pos) == 0:
+        for _ in range(n_chunks):
+            tick()
         return 0.0
     q = _windows_at(res, pos, patch_size)
     q32 = q.astype(np.float32)
@@ -277,7 +289,6 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     nh, nw = windows.shape[:2]
     best = np.full(len(q), np.inf, dtype=np.float32)
     best_index = np.zeros(len(q), dtype=np.int64)
-    rows_per_chunk = max(1, 8192 // nw)
     for r0 in range(0, nh, rows_per_chunk):
         r1 = min(nh, r0 + rows_per_chunk)
         ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
@@ -287,6 +298,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
         better = value < best
         best[better] = value[better]
         best_index[better] = local[better] + r0 * nw
+        tick()
     rows, cols = np.divmod(best_index, nw)
     nearest = windows[rows, cols].reshape(len(q), -1)
     rms = np.sqrt(np.mean((q - nearest) ** 2, axis=1))
@@ -302,7 +314,8 @@ def _box_features(img: np.ndarray) -> np.ndarray:
 
 
 def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
-                    region: int = 1024, search: int = 1024, max_windows: int = 500, seed: int = 0) -> float:
+                    region: int = 1024, search: int = 1024, max_windows: int = 500, seed: int = 0,
+                    progress=None) -> float:
     """How much of an image repeats itself; LOWER is better (0: no window recurs).
 
     Up to ``max_windows`` textured ``patch_size`` x ``patch_size`` windows (standard
@@ -322,6 +335,12 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     (seconds at the defaults, whatever the image size: only the central ``search``
     square is read); memory is bounded by the chunks (tens of MB) and the search area's
     box means. Windows of a larger image outside the search area are not compared.
+    ``progress(stage, done, total)``: stage ``"self_repetition"``, one unit per chunk of
+    search rows.
+
+    It looks at one image only (no exemplar): :func:`tghop.metrics.evaluate` computes it
+    for the result when asked by name (``metrics=[..., "self_repetition"]``, ``tghop
+    evaluate --repetition``).
     """
     patch_size = check_patch_size(patch_size)
     if patch_size % 4:
@@ -342,14 +361,19 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     (sy0, sy1), (sx0, sx1) = centre(h, search), centre(w, search)
     rng = np.random.default_rng((int(seed), 4))
     pos = _textured_positions(img[qy0:qy1, qx0:qx1], patch_size, float(min_std), int(max_windows), rng)
+    nh, nw = sy1 - sy0 - patch_size + 1, sx1 - sx0 - patch_size + 1
+    rows_per_chunk = max(1, 8192 // nw)
+    n_chunks = -(-nh // rows_per_chunk)
+    tick = counter(progress, "self_repetition", n_chunks)
     if len(pos) == 0:
+        for _ in range(n_chunks):
+            tick()
         return 0.0
     pos = pos + [qy0, qx0]  # image coordinates
     area = img[sy0:sy1, sx0:sx1]
     box = _box_features(area)
     offsets = [(4 * i, 4 * j) for i in range(patch_size // 4) for j in range(patch_size // 4)]
     nb = len(offsets) * img.shape[2]
-    nh, nw = sy1 - sy0 - patch_size + 1, sx1 - sx0 - patch_size + 1
     qy, qx = pos[:, 0] - sy0, pos[:, 1] - sx0
     q = np.concatenate([box[qy + dy, qx + dx] for dy, dx in offsets], axis=1).astype(np.float64)  # (k, nb)
     # Augmented rows: ref [f | |f|^2], query [2 q | -1] give 2 f.q - |f|^2; a pair passes
@@ -363,11 +387,11 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     qwin = _windows_at(img, pos, patch_size)
     awin = sliding_window_view(area, (patch_size, patch_size), axis=(0, 1))
     c = img.shape[2]
-    rows_per_chunk = max(1, 8192 // nw)
     for r0 in range(0, nh, rows_per_chunk):
+        tick()
         live = np.flatnonzero(~found)
         if live.size == 0:
-            break
+            continue  # every window already repeats: the remaining chunks are only counted
         r1 = min(nh, r0 + rows_per_chunk)
         f = np.empty(((r1 - r0) * nw, nb + 1), dtype=np.float32)
         for t, (dy, dx) in enumerate(offsets):

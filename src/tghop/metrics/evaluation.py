@@ -12,11 +12,11 @@ import numpy as np
 from .._common import MAX_PIXELS, InvalidImageError, MissingExtraError, TGHopError
 from .._random_cnn import USTYUZHANINOV_SCALES
 from .common import pair
-from .copies import copied, novelty
+from .copies import copied, copied_textured, novelty, self_repetition
 from .distributions import cooccurrence_distance, sliced_wasserstein
 from .networks import gram_distance, sifid
 
-__all__ = ["MetricInfo", "METRICS", "DIVERSITY_MIN_SIZE", "check_sizes", "Scores", "evaluate"]
+__all__ = ["MetricInfo", "METRICS", "RESULT_METRICS", "DIVERSITY_MIN_SIZE", "check_sizes", "Scores", "evaluate"]
 
 # ---------------------------------------------------------------------------------------
 # All at once
@@ -45,6 +45,22 @@ METRICS = {
     "novelty": MetricInfo(novelty, True, False, "RMS distance to the nearest exemplar patch (higher: more novel)", 8),
     "copied": MetricInfo(copied, False, False, "fraction of 16x16 patches within RMSE 0.03 of an exemplar patch",
                          16),
+    "copied_textured": MetricInfo(copied_textured, False, False,
+                                  "copied, over the result's textured 16x16 windows only (std >= 0.06)", 16),
+}
+
+
+def _result_self_repetition(exemplar, result, *, progress=None) -> float:
+    """:func:`self_repetition` of the result; the exemplar is not looked at."""
+    return self_repetition(result, progress=progress)
+
+
+#: Metrics of the result alone (no comparison with the exemplar), computed by
+#: :func:`evaluate` only when named: name -> :class:`MetricInfo` (its function takes
+#: ``(exemplar, result)`` like the others and ignores the exemplar).
+RESULT_METRICS = {
+    "self_repetition": MetricInfo(_result_self_repetition, False, False,
+                                  "fraction of the result's textured 16x16 windows that recur elsewhere in it", 16),
 }
 
 #: Smallest side :func:`diversity` accepts with its default patch size.
@@ -58,12 +74,17 @@ def _metric_names(metrics) -> list:
     if isinstance(metrics, str):
         metrics = [metrics]
     names = [str(m) for m in metrics]
+    known = [*METRICS, *RESULT_METRICS]
     if not names:
-        raise TGHopError(f"no metrics chosen; choose one or more of {', '.join(METRICS)}")
-    unknown = [m for m in names if m not in METRICS]
+        raise TGHopError(f"no metrics chosen; choose one or more of {', '.join(known)}")
+    unknown = [m for m in names if m not in known]
     if unknown:
-        raise TGHopError(f"unknown metric {unknown[0]!r}; choose from {', '.join(METRICS)}")
+        raise TGHopError(f"unknown metric {unknown[0]!r}; choose from {', '.join(known)}")
     return names
+
+
+def _info(name: str) -> MetricInfo:
+    return METRICS[name] if name in METRICS else RESULT_METRICS[name]
 
 
 def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
@@ -85,7 +106,7 @@ def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
         or is smaller than a chosen metric needs (saying how large it must be).
     """
     names = _metric_names(metrics)
-    needs = [(METRICS[n].min_size, n) for n in names]
+    needs = [(_info(n).min_size, n) for n in names]
     if diversity:
         needs.append((DIVERSITY_MIN_SIZE, "diversity"))
     need, which = max(needs)
@@ -118,7 +139,7 @@ class Scores(dict):
         self.skipped = dict(skipped or {})
 
 
-def evaluate(exemplar, result, *, metrics=None, progress=None) -> Scores:
+def evaluate(exemplar, result, *, metrics=None, repetition: bool = False, progress=None) -> Scores:
     """Compute several metrics of one result against its exemplar.
 
     Parameters
@@ -127,10 +148,16 @@ def evaluate(exemplar, result, *, metrics=None, progress=None) -> Scores:
         Float in [0, 1]; sizes may differ.
     metrics : sequence of str, optional
         Names from :data:`METRICS` (``sifid``, ``gram``, ``swd``, ``cooccurrence``,
-        ``novelty``, ``copied``). Default: all of them; then the PyTorch ones are *skipped* (recorded
+        ``novelty``, ``copied``, ``copied_textured``) or :data:`RESULT_METRICS`
+        (``self_repetition``: of the result alone, never computed unless named).
+        Default: all of :data:`METRICS`; then the PyTorch ones are *skipped* (recorded
         in ``Scores.skipped`` with the install hint) if PyTorch is missing. Metrics named
         explicitly are never skipped: a missing dependency raises
         :class:`MissingExtraError`. An empty sequence is refused.
+    repetition : bool
+        Also compute ``self_repetition`` of the result (as if named in ``metrics``; with
+        ``metrics=None``, added to the default set, whose PyTorch metrics may still be
+        skipped).
     progress : callable, optional
         ``progress(stage, done, total)``: one stage per metric, named after it, counting
         the pieces (strips, tiles, chunks or scales) it is computed in.
@@ -146,22 +173,24 @@ def evaluate(exemplar, result, *, metrics=None, progress=None) -> Scores:
     Returns
     -------
     Scores
-        A dict ``name -> float`` in :data:`METRICS` order, with a ``skipped`` attribute.
-        Lower is better for all but ``novelty``.
+        A dict ``name -> float`` in :data:`METRICS` then :data:`RESULT_METRICS` order,
+        with a ``skipped`` attribute. Lower is better for all but ``novelty``.
     """
     explicit = metrics is not None
     names = _metric_names(metrics)
+    if repetition and "self_repetition" not in names:
+        names.append("self_repetition")
     shapes = {"exemplar": np.shape(exemplar), "result": np.shape(result)}
     if all(len(shape) >= 2 for shape in shapes.values()):  # before any copy of a huge array
         check_sizes(shapes, names)
     ex, res = pair(exemplar, result)
     check_sizes({"exemplar": ex.shape, "result": res.shape}, names)
     scores = Scores()
-    for name in METRICS:
+    for name in [*METRICS, *RESULT_METRICS]:
         if name not in names:
             continue
         try:
-            scores[name] = float(METRICS[name].function(ex, res, progress=progress))
+            scores[name] = float(_info(name).function(ex, res, progress=progress))
         except MissingExtraError as exc:
             if explicit:
                 raise
