@@ -36,15 +36,18 @@ from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 3  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each
+FORMAT_VERSION = 4  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+# 4: patch refinement statistics (patch.*, models fitted with patch_levels; files without them
+# are written as version 3, which older tghop reads)
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3)
+READABLE_VERSIONS = (2, 3, 4)
 
 
 def save_model(model, path) -> None:
     """Write a fitted model to ``path`` (any name; the file appears whole or not at all)."""
     arrays = model._to_arrays()  # NotFittedError before anything else
-    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "tghop_version": __version__,
+    version = FORMAT_VERSION if any(name.startswith("patch.") for name in arrays) else 3
+    meta = {"format": FORMAT, "format_version": version, "tghop_version": __version__,
             **model._state_meta()}
     arrays["__meta__"] = np.array(json.dumps(meta))
     check_output_path(path, what="model", error=ModelFileError)

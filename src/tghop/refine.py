@@ -28,7 +28,7 @@ from ._fft import fft_for
 from .patches import clean_windows
 
 __all__ = ["BandStatistics", "refine", "prepare", "laplacian_pyramid", "reconstruct", "oriented_parts",
-           "iter_oriented_parts"]
+           "iter_oriented_parts", "downsample", "upsample"]
 
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
@@ -121,6 +121,16 @@ def _down(img, mode, axes):
 
 def _up(img, shape, mode, axes):
     return _up_axis(_up_axis(img, axes[0], shape[axes[0]], mode), axes[1], shape[axes[1]], mode)
+
+
+def downsample(img, mode="reflect", axes=(0, 1)):
+    """One step down the pyramid of :func:`laplacian_pyramid` (blur, every second sample)."""
+    return _down(img, mode, axes)
+
+
+def upsample(img, shape, mode="reflect", axes=(0, 1)):
+    """One step up (:func:`reconstruct`'s interpolation) to ``shape``."""
+    return _up(img, shape, mode, axes)
 
 
 def laplacian_pyramid(img, n_levels, *, mode="reflect", axes=(0, 1)):

@@ -284,6 +284,10 @@ SETTINGS: Tuple[Setting, ...] = (
             "(:mod:`tghop.refine`, ours).", low=1, high=8),
     Setting("band_orientations", 4, "int",
             "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
+    Setting("patch_levels", 0, "int",
+            "Pyramid levels whose 5x5 patch distributions (quantiles of their projections on fixed "
+            "random rotations) are learned for the patch refinement (:mod:`tghop.patch_refine`, ours; "
+            "0: none stored).", low=0, high=6, paper=0),
     Setting("layout_factor", 2, "int",
             "Coarse to fine (ours, :mod:`tghop.layout`): also model the layout on the exemplar "
             "downsampled by this factor, and quilt guided by a coarse synthesis (None: off; skipped "
@@ -313,6 +317,10 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("refine", 3, "int",
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
+            when="generate", low=0, high=20, paper=0),
+    Setting("patch_refine", 0, "int",
+            "Rounds per pyramid level of sliced optimal transport of the image's 5x5 patches towards "
+            "the exemplar's (ours, :mod:`tghop.patch_refine`; models fitted with patch_levels; 0: off).",
             when="generate", low=0, high=20, paper=0),
     Setting("reuse", 1.0, "float",
             "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "

@@ -33,6 +33,7 @@ from . import layout
 from .pool import GeneratedPool
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .parameter_count import parameter_groups, table4
+from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -135,7 +136,7 @@ class TGHop(BaseEstimator):
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
-                 max_patches=20000, band_levels=4, band_orientations=4, layout_factor=2, rng=None):
+                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=0, layout_factor=2, rng=None):
         self.patch_size = patch_size
         self.stride = stride
         self.n_channels = n_channels
@@ -153,7 +154,7 @@ class TGHop(BaseEstimator):
         self.residual = residual
         self.max_patches = max_patches
         self.band_levels = band_levels
-        self.band_orientations = band_orientations
+        self.band_orientations, self.patch_levels = band_orientations, patch_levels
         self.layout_factor = layout_factor
         self.rng = rng
 
@@ -229,6 +230,7 @@ class TGHop(BaseEstimator):
         self.colour_quantiles_ = channel_quantiles(image if exclude is None else image[~exclude][:, None, :])
         self.bands_ = BandStatistics(n_levels=self.band_levels,
                                      n_orientations=self.band_orientations).fit(image, exclude=exclude)
+        self.patches_ = fit_patch_statistics(self.patch_levels, self.bands_, image, exclude=exclude)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -257,6 +259,7 @@ class TGHop(BaseEstimator):
         out.update(self.ichm_._to_arrays())
         out["colour.quantiles"] = self.colour_quantiles_
         out.update(self.bands_._to_arrays())
+        out.update(self.patches_._to_arrays() if getattr(self, "patches_", None) is not None else {})
         if self.layout_ is not None:  # the coarse model's arrays, prefixed
             out.update({f"layout.{k}": v for k, v in self.layout_.model_._to_arrays().items()})
         return out
@@ -303,6 +306,7 @@ class TGHop(BaseEstimator):
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
         model.bands_ = BandStatistics(n_levels=model.band_levels,
                                       n_orientations=model.band_orientations)._from_arrays(arrays)
+        model.patches_ = PatchStatistics(model.patch_levels)._from_arrays(arrays) if model.patch_levels else None
         model.layout_ = None
         if meta.get("layout") is not None:
             model.layout_ = CoarseLayout(**meta["layout"]["params"])
@@ -365,6 +369,7 @@ class TGHop(BaseEstimator):
         specs.append(("colour.quantiles", (c, "Qc"), "f", f"the metadata says {c} colour channels",
                       (("dim", 1, 2, None), ("range", 0.0, 1.0), ("nondecreasing",))))
         specs += BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)._array_specs(c)
+        specs += PatchStatistics(model.patch_levels)._array_specs(c) if model.patch_levels else ()
         groups = [(prefix, tuple(specs))]
         layout_meta = meta.get("layout")
         if layout_meta is not None:
@@ -598,7 +603,7 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
-                   reuse=1.0, pool_per_block=1.5, progress=None, dtype=np.float64):
+                   patch_refine=0, reuse=1.0, pool_per_block=1.5, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -631,6 +636,8 @@ class TGHop(BaseEstimator):
             0 is off, as in the paper.
         layout_refine : int
             Rounds of that refinement for the coarse layout's guide.
+        patch_refine : int
+            Rounds per level of the patch refinement (:mod:`tghop.patch_refine`); 0: off.
         reuse : float
             Quilting multiplies the error of a pool patch placed ``u`` times by ``1 + reuse
             * u`` (ours, against repeated patches in large images; not applied to images of
@@ -639,8 +646,8 @@ class TGHop(BaseEstimator):
             Generate this many pool patches per quilted block where that is more than
             ``n_patches`` (at most 30,000; ours; 0: always ``n_patches``).
         progress : callable, optional
-            Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine" and
-            "colour".
+            Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
+            "patch refine" and "colour".
         dtype : {numpy.float64, numpy.float32, numpy.uint8}
             Of the image. float32 holds the same values as float64 rounded to float32;
             uint8 the 8-bit values 0-255 that :func:`tghop.imageio.to_uint8` makes of the
@@ -658,7 +665,7 @@ class TGHop(BaseEstimator):
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
-            reuse=reuse, pool_per_block=pool_per_block))
+            patch_refine=patch_refine, reuse=reuse, pool_per_block=pool_per_block))
         n_patches = checked["n_patches"]
         if checked["pool_per_block"]:  # a larger pool for a large image, up to _MAX_GROWN_POOL
             blocks = block_count(size, self.patch_size, overlap=overlap, tile=tile)
@@ -701,6 +708,9 @@ class TGHop(BaseEstimator):
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32)
+        if checked["patch_refine"] and getattr(self, "patches_", None) is not None:  # ours, after the bands
+            image = refine_image(image, self.bands_, self.patches_, n_iter=checked["patch_refine"], tile=tile,
+                                 band_rounds=refine, progress=progress)
         if not match_colours:
             if dtype == np.uint8:
                 from .imageio import to_uint8
