@@ -27,10 +27,10 @@ def test_fit_is_the_same_whatever_the_threads(monkeypatch):
         return fit_cluster(self, *args, **kwargs)
 
     monkeypatch.setattr(core.ICHM, "_fit_cluster", spy)
-    monkeypatch.setattr(core, "free_cores", lambda: 1)
+    monkeypatch.setattr(core, "usable_cores", lambda: 1)
     with threadpool_limits(limits=1):
         one = TGHop(**SMALL).fit(image)
-    monkeypatch.setattr(core, "free_cores", lambda: 4)
+    monkeypatch.setattr(core, "usable_cores", lambda: 4)
     with threadpool_limits(limits=2):
         more = TGHop(**SMALL).fit(image)
         assert {i["num_threads"] for i in threadpool_info()} == {2}  # restored after the fit
@@ -39,13 +39,10 @@ def test_fit_is_the_same_whatever_the_threads(monkeypatch):
         np.testing.assert_array_equal(a, b)
 
 
-def test_free_cores_leaves_out_the_busy_ones(monkeypatch):
+def test_usable_cores_is_the_affinity_mask(monkeypatch):
     import os
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3}, raising=False)
-    monkeypatch.setattr(os, "getloadavg", lambda: (2.6, 0.0, 0.0))
-    assert _common.free_cores() == 1
-    monkeypatch.setattr(os, "getloadavg", lambda: (0.2, 0.0, 0.0))
-    assert _common.free_cores() == 4
-    monkeypatch.setattr(os, "getloadavg", lambda: (9.0, 0.0, 0.0))
-    assert _common.free_cores() == 1  # never 0
+    assert _common.usable_cores() == 4
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(), raising=False)
+    assert _common.usable_cores() == 1  # never 0

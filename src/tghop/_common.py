@@ -30,7 +30,7 @@ __all__ = [
     "check_texture",
     "report",
     "in_thread",
-    "free_cores",
+    "usable_cores",
     "MAX_PIXELS",
     "check_size",
     "available_memory",
@@ -379,26 +379,22 @@ def import_torch(what: str):
 
 
 # ------------------------------------------------------------------ threads
-def free_cores() -> int:
-    """Cores this process may use that other work does not keep busy now, at least 1.
+def usable_cores() -> int:
+    """Cores this process may run on: its affinity mask (``os.sched_getaffinity``, else
+    ``os.cpu_count()``), at least 1.
 
-    The cores of the process's affinity mask (``os.sched_getaffinity``, else
-    ``os.cpu_count()``) less the one-minute load average (``os.getloadavg``, where the
-    system has one), rounded. On a loaded machine threads beyond it only compete for the
-    busy cores (a ``tghop fit`` took 24 s with two BLAS threads beside other work against
-    4.9 s with one).
+    :meth:`tghop.core.ICHM.fit` runs its clusters in this many Python threads, each with
+    one BLAS thread: threads that block do not spin, so beside other work they share the
+    cores fairly and a fit is no slower than on one thread, while on an idle machine it
+    uses every core (OpenBLAS's own threads spin between calls, and on a loaded machine a
+    fit with them took several times as long as with one; docs/choices.md).
     """
     import os
 
     try:
-        usable = len(os.sched_getaffinity(0))
+        return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
-        usable = os.cpu_count() or 1
-    try:
-        busy = os.getloadavg()[0]
-    except (AttributeError, OSError):
-        busy = 0.0
-    return max(1, min(usable, int(round(usable - busy))))
+        return os.cpu_count() or 1
 
 
 def in_thread(fn, *args, **kwargs) -> Callable:

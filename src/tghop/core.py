@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, check_rng, free_cores, report
+from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, check_rng, usable_cores, report
 from .settings import BY_NAME as _SETTINGS
 from .unsupervised import fast_ica, kmeans  # noqa: F401 (fast_ica: also tghop.core's)
 
@@ -362,7 +362,7 @@ class ICHM(BaseEstimator):
 
         # One BLAS thread each (the clusters' results do not depend on how many run at
         # once); as many at once as there are idle cores: on a busy machine more only compete.
-        workers = max(1, min(n_clusters, free_cores()))
+        workers = max(1, min(n_clusters, usable_cores()))
         with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=workers) as pool:
             fitted = []
             for i, result in enumerate(pool.map(one, range(n_clusters))):

@@ -206,7 +206,7 @@ class TGHop(BaseEstimator):
 
         # One BLAS / OpenMP thread: the model is the same bit for bit on every machine
         # (OpenBLAS's results change with its thread count) and a busy machine is not
-        # oversubscribed; ICHM.fit runs its clusters in threads of its own (free_cores).
+        # oversubscribed; ICHM.fit runs its clusters in threads of its own (usable_cores).
         with threadpool_limits(limits=1):
             return self._fit(image, exclude=exclude, progress=progress)
 
