@@ -327,16 +327,16 @@ def test_gpdm_restores_the_thread_count(exemplar):
 
 
 def test_gpdm_refusals(exemplar, monkeypatch):
-    from tghop import gpdm as module
-
     with pytest.raises(TGHopError, match="at least 7x7"):
         baselines.gpdm(exemplar, 6)
     with pytest.raises(TGHopError, match="scale_factor"):
         baselines.gpdm(exemplar, 16, scale_factor=1.0)
     with pytest.raises(TGHopError, match="init"):
         baselines.gpdm(exemplar, 16, init="zeros")
-    monkeypatch.setattr(module, "machine_memory", lambda: 2**20)  # a 1 MB machine
-    with pytest.raises(TGHopError, match="GB of memory, more than this machine"):
+    from tghop import _common
+
+    monkeypatch.setattr(_common, "available_memory", lambda: 8 * 2**20)  # 8 MB available
+    with pytest.raises(TGHopError, match="the gpdm baseline .*64x64 .*of memory but only .*largest size that fits"):
         baselines.gpdm(exemplar, 64)
 
 

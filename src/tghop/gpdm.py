@@ -11,15 +11,15 @@ exemplar's patches at that level. Used by :func:`tghop.baselines.gpdm` and
 from __future__ import annotations
 
 import math
-import os
 import time
 from typing import Optional
 
 import numpy as np
 
-from ._common import ProgressCallback, TGHopError, check_image, check_rng, check_size, import_torch, report
+from ._common import (ProgressCallback, TGHopError, check_image, check_memory, check_rng, check_size, import_torch,
+                      report, usable_cores)
 
-__all__ = ["gpdm", "gpdm_levels", "gpdm_memory", "machine_memory"]
+__all__ = ["gpdm", "gpdm_levels", "gpdm_memory"]
 
 #: Bytes of an element of the float32 tensors GPDM works with.
 _F32 = 4
@@ -66,21 +66,6 @@ def gpdm_memory(exemplar_shape, size, *, n_projections: int = 64, patch_size: in
     ex = eh * ew * (4 * n_projections + patch + 2 * c)
     out = h * w * (9 * n_projections + 2 * patch + 8 * c)
     return int(_F32 * (ex + out))
-
-
-def machine_memory() -> Optional[int]:
-    """This machine's physical memory in bytes, or None where the system does not say."""
-    try:
-        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
-def _threads() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
 
 
 def gpdm(
@@ -196,16 +181,12 @@ def gpdm(
             f"gpdm needs the exemplar ({img.shape[0]}x{img.shape[1]}) and the output ({h}x{w}) to be at least "
             f"{patch_size}x{patch_size} pixels (the patch size)"
         )
-    need, have = gpdm_memory(img.shape, (h, w), n_projections=n_projections, patch_size=patch_size), machine_memory()
-    if have is not None and need > have:
-        raise TGHopError(
-            f"gpdm at {h}x{w} from a {img.shape[0]}x{img.shape[1]} exemplar needs about {need / 2**30:.1f} GB of "
-            f"memory, more than this machine's {have / 2**30:.1f} GB; ask for a smaller size or crop the exemplar"
-        )
+    check_memory(lambda hh, ww: gpdm_memory(img.shape, (hh, ww), n_projections=n_projections, patch_size=patch_size),
+                 (h, w), what="the gpdm baseline")
     torch = import_torch("The GPDM baseline")
     rng = check_rng(rng)
     threads = torch.get_num_threads()
-    torch.set_num_threads(int(n_threads) if n_threads is not None else _threads())
+    torch.set_num_threads(int(n_threads) if n_threads is not None else usable_cores())
     try:
         return _run(torch, img, (h, w), rng, progress, n_steps, n_projections, patch_size, scale_factor,
                     coarsest, lr, init, noise_sigma, return_info)
