@@ -824,6 +824,19 @@ def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, b
     return err
 
 
+def _full_errors(table, query, k1, wraps, guided, target, factor):
+    """Every pool patch's error against every block of a wavefront, less the blocks'
+    constant ``onorm`` (pool x blocks): the overlap columns, the wrapped columns of the
+    blocks that wrap, and the guide term; when the bound rules out too few patches."""
+    err = table[:, :k1] @ query[:, :k1].T
+    sel = np.flatnonzero(wraps)
+    if sel.size:
+        err[:, sel] += table[:, k1:] @ query[sel, k1:].T
+    if target is not None:
+        err += _guide_distances(guided, target, factor)
+    return err
+
+
 def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack, penalty=None):
     """The candidates of :func:`quilt_prepared`'s rule, with full errors only where needed.
 
@@ -1138,23 +1151,13 @@ def quilt_prepared(
         found = _bounded_candidates(prepared, o, query, onorm, k1, wraps[mid], target, factor, tolerance, slack,
                                     penalty)
         if found is None and penalty is not None:  # every error in full, penalised
-            err = table[:, :k1] @ query[:, :k1].T
-            sel = np.flatnonzero(wraps[mid])
-            if sel.size:
-                err[:, sel] += table[:, k1:] @ query[sel, k1:].T
-            if target is not None:
-                err += _guide_distances(guided, target, factor)
+            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor)
             err += onorm
             err *= penalty[:, None]
             best = np.maximum(err.min(axis=0), 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack * penalty.max())
         if found is None:  # the bound rules out too few patches: every error in full
-            err = table[:, :k1] @ query[:, :k1].T
-            sel = np.flatnonzero(wraps[mid])
-            if sel.size:
-                err[:, sel] += table[:, k1:] @ query[sel, k1:].T
-            if target is not None:
-                err += _guide_distances(guided, target, factor)
+            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor)
             best = np.maximum(err.min(axis=0) + onorm, 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack - onorm)
         pool_idx, block_idx = found  # in pool order within each block (the choice below depends on that only)
