@@ -14,32 +14,15 @@ from tghop import cooc, data
 from tghop._common import TGHopError
 
 from conftest import assert_user_error
+from test_cooc import TINY, _threads, exemplar, tiny_model  # noqa: F401  (the same tiny cGAN and fixtures)
 
 torch = pytest.importorskip("torch")
 
-#: As test_cooc.TINY: 32 x 32 crops, s = 8, a few filters, two steps.
-TINY = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
-            noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
 TINY_SET = [a for key, value in (("n_clusters", 3), ("crop_size", 32), ("n_layers", 3), ("patch", 9), ("window", 7),
                                  ("sigma", 2), ("g_widths", "[8,4]"), ("d_widths", "[4,8]"), ("noise_channels", 2),
                                  ("n_crops", 8), ("batch_size", 4), ("n_critic", 1))
             for a in ("--set", f"{key}={value}")]
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _threads(one_torch_thread):
-    yield
-
-
-@pytest.fixture(scope="module")
-def exemplar():
-    return data.bricks(48, rng=3)
-
-
-@pytest.fixture(scope="module")
-def tiny_model(exemplar):
-    return cooc.CoocGAN(**TINY, device="cpu", rng=0).fit(exemplar)
 
 
 @pytest.fixture(scope="module")
