@@ -109,7 +109,8 @@ def test_synthesis_does_not_import_modelfile():
 
 def test_an_explicit_none_on_the_command_line_is_off_not_the_default():
     # `--layout none` fits without the coarse layout (it used to give the default factor 2).
-    from tghop.cli.options import SettingType, build_model
+    from tghop.cli.options import SettingType
+    from tghop.fit_options import build_model
     from tghop.settings import BY_NAME
 
     off = SettingType(BY_NAME["layout_factor"]).convert("none", None, None)

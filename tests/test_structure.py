@@ -104,6 +104,15 @@ def test_the_package_import_graph_has_no_cycle():
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
+def test_the_library_does_not_import_the_command_line():
+    # Arrows point down: tghop.cli stands on the library (and tghop.server beside it), never
+    # the other way; only the entry point (tghop.__main__) starts the command line.
+    bad = [f"{module} imports {target}" for module in MODULES
+           if not (module == "tghop.cli" or module.startswith("tghop.cli.") or module == "tghop.__main__")
+           for target, _ in _imports(module) if target == "tghop.cli" or target.startswith("tghop.cli.")]
+    assert not bad, "library modules importing the command line:\n" + "\n".join(bad)
+
+
 def test_no_module_imports_a_private_name_of_another():
     bad = []
     for module in MODULES:

@@ -1,7 +1,12 @@
-"""tghop's exception classes (no imports: the CLI's --help and --version load only this)."""
+"""tghop's exception classes and the hint of an image over the pixel limit (no imports: the
+CLI's --help and --version load only this)."""
 
 __all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
-           "NotFittedError"]
+           "NotFittedError", "HINT_DOWNSCALE_YOURSELF"]
+
+#: What to do about an image over the pixel limit where no --downscale option is at hand
+#: (the command line's commands without it, the web server's uploads).
+HINT_DOWNSCALE_YOURSELF = "downscale it first (e.g. to 8192x8192)"
 
 
 class TGHopError(ValueError):

@@ -255,21 +255,6 @@ def remove_temporaries(folder) -> int:
     return removed
 
 
-def _model_for(fit: dict, n_colours: int):
-    """A TGHop from ``fit`` (its parameters; ``None`` entries of ``n_channels`` take the
-    default for the exemplar's colours)."""
-    from .synthesis import TGHop, default_channels
-
-    params = dict(fit)
-    channels = params.get("n_channels")
-    if channels is not None and any(c is None for c in channels):
-        defaults = default_channels(params.get("patch_size", 32), n_colours)
-        params["n_channels"] = tuple(d if c is None else c for c, d in zip(channels, defaults))
-    if params.get("rng") is None:
-        params["rng"] = 0
-    return TGHop(**params)
-
-
 def _thumbnail(image, path):
     import numpy as np
     from PIL import Image
@@ -315,6 +300,7 @@ def process_exemplar(job: dict) -> dict:
         import numpy as np
         from threadpoolctl import threadpool_limits
 
+        from .fit_options import model_for
         from .imageio import load_image, save_image
         from .modelfile import save_model
         from .synthesis import prepare_exemplar
@@ -325,7 +311,7 @@ def process_exemplar(job: dict) -> dict:
             fit = job.get("fit") or {}
             raw = load_image(job["source"], dtype=None)
             image = prepare_exemplar(raw, min_size=fit.get("patch_size") or 32)
-            model = _model_for(fit, image.shape[2])
+            model = model_for(fit, image.shape[2])
             t = time.time()
             model.fit(image)
             record["fit_seconds"] = time.time() - t

@@ -33,7 +33,7 @@ from .imageio import check_output_path, write_atomic
 from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
 from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 
-__all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION"]
+__all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
 FORMAT_VERSION = 4  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
@@ -52,6 +52,17 @@ def save_model(model, path) -> None:
     arrays["__meta__"] = np.array(json.dumps(meta))
     check_output_path(path, what="model", error=ModelFileError)
     write_atomic(path, lambda fh: np.savez(fh, **arrays), what="model", error=ModelFileError)
+
+
+def info_dict(model, params=None) -> dict:
+    """A fitted model's summary as JSON-ready data: its settings (``rng`` left out),
+    dimensions, channels, exemplar shape and parameter count (``params``: its
+    :meth:`~tghop.TGHop.n_parameters`, when the caller already has it). What ``tghop info
+    --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
+    params = model.n_parameters() if params is None else params
+    return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
+            "dims": model.dims_, "channels": model.channels_,
+            "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params}
 
 
 def _read(path):

@@ -6,8 +6,9 @@ from __future__ import annotations
 import click
 
 from .._errors import TGHopError
+from ..fit_options import fit_params
 from .common import Progress, fail, stop_message, user_errors
-from .options import MAX_COUNT, Size, fit_params, generation_options, generation_params, model_options
+from .options import MAX_COUNT, Size, generation_options, generation_params, model_options
 
 __all__ = ["batch"]
 

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import click
 
-from .._errors import TGHopError
+from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "info_dict", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -122,7 +122,6 @@ def user_errors(progress=None):
 
 #: What to do about an image over the size limit, in a command with ``--downscale`` and in one without.
 HINT_DOWNSCALE_OPTION = "pass --downscale to reduce it (or downscale it yourself)"
-HINT_DOWNSCALE_YOURSELF = "downscale it first (e.g. to 8192x8192)"
 
 
 def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False):
@@ -179,15 +178,6 @@ def summary(model, params=None) -> str:
         f"core model: N={d['N']} clusters, F={d['F']} CDFs, W={d['W']} codewords\n"
         f"parameters: {params['total']['stored']:,} stored ({params['total']['paper']:,} by the paper's formulas)"
     )
-
-
-def info_dict(model, params=None) -> dict:
-    """What ``tghop info --json`` prints (and the web server's model summary): the
-    settings, dimensions, channels, exemplar shape and parameter count of a fitted model."""
-    params = model.n_parameters() if params is None else params
-    return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
-            "dims": model.dims_, "channels": model.channels_,
-            "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params}
 
 
 def check_output(path: str, allow_stdout=False):

@@ -13,9 +13,10 @@ import re
 import click
 
 from .._errors import TGHopError
+from ..fit_options import OFF, setting_value
 
-__all__ = ["OFF", "MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
-           "generation_options", "FIT_OPTION_PARAMS", "build_model", "fit_params", "generation_params", "given_options"]
+__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
+           "generation_options", "FIT_OPTION_PARAMS", "generation_params", "given_options"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -25,18 +26,6 @@ EXCLUDE_HELP = ("A mask image of the exemplar's size: its white parts (a logo, a
 
 DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downscale they are reduced to "
                   "64 Mpx instead (with a warning).")
-
-
-class _Off:
-    """An explicit "none" / "off" for a setting that allows None (``--layout none``), told
-    apart from an option not given (None), whose value is the table's default."""
-
-    def __repr__(self):
-        return "OFF"
-
-
-#: What :class:`SettingType` makes of "none" / "off"; :func:`build_model` and ``synth`` read it as None.
-OFF = _Off()
 
 
 class ChannelRule(click.ParamType):
@@ -172,56 +161,12 @@ def generation_options(func):
     return func
 
 
-def _setting_value(s, options, paper):
-    """The value of setting ``s`` from the options: the one typed (``none``/``off`` is
-    :data:`OFF`: None), else the table's default, or its paper value with --paper."""
-    value = options.get(s.name)
-    if value is OFF:
-        return None
-    if value is not None:
-        return value
-    return s.paper if paper and s.has_paper else s.default
-
-
-def fit_params(options):
-    """TGHop's parameters from the fit options. Channel counts not given stay None in
-    ``n_channels`` (the default for the exemplar's colours: :func:`build_model` fills
-    them in when the exemplar is known; ``tghop batch`` fits many exemplars)."""
-    from ..settings import fit_settings
-
-    paper = options.get("paper", False)
-    params = {s.name: _setting_value(s, options, paper) for s in fit_settings() if s.name not in ("n_channels", "rng")}
-    patch_size = int(params["patch_size"])
-    if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
-        raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")
-    if patch_size == 32 and options.get("k3") is not None:
-        raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
-    given = [options.get(k) for k in ("k1", "k2", "k3")][: 3 if patch_size == 64 else 2]
-    params["n_channels"] = None if all(g is None for g in given) else tuple(given)
-    rng = options.get("rng")
-    params["rng"] = 0 if rng is None else rng
-    return params
-
-
-def build_model(options, n_colours=3):
-    """A TGHop from the fit options, for an exemplar of ``n_colours`` channels (channel
-    counts not given: :func:`tghop.synthesis.default_channels`)."""
-    from ..synthesis import TGHop, default_channels
-
-    params = fit_params(options)
-    patch_size = int(params["patch_size"])
-    defaults = default_channels(patch_size, n_colours) if patch_size in (32, 64) else (None, None)
-    given = params["n_channels"] or (None,) * len(defaults)
-    params["n_channels"] = tuple(d if g is None else g for g, d in zip(given, defaults))
-    return TGHop(**params)
-
-
 def generation_params(options):
     """The keywords of ``TGHop.synthesize`` from the generation options (popped from
     ``options``; unset ones: the table's default, or its paper value with --paper)."""
     from ..settings import generate_settings
 
-    out = {s.name: _setting_value(s, options, options.get("paper", False)) for s in generate_settings()}
+    out = {s.name: setting_value(s, options, options.get("paper", False)) for s in generate_settings()}
     for s in generate_settings():
         options.pop(s.name, None)
     return out

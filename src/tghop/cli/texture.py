@@ -8,9 +8,10 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .common import (Progress, check_model_output, check_output, check_outputs, info_dict, is_model_file,
+from ..fit_options import build_model
+from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
-from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, build_model,
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size,
                       generation_options, generation_params, given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "info"]
@@ -165,7 +166,7 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def info(model_file, as_json):
     """Describe a saved MODEL: settings, dimensions and parameter count (paper Table 4)."""
-    from ..modelfile import load_model
+    from ..modelfile import info_dict, load_model
 
     with user_errors():
         model = load_model(model_file)

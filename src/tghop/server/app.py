@@ -137,9 +137,9 @@ def _parse_bool(name, value) -> bool:
 
 
 def parse_fit_settings(fields: dict) -> dict:
-    """Form fields -> the options :func:`tghop.cli.options.build_model` takes, each checked by
+    """Form fields -> the options :func:`tghop.fit_options.build_model` takes, each checked by
     the settings table (422 with its one line)."""
-    from ..cli.options import OFF
+    from ..fit_options import OFF
     from ..settings import BY_NAME, check_channel_rule
 
     known = fit_fields()
@@ -316,9 +316,9 @@ class Server:
     def prepare_fit(self, fields: dict):
         """Check the request and read the exemplar (in a worker thread): returns
         ``(model id, TGHop, image)``; ``image`` is None when the model is in the cache."""
-        from ..cli.common import HINT_DOWNSCALE_YOURSELF
-        from ..cli.options import build_model
+        from .._errors import HINT_DOWNSCALE_YOURSELF
         from ..data import builtin
+        from ..fit_options import build_model
         from ..imageio import load_image
         from ..synthesis import prepare_exemplar
 
@@ -431,7 +431,7 @@ class Server:
 
     # ---------------------------------------------------------------- models
     def _summary(self, model_id: str) -> dict:
-        from ..cli.common import info_dict
+        from ..modelfile import info_dict
 
         model = self.cache.load(model_id)
         return {"id": model_id, "file_bytes": self.cache.path(model_id).stat().st_size,
@@ -531,7 +531,7 @@ class Server:
         texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes."""
         import numpy as np
 
-        from ..cli.common import HINT_DOWNSCALE_YOURSELF
+        from .._errors import HINT_DOWNSCALE_YOURSELF
         from ..imageio import load_image, to_uint8, write_png
         from ..inpaint import check_hole, inpaint
 

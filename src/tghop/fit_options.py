@@ -1,0 +1,94 @@
+"""Fit options -> a :class:`~tghop.TGHop`: what the command line (``fit``, ``synth``,
+``batch``), the web server (``POST /api/models``) and :mod:`tghop.batch` share.
+
+Options are a dict by setting name (:data:`tghop.settings.SETTINGS`), as typed: a value
+not given is absent or None and takes the table's default (or its paper value with
+``paper``); :data:`OFF` is an explicit "none" for a setting that allows None. Channel
+counts are ``k1``, ``k2``, ``k3`` (a count, a fraction or ``"knee"``); those not given
+take :func:`tghop.synthesis.default_channels` for the exemplar's colours, filled in by
+:func:`model_for` once the exemplar is known.
+
+Only the standard library is imported here (the estimator when a model is made).
+"""
+
+from __future__ import annotations
+
+from ._errors import TGHopError
+
+__all__ = ["OFF", "setting_value", "fit_params", "model_for", "build_model"]
+
+
+class _Off:
+    """An explicit "none" / "off" for a setting that allows None (``--layout none``), told
+    apart from an option not given (None), whose value is the table's default."""
+
+    def __repr__(self):
+        return "OFF"
+
+
+#: An explicit "none" / "off" (``--layout none``): the setting is None, not its default.
+OFF = _Off()
+
+
+def setting_value(s, options: dict, paper: bool):
+    """The value of setting ``s`` from ``options``: the one given (:data:`OFF`: None), else
+    the table's default, or its paper value with ``paper``."""
+    value = options.get(s.name)
+    if value is OFF:
+        return None
+    if value is not None:
+        return value
+    return s.paper if paper and s.has_paper else s.default
+
+
+def fit_params(options: dict) -> dict:
+    """TGHop's parameters from the fit options (``paper``, ``k1``/``k2``/``k3``, ``rng``
+    and the fit settings by name).
+
+    Channel counts not given stay None in ``n_channels`` (the default for the exemplar's
+    colours: :func:`model_for` fills them in when the exemplar is known; ``tghop batch``
+    fits many exemplars).
+
+    Raises
+    ------
+    TGHopError
+        A patch size without default channel counts and none given, or ``k3`` for
+        32x32 patches.
+    """
+    from .settings import fit_settings
+
+    paper = options.get("paper", False)
+    params = {s.name: setting_value(s, options, paper) for s in fit_settings() if s.name not in ("n_channels", "rng")}
+    patch_size = int(params["patch_size"])
+    if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
+        raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")
+    if patch_size == 32 and options.get("k3") is not None:
+        raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
+    given = [options.get(k) for k in ("k1", "k2", "k3")][: 3 if patch_size == 64 else 2]
+    params["n_channels"] = None if all(g is None for g in given) else tuple(given)
+    rng = options.get("rng")
+    params["rng"] = 0 if rng is None else rng
+    return params
+
+
+def model_for(params: dict, n_colours: int = 3):
+    """A TGHop from its parameters (:func:`fit_params`) for an exemplar of ``n_colours``
+    channels: channel counts that are None (all of ``n_channels``, or some entries) take
+    :func:`tghop.synthesis.default_channels`; ``rng`` None is 0."""
+    from .synthesis import TGHop, default_channels
+
+    params = dict(params)
+    patch_size = int(params.get("patch_size", 32))
+    if patch_size in (32, 64):
+        defaults = default_channels(patch_size, n_colours)
+        given = params.get("n_channels") or (None,) * len(defaults)
+        params["n_channels"] = tuple(d if g is None else g for g, d in zip(given, defaults))
+    if params.get("rng") is None:
+        params["rng"] = 0
+    return TGHop(**params)
+
+
+def build_model(options: dict, n_colours: int = 3):
+    """A TGHop from the fit options for an exemplar of ``n_colours`` channels:
+    ``model_for(fit_params(options), n_colours)``."""
+    return model_for(fit_params(options), n_colours)
