@@ -97,3 +97,23 @@ def live_server(tmp_path_factory):
 
 #: Fit settings that make a fit of a built-in exemplar take a few seconds (form fields).
 FAST_FIT = {"n_clusters": "8", "n_codewords": "40", "stride": "4", "max_patches": "1500", "layout_factor": "none"}
+
+
+#: JavaScript (a function of a seed and a callback) that sets the seed, clicks Generate and
+#: calls back with the milliseconds from the click to the new result shown (its caption
+#: naming the seed, one frame later): what the browser tests measure at 512x512.
+CLICK_TO_RESULT_JS = """(seed, done) => {
+  const caption = document.getElementById("result-caption");
+  document.getElementById("seed").value = String(seed);
+  const want = "seed " + seed;
+  const t0 = performance.now();
+  document.getElementById("go").click();
+  const poll = () => {
+    if (caption.textContent.startsWith("result: ") && caption.textContent.endsWith(want)) {
+      requestAnimationFrame(() => done([performance.now() - t0, caption.textContent]));
+    } else {
+      setTimeout(poll, 2);
+    }
+  };
+  poll();
+}"""
