@@ -53,7 +53,7 @@ def assert_user_error(r, *fragments):
 class LiveServer:
     """``tghop serve``'s application on a real uvicorn server, in a thread, on a free port."""
 
-    def __init__(self, cache, max_fits=1):
+    def __init__(self, cache, max_fits=1, **options):
         import socket
         import threading
 
@@ -62,7 +62,7 @@ class LiveServer:
         from tghop.server.app import create_app
 
         self.cache = cache
-        self.app = create_app(cache, max_fits=max_fits)
+        self.app = create_app(cache, max_fits=max_fits, **options)
         self.sock = socket.socket()
         self.sock.bind(("127.0.0.1", 0))
         self.sock.listen(64)
@@ -101,7 +101,8 @@ FAST_FIT = {"n_clusters": "8", "n_codewords": "40", "stride": "4", "max_patches"
 
 #: JavaScript (a function of a seed and a callback) that sets the seed, clicks Generate and
 #: calls back with the milliseconds from the click to the new result shown (its caption
-#: naming the seed, one frame later): what the browser tests measure at 512x512.
+#: naming the seed, one frame later), the caption, and the server's part (generation and
+#: PNG encoding, its Server-Timing header): what the browser tests measure at 512x512.
 CLICK_TO_RESULT_JS = """(seed, done) => {
   const caption = document.getElementById("result-caption");
   document.getElementById("seed").value = String(seed);
@@ -110,7 +111,11 @@ CLICK_TO_RESULT_JS = """(seed, done) => {
   document.getElementById("go").click();
   const poll = () => {
     if (caption.textContent.startsWith("result: ") && caption.textContent.endsWith(want)) {
-      requestAnimationFrame(() => done([performance.now() - t0, caption.textContent]));
+      requestAnimationFrame(() => {
+        const calls = performance.getEntriesByType("resource").filter((e) => e.name.endsWith("/images"));
+        const timing = calls.length ? calls[calls.length - 1].serverTiming : [];
+        done([performance.now() - t0, caption.textContent, timing.length ? timing[0].duration : null]);
+      });
     } else {
       setTimeout(poll, 2);
     }

@@ -98,12 +98,14 @@ def test_a_512x512_result_appears_after_the_click(page, live_server, record_prop
     page.uncheck("#tile")
     times = []
     for seed in (11, 12, 13):
-        ms, caption = page.evaluate(f"(seed) => new Promise((done) => ({CLICK_TO_RESULT_JS})(seed, done))", seed)
+        ms, caption, server_ms = page.evaluate(
+            f"(seed) => new Promise((done) => ({CLICK_TO_RESULT_JS})(seed, done))", seed)
         assert caption == f"result: 512x512, seed {seed}"
-        times.append(ms / 1000)
+        assert server_ms is not None and 0 < server_ms < ms
+        times.append((ms / 1000, server_ms / 1000))
     record_property("chromium_click_to_result_512_s", times)
-    print(f"Chromium: 512x512 result {', '.join(f'{t:.2f}' for t in times)} s after the click")
-    assert min(times) < 30  # a loose bound on a loaded 2-core machine; docs/serve.md has the numbers
+    print("Chromium: 512x512 result " + ", ".join(f"{t:.2f} (server {s:.2f})" for t, s in times) + " s after the click")
+    assert min(t for t, _ in times) < 30  # a loose bound on a loaded 2-core machine; docs/serve.md has the numbers
     assert not page.errors, page.errors
 
 

@@ -95,11 +95,12 @@ def test_a_512x512_result_appears_after_the_click_in_firefox(firefox, live_serve
     ff.run("document.getElementById('tile').checked = false;")
     times = []
     for seed in (11, 12, 13):
-        ms, caption = ff.run_async(f"({CLICK_TO_RESULT_JS})(arguments[0], arguments[arguments.length - 1]);",
-                                   seed, timeout=120)
+        ms, caption, server_ms = ff.run_async(
+            f"({CLICK_TO_RESULT_JS})(arguments[0], arguments[arguments.length - 1]);", seed, timeout=120)
         assert caption == f"result: 512x512, seed {seed}"
-        times.append(ms / 1000)
+        assert server_ms is not None and 0 < server_ms < ms
+        times.append((ms / 1000, server_ms / 1000))
     record_property("firefox_click_to_result_512_s", times)
-    print(f"Firefox: 512x512 result {', '.join(f'{t:.2f}' for t in times)} s after the click")
-    assert min(times) < 30  # a loose bound on a loaded 2-core machine; docs/serve.md has the numbers
+    print("Firefox: 512x512 result " + ", ".join(f"{t:.2f} (server {s:.2f})" for t, s in times) + " s after the click")
+    assert min(t for t, _ in times) < 30  # a loose bound on a loaded 2-core machine; docs/serve.md has the numbers
     assert ff.run("return window.__errors") == []

@@ -14,7 +14,32 @@ import click
 from .._errors import TGHopError
 from .common import user_errors
 
-__all__ = ["serve", "default_cache_dir"]
+__all__ = ["serve", "default_cache_dir", "ByteSize"]
+
+
+class ByteSize(click.ParamType):
+    """A size in bytes: a number with an optional unit (``500M``, ``2G``, ``1.5GB``, ``800KB``;
+    powers of 1000), or ``none`` for no bound (None)."""
+
+    name = "SIZE"
+    UNITS = {"": 1, "B": 1, "K": 1000, "KB": 1000, "M": 1000**2, "MB": 1000**2, "G": 1000**3, "GB": 1000**3,
+             "T": 1000**4, "TB": 1000**4}
+
+    def convert(self, value, param, ctx):
+        import re
+
+        if value is None or isinstance(value, int):
+            return value
+        text = str(value).strip().upper()
+        if text in ("NONE", "OFF"):
+            return None
+        m = re.fullmatch(r"(\d+(?:\.\d*)?)\s*([KMGT]?B?)", text)
+        if not m:
+            self.fail(f"{value!r} is not a size; write e.g. 500M, 2G or none", param, ctx)
+        size = int(float(m.group(1)) * self.UNITS[m.group(2)])
+        if size < 1:
+            self.fail(f"{value!r} is not a size of at least 1 byte; write e.g. 500M, 2G or none", param, ctx)
+        return size
 
 
 def default_cache_dir() -> Path:
@@ -62,9 +87,12 @@ def _bind(host: str, port: int):
 @click.option("--open", "open_browser", is_flag=True, help="Open the page in a web browser.")
 @click.option("--cache", "cache", type=click.Path(file_okay=False), default=None,
               help="Folder for fitted models. [default: the user's cache folder, e.g. ~/.cache/tghop]")
+@click.option("--cache-size", type=ByteSize(), default="2G", show_default=True,
+              help="Bound of the model files in --cache (e.g. 500M, 10G; none: no bound): the least recently "
+                   "used models are removed first.")
 @click.option("--max-fits", type=click.IntRange(min=1, max=256), default=None,
               help="Fits that run at once; the rest wait. [default: the number of cores]")
-def serve(host, port, open_browser, cache, max_fits):
+def serve(host, port, open_browser, cache, cache_size, max_fits):
     """Start a local web server: fit, generate and download textures in a browser.
 
     Prints the page's address; the same HTTP API the page uses is under /api
@@ -76,7 +104,7 @@ def serve(host, port, open_browser, cache, max_fits):
         require_web(server=True)
         import uvicorn
         cache_dir = Path(cache) if cache else default_cache_dir()
-        app = create_app(cache_dir, max_fits=max_fits)
+        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size)
         sock = _bind(host, port)
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host

@@ -6,7 +6,11 @@ a content hash (SHA-256 of the exemplar's bytes and the fit settings, or of an u
 model file), so the same exemplar with the same settings is fitted once. Every file
 appears whole or not at all (:func:`tghop.modelfile.save_model` writes atomically; an
 upload is checked in a temporary file that is removed whatever happens); leftovers of a
-killed server (``.*.tmp``) are removed at start.
+killed server (``.*.tmp``) are removed at start. The folder is bounded (``max_bytes``,
+``tghop serve --cache-size``): when a new model makes it larger, the least recently used
+model files go (a file's modification time is its last use: set when it is written,
+loaded, generated from or downloaded), never the one just added; a client then gets
+404 for a model that went and fits it again.
 
 Everything tghop does here is the library's own code: :func:`tghop.imageio.load_image`
 (with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
@@ -14,7 +18,7 @@ Everything tghop does here is the library's own code: :func:`tghop.imageio.load_
 checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
 status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
-422 (a setting out of range, a size over the output limit).
+422 (a setting out of range, a size over the output limit), 503 (too many fits waiting).
 """
 
 from __future__ import annotations
@@ -28,12 +32,13 @@ import re
 import secrets
 import tempfile
 import threading
+import time
 import warnings
 from collections import OrderedDict
 from pathlib import Path
 
 from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
-from .jobs import FitQueue
+from .jobs import FitQueue, QueueFull
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -46,7 +51,8 @@ try:  # the web extra; create_app says how to install it when it is missing
 except ImportError:  # pragma: no cover - tested by the missing-extra test in a fresh interpreter
     Starlette = None
 
-__all__ = ["create_app", "require_web", "WEB_HINT", "MAX_UPLOAD_BYTES", "STATIC", "model_id_for"]
+__all__ = ["create_app", "require_web", "WEB_HINT", "MAX_UPLOAD_BYTES", "STATIC", "model_id_for", "ModelCache",
+           "DEFAULT_CACHE_BYTES"]
 
 #: How to install what the server needs.
 WEB_HINT = "pip install 'tghop[web]'"
@@ -63,6 +69,8 @@ _JOB = re.compile(r"[0-9a-f]{32}\Z")
 _DRAIN = 4
 #: Fitted models kept in memory (the last used ones).
 _LOADED = 4
+#: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
+DEFAULT_CACHE_BYTES = 2 * 1000**3
 
 
 class RequestError(Exception):
@@ -209,9 +217,12 @@ def parse_generation(body) -> tuple:
 
 # ------------------------------------------------------------------ the cache
 class ModelCache:
-    """Model files named by id in ``<cache>/models``, the last used models in memory."""
+    """Model files named by id in ``<cache>/models``, the last used models in memory; the
+    folder kept under ``max_bytes`` (None: no bound) by dropping the least recently used
+    files."""
 
-    def __init__(self, cache_dir):
+    def __init__(self, cache_dir, max_bytes: int | None = DEFAULT_CACHE_BYTES):
+        self.max_bytes = max_bytes
         self.root = Path(cache_dir).expanduser()
         self.models = self.root / "models"
         try:
@@ -226,6 +237,60 @@ class ModelCache:
                 pass
         self._loaded = OrderedDict()
         self._lock = threading.Lock()
+        self.prune()  # the bound may be lower than the last server's
+
+    def touch(self, model_id: str) -> None:
+        """Mark the model's file as used now (what :meth:`prune` orders by)."""
+        try:
+            os.utime(self.path(model_id))
+        except OSError:  # gone meanwhile: it is fitted again when asked for
+            pass
+
+    def size(self) -> int:
+        """Bytes of the model files in the folder."""
+        return sum(size for _, size, _ in self._files())
+
+    def _files(self):
+        out = []
+        for entry in os.scandir(self.models):
+            if entry.name.endswith(".npz") and _ID.match(entry.name[:-4]):
+                try:
+                    st = entry.stat()
+                except OSError:
+                    continue
+                out.append((st.st_mtime, st.st_size, entry.name[:-4]))
+        return out
+
+    def prune(self, keep: str | None = None) -> list:
+        """Remove the least recently used model files until the folder is within
+        ``max_bytes`` (``keep``: an id never removed, the model just added); returns the
+        ids removed."""
+        if self.max_bytes is None:
+            return []
+        files = sorted(self._files())
+        total = sum(size for _, size, _ in files)
+        removed = []
+        for _, size, model_id in files:
+            if total <= self.max_bytes:
+                break
+            if model_id == keep:
+                continue
+            try:
+                os.unlink(self.models / f"{model_id}.npz")
+            except FileNotFoundError:
+                pass
+            except OSError:
+                continue
+            total -= size
+            removed.append(model_id)
+            with self._lock:
+                self._loaded.pop(model_id, None)
+        return removed
+
+    def added(self, model_id: str, model) -> None:
+        """A model file was just written: keep the model in memory and the folder in bounds."""
+        self.remember(model_id, model)
+        self.prune(keep=model_id)
 
     def path(self, model_id: str) -> Path:
         if not _ID.match(model_id):
@@ -248,13 +313,20 @@ class ModelCache:
 
         path = self.path(model_id)
         with self._lock:
-            if model_id in self._loaded:
+            model = self._loaded.get(model_id)
+            if model is not None:
                 self._loaded.move_to_end(model_id)
-                return self._loaded[model_id]
+        if model is not None:
+            if path.is_file():
+                self.touch(model_id)
+                return model
+            with self._lock:  # removed by the bound (or by hand): as if never fitted
+                self._loaded.pop(model_id, None)
         if not path.is_file():
             raise RequestError(404, f"no model {model_id}; fit one with POST /api/models "
                                     "(or it is still being fitted: see its job)")
         model = load_model(path)
+        self.touch(model_id)
         self.remember(model_id, model)
         return model
 
@@ -307,8 +379,8 @@ async def read_form(request, body: bytes) -> dict:
 class Server:
     """The state behind the routes: the cache, the fit queue, a bound on generations."""
 
-    def __init__(self, cache_dir, max_fits: int):
-        self.cache = ModelCache(cache_dir)
+    def __init__(self, cache_dir, max_fits: int, cache_bytes=DEFAULT_CACHE_BYTES):
+        self.cache = ModelCache(cache_dir, cache_bytes)
         self.queue = FitQueue(max_fits)
         self.generating = threading.BoundedSemaphore(max_fits)
 
@@ -377,7 +449,7 @@ class Server:
             model.fit(image, progress=job.progress)
             job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
             save_model(model, self.cache.path(model_id))
-            self.cache.remember(model_id, model)
+            self.cache.added(model_id, model)
             job.progress("saving", 1, 1, cancellable=False)  # the file is there: the job is done
 
         return work
@@ -387,9 +459,13 @@ class Server:
         fields = await read_form(request, body)
         model_id, model, image = await run_in_threadpool(self.prepare_fit, fields)
         if image is None:
+            self.cache.touch(model_id)
             job = self.queue.finished(model_id)
         else:
-            job = self.queue.submit(model_id, self.fit_work(model_id, model, image))
+            try:
+                job = self.queue.submit(model_id, self.fit_work(model_id, model, image))
+            except QueueFull as exc:
+                raise RequestError(503, f"the server is busy: {exc}") from None
         return _json({"id": model_id, "job": job.id, "state": job.state}, status=202 if not job.final else 200)
 
     # ---------------------------------------------------------------- jobs
@@ -445,6 +521,7 @@ class Server:
         path = self.cache.path(model_id)
         if not path.is_file():
             raise RequestError(404, f"no model {model_id}; fit one with POST /api/models")
+        self.cache.touch(model_id)
         return FileResponse(path, media_type="application/octet-stream",
                             filename=f"tghop-{model_id[:12]}.npz")
 
@@ -458,6 +535,7 @@ class Server:
         model_id = hashlib.sha256(content).hexdigest()
         final = self.cache.path(model_id)
         if final.is_file():
+            self.cache.touch(model_id)
             return model_id
         fd, tmp = tempfile.mkstemp(prefix=f".upload-{model_id[:12]}.", suffix=".tmp", dir=self.cache.models)
         try:
@@ -477,7 +555,7 @@ class Server:
                     os.unlink(tmp)
                 except FileNotFoundError:
                     pass
-        self.cache.remember(model_id, model)
+        self.cache.added(model_id, model)
         return model_id
 
     async def upload_model(self, request):
@@ -521,10 +599,12 @@ class Server:
         size, seed, settings = parse_generation(data)
         if seed is None:
             seed = secrets.randbelow(2**31)
+        start = time.perf_counter()
         png = await run_in_threadpool(self._generate, model_id, size, seed, settings)
+        took = (time.perf_counter() - start) * 1000
         return Response(png, media_type="image/png",
                         headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
-                                 "Cache-Control": "no-store"})
+                                 "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"})
 
     def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
         """Read the picture and its mask, fill the mask's white pixels with the model's
@@ -623,7 +703,7 @@ def _wrap(handler):
     return route
 
 
-def create_app(cache_dir, max_fits: int | None = None):
+def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None = DEFAULT_CACHE_BYTES):
     """The Starlette application of ``tghop serve``.
 
     Parameters
@@ -633,6 +713,9 @@ def create_app(cache_dir, max_fits: int | None = None):
         created if needed.
     max_fits : int, optional
         Fits that run at once (the rest wait in order); default: the number of cores.
+    cache_bytes : int or None
+        Bound of the model files' total size (the least recently used go first; the
+        newest is kept even when it alone is larger); None: no bound.
 
     Raises
     ------
@@ -640,7 +723,7 @@ def create_app(cache_dir, max_fits: int | None = None):
         Starlette or python-multipart is not installed (one line naming ``tghop[web]``).
     """
     require_web()
-    server = Server(cache_dir, max_fits or os.cpu_count() or 1)
+    server = Server(cache_dir, max_fits or os.cpu_count() or 1, cache_bytes)
     routes = [
         Route("/", _wrap(server.index)),
         Route("/api", _wrap(server.builtins)),

@@ -2,6 +2,11 @@
 once (the rest wait in order), report progress through the library's ``progress``
 callback and stop when cancelled (the callback raises :class:`Cancelled`).
 
+The job table is bounded: a finished job is kept ``keep_finished`` seconds (its client
+reads the outcome in that time) and at most ``max_finished`` finished jobs are kept (the
+oldest go first); at most ``max_waiting`` jobs wait for a thread (a further one is
+refused with :class:`QueueFull`). Queued and running jobs are never dropped.
+
 Nothing here knows about HTTP; :mod:`tghop.server.app` turns jobs into JSON and
 server-sent events. Only the standard library is imported.
 """
@@ -13,7 +18,7 @@ import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["Cancelled", "Job", "FitQueue", "STATES", "FIT_STAGES"]
+__all__ = ["Cancelled", "QueueFull", "Job", "FitQueue", "STATES", "FIT_STAGES"]
 
 #: Job states; the last three are final.
 STATES = ("queued", "running", "done", "failed", "cancelled")
@@ -27,6 +32,10 @@ FIT_STAGES = {"hop 1": 0.15, "hop 2": 0.1, "hop 3": 0.05, "SDR": 0.05, "clusters
 
 class Cancelled(Exception):
     """Raised from a cancelled job's progress callback: the fit stops there."""
+
+
+class QueueFull(Exception):
+    """More fits are waiting than the queue takes (:attr:`FitQueue.max_waiting`)."""
 
 
 class Job:
@@ -56,6 +65,7 @@ class Job:
         self.error = None
         self.version = 0
         self.created = time.time()
+        self.finished_at = None  # time.monotonic() when it became final
         self.cancel_requested = False
         self.future = None
         self._seen = []  # stages in the order they came
@@ -98,6 +108,8 @@ class Job:
         with self._changed:
             for key, value in changes.items():
                 setattr(self, key, value)
+            if self.state in FINAL and self.finished_at is None:
+                self.finished_at = time.monotonic()
             self.version += 1
             self._changed.notify_all()
 
@@ -116,29 +128,77 @@ class FitQueue:
 
     ``submit(model_id, work)`` runs ``work(job)`` (which calls ``job.progress``) in turn;
     a second submit of a model that is still queued or running returns the same job.
+
+    Parameters
+    ----------
+    max_fits : int
+        Fits that run at once.
+    max_waiting : int
+        Jobs that may wait for a thread; :meth:`submit` raises :class:`QueueFull` beyond.
+    keep_finished : float
+        Seconds a finished job stays in the table (then :meth:`get` answers None).
+    max_finished : int
+        Finished jobs kept at most (the oldest are dropped first).
     """
 
-    def __init__(self, max_fits: int):
+    def __init__(self, max_fits: int, *, max_waiting: int = 64, keep_finished: float = 3600.0,
+                 max_finished: int = 1000):
         if max_fits < 1:
             raise ValueError(f"max_fits must be at least 1, got {max_fits}")
         self.max_fits = max_fits
+        self.max_waiting = max_waiting
+        self.keep_finished = keep_finished
+        self.max_finished = max_finished
         self._pool = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-fit")
-        self._jobs = {}
+        self._jobs = {}  # in the order they were made
         self._active = {}  # model id -> job still queued or running
         self._lock = threading.Lock()
 
+    def _prune(self) -> None:
+        """Drop expired finished jobs, then the oldest finished ones over ``max_finished``
+        (with the lock held)."""
+        now = time.monotonic()
+        finished = [j for j in self._jobs.values() if j.final and j.finished_at is not None]
+        for job in finished:
+            if now - job.finished_at > self.keep_finished:
+                del self._jobs[job.id]
+        finished = [j for j in finished if j.id in self._jobs]
+        if len(finished) > self.max_finished:
+            finished.sort(key=lambda j: j.finished_at)
+            for job in finished[: len(finished) - self.max_finished]:
+                del self._jobs[job.id]
+
+    def __len__(self) -> int:
+        """Jobs in the table (finished ones not yet dropped included)."""
+        with self._lock:
+            self._prune()
+            return len(self._jobs)
+
     def finished(self, model_id: str) -> Job:
         """A job that is already done (the model was in the cache)."""
-        job = Job(model_id, state="done")
+        job = Job(model_id)
+        job._update(state="done")
         with self._lock:
+            self._prune()
             self._jobs[job.id] = job
         return job
 
     def submit(self, model_id: str, work) -> Job:
+        """Queue ``work(job)`` for ``model_id`` (or return its job still queued or running).
+
+        Raises
+        ------
+        QueueFull
+            ``max_waiting`` jobs are already waiting for a thread.
+        """
         with self._lock:
+            self._prune()
             active = self._active.get(model_id)
             if active is not None and not active.final:
                 return active
+            waiting = sum(1 for j in self._active.values() if j.state == "queued")
+            if waiting >= self.max_waiting:
+                raise QueueFull(f"{waiting} fits are waiting; try again when one has finished")
             job = Job(model_id)
             self._jobs[job.id] = job
             self._active[model_id] = job
@@ -167,12 +227,14 @@ class FitQueue:
                     del self._active[job.model_id]
 
     def get(self, job_id: str):
-        """The job, or None."""
-        return self._jobs.get(job_id)
+        """The job, or None (never made, or finished and dropped)."""
+        with self._lock:
+            self._prune()
+            return self._jobs.get(job_id)
 
     def cancel(self, job_id: str):
         """Ask the job to stop (a queued one never starts); returns the job or None."""
-        job = self._jobs.get(job_id)
+        job = self.get(job_id)
         if job is None or job.final:
             return job
         job.cancel_requested = True
@@ -187,6 +249,8 @@ class FitQueue:
 
     def shutdown(self) -> None:
         """Cancel every job and wait for the running ones to stop."""
-        for job_id in list(self._jobs):
+        with self._lock:
+            ids = list(self._jobs)
+        for job_id in ids:
             self.cancel(job_id)
         self._pool.shutdown(wait=True, cancel_futures=True)

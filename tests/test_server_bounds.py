@@ -1,0 +1,150 @@
+"""The web server's bounds: finished jobs expire from the job table, waiting fits are
+capped, and the model cache folder stays under its size by dropping the least recently
+used model files (on disk and in memory); a restart with a lower bound prunes too."""
+
+import os
+import threading
+import time
+
+import pytest
+
+from conftest import LiveServer
+
+from tghop.server.jobs import FitQueue, QueueFull
+
+
+def test_finished_jobs_expire_and_their_count_is_bounded():
+    queue = FitQueue(1, keep_finished=0.3, max_finished=3)
+    try:
+        jobs = [queue.finished(f"{i:064x}") for i in range(5)]
+        assert len(queue) == 3  # the two oldest finished jobs went
+        assert [queue.get(j.id) for j in jobs[:2]] == [None, None]
+        assert all(queue.get(j.id) is j for j in jobs[2:])
+        release = threading.Event()
+        running = queue.submit("a" * 64, lambda job: (job.progress("hop 1", 0, 1), release.wait(10)))
+        time.sleep(0.4)
+        assert queue.get(jobs[-1].id) is None  # expired...
+        assert queue.get(running.id) is running  # ...but a job still running never is
+        release.set()
+        running.future.result(timeout=10)
+        assert running.state == "done" and queue.get(running.id) is running
+        time.sleep(0.4)
+        assert queue.get(running.id) is None and len(queue) == 0
+    finally:
+        queue.shutdown()
+
+
+def test_waiting_fits_are_capped():
+    queue = FitQueue(1, max_waiting=2)
+    release = threading.Event()
+    try:
+        work = lambda job: release.wait(10)  # noqa: E731
+        first = queue.submit("1" * 64, work)
+        deadline = time.monotonic() + 10
+        while first.state != "running":
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        waiting = [queue.submit(c * 64, work) for c in "23"]
+        assert queue.submit("2" * 64, work) is waiting[0]  # the same model: its job, not a new one
+        with pytest.raises(QueueFull, match="2 fits are waiting"):
+            queue.submit("4" * 64, work)
+        queue.cancel(waiting[0].id)  # a place frees up
+        assert queue.submit("4" * 64, work).state == "queued"
+    finally:
+        release.set()
+        queue.shutdown()
+
+
+@pytest.fixture(scope="module")
+def two_model_files(small_model, tmp_path_factory):
+    """Two different model files (bytes) of the same size, give or take a few bytes."""
+    import copy
+
+    from tghop.modelfile import save_model
+
+    folder = tmp_path_factory.mktemp("models")
+    out = []
+    for seed in (0, 1):
+        path = folder / f"m{seed}.npz"
+        model = copy.deepcopy(small_model).set_params(max_patches=20000 + seed)  # stored, not checked
+        save_model(model, path)
+        out.append(path.read_bytes())
+    assert out[0] != out[1] and len(out[0]) == len(out[1])
+    return out
+
+
+def _put(cache, model_id, content, mtime=None):
+    path = cache.path(model_id)
+    path.write_bytes(content)
+    if mtime is not None:
+        os.utime(path, (mtime, mtime))
+
+
+def test_the_cache_folder_drops_the_least_recently_used_models(tmp_path, two_model_files):
+    from tghop.modelfile import load_model
+    from tghop.server.app import ModelCache
+
+    content = two_model_files[0]
+    size = len(content)
+    cache = ModelCache(tmp_path, max_bytes=int(2.5 * size))
+    a, b, c = ("a" * 64, "b" * 64, "c" * 64)
+    now = time.time()
+    _put(cache, a, content, now - 100)
+    _put(cache, b, content, now - 50)
+    cache.load(a)  # used: now the most recent of the two
+    assert cache.prune() == [] and cache.size() == 2 * size
+    _put(cache, c, content)
+    cache.added(c, load_model(cache.path(c)))
+    assert sorted(p.name[:1] for p in cache.models.glob("*.npz")) == ["a", "c"]  # b, the least recently used, went
+    with pytest.raises(Exception, match="no model"):
+        cache.load(b)
+    # the newest model stays even when it alone is over the bound
+    tiny = ModelCache(tmp_path, max_bytes=1)
+    assert sorted(p.name[:1] for p in tiny.models.glob("*.npz")) == []  # a restart with a lower bound prunes
+    _put(tiny, c, content)
+    tiny.added(c, load_model(tiny.path(c)))
+    assert [p.name[:1] for p in tiny.models.glob("*.npz")] == ["c"]
+    # no bound: nothing goes
+    free = ModelCache(tmp_path, max_bytes=None)
+    _put(free, a, content)
+    assert free.prune() == [] and free.size() == 2 * size
+
+
+def test_the_server_keeps_its_cache_under_the_bound(tmp_path, two_model_files):
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+    first, second = two_model_files
+    server = LiveServer(tmp_path, cache_bytes=int(1.5 * len(first)))
+    client = httpx.Client(base_url=server.url, timeout=60)
+    try:
+        a = client.post("/api/models/upload", content=first).json()["id"]
+        assert client.post(f"/api/models/{a}/images", json={"size": [40, 40], "n_patches": 100}).status_code == 200
+        b = client.post("/api/models/upload", content=second).json()["id"]
+        assert client.get(f"/api/models/{b}").status_code == 200
+        gone = client.post(f"/api/models/{a}/images", json={"size": [40, 40]})
+        assert gone.status_code == 404 and "no model" in gone.json()["error"]  # evicted: from memory too
+        assert sorted(os.listdir(tmp_path / "models")) == [f"{b}.npz"]
+        assert client.post("/api/models/upload", content=first).json()["id"] == a  # sent again: back
+        assert sorted(os.listdir(tmp_path / "models")) == [f"{a}.npz"]
+    finally:
+        client.close()
+        server.stop()
+
+
+@pytest.mark.parametrize("text, expected", [("2G", 2 * 1000**3), ("500M", 500 * 1000**2), ("1.5GB", 1_500_000_000),
+                                            ("800kb", 800_000), ("12345", 12345), ("none", None)])
+def test_cache_size_values(text, expected):
+    from tghop.cli.serve import ByteSize
+
+    assert ByteSize().convert(text, None, None) == expected
+
+
+def test_a_bad_cache_size_is_one_line(tmp_path):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    r = CliRunner().invoke(main, ["serve", "--cache", str(tmp_path), "--cache-size", "lots"])
+    assert r.exit_code == 2 and "'lots' is not a size; write e.g. 500M, 2G or none" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "models").exists()
