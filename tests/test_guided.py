@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 import tghop
-from tghop import TGHopError, data
+from tghop import TGHopError, data, guided
 from tghop.guided import guide_labels, region_weights
 from tghop.imageio import to_uint8
 from tghop.modelfile import save_model
@@ -101,7 +101,7 @@ def test_group_cost_keeps_each_block_to_its_group():
         quilt_prepared(prepared, groups=groups + 1, group_cost=cost)
 
 
-def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars):
+def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):
     a, b = exemplars
     guide = np.zeros((96, 192), dtype=np.uint8)
     guide[:, 96:] = 255
@@ -114,6 +114,8 @@ def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, e
     assert np.abs(right.mean(axis=(0, 1)) - b.mean(axis=(0, 1))).max() < 0.06
     again = tghop.synthesize_guided(models, guide, transition=16, rng=4, **GEN)
     assert np.array_equal(out, again)
+    monkeypatch.setattr(guided, "_THREADED_PIXELS", 1)  # stations in threads: the same image
+    assert np.array_equal(out, tghop.synthesize_guided(models, guide, transition=16, rng=4, **GEN))
     eight = tghop.synthesize_guided(models, guide, transition=16, rng=4, dtype=np.uint8, **GEN)
     assert eight.dtype == np.uint8 and np.abs(eight.astype(float) - out * 255).max() <= 1.0
 

@@ -7,36 +7,40 @@ models (never pieces of an exemplar), with the quality steps of
 * :func:`synthesize_guided` with a ``guide``: a painted map with one grey level (or
   colour) per model; each region is texture of its model, with soft transitions where
   regions meet (``transition`` pixels wide).
-* :func:`synthesize_guided` without a guide: one texture that mixes the models ("remix").
+* :func:`synthesize_guided` without a guide: one texture that mixes the models ("remix"):
+  random regions of each.
 * :func:`morph`: from model A's texture on the left to B's on the right.
 
 How it works
 ------------
 1. **Weights.** Each model ``k`` has a share ``W_k(x)`` of every pixel (they sum to 1):
-   the guide's regions as one-hot maps blurred by a box of ``transition`` pixels; a
-   linear ramp across the width for the morph; ``1 / K`` everywhere for the remix.
-2. **Quilting** from the union of the models' pools. Each block draws the model whose
-   patches it may take with probabilities ``W_k`` at its centre, through a smooth random
-   field (so that in a transition the models come in blobs of a few blocks rather than
-   as single blocks, and in their proportions); every other model's patches cost
-   :data:`REGION_COST` per overlap value more (:func:`tghop.quilting.quilt_prepared`'s
-   ``group_cost``), so the overlap error and the boundary cuts join the regions along
-   the content. The remix leaves the choice to the overlap error alone.
-3. **Refinement by stations.** A *station* is a weight map ``w_s`` (the weights sum to 1
-   at every pixel) and a mix ``a_s`` of the models. Each round decomposes the image
-   (RGB) into the Laplacian bands and oriented parts of :mod:`tghop.refine`; for each
-   station and each model in its mix, the part is taken into the model's decorrelated
-   colour space (linear: the same as the band of the decorrelated image), each channel's
-   values are given the model's quantiles by a monotone map estimated from the pixels
-   where the station dominates (``w_s >= 0.5``), and taken back to RGB; the station's
-   value is ``sum_k a_sk`` of those, the new part ``sum_s w_s`` of the stations'. Then
-   the pixels alike (pixel quantiles), and at the end the colours (the models' colour
-   quantiles, in RGB). Guided: one station per model (``a`` the identity, ``w`` the
-   region weights). Remix: one station mixing the models equally. Morph: stations at
-   evenly spaced ``t`` across the width with hat-function weights, each mixing A and B as
-   ``(1 - t, t)``; in a common colour space a mix of the monotone maps *is* the map to
-   the interpolated quantiles (the displacement interpolation of the two distributions),
-   so every column gets band statistics moved from A's towards B's.
+   the guide's regions as one-hot maps blurred by a box of ``transition`` pixels
+   (:func:`region_weights`); a linear ramp across the width for the morph. The remix is
+   a guided synthesis whose map is random: a smooth random field cut into ``K`` classes
+   of equal area (:func:`random_labels`, blobs of about 150 px).
+2. **Quilting** from the union of the models' pools (``n_patches`` shared out by area,
+   at least a quarter each, grown with the region's blocks as
+   :meth:`tghop.TGHop.synthesize` grows its pool). Each block draws
+   the model whose patches it takes, with probabilities ``W_k`` at its centre, through a
+   smooth random field (in a transition the models come in blobs of a few blocks, in
+   their proportions); the other models' patches cost :data:`REGION_COST` per overlap
+   value more (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``: more than any
+   overlap error), and the boundary cuts join the regions along the content. The coarse
+   layout guide is each model's own (over its region's bounding box) blended by ``W``.
+3. **Refinement by stations.** A *station* is a weight map ``w_s`` (the stations'
+   weights sum to 1 at every pixel) and a mix ``a_s`` of the models. Each round, every
+   station's bounding box is refined once per model of its mix as
+   :func:`tghop.refine.refine` does (the model's decorrelated colour space, Laplacian
+   bands and oriented parts given its quantiles, then the pixels), except that each
+   monotone map is estimated from the pixels where the station dominates
+   (``w_s >= 0.5``) and applied to the whole box; the image becomes
+   ``sum_s w_s sum_k a_sk refined_sk``. The colours likewise (each model's colour
+   quantiles, RGB). Guided and remix: one station per model (``a`` the identity, ``w``
+   the region weights). Morph: stations at evenly spaced ``t`` across the width with
+   hat-function weights, each mixing A and B as ``(1 - t, t)``: in a common colour space
+   a mix of monotone maps *is* the map to the interpolated quantiles (the displacement
+   interpolation of the two distributions), so each column's band statistics move from
+   A's to B's.
 
 Example
 -------
@@ -52,6 +56,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 from contextlib import nullcontext
 
 import numpy as np
@@ -76,6 +81,8 @@ _BLOB = 64
 _MAX_POOL = 30_000
 #: Values ranked to estimate each monotone map of the refinement.
 _SAMPLES = 1 << 14
+#: Images from this many pixels on are refined a station per thread.
+_THREADED_PIXELS = 512 * 512
 #: Entries of the lookup table that applies a monotone map.
 _TABLE = 4096
 
@@ -201,12 +208,16 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         statistics; 0: the quilting seam decides alone).
     rng : int or numpy.random.Generator, optional
         Same seed, same image (on the same machine).
-    n_patches, tile, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine
-        As :meth:`tghop.TGHop.synthesize`; ``n_patches`` (and ``pool_per_block``) per model.
-        The coarse layout guide is each model's (over its region's bounding box) blended
-        by the region weights; off unless every model has a coarse layout.
+    n_patches, tile, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block
+        As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out among the models
+        in proportion to their areas (each at least a quarter of it), ``pool_per_block``
+        counts each region's blocks.
+    layout_weight, layout_refine
+        As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's (over
+        its region's bounding box) blended by the region weights; off unless every model
+        has a coarse layout.
     progress : callable, optional
-        Stages "patch pool", "quilting", "refine", "colour".
+        Stages "patch pool", "layout", "quilting", "refine", "colour".
     dtype : {numpy.float64, numpy.float32, numpy.uint8}
 
     Returns
@@ -252,7 +263,9 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     stations : int, optional
         Steps of the statistics across the width (at least 2); default one per 128
         columns, at least 3.
-    rng, n_patches, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine, progress, dtype
+    rng, n_patches, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block
+        As :func:`synthesize_guided`.
+    layout_weight, layout_refine, progress, dtype
         As :func:`synthesize_guided`.
 
     Returns
@@ -296,8 +309,12 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     p = int(models[0].patch_size)
     blocks = block_count(size, p, overlap=overlap, tile=tile)
     area = shares.reshape(k, -1).mean(axis=1)
-    counts = [max(checked["n_patches"], min(_MAX_POOL, int(math.ceil(checked["pool_per_block"] * blocks * a))))
-              for a in area]
+    # Each model's pool in proportion to its area (the pool of one image shared out), at
+    # least a quarter of n_patches (a small region still has choice), grown with the
+    # region's blocks as TGHop.synthesize grows its pool.
+    n_min = checked["n_patches"]
+    counts = [max(int(math.ceil(n_min * max(a, 0.25))),
+                  min(_MAX_POOL, int(math.ceil(checked["pool_per_block"] * blocks * a)))) for a in area]
     guided = bool(checked["layout_weight"]) and all(m.layout_ is not None for m in models)
     pending = None
     # The coarse guides are made in a second thread (their own random stream) while the
@@ -423,11 +440,8 @@ class _Stations:
 
     def _each(self, image, one):
         """``sum_s w_s sum_k a_sk one(k, crop, samples)`` over the stations' boxes; (H, W, C) float32."""
-        out = np.zeros(image.shape, dtype=np.float32)
-        for s, station in enumerate(self.stations):
-            if station is None:
-                continue
-            box, wb, samples = station
+        def station_value(s):
+            box, wb, samples = self.stations[s]
             crop = image[box]
             acc = None
             for k in np.flatnonzero(self.mix[s] > 0):
@@ -436,7 +450,22 @@ class _Stations:
                     value *= np.float32(self.mix[s, k])
                 acc = value if acc is None else np.add(acc, value, out=acc)
             acc *= wb[..., None]
-            out[box] += acc
+            return acc
+
+        todo = [s for s, station in enumerate(self.stations) if station is not None]
+        out = np.zeros(image.shape, dtype=np.float32)
+        workers = min(len(todo), os.cpu_count() or 1, 4)
+        if workers > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
+            # Stations in threads (NumPy and the FFTs let go of the interpreter lock),
+            # added in station order: the same image as one at a time.
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                for s, value in zip(todo, pool.map(station_value, todo)):
+                    out[self.stations[s][0]] += value
+        else:
+            for s in todo:
+                out[self.stations[s][0]] += station_value(s)
         return out
 
     def refine(self, image, *, n_iter, tile, progress=None):
