@@ -90,7 +90,8 @@ def main():
                 raise SystemExit(r.stderr.decode())
             t = time.perf_counter()  # the same machine's plain synth of A, for comparison
             subprocess.run([sys.executable, "-m", "tghop", "synth", paths[0], "--size", f"{n}x{n}", "-o",
-                            os.path.join(tmp, "plain.png"), "--seed", str(args.seed), "-q"], check=True)
+                            os.path.join(tmp, "plain.png"), "--seed", str(args.seed), "-q"], check=True,
+                           capture_output=True)
             row["plain_process_s"] = time.perf_counter() - t
             t = time.perf_counter()
             synthesize_guided(models, size=(n, n), rng=args.seed)

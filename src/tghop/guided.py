@@ -121,8 +121,7 @@ def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
     if size is not None and tuple(arr.shape[:2]) != tuple(size):
         raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}; "
                          "paint the guide at the output size (or leave the size out to take the guide's)")
-    flat = arr.reshape(arr.shape[0] * arr.shape[1], -1)
-    values, labels = np.unique(flat, axis=0, return_inverse=True)
+    values, labels = _distinct(arr)
     n = len(values)
     if n != n_models:
         hint = ("paint with flat levels only (no antialiasing, PNG not JPEG)" if n > n_models
@@ -132,7 +131,30 @@ def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
     order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)
-    return rank[labels.reshape(-1)].reshape(arr.shape[:2])
+    return rank[labels]
+
+
+def _distinct(arr):
+    """``(values (n, C), labels (H, W))``: the distinct pixels of an (H, W) or (H, W, C)
+    image and each pixel's index among them (8-bit images by counting, in linear time)."""
+    h, w = arr.shape[:2]
+    c = 1 if arr.ndim == 2 else arr.shape[2]
+    if arr.dtype == np.uint8 and c in (1, 3):
+        code = arr.astype(np.int32) if c == 1 else (arr[..., 0].astype(np.int32) << 16) | (
+            arr[..., 1].astype(np.int32) << 8) | arr[..., 2]
+        if c == 1:
+            present = np.flatnonzero(np.bincount(code.ravel(), minlength=256))
+            index = np.zeros(256, dtype=np.int64)
+            index[present] = np.arange(present.size)
+            return present[:, None].astype(np.uint8), index[code]
+        codes, labels = np.unique(code.ravel(), return_inverse=True)
+        values = np.stack([(codes >> 16) & 255, (codes >> 8) & 255, codes & 255], axis=1).astype(np.uint8)
+        return values, labels.reshape(h, w)
+    if c == 1:
+        values, labels = np.unique(arr.reshape(-1), return_inverse=True)
+        return values[:, None], labels.reshape(h, w)
+    values, labels = np.unique(arr.reshape(h * w, c), axis=0, return_inverse=True)
+    return values, labels.reshape(h, w)
 
 
 def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=False) -> np.ndarray:
@@ -143,17 +165,42 @@ def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=Fals
     ndarray of float32, shape (n_models, H, W)
         In [0, 1], summing to 1 at every pixel; 0 or 1 everywhere for ``transition`` 0.
     """
-    from scipy.ndimage import uniform_filter
-
     labels = np.asarray(labels)
     out = np.stack([(labels == k).astype(np.float32) for k in range(n_models)])
-    width = int(transition)
-    if width > 1:
+    radius = int(transition) // 2
+    if radius:
+        # Box sums of the 0/1 maps are whole numbers (exact in float32), divided once.
+        area = np.float32((2 * radius + 1) ** 2)
         for k in range(n_models):
-            uniform_filter(out[k], size=width + 1, mode="wrap" if tile else "nearest", output=out[k])
-        np.clip(out, 0.0, 1.0, out=out)
-        out /= out.sum(axis=0, keepdims=True)
+            out[k] = _box_sum(_box_sum(out[k], radius, 0, tile), radius, 1, tile) / area
     return out
+
+
+def _box_sum(x, radius, axis, wrap):
+    """Sums of ``2 radius + 1`` samples along ``axis`` of the 2-d ``x`` (edges: repeated,
+    or periodic with ``wrap``), by cumulative sums; float32."""
+    pad = [(0, 0), (0, 0)]
+    pad[axis] = (radius + 1, radius)
+    total = np.cumsum(np.pad(x, pad, mode="wrap" if wrap else "edge"), axis=axis, dtype=np.float32)
+    n = x.shape[axis]
+    if axis == 0:
+        return total[2 * radius + 1:2 * radius + 1 + n] - total[:n]
+    return total[:, 2 * radius + 1:2 * radius + 1 + n] - total[:, :n]
+
+
+def _smooth(field, sigma, wrap):
+    """A small 2-d array blurred by a Gaussian of ``sigma`` samples (edges mirrored, or
+    periodic with ``wrap``), a separable convolution of radius ``3 sigma``."""
+    radius = max(1, int(math.ceil(3 * sigma)))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    taps /= taps.sum()
+    for axis in (0, 1):
+        n = field.shape[axis]
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (radius, radius)
+        padded = np.pad(field, pad, mode="wrap" if wrap else "symmetric")
+        field = sum(t * np.take(padded, np.arange(i, i + n), axis=axis) for i, t in enumerate(taps))
+    return field
 
 
 # ----------------------------------------------------------------------------- checks
@@ -377,13 +424,11 @@ def _layout_guide(models, shares, rng, tile, refine):
 def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.ndarray:
     """Random regions for a remix: a smooth random field (Gaussian of ``scale`` pixels)
     cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64."""
-    from scipy.ndimage import gaussian_filter
-
     h, w = check_size(size)
     rng = check_rng(rng)
     cell = max(1, scale // 4)
     small = (max(1, -(-h // cell)), max(1, -(-w // cell)))
-    field = gaussian_filter(rng.standard_normal(small), sigma=scale / cell, mode="wrap" if tile else "reflect")
+    field = _smooth(rng.standard_normal(small), scale / cell, tile)
     field = np.repeat(np.repeat(field, cell, axis=0), cell, axis=1)[:h, :w]
     cuts = np.quantile(field, np.linspace(0.0, 1.0, n_models + 1)[1:-1])
     return np.searchsorted(cuts, field).astype(np.int64)
@@ -394,13 +439,11 @@ def _group_cost(shares, plan, p, c, rng):
     draws (probabilities: ``shares`` at its centre), :data:`REGION_COST` per overlap value
     for the others. The draw thresholds a smooth random field made uniform by its ranks,
     so that mixed blocks come in blobs."""
-    from scipy.ndimage import gaussian_filter
-
     k, h, w = shares.shape
     cy = np.minimum(plan.ys + p // 2, h - 1)
     cx = np.minimum(plan.xs + p // 2, w - 1)
     at = shares[:, cy[:, None], cx[None, :]]  # (K, ny, nx)
-    field = gaussian_filter(rng.standard_normal(at.shape[1:]), sigma=1.0, mode="wrap" if plan.tile else "reflect")
+    field = _smooth(rng.standard_normal(at.shape[1:]), 1.0, plan.tile)
     u = (np.argsort(np.argsort(field, axis=None)).reshape(field.shape) + 0.5) / field.size
     drawn = np.minimum((np.cumsum(at, axis=0) < u[None]).sum(axis=0), k - 1)  # (ny, nx)
     n_values = 2 * p * plan.overlap * c
@@ -552,7 +595,8 @@ def _monotone_map(values, sample, target):
         return np.full_like(values, float(np.interp(0.5, np.linspace(0.0, 1.0, q), target)))
     scale = (_TABLE - 1) / (hi - lo)
     table = np.interp(lo + np.arange(_TABLE) / scale, src, target).astype(values.dtype)
-    index = (values - np.float32(lo)) * np.float32(scale)
-    index += np.float32(0.5)
+    # The nearest entry, round((v - lo) * scale), as v * scale + (0.5 - lo * scale) truncated.
+    index = np.multiply(values, np.float32(scale), dtype=np.float32)
+    index += np.float32(0.5 - lo * scale)
     np.clip(index, 0, _TABLE - 1, out=index)
-    return table[index.astype(np.int32)]
+    return np.take(table, index.astype(np.int32), mode="clip")
