@@ -126,6 +126,7 @@ def test_remix_mixes_the_models(models, exemplars):
     assert out.shape == (128, 128, 3)
     blue = (out[..., 2] - out[..., 0] > 0.2).mean()  # the blue cells' pixels
     assert 0.15 < blue < 0.85
+    assert tghop.synthesize_guided(models, size=(96, 96), tile=True, rng=2, **GEN).shape == (96, 96, 3)
     with pytest.raises(TGHopError, match="needs a size"):
         tghop.synthesize_guided(models)
     with pytest.raises(TGHopError, match="at least 2"):

@@ -25,7 +25,9 @@ How it works
    smooth random field (in a transition the models come in blobs of a few blocks, in
    their proportions); the other models' patches cost :data:`REGION_COST` per overlap
    value more (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``: more than any
-   overlap error), and the boundary cuts join the regions along the content. The coarse
+   overlap error), only :data:`MIXED_COST` in blocks where several models have a share
+   (a texture may go on where it fits much better), and the boundary cuts join the
+   regions along the content. The coarse
    layout guide is each model's own (over its region's bounding box) blended by ``W``.
 3. **Refinement by stations.** A *station* is a weight map ``w_s`` (the stations'
    weights sum to 1 at every pixel) and a mix ``a_s`` of the models. Each round, every
@@ -67,7 +69,7 @@ from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .refine import downsample, iter_oriented_parts, laplacian_pyramid, prepare as prepare_refinement, reconstruct
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
-           "REGION_COST"]
+           "REGION_COST", "MIXED_COST"]
 
 #: Default width in pixels of the soft transition between painted regions.
 DEFAULT_TRANSITION = 32
@@ -75,6 +77,10 @@ DEFAULT_TRANSITION = 32
 #: model other than the one a block drew: more than any overlap error (at most 1 per
 #: value), so a region takes its own model's patches.
 REGION_COST = 1.0
+#: The same in blocks of a transition (or a morph), where several models have a share: a
+#: preference for the drawn model that a clearly better fitting patch of another overrides,
+#: so that a texture can continue across a few blocks (fewer block-shaped islands).
+MIXED_COST = 0.003
 #: Length scale in pixels of the random regions of a remix.
 _BLOB = 64
 #: Most pool patches per model.
@@ -437,7 +443,7 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
 def _group_cost(shares, plan, p, c, rng):
     """(ny, nx, K) cost of each model's patches at each block: 0 for the model the block
     draws (probabilities: ``shares`` at its centre), :data:`REGION_COST` per overlap value
-    for the others. The draw thresholds a smooth random field made uniform by its ranks,
+    for the others (:data:`MIXED_COST` in blocks where several models have a share). The draw thresholds a smooth random field made uniform by its ranks,
     so that mixed blocks come in blobs."""
     k, h, w = shares.shape
     cy = np.minimum(plan.ys + p // 2, h - 1)
@@ -447,7 +453,9 @@ def _group_cost(shares, plan, p, c, rng):
     u = (np.argsort(np.argsort(field, axis=None)).reshape(field.shape) + 0.5) / field.size
     drawn = np.minimum((np.cumsum(at, axis=0) < u[None]).sum(axis=0), k - 1)  # (ny, nx)
     n_values = 2 * p * plan.overlap * c
-    cost = np.full((*drawn.shape, k), REGION_COST * n_values, dtype=np.float32)
+    mixed = at.max(axis=0) < 1.0 - 1e-6  # blocks in a transition: a preference only
+    per_value = np.where(mixed, MIXED_COST, REGION_COST).astype(np.float32)
+    cost = np.repeat((per_value * n_values)[..., None], k, axis=2)
     np.put_along_axis(cost, drawn[..., None], 0.0, axis=2)
     return cost
 
