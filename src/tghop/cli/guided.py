@@ -69,7 +69,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
     size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
     outputs = [output] if count == 1 else numbered(output, count)
-    for path in outputs[1:] if count > 1 else ():
+    for path in outputs if count > 1 else ():
         check_output(path)
     check_outputs([("-o", path) for path in outputs],
                   [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
