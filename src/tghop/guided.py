@@ -345,8 +345,8 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
 
 def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, refine,
                 match_colours, reuse, pool_per_block, layout_weight, layout_refine, progress, dtype):
-    """Quilt the union of the models' pools (each block its drawn model's patches, from
-    ``shares`` (K, H, W); None: free choice), refine and colour-match by the stations
+    """Quilt the union of the models' pools (each block its drawn model's patches, drawn
+    from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
     ``weights`` (S, H, W) and ``mix`` (S, K)."""
     dtype = np.dtype(dtype)
     if dtype not in (np.float64, np.float32, np.uint8):
@@ -385,7 +385,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
             report(progress, "patch pool", i, k)
         prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=checked["detail"],
                                 guide_scale=GUIDE_SCALE if guided else None)
-        if refine:
+        if checked["refine"]:
             prepare_refinement(size, models[0].bands_)
         report(progress, "layout", 0, 1)
         guide = pending() if guided else None
