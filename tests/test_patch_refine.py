@@ -19,81 +19,120 @@ def patch_model():
     return TGHop(**SMALL, patch_levels=3).fit(data.cells(96, rng=3))
 
 
-def _patch_swd(dec, stats):
+def _patch_swd(img, stats):
     """Mean distance of the image's projection quantiles to the stored ones, per level."""
     out = []
-    for i, img in enumerate(pr._levels_of(dec, len(stats.rotations_), "reflect")):
-        for r in range(pr.ROTATIONS):
-            proj = pr._windows(img, pr.PATCH) @ stats.rotations_[i, r].T
+    for i, lev in enumerate(pr._levels_of(np.asarray(img, np.float32), len(stats.directions_), "reflect")):
+        x, _ = pr._windows(lev, pr.PATCH)
+        for j in range(pr.SETS):
+            proj = x @ stats.directions_[i, j].T
             q = np.quantile(proj, np.linspace(0, 1, pr.QUANTILES), axis=0).T
-            out.append(np.abs(q - stats.quantiles_[i, r]).mean())
+            out.append(np.abs(q - stats.quantiles_[i, j]).mean())
     return np.array(out)
 
 
-def test_statistics_shapes_and_rotations(patch_model):
+def test_statistics_shapes_and_directions(patch_model):
     st = patch_model.patches_
     d = pr.PATCH * pr.PATCH * 3
-    assert st.rotations_.shape == (3, pr.ROTATIONS, d, d)
-    assert st.quantiles_.shape == (3, pr.ROTATIONS, d, pr.QUANTILES)
-    eye = np.eye(d)
-    assert np.abs(st.rotations_ @ np.swapaxes(st.rotations_, -1, -2) - eye).max() < 1e-9
+    assert st.directions_.shape == (3, pr.SETS, pr.DIRECTIONS, d)
+    assert st.quantiles_.shape == (3, pr.SETS, pr.DIRECTIONS, pr.QUANTILES)
+    assert np.allclose(np.linalg.norm(st.directions_, axis=-1), 1, atol=1e-5)
     assert (np.diff(st.quantiles_, axis=-1) >= 0).all()
-    # Stored only when asked for: no arrays, no parameters.
-    plain = TGHop(**SMALL).fit(data.cells(96, rng=3))
+    # The quantiles are the exemplar's: a direction's quantiles against np.quantile of the projections.
+    ex = data.cells(96, rng=3).astype(np.float32)
+    x, _ = pr._windows(ex, pr.PATCH)
+    proj = x @ st.directions_[0, 1, 5]
+    assert np.allclose(st.quantiles_[0, 1, 5], np.quantile(proj, np.linspace(0, 1, pr.QUANTILES)), atol=1e-5)
+    # Stored unless switched off: then no arrays, no parameters.
+    plain = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
     assert plain.patches_ is None and not any(k.startswith("patch.") for k in plain._to_arrays())
     assert plain.n_parameters()["patch refinement (ours)"]["stored"] == 0
-    assert patch_model.n_parameters()["patch refinement (ours)"]["stored"] == 3 * pr.ROTATIONS * d * (d + pr.QUANTILES)
+    assert (patch_model.n_parameters()["patch refinement (ours)"]["stored"]
+            == 3 * pr.SETS * pr.DIRECTIONS * (d + pr.QUANTILES))
 
 
-def test_refinement_moves_patch_statistics_towards_the_exemplar(patch_model, rng):
+def test_refinement_moves_patch_statistics_towards_the_exemplar(patch_model):
     st = patch_model.patches_
-    img = patch_model.synthesize((80, 72), rng=2, match_colours=False).astype(np.float32)
-    dec = patch_model.bands_.to_decorrelated(img)
-    before = _patch_swd(dec, st)
-    out = pr.patch_refine(dec, st, n_iter=2)
-    assert out.shape == dec.shape and out.dtype == np.float32
+    img = patch_model.synthesize((80, 72), rng=2).astype(np.float32)
+    before = _patch_swd(img, st)
+    out = pr.patch_refine(img, st, n_steps=20)
+    assert out.shape == img.shape and out.dtype == np.float32
+    assert out.min() >= 0 and out.max() <= 1
     after = _patch_swd(out, st)
     assert after.mean() < 0.8 * before.mean()
-    assert np.array_equal(pr.patch_refine(dec, st, n_iter=0), dec)
-    tiled = pr.patch_refine(dec, st, n_iter=1, tile=True)
-    assert tiled.shape == dec.shape and _patch_swd(tiled, st).mean() < before.mean()
+    # Small steps: it refines the image, it does not replace it.
+    assert 0 < np.abs(out - img).mean() < 0.05
+    assert np.array_equal(pr.patch_refine(img, st, n_steps=0), img)
     with pytest.raises(TGHopError):
-        pr.patch_refine(dec[..., :1], st, n_iter=1)
+        pr.patch_refine(img[..., :1], st, n_steps=1)
+    with pytest.raises(TGHopError, match="non-negative"):
+        pr.patch_refine(img, st, n_steps=-1)
+
+
+def test_tiled_refinement_stays_tileable(patch_model):
+    st = patch_model.patches_
+    img = patch_model.synthesize((64, 64), rng=2, tile=True).astype(np.float32)
+    out = pr.patch_refine(img, st, n_steps=10, tile=True)
+    # The same refinement of the image rolled by half is the refined image rolled by half:
+    # no border is special.
+    rolled = pr.patch_refine(np.roll(img, (32, 32), axis=(0, 1)), st, n_steps=10, tile=True)
+    # (float32 sums in another order: Adam's normalised steps turn near-ties into small differences)
+    diff = np.abs(np.roll(out, (32, 32), axis=(0, 1)) - rolled)
+    assert diff.max() < 2e-3 and diff.mean() < 2e-4
+    plain = pr.patch_refine(np.roll(img, (32, 32), axis=(0, 1)), st, n_steps=10)
+    assert np.abs(np.roll(out, (32, 32), axis=(0, 1)) - plain).max() > 5e-3  # borders do matter untiled
+
+
+def test_chunked_gradient_matches_one_chunk(patch_model, monkeypatch):
+    """Large images are projected in chunks, the ranks from a grid of patches: with every
+    patch on the grid, the gradient equals the one-chunk gradient."""
+    st = patch_model.patches_
+    img = patch_model.synthesize((70, 60), rng=1).astype(np.float32)
+    whole = pr._gradient(img, st.directions_[0, 0], st.quantiles_[0, 0], 1)
+    monkeypatch.setattr(pr, "_CHUNK", 300)
+    chunked = pr._gradient(img, st.directions_[0, 0], st.quantiles_[0, 0], 1)
+    assert np.abs(whole - chunked).mean() < 1e-3 * np.abs(whole).mean()  # float32 rounding only
+    strided = pr._gradient(img, st.directions_[0, 0], st.quantiles_[0, 0], 2)
+    assert strided.shape == whole.shape and np.abs(strided).sum() > 0
 
 
 def test_synthesis_is_deterministic_and_off_by_default(patch_model):
-    a = patch_model.synthesize((64, 64), rng=5, patch_refine=2)
-    b = patch_model.synthesize((64, 64), rng=5, patch_refine=2)
+    a = patch_model.synthesize((64, 64), rng=5, patch_refine=5)
+    b = patch_model.synthesize((64, 64), rng=5, patch_refine=5)
     off = patch_model.synthesize((64, 64), rng=5)
     assert a.shape == (64, 64, 3) and np.array_equal(a, b)
     assert not np.array_equal(a, off)
     assert (a >= 0).all() and (a <= 1).all()
-    u8 = patch_model.synthesize((64, 64), rng=5, patch_refine=1, dtype=np.uint8, tile=True)
+    u8 = patch_model.synthesize((64, 64), rng=5, patch_refine=2, dtype=np.uint8, tile=True)
     assert u8.dtype == np.uint8 and u8.shape == (64, 64, 3)
+    f32 = patch_model.synthesize((64, 64), rng=5, patch_refine=5, dtype=np.float32)
+    assert f32.dtype == np.float32 and np.abs(f32 - a).max() < 1e-6
 
 
 def test_paper_pipeline_is_unaffected():
     assert settings.PAPER["patch_refine"] == 0 and settings.PAPER["patch_levels"] == 0
-    assert settings.BY_NAME["patch_refine"].default == 0 and settings.BY_NAME["patch_levels"].default == 0
+    assert settings.BY_NAME["patch_refine"].default == 0 and settings.BY_NAME["patch_levels"].default == 3
+    assert settings.QUALITY["best"]["patch_refine"] > 0
 
 
-def test_model_without_statistics_ignores_the_setting(small_model):
-    a = small_model.synthesize((48, 48), rng=1, patch_refine=3)
-    assert np.array_equal(a, small_model.synthesize((48, 48), rng=1))
+def test_model_without_statistics_ignores_the_setting():
+    model = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
+    a = model.synthesize((48, 48), rng=1, patch_refine=3)
+    assert np.array_equal(a, model.synthesize((48, 48), rng=1))
 
 
 def test_fit_is_unchanged_by_the_statistics(patch_model):
-    plain = TGHop(**SMALL).fit(data.cells(96, rng=3))
+    plain = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
     assert np.array_equal(plain.synthesize((64, 64), rng=3), patch_model.synthesize((64, 64), rng=3))
 
 
 def test_model_file_round_trip(patch_model, tmp_path):
     save_model(patch_model, tmp_path / "m.npz")
     with np.load(tmp_path / "m.npz") as f:
-        assert json.loads(str(f["__meta__"]))["format_version"] == 4
+        assert json.loads(str(f["__meta__"]))["format_version"] == 5
     loaded = load_model(tmp_path / "m.npz")
-    assert np.array_equal(loaded.synthesize((64, 64), rng=4, patch_refine=2),
-                          patch_model.synthesize((64, 64), rng=4, patch_refine=2))
+    assert np.array_equal(loaded.synthesize((64, 64), rng=4, patch_refine=3),
+                          patch_model.synthesize((64, 64), rng=4, patch_refine=3))
 
 
 def _rewrite(src, dst, edit):
@@ -104,8 +143,8 @@ def _rewrite(src, dst, edit):
     np.savez(dst, __meta__=np.array(json.dumps(meta)), **arrays)
 
 
-def test_old_files_load_and_damaged_arrays_are_refused(small_model, patch_model, tmp_path):
-    save_model(small_model, tmp_path / "plain.npz")
+def test_old_files_load_and_damaged_arrays_are_refused(patch_model, tmp_path):
+    save_model(TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3)), tmp_path / "plain.npz")
     with np.load(tmp_path / "plain.npz") as f:  # nothing new in it: still readable by older tghop
         assert json.loads(str(f["__meta__"]))["format_version"] == 3
 
@@ -119,9 +158,9 @@ def test_old_files_load_and_damaged_arrays_are_refused(small_model, patch_model,
     save_model(patch_model, tmp_path / "p.npz")
 
     def skew(meta, arrays):
-        arrays["patch.rotations"] = arrays["patch.rotations"] * 1.5
+        arrays["patch.directions"] = arrays["patch.directions"] * 1.5
     _rewrite(tmp_path / "p.npz", tmp_path / "skew.npz", skew)
-    with pytest.raises(ModelFileError, match="patch.rotations.*orthonormal"):
+    with pytest.raises(ModelFileError, match="patch.directions.*unit length"):
         load_model(tmp_path / "skew.npz")
 
     def missing(meta, arrays):
@@ -135,3 +174,20 @@ def test_old_files_load_and_damaged_arrays_are_refused(small_model, patch_model,
     _rewrite(tmp_path / "p.npz", tmp_path / "unknown.npz", unknown)
     with pytest.raises(ModelFileError, match="array patch."):
         load_model(tmp_path / "unknown.npz")
+
+
+def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_path):
+    """tghop 0.14 stored other patch statistics (format 4): its files still load, without them."""
+    save_model(patch_model, tmp_path / "p.npz")
+
+    def v4(meta, arrays):
+        meta["format_version"] = 4
+        for name in ("patch.directions", "patch.quantiles"):
+            arrays.pop(name)
+        arrays["patch.rotations"] = np.stack([np.eye(75, dtype=np.float32)] * 2)[None].repeat(3, 0)
+        arrays["patch.quantiles"] = np.zeros((3, 2, 75, 129), np.float32)
+    _rewrite(tmp_path / "p.npz", tmp_path / "v4.npz", v4)
+    with pytest.warns(UserWarning, match="patch refinement statistics are of tghop 0.14"):
+        loaded = load_model(tmp_path / "v4.npz")
+    assert loaded.patches_ is None and loaded.patch_levels == 0
+    assert np.array_equal(loaded.synthesize((48, 48), rng=1, patch_refine=3), patch_model.synthesize((48, 48), rng=1))

@@ -21,6 +21,7 @@ It imports :mod:`tghop.synthesis`, never the other way round.
 from __future__ import annotations
 
 import json
+import warnings
 import zipfile
 import zlib
 from pathlib import Path
@@ -36,11 +37,13 @@ from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 4  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
-# 4: patch refinement statistics (patch.*, models fitted with patch_levels; files without them
-# are written as version 3, which older tghop reads)
+FORMAT_VERSION = 5  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+# 4: tghop 0.14's patch refinement statistics (patch.rotations, patch.quantiles: 5x5 patches on
+# random rotations; read without them, with a warning); 5: the sliced Wasserstein statistics
+# (patch.directions, patch.quantiles); files without patch statistics are written as version 3,
+# which older tghop reads
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3, 4)
+READABLE_VERSIONS = (2, 3, 4, 5)
 
 
 def save_model(model, path) -> None:
@@ -318,6 +321,18 @@ def load_model(path):
         The file is missing, not a tghop model, corrupt, or of another format version.
     """
     meta, arrays = _read(path)
+    if meta["format_version"] == 4 and isinstance(meta.get("params"), dict):
+        # tghop 0.14's opt-in patch statistics: replaced by other ones, so left out.
+        for name in ("patch.rotations", "patch.quantiles"):
+            arrays.pop(name, None)
+        if meta["params"].get("patch_levels"):
+            meta["params"]["patch_levels"] = 0
+            warnings.warn(f"{path}: its patch refinement statistics are of tghop 0.14 and are not used; "
+                          "fit the model again with --patch-levels for the patch refinement", stacklevel=2)
+    # Files before the setting (0.13 and older) have none: no patch statistics.
+    for part in (meta, (meta.get("layout") or {}).get("model") if isinstance(meta.get("layout"), dict) else None):
+        if isinstance(part, dict) and isinstance(part.get("params"), dict):
+            part["params"].setdefault("patch_levels", 0)
     if meta["format_version"] == 2 and isinstance(meta.get("params"), dict):
         meta["params"].setdefault("ica_tol", 1e-4)  # what version 2 (tghop 0.2.0) fitted with
     try:

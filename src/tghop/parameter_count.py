@@ -85,7 +85,7 @@ def table4(dims, channels, n_colours, n_bins, sdr_shape, stored) -> dict:
     paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
     paper["coarse layout (ours)"] = ("a coarse TGHop model (not in the paper)", 0)
     paper["refinement (ours)"] = ("(levels*orientations+1)*C*257 + C*(C+1) (not in the paper)", 0)
-    paper["patch refinement (ours)"] = ("levels*2*D*(D+129), D = 25*C (not in the paper)", 0)
+    paper["patch refinement (ours)"] = ("levels*16*32*(D+129), D = 49*C (not in the paper)", 0)
     out = {m: {"formula": fm, "paper": int(p), "stored": int(stored.get(m, 0))} for m, (fm, p) in paper.items()}
     out["total"] = {
         "formula": "sum",

@@ -1,22 +1,24 @@
-"""Patch-distribution refinement after stitching: sliced optimal transport of small patches (ours).
+"""Patch-distribution refinement, the last step: sliced Wasserstein matching of small patches (ours).
 
 The band refinement (:mod:`tghop.refine`) gives every band the exemplar's marginal
 distribution, but says nothing about how values go together inside a small window: edges
-stay soft, pebbles lose their outlines. GPDM (Elnekave & Weiss 2022) and Heitz et al.'s
-sliced Wasserstein loss (2021) match the distribution of an image's small patches to the
-exemplar's along random directions; "optimal textures" (Risser 2020) does it without
-gradients, by 1-D optimal transport along each direction of a random rotation.
+stay soft, grain is mushy. GPDM (Elnekave & Weiss 2022) and Heitz et al.'s sliced
+Wasserstein loss (2021) match the distribution of an image's small patches to the
+exemplar's along random directions, by gradient descent on the pixels.
 
-This step does the same from statistics stored in the model, coarse to fine: for each of a
-few pyramid levels of the exemplar (full, 1/2, 1/4 resolution; binomial pyramid, in the
-decorrelated colour space of :class:`tghop.refine.BandStatistics`) the projections of its
-``P x P x C`` patches on a few fixed random rotations of patch space, as quantiles
-(:class:`PatchStatistics`). At generation, for each level from the coarsest, a few
-rounds of: cut every patch of the image (stride 1), rotate, give each coordinate the
-stored distribution (1-D optimal transport: a monotone map by ranks), rotate back; every
-pixel moves by the mean of what its patches asked of it. A level's change is upsampled
-into the next finer one. Nothing of the exemplar but these quantiles is kept, so no
-exemplar patch can be pasted.
+This step does the same from statistics stored in the model, coarse to fine, started from
+tghop's finished image (which already has the layout, so few steps suffice):
+
+- Fit (:class:`PatchStatistics`): for each of a few levels of the exemplar's binomial
+  pyramid (full, 1/2, 1/4 resolution), ``SETS`` fixed sets of ``DIRECTIONS`` random unit
+  directions in the space of ``PATCH x PATCH x C`` patches, and the ``QUANTILES``
+  quantiles of the exemplar's patch projections on each. Nothing else of the exemplar is
+  kept, so no exemplar patch can be pasted.
+- Generation (:func:`patch_refine`): from the coarsest level, ``n_steps`` Adam steps on the
+  level's pixels; step t projects every patch on set ``t mod SETS``, gives each projection
+  the stored quantile at its rank (1-D optimal transport, ranks from a histogram), and
+  moves the pixels along the gradient of the L1 distance between the two (as GPDM). A
+  level's change is upsampled into the next finer one.
 """
 
 from __future__ import annotations
@@ -27,29 +29,31 @@ import numpy as np
 
 from ._common import TGHopError, report
 from .patches import clean_windows
-from .refine import downsample, refine as refine_bands, upsample
+from .refine import downsample, upsample
 
 __all__ = ["PatchStatistics", "patch_refine", "fit_patch_statistics", "refine_image"]
 
-#: Patch side (pixels of each level).
-PATCH = 5
-#: Random rotations stored per level (round r of a level uses rotation r mod ROTATIONS).
-ROTATIONS = 2
+#: Patch side (pixels of each level), as GPDM.
+PATCH = 7
+#: Direction sets stored per level (step t of a level uses set t mod SETS).
+SETS = 16
+#: Random unit directions per set (GPDM draws 64 per step; 32 here: docs/choices.md).
+DIRECTIONS = 32
 #: Quantiles stored per direction.
 QUANTILES = 129
 #: Patches measured per level at fit (a strided subset beyond this).
-_FIT_PATCHES = 1 << 16
-#: Table entries of the rank matching per direction.
-_BINS = 4096
+_FIT_PATCHES = 1 << 13
 #: Exemplar pixels measured at fit: the centre crop of at most this side.
 _FIT_SIDE = 512
-#: Rounds of the band refinement after the patch refinement (docs/choices.md: quilt, bands,
-#: patches, bands again; beach_gravel and brick_wall SIFID 2.06 / 1.85 -> 1.77 / 1.70, against
-#: 2.06 / 1.74 with the patches last and 1.84 / 1.87 with the patches first).
-BAND_ROUNDS_AFTER = 2
-#: Step between the patches moved at full resolution at generation (beach_gravel, brick_wall:
-#: SIFID 1.75 / 1.70 against 1.77 / 1.70 with every patch, at a quarter of the cost).
-FULL_STRIDE = 2
+#: Adam's step, in pixel values of [0, 1] (GPDM: 0.01 in [-1, 1] from noise; from a
+#: finished image smaller steps: docs/choices.md).
+LEARNING_RATE = 0.001
+#: Table entries of the rank matching per direction.
+_BINS = 4096
+#: Patches whose projections give the rank tables of a step (a strided subset beyond this).
+_RANK_PATCHES = 1 << 16
+#: Patches projected at once (bounds the memory of large images).
+_CHUNK = 1 << 16
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH
 
@@ -63,20 +67,11 @@ def _levels_of(img, n_levels, mode):
     return out
 
 
-def _windows(img, p):
-    """Every p x p window of an (H, W, C) image as rows: (n, p * p * C), a copy."""
-    h, w, c = img.shape
-    v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(0, 1))  # (h', w', C, p, p)
-    return np.ascontiguousarray(v.transpose(0, 1, 3, 4, 2)).reshape(-1, p * p * c)
-
-
-def _rotations(rng, n, d):
-    """``n`` random orthonormal (d, d) matrices (rows: directions)."""
-    out = np.empty((n, d, d))
-    for i in range(n):
-        q, r = np.linalg.qr(rng.standard_normal((d, d)))
-        out[i] = (q * np.sign(np.diag(r))).T
-    return out
+def _windows(img, p, stride=1):
+    """The p x p windows of an (H, W, C) image at ``stride``, as rows (n, C * p * p) (channel,
+    row, column), a copy; and the grid's shape."""
+    v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(0, 1))[::stride, ::stride]
+    return np.ascontiguousarray(v).reshape(v.shape[0] * v.shape[1], -1), v.shape[:2]
 
 
 class PatchStatistics:
@@ -89,34 +84,35 @@ class PatchStatistics:
 
     Attributes
     ----------
-    rotations_ : ndarray, shape (L, ROTATIONS, D, D)
-        Orthonormal rotations of patch space (D = PATCH * PATCH * C), rows the directions.
-    quantiles_ : ndarray, shape (L, ROTATIONS, D, QUANTILES)
+    directions_ : ndarray, shape (L, SETS, DIRECTIONS, D)
+        Unit directions in patch space (D = C * PATCH * PATCH, channel-major).
+    quantiles_ : ndarray, shape (L, SETS, DIRECTIONS, QUANTILES)
         The exemplar's quantiles of its patches' projections on each direction.
     """
 
     def __init__(self, n_levels=3):
         self.n_levels = n_levels
 
-    def fit(self, dec, *, exclude=None, seed=0):
-        """Learn from the exemplar in decorrelated colours, (H, W, C) float; returns self.
+    def fit(self, image, *, exclude=None, seed=0):
+        """Learn from the exemplar, (H, W, C) float in [0, 1]; returns self.
 
         ``exclude`` (H, W) bool: patches touching these pixels (at each level: touching
-        pixels reached by them) are left out. The rotations come from ``seed`` alone.
+        pixels reached by them) are left out. The directions come from ``seed`` alone.
         """
         n = self.n_levels
         if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 1:
             raise TGHopError(f"patch_levels must be a positive integer, got {n!r}")
-        dec = np.asarray(dec, dtype=np.float32)
+        image = np.asarray(image, dtype=np.float32)
         rng = np.random.default_rng(seed)
-        levels = _levels_of(dec, n, "reflect")
-        d = PATCH * PATCH * dec.shape[2]
-        self.rotations_ = _rotations(rng, len(levels) * ROTATIONS, d).reshape(len(levels), ROTATIONS, d, d)
+        levels = _levels_of(image, n, "reflect")
+        d = PATCH * PATCH * image.shape[2]
+        dirs = rng.standard_normal((len(levels), SETS, DIRECTIONS, d)).astype(np.float32)
+        dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
         qlev = np.linspace(0.0, 1.0, QUANTILES)
-        quantiles = np.empty((len(levels), ROTATIONS, d, QUANTILES))
+        quantiles = np.empty((len(levels), SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
         hole = None if exclude is None else np.asarray(exclude, dtype=bool)
         for i, img in enumerate(levels):
-            x = _windows(img, PATCH)
+            x, _ = _windows(img, PATCH)
             if hole is not None:
                 keep = clean_windows(hole, PATCH).ravel()
                 if keep.any():
@@ -125,144 +121,194 @@ class PatchStatistics:
                 hole = downsample(hole.astype(np.float32)[..., None])[..., 0] > 0
             if len(x) > _FIT_PATCHES:
                 x = x[:: -(-len(x) // _FIT_PATCHES)]
-            for r in range(ROTATIONS):
-                proj = x @ self.rotations_[i, r].T.astype(np.float32)
-                quantiles[i, r] = np.quantile(proj, qlev, axis=0).T
-        self.quantiles_ = quantiles
+            proj = x @ dirs[i].reshape(-1, d).T  # (n, SETS * DIRECTIONS)
+            proj.sort(axis=0)
+            # Quantiles by linear interpolation between the order statistics (np.quantile's rule).
+            pos = qlev * (len(proj) - 1)
+            lo = np.minimum(pos.astype(np.int64), len(proj) - 2) if len(proj) > 1 else np.zeros_like(pos, np.int64)
+            frac = (pos - lo).astype(np.float32)[:, None]
+            hi = np.minimum(lo + 1, len(proj) - 1)
+            q = proj[lo] * (1 - frac) + proj[hi] * frac  # (QUANTILES, SETS * DIRECTIONS)
+            quantiles[i] = q.T.reshape(SETS, DIRECTIONS, QUANTILES)
+        self.directions_, self.quantiles_ = dirs, quantiles
         return self
 
     #: Fitted arrays in model files: (file name, attribute).
-    _ARRAYS = (("patch.rotations", "rotations_"), ("patch.quantiles", "quantiles_"))
+    _ARRAYS = (("patch.directions", "directions_"), ("patch.quantiles", "quantiles_"))
 
     def _to_arrays(self) -> dict:
-        # float32 (half the file): generation computes in float32 anyway, so the same images.
         return {name: getattr(self, attr).astype(np.float32) for name, attr in self._ARRAYS}
 
     def _from_arrays(self, arrays):
         for name, attr in self._ARRAYS:
-            setattr(self, attr, arrays[name].astype(np.float64, copy=False))
+            setattr(self, attr, arrays[name].astype(np.float32, copy=False))
         return self
 
     def _array_specs(self, c):
         """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels."""
         d = PATCH * PATCH * c
 
-        def orthonormal(arr, dims):
-            eye = np.eye(arr.shape[-1])
-            if np.abs(arr @ np.swapaxes(arr, -1, -2) - eye).max() > 1e-6:
-                return "holds a matrix that is not orthonormal"
+        def unit(arr, dims):
+            if np.abs(np.linalg.norm(arr.astype(np.float64), axis=-1) - 1).max() > 1e-4:
+                return "holds a direction that is not of unit length"
             return None
 
         says = f"the metadata says at most {self.n_levels} levels of {PATCH}x{PATCH}x{c} patches"
         return (
-            ("patch.rotations", ("Lp", ROTATIONS, d, d), "f", says, (("dim", 0, 1, self.n_levels), orthonormal)),
-            ("patch.quantiles", ("Lp", ROTATIONS, d, QUANTILES), "f", says, (("nondecreasing",),)),
+            ("patch.directions", ("Lp", SETS, DIRECTIONS, d), "f", says, (("dim", 0, 1, self.n_levels), unit)),
+            ("patch.quantiles", ("Lp", SETS, DIRECTIONS, QUANTILES), "f", says, (("nondecreasing",),)),
         )
 
 
-def _match_columns(x, target):
-    """Each column of ``x`` (n, D) given the distribution of the quantiles ``target`` (D, Q):
-    histogram matching by ranks on a table of _BINS entries per column (as
-    :func:`tghop.refine._match`, all columns at once). Returns a new (n, D) array."""
-    n, d = x.shape
-    lo = x.min(axis=0)
-    hi = x.max(axis=0)
-    span = np.maximum(hi - lo, np.float32(1e-12))
-    scale = ((_BINS - 1) / span).astype(np.float32)
-    pos = (x - lo) * scale
+def _grid(y):
+    """Each column's table grid for the projections ``y`` (n, K): its minimum and the
+    entries per unit, _BINS entries between the column's extremes."""
+    lo = y.min(axis=0)
+    return lo, ((_BINS - 1) / np.maximum(y.max(axis=0) - lo, np.float32(1e-12))).astype(np.float32)
+
+
+def _table(idx, target):
+    """The stored quantile ``target`` (K, Q) at the mid-rank of each table entry, given
+    the entries ``idx`` (n, K) of :func:`_bins`: (K * _BINS,) float32."""
+    n, k = idx.shape
+    counts = np.bincount(idx.ravel(), minlength=k * _BINS).reshape(k, _BINS)
+    mid = np.cumsum(counts, axis=1) - 0.5 * (counts + 1)
+    mid *= (target.shape[1] - 1) / max(n - 1, 1)
+    j = np.clip(mid.astype(np.int64), 0, target.shape[1] - 2)
+    frac = mid - j
+    rows = np.arange(k)[:, None]
+    table = target[rows, j] * (1 - frac) + target[rows, j + 1] * frac
+    return table.astype(np.float32).ravel()
+
+
+def _bins(y, lo, scale):
+    """Each value's table entry, offset by its column: int32 (n, K)."""
+    pos = y - lo
+    pos *= scale
     pos += 0.5
     np.clip(pos, 0, _BINS - 1, out=pos)
     idx = pos.astype(np.int32)
-    idx += (np.arange(d, dtype=np.int32) * _BINS)
-    counts = np.bincount(idx.ravel(), minlength=d * _BINS).reshape(d, _BINS)
-    mid = np.cumsum(counts, axis=1) - 0.5 * (counts + 1)
-    mid *= (target.shape[1] - 1) / max(n - 1, 1)
-    k = np.clip(mid.astype(np.int64), 0, target.shape[1] - 2)
-    frac = mid - k
-    rows = np.arange(d)[:, None]
-    table = target[rows, k] * (1 - frac) + target[rows, k + 1] * frac
-    return np.take(table.astype(x.dtype).ravel(), idx, mode="clip")
+    idx += np.arange(y.shape[1], dtype=np.int32) * _BINS
+    return idx
 
 
-def _round(img, rot, target, tile, stride=1):
-    """One round at one level: (H, W, C) image -> image with every pixel moved by the mean
-    displacement its patches (every ``stride``-th position each way) get from matching
-    their projections (pixels no patch covers stay)."""
+def _gradient(x, dirs, target, stride):
+    """The gradient of the L1 sliced distance of an (H, W, C) image's patches (every
+    ``stride``-th position) along ``dirs`` (K, D) to ``target`` (K, Q): (C, H, W) float32."""
     p = PATCH
-    h, w, c = img.shape
-    src = np.concatenate([img, img[: p - 1]], axis=0) if tile else img
-    if tile:
-        src = np.concatenate([src, src[:, : p - 1]], axis=1)
-    win = np.lib.stride_tricks.sliding_window_view(src, (p, p), axis=(0, 1))[::stride, ::stride]
-    hh, ww = win.shape[:2]
-    x = np.ascontiguousarray(win.transpose(0, 1, 3, 4, 2)).reshape(-1, p * p * c)
-    rot = rot.astype(np.float32)
-    proj = x @ rot.T
-    disp = (_match_columns(proj, target) - proj) @ rot  # (n, D): what each patch asks
-    # (p, p, hh, ww, C): each offset's displacements contiguous for the sums below.
-    disp = np.ascontiguousarray(disp.reshape(hh, ww, p, p, c).transpose(2, 3, 0, 1, 4))
-    acc = np.zeros(src.shape, dtype=np.float32)
-    count = np.zeros(src.shape[:2], dtype=np.float32)
-    span_y, span_x = stride * (hh - 1) + 1, stride * (ww - 1) + 1
-    for dy in range(p):
-        for dx in range(p):
-            acc[dy:dy + span_y:stride, dx:dx + span_x:stride] += disp[dy, dx]
-            count[dy:dy + span_y:stride, dx:dx + span_x:stride] += 1.0
-    if tile:  # fold the wrapped margin back
-        for a in (acc, count):
-            a[: p - 1] += a[h:]
-            a[:, : p - 1] += a[:, w:]
-        acc, count = acc[:h, :w], count[:h, :w]
-    acc /= np.maximum(count, 1.0)[..., None]
-    return img + acc
+    h, w, c = x.shape
+    (hh, ww) = ((h - p) // stride + 1, (w - p) // stride + 1)
+    n = hh * ww
+    grad = np.zeros((c, h, w), dtype=np.float32)
+    rows = max(1, _CHUNK // ww)
+    tables = None
+    if hh > rows:  # several chunks: the ranks from patches on a grid of at most _RANK_PATCHES
+        sub = max(1, int(np.ceil(np.sqrt(n / _RANK_PATCHES))))
+        ys, _ = _windows(x, p, stride * sub)
+        ys = ys @ dirs.T
+        lo, scale = _grid(ys)
+        tables = lo, scale, _table(_bins(ys, lo, scale), target)
+        del ys
+    for r0 in range(0, hh, rows):
+        r1 = min(hh, r0 + rows)
+        band = x[r0 * stride: (r1 - 1) * stride + p]
+        xs, (bh, bw) = _windows(band, p, stride)
+        y = xs @ dirs.T
+        del xs
+        if tables is None:  # one chunk: its own values give the ranks
+            lo, scale = _grid(y)
+            idx = _bins(y, lo, scale)
+            table = _table(idx, target)
+        else:
+            lo, scale, table = tables
+            idx = _bins(y, lo, scale)
+        y -= np.take(table, idx, mode="clip")
+        g = np.sign(y, out=y)
+        gp = (dirs.T @ g.T).reshape(c, p, p, bh, bw)  # what each patch asks of each of its pixels
+        sy, sx = stride * (bh - 1) + 1, stride * (bw - 1) + 1
+        top = r0 * stride
+        for dy in range(p):
+            for dx in range(p):
+                grad[:, top + dy: top + dy + sy: stride, dx: dx + sx: stride] += gp[:, dy, dx]
+    return grad
 
 
-def patch_refine(dec, stats, *, n_iter=2, tile=False, stride=1):
-    """Move an image's patch distribution towards the exemplar's, coarse to fine.
+def _steps(x, dirs, target, n_steps, tile, stride, lr):
+    """``n_steps`` Adam steps of one level (H, W, C), float32, in place."""
+    h, w, c = x.shape
+    p = PATCH
+    m = np.zeros((c, h, w), dtype=np.float32)
+    v = np.zeros((c, h, w), dtype=np.float32)
+    b1, b2, eps = 0.9, 0.999, 1e-8
+    for t in range(n_steps):
+        j = t % len(dirs)
+        src = np.pad(x, ((0, p - 1), (0, p - 1), (0, 0)), mode="wrap") if tile else x
+        g = _gradient(src, dirs[j], target[j], stride)
+        if tile:  # fold the wrapped margin back
+            g[:, : p - 1] += g[:, h:]
+            g[:, :, : p - 1] += g[:, :, w:]
+            g = g[:, :h, :w]
+        m *= b1
+        m += (1 - b1) * g
+        g *= g
+        v *= b2
+        v += (1 - b2) * g
+        step = (lr / (1 - b1 ** (t + 1))) * m / (np.sqrt(v / (1 - b2 ** (t + 1))) + eps)
+        x -= step.transpose(1, 2, 0)
+    return x
+
+
+def patch_refine(image, stats, *, n_steps=30, tile=False, learning_rate=LEARNING_RATE, progress=None):
+    """Move an image's patch distributions towards the exemplar's, coarse to fine.
 
     Parameters
     ----------
-    dec : ndarray, shape (H, W, C)
-        The image in the decorrelated colours the statistics were fitted in (float32).
+    image : ndarray, shape (H, W, C)
+        Float in [0, 1].
     stats : PatchStatistics
-    n_iter : int
-        Rounds per level (0: the image unchanged).
+    n_steps : int
+        Adam steps per pyramid level (0: the image unchanged).
     tile : bool
-        Periodic boundaries.
-    stride : int
-        Step between the patches moved at full resolution (1: every patch; 2: a quarter,
-        each pixel still in about 9 of them); coarser levels move every patch.
+        Periodic boundaries (the output stays tileable).
+    learning_rate : float
+        Adam's step in pixel values.
+    progress : callable, optional
+        ``progress("patch refine", done_steps, total_steps)``.
 
     Returns
     -------
-    ndarray, shape (H, W, C), float32
+    ndarray, shape (H, W, C), float32 in [0, 1]
     """
-    if not isinstance(n_iter, numbers.Integral) or isinstance(n_iter, bool) or n_iter < 0:
-        raise TGHopError(f"patch_refine must be a non-negative integer, got {n_iter!r}")
-    img = np.asarray(dec, dtype=np.float32)
-    if img.ndim != 3 or img.shape[2] * PATCH * PATCH != stats.rotations_.shape[-1]:
+    if not isinstance(n_steps, numbers.Integral) or isinstance(n_steps, bool) or n_steps < 0:
+        raise TGHopError(f"patch_refine must be a non-negative integer, got {n_steps!r}")
+    img = np.asarray(image, dtype=np.float32)
+    if img.ndim != 3 or img.shape[2] * PATCH * PATCH != stats.directions_.shape[-1]:
         raise TGHopError(f"patch_refine: image of shape {img.shape} does not fit the patch statistics")
-    if n_iter == 0 or min(img.shape[:2]) < PATCH:
-        return img
+    if n_steps == 0 or min(img.shape[:2]) < PATCH:
+        return img.copy()
     mode = "wrap" if tile else "reflect"
-    levels = _levels_of(img, len(stats.rotations_), mode)
-    target = stats.quantiles_.astype(np.float32)
+    levels = _levels_of(img, len(stats.directions_), mode)
+    total, done = n_steps * len(levels), 0
+    report(progress, "patch refine", 0, total)
     new = None
     for i in range(len(levels) - 1, -1, -1):
-        cur = levels[i]
+        cur = levels[i].copy()
         if new is not None:  # the coarser level's change, upsampled
-            cur = cur + upsample(new - levels[i + 1], cur.shape, mode)
-        for r in range(n_iter):
-            j = r % ROTATIONS
-            cur = _round(cur, stats.rotations_[i, j], target[i, j], tile, stride if i == 0 else 1)
-        new = cur
+            cur += upsample(new - levels[i + 1], cur.shape, mode)
+        # Large images: every second (third) patch at full resolution, each pixel still in
+        # 16 (9) of them, so that a step's cost grows more slowly than the image.
+        pixels = cur.shape[0] * cur.shape[1]
+        stride = 1 if pixels <= 1 << 19 else 2 if pixels <= 1 << 21 else 3
+        new = _steps(cur, stats.directions_[i], stats.quantiles_[i], n_steps, tile, stride, learning_rate)
+        np.clip(new, 0.0, 1.0, out=new)
+        done += n_steps
+        report(progress, "patch refine", done, total)
     return new
 
 
-def fit_patch_statistics(levels, bands, image, *, exclude=None):
+def fit_patch_statistics(levels, image, *, exclude=None):
     """:class:`PatchStatistics` of an exemplar (H, W, C; float in [0, 1] or uint8): its
-    centre crop of at most _FIT_SIDE squared, in the decorrelated colours of ``bands``
-    (:class:`tghop.refine.BandStatistics`); None when ``levels`` is 0 (nothing stored)."""
+    centre crop of at most _FIT_SIDE squared; None when ``levels`` is 0 (nothing stored)."""
     if not levels:
         return None
     h, w = image.shape[:2]
@@ -271,19 +317,16 @@ def fit_patch_statistics(levels, bands, image, *, exclude=None):
     if image.dtype == np.uint8:
         crop *= np.float32(1.0 / 255.0)
     hole = None if exclude is None else exclude[y:y + _FIT_SIDE, x:x + _FIT_SIDE]
-    return PatchStatistics(levels).fit(bands.to_decorrelated(crop), exclude=hole)
+    return PatchStatistics(levels).fit(crop, exclude=hole)
 
 
-def refine_image(image, bands, stats, *, n_iter, tile=False, band_rounds=0, progress=None):
-    """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine` in the
-    decorrelated colours of ``bands``, clipped to [0, 1], then (``band_rounds`` > 0)
-    min(band_rounds, BAND_ROUNDS_AFTER) rounds of the band refinement, since averaging
-    overlapping patches softens detail. Same dtype as ``image``."""
-    report(progress, "patch refine", 0, 1)
-    dec = bands.to_decorrelated(np.asarray(image, dtype=np.float32))
-    moved = bands.from_decorrelated(patch_refine(dec, stats, n_iter=n_iter, tile=tile, stride=FULL_STRIDE))
-    out = np.clip(moved, 0.0, 1.0, out=moved).astype(image.dtype, copy=False)
-    report(progress, "patch refine", 1, 1)
-    if band_rounds:
-        out = refine_bands(out, bands, n_iter=min(band_rounds, BAND_ROUNDS_AFTER), tile=tile, dtype=out.dtype)
-    return out
+def refine_image(image, stats, *, n_steps, tile=False, dtype=None, progress=None):
+    """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine`, as
+    ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`)."""
+    out = patch_refine(image, stats, n_steps=n_steps, tile=tile, progress=progress)
+    dtype = np.dtype(dtype or np.asarray(image).dtype)
+    if dtype == np.uint8:
+        from .imageio import to_uint8
+
+        return to_uint8(out).reshape(out.shape)
+    return out.astype(dtype, copy=False)

@@ -136,7 +136,7 @@ class TGHop(BaseEstimator):
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
-                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=0, layout_factor=2, rng=None):
+                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=3, layout_factor=2, rng=None):
         self.patch_size = patch_size
         self.stride = stride
         self.n_channels = n_channels
@@ -230,7 +230,7 @@ class TGHop(BaseEstimator):
         self.colour_quantiles_ = channel_quantiles(image if exclude is None else image[~exclude][:, None, :])
         self.bands_ = BandStatistics(n_levels=self.band_levels,
                                      n_orientations=self.band_orientations).fit(image, exclude=exclude)
-        self.patches_ = fit_patch_statistics(self.patch_levels, self.bands_, image, exclude=exclude)
+        self.patches_ = fit_patch_statistics(self.patch_levels, image, exclude=exclude)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -637,7 +637,8 @@ class TGHop(BaseEstimator):
         layout_refine : int
             Rounds of that refinement for the coarse layout's guide.
         patch_refine : int
-            Rounds per level of the patch refinement (:mod:`tghop.patch_refine`); 0: off.
+            Adam steps per pyramid level of the patch refinement, the last step
+            (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off.
         reuse : float
             Quilting multiplies the error of a pool patch placed ``u`` times by ``1 + reuse
             * u`` (ours, against repeated patches in large images; not applied to images of
@@ -708,18 +709,26 @@ class TGHop(BaseEstimator):
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32)
-        if checked["patch_refine"] and getattr(self, "patches_", None) is not None:  # ours, after the bands
-            image = refine_image(image, self.bands_, self.patches_, n_iter=checked["patch_refine"], tile=tile,
-                                 band_rounds=refine, progress=progress)
+        patches = checked["patch_refine"] and getattr(self, "patches_", None) is not None
+        final = dtype
+        if patches:  # ours, last: colours matched in float32 first
+            dtype = np.dtype(np.float32)
+            if image.dtype != dtype:
+                image = image.astype(dtype)
         if not match_colours:
             if dtype == np.uint8:
                 from .imageio import to_uint8
 
                 return to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
-            return image.astype(dtype, copy=False)
-        report(progress, "colour", 0, 1)
-        out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
-        return match_histograms(image, self.colour_quantiles_, out=out)
+            image = image.astype(dtype, copy=False)
+        else:
+            report(progress, "colour", 0, 1)
+            out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
+            image = match_histograms(image, self.colour_quantiles_, out=out)
+        if patches:
+            image = refine_image(image, self.patches_, n_steps=checked["patch_refine"], tile=tile, dtype=final,
+                                 progress=progress)
+        return image
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
@@ -817,7 +826,7 @@ class CoarseLayout(BaseEstimator):
                                                                       int(self.factor))
         self.model_ = TGHop(
             patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
-            max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None,
+            max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None, patch_levels=0,
             rng=check_rng(self.rng), **training,
         ).fit(small, exclude=small_exclude)
         return self

@@ -171,6 +171,9 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                   [("SOURCE", source), ("--exclude", exclude)])
     if from_model:
         model = load_model(source)
+        if generation["patch_refine"] and model.patches_ is None:
+            raise TGHopError(f"{source} holds no patch statistics for --patch-refine or --quality best "
+                             "(fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again with 'tghop fit'")
     else:
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
         if save_model:
