@@ -11,7 +11,7 @@ from .._errors import TGHopError
 from ..fit_options import build_model
 from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
-from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size,
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
                       generation_options, generation_params, given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "info"]
@@ -103,21 +103,23 @@ def patches(model_file, n, output, seed, stages):
               help="Seed of generation: the same seed gives the same image; without it every run differs.")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
+@depth_option
 @generation_options
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale, quiet, **options):
+def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale, quiet, depth, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
-    from ..imageio import save_image
+    from ..imageio import check_depth, save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
 
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
+        check_depth(output, depth or 8)
         if output == "-" and count > 1:
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
         # A .npz SOURCE is read as a model whatever its bytes ("not a tghop model file", not
@@ -151,9 +153,10 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
         rng = np.random.default_rng(seed)
         for path in outputs:
             # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
-            image = model.synthesize(size, rng=rng, progress=progress, dtype=np.uint8, **generation)
+            image = model.synthesize(size, rng=rng, progress=progress,
+                                     dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
             progress.close()
-            save_image(image, path)
+            save_image(image, path, depth=depth or 8)
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
