@@ -19,7 +19,7 @@ from ._common import InvalidImageError, check_image
 from ._errors import ImageTooLargeError
 
 __all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
-           "check_depth", "deepest", "DEPTHS"]
+           "check_depth", "deepest", "save_images", "DEPTHS"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -494,6 +494,35 @@ def save_image(image, path, *, depth: int = 8) -> None:
         sys.stdout.buffer.flush()
         return
     write_atomic(path, write)
+
+
+def save_images(items) -> None:
+    """Write several images as one: every file appears, or none (a material's maps).
+
+    Parameters
+    ----------
+    items : sequence of (image, path, depth)
+        As :func:`save_image` takes them (no ``-``). Each is written to a temporary name
+        beside its path first; once all are written they are moved into place.
+    """
+    import uuid
+
+    done = []
+    try:
+        for image, path, depth in items:
+            path = Path(path)
+            tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
+            save_image(image, tmp, depth=depth)
+            done.append((tmp, path))
+        for tmp, path in done:
+            os.replace(tmp, path)
+    except BaseException:
+        for tmp, _ in done:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+        raise
 
 
 def _tiff_writer(image, depth, path):

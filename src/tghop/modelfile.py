@@ -31,6 +31,7 @@ from . import __version__
 from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
 from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
+from .material import Material
 from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
@@ -39,8 +40,12 @@ FORMAT = "tghop-model"
 FORMAT_VERSION = 4  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: patch refinement statistics (patch.*, models fitted with patch_levels; files without them
 # are written as version 3, which older tghop reads)
+#: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
+#: each map's statistics as material.<name>.*) are version 5, so that an older tghop refuses
+#: them by their version; plain models are written as before.
+MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3, 4)
+READABLE_VERSIONS = (2, 3, 4, 5)
 
 
 def save_model(model, path) -> None:
@@ -49,6 +54,8 @@ def save_model(model, path) -> None:
     version = FORMAT_VERSION if any(name.startswith("patch.") for name in arrays) else 3
     meta = {"format": FORMAT, "format_version": version, "tghop_version": __version__,
             **model._state_meta()}
+    if "material" in meta:
+        meta["format_version"] = MATERIAL_VERSION
     arrays["__meta__"] = np.array(json.dumps(meta))
     check_output_path(path, what="model", error=ModelFileError)
     write_atomic(path, lambda fh: np.savez(fh, **arrays), what="model", error=ModelFileError)
@@ -306,8 +313,11 @@ def _check_arrays(path, groups, arrays):
                              "(an edited file or another program's); fit the model again with 'tghop fit'")
 
 
-def load_model(path):
-    """Read a model written by :func:`save_model`.
+def load_model(path, *, material=False):
+    """Read a model written by :func:`save_model`: a :class:`~tghop.synthesis.TGHop`, or,
+    with ``material``, a :class:`~tghop.material.Material` too (format version 5; without
+    ``material`` such a file is refused with a one-line error, so that no caller is handed
+    a material where it expects a plain model).
 
     Every array is checked against the metadata before it is used (shape, type, finite
     values, ranges; see :func:`_check_arrays`).
@@ -323,15 +333,22 @@ def load_model(path):
     try:
         # Version 3 scales every mixing matrix; version 2 none (read as _from_arrays does: by what is there).
         quantised = meta["format_version"] >= 3 or {p for p in ("", "layout.") if f"{p}index.ichm_mixing_scale" in arrays}
-        groups = TGHop._array_specs(meta, quantised=quantised)
+        kind = Material if meta["format_version"] == MATERIAL_VERSION else TGHop
+        if (kind is Material) != ("material" in meta):
+            raise TGHopError("format version 5 is a material's, and only a material's")
+        groups = kind._array_specs(meta, quantised=quantised)
     except TGHopError as exc:
         raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model metadata ({exc!r}); "
                              "fit the model again") from None
+    if kind is Material and not material:
+        names = ", ".join(m["name"] for m in meta["material"]["maps"])
+        raise ModelFileError(f"{path} is a material ({names}), not a plain model; only 'tghop synth' and "
+                             "'tghop info' take it (fit a plain model from the albedo for this command)")
     _check_arrays(path, groups, arrays)
     try:
-        return TGHop._from_state(meta, arrays)
+        return kind._from_state(meta, arrays)
     except TGHopError as exc:
         raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
