@@ -539,7 +539,7 @@ def test_a_pool_read_on_demand_is_checked():
         def __getitem__(self, index):
             return np.full((5,) + self.shape[1:], np.nan, dtype=self.dtype)[: self.shape[0]]
 
-    for bad in (Pool((5, 8, 6, 3)), Pool((5, 8, 8, 2)), Pool((0, 8, 8, 3)), Pool((5, 8, 8, 3), np.uint8)):
+    for bad in (Pool((5, 8, 6, 3)), Pool((5, 8, 8, 0)), Pool((0, 8, 8, 3)), Pool((5, 8, 8, 3), np.uint8)):
         with pytest.raises(TGHopError, match="read on demand"):
             prepare_pool(bad, (20, 20))
     with pytest.raises(TGHopError, match="NaN"):  # values are checked where they are read

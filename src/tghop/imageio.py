@@ -45,8 +45,9 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         Any format Pillow reads. Palette images are converted; an alpha channel is
         dropped with a warning. 16-bit PNG and TIFF files and float TIFF files are read
         without loss (16-bit levels ``v`` become ``v / 65535``; float values in [0, 1] are
-        kept, others taken as 8-bit or 16-bit levels); colour ones in TIFF need :mod:`tifffile` (``pip install 'tghop[tiff]'``),
-        16-bit colour PNG files are decoded by tghop itself (Pillow reduces them to 8 bits).
+        kept, others taken as 8-bit or 16-bit levels); colour ones in TIFF need
+        :mod:`tifffile` (``pip install 'tghop[tiff]'``), 16-bit colour PNG files are decoded
+        by tghop itself (Pillow reduces them to 8 bits).
     max_pixels : int
         Images with more pixels (read from the header, before decoding) are refused
         with :class:`InvalidImageError`, or, with ``downscale``, reduced to at most this

@@ -186,7 +186,8 @@ class TGHop(BaseEstimator):
         ----------
         image : ndarray, shape (H, W) or (H, W, C)
             Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3 (or more: the
-            stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB is modelled as one channel (see :func:`prepare_exemplar`).
+            stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB
+            is modelled as one channel (see :func:`prepare_exemplar`).
             Memory depends on the training patches used (``max_patches``), not on the
             exemplar's size: the hops see the image tile by tile, and a uint8 image is
             never converted whole.
@@ -347,7 +348,8 @@ class TGHop(BaseEstimator):
         if not isinstance(hops, list) or len(hops) != n or not isinstance(dims, list) or len(dims) != n + 1:
             raise TGHopError(f"{where} hops and hop_dims do not describe {n} hops")
         if count(dims[0], "hop_dims") != p * p * c:
-            raise TGHopError(f"{where} hop_dims[0] is {dims[0]}, not {p * p * c} for {p}x{p}x{c} patches")
+            raise TGHopError(f"{where} hop_dims[0] is {dims[0]}, not {p * p * c} for {p}x{p}x{c} patches "
+                             f"(exemplar_shape {shape!r})")
         specs, c_in = [], c
         for i, info in enumerate(hops, start=1):
             side = p >> i
