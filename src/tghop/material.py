@@ -292,10 +292,15 @@ class Material(BaseEstimator):
             out.update({f"material.{name}.{k}": v for k, v in bands._to_arrays().items()})
         return out
 
-    def _state_meta(self) -> dict:
-        maps = [{"name": n, "channels": int(c), "normal": bool(nm), "depth": int(d)}
+    def map_info(self) -> list:
+        """Each map's name, channels, whether it is a normal map and its depth, as
+        JSON-ready dicts (what the model file's metadata and ``tghop info --json`` hold)."""
+        check_is_fitted(self, "model_")
+        return [{"name": n, "channels": int(c), "normal": bool(nm), "depth": int(d)}
                 for n, c, nm, d in zip(self.names_, self.map_channels_, self.normal_, self.depths_)]
-        return {**self.model_._state_meta(), "material": {"maps": maps}}
+
+    def _state_meta(self) -> dict:
+        return {**self.model_._state_meta(), "material": {"maps": self.map_info()}}
 
     @staticmethod
     def _check_meta(meta):

@@ -35,7 +35,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     from ..imageio import load_image
     from ..material import Material
     from ..synthesis import TGHop
-    from .options import fit_params
+    from ..fit_options import fit_params
 
     def read(path, label):
         if is_model_file(path):
@@ -274,7 +274,7 @@ def info(model_file, as_json):
     if as_json:
         out = info_dict(model, params)
         if material is not model:
-            out["material"] = material._state_meta()["material"]
+            out["material"] = {"maps": material.map_info()}
         click.echo(json.dumps(out, indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
