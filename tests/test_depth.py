@@ -95,3 +95,26 @@ def test_cli_synth_depth(tmp_path):
     bad = runner.invoke(main, ["synth", "builtin:bricks", "-o", str(tmp_path / "u.jpg"), "--depth", "16", "-q"])
     assert bad.exit_code != 0 and "Traceback" not in bad.output and not (tmp_path / "u.jpg").exists()
     assert bad.output.strip().count("\n") == 0 and "JPEG" in bad.output
+
+
+def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
+    from click.testing import CliRunner
+
+    from tghop import TGHop, data
+    from tghop.cli import main
+    from tghop.modelfile import save_model
+
+    exemplar = data.bricks()[:96, :96]
+    save_model(TGHop(max_patches=1000, n_clusters=10, layout_factor=None, rng=0).fit(exemplar), tmp_path / "m.npz")
+    levels = np.round(exemplar * 65535).astype(np.uint16) ^ np.uint16(5)  # low bits an 8-bit file cannot hold
+    save_image(levels / 65535.0, tmp_path / "in.png", depth=16)
+    hole = np.zeros((96, 96))
+    hole[30:60, 30:60] = 1
+    save_image(hole, tmp_path / "hole.png")
+    res = CliRunner().invoke(main, ["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png"), "-o",
+                                    str(tmp_path / "out.png"), "--source", str(tmp_path / "m.npz"), "--seed", "1", "-q"])
+    assert res.exit_code == 0, res.output
+    image, depth = load_image(tmp_path / "out.png", with_depth=True)
+    out = np.round(image * 65535).astype(np.uint16)
+    keep = hole == 0
+    assert depth == 16 and np.array_equal(out[keep], levels[keep])  # every known pixel, all 16 bits
