@@ -37,12 +37,12 @@ from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 4  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+FORMAT_VERSION = 5  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: patch refinement statistics (patch.*, models fitted with patch_levels; files without them
-# are written as version 3, which older tghop reads)
+# are written as version 3, which older tghop reads); 5: whole materials (below)
 #: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
 #: each map's statistics as material.<name>.*) are version 5, so that an older tghop refuses
-#: them by their version; plain models are written as before.
+#: them by their version; plain models are written as before (3, or 4 with patch.*).
 MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
 READABLE_VERSIONS = (2, 3, 4, 5)
@@ -51,7 +51,7 @@ READABLE_VERSIONS = (2, 3, 4, 5)
 def save_model(model, path) -> None:
     """Write a fitted model to ``path`` (any name; the file appears whole or not at all)."""
     arrays = model._to_arrays()  # NotFittedError before anything else
-    version = FORMAT_VERSION if any(name.startswith("patch.") for name in arrays) else 3
+    version = 4 if any(name.startswith("patch.") for name in arrays) else 3
     meta = {"format": FORMAT, "format_version": version, "tghop_version": __version__,
             **model._state_meta()}
     if "material" in meta:
