@@ -118,3 +118,21 @@ def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     out = np.round(image * 65535).astype(np.uint16)
     keep = hole == 0
     assert depth == 16 and np.array_equal(out[keep], levels[keep])  # every known pixel, all 16 bits
+
+
+def test_colour_tiff_without_tifffile_is_one_line(tmp_path, monkeypatch):
+    pytest.importorskip("tifffile")
+    from tghop import MissingExtraError
+
+    save_image(_levels((9, 8, 3)) / 65535.0, tmp_path / "c.tif", depth=16)
+    monkeypatch.setitem(__import__("sys").modules, "tifffile", None)  # as if not installed
+    with pytest.raises(MissingExtraError, match=r"tghop\[tiff\]"):
+        load_image(tmp_path / "c.tif")
+    with pytest.raises(MissingExtraError, match=r"tghop\[tiff\]"):
+        save_image(np.zeros((4, 4, 3)), tmp_path / "d.tif", depth=16)
+    assert not (tmp_path / "d.tif").exists()
+    grey = np.random.default_rng(0).random((6, 7))
+    save_image(grey, tmp_path / "g.tif", depth=32)  # grey float TIFF: Pillow suffices
+    np.testing.assert_allclose(load_image(tmp_path / "g.tif")[..., 0], grey, atol=1e-7)
+    save_image(grey, tmp_path / "g16.tif", depth=16)
+    assert np.array_equal(np.round(load_image(tmp_path / "g16.tif")[..., 0] * 65535), np.round(grey * 65535))

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from struct import error as struct_error
 
-from ._common import InvalidImageError, check_image
+from ._common import InvalidImageError, TGHopError, check_image
 from ._errors import ImageTooLargeError
 
 __all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
@@ -85,7 +85,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
                 with Image.open(path) as im:
                     arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint)
                     depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
-    except InvalidImageError:
+    except TGHopError:  # ours: already one line (a missing extra too)
         raise
     except Image.DecompressionBombError:
         raise InvalidImageError(f"{path}: the image header declares too many pixels to decode safely; "
@@ -93,7 +93,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     except MemoryError:
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
-            struct_error, ZeroDivisionError) as exc:
+            struct_error, ZeroDivisionError, zlib.error) as exc:
         raise InvalidImageError(
             f"{path}: not a readable image ({exc.__class__.__name__}); give a PNG, JPEG or other common image file"
         ) from None
@@ -544,7 +544,7 @@ def _tiff_writer(image, depth, path):
             raise MissingExtraError(f"{path}: writing a {depth}-bit colour TIFF needs tifffile: {TIFF_HINT}") from None
         from PIL import Image
 
-        pil = Image.fromarray(pixels.astype("<u2") if depth == 16 else pixels, mode="I;16" if depth == 16 else None)
+        pil = Image.fromarray(pixels)  # grey uint16: mode I;16, float32: F
         return functools.partial(pil.save, format="TIFF")
     photometric = "rgb" if pixels.ndim == 3 else "minisblack"
 
