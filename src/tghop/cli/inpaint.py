@@ -22,7 +22,7 @@ __all__ = ["inpaint"]
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--tile", is_flag=True, help="IMAGE wraps around: the fill continues across its edges.")
-@depth_option
+@depth_option("IMAGE's, as far as the output's format holds it")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def inpaint(image, mask, output, source, seed, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size) with texture that continues

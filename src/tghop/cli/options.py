@@ -28,12 +28,13 @@ DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downsca
                   "64 Mpx instead (with a warning).")
 
 
-def depth_option(func):
-    """``--depth 8|16|32``: bits per channel of the images written (32: float TIFF)."""
+def depth_option(default: str):
+    """``--depth 8|16|32``: bits per channel of the images written (32: float TIFF);
+    ``default`` says what is written without it."""
     return click.option("--depth", type=click.Choice(["8", "16", "32"]), default=None,
                         callback=lambda ctx, param, value: None if value is None else int(value),
                         help="Bits per channel of the images written: 8, 16 (PNG, TIFF) or 32 (float TIFF). "
-                             "[default: 8]")(func)
+                             f"[default: {default}]")
 
 
 class ChannelRule(click.ParamType):

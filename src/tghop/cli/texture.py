@@ -160,7 +160,7 @@ def patches(model_file, n, output, seed, stages):
 @click.command()
 @click.argument("source")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png/.jpg); with --count > 1 numbered name_1.png, ...; - writes PNG to stdout.")
+              help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG to stdout.")
 @click.option("--size", type=Size(), default="256x256", show_default=True,
               help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
                    "At most 8192x8192. Cost on 2 cores: about 0.5 s and 0.2 GB at 256x256, 3.6 s and 0.6 GB "
@@ -171,7 +171,7 @@ def patches(model_file, n, output, seed, stages):
               help="Seed of generation: the same seed gives the same image; without it every run differs.")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
-@depth_option
+@depth_option("8; a material's maps: each at its file's depth, as far as the format holds it")
 @generation_options
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
@@ -179,7 +179,10 @@ def patches(model_file, n, output, seed, stages):
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
 def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale, quiet, depth, **options):
-    """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model."""
+    """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model.
+
+    A saved material (tghop fit EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each
+    of its maps, aligned."""
     from ..imageio import check_depth, save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
