@@ -160,7 +160,8 @@ def patches(model_file, n, output, seed, stages):
 @click.command()
 @click.argument("source")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG to stdout.")
+              help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG "
+                   "to stdout.")
 @click.option("--size", type=Size(), default="256x256", show_default=True,
               help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
                    "At most 8192x8192. Cost on 2 cores: about 0.5 s and 0.2 GB at 256x256, 3.6 s and 0.6 GB "
