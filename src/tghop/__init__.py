@@ -4,17 +4,21 @@ __version__ = "0.14.0"
 
 from ._errors import ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
-__all__ = ["TGHop", "data", "ImageTooLargeError", "InvalidImageError", "MissingExtraError", "ModelFileError", "NotFittedError",
-           "TGHopError", "__version__"]
+__all__ = ["TGHop", "data", "synthesize_guided", "morph", "ImageTooLargeError", "InvalidImageError",
+           "MissingExtraError", "ModelFileError", "NotFittedError", "TGHopError", "__version__"]
 
 
 def __getattr__(name):
-    """``tghop.TGHop`` and ``tghop.data`` on first use: ``import tghop`` stays cheap (the CLI's
-    ``--help`` and ``--version`` need nothing else)."""
+    """``tghop.TGHop``, ``tghop.data``, ``tghop.synthesize_guided`` and ``tghop.morph`` on first
+    use: ``import tghop`` stays cheap (the CLI's ``--help`` and ``--version`` need nothing else)."""
     if name == "TGHop":
         from .synthesis import TGHop
 
         return TGHop
+    if name in ("synthesize_guided", "morph"):  # several models in one image (tghop.guided)
+        from . import guided
+
+        return getattr(guided, name)
     if name in ("data", "settings"):
         import importlib
 

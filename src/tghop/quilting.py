@@ -809,9 +809,10 @@ def _gradient_energy(arr: np.ndarray) -> np.ndarray:
             + np.einsum("ij,ij->i", dx, dx) / np.float32(dx.shape[1]))
 
 
-def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx):
-    """Overlap error (plus guide distance) of pool patch ``pool_idx[i]`` at block ``block_idx[i]``;
-    ``wraps`` (b,): the blocks that also overlap the columns from ``k1`` on."""
+def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx, grouped=None):
+    """Overlap error (plus guide distance, plus group cost) of pool patch ``pool_idx[i]`` at block
+    ``block_idx[i]``; ``wraps`` (b,): the blocks that also overlap the columns from ``k1`` on;
+    ``grouped``: ``(groups (n,), cost (b, K))`` or None."""
     table = prepared._table
     err = np.einsum("ij,ij->i", table[pool_idx, :k1], query[block_idx, :k1])
     err += onorm[block_idx]
@@ -821,23 +822,29 @@ def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, b
     if target is not None:
         diff = prepared._low[pool_idx] - target[block_idx]
         err += factor[block_idx] * np.einsum("ij,ij->i", diff, diff)
+    if grouped is not None:
+        err += grouped[1][block_idx, grouped[0][pool_idx]]
     return err
 
 
-def _full_errors(table, query, k1, wraps, guided, target, factor):
+def _full_errors(table, query, k1, wraps, guided, target, factor, grouped=None):
     """Every pool patch's error against every block of a wavefront, less the blocks'
     constant ``onorm`` (pool x blocks): the overlap columns, the wrapped columns of the
-    blocks that wrap, and the guide term; when the bound rules out too few patches."""
+    blocks that wrap, the guide term and the group cost; when the bound rules out too few
+    patches."""
     err = table[:, :k1] @ query[:, :k1].T
     sel = np.flatnonzero(wraps)
     if sel.size:
         err[:, sel] += table[:, k1:] @ query[sel, k1:].T
     if target is not None:
         err += _guide_distances(guided, target, factor)
+    if grouped is not None:
+        err += grouped[1][:, grouped[0]].T
     return err
 
 
-def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack, penalty=None):
+def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack, penalty=None,
+                        grouped=None):
     """The candidates of :func:`quilt_prepared`'s rule, with full errors only where needed.
 
     A lower bound of every pool patch's error (the box sums of :class:`_Boxes` instead of
@@ -852,6 +859,9 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     applies to the penalised errors: a factor >= 1 times a lower bound is a lower bound
     of the penalised error (also where the bound is negative), and the penalised full
     error of the patch with the smallest penalised bound an upper bound of the best.
+
+    With ``grouped`` (``(groups (n,), cost (b, K))``: each patch's group and each block's
+    cost of each group), the cost is added to the bound and to the full errors alike.
 
     Returns
     -------
@@ -877,12 +887,14 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     # product's left, which OpenBLAS reads faster (measured: docs/choices.md).
     lower = (bound @ lb_query.T).T
     lower += offset[:, None]
+    if grouped is not None:
+        lower += grouped[1][:, grouped[0]]
     if penalty is not None:
         lower *= penalty
         slack = slack * penalty.max()
     first = lower.argmin(axis=1)
     blocks = np.arange(b)
-    upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, blocks)
+    upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, blocks, grouped)
     if penalty is not None:
         upper *= penalty[first]
     # Twice the slack: the bound's own round-off; and never below the smallest bound, so
@@ -893,7 +905,7 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     block_idx, pool_idx = np.divmod(np.flatnonzero(lower <= limit[:, None]), n)
     if pool_idx.size > n * b // 8:
         return None
-    err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx)
+    err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx, grouped)
     if penalty is not None:
         err *= penalty[pool_idx]
     best = np.full(b, np.inf, dtype=err.dtype)
@@ -998,6 +1010,26 @@ def _check_tolerance(tolerance) -> float:
     return float(tolerance)
 
 
+def _check_groups(groups, group_cost, n, plan):
+    """``(groups, cost)`` as int64 (n,) and float32 (ny, nx, K), or None without them."""
+    if groups is None and group_cost is None:
+        return None
+    if groups is None or group_cost is None:
+        raise TGHopError("groups and group_cost go together: give both or neither")
+    labels = np.asarray(groups)
+    cost = np.asarray(group_cost, dtype=np.float32)
+    shape = (plan.ys.size, plan.xs.size)
+    if labels.shape != (n,) or labels.dtype.kind not in "iu":
+        raise TGHopError(f"groups must be {n} integers (one per pool patch), got {labels.dtype} {labels.shape}")
+    if cost.ndim != 3 or cost.shape[:2] != shape:
+        raise TGHopError(f"group_cost must have shape {shape + ('K',)} (one row per block), got {cost.shape}")
+    if labels.size and (labels.min() < 0 or labels.max() >= cost.shape[2]):
+        raise TGHopError(f"groups must lie in [0, {cost.shape[2]}) (group_cost's last axis)")
+    if not np.isfinite(cost).all() or cost.min(initial=0.0) < 0:
+        raise TGHopError("group_cost must be finite and >= 0")
+    return labels.astype(np.int64), cost
+
+
 @dataclass(frozen=True, eq=False)
 class PreparedPool:
     """A patch pool made ready for quilting one image: :func:`prepare_pool`'s result.
@@ -1084,11 +1116,19 @@ def quilt_prepared(
     guide_weight: float = 1.0,
     dtype=np.float64,
     reuse: float = 0.0,
+    groups=None,
+    group_cost=None,
 ) -> np.ndarray:
     """Quilt a pool made ready by :func:`prepare_pool`; parameters and result as :func:`quilt`.
 
     ``dtype`` float32 returns the quilting canvas's own precision at half the memory of
     float64 (the same values; :meth:`tghop.TGHop.synthesize` refines it in float32 anyway).
+
+    ``groups`` (n,) int in ``[0, K)`` and ``group_cost`` (ny, nx, K) (the plan's blocks,
+    :func:`quilting_plan`): each pool patch belongs to a group (e.g. the model that made
+    it), and its error at block (i, j) counts ``group_cost[i, j, group]`` more (in the
+    units of the overlap error, a sum of squared differences): a per-block preference for
+    some groups (:mod:`tghop.guided`). Both or neither.
     """
     if not isinstance(prepared, PreparedPool):
         raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
@@ -1099,6 +1139,7 @@ def quilt_prepared(
         raise TGHopError(f"reuse must be a finite number >= 0, got {reuse!r}")
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
+    costs = _check_groups(groups, group_cost, arr.shape[0], plan)
     # Uses of each pool patch and the factors (1 + reuse * uses) of its errors; None
     # without a penalty (the same arithmetic as before it existed).
     uses = np.zeros(arr.shape[0], dtype=np.int64) if reuse else None
@@ -1145,19 +1186,20 @@ def quilt_prepared(
         target = factor = None
         if guided is not None:
             target, factor = guided["targets"][bi, bj], guided["factor"][mid]
+        grouped = None if costs is None else (costs[0], costs[1][bi, bj])
         # Candidates: error <= (1 + tolerance) * best error, with a little slack for the
         # float32 round-off of the expansion; the best match always qualifies.
         slack = 1e-5 * (onorm + norm_max[mid])
         found = _bounded_candidates(prepared, o, query, onorm, k1, wraps[mid], target, factor, tolerance, slack,
-                                    penalty)
+                                    penalty, grouped)
         if found is None and penalty is not None:  # every error in full, penalised
-            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor)
+            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor, grouped)
             err += onorm
             err *= penalty[:, None]
             best = np.maximum(err.min(axis=0), 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack * penalty.max())
         if found is None:  # the bound rules out too few patches: every error in full
-            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor)
+            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor, grouped)
             best = np.maximum(err.min(axis=0) + onorm, 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack - onorm)
         pool_idx, block_idx = found  # in pool order within each block (the choice below depends on that only)

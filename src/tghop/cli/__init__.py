@@ -2,8 +2,9 @@
 
 :mod:`~tghop.cli.group` holds the command group (``main``) and how every command fails;
 one module per family of commands stands below it (:mod:`~tghop.cli.texture`: fit,
-synth, patches, info; :mod:`~tghop.cli.evaluation`: evaluate, baseline;
-:mod:`~tghop.cli.cooc`: the co-occurrence cGAN), and below them the shared helpers
+synth, patches, info; :mod:`~tghop.cli.guided`: synth with several SOURCEs, morph;
+:mod:`~tghop.cli.evaluation`: evaluate, baseline; :mod:`~tghop.cli.cooc`: the
+co-occurrence cGAN), and below them the shared helpers
 (:mod:`~tghop.cli.options`, :mod:`~tghop.cli.common`). The ``tghop`` command itself
 starts in :func:`tghop.__main__.run`.
 """

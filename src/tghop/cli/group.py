@@ -21,6 +21,7 @@ from .batch import batch
 from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
+from .guided import morph
 from .inpaint import inpaint
 from .serve import serve
 from .texture import fit, info, patches, synth
@@ -34,6 +35,7 @@ _COMMAND_MODULES = {
     "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
     "info": ("numpy", "tghop.modelfile"),
     "inpaint": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.inpaint"),
+    "morph": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.guided"),
     "batch": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.batch"),
 }
 
@@ -124,5 +126,5 @@ def main():
     """
 
 
-for _command in (synth, fit, inpaint, patches, info, batch, evaluate, baseline, cooc, serve):
+for _command in (synth, fit, inpaint, morph, patches, info, batch, evaluate, baseline, cooc, serve):
     main.add_command(_command)

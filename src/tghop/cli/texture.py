@@ -11,6 +11,7 @@ from .._errors import TGHopError
 from ..fit_options import build_model
 from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
+from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
                       generation_options, generation_params, given_options, model_options)
 
@@ -158,7 +159,7 @@ def patches(model_file, n, output, seed, stages):
 
 
 @click.command()
-@click.argument("source")
+@click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
               help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG "
                    "to stdout.")
@@ -172,6 +173,9 @@ def patches(model_file, n, output, seed, stages):
               help="Seed of generation: the same seed gives the same image; without it every run differs.")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
+@click.option("--guide", metavar="MAP", default=None, help=GUIDE_HELP)
+@click.option("--transition", type=click.IntRange(min=0, max=4096), default=DEFAULT_TRANSITION, show_default=True,
+              help=TRANSITION_HELP)
 @depth_option("8; a material's maps: each at its file's depth, as far as the format holds it")
 @generation_options
 @model_options
@@ -179,14 +183,15 @@ def patches(model_file, n, output, seed, stages):
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale, quiet, depth, **options):
+def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, quiet, depth,
+          **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model.
 
-    A saved material (tghop fit EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each
-    of its maps, aligned."""
-    from ..imageio import check_depth, save_image
-    from ..modelfile import load_model, save_model as write_model
-    from ..settings import BY_NAME
+    Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
+    texture; without it, random regions of each (a remix). A saved material (tghop fit
+    EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned.
+    """
+    from ..imageio import check_depth
 
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -194,49 +199,75 @@ def synth(ctx, source, output, size, count, seed, save_model, exclude, downscale
         check_depth(output, depth or 8)
         if output == "-" and count > 1:
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
-        # A .npz SOURCE is read as a model whatever its bytes ("not a tghop model file", not
-        # "not a readable image"); other names as a model when they start like one.
-        from_model = not source.startswith("builtin:") and (source.lower().endswith(".npz") or is_model_file(source))
-        if from_model:
-            fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
-                        + ["save_model", "downscale"])
-            refused = given_options(ctx, fit_only)
-            if refused:
-                raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
-                                 f"is a saved model; refit with 'tghop fit' or drop {'them' if len(refused) > 1 else 'it'}")
-        generation = generation_params(options)
-        # Every output checked before the fit and before the first image is written.
-        outputs = [output] if count == 1 else numbered(output, count)
-        if count > 1:
-            for path in outputs:
-                check_output(path)
-        if save_model and not from_model:
-            check_model_output(save_model, "--save-model")
-        check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)],
-                      [("SOURCE", source), ("--exclude", exclude)])
-        if from_model:
-            model = load_model(source, material=True)
-            if hasattr(model, "names_"):  # a whole material: every map, written together
-                return _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress,
-                                       generation=generation, source=source)
-        else:
-            model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
-            if save_model:
-                write_model(model, save_model)
-        import numpy as np
+        if len(sources) > 1 or guide is not None:
+            from .guided import synth_several
 
-        rng = np.random.default_rng(seed)
-        for path in outputs:
-            # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
-            image = model.synthesize(size, rng=rng, progress=progress,
-                                     dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
-            progress.close()
-            save_image(image, path, depth=depth or 8)
+            if depth:
+                raise TGHopError("--depth applies to one SOURCE; drop it with several")
+            outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
+                                          exclude, downscale, progress, generation_params(options), options)
+            from_model = True  # nothing saved
+        elif given_options(ctx, ["transition"]):
+            raise TGHopError("--transition applies to several SOURCEs or --guide; drop it")
+        else:
+            outputs, from_model = _synth_one(ctx, sources[0], output, size, count, seed, save_model, exclude,
+                                             downscale, progress, options, depth)
+            if outputs is None:  # a material: it said what it wrote
+                return
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
         if save_model and not from_model:
             click.echo(f"model written to {save_model}", err=True)
+
+
+def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options, depth):
+    """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
+    written (None for a material, which says what it wrote) and whether SOURCE was a saved model."""
+    from ..imageio import save_image
+    from ..modelfile import load_model, save_model as write_model
+    from ..settings import BY_NAME
+
+    # A .npz SOURCE is read as a model whatever its bytes ("not a tghop model file", not
+    # "not a readable image"); other names as a model when they start like one.
+    from_model = not source.startswith("builtin:") and (source.lower().endswith(".npz") or is_model_file(source))
+    if from_model:
+        fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
+                    + ["save_model", "downscale"])
+        refused = given_options(ctx, fit_only)
+        if refused:
+            raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
+                             f"is a saved model; refit with 'tghop fit' or drop {'them' if len(refused) > 1 else 'it'}")
+    generation = generation_params(options)
+    # Every output checked before the fit and before the first image is written.
+    outputs = [output] if count == 1 else numbered(output, count)
+    if count > 1:
+        for path in outputs:
+            check_output(path)
+    if save_model and not from_model:
+        check_model_output(save_model, "--save-model")
+    check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)],
+                  [("SOURCE", source), ("--exclude", exclude)])
+    if from_model:
+        model = load_model(source, material=True)
+        if hasattr(model, "names_"):  # a whole material: every map, written together
+            _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
+                            source=source)
+            return None, True
+    else:
+        model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
+        if save_model:
+            write_model(model, save_model)
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    for path in outputs:
+        # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
+        image = model.synthesize(size, rng=rng, progress=progress,
+                                 dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
+        progress.close()
+        save_image(image, path, depth=depth or 8)
+    return outputs, from_model
 
 
 def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source):

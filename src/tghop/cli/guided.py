@@ -1,0 +1,136 @@
+"""``tghop synth A B ... [--guide MAP]`` (several sources in one image) and ``tghop morph``."""
+
+from __future__ import annotations
+
+import click
+
+from .._errors import TGHopError
+from .common import Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors
+from ..fit_options import build_model
+from .options import Size
+
+__all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION"]
+
+#: :data:`tghop.guided.DEFAULT_TRANSITION`, here so that ``tghop --help`` imports no NumPy
+#: (tests/test_guided.py checks that the two agree).
+DEFAULT_TRANSITION = 32
+
+GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or colour) per SOURCE, the darkest "
+              "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture. "
+              "The output takes its size (--size, if given, must agree). Without --guide several SOURCEs make "
+              "one texture of random regions of each (a remix).")
+TRANSITION_HELP = "Width in pixels of the soft transition where regions meet (with several SOURCEs)."
+
+
+def _model(spec, options, progress, downscale=False):
+    """A saved model (.npz) and True, or a model fitted on an exemplar (a file or
+    builtin:NAME) with the fit ``options`` and False."""
+    from ..synthesis import prepare_exemplar
+
+    if not spec.startswith("builtin:") and (spec.lower().endswith(".npz") or is_model_file(spec)):
+        from ..modelfile import load_model
+
+        return load_model(spec), True
+    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None,
+                                           has_downscale=True), min_size=options.get("patch_size") or 32)
+    return build_model(options, n_colours=image.shape[2]).fit(image, progress=progress), False
+
+
+def _load_guide(path, size, size_given):
+    """The guide map as an array, refused when it is not --size's size (one line)."""
+    from ..imageio import load_image
+
+    if is_model_file(path):
+        raise TGHopError(f"--guide {path} is a model file, not an image; give a painted map")
+    guide = load_image(path, dtype=None)
+    if size_given and tuple(guide.shape[:2]) != tuple(size):
+        raise TGHopError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is {size[0]}x{size[1]}; "
+                         "paint the map at the output size or drop --size (the map's size is taken)")
+    return guide
+
+
+def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
+                  progress, generation, options):
+    """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors)."""
+    import numpy as np
+
+    from ..guided import guide_labels, synthesize_guided
+    from ..imageio import save_image
+    from .options import FIT_OPTION_PARAMS, given_options
+
+    refused = given_options(ctx, ["patch_refine"])
+    if refused:
+        raise TGHopError(f"{refused[0]} is not used with several SOURCEs or --guide; drop it")
+    generation.pop("patch_refine", None)
+    if save_model:
+        raise TGHopError("--save-model takes one exemplar; save each model with 'tghop fit' and give the .npz files")
+    if exclude:
+        raise TGHopError("--exclude takes one exemplar; fit each with 'tghop fit --exclude' and give the .npz files")
+    if guide is None and len(sources) < 2:
+        raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
+    size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
+    outputs = [output] if count == 1 else numbered(output, count)
+    for path in outputs if count > 1 else ():
+        check_output(path)
+    check_outputs([("-o", path) for path in outputs],
+                  [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
+    painted = None
+    if guide is not None:  # read and checked (size, levels) before anything is fitted
+        painted = _load_guide(guide, size, size_given)
+        guide_labels(painted, len(sources))
+        size = painted.shape[:2]
+    from ..settings import BY_NAME
+
+    fit_only = [s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS) + ["downscale"]
+    fitting = given_options(ctx, fit_only)
+    models = []
+    for i, spec in enumerate(sources, start=1):
+        model, saved = _model(spec, options, progress, downscale)
+        if saved and fitting:
+            raise TGHopError(f"{', '.join(fitting)}: fitting options but SOURCE {i} ({spec}) is a saved model; "
+                             "fit the exemplars with 'tghop fit' or drop them")
+        models.append(model)
+    rng = np.random.default_rng(seed)
+    for path in outputs:
+        image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
+                                  dtype=np.uint8, **generation)
+        progress.close()
+        save_image(image, path)
+    return outputs, size
+
+
+@click.command()
+@click.argument("source_a", metavar="A")
+@click.argument("source_b", metavar="B")
+@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - writes PNG to stdout).")
+@click.option("--size", type=Size(), default="256x1024", show_default=True, help="HEIGHTxWIDTH of one strip.")
+@click.option("--grid", type=click.IntRange(min=1, max=64), default=1, show_default=True,
+              help="Strips of consecutive seeds stacked top to bottom (a grid of seeds).")
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed: the same seed gives the same strip; without it every run differs.")
+@click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
+              help="Steps of the statistics from A to B (default one per 128 columns, at least 3).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+def morph(source_a, source_b, output, size, grid, seed, stations, quiet):
+    """A strip from texture A on the left to texture B on the right (A and B: exemplars,
+    builtin:NAME or saved models); every column is a texture between them."""
+    import numpy as np
+
+    from ..guided import morph as make_strip
+    from ..imageio import save_image
+
+    progress = Progress(not quiet)
+    with user_errors(progress):
+        check_output(output, allow_stdout=True)
+        check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
+        model_a, _ = _model(source_a, {}, progress)
+        model_b, _ = _model(source_b, {}, progress)
+        rows = []
+        for row in range(grid):
+            rng = np.random.default_rng(None if seed is None else seed + row)
+            rows.append(make_strip(model_a, model_b, size, rng=rng, stations=stations, progress=progress,
+                                   dtype=np.uint8))
+            progress.close()
+        save_image(np.concatenate(rows, axis=0), output)
+    if output != "-":
+        click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)

@@ -1,0 +1,610 @@
+"""Several TGHop models in one image: painted regions, a remix, a morph (ours).
+
+Every function here makes one image from the *generated* patches of several fitted
+models (never pieces of an exemplar), with the quality steps of
+:meth:`tghop.TGHop.synthesize` (quilting, band refinement, colour matching):
+
+* :func:`synthesize_guided` with a ``guide``: a painted map with one grey level (or
+  colour) per model; each region is texture of its model, with soft transitions where
+  regions meet (``transition`` pixels wide).
+* :func:`synthesize_guided` without a guide: one texture that mixes the models ("remix"):
+  random regions of each.
+* :func:`morph`: from model A's texture on the left to B's on the right.
+
+How it works
+------------
+1. **Weights.** Each model ``k`` has a share ``W_k(x)`` of every pixel (they sum to 1):
+   the guide's regions as one-hot maps blurred by a box of ``transition`` pixels
+   (:func:`region_weights`); a linear ramp across the width for the morph. The remix is
+   a guided synthesis whose map is random: a smooth random field cut into ``K`` classes
+   of equal area (:func:`random_labels`, blobs of about 150 px).
+2. **Quilting** from the union of the models' pools (``n_patches`` shared out by area,
+   at least a quarter each, grown with the region's blocks as
+   :meth:`tghop.TGHop.synthesize` grows its pool). Each block draws
+   the model whose patches it takes, with probabilities ``W_k`` at its centre, through a
+   smooth random field (in a transition the models come in blobs of a few blocks, in
+   their proportions); the other models' patches cost :data:`REGION_COST` per overlap
+   value more (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``: more than any
+   overlap error), only :data:`MIXED_COST` in blocks where several models have a share
+   (a texture may go on where it fits much better), and the boundary cuts join the
+   regions along the content. The coarse
+   layout guide is each model's own (over its region's bounding box) blended by ``W``.
+3. **Refinement by stations.** A *station* is a weight map ``w_s`` (the stations'
+   weights sum to 1 at every pixel) and a mix ``a_s`` of the models. Each round, every
+   station's bounding box is refined once per model of its mix as
+   :func:`tghop.refine.refine` does (the model's decorrelated colour space, Laplacian
+   bands and oriented parts given its quantiles, then the pixels), except that each
+   monotone map is estimated from the pixels where the station dominates
+   (``w_s >= 0.5``) and applied to the whole box; the image becomes
+   ``sum_s w_s sum_k a_sk refined_sk``. The colours likewise (each model's colour
+   quantiles, RGB). Guided and remix: one station per model (``a`` the identity, ``w``
+   the region weights). Morph: stations at evenly spaced ``t`` across the width with
+   hat-function weights, each mixing A and B as ``(1 - t, t)``: in a common colour space
+   a mix of monotone maps *is* the map to the interpolated quantiles (the displacement
+   interpolation of the two distributions), so each column's band statistics move from
+   A's to B's.
+
+Example
+-------
+>>> import tghop
+>>> from tghop import TGHop, data
+>>> a, b = TGHop(rng=0).fit(data.bricks()), TGHop(rng=0).fit(data.cells())  # doctest: +SKIP
+>>> guide = np.zeros((256, 256), np.uint8); guide[:, 128:] = 255             # doctest: +SKIP
+>>> image = tghop.synthesize_guided([a, b], guide, rng=1)                    # doctest: +SKIP
+>>> strip = tghop.morph(a, b, (256, 1024), rng=1)                            # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import os
+from contextlib import nullcontext
+
+import numpy as np
+
+from . import settings
+from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
+from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
+from .refine import downsample, iter_oriented_parts, laplacian_pyramid, prepare as prepare_refinement, reconstruct
+
+__all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
+           "REGION_COST", "MIXED_COST"]
+
+#: Default width in pixels of the soft transition between painted regions.
+DEFAULT_TRANSITION = 32
+#: Extra error per overlap value (a squared difference, in [0, 1] units) of a patch of a
+#: model other than the one a block drew: more than any overlap error (at most 1 per
+#: value), so a region takes its own model's patches.
+REGION_COST = 1.0
+#: The same in blocks of a transition (or a morph), where several models have a share: a
+#: preference for the drawn model that a clearly better fitting patch of another overrides,
+#: so that a texture can continue across a few blocks (fewer block-shaped islands).
+MIXED_COST = 0.003
+#: Length scale in pixels of the random regions of a remix.
+_BLOB = 64
+#: Most pool patches per model.
+_MAX_POOL = 30_000
+#: Values ranked to estimate each monotone map of the refinement.
+_SAMPLES = 1 << 14
+#: Images from this many pixels on are refined a station per thread.
+_THREADED_PIXELS = 512 * 512
+#: Entries of the lookup table that applies a monotone map.
+_TABLE = 4096
+
+
+# ----------------------------------------------------------------------------- guides
+
+
+def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
+    """The region of every pixel of a painted guide, as (H, W) int labels in ``[0, n_models)``.
+
+    The rule: the guide's distinct values (grey levels, or colours) sorted from dark to
+    light (by their mean over the channels, then by R, G, B) are the models in the order
+    given: the darkest is the first model. An integer label map 0, 1, ... follows the same
+    rule. A guide with more distinct values than models (e.g. antialiased or JPEG edges)
+    or fewer is refused, naming the counts.
+
+    Parameters
+    ----------
+    guide : array_like, shape (H, W) or (H, W, C)
+        uint8, integers or floats.
+    n_models : int
+    size : (int, int), optional
+        The output size; a guide of another size is refused (paint it at the output size).
+
+    Returns
+    -------
+    ndarray of int64, shape (H, W)
+    """
+    arr = np.asarray(guide)
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    if arr.ndim not in (2, 3) or arr.dtype.kind not in "biuf" or arr.size == 0:
+        raise TGHopError(f"the guide must be an (H, W) or (H, W, C) image of numbers, got {arr.dtype} {arr.shape}")
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        raise TGHopError("the guide has NaN or infinite values")
+    if size is not None and tuple(arr.shape[:2]) != tuple(size):
+        raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}; "
+                         "paint the guide at the output size (or leave the size out to take the guide's)")
+    values, labels = _distinct(arr)
+    n = len(values)
+    if n != n_models:
+        hint = ("paint with flat levels only (no antialiasing, PNG not JPEG)" if n > n_models
+                else "paint one level per input")
+        raise TGHopError(f"the guide has {n} distinct grey levels/colours but {n_models} inputs were given; {hint}: "
+                         "the darkest is the first input")
+    order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
+    rank = np.empty(n, dtype=np.int64)
+    rank[order] = np.arange(n)
+    return rank[labels]
+
+
+def _distinct(arr):
+    """``(values (n, C), labels (H, W))``: the distinct pixels of an (H, W) or (H, W, C)
+    image and each pixel's index among them (8-bit images by counting, in linear time)."""
+    h, w = arr.shape[:2]
+    c = 1 if arr.ndim == 2 else arr.shape[2]
+    if arr.dtype == np.uint8 and c in (1, 3):
+        code = arr.astype(np.int32) if c == 1 else (arr[..., 0].astype(np.int32) << 16) | (
+            arr[..., 1].astype(np.int32) << 8) | arr[..., 2]
+        if c == 1:
+            present = np.flatnonzero(np.bincount(code.ravel(), minlength=256))
+            index = np.zeros(256, dtype=np.int64)
+            index[present] = np.arange(present.size)
+            return present[:, None].astype(np.uint8), index[code]
+        codes, labels = np.unique(code.ravel(), return_inverse=True)
+        values = np.stack([(codes >> 16) & 255, (codes >> 8) & 255, codes & 255], axis=1).astype(np.uint8)
+        return values, labels.reshape(h, w)
+    if c == 1:
+        values, labels = np.unique(arr.reshape(-1), return_inverse=True)
+        return values[:, None], labels.reshape(h, w)
+    values, labels = np.unique(arr.reshape(h * w, c), axis=0, return_inverse=True)
+    return values, labels.reshape(h, w)
+
+
+def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=False) -> np.ndarray:
+    """Soft region weights: each label's one-hot map blurred by a box of ``transition`` pixels.
+
+    Returns
+    -------
+    ndarray of float32, shape (n_models, H, W)
+        In [0, 1], summing to 1 at every pixel; 0 or 1 everywhere for ``transition`` 0.
+    """
+    labels = np.asarray(labels)
+    out = np.stack([(labels == k).astype(np.float32) for k in range(n_models)])
+    radius = int(transition) // 2
+    if radius:
+        # Box sums of the 0/1 maps are whole numbers (exact in float32), divided once.
+        area = np.float32((2 * radius + 1) ** 2)
+        for k in range(n_models):
+            out[k] = _box_sum(_box_sum(out[k], radius, 0, tile), radius, 1, tile) / area
+    return out
+
+
+def _box_sum(x, radius, axis, wrap):
+    """Sums of ``2 radius + 1`` samples along ``axis`` of the 2-d ``x`` (edges: repeated,
+    or periodic with ``wrap``), by cumulative sums; float32."""
+    pad = [(0, 0), (0, 0)]
+    pad[axis] = (radius + 1, radius)
+    total = np.cumsum(np.pad(x, pad, mode="wrap" if wrap else "edge"), axis=axis, dtype=np.float32)
+    n = x.shape[axis]
+    if axis == 0:
+        return total[2 * radius + 1:2 * radius + 1 + n] - total[:n]
+    return total[:, 2 * radius + 1:2 * radius + 1 + n] - total[:, :n]
+
+
+def _smooth(field, sigma, wrap):
+    """A small 2-d array blurred by a Gaussian of ``sigma`` samples (edges mirrored, or
+    periodic with ``wrap``), a separable convolution of radius ``3 sigma``."""
+    radius = max(1, int(math.ceil(3 * sigma)))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    taps /= taps.sum()
+    for axis in (0, 1):
+        n = field.shape[axis]
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (radius, radius)
+        padded = np.pad(field, pad, mode="wrap" if wrap else "symmetric")
+        field = sum(t * np.take(padded, np.arange(i, i + n), axis=axis) for i, t in enumerate(taps))
+    return field
+
+
+# ----------------------------------------------------------------------------- checks
+
+
+def _check_models(models, minimum=1):
+    models = list(models)
+    if len(models) < minimum:
+        raise TGHopError(f"give at least {minimum} fitted model{'s' if minimum > 1 else ''}, got {len(models)}")
+    for m in models:
+        check_is_fitted(m, "ichm_")
+    first = models[0]
+    for i, m in enumerate(models[1:], start=2):
+        if m.patch_size != first.patch_size:
+            raise TGHopError(f"input {i} has {m.patch_size}x{m.patch_size} patches but input 1 has "
+                             f"{first.patch_size}x{first.patch_size}; fit them with the same --patch-size")
+        if m.exemplar_shape_[2] != first.exemplar_shape_[2]:
+            raise TGHopError(f"input {i} is {'grey' if m.exemplar_shape_[2] == 1 else 'colour'} but input 1 is not; "
+                             "give all colour or all greyscale exemplars")
+        if m.bands_.band_quantiles_.shape[1] != first.bands_.band_quantiles_.shape[1]:
+            raise TGHopError(f"input {i} was fitted with another band_orientations than input 1; refit with the same")
+    return models
+
+
+def _check_int(name, value, low):
+    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
+        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+# ----------------------------------------------------------------------------- public API
+
+
+def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
+                      n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
+                      detail=0.5, refine=3, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
+                      layout_refine=3, progress=None, dtype=np.float64):
+    """One image from several fitted models: painted regions, or a remix without a guide.
+
+    Parameters
+    ----------
+    models : sequence of tghop.TGHop
+        Fitted, with the same patch size and colour channels.
+    guide : array_like, shape (H, W) or (H, W, C), optional
+        One grey level (or colour) per model, the darkest for the first
+        (:func:`guide_labels`). None: a remix (``size`` needed) of the models' textures.
+    size : (int, int), optional
+        Output (height, width); default the guide's size. A guide of another size is
+        refused.
+    transition : int
+        Width in pixels over which regions blend (their weights, the models' patches and
+        statistics; 0: the quilting seam decides alone).
+    rng : int or numpy.random.Generator, optional
+        Same seed, same image (on the same machine).
+    n_patches, tile, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block
+        As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out among the models
+        in proportion to their areas (each at least a quarter of it), ``pool_per_block``
+        counts each region's blocks.
+    layout_weight, layout_refine
+        As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's (over
+        its region's bounding box) blended by the region weights; off unless every model
+        has a coarse layout.
+    progress : callable, optional
+        Stages "patch pool", "layout", "quilting", "refine", "colour".
+    dtype : {numpy.float64, numpy.float32, numpy.uint8}
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
+    """
+    models = _check_models(models, 1 if guide is not None else 2)
+    transition = _check_int("transition", transition, 0)
+    k = len(models)
+    rng = check_rng(rng)
+    if guide is None:
+        if size is None:
+            raise TGHopError("a remix without a guide needs a size")
+        size = check_size(size)
+        labels = random_labels(size, k, rng=rng, tile=tile)
+    else:
+        size = None if size is None else check_size(size)
+        labels = guide_labels(guide, k, size=size)
+        size = labels.shape
+    weights = region_weights(labels, k, transition, tile=tile)
+    return _synthesize(models, size, weights, np.eye(k), weights, rng=rng, n_patches=n_patches, tile=tile,
+                       overlap=overlap, tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours,
+                       reuse=reuse, pool_per_block=pool_per_block, layout_weight=layout_weight,
+                       layout_refine=layout_refine, progress=progress, dtype=dtype)
+
+
+def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
+          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.5, refine=3,
+          match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0, layout_refine=3, progress=None,
+          dtype=np.float64):
+    """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.
+
+    Column ``x`` is at ``t = x / (W - 1)`` of the way: its blocks take B's patches with
+    probability ``t`` (in blobs of a few blocks), and its band, pixel and colour
+    statistics are A's and B's quantiles interpolated at ``t`` (``stations`` evenly
+    spaced stations with hat-function weights, see the module's notes).
+
+    Parameters
+    ----------
+    model_a, model_b : tghop.TGHop
+    size : (int, int)
+        (height, width) of the strip.
+    stations : int, optional
+        Steps of the statistics across the width (at least 2); default one per 128
+        columns, at least 3.
+    rng, n_patches, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block
+        As :func:`synthesize_guided`.
+    layout_weight, layout_refine, progress, dtype
+        As :func:`synthesize_guided`.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), ``dtype``
+    """
+    models = _check_models([model_a, model_b], 2)
+    h, w = check_size(size)
+    n = max(3, int(math.ceil(w / 128)) + 1) if stations is None else _check_int("stations", stations, 2)
+    t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
+    centres = np.linspace(0.0, 1.0, n)
+    hats = np.clip(1.0 - np.abs(t[None, :] - centres[:, None]) * (n - 1), 0.0, 1.0)  # (n, W), sum 1
+    weights = np.ascontiguousarray(np.broadcast_to(hats[:, None, :], (n, h, w)), dtype=np.float32)
+    mix = np.stack([1.0 - centres, centres], axis=1)
+    ramp = np.broadcast_to(np.stack([1.0 - t, t])[:, None, :], (2, h, w)).astype(np.float32)
+    return _synthesize(models, (h, w), weights, mix, ramp, rng=rng, n_patches=n_patches, tile=False, overlap=overlap,
+                       tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours, reuse=reuse,
+                       pool_per_block=pool_per_block, layout_weight=layout_weight, layout_refine=layout_refine,
+                       progress=progress, dtype=dtype)
+
+
+# ----------------------------------------------------------------------------- the pipeline
+
+
+def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, refine,
+                match_colours, reuse, pool_per_block, layout_weight, layout_refine, progress, dtype):
+    """Quilt the union of the models' pools (each block its drawn model's patches, drawn
+    from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
+    ``weights`` (S, H, W) and ``mix`` (S, K)."""
+    dtype = np.dtype(dtype)
+    if dtype not in (np.float64, np.float32, np.uint8):
+        raise TGHopError(f"dtype must be float64, float32 or uint8, got {dtype}")
+    checked = settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
+                                           detail=detail, match_colours=match_colours, refine=refine, reuse=reuse,
+                                           pool_per_block=pool_per_block, layout_weight=layout_weight,
+                                           layout_refine=layout_refine))
+    from threadpoolctl import threadpool_limits
+
+    rng = check_rng(rng)
+    k = len(models)
+    p = int(models[0].patch_size)
+    blocks = block_count(size, p, overlap=overlap, tile=tile)
+    area = shares.reshape(k, -1).mean(axis=1)
+    # Each model's pool in proportion to its area (the pool of one image shared out), at
+    # least a quarter of n_patches (a small region still has choice), grown with the
+    # region's blocks as TGHop.synthesize grows its pool.
+    n_min = checked["n_patches"]
+    counts = [max(int(math.ceil(n_min * max(a, 0.25))),
+                  min(_MAX_POOL, int(math.ceil(checked["pool_per_block"] * blocks * a)))) for a in area]
+    guided = bool(checked["layout_weight"]) and all(m.layout_ is not None for m in models)
+    pending = None
+    # The coarse guides are made in a second thread (their own random stream) while the
+    # pools are generated and prepared, one BLAS thread each (as TGHop.synthesize does).
+    with threadpool_limits(limits=1, user_api="blas") if guided else nullcontext():
+        if guided:
+            layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
+            pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"])
+        report(progress, "patch pool", 0, k)
+        pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
+        start = 0
+        for i, (model, n) in enumerate(zip(models, counts), start=1):
+            pool[start:start + n] = model.sample_patches(n, rng=rng, dtype=np.float32)
+            start += n
+            report(progress, "patch pool", i, k)
+        prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=checked["detail"],
+                                guide_scale=GUIDE_SCALE if guided else None)
+        if checked["refine"]:
+            prepare_refinement(size, models[0].bands_)
+        report(progress, "layout", 0, 1)
+        guide = pending() if guided else None
+        report(progress, "layout", 1, 1)
+    groups = np.repeat(np.arange(k), counts)
+    group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
+    reuse = checked["reuse"] if blocks > 0.125 * len(pool) else 0.0
+    image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,
+                           guide=guide, guide_weight=checked["layout_weight"], groups=groups, group_cost=group_cost)
+    del prepared, pool
+    stations = _Stations(weights, mix, models)
+    if checked["refine"]:
+        image = stations.refine(image, n_iter=checked["refine"], tile=tile, progress=progress)
+    if checked["match_colours"]:
+        report(progress, "colour", 0, 1)
+        image = stations.match_colours(image)
+        report(progress, "colour", 1, 1)
+    image = np.clip(image, 0.0, 1.0)
+    if dtype == np.uint8:
+        return np.round(image * np.float32(255.0)).astype(np.uint8)
+    return image.astype(dtype)
+
+
+def _layout_guide(models, shares, rng, tile, refine):
+    """``sum_k W_k guide_k``: each model's coarse layout guide over the bounding box of its
+    share (the whole image with ``tile``), weighted by its share; (H, W, C) float32."""
+    k, h, w = shares.shape
+    guide = np.zeros((h, w, models[0].exemplar_shape_[2]), dtype=np.float32)
+    for model, share in zip(models, shares):
+        box = (slice(0, h), slice(0, w))
+        if not tile:
+            rows, cols = np.flatnonzero((share > 1e-3).any(axis=1)), np.flatnonzero((share > 1e-3).any(axis=0))
+            if rows.size == 0:
+                continue
+            box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        part = model.layout_.guide((box[0].stop - box[0].start, box[1].stop - box[1].start), rng=rng, tile=tile,
+                                   refine=refine)
+        guide[box] += part * share[box][..., None]
+    return guide
+
+
+def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.ndarray:
+    """Random regions for a remix: a smooth random field (Gaussian of ``scale`` pixels)
+    cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64."""
+    h, w = check_size(size)
+    rng = check_rng(rng)
+    cell = max(1, scale // 4)
+    small = (max(1, -(-h // cell)), max(1, -(-w // cell)))
+    field = _smooth(rng.standard_normal(small), scale / cell, tile)
+    field = np.repeat(np.repeat(field, cell, axis=0), cell, axis=1)[:h, :w]
+    cuts = np.quantile(field, np.linspace(0.0, 1.0, n_models + 1)[1:-1])
+    return np.searchsorted(cuts, field).astype(np.int64)
+
+
+def _group_cost(shares, plan, p, c, rng):
+    """(ny, nx, K) cost of each model's patches at each block: 0 for the model the block
+    draws (probabilities: ``shares`` at its centre), :data:`REGION_COST` per overlap value
+    for the others (:data:`MIXED_COST` in blocks where several models have a share). The draw thresholds a smooth random field made uniform by its ranks,
+    so that mixed blocks come in blobs."""
+    k, h, w = shares.shape
+    cy = np.minimum(plan.ys + p // 2, h - 1)
+    cx = np.minimum(plan.xs + p // 2, w - 1)
+    at = shares[:, cy[:, None], cx[None, :]]  # (K, ny, nx)
+    field = _smooth(rng.standard_normal(at.shape[1:]), 1.0, plan.tile)
+    u = (np.argsort(np.argsort(field, axis=None)).reshape(field.shape) + 0.5) / field.size
+    drawn = np.minimum((np.cumsum(at, axis=0) < u[None]).sum(axis=0), k - 1)  # (ny, nx)
+    n_values = 2 * p * plan.overlap * c
+    mixed = at.max(axis=0) < 1.0 - 1e-6  # blocks in a transition: a preference only
+    per_value = np.where(mixed, MIXED_COST, REGION_COST).astype(np.float32)
+    cost = np.repeat((per_value * n_values)[..., None], k, axis=2)
+    np.put_along_axis(cost, drawn[..., None], 0.0, axis=2)
+    return cost
+
+
+class _Stations:
+    """Station weights (S, H, W) and mixes (S, K) of the models' statistics.
+
+    Each station is worked on over the bounding box of its weights only; its monotone
+    maps are estimated from the pixels (of each band level) where it dominates."""
+
+    def __init__(self, weights, mix, models):
+        self.mix = np.asarray(mix, dtype=np.float64)
+        self.stats = [m.bands_ for m in models]
+        self.colours = [m.colour_quantiles_ for m in models]
+        self.n_levels = min(s.band_quantiles_.shape[0] for s in self.stats)
+        self.stations = []
+        for ws in weights:
+            support = ws > 1e-3
+            rows, cols = np.flatnonzero(support.any(axis=1)), np.flatnonzero(support.any(axis=0))
+            if rows.size == 0:
+                self.stations.append(None)
+                continue
+            box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+            wb = np.ascontiguousarray(ws[box], dtype=np.float32)
+            samples, level = [], wb
+            for i in range(self.n_levels + 1):  # each band level's, then (last) the pixels'
+                if i == self.n_levels:
+                    level = wb
+                elif i:
+                    level = downsample(level, mode="reflect")
+                samples.append(_dominant(level))
+            self.stations.append((box, wb, samples))
+
+    def _each(self, image, one):
+        """``sum_s w_s sum_k a_sk one(k, crop, samples)`` over the stations' boxes; (H, W, C) float32."""
+        def station_value(s):
+            box, wb, samples = self.stations[s]
+            crop = image[box]
+            acc = None
+            for k in np.flatnonzero(self.mix[s] > 0):
+                value = one(k, crop, samples)
+                if self.mix[s, k] != 1.0:
+                    value *= np.float32(self.mix[s, k])
+                acc = value if acc is None else np.add(acc, value, out=acc)
+            acc *= wb[..., None]
+            return acc
+
+        todo = [s for s, station in enumerate(self.stations) if station is not None]
+        out = np.zeros(image.shape, dtype=np.float32)
+        workers = min(len(todo), os.cpu_count() or 1, 4)
+        if workers > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
+            # Stations in threads (NumPy and the FFTs let go of the interpreter lock),
+            # added in station order: the same image as one at a time.
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                for s, value in zip(todo, pool.map(station_value, todo)):
+                    out[self.stations[s][0]] += value
+        else:
+            for s in todo:
+                out[self.stations[s][0]] += station_value(s)
+        return out
+
+    def refine(self, image, *, n_iter, tile, progress=None):
+        """Band and pixel matching rounds (see the module's notes); (H, W, C) float32."""
+        mode = "wrap" if tile else "reflect"
+        n_parts = self.stats[0].band_quantiles_.shape[1]
+        x = np.asarray(image, dtype=np.float32)
+
+        def one(k, crop, samples):
+            stats = self.stats[k]
+            dec = _linear(np.moveaxis(crop, 2, 0), stats.colour_basis_, -stats.colour_basis_ @ stats.colour_mean_)
+            bands = laplacian_pyramid(dec, self.n_levels, mode=mode, axes=(1, 2))
+            for i in range(len(bands) - 1):
+                total = None
+                for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=(1, 2))):
+                    for c in range(part.shape[0]):
+                        flat = part[c].reshape(-1)
+                        part[c] = _monotone_map(flat, flat[samples[i]], stats.band_quantiles_[i, j, c]).reshape(
+                            part.shape[1:])
+                    total = part if total is None else np.add(total, part, out=total)
+                bands[i] = total
+            dec = reconstruct(bands, mode=mode, axes=(1, 2)).astype(np.float32)
+            for c in range(dec.shape[0]):
+                flat = dec[c].reshape(-1)
+                dec[c] = _monotone_map(flat, flat[samples[-1]], stats.pixel_quantiles_[c]).reshape(dec.shape[1:])
+            return np.moveaxis(_linear(dec, stats.colour_basis_.T, stats.colour_mean_), 0, 2)
+
+        report(progress, "refine", 0, n_iter)
+        for r in range(1, n_iter + 1):
+            x = self._each(x, one)
+            np.clip(x, 0.0, 1.0, out=x)
+            report(progress, "refine", r, n_iter)
+        return x
+
+    def match_colours(self, image):
+        """Each station's colours given its models' colour quantiles (RGB), blended."""
+        def one(k, crop, samples):
+            out = np.empty(crop.shape, dtype=np.float32)
+            for c in range(crop.shape[2]):
+                flat = np.ascontiguousarray(crop[..., c]).reshape(-1)
+                out[..., c] = _monotone_map(flat, flat[samples[-1]], self.colours[k][c]).reshape(crop.shape[:2])
+            return out
+
+        return self._each(np.asarray(image, dtype=np.float32), one)
+
+
+def _linear(x, matrix, offset):
+    """``matrix @ x + offset`` over the channels of ``x`` (C, h, w): (C, h, w) float32, a
+    channel at a time (NumPy's product of (N, 3) by (3, 3) is slow)."""
+    matrix, offset = np.asarray(matrix, dtype=np.float32), np.asarray(offset, dtype=np.float32)
+    out = np.empty((matrix.shape[0],) + x.shape[1:], dtype=np.float32)
+    tmp = np.empty(x.shape[1:], dtype=np.float32)
+    for a in range(matrix.shape[0]):
+        np.multiply(x[0], matrix[a, 0], out=out[a])
+        for b in range(1, x.shape[0]):
+            out[a] += np.multiply(x[b], matrix[a, b], out=tmp)
+        out[a] += offset[a]
+    return out
+
+
+def _dominant(weights):
+    """Flat indices of at most :data:`_SAMPLES` pixels (evenly strided) where ``weights``
+    (h, w) is at least 0.5 (else above zero)."""
+    where = np.flatnonzero(weights.ravel() >= 0.5)
+    if where.size == 0:
+        where = np.flatnonzero(weights.ravel() > 1e-3)
+    if where.size > _SAMPLES:
+        where = where[:: int(math.ceil(where.size / _SAMPLES))]
+    return where
+
+
+def _monotone_map(values, sample, target):
+    """``values`` (1-d float32) through the monotone map that gives ``sample`` (a subset
+    of them) the quantiles ``target`` (Q,): the sample's quantiles at the same levels are
+    mapped to the target's, linearly between them (a lookup table of :data:`_TABLE`
+    entries; values beyond the sample's range take the end values)."""
+    q = target.shape[0]
+    if sample.size == 0:
+        return values
+    ordered = np.sort(sample)
+    src = np.interp(np.linspace(0.0, ordered.size - 1, q), np.arange(ordered.size), ordered)
+    lo, hi = float(src[0]), float(src[-1])
+    if not hi > lo:
+        return np.full_like(values, float(np.interp(0.5, np.linspace(0.0, 1.0, q), target)))
+    scale = (_TABLE - 1) / (hi - lo)
+    table = np.interp(lo + np.arange(_TABLE) / scale, src, target).astype(values.dtype)
+    # The nearest entry, round((v - lo) * scale), as v * scale + (0.5 - lo * scale) truncated.
+    index = np.multiply(values, np.float32(scale), dtype=np.float32)
+    index += np.float32(0.5 - lo * scale)
+    np.clip(index, 0, _TABLE - 1, out=index)
+    return np.take(table, index.astype(np.int32), mode="clip")

@@ -1,0 +1,201 @@
+"""Several models in one image (tghop.guided, ``tghop synth A B --guide``, ``tghop morph``),
+on textures made in code."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import tghop
+from tghop import TGHopError, data, guided
+from tghop.guided import guide_labels, region_weights
+from tghop.imageio import to_uint8
+from tghop.modelfile import save_model
+from tghop.quilting import prepare_pool, quilt_prepared
+from tghop.synthesis import TGHop
+
+from conftest import assert_user_error
+
+FAST = dict(n_clusters=8, n_codewords=40, max_patches=1200, stride=4, layout_factor=None)
+GEN = dict(n_patches=500, refine=2)
+
+
+def _blue_cells():
+    """Cells turned blue: far from the bricks' reds in every channel's mean."""
+    c = data.cells(96, rng=3)
+    return np.clip(np.stack([0.3 * c[..., 0], 0.5 * c[..., 1], 0.4 + 0.6 * c[..., 2]], axis=2), 0, 1)
+
+
+@pytest.fixture(scope="module")
+def exemplars():
+    return data.bricks(96, rng=1), _blue_cells()
+
+
+@pytest.fixture(scope="module")
+def models(exemplars):
+    return [TGHop(rng=0, **FAST).fit(e) for e in exemplars]
+
+
+def _closer(region, a, b):
+    """Whether the region's mean colour is closer to exemplar a's than to b's."""
+    m = region.reshape(-1, region.shape[-1]).mean(axis=0)
+    return np.linalg.norm(m - a.reshape(-1, 3).mean(axis=0)) < np.linalg.norm(m - b.reshape(-1, 3).mean(axis=0))
+
+
+def test_guide_levels_sorted_dark_to_light_and_colours():
+    grey = np.array([[200, 10], [90, 200]], dtype=np.uint8)
+    assert guide_labels(grey, 3).tolist() == [[2, 0], [1, 2]]
+    colour = np.zeros((2, 2, 3), dtype=np.uint8)
+    colour[0, 0] = (255, 0, 0)  # mean 85: between black and white
+    colour[1, 1] = 255
+    assert guide_labels(colour, 3).tolist() == [[1, 0], [0, 2]]
+    assert guide_labels(np.array([[1, 0]]), 2).tolist() == [[1, 0]]  # integer labels: the same rule
+
+
+def test_guide_with_an_unknown_level_or_another_size_is_one_line_error():
+    guide = np.zeros((64, 64), dtype=np.uint8)
+    guide[:, 32:] = 255
+    guide[3, 3] = 128  # a third level for two inputs
+    with pytest.raises(TGHopError, match="3 distinct grey levels.*2 inputs") as info:
+        guide_labels(guide, 2)
+    assert "\n" not in str(info.value)
+    with pytest.raises(TGHopError, match="1 distinct"):
+        guide_labels(np.zeros((8, 8)), 2)
+    with pytest.raises(TGHopError, match="64x64 but the output is 32x64") as info:
+        guide_labels(guide, 3, size=(32, 64))
+    assert "\n" not in str(info.value)
+
+
+def test_region_weights_blend_over_the_transition():
+    labels = np.zeros((4, 40), dtype=int)
+    labels[:, 20:] = 1
+    w = region_weights(labels, 2, 10)
+    assert w.shape == (2, 4, 40) and np.allclose(w.sum(axis=0), 1)
+    assert w[0, 0, 0] == 1 and w[1, 0, -1] == 1  # pure away from the edge
+    ramp = w[1, 0, 12:28]
+    assert np.all(np.diff(ramp) >= 0) and 0.3 < w[1, 0, 20] < 0.7
+    assert set(np.unique(region_weights(labels, 2, 0))) == {0.0, 1.0}
+
+
+def test_group_cost_keeps_each_block_to_its_group():
+    """Quilting's per-block group cost: black patches (group 0) on the left, white (1) on the right."""
+    pool = np.concatenate([np.full((20, 8, 8, 1), 0.1), np.full((20, 8, 8, 1), 0.9)]).astype(np.float32)
+    pool += np.random.default_rng(0).random(pool.shape).astype(np.float32) * 0.05
+    groups = np.repeat([0, 1], 20)
+    prepared = prepare_pool(pool, (40, 80))
+    ny, nx = prepared.plan.ys.size, prepared.plan.xs.size
+    cost = np.zeros((ny, nx, 2), dtype=np.float32)
+    right = prepared.plan.xs >= 40
+    cost[:, ~right, 1] = 100.0
+    cost[:, right, 0] = 100.0
+    out = quilt_prepared(prepared, rng=0, groups=groups, group_cost=cost)
+    assert out[:, :30].max() < 0.5 and out[:, 50:].min() > 0.5
+    with pytest.raises(TGHopError, match="both or neither"):
+        quilt_prepared(prepared, groups=groups)
+    with pytest.raises(TGHopError, match="group_cost must have shape"):
+        quilt_prepared(prepared, groups=groups, group_cost=cost[:1])
+    with pytest.raises(TGHopError, match="groups must lie"):
+        quilt_prepared(prepared, groups=groups + 1, group_cost=cost)
+
+
+def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):
+    a, b = exemplars
+    guide = np.zeros((96, 192), dtype=np.uint8)
+    guide[:, 96:] = 255
+    out = tghop.synthesize_guided(models, guide, transition=16, rng=4, **GEN)
+    assert out.shape == (96, 192, 3) and out.dtype == np.float64 and 0 <= out.min() and out.max() <= 1
+    left, right = out[:, :80], out[:, 112:]
+    assert _closer(left, a, b) and _closer(right, b, a)
+    # Per region, each channel's mean within 0.06 of its own exemplar's.
+    assert np.abs(left.mean(axis=(0, 1)) - a.mean(axis=(0, 1))).max() < 0.06
+    assert np.abs(right.mean(axis=(0, 1)) - b.mean(axis=(0, 1))).max() < 0.06
+    again = tghop.synthesize_guided(models, guide, transition=16, rng=4, **GEN)
+    assert np.array_equal(out, again)
+    monkeypatch.setattr(guided, "_THREADED_PIXELS", 1)  # stations in threads: the same image
+    assert np.array_equal(out, tghop.synthesize_guided(models, guide, transition=16, rng=4, **GEN))
+    eight = tghop.synthesize_guided(models, guide, transition=16, rng=4, dtype=np.uint8, **GEN)
+    assert eight.dtype == np.uint8 and np.abs(eight.astype(float) - out * 255).max() <= 1.0
+
+
+def test_remix_mixes_the_models(models, exemplars):
+    a, b = exemplars
+    out = tghop.synthesize_guided(models, size=(128, 128), rng=2, **GEN)
+    assert out.shape == (128, 128, 3)
+    blue = (out[..., 2] - out[..., 0] > 0.2).mean()  # the blue cells' pixels
+    assert 0.15 < blue < 0.85
+    assert tghop.synthesize_guided(models, size=(96, 96), tile=True, rng=2, **GEN).shape == (96, 96, 3)
+    with pytest.raises(TGHopError, match="needs a size"):
+        tghop.synthesize_guided(models)
+    with pytest.raises(TGHopError, match="at least 2"):
+        tghop.synthesize_guided(models[:1], size=(64, 64))
+
+
+def test_morph_goes_from_a_on_the_left_to_b_on_the_right(models, exemplars):
+    a, b = exemplars
+    strip = tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN)
+    assert strip.shape == (64, 256, 3)
+    assert _closer(strip[:, :40], a, b) and _closer(strip[:, -40:], b, a)
+    # The blue channel rises from left to right (thirds).
+    thirds = [strip[:, i * 85:(i + 1) * 85, 2].mean() for i in range(3)]
+    assert thirds[0] < thirds[1] < thirds[2]
+    assert np.array_equal(strip, tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN))
+
+
+def test_models_that_cannot_mix_are_refused(models):
+    grey = TGHop(rng=0, **FAST).fit(data.cells(96, rng=3).mean(axis=2))
+    with pytest.raises(TGHopError, match="all colour or all greyscale"):
+        tghop.synthesize_guided([models[0], grey], size=(64, 64))
+
+
+def test_cli_default_transition_is_the_librarys():
+    from tghop.cli.guided import DEFAULT_TRANSITION
+    from tghop.guided import DEFAULT_TRANSITION as LIBRARY
+
+    assert DEFAULT_TRANSITION == LIBRARY
+
+
+def _run(args, cwd):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    return subprocess.run([sys.executable, "-m", "tghop", *args], cwd=cwd, capture_output=True, env=env, timeout=300)
+
+
+def test_cli_guided_synth_and_morph(models, tmp_path):
+    save_model(models[0], tmp_path / "a.npz")
+    save_model(models[1], tmp_path / "b.npz")
+    guide = np.zeros((64, 128), dtype=np.uint8)
+    guide[:, 64:] = 255
+    Image.fromarray(guide).save(tmp_path / "map.png")
+    fast = ["-q", "--pool", "400", "--refine", "1"]
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "-o", "out.png", "--seed", "1", *fast], tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    out = np.asarray(Image.open(tmp_path / "out.png"))
+    assert out.shape == (64, 128, 3)  # the map's size
+    assert out[:, :48, 2].mean() < out[:, 80:, 2].mean()  # blue cells on the right
+
+    guide[5, 5] = 100
+    Image.fromarray(guide).save(tmp_path / "bad.png")
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "bad.png", "-o", "bad_out.png", *fast], tmp_path)
+    assert_user_error(r, "3 distinct grey levels", "2 inputs")
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "--size", "64x64", "-o", "bad_out.png", *fast],
+             tmp_path)
+    assert_user_error(r, "--guide map.png is 64x128 but --size is 64x64")
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "--save-model", "m.npz", "-o", "bad_out.png"],
+             tmp_path)
+    assert_user_error(r, "--save-model takes one exemplar")
+    r = _run(["synth", "a.npz", "--transition", "8", "-o", "bad_out.png"], tmp_path)
+    assert_user_error(r, "--transition applies to several SOURCEs")
+    assert not (tmp_path / "bad_out.png").exists()  # nothing written, not even in part
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".") or p.endswith(".tmp")]
+
+    r = _run(["morph", "a.npz", "b.npz", "-o", "strip.png", "--size", "48x192", "--grid", "2", "--seed", "3",
+              "-q"], tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    strip = np.asarray(Image.open(tmp_path / "strip.png"))
+    assert strip.shape == (96, 192, 3)
+    assert strip[:, :32, 2].mean() < strip[:, -32:, 2].mean()
+    Image.fromarray(to_uint8(data.bricks(64, rng=1))).save(tmp_path / "ex.png")
+    r = _run(["morph", "ex.png", "b.npz", "-o", "ex.png"], tmp_path)
+    assert_user_error(r, "-o would overwrite A")
