@@ -147,7 +147,7 @@ def check_rng(rng: RngLike) -> np.random.Generator:
     raise TGHopError(f"rng must be None, an int seed or numpy.random.Generator, got {type(rng).__name__}")
 
 
-def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float64) -> np.ndarray:
+def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float64, channels=(1, 3)) -> np.ndarray:
     """Validate an image array and return it as float64 ``(H, W, C)`` in [0, 1].
 
     Parameters
@@ -160,6 +160,8 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
         How the image is called in error messages.
     dtype : {numpy.float64, numpy.float32}
         Of the result (float32 halves the memory of large exemplars).
+    channels : tuple of int or None
+        Channel counts accepted; None: any (the stacked maps of a material).
 
     Returns
     -------
@@ -170,7 +172,7 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     arr = np.asarray(image)
     if arr.ndim == 2:
         arr = arr[:, :, None]
-    if arr.ndim != 3 or arr.shape[2] not in (1, 3):
+    if arr.ndim != 3 or (arr.shape[2] not in channels if channels is not None else arr.shape[2] < 1):
         raise InvalidImageError(
             f"{name} must have shape (H, W), (H, W, 1) or (H, W, 3), got {arr.shape}; "
             "convert it to greyscale or RGB first"

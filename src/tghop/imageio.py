@@ -15,13 +15,18 @@ from pathlib import Path
 import numpy as np
 from struct import error as struct_error
 
-from ._common import InvalidImageError, check_image
+from ._common import InvalidImageError, TGHopError, check_image
 from ._errors import ImageTooLargeError
 
-__all__ = ["load_image", "save_image", "to_uint8", "write_atomic", "write_png", "check_output_path"]
+__all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
+           "check_depth", "deepest", "save_images", "DEPTHS"]
 
 #: Output formats chosen by file extension.
-FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
+FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
+#: Bits per channel each output format can be written with (32: float32 TIFF).
+DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
+#: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
+TIFF_HINT = "pip install 'tghop[tiff]'"
 
 #: Largest image :func:`load_image` reads (pixels), checked from the file's header before
 #: decoding: 64 Mpx (8192x8192, the largest output tghop writes). A larger file is refused
@@ -30,14 +35,19 @@ MAX_IMAGE_PIXELS = 8192 * 8192
 
 
 def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.float64,
-               too_large_hint: str = "pass downscale=True to reduce it (or downscale it yourself)") -> np.ndarray:
+               too_large_hint: str = "pass downscale=True to reduce it (or downscale it yourself)",
+               with_depth: bool = False) -> np.ndarray:
     """Read an image file as a float array.
 
     Parameters
     ----------
     path : str or os.PathLike
-        Any format Pillow reads. Palette and 16-bit images are converted; an alpha
-        channel is dropped with a warning.
+        Any format Pillow reads. Palette images are converted; an alpha channel is
+        dropped with a warning. 16-bit PNG and TIFF files and float TIFF files are read
+        without loss (16-bit levels ``v`` become ``v / 65535``; float values in [0, 1] are
+        kept, others taken as 8-bit or 16-bit levels); colour ones in TIFF need
+        :mod:`tifffile` (``pip install 'tghop[tiff]'``), 16-bit colour PNG files are decoded
+        by tghop itself (Pillow reduces them to 8 bits).
     max_pixels : int
         Images with more pixels (read from the header, before decoding) are refused
         with :class:`InvalidImageError`, or, with ``downscale``, reduced to at most this
@@ -49,11 +59,14 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     too_large_hint : str
         The advice that ends the error for an image over ``max_pixels`` (the command line
         says "pass --downscale" only in the commands that have that option).
+    with_depth : bool
+        Also return the file's bits per channel: 8, 16 or 32 (float).
 
     Returns
     -------
     ndarray, shape (H, W, C), in [0, 1] (0-255 for uint8)
         ``C`` is 1 for greyscale images and 3 for colour ones.
+    depth : int, only with ``with_depth``
     """
     from PIL import Image, UnidentifiedImageError  # imported on first use: not needed by `tghop info`
 
@@ -65,9 +78,14 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit applies
-            with Image.open(path) as im:
-                arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint)
-    except InvalidImageError:
+            deep = _read_deep(path, max_pixels)
+            if deep is not None:
+                arr, mode, depth = deep
+            else:
+                with Image.open(path) as im:
+                    arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint)
+                    depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
+    except TGHopError:  # ours: already one line (a missing extra too)
         raise
     except Image.DecompressionBombError:
         raise InvalidImageError(f"{path}: the image header declares too many pixels to decode safely; "
@@ -75,15 +93,140 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     except MemoryError:
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
-            struct_error, ZeroDivisionError) as exc:
+            struct_error, ZeroDivisionError, zlib.error) as exc:
         raise InvalidImageError(
             f"{path}: not a readable image ({exc.__class__.__name__}); give a PNG, JPEG or other common image file"
         ) from None
     if mode in ("RGBA", "LA", "PA") or mode == "P+transparency":
         warnings.warn(f"{path.name}: alpha channel dropped", UserWarning, stacklevel=2)
     if dtype is None and arr.dtype == np.uint8:
-        return arr[:, :, None] if arr.ndim == 2 else arr
-    return check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype)
+        out = arr[:, :, None] if arr.ndim == 2 else arr
+    else:
+        out = check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype)
+    return (out, depth) if with_depth else out
+
+
+def _read_deep(path, max_pixels):
+    """16-bit PNG and TIFF files and float TIFF files that Pillow would not read whole:
+    ``(array, mode, depth)`` with the array float64 in [0, 1] (uint8 for an 8-bit TIFF read
+    by tifffile), or None for every other file (Pillow reads it). ``mode`` is "RGBA" or
+    "LA" when an alpha channel was dropped."""
+    with open(path, "rb") as fh:
+        head = fh.read(33)
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 33 and head[24] == 16:
+        width, height = struct.unpack(">II", head[16:24])
+        if width * height > max_pixels or head[28] != 0:  # too large, or interlaced: Pillow's path (its errors)
+            return None
+        levels, ctype = _decode_png16(path.read_bytes())
+        arr, mode = _drop_alpha(levels, {4: "LA", 6: "RGBA"}.get(ctype, ""))
+        return arr / 65535.0, mode, 16
+    if head[:4] not in (b"II*\x00", b"MM\x00*"):
+        return None
+    try:
+        import tifffile
+    except ImportError:
+        from PIL import Image
+
+        with Image.open(path) as im:  # grey 16-bit and float TIFF: Pillow; deeper colour ones: refused
+            bits = im.tag_v2.get(258, (8,)) if hasattr(im, "tag_v2") else (8,)
+            if im.mode in ("RGB", "RGBA", "CMYK") and max(bits) > 8:
+                from ._errors import MissingExtraError
+
+                raise MissingExtraError(f"{path}: a {max(bits)}-bit colour TIFF; reading it without loss needs "
+                                        f"tifffile: {TIFF_HINT}")
+        return None
+    with tifffile.TiffFile(path) as tif:
+        page = tif.pages[0]
+        shape = page.shape
+        if int(np.prod(shape[:2] if page.axes.startswith("YX") else shape[-2:])) > max_pixels:
+            return None  # Pillow's path: its size error (or downscaling)
+        arr = page.asarray()
+    if page.axes.startswith("S"):  # planar: (S, H, W)
+        arr = np.moveaxis(arr, 0, -1)
+    if arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4) or arr.ndim not in (2, 3):
+        raise ValueError(f"{arr.shape} samples")
+    arr, mode = _drop_alpha(arr, "RGBA" if arr.ndim == 3 and arr.shape[2] == 4 else
+                            "LA" if arr.ndim == 3 and arr.shape[2] == 2 else "")
+    if arr.dtype == np.uint8:
+        return arr, mode, 8
+    if arr.dtype == np.uint16:
+        return arr / 65535.0, mode, 16
+    if arr.dtype.kind == "f":
+        arr = arr.astype(np.float64)
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("non-finite pixel values")
+        if arr.size and (arr.min() < 0.0 or arr.max() > 1.0):  # levels, as Pillow's path reads them
+            arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
+        return arr, mode, 32
+    raise ValueError(f"{arr.dtype} samples")
+
+
+def _drop_alpha(arr, mode):
+    """The colour channels of an (H, W, C) array whose last channel is alpha when ``mode`` says so."""
+    if mode:
+        arr = arr[..., :-1]
+    return (arr[..., 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr), mode
+
+
+def _decode_png16(data):
+    """A non-interlaced 16-bit PNG file's samples: (uint16 array (H, W, S), colour type).
+
+    Pillow reduces 16-bit colour PNG files to 8 bits; this reads every type of them
+    (grey, grey+alpha, RGB, RGBA). Rows filtered with None, Sub or Up only (tghop's and
+    Pillow's writers) are unfiltered a row at a time; others (Average, Paeth) along
+    anti-diagonals, every pixel of one at once (a pixel depends on its left, upper and
+    upper-left neighbours only)."""
+    pos, idat, header = 8, [], None
+    while pos + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[pos: pos + 8])
+        body = data[pos + 8: pos + 8 + length]
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat.append(body)
+        elif kind == b"IEND":
+            break
+        pos += 12 + length
+    if header is None:
+        raise ValueError("no PNG header")
+    w, h, bits, ctype = header[:4]
+    samples = {0: 1, 2: 3, 4: 2, 6: 4}.get(ctype)
+    if bits != 16 or samples is None:
+        raise ValueError(f"PNG colour type {ctype} at {bits} bits")
+    bpp = 2 * samples
+    raw = np.frombuffer(zlib.decompress(b"".join(idat)), dtype=np.uint8)
+    if raw.size < h * (1 + w * bpp):
+        raise ValueError("truncated PNG data")
+    raw = raw[: h * (1 + w * bpp)].reshape(h, 1 + w * bpp)
+    kinds = raw[:, 0]
+    if kinds.max(initial=0) > 4:
+        raise ValueError(f"PNG filter type {kinds.max()}")
+    rows = raw[:, 1:].reshape(h, w, bpp)
+    if np.all(kinds <= 2):
+        out = np.empty((h, w, bpp), dtype=np.uint8)
+        prev = np.zeros((w, bpp), dtype=np.uint8)
+        for y in range(h):
+            if kinds[y] == 1:
+                out[y] = np.cumsum(rows[y], axis=0, dtype=np.uint8)  # modulo 256
+            elif kinds[y] == 2:
+                np.add(rows[y], prev, out=out[y])
+            else:
+                out[y] = rows[y]
+            prev = out[y]
+    else:
+        pad = np.zeros((h + 1, w + 1, bpp), dtype=np.int32)  # a zero row above and column to the left
+        rows = rows.astype(np.int32)
+        for t in range(h + w - 1):
+            ys = np.arange(max(0, t - w + 1), min(h, t + 1))
+            xs = t - ys
+            a, b, c = pad[ys + 1, xs], pad[ys, xs + 1], pad[ys, xs]
+            pa, pb, pc = np.abs(b - c), np.abs(a - c), np.abs(a + b - 2 * c)
+            paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
+            f = kinds[ys][:, None]
+            pred = np.select([f == 0, f == 1, f == 2, f == 3], [0, a, b, (a + b) >> 1], paeth)
+            pad[ys + 1, xs + 1] = (rows[ys, xs] + pred) & 255
+        out = pad[1:, 1:].astype(np.uint8)
+    return out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16), ctype
 
 
 def _decode(im, path, max_pixels, downscale, too_large_hint):
@@ -145,6 +288,36 @@ def to_uint8(image) -> np.ndarray:
     if out.ndim == 3 and out.shape[2] == 1:
         out = out[:, :, 0]
     return out
+
+
+def to_uint16(image) -> np.ndarray:
+    """Convert a float image in [0, 1] to ``uint16`` levels 0-65535 (rounding), dropping a
+    singleton channel (uint8 levels ``v`` become ``257 v``: the same value)."""
+    arr = np.asarray(image)
+    if arr.dtype == np.uint8:
+        out = arr.astype(np.uint16) * np.uint16(257)
+    else:
+        out = np.round(np.clip(np.asarray(arr, dtype=np.float64), 0.0, 1.0) * 65535.0).astype(np.uint16)
+    return out[:, :, 0] if out.ndim == 3 and out.shape[2] == 1 else out
+
+
+def check_depth(path, depth) -> int:
+    """Refuse a bit depth the output's format cannot hold (one line naming the fix);
+    returns the depth (8, 16 or 32)."""
+    fmt = output_format(path)
+    if depth not in (8, 16, 32) or isinstance(depth, bool):
+        raise InvalidImageError(f"depth {depth!r} is not 8, 16 or 32 bits per channel")
+    if depth not in DEPTHS[fmt]:
+        fix = "name the output .tif (float TIFF)" if depth == 32 else "name the output .png or .tif"
+        raise InvalidImageError(f"{path}: {fmt} cannot hold {depth}-bit {'float ' if depth == 32 else ''}values "
+                                f"(it takes {' or '.join(map(str, DEPTHS[fmt]))} bits); {fix}, or pick another depth")
+    return depth
+
+
+def deepest(path, depth: int) -> int:
+    """The largest depth, at most ``depth``, that ``path``'s format holds (a 16-bit image
+    written as JPEG: 8; a float one as PNG: 16)."""
+    return max(d for d in DEPTHS[output_format(path)] if d <= max(depth, 8))
 
 
 def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> Path:
@@ -212,7 +385,7 @@ def output_format(path) -> str:
         return "PNG"
     ext = Path(path).suffix.lower()
     if ext not in FORMATS:
-        raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use .png, .jpg or .jpeg")
+        raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use .png, .jpg, .jpeg or .tif")
     return FORMATS[ext]
 
 
@@ -232,12 +405,13 @@ def _png_chunk(fh, kind: bytes, *pieces) -> None:
 
 
 def write_png(fh, pixels, *, level: int = 1) -> None:
-    """Write a uint8 image as an 8-bit PNG, its compression spread over the processor's cores.
+    """Write a uint8 (uint16) image as an 8-bit (16-bit) PNG, its compression spread over the
+    processor's cores.
 
     Parameters
     ----------
     fh : binary file object
-    pixels : ndarray of uint8, shape (H, W), (H, W, 1) or (H, W, 3)
+    pixels : ndarray of uint8 or uint16, shape (H, W), (H, W, 1) or (H, W, 3)
         Grey or RGB.
     level : int
         zlib level (1: synthesised texture is noise-like, so higher levels barely shrink
@@ -245,18 +419,24 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
 
     Notes
     -----
-    Every row uses PNG's "Sub" filter (the byte one pixel to the left subtracted). The rows
+    Every row uses PNG's "Sub" filter (the byte one pixel to the left subtracted; 16-bit
+    samples are stored big-endian, two bytes each, and filtered as bytes). The rows
     are compressed in parts of about :data:`_PNG_PART` bytes on as many threads (zlib
     lets go of the interpreter lock), each part a separate deflate stream ended at a
     byte boundary, and the parts are joined into one zlib stream, as ``pigz`` does: the
     same image as Pillow's writer (tested), in less time on several cores.
     """
     px = np.asarray(pixels)
-    if px.dtype != np.uint8 or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] not in (1, 3)):
-        raise ValueError(f"write_png takes a uint8 (H, W), (H, W, 1) or (H, W, 3) array, got {px.dtype} {px.shape}")
+    if px.dtype not in (np.uint8, np.uint16) or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] not in (1, 3)):
+        raise ValueError(f"write_png takes a uint8 or uint16 (H, W), (H, W, 1) or (H, W, 3) array, "
+                         f"got {px.dtype} {px.shape}")
     h, w = px.shape[:2]
-    c = 1 if px.ndim == 2 else px.shape[2]
-    rows = px.reshape(h, w * c)
+    channels = 1 if px.ndim == 2 else px.shape[2]
+    bits = 8 * px.dtype.itemsize
+    c = channels * px.dtype.itemsize  # bytes per pixel
+    rows = px.reshape(h, w * channels)
+    if bits == 16:
+        rows = rows.astype(">u2").view(np.uint8).reshape(h, w * c)
     raw = np.empty((h, 1 + w * c), dtype=np.uint8)
     raw[:, 0] = 1  # filter type Sub
     raw[:, 1 : 1 + c] = rows[:, :c]
@@ -278,13 +458,13 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
         with ThreadPoolExecutor(max_workers=n_parts) as pool:
             list(pool.map(compress, range(n_parts)))  # a part's error (e.g. out of memory) is raised here
     fh.write(b"\x89PNG\r\n\x1a\n")
-    _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0 if c == 1 else 2, 0, 0, 0))
+    _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, bits, 0 if channels == 1 else 2, 0, 0, 0))
     _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))
     _png_chunk(fh, b"IEND")
 
 
-def save_image(image, path) -> None:
-    """Write a float image in [0, 1] to ``path`` (PNG or JPEG by extension; ``-`` is PNG on stdout).
+def save_image(image, path, *, depth: int = 8) -> None:
+    """Write a float image in [0, 1] to ``path`` (PNG, JPEG or TIFF by extension; ``-`` is PNG on stdout).
 
     Parameters
     ----------
@@ -292,15 +472,21 @@ def save_image(image, path) -> None:
         Floats in [0, 1], or uint8 (written as they are).
     path : str or os.PathLike
         The file appears complete or not at all.
+    depth : {8, 16, 32}
+        Bits per channel: 8 (any format), 16 (PNG, TIFF) or 32 (float32 TIFF, values
+        as they are). A format that cannot hold it is an :class:`InvalidImageError`
+        (:func:`check_depth`). Colour TIFF files of 16 or 32 bits need :mod:`tifffile`.
     """
     fmt = output_format(path)
-    pixels = to_uint8(image)
-    if fmt == "PNG":
-        write = functools.partial(write_png, pixels=pixels)
+    check_depth(path, depth)
+    if fmt == "TIFF":
+        write = _tiff_writer(image, depth, path)
+    elif fmt == "PNG":
+        write = functools.partial(write_png, pixels=to_uint16(image) if depth == 16 else to_uint8(image))
     else:
         from PIL import Image
 
-        pil = Image.fromarray(pixels)
+        pil = Image.fromarray(to_uint8(image))
         write = functools.partial(pil.save, format=fmt, quality=95)
     if str(path) == "-":
         buf = io.BytesIO()
@@ -309,3 +495,62 @@ def save_image(image, path) -> None:
         sys.stdout.buffer.flush()
         return
     write_atomic(path, write)
+
+
+def save_images(items) -> None:
+    """Write several images as one: every file appears, or none (a material's maps).
+
+    Parameters
+    ----------
+    items : sequence of (image, path, depth)
+        As :func:`save_image` takes them (no ``-``). Each is written to a temporary name
+        beside its path first; once all are written they are moved into place.
+    """
+    import uuid
+
+    done = []
+    try:
+        for image, path, depth in items:
+            path = Path(path)
+            tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
+            save_image(image, tmp, depth=depth)
+            done.append((tmp, path))
+        for tmp, path in done:
+            os.replace(tmp, path)
+    except BaseException:
+        for tmp, _ in done:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+        raise
+
+
+def _tiff_writer(image, depth, path):
+    """``write(fileobj)`` for a TIFF file of ``depth`` bits: tifffile where installed (deflate
+    compressed), else Pillow, which writes 8-bit ones and grey 16-bit and float ones."""
+    if depth == 32:
+        pixels = np.clip(np.asarray(image, dtype=np.float32) / (255.0 if np.asarray(image).dtype == np.uint8 else 1.0),
+                         0.0, 1.0)
+        pixels = pixels[:, :, 0] if pixels.ndim == 3 and pixels.shape[2] == 1 else pixels
+    else:
+        pixels = to_uint16(image) if depth == 16 else to_uint8(image)
+    try:
+        import tifffile
+    except ImportError:
+        if pixels.ndim == 3 and depth > 8:
+            from ._errors import MissingExtraError
+
+            raise MissingExtraError(f"{path}: writing a {depth}-bit colour TIFF needs tifffile: {TIFF_HINT}") from None
+        from PIL import Image
+
+        pil = Image.fromarray(pixels)  # grey uint16: mode I;16, float32: F
+        return functools.partial(pil.save, format="TIFF")
+    photometric = "rgb" if pixels.ndim == 3 else "minisblack"
+
+    def write(fh):
+        buf = io.BytesIO()  # tifffile wants a seekable file with a name; the temporary file's has none
+        tifffile.imwrite(buf, pixels, photometric=photometric, compression="zlib")
+        fh.write(buf.getbuffer())
+
+    return write

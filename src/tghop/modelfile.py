@@ -32,6 +32,7 @@ from . import __version__
 from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
 from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
+from .material import Material
 from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
@@ -40,8 +41,12 @@ FORMAT = "tghop-model"
 FORMAT_VERSION = 5  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: tghop 0.14's patch refinement statistics (patch.rotations, patch.quantiles: 5x5 patches on
 # random rotations; read without them, with a warning); 5: the sliced Wasserstein statistics
-# (patch.directions, patch.quantiles); files without patch statistics are written as version 3,
-# which older tghop reads
+# (patch.directions, patch.quantiles) and whole materials (below); files without either are
+# written as version 3, which older tghop reads
+#: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
+#: each map's statistics as material.<name>.*) are version 5, so that an older tghop refuses
+#: them by their version.
+MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
 READABLE_VERSIONS = (2, 3, 4, 5)
 
@@ -49,9 +54,9 @@ READABLE_VERSIONS = (2, 3, 4, 5)
 def save_model(model, path) -> None:
     """Write a fitted model to ``path`` (any name; the file appears whole or not at all)."""
     arrays = model._to_arrays()  # NotFittedError before anything else
-    version = FORMAT_VERSION if any(name.startswith("patch.") for name in arrays) else 3
-    meta = {"format": FORMAT, "format_version": version, "tghop_version": __version__,
-            **model._state_meta()}
+    meta = {"format": FORMAT, "tghop_version": __version__, **model._state_meta()}
+    new = "material" in meta or any(name.startswith("patch.") for name in arrays)
+    meta["format_version"] = FORMAT_VERSION if new else 3
     arrays["__meta__"] = np.array(json.dumps(meta))
     check_output_path(path, what="model", error=ModelFileError)
     write_atomic(path, lambda fh: np.savez(fh, **arrays), what="model", error=ModelFileError)
@@ -309,8 +314,11 @@ def _check_arrays(path, groups, arrays):
                              "(an edited file or another program's); fit the model again with 'tghop fit'")
 
 
-def load_model(path):
-    """Read a model written by :func:`save_model`.
+def load_model(path, *, material=False):
+    """Read a model written by :func:`save_model`: a :class:`~tghop.synthesis.TGHop`, or,
+    with ``material``, a :class:`~tghop.material.Material` too (format version 5; without
+    ``material`` such a file is refused with a one-line error, so that no caller is handed
+    a material where it expects a plain model).
 
     Every array is checked against the metadata before it is used (shape, type, finite
     values, ranges; see :func:`_check_arrays`).
@@ -338,15 +346,23 @@ def load_model(path):
     try:
         # Version 3 scales every mixing matrix; version 2 none (read as _from_arrays does: by what is there).
         quantised = meta["format_version"] >= 3 or {p for p in ("", "layout.") if f"{p}index.ichm_mixing_scale" in arrays}
-        groups = TGHop._array_specs(meta, quantised=quantised)
+        kind = Material if "material" in meta else TGHop
+        if kind is Material and meta["format_version"] < MATERIAL_VERSION:
+            raise TGHopError(f"a material in format version {meta['format_version']}; materials are version "
+                             f"{MATERIAL_VERSION}")
+        groups = kind._array_specs(meta, quantised=quantised)
     except TGHopError as exc:
         raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model metadata ({exc!r}); "
                              "fit the model again") from None
+    if kind is Material and not material:
+        names = ", ".join(m["name"] for m in meta["material"]["maps"])
+        raise ModelFileError(f"{path} is a material ({names}), not a plain model; only 'tghop synth' and "
+                             "'tghop info' take it (fit a plain model from the albedo for this command)")
     _check_arrays(path, groups, arrays)
     try:
-        return TGHop._from_state(meta, arrays)
+        return kind._from_state(meta, arrays)
     except TGHopError as exc:
         raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:

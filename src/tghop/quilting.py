@@ -126,17 +126,17 @@ def _check_pool(pool) -> np.ndarray:
         # A pool read as it is used (e.g. generated on demand): ``pool[a:b]`` in order while
         # preparing (the array may be reused by the next read) and ``pool[indices]``.
         shape = tuple(pool.shape)
-        if (len(shape) != 4 or shape[1] != shape[2] or shape[3] not in (1, 3) or shape[0] < 1 or shape[1] < 2
+        if (len(shape) != 4 or shape[1] != shape[2] or shape[3] < 1 or shape[0] < 1 or shape[1] < 2
                 or np.dtype(pool.dtype) not in (np.float32, np.float64)):
-            raise TGHopError(f"a pool read on demand must have shape (n, P, P, C) (n >= 1, P >= 2, C = 1 or 3) "
+            raise TGHopError(f"a pool read on demand must have shape (n, P, P, C) (n >= 1, P >= 2, C >= 1) "
                              f"and dtype float32 or float64, got {shape} {pool.dtype}")
         return pool
     arr = np.asarray(pool)
     if arr.ndim == 3:
         arr = arr[..., None]
-    if arr.ndim != 4 or arr.shape[1] != arr.shape[2] or arr.shape[3] not in (1, 3):
+    if arr.ndim != 4 or arr.shape[1] != arr.shape[2] or arr.shape[3] < 1:
         raise TGHopError(
-            f"pool must have shape (n, P, P, C) with square P x P patches and C = 1 or 3, got {arr.shape}"
+            f"pool must have shape (n, P, P, C) with square P x P patches and C >= 1 channels, got {arr.shape}"
         )
     n, p = arr.shape[0], arr.shape[1]
     if n < 1:

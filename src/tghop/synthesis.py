@@ -62,16 +62,18 @@ def default_channels(patch_size: int, n_colours: int = 3):
     Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps
     40 channels (our choice: the paper gives no K3), so the core is 8x8 spatially in both
     cases. Grey (one channel, 4 hop-1 channels in all): K1=4, K2=10 (, K3=20), our choice
-    in the same proportions.
+    in the same proportions. Other channel counts C (a material's stacked maps): the colour
+    counts times C / 3.
     """
     if patch_size not in (32, 64):
         raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
-    channels = (9, 22, 40) if n_colours == 3 else (4, 10, 20)
+    channels = (4, 10, 20) if n_colours == 1 else tuple(math.ceil(k * n_colours / 3) for k in (9, 22, 40))
     return channels[: 2 if patch_size == 32 else 3]
 
 
-def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
-    """A validated exemplar; a grey image stored as RGB becomes single-channel.
+def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:
+    """A validated exemplar; a grey image stored as RGB becomes single-channel (``channels``:
+    the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material).
 
     Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
     channel is the same texture at a third of the cost, and the output is grey. A flat
@@ -86,8 +88,8 @@ def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
     """
     if isinstance(image, np.ndarray) and image.dtype == np.uint8:
         img = image[:, :, None] if image.ndim == 2 else image
-        if img.ndim != 3 or img.shape[2] not in (1, 3):
-            check_image(img[:1, :1], name="exemplar")  # the usual shape error
+        if img.ndim != 3 or (channels is not None and img.shape[2] not in channels):
+            check_image(img[:1, :1], name="exemplar", channels=channels)  # the usual shape error
         h, w = img.shape[:2]
         if h < min_size or w < min_size:
             check_image(np.zeros((h, w, 1), dtype=np.uint8), min_size=min_size, name="exemplar")
@@ -95,7 +97,7 @@ def prepare_exemplar(image, *, min_size: int = 1) -> np.ndarray:
             np.array_equal(img[y: y + 512, :, 1:], np.repeat(img[y: y + 512, :, :1], 2, axis=2))
             for y in range(0, h, 512))
     else:
-        img = check_image(image, min_size=min_size, name="exemplar")
+        img = check_image(image, min_size=min_size, name="exemplar", channels=channels)
         grey = img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512
     check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
     if grey:
@@ -183,8 +185,9 @@ class TGHop(BaseEstimator):
         Parameters
         ----------
         image : ndarray, shape (H, W) or (H, W, C)
-            Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3. A grey
-            image stored as RGB is modelled as one channel (see :func:`prepare_exemplar`).
+            Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3 (or more: the
+            stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB
+            is modelled as one channel (see :func:`prepare_exemplar`).
             Memory depends on the training patches used (``max_patches``), not on the
             exemplar's size: the hops see the image tile by tile, and a uint8 image is
             never converted whole.
@@ -213,7 +216,7 @@ class TGHop(BaseEstimator):
     def _fit(self, image, *, exclude=None, progress=None):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
-        image = prepare_exemplar(image, min_size=self.patch_size)
+        image = prepare_exemplar(image, min_size=self.patch_size, channels=None)
         rules = self._channel_rules(image.shape[2])
         exclude = check_exclude(exclude, image.shape)
         rng = check_rng(self.rng)
@@ -338,8 +341,6 @@ class TGHop(BaseEstimator):
         if not isinstance(shape, list) or len(shape) != 3:
             raise TGHopError(f"{where} exemplar_shape {shape!r} is not [height, width, channels]")
         h, w, c = (count(v, "exemplar_shape") for v in shape)
-        if c not in (1, 3):
-            raise TGHopError(f"{where} exemplar_shape {shape!r} has {c} channels, not 1 or 3")
         count(meta["n_patches"], "n_patches")
         p = model.patch_size
         n = len(model._channel_rules(c))
@@ -347,7 +348,8 @@ class TGHop(BaseEstimator):
         if not isinstance(hops, list) or len(hops) != n or not isinstance(dims, list) or len(dims) != n + 1:
             raise TGHopError(f"{where} hops and hop_dims do not describe {n} hops")
         if count(dims[0], "hop_dims") != p * p * c:
-            raise TGHopError(f"{where} hop_dims[0] is {dims[0]}, not {p * p * c} for {p}x{p}x{c} patches")
+            raise TGHopError(f"{where} hop_dims[0] is {dims[0]}, not {p * p * c} for {p}x{p}x{c} patches "
+                             f"(exemplar_shape {shape!r})")
         specs, c_in = [], c
         for i, info in enumerate(hops, start=1):
             side = p >> i
@@ -710,11 +712,8 @@ class TGHop(BaseEstimator):
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32)
         patches = checked["patch_refine"] and getattr(self, "patches_", None) is not None
-        final = dtype
-        if patches:  # ours, last: colours matched in float32 first
-            dtype = np.dtype(np.float32)
-            if image.dtype != dtype:
-                image = image.astype(dtype)
+        final, dtype = dtype, np.dtype(np.float32) if patches else dtype  # ours, last: colours in float32 first
+        image = image.astype(dtype, copy=False) if patches else image
         if not match_colours:
             if dtype == np.uint8:
                 from .imageio import to_uint8
@@ -815,7 +814,7 @@ class CoarseLayout(BaseEstimator):
         """
         img = np.asarray(image)
         if img.dtype != np.uint8:  # uint8 (a large exemplar) is downsampled without a float copy
-            img = check_image(image, name="exemplar")
+            img = check_image(image, name="exemplar", channels=None)
         elif img.ndim == 2:
             img = img[:, :, None]
         training = layout.coarse_training(img.shape, self.factor, patch_size=self.patch_size,

@@ -6,6 +6,7 @@ import click
 
 from .._errors import TGHopError
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
+from .options import depth_option
 
 __all__ = ["inpaint"]
 
@@ -21,8 +22,9 @@ __all__ = ["inpaint"]
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--tile", is_flag=True, help="IMAGE wraps around: the fill continues across its edges.")
+@depth_option("IMAGE's, as far as the output's format holds it")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def inpaint(image, mask, output, source, seed, tile, quiet):
+def inpaint(image, mask, output, source, seed, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size) with texture that continues
     IMAGE around them; every other pixel is kept.
 
@@ -30,7 +32,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet):
     """
     import numpy as np
 
-    from ..imageio import load_image, save_image
+    from ..imageio import check_depth, deepest, load_image, save_image
     from ..inpaint import inpaint as fill
     from ..synthesis import TGHop, prepare_exemplar
 
@@ -40,7 +42,9 @@ def inpaint(image, mask, output, source, seed, tile, quiet):
         check_outputs([("-o", output)], [("IMAGE", image), ("MASK", mask), ("--source", source)])
         if is_model_file(image):
             raise TGHopError(f"IMAGE {image} is a model file; give the image to fill (a model goes to --source)")
-        picture = load_image(image, dtype=None)  # 8-bit stays 8-bit: the known pixels are copied as bytes
+        picture, image_depth = load_image(image, dtype=None, with_depth=True)  # 8-bit stays 8-bit: copied as bytes
+        # Without --depth: IMAGE's own depth, as far as the output's format holds it.
+        depth = check_depth(output, depth or deepest(output, image_depth))
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         rng = np.random.default_rng(seed)
         if source is not None and not source.startswith("builtin:") and (
@@ -55,6 +59,6 @@ def inpaint(image, mask, output, source, seed, tile, quiet):
             model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
         result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
         progress.close()
-        save_image(result, output)
+        save_image(result, output, depth=depth)
     if output != "-":
         click.echo(f"{int(hole.sum()):,} pixels filled, written to {output}", err=True)

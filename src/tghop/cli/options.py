@@ -15,8 +15,8 @@ import click
 from .._errors import TGHopError
 from ..fit_options import OFF, setting_value
 
-__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "ChannelRule", "Size", "SettingType", "model_options",
-           "generation_options", "FIT_OPTION_PARAMS", "generation_params", "given_options"]
+__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "depth_option", "ChannelRule", "Size", "SettingType",
+           "model_options", "generation_options", "FIT_OPTION_PARAMS", "generation_params", "given_options"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -26,6 +26,15 @@ EXCLUDE_HELP = ("A mask image of the exemplar's size: its white parts (a logo, a
 
 DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downscale they are reduced to "
                   "64 Mpx instead (with a warning).")
+
+
+def depth_option(default: str):
+    """``--depth 8|16|32``: bits per channel of the images written (32: float TIFF);
+    ``default`` says what is written without it."""
+    return click.option("--depth", type=click.Choice(["8", "16", "32"]), default=None,
+                        callback=lambda ctx, param, value: None if value is None else int(value),
+                        help="Bits per channel of the images written: 8, 16 (PNG, TIFF) or 32 (float TIFF). "
+                             f"[default: {default}]")
 
 
 class ChannelRule(click.ParamType):

@@ -12,7 +12,7 @@ from ..fit_options import build_model
 from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
-from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size,
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
                       generation_options, generation_params, given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "info"]
@@ -30,26 +30,94 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress):
     return model.fit(image, exclude=mask, progress=progress)
 
 
+def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
+    """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
+    maps in ``map_paths`` (named by their file stems)."""
+    from ..imageio import load_image
+    from ..material import Material
+    from ..synthesis import TGHop
+    from ..fit_options import fit_params
+
+    def read(path, label):
+        if is_model_file(path):
+            raise TGHopError(f"{label} {path} is a model file, not an image")
+        return load_image(path, dtype=None, downscale=downscale, with_depth=True)
+
+    albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
+                     else read(spec, "EXEMPLAR"))
+    maps, depths = {}, {"albedo": depth}
+    for path in map_paths:
+        name = Path(path).stem
+        if name.lower() in (n.lower() for n in ["albedo", *maps]):
+            raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
+                             f"OUT_{name}.png); rename one")
+        maps[name], depths[name] = read(path, "--maps")
+    mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar")
+    params = fit_params(options)
+    return Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
+                                                                  progress=progress)
+
+
+def material_outputs(material, output, depth):
+    """``[(name, path, depth)]`` of a material's maps for output ``output``: the albedo at
+    ``output``, each other map at ``OUT_<name>.EXT``; each at ``depth``, or without it at
+    the depth its file had (as far as the format holds it)."""
+    from ..imageio import check_depth, deepest
+
+    p = Path(output)
+    out = []
+    for name, own in zip(material.names_, material.depths_):
+        path = output if name == material.names_[0] else str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
+        out.append((name, path, check_depth(path, depth or deepest(path, own))))
+    return out
+
+
 @click.command()
 @click.argument("exemplar")
+@click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
+@click.option("--maps", "with_maps", is_flag=True,
+              help="Fit a whole material: the images after EXEMPLAR (the albedo) are its maps, of its size "
+                   "(normal, roughness, height, ...: any depth, 1 or 3 channels), each named by its file stem; "
+                   "a map named *normal* or *nrm* is a normal map (unit vectors, kept so).")
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def fit(exemplar, output, exclude, downscale, quiet, **options):
-    """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it."""
+def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **options):
+    """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it; with
+    --maps, a material from EXEMPLAR and its MAPs."""
     progress = Progress(not quiet)
     with user_errors(progress):
         from ..modelfile import save_model
 
+        if map_paths and not with_maps:
+            raise TGHopError(f"more than one EXEMPLAR ({map_paths[0]}, ...); to fit a material give its maps "
+                             "after --maps, e.g. tghop fit albedo.png --maps normal.png height.png -o mat.npz")
+        if with_maps and not map_paths:
+            raise TGHopError("--maps without maps; give the map images after it")
         check_model_output(output, "-o")  # before any work
-        check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)])
-        model = fit_exemplar(exemplar, options, exclude=exclude, downscale=downscale, progress=progress)
+        check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)]
+                      + [("--maps", m) for m in map_paths])
+        if with_maps:
+            material = fit_material(exemplar, map_paths, options, exclude=exclude, downscale=downscale,
+                                    progress=progress)
+            model = material.model_
+        else:
+            model = material = fit_exemplar(exemplar, options, exclude=exclude, downscale=downscale,
+                                            progress=progress)
         progress.close()
-        save_model(model, output)
+        save_model(material, output)
+    if with_maps:
+        click.echo(f"material: {material_summary(material)}", err=True)
     click.echo(summary(model), err=True)
-    click.echo(f"model written to {output}", err=True)
+    click.echo(f"{'material' if with_maps else 'model'} written to {output}", err=True)
+
+
+def material_summary(material) -> str:
+    return ", ".join(f"{n} ({c} channel{'s' if c > 1 else ''}, {d}-bit{', normal map' if nm else ''})"
+                     for n, c, d, nm in zip(material.names_, material.map_channels_, material.depths_,
+                                            material.normal_))
 
 
 @click.command()
@@ -93,7 +161,8 @@ def patches(model_file, n, output, seed, stages):
 @click.command()
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png/.jpg); with --count > 1 numbered name_1.png, ...; - writes PNG to stdout.")
+              help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG "
+                   "to stdout.")
 @click.option("--size", type=Size(), default="256x256", show_default=True,
               help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
                    "At most 8192x8192. Cost on 2 cores: about 0.5 s and 0.2 GB at 256x256, 3.6 s and 0.6 GB "
@@ -107,26 +176,34 @@ def patches(model_file, n, output, seed, stages):
 @click.option("--guide", metavar="MAP", default=None, help=GUIDE_HELP)
 @click.option("--transition", type=click.IntRange(min=0, max=4096), default=DEFAULT_TRANSITION, show_default=True,
               help=TRANSITION_HELP)
+@depth_option("8; a material's maps: each at its file's depth, as far as the format holds it")
 @generation_options
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, quiet, **options):
+def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, quiet, depth,
+          **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model.
 
     Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
-    texture; without it, random regions of each (a remix).
+    texture; without it, random regions of each (a remix). A saved material (tghop fit
+    EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned.
     """
+    from ..imageio import check_depth
+
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
+        check_depth(output, depth or 8)
         if output == "-" and count > 1:
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
 
+            if depth:
+                raise TGHopError("--depth applies to one SOURCE; drop it with several")
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
                                           exclude, downscale, progress, generation_params(options), options)
             from_model = True  # nothing saved
@@ -134,7 +211,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             raise TGHopError("--transition applies to several SOURCEs or --guide; drop it")
         else:
             outputs, from_model = _synth_one(ctx, sources[0], output, size, count, seed, save_model, exclude,
-                                             downscale, progress, options)
+                                             downscale, progress, options, depth)
+            if outputs is None:  # a material: it said what it wrote
+                return
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
@@ -142,9 +221,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             click.echo(f"model written to {save_model}", err=True)
 
 
-def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options):
+def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options, depth):
     """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
-    written and whether SOURCE was a saved model."""
+    written (None for a material, which says what it wrote) and whether SOURCE was a saved model."""
     from ..imageio import save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
@@ -170,7 +249,11 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)],
                   [("SOURCE", source), ("--exclude", exclude)])
     if from_model:
-        model = load_model(source)
+        model = load_model(source, material=True)
+        if hasattr(model, "names_"):  # a whole material: every map, written together
+            _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
+                            source=source)
+            return None, True
         if generation["patch_refine"] and model.patches_ is None:
             raise TGHopError(f"{source} holds no patch statistics for --patch-refine or --quality best "
                              "(fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again with 'tghop fit'")
@@ -183,10 +266,36 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     rng = np.random.default_rng(seed)
     for path in outputs:
         # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
-        image = model.synthesize(size, rng=rng, progress=progress, dtype=np.uint8, **generation)
+        image = model.synthesize(size, rng=rng, progress=progress,
+                                 dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
         progress.close()
-        save_image(image, path)
+        save_image(image, path, depth=depth or 8)
     return outputs, from_model
+
+
+def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source):
+    """``synth`` from a material: OUT, OUT_<map>, ... for each image, all checked before
+    any work and each image's maps written together (all or none)."""
+    import numpy as np
+
+    from ..imageio import save_images
+
+    if output == "-":
+        raise TGHopError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
+    plans = [material_outputs(material, path, depth) for path in outputs]
+    for plan in plans:
+        for _, path, _ in plan:
+            check_output(path)
+    check_outputs([("-o", path) for plan in plans for _, path, _ in plan], [("SOURCE", source)])
+    rng = np.random.default_rng(rng)
+    for plan in plans:
+        maps = material.synthesize(size, rng=rng, progress=progress, dtype=np.float32, **generation)
+        progress.close()
+        save_images([(maps[name], path, d) for name, path, d in plan])
+    written = ", ".join(path for _, path, _ in plans[0])
+    more = f" (and {len(plans) - 1} more sets)" if len(plans) > 1 else ""
+    click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
+               f"{written}{more}", err=True)
 
 
 @click.command()
@@ -197,13 +306,19 @@ def info(model_file, as_json):
     from ..modelfile import info_dict, load_model
 
     with user_errors():
-        model = load_model(model_file)
+        material = load_model(model_file, material=True)
+        model = getattr(material, "model_", material)
         params = model.n_parameters()
     if as_json:
-        click.echo(json.dumps(info_dict(model, params), indent=2, default=str, allow_nan=False))
+        out = info_dict(model, params)
+        if material is not model:
+            out["material"] = {"maps": material.map_info()}
+        click.echo(json.dumps(out, indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
     click.echo(f"tghop model {model_file}")
+    if material is not model:
+        click.echo(f"material: {material_summary(material)}")
     click.echo(f"exemplar: {h}x{w}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
                f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
     click.echo(summary(model, params))

@@ -1,0 +1,187 @@
+"""Whole materials: do the maps stay aligned? Cross-correlations of the maps, exemplar against output.
+
+For each texture, a material is made from it (:func:`tghop.material.example_maps`: albedo
+= the exemplar, height = its luminance blurred, normal = the height's slope, roughness =
+1 - the luminance blurred more; the height is stored as 16 bits) and synthesised at
+``--size`` with ``--seeds`` seeds by several ways of keeping maps together:
+
+* ``joint``: one model of the stacked channels, each map refined and colour-matched on its
+  own (the default of :class:`tghop.material.Material`);
+* ``joint, albedo refined only``: the same, the other maps only colour-matched;
+* ``joint, unrefined``: no refinement of any map;
+* ``albedo decides``: the same joint pool, but quilting chooses patches and cuts by the
+  albedo's channels only (the maps' channels weighted 1e-3 in every error and in the
+  coarse guide), the albedo's layout carried to the maps;
+* ``one model per map``: a model fitted on each map alone, generated with the same seed
+  (nothing ties the maps together: the control).
+
+Per way: each cross-correlation of the exemplar in the output (luminance-roughness,
+luminance-height, height-roughness, and the height's slope against the normal map's x
+and y, both blurred by 1 px, their mean; the same pixel by pixel, which a quilting seam
+breaks where it runs), and the largest relative difference from the exemplar's of the
+first four; the albedo's SIFID against the
+exemplar (with ``--sifid``); fit and generation times (in process, noisy on a shared
+machine). A sheet of every map (exemplar and the joint output of the first seed) is
+written to benchmarks/results/material_sheet.png (not committed).
+
+    python benchmarks/bench_material.py brick_wall knit bark hexagon_tiles --seeds 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from _common import RESULTS, image_sheet, markdown_table, texture, write_results
+
+#: The cross-correlations held to 5 %: map values, and the height's slope against the
+#: normal map at the scale of 1 px (both blurred by sigma 1: a quilting seam is one pixel wide).
+PAIRS = ("lum-rough", "lum-height", "height-rough", "slope-normal")
+#: Reported too: the slope against the normal pixel by pixel (a seam breaks it there).
+EXTRA = ("slope-normal, per pixel",)
+
+
+def cross_correlations(maps) -> dict:
+    """The cross-correlations of a material's maps (dict of name -> (H, W, c))."""
+    from tghop.material import _blur
+
+    lum = maps["albedo"].mean(axis=2)
+    h, r, n = maps["height"][..., 0], maps["roughness"][..., 0], maps["normal"] * 2 - 1
+    gy, gx = np.gradient(h)
+
+    def corr(a, b, sigma=0):
+        if sigma:
+            a, b = _blur(a, sigma), _blur(b, sigma)
+        return float(np.corrcoef(a.ravel(), b.ravel())[0, 1])
+
+    return {"lum-rough": corr(lum, r), "lum-height": corr(lum, h), "height-rough": corr(h, r),
+            "slope-normal": (corr(gx, n[..., 0], 1) + corr(gy, n[..., 1], 1)) / 2,
+            "slope-normal, per pixel": (corr(gx, n[..., 0]) + corr(gy, n[..., 1])) / 2}
+
+
+def albedo_decides(material, weight=1e-3):
+    """A copy of ``material`` whose quilting is led by the albedo alone (see the module notes)."""
+    import copy
+
+    from tghop.pool import GeneratedPool
+    from tghop.quilting import prepare_pool
+    from tghop.synthesis import TGHop
+
+    c0 = material.map_channels_[0]
+
+    class AlbedoLed(TGHop):
+        def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):
+            pool = GeneratedPool(self, *self.sample_vectors(n_patches, rng, np.dtype(np.float32))).all()
+            pool[..., c0:] *= weight
+            return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
+
+        def synthesize(self, size, **kw):
+            out = super().synthesize(size, **kw)
+            out[..., c0:] /= weight
+            return np.clip(out, 0, 1, out=out)
+
+    class Guide:
+        def __init__(self, layout):
+            self.layout = layout
+
+        def guide(self, *args, **kw):
+            g = self.layout.guide(*args, **kw)
+            g[..., c0:] *= weight
+            return g
+
+    alt = copy.copy(material)
+    model = AlbedoLed.__new__(AlbedoLed)
+    model.__dict__.update(material.model_.__dict__)
+    if model.layout_ is not None:
+        model.layout_ = Guide(model.layout_)
+    alt.model_ = model
+    return alt
+
+
+def per_map(material_maps, size, seed, fit_kw):
+    """'one model per map': each map fitted alone, generated with the same seed."""
+    from tghop import TGHop
+
+    out = {}
+    for name, img in material_maps.items():
+        model = TGHop(rng=0, **fit_kw).fit(img)
+        out[name] = model.synthesize(size, rng=seed)
+        if name == "normal":
+            from tghop.material import renormalise
+
+            out[name] = renormalise(out[name])
+    return out
+
+
+def main():
+    from tghop import TGHop
+    from tghop.imageio import save_image
+    from tghop.material import Material, example_maps
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("textures", nargs="+")
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--crop", type=int, default=256, help="exemplar crop side (0: whole)")
+    ap.add_argument("--sifid", action="store_true", help="also the albedo's SIFID (needs the metrics extra)")
+    args = ap.parse_args()
+    size = (args.size, args.size)
+    rows, payload, sheet = [], [], None
+    for name in args.textures:
+        ex = texture(name)
+        if args.crop:
+            ex = ex[: args.crop, : args.crop]
+        maps = example_maps(ex)
+        maps["height"] = np.round(maps["height"] * 65535).astype(np.uint16)  # a 16-bit map
+        t = time.perf_counter()
+        mat = Material(rng=0).fit(ex, maps)
+        fit_s = time.perf_counter() - t
+        exemplar = {"albedo": ex, **{k: np.asarray(v, dtype=np.float64) / (65535.0 if v.dtype == np.uint16 else 1.0)
+                                     for k, v in maps.items()}}
+        target = cross_correlations(exemplar)
+        ways = {"joint": lambda s: mat.synthesize(size, rng=s),
+                "joint, albedo refined only": lambda s: mat.synthesize(size, rng=s, refine_maps=False),
+                "joint, unrefined": lambda s: mat.synthesize(size, rng=s, refine=0),
+                "albedo decides": lambda s: albedo_decides(mat).synthesize(size, rng=s),
+                "one model per map": lambda s: per_map(exemplar, size, s, {})}
+        for way, make in ways.items():
+            corrs, times, sifids = [], [], []
+            for seed in range(args.seeds):
+                t = time.perf_counter()
+                out = make(seed)
+                times.append(time.perf_counter() - t)
+                corrs.append(cross_correlations(out))
+                if args.sifid:
+                    from tghop.metrics import sifid
+
+                    sifids.append(float(sifid(out["albedo"], ex)))
+                if sheet is None and way == "joint":
+                    sheet = image_sheet([exemplar[k] for k in exemplar] + [out[k] for k in out],
+                                        [f"exemplar {k}" for k in exemplar] + [f"output {k}" for k in out])
+            mean = {k: float(np.mean([c[k] for c in corrs])) for k in PAIRS + EXTRA}
+            rel = {k: abs(mean[k] - target[k]) / abs(target[k]) for k in PAIRS + EXTRA}
+            worst = max(PAIRS, key=rel.get)
+            row = [name, way] + [f"{target[k]:+.2f} / {mean[k]:+.2f}" for k in PAIRS + EXTRA] + [
+                f"{100 * rel[worst]:.1f}% ({worst})", f"{np.mean(sifids):.3f}" if sifids else "-",
+                f"{fit_s if way.startswith('joint') or way == 'albedo decides' else float('nan'):.1f}",
+                f"{np.mean(times):.2f}"]
+            rows.append(row)
+            payload.append({"texture": name, "way": way, "exemplar": target, "output_mean": mean,
+                            "relative_difference": rel, "worst": rel[worst], "sifid_albedo": sifids,
+                            "fit_s": fit_s, "synth_s": times, "size": args.size, "seeds": args.seeds})
+            print(" | ".join(str(v) for v in row), flush=True)
+    header = ["texture", "way"] + [f"{k} (ex / out)" for k in PAIRS + EXTRA] + ["worst rel. diff", "SIFID albedo",
+                                                                        "fit s", "synth s"]
+    md = (f"Cross-correlations of a material's maps, exemplar / output mean of {args.seeds} seeds, "
+          f"{args.size}x{args.size} (benchmarks/bench_material.py)\n\n" + markdown_table(header, rows))
+    write_results("material", payload, md)
+    if sheet is not None:
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        save_image(sheet, RESULTS / "material_sheet.png")
+    print(md)
+
+
+if __name__ == "__main__":
+    main()

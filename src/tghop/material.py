@@ -1,0 +1,351 @@
+"""Whole materials: an albedo and its maps (normal, roughness, height, ...) synthesised
+together, every map aligned with the others as in the exemplar.
+
+How the maps stay aligned: one :class:`~tghop.synthesis.TGHop` model is fitted on the
+stacked channels of all maps (albedo RGB, normal RGB, roughness, ...: an (H, W, C) image
+of C channels), so every generated patch carries all maps at once, drawn together from
+one joint distribution; quilting then chooses each block's patch and its cut once, for
+every map (the choice and the cuts are the same for all channels by construction). After
+quilting each map is refined (band statistics of its own, :mod:`tghop.refine`) and
+colour-matched (each channel to its own exemplar histogram, :mod:`tghop.colour`) on its
+own: a map's values are never matched to another map's. A normal map is renormalised to
+unit vectors at the end. The measurement behind these choices (against a model per map,
+and with the maps left unrefined) is in docs/choices.md, "Whole materials".
+
+A map is a normal map when its name contains "normal" or "nrm" (any case), or when it is
+named in ``normal``; it must have 3 channels holding unit vectors encoded as ``(n + 1) / 2``
+(OpenGL or DirectX convention alike): anything else is refused at fit.
+
+Example
+-------
+>>> from tghop.material import Material                                       # doctest: +SKIP
+>>> mat = Material(rng=0).fit(albedo, maps={"normal": normal, "height": height})  # doctest: +SKIP
+>>> out = mat.synthesize((512, 512), rng=1)   # {"albedo": ..., "normal": ..., "height": ...}  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
+from .colour import match_histograms
+from .refine import BandStatistics, refine as refine_bands
+from .synthesis import TGHop, prepare_exemplar
+
+__all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "ALBEDO"]
+
+#: The name of the first map (the exemplar itself, written to ``-o``'s file).
+ALBEDO = "albedo"
+#: Words in a map's name that make it a normal map.
+NORMAL_WORDS = ("normal", "nrm")
+#: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
+NORMAL_TOLERANCE = 0.1
+#: Map names: what a file name can hold (they become ``OUT_<name>.png``).
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+
+
+def is_normal_name(name: str) -> bool:
+    """Whether a map's name says it is a normal map ("normal", "nrm", any case)."""
+    return any(word in name.lower() for word in NORMAL_WORDS)
+
+
+def check_normal_map(values, name: str = "normal map"):
+    """Refuse a "normal map" that does not hold unit vectors (one-line :class:`TGHopError`).
+
+    Parameters
+    ----------
+    values : ndarray, shape (H, W, 3), float in [0, 1]
+        Vectors encoded as ``(n + 1) / 2``.
+    name : str
+    """
+    if values.shape[2] != 3:
+        raise TGHopError(f"map {name!r} is a normal map by its name but has {values.shape[2]} channel"
+                         f"{'s' if values.shape[2] != 1 else ''}, not 3; rename it if it is not a normal map")
+    length = np.linalg.norm(values[::2, ::2].reshape(-1, 3) * 2.0 - 1.0, axis=1)
+    median = float(np.median(length))
+    if abs(median - 1.0) > NORMAL_TOLERANCE:
+        raise TGHopError(f"map {name!r} is a normal map by its name but its pixels are not unit vectors "
+                         f"(median length {median:.2f}, not 1 +- {NORMAL_TOLERANCE}); give a normal map encoded "
+                         "as (n + 1) / 2, or rename it if it is not one")
+
+
+def renormalise(values, out=None):
+    """Normal map values (H, W, 3) in [0, 1] -> the same directions as unit vectors, encoded
+    as ``(n + 1) / 2`` (a zero vector becomes (0, 0, 1), straight up)."""
+    n = np.asarray(values, dtype=np.float64) * 2.0 - 1.0
+    length = np.linalg.norm(n, axis=2, keepdims=True)
+    flat = length[..., 0] < 1e-6
+    n[flat] = (0.0, 0.0, 1.0)
+    length[flat] = 1.0
+    n /= length
+    n += 1.0
+    n *= 0.5
+    if out is None:
+        return np.clip(n, 0.0, 1.0)
+    out[...] = np.clip(n, 0.0, 1.0)
+    return out
+
+
+def _blur(x, sigma):
+    """A separable Gaussian blur of an (H, W) array (reflecting edges), without SciPy."""
+    r = max(1, int(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    k /= k.sum()
+    for axis in (0, 1):
+        pad = [(r, r) if a == axis else (0, 0) for a in range(2)]
+        x = np.apply_along_axis(lambda v: np.convolve(v, k, mode="valid"), axis, np.pad(x, pad, mode="reflect"))
+    return x
+
+
+def example_maps(albedo, *, strength=8.0):
+    """Maps made from an albedo's luminance, for tests, benchmarks and demonstrations:
+    ``{"normal": (H, W, 3), "roughness": (H, W, 1), "height": (H, W, 1)}``, float in [0, 1].
+
+    The height is the luminance blurred (sigma 1.5 px), the normal map its slope
+    (``(-strength dh/dx, -strength dh/dy, 1)`` normalised, encoded as ``(n + 1) / 2``), the
+    roughness one minus the luminance blurred more (sigma 3 px).
+    """
+    img = check_image(albedo, name="albedo")
+    lum = img.mean(axis=2)
+    height = _blur(lum, 1.5)
+    gy, gx = np.gradient(height)
+    n = np.stack([-strength * gx, -strength * gy, np.ones_like(height)], axis=2)
+    n /= np.linalg.norm(n, axis=2, keepdims=True)
+    return {"normal": (n + 1.0) / 2.0, "roughness": np.clip(1.0 - _blur(lum, 3.0), 0.0, 1.0)[..., None],
+            "height": np.clip(height, 0.0, 1.0)[..., None]}
+
+
+def _depth_of(arr) -> int:
+    return 8 if arr.dtype == np.uint8 else 16 if arr.dtype == np.uint16 else 32
+
+
+class Material(BaseEstimator):
+    """An albedo and its maps, modelled together (see the module's notes).
+
+    Parameters
+    ----------
+    model : TGHop, optional
+        Its settings are those of the joint model (default: ``TGHop()``'s); it is not
+        changed (a copy is fitted). ``n_channels`` None: the default for the stacked
+        channel count (:func:`tghop.synthesis.default_channels`).
+    normal : "auto" or sequence of str
+        Which maps are normal maps: by name ("auto", :func:`is_normal_name`) or these names.
+    rng : int or numpy.random.Generator, optional
+        Seed of fitting (overrides the model's ``rng``).
+
+    Attributes
+    ----------
+    model_ : TGHop
+        The joint model of the stacked channels.
+    names_ : list of str
+        ``"albedo"`` first, then the maps in the order given.
+    map_channels_ : list of int
+        Channels of each map (a grey map stored as RGB becomes one channel).
+    normal_ : list of bool
+    depths_ : list of int
+        Bits per channel of each map as given (8, 16, or 32 for float): what ``tghop synth``
+        writes each map with unless told otherwise.
+    bands_ : list of tghop.refine.BandStatistics
+        Each map's own refinement statistics.
+    """
+
+    def __init__(self, model=None, normal="auto", rng=None):
+        self.model = model
+        self.normal = normal
+        self.rng = rng
+
+    # ---------------------------------------------------------------- fitting
+    def _maps(self, albedo, maps, depths):
+        """Validated maps: [(name, (H, W, c) float64 array, depth)], the albedo first."""
+        items = [(ALBEDO, albedo)] + list(dict(maps or {}).items())
+        depths = dict(depths or {})
+        seen, out = set(), []
+        for name, arr in items:
+            if not isinstance(name, str) or not _NAME.fullmatch(name):
+                raise TGHopError(f"map name {name!r} cannot name a file; use letters, digits, '_', '-' and '.'")
+            if name.lower() in seen:
+                raise TGHopError(f"two maps are named {name!r}; give each map its own name")
+            seen.add(name.lower())
+            raw = np.asarray(arr)
+            depth = depths.get(name, _depth_of(raw))
+            img = check_image(raw, name=f"map {name!r}")
+            if name == ALBEDO:  # the exemplar: refused if flat; a map may be (a constant metalness)
+                img = prepare_exemplar(img)
+            elif img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 131072:
+                img = np.ascontiguousarray(img[..., :1])  # a grey map stored as RGB (to 16 bits)
+            if name == ALBEDO:
+                shape = img.shape[:2]
+            elif img.shape[:2] != shape:
+                raise TGHopError(f"map {name!r} is {img.shape[0]}x{img.shape[1]} but the albedo is "
+                                 f"{shape[0]}x{shape[1]}; give every map at the albedo's size")
+            out.append((name, img.astype(np.float64, copy=False), int(depth)))
+        return out
+
+    def fit(self, albedo, maps=None, *, exclude=None, depths=None, progress=None):
+        """Learn the joint model of an albedo and its maps.
+
+        Parameters
+        ----------
+        albedo : ndarray, shape (H, W) or (H, W, C)
+            The exemplar (float in [0, 1], uint8 or uint16).
+        maps : dict of str to ndarray, optional
+            Name -> map of the same H and W (any of 1 or 3 channels, any depth). Names
+            become file names (``OUT_<name>.png``).
+        exclude : array_like of bool, shape (H, W), optional
+            Pixels not to learn (:meth:`TGHop.fit`).
+        depths : dict of str to int, optional
+            Bits per channel of each map's file (default: from the arrays' dtypes: 8 for
+            uint8, 16 for uint16, 32 for floats).
+        progress : callable, optional
+
+        Returns
+        -------
+        self
+        """
+        items = self._maps(albedo, maps, depths)
+        normal = self.normal
+        if normal != "auto":
+            unknown = set(normal) - {name for name, _, _ in items}
+            if unknown:
+                raise TGHopError(f"normal names {sorted(unknown)[0]!r}, which is not a map's name")
+        self.names_ = [name for name, _, _ in items]
+        self.normal_ = [is_normal_name(name) if normal == "auto" else name in normal for name in self.names_]
+        for (name, img, _), is_normal in zip(items, self.normal_):
+            if is_normal:
+                check_normal_map(img, name)
+        self.map_channels_ = [img.shape[2] for _, img, _ in items]
+        self.depths_ = [depth for _, _, depth in items]
+        stack = np.concatenate([img for _, img, _ in items], axis=2)
+        if stack.shape[2] == 3 and np.abs(stack[..., 1:] - stack[..., :1]).max() < 1 / 512:
+            raise TGHopError("every map equals the grey albedo; there is nothing to model apart from it")
+        base = TGHop() if self.model is None else self.model
+        params = base.get_params()
+        if self.rng is not None:
+            params["rng"] = self.rng
+        params["rng"] = check_rng(params["rng"])
+        params["patch_levels"] = 0  # the patch refinement does not apply to materials
+        self.model_ = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
+        ex = None if exclude is None else np.asarray(exclude, dtype=bool)
+        self.bands_ = [BandStatistics(n_levels=self.model_.band_levels, n_orientations=self.model_.band_orientations)
+                       .fit(img, exclude=ex) for _, img, _ in items]
+        return self
+
+    def _slices(self):
+        bounds = np.concatenate([[0], np.cumsum(self.map_channels_)]).tolist()
+        return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+    # ------------------------------------------------------------- generation
+    def synthesize(self, size, *, rng=None, refine=3, match_colours=True, tile=False, refine_maps=True,
+                   progress=None, dtype=np.float64, **options):
+        """Generate every map of the material, aligned.
+
+        Parameters
+        ----------
+        size : (int, int)
+        rng : int or numpy.random.Generator, optional
+            Same seed, same maps.
+        refine : int
+            Rounds of each map's own refinement (:meth:`TGHop.synthesize`'s ``refine``).
+        match_colours : bool
+            Match each channel of each map to its own exemplar histogram.
+        tile : bool
+        refine_maps : bool
+            Refine the maps other than the albedo too (the albedo always is, with ``refine``).
+        progress : callable, optional
+        dtype : {numpy.float64, numpy.float32}
+        **options
+            The other generation settings of :meth:`TGHop.synthesize` (``n_patches``,
+            ``tolerance``, ``detail``, ``layout_weight``, ...).
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``name -> (H, W, c)`` array in [0, 1], ``"albedo"`` first, in :attr:`names_`'s order.
+        """
+        check_is_fitted(self, "model_")
+        dtype = np.dtype(dtype)
+        if dtype not in (np.float32, np.float64):
+            raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
+        if options.get("patch_refine"):
+            raise TGHopError("patch_refine does not apply to materials; leave it at 0")
+        stack = self.model_.synthesize(size, rng=check_rng(rng), tile=tile, refine=0, match_colours=False,
+                                       progress=progress, dtype=np.float32, **options)
+        quantiles = self.model_.colour_quantiles_
+        out = {}
+        for i, (name, part) in enumerate(zip(self.names_, self._slices())):
+            img = np.ascontiguousarray(stack[..., part])
+            if refine and (refine_maps or i == 0):
+                img = refine_bands(img, self.bands_[i], n_iter=refine, tile=tile, dtype=np.float32)
+            if match_colours:
+                img = match_histograms(img, quantiles[part])
+            if self.normal_[i]:
+                img = renormalise(img)
+            out[name] = img.astype(dtype, copy=False)
+        return out
+
+    # ------------------------------------------------------------- model files
+    def _to_arrays(self) -> dict:
+        check_is_fitted(self, "model_")
+        out = self.model_._to_arrays()
+        for name, bands in zip(self.names_, self.bands_):
+            out.update({f"material.{name}.{k}": v for k, v in bands._to_arrays().items()})
+        return out
+
+    def map_info(self) -> list:
+        """Each map's name, channels, whether it is a normal map and its depth, as
+        JSON-ready dicts (what the model file's metadata and ``tghop info --json`` hold)."""
+        check_is_fitted(self, "model_")
+        return [{"name": n, "channels": int(c), "normal": bool(nm), "depth": int(d)}
+                for n, c, nm, d in zip(self.names_, self.map_channels_, self.normal_, self.depths_)]
+
+    def _state_meta(self) -> dict:
+        return {**self.model_._state_meta(), "material": {"maps": self.map_info()}}
+
+    @staticmethod
+    def _check_meta(meta):
+        """The material part of a model file's metadata, checked: the list of maps."""
+        maps = meta["material"]["maps"]
+        if not isinstance(maps, list) or not maps:
+            raise TGHopError("the material metadata lists no maps")
+        names = []
+        for m in maps:
+            name, c, depth = m["name"], m["channels"], m["depth"]
+            if not isinstance(name, str) or not _NAME.fullmatch(name) or name.lower() in names:
+                raise TGHopError(f"the material metadata has a bad or repeated map name {name!r}")
+            if c not in (1, 3) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
+                    m["normal"] and c != 3):
+                raise TGHopError(f"the material metadata's map {name!r} is not of 1 or 3 channels and 8, 16 or 32 bits")
+            names.append(name.lower())
+        if sum(m["channels"] for m in maps) != meta["exemplar_shape"][2]:
+            raise TGHopError("the material's maps do not add up to the model's channels")
+        return maps
+
+    @classmethod
+    def _array_specs(cls, meta, *, quantised=True):
+        """The checks of :mod:`tghop.modelfile`: the joint model's and each map's statistics."""
+        groups = TGHop._array_specs(meta, quantised=quantised)
+        params = meta["params"]
+        stats = BandStatistics(n_levels=params.get("band_levels", 4), n_orientations=params.get("band_orientations", 4))
+        for m in cls._check_meta(meta):
+            groups.append((f"material.{m['name']}.", stats._array_specs(m["channels"])))
+        return groups
+
+    @classmethod
+    def _from_state(cls, meta, arrays):
+        maps = cls._check_meta(meta)
+        model = TGHop._from_state(meta, arrays)
+        mat = cls(model=TGHop(**model.get_params()), normal=[m["name"] for m in maps if m["normal"]])
+        mat.model_ = model
+        mat.names_ = [m["name"] for m in maps]
+        mat.map_channels_ = [m["channels"] for m in maps]
+        mat.normal_ = [m["normal"] for m in maps]
+        mat.depths_ = [m["depth"] for m in maps]
+        mat.bands_ = []
+        for m in maps:
+            prefix = f"material.{m['name']}."
+            sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
+            mat.bands_.append(BandStatistics(n_levels=model.band_levels,
+                                             n_orientations=model.band_orientations)._from_arrays(sub))
+        return mat

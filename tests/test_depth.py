@@ -1,0 +1,138 @@
+"""16-bit and float images (issue #27, item 6): read without loss, written with a depth."""
+
+import struct
+import zlib
+
+import numpy as np
+import pytest
+
+from tghop import InvalidImageError
+from tghop.imageio import check_depth, load_image, save_image
+
+
+def _levels(shape, seed=0):
+    return np.random.default_rng(seed).integers(0, 65536, shape).astype(np.uint16)
+
+
+@pytest.mark.parametrize("shape", [(17, 23, 3), (17, 23)])
+def test_16bit_png_round_trip_is_exact(tmp_path, shape):
+    levels = _levels(shape)
+    save_image(levels / 65535.0, tmp_path / "a.png", depth=16)
+    image, depth = load_image(tmp_path / "a.png", with_depth=True)
+    assert depth == 16 and image.dtype == np.float64
+    assert np.array_equal(np.round(image * 65535).astype(np.uint16).reshape(shape), levels)
+    save_image(image, tmp_path / "b.png", depth=16)  # written again: the same file
+    assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
+
+
+def _png16_filtered(levels):
+    """A 16-bit PNG whose rows use every filter type (0-4 in turn), encoded byte by byte
+    as the PNG specification says (another writer's file, not tghop's)."""
+    h, w, c = levels.shape
+    data = levels.astype(">u2").view(np.uint8).reshape(h, w * c * 2).astype(int)
+    bpp, out, prev = 2 * c, b"", [0] * (w * c * 2)
+    for y in range(h):
+        kind, row, enc = y % 5, data[y].tolist(), []
+        for i, x in enumerate(row):
+            a = row[i - bpp] if i >= bpp else 0
+            b, cc = prev[i], (prev[i - bpp] if i >= bpp else 0)
+            p = a + b - cc
+            pa, pb, pc = abs(p - a), abs(p - b), abs(p - cc)
+            paeth = a if pa <= pb and pa <= pc else b if pb <= pc else cc
+            enc.append((x - [0, a, b, (a + b) // 2, paeth][kind]) % 256)
+        out += bytes([kind] + enc)
+        prev = row
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 2 if c == 3 else 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(out)) + chunk(b"IEND", b""))
+
+
+def test_16bit_png_of_every_filter_type_is_read_exactly(tmp_path):
+    levels = _levels((11, 9, 3), seed=1)
+    (tmp_path / "f.png").write_bytes(_png16_filtered(levels))
+    image = load_image(tmp_path / "f.png")
+    assert np.array_equal(np.round(image * 65535).astype(np.uint16), levels)
+
+
+def test_16bit_and_float_tiff_round_trips(tmp_path):
+    pytest.importorskip("tifffile")
+    levels = _levels((13, 10, 3), seed=2)
+    save_image(levels / 65535.0, tmp_path / "a.tif", depth=16)
+    image, depth = load_image(tmp_path / "a.tif", with_depth=True)
+    assert depth == 16 and np.array_equal(np.round(image * 65535).astype(np.uint16), levels)
+    values = np.random.default_rng(3).random((13, 10, 3))
+    save_image(values, tmp_path / "f.tif", depth=32)
+    image, depth = load_image(tmp_path / "f.tif", with_depth=True)
+    assert depth == 32 and image.dtype == np.float64
+    np.testing.assert_array_equal(image, values.astype(np.float32))  # float32 in the file, nothing else lost
+
+
+@pytest.mark.parametrize("name, depth", [("a.png", 32), ("a.jpg", 16), ("a.jpg", 32), ("a.png", 12)])
+def test_depth_a_format_cannot_hold_is_one_line(name, depth):
+    with pytest.raises(InvalidImageError) as err:
+        check_depth(name, depth)
+    assert "\n" not in str(err.value)
+    with pytest.raises(InvalidImageError):
+        save_image(np.zeros((4, 4, 3)), name, depth=depth)
+
+
+def test_cli_synth_depth(tmp_path):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    runner = CliRunner()
+    out = tmp_path / "t.png"
+    res = runner.invoke(main, ["synth", "builtin:bricks", "-o", str(out), "--size", "64", "--seed", "1",
+                               "--depth", "16", "-q", "--max-patches", "1500", "--clusters", "10"])
+    assert res.exit_code == 0, res.output
+    image, depth = load_image(out, with_depth=True)
+    assert depth == 16 and image.shape == (64, 64, 3)
+    assert len(np.unique(image)) > 256  # more levels than 8 bits hold
+    bad = runner.invoke(main, ["synth", "builtin:bricks", "-o", str(tmp_path / "u.jpg"), "--depth", "16", "-q"])
+    assert bad.exit_code != 0 and "Traceback" not in bad.output and not (tmp_path / "u.jpg").exists()
+    assert bad.output.strip().count("\n") == 0 and "JPEG" in bad.output
+
+
+def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
+    from click.testing import CliRunner
+
+    from tghop import TGHop, data
+    from tghop.cli import main
+    from tghop.modelfile import save_model
+
+    exemplar = data.bricks()[:96, :96]
+    save_model(TGHop(max_patches=1000, n_clusters=10, layout_factor=None, rng=0).fit(exemplar), tmp_path / "m.npz")
+    levels = np.round(exemplar * 65535).astype(np.uint16) ^ np.uint16(5)  # low bits an 8-bit file cannot hold
+    save_image(levels / 65535.0, tmp_path / "in.png", depth=16)
+    hole = np.zeros((96, 96))
+    hole[30:60, 30:60] = 1
+    save_image(hole, tmp_path / "hole.png")
+    res = CliRunner().invoke(main, ["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png"), "-o",
+                                    str(tmp_path / "out.png"), "--source", str(tmp_path / "m.npz"), "--seed", "1", "-q"])
+    assert res.exit_code == 0, res.output
+    image, depth = load_image(tmp_path / "out.png", with_depth=True)
+    out = np.round(image * 65535).astype(np.uint16)
+    keep = hole == 0
+    assert depth == 16 and np.array_equal(out[keep], levels[keep])  # every known pixel, all 16 bits
+
+
+def test_colour_tiff_without_tifffile_is_one_line(tmp_path, monkeypatch):
+    pytest.importorskip("tifffile")
+    from tghop import MissingExtraError
+
+    save_image(_levels((9, 8, 3)) / 65535.0, tmp_path / "c.tif", depth=16)
+    monkeypatch.setitem(__import__("sys").modules, "tifffile", None)  # as if not installed
+    with pytest.raises(MissingExtraError, match=r"tghop\[tiff\]"):
+        load_image(tmp_path / "c.tif")
+    with pytest.raises(MissingExtraError, match=r"tghop\[tiff\]"):
+        save_image(np.zeros((4, 4, 3)), tmp_path / "d.tif", depth=16)
+    assert not (tmp_path / "d.tif").exists()
+    grey = np.random.default_rng(0).random((6, 7))
+    save_image(grey, tmp_path / "g.tif", depth=32)  # grey float TIFF: Pillow suffices
+    np.testing.assert_allclose(load_image(tmp_path / "g.tif")[..., 0], grey, atol=1e-7)
+    save_image(grey, tmp_path / "g16.tif", depth=16)
+    assert np.array_equal(np.round(load_image(tmp_path / "g16.tif")[..., 0] * 65535), np.round(grey * 65535))

@@ -1,0 +1,142 @@
+"""Whole materials (issue #27, item 5): an albedo and its maps synthesised together, aligned."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from tghop import ModelFileError, TGHop, TGHopError, data
+from tghop.cli import main
+from tghop.imageio import load_image, save_image
+from tghop.material import Material, example_maps, renormalise
+from tghop.modelfile import load_model, save_model
+
+SIZE = (96, 96)
+#: A small, fast joint model (a few seconds on 2 cores).
+FAST = dict(max_patches=1500, n_clusters=10, layout_factor=None)
+FAST_CLI = ["--max-patches", "1500", "--clusters", "10", "--layout", "none"]
+#: A small pool: quick syntheses.
+POOL = dict(n_patches=1000)
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    return data.bricks()[:128, :128]
+
+
+@pytest.fixture(scope="module")
+def maps(exemplar):
+    return example_maps(exemplar)
+
+
+@pytest.fixture(scope="module")
+def material(exemplar, maps):
+    return Material(model=TGHop(**FAST), rng=0).fit(exemplar, maps)
+
+
+def _corr(a, b):
+    return float(np.corrcoef(np.ravel(a), np.ravel(b))[0, 1])
+
+
+def test_maps_come_out_aligned_and_normal_maps_unit(material, exemplar, maps):
+    out = material.synthesize(SIZE, rng=3, **POOL)
+    assert list(out) == ["albedo", "normal", "roughness", "height"]
+    assert out["albedo"].shape == SIZE + (3,) and out["normal"].shape == SIZE + (3,)
+    assert out["roughness"].shape == SIZE + (1,) and out["height"].shape == SIZE + (1,)
+    # roughness = 1 - blurred luminance and height = blurred luminance: functions of the
+    # albedo that stay (about) those functions of the output's albedo
+    lum = out["albedo"].mean(axis=2)
+    for name in ("roughness", "height"):
+        want = _corr(exemplar.mean(axis=2), maps[name])
+        got = _corr(lum, out[name])
+        assert abs(got - want) < 0.1, (name, want, got)
+    lengths = np.linalg.norm(out["normal"] * 2 - 1, axis=2)
+    np.testing.assert_allclose(lengths, 1.0, atol=1e-6)
+    # the normal map follows the height's slope
+    gy, gx = np.gradient(out["height"][..., 0])
+    assert _corr(gx, out["normal"][..., 0]) < -0.6 and _corr(gy, out["normal"][..., 1]) < -0.6
+
+
+def test_same_seed_same_maps(material):
+    a, b = material.synthesize(SIZE, rng=5, **POOL), material.synthesize(SIZE, rng=5, **POOL)
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    c = material.synthesize(SIZE, rng=6, **POOL)
+    assert not np.array_equal(a["albedo"], c["albedo"])
+
+
+def test_model_file_round_trip(material, tmp_path):
+    save_model(material, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz", material=True)
+    assert loaded.names_ == material.names_ and loaded.normal_ == material.normal_
+    a, b = material.synthesize(SIZE, rng=1, **POOL), loaded.synthesize(SIZE, rng=1, **POOL)
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    with pytest.raises(ModelFileError, match="is a material"):  # where a plain model is expected
+        load_model(tmp_path / "m.npz")
+
+
+def test_maps_of_another_size_are_refused(exemplar, maps):
+    with pytest.raises(TGHopError, match="albedo's size") as err:
+        Material(model=TGHop(**FAST)).fit(exemplar, {"height": maps["height"][:100]})
+    assert "\n" not in str(err.value)
+
+
+def test_a_normal_map_that_is_not_one_is_refused(exemplar, maps):
+    with pytest.raises(TGHopError, match="not unit vectors"):
+        Material(model=TGHop(**FAST)).fit(exemplar, {"normal": exemplar})  # colours, not unit vectors
+    with pytest.raises(TGHopError, match="not 3"):
+        Material(model=TGHop(**FAST)).fit(exemplar, {"my_normal": maps["roughness"]})
+
+
+def test_renormalise_makes_unit_vectors():
+    v = np.random.default_rng(0).random((5, 6, 3))
+    n = renormalise(v) * 2 - 1
+    np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-12)
+    flat = renormalise(np.full((2, 2, 3), 0.5))  # a zero vector points straight up
+    np.testing.assert_allclose(flat, np.tile([0.5, 0.5, 1.0], (2, 2, 1)))
+
+
+def _write_material(folder, exemplar, maps):
+    save_image(exemplar, folder / "albedo.png")
+    save_image(maps["normal"], folder / "normal.png")
+    save_image(maps["roughness"], folder / "roughness.png")
+    save_image(maps["height"], folder / "height.png", depth=16)
+
+
+def test_cli_fit_and_synth_write_every_map(tmp_path, exemplar, maps):
+    _write_material(tmp_path, exemplar, maps)
+    runner = CliRunner()
+    files = [str(tmp_path / f) for f in ("albedo.png", "normal.png", "roughness.png", "height.png")]
+    res = runner.invoke(main, ["fit", files[0], "--maps", *files[1:], "-o", str(tmp_path / "mat.npz"), "-q",
+                               *FAST_CLI])
+    assert res.exit_code == 0, res.output
+    out = tmp_path / "out.png"
+    res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(out), "--size", "64", "--seed", "2",
+                               "-q", "--pool", "1000"])
+    assert res.exit_code == 0, res.output
+    for name, depth, channels in (("out", 8, 3), ("out_normal", 8, 3), ("out_roughness", 8, 1),
+                                  ("out_height", 16, 1)):
+        image, got = load_image(tmp_path / f"{name}.png", with_depth=True)
+        assert (got, image.shape) == (depth, (64, 64, channels)), name
+    info = runner.invoke(main, ["info", str(tmp_path / "mat.npz")])
+    assert info.exit_code == 0 and "height (1 channel, 16-bit)" in info.output
+
+
+def test_cli_failures_are_one_line_and_write_nothing(tmp_path, exemplar, maps):
+    _write_material(tmp_path, exemplar, maps)
+    runner = CliRunner()
+    save_image(maps["height"][:100], tmp_path / "small_height.png")
+    for args, words in (
+            (["fit", "albedo.png", "--maps", "small_height.png", "-o", "m.npz"], "albedo's size"),
+            (["fit", "albedo.png", "height.png", "-o", "m.npz"], "--maps")):
+        res = runner.invoke(main, [str(tmp_path / a) if a.endswith(".png") else a for a in args])
+        assert res.exit_code != 0 and "Traceback" not in res.output
+        assert words in res.output
+    assert not list(tmp_path.glob("*.npz"))
+    material = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"height": maps["height"]})
+    save_model(material, tmp_path / "mat.npz")
+    (tmp_path / "o_height.png").mkdir()  # the second map's output cannot be written
+    res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size", "64",
+                               "-q", "--pool", "1000"])
+    assert res.exit_code != 0 and res.output.strip().count("\n") == 0 and "folder" in res.output
+    assert not (tmp_path / "o.png").exists()
+    res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", "-", "--size", "64", "-q"])
+    assert res.exit_code != 0 and "file per map" in res.output
