@@ -353,9 +353,9 @@ def generate_settings():
 PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
-#: "best" adds the patch refinement (30 Adam steps per level; docs/choices.md: median SIFID
+#: "best" adds the patch refinement (45 Adam steps per level; docs/choices.md: median SIFID
 #: -14 % on six exemplars, about 3-5 s more at 256x256 on 2 cores).
-QUALITY = {"default": {}, "best": {"patch_refine": 30}}
+QUALITY = {"default": {}, "best": {"patch_refine": 45}}
 
 
 def check_settings(values: dict, *, prefix: str = "") -> dict:

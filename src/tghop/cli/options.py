@@ -169,7 +169,7 @@ def generation_options(func):
         func = _setting_option(s)(func)
     return click.option(
         "--quality", type=click.Choice(sorted(QUALITY)), default=None,
-        help="Preset: 'best' adds the patch refinement (--patch-refine 30: sharper grain, a few "
+        help="Preset: 'best' adds the patch refinement (--patch-refine 45: sharper grain, a few "
              "seconds more per 256x256 image; models fitted with --patch-levels, the default). "
              "Options given as well override it. [default: default]")(func)
 
