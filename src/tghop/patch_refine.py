@@ -54,6 +54,9 @@ _BINS = 4096
 _RANK_PATCHES = 1 << 16
 #: Patches projected at once (bounds the memory of large images).
 _CHUNK = 1 << 16
+#: Pixels of a level moved through every patch; larger levels use a stride (:func:`_stride`).
+_STRIDE_PIXELS = 1 << 17
+_MAX_STRIDE = 4
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH
 
@@ -258,6 +261,12 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
     return x
 
 
+def _stride(pixels):
+    """Step between the patches of a level of ``pixels``: 1 up to 2^17 (256x256, 362x362),
+    then growing with the side, at most 4 (PATCH = 7: every pixel still in a patch)."""
+    return int(min(_MAX_STRIDE, max(1, np.ceil(np.sqrt(pixels / _STRIDE_PIXELS)))))
+
+
 def patch_refine(image, stats, *, n_steps=30, tile=False, learning_rate=LEARNING_RATE, progress=None):
     """Move an image's patch distributions towards the exemplar's, coarse to fine.
 
@@ -295,10 +304,9 @@ def patch_refine(image, stats, *, n_steps=30, tile=False, learning_rate=LEARNING
         cur = levels[i].copy()
         if new is not None:  # the coarser level's change, upsampled
             cur += upsample(new - levels[i + 1], cur.shape, mode)
-        # Large images: every second (third) patch at full resolution, each pixel still in
-        # 16 (9) of them, so that a step's cost grows more slowly than the image.
-        pixels = cur.shape[0] * cur.shape[1]
-        stride = 1 if pixels <= 1 << 19 else 2 if pixels <= 1 << 21 else 3
+        # Large levels: every second, third or fourth patch each way (each pixel still in
+        # 16, 9 or 4 of them), so that a step's cost grows more slowly than the image.
+        stride = _stride(cur.shape[0] * cur.shape[1])
         new = _steps(cur, stats.directions_[i], stats.quantiles_[i], n_steps, tile, stride, learning_rate)
         np.clip(new, 0.0, 1.0, out=new)
         done += n_steps
