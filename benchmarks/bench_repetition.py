@@ -41,6 +41,7 @@ def main():
     ap.add_argument("--models", help="directory of NAME.npz model files (default: fit here)")
     ap.add_argument("--old", action="store_true", help="also without the reuse penalty and pool growth")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--tag", default="", help="suffix of the result files (repetition-TAG.{json,md})")
     ap.add_argument("--no-sifid", action="store_true")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -69,7 +70,7 @@ def main():
     header = ["texture", "size", "variant", "self-repetition", "copied_textured", "SIFID of 256 crops", "time s"]
     table = markdown_table(header, rows)
     print(table)
-    write_results("repetition", payload, "# Repetition of large outputs (bench_repetition.py)\n\n" + table)
+    write_results("repetition" + (f"-{args.tag}" if args.tag else ""), payload, "# Repetition of large outputs (bench_repetition.py)\n\n" + table)
 
 
 if __name__ == "__main__":
