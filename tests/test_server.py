@@ -373,6 +373,13 @@ def test_quality_best_adds_the_patch_refinement(client, fitted):
     assert client.post(url, json={**ask, "quality": "best", "patch_refine": 0}).content == default.content
     for bad in ("great", 1, None, ["best"]):
         assert_error(client.post(url, json={**ask, "quality": bad}), 422, "quality must be one of 'best', 'default'")
+    # a model without patch statistics: said, as tghop synth says it
+    r = client.post("/api/models", files={"builtin": (None, "bricks"), "patch_levels": (None, "0"),
+                                          **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert events(client, r.json()["job"])[-1][1]["state"] == "done"
+    flat = f"/api/models/{r.json()['id']}/images"
+    assert client.post(flat, json=ask).status_code == 200
+    assert_error(client.post(flat, json={**ask, "quality": "best"}), 422, "no patch statistics", "fit it again")
 
 
 def guide_b64(pixels, prefix=""):

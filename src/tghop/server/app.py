@@ -525,6 +525,9 @@ class Server:
         from ..imageio import write_png
 
         model = self.cache.load(model_id)
+        if settings.get("patch_refine") and getattr(model, "patches_", None) is None:  # as tghop synth says
+            raise RequestError(422, "this model holds no patch statistics for patch_refine or quality best (fitted "
+                                    "with patch_levels 0, or by tghop 0.14 or older); fit it again")
         with self.generating:
             try:
                 image = model.synthesize(size, rng=seed, dtype=np.uint8, **settings)
