@@ -197,8 +197,11 @@ class Firefox:
         """Press the left mouse button at the first point, move through the others, release:
         points (x, y) in CSS pixels from the element's top-left corner (scrolled into view)."""
         element = self.find(selector)
-        width, height = self.run("const e = arguments[0]; e.scrollIntoView({block: 'center'});"
-                                 "const r = e.getBoundingClientRect(); return [r.width, r.height];", element)
+        # after a scroll, two frames: Firefox hit-tests with the scrolled layout only then
+        width, height = self.run_async("const e = arguments[0], done = arguments[arguments.length - 1];"
+                                       "e.scrollIntoView({block: 'center'}); requestAnimationFrame(() =>"
+                                       " requestAnimationFrame(() => { const r = e.getBoundingClientRect();"
+                                       " done([r.width, r.height]); }));", element, timeout=10)
 
         def move(x, y):  # WebDriver measures from the element's centre, in whole pixels
             return {"type": "pointerMove", "origin": element, "x": int(round(x - width / 2)),

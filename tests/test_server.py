@@ -356,7 +356,8 @@ def second(client):
     """A second fitted model: builtin:cells with the fast settings (its id)."""
     r = client.post("/api/models", files={"builtin": (None, "cells"), **{k: (None, v) for k, v in FAST_FIT.items()}})
     assert r.status_code in (200, 202), r.text
-    assert events(client, r.json()["job"])[-1][1]["state"] == "done"
+    stream = events(client, r.json()["job"])
+    assert stream[-1][1]["state"] == "done", stream[-3:]
     return r.json()["id"]
 
 

@@ -250,7 +250,7 @@ def test_paint_two_models_and_morph(page, live_server):
     assert page.is_checked("#paint-colour-1")
     page.eval_on_selector("#paint-brush", "b => { b.value = '24'; b.dispatchEvent(new Event('input')); }")
     for x in (60, 84):  # two strokes top to bottom: the right half, x 48 to 95
-        stroke(page, (x, 0), (x, 63), canvas="#guide")
+        stroke(page, (x, 1), (x, 62), canvas="#guide")  # inside the canvas; the brush covers the edges
     rgb = np.array(page.eval_on_selector("#guide", "c => Array.from(c.getContext('2d').getImageData("
                                                    "0, 0, c.width, c.height).data)")).reshape(64, 96, 4)[..., :3]
     first, second = (0xE6, 0x19, 0x4B), (0x3C, 0xB4, 0x4B)
@@ -261,6 +261,7 @@ def test_paint_two_models_and_morph(page, live_server):
     assert page.eval_on_selector("#result", "i => [i.naturalHeight, i.naturalWidth]") == [64, 96]
     painted = np.array(page.eval_on_selector("#result", PIXELS)).reshape(64, 96, 4)[..., :3]
     assert painted[:, :40].std() > 5 and painted[:, 56:].std() > 5  # texture on both sides
+    page.screenshot(path=PAINT_SCREENSHOT, full_page=True)
     mode(page, "morph")
     assert page.is_visible("#morph") and page.is_hidden("#paint")
     assert page.eval_on_selector_all("#morph-b option", "o => o.length") == 2 and page.input_value("#morph-b") == "1"
@@ -268,6 +269,5 @@ def test_paint_two_models_and_morph(page, live_server):
     page.fill("#morph-width", "128")
     page.click("#morph-go")
     page.wait_for_function(RESULT_SHOWN % "morph: 32x128", timeout=60_000)
-    page.screenshot(path=PAINT_SCREENSHOT, full_page=True)
     mode(page, "view")
     assert not page.errors, page.errors
