@@ -193,6 +193,26 @@ class Firefox:
                  "e.dispatchEvent(new Event('input', {bubbles: true}));"
                  "e.dispatchEvent(new Event('change', {bubbles: true}));", self.find(selector), value)
 
+    def drag(self, selector: str, points):
+        """Press the left mouse button at the first point, move through the others, release:
+        points (x, y) in CSS pixels from the element's top-left corner (scrolled into view)."""
+        element = self.find(selector)
+        # after a scroll, two frames: Firefox hit-tests with the scrolled layout only then
+        width, height = self.run_async("const e = arguments[0], done = arguments[arguments.length - 1];"
+                                       "e.scrollIntoView({block: 'center'}); requestAnimationFrame(() =>"
+                                       " requestAnimationFrame(() => { const r = e.getBoundingClientRect();"
+                                       " done([r.width, r.height]); }));", element, timeout=10)
+
+        def move(x, y):  # WebDriver measures from the element's centre, in whole pixels
+            return {"type": "pointerMove", "origin": element, "x": int(round(x - width / 2)),
+                    "y": int(round(y - height / 2)), "duration": 0}
+
+        actions = [move(*points[0]), {"type": "pointerDown", "button": 0}]
+        actions += [move(*p) for p in points[1:]] + [{"type": "pointerUp", "button": 0}]
+        self.call("WebDriver:PerformActions", {"actions": [
+            {"type": "pointer", "id": "mouse", "parameters": {"pointerType": "mouse"}, "actions": actions}]})
+        self.call("WebDriver:ReleaseActions")
+
     def screenshot(self, path):
         data = self.call("WebDriver:TakeScreenshot", {"full": True, "hash": False}).get("value")
         Path(path).write_bytes(base64.b64decode(data))

@@ -350,6 +350,146 @@ def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fil
     assert_error(post("/api/models/nope/inpaint", files=good), 404, "no model")
 
 
+# ------------------------------------------------------------------ quality, several models
+@pytest.fixture(scope="module")
+def second(client):
+    """A second fitted model: builtin:cells with the fast settings (its id)."""
+    r = client.post("/api/models", files={"builtin": (None, "cells"), **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert r.status_code in (200, 202), r.text
+    stream = events(client, r.json()["job"])
+    assert stream[-1][1]["state"] == "done", stream[-3:]
+    return r.json()["id"]
+
+
+def test_quality_best_adds_the_patch_refinement(client, fitted):
+    model_id, _, _ = fitted
+    url = f"/api/models/{model_id}/images"
+    ask = {"size": [40, 40], "seed": 2, "n_patches": 300}
+    default = client.post(url, json=ask)
+    best = client.post(url, json={**ask, "quality": "best"})
+    assert default.status_code == best.status_code == 200, best.text
+    assert decoded(best.content).shape == (40, 40, 3) and best.content != default.content
+    assert client.post(url, json={**ask, "quality": "default"}).content == default.content
+    # a setting given as well overrides the preset, as with tghop synth --quality
+    assert client.post(url, json={**ask, "quality": "best", "patch_refine": 0}).content == default.content
+    for bad in ("great", 1, None, ["best"]):
+        assert_error(client.post(url, json={**ask, "quality": bad}), 422, "quality must be one of 'best', 'default'")
+    # a model without patch statistics: said, as tghop synth says it
+    r = client.post("/api/models", files={"builtin": (None, "bricks"), "patch_levels": (None, "0"),
+                                          **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert events(client, r.json()["job"])[-1][1]["state"] == "done"
+    flat = f"/api/models/{r.json()['id']}/images"
+    assert client.post(flat, json=ask).status_code == 200
+    assert_error(client.post(flat, json={**ask, "quality": "best"}), 422, "no patch statistics", "fit it again")
+
+
+def guide_b64(pixels, prefix=""):
+    import base64
+
+    return prefix + base64.b64encode(png_of(pixels)).decode()
+
+
+def closer(region, to, other):
+    """Whether the region's mean colour is nearer ``to``'s than ``other``'s."""
+    import numpy as np
+
+    mean = region.reshape(-1, 3).mean(axis=0)
+    return np.abs(mean - to.reshape(-1, 3).mean(axis=0)).sum() < np.abs(mean - other.reshape(-1, 3).mean(axis=0)).sum()
+
+
+def test_guided_paints_each_model_in_its_region_and_remixes_without_a_guide(client, fitted, second):
+    import numpy as np
+
+    bricks, cells = fitted[0], second
+    alone = {m: decoded(client.post(f"/api/models/{m}/images", json={"size": [64, 96], "seed": 1,
+                                                                     "n_patches": 400}).content)
+             for m in (bricks, cells)}
+    guide = np.zeros((64, 96), np.uint8)
+    guide[:, 48:] = 255  # the right half light: the second model
+    ask = {"models": [bricks, cells], "guide": guide_b64(guide), "seed": 3, "n_patches": 400, "transition": 8}
+    r = client.post("/api/images/guided", json=ask)
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "image/png" and r.headers["x-tghop-size"] == "64x96"
+    image = decoded(r.content)
+    assert image.shape == (64, 96, 3)
+    assert closer(image[:, :40], alone[bricks], alone[cells]) and closer(image[:, 56:], alone[cells], alone[bricks])
+    # the same request gives the same bytes; a data: URL and a size that agrees are taken too
+    again = client.post("/api/images/guided", json={**ask, "guide": guide_b64(guide, "data:image/png;base64,"),
+                                                     "size": [64, 96]})
+    assert again.content == r.content
+    swapped = decoded(client.post("/api/images/guided", json={**ask, "models": [cells, bricks]}).content)
+    assert closer(swapped[:, :40], alone[cells], alone[bricks])
+    remix = client.post("/api/images/guided", json={"models": [bricks, cells], "size": [48, 64], "seed": 1,
+                                                    "n_patches": 400})
+    assert remix.status_code == 200, remix.text
+    assert decoded(remix.content).shape == (48, 64, 3) and int(remix.headers["x-tghop-seed"]) == 1
+
+
+def test_morph_goes_from_a_to_b(client, fitted, second):
+    bricks, cells = fitted[0], second
+    alone = {m: decoded(client.post(f"/api/models/{m}/images", json={"size": [40, 64], "seed": 1,
+                                                                     "n_patches": 400}).content)
+             for m in (bricks, cells)}
+    r = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
+                                               "n_patches": 400})
+    assert r.status_code == 200, r.text
+    strip = decoded(r.content)
+    assert strip.shape == (40, 192, 3) and r.headers["x-tghop-size"] == "40x192"
+    assert closer(strip[:, :32], alone[bricks], alone[cells]) and closer(strip[:, -32:], alone[cells], alone[bricks])
+    again = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
+                                                   "n_patches": 400})
+    assert again.content == r.content
+
+
+def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitted, second, live_server):
+    import base64
+
+    import numpy as np
+
+    before = model_files(live_server.cache)
+    post = client.post
+    two = [fitted[0], second]
+    half = np.zeros((32, 48), np.uint8)
+    half[:, 24:] = 255
+    guided, morph = "/api/images/guided", "/api/images/morph"
+    # 422: sizes over the limit, settings out of range or unknown, too few or too many models
+    assert_error(post(guided, json={"models": two, "size": [10000, 10000]}), 422, "above the limit of 67,108,864")
+    assert_error(post(morph, json={"a": two[0], "b": two[1], "size": [9000, 9000]}), 422, "above the limit")
+    assert_error(post(guided, json={"models": two, "size": [0, 8]}), 422, "size must be positive")
+    assert_error(post(guided, json={"models": two[:1], "size": [32, 32]}), 422, "give 2 to 8")
+    assert_error(post(guided, json={"models": two * 5, "size": [32, 32]}), 422, "has 10 model ids")
+    assert_error(post(guided, json={"models": two[0], "size": [32, 32]}), 422, "models must be a list")
+    assert_error(post(guided, json={"size": [32, 32]}), 422, "no models")
+    assert_error(post(guided, json={"models": two, "transition": -1}), 422, "transition must be an integer")
+    assert_error(post(guided, json={"models": two, "seed": "x"}), 422, "seed must be")
+    for setting in ("quality", "patch_refine", "zoom"):
+        assert_error(post(guided, json={"models": two, setting: 1}), 422, f"unknown setting '{setting}'")
+    assert_error(post(morph, json={"a": two[0], "size": [32, 64]}), 422, "b must be a model id")
+    assert_error(post(morph, json={"a": two[0], "b": two[1], "tile": True}), 422, "unknown setting 'tile'")
+    assert_error(post(morph, json={"a": two[0], "b": two[1], "stations": 1}), 422, "stations must be")
+    # 404: no such model (well formed or not)
+    missing = "0" * 64
+    assert_error(post(guided, json={"models": [two[0], missing], "size": [32, 32]}), 404, "no model")
+    assert_error(post(guided, json={"models": ["../x", two[0]], "size": [32, 32]}), 404, "no model")
+    assert_error(post(morph, json={"a": missing, "b": two[1]}), 404, "no model")
+    # 400: bad guides (one line), a body that is not JSON or not an object
+    assert_error(post(guided, json={"models": two, "guide": "not base64!"}), 400, "guide is not valid base64")
+    assert_error(post(guided, json={"models": two, "guide": 7}), 400, "guide must be a PNG as a base64 string")
+    assert_error(post(guided, json={"models": two, "guide": base64.b64encode(b"hello").decode()}), 400,
+                 "guide.png: not a readable image")
+    three = half.copy()
+    three[:8] = 128
+    assert_error(post(guided, json={"models": two, "guide": guide_b64(three)}), 400,
+                 "the guide has 3 distinct grey levels/colours but 2 inputs")
+    assert_error(post(guided, json={"models": two, "guide": guide_b64(half), "size": [48, 48]}), 400,
+                 "the guide is 32x48 but the output is 48x48")
+    assert_error(post(guided, json={"models": two, "guide": base64.b64encode(png_header(30000, 30000)).decode()}),
+                 400, "too many pixels")
+    assert_error(post(guided, content=b"{not json"), 400, "not JSON")
+    assert_error(post(morph, json=[1, 2]), 400, "JSON object")
+    assert model_files(live_server.cache) == before
+
+
 def test_the_page_and_its_files_are_served(client):
     page = client.get("/")
     assert page.status_code == 200 and "text/html" in page.headers["content-type"]

@@ -1,7 +1,8 @@
 """``tghop serve``'s page in a real browser (Chromium through Playwright) against a real
 uvicorn server: pick builtin:bricks, watch the fit's progress bar finish, generate, and
 check the result's natural size and the 3x3 tiled preview; paint a hole with the brush in
-Inpaint mode and fill it."""
+Inpaint mode and fill it; with a second model, paint the right half in Paint mode, generate,
+and make a morph strip."""
 
 import io
 import os
@@ -23,6 +24,7 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-f
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_SCREENSHOT", "/tmp/tghop-serve-page.png")
 INPAINT_SCREENSHOT = os.environ.get("TGHOP_INPAINT_SCREENSHOT", "/tmp/tghop-inpaint-page.png")
+PAINT_SCREENSHOT = os.environ.get("TGHOP_PAINT_SCREENSHOT", "/tmp/tghop-paint-page.png")
 
 
 @pytest.fixture(scope="module")
@@ -118,10 +120,11 @@ RESULT_SHOWN = ("(() => { const i = document.getElementById('result');"
                 "document.getElementById('result-caption').textContent.startsWith('%s'); })()")
 
 
-def stroke(page, start, end):
-    """Drag the mouse over the mask from ``start`` to ``end`` (x, y in the picture's pixels)."""
-    box = page.locator("#mask").bounding_box()
-    width, height = page.eval_on_selector("#mask", "c => [c.width, c.height]")
+def stroke(page, start, end, canvas="#mask"):
+    """Drag the mouse over the canvas from ``start`` to ``end`` (x, y in the canvas's pixels)."""
+    page.locator(canvas).scroll_into_view_if_needed()
+    box = page.locator(canvas).bounding_box()
+    width, height = page.eval_on_selector(canvas, "c => [c.width, c.height]")
     sx, sy = box["width"] / width, box["height"] / height
     page.mouse.move(box["x"] + start[0] * sx, box["y"] + start[1] * sy)
     page.mouse.down()
@@ -217,4 +220,59 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     assert (filled[hole] != own[hole]).any(axis=1).mean() > 0.5
     mode(page, "view")
     assert page.is_visible("#pair") and page.is_hidden("#inpaint")
+    assert not page.errors, page.errors
+
+
+def test_paint_two_models_and_morph(page, live_server):
+    import numpy as np
+
+    mode(page, "view")
+    if not page.is_enabled("#go"):  # run alone: fit first
+        fit_bricks(page)
+    page.fill("#height", "40")
+    page.fill("#width", "40")
+    page.fill("#n_patches", "300")
+    page.uncheck("#tile")
+    page.select_option("#quality", "best")  # the preset goes with the request
+    page.click("#go")
+    page.wait_for_function(RESULT_SHOWN % "result: 40x40", timeout=60_000)
+    page.select_option("#quality", "default")
+    page.select_option("#builtin", "cells")  # a second model, with the same fast fit settings
+    page.wait_for_function("document.querySelectorAll('#paint-models input').length === 2", timeout=90_000)
+    page.fill("#height", "64")
+    page.fill("#width", "96")
+    mode(page, "paint")
+    assert page.is_visible("#paint") and page.is_visible("#pair")
+    page.wait_for_selector("#guide[data-ready='1']")
+    assert page.eval_on_selector("#guide", "c => [c.height, c.width]") == [64, 96]
+    assert page.eval_on_selector_all("#paint-models input", "b => b.map(x => x.checked)") == [True, True]
+    page.locator("label", has=page.locator("#paint-colour-1")).click()  # the second model's colour
+    assert page.is_checked("#paint-colour-1")
+    page.eval_on_selector("#paint-brush", "b => { b.value = '24'; b.dispatchEvent(new Event('input')); }")
+    for x in (60, 84):  # two strokes top to bottom: the right half, x 48 to 95
+        stroke(page, (x, 1), (x, 62), canvas="#guide")  # inside the canvas; the brush covers the edges
+    rgb = np.array(page.eval_on_selector("#guide", "c => Array.from(c.getContext('2d').getImageData("
+                                                   "0, 0, c.width, c.height).data)")).reshape(64, 96, 4)[..., :3]
+    first, second = (0xE6, 0x19, 0x4B), (0x3C, 0xB4, 0x4B)
+    assert (rgb[:, :48] == first).all() and (rgb[:, 48:] == second).all()
+    page.fill("#paint-seed", "2")
+    page.click("#paint-go")
+    page.wait_for_function(RESULT_SHOWN % "painted: 64x96, seed 2", timeout=60_000)
+    assert page.eval_on_selector("#result", "i => [i.naturalHeight, i.naturalWidth]") == [64, 96]
+    painted = np.array(page.eval_on_selector("#result", PIXELS)).reshape(64, 96, 4)[..., :3]
+    assert painted[:, :40].std() > 5 and painted[:, 56:].std() > 5  # texture on both sides
+    page.screenshot(path=PAINT_SCREENSHOT, full_page=True)
+    page.click("#remix-go")  # random regions of both, at the same size
+    page.wait_for_function(RESULT_SHOWN % "remix: 64x96, seed 2", timeout=60_000)
+    page.click("#paint-reset")  # all the first model's colour: said, not sent
+    page.click("#paint-go")
+    page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('paint some of builtin:cells')")
+    mode(page, "morph")
+    assert page.is_visible("#morph") and page.is_hidden("#paint")
+    assert page.eval_on_selector_all("#morph-b option", "o => o.length") == 2 and page.input_value("#morph-b") == "1"
+    page.fill("#morph-height", "32")
+    page.fill("#morph-width", "128")
+    page.click("#morph-go")
+    page.wait_for_function(RESULT_SHOWN % "morph: 32x128", timeout=60_000)
+    mode(page, "view")
     assert not page.errors, page.errors

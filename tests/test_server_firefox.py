@@ -2,7 +2,8 @@
 its own Marionette protocol: :mod:`marionette`) against a real uvicorn server: upload a
 small generated exemplar, watch the fit finish, generate, check the result's natural
 size and the 3x3 tiled preview, save a screenshot; then time a 512x512 result from the
-click.
+click; then fit a second model, paint the right half with its colour in Paint mode
+(pointer actions of WebDriver) and generate.
 
 No driver or browser is downloaded (geckodriver is in neither Debian nor PyPI, and
 Playwright drives its own patched Firefox): without a Firefox the test is skipped with
@@ -103,4 +104,37 @@ def test_a_512x512_result_appears_after_the_click_in_firefox(firefox, live_serve
     record_property("firefox_click_to_result_512_s", times)
     print("Firefox: 512x512 result " + ", ".join(f"{t:.2f} (server {s:.2f})" for t, s in times) + " s after the click")
     assert min(t for t, _ in times) < 30  # a loose bound on a loaded 2-core machine; docs/serve.md has the numbers
+    assert ff.run("return window.__errors") == []
+
+
+def test_paint_the_right_half_with_a_second_model_in_firefox(firefox, live_server):
+    ff = firefox
+    if ff.run("return document.getElementById('go').disabled"):
+        pytest.skip("needs the fitted model of the first test")
+    ff.fill("#height", "64")
+    ff.fill("#width", "96")
+    ff.fill("#n_patches", "300")
+    ff.run("const s = document.getElementById('builtin'); s.value = 'bricks';"
+           "s.dispatchEvent(new Event('change', {bubbles: true}));")  # a second model, the same fast fit
+    ff.wait_for("document.querySelectorAll('#paint-models input').length === 2", timeout=120)
+    ff.click("label:has(#mode-paint)")
+    ff.wait_for("document.getElementById('guide').dataset.ready === '1'")
+    assert ff.run("const c = document.getElementById('guide'); return [c.height, c.width]") == [64, 96]
+    ff.click("label:has(#paint-colour-1)")
+    assert ff.run("return document.getElementById('paint-colour-1').checked") is True
+    ff.fill("#paint-brush", "24")
+    scale = ff.run("const c = document.getElementById('guide'); return c.getBoundingClientRect().width / c.width")
+    for x in (60, 84):  # two strokes top to bottom: the right half, x 48 to 95
+        # from y 1 to 63: inside the canvas after WebDriver's rounding; the 24 px brush covers the edges
+        ff.drag("#guide", [(x * scale, y * scale) for y in range(1, 64, 6)] + [(x * scale, 63 * scale)])
+    halves = ff.run("const c = document.getElementById('guide'), d = c.getContext('2d').getImageData(0, 0, 96, 64).data;"
+                    "const px = (x, y) => Array.from(d.slice(4 * (y * 96 + x), 4 * (y * 96 + x) + 3)).join(',');"
+                    "const all = (x0, x1) => { const s = new Set(); for (let y = 0; y < 64; y++)"
+                    " for (let x = x0; x < x1; x++) s.add(px(x, y)); return [...s]; };"
+                    "return [all(0, 48), all(48, 96)];")
+    assert halves == [["230,25,75"], ["60,180,75"]]
+    ff.fill("#paint-seed", "2")
+    ff.click("#paint-go")
+    ff.wait_for("document.getElementById('result-caption').textContent === 'painted: 64x96, seed 2'", timeout=60)
+    assert ff.run("const i = document.getElementById('result'); return [i.naturalHeight, i.naturalWidth]") == [64, 96]
     assert ff.run("return window.__errors") == []

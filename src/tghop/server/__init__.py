@@ -3,6 +3,8 @@ textures, and the HTTP API under ``/api`` that the page uses (docs/serve.md).
 
 * :mod:`tghop.server.app`: the Starlette application (:func:`~tghop.server.app.create_app`),
   its routes and the model cache (files named by content hashes, written atomically);
+* :mod:`tghop.server.requests`: the generation routes' JSON, checked (one model, a guided
+  image or a remix of several, a morph);
 * :mod:`tghop.server.jobs`: the fit queue (a thread pool, progress through the library's
   callback, cancellation by an exception raised from it);
 * ``static/``: the page (HTML, CSS and JavaScript; no build step, nothing fetched from

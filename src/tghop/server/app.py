@@ -14,7 +14,8 @@ loaded, generated from or downloaded), never the one just added; a client then g
 
 Everything tghop does here is the library's own code: :func:`tghop.imageio.load_image`
 (with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
-:func:`tghop.inpaint.inpaint`, :func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with their
+:func:`tghop.inpaint.inpaint`, :func:`tghop.synthesize_guided` and :func:`tghop.morph` (several
+models; their JSON is checked by :mod:`tghop.server.requests`), :func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with their
 checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
 status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
@@ -39,6 +40,7 @@ from pathlib import Path
 
 from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from .jobs import FitQueue, QueueFull
+from .requests import RequestError, parse_bool, parse_generation, parse_guided, parse_morph
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -71,15 +73,6 @@ _DRAIN = 4
 _LOADED = 4
 #: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
 DEFAULT_CACHE_BYTES = 2 * 1000**3
-
-
-class RequestError(Exception):
-    """A bad request: answered with ``status`` and ``{"error": message}`` (one line)."""
-
-    def __init__(self, status: int, message: str):
-        super().__init__(message)
-        self.status = status
-        self.message = " ".join(str(message).split())
 
 
 def require_web(*, server: bool = False):
@@ -133,17 +126,6 @@ def fit_fields():
     return [s.name for s in fit_settings() if s.name not in _NOT_FIELDS] + ["k1", "k2", "k3", "paper"]
 
 
-def _parse_bool(name, value) -> bool:
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "on", "yes"):
-        return True
-    if text in ("0", "false", "off", "no", ""):
-        return False
-    raise RequestError(422, f"{name} must be true or false, got {value!r}")
-
-
 def parse_fit_settings(fields: dict) -> dict:
     """Form fields -> the options :func:`tghop.fit_options.build_model` takes, each checked by
     the settings table (422 with its one line)."""
@@ -158,7 +140,7 @@ def parse_fit_settings(fields: dict) -> dict:
         text = str(raw).strip()
         try:
             if name == "paper":
-                options[name] = _parse_bool(name, text)
+                options[name] = parse_bool(name, text)
             elif name in ("k1", "k2", "k3"):
                 if text == "":
                     continue
@@ -169,7 +151,7 @@ def parse_fit_settings(fields: dict) -> dict:
                 if text == "" and not s.none_ok:
                     continue
                 if s.kind == "bool":
-                    options[name] = _parse_bool(name, text)
+                    options[name] = parse_bool(name, text)
                 else:
                     value = s.check(None if text == "" else s.parse(text), label=name)
                     if s.cli_high is not None and value is not None and value > s.cli_high:
@@ -179,40 +161,6 @@ def parse_fit_settings(fields: dict) -> dict:
             message = str(exc) if isinstance(exc, TGHopError) else f"{name}: {text!r} is not a channel count"
             raise RequestError(422, message) from None
     return options
-
-
-def parse_generation(body) -> tuple:
-    """The JSON of ``POST /api/models/{id}/images`` -> ``(size, seed, settings)`` (422 for a
-    bad value, with the library's one line)."""
-    from .._common import MAX_PIXELS, check_size
-    from ..settings import generate_settings
-
-    if not isinstance(body, dict):
-        raise RequestError(400, "the body must be a JSON object, e.g. {\"size\": [256, 256], \"seed\": 1}")
-    names = [s.name for s in generate_settings()]
-    unknown = [k for k in body if k not in names + ["size", "seed", "paper"]]
-    if unknown:
-        raise RequestError(422, f"unknown setting {unknown[0]!r}; known: size, seed, paper, {', '.join(names)}")
-    try:
-        size = check_size(body.get("size", [256, 256]), limit=MAX_PIXELS, name="size")
-        seed = body.get("seed")
-        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63):
-            raise TGHopError(f"seed must be an integer from 0 to 2**63 - 1 or null, got {seed!r}")
-        paper = _parse_bool("paper", body.get("paper", False))
-        settings = {}
-        for s in generate_settings():
-            if s.name in body and (body[s.name] is not None or s.none_ok):
-                value = s.check(body[s.name], label=s.name)
-                if s.cli_high is not None and value is not None and value > s.cli_high:
-                    raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
-                settings[s.name] = value
-            elif paper and s.has_paper:
-                settings[s.name] = s.paper
-    except TGHopError as exc:
-        raise RequestError(422, str(exc)) from None
-    except RequestError:
-        raise
-    return size, seed, settings
 
 
 # ------------------------------------------------------------------ the cache
@@ -577,6 +525,9 @@ class Server:
         from ..imageio import write_png
 
         model = self.cache.load(model_id)
+        if settings.get("patch_refine") and getattr(model, "patches_", None) is None:  # as tghop synth says
+            raise RequestError(422, "this model holds no patch statistics for patch_refine or quality best (fitted "
+                                    "with patch_levels 0, or by tghop 0.14 or older); fit it again")
         with self.generating:
             try:
                 image = model.synthesize(size, rng=seed, dtype=np.uint8, **settings)
@@ -588,23 +539,88 @@ class Server:
         write_png(buf, image)
         return buf.getvalue()
 
-    async def generate(self, request):
-        model_id = request.path_params["id"]
-        self.cache.path(model_id)  # 404 for a malformed id before the body is read
-        body = await read_body(request, limit=1024 * 1024)
+    @staticmethod
+    async def _json_body(request, limit=1024 * 1024):
+        body = await read_body(request, limit=limit)
         try:
-            data = json.loads(body or b"{}")
+            return json.loads(body or b"{}")
         except ValueError:
             raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
-        size, seed, settings = parse_generation(data)
+
+    @staticmethod
+    async def _png_response(work, *args, seed):
+        """Run ``work(*args, seed)`` in a worker thread: its ``(png, (h, w))`` as the answer."""
         if seed is None:
             seed = secrets.randbelow(2**31)
         start = time.perf_counter()
-        png = await run_in_threadpool(self._generate, model_id, size, seed, settings)
+        png, size = await run_in_threadpool(work, *args, seed)
         took = (time.perf_counter() - start) * 1000
         return Response(png, media_type="image/png",
                         headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                                  "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"})
+
+    async def generate(self, request):
+        model_id = request.path_params["id"]
+        self.cache.path(model_id)  # 404 for a malformed id before the body is read
+        size, seed, settings = parse_generation(await self._json_body(request))
+
+        def work(seed):
+            return self._generate(model_id, size, seed, settings), size
+
+        return await self._png_response(work, seed=seed)
+
+    def _several(self, make, models, seed, size) -> tuple:
+        """``make(models, rng, dtype)`` under the bound on generations: the PNG and its size."""
+        import numpy as np
+
+        from ..imageio import write_png
+
+        with self.generating:
+            try:
+                image = make(models, seed, np.uint8)
+            except MemoryError:
+                raise RequestError(422, "out of memory; ask for a smaller image") from None
+            except TGHopError as exc:  # models that cannot be combined, a setting the library refuses
+                raise RequestError(422, str(exc)) from None
+        buf = io.BytesIO()
+        write_png(buf, image)
+        return buf.getvalue(), image.shape[:2]
+
+    def _guided(self, ids, guide, size, transition, settings, seed) -> tuple:
+        """Several models through a painted guide (its PNG's bytes), or a remix (None)."""
+        from ..guided import guide_labels, synthesize_guided
+        from ..imageio import load_image
+
+        models = [self.cache.load(model_id) for model_id in ids]
+        painted = None
+        if guide is not None:
+            painted = self._read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
+            try:
+                guide_labels(painted, len(models), size=size)
+            except TGHopError as exc:
+                raise RequestError(400, str(exc)) from None
+        return self._several(lambda m, rng, dtype: synthesize_guided(
+            m, painted, size=size, transition=transition, rng=rng, dtype=dtype, **settings), models, seed, size)
+
+    async def guided(self, request):
+        ids, guide, size, seed, transition, settings = parse_guided(
+            await self._json_body(request, limit=MAX_UPLOAD_BYTES))
+        for model_id in ids:
+            self.cache.path(model_id)  # 404 for a malformed id before any work
+        return await self._png_response(self._guided, ids, guide, size, transition, settings, seed=seed)
+
+    def _morph(self, ids, size, stations, settings, seed) -> tuple:
+        from ..guided import morph
+
+        models = [self.cache.load(model_id) for model_id in ids]
+        return self._several(lambda m, rng, dtype: morph(m[0], m[1], size, rng=rng, stations=stations, dtype=dtype,
+                                                         **settings), models, seed, size)
+
+    async def morph(self, request):
+        a, b, size, seed, stations, settings = parse_morph(await self._json_body(request))
+        for model_id in (a, b):
+            self.cache.path(model_id)
+        return await self._png_response(self._morph, [a, b], size, stations, settings, seed=seed)
 
     def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
         """Read the picture and its mask, fill the mask's white pixels with the model's
@@ -665,7 +681,7 @@ class Server:
             raise RequestError(422, f"seed must be an integer from 0 to 2**63 - 1, got {seed[:40]!r}")
         else:
             seed = int(seed)
-        tile = _parse_bool("tile", tile)
+        tile = parse_bool("tile", tile)
         png = await run_in_threadpool(self._inpaint, model_id, fields, seed, tile)
         return Response(png, media_type="image/png", headers={"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"})
 
@@ -734,6 +750,8 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         Route("/api/models/{id}/file", _wrap(server.model_file)),
         Route("/api/models/{id}/images", _wrap(server.generate), methods=["POST"]),
         Route("/api/models/{id}/inpaint", _wrap(server.inpaint), methods=["POST"]),
+        Route("/api/images/guided", _wrap(server.guided), methods=["POST"]),
+        Route("/api/images/morph", _wrap(server.morph), methods=["POST"]),
         Route("/api/jobs/{job}", _wrap(server.job_state)),
         Route("/api/jobs/{job}", _wrap(server.cancel_job), methods=["DELETE"]),
         Route("/api/jobs/{job}/events", _wrap(server.job_events)),

@@ -2,7 +2,8 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false };
+const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false,
+  models: [], pendingName: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false };
@@ -31,10 +32,13 @@ function setExemplar(url) {
 function updateButtons() {
   $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId;
   $("fill").disabled = state.busy || !state.modelId || !editor.blob;
+  $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
+  $("morph-go").disabled = state.busy || state.models.length < 2;
 }
 
 function setModel(id) {
   state.modelId = id;
+  if (id) addSessionModel(id, state.pendingName);
   updateButtons();
   const link = $("download-model");
   if (id) {
@@ -145,6 +149,7 @@ async function cancelFit() {
 
 function fitFile(file) {
   if (!file) return;
+  state.pendingName = file.name;
   $("builtin").value = "";
   setExemplar(URL.createObjectURL(file));
   const form = fitFields();
@@ -154,6 +159,7 @@ function fitFile(file) {
 
 function fitBuiltin(name) {
   if (!name) return;
+  state.pendingName = `builtin:${name}`;
   setExemplar(`/api/builtins/${name}.png`);
   const form = fitFields();
   form.append("builtin", name);
@@ -172,6 +178,7 @@ async function uploadModel(file) {
   });
   if (!response.ok) { say(await errorOf(response), true); return; }
   const { id } = await response.json();
+  state.pendingName = file.name;
   setModel(id);
   say(`model ${file.name} loaded: generate below`);
   showSummary(id);
@@ -189,6 +196,7 @@ function generation(seed, size) {
   if (refine !== "") body.refine = Number(refine);
   const pool = $("n_patches").value.trim();
   if (pool !== "") body.n_patches = Number(pool);
+  if ($("quality").value !== "default") body.quality = $("quality").value;
   return body;
 }
 
@@ -301,7 +309,14 @@ function setMode(mode) {
   const inpaint = mode === "inpaint";
   document.body.classList.toggle("inpaint", inpaint);
   $("inpaint").hidden = !inpaint;
+  $("paint").hidden = mode !== "paint";
+  $("morph").hidden = mode !== "morph";
   if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
+  if (mode === "paint") {
+    resizeGuide();
+    if (state.models.length < 2) sayPaint("fit or load a second model above to paint with two");
+  }
+  if (mode === "morph" && state.models.length < 2) sayMorph("fit or load a second model above: A and B");
 }
 
 // The picture to paint on: the latest result, or a picture the user chose.
@@ -334,8 +349,8 @@ function clearMask() {
   canvas.getContext("2d").clearRect(0, 0, canvas.width, canvas.height);
 }
 
-function brushPoint(event) {
-  const canvas = $("mask");
+function brushPoint(event, canvas) {
+  canvas = canvas || $("mask");
   const rect = canvas.getBoundingClientRect();
   return [(event.clientX - rect.left) * canvas.width / rect.width,
     (event.clientY - rect.top) * canvas.height / rect.height];
@@ -363,10 +378,11 @@ function onBrushDown(event) {
 }
 
 // A circle of the brush's size follows the pointer over the picture.
-function moveCursor(event) {
-  const canvas = $("mask"), cursor = $("brush-cursor");
+function moveCursor(event, canvas, cursor, brush) {
+  canvas = canvas || $("mask");
+  cursor = cursor || $("brush-cursor");
   const rect = canvas.getBoundingClientRect();
-  const size = Number($("brush").value) * rect.width / canvas.width;
+  const size = Number((brush || $("brush")).value) * rect.width / canvas.width;
   cursor.style.width = cursor.style.height = `${size}px`;
   cursor.style.left = `${event.clientX - rect.left}px`;
   cursor.style.top = `${event.clientY - rect.top}px`;
@@ -374,7 +390,7 @@ function moveCursor(event) {
 }
 
 function onBrushMove(event) {
-  moveCursor(event);
+  moveCursor(event, null, null, null);
   if (!editor.painting) return;
   const point = brushPoint(event);
   paint(editor.last, point);
@@ -434,6 +450,258 @@ function onPicture(file) {
   setEditorPicture(file, file.name);
 }
 
+// ------------------------------------------------------------------ several models: paint, remix, morph
+// Every model fitted or loaded on this page (state.models) has a brush colour of its own.
+const PALETTE = ["#e6194b", "#3cb44b", "#4363d8", "#ffe119", "#911eb4", "#f58231", "#42d4f4", "#f032e6"];
+const MAX_PICKED = 4;
+// The guide: one label per pixel (an index into state.models), drawn in the models' colours.
+// Painted by hand (not with the canvas's antialiased strokes), so every pixel is exactly one model's.
+const guide = { labels: null, h: 0, w: 0, last: null, painting: false };
+
+function sayPaint(text, isError) {
+  const el = $("paint-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+function sayMorph(text, isError) {
+  const el = $("morph-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+function colourOf(index) { return PALETTE[index % PALETTE.length]; }
+
+function swatch(index) {
+  const el = document.createElement("span");
+  el.className = "swatch";
+  el.style.background = colourOf(index);
+  return el;
+}
+
+function addSessionModel(id, name) {
+  if (state.models.some((m) => m.id === id)) return;
+  const index = state.models.length;
+  const label = `${name || "model"} (${id.slice(0, 8)})`;
+  state.models.push({ id, name: label, picked: pickedModels().length < MAX_PICKED });
+  renderModels();
+  if (!$("morph-a").value) $("morph-a").value = String(index);
+  if (index > 0 && $("morph-b").value === $("morph-a").value) $("morph-b").value = String(index);
+}
+
+function pickedModels() {
+  return state.models.map((m, index) => ({ ...m, index })).filter((m) => m.picked);
+}
+
+function renderModels() {
+  const list = $("paint-models");
+  list.textContent = "";
+  state.models.forEach((m, index) => {
+    const label = document.createElement("label");
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.checked = m.picked;
+    box.dataset.index = String(index);
+    box.addEventListener("change", () => {
+      if (box.checked && pickedModels().length >= MAX_PICKED) {
+        box.checked = false;
+        sayPaint(`paint with at most ${MAX_PICKED} models: unpick one first`, true);
+        return;
+      }
+      m.picked = box.checked;
+      renderColours();
+      updateButtons();
+    });
+    label.append(box, swatch(index), m.name);
+    list.append(label);
+  });
+  for (const id of ["morph-a", "morph-b"]) {
+    const select = $(id), old = select.value;
+    select.textContent = "";
+    state.models.forEach((m, index) => {
+      const option = document.createElement("option");
+      option.value = String(index);
+      option.textContent = m.name;
+      select.append(option);
+    });
+    if (old) select.value = old;
+  }
+  renderColours();
+  updateButtons();
+}
+
+// One brush colour per picked model; the first picked is the background of a new canvas.
+function renderColours() {
+  const group = $("paint-colours"), old = brushLabel();
+  group.textContent = "";
+  for (const m of pickedModels()) {
+    const label = document.createElement("label");
+    const radio = document.createElement("input");
+    radio.type = "radio";
+    radio.name = "paint-colour";
+    radio.value = String(m.index);
+    radio.id = `paint-colour-${m.index}`;
+    label.title = m.name;
+    label.append(radio, swatch(m.index), m.name.split(" (")[0]);
+    group.append(label);
+  }
+  const radios = group.querySelectorAll("input");
+  const keep = [...radios].find((r) => Number(r.value) === old);
+  if (keep) keep.checked = true; else if (radios.length) radios[radios.length > 1 ? 1 : 0].checked = true;
+}
+
+function brushLabel() {
+  const chosen = document.querySelector("input[name=paint-colour]:checked");
+  return chosen ? Number(chosen.value) : null;
+}
+
+// A new canvas at the output's size (the height and width of Generate), all the first picked model.
+function resizeGuide(force) {
+  const h = Number($("height").value), w = Number($("width").value);
+  if (!(h > 0 && w > 0 && h * w <= 4096 * 4096)) { sayPaint("set a height and width above first", true); return; }
+  if (!force && guide.labels && guide.h === h && guide.w === w) return;
+  const first = pickedModels()[0];
+  guide.h = h;
+  guide.w = w;
+  guide.labels = new Uint8Array(h * w).fill(first ? first.index : 0);
+  const canvas = $("guide");
+  canvas.width = w;
+  canvas.height = h;
+  // Small outputs are shown larger to paint on (up to 4 times, at most 640 pixels wide).
+  canvas.style.width = `${Math.max(w, Math.min(4 * w, 640))}px`;
+  drawGuide(0, 0, w, h);
+  canvas.dataset.ready = "1";
+}
+
+function drawGuide(x0, y0, x1, y1) {
+  const w = x1 - x0, h = y1 - y0;
+  if (w <= 0 || h <= 0) return;
+  const rgb = PALETTE.map((c) => [1, 3, 5].map((k) => parseInt(c.slice(k, k + 2), 16)));
+  const ctx = $("guide").getContext("2d");
+  const image = ctx.createImageData(w, h);
+  for (let y = 0; y < h; y++) {
+    for (let x = 0; x < w; x++) {
+      const c = rgb[guide.labels[(y + y0) * guide.w + x + x0] % rgb.length], o = 4 * (y * w + x);
+      image.data[o] = c[0]; image.data[o + 1] = c[1]; image.data[o + 2] = c[2]; image.data[o + 3] = 255;
+    }
+  }
+  ctx.putImageData(image, x0, y0);
+}
+
+// Discs of the brush's diameter along the segment, in whole pixels.
+function paintGuide(from, to) {
+  const label = brushLabel();
+  if (label === null || !guide.labels) return;
+  const r = Number($("paint-brush").value) / 2;
+  const steps = Math.max(1, Math.ceil(Math.hypot(to[0] - from[0], to[1] - from[1]) / Math.max(1, r / 2)));
+  const x0 = Math.max(0, Math.floor(Math.min(from[0], to[0]) - r)), x1 = Math.min(guide.w, Math.ceil(Math.max(from[0], to[0]) + r));
+  const y0 = Math.max(0, Math.floor(Math.min(from[1], to[1]) - r)), y1 = Math.min(guide.h, Math.ceil(Math.max(from[1], to[1]) + r));
+  for (let s = 0; s <= steps; s++) {
+    const cx = from[0] + (to[0] - from[0]) * s / steps, cy = from[1] + (to[1] - from[1]) * s / steps;
+    for (let y = Math.max(y0, Math.floor(cy - r)); y < Math.min(y1, Math.ceil(cy + r)); y++) {
+      for (let x = Math.max(x0, Math.floor(cx - r)); x < Math.min(x1, Math.ceil(cx + r)); x++) {
+        if ((x + 0.5 - cx) ** 2 + (y + 0.5 - cy) ** 2 <= r * r) guide.labels[y * guide.w + x] = label;
+      }
+    }
+  }
+  drawGuide(x0, y0, x1, y1);
+}
+
+function onGuideDown(event) {
+  if (event.button !== 0 || !guide.labels) return;
+  event.preventDefault();
+  $("guide").setPointerCapture(event.pointerId);
+  guide.painting = true;
+  guide.last = brushPoint(event, $("guide"));
+  paintGuide(guide.last, guide.last);
+}
+
+function onGuideMove(event) {
+  moveCursor(event, $("guide"), $("guide-cursor"), $("paint-brush"));
+  if (!guide.painting) return;
+  const point = brushPoint(event, $("guide"));
+  paintGuide(guide.last, point);
+  guide.last = point;
+}
+
+function onGuideUp() {
+  guide.painting = false;
+  guide.last = null;
+}
+
+// The guide as the API wants it: the picked models' grey levels, darkest for the first (a data: URL).
+function guidePng(picked) {
+  const used = new Set(guide.labels);
+  const stray = [...used].find((k) => !picked.some((m) => m.index === k));
+  if (stray !== undefined) throw new Error(`the canvas has paint of ${state.models[stray].name}, which is not picked: pick it or paint over it`);
+  const unused = picked.find((m) => !used.has(m.index));
+  if (unused) throw new Error(`paint some of ${unused.name} (its colour) or unpick it`);
+  const level = new Map(picked.map((m, j) => [m.index, Math.round(255 * j / (picked.length - 1))]));
+  const out = document.createElement("canvas");
+  out.width = guide.w;
+  out.height = guide.h;
+  const ctx = out.getContext("2d");
+  const image = ctx.createImageData(guide.w, guide.h);
+  for (let i = 0; i < guide.labels.length; i++) {
+    const v = level.get(guide.labels[i]);
+    image.data[4 * i] = image.data[4 * i + 1] = image.data[4 * i + 2] = v;
+    image.data[4 * i + 3] = 255;
+  }
+  ctx.putImageData(image, 0, 0);
+  return out.toDataURL("image/png");
+}
+
+// The generation settings that several models take (not the quality preset: one model's).
+function severalSettings(body) {
+  const one = generation(null);
+  for (const name of ["tile", "refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
+  return body;
+}
+
+async function postImage(url, body) {
+  const response = await fetch(url, {
+    method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
+  });
+  if (!response.ok) throw new Error(await errorOf(response));
+  return [await response.blob(), response.headers.get("X-Tghop-Seed")];
+}
+
+function onPaintGenerate(remix) {
+  const picked = pickedModels();
+  if (picked.length < 2) return;
+  withBusy($(remix ? "remix-go" : "paint-go"), async () => {
+    const body = severalSettings({ models: picked.map((m) => m.id), seed: Number($("paint-seed").value) });
+    if (remix) {
+      body.size = [Number($("height").value), Number($("width").value)];
+    } else {
+      resizeGuide();
+      body.guide = guidePng(picked);
+      body.transition = Number($("transition").value);
+    }
+    sayPaint(remix ? "remixing" : "generating");
+    const [blob, seed] = await postImage("/api/images/guided", body);
+    showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted");
+    sayPaint(`done (seed ${seed}): the result is below`);
+  }, sayPaint);
+}
+
+function onMorph() {
+  const a = state.models[Number($("morph-a").value)], b = state.models[Number($("morph-b").value)];
+  if (!a || !b) return;
+  withBusy($("morph-go"), async () => {
+    const body = {
+      a: a.id, b: b.id, seed: Number($("morph-seed").value),
+      size: [Number($("morph-height").value), Number($("morph-width").value)],
+    };
+    const one = generation(null);
+    for (const name of ["refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
+    sayMorph("morphing");
+    const [blob, seed] = await postImage("/api/images/morph", body);
+    showResult(URL.createObjectURL(blob), seed, blob, "morph");
+    sayMorph(`done (seed ${seed}): the strip is below`);
+  }, sayMorph);
+}
+
 // ------------------------------------------------------------------ wiring
 async function init() {
   const select = $("builtin");
@@ -467,6 +735,20 @@ async function init() {
   mask.addEventListener("pointerup", onBrushUp);
   mask.addEventListener("pointercancel", onBrushUp);
   mask.addEventListener("pointerleave", () => { $("brush-cursor").hidden = true; });
+  const canvas = $("guide");
+  canvas.addEventListener("pointerdown", onGuideDown);
+  canvas.addEventListener("pointermove", onGuideMove);
+  canvas.addEventListener("pointerup", onGuideUp);
+  canvas.addEventListener("pointercancel", onGuideUp);
+  canvas.addEventListener("pointerleave", () => { $("guide-cursor").hidden = true; });
+  $("paint-brush").addEventListener("input", () => { $("paint-brush-size").textContent = `${$("paint-brush").value} px`; });
+  $("paint-reset").addEventListener("click", () => { resizeGuide(true); sayPaint(""); });
+  for (const id of ["height", "width"]) {
+    $(id).addEventListener("change", () => { if (!$("paint").hidden) resizeGuide(); });
+  }
+  $("paint-go").addEventListener("click", () => onPaintGenerate(false));
+  $("remix-go").addEventListener("click", () => onPaintGenerate(true));
+  $("morph-go").addEventListener("click", onMorph);
   $("zoom").addEventListener("change", (e) => document.body.classList.toggle("zoom", e.target.checked));
   const drop = $("drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });

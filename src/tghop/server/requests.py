@@ -1,0 +1,177 @@
+"""The JSON bodies of the generation routes, checked (docs/serve.md): one image from a
+model (``POST /api/models/{id}/images``), several models through a painted guide or a
+remix (``POST /api/images/guided``), a morph between two (``POST /api/images/morph``).
+
+Every bad value is a :class:`RequestError` with its status and one line: 400 for a body
+that is not a JSON object or a guide that is not base64, 422 for a setting out of its
+range or unknown, a size over the output limit.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import re
+
+from .._errors import TGHopError
+
+__all__ = ["RequestError", "parse_bool", "parse_generation", "parse_guided", "parse_morph", "MAX_MODELS",
+           "MAX_TRANSITION"]
+
+#: Most models in one guided image (a painted guide or a remix).
+MAX_MODELS = 8
+#: Widest transition between painted regions the server takes, in pixels.
+MAX_TRANSITION = 512
+
+
+class RequestError(Exception):
+    """A bad request: answered with ``status`` and ``{"error": message}`` (one line)."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status = status
+        self.message = " ".join(str(message).split())
+
+
+def parse_bool(name, value) -> bool:
+    """``true``/``false`` (or 1/0, on/off, yes/no, a JSON boolean); 422 otherwise."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "on", "yes"):
+        return True
+    if text in ("0", "false", "off", "no", ""):
+        return False
+    raise RequestError(422, f"{name} must be true or false, got {value!r}")
+
+
+def _integer(name, value, low, high, *, none_ok=False):
+    if value is None and none_ok:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        top = "2**63 - 1" if high == 2**63 - 1 else f"{high:,}"
+        raise TGHopError(f"{name} must be an integer from {low} to {top}{' or null' if none_ok else ''}, "
+                         f"got {value!r}")
+    return value
+
+
+def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -> tuple:
+    """A generation's JSON -> ``(size, seed, settings)`` (422 for a bad value, with the
+    library's one line).
+
+    Parameters
+    ----------
+    body : object
+        The decoded JSON: ``size``, ``seed``, ``paper``, ``quality`` (unless skipped) and
+        the generation settings of the settings table.
+    skip : sequence of str
+        Settings the route does not take (refused as unknown).
+    default_size : (int, int) or None
+        The size when ``size`` is missing (None: None is returned).
+    what : str
+        The route's name in the message of a body that is not an object.
+    """
+    from .._common import MAX_PIXELS, check_size
+    from ..settings import QUALITY, generate_settings
+
+    if not isinstance(body, dict):
+        raise RequestError(400, f"the body of {what} must be a JSON object, e.g. {{\"size\": [256, 256], \"seed\": 1}}")
+    table = [s for s in generate_settings() if s.name not in skip]
+    known = ["size", "seed", "paper"] + (["quality"] if "quality" not in skip else []) + [s.name for s in table]
+    unknown = [k for k in body if k not in known]
+    if unknown:
+        raise RequestError(422, f"unknown setting {str(unknown[0])[:40]!r}; known: {', '.join(known)}")
+    try:
+        size = body.get("size")
+        size = default_size if size is None else size
+        size = None if size is None else check_size(size, limit=MAX_PIXELS, name="size")
+        seed = _integer("seed", body.get("seed"), 0, 2**63 - 1, none_ok=True)
+        paper = parse_bool("paper", body.get("paper", False))
+        quality = body.get("quality", "default")
+        if not isinstance(quality, str) or quality not in QUALITY:
+            raise TGHopError(f"quality must be one of {', '.join(repr(q) for q in sorted(QUALITY))}, "
+                             f"got {quality!r}")
+        preset = QUALITY[quality]
+        settings = {}
+        for s in table:
+            if s.name in body and (body[s.name] is not None or s.none_ok):
+                value = s.check(body[s.name], label=s.name)
+                if s.cli_high is not None and value is not None and value > s.cli_high:
+                    raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
+                settings[s.name] = value
+            elif s.name in preset:  # as tghop synth --quality: a setting given as well overrides it
+                settings[s.name] = preset[s.name]
+            elif paper and s.has_paper:
+                settings[s.name] = s.paper
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    return size, seed, settings
+
+
+def _model_ids(value, name, low, high) -> list:
+    """A list of model ids (each a string; a malformed one is 404 when it is looked up)."""
+    ids = value if isinstance(value, list) else None
+    if ids is None or not all(isinstance(i, str) for i in ids):
+        raise RequestError(422, f"{name} must be a list of model ids (the \"id\" of POST /api/models), "
+                                f"got {str(value)[:60]!r}")
+    if not low <= len(ids) <= high:
+        raise RequestError(422, f"{name} has {len(ids)} model ids; give {low} to {high}")
+    return ids
+
+
+def decode_guide(value) -> bytes:
+    """The guide's image file from base64 (a ``data:`` URL's prefix is dropped); 400 when it
+    is not base64."""
+    if not isinstance(value, str):
+        raise RequestError(400, "guide must be a PNG as a base64 string (or a data: URL), "
+                                "or left out for a remix")
+    text = re.sub(r"^data:[^,]{0,100},", "", value.strip())
+    try:
+        content = base64.b64decode(text, validate=True)
+    except (binascii.Error, ValueError):
+        raise RequestError(400, "guide is not valid base64; send the PNG's bytes base64-encoded") from None
+    if not content:
+        raise RequestError(400, "guide is empty; send a PNG painted with one grey level per model")
+    return content
+
+
+def parse_guided(body) -> tuple:
+    """The JSON of ``POST /api/images/guided`` -> ``(ids, guide bytes or None, size, seed,
+    transition, settings)``. ``size`` is None when a guide gives it."""
+    if not isinstance(body, dict):
+        raise RequestError(400, "the body must be a JSON object, e.g. {\"models\": [ID1, ID2], \"size\": [256, 256]}")
+    body = dict(body)
+    if "models" not in body:
+        raise RequestError(422, "no models: give \"models\": a list of 2 or more model ids (1 with a guide)")
+    guide = body.pop("guide", None)
+    ids = _model_ids(body.pop("models"), "models", 1 if guide is not None else 2, MAX_MODELS)
+    guide = None if guide is None else decode_guide(guide)
+    try:
+        transition = _integer("transition", body.pop("transition", 32), 0, MAX_TRANSITION)
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    size, seed, settings = parse_generation(body, skip=("patch_refine", "quality"),
+                                            default_size=None if guide is not None else (256, 256),
+                                            what="/api/images/guided")
+    return ids, guide, size, seed, transition, settings
+
+
+def parse_morph(body) -> tuple:
+    """The JSON of ``POST /api/images/morph`` -> ``(id_a, id_b, size, seed, stations,
+    settings)``."""
+    if not isinstance(body, dict):
+        raise RequestError(400, "the body must be a JSON object, e.g. {\"a\": ID1, \"b\": ID2, \"size\": [256, 1024]}")
+    body = dict(body)
+    ids = []
+    for name in ("a", "b"):
+        value = body.pop(name, None)
+        if not isinstance(value, str):
+            raise RequestError(422, f"{name} must be a model id (the \"id\" of POST /api/models), got {value!r}")
+        ids.append(value)
+    try:
+        stations = _integer("stations", body.pop("stations", None), 2, 256, none_ok=True)
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    size, seed, settings = parse_generation(body, skip=("patch_refine", "quality", "tile"), default_size=(256, 1024),
+                                            what="/api/images/morph")
+    return ids[0], ids[1], size, seed, stations, settings
