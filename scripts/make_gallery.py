@@ -2,8 +2,12 @@
 
     python scripts/make_gallery.py
 
+    python scripts/make_gallery.py control        # only some sheets: bricks, cells, control
+
 Writes docs/gallery/{bricks,cells}.png: exemplar | 256x256 result | tileable result 2x2 |
-generated 32x32 patches | Fig. 6 stage views.
+generated 32x32 patches | Fig. 6 stage views; and docs/gallery/control.png: an inpainted
+image (hole outlined) | a guide map and the image it paints from two models | a morph strip,
+saved with a 256-colour palette to keep it small.
 """
 
 from __future__ import annotations
@@ -17,16 +21,65 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _common import image_sheet  # noqa: E402
 
-from tghop import data  # noqa: E402
+from tghop import data, morph, synthesize_guided  # noqa: E402
+from tghop.inpaint import inpaint  # noqa: E402
 from tghop.patches import patch_grid, stage_sheet  # noqa: E402
 from tghop.imageio import save_image  # noqa: E402
 from tghop.synthesis import TGHop  # noqa: E402
 
 
+def outline(image, hole, colour=(1.0, 0.85, 0.0)):
+    """``image`` (H, W, 3) with the 1 px border just outside ``hole`` (H, W) drawn in ``colour``."""
+    from scipy.ndimage import binary_dilation
+
+    out = np.array(image, dtype=np.float64)
+    out[binary_dilation(hole) & ~hole] = colour
+    return out
+
+
+def control_sheet():
+    """Inpainting, guided synthesis and morph from the built-in exemplars, one row."""
+    bricks, cells = TGHop(rng=0).fit(data.builtin("bricks")), TGHop(rng=0).fit(data.builtin("cells"))
+    # Inpainting: another draw of the built-in bricks, an irregular hole (two overlapping discs, 27 %).
+    n = 192
+    image = data.builtin("bricks", n, rng=5)
+    yy, xx = np.mgrid[:n, :n]
+    hole = ((yy - 90) ** 2 + (xx - 80) ** 2 < 50 ** 2) | ((yy - 115) ** 2 + (xx - 125) ** 2 < 35 ** 2)
+    model = TGHop(rng=0).fit(image, exclude=hole)  # what `tghop inpaint` does without --source
+    filled = inpaint(model, image, hole, rng=1)
+    holed = image.copy()
+    holed[hole] = 0.5
+    # Guided: bricks everywhere but a disc of cells (map: dark = first model).
+    guide = np.where((yy - n // 2) ** 2 + (xx - n // 2) ** 2 < 60 ** 2, 255, 0).astype(np.uint8)
+    painted = synthesize_guided([bricks, cells], guide, rng=1)
+    strip = morph(bricks, cells, (n, 4 * n), rng=1)
+    return image_sheet(
+        [outline(holed, hole), outline(filled, hole), guide.astype(np.float64) / 255, painted, strip],
+        ["tghop inpaint: hole", "filled (outlined)", "--guide map", "synth bricks cells --guide",
+         "tghop morph bricks cells"],
+        height=n,
+    )
+
+
+def save_small(sheet, path):
+    """``sheet`` as a PNG with a 256-colour palette (about a third of the RGB file)."""
+    from PIL import Image
+
+    img = Image.fromarray(np.round(np.clip(sheet, 0, 1) * 255).astype(np.uint8))
+    img.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(path, optimize=True)
+
+
 def main():
     out = ROOT / "docs" / "gallery"
     out.mkdir(parents=True, exist_ok=True)
-    for name in ("bricks", "cells"):
+    names = sys.argv[1:] or ["bricks", "cells", "control"]
+    unknown = sorted(set(names) - {"bricks", "cells", "control"})
+    if unknown:
+        raise SystemExit(f"unknown sheet {unknown[0]!r}; choose from bricks, cells, control")
+    if "control" in names:
+        save_small(control_sheet(), out / "control.png")
+        print(out / "control.png")
+    for name in [n for n in names if n != "control"]:
         exemplar = data.builtin(name)
         model = TGHop(rng=0).fit(exemplar)
         image = model.synthesize((256, 256), rng=1)
