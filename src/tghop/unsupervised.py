@@ -98,6 +98,12 @@ def kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000):
     return labels, centres.astype(np.float64)
 
 
+def _orthonormal(w, tol=0.01) -> bool:
+    """Whether every row of ``w`` has unit length within ``tol`` (False for NaN): the
+    symmetric decorrelation of a singular FastICA update blows a direction up instead."""
+    return bool(np.abs(np.einsum("ij,ij->i", w, w) - 1.0).max() <= tol)
+
+
 def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
     """Symmetric FastICA (Hyvarinen 1999) with the logcosh contrast on whitened data.
 
@@ -127,16 +133,25 @@ def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
 
     # The iterations run in float32 (tanh and the products cost a fifth of float64's; the
     # tolerance is far above float32's resolution); the result is orthogonalised in float64.
-    w = decorrelate(check_rng(rng).standard_normal((k, k))).astype(np.float32)
+    w = good = decorrelate(check_rng(rng).standard_normal((k, k))).astype(np.float32)
     x = np.asarray(white, dtype=np.float32)
     xt = np.ascontiguousarray(x.T)
     converged = False
     for _ in range(int(max_iter)):
         g = np.tanh(w @ xt)
         w_new = decorrelate(g @ x / n - (1.0 - g**2).mean(axis=1)[:, None] * w)
+        if not np.isfinite(w_new).all():
+            break  # the decorrelation broke down: the last orthonormal iterate below
         change = np.max(np.abs(np.abs(np.einsum("ij,ij->i", w_new, w)) - 1.0))
         w = w_new
+        if _orthonormal(w):
+            good = w
         if change < tol:
             converged = True
             break
-    return decorrelate(w.astype(np.float64)), converged
+    out = decorrelate(w.astype(np.float64))
+    if not _orthonormal(out):
+        # A singular update (few samples in many dimensions) blew a direction up and the
+        # iterations ended there: the last orthogonal iterate instead, unconverged.
+        return decorrelate(good.astype(np.float64)), False
+    return out, converged
