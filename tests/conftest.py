@@ -1,10 +1,20 @@
 """Shared fixtures: small textures made in code and a small fitted model (no ../shared)."""
 
+import signal
+
 import numpy as np
 import pytest
 
 from tghop import data
 from tghop.synthesis import TGHop
+
+# Tests send SIGINT, SIGTERM and SIGHUP to commands they start. A suite run in the
+# background (`cmd &` ignores SIGINT) or under nohup (SIGHUP) would pass those ignored
+# dispositions on to every child: restore the defaults, for the children's sake.
+for _sig, _default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGHUP, signal.SIG_DFL),
+                       (signal.SIGTERM, signal.SIG_DFL)):
+    if signal.getsignal(_sig) == signal.SIG_IGN:
+        signal.signal(_sig, _default)
 
 #: Fast settings for tests: the paper's pipeline, fewer clusters and patches.
 SMALL = dict(n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, stride=4, rng=0)
