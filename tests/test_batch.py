@@ -248,6 +248,7 @@ def test_local_cluster_run(tmp_path, cluster):
     results = run(src, out, count=2, client=client)
     by = {r["name"]: r for r in results}
     assert [by[n]["status"] for n in ("a", "bad", "flat", "sub__a")] == ["ok", "failed", "failed", "ok"]
+    assert all(0 < by[n]["peak_rss_mb"] < 4096 for n in ("a", "sub__a"))  # this worker's own peak
     workers = {by[n]["worker"].split(":")[1] for n in by}
     assert str(os.getpid()) not in workers  # ran in the worker processes
     for name in ("a", "sub__a"):
