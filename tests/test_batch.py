@@ -248,6 +248,7 @@ def test_local_cluster_run(tmp_path, cluster):
     results = run(src, out, count=2, client=client)
     by = {r["name"]: r for r in results}
     assert [by[n]["status"] for n in ("a", "bad", "flat", "sub__a")] == ["ok", "failed", "failed", "ok"]
+    assert all(0 < by[n]["peak_rss_mb"] < 4096 for n in ("a", "sub__a"))  # this worker's own peak
     workers = {by[n]["worker"].split(":")[1] for n in by}
     assert str(os.getpid()) not in workers  # ran in the worker processes
     for name in ("a", "sub__a"):
@@ -311,3 +312,51 @@ def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
     assert failed["status"] == "failed" and "died on every try" in failed["error"]
     assert not leftovers(out2) and not (out2 / "a").exists()
     assert ledger(out2)[0]["status"] == "failed"
+
+
+def _wait_idle(client, timeout=60):
+    """Until the cluster runs nothing: a task already running when its client cancelled it
+    goes on to its end on the worker (Dask cannot stop a running thread)."""
+    deadline = time.time() + timeout
+    while time.time() < deadline and any(client.processing().values()):
+        time.sleep(0.1)
+    assert not any(client.processing().values())
+
+
+def test_ctrl_c_with_a_scheduler_address_leaves_the_cluster_running(tmp_path, cluster):
+    # Ctrl-C to `python -m tghop batch --scheduler ADDRESS` alone (the cluster is not in its
+    # process group): it stops with one line, the cluster lives on, and a rerun finishes.
+    _, client = cluster
+    src = make_folder(tmp_path / "src", bad=False)
+    for i in range(6):
+        save_image(data.bricks(64, rng=7 + i), src / f"c{i}.png")
+    args = [sys.executable, "-m", "tghop", "batch", "src", "-o", "out", "--scheduler", cluster[0].scheduler_address,
+            "--size", "48", "--seed", "1", *CLI_FAST]
+    out = tmp_path / "out"
+    p = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 60
+    while (time.time() < deadline and p.poll() is None
+           and not ((out / "batch.jsonl").exists() and (out / "batch.jsonl").read_text().endswith("\n"))):
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err.decode()
+    assert_one_line(p.returncode, err.decode(), "interrupted after", "run the same command again")
+    lines = ledger(out)
+    done = len(lines)
+    assert 1 <= done < 8 and len({line["name"] for line in lines}) == done
+    _wait_idle(client)
+    assert not leftovers(out)
+    # the scheduler and both workers survive the client's Ctrl-C
+    assert len(client.scheduler_info()["workers"]) == 2
+    assert client.submit(sum, [1, 2], pure=False).result(timeout=30) == 3
+    p = subprocess.run(args, cwd=tmp_path, capture_output=True, timeout=120)
+    assert p.returncode == 0, p.stderr.decode()
+    assert f"8 of 8 exemplars done ({done} by an earlier run)" in p.stderr.decode()
+    lines = ledger(out)
+    names = sorted(line["name"] for line in lines)
+    assert names == sorted(["a", "sub__a"] + [f"c{i}" for i in range(6)])  # each exactly once
+    assert all(line["status"] == "ok" for line in lines)
+    for line in lines:
+        assert all((out / f).is_file() for f in line["outputs"] + [line["model"]])
+    assert not leftovers(out)

@@ -352,8 +352,22 @@ def process_exemplar(job: dict) -> dict:
         except OSError:
             pass
     record["seconds"] = time.time() - start
-    record["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    record["peak_rss_mb"] = _peak_rss_mb(resource)
     return record
+
+
+def _peak_rss_mb(resource) -> float:
+    """This process's peak resident memory in MB: VmHWM where Linux gives it, since
+    ``ru_maxrss`` survives fork and exec (a spawned Dask worker would report its parent's
+    peak when that is larger)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except (OSError, ValueError):
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 # ------------------------------------------------------------------ the ledger
