@@ -25,6 +25,7 @@ request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel
 from __future__ import annotations
 
 import asyncio
+import functools
 import hashlib
 import io
 import json
@@ -35,10 +36,12 @@ import tempfile
 import threading
 import time
 import warnings
-from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
+from . import cooc
+from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FitQueue, QueueFull
 from .requests import RequestError, parse_bool, parse_generation, parse_guided, parse_morph
 
@@ -64,15 +67,10 @@ MAX_UPLOAD_BYTES = 50 * 1024 * 1024
 STATIC = Path(__file__).resolve().parent / "static"
 #: Fit settings the API takes as form fields (besides ``paper`` and ``k1``/``k2``/``k3``).
 _NOT_FIELDS = ("n_channels", "rng")
-_ID = re.compile(r"[0-9a-f]{64}\Z")
 _JOB = re.compile(r"[0-9a-f]{32}\Z")
 #: An upload over the limit is read (and dropped) up to this many times the limit, then the
 #: connection is closed.
 _DRAIN = 4
-#: Fitted models kept in memory (the last used ones).
-_LOADED = 4
-#: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
-DEFAULT_CACHE_BYTES = 2 * 1000**3
 
 
 def require_web(*, server: bool = False):
@@ -163,122 +161,6 @@ def parse_fit_settings(fields: dict) -> dict:
     return options
 
 
-# ------------------------------------------------------------------ the cache
-class ModelCache:
-    """Model files named by id in ``<cache>/models``, the last used models in memory; the
-    folder kept under ``max_bytes`` (None: no bound) by dropping the least recently used
-    files."""
-
-    def __init__(self, cache_dir, max_bytes: int | None = DEFAULT_CACHE_BYTES):
-        self.max_bytes = max_bytes
-        self.root = Path(cache_dir).expanduser()
-        self.models = self.root / "models"
-        try:
-            self.models.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise TGHopError(f"{self.models}: cannot create the cache folder ({exc.strerror}); "
-                             "choose another with --cache") from None
-        for stale in self.models.glob(".*.tmp"):  # left by a server killed while writing
-            try:
-                stale.unlink()
-            except OSError:
-                pass
-        self._loaded = OrderedDict()
-        self._lock = threading.Lock()
-        self.prune()  # the bound may be lower than the last server's
-
-    def touch(self, model_id: str) -> None:
-        """Mark the model's file as used now (what :meth:`prune` orders by)."""
-        try:
-            os.utime(self.path(model_id))
-        except OSError:  # gone meanwhile: it is fitted again when asked for
-            pass
-
-    def size(self) -> int:
-        """Bytes of the model files in the folder."""
-        return sum(size for _, size, _ in self._files())
-
-    def _files(self):
-        out = []
-        for entry in os.scandir(self.models):
-            if entry.name.endswith(".npz") and _ID.match(entry.name[:-4]):
-                try:
-                    st = entry.stat()
-                except OSError:
-                    continue
-                out.append((st.st_mtime, st.st_size, entry.name[:-4]))
-        return out
-
-    def prune(self, keep: str | None = None) -> list:
-        """Remove the least recently used model files until the folder is within
-        ``max_bytes`` (``keep``: an id never removed, the model just added); returns the
-        ids removed."""
-        if self.max_bytes is None:
-            return []
-        files = sorted(self._files())
-        total = sum(size for _, size, _ in files)
-        removed = []
-        for _, size, model_id in files:
-            if total <= self.max_bytes:
-                break
-            if model_id == keep:
-                continue
-            try:
-                os.unlink(self.models / f"{model_id}.npz")
-            except FileNotFoundError:
-                pass
-            except OSError:
-                continue
-            total -= size
-            removed.append(model_id)
-            with self._lock:
-                self._loaded.pop(model_id, None)
-        return removed
-
-    def added(self, model_id: str, model) -> None:
-        """A model file was just written: keep the model in memory and the folder in bounds."""
-        self.remember(model_id, model)
-        self.prune(keep=model_id)
-
-    def path(self, model_id: str) -> Path:
-        if not _ID.match(model_id):
-            raise RequestError(404, f"no model {model_id[:80]!r}; fit one with POST /api/models")
-        return self.models / f"{model_id}.npz"
-
-    def has(self, model_id: str) -> bool:
-        return self.path(model_id).is_file()
-
-    def remember(self, model_id: str, model) -> None:
-        with self._lock:
-            self._loaded[model_id] = model
-            self._loaded.move_to_end(model_id)
-            while len(self._loaded) > _LOADED:
-                self._loaded.popitem(last=False)
-
-    def load(self, model_id: str):
-        """The fitted model (404 if there is none)."""
-        from ..modelfile import load_model
-
-        path = self.path(model_id)
-        with self._lock:
-            model = self._loaded.get(model_id)
-            if model is not None:
-                self._loaded.move_to_end(model_id)
-        if model is not None:
-            if path.is_file():
-                self.touch(model_id)
-                return model
-            with self._lock:  # removed by the bound (or by hand): as if never fitted
-                self._loaded.pop(model_id, None)
-        if not path.is_file():
-            raise RequestError(404, f"no model {model_id}; fit one with POST /api/models "
-                                    "(or it is still being fitted: see its job)")
-        model = load_model(path)
-        self.touch(model_id)
-        self.remember(model_id, model)
-        return model
-
-
 # ------------------------------------------------------------------ requests
 async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
     """The request's body, or 413 as soon as it is over ``limit`` bytes."""
@@ -329,8 +211,17 @@ class Server:
 
     def __init__(self, cache_dir, max_fits: int, cache_bytes=DEFAULT_CACHE_BYTES):
         self.cache = ModelCache(cache_dir, cache_bytes)
+        self.cooc = cooc.cooc_cache(cache_dir, cache_bytes)
         self.queue = FitQueue(max_fits)
         self.generating = threading.BoundedSemaphore(max_fits)
+        # Generations (and their image reading and PNG encoding) run on threads of their own,
+        # as many as may generate at once, not on Starlette's pool of 40: fewer threads
+        # touching big arrays, fewer glibc malloc arenas holding freed memory (docs/serve.md).
+        self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
+
+    async def in_executor(self, work, *args):
+        """``work(*args)`` on a generation thread (:attr:`executor`)."""
+        return await asyncio.get_running_loop().run_in_executor(self.executor, functools.partial(work, *args))
 
     # ---------------------------------------------------------------- fitting
     def prepare_fit(self, fields: dict):
@@ -547,13 +438,12 @@ class Server:
         except ValueError:
             raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
 
-    @staticmethod
-    async def _png_response(work, *args, seed):
-        """Run ``work(*args, seed)`` in a worker thread: its ``(png, (h, w))`` as the answer."""
+    async def _png_response(self, work, *args, seed):
+        """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer."""
         if seed is None:
             seed = secrets.randbelow(2**31)
         start = time.perf_counter()
-        png, size = await run_in_threadpool(work, *args, seed)
+        png, size = await self.in_executor(work, *args, seed)
         took = (time.perf_counter() - start) * 1000
         return Response(png, media_type="image/png",
                         headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
@@ -682,8 +572,58 @@ class Server:
         else:
             seed = int(seed)
         tile = parse_bool("tile", tile)
-        png = await run_in_threadpool(self._inpaint, model_id, fields, seed, tile)
+        png = await self.in_executor(self._inpaint, model_id, fields, seed, tile)
         return Response(png, media_type="image/png", headers={"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"})
+
+    # ---------------------------------------------------------------- co-occurrence
+    async def upload_cooc(self, request):
+        cooc.require_torch()
+        body = await read_body(request)
+        if request.headers.get("content-type", "").startswith("multipart/form-data"):
+            fields = await read_form(request, body)
+            upload = fields.get("checkpoint")
+            if not isinstance(upload, tuple):
+                raise RequestError(400, "no checkpoint: send it as the file field 'checkpoint' (or as the whole body)")
+            filename, content = upload
+        else:
+            filename, content = "the upload", body
+        cid = await run_in_threadpool(cooc.store_checkpoint, self.cooc, content, _safe_name(filename, "the upload"))
+        return _json({"id": cid})
+
+    def _cooc_id(self, request) -> str:
+        cooc.require_torch()
+        cid = request.path_params["id"]
+        self.cooc.path(cid)  # 404 for a malformed id before the body is read
+        return cid
+
+    async def cooc_summary(self, request):
+        cid = self._cooc_id(request)
+        return _json(await run_in_threadpool(cooc.summary, self.cooc, cid))
+
+    async def cooc_morph(self, request):
+        cid = self._cooc_id(request)
+        a, b, crop, length, seed, windows = cooc.parse_morph(await self._json_body(request))
+
+        def work(seed):
+            with self.generating:
+                return cooc.morph_png(self.cooc.load(cid), a, b, crop, length, windows, seed)
+
+        return await self._png_response(work, seed=seed)
+
+    async def cooc_edit(self, request):
+        from ..imageio import load_image
+
+        cid = self._cooc_id(request)
+        size, labels, crops, seed, windows = cooc.parse_edit(await self._json_body(request, limit=MAX_UPLOAD_BYTES))
+
+        def read_labels(content):
+            return self._read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
+
+        def work(seed):
+            with self.generating:
+                return cooc.edit_png(self.cooc.load(cid), size, labels, crops, windows, seed, read_labels)
+
+        return await self._png_response(work, seed=seed)
 
     # ---------------------------------------------------------------- the rest
     async def builtin_image(self, request):
@@ -752,6 +692,10 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         Route("/api/models/{id}/inpaint", _wrap(server.inpaint), methods=["POST"]),
         Route("/api/images/guided", _wrap(server.guided), methods=["POST"]),
         Route("/api/images/morph", _wrap(server.morph), methods=["POST"]),
+        Route("/api/cooc", _wrap(server.upload_cooc), methods=["POST"]),
+        Route("/api/cooc/{id}", _wrap(server.cooc_summary)),
+        Route("/api/cooc/{id}/morph", _wrap(server.cooc_morph), methods=["POST"]),
+        Route("/api/cooc/{id}/edit", _wrap(server.cooc_edit), methods=["POST"]),
         Route("/api/jobs/{job}", _wrap(server.job_state)),
         Route("/api/jobs/{job}", _wrap(server.cancel_job), methods=["DELETE"]),
         Route("/api/jobs/{job}/events", _wrap(server.job_events)),
@@ -765,6 +709,7 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
     async def lifespan(app):
         yield
         await run_in_threadpool(server.queue.shutdown)
+        server.executor.shutdown(wait=False, cancel_futures=True)
 
     app = Starlette(routes=routes, exception_handlers={HTTPException: http_error}, lifespan=_lifespan(lifespan))
     app.state.server = server

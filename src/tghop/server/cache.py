@@ -1,0 +1,161 @@
+"""The server's cache folders: model files named by id, the last used in memory, the folder
+bounded by dropping the least recently used files (docs/serve.md, "Files and safety").
+
+:class:`ModelCache` keeps one kind of file in one folder: TGHop models (``<cache>/models/<id>.npz``,
+the default) or co-occurrence checkpoints (``<cache>/cooc/<id>.pt``, :mod:`tghop.server.cooc`).
+An id is 64 hex digits (a content hash); anything else is 404 before the file system is asked.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import threading
+from collections import OrderedDict
+from pathlib import Path
+
+from .._errors import TGHopError
+from .requests import RequestError
+
+__all__ = ["ModelCache", "DEFAULT_CACHE_BYTES", "ID"]
+
+#: An id: 64 hex digits.
+ID = re.compile(r"[0-9a-f]{64}\Z")
+#: Fitted models kept in memory (the last used ones).
+_LOADED = 4
+#: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
+DEFAULT_CACHE_BYTES = 2 * 1000**3
+
+
+def _load_model(path):
+    from ..modelfile import load_model
+
+    return load_model(path)
+
+
+class ModelCache:
+    """Model files named by id in ``<cache>/<folder>``, the last used models in memory; the
+    folder kept under ``max_bytes`` (None: no bound) by dropping the least recently used
+    files.
+
+    Parameters
+    ----------
+    cache_dir : str or os.PathLike
+    max_bytes : int or None
+    folder, suffix : str
+        The folder in ``cache_dir`` and the files' suffix (``models``, ``.npz``: TGHop models).
+    load : callable, optional
+        ``load(path)`` -> the model (default :func:`tghop.modelfile.load_model`).
+    what, hint : str
+        The kind of file and how to make one, in the 404 message.
+    """
+
+    def __init__(self, cache_dir, max_bytes: int | None = DEFAULT_CACHE_BYTES, *, folder: str = "models",
+                 suffix: str = ".npz", load=None, what: str = "model", hint: str = "fit one with POST /api/models"):
+        self.max_bytes = max_bytes
+        self.suffix, self.what, self.hint = suffix, what, hint
+        self._load = load or _load_model
+        self.root = Path(cache_dir).expanduser()
+        self.models = self.root / folder
+        try:
+            self.models.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise TGHopError(f"{self.models}: cannot create the cache folder ({exc.strerror}); "
+                             "choose another with --cache") from None
+        for stale in self.models.glob(".*.tmp"):  # left by a server killed while writing
+            try:
+                stale.unlink()
+            except OSError:
+                pass
+        self._loaded = OrderedDict()
+        self._lock = threading.Lock()
+        self.prune()  # the bound may be lower than the last server's
+
+    def touch(self, model_id: str) -> None:
+        """Mark the model's file as used now (what :meth:`prune` orders by)."""
+        try:
+            os.utime(self.path(model_id))
+        except OSError:  # gone meanwhile: it is fitted again when asked for
+            pass
+
+    def size(self) -> int:
+        """Bytes of the model files in the folder."""
+        return sum(size for _, size, _ in self._files())
+
+    def _files(self):
+        out, n = [], len(self.suffix)
+        for entry in os.scandir(self.models):
+            if entry.name.endswith(self.suffix) and ID.match(entry.name[:-n]):
+                try:
+                    st = entry.stat()
+                except OSError:
+                    continue
+                out.append((st.st_mtime, st.st_size, entry.name[:-n]))
+        return out
+
+    def prune(self, keep: str | None = None) -> list:
+        """Remove the least recently used model files until the folder is within
+        ``max_bytes`` (``keep``: an id never removed, the model just added); returns the
+        ids removed."""
+        if self.max_bytes is None:
+            return []
+        files = sorted(self._files())
+        total = sum(size for _, size, _ in files)
+        removed = []
+        for _, size, model_id in files:
+            if total <= self.max_bytes:
+                break
+            if model_id == keep:
+                continue
+            try:
+                os.unlink(self.models / f"{model_id}{self.suffix}")
+            except FileNotFoundError:
+                pass
+            except OSError:
+                continue
+            total -= size
+            removed.append(model_id)
+            with self._lock:
+                self._loaded.pop(model_id, None)
+        return removed
+
+    def added(self, model_id: str, model) -> None:
+        """A model file was just written: keep the model in memory and the folder in bounds."""
+        self.remember(model_id, model)
+        self.prune(keep=model_id)
+
+    def path(self, model_id: str) -> Path:
+        if not ID.match(model_id):
+            raise RequestError(404, f"no {self.what} {model_id[:80]!r}; {self.hint}")
+        return self.models / f"{model_id}{self.suffix}"
+
+    def has(self, model_id: str) -> bool:
+        return self.path(model_id).is_file()
+
+    def remember(self, model_id: str, model) -> None:
+        with self._lock:
+            self._loaded[model_id] = model
+            self._loaded.move_to_end(model_id)
+            while len(self._loaded) > _LOADED:
+                self._loaded.popitem(last=False)
+
+    def load(self, model_id: str):
+        """The fitted model (404 if there is none)."""
+        path = self.path(model_id)
+        with self._lock:
+            model = self._loaded.get(model_id)
+            if model is not None:
+                self._loaded.move_to_end(model_id)
+        if model is not None:
+            if path.is_file():
+                self.touch(model_id)
+                return model
+            with self._lock:  # removed by the bound (or by hand): as if never fitted
+                self._loaded.pop(model_id, None)
+        if not path.is_file():
+            extra = " (or it is still being fitted: see its job)" if self.what == "model" else ""
+            raise RequestError(404, f"no {self.what} {model_id}; {self.hint}{extra}")
+        model = self._load(path)
+        self.touch(model_id)
+        self.remember(model_id, model)
+        return model

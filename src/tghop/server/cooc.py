@@ -1,0 +1,289 @@
+"""The co-occurrence cGAN (:mod:`tghop.cooc`, Darzi et al.) on the server: checkpoints
+uploaded into the cache, their morph and their edit (docs/serve.md, ``/api/cooc``).
+
+* :func:`cooc_cache` -- the checkpoints' cache folder, ``<cache>/cooc/<id>.pt`` (the id is
+  the SHA-256 of the file), bounded and kept in memory like the models;
+* :func:`store_checkpoint` -- an upload checked by :func:`tghop.cooc.load` (``torch.load``
+  with ``weights_only=True``: no code in the file runs) in a temporary file, then renamed;
+* :func:`parse_morph` / :func:`parse_edit` -- the JSON of the two generation routes;
+* :func:`morph_png` / :func:`edit_png` -- what ``tghop cooc morph`` and ``tghop cooc edit``
+  do with crops of the exemplar (:meth:`tghop.cooc.CoocGAN.crop_condition`,
+  :meth:`~tghop.cooc.CoocGAN.morph_strip`, :func:`tghop.cooc.paint_condition`,
+  :meth:`~tghop.cooc.CoocGAN.generate`), as PNG bytes.
+
+PyTorch (the ``metrics`` extra) is imported only when a checkpoint is read; without it
+every route here answers 501 (:func:`require_torch`) and the rest of the server works.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import functools
+import hashlib
+import importlib.util
+import io
+import os
+import re
+import tempfile
+
+from .._errors import TGHopError
+from .cache import ModelCache
+from .requests import RequestError, parse_bool
+
+__all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "require_torch", "cooc_cache",
+           "store_checkpoint", "summary", "parse_morph", "parse_edit", "morph_png", "edit_png"]
+
+#: The 501 answer without PyTorch.
+TORCH_HINT = "the co-occurrence endpoints need PyTorch; install it with: pip install 'tghop[metrics]'"
+#: How to make a checkpoint (404 messages).
+COOC_HINT = "upload one with POST /api/cooc (a checkpoint written by 'tghop cooc train')"
+#: Largest co-occurrence image the server makes (the generator's activations at full size
+#: are about 16 x 4 bytes a pixel per layer for the small configuration).
+MAX_COOC_PIXELS = 2048 * 2048
+#: Most crops (labels) of an edit.
+MAX_CROPS = 8
+#: Longest morph strip, in condition cells.
+MAX_LENGTH = 1024
+
+
+def require_torch() -> None:
+    """501 with one line unless PyTorch can be imported."""
+    try:
+        present = importlib.util.find_spec("torch") is not None
+    except (ImportError, ValueError):  # torch set to None in sys.modules
+        present = False
+    if not present:
+        raise RequestError(501, TORCH_HINT)
+
+
+def _load(path):
+    from ..cooc import load
+
+    return load(path)
+
+
+def cooc_cache(cache_dir, max_bytes) -> ModelCache:
+    """The checkpoints' folder, ``<cache_dir>/cooc`` (bounded by ``max_bytes`` on its own)."""
+    return ModelCache(cache_dir, max_bytes, folder="cooc", suffix=".pt", load=_load,
+                      what="co-occurrence checkpoint", hint=COOC_HINT)
+
+
+def store_checkpoint(cache: ModelCache, content: bytes, filename: str) -> str:
+    """Check an uploaded checkpoint and keep it under its SHA-256 (400 if it is not a good
+    co-occurrence checkpoint; nothing is left in the cache either way): its id."""
+    if not content:
+        raise RequestError(400, f"{filename} is empty; send a checkpoint written by 'tghop cooc train'")
+    cid = hashlib.sha256(content).hexdigest()
+    final = cache.path(cid)
+    if final.is_file():
+        cache.touch(cid)
+        return cid
+    fd, tmp = tempfile.mkstemp(prefix=f".upload-{cid[:12]}.", suffix=".tmp", dir=cache.models)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(content)
+        try:
+            model = _load(tmp)
+        except TGHopError as exc:
+            raise RequestError(400, str(exc).replace(tmp, filename)) from None
+        except MemoryError:
+            raise RequestError(413, f"{filename}: not enough memory to read this checkpoint") from None
+        os.replace(tmp, final)
+        tmp = None
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+    cache.added(cid, model)
+    return cid
+
+
+@functools.lru_cache(maxsize=1)
+def _builtin_hashes() -> dict:
+    """``{exemplar hash: name}`` of the built-in exemplars as ``tghop cooc train builtin:NAME``
+    reads them (the hash a checkpoint stores: SHA-1 of the 8-bit pixels, 16 hex digits)."""
+    import numpy as np
+
+    from ..data import BUILTIN, builtin
+
+    return {hashlib.sha1(np.round(builtin(name) * 255).astype(np.uint8).tobytes()).hexdigest()[:16]: name
+            for name in sorted(BUILTIN)}
+
+
+def summary(cache: ModelCache, cid: str) -> dict:
+    """What the page needs of a checkpoint: the exemplar's shape (to pick crops on), the
+    crop size, ``s`` (crop positions are rounded down to multiples of it), the training
+    steps, and ``builtin``: the built-in exemplar it was trained on, or None."""
+    model = cache.load(cid)
+    st = model.settings_
+    return {"id": cid, "file_bytes": cache.path(cid).stat().st_size, "exemplar_shape": list(model.exemplar_shape_),
+            "crop_size": int(st["crop_size"]), "s": int(model.s), "n_clusters": int(st["n_clusters"]),
+            "step": int(model.step_), "n_steps": int(st["n_steps"]), "exemplar_hash": model.exemplar_hash_,
+            "builtin": _builtin_hashes().get(model.exemplar_hash_)}
+
+
+# ------------------------------------------------------------------ the JSON
+def _int(name, value, low, high, *, none_ok=False):
+    if value is None and none_ok:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise RequestError(422, f"{name} must be an integer from {low} to {high:,}{' or null' if none_ok else ''}, "
+                                f"got {str(value)[:40]!r}")
+    return value
+
+
+def _crop(name, value):
+    """A crop's position ``[y, x]`` (pixels of the exemplar, >= 0): ``(y, x)``."""
+    if (not isinstance(value, (list, tuple)) or len(value) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < 2**31 for v in value)):
+        raise RequestError(422, f"{name} must be a crop's position [y, x] in pixels of the exemplar, "
+                                f"got {str(value)[:60]!r}")
+    return int(value[0]), int(value[1])
+
+
+def _object(body, known, example):
+    if not isinstance(body, dict):
+        raise RequestError(400, f"the body must be a JSON object, e.g. {example}")
+    unknown = [k for k in body if k not in known]
+    if unknown:
+        raise RequestError(422, f"unknown field {str(unknown[0])[:40]!r}; known: {', '.join(known)}")
+    return body
+
+
+def _common(body) -> tuple:
+    seed = _int("seed", body.get("seed"), 0, 2**63 - 1, none_ok=True)
+    return seed, parse_bool("windows", body.get("windows", False))
+
+
+def parse_morph(body) -> tuple:
+    """The JSON of ``POST /api/cooc/{id}/morph`` -> ``(a, b, crop, length, seed, windows)``.
+
+    ``a``, ``b``: crop positions ``[y, x]``; ``crop``: the crops' side in pixels (null: the
+    checkpoint's training crop size); ``length``: the strip's length in cells (2 to
+    :data:`MAX_LENGTH`, default 8); ``seed``; ``windows``.
+    """
+    body = _object(body, ("a", "b", "crop", "length", "seed", "windows"),
+                   '{"a": [0, 0], "b": [64, 64], "length": 8, "seed": 1}')
+    for name in ("a", "b"):
+        if name not in body:
+            raise RequestError(422, f"no {name}: give \"a\" and \"b\", the crops' positions [y, x] in the exemplar")
+    a, b = _crop("a", body["a"]), _crop("b", body["b"])
+    crop = _int("crop", body.get("crop"), 1, 8192, none_ok=True)
+    length = _int("length", body.get("length", 8), 2, MAX_LENGTH)
+    return (a, b, crop, length, *_common(body))
+
+
+def _labels_png(value) -> bytes:
+    if not isinstance(value, str):
+        raise RequestError(400, "labels must be a PNG as a base64 string (or a data: URL)")
+    text = re.sub(r"^data:[^,]{0,100},", "", value.strip())
+    try:
+        content = base64.b64decode(text, validate=True)
+    except (binascii.Error, ValueError):
+        raise RequestError(400, "labels is not valid base64; send the PNG's bytes base64-encoded") from None
+    if not content:
+        raise RequestError(400, "labels is empty; send a PNG painted with one grey level per crop")
+    return content
+
+
+def parse_edit(body) -> tuple:
+    """The JSON of ``POST /api/cooc/{id}/edit`` -> ``(size, labels PNG bytes or None, crops,
+    seed, windows)``.
+
+    ``size``: ``[height, width]`` (or one number; default the labels' size, or ``[256, 256]``
+    without labels; at most :data:`MAX_COOC_PIXELS` pixels; None is returned for the labels'
+    size); ``crops``: 1 to :data:`MAX_CROPS` positions ``[y, x]``,
+    one per label; ``labels``: a PNG of ``size`` as base64, one flat grey level per crop, the
+    darkest for the first (:func:`tghop.guided.guide_labels`; may be left out with one crop);
+    ``seed``; ``windows``.
+    """
+    from .._common import check_size
+
+    body = _object(body, ("size", "labels", "crops", "seed", "windows"),
+                   '{"size": [256, 256], "crops": [[0, 0], [64, 64]], "labels": "<PNG as base64>", "seed": 1}')
+    crops = body.get("crops")
+    if not isinstance(crops, list) or not 1 <= len(crops) <= MAX_CROPS:
+        raise RequestError(422, f"crops must be a list of 1 to {MAX_CROPS} crop positions [y, x] (one per label), "
+                                f"got {str(crops)[:60]!r}")
+    crops = [_crop(f"crops[{i}]", c) for i, c in enumerate(crops)]
+    labels = body.get("labels")
+    size = body.get("size")
+    try:
+        size = None if size is None and labels is not None else check_size(
+            [256, 256] if size is None else size, limit=MAX_COOC_PIXELS, name="size")
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    if labels is None and len(crops) > 1:
+        raise RequestError(422, f"{len(crops)} crops but no labels: send labels, a PNG painted with one grey "
+                                "level per crop (the darkest for the first)")
+    return (size, None if labels is None else _labels_png(labels), crops, *_common(body))
+
+
+# ------------------------------------------------------------------ the work
+def _png(image) -> bytes:
+    from ..imageio import to_uint8, write_png
+
+    buf = io.BytesIO()
+    write_png(buf, to_uint8(image))
+    return buf.getvalue()
+
+
+def _conditions(model, crops, crop=None):
+    try:
+        return [model.crop_condition(y, x, crop) for y, x in crops]
+    except TGHopError as exc:  # a crop outside the exemplar
+        raise RequestError(422, str(exc)) from None
+
+
+def morph_png(model, a, b, crop, length, windows, seed) -> tuple:
+    """``tghop cooc morph MODEL crop:A crop:B --length LENGTH``: ``(png, (h, w))``."""
+    s = model.s
+    side = max(1, int(model.settings_["crop_size"] if crop is None else crop) // s) * s
+    if side * length * s > MAX_COOC_PIXELS:
+        raise RequestError(422, f"a {side}x{length * s} strip is over the server's {MAX_COOC_PIXELS:,} pixels; "
+                                "ask for a shorter strip or smaller crops")
+    ca, cb = _conditions(model, [a, b], crop)
+    try:
+        image = model.morph_strip(ca, cb, length=length, rng=seed, windows=windows)
+    except MemoryError:
+        raise RequestError(422, "out of memory; ask for a shorter strip") from None
+    return _png(image), image.shape[:2]
+
+
+def edit_png(model, size, labels, crops, windows, seed, read_labels) -> tuple:
+    """``tghop cooc edit MODEL crop:... --mask LABELS``: every crop's statistics where its
+    label is painted (each cell of ``s`` x ``s`` pixels takes its centre pixel's label):
+    ``(png, (h, w))``. ``read_labels(png bytes)`` decodes the label map's image."""
+    import numpy as np
+
+    from ..cooc import paint_condition
+    from ..guided import guide_labels
+
+    tensors = _conditions(model, crops)
+    pixels = None
+    if labels is not None:
+        painted = read_labels(labels)
+        if size is None:
+            size = painted.shape[:2]
+            if size[0] * size[1] > MAX_COOC_PIXELS:
+                raise RequestError(422, f"labels is {size[0]}x{size[1]}, over the server's {MAX_COOC_PIXELS:,} pixels")
+        try:
+            pixels = guide_labels(painted, len(crops), size=size)
+        except TGHopError as exc:
+            raise RequestError(400, str(exc).replace("the guide", "the label map").replace("inputs", "crops")) from None
+    s, (h, w) = model.s, size
+    hh, ww = -(-h // s), -(-w // s)
+    if pixels is None:
+        cells = np.zeros((hh, ww), dtype=np.int64)
+    else:
+        rows = np.minimum(np.arange(hh) * s + s // 2, h - 1)
+        cols = np.minimum(np.arange(ww) * s + s // 2, w - 1)
+        cells = pixels[rows][:, cols]
+    try:
+        image = model.generate(paint_condition(tensors, cells), rng=seed, windows=windows)[:h, :w]
+    except MemoryError:
+        raise RequestError(422, "out of memory; ask for a smaller image") from None
+    return _png(image), image.shape[:2]

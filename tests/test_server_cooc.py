@@ -1,0 +1,233 @@
+"""``tghop serve``'s co-occurrence routes (``/api/cooc``) on a real uvicorn server: upload a
+tiny checkpoint trained here, morph and edit with crops of its exemplar (the same images as
+the library's calls), and every kind of bad input; without PyTorch, 501."""
+
+import base64
+import hashlib
+import io
+import os
+import sys
+
+import numpy as np
+import pytest
+
+httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+from test_server import assert_error  # noqa: E402
+
+try:
+    import torch  # noqa: F401
+except ImportError:
+    torch = None
+needs_torch = pytest.mark.skipif(torch is None, reason="PyTorch is not installed (pip install -e '.[metrics]'): "
+                                                       "the co-occurrence routes answer 501 without it")
+
+#: A tiny configuration (tests/test_cooc.py's): 32 x 32 crops, s = 8, two steps; trains in a few seconds.
+TINY = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
+            noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _threads(one_torch_thread):
+    yield
+
+
+@pytest.fixture(scope="module")
+def client(live_server):
+    with httpx.Client(base_url=live_server.url, timeout=120) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def exemplar():
+    from tghop import data
+
+    return data.bricks(64, rng=3)
+
+
+@pytest.fixture(scope="module")
+def checkpoint(exemplar, tmp_path_factory):
+    """A tiny trained checkpoint: (its bytes, the model as tghop.cooc.load reads it)."""
+    if torch is None:
+        pytest.skip("PyTorch is not installed (pip install -e '.[metrics]')")
+    from tghop import cooc
+
+    path = tmp_path_factory.mktemp("cooc") / "tiny.pt"
+    cooc.CoocGAN(**TINY, device="cpu", rng=0).fit(exemplar).save(path)
+    return path.read_bytes(), cooc.load(path, device="cpu")
+
+
+@pytest.fixture(scope="module")
+def cid(client, checkpoint):
+    r = client.post("/api/cooc", files={"checkpoint": ("tiny.pt", checkpoint[0])})
+    assert r.status_code == 200, r.text
+    return r.json()["id"]
+
+
+def decoded(response):
+    from PIL import Image
+
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"] == "image/png"
+    return np.asarray(Image.open(io.BytesIO(response.content)).convert("RGB"))
+
+
+def as_uint8(image):
+    from tghop.imageio import to_uint8
+
+    return to_uint8(image).astype(int)
+
+
+def labels_png(levels):
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.asarray(levels, dtype=np.uint8)).save(buf, format="PNG")
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+@needs_torch
+def test_upload_is_kept_under_its_hash_and_summarised(client, checkpoint, cid, live_server):
+    content, model = checkpoint
+    assert cid == hashlib.sha256(content).hexdigest()
+    assert (live_server.cache / "cooc" / f"{cid}.pt").read_bytes() == content
+    assert not [f for f in os.listdir(live_server.cache / "cooc") if f.endswith(".tmp")]
+    again = client.post("/api/cooc", content=content, headers={"content-type": "application/octet-stream"})
+    assert again.status_code == 200 and again.json()["id"] == cid  # the whole body works too
+    s = client.get(f"/api/cooc/{cid}").json()
+    assert s["exemplar_shape"] == [64, 64, 3] and s["crop_size"] == 32 and s["s"] == 8
+    assert s["step"] == s["n_steps"] == 2 and s["builtin"] is None and s["exemplar_hash"] == model.exemplar_hash_
+
+
+def test_a_checkpoint_of_a_builtin_names_it(checkpoint, exemplar, monkeypatch):
+    from tghop import data
+    from tghop.server import cooc as server_cooc
+
+    monkeypatch.setattr(data, "BUILTIN", {"tiny": None})
+    monkeypatch.setattr(data, "builtin", lambda name: exemplar)
+    server_cooc._builtin_hashes.cache_clear()
+    try:
+        assert server_cooc._builtin_hashes() == {checkpoint[1].exemplar_hash_: "tiny"}  # the hash training stores
+    finally:
+        server_cooc._builtin_hashes.cache_clear()
+
+
+@needs_torch
+def test_morph_is_the_libraries_strip_between_two_crops(client, checkpoint, cid):
+    model = checkpoint[1]
+    body = {"a": [0, 0], "b": [32, 32], "length": 6, "seed": 3}
+    r = client.post(f"/api/cooc/{cid}/morph", json=body)
+    got = decoded(r)
+    assert got.shape == (32, 48, 3) and r.headers["X-Tghop-Seed"] == "3" and r.headers["X-Tghop-Size"] == "32x48"
+    want = as_uint8(model.morph_strip(model.crop_condition(0, 0), model.crop_condition(32, 32), length=6, rng=3))
+    assert np.abs(got.astype(int) - want).max() <= 1
+    assert client.post(f"/api/cooc/{cid}/morph", json=body).content == r.content  # same seed, same bytes
+    other = decoded(client.post(f"/api/cooc/{cid}/morph", json={**body, "seed": 4}))
+    assert (other != got).any()
+    small = decoded(client.post(f"/api/cooc/{cid}/morph", json={"a": [8, 8], "b": [40, 0], "crop": 16}))
+    assert small.shape == (16, 64, 3)  # 16 px crops, the default 8 cells
+
+
+@needs_torch
+def test_edit_paints_each_crops_statistics_where_its_label_is(client, checkpoint, cid):
+    from tghop import cooc
+
+    model = checkpoint[1]
+    levels = np.zeros((40, 64), dtype=np.uint8)
+    levels[:, 32:] = 255  # the left half the first crop, the right half the second
+    r = client.post(f"/api/cooc/{cid}/edit", json={"crops": [[0, 0], [32, 32]], "labels": labels_png(levels),
+                                                   "seed": 5})
+    got = decoded(r)
+    assert got.shape == (40, 64, 3) and r.headers["X-Tghop-Size"] == "40x64"
+    cells = np.zeros((5, 8), dtype=int)
+    cells[:, 4:] = 1
+    cond = cooc.paint_condition([model.crop_condition(0, 0), model.crop_condition(32, 32)], cells)
+    want = as_uint8(model.generate(cond, rng=5)[:40, :64])
+    assert np.abs(got.astype(int) - want).max() <= 1
+    one = decoded(client.post(f"/api/cooc/{cid}/edit", json={"crops": [[16, 16]], "size": [24, 40], "seed": 1}))
+    assert one.shape == (24, 40, 3)  # one crop everywhere: no labels needed
+
+
+@needs_torch
+def test_bad_checkpoints_get_400_and_leave_nothing(client, live_server, tmp_path):
+    import torch
+
+    before = sorted(os.listdir(live_server.cache / "cooc"))
+    assert_error(client.post("/api/cooc", files={"checkpoint": ("junk.pt", os.urandom(5000))}), 400,
+                 "junk.pt", "not a tghop co-occurrence checkpoint")
+    foreign = io.BytesIO()
+    torch.save({"weight": torch.zeros(3)}, foreign)
+    assert_error(client.post("/api/cooc", files={"checkpoint": ("other.pt", foreign.getvalue())}), 400,
+                 "other.pt", "not a tghop co-occurrence checkpoint")
+    marker = tmp_path / "code-ran"
+
+    class Evil:
+        def __reduce__(self):
+            return (os.mkdir, (str(marker),))
+
+    evil = io.BytesIO()
+    torch.save({"settings_json": Evil()}, evil)
+    assert_error(client.post("/api/cooc", files={"checkpoint": ("evil.pt", evil.getvalue())}), 400,
+                 "not a tghop co-occurrence checkpoint")
+    assert not marker.exists()  # weights_only: the pickle's call never ran
+    assert_error(client.post("/api/cooc", files={"checkpoint": ("empty.pt", b"")}), 400, "empty.pt is empty")
+    assert_error(client.post("/api/cooc", files={"model": ("x.pt", b"x")}), 400, "field 'checkpoint'")
+    assert_error(client.post("/api/cooc", content=b"\0" * (51 * 1024 * 1024)), 413, "50 MB")
+    assert sorted(os.listdir(live_server.cache / "cooc")) == before
+
+
+@needs_torch
+def test_bad_requests_get_one_line_and_their_status(client, cid):
+    morph, edit = f"/api/cooc/{cid}/morph", f"/api/cooc/{cid}/edit"
+    assert_error(client.get("/api/cooc/" + "0" * 64), 404, "no co-occurrence checkpoint", "POST /api/cooc")
+    assert_error(client.post("/api/cooc/../../etc/morph", json={}), 404)
+    assert_error(client.post(f"/api/cooc/{'ab' * 32}/morph", json={"a": [0, 0], "b": [0, 0]}), 404)
+    assert_error(client.post(morph, json={"a": [60, 0], "b": [0, 0]}), 422, "32x32 crop at (60, 0)", "64x64 exemplar")
+    assert_error(client.post(morph, json={"a": [-8, 0], "b": [0, 0]}), 422, "a must be a crop's position [y, x]")
+    assert_error(client.post(morph, json={"a": "0,0", "b": [0, 0]}), 422, "a must be a crop's position")
+    assert_error(client.post(morph, json={"a": [0, 0]}), 422, "no b")
+    assert_error(client.post(morph, json={"a": [0, 0], "b": [0, 0], "length": 1}), 422, "length must be")
+    assert_error(client.post(morph, json={"a": [0, 0], "b": [0, 0], "zoom": 2}), 422, "unknown field 'zoom'")
+    assert_error(client.post(morph, content=b"{", headers={"content-type": "application/json"}), 400, "not JSON")
+    assert_error(client.post(morph, json=[1]), 400, "JSON object")
+    two = [[0, 0], [32, 32]]
+    assert_error(client.post(edit, json={"crops": two}), 422, "2 crops but no labels")
+    assert_error(client.post(edit, json={"crops": [[0, 0], [99, 0]], "size": 16}), 422, "no labels")
+    assert_error(client.post(edit, json={"crops": [[0, 0], [40, 0]], "labels": labels_png([[0, 255]])}), 422,
+                 "crop at (40, 0)")
+    assert_error(client.post(edit, json={"crops": []}), 422, "crops must be a list of 1 to 8")
+    assert_error(client.post(edit, json={"crops": two, "labels": "!!"}), 400, "labels is not valid base64")
+    assert_error(client.post(edit, json={"crops": two, "labels": labels_png([[0, 128, 255]])}), 400,
+                 "3 distinct grey levels", "2 crops")
+    assert_error(client.post(edit, json={"crops": two, "labels": labels_png([[0, 255]]), "size": [8, 8]}), 400,
+                 "the label map is 1x2 but the output is 8x8")
+    assert_error(client.post(edit, json={"crops": [[0, 0]], "size": [4096, 4096]}), 422, "size")
+    assert_error(client.post(edit, json={"crops": [[0, 0]], "seed": -1}), 422, "seed must be an integer")
+
+
+def test_without_torch_the_routes_say_how_to_install_it(tmp_path, monkeypatch):
+    from conftest import LiveServer
+
+    monkeypatch.setitem(sys.modules, "torch", None)  # as if PyTorch were not installed
+    server = LiveServer(tmp_path)
+    try:
+        with httpx.Client(base_url=server.url, timeout=60) as c:
+            for r in (c.post("/api/cooc", content=b"x"), c.get("/api/cooc/" + "0" * 64),
+                      c.post("/api/cooc/" + "0" * 64 + "/morph", json={})):
+                assert_error(r, 501, "PyTorch", "pip install 'tghop[metrics]'")
+            assert c.get("/api").status_code == 200  # the rest works
+    finally:
+        server.stop()
+
+
+def test_the_checkpoints_folder_is_bounded(tmp_path):
+    from tghop.server.cooc import cooc_cache
+
+    folder = tmp_path / "cooc"
+    folder.mkdir()
+    for i, name in enumerate(("a" * 64, "b" * 64)):
+        (folder / f"{name}.pt").write_bytes(b"x" * 1000)
+        os.utime(folder / f"{name}.pt", (1000 + i, 1000 + i))
+    cache = cooc_cache(tmp_path, 1500)  # the older one goes at start
+    assert sorted(os.listdir(folder)) == ["b" * 64 + ".pt"] and cache.size() == 1000
