@@ -493,10 +493,11 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
 def test_the_page_and_its_files_are_served(client):
     page = client.get("/")
     assert page.status_code == 200 and "text/html" in page.headers["content-type"]
-    for name in ("app.js", "style.css"):
+    for name in ("app.js", "cooc.js", "style.css"):
         assert f"/static/{name}" in page.text
         assert client.get(f"/static/{name}").status_code == 200
-    assert "http" not in client.get("/static/app.js").text.replace("HTTP API", "")  # nothing from the network
+    for name in ("app.js", "cooc.js"):  # nothing from the network
+        assert "http" not in client.get(f"/static/{name}").text.replace("HTTP API", "")
     assert client.get("/api/builtins/bricks.png").content[:4] == b"\x89PNG"
     assert client.get("/api").json()["builtins"] == ["bricks", "cells"]
 

@@ -34,6 +34,7 @@ function updateButtons() {
   $("fill").disabled = state.busy || !state.modelId || !editor.blob;
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
   $("morph-go").disabled = state.busy || state.models.length < 2;
+  if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js
 }
 
 function setModel(id) {
@@ -311,6 +312,8 @@ function setMode(mode) {
   $("inpaint").hidden = !inpaint;
   $("paint").hidden = mode !== "paint";
   $("morph").hidden = mode !== "morph";
+  $("cooc").hidden = mode !== "cooc";
+  if (mode === "cooc") coocShown();
   if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
   if (mode === "paint") {
     resizeGuide();
@@ -454,9 +457,14 @@ function onPicture(file) {
 // Every model fitted or loaded on this page (state.models) has a brush colour of its own.
 const PALETTE = ["#e6194b", "#3cb44b", "#4363d8", "#ffe119", "#911eb4", "#f58231", "#42d4f4", "#f032e6"];
 const MAX_PICKED = 4;
-// The guide: one label per pixel (an index into state.models), drawn in the models' colours.
-// Painted by hand (not with the canvas's antialiased strokes), so every pixel is exactly one model's.
-const guide = { labels: null, h: 0, w: 0, last: null, painting: false };
+// A board: a canvas with one label per pixel, drawn in the palette's colours and painted by
+// hand (not with the canvas's antialiased strokes), so every pixel is exactly one label's.
+// Paint mode's guide (labels: indices into state.models) is one; the co-occurrence edit's is another.
+function makeBoard(canvasId, cursorId, brushId, labelOf) {
+  return { canvas: canvasId, cursor: cursorId, brush: brushId, labelOf, labels: null, h: 0, w: 0, last: null,
+    painting: false };
+}
+const guide = makeBoard("guide", "guide-cursor", "paint-brush", () => brushLabel());
 
 function sayPaint(text, isError) {
   const el = $("paint-message");
@@ -561,27 +569,31 @@ function resizeGuide(force) {
   if (!(h > 0 && w > 0 && h * w <= 4096 * 4096)) { sayPaint("set a height and width above first", true); return; }
   if (!force && guide.labels && guide.h === h && guide.w === w) return;
   const first = pickedModels()[0];
-  guide.h = h;
-  guide.w = w;
-  guide.labels = new Uint8Array(h * w).fill(first ? first.index : 0);
-  const canvas = $("guide");
+  resetBoard(guide, h, w, first ? first.index : 0);
+}
+
+// A new blank board of h x w pixels, all label `fill`, shown larger when small (up to 4 times, at most 640 px wide).
+function resetBoard(b, h, w, fill) {
+  b.h = h;
+  b.w = w;
+  b.labels = new Uint8Array(h * w).fill(fill);
+  const canvas = $(b.canvas);
   canvas.width = w;
   canvas.height = h;
-  // Small outputs are shown larger to paint on (up to 4 times, at most 640 pixels wide).
   canvas.style.width = `${Math.max(w, Math.min(4 * w, 640))}px`;
-  drawGuide(0, 0, w, h);
+  drawBoard(b, 0, 0, w, h);
   canvas.dataset.ready = "1";
 }
 
-function drawGuide(x0, y0, x1, y1) {
+function drawBoard(b, x0, y0, x1, y1) {
   const w = x1 - x0, h = y1 - y0;
   if (w <= 0 || h <= 0) return;
   const rgb = PALETTE.map((c) => [1, 3, 5].map((k) => parseInt(c.slice(k, k + 2), 16)));
-  const ctx = $("guide").getContext("2d");
+  const ctx = $(b.canvas).getContext("2d");
   const image = ctx.createImageData(w, h);
   for (let y = 0; y < h; y++) {
     for (let x = 0; x < w; x++) {
-      const c = rgb[guide.labels[(y + y0) * guide.w + x + x0] % rgb.length], o = 4 * (y * w + x);
+      const c = rgb[b.labels[(y + y0) * b.w + x + x0] % rgb.length], o = 4 * (y * w + x);
       image.data[o] = c[0]; image.data[o + 1] = c[1]; image.data[o + 2] = c[2]; image.data[o + 3] = 255;
     }
   }
@@ -589,44 +601,62 @@ function drawGuide(x0, y0, x1, y1) {
 }
 
 // Discs of the brush's diameter along the segment, in whole pixels.
-function paintGuide(from, to) {
-  const label = brushLabel();
-  if (label === null || !guide.labels) return;
-  const r = Number($("paint-brush").value) / 2;
+function paintBoard(b, from, to) {
+  const label = b.labelOf();
+  if (label === null || !b.labels) return;
+  const r = Number($(b.brush).value) / 2;
   const steps = Math.max(1, Math.ceil(Math.hypot(to[0] - from[0], to[1] - from[1]) / Math.max(1, r / 2)));
-  const x0 = Math.max(0, Math.floor(Math.min(from[0], to[0]) - r)), x1 = Math.min(guide.w, Math.ceil(Math.max(from[0], to[0]) + r));
-  const y0 = Math.max(0, Math.floor(Math.min(from[1], to[1]) - r)), y1 = Math.min(guide.h, Math.ceil(Math.max(from[1], to[1]) + r));
+  const x0 = Math.max(0, Math.floor(Math.min(from[0], to[0]) - r)), x1 = Math.min(b.w, Math.ceil(Math.max(from[0], to[0]) + r));
+  const y0 = Math.max(0, Math.floor(Math.min(from[1], to[1]) - r)), y1 = Math.min(b.h, Math.ceil(Math.max(from[1], to[1]) + r));
   for (let s = 0; s <= steps; s++) {
     const cx = from[0] + (to[0] - from[0]) * s / steps, cy = from[1] + (to[1] - from[1]) * s / steps;
     for (let y = Math.max(y0, Math.floor(cy - r)); y < Math.min(y1, Math.ceil(cy + r)); y++) {
       for (let x = Math.max(x0, Math.floor(cx - r)); x < Math.min(x1, Math.ceil(cx + r)); x++) {
-        if ((x + 0.5 - cx) ** 2 + (y + 0.5 - cy) ** 2 <= r * r) guide.labels[y * guide.w + x] = label;
+        if ((x + 0.5 - cx) ** 2 + (y + 0.5 - cy) ** 2 <= r * r) b.labels[y * b.w + x] = label;
       }
     }
   }
-  drawGuide(x0, y0, x1, y1);
+  drawBoard(b, x0, y0, x1, y1);
 }
 
-function onGuideDown(event) {
-  if (event.button !== 0 || !guide.labels) return;
-  event.preventDefault();
-  $("guide").setPointerCapture(event.pointerId);
-  guide.painting = true;
-  guide.last = brushPoint(event, $("guide"));
-  paintGuide(guide.last, guide.last);
+// The pointer paints on the board; a circle of the brush's size follows it.
+function wireBoard(b) {
+  const canvas = $(b.canvas);
+  const up = () => { b.painting = false; b.last = null; };
+  canvas.addEventListener("pointerdown", (event) => {
+    if (event.button !== 0 || !b.labels) return;
+    event.preventDefault();
+    canvas.setPointerCapture(event.pointerId);
+    b.painting = true;
+    b.last = brushPoint(event, canvas);
+    paintBoard(b, b.last, b.last);
+  });
+  canvas.addEventListener("pointermove", (event) => {
+    moveCursor(event, canvas, $(b.cursor), $(b.brush));
+    if (!b.painting) return;
+    const point = brushPoint(event, canvas);
+    paintBoard(b, b.last, point);
+    b.last = point;
+  });
+  canvas.addEventListener("pointerup", up);
+  canvas.addEventListener("pointercancel", up);
+  canvas.addEventListener("pointerleave", () => { $(b.cursor).hidden = true; });
 }
 
-function onGuideMove(event) {
-  moveCursor(event, $("guide"), $("guide-cursor"), $("paint-brush"));
-  if (!guide.painting) return;
-  const point = brushPoint(event, $("guide"));
-  paintGuide(guide.last, point);
-  guide.last = point;
-}
-
-function onGuideUp() {
-  guide.painting = false;
-  guide.last = null;
+// The board as a PNG data: URL of grey levels, `levels` a Map from label to level (0-255).
+function boardPng(b, levels) {
+  const out = document.createElement("canvas");
+  out.width = b.w;
+  out.height = b.h;
+  const ctx = out.getContext("2d");
+  const image = ctx.createImageData(b.w, b.h);
+  for (let i = 0; i < b.labels.length; i++) {
+    const v = levels.get(b.labels[i]);
+    image.data[4 * i] = image.data[4 * i + 1] = image.data[4 * i + 2] = v;
+    image.data[4 * i + 3] = 255;
+  }
+  ctx.putImageData(image, 0, 0);
+  return out.toDataURL("image/png");
 }
 
 // The guide as the API wants it: the picked models' grey levels, darkest for the first (a data: URL).
@@ -636,19 +666,7 @@ function guidePng(picked) {
   if (stray !== undefined) throw new Error(`the canvas has paint of ${state.models[stray].name}, which is not picked: pick it or paint over it`);
   const unused = picked.find((m) => !used.has(m.index));
   if (unused) throw new Error(`paint some of ${unused.name} (its colour) or unpick it`);
-  const level = new Map(picked.map((m, j) => [m.index, Math.round(255 * j / (picked.length - 1))]));
-  const out = document.createElement("canvas");
-  out.width = guide.w;
-  out.height = guide.h;
-  const ctx = out.getContext("2d");
-  const image = ctx.createImageData(guide.w, guide.h);
-  for (let i = 0; i < guide.labels.length; i++) {
-    const v = level.get(guide.labels[i]);
-    image.data[4 * i] = image.data[4 * i + 1] = image.data[4 * i + 2] = v;
-    image.data[4 * i + 3] = 255;
-  }
-  ctx.putImageData(image, 0, 0);
-  return out.toDataURL("image/png");
+  return boardPng(guide, new Map(picked.map((m, j) => [m.index, Math.round(255 * j / (picked.length - 1))])));
 }
 
 // The generation settings that several models take (not the quality preset: one model's).
@@ -735,12 +753,7 @@ async function init() {
   mask.addEventListener("pointerup", onBrushUp);
   mask.addEventListener("pointercancel", onBrushUp);
   mask.addEventListener("pointerleave", () => { $("brush-cursor").hidden = true; });
-  const canvas = $("guide");
-  canvas.addEventListener("pointerdown", onGuideDown);
-  canvas.addEventListener("pointermove", onGuideMove);
-  canvas.addEventListener("pointerup", onGuideUp);
-  canvas.addEventListener("pointercancel", onGuideUp);
-  canvas.addEventListener("pointerleave", () => { $("guide-cursor").hidden = true; });
+  wireBoard(guide);
   $("paint-brush").addEventListener("input", () => { $("paint-brush-size").textContent = `${$("paint-brush").value} px`; });
   $("paint-reset").addEventListener("click", () => { resizeGuide(true); sayPaint(""); });
   for (const id of ["height", "width"]) {
@@ -758,7 +771,8 @@ async function init() {
     drop.classList.remove("over");
     const file = e.dataTransfer.files[0];
     if (!file) return;
-    if (file.name.toLowerCase().endsWith(".npz")) uploadModel(file); else fitFile(file);
+    const name = file.name.toLowerCase();
+    if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
   });
   document.body.dataset.ready = "1";
 }

@@ -1,0 +1,201 @@
+// tghop serve's page, Co-occurrence mode (docs/serve.md, /api/cooc): a checkpoint of
+// `tghop cooc train`, crops of its exemplar placed by clicking, a morph from crop 1 to crop 2
+// and an edit painted with the brush of Paint mode (app.js's board). Loaded after app.js,
+// whose helpers it uses ($, errorOf, withBusy, showResult, postImage, the boards, PALETTE).
+"use strict";
+
+// The checkpoint (id, its summary), the exemplar's picture (an Image, or null) and the crops:
+// one [y, x] (or null) per slot; `active` is the slot the next click places and the brush paints.
+const cooc = { id: null, info: null, picture: null, crops: [], active: 0 };
+const COOC_SLOTS = 4;
+const coocBoard = makeBoard("cooc-guide", "cooc-cursor", "cooc-brush", () => cooc.active);
+
+function sayCooc(text, isError) {
+  const el = $("cooc-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+function updateCoocButtons() {
+  const ready = !state.busy && Boolean(cooc.id);
+  $("cooc-morph-go").disabled = !ready || !cooc.crops[0] || !cooc.crops[1];
+  $("cooc-edit-go").disabled = !ready || !cooc.crops.some(Boolean);
+}
+
+function coocShown() {
+  if (!cooc.id) sayCooc("load a co-occurrence checkpoint (a .pt file of tghop cooc train)");
+  else resizeCoocBoard();
+}
+
+async function uploadCooc(file) {
+  if (!file) return;
+  const radio = $("mode-cooc");
+  if (!radio.checked) { radio.checked = true; setMode("cooc"); }
+  sayCooc(`uploading ${file.name}`);
+  const response = await fetch("/api/cooc", {
+    method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
+  });
+  if (!response.ok) { sayCooc(await errorOf(response), true); return; }
+  const { id } = await response.json();
+  const info = await fetch(`/api/cooc/${id}`);
+  if (!info.ok) { sayCooc(await errorOf(info), true); return; }
+  cooc.id = id;
+  cooc.info = await info.json();
+  cooc.crops = new Array(COOC_SLOTS).fill(null);
+  cooc.active = 0;
+  cooc.picture = null;
+  const [h, w] = cooc.info.exemplar_shape;
+  $("cooc-summary").textContent = `${file.name}: exemplar ${h}x${w}, ${cooc.info.crop_size} px crops, ` +
+    `${cooc.info.step} of ${cooc.info.n_steps} steps trained`;
+  $("cooc-work").hidden = false;
+  $("cooc-picture-button").hidden = Boolean(cooc.info.builtin);
+  renderCoocCrops();
+  resizeCoocBoard(true);
+  if (cooc.info.builtin) {
+    showCoocPicture(`/api/builtins/${cooc.info.builtin}.png`, `builtin:${cooc.info.builtin}`);
+  } else {
+    drawCoocExemplar();
+    sayCooc("click on the exemplar to place crop 1 (pick the exemplar's image to see it)");
+  }
+  updateButtons();
+}
+
+// The exemplar the checkpoint was trained on, to see where the crops are (it must be of its size).
+function showCoocPicture(url, name) {
+  const img = new Image();
+  img.onload = () => {
+    const [h, w] = cooc.info.exemplar_shape;
+    if (img.naturalHeight !== h || img.naturalWidth !== w) {
+      sayCooc(`${name} is ${img.naturalHeight}x${img.naturalWidth} but the checkpoint's exemplar is ${h}x${w}; ` +
+        "pick the image it was trained on", true);
+      return;
+    }
+    cooc.picture = img;
+    drawCoocExemplar();
+    sayCooc("click on the exemplar to place the chosen crop");
+  };
+  img.onerror = () => sayCooc(`the browser cannot show ${name}`, true);
+  img.src = url;
+}
+
+function renderCoocCrops() {
+  const group = $("cooc-crops");
+  group.textContent = "";
+  cooc.crops.forEach((crop, i) => {
+    const label = document.createElement("label");
+    const radio = document.createElement("input");
+    radio.type = "radio";
+    radio.name = "cooc-crop";
+    radio.id = `cooc-crop-${i}`;
+    radio.checked = i === cooc.active;
+    radio.addEventListener("change", () => { if (radio.checked) cooc.active = i; });
+    label.append(radio, swatch(i), `crop ${i + 1}` + (crop ? ` (${crop[0]}, ${crop[1]})` : ""));
+    group.append(label);
+  });
+  updateCoocButtons();
+}
+
+// The exemplar (or a checkerboard of its size) with every placed crop outlined in its colour.
+function drawCoocExemplar() {
+  const [h, w] = cooc.info.exemplar_shape;
+  const canvas = $("cooc-exemplar");
+  canvas.width = w;
+  canvas.height = h;
+  canvas.style.width = `${Math.max(w, Math.min(2 * w, 512))}px`;
+  const ctx = canvas.getContext("2d");
+  if (cooc.picture) {
+    ctx.drawImage(cooc.picture, 0, 0);
+  } else {
+    const cell = cooc.info.s;
+    for (let y = 0; y < h; y += cell) {
+      for (let x = 0; x < w; x += cell) {
+        ctx.fillStyle = ((x + y) / cell) % 2 ? "#d8d8d8" : "#ececec";
+        ctx.fillRect(x, y, cell, cell);
+      }
+    }
+  }
+  const size = cooc.info.crop_size;
+  ctx.lineWidth = Math.max(2, Math.round(w / 256));
+  cooc.crops.forEach((crop, i) => {
+    if (!crop) return;
+    ctx.strokeStyle = colourOf(i);
+    ctx.strokeRect(crop[1] + 1, crop[0] + 1, size - 2, size - 2);
+    ctx.fillStyle = colourOf(i);
+    ctx.font = `${Math.max(10, Math.round(size / 4))}px sans-serif`;
+    ctx.fillText(String(i + 1), crop[1] + 4, crop[0] + Math.max(10, Math.round(size / 4)));
+  });
+  canvas.dataset.ready = "1";
+}
+
+// A click places the active crop centred on it, on the grid of s pixels, inside the exemplar;
+// the next empty slot becomes the active one.
+function onCoocClick(event) {
+  if (!cooc.info) return;
+  const [px, py] = brushPoint(event, $("cooc-exemplar"));
+  const { s, crop_size: size, exemplar_shape: [h, w] } = cooc.info;
+  const place = (v, n) => Math.max(0, Math.min(Math.floor((v - size / 2) / s), Math.floor(n / s) - size / s)) * s;
+  cooc.crops[cooc.active] = [place(py, h), place(px, w)];
+  const next = cooc.active + 1;
+  if (next < COOC_SLOTS && !cooc.crops[next]) cooc.active = next;
+  renderCoocCrops();
+  drawCoocExemplar();
+}
+
+// A new edit board at the edit's size, all crop 1.
+function resizeCoocBoard(force) {
+  const h = Number($("cooc-height").value), w = Number($("cooc-width").value);
+  if (!(h > 0 && w > 0 && h * w <= 2048 * 2048)) { sayCooc("set the edit's height and width first", true); return; }
+  if (!force && coocBoard.labels && coocBoard.h === h && coocBoard.w === w) return;
+  resetBoard(coocBoard, h, w, 0);
+}
+
+function onCoocMorph() {
+  if (!cooc.id || !cooc.crops[0] || !cooc.crops[1]) return;
+  withBusy($("cooc-morph-go"), async () => {
+    const body = { a: cooc.crops[0], b: cooc.crops[1], length: Number($("cooc-length").value),
+      seed: Number($("cooc-morph-seed").value) };
+    sayCooc("morphing");
+    const [blob, seed] = await postImage(`/api/cooc/${cooc.id}/morph`, body);
+    showResult(URL.createObjectURL(blob), seed, blob, "cooc-morph");
+    sayCooc(`done (seed ${seed}): the strip is below`);
+  }, sayCooc);
+}
+
+// The painted crops, in slot order; labels (grey levels, darkest for the first) only for two or more.
+function onCoocEdit() {
+  if (!cooc.id) return;
+  withBusy($("cooc-edit-go"), async () => {
+    resizeCoocBoard();
+    const used = [...new Set(coocBoard.labels)].sort((a, b) => a - b);
+    const unplaced = used.find((i) => !cooc.crops[i]);
+    if (unplaced !== undefined) {
+      throw new Error(`crop ${unplaced + 1} is painted but not placed: click on the exemplar to place it`);
+    }
+    const body = { crops: used.map((i) => cooc.crops[i]), size: [coocBoard.h, coocBoard.w],
+      seed: Number($("cooc-edit-seed").value) };
+    if (used.length > 1) {
+      body.labels = boardPng(coocBoard, new Map(used.map((k, j) => [k, Math.round(255 * j / (used.length - 1))])));
+    }
+    sayCooc("generating");
+    const [blob, seed] = await postImage(`/api/cooc/${cooc.id}/edit`, body);
+    showResult(URL.createObjectURL(blob), seed, blob, "cooc-edit");
+    sayCooc(`done (seed ${seed}): the result is below`);
+  }, sayCooc);
+}
+
+function initCooc() {
+  $("cooc-file").addEventListener("change", (e) => uploadCooc(e.target.files[0]));
+  $("cooc-picture").addEventListener("change", (e) => {
+    const file = e.target.files[0];
+    if (file && cooc.info) showCoocPicture(URL.createObjectURL(file), file.name);
+  });
+  $("cooc-exemplar").addEventListener("click", onCoocClick);
+  wireBoard(coocBoard);
+  $("cooc-brush").addEventListener("input", () => { $("cooc-brush-size").textContent = `${$("cooc-brush").value} px`; });
+  $("cooc-reset").addEventListener("click", () => { resizeCoocBoard(true); sayCooc(""); });
+  for (const id of ["cooc-height", "cooc-width"]) $(id).addEventListener("change", () => resizeCoocBoard());
+  $("cooc-morph-go").addEventListener("click", onCoocMorph);
+  $("cooc-edit-go").addEventListener("click", onCoocEdit);
+}
+
+document.addEventListener("DOMContentLoaded", initCooc);
