@@ -1,8 +1,12 @@
 """tghop's local web server (``tghop serve``): a page to fit, generate and download
 textures, and the HTTP API under ``/api`` that the page uses (docs/serve.md).
 
-* :mod:`tghop.server.app`: the Starlette application (:func:`~tghop.server.app.create_app`),
-  its routes and the model cache (files named by content hashes, written atomically);
+* :mod:`tghop.server.app`: the Starlette application (:func:`~tghop.server.app.create_app`)
+  and its routes;
+* :mod:`tghop.server.cache`: the cache folders (files named by content hashes, written
+  atomically, bounded, the last used kept in memory);
+* :mod:`tghop.server.cooc`: co-occurrence checkpoints (:mod:`tghop.cooc`): upload, morph and
+  edit with crops of the exemplar (PyTorch imported only there; 501 without it);
 * :mod:`tghop.server.requests`: the generation routes' JSON, checked (one model, a guided
   image or a remix of several, a morph);
 * :mod:`tghop.server.jobs`: the fit queue (a thread pool, progress through the library's

@@ -1,7 +1,9 @@
 """The web server's Starlette application: the page, the HTTP API under ``/api`` and the
 model cache (see docs/serve.md for the API).
 
-The cache is one folder, ``<cache>/models``, of model files named ``<id>.npz``. An id is
+The cache (:class:`tghop.server.cache.ModelCache`) is a folder, ``<cache>/models``, of model
+files named ``<id>.npz`` (and ``<cache>/cooc`` of co-occurrence checkpoints, ``<id>.pt``:
+:mod:`tghop.server.cooc`). An id is
 a content hash (SHA-256 of the exemplar's bytes and the fit settings, or of an uploaded
 model file), so the same exemplar with the same settings is fitted once. Every file
 appears whole or not at all (:func:`tghop.modelfile.save_model` writes atomically; an
@@ -19,7 +21,13 @@ models; their JSON is checked by :mod:`tghop.server.requests`), :func:`tghop.mod
 checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
 status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
-422 (a setting out of range, a size over the output limit), 503 (too many fits waiting).
+422 (a setting out of range, a size over the output limit), 501 (a co-occurrence route
+without PyTorch), 503 (too many fits waiting).
+
+Generations run on a thread pool of their own (:attr:`Server.executor`, as many threads as
+generations may run at once), not on Starlette's pool of 40 threads: fewer threads touching
+big arrays keep fewer glibc malloc arenas (docs/serve.md: 20 clients peaked at 375-382 MiB
+instead of 905-924 MiB).
 """
 
 from __future__ import annotations
