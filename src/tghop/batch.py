@@ -278,18 +278,19 @@ def process_exemplar(job: dict) -> dict:
 
     ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``,
     ``size``, ``count``, ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's
-    parameters), ``generate`` (keywords of :meth:`TGHop.synthesize`), ``threads`` (BLAS
-    threads at most; None: no limit).
+    parameters), ``generate`` (keywords of :meth:`TGHop.synthesize`), ``threads`` (threads at
+    most, BLAS's and tghop's own: :func:`tghop._common.limit_cores`; None: no limit).
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line),
-    ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times,
-    the worker and its peak memory. Bad input is a "failed" record, never an exception;
+    ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times
+    (``seconds``, ``cpu_seconds`` of the whole process, ``fit_seconds``,
+    ``synth_seconds``), ``threads``, the worker and its peak memory. Bad input is a "failed" record, never an exception;
     what was written for a failed exemplar is removed.
     """
     import resource
     import socket
 
-    start = time.time()
+    start, cpu_start = time.time(), time.process_time()
     folder = Path(job["folder"])
     name = job["name"]
     record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
@@ -300,6 +301,7 @@ def process_exemplar(job: dict) -> dict:
         import numpy as np
         from threadpoolctl import threadpool_limits
 
+        from ._common import limit_cores
         from .fit_options import model_for
         from .imageio import load_image, save_image
         from .modelfile import save_model
@@ -307,7 +309,7 @@ def process_exemplar(job: dict) -> dict:
 
         folder.mkdir(parents=True, exist_ok=True)
         remove_temporaries(folder)  # left by a worker killed while writing here
-        with threadpool_limits(limits=job.get("threads")):
+        with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
             raw = load_image(job["source"], dtype=None)
             image = prepare_exemplar(raw, min_size=fit.get("patch_size") or 32)
@@ -352,6 +354,8 @@ def process_exemplar(job: dict) -> dict:
         except OSError:
             pass
     record["seconds"] = time.time() - start
+    record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
+    record["threads"] = job.get("threads")
     record["peak_rss_mb"] = _peak_rss_mb(resource)
     return record
 
@@ -438,12 +442,15 @@ def dask_setup(worker):
     """Run in each worker process of :func:`local_cluster` (a Dask preload): Ctrl-C in a
     terminal reaches the whole process group, but only the caller stops the batch (it
     closes the cluster, which ends the workers), so the workers ignore it instead of each
-    printing a traceback."""
+    printing a traceback; and the modules of a task are imported."""
     import signal
     import threading
 
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # What a task needs, imported while the cluster starts (in every worker at once)
+    # rather than in each worker's first task.
+    from . import fit_options, imageio, modelfile, synthesis  # noqa: F401
 
 
 def _cores() -> int:
@@ -451,6 +458,22 @@ def _cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
         return os.cpu_count() or 1
+
+
+def _cost(job) -> float:
+    """A rough relative cost of a job, to start the longest first (a shorter tail at the
+    end of a run): one fit (a little more for a larger exemplar: its pixels read from the
+    file's header, capped at 4 MP) plus a tenth of a fit per 512x512 output pixels
+    (measured in one thread: a fit about 11 s, a 512x512 image about 1 s; docs/choices.md)."""
+    try:
+        from PIL import Image
+
+        with Image.open(job["source"]) as img:
+            pixels = img.size[0] * img.size[1]
+    except Exception:  # noqa: BLE001 - not an image: it fails at once, last is fine
+        return 0.0
+    out = job["size"][0] * job["size"][1] * job["count"]
+    return 1.0 + 0.25 * min(pixels, 4 << 20) / (1 << 20) + 0.1 * out / (512 * 512)
 
 
 def _settings(item_settings, defaults, fit, generate):
@@ -608,9 +631,12 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, 
                 own_cluster = local_cluster(workers, retries=retries)
                 client = own_client = distributed.Client(own_cluster)
         by_key = {}
-        for job in jobs:
+        # The longest first (a shorter tail), in that order on a cluster that queues tasks
+        # on the scheduler (Dask's default): a worker takes the next as it finishes one.
+        order = sorted(jobs, key=_cost, reverse=True)
+        for rank, job in enumerate(order):
             key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
-            fut = client.submit(task, job, key=key, pure=False)
+            fut = client.submit(task, job, key=key, pure=False, priority=len(order) - rank)
             by_key[fut.key] = job
             futures.append(fut)
         slots = max(1, sum(client.nthreads().values())) if hasattr(client, "nthreads") else len(jobs)
