@@ -55,13 +55,30 @@ def one_thread(job):
     return batch.process_exemplar({**job, "threads": 1})
 
 
+def machine_busy_s() -> float:
+    """CPU seconds the whole machine has spent busy (every process; /proc/stat)."""
+    with open("/proc/stat") as fh:
+        fields = [int(v) for v in fh.readline().split()[1:]]
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle, iowait
+    return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+def own_cpu_s() -> float:
+    """CPU seconds of this process and its finished children (the cluster's workers)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
 def one_mode(manifest, outdir, *, workers, count, size, seed, scheduler=None, task=None):
     from tghop import batch
 
-    t = time.perf_counter()
+    busy, own, t = machine_busy_s(), own_cpu_s(), time.perf_counter()
     results = batch.run(manifest, outdir, count=count, size=size, seed=seed, workers=workers, scheduler=scheduler,
                         task=task, contact_sheet=True)
     wall = time.perf_counter() - t
+    # Cores that other programs kept busy meanwhile (a cluster given by address: its
+    # workers are not children of this process and count as others).
+    others = max(0.0, (machine_busy_s() - busy) - (own_cpu_s() - own)) / wall
     failed = [r["name"] for r in results if r["status"] != "ok"]
     if len(failed) == len(results):
         raise SystemExit(f"every exemplar failed, e.g. {results[0]['name']}: {results[0]['error']}")
@@ -69,7 +86,7 @@ def one_mode(manifest, outdir, *, workers, count, size, seed, scheduler=None, ta
     for r in results:
         per_worker[r["worker"]] = max(per_worker.get(r["worker"], 0.0), r.get("peak_rss_mb") or 0.0)
     ok = [r for r in results if r["status"] == "ok"]
-    return {"wall_s": wall, "task_s": sum(r["seconds"] or 0.0 for r in results),
+    return {"wall_s": wall, "other_load": others, "task_s": sum(r["seconds"] or 0.0 for r in results),
             "cpu_s": sum(r.get("cpu_seconds") or 0.0 for r in results), "failed": failed, "n": len(results),
             "workers": len(per_worker), "peak_rss_mb_per_worker": per_worker,
             "fit_s_median": statistics.median(r["fit_seconds"] for r in ok),
@@ -138,18 +155,21 @@ def main():
         m["cores_used"] = used
         m["efficiency"] = work / (used * m["wall_s"])
         m["speedup_vs_serial"] = serial["wall_s"] / m["wall_s"]
-        ratios = [m["task_s_by_exemplar"][n] / single[n] - 1 for n in single
-                  if single[n] and m["task_s_by_exemplar"].get(n) and n not in m["failed"]]
-        m["task_overhead_median"] = statistics.median(ratios) if ratios else None
-        m["task_overhead_total"] = m["task_s"] / work - 1
+        for key, by, total in (("task", "task_s_by_exemplar", "task_s"), ("cpu", "cpu_s_by_exemplar", "cpu_s")):
+            base = serial[by]
+            ratios = [m[by][n] / base[n] - 1 for n in base if base[n] and m[by].get(n) and n not in m["failed"]]
+            m[f"{key}_overhead_median"] = statistics.median(ratios) if ratios else float("nan")
+            m[f"{key}_overhead_total"] = m[total] / serial[total] - 1
+        m["core_share"] = m["cpu_s"] / m["task_s"]
         m["idle_s_per_exemplar"] = (used * m["wall_s"] - m["task_s"]) / m["n"]
-        rows.append([label, m["wall_s"], m["wall_s"] / m["n"], m["efficiency"], m["task_s"], m["cpu_s"],
-                     f"{m['task_overhead_median']:+.1%} / {m['task_overhead_total']:+.1%}",
-                     m["idle_s_per_exemplar"], max(m["peak_rss_mb_per_worker"].values()),
+        rows.append([label, m["wall_s"], m["wall_s"] / m["n"], m["efficiency"],
+                     f"{m['task_overhead_median']:+.0%} / {m['task_overhead_total']:+.0%}",
+                     f"{m['cpu_overhead_median']:+.0%} / {m['cpu_overhead_total']:+.0%}", m["core_share"],
+                     m["other_load"], m["idle_s_per_exemplar"], max(m["peak_rss_mb_per_worker"].values()),
                      m["fit_s_median"], m["synth_s_median"], len(m["failed"])])
-    header = ["mode", "wall s", "wall s / exemplar", "efficiency", "task s (sum)", "CPU s (sum)",
-              "task time vs one thread in process (median / total)", "idle core-s / exemplar", "peak MB / worker",
-              "fit s (median)", "synth s (median)", "failed"]
+    header = ["mode", "wall s", "wall s / exemplar", "efficiency", "task time vs one thread (median / total)",
+              "task CPU vs one thread (median / total)", "task CPU / task time", "other programs (cores busy)",
+              "idle core-s / exemplar", "peak MB / worker", "fit s (median)", "synth s (median)", "failed"]
     crop = f" (centre crops {args.crop}x{args.crop})" if args.crop else ""
     old = ""
     if all_threads is not None:
@@ -168,7 +188,11 @@ def main():
           + "\n\nefficiency = S / (cores x wall), cores capped at the machine's; task time vs one thread: each "
             "exemplar's task time in this mode against its one-thread in-process time (the cluster's overhead "
             "per exemplar: serialisation, result transfer, image writes in a worker, two workers sharing memory "
-            "bandwidth; goal <= 5 %); idle core-s / exemplar = (cores x wall - task times) / exemplars: "
+            "bandwidth; goal <= 5 %); task CPU: the same with the CPU seconds of the task's process (all its "
+            "threads), which other programs disturb less than wall time; task CPU / task time: the share of a "
+            "core (or cores) a task got (about 1 for a one-thread task that had its core); other programs: cores "
+            "kept busy by other processes during the mode (/proc/stat less this process and its workers; "
+            "efficiency needs them near 0); idle core-s / exemplar = (cores x wall - task times) / exemplars: "
             "start-up, scheduling, the driver's hashing and ledger, idle cores in the tail; peak MB: each worker "
             "process's peak resident memory (VmHWM). Cluster walls include starting the cluster."
           + (f" The --scheduler cluster took {scheduled['cluster_start_s']:.1f} s to start (not in its wall time)."
