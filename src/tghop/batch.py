@@ -454,8 +454,9 @@ def dask_setup(worker):
     terminal reaches the whole process group, but only the caller stops the batch (it
     closes the cluster, which ends the workers), so the workers ignore it instead of each
     printing a traceback; malloc keeps freed memory for reuse (:func:`tune_malloc`); and
-    the modules of a task are imported. Workers started by hand get the same with
-    ``dask worker ADDRESS --preload tghop.batch``."""
+    the modules of a task are imported. (Workers started by hand for ``--scheduler`` get
+    glibc's adaptive thresholds' steady state from the environment:
+    ``MALLOC_TRIM_THRESHOLD_=67108864 MALLOC_MMAP_THRESHOLD_=33554432 dask worker ...``.)"""
     import signal
     import threading
 
@@ -465,6 +466,10 @@ def dask_setup(worker):
         tune_malloc()
     # What a task needs, imported while the cluster starts (in every worker at once)
     # rather than in each worker's first task.
+    import numpy.fft  # noqa: F401
+    import PIL.Image  # noqa: F401
+    import threadpoolctl  # noqa: F401
+
     from . import fit_options, imageio, modelfile, synthesis  # noqa: F401
 
 
