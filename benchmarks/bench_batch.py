@@ -2,7 +2,7 @@
 cores, measured against the serial work (issue #29).
 
     python benchmarks/bench_batch.py                 # the full run: all 44 exemplars, 2 images each at 512x512
-                                                     # (about 20 min on an idle 2-core machine; run it alone)
+                                                     # (about 15 min on an idle 2-core machine; run it alone)
     python benchmarks/bench_batch.py --limit 8       # the first 8 (what fits a shared 2-core machine)
     python benchmarks/bench_batch.py --limit 6 --crop 128 --size 128 --scheduler-workers 4
                                                      # centre crops, plus a 4-process cluster via --scheduler

@@ -542,8 +542,10 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     generate : dict
         Other keywords of :meth:`TGHop.synthesize` (``tile`` comes from ``tile``).
     workers : int, optional
-        1: in this process, without Dask. Otherwise a local cluster of that many worker
-        processes (None: one per core). Ignored when ``client`` or ``scheduler`` is given.
+        1: in this process, without Dask, each exemplar on every core. Otherwise a local
+        cluster of that many worker processes (None: one per core, :func:`local_cluster`).
+        On a cluster (also a given one) each exemplar runs on one thread (BLAS's and
+        tghop's own), the longest first. Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
         Run on this client's cluster. ``scheduler``: the address of one to connect to.
     retries : int
