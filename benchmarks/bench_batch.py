@@ -148,7 +148,6 @@ def main():
     load_after = os.getloadavg()
 
     work = serial["task_s"]  # S: the sum of one-thread single-exemplar times
-    single = serial["task_s_by_exemplar"]
     rows = []
     for label, m, w in modes:
         used = min(w, cores)  # more processes than cores: they share the cores
