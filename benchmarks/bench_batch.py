@@ -1,19 +1,36 @@
-"""`tghop batch` over the shared textures: in process (--workers 1) against the default
-local Dask cluster (one worker process per core), and optionally against a cluster the
-script starts first and hands over by address (`--scheduler`: the path to an existing
-cluster, end to end).
+"""`tghop batch` over the shared textures: how well the default local Dask cluster uses the
+cores, measured against the serial work (issue #29).
 
-    python benchmarks/bench_batch.py                 # all 44 exemplars, 2 images each at 512x512
-    python benchmarks/bench_batch.py --limit 6       # the first 6 (what fits a shared 2-core machine)
+    python benchmarks/bench_batch.py                 # the full run: all 44 exemplars, 2 images each at 512x512
+                                                     # (about 15 min on an idle 2-core machine; run it alone)
+    python benchmarks/bench_batch.py --limit 8       # the first 8 (what fits a shared 2-core machine)
     python benchmarks/bench_batch.py --limit 6 --crop 128 --size 128 --scheduler-workers 4
                                                      # centre crops, plus a 4-process cluster via --scheduler
 
-Reports the wall time of each mode, the sum of the single-exemplar times (each exemplar's
-task time in process, all cores to itself), the cluster's efficiency against that sum
-(sum / (wall x workers)), the peak memory per worker process, and the overhead per
-exemplar (wall x workers - task times, per exemplar: scheduling, start-up, hashing, the
-ledger and the contact sheet); with more worker processes than cores the efficiency is
-taken against the cores. Writes benchmarks/results/bench_batch[-cropN].{json,md}.
+Modes, each a `tghop.batch.run` on the same manifest:
+
+* in process, one thread (`--workers 1`, each exemplar's task with `threads=1`: BLAS and
+  tghop's own threads limited to one, `tghop._common.limit_cores`): the serial work, what
+  one core does. Its per-exemplar task times are the single-exemplar times;
+* in process, all threads (`--workers 1` as `tghop batch` runs it: a fit's clusters on
+  every core); `--no-all-threads` skips it;
+* the default local cluster (`--workers`: its size; default one worker process per core,
+  one thread each); its wall time includes starting the cluster;
+* optionally (`--scheduler-workers N`) a cluster of N worker processes started first and
+  used by address, as `tghop batch --scheduler ADDRESS` does.
+
+Reported: each mode's wall time; the serial work S (the sum of the one-thread
+single-exemplar times); efficiency = S / (cores x wall), the standard parallel efficiency
+(1.0: every core busy with useful work all the time); the per-exemplar overhead of the
+cluster: each exemplar's task time on a cluster worker against its one-thread time in
+process (median and total), and (cores x wall - task times) / exemplars (scheduling,
+start-up, the driver's hashing and ledger, idle cores in the tail); peak memory per worker
+(VmHWM). The old comparison (in-process wall with all threads against the cluster's wall,
+and the efficiency against the all-thread in-process sum, which counts every core twice)
+is kept, labelled as such. Timings on a shared machine are noisy: the load average before
+and after is recorded, and the CPU seconds of each task beside its wall time.
+
+Writes benchmarks/results/batch-efficiency[-limitN][-cropN].{json,md}.
 """
 
 from __future__ import annotations
@@ -28,27 +45,55 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import TEXTURES, markdown_table, peak_rss_mb, texture_names, write_results  # noqa: E402
+from _common import TEXTURES, markdown_table, texture_names, write_results  # noqa: E402
 
 
-def one_mode(manifest, outdir, *, workers, count, size, seed, scheduler=None):
+def one_thread(job):
+    """The batch task with every thread limit at one (in process: the serial work)."""
     from tghop import batch
 
-    t = time.perf_counter()
-    results = batch.run(manifest, outdir, count=count, size=size, seed=seed, workers=workers, scheduler=scheduler)
+    return batch.process_exemplar({**job, "threads": 1})
+
+
+def machine_busy_s() -> float:
+    """CPU seconds the whole machine has spent busy (every process; /proc/stat)."""
+    with open("/proc/stat") as fh:
+        fields = [int(v) for v in fh.readline().split()[1:]]
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle, iowait
+    return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+def own_cpu_s() -> float:
+    """CPU seconds of this process and its finished children (the cluster's workers)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def one_mode(manifest, outdir, *, workers, count, size, seed, scheduler=None, task=None):
+    from tghop import batch
+
+    busy, own, t = machine_busy_s(), own_cpu_s(), time.perf_counter()
+    results = batch.run(manifest, outdir, count=count, size=size, seed=seed, workers=workers, scheduler=scheduler,
+                        task=task, contact_sheet=True)
     wall = time.perf_counter() - t
+    # Cores that other programs kept busy meanwhile (a cluster given by address: its
+    # workers are not children of this process and count as others).
+    others = max(0.0, (machine_busy_s() - busy) - (own_cpu_s() - own)) / wall
     failed = [r["name"] for r in results if r["status"] != "ok"]
     if len(failed) == len(results):
         raise SystemExit(f"every exemplar failed, e.g. {results[0]['name']}: {results[0]['error']}")
-    task = sum(r["seconds"] or 0.0 for r in results)
     per_worker = {}
     for r in results:
         per_worker[r["worker"]] = max(per_worker.get(r["worker"], 0.0), r.get("peak_rss_mb") or 0.0)
-    return {"wall_s": wall, "task_s": task, "failed": failed, "n": len(results), "workers": len(per_worker),
-            "peak_rss_mb_per_worker": per_worker,
-            "fit_s_median": statistics.median(r["fit_seconds"] for r in results if r["fit_seconds"]),
-            "synth_s_median": statistics.median(r["synth_seconds"] for r in results if r["synth_seconds"]),
-            "single_s": {r["name"]: r["seconds"] for r in results}}
+    ok = [r for r in results if r["status"] == "ok"]
+    return {"wall_s": wall, "other_load": others, "task_s": sum(r["seconds"] or 0.0 for r in results),
+            "cpu_s": sum(r.get("cpu_seconds") or 0.0 for r in results), "failed": failed, "n": len(results),
+            "workers": len(per_worker), "peak_rss_mb_per_worker": per_worker,
+            "fit_s_median": statistics.median(r["fit_seconds"] for r in ok),
+            "synth_s_median": statistics.median(r["synth_seconds"] for r in ok),
+            "task_s_by_exemplar": {r["name"]: r["seconds"] for r in results},
+            "cpu_s_by_exemplar": {r["name"]: r.get("cpu_seconds") for r in results},
+            "order": [r["name"] for r in sorted(results, key=lambda r: r.get("started") or 0)]}
 
 
 def main():
@@ -58,6 +103,8 @@ def main():
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--workers", type=int, default=None, help="local cluster size (default: one per core)")
     ap.add_argument("--crop", type=int, default=None, help="centre crops of CROPxCROP as the exemplars")
+    ap.add_argument("--no-all-threads", action="store_true",
+                    help="skip the in-process run with all threads (the old comparison)")
     ap.add_argument("--scheduler-workers", type=int, default=0,
                     help="also: start a local cluster of this many worker processes and run on it by address")
     args = ap.parse_args()
@@ -66,18 +113,23 @@ def main():
         raise SystemExit(f"no textures in {TEXTURES}; set TGHOP_TEXTURES")
     files = {p.stem: p for p in TEXTURES.iterdir() if p.stem in names}
     cores = len(os.sched_getaffinity(0))
+    n_workers = args.workers or cores
     load_before = os.getloadavg()
+    modes = []
     with tempfile.TemporaryDirectory() as tmp:
         if args.crop:
             files = {n: centre_crop(f, args.crop, Path(tmp) / "crops") for n, f in files.items()}
         manifest = Path(tmp) / "manifest.csv"
         manifest.write_text("path,name\n" + "".join(f"{files[n]},{n}\n" for n in names))
         kw = dict(count=args.count, size=(args.size, args.size), seed=0)
-        single = one_mode(manifest, Path(tmp) / "in_process", workers=1, **kw)
-        single["peak_rss_mb_per_worker"] = {"this process": peak_rss_mb()}
+        serial = one_mode(manifest, Path(tmp) / "one_thread", workers=1, task=one_thread, **kw)
+        modes.append(("in process, one thread (the serial work)", serial, 1))
+        all_threads = None
+        if not args.no_all_threads:
+            all_threads = one_mode(manifest, Path(tmp) / "in_process", workers=1, **kw)
+            modes.append(("in process, all threads (`--workers 1`)", all_threads, cores))
         cluster = one_mode(manifest, Path(tmp) / "cluster", workers=args.workers, **kw)
-        modes = [("--workers 1 (in process)", single, 1), (f"local cluster, {args.workers or cores} workers",
-                                                           cluster, args.workers or cores)]
+        modes.append((f"local cluster, {n_workers} workers x 1 thread (the default)", cluster, n_workers))
         scheduled = None
         if args.scheduler_workers:
             from tghop import batch
@@ -94,34 +146,64 @@ def main():
             modes.append((f"--scheduler ADDRESS, {args.scheduler_workers} worker processes (started first)",
                           scheduled, args.scheduler_workers))
     load_after = os.getloadavg()
-    sum_single = single["task_s"]
+
+    work = serial["task_s"]  # S: the sum of one-thread single-exemplar times
     rows = []
     for label, m, w in modes:
-        shared = w > cores  # more processes than cores: their task times include waiting for a core
-        w = min(w, cores)
-        m["efficiency"] = sum_single / (m["wall_s"] * w)
-        m["overhead_s_per_exemplar"] = None if shared else (m["wall_s"] * w - m["task_s"]) / m["n"]
-        m["speedup"] = single["wall_s"] / m["wall_s"]
-        rows.append([label, m["wall_s"], m["wall_s"] / m["n"], m["speedup"], m["efficiency"],
-                     "n/a" if m["overhead_s_per_exemplar"] is None else m["overhead_s_per_exemplar"], max(m["peak_rss_mb_per_worker"].values()),
+        used = min(w, cores)  # more processes than cores: they share the cores
+        m["cores_used"] = used
+        m["efficiency"] = work / (used * m["wall_s"])
+        m["speedup_vs_serial"] = serial["wall_s"] / m["wall_s"]
+        for key, by, total in (("task", "task_s_by_exemplar", "task_s"), ("cpu", "cpu_s_by_exemplar", "cpu_s")):
+            base = serial[by]
+            ratios = [m[by][n] / base[n] - 1 for n in base if base[n] and m[by].get(n) and n not in m["failed"]]
+            m[f"{key}_overhead_median"] = statistics.median(ratios) if ratios else float("nan")
+            m[f"{key}_overhead_total"] = m[total] / serial[total] - 1
+        m["core_share"] = m["cpu_s"] / m["task_s"]
+        m["idle_s_per_exemplar"] = (used * m["wall_s"] - m["task_s"]) / m["n"]
+        rows.append([label, m["wall_s"], m["wall_s"] / m["n"], m["efficiency"],
+                     f"{m['task_overhead_median']:+.0%} / {m['task_overhead_total']:+.0%}",
+                     f"{m['cpu_overhead_median']:+.0%} / {m['cpu_overhead_total']:+.0%}", m["core_share"],
+                     m["other_load"], m["idle_s_per_exemplar"], max(m["peak_rss_mb_per_worker"].values()),
                      m["fit_s_median"], m["synth_s_median"], len(m["failed"])])
-    header = ["mode", "wall s", "s / exemplar", "speedup", "efficiency", "overhead s / exemplar",
-              "peak MB / worker", "fit s (median)", "synth s (median)", "failed"]
+    header = ["mode", "wall s", "wall s / exemplar", "efficiency", "task time vs one thread (median / total)",
+              "task CPU vs one thread (median / total)", "task CPU / task time", "other programs (cores busy)",
+              "idle core-s / exemplar", "peak MB / worker", "fit s (median)", "synth s (median)", "failed"]
     crop = f" (centre crops {args.crop}x{args.crop})" if args.crop else ""
+    old = ""
+    if all_threads is not None:
+        old_eff = all_threads["task_s"] / (n_workers * cluster["wall_s"])
+        old = (f"\n\nThe old comparison (before issue #29's efficiency was defined against one thread): in "
+               f"process with all threads {all_threads['wall_s']:.1f} s against the local cluster's "
+               f"{cluster['wall_s']:.1f} s, a speedup of {all_threads['wall_s'] / cluster['wall_s']:.2f}; "
+               f"'efficiency' against the all-thread in-process sum ({all_threads['task_s']:.1f} s / "
+               f"({n_workers} x wall)) {old_eff:.2f}: that sum already used every core, so it counts them twice.")
     md = (f"# bench_batch: {len(names)} exemplars{crop}, {args.count} images each at {args.size}x{args.size}, "
           f"{cores} cores\n\nLoad average before {load_before[0]:.1f}, after {load_after[0]:.1f} (a shared "
-          f"machine: other sessions' work competes with these runs).\n\nSum of single-exemplar task times (in process): {sum_single:.1f} s.\n\n"
+          f"machine: other sessions' work competes with these runs; timings are noisy).\n\n"
+          f"Serial work S (sum of the one-thread single-exemplar times, in process): {work:.1f} s "
+          f"({work / len(names):.2f} s per exemplar).\n\n"
           + markdown_table(header, rows)
-          + "\n\nefficiency = sum of single-exemplar times / (wall x workers); overhead = (wall x workers - "
-            "task times) / exemplars, with workers capped at the cores (n/a with more workers than cores, whose task "
-            "times include waiting for a core); peak MB: the worker process's peak resident "
-            "memory." + (f" The --scheduler cluster took {scheduled['cluster_start_s']:.1f} s to start (not in its "
-                         "wall time)." if scheduled else ""))
+          + "\n\nefficiency = S / (cores x wall), cores capped at the machine's; task time vs one thread: each "
+            "exemplar's task time in this mode against its one-thread in-process time (the cluster's overhead "
+            "per exemplar: serialisation, result transfer, image writes in a worker, two workers sharing memory "
+            "bandwidth; goal <= 5 %); task CPU: the same with the CPU seconds of the task's process (all its "
+            "threads), which other programs disturb less than wall time; task CPU / task time: the share of a "
+            "core (or cores) a task got (about 1 for a one-thread task that had its core); other programs: cores "
+            "kept busy by other processes during the mode (/proc/stat less this process and its workers; "
+            "efficiency needs them near 0); idle core-s / exemplar = (cores x wall - task times) / exemplars: "
+            "start-up, scheduling, the driver's hashing and ledger, idle cores in the tail; peak MB: each worker "
+            "process's peak resident memory (VmHWM). Cluster walls include starting the cluster."
+          + (f" The --scheduler cluster took {scheduled['cluster_start_s']:.1f} s to start (not in its wall time)."
+             if scheduled else "")
+          + old
+          + f"\n\nCommand: `python benchmarks/bench_batch.py {' '.join(sys.argv[1:])}`".rstrip() + "")
     print(md)
-    write_results("bench_batch" + (f"-crop{args.crop}" if args.crop else ""),
-                  {"exemplars": names, "crop": args.crop, "count": args.count, "size": args.size, "cores": cores,
-                   "sum_single_s": sum_single, "load_before": load_before, "load_after": load_after,
-                   "in_process": single, "cluster": cluster, "scheduler": scheduled}, md)
+    name = "batch-efficiency" + (f"-limit{args.limit}" if args.limit else "") + (f"-crop{args.crop}" if args.crop else "")
+    write_results(name, {"exemplars": names, "crop": args.crop, "count": args.count, "size": args.size, "cores": cores,
+                         "serial_work_s": work, "load_before": load_before, "load_after": load_after,
+                         "argv": sys.argv[1:], "one_thread": serial, "all_threads": all_threads, "cluster": cluster,
+                         "scheduler": scheduled}, md)
 
 
 def centre_crop(path, side, folder):

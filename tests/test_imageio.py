@@ -39,7 +39,7 @@ def test_png_writer_gives_pillow_the_same_pixels(monkeypatch, shape, part):
     from tghop import imageio
 
     monkeypatch.setattr(imageio, "_PNG_PART", part)
-    monkeypatch.setattr(imageio.os, "cpu_count", lambda: 5)
+    monkeypatch.setattr(imageio, "usable_cores", lambda: 5)
     pixels = np.random.default_rng(sum(shape)).integers(0, 256, shape, dtype=np.uint8)
     pixels[:, : shape[1] // 2] = 255 - pixels[:, : shape[1] // 2] // 7  # runs that compress
     buf = io.BytesIO()
@@ -66,7 +66,7 @@ def test_png_writer_raises_a_parts_error(monkeypatch):
         raise MemoryError("no memory for this part")
 
     monkeypatch.setattr(imageio, "_PNG_PART", 64)
-    monkeypatch.setattr(imageio.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(imageio, "usable_cores", lambda: 4)
     monkeypatch.setattr(imageio.zlib, "compressobj", boom)
     with pytest.raises(MemoryError, match="this part"):
         imageio.write_png(io.BytesIO(), np.zeros((40, 30, 3), dtype=np.uint8))

@@ -115,7 +115,7 @@ def test_threaded_refine_equals_one_thread(cells, monkeypatch):
     st = BandStatistics().fit(cells)
     img = _blurred(cells) * 0.8 + 0.1
     monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1)
-    monkeypatch.setattr(refine_module.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(refine_module, "usable_cores", lambda: 2)
     threaded = refine(img, st)
     monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1 << 62)
     assert np.array_equal(threaded, refine(img, st))
@@ -132,7 +132,7 @@ def test_refine_threads_are_limited_by_memory(cells, monkeypatch):
     img = _blurred(cells) * 0.8 + 0.1
     one_channel = refine_module._CHANNEL_ARRAYS * 4 * img.shape[0] * img.shape[1]
     monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1)
-    monkeypatch.setattr(refine_module.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(refine_module, "usable_cores", lambda: 2)
     started = []
     real = concurrent.futures.ThreadPoolExecutor
 
@@ -367,7 +367,7 @@ def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, path):
     monkeypatch.setattr(refine_module, "_THREADED_PIXELS", 1 << 62 if path == "stacked" else 1)
     if path == "one by one":
         monkeypatch.setattr(refine_module, "_REFINE_MEMORY", 1)
-    monkeypatch.setattr(refine_module.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(refine_module, "usable_cores", lambda: 2)
     calls = []
     out = refine(img, st, n_iter=2, progress=lambda *a: calls.append(a))
     assert {c[0] for c in calls} == {"refine"} and {c[2] for c in calls} == {6}  # 3 channels x 2 rounds

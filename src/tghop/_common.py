@@ -31,6 +31,7 @@ __all__ = [
     "report",
     "in_thread",
     "usable_cores",
+    "limit_cores",
     "MAX_PIXELS",
     "check_size",
     "available_memory",
@@ -381,22 +382,55 @@ def import_torch(what: str):
 
 
 # ------------------------------------------------------------------ threads
+#: The process-wide limit of :func:`limit_cores` (None: no limit).
+_core_limit = None
+
+
 def usable_cores() -> int:
     """Cores this process may run on: its affinity mask (``os.sched_getaffinity``, else
-    ``os.cpu_count()``), at least 1.
+    ``os.cpu_count()``), at most the limit of :func:`limit_cores`, at least 1.
 
     :meth:`tghop.core.ICHM.fit` runs its clusters in this many Python threads, each with
     one BLAS thread: threads that block do not spin, so beside other work they share the
     cores fairly and a fit is no slower than on one thread, while on an idle machine it
     uses every core (OpenBLAS's own threads spin between calls, and on a loaded machine a
-    fit with them took several times as long as with one; docs/choices.md).
+    fit with them took several times as long as with one; docs/choices.md). The steps of
+    generation that split a large image over threads (refinement, colour matching, the
+    coarse layout's guide, PNG compression) use this too.
     """
     import os
 
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        n = max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
-        return os.cpu_count() or 1
+        n = os.cpu_count() or 1
+    return n if _core_limit is None else max(1, min(n, _core_limit))
+
+
+class limit_cores:
+    """Context manager: :func:`usable_cores` says at most ``n`` (None: no limit) while it
+    is active, in every thread of the process (like ``threadpoolctl.threadpool_limits``,
+    whose BLAS limit it complements: tghop's own threads).
+
+    A batch worker process runs one exemplar at a time on one core
+    (:func:`tghop.batch.process_exemplar` with ``threads=1``): its fit and generation
+    then start no threads of their own to compete with the other workers.
+    """
+
+    def __init__(self, n: Optional[int]):
+        self.n = None if n is None else max(1, int(n))
+
+    def __enter__(self):
+        global _core_limit
+        self._previous = _core_limit
+        if self.n is not None:
+            _core_limit = self.n if _core_limit is None else min(_core_limit, self.n)
+        return self
+
+    def __exit__(self, *exc):
+        global _core_limit
+        _core_limit = self._previous
+        return False
 
 
 def in_thread(fn, *args, **kwargs) -> Callable:

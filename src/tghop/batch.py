@@ -35,7 +35,8 @@ from urllib.parse import quote
 from ._errors import MissingExtraError, TGHopError
 
 __all__ = ["run", "find_work", "process_exemplar", "read_ledger", "write_contact_sheet", "local_cluster",
-           "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT"]
+           "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
+           "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
@@ -47,6 +48,13 @@ ROW_SETTINGS = ("size", "count", "seed", "tile")
 INSTALL_HINT = "pip install 'tghop[batch]'"
 #: Longest side of the exemplar thumbnail of the contact sheet.
 THUMBNAIL = 128
+#: glibc ``malloc`` thresholds a worker sets (:func:`dask_setup`, ``mallopt``): the steady
+#: state of glibc's own adaptive ones (arrays up to 32 MB reuse freed heap memory, at most
+#: 64 MB is kept at the top of the heap). Dask starts its workers with
+#: ``MALLOC_TRIM_THRESHOLD_=65536``, which also turns the adaptation off: every large array
+#: is then a fresh, page-faulted mapping, and an exemplar took 37 % longer (docs/batch.md).
+WORKER_MALLOC = {"M_MMAP_THRESHOLD": 32 << 20, "M_TRIM_THRESHOLD": 64 << 20}
+_MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_THRESHOLD": -3}  # glibc's malloc.h
 
 
 # ------------------------------------------------------------------ finding work
@@ -278,18 +286,19 @@ def process_exemplar(job: dict) -> dict:
 
     ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``,
     ``size``, ``count``, ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's
-    parameters), ``generate`` (keywords of :meth:`TGHop.synthesize`), ``threads`` (BLAS
-    threads at most; None: no limit).
+    parameters), ``generate`` (keywords of :meth:`TGHop.synthesize`), ``threads`` (threads at
+    most, BLAS's and tghop's own: :func:`tghop._common.limit_cores`; None: no limit).
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line),
-    ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times,
-    the worker and its peak memory. Bad input is a "failed" record, never an exception;
+    ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times
+    (``seconds``, ``cpu_seconds`` of the whole process, ``fit_seconds``,
+    ``synth_seconds``), ``threads``, the worker and its peak memory. Bad input is a "failed" record, never an exception;
     what was written for a failed exemplar is removed.
     """
     import resource
     import socket
 
-    start = time.time()
+    start, cpu_start = time.time(), time.process_time()
     folder = Path(job["folder"])
     name = job["name"]
     record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
@@ -300,6 +309,7 @@ def process_exemplar(job: dict) -> dict:
         import numpy as np
         from threadpoolctl import threadpool_limits
 
+        from ._common import limit_cores
         from .fit_options import model_for
         from .imageio import load_image, save_image
         from .modelfile import save_model
@@ -307,7 +317,7 @@ def process_exemplar(job: dict) -> dict:
 
         folder.mkdir(parents=True, exist_ok=True)
         remove_temporaries(folder)  # left by a worker killed while writing here
-        with threadpool_limits(limits=job.get("threads")):
+        with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
             raw = load_image(job["source"], dtype=None)
             image = prepare_exemplar(raw, min_size=fit.get("patch_size") or 32)
@@ -352,6 +362,8 @@ def process_exemplar(job: dict) -> dict:
         except OSError:
             pass
     record["seconds"] = time.time() - start
+    record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
+    record["threads"] = job.get("threads")
     record["peak_rss_mb"] = _peak_rss_mb(resource)
     return record
 
@@ -418,7 +430,10 @@ def _import_distributed():
 def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     """A local ``dask.distributed`` cluster of ``n_workers`` worker processes (default:
     one per available core), one thread each, BLAS limited to one thread per worker, no
-    dashboard, a worker's death allowed ``retries`` times per task."""
+    dashboard, a worker's death allowed ``retries`` times per task.
+
+    Each worker runs :func:`dask_setup` first (a preload): among others, its ``malloc``
+    keeps freed memory for reuse (:data:`WORKER_MALLOC`)."""
     distributed = _import_distributed()
     import logging
 
@@ -438,12 +453,38 @@ def dask_setup(worker):
     """Run in each worker process of :func:`local_cluster` (a Dask preload): Ctrl-C in a
     terminal reaches the whole process group, but only the caller stops the batch (it
     closes the cluster, which ends the workers), so the workers ignore it instead of each
-    printing a traceback."""
+    printing a traceback; malloc keeps freed memory for reuse (:func:`tune_malloc`); and
+    the modules of a task are imported. (Workers started by hand for ``--scheduler`` get
+    glibc's adaptive thresholds' steady state from the environment:
+    ``MALLOC_TRIM_THRESHOLD_=67108864 MALLOC_MMAP_THRESHOLD_=33554432 dask worker ...``.)"""
     import signal
     import threading
 
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.environ.get("MALLOC_TRIM_THRESHOLD_", "65536") == "65536":  # Dask's (a value of one's own is kept)
+        tune_malloc()
+    # What a task needs, imported while the cluster starts (in every worker at once)
+    # rather than in each worker's first task.
+    import numpy.fft  # noqa: F401
+    import PIL.Image  # noqa: F401
+    import threadpoolctl  # noqa: F401
+
+    from . import fit_options, imageio, modelfile, synthesis  # noqa: F401
+
+
+def tune_malloc() -> bool:
+    """Set :data:`WORKER_MALLOC` in this process's glibc ``malloc`` (``mallopt``); False
+    where there is no glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    return all(mallopt(_MALLOPT[k], int(v)) == 1 for k, v in WORKER_MALLOC.items())
 
 
 def _cores() -> int:
@@ -451,6 +492,22 @@ def _cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
         return os.cpu_count() or 1
+
+
+def _cost(job) -> float:
+    """A rough relative cost of a job, to start the longest first (a shorter tail at the
+    end of a run): one fit (a little more for a larger exemplar: its pixels read from the
+    file's header, capped at 4 MP) plus a tenth of a fit per 512x512 output pixels
+    (measured in one thread: a fit about 11 s, a 512x512 image about 1 s; docs/choices.md)."""
+    try:
+        from PIL import Image
+
+        with Image.open(job["source"]) as img:
+            pixels = img.size[0] * img.size[1]
+    except Exception:  # noqa: BLE001 - not an image: it fails at once, last is fine
+        return 0.0
+    out = job["size"][0] * job["size"][1] * job["count"]
+    return 1.0 + 0.25 * min(pixels, 4 << 20) / (1 << 20) + 0.1 * out / (512 * 512)
 
 
 def _settings(item_settings, defaults, fit, generate):
@@ -485,8 +542,10 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     generate : dict
         Other keywords of :meth:`TGHop.synthesize` (``tile`` comes from ``tile``).
     workers : int, optional
-        1: in this process, without Dask. Otherwise a local cluster of that many worker
-        processes (None: one per core). Ignored when ``client`` or ``scheduler`` is given.
+        1: in this process, without Dask, each exemplar on every core. Otherwise a local
+        cluster of that many worker processes (None: one per core, :func:`local_cluster`).
+        On a cluster (also a given one) each exemplar runs on one thread (BLAS's and
+        tghop's own), the longest first. Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
         Run on this client's cluster. ``scheduler``: the address of one to connect to.
     retries : int
@@ -608,9 +667,12 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, 
                 own_cluster = local_cluster(workers, retries=retries)
                 client = own_client = distributed.Client(own_cluster)
         by_key = {}
-        for job in jobs:
+        # The longest first (a shorter tail), in that order on a cluster that queues tasks
+        # on the scheduler (Dask's default): a worker takes the next as it finishes one.
+        order = sorted(jobs, key=_cost, reverse=True)
+        for rank, job in enumerate(order):
             key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
-            fut = client.submit(task, job, key=key, pure=False)
+            fut = client.submit(task, job, key=key, pure=False, priority=len(order) - rank)
             by_key[fut.key] = job
             futures.append(fut)
         slots = max(1, sum(client.nthreads().values())) if hasattr(client, "nthreads") else len(jobs)

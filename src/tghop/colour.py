@@ -11,11 +11,9 @@ paper exactly.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
-from ._common import TGHopError
+from ._common import TGHopError, usable_cores
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES"]
 
@@ -123,7 +121,7 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     # Large images: a thread per channel (NumPy lets go of the interpreter lock in these
     # steps), each channel in chunks whose temporaries stay in cache; the same numbers as
     # whole-channel steps (measured: docs/choices.md).
-    if c > 1 and h * w >= _THREADED_PIXELS and (os.cpu_count() or 1) > 1:
+    if c > 1 and h * w >= _THREADED_PIXELS and usable_cores() > 1:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=c) as pool:

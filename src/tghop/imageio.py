@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from struct import error as struct_error
 
-from ._common import InvalidImageError, TGHopError, check_image
+from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
 
 __all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
@@ -441,7 +441,7 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     raw[:, 0] = 1  # filter type Sub
     raw[:, 1 : 1 + c] = rows[:, :c]
     np.subtract(rows[:, c:], rows[:, :-c], out=raw[:, 1 + c :])  # modulo 256
-    n_parts = max(1, min(os.cpu_count() or 1, raw.nbytes // _PNG_PART, h))
+    n_parts = max(1, min(usable_cores(), raw.nbytes // _PNG_PART, h))
     bounds = [h * i // n_parts for i in range(n_parts + 1)]
     blobs = [b""] * n_parts
 

@@ -28,10 +28,9 @@ from __future__ import annotations
 
 import math
 import numbers
-import os
 
 import numpy as np
-from ._common import TGHopError, check_size
+from ._common import TGHopError, check_size, usable_cores
 
 __all__ = ["downsample", "upsample", "positive_int", "fits", "coarse_training", "coarse_guide"]
 
@@ -100,7 +99,7 @@ def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
 
     # A large guide: the two halves of the rows on two threads (it is made while the
     # other thread waits for it; docs/choices.md).
-    if h * w >= 1 << 20 and h > 1 and (os.cpu_count() or 1) > 1:
+    if h * w >= 1 << 20 and h > 1 and usable_cores() > 1:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=1) as worker:

@@ -19,11 +19,10 @@ from __future__ import annotations
 import functools
 import math
 import numbers
-import os
 
 import numpy as np
 
-from ._common import TGHopError, check_size, report
+from ._common import TGHopError, check_size, report, usable_cores
 from ._fft import fft_for
 from .patches import clean_windows
 
@@ -744,7 +743,7 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, 
     report(progress, "refine", 0, total)
     pixels = image.shape[0] * image.shape[1]
     workers = min(n_channels, max(1, _REFINE_MEMORY // (_CHANNEL_ARRAYS * 4 * pixels)))
-    if workers > 1 and (os.cpu_count() or 1) > 1 and pixels >= _THREADED_PIXELS:
+    if workers > 1 and usable_cores() > 1 and pixels >= _THREADED_PIXELS:
         from concurrent.futures import ThreadPoolExecutor, as_completed
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
@@ -763,7 +762,7 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, 
     else:
         # One channel at a time (too large for several at once, or one core): a large
         # image's Fourier transforms then use every core.
-        fft_workers = os.cpu_count() or 1
+        fft_workers = usable_cores()
         for k in range(n_channels):
             one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total), fft_workers=fft_workers)
     return _colours(stats, results, dtype)
