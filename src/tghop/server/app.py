@@ -375,35 +375,7 @@ class Server:
     def _store_upload(self, content: bytes, filename: str) -> str:
         """Check an uploaded model file and keep it under its content hash (400 if it is not
         a good tghop model; nothing is left in the cache either way)."""
-        from ..modelfile import load_model
-
-        if not content:
-            raise RequestError(400, f"{filename} is empty; send a model file written by 'tghop fit'")
-        model_id = hashlib.sha256(content).hexdigest()
-        final = self.cache.path(model_id)
-        if final.is_file():
-            self.cache.touch(model_id)
-            return model_id
-        fd, tmp = tempfile.mkstemp(prefix=f".upload-{model_id[:12]}.", suffix=".tmp", dir=self.cache.models)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(content)
-            try:
-                model = load_model(tmp)
-            except TGHopError as exc:
-                raise RequestError(400, str(exc).replace(tmp, filename)) from None
-            except MemoryError:
-                raise RequestError(413, f"{filename}: not enough memory to read this model") from None
-            os.replace(tmp, final)
-            tmp = None
-        finally:
-            if tmp is not None:
-                try:
-                    os.unlink(tmp)
-                except FileNotFoundError:
-                    pass
-        self.cache.added(model_id, model)
-        return model_id
+        return self.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
 
     async def upload_model(self, request):
         body = await read_body(request)

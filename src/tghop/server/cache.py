@@ -8,8 +8,10 @@ An id is 64 hex digits (a content hash); anything else is 404 before the file sy
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
+import tempfile
 import threading
 from collections import OrderedDict
 from pathlib import Path
@@ -118,6 +120,38 @@ class ModelCache:
             with self._lock:
                 self._loaded.pop(model_id, None)
         return removed
+
+    def store(self, content: bytes, filename: str, *, hint: str) -> str:
+        """Keep uploaded bytes under their SHA-256 once this cache's loader accepts them: the
+        id. Not loadable: 400 (no room: 413), ``hint`` saying what to send; nothing is left
+        in the folder either way."""
+        if not content:
+            raise RequestError(400, f"{filename} is empty; {hint}")
+        key = hashlib.sha256(content).hexdigest()
+        final = self.path(key)
+        if final.is_file():
+            self.touch(key)
+            return key
+        fd, tmp = tempfile.mkstemp(prefix=f".upload-{key[:12]}.", suffix=".tmp", dir=self.models)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(content)
+            try:
+                loaded = self._load(tmp)
+            except TGHopError as exc:
+                raise RequestError(400, str(exc).replace(tmp, filename)) from None
+            except MemoryError:
+                raise RequestError(413, f"{filename}: not enough memory to read this {self.what}") from None
+            os.replace(tmp, final)
+            tmp = None
+        finally:
+            if tmp is not None:
+                try:
+                    os.unlink(tmp)
+                except FileNotFoundError:
+                    pass
+        self.added(key, loaded)
+        return key
 
     def added(self, model_id: str, model) -> None:
         """A model file was just written: keep the model in memory and the folder in bounds."""

@@ -23,9 +23,7 @@ import functools
 import hashlib
 import importlib.util
 import io
-import os
 import re
-import tempfile
 
 from .._errors import TGHopError
 from .cache import ModelCache
@@ -72,33 +70,7 @@ def cooc_cache(cache_dir, max_bytes) -> ModelCache:
 def store_checkpoint(cache: ModelCache, content: bytes, filename: str) -> str:
     """Check an uploaded checkpoint and keep it under its SHA-256 (400 if it is not a good
     co-occurrence checkpoint; nothing is left in the cache either way): its id."""
-    if not content:
-        raise RequestError(400, f"{filename} is empty; send a checkpoint written by 'tghop cooc train'")
-    cid = hashlib.sha256(content).hexdigest()
-    final = cache.path(cid)
-    if final.is_file():
-        cache.touch(cid)
-        return cid
-    fd, tmp = tempfile.mkstemp(prefix=f".upload-{cid[:12]}.", suffix=".tmp", dir=cache.models)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(content)
-        try:
-            model = _load(tmp)
-        except TGHopError as exc:
-            raise RequestError(400, str(exc).replace(tmp, filename)) from None
-        except MemoryError:
-            raise RequestError(413, f"{filename}: not enough memory to read this checkpoint") from None
-        os.replace(tmp, final)
-        tmp = None
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
-    cache.added(cid, model)
-    return cid
+    return cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'")
 
 
 @functools.lru_cache(maxsize=1)
