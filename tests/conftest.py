@@ -20,6 +20,11 @@ for _sig, _default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGH
 SMALL = dict(n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, stride=4, rng=0)
 
 
+#: A tiny co-occurrence cGAN (tghop.cooc): 32 x 32 crops, s = 8, a few filters, two steps; trains in a few seconds.
+TINY_COOC = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
+                 noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+
+
 @pytest.fixture(scope="session")
 def bricks96():
     return data.bricks(96, rng=1)

@@ -13,13 +13,11 @@ from tghop import cooc, cooccurrence, data
 from tghop.cooc import assembly, networks
 from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
-from conftest import assert_user_error
+from conftest import TINY_COOC, assert_user_error
 
 torch = pytest.importorskip("torch")
 
-#: A tiny configuration: 32 x 32 crops, s = 8, a few filters, two steps.
-TINY = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
-            noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+TINY = TINY_COOC
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -14,6 +14,7 @@ import pytest
 httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
 pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
 
+from conftest import TINY_COOC  # noqa: E402
 from test_server import assert_error  # noqa: E402
 
 try:
@@ -23,9 +24,7 @@ except ImportError:
 needs_torch = pytest.mark.skipif(torch is None, reason="PyTorch is not installed (pip install -e '.[metrics]'): "
                                                        "the co-occurrence routes answer 501 without it")
 
-#: A tiny configuration (tests/test_cooc.py's): 32 x 32 crops, s = 8, two steps; trains in a few seconds.
-TINY = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
-            noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+TINY = TINY_COOC
 
 
 @pytest.fixture(scope="module", autouse=True)

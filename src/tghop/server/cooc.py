@@ -17,17 +17,14 @@ every route here answers 501 (:func:`require_torch`) and the rest of the server 
 
 from __future__ import annotations
 
-import base64
-import binascii
 import functools
 import hashlib
 import importlib.util
 import io
-import re
 
 from .._errors import TGHopError
 from .cache import ModelCache
-from .requests import RequestError, parse_bool
+from .requests import RequestError, decode_png_field, parse_bool
 
 __all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "require_torch", "cooc_cache",
            "store_checkpoint", "summary", "parse_morph", "parse_edit", "morph_png", "edit_png"]
@@ -148,19 +145,6 @@ def parse_morph(body) -> tuple:
     return (a, b, crop, length, *_common(body))
 
 
-def _labels_png(value) -> bytes:
-    if not isinstance(value, str):
-        raise RequestError(400, "labels must be a PNG as a base64 string (or a data: URL)")
-    text = re.sub(r"^data:[^,]{0,100},", "", value.strip())
-    try:
-        content = base64.b64decode(text, validate=True)
-    except (binascii.Error, ValueError):
-        raise RequestError(400, "labels is not valid base64; send the PNG's bytes base64-encoded") from None
-    if not content:
-        raise RequestError(400, "labels is empty; send a PNG painted with one grey level per crop")
-    return content
-
-
 def parse_edit(body) -> tuple:
     """The JSON of ``POST /api/cooc/{id}/edit`` -> ``(size, labels PNG bytes or None, crops,
     seed, windows)``.
@@ -191,7 +175,7 @@ def parse_edit(body) -> tuple:
     if labels is None and len(crops) > 1:
         raise RequestError(422, f"{len(crops)} crops but no labels: send labels, a PNG painted with one grey "
                                 "level per crop (the darkest for the first)")
-    return (size, None if labels is None else _labels_png(labels), crops, *_common(body))
+    return (size, None if labels is None else decode_png_field(labels, "labels", paint="one grey level per crop"), crops, *_common(body))
 
 
 # ------------------------------------------------------------------ the work

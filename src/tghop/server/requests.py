@@ -15,7 +15,7 @@ import re
 
 from .._errors import TGHopError
 
-__all__ = ["RequestError", "parse_bool", "parse_generation", "parse_guided", "parse_morph", "MAX_MODELS",
+__all__ = ["RequestError", "decode_png_field", "parse_bool", "parse_generation", "parse_guided", "parse_morph", "MAX_MODELS",
            "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
@@ -119,20 +119,25 @@ def _model_ids(value, name, low, high) -> list:
     return ids
 
 
-def decode_guide(value) -> bytes:
-    """The guide's image file from base64 (a ``data:`` URL's prefix is dropped); 400 when it
-    is not base64."""
+def decode_png_field(value, name: str, *, paint: str, missing: str = "") -> bytes:
+    """A JSON field holding an image file as base64 (a ``data:`` URL's prefix is dropped):
+    its bytes; 400 naming ``name`` when it is not a base64 string or is empty (``paint``:
+    what the PNG should hold; ``missing``: what leaving the field out does, if anything)."""
     if not isinstance(value, str):
-        raise RequestError(400, "guide must be a PNG as a base64 string (or a data: URL), "
-                                "or left out for a remix")
+        raise RequestError(400, f"{name} must be a PNG as a base64 string (or a data: URL){missing}")
     text = re.sub(r"^data:[^,]{0,100},", "", value.strip())
     try:
         content = base64.b64decode(text, validate=True)
     except (binascii.Error, ValueError):
-        raise RequestError(400, "guide is not valid base64; send the PNG's bytes base64-encoded") from None
+        raise RequestError(400, f"{name} is not valid base64; send the PNG's bytes base64-encoded") from None
     if not content:
-        raise RequestError(400, "guide is empty; send a PNG painted with one grey level per model")
+        raise RequestError(400, f"{name} is empty; send a PNG painted with {paint}")
     return content
+
+
+def decode_guide(value) -> bytes:
+    """The guide's image file from base64; 400 when it is not base64."""
+    return decode_png_field(value, "guide", paint="one grey level per model", missing=", or left out for a remix")
 
 
 def parse_guided(body) -> tuple:
