@@ -5,6 +5,7 @@ the library's calls), and every kind of bad input; without PyTorch, 501."""
 import base64
 import hashlib
 import io
+import json
 import os
 import sys
 
@@ -15,6 +16,7 @@ httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip 
 pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
 
 from conftest import TINY_COOC  # noqa: E402
+from tghop import TGHopError  # noqa: E402
 from test_server import assert_error  # noqa: E402
 
 try:
@@ -149,6 +151,48 @@ def test_edit_paints_each_crops_statistics_where_its_label_is(client, checkpoint
 
 
 @needs_torch
+def test_edit_with_a_boost_is_the_libraries_boosted_condition(client, checkpoint, cid):
+    from tghop import cooc
+
+    model = checkpoint[1]
+    body = {"crops": [[0, 0]], "size": [32, 48], "seed": 2}
+    plain = decoded(client.post(f"/api/cooc/{cid}/edit", json=body))
+    for boost in ([0, 1, 8], [2, 2, 0.25]):
+        got = decoded(client.post(f"/api/cooc/{cid}/edit", json={**body, "boost": boost}))
+        cond = cooc.paint_condition([model.crop_condition(0, 0)], np.zeros((4, 6), dtype=int))
+        want = as_uint8(model.generate(cooc.boost_condition(cond, *boost), rng=2)[:32, :48])
+        assert np.abs(got.astype(int) - want).max() <= 1
+        assert (got != plain).any()  # the boost changed the image
+    same = decoded(client.post(f"/api/cooc/{cid}/edit", json={**body, "boost": [1, 0, 1]}))
+    assert np.abs(same.astype(int) - plain).max() <= 1  # a factor of 1 changes nothing
+
+
+def test_boost_condition_scales_one_bin_and_its_mirror():
+    from tghop.cooc import boost_condition
+
+    cond = np.random.default_rng(0).random((9, 2, 3))
+    out = boost_condition(cond, 0, 2, 3.0)
+    assert np.allclose(out[[2, 6]], 3 * cond[[2, 6]]) and np.allclose(np.delete(out, [2, 6], 0), np.delete(cond, [2, 6], 0))
+    assert np.allclose(boost_condition(cond, 1, 1, 0.5)[4], 0.5 * cond[4])
+    assert out is not cond and np.array_equal(cond, np.random.default_rng(0).random((9, 2, 3)))  # a copy
+    for a, b, f in ((0, 3, 2.0), (-1, 0, 2.0), (0, 0, -1.0), (0, 0, float("inf")), (True, 0, 2.0)):
+        with pytest.raises(TGHopError, match=r"must lie in 0\.\.2 \(this model has 3 colour clusters\)"):
+            boost_condition(cond, a, b, f)
+
+
+@needs_torch
+def test_the_checkpoint_downloads_as_uploaded(client, checkpoint, cid):
+    r = client.get(f"/api/cooc/{cid}/file")
+    assert r.status_code == 200 and r.content == checkpoint[0]
+    assert r.headers["content-type"] == "application/octet-stream"
+    assert r.headers["content-disposition"] == f'attachment; filename="tghop-{cid[:12]}.pt"'
+    assert client.post("/api/cooc", content=r.content).json()["id"] == cid  # uploads back to the same id
+    assert_error(client.get(f"/api/cooc/{'0' * 64}/file"), 404, "no co-occurrence checkpoint", "POST /api/cooc")
+    assert_error(client.get("/api/cooc/not-an-id/file"), 404, "no co-occurrence checkpoint")
+    assert_error(client.get("/api/cooc/../../etc/passwd/file"), 404)
+
+
+@needs_torch
 def test_bad_checkpoints_get_400_and_leave_nothing(client, live_server, tmp_path):
     import torch
 
@@ -203,6 +247,12 @@ def test_bad_requests_get_one_line_and_their_status(client, cid):
                  "the label map is 1x2 but the output is 8x8")
     assert_error(client.post(edit, json={"crops": [[0, 0]], "size": [4096, 4096]}), 422, "size")
     assert_error(client.post(edit, json={"crops": [[0, 0]], "seed": -1}), 422, "seed must be an integer")
+    for boost in ([0, 1], [0, 1, -1], [0, 1, "2"], [True, 0, 2], [0, 1, 1e9], "0,1,2", "[0, 1, NaN]", "[0, 1, Infinity]"):
+        raw = '{"crops": [[0, 0]], "boost": %s}' % (boost if isinstance(boost, str) and "[" in boost else json.dumps(boost))
+        assert_error(client.post(edit, content=raw, headers={"content-type": "application/json"}), 422,
+                     "boost must be [a, b, factor]")  # NaN, Infinity: Python's JSON reads them
+    assert_error(client.post(edit, json={"crops": [[0, 0]], "boost": [0, 3, 2]}), 422, "boost [0, 3, 2.0]",
+                 "0..2 (this model has 3 colour clusters)")
 
 
 def test_without_torch_the_routes_say_how_to_install_it(tmp_path, monkeypatch):
@@ -213,6 +263,7 @@ def test_without_torch_the_routes_say_how_to_install_it(tmp_path, monkeypatch):
     try:
         with httpx.Client(base_url=server.url, timeout=60) as c:
             for r in (c.post("/api/cooc", content=b"x"), c.get("/api/cooc/" + "0" * 64),
+                      c.get("/api/cooc/" + "0" * 64 + "/file"),
                       c.post("/api/cooc/" + "0" * 64 + "/morph", json={})):
                 assert_error(r, 501, "PyTorch", "pip install 'tghop[metrics]'")
             assert c.get("/api").status_code == 200  # the rest works

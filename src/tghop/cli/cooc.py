@@ -211,7 +211,7 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows):
     """
     import numpy as np
 
-    from ..cooc import paint_condition
+    from ..cooc import boost_condition, paint_condition
     from ..imageio import save_image
 
     with user_errors():
@@ -236,18 +236,15 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows):
                 labels = np.minimum((np.asarray(pil) / 256.0 * len(tensors)).astype(int), len(tensors) - 1)
             cond = paint_condition(tensors, labels)
         if boost is not None:
-            k = int(round(np.sqrt(cond.shape[0])))
             try:
                 ia, ib, factor = boost.split(",")
                 ia, ib, factor = int(ia), int(ib), float(factor)
             except ValueError:
                 raise TGHopError(f"--boost {boost!r}: write A,B,FACTOR, e.g. 0,0,2") from None
-            if not (0 <= ia < k and 0 <= ib < k) or not factor >= 0:
-                raise TGHopError(f"--boost: A and B must lie in 0..{k - 1} and FACTOR be >= 0")
-            cond = cond.copy()
-            cond[ia * k + ib] *= factor
-            if ia != ib:
-                cond[ib * k + ia] *= factor
+            try:
+                cond = boost_condition(cond, ia, ib, factor)
+            except TGHopError as exc:
+                raise TGHopError(f"--boost {boost!r}: {exc}") from None
         image = model.generate(cond, rng=seed, windows=windows)[: size[0], : size[1]]
         save_image(image, output)
     click.echo(f"edited texture written to {output}", err=True)

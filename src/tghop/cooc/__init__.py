@@ -24,7 +24,7 @@ The cGAN (needs PyTorch: ``pip install 'tghop[metrics]'``):
 
 * :class:`CoocGAN` -- ``fit(exemplar)`` trains it (WGAN-GP plus the paper's co-occurrence
   consistency loss); ``sample``, ``generate``, ``morph_strip``, ``morph_grid`` and
-  :func:`paint_condition` are the controls; ``save`` / :func:`load` write and read a
+  :func:`paint_condition` and :func:`boost_condition` are the controls; ``save`` / :func:`load` write and read a
   ``.pt`` checkpoint of tensors only (JSON settings inside), and ``fit(..., resume=True)``
   continues a loaded one.
 * ``sample`` quilts generated training-size crops by default (``assembly="quilt"``,
@@ -47,7 +47,7 @@ The modules, in the order data flows through them (none imports this package's
   co-occurrence statistics;
 * :mod:`tghop.cooc.config` -- :data:`SMALL`, :data:`PAPER` and the check of the settings;
 * :mod:`tghop.cooc.networks` -- the generator, the critic, the weight average, tiles;
-* :mod:`tghop.cooc.assembly` -- tiling conditions, windows, :func:`paint_condition`;
+* :mod:`tghop.cooc.assembly` -- tiling conditions, windows, :func:`paint_condition`, :func:`boost_condition`;
 * :mod:`tghop.cooc.training` -- ``fit`` and its steps (mixed into :class:`CoocGAN`), and
   :func:`tghop.cooc.training.keep_mmap_threshold` for programs that train on a CPU;
 * :mod:`tghop.cooc.checkpoints` -- the ``.pt`` file (:data:`KIND`, :data:`FORMAT`);
@@ -57,7 +57,7 @@ The modules, in the order data flows through them (none imports this package's
 from __future__ import annotations
 
 from ..cooccurrence import cooccurrence_matrix, cooccurrence_tensor, fit_colour_clusters, soft_assign
-from .assembly import ASSEMBLIES, FEATHER, QUILT_DETAIL, QUILT_POOL, QUILT_TOLERANCE, paint_condition
+from .assembly import ASSEMBLIES, FEATHER, QUILT_DETAIL, QUILT_POOL, QUILT_TOLERANCE, boost_condition, paint_condition
 from .checkpoints import FORMAT, KIND
 from .config import PAPER, SMALL
 from .model import CoocGAN, baseline, load
@@ -74,6 +74,7 @@ __all__ = [
     "cooccurrence_matrix",
     "cooccurrence_tensor",
     "paint_condition",
+    "boost_condition",
     "load",
     "baseline",
     # also public before the split into modules

@@ -2,7 +2,8 @@
 
 * conditions: :func:`tile` and :func:`reflect_tile` repeat a co-occurrence tensor
   periodically or mirrored to any size; :func:`paint_condition` composes one from several,
-  cell by cell (the paper's Sec. 5.2 control);
+  cell by cell (the paper's Sec. 5.2 control); :func:`boost_condition` scales one bin of
+  every cell's matrix (the paper's Fig. 11 edit);
 * windows (:meth:`tghop.cooc.model.CoocGAN.generate_windows`): :func:`window_layout` places
   overlapping training-size windows along an axis, :func:`mirror_pad` pads a condition for
   them, :func:`blend_weights` cross-fades neighbouring windows;
@@ -24,6 +25,7 @@ __all__ = [
     "QUILT_DETAIL",
     "check_assembly",
     "paint_condition",
+    "boost_condition",
     "tile",
     "reflect_tile",
     "window_layout",
@@ -84,6 +86,40 @@ def paint_condition(tensors, labels):
     h, w = labels.shape
     tiled = np.stack([tile(t, h, w) for t in srcs])  # (n, k*k, h, w)
     return np.take_along_axis(tiled, labels[None, None], axis=0)[0]
+
+
+def boost_condition(cond, a: int, b: int, factor: float) -> np.ndarray:
+    """Multiply bin ``M(a, b)`` (and ``M(b, a)``) of every cell's co-occurrence matrix by
+    ``factor``: more (``factor > 1``) or fewer (``< 1``) neighbouring pixels of colour
+    clusters ``a`` and ``b`` (the paper's Fig. 11). :meth:`CoocGAN.generate
+    <tghop.cooc.model.CoocGAN.generate>` re-normalises each cell to sum to 1.
+
+    Parameters
+    ----------
+    cond : array_like, shape (k*k, h, w)
+        Co-occurrence tensor (row-stacked ``k x k`` matrices).
+    a, b : int
+        Colour clusters, each in ``0..k-1``.
+    factor : float
+        Finite, >= 0.
+
+    Returns
+    -------
+    ndarray, shape (k*k, h, w), float64
+        A boosted copy.
+    """
+    cond = np.array(cond, dtype=np.float64)
+    k = int(round(np.sqrt(cond.shape[0]))) if cond.ndim == 3 else 0
+    if k == 0 or k * k != cond.shape[0]:
+        raise TGHopError(f"cond must be a (k*k, h, w) co-occurrence tensor, got shape {cond.shape}")
+    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v < k for v in (a, b))
+    if not ok or not (isinstance(factor, (int, float, np.number)) and np.isfinite(factor) and factor >= 0):
+        raise TGHopError(f"the boosted clusters must lie in 0..{k - 1} (this model has {k} colour clusters) and "
+                         f"the factor be a finite number >= 0, got {a!r}, {b!r}, {factor!r}")
+    cond[a * k + b] *= factor
+    if a != b:
+        cond[b * k + a] *= factor
+    return cond
 
 
 def tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:

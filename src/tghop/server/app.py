@@ -363,14 +363,19 @@ class Server:
     async def model_summary(self, request):
         return _json(await run_in_threadpool(self._summary, request.path_params["id"]))
 
+    @staticmethod
+    def _file(cache, file_id: str, missing: str):
+        """The file ``file_id`` of ``cache`` as a download (404 with ``missing`` if none)."""
+        path = cache.path(file_id)
+        if not path.is_file():
+            raise RequestError(404, missing)
+        cache.touch(file_id)
+        return FileResponse(path, media_type="application/octet-stream",
+                            filename=f"tghop-{file_id[:12]}{path.suffix}")
+
     async def model_file(self, request):
         model_id = request.path_params["id"]
-        path = self.cache.path(model_id)
-        if not path.is_file():
-            raise RequestError(404, f"no model {model_id}; fit one with POST /api/models")
-        self.cache.touch(model_id)
-        return FileResponse(path, media_type="application/octet-stream",
-                            filename=f"tghop-{model_id[:12]}.npz")
+        return self._file(self.cache, model_id, f"no model {model_id}; fit one with POST /api/models")
 
     def _store_upload(self, content: bytes, filename: str) -> str:
         """Check an uploaded model file and keep it under its content hash (400 if it is not
@@ -580,6 +585,10 @@ class Server:
         cid = self._cooc_id(request)
         return _json(await run_in_threadpool(cooc.summary, self.cooc, cid))
 
+    async def cooc_file(self, request):
+        cid = self._cooc_id(request)
+        return self._file(self.cooc, cid, f"no co-occurrence checkpoint {cid}; {cooc.COOC_HINT}")
+
     async def cooc_morph(self, request):
         cid = self._cooc_id(request)
         a, b, crop, length, seed, windows = cooc.parse_morph(await self._json_body(request))
@@ -594,14 +603,14 @@ class Server:
         from ..imageio import load_image
 
         cid = self._cooc_id(request)
-        size, labels, crops, seed, windows = cooc.parse_edit(await self._json_body(request, limit=MAX_UPLOAD_BYTES))
+        size, labels, crops, boost, seed, windows = cooc.parse_edit(await self._json_body(request, limit=MAX_UPLOAD_BYTES))
 
         def read_labels(content):
             return self._read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
 
         def work(seed):
             with self.generating:
-                return cooc.edit_png(self.cooc.load(cid), size, labels, crops, windows, seed, read_labels)
+                return cooc.edit_png(self.cooc.load(cid), size, labels, crops, boost, windows, seed, read_labels)
 
         return await self._png_response(work, seed=seed)
 
@@ -674,6 +683,7 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         Route("/api/images/morph", _wrap(server.morph), methods=["POST"]),
         Route("/api/cooc", _wrap(server.upload_cooc), methods=["POST"]),
         Route("/api/cooc/{id}", _wrap(server.cooc_summary)),
+        Route("/api/cooc/{id}/file", _wrap(server.cooc_file)),
         Route("/api/cooc/{id}/morph", _wrap(server.cooc_morph), methods=["POST"]),
         Route("/api/cooc/{id}/edit", _wrap(server.cooc_edit), methods=["POST"]),
         Route("/api/jobs/{job}", _wrap(server.job_state)),

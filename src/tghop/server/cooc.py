@@ -21,12 +21,14 @@ import functools
 import hashlib
 import importlib.util
 import io
+import math
 
 from .._errors import TGHopError
 from .cache import ModelCache
 from .requests import RequestError, decode_png_field, parse_bool
 
-__all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "require_torch", "cooc_cache",
+__all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "MAX_BOOST",
+           "require_torch", "cooc_cache",
            "store_checkpoint", "summary", "parse_morph", "parse_edit", "morph_png", "edit_png"]
 
 #: The 501 answer without PyTorch.
@@ -40,6 +42,9 @@ MAX_COOC_PIXELS = 2048 * 2048
 MAX_CROPS = 8
 #: Longest morph strip, in condition cells.
 MAX_LENGTH = 1024
+#: Largest factor of an edit's ``boost`` (a bin's share p of a cell becomes
+#: p f / (p f + 1 - p): 1000 takes a 1 % bin to 91 %; more changes next to nothing).
+MAX_BOOST = 1000.0
 
 
 def require_torch() -> None:
@@ -145,20 +150,35 @@ def parse_morph(body) -> tuple:
     return (a, b, crop, length, *_common(body))
 
 
+def _boost(value):
+    """``boost``: ``[a, b, factor]`` (colour clusters, checked against the checkpoint's
+    ``n_clusters`` by :func:`tghop.cooc.boost_condition`; a finite factor >= 0) or null."""
+    if value is None:
+        return None
+    if (isinstance(value, list) and len(value) == 3
+            and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < 2**31 for v in value[:2])
+            and isinstance(value[2], (int, float)) and not isinstance(value[2], bool)
+            and math.isfinite(value[2]) and 0 <= value[2] <= MAX_BOOST):
+        return int(value[0]), int(value[1]), float(value[2])
+    raise RequestError(422, f"boost must be [a, b, factor]: two colour clusters (0 to the checkpoint's n_clusters - 1) "
+                            f"and a factor from 0 to {MAX_BOOST:g}, e.g. [0, 1, 2]; got {str(value)[:60]!r}")
+
+
 def parse_edit(body) -> tuple:
     """The JSON of ``POST /api/cooc/{id}/edit`` -> ``(size, labels PNG bytes or None, crops,
-    seed, windows)``.
+    boost, seed, windows)``.
 
     ``size``: ``[height, width]`` (or one number; default the labels' size, or ``[256, 256]``
     without labels; at most :data:`MAX_COOC_PIXELS` pixels; None is returned for the labels'
     size); ``crops``: 1 to :data:`MAX_CROPS` positions ``[y, x]``,
     one per label; ``labels``: a PNG of ``size`` as base64, one flat grey level per crop, the
     darkest for the first (:func:`tghop.guided.guide_labels`; may be left out with one crop);
-    ``seed``; ``windows``.
+    ``boost``: ``[a, b, factor]`` or null (``tghop cooc edit --boost A,B,FACTOR``,
+    :func:`tghop.cooc.boost_condition`); ``seed``; ``windows``.
     """
     from .._common import check_size
 
-    body = _object(body, ("size", "labels", "crops", "seed", "windows"),
+    body = _object(body, ("size", "labels", "crops", "boost", "seed", "windows"),
                    '{"size": [256, 256], "crops": [[0, 0], [64, 64]], "labels": "<PNG as base64>", "seed": 1}')
     crops = body.get("crops")
     if not isinstance(crops, list) or not 1 <= len(crops) <= MAX_CROPS:
@@ -175,7 +195,9 @@ def parse_edit(body) -> tuple:
     if labels is None and len(crops) > 1:
         raise RequestError(422, f"{len(crops)} crops but no labels: send labels, a PNG painted with one grey "
                                 "level per crop (the darkest for the first)")
-    return (size, None if labels is None else decode_png_field(labels, "labels", paint="one grey level per crop"), crops, *_common(body))
+    boost = _boost(body.get("boost"))
+    return (size, None if labels is None else decode_png_field(labels, "labels", paint="one grey level per crop"),
+            crops, boost, *_common(body))
 
 
 # ------------------------------------------------------------------ the work
@@ -209,13 +231,14 @@ def morph_png(model, a, b, crop, length, windows, seed) -> tuple:
     return _png(image), image.shape[:2]
 
 
-def edit_png(model, size, labels, crops, windows, seed, read_labels) -> tuple:
-    """``tghop cooc edit MODEL crop:... --mask LABELS``: every crop's statistics where its
-    label is painted (each cell of ``s`` x ``s`` pixels takes its centre pixel's label):
+def edit_png(model, size, labels, crops, boost, windows, seed, read_labels) -> tuple:
+    """``tghop cooc edit MODEL crop:... --mask LABELS [--boost A,B,FACTOR]``: every crop's
+    statistics where its label is painted (each cell of ``s`` x ``s`` pixels takes its centre
+    pixel's label), bin ``(a, b)`` of every cell times ``factor`` with a ``boost``:
     ``(png, (h, w))``. ``read_labels(png bytes)`` decodes the label map's image."""
     import numpy as np
 
-    from ..cooc import paint_condition
+    from ..cooc import boost_condition, paint_condition
     from ..guided import guide_labels
 
     tensors = _conditions(model, crops)
@@ -238,8 +261,18 @@ def edit_png(model, size, labels, crops, windows, seed, read_labels) -> tuple:
         rows = np.minimum(np.arange(hh) * s + s // 2, h - 1)
         cols = np.minimum(np.arange(ww) * s + s // 2, w - 1)
         cells = pixels[rows][:, cols]
+    cond = paint_condition(tensors, cells)
+    if boost is not None:
+        try:
+            cond = boost_condition(cond, *boost)
+        except TGHopError as exc:
+            raise RequestError(422, f"boost {list(boost)}: {exc}") from None
     try:
-        image = model.generate(paint_condition(tensors, cells), rng=seed, windows=windows)[:h, :w]
+        image = model.generate(cond, rng=seed, windows=windows)[:h, :w]
     except MemoryError:
         raise RequestError(422, "out of memory; ask for a smaller image") from None
+    except TGHopError as exc:
+        if boost is None:
+            raise
+        raise RequestError(422, f"boost {list(boost)}: {exc}; use a factor above 0") from None  # a cell emptied
     return _png(image), image.shape[:2]
