@@ -54,6 +54,30 @@ def one_torch_thread():
     torch.set_num_threads(threads)
 
 
+@pytest.fixture(scope="session")
+def tiny_cooc_exemplar():
+    """The exemplar of :func:`tiny_cooc_checkpoint`: 64 x 64 bricks."""
+    return data.bricks(64, rng=3)
+
+
+@pytest.fixture(scope="session")
+def tiny_cooc_checkpoint(tiny_cooc_exemplar, tmp_path_factory):
+    """A ``.pt`` of :data:`TINY_COOC` trained on :func:`tiny_cooc_exemplar` (64x64, 32 px
+    crops, s = 8) with one torch thread; skipped without PyTorch."""
+    torch = pytest.importorskip("torch", reason="PyTorch is not installed (pip install -e '.[metrics]'): "
+                                                "no co-occurrence checkpoint")
+    from tghop import cooc
+
+    path = tmp_path_factory.mktemp("cooc") / "tiny.pt"
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        cooc.CoocGAN(**TINY_COOC, device="cpu", rng=0).fit(tiny_cooc_exemplar).save(path)
+    finally:
+        torch.set_num_threads(threads)
+    return path
+
+
 def assert_user_error(r, *fragments):
     """Non-zero exit, one 'Error:' line naming the problem, no traceback."""
     err = r.stderr.decode()

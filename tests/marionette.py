@@ -24,6 +24,10 @@ from pathlib import Path
 
 #: The key of a web element reference in WebDriver's JSON.
 ELEMENT = "element-6066-11e4-a52e-4f735466cecf"
+#: JavaScript (a function of an input and a value): set the value as typing does (the
+#: input and change events fire); works on range inputs too.
+FILL_JS = ("(e, value) => { e.value = value; e.dispatchEvent(new Event('input', {bubbles: true}));"
+           " e.dispatchEvent(new Event('change', {bubbles: true})); }")
 
 #: Profile preferences: no first-run pages, updates, telemetry or other traffic; Marionette
 #: on a free port (written to the profile's MarionetteActivePort).
@@ -189,9 +193,7 @@ class Firefox:
 
     def fill(self, selector: str, value: str):
         """Set an input's value as typing does (the input and change events fire)."""
-        self.run("const e = arguments[0]; e.value = arguments[1];"
-                 "e.dispatchEvent(new Event('input', {bubbles: true}));"
-                 "e.dispatchEvent(new Event('change', {bubbles: true}));", self.find(selector), value)
+        self.run(f"({FILL_JS})(arguments[0], arguments[1]);", self.find(selector), value)
 
     def drag(self, selector: str, points):
         """Press the left mouse button at the first point, move through the others, release:

@@ -15,7 +15,6 @@ import pytest
 httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
 pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
 
-from conftest import TINY_COOC  # noqa: E402
 from tghop import TGHopError  # noqa: E402
 from test_server import assert_error  # noqa: E402
 
@@ -25,9 +24,6 @@ except ImportError:
     torch = None
 needs_torch = pytest.mark.skipif(torch is None, reason="PyTorch is not installed (pip install -e '.[metrics]'): "
                                                        "the co-occurrence routes answer 501 without it")
-
-TINY = TINY_COOC
-
 
 @pytest.fixture(scope="module", autouse=True)
 def _threads(one_torch_thread):
@@ -41,22 +37,11 @@ def client(live_server):
 
 
 @pytest.fixture(scope="module")
-def exemplar():
-    from tghop import data
-
-    return data.bricks(64, rng=3)
-
-
-@pytest.fixture(scope="module")
-def checkpoint(exemplar, tmp_path_factory):
+def checkpoint(tiny_cooc_checkpoint):
     """A tiny trained checkpoint: (its bytes, the model as tghop.cooc.load reads it)."""
-    if torch is None:
-        pytest.skip("PyTorch is not installed (pip install -e '.[metrics]')")
     from tghop import cooc
 
-    path = tmp_path_factory.mktemp("cooc") / "tiny.pt"
-    cooc.CoocGAN(**TINY, device="cpu", rng=0).fit(exemplar).save(path)
-    return path.read_bytes(), cooc.load(path, device="cpu")
+    return tiny_cooc_checkpoint.read_bytes(), cooc.load(tiny_cooc_checkpoint, device="cpu")
 
 
 @pytest.fixture(scope="module")
@@ -101,12 +86,12 @@ def test_upload_is_kept_under_its_hash_and_summarised(client, checkpoint, cid, l
     assert s["step"] == s["n_steps"] == 2 and s["builtin"] is None and s["exemplar_hash"] == model.exemplar_hash_
 
 
-def test_a_checkpoint_of_a_builtin_names_it(checkpoint, exemplar, monkeypatch):
+def test_a_checkpoint_of_a_builtin_names_it(checkpoint, tiny_cooc_exemplar, monkeypatch):
     from tghop import data
     from tghop.server import cooc as server_cooc
 
     monkeypatch.setattr(data, "BUILTIN", {"tiny": None})
-    monkeypatch.setattr(data, "builtin", lambda name: exemplar)
+    monkeypatch.setattr(data, "builtin", lambda name: tiny_cooc_exemplar)
     server_cooc._builtin_hashes.cache_clear()
     try:
         assert server_cooc._builtin_hashes() == {checkpoint[1].exemplar_hash_: "tiny"}  # the hash training stores

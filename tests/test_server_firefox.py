@@ -3,7 +3,9 @@ its own Marionette protocol: :mod:`marionette`) against a real uvicorn server: u
 small generated exemplar, watch the fit finish, generate, check the result's natural
 size and the 3x3 tiled preview, save a screenshot; then time a 512x512 result from the
 click; then fit a second model, paint the right half with its colour in Paint mode
-(pointer actions of WebDriver) and generate.
+(pointer actions of WebDriver) and generate; then Co-occurrence mode, the same steps as the
+Chromium test (:mod:`browser_cooc`): load a tiny checkpoint, place two crops by clicking,
+morph, paint an edit, generate, with a boost too.
 
 No driver or browser is downloaded (geckodriver is in neither Debian nor PyPI, and
 Playwright drives its own patched Firefox): without a Firefox the test is skipped with
@@ -14,6 +16,7 @@ import os
 
 import pytest
 
+from browser_cooc import COLUMN_COLOURS_JS, FIRST, SECOND, cooc_steps
 from conftest import CLICK_TO_RESULT_JS, FAST_FIT
 from marionette import Firefox, find_firefox
 
@@ -24,6 +27,7 @@ if FIREFOX is None:
 
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_FIREFOX_SCREENSHOT", "/tmp/tghop-serve-page-firefox.png")
+COOC_SCREENSHOT = os.environ.get("TGHOP_FIREFOX_COOC_SCREENSHOT", "/tmp/tghop-cooc-page-firefox.png")
 #: Page errors (uncaught exceptions, rejected promises) from here on, in window.__errors.
 CATCH_ERRORS = ("window.__errors = [];"
                 "window.addEventListener('error', e => window.__errors.push(String(e.message)));"
@@ -127,14 +131,18 @@ def test_paint_the_right_half_with_a_second_model_in_firefox(firefox, live_serve
     for x in (60, 84):  # two strokes top to bottom: the right half, x 48 to 95
         # from y 1 to 63: inside the canvas after WebDriver's rounding; the 24 px brush covers the edges
         ff.drag("#guide", [(x * scale, y * scale) for y in range(1, 64, 6)] + [(x * scale, 63 * scale)])
-    halves = ff.run("const c = document.getElementById('guide'), d = c.getContext('2d').getImageData(0, 0, 96, 64).data;"
-                    "const px = (x, y) => Array.from(d.slice(4 * (y * 96 + x), 4 * (y * 96 + x) + 3)).join(',');"
-                    "const all = (x0, x1) => { const s = new Set(); for (let y = 0; y < 64; y++)"
-                    " for (let x = x0; x < x1; x++) s.add(px(x, y)); return [...s]; };"
-                    "return [all(0, 48), all(48, 96)];")
-    assert halves == [["230,25,75"], ["60,180,75"]]
+    assert ff.run(COLUMN_COLOURS_JS, "#guide", 0, 48) == [FIRST]
+    assert ff.run(COLUMN_COLOURS_JS, "#guide", 48, 96) == [SECOND]
     ff.fill("#paint-seed", "2")
     ff.click("#paint-go")
     ff.wait_for("document.getElementById('result-caption').textContent === 'painted: 64x96, seed 2'", timeout=60)
     assert ff.run("const i = document.getElementById('result'); return [i.naturalHeight, i.naturalWidth]") == [64, 96]
     assert ff.run("return window.__errors") == []
+
+
+def test_cooc_load_a_checkpoint_place_crops_morph_and_edit_in_firefox(firefox, live_server, tiny_cooc_checkpoint):
+    cooc_steps(firefox, tiny_cooc_checkpoint)  # the same steps as Chromium's test
+    firefox.screenshot(COOC_SCREENSHOT)
+    firefox.click("label:has(#mode-view)")
+    assert firefox.run("return document.getElementById('cooc').hidden") is True
+    assert firefox.run("return window.__errors") == []

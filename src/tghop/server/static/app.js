@@ -41,14 +41,15 @@ function setModel(id) {
   state.modelId = id;
   if (id) addSessionModel(id, state.pendingName);
   updateButtons();
-  const link = $("download-model");
-  if (id) {
-    link.href = `/api/models/${id}/file`;
-    link.setAttribute("download", `tghop-${id.slice(0, 12)}.npz`);
-    link.hidden = false;
-  } else {
-    link.hidden = true;
-  }
+  offerDownload($("download-model"), id && `/api/models/${id}/file`, id && `tghop-${id.slice(0, 12)}.npz`);
+}
+
+// A download link for `href` saved as `name` (hidden when href is empty).
+function offerDownload(link, href, name) {
+  link.hidden = !href;
+  if (!href) return;
+  link.href = href;
+  link.setAttribute("download", name);
 }
 
 async function showSummary(id) {

@@ -1,7 +1,8 @@
 // tghop serve's page, Co-occurrence mode (docs/serve.md, /api/cooc): a checkpoint of
 // `tghop cooc train`, crops of its exemplar placed by clicking, a morph from crop 1 to crop 2
 // and an edit painted with the brush of Paint mode (app.js's board). Loaded after app.js,
-// whose helpers it uses ($, errorOf, withBusy, showResult, postImage, the boards, PALETTE).
+// whose helpers it uses ($, errorOf, withBusy, showResult, postImage, offerDownload, the boards,
+// PALETTE).
 "use strict";
 
 // The checkpoint (id, its summary), the exemplar's picture (an Image, or null) and the crops:
@@ -47,6 +48,8 @@ async function uploadCooc(file) {
   const [h, w] = cooc.info.exemplar_shape;
   $("cooc-summary").textContent = `${file.name}: exemplar ${h}x${w}, ${cooc.info.crop_size} px crops, ` +
     `${cooc.info.step} of ${cooc.info.n_steps} steps trained`;
+  offerDownload($("cooc-download"), `/api/cooc/${id}/file`, `tghop-cooc-${id.slice(0, 12)}.pt`);
+  for (const which of ["a", "b"]) $(`cooc-boost-${which}`).max = String(cooc.info.n_clusters - 1);
   $("cooc-work").hidden = false;
   $("cooc-picture-button").hidden = Boolean(cooc.info.builtin);
   renderCoocCrops();
@@ -161,6 +164,13 @@ function onCoocMorph() {
   }, sayCooc);
 }
 
+// The edit's boost [a, b, factor], or null for a factor of 1 (the server checks the values).
+function coocBoost() {
+  const [a, b, f] = ["a", "b", "factor"].map((k) => $(`cooc-boost-${k}`).value.trim());
+  if (f === "" || a === "" || b === "") throw new Error("set the boost's clusters and factor (factor 1: no boost)");
+  return Number(f) === 1 ? null : [Number(a), Number(b), Number(f)];
+}
+
 // The painted crops, in slot order; labels (grey levels, darkest for the first) only for two or more.
 function onCoocEdit() {
   if (!cooc.id) return;
@@ -173,6 +183,8 @@ function onCoocEdit() {
     }
     const body = { crops: used.map((i) => cooc.crops[i]), size: [coocBoard.h, coocBoard.w],
       seed: Number($("cooc-edit-seed").value) };
+    const boost = coocBoost();
+    if (boost) body.boost = boost;
     if (used.length > 1) {
       body.labels = boardPng(coocBoard, new Map(used.map((k, j) => [k, Math.round(255 * j / (used.length - 1))])));
     }
