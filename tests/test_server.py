@@ -203,6 +203,33 @@ def test_fits_queue_and_cancel(client, live_server):
     assert model_files(live_server.cache) == before
 
 
+def test_a_generation_whose_client_went_away_never_runs(client, fitted, live_server, monkeypatch):
+    import threading
+
+    server = live_server.app.state.server
+    model_id, _, _ = fitted
+    seeds = []
+    generate = server._generate
+    monkeypatch.setattr(server, "_generate", lambda mid, size, seed, settings: seeds.append(seed) or
+                        generate(mid, size, seed, settings))
+    gate = threading.Event()
+    server.executor.submit(gate.wait, 60)  # the one generation thread (max_fits=1) is busy
+    submitted, submit = [], server.executor.submit
+    monkeypatch.setattr(server.executor, "submit", lambda *a: submitted.append(submit(*a)) or submitted[-1])
+    try:
+        with pytest.raises(httpx.TimeoutException):  # waits for the thread, and its client gives up
+            httpx.post(f"{live_server.url}/api/models/{model_id}/images", json={"size": [16, 16], "seed": 101},
+                       timeout=1)
+        deadline = time.monotonic() + 30
+        while not (len(submitted) == 1 and submitted[0].cancelled()):
+            assert time.monotonic() < deadline, "the waiting generation was not dropped"
+            time.sleep(0.02)
+    finally:
+        gate.set()
+    r = client.post(f"/api/models/{model_id}/images", json={"size": [16, 16], "seed": 102})
+    assert r.status_code == 200 and seeds == [102]  # 101 never ran
+
+
 def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     model_id, _, _ = fitted
     before = model_files(live_server.cache)

@@ -22,7 +22,8 @@ checks of a file). Bad input is answered with one line, ``{"error": "..."}``, an
 status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
 422 (a setting out of range, a size over the output limit), 501 (a co-occurrence route
-without PyTorch), 503 (too many fits waiting).
+without PyTorch), 503 (too many fits waiting); a generation whose client has gone away is
+dropped (:meth:`Server.in_executor`; 499, to nobody).
 
 Generations run on a thread pool of their own (:attr:`Server.executor`, as many threads as
 generations may run at once), not on Starlette's pool of 40 threads: fewer threads touching
@@ -227,9 +228,20 @@ class Server:
         # touching big arrays, fewer glibc malloc arenas holding freed memory (docs/serve.md).
         self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
 
-    async def in_executor(self, work, *args):
-        """``work(*args)`` on a generation thread (:attr:`executor`)."""
-        return await asyncio.get_running_loop().run_in_executor(self.executor, functools.partial(work, *args))
+    async def in_executor(self, request, work, *args):
+        """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of
+        ``request`` goes away first: still waiting for a thread, it never runs (running, it
+        finishes and its result is dropped); then 499."""
+        future = asyncio.get_running_loop().run_in_executor(self.executor, functools.partial(work, *args))
+        gone = asyncio.ensure_future(_disconnected(request))
+        try:
+            await asyncio.wait({future, gone}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            gone.cancel()
+        if not future.done():
+            future.cancel()
+            raise RequestError(499, "the client went away; its work was dropped")
+        return future.result()
 
     # ---------------------------------------------------------------- fitting
     def prepare_fit(self, fields: dict):
@@ -423,12 +435,12 @@ class Server:
         except ValueError:
             raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
 
-    async def _png_response(self, work, *args, seed):
+    async def _png_response(self, request, work, *args, seed):
         """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer."""
         if seed is None:
             seed = secrets.randbelow(2**31)
         start = time.perf_counter()
-        png, size = await self.in_executor(work, *args, seed)
+        png, size = await self.in_executor(request, work, *args, seed)
         took = (time.perf_counter() - start) * 1000
         return Response(png, media_type="image/png",
                         headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
@@ -442,7 +454,7 @@ class Server:
         def work(seed):
             return self._generate(model_id, size, seed, settings), size
 
-        return await self._png_response(work, seed=seed)
+        return await self._png_response(request, work, seed=seed)
 
     def _several(self, make, models, seed, size) -> tuple:
         """``make(models, rng, dtype)`` under the bound on generations: the PNG and its size."""
@@ -482,7 +494,7 @@ class Server:
             await self._json_body(request, limit=MAX_UPLOAD_BYTES))
         for model_id in ids:
             self.cache.path(model_id)  # 404 for a malformed id before any work
-        return await self._png_response(self._guided, ids, guide, size, transition, settings, seed=seed)
+        return await self._png_response(request, self._guided, ids, guide, size, transition, settings, seed=seed)
 
     def _morph(self, ids, size, stations, settings, seed) -> tuple:
         from ..guided import morph
@@ -495,7 +507,7 @@ class Server:
         a, b, size, seed, stations, settings = parse_morph(await self._json_body(request))
         for model_id in (a, b):
             self.cache.path(model_id)
-        return await self._png_response(self._morph, [a, b], size, stations, settings, seed=seed)
+        return await self._png_response(request, self._morph, [a, b], size, stations, settings, seed=seed)
 
     def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
         """Read the picture and its mask, fill the mask's white pixels with the model's
@@ -557,7 +569,7 @@ class Server:
         else:
             seed = int(seed)
         tile = parse_bool("tile", tile)
-        png = await self.in_executor(self._inpaint, model_id, fields, seed, tile)
+        png = await self.in_executor(request, self._inpaint, model_id, fields, seed, tile)
         return Response(png, media_type="image/png", headers={"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"})
 
     # ---------------------------------------------------------------- co-occurrence
@@ -597,7 +609,7 @@ class Server:
             with self.generating:
                 return cooc.morph_png(self.cooc.load(cid), a, b, crop, length, windows, seed)
 
-        return await self._png_response(work, seed=seed)
+        return await self._png_response(request, work, seed=seed)
 
     async def cooc_edit(self, request):
         from ..imageio import load_image
@@ -612,7 +624,7 @@ class Server:
             with self.generating:
                 return cooc.edit_png(self.cooc.load(cid), size, labels, crops, boost, windows, seed, read_labels)
 
-        return await self._png_response(work, seed=seed)
+        return await self._png_response(request, work, seed=seed)
 
     # ---------------------------------------------------------------- the rest
     async def builtin_image(self, request):
@@ -633,6 +645,12 @@ class Server:
 
     async def index(self, request):
         return FileResponse(STATIC / "index.html", media_type="text/html")
+
+
+async def _disconnected(request) -> None:
+    """Return when the client of ``request`` (whose body has been read) disconnects."""
+    while (await request.receive())["type"] != "http.disconnect":
+        pass
 
 
 def _wrap(handler):
