@@ -529,15 +529,22 @@ def test_the_page_and_its_files_are_served(client):
     assert client.get("/api").json()["builtins"] == ["bricks", "cells"]
 
 
-def test_the_serve_command_prints_its_address_and_stops_on_ctrl_c(tmp_path):
+def test_the_serve_command_prints_its_address_opens_it_and_stops_on_ctrl_c(tmp_path):
+    opened = tmp_path / "opened"  # --open: the browser of $BROWSER (Python's webbrowser) gets the address
+    browser = f"{sys.executable} -c \"import sys; open(sys.argv[1], 'w').write(sys.argv[2])\" {opened} %s"
     p = subprocess.Popen([sys.executable, "-m", "tghop", "serve", "--port", "0", "--host", "0.0.0.0",
-                          "--cache", str(tmp_path / "cache")],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                          "--cache", str(tmp_path / "cache"), "--open"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "BROWSER": browser})
     try:
         line = p.stdout.readline()
         assert line.startswith("tghop serving on http://127.0.0.1:"), line
         url = line.split()[3]
         assert httpx.get(url + "api", timeout=30).json()["builtins"] == ["bricks", "cells"]
+        deadline = time.monotonic() + 30
+        while not (opened.exists() and opened.read_text()):
+            assert time.monotonic() < deadline, "--open opened nothing"
+            time.sleep(0.05)
+        assert opened.read_text() == url
         p.send_signal(signal.SIGINT)
         out, err = p.communicate(timeout=30)
     finally:

@@ -148,3 +148,24 @@ def test_a_bad_cache_size_is_one_line(tmp_path):
     r = CliRunner().invoke(main, ["serve", "--cache", str(tmp_path), "--cache-size", "lots"])
     assert r.exit_code == 2 and "'lots' is not a size; write e.g. 500M, 2G or none" in r.output
     assert "Traceback" not in r.output and not (tmp_path / "models").exists()
+
+
+def test_a_restarted_server_finds_the_cached_models_again(tmp_path, two_model_files):
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+    ask = {"size": [24, 32], "seed": 5, "n_patches": 100}
+    images = []
+    for run in range(2):  # the same cache folder, a new server (and process state) each time
+        server = LiveServer(tmp_path)
+        try:
+            with httpx.Client(base_url=server.url, timeout=60) as client:
+                if run == 0:
+                    model_id = client.post("/api/models/upload", content=two_model_files[0]).json()["id"]
+                assert client.get(f"/api/models/{model_id}").status_code == 200
+                r = client.post(f"/api/models/{model_id}/images", json=ask)
+                assert r.status_code == 200, r.text
+                images.append(r.content)
+        finally:
+            server.stop()
+    assert images[0] == images[1] and os.listdir(tmp_path / "models") == [f"{model_id}.npz"]
