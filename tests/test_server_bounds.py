@@ -3,6 +3,7 @@ capped, and the model cache folder stays under its size by dropping the least re
 used model files (on disk and in memory); a restart with a lower bound prunes too."""
 
 import os
+import sys
 import threading
 import time
 
@@ -169,3 +170,16 @@ def test_a_restarted_server_finds_the_cached_models_again(tmp_path, two_model_fi
         finally:
             server.stop()
     assert images[0] == images[1] and os.listdir(tmp_path / "models") == [f"{model_id}.npz"]
+
+
+@pytest.mark.skipif(sys.platform in ("win32", "darwin"), reason="the XDG rule is the Linux one")
+def test_the_default_cache_is_the_users_cache_folder(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from tghop.cli.serve import default_cache_dir
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert default_cache_dir() == tmp_path / "tghop"
+    for unset in ("", "relative/cache"):  # empty or relative: ignored, as the XDG specification says
+        monkeypatch.setenv("XDG_CACHE_HOME", unset)
+        assert default_cache_dir() == Path.home() / ".cache" / "tghop"
