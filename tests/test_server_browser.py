@@ -7,14 +7,13 @@ and make a morph strip; load a co-occurrence checkpoint, place two crops, morph 
 
 import io
 import os
-import shutil
 
 import pytest
 
-CHROMIUM = os.environ.get("TGHOP_CHROMIUM", "/usr/bin/chromium")
-if not (os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK)):
-    pytest.skip(f"no Chromium at {CHROMIUM} (install it: apt-get install chromium; or set TGHOP_CHROMIUM)",
-                allow_module_level=True)
+import chromium
+
+if chromium.missing():
+    pytest.skip(chromium.missing(), allow_module_level=True)
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
@@ -22,8 +21,6 @@ from browser_cooc import cooc_steps  # noqa: E402
 from conftest import CLICK_TO_RESULT_JS, FAST_FIT  # noqa: E402
 from marionette import FILL_JS  # noqa: E402
 
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_SCREENSHOT", "/tmp/tghop-serve-page.png")
 INPAINT_SCREENSHOT = os.environ.get("TGHOP_INPAINT_SCREENSHOT", "/tmp/tghop-inpaint-page.png")
@@ -34,7 +31,7 @@ COOC_SCREENSHOT = os.environ.get("TGHOP_COOC_SCREENSHOT", "/tmp/tghop-cooc-page.
 @pytest.fixture(scope="module")
 def page(live_server):
     with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        browser = chromium.launch(p)
         try:
             page = browser.new_page(viewport={"width": 1200, "height": 1400})
             errors = []

@@ -1,0 +1,25 @@
+"""Headless Chromium (Debian's ``chromium`` package, never a downloaded browser) driven by
+Playwright: used by ``test_server_browser.py`` and by ``scripts/make_gallery.py serve``
+(the README's screenshot of ``tghop serve``'s page)."""
+
+import os
+
+#: The browser: ``$TGHOP_CHROMIUM`` or Debian's.
+CHROMIUM = os.environ.get("TGHOP_CHROMIUM", "/usr/bin/chromium")
+#: Headless, no GPU, nothing fetched in the background.
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+#: Why there is no browser to drive, when :func:`missing` says so.
+INSTALL = "install it: apt-get install chromium; or set TGHOP_CHROMIUM"
+
+
+def missing():
+    """None when :data:`CHROMIUM` is an executable, else the reason (with the fix)."""
+    if os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK):
+        return None
+    return f"no Chromium at {CHROMIUM} ({INSTALL})"
+
+
+def launch(playwright):
+    """The headless browser, from a started ``playwright.sync_api.sync_playwright()``."""
+    return playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
