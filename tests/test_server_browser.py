@@ -3,7 +3,8 @@ uvicorn server: pick builtin:bricks, watch the fit's progress bar finish, genera
 check the result's natural size and the 3x3 tiled preview; paint a hole with the brush in
 Inpaint mode and fill it; with a second model, paint the right half in Paint mode, generate,
 and make a morph strip; load a co-occurrence checkpoint, place two crops, morph and edit
-(with a boost too; the steps of :mod:`browser_cooc`, shared with the Firefox test)."""
+(with a boost too; the steps of :mod:`browser_cooc`, shared with the Firefox test); drop an
+image on the drop area, cancel a fit, upload a saved model (:mod:`browser_source`, shared too)."""
 
 import io
 import os
@@ -18,6 +19,7 @@ sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
 from browser_cooc import cooc_steps  # noqa: E402
+from browser_source import cancel_steps, drop_steps, upload_steps  # noqa: E402
 from conftest import CLICK_TO_RESULT_JS, FAST_FIT  # noqa: E402
 from marionette import FILL_JS  # noqa: E402
 
@@ -322,3 +324,28 @@ def test_cooc_load_a_checkpoint_place_crops_morph_and_edit(page, live_server, ti
     # the bad boost's answer, which Chromium also logs; nothing else
     assert page.errors == ["Failed to load resource: the server responded with a status of 422 (Unprocessable Entity)"]
     page.errors.clear()
+
+
+def png_bytes(image):
+    """``image`` (H, W, 3) float in [0, 1] as the bytes of a PNG file."""
+    from PIL import Image
+
+    from tghop.imageio import to_uint8
+
+    buf = io.BytesIO()
+    Image.fromarray(to_uint8(image)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model(page, live_server, small_model, tmp_path):
+    from tghop import data
+    from tghop.modelfile import save_model
+
+    driver = PlaywrightDriver(page)
+    mode(page, "view")
+    drop_steps(driver, png_bytes(data.bricks(64, rng=11)))
+    cancel_steps(driver)
+    npz = tmp_path / "saved bricks.npz"
+    save_model(small_model, npz)
+    upload_steps(driver, npz, small_model.exemplar_shape_[:2])
+    assert not page.errors, page.errors

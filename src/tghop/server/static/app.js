@@ -85,6 +85,7 @@ async function startFit(form) {
   setModel(null);
   $("summary").hidden = true;
   $("fit-status").hidden = false;
+  delete $("fit-status").dataset.state;  // set again when this fit ends
   $("progress").value = 0;
   $("stage").textContent = "sending";
   $("cancel").disabled = false;

@@ -1,0 +1,91 @@
+"""The page's ways to a model besides picking a file, step by step, for both browser tests
+(Chromium through Playwright in ``test_server_browser.py``, Firefox through Marionette in
+``test_server_firefox.py``), written against the calls both drivers offer (``run``,
+``wait_for``, ``fill``, ``click``, ``send_keys``): drop an image on the drop area, cancel a
+running fit with the Cancel button, and upload a saved ``.npz`` model, then generate."""
+
+import base64
+
+from conftest import FAST_FIT
+
+#: JavaScript (a function body; arguments: base64 bytes, file name, MIME type): drop the
+#: file on the drop area as a drag from the desktop does (dragover, then drop, with a
+#: DataTransfer holding it); returns whether the drop area was highlighted during the drag.
+DROP_JS = """const bytes = Uint8Array.from(atob(arguments[0]), (c) => c.charCodeAt(0));
+const transfer = new DataTransfer();
+transfer.items.add(new File([bytes], arguments[1], { type: arguments[2] }));
+const area = document.getElementById('drop');
+const event = (type) => new DragEvent(type, { bubbles: true, cancelable: true, dataTransfer: transfer });
+area.dispatchEvent(event('dragover'));
+const over = area.classList.contains('over');
+area.dispatchEvent(event('drop'));
+return [over, area.classList.contains('over')];"""
+
+#: The fit's end, once it has one: 'done', 'failed' or 'cancelled'.
+FIT_END = ("['done', 'failed', 'cancelled'].includes(document.getElementById('fit-status').dataset.state)"
+           " && document.getElementById('fit-status').dataset.state")
+
+
+def text(d, selector):
+    return d.run(f"return document.querySelector({selector!r}).textContent")
+
+
+def fit_settings(d, fields):
+    """Layout off and ``fields`` (name: value; '' for the default) in the fit settings."""
+    d.run("document.getElementById('layout').checked = false;")
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        d.fill(f"#{name}", fields.get(name, ""))
+
+
+def drop_steps(d, png, name="dropped bricks.png"):
+    """Drop ``png`` (bytes of a 64x64 image) on the drop area: it is fitted (fast settings)
+    and shown as the exemplar, and the model's summary says 64x64."""
+    fit_settings(d, FAST_FIT)
+    over, after = d.run(DROP_JS, base64.b64encode(png).decode(), name, "image/png")
+    assert over is True and after is False  # highlighted while dragged over, not after the drop
+    assert d.wait_for(FIT_END, timeout=120) == "done", text(d, "#message")
+    d.wait_for("!document.getElementById('summary').hidden")
+    assert "exemplar 64x64, 3 channels" in text(d, "#summary")
+    assert d.run("const i = document.getElementById('exemplar'); return [i.complete, i.naturalWidth]") == [True, 64]
+    assert name in text(d, "#morph-a")  # the session's models are named by the file
+    assert d.run("return document.getElementById('go').disabled") is False
+
+
+def cancel_steps(d):
+    """Pick builtin:cells with the default fit (seconds), click Cancel once it runs: the job
+    ends cancelled on the server, the page says so and has no model to generate from."""
+    fit_settings(d, {})
+    d.run("const s = document.getElementById('builtin'); s.value = 'cells';"
+          "s.dispatchEvent(new Event('change', {bubbles: true}));")
+    d.wait_for("document.getElementById('stage').textContent.endsWith('%')", timeout=60)  # running
+    assert d.run("return document.getElementById('go').disabled") is True
+    d.click("#cancel")
+    assert d.wait_for(FIT_END, timeout=60) == "cancelled", text(d, "#message")
+    assert text(d, "#message") == "fit cancelled"
+    assert d.run("return document.getElementById('cancel').disabled") is True
+    assert d.run("return document.getElementById('go').disabled") is True
+    snap = d.run("return fetch(`/api/jobs/${state.job}`).then((r) => r.json());")  # the page's job, as the server has it
+    assert snap["state"] == "cancelled" and snap["progress"] < 1
+
+
+def upload_steps(d, npz, exemplar_size):
+    """Load the saved model ``npz`` (a path) with "Continue from a saved model", then
+    generate a 48x64 image from it."""
+    d.send_keys("#model-file", str(npz))
+    name = npz.name
+    d.wait_for(f"document.getElementById('message').textContent === 'model {name} loaded: generate below'",
+               timeout=60)
+    d.wait_for("!document.getElementById('summary').hidden")
+    h, w = exemplar_size
+    assert f"exemplar {h}x{w}, 3 channels" in text(d, "#summary")
+    assert d.run("return document.getElementById('exemplar').hidden") is True  # a model has no exemplar to show
+    assert d.run("return document.getElementById('download-model').getAttribute('href')").endswith("/file")
+    d.fill("#height", "48")
+    d.fill("#width", "64")
+    d.fill("#seed", "9")
+    d.fill("#n_patches", "300")
+    d.click("#go")
+    d.wait_for("(() => { const i = document.getElementById('result');"
+               " return !i.hidden && i.complete && i.naturalWidth > 0 &&"
+               " document.getElementById('result-caption').textContent === 'result: 48x64, seed 9'; })()", timeout=60)
+    assert d.run("const i = document.getElementById('result'); return [i.naturalHeight, i.naturalWidth]") == [48, 64]
