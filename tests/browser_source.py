@@ -64,7 +64,8 @@ def cancel_steps(d):
     assert text(d, "#message") == "fit cancelled"
     assert d.run("return document.getElementById('cancel').disabled") is True
     assert d.run("return document.getElementById('go').disabled") is True
-    snap = d.run("return fetch(`/api/jobs/${state.job}`).then((r) => r.json());")  # the page's job, as the server has it
+    # the page's job, as the server has it
+    snap = d.run("return fetch(`/api/jobs/${document.getElementById('fit-status').dataset.job}`).then((r) => r.json());")
     assert snap["state"] == "cancelled" and snap["progress"] < 1
 
 

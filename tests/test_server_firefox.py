@@ -5,7 +5,8 @@ size and the 3x3 tiled preview, save a screenshot; then time a 512x512 result fr
 click; then fit a second model, paint the right half with its colour in Paint mode
 (pointer actions of WebDriver) and generate; then Co-occurrence mode, the same steps as the
 Chromium test (:mod:`browser_cooc`): load a tiny checkpoint, place two crops by clicking,
-morph, paint an edit, generate, with a boost too.
+morph, paint an edit, generate, with a boost too; then drop an image on the drop area, cancel
+a fit and upload a saved model (:mod:`browser_source`, the Chromium test's steps too).
 
 No driver or browser is downloaded (geckodriver is in neither Debian nor PyPI, and
 Playwright drives its own patched Firefox): without a Firefox the test is skipped with
@@ -17,6 +18,7 @@ import os
 import pytest
 
 from browser_cooc import COLUMN_COLOURS_JS, FIRST, SECOND, cooc_steps
+from browser_source import cancel_steps, drop_steps, upload_steps
 from conftest import CLICK_TO_RESULT_JS, FAST_FIT
 from marionette import Firefox, find_firefox
 
@@ -145,4 +147,20 @@ def test_cooc_load_a_checkpoint_place_crops_morph_and_edit_in_firefox(firefox, l
     firefox.screenshot(COOC_SCREENSHOT)
     firefox.click("label:has(#mode-view)")
     assert firefox.run("return document.getElementById('cooc').hidden") is True
+    assert firefox.run("return window.__errors") == []
+
+
+def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model_in_firefox(firefox, live_server, small_model, tmp_path):
+    from tghop import data
+    from tghop.imageio import save_image
+    from tghop.modelfile import save_model
+
+    firefox.click("label:has(#mode-view)")
+    dropped = tmp_path / "dropped.png"
+    save_image(data.bricks(64, rng=11), dropped)
+    drop_steps(firefox, dropped.read_bytes())  # the same steps as Chromium's test
+    cancel_steps(firefox)
+    npz = tmp_path / "saved bricks.npz"
+    save_model(small_model, npz)
+    upload_steps(firefox, npz, small_model.exemplar_shape_[:2])
     assert firefox.run("return window.__errors") == []

@@ -105,6 +105,7 @@ async function startFit(form) {
   }
   const { id, job } = await response.json();
   state.job = job;
+  $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
   follow(id, job);
 }
 
