@@ -51,6 +51,8 @@ VARIANTS = {
     "no-refine": ({}, {"refine": 0}),
     "no-detail": ({}, {"detail": 0.0}),
     "no-colour": ({}, {"match_colours": False}),
+    "no-patch-refine": ({}, {"patch_refine": 0}),  # the default of tghop 0.15
+    "best": ({}, "BEST"),  # tghop synth --quality best
     "pool10k": ({}, {"n_patches": 10000}),
     "residual": ({"residual": True}, {}),
     # The defaults of tghop 0.1: colour matching and the larger per-cluster model only.
@@ -103,11 +105,11 @@ def fit_kwargs(fit_kw, exemplar):
 
 
 def synth_kwargs(synth_kw):
-    from tghop.settings import generate_settings
+    from tghop.settings import QUALITY, generate_settings
 
     if synth_kw == "PAPER":
         return {s.name: s.paper for s in generate_settings() if s.has_paper}
-    return dict(synth_kw)
+    return dict(QUALITY["best"]) if synth_kw == "BEST" else dict(synth_kw)
 
 
 def score(exemplar, image, metrics):

@@ -15,10 +15,11 @@ tghop's finished image (which already has the layout, so few steps suffice):
   quantiles of the exemplar's patch projections on each. Nothing else of the exemplar is
   kept, so no exemplar patch can be pasted.
 - Generation (:func:`patch_refine`): from the coarsest level, ``n_steps`` Adam steps on the
-  level's pixels; step t projects every patch on set ``t mod SETS``, gives each projection
-  the stored quantile at its rank (1-D optimal transport, ranks from a histogram), and
-  moves the pixels along the gradient of the L1 distance between the two (as GPDM). A
-  level's change is upsampled into the next finer one.
+  level's pixels; step t projects every patch (larger levels: every ``stride``-th, the grid
+  shifted each step, so that every pixel takes its turn in every place of a patch) on set
+  ``t mod SETS``, gives each projection the stored quantile at its rank (1-D optimal
+  transport, ranks from a histogram), and moves the pixels along the gradient of the L1
+  distance between the two (as GPDM). A level's change is upsampled into the next finer one.
 """
 
 from __future__ import annotations
@@ -45,9 +46,11 @@ QUANTILES = 129
 _FIT_PATCHES = 1 << 13
 #: Exemplar pixels measured at fit: the centre crop of at most this side.
 _FIT_SIDE = 512
-#: Adam's step, in pixel values of [0, 1] (GPDM: 0.01 in [-1, 1] from noise; from a
-#: finished image smaller steps: docs/choices.md).
-LEARNING_RATE = 0.001
+#: Adam's step at full resolution, in pixel values of [0, 1] (GPDM: 0.01 in [-1, 1] from
+#: noise; from a finished image smaller steps: docs/choices.md).
+LEARNING_RATE = 0.002
+#: Adam's step at the coarser levels (larger ones smear the full level: docs/choices.md).
+COARSE_RATE = 0.001
 #: Table entries of the rank matching per direction.
 _BINS = 4096
 #: Patches whose projections give the rank tables of a step (a strided subset beyond this).
@@ -237,21 +240,33 @@ def _gradient(x, dirs, target, stride):
     return grad
 
 
+def _phases(stride):
+    """The stride x stride offsets of the patch grid, in an order that moves it both ways
+    at once (0, 0), (1, 1), ...: consecutive steps use different phases."""
+    return [(t % stride, (t // stride + t) % stride) for t in range(stride * stride)]
+
+
 def _steps(x, dirs, target, n_steps, tile, stride, lr):
-    """``n_steps`` Adam steps of one level (H, W, C), float32, in place."""
+    """``n_steps`` Adam steps of an (H, W, C) float32 image, in place; step t's patches on
+    the grid shifted by the phase ``t mod stride^2``."""
     h, w, c = x.shape
     p = PATCH
     m = np.zeros((c, h, w), dtype=np.float32)
     v = np.zeros((c, h, w), dtype=np.float32)
     b1, b2, eps = 0.9, 0.999, 1e-8
+    phases = _phases(stride)
     for t in range(n_steps):
         j = t % len(dirs)
-        src = np.pad(x, ((0, p - 1), (0, p - 1), (0, 0)), mode="wrap") if tile else x
-        g = _gradient(src, dirs[j], target[j], stride)
-        if tile:  # fold the wrapped margin back
+        oy, ox = phases[t % len(phases)]
+        if tile:  # periodic: shift the image itself, and fold the wrapped margin back
+            src = np.roll(x, (-oy, -ox), axis=(0, 1)) if oy or ox else x
+            g = _gradient(np.pad(src, ((0, p - 1), (0, p - 1), (0, 0)), mode="wrap"), dirs[j], target[j], stride)
             g[:, : p - 1] += g[:, h:]
             g[:, :, : p - 1] += g[:, :, w:]
-            g = g[:, :h, :w]
+            g = np.roll(g[:, :h, :w], (oy, ox), axis=(1, 2)) if oy or ox else g[:, :h, :w]
+        else:  # the grid starts at (oy, ox); the first rows and columns are reached by later phases
+            g = np.zeros((c, h, w), dtype=np.float32)
+            g[:, oy:, ox:] = _gradient(x[oy:, ox:], dirs[j], target[j], stride)
         m *= b1
         m += (1 - b1) * g
         g *= g
@@ -263,7 +278,7 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
 
 
 def _stride(pixels):
-    """Step between the patches of a level of ``pixels``: 1 up to 2^17 (256x256, 362x362),
+    """Step between the patches of an image of ``pixels``: 1 up to 2^17 (256x256, 362x362),
     then growing with the side, at most 4 (PATCH = 7: every pixel still in a patch)."""
     return int(min(_MAX_STRIDE, max(1, np.ceil(np.sqrt(pixels / _STRIDE_PIXELS)))))
 
@@ -281,7 +296,7 @@ def patch_refine(image, stats, *, n_steps=30, tile=False, learning_rate=LEARNING
     tile : bool
         Periodic boundaries (the output stays tileable).
     learning_rate : float
-        Adam's step in pixel values.
+        Adam's step in pixel values at full resolution (coarser levels: ``COARSE_RATE``).
     progress : callable, optional
         ``progress("patch refine", done_steps, total_steps)``.
 
@@ -305,10 +320,10 @@ def patch_refine(image, stats, *, n_steps=30, tile=False, learning_rate=LEARNING
         cur = levels[i].copy()
         if new is not None:  # the coarser level's change, upsampled
             cur += upsample(new - levels[i + 1], cur.shape, mode)
-        # Large levels: every second, third or fourth patch each way (each pixel still in
-        # 16, 9 or 4 of them), so that a step's cost grows more slowly than the image.
-        stride = _stride(cur.shape[0] * cur.shape[1])
-        new = _steps(cur, stats.directions_[i], stats.quantiles_[i], n_steps, tile, stride, learning_rate)
+        # Large levels: every second, third or fourth patch each way, the grid shifted every
+        # step, so that a step's cost grows more slowly than the image.
+        new = _steps(cur, stats.directions_[i], stats.quantiles_[i], int(n_steps), tile,
+                     _stride(cur.shape[0] * cur.shape[1]), float(learning_rate) if i == 0 else COARSE_RATE)
         np.clip(new, 0.0, 1.0, out=new)
         done += n_steps
         report(progress, "patch refine", done, total)
