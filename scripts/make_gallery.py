@@ -4,7 +4,8 @@
 
     python scripts/make_gallery.py control        # only some sheets: bricks, cells, control, serve
 
-Writes docs/gallery/{bricks,cells}.png: exemplar | 256x256 result | tileable result 2x2 |
+Writes docs/gallery/{bricks,cells}.png: exemplar | 256x256 result | the same with
+``--quality best`` | tileable result 2x2 |
 generated 32x32 patches | Fig. 6 stage views; docs/gallery/control.png: an inpainted
 image (hole outlined) | a guide map and the image it paints from two models | a morph strip;
 and docs/gallery/serve.png: a screenshot of ``tghop serve``'s page (the web extra and
@@ -28,6 +29,7 @@ from tghop import data, morph, synthesize_guided  # noqa: E402
 from tghop.inpaint import inpaint  # noqa: E402
 from tghop.patches import patch_grid, stage_sheet  # noqa: E402
 from tghop.imageio import save_image  # noqa: E402
+from tghop.settings import QUALITY  # noqa: E402
 from tghop.synthesis import TGHop  # noqa: E402
 
 
@@ -141,12 +143,13 @@ def main():
         exemplar = data.builtin(name)
         model = TGHop(rng=0).fit(exemplar)
         image = model.synthesize((256, 256), rng=1)
+        best = model.synthesize((256, 256), rng=1, **QUALITY["best"])
         tiled = model.synthesize((192, 192), rng=2, tile=True)
         patches, views = model.sample_patches(16, rng=3, return_stages=True)
         sheet = image_sheet(
-            [exemplar, image, np.tile(tiled, (2, 2, 1)), patch_grid(patches, n_cols=4), stage_sheet(
+            [exemplar, image, best, np.tile(tiled, (2, 2, 1)), patch_grid(patches, n_cols=4), stage_sheet(
                 {k: v[:6] for k, v in views.items()}, model.patch_size)],
-            ["exemplar (built in)", "tghop synth 256x256", "--tile, repeated 2x2", "generated patches",
+            ["exemplar (built in)", "tghop synth 256x256", "--quality best", "--tile, repeated 2x2", "generated patches",
              "core DC | S1 DC | patch"],
             height=200,
         )
