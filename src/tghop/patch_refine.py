@@ -199,14 +199,17 @@ def _bins(y, lo, scale):
     return idx
 
 
-def _gradient(x, dirs, target, stride):
+def _gradient(x, dirs, target, stride, origin=(0, 0)):
     """The gradient of the L1 sliced distance of an (H, W, C) image's patches (every
-    ``stride``-th position) along ``dirs`` (K, D) to ``target`` (K, Q): (C, H, W) float32."""
+    ``stride``-th position from ``origin``) along ``dirs`` (K, D) to ``target`` (K, Q):
+    (C, H, W) float32."""
     p = PATCH
+    grad = np.zeros((x.shape[2], x.shape[0], x.shape[1]), dtype=np.float32)
+    out = grad[:, origin[0]:, origin[1]:]  # the grid's part of the image
+    x = x[origin[0]:, origin[1]:]
     h, w, c = x.shape
     (hh, ww) = ((h - p) // stride + 1, (w - p) // stride + 1)
     n = hh * ww
-    grad = np.zeros((c, h, w), dtype=np.float32)
     rows = max(1, _CHUNK // ww)
     tables = None
     if hh > rows:  # several chunks: the ranks from patches on a grid of at most _RANK_PATCHES
@@ -236,7 +239,7 @@ def _gradient(x, dirs, target, stride):
         top = r0 * stride
         for dy in range(p):
             for dx in range(p):
-                grad[:, top + dy: top + dy + sy: stride, dx: dx + sx: stride] += gp[:, dy, dx]
+                out[:, top + dy: top + dy + sy: stride, dx: dx + sx: stride] += gp[:, dy, dx]
     return grad
 
 
@@ -265,8 +268,7 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
             g[:, :, : p - 1] += g[:, :, w:]
             g = np.roll(g[:, :h, :w], (oy, ox), axis=(1, 2)) if oy or ox else g[:, :h, :w]
         else:  # the grid starts at (oy, ox); the first rows and columns are reached by later phases
-            g = np.zeros((c, h, w), dtype=np.float32)
-            g[:, oy:, ox:] = _gradient(x[oy:, ox:], dirs[j], target[j], stride)
+            g = _gradient(x, dirs[j], target[j], stride, (oy, ox))
         m *= b1
         m += (1 - b1) * g
         g *= g
