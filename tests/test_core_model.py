@@ -186,7 +186,7 @@ def test_fast_decoder_equals_stepwise_inverse(small_model, n):
 def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
     # Few blocks per pool patch: the pool is generated as read, never whole; its tables are
     # those of the whole pool, and the placed patches differ by float32 round-off at most.
-    from tghop import synthesis
+    from tghop import pool
     from tghop.pool import GeneratedPool
 
     whole = []
@@ -195,7 +195,7 @@ def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
     args = (1000, None, False, 0.5, None)
     on_demand = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
     assert isinstance(on_demand.patches, GeneratedPool) and not whole
-    monkeypatch.setattr(synthesis, "_ON_DEMAND_BLOCKS", 0.0)
+    monkeypatch.setattr(pool, "ON_DEMAND_BLOCKS", 0.0)
     stored = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
     assert isinstance(stored.patches, np.ndarray) and whole
     for name in ("_table", "_bound", "_energy"):
@@ -206,7 +206,7 @@ def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
     # matching then move values by a little more: ranks shift).
     plain = dict(rng=2, n_patches=1000, refine=0, match_colours=False)
     a, full_a = small_model.synthesize((48, 48), **plain), small_model.synthesize((48, 48), rng=2, n_patches=1000)
-    monkeypatch.setattr(synthesis, "_ON_DEMAND_BLOCKS", 1.0)
+    monkeypatch.setattr(pool, "ON_DEMAND_BLOCKS", 1.0)
     np.testing.assert_allclose(small_model.synthesize((48, 48), **plain), a, atol=1e-5)
     assert np.abs(small_model.synthesize((48, 48), rng=2, n_patches=1000) - full_a).mean() < 1e-3
 

@@ -100,7 +100,7 @@ def load_pocketfft():
 
 class PocketFFT:
     """``rfft2``, ``ifft`` and ``irfft`` as ``scipy.fft`` has them (default normalisation),
-    calling its compiled module as ``scipy.fft`` does."""
+    and the orthonormal ``dctn``, calling its compiled module as ``scipy.fft`` does."""
 
     def __init__(self, module):
         self._m = module
@@ -110,6 +110,12 @@ class PocketFFT:
 
     def ifft(self, x, axis=-1, overwrite_x=False, workers=1):
         return self._m.c2c(x, (axis,), False, 2, x if overwrite_x else None, int(workers))
+
+    def dctn(self, x, type=2, axes=None, norm="ortho", workers=1):
+        # Only the orthonormal transform (the seam removal's), as scipy.fft.dctn(norm="ortho").
+        if norm != "ortho":
+            raise ValueError("only norm='ortho' is supported")
+        return self._m.dct(np.asarray(x), int(type), None if axes is None else tuple(axes), 1, None, int(workers), True)
 
     def irfft(self, x, n=None, axis=-1, overwrite_x=False, workers=1):
         # (scipy.fft does not use overwrite_x here either)

@@ -65,8 +65,10 @@ import numpy as np
 
 from . import settings
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
+from .pool import MAX_GROWN_POOL, ON_DEMAND_BLOCKS
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .refine import downsample, iter_oriented_parts, laplacian_pyramid, prepare as prepare_refinement, reconstruct
+from .seams import remove_seams
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
            "REGION_COST", "MIXED_COST"]
@@ -83,8 +85,6 @@ REGION_COST = 1.0
 MIXED_COST = 0.003
 #: Length scale in pixels of the random regions of a remix.
 _BLOB = 64
-#: Most pool patches per model.
-_MAX_POOL = 30_000
 #: Values ranked to estimate each monotone map of the refinement.
 _SAMPLES = 1 << 14
 #: Images from this many pixels on are refined a station per thread.
@@ -243,7 +243,7 @@ def _check_int(name, value, low):
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
                       detail=0.5, refine=3, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
-                      layout_refine=3, progress=None, dtype=np.float64):
+                      layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
     Parameters
@@ -261,7 +261,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         statistics; 0: the quilting seam decides alone).
     rng : int or numpy.random.Generator, optional
         Same seed, same image (on the same machine).
-    n_patches, tile, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block
+    n_patches, tile, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block, seam_window
         As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out among the models
         in proportion to their areas (each at least a quarter of it), ``pool_per_block``
         counts each region's blocks.
@@ -294,13 +294,13 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     return _synthesize(models, size, weights, np.eye(k), weights, rng=rng, n_patches=n_patches, tile=tile,
                        overlap=overlap, tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours,
                        reuse=reuse, pool_per_block=pool_per_block, layout_weight=layout_weight,
-                       layout_refine=layout_refine, progress=progress, dtype=dtype)
+                       layout_refine=layout_refine, seam_window=seam_window, progress=progress, dtype=dtype)
 
 
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
           n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.5, refine=3,
-          match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0, layout_refine=3, progress=None,
-          dtype=np.float64):
+          match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0, layout_refine=3, seam_window=9,
+          progress=None, dtype=np.float64):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.
 
     Column ``x`` is at ``t = x / (W - 1)`` of the way: its blocks take B's patches with
@@ -316,7 +316,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     stations : int, optional
         Steps of the statistics across the width (at least 2); default one per 128
         columns, at least 3.
-    rng, n_patches, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block
+    rng, n_patches, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block, seam_window
         As :func:`synthesize_guided`.
     layout_weight, layout_refine, progress, dtype
         As :func:`synthesize_guided`.
@@ -337,14 +337,14 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     return _synthesize(models, (h, w), weights, mix, ramp, rng=rng, n_patches=n_patches, tile=False, overlap=overlap,
                        tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours, reuse=reuse,
                        pool_per_block=pool_per_block, layout_weight=layout_weight, layout_refine=layout_refine,
-                       progress=progress, dtype=dtype)
+                       seam_window=seam_window, progress=progress, dtype=dtype)
 
 
 # ----------------------------------------------------------------------------- the pipeline
 
 
 def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, refine,
-                match_colours, reuse, pool_per_block, layout_weight, layout_refine, progress, dtype):
+                match_colours, reuse, pool_per_block, layout_weight, layout_refine, seam_window, progress, dtype):
     """Quilt the union of the models' pools (each block its drawn model's patches, drawn
     from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
     ``weights`` (S, H, W) and ``mix`` (S, K)."""
@@ -354,7 +354,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     checked = settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
                                            detail=detail, match_colours=match_colours, refine=refine, reuse=reuse,
                                            pool_per_block=pool_per_block, layout_weight=layout_weight,
-                                           layout_refine=layout_refine))
+                                           layout_refine=layout_refine, seam_window=seam_window))
     from threadpoolctl import threadpool_limits
 
     rng = check_rng(rng)
@@ -367,7 +367,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     # region's blocks as TGHop.synthesize grows its pool.
     n_min = checked["n_patches"]
     counts = [max(int(math.ceil(n_min * max(a, 0.25))),
-                  min(_MAX_POOL, int(math.ceil(checked["pool_per_block"] * blocks * a)))) for a in area]
+                  min(MAX_GROWN_POOL, int(math.ceil(checked["pool_per_block"] * blocks * a)))) for a in area]
     guided = bool(checked["layout_weight"]) and all(m.layout_ is not None for m in models)
     pending = None
     # The coarse guides are made in a second thread (their own random stream) while the
@@ -375,7 +375,8 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     with threadpool_limits(limits=1, user_api="blas") if guided else nullcontext():
         if guided:
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
-            pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"])
+            pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"],
+                                checked["seam_window"])
         report(progress, "patch pool", 0, k)
         pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
         start = 0
@@ -392,10 +393,13 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
         report(progress, "layout", 1, 1)
     groups = np.repeat(np.arange(k), counts)
     group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
-    reuse = checked["reuse"] if blocks > 0.125 * len(pool) else 0.0
+    reuse = checked["reuse"] if blocks > ON_DEMAND_BLOCKS * len(pool) else 0.0
     image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,
-                           guide=guide, guide_weight=checked["layout_weight"], groups=groups, group_cost=group_cost)
+                           guide=guide, guide_weight=checked["layout_weight"], groups=groups, group_cost=group_cost,
+                           return_seams=checked["seam_window"] > 0)
     del prepared, pool
+    if checked["seam_window"]:  # (image, steps)
+        image = remove_seams(*image, window=checked["seam_window"], out=image[0])
     stations = _Stations(weights, mix, models)
     if checked["refine"]:
         image = stations.refine(image, n_iter=checked["refine"], tile=tile, progress=progress)
@@ -409,7 +413,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     return image.astype(dtype)
 
 
-def _layout_guide(models, shares, rng, tile, refine):
+def _layout_guide(models, shares, rng, tile, refine, seam_window):
     """``sum_k W_k guide_k``: each model's coarse layout guide over the bounding box of its
     share (the whole image with ``tile``), weighted by its share; (H, W, C) float32."""
     k, h, w = shares.shape
@@ -422,7 +426,7 @@ def _layout_guide(models, shares, rng, tile, refine):
                 continue
             box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         part = model.layout_.guide((box[0].stop - box[0].start, box[1].stop - box[1].start), rng=rng, tile=tile,
-                                   refine=refine)
+                                   refine=refine, seam_window=seam_window)
         guide[box] += part * share[box][..., None]
     return guide
 

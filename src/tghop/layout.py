@@ -157,7 +157,8 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
     return {"stride": stride, "max_patches": n_train, "n_clusters": n_clusters}
 
 
-def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, refine=3) -> np.ndarray:
+def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, refine=3,
+                 seam_window=9) -> np.ndarray:
     """A coarse synthesis from ``model`` upsampled by ``factor`` to ``size``: the layout
     the fine level follows.
 
@@ -177,6 +178,9 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
         Rounds of the refinement after quilting (:mod:`tghop.refine`) of the coarse image
         (at factor 2 without its finest band, which the fine level's comparison by box
         means hardly sees).
+    seam_window : int
+        Remove the steps across the coarse image's quilting seams (:mod:`tghop.seams`),
+        averaged over squares of this side (0: off).
 
     Returns
     -------
@@ -202,7 +206,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     # Measured better on 20 exemplars in SIFID, SWD and co-occurrence, and faster
     # (docs/choices.md).
     coarse = model.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False,
-                              dtype=np.float32)
+                              seam_window=seam_window, dtype=np.float32)
     coarse = refine_bands(coarse, model.bands_, n_iter=refine, tile=tile,  # checks refine too
                           first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
     coarse = match_histograms(coarse, model.colour_quantiles_, out=coarse)

@@ -7,14 +7,50 @@ patches it places, so the pool itself never takes memory.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .quilting import POOL_CHUNK
+from .quilting import POOL_CHUNK, block_count
 
-__all__ = ["GeneratedPool", "DECODE_CHUNK"]
+__all__ = ["GeneratedPool", "DECODE_CHUNK", "ON_DEMAND_BLOCKS", "MAX_GROWN_POOL", "on_demand", "pool_size"]
 
 #: Patches decoded per step (the intermediate arrays stay in cache).
 DECODE_CHUNK = 64
+#: Pools are generated on demand (:class:`GeneratedPool`) for images of at most this many
+#: blocks per pool patch (256x256 and 512x512 images from a pool of 5,000). Larger images
+#: place more patches, decoded again one wavefront at a time on quilting's path, which
+#: then costs more than it saves (measured: docs/choices.md).
+ON_DEMAND_BLOCKS = 0.125
+#: Largest pool that ``pool_per_block`` grows to (a 4096x4096 image has 23,104 blocks).
+MAX_GROWN_POOL = 30_000
+
+
+def on_demand(size, patch_size, n_patches, *, overlap=None, tile=False) -> bool:
+    """Whether an image of ``size`` places few enough blocks (at most
+    :data:`ON_DEMAND_BLOCKS` per pool patch) for its pool to be generated on demand."""
+    return block_count(size, patch_size, overlap=overlap, tile=tile) <= ON_DEMAND_BLOCKS * n_patches
+
+
+def pool_size(size, patch_size, *, n_patches, pool_per_block, reuse, overlap=None, tile=False):
+    """The pool and the reuse penalty quilting uses for an image of ``size``.
+
+    The pool grows to ``pool_per_block`` patches per block when that is more than
+    ``n_patches`` (up to :data:`MAX_GROWN_POOL`). Small images (:func:`on_demand`: 256x256
+    and 512x512 from 5,000) hardly reuse a patch (100 blocks: 81 patches, at most 3 uses):
+    no penalty, the same images as without it.
+
+    Returns
+    -------
+    n_patches : int
+    reuse : float
+    """
+    if pool_per_block:
+        blocks = block_count(size, patch_size, overlap=overlap, tile=tile)
+        n_patches = max(n_patches, min(MAX_GROWN_POOL, int(math.ceil(pool_per_block * blocks))))
+    if on_demand(size, patch_size, n_patches, overlap=overlap, tile=tile):
+        reuse = 0.0
+    return n_patches, reuse
 
 
 class GeneratedPool:

@@ -46,6 +46,7 @@ __all__ = [
     "PreparedPool",
     "QuiltingPlan",
     "block_count",
+    "block_labels",
     "boundary_cut_mask",
     "default_overlap",
     "min_error_boundary_cut",
@@ -1118,7 +1119,8 @@ def quilt_prepared(
     reuse: float = 0.0,
     groups=None,
     group_cost=None,
-) -> np.ndarray:
+    return_seams: bool = False,
+):
     """Quilt a pool made ready by :func:`prepare_pool`; parameters and result as :func:`quilt`.
 
     ``dtype`` float32 returns the quilting canvas's own precision at half the memory of
@@ -1129,6 +1131,11 @@ def quilt_prepared(
     it), and its error at block (i, j) counts ``group_cost[i, j, group]`` more (in the
     units of the overlap error, a sum of squared differences): a per-block preference for
     some groups (:mod:`tghop.guided`). Both or neither.
+
+    ``return_seams``: also return the :class:`tghop.seams.SeamSteps` of the image: at
+    every seam edge it has (two neighbours pasted from two blocks), the change that
+    replaces the step between the two patches by the mean of their own differences
+    (:func:`tghop.seams.remove_seams`). The image is the same either way.
     """
     if not isinstance(prepared, PreparedPool):
         raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
@@ -1161,6 +1168,7 @@ def quilt_prepared(
     # broadcast over the channels takes NumPy's slow path).
     pixel = np.dtype((np.void, canvas.itemsize * c))
     guided = _guide_setup(guide, guide_weight, prepared) if guide is not None else None
+    log = _SeamLog(plan, c) if return_seams else None
     order = np.argsort(plan.level.ravel(), kind="stable")
     bounds = np.cumsum(np.bincount(plan.level.ravel(), minlength=plan.n_levels))
     nx = plan.xs.size
@@ -1227,6 +1235,8 @@ def quilt_prepared(
         for channel in range(1, c):
             pix_err += diff[..., channel]
         paste = _cut_masks(pix_err, plan.strips[mid], plan.keep[mid])
+        if log is not None:
+            log.add(blocks, windows, old, new, paste, plan.masks[mid])
         np.copyto(old.view(pixel)[..., 0], new.view(pixel)[..., 0], where=paste)
         for t, win in enumerate(windows):
             canvas[win] = old[t]
@@ -1235,4 +1245,109 @@ def quilt_prepared(
 
     h, w = plan.size
     # Cropped, clipped and converted in one pass (the bounds are exact in float32).
-    return np.clip(canvas[:h, :w], 0.0, 1.0, out=np.empty((h, w, c), dtype=dtype))
+    image = np.clip(canvas[:h, :w], 0.0, 1.0, out=np.empty((h, w, c), dtype=dtype))
+    if log is not None:
+        return image, log.steps()
+    return image
+
+
+class _SeamLog:
+    """What quilting records for the seam removal (:mod:`tghop.seams`): which block each
+    canvas pixel shows (by :func:`block_labels`), and for every seam edge a pasted block
+    makes inside its window, the change that replaces the step between the two patches by
+    the mean of their own differences, with the labels of the two sides. A record still
+    holds at the end if both pixels still show those two blocks."""
+
+    def __init__(self, plan: QuiltingPlan, c: int):
+        self.plan, self.c = plan, c
+        self.labels = np.full(plan.canvas_shape, 255, dtype=np.uint8)  # 255: nothing placed yet
+        self.codes = block_labels(plan).ravel()
+        self.records = {1: [], 0: []}  # axis (1: x, 0: y) -> [(first, second, label1, label2, change)]
+
+    def add(self, blocks, windows, old, new, paste, covered):
+        """Blocks ``blocks`` pasted: ``old`` / ``new`` (b, P, P, C) the canvas before and the
+        patches, ``paste`` (b, P, P) where the patches go, ``covered`` where old is valid."""
+        plan, p = self.plan, old.shape[1]
+        hc, wc = plan.canvas_shape
+        nx = plan.xs.size
+        ys, xs = plan.ys[blocks // nx], plan.xs[blocks % nx]
+        rows = (ys[:, None] + np.arange(p)) % hc  # (b, P) canvas rows
+        cols = (xs[:, None] + np.arange(p)) % wc
+        before = np.stack([self.labels[win] for win in windows])  # (b, P, P) labels before pasting
+        after = before.copy()
+        np.copyto(after, self.codes[blocks][:, None, None], where=paste)
+        for t, win in enumerate(windows):
+            self.labels[win] = after[t]
+        step = new - old  # at a covered pixel: the new patch minus the block shown there before
+        # Seam edges inside the window: a pasted pixel beside a kept one, which shows block A.
+        # The step at the kept pixel is the patches' mismatch there; the step at the pasted
+        # one too if it showed A before (not where a third block's corner was).
+        for axis in (1, 0):
+            a = (slice(None), slice(None), slice(None, -1)) if axis == 1 else (slice(None), slice(None, -1))
+            z = (slice(None), slice(None), slice(1, None)) if axis == 1 else (slice(None), slice(1, None))
+            t, y, x = np.nonzero((paste[a] != paste[z]) & covered[a] & covered[z])
+            y2, x2 = (y, x + 1) if axis == 1 else (y + 1, x)
+            first_new = paste[t, y, x]
+            same = (before[t, y, x] == before[t, y2, x2])[:, None]
+            kept = np.where(first_new[:, None], step[t, y2, x2], step[t, y, x])
+            other = np.where(first_new[:, None], step[t, y, x], step[t, y2, x2])
+            change = np.where(same, 0.5 * (kept + other), kept)
+            change *= np.where(first_new, 1.0, -1.0).astype(np.float32)[:, None]
+            self.records[axis].append((rows[t, y] * wc + cols[t, x], rows[t, y2] * wc + cols[t, x2],
+                                       after[t, y, x], after[t, y2, x2], change))
+        # Seam edges across the window's border: the pixel outside shows a block A placed
+        # earlier; where the pasted pixel inside showed A before, the step there stands for
+        # the edge's (the new patch's value outside is unknown).
+        placed = self.labels.ravel()
+        for axis, at, beyond in ((1, 0, -1), (1, p - 1, p), (0, 0, -1), (0, p - 1, p)):
+            line = (slice(None), slice(None), at) if axis == 1 else (slice(None), at)
+            t, u = np.nonzero(paste[line] & covered[line])
+            y, x = (u, np.full_like(u, at)) if axis == 1 else (np.full_like(u, at), u)
+            out_y, out_x = (rows[t, y], xs[t] + beyond) if axis == 1 else (ys[t] + beyond, cols[t, x])
+            inside = (out_y >= 0) & (out_y < hc) & (out_x >= 0) & (out_x < wc)
+            outside = (out_y % hc) * wc + out_x % wc
+            ok = (inside | plan.tile) & (placed[outside] == before[t, y, x])
+            t, y, x, outside = t[ok], y[ok], x[ok], outside[ok]
+            here = rows[t, y] * wc + cols[t, x]
+            if beyond < 0:  # the outside pixel comes first along the axis
+                self.records[axis].append((outside, here, placed[outside], after[t, y, x], -step[t, y, x]))
+            else:
+                self.records[axis].append((here, outside, after[t, y, x], placed[outside], step[t, y, x]))
+
+    def steps(self):
+        """The :class:`tghop.seams.SeamSteps` of the cropped image."""
+        from .seams import SeamSteps
+
+        (h, w), (_, wc) = self.plan.size, self.plan.canvas_shape
+        labels = self.labels.ravel()
+        index, change = [], []
+        for axis in (1, 0):
+            recs = self.records[axis] or [(np.zeros(0, np.int64),) * 2 + (np.zeros(0, np.uint8),) * 2
+                                          + (np.zeros((0, self.c), np.float32),)]
+            first, second, one, two, delta = (np.concatenate([r[i] for r in recs]) for i in range(5))
+            y, x = np.divmod(first, wc)
+            y2, x2 = np.divmod(second, wc)
+            keep = (labels[first] == one) & (labels[second] == two) & (y < h) & (x < w) & (y2 < h) & (x2 < w)
+            index.append(y[keep] * w + x[keep])
+            change.append(delta[keep])
+        return SeamSteps(shape=(h, w), tile=self.plan.tile, index=tuple(index), change=tuple(change))
+
+
+def block_labels(plan: QuiltingPlan) -> np.ndarray:
+    """A small label per block of ``plan``, different for any two blocks that overlap.
+
+    Block ``(i, j)`` gets ``5 * r(i) + r(j)`` with ``r(i) = i % 4``, except that the last
+    row and column get 4 (so that, with ``tile``, they differ from the first ones they
+    wrap onto). Blocks two steps apart never overlap (the overlap is at most half a patch).
+
+    Returns
+    -------
+    ndarray, shape (ny, nx), uint8 in [0, 25)
+    """
+    def ranks(n):
+        r = np.arange(n) % 4
+        if n > 1:
+            r[-1] = 4
+        return r
+
+    return (5 * ranks(plan.ys.size)[:, None] + ranks(plan.xs.size)[None, :]).astype(np.uint8)

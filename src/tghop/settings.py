@@ -331,6 +331,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "Grow the pool to this many patches per quilted block when that is more than n_patches, up "
             "to 30,000 (ours, for large images; 0: the pool is n_patches).", when="generate", low=0,
             paper=0.0),
+    Setting("seam_window", 9, "int",
+            "Remove the steps in tone and colour across quilting seams by gradient-domain stitching "
+            "(ours, :mod:`tghop.seams`): each seam edge's step is averaged over the seam edges within "
+            "a square of this side (1: each on its own, no grid left but smoother seams; 0: off, the "
+            "paper's plain minimum-error cuts).", when="generate", low=0, high=255, paper=0),
     Setting("layout_refine", 3, "int",
             "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "
             "(models fitted with a layout factor).", when="generate", low=0, high=20),

@@ -30,11 +30,12 @@ from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
 from . import layout
-from .pool import GeneratedPool
-from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
+from .pool import GeneratedPool, on_demand, pool_size
+from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
 from .parameter_count import parameter_groups, table4
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image
 from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
+from .seams import remove_seams
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
 
@@ -47,13 +48,6 @@ PAPER_TABLE4 = {"n_channels": (9, 22),
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
-#: Pools are generated on demand (:class:`GeneratedPool`) for images of at most this many
-#: blocks per pool patch (256x256 and 512x512 images from a pool of 5,000). Larger images
-#: place more patches, decoded again one wavefront at a time on quilting's path, which
-#: then costs more than it saves (measured: docs/choices.md).
-_ON_DEMAND_BLOCKS = 0.125
-#: Largest pool that ``pool_per_block`` grows to (a 4096x4096 image has 23,104 blocks).
-_MAX_GROWN_POOL = 30_000
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -592,20 +586,21 @@ class TGHop(BaseEstimator):
     def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):
         """A new pool of ``n_patches`` (float32) made ready for quilting (:func:`tghop.quilting.prepare_pool`).
 
-        When quilting will place few blocks (at most :data:`_ON_DEMAND_BLOCKS` per pool
-        patch: a 256x256 image places about 100 of 5,000 patches), the pool is not kept:
+        When quilting will place few blocks (:func:`tghop.pool.on_demand`: a 256x256
+        image places about 100 of 5,000 patches), the pool is not kept:
         its patches are generated a chunk at a time as their tables are made, and again
         for the few that are placed (:class:`GeneratedPool`). Else they are generated
         once, into an array.
         """
         pool = GeneratedPool(self, *self.sample_vectors(n_patches, rng, np.dtype(np.float32)))
-        if block_count(size, self.patch_size, overlap=overlap, tile=tile) > _ON_DEMAND_BLOCKS * n_patches:
+        if not on_demand(size, self.patch_size, n_patches, overlap=overlap, tile=tile):
             pool = pool.all()
         return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
-                   patch_refine=0, reuse=1.0, pool_per_block=1.5, progress=None, dtype=np.float64):
+                   patch_refine=0, reuse=1.0, pool_per_block=1.5, seam_window=9, progress=None,
+                   dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -648,6 +643,10 @@ class TGHop(BaseEstimator):
         pool_per_block : float
             Generate this many pool patches per quilted block where that is more than
             ``n_patches`` (at most 30,000; ours; 0: always ``n_patches``).
+        seam_window : int
+            Remove the steps across quilting seams by gradient-domain stitching (ours,
+            :func:`tghop.seams.remove_seams`, before the refinement; also in the coarse
+            guide), each seam edge's step averaged over a square of this side; 0: off.
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
             "patch refine" and "colour".
@@ -668,18 +667,9 @@ class TGHop(BaseEstimator):
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
-            patch_refine=patch_refine, reuse=reuse, pool_per_block=pool_per_block))
-        n_patches = checked["n_patches"]
-        if checked["pool_per_block"]:  # a larger pool for a large image, up to _MAX_GROWN_POOL
-            blocks = block_count(size, self.patch_size, overlap=overlap, tile=tile)
-            grown = min(_MAX_GROWN_POOL, int(math.ceil(checked["pool_per_block"] * blocks)))
-            n_patches = max(n_patches, grown)
-        # Small images (at most one block per 8 pool patches: 256x256 and 512x512 from
-        # 5,000) hardly reuse a patch (100 blocks: 81 patches, at most 3 uses): no penalty,
-        # the same images as without it.
-        reuse = checked["reuse"]
-        if block_count(size, self.patch_size, overlap=overlap, tile=tile) <= _ON_DEMAND_BLOCKS * n_patches:
-            reuse = 0.0
+            patch_refine=patch_refine, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window))
+        n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
+                                     tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
         rng = check_rng(rng)
         guide = None
         if self.layout_ is not None and layout_weight:
@@ -691,7 +681,8 @@ class TGHop(BaseEstimator):
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             report(progress, "layout", 0, 1)
             with threadpool_limits(limits=1, user_api="blas"):
-                pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine)
+                pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
+                                    seam_window=checked["seam_window"])
                 if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
                     prepare_refinement(size, self.bands_)
                 prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
@@ -702,12 +693,15 @@ class TGHop(BaseEstimator):
             report(progress, "patch pool", 0, 1)
             prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=None)
         report(progress, "patch pool", 1, 1)
-        # float32 unless a float64 image is wanted unrefined (the refinement works in
-        # float32; quilting's canvas is float32): half the memory of a large image.
-        wide = np.float64 if dtype == np.float64 and not refine else np.float32
+        # float32 unless a float64 image is wanted unrefined and unsmoothed (the refinement
+        # and the seam removal work in float32; so does quilting's canvas): half the memory.
+        wide = np.float64 if dtype == np.float64 and not (refine or checked["seam_window"]) else np.float32
         image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
-                               guide_weight=layout_weight, dtype=wide, reuse=reuse)
+                               guide_weight=layout_weight, dtype=wide, reuse=reuse,
+                               return_seams=checked["seam_window"] > 0)
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
+        if checked["seam_window"]:  # (image, steps)
+            image = remove_seams(*image, window=checked["seam_window"], out=image[0])
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32)
@@ -830,7 +824,7 @@ class CoarseLayout(BaseEstimator):
         ).fit(small, exclude=small_exclude)
         return self
 
-    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3):
+    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3, seam_window=9):
         """A coarse synthesis upsampled to ``size``: the layout the fine level follows
         (:func:`tghop.layout.coarse_guide`).
 
@@ -840,7 +834,7 @@ class CoarseLayout(BaseEstimator):
         """
         check_is_fitted(self, "model_")
         return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
-                                   refine=refine)
+                                   refine=refine, seam_window=seam_window)
 
 
 def model_arrays(model) -> dict:
