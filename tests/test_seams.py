@@ -192,3 +192,14 @@ def test_synthesize_seam_window(small_model):
     assert PAPER["seam_window"] == 0
     with pytest.raises(TGHopError, match="seam_window must be"):
         small_model.synthesize((80, 96), seam_window=-1)
+
+
+@pytest.mark.parametrize("window", [9, 1])
+def test_synthesize_tile_stays_tileable(small_model, window):
+    # The periodic solve keeps a tileable image tileable: across its wrap-around edges the
+    # differences are like those inside.
+    img = small_model.synthesize((64, 80), rng=2, n_patches=300, tile=True, seam_window=window)
+    for axis in (0, 1):
+        inside = np.abs(np.diff(img, axis=axis)).mean(axis=(1 - axis, 2))  # one value per edge line
+        first, last = np.take(img, 0, axis=axis), np.take(img, -1, axis=axis)
+        assert np.abs(first - last).mean() <= np.percentile(inside, 90), (axis, window)
