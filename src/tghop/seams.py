@@ -215,16 +215,14 @@ def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.nd
         np.copyto(out, image)
     if not any(index.size for index in steps.index):
         return out
-    axes = [(axis, steps.index[n], steps.second(axis), _local_means(steps, axis, window) if window > 1
-             else steps.change[n]) for n, axis in enumerate((1, 0)) if steps.index[n].size]
+    # The least-squares condition: laplacian(u)[i] = d(edge leaving i forwards) - d(edge
+    # arriving at i from behind): each seam edge adds +d at its first pixel and -d at its
+    # second; all of them in one weighted count per channel.
+    where = np.concatenate([index for n, axis in enumerate((1, 0)) for index in (steps.index[n], steps.second(axis))])
+    changes = [_local_means(steps, axis, window) if window > 1 else steps.change[n] for n, axis in enumerate((1, 0))]
     solve = _poisson_solver(h, w, steps.tile, out.dtype)
     for k in range(c):
-        # The least-squares condition: laplacian(u)[i] = d(edge leaving i forwards)
-        # - d(edge arriving at i from behind): each seam edge adds +d at its first pixel
-        # and -d at its second.
-        div = np.zeros(h * w)
-        for axis, first, second, change in axes:
-            div += np.bincount(first, weights=change[:, k], minlength=h * w)
-            div -= np.bincount(second, weights=change[:, k], minlength=h * w)
+        weights = np.concatenate([part for change in changes for part in (change[:, k], -change[:, k])])
+        div = np.bincount(where, weights=weights, minlength=h * w)
         out[..., k] += solve(div.reshape(h, w).astype(out.dtype))
     return np.clip(out, 0.0, 1.0, out=out)
