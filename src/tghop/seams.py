@@ -11,8 +11,10 @@ differences there, and it is the step between them instead. :class:`SeamSteps` h
 change that turns one into the other at every seam edge
 (:func:`tghop.quilting.quilt_prepared` with ``return_seams=True``); :func:`remove_seams`
 finds the image whose differences come closest to the changed ones, in least squares: the
-quilted image plus a correction that solves a Poisson equation whose right-hand side lives
-on the seams only, one transform and its inverse per channel.
+quilted image plus a correction that solves a (screened) Poisson equation whose right-hand
+side lives on the seams only, one transform and its inverse per channel. The screening
+lets each correction fade within about a block (:data:`SCREENING`), so that steps that
+lean one way on average cannot add up to a drift of colour across a large image.
 
 The change can be averaged over the seam edges nearby (``window``): the tone step between
 two blocks is about the same along their seam, while their detail differs from pixel to
@@ -67,15 +69,25 @@ class SeamSteps:
         return ((rows + 1) % h) * w + cols
 
 
+#: Length in pixels over which a correction fades away from its seam (the screened Poisson
+#: equation's ``laplacian(u) - u / SCREENING**2 = div(d)``). Without it, steps that lean one
+#: way on average add up over many blocks into a drift of colour across a large image
+#: (2048x2048 crops' SIFID 2.64 -> 4.45 on brick_wall); about a block keeps the steps'
+#: removal and stops the drift (docs/choices.md).
+SCREENING = 32.0
+
+
 def _filter(h, w, tile, half):
-    """1 / (the discrete Laplacian's eigenvalues) at the frequencies of the transform used:
-    periodic (``tile``; ``half``: the last axis of a real FFT) or the DCT's; 0 at the mean."""
+    """1 / (the screened discrete Laplacian's eigenvalues) at the frequencies of the
+    transform used: periodic (``tile``; ``half``: the last axis of a real FFT) or the DCT's;
+    0 at the mean."""
     if tile:
         fy = 2.0 * np.pi * np.minimum(np.arange(h), h - np.arange(h)) / h
         fx = 2.0 * np.pi * np.arange(w // 2 + 1 if half else w) / w
     else:
         fy, fx = np.pi * np.arange(h) / h, np.pi * np.arange(w) / w
     eigen = (2.0 * np.cos(fy) - 2.0)[:, None] + (2.0 * np.cos(fx) - 2.0)[None, :]
+    eigen -= 1.0 / SCREENING**2
     eigen[0, 0] = 1.0
     out = 1.0 / eigen
     out[0, 0] = 0.0  # the mean: left as it is
@@ -83,7 +95,7 @@ def _filter(h, w, tile, half):
 
 
 def _poisson_solver(h, w, tile, dtype):
-    """A function ``rhs (H, W) -> u`` with ``laplacian(u) = rhs`` and mean 0: periodic
+    """A function ``rhs (H, W) -> u`` with ``laplacian(u) - u / SCREENING**2 = rhs``: periodic
     (``tile``) or with free edges.
 
     Free edges (Neumann: no difference across the image's border) through the orthonormal
@@ -193,10 +205,10 @@ def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.nd
     Returns
     -------
     ndarray, shape (H, W, C), ``image``'s dtype, clipped to [0, 1]
-        ``image`` plus, per channel, the smooth correction ``u`` that solves the Poisson
-        equation ``laplacian(u) = div(d)`` (periodic with ``steps.tile``; no difference
-        across the border otherwise), where ``d`` is the change at the seam edges. Without
-        seams the image is returned unchanged.
+        ``image`` plus, per channel, the smooth correction ``u`` that solves the screened
+        Poisson equation ``laplacian(u) - u / SCREENING**2 = div(d)`` (periodic with
+        ``steps.tile``; no difference across the border otherwise), where ``d`` is the
+        change at the seam edges. Without seams the image is returned unchanged.
     """
     image = np.asarray(image)
     if image.ndim != 3 or image.dtype not in (np.float32, np.float64):
