@@ -33,7 +33,7 @@ import numpy as np
 from ._common import TGHopError
 from ._fft import fft_for
 
-__all__ = ["SeamSteps", "remove_seams"]
+__all__ = ["SCREENING", "SeamSteps", "remove_seams"]
 
 
 @dataclass(frozen=True)
@@ -124,7 +124,6 @@ def _poisson_solver(h, w, tile, dtype):
             return periodic(mirrored)[:h, :w]
 
         return solve
-    fft = fft_for(h * w)
     inverse = _filter(h, w, True, True)
 
     def solve(rhs):
