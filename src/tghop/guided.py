@@ -65,7 +65,7 @@ import numpy as np
 
 from . import settings
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
-from .pool import MAX_GROWN_POOL, ON_DEMAND_BLOCKS
+from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .refine import downsample, iter_oriented_parts, laplacian_pyramid, prepare as prepare_refinement, reconstruct
 from .seams import remove_seams
@@ -393,7 +393,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
         report(progress, "layout", 1, 1)
     groups = np.repeat(np.arange(k), counts)
     group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
-    reuse = checked["reuse"] if blocks > ON_DEMAND_BLOCKS * len(pool) else 0.0
+    reuse = 0.0 if on_demand(size, p, len(pool), overlap=overlap, tile=tile) else checked["reuse"]
     image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,
                            guide=guide, guide_weight=checked["layout_weight"], groups=groups, group_cost=group_cost,
                            return_seams=checked["seam_window"] > 0)

@@ -37,6 +37,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
+from .seams import SeamSteps
 
 __all__ = [
     "GUIDE_SCALE",
@@ -1316,8 +1317,6 @@ class _SeamLog:
 
     def steps(self):
         """The :class:`tghop.seams.SeamSteps` of the cropped image."""
-        from .seams import SeamSteps
-
         (h, w), (_, wc) = self.plan.size, self.plan.canvas_shape
         labels = self.labels.ravel()
         index, change = [], []

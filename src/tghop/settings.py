@@ -359,7 +359,8 @@ PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
 #: "best" adds the patch refinement (45 Adam steps per level; docs/choices.md: all 44
-#: exemplars' median SIFID 2.54 -> 1.84, about 3.5 s more at 256x256 on 2 cores).
+#: exemplars' median SIFID 2.57 -> 1.76 with the seam removal, about 3.5 s more at 256x256
+#: on 2 cores).
 QUALITY = {"default": {}, "best": {"patch_refine": 45}}
 
 
