@@ -1,19 +1,24 @@
-"""Repetition of large outputs: self-repetition, copied textured windows, SIFID of crops, time.
+"""Repetition and quality of large outputs: self-repetition, copied textured windows, SIFID of crops, time.
 
 For each texture, a model (fitted here, or read from ``--models DIR/NAME.npz`` made by
-``tghop fit``) synthesises a 256x256 image and images of each ``--sizes`` with the
-default settings ("new") and, with ``--old``, without the reuse penalty and pool growth
-(``reuse=0, pool_per_block=0``: the pipeline before them). Per image: self-repetition
-(:func:`tghop.metrics.self_repetition`), :func:`tghop.metrics.copied_textured` against
-the exemplar, the median SIFID of four 256x256 crops (the 256x256 output's own SIFID in
-its row) and the synthesis time in process (noisy on a shared machine).
+``tghop fit``) synthesises ``--refs`` 256x256 images (seeds 0, 1, ...) and one image of each
+``--sizes`` per variant: the default settings ("new"), with ``--old`` without the reuse
+penalty and pool growth (``reuse=0, pool_per_block=0``: the pipeline before them), and each
+``--variant LABEL:KEY=VALUE,...`` (synthesize keywords; VALUE a Python literal or ``none``).
+Per image: self-repetition (:func:`tghop.metrics.self_repetition`),
+:func:`tghop.metrics.copied_textured` against the exemplar, the median SIFID of ``--crops``
+random 256x256 crops (of the 256x256 rows: the median of the images' own SIFIDs), that
+median over the 256x256 images' ("crops / 256": the issue's goal is at most 1.10) and the
+synthesis time in process (noisy on a shared machine).
 
     python benchmarks/bench_repetition.py --models /tmp/models --old brick_wall knit
+    python benchmarks/bench_repetition.py --variant 'whole:region=none' --sizes 2048,4096 brick_wall
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import time
 from pathlib import Path
 
@@ -22,6 +27,8 @@ import numpy as np
 from _common import markdown_table, texture, write_results
 
 OLD = dict(reuse=0.0, pool_per_block=0.0)
+HEADER = ["texture", "size", "variant", "self-repetition", "copied_textured", "SIFID of 256 crops", "crops / 256",
+          "time s"]
 
 
 def crops(img, n=4, size=256, seed=0):
@@ -29,6 +36,16 @@ def crops(img, n=4, size=256, seed=0):
     h, w = img.shape[:2]
     return [img[y : y + size, x : x + size] for y, x in
             zip(rng.integers(0, h - size + 1, n).tolist(), rng.integers(0, w - size + 1, n).tolist())]
+
+
+def parse_variant(spec: str):
+    """``LABEL:KEY=VALUE,...`` -> (label, synthesize keywords)."""
+    label, _, items = spec.partition(":")
+    kw = {}
+    for item in filter(None, items.split(",")):
+        key, _, value = item.partition("=")
+        kw[key.strip()] = None if value.strip().lower() == "none" else ast.literal_eval(value.strip())
+    return label, kw
 
 
 def main():
@@ -40,37 +57,49 @@ def main():
     ap.add_argument("--sizes", default="2048", help="comma-separated sides (default 2048)")
     ap.add_argument("--models", help="directory of NAME.npz model files (default: fit here)")
     ap.add_argument("--old", action="store_true", help="also without the reuse penalty and pool growth")
+    ap.add_argument("--variant", action="append", default=[], help="LABEL:KEY=VALUE,... (repeatable)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--refs", type=int, default=1, help="256x256 images per texture (seeds seed, seed+1, ...)")
+    ap.add_argument("--crops", type=int, default=4, help="random 256x256 crops per large image")
     ap.add_argument("--tag", default="", help="suffix of the result files (repetition-TAG.{json,md})")
     ap.add_argument("--no-sifid", action="store_true")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
+    variants = [("new", {})] + ([("old", OLD)] if args.old else []) + [parse_variant(v) for v in args.variant]
     rows, payload = [], []
+
+    def record(name, size, label, img, seconds, ex, ref):
+        rep = metrics.self_repetition(img)
+        cop = metrics.copied_textured(ex, img)
+        sif = None
+        if not args.no_sifid:
+            sif = float(np.median(ref if size == 256 else [metrics.sifid(ex, c) for c in crops(img, n=args.crops)]))
+        ratio = None if sif is None or not ref else sif / float(np.median(ref))
+        row = dict(texture=name, size=size, variant=label, self_repetition=rep, copied_textured=cop, sifid_256=sif,
+                   ratio_to_256=ratio, seconds=seconds)
+        payload.append(row)
+        rows.append([name, f"{size}x{size}", label, rep, cop, "-" if sif is None else sif,
+                     "-" if ratio is None else ratio, seconds])
+        print(markdown_table(HEADER, rows[-1:]).splitlines()[-1], flush=True)
+
     for name in args.textures:
         ex = texture(name)
         model = load_model(Path(args.models) / f"{name}.npz") if args.models else TGHop().fit(ex)
-        variants = [("new", {})] + ([("old", OLD)] if args.old else [])
-        for size in [256] + sizes:
-            for label, kw in (variants if size != 256 else [("", {})]):
+        t = time.perf_counter()
+        smalls = [model.synthesize((256, 256), rng=args.seed + k) for k in range(args.refs)]
+        seconds = (time.perf_counter() - t) / args.refs
+        ref = [] if args.no_sifid else [metrics.sifid(ex, img) for img in smalls]
+        record(name, 256, "-", smalls[0], seconds, ex, ref)
+        for size in sizes:
+            for label, kw in variants:
                 t = time.perf_counter()
                 img = model.synthesize((size, size), rng=args.seed, **kw)
-                seconds = time.perf_counter() - t
-                rep = metrics.self_repetition(img)
-                cop = metrics.copied_textured(ex, img)
-                sif = None
-                if not args.no_sifid:
-                    parts = [img] if size == 256 else crops(img)
-                    sif = float(np.median([metrics.sifid(ex, c) for c in parts]))
-                row = dict(texture=name, size=size, variant=label or "-", self_repetition=rep,
-                           copied_textured=cop, sifid_256=sif, seconds=seconds)
-                payload.append(row)
-                rows.append([name, f"{size}x{size}", row["variant"], rep, cop, "-" if sif is None else sif, seconds])
-                print(markdown_table(["texture", "size", "variant", "self-repetition", "copied_textured",
-                                      "SIFID of 256 crops", "time s"], rows[-1:]).splitlines()[-1], flush=True)
-    header = ["texture", "size", "variant", "self-repetition", "copied_textured", "SIFID of 256 crops", "time s"]
-    table = markdown_table(header, rows)
+                record(name, size, label, img, time.perf_counter() - t, ex, ref)
+    table = markdown_table(HEADER, rows)
     print(table)
-    write_results("repetition" + (f"-{args.tag}" if args.tag else ""), payload, "# Repetition of large outputs (bench_repetition.py)\n\n" + table)
+    command = "python benchmarks/bench_repetition.py " + " ".join(__import__("sys").argv[1:])
+    write_results("repetition" + (f"-{args.tag}" if args.tag else ""), payload,
+                  "# Repetition of large outputs (bench_repetition.py)\n\n" + table + f"\n\nCommand: `{command}`\n")
 
 
 if __name__ == "__main__":

@@ -175,6 +175,10 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     assert out.shape == (64, 128, 3)  # the map's size
     assert out[:, :48, 2].mean() < out[:, 80:, 2].mean()  # blue cells on the right
 
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "-o", "region.png", "--region", "512", *fast], tmp_path)
+    assert r.returncode != 0 and "--region is not used with several SOURCEs" in r.stderr.decode()
+    assert not (tmp_path / "region.png").exists()
+
     guide[5, 5] = 100
     Image.fromarray(guide).save(tmp_path / "bad.png")
     r = _run(["synth", "a.npz", "b.npz", "--guide", "bad.png", "-o", "bad_out.png", *fast], tmp_path)

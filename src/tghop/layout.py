@@ -157,6 +157,21 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
     return {"stride": stride, "max_patches": n_train, "n_clusters": n_clusters}
 
 
+def fits_excluding(exclude, factor, *, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000) -> bool:
+    """Whether enough coarse training patches avoid ``exclude`` ((H, W) bool or None): at
+    least ``min_cluster_size`` per cluster of :func:`coarse_training`."""
+    from .patches import downsample_mask, patch_origins
+    from .settings import BY_NAME
+
+    if exclude is None:
+        return True
+    training = coarse_training(exclude.shape + (1,), factor, patch_size=patch_size, n_clusters=n_clusters,
+                               min_patches=min_patches, max_patches=max_patches)
+    small = downsample_mask(exclude, int(factor))
+    n = len(patch_origins(small.shape, int(patch_size), stride=training["stride"], exclude=small))
+    return n >= training["n_clusters"] * BY_NAME["min_cluster_size"].default
+
+
 def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, refine=3,
                  seam_window=9) -> np.ndarray:
     """A coarse synthesis from ``model`` upsampled by ``factor`` to ``size``: the layout

@@ -336,6 +336,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "(ours, :mod:`tghop.seams`): each seam edge's step is averaged over the seam edges within "
             "a square of this side (1: each on its own, no grid left but smoother seams; 0: off, the "
             "paper's plain minimum-error cuts).", when="generate", low=0, high=255, paper=0),
+    Setting("region", 1024, "int",
+            "Refine and colour-match images larger than about 1.5 times this side region by region, "
+            "cross-faded (ours, :mod:`tghop.regions`): every part of a large image keeps the "
+            "exemplar's statistics (None: the whole image at once, as up to tghop 0.16).",
+            when="generate", low=256, none_ok=True, paper=None),
     Setting("layout_refine", 3, "int",
             "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "
             "(models fitted with a layout factor).", when="generate", low=0, high=20),

@@ -34,7 +34,8 @@ from .pool import GeneratedPool, on_demand, pool_size
 from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
 from .parameter_count import parameter_groups, table4
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image
-from .refine import BandStatistics, prepare as prepare_refinement, refine as refine_bands
+from .refine import BandStatistics, refine as refine_bands
+from .regions import match_regions, n_regions, prepare as prepare_regions
 from .seams import remove_seams
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
@@ -599,7 +600,7 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=3, layout_refine=3,
-                   patch_refine=0, reuse=1.0, pool_per_block=1.5, seam_window=9, progress=None,
+                   patch_refine=0, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024, progress=None,
                    dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
@@ -647,6 +648,8 @@ class TGHop(BaseEstimator):
             Remove the steps across quilting seams by gradient-domain stitching (ours,
             :func:`tghop.seams.remove_seams`, before the refinement; also in the coarse
             guide), each seam edge's step averaged over a square of this side; 0: off.
+        region : int or None
+            Side of the regions refined and colour-matched apart in large images (:mod:`tghop.regions`).
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
             "patch refine" and "colour".
@@ -667,7 +670,9 @@ class TGHop(BaseEstimator):
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
-            patch_refine=patch_refine, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window))
+            patch_refine=patch_refine, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window,
+            region=region))
+        regions = (refine or match_colours) and n_regions(size, checked["region"], tile=tile) != (1, 1)
         n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
         rng = check_rng(rng)
@@ -684,7 +689,7 @@ class TGHop(BaseEstimator):
                 pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
                                     seam_window=checked["seam_window"])
                 if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
-                    prepare_refinement(size, self.bands_)
+                    prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
                 prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
                 guide = pending()
             report(progress, "layout", 1, 1)
@@ -702,6 +707,11 @@ class TGHop(BaseEstimator):
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
         if checked["seam_window"]:  # (image, steps)
             image = remove_seams(*image, window=checked["seam_window"], out=image[0])
+        if regions:  # refined and colour-matched here; float32
+            image = match_regions(image, bands=self.bands_ if refine else None, n_iter=refine, tile=tile,
+                                  colour_quantiles=self.colour_quantiles_ if match_colours else None,
+                                  region=checked["region"], progress=progress)
+            refine = match_colours = 0
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32)
@@ -787,14 +797,8 @@ class CoarseLayout(BaseEstimator):
 
     def fits_excluding(self, exclude) -> bool:
         """Whether enough coarse training patches avoid ``exclude`` ((H, W) bool or None)."""
-        if exclude is None:
-            return True
-        training = layout.coarse_training(exclude.shape + (1,), self.factor, patch_size=self.patch_size,
-                                          n_clusters=self.n_clusters, min_patches=self.min_patches,
-                                          max_patches=self.max_patches)
-        small = downsample_mask(exclude, int(self.factor))
-        n = len(patch_origins(small.shape, int(self.patch_size), stride=training["stride"], exclude=small))
-        return n >= training["n_clusters"] * settings.BY_NAME["min_cluster_size"].default
+        return layout.fits_excluding(exclude, self.factor, patch_size=self.patch_size, n_clusters=self.n_clusters,
+                                     min_patches=self.min_patches, max_patches=self.max_patches)
 
     def fit(self, image, y=None, *, exclude=None):
         """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.

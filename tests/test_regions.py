@@ -1,0 +1,125 @@
+"""Tests of tghop.regions: refinement and colour matching region by region, cross-faded."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tghop import TGHopError
+from tghop.colour import channel_quantiles, match_histograms
+from tghop.regions import OVERLAP, match_regions, n_regions, region_spans
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+@pytest.mark.parametrize("n, count", [(520, 2), (2048, 2), (1000, 3), (4096, 4), (300, 1)])
+def test_region_weights_sum_to_one_everywhere(n, count, periodic):
+    total = np.zeros(n)
+    covered = np.zeros(n, dtype=int)
+    spans = region_spans(n, count, periodic=periodic)
+    assert len(spans) == count
+    for start, weights in spans:
+        index = np.arange(start, start + len(weights))
+        if not periodic or count == 1:
+            assert 0 <= index[0] and index[-1] < n
+        assert len(np.unique(index % n)) == len(index)  # no pixel twice in one span
+        np.add.at(total, index % n, weights)
+        np.add.at(covered, index % n, 1)
+        assert weights.min() > 0 and weights.max() == 1
+    np.testing.assert_allclose(total, 1.0, atol=1e-6)
+    assert covered.max() == (1 if count == 1 else 2)  # only neighbours overlap
+
+
+def test_region_spans_refuse_regions_narrower_than_their_overlap():
+    with pytest.raises(TGHopError, match="narrower than their overlap"):
+        region_spans(100, 2, overlap=64)
+
+
+def test_n_regions():
+    assert n_regions((256, 256), 1024) == (1, 1)
+    assert n_regions((1500, 1600), 1024) == (1, 2)  # 1.46 and 1.56 regions
+    assert n_regions((2048, 4096), 1024) == (2, 4)
+    assert n_regions((2048, 2048), None) == (1, 1)
+    # Tileable: every axis needs two regions at least (one would wrap onto itself).
+    assert n_regions((2048, 4096), 1024, tile=True) == (2, 4)
+    assert n_regions((512, 4096), 1024, tile=True) == (1, 1)
+
+
+def two_halves(h=512, w=520, seed=0):
+    """Noise whose left half is dark and low in contrast, right half bright and contrasty."""
+    rng = np.random.default_rng(seed)
+    img = rng.random((h, w, 3)).astype(np.float32)
+    img[:, : w // 2] = 0.1 + 0.2 * img[:, : w // 2]
+    img[:, w // 2 :] = 0.4 + 0.6 * img[:, w // 2 :]
+    return img
+
+
+def test_each_region_gets_the_target_distribution():
+    # Matched as a whole, the two halves keep their difference (only the mixture has the
+    # target's histogram); matched region by region, each half away from the cross-fade
+    # has about the target's mean and spread (its region reaches 32 px into the other half).
+    img = two_halves()
+    target = np.random.default_rng(1).random((200, 200, 3)) * 0.5 + 0.25  # uniform on [0.25, 0.75]
+    q = channel_quantiles(target)
+    whole = match_histograms(img, q)
+    regional = match_regions(img, colour_quantiles=q, region=256)
+    assert n_regions(img.shape[:2], 256) == (2, 2)
+    core = slice(0, 260 - OVERLAP), slice(260 + OVERLAP, None)
+    for half in core:
+        part = regional[:, half]
+        assert abs(part.mean() - 0.5) < 0.04
+        assert abs(part.std() - target.std()) < 0.02
+    assert abs(regional[:, core[0]].mean() - regional[:, core[1]].mean()) < 0.06
+    assert abs(whole[:, core[0]].mean() - whole[:, core[1]].mean()) > 0.2
+    assert regional.dtype == np.float32 and regional.shape == img.shape
+    assert 0 <= regional.min() and regional.max() <= 1
+
+
+def test_regions_fade_into_each_other():
+    # Stationary noise: every region's map is about the same, and the cross-faded image
+    # about the whole image's match: no step where the regions meet.
+    img = np.random.default_rng(2).random((520, 520, 3)).astype(np.float32) ** 2
+    q = channel_quantiles(np.random.default_rng(3).random((128, 128, 3)))
+    whole = match_histograms(img, q)
+    regional = match_regions(img, colour_quantiles=q, region=256)
+    assert np.abs(regional - whole).max() < 0.03
+
+
+def test_tileable_regions_wrap_around():
+    # The regions at the borders wrap: with periodic spans, a rolled image gives the rolled
+    # result (up to the cut positions, which roll with it when the shift is a region's).
+    img = two_halves(512, 512)
+    q = channel_quantiles(np.random.default_rng(1).random((64, 64, 3)))
+    out = match_regions(img, colour_quantiles=q, region=256, tile=True)
+    rolled = match_regions(np.roll(img, 256, axis=1), colour_quantiles=q, region=256, tile=True)
+    np.testing.assert_allclose(np.roll(out, 256, axis=1), rolled, atol=1e-6)
+
+
+def test_match_regions_refuses_small_regions():
+    with pytest.raises(TGHopError, match="at least 256"):
+        match_regions(np.zeros((64, 64, 3)), colour_quantiles=np.zeros((3, 5)), region=100)
+
+
+def test_synthesize_by_regions(small_model):
+    size = (520, 540)
+    by_regions = small_model.synthesize(size, rng=3, region=256, dtype=np.float32)
+    again = small_model.synthesize(size, rng=3, region=256, dtype=np.float32)
+    whole = small_model.synthesize(size, rng=3, region=None, dtype=np.float32)
+    np.testing.assert_array_equal(by_regions, again)
+    assert by_regions.shape == size + (3,) and 0 <= by_regions.min() and by_regions.max() <= 1
+    assert not np.array_equal(by_regions, whole)
+    # The same quilt underneath: the regional result stays close to the whole one.
+    assert np.abs(by_regions - whole).mean() < 0.05
+    eight_bit = small_model.synthesize(size, rng=3, region=256, dtype=np.uint8)
+    assert eight_bit.dtype == np.uint8 and np.abs(eight_bit / 255.0 - by_regions).max() <= 0.5 / 255 + 1e-6
+
+
+def test_small_images_do_not_change(small_model):
+    # An image up to 1.5 regions a side is matched whole: the setting does not touch it.
+    a = small_model.synthesize((128, 128), rng=4, region=256)
+    b = small_model.synthesize((128, 128), rng=4, region=None)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_region_setting_is_checked(small_model):
+    with pytest.raises(TGHopError, match="region"):
+        small_model.synthesize((64, 64), rng=0, region=100)
