@@ -479,3 +479,9 @@ def test_refinement_falls_back_to_scipy_fft(cells, monkeypatch):
         np.testing.assert_array_equal(R.refine(img, st, n_iter=2), through_scipy)
     finally:
         F.scipy_fft.cache_clear()
+
+
+def test_refine_threads_do_not_change_the_numbers(small_model):
+    img = np.random.default_rng(7).random((520, 530, 3)).astype(np.float32)  # channels in threads
+    np.testing.assert_array_equal(refine(img, small_model.bands_, n_iter=2, dtype=np.float32),
+                                  refine(img, small_model.bands_, n_iter=2, dtype=np.float32, threads=1))

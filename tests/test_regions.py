@@ -123,3 +123,17 @@ def test_small_images_do_not_change(small_model):
 def test_region_setting_is_checked(small_model):
     with pytest.raises(TGHopError, match="region"):
         small_model.synthesize((64, 64), rng=0, region=100)
+
+
+def test_regions_give_the_same_image_on_any_number_of_cores(small_model):
+    # Regions run a core each and are added in a fixed order; refine(threads=1) makes the
+    # same numbers as the channels in threads.
+    from tghop._common import limit_cores
+
+    quilt = small_model.synthesize((540, 520), rng=5, refine=0, match_colours=False, seam_window=0,
+                                   dtype=np.float32)
+    kw = dict(bands=small_model.bands_, colour_quantiles=small_model.colour_quantiles_, region=256)
+    many = match_regions(quilt, **kw)
+    with limit_cores(1):
+        one = match_regions(quilt, **kw)
+    np.testing.assert_array_equal(many, one)

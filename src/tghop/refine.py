@@ -670,7 +670,7 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, dtype=np.float64):
+def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, dtype=np.float64, threads=None):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
@@ -699,6 +699,9 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, 
     dtype : {numpy.float64, numpy.float32}
         Of the result; the values are computed in float32 either way, so float32 gives
         the same numbers in half the memory.
+    threads : int, optional
+        At most this many cores (channels in threads, FFT workers; None: every core that
+        :func:`~tghop._common.usable_cores` gives). The same numbers either way.
 
     Returns
     -------
@@ -743,7 +746,8 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, 
     report(progress, "refine", 0, total)
     pixels = image.shape[0] * image.shape[1]
     workers = min(n_channels, max(1, _REFINE_MEMORY // (_CHANNEL_ARRAYS * 4 * pixels)))
-    if workers > 1 and usable_cores() > 1 and pixels >= _THREADED_PIXELS:
+    cores = usable_cores() if threads is None else max(1, min(int(threads), usable_cores()))
+    if workers > 1 and cores > 1 and pixels >= _THREADED_PIXELS:
         from concurrent.futures import ThreadPoolExecutor, as_completed
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
@@ -762,7 +766,7 @@ def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, 
     else:
         # One channel at a time (too large for several at once, or one core): a large
         # image's Fourier transforms then use every core.
-        fft_workers = usable_cores()
+        fft_workers = cores
         for k in range(n_channels):
             one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total), fft_workers=fft_workers)
     return _colours(stats, results, dtype)

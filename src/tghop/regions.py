@@ -16,9 +16,11 @@ function then only reports that (:func:`n_regions`), and small images are unchan
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
-from ._common import TGHopError, check_size, report
+from ._common import TGHopError, check_size, report, usable_cores
 from .colour import match_histograms
 from .refine import prepare as prepare_refinement, refine as refine_bands
 
@@ -129,11 +131,11 @@ def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=3, region=
     rows, cols = (region_spans(n, k, periodic=tile and not whole) for n, k in zip((h, w), counts))
     spans = [(y, wy, x, wx) for y, wy in rows for x, wx in cols]
 
-    def matched(span):
+    def matched(span, threads=None):
         y, wy, x, wx = span
         part = image[_index(y, len(wy), h)][:, _index(x, len(wx), w)].astype(np.float32)  # a copy
         if bands is not None and n_iter:
-            part = refine_bands(part, bands, n_iter=n_iter, tile=tile and whole, dtype=np.float32)
+            part = refine_bands(part, bands, n_iter=n_iter, tile=tile and whole, dtype=np.float32, threads=threads)
         if colour_quantiles is not None:
             part = match_histograms(part, colour_quantiles, out=part)
         return part
@@ -142,17 +144,19 @@ def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=3, region=
         return matched(spans[0])
     out = np.zeros(image.shape, dtype=np.float32)
     report(progress, "refine", 0, len(spans))
-    # One region after another, each refining its channels in threads (two regions at once
-    # in threads were slower: docs/choices.md).
-    for done, span in enumerate(spans, start=1):
-        y, wy, x, wx = span
-        part = matched(span)
-        part *= wy[:, None, None]
-        part *= wx[None, :, None]
-        ys, xs = _index(y, len(wy), h), _index(x, len(wx), w)
-        if isinstance(ys, slice) and isinstance(xs, slice):
-            out[ys, xs] += part
-        else:
-            out[np.ix_(np.arange(h)[ys], np.arange(w)[xs])] += part
-        report(progress, "refine", done, len(spans))
+    # A region per core, each refining its channels one after another: regions one at a
+    # time with their channels in threads kept the cores less busy (docs/choices.md).
+    # The regions are added in a fixed order: the same numbers on any number of cores.
+    cores = min(usable_cores(), len(spans))
+    with ThreadPoolExecutor(max_workers=cores) as pool:
+        results = pool.map(lambda span: matched(span, threads=1), spans) if cores > 1 else map(matched, spans)
+        for done, ((y, wy, x, wx), part) in enumerate(zip(spans, results), start=1):
+            part *= wy[:, None, None]
+            part *= wx[None, :, None]
+            ys, xs = _index(y, len(wy), h), _index(x, len(wx), w)
+            if isinstance(ys, slice) and isinstance(xs, slice):
+                out[ys, xs] += part
+            else:
+                out[np.ix_(np.arange(h)[ys], np.arange(w)[xs])] += part
+            report(progress, "refine", done, len(spans))
     return out
