@@ -529,6 +529,19 @@ def test_the_page_and_its_files_are_served(client):
     assert client.get("/api").json()["builtins"] == ["bricks", "cells"]
 
 
+def test_the_pages_empty_fields_show_the_settings_defaults(client):
+    # An empty field sends nothing, so the library's default applies: its placeholder must say which.
+    import re
+
+    from tghop.settings import BY_NAME
+
+    page = client.get("/").text
+    for name in ("refine", "n_patches"):
+        field = re.search(rf'<input [^>]*id="{name}"[^>]*>', page).group(0)
+        assert "value=" not in field, field
+        assert f'placeholder="{BY_NAME[name].default}"' in field, field
+
+
 def test_the_serve_command_prints_its_address_opens_it_and_stops_on_ctrl_c(tmp_path):
     opened = tmp_path / "opened"  # --open: the browser of $BROWSER (Python's webbrowser) gets the address
     browser = f"{sys.executable} -c \"import sys; open(sys.argv[1], 'w').write(sys.argv[2])\" {opened} %s"

@@ -670,7 +670,7 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=3, tile=False, first_level=0, progress=None, dtype=np.float64, threads=None):
+def refine(image, stats, *, n_iter=7, tile=False, first_level=0, progress=None, dtype=np.float64, threads=None):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
