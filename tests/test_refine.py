@@ -9,7 +9,8 @@ from scipy import ndimage
 from tghop import _fft as F
 from tghop import data
 from tghop._common import TGHopError
-from tghop.refine import BandStatistics, laplacian_pyramid, oriented_parts, reconstruct, refine
+from tghop.pyramid import laplacian_pyramid, reconstruct
+from tghop.refine import BandStatistics, oriented_parts, refine
 
 
 @pytest.fixture(scope="module")
@@ -380,7 +381,7 @@ def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, path):
 
 @pytest.mark.parametrize("mode", ["wrap", "reflect"])
 def test_pad_is_numpys_wrap_or_symmetric_padding(mode):
-    from tghop.refine import _pad
+    from tghop.pyramid import _pad
 
     rng = np.random.default_rng(0)
     for shape in [(1, 5), (2, 3), (3, 7), (4, 4, 3), (7, 2)]:  # also widths beyond the axis
@@ -485,3 +486,25 @@ def test_refine_threads_do_not_change_the_numbers(small_model):
     img = np.random.default_rng(7).random((520, 530, 3)).astype(np.float32)  # channels in threads
     np.testing.assert_array_equal(refine(img, small_model.bands_, n_iter=2, dtype=np.float32),
                                   refine(img, small_model.bands_, n_iter=2, dtype=np.float32, threads=1))
+
+
+def test_over_relaxed_rounds_move_twice_as_far_and_the_last_round_is_plain(cells):
+    from tghop import refine as R
+
+    st = BandStatistics().fit(cells)
+    x = st.to_decorrelated(_blurred(cells) * 0.8 + 0.1)[..., 0].astype(np.float32)
+    bq, pq = st.band_quantiles_[:, :, 0], st.pixel_quantiles_[0]
+
+    def rounds(start, n, relaxation=1.0):
+        return R._refine_channel(start.copy(), bq, pq, n_iter=n, mode="reflect", relaxation=relaxation)
+
+    one = rounds(x, 1)
+    np.testing.assert_array_equal(rounds(x, 1, relaxation=2.0), one)  # a single round is the last: plain
+    moved = x + 2.0 * (one - x)  # round 1 over-relaxed, then a plain last round
+    np.testing.assert_allclose(rounds(x, 2, relaxation=2.0), rounds(moved, 1), atol=1e-5)
+    assert not np.allclose(rounds(x, 2, relaxation=2.0), rounds(x, 2), atol=1e-3)
+    img = _blurred(cells) * 0.8 + 0.1
+    assert not np.allclose(refine(img, st, n_iter=3), refine(img, st, n_iter=3, relaxation=1.0), atol=1e-3)
+    for bad in (0, -1, 2.5, "2", None, True):
+        with pytest.raises(TGHopError, match="relaxation"):
+            refine(img, st, relaxation=bad)

@@ -67,7 +67,8 @@ from . import settings
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
-from .refine import downsample, iter_oriented_parts, laplacian_pyramid, prepare as prepare_refinement, reconstruct
+from .pyramid import downsample, laplacian_pyramid, reconstruct
+from .refine import iter_oriented_parts, prepare as prepare_refinement
 from .seams import remove_seams
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
@@ -242,7 +243,7 @@ def _check_int(name, value, low):
 
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
-                      detail=0.5, refine=7, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
+                      detail=0.5, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
                       layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
@@ -298,7 +299,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
 
 
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
-          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.5, refine=7,
+          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.5, refine=5,
           match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0, layout_refine=3, seam_window=9,
           progress=None, dtype=np.float64):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.

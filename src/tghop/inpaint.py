@@ -39,7 +39,8 @@ import numpy as np
 
 from ._common import TGHopError, check_is_fitted, check_rng, report
 from .quilting import boundary_cut_mask, default_overlap
-from .refine import laplacian_pyramid, oriented_parts, reconstruct
+from .pyramid import laplacian_pyramid, reconstruct
+from .refine import oriented_parts
 
 __all__ = ["inpaint", "check_hole", "refine_hole"]
 

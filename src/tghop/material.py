@@ -237,7 +237,7 @@ class Material(BaseEstimator):
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
     # ------------------------------------------------------------- generation
-    def synthesize(self, size, *, rng=None, refine=7, match_colours=True, tile=False, refine_maps=True,
+    def synthesize(self, size, *, rng=None, refine=5, match_colours=True, tile=False, refine_maps=True,
                    progress=None, dtype=np.float64, **options):
         """Generate every map of the material, aligned.
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from ._common import TGHopError, report
 from .patches import clean_windows
-from .refine import downsample, upsample
+from .pyramid import downsample, upsample
 
 __all__ = ["PatchStatistics", "patch_refine", "fit_patch_statistics", "refine_image"]
 

@@ -8,10 +8,11 @@ fine detail at each scale without moving structures or copying exemplar pixels.
 
 The step works in a decorrelated colour space (the principal axes of the exemplar's
 colours, as Heeger & Bergen and Portilla & Simoncelli do), decomposes each channel into a
-Laplacian pyramid, gives every band the exemplar's distribution (a monotone map through
-quantile tables learned at fit time), rebuilds the image, matches the pixel histogram, and
-repeats a few rounds. Everything it needs at generation time is in :class:`BandStatistics`
-(a few thousand numbers), so the model file does not keep the exemplar.
+Laplacian pyramid (:mod:`tghop.pyramid`), gives every band the exemplar's distribution (a
+monotone map through quantile tables learned at fit time), rebuilds the image, matches the
+pixel histogram, and repeats a few rounds, each but the last over-relaxed (:data:`RELAXATION`).
+Everything it needs at generation time is in :class:`BandStatistics` (a few thousand
+numbers), so the model file does not keep the exemplar.
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ import numpy as np
 from ._common import TGHopError, check_size, report, usable_cores
 from ._fft import fft_for
 from .patches import clean_windows
+from .pyramid import laplacian_pyramid, reconstruct
 
-__all__ = ["BandStatistics", "refine", "prepare", "laplacian_pyramid", "reconstruct", "oriented_parts",
-           "iter_oriented_parts", "downsample", "upsample"]
+__all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_oriented_parts", "RELAXATION"]
 
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
@@ -37,12 +38,18 @@ _FIT_SIDE = 1024
 #: quantiles at fit time (a strided subset beyond this).
 _MAX_VALUES = 1 << 16
 
+#: Over-relaxation of the rounds: every round but the last moves the image this many times
+#: as far as its matching asks (1: plain Heeger-Bergen rounds); the last round's matching is
+#: kept as it is, so the pixels end with the exemplar's distribution (docs/choices.md).
+RELAXATION = 1.75
+
 #: Images from this many pixels on are refined with one thread per colour channel.
 _THREADED_PIXELS = 512 * 512
 
 #: Working memory of one channel's refinement in image-sized float32 arrays (measured at
-#: 4096x4096: the pyramid, the spectrum and the filtered versions of the finest band at once).
-_CHANNEL_ARRAYS = 10
+#: 4096x4096: the pyramid, the spectrum and the filtered versions of the finest band at once;
+#: and the round's starting image, kept to over-relax).
+_CHANNEL_ARRAYS = 11
 #: The channels refined at the same time use at most about this much working memory
 #: together: 3 threads up to about 4096x4096, fewer above (8192x8192: one at a time).
 _REFINE_MEMORY = 3 << 30
@@ -54,109 +61,6 @@ _REFINE_MEMORY = 3 << 30
 _LUT_MIN, _LUT_MAX = 4096, 1 << 16
 # Values mapped per step of a table lookup (the temporaries of one step fit in L2 cache).
 _MATCH_CHUNK = 1 << 16
-
-
-def _pad(img, axis, width, mode):
-    """``width`` samples added at both ends of ``axis``: periodic ("wrap") or mirrored with
-    the edge sample repeated (``np.pad``'s "symmetric"). Slices and one concatenation: a
-    refinement pads about 200 times, and ``np.pad``'s own overhead was a fifth of
-    refining a 128x128 image."""
-    n = img.shape[axis]
-    if width > n:  # tiny arrays: np.pad repeats the pattern
-        pad = [(0, 0)] * img.ndim
-        pad[axis] = (width, width)
-        return np.pad(img, pad, mode="wrap" if mode == "wrap" else "symmetric")
-    if mode == "wrap":
-        head, tail = _take(img, axis, n - width, n), _take(img, axis, 0, width)
-    else:
-        head, tail = np.flip(_take(img, axis, 0, width), axis), np.flip(_take(img, axis, n - width, n), axis)
-    return np.concatenate([head, img, tail], axis=axis)
-
-
-def _take(img, axis, start, stop, step=1):
-    index = [slice(None)] * img.ndim
-    index[axis] = slice(start, stop, step)
-    return img[tuple(index)]
-
-
-def _down_axis(img, axis, mode):
-    """Blur with the binomial kernel along ``axis`` and keep every second sample."""
-    n = img.shape[axis]
-    m = (n + 1) // 2
-    p = _pad(img, axis, 2, mode)
-    taps = [_take(p, axis, t, t + 2 * m - 1, 2) for t in range(5)]
-    # (taps0 + taps4 + 4 (taps1 + taps3) + 6 taps2) / 16, in that order, in two arrays.
-    out = np.add(taps[0], taps[4])
-    tmp = np.add(taps[1], taps[3])
-    tmp *= 4.0
-    out += tmp
-    out += np.multiply(taps[2], 6.0, out=tmp)
-    out *= 1.0 / 16.0
-    return out
-
-
-def _up_axis(img, axis, n, mode):
-    """Inverse polyphase step: twice as many samples along ``axis`` (``n`` of them)."""
-    m = img.shape[axis]
-    p = _pad(img, axis, 1, mode)
-    left, mid, right = (_take(p, axis, t, t + m) for t in range(3))
-    shape = list(img.shape)
-    shape[axis] = 2 * m
-    out = np.empty(shape, dtype=img.dtype)
-    even = [slice(None)] * img.ndim
-    odd = [slice(None)] * img.ndim
-    even[axis], odd[axis] = slice(0, None, 2), slice(1, None, 2)
-    tmp = np.add(left, right)
-    tmp += np.multiply(mid, 6.0, out=out[tuple(odd)])  # the odd samples are written last
-    np.multiply(tmp, 0.125, out=out[tuple(even)])
-    np.add(mid, right, out=tmp)
-    np.multiply(tmp, 0.5, out=out[tuple(odd)])
-    return _take(out, axis, 0, n)
-
-
-def _down(img, mode, axes):
-    return _down_axis(_down_axis(img, axes[0], mode), axes[1], mode)
-
-
-def _up(img, shape, mode, axes):
-    return _up_axis(_up_axis(img, axes[0], shape[axes[0]], mode), axes[1], shape[axes[1]], mode)
-
-
-def downsample(img, mode="reflect", axes=(0, 1)):
-    """One step down the pyramid of :func:`laplacian_pyramid` (blur, every second sample)."""
-    return _down(img, mode, axes)
-
-
-def upsample(img, shape, mode="reflect", axes=(0, 1)):
-    """One step up (:func:`reconstruct`'s interpolation) to ``shape``."""
-    return _up(img, shape, mode, axes)
-
-
-def laplacian_pyramid(img, n_levels, *, mode="reflect", axes=(0, 1)):
-    """Bands ``[L0 (finest), ..., L{n-1}, low-pass]`` of an image.
-
-    ``axes`` are the spatial axes: (0, 1) for (H, W, C), (1, 2) for (C, H, W). Fewer
-    levels when the image gets smaller than 2 pixels. Exact: :func:`reconstruct`
-    returns the image (up to rounding).
-    """
-    bands = []
-    cur = img
-    for _ in range(n_levels):
-        if min(cur.shape[axes[0]], cur.shape[axes[1]]) < 2:
-            break
-        low = _down(cur, mode, axes)
-        bands.append(cur - _up(low, cur.shape, mode, axes))
-        cur = low
-    bands.append(cur)
-    return bands
-
-
-def reconstruct(bands, *, mode="reflect", axes=(0, 1)):
-    """Inverse of :func:`laplacian_pyramid`."""
-    cur = bands[-1]
-    for band in reversed(bands[:-1]):
-        cur = band + _up(cur, band.shape, mode, axes)
-    return cur
 
 
 def _crops(h, w, side):
@@ -670,7 +574,8 @@ class BandStatistics:
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
 
 
-def refine(image, stats, *, n_iter=7, tile=False, first_level=0, progress=None, dtype=np.float64, threads=None):
+def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, dtype=np.float64, threads=None,
+           relaxation=RELAXATION):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
@@ -702,6 +607,9 @@ def refine(image, stats, *, n_iter=7, tile=False, first_level=0, progress=None, 
     threads : int, optional
         At most this many cores (channels in threads, FFT workers; None: every core that
         :func:`~tghop._common.usable_cores` gives). The same numbers either way.
+    relaxation : float
+        In (0, 2]: each round but the last moves the image this many times as far as its
+        matching asks (:data:`RELAXATION`; 1: plain rounds).
 
     Returns
     -------
@@ -710,6 +618,8 @@ def refine(image, stats, *, n_iter=7, tile=False, first_level=0, progress=None, 
     for name, value in (("n_iter", n_iter), ("first_level", first_level)):
         if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
             raise TGHopError(f"refine: {name} must be a non-negative integer, got {value!r}")
+    if not isinstance(relaxation, numbers.Real) or isinstance(relaxation, bool) or not 0 < relaxation <= 2:
+        raise TGHopError(f"refine: relaxation must be a number in (0, 2], got {relaxation!r}")
     image = np.asarray(image)
     if image.dtype not in (np.float32, np.float64):  # float32 stays float32: refined in float32 anyway
         image = image.astype(np.float64)
@@ -739,7 +649,8 @@ def refine(image, stats, *, n_iter=7, tile=False, first_level=0, progress=None, 
 
     def one(k, on_round=None, fft_workers=1):
         results[k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode,
-                                     first_level=first_level, on_round=on_round, fft_workers=fft_workers)
+                                     first_level=first_level, on_round=on_round, fft_workers=fft_workers,
+                                     relaxation=relaxation)
 
     n_channels = len(channels)
     total = n_channels * n_iter
@@ -761,7 +672,7 @@ def refine(image, stats, *, n_iter=7, tile=False, first_level=0, progress=None, 
         # numbers).
         stack = np.stack([take(k) for k in range(n_channels)])
         results[:] = _refine_channel(stack, q, stats.pixel_quantiles_, n_iter=n_iter, mode=mode,
-                                     first_level=first_level,
+                                     first_level=first_level, relaxation=relaxation,
                                      on_round=lambda r: report(progress, "refine", r * n_channels, total))
     else:
         # One channel at a time (too large for several at once, or one core): a large
@@ -805,7 +716,8 @@ def _colours(stats, channels, dtype=np.float64):
     return out
 
 
-def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round=None, fft_workers=1):
+def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round=None, fft_workers=1,
+                    relaxation=1.0):
     """``n_iter`` rounds of band and pixel histogram matching of one (H, W) channel, or of
     several stacked as (C, H, W).
 
@@ -813,7 +725,8 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
     exemplar's quantiles of this channel (with C channels: (n_levels, n_parts, C,
     n_quantiles) and (C, n_quantiles)); ``on_round(r)`` is called after round r (1, 2,
     ...); ``fft_workers``: threads of each Fourier transform (when the channels run one at
-    a time); bands finer than ``first_level`` are not matched.
+    a time); bands finer than ``first_level`` are not matched; every round but the last
+    moves ``x`` ``relaxation`` times as far as its matching asks.
     """
     single = x.ndim == 2
     if single:  # as one channel of a stack: the same numbers
@@ -823,7 +736,9 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
     axes = (1, 2)
     for r in range(1, n_iter + 1):
         bands = laplacian_pyramid(x, len(band_q), mode=mode, axes=axes)
-        x = None  # the bands hold it now (one band-sized array less while the parts are made)
+        # The bands hold it now: kept only to over-relax (one band-sized array less otherwise).
+        before = x if relaxation != 1 and r < n_iter else None
+        x = None
         for i in range(first_level, len(bands) - 1):
             # Every oriented part matched, the matched parts summed: the new band.
             if bands[i][0].size > _PARTS_CHUNK:
@@ -840,8 +755,15 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
                     total += part
             bands[i] = total
         x = reconstruct(bands, mode=mode, axes=axes)
+        if before is x:  # no bands: the pyramid is the image itself, matched in place below
+            before = x.copy()
         for k in range(n_channels):
             _match(x[k], pixel_q[k], qlev, out=x[k])
+        if before is not None:  # x = before + relaxation (x - before), in place
+            x -= before
+            x *= relaxation
+            x += before
+            before = None
         if on_round is not None:
             on_round(r)
     x = x[0] if single else x

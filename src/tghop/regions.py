@@ -97,7 +97,7 @@ def prepare(size, bands, *, region, tile=False):
     prepare_refinement(tuple(shape), bands)
 
 
-def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=7, region=1024, tile=False,
+def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=5, region=1024, tile=False,
                   progress=None) -> np.ndarray:
     """Refine and colour-match ``image`` region by region, cross-fading the regions.
 

@@ -314,7 +314,7 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("layout_weight", 3.0, "float",
             "Weight of the coarse layout's guide in quilting, per pixel relative to the overlap error "
             "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0),
-    Setting("refine", 7, "int",
+    Setting("refine", 5, "int",
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
             when="generate", low=0, high=20, paper=0),
