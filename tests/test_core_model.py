@@ -203,12 +203,13 @@ def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
     some = np.array([999, 3, 500, 3])
     np.testing.assert_allclose(on_demand.patches[some], stored.patches[some], atol=1e-6)
     # The quilt: the same blocks, their pixels up to round-off (the refinement and colour
-    # matching then move values by a little more: ranks shift).
+    # matching then move values by a little more: ranks shift, and the over-relaxed rounds
+    # carry such shifts on; still well under half an 8-bit step on average).
     plain = dict(rng=2, n_patches=1000, refine=0, match_colours=False)
     a, full_a = small_model.synthesize((48, 48), **plain), small_model.synthesize((48, 48), rng=2, n_patches=1000)
     monkeypatch.setattr(pool, "ON_DEMAND_BLOCKS", 1.0)
     np.testing.assert_allclose(small_model.synthesize((48, 48), **plain), a, atol=1e-5)
-    assert np.abs(small_model.synthesize((48, 48), rng=2, n_patches=1000) - full_a).mean() < 1e-3
+    assert np.abs(small_model.synthesize((48, 48), rng=2, n_patches=1000) - full_a).mean() < 2e-3
 
 
 def test_fit_deterministic(bricks96):
