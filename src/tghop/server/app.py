@@ -51,7 +51,7 @@ from pathlib import Path
 from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from . import cooc
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
-from .jobs import FitQueue, QueueFull
+from .jobs import FINAL, FitQueue, QueueFull
 from .requests import RequestError, parse_bool, parse_generation, parse_guided, parse_morph
 
 try:  # the web extra; create_app says how to install it when it is missing
@@ -352,7 +352,7 @@ class Server:
                 if snap["version"] != version:
                     version, idle = snap["version"], 0.0
                     yield f"event: progress\ndata: {json.dumps(snap)}\n\n"
-                if job.final:
+                if snap["state"] in FINAL:  # the snapshot's state, not the job's now: the end event says it
                     yield f"event: end\ndata: {json.dumps(snap)}\n\n"
                     return
                 if idle >= 15.0:  # a comment now and then keeps proxies from closing the stream
