@@ -316,7 +316,8 @@ SETTINGS: Tuple[Setting, ...] = (
             "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0),
     Setting("refine", 5, "int",
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
-            ":mod:`tghop.refine`): restores the contrast of fine detail; 0 is off, as in the paper.",
+            ":mod:`tghop.refine`; each but the last over-relaxed): restores the contrast of fine detail; "
+            "0 is off, as in the paper.",
             when="generate", low=0, high=20, paper=0),
     Setting("patch_refine", 0, "int",
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 7x7 patches to "
