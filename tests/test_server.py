@@ -95,8 +95,13 @@ def test_a_fit_reports_progress_and_ends_done(client, fitted):
     assert stream[-1][0] == "end" and stream[-1][1]["state"] == "done"
     progress = [data["progress"] for kind, data in stream]
     assert progress == sorted(progress) and progress[-1] == 1.0
-    stages = {data["stage"] for _, data in stream}  # the stream shows the latest state: some may be skipped
-    assert "saving" in stages and len(stages & {"hop 1", "hop 2", "SDR", "clusters", "ICA", "CDF codebook"}) >= 2
+    shown = {data["stage"] for _, data in stream}  # the stream shows the latest state: some may be skipped
+    assert "saving" in shown
+    stages = stream[-1][1]["stages"]  # but every stage is listed, in order
+    assert stages[:3] == ["hop 1", "hop 2", "SDR"] and stages[-1] == "saving"
+    assert {"clusters", "ICA", "CDF codebook"} <= set(stages) and shown - {""} <= set(stages)
+    for _, data in stream:  # each event's list is a prefix of the final one
+        assert data["stages"] == stages[:len(data["stages"])]
     final = client.get(f"/api/jobs/{job}").json()
     assert final["state"] == "done" and final["progress"] == 1.0
 

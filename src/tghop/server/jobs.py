@@ -50,6 +50,9 @@ class Job:
         One of :data:`STATES`.
     stage, done, total : str, int, int
         The last ``progress(stage, done, total)`` call.
+    stages : list of str
+        Every stage reported so far, in order (a client that looks now and then may have
+        missed some of them in ``stage``).
     error : str or None
     version : int
         Grows with every change (what the event stream waits on).
@@ -91,8 +94,8 @@ class Job:
         """The job as JSON-ready data."""
         with self._changed:
             out = {"job": self.id, "id": self.model_id, "state": self.state, "stage": self.stage,
-                   "done": self.done, "total": self.total, "progress": round(self.fraction(), 4),
-                   "version": self.version}
+                   "stages": list(self._seen), "done": self.done, "total": self.total,
+                   "progress": round(self.fraction(), 4), "version": self.version}
             if self.error:
                 out["error"] = self.error
             return out
