@@ -25,7 +25,9 @@ single-exemplar times); efficiency = S / (cores x wall), the standard parallel e
 cluster: each exemplar's task time on a cluster worker against its one-thread time in
 process (median and total), and (cores x wall - task times) / exemplars (scheduling,
 start-up, the driver's hashing and ledger, idle cores in the tail); peak memory per worker
-(VmHWM). The old comparison (in-process wall with all threads against the cluster's wall,
+(VmHWM); and, first, the machine's own ceiling: a cache-resident kernel and a
+memory-streaming one, each run alone and as one process per core at once (no tghop, no
+Dask). The old comparison (in-process wall with all threads against the cluster's wall,
 and the efficiency against the all-thread in-process sum, which counts every core twice)
 is kept, labelled as such. Timings on a shared machine are noisy: the load average before
 and after is recorded, and the CPU seconds of each task beside its wall time.
@@ -67,6 +69,44 @@ def own_cpu_s() -> float:
     """CPU seconds of this process and its finished children (the cluster's workers)."""
     t = os.times()
     return t.user + t.system + t.children_user + t.children_system
+
+
+#: Two kernels that say what running tasks side by side costs on this machine by itself,
+#: without tghop or Dask: a product of small matrices that stays in a core's cache, and a
+#: pass over 256 MB that streams through memory (each one thread, about a second alone).
+KERNELS = {
+    "compute (in cache)": "a = np.random.rand(128, 128).astype(np.float32)\n"
+                          "t = time.perf_counter()\nfor _ in range(30000): a @ a\n",
+    "memory (streaming)": "a = np.ones(64 << 20, dtype=np.float32); b = np.empty_like(a); b += a\n"
+                          "t = time.perf_counter()\nfor _ in range(40): np.multiply(a, 1.0001, out=b)\n",
+}
+
+
+def kernel_seconds(code, copies):
+    """Each of ``copies`` processes' time for ``code`` run at once (one BLAS thread each)."""
+    import subprocess
+
+    script = ("import time, numpy as np\nfrom threadpoolctl import threadpool_limits\nwith threadpool_limits(1):\n"
+              + "".join("    " + line + "\n" for line in code.splitlines())
+              + "print(time.perf_counter() - t)\n")
+    procs = [subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+             for _ in range(copies)]
+    return [float(p.communicate()[0]) for p in procs]
+
+
+def machine_ceiling(cores, repeats=3):
+    """How much slower each kernel runs as ``cores`` processes at once than alone (medians
+    of ``repeats`` alternating runs): the most a batch of tasks like it can get from the
+    cores. Returns {kernel: {"alone_s", "together_s", "slowdown", "efficiency"}}."""
+    out = {}
+    for name, code in KERNELS.items():
+        alone, together = [], []
+        for _ in range(repeats):
+            alone += kernel_seconds(code, 1)
+            together += kernel_seconds(code, cores)
+        a, b = statistics.median(alone), statistics.median(together)
+        out[name] = {"alone_s": a, "together_s": b, "slowdown": b / a, "efficiency": a / b}
+    return out
 
 
 def one_mode(manifest, outdir, *, workers, count, size, seed, scheduler=None, task=None):
@@ -115,6 +155,7 @@ def main():
     cores = len(os.sched_getaffinity(0))
     n_workers = args.workers or cores
     load_before = os.getloadavg()
+    ceiling = machine_ceiling(cores) if cores > 1 else {}
     modes = []
     with tempfile.TemporaryDirectory() as tmp:
         if args.crop:
@@ -197,13 +238,19 @@ def main():
           + (f" The --scheduler cluster took {scheduled['cluster_start_s']:.1f} s to start (not in its wall time)."
              if scheduled else "")
           + old
+          + ("\n\nThe machine alone (no tghop, no Dask): each kernel run as one process, then as "
+             f"{cores} at once (one thread each; medians of 3):\n\n" + markdown_table(
+                 ["kernel", "alone s", f"{cores} at once s", "slowdown", "efficiency it allows"],
+                 [[k, v["alone_s"], v["together_s"], v["slowdown"], v["efficiency"]] for k, v in ceiling.items()])
+             + "\n\nA task's phases that stream through memory (large arrays, FFTs) are slowed like the second "
+               "kernel when the workers run them at the same time, whatever runs the tasks." if ceiling else "")
           + f"\n\nCommand: `python benchmarks/bench_batch.py {' '.join(sys.argv[1:])}`".rstrip() + "")
     print(md)
     name = "batch-efficiency" + (f"-limit{args.limit}" if args.limit else "") + (f"-crop{args.crop}" if args.crop else "")
     write_results(name, {"exemplars": names, "crop": args.crop, "count": args.count, "size": args.size, "cores": cores,
                          "serial_work_s": work, "load_before": load_before, "load_after": load_after,
                          "argv": sys.argv[1:], "one_thread": serial, "all_threads": all_threads, "cluster": cluster,
-                         "scheduler": scheduled}, md)
+                         "scheduler": scheduled, "machine_ceiling": ceiling}, md)
 
 
 def centre_crop(path, side, folder):
