@@ -288,6 +288,12 @@ def test_layout_option_fits_and_saves_a_coarse_model(workdir):
     r = run("fit", workdir / "bricks112.png", "-o", path, *FAST, "--layout", "2")
     assert r.returncode == 0, r.stderr.decode()
     assert json.loads(run("info", path, "--json").stdout)["params"]["layout_factor"] == 2
+    asked = workdir / "layout3.npz"  # 112 px is under 48 * 3: the largest factor that fits, 2
+    assert run("fit", workdir / "bricks112.png", "-o", asked, *FAST, "--layout", "3").returncode == 0
+    info = json.loads(run("info", asked, "--json").stdout)
+    assert info["params"]["layout_factor"] == 3 and info["layout_factor_used"] == 2
+    assert "layout: a coarse model at 1/2 scale (asked 3: the exemplar is too small for it)" in run(
+        "info", asked).stdout.decode()
     with np.load(path) as archive:
         assert any(name.startswith("layout.") for name in archive.files)
     for weight in ("0", "2.5"):
@@ -296,5 +302,7 @@ def test_layout_option_fits_and_saves_a_coarse_model(workdir):
         assert r.returncode == 0, r.stderr.decode()
         assert Image.open(workdir / f"lay_{weight}.png").size == (40, 48)
     r = run("fit", workdir / "bricks.png", "-o", workdir / "nolayout.npz", *FAST, "--paper")
-    assert json.loads(run("info", workdir / "nolayout.npz", "--json").stdout)["params"]["layout_factor"] is None
+    info = json.loads(run("info", workdir / "nolayout.npz", "--json").stdout)
+    assert info["params"]["layout_factor"] is None and info["layout_factor_used"] is None
+    assert "layout: none\n" in run("info", workdir / "nolayout.npz").stdout.decode()
     assert_user_error(run("fit", workdir / "bricks.png", "-o", workdir / "bad.npz", *FAST, "--layout", "1"), "--layout")

@@ -8,7 +8,7 @@ import pytest
 from tghop.synthesis import PAPER_TABLE4
 
 from tghop import TGHop, TGHopError, data
-from tghop.layout import downsample, upsample
+from tghop.layout import downsample, fits_excluding, guide_fits, upsample, usable_factor
 from tghop.synthesis import CoarseLayout
 from tghop.modelfile import load_model, save_model
 from tghop.quilting import prepare_pool, quilt, quilt_prepared
@@ -160,8 +160,40 @@ def test_layout_errors(layout):
     assert not CoarseLayout(factor=2).fits((95, 200)) and CoarseLayout(factor=2).fits((96, 96, 3))
     with pytest.raises(TGHopError, match="factor"):
         CoarseLayout(factor=1).fit(data.bricks(96, rng=1))
-    with pytest.raises(TGHopError, match="divisible by 2"):
-        layout.guide((65, 64), tile=True)
+    with pytest.raises(TGHopError, match="at least 63 pixels a side"):  # 31 coarse pixels < one patch
+        layout.guide((61, 64), tile=True)
+    assert guide_fits((61, 64), 2, 32) and not guide_fits((61, 64), 2, 32, tile=True)
+    assert guide_fits((63, 64), 2, 32, tile=True)
+
+
+def test_a_tileable_guide_of_any_size_wraps_around(layout):
+    """A size that is not a multiple of the factor: the coarse image is stretched so that
+    its period is the output's (before 0.19: refused)."""
+    g = layout.guide((65, 71), rng=2, n_patches=300, tile=True)
+    assert g.shape == (65, 71, 3)
+    step = lambda a, axis: np.mean((np.roll(a, -1, axis=axis) - a) ** 2, axis=tuple({0, 1, 2} - {axis}))  # noqa: E731
+    for axis in (0, 1):  # the wrap-around step is like the steps inside, far below a plain guide's
+        steps = step(g, axis)
+        assert steps[-1] < 3 * np.median(steps[:-1])
+    plain = layout.guide((65, 71), rng=2, n_patches=300)
+    assert step(plain, 0)[-1] > 3 * step(g, 0)[-1]
+
+
+def test_periodic_upsampling_by_any_ratio_is_periodic_linear_interpolation():
+    rng = np.random.default_rng(0)
+    small = rng.random((11, 9, 2))
+    out = upsample(small, None, (32, 29), wrap=True)
+    assert out.shape == (32, 29, 2)
+    for axis, n in ((0, 32), (1, 29)):  # one axis at a time, against NumPy's periodic interp
+        m = small.shape[axis]
+        x = (np.arange(n) + 0.5) * m / n - 0.5
+        line = small[:, 4, 1] if axis == 0 else small[5, :, 1]
+        got = upsample(line[:, None, None] if axis == 0 else line[None, :, None], None,
+                       (n, 1) if axis == 0 else (1, n), wrap=True).ravel()
+        np.testing.assert_allclose(got, np.interp(x, np.arange(m), line, period=m), atol=1e-12)
+    # Whole multiples: the same as the integer factor.
+    np.testing.assert_allclose(upsample(small, None, (33, 27), wrap=True), upsample(small, 3, (33, 27), wrap=True),
+                               atol=1e-12)
 
 
 # ----------------------------------------------------------------------------- in TGHop
@@ -186,6 +218,20 @@ def test_tghop_with_layout_follows_its_guide(layout_model, monkeypatch):
         return np.abs(downsample(img, 8) - downsample(guide, 8)).mean()
 
     assert dist(on) < 0.8 * dist(off)
+
+
+def test_tghop_tileable_at_any_size_and_without_a_guide_when_too_small(layout_model, monkeypatch):
+    sizes = []
+    guide_of = layout_model.layout_.guide
+    monkeypatch.setattr(layout_model.layout_, "guide", lambda size, **k: sizes.append(size) or guide_of(size, **k))
+    out = layout_model.synthesize((67, 75), rng=1, n_patches=400, tile=True)  # not a multiple of 2
+    assert out.shape == (67, 75, 3) and sizes == [(67, 75)]
+    for axis in (0, 1):  # wraps around: the step across the edge like the steps inside
+        steps = np.mean((np.roll(out, -1, axis=axis) - out) ** 2, axis=tuple({0, 1, 2} - {axis}))
+        assert steps[-1] < 3 * np.median(steps[:-1])
+    small = layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True)  # 24 coarse pixels: no guide
+    assert small.shape == (48, 48, 3) and sizes == [(67, 75)]
+    assert np.array_equal(small, layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True, layout_weight=0))
 
 
 def test_tghop_layout_refine_reaches_the_guide(layout_model, monkeypatch):
@@ -234,14 +280,32 @@ def test_tghop_layout_save_load_identical(layout_model, tmp_path):
 
 
 def test_tghop_layout_on_by_default_off_in_paper_small_exemplar_and_errors(small_model):
-    assert small_model.layout_factor == 2 and small_model.layout_ is not None  # 96 px >= 48 * 2
+    # 96 px: under 48 * 3 for the default factor 3, so the largest that fits, 2 (48 * 2)
+    assert small_model.layout_factor == 3 and small_model.layout_ is not None and small_model.layout_.factor == 2
     assert PAPER_TABLE4["layout_factor"] is None
     off = TGHop(**SMALL, layout_factor=None).fit(data.bricks(96, rng=1))
     assert off.layout_ is None and off.n_parameters()["coarse layout (ours)"]["stored"] == 0
-    m = TGHop(**SMALL, layout_factor=4).fit(data.bricks(96, rng=1))  # smaller than 4 * 48: skipped
-    assert m.layout_ is None
+    m = TGHop(**SMALL, layout_factor=4).fit(data.bricks(96, rng=1))  # smaller than 4 * 48: 2 as well
+    assert m.layout_.factor == 2 and m.layout_.model_.exemplar_shape_[:2] == (48, 48)
+    tiny = TGHop(**SMALL).fit(data.bricks(90, rng=1))  # under 48 * 2: no factor fits
+    assert tiny.layout_ is None
     with pytest.raises(TGHopError, match="layout_factor"):
         TGHop(**SMALL, layout_factor=1).fit(data.bricks(96, rng=1))
+
+
+def test_usable_factor_is_the_largest_the_exemplar_allows_up_to_the_setting():
+    assert usable_factor((144, 300), 3) == 3  # 48 * 3
+    assert usable_factor((143, 300), 3) == 2
+    assert usable_factor((300, 95), 3) is None  # under 48 * 2
+    assert usable_factor((1000, 1000), 2) == 2  # never above the setting
+    assert usable_factor((1000, 1000), 5) == 5
+    mask = np.zeros((200, 200), dtype=bool)
+    mask[:, :110] = True  # at 1/3 too few clean coarse patches are left, at 1/2 enough
+    assert fits_excluding(mask, 2) and not fits_excluding(mask, 3)
+    assert usable_factor((200, 200), 3, exclude=mask) == 2
+    assert usable_factor((200, 200), 3) == 3
+    with pytest.raises(TGHopError, match="factor"):
+        usable_factor((200, 200), 1)
 
 
 def test_downsample_uint8_in_row_bands_gives_the_rounded_box_mean():

@@ -32,7 +32,7 @@ import numbers
 import numpy as np
 from ._common import TGHopError, check_size, usable_cores
 
-__all__ = ["downsample", "upsample", "positive_int", "fits", "coarse_training", "coarse_guide"]
+__all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "usable_factor", "coarse_training", "coarse_guide"]
 
 
 def downsample(image, factor: int) -> np.ndarray:
@@ -68,7 +68,10 @@ def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
     Parameters
     ----------
     image : ndarray, shape (h, w, C)
-    factor : int
+    factor : int or None
+        None: each axis by its own ratio ``H / h``, ``W / w`` (no crop): with ``wrap``, one
+        period of the image becomes one period of the output (a tileable 256x256 guide
+        from an 86x86 coarse image).
     size : (int, int)
         Output (H, W), at most ``(h * factor, w * factor)``.
     wrap : bool
@@ -88,7 +91,10 @@ def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
         part = img
         for axis, index in ((0, np.arange(start, stop)), (1, np.arange(w))):
             # Output sample i sits at input coordinate (i + 0.5) / factor - 0.5 (pixel centres).
-            pos = (index + 0.5) / factor - 0.5
+            if factor is None:
+                pos = (index + 0.5) * (img.shape[axis] / (h, w)[axis]) - 0.5
+            else:
+                pos = (index + 0.5) / factor - 0.5
             lo = np.floor(pos).astype(np.int64)
             frac = (pos - lo).astype(img.dtype).reshape([-1 if a == axis else 1 for a in range(img.ndim)])
             m = img.shape[axis]
@@ -157,6 +163,27 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
     return {"stride": stride, "max_patches": n_train, "n_clusters": n_clusters}
 
 
+def guide_fits(size, factor, patch_size=32, *, tile=False) -> bool:
+    """Whether an output of ``size`` (H, W) can have a coarse guide at ``factor``: always,
+    unless it is tileable and its coarse image (``ceil(H / factor)`` a side) is smaller
+    than a patch, which cannot wrap around (:meth:`tghop.TGHop.synthesize` then quilts
+    without the guide)."""
+    h, w = check_size(size)
+    return not tile or min(math.ceil(h / factor), math.ceil(w / factor)) >= patch_size
+
+
+def usable_factor(shape, factor, *, patch_size=32, exclude=None, **training):
+    """The layout factor an exemplar of ``shape`` gets for the setting ``factor``: the
+    largest of ``factor``, ``factor - 1``, ..., 2 that it is large enough for (:func:`fits`;
+    with ``exclude``, also :func:`fits_excluding`), or None when none is. A 128x128
+    exemplar gets 2 from the default 3: a coarser layout than asked beats none."""
+    f = positive_int(factor, "factor", 2)
+    for g in range(f, 1, -1):
+        if fits(shape, g, patch_size) and fits_excluding(exclude, g, patch_size=patch_size, **training):
+            return g
+    return None
+
+
 def fits_excluding(exclude, factor, *, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000) -> bool:
     """Whether enough coarse training patches avoid ``exclude`` ((H, W) bool or None): at
     least ``min_cluster_size`` per cluster of :func:`coarse_training`."""
@@ -204,12 +231,10 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     """
     f = int(factor)
     h, w = check_size(size)
-    small = (math.ceil(h / f), math.ceil(w / f))
-    if tile and (h % f or w % f):
-        raise TGHopError(f"a tileable output with a coarse layout needs a size divisible by {f}, got {h}x{w}")
-    p = model.patch_size
-    if tile and min(small) < p:
-        raise TGHopError(f"a tileable output with a coarse layout at factor {f} needs at least {p * f} pixels a side")
+    small = (math.ceil(h / f), math.ceil(w / f))  # tileable: stretched to (h, w) when not divisible
+    if not guide_fits((h, w), f, model.patch_size, tile=tile):
+        raise TGHopError(f"a tileable output with a coarse layout at factor {f} needs at least "
+                         f"{(model.patch_size - 1) * f + 1} pixels a side, got {h}x{w}")
     from .colour import match_histograms
     from .quilting import GUIDE_SCALE
     from .refine import refine as refine_bands
@@ -225,4 +250,4 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     coarse = refine_bands(coarse, model.bands_, n_iter=refine, tile=tile,  # checks refine too
                           first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
     coarse = match_histograms(coarse, model.colour_quantiles_, out=coarse)
-    return upsample(coarse, f, (h, w), wrap=tile)
+    return upsample(coarse, None if tile and (h % f or w % f) else f, (h, w), wrap=tile)

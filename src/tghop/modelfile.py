@@ -64,13 +64,15 @@ def save_model(model, path) -> None:
 
 def info_dict(model, params=None) -> dict:
     """A fitted model's summary as JSON-ready data: its settings (``rng`` left out),
-    dimensions, channels, exemplar shape and parameter count (``params``: its
-    :meth:`~tghop.TGHop.n_parameters`, when the caller already has it). What ``tghop info
+    dimensions, channels, exemplar shape, parameter count (``params``: its
+    :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
+    layout's factor (``layout_factor_used``: None without one). What ``tghop info
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
     params = model.n_parameters() if params is None else params
     return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
             "dims": model.dims_, "channels": model.channels_,
-            "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params}
+            "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
+            "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor)}
 
 
 def _read(path):

@@ -288,10 +288,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "Pyramid levels whose 7x7 patch distributions (quantiles of their projections on fixed "
             "random directions) are learned for the patch refinement (:mod:`tghop.patch_refine`, ours; "
             "0: none stored).", low=0, high=6, paper=0),
-    Setting("layout_factor", 2, "int",
+    Setting("layout_factor", 3, "int",
             "Coarse to fine (ours, :mod:`tghop.layout`): also model the layout on the exemplar "
-            "downsampled by this factor, and quilt guided by a coarse synthesis (None: off; skipped "
-            "for exemplars smaller than 48 times the factor).", low=2, high=16, none_ok=True,
+            "downsampled by this factor, and quilt guided by a coarse synthesis (None: off). An exemplar "
+            "smaller than 48 times the factor gets the largest smaller one it allows (at least 2), or none.",
+            low=2, high=16, none_ok=True,
             cli=("--layout",), paper=None),
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
             cli=("--fit-seed",)),

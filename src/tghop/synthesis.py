@@ -125,7 +125,8 @@ class TGHop(BaseEstimator):
     n_patches_ : int
         Training patches used.
     layout_ : tghop.layout.CoarseLayout or None
-        The coarse layout model (``layout_factor`` set and the exemplar large enough).
+        The coarse layout model (``layout_factor`` set and the exemplar large enough; its
+        ``factor`` is the one used: :func:`tghop.layout.usable_factor`).
     """
 
     # The fit settings of tghop.settings.SETTINGS, in its order and with its defaults
@@ -133,7 +134,7 @@ class TGHop(BaseEstimator):
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
-                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=3, layout_factor=2, rng=None):
+                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=3, layout_factor=3, rng=None):
         self.patch_size = patch_size
         self.stride = stride
         self.n_channels = n_channels
@@ -239,10 +240,10 @@ class TGHop(BaseEstimator):
         del core
         self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
         self.layout_ = None
-        coarse = CoarseLayout(factor=self.layout_factor, rng=rng) if self.layout_factor is not None else None
-        if coarse is not None and coarse.fits(image.shape) and coarse.fits_excluding(exclude):
+        factor = self.layout_factor and layout.usable_factor(image.shape, self.layout_factor, exclude=exclude)
+        if factor:  # the coarse model's patches are 32x32, usable_factor's default
             report(progress, "layout", 0, 1)
-            self.layout_ = coarse.fit(image, exclude=exclude)
+            self.layout_ = CoarseLayout(factor=factor, rng=rng).fit(image, exclude=exclude)
             report(progress, "layout", 1, 1)
         return self
 
@@ -613,7 +614,8 @@ class TGHop(BaseEstimator):
         n_patches : int
             Pool size (paper: 5,000-10,000).
         tile : bool
-            Make the output wrap around seamlessly.
+            Make the output wrap around seamlessly (under 94 px a side at layout factor 3,
+            63 at 2: without the layout's guide, :func:`tghop.layout.guide_fits`).
         overlap : int, optional
             Quilting overlap (default ``patch_size // 6``).
         tolerance : float
@@ -677,7 +679,8 @@ class TGHop(BaseEstimator):
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
         rng = check_rng(rng)
         guide = None
-        if self.layout_ is not None and layout_weight:
+        if (self.layout_ is not None and layout_weight
+                and layout.guide_fits(size, self.layout_.factor, self.layout_.patch_size, tile=tile)):
             # The coarse guide and the pool are independent: the guide is made in a second
             # thread (its own random stream) while the pool is generated and made ready
             # for quilting, one BLAS thread each.

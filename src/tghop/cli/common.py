@@ -166,6 +166,15 @@ def is_model_file(path: str) -> bool:
         return False
 
 
+def layout_summary(model) -> str:
+    """The coarse layout a fitted model holds, in words."""
+    if model.layout_ is None:
+        return "none" if model.layout_factor is None else "none (the exemplar is too small for one)"
+    f = model.layout_.factor
+    asked = "" if f == model.layout_factor else f" (asked {model.layout_factor}: the exemplar is too small for it)"
+    return f"a coarse model at 1/{f} scale{asked}"
+
+
 def summary(model, params=None) -> str:
     """Dimensions, core model and parameter total of a fitted model (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it)."""
@@ -176,6 +185,7 @@ def summary(model, params=None) -> str:
     return (
         f"dimensions: {dims}, D_r={d['D_r']}  ({ks})\n"
         f"core model: N={d['N']} clusters, F={d['F']} CDFs, W={d['W']} codewords\n"
+        f"layout: {layout_summary(model)}\n"
         f"parameters: {params['total']['stored']:,} stored ({params['total']['paper']:,} by the paper's formulas)"
     )
 
