@@ -234,6 +234,16 @@ def test_tghop_tileable_at_any_size_and_without_a_guide_when_too_small(layout_mo
     assert np.array_equal(small, layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True, layout_weight=0))
 
 
+def test_a_tileable_remix_too_small_for_the_guides_goes_without_them(layout_model):
+    from tghop import synthesize_guided
+
+    kw = dict(size=(48, 48), rng=3, n_patches=300, tile=True)  # 24 coarse pixels at factor 2
+    out = synthesize_guided([layout_model, layout_model], **kw)
+    assert out.shape == (48, 48, 3)
+    assert np.array_equal(out, synthesize_guided([layout_model, layout_model], layout_weight=0, **kw))
+    assert synthesize_guided([layout_model, layout_model], **{**kw, "size": (67, 75)}).shape == (67, 75, 3)
+
+
 def test_tghop_layout_refine_reaches_the_guide(layout_model, monkeypatch):
     seen = []
     guide_of = layout_model.layout_.guide
