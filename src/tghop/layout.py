@@ -32,7 +32,8 @@ import numbers
 import numpy as np
 from ._common import TGHopError, check_size, usable_cores
 
-__all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "usable_factor", "coarse_training", "coarse_guide"]
+__all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "usable_factor", "coarse_training",
+           "coarse_guide"]
 
 
 def downsample(image, factor: int) -> np.ndarray:
@@ -62,7 +63,7 @@ def downsample(image, factor: int) -> np.ndarray:
     return out
 
 
-def upsample(image, factor: int, size, *, wrap: bool = False) -> np.ndarray:
+def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarray:
     """Bilinear upsampling by ``factor`` (pixel-centre aligned), cropped to ``size``.
 
     Parameters

@@ -169,7 +169,7 @@ def is_model_file(path: str) -> bool:
 def layout_summary(model) -> str:
     """The coarse layout a fitted model holds, in words."""
     if model.layout_ is None:
-        return "none" if model.layout_factor is None else "none (the exemplar is too small for one)"
+        return "none" if model.layout_factor is None else "none (too few exemplar pixels for one)"
     f = model.layout_.factor
     asked = "" if f == model.layout_factor else f" (asked {model.layout_factor}: the exemplar is too small for it)"
     return f"a coarse model at 1/{f} scale{asked}"
