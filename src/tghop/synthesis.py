@@ -240,8 +240,8 @@ class TGHop(BaseEstimator):
         del core
         self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
         self.layout_ = None
-        factor = self.layout_factor and layout.usable_factor(image.shape, self.layout_factor, exclude=exclude)
-        if factor:  # the coarse model's patches are 32x32, usable_factor's default
+        factor = self.layout_factor and CoarseLayout(factor=self.layout_factor).usable_factor(image.shape, exclude)
+        if factor:
             report(progress, "layout", 0, 1)
             self.layout_ = CoarseLayout(factor=factor, rng=rng).fit(image, exclude=exclude)
             report(progress, "layout", 1, 1)
@@ -798,10 +798,11 @@ class CoarseLayout(BaseEstimator):
         """Whether an exemplar of ``shape`` (H, W, ...) is large enough for this layout."""
         return layout.fits(shape, self.factor, self.patch_size)
 
-    def fits_excluding(self, exclude) -> bool:
-        """Whether enough coarse training patches avoid ``exclude`` ((H, W) bool or None)."""
-        return layout.fits_excluding(exclude, self.factor, patch_size=self.patch_size, n_clusters=self.n_clusters,
-                                     min_patches=self.min_patches, max_patches=self.max_patches)
+    def usable_factor(self, shape, exclude=None):
+        """:func:`tghop.layout.usable_factor` with these settings: ``factor`` or smaller, or None."""
+        return layout.usable_factor(shape, self.factor, patch_size=self.patch_size, exclude=exclude,
+                                    n_clusters=self.n_clusters, min_patches=self.min_patches,
+                                    max_patches=self.max_patches)
 
     def fit(self, image, y=None, *, exclude=None):
         """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.
