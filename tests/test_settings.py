@@ -30,6 +30,25 @@ def test_constructor_and_synthesize_follow_the_table():
         assert f"{s.name} :" in TGHop.__doc__
 
 
+@pytest.mark.parametrize("function", ["guided.synthesize_guided", "guided.morph", "inpaint.inpaint",
+                                      "material.Material.synthesize"])
+def test_other_entry_points_share_the_tables_defaults(function):
+    # These functions repeat some of synthesize's keywords in their own signatures: a
+    # default changed in the table must change there too, or the same call would make
+    # a different image through them.
+    import importlib
+
+    module, _, name = function.partition(".")
+    obj = importlib.import_module(f"tghop.{module}")
+    for part in name.split("."):
+        obj = getattr(obj, part)
+    keywords = inspect.signature(obj).parameters
+    shared = [s for s in settings.generate_settings() if s.name in keywords]
+    assert len(shared) >= 2, function
+    for s in shared:
+        assert keywords[s.name].default == s.default, f"{function}: {s.name}"
+
+
 def test_paper_values_come_from_the_table():
     assert PAPER_TABLE4["cluster_energy"] == 0.95 and PAPER_TABLE4["max_cluster_components"] == 50
     assert settings.PAPER["match_colours"] is False
