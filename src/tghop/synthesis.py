@@ -749,8 +749,8 @@ class CoarseLayout(BaseEstimator):
 
     Parameters
     ----------
-    factor : int, default=2
-        Downsampling of the exemplar (2: coarse patches cover 64x64 exemplar pixels).
+    factor : int, default=3
+        Downsampling of the exemplar (3: coarse patches cover 96x96 exemplar pixels).
     patch_size : int, default=32
         Patch size of the coarse model.
     n_clusters : int, default=50
@@ -778,11 +778,11 @@ class CoarseLayout(BaseEstimator):
     -------
     >>> from tghop import data
     >>> from tghop.synthesis import CoarseLayout
-    >>> coarse = CoarseLayout(factor=2, rng=0).fit(data.bricks())          # doctest: +SKIP
+    >>> coarse = CoarseLayout(rng=0).fit(data.bricks())                     # doctest: +SKIP
     >>> guide = coarse.guide((256, 256), rng=1)                             # doctest: +SKIP
     """
 
-    def __init__(self, factor=2, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000,
+    def __init__(self, factor=3, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000,
                  cluster_energy=0.95, max_cluster_components=50, gamma=0.01, rng=None):
         self.factor = factor
         self.patch_size = patch_size
