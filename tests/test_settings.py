@@ -1,5 +1,6 @@
 """The settings table: one home for the estimator, the model file and the CLI."""
 
+import importlib
 import inspect
 import json
 import subprocess
@@ -36,8 +37,6 @@ def test_other_entry_points_share_the_tables_defaults(function):
     # These functions repeat some of synthesize's keywords in their own signatures: a
     # default changed in the table must change there too, or the same call would make
     # a different image through them.
-    import importlib
-
     module, _, name = function.partition(".")
     obj = importlib.import_module(f"tghop.{module}")
     for part in name.split("."):
