@@ -8,7 +8,7 @@ import pytest
 from tghop.synthesis import PAPER_TABLE4
 
 from tghop import TGHop, TGHopError, data
-from tghop.layout import downsample, fits_excluding, guide_fits, upsample, usable_factor
+from tghop.layout import downsample, fits_excluding, follows_guide, guide_fits, upsample, usable_factor
 from tghop.synthesis import CoarseLayout
 from tghop.modelfile import load_model, save_model
 from tghop.quilting import prepare_pool, quilt, quilt_prepared
@@ -164,6 +164,8 @@ def test_layout_errors(layout):
         layout.guide((61, 64), tile=True)
     assert guide_fits((61, 64), 2, 32) and not guide_fits((61, 64), 2, 32, tile=True)
     assert guide_fits((63, 64), 2, 32, tile=True)
+    assert follows_guide(layout, (61, 64)) and not follows_guide(layout, (61, 64), tile=True)
+    assert not follows_guide(None, (256, 256))  # a model without a layout
 
 
 def test_a_tileable_guide_of_any_size_wraps_around(layout):

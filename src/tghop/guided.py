@@ -65,7 +65,7 @@ import numpy as np
 
 from . import settings
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
-from .layout import guide_fits
+from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
@@ -371,7 +371,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     counts = [max(int(math.ceil(n_min * max(a, 0.25))),
                   min(MAX_GROWN_POOL, int(math.ceil(checked["pool_per_block"] * blocks * a)))) for a in area]
     guided = bool(checked["layout_weight"]) and all(  # a tileable image too small for a guide goes without
-        m.layout_ is not None and guide_fits(size, m.layout_.factor, m.layout_.patch_size, tile=tile) for m in models)
+        follows_guide(m.layout_, size, tile=tile) for m in models)
     pending = None
     # The coarse guides are made in a second thread (their own random stream) while the
     # pools are generated and prepared, one BLAS thread each (as TGHop.synthesize does).

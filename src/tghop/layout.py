@@ -32,8 +32,8 @@ import numbers
 import numpy as np
 from ._common import TGHopError, check_size, usable_cores
 
-__all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "usable_factor", "coarse_training",
-           "coarse_guide"]
+__all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "follows_guide", "usable_factor",
+           "coarse_training", "coarse_guide"]
 
 
 def downsample(image, factor: int) -> np.ndarray:
@@ -171,6 +171,12 @@ def guide_fits(size, factor, patch_size=32, *, tile=False) -> bool:
     without the guide)."""
     h, w = check_size(size)
     return not tile or min(math.ceil(h / factor), math.ceil(w / factor)) >= patch_size
+
+
+def follows_guide(coarse, size, *, tile=False) -> bool:
+    """Whether an output of ``size`` gets the guide of ``coarse``: a fitted
+    :class:`tghop.synthesis.CoarseLayout`, or None (a model without a layout: never)."""
+    return coarse is not None and guide_fits(size, coarse.factor, coarse.patch_size, tile=tile)
 
 
 def usable_factor(shape, factor, *, patch_size=32, exclude=None, **training):

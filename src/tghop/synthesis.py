@@ -679,8 +679,7 @@ class TGHop(BaseEstimator):
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
         rng = check_rng(rng)
         guide = None
-        if (self.layout_ is not None and layout_weight
-                and layout.guide_fits(size, self.layout_.factor, self.layout_.patch_size, tile=tile)):
+        if layout_weight and layout.follows_guide(self.layout_, size, tile=tile):
             # The coarse guide and the pool are independent: the guide is made in a second
             # thread (its own random stream) while the pool is generated and made ready
             # for quilting, one BLAS thread each.
