@@ -168,17 +168,22 @@ def test_layout_errors(layout):
     assert not follows_guide(None, (256, 256))  # a model without a layout
 
 
+def neighbour_steps(image, axis):
+    """Mean squared step from each row (axis 0) or column (axis 1) of an (H, W, C) image to
+    the next; the last entry is the step across the wrap-around edge."""
+    return np.mean((np.roll(image, -1, axis=axis) - image) ** 2, axis=tuple({0, 1, 2} - {axis}))
+
+
 def test_a_tileable_guide_of_any_size_wraps_around(layout):
     """A size that is not a multiple of the factor: the coarse image is stretched so that
     its period is the output's (before 0.19: refused)."""
     g = layout.guide((65, 71), rng=2, n_patches=300, tile=True)
     assert g.shape == (65, 71, 3)
-    step = lambda a, axis: np.mean((np.roll(a, -1, axis=axis) - a) ** 2, axis=tuple({0, 1, 2} - {axis}))  # noqa: E731
     for axis in (0, 1):  # the wrap-around step is like the steps inside, far below a plain guide's
-        steps = step(g, axis)
+        steps = neighbour_steps(g, axis)
         assert steps[-1] < 3 * np.median(steps[:-1])
     plain = layout.guide((65, 71), rng=2, n_patches=300)
-    assert step(plain, 0)[-1] > 3 * step(g, 0)[-1]
+    assert neighbour_steps(plain, 0)[-1] > 3 * neighbour_steps(g, 0)[-1]
 
 
 def test_periodic_upsampling_by_any_ratio_is_periodic_linear_interpolation():
@@ -229,7 +234,7 @@ def test_tghop_tileable_at_any_size_and_without_a_guide_when_too_small(layout_mo
     out = layout_model.synthesize((67, 75), rng=1, n_patches=400, tile=True)  # not a multiple of 2
     assert out.shape == (67, 75, 3) and sizes == [(67, 75)]
     for axis in (0, 1):  # wraps around: the step across the edge like the steps inside
-        steps = np.mean((np.roll(out, -1, axis=axis) - out) ** 2, axis=tuple({0, 1, 2} - {axis}))
+        steps = neighbour_steps(out, axis)
         assert steps[-1] < 3 * np.median(steps[:-1])
     small = layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True)  # 24 coarse pixels: no guide
     assert small.shape == (48, 48, 3) and sizes == [(67, 75)]
