@@ -118,15 +118,18 @@ class PatchStatistics:
         quantiles = np.empty((len(levels), SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
         hole = None if exclude is None else np.asarray(exclude, dtype=bool)
         for i, img in enumerate(levels):
-            x, _ = _windows(img, PATCH)
+            # Which windows (row-major numbers) are measured; only those are copied.
+            v = np.lib.stride_tricks.sliding_window_view(img, (PATCH, PATCH), axis=(0, 1))
+            rows = np.arange(v.shape[0] * v.shape[1])
             if hole is not None:
                 keep = clean_windows(hole, PATCH).ravel()
                 if keep.any():
-                    x = x[keep]
+                    rows = np.flatnonzero(keep)
                 # The next level's mask: pixels whose 5-tap neighbourhood met a hole.
                 hole = downsample(hole.astype(np.float32)[..., None])[..., 0] > 0
-            if len(x) > _FIT_PATCHES:
-                x = x[:: -(-len(x) // _FIT_PATCHES)]
+            if len(rows) > _FIT_PATCHES:
+                rows = rows[:: -(-len(rows) // _FIT_PATCHES)]
+            x = v[rows // v.shape[1], rows % v.shape[1]].reshape(len(rows), d)
             proj = x @ dirs[i].reshape(-1, d).T  # (n, SETS * DIRECTIONS)
             proj.sort(axis=0)
             # Quantiles by linear interpolation between the order statistics (np.quantile's rule,
