@@ -39,6 +39,25 @@ def test_copied_textured_crop_noise_and_flat(exemplar):
     assert metrics.copied_textured(flat_ex, flat_ex[8:72, 8:72]) == 1.0
 
 
+def test_flat_coloured_windows_are_not_textured(exemplar):
+    # A flat orange window has no texture, though its three channels differ by far more
+    # than TEXTURED_STD: the window's deviation is each channel's own, not across channels.
+    orange = np.array([0.8, 0.5, 0.2])
+    flat = np.broadcast_to(orange, (64, 64, 3)).copy()
+    ex = exemplar.copy()
+    ex[:40, :40] = orange
+    assert metrics.copied(ex, flat) == 1.0
+    assert metrics.copied_textured(ex, flat) == 0.0
+    assert metrics.self_repetition(flat) == 0.0
+    # Smooth colour, no structure: an orange with a gentle ramp (a few grey levels per
+    # 16 px) matches itself everywhere within RMS 0.03 but is not a repeated pattern.
+    ramp = orange + np.linspace(0.0, 0.05, 160)[:, None, None] + np.zeros((160, 160, 3))
+    assert metrics.self_repetition(ramp) == 0.0
+    # Texture on a colour still counts, channel by channel.
+    textured = 0.3 * orange + 0.7 * exemplar  # windows of deviation 0.08 or so
+    assert metrics.copied_textured(textured, textured[8:72, 8:72]) == 1.0
+
+
 def test_self_repetition_tiled_noise_and_determinism(exemplar):
     tiled = np.tile(exemplar[:40, :40], (4, 4, 1))  # 160 x 160
     assert metrics.self_repetition(tiled) >= 0.95

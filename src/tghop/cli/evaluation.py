@@ -29,8 +29,9 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 
     copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
 
-    copied_textured: the same over the result's textured 16x16 windows only (standard
-    deviation at least 0.06): flat windows match any flat window and say nothing of copying.
+    copied_textured: the same over the result's textured 16x16 windows only (the root mean
+    square of the colour channels' standard deviations over the window at least 0.06): a flat
+    window, of any colour, matches any flat window of its colour and says nothing of copying.
 
     self_repetition (opt-in: --repetition or --metrics self_repetition): the fraction of a
     result's textured 16x16 windows that recur elsewhere in the same result (about 1 for a

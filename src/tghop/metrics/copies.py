@@ -207,17 +207,22 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
 # Copies and repetition of textured windows
 # ---------------------------------------------------------------------------------------
 
-#: Standard deviation (over a window's pixels and channels) from which a window counts as
+#: Standard deviation within a window (:func:`_window_std`) from which it counts as
 #: textured in :func:`copied_textured` and :func:`self_repetition`: a flat window nearly
-#: equals any flat window, which says nothing about copying.
+#: equals any flat window of its colour, which says nothing about copying.
 TEXTURED_STD = 0.06
 
 
 def _window_std(img: np.ndarray, size: int) -> np.ndarray:
     """``(H - size + 1, W - size + 1)`` standard deviation of every stride-1 ``size`` x
-    ``size`` window over its pixels and channels (float64 summed-area tables)."""
+    ``size`` window: the root of the mean over channels of each channel's variance over the
+    window's pixels (float64 summed-area tables). A flat window of any colour scores 0; a
+    grey image, or one whose channels are equal, scores its pixels' standard deviation.
+    (Before 0.20 the deviation was over pixels and channels together, so the spread between
+    a colour's channels counted as texture: every window of an orange fur or a blue sky
+    was "textured", docs/choices.md.)"""
     c = img.shape[2]
-    n = float(size * size * c)
+    n = float(size * size)
 
     def box_sums(x):
         s = np.zeros((x.shape[0] + 1, x.shape[1] + 1))
@@ -226,9 +231,11 @@ def _window_std(img: np.ndarray, size: int) -> np.ndarray:
         return s[size:, size:] - s[:-size, size:] - s[size:, :-size] + s[:-size, :-size]
 
     x = np.asarray(img, dtype=np.float64)
-    mean = box_sums(x.sum(axis=2)) / n
-    var = box_sums(np.einsum("ijk,ijk->ij", x, x)) / n - mean * mean
-    return np.sqrt(np.maximum(var, 0.0))
+    var = np.zeros((x.shape[0] - size + 1, x.shape[1] - size + 1))
+    for k in range(c):
+        mean = box_sums(x[..., k]) / n
+        var += np.maximum(box_sums(x[..., k] * x[..., k]) / n - mean * mean, 0.0)
+    return np.sqrt(var / c)
 
 
 def _textured_positions(img: np.ndarray, size: int, min_std: float, max_windows: int, rng) -> np.ndarray:
@@ -252,8 +259,8 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
 
     A flat window (a smooth sky, a mortar line) nearly equals any flat exemplar window,
     so :func:`copied` counts it as copied whatever the method. Here only the result's
-    ``patch_size`` x ``patch_size`` windows whose own standard deviation (over pixels and
-    channels) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and
+    ``patch_size`` x ``patch_size`` windows whose own standard deviation (each channel's
+    over the window, :data:`TEXTURED_STD`) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and
     each counts as copied when some exemplar window (stride 1) is within RMS ``threshold``.
 
     Returns
