@@ -506,12 +506,13 @@ def test_generation_uses_float32_mixing_made_from_the_stored_rows(small_model, t
         ICHM().sample(3)
 
 
-def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng):
+@pytest.mark.parametrize("n", [3000, 12000])  # 12,000: Lloyd on a subsample of 5,000, then on all
+def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng, n):
     from tghop.unsupervised import kmeans as _kmeans
 
     truth = rng.normal(0, 10, (6, 20))
-    member = rng.integers(0, 6, 3000)
-    X = truth[member] + rng.normal(0, 0.5, (3000, 20))
+    member = rng.integers(0, 6, n)
+    X = truth[member] + rng.normal(0, 0.5, (n, 20))
     labels, centres = _kmeans(X, 6, np.random.default_rng(0))
     # The same partition as the truth (up to renaming).
     pairs = set(zip(labels.tolist(), member.tolist()))
