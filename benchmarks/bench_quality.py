@@ -210,7 +210,7 @@ def main(argv=None):
     ap.add_argument("--metrics", default=",".join(METRICS))
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--fit-seed", type=int, default=0,
-                    help="the models' seed (default 0); another shows a refit's spread, which is large on a few exemplars")
+                    help="the models' seed (default 0); another shows a refit's spread (large on a few exemplars)")
     ap.add_argument("--sheets", action="store_true", help="one sheet per exemplar")
     ap.add_argument("--tag", default="", help="suffix of the result files")
     ap.add_argument("--ust", default="", help="exemplars for the Ustyuzhaninov comparison (comma-separated)")
@@ -259,8 +259,8 @@ def main(argv=None):
         summary[vname] = med
         table_rows.append([vname, *(med[m] for m in metrics), *(med[m + "_max"] for m in maxima),
                            med["diversity"], med["fit_s"], med["synth_s"]])
-    text = (f"## Quality, {args.size}x{args.size}, seeds 0 and 1 (models: seed {args.fit_seed}), medians over {len(entries)} exemplars\n\n"
-            + markdown_table(head, table_rows))
+    text = (f"## Quality, {args.size}x{args.size}, seeds 0 and 1 (models: seed {args.fit_seed}), "
+            f"medians over {len(entries)} exemplars\n\n" + markdown_table(head, table_rows))
     per_tex = [[e["texture"], vname, *(e["variants"][vname][c] for c in cols)]
                for e in entries for vname in e["variants"]]
     text += "\n\n### Per exemplar\n\n" + markdown_table(["exemplar", "variant", *cols], per_tex)

@@ -260,8 +260,9 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     A flat window (a smooth sky, a mortar line) nearly equals any flat exemplar window,
     so :func:`copied` counts it as copied whatever the method. Here only the result's
     ``patch_size`` x ``patch_size`` windows whose own standard deviation (each channel's
-    over the window, :data:`TEXTURED_STD`) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and
-    each counts as copied when some exemplar window (stride 1) is within RMS ``threshold``.
+    over the window, root-mean-squared over the channels: a flat window of any colour has
+    none) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and each
+    counts as copied when some exemplar window (stride 1) is within RMS ``threshold``.
 
     Returns
     -------
