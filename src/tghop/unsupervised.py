@@ -91,7 +91,7 @@ def kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000, fit_sample=5000, 
     on all points costs several times the whole Lloyd iteration for the same inertia); with
     more than ``fit_sample`` points, Lloyd to convergence on a random ``fit_sample`` of them
     and then at most ``polish`` steps on all (from the same seeds, Lloyd on all 20,000 core
-    vectors took 40-60 steps; this ends 0.05-0.6 % higher in inertia at a third of the time:
+    vectors took 40-60 steps; this ends 0.05-0.6 % higher in inertia in a third to a half of the time:
     docs/choices.md); all in float32 (the clustering only routes samples to clusters; each
     step reads the points, so half the bytes is about half the time). NumPy only: importing
     scikit-learn's KMeans would add its long import time to every fit."""
