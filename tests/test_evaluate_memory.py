@@ -190,6 +190,13 @@ def test_cli_self_repetition_is_opt_in(images):
         assert 0.0 <= line["self_repetition"] <= 1.0
     r = run("evaluate", "--help")
     assert "--repetition" in r.stdout.decode() and "self_repetition" in r.stdout.decode()
+    # The table: one column per metric, long names (15 characters) apart from their neighbours.
+    names = "copied,copied_textured,self_repetition"
+    r = run("evaluate", images / "ex.png", images / "res.png", "-q", "--metrics", names)
+    assert r.returncode == 0, r.stderr.decode()
+    header, row = r.stdout.decode().splitlines()[:2]
+    assert header.split() == ["result", "copied", "copied_textured", "self_repetition"]
+    assert len(row.split()) == 4
 
 
 def test_cli_refuses_a_tiny_image_naming_the_size(images):

@@ -84,9 +84,10 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
     else:
         cols = list(rows[0][1])
         width = max(len("result"), *(len(p) for p, _ in rows))
-        click.echo(f"{'result':<{width}}" + "".join(f"{c:>14}" for c in cols))
+        sides = [max(14, len(c) + 2) for c in cols]  # a long name (copied_textured) keeps a gap
+        click.echo(f"{'result':<{width}}" + "".join(f"{c:>{n}}" for c, n in zip(cols, sides)))
         for path, scores in rows:
-            click.echo(f"{path:<{width}}" + "".join(f"{scores[c]:>14.4g}" for c in cols))
+            click.echo(f"{path:<{width}}" + "".join(f"{scores[c]:>{n}.4g}" for c, n in zip(cols, sides)))
         if div is not None:
             click.echo(f"diversity of the {len(images)} results: {div:.4g}")
     for name, why in skipped.items():
