@@ -51,6 +51,36 @@ def test_statistics_shapes_and_directions(patch_model):
             == 3 * pr.SETS * pr.DIRECTIONS * (d + pr.QUANTILES))
 
 
+def test_whitened_directions_see_detail_not_the_patch_mean():
+    """With whitening the exemplar's projections depend less on a patch's mean (which
+    carries most of its variance); the quantiles stay those of the projections; 0 keeps the
+    directions uniform, exactly as drawn before the setting existed."""
+    ex = data.cells(96, rng=3).astype(np.float32)
+    x, _ = pr._windows(ex, pr.PATCH)
+    mean = x.mean(axis=1)
+    corr = {}
+    for w in (0.0, 0.25, 0.5):
+        st = pr.PatchStatistics(2, w).fit(ex)
+        d = st.directions_[0].reshape(-1, x.shape[1])
+        assert np.allclose(np.linalg.norm(d, axis=1), 1, atol=1e-5)
+        y = x @ d.T
+        corr[w] = np.mean([abs(np.corrcoef(y[:, k], mean)[0, 1]) for k in range(len(d))])
+        assert np.allclose(st.quantiles_[0, 2, 7], np.quantile(y[:, 2 * pr.DIRECTIONS + 7],
+                                                                np.linspace(0, 1, pr.QUANTILES)), atol=1e-5)
+    assert corr[0.5] < 0.5 * corr[0.25] < 0.5 * corr[0.0]
+    drawn = np.random.default_rng(0).standard_normal((2, pr.SETS, pr.DIRECTIONS, x.shape[1])).astype(np.float32)
+    drawn /= np.linalg.norm(drawn, axis=-1, keepdims=True)
+    assert np.array_equal(pr.PatchStatistics(2, 0.0).fit(ex).directions_, drawn)
+    # A flat exemplar (every eigenvalue 0) still gets finite unit directions.
+    flat = pr.PatchStatistics(1, 0.5).fit(np.full((40, 40, 3), 0.3, np.float32))
+    assert np.isfinite(flat.directions_).all() and np.allclose(np.linalg.norm(flat.directions_, axis=-1), 1)
+    for bad in (-0.1, 1.5, True, "x"):
+        with pytest.raises(TGHopError, match="patch_whitening"):
+            pr.PatchStatistics(1, bad).fit(ex)
+    with pytest.raises(TGHopError, match="patch_whitening"):
+        TGHop(**SMALL, patch_whitening=2.0).fit(ex)
+
+
 def test_refinement_moves_patch_statistics_towards_the_exemplar(patch_model):
     st = patch_model.patches_
     img = patch_model.synthesize((80, 72), rng=2, patch_refine=0).astype(np.float32)
@@ -92,6 +122,33 @@ def test_large_images_move_through_a_shifted_strided_grid(monkeypatch):
     assert pr._stride(60 * 60) == 2
     moved = np.abs(pr.patch_refine(img, st, n_steps=4) - img).sum(-1)
     assert (moved[2:-2, 2:-2] > 0).all()
+
+
+def test_patch_stride_thins_the_full_level_only(patch_model, monkeypatch):
+    """patch_stride 2 takes every second patch at full resolution (the grid shifted each
+    step: every pixel still moves); coarser levels keep every patch."""
+    st = patch_model.patches_
+    img = patch_model.synthesize((64, 64), rng=2, patch_refine=0).astype(np.float32)
+    seen = []
+    real = pr._steps
+
+    def spy(x, dirs, target, n_steps, tile, stride, lr):
+        seen.append((x.shape[0], stride))
+        return real(x, dirs, target, n_steps, tile, stride, lr)
+    monkeypatch.setattr(pr, "_steps", spy)
+    two = pr.patch_refine(img, st, n_steps=4, stride=2)
+    assert seen == [(32, 1), (64, 2)]  # coarse to fine (a 64x64 image has two levels)
+    assert (np.abs(two - img).sum(-1)[3:-3, 3:-3] > 0).all()
+    one = pr.patch_refine(img, st, n_steps=4, stride=1)
+    assert not np.array_equal(one, two) and np.array_equal(two, pr.patch_refine(img, st, n_steps=4, stride=2))
+    for bad in (0, 8, 1.5, True):
+        with pytest.raises(TGHopError, match="patch_stride"):
+            pr.patch_refine(img, st, n_steps=1, stride=bad)
+    monkeypatch.setattr(pr, "_steps", real)
+    a = patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=2)
+    assert not np.array_equal(a, patch_model.synthesize((64, 64), rng=5, patch_refine=4))
+    with pytest.raises(TGHopError, match="patch_stride"):
+        patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=9)
 
 
 def test_synthesis_is_deterministic_and_off_by_default(patch_model):
@@ -149,9 +206,11 @@ def test_old_files_load_and_damaged_arrays_are_refused(patch_model, tmp_path):
 
     def old(meta, arrays):  # a file of tghop 0.13: no patch_levels setting at all
         meta["params"].pop("patch_levels")
+        meta["params"].pop("patch_whitening")
     _rewrite(tmp_path / "plain.npz", tmp_path / "old.npz", old)
     loaded = load_model(tmp_path / "old.npz")
     assert loaded.patches_ is None
+    assert loaded.patch_whitening == 0.0  # what files before the setting were fitted with
     assert loaded.synthesize((48, 48), rng=1, patch_refine=2).shape == (48, 48, 3)
 
     save_model(patch_model, tmp_path / "p.npz")

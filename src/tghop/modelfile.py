@@ -339,10 +339,12 @@ def load_model(path, *, material=False):
             meta["params"]["patch_levels"] = 0
             warnings.warn(f"{path}: its patch refinement statistics are of tghop 0.14 and are not used; "
                           "fit the model again with --patch-levels for the patch refinement", stacklevel=2)
-    # Files before the setting (0.13 and older) have none: no patch statistics.
+    # Files before the settings (0.13 and older) have none: no patch statistics (0.20 and
+    # older: directions not whitened).
     for part in (meta, (meta.get("layout") or {}).get("model") if isinstance(meta.get("layout"), dict) else None):
         if isinstance(part, dict) and isinstance(part.get("params"), dict):
             part["params"].setdefault("patch_levels", 0)
+            part["params"].setdefault("patch_whitening", 0.0)  # random directions before 0.21
     if meta["format_version"] == 2 and isinstance(meta.get("params"), dict):
         meta["params"].setdefault("ica_tol", 1e-4)  # what version 2 (tghop 0.2.0) fitted with
     try:

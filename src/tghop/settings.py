@@ -288,6 +288,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "Pyramid levels whose 7x7 patch distributions (quantiles of their projections on fixed "
             "random directions) are learned for the patch refinement (:mod:`tghop.patch_refine`, ours; "
             "0: none stored).", low=0, high=6, paper=0),
+    Setting("patch_whitening", 0.0, "float",
+            "The patch refinement's directions are drawn in patch space whitened to this power "
+            "(0: uniform random directions; 0.5: uniform in whitened space, where edges and grain "
+            "weigh as much as a patch's mean). 0.35: sharper edges, colour patches less exact "
+            "(docs/choices.md; :mod:`tghop.patch_refine`).", low=0, high=1),
     Setting("layout_factor", 3, "int",
             "Coarse to fine (ours, :mod:`tghop.layout`): also model the layout on the exemplar "
             "downsampled by this factor, and quilt guided by a coarse synthesis (None: off). An exemplar "
@@ -324,6 +329,10 @@ SETTINGS: Tuple[Setting, ...] = (
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 7x7 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
             "patch_levels; 0: off).", when="generate", low=0, high=500, paper=0),
+    Setting("patch_stride", 1, "int",
+            "The patch refinement's steps at full resolution take every patch_stride-th patch each "
+            "way, the grid shifted every step (larger images take more; :mod:`tghop.patch_refine`).",
+            when="generate", low=1, high=7),
     Setting("reuse", 1.0, "float",
             "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "
             "against repeating the same patches in large images (ours; not applied where there are 8 "

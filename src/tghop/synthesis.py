@@ -134,7 +134,8 @@ class TGHop(BaseEstimator):
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
-                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=3, layout_factor=3, rng=None):
+                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=3, patch_whitening=0.0,
+                 layout_factor=3, rng=None):
         self.patch_size = patch_size
         self.stride = stride
         self.n_channels = n_channels
@@ -153,7 +154,7 @@ class TGHop(BaseEstimator):
         self.max_patches = max_patches
         self.band_levels = band_levels
         self.band_orientations, self.patch_levels = band_orientations, patch_levels
-        self.layout_factor = layout_factor
+        self.patch_whitening, self.layout_factor = patch_whitening, layout_factor
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -229,7 +230,7 @@ class TGHop(BaseEstimator):
         self.colour_quantiles_ = channel_quantiles(image if exclude is None else image[~exclude][:, None, :])
         self.bands_ = BandStatistics(n_levels=self.band_levels,
                                      n_orientations=self.band_orientations).fit(image, exclude=exclude)
-        self.patches_ = fit_patch_statistics(self.patch_levels, image, exclude=exclude)
+        self.patches_ = fit_patch_statistics(self.patch_levels, image, whitening=self.patch_whitening, exclude=exclude)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
@@ -601,8 +602,8 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
-                   patch_refine=0, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024, progress=None,
-                   dtype=np.float64):
+                   patch_refine=0, patch_stride=1, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
+                   progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -639,6 +640,8 @@ class TGHop(BaseEstimator):
         patch_refine : int
             Adam steps per pyramid level of the patch refinement, the last step
             (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off.
+        patch_stride : int
+            Its steps at full resolution take every ``patch_stride``-th patch each way.
         reuse : float
             Quilting multiplies the error of a pool patch placed ``u`` times by ``1 + reuse
             * u`` (ours, against repeated patches in large images; not applied to images of
@@ -672,8 +675,8 @@ class TGHop(BaseEstimator):
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
-            patch_refine=patch_refine, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window,
-            region=region))
+            patch_refine=patch_refine, patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block,
+            seam_window=seam_window, region=region))
         regions = (refine or match_colours) and n_regions(size, checked["region"], tile=tile) != (1, 1)
         n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
@@ -731,8 +734,8 @@ class TGHop(BaseEstimator):
             out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
             image = match_histograms(image, self.colour_quantiles_, out=out)
         if patches:
-            image = refine_image(image, self.patches_, n_steps=checked["patch_refine"], tile=tile, dtype=final,
-                                 progress=progress)
+            image = refine_image(image, self.patches_, n_steps=checked["patch_refine"], stride=checked["patch_stride"],
+                                 tile=tile, dtype=final, progress=progress)
         return image
 
 
@@ -832,13 +835,8 @@ class CoarseLayout(BaseEstimator):
         return self
 
     def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3, seam_window=9):
-        """A coarse synthesis upsampled to ``size``: the layout the fine level follows
-        (:func:`tghop.layout.coarse_guide`).
-
-        Returns
-        -------
-        ndarray, shape (H, W, C), float32 in [0, 1]
-        """
+        """A coarse synthesis upsampled to ``size``, (H, W, C) float32 in [0, 1]: the layout the
+        fine level follows (:func:`tghop.layout.coarse_guide`)."""
         check_is_fitted(self, "model_")
         return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
                                    refine=refine, seam_window=seam_window)
