@@ -145,17 +145,22 @@ def test_patch_stride_thins_the_full_level_only(patch_model, monkeypatch):
         with pytest.raises(TGHopError, match="patch_stride"):
             pr.patch_refine(img, st, n_steps=1, stride=bad)
     monkeypatch.setattr(pr, "_steps", real)
-    a = patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=2)
-    assert not np.array_equal(a, patch_model.synthesize((64, 64), rng=5, patch_refine=4))
+    a = patch_model.synthesize((64, 64), rng=5, patch_refine=4)  # stride 2 by default
+    assert np.array_equal(a, patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=2))
+    assert not np.array_equal(a, patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=1))
     with pytest.raises(TGHopError, match="patch_stride"):
         patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=9)
 
 
-def test_synthesis_is_deterministic_and_off_by_default(patch_model):
+def test_synthesis_is_deterministic_and_light_by_default(patch_model):
     a = patch_model.synthesize((64, 64), rng=5, patch_refine=5)
     b = patch_model.synthesize((64, 64), rng=5, patch_refine=5)
-    off = patch_model.synthesize((64, 64), rng=5)
-    assert np.array_equal(off, patch_model.synthesize((64, 64), rng=5, patch_refine=0))
+    off = patch_model.synthesize((64, 64), rng=5, patch_refine=0)
+    # The default (None, "auto"): AUTO_STEPS on images of up to AUTO_PIXELS pixels, none above.
+    assert np.array_equal(patch_model.synthesize((64, 64), rng=5),
+                          patch_model.synthesize((64, 64), rng=5, patch_refine=pr.AUTO_STEPS))
+    assert pr.steps_for(None, (512, 512)) == pr.AUTO_STEPS == 12 and pr.steps_for(None, (512, 513)) == 0
+    assert pr.steps_for(3, (4096, 4096)) == 3 and pr.steps_for(0, (64, 64)) == 0
     assert a.shape == (64, 64, 3) and np.array_equal(a, b)
     assert not np.array_equal(a, off)
     assert (a >= 0).all() and (a <= 1).all()
@@ -167,8 +172,14 @@ def test_synthesis_is_deterministic_and_off_by_default(patch_model):
 
 def test_paper_pipeline_is_unaffected():
     assert settings.PAPER["patch_refine"] == 0 and settings.PAPER["patch_levels"] == 0
-    assert settings.BY_NAME["patch_refine"].default == 0 and settings.BY_NAME["patch_levels"].default == 3
-    assert settings.QUALITY["best"] == {"patch_refine": 45}
+    assert settings.BY_NAME["patch_refine"].default is None and settings.BY_NAME["patch_levels"].default == 3
+    assert settings.BY_NAME["patch_stride"].default == 2
+    assert settings.QUALITY["best"] == {"patch_refine": 45, "patch_stride": 1}
+    # On the command line the default is the word "auto"; "off" is 0, not the default.
+    refine = settings.BY_NAME["patch_refine"]
+    assert refine.parse("auto") is None and refine.parse("0") == 0
+    with pytest.raises(TGHopError, match="not an integer"):
+        refine.parse("off")
 
 
 def test_model_without_statistics_ignores_the_setting():

@@ -35,7 +35,7 @@ from ._common import TGHopError, report
 from .patches import clean_windows
 from .pyramid import downsample, upsample
 
-__all__ = ["PatchStatistics", "patch_refine", "fit_patch_statistics", "refine_image"]
+__all__ = ["PatchStatistics", "patch_refine", "fit_patch_statistics", "refine_image", "steps_for"]
 
 #: Patch side (pixels of each level), as GPDM.
 PATCH = 7
@@ -66,6 +66,10 @@ _MAX_STRIDE = 4
 #: Eigenvalues of the patch covariance below this share of the largest count as this much
 #: when directions are whitened (flat or noiseless exemplars: no direction of pure noise).
 _EIGEN_FLOOR = 1e-3
+#: The default (``patch_refine`` None): this many steps per level on images of at most
+#: AUTO_PIXELS pixels, none on larger ones (docs/choices.md).
+AUTO_STEPS = 12
+AUTO_PIXELS = 512 * 512
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH
 
@@ -364,6 +368,14 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         done += n_steps
         report(progress, "patch refine", done, total)
     return new
+
+
+def steps_for(n_steps, size):
+    """``patch_refine`` for an image of ``size`` (H, W): ``n_steps``, or for None (auto)
+    AUTO_STEPS up to AUTO_PIXELS pixels and 0 above."""
+    if n_steps is not None:
+        return n_steps
+    return AUTO_STEPS if size[0] * size[1] <= AUTO_PIXELS else 0
 
 
 def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):

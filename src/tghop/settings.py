@@ -75,6 +75,9 @@ class Setting:
         Allowed range (inclusive unless ``low_open`` / ``high_open``).
     none_ok : bool
         None is allowed (meaning "off" or "automatic", see the help).
+    auto : bool
+        None means "automatic": the command line's word for it is ``auto`` (else ``none``
+        or ``off``).
     choices : tuple
         Allowed values of a "choice" setting.
     cli : tuple of str or None
@@ -100,6 +103,7 @@ class Setting:
     low_open: bool = False
     high_open: bool = False
     none_ok: bool = False
+    auto: bool = False
     choices: Tuple = ()
     cli: Optional[Tuple[str, ...]] = ()
     cli_high: Optional[float] = None
@@ -163,7 +167,7 @@ class Setting:
     def parse(self, text: str):
         """A command-line string -> value (then :meth:`check`); raises TGHopError."""
         text = str(text).strip()
-        if self.none_ok and text.lower() in ("none", "off"):
+        if self.none_ok and text.lower() in (("auto",) if self.auto else ("none", "off")):
             return None
         if self.kind == "int":
             try:
@@ -325,11 +329,13 @@ SETTINGS: Tuple[Setting, ...] = (
             ":mod:`tghop.refine`; each but the last over-relaxed): restores the contrast of fine detail; "
             "0 is off, as in the paper.",
             when="generate", low=0, high=20, paper=0),
-    Setting("patch_refine", 0, "int",
+    Setting("patch_refine", None, "int",
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 7x7 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
-            "patch_levels; 0: off).", when="generate", low=0, high=500, paper=0),
-    Setting("patch_stride", 1, "int",
+            "patch_levels; 0: off). auto (None in Python): 12 on images of up to 512x512 pixels, none on "
+            "larger ones (the cost grows with the image; give a number to refine them too).",
+            when="generate", low=0, high=500, none_ok=True, auto=True, paper=0),
+    Setting("patch_stride", 2, "int",
             "The patch refinement's steps at full resolution take every patch_stride-th patch each "
             "way, the grid shifted every step (larger images take more; :mod:`tghop.patch_refine`).",
             when="generate", low=1, high=7),
@@ -374,10 +380,10 @@ def generate_settings():
 PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
-#: "best" adds the patch refinement (45 Adam steps per level; docs/choices.md: all 44
-#: exemplars' median SIFID 2.57 -> 1.76 with the seam removal, about 3.5 s more at 256x256
-#: on 2 cores).
-QUALITY = {"default": {}, "best": {"patch_refine": 45}}
+#: "best" takes 45 Adam steps per level of the patch refinement, every patch at full
+#: resolution, at any size (docs/choices.md, "Patch refinement": about 3 s more at 256x256
+#: on 2 cores than the default's 12 steps at stride 2).
+QUALITY = {"default": {}, "best": {"patch_refine": 45, "patch_stride": 1}}
 
 
 def check_settings(values: dict, *, prefix: str = "") -> dict:

@@ -33,7 +33,7 @@ from . import layout
 from .pool import GeneratedPool, on_demand, pool_size
 from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
 from .parameter_count import parameter_groups, table4
-from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image
+from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
 from .regions import match_regions, n_regions, prepare as prepare_regions
 from .seams import remove_seams
@@ -602,7 +602,7 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
-                   patch_refine=0, patch_stride=1, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
+                   patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
                    progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
@@ -637,9 +637,10 @@ class TGHop(BaseEstimator):
             0 is off, as in the paper.
         layout_refine : int
             Rounds of that refinement for the coarse layout's guide.
-        patch_refine : int
+        patch_refine : int or None
             Adam steps per pyramid level of the patch refinement, the last step
-            (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off.
+            (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off; None:
+            12 on images of at most 512x512 pixels, 0 on larger ones.
         patch_stride : int
             Its steps at full resolution take every ``patch_stride``-th patch each way.
         reuse : float
@@ -720,7 +721,8 @@ class TGHop(BaseEstimator):
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32)
-        patches = checked["patch_refine"] and getattr(self, "patches_", None) is not None
+        n_steps = steps_for(checked["patch_refine"], image.shape[:2])
+        patches = n_steps and getattr(self, "patches_", None) is not None
         final, dtype = dtype, np.dtype(np.float32) if patches else dtype  # ours, last: colours in float32 first
         image = image.astype(dtype, copy=False) if patches else image
         if not match_colours:
@@ -734,7 +736,7 @@ class TGHop(BaseEstimator):
             out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
             image = match_histograms(image, self.colour_quantiles_, out=out)
         if patches:
-            image = refine_image(image, self.patches_, n_steps=checked["patch_refine"], stride=checked["patch_stride"],
+            image = refine_image(image, self.patches_, n_steps=n_steps, stride=checked["patch_stride"],
                                  tile=tile, dtype=final, progress=progress)
         return image
 

@@ -58,10 +58,11 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     from ..imageio import save_image
     from .options import FIT_OPTION_PARAMS, given_options
 
-    refused = given_options(ctx, ["patch_refine", "region"])
+    refused = given_options(ctx, ["patch_refine", "patch_stride", "region"])
     if refused:
         raise TGHopError(f"{refused[0]} is not used with several SOURCEs or --guide; drop it")
     generation.pop("patch_refine", None)
+    generation.pop("patch_stride", None)
     generation.pop("region", None)  # each texture's own statistics already vary over the image
     if save_model:
         raise TGHopError("--save-model takes one exemplar; save each model with 'tghop fit' and give the .npz files")
