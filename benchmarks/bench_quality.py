@@ -54,7 +54,7 @@ VARIANTS = {
     "no-refine": ({}, {"refine": 0}),
     "no-detail": ({}, {"detail": 0.0}),
     "no-colour": ({}, {"match_colours": False}),
-    "no-patch-refine": ({}, {"patch_refine": 0}),  # the default of tghop 0.15
+    "no-patch-refine": ({}, {"patch_refine": 0}),  # the default until tghop 0.20
     "no-seams": ({}, {"seam_window": 0}),  # quilting's plain cuts (tghop 0.15's default)
     "best": ({}, "BEST"),  # tghop synth --quality best
     "pool10k": ({}, {"n_patches": 10000}),
