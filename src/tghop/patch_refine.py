@@ -68,7 +68,7 @@ _MAX_STRIDE = 4
 _EIGEN_FLOOR = 1e-3
 #: The default (``patch_refine`` None): this many steps per level on images of at most
 #: AUTO_PIXELS pixels, none on larger ones (docs/choices.md).
-AUTO_STEPS = 12
+AUTO_STEPS = 20
 AUTO_PIXELS = 512 * 512
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH
@@ -328,8 +328,8 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
     n_steps : int
         Adam steps per pyramid level (0: the image unchanged).
     stride : int
-        At full resolution, every ``stride``-th patch each way (the grid shifted every step);
-        large levels use more (:func:`_stride`), coarser levels no fewer than that rule.
+        At every level, every ``stride``-th patch each way (the grid shifted every step);
+        large levels use more (:func:`_stride`).
     tile : bool
         Periodic boundaries (the output stays tileable).
     learning_rate : float
@@ -359,9 +359,9 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         cur = levels[i].copy()
         if new is not None:  # the coarser level's change, upsampled
             cur += upsample(new - levels[i + 1], cur.shape, mode)
-        # Large levels: every second, third or fourth patch each way, the grid shifted every
-        # step, so that a step's cost grows more slowly than the image.
-        step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride) if i == 0 else 1)
+        # Every stride-th patch each way, large levels more (up to every fourth), the grid
+        # shifted every step, so that a step's cost grows more slowly than the image.
+        step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride))
         new = _steps(cur, stats.directions_[i], stats.quantiles_[i], int(n_steps), tile, step,
                      float(learning_rate) if i == 0 else COARSE_RATE)
         np.clip(new, 0.0, 1.0, out=new)

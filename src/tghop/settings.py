@@ -332,12 +332,12 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("patch_refine", None, "int",
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 7x7 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
-            "patch_levels; 0: off). auto (None in Python): 12 on images of up to 512x512 pixels, none on "
+            "patch_levels; 0: off). auto (None in Python): 20 on images of up to 512x512 pixels, none on "
             "larger ones (the cost grows with the image; give a number to refine them too).",
             when="generate", low=0, high=500, none_ok=True, auto=True, paper=0),
     Setting("patch_stride", 2, "int",
-            "The patch refinement's steps at full resolution take every patch_stride-th patch each "
-            "way, the grid shifted every step (larger images take more; :mod:`tghop.patch_refine`).",
+            "The patch refinement's steps take every patch_stride-th patch each way at each level, "
+            "the grid shifted every step (larger images take more; :mod:`tghop.patch_refine`).",
             when="generate", low=1, high=7),
     Setting("reuse", 1.0, "float",
             "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "
@@ -382,7 +382,7 @@ PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
 #: "best" takes 45 Adam steps per level of the patch refinement, every patch at full
 #: resolution, at any size (docs/choices.md, "Patch refinement": about 3 s more at 256x256
-#: on 2 cores than the default's 12 steps at stride 2).
+#: on 2 cores than the default's 20 steps at stride 2).
 QUALITY = {"default": {}, "best": {"patch_refine": 45, "patch_stride": 1}}
 
 

@@ -640,9 +640,9 @@ class TGHop(BaseEstimator):
         patch_refine : int or None
             Adam steps per pyramid level of the patch refinement, the last step
             (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off; None:
-            12 on images of at most 512x512 pixels, 0 on larger ones.
+            20 on images of at most 512x512 pixels, 0 on larger ones.
         patch_stride : int
-            Its steps at full resolution take every ``patch_stride``-th patch each way.
+            Its steps take every ``patch_stride``-th patch each way at each level.
         reuse : float
             Quilting multiplies the error of a pool patch placed ``u`` times by ``1 + reuse
             * u`` (ours, against repeated patches in large images; not applied to images of
