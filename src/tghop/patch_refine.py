@@ -18,8 +18,8 @@ tghop's finished image (which already has the layout, so few steps suffice):
   uniform directions mostly see a patch's mean and smooth ramps, which carry most of its
   variance; these see its edges and grain as well.
 - Generation (:func:`patch_refine`): from the coarsest level, ``n_steps`` Adam steps on the
-  level's pixels; step t projects every patch (larger levels: every ``stride``-th, the grid
-  shifted each step, so that every pixel takes its turn in every place of a patch) on set
+  level's pixels; step t projects every ``stride``-th patch each way (more on large levels;
+  the grid shifted each step, so that every pixel takes its turn in every place of a patch) on set
   ``t mod SETS``, gives each projection the stored quantile at its rank (1-D optimal
   transport, ranks from a histogram), and moves the pixels along the gradient of the L1
   distance between the two (as GPDM). A level's change is upsampled into the next finer one.
