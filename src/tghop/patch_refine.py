@@ -215,8 +215,9 @@ def _table(idx, target):
     mid *= (target.shape[1] - 1) / max(n - 1, 1)
     j = np.clip(mid.astype(np.int64), 0, target.shape[1] - 2)
     frac = mid - j
-    rows = np.arange(k)[:, None]
-    table = target[rows, j] * (1 - frac) + target[rows, j + 1] * frac
+    j += np.arange(k)[:, None] * target.shape[1]  # flat positions: one take instead of 2-D indexing
+    flat = target.ravel()
+    table = flat.take(j) * (1 - frac) + flat.take(j + 1) * frac
     return table.astype(np.float32).ravel()
 
 
