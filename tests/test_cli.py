@@ -306,3 +306,24 @@ def test_layout_option_fits_and_saves_a_coarse_model(workdir):
     assert info["params"]["layout_factor"] is None and info["layout_factor_used"] is None
     assert "layout: none\n" in run("info", workdir / "nolayout.npz").stdout.decode()
     assert_user_error(run("fit", workdir / "bricks.png", "-o", workdir / "bad.npz", *FAST, "--layout", "1"), "--layout")
+
+
+def test_patch_refinement_default_is_auto(workdir):
+    """A model without patch statistics synthesises by default (auto skips the refinement);
+    asking for it is the one-line error; `--patch-refine auto` is the default, `0` the same
+    image here, and `off` is refused."""
+    plain = workdir / "plain.npz"
+    r = run("fit", workdir / "bricks.png", "-o", plain, "--patch-levels", "0", *FAST)
+    assert r.returncode == 0, r.stderr.decode()
+    outs = {}
+    for name, extra in (("default", ()), ("auto", ("--patch-refine", "auto")), ("zero", ("--patch-refine", "0"))):
+        outs[name] = workdir / f"plain_{name}.png"
+        r = run("synth", plain, "-o", outs[name], "--size", "48", "--seed", "2", *extra)
+        assert r.returncode == 0, r.stderr.decode()
+    pixels = {k: np.asarray(Image.open(v)) for k, v in outs.items()}
+    assert np.array_equal(pixels["default"], pixels["auto"]) and np.array_equal(pixels["default"], pixels["zero"])
+    for extra in (("--patch-refine", "5"), ("--quality", "best")):
+        r = run("synth", plain, "-o", workdir / "plain_x.png", "--size", "48", *extra)
+        assert_user_error(r, "no patch statistics")
+        assert not (workdir / "plain_x.png").exists()
+    assert_user_error(run("synth", plain, "-o", workdir / "plain_x.png", "--patch-refine", "off"), "not an integer")

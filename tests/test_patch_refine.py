@@ -175,7 +175,7 @@ def test_paper_pipeline_is_unaffected():
     assert settings.BY_NAME["patch_refine"].default is None and settings.BY_NAME["patch_levels"].default == 3
     assert settings.BY_NAME["patch_stride"].default == 2
     assert settings.QUALITY["best"] == {"patch_refine": 45, "patch_stride": 1}
-    # On the command line the default is the word "auto"; "off" is 0, not the default.
+    # On the command line the default is the word "auto"; "off" is refused (0 turns it off).
     refine = settings.BY_NAME["patch_refine"]
     assert refine.parse("auto") is None and refine.parse("0") == 0
     with pytest.raises(TGHopError, match="not an integer"):
