@@ -360,7 +360,7 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         cur = levels[i].copy()
         if new is not None:  # the coarser level's change, upsampled
             cur += upsample(new - levels[i + 1], cur.shape, mode)
-        # Every stride-th patch each way, large levels more (up to every fourth), the grid
+        # Every stride-th patch each way, large levels at least _stride's (2 to 4), the grid
         # shifted every step, so that a step's cost grows more slowly than the image.
         step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride))
         new = _steps(cur, stats.directions_[i], stats.quantiles_[i], int(n_steps), tile, step,

@@ -95,16 +95,19 @@ def kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000, fit_sample=5000, 
     docs/choices.md); all in float32 (the clustering only routes samples to clusters; each
     step reads the points, so half the bytes is about half the time). NumPy only: importing
     scikit-learn's KMeans would add its long import time to every fit."""
-    sub = X if len(X) <= init_sample else X[np.sort(rng.choice(len(X), init_sample, replace=False))]
-    centres = kmeans_plusplus(np.asarray(sub, dtype=np.float32), n_clusters, rng)
+    centres = kmeans_plusplus(np.asarray(_sample_rows(X, init_sample, rng), dtype=np.float32), n_clusters, rng)
     X = np.asarray(X, dtype=np.float32)
     steps = max_iter
     if len(X) > fit_sample:
-        part = X[np.sort(rng.choice(len(X), fit_sample, replace=False))]
-        _, centres = lloyd(part, centres, max_iter=max_iter)
+        _, centres = lloyd(_sample_rows(X, fit_sample, rng), centres, max_iter=max_iter)
         steps = polish
     labels, centres = lloyd(X, centres, max_iter=steps)
     return labels, centres.astype(np.float64)
+
+
+def _sample_rows(X, n, rng):
+    """``X``, or ``n`` of its rows drawn at random (kept in their order) when it has more."""
+    return X if len(X) <= n else X[np.sort(rng.choice(len(X), n, replace=False))]
 
 
 def _orthonormal(w, tol=0.01) -> bool:
