@@ -113,6 +113,37 @@ def test_every_phase_of_the_shifted_grid_is_used():
     assert (hits[6:-6, 6:-6] == 9).all()
 
 
+def test_scatter_adds_each_patch_to_its_own_pixels():
+    """The per-phase planes give the same sums as adding every patch offset to strided slices."""
+    rng = np.random.default_rng(0)
+    p = pr.PATCH
+    for stride in range(1, p + 1):
+        for h, w, top in ((30, 27, 0), (41, 33, 5), (p, p + 3, 0)):
+            bh, bw = (h - top - p) // stride + 1, (w - p) // stride + 1
+            gp = rng.standard_normal((2, p, p, bh, bw)).astype(np.float32)
+            want = np.zeros((2, h, w), np.float32)
+            for dy in range(p):
+                for dx in range(p):
+                    want[:, top + dy: top + dy + stride * (bh - 1) + 1: stride,
+                         dx: dx + stride * (bw - 1) + 1: stride] += gp[:, dy, dx]
+            got = np.zeros((2, h, w), np.float32)
+            pr._scatter(got, gp, stride, top)
+            assert np.array_equal(got, want), (stride, h, w, top)
+
+
+def test_gradient_in_bands_matches_one_piece(monkeypatch):
+    """Large images are projected in bands of rows that share one rank table: with every
+    patch in that table the result is the one-piece gradient (up to summation order)."""
+    st = pr.fit_patch_statistics(1, data.cells(64, rng=1))
+    img = data.cells(70, rng=2).astype(np.float32)
+    d, t = st.directions_[0, 0], st.quantiles_[0, 0]
+    whole = [pr._gradient(img, d, t, s, (1, 0)) for s in (1, 2, 3)]
+    monkeypatch.setattr(pr, "_CHUNK", 200)
+    for s, one in zip((1, 2, 3), whole):
+        bands = pr._gradient(img, d, t, s, (1, 0))
+        assert np.abs(one).max() > 1 and np.allclose(bands, one, atol=1e-4)
+
+
 def test_large_images_move_through_a_shifted_strided_grid(monkeypatch):
     """Above _STRIDE_PIXELS a step takes every second patch each way, the grid shifted from
     step to step: four steps move the image as a whole, not one phase of it."""

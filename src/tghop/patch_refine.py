@@ -200,16 +200,16 @@ def _whitened(u, x, w):
 
 
 def _grid(y):
-    """Each column's table grid for the projections ``y`` (n, K): its minimum and the
-    entries per unit, _BINS entries between the column's extremes."""
-    lo = y.min(axis=0)
-    return lo, ((_BINS - 1) / np.maximum(y.max(axis=0) - lo, np.float32(1e-12))).astype(np.float32)
+    """Each row's table grid for the projections ``y`` (K, n): its minimum and the entries
+    per unit, _BINS entries between the row's extremes."""
+    lo = y.min(axis=1)
+    return lo, ((_BINS - 1) / np.maximum(y.max(axis=1) - lo, np.float32(1e-12))).astype(np.float32)
 
 
 def _table(idx, target):
     """The stored quantile ``target`` (K, Q) at the mid-rank of each table entry, given
-    the entries ``idx`` (n, K) of :func:`_bins`: (K * _BINS,) float32."""
-    n, k = idx.shape
+    the entries ``idx`` (K, n) of :func:`_bins`: (K * _BINS,) float32."""
+    k, n = idx.shape
     counts = np.bincount(idx.ravel(), minlength=k * _BINS).reshape(k, _BINS)
     mid = np.cumsum(counts, axis=1) - 0.5 * (counts + 1)
     mid *= (target.shape[1] - 1) / max(n - 1, 1)
@@ -222,14 +222,37 @@ def _table(idx, target):
 
 
 def _bins(y, lo, scale):
-    """Each value's table entry, offset by its column: int32 (n, K)."""
-    pos = y - lo
-    pos *= scale
+    """Each value's table entry, offset by its row: int32 (K, n)."""
+    pos = y - lo[:, None]
+    pos *= scale[:, None]
     pos += 0.5
     np.clip(pos, 0, _BINS - 1, out=pos)
     idx = pos.astype(np.int32)
-    idx += np.arange(y.shape[1], dtype=np.int32) * _BINS
+    idx += np.arange(y.shape[0], dtype=np.int32)[:, None] * _BINS
     return idx
+
+
+def _scatter(out, gp, stride, top):
+    """Add what each patch asks of its pixels, ``gp`` (C, p, p, bh, bw) for the patches at
+    rows ``top + stride * i`` and columns ``stride * j``, to ``out`` (C, H, W), in place.
+
+    Summed per phase of the grid into contiguous planes first, then interleaved once: the
+    same sums, in the same order, as adding each offset to strided slices of ``out``.
+    """
+    c, p, _, bh, bw = gp.shape
+    a = -(-p // stride)  # grid rows a patch spans
+    planes = np.zeros((c, stride, stride, bh + a - 1, bw + a - 1), dtype=np.float32)
+    for dy in range(p):
+        for dx in range(p):
+            i, j = dy // stride, dx // stride
+            planes[:, dy % stride, dx % stride, i: i + bh, j: j + bw] += gp[:, dy, dx]
+    h, w = out.shape[1] - top, out.shape[2]
+    for py in range(stride):
+        for px in range(stride):
+            rows = min(bh + a - 1, -(-(h - py) // stride))
+            cols = min(bw + a - 1, -(-(w - px) // stride))
+            out[:, top + py: top + py + stride * rows: stride, px: px + stride * cols: stride] += (
+                planes[:, py, px, :rows, :cols])
 
 
 def _gradient(x, dirs, target, stride, origin=(0, 0)):
@@ -248,7 +271,7 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
     if hh > rows:  # several chunks: the ranks from patches on a grid of at most _RANK_PATCHES
         sub = max(1, int(np.ceil(np.sqrt(n / _RANK_PATCHES))))
         ys, _ = _windows(x, p, stride * sub)
-        ys = ys @ dirs.T
+        ys = dirs @ ys.T
         lo, scale = _grid(ys)
         tables = lo, scale, _table(_bins(ys, lo, scale), target)
         del ys
@@ -256,7 +279,7 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
         r1 = min(hh, r0 + rows)
         band = x[r0 * stride: (r1 - 1) * stride + p]
         xs, (bh, bw) = _windows(band, p, stride)
-        y = xs @ dirs.T
+        y = dirs @ xs.T  # (K, patches): each direction's projections contiguous
         del xs
         if tables is None:  # one chunk: its own values give the ranks
             lo, scale = _grid(y)
@@ -267,12 +290,7 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
             idx = _bins(y, lo, scale)
         y -= np.take(table, idx, mode="clip")
         g = np.sign(y, out=y)
-        gp = (dirs.T @ g.T).reshape(c, p, p, bh, bw)  # what each patch asks of each of its pixels
-        sy, sx = stride * (bh - 1) + 1, stride * (bw - 1) + 1
-        top = r0 * stride
-        for dy in range(p):
-            for dx in range(p):
-                out[:, top + dy: top + dy + sy: stride, dx: dx + sx: stride] += gp[:, dy, dx]
+        _scatter(out, (dirs.T @ g).reshape(c, p, p, bh, bw), stride, r0 * stride)
     return grad
 
 
