@@ -381,8 +381,8 @@ PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
 #: "best" takes 45 Adam steps per level of the patch refinement, every patch at full
-#: resolution, at any size (docs/choices.md, "Patch refinement": about 3 s more at 256x256
-#: on 2 cores than the default's 20 steps at stride 2).
+#: resolution, at any size (its cost against the default's 28 steps at stride 2:
+#: docs/choices.md, "Patch refinement").
 QUALITY = {"default": {}, "best": {"patch_refine": 45, "patch_stride": 1}}
 
 
