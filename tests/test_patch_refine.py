@@ -183,6 +183,25 @@ def test_patch_stride_thins_every_level(patch_model, monkeypatch):
         patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=9)
 
 
+def test_coarser_levels_travel_a_bounded_distance(patch_model, monkeypatch):
+    """The full level steps LEARNING_RATE; a coarser level COARSE_RATE, but at most
+    COARSE_TRAVEL over all its steps (more steps take shorter ones)."""
+    img = patch_model.synthesize((64, 64), rng=2, patch_refine=0).astype(np.float32)
+    seen = []
+
+    def spy(x, dirs, target, n_steps, tile, stride, lr):
+        seen.append((x.shape[0], n_steps, lr))
+        return x
+    monkeypatch.setattr(pr, "_steps", spy)
+    for n in (4, 45, 200):
+        seen.clear()
+        pr.patch_refine(img, patch_model.patches_, n_steps=n)
+        (coarse, steps, lr_coarse), (full, _, lr_full) = seen
+        assert coarse < full and steps == n and lr_full == pr.LEARNING_RATE
+        assert lr_coarse == min(pr.COARSE_RATE, pr.COARSE_TRAVEL / n) and n * lr_coarse <= pr.COARSE_TRAVEL + 1e-12
+    assert pr.COARSE_TRAVEL / 200 < pr.COARSE_RATE == min(pr.COARSE_RATE, pr.COARSE_TRAVEL / 4)
+
+
 def test_synthesis_is_deterministic_and_light_by_default(patch_model):
     a = patch_model.synthesize((64, 64), rng=5, patch_refine=5)
     b = patch_model.synthesize((64, 64), rng=5, patch_refine=5)

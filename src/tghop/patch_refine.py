@@ -52,8 +52,10 @@ _FIT_SIDE = 512
 #: Adam's step at full resolution, in pixel values of [0, 1] (GPDM: 0.01 in [-1, 1] from
 #: noise; from a finished image smaller steps: docs/choices.md).
 LEARNING_RATE = 0.002
-#: Adam's step at the coarser levels (larger ones smear the full level: docs/choices.md).
-COARSE_RATE = 0.001
+#: Adam's step at the coarser levels, at most COARSE_TRAVEL / steps: their changes, upsampled,
+#: smear the full level when they travel further in all (docs/choices.md, "0.22").
+COARSE_RATE = 0.0015
+COARSE_TRAVEL = 0.045
 #: Table entries of the rank matching per direction.
 _BINS = 4096
 #: Patches whose projections give the rank tables of a step (a strided subset beyond this).
@@ -352,7 +354,8 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
     tile : bool
         Periodic boundaries (the output stays tileable).
     learning_rate : float
-        Adam's step in pixel values at full resolution (coarser levels: ``COARSE_RATE``).
+        Adam's step in pixel values at full resolution (coarser levels: ``COARSE_RATE``, or
+        ``COARSE_TRAVEL / n_steps`` where that is less).
     progress : callable, optional
         ``progress("patch refine", done_steps, total_steps)``.
 
@@ -382,7 +385,7 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         # shifted every step, so that a step's cost grows more slowly than the image.
         step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride))
         new = _steps(cur, stats.directions_[i], stats.quantiles_[i], int(n_steps), tile, step,
-                     float(learning_rate) if i == 0 else COARSE_RATE)
+                     float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))
         np.clip(new, 0.0, 1.0, out=new)
         done += n_steps
         report(progress, "patch refine", done, total)
