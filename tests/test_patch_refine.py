@@ -132,8 +132,9 @@ def test_scatter_adds_each_patch_to_its_own_pixels():
 
 
 def test_gradient_in_bands_matches_one_piece(monkeypatch):
-    """Large images are projected in bands of rows that share one rank table: with every
-    patch in that table the result is the one-piece gradient (up to summation order)."""
+    """Patches are cut out and sent back in bands of rows that share one rank table: with
+    every patch in that table the result is the one-piece gradient (up to summation order);
+    with the ranks of a quarter of them (large images), bands and one piece agree too."""
     st = pr.fit_patch_statistics(1, data.cells(64, rng=1))
     img = data.cells(70, rng=2).astype(np.float32)
     d, t = st.directions_[0, 0], st.quantiles_[0, 0]
@@ -142,6 +143,11 @@ def test_gradient_in_bands_matches_one_piece(monkeypatch):
     for s, one in zip((1, 2, 3), whole):
         bands = pr._gradient(img, d, t, s, (1, 0))
         assert np.abs(one).max() > 1 and np.allclose(bands, one, atol=1e-4)
+    monkeypatch.setattr(pr, "_RANK_PATCHES", 1000)  # 4,096 patches at stride 1: ranks from every 2nd each way
+    ranked = pr._gradient(img, d, t, 1, (1, 0))
+    monkeypatch.setattr(pr, "_CHUNK", 1 << 20)
+    assert np.allclose(ranked, pr._gradient(img, d, t, 1, (1, 0)), atol=1e-4)
+    assert not np.allclose(ranked, whole[0], atol=1e-4)  # other ranks: this path was taken
 
 
 def test_large_images_move_through_a_shifted_strided_grid(monkeypatch):

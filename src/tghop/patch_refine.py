@@ -60,8 +60,9 @@ COARSE_TRAVEL = 0.045
 _BINS = 4096
 #: Patches whose projections give the rank tables of a step (a strided subset beyond this).
 _RANK_PATCHES = 1 << 16
-#: Patches projected at once (bounds the memory of large images).
-_CHUNK = 1 << 16
+#: Patches cut out at once: their copies stay in the cache, and the memory of large images
+#: stays bounded (docs/choices.md, Patch refinement).
+_CHUNK = 1 << 14
 #: Pixels of a level moved through every patch; larger levels use a stride (:func:`_stride`).
 _STRIDE_PIXELS = 1 << 17
 _MAX_STRIDE = 4
@@ -260,7 +261,13 @@ def _scatter(out, gp, stride, top):
 def _gradient(x, dirs, target, stride, origin=(0, 0)):
     """The gradient of the L1 sliced distance of an (H, W, C) image's patches (every
     ``stride``-th position from ``origin``) along ``dirs`` (K, D) to ``target`` (K, Q):
-    (C, H, W) float32."""
+    (C, H, W) float32.
+
+    The patches are cut out and sent back to their pixels in bands of rows of about _CHUNK
+    patches, so that a band's copies stay in the cache. Up to _RANK_PATCHES patches, every
+    patch's projection is kept (K x 4 bytes each) and gives the ranks; above, the ranks
+    come from the patches on a coarser grid, and each band is projected when it is needed.
+    """
     p = PATCH
     grad = np.zeros((x.shape[2], x.shape[0], x.shape[1]), dtype=np.float32)
     out = grad[:, origin[0]:, origin[1]:]  # the grid's part of the image
@@ -269,30 +276,35 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
     (hh, ww) = ((h - p) // stride + 1, (w - p) // stride + 1)
     n = hh * ww
     rows = max(1, _CHUNK // ww)
-    tables = None
-    if hh > rows:  # several chunks: the ranks from patches on a grid of at most _RANK_PATCHES
-        sub = max(1, int(np.ceil(np.sqrt(n / _RANK_PATCHES))))
-        ys, _ = _windows(x, p, stride * sub)
-        ys = dirs @ ys.T
-        lo, scale = _grid(ys)
-        tables = lo, scale, _table(_bins(ys, lo, scale), target)
-        del ys
-    for r0 in range(0, hh, rows):
-        r1 = min(hh, r0 + rows)
-        band = x[r0 * stride: (r1 - 1) * stride + p]
-        xs, (bh, bw) = _windows(band, p, stride)
-        y = dirs @ xs.T  # (K, patches): each direction's projections contiguous
-        del xs
-        if tables is None:  # one chunk: its own values give the ranks
-            lo, scale = _grid(y)
-            idx = _bins(y, lo, scale)
-            table = _table(idx, target)
-        else:
-            lo, scale, table = tables
-            idx = _bins(y, lo, scale)
-        y -= np.take(table, idx, mode="clip")
+    bands = [(r0, min(hh, r0 + rows)) for r0 in range(0, hh, rows)]
+
+    def patches(r0, r1):  # (D, patches) of the grid rows r0 to r1
+        return _windows(x[r0 * stride: (r1 - 1) * stride + p], p, stride)[0].T
+
+    def back(g, r0, r1):  # what the patches of those rows ask of their pixels, added to the gradient
+        _scatter(out, (dirs.T @ g).reshape(c, p, p, r1 - r0, ww), stride, r0 * stride)
+
+    if n <= _RANK_PATCHES:
+        y = np.empty((dirs.shape[0], n), dtype=np.float32)  # each direction's projections contiguous
+        for r0, r1 in bands:
+            np.matmul(dirs, patches(r0, r1), out=y[:, r0 * ww: r1 * ww])
+        lo, scale = _grid(y)
+        idx = _bins(y, lo, scale)
+        y -= np.take(_table(idx, target), idx, mode="clip")
+        del idx
         g = np.sign(y, out=y)
-        _scatter(out, (dirs.T @ g).reshape(c, p, p, bh, bw), stride, r0 * stride)
+        for r0, r1 in bands:
+            back(g[:, r0 * ww: r1 * ww], r0, r1)
+        return grad
+    sub = int(np.ceil(np.sqrt(n / _RANK_PATCHES)))
+    ys = dirs @ _windows(x, p, stride * sub)[0].T
+    lo, scale = _grid(ys)
+    table = _table(_bins(ys, lo, scale), target)
+    del ys
+    for r0, r1 in bands:
+        y = dirs @ patches(r0, r1)
+        y -= np.take(table, _bins(y, lo, scale), mode="clip")
+        back(np.sign(y, out=y), r0, r1)
     return grad
 
 
