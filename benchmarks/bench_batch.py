@@ -19,6 +19,10 @@ Modes, each a `tghop.batch.run` on the same manifest:
 * optionally (`--scheduler-workers N`) a cluster of N worker processes started first and
   used by address, as `tghop batch --scheduler ADDRESS` does.
 
+The in-process passes run with a cluster worker's glibc malloc settings
+(`tghop.batch.tune_malloc`; `--serial-malloc default`: glibc's own), so that the serial work
+and the cluster's tasks differ only in running side by side.
+
 Reported: each mode's wall time; the serial work S (the sum of the one-thread
 single-exemplar times); efficiency = S / (cores x wall), the standard parallel efficiency
 (1.0: every core busy with useful work all the time); the per-exemplar overhead of the
@@ -32,7 +36,7 @@ and the efficiency against the all-thread in-process sum, which counts every cor
 is kept, labelled as such. Timings on a shared machine are noisy: the load average before
 and after is recorded, and the CPU seconds of each task beside its wall time.
 
-Writes benchmarks/results/batch-efficiency[-limitN][-cropN].{json,md}.
+Writes benchmarks/results/batch-efficiency[-limitN][-cropN][-TAG].{json,md}.
 """
 
 from __future__ import annotations
@@ -147,7 +151,17 @@ def main():
                     help="skip the in-process run with all threads (the old comparison)")
     ap.add_argument("--scheduler-workers", type=int, default=0,
                     help="also: start a local cluster of this many worker processes and run on it by address")
+    ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--serial-malloc", choices=("worker", "default"), default="worker",
+                    help="glibc malloc settings of the in-process passes: a worker's (tghop.batch.tune_malloc, "
+                         "like for like with the cluster) or glibc's defaults")
     args = ap.parse_args()
+    if args.serial_malloc == "worker":
+        # The serial work is measured under the settings the cluster's workers run with, so
+        # that the efficiency compares two tasks side by side with one alone, not two mallocs.
+        from tghop import batch
+
+        batch.tune_malloc()
     names = texture_names()[: args.limit]
     if not names:
         raise SystemExit(f"no textures in {TEXTURES}; set TGHOP_TEXTURES")
@@ -222,8 +236,8 @@ def main():
     md = (f"# bench_batch: {len(names)} exemplars{crop}, {args.count} images each at {args.size}x{args.size}, "
           f"{cores} cores\n\nLoad average before {load_before[0]:.1f}, after {load_after[0]:.1f} (a shared "
           f"machine: other sessions' work competes with these runs; timings are noisy).\n\n"
-          f"Serial work S (sum of the one-thread single-exemplar times, in process): {work:.1f} s "
-          f"({work / len(names):.2f} s per exemplar).\n\n"
+          f"Serial work S (sum of the one-thread single-exemplar times, in process, malloc settings: "
+          f"{args.serial_malloc}): {work:.1f} s ({work / len(names):.2f} s per exemplar).\n\n"
           + markdown_table(header, rows)
           + "\n\nefficiency = S / (cores x wall), cores capped at the machine's; task time vs one thread: each "
             "exemplar's task time in this mode against its one-thread in-process time (the cluster's overhead "
@@ -246,9 +260,10 @@ def main():
                "kernel when the workers run them at the same time, whatever runs the tasks." if ceiling else "")
           + f"\n\nCommand: `python benchmarks/bench_batch.py {' '.join(sys.argv[1:])}`".rstrip() + "")
     print(md)
-    name = "batch-efficiency" + (f"-limit{args.limit}" if args.limit else "") + (f"-crop{args.crop}" if args.crop else "")
+    name = ("batch-efficiency" + (f"-limit{args.limit}" if args.limit else "") + (f"-crop{args.crop}" if args.crop else "")
+            + (f"-{args.tag}" if args.tag else ""))
     write_results(name, {"exemplars": names, "crop": args.crop, "count": args.count, "size": args.size, "cores": cores,
-                         "serial_work_s": work, "load_before": load_before, "load_after": load_after,
+                         "serial_work_s": work, "serial_malloc": args.serial_malloc, "load_before": load_before, "load_after": load_after,
                          "argv": sys.argv[1:], "one_thread": serial, "all_threads": all_threads, "cluster": cluster,
                          "scheduler": scheduled, "machine_ceiling": ceiling}, md)
 

@@ -36,7 +36,7 @@ from ._errors import MissingExtraError, TGHopError
 
 __all__ = ["run", "find_work", "process_exemplar", "read_ledger", "write_contact_sheet", "local_cluster",
            "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
-           "tune_malloc", "dask_setup"]
+           "WORKER_ENVIRON", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
@@ -48,13 +48,22 @@ ROW_SETTINGS = ("size", "count", "seed", "tile")
 INSTALL_HINT = "pip install 'tghop[batch]'"
 #: Longest side of the exemplar thumbnail of the contact sheet.
 THUMBNAIL = 128
-#: glibc ``malloc`` thresholds a worker sets (:func:`dask_setup`, ``mallopt``): the steady
-#: state of glibc's own adaptive ones (arrays up to 32 MB reuse freed heap memory, at most
-#: 64 MB is kept at the top of the heap). Dask starts its workers with
-#: ``MALLOC_TRIM_THRESHOLD_=65536``, which also turns the adaptation off: every large array
-#: is then a fresh, page-faulted mapping, and an exemplar took 37 % longer (docs/batch.md).
-WORKER_MALLOC = {"M_MMAP_THRESHOLD": 32 << 20, "M_TRIM_THRESHOLD": 64 << 20}
-_MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_THRESHOLD": -3}  # glibc's malloc.h
+#: glibc ``malloc`` settings a worker makes (:func:`dask_setup`, ``mallopt``): no array gets
+#: a mapping of its own (``M_MMAP_MAX`` 0: every array, however large, comes from the heap and
+#: goes back to it), and up to 1 GB freed at the top of the heap is kept for the next one. A
+#: task allocates and frees arrays of tens to hundreds of MB many times; each fresh mapping is
+#: page-faulted and zeroed by the kernel again. Dask starts its workers with
+#: ``MALLOC_TRIM_THRESHOLD_=65536`` (every array above 64 KB a fresh mapping: an exemplar took
+#: 37 % longer); glibc's own adaptive thresholds map arrays above 32 MB (docs/batch.md).
+WORKER_MALLOC = {"M_MMAP_MAX": 0, "M_TRIM_THRESHOLD": 1 << 30}
+#: Set in a worker's environment before it starts (:func:`local_cluster`): one malloc arena,
+#: so that the task's thread allocates from the main heap (the only one ``M_MMAP_MAX``
+#: keeps large arrays in: a thread's own arena maps anything above 64 MB). glibc reads it at
+#: start only; a value of one's own in the environment is kept.
+WORKER_ENVIRON = {"MALLOC_ARENA_MAX": "1"}
+_MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_MAX": -4}  # glibc's malloc.h
+#: Each WORKER_MALLOC setting's environment variable, and the value Dask puts there (None: none).
+_MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("MALLOC_TRIM_THRESHOLD_", "65536")}
 
 
 # ------------------------------------------------------------------ finding work
@@ -433,7 +442,7 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     dashboard, a worker's death allowed ``retries`` times per task.
 
     Each worker runs :func:`dask_setup` first (a preload): among others, its ``malloc``
-    keeps freed memory for reuse (:data:`WORKER_MALLOC`)."""
+    keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`)."""
     distributed = _import_distributed()
     import logging
 
@@ -442,6 +451,7 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     n = n_workers or _cores()
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
     environ.update({v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
+    environ.update(WORKER_ENVIRON)
     with dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
                           "distributed.nanny.pre-spawn-environ": environ}):
         return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
@@ -455,15 +465,16 @@ def dask_setup(worker):
     closes the cluster, which ends the workers), so the workers ignore it instead of each
     printing a traceback; malloc keeps freed memory for reuse (:func:`tune_malloc`); and
     the modules of a task are imported. (Workers started by hand for ``--scheduler`` get
-    glibc's adaptive thresholds' steady state from the environment:
-    ``MALLOC_TRIM_THRESHOLD_=67108864 MALLOC_MMAP_THRESHOLD_=33554432 dask worker ...``.)"""
+    the same from the environment: ``MALLOC_ARENA_MAX=1 MALLOC_MMAP_MAX_=0
+    MALLOC_TRIM_THRESHOLD_=1073741824 dask worker ...``.)"""
     import signal
     import threading
 
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if os.environ.get("MALLOC_TRIM_THRESHOLD_", "65536") == "65536":  # Dask's (a value of one's own is kept)
-        tune_malloc()
+    # Dask's MALLOC_TRIM_THRESHOLD_ is replaced; a value of one's own in the environment is kept.
+    tune_malloc(keep=[k for k, (name, dask_value) in _MALLOC_ENV.items()
+                      if os.environ.get(name, dask_value) != dask_value])
     # What a task needs, imported while the cluster starts (in every worker at once)
     # rather than in each worker's first task.
     import numpy.fft  # noqa: F401
@@ -473,9 +484,9 @@ def dask_setup(worker):
     from . import fit_options, imageio, modelfile, synthesis  # noqa: F401
 
 
-def tune_malloc() -> bool:
-    """Set :data:`WORKER_MALLOC` in this process's glibc ``malloc`` (``mallopt``); False
-    where there is no glibc."""
+def tune_malloc(keep=()) -> bool:
+    """Set :data:`WORKER_MALLOC` in this process's glibc ``malloc`` (``mallopt``), but for
+    the settings named in ``keep``; False where there is no glibc."""
     import ctypes
     import ctypes.util
 
@@ -484,7 +495,7 @@ def tune_malloc() -> bool:
         mallopt = libc.mallopt
     except (OSError, AttributeError):
         return False
-    return all(mallopt(_MALLOPT[k], int(v)) == 1 for k, v in WORKER_MALLOC.items())
+    return all(mallopt(_MALLOPT[k], int(v)) == 1 for k, v in WORKER_MALLOC.items() if k not in keep)
 
 
 def _cores() -> int:
