@@ -332,7 +332,7 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("patch_refine", None, "int",
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 7x7 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
-            "patch_levels; 0: off). auto (None in Python): 28 on images of up to 512x512 pixels, none on "
+            "patch_levels; 0: off). auto (None in Python): 36 on images of up to 512x512 pixels, none on "
             "larger ones (the cost grows with the image; give a number to refine them too).",
             when="generate", low=0, high=500, none_ok=True, auto=True, paper=0),
     Setting("patch_stride", 2, "int",
@@ -381,7 +381,7 @@ PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
 #: "best" takes 45 Adam steps per level of the patch refinement, every patch at full
-#: resolution, at any size (its cost against the default's 28 steps at stride 2:
+#: resolution, at any size (its cost against the default's 36 steps at stride 2:
 #: docs/choices.md, "Patch refinement").
 QUALITY = {"default": {}, "best": {"patch_refine": 45, "patch_stride": 1}}
 

@@ -640,7 +640,7 @@ class TGHop(BaseEstimator):
         patch_refine : int or None
             Adam steps per pyramid level of the patch refinement, the last step
             (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off; None:
-            28 on images of at most 512x512 pixels, 0 on larger ones.
+            36 on images of at most 512x512 pixels, 0 on larger ones.
         patch_stride : int
             Its steps take every ``patch_stride``-th patch each way at each level.
         reuse : float
