@@ -260,10 +260,11 @@ def main():
                "kernel when the workers run them at the same time, whatever runs the tasks." if ceiling else "")
           + f"\n\nCommand: `python benchmarks/bench_batch.py {' '.join(sys.argv[1:])}`".rstrip() + "")
     print(md)
-    name = ("batch-efficiency" + (f"-limit{args.limit}" if args.limit else "") + (f"-crop{args.crop}" if args.crop else "")
-            + (f"-{args.tag}" if args.tag else ""))
+    name = ("batch-efficiency" + (f"-limit{args.limit}" if args.limit else "")
+            + (f"-crop{args.crop}" if args.crop else "") + (f"-{args.tag}" if args.tag else ""))
     write_results(name, {"exemplars": names, "crop": args.crop, "count": args.count, "size": args.size, "cores": cores,
-                         "serial_work_s": work, "serial_malloc": args.serial_malloc, "load_before": load_before, "load_after": load_after,
+                         "serial_work_s": work, "serial_malloc": args.serial_malloc,
+                         "load_before": load_before, "load_after": load_after,
                          "argv": sys.argv[1:], "one_thread": serial, "all_threads": all_threads, "cluster": cluster,
                          "scheduler": scheduled, "machine_ceiling": ceiling}, md)
 
