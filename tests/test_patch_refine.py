@@ -19,10 +19,15 @@ def patch_model():
     return TGHop(**SMALL, patch_levels=3).fit(data.cells(96, rng=3))
 
 
+def _rows(img):
+    """Every 7x7 patch of an (H, W, C) image as rows (n, C * 49)."""
+    return pr._columns(img.transpose(2, 0, 1), pr.PATCH).T
+
+
 def _patch_swd(img, stats):
     """Mean distance of the image's projection quantiles to the stored ones (full resolution,
     every patch), per direction set."""
-    x, _ = pr._windows(np.asarray(img, np.float32), pr.PATCH)
+    x = _rows(np.asarray(img, np.float32))
     out = []
     for j in range(pr.SETS):
         proj = x @ stats.directions_[0, j].T
@@ -40,7 +45,7 @@ def test_statistics_shapes_and_directions(patch_model):
     assert (np.diff(st.quantiles_, axis=-1) >= 0).all()
     # The quantiles are the exemplar's: a direction's quantiles against np.quantile of the projections.
     ex = data.cells(96, rng=3).astype(np.float32)
-    x, _ = pr._windows(ex, pr.PATCH)
+    x = _rows(ex)
     proj = x @ st.directions_[0, 1, 5]
     assert np.allclose(st.quantiles_[0, 1, 5], np.quantile(proj, np.linspace(0, 1, pr.QUANTILES)), atol=1e-5)
     # Stored unless switched off: then no arrays, no parameters.
@@ -56,7 +61,7 @@ def test_whitened_directions_see_detail_not_the_patch_mean():
     carries most of its variance); the quantiles stay those of the projections; 0 keeps the
     directions uniform, exactly as drawn before the setting existed."""
     ex = data.cells(96, rng=3).astype(np.float32)
-    x, _ = pr._windows(ex, pr.PATCH)
+    x = _rows(ex)
     mean = x.mean(axis=1)
     corr = {}
     for w in (0.0, 0.25, 0.5):
@@ -106,8 +111,8 @@ def test_every_phase_of_the_shifted_grid_is_used():
     # so that with stride 3, nine steps touch every pixel from every place in a patch: the
     # summed gradient magnitude of the interior is nowhere zero
     st = pr.fit_patch_statistics(1, data.cells(64, rng=1))
-    img = data.cells(40, rng=2).astype(np.float32)
-    hits = np.zeros(img.shape[:2])
+    img = data.cells(40, rng=2).astype(np.float32).transpose(2, 0, 1)  # channel-first
+    hits = np.zeros(img.shape[1:])
     for oy, ox in pr._phases(3):
         hits += np.abs(pr._gradient(img, st.directions_[0, 0], st.quantiles_[0, 0], 3, (oy, ox))).sum(0) > 0
     assert (hits[6:-6, 6:-6] == 9).all()
@@ -136,7 +141,7 @@ def test_gradient_in_bands_matches_one_piece(monkeypatch):
     every patch in that table the result is the one-piece gradient (up to summation order);
     with the ranks of a quarter of them (large images), bands and one piece agree too."""
     st = pr.fit_patch_statistics(1, data.cells(64, rng=1))
-    img = data.cells(70, rng=2).astype(np.float32)
+    img = np.ascontiguousarray(data.cells(70, rng=2).astype(np.float32).transpose(2, 0, 1))
     d, t = st.directions_[0, 0], st.quantiles_[0, 0]
     whole = [pr._gradient(img, d, t, s, (1, 0)) for s in (1, 2, 3)]
     monkeypatch.setattr(pr, "_CHUNK", 200)

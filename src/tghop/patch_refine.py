@@ -86,11 +86,11 @@ def _levels_of(img, n_levels, mode):
     return out
 
 
-def _windows(img, p, stride=1):
-    """The p x p windows of an (H, W, C) image at ``stride``, as rows (n, C * p * p) (channel,
-    row, column), a copy; and the grid's shape."""
-    v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(0, 1))[::stride, ::stride]
-    return np.ascontiguousarray(v).reshape(v.shape[0] * v.shape[1], -1), v.shape[:2]
+def _columns(img, p, stride=1):
+    """The p x p windows at ``stride`` of a channel-first (C, H, W) image, as columns
+    (C * p * p, n) (channel, row, column; windows row-major), a contiguous copy."""
+    v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(1, 2))[:, ::stride, ::stride]
+    return np.ascontiguousarray(v.transpose(0, 3, 4, 1, 2)).reshape(img.shape[0] * p * p, -1)
 
 
 class PatchStatistics:
@@ -259,7 +259,7 @@ def _scatter(out, gp, stride, top):
 
 
 def _gradient(x, dirs, target, stride, origin=(0, 0)):
-    """The gradient of the L1 sliced distance of an (H, W, C) image's patches (every
+    """The gradient of the L1 sliced distance of a channel-first (C, H, W) image's patches (every
     ``stride``-th position from ``origin``) along ``dirs`` (K, D) to ``target`` (K, Q):
     (C, H, W) float32.
 
@@ -269,17 +269,17 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
     come from the patches on a coarser grid, and each band is projected when it is needed.
     """
     p = PATCH
-    grad = np.zeros((x.shape[2], x.shape[0], x.shape[1]), dtype=np.float32)
+    grad = np.zeros(x.shape, dtype=np.float32)
     out = grad[:, origin[0]:, origin[1]:]  # the grid's part of the image
-    x = x[origin[0]:, origin[1]:]
-    h, w, c = x.shape
+    x = x[:, origin[0]:, origin[1]:]
+    c, h, w = x.shape
     (hh, ww) = ((h - p) // stride + 1, (w - p) // stride + 1)
     n = hh * ww
     rows = max(1, _CHUNK // ww)
     bands = [(r0, min(hh, r0 + rows)) for r0 in range(0, hh, rows)]
 
     def patches(r0, r1):  # (D, patches) of the grid rows r0 to r1
-        return _windows(x[r0 * stride: (r1 - 1) * stride + p], p, stride)[0].T
+        return _columns(x[:, r0 * stride: (r1 - 1) * stride + p], p, stride)
 
     def back(g, r0, r1):  # what the patches of those rows ask of their pixels, added to the gradient
         _scatter(out, (dirs.T @ g).reshape(c, p, p, r1 - r0, ww), stride, r0 * stride)
@@ -297,7 +297,7 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
             back(g[:, r0 * ww: r1 * ww], r0, r1)
         return grad
     sub = int(np.ceil(np.sqrt(n / _RANK_PATCHES)))
-    ys = dirs @ _windows(x, p, stride * sub)[0].T
+    ys = dirs @ _columns(x, p, stride * sub)
     lo, scale = _grid(ys)
     table = _table(_bins(ys, lo, scale), target)
     del ys
@@ -315,10 +315,12 @@ def _phases(stride):
 
 
 def _steps(x, dirs, target, n_steps, tile, stride, lr):
-    """``n_steps`` Adam steps of an (H, W, C) float32 image, in place; step t's patches on
-    the grid shifted by the phase ``t mod stride^2``."""
+    """``n_steps`` Adam steps of an (H, W, C) float32 image (a new one); step t's patches on
+    the grid shifted by the phase ``t mod stride^2``. The steps work on the image channel-first
+    (C, H, W), so that patches are cut out of contiguous rows."""
     h, w, c = x.shape
     p = PATCH
+    x = np.ascontiguousarray(x.transpose(2, 0, 1))
     m = np.zeros((c, h, w), dtype=np.float32)
     v = np.zeros((c, h, w), dtype=np.float32)
     b1, b2, eps = 0.9, 0.999, 1e-8
@@ -327,8 +329,8 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
         j = t % len(dirs)
         oy, ox = phases[t % len(phases)]
         if tile:  # periodic: shift the image itself, and fold the wrapped margin back
-            src = np.roll(x, (-oy, -ox), axis=(0, 1)) if oy or ox else x
-            g = _gradient(np.pad(src, ((0, p - 1), (0, p - 1), (0, 0)), mode="wrap"), dirs[j], target[j], stride)
+            src = np.roll(x, (-oy, -ox), axis=(1, 2)) if oy or ox else x
+            g = _gradient(np.pad(src, ((0, 0), (0, p - 1), (0, p - 1)), mode="wrap"), dirs[j], target[j], stride)
             g[:, : p - 1] += g[:, h:]
             g[:, :, : p - 1] += g[:, :, w:]
             g = np.roll(g[:, :h, :w], (oy, ox), axis=(1, 2)) if oy or ox else g[:, :h, :w]
@@ -340,8 +342,8 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
         v *= b2
         v += (1 - b2) * g
         step = (lr / (1 - b1 ** (t + 1))) * m / (np.sqrt(v / (1 - b2 ** (t + 1))) + eps)
-        x -= step.transpose(1, 2, 0)
-    return x
+        x -= step
+    return np.ascontiguousarray(x.transpose(1, 2, 0))
 
 
 def _stride(pixels):
