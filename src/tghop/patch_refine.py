@@ -71,7 +71,7 @@ _MAX_STRIDE = 4
 _EIGEN_FLOOR = 1e-3
 #: The default (``patch_refine`` None): this many steps per level on images of at most
 #: AUTO_PIXELS pixels, none on larger ones (docs/choices.md).
-AUTO_STEPS = 36
+AUTO_STEPS = 44
 AUTO_PIXELS = 512 * 512
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH

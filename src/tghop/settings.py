@@ -381,7 +381,7 @@ PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
 #: "best" takes 45 Adam steps per level of the patch refinement, every patch at full
-#: resolution, at any size (its cost against the default's 36 steps at stride 2:
+#: resolution, at any size (its cost against the default's 44 steps at stride 2:
 #: docs/choices.md, "Patch refinement").
 QUALITY = {"default": {}, "best": {"patch_refine": 45, "patch_stride": 1}}
 
