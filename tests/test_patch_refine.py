@@ -194,6 +194,52 @@ def test_patch_stride_thins_every_level(patch_model, monkeypatch):
         patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=9)
 
 
+def _nyquist_excess(change):
+    """Power of a change's 2-pixel patterns (the spectrum's middle rows and columns) against
+    that of the rows and columns next to them."""
+    f = np.abs(np.fft.fft2(change - change.mean(axis=(0, 1)), axes=(0, 1))) ** 2
+    h, w = change.shape[0] // 2, change.shape[1] // 2
+    return (f[h].mean() + f[:, w].mean()) / (0.5 * (f[h - 1].mean() + f[h + 1].mean() + f[:, w - 1].mean()
+                                                      + f[:, w + 1].mean()))
+
+
+def test_checker_of_the_strided_grid_is_taken_off_the_change():
+    """A 2-pixel pattern of the change whose strength varies over the image goes (each of
+    the three: rows, columns, both); a smooth change and sharp edges stay."""
+    rng = np.random.default_rng(0)
+    start = data.cells(64, rng=1).astype(np.float32)
+    yy, xx = np.mgrid[:64, :64].astype(np.float32)
+    envelope = (0.05 * (1 + np.sin(xx / 9) * np.cos(yy / 7)))[..., None] * np.ones(3, np.float32)
+    smooth = (0.1 * np.sin((xx + yy) / 11))[..., None] * np.ones(3, np.float32)
+    for sign in ((-1) ** yy, (-1) ** xx, (-1) ** (yy + xx)):
+        out = pr._without_checker(start + smooth + envelope * sign[..., None], start, False)
+        assert np.abs(out - (start + smooth)).max() < 0.2 * envelope.max()
+        assert np.abs(out - (start + smooth)).mean() < 0.1 * envelope.mean()
+    # A smooth change stays, up to its borders; a sharp step (one edge) keeps most of itself.
+    assert np.abs(pr._without_checker(start + smooth, start, False) - start - smooth).max() < 0.002
+    step = np.where(xx > 31.5, 0.3, 0.0).astype(np.float32)[..., None] * np.ones(3, np.float32)
+    out = pr._without_checker(start + step, start, False)
+    assert np.abs(out - start - step).max() < 0.1 * 0.3 and np.abs(out - start - step).mean() < 0.005
+    # Periodic images of odd width: only the rows' pattern is looked at (a column pattern
+    # of odd period would not wrap), and the result still wraps.
+    noise = rng.normal(0, 0.01, (64, 63, 3)).astype(np.float32)
+    out = pr._without_checker(noise, np.zeros_like(noise), True)
+    cols = (-1) ** np.arange(63)
+    assert np.allclose((out * cols[None, :, None]).mean(), (noise * cols[None, :, None]).mean(), atol=1e-6)
+
+
+def test_stride_two_leaves_no_checker(patch_model, monkeypatch):
+    """Refining at stride 2 leaves a 2-pixel pattern in the change; the default takes it off."""
+    img = patch_model.synthesize((96, 96), rng=2, patch_refine=0).astype(np.float32)
+    st = patch_model.patches_
+    kept = pr.patch_refine(img, st, n_steps=12, stride=2)
+    monkeypatch.setattr(pr, "_without_checker", lambda image, start, tile: image)
+    left = pr.patch_refine(img, st, n_steps=12, stride=2)
+    assert _nyquist_excess(left - img) > 1.3 * _nyquist_excess(kept - img)
+    assert np.array_equal(pr.patch_refine(img, st, n_steps=12, stride=1),
+                          pr.patch_refine(img, st, n_steps=12, stride=1))
+
+
 def test_coarser_levels_travel_a_bounded_distance(patch_model, monkeypatch):
     """The full level steps LEARNING_RATE; a coarser level COARSE_RATE, but at most
     COARSE_TRAVEL over all its steps (more steps take shorter ones)."""
@@ -225,6 +271,10 @@ def test_synthesis_is_deterministic_and_light_by_default(patch_model):
     assert a.shape == (64, 64, 3) and np.array_equal(a, b)
     assert not np.array_equal(a, off)
     assert (a >= 0).all() and (a <= 1).all()
+    # Sides of 7 and 8 pixels: some phases of the shifted grid hold no patch.
+    for size in ((7, 7), (7, 30), (8, 9)):
+        small = patch_model.synthesize(size, rng=5, patch_refine=3)
+        assert small.shape == size + (3,) and np.isfinite(small).all()
     u8 = patch_model.synthesize((64, 64), rng=5, patch_refine=2, dtype=np.uint8, tile=True)
     assert u8.dtype == np.uint8 and u8.shape == (64, 64, 3)
     f32 = patch_model.synthesize((64, 64), rng=5, patch_refine=5, dtype=np.float32)

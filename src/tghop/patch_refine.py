@@ -23,6 +23,8 @@ tghop's finished image (which already has the layout, so few steps suffice):
   ``t mod SETS``, gives each projection the stored quantile at its rank (1-D optimal
   transport, ranks from a histogram), and moves the pixels along the gradient of the L1
   distance between the two (as GPDM). A level's change is upsampled into the next finer one.
+  At stride 2 the full level's change loses the 2-pixel checker such steps leave
+  (:func:`_without_checker`).
 """
 
 from __future__ import annotations
@@ -73,6 +75,8 @@ _EIGEN_FLOOR = 1e-3
 #: AUTO_PIXELS pixels, none on larger ones (docs/choices.md).
 AUTO_STEPS = 44
 AUTO_PIXELS = 512 * 512
+#: Pixels added around a change before its checker is measured (:func:`_without_checker`).
+_CHECKER_MARGIN = 8
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH
 
@@ -273,6 +277,8 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
     out = grad[:, origin[0]:, origin[1]:]  # the grid's part of the image
     x = x[:, origin[0]:, origin[1]:]
     c, h, w = x.shape
+    if h < p or w < p:  # a grid shifted on a side of 7 or 8 pixels holds no patch
+        return grad
     (hh, ww) = ((h - p) // stride + 1, (w - p) // stride + 1)
     n = hh * ww
     rows = max(1, _CHUNK // ww)
@@ -400,10 +406,41 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride))
         new = _steps(cur, stats.directions_[i], stats.quantiles_[i], int(n_steps), tile, step,
                      float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))
+        if i == 0 and step == 2:
+            new = _without_checker(new, cur, tile)
         np.clip(new, 0.0, 1.0, out=new)
         done += n_steps
         report(progress, "patch refine", done, total)
     return new
+
+
+def _without_checker(image, start, tile):
+    """``image`` (H, W, C) less the 2-pixel checker that steps at stride 2 leave: within a
+    step, a pixel takes its change from the directions' coefficients of one parity only.
+    The change from ``start`` is demodulated by (-1)^row, (-1)^column and their product,
+    smoothed (two pyramid levels down and up again) and taken off: what each 2x2 phase of
+    the change does unlike its neighbours over a few pixels (docs/choices.md, "0.24")."""
+    m = _CHECKER_MARGIN
+    # Mirrored without repeating the edge (or wrapped): the margin keeps the parity of the
+    # pixels it copies, so a smooth change does not look like a checker at the borders.
+    change = np.pad(image - start, ((m, m), (m, m), (0, 0)), mode="wrap" if tile else "reflect")
+    h, w = change.shape[:2]
+    rows = np.where(np.arange(h) % 2, -1, 1).astype(np.float32)[:, None, None]
+    cols = np.where(np.arange(w) % 2, -1, 1).astype(np.float32)[None, :, None]
+    # A periodic image of odd side has no 2-periodic pattern along that side.
+    carriers = [c for c, n in ((rows, image.shape[0]), (cols, image.shape[1])) if not tile or n % 2 == 0]
+    if len(carriers) == 2:
+        carriers.append(rows * cols)
+    for carrier in carriers:
+        shapes, low = [], change * carrier
+        for _ in range(2):
+            shapes.append(low.shape)
+            low = downsample(low)
+        for shape in reversed(shapes):
+            low = upsample(low, shape)
+        low *= carrier
+        change -= low
+    return start + change[m:-m, m:-m]
 
 
 def steps_for(n_steps, size):
