@@ -104,6 +104,26 @@ def test_refinement_moves_patch_statistics_towards_the_exemplar(patch_model):
         pr.patch_refine(img, st, n_steps=-1)
 
 
+def test_rank_tables_give_each_projection_the_target_at_its_rank():
+    """Through the table, each projection gets the stored quantile at its rank, for a full
+    level's many patches (_BINS entries) and a coarse level's few (fewer entries: _n_bins)."""
+    rng = np.random.default_rng(0)
+    target = np.sort(rng.gamma(2.0, 1.0, (3, 5000)), axis=1)
+    target = np.quantile(target, np.linspace(0, 1, pr.QUANTILES), axis=1).T.astype(np.float32)  # (3, Q)
+    for n in (841, 3721, 15625):
+        y = rng.normal(0, 1, (3, n)).astype(np.float32)
+        bins = pr._n_bins(n)
+        assert pr._MIN_BINS <= bins <= pr._BINS and (bins == pr._BINS) == (n >= pr._PER_BIN * pr._BINS)
+        lo, scale = pr._grid(y, bins)
+        idx = pr._bins(y, lo, scale, bins)
+        got = np.take(pr._table(idx, target, bins), idx)
+        ranks = np.argsort(np.argsort(y, axis=1), axis=1) / (n - 1)
+        want = np.stack([np.interp(ranks[k], np.linspace(0, 1, pr.QUANTILES), target[k]) for k in range(3)])
+        spread = target[:, -1] - target[:, 0]
+        err = np.abs(got - want) / spread[:, None]
+        assert np.median(err) < 0.002 and np.quantile(err, 0.99) < 0.02, (n, np.median(err), np.quantile(err, 0.99))
+
+
 def test_every_phase_of_the_shifted_grid_is_used():
     for stride in (1, 2, 3, 4):
         phases = pr._phases(stride)

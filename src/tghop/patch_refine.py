@@ -58,8 +58,11 @@ LEARNING_RATE = 0.002
 #: smear the full level when they travel further in all (docs/choices.md, "0.22").
 COARSE_RATE = 0.0015
 COARSE_TRAVEL = 0.045
-#: Table entries of the rank matching per direction.
+#: Table entries of the rank matching per direction: one per _PER_BIN ranked patches, at least
+#: _MIN_BINS and at most _BINS (:func:`_n_bins`).
 _BINS = 4096
+_MIN_BINS = 256
+_PER_BIN = 3
 #: Patches whose projections give the rank tables of a step (a strided subset beyond this).
 _RANK_PATCHES = 1 << 16
 #: Patches cut out at once: their copies stay in the cache, and the memory of large images
@@ -206,18 +209,24 @@ def _whitened(u, x, w):
     return (out / np.linalg.norm(out, axis=1, keepdims=True)).astype(np.float32)
 
 
-def _grid(y):
+def _n_bins(n):
+    """Table entries per direction for ``n`` ranked patches: a coarser level's table costs
+    what its patches need, not a full level's."""
+    return int(min(_BINS, max(_MIN_BINS, n // _PER_BIN)))
+
+
+def _grid(y, bins):
     """Each row's table grid for the projections ``y`` (K, n): its minimum and the entries
-    per unit, _BINS entries between the row's extremes."""
+    per unit, ``bins`` entries between the row's extremes."""
     lo = y.min(axis=1)
-    return lo, ((_BINS - 1) / np.maximum(y.max(axis=1) - lo, np.float32(1e-12))).astype(np.float32)
+    return lo, ((bins - 1) / np.maximum(y.max(axis=1) - lo, np.float32(1e-12))).astype(np.float32)
 
 
-def _table(idx, target):
+def _table(idx, target, bins):
     """The stored quantile ``target`` (K, Q) at the mid-rank of each table entry, given
-    the entries ``idx`` (K, n) of :func:`_bins`: (K * _BINS,) float32."""
+    the entries ``idx`` (K, n) of :func:`_bins`: (K * bins,) float32."""
     k, n = idx.shape
-    counts = np.bincount(idx.ravel(), minlength=k * _BINS).reshape(k, _BINS)
+    counts = np.bincount(idx.ravel(), minlength=k * bins).reshape(k, bins)
     mid = np.cumsum(counts, axis=1) - 0.5 * (counts + 1)
     mid *= (target.shape[1] - 1) / max(n - 1, 1)
     j = np.clip(mid.astype(np.int64), 0, target.shape[1] - 2)
@@ -228,14 +237,14 @@ def _table(idx, target):
     return table.astype(np.float32).ravel()
 
 
-def _bins(y, lo, scale):
-    """Each value's table entry, offset by its row: int32 (K, n)."""
+def _bins(y, lo, scale, bins):
+    """Each value's table entry (of ``bins`` per row), offset by its row: int32 (K, n)."""
     pos = y - lo[:, None]
     pos *= scale[:, None]
     pos += 0.5
-    np.clip(pos, 0, _BINS - 1, out=pos)
+    np.clip(pos, 0, bins - 1, out=pos)
     idx = pos.astype(np.int32)
-    idx += np.arange(y.shape[0], dtype=np.int32)[:, None] * _BINS
+    idx += np.arange(y.shape[0], dtype=np.int32)[:, None] * bins
     return idx
 
 
@@ -294,9 +303,10 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
         y = np.empty((dirs.shape[0], n), dtype=np.float32)  # each direction's projections contiguous
         for r0, r1 in bands:
             np.matmul(dirs, patches(r0, r1), out=y[:, r0 * ww: r1 * ww])
-        lo, scale = _grid(y)
-        idx = _bins(y, lo, scale)
-        y -= np.take(_table(idx, target), idx, mode="clip")
+        bins = _n_bins(n)
+        lo, scale = _grid(y, bins)
+        idx = _bins(y, lo, scale, bins)
+        y -= np.take(_table(idx, target, bins), idx, mode="clip")
         del idx
         g = np.sign(y, out=y)
         for r0, r1 in bands:
@@ -304,12 +314,13 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
         return grad
     sub = int(np.ceil(np.sqrt(n / _RANK_PATCHES)))
     ys = dirs @ _columns(x, p, stride * sub)
-    lo, scale = _grid(ys)
-    table = _table(_bins(ys, lo, scale), target)
+    bins = _n_bins(ys.shape[1])
+    lo, scale = _grid(ys, bins)
+    table = _table(_bins(ys, lo, scale, bins), target, bins)
     del ys
     for r0, r1 in bands:
         y = dirs @ patches(r0, r1)
-        y -= np.take(table, _bins(y, lo, scale), mode="clip")
+        y -= np.take(table, _bins(y, lo, scale, bins), mode="clip")
         back(np.sign(y, out=y), r0, r1)
     return grad
 
