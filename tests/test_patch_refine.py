@@ -287,6 +287,9 @@ def test_synthesis_is_deterministic_and_light_by_default(patch_model):
     assert np.array_equal(patch_model.synthesize((64, 64), rng=5),
                           patch_model.synthesize((64, 64), rng=5, patch_refine=pr.AUTO_STEPS))
     assert pr.steps_for(None, (512, 512)) == pr.AUTO_STEPS == 44 and pr.steps_for(None, (512, 513)) == 0
+    # The setting's help (settings stays free of NumPy, so it says the numbers itself).
+    assert f"auto (None in Python): {pr.AUTO_STEPS} on images of up to 512x512 pixels" in settings.BY_NAME[
+        "patch_refine"].help
     assert pr.steps_for(3, (4096, 4096)) == 3 and pr.steps_for(0, (64, 64)) == 0
     assert a.shape == (64, 64, 3) and np.array_equal(a, b)
     assert not np.array_equal(a, off)
