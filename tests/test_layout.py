@@ -276,13 +276,42 @@ def test_an_error_in_the_guides_thread_reaches_the_caller(layout_model, monkeypa
 def test_in_thread_returns_the_result_or_raises_the_error():
     import threading
 
-    from tghop._common import in_thread
+    from tghop._common import in_thread, limit_cores, usable_cores
 
     main = threading.get_ident()
-    assert in_thread(lambda a, b=0: (a + b, threading.get_ident() != main), 2, b=3)() == (5, True)
+    if usable_cores() > 1:
+        assert in_thread(lambda a, b=0: (a + b, threading.get_ident() != main), 2, b=3)() == (5, True)
     wait = in_thread(lambda: {}["missing"])
     with pytest.raises(KeyError, match="missing"):
         wait()
+    # One core (a batch worker's task): no second thread, the work runs when it is asked for.
+    ran = []
+    with limit_cores(1):
+        wait = in_thread(lambda a: ran.append(threading.get_ident()) or a * 2, 4)
+        assert ran == []
+        assert wait() == 8 and ran == [main]
+        with pytest.raises(KeyError, match="missing"):
+            in_thread(lambda: {}["missing"])()
+
+
+def test_one_core_makes_the_same_image_without_the_guides_thread(layout_model, monkeypatch):
+    import threading
+
+    from tghop._common import limit_cores, usable_cores
+
+    guide, ran_in = layout_model.layout_.guide, []
+
+    def recorded(*args, **kwargs):  # the real guide, noting the thread it ran in
+        ran_in.append(threading.get_ident())
+        return guide(*args, **kwargs)
+
+    monkeypatch.setattr(layout_model.layout_, "guide", recorded)
+    a = layout_model.synthesize((64, 64), rng=2, n_patches=300)
+    with limit_cores(1):
+        b = layout_model.synthesize((64, 64), rng=2, n_patches=300)
+    assert np.array_equal(a, b)
+    main = threading.get_ident()
+    assert ran_in[1] == main and (usable_cores() == 1 or ran_in[0] != main)
 
 
 def test_tghop_layout_save_load_identical(layout_model, tmp_path):

@@ -439,8 +439,11 @@ def in_thread(fn, *args, **kwargs) -> Callable:
 
     The thread is a daemon: an interrupted caller does not wait for it. (``threading``
     alone: ``concurrent.futures`` imports ``logging``, a noticeable part of a small
-    ``tghop synth``.)
+    ``tghop synth``.) With one usable core (:func:`usable_cores`, e.g. a batch worker's
+    task) no thread is started: ``fn`` runs in the caller's thread when its result is asked for.
     """
+    if usable_cores() == 1:
+        return lambda: fn(*args, **kwargs)
     import threading
 
     outcome = {}
