@@ -114,9 +114,15 @@ def test_rank_tables_give_each_projection_the_target_at_its_rank():
         y = rng.normal(0, 1, (3, n)).astype(np.float32)
         bins = pr._n_bins(n)
         assert pr._MIN_BINS <= bins <= pr._BINS and (bins == pr._BINS) == (n >= pr._PER_BIN * pr._BINS)
-        lo, scale = pr._grid(y, bins)
+        lo, scale = pr._grid([y], bins)
         idx = pr._bins(y, lo, scale, bins)
-        got = np.take(pr._table(idx, target, bins), idx)
+        table = pr._table([idx], target, bins)
+        got = np.take(table, idx)
+        # The same grid and table from the projections in pieces (a step's bands of rows).
+        parts = np.array_split(y, 3, axis=1)
+        lo3, scale3 = pr._grid(parts, bins)
+        assert np.array_equal(lo3, lo) and np.array_equal(scale3, scale)
+        assert np.array_equal(pr._table([pr._bins(q, lo, scale, bins) for q in parts], target, bins), table)
         ranks = np.argsort(np.argsort(y, axis=1), axis=1) / (n - 1)
         want = np.stack([np.interp(ranks[k], np.linspace(0, 1, pr.QUANTILES), target[k]) for k in range(3)])
         spread = target[:, -1] - target[:, 0]

@@ -215,18 +215,24 @@ def _n_bins(n):
     return int(min(_BINS, max(_MIN_BINS, n // _PER_BIN)))
 
 
-def _grid(y, bins):
-    """Each row's table grid for the projections ``y`` (K, n): its minimum and the entries
-    per unit, ``bins`` entries between the row's extremes."""
-    lo = y.min(axis=1)
-    return lo, ((bins - 1) / np.maximum(y.max(axis=1) - lo, np.float32(1e-12))).astype(np.float32)
+def _grid(ys, bins):
+    """Each row's table grid for the projections ``ys``, a list of (K, n_i) arrays whose
+    rows go together: its minimum and the entries per unit, ``bins`` entries between the
+    row's extremes."""
+    lo = np.min([y.min(axis=1) for y in ys], axis=0)
+    hi = np.max([y.max(axis=1) for y in ys], axis=0)
+    return lo, ((bins - 1) / np.maximum(hi - lo, np.float32(1e-12))).astype(np.float32)
 
 
-def _table(idx, target, bins):
+def _table(idxs, target, bins):
     """The stored quantile ``target`` (K, Q) at the mid-rank of each table entry, given
-    the entries ``idx`` (K, n) of :func:`_bins`: (K * bins,) float32."""
-    k, n = idx.shape
-    counts = np.bincount(idx.ravel(), minlength=k * bins).reshape(k, bins)
+    the entries ``idxs`` of :func:`_bins`, a list of (K, n_i) arrays of the same rows:
+    (K * bins,) float32."""
+    k, n = target.shape[0], sum(idx.shape[1] for idx in idxs)
+    counts = np.bincount(idxs[0].ravel(), minlength=k * bins)
+    for idx in idxs[1:]:
+        counts += np.bincount(idx.ravel(), minlength=k * bins)
+    counts = counts.reshape(k, bins)
     mid = np.cumsum(counts, axis=1) - 0.5 * (counts + 1)
     mid *= (target.shape[1] - 1) / max(n - 1, 1)
     j = np.clip(mid.astype(np.int64), 0, target.shape[1] - 2)
@@ -278,8 +284,10 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
 
     The patches are cut out and sent back to their pixels in bands of rows of about _CHUNK
     patches, so that a band's copies stay in the cache. Up to _RANK_PATCHES patches, every
-    patch's projection is kept (K x 4 bytes each) and gives the ranks; above, the ranks
-    come from the patches on a coarser grid, and each band is projected when it is needed.
+    patch's projection is kept (K x 4 bytes each), band by band, and gives the ranks: each
+    band's table entries and lookups are made on its own, so that their temporaries stay
+    small (the same numbers as on the whole array). Above, the ranks come from the patches
+    on a coarser grid, and each band is projected when it is needed.
     """
     p = PATCH
     grad = np.zeros(x.shape, dtype=np.float32)
@@ -300,23 +308,21 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
         _scatter(out, (dirs.T @ g).reshape(c, p, p, r1 - r0, ww), stride, r0 * stride)
 
     if n <= _RANK_PATCHES:
-        y = np.empty((dirs.shape[0], n), dtype=np.float32)  # each direction's projections contiguous
-        for r0, r1 in bands:
-            np.matmul(dirs, patches(r0, r1), out=y[:, r0 * ww: r1 * ww])
+        ys = [dirs @ patches(r0, r1) for r0, r1 in bands]  # (K, band's patches) each
         bins = _n_bins(n)
-        lo, scale = _grid(y, bins)
-        idx = _bins(y, lo, scale, bins)
-        y -= np.take(_table(idx, target, bins), idx, mode="clip")
-        del idx
-        g = np.sign(y, out=y)
-        for r0, r1 in bands:
-            back(g[:, r0 * ww: r1 * ww], r0, r1)
+        lo, scale = _grid(ys, bins)
+        idxs = [_bins(y, lo, scale, bins) for y in ys]
+        table = _table(idxs, target, bins)
+        for i, (y, (r0, r1)) in enumerate(zip(ys, bands)):
+            y -= np.take(table, idxs[i], mode="clip")
+            idxs[i] = None  # freed before the band goes back
+            back(np.sign(y, out=y), r0, r1)
         return grad
     sub = int(np.ceil(np.sqrt(n / _RANK_PATCHES)))
-    ys = dirs @ _columns(x, p, stride * sub)
-    bins = _n_bins(ys.shape[1])
+    ys = [dirs @ _columns(x, p, stride * sub)]
+    bins = _n_bins(ys[0].shape[1])
     lo, scale = _grid(ys, bins)
-    table = _table(_bins(ys, lo, scale, bins), target, bins)
+    table = _table([_bins(ys[0], lo, scale, bins)], target, bins)
     del ys
     for r0, r1 in bands:
         y = dirs @ patches(r0, r1)
