@@ -319,11 +319,11 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
             back(np.sign(y, out=y), r0, r1)
         return grad
     sub = int(np.ceil(np.sqrt(n / _RANK_PATCHES)))
-    ys = [dirs @ _columns(x, p, stride * sub)]
-    bins = _n_bins(ys[0].shape[1])
-    lo, scale = _grid(ys, bins)
-    table = _table([_bins(ys[0], lo, scale, bins)], target, bins)
-    del ys
+    sample = dirs @ _columns(x, p, stride * sub)  # (K, patches of the coarser grid)
+    bins = _n_bins(sample.shape[1])
+    lo, scale = _grid([sample], bins)
+    table = _table([_bins(sample, lo, scale, bins)], target, bins)
+    del sample
     for r0, r1 in bands:
         y = dirs @ patches(r0, r1)
         y -= np.take(table, _bins(y, lo, scale, bins), mode="clip")
