@@ -31,7 +31,7 @@ def _patch_swd(img, stats):
     out = []
     for j in range(pr.SETS):
         proj = x @ stats.directions_[0, j].T
-        q = np.quantile(proj, np.linspace(0, 1, pr.QUANTILES), axis=0).T
+        q = np.quantile(proj, stats.levels_.astype(np.float64), axis=0).T
         out.append(np.abs(q - stats.quantiles_[0, j]).mean())
     return np.array(out)
 
@@ -47,13 +47,41 @@ def test_statistics_shapes_and_directions(patch_model):
     ex = data.cells(96, rng=3).astype(np.float32)
     x = _rows(ex)
     proj = x @ st.directions_[0, 1, 5]
-    assert np.allclose(st.quantiles_[0, 1, 5], np.quantile(proj, np.linspace(0, 1, pr.QUANTILES)), atol=1e-5)
+    assert np.allclose(st.quantiles_[0, 1, 5], np.quantile(proj, pr.quantile_levels()), atol=1e-5)
+    assert np.array_equal(st.levels_, pr.quantile_levels().astype(np.float32))
     # Stored unless switched off: then no arrays, no parameters.
     plain = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
     assert plain.patches_ is None and not any(k.startswith("patch.") for k in plain._to_arrays())
     assert plain.n_parameters()["patch refinement (ours)"]["stored"] == 0
     assert (patch_model.n_parameters()["patch refinement (ours)"]["stored"]
-            == 3 * pr.SETS * pr.DIRECTIONS * (d + pr.QUANTILES))
+            == 3 * pr.SETS * pr.DIRECTIONS * (d + pr.QUANTILES) + pr.QUANTILES)
+
+
+def test_quantile_levels_crowd_towards_the_tails():
+    """The stored levels run from 0 to 1, symmetric, increasing, and much finer at the ends
+    than in the middle: a projection's tails (its strongest edges) get quantiles of their own."""
+    q = pr.quantile_levels()
+    assert q.shape == (pr.QUANTILES,) and q[0] == 0 and q[-1] == 1
+    assert np.allclose(q + q[::-1], 1) and (np.diff(q) > 0).all()
+    step = np.diff(q)
+    assert step[0] < 0.05 * step[len(step) // 2] and step[0] < 0.1 / (pr.QUANTILES - 1)
+
+
+def test_quantiles_are_read_at_even_ranks_between_their_levels():
+    """_on_ranks reads stored quantiles at evenly spaced levels by linear interpolation in
+    the level: at a stored level it gives that quantile, between two the line through them;
+    evenly spaced levels give back their own quantiles at the ranks they share."""
+    rng = np.random.default_rng(1)
+    levels = pr.quantile_levels(33)
+    quantiles = np.sort(rng.gamma(2.0, 1.0, (2, 3, 33)), axis=-1).astype(np.float32)
+    got = pr._on_ranks(quantiles, levels, n=1025)
+    assert got.shape == (2, 3, 1025) and got.dtype == np.float32
+    grid = np.linspace(0, 1, 1025)
+    want = np.stack([np.interp(grid, levels, row) for row in quantiles.reshape(6, 33)]).reshape(2, 3, 1025)
+    assert np.allclose(got, want, atol=1e-5)
+    assert (np.diff(got, axis=-1) >= 0).all() and np.array_equal(got[..., [0, -1]], quantiles[..., [0, -1]])
+    even = np.linspace(0, 1, 33)
+    assert np.allclose(pr._on_ranks(quantiles, even, n=129)[..., ::4], quantiles, atol=1e-6)
 
 
 def test_whitened_directions_see_detail_not_the_patch_mean():
@@ -71,7 +99,7 @@ def test_whitened_directions_see_detail_not_the_patch_mean():
         y = x @ d.T
         corr[w] = np.mean([abs(np.corrcoef(y[:, k], mean)[0, 1]) for k in range(len(d))])
         assert np.allclose(st.quantiles_[0, 2, 7], np.quantile(y[:, 2 * pr.DIRECTIONS + 7],
-                                                                np.linspace(0, 1, pr.QUANTILES)), atol=1e-5)
+                                                                pr.quantile_levels()), atol=1e-5)
     assert corr[0.5] < 0.5 * corr[0.25] < 0.5 * corr[0.0]
     drawn = np.random.default_rng(0).standard_normal((2, pr.SETS, pr.DIRECTIONS, x.shape[1])).astype(np.float32)
     drawn /= np.linalg.norm(drawn, axis=-1, keepdims=True)
@@ -337,7 +365,8 @@ def test_fit_is_unchanged_by_the_statistics(patch_model):
 def test_model_file_round_trip(patch_model, tmp_path):
     save_model(patch_model, tmp_path / "m.npz")
     with np.load(tmp_path / "m.npz") as f:
-        assert json.loads(str(f["__meta__"]))["format_version"] == 5
+        assert json.loads(str(f["__meta__"]))["format_version"] == 6
+        assert np.array_equal(f["patch.levels"], pr.quantile_levels().astype(np.float32))
     loaded = load_model(tmp_path / "m.npz")
     assert np.array_equal(loaded.synthesize((64, 64), rng=4, patch_refine=3),
                           patch_model.synthesize((64, 64), rng=4, patch_refine=3))
@@ -379,11 +408,44 @@ def test_old_files_load_and_damaged_arrays_are_refused(patch_model, tmp_path):
     with pytest.raises(ModelFileError, match="patch.quantiles is missing"):
         load_model(tmp_path / "missing.npz")
 
+    def no_levels(meta, arrays):  # format 6 stores the levels
+        arrays.pop("patch.levels")
+    _rewrite(tmp_path / "p.npz", tmp_path / "no_levels.npz", no_levels)
+    with pytest.raises(ModelFileError, match="patch.levels is missing"):
+        load_model(tmp_path / "no_levels.npz")
+
+    def bad_levels(meta, arrays):
+        arrays["patch.levels"] = arrays["patch.levels"][::-1].copy()
+    _rewrite(tmp_path / "p.npz", tmp_path / "bad_levels.npz", bad_levels)
+    with pytest.raises(ModelFileError, match="patch.levels"):
+        load_model(tmp_path / "bad_levels.npz")
+
     def unknown(meta, arrays):  # arrays of a model that says it has none
         meta["params"]["patch_levels"] = 0
     _rewrite(tmp_path / "p.npz", tmp_path / "unknown.npz", unknown)
     with pytest.raises(ModelFileError, match="array patch."):
         load_model(tmp_path / "unknown.npz")
+
+
+def test_version_5_files_read_their_quantiles_as_evenly_spaced(patch_model, tmp_path):
+    """tghop 0.15 to 0.24 stored the quantiles at evenly spaced levels, without patch.levels
+    (format 5): such a file loads with those levels, and refines as the same statistics do
+    when they say so."""
+    save_model(patch_model, tmp_path / "p.npz")
+
+    def v5(meta, arrays):
+        meta["format_version"] = 5
+        arrays.pop("patch.levels")
+    _rewrite(tmp_path / "p.npz", tmp_path / "v5.npz", v5)
+    loaded = load_model(tmp_path / "v5.npz")
+    assert np.array_equal(loaded.patches_.levels_, np.linspace(0, 1, pr.QUANTILES).astype(np.float32))
+    assert np.array_equal(loaded.patches_.quantiles_, patch_model.patches_.quantiles_)
+    img = patch_model.synthesize((48, 48), rng=2, patch_refine=0).astype(np.float32)
+    even = pr.PatchStatistics(3)._from_arrays({k: v for k, v in patch_model.patches_._to_arrays().items()
+                                               if k != "patch.levels"})
+    a = pr.patch_refine(img, loaded.patches_, n_steps=3)
+    assert np.array_equal(a, pr.patch_refine(img, even, n_steps=3))
+    assert not np.array_equal(a, pr.patch_refine(img, patch_model.patches_, n_steps=3))
 
 
 def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_path):
@@ -392,7 +454,7 @@ def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_pa
 
     def v4(meta, arrays):
         meta["format_version"] = 4
-        for name in ("patch.directions", "patch.quantiles"):
+        for name in ("patch.directions", "patch.quantiles", "patch.levels"):
             arrays.pop(name)
         arrays["patch.rotations"] = np.stack([np.eye(75, dtype=np.float32)] * 2)[None].repeat(3, 0)
         arrays["patch.quantiles"] = np.zeros((3, 2, 75, 129), np.float32)

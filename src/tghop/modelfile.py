@@ -38,17 +38,18 @@ from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 5  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+FORMAT_VERSION = 6  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: tghop 0.14's patch refinement statistics (patch.rotations, patch.quantiles: 5x5 patches on
 # random rotations; read without them, with a warning); 5: the sliced Wasserstein statistics
-# (patch.directions, patch.quantiles) and whole materials (below); files without either are
-# written as version 3, which older tghop reads
+# (patch.directions, patch.quantiles) and whole materials (below); 6: their quantiles' levels
+# (patch.levels; version 5 files are read as evenly spaced); files without patch statistics or
+# a material are written as version 3, which older tghop reads
 #: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
-#: each map's statistics as material.<name>.*) are version 5, so that an older tghop refuses
-#: them by their version.
+#: each map's statistics as material.<name>.*) are version 5 or later, so that an older tghop
+#: refuses them by their version.
 MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3, 4, 5)
+READABLE_VERSIONS = (2, 3, 4, 5, 6)
 
 
 def save_model(model, path) -> None:
@@ -318,7 +319,7 @@ def _check_arrays(path, groups, arrays):
 
 def load_model(path, *, material=False):
     """Read a model written by :func:`save_model`: a :class:`~tghop.synthesis.TGHop`, or,
-    with ``material``, a :class:`~tghop.material.Material` too (format version 5; without
+    with ``material``, a :class:`~tghop.material.Material` too (format version 5 or 6; without
     ``material`` such a file is refused with a one-line error, so that no caller is handed
     a material where it expects a plain model).
 

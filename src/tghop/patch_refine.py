@@ -11,9 +11,10 @@ tghop's finished image (which already has the layout, so few steps suffice):
 
 - Fit (:class:`PatchStatistics`): for each of a few levels of the exemplar's binomial
   pyramid (full, 1/2, 1/4 resolution), ``SETS`` fixed sets of ``DIRECTIONS`` random unit
-  directions in the space of ``PATCH x PATCH x C`` patches, and the ``QUANTILES``
-  quantiles of the exemplar's patch projections on each. Nothing else of the exemplar is
-  kept, so no exemplar patch can be pasted. With ``whitening`` w > 0 the directions are
+  directions in the space of ``PATCH x PATCH x C`` patches, and ``QUANTILES`` quantiles of
+  the exemplar's patch projections on each, at levels crowded towards both ends
+  (:func:`quantile_levels`): a projection's tails are the patches with the strongest edges.
+  Nothing else of the exemplar is kept, so no exemplar patch can be pasted. With ``whitening`` w > 0 the directions are
   drawn in partly whitened patch space (``C^-w u`` for the level's patch covariance C):
   uniform directions mostly see a patch's mean and smooth ramps, which carry most of its
   variance; these see its edges and grain as well.
@@ -45,10 +46,13 @@ PATCH = 7
 SETS = 16
 #: Random unit directions per set (GPDM draws 64 per step; 32 here: docs/choices.md).
 DIRECTIONS = 32
-#: Quantiles stored per direction.
+#: Quantiles stored per direction (at :func:`quantile_levels`).
 QUANTILES = 129
-#: Patches measured per level at fit (a strided subset beyond this).
-_FIT_PATCHES = 1 << 13
+#: Patches measured per level at fit (a strided subset beyond this): enough for the tails.
+_FIT_PATCHES = 1 << 15
+#: Evenly spaced levels the stored quantiles are read at during generation (:func:`_on_ranks`):
+#: as good as 4,097 and cheaper (docs/choices.md, Patch refinement "0.25").
+_RANKS = 1025
 #: Exemplar pixels measured at fit: the centre crop of at most this side.
 _FIT_SIDE = 512
 #: Adam's step at full resolution, in pixel values of [0, 1] (GPDM: 0.01 in [-1, 1] from
@@ -82,6 +86,24 @@ AUTO_PIXELS = 512 * 512
 _CHECKER_MARGIN = 8
 #: Smallest side of a level (coarser levels are not made).
 _MIN_SIDE = 3 * PATCH
+
+
+def quantile_levels(n=QUANTILES):
+    """The ``n`` probability levels of the stored quantiles: ``(1 - cos(pi u)) / 2`` for ``u``
+    evenly spaced in [0, 1], crowded towards 0 and 1 (the outermost steps about ``2.5 / n^2``
+    instead of ``1 / n``): the tails of a patch projection, where edges and grain sit, get
+    their own quantiles (docs/choices.md, Patch refinement "0.25")."""
+    return 0.5 - 0.5 * np.cos(np.pi * np.linspace(0.0, 1.0, n))
+
+
+def _on_ranks(quantiles, levels, n=_RANKS):
+    """``quantiles`` (..., Q) at probability ``levels`` (Q,), read at ``n`` evenly spaced
+    levels by linear interpolation between them: (..., n) float32, what the rank tables of
+    :func:`_table` take."""
+    pos = np.interp(np.linspace(0.0, 1.0, n), levels, np.arange(len(levels), dtype=np.float64))
+    j = np.minimum(pos.astype(np.int64), len(levels) - 2)
+    frac = (pos - j).astype(np.float32)
+    return quantiles[..., j] * (1 - frac) + quantiles[..., j + 1] * frac
 
 
 def _levels_of(img, n_levels, mode):
@@ -118,6 +140,9 @@ class PatchStatistics:
         Unit directions in patch space (D = C * PATCH * PATCH, channel-major).
     quantiles_ : ndarray, shape (L, SETS, DIRECTIONS, QUANTILES)
         The exemplar's quantiles of its patches' projections on each direction.
+    levels_ : ndarray, shape (QUANTILES,)
+        Their probability levels (:func:`quantile_levels`; evenly spaced in model files of
+        format 5, tghop 0.15 to 0.24).
     """
 
     def __init__(self, n_levels=3, whitening=0.0):
@@ -142,7 +167,7 @@ class PatchStatistics:
         d = PATCH * PATCH * image.shape[2]
         dirs = rng.standard_normal((len(levels), SETS, DIRECTIONS, d)).astype(np.float32)
         dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
-        qlev = np.linspace(0.0, 1.0, QUANTILES)
+        qlev = quantile_levels(QUANTILES)
         quantiles = np.empty((len(levels), SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
         hole = None if exclude is None else np.asarray(exclude, dtype=bool)
         for i, img in enumerate(levels):
@@ -160,32 +185,39 @@ class PatchStatistics:
             x = v[rows // v.shape[1], rows % v.shape[1]].reshape(len(rows), d)
             if w:
                 dirs[i] = _whitened(dirs[i].reshape(-1, d), x, w).reshape(dirs[i].shape)
-            proj = x @ dirs[i].reshape(-1, d).T  # (n, SETS * DIRECTIONS)
-            proj.sort(axis=0)
+            proj = dirs[i].reshape(-1, d) @ x.T  # (SETS * DIRECTIONS, n)
+            proj.sort(axis=1)  # along rows: a contiguous sort per direction
             # Quantiles by linear interpolation between the order statistics (np.quantile's rule,
             # from one sort; np.quantile takes about twice as long here: docs/choices.md).
-            pos = qlev * (len(proj) - 1)
-            lo = np.minimum(pos.astype(np.int64), len(proj) - 2) if len(proj) > 1 else np.zeros_like(pos, np.int64)
-            frac = (pos - lo).astype(np.float32)[:, None]
-            hi = np.minimum(lo + 1, len(proj) - 1)
-            q = proj[lo] * (1 - frac) + proj[hi] * frac  # (QUANTILES, SETS * DIRECTIONS)
-            quantiles[i] = q.T.reshape(SETS, DIRECTIONS, QUANTILES)
-        self.directions_, self.quantiles_ = dirs, quantiles
+            n_x = proj.shape[1]
+            pos = qlev * (n_x - 1)
+            lo = np.minimum(pos.astype(np.int64), n_x - 2) if n_x > 1 else np.zeros_like(pos, np.int64)
+            frac = (pos - lo).astype(np.float32)
+            hi = np.minimum(lo + 1, n_x - 1)
+            q = proj[:, lo] * (1 - frac) + proj[:, hi] * frac  # (SETS * DIRECTIONS, QUANTILES)
+            quantiles[i] = q.reshape(SETS, DIRECTIONS, QUANTILES)
+        self.directions_, self.quantiles_, self.levels_ = dirs, quantiles, qlev.astype(np.float32)
         return self
 
     #: Fitted arrays in model files: (file name, attribute).
-    _ARRAYS = (("patch.directions", "directions_"), ("patch.quantiles", "quantiles_"))
+    _ARRAYS = (("patch.directions", "directions_"), ("patch.quantiles", "quantiles_"), ("patch.levels", "levels_"))
 
     def _to_arrays(self) -> dict:
         return {name: getattr(self, attr).astype(np.float32) for name, attr in self._ARRAYS}
 
     def _from_arrays(self, arrays):
+        """The fitted arrays from a model file's; without ``patch.levels`` (format 5), evenly
+        spaced levels."""
         for name, attr in self._ARRAYS:
-            setattr(self, attr, arrays[name].astype(np.float32, copy=False))
+            if name in arrays:
+                setattr(self, attr, arrays[name].astype(np.float32, copy=False))
+        if "patch.levels" not in arrays:
+            self.levels_ = np.linspace(0.0, 1.0, self.quantiles_.shape[-1]).astype(np.float32)
         return self
 
-    def _array_specs(self, c):
-        """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels."""
+    def _array_specs(self, c, *, levels=True):
+        """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels (``levels``:
+        with ``patch.levels``, model format 6 on)."""
         d = PATCH * PATCH * c
 
         def unit(arr, dims):
@@ -197,7 +229,8 @@ class PatchStatistics:
         return (
             ("patch.directions", ("Lp", SETS, DIRECTIONS, d), "f", says, (("dim", 0, 1, self.n_levels), unit)),
             ("patch.quantiles", ("Lp", SETS, DIRECTIONS, QUANTILES), "f", says, (("nondecreasing",),)),
-        )
+        ) + ((("patch.levels", (QUANTILES,), "f", f"{QUANTILES} quantile levels",
+               (("range", 0.0, 1.0), ("nondecreasing",))),) if levels else ())
 
 
 def _whitened(u, x, w):
@@ -421,7 +454,8 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         # Every stride-th patch each way, large levels at least _stride's (2 to 4), the grid
         # shifted every step, so that a step's cost grows more slowly than the image.
         step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride))
-        new = _steps(cur, stats.directions_[i], stats.quantiles_[i], int(n_steps), tile, step,
+        target = _on_ranks(stats.quantiles_[i], stats.levels_.astype(np.float64))
+        new = _steps(cur, stats.directions_[i], target, int(n_steps), tile, step,
                      float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))
         if i == 0 and step == 2:
             new = _without_checker(new, cur, tile)
