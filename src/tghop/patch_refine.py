@@ -215,9 +215,10 @@ class PatchStatistics:
             self.levels_ = np.linspace(0.0, 1.0, self.quantiles_.shape[-1]).astype(np.float32)
         return self
 
-    def _array_specs(self, c, *, levels=True):
-        """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels (``levels``:
-        with ``patch.levels``, model format 6 on)."""
+    def _array_specs(self, c, meta=None):
+        """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels in a file
+        with metadata ``meta`` (``patch.levels`` from format version 6 on)."""
+        version = (meta or {}).get("format_version")
         d = PATCH * PATCH * c
 
         def unit(arr, dims):
@@ -230,7 +231,7 @@ class PatchStatistics:
             ("patch.directions", ("Lp", SETS, DIRECTIONS, d), "f", says, (("dim", 0, 1, self.n_levels), unit)),
             ("patch.quantiles", ("Lp", SETS, DIRECTIONS, QUANTILES), "f", says, (("nondecreasing",),)),
         ) + ((("patch.levels", (QUANTILES,), "f", f"{QUANTILES} quantile levels",
-               (("range", 0.0, 1.0), ("nondecreasing",))),) if levels else ())
+               (("range", 0.0, 1.0), ("nondecreasing",))),) if version is None or version >= 6 else ())
 
 
 def _whitened(u, x, w):

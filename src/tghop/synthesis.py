@@ -368,8 +368,7 @@ class TGHop(BaseEstimator):
         specs.append(("colour.quantiles", (c, "Qc"), "f", f"the metadata says {c} colour channels",
                       (("dim", 1, 2, None), ("range", 0.0, 1.0), ("nondecreasing",))))
         specs += BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)._array_specs(c)
-        if model.patch_levels:  # their quantile levels stored since format 6
-            specs += PatchStatistics(model.patch_levels)._array_specs(c, levels=meta.get("format_version", 6) >= 6)
+        specs += PatchStatistics(model.patch_levels)._array_specs(c, meta) if model.patch_levels else ()
         groups = [(prefix, tuple(specs))]
         layout_meta = meta.get("layout")
         if layout_meta is not None:
