@@ -471,7 +471,8 @@ def test_mixing_stored_as_float16_rows_and_version_2_files_still_load(small_mode
     # A version-2 file (float32 mixing, no scale) is read as before.
     meta = json.loads(str(arrays["__meta__"]))
     meta["format_version"] = 2
-    old = {k: v for k, v in arrays.items() if k not in ("index.ichm_mixing_scale", "patch.levels")}  # neither in v2
+    meta["params"]["patch_levels"] = 0  # version 2 had neither scales nor patch statistics
+    old = {k: v for k, v in arrays.items() if k != "index.ichm_mixing_scale" and not k.startswith("patch.")}
     old["ichm_ii.mixing"] = small_model.ichm_.mixing_.astype(np.float32)
     old["__meta__"] = np.array(json.dumps(meta))
     _write_npz(tmp_path / "v2.npz", **old)

@@ -233,11 +233,11 @@ def test_patch_stride_thins_every_level(patch_model, monkeypatch):
         return real(x, dirs, target, n_steps, tile, stride, lr)
     monkeypatch.setattr(pr, "_steps", spy)
     two = pr.patch_refine(img, st, n_steps=4, stride=2)
-    assert seen == [(32, 2), (64, 2)]  # coarse to fine (a 64x64 image has two levels)
+    assert seen == [(16, 2), (32, 2), (64, 2)]  # coarse to fine (a 64x64 image has three levels)
     assert (np.abs(two - img).sum(-1)[3:-3, 3:-3] > 0).all()
     one = pr.patch_refine(img, st, n_steps=4, stride=1)
     assert not np.array_equal(one, two) and np.array_equal(two, pr.patch_refine(img, st, n_steps=4, stride=2))
-    for bad in (0, 8, 1.5, True):
+    for bad in (0, pr.PATCH + 1, 1.5, True):
         with pytest.raises(TGHopError, match="patch_stride"):
             pr.patch_refine(img, st, n_steps=1, stride=bad)
     monkeypatch.setattr(pr, "_steps", real)
@@ -308,9 +308,11 @@ def test_coarser_levels_travel_a_bounded_distance(patch_model, monkeypatch):
     for n in (4, 45, 200):
         seen.clear()
         pr.patch_refine(img, patch_model.patches_, n_steps=n)
-        (coarse, steps, lr_coarse), (full, _, lr_full) = seen
-        assert coarse < full and steps == n and lr_full == pr.LEARNING_RATE
-        assert lr_coarse == min(pr.COARSE_RATE, pr.COARSE_TRAVEL / n) and n * lr_coarse <= pr.COARSE_TRAVEL + 1e-12
+        *coarser, (full, _, lr_full) = seen  # a 64x64 image: levels 16, 32, 64
+        assert len(coarser) == 2 and lr_full == pr.LEARNING_RATE
+        for coarse, steps, lr_coarse in coarser:
+            assert coarse < full and steps == n
+            assert lr_coarse == min(pr.COARSE_RATE, pr.COARSE_TRAVEL / n) and n * lr_coarse <= pr.COARSE_TRAVEL + 1e-12
     assert pr.COARSE_TRAVEL / 200 < pr.COARSE_RATE == min(pr.COARSE_RATE, pr.COARSE_TRAVEL / 4)
 
 
@@ -341,7 +343,7 @@ def test_synthesis_is_deterministic_and_light_by_default(patch_model):
 
 def test_paper_pipeline_is_unaffected():
     assert settings.PAPER["patch_refine"] == 0 and settings.PAPER["patch_levels"] == 0
-    assert settings.BY_NAME["patch_refine"].default is None and settings.BY_NAME["patch_levels"].default == 3
+    assert settings.BY_NAME["patch_refine"].default is None and settings.BY_NAME["patch_levels"].default == 4
     assert settings.BY_NAME["patch_stride"].default == 2
     assert settings.QUALITY["best"] == {"patch_refine": 45, "patch_stride": 1}
     # On the command line the default is the word "auto"; "off" is refused (0 turns it off).
@@ -427,25 +429,34 @@ def test_old_files_load_and_damaged_arrays_are_refused(patch_model, tmp_path):
         load_model(tmp_path / "unknown.npz")
 
 
-def test_version_5_files_read_their_quantiles_as_evenly_spaced(patch_model, tmp_path):
-    """tghop 0.15 to 0.24 stored the quantiles at evenly spaced levels, without patch.levels
-    (format 5): such a file loads with those levels, and refines as the same statistics do
-    when they say so."""
+def test_version_5_files_read_their_quantiles_as_evenly_spaced(patch_model, tmp_path, monkeypatch):
+    """tghop 0.15 to 0.24 stored 7x7 patches' quantiles at evenly spaced levels, without
+    patch.levels (format 5): such a file loads with that side and those levels."""
     save_model(patch_model, tmp_path / "p.npz")
+    with monkeypatch.context() as m:  # 0.24's statistics: 7x7 patches
+        m.setattr(pr, "PATCH", 7)
+        old = pr.PatchStatistics(3).fit(data.cells(96, rng=3).astype(np.float32))
 
     def v5(meta, arrays):
         meta["format_version"] = 5
         arrays.pop("patch.levels")
+        arrays["patch.directions"], arrays["patch.quantiles"] = old.directions_, old.quantiles_
     _rewrite(tmp_path / "p.npz", tmp_path / "v5.npz", v5)
     loaded = load_model(tmp_path / "v5.npz")
+    assert loaded.patches_.side_ == 7 and patch_model.patches_.side_ == pr.PATCH == 5
     assert np.array_equal(loaded.patches_.levels_, np.linspace(0, 1, pr.QUANTILES).astype(np.float32))
-    assert np.array_equal(loaded.patches_.quantiles_, patch_model.patches_.quantiles_)
+    assert np.array_equal(loaded.patches_.quantiles_, old.quantiles_)
     img = patch_model.synthesize((48, 48), rng=2, patch_refine=0).astype(np.float32)
-    even = pr.PatchStatistics(3)._from_arrays({k: v for k, v in patch_model.patches_._to_arrays().items()
-                                               if k != "patch.levels"})
     a = pr.patch_refine(img, loaded.patches_, n_steps=3)
-    assert np.array_equal(a, pr.patch_refine(img, even, n_steps=3))
-    assert not np.array_equal(a, pr.patch_refine(img, patch_model.patches_, n_steps=3))
+    assert a.shape == img.shape and np.abs(a - img).max() > 0
+    crowded = pr.PatchStatistics(3)._from_arrays(old._to_arrays())  # the same numbers read at other levels
+    crowded.side_ = 7
+    assert not np.array_equal(a, pr.patch_refine(img, crowded, n_steps=3))
+    # A version 5 file's 5x5 statistics are refused: format 5 holds 7x7 ones.
+    _rewrite(tmp_path / "v5.npz", tmp_path / "v5bad.npz",
+             lambda meta, arrays: arrays.update({"patch.directions": patch_model.patches_.directions_}))
+    with pytest.raises(ModelFileError, match="7x7x3 patches"):
+        load_model(tmp_path / "v5bad.npz")
 
 
 def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_path):

@@ -10,14 +10,15 @@ This step does the same from statistics stored in the model, coarse to fine, sta
 tghop's finished image (which already has the layout, so few steps suffice):
 
 - Fit (:class:`PatchStatistics`): for each of a few levels of the exemplar's binomial
-  pyramid (full, 1/2, 1/4 resolution), ``SETS`` fixed sets of ``DIRECTIONS`` random unit
-  directions in the space of ``PATCH x PATCH x C`` patches, and ``QUANTILES`` quantiles of
-  the exemplar's patch projections on each, at levels crowded towards both ends
-  (:func:`quantile_levels`): a projection's tails are the patches with the strongest edges.
-  Nothing else of the exemplar is kept, so no exemplar patch can be pasted. With ``whitening`` w > 0 the directions are
-  drawn in partly whitened patch space (``C^-w u`` for the level's patch covariance C):
-  uniform directions mostly see a patch's mean and smooth ramps, which carry most of its
-  variance; these see its edges and grain as well.
+  pyramid (full, 1/2, 1/4, 1/8 resolution), ``SETS`` fixed sets of ``DIRECTIONS`` random
+  unit directions in the space of ``PATCH x PATCH x C`` patches (5 x 5; GPDM's are 7 x 7),
+  and ``QUANTILES`` quantiles of the exemplar's patch projections on each, at levels
+  crowded towards both ends (:func:`quantile_levels`): a projection's tails are the patches
+  with the strongest edges. Nothing else of the exemplar is kept, so no exemplar patch can
+  be pasted. With ``whitening`` w > 0 the directions are drawn in partly whitened patch
+  space (``C^-w u`` for the level's patch covariance C): uniform directions mostly see a
+  patch's mean and smooth ramps, which carry most of its variance; these see its edges and
+  grain as well.
 - Generation (:func:`patch_refine`): from the coarsest level, ``n_steps`` Adam steps on the
   level's pixels; step t projects every ``stride``-th patch each way (more on large levels;
   the grid shifted each step, so that every pixel takes its turn in every place of a patch) on set
@@ -40,8 +41,11 @@ from .pyramid import downsample, upsample
 
 __all__ = ["PatchStatistics", "patch_refine", "fit_patch_statistics", "refine_image", "steps_for"]
 
-#: Patch side (pixels of each level), as GPDM.
-PATCH = 7
+#: Patch side (pixels of each level) of the statistics fitted now (GPDM: 7; docs/choices.md,
+#: Patch refinement "0.25").
+PATCH = 5
+#: The side in model files of format 5 (tghop 0.15 to 0.24), which have no ``patch.levels``.
+_FORMAT5_PATCH = 7
 #: Direction sets stored per level (step t of a level uses set t mod SETS).
 SETS = 16
 #: Random unit directions per set (GPDM draws 64 per step; 32 here: docs/choices.md).
@@ -84,8 +88,8 @@ AUTO_STEPS = 44
 AUTO_PIXELS = 512 * 512
 #: Pixels added around a change before its checker is measured (:func:`_without_checker`).
 _CHECKER_MARGIN = 8
-#: Smallest side of a level (coarser levels are not made).
-_MIN_SIDE = 3 * PATCH
+#: Smallest side of a level, in patch sides (coarser levels are not made).
+_MIN_SIDE = 3
 
 
 def quantile_levels(n=QUANTILES):
@@ -106,11 +110,11 @@ def _on_ranks(quantiles, levels, n=_RANKS):
     return quantiles[..., j] * (1 - frac) + quantiles[..., j + 1] * frac
 
 
-def _levels_of(img, n_levels, mode):
+def _levels_of(img, n_levels, mode, p):
     """Gaussian pyramid [img, down(img), ...] of an (H, W, C) image, stopping before a
-    side gets below _MIN_SIDE."""
+    side gets below _MIN_SIDE patch sides ``p``."""
     out = [img]
-    while len(out) < n_levels and min(out[-1].shape[:2]) >= 2 * _MIN_SIDE:
+    while len(out) < n_levels and min(out[-1].shape[:2]) >= 2 * _MIN_SIDE * p:
         out.append(downsample(out[-1], mode))
     return out
 
@@ -137,12 +141,15 @@ class PatchStatistics:
     Attributes
     ----------
     directions_ : ndarray, shape (L, SETS, DIRECTIONS, D)
-        Unit directions in patch space (D = C * PATCH * PATCH, channel-major).
+        Unit directions in patch space (D = C * side * side, channel-major; ``side`` is
+        PATCH, or 7 in files of format 5).
     quantiles_ : ndarray, shape (L, SETS, DIRECTIONS, QUANTILES)
         The exemplar's quantiles of its patches' projections on each direction.
     levels_ : ndarray, shape (QUANTILES,)
         Their probability levels (:func:`quantile_levels`; evenly spaced in model files of
         format 5, tghop 0.15 to 0.24).
+    side_ : int
+        The patches' side: PATCH (7 in model files of format 5).
     """
 
     def __init__(self, n_levels=3, whitening=0.0):
@@ -163,7 +170,7 @@ class PatchStatistics:
             raise TGHopError(f"patch_whitening must be a number in [0, 1], got {w!r}")
         image = np.asarray(image, dtype=np.float32)
         rng = np.random.default_rng(seed)
-        levels = _levels_of(image, n, "reflect")
+        levels = _levels_of(image, n, "reflect", PATCH)
         d = PATCH * PATCH * image.shape[2]
         dirs = rng.standard_normal((len(levels), SETS, DIRECTIONS, d)).astype(np.float32)
         dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
@@ -197,6 +204,7 @@ class PatchStatistics:
             q = proj[:, lo] * (1 - frac) + proj[:, hi] * frac  # (SETS * DIRECTIONS, QUANTILES)
             quantiles[i] = q.reshape(SETS, DIRECTIONS, QUANTILES)
         self.directions_, self.quantiles_, self.levels_ = dirs, quantiles, qlev.astype(np.float32)
+        self.side_ = PATCH
         return self
 
     #: Fitted arrays in model files: (file name, attribute).
@@ -211,22 +219,25 @@ class PatchStatistics:
         for name, attr in self._ARRAYS:
             if name in arrays:
                 setattr(self, attr, arrays[name].astype(np.float32, copy=False))
+        self.side_ = PATCH
         if "patch.levels" not in arrays:
             self.levels_ = np.linspace(0.0, 1.0, self.quantiles_.shape[-1]).astype(np.float32)
+            self.side_ = _FORMAT5_PATCH
         return self
 
     def _array_specs(self, c, meta=None):
         """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels in a file
         with metadata ``meta`` (``patch.levels`` from format version 6 on)."""
         version = (meta or {}).get("format_version")
-        d = PATCH * PATCH * c
+        side = PATCH if version is None or version >= 6 else _FORMAT5_PATCH
+        d = side * side * c
 
         def unit(arr, dims):
             if np.abs(np.linalg.norm(arr.astype(np.float64), axis=-1) - 1).max() > 1e-4:
                 return "holds a direction that is not of unit length"
             return None
 
-        says = f"the metadata says at most {self.n_levels} levels of {PATCH}x{PATCH}x{c} patches"
+        says = f"the metadata says at most {self.n_levels} levels of {side}x{side}x{c} patches"
         return (
             ("patch.directions", ("Lp", SETS, DIRECTIONS, d), "f", says, (("dim", 0, 1, self.n_levels), unit)),
             ("patch.quantiles", ("Lp", SETS, DIRECTIONS, QUANTILES), "f", says, (("nondecreasing",),)),
@@ -323,7 +334,7 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
     small (the same numbers as on the whole array). Above, the ranks come from the patches
     on a coarser grid, and each band is projected when it is needed.
     """
-    p = PATCH
+    p = _side(dirs, x.shape[0])
     grad = np.zeros(x.shape, dtype=np.float32)
     out = grad[:, origin[0]:, origin[1]:]  # the grid's part of the image
     x = x[:, origin[0]:, origin[1]:]
@@ -371,12 +382,17 @@ def _phases(stride):
     return [(t % stride, (t // stride + t) % stride) for t in range(stride * stride)]
 
 
+def _side(dirs, c):
+    """The patch side of directions ``dirs`` (K, D) for ``c`` channels: D = c * side^2."""
+    return int(round(np.sqrt(dirs.shape[-1] / c)))
+
+
 def _steps(x, dirs, target, n_steps, tile, stride, lr):
     """``n_steps`` Adam steps of an (H, W, C) float32 image (a new one); step t's patches on
     the grid shifted by the phase ``t mod stride^2``. The steps work on the image channel-first
     (C, H, W), so that patches are cut out of contiguous rows."""
     h, w, c = x.shape
-    p = PATCH
+    p = _side(dirs[0], c)
     x = np.ascontiguousarray(x.transpose(2, 0, 1))
     m = np.zeros((c, h, w), dtype=np.float32)
     v = np.zeros((c, h, w), dtype=np.float32)
@@ -405,7 +421,7 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
 
 def _stride(pixels):
     """Step between the patches of an image of ``pixels``: 1 up to 2^17 (256x256, 362x362),
-    then growing with the side, at most 4 (PATCH = 7: every pixel still in a patch)."""
+    then growing with the side, at most 4 (below the patch side: every pixel still in a patch)."""
     return int(min(_MAX_STRIDE, max(1, np.ceil(np.sqrt(pixels / _STRIDE_PIXELS)))))
 
 
@@ -436,15 +452,16 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
     """
     if not isinstance(n_steps, numbers.Integral) or isinstance(n_steps, bool) or n_steps < 0:
         raise TGHopError(f"patch_refine must be a non-negative integer, got {n_steps!r}")
-    if not isinstance(stride, numbers.Integral) or isinstance(stride, bool) or not 1 <= stride <= PATCH:
-        raise TGHopError(f"patch_stride must be an integer from 1 to {PATCH}, got {stride!r}")
+    p = stats.side_
+    if not isinstance(stride, numbers.Integral) or isinstance(stride, bool) or not 1 <= stride <= p:
+        raise TGHopError(f"patch_stride must be an integer from 1 to {p} (the patch side), got {stride!r}")
     img = np.asarray(image, dtype=np.float32)
-    if img.ndim != 3 or img.shape[2] * PATCH * PATCH != stats.directions_.shape[-1]:
+    if img.ndim != 3 or img.shape[2] * p * p != stats.directions_.shape[-1]:
         raise TGHopError(f"patch_refine: image of shape {img.shape} does not fit the patch statistics")
-    if n_steps == 0 or min(img.shape[:2]) < PATCH:
+    if n_steps == 0 or min(img.shape[:2]) < p:
         return img.copy()
     mode = "wrap" if tile else "reflect"
-    levels = _levels_of(img, len(stats.directions_), mode)
+    levels = _levels_of(img, len(stats.directions_), mode, p)
     total, done = n_steps * len(levels), 0
     report(progress, "patch refine", 0, total)
     new = None

@@ -288,8 +288,8 @@ SETTINGS: Tuple[Setting, ...] = (
             "(:mod:`tghop.refine`, ours).", low=1, high=8),
     Setting("band_orientations", 4, "int",
             "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
-    Setting("patch_levels", 3, "int",
-            "Pyramid levels whose 7x7 patch distributions (quantiles of their projections on fixed "
+    Setting("patch_levels", 4, "int",
+            "Pyramid levels whose 5x5 patch distributions (quantiles of their projections on fixed "
             "random directions) are learned for the patch refinement (:mod:`tghop.patch_refine`, ours; "
             "0: none stored).", low=0, high=6, paper=0),
     Setting("patch_whitening", 0.0, "float",
@@ -330,7 +330,7 @@ SETTINGS: Tuple[Setting, ...] = (
             "0 is off, as in the paper.",
             when="generate", low=0, high=20, paper=0),
     Setting("patch_refine", None, "int",
-            "Adam steps per pyramid level of sliced Wasserstein matching of the image's 7x7 patches to "
+            "Adam steps per pyramid level of sliced Wasserstein matching of the image's 5x5 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
             "patch_levels; 0: off). auto (None in Python): 44 on images of up to 512x512 pixels, none on "
             "larger ones (the cost grows with the image; give a number to refine them too).",
@@ -338,7 +338,7 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("patch_stride", 2, "int",
             "The patch refinement's steps take every patch_stride-th patch each way at each level, "
             "the grid shifted every step (larger images take more; :mod:`tghop.patch_refine`).",
-            when="generate", low=1, high=7),
+            when="generate", low=1, high=5),  # at most the patch side
     Setting("reuse", 1.0, "float",
             "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "
             "against repeating the same patches in large images (ours; not applied where there are 8 "

@@ -134,7 +134,7 @@ class TGHop(BaseEstimator):
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
-                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=3, patch_whitening=0.0,
+                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=4, patch_whitening=0.0,
                  layout_factor=3, rng=None):
         self.patch_size = patch_size
         self.stride = stride
