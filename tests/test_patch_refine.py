@@ -57,6 +57,21 @@ def test_statistics_shapes_and_directions(patch_model):
             == 3 * pr.SETS * pr.DIRECTIONS * (d + pr.QUANTILES) + pr.QUANTILES)
 
 
+def test_quantiles_never_decrease_on_an_exemplar_of_tied_patches(tmp_path):
+    """Flat ground makes many patches project to the same value; crowded levels read
+    between tied or close order statistics must not step back by a float32 rounding, or the
+    saved model is refused as corrupt."""
+    rng = np.random.default_rng(0)
+    img = np.full((96, 96, 3), 0.3, np.float32)
+    img[:, 48:] = rng.random((96, 48, 3))
+    img[:, :48] += np.float32(0.37) * (rng.random((96, 48, 1)) < 0.1)
+    st = pr.PatchStatistics(2).fit(img)
+    assert (np.diff(st.quantiles_, axis=-1) >= 0).all()
+    model = TGHop(**SMALL, patch_levels=2).fit(img)
+    save_model(model, tmp_path / "flat.npz")
+    assert load_model(tmp_path / "flat.npz").synthesize((48, 48), rng=1).shape == (48, 48, 3)
+
+
 def test_quantile_levels_crowd_towards_the_tails():
     """The stored levels run from 0 to 1, symmetric, increasing, and much finer at the ends
     than in the middle: a projection's tails (its strongest edges) get quantiles of their own."""

@@ -107,7 +107,8 @@ def _on_ranks(quantiles, levels, n=_RANKS):
     pos = np.interp(np.linspace(0.0, 1.0, n), levels, np.arange(len(levels), dtype=np.float64))
     j = np.minimum(pos.astype(np.int64), len(levels) - 2)
     frac = (pos - j).astype(np.float32)
-    return quantiles[..., j] * (1 - frac) + quantiles[..., j + 1] * frac
+    low = quantiles[..., j]
+    return low + (quantiles[..., j + 1] - low) * frac
 
 
 def _levels_of(img, n_levels, mode, p):
@@ -201,8 +202,10 @@ class PatchStatistics:
             lo = np.minimum(pos.astype(np.int64), n_x - 2) if n_x > 1 else np.zeros_like(pos, np.int64)
             frac = (pos - lo).astype(np.float32)
             hi = np.minimum(lo + 1, n_x - 1)
-            q = proj[:, lo] * (1 - frac) + proj[:, hi] * frac  # (SETS * DIRECTIONS, QUANTILES)
-            quantiles[i] = q.reshape(SETS, DIRECTIONS, QUANTILES)
+            low = proj[:, lo]
+            q = low + (proj[:, hi] - low) * frac  # (SETS * DIRECTIONS, QUANTILES); tied values stay exact
+            # Levels crowded into one interval must not step back by a rounding (a file checks that).
+            quantiles[i] = np.maximum.accumulate(q, axis=1).reshape(SETS, DIRECTIONS, QUANTILES)
         self.directions_, self.quantiles_, self.levels_ = dirs, quantiles, qlev.astype(np.float32)
         self.side_ = PATCH
         return self
