@@ -153,7 +153,7 @@ class PatchStatistics:
         The patches' side: PATCH (7 in model files of format 5).
     """
 
-    def __init__(self, n_levels=3, whitening=0.0):
+    def __init__(self, n_levels=4, whitening=0.0):
         self.n_levels = n_levels
         self.whitening = whitening
 
