@@ -47,7 +47,7 @@ PATCH = 5
 #: The side in model files of format 5 (tghop 0.15 to 0.24), which have no ``patch.levels``.
 _FORMAT5_PATCH = 7
 #: Direction sets stored per level (step t of a level uses set t mod SETS).
-SETS = 16
+SETS = 32
 #: Random unit directions per set (GPDM draws 64 per step; 32 here: docs/choices.md).
 DIRECTIONS = 32
 #: Quantiles stored per direction (at :func:`quantile_levels`).
