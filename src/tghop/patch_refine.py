@@ -232,7 +232,8 @@ class PatchStatistics:
         """Specs of :mod:`tghop.modelfile` for a model of ``c`` colour channels in a file
         with metadata ``meta`` (``patch.levels`` from format version 6 on)."""
         version = (meta or {}).get("format_version")
-        side = PATCH if version is None or version >= 6 else _FORMAT5_PATCH
+        format5 = version is not None and version < 6  # 7x7 patches, no patch.levels
+        side = _FORMAT5_PATCH if format5 else PATCH
         d = side * side * c
 
         def unit(arr, dims):
@@ -244,8 +245,8 @@ class PatchStatistics:
         return (
             ("patch.directions", ("Lp", SETS, DIRECTIONS, d), "f", says, (("dim", 0, 1, self.n_levels), unit)),
             ("patch.quantiles", ("Lp", SETS, DIRECTIONS, QUANTILES), "f", says, (("nondecreasing",),)),
-        ) + ((("patch.levels", (QUANTILES,), "f", f"{QUANTILES} quantile levels",
-               (("range", 0.0, 1.0), ("nondecreasing",))),) if version is None or version >= 6 else ())
+        ) + (() if format5 else (("patch.levels", (QUANTILES,), "f", f"{QUANTILES} quantile levels",
+                                  (("range", 0.0, 1.0), ("nondecreasing",))),))
 
 
 def _whitened(u, x, w):
