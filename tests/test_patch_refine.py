@@ -360,7 +360,7 @@ def test_paper_pipeline_is_unaffected():
     assert settings.PAPER["patch_refine"] == 0 and settings.PAPER["patch_levels"] == 0
     assert settings.BY_NAME["patch_refine"].default is None and settings.BY_NAME["patch_levels"].default == 4
     assert settings.BY_NAME["patch_stride"].default == 2
-    assert settings.QUALITY["best"] == {"patch_refine": 45, "patch_stride": 1}
+    assert settings.QUALITY["best"] == {"patch_refine": 90, "patch_stride": 1}
     # On the command line the default is the word "auto"; "off" is refused (0 turns it off).
     refine = settings.BY_NAME["patch_refine"]
     assert refine.parse("auto") is None and refine.parse("0") == 0

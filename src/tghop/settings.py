@@ -380,10 +380,10 @@ def generate_settings():
 PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
-#: "best" takes 45 Adam steps per level of the patch refinement, every patch at full
-#: resolution, at any size (its cost against the default's 44 steps at stride 2:
-#: docs/choices.md, "Patch refinement").
-QUALITY = {"default": {}, "best": {"patch_refine": 45, "patch_stride": 1}}
+#: "best" takes 90 Adam steps per level of the patch refinement, every patch at full
+#: resolution, at any size (its cost and gain against the default's 44 steps at stride 2:
+#: docs/choices.md, "Patch refinement", "0.26").
+QUALITY = {"default": {}, "best": {"patch_refine": 90, "patch_stride": 1}}
 
 
 def check_settings(values: dict, *, prefix: str = "") -> dict:
