@@ -132,6 +132,28 @@ def test_ichm_bad_params():
         ICHM(n_clusters=0).fit(z)
 
 
+def test_auto_clusters_follow_the_training_vectors():
+    auto = ICHM()
+    assert [auto.clusters_for(n) for n in (500, 2000, 2800, 4000, 12769)] == [50, 50, 70, 100, 100]
+    assert ICHM(n_clusters=7).clusters_for(12769) == 7
+    z = np.random.default_rng(0).standard_normal((2800, 4))
+    assert 50 < len(ICHM(n_codewords=20, max_iter=20, rng=0).fit(z).weights_) <= 70
+    with pytest.raises(TGHopError, match="n_clusters=50 needs at least 500"):
+        auto.fit(z[:400])
+
+
+def test_component_ratio_caps_each_clusters_components():
+    z = np.random.default_rng(0).standard_normal((400, 30))
+    kw = dict(n_clusters=2, n_codewords=20, cluster_energy=1.0, rng=0)
+    full = ICHM(**kw, max_component_ratio=1.0).fit(z)
+    capped = ICHM(**kw, max_component_ratio=0.05).fit(z)
+    members = np.round(capped.weights_ * len(z))
+    assert np.array_equal(full.n_components_, [30, 30])
+    assert np.array_equal(capped.n_components_, (0.05 * members).astype(int))
+    with pytest.raises(TGHopError, match="max_component_ratio"):
+        ICHM(max_component_ratio=0).fit(z)
+
+
 def test_same_seed_same_patches_different_seed_different(small_model):
     a = small_model.sample_patches(300, rng=7)
     b = small_model.sample_patches(300, rng=7)
@@ -225,9 +247,12 @@ def test_stage_views(small_model):
     assert views["core_dc"].shape == (5, 8, 8)
     assert views["S1_dc"].shape == (5, 16, 16)
     assert np.array_equal(views["S0"], patches)
-    # The core DC map is the 4x4-block mean luminance of the patch (in pixel units).
-    mean4 = patches.reshape(5, 8, 4, 8, 4, 3).mean(axis=(2, 4, 5))
-    np.testing.assert_allclose(views["core_dc"], mean4, atol=0.05)
+    # The core DC map is the 4x4-block mean luminance of the patch (in pixel units), where
+    # no pixel of the block was clipped to [0, 1].
+    blocks = patches.reshape(5, 8, 4, 8, 4, 3)
+    unclipped = ((blocks > 0) & (blocks < 1)).all(axis=(2, 4, 5))
+    assert unclipped.mean() > 0.5
+    np.testing.assert_allclose(views["core_dc"][unclipped], blocks.mean(axis=(2, 4, 5))[unclipped], atol=0.05)
 
 
 @pytest.mark.parametrize("as_rgb", [False, True])

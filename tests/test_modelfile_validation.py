@@ -221,3 +221,16 @@ def test_valid_files_still_load_and_generate_the_same_image(small_model, saved, 
     _write(tmp_path / "noscale.npz", {k: v for k, v in arrays.items() if k != "index.ichm_mixing_scale"})
     with pytest.raises(ModelFileError, match="index.ichm_mixing_scale is missing"):
         load_model(tmp_path / "noscale.npz")
+
+
+def test_files_without_the_component_ratio_read_as_fitted(saved, tmp_path):
+    # Files of tghop 0.26 and before had no max_component_ratio: their clusters were capped at
+    # their size less one only, which is 1.0, not today's default, in their settings.
+    path, arrays = saved
+    assert load_model(path).max_component_ratio == 0.4
+    meta = json.loads(str(arrays["__meta__"]))
+    del meta["params"]["max_component_ratio"]
+    del meta["layout"]["model"]["params"]["max_component_ratio"]
+    _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
+    old = load_model(tmp_path / "old.npz")
+    assert old.max_component_ratio == 1.0 and old.layout_.model_.max_component_ratio == 1.0

@@ -11,9 +11,11 @@ Choices the paper leaves open (see also the notes in the docs):
   lower than threshold gamma"); ``gamma_mode="relative"`` instead compares with the
   channel's total variance.
 * Per-cluster PCA keeps the fewest components that reach ``cluster_energy`` of the
-  cluster's variance, at most ``max_cluster_components`` and fewer than the cluster has
-  samples. The paper's Table 4 (F = 2,518 CDFs for N = 50, about 50 per cluster) is
-  0.95 and 50; the default 0.99 and 100 gives sharper patches (docs/choices.md).
+  cluster's variance, at most ``max_cluster_components``, at most ``max_component_ratio``
+  of the cluster's samples and fewer than it has. The paper's Table 4 (F = 2,518 CDFs for
+  N = 50, about 50 per cluster) is 0.95 and 50; the default 0.99 and 100 gives sharper
+  patches; with N = 100 clusters the cap of 0.4 of the samples keeps each component's
+  histogram from being fitted on too few of them (docs/choices.md).
 * Clusters with fewer than ``min_cluster_size`` members are merged into the nearest
   larger cluster before modelling (ICA of a handful of points is meaningless).
 * Each CDF is a 256-bin histogram between the component's training minimum and maximum,
@@ -41,6 +43,12 @@ __all__ = ["SpatialReduction", "ICHM", "fast_ica"]
 
 #: Resolution of the tabulated inverse CDFs used for sampling.
 QUANTILE_STEPS = 1024
+
+
+#: ``n_clusters=None``: one cluster per AUTO_PER_CLUSTER training vectors, within these bounds
+#: (docs/choices.md, ICHM "0.27").
+AUTO_CLUSTERS = (50, 100)
+AUTO_PER_CLUSTER = 40
 
 
 def _quantize(mixing):
@@ -221,9 +229,10 @@ class ICHM(BaseEstimator):
 
     Parameters
     ----------
-    n_clusters : int, default=50
+    n_clusters : int or None, default=None
         N, the number of K-means clusters (paper: 50 in Table 4; quality improves up to
-        about 100).
+        about 100). None: :meth:`clusters_for` the training vectors, one per
+        ``AUTO_PER_CLUSTER`` of them, at least 50 and at most 100.
     n_codewords : int, default=200
         W, the size of the vector-quantised codebook of CDF shapes.
     n_bins : int, default=256
@@ -233,6 +242,10 @@ class ICHM(BaseEstimator):
         F = 2,518 for N = 50 corresponds to 0.95 with at most 50 components).
     max_cluster_components : int, default=100
         Upper bound of components per cluster.
+    max_component_ratio : float, default=0.4
+        Components per cluster at most this fraction of its members (1: one fewer than
+        the members, the paper's only bound): FastICA and 256-bin histograms of fewer
+        members per component fit the members rather than their distribution.
     min_cluster_size : int, default=10
         Smaller clusters are merged into their nearest larger one.
     reject_threshold : float or None, default=None
@@ -280,11 +293,12 @@ class ICHM(BaseEstimator):
 
     def __init__(
         self,
-        n_clusters=50,
+        n_clusters=None,
         n_codewords=200,
         n_bins=256,
         cluster_energy=0.99,
         max_cluster_components=100,
+        max_component_ratio=0.4,
         min_cluster_size=10,
         reject_threshold=None,
         max_iter=200,
@@ -297,6 +311,7 @@ class ICHM(BaseEstimator):
         self.n_bins = n_bins
         self.cluster_energy = cluster_energy
         self.max_cluster_components = max_cluster_components
+        self.max_component_ratio = max_component_ratio
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.max_iter = max_iter
@@ -308,16 +323,26 @@ class ICHM(BaseEstimator):
     _CHECKS = (("n_clusters", "n_clusters (N)", "n_clusters"), ("n_codewords", "n_codewords (W)", "n_codewords"),
                ("n_bins", "n_bins", "n_bins"), ("cluster_energy", "cluster_energy", "cluster_energy"),
                ("max_cluster_components", "max_cluster_components", "max_cluster_components"),
+               ("max_component_ratio", "max_component_ratio", "max_component_ratio"),
                ("min_cluster_size", "min_cluster_size", "min_cluster_size"),
                ("reject_threshold", "reject_threshold", "reject_threshold"),
                ("max_iter", "max_iter", "ica_max_iter"), ("tol", "tol", "ica_tol"))
 
+    def clusters_for(self, n_samples) -> int:
+        """N for ``n_samples`` training vectors: ``n_clusters``, or with None one per
+        ``AUTO_PER_CLUSTER`` vectors within ``AUTO_CLUSTERS`` (the paper's 50 up to 2,000
+        vectors, 100 from 4,000: a 256x256 exemplar at stride 2 gives 12,769)."""
+        if self.n_clusters is not None:
+            return self.n_clusters
+        return int(min(AUTO_CLUSTERS[1], max(AUTO_CLUSTERS[0], n_samples // AUTO_PER_CLUSTER)))
+
     def _check_params(self, n_samples):
         for param, label, setting in self._CHECKS:
             _SETTINGS[setting].check(getattr(self, param), label=label)
-        if self.n_clusters * self.min_cluster_size > n_samples:
+        n_clusters = self.clusters_for(n_samples)
+        if n_clusters * self.min_cluster_size > n_samples:
             raise TGHopError(
-                f"n_clusters={self.n_clusters} needs at least {self.n_clusters * self.min_cluster_size} "
+                f"n_clusters={n_clusters} needs at least {n_clusters * self.min_cluster_size} "
                 f"training patches but there are {n_samples}; lower N or use a larger exemplar"
             )
 
@@ -389,8 +414,9 @@ class ICHM(BaseEstimator):
 
     def _cluster(self, Z, rng):
         # float32 halves K-means time; the clustering only routes samples to clusters.
-        labels, centres = kmeans(Z, self.n_clusters, rng)
-        counts = np.bincount(labels, minlength=self.n_clusters)
+        n_clusters = self.clusters_for(len(Z))
+        labels, centres = kmeans(Z, n_clusters, rng)
+        counts = np.bincount(labels, minlength=n_clusters)
         small = counts < self.min_cluster_size
         if small.any():
             big = np.flatnonzero(~small)
@@ -410,7 +436,8 @@ class ICHM(BaseEstimator):
         var = gram_vals / n
         cum = np.cumsum(var) / max(var.sum(), 1e-300)
         k = int(np.searchsorted(cum, self.cluster_energy - 1e-12)) + 1
-        k = max(1, min(k, self.max_cluster_components, n - 1, int(np.count_nonzero(var > 1e-12 * var[0]))))
+        k = max(1, min(k, self.max_cluster_components, int(self.max_component_ratio * n), n - 1,
+                       int(np.count_nonzero(var > 1e-12 * var[0]))))
         std = np.sqrt(var[:k])
         basis = _flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
         white = centred @ basis.T / std
@@ -598,7 +625,7 @@ class ICHM(BaseEstimator):
 
         specs = [
             ("ichm_i.p", ("N",), "f", "one probability per cluster",
-             (("dim", 0, 1, self.n_clusters), ("positive",), ("sum", 1.0, 1e-6))),
+             (("dim", 0, 1, self.n_clusters or AUTO_CLUSTERS[1]), ("positive",), ("sum", 1.0, 1e-6))),
             ("ichm_ii.means", ("N", "D_r"), "f", "a mean per cluster of ichm_i.p, of D_r values", ()),
             ("index.ichm_n_components", ("N",), "i", "a component count per cluster of ichm_i.p",
              (("range", 1, self.max_cluster_components), ("sum_defines", "F"))),

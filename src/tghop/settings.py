@@ -253,8 +253,10 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("gamma_mode", "absolute", "choice",
             "Compare gamma with each component's variance (absolute) or its share of the channel's.",
             choices=("absolute", "relative"), target="sdr"),
-    Setting("n_clusters", 50, "int", "N, K-means clusters in ICHM.", low=1, cli=("--clusters", "-N"),
-            cli_high=5000, target="ichm", paper=50),
+    Setting("n_clusters", None, "int",
+            "N, K-means clusters in ICHM. auto (None in Python): one per 40 training patches, at least 50 "
+            "(the paper's) and at most 100 (from 4,000 patches; a 256x256 exemplar has 12,769).",
+            low=1, none_ok=True, auto=True, cli=("--clusters", "-N"), cli_high=5000, target="ichm", paper=50),
     Setting("n_codewords", 200, "int", "W, size of the CDF codebook.", low=1, cli=("--codewords", "-W"),
             cli_high=100000, target="ichm", paper=200),
     Setting("n_bins", 256, "int", "Histogram bins per CDF.", low=2, cli=("--bins",), cli_high=65536,
@@ -265,6 +267,11 @@ SETTINGS: Tuple[Setting, ...] = (
             low=0, high=1, low_open=True, target="ichm", paper=0.95),
     Setting("max_cluster_components", 100, "int", "Components per cluster at most.", low=1,
             target="ichm", paper=50),
+    Setting("max_component_ratio", 0.4, "float",
+            "Components per cluster at most this fraction of its training patches (ours: with fewer "
+            "patches per dimension, FastICA and the histograms fit the patches, not their distribution; "
+            "1: up to one fewer than the patches, as the paper).",
+            low=0, high=1, low_open=True, target="ichm", paper=1.0),
     Setting("min_cluster_size", 10, "int", "Clusters with fewer training patches are merged into the nearest one.",
             low=2, target="ichm"),
     Setting("reject_threshold", None, "float",
@@ -394,6 +401,20 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
             raise TGHopError(f"unknown setting {prefix}{name!r}")
         out[name] = BY_NAME[name].check(value, label=prefix + name)
     return out
+
+
+#: Settings added after model files had them fixed otherwise: a file without one was fitted
+#: with this value, not the default.
+BEFORE_ADDED = {"max_component_ratio": 1.0}
+
+
+def file_settings(params: dict) -> dict:
+    """The checked constructor settings of a model file's metadata ``params`` (a JSON
+    object): lists back to tuples, and :data:`BEFORE_ADDED` for settings it predates."""
+    params = {**BEFORE_ADDED, **params}
+    if params.get("n_channels") is not None:
+        params["n_channels"] = tuple(params["n_channels"])
+    return check_settings(params, prefix="setting ")
 
 
 def component_params(estimator, component: str) -> dict:

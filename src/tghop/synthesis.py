@@ -132,10 +132,10 @@ class TGHop(BaseEstimator):
     # The fit settings of tghop.settings.SETTINGS, in its order and with its defaults
     # (tests/test_settings.py checks that they agree). Nothing is checked until ``fit``.
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
-                 n_clusters=50, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
-                 min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3, residual=False,
-                 max_patches=20000, band_levels=4, band_orientations=4, patch_levels=4, patch_whitening=0.0,
-                 layout_factor=3, rng=None):
+                 n_clusters=None, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
+                 max_component_ratio=0.4, min_cluster_size=10, reject_threshold=None, ica_max_iter=200, ica_tol=1e-3,
+                 residual=False, max_patches=20000, band_levels=4, band_orientations=4, patch_levels=4,
+                 patch_whitening=0.0, layout_factor=3, rng=None):
         self.patch_size = patch_size
         self.stride = stride
         self.n_channels = n_channels
@@ -146,6 +146,7 @@ class TGHop(BaseEstimator):
         self.n_bins = n_bins
         self.cluster_energy = cluster_energy
         self.max_cluster_components = max_cluster_components
+        self.max_component_ratio = max_component_ratio
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.ica_max_iter = ica_max_iter
@@ -222,7 +223,7 @@ class TGHop(BaseEstimator):
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
                                 max_patches=self.max_patches, rng=rng, exclude=exclude)
         if exclude is not None:
-            enough_patches(len(origins), ichm.n_clusters * ichm.min_cluster_size, self.patch_size)
+            enough_patches(len(origins), ichm.clusters_for(len(origins)) * ichm.min_cluster_size, self.patch_size)
         ichm._check_params(len(origins))  # fail before the expensive stages
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
@@ -289,10 +290,7 @@ class TGHop(BaseEstimator):
         Settings missing from ``meta`` (files written before they existed) take their
         defaults; unknown or invalid ones raise :class:`TGHopError`.
         """
-        params = dict(meta["params"])
-        if params.get("n_channels") is not None:
-            params["n_channels"] = tuple(params["n_channels"])
-        model = cls(**settings.check_settings(params, prefix="setting "))
+        model = cls(**settings.file_settings(meta["params"]))
         model.exemplar_shape_ = tuple(int(v) for v in meta["exemplar_shape"])
         model.n_patches_ = int(meta["n_patches"])
         stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
@@ -323,10 +321,7 @@ class TGHop(BaseEstimator):
         it gives must agree with each other (:class:`TGHopError` naming them).
         ``quantised``: whether the mixing rows come with scales (format version 3), or
         the set of prefixes whose do (version 2 files: float32 rows, no scales)."""
-        params = dict(meta["params"])
-        if params.get("n_channels") is not None:
-            params["n_channels"] = tuple(params["n_channels"])
-        model = cls(**settings.check_settings(params, prefix="setting "))
+        model = cls(**settings.file_settings(meta["params"]))
         where = f"the {prefix or 'model'} metadata's"
 
         def count(value, what, low=1):
