@@ -76,7 +76,8 @@ def ichm_fit():
     a = r.exponential(size=(3000, 6))
     b = 20 + r.uniform(-1, 1, size=(2000, 6)) @ r.standard_normal((6, 6))
     z = np.vstack([a, b])
-    return z, ICHM(n_clusters=2, n_codewords=500, cluster_energy=1.0, rng=0).fit(z)
+    # The paper's steps i-iv: components drawn independently (norm_match 0).
+    return z, ICHM(n_clusters=2, n_codewords=500, cluster_energy=1.0, norm_match=0, rng=0).fit(z)
 
 
 def test_ichm_interval_representation(ichm_fit):
@@ -111,6 +112,41 @@ def test_ichm_samples_match_training_moments(ichm_fit):
     assert set(np.unique(labels)) <= set(range(len(model.weights_)))
     np.testing.assert_allclose(sample.mean(0), z.mean(0), atol=0.15)
     np.testing.assert_allclose(sample.std(0), z.std(0), rtol=0.1)
+
+
+def _source_norms(model, z):
+    """The norms of the training vectors' independent components (one cluster)."""
+    return np.linalg.norm((z - model.means_[0]) @ np.linalg.pinv(model.mixing_), axis=1)
+
+
+def test_norm_match_gives_draws_the_training_norms():
+    # Points near a sphere: every training vector's components have nearly the same norm,
+    # which independent draws of the components do not keep.
+    r = np.random.default_rng(7)
+    u = r.standard_normal((4000, 6))
+    z = u / np.linalg.norm(u, axis=1, keepdims=True) * r.uniform(2.9, 3.1, size=(4000, 1))
+    kw = dict(n_clusters=1, cluster_energy=1.0, rng=0)
+    models = {a: ICHM(**kw, norm_match=a).fit(z) for a in (0.0, 0.5, 1.0)}
+    off, half, full = (models[a] for a in (0.0, 0.5, 1.0))
+    assert off.norm_quantiles_.shape == (1, 0) and full.norm_quantiles_.shape == (1, 33)
+    levels = np.linspace(0, 1, 33)
+    np.testing.assert_allclose(full.norm_quantiles_[0], np.quantile(_source_norms(full, z), levels), rtol=1e-3)
+    spread = {}
+    for a, model in models.items():
+        _, (s,) = model.sample_sources(20000, rng=1)
+        norms = np.linalg.norm(s, axis=1)
+        spread[a] = np.subtract(*np.quantile(norms, [0.9, 0.1]))
+        if a == 1.0:  # the training norms' distribution, up to the simulated quantiles' noise
+            assert stats.ks_2samp(norms, _source_norms(full, z)).statistic < 0.05
+    real = np.subtract(*np.quantile(_source_norms(full, z), [0.9, 0.1]))
+    assert spread[0.0] > 4 * real and spread[1.0] < 1.5 * real
+    assert spread[1.0] < spread[0.5] < spread[0.0]
+    # The same draws, each rescaled by a positive factor: directions are kept.
+    _, (b,) = full.sample_sources(100, rng=3)
+    _, (a,) = full.set_params(norm_match=0.0).sample_sources(100, rng=3)
+    factor = np.linalg.norm(b, axis=1) / np.linalg.norm(a, axis=1)
+    assert (factor > 0).all() and not np.allclose(factor, 1.0)
+    np.testing.assert_allclose(b, a * factor[:, None], rtol=1e-12)
 
 
 def test_ichm_reject_threshold(ichm_fit):

@@ -179,9 +179,9 @@ def test_a_tileable_guide_of_any_size_wraps_around(layout):
     its period is the output's (before 0.19: refused)."""
     g = layout.guide((65, 71), rng=2, n_patches=300, tile=True)
     assert g.shape == (65, 71, 3)
-    for axis in (0, 1):  # the wrap-around step is like the steps inside, far below a plain guide's
-        steps = neighbour_steps(g, axis)
-        assert steps[-1] < 3 * np.median(steps[:-1])
+    for axis in (0, 1):  # the wrap-around edge is a seam like those inside, far below a plain guide's
+        steps = neighbour_steps(g, axis)  # (the quilt's seams inside make steps of up to ~20 times the median)
+        assert steps[-1] <= steps[:-1].max()
     plain = layout.guide((65, 71), rng=2, n_patches=300)
     assert neighbour_steps(plain, 0)[-1] > 3 * neighbour_steps(g, 0)[-1]
 
@@ -233,12 +233,14 @@ def test_tghop_tileable_at_any_size_and_without_a_guide_when_too_small(layout_mo
     monkeypatch.setattr(layout_model.layout_, "guide", lambda size, **k: sizes.append(size) or guide_of(size, **k))
     out = layout_model.synthesize((67, 75), rng=1, n_patches=400, tile=True)  # not a multiple of 2
     assert out.shape == (67, 75, 3) and sizes == [(67, 75)]
-    for axis in (0, 1):  # wraps around: the step across the edge like the steps inside
+    for axis in (0, 1):  # wraps around: the step across the edge is a seam like the quilt's seams inside
         steps = neighbour_steps(out, axis)
-        assert steps[-1] < 3 * np.median(steps[:-1])
+        assert steps[-1] <= steps[:-1].max()
     small = layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True)  # 24 coarse pixels: no guide
     assert small.shape == (48, 48, 3) and sizes == [(67, 75)]
     assert np.array_equal(small, layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True, layout_weight=0))
+    plain = layout_model.synthesize((67, 75), rng=1, n_patches=400)  # its edges do not meet
+    assert sum(neighbour_steps(plain, a)[-1] for a in (0, 1)) > 2 * sum(neighbour_steps(out, a)[-1] for a in (0, 1))
 
 
 def test_a_tileable_remix_too_small_for_the_guides_goes_without_them(layout_model):

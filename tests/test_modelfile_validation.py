@@ -90,6 +90,9 @@ CASES = {
     "pixel reversed": ("refine.pixel_quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
     "band reversed": ("refine.band_quantiles", lambda a: a[..., ::-1].copy(), "not non-decreasing"),
     "codebook reversed": ("ichm_iii.codebook", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
+    "norms reversed": ("ichm_iv.norm_quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
+    "negative norms": ("layout.ichm_iv.sampled_norm_quantiles", lambda a: a - 1e3, "below 0.0"),
+    "norms truncated": ("ichm_iv.sampled_norm_quantiles", lambda a: a[:, :-1], "has shape"),
     "layout colour reversed": ("layout.colour.quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
     # complex, wrong dtype
     "complex kernels": ("hop1.kernels", _complex, "complex128, not real"),
@@ -234,3 +237,27 @@ def test_files_without_the_component_ratio_read_as_fitted(saved, tmp_path):
     _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
     old = load_model(tmp_path / "old.npz")
     assert old.max_component_ratio == 1.0 and old.layout_.model_.max_component_ratio == 1.0
+
+
+def test_files_without_norm_quantiles_read_as_fitted(saved, tmp_path):
+    # Files of format 6 and before had no norm_match: their draws were not rescaled (0), and
+    # they hold no ichm_iv.* arrays. A file of format 7 with the setting on must hold them.
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["format_version"] == 7 and meta["params"]["norm_match"] == 1.0
+    del meta["params"]["norm_match"]
+    del meta["layout"]["model"]["params"]["norm_match"]
+    meta["format_version"] = 6
+    old_arrays = {k: v for k, v in arrays.items() if "ichm_iv." not in k}
+    _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
+    old = load_model(tmp_path / "old.npz")
+    assert old.norm_match == 0.0 and old.layout_.model_.norm_match == 0.0
+    assert old.ichm_.norm_quantiles_.shape == (len(old.ichm_.weights_), 0)
+    plain = load_model(path)
+    plain.ichm_.norm_match = plain.layout_.model_.ichm_.norm_match = 0.0
+    expected = plain.synthesize((48, 48), rng=2, n_patches=200)
+    assert np.array_equal(old.synthesize((48, 48), rng=2, n_patches=200), expected)
+    assert not np.array_equal(load_model(path).synthesize((48, 48), rng=2, n_patches=200), expected)
+    _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
+    with pytest.raises(ModelFileError, match="ichm_iv.norm_quantiles is missing"):
+        load_model(tmp_path / "missing.npz")

@@ -21,6 +21,13 @@ Choices the paper leaves open (see also the notes in the docs):
 * Each CDF is a 256-bin histogram between the component's training minimum and maximum,
   so a sampled value never leaves the range seen in training. The inverse CDF is linear
   between bin edges.
+* ``norm_match`` (ours, 0 in the paper's pipeline): independently drawn components add
+  up to patches whose overall strength (the norm of the source vector) spreads about twice
+  as widely as the training patches' do, and many weak components drawn at once make
+  streaks that no training patch has. Each cluster stores the quantiles of its training
+  vectors' source norms and of its own draws' (simulated at fit); a drawn vector is
+  rescaled towards the training norm at its draw's rank, by this power of the ratio
+  (docs/choices.md, ICHM "0.28").
 * The rejection step (iv) is off by default (``reject_threshold=None``); when set, a draw
   whose matched independent components are all <= the threshold is redrawn.
 * ``residual=True`` (ours, off in the paper's pipeline) also models what each cluster's
@@ -49,6 +56,10 @@ QUANTILE_STEPS = 1024
 #: (docs/choices.md, ICHM "0.27").
 AUTO_CLUSTERS = (50, 100)
 AUTO_PER_CLUSTER = 40
+#: ``norm_match``: quantiles of the source norms stored per cluster (evenly spaced levels),
+#: and the draws per cluster at fit that give the quantiles of the sampled norms.
+NORM_QUANTILES = 33
+NORM_DRAWS = 1000
 
 
 def _quantize(mixing):
@@ -257,6 +268,9 @@ class ICHM(BaseEstimator):
     residual : bool, default=False
         Model the residual of the per-cluster PCA by a Gaussian per group of dimensions
         (``groups`` of :meth:`fit`) and add a draw of it to every sample (ours).
+    norm_match : float in [0, 1], default=1.0
+        Rescale each drawn source vector towards the training norm at its rank: by the
+        ratio of the two to this power (ours; 0: off, the paper's independent draws).
     rng : int or numpy.random.Generator, optional
         For K-means and FastICA initialisation.
 
@@ -289,6 +303,9 @@ class ICHM(BaseEstimator):
     residual_factor_ : ndarray, shape (sum of squared group sizes,)
         For each group in order, the square root ``L`` (row-major, ``L @ L.T`` = the
         group's residual covariance) of its Gaussian; empty without ``residual``.
+    norm_quantiles_, sampled_norm_quantiles_ : ndarray, shape (N, NORM_QUANTILES) or (N, 0)
+        Quantiles (at evenly spaced levels) of the source norms of each cluster's training
+        vectors and of its independent draws; (N, 0) with ``norm_match`` 0.
     """
 
     def __init__(
@@ -304,6 +321,7 @@ class ICHM(BaseEstimator):
         max_iter=200,
         tol=1e-3,
         residual=False,
+        norm_match=1.0,
         rng=None,
     ):
         self.n_clusters = n_clusters
@@ -317,6 +335,7 @@ class ICHM(BaseEstimator):
         self.max_iter = max_iter
         self.tol = tol
         self.residual = residual
+        self.norm_match = norm_match
         self.rng = rng
 
     #: (parameter, label in messages, setting of the table that defines its type and range)
@@ -326,7 +345,8 @@ class ICHM(BaseEstimator):
                ("max_component_ratio", "max_component_ratio", "max_component_ratio"),
                ("min_cluster_size", "min_cluster_size", "min_cluster_size"),
                ("reject_threshold", "reject_threshold", "reject_threshold"),
-               ("max_iter", "max_iter", "ica_max_iter"), ("tol", "tol", "ica_tol"))
+               ("max_iter", "max_iter", "ica_max_iter"), ("tol", "tol", "ica_tol"),
+               ("norm_match", "norm_match", "norm_match"))
 
     def clusters_for(self, n_samples) -> int:
         """N for ``n_samples`` training vectors: ``n_clusters``, or with None one per
@@ -409,6 +429,7 @@ class ICHM(BaseEstimator):
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
         report(progress, "CDF codebook", 0, 1)
         self._fit_cdfs(sources, rng)
+        self._fit_norms(sources, rng)
         report(progress, "CDF codebook", 1, 1)
         return self
 
@@ -516,6 +537,35 @@ class ICHM(BaseEstimator):
             self.codebook_ = np.maximum.accumulate(np.clip(centres, 0.0, 1.0), axis=1)
             self.codebook_[:, -1] = 1.0
 
+    def _fit_norms(self, sources, rng):
+        """Quantiles of each cluster's training source norms, and of the norms of
+        NORM_DRAWS independent draws from its fitted CDFs (empty without ``norm_match``)."""
+        n = len(sources)
+        if not self.norm_match:
+            self.norm_quantiles_ = self.sampled_norm_quantiles_ = np.zeros((n, 0))
+            return
+        levels = np.linspace(0.0, 1.0, NORM_QUANTILES)
+        table = self._quantile_table()
+        offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
+        real, drawn = np.empty((n, NORM_QUANTILES)), np.empty((n, NORM_QUANTILES))
+        for i, s in enumerate(sources):
+            comp = slice(offsets[i], offsets[i + 1])
+            draws = self._match(rng.random((NORM_DRAWS, s.shape[1])), comp, table)
+            real[i] = np.quantile(np.linalg.norm(s, axis=1), levels)
+            drawn[i] = np.quantile(np.linalg.norm(draws, axis=1), levels)
+        self.norm_quantiles_, self.sampled_norm_quantiles_ = real, drawn
+
+    def _match_norm(self, s, i):
+        """Cluster ``i``'s drawn sources ``s`` (m, k), each row rescaled by (training norm at
+        its norm's rank among the draws / its norm) ** ``norm_match``, in place."""
+        if self.norm_quantiles_.shape[1] == 0 or not self.norm_match or not len(s):
+            return s
+        levels = np.linspace(0.0, 1.0, self.norm_quantiles_.shape[1])
+        r = np.linalg.norm(s, axis=1)
+        target = np.interp(np.interp(r, self.sampled_norm_quantiles_[i], levels), levels, self.norm_quantiles_[i])
+        s *= ((target / np.maximum(r, 1e-300)) ** self.norm_match)[:, None]
+        return s
+
     # ------------------------------------------------------------------ mixing matrix
     # The fitted (or loaded) mixing matrix is kept as what the model file stores: float16
     # rows and a float32 scale per row. ``mixing_`` (float64) is made from them on first
@@ -585,9 +635,16 @@ class ICHM(BaseEstimator):
         ("index.ichm_residual_group", "residual_group_", np.int64),
         ("residual.factor", "residual_factor_", np.float64),
     )
+    #: The same for ``norm_match``: written only where it is on (format version 7).
+    _NORM_ARRAYS = (
+        ("ichm_iv.norm_quantiles", "norm_quantiles_", np.float64),
+        ("ichm_iv.sampled_norm_quantiles", "sampled_norm_quantiles_", np.float64),
+    )
 
     def _to_arrays(self) -> dict:
         out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS if attr != "mixing_"}
+        if self.norm_quantiles_.size:
+            out.update({name: getattr(self, attr) for name, attr, _ in self._NORM_ARRAYS})
         # The float16 rows as fitted or loaded (mixing_ is made from them), unless mixing_ was
         # set since; quantising again gives the same numbers, it only costs time.
         stored = vars(self).get("_stored_mixing")
@@ -604,6 +661,9 @@ class ICHM(BaseEstimator):
         for name, attr, dtype in self._ARRAYS:
             if not (quantised and attr == "mixing_"):
                 setattr(self, attr, arrays[name].astype(dtype, copy=False))
+        for name, attr, dtype in self._NORM_ARRAYS:  # absent where norm_match is 0 (and before version 7)
+            setattr(self, attr, arrays[name].astype(dtype, copy=False) if name in arrays
+                    else np.zeros((len(self.weights_), 0)))
         if quantised:
             scale, rows = arrays["index.ichm_mixing_scale"], arrays["ichm_ii.mixing"]
             if rows.ndim != 2 or scale.shape != rows.shape[:1] or scale.dtype.kind != "f":
@@ -653,6 +713,10 @@ class ICHM(BaseEstimator):
         else:
             specs += [("index.ichm_residual_group", (0,), "i", "the metadata says no residual", ()),
                       ("residual.factor", (0,), "f", "the metadata says no residual", ())]
+        if self.norm_match:
+            says = f"the metadata says norm_match={self.norm_match}: {NORM_QUANTILES} quantiles per cluster"
+            specs += [(name, ("N", NORM_QUANTILES), "f", says, (("range", 0.0, None), ("nondecreasing",)))
+                      for name, _, _ in self._NORM_ARRAYS]
         return tuple(specs)
 
     # ------------------------------------------------------------------ sampling
@@ -673,7 +737,8 @@ class ICHM(BaseEstimator):
         return self._quantiles
 
     def sample_sources(self, n, *, rng=None):
-        """Draw clusters and matched independent components (steps i-iv).
+        """Draw clusters and matched independent components (steps i-iv; with ``norm_match``
+        each vector of components rescaled towards the training norms, before step iv).
 
         Parameters
         ----------
@@ -700,13 +765,13 @@ class ICHM(BaseEstimator):
         for i in range(len(self.weights_)):
             m = int(np.count_nonzero(labels == i))
             comp = slice(offsets[i], offsets[i + 1])
-            s = self._match(rng.random((m, self.n_components_[i])), comp, table)
+            s = self._match_norm(self._match(rng.random((m, self.n_components_[i])), comp, table), i)
             if self.reject_threshold is not None:
                 for _ in range(100):  # (iv) redraw samples with no value above the threshold
                     bad = ~(s > self.reject_threshold).any(axis=1)
                     if not bad.any():
                         break
-                    s[bad] = self._match(rng.random((int(bad.sum()), s.shape[1])), comp, table)
+                    s[bad] = self._match_norm(self._match(rng.random((int(bad.sum()), s.shape[1])), comp, table), i)
             sources.append(s)
         return labels, sources
 

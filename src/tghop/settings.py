@@ -272,6 +272,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "patches per dimension, FastICA and the histograms fit the patches, not their distribution; "
             "1: up to one fewer than the patches, as the paper).",
             low=0, high=1, low_open=True, target="ichm", paper=1.0),
+    Setting("norm_match", 1.0, "float",
+            "Rescale each drawn vector's independent components towards the exemplar's norm at the draw's "
+            "rank, by this power of the ratio (ours: independent draws spread twice as widely in overall "
+            "strength as the exemplar's patches and streak; 0: off, as the paper).",
+            low=0, high=1, target="ichm", paper=0.0),
     Setting("min_cluster_size", 10, "int", "Clusters with fewer training patches are merged into the nearest one.",
             low=2, target="ichm"),
     Setting("reject_threshold", None, "float",
@@ -405,7 +410,7 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
 
 #: Settings added after model files had them fixed otherwise: a file without one was fitted
 #: with this value, not the default.
-BEFORE_ADDED = {"max_component_ratio": 1.0}
+BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0}
 
 
 def file_settings(params: dict) -> dict:

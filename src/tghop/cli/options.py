@@ -113,8 +113,9 @@ def _setting_option(s):
     names = list(s.option_names)
     help_text = _plain(s.help)
     default = s.default
-    shown = {True: "on", False: "off", None: "auto" if s.auto else "none"}.get(default, default) \
-        if not isinstance(default, int) or isinstance(default, bool) else default
+    # By kind, not by value: 1.0 == True and 0.0 == False as dictionary keys.
+    shown = {True: "on", False: "off"}[default] if isinstance(default, bool) else (
+        ("auto" if s.auto else "none") if default is None else default)
     extra = f"default: {shown}"
     if s.kind == "rng":
         return click.option(*names, "rng", type=click.IntRange(min=0), default=None,
