@@ -56,6 +56,7 @@ VARIANTS = {
     "no-colour": ({}, {"match_colours": False}),
     "no-patch-refine": ({}, {"patch_refine": 0}),  # the default until tghop 0.20
     "no-seams": ({}, {"seam_window": 0}),  # quilting's plain cuts (tghop 0.15's default)
+    "no-norm-match": ({"norm_match": 0.0}, {}),  # the core model's independent draws as drawn (before 0.28)
     "best": ({}, "BEST"),  # tghop synth --quality best
     "pool10k": ({}, {"n_patches": 10000}),
     "residual": ({"residual": True}, {}),
