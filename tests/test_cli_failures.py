@@ -160,6 +160,14 @@ def test_help_says_what_sizes_cost_and_the_size_order():
     assert "HEIGHTxWIDTH" in flat and "--seed" in flat
 
 
+def test_help_shows_each_default_as_its_kind():
+    # A float of 1.0 is not "on", nor 0.0 "off" (they equal True and False as dictionary keys).
+    flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())
+    norm = flat.split("--norm-match FLOAT", 1)[1].split(" --min-cluster-size", 1)[0]
+    assert norm.endswith("[default: 1.0; --paper: 0.0]"), norm
+    assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
+
+
 @pytest.mark.parametrize("command", [[], ["fit"], ["synth"], ["info"], ["evaluate"], ["patches"], ["baseline"],
                                      ["cooc"], ["cooc", "train"], ["cooc", "morph"], ["cooc", "edit"]])
 def test_help_is_plain_text(command):

@@ -643,7 +643,7 @@ class ICHM(BaseEstimator):
 
     def _to_arrays(self) -> dict:
         out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS if attr != "mixing_"}
-        if self.norm_quantiles_.size:
+        if self.norm_match and self.norm_quantiles_.size:  # what the metadata's setting says is there
             out.update({name: getattr(self, attr) for name, attr, _ in self._NORM_ARRAYS})
         # The float16 rows as fitted or loaded (mixing_ is made from them), unless mixing_ was
         # set since; quantising again gives the same numbers, it only costs time.
