@@ -546,10 +546,8 @@ class ICHM(BaseEstimator):
             return
         levels = np.linspace(0.0, 1.0, NORM_QUANTILES)
         table = self._quantile_table()
-        offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
         real, drawn = np.empty((n, NORM_QUANTILES)), np.empty((n, NORM_QUANTILES))
-        for i, s in enumerate(sources):
-            comp = slice(offsets[i], offsets[i + 1])
+        for i, (s, comp) in enumerate(zip(sources, self._blocks(), strict=True)):
             draws = self._match(rng.random((NORM_DRAWS, s.shape[1])), comp, table)
             real[i] = np.quantile(np.linalg.norm(s, axis=1), levels)
             drawn[i] = np.quantile(np.linalg.norm(draws, axis=1), levels)
@@ -720,6 +718,11 @@ class ICHM(BaseEstimator):
         return tuple(specs)
 
     # ------------------------------------------------------------------ sampling
+    def _blocks(self):
+        """Each cluster's components: its slice of the F rows of the mixing matrix and CDFs."""
+        ends = np.cumsum(self.n_components_)
+        return [slice(int(e - k), int(e)) for e, k in zip(ends, self.n_components_)]
+
     @property
     def n_cdfs_(self) -> int:
         """F, the number of CDFs (independent components over all clusters)."""
@@ -760,11 +763,9 @@ class ICHM(BaseEstimator):
         labels = np.minimum(np.searchsorted(np.cumsum(self.weights_), rng.random(n), side="right"),
                             len(self.weights_) - 1)
         table = self._quantile_table()
-        offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
         sources = []
-        for i in range(len(self.weights_)):
+        for i, comp in enumerate(self._blocks()):
             m = int(np.count_nonzero(labels == i))
-            comp = slice(offsets[i], offsets[i + 1])
             s = self._match_norm(self._match(rng.random((m, self.n_components_[i])), comp, table), i)
             if self.reject_threshold is not None:
                 for _ in range(100):  # (iv) redraw samples with no value above the threshold
@@ -831,13 +832,12 @@ class ICHM(BaseEstimator):
             raise TGHopError(f"mix: source rows per cluster {[len(s) for s in sources]} do not match the "
                              f"labels' counts {counts.tolist()}")
         out = np.empty((len(labels), mixing.shape[1]), dtype=mixing.dtype)
-        offsets = np.concatenate([[0], np.cumsum(self.n_components_)])
         start = 0
-        for i, s in enumerate(sources):
+        for i, (s, comp) in enumerate(zip(sources, self._blocks(), strict=True)):
             stop = start + len(s)
             if stop > start:
                 block = out[start:stop]
-                np.matmul(s, mixing[offsets[i]: offsets[i + 1]], out=block)
+                np.matmul(s, mixing[comp], out=block)
                 block += means[i]
             start = stop
         position = np.empty(len(labels), dtype=np.intp)

@@ -289,7 +289,8 @@ class TGHop(BaseEstimator):
         """Inverse of :meth:`_state_meta` and :meth:`_to_arrays`.
 
         Settings missing from ``meta`` (files written before they existed) take their
-        defaults; unknown or invalid ones raise :class:`TGHopError`.
+        defaults, or the value such files were fitted with (:data:`tghop.settings.BEFORE_ADDED`);
+        unknown or invalid ones raise :class:`TGHopError`.
         """
         model = cls(**settings.file_settings(meta["params"]))
         model.exemplar_shape_ = tuple(int(v) for v in meta["exemplar_shape"])
