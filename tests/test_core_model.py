@@ -6,7 +6,8 @@ import pytest
 from scipy import stats
 
 from tghop import ModelFileError, NotFittedError, TGHopError
-from tghop.core import ICHM, SpatialReduction, fast_ica
+from tghop.core import ICHM, fast_ica
+from tghop.sdr import SpatialReduction
 from tghop.modelfile import FORMAT_VERSION, load_model, save_model
 from tghop.synthesis import TGHop
 

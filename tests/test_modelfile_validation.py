@@ -93,6 +93,11 @@ CASES = {
     "norms reversed": ("ichm_iv.norm_quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
     "negative norms": ("layout.ichm_iv.sampled_norm_quantiles", lambda a: a - 1e3, "below 0.0"),
     "norms truncated": ("ichm_iv.sampled_norm_quantiles", lambda a: a[:, :-1], "has shape"),
+    "ranks truncated": ("ichm_coupling.member_ranks", lambda a: a[:-1], "has shape"),
+    "ranks out of range": ("layout.ichm_coupling.member_ranks", lambda a: a.astype(np.int16) + 256, "above 255"),
+    "float ranks": ("ichm_coupling.member_ranks", lambda a: a.astype(np.float32), "not integers"),
+    "no members": _set("index.ichm_member_counts", 0, 0) + ("below 1",),
+    "member counts short": ("index.ichm_member_counts", lambda a: a[:-1], "has shape"),
     "layout colour reversed": ("layout.colour.quantiles", lambda a: a[:, ::-1].copy(), "not non-decreasing"),
     # complex, wrong dtype
     "complex kernels": ("hop1.kernels", _complex, "complex128, not real"),
@@ -244,7 +249,7 @@ def test_files_without_norm_quantiles_read_as_fitted(saved, tmp_path):
     # they hold no ichm_iv.* arrays. A file of format 7 with the setting on must hold them.
     path, arrays = saved
     meta = json.loads(str(arrays["__meta__"]))
-    assert meta["format_version"] == 7 and meta["params"]["norm_match"] == 1.0
+    assert meta["format_version"] == 8 and meta["params"]["norm_match"] == 1.0
     del meta["params"]["norm_match"]
     del meta["layout"]["model"]["params"]["norm_match"]
     meta["format_version"] = 6
@@ -260,4 +265,30 @@ def test_files_without_norm_quantiles_read_as_fitted(saved, tmp_path):
     assert not np.array_equal(load_model(path).synthesize((48, 48), rng=2, n_patches=200), expected)
     _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
     with pytest.raises(ModelFileError, match="ichm_iv.norm_quantiles is missing"):
+        load_model(tmp_path / "missing.npz")
+
+
+def test_files_without_member_ranks_read_as_fitted(saved, tmp_path):
+    # Files of format 7 and before had no coupling: their components were drawn independently
+    # (0), and they hold no member ranks. A file of format 8 with the setting on must hold them.
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["params"]["coupling"] == 0.95 and meta["layout"]["model"]["params"]["coupling"] == 0.95
+    del meta["params"]["coupling"]
+    del meta["layout"]["model"]["params"]["coupling"]
+    meta["format_version"] = 7
+    ranks = ("ichm_coupling.", "index.ichm_member_counts")
+    old_arrays = {k: v for k, v in arrays.items() if not any(r in k for r in ranks)}
+    assert len(old_arrays) == len(arrays) - 4  # the model's and its layout model's two each
+    _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
+    old = load_model(tmp_path / "old.npz")
+    assert old.coupling == 0.0 and old.layout_.model_.coupling == 0.0
+    assert old.ichm_.member_ranks_.size == 0 and old.ichm_.member_counts_.size == 0
+    plain = load_model(path)
+    plain.ichm_.coupling = plain.layout_.model_.ichm_.coupling = 0.0
+    expected = plain.synthesize((48, 48), rng=2, n_patches=200)
+    assert np.array_equal(old.synthesize((48, 48), rng=2, n_patches=200), expected)
+    assert not np.array_equal(load_model(path).synthesize((48, 48), rng=2, n_patches=200), expected)
+    _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
+    with pytest.raises(ModelFileError, match="index.ichm_member_counts is missing"):
         load_model(tmp_path / "missing.npz")

@@ -1,15 +1,11 @@
-"""The core generative model: spatial dimension reduction (SDR) and independent-components
-histogram matching (ICHM), paper section IV.C.
+"""The core generative model's distribution: independent-components histogram matching
+(ICHM), paper section IV.C.
 
-``SpatialReduction`` turns core responses ``(n, 8, 8, K2)`` into vectors ``z`` of
-dimension ``D_r``; ``ICHM`` learns the distribution of ``z`` and samples new vectors.
+:class:`tghop.sdr.SpatialReduction` turns core responses ``(n, 8, 8, K2)`` into vectors ``z``
+of dimension ``D_r``; ``ICHM`` learns the distribution of ``z`` and samples new vectors.
 
 Choices the paper leaves open (see also the notes in the docs):
 
-* ``gamma`` is an absolute variance threshold on each channel's spatial PCA components,
-  for images scaled to [0, 1] (``gamma_mode="absolute"``, the paper's wording "variances
-  lower than threshold gamma"); ``gamma_mode="relative"`` instead compares with the
-  channel's total variance.
 * Per-cluster PCA keeps the fewest components that reach ``cluster_energy`` of the
   cluster's variance, at most ``max_cluster_components``, at most ``max_component_ratio``
   of the cluster's samples and fewer than it has. The paper's Table 4 (F = 2,518 CDFs for
@@ -28,6 +24,9 @@ Choices the paper leaves open (see also the notes in the docs):
   vectors' source norms and of its own draws' (simulated at fit); a drawn vector is
   rescaled towards the training norm at its draw's rank, by this power of the ratio
   (docs/choices.md, ICHM "0.28").
+* ``coupling`` (ours, 0 in the paper's pipeline): a draw's components follow a random
+  training member's ranks with this correlation of their normal scores, so that components
+  that act together in the exemplar's patches are drawn together (:mod:`tghop.coupling`).
 * The rejection step (iv) is off by default (``reject_threshold=None``); when set, a draw
   whose matched independent components are all <= the threshold is redrawn.
 * ``residual=True`` (ours, off in the paper's pipeline) also models what each cluster's
@@ -42,11 +41,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, check_rng, usable_cores, report
+from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
+from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
+from .sdr import flip_signs
 from .settings import BY_NAME as _SETTINGS
 from .unsupervised import fast_ica, kmeans  # noqa: F401 (fast_ica: also tghop.core's)
 
-__all__ = ["SpatialReduction", "ICHM", "fast_ica"]
+__all__ = ["ICHM", "fast_ica"]
 
 #: Resolution of the tabulated inverse CDFs used for sampling.
 QUANTILE_STEPS = 1024
@@ -76,163 +77,6 @@ def _dequantize(rows, scale):
     out = rows.astype(np.float64)
     out *= np.asarray(scale, dtype=np.float32).astype(np.float64)[:, None]  # in place: no second matrix
     return out
-
-
-def _flip_signs(components):
-    """Make the entry of largest magnitude of each row positive (deterministic PCA)."""
-    pivot = np.argmax(np.abs(components), axis=1)
-    return components * np.sign(components[np.arange(len(components)), pivot])[:, None]
-
-
-def _channel_major(Y, chunk=64):
-    """(n, h, w, K) -> contiguous (K, n, h * w): one channel's maps side by side.
-
-    Copied ``chunk`` samples at a time: the source rows of a chunk stay in cache while
-    they are scattered over the K channels (faster than one transposing copy of a large
-    core, whose strided accesses miss the cache)."""
-    n, h, w, k = Y.shape
-    src = Y.reshape(n, h * w, k)
-    out = np.empty((k, n, h * w), dtype=Y.dtype)
-    for a in range(0, n, chunk):
-        out[:, a : a + chunk] = src[a : a + chunk].transpose(2, 0, 1)
-    return out
-
-
-class SpatialReduction(TransformerMixin, BaseEstimator):
-    """Spatial dimension reduction: per-channel PCA of each core channel's spatial map.
-
-    Parameters
-    ----------
-    gamma : float, default=0.01
-        PCA components whose variance is below ``gamma`` are dropped (the same threshold
-        for every channel). 0 keeps all of them.
-    gamma_mode : {"absolute", "relative"}, default="absolute"
-        Compare ``gamma`` with the component variance itself, or with its fraction of
-        the channel's total variance.
-
-    Attributes
-    ----------
-    mean_ : ndarray, shape (K, h * w)
-        Mean spatial map of each channel.
-    components_ : ndarray, shape (D_r, h * w)
-        Kept components of all channels, grouped by channel.
-    channel_ : ndarray of int, shape (D_r,)
-        Channel of each kept component.
-    explained_variance_ : ndarray, shape (D_r,)
-    kept_per_channel_ : ndarray of int, shape (K,)
-    """
-
-    def __init__(self, gamma=0.01, gamma_mode="absolute"):
-        self.gamma = gamma
-        self.gamma_mode = gamma_mode
-
-    def fit(self, Y, y=None):
-        """Learn from core responses ``Y`` of shape (n, h, w, K).
-
-        Returns
-        -------
-        self
-        """
-        self.fit_transform(Y)
-        return self
-
-    def fit_transform(self, Y, y=None):
-        """Fit, then return ``z`` of shape (n, D_r)."""
-        _SETTINGS["gamma"].check(self.gamma)
-        _SETTINGS["gamma_mode"].check(self.gamma_mode)
-        Y = np.asarray(Y, dtype=np.float64)
-        n, h, w, k = Y.shape
-        maps = _channel_major(Y)
-        self.shape_ = (h, w, k)
-        self.mean_ = maps.mean(axis=1)
-        comps, var, chan = [], [], []
-        for c in range(k):
-            centred = maps[c] - self.mean_[c]
-            vals, vecs = np.linalg.eigh(centred.T @ centred / n)
-            vals, vecs = vals[::-1], vecs[:, ::-1].T
-            limit = self.gamma * (vals.sum() if self.gamma_mode == "relative" else 1.0)
-            keep = vals > limit if self.gamma > 0 else vals > 1e-12 * max(vals.sum(), 1e-300)
-            comps.append(_flip_signs(vecs[keep]))
-            var.append(vals[keep])
-            chan.append(np.full(int(keep.sum()), c))
-        self.components_ = np.vstack(comps)
-        self.explained_variance_ = np.concatenate(var)
-        self.channel_ = np.concatenate(chan).astype(np.int64)
-        self.kept_per_channel_ = np.bincount(self.channel_, minlength=k)
-        if self.components_.shape[0] == 0:
-            raise TGHopError(f"gamma={self.gamma} drops every spatial component; use a smaller gamma")
-        return self._project(maps)
-
-    #: (file name, attribute, dtype): the arrays of a model file that belong to SDR.
-    _ARRAYS = (
-        ("sdr.components", "components_", np.float64),
-        ("sdr.mean", "mean_", np.float64),
-        ("index.sdr_channel", "channel_", np.int64),
-        ("index.sdr_variance", "explained_variance_", np.float64),
-    )
-
-    def _to_arrays(self) -> dict:
-        return {name: getattr(self, attr) for name, attr, _ in self._ARRAYS}
-
-    def _from_arrays(self, arrays, shape):
-        """Restore the fitted state from :meth:`_to_arrays` output and ``shape_``; returns self."""
-        for name, attr, dtype in self._ARRAYS:
-            setattr(self, attr, arrays[name].astype(dtype, copy=False))
-        self.shape_ = tuple(shape)
-        self.kept_per_channel_ = np.bincount(self.channel_, minlength=self.shape_[2])
-        return self
-
-    @staticmethod
-    def _array_specs(shape):
-        """SDR's arrays for core maps of ``shape`` (h, w, K), for the checks of
-        :mod:`tghop.modelfile`: ``(name, shape, kind, says, rules)`` each; sets D_r."""
-        h, w, k = shape
-        return (
-            ("sdr.components", ("D_r", h * w), "f", f"the metadata says {h}x{w} core maps",
-             (("dim", 0, 1, None),)),
-            ("sdr.mean", (k, h * w), "f", f"the metadata says {k} core channels of {h}x{w}", ()),
-            ("index.sdr_channel", ("D_r",), "i", "one channel per row of sdr.components",
-             (("index", k), ("nondecreasing",))),
-            ("index.sdr_variance", ("D_r",), "f", "one variance per row of sdr.components",
-             (("range", 0, None), ("unbounded",))),
-        )
-
-    @property
-    def n_components_(self) -> int:
-        """D_r, the dimension after SDR."""
-        check_is_fitted(self, "components_")
-        return self.components_.shape[0]
-
-    def transform(self, Y):
-        """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r)."""
-        check_is_fitted(self, "components_")
-        return self._project(_channel_major(np.asarray(Y, dtype=np.float64)))
-
-    def channel_ranges(self):
-        """``[(start, stop), ...]``: each core channel's rows of :attr:`components_` (and
-        columns of ``z``); fit keeps the components in channel order, so each channel's are
-        one range (empty where a channel keeps none)."""
-        check_is_fitted(self, "components_")
-        bounds = np.searchsorted(self.channel_, np.arange(self.shape_[2] + 1))
-        return list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
-
-    def _project(self, maps):
-        z = np.empty((maps.shape[1], self.components_.shape[0]))
-        for c, (a, e) in enumerate(self.channel_ranges()):
-            if a < e:
-                z[:, a:e] = (maps[c] - self.mean_[c]) @ self.components_[a:e].T
-        return z
-
-    def inverse_transform(self, Z):
-        """``z`` (n, D_r) -> core responses (n, h, w, K); dropped components are zero."""
-        check_is_fitted(self, "components_")
-        Z = np.asarray(Z, dtype=np.float64)
-        h, w, k = self.shape_
-        out = np.repeat(self.mean_.T[None], Z.shape[0], axis=0)
-        for c, (a, e) in enumerate(self.channel_ranges()):
-            if a < e:
-                out[:, :, c] += Z[:, a:e] @ self.components_[a:e]
-        return out.reshape(Z.shape[0], h, w, k)
 
 
 class ICHM(BaseEstimator):
@@ -271,6 +115,9 @@ class ICHM(BaseEstimator):
     norm_match : float in [0, 1], default=1.0
         Rescale each drawn source vector towards the training norm at its rank: by the
         ratio of the two to this power (ours; 0: off, the paper's independent draws).
+    coupling : float in [0, 1), default=0.95
+        Correlation of each draw's normal scores with a random training member's
+        (:mod:`tghop.coupling`; ours; 0: the paper's independent draws).
     rng : int or numpy.random.Generator, optional
         For K-means and FastICA initialisation.
 
@@ -305,7 +152,11 @@ class ICHM(BaseEstimator):
         group's residual covariance) of its Gaussian; empty without ``residual``.
     norm_quantiles_, sampled_norm_quantiles_ : ndarray, shape (N, NORM_QUANTILES) or (N, 0)
         Quantiles (at evenly spaced levels) of the source norms of each cluster's training
-        vectors and of its independent draws; (N, 0) with ``norm_match`` 0.
+        vectors and of its draws; (N, 0) with ``norm_match`` 0.
+    member_counts_ : ndarray of int, shape (N,) or (0,)
+        Training members per cluster; empty with ``coupling`` 0.
+    member_ranks_ : ndarray of uint8, shape (sum of members x components,)
+        :func:`tghop.coupling.member_ranks` of each cluster, flattened in cluster order.
     """
 
     def __init__(
@@ -322,6 +173,7 @@ class ICHM(BaseEstimator):
         tol=1e-3,
         residual=False,
         norm_match=1.0,
+        coupling=0.95,
         rng=None,
     ):
         self.n_clusters = n_clusters
@@ -336,6 +188,7 @@ class ICHM(BaseEstimator):
         self.tol = tol
         self.residual = residual
         self.norm_match = norm_match
+        self.coupling = coupling
         self.rng = rng
 
     #: (parameter, label in messages, setting of the table that defines its type and range)
@@ -346,7 +199,7 @@ class ICHM(BaseEstimator):
                ("min_cluster_size", "min_cluster_size", "min_cluster_size"),
                ("reject_threshold", "reject_threshold", "reject_threshold"),
                ("max_iter", "max_iter", "ica_max_iter"), ("tol", "tol", "ica_tol"),
-               ("norm_match", "norm_match", "norm_match"))
+               ("norm_match", "norm_match", "norm_match"), ("coupling", "coupling", "coupling"))
 
     def clusters_for(self, n_samples) -> int:
         """N for ``n_samples`` training vectors: ``n_clusters``, or with None one per
@@ -429,6 +282,7 @@ class ICHM(BaseEstimator):
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
         report(progress, "CDF codebook", 0, 1)
         self._fit_cdfs(sources, rng)
+        self._fit_ranks(sources)
         self._fit_norms(sources, rng)
         report(progress, "CDF codebook", 1, 1)
         return self
@@ -460,7 +314,7 @@ class ICHM(BaseEstimator):
         k = max(1, min(k, self.max_cluster_components, int(self.max_component_ratio * n), n - 1,
                        int(np.count_nonzero(var > 1e-12 * var[0]))))
         std = np.sqrt(var[:k])
-        basis = _flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
+        basis = flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
         white = centred @ basis.T / std
         unmix, converged = fast_ica(white, max_iter=self.max_iter, tol=self.tol, rng=rng)
         sources = white @ unmix.T
@@ -548,10 +402,28 @@ class ICHM(BaseEstimator):
         table = self._quantile_table()
         real, drawn = np.empty((n, NORM_QUANTILES)), np.empty((n, NORM_QUANTILES))
         for i, (s, comp) in enumerate(zip(sources, self._blocks(), strict=True)):
-            draws = self._match(rng.random((NORM_DRAWS, s.shape[1])), comp, table)
+            draws = self._match(self._uniforms(i, NORM_DRAWS, rng), comp, table)
             real[i] = np.quantile(np.linalg.norm(s, axis=1), levels)
             drawn[i] = np.quantile(np.linalg.norm(draws, axis=1), levels)
         self.norm_quantiles_, self.sampled_norm_quantiles_ = real, drawn
+
+    def _fit_ranks(self, sources):
+        """Each cluster's members' ranks for coupled draws (empty without ``coupling``)."""
+        on = bool(self.coupling)
+        self.member_counts_ = np.array([len(s) for s in sources] if on else [], dtype=np.int64)
+        self.member_ranks_ = np.concatenate([member_ranks(s).ravel() for s in sources] if on else [[]]).astype(np.uint8)
+        self._ranks = None
+
+    def _uniforms(self, i, m, rng):
+        """Probabilities (m, components of cluster ``i``) for its inverse CDFs: independent, or
+        with ``coupling`` coupled to its members' ranks (:func:`tghop.coupling.coupled_uniforms`)."""
+        if not self.coupling or not self.member_counts_.size:
+            return rng.random((int(m), int(self.n_components_[i])))
+        if getattr(self, "_ranks", None) is None:
+            sizes = self.member_counts_ * self.n_components_
+            self._ranks = [r.reshape(n, -1) for r, n in zip(np.split(self.member_ranks_, np.cumsum(sizes)[:-1]),
+                                                             self.member_counts_, strict=True)]
+        return coupled_uniforms(self._ranks[i], float(self.coupling), m, rng)
 
     def _match_norm(self, s, i):
         """Cluster ``i``'s drawn sources ``s`` (m, k), each row rescaled by (training norm at
@@ -638,11 +510,16 @@ class ICHM(BaseEstimator):
         ("ichm_iv.norm_quantiles", "norm_quantiles_", np.float64),
         ("ichm_iv.sampled_norm_quantiles", "sampled_norm_quantiles_", np.float64),
     )
+    #: And for ``coupling`` (format version 8).
+    _RANK_ARRAYS = (("index.ichm_member_counts", "member_counts_", np.int64),
+                    ("ichm_coupling.member_ranks", "member_ranks_", np.uint8))
 
     def _to_arrays(self) -> dict:
         out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS if attr != "mixing_"}
         if self.norm_match and self.norm_quantiles_.size:  # what the metadata's setting says is there
             out.update({name: getattr(self, attr) for name, attr, _ in self._NORM_ARRAYS})
+        if self.coupling and self.member_counts_.size:
+            out.update({name: getattr(self, attr) for name, attr, _ in self._RANK_ARRAYS})
         # The float16 rows as fitted or loaded (mixing_ is made from them), unless mixing_ was
         # set since; quantising again gives the same numbers, it only costs time.
         stored = vars(self).get("_stored_mixing")
@@ -662,6 +539,9 @@ class ICHM(BaseEstimator):
         for name, attr, dtype in self._NORM_ARRAYS:  # absent where norm_match is 0 (and before version 7)
             setattr(self, attr, arrays[name].astype(dtype, copy=False) if name in arrays
                     else np.zeros((len(self.weights_), 0)))
+        for name, attr, dtype in self._RANK_ARRAYS:  # absent where coupling is 0 (and before version 8)
+            setattr(self, attr, arrays[name].astype(dtype, copy=False) if name in arrays else np.zeros(0, dtype))
+        self._ranks = None
         if quantised:
             scale, rows = arrays["index.ichm_mixing_scale"], arrays["ichm_ii.mixing"]
             if rows.ndim != 2 or scale.shape != rows.shape[:1] or scale.dtype.kind != "f":
@@ -675,7 +555,10 @@ class ICHM(BaseEstimator):
         """ICHM's arrays for the checks of :mod:`tghop.modelfile` (``quantised``: float16
         mixing rows with a scale each, format version 3): ``(name, shape, kind, says,
         rules)`` each; needs D_r, sets N, F, W."""
-        n_codewords = self.n_codewords
+        n_codewords, seen = self.n_codewords, {}
+
+        def keep(arr, dims):  # the component counts, for M of the coupling's ranks
+            seen["k"] = arr.astype(np.int64)
 
         def codewords(arr, dims):
             w = min(dims["F"], n_codewords)
@@ -686,7 +569,7 @@ class ICHM(BaseEstimator):
              (("dim", 0, 1, self.n_clusters or AUTO_CLUSTERS[1]), ("positive",), ("sum", 1.0, 1e-6))),
             ("ichm_ii.means", ("N", "D_r"), "f", "a mean per cluster of ichm_i.p, of D_r values", ()),
             ("index.ichm_n_components", ("N",), "i", "a component count per cluster of ichm_i.p",
-             (("range", 1, self.max_cluster_components), ("sum_defines", "F"))),
+             (("range", 1, self.max_cluster_components), ("sum_defines", "F"), keep)),
             ("ichm_ii.mixing", ("F", "D_r"), "f", "F = the sum of index.ichm_n_components rows of D_r values", ()),
         ]
         if quantised:
@@ -715,6 +598,16 @@ class ICHM(BaseEstimator):
             says = f"the metadata says norm_match={self.norm_match}: {NORM_QUANTILES} quantiles per cluster"
             specs += [(name, ("N", NORM_QUANTILES), "f", says, (("range", 0.0, None), ("nondecreasing",)))
                       for name, _, _ in self._NORM_ARRAYS]
+        if self.coupling:
+            says = f"the metadata says coupling={self.coupling}"
+
+            def total(counts, dims):  # M, the ranks stored: each cluster's members x its components
+                dims["M"] = int((counts.astype(np.int64) * seen["k"]).sum())
+
+            specs += [("index.ichm_member_counts", ("N",), "i", f"{says}: a member count per cluster",
+                       (("range", 1, None), total)),
+                      ("ichm_coupling.member_ranks", ("M",), "i", f"{says}: a rank per member and component",
+                       (("range", 0, RANK_LEVELS - 1),))]
         return tuple(specs)
 
     # ------------------------------------------------------------------ sampling
@@ -766,13 +659,13 @@ class ICHM(BaseEstimator):
         sources = []
         for i, comp in enumerate(self._blocks()):
             m = int(np.count_nonzero(labels == i))
-            s = self._match_norm(self._match(rng.random((m, self.n_components_[i])), comp, table), i)
+            s = self._match_norm(self._match(self._uniforms(i, m, rng), comp, table), i)
             if self.reject_threshold is not None:
                 for _ in range(100):  # (iv) redraw samples with no value above the threshold
                     bad = ~(s > self.reject_threshold).any(axis=1)
                     if not bad.any():
                         break
-                    s[bad] = self._match_norm(self._match(rng.random((int(bad.sum()), s.shape[1])), comp, table), i)
+                    s[bad] = self._match_norm(self._match(self._uniforms(i, bad.sum(), rng), comp, table), i)
             sources.append(s)
         return labels, sources
 

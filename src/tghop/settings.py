@@ -277,6 +277,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "rank, by this power of the ratio (ours: independent draws spread twice as widely in overall "
             "strength as the exemplar's patches and streak; 0: off, as the paper).",
             low=0, high=1, target="ichm", paper=0.0),
+    Setting("coupling", 0.95, "float",
+            "Draw each vector's independent components together: their normal scores follow a random training "
+            "patch's with this correlation, plus fresh noise (ours: keeps which components act together, which "
+            "independent draws lose; 0: independent draws, as the paper; below 1, so never a training patch).",
+            low=0, high=0.99, target="ichm", paper=0.0),
     Setting("min_cluster_size", 10, "int", "Clusters with fewer training patches are merged into the nearest one.",
             low=2, target="ichm"),
     Setting("reject_threshold", None, "float",
@@ -410,7 +415,7 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
 
 #: Settings added after model files had them fixed otherwise: a file without one was fitted
 #: with this value, not the default.
-BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0}
+BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0, "coupling": 0.0}
 
 
 def file_settings(params: dict) -> dict:

@@ -3,7 +3,7 @@
 The data flows one way::
 
     exemplar --patches--> S0 --hops--> S1 --> ... --> Sn (core)
-             --core.SpatialReduction--> z --core.ICHM--> p(z)
+             --sdr.SpatialReduction--> z --core.ICHM--> p(z)
 
 and back for generation::
 
@@ -25,7 +25,8 @@ import numpy as np
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
-from .core import ICHM, SpatialReduction
+from .core import ICHM
+from .sdr import SpatialReduction
 from .hops import Hop, HopStack
 from .colour import channel_quantiles, match_histograms
 from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
@@ -133,9 +134,9 @@ class TGHop(BaseEstimator):
     # (tests/test_settings.py checks that they agree). Nothing is checked until ``fit``.
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=None, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
-                 max_component_ratio=0.4, norm_match=1.0, min_cluster_size=10, reject_threshold=None, ica_max_iter=200,
-                 ica_tol=1e-3, residual=False, max_patches=20000, band_levels=4, band_orientations=4, patch_levels=4,
-                 patch_whitening=0.0, layout_factor=3, rng=None):
+                 max_component_ratio=0.4, norm_match=1.0, coupling=0.95, min_cluster_size=10, reject_threshold=None,
+                 ica_max_iter=200, ica_tol=1e-3, residual=False, max_patches=20000, band_levels=4, band_orientations=4,
+                 patch_levels=4, patch_whitening=0.0, layout_factor=3, rng=None):
         self.patch_size = patch_size
         self.stride = stride
         self.n_channels = n_channels
@@ -147,7 +148,7 @@ class TGHop(BaseEstimator):
         self.cluster_energy = cluster_energy
         self.max_cluster_components = max_cluster_components
         self.max_component_ratio = max_component_ratio
-        self.norm_match = norm_match
+        self.norm_match, self.coupling = norm_match, coupling
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
         self.ica_max_iter = ica_max_iter

@@ -1,0 +1,98 @@
+"""Coupled draws of the core model's independent components (ICHM, ours; setting ``coupling``).
+
+The paper draws each cluster's independent components independently, each from its own
+histogram. Training patches are not made that way: which components act together (a
+tile's face with its joint, a leaf's edge with its vein) is what independent draws lose,
+and the patches they make are streaked and smeared (docs/choices.md, ICHM "0.29").
+
+Here each cluster keeps its training members' ranks, component by component (a fraction
+in [0, 1) per member and component, quantised to ``RANK_LEVELS``). A draw picks a member
+at random, turns its ranks into normal scores ``z``, and takes
+
+    u = Phi(rho * z + sqrt(1 - rho^2) * e),   e ~ N(0, 1) independently per component,
+
+as the probabilities that the histograms' inverse CDFs turn into components. Each ``u`` is
+uniform whatever ``rho`` is, so every component keeps its fitted histogram exactly (up to
+the quantised ranks); ``rho`` = 0 is the paper's independent draw, and the larger ``rho``,
+the more of the members' joint behaviour the draws keep. ``rho`` < 1 always adds fresh
+noise to every component, so a draw is never a training patch (bounded by the setting).
+
+NumPy only: the normal CDF and its inverse are tabulated once from :func:`math.erfc`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+__all__ = ["RANK_LEVELS", "member_ranks", "coupled_uniforms", "normal_cdf", "normal_ppf"]
+
+#: Levels a member's rank fraction is stored at (uint8).
+RANK_LEVELS = 256
+#: Normal scores tabulated on [-_Z_MAX, _Z_MAX] (beyond it the CDF is 0 or 1 in float64 sums).
+_Z_MAX = 8.0
+_Z_STEPS = 4096
+
+
+@functools.cache
+def _table():
+    """(grid, Phi(grid)): the standard normal CDF on an even grid."""
+    grid = np.linspace(-_Z_MAX, _Z_MAX, _Z_STEPS + 1)
+    return grid, np.array([0.5 * math.erfc(-x / math.sqrt(2.0)) for x in grid])
+
+
+def normal_cdf(z):
+    """Phi(z), the standard normal CDF (linear between tabulated points; error below 1e-6)."""
+    grid, cdf = _table()
+    return np.interp(z, grid, cdf)
+
+
+def normal_ppf(u):
+    """Phi^-1(u) for u in (0, 1), the inverse of :func:`normal_cdf`."""
+    grid, cdf = _table()
+    return np.interp(u, cdf, grid)
+
+
+def member_ranks(sources):
+    """Each member's rank among its cluster's members, component by component.
+
+    Parameters
+    ----------
+    sources : ndarray, shape (n, k)
+        One cluster's training members in its independent components.
+
+    Returns
+    -------
+    ndarray of uint8, shape (n, k)
+        ``floor(RANK_LEVELS * (rank + 0.5) / n)``, the mid-rank fraction quantised.
+    """
+    s = np.asarray(sources)
+    n = s.shape[0]
+    ranks = np.empty(s.shape, dtype=np.int64)
+    np.put_along_axis(ranks, np.argsort(s, axis=0, kind="stable"), np.arange(n)[:, None], axis=0)
+    return ((ranks + 0.5) * (RANK_LEVELS / max(n, 1))).astype(np.uint8)
+
+
+def coupled_uniforms(ranks, rho, m, rng):
+    """``m`` draws of probabilities for one cluster's components, coupled to its members.
+
+    Parameters
+    ----------
+    ranks : ndarray of uint8, shape (n, k)
+        :func:`member_ranks` of the cluster (n >= 1).
+    rho : float in [0, 1)
+        Correlation of each draw's normal scores with its member's.
+    m : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (m, k)
+        Probabilities in [0, 1], each uniform on its own.
+    """
+    z = normal_ppf((ranks[rng.integers(0, len(ranks), int(m))] + 0.5) / RANK_LEVELS)
+    z *= rho
+    z += math.sqrt(1.0 - rho * rho) * rng.standard_normal(z.shape)
+    return normal_cdf(z)
