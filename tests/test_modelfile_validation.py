@@ -244,51 +244,41 @@ def test_files_without_the_component_ratio_read_as_fitted(saved, tmp_path):
     assert old.max_component_ratio == 1.0 and old.layout_.model_.max_component_ratio == 1.0
 
 
-def test_files_without_norm_quantiles_read_as_fitted(saved, tmp_path):
-    # Files of format 6 and before had no norm_match: their draws were not rescaled (0), and
-    # they hold no ichm_iv.* arrays. A file of format 7 with the setting on must hold them.
+#: Settings added after model files existed, and their arrays: (its value in a new file, the
+#: format version before it, fragments of its arrays' names, attributes of ICHM empty without
+#: it, the first of its arrays that a file of today's version without them lacks).
+ADDED = {
+    "norm_match": (1.0, 6, ("ichm_iv.",), ("norm_quantiles_", "sampled_norm_quantiles_"), "ichm_iv.norm_quantiles"),
+    "coupling": (0.95, 7, ("ichm_coupling.", "index.ichm_member_counts"), ("member_ranks_", "member_counts_"),
+                 "index.ichm_member_counts"),
+}
+
+
+@pytest.mark.parametrize("setting", sorted(ADDED))
+def test_files_without_a_later_setting_read_as_fitted(saved, tmp_path, setting):
+    # Files written before a setting was added were fitted without it (0: the paper's
+    # independent draws, settings.BEFORE_ADDED) and hold none of its arrays. A file of
+    # today's version with the setting on must hold them.
+    value, version, parts, attrs, first = ADDED[setting]
     path, arrays = saved
     meta = json.loads(str(arrays["__meta__"]))
-    assert meta["format_version"] == 8 and meta["params"]["norm_match"] == 1.0
-    del meta["params"]["norm_match"]
-    del meta["layout"]["model"]["params"]["norm_match"]
-    meta["format_version"] = 6
-    old_arrays = {k: v for k, v in arrays.items() if "ichm_iv." not in k}
+    assert meta["format_version"] == 8 and meta["params"][setting] == value
+    assert meta["layout"]["model"]["params"][setting] == value
+    del meta["params"][setting]
+    del meta["layout"]["model"]["params"][setting]
+    meta["format_version"] = version
+    old_arrays = {k: v for k, v in arrays.items() if not any(part in k for part in parts)}
+    assert len(old_arrays) == len(arrays) - 4  # two in the model and two in its layout model
     _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
     old = load_model(tmp_path / "old.npz")
-    assert old.norm_match == 0.0 and old.layout_.model_.norm_match == 0.0
-    assert old.ichm_.norm_quantiles_.shape == (len(old.ichm_.weights_), 0)
+    assert getattr(old, setting) == 0.0 and getattr(old.layout_.model_, setting) == 0.0
+    assert all(getattr(old.ichm_, attr).size == 0 for attr in attrs)
     plain = load_model(path)
-    plain.ichm_.norm_match = plain.layout_.model_.ichm_.norm_match = 0.0
+    setattr(plain.ichm_, setting, 0.0)
+    setattr(plain.layout_.model_.ichm_, setting, 0.0)
     expected = plain.synthesize((48, 48), rng=2, n_patches=200)
     assert np.array_equal(old.synthesize((48, 48), rng=2, n_patches=200), expected)
     assert not np.array_equal(load_model(path).synthesize((48, 48), rng=2, n_patches=200), expected)
     _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
-    with pytest.raises(ModelFileError, match="ichm_iv.norm_quantiles is missing"):
-        load_model(tmp_path / "missing.npz")
-
-
-def test_files_without_member_ranks_read_as_fitted(saved, tmp_path):
-    # Files of format 7 and before had no coupling: their components were drawn independently
-    # (0), and they hold no member ranks. A file of format 8 with the setting on must hold them.
-    path, arrays = saved
-    meta = json.loads(str(arrays["__meta__"]))
-    assert meta["params"]["coupling"] == 0.95 and meta["layout"]["model"]["params"]["coupling"] == 0.95
-    del meta["params"]["coupling"]
-    del meta["layout"]["model"]["params"]["coupling"]
-    meta["format_version"] = 7
-    ranks = ("ichm_coupling.", "index.ichm_member_counts")
-    old_arrays = {k: v for k, v in arrays.items() if not any(r in k for r in ranks)}
-    assert len(old_arrays) == len(arrays) - 4  # the model's and its layout model's two each
-    _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
-    old = load_model(tmp_path / "old.npz")
-    assert old.coupling == 0.0 and old.layout_.model_.coupling == 0.0
-    assert old.ichm_.member_ranks_.size == 0 and old.ichm_.member_counts_.size == 0
-    plain = load_model(path)
-    plain.ichm_.coupling = plain.layout_.model_.ichm_.coupling = 0.0
-    expected = plain.synthesize((48, 48), rng=2, n_patches=200)
-    assert np.array_equal(old.synthesize((48, 48), rng=2, n_patches=200), expected)
-    assert not np.array_equal(load_model(path).synthesize((48, 48), rng=2, n_patches=200), expected)
-    _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
-    with pytest.raises(ModelFileError, match="index.ichm_member_counts is missing"):
+    with pytest.raises(ModelFileError, match=f"{first} is missing"):
         load_model(tmp_path / "missing.npz")
