@@ -393,7 +393,8 @@ class ICHM(BaseEstimator):
 
     def _fit_norms(self, sources, rng):
         """Quantiles of each cluster's training source norms, and of the norms of
-        NORM_DRAWS independent draws from its fitted CDFs (empty without ``norm_match``)."""
+        NORM_DRAWS draws from its fitted CDFs, as :meth:`sample_sources` makes them (empty
+        without ``norm_match``)."""
         n = len(sources)
         if not self.norm_match:
             self.norm_quantiles_ = self.sampled_norm_quantiles_ = np.zeros((n, 0))
@@ -633,8 +634,9 @@ class ICHM(BaseEstimator):
         return self._quantiles
 
     def sample_sources(self, n, *, rng=None):
-        """Draw clusters and matched independent components (steps i-iv; with ``norm_match``
-        each vector of components rescaled towards the training norms, before step iv).
+        """Draw clusters and matched independent components (steps i-iv; with ``coupling``
+        each vector's probabilities coupled to a random training member's ranks, with
+        ``norm_match`` each vector rescaled towards the training norms, before step iv).
 
         Parameters
         ----------
