@@ -163,8 +163,10 @@ def test_help_says_what_sizes_cost_and_the_size_order():
 def test_help_shows_each_default_as_its_kind():
     # A float of 1.0 is not "on", nor 0.0 "off" (they equal True and False as dictionary keys).
     flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())
-    norm = flat.split("--norm-match FLOAT", 1)[1].split(" --min-cluster-size", 1)[0]
+    norm = flat.split("--norm-match FLOAT", 1)[1].split(" --coupling", 1)[0]
     assert norm.endswith("[default: 1.0; --paper: 0.0]"), norm
+    coupling = flat.split("--coupling FLOAT", 1)[1].split(" --min-cluster-size", 1)[0]
+    assert coupling.endswith("[default: 0.95; --paper: 0.0]"), coupling
     assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
 
 
