@@ -556,10 +556,7 @@ class ICHM(BaseEstimator):
         """ICHM's arrays for the checks of :mod:`tghop.modelfile` (``quantised``: float16
         mixing rows with a scale each, format version 3): ``(name, shape, kind, says,
         rules)`` each; needs D_r, sets N, F, W."""
-        n_codewords, seen = self.n_codewords, {}
-
-        def keep(arr, dims):  # the component counts, for M of the coupling's ranks
-            seen["k"] = arr.astype(np.int64)
+        n_codewords = self.n_codewords
 
         def codewords(arr, dims):
             w = min(dims["F"], n_codewords)
@@ -570,7 +567,7 @@ class ICHM(BaseEstimator):
              (("dim", 0, 1, self.n_clusters or AUTO_CLUSTERS[1]), ("positive",), ("sum", 1.0, 1e-6))),
             ("ichm_ii.means", ("N", "D_r"), "f", "a mean per cluster of ichm_i.p, of D_r values", ()),
             ("index.ichm_n_components", ("N",), "i", "a component count per cluster of ichm_i.p",
-             (("range", 1, self.max_cluster_components), ("sum_defines", "F"), keep)),
+             (("range", 1, self.max_cluster_components), ("sum_defines", "F"))),
             ("ichm_ii.mixing", ("F", "D_r"), "f", "F = the sum of index.ichm_n_components rows of D_r values", ()),
         ]
         if quantised:
@@ -601,12 +598,9 @@ class ICHM(BaseEstimator):
                       for name, _, _ in self._NORM_ARRAYS]
         if self.coupling:
             says = f"the metadata says coupling={self.coupling}"
-
-            def total(counts, dims):  # M, the ranks stored: each cluster's members x its components
-                dims["M"] = int((counts.astype(np.int64) * seen["k"]).sum())
-
+            # M, the ranks stored: each cluster's members times its components.
             specs += [("index.ichm_member_counts", ("N",), "i", f"{says}: a member count per cluster",
-                       (("range", 1, None), total)),
+                       (("range", 1, None), ("products_define", "M", "index.ichm_n_components"))),
                       ("ichm_coupling.member_ranks", ("M",), "i", f"{says}: a rank per member and component",
                        (("range", 0, RANK_LEVELS - 1),))]
         return tuple(specs)

@@ -248,6 +248,13 @@ def _rule_last(arr, dims, value, tol):
     return None
 
 
+def _rule_products_define(arr, dims, name, other):
+    """Bind dimension ``name`` to the sum of the array's entries times ``other``'s (an array of
+    the same shape checked before it): e.g. each cluster's members times its components."""
+    dims[name] = int((arr.astype(np.int64) * other.astype(np.int64)).sum())
+    return None
+
+
 def _rule_not_below(arr, dims, other, arrays):
     if (arr < arrays[other]).any():
         return f"holds values below those of {other}"
@@ -293,6 +300,8 @@ def _check_array(spec, arrays, dims, prefix):
             problem = None
         elif rule[0] == "not_below":
             problem = _rule_not_below(arr, dims, prefix + rule[1], arrays)
+        elif rule[0] == "products_define":
+            problem = _rule_products_define(arr, dims, rule[1], arrays[prefix + rule[2]])
         else:
             problem = _RULES[rule[0]](arr, dims, *rule[1:])
         if problem:
