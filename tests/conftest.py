@@ -26,6 +26,16 @@ TINY_COOC = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigm
 
 
 @pytest.fixture(scope="session")
+def near_sphere():
+    """(4000, 6) points near a sphere of radius 3: their components' norms are nearly equal,
+    which independent draws of the components do not keep (the core model's norm matching
+    and coupling)."""
+    r = np.random.default_rng(7)
+    u = r.standard_normal((4000, 6))
+    return u / np.linalg.norm(u, axis=1, keepdims=True) * r.uniform(2.9, 3.1, size=(4000, 1))
+
+
+@pytest.fixture(scope="session")
 def bricks96():
     return data.bricks(96, rng=1)
 

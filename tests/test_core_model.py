@@ -120,12 +120,8 @@ def _source_norms(model, z):
     return np.linalg.norm((z - model.means_[0]) @ np.linalg.pinv(model.mixing_), axis=1)
 
 
-def test_norm_match_gives_draws_the_training_norms():
-    # Points near a sphere: every training vector's components have nearly the same norm,
-    # which independent draws of the components do not keep.
-    r = np.random.default_rng(7)
-    u = r.standard_normal((4000, 6))
-    z = u / np.linalg.norm(u, axis=1, keepdims=True) * r.uniform(2.9, 3.1, size=(4000, 1))
+def test_norm_match_gives_draws_the_training_norms(near_sphere):
+    z = near_sphere
     kw = dict(n_clusters=1, cluster_energy=1.0, rng=0)
     models = {a: ICHM(**kw, norm_match=a).fit(z) for a in (0.0, 0.5, 1.0)}
     off, half, full = (models[a] for a in (0.0, 0.5, 1.0))

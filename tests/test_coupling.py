@@ -48,16 +48,8 @@ def test_coupled_uniforms_are_uniform_and_follow_their_member(rho):
     assert abs(r - rho) < 0.02
 
 
-def _sphere():
-    # Points near a sphere: the norms of their components are nearly equal, which draws of
-    # independent components do not keep.
-    r = np.random.default_rng(7)
-    u = r.standard_normal((4000, 6))
-    return u / np.linalg.norm(u, axis=1, keepdims=True) * r.uniform(2.9, 3.1, size=(4000, 1))
-
-
-def test_coupling_keeps_the_histograms_and_part_of_the_dependence_without_copying():
-    z = _sphere()
+def test_coupling_keeps_the_histograms_and_part_of_the_dependence_without_copying(near_sphere):
+    z = near_sphere
     kw = dict(n_clusters=1, cluster_energy=1.0, norm_match=0, rng=0)
     off, on = ICHM(**kw, coupling=0.0).fit(z), ICHM(**kw, coupling=0.9).fit(z)
     assert off.member_ranks_.size == 0 and off.member_counts_.size == 0
@@ -78,8 +70,8 @@ def test_coupling_keeps_the_histograms_and_part_of_the_dependence_without_copyin
     assert np.median(nearest) > 0.9 * np.median(own.min(axis=1))
 
 
-def test_coupling_zero_draws_as_before_and_bad_values_are_refused():
-    z = _sphere()
+def test_coupling_zero_draws_as_before_and_bad_values_are_refused(near_sphere):
+    z = near_sphere
     kw = dict(n_clusters=1, cluster_energy=1.0, norm_match=0, rng=0)
     a = ICHM(**kw, coupling=0.0).fit(z)
     b = ICHM(**kw, coupling=0.9).fit(z).set_params(coupling=0.0)
