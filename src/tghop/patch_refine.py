@@ -365,7 +365,9 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
         for i, (y, (r0, r1)) in enumerate(zip(ys, bands)):
             y -= np.take(table, idxs[i], mode="clip")
             idxs[i] = None  # freed before the band goes back
-            back(np.sign(y, out=y), r0, r1)
+            # Not in place: NumPy's in-place sign is a branching loop, slow on mixed signs
+            # (docs/choices.md, Patch refinement "0.29.1").
+            back(np.sign(y), r0, r1)
         return grad
     sub = int(np.ceil(np.sqrt(n / _RANK_PATCHES)))
     sample = dirs @ _columns(x, p, stride * sub)  # (K, patches of the coarser grid)
@@ -376,7 +378,7 @@ def _gradient(x, dirs, target, stride, origin=(0, 0)):
     for r0, r1 in bands:
         y = dirs @ patches(r0, r1)
         y -= np.take(table, _bins(y, lo, scale, bins), mode="clip")
-        back(np.sign(y, out=y), r0, r1)
+        back(np.sign(y), r0, r1)
     return grad
 
 
