@@ -235,9 +235,9 @@ def test_large_images_move_through_a_shifted_strided_grid(monkeypatch):
     assert (moved[2:-2, 2:-2] > 0).all()
 
 
-def test_patch_stride_thins_every_level(patch_model, monkeypatch):
-    """patch_stride 2 takes every second patch at every level (the grid shifted each step:
-    every pixel still moves)."""
+def test_patch_stride_thins_every_level_but_small_ones(patch_model, monkeypatch):
+    """patch_stride 2 takes every second patch at every level of more than _DENSE_PIXELS pixels
+    (the grid shifted each step: every pixel still moves); smaller levels take every patch."""
     st = patch_model.patches_
     img = patch_model.synthesize((64, 64), rng=2, patch_refine=0).astype(np.float32)
     seen = []
@@ -247,8 +247,15 @@ def test_patch_stride_thins_every_level(patch_model, monkeypatch):
         seen.append((x.shape[0], stride))
         return real(x, dirs, target, n_steps, tile, stride, lr)
     monkeypatch.setattr(pr, "_steps", spy)
+    pr.patch_refine(img, st, n_steps=1, stride=2)
+    assert seen == [(16, 1), (32, 1), (64, 1)]  # coarse to fine (a 64x64 image has three levels): all small
+    seen.clear()
+    pr.patch_refine(np.pad(img, ((0, 72), (0, 0), (0, 0)), mode="reflect"), st, n_steps=1, stride=2)
+    assert seen == [(34, 1), (68, 1), (136, 2)]  # 136x64 pixels: over _DENSE_PIXELS
+    monkeypatch.setattr(pr, "_DENSE_PIXELS", 0)
+    seen.clear()
     two = pr.patch_refine(img, st, n_steps=4, stride=2)
-    assert seen == [(16, 2), (32, 2), (64, 2)]  # coarse to fine (a 64x64 image has three levels)
+    assert seen == [(16, 2), (32, 2), (64, 2)]
     assert (np.abs(two - img).sum(-1)[3:-3, 3:-3] > 0).all()
     one = pr.patch_refine(img, st, n_steps=4, stride=1)
     assert not np.array_equal(one, two) and np.array_equal(two, pr.patch_refine(img, st, n_steps=4, stride=2))
@@ -338,7 +345,7 @@ def test_synthesis_is_deterministic_and_light_by_default(patch_model):
     # The default (None, "auto"): AUTO_STEPS on images of up to AUTO_PIXELS pixels, none above.
     assert np.array_equal(patch_model.synthesize((64, 64), rng=5),
                           patch_model.synthesize((64, 64), rng=5, patch_refine=pr.AUTO_STEPS))
-    assert pr.steps_for(None, (512, 512)) == pr.AUTO_STEPS == 44 and pr.steps_for(None, (512, 513)) == 0
+    assert pr.steps_for(None, (512, 512)) == pr.AUTO_STEPS == 52 and pr.steps_for(None, (512, 513)) == 0
     # The setting's help (settings stays free of NumPy, so it says the numbers itself).
     assert f"auto (None in Python): {pr.AUTO_STEPS} on images of up to 512x512 pixels" in settings.BY_NAME[
         "patch_refine"].help

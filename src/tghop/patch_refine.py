@@ -20,8 +20,8 @@ tghop's finished image (which already has the layout, so few steps suffice):
   patch's mean and smooth ramps, which carry most of its variance; these see its edges and
   grain as well.
 - Generation (:func:`patch_refine`): from the coarsest level, ``n_steps`` Adam steps on the
-  level's pixels; step t projects every ``stride``-th patch each way (more on large levels;
-  the grid shifted each step, so that every pixel takes its turn in every place of a patch) on set
+  level's pixels; step t projects every ``stride``-th patch each way (more on large levels,
+  every patch on small ones; the grid shifted each step, so that every pixel takes its turn in every place of a patch) on set
   ``t mod SETS``, gives each projection the stored quantile at its rank (1-D optimal
   transport, ranks from a histogram), and moves the pixels along the gradient of the L1
   distance between the two (as GPDM). A level's change is upsampled into the next finer one.
@@ -78,13 +78,15 @@ _RANK_PATCHES = 1 << 16
 _CHUNK = 1 << 14
 #: Pixels of a level moved through every patch; larger levels use a stride (:func:`_stride`).
 _STRIDE_PIXELS = 1 << 17
+#: Levels of at most this many pixels take every patch, whatever the stride.
+_DENSE_PIXELS = 1 << 13
 _MAX_STRIDE = 4
 #: Eigenvalues of the patch covariance below this share of the largest count as this much
 #: when directions are whitened (flat or noiseless exemplars: no direction of pure noise).
 _EIGEN_FLOOR = 1e-3
 #: The default (``patch_refine`` None): this many steps per level on images of at most
 #: AUTO_PIXELS pixels, none on larger ones (docs/choices.md).
-AUTO_STEPS = 44
+AUTO_STEPS = 52
 AUTO_PIXELS = 512 * 512
 #: Pixels added around a change before its checker is measured (:func:`_without_checker`).
 _CHECKER_MARGIN = 8
@@ -443,7 +445,8 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         Adam steps per pyramid level (0: the image unchanged).
     stride : int
         At every level, every ``stride``-th patch each way (the grid shifted every step);
-        large levels use more (:func:`_stride`).
+        large levels use more (:func:`_stride`), levels of at most _DENSE_PIXELS pixels every
+        patch.
     tile : bool
         Periodic boundaries (the output stays tileable).
     learning_rate : float
@@ -476,8 +479,10 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
         if new is not None:  # the coarser level's change, upsampled
             cur += upsample(new - levels[i + 1], cur.shape, mode)
         # Every stride-th patch each way, large levels at least _stride's (2 to 4), the grid
-        # shifted every step, so that a step's cost grows more slowly than the image.
-        step = max(_stride(cur.shape[0] * cur.shape[1]), int(stride))
+        # shifted every step, so that a step's cost grows more slowly than the image; small
+        # levels every patch: their steps cost little (docs/choices.md, Patch refinement "0.30").
+        pixels = cur.shape[0] * cur.shape[1]
+        step = 1 if pixels <= _DENSE_PIXELS else max(_stride(pixels), int(stride))
         target = _on_ranks(stats.quantiles_[i], stats.levels_.astype(np.float64))
         new = _steps(cur, stats.directions_[i], target, int(n_steps), tile, step,
                      float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))

@@ -349,12 +349,13 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("patch_refine", None, "int",
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 5x5 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
-            "patch_levels; 0: off). auto (None in Python): 44 on images of up to 512x512 pixels, none on "
+            "patch_levels; 0: off). auto (None in Python): 52 on images of up to 512x512 pixels, none on "
             "larger ones (the cost grows with the image; give a number to refine them too).",
             when="generate", low=0, high=500, none_ok=True, auto=True, paper=0),
     Setting("patch_stride", 2, "int",
             "The patch refinement's steps take every patch_stride-th patch each way at each level, "
-            "the grid shifted every step (larger images take more; :mod:`tghop.patch_refine`).",
+            "the grid shifted every step (larger images take more, levels of up to 8,192 pixels every "
+            "patch; :mod:`tghop.patch_refine`).",
             when="generate", low=1, high=5),  # at most the patch side
     Setting("reuse", 1.0, "float",
             "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "
@@ -398,7 +399,7 @@ PAPER = {s.name: s.paper for s in SETTINGS if s.has_paper}
 
 #: Generation presets (``tghop synth --quality``): settings that differ from the defaults.
 #: "best" takes 90 Adam steps per level of the patch refinement, every patch at full
-#: resolution, at any size (its cost and gain against the default's 44 steps at stride 2:
+#: resolution, at any size (its cost and gain against the default's steps at stride 2:
 #: docs/choices.md, "Patch refinement", "0.26").
 QUALITY = {"default": {}, "best": {"patch_refine": 90, "patch_stride": 1}}
 
