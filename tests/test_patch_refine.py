@@ -263,6 +263,7 @@ def test_patch_stride_thins_every_level_but_small_ones(patch_model, monkeypatch)
         with pytest.raises(TGHopError, match="patch_stride"):
             pr.patch_refine(img, st, n_steps=1, stride=bad)
     monkeypatch.setattr(pr, "_steps", real)
+    # (_DENSE_PIXELS still 0: the setting reaches every level of a 64x64 image)
     a = patch_model.synthesize((64, 64), rng=5, patch_refine=4)  # stride 2 by default
     assert np.array_equal(a, patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=2))
     assert not np.array_equal(a, patch_model.synthesize((64, 64), rng=5, patch_refine=4, patch_stride=1))

@@ -21,10 +21,11 @@ tghop's finished image (which already has the layout, so few steps suffice):
   grain as well.
 - Generation (:func:`patch_refine`): from the coarsest level, ``n_steps`` Adam steps on the
   level's pixels; step t projects every ``stride``-th patch each way (more on large levels,
-  every patch on small ones; the grid shifted each step, so that every pixel takes its turn in every place of a patch) on set
-  ``t mod SETS``, gives each projection the stored quantile at its rank (1-D optimal
-  transport, ranks from a histogram), and moves the pixels along the gradient of the L1
-  distance between the two (as GPDM). A level's change is upsampled into the next finer one.
+  every patch on small ones; the grid shifted each step, so that every pixel takes its turn in
+  every place of a patch) on set ``t mod SETS``, gives each projection the stored quantile at
+  its rank (1-D optimal transport, ranks from a histogram), and moves the pixels along the
+  gradient of the L1 distance between the two (as GPDM). A level's change is upsampled into
+  the next finer one.
   At stride 2 the full level's change loses the 2-pixel checker such steps leave
   (:func:`_without_checker`).
 """
