@@ -29,7 +29,8 @@ single-exemplar times); efficiency = S / (cores x wall), the standard parallel e
 cluster: each exemplar's task time on a cluster worker against its one-thread time in
 process (median and total), and (cores x wall - task times) / exemplars (scheduling,
 start-up, the driver's hashing and ledger, idle cores in the tail); peak memory per worker
-(VmHWM); and, first, the machine's own ceiling: a cache-resident kernel and a
+(VmHWM); and, first, the machine's own ceiling: a kernel that stays in a core's cache, one
+whose working set fits the shared last-level cache alone but not twice over, and a
 memory-streaming one, each run alone and as one process per core at once (no tghop, no
 Dask). The old comparison (in-process wall with all threads against the cluster's wall,
 and the efficiency against the all-thread in-process sum, which counts every core twice)
@@ -75,12 +76,16 @@ def own_cpu_s() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
-#: Two kernels that say what running tasks side by side costs on this machine by itself,
-#: without tghop or Dask: a product of small matrices that stays in a core's cache, and a
-#: pass over 256 MB that streams through memory (each one thread, about a second alone).
+#: Kernels that say what running tasks side by side costs on this machine by itself,
+#: without tghop or Dask: a product of small matrices that stays in a core's cache; passes
+#: over 24 MB, which the shared last-level cache holds for one process but not for two
+#: (32 MB here); and passes over 256 MB, which stream through memory (each one thread,
+#: about a second alone).
 KERNELS = {
     "compute (in cache)": "a = np.random.rand(128, 128).astype(np.float32)\n"
                           "t = time.perf_counter()\nfor _ in range(30000): a @ a\n",
+    "shared cache (24 MB)": "a = np.ones(3 << 20, dtype=np.float32); b = np.empty_like(a); b += a\n"
+                            "t = time.perf_counter()\nfor _ in range(3500): np.multiply(a, 1.0001, out=b)\n",
     "memory (streaming)": "a = np.ones(64 << 20, dtype=np.float32); b = np.empty_like(a); b += a\n"
                           "t = time.perf_counter()\nfor _ in range(40): np.multiply(a, 1.0001, out=b)\n",
 }
@@ -256,8 +261,9 @@ def main():
              f"{cores} at once (one thread each; medians of 3):\n\n" + markdown_table(
                  ["kernel", "alone s", f"{cores} at once s", "slowdown", "efficiency it allows"],
                  [[k, v["alone_s"], v["together_s"], v["slowdown"], v["efficiency"]] for k, v in ceiling.items()])
-             + "\n\nA task's phases that stream through memory (large arrays, FFTs) are slowed like the second "
-               "kernel when the workers run them at the same time, whatever runs the tasks." if ceiling else "")
+             + "\n\nA task's phases whose arrays share the last-level cache or stream through memory (large "
+               "arrays, FFTs) are slowed like the second or third kernel when the workers run them at the same "
+               "time, whatever runs the tasks." if ceiling else "")
           + f"\n\nCommand: `python benchmarks/bench_batch.py {' '.join(sys.argv[1:])}`".rstrip() + "")
     print(md)
     name = ("batch-efficiency" + (f"-limit{args.limit}" if args.limit else "")
