@@ -56,7 +56,7 @@ VARIANTS = {
     "no-colour": ({}, {"match_colours": False}),
     "no-patch-refine": ({}, {"patch_refine": 0}),  # the default until tghop 0.20
     "no-seams": ({}, {"seam_window": 0}),  # quilting's plain cuts (tghop 0.15's default)
-    "no-norm-match": ({"norm_match": 0.0}, {}),  # the core model's draws not rescaled to the exemplar's norms (before 0.28)
+    "no-norm-match": ({"norm_match": 0.0}, {}),  # the core model's draws not rescaled to its norms (before 0.28)
     "no-coupling": ({"coupling": 0.0}, {}),  # the core model's components drawn independently (before 0.29)
     "best": ({}, "BEST"),  # tghop synth --quality best
     "pool10k": ({}, {"n_patches": 10000}),

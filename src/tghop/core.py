@@ -410,10 +410,10 @@ class ICHM(BaseEstimator):
 
     def _fit_ranks(self, sources):
         """Each cluster's members' ranks for coupled draws (empty without ``coupling``)."""
-        on = bool(self.coupling)
-        self.member_counts_ = np.array([len(s) for s in sources] if on else [], dtype=np.int64)
-        self.member_ranks_ = np.concatenate([member_ranks(s).ravel() for s in sources] if on else [[]]).astype(np.uint8)
-        self._ranks = None
+        ranks = [member_ranks(s) for s in sources] if self.coupling else []
+        self.member_counts_ = np.array([len(r) for r in ranks], dtype=np.int64)
+        self.member_ranks_ = np.concatenate([r.ravel() for r in ranks] or [np.zeros(0)]).astype(np.uint8)
+        self._ranks = ranks or None  # per cluster, as _uniforms splits them from the file's flat array
 
     def _uniforms(self, i, m, rng):
         """Probabilities (m, components of cluster ``i``) for its inverse CDFs: independent, or
