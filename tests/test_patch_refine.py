@@ -72,6 +72,19 @@ def test_quantiles_never_decrease_on_an_exemplar_of_tied_patches(tmp_path):
     assert load_model(tmp_path / "flat.npz").synthesize((48, 48), rng=1).shape == (48, 48, 3)
 
 
+def test_projection_quantiles_follow_numpys_linear_rule():
+    """The stored quantiles, made one direction set at a time, are np.quantile's (linear
+    interpolation between order statistics) of every patch's projection on each direction."""
+    rng = np.random.default_rng(3)
+    x = rng.gamma(2.0, 1.0, (500, 12)).astype(np.float32)
+    dirs = rng.standard_normal((3, 4, 12)).astype(np.float32)
+    qlev = pr.quantile_levels(17)
+    got = pr._projection_quantiles(dirs, x, qlev)
+    assert got.shape == (3, 4, 17) and got.dtype == np.float32
+    proj = np.einsum("skd,nd->skn", dirs.astype(np.float64), x.astype(np.float64))
+    np.testing.assert_allclose(got, np.moveaxis(np.quantile(proj, qlev, axis=-1), 0, -1), atol=2e-5)
+
+
 def test_quantile_levels_crowd_towards_the_tails():
     """The stored levels run from 0 to 1, symmetric, increasing, and much finer at the ends
     than in the middle: a projection's tails (its strongest edges) get quantiles of their own."""

@@ -5,6 +5,7 @@ from tghop import TGHopError
 from tghop.hops import Hop, HopStack
 from tghop.patches import count_patches, depth_to_space, extract_patches, space_to_depth
 from tghop.saab import Saab, knee_point, select_channels
+from tghop.sdr import _channel_major
 from tghop import NotFittedError
 
 
@@ -161,6 +162,10 @@ def test_fit_image_equals_fit_on_cut_patches(stride, channels, size, tile):
         np.testing.assert_allclose(ha.kernels_, hb.kernels_, atol=1e-8)
         np.testing.assert_allclose(ha.bias_, hb.bias_, rtol=1e-12)
     np.testing.assert_allclose(core_a, core_b, atol=1e-8)
+    # The core is held channel-major, so SDR reads each channel's maps without another copy.
+    maps = _channel_major(core_b)
+    assert np.shares_memory(maps, core_b)
+    assert np.array_equal(maps, _channel_major(np.ascontiguousarray(core_b)))
     if tile == 1024:  # a uint8 image gives the fit of its float version
         img8 = np.round(img * 255).astype(np.uint8)
         c = HopStack(n_channels=channels)

@@ -327,21 +327,25 @@ def _phase_inputs(image, patch_size, origins, hops, level):
         maps = {r: (b @ hop.kernels_.T + hop.bias_)[None] for r, (b, _) in inputs.items()}
 
 
-def _core_of(image, patch_size, origins, hops):
-    """Core responses (n, p, p, Kn) of the patches at ``origins`` of ``image``, through ``hops``."""
+def _core_of(image, patch_size, origins, hops, out=None, rows=None):
+    """Core responses (n, p, p, Kn) of the patches at ``origins`` of ``image``, through ``hops``.
+
+    With ``out`` (N, p, p, Kn), of any layout (e.g. a channel-major view), patch i's goes to
+    its row ``rows[i]`` (default i) there, and ``out`` is returned."""
     from numpy.lib.stride_tricks import sliding_window_view
 
     n_hops = len(hops)
     inputs = _phase_inputs(image, patch_size, origins, hops, n_hops)
     hop = hops[-1]
     side = patch_size // 2**n_hops
-    core = np.empty((len(origins), side, side, hop.n_channels_out_))
+    core = np.empty((len(origins), side, side, hop.n_channels_out_)) if out is None else out
+    to = np.arange(len(origins)) if rows is None else np.asarray(rows)
     phase = origins % 2**n_hops
     for r, (blocks, starts) in inputs.items():
         m = blocks @ hop.kernels_.T + hop.bias_
-        rows = np.flatnonzero(np.all(phase == np.array(r), axis=1))
+        mine = np.flatnonzero(np.all(phase == np.array(r), axis=1))
         windows = sliding_window_view(m, (side, side), axis=(0, 1))
-        core[rows] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
+        core[to[mine]] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
     return core
 
 
@@ -468,9 +472,12 @@ class HopStack(TransformerMixin, BaseEstimator):
             self.hops_.append(hop)
             self.dims_.append(side * side * hop.n_channels_out_)
         side = patch_size // unit
-        core = np.empty((len(origins), side, side, self.hops_[-1].n_channels_out_))
+        # Stored channel-major and returned as an (n, p, p, Kn) view of it: SDR works on each
+        # channel's maps (tghop.sdr), which then need no second, transposed copy of the core.
+        k = self.hops_[-1].n_channels_out_
+        core = np.empty((k, len(origins), side, side)).transpose(1, 2, 3, 0)
         for crop, local, rows in tiles:
-            core[rows] = _core_of(crop(), patch_size, local, self.hops_)
+            _core_of(crop(), patch_size, local, self.hops_, out=core, rows=rows)
         return core
 
     def fit_transform(self, X, y=None, *, progress=None):

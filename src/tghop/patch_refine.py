@@ -114,6 +114,31 @@ def _on_ranks(quantiles, levels, n=_RANKS):
     return low + (quantiles[..., j + 1] - low) * frac
 
 
+def _projection_quantiles(dirs, x, qlev):
+    """Quantiles at ``qlev`` (Q,) of the patches ``x`` (n, D) projected on ``dirs`` (S, K, D):
+    (S, K, Q) float32.
+
+    By linear interpolation between the order statistics (np.quantile's rule, from one sort;
+    np.quantile takes about twice as long here: docs/choices.md). One set of directions at a
+    time: its projections (K x n) stay in the cache while they are sorted, and the fit's
+    memory does not hold all S sets' at once.
+    """
+    n_x = len(x)
+    pos = qlev * (n_x - 1)
+    lo = np.minimum(pos.astype(np.int64), n_x - 2) if n_x > 1 else np.zeros_like(pos, np.int64)
+    frac = (pos - lo).astype(np.float32)
+    hi = np.minimum(lo + 1, n_x - 1)
+    out = np.empty(dirs.shape[:2] + (len(qlev),), dtype=np.float32)
+    for s, d in enumerate(dirs):
+        proj = d @ x.T  # (K, n)
+        proj.sort(axis=1)  # along rows: a contiguous sort per direction
+        low = proj[:, lo]
+        q = low + (proj[:, hi] - low) * frac  # tied values stay exact
+        # Levels crowded into one interval must not step back by a rounding (a file checks that).
+        out[s] = np.maximum.accumulate(q, axis=1)
+    return out
+
+
 def _levels_of(img, n_levels, mode, p):
     """Gaussian pyramid [img, down(img), ...] of an (H, W, C) image, stopping before a
     side gets below _MIN_SIDE patch sides ``p``."""
@@ -196,19 +221,7 @@ class PatchStatistics:
             x = v[rows // v.shape[1], rows % v.shape[1]].reshape(len(rows), d)
             if w:
                 dirs[i] = _whitened(dirs[i].reshape(-1, d), x, w).reshape(dirs[i].shape)
-            proj = dirs[i].reshape(-1, d) @ x.T  # (SETS * DIRECTIONS, n)
-            proj.sort(axis=1)  # along rows: a contiguous sort per direction
-            # Quantiles by linear interpolation between the order statistics (np.quantile's rule,
-            # from one sort; np.quantile takes about twice as long here: docs/choices.md).
-            n_x = proj.shape[1]
-            pos = qlev * (n_x - 1)
-            lo = np.minimum(pos.astype(np.int64), n_x - 2) if n_x > 1 else np.zeros_like(pos, np.int64)
-            frac = (pos - lo).astype(np.float32)
-            hi = np.minimum(lo + 1, n_x - 1)
-            low = proj[:, lo]
-            q = low + (proj[:, hi] - low) * frac  # (SETS * DIRECTIONS, QUANTILES); tied values stay exact
-            # Levels crowded into one interval must not step back by a rounding (a file checks that).
-            quantiles[i] = np.maximum.accumulate(q, axis=1).reshape(SETS, DIRECTIONS, QUANTILES)
+            quantiles[i] = _projection_quantiles(dirs[i], x, qlev)
         self.directions_, self.quantiles_, self.levels_ = dirs, quantiles, qlev.astype(np.float32)
         self.side_ = PATCH
         return self

@@ -28,10 +28,13 @@ def flip_signs(components):
 def _channel_major(Y, chunk=64):
     """(n, h, w, K) -> contiguous (K, n, h * w): one channel's maps side by side.
 
-    Copied ``chunk`` samples at a time: the source rows of a chunk stay in cache while
+    A view when ``Y`` is one already (the core :meth:`tghop.hops.HopStack.fit_image` returns);
+    otherwise copied ``chunk`` samples at a time: the source rows of a chunk stay in cache while
     they are scattered over the K channels (faster than one transposing copy of a large
     core, whose strided accesses miss the cache)."""
     n, h, w, k = Y.shape
+    if Y.transpose(3, 0, 1, 2).flags.c_contiguous:
+        return Y.transpose(3, 0, 1, 2).reshape(k, n, h * w)
     src = Y.reshape(n, h * w, k)
     out = np.empty((k, n, h * w), dtype=Y.dtype)
     for a in range(0, n, chunk):
