@@ -582,3 +582,13 @@ def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng, n):
         np.testing.assert_allclose(centres[j], X[labels == j].mean(axis=0), atol=1e-4)
     nearest = np.argmin(((X[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
     assert np.array_equal(nearest, labels)
+
+
+@pytest.mark.parametrize("n", [1, 5, 4096, 9000])  # one chunk, a part of one, a whole one, three
+def test_lloyd_stopping_scale_is_the_mean_column_variance(rng, n):
+    """Lloyd's stopping threshold scales with the mean column variance, taken in float64 a
+    chunk of rows at a time (no float64 copy of the points): numpy's own figure."""
+    from tghop.unsupervised import _mean_variance
+
+    X = (rng.normal(0, 1, (n, 37)) * rng.random(37) * 3 + rng.random(37) * 5).astype(np.float32)
+    assert _mean_variance(X) == pytest.approx(float(X.var(axis=0, dtype=np.float64).mean()), rel=1e-12, abs=1e-15)

@@ -50,7 +50,7 @@ def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
     the point farthest from its centre. Returns ``(labels, centres)``.
     """
     n, k = len(X), len(centres)
-    threshold = tol * float(X.var(axis=0, dtype=np.float64).mean())
+    threshold = tol * _mean_variance(X)
     few = int(settled * n)
     labels = np.full(n, -1)
     sums = np.zeros((k, X.shape[1]))
@@ -84,6 +84,17 @@ def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
             break
     d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
     return np.argmin(d, axis=1), centres
+
+
+def _mean_variance(X, chunk=4096):
+    """The mean over columns of each column's variance, in float64, ``chunk`` rows at a
+    time: ``X.var(axis=0, dtype=np.float64).mean()`` without a float64 copy of ``X``."""
+    mean = X.mean(axis=0, dtype=np.float64)
+    total = np.zeros(X.shape[1])
+    for a in range(0, len(X), chunk):
+        dev = X[a: a + chunk] - mean
+        total += np.einsum("nd,nd->d", dev, dev)
+    return float((total / max(len(X), 1)).mean())
 
 
 def kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000, fit_sample=5000, polish=10):
