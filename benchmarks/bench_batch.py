@@ -140,6 +140,8 @@ def one_mode(manifest, outdir, *, workers, count, size, seed, scheduler=None, ta
             "workers": len(per_worker), "peak_rss_mb_per_worker": per_worker,
             "fit_s_median": statistics.median(r["fit_seconds"] for r in ok),
             "synth_s_median": statistics.median(r["synth_seconds"] for r in ok),
+            "sys_s_median": statistics.median(r.get("sys_seconds") or 0.0 for r in ok),
+            "page_faults_median": statistics.median(r.get("page_faults") or 0 for r in ok),
             "task_s_by_exemplar": {r["name"]: r["seconds"] for r in results},
             "cpu_s_by_exemplar": {r["name"]: r.get("cpu_seconds") for r in results},
             "order": [r["name"] for r in sorted(results, key=lambda r: r.get("started") or 0)]}
@@ -225,10 +227,12 @@ def main():
                      f"{m['task_overhead_median']:+.0%} / {m['task_overhead_total']:+.0%}",
                      f"{m['cpu_overhead_median']:+.0%} / {m['cpu_overhead_total']:+.0%}", m["core_share"],
                      m["other_load"], m["idle_s_per_exemplar"], max(m["peak_rss_mb_per_worker"].values()),
-                     m["fit_s_median"], m["synth_s_median"], len(m["failed"])])
+                     m["fit_s_median"], m["synth_s_median"], m["sys_s_median"], m["page_faults_median"],
+                     len(m["failed"])])
     header = ["mode", "wall s", "wall s / exemplar", "efficiency", "task time vs one thread (median / total)",
               "task CPU vs one thread (median / total)", "task CPU / task time", "other programs (cores busy)",
-              "idle core-s / exemplar", "peak MB / worker", "fit s (median)", "synth s (median)", "failed"]
+              "idle core-s / exemplar", "peak MB / worker", "fit s (median)", "synth s (median)",
+              "kernel CPU s / task (median)", "page faults / task (median)", "failed"]
     crop = f" (centre crops {args.crop}x{args.crop})" if args.crop else ""
     old = ""
     if all_threads is not None:
@@ -253,7 +257,9 @@ def main():
             "kept busy by other processes during the mode (/proc/stat less this process and its workers; "
             "efficiency needs them near 0); idle core-s / exemplar = (cores x wall - task times) / exemplars: "
             "start-up, scheduling, the driver's hashing and ledger, idle cores in the tail; peak MB: each worker "
-            "process's peak resident memory (VmHWM). Cluster walls include starting the cluster."
+            "process's peak resident memory (VmHWM); kernel CPU and page faults: the task's "
+            "process's system time and page faults (getrusage), mostly the kernel mapping fresh memory in. Cluster "
+            "walls include starting the cluster."
           + (f" The --scheduler cluster took {scheduled['cluster_start_s']:.1f} s to start (not in its wall time)."
              if scheduled else "")
           + old

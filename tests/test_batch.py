@@ -112,6 +112,9 @@ def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     a = next(line for line in lines if line["name"] == "a")
     assert a["sha256"] == hashlib.sha256((src / "a.png").read_bytes()).hexdigest()
     assert a["settings"]["size"] == [48, 48] and a["settings"]["count"] == 2 and a["seconds"] > 0
+    # The kernel's part of the task's CPU time, and its page faults (none if the heap was warm).
+    assert 0 <= a["sys_seconds"] <= a["cpu_seconds"] + 0.05 and isinstance(a["page_faults"], int)
+    assert a["page_faults"] >= 0
     check_sheet(out, results)
 
     # a rerun skips what is done; failed exemplars are tried again

@@ -300,14 +300,15 @@ def process_exemplar(job: dict) -> dict:
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line),
     ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times
-    (``seconds``, ``cpu_seconds`` of the whole process, ``fit_seconds``,
-    ``synth_seconds``), ``threads``, the worker and its peak memory. Bad input is a "failed" record, never an exception;
+    (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part
+    of them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the
+    worker and its peak memory. Bad input is a "failed" record, never an exception;
     what was written for a failed exemplar is removed.
     """
     import resource
     import socket
 
-    start, cpu_start = time.time(), time.process_time()
+    start, cpu_start, usage = time.time(), time.process_time(), resource.getrusage(resource.RUSAGE_SELF)
     folder = Path(job["folder"])
     name = job["name"]
     record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
@@ -372,6 +373,9 @@ def process_exemplar(job: dict) -> dict:
             pass
     record["seconds"] = time.time() - start
     record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
+    now = resource.getrusage(resource.RUSAGE_SELF)
+    record["sys_seconds"] = now.ru_stime - usage.ru_stime  # mostly page faults of fresh memory
+    record["page_faults"] = (now.ru_minflt + now.ru_majflt) - (usage.ru_minflt + usage.ru_majflt)
     record["threads"] = job.get("threads")
     record["peak_rss_mb"] = _peak_rss_mb(resource)
     return record
