@@ -584,7 +584,7 @@ def test_kmeans_finds_separated_clusters_and_centres_are_member_means(rng, n):
     assert np.array_equal(nearest, labels)
 
 
-@pytest.mark.parametrize("n", [1, 5, 4096, 9000])  # one chunk, a part of one, a whole one, three
+@pytest.mark.parametrize("n", [1, 5, 1024, 3000])  # one chunk, a part of one, a whole one, three
 def test_lloyd_stopping_scale_is_the_mean_column_variance(rng, n):
     """Lloyd's stopping threshold scales with the mean column variance, taken in float64 a
     chunk of rows at a time (no float64 copy of the points): numpy's own figure."""

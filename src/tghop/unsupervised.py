@@ -86,7 +86,7 @@ def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
     return np.argmin(d, axis=1), centres
 
 
-def _mean_variance(X, chunk=4096):
+def _mean_variance(X, chunk=1024):
     """The mean over columns of each column's variance, in float64, ``chunk`` rows at a
     time: ``X.var(axis=0, dtype=np.float64).mean()`` without a float64 copy of ``X``."""
     mean = X.mean(axis=0, dtype=np.float64)
