@@ -349,8 +349,9 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("patch_refine", None, "int",
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 5x5 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
-            "patch_levels; 0: off). auto (None in Python): 52 on images of up to 512x512 pixels, none on "
-            "larger ones (the cost grows with the image; give a number to refine them too).",
+            "patch_levels; 0: off). auto (None in Python): 52 on images of up to 512x512 pixels, 24 on "
+            "images of up to 1024x1024, none on larger ones (the cost grows with the image; give a number "
+            "to refine them too).",
             when="generate", low=0, high=500, none_ok=True, auto=True, paper=0),
     Setting("patch_stride", 2, "int",
             "The patch refinement's steps take every patch_stride-th patch each way at each level, "

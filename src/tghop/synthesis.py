@@ -639,7 +639,8 @@ class TGHop(BaseEstimator):
             Adam steps per pyramid level of the patch refinement, the last step
             (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off; None:
             ``AUTO_STEPS`` of :mod:`tghop.patch_refine` on images of at most ``AUTO_PIXELS``
-            (512x512) pixels, 0 on larger ones.
+            (512x512) pixels, ``AUTO_LARGE_STEPS`` on images of at most ``AUTO_LARGE_PIXELS``
+            (1024x1024), 0 on larger ones.
         patch_stride : int
             Its steps take every ``patch_stride``-th patch each way at each level.
         reuse : float
