@@ -8,7 +8,7 @@ sizes are read from disk. Large exemplars are made by tiling a shared texture.
     python benchmarks/bench_cli.py                 # all rows, 5 runs each
     python benchmarks/bench_cli.py --quick         # 3 runs, no 8192^2 synthesis, no 8000^2 / 12000^2 fits
     python benchmarks/bench_cli.py --src /path/to/other/checkout/src   # time another version
-    python benchmarks/bench_cli.py --only 12,13,14 --runs 1               # the evaluate rows only
+    python benchmarks/bench_cli.py --only 15,16,17 --runs 1               # the evaluate rows only
 
 Writes benchmarks/results/bench_cli.{json,md} (or bench_cli_<label>.* with --label).
 """
@@ -154,6 +154,8 @@ def main():
             ("tghop --version", ["--version"], runs),
             ("tghop info m.npz", ["info", "m.npz"], runs),
             ("tghop synth m.npz --size 256x256", ["synth", "m.npz", "-o", "o.png", "--size", "256x256", "-q"], runs),
+            ("tghop synth m.npz --size 1024x1024", ["synth", "m.npz", "-o", "o.png", "--size", "1024x1024", "-q"],
+             runs),
             ("tghop synth m.npz --size 2048x2048", ["synth", "m.npz", "-o", "o.png", "--size", "2048x2048", "-q"],
              runs),
             ("tghop synth m.npz --size 8192x8192", ["synth", "m.npz", "-o", "o.png", "--size", "8192x8192", "-q"],
