@@ -327,26 +327,23 @@ def _phase_inputs(image, patch_size, origins, hops, level):
         maps = {r: (b @ hop.kernels_.T + hop.bias_)[None] for r, (b, _) in inputs.items()}
 
 
-def _core_of(image, patch_size, origins, hops, out=None, rows=None):
-    """Core responses (n, p, p, Kn) of the patches at ``origins`` of ``image``, through ``hops``.
-
-    With ``out`` (N, p, p, Kn), of any layout (e.g. a channel-major view), patch i's goes to
-    its row ``rows[i]`` (default i) there, and ``out`` is returned."""
+def _core_of(image, patch_size, origins, hops, out, rows):
+    """Write the core responses (p, p, Kn) of the patches at ``origins`` of ``image``, through
+    ``hops``, into ``out`` (N, p, p, Kn; any layout, e.g. a channel-major view): patch i's
+    into row ``rows[i]``."""
     from numpy.lib.stride_tricks import sliding_window_view
 
     n_hops = len(hops)
     inputs = _phase_inputs(image, patch_size, origins, hops, n_hops)
     hop = hops[-1]
     side = patch_size // 2**n_hops
-    core = np.empty((len(origins), side, side, hop.n_channels_out_)) if out is None else out
-    to = np.arange(len(origins)) if rows is None else np.asarray(rows)
+    rows = np.asarray(rows)
     phase = origins % 2**n_hops
     for r, (blocks, starts) in inputs.items():
         m = blocks @ hop.kernels_.T + hop.bias_
         mine = np.flatnonzero(np.all(phase == np.array(r), axis=1))
         windows = sliding_window_view(m, (side, side), axis=(0, 1))
-        core[to[mine]] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
-    return core
+        out[rows[mine]] = windows[starts[:, 0], starts[:, 1]].transpose(0, 2, 3, 1)
 
 
 def _coverage(shape, starts, side):
