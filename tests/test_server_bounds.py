@@ -56,6 +56,33 @@ def test_waiting_fits_are_capped():
         queue.shutdown()
 
 
+def test_a_fit_asked_for_again_after_its_cancel_runs_anew():
+    # The cancelled fit stops only at its next progress call: until then it still runs, and
+    # the same model asked for again must get a job of its own, not the one about to stop.
+    queue = FitQueue(2)
+    started, release = threading.Event(), threading.Event()
+
+    def work(job):
+        started.set()
+        release.wait(10)
+        job.progress("hop 1", 0, 1)  # raises Cancelled once the cancel was asked for
+
+    try:
+        old = queue.submit("5" * 64, work)
+        assert started.wait(10)
+        assert queue.cancel(old.id).state == "running"
+        new = queue.submit("5" * 64, lambda job: job.progress("hop 1", 1, 1))
+        assert new is not old
+        new.future.result(timeout=10)
+        release.set()
+        old.future.result(timeout=10)
+        assert (old.state, new.state) == ("cancelled", "done")
+        assert queue.submit("5" * 64, work) is not new  # a done job is never handed back
+    finally:
+        release.set()
+        queue.shutdown()
+
+
 @pytest.fixture(scope="module")
 def two_model_files(small_model, tmp_path_factory):
     """Two different model files (bytes) of the same size, give or take a few bytes."""

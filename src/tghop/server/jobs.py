@@ -187,7 +187,8 @@ class FitQueue:
         return job
 
     def submit(self, model_id: str, work) -> Job:
-        """Queue ``work(job)`` for ``model_id`` (or return its job still queued or running).
+        """Queue ``work(job)`` for ``model_id`` (or return its job still queued or running,
+        unless that job was asked to stop: then a new one, so that the model is still made).
 
         Raises
         ------
@@ -197,7 +198,7 @@ class FitQueue:
         with self._lock:
             self._prune()
             active = self._active.get(model_id)
-            if active is not None and not active.final:
+            if active is not None and not active.final and not active.cancel_requested:
                 return active
             waiting = sum(1 for j in self._active.values() if j.state == "queued")
             if waiting >= self.max_waiting:
