@@ -92,6 +92,8 @@ CASES = [
     (["fit", "bricks.png", "-o", "m.npz", "--cluster-energy", "nan"], ["--cluster-energy"]),
     (["synth", "model.npz", "-o", "o.png", "--tolerance", "nan"], ["--tolerance", "finite"]),
     (["synth", "model.npz", "-o", "o.png", "--pool", "0"], ["--pool", "<= 10,000,000"]),  # not 1e+07
+    (["synth", "model.npz", "-o", "o.png", "--pool-per-block", "1e308"], ["--pool-per-block", "<= 1,000,000"]),
+    (["synth", "model.npz", "-o", "o.png", "--layout-weight", "1e100"], ["--layout-weight", "<= 1,000,000"]),
     # an image where a model is expected
     (["info", "bricks.png"], ["bricks.png is an image", "tghop fit bricks.png"]),
     # truncated model files

@@ -65,7 +65,10 @@ def test_bad_fit_settings_are_refused_before_work(bricks96, name, value):
 
 
 @pytest.mark.parametrize("name, value", [("tolerance", float("nan")), ("n_patches", 0), ("overlap", 0),
-                                         ("match_colours", "yes"), ("tolerance", float("inf"))])
+                                         ("match_colours", "yes"), ("tolerance", float("inf")),
+                                         # finite but too large: float32 errors overflow, or a pool of inf patches
+                                         ("layout_weight", 1e100), ("pool_per_block", 1e308), ("reuse", 1e300),
+                                         ("tolerance", 1e300)])
 def test_bad_generation_settings_are_refused(small_model, name, value):
     with pytest.raises(TGHopError, match=name):
         small_model.synthesize((40, 40), rng=0, **{name: value})

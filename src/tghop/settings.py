@@ -330,7 +330,7 @@ SETTINGS: Tuple[Setting, ...] = (
             low=1, none_ok=True),
     Setting("tolerance", 0.1, "float",
             "Quilting picks among pool patches within (1 + tolerance) of the best match.",
-            when="generate", low=0),
+            when="generate", low=0, high=1e6),
     Setting("detail", 0.5, "float",
             "Quilting chooses only among the near-best candidates whose gradient energy is at or above "
             "this quantile of theirs, against the overlap error's preference for smooth patches (ours; "
@@ -340,7 +340,7 @@ SETTINGS: Tuple[Setting, ...] = (
             "pipeline).", when="generate", paper=False),
     Setting("layout_weight", 3.0, "float",
             "Weight of the coarse layout's guide in quilting, per pixel relative to the overlap error "
-            "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0),
+            "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0, high=1e6),
     Setting("refine", 5, "int",
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`; each but the last over-relaxed): restores the contrast of fine detail; "
@@ -362,11 +362,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "Quilting multiplies the error of a pool patch already placed u times by (1 + reuse * u), "
             "against repeating the same patches in large images (ours; not applied where there are 8 "
             "pool patches per block or more, e.g. 256x256; 0: the paper's rule).",
-            when="generate", low=0, paper=0.0),
+            when="generate", low=0, high=1e6, paper=0.0),
     Setting("pool_per_block", 1.5, "float",
             "Grow the pool to this many patches per quilted block when that is more than n_patches, up "
             "to 30,000 (ours, for large images; 0: the pool is n_patches).", when="generate", low=0,
-            paper=0.0),
+            high=1e6, paper=0.0),
     Setting("seam_window", 9, "int",
             "Remove the steps in tone and colour across quilting seams by gradient-domain stitching "
             "(ours, :mod:`tghop.seams`): each seam edge's step is averaged over the seam edges within "

@@ -432,7 +432,7 @@ class Server:
         body = await read_body(request, limit=limit)
         try:
             return json.loads(body or b"{}")
-        except ValueError:
+        except (ValueError, RecursionError):  # RecursionError: nested deeper than the parser goes
             raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
 
     async def _png_response(self, request, work, *args, seed):
