@@ -3,7 +3,7 @@ Dask cluster of worker processes, resumable, bad exemplars recorded, dead worker
 
 Exemplars are made in code (no ../shared); fits use tiny settings. The Dask tests share
 one LocalCluster(n_workers=2, processes=True, threads_per_worker=1) whose scheduler lets a
-task's worker die twice (``allowed-failures`` 2: a task queued on a worker that another task kills counts a death too).
+task's worker die twice (``allowed-failures`` 2).
 """
 
 import hashlib
@@ -88,6 +88,26 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     bad.write_text('{"path": "a.png"}\n[1, 2]\n')
     with pytest.raises(TGHopError, match="m.jsonl line 2"):
         batch.find_work(bad)
+    for size, words in (([64, 64, 64], r"size \[64, 64, 64\] is not \[HEIGHT, WIDTH\]"), ([], r"size \[\] is not"),
+                        (["a", "b"], "size 'a' is not a whole number"), ([None, 64], "size None is not"),
+                        ([64.7, 64], "size 64.7 is not a whole number")):
+        bad.write_text(json.dumps({"path": "a.png", "size": size}) + "\n")
+        with pytest.raises(TGHopError, match="m.jsonl line 1: " + words):
+            batch.find_work(bad)
+    # names of OUTDIR's own files are kept for them; OUTDIR cannot be SOURCE itself
+    (tmp_path / "batch.jsonl.png").write_bytes(b"x")
+    (tmp_path / "INDEX.HTML.png").write_bytes(b"x")
+    names = sorted(it["name"] for it in batch.find_work(tmp_path))
+    assert names == ["INDEX.HTML_exemplar", "a", "b_jpg", "b_png", "batch.jsonl_exemplar", "sub__a"]
+    with pytest.raises(TGHopError, match="OUTDIR is the SOURCE folder"):
+        batch.find_work(tmp_path, outdir=tmp_path / "sub" / "..")
+    with pytest.raises(TGHopError, match="count 0 is out of range"):
+        batch.run(tmp_path, tmp_path / "out", count=0)
+    with pytest.raises(TGHopError, match="tile 'maybe' is not true or false"):
+        batch.run(tmp_path, tmp_path / "out", tile="maybe")
+    with pytest.raises(TGHopError, match="seed -5 is out of range"):
+        batch.run(tmp_path, tmp_path / "out", seed=-5)
+    assert not (tmp_path / "out").exists()  # refused before any work
 
 
 # ------------------------------------------------------------------ in process
@@ -273,6 +293,9 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,
                                cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)
+    code, _, err, exc = invoke("batch", "src", "-o", "out3", "--scheduler", "notanaddress", *CLI_FAST, cwd=tmp_path)
+    assert_one_line(code, err, "cannot reach the Dask scheduler at notanaddress", exception=exc)
+    assert not (tmp_path / "out3" / "index.html").exists()  # nothing finished: no empty contact sheet
 
 
 def _partial_file(job):
@@ -315,6 +338,30 @@ def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
     assert failed["status"] == "failed" and "died on every try" in failed["error"]
     assert not leftovers(out2) and not (out2 / "a").exists()
     assert ledger(out2)[0]["status"] == "failed"
+
+
+def crash_on_a(job):
+    if job["name"] == "a":
+        _partial_file(job)
+        os._exit(1)
+    return batch.process_exemplar(job)
+
+
+def test_with_no_retries_a_dying_worker_fails_only_its_own_exemplar(tmp_path):
+    # A worker is given only the task it runs (Dask alone placed every task on a worker at
+    # once, and a worker's death counted against those waiting there: with retries=0 they failed).
+    pytest.importorskip("distributed")
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    for i, name in enumerate("abcd"):
+        save_image(data.bricks(64, rng=i) if i % 2 else data.cells(64, rng=i), src / f"{name}.png")
+    results = run(src, out, workers=2, retries=0, task=crash_on_a)
+    assert [r["status"] for r in results] == ["failed", "ok", "ok", "ok"], results
+    assert "died on every try" in results[0]["error"] and "1 tries" in results[0]["error"]
+    assert not leftovers(out)
 
 
 def _wait_idle(client, timeout=60):

@@ -71,7 +71,9 @@ def _parse_size(value, where):
     from ._common import check_size
 
     if isinstance(value, (list, tuple)):
-        h, w = (value * 2)[:2] if len(value) == 1 else value
+        if len(value) not in (1, 2):
+            raise TGHopError(f"{where}: size {value!r} is not [HEIGHT, WIDTH] (e.g. [512, 512])")
+        h, w = (_parse_int(v, where, "size", 1) for v in (list(value) * 2)[:2])
     else:
         m = re.fullmatch(r"\s*(\d+)\s*(?:[xX*,]\s*(\d+)\s*)?", str(value))
         if not m:
@@ -182,7 +184,9 @@ def _scan_folder(folder: Path, outdir: Path):
 
 
 def _safe(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "exemplar"
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "exemplar"
+    # OUTDIR's own files: an exemplar's folder of that name would stand where they go.
+    return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET) else name
 
 
 def _unique_names(items):
@@ -223,6 +227,9 @@ def find_work(source, outdir=None):
     :class:`TGHopError` naming its line, before any work.
     """
     source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
+    if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
+        raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
+                         "exemplars; give another folder, e.g. -o " + str(source.parent / (source.name + "_out")))
     if source.is_dir():
         items = _scan_folder(source, outdir if outdir is not None else source / ".none")
     elif source.is_file():
@@ -587,6 +594,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     """
     outdir = Path(os.path.abspath(outdir))
     items = find_work(source, outdir)
+    defaults = {"size": list(_parse_size(size, "size")), "count": _parse_int(count, "run", "count", 1, 1000),
+                "seed": None if seed is None else _parse_int(seed, "run", "seed", 0),
+                "tile": _parse_bool(tile, "run")}
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
     try:
@@ -596,7 +606,6 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)
     except OSError as exc:
         raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
-    defaults = {"size": list(_parse_size(size, "size")), "count": count, "seed": seed, "tile": tile}
     fit = _jsonable(dict(fit or {}))
     generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
     in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
@@ -651,7 +660,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             except OSError:
                 pass
         ordered = [results[it["name"]] for it in items if it["name"] in results]
-        if contact_sheet:
+        if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
             write_contact_sheet(outdir, ordered)
     return ordered
 
@@ -676,30 +685,40 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, 
             if scheduler is not None:
                 try:
                     client = own_client = distributed.Client(scheduler, timeout="5s")
-                except (OSError, TimeoutError) as exc:
+                except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
                     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
             else:
                 own_cluster = local_cluster(workers, retries=retries)
                 client = own_client = distributed.Client(own_cluster)
-        by_key = {}
-        # The longest first (a shorter tail), in that order on a cluster that queues tasks
-        # on the scheduler (Dask's default): a worker takes the next as it finishes one.
-        order = sorted(jobs, key=_cost, reverse=True)
-        for rank, job in enumerate(order):
-            key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
-            fut = client.submit(task, job, key=key, pure=False, priority=len(order) - rank)
-            by_key[fut.key] = job
-            futures.append(fut)
-        slots = max(1, sum(client.nthreads().values())) if hasattr(client, "nthreads") else len(jobs)
-        counts["running"] = min(slots, len(jobs))
-        for fut in distributed.as_completed(futures):
+        # The longest first (a shorter tail), handed out one per free thread as tasks finish:
+        # a worker holds only the task it runs. Dask would place every task on a worker at
+        # once (tasks of different names are not "root-ish", so it queues none on the
+        # scheduler), and a worker's death would count against the tasks waiting on it too.
+        order = iter(sorted(jobs, key=_cost, reverse=True))
+        by_key, running = {}, distributed.as_completed()
+
+        def hand_out():
+            slots = max(1, sum(client.nthreads().values()))  # again each time: a cluster may grow
+            while running.count() < slots:
+                job = next(order, None)
+                if job is None:
+                    break
+                key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
+                fut = client.submit(task, job, key=key, pure=False)
+                by_key[fut.key] = job
+                futures.append(fut)
+                running.add(fut)
+            counts["running"] = running.count()
+
+        hand_out()
+        for fut in running:
             job = by_key[fut.key]
             try:
                 record = fut.result()
             except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
                 record = _died_record(job, exc, retries)
             fut.release()
-            counts["running"] = min(slots, counts["total"] - counts["done"] - 1)
+            hand_out()  # before the ledger line: the freed worker starts at once
             finish(job, record)
     except BaseException:
         try:
