@@ -249,6 +249,29 @@ def test_ctrl_c_stops_cleanly_and_a_rerun_finishes(tmp_path, workers):
     assert f"4 of 4 exemplars done ({done} by an earlier run)" in err.decode()
 
 
+def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
+    # Ctrl-C to the whole process group, again and again from the start: ignored while the
+    # workers start (they inherit that), then a clean stop; never a worker's traceback.
+    pytest.importorskip("distributed")
+    src = make_folder(tmp_path / "src", bad=False)
+    for i in range(4):
+        save_image(data.bricks(64, rng=20 + i), src / f"c{i}.png")
+    p = _run_cli(["batch", "src", "-o", "out", "--size", "48", "--seed", "1", "--workers", "2", *CLI_FAST],
+                 tmp_path, start_new_session=True)
+    time.sleep(1.0)  # the command's own imports: Python's usual KeyboardInterrupt there
+    deadline = time.time() + 90
+    while p.poll() is None and time.time() < deadline:
+        os.killpg(p.pid, signal.SIGINT)
+        time.sleep(0.3)
+    _, err = p.communicate(timeout=60)
+    err = err.decode()
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    if p.returncode == 130:
+        assert_one_line(p.returncode, err, "interrupted after", "run the same command again")
+    else:  # every exemplar was done before a Ctrl-C reached the command after the start
+        assert p.returncode == 0, err
+
+
 # ------------------------------------------------------------------ on Dask
 @pytest.fixture(scope="module")
 def cluster():

@@ -22,12 +22,15 @@ The library never prints: ``progress(stage, done, total)`` reports exemplars fin
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import html
 import json
 import os
 import re
+import signal
+import threading
 import time
 from pathlib import Path
 from urllib.parse import quote
@@ -463,11 +466,27 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
     environ.update({v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
     environ.update(WORKER_ENVIRON)
-    with dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
-                          "distributed.nanny.pre-spawn-environ": environ}):
+    # Ctrl-C is ignored while the workers start: a worker process inherits that (its preload
+    # ignores Ctrl-C only once its imports are done; before, each printed a traceback), and a
+    # cluster interrupted half-started cannot be closed cleanly. It lasts a few seconds.
+    with _ctrl_c_ignored(), dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
+                                             "distributed.nanny.pre-spawn-environ": environ}):
         return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                         dashboard_address=None, memory_limit=memory_limit,
                                         silence_logs=logging.CRITICAL, preload=[__name__])
+
+
+@contextlib.contextmanager
+def _ctrl_c_ignored():
+    """Ctrl-C (SIGINT) ignored inside, where this is the main thread (else nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def dask_setup(worker):
@@ -728,10 +747,11 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, 
             pass
         raise
     finally:
-        if own_client is not None:
-            own_client.close()
-        if own_cluster is not None:
-            own_cluster.close()
+        with _ctrl_c_ignored():  # a second Ctrl-C must not leave the cluster half-closed
+            if own_client is not None:
+                own_client.close()
+            if own_cluster is not None:
+                own_cluster.close()
 
 
 # ------------------------------------------------------------------ the contact sheet
