@@ -87,3 +87,29 @@ def test_float_tiff_in_unit_range_is_read_as_is(tmp_path):
     levels = (values * 255).round().astype(np.float32)  # a float image of 8-bit levels: scaled as before
     Image.fromarray(levels, mode="F").save(tmp_path / "g.tif")
     np.testing.assert_allclose(load_image(tmp_path / "g.tif")[..., 0], levels / 255.0, atol=1e-7)
+
+
+def test_save_image_refuses_pixels_it_would_write_wrong(tmp_path, monkeypatch):
+    import sys
+
+    from tghop._errors import InvalidImageError
+    from tghop.imageio import save_image
+
+    levels = np.arange(256, dtype=np.int64).reshape(16, 16)
+    with pytest.raises(InvalidImageError, match="floats in \\[0, 1\\] or uint8, not int64.*image / 255"):
+        save_image(levels, tmp_path / "a.png")  # would clip to black and white
+    with pytest.raises(InvalidImageError, match="not uint16"):
+        save_image(levels.astype(np.uint16), tmp_path / "a.png", depth=16)
+    with pytest.raises(InvalidImageError, match="not bool"):
+        save_image(levels > 100, tmp_path / "a.png")
+    bad = np.full((8, 8, 3), 0.5)
+    bad[3, 4, 1] = np.nan
+    for depth, name in ((8, "a.png"), (16, "a.png")):
+        with pytest.raises(InvalidImageError, match="NaN or infinite"):
+            save_image(bad, tmp_path / name, depth=depth)
+    assert not list(tmp_path.iterdir())  # nothing written
+    save_image(levels.astype(np.uint8), tmp_path / "ok.png")
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "ok.png")), levels)
+    monkeypatch.setattr(sys, "stdout", None)  # `-o - >&-`
+    with pytest.raises(InvalidImageError, match="standard output is closed"):
+        save_image(levels.astype(np.uint8), "-")

@@ -463,6 +463,17 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     _png_chunk(fh, b"IEND")
 
 
+def _check_pixels(image, depth):
+    """What :func:`save_image` refuses: integers other than uint8 (0-255 as floats would clip to
+    white, 0-65535 too), booleans, and non-finite floats (black or white at 8 and 16 bits)."""
+    arr = np.asarray(image)
+    if arr.dtype != np.uint8 and arr.dtype.kind != "f":
+        raise InvalidImageError(f"an image to save must be floats in [0, 1] or uint8, not {arr.dtype} "
+                                f"(e.g. image / 255 for 8-bit levels)")
+    if arr.dtype.kind == "f" and depth != 32 and arr.size and not (np.isfinite(arr.min()) and np.isfinite(arr.max())):
+        raise InvalidImageError("an image to save has NaN or infinite values; they have no colour")
+
+
 def save_image(image, path, *, depth: int = 8) -> None:
     """Write a float image in [0, 1] to ``path`` (PNG, JPEG or TIFF by extension; ``-`` is PNG on stdout).
 
@@ -476,9 +487,13 @@ def save_image(image, path, *, depth: int = 8) -> None:
         Bits per channel: 8 (any format), 16 (PNG, TIFF) or 32 (float32 TIFF, values
         as they are). A format that cannot hold it is an :class:`InvalidImageError`
         (:func:`check_depth`). Colour TIFF files of 16 or 32 bits need :mod:`tifffile`.
+        So are pixels neither uint8 nor floats, and (but at 32 bits) NaN or infinite ones.
     """
     fmt = output_format(path)
     check_depth(path, depth)
+    _check_pixels(image, depth)
+    if str(path) == "-" and sys.stdout is None:
+        raise InvalidImageError("-o -: the standard output is closed; give a file name instead")
     if fmt == "TIFF":
         write = _tiff_writer(image, depth, path)
     elif fmt == "PNG":
