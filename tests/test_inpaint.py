@@ -156,6 +156,7 @@ def files(tmp_path_factory, cells, square, model):
     mask[40:52, 40:52] = 255
     Image.fromarray(mask).save(d / "mask.png")
     Image.fromarray(np.zeros((50, 96), np.uint8)).save(d / "small_mask.png")
+    Image.fromarray(np.full((96, 96), 127, np.uint8)).save(d / "grey_mask.png")  # just below mid-grey: no hole
     (d / "notes.txt").write_text("not an image")
     save_model(model, d / "model.npz")
     return d
@@ -180,7 +181,8 @@ def test_cli_with_a_model_and_tile(files):
 
 
 @pytest.mark.parametrize("mask, words", [("small_mask.png", "is 50x96 but IMAGE"), ("notes.txt", "notes.txt"),
-                                         ("model.npz", "is a model file")])
+                                         ("model.npz", "is a model file"),
+                                         ("grey_mask.png", "grey_mask.png has no white pixel, so there is nothing")])
 def test_cli_bad_masks_are_one_line(files, mask, words):
     r = run("inpaint", files / "cells.png", files / mask, "-o", files / "bad.png", "--source", files / "model.npz")
     assert_user_error(r, words)

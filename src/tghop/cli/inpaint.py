@@ -25,8 +25,8 @@ __all__ = ["inpaint"]
 @depth_option("IMAGE's, as far as the output's format holds it")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def inpaint(image, mask, output, source, seed, tile, quiet, depth):
-    """Fill the white pixels of MASK (an image of IMAGE's size) with texture that continues
-    IMAGE around them; every other pixel is kept.
+    """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
+    above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
 
     Without --source the model is fitted on IMAGE's patches that do not touch the hole.
     """
@@ -46,6 +46,9 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
         # Without --depth: IMAGE's own depth, as far as the output's format holds it.
         depth = check_depth(output, depth or deepest(output, image_depth))
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
+        if not hole.any():  # before any fit: nothing would change
+            raise TGHopError(f"MASK {mask} has no white pixel, so there is nothing to fill; paint the hole white "
+                             "(a pixel whose channels' mean is above mid-grey)")
         rng = np.random.default_rng(seed)
         if source is not None and not source.startswith("builtin:") and (
                 source.lower().endswith(".npz") or is_model_file(source)):
