@@ -59,6 +59,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     from .options import FIT_OPTION_PARAMS, given_options
 
     refused = given_options(ctx, ["patch_refine", "patch_stride", "region"])
+    if ctx.params.get("quality") not in (None, "default"):  # a preset of the patch refinement
+        refused.append(f"--quality {ctx.params['quality']}")
     if refused:
         raise TGHopError(f"{refused[0]} is not used with several SOURCEs or --guide; drop it")
     generation.pop("patch_refine", None)
