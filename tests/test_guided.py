@@ -144,6 +144,20 @@ def test_morph_goes_from_a_on_the_left_to_b_on_the_right(models, exemplars):
     assert np.array_equal(strip, tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN))
 
 
+def test_morph_holds_its_station_weights_as_one_row(models, monkeypatch):
+    # (S, H, W) copies of the same row took S images' memory: 17 GB at 8192x8192 (65 stations),
+    # where the process was killed without a word.
+    from tghop import guided
+
+    seen = []
+    original = guided._Stations.__init__
+    monkeypatch.setattr(guided._Stations, "__init__",
+                        lambda self, weights, mix, ms: seen.append(weights) or original(self, weights, mix, ms))
+    tghop.morph(models[0], models[1], (48, 400), rng=1, **GEN)
+    (weights,) = seen
+    assert weights.shape == (5, 48, 400) and weights.strides[1] == 0  # a view: no copy per row
+
+
 def test_models_that_cannot_mix_are_refused(models):
     grey = TGHop(rng=0, **FAST).fit(data.cells(96, rng=3).mean(axis=2))
     with pytest.raises(TGHopError, match="all colour or all greyscale"):

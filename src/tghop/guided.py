@@ -333,9 +333,11 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
     centres = np.linspace(0.0, 1.0, n)
     hats = np.clip(1.0 - np.abs(t[None, :] - centres[:, None]) * (n - 1), 0.0, 1.0)  # (n, W), sum 1
-    weights = np.ascontiguousarray(np.broadcast_to(hats[:, None, :], (n, h, w)), dtype=np.float32)
+    # Read-only views, the same in every row: (S, H, W) copies took S images' memory (17 GB at
+    # 8192x8192, whose default has 65 stations); each station copies only its own columns.
+    weights = np.broadcast_to(hats.astype(np.float32)[:, None, :], (n, h, w))
     mix = np.stack([1.0 - centres, centres], axis=1)
-    ramp = np.broadcast_to(np.stack([1.0 - t, t])[:, None, :], (2, h, w)).astype(np.float32)
+    ramp = np.broadcast_to(np.stack([1.0 - t, t]).astype(np.float32)[:, None, :], (2, h, w))
     return _synthesize(models, (h, w), weights, mix, ramp, rng=rng, n_patches=n_patches, tile=False, overlap=overlap,
                        tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours, reuse=reuse,
                        pool_per_block=pool_per_block, layout_weight=layout_weight, layout_refine=layout_refine,
