@@ -252,6 +252,18 @@ def test_paper_flag_selects_paper_core_model(workdir):
     assert json.loads(run("info", workdir / "p2.npz", "--json").stdout)["params"]["max_cluster_components"] == 7
 
 
+def test_paper_with_a_saved_model_gives_the_papers_image_again(workdir):
+    # --paper with a model: the paper's generation settings (the fit's are the model's own).
+    first, again, ours = (workdir / f"{n}.png" for n in ("paper_first", "paper_again", "paper_ours"))
+    r = run("synth", workdir / "bricks.png", "-o", first, *FAST, "--paper", "--seed", "4", "--size", "48",
+            "--save-model", workdir / "paper_saved.npz")
+    assert r.returncode == 0, r.stderr.decode()
+    for out, flags in ((again, ["--paper"]), (ours, [])):
+        r = run("synth", workdir / "paper_saved.npz", "-o", out, "-q", "--seed", "4", "--size", "48", *flags)
+        assert r.returncode == 0, r.stderr.decode()
+    assert again.read_bytes() == first.read_bytes() and ours.read_bytes() != first.read_bytes()
+
+
 def test_residual_and_detail_switches(workdir):
     import json
 

@@ -102,7 +102,6 @@ CASES = [
     (["patches", "trunc.npz", "-o", "g.png"], ["trunc.npz", "truncated"]),
     (["fit", "trunc.npz", "-o", "m.npz"], ["model file, not an image"]),
     # fit options with a saved model
-    (["synth", "model.npz", "-o", "o.png", "--paper"], ["--paper", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "--k1", "9"], ["--k1", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "-N", "9", "--gamma", "0.1"], ["--clusters", "--gamma", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "--save-model", "again.npz"], ["--save-model", "saved model"]),

@@ -147,7 +147,8 @@ def _fit_options():
             options.append(_setting_option(s))
     options.append(click.option("--paper", is_flag=True,
                                 help="The paper's pipeline exactly: Table 4 core model (F about 2,500) and no "
-                                     "colour matching; options given as well override it."))
+                                     "colour matching; options given as well override it. With a saved model: "
+                                     "the paper's generation settings."))
     return options
 
 
