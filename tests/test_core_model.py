@@ -592,3 +592,23 @@ def test_lloyd_stopping_scale_is_the_mean_column_variance(rng, n):
 
     X = (rng.normal(0, 1, (n, 37)) * rng.random(37) * 3 + rng.random(37) * 5).astype(np.float32)
     assert _mean_variance(X) == pytest.approx(float(X.var(axis=0, dtype=np.float64).mean()), rel=1e-12, abs=1e-15)
+
+
+def test_scikit_learn_tools_work_on_tghop_estimators(small_model):
+    # tghop's own BaseEstimator: scikit-learn's tools ask for tags (1.6 and later).
+    sklearn = pytest.importorskip("sklearn")
+    if tuple(int(v) for v in sklearn.__version__.split(".")[:2]) < (1, 6):
+        pytest.skip("scikit-learn before 1.6 has no __sklearn_tags__")
+    from sklearn.base import clone, is_regressor
+    from sklearn.exceptions import NotFittedError
+    from sklearn.utils import estimator_html_repr
+    from sklearn.utils.validation import check_is_fitted
+
+    from tghop.saab import Saab
+
+    fresh = clone(small_model)
+    with pytest.raises(NotFittedError):
+        check_is_fitted(fresh)
+    check_is_fitted(small_model)
+    assert not is_regressor(small_model) and "TGHop" in estimator_html_repr(fresh)
+    assert Saab().__sklearn_tags__().transformer_tags is not None

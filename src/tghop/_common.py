@@ -87,6 +87,13 @@ class BaseEstimator:
             getattr(self, name).set_params(**sub_params)
         return self
 
+    def __sklearn_tags__(self):
+        """scikit-learn's default tags (its ``check_is_fitted``, ``is_regressor`` and HTML repr
+        ask for them; scikit-learn is imported only then)."""
+        from sklearn.base import BaseEstimator as SklearnBase
+
+        return SklearnBase.__sklearn_tags__(self)
+
     def __repr__(self):
         defaults = {p.name: p.default for p in inspect.signature(type(self).__init__).parameters.values()}
         changed = []
@@ -107,6 +114,13 @@ class TransformerMixin:
 
     def fit_transform(self, X, y=None, **fit_params):
         return self.fit(X, y, **fit_params).transform(X)
+
+    def __sklearn_tags__(self):
+        from sklearn.utils import TransformerTags
+
+        tags = super().__sklearn_tags__()
+        tags.transformer_tags = TransformerTags()
+        return tags
 
 
 def check_is_fitted(estimator, attributes) -> None:
