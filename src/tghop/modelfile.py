@@ -194,9 +194,9 @@ def _rule_range(arr, dims, lo, hi, column=None):
     lo, hi = _bound(lo, dims), _bound(hi, dims)
     where = "" if column is None else f" in column {column}"
     if lo is not None and values.min() < lo - slack:
-        return f"holds {values.min()!r}{where}, below {lo}"
+        return f"holds {values.min().item()!r}{where}, below {lo}"
     if hi is not None and values.max() > hi + slack:
-        return f"holds {values.max()!r}{where}, above {hi}"
+        return f"holds {values.max().item()!r}{where}, above {hi}"
     return None
 
 
@@ -219,7 +219,7 @@ def _rule_nondecreasing(arr, dims, column=None):
 
 
 def _rule_positive(arr, dims):
-    return f"holds {arr.min()!r}, not positive" if arr.size and arr.min() <= 0 else None
+    return f"holds {arr.min().item()!r}, not positive" if arr.size and arr.min() <= 0 else None
 
 
 def _rule_sum(arr, dims, total, tol):
@@ -292,7 +292,7 @@ def _check_array(spec, arrays, dims, prefix):
             return f"array {full} holds NaN or infinite values"
         # float16 values are at most 65504; larger ones overflow float32 generation.
         if arr.dtype != np.float16 and ("unbounded",) not in rules and arr.size and np.abs(arr).max() > _LIMIT:
-            return f"{full} holds {np.abs(arr).max()!r} in magnitude, beyond {_LIMIT:g}: no fitted model comes near"
+            return f"{full} holds {np.abs(arr).max().item()!r} in magnitude, beyond {_LIMIT:g}: no fitted model comes near"
     for rule in rules:
         if callable(rule):
             problem = rule(arr, dims)

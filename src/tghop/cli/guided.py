@@ -91,8 +91,9 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     for i, spec in enumerate(sources, start=1):
         model, saved = _model(spec, options, progress, downscale)
         if saved and fitting:
-            raise TGHopError(f"{', '.join(fitting)}: fitting options but SOURCE {i} ({spec}) is a saved model; "
-                             "fit the exemplars with 'tghop fit' or drop them")
+            one = len(fitting) == 1
+            raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
+                             f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
         models.append(model)
     rng = np.random.default_rng(seed)
     for path in outputs:

@@ -64,4 +64,5 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
         progress.close()
         save_image(result, output, depth=depth)
     if output != "-":
-        click.echo(f"{int(hole.sum()):,} pixels filled, written to {output}", err=True)
+        filled = int(hole.sum())
+        click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)

@@ -155,7 +155,7 @@ def patches(model_file, n, output, seed, stages):
             save_image(stage_sheet(views, model.patch_size), stage_path)
             click.echo(f"stage views written to {stage_path}", err=True)
     if output != "-":
-        click.echo(f"{n} patches written to {output}", err=True)
+        click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
 
 
 @click.command()
@@ -294,7 +294,7 @@ def _synth_material(material, output, outputs, size, depth, *, rng, progress, ge
         progress.close()
         save_images([(maps[name], path, d) for name, path, d in plan])
     written = ", ".join(path for _, path, _ in plans[0])
-    more = f" (and {len(plans) - 1} more sets)" if len(plans) > 1 else ""
+    more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
     click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
                f"{written}{more}", err=True)
 
