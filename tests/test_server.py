@@ -262,7 +262,7 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
                  "cut.npz: truncated, corrupt")
     assert_error(post("/api/models/upload", files={"model": ("pic.npz", exemplar_png(40))}), 400,
                  "pic.npz is an image, not a model file")
-    assert_error(post("/api/models/upload", content=b""), 400, "empty")
+    assert_error(post("/api/models/upload", content=b""), 400, "the upload is empty")
     # 422: settings out of range, sizes over the output limit
     assert_error(post("/api/models", files={"builtin": (None, "bricks"), "n_clusters": (None, "0")}), 422,
                  "n_clusters must be")

@@ -403,7 +403,7 @@ class Server:
                 raise RequestError(400, "no model file: send it as the field 'model' (or as the whole body)")
             filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
         else:
-            filename, content = "the upload", body
+            filename, content = None, body  # no name: messages say "the upload"
         model_id = await run_in_threadpool(self._store_upload, content, _safe_name(filename, "the upload"))
         return _json({"id": model_id})
 
@@ -583,7 +583,7 @@ class Server:
                 raise RequestError(400, "no checkpoint: send it as the file field 'checkpoint' (or as the whole body)")
             filename, content = upload
         else:
-            filename, content = "the upload", body
+            filename, content = None, body  # no name: messages say "the upload"
         cid = await run_in_threadpool(cooc.store_checkpoint, self.cooc, content, _safe_name(filename, "the upload"))
         return _json({"id": cid})
 
