@@ -150,7 +150,15 @@ def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     again = {r["name"]: r for r in run(src, out, count=1, workers=1)}
     assert not again["a"]["skipped"] and not again["sub__a"]["skipped"]
     assert again["a"]["outputs"] == ["a/a.png"]
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a.png", "exemplar.png"]  # a_1, a_2 gone
     assert not leftovers(out)
+    # a deleted thumbnail (the contact sheet's) is made again
+    (out / "sub__a" / "exemplar.png").unlink()
+    again = {r["name"]: r for r in run(src, out, count=1, workers=1)}
+    assert again["a"]["skipped"] and not again["sub__a"]["skipped"] and (out / "sub__a" / "exemplar.png").is_file()
+    # a contact sheet of an unfinished batch says so
+    page = batch.write_contact_sheet(out, [again["a"]], total=4).read_text()
+    assert "1 of 1 exemplars done, 0 failed. 3 not finished yet: run the same command again." in page
 
 
 def test_manifests_give_per_row_settings(tmp_path):

@@ -437,7 +437,24 @@ def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
     if prev.get("settings") != job["settings"]:
         return False
     files = list(prev.get("outputs") or []) + [prev.get("model")]
+    files += [prev["thumbnail"]] if prev.get("thumbnail") else []  # the contact sheet shows it
     return all(f and (outdir / f).is_file() for f in files)
+
+
+def _remove_stale(outdir: Path, prev: dict | None, rec: dict) -> None:
+    """Delete the files of an exemplar's earlier ledger line that its new one does not list
+    (e.g. ``a_1.png``, ``a_2.png`` after a rerun with count 1 wrote ``a.png``): only in its
+    own folder."""
+    if not prev:
+        return
+    keep = set(rec.get("outputs") or []) | {rec.get("model"), rec.get("thumbnail")}
+    folder = (outdir / rec["name"]).resolve()
+    for f in set(prev.get("outputs") or []) | {prev.get("model"), prev.get("thumbnail")}:
+        if f and f not in keep and (outdir / f).resolve().parent == folder:
+            try:
+                (outdir / f).unlink()
+            except OSError:
+                pass
 
 
 # ------------------------------------------------------------------ running
@@ -650,6 +667,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                **record}
         rec["finished"] = time.time()
         _append_ledger(outdir, rec)
+        if rec["status"] == "ok":
+            _remove_stale(outdir, previous.get(job["name"]), rec)
         results[job["name"]] = {**rec, "skipped": False}
         counts["done"] += 1
         counts["failed"] += rec["status"] != "ok"
@@ -680,7 +699,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                 pass
         ordered = [results[it["name"]] for it in items if it["name"] in results]
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
-            write_contact_sheet(outdir, ordered)
+            write_contact_sheet(outdir, ordered, total=len(items))
     return ordered
 
 
@@ -759,9 +778,10 @@ def _href(path: str) -> str:
     return quote(path, safe="/")
 
 
-def write_contact_sheet(outdir, records) -> Path:
+def write_contact_sheet(outdir, records, total=None) -> Path:
     """``OUTDIR/index.html``: per exemplar its thumbnail, name, source, status (with the
-    error), time and outputs (linked, relative paths; no external resources)."""
+    error), time and outputs (linked, relative paths; no external resources); ``total``
+    exemplars in the batch (more than the records: the rest not finished)."""
     from .imageio import write_atomic
 
     outdir = Path(outdir)
@@ -780,12 +800,14 @@ def write_contact_sheet(outdir, records) -> Path:
         rows.append(f'<tr class="{esc(r.get("status", ""))}"><td>{thumb}</td><td><b>{esc(r["name"])}</b><br>'
                     f'<small>{esc(str(r.get("source", "")))}</small></td><td>{status}{error}</td>'
                     f"<td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
+    left = (total or 0) - len(records)
+    unfinished = f" {left} not finished yet: run the same command again." if left > 0 else ""
     page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok} of {len(records)} done</title>
+<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok} of {max(total or 0, len(records))} done</title>
 <style>body{{font-family:sans-serif;margin:1em}}table{{border-collapse:collapse}}
 td,th{{border:1px solid #ccc;padding:4px;vertical-align:top}}tr.failed{{background:#fee}}
 .error{{color:#a00;max-width:30em}}img{{image-rendering:pixelated}}</style></head>
-<body><h1>tghop batch</h1><p>{ok} of {len(records)} exemplars done, {len(records) - ok} failed.
+<body><h1>tghop batch</h1><p>{ok} of {len(records)} exemplars done, {len(records) - ok} failed.{unfinished}
 Ledger: <a href="{LEDGER}">{LEDGER}</a>.</p>
 <table><tr><th>exemplar</th><th>name</th><th>status</th><th>time</th><th>outputs</th><th>model</th></tr>
 {chr(10).join(rows)}
