@@ -161,6 +161,20 @@ def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     assert "1 of 1 exemplars done, 0 failed. 3 not finished yet: run the same command again." in page
 
 
+def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
+    src, out = tmp_path / "src", tmp_path / "out"
+    (src / "sub").mkdir(parents=True)
+    save_image(data.bricks(64, rng=3), src / "sub" / "tex.png")
+    (first,) = run(src, out, workers=1)
+    assert first["name"] == "sub__tex" and first["status"] == "ok"
+    save_image(data.cells(64, rng=4), src / "sub__tex.png")  # would take the name sub__tex too
+    again = {r["source"]: r for r in run(src, out, workers=1)}
+    kept, new = again[str(src / "sub" / "tex.png")], again[str(src / "sub__tex.png")]
+    assert kept["name"] == "sub__tex" and kept["skipped"]  # not fitted again under a new name
+    assert new["name"] != "sub__tex" and new["status"] == "ok" and not new["skipped"]
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == sorted(["sub__tex", new["name"]])
+
+
 def test_manifests_give_per_row_settings(tmp_path):
     make_folder(tmp_path / "img", bad=False)
     csv_file = tmp_path / "list.csv"

@@ -423,6 +423,26 @@ def read_ledger(outdir) -> dict:
     return records
 
 
+def _keep_ledger_names(items, previous) -> None:
+    """An exemplar keeps the name its ledger line has (a file added next to it can change the
+    name :func:`find_work` gives it: ``sub/a.png`` is ``sub__a`` until a ``sub__a.png``
+    arrives, then both get longer names, and it would be done again under the new one): where
+    one earlier line names its file and no other exemplar takes that name or lists that file."""
+    by_source = {}
+    for name, rec in previous.items():
+        by_source.setdefault(str(rec.get("source")), []).append(name)
+    sources = [str(it["path"]) for it in items]
+    taken = {it["name"].lower() for it in items}
+    for it, source in zip(items, sources):
+        names = by_source.get(source, [])
+        if it["name"] in names or len(names) != 1 or sources.count(source) != 1:
+            continue
+        if names[0].lower() not in taken:
+            taken.discard(it["name"].lower())
+            it["name"] = names[0]
+            taken.add(names[0].lower())
+
+
 def _append_ledger(outdir: Path, record: dict):
     line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
     with open(outdir / LEDGER, "a", encoding="utf-8") as fh:
@@ -649,6 +669,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         _import_distributed()  # a missing extra is said before any work
     task = process_exemplar if task is None else task
     previous = read_ledger(outdir)
+    _keep_ledger_names(items, previous)
     jobs, results = [], {}
     for it in items:
         settings = _settings(it["settings"], defaults, fit, generate)
