@@ -216,7 +216,8 @@ class ICHM(BaseEstimator):
         if n_clusters * self.min_cluster_size > n_samples:
             raise TGHopError(
                 f"n_clusters={n_clusters} needs at least {n_clusters * self.min_cluster_size} "
-                f"training patches but there are {n_samples}; lower N or use a larger exemplar"
+                f"training patches but there are {n_samples}; lower N (n_clusters, --clusters), take more "
+                "training patches (a smaller stride, a larger max_patches) or use a larger exemplar"
             )
 
     def fit(self, Z, y=None, *, groups=None, progress=None):

@@ -100,7 +100,8 @@ def cooc():
 @click.option("--resume", is_flag=True, help="Continue the checkpoint at OUTPUT (same exemplar) up to --steps.")
 @click.option("--max-minutes", type=click.FloatRange(min=0, min_open=True, max=1e6), default=None, metavar="M",
               help="Stop training after M minutes and write the checkpoint (--resume continues it).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of the training (initial weights, batches).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, quiet):
     """Train the co-occurrence cGAN on EXEMPLAR (an image file or builtin:NAME).
@@ -154,7 +155,8 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
               help="Strip length in co-occurrence cells (s pixels each).")
 @click.option("--grid", default=None, metavar="COLSxROWS",
               help="Write the paper's Fig. 2 grid instead: co-occurrence A->B across, noise down, e.g. 5x3.")
-@click.option("--seed", type=click.IntRange(min=0), default=None)
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of the noise: the same seed gives the same image; without it every run differs.")
 @WINDOWS_OPTION
 def morph(model_file, a, b, output, length, grid, seed, windows):
     """Morph from A to B: a strip (or a grid) whose co-occurrence moves from A to B.
@@ -200,7 +202,8 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
                    "(default: SOURCES side by side, left to right).")
 @click.option("--boost", default=None, metavar="A,B,FACTOR",
               help="Multiply bin M(A, B) (and M(B, A)) by FACTOR everywhere, then re-normalise (paper Fig. 11).")
-@click.option("--seed", type=click.IntRange(min=0), default=None)
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of the noise: the same seed gives the same image; without it every run differs.")
 @WINDOWS_OPTION
 def edit(model_file, sources, output, size, mask, boost, seed, windows):
     """Generate from edited co-occurrence: SOURCES' statistics painted where you want them.

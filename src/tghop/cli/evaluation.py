@@ -99,7 +99,8 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
 @click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
-@click.option("--seed", type=click.IntRange(min=0), default=None)
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
                    "cooc: training steps (default 5500). gpdm: Adam steps per pyramid level (default 300).")
