@@ -197,3 +197,37 @@ def test_cli_exclude_on_fit_and_synth(files):
     r = run("synth", files / "cells.png", "-o", files / "s.png", "--exclude", files / "mask.png", "--size", "64",
             "--clusters", "10", "--max-patches", "1000", "--layout", "none", "--seed", "1", "-q")
     assert r.returncode == 0, r.stderr.decode()
+
+
+@pytest.mark.parametrize("n", [32, 33, 64, 100, 256, 257, 1000])
+def test_tiled_block_grid_is_even_around_the_torus(n):
+    # With tile, the blocks wrap: every gap, the one across the edge too, at most a step and
+    # within a pixel of the others (every step from 0 left a block across the edge overlapping
+    # the first by up to p - 1 pixels, and the fill there was chopped).
+    from tghop.inpaint import _grid
+
+    p, step = 32, 27
+    xs = _grid(n, p, step, tile=True)
+    gaps = np.diff(np.append(xs, xs[0] + n))
+    assert xs[0] == 0 and gaps.max() <= step and gaps.max() - gaps.min() <= 1, (xs, gaps)
+    plain = _grid(n, p, step, tile=False)
+    assert plain[0] == 0 and plain[-1] == n - p and np.diff(plain).max(initial=0) <= step
+
+
+def test_blocks_that_see_no_known_pixel_are_filled_last():
+    # A hole over a periodic image's left edge: the block at x=0 sees only hole; filled first
+    # (at random), it set its neighbours, which do see the image, a second border to match.
+    from tghop.inpaint import _fill_order
+
+    hole = np.zeros((64, 256), dtype=bool)
+    hole[:, :40] = True
+    order = _fill_order(hole, 32, 27, tile=True)
+    blind = [not (~hole[np.ix_(np.arange(y, y + 32) % 64, np.arange(x, x + 32) % 256)]).any() for y, x in order]
+    assert any(blind) and blind == sorted(blind)  # every block that sees the image comes first
+    assert {x for (_, x), b in zip(order, blind) if b} == {0}
+    # a hole in the middle: from its edge inwards, as before
+    hole = np.zeros((128, 128), dtype=bool)
+    hole[40:90, 40:90] = True
+    order = _fill_order(hole, 32, 27, tile=False)
+    assert len(order) == len(set(order)) and not any(
+        hole[y:y + 32, x:x + 32].all() for y, x in order[:4])

@@ -97,9 +97,12 @@ def _working_image(image, n_channels):
 
 def _grid(n, p, step, tile):
     """Block positions along one axis: every ``step`` from 0, the last one at ``n - p``
-    (inside the image); with ``tile`` every ``step`` around the torus."""
+    (inside the image); with ``tile`` evenly around the torus, at most ``step`` apart (every
+    ``step`` left the block across the edge overlapping the first by up to ``p - 1`` pixels,
+    where the seams are cut in ``p - step``)."""
     if tile:
-        return np.arange(0, n, step)
+        k = -(-n // step)
+        return np.unique(np.round(np.arange(k) * (n / k)).astype(np.int64))
     return np.unique(np.minimum(np.arange(0, max(n - p, 0) + step, step), n - p))
 
 
@@ -203,6 +206,26 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     return out
 
 
+def _fill_order(hole, p, step, tile):
+    """The (y, x) of the ``p x p`` blocks that touch the hole, in the order they are filled:
+    from the hole's edge inwards (then in raster order), those that see no known pixel after
+    all the others (a block next to the hole's edge but not across it, such as the first
+    block of a hole at a periodic image's edge: filled before its neighbours, at random, it
+    set them a second border to match, and the fill there was chopped)."""
+    h, w = hole.shape
+    offsets = np.arange(p)
+    distance = _distance_to_known(hole, tile)
+    blocks = []
+    for y in _grid(h, p, step, tile).tolist():
+        rows = (y + offsets) % h
+        for x in _grid(w, p, step, tile).tolist():
+            cols = (x + offsets) % w
+            inside = hole[np.ix_(rows, cols)]
+            if inside.any():
+                blocks.append((bool(inside.all()), distance[np.ix_(rows, cols)][inside].min(), y, x))
+    return [(y, x) for _, _, y, x in sorted(blocks)]
+
+
 def _fill(work, hole, flat, squares, energy, pool, p, tile, tolerance, detail, rng, progress):
     """Quilt generated patches into the hole of ``work`` (float32, (H, W, C)); returns the canvas."""
     h, w, c = work.shape
@@ -211,22 +234,10 @@ def _fill(work, hole, flat, squares, energy, pool, p, tile, tolerance, detail, r
     canvas = work.copy()
     canvas[hole] = 0.0
     known = ~hole
-    ys, xs = _grid(h, p, step, tile), _grid(w, p, step, tile)
     offsets = np.arange(p)
-    # The blocks that touch the hole, from its edge inwards (then in raster order).
-    distance = _distance_to_known(hole, tile)
-    blocks = []
-    for y in ys.tolist():
-        rows = (y + offsets) % h
-        for x in xs.tolist():
-            cols = (x + offsets) % w
-            inside = hole[np.ix_(rows, cols)]
-            if inside.any():
-                first = distance[np.ix_(rows, cols)][inside].min()
-                blocks.append((first, y, x))
-    blocks.sort()
+    blocks = _fill_order(hole, p, step, tile)
     report(progress, "inpainting", 0, len(blocks))
-    for done, (_, y, x) in enumerate(blocks, start=1):
+    for done, (y, x) in enumerate(blocks, start=1):
         window = np.ix_((y + offsets) % h, (x + offsets) % w)
         old = canvas[window]  # (P, P, C)
         have = known[window]  # pixels with a value: the image's and those filled before
