@@ -173,6 +173,10 @@ def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     assert kept["name"] == "sub__tex" and kept["skipped"]  # not fitted again under a new name
     assert new["name"] != "sub__tex" and new["status"] == "ok" and not new["skipped"]
     assert sorted(p.name for p in out.iterdir() if p.is_dir()) == sorted(["sub__tex", new["name"]])
+    # a name a manifest row gives wins over the ledger's
+    (tmp_path / "m.csv").write_text(f"path,name\n{src / 'sub' / 'tex.png'},mine\n")
+    (named,) = run(tmp_path / "m.csv", out, workers=1)
+    assert named["name"] == "mine" and named["status"] == "ok"
 
 
 def test_manifests_give_per_row_settings(tmp_path):

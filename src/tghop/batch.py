@@ -166,7 +166,8 @@ def _read_manifest(path: Path):
             raise TGHopError(f"{where}: no path")
         file = Path(source) if os.path.isabs(source) else path.parent / source
         name = str(row.get("name") or "").strip() or None
-        items.append({"path": file, "rel": Path(source), "name": name, "settings": _row_settings(row, where)})
+        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
+                      "settings": _row_settings(row, where)})
     if not items:
         raise TGHopError(f"{path}: the manifest lists no exemplar")
     return items
@@ -427,7 +428,8 @@ def _keep_ledger_names(items, previous) -> None:
     """An exemplar keeps the name its ledger line has (a file added next to it can change the
     name :func:`find_work` gives it: ``sub/a.png`` is ``sub__a`` until a ``sub__a.png``
     arrives, then both get longer names, and it would be done again under the new one): where
-    one earlier line names its file and no other exemplar takes that name or lists that file."""
+    one earlier line names its file and no other exemplar takes that name or lists that file
+    (a name a manifest row gives is kept as it is)."""
     by_source = {}
     for name, rec in previous.items():
         by_source.setdefault(str(rec.get("source")), []).append(name)
@@ -435,7 +437,7 @@ def _keep_ledger_names(items, previous) -> None:
     taken = {it["name"].lower() for it in items}
     for it, source in zip(items, sources):
         names = by_source.get(source, [])
-        if it["name"] in names or len(names) != 1 or sources.count(source) != 1:
+        if it.get("named") or it["name"] in names or len(names) != 1 or sources.count(source) != 1:
             continue
         if names[0].lower() not in taken:
             taken.discard(it["name"].lower())
