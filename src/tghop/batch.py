@@ -756,7 +756,9 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, 
         # once (tasks of different names are not "root-ish", so it queues none on the
         # scheduler), and a worker's death would count against the tasks waiting on it too.
         order = iter(sorted(jobs, key=_cost, reverse=True))
-        by_key, running = {}, distributed.as_completed()
+        # This client's loop: as_completed would take the default client's, which may be another
+        # (one closed by now: its futures were never reported, and the run waited for ever).
+        by_key, running = {}, distributed.as_completed(loop=client.loop)
 
         def hand_out():
             slots = max(1, sum(client.nthreads().values()))  # again each time: a cluster may grow
