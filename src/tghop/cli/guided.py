@@ -85,9 +85,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         size = painted.shape[:2]
     from ..settings import BY_NAME
 
-    # --paper stays: the paper's generation settings for saved models too (as with one SOURCE).
-    fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + [p for p in FIT_OPTION_PARAMS if p != "paper"]
-                + ["downscale"])
+    fit_only = [s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS) + ["downscale"]
     fitting = given_options(ctx, fit_only)
     models = []
     for i, spec in enumerate(sources, start=1):

@@ -152,8 +152,9 @@ def _fit_options():
     return options
 
 
-#: Options of ``fit`` that only matter when fitting (refused by ``synth`` with a saved model).
-FIT_OPTION_PARAMS = ("k1", "k2", "k3", "paper", "exclude")
+#: Options of ``fit`` that only matter when fitting (refused by ``synth`` with a saved model;
+#: not ``--paper``, which also sets the paper's generation settings).
+FIT_OPTION_PARAMS = ("k1", "k2", "k3", "exclude")
 
 
 def model_options(func):

@@ -232,9 +232,8 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     # "not a readable image"); other names as a model when they start like one.
     from_model = not source.startswith("builtin:") and (source.lower().endswith(".npz") or is_model_file(source))
     if from_model:
-        # --paper stays: the paper's generation settings (its fit settings are the model's).
-        fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"]
-                    + [p for p in FIT_OPTION_PARAMS if p != "paper"] + ["save_model", "downscale"])
+        fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
+                    + ["save_model", "downscale"])
         refused = given_options(ctx, fit_only)
         if refused:
             raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
