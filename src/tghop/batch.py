@@ -458,9 +458,15 @@ def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
         return False
     if prev.get("settings") != job["settings"]:
         return False
-    files = list(prev.get("outputs") or []) + [prev.get("model")]
-    files += [prev["thumbnail"]] if prev.get("thumbnail") else []  # the contact sheet shows it
-    return all(f and (outdir / f).is_file() for f in files)
+    # A model and no empty output name, and every file the line lists (the thumbnail too: the
+    # contact sheet shows it).
+    return all([*(prev.get("outputs") or []), prev.get("model")]) and all(
+        (outdir / f).is_file() for f in _listed_files(prev))
+
+
+def _listed_files(rec: dict) -> list:
+    """The files (relative to OUTDIR) a ledger line lists: images, model, thumbnail."""
+    return [f for f in [*(rec.get("outputs") or []), rec.get("model"), rec.get("thumbnail")] if f]
 
 
 def _remove_stale(outdir: Path, prev: dict | None, rec: dict) -> None:
@@ -469,10 +475,10 @@ def _remove_stale(outdir: Path, prev: dict | None, rec: dict) -> None:
     own folder."""
     if not prev:
         return
-    keep = set(rec.get("outputs") or []) | {rec.get("model"), rec.get("thumbnail")}
+    keep = set(_listed_files(rec))
     folder = (outdir / rec["name"]).resolve()
-    for f in set(prev.get("outputs") or []) | {prev.get("model"), prev.get("thumbnail")}:
-        if f and f not in keep and (outdir / f).resolve().parent == folder:
+    for f in set(_listed_files(prev)) - keep:
+        if (outdir / f).resolve().parent == folder:
             try:
                 (outdir / f).unlink()
             except OSError:
