@@ -293,6 +293,22 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert all(name.endswith(".npz") and not name.startswith(".") for name in before)
 
 
+def fit_with(client, **fields):
+    """POST /api/models of builtin:bricks with these form fields."""
+    return client.post("/api/models", files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in fields.items()}})
+
+
+def test_a_fit_field_that_does_not_parse_is_named(client):
+    assert_error(fit_with(client, n_clusters="abc"), 422, "n_clusters: 'abc' is not an integer (or auto)")
+    assert_error(fit_with(client, gamma_mode="xyz"), 422, "gamma_mode: 'xyz' is not one of 'absolute', 'relative'")
+    assert_error(fit_with(client, stride="1.5"), 422, "stride: '1.5' is not an integer")
+    assert_error(fit_with(client, layout_factor="abc"), 422, "layout_factor: 'abc' is not an integer (or none)")
+    assert_error(fit_with(client, k1="abc"), 422, "k1: 'abc' is not a channel count; give a count")
+    for value in ("x" * 5000, "9" * 1000):  # not the whole value back
+        message = assert_error(fit_with(client, n_bins=value), 422, f"n_bins: '{value[:9]}")
+        assert len(message) < 200
+
+
 def png_of(pixels):
     from PIL import Image
 

@@ -135,7 +135,7 @@ def fit_fields():
 
 def parse_fit_settings(fields: dict) -> dict:
     """Form fields -> the options :func:`tghop.fit_options.build_model` takes, each checked by
-    the settings table (422 with its one line)."""
+    the settings table (422 with its one line, naming the field)."""
     from ..fit_options import OFF
     from ..settings import BY_NAME, check_channel_rule
 
@@ -145,6 +145,8 @@ def parse_fit_settings(fields: dict) -> dict:
         if name not in known:
             raise RequestError(422, f"unknown fit setting {name!r}; known: {', '.join(known)}")
         text = str(raw).strip()
+        if len(text) > 64:  # the messages below repeat the value
+            raise RequestError(422, f"{name}: {text[:40]!r}... is {len(text):,} characters, too long for a setting")
         try:
             if name == "paper":
                 options[name] = parse_bool(name, text)
@@ -160,14 +162,24 @@ def parse_fit_settings(fields: dict) -> dict:
                 if s.kind == "bool":
                     options[name] = parse_bool(name, text)
                 else:
-                    value = s.check(None if text == "" else s.parse(text), label=name)
+                    value = s.check(None if text == "" else _parse_field(s, text), label=name)
                     if s.cli_high is not None and value is not None and value > s.cli_high:
                         raise TGHopError(f"{name} {text} is more than the server allows ({s.cli_high:,g})")
                     options[name] = OFF if value is None else value  # "none": off, not the default
         except ValueError as exc:  # TGHopError is one
-            message = str(exc) if isinstance(exc, TGHopError) else f"{name}: {text!r} is not a channel count"
+            message = str(exc) if isinstance(exc, TGHopError) else (
+                f"{name}: {text[:40]!r} is not a channel count; give a count, a fraction in (0, 1] or 'knee'")
             raise RequestError(422, message) from None
     return options
+
+
+def _parse_field(s, text: str):
+    """A form field's text -> the value of setting ``s``; the one line names the field."""
+    try:
+        return s.parse(text)
+    except TGHopError as exc:
+        word = ("auto" if s.auto else "none") if s.none_ok else ""
+        raise TGHopError(f"{s.name}: {exc}" + (f" (or {word})" if word else "")) from None
 
 
 # ------------------------------------------------------------------ requests
