@@ -309,6 +309,18 @@ def test_a_fit_field_that_does_not_parse_is_named(client):
         assert len(message) < 200
 
 
+def test_fit_fields_that_do_not_go_together_are_named_as_the_apis_fields(client):
+    for fields, words in (({"patch_size": "7"}, "patch_size 7 needs k1 and k2 (defaults exist for 32 and 64)"),
+                          ({"k3": "3"}, "k3 applies to patch_size 64 only")):
+        message = assert_error(fit_with(client, **fields), 422, words)
+        assert "--" not in message  # the command line's options are not the API's
+    from tghop._errors import TGHopError
+    from tghop.fit_options import fit_params
+
+    with pytest.raises(TGHopError, match="--patch-size 7 needs --k1 and --k2"):  # the command line keeps its words
+        fit_params({"patch_size": 7})
+
+
 def png_of(pixels):
     from PIL import Image
 

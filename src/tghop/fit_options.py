@@ -41,9 +41,21 @@ def setting_value(s, options: dict, paper: bool):
     return s.paper if paper and s.has_paper else s.default
 
 
-def fit_params(options: dict) -> dict:
+def _called(name: str, api: bool) -> str:
+    """How a message names fit option ``name``: the web API's field (``patch_size``, ``k1``)
+    or the command line's option (``--patch-size``, ``--k1``; from the settings table)."""
+    if api:
+        return name
+    from .settings import BY_NAME
+
+    s = BY_NAME.get(name)
+    return s.option_names[0] if s is not None and s.option_names else "--" + name.replace("_", "-")
+
+
+def fit_params(options: dict, *, api: bool = False) -> dict:
     """TGHop's parameters from the fit options (``paper``, ``k1``/``k2``/``k3``, ``rng``
-    and the fit settings by name).
+    and the fit settings by name). ``api``: messages name the web API's fields
+    (``patch_size``), not the command line's options (``--patch-size``).
 
     Channel counts not given stay None in ``n_channels`` (the default for the exemplar's
     colours: :func:`model_for` fills them in when the exemplar is known; ``tghop batch``
@@ -60,10 +72,11 @@ def fit_params(options: dict) -> dict:
     paper = options.get("paper", False)
     params = {s.name: setting_value(s, options, paper) for s in fit_settings() if s.name not in ("n_channels", "rng")}
     patch_size = int(params["patch_size"])
+    size, k1, k2, k3 = (_called(name, api) for name in ("patch_size", "k1", "k2", "k3"))
     if patch_size not in (32, 64) and any(options.get(k) is None for k in ("k1", "k2")):
-        raise TGHopError(f"--patch-size {patch_size} needs --k1 and --k2 (defaults exist for 32 and 64)")
+        raise TGHopError(f"{size} {patch_size} needs {k1} and {k2} (defaults exist for 32 and 64)")
     if patch_size == 32 and options.get("k3") is not None:
-        raise TGHopError("--k3 applies to --patch-size 64 only (three hops)")
+        raise TGHopError(f"{k3} applies to {size} 64 only (three hops)")
     given = [options.get(k) for k in ("k1", "k2", "k3")][: 3 if patch_size == 64 else 2]
     params["n_channels"] = None if all(g is None for g in given) else tuple(given)
     rng = options.get("rng")
@@ -88,7 +101,7 @@ def model_for(params: dict, n_colours: int = 3):
     return TGHop(**params)
 
 
-def build_model(options: dict, n_colours: int = 3):
+def build_model(options: dict, n_colours: int = 3, *, api: bool = False):
     """A TGHop from the fit options for an exemplar of ``n_colours`` channels:
-    ``model_for(fit_params(options), n_colours)``."""
-    return model_for(fit_params(options), n_colours)
+    ``model_for(fit_params(options, api=api), n_colours)``."""
+    return model_for(fit_params(options, api=api), n_colours)

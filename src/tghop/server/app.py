@@ -135,8 +135,9 @@ def fit_fields():
 
 def parse_fit_settings(fields: dict) -> dict:
     """Form fields -> the options :func:`tghop.fit_options.build_model` takes, each checked by
-    the settings table (422 with its one line, naming the field)."""
-    from ..fit_options import OFF
+    the settings table, and together by :func:`~tghop.fit_options.fit_params` (422 with its
+    one line, naming the field)."""
+    from ..fit_options import OFF, fit_params
     from ..settings import BY_NAME, check_channel_rule
 
     known = fit_fields()
@@ -170,6 +171,10 @@ def parse_fit_settings(fields: dict) -> dict:
             message = str(exc) if isinstance(exc, TGHopError) else (
                 f"{name}: {text[:40]!r} is not a channel count; give a count, a fraction in (0, 1] or 'knee'")
             raise RequestError(422, message) from None
+    try:
+        fit_params(options, api=True)  # settings that do not go together (patch_size without k1, k2)
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
     return options
 
 
@@ -288,7 +293,7 @@ class Server:
                                      lambda p: load_image(p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF))
         try:
             image = prepare_exemplar(image, min_size=options.get("patch_size") or 32)
-            model = build_model(options, n_colours=image.shape[2])
+            model = build_model(options, n_colours=image.shape[2], api=True)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
         params = {k: v for k, v in model.get_params().items()}
