@@ -321,6 +321,13 @@ def test_fit_fields_that_do_not_go_together_are_named_as_the_apis_fields(client)
         fit_params({"patch_size": 7})
 
 
+def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
+    message = assert_error(client.post(f"/api/models/{'0' * 64}/inpaint", json={"seed": 1}), 400,
+                           "multipart/form-data", "'image' and 'mask'")
+    assert "builtin" not in message
+    assert_error(client.post("/api/models", json={"builtin": "bricks"}), 400, "multipart/form-data", "'builtin' name")
+
+
 def png_of(pixels):
     from PIL import Image
 

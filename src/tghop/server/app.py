@@ -210,14 +210,14 @@ async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
     return b"".join(chunks)
 
 
-async def read_form(request, body: bytes) -> dict:
-    """A multipart body -> ``{name: str or (filename, bytes)}`` (400 when malformed)."""
+async def read_form(request, body: bytes, fields: str = "a form with an 'image' file or a 'builtin' name") -> dict:
+    """A multipart body -> ``{name: str or (filename, bytes)}`` (400 when malformed; when it
+    is not multipart, the message says to send ``fields``, what the route takes)."""
     async def stream():
         yield body
 
     if not request.headers.get("content-type", "").startswith("multipart/form-data"):
-        raise RequestError(400, "send the fields as multipart/form-data (a form with an 'image' file "
-                                "or a 'builtin' name)")
+        raise RequestError(400, f"send the fields as multipart/form-data ({fields})")
     try:
         form = await MultiPartParser(request.headers, stream(), max_files=4, max_fields=64).parse()
     except (MultiPartException, ValueError) as exc:
@@ -571,7 +571,8 @@ class Server:
         model_id = request.path_params["id"]
         self.cache.path(model_id)  # 404 for a malformed id before the body is read
         body = await read_body(request)
-        fields = await read_form(request, body)
+        fields = await read_form(request, body, "the file fields 'image' and 'mask', white where to fill; "
+                                                "optionally the fields 'seed' and 'tile'")
         unknown = [k for k in fields if k not in ("image", "mask", "seed", "tile")]
         if unknown:
             raise RequestError(422, f"unknown field {unknown[0]!r}; known: image, mask, seed, tile")
