@@ -1,11 +1,12 @@
 """Many exemplars at once: a model and N images per exemplar, in process or on Dask.
 
-:func:`run` finds the work (every image of a folder, or the rows of a manifest), skips
-what a previous run finished (the ledger ``OUTDIR/batch.jsonl``: one JSON line per
-finished exemplar with its input's SHA-256, its settings and its outputs), runs
-:func:`process_exemplar` for the rest, in this process (``workers=1``), on a local
-``dask.distributed`` cluster of worker processes (the default), or on a given
-:class:`distributed.Client`, and writes an HTML contact sheet ``OUTDIR/index.html``.
+:func:`run` finds the work (every image of a folder, or the rows of a manifest:
+:mod:`tghop.manifest`), skips what a previous run finished (the ledger
+``OUTDIR/batch.jsonl``: one JSON line per finished exemplar with its input's SHA-256,
+its settings and its outputs), runs :func:`process_exemplar` for the rest, in this
+process (``workers=1``), on a local ``dask.distributed`` cluster of worker processes
+(the default), or on a given :class:`distributed.Client`, and writes an HTML contact
+sheet ``OUTDIR/index.html``.
 
 * Every file is written atomically (:func:`tghop.imageio.write_atomic`); a worker killed
   mid-task leaves at most a temporary file, which the retry (or the end of the run)
@@ -23,7 +24,6 @@ The library never prints: ``progress(stage, done, total)`` reports exemplars fin
 from __future__ import annotations
 
 import contextlib
-import csv
 import hashlib
 import html
 import json
@@ -36,6 +36,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from ._errors import MissingExtraError, TGHopError
+from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
 __all__ = ["run", "find_work", "process_exemplar", "read_ledger", "write_contact_sheet", "local_cluster",
            "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
@@ -46,8 +47,6 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".we
 #: The ledger and the contact sheet, in OUTDIR.
 LEDGER = "batch.jsonl"
 CONTACT_SHEET = "index.html"
-#: Per-exemplar settings a manifest row may give.
-ROW_SETTINGS = ("size", "count", "seed", "tile")
 INSTALL_HINT = "pip install 'tghop[batch]'"
 #: Longest side of the exemplar thumbnail of the contact sheet.
 THUMBNAIL = 128
@@ -70,109 +69,6 @@ _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("M
 
 
 # ------------------------------------------------------------------ finding work
-def _parse_size(value, where):
-    from ._common import check_size
-
-    if isinstance(value, (list, tuple)):
-        if len(value) not in (1, 2):
-            raise TGHopError(f"{where}: size {value!r} is not [HEIGHT, WIDTH] (e.g. [512, 512])")
-        h, w = (_parse_int(v, where, "size", 1) for v in (list(value) * 2)[:2])
-    else:
-        m = re.fullmatch(r"\s*(\d+)\s*(?:[xX*,]\s*(\d+)\s*)?", str(value))
-        if not m:
-            raise TGHopError(f"{where}: size {value!r} is not HEIGHTxWIDTH (e.g. 512x512)")
-        h, w = int(m.group(1)), int(m.group(2) or m.group(1))
-    return list(check_size((int(h), int(w)), name=f"{where}: size"))
-
-
-def _parse_bool(value, where):
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("0", "false", "no", "off"):
-        return False
-    raise TGHopError(f"{where}: tile {value!r} is not true or false")
-
-
-def _parse_int(value, where, what, low, high=None):
-    try:
-        if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
-            raise ValueError
-        out = int(str(value).strip()) if not isinstance(value, (int, float)) else int(value)
-    except ValueError:
-        raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
-    if out < low or (high is not None and out > high):
-        raise TGHopError(f"{where}: {what} {out} is out of range ({low} to {high if high else 'any'})")
-    return out
-
-
-def _row_settings(row: dict, where: str) -> dict:
-    """The settings a manifest row gives (empty cells left out), checked."""
-    out = {}
-    for key in ROW_SETTINGS:
-        value = row.get(key)
-        if value is None or (isinstance(value, str) and not value.strip()):
-            continue
-        if key == "size":
-            out["size"] = _parse_size(value, where)
-        elif key == "count":
-            out["count"] = _parse_int(value, where, "count", 1, 1000)
-        elif key == "seed":
-            out["seed"] = _parse_int(value, where, "seed", 0)
-        else:
-            out["tile"] = _parse_bool(value, where)
-    return out
-
-
-def _manifest_rows(path: Path):
-    """(line number, row dict) of a CSV or JSON-lines manifest."""
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TGHopError(f"{path}: cannot read the manifest ({getattr(exc, 'strerror', None) or exc})") from None
-    if path.suffix.lower() in (".jsonl", ".json", ".ndjson"):
-        for number, line in enumerate(text.splitlines(), 1):
-            if not line.strip():
-                continue
-            try:
-                row = json.loads(line)
-            except ValueError:
-                raise TGHopError(f"{path} line {number}: not a JSON object; write one "
-                                 '{"path": ..., "size": ..., ...} per line') from None
-            if not isinstance(row, dict):
-                raise TGHopError(f"{path} line {number}: not a JSON object; write one per line")
-            yield number, row
-        return
-    reader = csv.DictReader(text.splitlines())
-    if not reader.fieldnames or "path" not in [f.strip() for f in reader.fieldnames]:
-        raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
-                         f"(and optionally {', '.join(ROW_SETTINGS)})")
-    for number, row in enumerate(reader, 2):
-        yield number, {(k or "").strip(): v for k, v in row.items()}
-
-
-def _read_manifest(path: Path):
-    items = []
-    for number, row in _manifest_rows(path):
-        where = f"{path.name} line {number}"
-        unknown = sorted(k for k in row if k and k not in ("path", "name") + ROW_SETTINGS)
-        if unknown:
-            raise TGHopError(f"{where}: unknown column {', '.join(unknown)}; a manifest gives path, name, "
-                             f"{', '.join(ROW_SETTINGS)}")
-        source = str(row.get("path") or "").strip()
-        if not source:
-            raise TGHopError(f"{where}: no path")
-        file = Path(source) if os.path.isabs(source) else path.parent / source
-        name = str(row.get("name") or "").strip() or None
-        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
-                      "settings": _row_settings(row, where)})
-    if not items:
-        raise TGHopError(f"{path}: the manifest lists no exemplar")
-    return items
-
-
 def _scan_folder(folder: Path, outdir: Path):
     out = Path(outdir).resolve()
     items = []
@@ -239,7 +135,7 @@ def find_work(source, outdir=None):
     elif source.is_file():
         if source.suffix.lower() not in (".csv", ".jsonl", ".json", ".ndjson"):
             raise TGHopError(f"{source}: SOURCE is a folder of images or a manifest (.csv or .jsonl)")
-        items = _read_manifest(source)
+        items = read_manifest(source)
     else:
         raise TGHopError(f"{source}: no such folder or manifest; check the path")
     return _unique_names(items)
@@ -658,9 +554,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     """
     outdir = Path(os.path.abspath(outdir))
     items = find_work(source, outdir)
-    defaults = {"size": list(_parse_size(size, "size")), "count": _parse_int(count, "run", "count", 1, 1000),
-                "seed": None if seed is None else _parse_int(seed, "run", "seed", 0),
-                "tile": _parse_bool(tile, "run")}
+    defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
+                "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
+                "tile": parse_bool(tile, "run")}
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
     try:

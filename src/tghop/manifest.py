@@ -1,0 +1,129 @@
+"""A ``tghop batch`` manifest: the exemplars to process, one row each, as CSV with a header
+line naming a ``path`` column, or as JSON lines ``{"path": ...}``; each row optionally
+with its own ``name`` and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
+
+Every bad row is a one-line :class:`~tghop.TGHopError` naming its line, before any work.
+Only the standard library is imported here (and :func:`tghop._common.check_size`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import re
+from pathlib import Path
+
+from ._errors import TGHopError
+
+__all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int"]
+
+#: Per-exemplar settings a manifest row may give.
+ROW_SETTINGS = ("size", "count", "seed", "tile")
+
+
+def parse_size(value, where):
+    """A size (``HxW``, ``N``, ``[H, W]`` or ``[N]``) -> ``[height, width]``, checked."""
+    from ._common import check_size
+
+    if isinstance(value, (list, tuple)):
+        if len(value) not in (1, 2):
+            raise TGHopError(f"{where}: size {value!r} is not [HEIGHT, WIDTH] (e.g. [512, 512])")
+        h, w = (parse_int(v, where, "size", 1) for v in (list(value) * 2)[:2])
+    else:
+        m = re.fullmatch(r"\s*(\d+)\s*(?:[xX*,]\s*(\d+)\s*)?", str(value))
+        if not m:
+            raise TGHopError(f"{where}: size {value!r} is not HEIGHTxWIDTH (e.g. 512x512)")
+        h, w = int(m.group(1)), int(m.group(2) or m.group(1))
+    return list(check_size((int(h), int(w)), name=f"{where}: size"))
+
+
+def parse_bool(value, where):
+    """true/false, yes/no, on/off, 1/0 (or a bool) -> bool."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off"):
+        return False
+    raise TGHopError(f"{where}: tile {value!r} is not true or false")
+
+
+def parse_int(value, where, what, low, high=None):
+    """A whole number from ``low`` to ``high`` (None: no bound); not a bool."""
+    try:
+        if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+            raise ValueError
+        out = int(str(value).strip()) if not isinstance(value, (int, float)) else int(value)
+    except ValueError:
+        raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
+    if out < low or (high is not None and out > high):
+        raise TGHopError(f"{where}: {what} {out} is out of range ({low} to {high if high else 'any'})")
+    return out
+
+
+def row_settings(row: dict, where: str) -> dict:
+    """The settings a manifest row gives (empty cells left out), checked."""
+    out = {}
+    for key in ROW_SETTINGS:
+        value = row.get(key)
+        if value is None or (isinstance(value, str) and not value.strip()):
+            continue
+        if key == "size":
+            out["size"] = parse_size(value, where)
+        elif key == "count":
+            out["count"] = parse_int(value, where, "count", 1, 1000)
+        elif key == "seed":
+            out["seed"] = parse_int(value, where, "seed", 0)
+        else:
+            out["tile"] = parse_bool(value, where)
+    return out
+
+
+def manifest_rows(path: Path):
+    """(line number, row dict) of a CSV or JSON-lines manifest."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TGHopError(f"{path}: cannot read the manifest ({getattr(exc, 'strerror', None) or exc})") from None
+    if path.suffix.lower() in (".jsonl", ".json", ".ndjson"):
+        for number, line in enumerate(text.splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                row = json.loads(line)
+            except ValueError:
+                raise TGHopError(f"{path} line {number}: not a JSON object; write one "
+                                 '{"path": ..., "size": ..., ...} per line') from None
+            if not isinstance(row, dict):
+                raise TGHopError(f"{path} line {number}: not a JSON object; write one per line")
+            yield number, row
+        return
+    reader = csv.DictReader(text.splitlines())
+    if not reader.fieldnames or "path" not in [f.strip() for f in reader.fieldnames]:
+        raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
+                         f"(and optionally {', '.join(ROW_SETTINGS)})")
+    for number, row in enumerate(reader, 2):
+        yield number, {(k or "").strip(): v for k, v in row.items()}
+
+
+def read_manifest(path: Path):
+    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name``, ``named``, ``settings``."""
+    items = []
+    for number, row in manifest_rows(path):
+        where = f"{path.name} line {number}"
+        unknown = sorted(k for k in row if k and k not in ("path", "name") + ROW_SETTINGS)
+        if unknown:
+            raise TGHopError(f"{where}: unknown column {', '.join(unknown)}; a manifest gives path, name, "
+                             f"{', '.join(ROW_SETTINGS)}")
+        source = str(row.get("path") or "").strip()
+        if not source:
+            raise TGHopError(f"{where}: no path")
+        file = Path(source) if os.path.isabs(source) else path.parent / source
+        name = str(row.get("name") or "").strip() or None
+        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
+                      "settings": row_settings(row, where)})
+    if not items:
+        raise TGHopError(f"{path}: the manifest lists no exemplar")
+    return items
