@@ -179,6 +179,19 @@ def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     assert named["name"] == "mine" and named["status"] == "ok"
 
 
+def test_a_csv_manifest_refuses_cells_its_header_does_not_name(tmp_path):
+    bad = tmp_path / "m.csv"
+    for text, words in (("path,size\na.png,32\nb.png,32,64\n", "m.csv line 3 has 3 cells, the header 2; remove"),
+                        ("path,,size\na.png,big,32\n", "m.csv line 2: 'big' is in a column the header does not name"),
+                        ("path,size,size\na.png,32,64\n", "m.csv: the header names the column 'size' twice"),
+                        ("path,size\n\na.png,big\n", "m.csv line 3: size 'big'")):  # blank lines count
+        bad.write_text(text)
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            batch.find_work(bad)
+    bad.write_text("path,size,\na.png,32,,\n")  # empty trailing cells, as spreadsheets write them, are no cells
+    assert [it["settings"] for it in batch.find_work(bad)] == [{"size": [32, 32]}]
+
+
 def test_manifests_give_per_row_settings(tmp_path):
     make_folder(tmp_path / "img", bad=False)
     csv_file = tmp_path / "list.csv"

@@ -100,12 +100,26 @@ def manifest_rows(path: Path):
                 raise TGHopError(f"{path} line {number}: not a JSON object; write one per line")
             yield number, row
         return
-    reader = csv.DictReader(text.splitlines())
-    if not reader.fieldnames or "path" not in [f.strip() for f in reader.fieldnames]:
+    reader = csv.reader(text.splitlines())
+    header = [f.strip() for f in next(reader, [])]
+    if "path" not in header:
         raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
                          f"(and optionally {', '.join(ROW_SETTINGS)})")
-    for number, row in enumerate(reader, 2):
-        yield number, {(k or "").strip(): v for k, v in row.items()}
+    twice = [f for i, f in enumerate(header) if f and f in header[:i]]
+    if twice:
+        raise TGHopError(f"{path}: the header names the column {twice[0]!r} twice; keep one")
+    for cells in reader:
+        if not cells:  # a blank line
+            continue
+        number = reader.line_num  # the line the row ends on (its cells may hold line breaks)
+        if any(c.strip() for c in cells[len(header):]):  # empty ones, as spreadsheets write, are no cells
+            raise TGHopError(f"{path} line {number} has {len(cells)} cells, the header {len(header)}; "
+                             "remove the extra cells or name their column in the header")
+        unnamed = [c.strip() for f, c in zip(header, cells) if not f and c.strip()]
+        if unnamed:
+            raise TGHopError(f"{path} line {number}: {unnamed[0][:40]!r} is in a column the header does not "
+                             "name; name the column or remove the cell")
+        yield number, {f: c for f, c in zip(header, cells) if f}
 
 
 def read_manifest(path: Path):
