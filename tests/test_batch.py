@@ -192,6 +192,22 @@ def test_a_csv_manifest_refuses_cells_its_header_does_not_name(tmp_path):
     assert [it["settings"] for it in batch.find_work(bad)] == [{"size": [32, 32]}]
 
 
+def test_a_json_manifest_takes_path_and_name_only_as_strings(tmp_path):
+    bad = tmp_path / "m.jsonl"
+    for row, words in (({"path": ["pep.png"]}, "m.jsonl line 2: path ['pep.png'] is not a string; write it in quotes"),
+                       ({"path": 7}, "line 2: path 7 is not a string"),
+                       ({"path": "a.png", "name": 5}, "line 2: name 5 is not a string"),
+                       ({"path": "a.png", "name": False}, "line 2: name False is not a string"),
+                       ({"path": "a.png", "name": ["x"]}, "line 2: name ['x'] is not a string"),
+                       ({"path": "a.png", "": 3}, "line 2: unknown column ''")):
+        bad.write_text(json.dumps({"path": "b.png"}) + "\n" + json.dumps(row) + "\n")
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            batch.find_work(bad)
+    bad.write_text(json.dumps({"path": " a.png ", "name": None}) + "\n")
+    (item,) = batch.find_work(bad)
+    assert item["rel"] == Path("a.png") and item["name"] == "a" and not item["named"]
+
+
 def test_manifests_give_per_row_settings(tmp_path):
     make_folder(tmp_path / "img", bad=False)
     csv_file = tmp_path / "list.csv"

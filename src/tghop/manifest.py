@@ -22,6 +22,12 @@ __all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "pa
 ROW_SETTINGS = ("size", "count", "seed", "tile")
 
 
+def _shown(value, most: int = 60) -> str:
+    """``repr(value)``, cut to ``most`` characters (a message shows the start of a long value)."""
+    text = repr(value)
+    return text if len(text) <= most else text[: most - 3] + "..."
+
+
 def parse_size(value, where):
     """A size (``HxW``, ``N``, ``[H, W]`` or ``[N]``) -> ``[height, width]``, checked."""
     from ._common import check_size
@@ -127,15 +133,20 @@ def read_manifest(path: Path):
     items = []
     for number, row in manifest_rows(path):
         where = f"{path.name} line {number}"
-        unknown = sorted(k for k in row if k and k not in ("path", "name") + ROW_SETTINGS)
+        unknown = sorted(k for k in row if k not in ("path", "name") + ROW_SETTINGS)
         if unknown:
-            raise TGHopError(f"{where}: unknown column {', '.join(unknown)}; a manifest gives path, name, "
+            shown = ", ".join(k if k and k.strip() == k else repr(k) for k in unknown)
+            raise TGHopError(f"{where}: unknown column {shown}; a manifest gives path, name, "
                              f"{', '.join(ROW_SETTINGS)}")
-        source = str(row.get("path") or "").strip()
+        for key, example in (("path", "textures/a.png"), ("name", "bricks")):
+            if row.get(key) is not None and not isinstance(row[key], str):  # JSON: not str() of a list
+                raise TGHopError(f"{where}: {key} {_shown(row[key])} is not a string; write it in quotes, "
+                                 f'e.g. "{key}": "{example}"')
+        source = (row.get("path") or "").strip()
         if not source:
             raise TGHopError(f"{where}: no path")
         file = Path(source) if os.path.isabs(source) else path.parent / source
-        name = str(row.get("name") or "").strip() or None
+        name = (row.get("name") or "").strip() or None
         items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
                       "settings": row_settings(row, where)})
     if not items:
