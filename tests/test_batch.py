@@ -208,6 +208,21 @@ def test_a_json_manifest_takes_path_and_name_only_as_strings(tmp_path):
     assert item["rel"] == Path("a.png") and item["name"] == "a" and not item["named"]
 
 
+def test_manifest_numbers_are_integers_not_floats(tmp_path):
+    bad = tmp_path / "m.jsonl"
+    for key, value, words in (("count", 2.0, "count 2.0 has a decimal point; write 2"),
+                              ("seed", 1e3, "seed 1000.0 has a decimal point; write 1000"),
+                              ("size", [64.0, 64], "size 64.0 has a decimal point; write 64"),
+                              ("count", True, "count True is not a whole number")):
+        bad.write_text(json.dumps({"path": "a.png", key: value}) + "\n")
+        with pytest.raises(TGHopError, match="m.jsonl line 1: " + re.escape(words)):
+            batch.find_work(bad)
+    (tmp_path / "a.png").write_bytes(b"x")
+    with pytest.raises(TGHopError, match=re.escape("count 2.0 has a decimal point")):
+        batch.run(tmp_path, tmp_path / "out", count=2.0)
+    assert not (tmp_path / "out").exists()
+
+
 def test_manifests_give_per_row_settings(tmp_path):
     make_folder(tmp_path / "img", bad=False)
     csv_file = tmp_path / "list.csv"

@@ -57,9 +57,12 @@ def parse_bool(value, where):
 
 
 def parse_int(value, where, what, low, high=None):
-    """A whole number from ``low`` to ``high`` (None: no bound); not a bool."""
+    """A whole number from ``low`` to ``high`` (None: no bound); not a bool, nor a float
+    (a JSON ``2.0``; as ``"2.0"`` in a CSV cell and as the library's sizes)."""
+    if isinstance(value, float) and value.is_integer():
+        raise TGHopError(f"{where}: {what} {value!r} has a decimal point; write {int(value)}")
     try:
-        if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+        if isinstance(value, (bool, float)):
             raise ValueError
         out = int(str(value).strip()) if not isinstance(value, (int, float)) else int(value)
     except ValueError:
