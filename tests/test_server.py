@@ -321,6 +321,16 @@ def test_fit_fields_that_do_not_go_together_are_named_as_the_apis_fields(client)
         fit_params({"patch_size": 7})
 
 
+def test_a_file_where_a_fit_takes_a_plain_field_is_refused(client):
+    post = client.post
+    message = assert_error(post("/api/models", files={"builtin": ("b.png", b"secret bytes")}), 400,
+                           "the field 'builtin' must be a plain field", "send a file as 'image'")
+    assert "secret" not in message  # not the file, taken as a name
+    for name in ("n_clusters", "colour"):  # they were dropped, and the fit ran without them
+        files = [("builtin", (None, "bricks")), (name, ("x.txt", b"0"))]
+        assert_error(post("/api/models", files=files), 422, name)
+
+
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
     message = assert_error(client.post(f"/api/models/{'0' * 64}/inpaint", json={"seed": 1}), 400,
                            "multipart/form-data", "'image' and 'mask'")

@@ -145,7 +145,9 @@ def parse_fit_settings(fields: dict) -> dict:
     for name, raw in fields.items():
         if name not in known:
             raise RequestError(422, f"unknown fit setting {name!r}; known: {', '.join(known)}")
-        text = str(raw).strip()
+        if not isinstance(raw, str):  # a file upload: (filename, bytes)
+            raise RequestError(422, f"{name} must be a plain form field, not a file")
+        text = raw.strip()
         if len(text) > 64:  # the messages below repeat the value
             raise RequestError(422, f"{name}: {text[:40]!r}... is {len(text):,} characters, too long for a setting")
         try:
@@ -274,11 +276,14 @@ class Server:
         name = fields.pop("builtin", None)
         if isinstance(upload, str):
             raise RequestError(400, "the field 'image' must be a file upload")
+        if isinstance(name, tuple):
+            raise RequestError(400, "the field 'builtin' must be a plain field naming a built-in exemplar "
+                                    "(bricks or cells), not a file; send a file as 'image'")
         if upload is not None and name:
             raise RequestError(400, "give either an 'image' file or a 'builtin' name, not both")
         if upload is None and not name:
             raise RequestError(400, "no exemplar: send an 'image' file or a 'builtin' name (bricks or cells)")
-        options = parse_fit_settings({k: v for k, v in fields.items() if isinstance(v, str)})
+        options = parse_fit_settings(fields)
         if name:
             name = str(name).removeprefix("builtin:")
             try:
