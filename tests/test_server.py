@@ -331,6 +331,11 @@ def test_a_file_where_a_fit_takes_a_plain_field_is_refused(client):
         assert_error(post("/api/models", files=files), 422, name)
 
 
+def test_a_form_field_given_twice_is_refused(client):
+    files = [("builtin", (None, "bricks")), ("n_clusters", (None, "0")), ("n_clusters", (None, "8"))]
+    assert_error(client.post("/api/models", files=files), 400, "the field 'n_clusters' is given twice; send it once")
+
+
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
     message = assert_error(client.post(f"/api/models/{'0' * 64}/inpaint", json={"seed": 1}), 400,
                            "multipart/form-data", "'image' and 'mask'")

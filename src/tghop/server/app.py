@@ -224,13 +224,17 @@ async def read_form(request, body: bytes, fields: str = "a form with an 'image' 
         form = await MultiPartParser(request.headers, stream(), max_files=4, max_fields=64).parse()
     except (MultiPartException, ValueError) as exc:
         raise RequestError(400, f"malformed multipart request ({getattr(exc, 'message', exc)})") from None
-    out = {}
+    out, twice = {}, []
     for name, value in form.multi_items():
+        if name in out:
+            twice.append(name)
         if hasattr(value, "read"):
             out[name] = (value.filename, await value.read())
             await value.close()
         else:
             out[name] = value
+    if twice:  # which one counts would be a guess
+        raise RequestError(400, f"the field {twice[0][:40]!r} is given twice; send it once")
     return out
 
 
