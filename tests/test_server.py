@@ -336,6 +336,15 @@ def test_a_form_field_given_twice_is_refused(client):
     assert_error(client.post("/api/models", files=files), 400, "the field 'n_clusters' is given twice; send it once")
 
 
+def test_an_integer_setting_given_a_float_is_refused_as_seed_and_size_are(client):
+    images = f"/api/models/{'0' * 64}/images"  # the body is checked before the model is looked up
+    assert_error(client.post(images, json={"refine": 5.0}), 422, "refine must be an integer", "got 5.0; write 5")
+    assert_error(client.post(images, json={"overlap": 8.0}), 422, "overlap must be an integer >= 1 or null")
+    assert_error(client.post("/api/images/guided", json={"models": ["0" * 64] * 2, "n_patches": 400.0}), 422,
+                 "n_patches must be an integer")
+    assert_error(client.post(images, json={"refine": 5, "tolerance": 1}), 404, "no model")  # 1 is a number
+
+
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
     message = assert_error(client.post(f"/api/models/{'0' * 64}/inpaint", json={"seed": 1}), 400,
                            "multipart/form-data", "'image' and 'mask'")

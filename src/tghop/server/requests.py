@@ -95,7 +95,11 @@ def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -
         settings = {}
         for s in table:
             if s.name in body and (body[s.name] is not None or s.none_ok):
-                value = s.check(body[s.name], label=s.name)
+                given = body[s.name]
+                if s.kind == "int" and isinstance(given, float):  # as seed and size: 5.0 is not taken as 5
+                    raise TGHopError(f"{s.name} must be {s.range_text().replace('None', 'null')}, got {given!r}"
+                                     + (f"; write {int(given)}" if given.is_integer() else ""))
+                value = s.check(given, label=s.name)
                 if s.cli_high is not None and value is not None and value > s.cli_high:
                     raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
                 settings[s.name] = value
