@@ -345,6 +345,14 @@ def test_an_integer_setting_given_a_float_is_refused_as_seed_and_size_are(client
     assert_error(client.post(images, json={"refine": 5, "tolerance": 1}), 404, "no model")  # 1 is a number
 
 
+def test_a_boolean_setting_is_asked_for_in_jsons_words(client):
+    images = f"/api/models/{'0' * 64}/images"
+    for value in ("yes", "True", 1.0, 2):
+        message = assert_error(client.post(images, json={"tile": value}), 422, "tile must be true or false")
+        assert "True or False" not in message  # Python's words; JSON writes true
+    assert_error(client.post(images, json={"tile": True, "match_colours": 0}), 404, "no model")
+
+
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
     message = assert_error(client.post(f"/api/models/{'0' * 64}/inpaint", json={"seed": 1}), 400,
                            "multipart/form-data", "'image' and 'mask'")

@@ -99,6 +99,8 @@ def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -
                 if s.kind == "int" and isinstance(given, float):  # as seed and size: 5.0 is not taken as 5
                     raise TGHopError(f"{s.name} must be {s.range_text().replace('None', 'null')}, got {given!r}"
                                      + (f"; write {int(given)}" if given.is_integer() else ""))
+                if s.kind == "bool" and not (isinstance(given, bool) or (type(given) is int and given in (0, 1))):
+                    raise TGHopError(f"{s.name} must be true or false (a JSON boolean), got {given!r}")
                 value = s.check(given, label=s.name)
                 if s.cli_high is not None and value is not None and value > s.cli_high:
                     raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
