@@ -161,6 +161,26 @@ def test_help_says_what_sizes_cost_and_the_size_order():
     assert "HEIGHTxWIDTH" in flat and "--seed" in flat
 
 
+@pytest.mark.parametrize("command", [["synth"], ["patches"], ["morph"], ["baseline"], ["inpaint"],
+                                     ["cooc", "morph"], ["cooc", "edit"]])
+def test_image_outputs_name_every_extension_tghop_writes(command):
+    # One list (tghop._formats.FORMATS): the help said ".png/.jpg" where .tif and .tiff work too.
+    from tghop._formats import FORMATS
+
+    flat = " ".join(CliRunner().invoke(main, [*command, "--help"]).stdout.split())
+    output = flat.split("-o, --output TEXT", 1)[1].split("[required]", 1)[0]
+    assert all(ext in output for ext in FORMATS), output
+
+
+def test_an_unknown_extension_names_every_one_tghop_writes(folder):
+    from tghop._formats import FORMATS
+
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "o.bmp", cwd=folder)
+    assert_one_line(code, err, "o.bmp", *FORMATS, exception=exc)
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "o.jpeg", "--depth", "16", cwd=folder)
+    assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
+
+
 def test_help_shows_each_default_as_its_kind():
     # A float of 1.0 is not "on", nor 0.0 "off" (they equal True and False as dictionary keys).
     flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())

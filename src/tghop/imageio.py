@@ -17,14 +17,11 @@ from struct import error as struct_error
 
 from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
+from ._formats import DEPTHS, FORMATS, extensions
 
 __all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
            "check_depth", "deepest", "save_images", "DEPTHS"]
 
-#: Output formats chosen by file extension.
-FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
-#: Bits per channel each output format can be written with (32: float32 TIFF).
-DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
 #: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
 TIFF_HINT = "pip install 'tghop[tiff]'"
 
@@ -308,7 +305,8 @@ def check_depth(path, depth) -> int:
     if depth not in (8, 16, 32) or isinstance(depth, bool):
         raise InvalidImageError(f"depth {depth!r} is not 8, 16 or 32 bits per channel")
     if depth not in DEPTHS[fmt]:
-        fix = "name the output .tif (float TIFF)" if depth == 32 else "name the output .png or .tif"
+        fix = f"name the output {extensions([f for f, held in DEPTHS.items() if depth in held])}" + (
+            " (float TIFF)" if depth == 32 else "")
         raise InvalidImageError(f"{path}: {fmt} cannot hold {depth}-bit {'float ' if depth == 32 else ''}values "
                                 f"(it takes {' or '.join(map(str, DEPTHS[fmt]))} bits); {fix}, or pick another depth")
     return depth
@@ -385,7 +383,7 @@ def output_format(path) -> str:
         return "PNG"
     ext = Path(path).suffix.lower()
     if ext not in FORMATS:
-        raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use .png, .jpg, .jpeg or .tif")
+        raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use {extensions()}")
     return FORMATS[ext]
 
 

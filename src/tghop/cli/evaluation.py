@@ -8,6 +8,7 @@ import json
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, load_exemplar, user_errors
 from .options import Size
 
@@ -97,7 +98,7 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 @click.command()
 @click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc", "gpdm"]))
 @click.argument("exemplar")
-@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - for PNG on stdout).")
 @click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
 from .options import depth_option
 
@@ -15,7 +16,8 @@ __all__ = ["inpaint"]
 @click.argument("image")
 @click.argument("mask")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png keeps every pixel outside the hole bit for bit; - writes PNG to stdout).")
+              help=f"{OUTPUT_HELP}; .png keeps every pixel outside the hole bit for bit; - writes PNG "
+                   "to stdout).")
 @click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
               help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead of "
                    "fitting on the part of IMAGE outside the hole.")

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
 from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
@@ -124,7 +125,7 @@ def material_summary(material) -> str:
 @click.argument("model_file", metavar="MODEL")
 @click.option("-n", "--count", "n", type=click.IntRange(min=1, max=10000), default=64, show_default=True,
               help="Patches to generate.")
-@click.option("-o", "--output", required=True, help="Grid image to write (.png or .jpg; - for stdout).")
+@click.option("-o", "--output", required=True, help=f"Grid i{OUTPUT_HELP[1:]}; - for PNG on stdout).")
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed (same seed, same patches).")
 @click.option("--stages", is_flag=True,
               help="Also write OUTPUT_stages: per sample the core DC map, the S1 DC map and the patch (paper Fig. 6).")
@@ -161,7 +162,7 @@ def patches(model_file, n, output, seed, stages):
 @click.command()
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG "
+              help=f"{OUTPUT_HELP}); with --count > 1 numbered name_1.png, ...; - writes PNG "
                    "to stdout.")
 @click.option("--size", type=Size(), default="256x256", show_default=True,
               help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
