@@ -181,6 +181,17 @@ def test_an_unknown_extension_names_every_one_tghop_writes(folder):
     assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
 
 
+@pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"],
+                                  ["evaluate", "bricks.png", "bricks.png", "--metrics", "swd", "-q"],
+                                  ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],
+                                  ["serve", "--port", "0"]])
+def test_a_result_for_a_closed_stdout_is_one_line(folder, args):
+    # `tghop info MODEL >&-` exited 0 and its output was lost without a word.
+    p = subprocess.run(["sh", "-c", 'exec "$@" >&-', "sh", sys.executable, "-m", "tghop", *args], cwd=folder,
+                       stderr=subprocess.PIPE, timeout=120)
+    assert_one_line(p.returncode, p.stderr.decode(), "standard output is closed")
+
+
 def test_help_shows_each_default_as_its_kind():
     # A float of 1.0 is not "on", nor 0.0 "off" (they equal True and False as dictionary keys).
     flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())

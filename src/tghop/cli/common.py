@@ -21,7 +21,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -190,11 +190,22 @@ def summary(model, params=None) -> str:
     )
 
 
+def check_stdout(what: str):
+    """Refuse, before any work, a command whose result goes to the standard output when
+    that is closed (``>&-``: Python sets ``sys.stdout`` to None, and ``click.echo`` would
+    drop the result without a word). ``what``: what the command writes there."""
+    if sys.stdout is None:
+        raise TGHopError(f"the standard output is closed, and {what} goes there; leave it open "
+                         "or redirect it to a file (> FILE)")
+
+
 def check_output(path: str, allow_stdout=False):
     from ..imageio import check_output_path, output_format
 
     if path == "-" and not allow_stdout:
         raise TGHopError("this command cannot write to stdout; give a file name with -o")
+    if path == "-" and sys.stdout is None:  # before the work, not when the image is written
+        raise TGHopError("-o -: the standard output is closed; give a file name instead")
     output_format(path)
     if path != "-":
         check_output_path(path)

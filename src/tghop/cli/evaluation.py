@@ -9,7 +9,7 @@ import click
 
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
-from .common import Progress, check_output, check_outputs, load_exemplar, user_errors
+from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors
 from .options import Size
 
 __all__ = ["evaluate", "baseline"]
@@ -54,6 +54,7 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 
     progress = Progress(not quiet)
     with user_errors(progress):
+        check_stdout("the table of scores" if not as_json else "the scores (JSON lines)")
         chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
         if chosen == []:
             raise TGHopError(f"--metrics is empty; give one or more of: {', '.join([*M.METRICS, *M.RESULT_METRICS])}")

@@ -10,7 +10,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
-from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
+from .common import (Progress, check_model_output, check_output, check_outputs, check_stdout, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
@@ -307,6 +307,7 @@ def info(model_file, as_json):
     from ..modelfile import info_dict, load_model
 
     with user_errors():
+        check_stdout("the model's description" + (" (JSON)" if as_json else ""))
         material = load_model(model_file, material=True)
         model = getattr(material, "model_", material)
         params = model.n_parameters()
