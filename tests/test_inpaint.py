@@ -199,6 +199,50 @@ def test_cli_exclude_on_fit_and_synth(files):
     assert r.returncode == 0, r.stderr.decode()
 
 
+def test_cli_masks_that_leave_too_little_name_the_fix_of_each_command(files):
+    # An all-white MASK: inpaint names --source; fit --exclude is not inpainting (both said
+    # "or, to inpaint, fit on another exemplar").
+    Image.fromarray(np.full((96, 96), 255, np.uint8)).save(files / "white.png")
+    r = run("inpaint", files / "cells.png", files / "white.png", "-o", files / "w.png", "-q")
+    assert_user_error(r, "MASK", "white.png", "0 training patches", "give --source")
+    r = run("fit", files / "cells.png", "--exclude", files / "white.png", "-o", files / "w.npz", "-q")
+    assert_user_error(r, "too little texture outside the mask", "a smaller mask or a larger image")
+    assert "inpaint" not in r.stderr.decode() and not (files / "w.npz").exists()
+
+
+def test_cli_an_image_smaller_than_the_patches_names_a_model_of_smaller_ones(files):
+    # inpaint has no --patch-size and IMAGE is no exemplar ("use a larger exemplar or a smaller
+    # patch size"); with --source the message named no fix at all.
+    save_image(np.full((20, 20, 3), 0.5), files / "tiny.png")
+    hole = np.zeros((20, 20), np.uint8)
+    hole[5:10, 5:10] = 255
+    Image.fromarray(hole).save(files / "tiny_hole.png")
+    for source in ([], ["--source", files / "model.npz"], ["--source", "builtin:bricks"]):
+        r = run("inpaint", files / "tiny.png", files / "tiny_hole.png", "-o", files / "t.png", "-q", *source)
+        assert_user_error(r, "IMAGE", "20x20", "32x32 patches", "give --source a model of smaller patches",
+                          "--patch-size 16")
+        assert "exemplar" not in r.stderr.decode().split(";")[0]
+
+
+def test_a_layout_left_out_for_the_mask_says_so():
+    # `fit rgb.png --exclude hole.png` said "(asked 3: the exemplar is too small for it)".
+    from types import SimpleNamespace
+
+    from tghop.cli.common import layout_summary
+
+    def model(shape, factor):
+        return SimpleNamespace(exemplar_shape_=shape, layout_factor=3,
+                               layout_=None if factor is None else SimpleNamespace(factor=factor, patch_size=32))
+
+    assert layout_summary(model((200, 200, 3), 3)) == "a coarse model at 1/3 scale"
+    assert layout_summary(model((200, 200, 3), 2)).endswith("(asked 3: too little of the exemplar lies outside "
+                                                            "the mask for it)")
+    assert layout_summary(model((120, 120, 3), 2)).endswith("(asked 3: the exemplar is too small for it)")
+    assert layout_summary(model((200, 200, 3), None)) == "none (too little of the exemplar lies outside the mask " \
+                                                          "for one)"
+    assert layout_summary(model((80, 80, 3), None)) == "none (the exemplar is too small for one)"
+
+
 @pytest.mark.parametrize("n", [32, 33, 64, 100, 256, 257, 1000])
 def test_tiled_block_grid_is_even_around_the_torus(n):
     # With tile, the blocks wrap: every gap, the one across the edge too, at most a step and

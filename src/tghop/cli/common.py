@@ -167,12 +167,23 @@ def is_model_file(path: str) -> bool:
 
 
 def layout_summary(model) -> str:
-    """The coarse layout a fitted model holds, in words."""
-    if model.layout_ is None:
-        return "none" if model.layout_factor is None else "none (too few exemplar pixels for one)"
-    f = model.layout_.factor
-    asked = "" if f == model.layout_factor else f" (asked {model.layout_factor}: the exemplar is too small for it)"
-    return f"a coarse model at 1/{f} scale{asked}"
+    """The coarse layout a fitted model holds, in words, and why it is coarser than asked
+    or none: the exemplar's size, or, where that allowed it, a sample mask (``--exclude``,
+    an inpainted hole) that left too few of its patches."""
+    from ..layout import fits
+    from ..synthesis import CoarseLayout
+
+    if model.layout_factor is None:
+        return "none"
+    f = None if model.layout_ is None else model.layout_.factor
+    p = CoarseLayout().patch_size if model.layout_ is None else model.layout_.patch_size
+    if f == model.layout_factor:
+        return f"a coarse model at 1/{f} scale"
+    small = not fits(model.exemplar_shape_, 2 if f is None else model.layout_factor, p)
+    why = "the exemplar is too small for" if small else "too little of the exemplar lies outside the mask for"
+    if f is None:
+        return f"none ({why} one)"
+    return f"a coarse model at 1/{f} scale (asked {model.layout_factor}: {why} it)"
 
 
 def summary(model, params=None) -> str:

@@ -36,6 +36,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
 
     from ..imageio import check_depth, deepest, load_image, save_image
     from ..inpaint import inpaint as fill
+    from ..patches import TooLittleTextureError
     from ..synthesis import TGHop, prepare_exemplar
 
     progress = Progress(not quiet)
@@ -52,19 +53,41 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
             raise TGHopError(f"MASK {mask} has no white pixel, so there is nothing to fill; paint the hole white "
                              "(a pixel whose channels' mean is above mid-grey)")
         rng = np.random.default_rng(seed)
+        model = None
         if source is not None and not source.startswith("builtin:") and (
                 source.lower().endswith(".npz") or is_model_file(source)):
             from ..modelfile import load_model
 
             model = load_model(source)
-        elif source is not None:
+        _check_size(image, picture.shape, TGHop().patch_size if model is None else model.patch_size,
+                    "" if source is None else " of --source's model" if model is not None
+                    else " of the model fitted on --source")
+        if model is None and source is not None:
             exemplar = prepare_exemplar(load_exemplar(source, dtype=None), min_size=32)
             model = TGHop(rng=rng).fit(exemplar, progress=progress)
-        else:
-            model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
+        elif model is None:
+            try:
+                model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
+            except TooLittleTextureError as exc:
+                raise TGHopError(f"MASK {mask} leaves too little of IMAGE {image} to fit a model on: {exc.n_patches} "
+                                 f"training patches of {exc.patch_size}x{exc.patch_size} avoid the hole, at least "
+                                 f"{exc.need} are needed; give --source (an exemplar of the same texture or a saved "
+                                 "model) or paint a smaller hole") from None
         result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
         progress.close()
         save_image(result, output, depth=depth)
     if output != "-":
         filled = int(hole.sum())
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)
+
+
+def _check_size(image, shape, p, whose):
+    """Refuse, before any fit, an IMAGE smaller than the ``p`` x ``p`` patches that fill its
+    hole (``whose``: which model's), naming the fix: a model of smaller patches."""
+    h, w = shape[:2]
+    if h >= p and w >= p:
+        return
+    fix = (f"give --source a model of smaller patches, e.g. one fitted with 'tghop fit EXEMPLAR --patch-size 16 "
+           f"--k1 9 --k2 22 -o small.npz'" if p > 16 and min(h, w) >= 16 else f"give an IMAGE of at least {p}x{p}")
+    raise TGHopError(f"IMAGE {image} is {h}x{w} pixels, smaller than the {p}x{p} patches{whose} that fill the hole; "
+                     f"{fix}")
