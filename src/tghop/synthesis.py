@@ -174,7 +174,8 @@ class TGHop(BaseEstimator):
             rules = tuple(self.n_channels)
         if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
             raise TGHopError(
-                f"{len(rules)} hops need a patch size divisible by {2 ** len(rules)} leaving a core of at "
+                f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} a patch size divisible by "
+                f"{2 ** len(rules)} leaving a core of at "
                 f"least 2x2, got patch_size={self.patch_size}"
             )
         return rules
