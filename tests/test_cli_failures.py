@@ -147,9 +147,11 @@ def test_full_disk_leaves_no_file(folder, monkeypatch):
 def test_info_json_is_strict_json_and_columns_are_apart(folder):
     code, out, err, _ = invoke("info", "model.npz", "--json", cwd=folder)
     assert code == 0, err
-    json.loads(out, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    info = json.loads(out, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    assert info["fit_seed"] == 0  # --fit-seed's default, recorded (files said "rng": null)
     code, out, err, _ = invoke("info", "model.npz", cwd=folder)
     assert code == 0, err
+    assert "\nfit seed: 0\n" in out
     row = next(line for line in out.splitlines() if "core ICHM (iii)" in line)
     assert "  " in row.split("core ICHM (iii)", 1)[1].strip()  # formula and numbers apart
 

@@ -33,6 +33,7 @@ from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
 from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
 from .material import Material
+from .settings import recorded_seed
 from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
@@ -68,8 +69,8 @@ def save_model(model, path) -> None:
 
 
 def info_dict(model, params=None) -> dict:
-    """A fitted model's summary as JSON-ready data: its settings (``rng`` left out),
-    dimensions, channels, exemplar shape, parameter count (``params``: its
+    """A fitted model's summary as JSON-ready data: its settings (``rng`` left out: the
+    fit's int seed is ``fit_seed``, None when it was a Generator or not recorded), dimensions, channels, exemplar shape, parameter count (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
     layout's factor (``layout_factor_used``: None without one). What ``tghop info
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
@@ -77,7 +78,8 @@ def info_dict(model, params=None) -> dict:
     return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
-            "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor)}
+            "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor),
+            "fit_seed": recorded_seed(model.rng)}
 
 
 def _read(path):

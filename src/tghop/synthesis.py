@@ -271,7 +271,7 @@ class TGHop(BaseEstimator):
     def _state_meta(self) -> dict:
         """JSON-ready settings and shapes needed, with :meth:`_to_arrays`, to rebuild the model."""
         params = {s.name: getattr(self, s.name) for s in settings.fit_settings()}
-        params["rng"] = None  # a Generator is not data; the fitted state already holds its effect
+        params["rng"] = settings.recorded_seed(self.rng)  # an int seed; a Generator is not data
         if params["n_channels"] is not None:
             params["n_channels"] = list(params["n_channels"])
         return {

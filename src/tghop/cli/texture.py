@@ -323,6 +323,9 @@ def info(model_file, as_json):
         click.echo(f"material: {material_summary(material)}")
     click.echo(f"exemplar: {h}x{w}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
                f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
+    seed = info_dict(model, params)["fit_seed"]
+    click.echo(f"fit seed: {seed}" if seed is not None else
+               "fit seed: not recorded (fitted with a Generator, or by tghop 0.32 or older)")
     click.echo(summary(model, params))
     click.echo("\nparameters (paper Table 4):")
     rows = [("module", "formula", "paper formula", "stored")] + [
