@@ -372,18 +372,50 @@ def load_model(path, *, material=False):
                              f"{MATERIAL_VERSION}")
         groups = kind._array_specs(meta, quantised=quantised)
     except TGHopError as exc:
-        raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
+        raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model metadata ({exc!r}); "
-                             "fit the model again") from None
+                             f"{_refit(meta)}") from None
     if kind is Material and not material:
         names = ", ".join(m["name"] for m in meta["material"]["maps"])
         raise ModelFileError(f"{path} is a material ({names}), not a plain model; only 'tghop synth' and "
                              "'tghop info' take it (fit a plain model from the albedo for this command)")
     _check_arrays(path, groups, arrays)
     try:
-        return kind._from_state(meta, arrays)
+        model = kind._from_state(meta, arrays)
     except TGHopError as exc:
-        raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
+        raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-        raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); fit the model again") from None
+        raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); {_refit(meta)}") from None
+    newer = _newer_maker(meta)
+    if newer:
+        warnings.warn(f"{path}: made by tghop {newer}, newer than this {__version__}, which reads it as a model of "
+                      "its own version (what the newer one added is not used); upgrade tghop to use it", stacklevel=2)
+    return model
+
+
+def _release(version):
+    """The numbers a version string starts with ("0.32.0rc1" -> (0, 32, 0)), or None."""
+    import re
+
+    found = re.match(r"\d+(\.\d+)*", version) if isinstance(version, str) else None
+    return tuple(int(part) for part in found.group().split(".")) if found else None
+
+
+def _newer_maker(meta):
+    """The tghop version that wrote a file when it is newer than this one (else None):
+    the same format version, but perhaps settings or meanings this one does not know."""
+    theirs, ours = _release(meta.get("tghop_version")), _release(__version__)
+    if theirs is None or ours is None:
+        return None
+    width = max(len(theirs), len(ours))
+    pad = lambda v: v + (0,) * (width - len(v))  # noqa: E731
+    return meta["tghop_version"] if pad(theirs) > pad(ours) else None
+
+
+def _refit(meta) -> str:
+    """The fix for a model file this tghop cannot use: a newer tghop's, upgrade; else fit again."""
+    newer = _newer_maker(meta)
+    if newer:
+        return f"it was made by tghop {newer}, newer than this {__version__}: upgrade tghop or fit the model again"
+    return "fit the model again"

@@ -411,7 +411,7 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
     out = {}
     for name, value in values.items():
         if name not in BY_NAME:
-            raise TGHopError(f"unknown setting {prefix}{name!r}")
+            raise TGHopError(f"unknown {prefix or 'setting '}{name!r}")  # not "unknown setting setting 'x'"
         out[name] = BY_NAME[name].check(value, label=prefix + name)
     return out
 
