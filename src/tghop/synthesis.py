@@ -51,6 +51,13 @@ PAPER_TABLE4 = {"n_channels": (9, 22),
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 
+#: Largest uint8 exemplar (pixels) that :meth:`TGHop.fit` turns into floats (``x / 255``) at
+#: the start, so that it gives the model its pixels give as floats, bit for bit (its float64
+#: copy: at most 24 MB in colour). Larger ones stay uint8, converted tile by tile (memory
+#: bounded), whose statistics differ in the last bits and whose coarse layout is fitted on
+#: the exemplar's box means rounded to 8 bits: another model than the float exemplar's.
+FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
+
 
 def default_channels(patch_size: int, n_colours: int = 3):
     """Channels kept per hop when none are given.
@@ -189,9 +196,12 @@ class TGHop(BaseEstimator):
             Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3 (or more: the
             stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB
             is modelled as one channel (see :func:`prepare_exemplar`).
-            Memory depends on the training patches used (``max_patches``), not on the
-            exemplar's size: the hops see the image tile by tile, and a uint8 image is
-            never converted whole.
+            A uint8 exemplar of up to :data:`FLOAT_EXEMPLAR_PIXELS` (1024x1024) gives the
+            same model as its pixels divided by 255 as floats. Memory depends on the
+            training patches used (``max_patches``), not on the exemplar's size: the hops
+            see the image tile by tile, and a larger uint8 image is never converted whole
+            (its model then differs from the float image's: the coarse layout is fitted on
+            box means rounded to 8 bits, the statistics differ in the last bits).
         exclude : array_like of bool, shape (H, W), optional
             A sample mask: True where the model must not learn (a logo, a label, a stain,
             a hole to inpaint). Training patches that overlap it are dropped, and the
@@ -218,6 +228,8 @@ class TGHop(BaseEstimator):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size, channels=None)
+        if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
+            image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
         rules = self._channel_rules(image.shape[2])
         exclude = check_exclude(exclude, image.shape)
         rng = check_rng(self.rng)
