@@ -31,6 +31,10 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
 
     Without --source the model is fitted on IMAGE's patches that do not touch the hole.
+
+    An alpha channel of IMAGE is kept (PNG, TIFF): as it is outside the hole, opaque in the
+    hole (the texture filled in covers it). A JPEG output holds none: it is dropped, with a
+    warning.
     """
     import numpy as np
 
@@ -45,7 +49,11 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
         check_outputs([("-o", output)], [("IMAGE", image), ("MASK", mask), ("--source", source)])
         if is_model_file(image):
             raise TGHopError(f"IMAGE {image} is a model file; give the image to fill (a model goes to --source)")
-        picture, image_depth = load_image(image, dtype=None, with_depth=True)  # 8-bit stays 8-bit: copied as bytes
+        # 8-bit stays 8-bit: copied as bytes; an alpha channel is kept apart and written back.
+        picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True)
+        alpha = None
+        if picture.shape[2] in (2, 4):
+            picture, alpha = np.ascontiguousarray(picture[..., :-1]), picture[..., -1:]
         # Without --depth: IMAGE's own depth, as far as the output's format holds it.
         depth = check_depth(output, depth or deepest(output, image_depth))
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
@@ -75,7 +83,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
                                  "model) or paint a smaller hole") from None
         result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
         progress.close()
-        save_image(result, output, depth=depth)
+        save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth)
     if output != "-":
         filled = int(hole.sum())
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)
@@ -91,3 +99,23 @@ def _check_size(image, shape, p, whose):
            f"--k1 9 --k2 22 -o small.npz'" if p > 16 and min(h, w) >= 16 else f"give an IMAGE of at least {p}x{p}")
     raise TGHopError(f"IMAGE {image} is {h}x{w} pixels, smaller than the {p}x{p} patches{whose} that fill the hole; "
                      f"{fix}")
+
+
+def _with_alpha(result, alpha, hole, image, output):
+    """The filled image with IMAGE's alpha channel (``alpha``, (H, W, 1) of its depth) as its
+    last channel: as it was outside the hole, opaque in it; a JPEG output drops it, warning."""
+    import warnings
+
+    import numpy as np
+
+    from .._formats import extensions
+    from ..imageio import output_format
+
+    if alpha is None:
+        return result
+    if output_format(output) == "JPEG":
+        warnings.warn(f"{image}: alpha channel dropped (JPEG holds none; name the output "
+                      f"{extensions(['PNG', 'TIFF'])} to keep it)")
+        return result
+    alpha = np.where(hole[..., None], 255 if alpha.dtype == np.uint8 else 1.0, alpha).astype(result.dtype)
+    return np.concatenate([result, alpha], axis=2)
