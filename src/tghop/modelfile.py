@@ -70,7 +70,8 @@ def save_model(model, path) -> None:
 
 def info_dict(model, params=None) -> dict:
     """A fitted model's summary as JSON-ready data: its settings (``rng`` left out: the
-    fit's int seed is ``fit_seed``, None when it was a Generator or not recorded), dimensions, channels, exemplar shape, parameter count (``params``: its
+    fit's int seed is ``fit_seed``, None when it was a Generator or not recorded),
+    dimensions, channels, exemplar shape, parameter count (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
     layout's factor (``layout_factor_used``: None without one). What ``tghop info
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""

@@ -12,7 +12,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 from ._common import TGHopError, check_image, check_rng
 
 __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",
-           "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth", "depth_to_space", "patch_grid", "stage_sheet"]
+           "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth", "depth_to_space",
+           "patch_grid", "stage_sheet"]
 
 
 def count_patches(shape, patch_size: int, stride: int) -> int:

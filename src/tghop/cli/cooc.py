@@ -144,7 +144,8 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
                    f"written to {output} (continue it with: tghop cooc train {exemplar} -o {output} --resume)",
                    err=True)
     else:
-        click.echo(f"{model.step_} step{'s' if model.step_ != 1 else ''} trained; checkpoint written to {output}", err=True)
+        click.echo(f"{model.step_} step{'s' if model.step_ != 1 else ''} trained; checkpoint written to {output}",
+                   err=True)
 
 
 @cooc.command()

@@ -162,8 +162,9 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                 steps = SMALL["n_steps"] if iterations is None else iterations
                 minutes = 15.0 * steps / SMALL["n_steps"]
                 when = f"about {minutes:.0f} minutes" if minutes >= 1.5 else "about a minute or less"
-                click.echo(f"Note: no --model: training the co-occurrence cGAN first ({steps} step{'s' if steps != 1 else ''}, {when} on a "
-                           "2-core CPU); to reuse it, train once with 'tghop cooc train' and pass --model", err=True)
+                click.echo(f"Note: no --model: training the co-occurrence cGAN first ({steps} "
+                           f"step{'s' if steps != 1 else ''}, {when} on a 2-core CPU); to reuse it, train once with "
+                           "'tghop cooc train' and pass --model", err=True)
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
         save_image(image, output)
