@@ -144,6 +144,20 @@ def test_bad_input(workdir, args, fragments):
     assert set(os.listdir(workdir)) == before  # no output, no half-written file
 
 
+def test_synth_help_and_readme_agree_on_the_cost():
+    """The cost --size's help gives is the README's (the help said 0.8 s at 256x256, the README 0.5 s)."""
+    import re
+    from pathlib import Path
+
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().split())
+    helptext = " ".join(run("synth", "--help").stdout.decode().split())
+    pattern = r"([\d.]+) (s|minutes) and ([\d.]+) GB at {}"
+    for size in ("256x256", "2048x2048", "8192x8192"):
+        found = [re.search(pattern.format(size), text) for text in (helptext, readme)]
+        assert all(found), size
+        assert found[0].groups() == found[1].groups(), size
+
+
 def test_rgba_warns_and_works(workdir):
     rgba = np.concatenate([data.bricks(64, rng=3), np.ones((64, 64, 1))], axis=2)
     Image.fromarray((rgba * 255).astype(np.uint8), "RGBA").save(workdir / "rgba.png")

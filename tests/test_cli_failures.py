@@ -147,9 +147,11 @@ def test_full_disk_leaves_no_file(folder, monkeypatch):
 def test_info_json_is_strict_json_and_columns_are_apart(folder):
     code, out, err, _ = invoke("info", "model.npz", "--json", cwd=folder)
     assert code == 0, err
-    json.loads(out, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    info = json.loads(out, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    assert info["fit_seed"] == 0  # --fit-seed's default, recorded (files said "rng": null)
     code, out, err, _ = invoke("info", "model.npz", cwd=folder)
     assert code == 0, err
+    assert "\nfit seed: 0\n" in out
     row = next(line for line in out.splitlines() if "core ICHM (iii)" in line)
     assert "  " in row.split("core ICHM (iii)", 1)[1].strip()  # formula and numbers apart
 
@@ -159,6 +161,37 @@ def test_help_says_what_sizes_cost_and_the_size_order():
     flat = " ".join(out.split())
     assert "8192x8192" in flat and "GB" in flat
     assert "HEIGHTxWIDTH" in flat and "--seed" in flat
+
+
+@pytest.mark.parametrize("command", [["synth"], ["patches"], ["morph"], ["baseline"], ["inpaint"],
+                                     ["cooc", "morph"], ["cooc", "edit"]])
+def test_image_outputs_name_every_extension_tghop_writes(command):
+    # One list (tghop._formats.FORMATS): the help said ".png/.jpg" where .tif and .tiff work too.
+    from tghop._formats import FORMATS
+
+    flat = " ".join(CliRunner().invoke(main, [*command, "--help"]).stdout.split())
+    output = flat.split("-o, --output TEXT", 1)[1].split("[required]", 1)[0]
+    assert all(ext in output for ext in FORMATS), output
+
+
+def test_an_unknown_extension_names_every_one_tghop_writes(folder):
+    from tghop._formats import FORMATS
+
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "o.bmp", cwd=folder)
+    assert_one_line(code, err, "o.bmp", *FORMATS, exception=exc)
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "o.jpeg", "--depth", "16", cwd=folder)
+    assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
+
+
+@pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"],
+                                  ["evaluate", "bricks.png", "bricks.png", "--metrics", "swd", "-q"],
+                                  ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],
+                                  ["serve", "--port", "0"]])
+def test_a_result_for_a_closed_stdout_is_one_line(folder, args):
+    # `tghop info MODEL >&-` exited 0 and its output was lost without a word.
+    p = subprocess.run(["sh", "-c", 'exec "$@" >&-', "sh", sys.executable, "-m", "tghop", *args], cwd=folder,
+                       stderr=subprocess.PIPE, timeout=120)
+    assert_one_line(p.returncode, p.stderr.decode(), "standard output is closed")
 
 
 def test_help_shows_each_default_as_its_kind():

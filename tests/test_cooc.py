@@ -594,7 +594,7 @@ def test_cli_end_to_end(tmp_path):
     model = tmp_path / "m.pt"
     r = run("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "1", "-q", *TINY_SET)
     assert r.returncode == 0, r.stderr.decode()
-    assert "1 steps trained" in r.stderr.decode()
+    assert "1 step trained" in r.stderr.decode()
     r = run("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "2", "--resume", "-q")
     assert r.returncode == 0, r.stderr.decode()
     assert "2 steps trained" in r.stderr.decode()

@@ -612,3 +612,21 @@ def test_scikit_learn_tools_work_on_tghop_estimators(small_model):
     check_is_fitted(small_model)
     assert not is_regressor(small_model) and "TGHop" in estimator_html_repr(fresh)
     assert Saab().__sklearn_tags__().transformer_tags is not None
+
+
+def test_uint8_and_float_exemplars_of_the_same_pixels_give_the_same_model():
+    # The same pixels as uint8 and as float64 (x / 255) gave different models (the coarse layout
+    # fitted on box means rounded to 8 bits, statistics from float32 conversions) and images up
+    # to 0.95 apart for the same rng.
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    pixels = to_uint8(data.bricks(160, rng=2))
+    settings = dict(n_clusters=8, n_codewords=40, max_patches=1500, stride=4, rng=0)
+    eight, floats = (TGHop(**settings).fit(x) for x in (pixels, pixels / 255.0))
+    assert eight.layout_ is not None  # the coarse model is compared too
+    a, b = eight._to_arrays(), floats._to_arrays()
+    assert sorted(a) == sorted(b)
+    assert [name for name in a if not np.array_equal(a[name], b[name])] == []
+    assert np.array_equal(eight.synthesize((64, 64), rng=1, n_patches=300),
+                          floats.synthesize((64, 64), rng=1, n_patches=300))

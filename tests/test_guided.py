@@ -62,8 +62,10 @@ def test_guide_with_an_unknown_level_or_another_size_is_one_line_error():
     with pytest.raises(TGHopError, match="3 distinct grey levels.*2 inputs") as info:
         guide_labels(guide, 2)
     assert "\n" not in str(info.value)
-    with pytest.raises(TGHopError, match="1 distinct"):
-        guide_labels(np.zeros((8, 8)), 2)
+    with pytest.raises(TGHopError, match="the guide has one grey level/colour but 2 inputs were given"):
+        guide_labels(np.zeros((8, 8)), 2)  # "1 distinct grey levels/colours"
+    with pytest.raises(TGHopError, match="the guide has 3 distinct grey levels/colours but one input was given"):
+        guide_labels(guide, 1)  # "1 inputs were given"
     with pytest.raises(TGHopError, match="64x64 but the output is 32x64") as info:
         guide_labels(guide, 3, size=(32, 64))
     assert "\n" not in str(info.value)

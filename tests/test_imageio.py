@@ -50,9 +50,10 @@ def test_png_writer_gives_pillow_the_same_pixels(monkeypatch, shape, part):
 
 
 def test_png_writer_refuses_what_png_cannot_hold():
+    # (2 and 4 channels are grey and RGB with alpha: PNG holds them.)
     from tghop.imageio import write_png
 
-    for bad in (np.zeros((4, 4), dtype=np.float32), np.zeros((4, 4, 2), dtype=np.uint8), np.zeros(4, dtype=np.uint8)):
+    for bad in (np.zeros((4, 4), dtype=np.float32), np.zeros((4, 4, 5), dtype=np.uint8), np.zeros(4, dtype=np.uint8)):
         with pytest.raises(ValueError, match="write_png takes"):
             write_png(io.BytesIO(), bad)
 
@@ -113,3 +114,41 @@ def test_save_image_refuses_pixels_it_would_write_wrong(tmp_path, monkeypatch):
     monkeypatch.setattr(sys, "stdout", None)  # `-o - >&-`
     with pytest.raises(InvalidImageError, match="standard output is closed"):
         save_image(levels.astype(np.uint8), "-")
+
+
+@pytest.mark.parametrize("channels, mode", [(2, "LA"), (4, "RGBA")])
+@pytest.mark.parametrize("suffix", [".png", ".tif"])
+def test_alpha_is_written_and_read_back_with_keep_alpha(tmp_path, channels, mode, suffix):
+    # PNG and TIFF take an alpha channel last (what `tghop inpaint` writes back); load_image
+    # keeps it with keep_alpha (else drops it with a warning, as before).
+    from tghop.imageio import load_image, save_image
+
+    rng = np.random.default_rng(channels)
+    eight = rng.integers(0, 256, (9, 7, channels), dtype=np.uint8)
+    save_image(eight, tmp_path / f"a{suffix}")
+    with Image.open(tmp_path / f"a{suffix}") as im:
+        assert im.mode == mode and np.array_equal(np.asarray(im), eight)
+    back, depth = load_image(tmp_path / f"a{suffix}", dtype=None, with_depth=True, keep_alpha=True)
+    assert depth == 8 and np.array_equal(back, eight)
+    with pytest.warns(UserWarning, match="alpha channel dropped"):
+        assert load_image(tmp_path / f"a{suffix}").shape == (9, 7, channels - 1)
+    levels = rng.integers(0, 65536, (9, 7, channels), dtype=np.uint16)
+    save_image(levels / 65535.0, tmp_path / f"b{suffix}", depth=16)
+    back, depth = load_image(tmp_path / f"b{suffix}", with_depth=True, keep_alpha=True)
+    assert depth == 16 and np.array_equal(np.round(back * 65535).astype(np.uint16), levels)
+
+
+def test_a_palette_with_transparency_is_rgba_with_keep_alpha_and_jpeg_refuses_alpha(tmp_path):
+    from tghop import InvalidImageError
+    from tghop.imageio import load_image, save_image
+
+    im = Image.new("P", (4, 3), 1)
+    im.putpalette([0, 0, 0, 200, 100, 50] + [0] * 762)
+    im.info["transparency"] = 0
+    im.putpixel((0, 0), 0)
+    im.save(tmp_path / "p.png", transparency=0)
+    rgba = load_image(tmp_path / "p.png", dtype=None, keep_alpha=True)
+    assert rgba.shape == (3, 4, 4) and rgba[0, 0, 3] == 0 and rgba[1, 1].tolist() == [200, 100, 50, 255]
+    with pytest.raises(InvalidImageError, match="JPEG holds no alpha channel; name the output .png"):
+        save_image(rgba, tmp_path / "p.jpg")
+    assert not (tmp_path / "p.jpg").exists()

@@ -199,6 +199,103 @@ def test_cli_exclude_on_fit_and_synth(files):
     assert r.returncode == 0, r.stderr.decode()
 
 
+def test_cli_masks_that_leave_too_little_name_the_fix_of_each_command(files):
+    # An all-white MASK: inpaint names --source; fit --exclude is not inpainting (both said
+    # "or, to inpaint, fit on another exemplar").
+    Image.fromarray(np.full((96, 96), 255, np.uint8)).save(files / "white.png")
+    r = run("inpaint", files / "cells.png", files / "white.png", "-o", files / "w.png", "-q")
+    assert_user_error(r, "MASK", "white.png", "0 training patches", "give --source")
+    r = run("fit", files / "cells.png", "--exclude", files / "white.png", "-o", files / "w.npz", "-q")
+    assert_user_error(r, "too little texture outside the mask", "a smaller mask or a larger image")
+    assert "inpaint" not in r.stderr.decode() and not (files / "w.npz").exists()
+
+
+def test_cli_an_image_smaller_than_the_patches_names_a_model_of_smaller_ones(files):
+    # inpaint has no --patch-size and IMAGE is no exemplar ("use a larger exemplar or a smaller
+    # patch size"); with --source the message named no fix at all.
+    save_image(np.full((20, 20, 3), 0.5), files / "tiny.png")
+    hole = np.zeros((20, 20), np.uint8)
+    hole[5:10, 5:10] = 255
+    Image.fromarray(hole).save(files / "tiny_hole.png")
+    for source in ([], ["--source", files / "model.npz"], ["--source", "builtin:bricks"]):
+        r = run("inpaint", files / "tiny.png", files / "tiny_hole.png", "-o", files / "t.png", "-q", *source)
+        assert_user_error(r, "IMAGE", "20x20", "32x32 patches", "give --source a model of smaller patches",
+                          "--patch-size 16")
+        assert "exemplar" not in r.stderr.decode().split(";")[0]
+
+
+def test_a_layout_left_out_for_the_mask_says_so():
+    # `fit rgb.png --exclude hole.png` said "(asked 3: the exemplar is too small for it)".
+    from types import SimpleNamespace
+
+    from tghop.cli.common import layout_summary
+
+    def model(shape, factor):
+        return SimpleNamespace(exemplar_shape_=shape, layout_factor=3,
+                               layout_=None if factor is None else SimpleNamespace(factor=factor, patch_size=32))
+
+    assert layout_summary(model((200, 200, 3), 3)) == "a coarse model at 1/3 scale"
+    assert layout_summary(model((200, 200, 3), 2)).endswith("(asked 3: too little of the exemplar lies outside "
+                                                            "the mask for it)")
+    assert layout_summary(model((120, 120, 3), 2)).endswith("(asked 3: the exemplar is too small for it)")
+    assert layout_summary(model((200, 200, 3), None)) == "none (too little of the exemplar lies outside the mask " \
+                                                          "for one)"
+    assert layout_summary(model((80, 80, 3), None)) == "none (the exemplar is too small for one)"
+
+
+@pytest.fixture(scope="module")
+def grey_model(files, cells):
+    path = files / "grey_model.npz"
+    save_model(TGHop(rng=0, **FAST).fit(cells[..., :1]), path)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["RGBA", "LA"])
+@pytest.mark.parametrize("depth", [8, 16])
+def test_cli_keeps_the_alpha_channel_outside_the_hole_and_makes_the_hole_opaque(files, cells, grey_model, kind,
+                                                                              depth):
+    # It said "Warning: ...: alpha channel dropped" and wrote RGB, though .png keeps every pixel outside the hole.
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+    from tghop.imageio import load_image
+
+    colour = cells if kind == "RGBA" else cells[..., :1]
+    alpha = ((np.arange(96)[:, None] * 3 + np.arange(96)) % 256).astype(np.uint8)[..., None]
+    pixels = np.concatenate([colour, alpha], axis=2)
+    if depth == 16:  # low bits an 8-bit file cannot hold (Pillow writes no 16-bit RGBA: tghop's writer)
+        pixels = pixels.astype(np.uint16) * np.uint16(257) ^ np.uint16(5)
+        save_image(pixels / 65535.0, files / "alpha.png", depth=16)
+    else:
+        Image.fromarray(pixels, kind).save(files / "alpha.png")
+    source = files / "model.npz" if kind == "RGBA" else grey_model
+    res = CliRunner().invoke(main, ["inpaint", str(files / "alpha.png"), str(files / "mask.png"), "-o",
+                                    str(files / "alpha_out.png"), "--source", str(source), "--seed", "1", "-q"])
+    assert res.exit_code == 0 and "Warning" not in res.stderr, res.stderr
+    out, out_depth = load_image(files / "alpha_out.png", dtype=None, with_depth=True, keep_alpha=True)
+    out = np.round(out * 65535).astype(np.uint16) if depth == 16 else out
+    hole = np.asarray(Image.open(files / "mask.png")) > 127
+    assert out_depth == depth and out.shape == pixels.shape
+    assert np.array_equal(out[~hole], pixels[~hole])  # every channel, alpha too, bit for bit
+    assert (out[hole][:, -1] == (255 if depth == 8 else 65535)).all()  # the filled texture covers the hole
+    assert not np.array_equal(out[hole][:, :-1], pixels[hole][:, :-1])
+
+
+def test_cli_a_jpeg_output_drops_the_alpha_channel_with_a_warning(files, cells):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    alpha = np.full((96, 96, 1), 128, np.uint8)
+    Image.fromarray(np.concatenate([cells, alpha], axis=2), "RGBA").save(files / "alpha8.png")
+    res = CliRunner().invoke(main, ["inpaint", str(files / "alpha8.png"), str(files / "mask.png"), "-o",
+                                    str(files / "alpha_out.jpg"), "--source", str(files / "model.npz"), "-q"])
+    assert res.exit_code == 0, res.stderr
+    warning = [line for line in res.stderr.splitlines() if line.startswith("Warning:")]
+    assert len(warning) == 1 and "alpha channel dropped (JPEG holds none" in warning[0]
+    assert Image.open(files / "alpha_out.jpg").mode == "RGB"
+
+
 @pytest.mark.parametrize("n", [32, 33, 64, 100, 256, 257, 1000])
 def test_tiled_block_grid_is_even_around_the_torus(n):
     # With tile, the blocks wrap: every gap, the one across the edge too, at most a step and

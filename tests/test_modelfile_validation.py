@@ -282,3 +282,53 @@ def test_files_without_a_later_setting_read_as_fitted(saved, tmp_path, setting):
     _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
     with pytest.raises(ModelFileError, match=f"{first} is missing"):
         load_model(tmp_path / "missing.npz")
+
+
+def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved, tmp_path):
+    # Files recorded "rng": null although the fit had an int seed, so `tghop info` could not show it.
+    import copy
+
+    from tghop.modelfile import info_dict
+
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["params"]["rng"] == 0 and meta["layout"]["params"]["rng"] is None  # the layout's: a Generator
+    assert load_model(path).rng == 0 and info_dict(load_model(path))["fit_seed"] == 0
+    other = copy.copy(small_model)
+    for rng, recorded in ((np.int64(5), 5), (np.random.default_rng(0), None), (None, None)):
+        other.rng = rng
+        assert other._state_meta()["params"]["rng"] == recorded and info_dict(other)["fit_seed"] == recorded
+    expected = small_model.synthesize((32, 32), rng=1, n_patches=100)
+    for old in (None, "x", True, -1, 1.5):  # files of 0.32 and before (null), and edited ones: no seed
+        meta["params"]["rng"] = old
+        _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
+        loaded = load_model(tmp_path / "old.npz")
+        assert loaded.rng is None and info_dict(loaded)["fit_seed"] is None
+        assert np.array_equal(loaded.synthesize((32, 32), rng=1, n_patches=100), expected)
+
+
+def test_a_file_of_a_newer_tghop_warns_naming_both_versions(saved, tmp_path):
+    # It loaded without a word; a setting it added was "unknown setting setting 'x'; fit the model again".
+    import warnings
+
+    from tghop import __version__
+
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+
+    def load(version, **params):
+        changed = {**meta, "tghop_version": version, "params": {**meta["params"], **params}}
+        _write(tmp_path / "v.npz", {**arrays, "__meta__": np.array(json.dumps(changed))})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            load_model(tmp_path / "v.npz")
+        return [str(w.message) for w in caught]
+
+    said = load("99.0.0")
+    assert len(said) == 1 and f"made by tghop 99.0.0, newer than this {__version__}" in said[0], said
+    assert "upgrade tghop" in said[0]
+    for version in ("0.1.0", __version__, f"{__version__}.dev1", "not a version", None, 7):
+        assert load(version) == [], version
+    with pytest.raises(ModelFileError, match=r"unknown setting 'brand_new'\); it was made by tghop 99\.0\.0, newer "
+                                             r"than this .*: upgrade tghop"):
+        load("99.0.0", brand_new=1)

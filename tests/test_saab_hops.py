@@ -172,3 +172,14 @@ def test_fit_image_equals_fit_on_cut_patches(stride, channels, size, tile):
         core_c = c.fit_image(img8, size, origins, tile=tile // 16)
         d = HopStack(n_channels=channels)
         np.testing.assert_allclose(core_c, d.fit_image(img8 / 255.0, size, origins), atol=1e-8)
+
+
+def test_hop_channel_errors_count_in_the_singular_too():
+    # A grey exemplar's first hop has one input channel ("a hop on 1 input channels").
+    from tghop import TGHop, data
+
+    grey = data.cells(64, rng=1)[..., :1]
+    with pytest.raises(TGHopError, match="a hop on 1 input channel has at most 4 channels, 5 were asked for"):
+        TGHop(n_channels=(5, 10), n_clusters=5, max_patches=200, layout_factor=None, rng=0).fit(grey)
+    with pytest.raises(TGHopError, match="1 hop needs a patch size divisible by 2"):
+        TGHop(n_channels=(4,), patch_size=5, rng=0).fit(grey)

@@ -632,7 +632,8 @@ def _died_record(job, exc, retries) -> dict:
     name = exc.__class__.__name__
     if name == "KilledWorker":
         error = ("the worker running it died on every try (killed or out of memory; "
-                 f"{retries + 1} tries on a local cluster); use fewer workers per machine or a smaller size")
+                 f"{retries + 1} {'try' if retries == 0 else 'tries'} on a local cluster); use fewer workers per "
+                 "machine or a smaller size")
     else:
         error = _one_line(exc)
     return {"status": "failed", "error": error, "outputs": [], "model": None, "thumbnail": None,

@@ -134,8 +134,9 @@ def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
     if n != n_models:
         hint = ("paint with flat levels only (no antialiasing, PNG not JPEG)" if n > n_models
                 else "paint one level per input")
-        raise TGHopError(f"the guide has {n} distinct grey levels/colours but {n_models} inputs were given; {hint}: "
-                         "the darkest is the first input")
+        levels = "one grey level/colour" if n == 1 else f"{n} distinct grey levels/colours"
+        inputs = "one input was" if n_models == 1 else f"{n_models} inputs were"
+        raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first input")
     order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)

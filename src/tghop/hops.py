@@ -100,13 +100,13 @@ class Hop(TransformerMixin, BaseEstimator):
         c = self.n_channels_in_ = len(total) // 4
         if isinstance(rule, int) and rule > 4 * c:
             raise TGHopError(
-                f"a hop on {c} input channels has at most {4 * c} channels, {rule} were asked for; "
-                f"choose at most {4 * c}"
+                f"a hop on {c} input channel{'s' if c != 1 else ''} has at most {4 * c} channels, {rule} were "
+                f"asked for; choose at most {4 * c}"
             )
         if isinstance(rule, int) and self.channelwise and rule < c:
             raise TGHopError(
-                f"a channel-wise hop on {c} channels keeps at least {c} (one DC child each), "
-                f"{rule} were asked for; choose at least {c}"
+                f"a channel-wise hop on {c} channel{'s' if c != 1 else ''} keeps at least {c} (one DC child "
+                f"each), {rule} {'was' if rule == 1 else 'were'} asked for; choose at least {c}"
             )
         mean, moment = total / count, moment_sum / count
         if not self.channelwise:
@@ -390,7 +390,8 @@ class HopStack(TransformerMixin, BaseEstimator):
         side = X.shape[1]
         if X.ndim != 4 or side % (2 ** len(rules)) or X.shape[2] != side:
             raise TGHopError(
-                f"{len(rules)} hops need square patches whose side is divisible by {2 ** len(rules)}, "
+                f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} square patches whose side is divisible "
+                f"by {2 ** len(rules)}, "
                 f"got shape {X.shape[1:]}"
             )
         self.hops_ = []

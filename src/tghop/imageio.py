@@ -17,14 +17,11 @@ from struct import error as struct_error
 
 from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
+from ._formats import DEPTHS, FORMATS, extensions
 
 __all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
            "check_depth", "deepest", "save_images", "DEPTHS"]
 
-#: Output formats chosen by file extension.
-FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
-#: Bits per channel each output format can be written with (32: float32 TIFF).
-DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
 #: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
 TIFF_HINT = "pip install 'tghop[tiff]'"
 
@@ -36,7 +33,7 @@ MAX_IMAGE_PIXELS = 8192 * 8192
 
 def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.float64,
                too_large_hint: str = "pass downscale=True to reduce it (or downscale it yourself)",
-               with_depth: bool = False) -> np.ndarray:
+               with_depth: bool = False, keep_alpha: bool = False) -> np.ndarray:
     """Read an image file as a float array.
 
     Parameters
@@ -61,11 +58,15 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         says "pass --downscale" only in the commands that have that option).
     with_depth : bool
         Also return the file's bits per channel: 8, 16 or 32 (float).
+    keep_alpha : bool
+        Keep an alpha channel (no warning) as the last channel, at the colours' depth: ``C``
+        is then 2 (grey and alpha) or 4 (RGBA); a palette image with transparency is read
+        as RGBA (``tghop inpaint`` writes it back).
 
     Returns
     -------
     ndarray, shape (H, W, C), in [0, 1] (0-255 for uint8)
-        ``C`` is 1 for greyscale images and 3 for colour ones.
+        ``C`` is 1 for greyscale images and 3 for colour ones (2 and 4 with ``keep_alpha``).
     depth : int, only with ``with_depth``
     """
     from PIL import Image, UnidentifiedImageError  # imported on first use: not needed by `tghop info`
@@ -78,12 +79,12 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit applies
-            deep = _read_deep(path, max_pixels)
+            deep = _read_deep(path, max_pixels, keep_alpha)
             if deep is not None:
                 arr, mode, depth = deep
             else:
                 with Image.open(path) as im:
-                    arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint)
+                    arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
                     depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
     except TGHopError:  # ours: already one line (a missing extra too)
         raise
@@ -97,20 +98,21 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise InvalidImageError(
             f"{path}: not a readable image ({exc.__class__.__name__}); give a PNG, JPEG or other common image file"
         ) from None
-    if mode in ("RGBA", "LA", "PA") or mode == "P+transparency":
+    if not keep_alpha and (mode in ("RGBA", "LA", "PA", "RGBa", "La") or mode == "P+transparency"):
         warnings.warn(f"{path.name}: alpha channel dropped", UserWarning, stacklevel=2)
     if dtype is None and arr.dtype == np.uint8:
         out = arr[:, :, None] if arr.ndim == 2 else arr
     else:
-        out = check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype)
+        out = check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype,
+                          channels=(1, 2, 3, 4) if keep_alpha else (1, 3))
     return (out, depth) if with_depth else out
 
 
-def _read_deep(path, max_pixels):
+def _read_deep(path, max_pixels, keep_alpha=False):
     """16-bit PNG and TIFF files and float TIFF files that Pillow would not read whole:
     ``(array, mode, depth)`` with the array float64 in [0, 1] (uint8 for an 8-bit TIFF read
     by tifffile), or None for every other file (Pillow reads it). ``mode`` is "RGBA" or
-    "LA" when an alpha channel was dropped."""
+    "LA" when the file has an alpha channel: dropped, or, with ``keep_alpha``, kept last."""
     with open(path, "rb") as fh:
         head = fh.read(33)
     if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 33 and head[24] == 16:
@@ -118,7 +120,7 @@ def _read_deep(path, max_pixels):
         if width * height > max_pixels or head[28] != 0:  # too large, or interlaced: Pillow's path (its errors)
             return None
         levels, ctype = _decode_png16(path.read_bytes())
-        arr, mode = _drop_alpha(levels, {4: "LA", 6: "RGBA"}.get(ctype, ""))
+        arr, mode = _drop_alpha(levels, {4: "LA", 6: "RGBA"}.get(ctype, ""), keep_alpha)
         return arr / 65535.0, mode, 16
     if head[:4] not in (b"II*\x00", b"MM\x00*"):
         return None
@@ -146,7 +148,7 @@ def _read_deep(path, max_pixels):
     if arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4) or arr.ndim not in (2, 3):
         raise ValueError(f"{arr.shape} samples")
     arr, mode = _drop_alpha(arr, "RGBA" if arr.ndim == 3 and arr.shape[2] == 4 else
-                            "LA" if arr.ndim == 3 and arr.shape[2] == 2 else "")
+                            "LA" if arr.ndim == 3 and arr.shape[2] == 2 else "", keep_alpha)
     if arr.dtype == np.uint8:
         return arr, mode, 8
     if arr.dtype == np.uint16:
@@ -161,9 +163,10 @@ def _read_deep(path, max_pixels):
     raise ValueError(f"{arr.dtype} samples")
 
 
-def _drop_alpha(arr, mode):
-    """The colour channels of an (H, W, C) array whose last channel is alpha when ``mode`` says so."""
-    if mode:
+def _drop_alpha(arr, mode, keep_alpha=False):
+    """The colour channels of an (H, W, C) array whose last channel is alpha when ``mode`` says
+    so (all of them with ``keep_alpha``)."""
+    if mode and not keep_alpha:
         arr = arr[..., :-1]
     return (arr[..., 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr), mode
 
@@ -229,8 +232,9 @@ def _decode_png16(data):
     return out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16), ctype
 
 
-def _decode(im, path, max_pixels, downscale, too_large_hint):
-    """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode)."""
+def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
+    """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode).
+    With ``keep_alpha`` an image with alpha (or a palette with transparency) is LA or RGBA."""
     width, height = im.size
     if width < 1 or height < 1:
         raise ValueError("empty image")
@@ -253,7 +257,9 @@ def _decode(im, path, max_pixels, downscale, too_large_hint):
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"
-    if im.mode in ("L", "RGB"):
+    if keep_alpha and (mode in ("RGBA", "LA", "PA", "RGBa", "La") or mode == "P+transparency"):
+        arr = np.asarray(im if im.mode in ("RGBA", "LA") else im.convert("LA" if im.mode == "La" else "RGBA"))
+    elif im.mode in ("L", "RGB"):
         arr = np.asarray(im)  # no converted copy of a large image
     elif im.mode in ("LA", "1"):
         arr = np.asarray(im.convert("L"))
@@ -308,7 +314,8 @@ def check_depth(path, depth) -> int:
     if depth not in (8, 16, 32) or isinstance(depth, bool):
         raise InvalidImageError(f"depth {depth!r} is not 8, 16 or 32 bits per channel")
     if depth not in DEPTHS[fmt]:
-        fix = "name the output .tif (float TIFF)" if depth == 32 else "name the output .png or .tif"
+        fix = f"name the output {extensions([f for f, held in DEPTHS.items() if depth in held])}" + (
+            " (float TIFF)" if depth == 32 else "")
         raise InvalidImageError(f"{path}: {fmt} cannot hold {depth}-bit {'float ' if depth == 32 else ''}values "
                                 f"(it takes {' or '.join(map(str, DEPTHS[fmt]))} bits); {fix}, or pick another depth")
     return depth
@@ -385,7 +392,7 @@ def output_format(path) -> str:
         return "PNG"
     ext = Path(path).suffix.lower()
     if ext not in FORMATS:
-        raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use .png, .jpg, .jpeg or .tif")
+        raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use {extensions()}")
     return FORMATS[ext]
 
 
@@ -411,8 +418,8 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     Parameters
     ----------
     fh : binary file object
-    pixels : ndarray of uint8 or uint16, shape (H, W), (H, W, 1) or (H, W, 3)
-        Grey or RGB.
+    pixels : ndarray of uint8 or uint16, shape (H, W) or (H, W, C), C in 1-4
+        Grey, grey and alpha, RGB or RGBA.
     level : int
         zlib level (1: synthesised texture is noise-like, so higher levels barely shrink
         it but take noticeably longer; measured: docs/choices.md).
@@ -427,8 +434,8 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     same image as Pillow's writer (tested), in less time on several cores.
     """
     px = np.asarray(pixels)
-    if px.dtype not in (np.uint8, np.uint16) or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] not in (1, 3)):
-        raise ValueError(f"write_png takes a uint8 or uint16 (H, W), (H, W, 1) or (H, W, 3) array, "
+    if px.dtype not in (np.uint8, np.uint16) or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] > 4):
+        raise ValueError(f"write_png takes a uint8 or uint16 (H, W) or (H, W, C) array with C up to 4, "
                          f"got {px.dtype} {px.shape}")
     h, w = px.shape[:2]
     channels = 1 if px.ndim == 2 else px.shape[2]
@@ -458,7 +465,8 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
         with ThreadPoolExecutor(max_workers=n_parts) as pool:
             list(pool.map(compress, range(n_parts)))  # a part's error (e.g. out of memory) is raised here
     fh.write(b"\x89PNG\r\n\x1a\n")
-    _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, bits, 0 if channels == 1 else 2, 0, 0, 0))
+    colour_type = {1: 0, 2: 4, 3: 2, 4: 6}[channels]  # grey, grey + alpha, RGB, RGBA
+    _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, bits, colour_type, 0, 0, 0))
     _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))
     _png_chunk(fh, b"IEND")
 
@@ -480,7 +488,8 @@ def save_image(image, path, *, depth: int = 8) -> None:
     Parameters
     ----------
     image : ndarray, shape (H, W) or (H, W, C)
-        Floats in [0, 1], or uint8 (written as they are).
+        Floats in [0, 1], or uint8 (written as they are). ``C`` is 1 or 3, or 2 or 4 with
+        an alpha channel last (PNG and TIFF; JPEG holds none and is refused).
     path : str or os.PathLike
         The file appears complete or not at all.
     depth : {8, 16, 32}
@@ -492,6 +501,9 @@ def save_image(image, path, *, depth: int = 8) -> None:
     fmt = output_format(path)
     check_depth(path, depth)
     _check_pixels(image, depth)
+    if fmt == "JPEG" and np.ndim(image) == 3 and np.shape(image)[2] in (2, 4):
+        raise InvalidImageError(f"{path}: JPEG holds no alpha channel; name the output "
+                                f"{extensions([f for f in DEPTHS if f != 'JPEG'])}, or drop the alpha channel")
     if str(path) == "-" and sys.stdout is None:
         raise InvalidImageError("-o -: the standard output is closed; give a file name instead")
     if fmt == "TIFF":
@@ -561,11 +573,13 @@ def _tiff_writer(image, depth, path):
 
         pil = Image.fromarray(pixels)  # grey uint16: mode I;16, float32: F
         return functools.partial(pil.save, format="TIFF")
-    photometric = "rgb" if pixels.ndim == 3 else "minisblack"
+    channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    photometric = "rgb" if channels >= 3 else "minisblack"
+    alpha = {"extrasamples": ["unassalpha"]} if channels in (2, 4) else {}  # straight alpha, as PNG's
 
     def write(fh):
         buf = io.BytesIO()  # tifffile wants a seekable file with a name; the temporary file's has none
-        tifffile.imwrite(buf, pixels, photometric=photometric, compression="zlib")
+        tifffile.imwrite(buf, pixels, photometric=photometric, compression="zlib", **alpha)
         fh.write(buf.getbuffer())
 
     return write

@@ -164,7 +164,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     work, grey = _working_image(original, n_channels)
     h, w = work.shape[:2]
     if h < p or w < p:
-        raise TGHopError(f"the image is {h}x{w}; inpainting with {p}x{p} patches needs at least {p}x{p}")
+        raise TGHopError(f"the image is {h}x{w}; inpainting with {p}x{p} patches needs at least {p}x{p}: "
+                         "use a model fitted with a smaller patch_size (or a larger image)")
     hole = check_hole(mask, (h, w))
     for name, value, low in (("blend", blend, 0), ("refine", refine, 0), ("n_patches", n_patches, 1)):
         if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:

@@ -29,6 +29,7 @@ import re
 
 import numpy as np
 
+from . import settings
 from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
@@ -224,7 +225,8 @@ class Material(BaseEstimator):
         params = base.get_params()
         if self.rng is not None:
             params["rng"] = self.rng
-        params["rng"] = check_rng(params["rng"])
+        if settings.recorded_seed(params["rng"]) is None:  # an int seed stays one: the model file records it
+            params["rng"] = check_rng(params["rng"])
         params["patch_levels"] = 0  # the patch refinement does not apply to materials
         self.model_ = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
         ex = None if exclude is None else np.asarray(exclude, dtype=bool)

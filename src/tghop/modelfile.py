@@ -33,6 +33,7 @@ from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
 from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
 from .material import Material
+from .settings import recorded_seed
 from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
@@ -68,7 +69,8 @@ def save_model(model, path) -> None:
 
 
 def info_dict(model, params=None) -> dict:
-    """A fitted model's summary as JSON-ready data: its settings (``rng`` left out),
+    """A fitted model's summary as JSON-ready data: its settings (``rng`` left out: the
+    fit's int seed is ``fit_seed``, None when it was a Generator or not recorded),
     dimensions, channels, exemplar shape, parameter count (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
     layout's factor (``layout_factor_used``: None without one). What ``tghop info
@@ -77,7 +79,8 @@ def info_dict(model, params=None) -> dict:
     return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
-            "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor)}
+            "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor),
+            "fit_seed": recorded_seed(model.rng)}
 
 
 def _read(path):
@@ -370,18 +373,50 @@ def load_model(path, *, material=False):
                              f"{MATERIAL_VERSION}")
         groups = kind._array_specs(meta, quantised=quantised)
     except TGHopError as exc:
-        raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
+        raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model metadata ({exc!r}); "
-                             "fit the model again") from None
+                             f"{_refit(meta)}") from None
     if kind is Material and not material:
         names = ", ".join(m["name"] for m in meta["material"]["maps"])
         raise ModelFileError(f"{path} is a material ({names}), not a plain model; only 'tghop synth' and "
                              "'tghop info' take it (fit a plain model from the albedo for this command)")
     _check_arrays(path, groups, arrays)
     try:
-        return kind._from_state(meta, arrays)
+        model = kind._from_state(meta, arrays)
     except TGHopError as exc:
-        raise ModelFileError(f"{path}: invalid tghop model ({exc}); fit the model again") from None
+        raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-        raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); fit the model again") from None
+        raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); {_refit(meta)}") from None
+    newer = _newer_maker(meta)
+    if newer:
+        warnings.warn(f"{path}: made by tghop {newer}, newer than this {__version__}, which reads it as a model of "
+                      "its own version (what the newer one added is not used); upgrade tghop to use it", stacklevel=2)
+    return model
+
+
+def _release(version):
+    """The numbers a version string starts with ("0.32.0rc1" -> (0, 32, 0)), or None."""
+    import re
+
+    found = re.match(r"\d+(\.\d+)*", version) if isinstance(version, str) else None
+    return tuple(int(part) for part in found.group().split(".")) if found else None
+
+
+def _newer_maker(meta):
+    """The tghop version that wrote a file when it is newer than this one (else None):
+    the same format version, but perhaps settings or meanings this one does not know."""
+    theirs, ours = _release(meta.get("tghop_version")), _release(__version__)
+    if theirs is None or ours is None:
+        return None
+    width = max(len(theirs), len(ours))
+    pad = lambda v: v + (0,) * (width - len(v))  # noqa: E731
+    return meta["tghop_version"] if pad(theirs) > pad(ours) else None
+
+
+def _refit(meta) -> str:
+    """The fix for a model file this tghop cannot use: a newer tghop's, upgrade; else fit again."""
+    newer = _newer_maker(meta)
+    if newer:
+        return f"it was made by tghop {newer}, newer than this {__version__}: upgrade tghop or fit the model again"
+    return "fit the model again"

@@ -11,7 +11,9 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._common import TGHopError, check_image, check_rng
 
-__all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches", "downsample_mask", "count_patches", "space_to_depth", "depth_to_space", "patch_grid", "stage_sheet"]
+__all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",
+           "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth", "depth_to_space",
+           "patch_grid", "stage_sheet"]
 
 
 def count_patches(shape, patch_size: int, stride: int) -> int:
@@ -130,13 +132,21 @@ def check_exclude(exclude, shape, *, name="exclude"):
     return mask if mask.any() else None
 
 
+class TooLittleTextureError(TGHopError):
+    """A sample mask leaves too few training patches (:func:`enough_patches`). Its
+    ``n_patches``, ``need`` and ``patch_size`` say how many, so that a caller can name its own
+    fix (``tghop inpaint``: ``--source``)."""
+
+
 def enough_patches(n_patches, need, patch_size):
-    """Raise a one-line :class:`TGHopError` when a mask leaves fewer than ``need`` training patches."""
+    """Raise a one-line :class:`TooLittleTextureError` when a mask leaves fewer than ``need``
+    training patches."""
     if n_patches < need:
-        raise TGHopError(
+        exc = TooLittleTextureError(
             f"too little texture outside the mask: {n_patches} training patches of {patch_size}x{patch_size} "
-            f"avoid it, at least {need} are needed; use a smaller mask or a larger image "
-            f"(or, to inpaint, fit on another exemplar)")
+            f"avoid it, at least {need} are needed; use a smaller mask or a larger image")
+        exc.n_patches, exc.need, exc.patch_size = n_patches, need, patch_size
+        raise exc
 
 
 def downsample_mask(mask, factor):

@@ -43,7 +43,7 @@ from typing import Any, Optional, Tuple
 from ._errors import TGHopError
 
 __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "QUALITY", "fit_settings", "generate_settings", "check_settings",
-           "component_params", "numpydoc_parameters", "check_channel_rule"]
+           "component_params", "numpydoc_parameters", "check_channel_rule", "recorded_seed"]
 
 _MISSING = object()
 
@@ -320,7 +320,8 @@ SETTINGS: Tuple[Setting, ...] = (
             "smaller than 48 times the factor gets the largest smaller one it allows (at least 2), or none.",
             low=2, high=16, none_ok=True,
             cli=("--layout",), paper=None),
-    Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); not stored.",
+    Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); model files "
+            "record an int seed (a Generator: not).",
             cli=("--fit-seed",)),
     # ---------------------------------------------------------------- generation time
     Setting("n_patches", 5000, "int", "Generated patches quilted into each image (paper: 5,000-10,000).",
@@ -410,7 +411,7 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
     out = {}
     for name, value in values.items():
         if name not in BY_NAME:
-            raise TGHopError(f"unknown setting {prefix}{name!r}")
+            raise TGHopError(f"unknown {prefix or 'setting '}{name!r}")  # not "unknown setting setting 'x'"
         out[name] = BY_NAME[name].check(value, label=prefix + name)
     return out
 
@@ -420,10 +421,21 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
 BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0, "coupling": 0.0}
 
 
+def recorded_seed(rng):
+    """What a model file records of the fit's ``rng``: an int seed as it is, anything else
+    (a Generator, None: no seed to give again) as None."""
+    if isinstance(rng, numbers.Integral) and not isinstance(rng, bool) and rng >= 0:
+        return int(rng)
+    return None
+
+
 def file_settings(params: dict) -> dict:
     """The checked constructor settings of a model file's metadata ``params`` (a JSON
-    object): lists back to tuples, and :data:`BEFORE_ADDED` for settings it predates."""
+    object): lists back to tuples, :data:`BEFORE_ADDED` for settings it predates, and
+    ``rng`` the fit's seed where one was recorded (None in files before 0.33, and for a
+    Generator)."""
     params = {**BEFORE_ADDED, **params}
+    params["rng"] = recorded_seed(params.get("rng"))
     if params.get("n_channels") is not None:
         params["n_channels"] = tuple(params["n_channels"])
     return check_settings(params, prefix="setting ")

@@ -51,6 +51,10 @@ PAPER_TABLE4 = {"n_channels": (9, 22),
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 
+#: Largest uint8 exemplar (pixels) :meth:`TGHop.fit` turns into floats ``x / 255`` first: the model of its
+#: pixels as floats, bit for bit (larger ones stay uint8, memory bounded: docs/choices.md, "Patches").
+FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
+
 
 def default_channels(patch_size: int, n_colours: int = 3):
     """Channels kept per hop when none are given.
@@ -137,25 +141,17 @@ class TGHop(BaseEstimator):
                  max_component_ratio=0.4, norm_match=1.0, coupling=0.95, min_cluster_size=10, reject_threshold=None,
                  ica_max_iter=200, ica_tol=1e-3, residual=False, max_patches=20000, band_levels=4, band_orientations=4,
                  patch_levels=4, patch_whitening=0.0, layout_factor=3, rng=None):
-        self.patch_size = patch_size
-        self.stride = stride
-        self.n_channels = n_channels
-        self.gamma = gamma
-        self.gamma_mode = gamma_mode
-        self.n_clusters = n_clusters
-        self.n_codewords = n_codewords
-        self.n_bins = n_bins
+        self.patch_size, self.stride, self.n_channels = patch_size, stride, n_channels
+        self.gamma, self.gamma_mode = gamma, gamma_mode
+        self.n_clusters, self.n_codewords, self.n_bins = n_clusters, n_codewords, n_bins
         self.cluster_energy = cluster_energy
         self.max_cluster_components = max_cluster_components
         self.max_component_ratio = max_component_ratio
         self.norm_match, self.coupling = norm_match, coupling
         self.min_cluster_size = min_cluster_size
         self.reject_threshold = reject_threshold
-        self.ica_max_iter = ica_max_iter
-        self.ica_tol = ica_tol
-        self.residual = residual
-        self.max_patches = max_patches
-        self.band_levels = band_levels
+        self.ica_max_iter, self.ica_tol = ica_max_iter, ica_tol
+        self.residual, self.max_patches, self.band_levels = residual, max_patches, band_levels
         self.band_orientations, self.patch_levels = band_orientations, patch_levels
         self.patch_whitening, self.layout_factor = patch_whitening, layout_factor
         self.rng = rng
@@ -174,8 +170,8 @@ class TGHop(BaseEstimator):
             rules = tuple(self.n_channels)
         if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
             raise TGHopError(
-                f"{len(rules)} hops need a patch size divisible by {2 ** len(rules)} leaving a core of at "
-                f"least 2x2, got patch_size={self.patch_size}"
+                f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} a patch size divisible by "
+                f"{2 ** len(rules)} leaving a core of at least 2x2, got patch_size={self.patch_size}"
             )
         return rules
 
@@ -188,9 +184,11 @@ class TGHop(BaseEstimator):
             Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3 (or more: the
             stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB
             is modelled as one channel (see :func:`prepare_exemplar`).
-            Memory depends on the training patches used (``max_patches``), not on the
-            exemplar's size: the hops see the image tile by tile, and a uint8 image is
-            never converted whole.
+            A uint8 exemplar of up to :data:`FLOAT_EXEMPLAR_PIXELS` (1024x1024) gives the model
+            of its pixels / 255 as floats. Memory depends on the training patches used
+            (``max_patches``), not on the exemplar's size: the hops see the image tile by tile,
+            and a larger uint8 image is never converted whole (its model then differs a little
+            from the float image's: the coarse layout is fitted on box means rounded to 8 bits).
         exclude : array_like of bool, shape (H, W), optional
             A sample mask: True where the model must not learn (a logo, a label, a stain,
             a hole to inpaint). Training patches that overlap it are dropped, and the
@@ -217,6 +215,8 @@ class TGHop(BaseEstimator):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
         image = prepare_exemplar(image, min_size=self.patch_size, channels=None)
+        if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
+            image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
         rules = self._channel_rules(image.shape[2])
         exclude = check_exclude(exclude, image.shape)
         rng = check_rng(self.rng)
@@ -270,7 +270,7 @@ class TGHop(BaseEstimator):
     def _state_meta(self) -> dict:
         """JSON-ready settings and shapes needed, with :meth:`_to_arrays`, to rebuild the model."""
         params = {s.name: getattr(self, s.name) for s in settings.fit_settings()}
-        params["rng"] = None  # a Generator is not data; the fitted state already holds its effect
+        params["rng"] = settings.recorded_seed(self.rng)  # an int seed; a Generator is not data
         if params["n_channels"] is not None:
             params["n_channels"] = list(params["n_channels"])
         return {

@@ -79,16 +79,20 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
             progress.close()
             message, code = stop_message(exc)
             done = progress.last
-            where = f" after {done['done']} of {done['total']} exemplars" if done else ""
+            where = f" after {done['done']} of {_exemplars(done['total'])}" if done else ""
             fail(f"{message}{where}; run the same command again to finish the rest", code)
     failed = [r for r in results if r["status"] != "ok"]
     skipped = sum(bool(r.get("skipped")) for r in results)
     ok = len(results) - len(failed)
     earlier = f" ({skipped} by an earlier run)" if skipped else ""
-    click.echo(f"{ok} of {len(results)} exemplars done{earlier}; results in {outdir}, "
+    click.echo(f"{ok} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
                f"contact sheet {outdir}/index.html", err=True)
     if failed:
         for r in failed:
             click.echo(f"failed: {r['name']}: {r['error']}", err=True)
-        fail(f"{len(failed)} of {len(results)} exemplars failed: {', '.join(r['name'] for r in failed[:10])}"
+        fail(f"{len(failed)} of {_exemplars(len(results))} failed: {', '.join(r['name'] for r in failed[:10])}"
              f"{' ...' if len(failed) > 10 else ''} (see {outdir}/batch.jsonl)", 1)
+
+
+def _exemplars(n: int) -> str:
+    return f"{n} exemplar{'s' if n != 1 else ''}"

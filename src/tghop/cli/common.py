@@ -21,7 +21,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask"]
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -167,12 +167,23 @@ def is_model_file(path: str) -> bool:
 
 
 def layout_summary(model) -> str:
-    """The coarse layout a fitted model holds, in words."""
-    if model.layout_ is None:
-        return "none" if model.layout_factor is None else "none (too few exemplar pixels for one)"
-    f = model.layout_.factor
-    asked = "" if f == model.layout_factor else f" (asked {model.layout_factor}: the exemplar is too small for it)"
-    return f"a coarse model at 1/{f} scale{asked}"
+    """The coarse layout a fitted model holds, in words, and why it is coarser than asked
+    or none: the exemplar's size, or, where that allowed it, a sample mask (``--exclude``,
+    an inpainted hole) that left too few of its patches."""
+    from ..layout import fits
+    from ..synthesis import CoarseLayout
+
+    if model.layout_factor is None:
+        return "none"
+    f = None if model.layout_ is None else model.layout_.factor
+    p = CoarseLayout().patch_size if model.layout_ is None else model.layout_.patch_size
+    if f == model.layout_factor:
+        return f"a coarse model at 1/{f} scale"
+    small = not fits(model.exemplar_shape_, 2 if f is None else model.layout_factor, p)
+    why = "the exemplar is too small for" if small else "too little of the exemplar lies outside the mask for"
+    if f is None:
+        return f"none ({why} one)"
+    return f"a coarse model at 1/{f} scale (asked {model.layout_factor}: {why} it)"
 
 
 def summary(model, params=None) -> str:
@@ -190,11 +201,22 @@ def summary(model, params=None) -> str:
     )
 
 
+def check_stdout(what: str):
+    """Refuse, before any work, a command whose result goes to the standard output when
+    that is closed (``>&-``: Python sets ``sys.stdout`` to None, and ``click.echo`` would
+    drop the result without a word). ``what``: what the command writes there."""
+    if sys.stdout is None:
+        raise TGHopError(f"the standard output is closed, and {what} goes there; leave it open "
+                         "or redirect it to a file (> FILE)")
+
+
 def check_output(path: str, allow_stdout=False):
     from ..imageio import check_output_path, output_format
 
     if path == "-" and not allow_stdout:
         raise TGHopError("this command cannot write to stdout; give a file name with -o")
+    if path == "-" and sys.stdout is None:  # before the work, not when the image is written
+        raise TGHopError("-o -: the standard output is closed; give a file name instead")
     output_format(path)
     if path != "-":
         check_output_path(path)

@@ -13,6 +13,7 @@ import re
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
 from .options import Size
 
@@ -143,14 +144,15 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
                    f"written to {output} (continue it with: tghop cooc train {exemplar} -o {output} --resume)",
                    err=True)
     else:
-        click.echo(f"{model.step_} steps trained; checkpoint written to {output}", err=True)
+        click.echo(f"{model.step_} step{'s' if model.step_ != 1 else ''} trained; checkpoint written to {output}",
+                   err=True)
 
 
 @cooc.command()
 @click.argument("model_file", metavar="MODEL")
 @click.argument("a")
 @click.argument("b")
-@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--length", type=click.IntRange(min=2, max=MAX_CELLS), default=8, show_default=True,
               help="Strip length in co-occurrence cells (s pixels each).")
 @click.option("--grid", default=None, metavar="COLSxROWS",
@@ -195,7 +197,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
 @cooc.command()
 @click.argument("model_file", metavar="MODEL")
 @click.argument("sources", nargs=-1)
-@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
 @click.option("--mask", default=None,
               help="Grey image: its levels, quantised to the number of SOURCES, say which source goes where "

@@ -8,7 +8,8 @@ import json
 import click
 
 from .._errors import TGHopError
-from .common import Progress, check_output, check_outputs, load_exemplar, user_errors
+from .._formats import OUTPUT_HELP
+from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors
 from .options import Size
 
 __all__ = ["evaluate", "baseline"]
@@ -53,6 +54,7 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 
     progress = Progress(not quiet)
     with user_errors(progress):
+        check_stdout("the table of scores" if not as_json else "the scores (JSON lines)")
         chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
         if chosen == []:
             raise TGHopError(f"--metrics is empty; give one or more of: {', '.join([*M.METRICS, *M.RESULT_METRICS])}")
@@ -97,7 +99,7 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 @click.command()
 @click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc", "gpdm"]))
 @click.argument("exemplar")
-@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - for PNG on stdout).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - for PNG on stdout).")
 @click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")
@@ -160,8 +162,9 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                 steps = SMALL["n_steps"] if iterations is None else iterations
                 minutes = 15.0 * steps / SMALL["n_steps"]
                 when = f"about {minutes:.0f} minutes" if minutes >= 1.5 else "about a minute or less"
-                click.echo(f"Note: no --model: training the co-occurrence cGAN first ({steps} steps, {when} on a "
-                           "2-core CPU); to reuse it, train once with 'tghop cooc train' and pass --model", err=True)
+                click.echo(f"Note: no --model: training the co-occurrence cGAN first ({steps} "
+                           f"step{'s' if steps != 1 else ''}, {when} on a 2-core CPU); to reuse it, train once with "
+                           "'tghop cooc train' and pass --model", err=True)
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
         save_image(image, output)

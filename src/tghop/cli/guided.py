@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors
 from ..fit_options import build_model
 from .options import Size
@@ -107,7 +108,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
 @click.command()
 @click.argument("source_a", metavar="A")
 @click.argument("source_b", metavar="B")
-@click.option("-o", "--output", required=True, help="Image to write (.png/.jpg; - writes PNG to stdout).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")
 @click.option("--size", type=Size(), default="256x1024", show_default=True, help="HEIGHTxWIDTH of one strip.")
 @click.option("--grid", type=click.IntRange(min=1, max=64), default=1, show_default=True,
               help="Strips of consecutive seeds stacked top to bottom (a grid of seeds).")

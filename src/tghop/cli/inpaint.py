@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
 from .options import depth_option
 
@@ -15,7 +16,8 @@ __all__ = ["inpaint"]
 @click.argument("image")
 @click.argument("mask")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png keeps every pixel outside the hole bit for bit; - writes PNG to stdout).")
+              help=f"{OUTPUT_HELP}; .png keeps every pixel outside the hole bit for bit; - writes PNG "
+                   "to stdout).")
 @click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
               help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead of "
                    "fitting on the part of IMAGE outside the hole.")
@@ -29,11 +31,16 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
 
     Without --source the model is fitted on IMAGE's patches that do not touch the hole.
+
+    An alpha channel of IMAGE is kept (PNG, TIFF): as it is outside the hole, opaque in the
+    hole (the texture filled in covers it). A JPEG output holds none: it is dropped, with a
+    warning.
     """
     import numpy as np
 
     from ..imageio import check_depth, deepest, load_image, save_image
     from ..inpaint import inpaint as fill
+    from ..patches import TooLittleTextureError
     from ..synthesis import TGHop, prepare_exemplar
 
     progress = Progress(not quiet)
@@ -42,7 +49,11 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
         check_outputs([("-o", output)], [("IMAGE", image), ("MASK", mask), ("--source", source)])
         if is_model_file(image):
             raise TGHopError(f"IMAGE {image} is a model file; give the image to fill (a model goes to --source)")
-        picture, image_depth = load_image(image, dtype=None, with_depth=True)  # 8-bit stays 8-bit: copied as bytes
+        # 8-bit stays 8-bit: copied as bytes; an alpha channel is kept apart and written back.
+        picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True)
+        alpha = None
+        if picture.shape[2] in (2, 4):
+            picture, alpha = np.ascontiguousarray(picture[..., :-1]), picture[..., -1:]
         # Without --depth: IMAGE's own depth, as far as the output's format holds it.
         depth = check_depth(output, depth or deepest(output, image_depth))
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
@@ -50,19 +61,61 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
             raise TGHopError(f"MASK {mask} has no white pixel, so there is nothing to fill; paint the hole white "
                              "(a pixel whose channels' mean is above mid-grey)")
         rng = np.random.default_rng(seed)
+        model = None
         if source is not None and not source.startswith("builtin:") and (
                 source.lower().endswith(".npz") or is_model_file(source)):
             from ..modelfile import load_model
 
             model = load_model(source)
-        elif source is not None:
+        _check_size(image, picture.shape, TGHop().patch_size if model is None else model.patch_size,
+                    "" if source is None else " of --source's model" if model is not None
+                    else " of the model fitted on --source")
+        if model is None and source is not None:
             exemplar = prepare_exemplar(load_exemplar(source, dtype=None), min_size=32)
             model = TGHop(rng=rng).fit(exemplar, progress=progress)
-        else:
-            model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
+        elif model is None:
+            try:
+                model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
+            except TooLittleTextureError as exc:
+                raise TGHopError(f"MASK {mask} leaves too little of IMAGE {image} to fit a model on: {exc.n_patches} "
+                                 f"training patches of {exc.patch_size}x{exc.patch_size} avoid the hole, at least "
+                                 f"{exc.need} are needed; give --source (an exemplar of the same texture or a saved "
+                                 "model) or paint a smaller hole") from None
         result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
         progress.close()
-        save_image(result, output, depth=depth)
+        save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth)
     if output != "-":
         filled = int(hole.sum())
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)
+
+
+def _check_size(image, shape, p, whose):
+    """Refuse, before any fit, an IMAGE smaller than the ``p`` x ``p`` patches that fill its
+    hole (``whose``: which model's), naming the fix: a model of smaller patches."""
+    h, w = shape[:2]
+    if h >= p and w >= p:
+        return
+    fix = (f"give --source a model of smaller patches, e.g. one fitted with 'tghop fit EXEMPLAR --patch-size 16 "
+           f"--k1 9 --k2 22 -o small.npz'" if p > 16 and min(h, w) >= 16 else f"give an IMAGE of at least {p}x{p}")
+    raise TGHopError(f"IMAGE {image} is {h}x{w} pixels, smaller than the {p}x{p} patches{whose} that fill the hole; "
+                     f"{fix}")
+
+
+def _with_alpha(result, alpha, hole, image, output):
+    """The filled image with IMAGE's alpha channel (``alpha``, (H, W, 1) of its depth) as its
+    last channel: as it was outside the hole, opaque in it; a JPEG output drops it, warning."""
+    import warnings
+
+    import numpy as np
+
+    from .._formats import extensions
+    from ..imageio import output_format
+
+    if alpha is None:
+        return result
+    if output_format(output) == "JPEG":
+        warnings.warn(f"{image}: alpha channel dropped (JPEG holds none; name the output "
+                      f"{extensions(['PNG', 'TIFF'])} to keep it)")
+        return result
+    alpha = np.where(hole[..., None], 255 if alpha.dtype == np.uint8 else 1.0, alpha).astype(result.dtype)
+    return np.concatenate([result, alpha], axis=2)

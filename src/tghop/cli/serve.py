@@ -12,7 +12,7 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .common import user_errors
+from .common import check_stdout, user_errors
 
 __all__ = ["serve", "default_cache_dir", "ByteSize"]
 
@@ -99,6 +99,7 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
     (docs/serve.md). Stop it with Ctrl-C.
     """
     with user_errors():
+        check_stdout("the server's address")  # (uvicorn's logging fails there too)
         from ..server.app import create_app, require_web
 
         require_web(server=True)

@@ -8,8 +8,9 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
+from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
-from .common import (Progress, check_model_output, check_output, check_outputs, is_model_file,
+from .common import (Progress, check_model_output, check_output, check_outputs, check_stdout, is_model_file,
                      load_exemplar, load_mask, numbered, summary, user_errors)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
@@ -124,7 +125,7 @@ def material_summary(material) -> str:
 @click.argument("model_file", metavar="MODEL")
 @click.option("-n", "--count", "n", type=click.IntRange(min=1, max=10000), default=64, show_default=True,
               help="Patches to generate.")
-@click.option("-o", "--output", required=True, help="Grid image to write (.png or .jpg; - for stdout).")
+@click.option("-o", "--output", required=True, help=f"Grid i{OUTPUT_HELP[1:]}; - for PNG on stdout).")
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed (same seed, same patches).")
 @click.option("--stages", is_flag=True,
               help="Also write OUTPUT_stages: per sample the core DC map, the S1 DC map and the patch (paper Fig. 6).")
@@ -161,11 +162,11 @@ def patches(model_file, n, output, seed, stages):
 @click.command()
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
-              help="Image to write (.png/.jpg/.tif); with --count > 1 numbered name_1.png, ...; - writes PNG "
+              help=f"{OUTPUT_HELP}); with --count > 1 numbered name_1.png, ...; - writes PNG "
                    "to stdout.")
 @click.option("--size", type=Size(), default="256x256", show_default=True,
               help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
-                   "At most 8192x8192. Cost on 2 cores: about 0.8 s and 0.2 GB at 256x256, 3.6 s and 0.6 GB "
+                   "At most 8192x8192. Cost on 2 cores: about 0.8 s and 0.2 GB at 256x256, 3.8 s and 0.6 GB "
                    "at 2048x2048, 2.7 minutes and 4.3 GB at 8192x8192.")
 @click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
               help="Number of images.")
@@ -306,6 +307,7 @@ def info(model_file, as_json):
     from ..modelfile import info_dict, load_model
 
     with user_errors():
+        check_stdout("the model's description" + (" (JSON)" if as_json else ""))
         material = load_model(model_file, material=True)
         model = getattr(material, "model_", material)
         params = model.n_parameters()
@@ -321,6 +323,9 @@ def info(model_file, as_json):
         click.echo(f"material: {material_summary(material)}")
     click.echo(f"exemplar: {h}x{w}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
                f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
+    seed = info_dict(model, params)["fit_seed"]
+    click.echo(f"fit seed: {seed}" if seed is not None else
+               "fit seed: not recorded (fitted with a Generator, or by tghop 0.32 or older)")
     click.echo(summary(model, params))
     click.echo("\nparameters (paper Table 4):")
     rows = [("module", "formula", "paper formula", "stored")] + [

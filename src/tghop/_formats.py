@@ -1,0 +1,21 @@
+"""The image formats tghop writes, by the output's file extension: the one list that
+:mod:`tghop.imageio` writes by and every message and ``--help`` text names (no imports:
+the command line's help is made from it without loading NumPy)."""
+
+__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP"]
+
+#: Output formats chosen by file extension.
+FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
+#: Bits per channel each output format can be written with (32: float32 TIFF).
+DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
+
+
+def extensions(formats=None) -> str:
+    """The extensions of ``formats`` (format names; default every one) in words:
+    ``.png, .jpg, .jpeg, .tif or .tiff``."""
+    names = [ext for ext, fmt in FORMATS.items() if formats is None or fmt in formats]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+
+
+#: The start of an image output's ``-o`` help: ``Image to write (EXTENSIONS``; each command ends it.
+OUTPUT_HELP = f"Image to write ({extensions()}"
