@@ -194,6 +194,8 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "-o", "region.png", "--region", "512", *fast], tmp_path)
     assert r.returncode != 0 and "--region is not used with several SOURCEs" in r.stderr.decode()
     assert not (tmp_path / "region.png").exists()
+    r = _run(["synth", "a.npz", "b.npz", "-o", "shares.png", "--own-shares", "0.5", *fast], tmp_path)
+    assert r.returncode != 0 and "--own-shares is not used with several SOURCEs" in r.stderr.decode()
     r = _run(["synth", "a.npz", "b.npz", "-o", "paper.png", "--paper", "--size", "48x64", *fast], tmp_path)
     assert r.returncode == 0, r.stderr.decode()  # the paper's generation settings, as with one saved model
     r = _run(["synth", "a.npz", "b.npz", "-o", "best.png", "--quality", "best", *fast], tmp_path)

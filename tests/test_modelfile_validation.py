@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from tghop import ModelFileError
-from tghop.modelfile import load_model, save_model
+from tghop.modelfile import FORMAT_VERSION, load_model, save_model
 
 
 @pytest.fixture(scope="module")
@@ -262,7 +262,7 @@ def test_files_without_a_later_setting_read_as_fitted(saved, tmp_path, setting):
     value, version, parts, attrs, first = ADDED[setting]
     path, arrays = saved
     meta = json.loads(str(arrays["__meta__"]))
-    assert meta["format_version"] == 8 and meta["params"][setting] == value
+    assert meta["format_version"] == FORMAT_VERSION and meta["params"][setting] == value
     assert meta["layout"]["model"]["params"][setting] == value
     del meta["params"][setting]
     del meta["layout"]["model"]["params"][setting]
@@ -282,6 +282,31 @@ def test_files_without_a_later_setting_read_as_fitted(saved, tmp_path, setting):
     _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
     with pytest.raises(ModelFileError, match=f"{first} is missing"):
         load_model(tmp_path / "missing.npz")
+
+
+def test_files_without_colour_classes_read_as_fitted(saved, tmp_path):
+    # Version 8 files (tghop 0.32) have no colour classes: they load with none and generate
+    # as own_shares 0 (the exemplar's histograms); today's files hold the classes' arrays.
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["params"]["colour_classes"] == 4 and meta["layout"]["model"]["params"]["colour_classes"] == 0
+    del meta["params"]["colour_classes"], meta["layout"]["model"]["params"]["colour_classes"]
+    meta["format_version"] = 8
+    old_arrays = {k: v for k, v in arrays.items()
+                  if not k.endswith(("class_quantiles", "centres", "shares", "separation"))}
+    assert len(old_arrays) == len(arrays) - 5
+    _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
+    old = load_model(tmp_path / "old.npz")
+    assert old.colour_classes == 0 and old.classes_ is None
+    expected = load_model(path).synthesize((48, 48), rng=2, n_patches=200, own_shares=0.0)
+    assert np.array_equal(old.synthesize((48, 48), rng=2, n_patches=200), expected)
+    _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
+    with pytest.raises(ModelFileError, match="colour.centres is missing"):
+        load_model(tmp_path / "missing.npz")
+    bad = {**arrays, "colour.shares": arrays["colour.shares"] * 2}
+    _write(tmp_path / "bad.npz", bad)
+    with pytest.raises(ModelFileError, match="colour.shares sums to"):
+        load_model(tmp_path / "bad.npz")
 
 
 def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved, tmp_path):

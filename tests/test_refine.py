@@ -179,7 +179,7 @@ def test_refine_survives_save_and_load(small_model, tmp_path):
     loaded = load_model(path)
     assert np.array_equal(loaded.synthesize((48, 48), rng=4, n_patches=200),
                           small_model.synthesize((48, 48), rng=4, n_patches=200))
-    assert small_model.n_parameters()["refinement (ours)"]["stored"] == (4 * 4 + 1) * 3 * 257 + 3 + 9
+    assert small_model.n_parameters()["refinement (ours)"]["stored"] == (4 * 4 + 1) * 3 * 257 + 3 + 9 + 4 * 3 * 257
 
 
 def test_large_exemplar_is_measured_on_crops_with_the_same_statistics(monkeypatch):

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import TGHopError, usable_cores
+from ._common import BaseEstimator, TGHopError, check_is_fitted, usable_cores
 
-__all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES"]
+__all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasses", "colour_classes", "class_labels",
+           "class_quantiles", "class_separation", "class_shares", "mixed_quantiles"]
 
 #: Quantile levels stored per channel (0, 1/256, ..., 1).
 N_QUANTILES = 257
@@ -130,3 +131,236 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
         for k in range(c):
             one(k)
     return out
+
+
+# ------------------------------------------------------------------ colour classes
+# A 256x256 output of an exemplar with a few distinct colours (stripes, tiles and joints,
+# bricks and mortar) rarely holds them in the exemplar's proportions. Matching its whole
+# histogram to the exemplar's then turns the brightest pixels of a colour it has too much of
+# into the next colour up: white flecks in grey stripes, blue ones in grey. The exemplar's
+# colours are therefore split into a few classes, each with its own quantiles; the target
+# histogram of an image is the mixture of the classes' histograms in proportions between the
+# exemplar's and the image's own (:func:`mixed_quantiles`; docs/choices.md, Colour matching).
+
+#: Pixels the class centres are fitted on (a strided subset beyond this).
+_CENTRE_PIXELS = 1 << 14
+#: Pixels an exemplar's class quantiles and an image's shares are measured on.
+CLASS_PIXELS = 1 << 16
+
+
+def _strided(pixels, n):
+    """At most about ``n`` rows of ``pixels`` (every k-th): the same subset every time."""
+    return pixels[:: max(1, len(pixels) // n)]
+
+
+def colour_classes(pixels, n_classes, *, n_iter=30) -> np.ndarray:
+    """Centres of ``n_classes`` classes of colours (Lloyd's K-means, deterministic).
+
+    Parameters
+    ----------
+    pixels : ndarray, shape (n, C)
+        Values in [0, 1].
+    n_classes : int
+    n_iter : int
+        Lloyd steps at most (it stops when no label changes).
+
+    Returns
+    -------
+    ndarray, shape (n_classes, C)
+        Started at the pixels at evenly spaced quantiles of their first principal axis, so
+        that no random draw is needed; sorted along that axis, from dark to bright.
+    """
+    x = np.ascontiguousarray(_strided(np.asarray(pixels), _CENTRE_PIXELS), dtype=np.float64)
+    if len(x) < n_classes:
+        raise TGHopError(f"colour classes: {len(x)} pixels for {n_classes} classes")
+    centred = x - x.mean(axis=0)
+    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
+    axis = -axis if axis.sum() < 0 else axis  # from dark to bright
+    order = np.argsort(centred @ axis, kind="stable")
+    centres = x[order[((np.arange(n_classes) + 0.5) * len(x) / n_classes).astype(int)]]
+    labels = None
+    for _ in range(n_iter):
+        new = class_labels(x, centres)
+        if labels is not None and np.array_equal(new, labels):
+            break
+        labels = new
+        for k in range(n_classes):
+            members = x[labels == k]
+            if len(members):  # an empty class keeps its centre
+                centres[k] = members.mean(axis=0)
+    return centres[np.argsort((centres - x.mean(axis=0)) @ axis, kind="stable")]
+
+
+def class_labels(pixels, centres) -> np.ndarray:
+    """The nearest centre of each pixel: (n,) int of ``pixels`` (n, C)."""
+    pixels = np.asarray(pixels)
+    # Channel by channel (an (n, C) x (C, K) matrix product with C and K this small is
+    # many times slower in BLAS).
+    d = np.zeros((len(pixels), len(centres)))
+    for ch in range(pixels.shape[1]):
+        d += (pixels[:, ch, None] - centres[None, :, ch]) ** 2
+    return np.argmin(d, axis=1)
+
+
+def class_quantiles(values, labels, n_classes, n: int = N_QUANTILES) -> np.ndarray:
+    """Quantiles of ``values`` (m, C) within each class of ``labels`` (m,): (n_classes, C, n).
+    A class without values gets the quantiles of all of them."""
+    values = np.asarray(values, dtype=np.float64)
+    probs = np.linspace(0.0, 1.0, n)
+    every = np.quantile(values, probs, axis=0).T
+    return np.stack([np.quantile(values[labels == k], probs, axis=0).T if np.any(labels == k) else every
+                     for k in range(n_classes)])
+
+
+#: Margins below which a pixel is near the boundary of its class (:func:`class_separation`), and the
+#: share of such pixels in separate colours (at most: separation 1) and in a continuum (at least: 0).
+_NEAR_MARGIN = 0.2
+_SEPARATE, _CONTINUOUS = 0.05, 0.15
+
+
+def class_separation(pixels, centres) -> float:
+    """How distinct the colour classes of ``pixels`` (n, C) are, from 0 to 1.
+
+    A pixel's margin is ``(d2 - d1) / (d2 + d1)`` for its distances to the nearest and the
+    second nearest centre. Cutting a continuum (a uniform or normal distribution) into
+    classes leaves about 15 % of the pixels within a margin of 0.2 (a uniform one in four
+    classes: 15 %); separate colours (stripes, tiles and their joints) leave few. The
+    separation goes linearly from 1, at 5 % of the pixels or fewer, to 0 at 15 % or more.
+    """
+    pixels = np.asarray(pixels, dtype=np.float64)
+    d = np.zeros((len(pixels), len(centres)))
+    for ch in range(pixels.shape[1]):
+        d += (pixels[:, ch, None] - centres[None, :, ch]) ** 2
+    d = np.sqrt(np.partition(d, 1, axis=1)[:, :2]) if len(centres) > 1 else None
+    if d is None:
+        return 0.0
+    near = np.mean((d[:, 1] - d[:, 0]) < _NEAR_MARGIN * (d[:, 1] + d[:, 0]))
+    return float(np.clip((_CONTINUOUS - near) / (_CONTINUOUS - _SEPARATE), 0.0, 1.0))
+
+
+def class_shares(image, centres) -> np.ndarray:
+    """The share of each colour class among the pixels of ``image`` (H, W, C) (counted on a
+    strided subset of about 65,536 of them): (K,), summing to 1."""
+    image = np.asarray(image)
+    pixels = np.ascontiguousarray(_strided(image.reshape(-1, image.shape[-1]), CLASS_PIXELS), dtype=np.float64)
+    counts = np.bincount(class_labels(pixels, centres), minlength=len(centres))
+    return counts / counts.sum()
+
+
+def mixed_quantiles(class_q, shares) -> np.ndarray:
+    """Quantiles of the mixture of the classes' distributions in proportions ``shares``.
+
+    Parameters
+    ----------
+    class_q : ndarray, shape (K, C, n)
+        Each class's quantiles (:func:`class_quantiles`), read as piecewise linear
+        quantile functions.
+    shares : ndarray, shape (K,)
+        Non-negative, summing to 1.
+
+    Returns
+    -------
+    ndarray, shape (C, n)
+        At the same levels; with the exemplar's own shares, close to its overall quantiles.
+    """
+    k, c, n = class_q.shape
+    levels = np.linspace(0.0, 1.0, n)
+    out = np.empty((c, n))
+    for ch in range(c):
+        # (np.unique would import numpy.ma, which generation does not need otherwise.)
+        grid = np.sort(class_q[:, ch], axis=None)
+        grid = grid[np.r_[True, np.diff(grid) > 0]]
+        cdf = np.zeros(len(grid))
+        for q, share in zip(class_q[:, ch], shares):
+            if share > 0:
+                cdf += share * np.interp(grid, q, levels, left=0.0, right=1.0)
+        first = np.r_[True, np.diff(cdf) > 0]  # strictly increasing, to invert
+        out[ch] = np.interp(levels, cdf[first], grid[first]) if first.sum() > 1 else grid[0]
+    return out
+
+
+class ColourClasses(BaseEstimator):
+    """The exemplar's colours in a few classes, each with its own histograms (ours).
+
+    Parameters
+    ----------
+    n_classes : int, default=4
+
+    Attributes
+    ----------
+    centres_ : ndarray, shape (n_classes, C)
+        Class centres (:func:`colour_classes`); a pixel belongs to the nearest.
+    shares_ : ndarray, shape (n_classes,)
+        The exemplar's share of each class.
+    quantiles_ : ndarray, shape (n_classes, C, 257)
+        Each class's quantiles of each colour channel (the colour matching's targets).
+    refine_quantiles_ : ndarray, shape (n_classes, C, 257)
+        The same of the refinement's decorrelated channels (:mod:`tghop.refine`).
+    separation_ : ndarray, shape (1,)
+        How distinct the classes are (:func:`class_separation`): 1 for separate colours
+        (stripes, tiles and joints), 0 for a continuum cut into classes.
+    """
+
+    def __init__(self, n_classes=4):
+        self.n_classes = n_classes
+
+    def fit(self, image, bands, *, exclude=None):
+        """Fit on ``image`` (H, W, C) in [0, 1], without the pixels where ``exclude`` (H, W)
+        is true; ``bands``: the fitted :class:`tghop.refine.BandStatistics` (its colour
+        axes). Measured on a strided subset of about 65,536 pixels. Returns self."""
+        image = np.asarray(image)
+        pixels = (image if exclude is None else image[~exclude]).reshape(-1, image.shape[-1])
+        pixels = np.ascontiguousarray(_strided(pixels, CLASS_PIXELS), dtype=np.float64)
+        k = int(self.n_classes)
+        self.centres_ = colour_classes(pixels, k)
+        labels = class_labels(pixels, self.centres_)
+        self.shares_ = np.bincount(labels, minlength=k) / len(labels)
+        self.quantiles_ = class_quantiles(pixels, labels, k)
+        self.refine_quantiles_ = class_quantiles(bands.to_decorrelated(pixels), labels, k)
+        self.separation_ = np.array([class_separation(pixels, self.centres_)])
+        return self
+
+    def targets(self, image, *, own_shares=1.0):
+        """The histograms to give ``image`` (H, W, C): the classes' mixed in shares moved
+        ``own_shares`` times the classes' separation of the way from the exemplar's towards
+        the image's own (a continuum cut into classes keeps the exemplar's histograms: there
+        the shares are the image's tone, which matching should correct).
+
+        Returns
+        -------
+        (ndarray, ndarray), shapes (C, 257) and (C, 257)
+            Quantiles of the refinement's decorrelated channels and of the colours.
+        """
+        weight = self.weight(own_shares)
+        shares = (1.0 - weight) * self.shares_ + weight * class_shares(image, self.centres_)
+        return mixed_quantiles(self.refine_quantiles_, shares), mixed_quantiles(self.quantiles_, shares)
+
+    def weight(self, own_shares) -> float:
+        """How far :meth:`targets` moves the shares towards an image's own: ``own_shares``
+        times the separation (0: the exemplar's histograms, which a model without classes
+        matches; :meth:`tghop.synthesis.TGHop.synthesize` then uses those)."""
+        check_is_fitted(self, "centres_")
+        return float(own_shares) * float(self.separation_[0])
+
+    _ARRAYS = (("colour.centres", "centres_"), ("colour.shares", "shares_"),
+               ("colour.class_quantiles", "quantiles_"), ("refine.class_quantiles", "refine_quantiles_"),
+               ("colour.separation", "separation_"))
+
+    def _to_arrays(self) -> dict:
+        check_is_fitted(self, "centres_")
+        return {name: getattr(self, attr) for name, attr in self._ARRAYS}
+
+    def _from_arrays(self, arrays):
+        for name, attr in self._ARRAYS:
+            setattr(self, attr, arrays[name].astype(np.float64, copy=False))
+        return self
+
+    def _array_specs(self, c):
+        """The arrays of ``c`` colour channels, for the checks of :mod:`tghop.modelfile`."""
+        k = int(self.n_classes)
+        says = f"the metadata says {k} colour classes of {c} channels"
+        return (("colour.centres", (k, c), "f", says, (("range", 0.0, 1.0),)),
+                ("colour.shares", (k,), "f", says, (("range", 0.0, 1.0), ("sum", 1.0, 1e-6))),
+                ("colour.class_quantiles", (k, c, "Qc"), "f", says, (("range", 0.0, 1.0), ("nondecreasing",))),
+                ("refine.class_quantiles", (k, c, "Qc"), "f", says, (("nondecreasing",),)),
+                ("colour.separation", (1,), "f", says, (("range", 0.0, 1.0),)))

@@ -21,7 +21,7 @@ from .patches import depth_to_space, space_to_depth
 from .saab import Saab, select_channels
 from .settings import check_channel_rule
 
-__all__ = ["Hop", "HopStack"]
+__all__ = ["Hop", "HopStack", "stage_views"]
 
 
 class Hop(TransformerMixin, BaseEstimator):
@@ -503,3 +503,32 @@ class HopStack(TransformerMixin, BaseEstimator):
         for hop in reversed(self.hops_):
             spaces.append(hop.inverse_transform(spaces[-1]))
         return spaces if return_all else spaces[-1]
+
+
+def stage_views(spaces, n_colours):
+    """The three views of the paper's Fig. 6 for generated samples.
+
+    Parameters
+    ----------
+    spaces : list of ndarray
+        ``[Sn, ..., S1, S0]`` as :meth:`tghop.TGHop.decode` returns with ``return_stages``.
+    n_colours : int
+        Colour channels of the exemplar.
+
+    Returns
+    -------
+    dict of ndarray
+        ``"core_dc"`` (n, h, w): the DC map in the core (the channel that descends
+        from the DC of every hop, a grey low-resolution pattern); ``"S1_dc"`` (n, 2h,
+        2w) etc.: the DC map in each intermediate space; ``"S0"`` (n, P, P, C): the
+        patch. DC maps are divided by their DC gain, so they are in pixel units.
+    """
+    views = {}
+    n_hops = len(spaces) - 1
+    for level, space in zip(range(n_hops, 0, -1), spaces[:-1]):
+        # DC channel of the hop: index 0 (DC is kept first in every group).
+        gain = np.sqrt(4.0 ** level * n_colours)  # a DC kernel has entries 1/sqrt(block size)
+        name = "core_dc" if level == n_hops else f"S{level}_dc"
+        views[name] = space[..., 0] / gain
+    views["S0"] = np.clip(spaces[-1], 0.0, 1.0)
+    return views

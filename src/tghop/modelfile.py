@@ -39,21 +39,23 @@ from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
 __all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 8  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+FORMAT_VERSION = 9  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: tghop 0.14's patch refinement statistics (patch.rotations, patch.quantiles: 5x5 patches on
 # random rotations; read without them, with a warning); 5: the sliced Wasserstein statistics
 # (patch.directions, patch.quantiles) and whole materials (below); 6: their quantiles' levels
 # (patch.levels; version 5 files are read as evenly spaced); 7: the core model's norm quantiles
 # (ichm_iv.*, setting norm_match; older files read as norm_match 0); 8: its members' ranks for
 # coupled draws (ichm_coupling.member_ranks, index.ichm_member_counts; setting coupling; older files
-# read as coupling 0); files without patch statistics, norm quantiles, ranks or a material are
-# written as version 3, which older tghop reads
+# read as coupling 0); 9: colour classes (colour.centres, colour.shares, colour.class_quantiles,
+# refine.class_quantiles; setting colour_classes; older files read as colour_classes 0); files
+# without patch statistics, norm quantiles, ranks, colour classes or a material are written as
+# version 3, which older tghop reads
 #: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
 #: each map's statistics as material.<name>.*) are version 5 or later, so that an older tghop
 #: refuses them by their version.
 MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8)
+READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9)
 
 
 def save_model(model, path) -> None:
@@ -61,7 +63,7 @@ def save_model(model, path) -> None:
     arrays = model._to_arrays()  # NotFittedError before anything else
     meta = {"format": FORMAT, "tghop_version": __version__, **model._state_meta()}
     new = "material" in meta or any(name.startswith("patch.") or "ichm_iv." in name or "ichm_coupling." in name
-                                   for name in arrays)
+                                   or name.endswith("colour.centres") for name in arrays)
     meta["format_version"] = FORMAT_VERSION if new else 3
     arrays["__meta__"] = np.array(json.dumps(meta))
     check_output_path(path, what="model", error=ModelFileError)

@@ -575,7 +575,7 @@ class BandStatistics:
 
 
 def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, dtype=np.float64, threads=None,
-           relaxation=RELAXATION):
+           relaxation=RELAXATION, pixel_quantiles=None):
     """Heeger-Bergen refinement of a synthesised image.
 
     Each round gives every band (every oriented part of it) of the image's Laplacian
@@ -610,6 +610,10 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     relaxation : float
         In (0, 2]: each round but the last moves the image this many times as far as its
         matching asks (:data:`RELAXATION`; 1: plain rounds).
+    pixel_quantiles : ndarray, shape (C, n_quantiles), optional
+        The decorrelated pixels' target quantiles instead of ``stats.pixel_quantiles_``
+        (those of the exemplar's colour classes in an image's shares:
+        :meth:`tghop.colour.ColourClasses.targets`).
 
     Returns
     -------
@@ -642,13 +646,16 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     channels = _decorrelated_channels(stats, image)
     results = [None] * len(channels)
     q = stats.band_quantiles_
+    pixel_q = stats.pixel_quantiles_ if pixel_quantiles is None else np.asarray(pixel_quantiles, dtype=np.float64)
+    if pixel_q.shape != stats.pixel_quantiles_.shape:
+        raise TGHopError(f"refine: pixel_quantiles of shape {pixel_q.shape}, not {stats.pixel_quantiles_.shape}")
 
     def take(k):  # the channel's only reference moves into _refine_channel, which lets go of it early
         x, channels[k] = channels[k], None
         return x
 
     def one(k, on_round=None, fft_workers=1):
-        results[k] = _refine_channel(take(k), q[:, :, k], stats.pixel_quantiles_[k], n_iter=n_iter, mode=mode,
+        results[k] = _refine_channel(take(k), q[:, :, k], pixel_q[k], n_iter=n_iter, mode=mode,
                                      first_level=first_level, on_round=on_round, fft_workers=fft_workers,
                                      relaxation=relaxation)
 
@@ -671,7 +678,7 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
         # one per channel, whose call overhead dominates on small arrays; the same
         # numbers).
         stack = np.stack([take(k) for k in range(n_channels)])
-        results[:] = _refine_channel(stack, q, stats.pixel_quantiles_, n_iter=n_iter, mode=mode,
+        results[:] = _refine_channel(stack, q, pixel_q, n_iter=n_iter, mode=mode,
                                      first_level=first_level, relaxation=relaxation,
                                      on_round=lambda r: report(progress, "refine", r * n_channels, total))
     else:

@@ -97,7 +97,7 @@ def prepare(size, bands, *, region, tile=False):
     prepare_refinement(tuple(shape), bands)
 
 
-def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=5, region=1024, tile=False,
+def match_regions(image, *, bands=None, colour_quantiles=None, pixel_quantiles=None, n_iter=5, region=1024, tile=False,
                   progress=None) -> np.ndarray:
     """Refine and colour-match ``image`` region by region, cross-fading the regions.
 
@@ -109,6 +109,8 @@ def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=5, region=
         The refinement's statistics (None: no refinement).
     colour_quantiles : ndarray, shape (C, n), optional
         The colour matching's (:func:`tghop.colour.match_histograms`; None: none).
+    pixel_quantiles : ndarray, shape (C, n), optional
+        The refinement's pixel targets (``pixel_quantiles`` of :func:`tghop.refine.refine`).
     n_iter : int
         Rounds of the refinement.
     region : int
@@ -135,7 +137,8 @@ def match_regions(image, *, bands=None, colour_quantiles=None, n_iter=5, region=
         y, wy, x, wx = span
         part = image[_index(y, len(wy), h)][:, _index(x, len(wx), w)].astype(np.float32)  # a copy
         if bands is not None and n_iter:
-            part = refine_bands(part, bands, n_iter=n_iter, tile=tile and whole, dtype=np.float32, threads=threads)
+            part = refine_bands(part, bands, n_iter=n_iter, tile=tile and whole, dtype=np.float32, threads=threads,
+                                pixel_quantiles=pixel_quantiles)
         if colour_quantiles is not None:
             part = match_histograms(part, colour_quantiles, out=part)
         return part

@@ -305,6 +305,10 @@ SETTINGS: Tuple[Setting, ...] = (
             "(:mod:`tghop.refine`, ours).", low=1, high=8),
     Setting("band_orientations", 4, "int",
             "Oriented parts per band for the refinement (0: whole Laplacian bands).", low=0, high=8),
+    Setting("colour_classes", 4, "int",
+            "Classes of the exemplar's colours (K-means), each with its own histograms, so that an output "
+            "holding them in other proportions keeps them (ours, with own_shares; 0: none stored, one "
+            "histogram per channel as up to tghop 0.32).", low=0, high=16, paper=0),
     Setting("patch_levels", 4, "int",
             "Pyramid levels whose 5x5 patch distributions (quantiles of their projections on fixed "
             "random directions) are learned for the patch refinement (:mod:`tghop.patch_refine`, ours; "
@@ -378,6 +382,13 @@ SETTINGS: Tuple[Setting, ...] = (
             "cross-faded (ours, :mod:`tghop.regions`): every part of a large image keeps the "
             "exemplar's statistics (None: the whole image at once, as up to tghop 0.16).",
             when="generate", low=256, none_ok=True, paper=None),
+    Setting("own_shares", 0.0, "float",
+            "How far the histograms the refinement and the colour matching give an image follow its own "
+            "shares of the exemplar's colour classes rather than the exemplar's, times how distinct the "
+            "classes are (ours; models fitted with colour_classes): forcing the exemplar's turns the extra "
+            "pixels of a colour the image has too much of into flecks of another (stripes, tiles; try 1), "
+            "but also hides a blur that made too much of a middle tone (text); 0: the exemplar's histograms.",
+            when="generate", low=0, high=1, paper=0.0),
     Setting("layout_refine", 3, "int",
             "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "
             "(models fitted with a layout factor).", when="generate", low=0, high=20),
@@ -418,7 +429,7 @@ def check_settings(values: dict, *, prefix: str = "") -> dict:
 
 #: Settings added after model files had them fixed otherwise: a file without one was fitted
 #: with this value, not the default.
-BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0, "coupling": 0.0}
+BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0, "coupling": 0.0, "colour_classes": 0}
 
 
 def recorded_seed(rng):

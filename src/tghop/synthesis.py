@@ -27,8 +27,8 @@ from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, c
                       report)
 from .core import ICHM
 from .sdr import SpatialReduction
-from .hops import Hop, HopStack
-from .colour import channel_quantiles, match_histograms
+from .hops import Hop, HopStack, stage_views
+from .colour import ColourClasses, channel_quantiles, match_histograms
 from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
 from . import layout
 from .pool import GeneratedPool, on_demand, pool_size
@@ -124,6 +124,8 @@ class TGHop(BaseEstimator):
     exemplar_shape_ : tuple
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
+    classes_ : tghop.colour.ColourClasses or None
+        The exemplar's colour classes and their histograms (``colour_classes``).
     bands_ : tghop.refine.BandStatistics
         The exemplar's band and pixel distributions in its decorrelated colour space, for
         the refinement after stitching.
@@ -140,7 +142,7 @@ class TGHop(BaseEstimator):
                  n_clusters=None, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  max_component_ratio=0.4, norm_match=1.0, coupling=0.95, min_cluster_size=10, reject_threshold=None,
                  ica_max_iter=200, ica_tol=1e-3, residual=False, max_patches=20000, band_levels=4, band_orientations=4,
-                 patch_levels=4, patch_whitening=0.0, layout_factor=3, rng=None):
+                 colour_classes=4, patch_levels=4, patch_whitening=0.0, layout_factor=3, rng=None):
         self.patch_size, self.stride, self.n_channels = patch_size, stride, n_channels
         self.gamma, self.gamma_mode = gamma, gamma_mode
         self.n_clusters, self.n_codewords, self.n_bins = n_clusters, n_codewords, n_bins
@@ -152,7 +154,7 @@ class TGHop(BaseEstimator):
         self.reject_threshold = reject_threshold
         self.ica_max_iter, self.ica_tol = ica_max_iter, ica_tol
         self.residual, self.max_patches, self.band_levels = residual, max_patches, band_levels
-        self.band_orientations, self.patch_levels = band_orientations, patch_levels
+        self.band_orientations, self.colour_classes, self.patch_levels = band_orientations, colour_classes, patch_levels
         self.patch_whitening, self.layout_factor = patch_whitening, layout_factor
         self.rng = rng
 
@@ -233,6 +235,8 @@ class TGHop(BaseEstimator):
         self.colour_quantiles_ = channel_quantiles(image if exclude is None else image[~exclude][:, None, :])
         self.bands_ = BandStatistics(n_levels=self.band_levels,
                                      n_orientations=self.band_orientations).fit(image, exclude=exclude)
+        self.classes_ = ColourClasses(self.colour_classes).fit(image, self.bands_, exclude=exclude) \
+            if self.colour_classes else None
         self.patches_ = fit_patch_statistics(self.patch_levels, image, whitening=self.patch_whitening, exclude=exclude)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
@@ -261,6 +265,7 @@ class TGHop(BaseEstimator):
         out.update(self.sdr_._to_arrays())
         out.update(self.ichm_._to_arrays())
         out["colour.quantiles"] = self.colour_quantiles_
+        out.update(self.classes_._to_arrays() if getattr(self, "classes_", None) is not None else {})
         out.update(self.bands_._to_arrays())
         out.update(self.patches_._to_arrays() if getattr(self, "patches_", None) is not None else {})
         if self.layout_ is not None:  # the coarse model's arrays, prefixed
@@ -305,6 +310,7 @@ class TGHop(BaseEstimator):
         model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
+        model.classes_ = ColourClasses(model.colour_classes)._from_arrays(arrays) if model.colour_classes else None
         model.bands_ = BandStatistics(n_levels=model.band_levels,
                                       n_orientations=model.band_orientations)._from_arrays(arrays)
         model.patches_ = PatchStatistics(model.patch_levels)._from_arrays(arrays) if model.patch_levels else None
@@ -366,6 +372,7 @@ class TGHop(BaseEstimator):
         specs.append(("colour.quantiles", (c, "Qc"), "f", f"the metadata says {c} colour channels",
                       (("dim", 1, 2, None), ("range", 0.0, 1.0), ("nondecreasing",))))
         specs += BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)._array_specs(c)
+        specs += ColourClasses(model.colour_classes)._array_specs(c) if model.colour_classes else ()
         specs += PatchStatistics(model.patch_levels)._array_specs(c, meta) if model.patch_levels else ()
         groups = [(prefix, tuple(specs))]
         layout_meta = meta.get("layout")
@@ -558,31 +565,9 @@ class TGHop(BaseEstimator):
         return GeneratedPool(self, *self.sample_vectors(n, rng, dtype)).all()
 
     def stage_views(self, spaces):
-        """The three views of the paper's Fig. 6 for generated samples.
-
-        Parameters
-        ----------
-        spaces : list of ndarray
-            ``[Sn, ..., S1, S0]`` as returned by :meth:`decode` with ``return_stages``.
-
-        Returns
-        -------
-        dict of ndarray
-            ``"core_dc"`` (n, h, w): the DC map in the core (the channel that descends
-            from the DC of every hop, a grey low-resolution pattern); ``"S1_dc"`` (n, 2h,
-            2w) etc.: the DC map in each intermediate space; ``"S0"`` (n, P, P, C): the
-            patch. DC maps are divided by their DC gain, so they are in pixel units.
-        """
-        views = {}
-        n_hops = len(self.hops_.hops_)
-        c_in = self.exemplar_shape_[2]
-        for level, space in zip(range(n_hops, 0, -1), spaces[:-1]):
-            # DC channel of the hop: index 0 (DC is kept first in every group).
-            gain = np.sqrt(4.0 ** level * c_in)  # a DC kernel has entries 1/sqrt(block size)
-            name = "core_dc" if level == n_hops else f"S{level}_dc"
-            views[name] = space[..., 0] / gain
-        views["S0"] = np.clip(spaces[-1], 0.0, 1.0)
-        return views
+        """The three views of the paper's Fig. 6 for generated samples: :func:`tghop.hops.stage_views`
+        of ``spaces`` (``[Sn, ..., S1, S0]`` from :meth:`decode` with ``return_stages``)."""
+        return stage_views(spaces, self.exemplar_shape_[2])
 
     def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):
         """A new pool of ``n_patches`` (float32) made ready for quilting (:func:`tghop.quilting.prepare_pool`).
@@ -601,7 +586,7 @@ class TGHop(BaseEstimator):
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
                    patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
-                   progress=None, dtype=np.float64):
+                   own_shares=0.0, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -656,6 +641,11 @@ class TGHop(BaseEstimator):
             guide), each seam edge's step averaged over a square of this side; 0: off.
         region : int or None
             Side of the regions refined and colour-matched apart in large images (:mod:`tghop.regions`).
+        own_shares : float
+            In [0, 1]: how far the histograms the refinement and the colour matching give the
+            image follow its own shares of the exemplar's colour classes, from the exemplar's
+            (0), times the classes' separation (models fitted with ``colour_classes``;
+            :class:`tghop.colour.ColourClasses`).
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
             "patch refine" and "colour".
@@ -677,7 +667,7 @@ class TGHop(BaseEstimator):
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
             patch_refine=patch_refine, patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block,
-            seam_window=seam_window, region=region))
+            seam_window=seam_window, region=region, own_shares=own_shares))
         regions = (refine or match_colours) and n_regions(size, checked["region"], tile=tile) != (1, 1)
         n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
@@ -713,14 +703,19 @@ class TGHop(BaseEstimator):
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
         if checked["seam_window"]:  # (image, steps)
             image = remove_seams(*image, window=checked["seam_window"], out=image[0])
+        # The histograms to match: of the exemplar's colour classes in shares towards the quilt's.
+        classes = getattr(self, "classes_", None) if refine or match_colours else None
+        classes = classes if classes is not None and classes.weight(checked["own_shares"]) else None
+        pixel_q, colour_q = (self.bands_.pixel_quantiles_, self.colour_quantiles_) if classes is None else \
+            classes.targets(image, own_shares=checked["own_shares"])
         if regions:  # refined and colour-matched here; float32
             image = match_regions(image, bands=self.bands_ if refine else None, n_iter=refine, tile=tile,
-                                  colour_quantiles=self.colour_quantiles_ if match_colours else None,
+                                  colour_quantiles=colour_q if match_colours else None, pixel_quantiles=pixel_q,
                                   region=checked["region"], progress=progress)
             refine = match_colours = 0
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
-                                 dtype=np.float64 if dtype == np.float64 else np.float32)
+                                 dtype=np.float64 if dtype == np.float64 else np.float32, pixel_quantiles=pixel_q)
         n_steps = steps_for(checked["patch_refine"], image.shape[:2])
         patches = n_steps and getattr(self, "patches_", None) is not None
         final, dtype = dtype, np.dtype(np.float32) if patches else dtype  # ours, last: colours in float32 first
@@ -734,7 +729,7 @@ class TGHop(BaseEstimator):
         else:
             report(progress, "colour", 0, 1)
             out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
-            image = match_histograms(image, self.colour_quantiles_, out=out)
+            image = match_histograms(image, colour_q, out=out)
         if patches:
             image = refine_image(image, self.patches_, n_steps=n_steps, stride=checked["patch_stride"],
                                  tile=tile, dtype=final, progress=progress)
@@ -832,6 +827,7 @@ class CoarseLayout(BaseEstimator):
         self.model_ = TGHop(
             patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
             max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None, patch_levels=0,
+            colour_classes=0,
             rng=check_rng(self.rng), **training,
         ).fit(small, exclude=small_exclude)
         return self

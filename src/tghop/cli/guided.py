@@ -59,7 +59,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     from ..imageio import save_image
     from .options import FIT_OPTION_PARAMS, given_options
 
-    refused = given_options(ctx, ["patch_refine", "patch_stride", "region"])
+    refused = given_options(ctx, ["patch_refine", "patch_stride", "region", "own_shares"])
     if ctx.params.get("quality") not in (None, "default"):  # a preset of the patch refinement
         refused.append(f"--quality {ctx.params['quality']}")
     if refused:
@@ -67,6 +67,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     generation.pop("patch_refine", None)
     generation.pop("patch_stride", None)
     generation.pop("region", None)  # each texture's own statistics already vary over the image
+    generation.pop("own_shares", None)  # (and are matched as they are there)
     if save_model:
         raise TGHopError("--save-model takes one exemplar; save each model with 'tghop fit' and give the .npz files")
     if exclude:

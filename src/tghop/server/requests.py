@@ -161,7 +161,8 @@ def parse_guided(body) -> tuple:
         transition = _integer("transition", body.pop("transition", 32), 0, MAX_TRANSITION)
     except TGHopError as exc:
         raise RequestError(422, str(exc)) from None
-    size, seed, settings = parse_generation(body, skip=("patch_refine", "patch_stride", "quality", "region"),
+    size, seed, settings = parse_generation(body,
+                                            skip=("patch_refine", "patch_stride", "quality", "region", "own_shares"),
                                             default_size=None if guide is not None else (256, 256),
                                             what="/api/images/guided")
     return ids, guide, size, seed, transition, settings
@@ -183,6 +184,7 @@ def parse_morph(body) -> tuple:
         stations = _integer("stations", body.pop("stations", None), 2, 256, none_ok=True)
     except TGHopError as exc:
         raise RequestError(422, str(exc)) from None
-    size, seed, settings = parse_generation(body, skip=("patch_refine", "patch_stride", "quality", "tile", "region"),
+    size, seed, settings = parse_generation(body, skip=("patch_refine", "patch_stride", "quality", "tile", "region",
+                                                        "own_shares"),
                                             default_size=(256, 1024), what="/api/images/morph")
     return ids[0], ids[1], size, seed, stations, settings

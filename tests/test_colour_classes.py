@@ -1,0 +1,101 @@
+"""Colour classes (tghop.colour.ColourClasses): histograms that keep an image's own share of each colour."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tghop.colour import (ColourClasses, channel_quantiles, class_separation, class_shares, colour_classes,
+                          match_histograms, mixed_quantiles)
+from tghop.refine import BandStatistics
+
+
+def two_colours(rng, grey_share, shape=(64, 64)):
+    """Grey (0.5) and white (0.9) pixels with a little noise, ``grey_share`` of them grey."""
+    grey = rng.random(shape) < grey_share
+    img = np.where(grey[..., None], 0.5, 0.9) + rng.normal(0, 0.03, shape + (3,))
+    return np.clip(img, 0, 1), grey
+
+
+def test_classes_are_found_the_same_every_time_and_in_order(rng):
+    centres = np.array([[0.1, 0.2, 0.3], [0.5, 0.5, 0.5], [0.9, 0.8, 0.7]])
+    pixels = centres[rng.integers(0, 3, 5000)] + rng.normal(0, 0.02, (5000, 3))
+    found = colour_classes(pixels, 3)
+    np.testing.assert_allclose(found, centres, atol=0.01)  # sorted along the first principal axis
+    np.testing.assert_array_equal(colour_classes(pixels, 3), found)
+    with pytest.raises(Exception, match="2 pixels for 3 classes"):
+        colour_classes(pixels[:2], 3)
+
+
+def test_separate_colours_are_told_from_a_continuum(rng):
+    # A continuum cut into classes: its shares are an image's tone, which matching corrects.
+    continuum = rng.random((20000, 3))
+    assert class_separation(continuum, colour_classes(continuum, 4)) == 0.0
+    grey = rng.normal(0.5, 0.15, (20000, 1)) * np.ones(3)
+    assert class_separation(grey, colour_classes(grey, 4)) == 0.0
+    separate, _ = two_colours(rng, 0.4)
+    pixels = separate.reshape(-1, 3)
+    assert class_separation(pixels, colour_classes(pixels, 2)) == 1.0
+    four = np.array([[0.1] * 3, [0.4] * 3, [0.7, 0.2, 0.2], [0.9] * 3])[rng.integers(0, 4, 20000)]
+    four += rng.normal(0, 0.02, four.shape)
+    assert class_separation(four, colour_classes(four, 4)) == 1.0
+
+
+def test_the_exemplars_own_shares_give_its_histograms(rng):
+    exemplar, _ = two_colours(rng, 0.4)
+    classes = ColourClasses(2).fit(exemplar, BandStatistics().fit(exemplar))
+    np.testing.assert_allclose(classes.shares_, [0.4, 0.6], atol=0.02)
+    assert classes.separation_[0] == 1.0
+    np.testing.assert_allclose(class_shares(exemplar, classes.centres_), classes.shares_, atol=1e-9)
+    # The mixture in the exemplar's shares is the exemplar's overall distribution: it maps an
+    # image as the exemplar's own quantiles do (but for the odd pixel at the jump between colours).
+    mixed = mixed_quantiles(classes.quantiles_, classes.shares_)
+    image, _ = two_colours(rng, 0.7)
+    difference = np.abs(match_histograms(image, mixed) - match_histograms(image, channel_quantiles(exemplar)))
+    assert np.median(difference) < 0.002 and np.mean(difference > 0.05) < 0.01
+
+
+@pytest.mark.parametrize("own_shares, most_turned", [(0.0, 1.0), (0.5, 0.6), (1.0, 0.05)])
+def test_an_image_with_too_much_grey_keeps_its_grey(rng, own_shares, most_turned):
+    # Matching the whole histogram of an image with 70 % grey to an exemplar with 40 % turns
+    # its brightest greys white (the flecks); the classes' histograms in the image's own
+    # shares leave them grey.
+    exemplar, _ = two_colours(rng, 0.4)
+    classes = ColourClasses(2).fit(exemplar, BandStatistics().fit(exemplar))
+    image, grey = two_colours(rng, 0.7)
+    matched = match_histograms(image, classes.targets(image, own_shares=own_shares)[1])
+    turned = (matched[grey].mean(axis=1) > 0.7).mean()  # greys made white, of all greys
+    assert turned <= most_turned * (0.7 - 0.4) / 0.7 + 0.01
+    if own_shares == 0:  # the exemplar's histograms: 30 of the 70 % grey become white
+        difference = np.abs(matched - match_histograms(image, channel_quantiles(exemplar)))
+        assert np.median(difference) < 0.002 and np.mean(difference > 0.05) < 0.01
+        assert turned > 0.25  # each channel on its own: some greys get one or two white channels only
+
+
+def test_refine_takes_the_classes_targets(rng):
+    from tghop.refine import refine
+
+    exemplar, _ = two_colours(rng, 0.4)
+    bands = BandStatistics().fit(exemplar)
+    classes = ColourClasses(2).fit(exemplar, bands)
+    image, grey = two_colours(rng, 0.7)
+    pixel_q = classes.targets(image, own_shares=1.0)[0]
+    kept = refine(image, bands, n_iter=2, pixel_quantiles=pixel_q)
+    forced = refine(image, bands, n_iter=2)
+    assert (kept[grey].mean(axis=1) > 0.7).mean() < 0.05 < 0.3 < (forced[grey].mean(axis=1) > 0.7).mean()
+    with pytest.raises(Exception, match="pixel_quantiles of shape"):
+        refine(image, bands, n_iter=1, pixel_quantiles=pixel_q[:2])
+
+
+def test_a_model_uses_its_classes_only_with_own_shares(small_model):
+    assert small_model.classes_.centres_.shape == (4, 3)
+    a = small_model.synthesize((48, 48), rng=3, n_patches=200, own_shares=1.0)
+    assert np.array_equal(a, small_model.synthesize((48, 48), rng=3, n_patches=200, own_shares=1.0))
+    saved = small_model.classes_
+    try:
+        small_model.classes_ = None  # a model without classes: the exemplar's histograms
+        plain = small_model.synthesize((48, 48), rng=3, n_patches=200)
+    finally:
+        small_model.classes_ = saved
+    assert np.array_equal(small_model.synthesize((48, 48), rng=3, n_patches=200), plain)  # the default: 0
+    assert not np.array_equal(a, plain)
