@@ -123,6 +123,22 @@ class TransformerMixin:
         return tags
 
 
+class StoredArrays:
+    """Mixin: fitted float arrays to and from a model file, as ``_ARRAYS`` lists them
+    ((file name, attribute), ...); read back as float64."""
+
+    _ARRAYS: tuple = ()
+
+    def _to_arrays(self) -> dict:
+        return {name: getattr(self, attr) for name, attr in self._ARRAYS}
+
+    def _from_arrays(self, arrays):
+        """Restore the fitted state from :meth:`_to_arrays` output; returns self."""
+        for name, attr in self._ARRAYS:
+            setattr(self, attr, arrays[name].astype(np.float64, copy=False))
+        return self
+
+
 def check_is_fitted(estimator, attributes) -> None:
     """Raise :class:`NotFittedError` unless ``estimator`` has every attribute in ``attributes``."""
     names = [attributes] if isinstance(attributes, str) else list(attributes)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import BaseEstimator, TGHopError, check_is_fitted, usable_cores
+from ._common import BaseEstimator, StoredArrays, TGHopError, check_is_fitted, usable_cores
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasses", "colour_classes", "class_labels",
            "class_quantiles", "class_separation", "class_shares", "mixed_quantiles"]
@@ -279,7 +279,7 @@ def mixed_quantiles(class_q, shares) -> np.ndarray:
     return out
 
 
-class ColourClasses(BaseEstimator):
+class ColourClasses(StoredArrays, BaseEstimator):
     """The exemplar's colours in a few classes, each with its own histograms (ours).
 
     Parameters
@@ -345,15 +345,6 @@ class ColourClasses(BaseEstimator):
     _ARRAYS = (("colour.centres", "centres_"), ("colour.shares", "shares_"),
                ("colour.class_quantiles", "quantiles_"), ("refine.class_quantiles", "refine_quantiles_"),
                ("colour.separation", "separation_"))
-
-    def _to_arrays(self) -> dict:
-        check_is_fitted(self, "centres_")
-        return {name: getattr(self, attr) for name, attr in self._ARRAYS}
-
-    def _from_arrays(self, arrays):
-        for name, attr in self._ARRAYS:
-            setattr(self, attr, arrays[name].astype(np.float64, copy=False))
-        return self
 
     def _array_specs(self, c):
         """The arrays of ``c`` colour channels, for the checks of :mod:`tghop.modelfile`."""

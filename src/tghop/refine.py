@@ -23,7 +23,7 @@ import numbers
 
 import numpy as np
 
-from ._common import TGHopError, check_size, report, usable_cores
+from ._common import StoredArrays, TGHopError, check_size, report, usable_cores
 from ._fft import fft_for
 from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
@@ -443,7 +443,7 @@ def _match_oriented(band, band_q, levels, *, workers=1):
     return band
 
 
-class BandStatistics:
+class BandStatistics(StoredArrays):
     """What the refinement learns from the exemplar.
 
     Parameters
@@ -532,15 +532,6 @@ class BandStatistics:
     #: Fitted arrays in model files: (file name, attribute).
     _ARRAYS = (("refine.colour_mean", "colour_mean_"), ("refine.colour_basis", "colour_basis_"),
                ("refine.band_quantiles", "band_quantiles_"), ("refine.pixel_quantiles", "pixel_quantiles_"))
-
-    def _to_arrays(self) -> dict:
-        return {name: getattr(self, attr) for name, attr in self._ARRAYS}
-
-    def _from_arrays(self, arrays):
-        """Restore the fitted state from :meth:`_to_arrays` output; returns self."""
-        for name, attr in self._ARRAYS:
-            setattr(self, attr, arrays[name].astype(np.float64, copy=False))
-        return self
 
     def _array_specs(self, c):
         """The arrays of statistics of ``c`` colour channels for the checks of
