@@ -290,7 +290,7 @@ def test_without_dask_one_line_and_workers_1_still_works(tmp_path):
     assert not (tmp_path / "out" / "batch.jsonl").exists()
     p = _run_cli(["batch", "src", "-o", "out", "--workers", "1", "-q"], tmp_path, block_dask=True)
     _, err = p.communicate(timeout=120)
-    assert_one_line(p.returncode, err.decode(), "1 of 1 exemplars failed", "flat")
+    assert_one_line(p.returncode, err.decode(), "1 of 1 exemplar failed", "flat")
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])
@@ -454,7 +454,7 @@ def test_with_no_retries_a_dying_worker_fails_only_its_own_exemplar(tmp_path):
         save_image(data.bricks(64, rng=i) if i % 2 else data.cells(64, rng=i), src / f"{name}.png")
     results = run(src, out, workers=2, retries=0, task=crash_on_a)
     assert [r["status"] for r in results] == ["failed", "ok", "ok", "ok"], results
-    assert "died on every try" in results[0]["error"] and "1 tries" in results[0]["error"]
+    assert "died on every try" in results[0]["error"] and "; 1 try on" in results[0]["error"]
     assert not leftovers(out)
 
 
