@@ -10,9 +10,14 @@ from tghop.colour import (ColourClasses, channel_quantiles, class_separation, cl
 from tghop.refine import BandStatistics
 
 
-def two_colours(rng, grey_share, shape=(64, 64)):
-    """Grey (0.5) and white (0.9) pixels with a little noise, ``grey_share`` of them grey."""
-    grey = rng.random(shape) < grey_share
+def two_colours(rng, grey_share, shape=(64, 64), stripes=True):
+    """Grey (0.5) and white (0.9) pixels with a little noise, ``grey_share`` of them grey: in
+    two wide stripes (crops of it hold other shares) or, ``stripes`` False, pixel by pixel."""
+    if stripes:
+        rows = np.arange(shape[0]) < shape[0] * grey_share
+        grey = np.repeat(rows[:, None], shape[1], axis=1)
+    else:
+        grey = rng.random(shape) < grey_share
     img = np.where(grey[..., None], 0.5, 0.9) + rng.normal(0, 0.03, shape + (3,))
     return np.clip(img, 0, 1), grey
 
@@ -72,6 +77,20 @@ def test_an_image_with_too_much_grey_keeps_its_grey(rng, own_shares, most_turned
         assert turned > 0.25  # each channel on its own: some greys get one or two white channels only
 
 
+def test_shares_move_only_as_far_as_the_exemplars_crops_vary(rng):
+    # Pixel by pixel the exemplar's crops all hold 40 % grey: an image with 70 % (a blur's
+    # bias, as on text) is given the exemplar's histograms; a striped one's crops vary by
+    # a stripe, and an image of it keeps its own shares.
+    image, _ = two_colours(rng, 0.7, stripes=False)
+    for stripes, moved in ((False, (0.0, 0.06)), (True, (0.25, 0.31))):
+        exemplar, _ = two_colours(rng, 0.4, stripes=stripes)
+        classes = ColourClasses(2).fit(exemplar, BandStatistics().fit(exemplar))
+        assert classes.spread_[-1] == 32  # crops of half the side
+        colour_q = classes.targets(image)[1]
+        grey_share = np.mean(match_histograms(image, colour_q).mean(axis=2) < 0.7)
+        assert moved[0] <= grey_share - 0.4 <= moved[1], (stripes, grey_share)
+
+
 def test_refine_takes_the_classes_targets(rng):
     from tghop.refine import refine
 
@@ -89,13 +108,13 @@ def test_refine_takes_the_classes_targets(rng):
 
 def test_a_model_uses_its_classes_only_with_own_shares(small_model):
     assert small_model.classes_.centres_.shape == (4, 3)
-    a = small_model.synthesize((48, 48), rng=3, n_patches=200, own_shares=1.0)
-    assert np.array_equal(a, small_model.synthesize((48, 48), rng=3, n_patches=200, own_shares=1.0))
+    a = small_model.synthesize((48, 48), rng=3, n_patches=200)
+    assert np.array_equal(a, small_model.synthesize((48, 48), rng=3, n_patches=200))
     saved = small_model.classes_
     try:
         small_model.classes_ = None  # a model without classes: the exemplar's histograms
         plain = small_model.synthesize((48, 48), rng=3, n_patches=200)
     finally:
         small_model.classes_ = saved
-    assert np.array_equal(small_model.synthesize((48, 48), rng=3, n_patches=200), plain)  # the default: 0
+    assert np.array_equal(small_model.synthesize((48, 48), rng=3, n_patches=200, own_shares=0.0), plain)
     assert not np.array_equal(a, plain)

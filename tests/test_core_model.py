@@ -349,8 +349,8 @@ def test_parameter_count_matches_stored_arrays(small_model, tmp_path):
     f_, n, w = d["F"], d["N"], d["W"]
     # Rows where the paper's formula is exactly what is stored.
     assert counts["transform stage 1"]["paper"] == counts["transform stage 1"]["stored"] == 12 * k1 + 1
-    assert counts["colour matching (ours)"] == {"formula": "C*257 + K*(C+1+C*257), K colour classes (not in the paper)",
-                                                "paper": 0, "stored": 3 * 257 + 4 * (3 + 1 + 3 * 257)}
+    assert counts["colour matching (ours)"] == {"formula": "C*257 + K*(C+2+C*257) + 2, K colour classes (not in the paper)",
+                                                "paper": 0, "stored": 3 * 257 + 4 * (3 + 2 + 3 * 257) + 2}
     assert counts["core ICHM (i)"]["stored"] == n
     assert counts["core ICHM (iii)"]["paper"] == counts["core ICHM (iii)"]["stored"] == 3 * f_ + 256 * w
     # Documented differences: compact c/w kernels, SDR channel means, cluster means.

@@ -293,8 +293,8 @@ def test_files_without_colour_classes_read_as_fitted(saved, tmp_path):
     del meta["params"]["colour_classes"], meta["layout"]["model"]["params"]["colour_classes"]
     meta["format_version"] = 8
     old_arrays = {k: v for k, v in arrays.items()
-                  if not k.endswith(("class_quantiles", "centres", "shares", "separation"))}
-    assert len(old_arrays) == len(arrays) - 5
+                  if not k.endswith(("class_quantiles", "centres", "shares", "separation", "share_spread"))}
+    assert len(old_arrays) == len(arrays) - 6
     _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
     old = load_model(tmp_path / "old.npz")
     assert old.colour_classes == 0 and old.classes_ is None

@@ -16,7 +16,7 @@ import numpy as np
 from ._common import BaseEstimator, StoredArrays, TGHopError, check_is_fitted, usable_cores
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasses", "colour_classes", "class_labels",
-           "class_quantiles", "class_separation", "class_shares", "mixed_quantiles"]
+           "class_quantiles", "class_separation", "class_shares", "mixed_quantiles", "share_spread"]
 
 #: Quantile levels stored per channel (0, 1/256, ..., 1).
 N_QUANTILES = 257
@@ -238,6 +238,24 @@ def class_separation(pixels, centres) -> float:
     return float(np.clip((_CONTINUOUS - near) / (_CONTINUOUS - _SEPARATE), 0.0, 1.0))
 
 
+#: Crops per side of :func:`share_spread` (a grid of them, overlapping where they must).
+_SPREAD_GRID = 4
+
+
+def share_spread(image, centres) -> np.ndarray:
+    """How much the class shares vary between crops of ``image`` (H, W, C) of half its
+    shorter side, on a 4x4 grid: (K + 1,), each class's standard deviation, then the
+    crops' side (a share's spread in an image of side L is about the crops' times
+    side / L). ``image`` None (an exemplar with a mask): no spread (zeros)."""
+    if image is None:
+        return np.zeros(len(centres) + 1)
+    h, w = image.shape[:2]
+    side = max(1, min(h, w) // 2)
+    starts = [np.linspace(0, n - side, _SPREAD_GRID).round().astype(int) for n in (h, w)]
+    shares = np.array([class_shares(image[y:y + side, x:x + side], centres) for y in starts[0] for x in starts[1]])
+    return np.append(shares.std(axis=0), side)
+
+
 def class_shares(image, centres) -> np.ndarray:
     """The share of each colour class among the pixels of ``image`` (H, W, C) (counted on a
     strided subset of about 65,536 of them): (K,), summing to 1."""
@@ -299,6 +317,9 @@ class ColourClasses(StoredArrays, BaseEstimator):
     separation_ : ndarray, shape (1,)
         How distinct the classes are (:func:`class_separation`): 1 for separate colours
         (stripes, tiles and joints), 0 for a continuum cut into classes.
+    spread_ : ndarray, shape (n_classes + 1,)
+        How much the shares vary between the exemplar's own crops (:func:`share_spread`):
+        each class's standard deviation, then the crops' side.
     """
 
     def __init__(self, n_classes=4):
@@ -318,6 +339,7 @@ class ColourClasses(StoredArrays, BaseEstimator):
         self.quantiles_ = class_quantiles(pixels, labels, k)
         self.refine_quantiles_ = class_quantiles(bands.to_decorrelated(pixels), labels, k)
         self.separation_ = np.array([class_separation(pixels, self.centres_)])
+        self.spread_ = share_spread(image if exclude is None else None, self.centres_)
         return self
 
     def targets(self, image, *, own_shares=1.0):
@@ -332,7 +354,14 @@ class ColourClasses(StoredArrays, BaseEstimator):
             Quantiles of the refinement's decorrelated channels and of the colours.
         """
         weight = self.weight(own_shares)
-        shares = (1.0 - weight) * self.shares_ + weight * class_shares(image, self.centres_)
+        # As far as samples of the exemplar of the image's size would differ (two standard
+        # deviations; a share's spread falls as one over the side): a layout's variation, not
+        # a blur's bias (docs/choices.md, Colour matching, "Colour classes").
+        h, w = np.shape(image)[:2]
+        reach = 2.0 * self.spread_[:-1] * self.spread_[-1] / np.sqrt(h * w)
+        moved = np.clip(class_shares(image, self.centres_) - self.shares_, -reach, reach)
+        shares = np.clip(self.shares_ + weight * moved, 0.0, None)
+        shares /= shares.sum()
         return mixed_quantiles(self.refine_quantiles_, shares), mixed_quantiles(self.quantiles_, shares)
 
     def weight(self, own_shares) -> float:
@@ -344,7 +373,7 @@ class ColourClasses(StoredArrays, BaseEstimator):
 
     _ARRAYS = (("colour.centres", "centres_"), ("colour.shares", "shares_"),
                ("colour.class_quantiles", "quantiles_"), ("refine.class_quantiles", "refine_quantiles_"),
-               ("colour.separation", "separation_"))
+               ("colour.separation", "separation_"), ("colour.share_spread", "spread_"))
 
     def _array_specs(self, c):
         """The arrays of ``c`` colour channels, for the checks of :mod:`tghop.modelfile`."""
@@ -354,4 +383,5 @@ class ColourClasses(StoredArrays, BaseEstimator):
                 ("colour.shares", (k,), "f", says, (("range", 0.0, 1.0), ("sum", 1.0, 1e-6))),
                 ("colour.class_quantiles", (k, c, "Qc"), "f", says, (("range", 0.0, 1.0), ("nondecreasing",))),
                 ("refine.class_quantiles", (k, c, "Qc"), "f", says, (("nondecreasing",),)),
-                ("colour.separation", (1,), "f", says, (("range", 0.0, 1.0),)))
+                ("colour.separation", (1,), "f", says, (("range", 0.0, 1.0),)),
+                ("colour.share_spread", (k + 1,), "f", says, (("range", 0.0, None),)))

@@ -83,7 +83,7 @@ def table4(dims, channels, n_colours, n_bins, sdr_shape, stored) -> dict:
         "core ICHM (ii)": ("F*D_r", f * d_r),
         "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
     }
-    paper["colour matching (ours)"] = ("C*257 + K*(C+1+C*257), K colour classes (not in the paper)", 0)
+    paper["colour matching (ours)"] = ("C*257 + K*(C+2+C*257) + 2, K colour classes (not in the paper)", 0)
     paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
     paper["core norm quantiles (ours)"] = ("2*N*33 (not in the paper)", 0)
     paper["core member ranks (ours)"] = ("members x components, summed over clusters (not in the paper)", 0)

@@ -382,12 +382,12 @@ SETTINGS: Tuple[Setting, ...] = (
             "cross-faded (ours, :mod:`tghop.regions`): every part of a large image keeps the "
             "exemplar's statistics (None: the whole image at once, as up to tghop 0.16).",
             when="generate", low=256, none_ok=True, paper=None),
-    Setting("own_shares", 0.0, "float",
+    Setting("own_shares", 1.0, "float",
             "How far the histograms the refinement and the colour matching give an image follow its own "
             "shares of the exemplar's colour classes rather than the exemplar's, times how distinct the "
-            "classes are (ours; models fitted with colour_classes): forcing the exemplar's turns the extra "
-            "pixels of a colour the image has too much of into flecks of another (stripes, tiles; try 1), "
-            "but also hides a blur that made too much of a middle tone (text); 0: the exemplar's histograms.",
+            "classes are, and only as far as the exemplar's own crops vary (ours; models fitted with "
+            "colour_classes): forcing the exemplar's shares turns the extra pixels of a colour the image "
+            "has too much of into flecks of another; 0: the exemplar's histograms, as up to tghop 0.32.",
             when="generate", low=0, high=1, paper=0.0),
     Setting("layout_refine", 3, "int",
             "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "

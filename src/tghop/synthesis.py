@@ -586,7 +586,7 @@ class TGHop(BaseEstimator):
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
                    patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
-                   own_shares=0.0, progress=None, dtype=np.float64):
+                   own_shares=1.0, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -644,8 +644,8 @@ class TGHop(BaseEstimator):
         own_shares : float
             In [0, 1]: how far the histograms the refinement and the colour matching give the
             image follow its own shares of the exemplar's colour classes, from the exemplar's
-            (0), times the classes' separation (models fitted with ``colour_classes``;
-            :class:`tghop.colour.ColourClasses`).
+            (0), times the classes' separation and within the spread of the exemplar's own
+            crops (models fitted with ``colour_classes``; :class:`tghop.colour.ColourClasses`).
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
             "patch refine" and "colour".
