@@ -406,7 +406,7 @@ def test_fit_is_unchanged_by_the_statistics(patch_model):
 def test_model_file_round_trip(patch_model, tmp_path):
     save_model(patch_model, tmp_path / "m.npz")
     with np.load(tmp_path / "m.npz") as f:
-        assert json.loads(str(f["__meta__"]))["format_version"] == 8
+        assert json.loads(str(f["__meta__"]))["format_version"] == 9
         assert np.array_equal(f["patch.levels"], pr.quantile_levels().astype(np.float32))
     loaded = load_model(tmp_path / "m.npz")
     assert np.array_equal(loaded.synthesize((64, 64), rng=4, patch_refine=3),
@@ -422,8 +422,8 @@ def _rewrite(src, dst, edit):
 
 
 def test_old_files_load_and_damaged_arrays_are_refused(patch_model, tmp_path):
-    save_model(TGHop(**SMALL, patch_levels=0, norm_match=0, coupling=0, layout_factor=None).fit(data.cells(96, rng=3)),
-               tmp_path / "plain.npz")
+    save_model(TGHop(**SMALL, patch_levels=0, norm_match=0, coupling=0, colour_classes=0,
+                     layout_factor=None).fit(data.cells(96, rng=3)), tmp_path / "plain.npz")
     with np.load(tmp_path / "plain.npz") as f:  # nothing new in it: still readable by older tghop
         assert json.loads(str(f["__meta__"]))["format_version"] == 3
 
