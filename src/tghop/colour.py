@@ -191,15 +191,20 @@ def colour_classes(pixels, n_classes, *, n_iter=30) -> np.ndarray:
     return centres[np.argsort((centres - x.mean(axis=0)) @ axis, kind="stable")]
 
 
-def class_labels(pixels, centres) -> np.ndarray:
-    """The nearest centre of each pixel: (n,) int of ``pixels`` (n, C)."""
+def _squared_distances(pixels, centres) -> np.ndarray:
+    """(n, K) squared distances of ``pixels`` (n, C) to ``centres`` (K, C), channel by
+    channel (an (n, C) x (C, K) matrix product with C and K this small is many times slower
+    in BLAS)."""
     pixels = np.asarray(pixels)
-    # Channel by channel (an (n, C) x (C, K) matrix product with C and K this small is
-    # many times slower in BLAS).
     d = np.zeros((len(pixels), len(centres)))
     for ch in range(pixels.shape[1]):
         d += (pixels[:, ch, None] - centres[None, :, ch]) ** 2
-    return np.argmin(d, axis=1)
+    return d
+
+
+def class_labels(pixels, centres) -> np.ndarray:
+    """The nearest centre of each pixel: (n,) int of ``pixels`` (n, C)."""
+    return np.argmin(_squared_distances(pixels, centres), axis=1)
 
 
 def class_quantiles(values, labels, n_classes, n: int = N_QUANTILES) -> np.ndarray:
@@ -227,13 +232,10 @@ def class_separation(pixels, centres) -> float:
     classes: 15 %); separate colours (stripes, tiles and their joints) leave few. The
     separation goes linearly from 1, at 5 % of the pixels or fewer, to 0 at 15 % or more.
     """
-    pixels = np.asarray(pixels, dtype=np.float64)
-    d = np.zeros((len(pixels), len(centres)))
-    for ch in range(pixels.shape[1]):
-        d += (pixels[:, ch, None] - centres[None, :, ch]) ** 2
-    d = np.sqrt(np.partition(d, 1, axis=1)[:, :2]) if len(centres) > 1 else None
-    if d is None:
+    if len(centres) < 2:
         return 0.0
+    d = _squared_distances(np.asarray(pixels, dtype=np.float64), centres)
+    d = np.sqrt(np.partition(d, 1, axis=1)[:, :2])
     near = np.mean((d[:, 1] - d[:, 0]) < _NEAR_MARGIN * (d[:, 1] + d[:, 0]))
     return float(np.clip((_CONTINUOUS - near) / (_CONTINUOUS - _SEPARATE), 0.0, 1.0))
 
