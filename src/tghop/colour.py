@@ -210,11 +210,9 @@ def class_labels(pixels, centres) -> np.ndarray:
 def class_quantiles(values, labels, n_classes, n: int = N_QUANTILES) -> np.ndarray:
     """Quantiles of ``values`` (m, C) within each class of ``labels`` (m,): (n_classes, C, n).
     A class without values gets the quantiles of all of them."""
-    values = np.asarray(values, dtype=np.float64)
-    probs = np.linspace(0.0, 1.0, n)
-    every = np.quantile(values, probs, axis=0).T
-    return np.stack([np.quantile(values[labels == k], probs, axis=0).T if np.any(labels == k) else every
-                     for k in range(n_classes)])
+    values = np.asarray(values, dtype=np.float64)[:, None, :]  # (m, 1, C): an image, for channel_quantiles
+    members = [values[labels == k] for k in range(n_classes)]
+    return np.stack([channel_quantiles(m if len(m) else values, n) for m in members])
 
 
 #: Margins below which a pixel is near the boundary of its class (:func:`class_separation`), and the

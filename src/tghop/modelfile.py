@@ -47,9 +47,9 @@ FORMAT_VERSION = 9  # 2: refinement statistics (refine.*); 3: float16 mixing row
 # (ichm_iv.*, setting norm_match; older files read as norm_match 0); 8: its members' ranks for
 # coupled draws (ichm_coupling.member_ranks, index.ichm_member_counts; setting coupling; older files
 # read as coupling 0); 9: colour classes (colour.centres, colour.shares, colour.class_quantiles,
-# refine.class_quantiles; setting colour_classes; older files read as colour_classes 0); files
-# without patch statistics, norm quantiles, ranks, colour classes or a material are written as
-# version 3, which older tghop reads
+# refine.class_quantiles, colour.separation, colour.share_spread; setting colour_classes; older
+# files read as colour_classes 0); files without patch statistics, norm quantiles, ranks, colour
+# classes or a material are written as version 3, which older tghop reads
 #: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
 #: each map's statistics as material.<name>.*) are version 5 or later, so that an older tghop
 #: refuses them by their version.
