@@ -2,15 +2,19 @@
 
 Every exemplar (``../shared/textures``; larger than 512 px: its centre 256x256, as in
 ``bench_paper.py``) is fitted once per distinct fit setting; each variant then makes a
-256x256 image with seed 0 and one with seed 1, and ``tghop.metrics`` scores both against
-the exemplar (SIFID, SWD, co-occurrence, copied, copied_textured) plus the diversity
-between the two. The table gives medians over exemplars (of the two seeds' mean), the
-maxima of ``copied`` and ``copied_textured`` (issue #25: median <= 0.02, maximum <= 0.10),
-and the fit and per-image times.
+256x256 image with seed 0 and one with seed 1 (``--seeds``: others, or more), and
+``tghop.metrics`` scores each against the exemplar (SIFID, SWD, co-occurrence, copied,
+copied_textured) plus the diversity between them. The table gives medians over exemplars
+(of the seeds' mean), the maxima of ``copied`` and ``copied_textured`` (issue #25: median
+<= 0.02, maximum <= 0.10), and the fit and per-image times; a second table compares each
+variant with the first, exemplar by exemplar (geometric mean of the ratios, how many got
+better, the largest changes): a variant that changes the layout moves single exemplars by
+10-20 % by chance with two seeds, so look there before at the medians.
 
     python benchmarks/bench_quality.py                                 # all exemplars, paper + default
     python benchmarks/bench_quality.py --textures knit,brick_wall --variants default
     python benchmarks/bench_quality.py --variant 'n100:fit.n_clusters=100'  # an ad-hoc variant
+    python benchmarks/bench_quality.py --variants default --variant 'o8:synth.overlap=8' --seeds 0,1,2,3
     python benchmarks/bench_quality.py --ust knit,brick_wall --ust-size 128 --ust-iterations 100
 
 A variant is ``name:fit.KEY=VALUE,synth.KEY=VALUE,...`` (VALUE a Python literal), or one
@@ -133,8 +137,8 @@ def _init_worker():
         pass
 
 
-def task(name, variants, size, metrics, sheets, fit_seed=0):
-    """Fit ``name`` once per distinct fit setting (seed ``fit_seed``), run every variant with seeds 0 and 1, score."""
+def task(name, variants, size, metrics, sheets, fit_seed=0, seeds=(0, 1)):
+    """Fit ``name`` once per distinct fit setting (seed ``fit_seed``), run every variant with ``seeds``, score."""
     from tghop import TGHop
     from tghop.metrics import diversity
 
@@ -148,7 +152,7 @@ def task(name, variants, size, metrics, sheets, fit_seed=0):
             models[key] = (TGHop(**kw, rng=fit_seed).fit(exemplar), time.perf_counter() - t)
         model, fit_s = models[key]
         results, synth_s = [], []
-        for seed in (0, 1):
+        for seed in seeds:
             t = time.perf_counter()
             results.append(model.synthesize(size, rng=seed, **synth_kwargs(synth_kw)))
             synth_s.append(time.perf_counter() - t)
@@ -203,6 +207,40 @@ def medians(entries, vname, metrics):
     return med
 
 
+def _seeds(text):
+    try:
+        seeds = tuple(int(s) for s in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seeds must be comma-separated integers, got {text!r}")
+    if len(seeds) < 2 or len(set(seeds)) < len(seeds) or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"give at least two distinct seeds of at least 0, got {text!r}")
+    return seeds
+
+
+def against_first(entries, names, metrics, n_named=3):
+    """Rows comparing each variant after the first with the first, exemplar by exemplar, in the
+    metrics where lower is better (SIFID, SWD, co-occurrence): the geometric mean of the ratios,
+    how many exemplars got better, and the ``n_named`` largest gains and losses."""
+    rows = []
+    for vname in names[1:]:
+        for m in (m for m in ("sifid", "swd", "cooccurrence") if m in metrics):
+            pairs = [(e["texture"], e["variants"][names[0]][m], e["variants"][vname][m]) for e in entries
+                     if names[0] in e["variants"] and vname in e["variants"]]
+            pairs = [(t, a, b) for t, a, b in pairs if a > 0 and b > 0]
+            if not pairs:
+                continue
+            ratio = sorted((b / a, t, a, b) for t, a, b in pairs)
+            geo = float(np.exp(np.mean([np.log(r[0]) for r in ratio])))
+            better = sum(r[0] < 1 for r in ratio)
+
+            def named(rs):
+                return ", ".join(f"{t} {a:.3g} -> {b:.3g}" for _, t, a, b in rs)
+
+            rows.append([vname, m, geo, f"{better} of {len(ratio)}", named([r for r in ratio[:n_named] if r[0] < 1]),
+                         named([r for r in ratio[::-1][:n_named] if r[0] > 1])])
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--textures", default=None, help="comma-separated exemplar names (default: all)")
@@ -213,6 +251,8 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--fit-seed", type=int, default=0,
                     help="the models' seed (default 0); another shows a refit's spread (large on a few exemplars)")
+    ap.add_argument("--seeds", default="0,1", type=_seeds,
+                    help="comma-separated generation seeds, at least two (default 0,1); more lower the noise")
     ap.add_argument("--sheets", action="store_true", help="one sheet per exemplar")
     ap.add_argument("--tag", default="", help="suffix of the result files")
     ap.add_argument("--ust", default="", help="exemplars for the Ustyuzhaninov comparison (comma-separated)")
@@ -234,7 +274,7 @@ def main(argv=None):
 
     entries, ust_rows, failed = [], [], {}
     with ProcessPoolExecutor(max_workers=args.jobs, initializer=_init_worker) as pool:
-        futures = {pool.submit(task, n, variants, size, metrics, sheets, args.fit_seed): n for n in names}
+        futures = {pool.submit(task, n, variants, size, metrics, sheets, args.fit_seed, args.seeds): n for n in names}
         futures.update({pool.submit(ust_task, n, variants, args.ust_size, args.ust_iterations, metrics): f"ust:{n}"
                         for n in filter(None, args.ust.split(","))})
         for fut in as_completed(futures):
@@ -261,8 +301,14 @@ def main(argv=None):
         summary[vname] = med
         table_rows.append([vname, *(med[m] for m in metrics), *(med[m + "_max"] for m in maxima),
                            med["diversity"], med["fit_s"], med["synth_s"]])
-    text = (f"## Quality, {args.size}x{args.size}, seeds 0 and 1 (models: seed {args.fit_seed}), "
+    seeds_text = ", ".join(map(str, args.seeds[:-1])) + f" and {args.seeds[-1]}"
+    text = (f"## Quality, {args.size}x{args.size}, seeds {seeds_text} (models: seed {args.fit_seed}), "
             f"medians over {len(entries)} exemplars\n\n" + markdown_table(head, table_rows))
+    against = against_first(entries, [v[0] for v in variants], metrics)
+    if against:
+        text += (f"\n\n### Against {variants[0][0]}, exemplar by exemplar\n\n"
+                 + markdown_table(["variant", "metric", "geometric mean of ratios", "better on", "largest gains",
+                                   "largest losses"], against))
     per_tex = [[e["texture"], vname, *(e["variants"][vname][c] for c in cols)]
                for e in entries for vname in e["variants"]]
     text += "\n\n### Per exemplar\n\n" + markdown_table(["exemplar", "variant", *cols], per_tex)
