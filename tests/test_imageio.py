@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tghop.imageio import to_uint8
+from tghop.imageio import load_image, to_uint8
 
 
 def test_to_uint8_rounds_clips_and_works_in_row_blocks():
@@ -152,3 +152,34 @@ def test_a_palette_with_transparency_is_rgba_with_keep_alpha_and_jpeg_refuses_al
     with pytest.raises(InvalidImageError, match="JPEG holds no alpha channel; name the output .png"):
         save_image(rgba, tmp_path / "p.jpg")
     assert not (tmp_path / "p.jpg").exists()
+
+
+@pytest.mark.parametrize("suffix", [".png", ".tif", ".jpg"])
+@pytest.mark.parametrize("orientation", range(1, 9))
+def test_exif_orientation_is_applied(tmp_path, suffix, orientation):
+    # Cameras store JPEG pixels sideways and record how to show them: the image is read as shown,
+    # by Pillow's path and by tghop's own readers (TIFF through tifffile, 16-bit PNG) alike.
+    from PIL import ImageOps
+
+    y, x = np.mgrid[:20, :30]
+    pixels = np.stack([y * 12, x * 8, (x + y) * 4], axis=2).astype(np.uint8)  # smooth: JPEG keeps it
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    path = tmp_path / f"turned{suffix}"
+    Image.fromarray(pixels).save(path, exif=exif, **({"quality": 95} if suffix == ".jpg" else {}))
+    with Image.open(path) as im:
+        shown = np.asarray(ImageOps.exif_transpose(im)).astype(float)
+    got = load_image(path, dtype=None).astype(float)
+    assert got.shape == shown.shape == ((30, 20, 3) if orientation >= 5 else (20, 30, 3))
+    assert np.abs(got - shown).max() <= 1
+    if orientation != 1:  # not the pixels as stored
+        assert got.shape != pixels.shape or np.abs(got - pixels).mean() > 5
+
+
+def test_exif_orientation_of_a_16_bit_png(tmp_path):
+    levels = (np.arange(20 * 30).reshape(20, 30) * 97 % 65536).astype(np.uint16)
+    exif = Image.Exif()
+    exif[0x0112] = 6  # shown turned a quarter clockwise
+    Image.fromarray(levels).save(tmp_path / "deep.png", exif=exif)
+    got = load_image(tmp_path / "deep.png")
+    np.testing.assert_array_equal(np.round(got[:, :, 0] * 65535).astype(np.uint16), np.rot90(levels, -1))

@@ -39,7 +39,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     Parameters
     ----------
     path : str or os.PathLike
-        Any format Pillow reads. Palette images are converted; an alpha channel is
+        Any format Pillow reads, turned or flipped as its EXIF orientation says (as
+        photos are shown). Palette images are converted; an alpha channel is
         dropped with a warning. 16-bit PNG and TIFF files and float TIFF files are read
         without loss (16-bit levels ``v`` become ``v / 65535``; float values in [0, 1] are
         kept, others taken as 8-bit or 16-bit levels); colour ones in TIFF need
@@ -82,6 +83,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
             deep = _read_deep(path, max_pixels, keep_alpha)
             if deep is not None:
                 arr, mode, depth = deep
+                arr = _upright_array(arr, path)
             else:
                 with Image.open(path) as im:
                     arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
@@ -254,6 +256,7 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
             im = small
     else:
         im.load()
+    im = _upright(im)
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"
@@ -274,6 +277,45 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
     else:
         arr = np.asarray(im.convert("RGB"))
     return arr, mode
+
+
+#: EXIF orientations (tag 0x0112) other than 1 and the transposition that undoes each.
+_ORIENTATIONS = {2: "FLIP_LEFT_RIGHT", 3: "ROTATE_180", 4: "FLIP_TOP_BOTTOM", 5: "TRANSPOSE", 6: "ROTATE_270",
+                 7: "TRANSVERSE", 8: "ROTATE_90"}
+
+
+def _upright(im):
+    """A loaded Pillow image as it is displayed: turned or flipped as its EXIF orientation
+    says (cameras and phones store JPEG pixels sideways and record how to show them), or
+    the image itself when it has none (Pillow's TIFF reader has applied it already)."""
+    from PIL import Image
+
+    try:
+        orientation = im.getexif().get(0x0112, 1)
+    except Exception:  # a damaged EXIF block: the pixels as stored
+        return im
+    method = _ORIENTATIONS.get(orientation)
+    return im if method is None else im.transpose(getattr(Image.Transpose, method))
+
+
+def _upright_array(arr, path):
+    """An (H, W[, C]) array read without Pillow (16-bit PNG, TIFF by tifffile) turned or
+    flipped as the file's EXIF orientation says, as :func:`_upright` does for Pillow's."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:  # the header only: no pixels decoded
+            orientation = im.getexif().get(0x0112, 1)
+    except Exception:
+        return arr
+    if orientation in (5, 6, 7, 8):  # the four that swap height and width
+        arr = np.swapaxes(arr, 0, 1)
+        orientation = {5: 1, 6: 2, 7: 3, 8: 4}[orientation]
+    if orientation in (2, 3):
+        arr = arr[:, ::-1]
+    if orientation in (3, 4):
+        arr = arr[::-1]
+    return np.ascontiguousarray(arr)
 
 
 def to_uint8(image) -> np.ndarray:
