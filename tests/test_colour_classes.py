@@ -91,6 +91,25 @@ def test_shares_move_only_as_far_as_the_exemplars_crops_vary(rng):
         assert moved[0] <= grey_share - 0.4 <= moved[1], (stripes, grey_share)
 
 
+def test_a_sample_mask_keeps_the_spread_of_the_pixels_outside_it(rng):
+    # An exemplar fitted with a mask measures its crops' shares on the pixels outside the mask
+    # (tghop 0.33 stored no spread for it, so its images kept the exemplar's shares).
+    exemplar, _ = two_colours(rng, 0.4)
+    whole = ColourClasses(2).fit(exemplar, BandStatistics().fit(exemplar))
+    exclude = np.zeros(exemplar.shape[:2], dtype=bool)
+    exclude[40:50, 5:20] = True  # a blemish
+    masked = ColourClasses(2).fit(exemplar, BandStatistics().fit(exemplar, exclude=exclude), exclude=exclude)
+    assert masked.spread_[-1] == 32 and masked.spread_[0] > 0.1
+    np.testing.assert_allclose(masked.spread_[:-1], whole.spread_[:-1], atol=0.05)
+    image, grey = two_colours(rng, 0.7, stripes=False)
+    kept = match_histograms(image, masked.targets(image)[1])
+    assert np.mean(kept.mean(axis=2) < 0.7) - 0.4 > 0.2  # the image keeps more of its grey
+    # Crops mostly under the mask are left out; too few left: no spread.
+    exclude[:, 10:] = True
+    assert not ColourClasses(2).fit(exemplar, BandStatistics().fit(exemplar, exclude=exclude),
+                                    exclude=exclude).spread_.any()
+
+
 def test_refine_takes_the_classes_targets(rng):
     from tghop.refine import refine
 

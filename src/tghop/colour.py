@@ -242,18 +242,27 @@ def class_separation(pixels, centres) -> float:
 _SPREAD_GRID = 4
 
 
-def share_spread(image, centres) -> np.ndarray:
+def share_spread(image, centres, exclude=None) -> np.ndarray:
     """How much the class shares vary between crops of ``image`` (H, W, C) of half its
     shorter side, on a 4x4 grid: (K + 1,), each class's standard deviation, then the
     crops' side (a share's spread in an image of side L is about the crops' times
-    side / L). ``image`` None (an exemplar with a mask): no spread (zeros)."""
-    if image is None:
-        return np.zeros(len(centres) + 1)
+    side / L). With ``exclude`` (H, W) bool, a sample mask, each crop's shares are those of
+    its pixels outside the mask, and crops with less than half of theirs outside are left
+    out; fewer than two left: no spread (zeros), so images keep the exemplar's shares."""
     h, w = image.shape[:2]
     side = max(1, min(h, w) // 2)
     starts = [np.linspace(0, n - side, _SPREAD_GRID).round().astype(int) for n in (h, w)]
-    shares = np.array([class_shares(image[y:y + side, x:x + side], centres) for y in starts[0] for x in starts[1]])
-    return np.append(shares.std(axis=0), side)
+    shares = []
+    for y in starts[0]:
+        for x in starts[1]:
+            crop = image[y:y + side, x:x + side]
+            if exclude is None:
+                shares.append(class_shares(crop, centres))
+            elif 2 * np.count_nonzero(keep := ~exclude[y:y + side, x:x + side]) >= keep.size:
+                shares.append(class_shares(crop[keep], centres))
+    if len(shares) < 2:
+        return np.zeros(len(centres) + 1)
+    return np.append(np.std(shares, axis=0), side)
 
 
 def class_shares(image, centres) -> np.ndarray:
@@ -339,7 +348,7 @@ class ColourClasses(StoredArrays, BaseEstimator):
         self.quantiles_ = class_quantiles(pixels, labels, k)
         self.refine_quantiles_ = class_quantiles(bands.to_decorrelated(pixels), labels, k)
         self.separation_ = np.array([class_separation(pixels, self.centres_)])
-        self.spread_ = share_spread(image if exclude is None else None, self.centres_)
+        self.spread_ = share_spread(image, self.centres_, exclude)
         return self
 
     def targets(self, image, *, own_shares=1.0):
