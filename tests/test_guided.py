@@ -71,6 +71,21 @@ def test_guide_with_an_unknown_level_or_another_size_is_one_line_error():
     assert "\n" not in str(info.value)
 
 
+def test_a_guide_with_a_few_more_levels_than_inputs_asks_for_more_inputs():
+    guide = np.zeros((64, 64), dtype=np.uint8)
+    guide[:, 32:] = 255
+    with pytest.raises(TGHopError) as info:
+        guide_labels(guide, 1)  # said "paint with flat levels only (no antialiasing, ...)"
+    message = str(info.value)
+    assert "give one input per level (2 inputs for 2 levels) or give no guide" in message
+    assert "antialiasing" not in message
+    with pytest.raises(TGHopError, match="but 3 SOURCEs were given; give one SOURCE per level .* or drop --guide"):
+        guide_labels(np.arange(4096).reshape(64, 64) % 5, 3, input_name="SOURCE", no_guide="drop --guide")
+    painted = np.linspace(0, 255, 64 * 64).reshape(64, 64).astype(np.uint8)  # a smooth map: antialiased edges
+    with pytest.raises(TGHopError, match="no antialiasing"):
+        guide_labels(painted, 2)
+
+
 def test_region_weights_blend_over_the_transition():
     labels = np.zeros((4, 40), dtype=int)
     labels[:, 20:] = 1
@@ -205,7 +220,7 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     guide[5, 5] = 100
     Image.fromarray(guide).save(tmp_path / "bad.png")
     r = _run(["synth", "a.npz", "b.npz", "--guide", "bad.png", "-o", "bad_out.png", *fast], tmp_path)
-    assert_user_error(r, "3 distinct grey levels", "2 inputs")
+    assert_user_error(r, "3 distinct grey levels", "2 SOURCEs")
     r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "--size", "64x64", "-o", "bad_out.png", *fast],
              tmp_path)
     assert_user_error(r, "--guide map.png is 64x128 but --size is 64x64")

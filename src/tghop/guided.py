@@ -85,6 +85,9 @@ REGION_COST = 1.0
 #: preference for the drawn model that a clearly better fitting patch of another overrides,
 #: so that a texture can continue across a few blocks (fewer block-shaped islands).
 MIXED_COST = 0.003
+#: A guide with more distinct levels than inputs and at most this many was painted with
+#: one level per texture (more inputs wanted); more levels are antialiased or JPEG edges.
+FEW_LEVELS = 8
 #: Length scale in pixels of the random regions of a remix.
 _BLOB = 64
 #: Values ranked to estimate each monotone map of the refinement.
@@ -98,14 +101,14 @@ _TABLE = 4096
 # ----------------------------------------------------------------------------- guides
 
 
-def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
+def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide") -> np.ndarray:
     """The region of every pixel of a painted guide, as (H, W) int labels in ``[0, n_models)``.
 
     The rule: the guide's distinct values (grey levels, or colours) sorted from dark to
     light (by their mean over the channels, then by R, G, B) are the models in the order
     given: the darkest is the first model. An integer label map 0, 1, ... follows the same
-    rule. A guide with more distinct values than models (e.g. antialiased or JPEG edges)
-    or fewer is refused, naming the counts.
+    rule. A guide with more distinct values than models (e.g. antialiased or JPEG edges, or
+    too few models given) or fewer is refused, naming the counts and the likely fix.
 
     Parameters
     ----------
@@ -114,6 +117,9 @@ def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
     n_models : int
     size : (int, int), optional
         The output size; a guide of another size is refused (paint it at the output size).
+    input_name, no_guide : str
+        What the messages call a model and the fix of leaving the guide out (the CLI's
+        "SOURCE" and "drop --guide").
 
     Returns
     -------
@@ -132,11 +138,15 @@ def guide_labels(guide, n_models, *, size=None) -> np.ndarray:
     values, labels = _distinct(arr)
     n = len(values)
     if n != n_models:
-        hint = ("paint with flat levels only (no antialiasing, PNG not JPEG)" if n > n_models
-                else "paint one level per input")
+        if n > FEW_LEVELS:
+            hint = "paint with flat levels only (no antialiasing, PNG not JPEG)"
+        elif n > n_models:
+            hint = f"give one {input_name} per level ({n} {input_name}s for {n} levels) or {no_guide}"
+        else:
+            hint = f"paint one level per {input_name}"
         levels = "one grey level/colour" if n == 1 else f"{n} distinct grey levels/colours"
-        inputs = "one input was" if n_models == 1 else f"{n_models} inputs were"
-        raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first input")
+        inputs = f"one {input_name} was" if n_models == 1 else f"{n_models} {input_name}s were"
+        raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first {input_name}")
     order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)

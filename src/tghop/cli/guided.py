@@ -83,7 +83,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     painted = None
     if guide is not None:  # read and checked (size, levels) before anything is fitted
         painted = _load_guide(guide, size, size_given)
-        guide_labels(painted, len(sources))
+        guide_labels(painted, len(sources), input_name="SOURCE", no_guide="drop --guide")
         size = painted.shape[:2]
     from ..settings import BY_NAME
 
