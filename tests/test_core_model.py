@@ -171,7 +171,7 @@ def test_auto_clusters_follow_the_training_vectors():
     assert ICHM(n_clusters=7).clusters_for(12769) == 7
     z = np.random.default_rng(0).standard_normal((2800, 4))
     assert 50 < len(ICHM(n_codewords=20, max_iter=20, rng=0).fit(z).weights_) <= 70
-    with pytest.raises(TGHopError, match="n_clusters=50 needs at least 500"):
+    with pytest.raises(TGHopError, match=r"n_clusters=50 \(auto\) needs at least 500"):
         auto.fit(z[:400])
 
 
@@ -308,13 +308,48 @@ def test_three_hops_for_64_patches():
     assert m.sample_patches(3, rng=0).shape == (3, 64, 64, 3)
 
 
+@pytest.mark.parametrize("side, kwargs, size, fixes", [
+    (31, {}, "76x76", []),  # no patch at all: was "at least 32x32 ... or a smaller patch size"
+    (32, {}, "76x76", []),  # one patch: lowering N or the stride cannot help
+    (40, {}, "76x76", ["N of at most 2"]),
+    (75, {}, "76x76", ["a stride of 1", "N of at most 48"]),
+    (74, {"stride": 3}, "98x98", ["a stride of 1", "N of at most 22"]),
+    (40, {"n_clusters": 4, "min_cluster_size": 20}, "48x48", ["a stride of 1", "N of at most 1"]),
+])
+def test_a_small_exemplar_names_the_smallest_that_works(side, kwargs, size, fixes):
+    image = np.random.default_rng(0).random((side, side, 3))
+    with pytest.raises(TGHopError) as info:
+        TGHop(**kwargs).fit(image)
+    message = str(info.value)
+    assert f"at least {size} pixels" in message and "\n" not in message
+    assert "auto" in message if "n_clusters" not in kwargs else "n_clusters=" not in message
+    for fix in ["stride", "N of"]:
+        assert (fix in message.split(";")[1]) == any(f.startswith(fix) or fix in f for f in fixes), message
+    for fix in fixes:
+        assert fix in message
+    s = int(size.split("x")[0])
+    TGHop(**kwargs, n_codewords=20, ica_max_iter=20, layout_factor=None).fit(
+        np.random.default_rng(0).random((s, s, 3)))  # the size named is enough
+
+
+@pytest.mark.parametrize("image, message", [
+    (np.random.default_rng(0).random((64, 64)) * 0.52 - 0.15, r"rescale them into \[0, 1\]"),
+    (np.random.default_rng(0).random((64, 64)) * 200, "divide by 255"),
+    (np.random.default_rng(0).random((64, 64)) * 300, r"rescale them into \[0, 1\]"),
+    (np.random.default_rng(0).random(100), r"shape \(H, W\) or \(H, W, C\), got \(100,\)"),
+])
+def test_bad_exemplar_arrays_name_the_right_fix(image, message):
+    with pytest.raises(TGHopError, match=message):
+        TGHop().fit(image)
+
+
 def test_not_fitted():
     with pytest.raises(NotFittedError):
         TGHop().sample_patches(3)
 
 
 def test_bad_settings(bricks96):
-    with pytest.raises(TGHopError, match="at least 32x32"):
+    with pytest.raises(TGHopError, match="at least 76x76"):
         TGHop().fit(bricks96[:20])
     with pytest.raises(TGHopError, match="patch_size must be 32 or 64"):
         TGHop(patch_size=48).fit(bricks96)

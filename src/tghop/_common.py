@@ -204,10 +204,12 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     if arr.ndim == 2:
         arr = arr[:, :, None]
     if arr.ndim != 3 or (arr.shape[2] not in channels if channels is not None else arr.shape[2] < 1):
-        raise InvalidImageError(
-            f"{name} must have shape (H, W), (H, W, 1) or (H, W, 3), got {arr.shape}; "
-            "convert it to greyscale or RGB first"
-        )
+        if channels is None:
+            raise InvalidImageError(f"{name} must have shape (H, W) or (H, W, C), got {arr.shape}; "
+                                    "give it as an image array (rows, columns and optionally channels)")
+        shapes = ["(H, W)"] + [f"(H, W, {c})" for c in channels]
+        raise InvalidImageError(f"{name} must have shape {', '.join(shapes[:-1])} or {shapes[-1]}, got {arr.shape}; "
+                                "convert it to greyscale or RGB first")
     dtype = np.dtype(dtype)
     if arr.dtype == np.uint8:
         arr = np.divide(arr, dtype.type(255.0), dtype=dtype)
@@ -220,9 +222,9 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     if not np.all(np.isfinite(arr)):
         raise InvalidImageError(f"{name} contains NaN or infinite values; clean it first")
     if arr.size and (arr.min() < -1e-6 or arr.max() > 1 + 1e-6):
-        raise InvalidImageError(
-            f"{name} values must lie in [0, 1], got [{arr.min():.3g}, {arr.max():.3g}]; divide by 255 for 8-bit data"
-        )
+        lo, hi = arr.min(), arr.max()
+        fix = "divide by 255 for 8-bit data" if lo >= 0 and hi <= 255 else "rescale them into [0, 1]"
+        raise InvalidImageError(f"{name} values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; {fix}")
     h, w = arr.shape[:2]
     if h < min_size or w < min_size:
         raise InvalidImageError(

@@ -215,7 +215,8 @@ class ICHM(BaseEstimator):
         n_clusters = self.clusters_for(n_samples)
         if n_clusters * self.min_cluster_size > n_samples:
             raise TGHopError(
-                f"n_clusters={n_clusters} needs at least {n_clusters * self.min_cluster_size} "
+                f"n_clusters={n_clusters}{' (auto)' if self.n_clusters is None else ''} needs at least "
+                f"{n_clusters * self.min_cluster_size} "
                 f"training patches but there are {n_samples}; lower N (n_clusters, --clusters), take more "
                 "training patches (a smaller stride, a larger max_patches) or use a larger exemplar"
             )

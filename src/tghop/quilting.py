@@ -102,7 +102,8 @@ def _check_values(values: np.ndarray) -> None:
     if not (np.isfinite(lo) and np.isfinite(hi)):
         raise TGHopError("pool contains NaN or infinite values; clean it first")
     if lo < -1e-6 or hi > 1 + 1e-6:
-        raise TGHopError(f"pool values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; divide by 255 for 8-bit data")
+        fix = "divide by 255 for 8-bit data" if lo >= 0 and hi <= 255 else "rescale them into [0, 1]"
+        raise TGHopError(f"pool values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; {fix}")
 
 
 def _read_on_demand(pool) -> bool:

@@ -25,11 +25,11 @@ import numpy as np
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
-from .core import ICHM
+from .core import AUTO_CLUSTERS, ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
 from .colour import ColourClasses, channel_quantiles, match_histograms
-from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
+from .patches import check_exclude, downsample_mask, count_patches, enough_patches, patch_origins
 from . import layout
 from .pool import GeneratedPool, on_demand, pool_size
 from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
@@ -71,9 +71,19 @@ def default_channels(patch_size: int, n_colours: int = 3):
     return channels[: 2 if patch_size == 32 else 3]
 
 
-def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:
+def _n_patches(shape, patch_size, stride, max_patches):
+    """Training patches of an exemplar of ``shape`` (none when a side is below ``patch_size``)."""
+    if min(shape[:2]) < patch_size:
+        return 0
+    n = count_patches(shape, patch_size, stride)
+    return n if max_patches is None else min(n, int(max_patches))
+
+
+def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3), check_shape=None) -> np.ndarray:
     """A validated exemplar; a grey image stored as RGB becomes single-channel (``channels``:
-    the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material).
+    the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material;
+    ``check_shape``, optional: called with the (H, W, C) shape after ``min_size``'s check and
+    before the flat-image one).
 
     Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
     channel is the same texture at a third of the cost, and the output is grey. A flat
@@ -89,7 +99,7 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray
     if isinstance(image, np.ndarray) and image.dtype == np.uint8:
         img = image[:, :, None] if image.ndim == 2 else image
         if img.ndim != 3 or (channels is not None and img.shape[2] not in channels):
-            check_image(img[:1, :1], name="exemplar", channels=channels)  # the usual shape error
+            check_image(img, name="exemplar", channels=channels)  # the usual shape error
         h, w = img.shape[:2]
         if h < min_size or w < min_size:
             check_image(np.zeros((h, w, 1), dtype=np.uint8), min_size=min_size, name="exemplar")
@@ -99,6 +109,8 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray
     else:
         img = check_image(image, min_size=min_size, name="exemplar", channels=channels)
         grey = img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512
+    if check_shape is not None:
+        check_shape(img.shape)
     check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
     if grey:
         img = np.ascontiguousarray(img[..., :1])
@@ -177,6 +189,42 @@ class TGHop(BaseEstimator):
             )
         return rules
 
+    def _enough(self, shape, ichm, stride=None, n_clusters=None):
+        """Whether an exemplar of ``shape`` gives the training patches that ``ichm`` needs
+        (at ``stride`` and ``n_clusters`` instead of the settings' when given)."""
+        stride = stride or self.stride
+        n = _n_patches(shape, self.patch_size, stride, self.max_patches)
+        clusters = n_clusters or ichm.clusters_for(n)
+        return n >= clusters * ichm.min_cluster_size
+
+    def _check_size(self, shape, ichm):
+        """Raise a one-line :class:`TGHopError` naming the smallest square exemplar that gives
+        enough training patches for the settings (and a smaller stride or N where one would do)
+        when ``shape`` is too small. A ``max_patches`` too small for any exemplar is left to
+        :meth:`ICHM._check_params`."""
+        if self._enough(shape, ichm):
+            return
+        n = _n_patches(shape, self.patch_size, self.stride, self.max_patches)
+        most = (ichm.n_clusters or AUTO_CLUSTERS[1]) * ichm.min_cluster_size  # no larger exemplar needs more
+        side = self.patch_size
+        while not self._enough((side, side), ichm):
+            if _n_patches((side, side), self.patch_size, self.stride, None) >= most:
+                return  # max_patches caps the patches below the need: ICHM's message
+            side += 1
+        clusters = ichm.clusters_for(n)
+        fixes = [f"use an exemplar of at least {side}x{side} pixels"]
+        stride = next((s for s in range(self.stride - 1, 0, -1) if self._enough(shape, ichm, stride=s)), None)
+        if stride:
+            fixes.append(f"a stride of {stride} (stride, --stride)")
+        if n >= ichm.min_cluster_size:
+            fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
+        h, w = shape[:2]
+        raise TGHopError(
+            f"exemplar is {h}x{w} pixels, {n} training patch{'es' if n != 1 else ''} of {self.patch_size}x"
+            f"{self.patch_size} at stride {self.stride}, but N={clusters}{' (auto)' if ichm.n_clusters is None else ''}"
+            f" clusters of at least {ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; "
+            + ", or ".join(fixes))
+
     def fit(self, image, y=None, *, exclude=None, progress=None):
         """Learn the model from one exemplar.
 
@@ -216,13 +264,14 @@ class TGHop(BaseEstimator):
     def _fit(self, image, *, exclude=None, progress=None):
         self._check_settings()  # parameter errors before touching the image
         self._channel_rules()
-        image = prepare_exemplar(image, min_size=self.patch_size, channels=None)
+        rng = check_rng(self.rng)
+        ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
+        # The smallest exemplar that works, before the flat-image and the mask's checks.
+        image = prepare_exemplar(image, channels=None, check_shape=lambda shape: self._check_size(shape, ichm))
         if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
             image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
         rules = self._channel_rules(image.shape[2])
         exclude = check_exclude(exclude, image.shape)
-        rng = check_rng(self.rng)
-        ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
         sdr = SpatialReduction(**settings.component_params(self, "sdr"))
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
                                 max_patches=self.max_patches, rng=rng, exclude=exclude)
