@@ -207,10 +207,21 @@ def test_help_shows_each_default_as_its_kind():
     # A float of 1.0 is not "on", nor 0.0 "off" (they equal True and False as dictionary keys).
     flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())
     norm = flat.split("--norm-match FLOAT", 1)[1].split(" --coupling", 1)[0]
-    assert norm.endswith("[default: 1.0; --paper: 0.0]"), norm
+    assert norm.endswith("[default: 1.0; --paper: 0.0; 0<=x<=1]"), norm
     coupling = flat.split("--coupling FLOAT", 1)[1].split(" --min-cluster-size", 1)[0]
-    assert coupling.endswith("[default: 0.95; --paper: 0.0]"), coupling
+    assert coupling.endswith("[default: 0.95; --paper: 0.0; 0<=x<=0.99]"), coupling
     assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
+
+
+def test_help_states_the_range_of_fractions():
+    # `--own-shares FLOAT` showed no range, though values outside [0, 1] are refused.
+    flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())
+    shares = flat.split("--own-shares FLOAT", 1)[1].split(" --layout-refine", 1)[0]
+    assert shares.endswith("[default: 1.0; --paper: 0.0; 0<=x<=1]"), shares
+    detail = flat.split("--detail FLOAT", 1)[1].split(" --match-colours", 1)[0]
+    assert detail.endswith("; 0<=x<1]"), detail  # open at 1
+    assert "[default: 0.99; --paper: 0.95; 0<x<=1]" in flat  # --cluster-energy, open at 0
+    assert "<=x<=1e+06" not in flat and "<=x<=1000000" not in flat  # caps, not ranges: not shown
 
 
 @pytest.mark.parametrize("command", [[], ["fit"], ["synth"], ["info"], ["evaluate"], ["patches"], ["baseline"],

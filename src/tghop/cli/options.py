@@ -122,6 +122,8 @@ def _setting_option(s):
                             help="Seed of fitting (K-means, FastICA). [default: 0]")
     if s.has_paper and s.paper != s.default:
         extra += f"; --paper: {s.paper}"
+    if s.kind == "float" and s.low is not None and s.high is not None and s.high <= 1:  # a fraction: its range
+        extra += f"; {s.low:g}{'<' if s.low_open else '<='}x{'<' if s.high_open else '<='}{s.high:g}"
     if s.kind == "bool":
         flag = names[0]
         return click.option(f"{flag}/--no-{flag[2:]}", s.name, default=None, help=f"{help_text} [{extra}]")
