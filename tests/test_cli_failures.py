@@ -213,6 +213,19 @@ def test_help_shows_each_default_as_its_kind():
     assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
 
 
+def test_own_shares_on_a_model_without_colour_classes_warns(folder, tmp_path):
+    # `--own-shares 0.5` on a model fitted with --colour-classes 0 had no effect without a word.
+    code, _, err, _ = invoke("fit", folder / "bricks.png", "-o", "plain.npz", *FAST, "--colour-classes", "0",
+                             cwd=tmp_path)
+    assert code == 0, err
+    synth = ["synth", "-o", "o.png", "--size", "48", "-q"]
+    code, _, err, _ = invoke(*synth, "plain.npz", "--own-shares", "0.5", cwd=tmp_path)
+    assert code == 0 and "Warning: --own-shares 0.5 has no effect" in err and "--colour-classes" in err, err
+    for args in (["plain.npz"], ["plain.npz", "--own-shares", "1"], [folder / "model.npz", "--own-shares", "0.5"]):
+        code, _, err, _ = invoke(*synth, *args, cwd=tmp_path)
+        assert code == 0 and "Warning" not in err, (args, err)
+
+
 def test_help_states_the_range_of_fractions():
     # `--own-shares FLOAT` showed no range, though values outside [0, 1] are refused.
     flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())

@@ -262,6 +262,12 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
         if save_model:
             write_model(model, save_model)
+    if (given_options(ctx, ["own_shares"]) and generation["own_shares"] != BY_NAME["own_shares"].default
+            and getattr(model, "classes_", None) is None):
+        import warnings
+
+        warnings.warn(f"--own-shares {generation['own_shares']:g} has no effect: the model has no colour classes "
+                      "(fitted with --colour-classes 0); fit it with --colour-classes above 0, or drop --own-shares")
     import numpy as np
 
     rng = np.random.default_rng(seed)
