@@ -213,7 +213,7 @@ def test_help_shows_each_default_as_its_kind():
     assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
 
 
-def test_own_shares_on_a_model_without_colour_classes_warns(folder, tmp_path):
+def test_a_model_without_colour_classes_warns_of_own_shares_and_info_says_so(folder, tmp_path):
     # `--own-shares 0.5` on a model fitted with --colour-classes 0 had no effect without a word.
     code, _, err, _ = invoke("fit", folder / "bricks.png", "-o", "plain.npz", *FAST, "--colour-classes", "0",
                              cwd=tmp_path)
@@ -224,6 +224,11 @@ def test_own_shares_on_a_model_without_colour_classes_warns(folder, tmp_path):
     for args in (["plain.npz"], ["plain.npz", "--own-shares", "1"], [folder / "model.npz", "--own-shares", "0.5"]):
         code, _, err, _ = invoke(*synth, *args, cwd=tmp_path)
         assert code == 0 and "Warning" not in err, (args, err)
+    # `tghop info` showed the formula with K (259 for C=1, K=0) against the 257 stored, and no class count.
+    code, out, err, _ = invoke("info", "plain.npz", cwd=tmp_path)
+    assert code == 0 and "colour classes: none" in out and "C*257, no colour classes" in out, out + err
+    code, out, err, _ = invoke("info", "model.npz", cwd=folder)
+    assert code == 0 and "colour classes: 4\n" in out and "K=4 colour classes" in out, out + err
 
 
 def test_help_states_the_range_of_fractions():

@@ -384,7 +384,8 @@ def test_parameter_count_matches_stored_arrays(small_model, tmp_path):
     f_, n, w = d["F"], d["N"], d["W"]
     # Rows where the paper's formula is exactly what is stored.
     assert counts["transform stage 1"]["paper"] == counts["transform stage 1"]["stored"] == 12 * k1 + 1
-    assert counts["colour matching (ours)"] == {"formula": "C*257 + K*(C+2+C*257) + 2, K colour classes (not in the paper)",
+    assert counts["colour matching (ours)"] == {"formula": "C*257 + K*(C+2+C*257) + 2, K=4 colour classes (not in the "
+                                                           "paper)",
                                                 "paper": 0, "stored": 3 * 257 + 4 * (3 + 2 + 3 * 257) + 2}
     assert counts["core ICHM (i)"]["stored"] == n
     assert counts["core ICHM (iii)"]["paper"] == counts["core ICHM (iii)"]["stored"] == 3 * f_ + 256 * w
@@ -395,6 +396,13 @@ def test_parameter_count_matches_stored_arrays(small_model, tmp_path):
     # The residual Gaussian (ours, off by default): one square factor per core channel.
     residual = int((small_model.sdr_.kept_per_channel_ ** 2).sum()) if small_model.residual else 0
     assert counts["residual Gaussian (ours)"]["stored"] == residual
+
+
+def test_parameter_count_without_colour_classes(bricks96):
+    # `tghop info` showed "C*257 + K*(C+2+C*257) + 2" (259 with C=1, K=0) against 257 stored.
+    model = TGHop(**{**SMALL, "n_channels": (4, 10), "colour_classes": 0}).fit(bricks96[..., :1])
+    row = model.n_parameters()["colour matching (ours)"]
+    assert row == {"formula": "C*257, no colour classes (not in the paper)", "paper": 0, "stored": 257}
 
 
 def test_paper_table4_formula():

@@ -52,7 +52,7 @@ def parameter_groups(arrays) -> dict:
     return counts
 
 
-def table4(dims, channels, n_colours, n_bins, sdr_shape, stored) -> dict:
+def table4(dims, channels, n_colours, n_bins, sdr_shape, stored, n_classes=None) -> dict:
     """The rows of :meth:`tghop.TGHop.n_parameters`: each module's formula, the paper's
     count for these dimensions and the numbers stored.
 
@@ -70,6 +70,9 @@ def table4(dims, channels, n_colours, n_bins, sdr_shape, stored) -> dict:
         The core's (h, w, K).
     stored : dict
         :func:`parameter_groups` of the model's arrays.
+    n_classes : int, optional
+        Colour classes K; 0: none, the colour matching stores the C*257 quantiles only
+        (None: the formula with K).
     """
     d, k, c_in, nb = dims, channels, n_colours, n_bins
     k1, d_r, n, f, w = k[0], d["D_r"], d["N"], d["F"], d["W"]
@@ -83,7 +86,10 @@ def table4(dims, channels, n_colours, n_bins, sdr_shape, stored) -> dict:
         "core ICHM (ii)": ("F*D_r", f * d_r),
         "core ICHM (iii)": (f"3*F + {nb}*W", 3 * f + nb * w),
     }
-    paper["colour matching (ours)"] = ("C*257 + K*(C+2+C*257) + 2, K colour classes (not in the paper)", 0)
+    paper["colour matching (ours)"] = (
+        ("C*257, no colour classes" if n_classes == 0 else
+         f"C*257 + K*(C+2+C*257) + 2, K{'' if n_classes is None else f'={n_classes}'} colour classes")
+        + " (not in the paper)", 0)
     paper["residual Gaussian (ours)"] = ("sum of K_c^2 over core channels (not in the paper)", 0)
     paper["core norm quantiles (ours)"] = ("2*N*33 (not in the paper)", 0)
     paper["core member ranks (ours)"] = ("members x components, summed over clusters (not in the paper)", 0)

@@ -494,8 +494,10 @@ class TGHop(BaseEstimator):
             stores each channel's mean map (``64 K2``), and ICHM (ii) also stores each
             cluster's mean (``N D_r``).
         """
+        classes = getattr(self, "classes_", None)
         return table4(self.dims_, self.channels_, self.exemplar_shape_[2], self.ichm_.codebook_.shape[1],
-                      self.sdr_.shape_, parameter_groups(self._to_arrays()))
+                      self.sdr_.shape_, parameter_groups(self._to_arrays()),
+                      n_classes=0 if classes is None else int(classes.n_classes))
 
     # ------------------------------------------------------------- generation
     def decode(self, z, *, return_stages=False):

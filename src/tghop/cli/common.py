@@ -193,9 +193,11 @@ def summary(model, params=None) -> str:
     params = model.n_parameters() if params is None else params
     dims = " -> ".join(f"D{i}={d[f'D{i}']}" for i in range(len(model.channels_) + 1))
     ks = ", ".join(f"K{i + 1}={k}" for i, k in enumerate(model.channels_))
+    classes = getattr(model, "classes_", None)
     return (
         f"dimensions: {dims}, D_r={d['D_r']}  ({ks})\n"
         f"core model: N={d['N']} clusters, F={d['F']} CDFs, W={d['W']} codewords\n"
+        f"colour classes: {classes.n_classes if classes is not None else 'none (fitted with --colour-classes 0)'}\n"
         f"layout: {layout_summary(model)}\n"
         f"parameters: {params['total']['stored']:,} stored ({params['total']['paper']:,} by the paper's formulas)"
     )
