@@ -135,7 +135,7 @@ def test_builtin_exemplar(workdir):
 )
 def test_bad_input(workdir, args, fragments):
     (workdir / "notimage.png").write_text("this is not an image")
-    save_image(np.zeros((20, 20, 3)), workdir / "tiny.png")
+    save_image(np.random.default_rng(0).random((20, 20, 3)), workdir / "tiny.png")  # textured: a size error
     with open(workdir / "foreign.npz", "wb") as fh:
         np.savez(fh, x=np.zeros(2))
     before = set(os.listdir(workdir))

@@ -65,6 +65,7 @@ def folder(tmp_path_factory):
     save_image(np.full((64, 64, 3), 0.5), d / "flat.png")
     save_image(np.random.default_rng(0).random((40, 40, 3)), d / "small.png")
     save_image(np.random.default_rng(0).random((32, 32, 3)), d / "small32.png")
+    save_image(np.random.default_rng(0).random((31, 31, 3)), d / "small31.png")
     save_image(np.repeat([[0.0, 1.0]], 32, axis=1).repeat(64, axis=0), d / "two_levels.png")
     code, _, err, _ = invoke("fit", "bricks.png", "-o", "model.npz", *FAST, cwd=d)
     assert code == 0, err
@@ -88,6 +89,7 @@ CASES = [
     (["fit", "flat.png", "-o", "m.npz"], ["no texture"]),
     (["synth", "flat.png", "-o", "o.png", "--gamma", "0"], ["no texture"]),
     # an exemplar too small for the default settings: the smallest that works, and fixes that do
+    (["synth", "small31.png", "-o", "o.png", "--size", "64"], ["31x31 pixels", "at least 76x76"]),  # not 32x32
     (["synth", "small.png", "-o", "o.png", "--size", "64"], ["40x40 pixels", "N=50 (auto)", "at least 76x76"]),
     (["synth", "small32.png", "-o", "o.png", "-N", "1"], ["32x32 pixels, 1 training patch", "at least 38x38"]),
     # a guide of a few levels for one SOURCE wants one SOURCE per level, not flat painting

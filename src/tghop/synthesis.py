@@ -82,8 +82,8 @@ def _n_patches(shape, patch_size, stride, max_patches):
 def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3), check_shape=None) -> np.ndarray:
     """A validated exemplar; a grey image stored as RGB becomes single-channel (``channels``:
     the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material;
-    ``check_shape``, optional: called with the (H, W, C) shape after ``min_size``'s check and
-    before the flat-image one).
+    ``check_shape``, optional: called with the (H, W, C) shape after ``min_size``'s and the
+    flat-image checks).
 
     Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
     channel is the same texture at a third of the cost, and the output is grey. A flat
@@ -109,11 +109,11 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3), check_shape=N
     else:
         img = check_image(image, min_size=min_size, name="exemplar", channels=channels)
         grey = img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512
-    if check_shape is not None:
-        check_shape(img.shape)
     check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
     if grey:
         img = np.ascontiguousarray(img[..., :1])
+    if check_shape is not None:
+        check_shape(img.shape)
     return img
 
 
@@ -197,11 +197,25 @@ class TGHop(BaseEstimator):
         clusters = n_clusters or ichm.clusters_for(n)
         return n >= clusters * ichm.min_cluster_size
 
-    def _check_size(self, shape, ichm):
-        """Raise a one-line :class:`TGHopError` naming the smallest square exemplar that gives
-        enough training patches for the settings (and a smaller stride or N where one would do)
-        when ``shape`` is too small. A ``max_patches`` too small for any exemplar is left to
-        :meth:`ICHM._check_params`."""
+    def check_exemplar_size(self, shape, ichm=None):
+        """Raise a one-line :class:`TGHopError` when an exemplar of ``shape`` gives too few
+        training patches for the settings, naming the smallest square exemplar that works (and
+        a smaller stride or N where one would do).
+
+        Parameters
+        ----------
+        shape : tuple
+            (H, W, ...) of the exemplar.
+        ichm : tghop.core.ICHM, optional
+            The core model of the settings (default: made from them, after checking them).
+
+        Notes
+        -----
+        A ``max_patches`` too small for any exemplar is left to :meth:`ICHM._check_params`.
+        """
+        if ichm is None:
+            self._check_settings()
+            ichm = ICHM(**settings.component_params(self, "ichm"))
         if self._enough(shape, ichm):
             return
         n = _n_patches(shape, self.patch_size, self.stride, self.max_patches)
@@ -219,11 +233,11 @@ class TGHop(BaseEstimator):
         if n >= ichm.min_cluster_size:
             fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
         h, w = shape[:2]
+        auto = " (auto)" if ichm.n_clusters is None else ""
         raise TGHopError(
             f"exemplar is {h}x{w} pixels, {n} training patch{'es' if n != 1 else ''} of {self.patch_size}x"
-            f"{self.patch_size} at stride {self.stride}, but N={clusters}{' (auto)' if ichm.n_clusters is None else ''}"
-            f" clusters of at least {ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; "
-            + ", or ".join(fixes))
+            f"{self.patch_size} at stride {self.stride}, but N={clusters}{auto} cluster{'s' if clusters != 1 else ''}"
+            f" of at least {ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; " + ", or ".join(fixes))
 
     def fit(self, image, y=None, *, exclude=None, progress=None):
         """Learn the model from one exemplar.
@@ -266,8 +280,8 @@ class TGHop(BaseEstimator):
         self._channel_rules()
         rng = check_rng(self.rng)
         ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
-        # The smallest exemplar that works, before the flat-image and the mask's checks.
-        image = prepare_exemplar(image, channels=None, check_shape=lambda shape: self._check_size(shape, ichm))
+        # The smallest exemplar that works, before the mask's check.
+        image = prepare_exemplar(image, channels=None, check_shape=lambda shape: self.check_exemplar_size(shape, ichm))
         if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
             image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
         rules = self._channel_rules(image.shape[2])

@@ -25,7 +25,7 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress):
     from ..synthesis import prepare_exemplar
 
     image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True),
-                             min_size=options.get("patch_size") or 32)
+                             check_shape=lambda shape: build_model(options, shape[2]).check_exemplar_size(shape))
     mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar")
     model = build_model(options, n_colours=image.shape[2])
     return model.fit(image, exclude=mask, progress=progress)
