@@ -25,11 +25,11 @@ import numpy as np
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
-from .core import AUTO_CLUSTERS, ICHM
+from .core import ICHM, check_exemplar_size
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
 from .colour import ColourClasses, channel_quantiles, match_histograms
-from .patches import check_exclude, downsample_mask, count_patches, enough_patches, patch_origins
+from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
 from . import layout
 from .pool import GeneratedPool, on_demand, pool_size
 from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
@@ -71,19 +71,9 @@ def default_channels(patch_size: int, n_colours: int = 3):
     return channels[: 2 if patch_size == 32 else 3]
 
 
-def _n_patches(shape, patch_size, stride, max_patches):
-    """Training patches of an exemplar of ``shape`` (none when a side is below ``patch_size``)."""
-    if min(shape[:2]) < patch_size:
-        return 0
-    n = count_patches(shape, patch_size, stride)
-    return n if max_patches is None else min(n, int(max_patches))
-
-
-def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3), check_shape=None) -> np.ndarray:
+def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:
     """A validated exemplar; a grey image stored as RGB becomes single-channel (``channels``:
-    the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material;
-    ``check_shape``, optional: called with the (H, W, C) shape after ``min_size``'s and the
-    flat-image checks).
+    the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material).
 
     Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
     channel is the same texture at a third of the cost, and the output is grey. A flat
@@ -112,8 +102,6 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3), check_shape=N
     check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
     if grey:
         img = np.ascontiguousarray(img[..., :1])
-    if check_shape is not None:
-        check_shape(img.shape)
     return img
 
 
@@ -178,10 +166,7 @@ class TGHop(BaseEstimator):
     def _channel_rules(self, n_colours=3):
         for name in ("patch_size", "stride"):
             settings.BY_NAME[name].check(getattr(self, name))
-        if self.n_channels is None:
-            rules = default_channels(self.patch_size, n_colours)
-        else:
-            rules = tuple(self.n_channels)
+        rules = default_channels(self.patch_size, n_colours) if self.n_channels is None else tuple(self.n_channels)
         if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
             raise TGHopError(
                 f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} a patch size divisible by "
@@ -189,55 +174,12 @@ class TGHop(BaseEstimator):
             )
         return rules
 
-    def _enough(self, shape, ichm, stride=None, n_clusters=None):
-        """Whether an exemplar of ``shape`` gives the training patches that ``ichm`` needs
-        (at ``stride`` and ``n_clusters`` instead of the settings' when given)."""
-        stride = stride or self.stride
-        n = _n_patches(shape, self.patch_size, stride, self.max_patches)
-        clusters = n_clusters or ichm.clusters_for(n)
-        return n >= clusters * ichm.min_cluster_size
-
     def check_exemplar_size(self, shape, ichm=None):
-        """Raise a one-line :class:`TGHopError` when an exemplar of ``shape`` gives too few
-        training patches for the settings, naming the smallest square exemplar that works (and
-        a smaller stride or N where one would do).
-
-        Parameters
-        ----------
-        shape : tuple
-            (H, W, ...) of the exemplar.
-        ichm : tghop.core.ICHM, optional
-            The core model of the settings (default: made from them, after checking them).
-
-        Notes
-        -----
-        A ``max_patches`` too small for any exemplar is left to :meth:`ICHM._check_params`.
-        """
+        """Raise :func:`tghop.core.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
         if ichm is None:
             self._check_settings()
             ichm = ICHM(**settings.component_params(self, "ichm"))
-        if self._enough(shape, ichm):
-            return
-        n = _n_patches(shape, self.patch_size, self.stride, self.max_patches)
-        most = (ichm.n_clusters or AUTO_CLUSTERS[1]) * ichm.min_cluster_size  # no larger exemplar needs more
-        side = self.patch_size
-        while not self._enough((side, side), ichm):
-            if _n_patches((side, side), self.patch_size, self.stride, None) >= most:
-                return  # max_patches caps the patches below the need: ICHM's message
-            side += 1
-        clusters = ichm.clusters_for(n)
-        fixes = [f"use an exemplar of at least {side}x{side} pixels"]
-        stride = next((s for s in range(self.stride - 1, 0, -1) if self._enough(shape, ichm, stride=s)), None)
-        if stride:
-            fixes.append(f"a stride of {stride} (stride, --stride)")
-        if n >= ichm.min_cluster_size:
-            fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
-        h, w = shape[:2]
-        auto = " (auto)" if ichm.n_clusters is None else ""
-        raise TGHopError(
-            f"exemplar is {h}x{w} pixels, {n} training patch{'es' if n != 1 else ''} of {self.patch_size}x"
-            f"{self.patch_size} at stride {self.stride}, but N={clusters}{auto} cluster{'s' if clusters != 1 else ''}"
-            f" of at least {ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; " + ", or ".join(fixes))
+        check_exemplar_size(shape, ichm, patch_size=self.patch_size, stride=self.stride, max_patches=self.max_patches)
 
     def fit(self, image, y=None, *, exclude=None, progress=None):
         """Learn the model from one exemplar.
@@ -280,8 +222,8 @@ class TGHop(BaseEstimator):
         self._channel_rules()
         rng = check_rng(self.rng)
         ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
-        # The smallest exemplar that works, before the mask's check.
-        image = prepare_exemplar(image, channels=None, check_shape=lambda shape: self.check_exemplar_size(shape, ichm))
+        image = prepare_exemplar(image, channels=None)
+        self.check_exemplar_size(image.shape, ichm)  # names the smallest exemplar that works
         if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
             image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
         rules = self._channel_rules(image.shape[2])
@@ -476,12 +418,8 @@ class TGHop(BaseEstimator):
         """Dimensions of every space: D0, D1, ..., Dn, D_r, and N, F, W of the core model."""
         check_is_fitted(self, "ichm_")
         out = {f"D{i}": d for i, d in enumerate(self.hops_.dims_)}
-        out.update(
-            D_r=self.sdr_.n_components_,
-            N=len(self.ichm_.weights_),
-            F=self.ichm_.n_cdfs_,
-            W=self.ichm_.codebook_.shape[0],
-        )
+        out.update(D_r=self.sdr_.n_components_, N=len(self.ichm_.weights_), F=self.ichm_.n_cdfs_,
+                   W=self.ichm_.codebook_.shape[0])
         return out
 
     @property
@@ -508,10 +446,9 @@ class TGHop(BaseEstimator):
             stores each channel's mean map (``64 K2``), and ICHM (ii) also stores each
             cluster's mean (``N D_r``).
         """
-        classes = getattr(self, "classes_", None)
         return table4(self.dims_, self.channels_, self.exemplar_shape_[2], self.ichm_.codebook_.shape[1],
                       self.sdr_.shape_, parameter_groups(self._to_arrays()),
-                      n_classes=0 if classes is None else int(classes.n_classes))
+                      n_classes=getattr(getattr(self, "classes_", None), "n_classes", 0))
 
     # ------------------------------------------------------------- generation
     def decode(self, z, *, return_stages=False):

@@ -32,8 +32,7 @@ def _model(spec, options, progress, downscale=False):
         from ..modelfile import load_model
 
         return load_model(spec), True
-    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True),
-                             check_shape=lambda shape: build_model(options, shape[2]).check_exemplar_size(shape))
+    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True))
     return build_model(options, n_colours=image.shape[2]).fit(image, progress=progress), False
 
 

@@ -24,10 +24,10 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress):
     leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``)."""
     from ..synthesis import prepare_exemplar
 
-    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True),
-                             check_shape=lambda shape: build_model(options, shape[2]).check_exemplar_size(shape))
-    mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar")
+    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True))
     model = build_model(options, n_colours=image.shape[2])
+    model.check_exemplar_size(image.shape)  # before the mask is read
+    mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar")
     return model.fit(image, exclude=mask, progress=progress)
 
 
