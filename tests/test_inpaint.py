@@ -224,6 +224,14 @@ def test_cli_an_image_smaller_than_the_patches_names_a_model_of_smaller_ones(fil
         assert "exemplar" not in r.stderr.decode().split(";")[0]
 
 
+def test_cli_a_source_exemplar_too_small_names_the_smallest_that_works(files):
+    # `--source small.png` (31x31) said "at least 32x32", though 32x32 is still too small.
+    save_image(np.random.default_rng(0).random((31, 31, 3)), files / "small.png")
+    r = run("inpaint", files / "cells.png", files / "mask.png", "-o", files / "s.png", "-q",
+            "--source", files / "small.png")
+    assert_user_error(r, "31x31 pixels", "at least 76x76")
+
+
 def test_a_layout_left_out_for_the_mask_says_so():
     # `fit rgb.png --exclude hole.png` said "(asked 3: the exemplar is too small for it)".
     from types import SimpleNamespace

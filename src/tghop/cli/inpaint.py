@@ -71,7 +71,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
                     "" if source is None else " of --source's model" if model is not None
                     else " of the model fitted on --source")
         if model is None and source is not None:
-            exemplar = prepare_exemplar(load_exemplar(source, dtype=None), min_size=32)
+            exemplar = prepare_exemplar(load_exemplar(source, dtype=None))  # fit names the smallest size that works
             model = TGHop(rng=rng).fit(exemplar, progress=progress)
         elif model is None:
             try:

@@ -301,8 +301,9 @@ class Server:
             image = self._read_image(content, _safe_name(filename, "exemplar"),
                                      lambda p: load_image(p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF))
         try:
-            image = prepare_exemplar(image, min_size=options.get("patch_size") or 32)
+            image = prepare_exemplar(image)
             model = build_model(options, n_colours=image.shape[2], api=True)
+            model.check_exemplar_size(image.shape)  # the smallest exemplar that works, before a job starts
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
         params = {k: v for k, v in model.get_params().items()}
