@@ -83,7 +83,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
             deep = _read_deep(path, max_pixels, keep_alpha)
             if deep is not None:
                 arr, mode, depth = deep
-                arr = _upright_array(arr, path)
+                arr = _upright(arr, _file_orientation(path))
             else:
                 with Image.open(path) as im:
                     arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
@@ -256,7 +256,7 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
             im = small
     else:
         im.load()
-    im = _upright(im)
+    orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"
@@ -276,41 +276,39 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
             arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
     else:
         arr = np.asarray(im.convert("RGB"))
-    return arr, mode
+    return _upright(arr, orientation), mode
 
 
-#: EXIF orientations (tag 0x0112) other than 1 and the transposition that undoes each.
-_ORIENTATIONS = {2: "FLIP_LEFT_RIGHT", 3: "ROTATE_180", 4: "FLIP_TOP_BOTTOM", 5: "TRANSPOSE", 6: "ROTATE_270",
-                 7: "TRANSVERSE", 8: "ROTATE_90"}
+def _exif_orientation(im) -> int:
+    """An open Pillow image's EXIF orientation (tag 0x0112): 1 (as stored) when it has none or
+    a damaged EXIF block."""
+    try:
+        return int(im.getexif().get(0x0112, 1))
+    except Exception:  # noqa: BLE001 - a damaged EXIF block: the pixels as stored
+        return 1
 
 
-def _upright(im):
-    """A loaded Pillow image as it is displayed: turned or flipped as its EXIF orientation
-    says (cameras and phones store JPEG pixels sideways and record how to show them), or
-    the image itself when it has none (Pillow's TIFF reader has applied it already)."""
+def _file_orientation(path) -> int:
+    """The EXIF orientation of a file tghop decodes itself (16-bit PNG, TIFF by tifffile), from
+    its header (no pixels decoded); 1 where Pillow cannot open it (an LA TIFF)."""
     from PIL import Image
 
     try:
-        orientation = im.getexif().get(0x0112, 1)
-    except Exception:  # a damaged EXIF block: the pixels as stored
-        return im
-    method = _ORIENTATIONS.get(orientation)
-    return im if method is None else im.transpose(getattr(Image.Transpose, method))
+        with Image.open(path) as im:
+            return _exif_orientation(im)
+    except Exception:  # noqa: BLE001 - not Pillow's: the pixels as stored
+        return 1
 
 
-def _upright_array(arr, path):
-    """An (H, W[, C]) array read without Pillow (16-bit PNG, TIFF by tifffile) turned or
-    flipped as the file's EXIF orientation says, as :func:`_upright` does for Pillow's."""
-    from PIL import Image
-
-    try:
-        with Image.open(path) as im:  # the header only: no pixels decoded
-            orientation = im.getexif().get(0x0112, 1)
-    except Exception:
+def _upright(arr, orientation):
+    """An (H, W[, C]) array as it is displayed: turned or flipped as its EXIF ``orientation``
+    says (cameras and phones store JPEG pixels sideways and record how to show them); the
+    array itself for orientation 1 or an unknown one."""
+    if orientation not in range(2, 9):
         return arr
-    if orientation in (5, 6, 7, 8):  # the four that swap height and width
+    if orientation >= 5:  # the four that swap height and width: a transposition, then as 1-4
         arr = np.swapaxes(arr, 0, 1)
-        orientation = {5: 1, 6: 2, 7: 3, 8: 4}[orientation]
+        orientation -= 4
     if orientation in (2, 3):
         arr = arr[:, ::-1]
     if orientation in (3, 4):
