@@ -204,3 +204,25 @@ def test_ctrl_c_during_the_write_still_says_interrupted(folder, tmp_path):
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130 and err.decode().strip() == "Error: interrupted", err.decode()
     assert os.listdir(tmp_path) == []
+
+
+
+def test_ctrl_c_after_the_first_is_ignored_to_the_end(folder, tmp_path):
+    # Ctrl-C held down (or a terminal that sends several): the first stops the command; the
+    # others, up to the end of the process, neither raise again (a second line, a
+    # traceback) nor, once Python has put the default action back as its interpreter shuts
+    # down, kill the process by the signal (exit status -2 after "Error: interrupted").
+    # The child sends itself one more as the command returns.
+    code = SLOW_WRITE.replace("run()\n", "import signal\ntry:\n    run()\nfinally:\n"
+                              "    signal.raise_signal(signal.SIGINT)\n    print('still here', flush=True)\n")
+    p = subprocess.Popen([sys.executable, "-c", code, "60", "synth", str(folder / "model.npz"), "-o", "out.png",
+                          "--size", "64", "-q"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert p.stdout.readline() == b"writing\n"
+    deadline = time.time() + 60
+    while p.poll() is None and time.time() < deadline:
+        p.send_signal(signal.SIGINT)
+        time.sleep(0.02)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and err.decode().strip() == "Error: interrupted", (p.returncode, err.decode())
+    assert out == b"still here\n"
+    assert os.listdir(tmp_path) == []

@@ -20,8 +20,8 @@ def run():
 
     Before the command line is imported: Ctrl-C while the command starts (its modules and
     click being imported) gives one line and exit status 130, no traceback
-    (:meth:`tghop.cli.group.OneLineGroup.main` puts the usual handler back once the
-    command's modules are in); and OpenBLAS's idle worker threads spin briefly before
+    (:meth:`tghop.cli.group.OneLineGroup.main` puts the command's own handler in place
+    once the command's modules are in); and OpenBLAS's idle worker threads spin briefly before
     they sleep (``OPENBLAS_THREAD_TIMEOUT=4``, unless the user has set it, and only while
     NumPy is not yet loaded): their default long spin takes the CPU from the thread with
     the work when other programs keep the cores busy (docs/choices.md).

@@ -44,7 +44,17 @@ _COMMAND_MODULES = {
 _STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
+def _interrupted(signum, frame):
+    """Ctrl-C stops the command once: the Ctrl-Cs after it are ignored while the command
+    cleans up and exits. (Python puts the default action back as the interpreter shuts
+    down, so a Ctrl-C then would kill the process by the signal, exit status -2, after its
+    ``Error: interrupted`` line; held Ctrl-C or a terminal sending several does that.)"""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
 def _terminated(signum, frame):
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in _interrupted: the command is stopping
     raise Terminated(signum)
 
 
@@ -84,8 +94,9 @@ class OneLineGroup(click.Group):
         which installed a start-up Ctrl-C handler). Then, still under that handler, the
         modules the command will import are imported (Python loses a KeyboardInterrupt
         that arrives at the end of an import, "Exception ignored in ... _get_module_lock",
-        and the command would go on as if nothing had happened); the usual handler is put
-        back; and the objects that exist after the imports and at exit are handed to the
+        and the command would go on as if nothing had happened); then Ctrl-C raises
+        KeyboardInterrupt once (:func:`_interrupted`: the first stops the command, those
+        after it are ignored while it cleans up and exits); and the objects that exist after the imports and at exit are handed to the
         garbage collector's permanent generation (``gc.freeze``), so that its collections
         during the run and at exit do not walk them. A program that runs the command line
         in-process keeps its signal handling and its collector as they were.
@@ -94,7 +105,7 @@ class OneLineGroup(click.Group):
             if as_command:
                 _import_for(sys.argv[1:] if args is None else list(args))
                 gc.freeze()
-                signal.signal(signal.SIGINT, signal.default_int_handler)
+                signal.signal(signal.SIGINT, _interrupted)
                 _stop_on_signals()
             rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
         except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
