@@ -158,10 +158,9 @@ SLOW_WRITE = (
     "    time.sleep(delay)\n"
     "    return original(fh, pixels, **kw)\n"
     "original, io.write_png = io.write_png, slow\n"
-    "if sys.argv[1] == 'ignore-hup':\n"
+    "if sys.argv[1].startswith('ignore-'):  # ignore-SIGHUP as nohup does, ignore-SIGINT as `cmd &` in a script\n"
     "    import signal\n"
-    "    sys.argv.pop(1)\n"
-    "    signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup does\n"
+    "    signal.signal(getattr(signal, sys.argv.pop(1)[len('ignore-'):]), signal.SIG_IGN)\n"
     "sys.argv[0] = 'tghop'\n"
     "from tghop.__main__ import run\n"
     "run()\n"
@@ -183,12 +182,13 @@ def test_sigterm_and_sighup_during_the_write_leave_no_temporary_file(folder, tmp
     assert os.listdir(tmp_path) == []  # no out.png, no hidden .out.png.XXXX.tmp
 
 
-def test_an_ignored_sighup_stays_ignored(folder, tmp_path):
-    p = subprocess.Popen([sys.executable, "-c", SLOW_WRITE, "1", "ignore-hup", "synth", str(folder / "model.npz"),
-                          "-o", "out.png", "--size", "64", "-q"], cwd=tmp_path, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE)
+@pytest.mark.parametrize("signum", [signal.SIGHUP, signal.SIGINT], ids=["SIGHUP", "SIGINT"])
+def test_an_ignored_signal_stays_ignored(folder, tmp_path, signum):
+    p = subprocess.Popen([sys.executable, "-c", SLOW_WRITE, "1", f"ignore-{signal.Signals(signum).name}", "synth",
+                          str(folder / "model.npz"), "-o", "out.png", "--size", "64", "-q"], cwd=tmp_path,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     assert p.stdout.readline() == b"writing\n"
-    p.send_signal(signal.SIGHUP)
+    p.send_signal(signum)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 0, err.decode()
     assert os.listdir(tmp_path) == ["out.png"]

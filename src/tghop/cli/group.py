@@ -94,8 +94,8 @@ class OneLineGroup(click.Group):
         which installed a start-up Ctrl-C handler). Then, still under that handler, the
         modules the command will import are imported (Python loses a KeyboardInterrupt
         that arrives at the end of an import, "Exception ignored in ... _get_module_lock",
-        and the command would go on as if nothing had happened); then Ctrl-C raises
-        KeyboardInterrupt once (:func:`_interrupted`: the first stops the command, those
+        and the command would go on as if nothing had happened); then Ctrl-C, unless the
+        caller set it to be ignored, raises KeyboardInterrupt once (:func:`_interrupted`: the first stops the command, those
         after it are ignored while it cleans up and exits); and the objects that exist after the imports and at exit are handed to the
         garbage collector's permanent generation (``gc.freeze``), so that its collections
         during the run and at exit do not walk them. A program that runs the command line
@@ -105,7 +105,8 @@ class OneLineGroup(click.Group):
             if as_command:
                 _import_for(sys.argv[1:] if args is None else list(args))
                 gc.freeze()
-                signal.signal(signal.SIGINT, _interrupted)
+                if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:  # `tghop ... &` in a script ignores it
+                    signal.signal(signal.SIGINT, _interrupted)
                 _stop_on_signals()
             rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
         except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
