@@ -241,3 +241,7 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     Image.fromarray(to_uint8(data.bricks(64, rng=1))).save(tmp_path / "ex.png")
     r = _run(["morph", "ex.png", "b.npz", "-o", "ex.png"], tmp_path)
     assert_user_error(r, "-o would overwrite A")
+    # strips within the size limit each but not stacked: refused before the models are read
+    r = _run(["morph", "missing.npz", "b.npz", "-o", "big.png", "--size", "8192x8192", "--grid", "2"], tmp_path)
+    assert_user_error(r, "--grid 2 strips of 8192x8192 make a 16384x8192 image", "fewer strips or a smaller --size")
+    assert not (tmp_path / "big.png").exists()

@@ -105,6 +105,20 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     return outputs, size
 
 
+def _check_grid(size, grid):
+    """The stacked strips within the output size limit (each strip's --size is checked alone)."""
+    import math
+
+    from .._common import MAX_PIXELS
+
+    height, width = size[0] * grid, size[1]
+    if height * width > MAX_PIXELS:
+        side = math.isqrt(MAX_PIXELS)
+        raise TGHopError(f"--grid {grid} strips of {size[0]}x{size[1]} make a {height}x{width} image, "
+                         f"{height * width:,} pixels, above the limit of {MAX_PIXELS:,} ({side}x{side}); "
+                         "ask for fewer strips or a smaller --size")
+
+
 @click.command()
 @click.argument("source_a", metavar="A")
 @click.argument("source_b", metavar="B")
@@ -129,6 +143,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, quiet):
     with user_errors(progress):
         check_output(output, allow_stdout=True)
         check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
+        _check_grid(size, grid)
         model_a, _ = _model(source_a, {}, progress)
         model_b, _ = _model(source_b, {}, progress)
         rows = []
