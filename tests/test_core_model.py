@@ -146,6 +146,22 @@ def test_norm_match_gives_draws_the_training_norms(near_sphere):
     np.testing.assert_allclose(b, a * factor[:, None], rtol=1e-12)
 
 
+def test_a_cluster_with_more_members_than_dimensions_is_fitted_as_through_its_gram_matrix():
+    # PCA by the d x d scatter matrix where that is the smaller problem: the same cluster
+    # model as by the n x n Gram matrix, which zero columns (nothing to explain) select.
+    r = np.random.default_rng(4)
+    centred = r.laplace(size=(300, 6)) @ r.standard_normal((6, 6))
+    centred -= centred.mean(axis=0)
+    model = ICHM(n_clusters=1, cluster_energy=0.9, rng=0)
+    mixing, sources, converged = model._fit_cluster(centred, np.random.default_rng(1))
+    padded = np.hstack([centred, np.zeros((300, 300))])
+    mixing_gram, sources_gram, converged_gram = model._fit_cluster(padded, np.random.default_rng(1))
+    assert 1 < mixing.shape[0] < 6 and converged == converged_gram
+    np.testing.assert_allclose(mixing, mixing_gram[:, :6], atol=1e-8)
+    np.testing.assert_allclose(sources, sources_gram, atol=1e-8)
+    assert not mixing_gram[:, 6:].any()
+
+
 def test_ichm_reject_threshold(ichm_fit):
     _, model = ichm_fit
     model.set_params(reject_threshold=1.0)

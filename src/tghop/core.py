@@ -307,17 +307,19 @@ class ICHM(BaseEstimator):
 
     def _fit_cluster(self, centred, rng):
         """PCA-whiten one cluster, run FastICA; return (mixing (k, D_r), sources (n_i, k), converged)."""
-        n = centred.shape[0]
-        # PCA through the n x n Gram matrix (clusters have fewer members than dimensions).
-        gram_vals, gram_vecs = np.linalg.eigh(centred @ centred.T)
-        gram_vals, gram_vecs = np.maximum(gram_vals[::-1], 0), gram_vecs[:, ::-1]
-        var = gram_vals / n
+        n, d = centred.shape
+        # PCA through the smaller of the n x n Gram matrix (a patch model's clusters have
+        # fewer members than dimensions) and the d x d scatter matrix.
+        gram = n <= d
+        vals, vecs = np.linalg.eigh(centred @ centred.T if gram else centred.T @ centred)
+        vals, vecs = np.maximum(vals[::-1], 0), vecs[:, ::-1]
+        var = vals / n
         cum = np.cumsum(var) / max(var.sum(), 1e-300)
         k = int(np.searchsorted(cum, self.cluster_energy - 1e-12)) + 1
         k = max(1, min(k, self.max_cluster_components, int(self.max_component_ratio * n), n - 1,
                        int(np.count_nonzero(var > 1e-12 * var[0]))))
         std = np.sqrt(var[:k])
-        basis = flip_signs((gram_vecs[:, :k].T @ centred) / np.sqrt(gram_vals[:k])[:, None])
+        basis = flip_signs((vecs[:, :k].T @ centred) / np.sqrt(vals[:k])[:, None] if gram else vecs[:, :k].T)
         white = centred @ basis.T / std
         unmix, converged = fast_ica(white, max_iter=self.max_iter, tol=self.tol, rng=rng)
         sources = white @ unmix.T
