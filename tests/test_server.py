@@ -235,6 +235,29 @@ def test_a_generation_whose_client_went_away_never_runs(client, fitted, live_ser
     assert r.status_code == 200 and seeds == [102]  # 101 never ran
 
 
+def test_a_client_that_drops_mid_upload_is_dropped_quietly(client, fitted, live_server):
+    import logging
+    import socket
+
+    model_id, _, _ = fitted
+    records = []
+    handler = logging.Handler(logging.WARNING)
+    handler.emit = records.append
+    logger = logging.getLogger("uvicorn.error")  # where uvicorn logs "Exception in ASGI application"
+    logger.addHandler(handler)
+    port = int(live_server.url.rsplit(":", 1)[1])
+    try:
+        for path in ("/api/models/upload", f"/api/models/{model_id}/inpaint", f"/api/models/{model_id}/images"):
+            with socket.create_connection(("127.0.0.1", port), timeout=10) as s:  # 3 of 10 bytes, then gone
+                s.sendall(f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Length: 10\r\n\r\nabc".encode())
+                time.sleep(0.2)
+        time.sleep(0.5)
+    finally:
+        logger.removeHandler(handler)
+    assert [r.getMessage() for r in records] == []
+    assert client.get("/api").status_code == 200  # the server goes on
+
+
 def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     model_id, _, _ = fitted
     before = model_files(live_server.cache)

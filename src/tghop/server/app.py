@@ -23,7 +23,8 @@ status code: 400 (not an image, a decompression bomb, a corrupt model, a malform
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
 422 (a setting out of range, a size over the output limit), 501 (a co-occurrence route
 without PyTorch), 503 (too many fits waiting); a generation whose client has gone away is
-dropped (:meth:`Server.in_executor`; 499, to nobody).
+dropped (:meth:`Server.in_executor`; 499, to nobody), and so is a request whose client goes
+away before it has sent the whole body (:func:`read_body`).
 
 Generations run on a thread pool of their own (:attr:`Server.executor`, as many threads as
 generations may run at once), not on Starlette's pool of 40 threads: fewer threads touching
@@ -59,6 +60,7 @@ try:  # the web extra; create_app says how to install it when it is missing
     from starlette.concurrency import run_in_threadpool
     from starlette.exceptions import HTTPException
     from starlette.formparsers import MultiPartException, MultiPartParser
+    from starlette.requests import ClientDisconnect
     from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
     from starlette.routing import Mount, Route
     from starlette.staticfiles import StaticFiles
@@ -191,22 +193,26 @@ def _parse_field(s, text: str):
 
 # ------------------------------------------------------------------ requests
 async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
-    """The request's body, or 413 as soon as it is over ``limit`` bytes."""
+    """The request's body, or 413 as soon as it is over ``limit`` bytes; 499 (to nobody) when
+    the client goes away before it has sent the whole body."""
     too_large = RequestError(413, f"the upload is over the limit of {limit // (1024 * 1024)} MB; "
                                   "send a smaller file")
     declared = request.headers.get("content-length")
     over = bool(declared and declared.isdigit() and int(declared) > limit)
     chunks, n = [], 0
-    async for chunk in request.stream():
-        n += len(chunk)
-        if n > limit:
-            over = True
-        if over:  # the rest is read and dropped, so that the client gets the answer and not a reset
-            chunks = []
-            if n > _DRAIN * limit:
-                break
-            continue
-        chunks.append(chunk)
+    try:
+        async for chunk in request.stream():
+            n += len(chunk)
+            if n > limit:
+                over = True
+            if over:  # the rest is read and dropped, so that the client gets the answer and not a reset
+                chunks = []
+                if n > _DRAIN * limit:
+                    break
+                continue
+            chunks.append(chunk)
+    except ClientDisconnect:  # not the server's error: no traceback, and the answer goes nowhere
+        raise RequestError(499, "the client went away before it sent the whole body") from None
     if over:
         raise too_large
     return b"".join(chunks)
