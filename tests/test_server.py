@@ -463,6 +463,9 @@ def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fil
     assert_error(post(url, files={"image": ("tiny.png", tiny), "mask": ("m.png", tiny_hole)}), 400,
                  "the image is 4x4; inpainting with")
     assert_error(post(url, files={"image": good["image"]}), 400, "no mask")
+    black = png_of(np.zeros((64, 80), np.uint8))  # as tghop inpaint: an all-black mask has nothing to fill
+    assert_error(post(url, files={**good, "mask": ("black.png", black)}), 400,
+                 "the mask black.png has no white pixel, so there is nothing to fill; paint the hole white")
     assert_error(post(url, data={"seed": "1"}), 400, "multipart")
     # 413: over the pixel limit, over 50 MB
     assert_error(post(url, files={**good, "image": ("big.png", png_header(9000, 9000))}), 413,

@@ -567,11 +567,14 @@ class Server:
             if name == "image":
                 picture = read
             else:
-                mask = read.mean(axis=2)
+                mask, mask_name = read.mean(axis=2), filename
         try:
             hole = check_hole(mask, picture.shape)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
+        if not hole.any():  # as tghop inpaint: nothing would change
+            raise RequestError(400, f"the mask {mask_name} has no white pixel, so there is nothing to fill; paint the "
+                                    "hole white (a pixel whose channels' mean is above mid-grey)")
         with self.generating:
             try:
                 filled = inpaint(model, picture, hole, rng=seed, tile=tile)
