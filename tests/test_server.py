@@ -444,6 +444,45 @@ def test_inpaint_keeps_the_pixels_outside_the_mask_and_fills_the_inside(client, 
     assert unseeded.status_code == 200 and int(unseeded.headers["x-tghop-seed"]) >= 0
 
 
+def test_inpaint_keeps_alpha_and_16_bits_as_tghop_inpaint_does(client, fitted, to_fill, live_server, tmp_path):
+    import numpy as np
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from tghop.cli import main
+    from tghop.imageio import load_image, write_png
+
+    model_id, _, _ = fitted
+    image, mask, hole = to_fill
+    url = f"/api/models/{model_id}/inpaint"
+    rgb = decoded(image)
+    alpha = np.tile((np.arange(80) * 3).astype(np.uint8), (64, 1))[..., None]
+    rgba = np.concatenate([rgb, alpha], axis=2)
+    (tmp_path / "rgba.png").write_bytes(png_of(rgba))
+    (tmp_path / "mask.png").write_bytes(mask)
+    r = client.post(url, files={"image": ("rgba.png", png_of(rgba)), "mask": ("mask.png", mask), "seed": (None, "3")})
+    assert r.status_code == 200, r.text
+    out = Image.open(io.BytesIO(r.content))
+    assert out.mode == "RGBA"
+    out = np.asarray(out)
+    assert (out[~hole] == rgba[~hole]).all() and (out[hole][:, 3] == 255).all()  # opaque in the hole
+    cli = CliRunner().invoke(main, ["inpaint", str(tmp_path / "rgba.png"), str(tmp_path / "mask.png"), "--seed", "3",
+                                    "--source", str(live_server.cache / "models" / f"{model_id}.npz"), "-q",
+                                    "-o", str(tmp_path / "cli.png")])
+    assert cli.exit_code == 0, cli.output
+    assert (np.asarray(Image.open(tmp_path / "cli.png")) == out).all()  # the command's very pixels
+    # 16 bits per channel: a 16-bit PNG, every pixel outside the hole the same 16-bit levels
+    deep = np.minimum(rgb.astype(np.uint16) * 257 + np.arange(80, dtype=np.uint16)[None, :, None], 65535)
+    buf = io.BytesIO()
+    write_png(buf, deep.astype(np.uint16))
+    r = client.post(url, files={"image": ("deep.png", buf.getvalue()), "mask": ("mask.png", mask), "seed": (None, "3")})
+    assert r.status_code == 200, r.text
+    assert r.content[24:26] == bytes([16, 2])  # IHDR: 16 bits, RGB
+    (tmp_path / "out16.png").write_bytes(r.content)
+    levels = np.round(load_image(tmp_path / "out16.png", dtype=None) * 65535).astype(np.uint16)
+    assert (levels[~hole] == deep[~hole]).all() and (levels[hole] != deep[hole]).any(axis=1).mean() > 0.5
+
+
 def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fill, live_server):
     import numpy as np
 

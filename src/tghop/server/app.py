@@ -544,11 +544,14 @@ class Server:
 
     def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
         """Read the picture and its mask, fill the mask's white pixels with the model's
-        texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes."""
+        texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes. As ``tghop inpaint`` does
+        (its code): an alpha channel is kept (opaque in the hole), and so are 16 bits per
+        channel (a float picture: 16 bits, the most a PNG holds)."""
         import numpy as np
 
         from .._errors import HINT_DOWNSCALE_YOURSELF
-        from ..imageio import load_image, to_uint8, write_png
+        from ..cli.inpaint import _with_alpha
+        from ..imageio import deepest, load_image, to_uint8, to_uint16, write_png
         from ..inpaint import check_hole, inpaint
 
         model = self.cache.load(model_id)
@@ -562,11 +565,15 @@ class Server:
             filename = _safe_name(filename, default)
             if not content:
                 raise RequestError(400, f"{filename} is empty; send an image file")
-            read = self._read_image(content, filename, lambda p: load_image(
-                p, dtype=None if name == "image" else np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
-            if name == "image":
-                picture = read
+            if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
+                picture, depth = self._read_image(content, filename, lambda p: load_image(
+                    p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True))
+                alpha, picture_name = None, filename
+                if picture.shape[2] in (2, 4):
+                    picture, alpha = np.ascontiguousarray(picture[..., :-1]), picture[..., -1:]
             else:
+                read = self._read_image(content, filename, lambda p: load_image(
+                    p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
                 mask, mask_name = read.mean(axis=2), filename
         try:
             hole = check_hole(mask, picture.shape)
@@ -582,8 +589,9 @@ class Server:
                 raise RequestError(413, "out of memory; send a smaller picture") from None
             except TGHopError as exc:
                 raise RequestError(400, str(exc)) from None
+        filled = _with_alpha(filled, alpha, hole, picture_name, "filled.png")
         buf = io.BytesIO()
-        write_png(buf, filled if filled.dtype == np.uint8 else to_uint8(filled))
+        write_png(buf, to_uint16(filled) if deepest("filled.png", depth) == 16 else to_uint8(filled))
         return buf.getvalue()
 
     async def inpaint(self, request):
