@@ -712,6 +712,35 @@ def test_the_serve_command_prints_its_address_opens_it_and_stops_on_ctrl_c(tmp_p
     assert (tmp_path / "cache" / "models").is_dir()
 
 
+def test_ctrl_c_during_a_generation_stops_with_one_line_and_answers_json(tmp_path, fitted, live_server):
+    import shutil
+    import threading
+
+    model_id, _, _ = fitted
+    (tmp_path / "cache" / "models").mkdir(parents=True)
+    shutil.copy(live_server.cache / "models" / f"{model_id}.npz", tmp_path / "cache" / "models")
+    p = subprocess.Popen([sys.executable, "-m", "tghop", "serve", "--port", "0", "--cache", str(tmp_path / "cache"),
+                          "--max-fits", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    answers = []
+    try:
+        url = p.stdout.readline().split()[3]
+        asked = threading.Thread(target=lambda: answers.append(httpx.post(
+            f"{url}api/models/{model_id}/images", json={"size": [2048, 2048], "seed": 1}, timeout=120)))
+        asked.start()
+        time.sleep(1.5)  # the generation runs (it takes far longer)
+        stopped = time.monotonic()
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+        took = time.monotonic() - stopped
+        asked.join(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert err.strip().splitlines() == ["tghop server stopped"] and p.returncode == 0, err  # no traceback
+    assert_error(answers[0], 503, "the server is stopping")  # JSON, not uvicorn's text 500
+    assert took < 10  # the generation stopped too: the process did not wait for it
+
+
 def test_without_the_web_extra_serve_says_how_to_install_it(tmp_path):
     code = ("import sys\n"
             "sys.modules['starlette'] = None\nsys.modules['uvicorn'] = None\n"

@@ -256,19 +256,38 @@ class Server:
         # as many as may generate at once, not on Starlette's pool of 40: fewer threads
         # touching big arrays, fewer glibc malloc arenas holding freed memory (docs/serve.md).
         self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
+        self.stopping = asyncio.Event()
+
+    def stop(self) -> None:
+        """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
+        requests waiting for a generation answer 503 at once and event streams end, so that
+        uvicorn's graceful shutdown finds no request to cancel (a cancelled one was logged
+        with a traceback, and its client got a text 500)."""
+        self.stopping.set()
+
+    def unless_stopping(self, stage=None, done=0, total=0) -> None:
+        """The progress callback of a generation: stops it (503, to nobody: :meth:`in_executor`
+        has answered) once the server stops, so that the process does not wait for it."""
+        if self.stopping.is_set():
+            raise RequestError(503, "the server is stopping; the work was dropped")
 
     async def in_executor(self, request, work, *args):
         """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of
         ``request`` goes away first: still waiting for a thread, it never runs (running, it
-        finishes and its result is dropped); then 499."""
+        finishes and its result is dropped); then 499. Dropped the same way when the server
+        stops (:meth:`stop`): then 503."""
         future = asyncio.get_running_loop().run_in_executor(self.executor, functools.partial(work, *args))
         gone = asyncio.ensure_future(_disconnected(request))
+        stopped = asyncio.ensure_future(self.stopping.wait())
         try:
-            await asyncio.wait({future, gone}, return_when=asyncio.FIRST_COMPLETED)
+            await asyncio.wait({future, gone, stopped}, return_when=asyncio.FIRST_COMPLETED)
         finally:
             gone.cancel()
+            stopped.cancel()
         if not future.done():
             future.cancel()
+            if not gone.done() and self.stopping.is_set():
+                raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
             raise RequestError(499, "the client went away; its work was dropped")
         return future.result()
 
@@ -388,6 +407,8 @@ class Server:
                 if snap["state"] in FINAL:  # the snapshot's state, not the job's now: the end event says it
                     yield f"event: end\ndata: {json.dumps(snap)}\n\n"
                     return
+                if self.stopping.is_set():  # the server is stopping (its fits are cancelled): the stream ends
+                    return
                 if idle >= 15.0:  # a comment now and then keeps proxies from closing the stream
                     idle = 0.0
                     yield ": waiting\n\n"
@@ -451,7 +472,7 @@ class Server:
                                     "with patch_levels 0, or by tghop 0.14 or older); fit it again")
         with self.generating:
             try:
-                image = model.synthesize(size, rng=seed, dtype=np.uint8, **settings)
+                image = model.synthesize(size, rng=seed, dtype=np.uint8, progress=self.unless_stopping, **settings)
             except MemoryError:
                 raise RequestError(422, "out of memory; ask for a smaller image") from None
             except TGHopError as exc:
@@ -520,7 +541,8 @@ class Server:
             except TGHopError as exc:
                 raise RequestError(400, str(exc)) from None
         return self._several(lambda m, rng, dtype: synthesize_guided(
-            m, painted, size=size, transition=transition, rng=rng, dtype=dtype, **settings), models, seed, size)
+            m, painted, size=size, transition=transition, rng=rng, dtype=dtype, progress=self.unless_stopping,
+            **settings), models, seed, size)
 
     async def guided(self, request):
         ids, guide, size, seed, transition, settings = parse_guided(
@@ -534,7 +556,7 @@ class Server:
 
         models = [self.cache.load(model_id) for model_id in ids]
         return self._several(lambda m, rng, dtype: morph(m[0], m[1], size, rng=rng, stations=stations, dtype=dtype,
-                                                         **settings), models, seed, size)
+                                                         progress=self.unless_stopping, **settings), models, seed, size)
 
     async def morph(self, request):
         a, b, size, seed, stations, settings = parse_morph(await self._json_body(request))
@@ -584,7 +606,7 @@ class Server:
                                     "hole white (a pixel whose channels' mean is above mid-grey)")
         with self.generating:
             try:
-                filled = inpaint(model, picture, hole, rng=seed, tile=tile)
+                filled = inpaint(model, picture, hole, rng=seed, tile=tile, progress=self.unless_stopping)
             except MemoryError:
                 raise RequestError(413, "out of memory; send a smaller picture") from None
             except TGHopError as exc:
