@@ -446,7 +446,15 @@ class Server:
     def _store_upload(self, content: bytes, filename: str) -> str:
         """Check an uploaded model file and keep it under its content hash (400 if it is not
         a good tghop model; nothing is left in the cache either way)."""
-        return self.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
+        from ..modelfile import _is_image
+
+        try:
+            return self.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
+        except RequestError as exc:  # the loader's advice for an image is a command line's
+            if exc.status == 400 and _is_image(io.BytesIO(content)):
+                raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
+                                        "to /api/models as the file field 'image'") from None
+            raise
 
     async def upload_model(self, request):
         body = await read_body(request)
