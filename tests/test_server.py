@@ -380,6 +380,17 @@ def test_a_boolean_setting_is_asked_for_in_jsons_words(client):
         message = assert_error(client.post(images, json={"tile": value}), 422, "tile must be true or false")
         assert "True or False" not in message  # Python's words; JSON writes true
     assert_error(client.post(images, json={"tile": True, "match_colours": 0}), 404, "no model")
+    # paper (and co-occurrence's windows) take what the settings table's booleans take: JSON's words, null the default
+    for value in ("yes", "false", "1", 2, 1.0):
+        assert_error(client.post(images, json={"paper": value}), 422, "paper must be true or false (a JSON boolean)")
+    for body in ({"paper": None, "tile": None, "seed": None}, {"paper": 1, "tile": 0}, {"paper": False}):
+        assert_error(client.post(images, json=body), 404, "no model")
+    from tghop.server.cooc import _common
+    from tghop.server.requests import RequestError
+
+    assert _common({"windows": None}) == (None, False) and _common({"windows": True}) == (None, True)
+    with pytest.raises(RequestError, match="windows must be true or false"):
+        _common({"windows": "yes"})
 
 
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
