@@ -626,7 +626,7 @@ def test_morph_goes_from_a_to_b(client, fitted, second):
     assert again.content == r.content
 
 
-def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitted, second, live_server):
+def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitted, second, live_server, tmp_path):
     import base64
 
     import numpy as np
@@ -652,6 +652,19 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
     assert_error(post(morph, json={"a": two[0], "size": [32, 64]}), 422, "b must be a model id")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "tile": True}), 422, "unknown setting 'tile'")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "stations": 1}), 422, "stations must be")
+    # models of other patch sizes: named as the request names them, and the fit's field (not --patch-size)
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    save_model(TGHop(patch_size=16, n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, stride=4,
+                     rng=0).fit(data.bricks(64, rng=1)), tmp_path / "p16.npz")
+    small = post("/api/models/upload", content=(tmp_path / "p16.npz").read_bytes()).json()["id"]
+    words = "fit them with the same patch_size (a field of POST /api/models)"
+    for response in (post(morph, json={"a": two[0], "b": small, "size": [32, 64]}),
+                     post(guided, json={"models": [two[0], small], "size": [32, 32]})):
+        message = assert_error(response, 422, "has 16x16 patches but", "has 32x32", words)
+        assert "--patch-size" not in message and ("b has 16x16" in message or "models[1] has 16x16" in message)
+    (live_server.cache / "models" / f"{small}.npz").unlink()
     # 404: no such model (well formed or not)
     missing = "0" * 64
     assert_error(post(guided, json={"models": [two[0], missing], "size": [32, 32]}), 404, "no model")

@@ -535,12 +535,23 @@ class Server:
         write_png(buf, image)
         return buf.getvalue(), image.shape[:2]
 
+    @staticmethod
+    def _same_patches(models, names) -> None:
+        """Models to combine have one patch size, or 422 naming them as the request does and
+        the fit field (the library's words name the command line's --patch-size)."""
+        p = models[0].patch_size
+        for name, model in zip(names[1:], models[1:]):
+            if model.patch_size != p:
+                raise RequestError(422, f"{name} has {model.patch_size}x{model.patch_size} patches but {names[0]} has "
+                                        f"{p}x{p}; fit them with the same patch_size (a field of POST /api/models)")
+
     def _guided(self, ids, guide, size, transition, settings, seed) -> tuple:
         """Several models through a painted guide (its PNG's bytes), or a remix (None)."""
         from ..guided import guide_labels, synthesize_guided
         from ..imageio import load_image
 
         models = [self.cache.load(model_id) for model_id in ids]
+        self._same_patches(models, [f"models[{i}]" for i in range(len(models))])
         painted = None
         if guide is not None:
             painted = self._read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
@@ -563,6 +574,7 @@ class Server:
         from ..guided import morph
 
         models = [self.cache.load(model_id) for model_id in ids]
+        self._same_patches(models, ["a", "b"])
         return self._several(lambda m, rng, dtype: morph(m[0], m[1], size, rng=rng, stations=stations, dtype=dtype,
                                                          progress=self.unless_stopping, **settings), models, seed, size)
 
