@@ -235,6 +235,29 @@ def test_a_generation_whose_client_went_away_never_runs(client, fitted, live_ser
     assert r.status_code == 200 and seeds == [102]  # 101 never ran
 
 
+def test_a_client_that_drops_mid_upload_is_dropped_quietly(client, fitted, live_server):
+    import logging
+    import socket
+
+    model_id, _, _ = fitted
+    records = []
+    handler = logging.Handler(logging.WARNING)
+    handler.emit = records.append
+    logger = logging.getLogger("uvicorn.error")  # where uvicorn logs "Exception in ASGI application"
+    logger.addHandler(handler)
+    port = int(live_server.url.rsplit(":", 1)[1])
+    try:
+        for path in ("/api/models/upload", f"/api/models/{model_id}/inpaint", f"/api/models/{model_id}/images"):
+            with socket.create_connection(("127.0.0.1", port), timeout=10) as s:  # 3 of 10 bytes, then gone
+                s.sendall(f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Length: 10\r\n\r\nabc".encode())
+                time.sleep(0.2)
+        time.sleep(0.5)
+    finally:
+        logger.removeHandler(handler)
+    assert [r.getMessage() for r in records] == []
+    assert client.get("/api").status_code == 200  # the server goes on
+
+
 def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     model_id, _, _ = fitted
     before = model_files(live_server.cache)
@@ -263,8 +286,11 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     good = client.get(f"/api/models/{model_id}/file").content
     assert_error(post("/api/models/upload", files={"model": ("cut.npz", good[: len(good) // 2])}), 400,
                  "cut.npz: truncated, corrupt")
-    assert_error(post("/api/models/upload", files={"model": ("pic.npz", exemplar_png(40))}), 400,
-                 "pic.npz is an image, not a model file")
+    message = assert_error(post("/api/models/upload", files={"model": ("pic.npz", exemplar_png(40))}), 400,
+                           "pic.npz is an image, not a model file; to fit a model from it, POST it to /api/models "
+                           "as the file field 'image'")
+    assert "tghop fit" not in message  # a command line's advice means nothing to a web client
+    assert_error(post("/api/models/upload", content=exemplar_png(40)), 400, "the upload is an image", "/api/models")
     assert_error(post("/api/models/upload", content=b""), 400, "the upload is empty")
     # 422: settings out of range, sizes over the output limit
     assert_error(post("/api/models", files={"builtin": (None, "bricks"), "n_clusters": (None, "0")}), 422,
@@ -354,6 +380,17 @@ def test_a_boolean_setting_is_asked_for_in_jsons_words(client):
         message = assert_error(client.post(images, json={"tile": value}), 422, "tile must be true or false")
         assert "True or False" not in message  # Python's words; JSON writes true
     assert_error(client.post(images, json={"tile": True, "match_colours": 0}), 404, "no model")
+    # paper (and co-occurrence's windows) take what the settings table's booleans take: JSON's words, null the default
+    for value in ("yes", "false", "1", 2, 1.0):
+        assert_error(client.post(images, json={"paper": value}), 422, "paper must be true or false (a JSON boolean)")
+    for body in ({"paper": None, "tile": None, "seed": None}, {"paper": 1, "tile": 0}, {"paper": False}):
+        assert_error(client.post(images, json=body), 404, "no model")
+    from tghop.server.cooc import _common
+    from tghop.server.requests import RequestError
+
+    assert _common({"windows": None}) == (None, False) and _common({"windows": True}) == (None, True)
+    with pytest.raises(RequestError, match="windows must be true or false"):
+        _common({"windows": "yes"})
 
 
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):
@@ -421,6 +458,45 @@ def test_inpaint_keeps_the_pixels_outside_the_mask_and_fills_the_inside(client, 
     assert unseeded.status_code == 200 and int(unseeded.headers["x-tghop-seed"]) >= 0
 
 
+def test_inpaint_keeps_alpha_and_16_bits_as_tghop_inpaint_does(client, fitted, to_fill, live_server, tmp_path):
+    import numpy as np
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from tghop.cli import main
+    from tghop.imageio import load_image, write_png
+
+    model_id, _, _ = fitted
+    image, mask, hole = to_fill
+    url = f"/api/models/{model_id}/inpaint"
+    rgb = decoded(image)
+    alpha = np.tile((np.arange(80) * 3).astype(np.uint8), (64, 1))[..., None]
+    rgba = np.concatenate([rgb, alpha], axis=2)
+    (tmp_path / "rgba.png").write_bytes(png_of(rgba))
+    (tmp_path / "mask.png").write_bytes(mask)
+    r = client.post(url, files={"image": ("rgba.png", png_of(rgba)), "mask": ("mask.png", mask), "seed": (None, "3")})
+    assert r.status_code == 200, r.text
+    out = Image.open(io.BytesIO(r.content))
+    assert out.mode == "RGBA"
+    out = np.asarray(out)
+    assert (out[~hole] == rgba[~hole]).all() and (out[hole][:, 3] == 255).all()  # opaque in the hole
+    cli = CliRunner().invoke(main, ["inpaint", str(tmp_path / "rgba.png"), str(tmp_path / "mask.png"), "--seed", "3",
+                                    "--source", str(live_server.cache / "models" / f"{model_id}.npz"), "-q",
+                                    "-o", str(tmp_path / "cli.png")])
+    assert cli.exit_code == 0, cli.output
+    assert (np.asarray(Image.open(tmp_path / "cli.png")) == out).all()  # the command's very pixels
+    # 16 bits per channel: a 16-bit PNG, every pixel outside the hole the same 16-bit levels
+    deep = np.minimum(rgb.astype(np.uint16) * 257 + np.arange(80, dtype=np.uint16)[None, :, None], 65535)
+    buf = io.BytesIO()
+    write_png(buf, deep.astype(np.uint16))
+    r = client.post(url, files={"image": ("deep.png", buf.getvalue()), "mask": ("mask.png", mask), "seed": (None, "3")})
+    assert r.status_code == 200, r.text
+    assert r.content[24:26] == bytes([16, 2])  # IHDR: 16 bits, RGB
+    (tmp_path / "out16.png").write_bytes(r.content)
+    levels = np.round(load_image(tmp_path / "out16.png", dtype=None) * 65535).astype(np.uint16)
+    assert (levels[~hole] == deep[~hole]).all() and (levels[hole] != deep[hole]).any(axis=1).mean() > 0.5
+
+
 def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fill, live_server):
     import numpy as np
 
@@ -440,6 +516,9 @@ def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fil
     assert_error(post(url, files={"image": ("tiny.png", tiny), "mask": ("m.png", tiny_hole)}), 400,
                  "the image is 4x4; inpainting with")
     assert_error(post(url, files={"image": good["image"]}), 400, "no mask")
+    black = png_of(np.zeros((64, 80), np.uint8))  # as tghop inpaint: an all-black mask has nothing to fill
+    assert_error(post(url, files={**good, "mask": ("black.png", black)}), 400,
+                 "the mask black.png has no white pixel, so there is nothing to fill; paint the hole white")
     assert_error(post(url, data={"seed": "1"}), 400, "multipart")
     # 413: over the pixel limit, over 50 MB
     assert_error(post(url, files={**good, "image": ("big.png", png_header(9000, 9000))}), 413,
@@ -547,7 +626,7 @@ def test_morph_goes_from_a_to_b(client, fitted, second):
     assert again.content == r.content
 
 
-def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitted, second, live_server):
+def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitted, second, live_server, tmp_path):
     import base64
 
     import numpy as np
@@ -573,6 +652,19 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
     assert_error(post(morph, json={"a": two[0], "size": [32, 64]}), 422, "b must be a model id")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "tile": True}), 422, "unknown setting 'tile'")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "stations": 1}), 422, "stations must be")
+    # models of other patch sizes: named as the request names them, and the fit's field (not --patch-size)
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    save_model(TGHop(patch_size=16, n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, stride=4,
+                     rng=0).fit(data.bricks(64, rng=1)), tmp_path / "p16.npz")
+    small = post("/api/models/upload", content=(tmp_path / "p16.npz").read_bytes()).json()["id"]
+    words = "fit them with the same patch_size (a field of POST /api/models)"
+    for response in (post(morph, json={"a": two[0], "b": small, "size": [32, 64]}),
+                     post(guided, json={"models": [two[0], small], "size": [32, 32]})):
+        message = assert_error(response, 422, "has 16x16 patches but", "has 32x32", words)
+        assert "--patch-size" not in message and ("b has 16x16" in message or "models[1] has 16x16" in message)
+    (live_server.cache / "models" / f"{small}.npz").unlink()
     # 404: no such model (well formed or not)
     missing = "0" * 64
     assert_error(post(guided, json={"models": [two[0], missing], "size": [32, 32]}), 404, "no model")
@@ -645,6 +737,35 @@ def test_the_serve_command_prints_its_address_opens_it_and_stops_on_ctrl_c(tmp_p
     assert "Warning: listening on 0.0.0.0" in err
     assert "Traceback" not in err and p.returncode == 0, err
     assert (tmp_path / "cache" / "models").is_dir()
+
+
+def test_ctrl_c_during_a_generation_stops_with_one_line_and_answers_json(tmp_path, fitted, live_server):
+    import shutil
+    import threading
+
+    model_id, _, _ = fitted
+    (tmp_path / "cache" / "models").mkdir(parents=True)
+    shutil.copy(live_server.cache / "models" / f"{model_id}.npz", tmp_path / "cache" / "models")
+    p = subprocess.Popen([sys.executable, "-m", "tghop", "serve", "--port", "0", "--cache", str(tmp_path / "cache"),
+                          "--max-fits", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    answers = []
+    try:
+        url = p.stdout.readline().split()[3]
+        asked = threading.Thread(target=lambda: answers.append(httpx.post(
+            f"{url}api/models/{model_id}/images", json={"size": [2048, 2048], "seed": 1}, timeout=120)))
+        asked.start()
+        time.sleep(1.5)  # the generation runs (it takes far longer)
+        stopped = time.monotonic()
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+        took = time.monotonic() - stopped
+        asked.join(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert err.strip().splitlines() == ["tghop server stopped"] and p.returncode == 0, err  # no traceback
+    assert_error(answers[0], 503, "the server is stopping")  # JSON, not uvicorn's text 500
+    assert took < 10  # the generation stopped too: the process did not wait for it
 
 
 def test_without_the_web_extra_serve_says_how_to_install_it(tmp_path):

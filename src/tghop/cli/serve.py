@@ -119,8 +119,15 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
         import webbrowser
 
         webbrowser.open(url)
+    class Server(uvicorn.Server):
+        async def shutdown(self, sockets=None):
+            # Requests still waiting for a generation answer 503 now (JSON): none is left for
+            # uvicorn to cancel when timeout_graceful_shutdown runs out (a traceback, a text 500).
+            app.state.server.stop()
+            await super().shutdown(sockets=sockets)
+
     config = uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on")
-    server = uvicorn.Server(config)
+    server = Server(config)
     try:
         server.run(sockets=[sock])
     except KeyboardInterrupt:  # a second Ctrl-C, or SIGTERM through the command's handler

@@ -23,7 +23,8 @@ status code: 400 (not an image, a decompression bomb, a corrupt model, a malform
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
 422 (a setting out of range, a size over the output limit), 501 (a co-occurrence route
 without PyTorch), 503 (too many fits waiting); a generation whose client has gone away is
-dropped (:meth:`Server.in_executor`; 499, to nobody).
+dropped (:meth:`Server.in_executor`; 499, to nobody), and so is a request whose client goes
+away before it has sent the whole body (:func:`read_body`).
 
 Generations run on a thread pool of their own (:attr:`Server.executor`, as many threads as
 generations may run at once), not on Starlette's pool of 40 threads: fewer threads touching
@@ -59,6 +60,7 @@ try:  # the web extra; create_app says how to install it when it is missing
     from starlette.concurrency import run_in_threadpool
     from starlette.exceptions import HTTPException
     from starlette.formparsers import MultiPartException, MultiPartParser
+    from starlette.requests import ClientDisconnect
     from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
     from starlette.routing import Mount, Route
     from starlette.staticfiles import StaticFiles
@@ -191,22 +193,26 @@ def _parse_field(s, text: str):
 
 # ------------------------------------------------------------------ requests
 async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
-    """The request's body, or 413 as soon as it is over ``limit`` bytes."""
+    """The request's body, or 413 as soon as it is over ``limit`` bytes; 499 (to nobody) when
+    the client goes away before it has sent the whole body."""
     too_large = RequestError(413, f"the upload is over the limit of {limit // (1024 * 1024)} MB; "
                                   "send a smaller file")
     declared = request.headers.get("content-length")
     over = bool(declared and declared.isdigit() and int(declared) > limit)
     chunks, n = [], 0
-    async for chunk in request.stream():
-        n += len(chunk)
-        if n > limit:
-            over = True
-        if over:  # the rest is read and dropped, so that the client gets the answer and not a reset
-            chunks = []
-            if n > _DRAIN * limit:
-                break
-            continue
-        chunks.append(chunk)
+    try:
+        async for chunk in request.stream():
+            n += len(chunk)
+            if n > limit:
+                over = True
+            if over:  # the rest is read and dropped, so that the client gets the answer and not a reset
+                chunks = []
+                if n > _DRAIN * limit:
+                    break
+                continue
+            chunks.append(chunk)
+    except ClientDisconnect:  # not the server's error: no traceback, and the answer goes nowhere
+        raise RequestError(499, "the client went away before it sent the whole body") from None
     if over:
         raise too_large
     return b"".join(chunks)
@@ -250,19 +256,38 @@ class Server:
         # as many as may generate at once, not on Starlette's pool of 40: fewer threads
         # touching big arrays, fewer glibc malloc arenas holding freed memory (docs/serve.md).
         self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
+        self.stopping = asyncio.Event()
+
+    def stop(self) -> None:
+        """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
+        requests waiting for a generation answer 503 at once and event streams end, so that
+        uvicorn's graceful shutdown finds no request to cancel (a cancelled one was logged
+        with a traceback, and its client got a text 500)."""
+        self.stopping.set()
+
+    def unless_stopping(self, stage=None, done=0, total=0) -> None:
+        """The progress callback of a generation: stops it (503, to nobody: :meth:`in_executor`
+        has answered) once the server stops, so that the process does not wait for it."""
+        if self.stopping.is_set():
+            raise RequestError(503, "the server is stopping; the work was dropped")
 
     async def in_executor(self, request, work, *args):
         """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of
         ``request`` goes away first: still waiting for a thread, it never runs (running, it
-        finishes and its result is dropped); then 499."""
+        finishes and its result is dropped); then 499. Dropped the same way when the server
+        stops (:meth:`stop`): then 503."""
         future = asyncio.get_running_loop().run_in_executor(self.executor, functools.partial(work, *args))
         gone = asyncio.ensure_future(_disconnected(request))
+        stopped = asyncio.ensure_future(self.stopping.wait())
         try:
-            await asyncio.wait({future, gone}, return_when=asyncio.FIRST_COMPLETED)
+            await asyncio.wait({future, gone, stopped}, return_when=asyncio.FIRST_COMPLETED)
         finally:
             gone.cancel()
+            stopped.cancel()
         if not future.done():
             future.cancel()
+            if not gone.done() and self.stopping.is_set():
+                raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
             raise RequestError(499, "the client went away; its work was dropped")
         return future.result()
 
@@ -382,6 +407,8 @@ class Server:
                 if snap["state"] in FINAL:  # the snapshot's state, not the job's now: the end event says it
                     yield f"event: end\ndata: {json.dumps(snap)}\n\n"
                     return
+                if self.stopping.is_set():  # the server is stopping (its fits are cancelled): the stream ends
+                    return
                 if idle >= 15.0:  # a comment now and then keeps proxies from closing the stream
                     idle = 0.0
                     yield ": waiting\n\n"
@@ -419,7 +446,15 @@ class Server:
     def _store_upload(self, content: bytes, filename: str) -> str:
         """Check an uploaded model file and keep it under its content hash (400 if it is not
         a good tghop model; nothing is left in the cache either way)."""
-        return self.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
+        from ..modelfile import _is_image
+
+        try:
+            return self.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
+        except RequestError as exc:  # the loader's advice for an image is a command line's
+            if exc.status == 400 and _is_image(io.BytesIO(content)):
+                raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
+                                        "to /api/models as the file field 'image'") from None
+            raise
 
     async def upload_model(self, request):
         body = await read_body(request)
@@ -445,7 +480,7 @@ class Server:
                                     "with patch_levels 0, or by tghop 0.14 or older); fit it again")
         with self.generating:
             try:
-                image = model.synthesize(size, rng=seed, dtype=np.uint8, **settings)
+                image = model.synthesize(size, rng=seed, dtype=np.uint8, progress=self.unless_stopping, **settings)
             except MemoryError:
                 raise RequestError(422, "out of memory; ask for a smaller image") from None
             except TGHopError as exc:
@@ -500,12 +535,23 @@ class Server:
         write_png(buf, image)
         return buf.getvalue(), image.shape[:2]
 
+    @staticmethod
+    def _same_patches(models, names) -> None:
+        """Models to combine have one patch size, or 422 naming them as the request does and
+        the fit field (the library's words name the command line's --patch-size)."""
+        p = models[0].patch_size
+        for name, model in zip(names[1:], models[1:]):
+            if model.patch_size != p:
+                raise RequestError(422, f"{name} has {model.patch_size}x{model.patch_size} patches but {names[0]} has "
+                                        f"{p}x{p}; fit them with the same patch_size (a field of POST /api/models)")
+
     def _guided(self, ids, guide, size, transition, settings, seed) -> tuple:
         """Several models through a painted guide (its PNG's bytes), or a remix (None)."""
         from ..guided import guide_labels, synthesize_guided
         from ..imageio import load_image
 
         models = [self.cache.load(model_id) for model_id in ids]
+        self._same_patches(models, [f"models[{i}]" for i in range(len(models))])
         painted = None
         if guide is not None:
             painted = self._read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
@@ -514,7 +560,8 @@ class Server:
             except TGHopError as exc:
                 raise RequestError(400, str(exc)) from None
         return self._several(lambda m, rng, dtype: synthesize_guided(
-            m, painted, size=size, transition=transition, rng=rng, dtype=dtype, **settings), models, seed, size)
+            m, painted, size=size, transition=transition, rng=rng, dtype=dtype, progress=self.unless_stopping,
+            **settings), models, seed, size)
 
     async def guided(self, request):
         ids, guide, size, seed, transition, settings = parse_guided(
@@ -527,8 +574,9 @@ class Server:
         from ..guided import morph
 
         models = [self.cache.load(model_id) for model_id in ids]
+        self._same_patches(models, ["a", "b"])
         return self._several(lambda m, rng, dtype: morph(m[0], m[1], size, rng=rng, stations=stations, dtype=dtype,
-                                                         **settings), models, seed, size)
+                                                         progress=self.unless_stopping, **settings), models, seed, size)
 
     async def morph(self, request):
         a, b, size, seed, stations, settings = parse_morph(await self._json_body(request))
@@ -538,11 +586,14 @@ class Server:
 
     def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
         """Read the picture and its mask, fill the mask's white pixels with the model's
-        texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes."""
+        texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes. As ``tghop inpaint`` does
+        (its code): an alpha channel is kept (opaque in the hole), and so are 16 bits per
+        channel (a float picture: 16 bits, the most a PNG holds)."""
         import numpy as np
 
         from .._errors import HINT_DOWNSCALE_YOURSELF
-        from ..imageio import load_image, to_uint8, write_png
+        from ..cli.inpaint import _with_alpha
+        from ..imageio import deepest, load_image, to_uint8, to_uint16, write_png
         from ..inpaint import check_hole, inpaint
 
         model = self.cache.load(model_id)
@@ -556,25 +607,33 @@ class Server:
             filename = _safe_name(filename, default)
             if not content:
                 raise RequestError(400, f"{filename} is empty; send an image file")
-            read = self._read_image(content, filename, lambda p: load_image(
-                p, dtype=None if name == "image" else np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
-            if name == "image":
-                picture = read
+            if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
+                picture, depth = self._read_image(content, filename, lambda p: load_image(
+                    p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True))
+                alpha, picture_name = None, filename
+                if picture.shape[2] in (2, 4):
+                    picture, alpha = np.ascontiguousarray(picture[..., :-1]), picture[..., -1:]
             else:
-                mask = read.mean(axis=2)
+                read = self._read_image(content, filename, lambda p: load_image(
+                    p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
+                mask, mask_name = read.mean(axis=2), filename
         try:
             hole = check_hole(mask, picture.shape)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
+        if not hole.any():  # as tghop inpaint: nothing would change
+            raise RequestError(400, f"the mask {mask_name} has no white pixel, so there is nothing to fill; paint the "
+                                    "hole white (a pixel whose channels' mean is above mid-grey)")
         with self.generating:
             try:
-                filled = inpaint(model, picture, hole, rng=seed, tile=tile)
+                filled = inpaint(model, picture, hole, rng=seed, tile=tile, progress=self.unless_stopping)
             except MemoryError:
                 raise RequestError(413, "out of memory; send a smaller picture") from None
             except TGHopError as exc:
                 raise RequestError(400, str(exc)) from None
+        filled = _with_alpha(filled, alpha, hole, picture_name, "filled.png")
         buf = io.BytesIO()
-        write_png(buf, filled if filled.dtype == np.uint8 else to_uint8(filled))
+        write_png(buf, to_uint16(filled) if deepest("filled.png", depth) == 16 else to_uint8(filled))
         return buf.getvalue()
 
     async def inpaint(self, request):

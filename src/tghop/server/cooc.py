@@ -25,7 +25,7 @@ import math
 
 from .._errors import TGHopError
 from .cache import ModelCache
-from .requests import RequestError, decode_png_field, parse_bool
+from .requests import RequestError, decode_png_field, json_bool
 
 __all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "MAX_BOOST",
            "require_torch", "cooc_cache",
@@ -129,7 +129,7 @@ def _object(body, known, example):
 
 def _common(body) -> tuple:
     seed = _int("seed", body.get("seed"), 0, 2**63 - 1, none_ok=True)
-    return seed, parse_bool("windows", body.get("windows", False))
+    return seed, json_bool("windows", body.get("windows"))
 
 
 def parse_morph(body) -> tuple:

@@ -15,8 +15,8 @@ import re
 
 from .._errors import TGHopError
 
-__all__ = ["RequestError", "decode_png_field", "parse_bool", "parse_generation", "parse_guided", "parse_morph", "MAX_MODELS",
-           "MAX_TRANSITION"]
+__all__ = ["RequestError", "decode_png_field", "json_bool", "parse_bool", "parse_generation", "parse_guided",
+           "parse_morph", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -34,7 +34,8 @@ class RequestError(Exception):
 
 
 def parse_bool(name, value) -> bool:
-    """``true``/``false`` (or 1/0, on/off, yes/no, a JSON boolean); 422 otherwise."""
+    """A form field's boolean: ``true``/``false`` (or 1/0, on/off, yes/no); 422 otherwise
+    (a JSON body's: :func:`json_bool`)."""
     if isinstance(value, bool):
         return value
     text = str(value).strip().lower()
@@ -43,6 +44,19 @@ def parse_bool(name, value) -> bool:
     if text in ("0", "false", "off", "no", ""):
         return False
     raise RequestError(422, f"{name} must be true or false, got {value!r}")
+
+
+def json_bool(name, value, default: bool = False) -> bool:
+    """A boolean of a JSON body, one rule for all (``paper``, ``windows`` and the settings
+    table's, e.g. ``tile``): ``true``/``false`` (or 1/0); missing or ``null``: ``default``
+    (as a setting's ``null`` is its default); 422 otherwise ("yes" is a form's word, not JSON's)."""
+    if value is None:
+        return default
+    if isinstance(value, bool):
+        return value
+    if type(value) is int and value in (0, 1):
+        return bool(value)
+    raise RequestError(422, f"{name} must be true or false (a JSON boolean), got {value!r}")
 
 
 def _integer(name, value, low, high, *, none_ok=False):
@@ -86,7 +100,7 @@ def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -
         size = default_size if size is None else size
         size = None if size is None else check_size(size, limit=MAX_PIXELS, name="size")
         seed = _integer("seed", body.get("seed"), 0, 2**63 - 1, none_ok=True)
-        paper = parse_bool("paper", body.get("paper", False))
+        paper = json_bool("paper", body.get("paper"))
         quality = body.get("quality", "default")
         if not isinstance(quality, str) or quality not in QUALITY:
             raise TGHopError(f"quality must be one of {', '.join(repr(q) for q in sorted(QUALITY))}, "
@@ -99,8 +113,8 @@ def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -
                 if s.kind == "int" and isinstance(given, float):  # as seed and size: 5.0 is not taken as 5
                     raise TGHopError(f"{s.name} must be {s.range_text().replace('None', 'null')}, got {given!r}"
                                      + (f"; write {int(given)}" if given.is_integer() else ""))
-                if s.kind == "bool" and not (isinstance(given, bool) or (type(given) is int and given in (0, 1))):
-                    raise TGHopError(f"{s.name} must be true or false (a JSON boolean), got {given!r}")
+                if s.kind == "bool":
+                    given = json_bool(s.name, given)
                 value = s.check(given, label=s.name)
                 if s.cli_high is not None and value is not None and value > s.cli_high:
                     raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
