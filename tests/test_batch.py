@@ -110,6 +110,36 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     assert not (tmp_path / "out").exists()  # refused before any work
 
 
+def _no_work(job):
+    raise AssertionError(f"{job['name']} was run; the settings should have been refused first")
+
+
+def test_bad_settings_are_refused_before_any_work(tmp_path):
+    # As synth refuses them: the generation settings against the fit's patch size, the fit's own.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    for kw, words in ((dict(generate={**GEN, "overlap": 100}), "overlap must be between 1 and 16 (half the patch "
+                                                               "size 32), got 100"),
+                      (dict(generate=GEN, fit={**FIT, "patch_size": 64}, size=(48, 48), tile=True),
+                       "tile=True needs an output height of at least the patch size 64, got 48"),
+                      (dict(generate={**GEN, "tolerance": -1}), "tolerance must be"),
+                      (dict(generate={**GEN, "colour": 1}), "unknown setting 'colour'"),
+                      (dict(generate=GEN, fit={**FIT, "n_clusters": 0}), "n_clusters must be")):
+        kw = {"size": (48, 48), "seed": 1, "fit": FIT, **kw}
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            batch.run(src, out, workers=1, task=_no_work, **kw)
+        assert not out.exists()
+    # a manifest row's own size or tile: named by its line
+    (tmp_path / "m.csv").write_text("path,size,tile\nsrc/a.png,,\nsrc/sub/a.png,20,true\n")
+    with pytest.raises(TGHopError, match=re.escape("m.csv line 3: tile=True needs an output height of at least the "
+                                                   "patch size 32, got 20")):
+        run(tmp_path / "m.csv", out, workers=1, task=_no_work)
+    assert not out.exists()
+    code, _, err, exc = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "64", "--overlap", "100",
+                               *CLI_FAST, cwd=tmp_path)
+    assert_one_line(code, err, "overlap must be between 1 and 16", exception=exc)
+    assert not out.exists()
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"

@@ -38,8 +38,8 @@ from urllib.parse import quote
 from ._errors import MissingExtraError, TGHopError
 from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
-__all__ = ["run", "find_work", "process_exemplar", "read_ledger", "write_contact_sheet", "local_cluster",
-           "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
+__all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
+           "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
            "WORKER_ENVIRON", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
@@ -498,6 +498,49 @@ def _settings(item_settings, defaults, fit, generate):
             "fit": fit, "generate": generate}
 
 
+def check_options(items, defaults, fit, generate) -> None:
+    """Refuse bad fit and generation settings before any work, with the checks the fit and
+    :meth:`TGHop.synthesize <tghop.synthesis.TGHop.synthesize>` make: every setting against
+    the settings table (:func:`tghop.settings.check_settings`), the patch size's channel
+    counts, and each exemplar's size, ``tile`` and ``overlap`` against the patch size of the
+    fit settings (the quilting's own check, :func:`tghop.quilting.block_count`).
+
+    Parameters
+    ----------
+    items : list of dict
+        :func:`find_work`'s exemplars; a manifest row's are named by its line (``where``).
+    defaults : dict
+        ``size``, ``count``, ``seed`` and ``tile`` for the exemplars that give none.
+    fit, generate : dict
+        TGHop's parameters and the other keywords of ``synthesize`` (``tile`` apart).
+
+    Raises
+    ------
+    TGHopError
+        The first bad setting, prefixed with the manifest line that gives it.
+    """
+    from .fit_options import model_for
+    from .quilting import block_count
+    from .settings import check_settings
+
+    model = model_for(fit, 3)
+    model._check_settings()  # what TGHop.fit checks first
+    model._channel_rules()
+    overlap = check_settings(generate).get("overlap")
+    seen = set()
+    for it in items:
+        own = it["settings"]
+        size, tile = tuple(own.get("size", defaults["size"])), bool(own.get("tile", defaults["tile"]))
+        where = it.get("where") if "size" in own or "tile" in own else None
+        if (size, tile, where) in seen:
+            continue
+        seen.add((size, tile, where))
+        try:
+            block_count(size, model.patch_size, overlap=overlap, tile=tile)
+        except TGHopError as exc:
+            raise TGHopError(f"{where}: {exc}" if where else str(exc)) from None
+
+
 def _jsonable(value):
     return json.loads(json.dumps(value, default=str, allow_nan=False))
 
@@ -557,6 +600,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
                 "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
                 "tile": parse_bool(tile, "run")}
+    fit = _jsonable(dict(fit or {}))
+    generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
+    check_options(items, defaults, fit, generate)  # before any work, as synth would refuse them
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
     try:
@@ -566,8 +612,6 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)
     except OSError as exc:
         raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
-    fit = _jsonable(dict(fit or {}))
-    generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
     in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
     if not in_process and client is None:
         _import_distributed()  # a missing extra is said before any work

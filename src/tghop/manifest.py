@@ -132,7 +132,8 @@ def manifest_rows(path: Path):
 
 
 def read_manifest(path: Path):
-    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name``, ``named``, ``settings``."""
+    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name``, ``named``, ``settings`` and
+    ``where`` (the row's line, for messages)."""
     items = []
     for number, row in manifest_rows(path):
         where = f"{path.name} line {number}"
@@ -151,7 +152,7 @@ def read_manifest(path: Path):
         file = Path(source) if os.path.isabs(source) else path.parent / source
         name = (row.get("name") or "").strip() or None
         items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
-                      "settings": row_settings(row, where)})
+                      "settings": row_settings(row, where), "where": where})
     if not items:
         raise TGHopError(f"{path}: the manifest lists no exemplar")
     return items
