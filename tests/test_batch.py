@@ -140,6 +140,18 @@ def test_bad_settings_are_refused_before_any_work(tmp_path):
     assert not out.exists()
 
 
+def test_a_small_exemplar_is_told_the_fits_minimum(tmp_path):
+    # The fit's check (the smallest exemplar that works), as synth and fit say, whatever the size.
+    src = tmp_path / "src"
+    src.mkdir()
+    for side in (16, 33):
+        save_image(data.bricks(64, rng=side)[:side, :side], src / f"s{side}.png")
+    results = run(src, tmp_path / "out", workers=1)
+    for r in results:
+        assert r["status"] == "failed" and "use an exemplar of at least 60x60 pixels" in r["error"], r["error"]
+        assert "at least 32x32" not in r["error"]
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"

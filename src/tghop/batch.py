@@ -237,8 +237,9 @@ def process_exemplar(job: dict) -> dict:
         with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
             raw = load_image(job["source"], dtype=None)
-            image = prepare_exemplar(raw, min_size=fit.get("patch_size") or 32)
+            image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])
+            model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
             t = time.time()
             model.fit(image)
             record["fit_seconds"] = time.time() - t
