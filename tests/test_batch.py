@@ -152,6 +152,49 @@ def test_a_small_exemplar_is_told_the_fits_minimum(tmp_path):
         assert "at least 32x32" not in r["error"]
 
 
+def test_outdirs_own_files_are_checked_before_any_work(tmp_path):
+    # A ledger that cannot be added to (here a link to a missing folder: that holds for root too),
+    # and a folder where the ledger or the contact sheet goes: refused before any exemplar is done.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    out.mkdir()
+    (out / "batch.jsonl").symlink_to(tmp_path / "missing" / "batch.jsonl")
+    with pytest.raises(TGHopError, match=r"batch.jsonl: cannot add to the ledger \(No such file or directory\); make "
+                                         r"it a writable file .* or choose another OUTDIR; nothing was done"):
+        run(src, out, workers=1, task=_no_work)
+    (out / "batch.jsonl").unlink()
+    for name, what in (("batch.jsonl", "the ledger"), ("index.html", "the contact sheet")):
+        (out / name).mkdir()
+        with pytest.raises(TGHopError, match=re.escape(f"{out / name} is a folder, where {what} of the batch goes; "
+                                                       "remove that folder or choose another OUTDIR")):
+            run(src, out, workers=1, task=_no_work)
+        (out / name).rmdir()
+    assert sorted(p.name for p in out.iterdir()) == []  # nothing made
+    # without a contact sheet, a folder of that name is no matter
+    (out / "index.html").mkdir()
+    (out / "index.html" / "x").write_text("kept")
+    assert all(r["status"] == "ok" for r in run(src / "sub", out, workers=1, contact_sheet=False))
+
+
+def test_an_immutable_ledger_is_found_before_the_first_exemplar_is_redone(tmp_path):
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (first, _) = run(src, out, workers=1)
+    model = out / first["model"]
+    before = (model.stat().st_mtime_ns, model.read_bytes())
+    ledger_file = out / "batch.jsonl"
+    try:
+        made = subprocess.run(["chattr", "+i", str(ledger_file)], capture_output=True).returncode == 0
+    except OSError:
+        made = False
+    if not made:
+        pytest.skip("chattr +i cannot be set here (not root, or the file system has no such attribute)")
+    try:
+        with pytest.raises(TGHopError, match="batch.jsonl: cannot add to the ledger .*; nothing was done"):
+            run(src, out, workers=1, count=2)  # changed settings: everything would be redone
+    finally:
+        subprocess.run(["chattr", "-i", str(ledger_file)], check=True)
+    assert (model.stat().st_mtime_ns, model.read_bytes()) == before and len(ledger(out)) == 2
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"
@@ -429,6 +472,7 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,
                                cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)
+    assert not (tmp_path / "out2").exists()  # OUTDIR is made once the scheduler is reached
     code, _, err, exc = invoke("batch", "src", "-o", "out3", "--scheduler", "notanaddress", *CLI_FAST, cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler at notanaddress", exception=exc)
     assert not (tmp_path / "out3" / "index.html").exists()  # nothing finished: no empty contact sheet

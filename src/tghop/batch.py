@@ -342,12 +342,33 @@ def _keep_ledger_names(items, previous) -> None:
             taken.add(names[0].lower())
 
 
-def _append_ledger(outdir: Path, record: dict):
+def _check_own_files(outdir: Path, contact_sheet: bool) -> None:
+    """Refuse a folder where OUTDIR's ledger or contact sheet goes (found before any work)."""
+    for name, what in ((LEDGER, "the ledger"), (CONTACT_SHEET, "the contact sheet")):
+        if name == CONTACT_SHEET and not contact_sheet:
+            continue
+        if (outdir / name).is_dir():
+            raise TGHopError(f"{outdir / name} is a folder, where {what} of the batch goes; remove that folder "
+                             "or choose another OUTDIR")
+
+
+def _open_ledger(outdir: Path):
+    """The ledger opened for appending, for the whole run: one that cannot be written to is
+    found before any exemplar's files are made (or overwritten)."""
+    path = outdir / LEDGER
+    try:
+        return open(path, "a", encoding="utf-8")
+    except OSError as exc:
+        raise TGHopError(f"{path}: cannot add to the ledger ({exc.strerror or exc.__class__.__name__}); make it a "
+                         "writable file (chmod u+w, or chattr -i where it is immutable) or choose another OUTDIR; "
+                         "nothing was done") from None
+
+
+def _append_ledger(fh, record: dict):
     line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
-    with open(outdir / LEDGER, "a", encoding="utf-8") as fh:
-        fh.write(line)
-        fh.flush()
-        os.fsync(fh.fileno())
+    fh.write(line)
+    fh.flush()
+    os.fsync(fh.fileno())
 
 
 def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
@@ -606,13 +627,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     check_options(items, defaults, fit, generate)  # before any work, as synth would refuse them
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-        from .imageio import check_output_path
-
-        check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)
-    except OSError as exc:
-        raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
+    _check_own_files(outdir, contact_sheet)
     in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
     if not in_process and client is None:
         _import_distributed()  # a missing extra is said before any work
@@ -630,13 +645,30 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
         else:
             jobs.append(job)
+    own_client = ledger_file = None
+    try:
+        if jobs and scheduler is not None and client is None:
+            client = own_client = _connect(scheduler)  # before OUTDIR is made: no empty OUTDIR when it fails
+        try:
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
+        from .imageio import check_output_path
+
+        check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
+        if jobs:
+            ledger_file = _open_ledger(outdir)
+    except BaseException:
+        if own_client is not None:
+            own_client.close()
+        raise
     counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results)}
 
     def finish(job, record):
         rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
                **record}
         rec["finished"] = time.time()
-        _append_ledger(outdir, rec)
+        _append_ledger(ledger_file, rec)
         if rec["status"] == "ok":
             _remove_stale(outdir, previous.get(job["name"]), rec)
         results[job["name"]] = {**rec, "skipped": False}
@@ -658,9 +690,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                 finish(job, task(job))
             counts["running"] = 0
         elif jobs:
-            _run_distributed(jobs, finish, counts, task, workers=workers, client=client, scheduler=scheduler,
+            _run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
                              retries=retries)
     finally:
+        if ledger_file is not None:
+            ledger_file.close()
         for job in jobs:
             remove_temporaries(job["folder"])
             try:
@@ -685,20 +719,25 @@ def _died_record(job, exc, retries) -> dict:
             "seed_used": job.get("seed"), "started": None, "seconds": None}
 
 
-def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, retries):
+def _connect(scheduler):
+    """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached."""
     distributed = _import_distributed()
-    own_cluster = own_client = None
+    try:
+        return distributed.Client(scheduler, timeout="5s")
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
+        raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
+
+
+def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries):
+    """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
+    here); ``own_client``, and the cluster started here, are closed at the end."""
+    distributed = _import_distributed()
+    own_cluster = None
     futures = []
     try:
         if client is None:
-            if scheduler is not None:
-                try:
-                    client = own_client = distributed.Client(scheduler, timeout="5s")
-                except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
-                    raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
-            else:
-                own_cluster = local_cluster(workers, retries=retries)
-                client = own_client = distributed.Client(own_cluster)
+            own_cluster = local_cluster(workers, retries=retries)
+            client = own_client = distributed.Client(own_cluster)
         # The longest first (a shorter tail), handed out one per free thread as tasks finish:
         # a worker holds only the task it runs. Dask would place every task on a worker at
         # once (tasks of different names are not "root-ish", so it queues none on the
