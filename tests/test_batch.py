@@ -114,6 +114,18 @@ def _no_work(job):
     raise AssertionError(f"{job['name']} was run; the settings should have been refused first")
 
 
+def test_an_earlier_outdir_inside_source_is_no_exemplar(tmp_path):
+    src = make_folder(tmp_path / "m", bad=False)
+    inside = src / "out"
+    assert [r["status"] for r in run(src, inside, workers=1)] == ["ok", "ok"]
+    assert sorted(it["name"] for it in batch.find_work(src)) == ["a", "sub__a"]  # m/out/*/*.png left out
+    assert sorted(it["name"] for it in batch.find_work(src, tmp_path / "other")) == ["a", "sub__a"]
+    (src / "sub" / "out2").mkdir()  # OUTDIR inside SOURCE before it holds a ledger
+    save_image(data.bricks(64, rng=5), src / "sub" / "out2" / "x.png")
+    assert sorted(it["name"] for it in batch.find_work(src, src / "sub" / "out2")) == ["a", "sub__a"]
+    assert "sub__out2__x" in [it["name"] for it in batch.find_work(src, tmp_path / "other")]
+
+
 def test_bad_settings_are_refused_before_any_work(tmp_path):
     # As synth refuses them: the generation settings against the fit's patch size, the fit's own.
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"

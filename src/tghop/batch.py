@@ -70,10 +70,14 @@ _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("M
 
 # ------------------------------------------------------------------ finding work
 def _scan_folder(folder: Path, outdir: Path):
+    """The images of ``folder``, recursively; hidden files and folders are skipped, and so
+    are ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its
+    thumbnails and results are no exemplars)."""
     out = Path(outdir).resolve()
     items = []
     for root, dirs, files in os.walk(folder):
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(root, d).resolve() != out)
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(root, d).resolve() != out
+                         and not os.path.lexists(os.path.join(root, d, LEDGER)))
         for f in sorted(files):
             if not f.startswith(".") and Path(f).suffix.lower() in IMAGE_SUFFIXES:
                 p = Path(root, f)
@@ -117,10 +121,10 @@ def _unique_names(items):
 
 
 def find_work(source, outdir=None):
-    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files
-    and ``outdir`` skipped) or a manifest (``.csv`` with a ``path`` column, or JSON lines
-    ``{"path": ...}``; optional ``name``, ``size``, ``count``, ``seed``, ``tile``; paths
-    relative to the manifest's folder).
+    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files,
+    ``outdir`` and the folders that hold a ledger ``batch.jsonl`` skipped) or a manifest
+    (``.csv`` with a ``path`` column, or JSON lines ``{"path": ...}``; optional ``name``,
+    ``size``, ``count``, ``seed``, ``tile``; paths relative to the manifest's folder).
 
     Returns a list of dicts: ``path`` (Path), ``rel`` (as listed), ``name`` (unique folder
     name in OUTDIR) and ``settings`` (the row's own settings). A bad manifest row is a
