@@ -10,6 +10,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -338,6 +339,38 @@ def test_manifests_give_per_row_settings(tmp_path):
     assert missing["status"] == "failed" and "no such file" in missing["error"] and missing["sha256"] is None
 
 
+def test_an_interrupted_exemplar_leaves_no_files_of_its_own(tmp_path, monkeypatch):
+    # Ctrl-C in process during the second image: nothing of this try is left, an earlier run's files stay.
+    from tghop.synthesis import TGHop
+
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    (first,) = run(src, out, workers=1)
+    before = {p.name: p.read_bytes() for p in (out / "a").iterdir()}
+    assert sorted(before) == ["a.npz", "a.png", "exemplar.png"]
+    original, calls = TGHop.synthesize, []
+
+    def interrupted(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(TGHop, "synthesize", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run(src, out, workers=1, count=2)
+    assert {p.name: p.read_bytes() for p in (out / "a").iterdir()} == before and not leftovers(out)
+    shutil.rmtree(out)
+    calls.clear()
+    with pytest.raises(KeyboardInterrupt):
+        run(src, out, workers=1, count=2)
+    assert not (out / "a").exists() and not leftovers(out)
+    monkeypatch.setattr(TGHop, "synthesize", original)
+    (again,) = run(src, out, workers=1, count=2)
+    assert again["status"] == "ok" and sorted(p.name for p in (out / "a").iterdir()) == [
+        "a.npz", "a_1.png", "a_2.png", "exemplar.png"]
+
+
 # ------------------------------------------------------------------ the command line
 def test_cli_end_to_end_in_process(tmp_path):
     src = make_folder(tmp_path / "src")
@@ -530,6 +563,34 @@ def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
     assert failed["status"] == "failed" and "died on every try" in failed["error"]
     assert not leftovers(out2) and not (out2 / "a").exists()
     assert ledger(out2)[0]["status"] == "failed"
+
+
+def die_in_the_second_image(job):
+    """The worker dies while the second image is made (the first, the model and the thumbnail written)."""
+    from tghop.synthesis import TGHop
+
+    original, calls = TGHop.synthesize, []
+
+    def dying(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            os._exit(1)
+        return original(self, *args, **kwargs)
+
+    TGHop.synthesize = dying
+    return batch.process_exemplar(job)
+
+
+def test_a_worker_killed_mid_exemplar_leaves_no_files_of_it(tmp_path, cluster):
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    _, client = cluster
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    (failed,) = run(src, out, client=client, count=2, task=die_in_the_second_image)
+    assert failed["status"] == "failed" and "died on every try" in failed["error"]
+    assert not (out / "a").exists() and not leftovers(out)
 
 
 def crash_on_a(job):

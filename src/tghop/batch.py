@@ -29,7 +29,9 @@ import html
 import json
 import os
 import re
+import shutil
 import signal
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -48,6 +50,8 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".we
 LEDGER = "batch.jsonl"
 CONTACT_SHEET = "index.html"
 INSTALL_HINT = "pip install 'tghop[batch]'"
+#: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
+STAGE = (".partial.", ".tmp")
 #: Longest side of the exemplar thumbnail of the contact sheet.
 THUMBNAIL = 128
 #: glibc ``malloc`` settings a worker makes (:func:`dask_setup`, ``mallopt``): no array gets
@@ -167,14 +171,18 @@ def _numbered(name: str, count: int):
 
 def remove_temporaries(folder) -> int:
     """Remove what :func:`tghop.imageio.write_atomic` leaves when its process is killed
-    (``.NAME.*.tmp``) in ``folder``; returns how many."""
+    (``.NAME.*.tmp``) in ``folder``, and :func:`process_exemplar`'s folders of files not yet
+    moved into place (``.partial.*.tmp``); returns how many."""
     removed = 0
     try:
         entries = list(os.scandir(folder))
     except OSError:
         return 0
     for entry in entries:
-        if entry.name.startswith(".") and entry.name.endswith((".tmp", ".probe")) and entry.is_file():
+        if entry.name.startswith(STAGE[0]) and entry.name.endswith(STAGE[1]) and entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed += 1
+        elif entry.name.startswith(".") and entry.name.endswith((".tmp", ".probe")) and entry.is_file():
             try:
                 os.unlink(entry.path)
                 removed += 1
@@ -213,8 +221,10 @@ def process_exemplar(job: dict) -> dict:
     ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times
     (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part
     of them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the
-    worker and its peak memory. Bad input is a "failed" record, never an exception;
-    what was written for a failed exemplar is removed.
+    worker and its peak memory. Bad input is a "failed" record, never an exception.
+    The files are made in a hidden folder and moved into place together at the end: a
+    failed or interrupted exemplar (Ctrl-C, a killed worker: :func:`remove_temporaries`)
+    leaves none of its own, and an earlier run's files of it as they were.
     """
     import resource
     import socket
@@ -225,7 +235,7 @@ def process_exemplar(job: dict) -> dict:
     record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
               "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
               "worker": f"{socket.gethostname()}:{os.getpid()}"}
-    written = []
+    stage = None
     try:
         import numpy as np
         from threadpoolctl import threadpool_limits
@@ -238,6 +248,10 @@ def process_exemplar(job: dict) -> dict:
 
         folder.mkdir(parents=True, exist_ok=True)
         remove_temporaries(folder)  # left by a worker killed while writing here
+        # Every file is made in a hidden folder of its own, then moved into place together
+        # once all are made: a failed, interrupted or killed task leaves none of its files
+        # (and the files of an earlier run of this exemplar as they were).
+        stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
         with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
             raw = load_image(job["source"], dtype=None)
@@ -247,12 +261,11 @@ def process_exemplar(job: dict) -> dict:
             t = time.time()
             model.fit(image)
             record["fit_seconds"] = time.time() - t
-            thumb = folder / "exemplar.png"
-            _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8), thumb)
-            written.append(thumb)
-            model_path = folder / f"{name}.npz"
-            save_model(model, model_path)
-            written.append(model_path)
+            thumb = "exemplar.png"
+            _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8),
+                       stage / thumb)
+            model_file = f"{name}.npz"
+            save_model(model, stage / model_file)
             seed = job.get("seed")
             if seed is None:
                 seed = int(np.random.SeedSequence().generate_state(1)[0])
@@ -262,27 +275,26 @@ def process_exemplar(job: dict) -> dict:
             outputs = []
             for file in _numbered(name, job.get("count", 1)):
                 img = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.uint8, **(job.get("generate") or {}))
-                save_image(img, folder / file)
-                written.append(folder / file)
+                save_image(img, stage / file)
                 outputs.append(file)
             record["synth_seconds"] = time.time() - t
+        for file in [*outputs, thumb, model_file]:
+            os.replace(stage / file, folder / file)
         prefix = folder.name
-        record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_path.name}",
-                      thumbnail=f"{prefix}/{thumb.name}")
+        record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_file}",
+                      thumbnail=f"{prefix}/{thumb}")
     except MemoryError:
         record["error"] = "out of memory; use a smaller size or exemplar, or fewer workers per machine"
     except Exception as exc:  # noqa: BLE001 - one exemplar's failure is recorded, the batch goes on
         record["error"] = _one_line(exc)
-    if record["status"] != "ok":
-        for path in written:
+    finally:  # Ctrl-C (KeyboardInterrupt) and the command's SIGTERM too: they go on once this is done
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        if record["status"] != "ok":
             try:
-                os.unlink(path)
+                folder.rmdir()  # only when empty
             except OSError:
                 pass
-        try:
-            folder.rmdir()  # only when empty
-        except OSError:
-            pass
     record["seconds"] = time.time() - start
     record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
     now = resource.getrusage(resource.RUSAGE_SELF)
