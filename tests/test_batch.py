@@ -371,6 +371,23 @@ def test_an_interrupted_exemplar_leaves_no_files_of_its_own(tmp_path, monkeypatc
         "a.npz", "a_1.png", "a_2.png", "exemplar.png"]
 
 
+def test_a_model_file_in_a_manifest_is_named_as_one(tmp_path):
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    (first,) = run(src, out, workers=1)
+    (tmp_path / "m.csv").write_text(f"path\n{out / first['model']}\n")
+    (failed,) = run(tmp_path / "m.csv", tmp_path / "out2", workers=1)
+    assert failed["error"] == f"{out / first['model']} is a model file, not an image; list the exemplar image"
+
+
+def test_manifest_errors_name_the_file_alike(tmp_path):
+    bad = tmp_path / "m.jsonl"
+    for text in ('{"path": "a.png", "colour": 1}\n', "[1]\n", '{"path": "a.png", "size": "big"}\n'):
+        bad.write_text(text)
+        with pytest.raises(TGHopError, match=re.escape(f"{bad} line 1: ")):
+            batch.find_work(bad)
+
+
 # ------------------------------------------------------------------ the command line
 def test_cli_end_to_end_in_process(tmp_path):
     src = make_folder(tmp_path / "src")

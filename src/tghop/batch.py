@@ -254,6 +254,10 @@ def process_exemplar(job: dict) -> dict:
         stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
         with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
+            from .cli.common import is_model_file
+
+            if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
+                raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
             raw = load_image(job["source"], dtype=None)
             image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])

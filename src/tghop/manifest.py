@@ -136,7 +136,7 @@ def read_manifest(path: Path):
     ``where`` (the row's line, for messages)."""
     items = []
     for number, row in manifest_rows(path):
-        where = f"{path.name} line {number}"
+        where = f"{path} line {number}"  # as manifest_rows names it
         unknown = sorted(k for k in row if k not in ("path", "name") + ROW_SETTINGS)
         if unknown:
             shown = ", ".join(k if k and k.strip() == k else repr(k) for k in unknown)
