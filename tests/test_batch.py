@@ -380,6 +380,16 @@ def test_a_model_file_in_a_manifest_is_named_as_one(tmp_path):
     assert failed["error"] == f"{out / first['model']} is a model file, not an image; list the exemplar image"
 
 
+def test_names_a_manifest_gives_are_kept_and_clashes_refused(tmp_path):
+    m = tmp_path / "m.csv"
+    m.write_text("path,name\nx.png,Tom\ny.png,\nz.png,y\nsub/w.png,my tex\n")
+    assert [it["name"] for it in batch.find_work(m)] == ["Tom", "y_png", "y", "my_tex"]
+    m.write_text("path,name\nx.png,Tom\ny.png,tom\n")
+    with pytest.raises(TGHopError, match=re.escape(f"{m} line 3: the name 'tom' and {m} line 2's 'Tom' are one "
+                                                   "folder name in OUTDIR")):
+        batch.find_work(m)
+
+
 def test_manifest_errors_name_the_file_alike(tmp_path):
     bad = tmp_path / "m.jsonl"
     for text in ('{"path": "a.png", "colour": 1}\n', "[1]\n", '{"path": "a.png", "size": "big"}\n'):

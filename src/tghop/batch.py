@@ -98,26 +98,39 @@ def _safe(text: str) -> str:
 
 
 def _unique_names(items):
-    """A folder name per exemplar: its path without the extension, folders joined by
-    ``__`` (``a/x.png`` -> ``a__x``); equal names get their extension, then a short hash
-    of the path, then a number."""
+    """A folder name per exemplar. A name a manifest row gives is kept (made safe for a
+    file name: ``_`` for other characters); two that are one folder name, compared without
+    case, are a :class:`TGHopError` naming both lines. Others: the path without the
+    extension, folders joined by ``__`` (``a/x.png`` -> ``a__x``); a name taken (by
+    another exemplar or a given name) gets its extension, then a short hash of the path,
+    then a number."""
+    given = {}
     for it in items:
+        if not it.get("named"):
+            continue
+        it["name"] = _safe(it["name"])
+        other = given.setdefault(it["name"].lower(), it)
+        if other is not it:
+            raise TGHopError(f"{it['where']}: the name {it['given']!r} and {other['where']}'s {other['given']!r} are "
+                             "one folder name in OUTDIR (names are compared without case); give each its own name")
+    free = [it for it in items if not it.get("named")]
+    for it in free:
         rel = it["rel"]
-        it["name"] = _safe(it["name"]) if it["name"] else _safe("__".join(rel.parts[:-1] + (rel.stem,)))
+        it["name"] = _safe("__".join(rel.parts[:-1] + (rel.stem,)))
     for step in ("suffix", "hash"):
         seen = {}
-        for it in items:
+        for it in free:
             seen.setdefault(it["name"].lower(), []).append(it)
-        for group in seen.values():
-            if len(group) < 2:
+        for key, group in seen.items():
+            if len(group) < 2 and key not in given:
                 continue
             for it in group:
                 if step == "suffix" and it["rel"].suffix:
                     it["name"] += "_" + _safe(it["rel"].suffix[1:])
                 elif step == "hash":
                     it["name"] += "_" + hashlib.sha256(str(it["rel"]).encode()).hexdigest()[:8]
-    seen = {}
-    for it in items:  # a manifest that lists one file twice (or gives one name twice): _2, _3, ...
+    seen = dict.fromkeys(given, 1)
+    for it in free:  # a manifest that lists one file twice: _2, _3, ...
         n = seen[it["name"].lower()] = seen.get(it["name"].lower(), 0) + 1
         if n > 1:
             it["name"] += f"_{n}"

@@ -132,8 +132,8 @@ def manifest_rows(path: Path):
 
 
 def read_manifest(path: Path):
-    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name``, ``named``, ``settings`` and
-    ``where`` (the row's line, for messages)."""
+    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name`` and ``given`` (the
+    row's name, or None), ``named``, ``settings`` and ``where`` (the row's line, for messages)."""
     items = []
     for number, row in manifest_rows(path):
         where = f"{path} line {number}"  # as manifest_rows names it
@@ -151,7 +151,7 @@ def read_manifest(path: Path):
             raise TGHopError(f"{where}: no path")
         file = Path(source) if os.path.isabs(source) else path.parent / source
         name = (row.get("name") or "").strip() or None
-        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
+        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None, "given": name,
                       "settings": row_settings(row, where), "where": where})
     if not items:
         raise TGHopError(f"{path}: the manifest lists no exemplar")
