@@ -10,6 +10,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -108,6 +109,103 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     with pytest.raises(TGHopError, match="seed -5 is out of range"):
         batch.run(tmp_path, tmp_path / "out", seed=-5)
     assert not (tmp_path / "out").exists()  # refused before any work
+
+
+def _no_work(job):
+    raise AssertionError(f"{job['name']} was run; the settings should have been refused first")
+
+
+def test_an_earlier_outdir_inside_source_is_no_exemplar(tmp_path):
+    src = make_folder(tmp_path / "m", bad=False)
+    inside = src / "out"
+    assert [r["status"] for r in run(src, inside, workers=1)] == ["ok", "ok"]
+    assert sorted(it["name"] for it in batch.find_work(src)) == ["a", "sub__a"]  # m/out/*/*.png left out
+    assert sorted(it["name"] for it in batch.find_work(src, tmp_path / "other")) == ["a", "sub__a"]
+    (src / "sub" / "out2").mkdir()  # OUTDIR inside SOURCE before it holds a ledger
+    save_image(data.bricks(64, rng=5), src / "sub" / "out2" / "x.png")
+    assert sorted(it["name"] for it in batch.find_work(src, src / "sub" / "out2")) == ["a", "sub__a"]
+    assert "sub__out2__x" in [it["name"] for it in batch.find_work(src, tmp_path / "other")]
+
+
+def test_bad_settings_are_refused_before_any_work(tmp_path):
+    # As synth refuses them: the generation settings against the fit's patch size, the fit's own.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    for kw, words in ((dict(generate={**GEN, "overlap": 100}), "overlap must be between 1 and 16 (half the patch "
+                                                               "size 32), got 100"),
+                      (dict(generate=GEN, fit={**FIT, "patch_size": 64}, size=(48, 48), tile=True),
+                       "tile=True needs an output height of at least the patch size 64, got 48"),
+                      (dict(generate={**GEN, "tolerance": -1}), "tolerance must be"),
+                      (dict(generate={**GEN, "colour": 1}), "unknown setting 'colour'"),
+                      (dict(generate=GEN, fit={**FIT, "n_clusters": 0}), "n_clusters must be")):
+        kw = {"size": (48, 48), "seed": 1, "fit": FIT, **kw}
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            batch.run(src, out, workers=1, task=_no_work, **kw)
+        assert not out.exists()
+    # a manifest row's own size or tile: named by its line
+    (tmp_path / "m.csv").write_text("path,size,tile\nsrc/a.png,,\nsrc/sub/a.png,20,true\n")
+    with pytest.raises(TGHopError, match=re.escape("m.csv line 3: tile=True needs an output height of at least the "
+                                                   "patch size 32, got 20")):
+        run(tmp_path / "m.csv", out, workers=1, task=_no_work)
+    assert not out.exists()
+    code, _, err, exc = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "64", "--overlap", "100",
+                               *CLI_FAST, cwd=tmp_path)
+    assert_one_line(code, err, "overlap must be between 1 and 16", exception=exc)
+    assert not out.exists()
+
+
+def test_a_small_exemplar_is_told_the_fits_minimum(tmp_path):
+    # The fit's check (the smallest exemplar that works), as synth and fit say, whatever the size.
+    src = tmp_path / "src"
+    src.mkdir()
+    for side in (16, 33):
+        save_image(data.bricks(64, rng=side)[:side, :side], src / f"s{side}.png")
+    results = run(src, tmp_path / "out", workers=1)
+    for r in results:
+        assert r["status"] == "failed" and "use an exemplar of at least 60x60 pixels" in r["error"], r["error"]
+        assert "at least 32x32" not in r["error"]
+
+
+def test_outdirs_own_files_are_checked_before_any_work(tmp_path):
+    # A ledger that cannot be added to (here a link to a missing folder: that holds for root too),
+    # and a folder where the ledger or the contact sheet goes: refused before any exemplar is done.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    out.mkdir()
+    (out / "batch.jsonl").symlink_to(tmp_path / "missing" / "batch.jsonl")
+    with pytest.raises(TGHopError, match=r"batch.jsonl: cannot add to the ledger \(No such file or directory\); make "
+                                         r"it a writable file .* or choose another OUTDIR; nothing was done"):
+        run(src, out, workers=1, task=_no_work)
+    (out / "batch.jsonl").unlink()
+    for name, what in (("batch.jsonl", "the ledger"), ("index.html", "the contact sheet")):
+        (out / name).mkdir()
+        with pytest.raises(TGHopError, match=re.escape(f"{out / name} is a folder, where {what} of the batch goes; "
+                                                       "remove that folder or choose another OUTDIR")):
+            run(src, out, workers=1, task=_no_work)
+        (out / name).rmdir()
+    assert sorted(p.name for p in out.iterdir()) == []  # nothing made
+    # without a contact sheet, a folder of that name is no matter
+    (out / "index.html").mkdir()
+    (out / "index.html" / "x").write_text("kept")
+    assert all(r["status"] == "ok" for r in run(src / "sub", out, workers=1, contact_sheet=False))
+
+
+def test_an_immutable_ledger_is_found_before_the_first_exemplar_is_redone(tmp_path):
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (first, _) = run(src, out, workers=1)
+    model = out / first["model"]
+    before = (model.stat().st_mtime_ns, model.read_bytes())
+    ledger_file = out / "batch.jsonl"
+    try:
+        made = subprocess.run(["chattr", "+i", str(ledger_file)], capture_output=True).returncode == 0
+    except OSError:
+        made = False
+    if not made:
+        pytest.skip("chattr +i cannot be set here (not root, or the file system has no such attribute)")
+    try:
+        with pytest.raises(TGHopError, match="batch.jsonl: cannot add to the ledger .*; nothing was done"):
+            run(src, out, workers=1, count=2)  # changed settings: everything would be redone
+    finally:
+        subprocess.run(["chattr", "-i", str(ledger_file)], check=True)
+    assert (model.stat().st_mtime_ns, model.read_bytes()) == before and len(ledger(out)) == 2
 
 
 # ------------------------------------------------------------------ in process
@@ -239,6 +337,65 @@ def test_manifests_give_per_row_settings(tmp_path):
     first, missing = run(jsonl, tmp_path / "out_jsonl", workers=1)
     assert first["name"] == "first" and first["status"] == "ok" and first["settings"]["size"] == [40, 40]
     assert missing["status"] == "failed" and "no such file" in missing["error"] and missing["sha256"] is None
+
+
+def test_an_interrupted_exemplar_leaves_no_files_of_its_own(tmp_path, monkeypatch):
+    # Ctrl-C in process during the second image: nothing of this try is left, an earlier run's files stay.
+    from tghop.synthesis import TGHop
+
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    (first,) = run(src, out, workers=1)
+    before = {p.name: p.read_bytes() for p in (out / "a").iterdir()}
+    assert sorted(before) == ["a.npz", "a.png", "exemplar.png"]
+    original, calls = TGHop.synthesize, []
+
+    def interrupted(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(TGHop, "synthesize", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run(src, out, workers=1, count=2)
+    assert {p.name: p.read_bytes() for p in (out / "a").iterdir()} == before and not leftovers(out)
+    shutil.rmtree(out)
+    calls.clear()
+    with pytest.raises(KeyboardInterrupt):
+        run(src, out, workers=1, count=2)
+    assert not (out / "a").exists() and not leftovers(out)
+    monkeypatch.setattr(TGHop, "synthesize", original)
+    (again,) = run(src, out, workers=1, count=2)
+    assert again["status"] == "ok" and sorted(p.name for p in (out / "a").iterdir()) == [
+        "a.npz", "a_1.png", "a_2.png", "exemplar.png"]
+
+
+def test_a_model_file_in_a_manifest_is_named_as_one(tmp_path):
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    (first,) = run(src, out, workers=1)
+    (tmp_path / "m.csv").write_text(f"path\n{out / first['model']}\n")
+    (failed,) = run(tmp_path / "m.csv", tmp_path / "out2", workers=1)
+    assert failed["error"] == f"{out / first['model']} is a model file, not an image; list the exemplar image"
+
+
+def test_names_a_manifest_gives_are_kept_and_clashes_refused(tmp_path):
+    m = tmp_path / "m.csv"
+    m.write_text("path,name\nx.png,Tom\ny.png,\nz.png,y\nsub/w.png,my tex\n")
+    assert [it["name"] for it in batch.find_work(m)] == ["Tom", "y_png", "y", "my_tex"]
+    m.write_text("path,name\nx.png,Tom\ny.png,tom\n")
+    with pytest.raises(TGHopError, match=re.escape(f"{m} line 3: the name 'tom' and {m} line 2's 'Tom' are one "
+                                                   "folder name in OUTDIR")):
+        batch.find_work(m)
+
+
+def test_manifest_errors_name_the_file_alike(tmp_path):
+    bad = tmp_path / "m.jsonl"
+    for text in ('{"path": "a.png", "colour": 1}\n', "[1]\n", '{"path": "a.png", "size": "big"}\n'):
+        bad.write_text(text)
+        with pytest.raises(TGHopError, match=re.escape(f"{bad} line 1: ")):
+            batch.find_work(bad)
 
 
 # ------------------------------------------------------------------ the command line
@@ -387,6 +544,7 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,
                                cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)
+    assert not (tmp_path / "out2").exists()  # OUTDIR is made once the scheduler is reached
     code, _, err, exc = invoke("batch", "src", "-o", "out3", "--scheduler", "notanaddress", *CLI_FAST, cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler at notanaddress", exception=exc)
     assert not (tmp_path / "out3" / "index.html").exists()  # nothing finished: no empty contact sheet
@@ -432,6 +590,34 @@ def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
     assert failed["status"] == "failed" and "died on every try" in failed["error"]
     assert not leftovers(out2) and not (out2 / "a").exists()
     assert ledger(out2)[0]["status"] == "failed"
+
+
+def die_in_the_second_image(job):
+    """The worker dies while the second image is made (the first, the model and the thumbnail written)."""
+    from tghop.synthesis import TGHop
+
+    original, calls = TGHop.synthesize, []
+
+    def dying(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            os._exit(1)
+        return original(self, *args, **kwargs)
+
+    TGHop.synthesize = dying
+    return batch.process_exemplar(job)
+
+
+def test_a_worker_killed_mid_exemplar_leaves_no_files_of_it(tmp_path, cluster):
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    _, client = cluster
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    (failed,) = run(src, out, client=client, count=2, task=die_in_the_second_image)
+    assert failed["status"] == "failed" and "died on every try" in failed["error"]
+    assert not (out / "a").exists() and not leftovers(out)
 
 
 def crash_on_a(job):

@@ -29,7 +29,9 @@ import html
 import json
 import os
 import re
+import shutil
 import signal
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -38,8 +40,8 @@ from urllib.parse import quote
 from ._errors import MissingExtraError, TGHopError
 from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
-__all__ = ["run", "find_work", "process_exemplar", "read_ledger", "write_contact_sheet", "local_cluster",
-           "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
+__all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
+           "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
            "WORKER_ENVIRON", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
@@ -48,6 +50,8 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".we
 LEDGER = "batch.jsonl"
 CONTACT_SHEET = "index.html"
 INSTALL_HINT = "pip install 'tghop[batch]'"
+#: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
+STAGE = (".partial.", ".tmp")
 #: Longest side of the exemplar thumbnail of the contact sheet.
 THUMBNAIL = 128
 #: glibc ``malloc`` settings a worker makes (:func:`dask_setup`, ``mallopt``): no array gets
@@ -70,10 +74,14 @@ _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("M
 
 # ------------------------------------------------------------------ finding work
 def _scan_folder(folder: Path, outdir: Path):
+    """The images of ``folder``, recursively; hidden files and folders are skipped, and so
+    are ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its
+    thumbnails and results are no exemplars)."""
     out = Path(outdir).resolve()
     items = []
     for root, dirs, files in os.walk(folder):
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(root, d).resolve() != out)
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(root, d).resolve() != out
+                         and not os.path.lexists(os.path.join(root, d, LEDGER)))
         for f in sorted(files):
             if not f.startswith(".") and Path(f).suffix.lower() in IMAGE_SUFFIXES:
                 p = Path(root, f)
@@ -90,26 +98,39 @@ def _safe(text: str) -> str:
 
 
 def _unique_names(items):
-    """A folder name per exemplar: its path without the extension, folders joined by
-    ``__`` (``a/x.png`` -> ``a__x``); equal names get their extension, then a short hash
-    of the path, then a number."""
+    """A folder name per exemplar. A name a manifest row gives is kept (made safe for a
+    file name: ``_`` for other characters); two that are one folder name, compared without
+    case, are a :class:`TGHopError` naming both lines. Others: the path without the
+    extension, folders joined by ``__`` (``a/x.png`` -> ``a__x``); a name taken (by
+    another exemplar or a given name) gets its extension, then a short hash of the path,
+    then a number."""
+    given = {}
     for it in items:
+        if not it.get("named"):
+            continue
+        it["name"] = _safe(it["name"])
+        other = given.setdefault(it["name"].lower(), it)
+        if other is not it:
+            raise TGHopError(f"{it['where']}: the name {it['given']!r} and {other['where']}'s {other['given']!r} are "
+                             "one folder name in OUTDIR (names are compared without case); give each its own name")
+    free = [it for it in items if not it.get("named")]
+    for it in free:
         rel = it["rel"]
-        it["name"] = _safe(it["name"]) if it["name"] else _safe("__".join(rel.parts[:-1] + (rel.stem,)))
+        it["name"] = _safe("__".join(rel.parts[:-1] + (rel.stem,)))
     for step in ("suffix", "hash"):
         seen = {}
-        for it in items:
+        for it in free:
             seen.setdefault(it["name"].lower(), []).append(it)
-        for group in seen.values():
-            if len(group) < 2:
+        for key, group in seen.items():
+            if len(group) < 2 and key not in given:
                 continue
             for it in group:
                 if step == "suffix" and it["rel"].suffix:
                     it["name"] += "_" + _safe(it["rel"].suffix[1:])
                 elif step == "hash":
                     it["name"] += "_" + hashlib.sha256(str(it["rel"]).encode()).hexdigest()[:8]
-    seen = {}
-    for it in items:  # a manifest that lists one file twice (or gives one name twice): _2, _3, ...
+    seen = dict.fromkeys(given, 1)
+    for it in free:  # a manifest that lists one file twice: _2, _3, ...
         n = seen[it["name"].lower()] = seen.get(it["name"].lower(), 0) + 1
         if n > 1:
             it["name"] += f"_{n}"
@@ -117,10 +138,10 @@ def _unique_names(items):
 
 
 def find_work(source, outdir=None):
-    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files
-    and ``outdir`` skipped) or a manifest (``.csv`` with a ``path`` column, or JSON lines
-    ``{"path": ...}``; optional ``name``, ``size``, ``count``, ``seed``, ``tile``; paths
-    relative to the manifest's folder).
+    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files,
+    ``outdir`` and the folders that hold a ledger ``batch.jsonl`` skipped) or a manifest
+    (``.csv`` with a ``path`` column, or JSON lines ``{"path": ...}``; optional ``name``,
+    ``size``, ``count``, ``seed``, ``tile``; paths relative to the manifest's folder).
 
     Returns a list of dicts: ``path`` (Path), ``rel`` (as listed), ``name`` (unique folder
     name in OUTDIR) and ``settings`` (the row's own settings). A bad manifest row is a
@@ -163,14 +184,18 @@ def _numbered(name: str, count: int):
 
 def remove_temporaries(folder) -> int:
     """Remove what :func:`tghop.imageio.write_atomic` leaves when its process is killed
-    (``.NAME.*.tmp``) in ``folder``; returns how many."""
+    (``.NAME.*.tmp``) in ``folder``, and :func:`process_exemplar`'s folders of files not yet
+    moved into place (``.partial.*.tmp``); returns how many."""
     removed = 0
     try:
         entries = list(os.scandir(folder))
     except OSError:
         return 0
     for entry in entries:
-        if entry.name.startswith(".") and entry.name.endswith((".tmp", ".probe")) and entry.is_file():
+        if entry.name.startswith(STAGE[0]) and entry.name.endswith(STAGE[1]) and entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed += 1
+        elif entry.name.startswith(".") and entry.name.endswith((".tmp", ".probe")) and entry.is_file():
             try:
                 os.unlink(entry.path)
                 removed += 1
@@ -209,8 +234,10 @@ def process_exemplar(job: dict) -> dict:
     ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times
     (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part
     of them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the
-    worker and its peak memory. Bad input is a "failed" record, never an exception;
-    what was written for a failed exemplar is removed.
+    worker and its peak memory. Bad input is a "failed" record, never an exception.
+    The files are made in a hidden folder and moved into place together at the end: a
+    failed or interrupted exemplar (Ctrl-C, a killed worker: :func:`remove_temporaries`)
+    leaves none of its own, and an earlier run's files of it as they were.
     """
     import resource
     import socket
@@ -221,7 +248,7 @@ def process_exemplar(job: dict) -> dict:
     record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
               "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
               "worker": f"{socket.gethostname()}:{os.getpid()}"}
-    written = []
+    stage = None
     try:
         import numpy as np
         from threadpoolctl import threadpool_limits
@@ -234,20 +261,28 @@ def process_exemplar(job: dict) -> dict:
 
         folder.mkdir(parents=True, exist_ok=True)
         remove_temporaries(folder)  # left by a worker killed while writing here
+        # Every file is made in a hidden folder of its own, then moved into place together
+        # once all are made: a failed, interrupted or killed task leaves none of its files
+        # (and the files of an earlier run of this exemplar as they were).
+        stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
         with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
+            from .cli.common import is_model_file
+
+            if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
+                raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
             raw = load_image(job["source"], dtype=None)
-            image = prepare_exemplar(raw, min_size=fit.get("patch_size") or 32)
+            image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])
+            model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
             t = time.time()
             model.fit(image)
             record["fit_seconds"] = time.time() - t
-            thumb = folder / "exemplar.png"
-            _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8), thumb)
-            written.append(thumb)
-            model_path = folder / f"{name}.npz"
-            save_model(model, model_path)
-            written.append(model_path)
+            thumb = "exemplar.png"
+            _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8),
+                       stage / thumb)
+            model_file = f"{name}.npz"
+            save_model(model, stage / model_file)
             seed = job.get("seed")
             if seed is None:
                 seed = int(np.random.SeedSequence().generate_state(1)[0])
@@ -257,27 +292,26 @@ def process_exemplar(job: dict) -> dict:
             outputs = []
             for file in _numbered(name, job.get("count", 1)):
                 img = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.uint8, **(job.get("generate") or {}))
-                save_image(img, folder / file)
-                written.append(folder / file)
+                save_image(img, stage / file)
                 outputs.append(file)
             record["synth_seconds"] = time.time() - t
+        for file in [*outputs, thumb, model_file]:
+            os.replace(stage / file, folder / file)
         prefix = folder.name
-        record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_path.name}",
-                      thumbnail=f"{prefix}/{thumb.name}")
+        record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_file}",
+                      thumbnail=f"{prefix}/{thumb}")
     except MemoryError:
         record["error"] = "out of memory; use a smaller size or exemplar, or fewer workers per machine"
     except Exception as exc:  # noqa: BLE001 - one exemplar's failure is recorded, the batch goes on
         record["error"] = _one_line(exc)
-    if record["status"] != "ok":
-        for path in written:
+    finally:  # Ctrl-C (KeyboardInterrupt) and the command's SIGTERM too: they go on once this is done
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        if record["status"] != "ok":
             try:
-                os.unlink(path)
+                folder.rmdir()  # only when empty
             except OSError:
                 pass
-        try:
-            folder.rmdir()  # only when empty
-        except OSError:
-            pass
     record["seconds"] = time.time() - start
     record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
     now = resource.getrusage(resource.RUSAGE_SELF)
@@ -341,12 +375,33 @@ def _keep_ledger_names(items, previous) -> None:
             taken.add(names[0].lower())
 
 
-def _append_ledger(outdir: Path, record: dict):
+def _check_own_files(outdir: Path, contact_sheet: bool) -> None:
+    """Refuse a folder where OUTDIR's ledger or contact sheet goes (found before any work)."""
+    for name, what in ((LEDGER, "the ledger"), (CONTACT_SHEET, "the contact sheet")):
+        if name == CONTACT_SHEET and not contact_sheet:
+            continue
+        if (outdir / name).is_dir():
+            raise TGHopError(f"{outdir / name} is a folder, where {what} of the batch goes; remove that folder "
+                             "or choose another OUTDIR")
+
+
+def _open_ledger(outdir: Path):
+    """The ledger opened for appending, for the whole run: one that cannot be written to is
+    found before any exemplar's files are made (or overwritten)."""
+    path = outdir / LEDGER
+    try:
+        return open(path, "a", encoding="utf-8")
+    except OSError as exc:
+        raise TGHopError(f"{path}: cannot add to the ledger ({exc.strerror or exc.__class__.__name__}); make it a "
+                         "writable file (chmod u+w, or chattr -i where it is immutable) or choose another OUTDIR; "
+                         "nothing was done") from None
+
+
+def _append_ledger(fh, record: dict):
     line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
-    with open(outdir / LEDGER, "a", encoding="utf-8") as fh:
-        fh.write(line)
-        fh.flush()
-        os.fsync(fh.fileno())
+    fh.write(line)
+    fh.flush()
+    os.fsync(fh.fileno())
 
 
 def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
@@ -498,6 +553,49 @@ def _settings(item_settings, defaults, fit, generate):
             "fit": fit, "generate": generate}
 
 
+def check_options(items, defaults, fit, generate) -> None:
+    """Refuse bad fit and generation settings before any work, with the checks the fit and
+    :meth:`TGHop.synthesize <tghop.synthesis.TGHop.synthesize>` make: every setting against
+    the settings table (:func:`tghop.settings.check_settings`), the patch size's channel
+    counts, and each exemplar's size, ``tile`` and ``overlap`` against the patch size of the
+    fit settings (the quilting's own check, :func:`tghop.quilting.block_count`).
+
+    Parameters
+    ----------
+    items : list of dict
+        :func:`find_work`'s exemplars; a manifest row's are named by its line (``where``).
+    defaults : dict
+        ``size``, ``count``, ``seed`` and ``tile`` for the exemplars that give none.
+    fit, generate : dict
+        TGHop's parameters and the other keywords of ``synthesize`` (``tile`` apart).
+
+    Raises
+    ------
+    TGHopError
+        The first bad setting, prefixed with the manifest line that gives it.
+    """
+    from .fit_options import model_for
+    from .quilting import block_count
+    from .settings import check_settings
+
+    model = model_for(fit, 3)
+    model._check_settings()  # what TGHop.fit checks first
+    model._channel_rules()
+    overlap = check_settings(generate).get("overlap")
+    seen = set()
+    for it in items:
+        own = it["settings"]
+        size, tile = tuple(own.get("size", defaults["size"])), bool(own.get("tile", defaults["tile"]))
+        where = it.get("where") if "size" in own or "tile" in own else None
+        if (size, tile, where) in seen:
+            continue
+        seen.add((size, tile, where))
+        try:
+            block_count(size, model.patch_size, overlap=overlap, tile=tile)
+        except TGHopError as exc:
+            raise TGHopError(f"{where}: {exc}" if where else str(exc)) from None
+
+
 def _jsonable(value):
     return json.loads(json.dumps(value, default=str, allow_nan=False))
 
@@ -557,17 +655,12 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
                 "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
                 "tile": parse_bool(tile, "run")}
-    if outdir.exists() and not outdir.is_dir():
-        raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-        from .imageio import check_output_path
-
-        check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)
-    except OSError as exc:
-        raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
     fit = _jsonable(dict(fit or {}))
     generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
+    check_options(items, defaults, fit, generate)  # before any work, as synth would refuse them
+    if outdir.exists() and not outdir.is_dir():
+        raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
+    _check_own_files(outdir, contact_sheet)
     in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
     if not in_process and client is None:
         _import_distributed()  # a missing extra is said before any work
@@ -585,13 +678,30 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
         else:
             jobs.append(job)
+    own_client = ledger_file = None
+    try:
+        if jobs and scheduler is not None and client is None:
+            client = own_client = _connect(scheduler)  # before OUTDIR is made: no empty OUTDIR when it fails
+        try:
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
+        from .imageio import check_output_path
+
+        check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
+        if jobs:
+            ledger_file = _open_ledger(outdir)
+    except BaseException:
+        if own_client is not None:
+            own_client.close()
+        raise
     counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results)}
 
     def finish(job, record):
         rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
                **record}
         rec["finished"] = time.time()
-        _append_ledger(outdir, rec)
+        _append_ledger(ledger_file, rec)
         if rec["status"] == "ok":
             _remove_stale(outdir, previous.get(job["name"]), rec)
         results[job["name"]] = {**rec, "skipped": False}
@@ -613,9 +723,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                 finish(job, task(job))
             counts["running"] = 0
         elif jobs:
-            _run_distributed(jobs, finish, counts, task, workers=workers, client=client, scheduler=scheduler,
+            _run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
                              retries=retries)
     finally:
+        if ledger_file is not None:
+            ledger_file.close()
         for job in jobs:
             remove_temporaries(job["folder"])
             try:
@@ -640,20 +752,25 @@ def _died_record(job, exc, retries) -> dict:
             "seed_used": job.get("seed"), "started": None, "seconds": None}
 
 
-def _run_distributed(jobs, finish, counts, task, *, workers, client, scheduler, retries):
+def _connect(scheduler):
+    """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached."""
     distributed = _import_distributed()
-    own_cluster = own_client = None
+    try:
+        return distributed.Client(scheduler, timeout="5s")
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
+        raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
+
+
+def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries):
+    """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
+    here); ``own_client``, and the cluster started here, are closed at the end."""
+    distributed = _import_distributed()
+    own_cluster = None
     futures = []
     try:
         if client is None:
-            if scheduler is not None:
-                try:
-                    client = own_client = distributed.Client(scheduler, timeout="5s")
-                except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
-                    raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
-            else:
-                own_cluster = local_cluster(workers, retries=retries)
-                client = own_client = distributed.Client(own_cluster)
+            own_cluster = local_cluster(workers, retries=retries)
+            client = own_client = distributed.Client(own_cluster)
         # The longest first (a shorter tail), handed out one per free thread as tasks finish:
         # a worker holds only the task it runs. Dask would place every task on a worker at
         # once (tasks of different names are not "root-ish", so it queues none on the

@@ -132,10 +132,11 @@ def manifest_rows(path: Path):
 
 
 def read_manifest(path: Path):
-    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name``, ``named``, ``settings``."""
+    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name`` and ``given`` (the
+    row's name, or None), ``named``, ``settings`` and ``where`` (the row's line, for messages)."""
     items = []
     for number, row in manifest_rows(path):
-        where = f"{path.name} line {number}"
+        where = f"{path} line {number}"  # as manifest_rows names it
         unknown = sorted(k for k in row if k not in ("path", "name") + ROW_SETTINGS)
         if unknown:
             shown = ", ".join(k if k and k.strip() == k else repr(k) for k in unknown)
@@ -150,8 +151,8 @@ def read_manifest(path: Path):
             raise TGHopError(f"{where}: no path")
         file = Path(source) if os.path.isabs(source) else path.parent / source
         name = (row.get("name") or "").strip() or None
-        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None,
-                      "settings": row_settings(row, where)})
+        items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None, "given": name,
+                      "settings": row_settings(row, where), "where": where})
     if not items:
         raise TGHopError(f"{path}: the manifest lists no exemplar")
     return items
