@@ -2,7 +2,7 @@
 :mod:`tghop.imageio` writes by and every message and ``--help`` text names (no imports:
 the command line's help is made from it without loading NumPy)."""
 
-__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP"]
+__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -19,3 +19,14 @@ def extensions(formats=None) -> str:
 
 #: The start of an image output's ``-o`` help: ``Image to write (EXTENSIONS``; each command ends it.
 OUTPUT_HELP = f"Image to write ({extensions()}"
+
+
+def is_model_file(path) -> bool:
+    """True if ``path`` starts like a zip archive (an ``.npz``), which only a model can be
+    among tghop's inputs; a truncated model file still counts (and is then reported as
+    truncated)."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
+    except OSError:
+        return False

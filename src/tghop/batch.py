@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import html
 import json
 import os
 import re
@@ -35,9 +34,10 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from urllib.parse import quote
 
 from ._errors import MissingExtraError, TGHopError
+from ._formats import is_model_file
+from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
@@ -46,9 +46,8 @@ __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
-#: The ledger and the contact sheet, in OUTDIR.
+#: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
 LEDGER = "batch.jsonl"
-CONTACT_SHEET = "index.html"
 INSTALL_HINT = "pip install 'tghop[batch]'"
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
@@ -267,8 +266,6 @@ def process_exemplar(job: dict) -> dict:
         stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
         with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
             fit = job.get("fit") or {}
-            from .cli.common import is_model_file
-
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
                 raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
             raw = load_image(job["source"], dtype=None)
@@ -818,46 +815,7 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client,
                 own_cluster.close()
 
 
-# ------------------------------------------------------------------ the contact sheet
-def _href(path: str) -> str:
-    return quote(path, safe="/")
-
-
 def write_contact_sheet(outdir, records, total=None) -> Path:
-    """``OUTDIR/index.html``: per exemplar its thumbnail, name, source, status (with the
-    error), time and outputs (linked, relative paths; no external resources); ``total``
-    exemplars in the batch (more than the records: the rest not finished)."""
-    from .imageio import write_atomic
-
-    outdir = Path(outdir)
-    ok = sum(r.get("status") == "ok" for r in records)
-    rows = []
-    for r in records:
-        esc = html.escape
-        thumb = (f'<img src="{_href(r["thumbnail"])}" alt="{esc(r["name"])}" width="96">'
-                 if r.get("thumbnail") else "")
-        outputs = " ".join(f'<a href="{_href(f)}"><img src="{_href(f)}" alt="{esc(f)}" height="96"></a>'
-                           for f in r.get("outputs") or [])
-        model = f'<a href="{_href(r["model"])}">model</a>' if r.get("model") else ""
-        status = esc(r.get("status", "?")) + (" (earlier run)" if r.get("skipped") else "")
-        error = f'<div class="error">{esc(r["error"])}</div>' if r.get("error") else ""
-        seconds = f"{r['seconds']:.1f} s" if isinstance(r.get("seconds"), (int, float)) else ""
-        rows.append(f'<tr class="{esc(r.get("status", ""))}"><td>{thumb}</td><td><b>{esc(r["name"])}</b><br>'
-                    f'<small>{esc(str(r.get("source", "")))}</small></td><td>{status}{error}</td>'
-                    f"<td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
-    left = (total or 0) - len(records)
-    unfinished = f" {left} not finished yet: run the same command again." if left > 0 else ""
-    page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok} of {max(total or 0, len(records))} done</title>
-<style>body{{font-family:sans-serif;margin:1em}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #ccc;padding:4px;vertical-align:top}}tr.failed{{background:#fee}}
-.error{{color:#a00;max-width:30em}}img{{image-rendering:pixelated}}</style></head>
-<body><h1>tghop batch</h1><p>{ok} of {len(records)} exemplars done, {len(records) - ok} failed.{unfinished}
-Ledger: <a href="{LEDGER}">{LEDGER}</a>.</p>
-<table><tr><th>exemplar</th><th>name</th><th>status</th><th>time</th><th>outputs</th><th>model</th></tr>
-{chr(10).join(rows)}
-</table></body></html>
-"""
-    path = outdir / CONTACT_SHEET
-    write_atomic(path, lambda fh: fh.write(page.encode("utf-8")), what="contact sheet", error=TGHopError)
-    return path
+    """``OUTDIR/index.html`` of a batch (:func:`tghop.contact_sheet.write_contact_sheet`,
+    linking the ledger)."""
+    return _write_sheet(outdir, records, total=total, ledger=LEDGER)

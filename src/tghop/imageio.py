@@ -19,8 +19,8 @@ from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
 from ._formats import DEPTHS, FORMATS, extensions
 
-__all__ = ["load_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png", "check_output_path",
-           "check_depth", "deepest", "save_images", "DEPTHS"]
+__all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
+           "check_output_path", "check_depth", "deepest", "save_images", "DEPTHS"]
 
 #: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
 TIFF_HINT = "pip install 'tghop[tiff]'"
@@ -108,6 +108,20 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         out = check_image(arr, name=str(path), dtype=np.float64 if dtype is None else dtype,
                           channels=(1, 2, 3, 4) if keep_alpha else (1, 3))
     return (out, depth) if with_depth else out
+
+
+def is_image(path) -> bool:
+    """Whether Pillow recognises ``path`` (a path or a binary file object) as an image,
+    without decoding it: a decompression bomb counts."""
+    from PIL import Image
+
+    try:
+        with Image.open(path):
+            return True
+    except Image.DecompressionBombError:
+        return True
+    except Exception:  # noqa: BLE001 (any failure: not an image Pillow can open)
+        return False
 
 
 def _read_deep(path, max_pixels, keep_alpha=False):

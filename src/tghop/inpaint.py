@@ -42,7 +42,7 @@ from .quilting import boundary_cut_mask, default_overlap
 from .pyramid import laplacian_pyramid, reconstruct
 from .refine import oriented_parts
 
-__all__ = ["inpaint", "check_hole", "refine_hole"]
+__all__ = ["inpaint", "check_hole", "require_hole", "split_alpha", "with_alpha", "refine_hole"]
 
 
 def check_hole(mask, shape) -> np.ndarray:
@@ -65,6 +65,35 @@ def check_hole(mask, shape) -> np.ndarray:
         raise TGHopError(f"the mask is {'x'.join(map(str, arr.shape[:2]))} but the image is {shape[0]}x{shape[1]}; "
                          f"give a mask of the image's size")
     return arr
+
+
+def require_hole(hole, mask_name: str) -> None:
+    """Refuse a hole (from :func:`check_hole`) with no pixel in it: nothing would be filled.
+
+    ``mask_name`` names the mask in the message, e.g. ``"MASK m.png"``.
+    """
+    if not np.any(hole):
+        raise TGHopError(f"{mask_name} has no white pixel, so there is nothing to fill; paint the hole white "
+                         "(a pixel whose channels' mean is above mid-grey)")
+
+
+def split_alpha(picture):
+    """A grey+alpha or RGBA picture (H, W, 2 or 4) as its colours and its alpha channel
+    (H, W, 1), of the picture's dtype; other pictures as they are and None."""
+    arr = np.asarray(picture)
+    if arr.ndim == 3 and arr.shape[2] in (2, 4):
+        return np.ascontiguousarray(arr[..., :-1]), arr[..., -1:]
+    return arr, None
+
+
+def with_alpha(filled, alpha, hole):
+    """The filled picture (H, W, C) with the alpha channel :func:`split_alpha` took (or
+    None: ``filled`` as it is) back as its last channel: as it was outside the hole, opaque
+    in it (255 for 8-bit alpha, else 1.0), of ``filled``'s dtype."""
+    if alpha is None:
+        return filled
+    alpha = np.where(hole[..., None], 255 if alpha.dtype == np.uint8 else 1.0, alpha).astype(filled.dtype)
+    return np.concatenate([filled, alpha], axis=2)
 
 
 def _working_image(image, n_channels):

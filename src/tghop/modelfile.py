@@ -98,7 +98,9 @@ def _read(path):
             arrays = {name: data[name] for name in data.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, NotImplementedError, MemoryError,
             zlib.error, RuntimeError) as exc:
-        if _is_image(path):
+        from .imageio import is_image
+
+        if is_image(path):
             raise ModelFileError(f"{path} is an image, not a model file; fit a model from it with "
                                  f"'tghop fit {path} -o model.npz'") from None
         raise ModelFileError(
@@ -149,19 +151,6 @@ def _all_finite(arr) -> bool:
                 return False
         return True
     return arr.dtype.kind not in "fc" or bool(np.all(np.isfinite(arr)))
-
-
-def _is_image(path) -> bool:
-    """Whether Pillow recognises ``path`` as an image (asked only once reading it as a model failed)."""
-    from PIL import Image
-
-    try:
-        with Image.open(path):
-            return True
-    except Image.DecompressionBombError:
-        return True
-    except Exception:  # noqa: BLE001 (any failure: not an image Pillow can open)
-        return False
 
 
 # ------------------------------------------------------------------ array checks

@@ -19,6 +19,7 @@ from pathlib import Path
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
+from .._formats import is_model_file
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
            "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout"]
@@ -153,17 +154,6 @@ def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the 
         raise TGHopError(f"{label} {path} is {mask.shape[0]}x{mask.shape[1]} but {image_label} is "
                          f"{shape[0]}x{shape[1]}; give a mask of the same size")
     return mask.mean(axis=2) > 0.5
-
-
-def is_model_file(path: str) -> bool:
-    """True if ``path`` starts like a zip archive (an ``.npz``), which only a model can be
-    here; a truncated model file still counts (and is then reported as truncated)."""
-    p = Path(path)
-    try:
-        with open(p, "rb") as fh:
-            return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
-    except OSError:
-        return False
 
 
 def layout_summary(model) -> str:

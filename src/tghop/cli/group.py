@@ -95,8 +95,9 @@ class OneLineGroup(click.Group):
         modules the command will import are imported (Python loses a KeyboardInterrupt
         that arrives at the end of an import, "Exception ignored in ... _get_module_lock",
         and the command would go on as if nothing had happened); then Ctrl-C, unless the
-        caller set it to be ignored, raises KeyboardInterrupt once (:func:`_interrupted`: the first stops the command, those
-        after it are ignored while it cleans up and exits); and the objects that exist after the imports and at exit are handed to the
+        caller set it to be ignored, raises KeyboardInterrupt once (:func:`_interrupted`:
+        the first stops the command, those after it are ignored while it cleans up and
+        exits); and the objects that exist after the imports and at exit are handed to the
         garbage collector's permanent generation (``gc.freeze``), so that its collections
         during the run and at exit do not walk them. A program that runs the command line
         in-process keeps its signal handling and its collector as they were.

@@ -39,7 +39,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
     import numpy as np
 
     from ..imageio import check_depth, deepest, load_image, save_image
-    from ..inpaint import inpaint as fill
+    from ..inpaint import inpaint as fill, require_hole, split_alpha
     from ..patches import TooLittleTextureError
     from ..synthesis import TGHop, prepare_exemplar
 
@@ -51,15 +51,11 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
             raise TGHopError(f"IMAGE {image} is a model file; give the image to fill (a model goes to --source)")
         # 8-bit stays 8-bit: copied as bytes; an alpha channel is kept apart and written back.
         picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True)
-        alpha = None
-        if picture.shape[2] in (2, 4):
-            picture, alpha = np.ascontiguousarray(picture[..., :-1]), picture[..., -1:]
+        picture, alpha = split_alpha(picture)
         # Without --depth: IMAGE's own depth, as far as the output's format holds it.
         depth = check_depth(output, depth or deepest(output, image_depth))
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
-        if not hole.any():  # before any fit: nothing would change
-            raise TGHopError(f"MASK {mask} has no white pixel, so there is nothing to fill; paint the hole white "
-                             "(a pixel whose channels' mean is above mid-grey)")
+        require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
         rng = np.random.default_rng(seed)
         model = None
         if source is not None and not source.startswith("builtin:") and (
@@ -102,20 +98,16 @@ def _check_size(image, shape, p, whose):
 
 
 def _with_alpha(result, alpha, hole, image, output):
-    """The filled image with IMAGE's alpha channel (``alpha``, (H, W, 1) of its depth) as its
-    last channel: as it was outside the hole, opaque in it; a JPEG output drops it, warning."""
+    """The filled image with IMAGE's alpha channel (:func:`tghop.inpaint.with_alpha`); a
+    JPEG output drops it, warning."""
     import warnings
-
-    import numpy as np
 
     from .._formats import extensions
     from ..imageio import output_format
+    from ..inpaint import with_alpha
 
-    if alpha is None:
-        return result
-    if output_format(output) == "JPEG":
+    if alpha is not None and output_format(output) == "JPEG":
         warnings.warn(f"{image}: alpha channel dropped (JPEG holds none; name the output "
                       f"{extensions(['PNG', 'TIFF'])} to keep it)")
         return result
-    alpha = np.where(hole[..., None], 255 if alpha.dtype == np.uint8 else 1.0, alpha).astype(result.dtype)
-    return np.concatenate([result, alpha], axis=2)
+    return with_alpha(result, alpha, hole)

@@ -446,12 +446,12 @@ class Server:
     def _store_upload(self, content: bytes, filename: str) -> str:
         """Check an uploaded model file and keep it under its content hash (400 if it is not
         a good tghop model; nothing is left in the cache either way)."""
-        from ..modelfile import _is_image
+        from ..imageio import is_image
 
         try:
             return self.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
         except RequestError as exc:  # the loader's advice for an image is a command line's
-            if exc.status == 400 and _is_image(io.BytesIO(content)):
+            if exc.status == 400 and is_image(io.BytesIO(content)):
                 raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
                                         "to /api/models as the file field 'image'") from None
             raise
@@ -592,9 +592,8 @@ class Server:
         import numpy as np
 
         from .._errors import HINT_DOWNSCALE_YOURSELF
-        from ..cli.inpaint import _with_alpha
         from ..imageio import deepest, load_image, to_uint8, to_uint16, write_png
-        from ..inpaint import check_hole, inpaint
+        from ..inpaint import check_hole, inpaint, require_hole, split_alpha, with_alpha
 
         model = self.cache.load(model_id)
         picture = mask = None
@@ -610,20 +609,16 @@ class Server:
             if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
                 picture, depth = self._read_image(content, filename, lambda p: load_image(
                     p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True))
-                alpha, picture_name = None, filename
-                if picture.shape[2] in (2, 4):
-                    picture, alpha = np.ascontiguousarray(picture[..., :-1]), picture[..., -1:]
+                picture, alpha = split_alpha(picture)
             else:
                 read = self._read_image(content, filename, lambda p: load_image(
                     p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
                 mask, mask_name = read.mean(axis=2), filename
         try:
             hole = check_hole(mask, picture.shape)
+            require_hole(hole, f"the mask {mask_name}")  # as tghop inpaint: nothing would change
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
-        if not hole.any():  # as tghop inpaint: nothing would change
-            raise RequestError(400, f"the mask {mask_name} has no white pixel, so there is nothing to fill; paint the "
-                                    "hole white (a pixel whose channels' mean is above mid-grey)")
         with self.generating:
             try:
                 filled = inpaint(model, picture, hole, rng=seed, tile=tile, progress=self.unless_stopping)
@@ -631,7 +626,7 @@ class Server:
                 raise RequestError(413, "out of memory; send a smaller picture") from None
             except TGHopError as exc:
                 raise RequestError(400, str(exc)) from None
-        filled = _with_alpha(filled, alpha, hole, picture_name, "filled.png")
+        filled = with_alpha(filled, alpha, hole)  # a PNG holds it
         buf = io.BytesIO()
         write_png(buf, to_uint16(filled) if deepest("filled.png", depth) == 16 else to_uint8(filled))
         return buf.getvalue()

@@ -1,0 +1,62 @@
+"""The contact sheet of a batch (:mod:`tghop.batch`): one HTML page in OUTDIR that shows
+each exemplar's thumbnail, status and outputs, with relative links and no external
+resources, so that the folder can be moved or served as it is."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+from urllib.parse import quote
+
+from ._errors import TGHopError
+
+__all__ = ["write_contact_sheet", "CONTACT_SHEET"]
+
+#: The contact sheet's file name, in OUTDIR.
+CONTACT_SHEET = "index.html"
+
+
+def _href(path: str) -> str:
+    return quote(path, safe="/")
+
+
+def write_contact_sheet(outdir, records, *, total=None, ledger=None) -> Path:
+    """``OUTDIR/index.html``: per exemplar its thumbnail, name, source, status (with the
+    error), time and outputs (linked, relative paths; no external resources); ``total``
+    exemplars in the batch (more than the records: the rest not finished); ``ledger``: the
+    name of the ledger file in OUTDIR to link (None: no link)."""
+    from .imageio import write_atomic
+
+    outdir = Path(outdir)
+    ok = sum(r.get("status") == "ok" for r in records)
+    rows = []
+    for r in records:
+        esc = html.escape
+        thumb = (f'<img src="{_href(r["thumbnail"])}" alt="{esc(r["name"])}" width="96">'
+                 if r.get("thumbnail") else "")
+        outputs = " ".join(f'<a href="{_href(f)}"><img src="{_href(f)}" alt="{esc(f)}" height="96"></a>'
+                           for f in r.get("outputs") or [])
+        model = f'<a href="{_href(r["model"])}">model</a>' if r.get("model") else ""
+        status = esc(r.get("status", "?")) + (" (earlier run)" if r.get("skipped") else "")
+        error = f'<div class="error">{esc(r["error"])}</div>' if r.get("error") else ""
+        seconds = f"{r['seconds']:.1f} s" if isinstance(r.get("seconds"), (int, float)) else ""
+        rows.append(f'<tr class="{esc(r.get("status", ""))}"><td>{thumb}</td><td><b>{esc(r["name"])}</b><br>'
+                    f'<small>{esc(str(r.get("source", "")))}</small></td><td>{status}{error}</td>'
+                    f"<td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
+    left = (total or 0) - len(records)
+    unfinished = f" {left} not finished yet: run the same command again." if left > 0 else ""
+    link = f'Ledger: <a href="{_href(ledger)}">{html.escape(ledger)}</a>.' if ledger else ""
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok} of {max(total or 0, len(records))} done</title>
+<style>body{{font-family:sans-serif;margin:1em}}table{{border-collapse:collapse}}
+td,th{{border:1px solid #ccc;padding:4px;vertical-align:top}}tr.failed{{background:#fee}}
+.error{{color:#a00;max-width:30em}}img{{image-rendering:pixelated}}</style></head>
+<body><h1>tghop batch</h1><p>{ok} of {len(records)} exemplars done, {len(records) - ok} failed.{unfinished}
+{link}</p>
+<table><tr><th>exemplar</th><th>name</th><th>status</th><th>time</th><th>outputs</th><th>model</th></tr>
+{chr(10).join(rows)}
+</table></body></html>
+"""
+    path = outdir / CONTACT_SHEET
+    write_atomic(path, lambda fh: fh.write(page.encode("utf-8")), what="contact sheet", error=TGHopError)
+    return path
