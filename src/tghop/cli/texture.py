@@ -259,6 +259,12 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
             raise TGHopError(f"{source} holds no patch statistics for --patch-refine or --quality best "
                              "(fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again with 'tghop fit'")
     else:
+        from ..quilting import block_count
+
+        # The output's blocks at the fit's patch size, before the fit: a --size or --overlap
+        # that quilting refuses is refused at once, not after the fit.
+        block_count(size, build_model(dict(options)).patch_size, overlap=generation["overlap"],
+                    tile=generation["tile"])
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
         if save_model:
             write_model(model, save_model)
