@@ -109,7 +109,7 @@ def test_a_512x512_result_appears_after_the_click_in_firefox(firefox, live_serve
         times.append((ms / 1000, server_ms / 1000))
     record_property("firefox_click_to_result_512_s", times)
     print("Firefox: 512x512 result " + ", ".join(f"{t:.2f} (server {s:.2f})" for t, s in times) + " s after the click")
-    assert min(t for t, _ in times) < 30  # a loose bound on a loaded 2-core machine; docs/serve.md has the numbers
+    # Times are reported (-s, the junit property), never asserted: docs/serve.md has the numbers.
     assert ff.run("return window.__errors") == []
 
 
