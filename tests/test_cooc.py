@@ -580,12 +580,23 @@ def run(*args, env_extra=None):
     return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
 
 
+def invoke(*args):
+    """The command line in-process (:func:`run` starts an interpreter and PyTorch each time)."""
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
 TINY_SET = ["--set", "n_clusters=3", "--set", "crop_size=32", "--set", "n_layers=3", "--set", "patch=9",
             "--set", "window=7", "--set", "sigma=2", "--set", "g_widths=[8,4]", "--set", "d_widths=[4,8]",
             "--set", "noise_channels=2", "--set", "n_crops=8", "--set", "batch_size=4", "--set", "n_critic=1"]
 
 
 def test_cli_end_to_end(tmp_path):
+    # The first command as a process of its own; the others in-process (no interpreter and
+    # PyTorch to start each time).
     from PIL import Image
 
     from tghop.imageio import save_image
@@ -595,32 +606,32 @@ def test_cli_end_to_end(tmp_path):
     r = run("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "1", "-q", *TINY_SET)
     assert r.returncode == 0, r.stderr.decode()
     assert "1 step trained" in r.stderr.decode()
-    r = run("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "2", "--resume", "-q")
-    assert r.returncode == 0, r.stderr.decode()
-    assert "2 steps trained" in r.stderr.decode()
-    r = run("baseline", "cooc", tmp_path / "ex.png", "--model", model, "-o", tmp_path / "b.png", "--size", "40x70",
-            "--seed", "1", "-q")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "train", tmp_path / "ex.png", "-o", model, "--steps", "2", "--resume", "-q")
+    assert r.exit_code == 0, r.output
+    assert "2 steps trained" in r.output
+    r = invoke("baseline", "cooc", tmp_path / "ex.png", "--model", model, "-o", tmp_path / "b.png", "--size", "40x70",
+               "--seed", "1", "-q")
+    assert r.exit_code == 0, r.output
     assert np.asarray(Image.open(tmp_path / "b.png")).shape == (40, 70, 3)
-    r = run("baseline", "cooc", tmp_path / "ex.png", "--model", model, "-o", tmp_path / "p.png", "--size", "40x70",
-            "--seed", "1", "-q", "--assembly", "pass")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("baseline", "cooc", tmp_path / "ex.png", "--model", model, "-o", tmp_path / "p.png", "--size", "40x70",
+               "--seed", "1", "-q", "--assembly", "pass")
+    assert r.exit_code == 0, r.output
     one_pass = np.asarray(Image.open(tmp_path / "p.png"))
     assert one_pass.shape == (40, 70, 3) and not np.array_equal(one_pass, np.asarray(Image.open(tmp_path / "b.png")))
-    r = run("cooc", "morph", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "strip.png", "--length", "5")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "morph", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "strip.png", "--length", "5")
+    assert r.exit_code == 0, r.output
     assert np.asarray(Image.open(tmp_path / "strip.png")).shape == (32, 40, 3)
-    r = run("cooc", "morph", model, "crop:0,0", tmp_path / "ex.png", "-o", tmp_path / "grid.png", "--grid", "3x2")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "morph", model, "crop:0,0", tmp_path / "ex.png", "-o", tmp_path / "grid.png", "--grid", "3x2")
+    assert r.exit_code == 0, r.output
     assert np.asarray(Image.open(tmp_path / "grid.png")).shape == (2 * 34 - 2, 3 * 34 - 2, 3)
-    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "edit.png", "--size", "24x64",
-            "--boost", "0,1,2")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "edit.png", "--size", "24x64",
+               "--boost", "0,1,2")
+    assert r.exit_code == 0, r.output
     assert np.asarray(Image.open(tmp_path / "edit.png")).shape == (24, 64, 3)
     # --windows: training-size windows; another image of the same size.
-    r = run("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "win.png", "--size", "24x64",
-            "--boost", "0,1,2", "--windows")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "edit", model, "crop:0,0", "crop:16,16", "-o", tmp_path / "win.png", "--size", "24x64",
+               "--boost", "0,1,2", "--windows")
+    assert r.exit_code == 0, r.output
     win = np.asarray(Image.open(tmp_path / "win.png"))
     assert win.shape == (24, 64, 3) and not np.array_equal(win, np.asarray(Image.open(tmp_path / "edit.png")))
 

@@ -43,6 +43,16 @@ def run(*args):
     return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
 
 
+def invoke(*args):
+    """The command line in-process (no interpreter and PyTorch to start: a second or more a
+    run); :func:`run` where the process itself is what is tested."""
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
 def png(path):
     from PIL import Image
 
@@ -73,19 +83,19 @@ def test_morph_takes_images_of_any_size(files):
     out = files / "strip.png"
     for a, b in (("crop:0,0", files / "wide.png"), (files / "wide.png", files / "other.png"),
                  (files / "other.png", "crop:8,8")):
-        r = run("cooc", "morph", files / "m.pt", a, b, "-o", out, "--length", "5", "--seed", "1")
-        assert r.returncode == 0, r.stderr.decode()
+        r = invoke("cooc", "morph", files / "m.pt", a, b, "-o", out, "--length", "5", "--seed", "1")
+        assert r.exit_code == 0, r.output
         assert png(out).shape == (32, 40, 3)
-    r = run("cooc", "morph", files / "m.pt", files / "wide.png", "crop:0,0", "-o", out, "--grid", "2x2")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "morph", files / "m.pt", files / "wide.png", "crop:0,0", "-o", out, "--grid", "2x2")
+    assert r.exit_code == 0, r.output
     assert png(out).shape == (2 * 34 - 2, 2 * 34 - 2, 3)
 
 
 def test_edit_takes_images_of_any_size(files):
     out = files / "edit.png"
-    r = run("cooc", "edit", files / "m.pt", files / "wide.png", "crop:0,0", files / "other.png", "-o", out,
-            "--size", "24x64", "--seed", "2")
-    assert r.returncode == 0, r.stderr.decode()
+    r = invoke("cooc", "edit", files / "m.pt", files / "wide.png", "crop:0,0", files / "other.png", "-o", out,
+               "--size", "24x64", "--seed", "2")
+    assert r.exit_code == 0, r.output
     assert png(out).shape == (24, 64, 3)
 
 
