@@ -1,6 +1,7 @@
 """Several models in one image (tghop.guided, ``tghop synth A B --guide``, ``tghop morph``),
 on textures made in code."""
 
+import copy
 import os
 import subprocess
 import sys
@@ -179,6 +180,10 @@ def test_models_that_cannot_mix_are_refused(models):
     grey = TGHop(rng=0, **FAST).fit(data.cells(96, rng=3).mean(axis=2))
     with pytest.raises(TGHopError, match="all colour or all greyscale"):
         tghop.synthesize_guided([models[0], grey], size=(64, 64))
+    other = copy.copy(models[1])
+    other.patch_size = 16  # as if fitted with patch_size=16: only the check is reached
+    with pytest.raises(TGHopError, match=r"input 2 has 16x16 patches but input 1 has 32x32; .*\(patch_size, "):
+        tghop.synthesize_guided([models[0], other], size=(64, 64))
 
 
 def test_cli_default_transition_is_the_librarys():

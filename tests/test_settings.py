@@ -62,6 +62,14 @@ def test_paper_values_come_from_the_table():
 def test_bad_fit_settings_are_refused_before_work(bricks96, name, value):
     with pytest.raises(TGHopError, match=name if name != "n_channels" else "K2"):
         TGHop(**{**SMALL, name: value}).fit(bricks96)
+    with pytest.raises(TGHopError, match=name if name != "n_channels" else "K2"):
+        TGHop(**{**SMALL, name: value}).check_settings()  # the same error, without an exemplar
+
+
+def test_check_settings_includes_the_hops_rules():
+    TGHop(**SMALL).check_settings()
+    with pytest.raises(TGHopError, match="5 hops need a patch size divisible by 32 leaving a core of at least 2x2"):
+        TGHop(**{**SMALL, "n_channels": (5, 5, 5, 5, 5)}).check_settings()
 
 
 @pytest.mark.parametrize("name, value", [("tolerance", float("nan")), ("n_patches", 0), ("overlap", 0),

@@ -576,8 +576,7 @@ def check_options(items, defaults, fit, generate) -> None:
     from .settings import check_settings
 
     model = model_for(fit, 3)
-    model._check_settings()  # what TGHop.fit checks first
-    model._channel_rules()
+    model.check_settings()  # what TGHop.fit checks first
     overlap = check_settings(generate).get("overlap")
     seen = set()
     for it in items:

@@ -235,7 +235,8 @@ def _check_models(models, minimum=1):
     for i, m in enumerate(models[1:], start=2):
         if m.patch_size != first.patch_size:
             raise TGHopError(f"input {i} has {m.patch_size}x{m.patch_size} patches but input 1 has "
-                             f"{first.patch_size}x{first.patch_size}; fit them with the same --patch-size")
+                             f"{first.patch_size}x{first.patch_size}; fit them with the same patch size "
+                             "(patch_size, --patch-size)")
         if m.exemplar_shape_[2] != first.exemplar_shape_[2]:
             raise TGHopError(f"input {i} is {'grey' if m.exemplar_shape_[2] == 1 else 'colour'} but input 1 is not; "
                              "give all colour or all greyscale exemplars")

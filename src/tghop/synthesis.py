@@ -159,6 +159,16 @@ class TGHop(BaseEstimator):
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
+    def check_settings(self):
+        """Raise the :class:`TGHopError` that :meth:`fit` would raise for a bad setting.
+
+        Every fit setting is checked against the settings table, then the patch size against
+        the hops (``n_channels``). Nothing is fitted: callers that run many fits (a batch)
+        can refuse bad settings before any work.
+        """
+        self._check_settings()
+        self._channel_rules()
+
     def _check_settings(self):
         """Every fit setting against the table (one-line errors, before any work)."""
         settings.check_settings({s.name: getattr(self, s.name) for s in settings.fit_settings()})
@@ -218,8 +228,7 @@ class TGHop(BaseEstimator):
             return self._fit(image, exclude=exclude, progress=progress)
 
     def _fit(self, image, *, exclude=None, progress=None):
-        self._check_settings()  # parameter errors before touching the image
-        self._channel_rules()
+        self.check_settings()  # parameter errors before touching the image
         rng = check_rng(self.rng)
         ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
         image = prepare_exemplar(image, channels=None)
