@@ -160,18 +160,10 @@ class TGHop(BaseEstimator):
 
     # ---------------------------------------------------------------- fitting
     def check_settings(self):
-        """Raise the :class:`TGHopError` that :meth:`fit` would raise for a bad setting.
-
-        Every fit setting is checked against the settings table, then the patch size against
-        the hops (``n_channels``). Nothing is fitted: callers that run many fits (a batch)
-        can refuse bad settings before any work.
-        """
-        self._check_settings()
-        self._channel_rules()
-
-    def _check_settings(self):
-        """Every fit setting against the table (one-line errors, before any work)."""
+        """Raise the :class:`TGHopError` :meth:`fit` would raise for a bad setting, fitting nothing
+        (every setting against the settings table, then the patch size against the hops)."""
         settings.check_settings({s.name: getattr(self, s.name) for s in settings.fit_settings()})
+        self._channel_rules()
 
     def _channel_rules(self, n_colours=3):
         for name in ("patch_size", "stride"):
@@ -187,7 +179,7 @@ class TGHop(BaseEstimator):
     def check_exemplar_size(self, shape, ichm=None):
         """Raise :func:`tghop.core.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
         if ichm is None:
-            self._check_settings()
+            self.check_settings()
             ichm = ICHM(**settings.component_params(self, "ichm"))
         check_exemplar_size(shape, ichm, patch_size=self.patch_size, stride=self.stride, max_patches=self.max_patches)
 
