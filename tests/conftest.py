@@ -16,6 +16,37 @@ for _sig, _default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGH
     if signal.getsignal(_sig) == signal.SIG_IGN:
         signal.signal(_sig, _default)
 
+def cli(*args, cwd=None, stdin=None):
+    """The ``tghop`` command line in this process, as :func:`subprocess.run` would give it.
+
+    Returns a :class:`subprocess.CompletedProcess` with ``returncode`` and bytes ``stdout``
+    and ``stderr``. An exception the command did not turn into its one-line error is a
+    traceback in ``stderr`` (exit status 1), as in a real process. Starting an interpreter
+    costs a second or more a command: tests of the process itself (signals, start-up,
+    imports, exit on a broken pipe) run ``python -m tghop`` instead.
+    """
+    import os
+    import subprocess
+    import traceback
+
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    old = os.getcwd()
+    if cwd is not None:
+        os.chdir(cwd)
+    try:
+        result = CliRunner().invoke(main, [str(a) for a in args], input=stdin, prog_name="tghop")
+    finally:
+        os.chdir(old)
+    err, code = result.stderr_bytes or b"", result.exit_code
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        err += "".join(traceback.format_exception(result.exception)).encode()
+        code = 1
+    return subprocess.CompletedProcess(["tghop", *map(str, args)], code, result.stdout_bytes, err)
+
+
 #: Fast settings for tests: the paper's pipeline, fewer clusters and patches.
 SMALL = dict(n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, stride=4, rng=0)
 
@@ -89,9 +120,14 @@ def tiny_cooc_checkpoint(tiny_cooc_exemplar, tmp_path_factory):
 
 
 def assert_user_error(r, *fragments):
-    """Non-zero exit, one 'Error:' line naming the problem, no traceback."""
-    err = r.stderr.decode()
-    assert r.returncode != 0
+    """Non-zero exit, one 'Error:' line naming the problem, no traceback. ``r``: a finished
+    process (``subprocess.run``'s) or click's in-process ``Result``."""
+    if hasattr(r, "exit_code"):  # click's CliRunner: the exception would have been a traceback
+        err, code = r.stderr, r.exit_code
+        assert r.exception is None or isinstance(r.exception, SystemExit), repr(r.exception)
+    else:
+        err, code = r.stderr.decode(), r.returncode
+    assert code != 0
     assert "Traceback" not in err
     lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
     assert len(lines) == 1, err

@@ -1,4 +1,9 @@
-"""The command line end to end, in a subprocess as a user runs it, on textures made in code."""
+"""The command line end to end on textures made in code.
+
+The first fit and the process-level checks run ``python -m tghop`` as a user does
+(:func:`run_process`); the other commands run in this process (:func:`conftest.cli`), which
+gives the same exit status and output without an interpreter started for each.
+"""
 
 import os
 import subprocess
@@ -11,12 +16,15 @@ from PIL import Image
 from tghop import data
 from tghop.imageio import save_image
 
-from conftest import assert_user_error
+from conftest import assert_user_error, cli
 
 FAST = ["--clusters", "6", "--codewords", "30", "--stride", "4", "-q"]
 
 
-def run(*args, cwd=None, stdin=None):
+run = cli
+
+
+def run_process(*args, cwd=None, stdin=None):
     env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning"}
     return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], cwd=cwd, capture_output=True,
                           env=env, timeout=300, input=stdin)
@@ -31,7 +39,7 @@ def workdir(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def model_path(workdir):
-    r = run("fit", workdir / "bricks.png", "-o", workdir / "model.npz", *FAST)
+    r = run_process("fit", workdir / "bricks.png", "-o", workdir / "model.npz", *FAST)
     assert r.returncode == 0, r.stderr.decode()
     err = r.stderr.decode()
     assert "D0=3072 -> D1=2304 -> D2=1408" in err and "D_r=" in err and "F=" in err

@@ -1,10 +1,7 @@
 """The cGAN's commands on bad and unusual input (issue #26): images as morph and edit
 sources, flat exemplars, --max-minutes, the note before a baseline's training."""
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +10,7 @@ import pytest
 from tghop import cooc, data
 from tghop._common import TGHopError
 
-from conftest import assert_user_error
+from conftest import assert_user_error, cli
 from test_cooc import TINY, _threads, exemplar, tiny_model  # noqa: F401  (the same tiny cGAN and fixtures)
 
 torch = pytest.importorskip("torch")
@@ -38,19 +35,17 @@ def files(tiny_model, exemplar, tmp_path_factory):
     return d
 
 
-def run(*args):
-    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning", "PYTHONPATH": str(ROOT / "src")}
-    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
-
-
 def invoke(*args):
-    """The command line in-process (no interpreter and PyTorch to start: a second or more a
-    run); :func:`run` where the process itself is what is tested."""
+    """The command line in-process, click's ``Result`` (:func:`conftest.cli` gives what a
+    process would: exit status and bytes)."""
     from click.testing import CliRunner
 
     from tghop.cli import main
 
     return CliRunner().invoke(main, [str(a) for a in args])
+
+
+run = cli  # in this process: no interpreter and PyTorch to start, a second or more a command
 
 
 def png(path):
@@ -144,16 +139,16 @@ def test_flat_exemplar_refused_by_fit_and_cooc_alike(files, tmp_path, monkeypatc
 def test_max_minutes_stops_saves_and_resume_continues(files, tmp_path):
     model = tmp_path / "m.pt"
     # 1e-6 minutes: stopped after the first step, whatever the machine's speed.
-    r = run("cooc", "train", files / "ex.png", "-o", model, "--steps", "50", "--max-minutes", "1e-6", "-q", *TINY_SET)
-    assert r.returncode == 0, r.stderr.decode()
-    last = r.stderr.decode().strip().splitlines()[-1]
+    r = invoke("cooc", "train", files / "ex.png", "-o", model, "--steps", "50", "--max-minutes", "1e-6", "-q", *TINY_SET)
+    assert r.exit_code == 0, r.output
+    last = r.stderr.strip().splitlines()[-1]
     assert re.search(r"stopped early .* at step 1 of 50; checkpoint written to", last), last
     assert "--resume" in last and cooc.load(model).step_ == 1
-    r = run("cooc", "train", files / "ex.png", "-o", model, "--steps", "3", "--resume", "-q")
-    assert r.returncode == 0, r.stderr.decode()
-    assert "3 steps trained" in r.stderr.decode() and cooc.load(model).step_ == 3
+    r = invoke("cooc", "train", files / "ex.png", "-o", model, "--steps", "3", "--resume", "-q")
+    assert r.exit_code == 0, r.output
+    assert "3 steps trained" in r.stderr and cooc.load(model).step_ == 3
     for bad in ("0", "-1", "soon"):
-        assert_user_error(run("cooc", "train", files / "ex.png", "-o", tmp_path / "x.pt", "--max-minutes", bad),
+        assert_user_error(invoke("cooc", "train", files / "ex.png", "-o", tmp_path / "x.pt", "--max-minutes", bad),
                           "--max-minutes")
     assert not (tmp_path / "x.pt").exists()
 

@@ -5,9 +5,6 @@ thresholds are lowered with monkeypatch so that the bounded paths run on them.""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -17,7 +14,7 @@ from tghop.metrics import common, distributions, evaluation, networks
 from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
 from tghop.imageio import save_image
 
-from conftest import assert_user_error
+from conftest import assert_user_error, cli
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -154,9 +151,7 @@ def test_diversity_reports_progress(pair):
 
 
 def run(*args):
-    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning"}
-    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env,
-                          timeout=300)
+    return cli(*args)  # in this process: the same exit status and output, no interpreter to start
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,6 @@ on textures made in code."""
 
 import copy
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -18,7 +16,7 @@ from tghop.modelfile import save_model
 from tghop.quilting import prepare_pool, quilt_prepared
 from tghop.synthesis import TGHop
 
-from conftest import assert_user_error
+from conftest import assert_user_error, cli
 
 FAST = dict(n_clusters=8, n_codewords=40, max_patches=1200, stride=4, layout_factor=None)
 GEN = dict(n_patches=500, refine=2)
@@ -194,8 +192,7 @@ def test_cli_default_transition_is_the_librarys():
 
 
 def _run(args, cwd):
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
-    return subprocess.run([sys.executable, "-m", "tghop", *args], cwd=cwd, capture_output=True, env=env, timeout=300)
+    return cli(*args, cwd=cwd)  # in this process: the same exit status and output, no interpreter to start
 
 
 def test_cli_guided_synth_and_morph(models, tmp_path):

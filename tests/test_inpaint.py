@@ -1,9 +1,6 @@
 """Inpainting (tghop.inpaint, ``tghop inpaint``) and sample masks (``TGHop.fit(exclude=)``,
 ``--exclude``), on textures made in code."""
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -15,7 +12,7 @@ from tghop.inpaint import check_hole, inpaint
 from tghop.modelfile import save_model
 from tghop.synthesis import TGHop
 
-from conftest import assert_user_error
+from conftest import assert_user_error, cli
 
 #: A small model, fast to fit.
 FAST = dict(n_clusters=10, n_codewords=40, max_patches=1200, layout_factor=None)
@@ -144,8 +141,7 @@ def test_an_empty_exclude_mask_gives_the_same_model(cells):
 
 # ---------------------------------------------------------------- command line
 def run(*args):
-    env = {**os.environ, "PYTHONWARNINGS": "ignore::DeprecationWarning"}
-    return subprocess.run([sys.executable, "-m", "tghop", *map(str, args)], capture_output=True, env=env, timeout=300)
+    return cli(*args)  # in this process: the same exit status and output, no interpreter to start
 
 
 @pytest.fixture(scope="module")
