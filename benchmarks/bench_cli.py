@@ -127,7 +127,8 @@ def big_exemplar(folder, name, width, height, crop=None):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=5)
-    parser.add_argument("--quick", action="store_true", help="3 runs; skip the 8192^2 synthesis and the 8000^2 / 12000^2 fits")
+    parser.add_argument("--quick", action="store_true",
+                        help="3 runs; skip the 8192^2 synthesis and the 8000^2 / 12000^2 fits")
     parser.add_argument("--src", default=str(ROOT / "src"), help="the tghop source folder to time")
     parser.add_argument("--label", default="", help="suffix of the result files (e.g. 'before')")
     parser.add_argument("--only", default=None, help="comma-separated row numbers to run (1-based)")

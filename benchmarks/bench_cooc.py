@@ -169,7 +169,8 @@ def main(argv=None):
                 cmd += ["--steps", str(args.steps)]
             if args.max_minutes is not None:
                 cmd += ["--max-minutes", str(args.max_minutes)]
-            cmd += ["--seed", str(args.seed)] + (["--extra-ema"] + [str(d) for d in args.extra_ema] if args.extra_ema else [])
+            cmd += ["--seed", str(args.seed)] + (["--extra-ema"] + [str(d) for d in args.extra_ema]
+                                                 if args.extra_ema else [])
             # Passive OpenMP waiting: with the default spinning, 2 torch threads on a machine
             # that is busy with other work ran a training step up to 20 times slower than 1.
             env = {**os.environ, "OMP_WAIT_POLICY": os.environ.get("OMP_WAIT_POLICY", "PASSIVE")}

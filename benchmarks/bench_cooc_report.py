@@ -212,7 +212,8 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
                 variants[f"ema {float(decay):g}"] = _with_average(model, state)
         variants = dict(sorted(variants.items(), key=lambda kv: (kv[0] != "raw", "bn" not in kv[0], kv[0])))
         run = {"texture": name, "seed": train.get("seed", 0), "steps": train["steps"],
-               "s_per_step": train["seconds"] / max(train["steps"], 1), "load": [train.get("load_before"), train.get("load_after")],
+               "s_per_step": train["seconds"] / max(train["steps"], 1),
+               "load": [train.get("load_before"), train.get("load_after")],
                "variants": {}}
         shown = {}
         for label, v in variants.items():
@@ -226,9 +227,11 @@ def seed_study(stems, out: Path, threads: int, n_images: int = 4):
         from tghop.cooc import SMALL
 
         # the sheet shows the default average (SMALL's decay) where the run kept it, else the model's own
-        ema_label = next((k for k in (f"ema {SMALL['ema']:g}", f"ema {model.settings_['ema']:g}") if k in variants), None)
+        ema_label = next((k for k in (f"ema {SMALL['ema']:g}", f"ema {model.settings_['ema']:g}")
+                          if k in variants), None)
         cols = [img] + shown["raw"] + (shown[ema_label] if ema_label else [])
-        labels = ["exemplar", "raw rng 0", "raw rng 1"] + ([f"{ema_label} rng 0", f"{ema_label} rng 1"] if ema_label else [])
+        labels = ["exemplar", "raw rng 0", "raw rng 1"] + ([f"{ema_label} rng 0", f"{ema_label} rng 1"]
+                                                           if ema_label else [])
         save_image(image_sheet(cols, labels, height=256), out / f"seeds-{stem}.png")
         for label, ims in shown.items():
             save_image(ims[0], out / f"seeds-{stem}-{label.replace(' ', '_')}.png")
@@ -260,7 +263,8 @@ def seeds_markdown(payload) -> str:
     for stem, run in payload["runs"].items():
         for label, sc in run["variants"].items():
             means = [float(np.mean(sc[m])) for m in METRICS]
-            rows.append([run["texture"], run["seed"], label] + means + [f"{min(sc['sifid']):.2f}-{max(sc['sifid']):.2f}"])
+            rows.append([run["texture"], run["seed"], label] + means
+                        + [f"{min(sc['sifid']):.2f}-{max(sc['sifid']):.2f}"])
             per_texture.setdefault((run["texture"], label), []).append(means)
     med = [[t, label, len(v)] + [float(np.median([r[i] for r in v])) for i in range(len(METRICS))]
            for (t, label), v in per_texture.items()]

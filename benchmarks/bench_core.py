@@ -22,7 +22,8 @@ from _common import StageTimer, markdown_table, peak_rss_mb, texture, write_resu
 
 PAPER_TABLE4 = {"D_r": 909, "F": 2518, "total": 2_406_752}
 PAPER_TABLE5 = {0: 1408, 0.0005: 1226, 0.005: 1030, 0.01: 909, 0.02: 718, 0.03: 553, 0.04: 399, 0.05: 289, 0.1: 102}
-PAPER_TABLE5_SIZE = {0: 3.72, 0.0005: 3.26, 0.005: 2.74, 0.01: 2.41, 0.02: 1.88, 0.03: 1.43, 0.04: 1.00, 0.05: 0.69, 0.1: 0.19}
+PAPER_TABLE5_SIZE = {0: 3.72, 0.0005: 3.26, 0.005: 2.74, 0.01: 2.41, 0.02: 1.88, 0.03: 1.43, 0.04: 1.00, 0.05: 0.69,
+                     0.1: 0.19}
 
 
 def one_fit(name: str, setting: str) -> dict:

@@ -1,7 +1,8 @@
 """GPDM (Elnekave & Weiss 2022) next to tghop's default output, same exemplars, same size.
 
 Each exemplar is the centre 256x256 of a shared texture. tghop: ``tghop fit`` (defaults)
-then ``tghop synth --seed 0`` at SIZE, and the same with ``--quality best``; GPDM: :func:`tghop.baselines.gpdm` (seed 0) at
+then ``tghop synth --seed 0`` at SIZE, and the same with ``--quality best``;
+GPDM: :func:`tghop.baselines.gpdm` (seed 0) at
 SIZE with STEPS Adam steps per level (the paper's 300 by default). Both are scored
 against the exemplar with SIFID, SWD, copied and copied_textured (``tghop.metrics``),
 and timed (wall clock, on whatever the machine is also running).
@@ -110,8 +111,10 @@ def main(argv=None):
                     if (tex, method) in have:
                         continue
                     out = images / f"{tex}-{method}.png"
-                    synth_s = tghop_cli("synth", tmp / f"{tex}.npz", "-o", out, "--size", args.size, "--seed", 0, *extra)
-                    runs.append((method, load_image(out), fit_s + synth_s, f"fit {fit_s:.0f} s + synth {synth_s:.1f} s"))
+                    synth_s = tghop_cli("synth", tmp / f"{tex}.npz", "-o", out, "--size", args.size, "--seed", 0,
+                                        *extra)
+                    runs.append((method, load_image(out), fit_s + synth_s,
+                                 f"fit {fit_s:.0f} s + synth {synth_s:.1f} s"))
             if (tex, "gpdm") not in have:
                 log(f"{tex}: gpdm at {args.size}, {args.steps} steps per level")
                 t = time.perf_counter()

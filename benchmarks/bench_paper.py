@@ -223,7 +223,8 @@ def _task_clusters(ns, out):
         grids.append(grid(model))
         images.append(synth_img)
         log(f"Fig. 11 N={n}: fit {fit_s:.1f} s")
-    sheet = stack_rows([image_sheet(grids, [f"N={n}" for n in ns], height=336), image_sheet(images, [f"N={n} 256x256" for n in ns])])
+    sheet = stack_rows([image_sheet(grids, [f"N={n}" for n in ns], height=336),
+                        image_sheet(images, [f"N={n} 256x256" for n in ns])])
     return {"rows": rows, "sheet": save_png(sheet, out / "fig11_clusters.png")}
 
 
@@ -256,7 +257,8 @@ def _task_fig7(out):
         rows.append({"patch_size": p, "channels": model.channels_, "dims": model.dims_, "fit_s": fit_s,
                      "scores": scores(img, stitched[0])})
         sheet_rows.append(image_sheet([img, patch_grid(patches, n_cols=4)] + stitched,
-                                      ["exemplar", f"{p}x{p} patches", f"stitched ({p}), seed 1", f"stitched ({p}), seed 2"]))
+                                      ["exemplar", f"{p}x{p} patches", f"stitched ({p}), seed 1",
+                                       f"stitched ({p}), seed 2"]))
         log(f"Fig. 7 patch {p}: fit {fit_s:.1f} s")
     return {"rows": rows, "sheet": save_png(stack_rows(sheet_rows), out / "fig7_patch_sizes.png")}
 
@@ -304,7 +306,8 @@ def _task_quality(name, modes):
     for label, key in BASELINE_KEYS.items():
         size = side if key in ("crop", "blurred-crop") else OUT_SIZE
         results[label] = B.BASELINES[key](img, size, rng=0)
-    entry = {"texture": name, "exemplar": note, "channels": img.shape[2], "fit_s": fit_s, "channel_note": "; ".join(notes),
+    entry = {"texture": name, "exemplar": note, "channels": img.shape[2], "fit_s": fit_s,
+             "channel_note": "; ".join(notes),
              "scores": {k: scores(img, v) for k, v in results.items()}, "diversity": divs,
              "images": {"exemplar": u8(img), **{k: u8(v) for k, v in results.items()}},
              "crop_size": f"{side[0]}x{side[1]}", "seconds": time.perf_counter() - t}
@@ -351,7 +354,8 @@ def md_clusters(res) -> str:
             for r in res["rows"]]
     text = ("## Fig. 11: number of clusters N (brick_wall, K1=9, K2=22, gamma=0.01)\n\n"
             "Paper: N=50 over-saturates, N=80 less so, ~100-110 good, little change to 200.\n\n")
-    text += markdown_table(["N", "F", "fit (s)", "parameters (paper formula)", "parameters (stored)"] + METRIC_NAMES, rows)
+    text += markdown_table(["N", "F", "fit (s)", "parameters (paper formula)", "parameters (stored)"] + METRIC_NAMES,
+                           rows)
     return text + f"\n\nSheet: `{Path(res['sheet']).name}`"
 
 
@@ -411,7 +415,8 @@ def section_time(args, out):
             quilt(pool, OUT_SIZE, rng=rng)
             gens.append(t1 - t)
             quilts.append(time.perf_counter() - t1)
-        log(f"Table 3: generation {gens[0]:.2f} s (first) / {np.median(gens[1:]):.2f} s, quilting {np.median(quilts):.2f} s")
+        log(f"Table 3: generation {gens[0]:.2f} s (first) / {np.median(gens[1:]):.2f} s, "
+            f"quilting {np.median(quilts):.2f} s")
         ust = None
         if args.time_ust_iters > 0:
             marks = []
@@ -513,7 +518,8 @@ def md_quality(entries, failed, ust_entries, modes) -> tuple[str, dict]:
         parts.append(f"Exemplars larger than {EXEMPLAR_MAX} px on a side replaced by their centre "
                      f"{CENTRE_CROP}x{CENTRE_CROP} crop (everything else used whole): {', '.join(cropped)}.\n")
     if small:
-        parts.append(f"Exemplars smaller than 256 px: crop / blurred crop at the exemplar's size: {', '.join(small)}.\n")
+        parts.append(f"Exemplars smaller than 256 px: crop / blurred crop at the exemplar's size: "
+                     f"{', '.join(small)}.\n")
     if changed:
         parts.append(f"K1 = 9 is impossible with 4 hop-1 channels, so these use K1, K2 = {GREY_CHANNELS}: "
                      f"{', '.join(changed)}.\n")

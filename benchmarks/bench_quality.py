@@ -245,7 +245,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--textures", default=None, help="comma-separated exemplar names (default: all)")
     ap.add_argument("--variants", default="paper,default", help="comma-separated named variants")
-    ap.add_argument("--variant", action="append", default=[], help="an ad-hoc variant name:fit.k=v,synth.k=v (repeatable)")
+    ap.add_argument("--variant", action="append", default=[],
+                    help="an ad-hoc variant name:fit.k=v,synth.k=v (repeatable)")
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--metrics", default=",".join(METRICS))
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
@@ -261,7 +262,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     names = args.textures.split(",") if args.textures else texture_names()
-    variants = [parse_variant(v) for v in filter(None, args.variants.split(","))] + [parse_variant(v) for v in args.variant]
+    variants = ([parse_variant(v) for v in filter(None, args.variants.split(","))]
+                + [parse_variant(v) for v in args.variant])
     metrics = tuple(m for m in args.metrics.split(",") if m)
     stem = "quality" + (f"-{args.tag}" if args.tag else "")
     sheets = str(RESULTS / stem) if args.sheets else None
@@ -319,7 +321,8 @@ def main(argv=None):
             rows.append([m, *(float(np.median([r[n][m] for r in ust_rows])) for n in names_v)])
         text += (f"\n\n### Against Ustyuzhaninov et al. ({args.ust_size}x{args.ust_size}, {args.ust_iterations} "
                  f"L-BFGS iterations, seed 0), medians over {len(ust_rows)} exemplars "
-                 f"({', '.join(sorted(r['texture'] for r in ust_rows))})\n\n" + markdown_table(["metric", *names_v], rows))
+                 f"({', '.join(sorted(r['texture'] for r in ust_rows))})\n\n"
+                 + markdown_table(["metric", *names_v], rows))
     if failed:
         text += "\n\nFailed: " + "; ".join(f"{k}: {v}" for k, v in failed.items())
     print(text)

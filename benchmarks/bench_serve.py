@@ -84,7 +84,8 @@ def start_server(cache: str):
 
 def fit(client, fields: dict):
     t = time.perf_counter()
-    answer = client.post("/api/models", files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in fields.items()}})
+    answer = client.post("/api/models",
+                         files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in fields.items()}})
     answer.raise_for_status()
     job = answer.json()
     while (state := client.get(f"/api/jobs/{job['job']}").json())["state"] not in ("done", "failed", "cancelled"):
@@ -181,7 +182,8 @@ def main(argv=None):
         "p50_s": percentile(latencies, 50) if latencies else None,
         "p99_s": percentile(latencies, 99) if latencies else None,
         "max_s": max(latencies, default=None), "mean_s": statistics.fmean(latencies) if latencies else None,
-        "server_cpu_s": cpu, "server_cores_busy": cpu / wall, "server_cpu_s_per_image": cpu / len(records) if records else None,
+        "server_cpu_s": cpu, "server_cores_busy": cpu / wall,
+        "server_cpu_s_per_image": cpu / len(records) if records else None,
         "rss_before_mib": max(before, default=0) / mib, "rss_peak_first_mib": first / mib,
         "rss_peak_last_mib": last / mib, "rss_peak_mib": peak / mib, "rss_window_s": window,
     }
@@ -192,11 +194,13 @@ def main(argv=None):
                "latencies_s": latencies}
     table = markdown_table(
         ["clients", "s", f"{args.size}x{args.size} images", "images/s", "p50 s", "p99 s", "max s", "errors",
-         "server CPU s/image", "server cores busy", "RSS before MiB", f"RSS peak, first {window:g} s", f"last {window:g} s", "peak"],
+         "server CPU s/image", "server cores busy", "RSS before MiB", f"RSS peak, first {window:g} s",
+         f"last {window:g} s", "peak"],
         [[args.clients, round(wall, 1), len(records), stats["images_per_s"], stats["p50_s"], stats["p99_s"],
-          stats["max_s"], len(errors), stats["server_cpu_s_per_image"], stats["server_cores_busy"], stats["rss_before_mib"],
-          stats["rss_peak_first_mib"], stats["rss_peak_last_mib"], stats["rss_peak_mib"]]])
-    note = (f"`tghop serve` in its own process, builtin:bricks with the {args.fit} fit ({fit_s:.1f} s through the API); "
+          stats["max_s"], len(errors), stats["server_cpu_s_per_image"], stats["server_cores_busy"],
+          stats["rss_before_mib"], stats["rss_peak_first_mib"], stats["rss_peak_last_mib"], stats["rss_peak_mib"]]])
+    note = (f"`tghop serve` in its own process, builtin:bricks with the {args.fit} fit "
+            f"({fit_s:.1f} s through the API); "
             f"each client a thread with one httpx connection, a new seed per request, the page's default generation "
             f"settings. {cores} cores shared with other sessions (clients and server on the same machine), "
             f"load average {load_before[0]:.1f} before, {load_after[0]:.1f} after: timings are noisy upper bounds.")

@@ -49,7 +49,8 @@ def start_server(cache):
 
 def fit(client, fields):
     t = time.perf_counter()
-    answer = client.post("/api/models", files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in fields.items()}})
+    answer = client.post("/api/models",
+                         files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in fields.items()}})
     answer.raise_for_status()
     job = answer.json()
     while (state := client.get(f"/api/jobs/{job['job']}").json())["state"] not in ("done", "failed", "cancelled"):

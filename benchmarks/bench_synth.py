@@ -68,7 +68,8 @@ def main():
         payload.append(entry)
         rows.append(row)
         cols = [exemplar, img, tiled, np.tile(tiled, (2, 2, 1))[:384, :384]] + ([crop] if crop is not None else [])
-        labels = ["exemplar", "256x256", "tileable", "tileable 2x2"] + ([f"{args.big}^2 crop"] if crop is not None else [])
+        labels = (["exemplar", "256x256", "tileable", "tileable 2x2"]
+                  + ([f"{args.big}^2 crop"] if crop is not None else []))
         sheet_rows.append(image_sheet(cols, labels))
     header = ["texture", "fit (s)", *(f"{k} (s)" for k in STAGES), "256x256 total (s)", "256x256 tiled (s)"]
     if args.big:

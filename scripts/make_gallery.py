@@ -73,7 +73,8 @@ def save_small(sheet, path):
 
     img = sheet if isinstance(sheet, Image.Image) else Image.fromarray(
         np.round(np.clip(sheet, 0, 1) * 255).astype(np.uint8))
-    img.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(path, optimize=True)
+    img.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT,
+                                dither=Image.Dither.NONE).save(path, optimize=True)
 
 
 def serve_page(width=900):
@@ -149,8 +150,8 @@ def main():
         sheet = image_sheet(
             [exemplar, image, best, np.tile(tiled, (2, 2, 1)), patch_grid(patches, n_cols=4), stage_sheet(
                 {k: v[:6] for k, v in views.items()}, model.patch_size)],
-            ["exemplar (built in)", "tghop synth 256x256", "--quality best", "--tile, repeated 2x2", "generated patches",
-             "core DC | S1 DC | patch"],
+            ["exemplar (built in)", "tghop synth 256x256", "--quality best", "--tile, repeated 2x2",
+             "generated patches", "core DC | S1 DC | patch"],
             height=200,
         )
         save_image(sheet, out / f"{name}.png")

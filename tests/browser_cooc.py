@@ -49,7 +49,8 @@ def cooc_steps(d, checkpoint):
     assert link[0] is False and link[1].startswith("/api/cooc/") and link[1].endswith("/file")
     assert link[2] == f"tghop-cooc-{link[1].split('/')[3][:12]}.pt"
     assert d.run("return document.getElementById('cooc-boost-a').max") == "2"  # 3 colour clusters
-    scale = d.run("const c = document.getElementById('cooc-exemplar'); return c.getBoundingClientRect().width / c.width")
+    scale = d.run("const c = document.getElementById('cooc-exemplar');"
+                  " return c.getBoundingClientRect().width / c.width")
     for x, y in ((16, 16), (50, 50)):  # a click: crop 1 centred top left, then crop 2 (the next slot) bottom right
         d.drag("#cooc-exemplar", [(x * scale, y * scale)])
     crops = d.run("return document.getElementById('cooc-crops').textContent")

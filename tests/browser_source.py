@@ -65,7 +65,8 @@ def cancel_steps(d):
     assert d.run("return document.getElementById('cancel').disabled") is True
     assert d.run("return document.getElementById('go').disabled") is True
     # the page's job, as the server has it
-    snap = d.run("return fetch(`/api/jobs/${document.getElementById('fit-status').dataset.job}`).then((r) => r.json());")
+    snap = d.run("return fetch(`/api/jobs/${document.getElementById('fit-status').dataset.job}`)"
+                 ".then((r) => r.json());")
     assert snap["state"] == "cancelled" and snap["progress"] < 1
 
 

@@ -342,5 +342,6 @@ def test_gpdm_refusals(exemplar, monkeypatch):
 
 def test_gpdm_without_torch_raises_install_hint(exemplar, monkeypatch):
     monkeypatch.setitem(sys.modules, "torch", None)
-    with pytest.raises(MissingExtraError, match=r"GPDM baseline needs PyTorch; install it with: pip install 'tghop\[metrics\]'"):
+    with pytest.raises(MissingExtraError,
+                       match=r"GPDM baseline needs PyTorch; install it with: pip install 'tghop\[metrics\]'"):
         baselines.gpdm(exemplar, n_steps=1)

@@ -329,7 +329,8 @@ def test_manifests_give_per_row_settings(tmp_path):
     a, b = results
     assert (a["name"], b["name"]) == ("img__a", "img__sub__a")
     assert a["settings"]["size"] == [40, 56] and a["settings"]["tile"] and a["seed_used"] == 5
-    assert len(a["outputs"]) == 2 and np.asarray(Image.open(tmp_path / "out_csv" / a["outputs"][0])).shape[:2] == (40, 56)
+    assert (len(a["outputs"]) == 2
+            and np.asarray(Image.open(tmp_path / "out_csv" / a["outputs"][0])).shape[:2] == (40, 56))
     assert b["settings"]["size"] == [48, 48] and len(b["outputs"]) == 1 and b["seed_used"] == 1
     jsonl = tmp_path / "list.jsonl"
     jsonl.write_text(json.dumps({"path": str(tmp_path / "img" / "a.png"), "name": "first", "size": [40, 40]}) + "\n"

@@ -193,7 +193,8 @@ def run_without_torch(*args, cwd=None):
 
 def test_baseline_and_evaluate(workdir):
     for name in ("crop", "colour-noise"):
-        r = run("baseline", name, workdir / "bricks.png", "-o", workdir / f"{name}.png", "--size", "48", "--seed", "1", "-q")
+        r = run("baseline", name, workdir / "bricks.png", "-o", workdir / f"{name}.png",
+                "--size", "48", "--seed", "1", "-q")
         assert r.returncode == 0, r.stderr.decode()
         assert np.asarray(Image.open(workdir / f"{name}.png")).shape == (48, 48, 3)
     r = run("evaluate", workdir / "bricks.png", workdir / "crop.png", workdir / "colour-noise.png", "--json",
@@ -248,7 +249,8 @@ def test_evaluate_without_torch_skips_with_note(workdir):
         (["baseline", "nope", "bricks.png", "-o", "b.png"], ["nope"]),
         (["baseline", "crop", "bricks.png", "-o", "b.png", "--iterations", "3"], ["--iterations"]),
         (["baseline", "crop", "bricks.png", "-o", "b.png", "--model", "m.pt"], ["--model", "cooc baseline only"]),
-        (["baseline", "quilting", "bricks.png", "-o", "b.png", "--assembly", "pass"], ["--assembly", "cooc baseline only"]),
+        (["baseline", "quilting", "bricks.png", "-o", "b.png", "--assembly", "pass"],
+         ["--assembly", "cooc baseline only"]),
         (["baseline", "cooc", "bricks.png", "-o", "b.png", "--assembly", "tiles"], ["--assembly", "tiles"]),
         (["baseline", "crop", "missing.png", "-o", "b.png"], ["no such file"]),
         (["evaluate", "bricks.png", "missing.png"], ["no such file"]),

@@ -4,8 +4,8 @@ with a valid result or exits != 0 with one ``Error:`` line, no traceback and no 
 Mutated PNG, JPEG and model (.npz) bytes, model files with changed arrays (shapes, types,
 values, order; deleted, swapped or unknown arrays) and random option values, in-process
 (click's CliRunner); the changed model files also straight through ``load_model`` and
-``synthesize`` (a valid image or one ModelFileError line). The suite runs a couple of hundred cases; ``python scripts/fuzz_cli.py`` runs
-thousands.
+``synthesize`` (a valid image or one ModelFileError line). The suite runs a couple of hundred
+cases; ``python scripts/fuzz_cli.py`` runs thousands.
 """
 
 from __future__ import annotations

@@ -276,7 +276,8 @@ def test_windowed_generation_sizes_seeds_and_one_window(tiny_model):
         z = tiny_model.noise(shape, rng=0)
         np.testing.assert_array_equal(tiny_model.generate(small, noise=z, windows=True),
                                       tiny_model.generate(small, noise=z))
-        np.testing.assert_array_equal(tiny_model.generate(small, rng=3, windows=True), tiny_model.generate(small, rng=3))
+        np.testing.assert_array_equal(tiny_model.generate(small, rng=3, windows=True),
+                                      tiny_model.generate(small, rng=3))
     with pytest.raises(TGHopError, match="feather"):
         tiny_model.generate(assembly.tile(cond, 8, 8), rng=0, windows=True, feather=17)
 
@@ -360,7 +361,8 @@ def test_lazy_penalty_learning_rate_decay_kernel_and_padding(exemplar, tmp_path)
     assert h.shape == (4, 5) and np.isfinite(h).all()
     assert h[0, 4] == h[1, 4] and h[2, 4] == h[3, 4]  # penalties at critic steps 0 and 2 only
     # lr constant for the first half, then down linearly: lr / 2 for the last step.
-    assert model._opt_g.param_groups[0]["lr"] == model._opt_d.param_groups[0]["lr"] == pytest.approx(TINY.get("lr", 2e-4) / 2)
+    assert (model._opt_g.param_groups[0]["lr"] == model._opt_d.param_groups[0]["lr"]
+            == pytest.approx(TINY.get("lr", 2e-4) / 2))
     convs = [m for m in model.generator_.modules() if isinstance(m, torch.nn.Conv2d)]
     assert all(c.kernel_size == (3, 3) and c.padding_mode == "replicate" for c in convs)
     assert all(c.kernel_size == (3, 3) and c.padding_mode == "zeros"
@@ -508,7 +510,8 @@ def test_average_checkpoint_roundtrip_resume_and_old_files(exemplar, tmp_path):
     resumed = cooc.load(path, device="cpu").set_params(n_steps=4).fit(exemplar, resume=True)
     for p, q in zip(_state(direct.generator_ema_).values(), _state(resumed.generator_ema_).values()):
         torch.testing.assert_close(p, q)
-    assert not torch.equal(direct.generator_ema_.state_dict()["net.1.weight"], model.generator_ema_.state_dict()["net.1.weight"])
+    assert not torch.equal(direct.generator_ema_.state_dict()["net.1.weight"],
+                           model.generator_ema_.state_dict()["net.1.weight"])
     # A checkpoint written before the setting (no "ema" in its settings, no average) loads without one.
     settings = json.loads(bytes(raw["settings_json"].numpy().tobytes()).decode())
     del settings["settings"]["ema"]

@@ -111,8 +111,9 @@ def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     hole = np.zeros((96, 96))
     hole[30:60, 30:60] = 1
     save_image(hole, tmp_path / "hole.png")
-    res = CliRunner().invoke(main, ["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png"), "-o",
-                                    str(tmp_path / "out.png"), "--source", str(tmp_path / "m.npz"), "--seed", "1", "-q"])
+    res = CliRunner().invoke(main, ["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png"),
+                                    "-o", str(tmp_path / "out.png"), "--source", str(tmp_path / "m.npz"),
+                                    "--seed", "1", "-q"])
     assert res.exit_code == 0, res.output
     image, depth = load_image(tmp_path / "out.png", with_depth=True)
     out = np.round(image * 65535).astype(np.uint16)

@@ -586,7 +586,8 @@ def test_boundary_cut_breaks_ties_straight_then_left():
     # Equal costs: the path goes straight; left and right equal (straight dearer): left.
     assert min_error_boundary_cut(np.zeros((4, 3))).tolist() == [0, 0, 0, 0]
     assert min_error_boundary_cut(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0]])).tolist() == [0, 1]
-    assert min_error_boundary_cut(np.array([[1.0, 0.0, 1.0], [0.0, 0.0, 0.0]])).tolist() == [1, 0]  # first column, then right
+    assert min_error_boundary_cut(np.array([[1.0, 0.0, 1.0],
+                                            [0.0, 0.0, 0.0]])).tolist() == [1, 0]  # first column, then right
 
 
 @pytest.mark.parametrize("size, tile", [((100, 130), False), ((96, 120), True), ((70, 70), False)])

@@ -718,7 +718,8 @@ def test_the_serve_command_prints_its_address_opens_it_and_stops_on_ctrl_c(tmp_p
     browser = f"{sys.executable} -c \"import sys; open(sys.argv[1], 'w').write(sys.argv[2])\" {opened} %s"
     p = subprocess.Popen([sys.executable, "-m", "tghop", "serve", "--port", "0", "--host", "0.0.0.0",
                           "--cache", str(tmp_path / "cache"), "--open"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "BROWSER": browser})
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env={**os.environ, "BROWSER": browser})
     try:
         line = p.stdout.readline()
         assert line.startswith("tghop serving on http://127.0.0.1:"), line

@@ -266,7 +266,8 @@ def test_paint_two_models_and_morph(page, live_server):
     page.wait_for_function(RESULT_SHOWN % "remix: 64x96, seed 2", timeout=60_000)
     page.click("#paint-reset")  # all the first model's colour: said, not sent
     page.click("#paint-go")
-    page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('paint some of builtin:cells')")
+    page.wait_for_function("document.getElementById('paint-message').textContent"
+                           ".startsWith('paint some of builtin:cells')")
     mode(page, "morph")
     assert page.is_visible("#morph") and page.is_hidden("#paint")
     assert page.eval_on_selector_all("#morph-b option", "o => o.length") == 2 and page.input_value("#morph-b") == "1"

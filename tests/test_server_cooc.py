@@ -157,7 +157,8 @@ def test_boost_condition_scales_one_bin_and_its_mirror():
 
     cond = np.random.default_rng(0).random((9, 2, 3))
     out = boost_condition(cond, 0, 2, 3.0)
-    assert np.allclose(out[[2, 6]], 3 * cond[[2, 6]]) and np.allclose(np.delete(out, [2, 6], 0), np.delete(cond, [2, 6], 0))
+    assert (np.allclose(out[[2, 6]], 3 * cond[[2, 6]])
+            and np.allclose(np.delete(out, [2, 6], 0), np.delete(cond, [2, 6], 0)))
     assert np.allclose(boost_condition(cond, 1, 1, 0.5)[4], 0.5 * cond[4])
     assert out is not cond and np.array_equal(cond, np.random.default_rng(0).random((9, 2, 3)))  # a copy
     for a, b, f in ((0, 3, 2.0), (-1, 0, 2.0), (0, 0, -1.0), (0, 0, float("inf")), (True, 0, 2.0)):
@@ -232,8 +233,10 @@ def test_bad_requests_get_one_line_and_their_status(client, cid):
                  "the label map is 1x2 but the output is 8x8")
     assert_error(client.post(edit, json={"crops": [[0, 0]], "size": [4096, 4096]}), 422, "size")
     assert_error(client.post(edit, json={"crops": [[0, 0]], "seed": -1}), 422, "seed must be an integer")
-    for boost in ([0, 1], [0, 1, -1], [0, 1, "2"], [True, 0, 2], [0, 1, 1e9], "0,1,2", "[0, 1, NaN]", "[0, 1, Infinity]"):
-        raw = '{"crops": [[0, 0]], "boost": %s}' % (boost if isinstance(boost, str) and "[" in boost else json.dumps(boost))
+    for boost in ([0, 1], [0, 1, -1], [0, 1, "2"], [True, 0, 2], [0, 1, 1e9], "0,1,2", "[0, 1, NaN]",
+                  "[0, 1, Infinity]"):
+        raw = '{"crops": [[0, 0]], "boost": %s}' % (boost if isinstance(boost, str) and "[" in boost
+                                                    else json.dumps(boost))
         assert_error(client.post(edit, content=raw, headers={"content-type": "application/json"}), 422,
                      "boost must be [a, b, factor]")  # NaN, Infinity: Python's JSON reads them
     assert_error(client.post(edit, json={"crops": [[0, 0]], "boost": [0, 3, 2]}), 422, "boost [0, 3, 2.0]",

@@ -145,4 +145,5 @@ def test_an_explicit_none_on_the_command_line_is_off_not_the_default():
     off = SettingType(BY_NAME["layout_factor"]).convert("none", None, None)
     assert build_model({"layout_factor": off}).layout_factor is None
     assert build_model({"layout_factor": None}).layout_factor == BY_NAME["layout_factor"].default
-    assert build_model({"layout_factor": SettingType(BY_NAME["layout_factor"]).convert("3", None, None)}).layout_factor == 3
+    assert build_model(
+        {"layout_factor": SettingType(BY_NAME["layout_factor"]).convert("3", None, None)}).layout_factor == 3

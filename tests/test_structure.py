@@ -1,5 +1,5 @@
 """The shape of the package: every module imports on its own, no import cycles, no module
-reaching for another's private names, no side effects on import, no overlong files.
+reaching for another's private names, no side effects on import, no overlong files or lines.
 
 These read the source (ast) and run fresh interpreters; they need nothing of ../shared/.
 """
@@ -26,6 +26,9 @@ LONG_FILES = {
                    "algorithm whose parts share its tables",
 }
 MAX_LINES = 850
+#: The longest line, in characters, of any Python file: the package, tests, benchmarks and scripts.
+MAX_LINE_LENGTH = 120
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _module_name(path: Path) -> str:
@@ -219,3 +222,12 @@ def test_no_file_is_overlong():
     long = {p.relative_to(SRC).as_posix(): len(p.read_text().splitlines()) for p in MODULES.values()}
     over = {name: n for name, n in long.items() if n > MAX_LINES and name not in LONG_FILES}
     assert not over, f"files over {MAX_LINES} lines (split them, or say in LONG_FILES why one stays whole): {over}"
+
+
+def test_no_line_is_overlong():
+    files = {p.resolve() for p in MODULES.values()}
+    files |= {p.resolve() for d in ("tests", "benchmarks", "scripts") for p in (ROOT / d).rglob("*.py")}
+    over = [f"{p.relative_to(ROOT).as_posix() if p.is_relative_to(ROOT) else p}:{i}: {len(line)} characters"
+            for p in sorted(files) for i, line in enumerate(p.read_text().splitlines(), 1)
+            if len(line) > MAX_LINE_LENGTH]
+    assert not over, f"lines over {MAX_LINE_LENGTH} characters (wrap them):\n" + "\n".join(over)

@@ -12,7 +12,8 @@ from conftest import SMALL
 
 
 def _arrays(model):
-    return [model.ichm_.means_, model.ichm_.codebook_, model.sdr_.channel_, *[np.asarray(m) for m in model.ichm_.mixing_]]
+    return [model.ichm_.means_, model.ichm_.codebook_, model.sdr_.channel_,
+            *[np.asarray(m) for m in model.ichm_.mixing_]]
 
 
 def test_fit_is_the_same_whatever_the_threads(monkeypatch):

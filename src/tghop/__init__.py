@@ -2,7 +2,8 @@
 
 __version__ = "0.34.0"
 
-from ._errors import ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError
+from ._errors import (ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError,
+                      TGHopError)
 
 __all__ = ["TGHop", "data", "synthesize_guided", "morph", "ImageTooLargeError", "InvalidImageError",
            "MissingExtraError", "ModelFileError", "NotFittedError", "TGHopError", "__version__"]

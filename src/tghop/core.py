@@ -591,9 +591,10 @@ class ICHM(BaseEstimator):
             dims["R"] = int((counts.astype(np.int64) ** 2).sum())
 
         if self.residual:
-            specs += [("index.ichm_residual_group", ("D_r",), "i", "the metadata says residual: one group per dimension",
-                       (("range", 0, None), group_sizes)),
-                      ("residual.factor", ("R",), "f", "the squared sizes of the groups of index.ichm_residual_group", ())]
+            specs += [("index.ichm_residual_group", ("D_r",), "i",
+                       "the metadata says residual: one group per dimension", (("range", 0, None), group_sizes)),
+                      ("residual.factor", ("R",), "f", "the squared sizes of the groups of index.ichm_residual_group",
+                       ())]
         else:
             specs += [("index.ichm_residual_group", (0,), "i", "the metadata says no residual", ()),
                       ("residual.factor", (0,), "f", "the metadata says no residual", ())]

@@ -464,8 +464,8 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
 def _group_cost(shares, plan, p, c, rng):
     """(ny, nx, K) cost of each model's patches at each block: 0 for the model the block
     draws (probabilities: ``shares`` at its centre), :data:`REGION_COST` per overlap value
-    for the others (:data:`MIXED_COST` in blocks where several models have a share). The draw thresholds a smooth random field made uniform by its ranks,
-    so that mixed blocks come in blobs."""
+    for the others (:data:`MIXED_COST` in blocks where several models have a share). The draw
+    thresholds a smooth random field made uniform by its ranks, so that mixed blocks come in blobs."""
     k, h, w = shares.shape
     cy = np.minimum(plan.ys + p // 2, h - 1)
     cx = np.minimum(plan.xs + p // 2, w - 1)

@@ -154,8 +154,8 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
     hs, ws = shape[0] // f, shape[1] // f
     if not fits(shape, f, p):
         raise TGHopError(
-            f"a coarse layout at factor {f} needs an exemplar of at least {(p + p // 2) * f}x{(p + p // 2) * f} pixels, "
-            f"got {shape[0]}x{shape[1]}; use a smaller layout factor or none"
+            f"a coarse layout at factor {f} needs an exemplar of at least {(p + p // 2) * f}x{(p + p // 2) * f} "
+            f"pixels, got {shape[0]}x{shape[1]}; use a smaller layout factor or none"
         )
     count = lambda s: ((hs - p) // s + 1) * ((ws - p) // s + 1)  # noqa: E731
     stride = 2 if count(2) >= min_patches else 1

@@ -110,7 +110,8 @@ def _read(path):
     if "__meta__" not in arrays:
         if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout
             raise ModelFileError(f"{path}: a PyTorch checkpoint, not a tghop model file (co-occurrence cGAN "
-                                 "checkpoints are used with 'tghop cooc morph' or 'edit' and 'tghop baseline cooc --model')")
+                                 "checkpoints are used with 'tghop cooc morph' or 'edit' and "
+                                 "'tghop baseline cooc --model')")
         raise ModelFileError(f"{path}: a NumPy archive but not a tghop model file; fit a model with 'tghop fit'")
     try:
         meta = json.loads(str(arrays.pop("__meta__")))
@@ -286,7 +287,8 @@ def _check_array(spec, arrays, dims, prefix):
             return f"array {full} holds NaN or infinite values"
         # float16 values are at most 65504; larger ones overflow float32 generation.
         if arr.dtype != np.float16 and ("unbounded",) not in rules and arr.size and np.abs(arr).max() > _LIMIT:
-            return f"{full} holds {np.abs(arr).max().item()!r} in magnitude, beyond {_LIMIT:g}: no fitted model comes near"
+            return (f"{full} holds {np.abs(arr).max().item()!r} in magnitude, beyond {_LIMIT:g}: "
+                    "no fitted model comes near")
     for rule in rules:
         if callable(rule):
             problem = rule(arr, dims)
@@ -357,7 +359,8 @@ def load_model(path, *, material=False):
         meta["params"].setdefault("ica_tol", 1e-4)  # what version 2 (tghop 0.2.0) fitted with
     try:
         # Version 3 scales every mixing matrix; version 2 none (read as _from_arrays does: by what is there).
-        quantised = meta["format_version"] >= 3 or {p for p in ("", "layout.") if f"{p}index.ichm_mixing_scale" in arrays}
+        quantised = meta["format_version"] >= 3 or {p for p in ("", "layout.")
+                                                     if f"{p}index.ichm_mixing_scale" in arrays}
         kind = Material if "material" in meta else TGHop
         if kind is Material and meta["format_version"] < MATERIAL_VERSION:
             raise TGHopError(f"a material in format version {meta['format_version']}; materials are version "

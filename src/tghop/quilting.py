@@ -109,7 +109,8 @@ def _check_values(values: np.ndarray) -> None:
 def _read_on_demand(pool) -> bool:
     """Whether ``pool`` is a pool object read on demand (shape, a NumPy dtype, indexing)
     rather than something to turn into an array."""
-    if isinstance(pool, (np.ndarray, list, tuple)) or not all(hasattr(pool, a) for a in ("shape", "dtype", "__getitem__")):
+    if (isinstance(pool, (np.ndarray, list, tuple))
+            or not all(hasattr(pool, a) for a in ("shape", "dtype", "__getitem__"))):
         return False
     try:
         np.dtype(pool.dtype)
@@ -630,7 +631,8 @@ def _guide_setup(guide, weight, prepared):
     if isinstance(weight, bool) or not isinstance(weight, numbers.Real) or not (math.isfinite(weight) and weight >= 0):
         raise TGHopError(f"guide_weight must be a finite number >= 0, got {weight!r}")
     if scale is None:
-        raise TGHopError("this pool was prepared without a guide_scale; give prepare_pool a guide_scale to quilt with a guide")
+        raise TGHopError("this pool was prepared without a guide_scale; give prepare_pool a guide_scale to quilt "
+                         "with a guide")
     # Per-pixel weights: overlap SSE + weight * (overlap pixels / low-pass values) * guide SSE.
     n_overlap = np.maximum(prepared._masks_f.sum(axis=1), p * plan.overlap)  # (m,)
     factor = (float(weight) * n_overlap / (p // scale) ** 2).astype(np.float32)
@@ -732,7 +734,8 @@ def _overlap_boxes(masks_fc: np.ndarray, slices, p: int, c: int) -> _Boxes:
         members.append(order[starts[which, None] + np.arange(size)])
         firsts.append(members[-1][:, 0])
     first = np.concatenate(firsts) if firsts else np.zeros(0, dtype=np.intp)
-    scale = np.concatenate([np.full(len(mb), 1.0 / math.sqrt(mb.shape[1])) for mb in members]) if members else np.zeros(0)
+    scale = (np.concatenate([np.full(len(mb), 1.0 / math.sqrt(mb.shape[1])) for mb in members]) if members
+             else np.zeros(0))
     return _Boxes(members=members, scale=scale.astype(np.float32), in_mask=covered[:, first].astype(np.float32))
 
 

@@ -49,7 +49,8 @@ def parse_settings(pairs) -> dict:
             if isinstance(SMALL[key], str):  # a word setting: padding=replicate
                 out[key] = value.strip()
                 continue
-            raise TGHopError(f"--set {item!r}: the value must be a number or a JSON list, e.g. g_widths=[64,32,16]") from None
+            raise TGHopError(f"--set {item!r}: the value must be a number or a JSON list, "
+                             "e.g. g_widths=[64,32,16]") from None
     return out
 
 
@@ -94,8 +95,11 @@ def cooc():
 @cooc.command()
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Checkpoint to write (.pt).")
-@click.option("--paper", is_flag=True, help="The paper's configuration (128 px crops, s = 32, 2,000 crops; ~10 min on an H100 GPU, far too slow for a CPU).")
-@click.option("--steps", type=click.IntRange(min=0), default=None, help="Generator steps (default: the configuration's).")
+@click.option("--paper", is_flag=True,
+              help="The paper's configuration (128 px crops, s = 32, 2,000 crops; ~10 min on an H100 GPU, "
+                   "far too slow for a CPU).")
+@click.option("--steps", type=click.IntRange(min=0), default=None,
+              help="Generator steps (default: the configuration's).")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a setting, e.g. --set crop_size=32 --set g_widths=[32,16] (repeatable).")
 @click.option("--resume", is_flag=True, help="Continue the checkpoint at OUTPUT (same exemplar) up to --steps.")

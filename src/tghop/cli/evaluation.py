@@ -97,7 +97,8 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
 
 
 @click.command()
-@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov", "cooc", "gpdm"]))
+@click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov",
+                                           "cooc", "gpdm"]))
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - for PNG on stdout).")
 @click.option("--size", type=Size(), default=None, help="Output HEIGHTxWIDTH (default: the exemplar's).")

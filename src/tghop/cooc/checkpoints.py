@@ -117,11 +117,12 @@ def read(path, model_class, *, device: str = "auto"):
     except Exception:
         raise ModelFileError(f"{path}: not a tghop co-occurrence checkpoint (written by 'tghop cooc train')") from None
     if not isinstance(settings, dict) or settings.get("kind") != KIND:
-        raise ModelFileError(f"{path}: a checkpoint of another kind ({settings.get('kind') if isinstance(settings, dict) else '?'!r}), "
+        raise ModelFileError(f"{path}: a checkpoint of another kind "
+                             f"({settings.get('kind') if isinstance(settings, dict) else '?'!r}), "
                              "not a tghop co-occurrence model; train one with 'tghop cooc train'")
     if settings.get("format") != FORMAT:
-        raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads format {FORMAT}; "
-                             "train it again with this version")
+        raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads "
+                             f"format {FORMAT}; train it again with this version")
     try:
         p = {"tiles": 1, "ema": 0.0, "kernel": 5, "padding": "zeros", "gp_every": 1, "lr_decay": 0.0,
              "context": False, **settings["settings"]}  # checkpoints from before these settings

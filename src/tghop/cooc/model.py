@@ -208,7 +208,8 @@ class CoocGAN(TrainingMixin):
         try:
             return torch.device(self.device)
         except (RuntimeError, TypeError):
-            raise TGHopError(f"device must be 'auto', 'cpu', 'cuda' or a torch device name, got {self.device!r}") from None
+            raise TGHopError("device must be 'auto', 'cpu', 'cuda' or a torch device name, "
+                             f"got {self.device!r}") from None
 
     # ------------------------------------------------------------------ statistics
     def _cooc(self, images):

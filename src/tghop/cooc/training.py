@@ -219,7 +219,8 @@ class TrainingMixin:
             ctx = []
             with torch.no_grad():
                 for i in range(0, len(ys), chunk):
-                    block = np.stack([padded[y : y + side, x : x + side] for y, x in zip(ys[i : i + chunk], xs[i : i + chunk])])
+                    block = np.stack([padded[y : y + side, x : x + side]
+                                      for y, x in zip(ys[i : i + chunk], xs[i : i + chunk])])
                     block = torch.as_tensor(block.transpose(0, 3, 1, 2), dtype=torch.float32, device=self._device)
                     ctx.append(split_tiles(self._cooc_context(block, cells, cells), t))
             self._conds = torch.cat(ctx)

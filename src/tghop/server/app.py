@@ -17,7 +17,8 @@ loaded, generated from or downloaded), never the one just added; a client then g
 Everything tghop does here is the library's own code: :func:`tghop.imageio.load_image`
 (with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
 :func:`tghop.inpaint.inpaint`, :func:`tghop.synthesize_guided` and :func:`tghop.morph` (several
-models; their JSON is checked by :mod:`tghop.server.requests`), :func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with their
+models; their JSON is checked by :mod:`tghop.server.requests`), :func:`tghop.modelfile.save_model` /
+:func:`~tghop.modelfile.load_model` (with their
 checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
 status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
 request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
@@ -697,7 +698,8 @@ class Server:
         from ..imageio import load_image
 
         cid = self._cooc_id(request)
-        size, labels, crops, boost, seed, windows = cooc.parse_edit(await self._json_body(request, limit=MAX_UPLOAD_BYTES))
+        size, labels, crops, boost, seed, windows = cooc.parse_edit(
+            await self._json_body(request, limit=MAX_UPLOAD_BYTES))
 
         def read_labels(content):
             return self._read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
