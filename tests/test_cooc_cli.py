@@ -139,7 +139,8 @@ def test_flat_exemplar_refused_by_fit_and_cooc_alike(files, tmp_path, monkeypatc
 def test_max_minutes_stops_saves_and_resume_continues(files, tmp_path):
     model = tmp_path / "m.pt"
     # 1e-6 minutes: stopped after the first step, whatever the machine's speed.
-    r = invoke("cooc", "train", files / "ex.png", "-o", model, "--steps", "50", "--max-minutes", "1e-6", "-q", *TINY_SET)
+    r = invoke("cooc", "train", files / "ex.png", "-o", model, "--steps", "50", "--max-minutes", "1e-6", "-q",
+               *TINY_SET)
     assert r.exit_code == 0, r.output
     last = r.stderr.strip().splitlines()[-1]
     assert re.search(r"stopped early .* at step 1 of 50; checkpoint written to", last), last
