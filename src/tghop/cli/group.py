@@ -83,6 +83,19 @@ def _import_for(args):
             pass
 
 
+def _drop_stdout():
+    """Point standard output at the null device: what is still buffered for a pipe that was
+    closed or a full disk would fail again as the interpreter exits ("Exception ignored")."""
+    import os
+
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):  # no file descriptor (an in-process run's stdout)
+        pass
+
+
 class OneLineGroup(click.Group):
     """Every failure of the command line, click's usage errors and Ctrl-C included, is one
     line on stderr (``Error: ...``) and a non-zero exit status, never a traceback."""
@@ -110,6 +123,7 @@ class OneLineGroup(click.Group):
                     signal.signal(signal.SIGINT, _interrupted)
                 _stop_on_signals()
             rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+            sys.stdout.flush()  # a full disk behind `> file` shows here, not at exit
         except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
             fail(*stop_message(exc))
         except click.UsageError as exc:
@@ -120,7 +134,15 @@ class OneLineGroup(click.Group):
         except KeyboardInterrupt as exc:
             fail(*stop_message(exc))
         except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
+            _drop_stdout()
             sys.exit(1)
+        except OSError as exc:  # printing failed (`tghop info M > /dev/full`); files fail in user_errors
+            _drop_stdout()
+            import errno
+
+            hint = "; free some space or write elsewhere" if exc.errno == errno.ENOSPC else ""
+            fail(f"cannot write the output: {exc.strerror or exc}{hint}" if exc.filename is None
+                 else f"{str(exc.filename)[:80]}: {exc.strerror or exc}")
         finally:
             if as_command:
                 gc.freeze()  # nothing left for the collections at exit to walk
