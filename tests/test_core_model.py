@@ -1,4 +1,5 @@
 import json
+import re
 import zipfile
 
 import numpy as np
@@ -230,6 +231,16 @@ def test_mix_by_cluster_rows_are_each_samples_own_mixture(small_model):
         ichm.mix_by_cluster(labels[1:], sources)
 
 
+def test_decode_refuses_vectors_of_another_shape_or_not_finite(small_model):
+    # A wrong shape failed deep in NumPy's matmul; NaN gave NaN patches without a word.
+    d = small_model.dims_["D_r"]
+    for z, words in ((np.zeros((2, 3)), f"z must have shape (n, D_r) = (n, {d}) for this model, got (2, 3)"),
+                     (np.zeros(d), f"got ({d},)"), (np.full((2, d), np.nan), "z holds NaN or infinite values"),
+                     (np.full((1, d), "a"), "z must be numbers")):
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            small_model.decode(z)
+
+
 @pytest.mark.parametrize("n", [7, 400])
 def test_fast_decoder_equals_stepwise_inverse(small_model, n):
     # sample_patches decodes through the folded block map; it must equal the paper's path.
@@ -239,6 +250,7 @@ def test_fast_decoder_equals_stepwise_inverse(small_model, n):
     z = small_model.ichm_.mix(labels, sources) + small_model.ichm_.sample_residual(n, rng=rng)
     slow = small_model.decode(z)
     np.testing.assert_allclose(fast, slow, atol=1e-9)
+    assert np.array_equal(small_model.decode(z.tolist()), slow)  # array_like
     single = small_model.sample_patches(n, rng=11, dtype=np.float32)
     assert single.dtype == np.float32
     np.testing.assert_allclose(single, slow, atol=1e-4)

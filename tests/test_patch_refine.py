@@ -392,10 +392,15 @@ def test_paper_pipeline_is_unaffected():
         refine.parse("off")
 
 
-def test_model_without_statistics_ignores_the_setting():
+def test_model_without_statistics_refuses_a_number_of_steps_and_skips_auto():
+    # A number of steps asked of a model without patch statistics did nothing, without a word
+    # (tghop synth and the server refuse it).
     model = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
-    a = model.synthesize((48, 48), rng=1, patch_refine=3)
-    assert np.array_equal(a, model.synthesize((48, 48), rng=1))
+    with pytest.raises(TGHopError, match=r"patch_refine=3 needs the patch statistics this model lacks \(fitted with "
+                                         r"patch_levels=0"):
+        model.synthesize((48, 48), rng=1, patch_refine=3)
+    assert np.array_equal(model.synthesize((48, 48), rng=1, patch_refine=None),
+                          model.synthesize((48, 48), rng=1, patch_refine=0))
 
 
 def test_fit_is_unchanged_by_the_statistics(patch_model):
@@ -434,7 +439,9 @@ def test_old_files_load_and_damaged_arrays_are_refused(patch_model, tmp_path):
     loaded = load_model(tmp_path / "old.npz")
     assert loaded.patches_ is None
     assert loaded.patch_whitening == 0.0  # what files before the setting were fitted with
-    assert loaded.synthesize((48, 48), rng=1, patch_refine=2).shape == (48, 48, 3)
+    assert loaded.synthesize((48, 48), rng=1).shape == (48, 48, 3)
+    with pytest.raises(TGHopError, match="or by tghop 0.14 or older"):
+        loaded.synthesize((48, 48), rng=1, patch_refine=2)
 
     save_model(patch_model, tmp_path / "p.npz")
 
@@ -513,5 +520,7 @@ def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_pa
     with pytest.warns(UserWarning, match="patch refinement statistics are of tghop 0.14"):
         loaded = load_model(tmp_path / "v4.npz")
     assert loaded.patches_ is None and loaded.patch_levels == 0
-    assert np.array_equal(loaded.synthesize((48, 48), rng=1, patch_refine=3),
+    assert np.array_equal(loaded.synthesize((48, 48), rng=1),
                           patch_model.synthesize((48, 48), rng=1, patch_refine=0))
+    with pytest.raises(TGHopError, match="patch_refine=3 needs the patch statistics"):
+        loaded.synthesize((48, 48), rng=1, patch_refine=3)

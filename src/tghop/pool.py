@@ -11,9 +11,11 @@ import math
 
 import numpy as np
 
+from .patches import depth_to_space
 from .quilting import POOL_CHUNK, block_count
 
-__all__ = ["GeneratedPool", "DECODE_CHUNK", "ON_DEMAND_BLOCKS", "MAX_GROWN_POOL", "on_demand", "pool_size"]
+__all__ = ["GeneratedPool", "DECODE_CHUNK", "ON_DEMAND_BLOCKS", "MAX_GROWN_POOL", "block_decoder", "on_demand",
+           "patch_decoder", "pool_size"]
 
 #: Patches decoded per step (the intermediate arrays stay in cache).
 DECODE_CHUNK = 64
@@ -53,6 +55,67 @@ def pool_size(size, patch_size, *, n_patches, pool_per_block, reuse, overlap=Non
     return n_patches, reuse
 
 
+def block_decoder(model):
+    """The inverse hops of a fitted :class:`~tghop.TGHop` as one affine map per core position.
+
+    The hops act on non-overlapping 2x2 blocks, so the whole inverse c/w Saab path
+    maps each core position's K-vector to its own ``b x b`` pixel block (b = 2 ** hops):
+    ``block = v @ linear + constant``. Returns ``linear`` (K, b*b*C) and ``constant``
+    (b*b*C,), in float64.
+    """
+    k = model.sdr_.shape_[2]
+    linear = np.eye(k).reshape(k, 1, 1, k)
+    constant = np.zeros((1, 1, 1, k))
+    for hop in reversed(model.hops_.hops_):
+        linear = depth_to_space(linear @ hop.kernels_)
+        constant = depth_to_space((constant - hop.bias_) @ hop.kernels_)
+    return linear.reshape(k, -1), constant.reshape(-1)
+
+
+def patch_decoder(model, dtype):
+    """A function ``decode(z, out)``: core-model vectors ``z`` (m, D_r) -> patches
+    written into ``out`` (m, P, P, C), a C-contiguous array of ``dtype``, clipped to
+    [0, 1].
+
+    The same affine path as :meth:`tghop.TGHop.decode` (tested equal), arranged for speed: the
+    inverse SDR per channel into a channel-major core, then the inverse hops as one
+    matrix product from each core position to its pixel block (:func:`block_decoder`)
+    and one transpose into patch order. The channel means go through the block map
+    once, as one offset per core position. Given :data:`DECODE_CHUNK` patches at a time its
+    intermediate arrays stay in the processor's cache. Made for each pool, not cached, so
+    the first pool from a loaded model costs what every later one does.
+    """
+    sdr = model.sdr_
+    h, w, k = sdr.shape_
+    linear, constant = block_decoder(model)
+    ranges = sdr.channel_ranges()  # each channel's columns of z
+    comps = [sdr.components_[a:e].astype(dtype) for a, e in ranges]
+    offset = (sdr.mean_.T @ linear + constant).astype(dtype)  # (h * w, b * b * C)
+    linear = linear.astype(dtype)
+    b = model.patch_size // h
+    c_out = model.exemplar_shape_[2]
+    # A block row's b * C values move as one item: the transpose into patch order
+    # copies items of that size instead of runs of a few floats (fewer, larger copies).
+    row = np.dtype((np.void, b * c_out * np.dtype(dtype).itemsize))
+
+    def decode(z, out):
+        m = len(z)
+        z = np.asarray(z, dtype=dtype)
+        core = np.empty((k, m, h * w), dtype=dtype)  # channel-major: contiguous writes
+        for c, (a, stop) in enumerate(ranges):
+            if a < stop:
+                np.matmul(z[:, a:stop], comps[c], out=core[c])
+            else:
+                core[c] = 0.0
+        blocks = (core.reshape(k, -1).T @ linear).reshape(m, h * w, -1)
+        blocks += offset
+        dst = out.reshape(m, h, b, w, b * c_out).view(row)[..., 0]  # (m, h, b, w)
+        dst[...] = blocks.reshape(m, h, w, b, b * c_out).view(row)[..., 0].transpose(0, 1, 3, 2)
+        np.clip(out, 0.0, 1.0, out=out)
+
+    return decode
+
+
 class GeneratedPool:
     """A pool of patches generated from core-model vectors when they are read.
 
@@ -79,7 +142,7 @@ class GeneratedPool:
         self._z, self._position = z, position
         self.dtype = z.dtype
         self.shape = (len(position), model.patch_size, model.patch_size, model.exemplar_shape_[2])
-        self._decode = model.patch_decoder(self.dtype)
+        self._decode = patch_decoder(model, self.dtype)
         self._buffer = None
 
     def __len__(self):

@@ -459,71 +459,16 @@ class TGHop(BaseEstimator):
         clipping (the inverse c/w Saab path of the paper, section IV.D).
         """
         check_is_fitted(self, "ichm_")
+        z, d = np.asarray(z), self.dims_["D_r"]
+        if z.dtype.kind not in "iuf":
+            raise TGHopError(f"z must be numbers, got an array of {z.dtype}")
+        if z.ndim != 2 or z.shape[1] != d:
+            raise TGHopError(f"z must have shape (n, D_r) = (n, {d}) for this model, got {z.shape}")
+        if not np.isfinite(z).all():
+            raise TGHopError("z holds NaN or infinite values")
         spaces = self.hops_.inverse_transform(self.sdr_.inverse_transform(z), return_all=True)
         patches = np.clip(spaces[-1], 0.0, 1.0)
         return (patches, spaces) if return_stages else patches
-
-    def _block_decoder(self):
-        """The inverse hops as one affine map per core position.
-
-        The hops act on non-overlapping 2x2 blocks, so the whole inverse c/w Saab path
-        maps each core position's K-vector to its own ``b x b`` pixel block (b = 2 ** hops):
-        ``block = v @ linear + constant``. Returns ``linear`` (K, b*b*C) and ``constant``
-        (b*b*C,), in float64.
-        """
-        from .patches import depth_to_space
-
-        k = self.sdr_.shape_[2]
-        linear = np.eye(k).reshape(k, 1, 1, k)
-        constant = np.zeros((1, 1, 1, k))
-        for hop in reversed(self.hops_.hops_):
-            linear = depth_to_space(linear @ hop.kernels_)
-            constant = depth_to_space((constant - hop.bias_) @ hop.kernels_)
-        return linear.reshape(k, -1), constant.reshape(-1)
-
-    def patch_decoder(self, dtype):
-        """A function ``decode(z, out)``: core-model vectors ``z`` (m, D_r) -> patches
-        written into ``out`` (m, P, P, C), a C-contiguous array of ``dtype``, clipped to
-        [0, 1].
-
-        The same affine path as :meth:`decode` (tested equal), arranged for speed: the
-        inverse SDR per channel into a channel-major core, then the inverse hops as one
-        matrix product from each core position to its pixel block (:meth:`_block_decoder`)
-        and one transpose into patch order. The channel means go through the block map
-        once, as one offset per core position. Given :data:`tghop.pool.DECODE_CHUNK` patches at a
-        time its intermediate arrays stay in the processor's cache. Made for each pool,
-        not cached, so the first pool from a loaded model
-        costs what every later one does.
-        """
-        sdr = self.sdr_
-        h, w, k = sdr.shape_
-        linear, constant = self._block_decoder()
-        ranges = sdr.channel_ranges()  # each channel's columns of z
-        comps = [sdr.components_[a:e].astype(dtype) for a, e in ranges]
-        offset = (sdr.mean_.T @ linear + constant).astype(dtype)  # (h * w, b * b * C)
-        linear = linear.astype(dtype)
-        b = self.patch_size // h
-        c_out = self.exemplar_shape_[2]
-        # A block row's b * C values move as one item: the transpose into patch order
-        # copies items of that size instead of runs of a few floats (fewer, larger copies).
-        row = np.dtype((np.void, b * c_out * np.dtype(dtype).itemsize))
-
-        def decode(z, out):
-            m = len(z)
-            z = np.asarray(z, dtype=dtype)
-            core = np.empty((k, m, h * w), dtype=dtype)  # channel-major: contiguous writes
-            for c, (a, stop) in enumerate(ranges):
-                if a < stop:
-                    np.matmul(z[:, a:stop], comps[c], out=core[c])
-                else:
-                    core[c] = 0.0
-            blocks = (core.reshape(k, -1).T @ linear).reshape(m, h * w, -1)
-            blocks += offset
-            dst = out.reshape(m, h, b, w, b * c_out).view(row)[..., 0]  # (m, h, b, w)
-            dst[...] = blocks.reshape(m, h, w, b, b * c_out).view(row)[..., 0].transpose(0, 1, 3, 2)
-            np.clip(out, 0.0, 1.0, out=out)
-
-        return decode
 
     def sample_vectors(self, n, rng, dtype):
         """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
@@ -625,7 +570,8 @@ class TGHop(BaseEstimator):
             Rounds of that refinement for the coarse layout's guide.
         patch_refine : int or None
             Adam steps per pyramid level of the patch refinement, the last step
-            (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``); 0: off; None:
+            (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``, a number asked of
+            another model is a :class:`TGHopError`); 0: off; None:
             ``AUTO_STEPS`` of :mod:`tghop.patch_refine` on images of at most ``AUTO_PIXELS``
             (512x512) pixels, ``AUTO_LARGE_STEPS`` on images of at most ``AUTO_LARGE_PIXELS``
             (1024x1024), 0 on larger ones.
@@ -671,6 +617,10 @@ class TGHop(BaseEstimator):
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
             patch_refine=patch_refine, patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block,
             seam_window=seam_window, region=region, own_shares=own_shares))
+        if checked["patch_refine"] and getattr(self, "patches_", None) is None:  # None (auto) skips it quietly
+            raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics this model lacks "
+                             "(fitted with patch_levels=0, or by tghop 0.14 or older); fit it again, or leave "
+                             "patch_refine at None or 0")
         regions = (refine or match_colours) and n_regions(size, checked["region"], tile=tile) != (1, 1)
         n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
