@@ -1,5 +1,7 @@
 """Whole materials (issue #27, item 5): an albedo and its maps synthesised together, aligned."""
 
+import re
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -140,3 +142,75 @@ def test_cli_failures_are_one_line_and_write_nothing(tmp_path, exemplar, maps):
     assert not (tmp_path / "o.png").exists()
     res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", "-", "--size", "64", "-q"])
     assert res.exit_code != 0 and "file per map" in res.output
+
+
+def test_impossible_depths_are_refused_at_fit(exemplar, maps):
+    """Review 58, item 2: depths the model file refuses (7, 12, a name no map has) are refused by fit."""
+    for depths, words in (({"height": 12}, "depths['height'] must be 8, 16 or 32"),
+                          ({"albedo": 7}, "depths['albedo'] must be 8, 16 or 32"),
+                          ({"height": True}, "must be 8, 16 or 32"),
+                          ({"foo": 16}, "depths names 'foo', which is not a map's name"),
+                          ([16], "depths must be a dict")):
+        with pytest.raises(TGHopError, match=re.escape(words)) as err:
+            Material(model=TGHop(**FAST)).fit(exemplar, {"height": maps["height"]}, depths=depths)
+        assert "\n" not in str(err.value)
+
+
+def test_wrong_kinds_of_argument_name_the_argument(exemplar, maps):
+    """Review 58, item 13: a wrong model, maps or normal gives a TGHopError naming it and the type expected."""
+    for material, given, words in (
+            (Material(model="x"), {"height": maps["height"]}, "model must be a TGHop (the joint model's settings) "
+                                                               "or None, got str"),
+            (Material(model=TGHop(**FAST)), [maps["height"]], "maps must be a dict of map name -> array, got list"),
+            (Material(model=TGHop(**FAST), normal=5), maps, "normal must be 'auto', a map's name or a list"),
+            (Material(model=TGHop(**FAST), normal=["normal", 1]), maps, "normal must be 'auto'"),
+            (Material(model=TGHop(**FAST), normal="bump"), maps, "normal names 'bump', which is not a map's name")):
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            material.fit(exemplar, given)
+
+
+def test_normal_as_one_string_and_depths_reach_the_model_file(exemplar, maps, tmp_path):
+    """normal="bump" names one map (not the letters b, u, m, p); a normal map whose three channels are equal
+    (unit vectors pointing along the diagonal) stays three channels; the depths given are written and read back."""
+    diagonal = np.full(exemplar.shape[:2] + (3,), (1 + 1 / np.sqrt(3)) / 2)
+    material = Material(model=TGHop(**FAST), normal="bump", rng=0).fit(
+        exemplar, {"bump": diagonal, "height": maps["height"]}, depths={"height": 16, "albedo": 8})
+    assert material.normal_ == [False, True, False] and material.map_channels_ == [3, 3, 1]
+    assert material.depths_ == [8, 32, 16]
+    save_model(material, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz", material=True)
+    assert loaded.map_info() == material.map_info()
+
+
+def test_a_normal_map_of_equal_channels_is_refused_for_its_vectors(exemplar):
+    """Review 58, item 15: a 3-channel normal map is checked before grey maps become one channel."""
+    with pytest.raises(TGHopError, match="not unit vectors"):
+        Material(model=TGHop(**FAST)).fit(exemplar, {"normal": np.full(exemplar.shape[:2] + (3,), 0.5)})
+
+
+def test_synthesize_checks_its_settings_as_tghop_does(material):
+    """Review 58, item 14: the checks of TGHop.synthesize, and refine_maps as a boolean."""
+    for kwargs, words in (({"refine": 100}, "refine must be an integer >= 0 and <= 20, got 100"),
+                          ({"match_colours": "no"}, "match_colours must be True or False, got 'no'"),
+                          ({"tile": "no"}, "tile must be True or False, got 'no'"),
+                          ({"refine_maps": "no"}, "refine_maps must be True or False, got 'no'"),
+                          ({"n_patches": 0}, "n_patches must be"),
+                          ({"no_such_setting": 1}, "unknown setting 'no_such_setting'"),
+                          ({"patch_refine": 5}, "patch_refine does not apply to materials")):
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            material.synthesize(SIZE, rng=1, **kwargs)
+
+
+def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp_path):
+    """Review 58, item 8: the options typed are named, not the library's patch_refine."""
+    save_model(material, tmp_path / "mat.npz")
+    runner = CliRunner()
+    for args, words in ((["--quality", "best"], "Error: --quality best does not apply to a material"),
+                        (["--patch-refine", "5"], "Error: --patch-refine does not apply to a material"),
+                        (["--quality", "best", "--patch-refine", "5"], "--quality best and --patch-refine do not")):
+        res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size", "64",
+                                   "-q", *args])
+        assert res.exit_code != 0 and "Traceback" not in res.output, res.output
+        assert words in res.output and "patch_refine" not in res.output, res.output
+        assert res.output.strip().count("\n") == 0
+    assert not list(tmp_path.glob("*.png"))

@@ -25,7 +25,9 @@ Example
 
 from __future__ import annotations
 
+import numbers
 import re
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -45,6 +47,11 @@ NORMAL_WORDS = ("normal", "nrm")
 NORMAL_TOLERANCE = 0.1
 #: Map names: what a file name can hold (they become ``OUT_<name>.png``).
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+#: Bits per channel a map's file may have (what a model file accepts).
+DEPTHS = (8, 16, 32)
+#: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
+REFINE_MAPS = settings.Setting("refine_maps", True, "bool", "Refine the maps other than the albedo too.",
+                               when="generate", cli=None)
 
 
 def is_normal_name(name: str) -> bool:
@@ -131,8 +138,12 @@ class Material(BaseEstimator):
         Its settings are those of the joint model (default: ``TGHop()``'s); it is not
         changed (a copy is fitted). ``n_channels`` None: the default for the stacked
         channel count (:func:`tghop.synthesis.default_channels`).
-    normal : "auto" or sequence of str
-        Which maps are normal maps: by name ("auto", :func:`is_normal_name`) or these names.
+    normal : "auto", str or sequence of str
+        Which maps are normal maps: by name ("auto", :func:`is_normal_name`), or the map
+        of this name, or the maps of these names (``[]``: none). A single string other than
+        "auto" is one map's name, not a sequence of one-letter names (``"normal"`` is read
+        as ``["normal"]``, what anyone writing it means); a map named "auto" is given as
+        ``["auto"]``.
     rng : int or numpy.random.Generator, optional
         Seed of fitting (overrides the model's ``rng``).
 
@@ -143,7 +154,8 @@ class Material(BaseEstimator):
     names_ : list of str
         ``"albedo"`` first, then the maps in the order given.
     map_channels_ : list of int
-        Channels of each map (a grey map stored as RGB becomes one channel).
+        Channels of each map (a grey map stored as RGB becomes one channel; a normal map
+        keeps its three).
     normal_ : list of bool
     depths_ : list of int
         Bits per channel of each map as given (8, 16, or 32 for float): what ``tghop synth``
@@ -158,30 +170,74 @@ class Material(BaseEstimator):
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
-    def _maps(self, albedo, maps, depths):
-        """Validated maps: [(name, (H, W, c) float64 array, depth)], the albedo first."""
-        items = [(ALBEDO, albedo)] + list(dict(maps or {}).items())
-        depths = dict(depths or {})
-        seen, out = set(), []
-        for name, arr in items:
+    def _checked_params(self):
+        """``model`` and ``normal``, checked (one-line :class:`TGHopError` naming each)."""
+        if self.model is not None and not isinstance(self.model, TGHop):
+            raise TGHopError(f"model must be a TGHop (the joint model's settings) or None, "
+                             f"got {type(self.model).__name__}")
+        normal = self.normal
+        if isinstance(normal, str):
+            return normal if normal == "auto" else [normal]
+        bad = isinstance(normal, Mapping) or not isinstance(normal, (list, tuple, set, frozenset))
+        if bad or not all(isinstance(name, str) for name in normal):
+            raise TGHopError(f"normal must be 'auto', a map's name or a list of map names, got {normal!r}")
+        return list(normal)
+
+    @staticmethod
+    def _checked_depths(depths, names):
+        """``depths`` checked against the map names: ``{name: 8, 16 or 32}``."""
+        if depths is None:
+            return {}
+        if not isinstance(depths, Mapping):
+            raise TGHopError(f"depths must be a dict of map name -> 8, 16 or 32, got {type(depths).__name__}")
+        out = {}
+        for name, depth in depths.items():
+            if name not in names:
+                raise TGHopError(f"depths names {name!r}, which is not a map's name ({', '.join(names)}); give "
+                                 "depths only of the albedo and the maps given")
+            if isinstance(depth, bool) or not isinstance(depth, numbers.Integral) or int(depth) not in DEPTHS:
+                raise TGHopError(f"depths[{name!r}] must be 8, 16 or 32 (bits per channel of the map's file), "
+                                 f"got {depth!r}")
+            out[name] = int(depth)
+        return out
+
+    def _maps(self, albedo, maps, depths, normal):
+        """Validated maps: [(name, (H, W, c) float64 array, depth, is_normal)], the albedo first."""
+        if maps is not None and not isinstance(maps, Mapping):
+            raise TGHopError(f"maps must be a dict of map name -> array, got {type(maps).__name__}")
+        items = [(ALBEDO, albedo)] + list((maps or {}).items())
+        names, seen = [name for name, _ in items], set()
+        for name in names:
             if not isinstance(name, str) or not _NAME.fullmatch(name):
                 raise TGHopError(f"map name {name!r} cannot name a file; use letters, digits, '_', '-' and '.'")
             if name.lower() in seen:
                 raise TGHopError(f"two maps are named {name!r}; give each map its own name")
             seen.add(name.lower())
+        depths = self._checked_depths(depths, names)
+        if normal != "auto":
+            unknown = set(normal) - set(names)
+            if unknown:
+                raise TGHopError(f"normal names {sorted(unknown)[0]!r}, which is not a map's name "
+                                 f"({', '.join(names)})")
+        out = []
+        for name, arr in items:
             raw = np.asarray(arr)
             depth = depths.get(name, _depth_of(raw))
             img = check_image(raw, name=f"map {name!r}")
+            is_normal = is_normal_name(name) if normal == "auto" else name in normal
+            if is_normal:  # before a grey map is made one channel: a normal map keeps its three, checked
+                check_normal_map(img, name)
             if name == ALBEDO:  # the exemplar: refused if flat; a map may be (a constant metalness)
-                img = prepare_exemplar(img)
-            elif img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 131072:
+                prepared = prepare_exemplar(img)
+                img = img if is_normal else prepared
+            elif not is_normal and img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 131072:
                 img = np.ascontiguousarray(img[..., :1])  # a grey map stored as RGB (to 16 bits)
             if name == ALBEDO:
                 shape = img.shape[:2]
             elif img.shape[:2] != shape:
                 raise TGHopError(f"map {name!r} is {img.shape[0]}x{img.shape[1]} but the albedo is "
                                  f"{shape[0]}x{shape[1]}; give every map at the albedo's size")
-            out.append((name, img.astype(np.float64, copy=False), int(depth)))
+            out.append((name, img.astype(np.float64, copy=False), depth, is_normal))
         return out
 
     def fit(self, albedo, maps=None, *, exclude=None, depths=None, progress=None):
@@ -193,32 +249,25 @@ class Material(BaseEstimator):
             The exemplar (float in [0, 1], uint8 or uint16).
         maps : dict of str to ndarray, optional
             Name -> map of the same H and W (any of 1 or 3 channels, any depth). Names
-            become file names (``OUT_<name>.png``).
+            become file names (``OUT_<name>.png``). A list or another type is refused.
         exclude : array_like of bool, shape (H, W), optional
             Pixels not to learn (:meth:`TGHop.fit`).
         depths : dict of str to int, optional
-            Bits per channel of each map's file (default: from the arrays' dtypes: 8 for
-            uint8, 16 for uint16, 32 for floats).
+            Bits per channel of each map's file, 8, 16 or 32, by the name of the albedo or a
+            map (default: from the arrays' dtypes: 8 for uint8, 16 for uint16, 32 for floats).
+            Another depth, or a name that is not a map's, is refused.
         progress : callable, optional
 
         Returns
         -------
         self
         """
-        items = self._maps(albedo, maps, depths)
-        normal = self.normal
-        if normal != "auto":
-            unknown = set(normal) - {name for name, _, _ in items}
-            if unknown:
-                raise TGHopError(f"normal names {sorted(unknown)[0]!r}, which is not a map's name")
-        self.names_ = [name for name, _, _ in items]
-        self.normal_ = [is_normal_name(name) if normal == "auto" else name in normal for name in self.names_]
-        for (name, img, _), is_normal in zip(items, self.normal_):
-            if is_normal:
-                check_normal_map(img, name)
-        self.map_channels_ = [img.shape[2] for _, img, _ in items]
-        self.depths_ = [depth for _, _, depth in items]
-        stack = np.concatenate([img for _, img, _ in items], axis=2)
+        items = self._maps(albedo, maps, depths, self._checked_params())
+        self.names_ = [name for name, _, _, _ in items]
+        self.normal_ = [is_normal for _, _, _, is_normal in items]
+        self.map_channels_ = [img.shape[2] for _, img, _, _ in items]
+        self.depths_ = [depth for _, _, depth, _ in items]
+        stack = np.concatenate([img for _, img, _, _ in items], axis=2)
         if stack.shape[2] == 3 and np.abs(stack[..., 1:] - stack[..., :1]).max() < 1 / 512:
             raise TGHopError("every map equals the grey albedo; there is nothing to model apart from it")
         base = TGHop() if self.model is None else self.model
@@ -231,7 +280,7 @@ class Material(BaseEstimator):
         self.model_ = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
         ex = None if exclude is None else np.asarray(exclude, dtype=bool)
         self.bands_ = [BandStatistics(n_levels=self.model_.band_levels, n_orientations=self.model_.band_orientations)
-                       .fit(img, exclude=ex) for _, img, _ in items]
+                       .fit(img, exclude=ex) for _, img, _, _ in items]
         return self
 
     def _slices(self):
@@ -259,7 +308,10 @@ class Material(BaseEstimator):
         dtype : {numpy.float64, numpy.float32}
         **options
             The other generation settings of :meth:`TGHop.synthesize` (``n_patches``,
-            ``tolerance``, ``detail``, ``layout_weight``, ...).
+            ``tolerance``, ``detail``, ``layout_weight``, ...). These, ``refine``,
+            ``match_colours`` and ``tile`` are checked as :meth:`TGHop.synthesize` checks them
+            (:mod:`tghop.settings`), ``refine_maps`` as a boolean; ``patch_refine`` above 0 is
+            refused (the joint model has no patch statistics).
 
         Returns
         -------
@@ -270,10 +322,15 @@ class Material(BaseEstimator):
         dtype = np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
-        if options.get("patch_refine"):
-            raise TGHopError("patch_refine does not apply to materials; leave it at 0")
+        # The checks of TGHop.synthesize (refine and match_colours are applied here, per map, not by it)
+        checked = settings.check_settings(dict(refine=refine, match_colours=match_colours, tile=tile, **options))
+        refine, match_colours, tile = checked.pop("refine"), checked.pop("match_colours"), checked.pop("tile")
+        refine_maps = REFINE_MAPS.check(refine_maps)
+        if checked.get("patch_refine"):
+            raise TGHopError("patch_refine does not apply to materials (their joint model has no patch "
+                             "statistics); leave it at 0 or None")
         stack = self.model_.synthesize(size, rng=check_rng(rng), tile=tile, refine=0, match_colours=False,
-                                       progress=progress, dtype=np.float32, **options)
+                                       progress=progress, dtype=np.float32, **checked)
         quantiles = self.model_.colour_quantiles_
         out = {}
         for i, (name, part) in enumerate(zip(self.names_, self._slices())):
