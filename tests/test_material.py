@@ -214,3 +214,18 @@ def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp
         assert words in res.output and "patch_refine" not in res.output, res.output
         assert res.output.strip().count("\n") == 0
     assert not list(tmp_path.glob("*.png"))
+
+
+def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, tmp_path):
+    # Review 58, item 7: `tghop synth MAT OTHER` said "only 'tghop synth' and 'tghop info' take it".
+    save_model(material, tmp_path / "mat.npz")
+    save_image(np.full((64, 64), 0.5), tmp_path / "g.png")  # one level: one SOURCE
+    for args in (["synth", "mat.npz", "mat.npz", "-o", "o.png"], ["synth", "mat.npz", "-o", "o.png", "--guide", "g.png"],
+                 ["patches", "mat.npz", "-o", "o.png"]):
+        res = CliRunner().invoke(main, [str(tmp_path / a) if a.endswith(("npz", "g.png")) else a for a in args])
+        assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+        assert "is a material (" in res.output and "one SOURCE of 'tghop synth' without --guide" in res.output
+        assert "only 'tghop synth'" not in res.output, res.output
+    with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
+        load_model(tmp_path / "mat.npz")
+    assert not (tmp_path / "o.png").exists()

@@ -88,7 +88,7 @@ def info_dict(model, params=None) -> dict:
 def _read(path):
     path = Path(path)
     if not path.exists():
-        raise ModelFileError(f"{path}: no such model file; check the path or fit one with 'tghop fit'")
+        raise ModelFileError(f"{path}: no such model file; check the path, or fit a model first")
     if path.is_dir():
         raise ModelFileError(f"{path} is a folder, not a model file")
     try:
@@ -101,24 +101,23 @@ def _read(path):
         from .imageio import is_image
 
         if is_image(path):
-            raise ModelFileError(f"{path} is an image, not a model file; fit a model from it with "
-                                 f"'tghop fit {path} -o model.npz'") from None
+            raise ModelFileError(f"{path} is an image, not a model file; fit a model from it first "
+                                 f"('tghop fit {path} -o model.npz', or TGHop().fit and save_model)") from None
         raise ModelFileError(
             f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); "
-            "fit the model again with 'tghop fit'"
+            "fit the model again"
         ) from None
     if "__meta__" not in arrays:
         if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout
-            raise ModelFileError(f"{path}: a PyTorch checkpoint, not a tghop model file (co-occurrence cGAN "
-                                 "checkpoints are used with 'tghop cooc morph' or 'edit' and "
-                                 "'tghop baseline cooc --model')")
-        raise ModelFileError(f"{path}: a NumPy archive but not a tghop model file; fit a model with 'tghop fit'")
+            raise ModelFileError(f"{path}: a PyTorch checkpoint, not a tghop model file (a co-occurrence cGAN "
+                                 "checkpoint is read by tghop.cooc.load and the 'tghop cooc' commands)")
+        raise ModelFileError(f"{path}: a NumPy archive but not a tghop model file; give a model file tghop wrote")
     try:
         meta = json.loads(str(arrays.pop("__meta__")))
     except (ValueError, TypeError):
         raise ModelFileError(f"{path}: corrupt model metadata; fit the model again") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise ModelFileError(f"{path}: not a tghop model file; fit a model with 'tghop fit'")
+        raise ModelFileError(f"{path}: not a tghop model file; give a model file tghop wrote")
     version = meta.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool):
         raise ModelFileError(f"{path}: corrupt model metadata (format_version {version!r} is not an integer); "
@@ -319,11 +318,11 @@ def _check_arrays(path, groups, arrays):
             problem = _check_array(spec, arrays, dims, prefix)
             if problem:
                 raise ModelFileError(f"{path}: {problem}; the model file is corrupt or was edited: "
-                                     "fit the model again with 'tghop fit'")
+                                     "fit the model again")
     unknown = sorted(set(arrays) - known)
     if unknown:
         raise ModelFileError(f"{path}: array {unknown[0]} is not part of a tghop model of this format version "
-                             "(an edited file or another program's); fit the model again with 'tghop fit'")
+                             "(an edited file or another program's); fit the model again")
 
 
 def load_model(path, *, material=False):
@@ -348,7 +347,8 @@ def load_model(path, *, material=False):
         if meta["params"].get("patch_levels"):
             meta["params"]["patch_levels"] = 0
             warnings.warn(f"{path}: its patch refinement statistics are of tghop 0.14 and are not used; "
-                          "fit the model again with --patch-levels for the patch refinement", stacklevel=2)
+                          "fit the model again (patch_levels, --patch-levels) for the patch refinement",
+                          stacklevel=2)
     # Files before the settings (0.13 and older) have none: no patch statistics (0.20 and
     # older: directions not whitened).
     for part in (meta, (meta.get("layout") or {}).get("model") if isinstance(meta.get("layout"), dict) else None):
@@ -373,8 +373,9 @@ def load_model(path, *, material=False):
                              f"{_refit(meta)}") from None
     if kind is Material and not material:
         names = ", ".join(m["name"] for m in meta["material"]["maps"])
-        raise ModelFileError(f"{path} is a material ({names}), not a plain model; only 'tghop synth' and "
-                             "'tghop info' take it (fit a plain model from the albedo for this command)")
+        raise ModelFileError(f"{path} is a material ({names}), not a plain model: a material is generated alone "
+                             "and whole (one SOURCE of 'tghop synth' without --guide; load_model(path, "
+                             "material=True)); for this, fit a plain model from its albedo")
     _check_arrays(path, groups, arrays)
     try:
         model = kind._from_state(meta, arrays)
