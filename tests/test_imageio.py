@@ -183,3 +183,110 @@ def test_exif_orientation_of_a_16_bit_png(tmp_path):
     Image.fromarray(levels).save(tmp_path / "deep.png", exif=exif)
     got = load_image(tmp_path / "deep.png")
     np.testing.assert_array_equal(np.round(got[:, :, 0] * 65535).astype(np.uint16), np.rot90(levels, -1))
+
+
+def _colourful(h=24, w=32):
+    """A smooth colour image (uint8): JPEG compression keeps it close."""
+    y, x = np.mgrid[:h, :w]
+    return np.stack([40 + y * 6, 200 - x * 5, 60 + (x + y) * 2], axis=2).astype(np.uint8)
+
+
+@pytest.mark.parametrize("kind", ["CMYK", "P", "YCbCr", "LAB", "1", "jpeg", "tiff_lzw"])
+def test_tiffs_of_other_colour_kinds_are_converted_as_pillow_converts_them(tmp_path, kind):
+    # review 58 item 1: with tifffile installed, CMYK was read as RGBA (K dropped, "alpha channel
+    # dropped", colours inverted), palette as grey indices, YCbCr and LAB as raw RGB; bilevel and
+    # JPEG (or LZW) compressed files, which tifffile cannot decode without imagecodecs, were refused.
+    import warnings
+
+    rgb = Image.fromarray(_colourful())
+    path = tmp_path / f"{kind}.tif"
+    if kind in ("jpeg", "tiff_lzw"):
+        rgb.save(path, compression=kind)
+    else:
+        rgb.convert(kind).save(path)
+    with Image.open(path) as im:
+        expected = np.asarray(im.convert("L" if kind == "1" else "RGB"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "alpha channel dropped"
+        got, depth = load_image(path, dtype=None, with_depth=True)
+    assert depth == 8
+    assert got.shape == expected.shape[:2] + (1 if kind == "1" else 3,)
+    np.testing.assert_array_equal(got.reshape(expected.shape), expected)
+    if kind not in ("P", "1"):  # the colours of the image saved, not raw samples
+        assert np.abs(got.astype(float) - _colourful()).mean() < 3
+
+
+def test_deep_tiffs_alpha_only_where_extrasamples_says_and_refused_kinds(tmp_path, monkeypatch):
+    tifffile = pytest.importorskip("tifffile")
+    from tghop import InvalidImageError
+
+    rng = np.random.default_rng(5)
+    levels = rng.integers(0, 65536, (9, 7, 4), dtype=np.uint16)
+    tifffile.imwrite(tmp_path / "x.tif", levels, photometric="rgb", extrasamples=["unspecified"])
+    tifffile.imwrite(tmp_path / "a.tif", levels, photometric="rgb", extrasamples=["unassalpha"])
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a 4th sample that is not alpha is dropped without a word
+        for keep_alpha in (False, True):
+            got = load_image(tmp_path / "x.tif", keep_alpha=keep_alpha)
+            np.testing.assert_array_equal(np.round(got * 65535).astype(np.uint16), levels[..., :3])
+    np.testing.assert_array_equal(np.round(load_image(tmp_path / "a.tif", keep_alpha=True) * 65535), levels)
+    # min-is-white levels are inverted (Pillow reads a 16-bit one as min-is-black)
+    tifffile.imwrite(tmp_path / "w.tif", levels[..., 0], photometric="miniswhite")
+    np.testing.assert_array_equal(np.round(load_image(tmp_path / "w.tif")[..., 0] * 65535), 65535 - levels[..., 0])
+    # 16-bit kinds tghop cannot turn into RGB without loss: one line naming the fix
+    tifffile.imwrite(tmp_path / "c.tif", levels, photometric="separated")
+    tifffile.imwrite(tmp_path / "y.tif", levels[..., :3], photometric="ycbcr")
+    for name, kind in (("c.tif", "CMYK"), ("y.tif", "YCbCr")):
+        with pytest.raises(InvalidImageError, match=f"a 16-bit {kind} TIFF; .*convert it to RGB"):
+            load_image(tmp_path / name)
+    # a deep colour TIFF tifffile cannot decode (compression without imagecodecs) is refused, not
+    # reduced to 8 bits by Pillow; an 8-bit one goes to Pillow
+    tifffile.imwrite(tmp_path / "e.tif", _colourful())
+
+    def no_codec(self, *args, **kwargs):
+        raise ValueError("<COMPRESSION.LZW: 5> requires the 'imagecodecs' package")
+
+    monkeypatch.setattr(tifffile.TiffPage, "asarray", no_codec)
+    with pytest.raises(InvalidImageError, match="cannot decode this 16-bit colour TIFF .*pip install imagecodecs"):
+        load_image(tmp_path / "a.tif")
+    np.testing.assert_array_equal(load_image(tmp_path / "e.tif", dtype=None), _colourful())
+
+
+def test_save_image_refuses_empty_wrong_channels_and_out_of_range_images(tmp_path):
+    # review 58 item 11: an empty image made an unreadable PNG, 5 channels an internal ValueError,
+    # floats outside [0, 1] were clipped without a word.
+    from tghop import InvalidImageError
+    from tghop.imageio import save_image
+
+    rgb = np.random.default_rng(2).random((16, 16, 3))
+    cases = [(rgb[:0], "no pixels"), (np.zeros((16, 16, 5)), "C 1 to 4.*not of shape \\(16, 16, 5\\)"),
+             (np.zeros((2, 4, 4, 3)), "not of shape"), (np.zeros((16, 16, 5), np.uint8), "C 1 to 4"),
+             (np.full((8, 8, 3), 2.0), "values run from 2 to 2; scale it to \\[0, 1\\]"),
+             (np.full((8, 8, 3), -1.0), "values run from -1 to -1; scale it")]
+    for image, match in cases:
+        for name, depth in (("a.png", 8), ("a.tif", 16), ("a.tif", 32)):
+            with pytest.raises(InvalidImageError, match=match):
+                save_image(image, tmp_path / name, depth=depth)
+    nan = rgb.copy()
+    nan[0, 0, 0] = np.nan
+    with pytest.raises(InvalidImageError, match="NaN or infinite"):
+        save_image(nan, tmp_path / "a.tif", depth=32)  # load_image refuses such a float TIFF
+    assert not list(tmp_path.iterdir())
+    # float rounding a hair outside [0, 1] is clipped, as before
+    hair = rgb.copy()
+    hair[0, 0] = [1 + 1e-4, -1e-4, 0.5]  # within imageio.RANGE_TOLERANCE
+    save_image(hair, tmp_path / "ok.png")
+    assert np.asarray(Image.open(tmp_path / "ok.png"))[0, 0].tolist() == [255, 0, 128]
+
+
+def test_load_image_refuses_a_dtype_it_does_not_give(tmp_path):
+    # review 58 item 12: dtype=np.int32 failed deep in NumPy
+    from tghop import TGHopError
+
+    Image.fromarray(_colourful()).save(tmp_path / "a.png")
+    for dtype in (np.int32, np.uint8, np.float16, "bogus"):
+        with pytest.raises(TGHopError, match="dtype must be numpy.float64, numpy.float32 or None"):
+            load_image(tmp_path / "a.png", dtype=dtype)
+    assert load_image(tmp_path / "a.png", dtype="float32").dtype == np.float32

@@ -40,12 +40,14 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     ----------
     path : str or os.PathLike
         Any format Pillow reads, turned or flipped as its EXIF orientation says (as
-        photos are shown). Palette images are converted; an alpha channel is
-        dropped with a warning. 16-bit PNG and TIFF files and float TIFF files are read
-        without loss (16-bit levels ``v`` become ``v / 65535``; float values in [0, 1] are
-        kept, others taken as 8-bit or 16-bit levels); colour ones in TIFF need
-        :mod:`tifffile` (``pip install 'tghop[tiff]'``), 16-bit colour PNG files are decoded
-        by tghop itself (Pillow reduces them to 8 bits).
+        photos are shown). Palette, CMYK, YCbCr and LAB images (TIFF files too) are
+        converted to RGB, bilevel ones to grey; an alpha channel (in TIFF, an extra sample
+        its ExtraSamples tag calls alpha) is dropped with a warning. 16-bit PNG and TIFF
+        files and float TIFF files are read without loss (16-bit levels ``v`` become
+        ``v / 65535``; float values in [0, 1] are kept, others taken as 8-bit or 16-bit
+        levels); colour ones in TIFF need :mod:`tifffile` (``pip install 'tghop[tiff]'``)
+        and must be grey or RGB (a 16-bit CMYK TIFF, say, is refused), 16-bit colour PNG
+        files are decoded by tghop itself (Pillow reduces them to 8 bits).
     max_pixels : int
         Images with more pixels (read from the header, before decoding) are refused
         with :class:`InvalidImageError`, or, with ``downscale``, reduced to at most this
@@ -54,6 +56,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     dtype : {numpy.float64, numpy.float32, None}
         None keeps 8-bit images as uint8 (0-255, an eighth of the memory; what
         :meth:`TGHop.fit` takes for large exemplars) and gives float64 for deeper ones.
+        Any other is a :class:`TGHopError`.
     too_large_hint : str
         The advice that ends the error for an image over ``max_pixels`` (the command line
         says "pass --downscale" only in the commands that have that option).
@@ -72,6 +75,13 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     """
     from PIL import Image, UnidentifiedImageError  # imported on first use: not needed by `tghop info`
 
+    try:
+        wanted = None if dtype is None else np.dtype(dtype)
+    except TypeError:
+        wanted = False
+    if wanted is not None and wanted not in (np.float64, np.float32):
+        raise TGHopError(f"dtype must be numpy.float64, numpy.float32 or None (uint8 for 8-bit images), "
+                         f"not {wanted.name if wanted is not False else repr(dtype)}")
     path = Path(path)
     if not path.exists():
         raise InvalidImageError(f"{path}: no such file; check the path")
@@ -127,8 +137,9 @@ def is_image(path) -> bool:
 def _read_deep(path, max_pixels, keep_alpha=False):
     """16-bit PNG and TIFF files and float TIFF files that Pillow would not read whole:
     ``(array, mode, depth)`` with the array float64 in [0, 1] (uint8 for an 8-bit TIFF read
-    by tifffile), or None for every other file (Pillow reads it). ``mode`` is "RGBA" or
-    "LA" when the file has an alpha channel: dropped, or, with ``keep_alpha``, kept last."""
+    by tifffile), or None for every other file (Pillow reads it: TIFF files too, but grey and RGB
+    ones tifffile decodes, :func:`_tiff_layout`). ``mode`` is "RGBA" or "LA" when the file has
+    an alpha channel: dropped, or, with ``keep_alpha``, kept last."""
     with open(path, "rb") as fh:
         head = fh.read(33)
     if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 33 and head[24] == 16:
@@ -146,37 +157,103 @@ def _read_deep(path, max_pixels, keep_alpha=False):
         from PIL import Image
 
         with Image.open(path) as im:  # grey 16-bit and float TIFF: Pillow; deeper colour ones: refused
-            bits = im.tag_v2.get(258, (8,)) if hasattr(im, "tag_v2") else (8,)
-            if im.mode in ("RGB", "RGBA", "CMYK") and max(bits) > 8:
+            tags = im.tag_v2 if hasattr(im, "tag_v2") else {}
+            bits, photometric = max(tags.get(258, (8,))), tags.get(262, 1)
+            if bits > 8 and photometric not in (0, 1, 2, 3):
+                _refuse_deep_tiff(path, photometric, bits)
+            if bits > 8 and (photometric == 0 or im.mode in ("RGB", "RGBA")):  # Pillow: 8 bits, or not inverted
                 from ._errors import MissingExtraError
 
-                raise MissingExtraError(f"{path}: a {max(bits)}-bit colour TIFF; reading it without loss needs "
+                kind = "colour" if photometric == 2 else _PHOTOMETRIC_NAMES.get(photometric, "colour")
+                raise MissingExtraError(f"{path}: a {bits}-bit {kind} TIFF; reading it without loss needs "
                                         f"tifffile: {TIFF_HINT}")
         return None
-    with tifffile.TiffFile(path) as tif:
+    try:
+        tif = tifffile.TiffFile(path)
+    except MemoryError:
+        raise
+    except Exception:  # noqa: BLE001 - a TIFF tifffile cannot parse: Pillow's path (its error if any)
+        return None
+    with tif:
         page = tif.pages[0]
+        layout = _tiff_layout(page, path)
+        if layout is None:
+            return None
         shape = page.shape
         if int(np.prod(shape[:2] if page.axes.startswith("YX") else shape[-2:])) > max_pixels:
             return None  # Pillow's path: its size error (or downscaling)
-        arr = page.asarray()
+        try:
+            arr = page.asarray()
+        except MemoryError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - e.g. LZW or JPEG compression without imagecodecs
+            if page.dtype != np.uint8 and (layout[0] == 3 or layout[2]):  # Pillow: 8 bits, or not inverted
+                reason = (str(exc).splitlines() or [exc.__class__.__name__])[0][:120]
+                raise InvalidImageError(
+                    f"{path}: tifffile cannot decode this {page.bitspersample}-bit "
+                    f"{'min-is-white' if layout[2] else 'colour'} TIFF ({reason}); "
+                    "pip install imagecodecs, or save it uncompressed or zlib-compressed") from None
+            return None  # Pillow's path: it decodes 8-bit and grey 16-bit and float TIFF files whole
+    colours, alpha, inverted = layout
     if page.axes.startswith("S"):  # planar: (S, H, W)
         arr = np.moveaxis(arr, 0, -1)
-    if arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4) or arr.ndim not in (2, 3):
-        raise ValueError(f"{arr.shape} samples")
-    arr, mode = _drop_alpha(arr, "RGBA" if arr.ndim == 3 and arr.shape[2] == 4 else
-                            "LA" if arr.ndim == 3 and arr.shape[2] == 2 else "", keep_alpha)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    if arr.ndim != 3 or arr.shape[2] < colours + alpha:
+        return None  # an arrangement of samples tghop does not know: Pillow's path
+    arr = arr[:, :, : colours + alpha]  # extra samples that are not alpha are dropped, as Pillow drops them
+    if inverted:  # min-is-white integer levels
+        arr = arr.copy()
+        arr[:, :, 0] = np.iinfo(arr.dtype).max - arr[:, :, 0]
+    arr, mode = _drop_alpha(arr, ("LA" if colours == 1 else "RGBA") if alpha else "", keep_alpha)
     if arr.dtype == np.uint8:
         return arr, mode, 8
     if arr.dtype == np.uint16:
         return arr / 65535.0, mode, 16
-    if arr.dtype.kind == "f":
-        arr = arr.astype(np.float64)
-        if not np.all(np.isfinite(arr)):
-            raise ValueError("non-finite pixel values")
-        if arr.size and (arr.min() < 0.0 or arr.max() > 1.0):  # levels, as Pillow's path reads them
-            arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
-        return arr, mode, 32
-    raise ValueError(f"{arr.dtype} samples")
+    arr = arr.astype(np.float64)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("non-finite pixel values")
+    if arr.size and (arr.min() < 0.0 or arr.max() > 1.0):  # levels, as Pillow's path reads them
+        arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
+    return arr, mode, 32
+
+
+#: Names of the TIFF photometric interpretations (tag 262) tghop does not read as grey or RGB itself.
+_PHOTOMETRIC_NAMES = {0: "min-is-white", 3: "palette", 4: "mask", 5: "CMYK", 6: "YCbCr", 8: "CIELAB",
+                      9: "ICCLAB", 10: "ITULAB", 32803: "CFA", 32844: "LogL", 32845: "LogLuv", 34892: "LinearRaw"}
+
+
+def _refuse_deep_tiff(path, photometric, bits):
+    """The error for a 16-bit or float TIFF whose colours tghop cannot convert without loss."""
+    name = _PHOTOMETRIC_NAMES.get(photometric, f"photometric {photometric}")
+    raise InvalidImageError(f"{path}: a {bits}-bit {name} TIFF; tghop reads 16-bit and float TIFF files as grey "
+                            "or RGB only; convert it to RGB (or grey) first, or save it with 8 bits")
+
+
+def _tiff_layout(page, path):
+    """How tghop reads a TIFF page itself: ``(colours, alpha, inverted)`` (1 or 3 colour
+    samples; whether the next sample is alpha, as its ExtraSamples tag says; min-is-white levels
+    to invert), or None for Pillow's path: 8-bit and bilevel TIFF files of other colour kinds
+    (palette, CMYK, YCbCr, LAB, min-is-white), which Pillow converts to RGB or grey, and samples
+    tifffile gives in no type tghop reads. Refused: a 16-bit or float one of those colour kinds
+    (Pillow would reduce it to 8 bits or read it wrong)."""
+    photometric, dtype = page.photometric, page.dtype
+    if photometric is None or dtype is None or not (dtype in (np.uint8, np.uint16) or dtype.kind == "f"):
+        return None  # bilevel (bool), signed or 32-bit integers: Pillow's path
+    photometric = int(photometric)
+    colours = {0: 1, 1: 1, 2: 3}.get(photometric)
+    inverted = photometric == 0
+    if colours is None or (inverted and dtype == np.uint8):
+        if dtype == np.uint8 or photometric == 3:
+            return None
+        _refuse_deep_tiff(path, photometric, page.bitspersample)
+    if inverted and dtype.kind == "f":
+        _refuse_deep_tiff(path, photometric, page.bitspersample)
+    extras = tuple(int(e) for e in (page.extrasamples or ()))
+    if page.samplesperpixel > colours and extras[:1] == (1,) and dtype == np.uint8:
+        return None  # premultiplied alpha: Pillow's path, which divides it out
+    alpha = page.samplesperpixel > colours and extras[:1] in ((1,), (2,))  # associated, unassociated
+    return colours, int(alpha), inverted
 
 
 def _drop_alpha(arr, mode, keep_alpha=False):
@@ -525,15 +602,34 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     _png_chunk(fh, b"IEND")
 
 
-def _check_pixels(image, depth):
-    """What :func:`save_image` refuses: integers other than uint8 (0-255 as floats would clip to
-    white, 0-65535 too), booleans, and non-finite floats (black or white at 8 and 16 bits)."""
+#: How far outside [0, 1] a float image to save may stray (float rounding after clipping; less than
+#: half an 8-bit level, so at 8 bits clipping it changes no pixel); further is refused, not clipped.
+RANGE_TOLERANCE = 1e-3
+
+
+def _check_pixels(image):
+    """What :func:`save_image` refuses: an array that is not (H, W) or (H, W, C) with C in 1-4,
+    no pixels, integers other than uint8 (0-255 as floats would clip to white, 0-65535 too),
+    booleans, NaN or infinite floats, and floats outside [0, 1] by more than
+    :data:`RANGE_TOLERANCE` (they would be clipped)."""
     arr = np.asarray(image)
     if arr.dtype != np.uint8 and arr.dtype.kind != "f":
         raise InvalidImageError(f"an image to save must be floats in [0, 1] or uint8, not {arr.dtype} "
                                 f"(e.g. image / 255 for 8-bit levels)")
-    if arr.dtype.kind == "f" and depth != 32 and arr.size and not (np.isfinite(arr.min()) and np.isfinite(arr.max())):
-        raise InvalidImageError("an image to save has NaN or infinite values; they have no colour")
+    if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] not in (1, 2, 3, 4)):
+        raise InvalidImageError(f"an image to save must be an (H, W) or (H, W, C) array with C 1 to 4 (grey, grey "
+                                f"and alpha, RGB, RGBA), not of shape {arr.shape}; pass those channels only")
+    if arr.size == 0:
+        raise InvalidImageError(f"an image to save has no pixels (shape {arr.shape}); give at least 1x1 pixels")
+    if arr.dtype.kind == "f":
+        lo, hi = float(arr.min()), float(arr.max())
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise InvalidImageError("an image to save has NaN or infinite values, which have no colour; replace them "
+                                    "(e.g. numpy.nan_to_num) and scale the image to [0, 1]")
+        if lo < -RANGE_TOLERANCE or hi > 1.0 + RANGE_TOLERANCE:
+            raise InvalidImageError(f"an image to save must be floats in [0, 1], but its values run from {lo:.4g} "
+                                    f"to {hi:.4g}; scale it to [0, 1] first (e.g. image / 255 for 8-bit levels, "
+                                    "(image + 1) / 2 for [-1, 1]), or numpy.clip it")
 
 
 def save_image(image, path, *, depth: int = 8) -> None:
@@ -548,13 +644,15 @@ def save_image(image, path, *, depth: int = 8) -> None:
         The file appears complete or not at all.
     depth : {8, 16, 32}
         Bits per channel: 8 (any format), 16 (PNG, TIFF) or 32 (float32 TIFF, values
-        as they are). A format that cannot hold it is an :class:`InvalidImageError`
+        not rounded to levels). A format that cannot hold it is an :class:`InvalidImageError`
         (:func:`check_depth`). Colour TIFF files of 16 or 32 bits need :mod:`tifffile`.
-        So are pixels neither uint8 nor floats, and (but at 32 bits) NaN or infinite ones.
+        So are an empty image, a channel count other than 1-4, pixels neither uint8 nor
+        floats, and NaN, infinite or out-of-range floats (outside [0, 1] by more than
+        :data:`RANGE_TOLERANCE`; less is clipped).
     """
     fmt = output_format(path)
     check_depth(path, depth)
-    _check_pixels(image, depth)
+    _check_pixels(image)
     if fmt == "JPEG" and np.ndim(image) == 3 and np.shape(image)[2] in (2, 4):
         raise InvalidImageError(f"{path}: JPEG holds no alpha channel; name the output "
                                 f"{extensions([f for f in DEPTHS if f != 'JPEG'])}, or drop the alpha channel")
