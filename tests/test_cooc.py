@@ -170,6 +170,37 @@ def test_not_fitted_and_bad_settings(exemplar):
         cooc.CoocGAN(**{**TINY, "crop_size": 64}).fit(exemplar)
 
 
+@pytest.mark.parametrize("name, value, words", [
+    ("crop_size", 32.5, "crop_size must be an integer, got 32.5"),  # was trained at 32
+    ("batch_size", 2.5, "batch_size must be an integer, got 2.5"),
+    ("n_steps", True, "n_steps must be an integer, got True"),  # a bool is not an integer
+    ("n_clusters", "3", "n_clusters must be an integer"),
+    ("g_widths", [8, 4.5], "g_widths entry must be an integer, got 4.5"),
+    ("g_widths", 8, "g_widths must be a sequence of integers"),
+    ("d_widths", [0, 8], "d_widths entries must be positive"),
+    ("lr", True, "lr must be a number, got True"),
+    ("context", "no", "context must be True or False"),
+    ("tiles", 0, "tiles must be positive, got 0"),
+    ("n_steps", -1, "n_steps must be 0 or more, got -1"),
+])
+def test_settings_of_the_wrong_kind_are_refused_by_name(exemplar, monkeypatch, name, value, words):
+    monkeypatch.setattr(cooc.CoocGAN, "_build", lambda *a: pytest.fail("training started"))
+    with pytest.raises(TGHopError) as error:
+        cooc.CoocGAN(**{**TINY, name: value}).fit(exemplar)
+    assert words in str(error.value) and "\n" not in str(error.value)
+
+
+def test_whole_numbers_and_numpy_values_are_settings():
+    from tghop.cooc.config import check_settings
+
+    p = check_settings({**TINY, **{k: v for k, v in cooc.SMALL.items() if k not in TINY}, "crop_size": 32.0,
+                        "batch_size": np.int64(4), "g_widths": np.array([8, 4]), "context": np.bool_(True),
+                        "lr": np.float32(0.5)})
+    assert p["crop_size"] == 32 and type(p["crop_size"]) is int and type(p["batch_size"]) is int
+    assert p["g_widths"] == [8, 4] and all(type(v) is int for v in p["g_widths"]) and p["context"] is True
+    json.dumps(p)  # plain JSON values, as a checkpoint stores them
+
+
 def test_generator_is_fully_convolutional(tiny_model):
     s = tiny_model.s
     assert s == 8
@@ -227,6 +258,24 @@ def test_quilted_sample_is_seeded_and_assemblies_differ(tiny_model, exemplar):
                                   tiny_model.sample((50, 37), rng=5, assembly="pass"))
     with pytest.raises(TGHopError, match="assembly must be one of quilt, pass, windows"):
         tiny_model.sample(32, assembly="whole")
+
+
+def test_baseline_with_a_model_takes_only_its_exemplar(tiny_model, exemplar):
+    from tghop import baselines
+
+    other = data.bricks(48, rng=9)
+    for make in (cooc.baseline, baselines.cooc):
+        with pytest.raises(TGHopError) as error:  # it made the model's texture, whatever the exemplar
+            make(other, 32, rng=0, model=tiny_model)
+        assert str(error.value) == ("the cooc baseline: this exemplar is not the one the model was trained on; "
+                                    "give the same image, or a model trained on this one (model, --model)")
+        with pytest.raises(TGHopError, match="not the one"):  # the same pixels in another shape
+            make(exemplar.reshape(96, 24, 3), 32, rng=0, model=tiny_model)
+        with pytest.raises(TGHopError, match=r"n_steps \(--iterations\) trains the baseline's own model"):
+            make(exemplar, 32, rng=0, model=tiny_model, n_steps=5)  # was ignored
+        with pytest.raises(TGHopError, match="model must be a trained CoocGAN .*got str"):
+            make(exemplar, 32, rng=0, model="m.pt")
+    assert baselines.cooc(exemplar, 32, rng=0, model=tiny_model).shape == (32, 32, 3)
 
 
 @pytest.mark.parametrize("cells, pool", [(4, 1000), (8, 1000), (16, 250), (64, 100)])
@@ -436,7 +485,7 @@ def test_checkpoint_roundtrip_and_resume(tiny_model, exemplar, tmp_path):
     assert resumed.step_ == 4
     for p, q in zip(direct.generator_.state_dict().values(), resumed.generator_.state_dict().values()):
         torch.testing.assert_close(p, q)
-    with pytest.raises(TGHopError, match="not the one"):
+    with pytest.raises(TGHopError, match="resume: this exemplar is not the one the model was trained on"):
         cooc.load(path, device="cpu").fit(data.bricks(48, rng=9), resume=True)
 
 
@@ -529,17 +578,22 @@ def test_average_checkpoint_roundtrip_resume_and_old_files(exemplar, tmp_path):
 
 
 def test_bad_checkpoints(tmp_path):
-    with pytest.raises(ModelFileError, match="no such checkpoint"):
+    # The messages say what to do in Python too, not only on the command line.
+    with pytest.raises(ModelFileError, match="no such checkpoint") as error:
         cooc.load(tmp_path / "missing.pt")
+    assert "CoocGAN().fit(exemplar).save(path)" in str(error.value)
+    assert "'tghop cooc train EXEMPLAR -o missing.pt'" in str(error.value)
     other = tmp_path / "other.pt"
     torch.save({"weight": torch.zeros(3)}, other)
-    with pytest.raises(ModelFileError, match="not a tghop co-occurrence checkpoint"):
+    with pytest.raises(ModelFileError, match="not a tghop co-occurrence checkpoint") as error:
         cooc.load(other)
+    assert "CoocGAN.save" in str(error.value) and "'tghop cooc train'" in str(error.value)
     foreign = tmp_path / "foreign.pt"
     settings = b'{"kind": "something.else", "format": 1}'
     torch.save({"settings_json": torch.frombuffer(bytearray(settings), dtype=torch.uint8)}, foreign)
-    with pytest.raises(ModelFileError, match="another kind"):
+    with pytest.raises(ModelFileError, match="another kind") as error:
         cooc.load(foreign)
+    assert "CoocGAN().fit(exemplar).save(path)" in str(error.value) and "'tghop cooc train'" in str(error.value)
     text = tmp_path / "text.pt"
     text.write_text("hello")
     with pytest.raises(ModelFileError, match="not a tghop"):
@@ -644,8 +698,14 @@ def test_set_parses_words_for_word_settings():
 
     assert parse_settings(["padding=replicate", "gp_every=2", "context=true", "g_widths=[8,4]"]) == {
         "padding": "replicate", "gp_every": 2, "context": True, "g_widths": [8, 4]}
-    with pytest.raises(TGHopError, match="number or a JSON list"):
-        parse_settings(["lr=fast"])
+    # The message gives the form the setting takes (the old one said "a number or a JSON list" for all).
+    for item, words in (("lr=fast", "lr takes a number, e.g. lr=0.0002"),
+                        ("context=False", "context takes true or false, e.g. context=true"),
+                        ("crop_size=big", "crop_size takes an integer, e.g. crop_size=64"),
+                        ("g_widths=(8,4)", "g_widths takes a JSON list of integers, e.g. g_widths=[64,32,16]")):
+        with pytest.raises(TGHopError) as error:
+            parse_settings([item])
+        assert str(error.value) == f"--set {item!r}: {words}"
 
 
 def test_cli_errors(tmp_path):

@@ -1,5 +1,6 @@
 """The cGAN's commands on bad and unusual input (issue #26): images as morph and edit
-sources, flat exemplars, --max-minutes, the note before a baseline's training."""
+sources, flat exemplars, --max-minutes, --set values, the note before a baseline's training
+and the baseline's checkpoint of another exemplar."""
 
 import re
 from pathlib import Path
@@ -148,10 +149,32 @@ def test_max_minutes_stops_saves_and_resume_continues(files, tmp_path):
     r = invoke("cooc", "train", files / "ex.png", "-o", model, "--steps", "3", "--resume", "-q")
     assert r.exit_code == 0, r.output
     assert "3 steps trained" in r.stderr and cooc.load(model).step_ == 3
-    for bad in ("0", "-1", "soon"):
+    for bad in ("0", "-1", "soon", "nan", "inf"):
         assert_user_error(invoke("cooc", "train", files / "ex.png", "-o", tmp_path / "x.pt", "--max-minutes", bad),
                           "--max-minutes")
     assert not (tmp_path / "x.pt").exists()
+
+
+@pytest.mark.parametrize("bad", ["nan", "NaN", "-nan"])
+def test_max_minutes_nan_is_refused_as_out_of_range(files, tmp_path, monkeypatch, bad):
+    monkeypatch.setattr(cooc.CoocGAN, "fit", lambda *a, **k: pytest.fail("training started"))
+    r = invoke("cooc", "train", files / "ex.png", "-o", tmp_path / "x.pt", "--max-minutes", bad, *TINY_SET)
+    assert r.exit_code == 2 and not (tmp_path / "x.pt").exists()  # click's usage error, as for 0 and inf
+    assert "Invalid value for '--max-minutes': nan is not in the range 0<x<=1000000.0" in r.stderr, r.stderr
+
+
+# ------------------------------------------------------------------ integer settings given as fractions
+def test_set_refuses_fractions_of_integer_settings(files, tmp_path, monkeypatch):
+    monkeypatch.setattr(cooc.CoocGAN, "_build", lambda *a: pytest.fail("training started"))
+    out = tmp_path / "x.pt"
+    for item, words in (("crop_size=32.9", "crop_size must be an integer, got 32.9"),  # was trained at 32
+                        ("crop_size=2.7", "crop_size must be an integer, got 2.7"),  # was "crop_size (2) must ..."
+                        ("batch_size=2.5", "batch_size must be an integer, got 2.5"),
+                        ("n_crops=true", "n_crops must be an integer, got True"),
+                        ("context=False", "context takes true or false, e.g. context=true")):
+        assert_user_error(invoke("cooc", "train", files / "ex.png", "-o", out, "--steps", "1", *TINY_SET,
+                                 "--set", item), words)
+        assert not out.exists()
 
 
 # ------------------------------------------------------------------ baseline cooc's note
@@ -176,6 +199,21 @@ def test_baseline_cooc_says_it_trains_first(files, tmp_path, monkeypatch):
     result = CliRunner().invoke(main, ["baseline", "cooc", str(files / "ex.png"), "-o", str(tmp_path / "c.png"), "-q",
                                        "--model", str(files / "m.pt")])
     assert result.exit_code == 0 and "Note:" not in result.output, result.output
+
+
+def test_baseline_cooc_model_refuses_another_exemplar_and_iterations(files, tmp_path):
+    out = tmp_path / "b.png"
+    # m.pt was trained on ex.png: other.png would have been ex.png's texture, without a word.
+    r = invoke("baseline", "cooc", files / "other.png", "--model", files / "m.pt", "-o", out, "--size", "32", "-q")
+    assert_user_error(r, "the cooc baseline: this exemplar is not the one the model was trained on",
+                      "(model, --model)")
+    # --iterations (training steps) with a trained checkpoint was ignored: refused before anything is read.
+    r = invoke("baseline", "cooc", files / "ex.png", "--model", tmp_path / "none.pt", "-o", out, "--iterations", "5")
+    assert_user_error(r, "--iterations applies to the cooc baseline without --model only")
+    assert not out.exists()
+    r = invoke("baseline", "cooc", files / "ex.png", "--model", files / "m.pt", "-o", out, "--size", "32", "-q")
+    assert r.exit_code == 0, r.output
+    assert png(out).shape == (32, 32, 3)
 
 
 def test_help_and_readme_agree_on_the_training_time():

@@ -15,7 +15,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
-from .options import Size
+from .options import FloatRange, Size
 
 #: Longest morph strip, in condition cells.
 MAX_CELLS = 4096
@@ -33,8 +33,26 @@ class LossProgress(Progress):
                      f"cooc {losses['consistency']:.3f}")
 
 
+def value_form(key: str) -> str:
+    """What ``--set KEY=VALUE`` takes for setting ``key`` (by its default's type), with an example."""
+    from ..cooc import SMALL
+
+    default = SMALL[key]
+    if isinstance(default, str):
+        return f"one of zeros, reflect, replicate, e.g. {key}=reflect"
+    if isinstance(default, bool):
+        return f"true or false, e.g. {key}=true"
+    if isinstance(default, (list, tuple)):
+        return f"a JSON list of integers, e.g. {key}={json.dumps(list(default), separators=(',', ':'))}"
+    if isinstance(default, int):
+        return f"an integer, e.g. {key}={default}"
+    return f"a number, e.g. {key}={default:g}"
+
+
 def parse_settings(pairs) -> dict:
-    """``KEY=VALUE`` strings -> dict (VALUE parsed as JSON: numbers, lists)."""
+    """``KEY=VALUE`` strings -> dict (VALUE parsed as JSON: numbers, lists, true and false;
+    padding's words as they are). The values are checked when the model trains
+    (:func:`tghop.cooc.config.check_settings`)."""
     from ..cooc import SMALL
 
     out = {}
@@ -49,8 +67,7 @@ def parse_settings(pairs) -> dict:
             if isinstance(SMALL[key], str):  # a word setting: padding=replicate
                 out[key] = value.strip()
                 continue
-            raise TGHopError(f"--set {item!r}: the value must be a number or a JSON list, "
-                             "e.g. g_widths=[64,32,16]") from None
+            raise TGHopError(f"--set {item!r}: {key} takes {value_form(key)}") from None
     return out
 
 
@@ -103,7 +120,7 @@ def cooc():
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a setting, e.g. --set crop_size=32 --set g_widths=[32,16] (repeatable).")
 @click.option("--resume", is_flag=True, help="Continue the checkpoint at OUTPUT (same exemplar) up to --steps.")
-@click.option("--max-minutes", type=click.FloatRange(min=0, min_open=True, max=1e6), default=None, metavar="M",
+@click.option("--max-minutes", type=FloatRange(min=0, min_open=True, max=1e6), default=None, metavar="M",
               help="Stop training after M minutes and write the checkpoint (--resume continues it).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the training (initial weights, batches).")

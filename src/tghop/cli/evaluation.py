@@ -106,9 +106,10 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
               help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
-                   "cooc: training steps (default 5500). gpdm: Adam steps per pyramid level (default 300).")
+                   "cooc: training steps (default 5500; not with --model). "
+                   "gpdm: Adam steps per pyramid level (default 300).")
 @click.option("--model", "model_file", default=None,
-              help="cooc: a checkpoint from 'tghop cooc train' to generate from instead of training.")
+              help="cooc: a checkpoint from 'tghop cooc train' on this EXEMPLAR to generate from instead of training.")
 @click.option("--assembly", type=click.Choice(["quilt", "pass", "windows"]), default=None,
               help="cooc: how the image is made from the generator: quilt (default: generated training-size "
                    "crops stitched by image quilting), pass (the paper's: one pass over the whole condition), "
@@ -142,6 +143,9 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
         for option, value in (("--model", model_file), ("--assembly", assembly)):
             if value is not None and name != "cooc":
                 raise TGHopError(f"{option} applies to the cooc baseline only")
+        if iterations is not None and model_file is not None:
+            raise TGHopError("--iterations applies to the cooc baseline without --model only (it sets the training "
+                             "steps; the checkpoint is trained already)")
         ex = load_exemplar(exemplar)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
         if name == "gpdm":

@@ -1,5 +1,6 @@
 """Command-line options made from the settings table (:data:`tghop.settings.SETTINGS`)
-and the parameter types of the ``tghop`` command line (sizes, channel rules).
+and the parameter types of the ``tghop`` command line (sizes, channel rules, float
+ranges that refuse NaN).
 
 Each value is checked by the library's own check (:func:`tghop._common.check_size`,
 :func:`tghop.settings.check_channel_rule`, :meth:`tghop.settings.Setting.check`), so
@@ -8,6 +9,7 @@ the command line and the library refuse the same values with the same words.
 
 from __future__ import annotations
 
+import math
 import re
 
 import click
@@ -15,8 +17,9 @@ import click
 from .._errors import TGHopError
 from ..fit_options import OFF, setting_value
 
-__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "depth_option", "ChannelRule", "Size", "SettingType",
-           "model_options", "generation_options", "FIT_OPTION_PARAMS", "generation_params", "given_options"]
+__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "depth_option", "ChannelRule", "Size", "FloatRange",
+           "SettingType", "model_options", "generation_options", "FIT_OPTION_PARAMS", "generation_params",
+           "given_options"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -59,6 +62,17 @@ class ChannelRule(click.ParamType):
             return check_channel_rule(rule, repr(value))
         except TGHopError as exc:
             self.fail(str(exc), param, ctx)
+
+
+class FloatRange(click.FloatRange):
+    """:class:`click.FloatRange` that also refuses NaN (which passes every comparison, so
+    click's range lets it through), with click's own message: "nan is not in the range ..."."""
+
+    def convert(self, value, param, ctx):
+        rv = super().convert(value, param, ctx)
+        if math.isnan(rv):
+            self.fail(f"{rv} is not in the range {self._describe_range()}.", param, ctx)
+        return rv
 
 
 class Size(click.ParamType):

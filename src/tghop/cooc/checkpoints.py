@@ -109,17 +109,20 @@ def read(path, model_class, *, device: str = "auto"):
     """
     path = Path(path)
     if not path.is_file():
-        raise ModelFileError(f"{path}: no such checkpoint; train one with: tghop cooc train EXEMPLAR -o {path.name}")
+        raise ModelFileError(f"{path}: no such checkpoint; check the path, or train one (CoocGAN().fit(exemplar)"
+                             f".save(path), or 'tghop cooc train EXEMPLAR -o {path.name}')")
     torch = import_torch("The co-occurrence cGAN")
     try:
         tensors = torch.load(path, map_location="cpu", weights_only=True)
         settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())
     except Exception:
-        raise ModelFileError(f"{path}: not a tghop co-occurrence checkpoint (written by 'tghop cooc train')") from None
+        raise ModelFileError(f"{path}: not a tghop co-occurrence checkpoint (one is written by CoocGAN.save or "
+                             "'tghop cooc train')") from None
     if not isinstance(settings, dict) or settings.get("kind") != KIND:
         raise ModelFileError(f"{path}: a checkpoint of another kind "
                              f"({settings.get('kind') if isinstance(settings, dict) else '?'!r}), "
-                             "not a tghop co-occurrence model; train one with 'tghop cooc train'")
+                             "not a tghop co-occurrence model; train one (CoocGAN().fit(exemplar).save(path), "
+                             "or 'tghop cooc train')")
     if settings.get("format") != FORMAT:
         raise ModelFileError(f"{path}: checkpoint format {settings.get('format')} but this tghop reads "
                              f"format {FORMAT}; train it again with this version")

@@ -9,6 +9,9 @@ value; :func:`check_settings` turns a model's settings into plain, checked JSON 
 from __future__ import annotations
 
 import math
+import numbers
+
+import numpy as np
 
 from .._common import TGHopError
 
@@ -59,9 +62,28 @@ PAPER = dict(
 PARAMS = tuple(SMALL) + ("device", "rng")
 
 
+def _whole(name, value) -> int:
+    """``value`` as an int: an integer, or a float with no fraction (64.0); a bool, a
+    fraction (64.5) or a string is refused with the setting's ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or (
+            not isinstance(value, numbers.Integral) and not (math.isfinite(value) and float(value).is_integer())):
+        raise TGHopError(f"{name} must be an integer, got {value!r}")
+    return int(value)
+
+
+def _number(name, value) -> float:
+    """``value`` as a float; a bool or a string is refused with the setting's ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise TGHopError(f"{name} must be a number, got {value!r}")
+    return float(value)
+
+
 def check_settings(values) -> dict:
     """The training settings in ``values`` (a mapping with every key of :data:`SMALL`) as
     plain JSON values, checked: a one-line :class:`TGHopError` for a bad one.
+
+    Integer settings take integers (or floats without a fraction, 64.0), never a bool or
+    a fraction; the widths are sequences of them; ``context`` is a bool (or 0 or 1).
 
     Returns
     -------
@@ -71,17 +93,23 @@ def check_settings(values) -> dict:
     p = {name: values[name] for name in SMALL}
     ints = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "n_crops",
             "batch_size", "n_steps", "n_critic", "tiles", "kernel", "gp_every")
-    try:
-        for name in ints:
-            p[name] = int(p[name])
-        for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc", "ema", "lr_decay"):
-            p[name] = float(p[name])
-        p["g_widths"] = [int(v) for v in p["g_widths"]]
-        p["d_widths"] = [int(v) for v in p["d_widths"]]
-    except (TypeError, ValueError):
-        raise TGHopError(f"CoocGAN settings must be numbers (widths: sequences of int), got {p}") from None
-    if any(p[name] < 1 for name in ints if name != "n_steps") or p["n_steps"] < 0:
-        raise TGHopError("CoocGAN integer settings must be positive (n_steps may be 0)")
+    for name in ints:
+        p[name] = _whole(name, p[name])
+    for name in ("sigma", "lr", "beta1", "beta2", "lambda_gp", "lambda_cooc", "ema", "lr_decay"):
+        p[name] = _number(name, p[name])
+    for name in ("g_widths", "d_widths"):
+        try:
+            if isinstance(p[name], (str, bytes)):
+                raise TypeError
+            widths = list(p[name])
+        except TypeError:
+            raise TGHopError(f"{name} must be a sequence of integers, got {p[name]!r}") from None
+        p[name] = [_whole(f"{name} entry", v) for v in widths]
+        if any(v < 1 for v in p[name]):
+            raise TGHopError(f"{name} entries must be positive integers, got {p[name]}")
+    for name in ints:
+        if p[name] < (0 if name == "n_steps" else 1):
+            raise TGHopError(f"{name} must be {'0 or more' if name == 'n_steps' else 'positive'}, got {p[name]}")
     if p["n_layers"] < 2:
         raise TGHopError(f"n_layers must be at least 2, got {p['n_layers']}")
     if p["crop_size"] % (2 ** p["n_layers"]):
@@ -93,6 +121,9 @@ def check_settings(values) -> dict:
         raise TGHopError(f"kernel must be odd, got {p['kernel']}")
     if p["padding"] not in ("zeros", "reflect", "replicate"):
         raise TGHopError(f"padding must be 'zeros', 'reflect' or 'replicate', got {p['padding']!r}")
+    if not isinstance(p["context"], (bool, np.bool_)) and not (
+            isinstance(p["context"], numbers.Integral) and p["context"] in (0, 1)):
+        raise TGHopError(f"context must be True or False, got {p['context']!r}")
     p["context"] = bool(p["context"])
     if not 0 <= p["lr_decay"] <= 1:
         raise TGHopError(f"lr_decay must be in [0, 1], got {p['lr_decay']}")

@@ -757,9 +757,11 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
         Seeds training (when ``model`` is None) and generation.
     progress : callable, optional
     model : CoocGAN, optional
-        A trained model to use instead of training one.
+        A trained model to use instead of training one; ``exemplar`` must be the image it
+        was trained on (else :class:`TGHopError`).
     n_steps : int, optional
-        Generator steps of the training (default :data:`~tghop.cooc.config.SMALL`'s).
+        Generator steps of the training (default :data:`~tghop.cooc.config.SMALL`'s); only
+        without ``model`` (with it, :class:`TGHopError`).
     assembly : {"quilt", "pass", "windows"}
         How the image is made from the generator (see :meth:`CoocGAN.sample`; ``"pass"``
         is the paper's way).
@@ -770,6 +772,14 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
     """
     check_assembly(assembly)  # before any training
     img = check_image(exemplar, name="exemplar")
+    if model is not None:
+        if not isinstance(model, CoocGAN):
+            raise TGHopError("model must be a trained CoocGAN (tghop.cooc.load(path) reads a checkpoint), "
+                             f"got {type(model).__name__}")
+        if n_steps is not None:
+            raise TGHopError("n_steps (--iterations) trains the baseline's own model: drop it, or drop model (--model)")
+        model._check_exemplar(img, "the cooc baseline", "give the same image, or a model trained on this one "
+                              "(model, --model)")
     h, w = check_size(size, default=img.shape[:2])  # likewise
     if model is None:
         check_texture(img)  # fit's own check, made before the memory's

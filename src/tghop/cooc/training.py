@@ -74,6 +74,13 @@ class TrainingMixin:
     ``_opt_d`` and ``_torch_gen`` (the random numbers of training).
     """
 
+    def _check_exemplar(self, img: np.ndarray, what: str, fix: str) -> None:
+        """Refuse ``img`` (a checked exemplar) unless it is the one this trained model was
+        trained on: "``what``: this exemplar is not the one ...; ``fix``"."""
+        self._check_fitted()
+        if tuple(img.shape) != tuple(self.exemplar_shape_) or _exemplar_hash(img) != self.exemplar_hash_:
+            raise TGHopError(f"{what}: this exemplar is not the one the model was trained on; {fix}")
+
     # ------------------------------------------------------------------ the loop
     def fit(self, exemplar, *, resume: bool = False, max_seconds: Optional[float] = None,
             progress: Optional[ProgressCallback] = None,
@@ -112,10 +119,7 @@ class TrainingMixin:
         img = check_image(exemplar, name="exemplar")
         check_texture(img)  # a flat image has nothing to learn: refused before any training, as fit's
         if resume:
-            self._check_fitted()
-            if _exemplar_hash(img) != self.exemplar_hash_:
-                raise TGHopError("resume: this exemplar is not the one the checkpoint was trained on; "
-                                 "give the same image, or train afresh")
+            self._check_exemplar(img, "resume", "give the same image, or train afresh")
             self.settings_ = {**self.settings_, "n_steps": self._settings()["n_steps"]}
             self._rebuild_crops(torch, img, progress)
         else:
