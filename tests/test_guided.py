@@ -247,3 +247,18 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     r = _run(["morph", "missing.npz", "b.npz", "-o", "big.png", "--size", "8192x8192", "--grid", "2"], tmp_path)
     assert_user_error(r, "--grid 2 strips of 8192x8192 make a 16384x8192 image", "fewer strips or a smaller --size")
     assert not (tmp_path / "big.png").exists()
+
+
+def test_a_path_or_a_non_callable_progress_is_named(models, tmp_path):
+    # A path among the models failed in vars(); a progress that is not a function was called anyway.
+    from tghop.modelfile import save_model
+
+    with pytest.raises(TGHopError, match=r"expected a fitted model, got str 'cells.npz' \(a model file is read by "
+                                         r"tghop.modelfile.load_model\)"):
+        tghop.synthesize_guided([models[0], "cells.npz"], size=(48, 48))
+    with pytest.raises(TGHopError, match="save_model writes a fitted TGHop or Material, got str"):
+        save_model("x", tmp_path / "m.npz")
+    assert not (tmp_path / "m.npz").exists()
+    with pytest.raises(TGHopError, match=r"progress must be a function progress\(stage, done, total\) or None, got "
+                                         "str"):
+        models[0].synthesize((48, 48), rng=0, progress="x", **GEN)

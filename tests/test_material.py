@@ -220,8 +220,8 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, t
     # Review 58, item 7: `tghop synth MAT OTHER` said "only 'tghop synth' and 'tghop info' take it".
     save_model(material, tmp_path / "mat.npz")
     save_image(np.full((64, 64), 0.5), tmp_path / "g.png")  # one level: one SOURCE
-    for args in (["synth", "mat.npz", "mat.npz", "-o", "o.png"], ["synth", "mat.npz", "-o", "o.png", "--guide", "g.png"],
-                 ["patches", "mat.npz", "-o", "o.png"]):
+    for args in (["synth", "mat.npz", "mat.npz", "-o", "o.png"],
+                 ["synth", "mat.npz", "-o", "o.png", "--guide", "g.png"], ["patches", "mat.npz", "-o", "o.png"]):
         res = CliRunner().invoke(main, [str(tmp_path / a) if a.endswith(("npz", "g.png")) else a for a in args])
         assert res.exit_code == 1 and "Traceback" not in res.output, res.output
         assert "is a material (" in res.output and "one SOURCE of 'tghop synth' without --guide" in res.output

@@ -250,3 +250,12 @@ def test_gram_distance_drops_filters_that_do_not_fit(exemplar):
     assert metrics.gram_distance(exemplar, small) > 0
     with pytest.raises(InvalidImageError):
         metrics.gram_distance(exemplar, small, scales=(15, 23))
+
+
+def test_evaluate_names_a_shape_of_too_many_dimensions():
+    # A batch of one, (1, H, W, C), was "1x64 pixels" too small for the metric.
+    img = data.bricks(64)
+    for args, name in (((img, img[None]), "result"), ((img[None], img), "exemplar")):
+        with pytest.raises(InvalidImageError, match=rf"{name} must have shape \(H, W\) or \(H, W, C\), got "
+                                                    r"\(1, 64, 64, 3\)"):
+            metrics.evaluate(*args, metrics=["swd"])

@@ -142,6 +142,9 @@ class StoredArrays:
 def check_is_fitted(estimator, attributes) -> None:
     """Raise :class:`NotFittedError` unless ``estimator`` has every attribute in ``attributes``."""
     names = [attributes] if isinstance(attributes, str) else list(attributes)
+    if not hasattr(estimator, "__dict__"):  # a path or a number where a model belongs
+        raise TGHopError(f"expected a fitted model, got {type(estimator).__name__} {str(estimator)[:60]!r} "
+                         "(a model file is read by tghop.modelfile.load_model)")
     if not all(name in vars(estimator) for name in names):
         raise NotFittedError(
             f"this {type(estimator).__name__} is not fitted yet; call 'fit' with an exemplar first "
@@ -160,6 +163,9 @@ RngLike = Union[None, int, np.integer, np.random.Generator]
 def report(progress: Optional[ProgressCallback], stage: str, done: int, total: int) -> None:
     """Call ``progress`` if one was given."""
     if progress is not None:
+        if not callable(progress):
+            raise TGHopError(f"progress must be a function progress(stage, done, total) or None, "
+                             f"got {type(progress).__name__}")
         progress(stage, int(done), int(total))
 
 

@@ -60,6 +60,8 @@ READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9)
 
 def save_model(model, path) -> None:
     """Write a fitted model to ``path`` (any name; the file appears whole or not at all)."""
+    if not isinstance(model, (TGHop, Material)):
+        raise TGHopError(f"save_model writes a fitted TGHop or Material, got {type(model).__name__}")
     arrays = model._to_arrays()  # NotFittedError before anything else
     meta = {"format": FORMAT, "tghop_version": __version__, **model._state_meta()}
     new = "material" in meta or any(name.startswith("patch.") or "ichm_iv." in name or "ichm_coupling." in name

@@ -102,8 +102,9 @@ def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
     Raises
     ------
     InvalidImageError
-        If an image has more than :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192),
-        or is smaller than a chosen metric needs (saying how large it must be).
+        If an image is not of shape (H, W) or (H, W, C), has more than
+        :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192), or is smaller than a chosen
+        metric needs (saying how large it must be).
     """
     names = _metric_names(metrics)
     needs = [(_info(n).min_size, n) for n in names]
@@ -111,6 +112,8 @@ def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
         needs.append((DIVERSITY_MIN_SIZE, "diversity"))
     need, which = max(needs)
     for name, shape in shapes.items():
+        if len(shape) not in (2, 3):
+            raise InvalidImageError(f"{name} must have shape (H, W) or (H, W, C), got {tuple(shape)}")
         h, w = int(shape[0]), int(shape[1])
         if h * w > MAX_PIXELS:
             side = math.isqrt(MAX_PIXELS)
