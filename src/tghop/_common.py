@@ -235,7 +235,7 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     if h < min_size or w < min_size:
         raise InvalidImageError(
             f"{name} is {h}x{w} pixels but at least {min_size}x{min_size} is needed; "
-            "use a larger exemplar or a smaller patch size"
+            "give a larger image"
         )
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
 
