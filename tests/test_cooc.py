@@ -190,6 +190,14 @@ def test_settings_of_the_wrong_kind_are_refused_by_name(exemplar, monkeypatch, n
     assert words in str(error.value) and "\n" not in str(error.value)
 
 
+@pytest.mark.parametrize("value", [float("nan"), 0, -1.0, "5"])
+def test_max_seconds_not_above_zero_is_refused_before_training(exemplar, monkeypatch, value):
+    # NaN never compared as "time is up": the training ran its whole n_steps.
+    monkeypatch.setattr(cooc.CoocGAN, "_build", lambda *a: pytest.fail("training started"))
+    with pytest.raises(TGHopError, match="max_seconds must be a number of seconds above 0, or None"):
+        cooc.CoocGAN(**TINY).fit(exemplar, max_seconds=value)
+
+
 def test_whole_numbers_and_numpy_values_are_settings():
     from tghop.cooc.config import check_settings
 

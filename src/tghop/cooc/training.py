@@ -26,6 +26,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import math
+import numbers
 import time
 from typing import Callable, Optional
 
@@ -115,6 +116,8 @@ class TrainingMixin:
         cooc train`` does): without it the process's memory can grow step after step.
         ``fit`` leaves that process-wide setting to its caller.
         """
+        if max_seconds is not None and not (isinstance(max_seconds, numbers.Real) and max_seconds > 0):
+            raise TGHopError(f"max_seconds must be a number of seconds above 0, or None, got {max_seconds!r}")
         torch = import_torch("The co-occurrence cGAN")
         img = check_image(exemplar, name="exemplar")
         check_texture(img)  # a flat image has nothing to learn: refused before any training, as fit's
