@@ -65,13 +65,13 @@ class ChannelRule(click.ParamType):
 
 
 class FloatRange(click.FloatRange):
-    """:class:`click.FloatRange` that also refuses NaN (which passes every comparison, so
-    click's range lets it through), with click's own message: "nan is not in the range ..."."""
+    """:class:`click.FloatRange` that also refuses NaN (which fails no comparison, so click's
+    range lets it through): "nan is not a number; give one in the range"."""
 
     def convert(self, value, param, ctx):
         rv = super().convert(value, param, ctx)
         if math.isnan(rv):
-            self.fail(f"{rv} is not in the range {self._describe_range()}.", param, ctx)
+            self.fail(f"{value!r} is not a number; give a number in the option's range (see --help)", param, ctx)
         return rv
 
 
