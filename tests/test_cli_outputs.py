@@ -211,6 +211,35 @@ def test_ctrl_c_during_the_write_still_says_interrupted(folder, tmp_path):
 
 
 
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_stop_lost_in_a_garbage_collector_callback_is_delivered_again(signame):
+    # A Ctrl-C whose KeyboardInterrupt was raised inside a gc callback (Dask's GCDiagnosis)
+    # was printed as "Exception ignored ... Traceback" and dropped; the Ctrl-Cs after it were
+    # ignored, so a batch ran on to its end (exit 0).
+    code = (
+        "import gc, os, signal, sys, time\n"
+        "from tghop.cli import group\n"
+        "signal.signal(signal.SIGINT, group._interrupted)\n"
+        "signal.signal(signal.SIGTERM, group._terminated)\n"
+        "sys.unraisablehook = group._redeliver_lost_stops(sys.unraisablehook)\n"
+        "fired = []\n"
+        "def callback(phase, info):\n"
+        "    if phase == 'start' and not fired:\n"
+        f"        fired.append(1); os.kill(os.getpid(), signal.{signame})\n"
+        "        for _ in range(100000): pass  # the handler runs here, in the callback\n"
+        "gc.callbacks.append(callback)\n"
+        "try:\n"
+        "    gc.collect()\n"
+        "    for _ in range(300): time.sleep(0.01)\n"
+        "    print('ran on', flush=True)\n"
+        "except KeyboardInterrupt as exc:\n"
+        "    print('stopped', type(exc).__name__, flush=True)\n"
+    )
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    name = "KeyboardInterrupt" if signame == "SIGINT" else "Terminated"
+    assert p.stdout.decode() == f"stopped {name}\n" and p.stderr == b"", (p.stdout, p.stderr.decode())
+
+
 def test_ctrl_c_after_the_first_is_ignored_to_the_end(folder, tmp_path):
     # Ctrl-C held down (or a terminal that sends several): the first stops the command; the
     # others, up to the end of the process, neither raise again (a second line, a

@@ -13,6 +13,7 @@ from __future__ import annotations
 import gc
 import signal
 import sys
+import threading
 
 import click
 
@@ -56,6 +57,32 @@ def _interrupted(signum, frame):
 def _terminated(signum, frame):
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in _interrupted: the command is stopping
     raise Terminated(signum)
+
+
+def _redeliver_lost_stops(hook):
+    """A :data:`sys.unraisablehook` that gives the command a Ctrl-C (or SIGTERM/SIGHUP) that
+    Python lost: raised inside a garbage-collector callback or a ``__del__`` (Dask's
+    ``GCDiagnosis`` has one), the KeyboardInterrupt is printed as "Exception ignored" with a
+    traceback and dropped, and since :func:`_interrupted` ignores the Ctrl-Cs after the
+    first, the command would run on to its end. The signal is sent again a moment later,
+    with its handler back in place, so that it stops the command in ordinary code; other
+    unraisable exceptions go to ``hook``."""
+
+    def handle(unraisable):
+        exc = unraisable.exc_value
+        if isinstance(exc, KeyboardInterrupt) and threading.current_thread() is threading.main_thread():
+            import os
+
+            signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+            signal.signal(signum, _terminated if isinstance(exc, Terminated) else _interrupted)
+            # Sent from a thread a moment later: sent here, its handler would raise in this hook.
+            timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+            return
+        hook(unraisable)
+
+    return handle
 
 
 def _stop_on_signals():
@@ -110,9 +137,10 @@ class OneLineGroup(click.Group):
         and the command would go on as if nothing had happened); then Ctrl-C, unless the
         caller set it to be ignored, raises KeyboardInterrupt once (:func:`_interrupted`:
         the first stops the command, those after it are ignored while it cleans up and
-        exits); and the objects that exist after the imports and at exit are handed to the
-        garbage collector's permanent generation (``gc.freeze``), so that its collections
-        during the run and at exit do not walk them. A program that runs the command line
+        exits; one that Python lost in a callback is sent again,
+        :func:`_redeliver_lost_stops`); and the objects that exist after the imports and at
+        exit are handed to the garbage collector's permanent generation (``gc.freeze``), so
+        that its collections during the run and at exit do not walk them. A program that runs the command line
         in-process keeps its signal handling and its collector as they were.
         """
         try:
@@ -122,6 +150,7 @@ class OneLineGroup(click.Group):
                 if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:  # `tghop ... &` in a script ignores it
                     signal.signal(signal.SIGINT, _interrupted)
                 _stop_on_signals()
+                sys.unraisablehook = _redeliver_lost_stops(sys.unraisablehook)
             rc = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
             sys.stdout.flush()  # a full disk behind `> file` shows here, not at exit
         except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
