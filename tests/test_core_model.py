@@ -702,3 +702,110 @@ def test_uint8_and_float_exemplars_of_the_same_pixels_give_the_same_model():
     assert [name for name in a if not np.array_equal(a[name], b[name])] == []
     assert np.array_equal(eight.synthesize((64, 64), rng=1, n_patches=300),
                           floats.synthesize((64, 64), rng=1, n_patches=300))
+
+
+# ------------------------------------------------------------------ input checks of SDR and ICHM
+def _with(a, value, index=0):
+    a = np.array(a, dtype=np.float64)
+    a.flat[index] = value
+    return a
+
+
+@pytest.fixture(scope="module")
+def core_and_z():
+    Y = np.random.default_rng(7).random((120, 4, 4, 3))
+    return Y, SpatialReduction(gamma=0.001).fit_transform(Y)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda Y: _with(Y, np.nan), "Y contains NaN or infinite values"),
+    (lambda Y: _with(Y, np.inf, 5), "Y contains NaN or infinite values"),
+    (lambda Y: Y[0], r"Y must have shape \(n_samples, h, w, K\) of core responses, got \(4, 4, 3\)"),
+    (lambda Y: Y[:0], r"Y must have at least 2 rows \(samples\), got shape \(0, 4, 4, 3\)"),
+    (lambda Y: [["a"]], "Y must be an array of numbers"),
+])
+def test_sdr_fit_refuses_bad_core_responses(core_and_z, make, message):
+    with pytest.raises(TGHopError, match=message):
+        SpatialReduction().fit(make(core_and_z[0]))
+
+
+def test_a_failed_sdr_fit_leaves_it_unfitted(core_and_z):
+    Y = core_and_z[0]
+    s = SpatialReduction(gamma=1e9)
+    with pytest.raises(TGHopError, match="drops every spatial component"):
+        s.fit(Y)
+    with pytest.raises(NotFittedError):
+        s.transform(Y)
+    s = SpatialReduction(gamma=0.001).fit(Y)
+    with pytest.raises(TGHopError, match="drops every spatial component"):
+        s.set_params(gamma=1e9).fit(Y)
+    with pytest.raises(NotFittedError):  # the previous fit is forgotten too
+        s.transform(Y)
+
+
+def test_sdr_transforms_check_the_fitted_shape(core_and_z):
+    Y, z = core_and_z
+    s = SpatialReduction(gamma=0.001).fit(Y)
+    for bad in (Y[..., :2], Y[:, :2, :2], Y[0]):
+        with pytest.raises(TGHopError, match=r"Y must have shape \(n, 4, 4, 3\) for this fitted model"):
+            s.transform(bad)
+    d = z.shape[1]
+    for bad in (z[:, :5], z[0]):
+        with pytest.raises(TGHopError, match=rf"Z must have shape \(n, D_r\) = \(n, {d}\) for this fitted model"):
+            s.inverse_transform(bad)
+    np.testing.assert_allclose(s.inverse_transform(s.transform(Y)).shape, Y.shape)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda z: _with(z, np.nan), "Z contains NaN or infinite values"),
+    (lambda z: _with(z, -np.inf), "Z contains NaN or infinite values"),
+    (lambda z: z[0], r"Z must have shape \(n_samples, D_r\), got \(\d+,\)"),
+    (lambda z: z[:, :, None, None], r"Z must have shape \(n_samples, D_r\), got \(120, \d+, 1, 1\)"),
+    (lambda z: z[:, :0], r"D_r >= 1"),
+])
+def test_ichm_fit_refuses_bad_vectors(core_and_z, make, message):
+    with pytest.raises(TGHopError, match=message) as info:
+        ICHM(n_clusters=4, rng=0).fit(make(core_and_z[1]))
+    assert "\n" not in str(info.value)
+
+
+def test_ichm_members_raise_not_fitted_before_fit():
+    u = ICHM(n_clusters=4)
+    calls = [lambda: u.sample_residual(3), lambda: u.mix(np.zeros(3, int), [np.zeros((3, 2))]),
+             lambda: u.mix_by_cluster(np.zeros(3, int), [np.zeros((3, 2))]), lambda: u.mixing_shape_,
+             lambda: u.mixing_as(np.float32), lambda: u.p_, lambda: u.mixing_, lambda: u.sample(3)]
+    for call in calls:
+        with pytest.raises(NotFittedError, match="not fitted yet"):
+            call()
+    assert not hasattr(u, "p_")
+
+
+def test_a_failed_ichm_fit_leaves_it_unfitted(core_and_z):
+    z = core_and_z[1]
+    m = ICHM(n_clusters=4, residual=True, rng=0)
+    with pytest.raises(TGHopError, match="groups must have one entry per dimension"):
+        m.fit(z, groups=np.zeros(3, int))
+    with pytest.raises(NotFittedError):
+        m.sample(3, rng=0)
+    assert not [name for name in vars(m) if name.endswith("_") or name in ("_stored_mixing", "_mixing")]
+
+
+@pytest.mark.parametrize("n", [-1, 2.7, "a", True, None])
+def test_ichm_sample_checks_n(ichm_fit, n):
+    _, model = ichm_fit
+    for call in (model.sample, model.sample_sources, model.sample_residual):
+        with pytest.raises(TGHopError, match="n must be a non-negative integer"):
+            call(n, rng=0)
+
+
+def test_ichm_sample_takes_numpy_and_zero_counts(ichm_fit):
+    _, model = ichm_fit
+    assert model.sample(np.int64(5), rng=0)[0].shape == (5, 6)
+    assert model.sample(0, rng=0)[0].shape == (0, 6)
+
+
+def test_ichm_docstring_gives_the_coupling_range_of_the_settings():
+    from tghop.settings import BY_NAME
+
+    setting = BY_NAME["coupling"]
+    assert f"coupling : float in [{setting.low:g}, {setting.high:g}]" in ICHM.__doc__

@@ -183,3 +183,105 @@ def test_hop_channel_errors_count_in_the_singular_too():
         TGHop(n_channels=(5, 10), n_clusters=5, max_patches=200, layout_factor=None, rng=0).fit(grey)
     with pytest.raises(TGHopError, match="1 hop needs a patch size divisible by 2"):
         TGHop(n_channels=(4,), patch_size=5, rng=0).fit(grey)
+
+
+# ------------------------------------------------------------------ input checks
+@pytest.fixture(scope="module")
+def small_patches(bricks96):
+    return extract_patches(bricks96, 32, stride=8)
+
+
+def _nan(a, value=np.nan):
+    a = np.array(a, dtype=np.float64)
+    a.flat[0] = value
+    return a
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda p: Saab().fit(_nan(p.reshape(len(p), -1)[:, :12])), "X contains NaN or infinite values"),
+    (lambda p: Saab().fit(_nan(p.reshape(len(p), -1)[:, :12], np.inf)), "X contains NaN or infinite values"),
+    (lambda p: Hop().fit(p[:0]), r"X must have at least 1 row"),
+    (lambda p: HopStack().fit(p[:0]), r"X must have at least 1 row"),
+    (lambda p: Hop().fit(_nan(p)), "X contains NaN or infinite values"),
+    (lambda p: HopStack().fit(_nan(p)), "X contains NaN or infinite values"),
+    (lambda p: HopStack().fit(np.zeros(5)), r"X must have shape \(n_patches, P, P, C\), got \(5,\)"),
+    (lambda p: HopStack(n_channels=9).fit(p), r"n_channels must be a sequence of one rule per hop.*got 9"),
+    (lambda p: HopStack(n_channels=()).fit(p), "n_channels must name at least one hop"),
+    (lambda p: HopStack(n_channels=(0, 22)).fit(p), "n_channels: K1 must be at least 1"),
+    (lambda p: Hop(n_channels=0).fit(p), "n_channels must be at least 1"),
+    (lambda p: Hop().fit_blocks(np.ones((10, 7))), r"blocks must have shape \(m, 4 \* C\)"),
+    (lambda p: Hop().fit_blocks(np.ones(10)), r"blocks must have shape \(m, 4 \* C\), got \(10,\)"),
+    (lambda p: Hop().fit_blocks(np.ones((10, 4)), weights=np.ones(3)), r"weights must be \(10,\) numbers"),
+    (lambda p: Hop().fit_blocks(np.ones((10, 4)), weights=np.zeros(10)), "at least one block of weight > 0"),
+    (lambda p: Saab(n_components=100).fit(p.reshape(len(p), -1)[:, :12]),
+     r"at most 12 components, got n_components=100; choose at most 12"),
+    (lambda p: Saab(n_components=0).fit(p.reshape(len(p), -1)[:, :12]), "n_components must be at least 1"),
+])
+def test_saab_and_hops_refuse_bad_input_with_one_line_errors(small_patches, call, message):
+    with pytest.raises(TGHopError, match=message) as info:
+        call(small_patches)
+    assert "\n" not in str(info.value)
+
+
+def test_saab_transforms_check_the_fitted_width(rng):
+    X = rng.random((200, 12))
+    s = Saab().fit(X)
+    Y = s.transform(X)
+    with pytest.raises(TGHopError, match=r"X must have shape \(n, d\) = \(n, 12\) for this fitted model, got \(200, 5"):
+        s.transform(X[:, :5])
+    with pytest.raises(TGHopError, match=r"Y must have shape \(n, k\) = \(n, 12\).*got \(200, 3\)"):
+        s.inverse_transform(Y[:, :3])
+    with pytest.raises(TGHopError, match="X must have shape"):
+        s.transform(X[0])
+
+
+def test_a_failed_fit_leaves_saab_hop_and_stack_unfitted(small_patches, rng):
+    X = rng.random((200, 12))
+    s = Saab().fit(X)
+    with pytest.raises(TGHopError):
+        s.set_params(n_components=100).fit(X)
+    with pytest.raises(NotFittedError):
+        s.transform(X)
+    stack = HopStack(n_channels=(9, 22)).fit(small_patches)
+    with pytest.raises(TGHopError, match="K2.*at least 9"):
+        stack.set_params(n_channels=(9, 5)).fit(small_patches)
+    with pytest.raises(NotFittedError):
+        stack.transform(small_patches)
+    hop = Hop(n_channels=4, channelwise=True).fit(small_patches)
+    with pytest.raises(TGHopError, match="keeps at least 3"):
+        hop.set_params(n_channels=2).fit(small_patches)
+    with pytest.raises(NotFittedError):
+        hop.transform(small_patches)
+
+
+def test_a_fitted_stack_keeps_no_training_output(bricks96):
+    import pickle
+
+    p = extract_patches(bricks96, 32, stride=4)
+    stack = HopStack().fit(p)
+    assert not [name for name in vars(stack) if name.startswith("_fit")]
+    assert len(pickle.dumps(stack)) < p.nbytes // 20  # the hops only, not the patches' core responses
+    core = HopStack().fit_transform(p)
+    assert np.array_equal(core, stack.transform(p))
+
+
+@pytest.mark.parametrize("image, origins, error, message", [
+    (lambda img: img * 255, [[0, 0]], "image", r"image values must lie in \[0, 1\], got \[0, 2"),
+    (lambda img: _nan(img), [[0, 0]], "image", "image contains NaN or infinite values"),
+    (lambda img: img[..., 0], [[0, 0]], "image", r"image must have shape \(H, W, C\), got \(96, 96\)"),
+    (lambda img: img.astype(np.int32), [[0, 0]], "image", "image must be float in \\[0, 1\\] or uint8"),
+    (lambda img: img, [[90, 90]], "origins", r"origins must put every 32x32 patch inside the 96x96 image "
+     r"\(rows in \[0, 64\], columns in \[0, 64\]\), got rows in \[90, 90\]"),
+    (lambda img: img, [[-4, 0]], "origins", "origins must put every 32x32 patch inside"),
+    (lambda img: img, np.zeros((0, 2), int), "origins", r"origins must have shape \(n, 2\), n >= 1"),
+    (lambda img: img, [[0.5, 0]], "origins", "origins must be integers"),
+])
+def test_fit_image_checks_image_and_origins(bricks96, image, origins, error, message):
+    from tghop import InvalidImageError
+
+    kind = InvalidImageError if error == "image" else TGHopError
+    stack = HopStack()
+    with pytest.raises(kind, match=message):
+        stack.fit_image(image(bricks96), 32, np.asarray(origins))
+    with pytest.raises(NotFittedError):
+        stack.transform(extract_patches(bricks96, 32, stride=32))

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import check_array, check_count, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
 from .patches import count_patches
@@ -49,6 +50,9 @@ from .settings import BY_NAME as _SETTINGS
 from .unsupervised import fast_ica, kmeans  # noqa: F401 (fast_ica: also tghop.core's)
 
 __all__ = ["ICHM", "fast_ica"]
+
+#: ICHM's private caches of a fitted state, forgotten with it (:func:`tghop._arrays.forget_fit`).
+_CACHES = ("_stored_mixing", "_mixing", "_mixing32", "_ranks", "_quantiles")
 
 #: Resolution of the tabulated inverse CDFs used for sampling.
 QUANTILE_STEPS = 1024
@@ -116,7 +120,7 @@ class ICHM(BaseEstimator):
     norm_match : float in [0, 1], default=1.0
         Rescale each drawn source vector towards the training norm at its rank: by the
         ratio of the two to this power (ours; 0: off, the paper's independent draws).
-    coupling : float in [0, 1), default=0.95
+    coupling : float in [0, 0.99], default=0.95
         Correlation of each draw's normal scores with a random training member's
         (:mod:`tghop.coupling`; ours; 0: the paper's independent draws).
     rng : int or numpy.random.Generator, optional
@@ -229,13 +233,23 @@ class ICHM(BaseEstimator):
         Gaussian and groups are independent (None: one Gaussian over all dimensions).
 
         ``progress(stage, done, total)`` reports "clusters" (K-means), "ICA" (per
-        cluster) and "CDF codebook".
+        cluster) and "CDF codebook". A failed fit leaves the model unfitted.
 
         Returns
         -------
         self
         """
-        Z = np.asarray(Z, dtype=np.float64)
+        forget_fit(self, _CACHES)
+        try:
+            return self._fit(Z, groups, progress)
+        except BaseException:
+            forget_fit(self, _CACHES)
+            raise
+
+    def _fit(self, Z, groups, progress):
+        Z = check_array(Z, "Z", "(n_samples, D_r)", ndim=2, min_rows=0)
+        if Z.shape[1] < 1:
+            raise TGHopError(f"Z must have shape (n_samples, D_r) with D_r >= 1, got {Z.shape}")
         self._check_params(Z.shape[0])
         self._quantiles = None  # derived from the codebook: never reuse a previous fit's
         rng = check_rng(self.rng)
@@ -354,6 +368,7 @@ class ICHM(BaseEstimator):
         and its factor (k, k); the group's residuals are ``normals @ factor.T``.
         """
         check_is_fitted(self, "means_")
+        n = check_count(n)
         rng = check_rng(rng)
         groups = getattr(self, "residual_group_", np.zeros(0, dtype=np.int64))
         start = 0
@@ -366,7 +381,8 @@ class ICHM(BaseEstimator):
 
     def sample_residual(self, n, *, rng=None):
         """Draw ``n`` residual vectors (n, D_r) from the Gaussian (zeros without ``residual``)."""
-        out = np.zeros((int(n), self.means_.shape[1]))
+        check_is_fitted(self, "means_")
+        out = np.zeros((check_count(n), self.means_.shape[1]))
         for dims, normals, factor in self.residual_draws(n, rng=rng):
             out[:, dims] = normals @ factor.T
         return out
@@ -458,7 +474,8 @@ class ICHM(BaseEstimator):
         if mixing is None:
             stored = vars(self).get("_stored_mixing")
             if stored is None:
-                raise AttributeError(f"this {type(self).__name__} has no mixing_: it is not fitted")
+                check_is_fitted(self, "means_")  # NotFittedError before fit
+                raise AttributeError(f"this {type(self).__name__} has no mixing_")
             mixing = self._mixing = _dequantize(*stored)
         return mixing
 
@@ -471,6 +488,7 @@ class ICHM(BaseEstimator):
     @property
     def mixing_shape_(self):
         """``mixing_.shape`` (F, D_r), without making the float64 matrix."""
+        check_is_fitted(self, "means_")
         stored = vars(self).get("_stored_mixing")
         return tuple(stored[0].shape) if stored is not None else self.mixing_.shape
 
@@ -481,6 +499,7 @@ class ICHM(BaseEstimator):
         for later calls: the same numbers as ``mixing_.astype(float32)`` (a float16 times a
         float32 is exact in float64, so rounding the product to float32 once is the same
         either way), without making the float64 matrix."""
+        check_is_fitted(self, "means_")
         dtype = np.dtype(dtype)
         if dtype != np.float32:
             return self.mixing_.astype(dtype, copy=False)
@@ -496,6 +515,7 @@ class ICHM(BaseEstimator):
     @property
     def p_(self):
         """Alias of :attr:`weights_` (the paper's cluster probabilities p)."""
+        check_is_fitted(self, "weights_")
         return self.weights_
 
     #: (file name, attribute, dtype): the arrays of a model file that belong to ICHM.
@@ -652,8 +672,8 @@ class ICHM(BaseEstimator):
             of cluster ``i`` in order of their position in ``labels``.
         """
         check_is_fitted(self, "means_")
+        n = check_count(n)
         rng = check_rng(rng)
-        n = int(n)
         # (i) the interval representation: a uniform number picks the segment.
         labels = np.minimum(np.searchsorted(np.cumsum(self.weights_), rng.random(n), side="right"),
                             len(self.weights_) - 1)
@@ -719,6 +739,7 @@ class ICHM(BaseEstimator):
         position : ndarray of int, shape (n,)
             ``Z[position]`` is :meth:`mix`'s result: the row of ``Z`` of each sample.
         """
+        check_is_fitted(self, "means_")
         mixing = self.mixing_ if mixing is None else mixing
         means = self.means_ if means is None else means
         labels = np.asarray(labels)

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, report
+from ._arrays import check_array, forget_fit
+from ._common import BaseEstimator, InvalidImageError, TGHopError, TransformerMixin, check_is_fitted, report
 from .patches import depth_to_space, space_to_depth
 from .saab import Saab, select_channels
 from .settings import check_channel_rule
@@ -64,10 +65,11 @@ class Hop(TransformerMixin, BaseEstimator):
         -------
         self
         """
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 4:
-            raise TGHopError(f"a hop takes an array (n, H, W, C), got shape {X.shape}")
-        return self.fit_blocks(space_to_depth(X).reshape(-1, 4 * X.shape[3]))
+        X = check_array(X, "X", "(n, H, W, C) with H and W even", ndim=4)
+        if min(X.shape[1:]) < 1 or X.shape[1] % 2 or X.shape[2] % 2:
+            raise TGHopError(f"X must have shape (n, H, W, C) with H and W even and C >= 1, got {X.shape}")
+        blocks = space_to_depth(X).reshape(-1, 4 * X.shape[3])
+        return self.fit_sums(_block_sums(blocks, 1 if self.channelwise else X.shape[3]))
 
     def fit_blocks(self, blocks, weights=None):
         """Learn the hop from flattened 2x2 blocks.
@@ -84,19 +86,39 @@ class Hop(TransformerMixin, BaseEstimator):
         -------
         self
         """
-        c = blocks.shape[1] // 4
-        return self.fit_sums(_block_sums(blocks, 1 if self.channelwise else c, weights))
+        blocks = check_array(blocks, "blocks", "(m, 4 * C)", ndim=2)
+        m, d = blocks.shape
+        if d < 4 or d % 4:
+            raise TGHopError(f"blocks must have shape (m, 4 * C), 4 values (a 2x2 block) per channel, "
+                             f"got {blocks.shape}")
+        if weights is not None:
+            weights = check_array(weights, "weights", f"(m,) = ({m},)", ndim=1, min_rows=0)
+            if weights.shape != (m,) or (weights < 0).any():
+                raise TGHopError(f"weights must be ({m},) numbers >= 0, one per block, got shape {weights.shape}")
+        return self.fit_sums(_block_sums(blocks, 1 if self.channelwise else d // 4, weights))
 
     def fit_sums(self, sums):
         """Learn the hop from block statistics accumulated by :func:`_block_sums` (summed
         over any number of image tiles: the fit is the same as on all blocks at once).
 
+        A failed fit leaves the hop unfitted.
+
         Returns
         -------
         self
         """
+        forget_fit(self)
+        try:
+            return self._fit_sums(sums)
+        except BaseException:
+            forget_fit(self)
+            raise
+
+    def _fit_sums(self, sums):
         total, moment_sum, max_sq, count = sums
-        rule = check_channel_rule(self.n_channels, "channels per hop", none_ok=True)
+        rule = check_channel_rule(self.n_channels, "n_channels", none_ok=True)
+        if not count > 0:
+            raise TGHopError(f"a hop needs at least one block of weight > 0 to fit, got a total weight of {count}")
         c = self.n_channels_in_ = len(total) // 4
         if isinstance(rule, int) and rule > 4 * c:
             raise TGHopError(
@@ -275,6 +297,43 @@ def _block_sums(blocks, group, weights=None, chunk=1 << 18):
     return total, moment, max_sq, count
 
 
+def _check_fit_image(image):
+    """:meth:`HopStack.fit_image`'s ``image`` (H, W, C), float in [0, 1] or uint8, without a
+    float copy (a large exemplar stays uint8): one min and one max pass over a float image."""
+    image = image if isinstance(image, np.ndarray) else np.asarray(image)
+    if image.ndim != 3 or min(image.shape) < 1:
+        raise InvalidImageError(f"image must have shape (H, W, C), got {image.shape}")
+    if image.dtype == np.uint8:
+        return image
+    if image.dtype.kind != "f":
+        raise InvalidImageError(f"image must be float in [0, 1] or uint8, got dtype {image.dtype}")
+    lo, hi = float(image.min()), float(image.max())
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        raise InvalidImageError("image contains NaN or infinite values; clean it first")
+    if lo < -1e-6 or hi > 1 + 1e-6:
+        raise InvalidImageError(f"image values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; "
+                                "divide 8-bit data by 255 (or pass it as uint8)")
+    return image
+
+
+def _check_origins(origins, shape, patch_size):
+    """:meth:`HopStack.fit_image`'s ``origins``: (n, 2) ints, n >= 1, every patch inside the image."""
+    arr = np.asarray(origins)
+    if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
+        raise TGHopError(f"origins must have shape (n, 2), n >= 1 (row, column of each patch), got {arr.shape}")
+    if arr.dtype.kind not in "iu":
+        if arr.dtype.kind != "f" or not np.array_equal(arr, np.round(arr)):  # NaN is never equal
+            raise TGHopError(f"origins must be integers (row, column), got an array of {arr.dtype}")
+    arr = arr.astype(np.int64, copy=False)
+    h, w = shape[:2]
+    lo, hi = arr.min(axis=0), arr.max(axis=0)
+    if lo.min() < 0 or hi[0] > h - patch_size or hi[1] > w - patch_size:
+        raise TGHopError(f"origins must put every {patch_size}x{patch_size} patch inside the {h}x{w} image "
+                         f"(rows in [0, {h - patch_size}], columns in [0, {w - patch_size}]), got rows in "
+                         f"[{lo[0]}, {hi[0]}] and columns in [{lo[1]}, {hi[1]}]")
+    return arr
+
+
 #: Side of the image tiles :meth:`HopStack.fit_image` works on (memory per tile: about
 #: 250 bytes per pixel of a (TILE + patch)^2 square at the second hop).
 TILE = 1024
@@ -376,26 +435,42 @@ class HopStack(TransformerMixin, BaseEstimator):
     def __init__(self, n_channels=(9, 22)):
         self.n_channels = n_channels
 
+    def _rules(self):
+        """``n_channels`` checked: a list of one rule per hop (None: keep every non-empty channel)."""
+        rules = self.n_channels
+        if isinstance(rules, (str, bytes)) or not hasattr(rules, "__iter__"):
+            raise TGHopError(f"n_channels must be a sequence of one rule per hop, e.g. (9, 22), got {rules!r}")
+        rules = list(rules)
+        if not rules:
+            raise TGHopError(f"n_channels must name at least one hop, got {self.n_channels!r}")
+        return [check_channel_rule(rule, f"n_channels: K{i}", none_ok=True) for i, rule in enumerate(rules, start=1)]
+
     def fit(self, X, y=None, *, progress=None):
         """Learn every hop from patches ``X`` of shape (n, P, P, C).
 
-        ``progress(stage, done, total)`` is called once per hop.
+        ``progress(stage, done, total)`` is called once per hop. Only the hops are kept,
+        not the training patches' core responses (:meth:`fit_transform` returns those).
 
         Returns
         -------
         self
         """
-        X = np.asarray(X, dtype=np.float64)
-        rules = list(self.n_channels)
+        self._fit(X, progress)
+        return self
+
+    def _fit(self, X, progress):
+        """Fit; return the core responses of ``X``."""
+        forget_fit(self)
+        rules = self._rules()
+        X = check_array(X, "X", "(n_patches, P, P, C)", ndim=4)
         side = X.shape[1]
-        if X.ndim != 4 or side % (2 ** len(rules)) or X.shape[2] != side:
+        if side < 1 or side % (2 ** len(rules)) or X.shape[2] != side or X.shape[3] < 1:
             raise TGHopError(
                 f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} square patches whose side is divisible "
                 f"by {2 ** len(rules)}, "
                 f"got shape {X.shape[1:]}"
             )
-        self.hops_ = []
-        self.dims_ = [int(np.prod(X.shape[1:]))]
+        hops, dims = [], [int(np.prod(X.shape[1:]))]
         for i, rule in enumerate(rules):
             report(progress, f"hop {i + 1}", 0, 1)
             try:
@@ -403,11 +478,11 @@ class HopStack(TransformerMixin, BaseEstimator):
             except TGHopError as exc:
                 raise TGHopError(f"K{i + 1}: {exc}") from None
             X = hop.transform(X)
-            self.hops_.append(hop)
-            self.dims_.append(int(np.prod(X.shape[1:])))
+            hops.append(hop)
+            dims.append(int(np.prod(X.shape[1:])))
             report(progress, f"hop {i + 1}", 1, 1)
-        self._fit_output_ = X  # the core responses of the training patches, reused by fit_transform
-        return self
+        self.hops_, self.dims_ = hops, dims  # only now: a failed fit leaves the stack unfitted
+        return X
 
     def fit_image(self, image, patch_size, origins, *, progress=None, tile=TILE):
         """Fit on the patches of one image without cutting them out; return their core.
@@ -442,22 +517,26 @@ class HopStack(TransformerMixin, BaseEstimator):
         ndarray, shape (n, p, p, Kn)
             Core responses of the patches, ``p = patch_size / 2**n_hops``.
         """
-        rules = list(self.n_channels)
+        forget_fit(self)
+        rules = self._rules()
         n_hops = len(rules)
-        origins = np.asarray(origins, dtype=np.int64)
-        if patch_size % (2 ** n_hops):
-            raise TGHopError(f"{n_hops} hops need a patch size divisible by {2 ** n_hops}, got {patch_size}")
         unit = 2 ** n_hops
+        if (isinstance(patch_size, (bool, np.bool_)) or not isinstance(patch_size, (int, np.integer))
+                or patch_size < unit or patch_size % unit):
+            raise TGHopError(f"{n_hops} hop{'s need' if n_hops != 1 else ' needs'} a patch size divisible by {unit}, "
+                             f"got {patch_size!r}")
+        patch_size = int(patch_size)
+        image = _check_fit_image(image)
+        origins = _check_origins(origins, image.shape, patch_size)
         tile = max(unit, -(-int(tile) // unit) * unit)
         tiles = _tiles(image, origins, patch_size, tile)
-        self.hops_ = []
-        self.dims_ = [patch_size * patch_size * image.shape[2]]
+        hops, dims = [], [patch_size * patch_size * image.shape[2]]
         for level, rule in enumerate(rules, start=1):
             report(progress, f"hop {level}", 0, len(tiles))
             side = patch_size // 2**level
             sums = None
             for i, (crop, local, _) in enumerate(tiles):
-                inputs = _phase_inputs(crop(), patch_size, local, self.hops_, level)
+                inputs = _phase_inputs(crop(), patch_size, local, hops, level)
                 group = 1 if level > 1 else image.shape[2]
                 for blocks, starts in inputs.values():
                     weights = _coverage(blocks.shape[:2], starts, side).ravel()
@@ -467,23 +546,21 @@ class HopStack(TransformerMixin, BaseEstimator):
                 hop = Hop(n_channels=rule, channelwise=level > 1).fit_sums(sums)
             except TGHopError as exc:
                 raise TGHopError(f"K{level}: {exc}") from None
-            self.hops_.append(hop)
-            self.dims_.append(side * side * hop.n_channels_out_)
+            hops.append(hop)
+            dims.append(side * side * hop.n_channels_out_)
         side = patch_size // unit
         # Stored channel-major and returned as an (n, p, p, Kn) view of it: SDR works on each
         # channel's maps (tghop.sdr), which then need no second, transposed copy of the core.
-        k = self.hops_[-1].n_channels_out_
+        k = hops[-1].n_channels_out_
         core = np.empty((k, len(origins), side, side)).transpose(1, 2, 3, 0)
         for crop, local, rows in tiles:
-            _core_of(crop(), patch_size, local, self.hops_, out=core, rows=rows)
+            _core_of(crop(), patch_size, local, hops, out=core, rows=rows)
+        self.hops_, self.dims_ = hops, dims  # only now: a failed fit leaves the stack unfitted
         return core
 
     def fit_transform(self, X, y=None, *, progress=None):
         """Fit and return the core responses ``(n, P / 2**n, P / 2**n, Kn)``."""
-        self.fit(X, progress=progress)
-        out = self._fit_output_
-        del self._fit_output_
-        return out
+        return self._fit(X, progress)
 
     def transform(self, X, *, return_all=False):
         """Patches ``(n, P, P, C)`` -> core ``(n, p, p, Kn)`` (or every space with ``return_all``)."""

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import check_array, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
 from .settings import check_channel_rule
 
@@ -109,6 +110,7 @@ class Saab(TransformerMixin, BaseEstimator):
     n_components : None, int, float or "knee", default=None
         Channels to keep, the DC channel always among them; see :func:`select_channels`.
         None keeps all non-empty channels, which makes :meth:`inverse_transform` exact.
+        An int above the dimension ``d`` of the vectors is an error at fit.
 
     Attributes
     ----------
@@ -149,9 +151,11 @@ class Saab(TransformerMixin, BaseEstimator):
         -------
         self
         """
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 2 or X.shape[0] < 2 or X.shape[1] < 2:
+        X = check_array(X, "X", "(n_samples, d)", ndim=2, finite=False)
+        if X.shape[0] < 2 or X.shape[1] < 2:
             raise TGHopError(f"Saab needs at least 2 vectors of dimension >= 2, got shape {X.shape}")
+        if not np.isfinite(X).all():
+            raise TGHopError("X contains NaN or infinite values; clean it first")
         return self.fit_moments(
             X.mean(axis=0), X.T @ X / X.shape[0], float(np.max(np.einsum("nd,nd->n", X, X)))
         )
@@ -171,17 +175,29 @@ class Saab(TransformerMixin, BaseEstimator):
         -------
         self
         """
-        mean = np.asarray(mean, dtype=np.float64)
-        second_moment = np.asarray(second_moment, dtype=np.float64)
+        forget_fit(self)
+        rule = check_channel_rule(self.n_components, "n_components", none_ok=True)
+        mean = check_array(mean, "mean", "(d,)", ndim=1)
+        d = mean.size
+        if d < 2:
+            raise TGHopError(f"Saab needs vectors of dimension >= 2, got a mean of shape {mean.shape}")
+        second_moment = check_array(second_moment, "second_moment", f"(d, d) = ({d}, {d})", ndim=2)
+        if second_moment.shape != (d, d):
+            raise TGHopError(f"second_moment must have shape (d, d) = ({d}, {d}), got {second_moment.shape}")
+        if not (isinstance(max_sq_norm, (int, float, np.integer, np.floating)) and 0 <= max_sq_norm < np.inf):
+            raise TGHopError(f"max_sq_norm must be a finite number >= 0, got {max_sq_norm!r}")
+        if isinstance(rule, int) and rule > d:
+            raise TGHopError(f"a Saab transform of {d}-dimensional vectors has at most {d} components, "
+                             f"got n_components={rule}; choose at most {d}")
         kernels = self._all_kernels(mean, second_moment)
         energy = np.einsum("kd,de,ke->k", kernels, second_moment, kernels)
         # AC kernels by decreasing energy (mean square, i.e. variance plus squared mean).
         order = np.concatenate([[0], 1 + np.argsort(-energy[1:], kind="stable")])
+        ac = 1 + select_channels(energy[order][1:], rule, n_fixed=1)
         self.energy_ = energy[order]
         self.n_features_in_ = mean.size
         self.bias_ = float(np.sqrt(max_sq_norm))
         self._all_kernels_ = kernels[order]
-        ac = 1 + select_channels(self.energy_[1:], self.n_components, n_fixed=1)
         self._set_channels(np.concatenate([[0], np.sort(ac)]))
         return self
 
@@ -211,9 +227,14 @@ class Saab(TransformerMixin, BaseEstimator):
     def transform(self, X):
         """Responses of ``X`` (n, d) to the kept kernels: shape (n, k)."""
         check_is_fitted(self, "kernels_")
-        return np.asarray(X, dtype=np.float64) @ self.kernels_.T + self._ac_bias()
+        X = np.asarray(X, dtype=np.float64)
+        check_width(X, "X", f"(n, d) = (n, {self.n_features_in_})", (self.n_features_in_,))
+        return X @ self.kernels_.T + self._ac_bias()
 
     def inverse_transform(self, Y):
         """Vectors (n, d) from responses (n, k); discarded channels count as zero."""
         check_is_fitted(self, "kernels_")
-        return (np.asarray(Y, dtype=np.float64) - self._ac_bias()) @ self.kernels_
+        Y = np.asarray(Y, dtype=np.float64)
+        k = len(self.channels_)
+        check_width(Y, "Y", f"(n, k) = (n, {k}), one column per kept channel", (k,))
+        return (Y - self._ac_bias()) @ self.kernels_

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import check_array, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
 from .settings import BY_NAME as _SETTINGS
 
@@ -81,17 +82,22 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         return self
 
     def fit_transform(self, Y, y=None):
-        """Fit, then return ``z`` of shape (n, D_r)."""
+        """Fit, then return ``z`` of shape (n, D_r).
+
+        A failed fit leaves the estimator unfitted (a previous fit is forgotten).
+        """
+        forget_fit(self)
         _SETTINGS["gamma"].check(self.gamma)
         _SETTINGS["gamma_mode"].check(self.gamma_mode)
-        Y = np.asarray(Y, dtype=np.float64)
+        Y = check_array(Y, "Y", "(n_samples, h, w, K) of core responses", ndim=4, min_rows=2)
         n, h, w, k = Y.shape
+        if min(h, w, k) < 1:
+            raise TGHopError(f"Y must have shape (n_samples, h, w, K) with h, w, K >= 1, got {Y.shape}")
         maps = _channel_major(Y)
-        self.shape_ = (h, w, k)
-        self.mean_ = maps.mean(axis=1)
+        mean = maps.mean(axis=1)
         comps, var, chan = [], [], []
         for c in range(k):
-            centred = maps[c] - self.mean_[c]
+            centred = maps[c] - mean[c]
             vals, vecs = np.linalg.eigh(centred.T @ centred / n)
             vals, vecs = vals[::-1], vecs[:, ::-1].T
             limit = self.gamma * (vals.sum() if self.gamma_mode == "relative" else 1.0)
@@ -99,12 +105,14 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
             comps.append(flip_signs(vecs[keep]))
             var.append(vals[keep])
             chan.append(np.full(int(keep.sum()), c))
+        if sum(len(part) for part in comps) == 0:  # before any learned attribute is set
+            raise TGHopError(f"gamma={self.gamma} drops every spatial component; use a smaller gamma")
+        self.shape_ = (h, w, k)
+        self.mean_ = mean
         self.components_ = np.vstack(comps)
         self.explained_variance_ = np.concatenate(var)
         self.channel_ = np.concatenate(chan).astype(np.int64)
         self.kept_per_channel_ = np.bincount(self.channel_, minlength=k)
-        if self.components_.shape[0] == 0:
-            raise TGHopError(f"gamma={self.gamma} drops every spatial component; use a smaller gamma")
         return self._project(maps)
 
     #: (file name, attribute, dtype): the arrays of a model file that belong to SDR.
@@ -150,7 +158,9 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
     def transform(self, Y):
         """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r)."""
         check_is_fitted(self, "components_")
-        return self._project(_channel_major(np.asarray(Y, dtype=np.float64)))
+        Y = np.asarray(Y, dtype=np.float64)
+        check_width(Y, "Y", "(n, {}, {}, {})".format(*self.shape_), self.shape_)
+        return self._project(_channel_major(Y))
 
     def channel_ranges(self):
         """``[(start, stop), ...]``: each core channel's rows of :attr:`components_` (and
@@ -171,6 +181,7 @@ class SpatialReduction(TransformerMixin, BaseEstimator):
         """``z`` (n, D_r) -> core responses (n, h, w, K); dropped components are zero."""
         check_is_fitted(self, "components_")
         Z = np.asarray(Z, dtype=np.float64)
+        check_width(Z, "Z", f"(n, D_r) = (n, {self.components_.shape[0]})", self.components_.shape[:1])
         h, w, k = self.shape_
         out = np.repeat(self.mean_.T[None], Z.shape[0], axis=0)
         for c, (a, e) in enumerate(self.channel_ranges()):

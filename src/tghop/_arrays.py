@@ -1,0 +1,75 @@
+"""Input checks of the scikit-learn-style components (:mod:`tghop.saab`, :mod:`tghop.hops`,
+:mod:`tghop.sdr`, :mod:`tghop.core`): arrays of numbers of a given rank, sample counts, and
+forgetting a fitted state.
+
+Each check is O(1) or one pass over its input; the fits call them with ``finite=True``,
+the transforms check shapes only.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from ._errors import TGHopError
+
+__all__ = ["check_array", "check_count", "check_width", "forget_fit"]
+
+
+def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True) -> np.ndarray:
+    """``X`` as a float64 array (no copy where it is one already), or a one-line :class:`TGHopError`.
+
+    Parameters
+    ----------
+    X : array_like
+    name : str
+        The argument, for messages (``"X"``, ``"Y"``, ``"Z"``).
+    shape : str
+        The expected shape, for messages (``"(n_samples, d)"``).
+    ndim : int
+        Required number of dimensions.
+    min_rows : int
+        Fewest rows (first axis) allowed.
+    finite : bool
+        Refuse NaN and infinite values (one pass over ``X``).
+
+    Returns
+    -------
+    ndarray of float64
+    """
+    try:
+        arr = np.asarray(X, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TGHopError(f"{name} must be an array of numbers of shape {shape}, got {type(X).__name__}") from None
+    if arr.ndim != ndim:
+        raise TGHopError(f"{name} must have shape {shape}, got {arr.shape}")
+    if arr.shape[0] < min_rows:
+        raise TGHopError(f"{name} must have at least {min_rows} row{'s' if min_rows != 1 else ''} "
+                         f"(samples), got shape {arr.shape}")
+    if finite and not np.isfinite(arr).all():
+        raise TGHopError(f"{name} contains NaN or infinite values; clean it first")
+    return arr
+
+
+def check_width(arr, name: str, shape: str, expected: tuple) -> None:
+    """Refuse ``arr`` unless its shape after the first axis is ``expected`` (shape checks only:
+    the transforms' check, for arrays already made by :func:`numpy.asarray`)."""
+    if arr.ndim != len(expected) + 1 or tuple(arr.shape[1:]) != tuple(expected):
+        raise TGHopError(f"{name} must have shape {shape} for this fitted model, got {arr.shape}")
+
+
+def check_count(n, name: str = "n") -> int:
+    """A non-negative integer count (a Python or NumPy integer, not a bool), or a one-line :class:`TGHopError`."""
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (numbers.Integral, np.integer)) or n < 0:
+        raise TGHopError(f"{name} must be a non-negative integer, got {n!r}")
+    return int(n)
+
+
+def forget_fit(estimator, private=()) -> None:
+    """Remove ``estimator``'s fitted state: every attribute whose name ends with ``_`` (the
+    learned attributes; parameters never do) and the ``private`` caches. A fit that fails
+    calls this, so that the estimator does not look fitted (or fitted on other data)."""
+    for name in list(vars(estimator)):
+        if (name.endswith("_") and not name.startswith("__")) or name in private:
+            del estimator.__dict__[name]
