@@ -345,3 +345,33 @@ def test_gpdm_without_torch_raises_install_hint(exemplar, monkeypatch):
     with pytest.raises(MissingExtraError,
                        match=r"GPDM baseline needs PyTorch; install it with: pip install 'tghop\[metrics\]'"):
         baselines.gpdm(exemplar, n_steps=1)
+
+
+def test_memory_estimate_covers_every_baseline_it_lists(exemplar):
+    from tghop.gpdm import gpdm_memory
+
+    for name in BASELINES:
+        if name != "cooc":  # its estimate imports the cGAN's module (PyTorch)
+            assert baselines.memory_estimate(name, exemplar.shape)(64, 64) > 0
+    assert baselines.memory_estimate("gpdm", exemplar.shape)(64, 96) == gpdm_memory(exemplar.shape, (64, 96))
+    with pytest.raises(TGHopError, match=r"^unknown baseline 'nope'; one of crop, .*gpdm$"):
+        baselines.memory_estimate("nope", exemplar.shape)
+
+
+@pytest.mark.parametrize("sigma", [float("inf"), float("nan"), 0, -1.0, "a", None, True])
+def test_blurred_crop_refuses_a_sigma_that_is_not_finite_and_positive(sigma, exemplar):
+    with pytest.raises(TGHopError, match=r"^sigma must be a finite positive number, got"):
+        baselines.blurred_crop(exemplar, 16, sigma=sigma)
+    assert baselines.blurred_crop(exemplar, 16, sigma=2, rng=0).shape == (16, 16, 3)
+
+
+@pytest.mark.parametrize("make", [data.bricks, data.cells])
+def test_builtin_exemplar_sizes_are_checked_before_any_work(make):
+    with pytest.raises(TGHopError, match=r"^size 1000000x1000000 is .* above the limit of"):
+        make(10**6)
+    for bad in (40.5, "a", None, True):
+        with pytest.raises(TGHopError, match=r"^size must be an integer number of pixels \(at least 32\), got"):
+            make(bad)
+    with pytest.raises(TGHopError, match=r"^size must be at least 32, got 10$"):
+        make(10)
+    assert make(np.int64(32)).shape == (32, 32, 3)

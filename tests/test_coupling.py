@@ -82,3 +82,33 @@ def test_coupling_zero_draws_as_before_and_bad_values_are_refused(near_sphere):
     for bad in (-0.1, 1.0, "high"):
         with pytest.raises(TGHopError, match="coupling"):
             ICHM(**kw, coupling=bad).fit(z)
+
+
+def test_coupled_uniforms_take_any_rng_and_check_their_arguments():
+    ranks = member_ranks(np.random.default_rng(5).standard_normal((50, 3)))
+    # An int seed gives the same draws every time, as the Generator it seeds; None fresh ones.
+    seeded = coupled_uniforms(ranks, 0.5, 10, 7)
+    np.testing.assert_array_equal(seeded, coupled_uniforms(ranks, 0.5, 10, 7))
+    np.testing.assert_array_equal(seeded, coupled_uniforms(ranks, 0.5, 10, np.random.default_rng(7)))
+    assert coupled_uniforms(ranks, 0.5, 10, None).shape == (10, 3)
+    assert coupled_uniforms(ranks, 0.0, 0, 0).shape == (0, 3)
+    for rho in (1.5, -0.5, 1.0, float("nan"), "a", None):
+        with pytest.raises(TGHopError, match=r"^rho must be a number in \[0, 1\), got"):
+            coupled_uniforms(ranks, rho, 10, 0)
+    for m in (-1, 2.5, "3"):
+        with pytest.raises(TGHopError, match=r"^m must be an integer >= 0, got"):
+            coupled_uniforms(ranks, 0.5, m, 0)
+    with pytest.raises(TGHopError, match=r"^ranks must be a 2-D .* at least one member, got shape \(0, 3\)$"):
+        coupled_uniforms(ranks[:0], 0.5, 10, 0)
+    with pytest.raises(TGHopError, match=r"^rng must be None, an int seed"):
+        coupled_uniforms(ranks, 0.5, 10, "seed")
+    with pytest.raises(TGHopError, match=r"^sources must be a 2-D \(members, components\) array, got shape \(50,\)$"):
+        member_ranks(np.zeros(50))
+
+
+def test_normal_cdf_of_nan_is_nan_as_documented():
+    assert np.isnan(normal_cdf(np.nan))
+    out = normal_cdf(np.array([[np.nan, 0.0], [-np.inf, np.inf]]))
+    assert out.shape == (2, 2) and np.isnan(out[0, 0]) and out[0, 1] == 0.5
+    assert out[1, 0] < 1e-15 and out[1, 1] > 1 - 1e-15
+    assert np.isnan(normal_ppf(np.nan))

@@ -259,3 +259,31 @@ def test_evaluate_names_a_shape_of_too_many_dimensions():
         with pytest.raises(InvalidImageError, match=rf"{name} must have shape \(H, W\) or \(H, W, C\), got "
                                                     r"\(1, 64, 64, 3\)"):
             metrics.evaluate(*args, metrics=["swd"])
+
+
+@pytest.mark.parametrize("name", ["novelty", "copied", "diversity"])
+def test_nearest_patch_progress_counts_each_chunk_once(name, monkeypatch):
+    import tghop.metrics.copies as copies
+
+    monkeypatch.setattr(copies, "_NEAREST_CHUNK", 600)  # several chunks of a 96 x 96 image
+    a, b = data.bricks(96), data.bricks(96, rng=1)
+    calls = []
+    getattr(metrics, name)(a, b, max_patches=64, progress=lambda *c: calls.append(c))
+    assert {stage for stage, _, _ in calls} == {name}
+    total = calls[0][2]
+    assert total > 1 and all(t == total for _, _, t in calls)
+    assert [done for _, done, _ in calls] == list(range(total + 1))  # 0 to total, one unit a chunk
+
+
+@pytest.mark.parametrize("value", [0, -1, 2.5, "8", None, True])
+@pytest.mark.parametrize("name", ["novelty", "copied", "diversity", "copied_textured"])
+def test_nearest_patch_metrics_refuse_a_bad_max_patches(name, value, exemplar, references):
+    with pytest.raises(TGHopError, match=r"^max_patches must be an integer >= 1, got"):
+        getattr(metrics, name)(exemplar, references["crop"], max_patches=value)
+
+
+def test_self_repetition_and_cooccurrence_name_their_counts(exemplar, references):
+    with pytest.raises(TGHopError, match=r"^max_windows must be an integer >= 1, got 0$"):
+        metrics.self_repetition(references["crop"], max_windows=0)
+    with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 0$"):
+        metrics.cooccurrence_distance(exemplar, references["crop"], max_fit_pixels=0)

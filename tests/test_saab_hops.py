@@ -29,6 +29,45 @@ def test_extract_patches_too_small():
         extract_patches(np.zeros((20, 40, 3)), 32)
 
 
+def test_count_patches_of_an_image_smaller_than_the_patch_is_zero():
+    assert count_patches((10, 10), 32, 2) == 0 and count_patches((10, 40), 32, 2) == 0
+    assert count_patches((40, 10, 3), 32, 2) == 0 and count_patches((32, 33), 32, 2) == 1
+    assert count_patches((256, 256), 32, 2) == 12769
+
+
+@pytest.mark.parametrize("name, args, kwargs, message", [
+    ("extract_patches", (32,), dict(max_patches=-1), "max_patches must be an integer >= 1, got -1"),
+    ("extract_patches", (32,), dict(max_patches=0), "max_patches must be an integer >= 1, got 0"),
+    ("extract_patches", (32,), dict(max_patches=2.5), "max_patches must be an integer >= 1, got 2.5"),
+    ("extract_patches", (32,), dict(stride=1.5), "stride must be an integer >= 1, got 1.5"),
+    ("extract_patches", (2.5,), {}, "patch_size must be an integer >= 2, got 2.5"),
+    ("extract_patches", (1,), {}, "patch_size must be an integer >= 2, got 1"),
+    ("patch_origins", ((96, 96, 3), 32), dict(stride=0), "stride must be an integer >= 1, got 0"),
+    ("patch_origins", ((96, 96, 3), 32), dict(max_patches="9"), "max_patches must be an integer >= 1, got '9'"),
+    ("count_patches", ((96, 96, 3), 32, 0), {}, "stride must be an integer >= 1, got 0"),
+    ("downsample_mask", (np.zeros((8, 8), bool), 0), {}, "factor must be an integer >= 1, got 0"),
+    ("patch_grid", (np.zeros((0, 8, 8, 3)),), {},
+     r"patches must be a non-empty \(n, P, P\) or \(n, P, P, C\) array, got shape \(0, 8, 8, 3\)"),
+    ("patch_grid", (np.zeros((2, 8, 8, 3)),), dict(gap=-1), "gap must be an integer >= 0, got -1"),
+])
+def test_patch_helpers_check_their_parameters(name, args, kwargs, message, bricks96):
+    from tghop import patches
+
+    if name == "extract_patches":
+        args = (bricks96,) + args
+    with pytest.raises(TGHopError, match=f"^{message}$"):
+        getattr(patches, name)(*args, **kwargs)
+
+
+def test_patch_helpers_keep_their_results_for_valid_parameters(bricks96):
+    from tghop.patches import downsample_mask, patch_grid, patch_origins
+
+    assert patch_origins(bricks96.shape, 32, stride=np.int64(4), max_patches=np.int64(10), rng=0).shape == (10, 2)
+    assert patch_origins((10, 10), 32).shape == (0, 2)
+    assert downsample_mask(np.eye(8, dtype=bool), 2).tolist() == np.eye(4, dtype=bool).tolist()
+    assert patch_grid(np.zeros((3, 4, 4)), gap=0).shape == (8, 8, 1)
+
+
 def test_space_to_depth_roundtrip(rng):
     x = rng.random((3, 8, 6, 5))
     y = space_to_depth(x)

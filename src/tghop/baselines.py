@@ -38,6 +38,7 @@ texture model behind :func:`tghop.metrics.gram_distance`.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Optional
 
 import numpy as np
@@ -115,6 +116,13 @@ def memory_estimate(name: str, exemplar_shape, *, patch_size: int = 32, max_patc
       padded pixel for the result (features, their gradient, the products of the Gram
       loss; 3.5 GB measured at 384 x 384) and 12 for the exemplar's Gram matrix, plus 150 MB.
     * cooc: see :func:`tghop.cooc.model.memory_estimate`.
+    * gpdm: :func:`tghop.gpdm.gpdm_memory` at GPDM's own defaults (64 projections of 7 x 7
+      patches; ``patch_size`` and ``max_patches`` here are quilting's).
+
+    Raises
+    ------
+    TGHopError
+        ``name`` is not a key of :data:`BASELINES`.
     """
     eh, ew = int(exemplar_shape[0]), int(exemplar_shape[1])
     c = int(exemplar_shape[2]) if len(exemplar_shape) > 2 else 1
@@ -140,6 +148,11 @@ def memory_estimate(name: str, exemplar_shape, *, patch_size: int = 32, max_patc
         from .cooc.model import memory_estimate as cooc_estimate
 
         return cooc_estimate(exemplar_shape)
+    if name == "gpdm":
+        from .gpdm import gpdm_memory
+
+        shape = (eh, ew, c)
+        return lambda h, w: float(gpdm_memory(shape, (h, w)))
     raise TGHopError(f"unknown baseline {name!r}; one of {', '.join(BASELINES)}")
 
 
@@ -186,9 +199,9 @@ def blurred_crop(
     size : int or (int, int), optional
         Output size, at most the exemplar's; default the exemplar's size.
     sigma : float
-        Standard deviation of the blur in pixels (default 1: the finest grain goes, the
-        layout and most edges stay -- the typical failure of a patch model that
-        averages). Beware: on real photographs SIFID, the Gram distance and the
+        Standard deviation of the blur in pixels, finite and positive (default 1: the
+        finest grain goes, the layout and most edges stay -- the typical failure of a patch
+        model that averages). Beware: on real photographs SIFID, the Gram distance and the
         co-occurrence distance already rank a sigma = 1 blur *below* colour noise,
         because they weigh fine grain heavily; the sliced Wasserstein distance does not.
     rng : int or numpy.random.Generator, optional
@@ -202,8 +215,10 @@ def blurred_crop(
         cropping, so the crop's own borders are not darkened.
     """
     img = check_image(exemplar, name="exemplar")
-    if not sigma > 0:
-        raise TGHopError(f"sigma must be positive, got {sigma}")
+    if isinstance(sigma, (bool, np.bool_)) or not isinstance(sigma, (numbers.Real, np.floating, np.integer)) \
+            or not (math.isfinite(sigma) and sigma > 0):
+        raise TGHopError(f"sigma must be a finite positive number, got {sigma!r}")
+    sigma = float(sigma)
     h, w = check_size(size, default=img.shape[:2])
     check_memory(memory_estimate("blurred-crop", img.shape), (h, w), what="the blurred-crop baseline")
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))

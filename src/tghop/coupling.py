@@ -24,8 +24,11 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 
 import numpy as np
+
+from ._common import TGHopError, check_rng
 
 __all__ = ["RANK_LEVELS", "member_ranks", "coupled_uniforms", "normal_cdf", "normal_ppf"]
 
@@ -47,19 +50,34 @@ def _table():
 def normal_cdf(z):
     """Phi(z), the standard normal CDF (linear between tabulated points; error below 1e-6).
 
-    The grid is even, so each value's interval is found by arithmetic, not searched for."""
+    The grid is even, so each value's interval is found by arithmetic, not searched for.
+
+    Parameters
+    ----------
+    z : float or array_like of float
+
+    Returns
+    -------
+    float64 or ndarray of float64, the shape of ``z``
+        In [0, 1]; NaN where ``z`` is NaN (as :func:`normal_ppf`); beyond the table
+        (``|z| > 8``, infinities included) the CDF at its end, within 1e-15 of 0 or 1.
+    """
     _, cdf, step = _table()
     pos = np.clip(np.asarray(z, dtype=np.float64) + _Z_MAX, 0.0, 2 * _Z_MAX)
+    nan = np.isnan(pos)
+    has_nan = bool(nan.any())
+    if has_nan:
+        pos = np.where(nan, 0.0, pos)  # a valid table index; NaN again below
     pos *= _Z_STEPS / (2 * _Z_MAX)
     i = np.minimum(pos.astype(np.intp), _Z_STEPS - 1)
     pos -= i
     pos *= step[i]
     pos += cdf[i]
-    return pos
+    return np.where(nan, np.nan, pos)[()] if has_nan else pos
 
 
 def normal_ppf(u):
-    """Phi^-1(u) for u in (0, 1), the inverse of :func:`normal_cdf`."""
+    """Phi^-1(u) for u in (0, 1), the inverse of :func:`normal_cdf` (NaN where ``u`` is NaN)."""
     grid, cdf, _ = _table()
     return np.interp(u, cdf, grid)
 
@@ -84,6 +102,8 @@ def member_ranks(sources):
         ``floor(RANK_LEVELS * (rank + 0.5) / n)``, the mid-rank fraction quantised.
     """
     s = np.asarray(sources)
+    if s.ndim != 2:
+        raise TGHopError(f"sources must be a 2-D (members, components) array, got shape {s.shape}")
     n = s.shape[0]
     ranks = np.empty(s.shape, dtype=np.int64)
     np.put_along_axis(ranks, np.argsort(s, axis=0, kind="stable"), np.arange(n)[:, None], axis=0)
@@ -100,13 +120,32 @@ def coupled_uniforms(ranks, rho, m, rng):
     rho : float in [0, 1)
         Correlation of each draw's normal scores with its member's.
     m : int
-    rng : numpy.random.Generator
+        Draws, at least 0.
+    rng : None, int or numpy.random.Generator
+        As everywhere in tghop (:func:`tghop._common.check_rng`): a Generator is advanced,
+        an int seed gives the same draws every time, None fresh ones.
 
     Returns
     -------
     ndarray, shape (m, k)
         Probabilities in [0, 1], each uniform on its own.
+
+    Raises
+    ------
+    TGHopError
+        ``ranks`` not 2-D or without a member, ``rho`` outside [0, 1), ``m`` not an
+        integer >= 0, or ``rng`` of another type.
     """
+    ranks = np.asarray(ranks)
+    if ranks.ndim != 2 or len(ranks) == 0:
+        raise TGHopError(f"ranks must be a 2-D (members, components) array with at least one member, "
+                         f"got shape {ranks.shape}")
+    if isinstance(rho, (bool, np.bool_)) or not isinstance(rho, (numbers.Real, np.floating, np.integer)) \
+            or not 0.0 <= rho < 1.0:
+        raise TGHopError(f"rho must be a number in [0, 1), got {rho!r}")
+    if isinstance(m, (bool, np.bool_)) or not isinstance(m, (numbers.Integral, np.integer)) or m < 0:
+        raise TGHopError(f"m must be an integer >= 0, got {m!r}")
+    rng = check_rng(rng)
     z = _rank_scores()[ranks[rng.integers(0, len(ranks), int(m))]]
     z *= rho
     z += math.sqrt(1.0 - rho * rho) * rng.standard_normal(z.shape)

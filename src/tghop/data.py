@@ -6,9 +6,11 @@ returns a float ``(H, W, 3)`` image in [0, 1] and is deterministic for a given `
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
-from ._common import TGHopError, check_rng
+from ._common import TGHopError, check_rng, check_size
 
 __all__ = ["bricks", "cells", "builtin", "BUILTIN"]
 
@@ -21,21 +23,30 @@ def _smooth_noise(rng, shape, sigma):
     return noise / (noise.std() + 1e-12)
 
 
+def _check_side(size) -> int:
+    """``size`` as an int of at least 32 within :data:`tghop._common.MAX_PIXELS` (through
+    :func:`tghop._common.check_size`), or a one-line :class:`TGHopError` before any work."""
+    if isinstance(size, (bool, np.bool_)) or not isinstance(size, (numbers.Integral, np.integer)):
+        raise TGHopError(f"size must be an integer number of pixels (at least 32), got {size!r}")
+    if size < 32:
+        raise TGHopError(f"size must be at least 32, got {size}")
+    return check_size(int(size))[0]
+
+
 def bricks(size: int = 256, *, rng=0) -> np.ndarray:
     """A running-bond red brick wall with mortar lines, per-brick colour and fine grain.
 
     Parameters
     ----------
     size : int
-        Height and width in pixels (at least 32).
+        Height and width in pixels (at least 32; at most 8192, :func:`tghop._common.check_size`).
     rng : int or numpy.random.Generator
 
     Returns
     -------
     ndarray, shape (size, size, 3), float64 in [0, 1]
     """
-    if size < 32:
-        raise TGHopError(f"size must be at least 32, got {size}")
+    size = _check_side(size)
     rng = check_rng(rng)
     brick_h, brick_w, mortar = 20, 44, 4
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float64)
@@ -71,15 +82,14 @@ def cells(size: int = 256, *, rng=0) -> np.ndarray:
     Parameters
     ----------
     size : int
-        Height and width in pixels (at least 32).
+        Height and width in pixels (at least 32; at most 8192, :func:`tghop._common.check_size`).
     rng : int or numpy.random.Generator
 
     Returns
     -------
     ndarray, shape (size, size, 3), float64 in [0, 1]
     """
-    if size < 32:
-        raise TGHopError(f"size must be at least 32, got {size}")
+    size = _check_side(size)
     rng = check_rng(rng)
     n_seeds = max(8, (size * size) // 500)
     seeds = rng.uniform(0, size, size=(n_seeds, 2))

@@ -6,6 +6,8 @@ The data flow of tghop: ``patches`` -> ``hops`` (``saab``) -> ``core`` -> back t
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
@@ -16,9 +18,40 @@ __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude",
            "patch_grid", "stage_sheet"]
 
 
+def _check_int(name, value, low):
+    """``value`` as an int, or a one-line :class:`TGHopError` naming ``name`` (an O(1) check)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
+        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def _check_max_patches(max_patches):
+    """``max_patches`` as an int, or None."""
+    return None if max_patches is None else _check_int("max_patches", max_patches, 1)
+
+
 def count_patches(shape, patch_size: int, stride: int) -> int:
-    """Number of ``patch_size`` patches at ``stride`` in an image of ``shape`` (H, W, ...)."""
+    """Number of ``patch_size`` patches at ``stride`` in an image of ``shape`` (H, W, ...).
+
+    Parameters
+    ----------
+    shape : tuple
+        (H, W, ...) of the image.
+    patch_size : int
+        Side of the square patches, at least 1.
+    stride : int
+        Step between patch origins, at least 1.
+
+    Returns
+    -------
+    int
+        0 when the image is smaller than a patch on either side.
+    """
+    patch_size = _check_int("patch_size", patch_size, 1)
+    stride = _check_int("stride", stride, 1)
     h, w = shape[:2]
+    if h < patch_size or w < patch_size:
+        return 0
     return ((h - patch_size) // stride + 1) * ((w - patch_size) // stride + 1)
 
 
@@ -30,13 +63,13 @@ def extract_patches(image, patch_size: int = 32, *, stride: int = 2, max_patches
     image : ndarray, shape (H, W) or (H, W, C)
         Float in [0, 1], ``H, W >= patch_size``.
     patch_size : int
-        Side of the square patches (paper: 32).
+        Side of the square patches, at least 2 (paper: 32).
     stride : int
-        Step between patch origins (paper: 2, giving 113 x 113 = 12,769 patches of a
-        256 x 256 exemplar).
+        Step between patch origins, at least 1 (paper: 2, giving 113 x 113 = 12,769 patches
+        of a 256 x 256 exemplar).
     max_patches : int, optional
-        If there are more patches than this, a random subset of this size is returned
-        (in raster order), drawn with ``rng``. Bounds memory for large exemplars.
+        At least 1. If there are more patches than this, a random subset of this size is
+        returned (in raster order), drawn with ``rng``. Bounds memory for large exemplars.
     rng : int or numpy.random.Generator, optional
 
     Returns
@@ -44,8 +77,8 @@ def extract_patches(image, patch_size: int = 32, *, stride: int = 2, max_patches
     ndarray, shape (n, patch_size, patch_size, C), float64
         Raster order of the patch origins.
     """
-    if int(patch_size) < 2 or int(stride) < 1:
-        raise TGHopError(f"patch_size must be >= 2 and stride >= 1, got {patch_size} and {stride}")
+    patch_size = _check_int("patch_size", patch_size, 2)
+    stride = _check_int("stride", stride, 1)
     img = check_image(image, min_size=patch_size)
     origins = patch_origins(img.shape, patch_size, stride=stride, max_patches=max_patches, rng=rng)
     windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))
@@ -62,7 +95,8 @@ def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, 
     shape : tuple
         (H, W, ...) of the image.
     patch_size, stride, max_patches, rng
-        As :func:`extract_patches`.
+        As :func:`extract_patches` (``patch_size`` at least 1 here). An image smaller than
+        a patch has no patch origins.
     exclude : ndarray of bool, shape (H, W), optional
         Pixels no patch may touch (a sample mask: a logo, a label, a hole to inpaint):
         patches that overlap them are dropped before the ``max_patches`` subset is drawn.
@@ -73,6 +107,9 @@ def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, 
     ndarray of int, shape (n, 2)
         (row, column) of each patch origin.
     """
+    patch_size = _check_int("patch_size", patch_size, 1)
+    stride = _check_int("stride", stride, 1)
+    max_patches = _check_max_patches(max_patches)
     h, w = shape[:2]
     ys = np.arange(0, h - patch_size + 1, stride)
     xs = np.arange(0, w - patch_size + 1, stride)
@@ -82,8 +119,8 @@ def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, 
         clean = clean_windows(exclude, patch_size)  # (H - P + 1, W - P + 1)
         allowed = np.flatnonzero(clean[ys[:, None], xs[None, :]].ravel())
     total = allowed.size
-    if max_patches is not None and total > int(max_patches):
-        index = allowed[np.sort(check_rng(rng).choice(total, size=int(max_patches), replace=False))]
+    if max_patches is not None and total > max_patches:
+        index = allowed[np.sort(check_rng(rng).choice(total, size=max_patches, replace=False))]
     else:
         index = allowed
     rows, cols = np.divmod(index, xs.size)
@@ -150,7 +187,19 @@ def enough_patches(n_patches, need, patch_size):
 
 
 def downsample_mask(mask, factor):
-    """(H // factor, W // factor) bool: True where any pixel of the box is."""
+    """(H // factor, W // factor) bool: True where any pixel of the box is.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (H, W)
+    factor : int
+        Side of the boxes, at least 1.
+
+    Returns
+    -------
+    ndarray of bool, shape (H // factor, W // factor)
+    """
+    factor = _check_int("factor", factor, 1)
     h, w = mask.shape[0] // factor, mask.shape[1] // factor
     return mask[: h * factor, : w * factor].reshape(h, factor, w, factor).any(axis=(1, 3))
 
@@ -189,10 +238,11 @@ def patch_grid(patches, *, n_cols=None, gap: int = 2, background: float = 1.0) -
     Parameters
     ----------
     patches : ndarray, shape (n, P, P, C) or (n, P, P)
+        At least one patch.
     n_cols : int, optional
-        Columns of the grid; default about sqrt(n).
+        Columns of the grid (at least 1); default about sqrt(n).
     gap : int
-        Pixels between patches.
+        Pixels between patches (at least 0).
     background : float
         Grey level of the gaps.
 
@@ -203,8 +253,11 @@ def patch_grid(patches, *, n_cols=None, gap: int = 2, background: float = 1.0) -
     p = np.asarray(patches, dtype=np.float64)
     if p.ndim == 3:
         p = p[..., None]
+    if p.ndim != 4 or p.shape[0] == 0:
+        raise TGHopError(f"patches must be a non-empty (n, P, P) or (n, P, P, C) array, got shape {p.shape}")
     n, ph, pw, c = p.shape
-    n_cols = int(n_cols or max(1, int(np.ceil(np.sqrt(n)))))
+    gap = _check_int("gap", gap, 0)
+    n_cols = max(1, int(np.ceil(np.sqrt(n)))) if n_cols is None else _check_int("n_cols", n_cols, 1)
     n_rows = int(np.ceil(n / n_cols))
     out = np.full((n_rows * (ph + gap) - gap, n_cols * (pw + gap) - gap, c), background)
     for i in range(n):  # one copy per patch, for display only

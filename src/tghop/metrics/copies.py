@@ -10,7 +10,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._common import TGHopError, check_image
-from .common import pair, counter, check_patch_size, sample_patches
+from .common import pair, counter, check_count, check_patch_size, sample_patches
 
 __all__ = ["novelty", "copied", "diversity", "TEXTURED_STD", "copied_textured", "self_repetition"]
 
@@ -36,7 +36,7 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
     float32 matrix products (``|q|^2 - 2 q.r + |r|^2``, chunked over the reference rows
     to bound memory: about ``max_patches x 8192`` floats at a time, whatever the image
     sizes) and their distances recomputed exactly in float64, so a verbatim copy scores
-    exactly 0. ``tick()`` is called after each chunk.
+    exactly 0. ``tick()``, if given, is called once after each chunk.
 
     Returns
     -------
@@ -61,7 +61,6 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
         better = value < best
         best[better] = value[better]
         best_index[better] = local[better] + r0 * nw
-        tick()
         if tick is not None:
             tick()
     rows, cols = np.divmod(best_index, nw)
@@ -88,7 +87,7 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     patch_size : int
         Side of the compared patches (default 8).
     max_patches : int
-        Result patches sampled (default 2,048); every exemplar patch is searched.
+        Result patches sampled, at least 1 (default 2,048); every exemplar patch is searched.
     seed : int
         Seed of the patch sample.
     progress : callable, optional
@@ -106,9 +105,10 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     with the exemplar's pixels (about 10 s per megapixel on 2 cores).
     """
     patch_size = check_patch_size(patch_size)
+    max_patches = check_count(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     tick = counter(progress, "novelty", _nearest_chunks(ex, patch_size))
-    return float(_nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed), tick).mean())
+    return float(_nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick).mean())
 
 
 def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, max_patches: int = 1024,
@@ -133,7 +133,7 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
         RMS difference (intensity units, 0 to 1) below which a patch is a copy
         (default 0.03, about 8 grey levels of 255).
     max_patches : int
-        Result patches sampled (default 1,024); every exemplar patch is searched.
+        Result patches sampled, at least 1 (default 1,024); every exemplar patch is searched.
     seed : int
         Seed of the patch sample.
     progress : callable, optional
@@ -153,9 +153,10 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    max_patches = check_count(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     tick = counter(progress, "copied", _nearest_chunks(ex, patch_size))
-    rms = _nearest_patch_rms(ex, res, patch_size, int(max_patches), int(seed), tick)
+    rms = _nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick)
     return float(np.mean(rms < threshold))
 
 
@@ -189,6 +190,7 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
     if len(results) < 2:
         raise TGHopError(f"diversity needs at least two results, got {len(results)}")
     patch_size = check_patch_size(patch_size)
+    max_patches = check_count(max_patches, "max_patches")
     images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
     if len({img.shape[2] for img in images}) > 1:
         images = [np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img for img in images]
@@ -197,8 +199,8 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
                     sum(_nearest_chunks(a, patch_size) + _nearest_chunks(b, patch_size) for a, b in pairs))
     values = []
     for a, b in pairs:
-        values.append(_nearest_patch_rms(a, b, patch_size, int(max_patches), int(seed), tick).mean())
-        values.append(_nearest_patch_rms(b, a, patch_size, int(max_patches), int(seed), tick).mean())
+        values.append(_nearest_patch_rms(a, b, patch_size, max_patches, int(seed), tick).mean())
+        values.append(_nearest_patch_rms(b, a, patch_size, max_patches, int(seed), tick).mean())
     return float(np.mean(values))
 
 
@@ -279,9 +281,10 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    max_patches = check_count(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     rng = np.random.default_rng((int(seed), 3))
-    pos = _textured_positions(res, patch_size, float(min_std), int(max_patches), rng)
+    pos = _textured_positions(res, patch_size, float(min_std), max_patches, rng)
     nh_ex, nw_ex = ex.shape[0] - patch_size + 1, ex.shape[1] - patch_size + 1
     rows_per_chunk = max(1, 8192 // nw_ex)
     n_chunks = -(-nh_ex // rows_per_chunk)
@@ -356,6 +359,7 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
+    max_windows = check_count(max_windows, "max_windows")
     img = check_image(image, min_size=patch_size, name="image", dtype=np.float32)
     h, w = img.shape[:2]
     region = min(int(region), int(search))  # the sampled windows lie in the search area
@@ -368,7 +372,7 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     (qy0, qy1), (qx0, qx1) = centre(h, region), centre(w, region)
     (sy0, sy1), (sx0, sx1) = centre(h, search), centre(w, search)
     rng = np.random.default_rng((int(seed), 4))
-    pos = _textured_positions(img[qy0:qy1, qx0:qx1], patch_size, float(min_std), int(max_windows), rng)
+    pos = _textured_positions(img[qy0:qy1, qx0:qx1], patch_size, float(min_std), max_windows, rng)
     nh, nw = sy1 - sy0 - patch_size + 1, sx1 - sx0 - patch_size + 1
     rows_per_chunk = max(1, 8192 // nw)
     n_chunks = -(-nh // rows_per_chunk)

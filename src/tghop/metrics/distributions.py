@@ -10,7 +10,7 @@ from scipy import ndimage
 
 from .._common import InvalidImageError, TGHopError
 from . import common
-from .common import pair, counter, check_patch_size, sample_patches
+from .common import pair, counter, check_count, check_patch_size, sample_patches
 
 __all__ = ["sliced_wasserstein", "cooccurrence_distance"]
 
@@ -143,7 +143,7 @@ def cooccurrence_distance(
     window : int
         Side of the neighbourhood (paper: 51).
     max_fit_pixels : int
-        Exemplar pixels sampled to fit k-means (default 20,000).
+        Exemplar pixels sampled to fit k-means, at least 1 (default 20,000).
     seed : int
         Seed of the pixel sample and of k-means.
     progress : callable, optional
@@ -167,8 +167,9 @@ def cooccurrence_distance(
 
     if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
         raise TGHopError("sigma, window and n_clusters must be positive")
+    max_fit_pixels = check_count(max_fit_pixels, "max_fit_pixels")
     ex, res = pair(exemplar, result)
-    centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=int(max_fit_pixels),
+    centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=max_fit_pixels,
                                            seed=int(seed))
     tick = counter(progress, "cooccurrence", len(_cooc_strips(ex, int(window))) + len(_cooc_strips(res, int(window))))
     matrices = []
