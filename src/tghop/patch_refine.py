@@ -587,6 +587,10 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     centre crop of at most _FIT_SIDE squared; None when ``levels`` is 0 (nothing stored)."""
     if not levels:
         return None
+    if not isinstance(levels, numbers.Integral) or isinstance(levels, bool) or levels < 1:
+        raise TGHopError(f"patch_levels must be a positive integer, got {levels!r}")
+    if not isinstance(whitening, numbers.Real) or isinstance(whitening, bool) or not 0 <= whitening <= 1:
+        raise TGHopError(f"patch_whitening must be a number in [0, 1], got {whitening!r}")
     h, w = image.shape[:2]
     y, x = max(0, (h - _FIT_SIDE) // 2), max(0, (w - _FIT_SIDE) // 2)
     crop = image[y:y + _FIT_SIDE, x:x + _FIT_SIDE].astype(np.float32)
