@@ -8,6 +8,7 @@ import pytest
 from tghop.colour import (ColourClasses, channel_quantiles, class_separation, class_shares, colour_classes,
                           match_histograms, mixed_quantiles)
 from tghop.refine import BandStatistics
+from tghop._common import TGHopError
 
 
 def two_colours(rng, grey_share, shape=(64, 64), stripes=True):
@@ -137,3 +138,52 @@ def test_a_model_uses_its_classes_only_with_own_shares(small_model):
         small_model.classes_ = saved
     assert np.array_equal(small_model.synthesize((48, 48), rng=3, n_patches=200, own_shares=0.0), plain)
     assert not np.array_equal(a, plain)
+
+
+# ------------------------------------------------------------------ input checks
+def _bad(img):
+    nan = img.copy()
+    nan[1, 2, 0] = np.nan
+    return [(img * 255, r"values must lie in \[0, 1\]"), (nan, "NaN"), (img[..., 0], r"\(H, W, C\)")]
+
+
+def test_colour_functions_check_their_images(rng):
+    from tghop._common import InvalidImageError, NotFittedError
+    from tghop.colour import match_histograms
+
+    img = rng.random((24, 20, 3))
+    q = channel_quantiles(img)
+    bands = BandStatistics(n_levels=1, n_quantiles=17).fit(img)
+    cc = ColourClasses(2).fit(img, bands)
+    for bad, message in _bad(img):
+        for where, call in (("match_histograms", lambda: match_histograms(bad, q)),
+                            ("channel_quantiles", lambda: channel_quantiles(bad)),
+                            ("ColourClasses.fit", lambda: ColourClasses(2).fit(bad, bands)),
+                            ("ColourClasses.targets", lambda: cc.targets(bad))):
+            with pytest.raises(InvalidImageError, match=f"^{where}: image.*{message}"):
+                call()
+    with pytest.raises(InvalidImageError, match="match_histograms: image has 3 channels where 1 are expected"):
+        match_histograms(img, q[:1])
+    with pytest.raises(InvalidImageError, match="ColourClasses.targets: image has 1 channels where 3"):
+        cc.targets(img[..., :1])
+    with pytest.raises(TGHopError, match="match_histograms: quantiles must be a"):
+        match_histograms(img, q[0])
+    assert np.array_equal(match_histograms(img, q.tolist()), match_histograms(img, q))
+    with pytest.raises(NotFittedError):
+        ColourClasses(2).fit(img, BandStatistics())
+
+
+@pytest.mark.parametrize("n_classes", [0, -2, 2.7, "3", None])
+def test_colour_classes_refuse_a_bad_n_classes(rng, n_classes):
+    img = rng.random((24, 20, 3))
+    bands = BandStatistics(n_levels=1, n_quantiles=17).fit(img)
+    with pytest.raises(TGHopError, match="n_classes must be an integer >= 1"):
+        ColourClasses(n_classes).fit(img, bands)
+
+
+def test_colour_classes_of_an_8_bit_exemplar_are_those_of_its_floats(rng):
+    u8 = (rng.random((40, 30, 3)) * 255).round().astype(np.uint8)
+    bands = BandStatistics(n_levels=1, n_quantiles=17).fit(u8 / 255.0)
+    a, b = ColourClasses(3).fit(u8, bands), ColourClasses(3).fit(u8 / 255.0, bands)
+    for name in ("centres_", "shares_", "quantiles_", "refine_quantiles_", "spread_"):
+        assert np.allclose(getattr(a, name), getattr(b, name), atol=1e-12), name

@@ -363,3 +363,41 @@ def test_downsample_uint8_in_row_bands_gives_the_rounded_box_mean():
     small = downsample(u, 2)
     assert small.dtype == np.uint8
     np.testing.assert_array_equal(small, np.round(ref))
+
+
+# ------------------------------------------------------------------ input checks
+@pytest.mark.parametrize("factor", [0, -1, 2.5, "2", True, 200])
+def test_downsample_checks_its_factor(factor):
+    with pytest.raises(TGHopError, match="downsample: factor"):
+        downsample(data.bricks(96), factor)
+
+
+@pytest.mark.parametrize("factor,size,message", [(0, (100, 100), "upsample: factor"),
+                                                 (2.5, (100, 100), "upsample: factor"),
+                                                 (2, (1000, 1000), "larger than the 96x96 image"),
+                                                 (2, (0, 10), "upsample: size must be positive"),
+                                                 (2, "a", "upsample: size must be")])
+def test_upsample_checks_its_factor_and_size(factor, size, message):
+    with pytest.raises(TGHopError, match=message):
+        upsample(data.bricks(96), factor, size)
+
+
+def test_downsample_and_upsample_check_their_images():
+    from tghop._common import InvalidImageError
+
+    img = data.bricks(32)
+    nan = img.copy()
+    nan[0, 0, 0] = np.nan
+    for bad in (img * 255, nan, img[..., 0]):
+        with pytest.raises(InvalidImageError, match="^downsample: image"):
+            downsample(bad, 2)
+        with pytest.raises(InvalidImageError, match="^upsample: image"):
+            upsample(bad, 2, (64, 64))
+    assert upsample(img, 2, 64).shape == (64, 64, 3)  # size as in check_size
+    assert downsample(np.round(img * 255).astype(np.uint8), 2).dtype == np.uint8
+
+
+def test_coarse_guide_names_its_refine():
+    model = TGHop(**SMALL, layout_factor=2).fit(data.bricks(96))
+    with pytest.raises(TGHopError, match="^refine must be a non-negative integer, got -1"):
+        model.layout_.guide((64, 64), refine=-1)

@@ -136,7 +136,7 @@ def test_whitened_directions_see_detail_not_the_patch_mean():
     flat = pr.PatchStatistics(1, 0.5).fit(np.full((40, 40, 3), 0.3, np.float32))
     assert np.isfinite(flat.directions_).all() and np.allclose(np.linalg.norm(flat.directions_, axis=-1), 1)
     for bad in (-0.1, 1.5, True, "x"):
-        with pytest.raises(TGHopError, match="patch_whitening"):
+        with pytest.raises(TGHopError, match="^PatchStatistics: whitening"):
             pr.PatchStatistics(1, bad).fit(ex)
     with pytest.raises(TGHopError, match="patch_whitening"):
         TGHop(**SMALL, patch_whitening=2.0).fit(ex)
@@ -273,7 +273,7 @@ def test_patch_stride_thins_every_level_but_small_ones(patch_model, monkeypatch)
     one = pr.patch_refine(img, st, n_steps=4, stride=1)
     assert not np.array_equal(one, two) and np.array_equal(two, pr.patch_refine(img, st, n_steps=4, stride=2))
     for bad in (0, pr.PATCH + 1, 1.5, True):
-        with pytest.raises(TGHopError, match="patch_stride"):
+        with pytest.raises(TGHopError, match="^stride must be"):
             pr.patch_refine(img, st, n_steps=1, stride=bad)
     monkeypatch.setattr(pr, "_steps", real)
     # (_DENSE_PIXELS still 0: the setting reaches every level of a 64x64 image)
@@ -524,3 +524,62 @@ def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_pa
                           patch_model.synthesize((48, 48), rng=1, patch_refine=0))
     with pytest.raises(TGHopError, match="patch_refine=3 needs the patch statistics"):
         loaded.synthesize((48, 48), rng=1, patch_refine=3)
+
+
+# ------------------------------------------------------------------ estimator conventions and input checks
+def test_patch_statistics_is_a_scikit_learn_estimator(rng):
+    from sklearn.base import clone
+
+    from tghop._common import NotFittedError
+
+    st = pr.PatchStatistics(n_levels=2)
+    assert st.get_params() == {"n_levels": 2, "whitening": 0.0}
+    assert repr(st) == "PatchStatistics(n_levels=2)"
+    assert clone(st.set_params(whitening=0.5)).get_params() == {"n_levels": 2, "whitening": 0.5}
+    with pytest.raises(NotFittedError):
+        pr.patch_refine(rng.random((16, 16, 3)), pr.PatchStatistics(), n_steps=1)
+
+
+def test_patch_statistics_fit_checks_its_image_and_takes_rng():
+    from tghop._common import InvalidImageError
+
+    img = data.bricks(40)
+    u8 = np.round(img * 255).astype(np.uint8)
+    base = pr.PatchStatistics(n_levels=1).fit(img)
+    # uint8 is read as x / 255 (as TGHop.fit does), not 255 times too large.
+    assert np.array_equal(pr.PatchStatistics(n_levels=1).fit(u8).quantiles_,
+                          pr.PatchStatistics(n_levels=1).fit(u8 / 255.0).quantiles_)
+    # rng: an int (the default 0: the same directions as before) or a Generator.
+    assert np.array_equal(pr.PatchStatistics(n_levels=1).fit(img, rng=0).directions_, base.directions_)
+    gen = pr.PatchStatistics(n_levels=1).fit(img, rng=np.random.default_rng(0))
+    assert np.array_equal(gen.directions_, base.directions_)
+    nan = img.copy()
+    nan[2, 2, 2] = np.nan
+    for bad, message in ((img * 255, r"values must lie in \[0, 1\]"), (nan, "NaN"), (img[None], "must have shape"),
+                         (img[:3, :3], "at least 5x5")):
+        with pytest.raises(InvalidImageError, match="PatchStatistics.fit: image.*" + message):
+            pr.PatchStatistics(n_levels=1).fit(bad)
+    with pytest.raises(TGHopError, match="seed must be a non-negative integer"):
+        pr.PatchStatistics(n_levels=1).fit(img, rng=-1)
+
+
+def test_patch_refine_errors_name_its_own_arguments(patch_model):
+    from tghop._common import InvalidImageError
+
+    img, p = np.full((32, 32, 3), 0.5), patch_model.patches_
+    for kwargs, message in (({"n_steps": -1}, "^n_steps must be"), ({"stride": 0}, "^stride must be"),
+                            ({"learning_rate": -1}, "learning_rate must be a finite number > 0"),
+                            ({"learning_rate": "a"}, "learning_rate must be"),
+                            ({"learning_rate": float("nan")}, "learning_rate must be")):
+        with pytest.raises(TGHopError, match=message):
+            pr.patch_refine(img, p, **{"n_steps": 1, **kwargs})
+    for bad in (img * 255, img[..., 0]):
+        with pytest.raises(InvalidImageError, match="^patch_refine: image"):
+            pr.patch_refine(bad, p, n_steps=1)
+    with pytest.raises(TGHopError, match="^PatchStatistics: n_levels must be"):
+        pr.PatchStatistics(n_levels=0).fit(img)
+    with pytest.raises(TGHopError, match="^PatchStatistics: whitening must be"):
+        pr.PatchStatistics(whitening=2).fit(img)
+    # TGHop's own settings keep their names.
+    with pytest.raises(TGHopError, match="^patch_refine must be"):
+        pr.refine_image(img, p, n_steps=-1)

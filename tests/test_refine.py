@@ -508,3 +508,63 @@ def test_over_relaxed_rounds_move_twice_as_far_and_the_last_round_is_plain(cells
     for bad in (0, -1, 2.5, "2", None, True):
         with pytest.raises(TGHopError, match="relaxation"):
             refine(img, st, relaxation=bad)
+
+
+# ------------------------------------------------------------------ estimator conventions and input checks
+def test_band_statistics_is_a_scikit_learn_estimator(cells):
+    from sklearn.base import clone
+
+    from tghop._common import NotFittedError
+
+    st = BandStatistics(n_levels=2, n_quantiles=33)
+    assert st.get_params() == {"n_levels": 2, "n_orientations": 4, "n_quantiles": 33}
+    assert repr(st) == "BandStatistics(n_levels=2, n_quantiles=33)"
+    copy = clone(st.set_params(n_orientations=0))
+    assert copy is not st and copy.get_params() == st.get_params()
+    for call in (lambda: st.to_decorrelated(cells), lambda: st.from_decorrelated(cells),
+                 lambda: refine(cells, st, n_iter=1)):
+        with pytest.raises(NotFittedError):
+            call()
+
+
+@pytest.mark.parametrize("n_quantiles", [0, 1, 2.5, "9", True])
+def test_band_statistics_refuses_a_bad_n_quantiles_at_fit(cells, n_quantiles):
+    with pytest.raises(TGHopError, match="n_quantiles must be an integer >= 2"):
+        BandStatistics(n_quantiles=n_quantiles).fit(cells)
+
+
+def _bad_images(img):
+    nan = img.copy()
+    nan[3, 4, 1] = np.nan
+    inf = img.copy()
+    inf[0, 0, 0] = np.inf
+    return [(img * 255, r"values must lie in \[0, 1\]"), (nan, "NaN"), (inf, "NaN or infinite"),
+            (img[..., 0], r"\(H, W, C\)"), (img[None], r"\(H, W, C\)"), (img.astype(object), r"\(H, W, C\)")]
+
+
+def test_refine_and_band_statistics_check_their_images(cells):
+    from tghop._common import InvalidImageError
+
+    st = BandStatistics(n_levels=2, n_quantiles=33).fit(cells)
+    for bad, message in _bad_images(cells):
+        with pytest.raises(InvalidImageError, match="^refine: image.*" + message):
+            refine(bad, st, n_iter=1)
+        with pytest.raises(InvalidImageError, match="^BandStatistics.fit: exemplar.*" + message):
+            BandStatistics(n_levels=2).fit(bad)
+    with pytest.raises(InvalidImageError, match="BandStatistics.fit: exemplar is empty"):
+        BandStatistics().fit(np.zeros((0, 0, 3)))
+    with pytest.raises(TGHopError, match="refine: image of shape .* 3 channels"):
+        refine(cells[..., :1], st, n_iter=1)
+    # Values past the range's ends within check_image's tolerance are accepted; uint8 is scaled.
+    edge = cells.copy()
+    edge[0, 0, 0] = 1 + 1e-7
+    assert refine(edge, st, n_iter=1).shape == cells.shape
+    u8 = np.round(cells * 255).astype(np.uint8)
+    assert np.array_equal(refine(u8, st, n_iter=1), refine(u8 / 255.0, st, n_iter=1))
+
+
+def test_the_first_level_docstring_names_an_existing_api():
+    import tghop.synthesis
+
+    assert "tghop.synthesis.CoarseLayout.guide" in refine.__doc__
+    assert hasattr(tghop.synthesis.CoarseLayout, "guide")

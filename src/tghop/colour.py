@@ -11,9 +11,12 @@ paper exactly.
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
-from ._common import BaseEstimator, StoredArrays, TGHopError, check_is_fitted, usable_cores
+from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
+                      usable_cores)
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasses", "colour_classes", "class_labels",
            "class_quantiles", "class_separation", "class_shares", "mixed_quantiles", "share_spread"]
@@ -22,20 +25,53 @@ __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasse
 N_QUANTILES = 257
 
 
+def checked_image(image, where, name="image", channels=None):
+    """``image`` as an (H, W, C) array, not converted, or a one-line :class:`InvalidImageError`
+    naming ``where`` and ``name``.
+
+    The check of the generation steps' images (:func:`match_histograms`,
+    :func:`tghop.refine.refine`, ...), cheap enough for every image they are given: float
+    images must be finite and in [0, 1] (within :func:`tghop._common.check_image`'s
+    tolerance; one min and one max, which a NaN fails), unsigned integer ones pass as they
+    are; ``channels``: the channel count the caller's statistics have (None: any).
+    """
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] < 1 or arr.dtype.kind not in "fu":
+        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1], "
+                                f"got {arr.dtype} of shape {arr.shape}")
+    if channels is not None and arr.shape[2] != channels:
+        raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channels where {channels} are expected "
+                                "(as many as the statistics have)")
+    if arr.dtype.kind == "f" and arr.size and not (arr.min() >= -1e-6 and arr.max() <= 1 + 1e-6):
+        check_image(arr, name=f"{where}: {name}", channels=None)  # its message: NaN, or the range
+        raise InvalidImageError(f"{where}: {name} values must lie in [0, 1]")
+    return arr
+
+
 def channel_quantiles(image, n: int = N_QUANTILES) -> np.ndarray:
     """Quantiles of each channel of an image.
 
     Parameters
     ----------
     image : ndarray, shape (H, W, C)
+        Float in [0, 1], or uint8 (0 to 255, read as in [0, 1]).
     n : int
-        Number of equally spaced probability levels from 0 to 1.
+        Number of equally spaced probability levels from 0 to 1 (at least 2).
 
     Returns
     -------
     ndarray, shape (C, n)
     """
-    image = np.asarray(image)
+    image = checked_image(image, "channel_quantiles")
+    if isinstance(n, bool) or not isinstance(n, (numbers.Integral, np.integer)) or n < 2:
+        raise TGHopError(f"channel_quantiles: n must be an integer >= 2, got {n!r}")
+    if image.dtype.kind == "u" and image.dtype != np.uint8:
+        image = check_image(image, name="channel_quantiles: image", channels=None)
+    return _channel_quantiles(image, int(n))
+
+
+def _channel_quantiles(image, n):
+    """:func:`channel_quantiles` of an (H, W, C) array of any values, unchecked."""
     probs = np.linspace(0.0, 1.0, n)
     if image.dtype == np.uint8:  # from the histogram: no float copy of a large exemplar
         out = np.empty((image.shape[2], n))
@@ -72,7 +108,7 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     Parameters
     ----------
     image : ndarray, shape (H, W, C)
-        Values in [0, 1].
+        Values in [0, 1] (uint8: 0 to 255, scaled to [0, 1]).
     quantiles : ndarray, shape (C, n)
         From :func:`channel_quantiles` of the reference.
     out : ndarray, shape (H, W, C), optional
@@ -85,7 +121,13 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     -------
     ndarray, shape (H, W, C), in [0, 1] (uint8 ``out``: 0 to 255)
     """
-    image = np.asarray(image)
+    quantiles = np.asarray(quantiles)
+    if quantiles.ndim != 2 or quantiles.shape[1] < 2 or quantiles.dtype.kind not in "fiu":
+        raise TGHopError(f"match_histograms: quantiles must be a (C, n) array of numbers, n >= 2, "
+                         f"got {quantiles.dtype} of shape {quantiles.shape}")
+    image = checked_image(image, "match_histograms", channels=len(quantiles))
+    if image.dtype.kind == "u":
+        image = check_image(image, name="match_histograms: image", channels=None)
     h, w, c = image.shape
     if out is None:
         out = np.empty((h, w, c))
@@ -212,7 +254,7 @@ def class_quantiles(values, labels, n_classes, n: int = N_QUANTILES) -> np.ndarr
     A class without values gets the quantiles of all of them."""
     values = np.asarray(values, dtype=np.float64)[:, None, :]  # (m, 1, C): an image, for channel_quantiles
     members = [values[labels == k] for k in range(n_classes)]
-    return np.stack([channel_quantiles(m if len(m) else values, n) for m in members])
+    return np.stack([_channel_quantiles(m if len(m) else values, n) for m in members])
 
 
 #: Margins below which a pixel is near the boundary of its class (:func:`class_separation`), and the
@@ -270,6 +312,8 @@ def class_shares(image, centres) -> np.ndarray:
     strided subset of about 65,536 of them): (K,), summing to 1."""
     image = np.asarray(image)
     pixels = np.ascontiguousarray(_strided(image.reshape(-1, image.shape[-1]), CLASS_PIXELS), dtype=np.float64)
+    if image.dtype == np.uint8:
+        pixels /= 255.0
     counts = np.bincount(class_labels(pixels, centres), minlength=len(centres))
     return counts / counts.sum()
 
@@ -338,9 +382,17 @@ class ColourClasses(StoredArrays, BaseEstimator):
         """Fit on ``image`` (H, W, C) in [0, 1], without the pixels where ``exclude`` (H, W)
         is true; ``bands``: the fitted :class:`tghop.refine.BandStatistics` (its colour
         axes). Measured on a strided subset of about 65,536 pixels. Returns self."""
-        image = np.asarray(image)
+        k = self.n_classes
+        if isinstance(k, bool) or not isinstance(k, (numbers.Integral, np.integer)) or k < 1:
+            raise TGHopError(f"ColourClasses: n_classes must be an integer >= 1, got {k!r}")
+        check_is_fitted(bands, "colour_mean_")
+        image = checked_image(image, "ColourClasses.fit", channels=len(bands.colour_mean_))
+        if image.dtype.kind == "u" and image.dtype != np.uint8:
+            image = check_image(image, name="ColourClasses.fit: image", channels=None)
         pixels = (image if exclude is None else image[~exclude]).reshape(-1, image.shape[-1])
         pixels = np.ascontiguousarray(_strided(pixels, CLASS_PIXELS), dtype=np.float64)
+        if image.dtype == np.uint8:  # a large exemplar (TGHop.fit keeps it 8-bit): its pixels x / 255
+            pixels /= 255.0
         k = int(self.n_classes)
         self.centres_ = colour_classes(pixels, k)
         labels = class_labels(pixels, self.centres_)
@@ -363,6 +415,7 @@ class ColourClasses(StoredArrays, BaseEstimator):
             Quantiles of the refinement's decorrelated channels and of the colours.
         """
         weight = self.weight(own_shares)
+        image = checked_image(image, "ColourClasses.targets", channels=self.centres_.shape[1])
         # As far as samples of the exemplar of the image's size would differ (two standard
         # deviations; a share's spread falls as one over the side): a layout's variation, not
         # a blur's bias (docs/choices.md, Colour matching, "Colour classes").

@@ -31,6 +31,7 @@ import numbers
 
 import numpy as np
 from ._common import TGHopError, check_size, usable_cores
+from .colour import checked_image
 
 __all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "follows_guide", "usable_factor",
            "coarse_training", "coarse_guide"]
@@ -42,16 +43,21 @@ def downsample(image, factor: int) -> np.ndarray:
     Parameters
     ----------
     image : ndarray, shape (H, W, C)
-        Float, or uint8 (0-255).
+        Float in [0, 1], or uint8 (0-255).
     factor : int
+        At least 1, at most the image's shorter side.
 
     Returns
     -------
     ndarray, shape (H // factor, W // factor, C)
         float64, or uint8 (rounded box means) for a uint8 image.
     """
-    img = np.asarray(image)
+    img = checked_image(image, "downsample")
+    factor = positive_int(factor, "downsample: factor")
     h, w, c = img.shape
+    if factor > min(h, w):
+        raise TGHopError(f"downsample: factor {factor} is larger than the {h}x{w} image; "
+                         f"use at most {max(1, min(h, w))}")
     hs, ws = h // factor, w // factor
     eight_bit = img.dtype == np.uint8
     out = np.empty((hs, ws, c), dtype=np.uint8 if eight_bit else np.float64)
@@ -69,12 +75,13 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
     Parameters
     ----------
     image : ndarray, shape (h, w, C)
+        Float in [0, 1].
     factor : int or None
         None: each axis by its own ratio ``H / h``, ``W / w`` (no crop): with ``wrap``, one
         period of the image becomes one period of the output (a tileable 256x256 guide
         from an 86x86 coarse image).
-    size : (int, int)
-        Output (H, W), at most ``(h * factor, w * factor)``.
+    size : int or (int, int)
+        Output (H, W), at most ``(h * factor, w * factor)`` (:func:`tghop._common.check_size`).
     wrap : bool
         Treat the image as periodic (for tileable output).
 
@@ -83,9 +90,18 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
     ndarray, shape (H, W, C), in [0, 1]
         float32 for a float32 image, else float64.
     """
-    img = np.asarray(image)
+    img = checked_image(image, "upsample")
+    if img.dtype.kind != "f":
+        raise TGHopError(f"upsample: image must be a float array in [0, 1], got {img.dtype}")
     img = img.astype(np.float32 if img.dtype == np.float32 else np.float64, copy=False)
-    h, w = int(size[0]), int(size[1])
+    h, w = check_size(size, name="upsample: size")
+    if factor is not None:
+        factor = positive_int(factor, "upsample: factor")
+        if h > img.shape[0] * factor or w > img.shape[1] * factor:
+            raise TGHopError(f"upsample: size {h}x{w} is larger than the {img.shape[0]}x{img.shape[1]} image "
+                             f"times factor {factor}")
+    elif min(img.shape[:2]) < 1:
+        raise TGHopError(f"upsample: the image is empty ({img.shape[0]}x{img.shape[1]} pixels)")
     out = np.empty((h, w, *img.shape[2:]), dtype=img.dtype)
 
     def rows(start, stop):  # output rows [start, stop)
@@ -224,7 +240,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     tile : bool
         Make the coarse image wrap around (for tileable output).
     refine : int
-        Rounds of the refinement after quilting (:mod:`tghop.refine`) of the coarse image
+        Rounds (>= 0) of the refinement after quilting (:mod:`tghop.refine`) of the coarse image
         (at factor 2 without its finest band, which the fine level's comparison by box
         means hardly sees).
     seam_window : int
@@ -237,6 +253,8 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
         (float32: quilting compares it in float32; half the memory of a large guide.)
     """
     f = int(factor)
+    if isinstance(refine, bool) or not isinstance(refine, (numbers.Integral, np.integer)) or refine < 0:
+        raise TGHopError(f"refine must be a non-negative integer, got {refine!r}")
     h, w = check_size(size)
     small = (math.ceil(h / f), math.ceil(w / f))  # tileable: stretched to (h, w) when not divisible
     if not guide_fits((h, w), f, model.patch_size, tile=tile):
@@ -254,7 +272,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     # (docs/choices.md).
     coarse = model.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False,
                               seam_window=seam_window, dtype=np.float32)
-    coarse = refine_bands(coarse, model.bands_, n_iter=refine, tile=tile,  # checks refine too
+    coarse = refine_bands(coarse, model.bands_, n_iter=int(refine), tile=tile,
                           first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
     coarse = match_histograms(coarse, model.colour_quantiles_, out=coarse)
     return upsample(coarse, None if tile and (h % f or w % f) else f, (h, w), wrap=tile)

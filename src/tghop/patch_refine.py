@@ -32,11 +32,13 @@ tghop's finished image (which already has the layout, so few steps suffice):
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
 
-from ._common import TGHopError, report
+from ._common import BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng, report
+from .colour import checked_image
 from .patches import clean_windows
 from .pyramid import downsample, upsample
 
@@ -158,7 +160,7 @@ def _columns(img, p, stride=1):
     return np.ascontiguousarray(v.transpose(0, 3, 4, 1, 2)).reshape(img.shape[0] * p * p, -1)
 
 
-class PatchStatistics:
+class PatchStatistics(BaseEstimator):
     """The exemplar's patch projections per pyramid level, for :func:`patch_refine`.
 
     Parameters
@@ -188,20 +190,35 @@ class PatchStatistics:
         self.n_levels = n_levels
         self.whitening = whitening
 
-    def fit(self, image, *, exclude=None, seed=0):
-        """Learn from the exemplar, (H, W, C) float in [0, 1]; returns self.
+    def fit(self, image, *, exclude=None, rng=0):
+        """Learn from the exemplar; returns self.
 
-        ``exclude`` (H, W) bool: patches touching these pixels (at each level: touching
-        pixels reached by them) are left out. The directions come from ``seed`` alone.
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, C)
+            Float in [0, 1], or uint8 (read as ``x / 255``, as :meth:`tghop.TGHop.fit` does);
+            at least PATCH pixels a side.
+        exclude : ndarray, shape (H, W), bool, optional
+            Patches touching these pixels (at each level: touching pixels reached by them)
+            are left out.
+        rng : int or numpy.random.Generator, default=0
+            The directions come from it alone (the default: those of every model so far).
+
+        Returns
+        -------
+        self
         """
         n = self.n_levels
         if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 1:
-            raise TGHopError(f"patch_levels must be a positive integer, got {n!r}")
+            raise TGHopError(f"PatchStatistics: n_levels must be a positive integer, got {n!r}")
         w = self.whitening
         if not isinstance(w, numbers.Real) or isinstance(w, bool) or not 0 <= w <= 1:
-            raise TGHopError(f"patch_whitening must be a number in [0, 1], got {w!r}")
-        image = np.asarray(image, dtype=np.float32)
-        rng = np.random.default_rng(seed)
+            raise TGHopError(f"PatchStatistics: whitening must be a number in [0, 1], got {w!r}")
+        rng = check_rng(rng)
+        image = check_image(image, min_size=PATCH, name="PatchStatistics.fit: image", dtype=np.float32, channels=None)
+        if exclude is not None and np.shape(exclude) != image.shape[:2]:
+            raise TGHopError(f"PatchStatistics.fit: exclude must be an (H, W) mask of the image's "
+                             f"{image.shape[0]}x{image.shape[1]} pixels, got shape {np.shape(exclude)}")
         levels = _levels_of(image, n, "reflect", PATCH)
         d = PATCH * PATCH * image.shape[2]
         dirs = rng.standard_normal((len(levels), SETS, DIRECTIONS, d)).astype(np.float32)
@@ -476,14 +493,28 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
     -------
     ndarray, shape (H, W, C), float32 in [0, 1]
     """
+    return _patch_refine(image, stats, n_steps=n_steps, stride=stride, tile=tile, learning_rate=learning_rate,
+                         progress=progress, names=("n_steps", "stride"))
+
+
+def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progress, names):
+    """:func:`patch_refine`; ``names``: what its ``n_steps`` and ``stride`` are called in
+    errors (TGHop's settings for :func:`refine_image`)."""
     if not isinstance(n_steps, numbers.Integral) or isinstance(n_steps, bool) or n_steps < 0:
-        raise TGHopError(f"patch_refine must be a non-negative integer, got {n_steps!r}")
+        raise TGHopError(f"{names[0]} must be a non-negative integer, got {n_steps!r}")
+    check_is_fitted(stats, ("side_", "directions_", "quantiles_", "levels_"))
     p = stats.side_
     if not isinstance(stride, numbers.Integral) or isinstance(stride, bool) or not 1 <= stride <= p:
-        raise TGHopError(f"patch_stride must be an integer from 1 to {p} (the patch side), got {stride!r}")
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim != 3 or img.shape[2] * p * p != stats.directions_.shape[-1]:
-        raise TGHopError(f"patch_refine: image of shape {img.shape} does not fit the patch statistics")
+        raise TGHopError(f"{names[1]} must be an integer from 1 to {p} (the patch side), got {stride!r}")
+    if isinstance(learning_rate, bool) or not isinstance(learning_rate, numbers.Real) \
+            or not (math.isfinite(learning_rate) and learning_rate > 0):
+        raise TGHopError(f"patch_refine: learning_rate must be a finite number > 0, got {learning_rate!r}")
+    img = checked_image(image, "patch_refine")
+    img = check_image(img, name="patch_refine: image", dtype=np.float32, channels=None) if img.dtype.kind == "u" \
+        else np.asarray(img, dtype=np.float32)
+    if img.shape[2] * p * p != stats.directions_.shape[-1]:
+        raise InvalidImageError(f"patch_refine: image of shape {img.shape} does not fit the patch statistics "
+                                f"(patches of {stats.directions_.shape[-1] // (p * p)} channels)")
     if n_steps == 0 or min(img.shape[:2]) < p:
         return img.copy()
     mode = "wrap" if tile else "reflect"
@@ -556,6 +587,10 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     centre crop of at most _FIT_SIDE squared; None when ``levels`` is 0 (nothing stored)."""
     if not levels:
         return None
+    if not isinstance(levels, numbers.Integral) or isinstance(levels, bool) or levels < 1:
+        raise TGHopError(f"patch_levels must be a positive integer, got {levels!r}")
+    if not isinstance(whitening, numbers.Real) or isinstance(whitening, bool) or not 0 <= whitening <= 1:
+        raise TGHopError(f"patch_whitening must be a number in [0, 1], got {whitening!r}")
     h, w = image.shape[:2]
     y, x = max(0, (h - _FIT_SIDE) // 2), max(0, (w - _FIT_SIDE) // 2)
     crop = image[y:y + _FIT_SIDE, x:x + _FIT_SIDE].astype(np.float32)
@@ -568,7 +603,8 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
 def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, progress=None):
     """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine`, as
     ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`)."""
-    out = patch_refine(image, stats, n_steps=n_steps, stride=stride, tile=tile, progress=progress)
+    out = _patch_refine(image, stats, n_steps=n_steps, stride=stride, tile=tile, learning_rate=LEARNING_RATE,
+                        progress=progress, names=("patch_refine", "patch_stride"))
     dtype = np.dtype(dtype or np.asarray(image).dtype)
     if dtype == np.uint8:
         from .imageio import to_uint8

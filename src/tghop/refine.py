@@ -23,8 +23,10 @@ import numbers
 
 import numpy as np
 
-from ._common import StoredArrays, TGHopError, check_size, report, usable_cores
+from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
+                      check_size, report, usable_cores)
 from ._fft import fft_for
+from .colour import checked_image
 from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
 
@@ -283,6 +285,7 @@ def prepare(size, stats):
     """
     
     h, w = check_size(size)
+    check_is_fitted(stats, "band_quantiles_")
     for _ in range(stats.band_quantiles_.shape[0]):
         if min(h, w) < 2:
             break
@@ -443,7 +446,7 @@ def _match_oriented(band, band_q, levels, *, workers=1):
     return band
 
 
-class BandStatistics(StoredArrays):
+class BandStatistics(StoredArrays, BaseEstimator):
     """What the refinement learns from the exemplar.
 
     Parameters
@@ -483,13 +486,17 @@ class BandStatistics(StoredArrays):
         mean colour before the pyramid, and each band's values are taken only where no
         excluded pixel lies within a few of that band's pixels (all of them if none is left).
         """
-        for name in ("n_levels", "n_orientations"):
+        for name, low in (("n_levels", 0), ("n_orientations", 0), ("n_quantiles", 2)):
             value = getattr(self, name)
-            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
-                raise TGHopError(f"{name} must be a non-negative integer, got {value!r}")
-        exemplar = np.asarray(exemplar)
+            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low:
+                raise TGHopError(f"BandStatistics: {name} must be an integer >= {low}, got {value!r}")
+        exemplar = checked_image(exemplar, "BandStatistics.fit", "exemplar")
+        if exemplar.dtype.kind == "u" and exemplar.dtype != np.uint8:
+            exemplar = check_image(exemplar, name="exemplar", channels=None)
         scale = 1.0 / 255.0 if exemplar.dtype == np.uint8 else 1.0
         h, w, c = exemplar.shape
+        if h < 1 or w < 1:
+            raise InvalidImageError(f"BandStatistics.fit: exemplar is empty ({h}x{w} pixels)")
         crops = list(_crops(h, w, _FIT_SIDE))
         # Colour axes from a strided subset of at most about a million pixels.
         step = max(1, int(math.ceil(math.sqrt(h * w / 2**20))))
@@ -554,12 +561,14 @@ class BandStatistics(StoredArrays):
 
     def to_decorrelated(self, img):
         """(H, W, C) colours -> coordinates on the principal axes (same dtype)."""
+        check_is_fitted(self, "colour_mean_")
         img = np.asarray(img)
         mean, basis = (a.astype(img.dtype) for a in (self.colour_mean_, self.colour_basis_))
         return ((img - mean).reshape(-1, img.shape[-1]) @ basis.T).reshape(img.shape)
 
     def from_decorrelated(self, dec):
         """Inverse of :meth:`to_decorrelated`."""
+        check_is_fitted(self, "colour_mean_")
         dec = np.asarray(dec)
         mean, basis = (a.astype(dec.dtype) for a in (self.colour_mean_, self.colour_basis_))
         return ((dec.reshape(-1, dec.shape[-1]) @ basis) + mean).reshape(dec.shape)
@@ -577,7 +586,8 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     Parameters
     ----------
     image : ndarray, shape (H, W, C), in [0, 1]
-        Refined in float32 (a float32 image is not copied to float64 first).
+        Refined in float32 (a float32 image is not copied to float64 first); uint8 (0 to 255)
+        is scaled to [0, 1].
     stats : BandStatistics
         Fitted on the exemplar (same C).
     n_iter : int
@@ -587,7 +597,7 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     first_level : int
         Bands finer than this level keep their values (0: every band is matched). The
         coarse layout's guide leaves its finest band, which the fine level hardly sees
-        (:meth:`tghop.layout.CoarseLayout.guide`).
+        (:meth:`tghop.synthesis.CoarseLayout.guide`).
     progress : callable, optional
         ``progress("refine", done, total)``, ``total`` = channels x rounds: after each
         round (small images: all channels at once; very large ones: one channel at a
@@ -615,10 +625,11 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
             raise TGHopError(f"refine: {name} must be a non-negative integer, got {value!r}")
     if not isinstance(relaxation, numbers.Real) or isinstance(relaxation, bool) or not 0 < relaxation <= 2:
         raise TGHopError(f"refine: relaxation must be a number in (0, 2], got {relaxation!r}")
-    image = np.asarray(image)
+    check_is_fitted(stats, ("colour_mean_", "band_quantiles_"))
+    image = checked_image(image, "refine")
     if image.dtype not in (np.float32, np.float64):  # float32 stays float32: refined in float32 anyway
-        image = image.astype(np.float64)
-    if image.ndim != 3 or image.shape[2] != len(stats.colour_mean_):
+        image = check_image(image, name="refine: image", channels=None)
+    if image.shape[2] != len(stats.colour_mean_):
         raise TGHopError(f"refine: image of shape {image.shape} but the statistics have "
                          f"{len(stats.colour_mean_)} channels")
     dtype = np.dtype(dtype)
