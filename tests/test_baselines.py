@@ -375,3 +375,17 @@ def test_builtin_exemplar_sizes_are_checked_before_any_work(make):
     with pytest.raises(TGHopError, match=r"^size must be at least 32, got 10$"):
         make(10)
     assert make(np.int64(32)).shape == (32, 32, 3)
+
+
+def test_the_cells_exemplar_needs_memory_of_its_pixels_not_of_pixels_times_seeds():
+    # Every pixel against every cell seed: (size ** 2, size ** 2 / 500, 2) floats, 0.7 GB at
+    # 384x384 and 33 GB at 1024x1024 (a periodic KD-tree now finds each pixel's two nearest).
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        img = data.cells(384, rng=1)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert img.shape == (384, 384, 3) and peak < 100 * 2**20, peak
