@@ -809,3 +809,12 @@ def test_ichm_docstring_gives_the_coupling_range_of_the_settings():
 
     setting = BY_NAME["coupling"]
     assert f"coupling : float in [{setting.low:g}, {setting.high:g}]" in ICHM.__doc__
+
+
+def test_junk_dtype_is_a_tghop_error(small_model):
+    with pytest.raises(TGHopError, match=r"^dtype must be float64, float32 or uint8 .*got 'junk'$"):
+        small_model.synthesize((32, 32), rng=1, dtype="junk")
+    with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64 .*got 'junk'$"):
+        small_model.sample_patches(2, rng=1, dtype="junk")
+    with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64"):
+        small_model.sample_patches(2, rng=1, dtype=int)

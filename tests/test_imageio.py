@@ -1,6 +1,7 @@
 """Image conversion for writing."""
 
 import io
+import os
 
 import numpy as np
 import pytest
@@ -290,3 +291,50 @@ def test_load_image_refuses_a_dtype_it_does_not_give(tmp_path):
         with pytest.raises(TGHopError, match="dtype must be numpy.float64, numpy.float32 or None"):
             load_image(tmp_path / "a.png", dtype=dtype)
     assert load_image(tmp_path / "a.png", dtype="float32").dtype == np.float32
+
+
+def test_save_images_checks_every_path_before_moving_any(tmp_path, monkeypatch):
+    from tghop import InvalidImageError, TGHopError
+    from tghop.imageio import save_images
+
+    monkeypatch.chdir(tmp_path)
+    img = np.random.default_rng(0).random((8, 8, 3))
+    (tmp_path / "isdir.png").mkdir()
+    with pytest.raises(InvalidImageError, match=r"^isdir\.png is a folder"):
+        save_images([(img, "w1.png", 8), (img, "isdir.png", 8)])
+    with pytest.raises(InvalidImageError, match=r"^t2\.jpg: JPEG cannot hold 16-bit"):
+        save_images([(img, "t1.png", 8), (img, "t2.jpg", 16)])
+    with pytest.raises(InvalidImageError, match="standard output"):
+        save_images([(img, "-", 8)])
+    with pytest.raises(TGHopError, match=r"item 0 must be an \(image, path, depth\) triple"):
+        save_images([(img, "a.png")])
+    with pytest.raises(TGHopError, match="sequence of"):
+        save_images(None)
+    with pytest.raises(InvalidImageError, match="given twice"):
+        save_images([(img, "a.png", 8), (img, "./a.png", 8)])
+    with pytest.raises(InvalidImageError, match=r"^an image to save") as info:
+        save_images([(img, "ok.png", 8), (img * 5, "b.png", 8)])
+    assert ".part" not in str(info.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["isdir.png"]
+
+
+def test_save_images_rolls_back_when_a_move_fails(tmp_path, monkeypatch):
+    from tghop import InvalidImageError
+    from tghop.imageio import save_images
+
+    img = np.random.default_rng(0).random((8, 8, 3))
+    (tmp_path / "old.png").write_bytes(b"old")
+    real, calls = os.replace, []
+
+    def failing(src, dst):
+        calls.append(dst)
+        if str(dst).endswith("second.png"):
+            raise PermissionError(13, "Permission denied")
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", failing)
+    with pytest.raises(InvalidImageError, match=r"second\.png: writing the image failed .*none of the images"):
+        save_images([(img, tmp_path / "old.png", 8), (img, tmp_path / "new.png", 8), (img, tmp_path / "second.png", 8)])
+    monkeypatch.setattr(os, "replace", real)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.png"]
+    assert (tmp_path / "old.png").read_bytes() == b"old"

@@ -357,3 +357,21 @@ def test_a_file_of_a_newer_tghop_warns_naming_both_versions(saved, tmp_path):
     with pytest.raises(ModelFileError, match=r"unknown setting 'brand_new'\); it was made by tghop 99\.0\.0, newer "
                                              r"than this .*: upgrade tghop"):
         load("99.0.0", brand_new=1)
+
+
+def test_npy_file_and_missing_paths_are_one_line_errors(tmp_path, small_model):
+    from tghop import TGHopError
+    from tghop.modelfile import info_dict
+
+    np.save(tmp_path / "arr.npy", np.zeros(3))
+    with pytest.raises(ModelFileError, match=r"arr\.npy: a NumPy array file \(\.npy\), not a tghop model file"):
+        load_model(tmp_path / "arr.npy")
+    with pytest.raises(ModelFileError, match="load_model: path must be a file name.*got None"):
+        load_model(None)
+    with pytest.raises(ModelFileError, match="save_model: path must be a file name.*got None"):
+        save_model(small_model, None)
+    with pytest.raises(TGHopError, match="info_dict: model must be a fitted TGHop.*got str"):
+        info_dict("x")
+    with pytest.raises(TGHopError, match="info_dict: params must be None"):
+        info_dict(small_model, params="x")
+    assert info_dict(small_model)["n_parameters"] == small_model.n_parameters()

@@ -71,6 +71,7 @@ from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
 from .refine import iter_oriented_parts, prepare as prepare_refinement
 from .seams import remove_seams
+from .synthesis import check_dtype
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
            "REGION_COST", "MIXED_COST"]
@@ -364,9 +365,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     """Quilt the union of the models' pools (each block its drawn model's patches, drawn
     from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
     ``weights`` (S, H, W) and ``mix`` (S, K)."""
-    dtype = np.dtype(dtype)
-    if dtype not in (np.float64, np.float32, np.uint8):
-        raise TGHopError(f"dtype must be float64, float32 or uint8, got {dtype}")
+    dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
                                            detail=detail, match_colours=match_colours, refine=refine, reuse=reuse,
                                            pool_per_block=pool_per_block, layout_weight=layout_weight,

@@ -682,27 +682,103 @@ def save_images(items) -> None:
     Parameters
     ----------
     items : sequence of (image, path, depth)
-        As :func:`save_image` takes them (no ``-``). Each is written to a temporary name
-        beside its path first; once all are written they are moved into place.
+        As :func:`save_image` takes them (no ``-``; each path once). Every path is checked
+        first (:func:`check_output_path`); each image is then written to a temporary name
+        beside its path, and once all are written they are moved into place. If a move
+        fails, the files already moved are taken back (a file they replaced is restored).
+
+    Raises
+    ------
+    InvalidImageError
+        One line naming the path given (never the temporary file); no file is left.
+    TGHopError
+        ``items`` is not a sequence of (image, path, depth) triples.
     """
     import uuid
 
-    done = []
+    checked = _check_items(items)
+    done = []  # (temporary, path) written
+    moved = []  # (path, backup or None) in place
     try:
-        for image, path, depth in items:
-            path = Path(path)
+        for image, path, depth in checked:
             tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
-            save_image(image, tmp, depth=depth)
+            try:
+                save_image(image, tmp, depth=depth)
+            except TGHopError as exc:
+                raise type(exc)(str(exc).replace(str(tmp), str(path))) from None
             done.append((tmp, path))
         for tmp, path in done:
-            os.replace(tmp, path)
-    except BaseException:
-        for tmp, _ in done:
+            backup = None
             try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
+                if os.path.lexists(path):
+                    backup = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.old")
+                    os.replace(path, backup)
+                os.replace(tmp, path)
+            except OSError as exc:
+                if backup is not None and not os.path.lexists(path):
+                    os.replace(backup, path)
+                raise InvalidImageError(f"{path}: writing the image failed ({exc.strerror or exc.__class__.__name__}); "
+                                        "none of the images was written") from None
+            moved.append((path, backup))
+    except BaseException:
+        for path, backup in reversed(moved):
+            _undo_move(path, backup)
+        for tmp, _ in done:
+            _unlink_quietly(tmp)
         raise
+    for _, backup in moved:
+        if backup is not None:
+            _unlink_quietly(backup)
+
+
+def _check_items(items):
+    """:func:`save_images`' items as a list of (image, Path, depth), every path checked
+    (format, depth, folder) before anything is written."""
+    try:
+        entries = list(items)
+    except TypeError:
+        raise TGHopError(f"save_images takes a sequence of (image, path, depth), got {type(items).__name__}") from None
+    if not entries:
+        raise TGHopError("save_images takes a sequence of (image, path, depth), got none; give at least one")
+    checked, seen = [], set()
+    for i, entry in enumerate(entries):
+        if isinstance(entry, (str, bytes)) or not hasattr(entry, "__len__") or len(entry) != 3:
+            raise TGHopError(f"save_images: item {i} must be an (image, path, depth) triple, got {type(entry).__name__}"
+                             f"{' of ' + str(len(entry)) if hasattr(entry, '__len__') else ''}")
+        image, path, depth = entry
+        if not isinstance(path, (str, os.PathLike)):
+            raise TGHopError(f"save_images: item {i}'s path must be a str or path, got {type(path).__name__}")
+        if str(path) == "-":
+            raise InvalidImageError("save_images writes files, not the standard output (-); give a file name")
+        output_format(path)
+        check_depth(path, depth)
+        check_output_path(path)
+        path = Path(path)
+        key = os.path.abspath(path)
+        if key in seen:
+            raise InvalidImageError(f"{path}: given twice to save_images; give each image its own name")
+        seen.add(key)
+        checked.append((image, path, depth))
+    return checked
+
+
+def _unlink_quietly(path) -> None:
+    """Remove ``path`` if it is there (clean-up: an error here would hide the first one)."""
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def _undo_move(path, backup) -> None:
+    """Take back a file :func:`save_images` moved to ``path``, restoring what it replaced."""
+    try:
+        if backup is not None:
+            os.replace(backup, path)
+        else:
+            os.unlink(path)
+    except OSError:
+        pass
 
 
 def _tiff_writer(image, depth, path):

@@ -21,6 +21,7 @@ It imports :mod:`tghop.synthesis`, never the other way round.
 from __future__ import annotations
 
 import json
+import os
 import warnings
 import zipfile
 import zlib
@@ -62,6 +63,7 @@ def save_model(model, path) -> None:
     """Write a fitted model to ``path`` (any name; the file appears whole or not at all)."""
     if not isinstance(model, (TGHop, Material)):
         raise TGHopError(f"save_model writes a fitted TGHop or Material, got {type(model).__name__}")
+    _check_path(path, "save_model", "write the model to")
     arrays = model._to_arrays()  # NotFittedError before anything else
     meta = {"format": FORMAT, "tghop_version": __version__, **model._state_meta()}
     new = "material" in meta or any(name.startswith("patch.") or "ichm_iv." in name or "ichm_coupling." in name
@@ -79,7 +81,12 @@ def info_dict(model, params=None) -> dict:
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
     layout's factor (``layout_factor_used``: None without one). What ``tghop info
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
-    params = model.n_parameters() if params is None else params
+    if not isinstance(model, TGHop):
+        raise TGHopError(f"info_dict: model must be a fitted TGHop (e.g. load_model(path)), got {type(model).__name__}")
+    if params is not None and (not isinstance(params, (int, np.integer)) or isinstance(params, bool) or params < 0):
+        raise TGHopError(f"info_dict: params must be None or the model's n_parameters() (an integer >= 0), "
+                         f"got {params!r}")
+    params = model.n_parameters() if params is None else int(params)
     return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
@@ -87,17 +94,28 @@ def info_dict(model, params=None) -> dict:
             "fit_seed": recorded_seed(model.rng)}
 
 
+def _check_path(path, caller: str, verb: str) -> None:
+    """Refuse a ``path`` that is not a str or os.PathLike (None, a number) with one line."""
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise ModelFileError(f"{caller}: path must be a file name (str or os.PathLike) to {verb}, got {path!r}")
+
+
 def _read(path):
+    _check_path(path, "load_model", "read the model from")
     path = Path(path)
     if not path.exists():
         raise ModelFileError(f"{path}: no such model file; check the path, or fit a model first")
     if path.is_dir():
         raise ModelFileError(f"{path} is a folder, not a model file")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if not hasattr(data, "files"):
-                raise ValueError("not an archive")
+        data = np.load(path, allow_pickle=False)
+        if not hasattr(data, "files"):  # a .npy file: np.load gives the array itself
+            raise ModelFileError(f"{path}: a NumPy array file (.npy), not a tghop model file; give a model file "
+                                 "tghop wrote (save_model, 'tghop fit')")
+        with data:
             arrays = {name: data[name] for name in data.files}
+    except ModelFileError:
+        raise
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, NotImplementedError, MemoryError,
             zlib.error, RuntimeError) as exc:
         from .imageio import is_image

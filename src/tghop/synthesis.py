@@ -56,6 +56,18 @@ DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 
 
+def check_dtype(dtype, allowed, names: str) -> np.dtype:
+    """The output ``dtype`` as a :class:`numpy.dtype`, one of ``allowed``; anything else
+    (``"junk"``, ``int``, a list) is one :class:`TGHopError` line naming ``names``."""
+    try:
+        wanted = np.dtype(dtype)
+    except (TypeError, ValueError):
+        wanted = None
+    if wanted is None or wanted not in allowed:
+        raise TGHopError(f"dtype must be {names} (e.g. numpy.float32), got {dtype!r}")
+    return wanted
+
+
 def default_channels(patch_size: int, n_colours: int = 3):
     """Channels kept per hop when none are given.
 
@@ -502,9 +514,7 @@ class TGHop(BaseEstimator):
         """
         check_is_fitted(self, "ichm_")
         n = settings.BY_NAME["n_patches"].check(n, label="n")
-        dtype = np.dtype(dtype)
-        if dtype not in (np.float32, np.float64):
-            raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
+        dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
         rng = check_rng(rng)
         if return_stages:  # the paper's step-by-step inverse, keeping every space (in float64)
             z, position = self.sample_vectors(n, rng, np.dtype(np.float64))
@@ -609,9 +619,7 @@ class TGHop(BaseEstimator):
         ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
         """
         check_is_fitted(self, "ichm_")
-        dtype = np.dtype(dtype)
-        if dtype not in (np.float64, np.float32, np.uint8):
-            raise TGHopError(f"dtype must be float64, float32 or uint8, got {dtype}")
+        dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
