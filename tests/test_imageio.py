@@ -338,3 +338,17 @@ def test_save_images_rolls_back_when_a_move_fails(tmp_path, monkeypatch):
     monkeypatch.setattr(os, "replace", real)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old.png"]
     assert (tmp_path / "old.png").read_bytes() == b"old"
+
+
+def test_helpers_refuse_nan_empty_and_bad_level():
+    from tghop import InvalidImageError, TGHopError
+    from tghop.imageio import to_uint16, write_png
+
+    for convert in (to_uint8, to_uint16):
+        with pytest.raises(InvalidImageError, match="NaN values"):
+            convert(np.full((2, 2), np.nan))
+    with pytest.raises(InvalidImageError, match="no pixels"):
+        write_png(io.BytesIO(), np.zeros((0, 0), np.uint8))
+    for level in (10, -1, 1.5):
+        with pytest.raises(TGHopError, match="level must be a zlib level"):
+            write_png(io.BytesIO(), np.zeros((2, 2), np.uint8), level=level)

@@ -414,6 +414,7 @@ def to_uint8(image) -> np.ndarray:
     if arr.dtype == np.uint8:
         return arr[:, :, 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr
     arr = np.asarray(arr, dtype=np.float64)
+    _refuse_nan(arr)
     out = np.empty(arr.shape, dtype=np.uint8)
     # A few rows at a time: the temporaries of a large image stay small (an 8192x8192
     # RGB image is 1.6 GB in float64; whole-image steps made two more of those).
@@ -427,6 +428,13 @@ def to_uint8(image) -> np.ndarray:
     return out
 
 
+def _refuse_nan(arr) -> None:
+    """One :class:`InvalidImageError` line for NaN values (they have no level to round to)."""
+    if np.isnan(arr).any():
+        raise InvalidImageError("an image to convert has NaN values, which have no colour; replace them first "
+                                "(e.g. numpy.nan_to_num)")
+
+
 def to_uint16(image) -> np.ndarray:
     """Convert a float image in [0, 1] to ``uint16`` levels 0-65535 (rounding), dropping a
     singleton channel (uint8 levels ``v`` become ``257 v``: the same value)."""
@@ -434,7 +442,9 @@ def to_uint16(image) -> np.ndarray:
     if arr.dtype == np.uint8:
         out = arr.astype(np.uint16) * np.uint16(257)
     else:
-        out = np.round(np.clip(np.asarray(arr, dtype=np.float64), 0.0, 1.0) * 65535.0).astype(np.uint16)
+        arr = np.asarray(arr, dtype=np.float64)
+        _refuse_nan(arr)
+        out = np.round(np.clip(arr, 0.0, 1.0) * 65535.0).astype(np.uint16)
     return out[:, :, 0] if out.ndim == 3 and out.shape[2] == 1 else out
 
 
@@ -568,6 +578,10 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     if px.dtype not in (np.uint8, np.uint16) or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] > 4):
         raise ValueError(f"write_png takes a uint8 or uint16 (H, W) or (H, W, C) array with C up to 4, "
                          f"got {px.dtype} {px.shape}")
+    if px.size == 0:
+        raise InvalidImageError(f"write_png: the image has no pixels (shape {px.shape}); give at least 1x1 pixels")
+    if not isinstance(level, (int, np.integer)) or isinstance(level, bool) or not 0 <= level <= 9:
+        raise TGHopError(f"write_png: level must be a zlib level, an integer 0 to 9, got {level!r}")
     h, w = px.shape[:2]
     channels = 1 if px.ndim == 2 else px.shape[2]
     bits = 8 * px.dtype.itemsize
