@@ -153,6 +153,28 @@ def test_bad_settings_are_refused_before_any_work(tmp_path):
     assert not out.exists()
 
 
+def test_bad_run_arguments_are_refused_before_any_file(tmp_path):
+    # As a Python call: one TGHopError naming the argument, before OUTDIR or its ledger exists.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    nan = float("nan")
+    for kw, words in ((dict(fit={"bogus": 1}), "fit: unknown TGHop setting 'bogus'"),
+                      (dict(fit={**FIT, "gamma": nan}), "fit: every number must be finite"),
+                      (dict(generate={"tolerance": nan}), "generate: every number must be finite"),
+                      (dict(generate={"rng": 5}), "generate: 'rng' is not a synthesize setting"),
+                      (dict(generate={"dtype": "uint8"}), "unknown setting 'dtype'"),
+                      (dict(fit=[1]), "fit must be a dict"), (dict(generate=[1]), "generate must be a dict"),
+                      (dict(progress=5), "progress must be a callable"), (dict(on_result=5), "on_result must be a"),
+                      (dict(task=5), "task must be a callable"), (dict(workers=0), "workers must be an integer >= 1"),
+                      (dict(workers=-1), "workers must be"), (dict(workers="1"), "workers must be"),
+                      (dict(workers=1.0), "workers must be"), (dict(workers=True), "workers must be")):
+        kw = {"size": (48, 48), "seed": 1, "fit": FIT, "workers": 1, **kw}
+        with pytest.raises(TGHopError, match=re.escape(words)):
+            batch.run(src, out, **kw)
+        assert not out.exists()
+    with pytest.raises(TGHopError, match="outdir must be a folder path"):
+        batch.run(src, None, workers=1)
+
+
 def test_a_small_exemplar_is_told_the_fits_minimum(tmp_path):
     # The fit's check (the smallest exemplar that works), as synth and fit say, whatever the size.
     src = tmp_path / "src"

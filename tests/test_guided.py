@@ -184,6 +184,29 @@ def test_models_that_cannot_mix_are_refused(models):
         tghop.synthesize_guided([models[0], other], size=(64, 64))
 
 
+def test_public_helpers_name_their_bad_arguments(models):
+    with pytest.raises(TGHopError, match="models must be a list of fitted models, got TGHop"):
+        tghop.synthesize_guided(models[0], np.zeros((64, 64), np.uint8), rng=1)
+    for kw, words in ((dict(scale=0), "scale must be"), (dict(scale=float("nan")), "scale must be"),
+                      (dict(n_models=0), "n_models must be an integer >= 1"), (dict(n_models="3"), "n_models must be")):
+        with pytest.raises(TGHopError, match=words):
+            guided.random_labels((64, 64), **{"n_models": 3, **kw}, rng=1)
+    two = np.array([[0, 1], [1, 0]])
+    for args, words in (((two, 2, -4), "transition must be"), ((two, 2, float("nan")), "transition must be"),
+                        ((np.array([[0, 5], [1, 0]]), 2, 0), r"labels must be .* in \[0, 2\)"),
+                        ((two, 0, 2), "n_models must be"), ((np.array([0, 1, 1]), 2, 2), "labels must be"),
+                        ((np.zeros((0, 0), int), 2, 4), "labels must be")):
+        with pytest.raises(TGHopError, match=words):
+            region_weights(*args)
+    guide = np.zeros((8, 8), np.uint8)
+    guide[:, 4:] = 255
+    for args, kw, words in (((guide, "2"), {}, "n_models must be"), ((guide, 0), {}, "n_models must be"),
+                            (([[0, 1], [1]], 2), {}, "ragged")):
+        with pytest.raises(TGHopError, match=words):
+            guide_labels(*args, **kw)
+    assert guide_labels(guide, 2, size=8).max() == 1
+
+
 def test_cli_default_transition_is_the_librarys():
     from tghop.cli.guided import DEFAULT_TRANSITION
     from tghop.guided import DEFAULT_TRANSITION as LIBRARY

@@ -111,6 +111,27 @@ def test_bad_input_is_one_line(model, cells, square):
     assert check_hole(np.full((4, 4, 3), 200, np.uint8), (4, 4)).all()
 
 
+def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
+    fast = dict(rng=1, n_patches=100, refine=0)
+    # an (H, W, C) bool mask is documented: the same hole as its (H, W) one
+    assert np.array_equal(inpaint(model, cells, np.dstack([square] * 3), **fast), inpaint(model, cells, square, **fast))
+    assert check_hole(np.dstack([square] * 3), (96, 96)).sum() == square.sum()
+    for mask in (np.where(square, np.nan, 0.0), np.where(square, np.inf, 0.0)):
+        with pytest.raises(TGHopError, match="the mask has NaN or infinite values"):
+            inpaint(model, cells, mask, **fast)
+    with pytest.raises(TGHopError, match=r"the mask is 96x96x3x1 but the image is 96x96"):
+        check_hole(np.zeros((96, 96, 3, 1), bool), (96, 96))
+    for tile in ("no", 1, None):
+        with pytest.raises(TGHopError, match="tile must be True or False"):
+            inpaint(model, cells, square, tile=tile, **fast)
+    with pytest.raises(TGHopError, match="the image is empty"):
+        inpaint(model, cells[:0].astype(np.float64), square[:0])
+    with pytest.raises(TGHopError, match="n_patches must be an integer >= 1 and <= 10,000,000, got 1000000000"):
+        inpaint(model, cells, square, rng=1, n_patches=10**9)
+    with pytest.raises(TGHopError, match="rng"):
+        inpaint(model, cells, np.zeros((96, 96), bool), rng="x")
+
+
 def test_too_large_a_hole_is_refused_naming_the_minimum(cells):
     hole = np.ones((96, 96), dtype=bool)
     hole[:40, :40] = False

@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import numbers
 import os
 import re
 import shutil
@@ -592,8 +593,32 @@ def check_options(items, defaults, fit, generate) -> None:
             raise TGHopError(f"{where}: {exc}" if where else str(exc)) from None
 
 
-def _jsonable(value):
-    return json.loads(json.dumps(value, default=str, allow_nan=False))
+def _jsonable(value, name):
+    try:
+        return json.loads(json.dumps(value, default=str, allow_nan=False))
+    except ValueError:
+        raise TGHopError(f"{name}: every number must be finite (no NaN or infinity)") from None
+
+
+def _check_call(outdir, fit, generate, workers, callables) -> None:
+    """Refuse :func:`run`'s bad arguments (not its settings' values) before any work or file."""
+    from .settings import fit_settings
+
+    if not isinstance(outdir, (str, os.PathLike)):
+        raise TGHopError(f"outdir must be a folder path (str or Path), got {outdir!r}")
+    names = {s.name for s in fit_settings()}
+    for name, value in (("fit", fit), ("generate", generate)):
+        if value is not None and not isinstance(value, dict):
+            raise TGHopError(f"{name} must be a dict of settings by name, got {type(value).__name__}")
+    bad = [k for k in fit or {} if k not in names] + [k for k in generate or {} if k in names]
+    if bad:
+        raise TGHopError(f"fit: unknown TGHop setting {bad[0]!r}; give TGHop's parameters" if bad[0] not in names else
+                         f"generate: {bad[0]!r} is not a synthesize setting (run sets rng itself from seed)")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1):
+        raise TGHopError(f"workers must be an integer >= 1 (or None: one per core), got {workers!r}")
+    for name, fn in callables.items():
+        if fn is not None and not callable(fn):
+            raise TGHopError(f"{name} must be a callable (or None), got {fn!r}")
 
 
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
@@ -646,13 +671,14 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         (``name``, ``source``, ``sha256``, ``settings``, ``status``, ``error``,
         ``outputs``, ``model``, times, ...) and ``skipped`` (True: done by an earlier run).
     """
+    _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task})
     outdir = Path(os.path.abspath(outdir))
     items = find_work(source, outdir)
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
                 "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
                 "tile": parse_bool(tile, "run")}
-    fit = _jsonable(dict(fit or {}))
-    generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"})
+    fit = _jsonable(dict(fit or {}), "fit")
+    generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"}, "generate")
     check_options(items, defaults, fit, generate)  # before any work, as synth would refuse them
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")

@@ -126,7 +126,12 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     -------
     ndarray of int64, shape (H, W)
     """
-    arr = np.asarray(guide)
+    n_models = _check_int("n_models", n_models, 1)
+    size = None if size is None else check_size(size, limit=None)
+    try:
+        arr = np.asarray(guide)
+    except ValueError:  # ragged nested lists
+        raise TGHopError("the guide must be an (H, W) or (H, W, C) image of numbers, got ragged rows") from None
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or arr.dtype.kind not in "biuf" or arr.size == 0:
@@ -185,7 +190,14 @@ def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=Fals
     ndarray of float32, shape (n_models, H, W)
         In [0, 1], summing to 1 at every pixel; 0 or 1 everywhere for ``transition`` 0.
     """
+    n_models = _check_int("n_models", n_models, 1)
+    if isinstance(transition, bool) or not isinstance(transition, numbers.Real) or not 0 <= transition < np.inf:
+        raise TGHopError(f"transition must be a finite number >= 0 (pixels), got {transition!r}")
     labels = np.asarray(labels)
+    if labels.ndim != 2 or labels.size == 0 or labels.dtype.kind not in "iu" or labels.min() < 0 \
+            or labels.max() >= n_models:
+        raise TGHopError(f"labels must be a non-empty (H, W) integer map of values in [0, {n_models}) "
+                         f"(n_models), got {labels.dtype} {labels.shape}")
     out = np.stack([(labels == k).astype(np.float32) for k in range(n_models)])
     radius = int(transition) // 2
     if radius:
@@ -227,6 +239,9 @@ def _smooth(field, sigma, wrap):
 
 
 def _check_models(models, minimum=1):
+    if not isinstance(models, (list, tuple)):
+        raise TGHopError(f"models must be a list of fitted models, got {type(models).__name__}; "
+                         "give [model] for one")
     models = list(models)
     if len(models) < minimum:
         raise TGHopError(f"give at least {minimum} fitted model{'s' if minimum > 1 else ''}, got {len(models)}")
@@ -451,8 +466,11 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
     """Random regions for a remix: a smooth random field (Gaussian of ``scale`` pixels)
     cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64."""
     h, w = check_size(size)
+    n_models = _check_int("n_models", n_models, 1)
+    if isinstance(scale, bool) or not isinstance(scale, numbers.Real) or not 0 < scale < np.inf:
+        raise TGHopError(f"scale must be a finite number > 0 (pixels), got {scale!r}")
     rng = check_rng(rng)
-    cell = max(1, scale // 4)
+    cell = max(1, int(scale) // 4)
     small = (max(1, -(-h // cell)), max(1, -(-w // cell)))
     field = _smooth(rng.standard_normal(small), scale / cell, tile)
     field = np.repeat(np.repeat(field, cell, axis=0), cell, axis=1)[:h, :w]

@@ -50,20 +50,20 @@ def check_hole(mask, shape) -> np.ndarray:
 
     ``mask`` is bool (True: hole), or numbers (> 0.5: hole; an (H, W, C) mask counts a
     pixel as hole when its channels' mean is > 0.5). Raises :class:`TGHopError` for a
-    mask of another size.
+    mask of another size, or with NaN or infinite values.
     """
-    arr = np.asarray(mask)
-    if arr.ndim == 3 and arr.dtype != bool:
-        if arr.dtype.kind not in "biuf":
-            raise TGHopError(f"the mask must be numbers or booleans, got dtype {arr.dtype}")
+    arr = original = np.asarray(mask)
+    if arr.dtype.kind not in "biuf":
+        raise TGHopError(f"the mask must be numbers or booleans, got dtype {arr.dtype}")
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        raise TGHopError("the mask has NaN or infinite values; give True (or 1) in the hole and False (0) elsewhere")
+    if arr.ndim == 3:
         arr = arr.mean(axis=2)
     if arr.dtype != bool:
-        if arr.dtype.kind not in "biuf":
-            raise TGHopError(f"the mask must be numbers or booleans, got dtype {arr.dtype}")
-        arr = arr > (127.5 if np.asarray(mask).dtype == np.uint8 else 0.5)
+        arr = arr > (127.5 if original.dtype == np.uint8 else 0.5)
     if arr.ndim != 2 or arr.shape != tuple(shape[:2]):
-        raise TGHopError(f"the mask is {'x'.join(map(str, arr.shape[:2]))} but the image is {shape[0]}x{shape[1]}; "
-                         f"give a mask of the image's size")
+        raise TGHopError(f"the mask is {'x'.join(map(str, arr.shape))} but the image is {shape[0]}x{shape[1]}; "
+                         "give an (H, W) or (H, W, C) mask of the image's size")
     return arr
 
 
@@ -104,6 +104,8 @@ def _working_image(image, n_channels):
         arr = arr[:, :, None]
     if arr.ndim != 3 or arr.shape[2] not in (1, 3):
         raise TGHopError(f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {np.asarray(image).shape}")
+    if arr.size == 0:
+        raise TGHopError(f"the image is empty (shape {arr.shape}); give an image of at least one pixel")
     if arr.dtype == np.uint8:
         work = arr.astype(np.float32) / np.float32(255.0)
     elif arr.dtype.kind == "f":
@@ -196,17 +198,22 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         raise TGHopError(f"the image is {h}x{w}; inpainting with {p}x{p} patches needs at least {p}x{p}: "
                          "use a model fitted with a smaller patch_size (or a larger image)")
     hole = check_hole(mask, (h, w))
-    for name, value, low in (("blend", blend, 0), ("refine", refine, 0), ("n_patches", n_patches, 1)):
-        if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
-            raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+    for name, value, low, high in (("blend", blend, 0, None), ("refine", refine, 0, None),
+                                   ("n_patches", n_patches, 1, 10_000_000)):
+        if (isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low
+                or (high is not None and value > high)):
+            raise TGHopError(f"{name} must be an integer >= {low}" + (f" and <= {high:,}" if high else "")
+                             + f", got {value!r}")
+    if not isinstance(tile, (bool, np.bool_)):
+        raise TGHopError(f"tile must be True or False, got {tile!r}")
     if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not 0 <= tolerance < np.inf:
         raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     if isinstance(detail, bool) or not isinstance(detail, numbers.Real) or not 0 <= detail < 1:
         raise TGHopError(f"detail must be a number in [0, 1), got {detail!r}")
     out = original.astype(np.float64) if original.dtype != np.uint8 else original.copy()
+    rng = check_rng(rng)
     if not hole.any():
         return out
-    rng = check_rng(rng)
 
     report(progress, "patch pool", 0, 1)
     pool = model.sample_patches(int(n_patches), rng=rng, dtype=np.float32)  # (n, P, P, C)
