@@ -375,3 +375,5 @@ def test_npy_file_and_missing_paths_are_one_line_errors(tmp_path, small_model):
     with pytest.raises(TGHopError, match="info_dict: params must be None"):
         info_dict(small_model, params="x")
     assert info_dict(small_model)["n_parameters"] == small_model.n_parameters()
+    params = small_model.n_parameters()  # what tghop info and the server pass, as a dict
+    assert info_dict(small_model, params=params)["n_parameters"] is params

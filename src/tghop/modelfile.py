@@ -83,10 +83,10 @@ def info_dict(model, params=None) -> dict:
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
     if not isinstance(model, TGHop):
         raise TGHopError(f"info_dict: model must be a fitted TGHop (e.g. load_model(path)), got {type(model).__name__}")
-    if params is not None and (not isinstance(params, (int, np.integer)) or isinstance(params, bool) or params < 0):
-        raise TGHopError(f"info_dict: params must be None or the model's n_parameters() (an integer >= 0), "
-                         f"got {params!r}")
-    params = model.n_parameters() if params is None else int(params)
+    if params is not None and not isinstance(params, dict):
+        raise TGHopError(f"info_dict: params must be None or the model's n_parameters() (a dict), "
+                         f"got {type(params).__name__}")
+    params = model.n_parameters() if params is None else params
     return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
