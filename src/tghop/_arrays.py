@@ -14,7 +14,7 @@ import numpy as np
 
 from ._errors import TGHopError
 
-__all__ = ["check_array", "check_count", "check_width", "forget_fit"]
+__all__ = ["check_array", "check_count", "check_int", "check_width", "forget_fit"]
 
 
 def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True) -> np.ndarray:
@@ -64,6 +64,15 @@ def check_count(n, name: str = "n") -> int:
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (numbers.Integral, np.integer)) or n < 0:
         raise TGHopError(f"{name} must be a non-negative integer, got {n!r}")
     return int(n)
+
+
+def check_int(value, name: str, low: int = 1) -> int:
+    """``value`` as an int of at least ``low`` (a Python or NumPy integer, not a bool), or a
+    one-line :class:`TGHopError` naming ``name``: the parameter check of the patch helpers,
+    the metrics' counts, the guide helpers and the coarse layout."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
+        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
 
 
 def forget_fit(estimator, private=()) -> None:

@@ -64,6 +64,7 @@ from contextlib import nullcontext
 import numpy as np
 
 from . import settings
+from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
 from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
@@ -126,7 +127,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     -------
     ndarray of int64, shape (H, W)
     """
-    n_models = _check_int("n_models", n_models, 1)
+    n_models = check_int(n_models, "n_models", 1)
     size = None if size is None else check_size(size, limit=None)
     try:
         arr = np.asarray(guide)
@@ -190,7 +191,7 @@ def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=Fals
     ndarray of float32, shape (n_models, H, W)
         In [0, 1], summing to 1 at every pixel; 0 or 1 everywhere for ``transition`` 0.
     """
-    n_models = _check_int("n_models", n_models, 1)
+    n_models = check_int(n_models, "n_models", 1)
     if isinstance(transition, bool) or not isinstance(transition, numbers.Real) or not 0 <= transition < np.inf:
         raise TGHopError(f"transition must be a finite number >= 0 (pixels), got {transition!r}")
     labels = np.asarray(labels)
@@ -261,12 +262,6 @@ def _check_models(models, minimum=1):
     return models
 
 
-def _check_int(name, value, low):
-    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
-        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
-
-
 # ----------------------------------------------------------------------------- public API
 
 
@@ -308,7 +303,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
     """
     models = _check_models(models, 1 if guide is not None else 2)
-    transition = _check_int("transition", transition, 0)
+    transition = check_int(transition, "transition", 0)
     k = len(models)
     rng = check_rng(rng)
     if guide is None:
@@ -357,7 +352,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     """
     models = _check_models([model_a, model_b], 2)
     h, w = check_size(size)
-    n = max(3, int(math.ceil(w / 128)) + 1) if stations is None else _check_int("stations", stations, 2)
+    n = max(3, int(math.ceil(w / 128)) + 1) if stations is None else check_int(stations, "stations", 2)
     t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
     centres = np.linspace(0.0, 1.0, n)
     hats = np.clip(1.0 - np.abs(t[None, :] - centres[:, None]) * (n - 1), 0.0, 1.0)  # (n, W), sum 1
@@ -466,7 +461,7 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
     """Random regions for a remix: a smooth random field (Gaussian of ``scale`` pixels)
     cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64."""
     h, w = check_size(size)
-    n_models = _check_int("n_models", n_models, 1)
+    n_models = check_int(n_models, "n_models", 1)
     if isinstance(scale, bool) or not isinstance(scale, numbers.Real) or not 0 < scale < np.inf:
         raise TGHopError(f"scale must be a finite number > 0 (pixels), got {scale!r}")
     rng = check_rng(rng)

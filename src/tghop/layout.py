@@ -30,6 +30,7 @@ import math
 import numbers
 
 import numpy as np
+from ._arrays import check_int as positive_int
 from ._common import TGHopError, check_size, usable_cores
 from .colour import checked_image
 
@@ -133,12 +134,6 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
         rows(0, h)
     return out
 
-
-def positive_int(value, name, low=1) -> int:
-    """``value`` as an int, or a one-line :class:`TGHopError` unless it is an integer >= ``low``."""
-    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
-        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
 
 
 def fits(shape, factor, patch_size=32) -> bool:

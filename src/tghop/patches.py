@@ -6,11 +6,11 @@ The data flow of tghop: ``patches`` -> ``hops`` (``saab``) -> ``core`` -> back t
 
 from __future__ import annotations
 
-import numbers
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from ._arrays import check_int
 from ._common import TGHopError, check_image, check_rng
 
 __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",
@@ -18,16 +18,9 @@ __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude",
            "patch_grid", "stage_sheet"]
 
 
-def _check_int(name, value, low):
-    """``value`` as an int, or a one-line :class:`TGHopError` naming ``name`` (an O(1) check)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
-        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
-
-
 def _check_max_patches(max_patches):
     """``max_patches`` as an int, or None."""
-    return None if max_patches is None else _check_int("max_patches", max_patches, 1)
+    return None if max_patches is None else check_int(max_patches, "max_patches", 1)
 
 
 def count_patches(shape, patch_size: int, stride: int) -> int:
@@ -47,8 +40,8 @@ def count_patches(shape, patch_size: int, stride: int) -> int:
     int
         0 when the image is smaller than a patch on either side.
     """
-    patch_size = _check_int("patch_size", patch_size, 1)
-    stride = _check_int("stride", stride, 1)
+    patch_size = check_int(patch_size, "patch_size", 1)
+    stride = check_int(stride, "stride", 1)
     h, w = shape[:2]
     if h < patch_size or w < patch_size:
         return 0
@@ -77,8 +70,8 @@ def extract_patches(image, patch_size: int = 32, *, stride: int = 2, max_patches
     ndarray, shape (n, patch_size, patch_size, C), float64
         Raster order of the patch origins.
     """
-    patch_size = _check_int("patch_size", patch_size, 2)
-    stride = _check_int("stride", stride, 1)
+    patch_size = check_int(patch_size, "patch_size", 2)
+    stride = check_int(stride, "stride", 1)
     img = check_image(image, min_size=patch_size)
     origins = patch_origins(img.shape, patch_size, stride=stride, max_patches=max_patches, rng=rng)
     windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))
@@ -107,8 +100,8 @@ def patch_origins(shape, patch_size: int, *, stride: int = 2, max_patches=None, 
     ndarray of int, shape (n, 2)
         (row, column) of each patch origin.
     """
-    patch_size = _check_int("patch_size", patch_size, 1)
-    stride = _check_int("stride", stride, 1)
+    patch_size = check_int(patch_size, "patch_size", 1)
+    stride = check_int(stride, "stride", 1)
     max_patches = _check_max_patches(max_patches)
     h, w = shape[:2]
     ys = np.arange(0, h - patch_size + 1, stride)
@@ -199,7 +192,7 @@ def downsample_mask(mask, factor):
     -------
     ndarray of bool, shape (H // factor, W // factor)
     """
-    factor = _check_int("factor", factor, 1)
+    factor = check_int(factor, "factor", 1)
     h, w = mask.shape[0] // factor, mask.shape[1] // factor
     return mask[: h * factor, : w * factor].reshape(h, factor, w, factor).any(axis=(1, 3))
 
@@ -256,8 +249,8 @@ def patch_grid(patches, *, n_cols=None, gap: int = 2, background: float = 1.0) -
     if p.ndim != 4 or p.shape[0] == 0:
         raise TGHopError(f"patches must be a non-empty (n, P, P) or (n, P, P, C) array, got shape {p.shape}")
     n, ph, pw, c = p.shape
-    gap = _check_int("gap", gap, 0)
-    n_cols = max(1, int(np.ceil(np.sqrt(n)))) if n_cols is None else _check_int("n_cols", n_cols, 1)
+    gap = check_int(gap, "gap", 0)
+    n_cols = max(1, int(np.ceil(np.sqrt(n)))) if n_cols is None else check_int(n_cols, "n_cols", 1)
     n_rows = int(np.ceil(n / n_cols))
     out = np.full((n_rows * (ph + gap) - gap, n_cols * (pw + gap) - gap, c), background)
     for i in range(n):  # one copy per patch, for display only

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import numbers
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._common import TGHopError, check_image, report
 
-__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "check_count", "sample_patches"]
+__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "sample_patches"]
 
 
 #: Images up to this many pixels (512 x 512) are scored in one piece by :func:`sifid` and
@@ -45,14 +44,6 @@ def check_patch_size(patch_size) -> int:
     if patch_size < 1:
         raise TGHopError(f"patch_size must be positive, got {patch_size}")
     return patch_size
-
-
-def check_count(value, name: str, low: int = 1) -> int:
-    """``value`` as an int of at least ``low`` (a count such as ``max_patches``), or a
-    one-line :class:`TGHopError` that names ``name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
-        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
 
 
 def sample_patches(img: np.ndarray, patch_size: int, n: int, rng: np.random.Generator) -> np.ndarray:

@@ -10,7 +10,8 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._common import TGHopError, check_image
-from .common import pair, counter, check_count, check_patch_size, sample_patches
+from .._arrays import check_int
+from .common import pair, counter, check_patch_size, sample_patches
 
 __all__ = ["novelty", "copied", "diversity", "TEXTURED_STD", "copied_textured", "self_repetition"]
 
@@ -105,7 +106,7 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     with the exemplar's pixels (about 10 s per megapixel on 2 cores).
     """
     patch_size = check_patch_size(patch_size)
-    max_patches = check_count(max_patches, "max_patches")
+    max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     tick = counter(progress, "novelty", _nearest_chunks(ex, patch_size))
     return float(_nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick).mean())
@@ -153,7 +154,7 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
-    max_patches = check_count(max_patches, "max_patches")
+    max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     tick = counter(progress, "copied", _nearest_chunks(ex, patch_size))
     rms = _nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick)
@@ -190,7 +191,7 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
     if len(results) < 2:
         raise TGHopError(f"diversity needs at least two results, got {len(results)}")
     patch_size = check_patch_size(patch_size)
-    max_patches = check_count(max_patches, "max_patches")
+    max_patches = check_int(max_patches, "max_patches")
     images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
     if len({img.shape[2] for img in images}) > 1:
         images = [np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img for img in images]
@@ -281,7 +282,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
-    max_patches = check_count(max_patches, "max_patches")
+    max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     rng = np.random.default_rng((int(seed), 3))
     pos = _textured_positions(res, patch_size, float(min_std), max_patches, rng)
@@ -359,7 +360,7 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
-    max_windows = check_count(max_windows, "max_windows")
+    max_windows = check_int(max_windows, "max_windows")
     img = check_image(image, min_size=patch_size, name="image", dtype=np.float32)
     h, w = img.shape[:2]
     region = min(int(region), int(search))  # the sampled windows lie in the search area

@@ -10,7 +10,8 @@ from scipy import ndimage
 
 from .._common import InvalidImageError, TGHopError
 from . import common
-from .common import pair, counter, check_count, check_patch_size, sample_patches
+from .._arrays import check_int
+from .common import pair, counter, check_patch_size, sample_patches
 
 __all__ = ["sliced_wasserstein", "cooccurrence_distance"]
 
@@ -167,7 +168,7 @@ def cooccurrence_distance(
 
     if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
         raise TGHopError("sigma, window and n_clusters must be positive")
-    max_fit_pixels = check_count(max_fit_pixels, "max_fit_pixels")
+    max_fit_pixels = check_int(max_fit_pixels, "max_fit_pixels")
     ex, res = pair(exemplar, result)
     centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=max_fit_pixels,
                                            seed=int(seed))
