@@ -191,6 +191,7 @@ def test_a_normal_map_of_equal_channels_is_refused_for_its_vectors(exemplar):
 def test_synthesize_checks_its_settings_as_tghop_does(material):
     """Review 58, item 14: the checks of TGHop.synthesize, and refine_maps as a boolean."""
     for kwargs, words in (({"refine": 100}, "refine must be an integer >= 0 and <= 20, got 100"),
+                          ({"refine": 2.0}, "refine must be an integer >= 0 and <= 20, got 2.0; write 2"),
                           ({"match_colours": "no"}, "match_colours must be True or False, got 'no'"),
                           ({"tile": "no"}, "tile must be True or False, got 'no'"),
                           ({"refine_maps": "no"}, "refine_maps must be True or False, got 'no'"),
