@@ -150,6 +150,16 @@ def test_metric_uses_the_shared_statistics():
     assert 0 < cooccurrence_distance(a, b, n_clusters=3) <= 2
 
 
+def test_colour_clusters_name_a_bad_count():
+    img = data.bricks(48, rng=3)
+    with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 0$"):
+        cooccurrence.fit_colour_clusters(img, max_fit_pixels=0)
+    with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 10.5$"):
+        cooccurrence.fit_colour_clusters(img, max_fit_pixels=10.5)
+    with pytest.raises(TGHopError, match=r"^n_clusters must be an integer >= 1, got 0$"):
+        cooccurrence.fit_colour_clusters(img, n_clusters=0)
+
+
 def test_paint_condition_places_sources():
     a, b = np.zeros((4, 1, 1)), np.ones((4, 2, 2))
     labels = np.array([[0, 1, 1], [0, 0, 1]])
