@@ -393,7 +393,7 @@ class CoocGAN(TrainingMixin):
             Co-occurrence tensor (from :meth:`cooccurrence`, :func:`paint_condition`, an
             interpolation or an edit); each cell is re-normalised to sum to 1.
         noise : array_like, shape (noise_channels, h, w), optional
-            Noise tensor (:meth:`noise`); default drawn from ``rng``.
+            Noise tensor (:meth:`noise`), finite; default drawn from ``rng``.
         rng : int or numpy.random.Generator, optional
         windows : bool
             Generate in overlapping training-size windows (:meth:`generate_windows`).
@@ -531,8 +531,8 @@ class CoocGAN(TrainingMixin):
     def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
         """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
 
-        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``
-        are rounded down to multiples of ``s``; default size ``crop_size``).
+        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``,
+        integers, are rounded down to multiples of ``s``; default size ``crop_size``).
 
         Returns
         -------
@@ -729,6 +729,8 @@ def load(path, *, device: str = "auto") -> CoocGAN:
     ------
     ModelFileError
         Missing file, not a tghop co-occurrence checkpoint, or another format version.
+    TGHopError
+        An unknown ``device``, or CUDA where there is none.
     """
     return read_checkpoint(path, CoocGAN, device=device)
 
