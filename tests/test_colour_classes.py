@@ -92,6 +92,23 @@ def test_shares_move_only_as_far_as_the_exemplars_crops_vary(rng):
         assert moved[0] <= grey_share - 0.4 <= moved[1], (stripes, grey_share)
 
 
+def test_a_sample_mask_is_checked_as_patch_statistics_checks_it(rng):
+    exemplar, _ = two_colours(rng, 0.4)
+    bands = BandStatistics().fit(exemplar)
+    h, w = exemplar.shape[:2]
+    for fit, where in ((lambda m: BandStatistics().fit(exemplar, exclude=m), "BandStatistics.fit"),
+                       (lambda m: ColourClasses(2).fit(exemplar, bands, exclude=m), "ColourClasses.fit")):
+        with pytest.raises(TGHopError, match=rf"^{where}: exclude must be an \(H, W\) mask of the image's "
+                                             rf"{h}x{w} pixels, got shape \(5, 5\)$"):
+            fit(np.zeros((5, 5), bool))
+    # A 0/1 integer mask is the boolean one (it was used as indices by ColourClasses).
+    exclude = np.zeros((h, w), dtype=bool)
+    exclude[40:50, 5:20] = True
+    a = ColourClasses(2).fit(exemplar, bands, exclude=exclude)
+    b = ColourClasses(2).fit(exemplar, bands, exclude=exclude.astype(np.uint8))
+    np.testing.assert_array_equal(a.centres_, b.centres_)
+
+
 def test_a_sample_mask_keeps_the_spread_of_the_pixels_outside_it(rng):
     # An exemplar fitted with a mask measures its crops' shares on the pixels outside the mask
     # (tghop 0.33 stored no spread for it, so its images kept the exemplar's shares).

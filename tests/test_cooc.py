@@ -150,6 +150,16 @@ def test_metric_uses_the_shared_statistics():
     assert 0 < cooccurrence_distance(a, b, n_clusters=3) <= 2
 
 
+def test_colour_clusters_name_a_bad_count():
+    img = data.bricks(48, rng=3)
+    with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 0$"):
+        cooccurrence.fit_colour_clusters(img, max_fit_pixels=0)
+    with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 10.5$"):
+        cooccurrence.fit_colour_clusters(img, max_fit_pixels=10.5)
+    with pytest.raises(TGHopError, match=r"^n_clusters must be an integer >= 1, got 0$"):
+        cooccurrence.fit_colour_clusters(img, n_clusters=0)
+
+
 def test_paint_condition_places_sources():
     a, b = np.zeros((4, 1, 1)), np.ones((4, 2, 2))
     labels = np.array([[0, 1, 1], [0, 0, 1]])
@@ -615,6 +625,46 @@ def test_condition_checks(tiny_model):
         tiny_model.generate(-np.ones((9, 2, 2)))
     with pytest.raises(TGHopError, match="not inside"):
         tiny_model.crop_condition(40, 40)
+
+
+def test_generation_arguments_are_checked_by_name(tiny_model):
+    a = tiny_model.crop_condition(0, 0)
+    z = tiny_model.noise(a.shape[1:], rng=0)
+    z[0, 0, 0] = np.nan
+    with pytest.raises(TGHopError, match="noise contains NaN"):
+        tiny_model.generate(a, noise=z)
+    big = np.concatenate([a, a, a], axis=2)
+    zz = tiny_model.noise(big.shape[1:], rng=0)
+    zz[0, 0, 0] = np.inf
+    with pytest.raises(TGHopError, match="noise contains NaN or infinite"):
+        tiny_model.generate(big, noise=zz, windows=True)
+    with pytest.raises(TGHopError, match=r"length must be an integer >= 2, got 4.5"):
+        tiny_model.morph_strip(a, a, length=4.5)
+    with pytest.raises(TGHopError, match=r"n_cols must be an integer >= 1, got 2.5"):
+        tiny_model.morph_grid(a, a, n_cols=2.5)
+    with pytest.raises(TGHopError, match=r"n_rows must be an integer >= 1, got 2.0"):
+        tiny_model.morph_grid(a, a, n_rows=2.0)
+    with pytest.raises(TGHopError, match=r"y must be an integer >= 0, got 0.5"):
+        tiny_model.crop_condition(0.5, 0)
+    with pytest.raises(TGHopError, match=r"x must be an integer >= 0, got 1.5"):
+        tiny_model.crop_condition(0, 1.5)
+    with pytest.raises(TGHopError, match="at least one cell"):
+        tiny_model.generate(np.ones((a.shape[0], 0, 2)))
+    with pytest.raises(TGHopError, match="conds is empty"):
+        tiny_model.generate_batch([])
+
+
+def test_load_names_a_bad_device_not_a_corrupt_file(tiny_model, tmp_path):
+    path = tmp_path / "m.pt"
+    tiny_model.save(path)
+    with pytest.raises(TGHopError, match="device must be 'auto', 'cpu', 'cuda' or a torch device name, got 'tpu'") \
+            as error:
+        cooc.load(path, device="tpu")
+    assert "corrupt" not in str(error.value)
+    if not torch.cuda.is_available():
+        with pytest.raises(TGHopError, match="CUDA is not available here; use device='cpu'"):
+            cooc.load(path, device="cuda")
+    assert cooc.load(path, device="cpu").step_ == tiny_model.step_
 
 
 def test_morph_strip_and_grid(tiny_model):

@@ -376,6 +376,11 @@ def test_not_fitted():
         TGHop().sample_patches(3)
 
 
+def test_stage_views_before_fit_is_not_fitted():
+    with pytest.raises(NotFittedError, match="fit"):
+        TGHop().stage_views([np.zeros((1, 2, 2, 3)), np.zeros((1, 4, 4, 3))])
+
+
 def test_bad_settings(bricks96):
     with pytest.raises(TGHopError, match="at least 76x76"):
         TGHop().fit(bricks96[:20])

@@ -70,6 +70,20 @@ def test_16bit_and_float_tiff_round_trips(tmp_path):
     np.testing.assert_array_equal(image, values.astype(np.float32))  # float32 in the file, nothing else lost
 
 
+def test_a_float_depth_and_a_path_of_the_wrong_kind_are_one_line():
+    from tghop import TGHopError
+    from tghop.imageio import output_format
+
+    with pytest.raises(InvalidImageError, match=r"^depth 8.0 is not 8, 16 or 32 bits per channel; write 8"):
+        check_depth("a.png", 8.0)
+    with pytest.raises(InvalidImageError, match="depth '8' is not 8, 16 or 32"):
+        check_depth("a.png", "8")
+    assert check_depth("a.png", np.int64(16)) == 16
+    for call in (lambda: output_format(None), lambda: check_depth(None, 8)):
+        with pytest.raises(TGHopError, match=r"^the output path must be a str or os.PathLike, got NoneType$"):
+            call()
+
+
 @pytest.mark.parametrize("name, depth", [("a.png", 32), ("a.jpg", 16), ("a.jpg", 32), ("a.png", 12)])
 def test_depth_a_format_cannot_hold_is_one_line(name, depth):
     with pytest.raises(InvalidImageError) as err:

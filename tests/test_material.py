@@ -191,6 +191,7 @@ def test_a_normal_map_of_equal_channels_is_refused_for_its_vectors(exemplar):
 def test_synthesize_checks_its_settings_as_tghop_does(material):
     """Review 58, item 14: the checks of TGHop.synthesize, and refine_maps as a boolean."""
     for kwargs, words in (({"refine": 100}, "refine must be an integer >= 0 and <= 20, got 100"),
+                          ({"refine": 2.0}, "refine must be an integer >= 0 and <= 20, got 2.0; write 2"),
                           ({"match_colours": "no"}, "match_colours must be True or False, got 'no'"),
                           ({"tile": "no"}, "tile must be True or False, got 'no'"),
                           ({"refine_maps": "no"}, "refine_maps must be True or False, got 'no'"),
@@ -207,7 +208,11 @@ def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp
     runner = CliRunner()
     for args, words in ((["--quality", "best"], "Error: --quality best does not apply to a material"),
                         (["--patch-refine", "5"], "Error: --patch-refine does not apply to a material"),
-                        (["--quality", "best", "--patch-refine", "5"], "--quality best and --patch-refine do not")):
+                        (["--quality", "best", "--patch-refine", "5"], "--quality best and --patch-refine do not"),
+                        # --patch-stride was silently ignored (a material has no patch refinement)
+                        (["--patch-stride", "3"], "Error: --patch-stride does not apply to a material (it has no "
+                                                  "patch statistics); drop it"),
+                        (["--patch-refine", "5", "--patch-stride", "3"], "--patch-refine and --patch-stride do not")):
         res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size", "64",
                                    "-q", *args])
         assert res.exit_code != 0 and "Traceback" not in res.output, res.output

@@ -276,10 +276,15 @@ def test_nearest_patch_progress_counts_each_chunk_once(name, monkeypatch):
 
 
 @pytest.mark.parametrize("value", [0, -1, 2.5, "8", None, True])
-@pytest.mark.parametrize("name", ["novelty", "copied", "diversity", "copied_textured"])
+@pytest.mark.parametrize("name", ["novelty", "copied", "diversity", "copied_textured", "sliced_wasserstein"])
 def test_nearest_patch_metrics_refuse_a_bad_max_patches(name, value, exemplar, references):
     with pytest.raises(TGHopError, match=r"^max_patches must be an integer >= 1, got"):
         getattr(metrics, name)(exemplar, references["crop"], max_patches=value)
+
+
+def test_sliced_wasserstein_refuses_a_fractional_number_of_projections(exemplar, references):
+    with pytest.raises(TGHopError, match=r"^n_projections must be an integer >= 1, got 8.5$"):
+        metrics.sliced_wasserstein(exemplar, references["crop"], n_projections=8.5)
 
 
 def test_self_repetition_and_cooccurrence_name_their_counts(exemplar, references):

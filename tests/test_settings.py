@@ -82,6 +82,36 @@ def test_bad_generation_settings_are_refused(small_model, name, value):
         small_model.synthesize((40, 40), rng=0, **{name: value})
 
 
+def test_refine_takes_integers_only_at_every_entry_point(small_model, bricks96):
+    # 2.0 is refused as 2.5 is, as the server, tghop.refine.refine and inpaint always did.
+    from tghop import guided
+    from tghop.inpaint import inpaint, refine_hole
+    from tghop.refine import refine
+
+    with pytest.raises(TGHopError, match=r"refine must be an integer >= 0 and <= 20, got 2.0; write 2"):
+        small_model.synthesize((40, 40), rng=0, refine=2.0)
+    with pytest.raises(TGHopError, match=r"refine must be an integer >= 0 and <= 20, got 2.0; write 2"):
+        guided.synthesize_guided([small_model, small_model], size=(40, 40), rng=0, refine=2.0)
+    with pytest.raises(TGHopError, match=r"refine must be an integer >= 0 and <= 20, got 2.0; write 2"):
+        guided.morph(small_model, small_model, (40, 80), rng=0, refine=2.0)
+    hole = np.zeros(bricks96.shape[:2], dtype=bool)
+    hole[40:50, 40:50] = True
+    with pytest.raises(TGHopError, match=r"refine must be an integer >= 0, got 2.0"):
+        inpaint(small_model, bricks96, hole, rng=0, refine=2.0)
+    with pytest.raises(TGHopError, match=r"n_iter must be a non-negative integer, got 2.0"):
+        refine(bricks96, small_model.bands_, n_iter=2.0)
+    with pytest.raises(TGHopError, match=r"refine_hole: n_iter must be a non-negative integer, got 2.0"):
+        refine_hole(bricks96, hole, small_model.bands_, n_iter=2.0)
+    assert settings.BY_NAME["refine"].check(np.int64(2)) == 2
+
+
+def test_whole_floats_are_refused_for_integer_settings_but_read_from_old_files():
+    with pytest.raises(TGHopError, match=r"stride must be an integer >= 1, got 2.0; write 2"):
+        TGHop(**{**SMALL, "stride": 2.0}).check_settings()
+    checked = settings.file_settings({"stride": 2.0})  # a file fitted with stride=2.0 before it was refused
+    assert checked["stride"] == 2 and type(checked["stride"]) is int
+
+
 def test_ica_max_iter_reaches_ichm_and_survives_the_model_file(bricks96, tmp_path):
     model = TGHop(**{**SMALL, "ica_max_iter": 3}).fit(bricks96)
     assert model.ichm_.max_iter == 3

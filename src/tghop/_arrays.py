@@ -14,7 +14,7 @@ import numpy as np
 
 from ._errors import TGHopError
 
-__all__ = ["check_array", "check_count", "check_int", "check_width", "forget_fit"]
+__all__ = ["check_array", "check_count", "check_int", "check_mask", "check_width", "forget_fit"]
 
 
 def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True) -> np.ndarray:
@@ -73,6 +73,20 @@ def check_int(value, name: str, low: int = 1) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
         raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
     return int(value)
+
+
+def check_mask(mask, shape, where: str, name: str = "exclude"):
+    """``mask`` as an (H, W) bool array of the image's ``shape[:2]`` (None stays None), or a
+    one-line :class:`TGHopError` naming ``where`` (the function) and ``name``: the sample
+    mask check of :meth:`~tghop.patch_refine.PatchStatistics.fit`,
+    :meth:`~tghop.refine.BandStatistics.fit` and :meth:`~tghop.colour.ColourClasses.fit`."""
+    if mask is None:
+        return None
+    h, w = shape[:2]
+    if np.shape(mask) != (h, w):
+        raise TGHopError(f"{where}: {name} must be an (H, W) mask of the image's {h}x{w} pixels, "
+                         f"got shape {np.shape(mask)}")
+    return np.asarray(mask, dtype=bool)
 
 
 def forget_fit(estimator, private=()) -> None:

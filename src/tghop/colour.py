@@ -15,6 +15,7 @@ import numbers
 
 import numpy as np
 
+from ._arrays import check_mask
 from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
                       usable_cores)
 
@@ -389,6 +390,7 @@ class ColourClasses(StoredArrays, BaseEstimator):
         image = checked_image(image, "ColourClasses.fit", channels=len(bands.colour_mean_))
         if image.dtype.kind == "u" and image.dtype != np.uint8:
             image = check_image(image, name="ColourClasses.fit: image", channels=None)
+        exclude = check_mask(exclude, image.shape, "ColourClasses.fit")
         pixels = (image if exclude is None else image[~exclude]).reshape(-1, image.shape[-1])
         pixels = np.ascontiguousarray(_strided(pixels, CLASS_PIXELS), dtype=np.float64)
         if image.dtype == np.uint8:  # a large exemplar (TGHop.fit keeps it 8-bit): its pixels x / 255

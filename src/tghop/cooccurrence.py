@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from ._arrays import check_int
 from ._common import TGHopError, check_image, import_torch
 
 __all__ = ["fit_colour_clusters", "soft_assign", "spread_pairs", "symmetric_normalised", "cooccurrence_matrix",
@@ -59,8 +60,8 @@ def fit_colour_clusters(image, *, n_clusters: int = 8, max_fit_pixels: int = 20_
     from sklearn.cluster import KMeans
     from threadpoolctl import threadpool_limits
 
-    if int(n_clusters) < 1:
-        raise TGHopError(f"n_clusters must be positive, got {n_clusters}")
+    n_clusters = check_int(n_clusters, "n_clusters")
+    max_fit_pixels = check_int(max_fit_pixels, "max_fit_pixels")  # 0 failed inside scikit-learn
     img = check_image(image)
     pixels = img.reshape(-1, img.shape[2])
     rng = np.random.default_rng(int(seed))

@@ -452,8 +452,10 @@ def check_depth(path, depth) -> int:
     """Refuse a bit depth the output's format cannot hold (one line naming the fix);
     returns the depth (8, 16 or 32)."""
     fmt = output_format(path)
-    if depth not in (8, 16, 32) or isinstance(depth, bool):
-        raise InvalidImageError(f"depth {depth!r} is not 8, 16 or 32 bits per channel")
+    if isinstance(depth, (bool, np.bool_)) or not isinstance(depth, (int, np.integer)) or depth not in (8, 16, 32):
+        whole = isinstance(depth, (float, np.floating)) and float(depth) in (8.0, 16.0, 32.0)
+        raise InvalidImageError(f"depth {depth!r} is not 8, 16 or 32 bits per channel"
+                                + (f"; write {int(depth)} (an integer)" if whole else ""))
     if depth not in DEPTHS[fmt]:
         fix = f"name the output {extensions([f for f, held in DEPTHS.items() if depth in held])}" + (
             " (float TIFF)" if depth == 32 else "")
@@ -528,7 +530,10 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
 
 
 def output_format(path) -> str:
-    """Pillow format name for an output path (``-`` means PNG on stdout)."""
+    """Pillow format name for an output path (``-`` means PNG on stdout); a path that is not
+    a str or os.PathLike is refused with a one-line :class:`TGHopError`."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TGHopError(f"the output path must be a str or os.PathLike, got {type(path).__name__}")
     if str(path) == "-":
         return "PNG"
     ext = Path(path).suffix.lower()

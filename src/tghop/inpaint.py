@@ -351,6 +351,8 @@ def refine_hole(image, hole, stats, *, n_iter=5, tile=False, progress=None):
     -------
     ndarray, shape (H, W, C), float32 in [0, 1]
     """
+    if isinstance(n_iter, bool) or not isinstance(n_iter, (numbers.Integral, np.integer)) or n_iter < 0:
+        raise TGHopError(f"refine_hole: n_iter must be a non-negative integer, got {n_iter!r}")
     mode = "wrap" if tile else "reflect"
     outside = np.ascontiguousarray(np.moveaxis(stats.to_decorrelated(np.asarray(image, dtype=np.float32)), 2, 0))
     dec = outside.copy()

@@ -37,6 +37,7 @@ import numbers
 
 import numpy as np
 
+from ._arrays import check_mask
 from ._common import BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng, report
 from .colour import checked_image
 from .patches import clean_windows
@@ -216,16 +217,13 @@ class PatchStatistics(BaseEstimator):
             raise TGHopError(f"PatchStatistics: whitening must be a number in [0, 1], got {w!r}")
         rng = check_rng(rng)
         image = check_image(image, min_size=PATCH, name="PatchStatistics.fit: image", dtype=np.float32, channels=None)
-        if exclude is not None and np.shape(exclude) != image.shape[:2]:
-            raise TGHopError(f"PatchStatistics.fit: exclude must be an (H, W) mask of the image's "
-                             f"{image.shape[0]}x{image.shape[1]} pixels, got shape {np.shape(exclude)}")
+        hole = check_mask(exclude, image.shape, "PatchStatistics.fit")
         levels = _levels_of(image, n, "reflect", PATCH)
         d = PATCH * PATCH * image.shape[2]
         dirs = rng.standard_normal((len(levels), SETS, DIRECTIONS, d)).astype(np.float32)
         dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
         qlev = quantile_levels(QUANTILES)
         quantiles = np.empty((len(levels), SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
-        hole = None if exclude is None else np.asarray(exclude, dtype=bool)
         for i, img in enumerate(levels):
             # Which windows (row-major numbers) are measured; only those are copied.
             v = np.lib.stride_tricks.sliding_window_view(img, (PATCH, PATCH), axis=(0, 1))

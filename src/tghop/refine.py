@@ -23,6 +23,7 @@ import numbers
 
 import numpy as np
 
+from ._arrays import check_mask
 from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
                       check_size, report, usable_cores)
 from ._fft import fft_for
@@ -497,12 +498,12 @@ class BandStatistics(StoredArrays, BaseEstimator):
         h, w, c = exemplar.shape
         if h < 1 or w < 1:
             raise InvalidImageError(f"BandStatistics.fit: exemplar is empty ({h}x{w} pixels)")
+        exclude = check_mask(exclude, exemplar.shape, "BandStatistics.fit")
         crops = list(_crops(h, w, _FIT_SIDE))
         # Colour axes from a strided subset of at most about a million pixels.
         step = max(1, int(math.ceil(math.sqrt(h * w / 2**20))))
         flat = exemplar[::step, ::step].reshape(-1, c).astype(np.float64) * scale
         if exclude is not None:
-            exclude = np.asarray(exclude, dtype=bool)
             flat = flat[~exclude[::step, ::step].ravel()]
         self.colour_mean_ = flat.mean(axis=0)
         cov = np.cov(flat - self.colour_mean_, rowvar=False).reshape(c, c)

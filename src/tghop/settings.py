@@ -128,7 +128,8 @@ class Setting:
         return text + (" or None" if self.none_ok else "")
 
     def check(self, value, *, label=None):
-        """Return ``value`` (normalised) or raise a one-line :class:`TGHopError`."""
+        """Return ``value`` (normalised) or raise a one-line :class:`TGHopError`; an ``"int"``
+        setting takes integers only (Python or NumPy, not a float such as 2.0)."""
         label = label or self.name
         if self.kind == "rng":
             return value  # checked where it is used (check_rng)
@@ -150,9 +151,10 @@ class Setting:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
         if self.kind == "int":
-            if not isinstance(value, numbers.Integral):
-                if not (math.isfinite(value) and float(value).is_integer()):
-                    raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+            if not isinstance(value, numbers.Integral):  # 2.0 too, as the server and the other entry points
+                whole = math.isfinite(value) and float(value).is_integer()
+                raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}"
+                                 + (f"; write {int(value)}" if whole else ""))
             value = int(value)
         else:
             value = float(value)
@@ -446,6 +448,10 @@ def file_settings(params: dict) -> dict:
     ``rng`` the fit's seed where one was recorded (None in files before 0.33, and for a
     Generator)."""
     params = {**BEFORE_ADDED, **params}
+    for name, value in params.items():  # files written before whole floats (2.0) were refused
+        if (name in BY_NAME and BY_NAME[name].kind == "int" and isinstance(value, float) and math.isfinite(value)
+                and value.is_integer()):
+            params[name] = int(value)
     params["rng"] = recorded_seed(params.get("rng"))
     if params.get("n_channels") is not None:
         params["n_channels"] = tuple(params["n_channels"])

@@ -524,7 +524,9 @@ class TGHop(BaseEstimator):
 
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples: :func:`tghop.hops.stage_views`
-        of ``spaces`` (``[Sn, ..., S1, S0]`` from :meth:`decode` with ``return_stages``)."""
+        of ``spaces`` (``[Sn, ..., S1, S0]`` from :meth:`decode` with ``return_stages``); before
+        :meth:`fit`, :class:`~tghop.NotFittedError`."""
+        check_is_fitted(self, "ichm_")
         return stage_views(spaces, self.exemplar_shape_[2])
 
     def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):

@@ -252,9 +252,10 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     if from_model:
         model = load_model(source, material=True)
         if hasattr(model, "names_"):  # a whole material: every map, written together
-            if generation["patch_refine"]:  # refused here by the options typed, not the library's keyword
+            stride = given_options(ctx, ["patch_stride"])  # would be ignored: a material has no patch refinement
+            if generation["patch_refine"] or stride:  # refused here by the options typed, not the library's keyword
                 typed = (["--quality best"] if ctx.params.get("quality") == "best" else []) + given_options(
-                    ctx, ["patch_refine"])
+                    ctx, ["patch_refine", "patch_stride"])
                 typed = typed or ["--patch-refine"]
                 raise TGHopError(f"{' and '.join(typed)} {'do' if len(typed) > 1 else 'does'} not apply to a "
                                  f"material (it has no patch statistics); drop {'them' if len(typed) > 1 else 'it'}")

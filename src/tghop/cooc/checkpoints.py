@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .._common import ModelFileError, import_torch
+from .config import torch_device
 from .networks import build_networks
 
 __all__ = ["KIND", "FORMAT", "save", "read"]
@@ -106,12 +107,15 @@ def read(path, model_class, *, device: str = "auto"):
     ------
     ModelFileError
         Missing file, not a tghop co-occurrence checkpoint, or another format version.
+    TGHopError
+        An unknown ``device``, or CUDA where there is none.
     """
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such checkpoint; check the path, or train one (CoocGAN().fit(exemplar)"
                              f".save(path), or 'tghop cooc train EXEMPLAR -o {path.name}')")
     torch = import_torch("The co-occurrence cGAN")
+    torch_device(torch, device)  # a bad device named as such, not as a corrupt file
     try:
         tensors = torch.load(path, map_location="cpu", weights_only=True)
         settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())

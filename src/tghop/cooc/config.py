@@ -15,7 +15,7 @@ import numpy as np
 
 from .._common import TGHopError
 
-__all__ = ["SMALL", "PAPER", "PARAMS", "check_settings"]
+__all__ = ["SMALL", "PAPER", "PARAMS", "check_settings", "torch_device"]
 
 #: The small configuration, the default of :class:`~tghop.cooc.model.CoocGAN`: made to
 #: train on a 2-core CPU for a 256 x 256 exemplar. Everything spatial is at half the paper's
@@ -128,3 +128,17 @@ def check_settings(values) -> dict:
     if not 0 <= p["lr_decay"] <= 1:
         raise TGHopError(f"lr_decay must be in [0, 1], got {p['lr_decay']}")
     return p
+
+
+def torch_device(torch, device):
+    """The torch device named by ``device`` (``"auto"`` or None: CUDA when present), or a
+    one-line :class:`TGHopError` naming the device (an unknown name, or CUDA where there is none)."""
+    if device in (None, "auto"):
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError):
+        raise TGHopError(f"device must be 'auto', 'cpu', 'cuda' or a torch device name, got {device!r}") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise TGHopError(f"device {device!r} but CUDA is not available here; use device='cpu' or 'auto'")
+    return dev

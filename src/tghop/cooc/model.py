@@ -22,6 +22,7 @@ from typing import Optional
 
 import numpy as np
 
+from .._arrays import check_int
 from .._common import (
     NotFittedError,
     ProgressCallback,
@@ -49,10 +50,16 @@ from .assembly import (
 )
 from .checkpoints import read as read_checkpoint
 from .checkpoints import save as save_checkpoint
-from .config import PARAMS, check_settings
+from .config import PARAMS, check_settings, torch_device
 from .training import TrainingMixin
 
 __all__ = ["CoocGAN", "load", "baseline", "memory_estimate"]
+
+
+def check_noise(noise: np.ndarray) -> None:
+    """Refuse a noise tensor with NaN or infinite values (they give a NaN image)."""
+    if not np.isfinite(noise).all():
+        raise TGHopError("noise contains NaN or infinite values; give finite noise (CoocGAN.noise draws it)")
 
 
 class CoocGAN(TrainingMixin):
@@ -203,13 +210,7 @@ class CoocGAN(TrainingMixin):
             raise NotFittedError("This CoocGAN is not trained yet; call fit(exemplar) or load a checkpoint first")
 
     def _torch_device(self, torch):
-        if self.device in (None, "auto"):
-            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-        try:
-            return torch.device(self.device)
-        except (RuntimeError, TypeError):
-            raise TGHopError("device must be 'auto', 'cpu', 'cuda' or a torch device name, "
-                             f"got {self.device!r}") from None
+        return torch_device(torch, self.device)
 
     # ------------------------------------------------------------------ statistics
     def _cooc(self, images):
@@ -299,7 +300,7 @@ class CoocGAN(TrainingMixin):
         """
         torch = import_torch("The co-occurrence cGAN")
         t = self.cooccurrence(image)
-        n = max(1, int(self.settings_["crop_size"]) // self.s if cells is None else int(cells))
+        n = max(1, int(self.settings_["crop_size"]) // self.s) if cells is None else check_int(cells, "cells")
         pooled = torch.nn.functional.adaptive_avg_pool2d(torch.as_tensor(t)[None], (n, n))[0]
         return pooled.numpy()
 
@@ -356,6 +357,8 @@ class CoocGAN(TrainingMixin):
         cond = np.asarray(cond, dtype=np.float64)
         if cond.ndim != 3 or cond.shape[0] != k2:
             raise TGHopError(f"a co-occurrence tensor of this model has shape ({k2}, h, w), got {cond.shape}")
+        if cond.size == 0:
+            raise TGHopError(f"a co-occurrence tensor needs at least one cell (h, w >= 1), got shape {cond.shape}")
         if not np.all(np.isfinite(cond)) or cond.min() < 0:
             raise TGHopError("a co-occurrence tensor must be finite and non-negative")
         sums = cond.sum(axis=0)
@@ -371,7 +374,7 @@ class CoocGAN(TrainingMixin):
         ndarray, shape (noise_channels, h, w), float32, N(0, 1)
         """
         self._check_fitted()
-        h, w = (int(v) for v in shape)
+        h, w = (check_int(v, "the noise's shape") for v in shape)
         return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
 
     def generate(self, cond, *, noise=None, rng=None, windows: bool = False,
@@ -390,7 +393,7 @@ class CoocGAN(TrainingMixin):
             Co-occurrence tensor (from :meth:`cooccurrence`, :func:`paint_condition`, an
             interpolation or an edit); each cell is re-normalised to sum to 1.
         noise : array_like, shape (noise_channels, h, w), optional
-            Noise tensor (:meth:`noise`); default drawn from ``rng``.
+            Noise tensor (:meth:`noise`), finite; default drawn from ``rng``.
         rng : int or numpy.random.Generator, optional
         windows : bool
             Generate in overlapping training-size windows (:meth:`generate_windows`).
@@ -415,7 +418,12 @@ class CoocGAN(TrainingMixin):
         """
         self._check_fitted()
         torch = import_torch("The co-occurrence cGAN")
-        conds = np.stack([self._check_cond(c) for c in conds])
+        conds = [self._check_cond(c) for c in conds]
+        if not conds:
+            raise TGHopError("conds is empty: give at least one co-occurrence tensor")
+        if len({c.shape for c in conds}) > 1:
+            raise TGHopError(f"the conditions of a batch need one shape, got {sorted({c.shape for c in conds})}")
+        conds = np.stack(conds)
         n, _, h, w = conds.shape
         if noise is None:
             r = check_rng(rng)
@@ -423,6 +431,7 @@ class CoocGAN(TrainingMixin):
         noise = np.asarray(noise, dtype=np.float32)
         if noise.shape != (n, int(self.settings_["noise_channels"]), h, w):
             raise TGHopError(f"noise must have shape {(n, self.settings_['noise_channels'], h, w)}, got {noise.shape}")
+        check_noise(noise)
         if windows and (h > self._window_cells or w > self._window_cells):
             return np.stack([self.generate_windows(c, noise=z) for c, z in zip(conds, noise)])
         return np.clip(self._run_generator(torch, conds, noise), 0.0, 1.0)
@@ -485,7 +494,8 @@ class CoocGAN(TrainingMixin):
             return self.generate(cond, noise=noise, rng=rng)
         stride = max(1, n // 2)
         limit = min(stride, 2 * ((n - stride) // 2)) * s  # ramps within the overlap and the window
-        feather = int(round(FEATHER * limit)) if feather is None else int(feather)
+        feather = int(round(FEATHER * limit)) if feather is None else check_int(feather, "feather", 0)
+        batch = check_int(batch, "batch")
         if not 0 <= feather <= limit:
             raise TGHopError(f"feather must lie in 0..{limit} pixels (the windows' overlap), got {feather}")
         ys, pads_y, wy = window_layout(h, n, stride)
@@ -498,6 +508,7 @@ class CoocGAN(TrainingMixin):
             z = np.asarray(noise, dtype=np.float32)
             if z.shape != (channels, h, w):
                 raise TGHopError(f"noise must have shape {(channels, h, w)}, got {z.shape}")
+            check_noise(z)
             z = mirror_pad(z, pads_y, pads_x)
         c = mirror_pad(cond, pads_y, pads_x)
         weight_y = blend_weights(wy * s, pads_y[0] * s, (pads_y[0] + stride) * s, feather, h > n)
@@ -520,8 +531,8 @@ class CoocGAN(TrainingMixin):
     def crop_condition(self, y: int, x: int, size: Optional[int] = None) -> np.ndarray:
         """The co-occurrence tensor of the exemplar's ``size`` x ``size`` crop at pixel ``(y, x)``.
 
-        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``
-        are rounded down to multiples of ``s``; default size ``crop_size``).
+        Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``,
+        integers, are rounded down to multiples of ``s``; default size ``crop_size``).
 
         Returns
         -------
@@ -529,9 +540,10 @@ class CoocGAN(TrainingMixin):
         """
         self._check_fitted()
         s = self.s
-        size = int(self.settings_["crop_size"] if size is None else size)
+        size = int(self.settings_["crop_size"]) if size is None else check_int(size, "size")
+        y, x = check_int(y, "y", 0), check_int(x, "x", 0)
         t = self.exemplar_cooc_
-        cy, cx, n = int(y) // s, int(x) // s, max(1, size // s)
+        cy, cx, n = y // s, x // s, max(1, size // s)
         if min(cy, cx) < 0 or cy + n > t.shape[1] or cx + n > t.shape[2]:
             raise TGHopError(f"a {size}x{size} crop at ({y}, {x}) is not inside the "
                              f"{self.exemplar_shape_[0]}x{self.exemplar_shape_[1]} exemplar")
@@ -623,7 +635,7 @@ class CoocGAN(TrainingMixin):
         self._check_fitted()
         if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
             raise TGHopError(f"n must be a positive integer, got {n!r}")
-        n, batch = int(n), int(batch)
+        n, batch = int(n), check_int(batch, "batch")
         r = check_rng(rng)
         cells, s = self._window_cells, self.s
         _, hc, wc = self.exemplar_cooc_.shape
@@ -657,9 +669,7 @@ class CoocGAN(TrainingMixin):
         a, b = self._check_cond(a), self._check_cond(b)
         if a.shape[1] != b.shape[1]:
             raise TGHopError(f"the two tensors need the same height, got {a.shape[1]} and {b.shape[1]}")
-        length = int(length)
-        if length < 2:
-            raise TGHopError(f"length must be at least 2 cells, got {length}")
+        length = check_int(length, "length", 2)
         t = np.linspace(0.0, 1.0, length)[None, None, :]
         cond = (1 - t) * tile(a, a.shape[1], length) + t * tile(b, b.shape[1], length)
         return self.generate(cond, rng=rng, windows=windows)
@@ -682,9 +692,7 @@ class CoocGAN(TrainingMixin):
         a, b = self._check_cond(a), self._check_cond(b)
         if a.shape != b.shape:
             raise TGHopError(f"the two tensors need the same shape, got {a.shape} and {b.shape}")
-        n_cols, n_rows = int(n_cols), int(n_rows)
-        if n_cols < 1 or n_rows < 1:
-            raise TGHopError("n_cols and n_rows must be positive")
+        n_cols, n_rows = check_int(n_cols, "n_cols"), check_int(n_rows, "n_rows")
         r = check_rng(rng)
         z0, z1 = self.noise(a.shape[1:], rng=r), self.noise(a.shape[1:], rng=r)
         rows = []
@@ -721,6 +729,8 @@ def load(path, *, device: str = "auto") -> CoocGAN:
     ------
     ModelFileError
         Missing file, not a tghop co-occurrence checkpoint, or another format version.
+    TGHopError
+        An unknown ``device``, or CUDA where there is none.
     """
     return read_checkpoint(path, CoocGAN, device=device)
 

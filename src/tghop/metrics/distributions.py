@@ -80,8 +80,8 @@ def sliced_wasserstein(
     scales = tuple(int(s) for s in scales)
     if not scales or min(scales) < 1:
         raise TGHopError(f"scales must be positive downsampling factors, got {scales}")
-    if int(n_projections) < 1 or int(max_patches) < 1:
-        raise TGHopError("n_projections and max_patches must be positive")
+    n_projections = check_int(n_projections, "n_projections")
+    max_patches = check_int(max_patches, "max_patches")  # as the nearest-patch metrics: 2.5 is not rounded down
     ex, res = pair(exemplar, result, min_size=patch_size * max(scales))
     dim = patch_size * patch_size * ex.shape[2]
     directions = np.random.default_rng((int(seed), 0)).standard_normal((dim, int(n_projections)))
