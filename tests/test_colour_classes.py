@@ -188,6 +188,9 @@ def test_colour_functions_check_their_images(rng):
     assert np.array_equal(match_histograms(img, q.tolist()), match_histograms(img, q))
     with pytest.raises(NotFittedError):
         ColourClasses(2).fit(img, BandStatistics())
+    for n in (1, 2.0, True):
+        with pytest.raises(TGHopError, match=rf"^channel_quantiles: n must be an integer >= 2, got {n!r}$"):
+            channel_quantiles(img, n)
 
 
 @pytest.mark.parametrize("n_classes", [0, -2, 2.7, "3", None])

@@ -126,8 +126,10 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
             inpaint(model, cells, square, tile=tile, **fast)
     with pytest.raises(TGHopError, match="the image is empty"):
         inpaint(model, cells[:0].astype(np.float64), square[:0])
-    with pytest.raises(TGHopError, match="n_patches must be an integer >= 1 and <= 10,000,000, got 1000000000"):
+    with pytest.raises(TGHopError, match="n_patches must be an integer from 1 to 10,000,000, got 1000000000"):
         inpaint(model, cells, square, rng=1, n_patches=10**9)
+    with pytest.raises(TGHopError, match=r"^blend must be an integer >= 0, got -1$"):
+        inpaint(model, cells, square, blend=-1, **fast)
     with pytest.raises(TGHopError, match="rng"):
         inpaint(model, cells, np.zeros((96, 96), bool), rng="x")
 

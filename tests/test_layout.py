@@ -399,5 +399,5 @@ def test_downsample_and_upsample_check_their_images():
 
 def test_coarse_guide_names_its_refine():
     model = TGHop(**SMALL, layout_factor=2).fit(data.bricks(96))
-    with pytest.raises(TGHopError, match="^refine must be a non-negative integer, got -1"):
+    with pytest.raises(TGHopError, match="^refine must be an integer >= 0, got -1"):
         model.layout_.guide((64, 64), refine=-1)

@@ -156,7 +156,7 @@ def test_refinement_moves_patch_statistics_towards_the_exemplar(patch_model):
     assert np.array_equal(pr.patch_refine(img, st, n_steps=0), img)
     with pytest.raises(TGHopError):
         pr.patch_refine(img[..., :1], st, n_steps=1)
-    with pytest.raises(TGHopError, match="non-negative"):
+    with pytest.raises(TGHopError, match="integer >= 0"):
         pr.patch_refine(img, st, n_steps=-1)
 
 
@@ -576,6 +576,10 @@ def test_patch_refine_errors_name_its_own_arguments(patch_model):
     for bad in (img * 255, img[..., 0]):
         with pytest.raises(InvalidImageError, match="^patch_refine: image"):
             pr.patch_refine(bad, p, n_steps=1)
+    with pytest.raises(TGHopError, match=rf"^stride must be an integer from 1 to {p.side_}, got {p.side_ + 1}$"):
+        pr.patch_refine(img, p, n_steps=1, stride=p.side_ + 1)
+    with pytest.raises(TGHopError, match=r"^patch_levels must be an integer >= 1, got -1$"):
+        pr.fit_patch_statistics(-1, img)
     with pytest.raises(TGHopError, match="^PatchStatistics: n_levels must be"):
         pr.PatchStatistics(n_levels=0).fit(img)
     with pytest.raises(TGHopError, match="^PatchStatistics: whitening must be"):

@@ -434,6 +434,18 @@ def test_bad_overlap(brick_pool, overlap):
         quilt(brick_pool, (40, 40), overlap=overlap)
 
 
+@pytest.mark.parametrize("patch_size", [1, 2.5, "8"])
+def test_bad_patch_size(patch_size):
+    with pytest.raises(TGHopError, match=rf"^patch size must be an integer >= 2, got {patch_size!r}$"):
+        quilting_plan((40, 40), patch_size)
+
+
+@pytest.mark.parametrize("left", [-1, 9, 2.0, True])
+def test_bad_cut_overlap(left):
+    with pytest.raises(TGHopError, match=rf"^left overlap must be an integer from 0 to 8, got {left!r}$"):
+        boundary_cut_mask(np.zeros((8, 8)), left=left)
+
+
 @pytest.mark.parametrize("tolerance", [-0.1, float("nan"), float("inf"), "0.1"])
 def test_bad_tolerance(brick_pool, tolerance):
     with pytest.raises(TGHopError, match="tolerance"):

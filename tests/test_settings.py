@@ -98,9 +98,9 @@ def test_refine_takes_integers_only_at_every_entry_point(small_model, bricks96):
     hole[40:50, 40:50] = True
     with pytest.raises(TGHopError, match=r"refine must be an integer >= 0, got 2.0"):
         inpaint(small_model, bricks96, hole, rng=0, refine=2.0)
-    with pytest.raises(TGHopError, match=r"n_iter must be a non-negative integer, got 2.0"):
+    with pytest.raises(TGHopError, match=r"refine: n_iter must be an integer >= 0, got 2.0"):
         refine(bricks96, small_model.bands_, n_iter=2.0)
-    with pytest.raises(TGHopError, match=r"refine_hole: n_iter must be a non-negative integer, got 2.0"):
+    with pytest.raises(TGHopError, match=r"refine_hole: n_iter must be an integer >= 0, got 2.0"):
         refine_hole(bricks96, hole, small_model.bands_, n_iter=2.0)
     assert settings.BY_NAME["refine"].check(np.int64(2)) == 2
 

@@ -1,6 +1,6 @@
 """Input checks of the scikit-learn-style components (:mod:`tghop.saab`, :mod:`tghop.hops`,
 :mod:`tghop.sdr`, :mod:`tghop.core`): arrays of numbers of a given rank, sample counts, and
-forgetting a fitted state.
+forgetting a fitted state; and :func:`check_int`, the library's integer-parameter check.
 
 Each check is O(1) or one pass over its input; the fits call them with ``finite=True``,
 the transforms check shapes only.
@@ -66,12 +66,43 @@ def check_count(n, name: str = "n") -> int:
     return int(n)
 
 
-def check_int(value, name: str, low: int = 1) -> int:
-    """``value`` as an int of at least ``low`` (a Python or NumPy integer, not a bool), or a
-    one-line :class:`TGHopError` naming ``name``: the parameter check of the patch helpers,
-    the metrics' counts, the guide helpers and the coarse layout."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low:
-        raise TGHopError(f"{name} must be an integer >= {low}, got {value!r}")
+def check_int(value, name: str, low: int = 1, high: int | None = None, *, where: str | None = None) -> int:
+    """``value`` as an int of at least ``low`` (and at most ``high``, where given), or a
+    one-line :class:`TGHopError`.
+
+    The library's one integer-parameter check: the patch helpers, the metrics' counts, the
+    guide helpers, the coarse layout, the co-occurrence model, the colour classes, the band
+    and patch statistics and their refinements, inpainting, coupling, seam smoothing and
+    quilting's overlap cut call it.
+
+    Parameters
+    ----------
+    value : object
+        A Python or NumPy integer (not a bool: ``True`` is refused, and so is a whole float
+        such as ``2.0``).
+    name : str
+        The parameter, for the message.
+    low : int
+        Smallest value allowed.
+    high : int or None
+        Largest value allowed; None: no upper bound.
+    where : str or None
+        The function or class checking, put before the message (``"where: name must be ..."``).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    TGHopError
+        ``name must be an integer >= low, got value`` (with ``high``: ``an integer from low
+        to high``), after ``where: `` where given.
+    """
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or value < low
+            or (high is not None and value > high)):
+        wanted = f">= {low}" if high is None else f"from {low:,} to {high:,}"
+        raise TGHopError(("" if where is None else f"{where}: ") + f"{name} must be an integer {wanted}, got {value!r}")
     return int(value)
 
 

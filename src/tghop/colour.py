@@ -11,11 +11,9 @@ paper exactly.
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
-from ._arrays import check_mask
+from ._arrays import check_int, check_mask
 from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
                       usable_cores)
 
@@ -64,8 +62,7 @@ def channel_quantiles(image, n: int = N_QUANTILES) -> np.ndarray:
     ndarray, shape (C, n)
     """
     image = checked_image(image, "channel_quantiles")
-    if isinstance(n, bool) or not isinstance(n, (numbers.Integral, np.integer)) or n < 2:
-        raise TGHopError(f"channel_quantiles: n must be an integer >= 2, got {n!r}")
+    n = check_int(n, "n", 2, where="channel_quantiles")
     if image.dtype.kind == "u" and image.dtype != np.uint8:
         image = check_image(image, name="channel_quantiles: image", channels=None)
     return _channel_quantiles(image, int(n))
@@ -384,8 +381,7 @@ class ColourClasses(StoredArrays, BaseEstimator):
         is true; ``bands``: the fitted :class:`tghop.refine.BandStatistics` (its colour
         axes). Measured on a strided subset of about 65,536 pixels. Returns self."""
         k = self.n_classes
-        if isinstance(k, bool) or not isinstance(k, (numbers.Integral, np.integer)) or k < 1:
-            raise TGHopError(f"ColourClasses: n_classes must be an integer >= 1, got {k!r}")
+        k = check_int(k, "n_classes", where="ColourClasses")
         check_is_fitted(bands, "colour_mean_")
         image = checked_image(image, "ColourClasses.fit", channels=len(bands.colour_mean_))
         if image.dtype.kind == "u" and image.dtype != np.uint8:

@@ -28,6 +28,7 @@ import numbers
 
 import numpy as np
 
+from ._arrays import check_int
 from ._common import TGHopError, check_rng
 
 __all__ = ["RANK_LEVELS", "member_ranks", "coupled_uniforms", "normal_cdf", "normal_ppf"]
@@ -143,8 +144,7 @@ def coupled_uniforms(ranks, rho, m, rng):
     if isinstance(rho, (bool, np.bool_)) or not isinstance(rho, (numbers.Real, np.floating, np.integer)) \
             or not 0.0 <= rho < 1.0:
         raise TGHopError(f"rho must be a number in [0, 1), got {rho!r}")
-    if isinstance(m, (bool, np.bool_)) or not isinstance(m, (numbers.Integral, np.integer)) or m < 0:
-        raise TGHopError(f"m must be an integer >= 0, got {m!r}")
+    m = check_int(m, "m", 0)
     rng = check_rng(rng)
     z = _rank_scores()[ranks[rng.integers(0, len(ranks), int(m))]]
     z *= rho

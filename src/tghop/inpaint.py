@@ -37,6 +37,7 @@ import numbers
 
 import numpy as np
 
+from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_rng, report
 from .quilting import boundary_cut_mask, default_overlap
 from .pyramid import laplacian_pyramid, reconstruct
@@ -198,12 +199,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         raise TGHopError(f"the image is {h}x{w}; inpainting with {p}x{p} patches needs at least {p}x{p}: "
                          "use a model fitted with a smaller patch_size (or a larger image)")
     hole = check_hole(mask, (h, w))
-    for name, value, low, high in (("blend", blend, 0, None), ("refine", refine, 0, None),
-                                   ("n_patches", n_patches, 1, 10_000_000)):
-        if (isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or value < low
-                or (high is not None and value > high)):
-            raise TGHopError(f"{name} must be an integer >= {low}" + (f" and <= {high:,}" if high else "")
-                             + f", got {value!r}")
+    blend, refine = check_int(blend, "blend", 0), check_int(refine, "refine", 0)
+    n_patches = check_int(n_patches, "n_patches", 1, 10_000_000)
     if not isinstance(tile, (bool, np.bool_)):
         raise TGHopError(f"tile must be True or False, got {tile!r}")
     if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not 0 <= tolerance < np.inf:
@@ -351,8 +348,7 @@ def refine_hole(image, hole, stats, *, n_iter=5, tile=False, progress=None):
     -------
     ndarray, shape (H, W, C), float32 in [0, 1]
     """
-    if isinstance(n_iter, bool) or not isinstance(n_iter, (numbers.Integral, np.integer)) or n_iter < 0:
-        raise TGHopError(f"refine_hole: n_iter must be a non-negative integer, got {n_iter!r}")
+    n_iter = check_int(n_iter, "n_iter", 0, where="refine_hole")
     mode = "wrap" if tile else "reflect"
     outside = np.ascontiguousarray(np.moveaxis(stats.to_decorrelated(np.asarray(image, dtype=np.float32)), 2, 0))
     dec = outside.copy()

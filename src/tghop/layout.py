@@ -27,7 +27,6 @@ Example
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
 from ._arrays import check_int as positive_int
@@ -248,8 +247,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
         (float32: quilting compares it in float32; half the memory of a large guide.)
     """
     f = int(factor)
-    if isinstance(refine, bool) or not isinstance(refine, (numbers.Integral, np.integer)) or refine < 0:
-        raise TGHopError(f"refine must be a non-negative integer, got {refine!r}")
+    refine = positive_int(refine, "refine", 0)
     h, w = check_size(size)
     small = (math.ceil(h / f), math.ceil(w / f))  # tileable: stretched to (h, w) when not divisible
     if not guide_fits((h, w), f, model.patch_size, tile=tile):

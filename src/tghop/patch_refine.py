@@ -37,7 +37,7 @@ import numbers
 
 import numpy as np
 
-from ._arrays import check_mask
+from ._arrays import check_int, check_mask
 from ._common import BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng, report
 from .colour import checked_image
 from .patches import clean_windows
@@ -210,8 +210,7 @@ class PatchStatistics(BaseEstimator):
         self
         """
         n = self.n_levels
-        if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 1:
-            raise TGHopError(f"PatchStatistics: n_levels must be a positive integer, got {n!r}")
+        n = check_int(n, "n_levels", where="PatchStatistics")
         w = self.whitening
         if not isinstance(w, numbers.Real) or isinstance(w, bool) or not 0 <= w <= 1:
             raise TGHopError(f"PatchStatistics: whitening must be a number in [0, 1], got {w!r}")
@@ -498,12 +497,10 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
 def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progress, names):
     """:func:`patch_refine`; ``names``: what its ``n_steps`` and ``stride`` are called in
     errors (TGHop's settings for :func:`refine_image`)."""
-    if not isinstance(n_steps, numbers.Integral) or isinstance(n_steps, bool) or n_steps < 0:
-        raise TGHopError(f"{names[0]} must be a non-negative integer, got {n_steps!r}")
+    n_steps = check_int(n_steps, names[0], 0)
     check_is_fitted(stats, ("side_", "directions_", "quantiles_", "levels_"))
     p = stats.side_
-    if not isinstance(stride, numbers.Integral) or isinstance(stride, bool) or not 1 <= stride <= p:
-        raise TGHopError(f"{names[1]} must be an integer from 1 to {p} (the patch side), got {stride!r}")
+    stride = check_int(stride, names[1], 1, p)  # at most the patch side
     if isinstance(learning_rate, bool) or not isinstance(learning_rate, numbers.Real) \
             or not (math.isfinite(learning_rate) and learning_rate > 0):
         raise TGHopError(f"patch_refine: learning_rate must be a finite number > 0, got {learning_rate!r}")
@@ -585,8 +582,7 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     centre crop of at most _FIT_SIDE squared; None when ``levels`` is 0 (nothing stored)."""
     if not levels:
         return None
-    if not isinstance(levels, numbers.Integral) or isinstance(levels, bool) or levels < 1:
-        raise TGHopError(f"patch_levels must be a positive integer, got {levels!r}")
+    levels = check_int(levels, "patch_levels")
     if not isinstance(whitening, numbers.Real) or isinstance(whitening, bool) or not 0 <= whitening <= 1:
         raise TGHopError(f"patch_whitening must be a number in [0, 1], got {whitening!r}")
     h, w = image.shape[:2]

@@ -36,6 +36,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from ._arrays import check_int
 from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
 from .seams import SeamSteps
 
@@ -81,9 +82,7 @@ def default_overlap(patch_size: int) -> int:
 
 
 def _check_patch_overlap(patch_size, overlap) -> Tuple[int, int]:
-    if not isinstance(patch_size, (numbers.Integral, np.integer)) or int(patch_size) < 2:
-        raise TGHopError(f"patch size must be an integer of at least 2, got {patch_size!r}")
-    p = int(patch_size)
+    p = check_int(patch_size, "patch size", 2)
     if overlap is None:
         return p, default_overlap(p)
     if isinstance(overlap, (bool, np.bool_)) or not isinstance(overlap, (numbers.Integral, np.integer)):
@@ -304,8 +303,7 @@ def boundary_cut_mask(error, *, left: int = 0, top: int = 0, right: int = 0, bot
     mask = np.ones((h, w), dtype=bool)
     rows, cols = np.arange(h)[:, None], np.arange(w)[None, :]
     for name, value, limit in (("left", left, w), ("top", top, h), ("right", right, w), ("bottom", bottom, h)):
-        if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)) or not 0 <= value <= limit:
-            raise TGHopError(f"{name} overlap must be an integer between 0 and {limit}, got {value!r}")
+        check_int(value, f"{name} overlap", 0, limit)
     if left:
         cut = _dp_cut(arr[None, :, :left])[0]
         mask &= cols >= cut[:, None]

@@ -23,7 +23,7 @@ import numbers
 
 import numpy as np
 
-from ._arrays import check_mask
+from ._arrays import check_int, check_mask
 from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
                       check_size, report, usable_cores)
 from ._fft import fft_for
@@ -489,8 +489,7 @@ class BandStatistics(StoredArrays, BaseEstimator):
         """
         for name, low in (("n_levels", 0), ("n_orientations", 0), ("n_quantiles", 2)):
             value = getattr(self, name)
-            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low:
-                raise TGHopError(f"BandStatistics: {name} must be an integer >= {low}, got {value!r}")
+            check_int(value, name, low, where="BandStatistics")
         exemplar = checked_image(exemplar, "BandStatistics.fit", "exemplar")
         if exemplar.dtype.kind == "u" and exemplar.dtype != np.uint8:
             exemplar = check_image(exemplar, name="exemplar", channels=None)
@@ -622,8 +621,7 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     ndarray, shape (H, W, C), ``dtype``, in [0, 1]
     """
     for name, value in (("n_iter", n_iter), ("first_level", first_level)):
-        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < 0:
-            raise TGHopError(f"refine: {name} must be a non-negative integer, got {value!r}")
+        check_int(value, name, 0, where="refine")
     if not isinstance(relaxation, numbers.Real) or isinstance(relaxation, bool) or not 0 < relaxation <= 2:
         raise TGHopError(f"refine: relaxation must be a number in (0, 2], got {relaxation!r}")
     check_is_fitted(stats, ("colour_mean_", "band_quantiles_"))

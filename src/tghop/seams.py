@@ -24,12 +24,12 @@ steps are spread out as a smooth field over the blocks.
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 from typing import Tuple
 
 import numpy as np
 
+from ._arrays import check_int
 from ._common import TGHopError
 from ._fft import fft_for
 
@@ -218,8 +218,7 @@ def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.nd
     if tuple(steps.shape) != (h, w) or any(ch.shape[1:] != (c,) for ch in steps.change):
         raise TGHopError(f"the seam steps are of a {steps.shape[0]}x{steps.shape[1]} image with "
                          f"{steps.change[0].shape[1]} channels, not of this {h}x{w} one with {c}")
-    if isinstance(window, bool) or not isinstance(window, numbers.Integral) or window < 1:
-        raise TGHopError(f"window must be an integer >= 1, got {window!r}")
+    window = check_int(window, "window")
     if out is None:
         out = image.copy()
     elif out is not image:

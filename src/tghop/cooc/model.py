@@ -17,7 +17,6 @@ Generation and the controls:
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Optional
 
 import numpy as np
@@ -633,9 +632,7 @@ class CoocGAN(TrainingMixin):
         ndarray, shape (n, side, side, C), float32 in [0, 1]
         """
         self._check_fitted()
-        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
-            raise TGHopError(f"n must be a positive integer, got {n!r}")
-        n, batch = int(n), check_int(batch, "batch")
+        n, batch = check_int(n, "n"), check_int(batch, "batch")
         r = check_rng(rng)
         cells, s = self._window_cells, self.s
         _, hc, wc = self.exemplar_cooc_.shape
