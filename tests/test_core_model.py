@@ -823,3 +823,46 @@ def test_junk_dtype_is_a_tghop_error(small_model):
         small_model.sample_patches(2, rng=1, dtype="junk")
     with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64"):
         small_model.sample_patches(2, rng=1, dtype=int)
+
+
+def test_settings_changed_after_fit_are_refused_until_set_back(small_model, tmp_path):
+    # set_params on a fitted model: its state (and a file's metadata) would not match the settings;
+    # 0.35 saved such a model as a file load_model called corrupt, and generated from patch_size=16 into
+    # a NumPy reshape error.
+    import copy
+
+    model = copy.deepcopy(small_model)
+    before = model.synthesize((48, 48), rng=0)
+    model.set_params(gamma=0.5)
+    changed = re.escape("settings changed after it was fitted (gamma 0.01 -> 0.5)")
+    for use in (lambda: save_model(model, tmp_path / "m.npz"), lambda: model.synthesize((48, 48), rng=0),
+                model.n_parameters, lambda: model.sample_patches(2, rng=0)):
+        with pytest.raises(TGHopError, match=changed):
+            use()
+    assert not (tmp_path / "m.npz").exists()
+    model.set_params(gamma=0.01)  # set back: the same model
+    np.testing.assert_array_equal(model.synthesize((48, 48), rng=0), before)
+    save_model(model, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz").set_params(patch_size=16)
+    with pytest.raises(TGHopError, match=re.escape("(patch_size 32 -> 16)")):
+        loaded.sample_patches(2, rng=0)
+
+
+def test_a_refit_refused_for_its_settings_keeps_the_earlier_fit_and_a_failed_one_leaves_none(
+        small_model, bricks96, monkeypatch):
+    import copy
+
+    model = copy.deepcopy(small_model).set_params(patch_size=33)
+    with pytest.raises(TGHopError, match="patch_size"):
+        model.fit(bricks96)
+    assert model.set_params(patch_size=32).synthesize((32, 32), rng=0).shape == (32, 32, 3)
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("the core model failed")
+
+    monkeypatch.setattr(ICHM, "fit", fails)
+    with pytest.raises(RuntimeError):
+        model.fit(bricks96)
+    assert not [k for k in vars(model) if k.endswith("_")] and "_fitted_params" not in vars(model)
+    with pytest.raises(NotFittedError):
+        model.synthesize((32, 32), rng=0)

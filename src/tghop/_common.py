@@ -140,7 +140,9 @@ class StoredArrays:
 
 
 def check_is_fitted(estimator, attributes) -> None:
-    """Raise :class:`NotFittedError` unless ``estimator`` has every attribute in ``attributes``."""
+    """Raise :class:`NotFittedError` unless ``estimator`` has every attribute in ``attributes``, and a
+    :class:`TGHopError` when its settings differ from those it was fitted with (``set_params``
+    after ``fit``: its learned state, and a model file's metadata, would not match them)."""
     names = [attributes] if isinstance(attributes, str) else list(attributes)
     if not hasattr(estimator, "__dict__"):  # a path or a number where a model belongs
         raise TGHopError(f"expected a fitted model, got {type(estimator).__name__} {str(estimator)[:60]!r} "
@@ -150,6 +152,21 @@ def check_is_fitted(estimator, attributes) -> None:
             f"this {type(estimator).__name__} is not fitted yet; call 'fit' with an exemplar first "
             "(or load a fitted model with tghop.modelfile.load_model)"
         )
+    fitted = vars(estimator).get("_fitted_params")  # kept by TGHop.fit and load: the settings of its state
+    if fitted is not None:
+        now = estimator.get_params(deep=False)
+        changed = [k for k, v in now.items() if not _same_setting(v, fitted.get(k))]
+        if changed:
+            what = ", ".join(f"{k} {fitted.get(k)!r} -> {now[k]!r}" for k in changed)
+            raise TGHopError(f"this {type(estimator).__name__}'s settings changed after it was fitted ({what}); "
+                             "fit it again, or set them back with set_params")
+
+
+def _same_setting(a, b) -> bool:
+    """Whether two values of a setting are the same (a list and a tuple of the same numbers are)."""
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return tuple(a) == tuple(b)
+    return a is b or bool(a == b)
 
 
 #: ``progress(stage, done, total)``: called by long-running steps. ``stage`` is a short

@@ -25,6 +25,7 @@ import numpy as np
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
+from ._arrays import forget_fit
 from .core import ICHM, check_exemplar_size
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
@@ -229,7 +230,14 @@ class TGHop(BaseEstimator):
         # (OpenBLAS's results change with its thread count) and a busy machine is not
         # oversubscribed; ICHM.fit runs its clusters in threads of its own (usable_cores).
         with threadpool_limits(limits=1):
-            return self._fit(image, exclude=exclude, progress=progress)
+            try:
+                self._fit(image, exclude=exclude, progress=progress)
+            except BaseException:  # a failure once learning began leaves no half-fitted model
+                if "_fitted_params" not in self.__dict__:
+                    forget_fit(self)
+                raise
+        self._fitted_params = self.get_params(deep=False)  # what check_is_fitted holds the settings to
+        return self
 
     def _fit(self, image, *, exclude=None, progress=None):
         self.check_settings()  # parameter errors before touching the image
@@ -247,6 +255,7 @@ class TGHop(BaseEstimator):
         if exclude is not None:
             enough_patches(len(origins), ichm.clusters_for(len(origins)) * ichm.min_cluster_size, self.patch_size)
         ichm._check_params(len(origins))  # fail before the expensive stages
+        forget_fit(self, private=("_fitted_params",))  # an earlier fit's state goes now, not on a bad setting
         self.exemplar_shape_ = image.shape
         self.n_patches_ = len(origins)
         # Colour quantiles of the pixels kept only (a (n, 1, C) "image" of them).
@@ -338,6 +347,7 @@ class TGHop(BaseEstimator):
             sub = {k[len("layout."):]: v for k, v in arrays.items() if k.startswith("layout.")}
             model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
         model._check_consistent()
+        model._fitted_params = model.get_params(deep=False)
         return model
 
     @classmethod
