@@ -1,7 +1,7 @@
 """Reproduce the TGHop paper's tables and figures (Lei, Zhao, Zhang, Kuo 2021) in one command.
 
     python benchmarks/bench_paper.py            # everything: about 20 min on 2 cores (14 with --tghop paper)
-    python benchmarks/bench_paper.py --quick    # 3 textures, smaller sweeps: about 3-4 min
+    python benchmarks/bench_paper.py --quick    # 3 textures, smaller sweeps: 3-8 min (by machine)
 
 Options:
 
@@ -480,7 +480,9 @@ def section_params(model):
              "stage 2 stores 4*K2 + K1 numbers (each kept channel of a channel-wise hop is one 4-tap kernel; the "
              "paper writes 4*K1*K2 + K1), SDR also stores each channel's 8x8 mean map (64*K2 more), and ICHM (ii) "
              "also stores each cluster's mean (N*D_r more). Note the paper's own SDR entry (58,176 = 64*909) and "
-             "ICHM (ii) entry (2,288,862 = 909*2,518) follow its formulas.")
+             "ICHM (ii) entry (2,288,862 = 909*2,518) follow its formulas. The rows marked (ours) are our additions, "
+             "stored even in a model fitted with --paper (whose generation does not use them): compare the paper's "
+             "total with the row 'the paper's modules', not with 'total'.")
     return text, {"dims": d, "parameters": params}
 
 

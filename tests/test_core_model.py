@@ -429,6 +429,13 @@ def test_parameter_count_matches_stored_arrays(small_model, tmp_path):
     # The residual Gaussian (ours, off by default): one square factor per core channel.
     residual = int((small_model.sdr_.kept_per_channel_ ** 2).sum()) if small_model.residual else 0
     assert counts["residual Gaussian (ours)"]["stored"] == residual
+    # The paper's own modules (what --paper uses) apart from ours: their sum, ours not in it.
+    theirs = ["transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)", "core ICHM (ii)",
+              "core ICHM (iii)"]
+    assert counts["the paper's modules"]["stored"] == sum(counts[k]["stored"] for k in theirs)
+    assert counts["the paper's modules"]["paper"] == sum(counts[k]["paper"] for k in theirs)
+    assert counts["total"]["stored"] - counts["the paper's modules"]["stored"] == sum(
+        v["stored"] for k, v in counts.items() if k.endswith("(ours)")) > 0
 
 
 def test_parameter_count_without_colour_classes(bricks96):

@@ -179,7 +179,8 @@ def test_models_that_cannot_mix_are_refused(models):
     with pytest.raises(TGHopError, match="all colour or all greyscale"):
         tghop.synthesize_guided([models[0], grey], size=(64, 64))
     other = copy.copy(models[1])
-    other.patch_size = 16  # as if fitted with patch_size=16: only the check is reached
+    other.patch_size = 16  # as if fitted with patch_size=16 (the settings it was fitted with too): only the check
+    other._fitted_params = {**other._fitted_params, "patch_size": 16}  # is reached
     with pytest.raises(TGHopError, match=r"input 2 has 16x16 patches but input 1 has 32x32; .*\(patch_size, "):
         tghop.synthesize_guided([models[0], other], size=(64, 64))
 

@@ -321,7 +321,8 @@ def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved,
     assert load_model(path).rng == 0 and info_dict(load_model(path))["fit_seed"] == 0
     other = copy.copy(small_model)
     for rng, recorded in ((np.int64(5), 5), (np.random.default_rng(0), None), (None, None)):
-        other.rng = rng
+        other.rng = rng  # as if fitted with it (the settings it was fitted with too)
+        other._fitted_params = other.get_params(deep=False)
         assert other._state_meta()["params"]["rng"] == recorded and info_dict(other)["fit_seed"] == recorded
     expected = small_model.synthesize((32, 32), rng=1, n_patches=100)
     for old in (None, "x", True, -1, 1.5):  # files of 0.32 and before (null), and edited ones: no seed

@@ -231,3 +231,23 @@ def test_no_line_is_overlong():
             for p in sorted(files) for i, line in enumerate(p.read_text().splitlines(), 1)
             if len(line) > MAX_LINE_LENGTH]
     assert not over, f"lines over {MAX_LINE_LENGTH} characters (wrap them):\n" + "\n".join(over)
+
+
+def test_docstring_examples_run_as_pasted():
+    # Each module's `>>>` examples in a fresh namespace, as a reader pastes them (a doctest run in
+    # the module's own globals found `np` there; inpaint's example used it without importing it).
+    # Lines marked `# doctest: +SKIP` (fits, large images) are left out.
+    import doctest
+    import importlib
+
+    finder = doctest.DocTestFinder(exclude_empty=True)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    failures, attempted = [], 0
+    for name in MODULES:
+        if name.endswith("__main__"):
+            continue
+        for test in finder.find(importlib.import_module(name), name, globs={}):
+            test.globs = {}
+            result = runner.run(test, out=failures.append)
+            attempted += result.attempted
+    assert attempted >= 5 and not failures, "".join(failures)[:2000]

@@ -46,6 +46,7 @@ How it works
 
 Example
 -------
+>>> import numpy as np
 >>> import tghop
 >>> from tghop import TGHop, data
 >>> a, b = TGHop(rng=0).fit(data.bricks()), TGHop(rng=0).fit(data.cells())  # doctest: +SKIP

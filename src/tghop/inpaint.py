@@ -24,6 +24,7 @@ tiles seamlessly when the input does.
 
 Example
 -------
+>>> import numpy as np
 >>> from tghop import TGHop, data
 >>> from tghop.inpaint import inpaint
 >>> image = data.cells(128); hole = np.zeros((128, 128), bool); hole[40:80, 40:80] = True

@@ -142,6 +142,10 @@ class TGHop(BaseEstimator):
     bands_ : tghop.refine.BandStatistics
         The exemplar's band and pixel distributions in its decorrelated colour space, for
         the refinement after stitching.
+    patches_ : tghop.patch_refine.PatchStatistics or None
+        The exemplar's patch distributions per pyramid level (quantiles of projections on
+        fixed directions), for the patch refinement (``patch_levels``; None with 0). Not
+        training patches: :meth:`sample_patches` draws new ones.
     n_patches_ : int
         Training patches used.
     layout_ : tghop.layout.CoarseLayout or None
@@ -457,12 +461,14 @@ class TGHop(BaseEstimator):
         Returns
         -------
         dict
-            ``{module: {"formula": str, "paper": int, "stored": int}}`` for the modules
-            "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)",
-            "(ii)", "(iii)", "colour matching (ours)", "residual Gaussian (ours)", "coarse layout (ours)" (0
-            without ``layout_factor``),
-            "refinement (ours)" and "total". "paper" applies the paper's formula to this
-            model's dimensions; "stored" counts the numbers this model actually stores
+            ``{module: {"formula": str, "paper": int, "stored": int}}`` for the paper's modules
+            "transform stage 1", "transform stage 2", "core SDR", "core ICHM (i)", "(ii)" and
+            "(iii)", then ours (their names end in "(ours)"; 0 where the model has none): "colour
+            matching", "residual Gaussian", "core norm quantiles", "core member ranks", "coarse
+            layout", "refinement" and "patch refinement"; then "the paper's modules" (the rows
+            before ours: what the paper's pipeline, ``--paper``, uses) and "total". "paper"
+            applies the paper's formula to this model's dimensions; "stored" counts the numbers
+            this model actually stores
             (the arrays of its model file, index bookkeeping excluded). They differ where
             the paper's formula does: stage 2 stores ``4 K2 + K1`` numbers (each kept
             channel is one 4-tap kernel; the paper writes ``4 K1 K2 + K1``), SDR also
