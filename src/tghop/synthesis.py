@@ -189,7 +189,7 @@ class TGHop(BaseEstimator):
         return rules
 
     def check_exemplar_size(self, shape, ichm=None):
-        """Raise :func:`tghop.core.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
+        """Raise :func:`tghop.patches.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
         if ichm is None:
             self.check_settings()
             ichm = ICHM(**settings.component_params(self, "ichm"))
