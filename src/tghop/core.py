@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import check_array, check_count, forget_fit
+from ._arrays import check_array, check_count, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
 from .patches import check_exemplar_size  # noqa: F401 (moved there; also tghop.core's)
@@ -759,4 +759,80 @@ class ICHM(BaseEstimator):
         position = np.empty(len(labels), dtype=np.intp)
         position[np.argsort(labels, kind="stable")] = np.arange(len(labels))
         return out, position
+
+    # ------------------------------------------------------------------ inspection
+    def _check_vectors(self, Z):
+        check_is_fitted(self, "means_")
+        Z = check_array(Z, "Z", "(n, D_r)", ndim=2, min_rows=0)
+        d = self.means_.shape[1]
+        check_width(Z, "Z", f"(n, D_r) = (n, {d})", (d,))
+        return Z
+
+    def predict(self, Z, *, chunk=4096):
+        """The cluster of each vector: the nearest of :attr:`means_` in Euclidean distance.
+
+        The fit's clusters are K-means's (float32, Lloyd stopped when at most 0.1 % of the
+        points change cluster) with clusters under ``min_cluster_size`` merged into the nearest
+        larger one, and :attr:`means_` are their members' means; the K-means centres are not
+        stored. The nearest mean is the assignment those clusters converge to: on the
+        training vectors it gives the fit's clusters except for the few points K-means left
+        at a boundary (docs/choices.md, "Inspecting the core model").
+
+        Parameters
+        ----------
+        Z : array_like, shape (n, D_r)
+            Core vectors (``TGHop.encode`` of patches, or :meth:`sample`'s).
+        chunk : int
+            Vectors per matrix product (memory ``chunk x N``).
+
+        Returns
+        -------
+        labels : ndarray of int, shape (n,)
+        """
+        Z = self._check_vectors(Z)
+        sq = np.einsum("kd,kd->k", self.means_, self.means_)
+        labels = np.empty(len(Z), dtype=np.int64)
+        for a in range(0, len(Z), chunk):  # argmin_j |z - m_j|^2 = argmin_j (|m_j|^2 - 2 z.m_j)
+            labels[a: a + chunk] = np.argmin(sq - 2.0 * (Z[a: a + chunk] @ self.means_.T), axis=1)
+        return labels
+
+    def transform(self, Z, *, labels=None):
+        """The independent components of each vector in its cluster: the inverse of :meth:`mix`.
+
+        Cluster ``i``'s components of ``z`` are ``(z - means_[i]) @ pinv(mixing_[block i])``, so
+        ``mix(*transform(Z))`` is each ``z`` projected orthogonally onto its cluster's affine
+        subspace (its mean plus the row space of its mixing rows, its kept PCA components):
+        exactly ``Z`` (to float precision) for vectors in that subspace, such as
+        :meth:`sample`'s with their own labels (without ``residual``), and the part the
+        cluster's PCA keeps of a training vector.
+
+        Parameters
+        ----------
+        Z : array_like, shape (n, D_r)
+        labels : array_like of int, shape (n,), optional
+            The cluster of each vector; None: :meth:`predict`'s.
+
+        Returns
+        -------
+        labels : ndarray of int, shape (n,)
+        sources : list of ndarray
+            ``sources[i]`` has shape (count of label i, n_components_[i]): the vectors of
+            cluster ``i`` in their order in ``labels``, as :meth:`sample_sources` returns them.
+        """
+        Z = self._check_vectors(Z)
+        n_clusters = len(self.means_)
+        if labels is None:
+            labels = self.predict(Z)
+        labels = np.asarray(labels)
+        if labels.shape != (len(Z),) or labels.dtype.kind not in "iu" or (
+                len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
+            raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "
+                             f"shape {labels.shape} and type {labels.dtype}")
+        mixing = self.mixing_
+        sources = []
+        for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
+            block = mixing[comp]
+            unmix = np.linalg.pinv(block) if len(block) else np.zeros((mixing.shape[1], 0))
+            sources.append((Z[labels == i] - self.means_[i]) @ unmix)
+        return labels.astype(np.int64, copy=False), sources
 

@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from . import settings
+from ._arrays import check_array, check_width
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
 from .core import ICHM, check_exemplar_size
@@ -464,6 +465,35 @@ class TGHop(BaseEstimator):
                       n_classes=getattr(getattr(self, "classes_", None), "n_classes", 0))
 
     # ------------------------------------------------------------- generation
+    def encode(self, patches):
+        """Patches (n, P, P, C) -> core-model vectors ``z`` (n, D_r): the hops, then SDR, as
+        :meth:`fit` takes its training patches (the counterpart of :meth:`decode`).
+
+        Every hop and SDR is an affine map with orthonormal rows and :meth:`decode` applies
+        their transposes, so ``encode`` inverts ``decode`` before its clip: for ``z`` of
+        :meth:`sample_vectors` (or any ``z``), ``encode(decode(z, return_stages=True)[1][-1])``
+        is ``z`` to float precision, and ``encode(decode(z))`` too where no pixel was clipped.
+        The other way round, ``decode(encode(x))`` is ``x`` projected orthogonally onto the
+        model's patch space (the channels and spatial components kept), clipped to [0, 1].
+
+        Parameters
+        ----------
+        patches : array_like, shape (n, P, P, C)
+            Patches as :meth:`sample_patches` returns them (in [0, 1]; other values are
+            projected all the same).
+
+        Returns
+        -------
+        z : ndarray, shape (n, D_r)
+            :meth:`ICHM.predict <tghop.core.ICHM.predict>` gives their clusters and
+            :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
+        """
+        check_is_fitted(self, "ichm_")
+        x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
+        shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
+        check_width(x, "patches", "(n, {}, {}, {})".format(*shape), shape)
+        return self.sdr_.transform(self.hops_.transform(x))
+
     def decode(self, z, *, return_stages=False):
         """Core-model vectors ``z`` (n, D_r) -> patches (n, P, P, C), clipped to [0, 1].
 
