@@ -799,12 +799,12 @@ class ICHM(BaseEstimator):
     def transform(self, Z, *, labels=None):
         """The independent components of each vector in its cluster: the inverse of :meth:`mix`.
 
-        Cluster ``i``'s components of ``z`` are ``(z - means_[i]) @ pinv(mixing_[block i])``, so
-        ``mix(*transform(Z))`` is each ``z`` projected orthogonally onto its cluster's affine
-        subspace (its mean plus the row space of its mixing rows, its kept PCA components):
-        exactly ``Z`` (to float precision) for vectors in that subspace, such as
-        :meth:`sample`'s with their own labels (without ``residual``), and the part the
-        cluster's PCA keeps of a training vector.
+        Cluster ``i``'s components of ``z`` are ``(z - means_[i]) @ pinv(mixing_[block i])``
+        (through a QR decomposition of the block), so ``mix(*transform(Z))`` is each ``z``
+        projected orthogonally onto its cluster's affine subspace (its mean plus the row
+        space of its mixing rows: its kept PCA components): ``Z`` itself, to float
+        precision, for vectors in that subspace, such as :meth:`sample`'s with their own
+        labels (without ``residual``); for a training vector, the part its cluster's PCA keeps.
 
         Parameters
         ----------
@@ -828,11 +828,14 @@ class ICHM(BaseEstimator):
                 len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
             raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "
                              f"shape {labels.shape} and type {labels.dtype}")
-        mixing = self.mixing_
-        sources = []
-        for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
-            block = mixing[comp]
-            unmix = np.linalg.pinv(block) if len(block) else np.zeros((mixing.shape[1], 0))
-            sources.append((Z[labels == i] - self.means_[i]) @ unmix)
+        from threadpoolctl import threadpool_limits  # as in fit: threaded BLAS only slows many small matrices
+
+        mixing, sources = self.mixing_, []
+        with threadpool_limits(limits=1, user_api="blas"):
+            for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
+                # mixing[comp].T = Q R: the least-squares s of s @ mixing[comp] = z - mean is ((z - mean) Q) R^-T
+                # (the rows are independent as fit makes them: R is invertible).
+                q, r = np.linalg.qr(mixing[comp].T)
+                sources.append(np.linalg.solve(r, ((Z[labels == i] - self.means_[i]) @ q).T).T)
         return labels.astype(np.int64, copy=False), sources
 
