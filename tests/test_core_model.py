@@ -403,6 +403,9 @@ def test_save_load_identical_output(small_model, tmp_path):
         assert np.array_equal(loaded.sample_patches(n, rng=3), small_model.sample_patches(n, rng=3))
     assert loaded.dims_ == small_model.dims_
     assert loaded.n_parameters() == small_model.n_parameters()
+    patches = small_model.sample_patches(20, rng=4)  # inspection needs nothing the file lacks
+    (labels, sources), (labels2, sources2) = (m.ichm_.transform(m.encode(patches)) for m in (small_model, loaded))
+    assert np.array_equal(labels, labels2) and all(np.array_equal(a, b) for a, b in zip(sources, sources2))
     with zipfile.ZipFile(path) as zf:  # arrays plus JSON, no pickled objects
         assert all(name.endswith(".npy") for name in zf.namelist())
 
