@@ -374,6 +374,8 @@ def test_bad_exemplar_arrays_name_the_right_fix(image, message):
 def test_not_fitted():
     with pytest.raises(NotFittedError):
         TGHop().sample_patches(3)
+    with pytest.raises(NotFittedError, match="not fitted yet"):
+        TGHop().encode(np.zeros((1, 32, 32, 3)))
 
 
 def test_stage_views_before_fit_is_not_fitted():
@@ -401,6 +403,9 @@ def test_save_load_identical_output(small_model, tmp_path):
         assert np.array_equal(loaded.sample_patches(n, rng=3), small_model.sample_patches(n, rng=3))
     assert loaded.dims_ == small_model.dims_
     assert loaded.n_parameters() == small_model.n_parameters()
+    patches = small_model.sample_patches(20, rng=4)  # inspection needs nothing the file lacks
+    (labels, sources), (labels2, sources2) = (m.ichm_.transform(m.encode(patches)) for m in (small_model, loaded))
+    assert np.array_equal(labels, labels2) and all(np.array_equal(a, b) for a, b in zip(sources, sources2))
     with zipfile.ZipFile(path) as zf:  # arrays plus JSON, no pickled objects
         assert all(name.endswith(".npy") for name in zf.namelist())
 
@@ -785,7 +790,8 @@ def test_ichm_members_raise_not_fitted_before_fit():
     u = ICHM(n_clusters=4)
     calls = [lambda: u.sample_residual(3), lambda: u.mix(np.zeros(3, int), [np.zeros((3, 2))]),
              lambda: u.mix_by_cluster(np.zeros(3, int), [np.zeros((3, 2))]), lambda: u.mixing_shape_,
-             lambda: u.mixing_as(np.float32), lambda: u.p_, lambda: u.mixing_, lambda: u.sample(3)]
+             lambda: u.mixing_as(np.float32), lambda: u.p_, lambda: u.mixing_, lambda: u.sample(3),
+             lambda: u.predict(np.zeros((3, 2))), lambda: u.transform(np.zeros((3, 2)))]
     for call in calls:
         with pytest.raises(NotFittedError, match="not fitted yet"):
             call()
@@ -873,3 +879,89 @@ def test_a_refit_refused_for_its_settings_keeps_the_earlier_fit_and_a_failed_one
     assert not [k for k in vars(model) if k.endswith("_")] and "_fitted_params" not in vars(model)
     with pytest.raises(NotFittedError):
         model.synthesize((32, 32), rng=0)
+
+
+# ------------------------------------------------------------------ inspection: predict, transform, encode
+def test_encode_gives_the_fits_vectors_and_predict_its_clusters(bricks96, monkeypatch):
+    from tghop.patches import extract_patches
+
+    fitted = []  # what ICHM.fit clustered and how (the fine model's call comes first)
+    cluster = ICHM._cluster
+    monkeypatch.setattr(ICHM, "_cluster", lambda self, Z, rng: fitted.append((Z, cluster(self, Z, rng))) or
+                        fitted[-1][1])
+    model = TGHop(**{**SMALL, "layout_factor": None}).fit(bricks96)
+    (z, labels), = fitted
+    # All 289 patches at stride 4 are the training patches, in the same (row-major) order.
+    np.testing.assert_allclose(model.encode(extract_patches(bricks96, 32, stride=4)), z, rtol=0, atol=1e-10)
+    predicted = model.ichm_.predict(z)
+    assert predicted.dtype == np.int64 and len(np.unique(labels)) == 8
+    np.testing.assert_array_equal(predicted, labels)  # K-means converged here: the nearest mean is its rule
+    np.testing.assert_array_equal(model.ichm_.predict(z, chunk=7), labels)  # chunked the same
+
+
+def test_ichm_transform_is_the_inverse_of_mix(small_model):
+    ichm = small_model.ichm_
+    labels, sources = ichm.sample_sources(200, rng=5)
+    z = ichm.mix(labels, sources)
+    back_labels, back = ichm.transform(z, labels=labels)
+    np.testing.assert_array_equal(back_labels, labels)
+    assert [s.shape for s in back] == [s.shape for s in sources]
+    for s, t in zip(back, sources):  # the sources themselves (the mixing rows are independent)
+        np.testing.assert_allclose(s, t, rtol=0, atol=1e-9 * np.abs(t).max())
+    np.testing.assert_allclose(ichm.mix(back_labels, back), z, rtol=0, atol=1e-10 * np.abs(z).max())
+    sampled, sampled_labels = ichm.sample(100, rng=6)  # as sample gives them: exact in their own clusters
+    np.testing.assert_allclose(ichm.mix(*ichm.transform(sampled, labels=sampled_labels)), sampled, rtol=0,
+                               atol=1e-10 * np.abs(sampled).max())
+    assert np.array_equal(ichm.transform(sampled)[0], ichm.predict(sampled))  # default labels: predict's
+
+
+def test_ichm_transform_projects_other_vectors_onto_their_clusters_subspace(small_model, bricks96):
+    from tghop.patches import extract_patches
+
+    ichm = small_model.ichm_
+    z = small_model.encode(extract_patches(bricks96, 32, stride=3))
+    labels, sources = ichm.transform(z)
+    kept = ichm.mix(labels, sources)
+    assert np.abs(kept - z).max() > 1e-3 * np.abs(z).max()  # training-like vectors leave the subspace
+    blocks = ichm._blocks()
+    for i in range(len(ichm.means_)):  # what is dropped is orthogonal to the cluster's mixing rows
+        rows = ichm.mixing_[blocks[i]]
+        np.testing.assert_allclose((z - kept)[labels == i] @ rows.T, 0, atol=1e-9 * np.abs(z).max())
+    again = ichm.mix(*ichm.transform(kept, labels=labels))  # a projection: idempotent
+    np.testing.assert_allclose(again, kept, rtol=0, atol=1e-10 * np.abs(z).max())
+
+
+def test_encode_inverts_decode_before_its_clip(small_model, rng):
+    z, position = small_model.sample_vectors(60, np.random.default_rng(8), np.dtype(np.float64))
+    z = z[position]
+    clipped, spaces = small_model.decode(z, return_stages=True)
+    np.testing.assert_allclose(small_model.encode(spaces[-1]), z, rtol=0, atol=1e-10 * np.abs(z).max())
+    inside = ((spaces[-1] >= 0) & (spaces[-1] <= 1)).reshape(len(z), -1).all(axis=1)
+    np.testing.assert_allclose(small_model.encode(clipped)[inside], z[inside], rtol=0, atol=1e-10 * np.abs(z).max())
+    x = rng.random((5, 32, 32, 3))  # any patch: decode(encode(x)) is its projection, which encode keeps
+    _, spaces = small_model.decode(small_model.encode(x), return_stages=True)
+    assert np.abs(spaces[-1] - x).max() > 0.05
+    np.testing.assert_allclose(small_model.encode(spaces[-1]), small_model.encode(x), rtol=0, atol=1e-9)
+    assert small_model.encode(x.tolist()).shape == (5, small_model.dims_["D_r"])  # array_like
+    assert small_model.encode(np.zeros((0, 32, 32, 3))).shape == (0, small_model.dims_["D_r"])
+
+
+def test_inspection_refuses_bad_shapes_and_labels(small_model):
+    ichm, d = small_model.ichm_, small_model.dims_["D_r"]
+    for call in (ichm.predict, ichm.transform):
+        for z, words in ((np.zeros((2, d + 1)), f"Z must have shape (n, D_r) = (n, {d}) for this fitted model, "
+                          f"got (2, {d + 1})"), (np.zeros(d), f"Z must have shape (n, D_r), got ({d},)"),
+                         (np.full((2, d), np.nan), "Z contains NaN or infinite values")):
+            with pytest.raises(TGHopError, match=re.escape(words)) as info:
+                call(z)
+            assert "\n" not in str(info.value)
+    n = len(ichm.means_)
+    for labels in ([0], [0, n], [0.0, 1.0], [-1, 0]):
+        with pytest.raises(TGHopError, match=rf"labels must be 2 cluster indices from 0 to {n - 1}"):
+            ichm.transform(np.zeros((2, d)), labels=np.array(labels))
+    for x in (np.zeros((2, 16, 16, 3)), np.zeros((2, 32, 32, 1))):
+        with pytest.raises(TGHopError, match=re.escape(f"patches must have shape (n, 32, 32, 3) for this fitted "
+                                                       f"model, got {x.shape}")):
+            small_model.encode(x)
+    with pytest.raises(TGHopError, match=re.escape("patches must have shape (n, P, P, C), got (32, 32, 3)")):
+        small_model.encode(np.zeros((32, 32, 3)))

@@ -501,8 +501,9 @@ def test_quilt_prepared_in_float32_is_the_same_canvas(brick_pool):
     narrow = quilt_prepared(prepared, rng=3, dtype=np.float32)
     assert wide.dtype == np.float64 and narrow.dtype == np.float32
     assert np.array_equal(wide, narrow.astype(np.float64))
-    with pytest.raises(TGHopError, match="dtype"):
-        quilt_prepared(prepared, rng=3, dtype=np.int32)
+    for dtype in (np.int32, "junk", [np.float32]):  # "junk" was NumPy's TypeError
+        with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64 .*got"):
+            quilt_prepared(prepared, rng=3, dtype=dtype)
 
 
 class _ReadOnDemand:

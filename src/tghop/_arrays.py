@@ -14,7 +14,7 @@ import numpy as np
 
 from ._errors import TGHopError
 
-__all__ = ["check_array", "check_count", "check_int", "check_mask", "check_width", "forget_fit"]
+__all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask", "check_width", "forget_fit"]
 
 
 def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True) -> np.ndarray:
@@ -64,6 +64,18 @@ def check_count(n, name: str = "n") -> int:
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (numbers.Integral, np.integer)) or n < 0:
         raise TGHopError(f"{name} must be a non-negative integer, got {n!r}")
     return int(n)
+
+
+def check_dtype(dtype, allowed, names: str) -> np.dtype:
+    """The output ``dtype`` as a :class:`numpy.dtype`, one of ``allowed``; anything else
+    (``"junk"``, ``int``, a list) is one :class:`TGHopError` line naming ``names``."""
+    try:
+        wanted = np.dtype(dtype)
+    except (TypeError, ValueError):
+        wanted = None
+    if wanted is None or wanted not in allowed:
+        raise TGHopError(f"dtype must be {names} (e.g. numpy.float32), got {dtype!r}")
+    return wanted
 
 
 def check_int(value, name: str, low: int = 1, high: int | None = None, *, where: str | None = None) -> int:

@@ -41,10 +41,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import check_array, check_count, forget_fit
+from ._arrays import check_array, check_count, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
-from .patches import count_patches
+from .patches import check_exemplar_size  # noqa: F401 (moved there; also tghop.core's)
 from .sdr import flip_signs
 from .settings import BY_NAME as _SETTINGS
 from .unsupervised import fast_ica, kmeans  # noqa: F401 (fast_ica: also tghop.core's)
@@ -760,56 +760,82 @@ class ICHM(BaseEstimator):
         position[np.argsort(labels, kind="stable")] = np.arange(len(labels))
         return out, position
 
+    # ------------------------------------------------------------------ inspection
+    def _check_vectors(self, Z):
+        check_is_fitted(self, "means_")
+        Z = check_array(Z, "Z", "(n, D_r)", ndim=2, min_rows=0)
+        d = self.means_.shape[1]
+        check_width(Z, "Z", f"(n, D_r) = (n, {d})", (d,))
+        return Z
 
-def _n_patches(shape, patch_size, stride, max_patches):
-    """Training patches of an exemplar of ``shape`` (none when a side is below ``patch_size``)."""
-    if min(shape[:2]) < patch_size:
-        return 0
-    n = count_patches(shape, patch_size, stride)
-    return n if max_patches is None else min(n, int(max_patches))
+    def predict(self, Z, *, chunk=4096):
+        """The cluster of each vector: the nearest of :attr:`means_` in Euclidean distance.
 
+        The fit's clusters are K-means's (float32, Lloyd stopped when at most 0.1 % of the
+        points change cluster) with clusters under ``min_cluster_size`` merged into the nearest
+        larger one, and :attr:`means_` are their members' means; the K-means centres are not
+        stored. The nearest mean is the assignment those clusters converge to: on the
+        training vectors it gives the fit's clusters except for the few points K-means left
+        at a boundary (docs/choices.md, "Inspecting the core model").
 
-def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches):
-    """Raise a one-line :class:`TGHopError` when an exemplar of ``shape`` gives too few
-    training patches for ``ichm``, naming the smallest square exemplar that works (and a
-    smaller stride or N where one would do).
+        Parameters
+        ----------
+        Z : array_like, shape (n, D_r)
+            Core vectors (``TGHop.encode`` of patches, or :meth:`sample`'s).
+        chunk : int
+            Vectors per matrix product (memory ``chunk x N``).
 
-    Parameters
-    ----------
-    shape : tuple
-        (H, W, ...) of the exemplar.
-    ichm : ICHM
-        The core model of the settings (its ``n_clusters`` and ``min_cluster_size``).
-    patch_size, stride, max_patches
-        The training patches' settings.
+        Returns
+        -------
+        labels : ndarray of int, shape (n,)
+        """
+        Z = self._check_vectors(Z)
+        sq = np.einsum("kd,kd->k", self.means_, self.means_)
+        labels = np.empty(len(Z), dtype=np.int64)
+        for a in range(0, len(Z), chunk):  # argmin_j |z - m_j|^2 = argmin_j (|m_j|^2 - 2 z.m_j)
+            labels[a: a + chunk] = np.argmin(sq - 2.0 * (Z[a: a + chunk] @ self.means_.T), axis=1)
+        return labels
 
-    Notes
-    -----
-    A ``max_patches`` too small for any exemplar is left to :meth:`ICHM._check_params`.
-    """
-    def enough(shape, stride):
-        n = _n_patches(shape, patch_size, stride, max_patches)
-        return n >= ichm.clusters_for(n) * ichm.min_cluster_size
+    def transform(self, Z, *, labels=None):
+        """The independent components of each vector in its cluster: the inverse of :meth:`mix`.
 
-    if enough(shape, stride):
-        return
-    n = _n_patches(shape, patch_size, stride, max_patches)
-    most = (ichm.n_clusters or AUTO_CLUSTERS[1]) * ichm.min_cluster_size  # no larger exemplar needs more
-    side = patch_size
-    while not enough((side, side), stride):
-        if _n_patches((side, side), patch_size, stride, None) >= most:
-            return  # max_patches caps the patches below the need: ICHM's message
-        side += 1
-    clusters = ichm.clusters_for(n)
-    fixes = [f"use an exemplar of at least {side}x{side} pixels"]
-    smaller = next((s for s in range(stride - 1, 0, -1) if enough(shape, s)), None)
-    if smaller:
-        fixes.append(f"a stride of {smaller} (stride, --stride)")
-    if n >= ichm.min_cluster_size:
-        fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
-    h, w = shape[:2]
-    auto = " (auto)" if ichm.n_clusters is None else ""
-    raise TGHopError(
-        f"exemplar is {h}x{w} pixels, {n} training patch{'es' if n != 1 else ''} of {patch_size}x{patch_size} "
-        f"at stride {stride}, but N={clusters}{auto} cluster{'s' if clusters != 1 else ''} of at least "
-        f"{ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; " + ", or ".join(fixes))
+        Cluster ``i``'s components of ``z`` are ``(z - means_[i]) @ pinv(mixing_[block i])``
+        (through a QR decomposition of the block), so ``mix(*transform(Z))`` is each ``z``
+        projected orthogonally onto its cluster's affine subspace (its mean plus the row
+        space of its mixing rows: its kept PCA components): ``Z`` itself, to float
+        precision, for vectors in that subspace, such as :meth:`sample`'s with their own
+        labels (without ``residual``); for a training vector, the part its cluster's PCA keeps.
+
+        Parameters
+        ----------
+        Z : array_like, shape (n, D_r)
+        labels : array_like of int, shape (n,), optional
+            The cluster of each vector; None: :meth:`predict`'s.
+
+        Returns
+        -------
+        labels : ndarray of int, shape (n,)
+        sources : list of ndarray
+            ``sources[i]`` has shape (count of label i, n_components_[i]): the vectors of
+            cluster ``i`` in their order in ``labels``, as :meth:`sample_sources` returns them.
+        """
+        Z = self._check_vectors(Z)
+        n_clusters = len(self.means_)
+        if labels is None:
+            labels = self.predict(Z)
+        labels = np.asarray(labels)
+        if labels.shape != (len(Z),) or labels.dtype.kind not in "iu" or (
+                len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
+            raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "
+                             f"shape {labels.shape} and type {labels.dtype}")
+        from threadpoolctl import threadpool_limits  # as in fit: threaded BLAS only slows many small matrices
+
+        mixing, sources = self.mixing_, []
+        with threadpool_limits(limits=1, user_api="blas"):
+            for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
+                # mixing[comp].T = Q R: the least-squares s of s @ mixing[comp] = z - mean is ((z - mean) Q) R^-T
+                # (the rows are independent as fit makes them: R is invertible).
+                q, r = np.linalg.qr(mixing[comp].T)
+                sources.append(np.linalg.solve(r, ((Z[labels == i] - self.means_[i]) @ q).T).T)
+        return labels.astype(np.int64, copy=False), sources
+

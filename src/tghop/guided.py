@@ -65,7 +65,7 @@ from contextlib import nullcontext
 import numpy as np
 
 from . import settings
-from ._arrays import check_int
+from ._arrays import check_dtype, check_int
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
 from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
@@ -73,7 +73,6 @@ from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
 from .refine import iter_oriented_parts, prepare as prepare_refinement
 from .seams import remove_seams
-from .synthesis import check_dtype
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
            "REGION_COST", "MIXED_COST"]

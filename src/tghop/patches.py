@@ -14,8 +14,8 @@ from ._arrays import check_int
 from ._common import TGHopError, check_image, check_rng
 
 __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",
-           "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth", "depth_to_space",
-           "patch_grid", "stage_sheet"]
+           "check_exemplar_size", "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth",
+           "depth_to_space", "patch_grid", "stage_sheet"]
 
 
 def _check_max_patches(max_patches):
@@ -177,6 +177,61 @@ def enough_patches(n_patches, need, patch_size):
             f"avoid it, at least {need} are needed; use a smaller mask or a larger image")
         exc.n_patches, exc.need, exc.patch_size = n_patches, need, patch_size
         raise exc
+
+
+def _n_patches(shape, patch_size, stride, max_patches):
+    """Training patches of an exemplar of ``shape`` (none when a side is below ``patch_size``)."""
+    if min(shape[:2]) < patch_size:
+        return 0
+    n = count_patches(shape, patch_size, stride)
+    return n if max_patches is None else min(n, int(max_patches))
+
+
+def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches):
+    """Raise a one-line :class:`TGHopError` when an exemplar of ``shape`` gives too few
+    training patches for ``ichm``, naming the smallest square exemplar that works (and a
+    smaller stride or N where one would do).
+
+    Parameters
+    ----------
+    shape : tuple
+        (H, W, ...) of the exemplar.
+    ichm : tghop.core.ICHM
+        The core model of the settings (its ``n_clusters``, ``min_cluster_size`` and
+        ``clusters_for``).
+    patch_size, stride, max_patches
+        The training patches' settings.
+
+    Notes
+    -----
+    A ``max_patches`` too small for any exemplar is left to :meth:`tghop.core.ICHM._check_params`.
+    """
+    def enough(shape, stride):
+        n = _n_patches(shape, patch_size, stride, max_patches)
+        return n >= ichm.clusters_for(n) * ichm.min_cluster_size
+
+    if enough(shape, stride):
+        return
+    n = _n_patches(shape, patch_size, stride, max_patches)
+    most = ichm.clusters_for(2**62) * ichm.min_cluster_size  # no larger exemplar needs more
+    side = patch_size
+    while not enough((side, side), stride):
+        if _n_patches((side, side), patch_size, stride, None) >= most:
+            return  # max_patches caps the patches below the need: ICHM's message
+        side += 1
+    clusters = ichm.clusters_for(n)
+    fixes = [f"use an exemplar of at least {side}x{side} pixels"]
+    smaller = next((s for s in range(stride - 1, 0, -1) if enough(shape, s)), None)
+    if smaller:
+        fixes.append(f"a stride of {smaller} (stride, --stride)")
+    if n >= ichm.min_cluster_size:
+        fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
+    h, w = shape[:2]
+    auto = " (auto)" if ichm.n_clusters is None else ""
+    raise TGHopError(
+        f"exemplar is {h}x{w} pixels, {n} training patch{'es' if n != 1 else ''} of {patch_size}x{patch_size} "
+        f"at stride {stride}, but N={clusters}{auto} cluster{'s' if clusters != 1 else ''} of at least "
+        f"{ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; " + ", or ".join(fixes))
 
 
 def downsample_mask(mask, factor):

@@ -36,7 +36,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ._arrays import check_int
+from ._arrays import check_dtype, check_int
 from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
 from .seams import SeamSteps
 
@@ -1142,8 +1142,7 @@ def quilt_prepared(
     """
     if not isinstance(prepared, PreparedPool):
         raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
-    if np.dtype(dtype) not in (np.float32, np.float64):
-        raise TGHopError(f"dtype must be float32 or float64, got {np.dtype(dtype)}")
+    dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")  # "junk" too: one line
     tolerance = _check_tolerance(tolerance)
     if isinstance(reuse, bool) or not isinstance(reuse, numbers.Real) or not (math.isfinite(reuse) and reuse >= 0):
         raise TGHopError(f"reuse must be a finite number >= 0, got {reuse!r}")

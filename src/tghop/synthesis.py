@@ -23,9 +23,10 @@ import math
 import numpy as np
 
 from . import settings
+from ._arrays import check_array, check_width
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
-from ._arrays import forget_fit
+from ._arrays import check_dtype, forget_fit
 from .core import ICHM, check_exemplar_size
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
@@ -55,18 +56,6 @@ DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 #: Largest uint8 exemplar (pixels) :meth:`TGHop.fit` turns into floats ``x / 255`` first: the model of its
 #: pixels as floats, bit for bit (larger ones stay uint8, memory bounded: docs/choices.md, "Patches").
 FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
-
-
-def check_dtype(dtype, allowed, names: str) -> np.dtype:
-    """The output ``dtype`` as a :class:`numpy.dtype`, one of ``allowed``; anything else
-    (``"junk"``, ``int``, a list) is one :class:`TGHopError` line naming ``names``."""
-    try:
-        wanted = np.dtype(dtype)
-    except (TypeError, ValueError):
-        wanted = None
-    if wanted is None or wanted not in allowed:
-        raise TGHopError(f"dtype must be {names} (e.g. numpy.float32), got {dtype!r}")
-    return wanted
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -194,7 +183,7 @@ class TGHop(BaseEstimator):
         return rules
 
     def check_exemplar_size(self, shape, ichm=None):
-        """Raise :func:`tghop.core.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
+        """Raise :func:`tghop.patches.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
         if ichm is None:
             self.check_settings()
             ichm = ICHM(**settings.component_params(self, "ichm"))
@@ -480,6 +469,35 @@ class TGHop(BaseEstimator):
                       n_classes=getattr(getattr(self, "classes_", None), "n_classes", 0))
 
     # ------------------------------------------------------------- generation
+    def encode(self, patches):
+        """Patches (n, P, P, C) -> core-model vectors ``z`` (n, D_r): the hops, then SDR, as
+        :meth:`fit` takes its training patches (the counterpart of :meth:`decode`).
+
+        Every hop and SDR is an affine map with orthonormal rows and :meth:`decode` applies
+        their transposes, so ``encode`` inverts ``decode`` before its clip: for ``z`` of
+        :meth:`sample_vectors` (or any ``z``), ``encode(decode(z, return_stages=True)[1][-1])``
+        is ``z`` to float precision, and ``encode(decode(z))`` too where no pixel was clipped.
+        The other way round, ``decode(encode(x))`` is ``x`` projected orthogonally onto the
+        model's patch space (the channels and spatial components kept), clipped to [0, 1].
+
+        Parameters
+        ----------
+        patches : array_like, shape (n, P, P, C)
+            Patches as :meth:`sample_patches` returns them (in [0, 1]; other values are
+            projected all the same).
+
+        Returns
+        -------
+        z : ndarray, shape (n, D_r)
+            :meth:`ICHM.predict <tghop.core.ICHM.predict>` gives their clusters and
+            :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
+        """
+        check_is_fitted(self, "ichm_")
+        x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
+        shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
+        check_width(x, "patches", "(n, {}, {}, {})".format(*shape), shape)
+        return self.sdr_.transform(self.hops_.transform(x))
+
     def decode(self, z, *, return_stages=False):
         """Core-model vectors ``z`` (n, D_r) -> patches (n, P, P, C), clipped to [0, 1].
 
