@@ -44,7 +44,6 @@ import numpy as np
 from ._arrays import check_array, check_count, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
-from .patches import check_exemplar_size  # noqa: F401 (moved there; also tghop.core's)
 from .sdr import flip_signs
 from .settings import BY_NAME as _SETTINGS
 from .unsupervised import fast_ica, kmeans  # noqa: F401 (fast_ica: also tghop.core's)

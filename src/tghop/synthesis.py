@@ -27,11 +27,11 @@ from ._arrays import check_array, check_width
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
 from ._arrays import check_dtype, forget_fit
-from .core import ICHM, check_exemplar_size
+from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
 from .colour import ColourClasses, channel_quantiles, match_histograms
-from .patches import check_exclude, downsample_mask, enough_patches, patch_origins
+from .patches import check_exclude, check_exemplar_size, downsample_mask, enough_patches, patch_origins
 from . import layout
 from .pool import GeneratedPool, on_demand, pool_size
 from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
