@@ -94,7 +94,8 @@ def two_model_files(small_model, tmp_path_factory):
     out = []
     for seed in (0, 1):
         path = folder / f"m{seed}.npz"
-        model = copy.deepcopy(small_model).set_params(max_patches=20000 + seed)  # stored, not checked
+        model = copy.deepcopy(small_model).set_params(max_patches=20000 + seed)  # stored, not checked: as if
+        model._fitted_params = model.get_params(deep=False)  # fitted with it, so that it saves
         save_model(model, path)
         out.append(path.read_bytes())
     assert out[0] != out[1] and len(out[0]) == len(out[1])
