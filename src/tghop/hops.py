@@ -242,12 +242,6 @@ class Hop(TransformerMixin, BaseEstimator):
         return depth_to_space((Y - self.bias_) @ self.kernels_)
 
 
-def _block_statistics(blocks, group, weights=None, chunk=1 << 18):
-    """Mean, second moment and the largest squared norm per channel group (see :func:`_block_sums`)."""
-    total, moment, max_sq, count = _block_sums(blocks, group, weights, chunk)
-    return total / count, moment / count, max_sq
-
-
 def _add_sums(a, b):
     """Combine two :func:`_block_sums` results (None is empty)."""
     if a is None:
@@ -363,7 +357,7 @@ def _tiles(image, origins, patch_size, tile):
     return out
 
 
-def _phase_inputs(image, patch_size, origins, hops, level):
+def _phase_inputs(image, origins, hops, level):
     """Blocks at hop ``level`` of every phase map, with the block origins of the patches.
 
     Applies the fitted ``hops[: level - 1]``; returns ``{phase: (blocks (h, w, 4C), starts)}``.
@@ -393,7 +387,7 @@ def _core_of(image, patch_size, origins, hops, out, rows):
     from numpy.lib.stride_tricks import sliding_window_view
 
     n_hops = len(hops)
-    inputs = _phase_inputs(image, patch_size, origins, hops, n_hops)
+    inputs = _phase_inputs(image, origins, hops, n_hops)
     hop = hops[-1]
     side = patch_size // 2**n_hops
     rows = np.asarray(rows)
@@ -536,7 +530,7 @@ class HopStack(TransformerMixin, BaseEstimator):
             side = patch_size // 2**level
             sums = None
             for i, (crop, local, _) in enumerate(tiles):
-                inputs = _phase_inputs(crop(), patch_size, local, hops, level)
+                inputs = _phase_inputs(crop(), local, hops, level)
                 group = 1 if level > 1 else image.shape[2]
                 for blocks, starts in inputs.values():
                     weights = _coverage(blocks.shape[:2], starts, side).ravel()
