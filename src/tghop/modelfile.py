@@ -32,12 +32,11 @@ import numpy as np
 from . import __version__
 from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
-from .parameter_count import parameter_groups  # noqa: F401 (re-exported)
 from .material import Material
 from .settings import recorded_seed
-from .synthesis import TGHop, model_arrays  # noqa: F401 (re-exported)
+from .synthesis import TGHop
 
-__all__ = ["save_model", "load_model", "model_arrays", "parameter_groups", "FORMAT", "FORMAT_VERSION", "info_dict"]
+__all__ = ["save_model", "load_model", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
 FORMAT_VERSION = 9  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;

@@ -5,9 +5,13 @@ The data flows one way::
     exemplar --patches--> S0 --hops--> S1 --> ... --> Sn (core)
              --sdr.SpatialReduction--> z --core.ICHM--> p(z)
 
-and back for generation::
+and back for generation (:meth:`TGHop.synthesize`; the words on the arrows are tghop's modules)::
 
-    ICHM.sample -> z -> inverse SDR -> inverse hops -> patches --quilting--> image
+    CoarseLayout (a small TGHop of the downsampled exemplar) --> layout guide
+    ICHM.sample -> z -> inverse SDR -> inverse hops -> patches (pool)
+        --quilting, following the guide--> image --seams--> seams removed
+        --refine (regions, by region, for a large image)--> band statistics matched
+        --colour--> colour histograms matched --patch_refine--> image
 
 Example
 -------
@@ -137,7 +141,7 @@ class TGHop(BaseEstimator):
         training patches: :meth:`sample_patches` draws new ones.
     n_patches_ : int
         Training patches used.
-    layout_ : tghop.layout.CoarseLayout or None
+    layout_ : tghop.synthesis.CoarseLayout or None
         The coarse layout model (``layout_factor`` set and the exemplar large enough; its
         ``factor`` is the one used: :func:`tghop.layout.usable_factor`).
     """
@@ -835,8 +839,3 @@ class CoarseLayout(BaseEstimator):
         check_is_fitted(self, "model_")
         return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
                                    refine=refine, seam_window=seam_window)
-
-
-def model_arrays(model) -> dict:
-    """Every array a fitted model stores, by file name (see :mod:`tghop.modelfile`)."""
-    return model._to_arrays()
