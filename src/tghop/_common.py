@@ -1,5 +1,6 @@
-"""Conventions shared by every stage: errors, randomness, progress, image arrays, and the
-small estimator base class.
+"""Conventions shared by every stage: randomness, progress, image arrays, sizes and the
+small estimator base class; also the errors, which live in :mod:`tghop._errors` and are
+re-exported here.
 
 Nothing here knows about TGHop itself; each pipeline module imports from here. Nothing
 here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`` and
