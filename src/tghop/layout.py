@@ -2,7 +2,7 @@
 
 32x32 patches cannot hold structures larger than themselves (brick courses, knit cables,
 large cells), and quilting alone only matches overlaps, so nothing keeps the arrangement
-above the patch scale. :class:`CoarseLayout` fits a second, small TGHop model on the
+above the patch scale. :class:`~tghop.synthesis.CoarseLayout` fits a second, small TGHop model on the
 exemplar downsampled by ``factor`` (box means): its 32x32 patches then cover
 ``32 * factor`` exemplar pixels. At generation, :func:`coarse_guide` quilts a coarse
 image from that model (new content, not a copy) and upsamples it to the output size; the
@@ -29,11 +29,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ._arrays import check_int as positive_int
+from ._arrays import check_int
 from ._common import TGHopError, check_size, usable_cores
 from .colour import checked_image
 
-__all__ = ["downsample", "upsample", "positive_int", "fits", "guide_fits", "follows_guide", "usable_factor",
+__all__ = ["downsample", "upsample", "fits", "guide_fits", "follows_guide", "usable_factor",
            "coarse_training", "coarse_guide"]
 
 
@@ -53,7 +53,7 @@ def downsample(image, factor: int) -> np.ndarray:
         float64, or uint8 (rounded box means) for a uint8 image.
     """
     img = checked_image(image, "downsample")
-    factor = positive_int(factor, "downsample: factor")
+    factor = check_int(factor, "downsample: factor")
     h, w, c = img.shape
     if factor > min(h, w):
         raise TGHopError(f"downsample: factor {factor} is larger than the {h}x{w} image; "
@@ -96,7 +96,7 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
     img = img.astype(np.float32 if img.dtype == np.float32 else np.float64, copy=False)
     h, w = check_size(size, name="upsample: size")
     if factor is not None:
-        factor = positive_int(factor, "upsample: factor")
+        factor = check_int(factor, "upsample: factor")
         if h > img.shape[0] * factor or w > img.shape[1] * factor:
             raise TGHopError(f"upsample: size {h}x{w} is larger than the {img.shape[0]}x{img.shape[1]} image "
                              f"times factor {factor}")
@@ -138,8 +138,8 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
 def fits(shape, factor, patch_size=32) -> bool:
     """Whether an exemplar of ``shape`` (H, W, ...) is large enough for a coarse layout:
     at least ``(p/2 + 1)**2`` coarse training patches of side ``p`` at stride 1."""
-    f = positive_int(factor, "factor", 2)
-    p = positive_int(patch_size, "patch_size", 4)
+    f = check_int(factor, "factor", 2)
+    p = check_int(patch_size, "patch_size", 4)
     return min(shape[0] // f, shape[1] // f) >= p + p // 2
 
 
@@ -159,8 +159,8 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
     TGHopError
         The exemplar is too small for ``factor`` (see :func:`fits`).
     """
-    f = positive_int(factor, "factor", 2)
-    p = positive_int(patch_size, "patch_size", 4)
+    f = check_int(factor, "factor", 2)
+    p = check_int(patch_size, "patch_size", 4)
     hs, ws = shape[0] // f, shape[1] // f
     if not fits(shape, f, p):
         raise TGHopError(
@@ -169,8 +169,8 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
         )
     count = lambda s: ((hs - p) // s + 1) * ((ws - p) // s + 1)  # noqa: E731
     stride = 2 if count(2) >= min_patches else 1
-    n_train = min(count(stride), positive_int(max_patches, "max_patches", 100))
-    n_clusters = max(2, min(positive_int(n_clusters, "n_clusters", 2), n_train // 40))
+    n_train = min(count(stride), check_int(max_patches, "max_patches", 100))
+    n_clusters = max(2, min(check_int(n_clusters, "n_clusters", 2), n_train // 40))
     return {"stride": stride, "max_patches": n_train, "n_clusters": n_clusters}
 
 
@@ -194,7 +194,7 @@ def usable_factor(shape, factor, *, patch_size=32, exclude=None, **training):
     largest of ``factor``, ``factor - 1``, ..., 2 that it is large enough for (:func:`fits`;
     with ``exclude``, also :func:`fits_excluding`), or None when none is. A 128x128
     exemplar gets 2 from the default 3: a coarser layout than asked beats none."""
-    f = positive_int(factor, "factor", 2)
+    f = check_int(factor, "factor", 2)
     for g in range(f, 1, -1):
         if fits(shape, g, patch_size) and fits_excluding(exclude, g, patch_size=patch_size, **training):
             return g
@@ -247,7 +247,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
         (float32: quilting compares it in float32; half the memory of a large guide.)
     """
     f = int(factor)
-    refine = positive_int(refine, "refine", 0)
+    refine = check_int(refine, "refine", 0)
     h, w = check_size(size)
     small = (math.ceil(h / f), math.ceil(w / f))  # tileable: stretched to (h, w) when not divisible
     if not guide_fits((h, w), f, model.patch_size, tile=tile):
