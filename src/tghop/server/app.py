@@ -519,8 +519,8 @@ class Server:
 
         return await self._png_response(request, work, seed=seed)
 
-    def _several(self, make, models, seed, size) -> tuple:
-        """``make(models, rng, dtype)`` under the bound on generations: the PNG and its size."""
+    def _several(self, make, models, seed) -> tuple:
+        """``make(models, seed, dtype)`` under the bound on generations: the PNG and its size."""
         import numpy as np
 
         from ..imageio import write_png
@@ -562,7 +562,7 @@ class Server:
                 raise RequestError(400, str(exc)) from None
         return self._several(lambda m, rng, dtype: synthesize_guided(
             m, painted, size=size, transition=transition, rng=rng, dtype=dtype, progress=self.unless_stopping,
-            **settings), models, seed, size)
+            **settings), models, seed)
 
     async def guided(self, request):
         ids, guide, size, seed, transition, settings = parse_guided(
@@ -577,7 +577,7 @@ class Server:
         models = [self.cache.load(model_id) for model_id in ids]
         self._same_patches(models, ["a", "b"])
         return self._several(lambda m, rng, dtype: morph(m[0], m[1], size, rng=rng, stations=stations, dtype=dtype,
-                                                         progress=self.unless_stopping, **settings), models, seed, size)
+                                                         progress=self.unless_stopping, **settings), models, seed)
 
     async def morph(self, request):
         a, b, size, seed, stations, settings = parse_morph(await self._json_body(request))

@@ -72,7 +72,7 @@ class Job:
         self.cancel_requested = False
         self.future = None
         self._seen = []  # stages in the order they came
-        self._changed = threading.Condition()
+        self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ reading
     @property
@@ -92,7 +92,7 @@ class Job:
 
     def snapshot(self) -> dict:
         """The job as JSON-ready data."""
-        with self._changed:
+        with self._lock:
             out = {"job": self.id, "id": self.model_id, "state": self.state, "stage": self.stage,
                    "stages": list(self._seen), "done": self.done, "total": self.total,
                    "progress": round(self.fraction(), 4), "version": self.version}
@@ -100,21 +100,14 @@ class Job:
                 out["error"] = self.error
             return out
 
-    def wait_change(self, version: int, timeout: float) -> int:
-        """Wait until the version differs from ``version`` (or ``timeout`` seconds); return it."""
-        with self._changed:
-            self._changed.wait_for(lambda: self.version != version, timeout=timeout)
-            return self.version
-
     # ------------------------------------------------------------------ writing
     def _update(self, **changes):
-        with self._changed:
+        with self._lock:
             for key, value in changes.items():
                 setattr(self, key, value)
             if self.state in FINAL and self.finished_at is None:
                 self.finished_at = time.monotonic()
             self.version += 1
-            self._changed.notify_all()
 
     def progress(self, stage: str, done: int, total: int, *, cancellable: bool = True) -> None:
         """The library's progress callback; raises :class:`Cancelled` once cancelled (unless
