@@ -461,10 +461,10 @@ def test_one_step_lowers_the_consistency_loss(exemplar):
     cond = model._conds[:4]
     noise = model._noise(torch, 4, cond.shape[2], cond.shape[3])
     with torch.no_grad():
-        before = float(model._generator_loss(torch, cond, noise)[2])
+        before = float(model._generator_loss(cond, noise)[2])
     model._generator_step(torch, cond, noise)
     with torch.no_grad():
-        after = float(model._generator_loss(torch, cond, noise)[2])
+        after = float(model._generator_loss(cond, noise)[2])
     assert after < before
 
 

@@ -145,7 +145,7 @@ def read(path, model_class, *, device: str = "auto"):
         model._to_device(torch)
         model.generator_, model.critic_ = build_networks(torch, model.exemplar_shape_[2], len(model.cond_mean_),
                                                          model.settings_)
-        model._make_averaged(torch)
+        model._make_averaged()
         for prefix, module in _networks_of(model):
             module.load_state_dict({k[len(prefix) + 1 :]: v for k, v in tensors.items() if k.startswith(prefix + ".")})
             module.to(model._device).eval()

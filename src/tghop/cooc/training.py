@@ -187,7 +187,7 @@ class TrainingMixin:
         self.generator_, self.critic_ = build_networks(torch, img.shape[2], self._conds.shape[1], p)
         self.generator_.to(self._device)
         self.critic_.to(self._device)
-        self._make_averaged(torch)
+        self._make_averaged()
         self._make_optimisers(torch)
         self.step_ = 0
         self.history_ = np.zeros((0, 5))
@@ -244,7 +244,7 @@ class TrainingMixin:
         self._opt_g = torch.optim.Adam(self.generator_.parameters(), lr=p["lr"], betas=betas)
         self._opt_d = torch.optim.Adam(self.critic_.parameters(), lr=p["lr"], betas=betas)
 
-    def _make_averaged(self, torch):
+    def _make_averaged(self):
         """The averaged generator (``ema > 0``): a copy of the generator, outside autograd."""
         if self.settings_["ema"] > 0:
             self.generator_ema_ = copy.deepcopy(self.generator_).requires_grad_(False).eval()
@@ -301,7 +301,7 @@ class TrainingMixin:
         self._opt_d.step()
         return float(loss.detach()), (float(gp.detach()) if gp is not None else float("nan"))
 
-    def _generator_loss(self, torch, cond, noise, target=None):
+    def _generator_loss(self, cond, noise, target=None):
         """Eq. 3: ``-E[D(G(z, C), C)] + lambda_M |M_g - M_r|_1``; returns (total, adversarial, consistency).
 
         ``target``: the crop-only tensors ``M_r`` (default ``cond``; they differ with ``context``).
@@ -323,7 +323,7 @@ class TrainingMixin:
             noise = self._noise(torch, len(cond), cond.shape[2], cond.shape[3])
         for q in self.critic_.parameters():
             q.requires_grad_(False)
-        total, adv, cooc = self._generator_loss(torch, cond, noise, target)
+        total, adv, cooc = self._generator_loss(cond, noise, target)
         self._opt_g.zero_grad(set_to_none=True)
         total.backward()
         self._opt_g.step()
