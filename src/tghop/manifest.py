@@ -3,7 +3,8 @@ line naming a ``path`` column, or as JSON lines ``{"path": ...}``; each row opti
 with its own ``name`` and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
 
 Every bad row is a one-line :class:`~tghop.TGHopError` naming its line, before any work.
-Only the standard library is imported here (and :func:`tghop._common.check_size`).
+Only the standard library is imported here (and, when called, :func:`tghop._common.check_size`
+and :func:`tghop._arrays.check_int`).
 """
 
 from __future__ import annotations
@@ -44,8 +45,14 @@ def parse_size(value, where):
     return list(check_size((int(h), int(w)), name=f"{where}: size"))
 
 
-def parse_bool(value, where):
-    """true/false, yes/no, on/off, 1/0 (or a bool) -> bool."""
+def parse_bool(value, name, *, where=None, empty=None):
+    """``value`` as a bool: a bool, or true/false, yes/no, on/off, 1/0 (any case, spaces
+    around ignored); ``empty``: what blank text means (a web form sends a field left unset
+    empty: its default), None: refused. The manifest's ``tile`` and the server's form fields.
+
+    Otherwise a one-line :class:`~tghop.TGHopError`: ``name must be true or false, got value``
+    (after ``where: `` where given).
+    """
     if isinstance(value, bool):
         return value
     text = str(value).strip().lower()
@@ -53,23 +60,25 @@ def parse_bool(value, where):
         return True
     if text in ("0", "false", "no", "off"):
         return False
-    raise TGHopError(f"{where}: tile {value!r} is not true or false")
+    if text == "" and empty is not None:
+        return empty
+    raise TGHopError(("" if where is None else f"{where}: ") + f"{name} must be true or false, got {value!r}")
 
 
 def parse_int(value, where, what, low, high=None):
-    """A whole number from ``low`` to ``high`` (None: no bound); not a bool, nor a float
-    (a JSON ``2.0``; as ``"2.0"`` in a CSV cell and as the library's sizes)."""
+    """A whole number from ``low`` to ``high`` (None: no bound): text is parsed, then
+    :func:`tghop._arrays.check_int` checks it (not a bool, nor a float: a JSON ``2.0``; as
+    ``"2.0"`` in a CSV cell and as the library's sizes)."""
+    from ._arrays import check_int
+
     if isinstance(value, float) and value.is_integer():
         raise TGHopError(f"{where}: {what} {value!r} has a decimal point; write {int(value)}")
-    try:
-        if isinstance(value, (bool, float)):
-            raise ValueError
-        out = int(str(value).strip()) if not isinstance(value, (int, float)) else int(value)
-    except ValueError:
-        raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
-    if out < low or (high is not None and out > high):
-        raise TGHopError(f"{where}: {what} {out} is out of range ({low} to {high if high else 'any'})")
-    return out
+    if isinstance(value, str):
+        try:
+            value = int(value.strip())
+        except ValueError:
+            raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
+    return check_int(value, what, low, high, where=where)
 
 
 def row_settings(row: dict, where: str) -> dict:
@@ -86,7 +95,7 @@ def row_settings(row: dict, where: str) -> dict:
         elif key == "seed":
             out["seed"] = parse_int(value, where, "seed", 0)
         else:
-            out["tile"] = parse_bool(value, where)
+            out["tile"] = parse_bool(value, "tile", where=where)
     return out
 
 
