@@ -342,6 +342,22 @@ def test_one_boolean_rule_names_its_field():
     assert parse_bool(" ", "paper", empty=False) is False and parse_bool("", "paper", empty=True) is True
 
 
+def test_one_size_syntax_for_manifests_and_the_command_line():
+    from tghop.manifest import parse_size, split_size
+
+    for text, pair in ((" 3 x 4 ", (3, 4)), ("3X4", (3, 4)), ("3*4", (3, 4)), ("3, 4", (3, 4)), ("7", (7, 7)),
+                       (512, (512, 512))):
+        assert split_size(text) == pair == split_size(text, signed=True)
+    for text in ("3x", "x4", "3x4x5", "3.0x4", "big", ""):
+        assert split_size(text) is None and split_size(text, signed=True) is None
+    # a minus sign: the command line reads it (check_size then states the range), a manifest does not
+    assert split_size("-5") is None and split_size("-5", signed=True) == (-5, -5)
+    assert split_size("5x-6", signed=True) == (5, -6)
+    with pytest.raises(TGHopError, match=re.escape("line 2: size '-5' is not HEIGHTxWIDTH")):
+        parse_size("-5", "line 2")
+    assert parse_size("3x4", "line 2") == [3, 4] and parse_size([5], "line 2") == [5, 5]
+
+
 def test_manifest_numbers_are_integers_not_floats(tmp_path):
     bad = tmp_path / "m.jsonl"
     for key, value, words in (("count", 2.0, "count 2.0 has a decimal point; write 2"),

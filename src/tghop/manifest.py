@@ -17,7 +17,8 @@ from pathlib import Path
 
 from ._errors import TGHopError
 
-__all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int"]
+__all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int",
+           "split_size"]
 
 #: Per-exemplar settings a manifest row may give.
 ROW_SETTINGS = ("size", "count", "seed", "tile")
@@ -29,6 +30,15 @@ def _shown(value, most: int = 60) -> str:
     return text if len(text) <= most else text[: most - 3] + "..."
 
 
+def split_size(text, *, signed=False):
+    """``HxW`` text (or ``H*W``, ``H,W``; ``N``: a square) -> ``(height, width)`` ints,
+    unchecked; None where it is not one. ``signed``: a minus sign is read too (the command
+    line's ``--size``, whose check then states the range)."""
+    number = r"(-?\d+)" if signed else r"(\d+)"
+    m = re.fullmatch(rf"\s*{number}\s*(?:[xX*,]\s*{number}\s*)?", str(text))
+    return None if m is None else (int(m.group(1)), int(m.group(2) or m.group(1)))
+
+
 def parse_size(value, where):
     """A size (``HxW``, ``N``, ``[H, W]`` or ``[N]``) -> ``[height, width]``, checked."""
     from ._common import check_size
@@ -38,10 +48,10 @@ def parse_size(value, where):
             raise TGHopError(f"{where}: size {value!r} is not [HEIGHT, WIDTH] (e.g. [512, 512])")
         h, w = (parse_int(v, where, "size", 1) for v in (list(value) * 2)[:2])
     else:
-        m = re.fullmatch(r"\s*(\d+)\s*(?:[xX*,]\s*(\d+)\s*)?", str(value))
-        if not m:
+        pair = split_size(value)
+        if pair is None:
             raise TGHopError(f"{where}: size {value!r} is not HEIGHTxWIDTH (e.g. 512x512)")
-        h, w = int(m.group(1)), int(m.group(2) or m.group(1))
+        h, w = pair
     return list(check_size((int(h), int(w)), name=f"{where}: size"))
 
 
