@@ -90,8 +90,9 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     with pytest.raises(TGHopError, match="m.jsonl line 2"):
         batch.find_work(bad)
     for size, words in (([64, 64, 64], r"size \[64, 64, 64\] is not \[HEIGHT, WIDTH\]"), ([], r"size \[\] is not"),
-                        (["a", "b"], "size 'a' is not a whole number"), ([None, 64], "size None is not"),
-                        ([64.7, 64], "size 64.7 is not a whole number")):
+                        (["a", "b"], "size 'a' is not a whole number"),
+                        ([None, 64], "size must be an integer >= 1, got None"),
+                        ([64.7, 64], "size must be an integer >= 1, got 64.7")):
         bad.write_text(json.dumps({"path": "a.png", "size": size}) + "\n")
         with pytest.raises(TGHopError, match="m.jsonl line 1: " + words):
             batch.find_work(bad)
@@ -102,11 +103,11 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     assert names == ["INDEX.HTML_exemplar", "a", "b_jpg", "b_png", "batch.jsonl_exemplar", "sub__a"]
     with pytest.raises(TGHopError, match="OUTDIR is the SOURCE folder"):
         batch.find_work(tmp_path, outdir=tmp_path / "sub" / "..")
-    with pytest.raises(TGHopError, match="count 0 is out of range"):
+    with pytest.raises(TGHopError, match="count must be an integer from 1 to 1,000, got 0"):
         batch.run(tmp_path, tmp_path / "out", count=0)
-    with pytest.raises(TGHopError, match="tile 'maybe' is not true or false"):
+    with pytest.raises(TGHopError, match="tile must be true or false, got 'maybe'"):
         batch.run(tmp_path, tmp_path / "out", tile="maybe")
-    with pytest.raises(TGHopError, match="seed -5 is out of range"):
+    with pytest.raises(TGHopError, match="seed must be an integer >= 0, got -5"):
         batch.run(tmp_path, tmp_path / "out", seed=-5)
     assert not (tmp_path / "out").exists()  # refused before any work
 
@@ -328,12 +329,41 @@ def test_a_json_manifest_takes_path_and_name_only_as_strings(tmp_path):
     assert item["rel"] == Path("a.png") and item["name"] == "a" and not item["named"]
 
 
+def test_one_boolean_rule_names_its_field():
+    from tghop.manifest import parse_bool
+
+    for text, want in (("1", True), (" Yes ", True), ("ON", True), ("true", True), (True, True),
+                       ("0", False), ("no", False), (" off", False), ("FALSE", False), (False, False)):
+        assert parse_bool(text, "tile") is want
+    with pytest.raises(TGHopError, match=re.escape("line 3: windows must be true or false, got 'maybe'")):
+        parse_bool("maybe", "windows", where="line 3")
+    with pytest.raises(TGHopError, match=re.escape("tile must be true or false, got ' '")):
+        parse_bool(" ", "tile")  # blank text is refused unless the caller says what it means
+    assert parse_bool(" ", "paper", empty=False) is False and parse_bool("", "paper", empty=True) is True
+
+
+def test_one_size_syntax_for_manifests_and_the_command_line():
+    from tghop.manifest import parse_size, split_size
+
+    for text, pair in ((" 3 x 4 ", (3, 4)), ("3X4", (3, 4)), ("3*4", (3, 4)), ("3, 4", (3, 4)), ("7", (7, 7)),
+                       (512, (512, 512))):
+        assert split_size(text) == pair == split_size(text, signed=True)
+    for text in ("3x", "x4", "3x4x5", "3.0x4", "big", ""):
+        assert split_size(text) is None and split_size(text, signed=True) is None
+    # a minus sign: the command line reads it (check_size then states the range), a manifest does not
+    assert split_size("-5") is None and split_size("-5", signed=True) == (-5, -5)
+    assert split_size("5x-6", signed=True) == (5, -6)
+    with pytest.raises(TGHopError, match=re.escape("line 2: size '-5' is not HEIGHTxWIDTH")):
+        parse_size("-5", "line 2")
+    assert parse_size("3x4", "line 2") == [3, 4] and parse_size([5], "line 2") == [5, 5]
+
+
 def test_manifest_numbers_are_integers_not_floats(tmp_path):
     bad = tmp_path / "m.jsonl"
     for key, value, words in (("count", 2.0, "count 2.0 has a decimal point; write 2"),
                               ("seed", 1e3, "seed 1000.0 has a decimal point; write 1000"),
                               ("size", [64.0, 64], "size 64.0 has a decimal point; write 64"),
-                              ("count", True, "count True is not a whole number")):
+                              ("count", True, "count must be an integer from 1 to 1,000, got True")):
         bad.write_text(json.dumps({"path": "a.png", key: value}) + "\n")
         with pytest.raises(TGHopError, match="m.jsonl line 1: " + re.escape(words)):
             batch.find_work(bad)

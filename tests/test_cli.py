@@ -135,7 +135,7 @@ def test_builtin_exemplar(workdir):
         (["info", "foreign.npz"], ["not a tghop model"]),
         (["synth", "bricks.png", "-o", "out.gif"], ["extension"]),
         (["synth", "bricks.png", "-o", "out.png", "--size", "0x10"], ["--size"]),
-        (["synth", "bricks.png", "-o", "out.png", "--size", "-5"], ["--size"]),
+        (["synth", "bricks.png", "-o", "out.png", "--size", "-5"], ["--size", "must be positive, got -5x-5"]),
         (["synth", "bricks.png", "-o", "out.png", "--size", "100000x100000"], ["above the limit"]),
         (["synth", "bricks.png", "-o", "-", "--count", "2"], ["stdout"]),
         (["synth", "bricks.png", "-o", "out.png", "--pool", "0"], ["--pool"]),

@@ -6,6 +6,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import signal
 import struct
 import subprocess
@@ -391,6 +392,16 @@ def test_a_boolean_setting_is_asked_for_in_jsons_words(client):
     assert _common({"windows": None}) == (None, False) and _common({"windows": True}) == (None, True)
     with pytest.raises(RequestError, match="windows must be true or false"):
         _common({"windows": "yes"})
+
+
+def test_a_form_boolean_is_the_manifests_rule_and_an_empty_field_is_false():
+    from tghop.server.requests import RequestError, parse_bool
+
+    assert parse_bool("paper", "") is False and parse_bool("paper", " ") is False  # an unset form field
+    assert parse_bool("tile", "on") is True and parse_bool("tile", "No") is False
+    with pytest.raises(RequestError, match=re.escape("tile must be true or false, got 'maybe'")) as info:
+        parse_bool("tile", "maybe")
+    assert info.value.status == 422
 
 
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):

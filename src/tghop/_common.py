@@ -28,6 +28,7 @@ __all__ = [
     "ProgressCallback",
     "check_rng",
     "check_image",
+    "checked_image",
     "check_texture",
     "report",
     "in_thread",
@@ -256,6 +257,29 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
             "give a larger image"
         )
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
+
+
+def checked_image(image, where, name="image", channels=None):
+    """``image`` as an (H, W, C) array, not converted, or a one-line :class:`InvalidImageError`
+    naming ``where`` and ``name``.
+
+    The check of the generation steps' images (:func:`tghop.colour.match_histograms`,
+    :func:`tghop.refine.refine`, ...), cheap enough for every image they are given: float
+    images must be finite and in [0, 1] (within :func:`check_image`'s
+    tolerance; one min and one max, which a NaN fails), unsigned integer ones pass as they
+    are; ``channels``: the channel count the caller's statistics have (None: any).
+    """
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] < 1 or arr.dtype.kind not in "fu":
+        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1], "
+                                f"got {arr.dtype} of shape {arr.shape}")
+    if channels is not None and arr.shape[2] != channels:
+        raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channels where {channels} are expected "
+                                "(as many as the statistics have)")
+    if arr.dtype.kind == "f" and arr.size and not (arr.min() >= -1e-6 and arr.max() <= 1 + 1e-6):
+        check_image(arr, name=f"{where}: {name}", channels=None)  # its message: NaN, or the range
+        raise InvalidImageError(f"{where}: {name} values must lie in [0, 1]")
+    return arr
 
 
 #: Largest per-channel standard deviation (in [0, 1] units) below which an exemplar is

@@ -676,7 +676,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     items = find_work(source, outdir)
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
                 "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
-                "tile": parse_bool(tile, "run")}
+                "tile": parse_bool(tile, "tile", where="run")}
     fit = _jsonable(dict(fit or {}), "fit")
     generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"}, "generate")
     check_options(items, defaults, fit, generate)  # before any work, as synth would refuse them

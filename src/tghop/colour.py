@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_mask
-from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
+from ._common import (BaseEstimator, StoredArrays, TGHopError, check_image, check_is_fitted, checked_image,
                       usable_cores)
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasses", "colour_classes", "class_labels",
@@ -22,29 +22,6 @@ __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasse
 
 #: Quantile levels stored per channel (0, 1/256, ..., 1).
 N_QUANTILES = 257
-
-
-def checked_image(image, where, name="image", channels=None):
-    """``image`` as an (H, W, C) array, not converted, or a one-line :class:`InvalidImageError`
-    naming ``where`` and ``name``.
-
-    The check of the generation steps' images (:func:`match_histograms`,
-    :func:`tghop.refine.refine`, ...), cheap enough for every image they are given: float
-    images must be finite and in [0, 1] (within :func:`tghop._common.check_image`'s
-    tolerance; one min and one max, which a NaN fails), unsigned integer ones pass as they
-    are; ``channels``: the channel count the caller's statistics have (None: any).
-    """
-    arr = np.asarray(image)
-    if arr.ndim != 3 or arr.shape[2] < 1 or arr.dtype.kind not in "fu":
-        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1], "
-                                f"got {arr.dtype} of shape {arr.shape}")
-    if channels is not None and arr.shape[2] != channels:
-        raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channels where {channels} are expected "
-                                "(as many as the statistics have)")
-    if arr.dtype.kind == "f" and arr.size and not (arr.min() >= -1e-6 and arr.max() <= 1 + 1e-6):
-        check_image(arr, name=f"{where}: {name}", channels=None)  # its message: NaN, or the range
-        raise InvalidImageError(f"{where}: {name} values must lie in [0, 1]")
-    return arr
 
 
 def channel_quantiles(image, n: int = N_QUANTILES) -> np.ndarray:

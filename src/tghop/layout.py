@@ -31,7 +31,7 @@ import math
 import numpy as np
 from ._arrays import check_int
 from ._common import TGHopError, check_size, usable_cores
-from .colour import checked_image
+from ._common import checked_image
 
 __all__ = ["downsample", "upsample", "fits", "guide_fits", "follows_guide", "usable_factor",
            "coarse_training", "coarse_guide"]

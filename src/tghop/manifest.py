@@ -3,7 +3,8 @@ line naming a ``path`` column, or as JSON lines ``{"path": ...}``; each row opti
 with its own ``name`` and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
 
 Every bad row is a one-line :class:`~tghop.TGHopError` naming its line, before any work.
-Only the standard library is imported here (and :func:`tghop._common.check_size`).
+Only the standard library is imported here (and, when called, :func:`tghop._common.check_size`
+and :func:`tghop._arrays.check_int`).
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from pathlib import Path
 
 from ._errors import TGHopError
 
-__all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int"]
+__all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int",
+           "split_size"]
 
 #: Per-exemplar settings a manifest row may give.
 ROW_SETTINGS = ("size", "count", "seed", "tile")
@@ -28,6 +30,15 @@ def _shown(value, most: int = 60) -> str:
     return text if len(text) <= most else text[: most - 3] + "..."
 
 
+def split_size(text, *, signed=False):
+    """``HxW`` text (or ``H*W``, ``H,W``; ``N``: a square) -> ``(height, width)`` ints,
+    unchecked; None where it is not one. ``signed``: a minus sign is read too (the command
+    line's ``--size``, whose check then states the range)."""
+    number = r"(-?\d+)" if signed else r"(\d+)"
+    m = re.fullmatch(rf"\s*{number}\s*(?:[xX*,]\s*{number}\s*)?", str(text))
+    return None if m is None else (int(m.group(1)), int(m.group(2) or m.group(1)))
+
+
 def parse_size(value, where):
     """A size (``HxW``, ``N``, ``[H, W]`` or ``[N]``) -> ``[height, width]``, checked."""
     from ._common import check_size
@@ -37,15 +48,21 @@ def parse_size(value, where):
             raise TGHopError(f"{where}: size {value!r} is not [HEIGHT, WIDTH] (e.g. [512, 512])")
         h, w = (parse_int(v, where, "size", 1) for v in (list(value) * 2)[:2])
     else:
-        m = re.fullmatch(r"\s*(\d+)\s*(?:[xX*,]\s*(\d+)\s*)?", str(value))
-        if not m:
+        pair = split_size(value)
+        if pair is None:
             raise TGHopError(f"{where}: size {value!r} is not HEIGHTxWIDTH (e.g. 512x512)")
-        h, w = int(m.group(1)), int(m.group(2) or m.group(1))
+        h, w = pair
     return list(check_size((int(h), int(w)), name=f"{where}: size"))
 
 
-def parse_bool(value, where):
-    """true/false, yes/no, on/off, 1/0 (or a bool) -> bool."""
+def parse_bool(value, name, *, where=None, empty=None):
+    """``value`` as a bool: a bool, or true/false, yes/no, on/off, 1/0 (any case, spaces
+    around ignored); ``empty``: what blank text means (a web form sends a field left unset
+    empty: its default), None: refused. The manifest's ``tile`` and the server's form fields.
+
+    Otherwise a one-line :class:`~tghop.TGHopError`: ``name must be true or false, got value``
+    (after ``where: `` where given).
+    """
     if isinstance(value, bool):
         return value
     text = str(value).strip().lower()
@@ -53,23 +70,25 @@ def parse_bool(value, where):
         return True
     if text in ("0", "false", "no", "off"):
         return False
-    raise TGHopError(f"{where}: tile {value!r} is not true or false")
+    if text == "" and empty is not None:
+        return empty
+    raise TGHopError(("" if where is None else f"{where}: ") + f"{name} must be true or false, got {value!r}")
 
 
 def parse_int(value, where, what, low, high=None):
-    """A whole number from ``low`` to ``high`` (None: no bound); not a bool, nor a float
-    (a JSON ``2.0``; as ``"2.0"`` in a CSV cell and as the library's sizes)."""
+    """A whole number from ``low`` to ``high`` (None: no bound): text is parsed, then
+    :func:`tghop._arrays.check_int` checks it (not a bool, nor a float: a JSON ``2.0``; as
+    ``"2.0"`` in a CSV cell and as the library's sizes)."""
+    from ._arrays import check_int
+
     if isinstance(value, float) and value.is_integer():
         raise TGHopError(f"{where}: {what} {value!r} has a decimal point; write {int(value)}")
-    try:
-        if isinstance(value, (bool, float)):
-            raise ValueError
-        out = int(str(value).strip()) if not isinstance(value, (int, float)) else int(value)
-    except ValueError:
-        raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
-    if out < low or (high is not None and out > high):
-        raise TGHopError(f"{where}: {what} {out} is out of range ({low} to {high if high else 'any'})")
-    return out
+    if isinstance(value, str):
+        try:
+            value = int(value.strip())
+        except ValueError:
+            raise TGHopError(f"{where}: {what} {value!r} is not a whole number") from None
+    return check_int(value, what, low, high, where=where)
 
 
 def row_settings(row: dict, where: str) -> dict:
@@ -86,7 +105,7 @@ def row_settings(row: dict, where: str) -> dict:
         elif key == "seed":
             out["seed"] = parse_int(value, where, "seed", 0)
         else:
-            out["tile"] = parse_bool(value, where)
+            out["tile"] = parse_bool(value, "tile", where=where)
     return out
 
 

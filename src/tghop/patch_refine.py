@@ -38,8 +38,8 @@ import numbers
 import numpy as np
 
 from ._arrays import check_int, check_mask
-from ._common import BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng, report
-from .colour import checked_image
+from ._common import (BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng,
+                      checked_image, report)
 from .patches import clean_windows
 from .pyramid import downsample, upsample
 

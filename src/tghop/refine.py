@@ -25,9 +25,8 @@ import numpy as np
 
 from ._arrays import check_int, check_mask
 from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
-                      check_size, report, usable_cores)
+                      check_size, checked_image, report, usable_cores)
 from ._fft import fft_for
-from .colour import checked_image
 from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
 

@@ -83,14 +83,14 @@ class Size(click.ParamType):
 
     def convert(self, value, param, ctx):
         from .._common import check_size
+        from ..manifest import split_size
 
         if isinstance(value, tuple):
             return value
-        m = re.fullmatch(r"\s*(-?\d+)\s*(?:[xX*,]\s*(-?\d+)\s*)?", str(value))
-        if not m:
+        pair = split_size(value, signed=True)  # a negative one is told the range
+        if pair is None:
             self.fail(f"{value!r} is not a size; write HEIGHTxWIDTH, e.g. 512x512", param, ctx)
-        h = int(m.group(1))
-        w = int(m.group(2)) if m.group(2) else h
+        h, w = pair
         try:
             return check_size((h, w), name="--size")
         except TGHopError as exc:

@@ -13,6 +13,7 @@ import base64
 import binascii
 import re
 
+from .. import manifest
 from .._errors import TGHopError
 
 __all__ = ["RequestError", "decode_png_field", "json_bool", "parse_bool", "parse_generation", "parse_guided",
@@ -34,16 +35,13 @@ class RequestError(Exception):
 
 
 def parse_bool(name, value) -> bool:
-    """A form field's boolean: ``true``/``false`` (or 1/0, on/off, yes/no); 422 otherwise
-    (a JSON body's: :func:`json_bool`)."""
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "on", "yes"):
-        return True
-    if text in ("0", "false", "off", "no", ""):
-        return False
-    raise RequestError(422, f"{name} must be true or false, got {value!r}")
+    """A form field's boolean: :func:`tghop.manifest.parse_bool` (``true``/``false``, 1/0,
+    on/off, yes/no), an empty field false (a form sends an unset field empty: its default);
+    422 otherwise (a JSON body's: :func:`json_bool`)."""
+    try:
+        return manifest.parse_bool(value, name, empty=False)
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
 
 
 def json_bool(name, value, default: bool = False) -> bool:
