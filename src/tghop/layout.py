@@ -29,9 +29,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from ._arrays import check_int
-from ._common import TGHopError, check_size, usable_cores
-from ._common import checked_image
+from ._common import TGHopError, check_size, checked_image, usable_cores
 
 __all__ = ["downsample", "upsample", "fits", "guide_fits", "follows_guide", "usable_factor",
            "coarse_training", "coarse_guide"]
