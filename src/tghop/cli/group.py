@@ -25,7 +25,7 @@ from .evaluation import baseline, evaluate
 from .guided import morph
 from .inpaint import inpaint
 from .serve import serve
-from .texture import fit, info, patches, synth
+from .texture import clusters, fit, info, patches, synth
 
 __all__ = ["OneLineGroup", "main"]
 
@@ -34,6 +34,7 @@ _COMMAND_MODULES = {
     "synth": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
     "fit": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis"),
     "patches": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.patches"),
+    "clusters": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.explain"),
     "info": ("numpy", "tghop.modelfile"),
     "inpaint": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.inpaint"),
     "morph": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.guided"),
@@ -190,5 +191,5 @@ def main():
     """
 
 
-for _command in (synth, fit, inpaint, morph, patches, info, batch, evaluate, baseline, cooc, serve):
+for _command in (synth, fit, inpaint, morph, patches, clusters, info, batch, evaluate, baseline, cooc, serve):
     main.add_command(_command)

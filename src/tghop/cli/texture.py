@@ -1,4 +1,4 @@
-"""``tghop fit``, ``synth``, ``patches`` and ``info``: TGHop models and the textures they make."""
+"""``tghop fit``, ``synth``, ``patches``, ``clusters`` and ``info``: TGHop models and the textures they make."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
                       generation_options, generation_params, given_options, model_options)
 
-__all__ = ["fit", "synth", "patches", "info"]
+__all__ = ["fit", "synth", "patches", "clusters", "info"]
 
 
 def fit_exemplar(spec, options, *, exclude, downscale, progress):
@@ -157,6 +157,36 @@ def patches(model_file, n, output, seed, stages):
             click.echo(f"stage views written to {stage_path}", err=True)
     if output != "-":
         click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
+
+
+@click.command()
+@click.argument("model_file", metavar="MODEL")
+@click.argument("exemplar")
+@click.option("-o", "--output", required=True,
+              help=f"I{OUTPUT_HELP[1:]}): EXEMPLAR on the left, its cluster map on the right.")
+@click.option("--stride", type=click.IntRange(min=1, max=4096), default=None,
+              help="Step between the patches mapped, in pixels; default the model's fit stride.")
+def clusters(model_file, exemplar, output, stride):
+    """Show which of MODEL's clusters each part of EXEMPLAR (an image file or builtin:NAME,
+    with the model's channel count) falls in: the cluster of the patch centred nearest each
+    pixel, one colour per cluster, beside the exemplar."""
+    import numpy as np
+
+    from ..explain import cluster_image, cluster_map
+    from ..imageio import save_image
+    from ..modelfile import load_model
+
+    with user_errors():
+        check_output(output)
+        check_outputs([("-o", output)], [("MODEL", model_file), ("EXEMPLAR", exemplar)])
+        model = load_model(model_file)  # a material: one line, fit a plain model from its albedo
+        image = load_exemplar(exemplar)
+        labels = cluster_map(model, image, stride=stride)
+        painted = cluster_image(labels, model.patch_size, stride or model.stride, image.shape)
+        left = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image
+        save_image(np.concatenate([left, painted], axis=1), output)
+        used, total = len(np.unique(labels)), len(model.ichm_.means_)
+    click.echo(f"{used} cluster{'s' if used != 1 else ''} used of {total}; map written to {output}", err=True)
 
 
 @click.command()

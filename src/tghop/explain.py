@@ -1,0 +1,173 @@
+"""The core model on an image: which of a fitted model's clusters each part of it falls in.
+
+After :mod:`tghop.synthesis` in the data flow (it needs a fitted :class:`~tghop.synthesis.TGHop`):
+each patch of the image at a grid of origins is taken through :meth:`TGHop.encode
+<tghop.synthesis.TGHop.encode>` to a core vector and :meth:`ICHM.predict
+<tghop.core.ICHM.predict>` to its cluster (:func:`cluster_map`), and the labels are painted
+as an image in a fixed palette (:func:`cluster_image`). ``tghop clusters`` writes the two
+side by side.
+"""
+
+from __future__ import annotations
+
+import colorsys
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from ._arrays import check_int
+from ._common import TGHopError, check_image, check_is_fitted
+
+__all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK"]
+
+#: Patches encoded at a time by :func:`cluster_map` (memory: a few tens of MB at 32x32x3).
+CHUNK = 512
+
+#: The golden ratio's fractional part: successive hues as far apart as they can be.
+_GOLDEN = (5 ** 0.5 - 1) / 2
+
+
+def _model_image(model, image):
+    """``image`` as float64 (H, W, C) with the model's channel count C (a grey image stored
+    as RGB is taken as one channel for a grey model, as :func:`~tghop.synthesis.prepare_exemplar`
+    does); one :class:`TGHopError` line for any other count."""
+    check_is_fitted(model, "ichm_")
+    want = model.exemplar_shape_[2]
+    img = check_image(image, min_size=model.patch_size, name="image", channels=None)
+    have = img.shape[2]
+    if have == 3 and want == 1 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512:
+        return np.ascontiguousarray(img[..., :1])
+    if have != want:
+        def words(c):
+            return f"{c} channel{'s' if c != 1 else ''}"
+        raise TGHopError(f"the image has {words(have)} but the model was fitted on {words(want)}; give an image "
+                         f"with {words(want)}, or fit a model on this image")
+    return img
+
+
+def cluster_map(model, image, *, stride=None) -> np.ndarray:
+    """The cluster of the model's core model that each patch of ``image`` falls in.
+
+    Every ``model.patch_size`` patch with its top-left corner on a grid of ``stride`` pixels
+    (the origins of :func:`tghop.patches.patch_origins`, in raster order) goes through
+    :meth:`TGHop.encode <tghop.synthesis.TGHop.encode>` and :meth:`ICHM.predict
+    <tghop.core.ICHM.predict>` (the nearest cluster mean), :data:`CHUNK` patches at a time
+    from a sliding-window view: memory does not grow with the image beyond the image itself.
+
+    Parameters
+    ----------
+    model : tghop.synthesis.TGHop
+        Fitted.
+    image : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1] or integer (uint8, uint16), with the model's channel count C (an RGB
+        image with three equal channels is read as grey for a grey model); ``H, W >= P``.
+    stride : int, optional
+        Step between patch origins, at least 1; default the model's fit stride
+        (``model.stride``: at it the exemplar's patches are the fit's training patches).
+
+    Returns
+    -------
+    labels : ndarray of int, shape (rows, cols)
+        ``rows = (H - P) // stride + 1``, ``cols = (W - P) // stride + 1``; the cluster of the
+        patch with origin ``(i * stride, j * stride)`` at ``[i, j]``, in ``[0, N)`` for the
+        model's N clusters.
+
+    Raises
+    ------
+    NotFittedError
+        Before :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`.
+    TGHopError
+        An image of another channel count, smaller than a patch, or not an image.
+
+    Examples
+    --------
+    >>> from tghop import data
+    >>> from tghop.synthesis import TGHop
+    >>> from tghop.explain import cluster_map
+    >>> image = data.bricks(64, rng=0)
+    >>> model = TGHop(n_channels=(9, 22), n_clusters=4, stride=4, rng=0).fit(image)
+    >>> cluster_map(model, image).shape
+    (9, 9)
+    """
+    img = _model_image(model, image)
+    p = model.patch_size
+    s = model.stride if stride is None else check_int(stride, "stride", 1)
+    windows = sliding_window_view(img, (p, p), axis=(0, 1))[::s, ::s]  # (rows, cols, C, P, P): no copy
+    rows, cols = windows.shape[:2]
+    labels = np.empty(rows * cols, dtype=np.int64)
+    step = check_int(CHUNK, "CHUNK", 1)
+    for a in range(0, labels.size, step):
+        i, j = np.divmod(np.arange(a, min(a + step, labels.size)), cols)
+        patches = windows[i, j].transpose(0, 2, 3, 1)  # (n, P, P, C), a copy of this chunk only
+        labels[a: a + step] = model.ichm_.predict(model.encode(patches))
+    return labels.reshape(rows, cols)
+
+
+def cluster_colours(n: int) -> np.ndarray:
+    """The palette of :func:`cluster_image`: cluster ``k``'s colour, the same for every model.
+
+    Hues step by the golden ratio's fractional part (0.618 of the circle: neighbouring indices
+    far apart, every new hue between earlier ones), with saturation and value alternating
+    over three levels so that clusters whose hues come close still differ.
+
+    Parameters
+    ----------
+    n : int
+        Number of colours, at least 0.
+
+    Returns
+    -------
+    ndarray, shape (n, 3), float64 in [0, 1]
+        RGB of clusters 0 .. n - 1.
+    """
+    n = check_int(n, "n", 0)
+    return np.array([colorsys.hsv_to_rgb((k * _GOLDEN) % 1.0, (0.95, 0.6, 0.8)[k % 3], (0.95, 0.85, 0.65)[k % 3])
+                     for k in range(n)], dtype=np.float64).reshape(n, 3)
+
+
+def _nearest_cells(n_pixels, n_cells, patch_size, stride):
+    """For each pixel index along one axis, the grid index of the patch whose centre (origin
+    + P // 2) is nearest (ties to the earlier patch), clipped to the grid."""
+    y = np.arange(n_pixels)
+    # ceil((2y - P + 1 - s) / 2s): the patch i with |y - (i s + (P - 1) / 2)| smallest.
+    return np.clip(-((stride + patch_size - 1 - 2 * y) // (2 * stride)), 0, n_cells - 1)
+
+
+def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
+    """Paint a :func:`cluster_map` as an image of the size it was computed on.
+
+    Each pixel takes the colour of the patch whose centre is nearest along each axis: the
+    ``stride`` x ``stride`` cell around each patch's centre (origin + ``patch_size // 2``)
+    has that patch's cluster colour, and the border no patch centre reaches (about
+    ``patch_size / 2`` pixels each side) takes the nearest cell's.
+
+    Parameters
+    ----------
+    labels : array_like of int, shape (rows, cols)
+        Clusters, at least 0, as :func:`cluster_map` returns them.
+    patch_size, stride : int
+        Those the map was computed with (``model.patch_size``; the ``stride`` given, or
+        ``model.stride``).
+    shape : tuple
+        (H, W, ...) of the image the map was computed on: ``rows == (H - P) // stride + 1``
+        and ``cols == (W - P) // stride + 1``.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float64 in [0, 1]
+        Colours of :func:`cluster_colours`, by cluster index.
+    """
+    p = check_int(patch_size, "patch_size", 1)
+    s = check_int(stride, "stride", 1)
+    lab = np.asarray(labels)
+    if lab.ndim != 2 or lab.size == 0 or not np.issubdtype(lab.dtype, np.integer) or lab.min() < 0:
+        raise TGHopError(f"labels must be a non-empty (rows, cols) array of cluster indices (integers, at least 0), "
+                         f"got {lab.dtype} of shape {lab.shape}; give cluster_map's result")
+    h, w = (int(v) for v in shape[:2])
+    grid = ((h - p) // s + 1, (w - p) // s + 1) if h >= p and w >= p else (0, 0)
+    if lab.shape != grid:
+        raise TGHopError(f"labels of shape {lab.shape} are not the grid of {p}x{p} patches at stride {s} of a "
+                         f"{h}x{w} image ({grid[0]}x{grid[1]}); give the patch size, stride and shape the map "
+                         "was computed with")
+    palette = cluster_colours(int(lab.max()) + 1)
+    return palette[lab[_nearest_cells(h, lab.shape[0], p, s)[:, None], _nearest_cells(w, lab.shape[1], p, s)[None, :]]]
