@@ -208,12 +208,15 @@ def test_max_seconds_not_above_zero_is_refused_before_training(exemplar, monkeyp
         cooc.CoocGAN(**TINY).fit(exemplar, max_seconds=value)
 
 
-def test_whole_numbers_and_numpy_values_are_settings():
+def test_numpy_values_are_settings_and_whole_floats_are_not_integers():
     from tghop.cooc.config import check_settings
 
-    p = check_settings({**TINY, **{k: v for k, v in cooc.SMALL.items() if k not in TINY}, "crop_size": 32.0,
-                        "batch_size": np.int64(4), "g_widths": np.array([8, 4]), "context": np.bool_(True),
-                        "lr": np.float32(0.5)})
+    base = {**TINY, **{k: v for k, v in cooc.SMALL.items() if k not in TINY}}
+    # A float where an integer belongs is refused, 32.0 too, as TGHop's settings refuse 2.0 (0.35 took it).
+    with pytest.raises(TGHopError, match=r"^crop_size must be an integer, got 32\.0; write 32$"):
+        check_settings({**base, "crop_size": 32.0})
+    p = check_settings({**base, "crop_size": np.int32(32), "batch_size": np.int64(4), "g_widths": np.array([8, 4]),
+                        "context": np.bool_(True), "lr": np.float32(0.5)})
     assert p["crop_size"] == 32 and type(p["crop_size"]) is int and type(p["batch_size"]) is int
     assert p["g_widths"] == [8, 4] and all(type(v) is int for v in p["g_widths"]) and p["context"] is True
     json.dumps(p)  # plain JSON values, as a checkpoint stores them

@@ -63,11 +63,12 @@ PARAMS = tuple(SMALL) + ("device", "rng")
 
 
 def _whole(name, value) -> int:
-    """``value`` as an int: an integer, or a float with no fraction (64.0); a bool, a
-    fraction (64.5) or a string is refused with the setting's ``name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or (
-            not isinstance(value, numbers.Integral) and not (math.isfinite(value) and float(value).is_integer())):
-        raise TGHopError(f"{name} must be an integer, got {value!r}")
+    """``value`` as an int (a Python or NumPy integer); a bool, a float (64.0 too, as TGHop's
+    settings: :class:`tghop.settings.Setting`) or a string is refused with the setting's ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        whole = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) and math.isfinite(
+            value) and float(value).is_integer()
+        raise TGHopError(f"{name} must be an integer, got {value!r}" + (f"; write {int(value)}" if whole else ""))
     return int(value)
 
 
