@@ -46,7 +46,7 @@ from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usab
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
 from .sdr import flip_signs
 from .settings import BY_NAME as _SETTINGS
-from .unsupervised import fast_ica, kmeans  # noqa: F401 (fast_ica: also tghop.core's)
+from .unsupervised import fast_ica, kmeans, nearest  # noqa: F401 (fast_ica: also tghop.core's)
 
 __all__ = ["ICHM", "fast_ica"]
 
@@ -788,12 +788,7 @@ class ICHM(BaseEstimator):
         -------
         labels : ndarray of int, shape (n,)
         """
-        Z = self._check_vectors(Z)
-        sq = np.einsum("kd,kd->k", self.means_, self.means_)
-        labels = np.empty(len(Z), dtype=np.int64)
-        for a in range(0, len(Z), chunk):  # argmin_j |z - m_j|^2 = argmin_j (|m_j|^2 - 2 z.m_j)
-            labels[a: a + chunk] = np.argmin(sq - 2.0 * (Z[a: a + chunk] @ self.means_.T), axis=1)
-        return labels
+        return nearest(self._check_vectors(Z), self.means_, chunk=chunk)
 
     def transform(self, Z, *, labels=None):
         """The independent components of each vector in its cluster: the inverse of :meth:`mix`.

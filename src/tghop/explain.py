@@ -17,6 +17,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
 from ._common import TGHopError, check_image, check_is_fitted
+from .synthesis import grey_as_rgb
 
 __all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK"]
 
@@ -35,7 +36,7 @@ def _model_image(model, image):
     want = model.exemplar_shape_[2]
     img = check_image(image, min_size=model.patch_size, name="image", channels=None)
     have = img.shape[2]
-    if have == 3 and want == 1 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512:
+    if want == 1 and grey_as_rgb(img):
         return np.ascontiguousarray(img[..., :1])
     if have != want:
         def words(c):

@@ -180,9 +180,8 @@ def enough_patches(n_patches, need, patch_size):
 
 
 def _n_patches(shape, patch_size, stride, max_patches):
-    """Training patches of an exemplar of ``shape`` (none when a side is below ``patch_size``)."""
-    if min(shape[:2]) < patch_size:
-        return 0
+    """Training patches of an exemplar of ``shape`` (none when a side is below ``patch_size``:
+    :func:`count_patches`' 0)."""
     n = count_patches(shape, patch_size, stride)
     return n if max_patches is None else min(n, int(max_patches))
 

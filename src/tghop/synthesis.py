@@ -27,10 +27,9 @@ import math
 import numpy as np
 
 from . import settings
-from ._arrays import check_array, check_width
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
                       report)
-from ._arrays import check_dtype, forget_fit
+from ._arrays import check_array, check_dtype, check_width, forget_fit
 from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
@@ -45,7 +44,7 @@ from .refine import BandStatistics, refine as refine_bands
 from .regions import match_regions, n_regions, prepare as prepare_regions
 from .seams import remove_seams
 
-__all__ = ["TGHop", "CoarseLayout", "default_channels", "prepare_exemplar", "PAPER_TABLE4"]
+__all__ = ["TGHop", "CoarseLayout", "default_channels", "grey_as_rgb", "prepare_exemplar", "PAPER_TABLE4"]
 
 #: The paper's Table 4 setting (brick_wall): K1=9, K2=22, gamma=0.01, N=50, W=200, with the
 #: per-cluster PCA size that reproduces its F = 2,518 CDFs (95 % of the variance, at most 50
@@ -77,6 +76,12 @@ def default_channels(patch_size: int, n_colours: int = 3):
     return channels[: 2 if patch_size == 32 else 3]
 
 
+def grey_as_rgb(image) -> bool:
+    """Whether a float (H, W, C) image in [0, 1] is a grey one stored as RGB: three channels within
+    1/512 (half an 8-bit level) of each other, which :func:`prepare_exemplar` models as one."""
+    return image.shape[2] == 3 and bool(np.abs(image[..., 1:] - image[..., :1]).max() < 1 / 512)
+
+
 def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:
     """A validated exemplar; a grey image stored as RGB becomes single-channel (``channels``:
     the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material).
@@ -104,7 +109,7 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray
             for y in range(0, h, 512))
     else:
         img = check_image(image, min_size=min_size, name="exemplar", channels=channels)
-        grey = img.shape[2] == 3 and np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512
+        grey = grey_as_rgb(img)
     check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
     if grey:
         img = np.ascontiguousarray(img[..., :1])

@@ -12,7 +12,7 @@ import numpy as np
 
 from ._common import check_rng
 
-__all__ = ["kmeans", "kmeans_plusplus", "lloyd", "fast_ica"]
+__all__ = ["kmeans", "kmeans_plusplus", "lloyd", "nearest", "fast_ica"]
 
 
 def kmeans_plusplus(X, n_clusters, rng, n_trials=None):
@@ -82,8 +82,20 @@ def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
         centres = moved.astype(np.float32)
         if shift <= threshold or changed.size <= few:
             break
-    d = np.einsum("kd,kd->k", centres, centres)[None, :] - 2.0 * (X @ centres.T)
-    return np.argmin(d, axis=1), centres
+    return nearest(X, centres), centres
+
+
+def nearest(X, centres, chunk=None):
+    """The index of each row of ``X`` (n, d)'s nearest row of ``centres`` (k, d) in Euclidean
+    distance: ``argmin_j |c_j|^2 - 2 x.c_j`` (``|x|^2`` is the same for all j), ``chunk`` rows
+    at a time (None: all at once; memory ``chunk x k``). Returns (n,) int."""
+    sq = np.einsum("kd,kd->k", centres, centres)[None, :]
+    if chunk is None:
+        return np.argmin(sq - 2.0 * (X @ centres.T), axis=1)
+    out = np.empty(len(X), dtype=np.int64)
+    for a in range(0, len(X), chunk):
+        out[a: a + chunk] = np.argmin(sq - 2.0 * (X[a: a + chunk] @ centres.T), axis=1)
+    return out
 
 
 def _mean_variance(X, chunk=1024):
