@@ -554,8 +554,8 @@ def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
 
 
 # ------------------------------------------------------------------ on Dask
-@pytest.fixture(scope="module")
-def cluster():
+def _local_cluster():
+    """(LocalCluster of 2 worker processes, its Client), closed by the generator's end."""
     dask = pytest.importorskip("dask")
     distributed = pytest.importorskip("distributed")
     import logging
@@ -567,6 +567,11 @@ def cluster():
     yield cluster, client
     client.close()
     cluster.close()
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    yield from _local_cluster()
 
 
 def test_local_cluster_run(tmp_path, cluster):
@@ -706,12 +711,21 @@ def _wait_idle(client, timeout=60):
     assert not any(client.processing().values())
 
 
-def test_ctrl_c_with_a_scheduler_address_leaves_the_cluster_running(tmp_path, cluster):
+@pytest.fixture
+def own_cluster():
+    """A LocalCluster of 2 worker processes for one test: the module's cluster has had workers
+    killed by earlier tests, and a nanny on a loaded machine can take minutes to bring one back
+    (seen once: 1 of 2 workers after 120 s)."""
+    for cluster, client in _local_cluster():
+        client.wait_for_workers(2, timeout=120)
+        yield cluster, client
+
+
+def test_ctrl_c_with_a_scheduler_address_leaves_the_cluster_running(tmp_path, own_cluster):
     # Ctrl-C to `python -m tghop batch --scheduler ADDRESS` alone (the cluster is not in its
     # process group): it stops with one line, the cluster lives on, and a rerun finishes.
+    cluster = own_cluster
     _, client = cluster
-    # Earlier tests kill workers, which their nannies restart: this one starts from both.
-    client.wait_for_workers(2, timeout=120)
     workers = set(client.scheduler_info()["workers"])
     src = make_folder(tmp_path / "src", bad=False)
     for i in range(6):
