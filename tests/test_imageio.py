@@ -255,6 +255,29 @@ def test_deep_tiffs_alpha_only_where_extrasamples_says_and_refused_kinds(tmp_pat
     np.testing.assert_array_equal(load_image(tmp_path / "e.tif", dtype=None), _colourful())
 
 
+@pytest.mark.parametrize("compression", ["lzw", "zlib", "zstd", "packbits"])
+@pytest.mark.parametrize("kind", ["uint16 rgb", "uint16 grey", "float32 rgb"])
+def test_compressed_deep_tiffs_are_read_exactly(tmp_path, compression, kind):
+    # 0.36 refused LZW-compressed 16-bit colour TIFFs (what image editors write) with "pip install
+    # imagecodecs": the tiff extra now installs it.
+    tifffile = pytest.importorskip("tifffile")
+    pytest.importorskip("imagecodecs")
+    dtype, colour = kind.split()
+    rng = np.random.default_rng(3)
+    shape = (13, 11, 3) if colour == "rgb" else (13, 11)
+    if dtype == "uint16":
+        levels = rng.integers(0, 65536, shape, dtype=np.uint16)
+        expected = levels / 65535.0
+    else:
+        levels = rng.random(shape, dtype=np.float32)
+        expected = levels.astype(np.float64)
+    path = tmp_path / "x.tif"
+    tifffile.imwrite(path, levels, compression=compression, photometric="rgb" if colour == "rgb" else "minisblack")
+    got, depth = load_image(path, with_depth=True)
+    assert depth == (16 if dtype == "uint16" else 32)
+    np.testing.assert_array_equal(got.reshape(expected.shape), expected)
+
+
 def test_save_image_refuses_empty_wrong_channels_and_out_of_range_images(tmp_path):
     # review 58 item 11: an empty image made an unreadable PNG, 5 channels an internal ValueError,
     # floats outside [0, 1] were clipped without a word.
