@@ -255,6 +255,28 @@ def test_deep_tiffs_alpha_only_where_extrasamples_says_and_refused_kinds(tmp_pat
     np.testing.assert_array_equal(load_image(tmp_path / "e.tif", dtype=None), _colourful())
 
 
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32])
+def test_deep_tiffs_with_premultiplied_alpha_are_divided_out(tmp_path, dtype):
+    # 0.36 read a 16-bit or float TIFF with associated alpha as plain colours: every
+    # semi-transparent pixel darkened by its alpha (Pillow divides an 8-bit one out).
+    tifffile = pytest.importorskip("tifffile")
+    rng = np.random.default_rng(2)
+    colours = rng.random((6, 5, 3))
+    alpha = rng.uniform(0.2, 1.0, (6, 5, 1))
+    alpha[0, 0] = 0.0  # fully transparent: no colour to recover, read as 0
+    stored = np.concatenate([colours * alpha, alpha], axis=2)
+    samples = np.round(stored * 65535).astype(np.uint16) if dtype == np.uint16 else stored.astype(np.float32)
+    tifffile.imwrite(tmp_path / "p.tif", samples, photometric="rgb", extrasamples=["assocalpha"])
+    with pytest.warns(UserWarning, match="alpha"):
+        got = load_image(tmp_path / "p.tif")
+    expected = colours.copy()
+    expected[0, 0] = 0.0
+    tol = 1e-6 if dtype == np.float32 else 2.0 / (65535 * 0.2)  # 16-bit levels, divided by alpha >= 0.2
+    np.testing.assert_allclose(got, expected, atol=tol)
+    kept = load_image(tmp_path / "p.tif", keep_alpha=True)
+    np.testing.assert_allclose(kept[..., 3:], alpha, atol=1e-6 if dtype == np.float32 else 1 / 65535)
+
+
 @pytest.mark.parametrize("compression", ["lzw", "zlib", "zstd", "packbits"])
 @pytest.mark.parametrize("kind", ["uint16 rgb", "uint16 grey", "float32 rgb"])
 def test_compressed_deep_tiffs_are_read_exactly(tmp_path, compression, kind):

@@ -194,7 +194,7 @@ def _read_deep(path, max_pixels, keep_alpha=False):
                     f"{'min-is-white' if layout[2] else 'colour'} TIFF ({reason}); "
                     "pip install imagecodecs, or save it uncompressed or zlib-compressed") from None
             return None  # Pillow's path: it decodes 8-bit and grey 16-bit and float TIFF files whole
-    colours, alpha, inverted = layout
+    colours, alpha, inverted, premultiplied = layout
     if page.axes.startswith("S"):  # planar: (S, H, W)
         arr = np.moveaxis(arr, 0, -1)
     if arr.ndim == 2:
@@ -205,6 +205,8 @@ def _read_deep(path, max_pixels, keep_alpha=False):
     if inverted:  # min-is-white integer levels
         arr = arr.copy()
         arr[:, :, 0] = np.iinfo(arr.dtype).max - arr[:, :, 0]
+    if premultiplied:
+        arr = _unpremultiply(arr, colours)
     arr, mode = _drop_alpha(arr, ("LA" if colours == 1 else "RGBA") if alpha else "", keep_alpha)
     if arr.dtype == np.uint8:
         return arr, mode, 8
@@ -231,9 +233,9 @@ def _refuse_deep_tiff(path, photometric, bits):
 
 
 def _tiff_layout(page, path):
-    """How tghop reads a TIFF page itself: ``(colours, alpha, inverted)`` (1 or 3 colour
-    samples; whether the next sample is alpha, as its ExtraSamples tag says; min-is-white levels
-    to invert), or None for Pillow's path: 8-bit and bilevel TIFF files of other colour kinds
+    """How tghop reads a TIFF page itself: ``(colours, alpha, inverted, premultiplied)`` (1 or 3
+    colour samples; whether the next sample is alpha, as its ExtraSamples tag says; min-is-white
+    levels to invert; whether that alpha is associated, the colours multiplied by it), or None for Pillow's path: 8-bit and bilevel TIFF files of other colour kinds
     (palette, CMYK, YCbCr, LAB, min-is-white), which Pillow converts to RGB or grey, and samples
     tifffile gives in no type tghop reads. Refused: a 16-bit or float one of those colour kinds
     (Pillow would reduce it to 8 bits or read it wrong)."""
@@ -253,7 +255,21 @@ def _tiff_layout(page, path):
     if page.samplesperpixel > colours and extras[:1] == (1,) and dtype == np.uint8:
         return None  # premultiplied alpha: Pillow's path, which divides it out
     alpha = page.samplesperpixel > colours and extras[:1] in ((1,), (2,))  # associated, unassociated
-    return colours, int(alpha), inverted
+    return colours, int(alpha), inverted, alpha and extras[0] == 1
+
+
+def _unpremultiply(arr, colours):
+    """An (H, W, colours + 1) array of uint16 or float samples whose colours are multiplied by its
+    last (alpha) sample, with the colours divided by it (0 where alpha is 0), in its own dtype: what
+    Pillow does for 8-bit files (0.36 read 16-bit ones as unassociated alpha: dark, semi-transparent
+    edges)."""
+    values = arr.astype(np.float64)
+    alpha = values[..., colours:]
+    colour = np.divide(values[..., :colours], alpha, out=np.zeros_like(values[..., :colours]), where=alpha > 0)
+    if arr.dtype == np.uint16:
+        colour = np.clip(np.round(colour * 65535.0), 0, 65535)
+    values[..., :colours] = colour
+    return values.astype(arr.dtype)
 
 
 def _drop_alpha(arr, mode, keep_alpha=False):
