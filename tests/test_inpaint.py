@@ -126,6 +126,11 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
             inpaint(model, cells, square, tile=tile, **fast)
     with pytest.raises(TGHopError, match="the image is empty"):
         inpaint(model, cells[:0].astype(np.float64), square[:0])
+    with pytest.raises(TGHopError, match=r"^inpaint: image must be an \(H, W, C\) float array in \[0, 1\] or "
+                       "uint8, got int64"):
+        inpaint(model, cells.astype(np.int64), square, **fast)
+    with pytest.raises(TGHopError, match=r"^inpaint: image values must lie in \[0, 1\], got \["):
+        inpaint(model, cells.astype(np.float64), square, **fast)
     with pytest.raises(TGHopError, match="n_patches must be an integer from 1 to 10,000,000, got 1000000000"):
         inpaint(model, cells, square, rng=1, n_patches=10**9)
     with pytest.raises(TGHopError, match=r"^blend must be an integer >= 0, got -1$"):

@@ -307,8 +307,13 @@ def test_a_fitted_stack_keeps_no_training_output(bricks96):
 @pytest.mark.parametrize("image, origins, error, message", [
     (lambda img: img * 255, [[0, 0]], "image", r"image values must lie in \[0, 1\], got \[0, 2"),
     (lambda img: _nan(img), [[0, 0]], "image", "image contains NaN or infinite values"),
-    (lambda img: img[..., 0], [[0, 0]], "image", r"image must have shape \(H, W, C\), got \(96, 96\)"),
-    (lambda img: img.astype(np.int32), [[0, 0]], "image", "image must be float in \\[0, 1\\] or uint8"),
+    (lambda img: img[..., 0], [[0, 0]], "image",
+     r"^HopStack.fit_image: image must be an \(H, W, C\) float array in \[0, 1\] or uint8, got float64 of shape "
+     r"\(96, 96\)$"),
+    (lambda img: img.astype(np.int32), [[0, 0]], "image", r"image must be an \(H, W, C\) float array in \[0, 1\] or "
+     "uint8, got int32"),
+    (lambda img: img.astype(np.uint16), [[0, 0]], "image", "or uint8, got uint16 of shape"),
+    (lambda img: img[:0], [[0, 0]], "image", r"^HopStack.fit_image: the image is empty \(shape \(0, 96, 3\)\)"),
     (lambda img: img, [[90, 90]], "origins", r"origins must put every 32x32 patch inside the 96x96 image "
      r"\(rows in \[0, 64\], columns in \[0, 64\]\), got rows in \[90, 90\]"),
     (lambda img: img, [[-4, 0]], "origins", "origins must put every 32x32 patch inside"),

@@ -60,10 +60,9 @@ def check_width(arr, name: str, shape: str, expected: tuple) -> None:
 
 
 def check_count(n, name: str = "n") -> int:
-    """A non-negative integer count (a Python or NumPy integer, not a bool), or a one-line :class:`TGHopError`."""
-    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (numbers.Integral, np.integer)) or n < 0:
-        raise TGHopError(f"{name} must be a non-negative integer, got {n!r}")
-    return int(n)
+    """A non-negative integer count (a Python or NumPy integer, not a bool): :func:`check_int`
+    with ``low=0`` (``name must be an integer >= 0, got n``)."""
+    return check_int(n, name, 0)
 
 
 def check_dtype(dtype, allowed, names: str) -> np.dtype:

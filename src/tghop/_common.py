@@ -259,23 +259,46 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
 
 
-def checked_image(image, where, name="image", channels=None):
+def checked_image(image, where, name="image", channels=None, *, only_uint8=False, empty=True):
     """``image`` as an (H, W, C) array, not converted, or a one-line :class:`InvalidImageError`
     naming ``where`` and ``name``.
 
     The check of the generation steps' images (:func:`tghop.colour.match_histograms`,
-    :func:`tghop.refine.refine`, ...), cheap enough for every image they are given: float
-    images must be finite and in [0, 1] (within :func:`check_image`'s
-    tolerance; one min and one max, which a NaN fails), unsigned integer ones pass as they
-    are; ``channels``: the channel count the caller's statistics have (None: any).
+    :func:`tghop.refine.refine`, ...), of :meth:`tghop.hops.HopStack.fit_image`'s and of
+    :func:`tghop.inpaint.inpaint`'s, cheap enough for every image they are given: float
+    images must be finite and in [0, 1] (within :func:`check_image`'s tolerance; one min and
+    one max, which a NaN fails), unsigned integer ones pass as they are.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W, C)
+    where : str
+        The function checking, put before the message (``"where: name must ..."``).
+    name : str
+        How the image is called in the message.
+    channels : int or None
+        The channel count the caller's statistics have; None: any.
+    only_uint8 : bool
+        Of the integer images, accept uint8 only (for callers that read it as 8-bit levels).
+    empty : bool
+        Accept an image of no pixels.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C)
+        ``np.asarray(image)``.
     """
     arr = np.asarray(image)
-    if arr.ndim != 3 or arr.shape[2] < 1 or arr.dtype.kind not in "fu":
-        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1], "
-                                f"got {arr.dtype} of shape {arr.shape}")
+    if (arr.ndim != 3 or arr.shape[2] < 1 or arr.dtype.kind not in "fu"
+            or (only_uint8 and arr.dtype.kind == "u" and arr.dtype != np.uint8)):
+        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1]"
+                                f"{' or uint8' if only_uint8 else ''}, got {arr.dtype} of shape {arr.shape}")
     if channels is not None and arr.shape[2] != channels:
         raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channels where {channels} are expected "
                                 "(as many as the statistics have)")
+    if not empty and arr.size == 0:
+        raise InvalidImageError(f"{where}: the {name} is empty (shape {arr.shape}); "
+                                "give an image of at least one pixel")
     if arr.dtype.kind == "f" and arr.size and not (arr.min() >= -1e-6 and arr.max() <= 1 + 1e-6):
         check_image(arr, name=f"{where}: {name}", channels=None)  # its message: NaN, or the range
         raise InvalidImageError(f"{where}: {name} values must lie in [0, 1]")

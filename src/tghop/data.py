@@ -6,10 +6,9 @@ returns a float ``(H, W, 3)`` image in [0, 1] and is deterministic for a given `
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
+from ._arrays import check_int
 from ._common import TGHopError, check_rng, check_size
 
 __all__ = ["bricks", "cells", "builtin", "BUILTIN"]
@@ -24,13 +23,10 @@ def _smooth_noise(rng, shape, sigma):
 
 
 def _check_side(size) -> int:
-    """``size`` as an int of at least 32 within :data:`tghop._common.MAX_PIXELS` (through
-    :func:`tghop._common.check_size`), or a one-line :class:`TGHopError` before any work."""
-    if isinstance(size, (bool, np.bool_)) or not isinstance(size, (numbers.Integral, np.integer)):
-        raise TGHopError(f"size must be an integer number of pixels (at least 32), got {size!r}")
-    if size < 32:
-        raise TGHopError(f"size must be at least 32, got {size}")
-    return check_size(int(size))[0]
+    """``size`` as an int of at least 32 (:func:`tghop._arrays.check_int`) within
+    :data:`tghop._common.MAX_PIXELS` (:func:`tghop._common.check_size`), or a one-line
+    :class:`TGHopError` before any work."""
+    return check_size(check_int(size, "size", 32))[0]
 
 
 def bricks(size: int = 256, *, rng=0) -> np.ndarray:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, forget_fit
-from ._common import BaseEstimator, InvalidImageError, TGHopError, TransformerMixin, check_is_fitted, report
+from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, checked_image, report
 from .patches import depth_to_space, space_to_depth
 from .saab import Saab, select_channels
 from .settings import check_channel_rule
@@ -291,25 +291,6 @@ def _block_sums(blocks, group, weights=None, chunk=1 << 18):
     return total, moment, max_sq, count
 
 
-def _check_fit_image(image):
-    """:meth:`HopStack.fit_image`'s ``image`` (H, W, C), float in [0, 1] or uint8, without a
-    float copy (a large exemplar stays uint8): one min and one max pass over a float image."""
-    image = image if isinstance(image, np.ndarray) else np.asarray(image)
-    if image.ndim != 3 or min(image.shape) < 1:
-        raise InvalidImageError(f"image must have shape (H, W, C), got {image.shape}")
-    if image.dtype == np.uint8:
-        return image
-    if image.dtype.kind != "f":
-        raise InvalidImageError(f"image must be float in [0, 1] or uint8, got dtype {image.dtype}")
-    lo, hi = float(image.min()), float(image.max())
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        raise InvalidImageError("image contains NaN or infinite values; clean it first")
-    if lo < -1e-6 or hi > 1 + 1e-6:
-        raise InvalidImageError(f"image values must lie in [0, 1], got [{lo:.3g}, {hi:.3g}]; "
-                                "divide 8-bit data by 255 (or pass it as uint8)")
-    return image
-
-
 def _check_origins(origins, shape, patch_size):
     """:meth:`HopStack.fit_image`'s ``origins``: (n, 2) ints, n >= 1, every patch inside the image."""
     arr = np.asarray(origins)
@@ -520,7 +501,7 @@ class HopStack(TransformerMixin, BaseEstimator):
             raise TGHopError(f"{n_hops} hop{'s need' if n_hops != 1 else ' needs'} a patch size divisible by {unit}, "
                              f"got {patch_size!r}")
         patch_size = int(patch_size)
-        image = _check_fit_image(image)
+        image = checked_image(image, "HopStack.fit_image", only_uint8=True, empty=False)  # a uint8 one stays uint8
         origins = _check_origins(origins, image.shape, patch_size)
         tile = max(unit, -(-int(tile) // unit) * unit)
         tiles = _tiles(image, origins, patch_size, tile)

@@ -39,7 +39,7 @@ import numbers
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_is_fitted, check_rng, report
+from ._common import TGHopError, check_is_fitted, check_rng, checked_image, report
 from .quilting import boundary_cut_mask, default_overlap
 from .pyramid import laplacian_pyramid, reconstruct
 from .refine import oriented_parts
@@ -106,16 +106,8 @@ def _working_image(image, n_channels):
         arr = arr[:, :, None]
     if arr.ndim != 3 or arr.shape[2] not in (1, 3):
         raise TGHopError(f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {np.asarray(image).shape}")
-    if arr.size == 0:
-        raise TGHopError(f"the image is empty (shape {arr.shape}); give an image of at least one pixel")
-    if arr.dtype == np.uint8:
-        work = arr.astype(np.float32) / np.float32(255.0)
-    elif arr.dtype.kind == "f":
-        if not np.isfinite(arr).all() or arr.min() < 0 or arr.max() > 1:
-            raise TGHopError("image values must be finite and in [0, 1] (or uint8); divide 8-bit data by 255")
-        work = arr.astype(np.float32)
-    else:
-        raise TGHopError(f"image must be float in [0, 1] or uint8, got dtype {arr.dtype}")
+    arr = checked_image(arr, "inpaint", only_uint8=True, empty=False)
+    work = arr.astype(np.float32) / np.float32(255.0) if arr.dtype == np.uint8 else arr.astype(np.float32)
     c = work.shape[2]
     if c == n_channels:
         return work, False
