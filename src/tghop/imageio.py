@@ -235,8 +235,9 @@ def _refuse_deep_tiff(path, photometric, bits):
 def _tiff_layout(page, path):
     """How tghop reads a TIFF page itself: ``(colours, alpha, inverted, premultiplied)`` (1 or 3
     colour samples; whether the next sample is alpha, as its ExtraSamples tag says; min-is-white
-    levels to invert; whether that alpha is associated, the colours multiplied by it), or None for Pillow's path: 8-bit and bilevel TIFF files of other colour kinds
-    (palette, CMYK, YCbCr, LAB, min-is-white), which Pillow converts to RGB or grey, and samples
+    levels to invert; whether that alpha is associated, the colours multiplied by it), or None for
+    Pillow's path: 8-bit and bilevel TIFF files of other colour kinds (palette, CMYK, YCbCr, LAB,
+    min-is-white), which Pillow converts to RGB or grey, and samples
     tifffile gives in no type tghop reads. Refused: a 16-bit or float one of those colour kinds
     (Pillow would reduce it to 8 bits or read it wrong)."""
     photometric, dtype = page.photometric, page.dtype
