@@ -861,6 +861,53 @@ def test_settings_changed_after_fit_are_refused_until_set_back(small_model, tmp_
         loaded.sample_patches(2, rng=0)
 
 
+def test_settings_of_a_fitted_part_a_shared_list_and_a_whole_float_count_as_changes(small_model, bricks96,
+                                                                                       tmp_path):
+    # review 60: 0.36 compared the model's own settings only, by ==, with the caller's list itself:
+    # ichm_.set_params(coupling=0) generated another model and saved a file load_model called corrupt;
+    # a list changed after fit was saved as the fit's; patch_size=32.0 passed (32.0 == 32) into raw
+    # TypeErrors; an array setting made the check raise NumPy's "truth value ... ambiguous".
+    import copy
+
+    model = copy.deepcopy(small_model)
+    model.ichm_.set_params(coupling=0.0)
+    with pytest.raises(TGHopError, match=re.escape("(ichm_.coupling 0.95 -> 0.0)")):
+        save_model(model, tmp_path / "m.npz")
+    model.ichm_.set_params(coupling=0.95)
+    model.set_params(patch_size=32.0)
+    with pytest.raises(TGHopError, match=re.escape("(patch_size 32 -> 32.0)")):
+        model.synthesize((32, 32), rng=0)
+    model.set_params(patch_size=32, n_channels=np.array([9, 22]))  # the same numbers as an array: the same
+    assert model.synthesize((32, 32), rng=0).shape == (32, 32, 3)
+    model.set_params(n_channels=np.array([9, 12]))
+    with pytest.raises(TGHopError, match="n_channels"):
+        model.encode(np.zeros((1, 32, 32, 3)))
+    assert not (tmp_path / "m.npz").exists()
+    channels = [9, 22]
+    shared = TGHop(**{**SMALL, "n_channels": channels, "layout_factor": None}).fit(bricks96)
+    channels[1] = 12  # the caller's list, changed after fit
+    with pytest.raises(TGHopError, match=re.escape("(n_channels [9, 22] -> [9, 12])")):
+        save_model(shared, tmp_path / "s.npz")
+
+
+def test_the_fit_seed_may_change_after_fit_and_numpy_settings_save(small_model, bricks96, tmp_path):
+    # review 60: set_params(rng=5) after fit refused synthesize, decode and the rest (rng is the fit's
+    # seed; synthesize takes its own); np.int64 settings fitted but failed to save (JSON).
+    import copy
+
+    model = copy.deepcopy(small_model).set_params(rng=5)
+    assert model.synthesize((32, 32), rng=0).shape == (32, 32, 3)
+    save_model(model, tmp_path / "m.npz")
+    assert load_model(tmp_path / "m.npz").rng == 0  # the seed it was fitted with
+    numpy_settings = {**SMALL, "n_clusters": np.int64(8), "stride": np.int64(4), "rng": np.int64(0),
+                      "n_channels": np.array([9, 22]), "layout_factor": None}
+    fitted = TGHop(**numpy_settings).fit(bricks96)
+    save_model(fitted, tmp_path / "n.npz")
+    loaded = load_model(tmp_path / "n.npz")
+    assert (loaded.n_clusters, loaded.stride, loaded.rng, tuple(loaded.n_channels)) == (8, 4, 0, (9, 22))
+    np.testing.assert_array_equal(loaded.synthesize((32, 32), rng=1), fitted.synthesize((32, 32), rng=1))
+
+
 def test_a_refit_refused_for_its_settings_keeps_the_earlier_fit_and_a_failed_one_leaves_none(
         small_model, bricks96, monkeypatch):
     import copy

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from tghop import ModelFileError
+from tghop._common import fitted_settings
 from tghop.modelfile import FORMAT_VERSION, load_model, save_model
 
 
@@ -276,6 +277,8 @@ def test_files_without_a_later_setting_read_as_fitted(saved, tmp_path, setting):
     plain = load_model(path)
     setattr(plain.ichm_, setting, 0.0)
     setattr(plain.layout_.model_.ichm_, setting, 0.0)
+    for model in (plain, plain.layout_.model_):  # set by hand as in a file before the setting
+        model._fitted_params = fitted_settings(model)
     expected = plain.synthesize((48, 48), rng=2, n_patches=200)
     assert np.array_equal(old.synthesize((48, 48), rng=2, n_patches=200), expected)
     assert not np.array_equal(load_model(path).synthesize((48, 48), rng=2, n_patches=200), expected)
@@ -322,7 +325,7 @@ def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved,
     other = copy.copy(small_model)
     for rng, recorded in ((np.int64(5), 5), (np.random.default_rng(0), None), (None, None)):
         other.rng = rng  # as if fitted with it (the settings it was fitted with too)
-        other._fitted_params = other.get_params(deep=False)
+        other._fitted_params = fitted_settings(other)
         assert other._state_meta()["params"]["rng"] == recorded and info_dict(other)["fit_seed"] == recorded
     expected = small_model.synthesize((32, 32), rng=1, n_patches=100)
     for old in (None, "x", True, -1, 1.5):  # files of 0.32 and before (null), and edited ones: no seed

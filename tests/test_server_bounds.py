@@ -88,6 +88,7 @@ def two_model_files(small_model, tmp_path_factory):
     """Two different model files (bytes) of the same size, give or take a few bytes."""
     import copy
 
+    from tghop._common import fitted_settings
     from tghop.modelfile import save_model
 
     folder = tmp_path_factory.mktemp("models")
@@ -95,7 +96,7 @@ def two_model_files(small_model, tmp_path_factory):
     for seed in (0, 1):
         path = folder / f"m{seed}.npz"
         model = copy.deepcopy(small_model).set_params(max_patches=20000 + seed)  # stored, not checked: as if
-        model._fitted_params = model.get_params(deep=False)  # fitted with it, so that it saves
+        model._fitted_params = fitted_settings(model)  # fitted with it, so that it saves
         save_model(model, path)
         out.append(path.read_bytes())
     assert out[0] != out[1] and len(out[0]) == len(out[1])

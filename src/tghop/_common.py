@@ -156,19 +156,45 @@ def check_is_fitted(estimator, attributes) -> None:
         )
     fitted = vars(estimator).get("_fitted_params")  # kept by TGHop.fit and load: the settings of its state
     if fitted is not None:
-        now = estimator.get_params(deep=False)
-        changed = [k for k, v in now.items() if not _same_setting(v, fitted.get(k))]
+        now = fitted_settings(estimator)
+        changed = [k for k in now if k in fitted and k.split(".")[-1] != "rng" and not _same_setting(now[k], fitted[k])]
         if changed:
-            what = ", ".join(f"{k} {fitted.get(k)!r} -> {now[k]!r}" for k in changed)
+            what = ", ".join(f"{k} {fitted[k]!r} -> {now[k]!r}" for k in changed)
             raise TGHopError(f"this {type(estimator).__name__}'s settings changed after it was fitted ({what}); "
                              "fit it again, or set them back with set_params")
 
 
+def fitted_settings(estimator) -> dict:
+    """What :func:`check_is_fitted` holds a fitted estimator's settings to: its own (``get_params``) and
+    those of its fitted parts (attributes ending in ``_`` that have ``get_params``, as ``part_.name``),
+    lists and arrays copied, so that a list the caller changes later counts as a change. ``rng`` (the
+    fit's seed) is kept but not compared: changing it after fit changes nothing learned. A part set to
+    None or removed since is not compared either (a model file without it loads so)."""
+    def copied(value):
+        return [copied(v) for v in value] if isinstance(value, (list, tuple, np.ndarray)) else value
+
+    out = {k: copied(v) for k, v in estimator.get_params(deep=False).items()}
+    for name, part in vars(estimator).items():
+        if name.endswith("_") and not name.startswith("_") and callable(getattr(part, "get_params", None)):
+            out.update({f"{name}.{k}": copied(v) for k, v in part.get_params(deep=False).items()})
+    return out
+
+
 def _same_setting(a, b) -> bool:
-    """Whether two values of a setting are the same (a list and a tuple of the same numbers are)."""
-    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return tuple(a) == tuple(b)
-    return a is b or bool(a == b)
+    """Whether two values of a setting are the same: sequences (lists, tuples, arrays) element by element,
+    an integer never the same as a float (``patch_size`` 32.0 is refused where 32 is taken)."""
+    if a is b:
+        return True
+    sequences = (list, tuple, np.ndarray)
+    if isinstance(a, sequences) or isinstance(b, sequences):
+        return (isinstance(a, sequences) and isinstance(b, sequences) and len(a) == len(b)
+                and all(_same_setting(x, y) for x, y in zip(a, b)))
+    if isinstance(a, numbers.Integral) != isinstance(b, numbers.Integral) or isinstance(a, bool) != isinstance(b, bool):
+        return False
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):  # values that cannot be compared
+        return False
 
 
 #: ``progress(stage, done, total)``: called by long-running steps. ``stage`` is a short

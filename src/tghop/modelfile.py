@@ -33,7 +33,7 @@ from . import __version__
 from ._common import ModelFileError, TGHopError
 from .imageio import check_output_path, write_atomic
 from .material import Material
-from .settings import recorded_seed
+from .settings import fit_seed
 from .synthesis import TGHop
 
 __all__ = ["save_model", "load_model", "FORMAT", "FORMAT_VERSION", "info_dict"]
@@ -68,9 +68,17 @@ def save_model(model, path) -> None:
     new = "material" in meta or any(name.startswith("patch.") or "ichm_iv." in name or "ichm_coupling." in name
                                    or name.endswith("colour.centres") for name in arrays)
     meta["format_version"] = FORMAT_VERSION if new else 3
-    arrays["__meta__"] = np.array(json.dumps(meta))
+    arrays["__meta__"] = np.array(json.dumps(meta, default=_json_number))
     check_output_path(path, what="model", error=ModelFileError)
     write_atomic(path, lambda fh: np.savez(fh, **arrays), what="model", error=ModelFileError)
+
+
+def _json_number(value):
+    """A NumPy number or array in a model's metadata (a setting given as ``np.int64(6)`` or an array)
+    as the Python value JSON writes."""
+    if isinstance(value, (np.generic, np.ndarray)):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON data")
 
 
 def info_dict(model, params=None) -> dict:
@@ -90,7 +98,7 @@ def info_dict(model, params=None) -> dict:
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
             "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor),
-            "fit_seed": recorded_seed(model.rng)}
+            "fit_seed": fit_seed(model)}
 
 
 def _check_path(path, caller: str, verb: str) -> None:

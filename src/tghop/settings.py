@@ -43,7 +43,7 @@ from typing import Any, Optional, Tuple
 from ._errors import TGHopError
 
 __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "QUALITY", "fit_settings", "generate_settings", "check_settings",
-           "component_params", "numpydoc_parameters", "check_channel_rule", "recorded_seed"]
+           "component_params", "numpydoc_parameters", "check_channel_rule", "recorded_seed", "fit_seed"]
 
 _MISSING = object()
 
@@ -440,6 +440,12 @@ def recorded_seed(rng):
     if isinstance(rng, numbers.Integral) and not isinstance(rng, bool) and rng >= 0:
         return int(rng)
     return None
+
+
+def fit_seed(model):
+    """:func:`recorded_seed` of the ``rng`` a fitted model was fitted with (its ``rng`` now may
+    have been changed by ``set_params`` since, which changes nothing learned)."""
+    return recorded_seed(vars(model).get("_fitted_params", {}).get("rng", model.rng))
 
 
 def file_settings(params: dict) -> dict:

@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from . import settings
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture, in_thread,
-                      report)
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture,
+                      fitted_settings, in_thread, report)
 from ._arrays import check_array, check_dtype, check_width, forget_fit
 from .core import ICHM
 from .sdr import SpatialReduction
@@ -238,7 +238,7 @@ class TGHop(BaseEstimator):
                 if "_fitted_params" not in self.__dict__:
                     forget_fit(self)
                 raise
-        self._fitted_params = self.get_params(deep=False)  # what check_is_fitted holds the settings to
+        self._fitted_params = fitted_settings(self)  # what check_is_fitted holds the settings to
         return self
 
     def _fit(self, image, *, exclude=None, progress=None):
@@ -304,7 +304,7 @@ class TGHop(BaseEstimator):
     def _state_meta(self) -> dict:
         """JSON-ready settings and shapes needed, with :meth:`_to_arrays`, to rebuild the model."""
         params = {s.name: getattr(self, s.name) for s in settings.fit_settings()}
-        params["rng"] = settings.recorded_seed(self.rng)  # an int seed; a Generator is not data
+        params["rng"] = settings.fit_seed(self)  # an int seed; a Generator is not data
         if params["n_channels"] is not None:
             params["n_channels"] = list(params["n_channels"])
         return {
@@ -349,7 +349,7 @@ class TGHop(BaseEstimator):
             sub = {k[len("layout."):]: v for k, v in arrays.items() if k.startswith("layout.")}
             model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
         model._check_consistent()
-        model._fitted_params = model.get_params(deep=False)
+        model._fitted_params = fitted_settings(model)
         return model
 
     @classmethod
