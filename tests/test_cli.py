@@ -15,6 +15,7 @@ from PIL import Image
 
 from tghop import data
 from tghop.imageio import save_image
+from tghop.modelfile import load_model
 
 from conftest import assert_user_error, cli
 
@@ -52,6 +53,15 @@ def test_info(model_path):
     assert r.returncode == 0
     out = r.stdout.decode()
     assert "transform stage 1" in out and "core ICHM (ii)" in out and "12*K1 + 1" in out
+    # review 60: the summary set the total (our additions too) against the paper's formulas; the
+    # paper's modules are what compares with them
+    import re
+
+    line = next(x for x in out.splitlines() if x.startswith("parameters:"))
+    total, ours, formulas = (int(v.replace(",", "")) for v in re.findall(r"[\d,]{2,}", line))
+    params = load_model(model_path).n_parameters()
+    assert (total, ours, formulas) == (params["total"]["stored"], params["the paper's modules"]["stored"],
+                                       params["the paper's modules"]["paper"])
 
 
 def test_patches_grid_and_stages(model_path, workdir):

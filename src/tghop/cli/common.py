@@ -180,7 +180,10 @@ def summary(model, params=None) -> str:
     """Dimensions, core model and parameter total of a fitted model (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it)."""
     d = model.dims_
+    from ..parameter_count import PAPER_MODULES
+
     params = model.n_parameters() if params is None else params
+    paper = params[PAPER_MODULES]  # what compares with the paper's total: the total holds our additions too
     dims = " -> ".join(f"D{i}={d[f'D{i}']}" for i in range(len(model.channels_) + 1))
     ks = ", ".join(f"K{i + 1}={k}" for i, k in enumerate(model.channels_))
     classes = getattr(model, "classes_", None)
@@ -189,7 +192,8 @@ def summary(model, params=None) -> str:
         f"core model: N={d['N']} clusters, F={d['F']} CDFs, W={d['W']} codewords\n"
         f"colour classes: {classes.n_classes if classes is not None else 'none (fitted with --colour-classes 0)'}\n"
         f"layout: {layout_summary(model)}\n"
-        f"parameters: {params['total']['stored']:,} stored ({params['total']['paper']:,} by the paper's formulas)"
+        f"parameters: {params['total']['stored']:,} stored; the paper's modules {paper['stored']:,} "
+        f"({paper['paper']:,} by the paper's formulas)"
     )
 
 
