@@ -1012,3 +1012,14 @@ def test_inspection_refuses_bad_shapes_and_labels(small_model):
             small_model.encode(x)
     with pytest.raises(TGHopError, match=re.escape("patches must have shape (n, P, P, C), got (32, 32, 3)")):
         small_model.encode(np.zeros((32, 32, 3)))
+
+
+@pytest.mark.parametrize("chunk", [-1, 0, 2.5, True, "8"])
+def test_predict_checks_chunk(small_model, chunk):
+    # review 60: -1 returned uninitialised labels, 0 a raw ValueError, 2.5 a raw TypeError
+    p = small_model.patch_size
+    z = small_model.encode(np.zeros((5, p, p, 3)))
+    with pytest.raises(TGHopError, match="ICHM.predict: chunk must be an integer >= 1") as info:
+        small_model.ichm_.predict(z, chunk=chunk)
+    assert "\n" not in str(info.value)
+    np.testing.assert_array_equal(small_model.ichm_.predict(z, chunk=2), small_model.ichm_.predict(z))
