@@ -1023,3 +1023,13 @@ def test_predict_checks_chunk(small_model, chunk):
         small_model.ichm_.predict(z, chunk=chunk)
     assert "\n" not in str(info.value)
     np.testing.assert_array_equal(small_model.ichm_.predict(z, chunk=2), small_model.ichm_.predict(z))
+
+
+def test_transform_takes_an_empty_labels_list_for_no_vectors(small_model):
+    # review 60: [] became a float array and was refused
+    d = small_model.ichm_.means_.shape[1]
+    labels, sources = small_model.ichm_.transform(np.zeros((0, d)), labels=[])
+    assert labels.shape == (0,) and labels.dtype == np.int64
+    assert [s.shape for s in sources] == [(0, k) for k in small_model.ichm_.n_components_]
+    with pytest.raises(TGHopError, match="labels must be 2 cluster indices"):
+        small_model.ichm_.transform(np.zeros((2, d)), labels=[])

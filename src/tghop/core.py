@@ -818,6 +818,8 @@ class ICHM(BaseEstimator):
         if labels is None:
             labels = self.predict(Z)
         labels = np.asarray(labels)
+        if labels.size == 0 and labels.ndim == 1:  # [] is float64: no index, and none is wrong
+            labels = labels.astype(np.int64)
         if labels.shape != (len(Z),) or labels.dtype.kind not in "iu" or (
                 len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
             raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "
