@@ -1033,3 +1033,12 @@ def test_transform_takes_an_empty_labels_list_for_no_vectors(small_model):
     assert [s.shape for s in sources] == [(0, k) for k in small_model.ichm_.n_components_]
     with pytest.raises(TGHopError, match="labels must be 2 cluster indices"):
         small_model.ichm_.transform(np.zeros((2, d)), labels=[])
+
+
+def test_encode_reads_uint8_as_its_floats(small_model, bricks96):
+    # review 60: uint8 patches were projected as 0-255 values
+    p = small_model.patch_size
+    eight = np.round(bricks96[None, :p, :p] * 255).astype(np.uint8)
+    np.testing.assert_allclose(small_model.encode(eight), small_model.encode(eight / 255.0), rtol=0, atol=1e-12)
+    sixteen = eight.astype(np.uint16) * 257
+    np.testing.assert_allclose(small_model.encode(sixteen), small_model.encode(eight / 255.0), rtol=0, atol=1e-12)
