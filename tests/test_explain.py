@@ -136,3 +136,11 @@ def test_cli_refuses_a_material_in_one_line(bricks96, tmp_path):
     assert r.returncode != 0 and len(err.splitlines()) == 1 and err.startswith("Error: "), err
     assert "material" in err and "fit a plain model" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("shape", [96, (96,), "96x96", (96, 0), (96.0, 96), None])
+def test_cluster_image_checks_shape(shape):
+    # review 60: shape=96 was a raw TypeError, (96,) a raw ValueError
+    with pytest.raises(TGHopError, match="cluster_image: shape") as info:
+        cluster_image(np.zeros((3, 3), dtype=int), 32, 32, shape)
+    assert "\n" not in str(info.value)

@@ -149,9 +149,9 @@ def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
     patch_size, stride : int
         Those the map was computed with (``model.patch_size``; the ``stride`` given, or
         ``model.stride``).
-    shape : tuple
-        (H, W, ...) of the image the map was computed on: ``rows == (H - P) // stride + 1``
-        and ``cols == (W - P) // stride + 1``.
+    shape : tuple of int
+        (H, W) or (H, W, C) of the image the map was computed on (positive integers):
+        ``rows == (H - P) // stride + 1`` and ``cols == (W - P) // stride + 1``.
 
     Returns
     -------
@@ -164,7 +164,10 @@ def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
     if lab.ndim != 2 or lab.size == 0 or not np.issubdtype(lab.dtype, np.integer) or lab.min() < 0:
         raise TGHopError(f"labels must be a non-empty (rows, cols) array of cluster indices (integers, at least 0), "
                          f"got {lab.dtype} of shape {lab.shape}; give cluster_map's result")
-    h, w = (int(v) for v in shape[:2])
+    if isinstance(shape, (str, bytes)) or not hasattr(shape, "__len__") or len(shape) < 2:
+        raise TGHopError(f"cluster_image: shape must be the image's (H, W) or (H, W, C), got {shape!r:.60}; "
+                         "give image.shape")
+    h, w = (check_int(v, f"shape[{k}]", 1, where="cluster_image") for k, v in enumerate(shape[:2]))
     grid = ((h - p) // s + 1, (w - p) // s + 1) if h >= p and w >= p else (0, 0)
     if lab.shape != grid:
         raise TGHopError(f"labels of shape {lab.shape} are not the grid of {p}x{p} patches at stride {s} of a "
