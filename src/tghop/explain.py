@@ -128,7 +128,8 @@ def cluster_colours(n: int) -> np.ndarray:
 
 def _nearest_cells(n_pixels, n_cells, patch_size, stride):
     """For each pixel index along one axis, the grid index of the patch whose centre (origin
-    + P // 2) is nearest (ties to the earlier patch), clipped to the grid."""
+    + (P - 1) / 2: its middle pixel, or halfway between its two middle ones for an even P) is
+    nearest (ties to the earlier patch), clipped to the grid."""
     y = np.arange(n_pixels)
     # ceil((2y - P + 1 - s) / 2s): the patch i with |y - (i s + (P - 1) / 2)| smallest.
     return np.clip(-((stride + patch_size - 1 - 2 * y) // (2 * stride)), 0, n_cells - 1)
@@ -138,9 +139,10 @@ def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
     """Paint a :func:`cluster_map` as an image of the size it was computed on.
 
     Each pixel takes the colour of the patch whose centre is nearest along each axis: the
-    ``stride`` x ``stride`` cell around each patch's centre (origin + ``patch_size // 2``)
-    has that patch's cluster colour, and the border no patch centre reaches (about
-    ``patch_size / 2`` pixels each side) takes the nearest cell's.
+    ``stride`` x ``stride`` cell around each patch's centre (origin + ``(patch_size - 1) / 2``,
+    between its two middle pixels for an even size; a pixel as near two centres takes the
+    earlier patch's) has that patch's cluster colour, and the border no patch centre
+    reaches (about ``patch_size / 2`` pixels each side) takes the nearest cell's.
 
     Parameters
     ----------
