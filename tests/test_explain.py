@@ -144,3 +144,16 @@ def test_cluster_image_checks_shape(shape):
     with pytest.raises(TGHopError, match="cluster_image: shape") as info:
         cluster_image(np.zeros((3, 3), dtype=int), 32, 32, shape)
     assert "\n" not in str(info.value)
+
+
+def test_a_material_or_an_ichm_is_named_not_called_unfitted(bricks96):
+    # review 60: a fitted Material or ICHM was "not fitted yet"
+    from tghop.material import Material
+
+    height = bricks96.mean(axis=2, keepdims=True)
+    material = Material(model=TGHop(**SMALL), rng=0).fit(bricks96, {"height": height})
+    with pytest.raises(TGHopError, match="expects a fitted TGHop, got Material; give its model_") as info:
+        cluster_map(material, bricks96)
+    assert "\n" not in str(info.value) and "not fitted" not in str(info.value)
+    with pytest.raises(TGHopError, match="got ICHM; give the TGHop whose ichm_ it is"):
+        cluster_map(material.model_.ichm_, bricks96)

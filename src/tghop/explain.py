@@ -17,7 +17,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
 from ._common import TGHopError, check_image, check_is_fitted
-from .synthesis import grey_as_rgb
+from .synthesis import TGHop, grey_as_rgb
 
 __all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK"]
 
@@ -31,7 +31,11 @@ _GOLDEN = (5 ** 0.5 - 1) / 2
 def _model_image(model, image):
     """``image`` as float64 (H, W, C) with the model's channel count C (a grey image stored
     as RGB is taken as one channel for a grey model, as :func:`~tghop.synthesis.prepare_exemplar`
-    does); one :class:`TGHopError` line for any other count."""
+    does); one :class:`TGHopError` line for any other count, or for a model not a TGHop."""
+    if hasattr(model, "__dict__") and not isinstance(model, TGHop):  # else check_is_fitted: "not fitted yet"
+        hint = {"Material": "give its model_ (the TGHop fitted on its albedo), or fit a plain TGHop",
+                "ICHM": "give the TGHop whose ichm_ it is"}.get(type(model).__name__, "fit a TGHop on an exemplar")
+        raise TGHopError(f"cluster_map expects a fitted TGHop, got {type(model).__name__}; {hint}")
     check_is_fitted(model, "ichm_")
     want = model.exemplar_shape_[2]
     img = check_image(image, min_size=model.patch_size, name="image", channels=None)
@@ -78,7 +82,8 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
     NotFittedError
         Before :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`.
     TGHopError
-        An image of another channel count, smaller than a patch, or not an image.
+        An image of another channel count, smaller than a patch, or not an image; a model
+        that is not a :class:`~tghop.synthesis.TGHop` (a material: its ``model_``).
 
     Examples
     --------
