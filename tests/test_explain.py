@@ -157,3 +157,14 @@ def test_a_material_or_an_ichm_is_named_not_called_unfitted(bricks96):
     assert "\n" not in str(info.value) and "not fitted" not in str(info.value)
     with pytest.raises(TGHopError, match="got ICHM; give the TGHop whose ichm_ it is"):
         cluster_map(material.model_.ichm_, bricks96)
+
+
+def test_palette_colours_stay_apart_up_to_100():
+    # review 60: the golden-ratio hues with three saturation/value levels came within 0.048 in RGB at
+    # N = 50 (19 pairs under 0.1) and 0.047 at N = 100 (56 pairs); the farthest-point palette's minima
+    # are 0.276 at N = 50 and 0.204 at N = 100.
+    for n, bound in ((50, 0.27), (100, 0.2)):
+        colours = cluster_colours(n)
+        d = np.linalg.norm(colours[:, None] - colours[None, :], axis=2) + 9 * np.eye(n)
+        assert d.min() > bound, (n, d.min())
+    np.testing.assert_array_equal(cluster_colours(100)[:50], cluster_colours(50))

@@ -10,8 +10,6 @@ side by side.
 
 from __future__ import annotations
 
-import colorsys
-
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
@@ -19,13 +17,13 @@ from ._arrays import check_int
 from ._common import TGHopError, check_image, check_is_fitted
 from .synthesis import TGHop, grey_as_rgb
 
-__all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK"]
+__all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK", "PALETTE_LEVELS"]
 
 #: Patches encoded at a time by :func:`cluster_map` (memory: a few tens of MB at 32x32x3).
 CHUNK = 512
 
-#: The golden ratio's fractional part: successive hues as far apart as they can be.
-_GOLDEN = (5 ** 0.5 - 1) / 2
+#: Levels per channel of the grid :func:`cluster_colours` picks its colours from.
+PALETTE_LEVELS = 13
 
 
 def _model_image(model, image):
@@ -112,9 +110,12 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
 def cluster_colours(n: int) -> np.ndarray:
     """The palette of :func:`cluster_image`: cluster ``k``'s colour, the same for every model.
 
-    Hues step by the golden ratio's fractional part (0.618 of the circle: neighbouring indices
-    far apart, every new hue between earlier ones), with saturation and value alternating
-    over three levels so that clusters whose hues come close still differ.
+    A farthest-point order of the RGB cube's colours on a grid of ``PALETTE_LEVELS`` levels
+    per channel: colour 0 is a red, and each next colour is the grid colour farthest (in RGB
+    distance) from all earlier ones, the first such in raster order on a tie (integer
+    distances: the same order everywhere). Colour ``k`` does not depend on ``n``; any two of
+    the first 50 are at least 0.27 apart in RGB, of the first 100 at least 0.20 (the cube's
+    diagonal is 1.73). Past the grid's 2,197 colours the order repeats.
 
     Parameters
     ----------
@@ -127,8 +128,16 @@ def cluster_colours(n: int) -> np.ndarray:
         RGB of clusters 0 .. n - 1.
     """
     n = check_int(n, "n", 0)
-    return np.array([colorsys.hsv_to_rgb((k * _GOLDEN) % 1.0, (0.95, 0.6, 0.8)[k % 3], (0.95, 0.85, 0.65)[k % 3])
-                     for k in range(n)], dtype=np.float64).reshape(n, 3)
+    levels = PALETTE_LEVELS - 1
+    grid = np.stack(np.meshgrid(*[np.arange(levels + 1)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    order = np.empty(min(n, len(grid)), dtype=np.intp)
+    far = np.full(len(grid), np.iinfo(np.int64).max)
+    pick = int(np.flatnonzero((grid == (levels - 1, 1, 1)).all(axis=1))[0])
+    for k in range(len(order)):
+        order[k] = pick
+        far = np.minimum(far, ((grid - grid[pick]) ** 2).sum(axis=1))
+        pick = int(np.argmax(far))
+    return (grid[order[np.arange(n) % max(len(order), 1)]] / levels).astype(np.float64).reshape(n, 3)
 
 
 def _nearest_cells(n_pixels, n_cells, patch_size, stride):
