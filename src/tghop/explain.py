@@ -14,7 +14,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
-from ._common import TGHopError, check_image, check_is_fitted
+from ._common import TGHopError, check_image, check_is_fitted, report
 from .synthesis import TGHop, grey_as_rgb
 
 __all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK", "PALETTE_LEVELS"]
@@ -48,7 +48,7 @@ def _model_image(model, image):
     return img
 
 
-def cluster_map(model, image, *, stride=None) -> np.ndarray:
+def cluster_map(model, image, *, stride=None, progress=None) -> np.ndarray:
     """The cluster of the model's core model that each patch of ``image`` falls in.
 
     Every ``model.patch_size`` patch with its top-left corner on a grid of ``stride`` pixels
@@ -67,6 +67,9 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
     stride : int, optional
         Step between patch origins, at least 1; default the model's fit stride
         (``model.stride``: at it the exemplar's patches are the fit's training patches).
+    progress : callable, optional
+        ``progress(stage, done, total)``, called with stage ``"cluster map"`` and the patches
+        mapped so far, before the first chunk and after each.
 
     Returns
     -------
@@ -100,10 +103,12 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
     rows, cols = windows.shape[:2]
     labels = np.empty(rows * cols, dtype=np.int64)
     step = check_int(CHUNK, "CHUNK", 1)
+    report(progress, "cluster map", 0, labels.size)
     for a in range(0, labels.size, step):
         i, j = np.divmod(np.arange(a, min(a + step, labels.size)), cols)
         patches = windows[i, j].transpose(0, 2, 3, 1)  # (n, P, P, C), a copy of this chunk only
         labels[a: a + step] = model.ichm_.predict(model.encode(patches))
+        report(progress, "cluster map", min(a + step, labels.size), labels.size)
     return labels.reshape(rows, cols)
 
 
