@@ -1012,3 +1012,33 @@ def test_inspection_refuses_bad_shapes_and_labels(small_model):
             small_model.encode(x)
     with pytest.raises(TGHopError, match=re.escape("patches must have shape (n, P, P, C), got (32, 32, 3)")):
         small_model.encode(np.zeros((32, 32, 3)))
+
+
+@pytest.mark.parametrize("chunk", [-1, 0, 2.5, True, "8"])
+def test_predict_checks_chunk(small_model, chunk):
+    # review 60: -1 returned uninitialised labels, 0 a raw ValueError, 2.5 a raw TypeError
+    p = small_model.patch_size
+    z = small_model.encode(np.zeros((5, p, p, 3)))
+    with pytest.raises(TGHopError, match="ICHM.predict: chunk must be an integer >= 1") as info:
+        small_model.ichm_.predict(z, chunk=chunk)
+    assert "\n" not in str(info.value)
+    np.testing.assert_array_equal(small_model.ichm_.predict(z, chunk=2), small_model.ichm_.predict(z))
+
+
+def test_transform_takes_an_empty_labels_list_for_no_vectors(small_model):
+    # review 60: [] became a float array and was refused
+    d = small_model.ichm_.means_.shape[1]
+    labels, sources = small_model.ichm_.transform(np.zeros((0, d)), labels=[])
+    assert labels.shape == (0,) and labels.dtype == np.int64
+    assert [s.shape for s in sources] == [(0, k) for k in small_model.ichm_.n_components_]
+    with pytest.raises(TGHopError, match="labels must be 2 cluster indices"):
+        small_model.ichm_.transform(np.zeros((2, d)), labels=[])
+
+
+def test_encode_reads_uint8_as_its_floats(small_model, bricks96):
+    # review 60: uint8 patches were projected as 0-255 values
+    p = small_model.patch_size
+    eight = np.round(bricks96[None, :p, :p] * 255).astype(np.uint8)
+    np.testing.assert_allclose(small_model.encode(eight), small_model.encode(eight / 255.0), rtol=0, atol=1e-12)
+    sixteen = eight.astype(np.uint16) * 257
+    np.testing.assert_allclose(small_model.encode(sixteen), small_model.encode(eight / 255.0), rtol=0, atol=1e-12)

@@ -96,7 +96,7 @@ def test_cli_writes_exemplar_and_map_side_by_side(small_model, bricks96, tmp_pat
     model, exemplar, out = tmp_path / "m.npz", tmp_path / "ex.png", tmp_path / "map.png"
     save_model(small_model, model)
     save_image(bricks96, exemplar)
-    r = cli("clusters", model, exemplar, "-o", out)
+    r = cli("clusters", model, exemplar, "-o", out, "-q")  # -q: no progress bar (review 60)
     assert r.returncode == 0, r.stderr
     image = load_image(out)
     assert image.shape == (96, 192, 3)
@@ -136,3 +136,58 @@ def test_cli_refuses_a_material_in_one_line(bricks96, tmp_path):
     assert r.returncode != 0 and len(err.splitlines()) == 1 and err.startswith("Error: "), err
     assert "material" in err and "fit a plain model" in err
     assert not out.exists()
+
+
+def test_a_material_or_an_ichm_is_named_not_called_unfitted(bricks96):
+    # review 60: a fitted Material or ICHM was "not fitted yet"
+    from tghop.material import Material
+
+    height = bricks96.mean(axis=2, keepdims=True)
+    material = Material(model=TGHop(**SMALL), rng=0).fit(bricks96, {"height": height})
+    with pytest.raises(TGHopError, match="expects a fitted TGHop, got Material; give its model_") as info:
+        cluster_map(material, bricks96)
+    assert "\n" not in str(info.value) and "not fitted" not in str(info.value)
+    with pytest.raises(TGHopError, match="got ICHM; give the TGHop whose ichm_ it is"):
+        cluster_map(material.model_.ichm_, bricks96)
+
+
+@pytest.mark.parametrize("shape", [96, (96,), "96x96", (96, 0), (96.0, 96), None])
+def test_cluster_image_checks_shape(shape):
+    # review 60: shape=96 was a raw TypeError, (96,) a raw ValueError
+    with pytest.raises(TGHopError, match="cluster_image: shape") as info:
+        cluster_image(np.zeros((3, 3), dtype=int), 32, 32, shape)
+    assert "\n" not in str(info.value)
+
+
+def test_palette_colours_stay_apart_up_to_100():
+    # review 60: the golden-ratio hues with three saturation/value levels came within 0.048 in RGB at
+    # N = 50 (19 pairs under 0.1) and 0.047 at N = 100 (56 pairs); the farthest-point palette's minima
+    # are 0.276 at N = 50 and 0.204 at N = 100.
+    for n, bound in ((50, 0.27), (100, 0.2)):
+        colours = cluster_colours(n)
+        d = np.linalg.norm(colours[:, None] - colours[None, :], axis=2) + 9 * np.eye(n)
+        assert d.min() > bound, (n, d.min())
+    np.testing.assert_array_equal(cluster_colours(100)[:50], cluster_colours(50))
+
+
+def test_progress_is_reported_per_chunk(small_model, bricks96, monkeypatch):
+    # review 60: the map (minutes at stride 1 on a large image) said nothing while it ran
+    monkeypatch.setattr(explain, "CHUNK", 100)
+    calls = []
+    labels = cluster_map(small_model, bricks96, stride=2, progress=lambda *a: calls.append(a))
+    total = labels.size
+    assert calls[0] == ("cluster map", 0, total) and calls[-1] == ("cluster map", total, total)
+    assert [c[1] for c in calls] == [0, *range(100, total, 100), total]
+    with pytest.raises(TGHopError, match="progress must be a function"):
+        cluster_map(small_model, bricks96, progress="yes")
+
+
+def test_cli_shows_progress_unless_quiet(small_model, bricks96, tmp_path):
+    model, exemplar, out = tmp_path / "m.npz", tmp_path / "ex.png", tmp_path / "map.png"
+    save_model(small_model, model)
+    save_image(bricks96, exemplar)
+    shown = cli("clusters", model, exemplar, "-o", out, "--stride", "1")
+    assert shown.returncode == 0, shown.stderr
+    assert "cluster map" in shown.stderr.decode()
+    quiet = cli("clusters", model, exemplar, "-o", out, "-q")
+    assert quiet.returncode == 0 and "cluster map" not in quiet.stderr.decode()

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import check_array, check_count, check_width, forget_fit
+from ._arrays import check_array, check_count, check_int, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
 from .sdr import flip_signs
@@ -782,13 +782,13 @@ class ICHM(BaseEstimator):
         Z : array_like, shape (n, D_r)
             Core vectors (``TGHop.encode`` of patches, or :meth:`sample`'s).
         chunk : int
-            Vectors per matrix product (memory ``chunk x N``).
+            Vectors per matrix product (memory ``chunk x N``), at least 1.
 
         Returns
         -------
         labels : ndarray of int, shape (n,)
         """
-        return nearest(self._check_vectors(Z), self.means_, chunk=chunk)
+        return nearest(self._check_vectors(Z), self.means_, chunk=check_int(chunk, "chunk", 1, where="ICHM.predict"))
 
     def transform(self, Z, *, labels=None):
         """The independent components of each vector in its cluster: the inverse of :meth:`mix`.
@@ -818,6 +818,8 @@ class ICHM(BaseEstimator):
         if labels is None:
             labels = self.predict(Z)
         labels = np.asarray(labels)
+        if labels.size == 0 and labels.ndim == 1:  # [] is float64: no index, and none is wrong
+            labels = labels.astype(np.int64)
         if labels.shape != (len(Z),) or labels.dtype.kind not in "iu" or (
                 len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
             raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "

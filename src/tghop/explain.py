@@ -10,28 +10,30 @@ side by side.
 
 from __future__ import annotations
 
-import colorsys
-
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
-from ._common import TGHopError, check_image, check_is_fitted
-from .synthesis import grey_as_rgb
+from ._common import TGHopError, check_image, check_is_fitted, report
+from .synthesis import TGHop, grey_as_rgb
 
-__all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK"]
+__all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK", "PALETTE_LEVELS"]
 
 #: Patches encoded at a time by :func:`cluster_map` (memory: a few tens of MB at 32x32x3).
 CHUNK = 512
 
-#: The golden ratio's fractional part: successive hues as far apart as they can be.
-_GOLDEN = (5 ** 0.5 - 1) / 2
+#: Levels per channel of the grid :func:`cluster_colours` picks its colours from.
+PALETTE_LEVELS = 13
 
 
 def _model_image(model, image):
     """``image`` as float64 (H, W, C) with the model's channel count C (a grey image stored
     as RGB is taken as one channel for a grey model, as :func:`~tghop.synthesis.prepare_exemplar`
-    does); one :class:`TGHopError` line for any other count."""
+    does); one :class:`TGHopError` line for any other count, or for a model not a TGHop."""
+    if hasattr(model, "__dict__") and not isinstance(model, TGHop):  # else check_is_fitted: "not fitted yet"
+        hint = {"Material": "give its model_ (the TGHop fitted on its albedo), or fit a plain TGHop",
+                "ICHM": "give the TGHop whose ichm_ it is"}.get(type(model).__name__, "fit a TGHop on an exemplar")
+        raise TGHopError(f"cluster_map expects a fitted TGHop, got {type(model).__name__}; {hint}")
     check_is_fitted(model, "ichm_")
     want = model.exemplar_shape_[2]
     img = check_image(image, min_size=model.patch_size, name="image", channels=None)
@@ -46,7 +48,7 @@ def _model_image(model, image):
     return img
 
 
-def cluster_map(model, image, *, stride=None) -> np.ndarray:
+def cluster_map(model, image, *, stride=None, progress=None) -> np.ndarray:
     """The cluster of the model's core model that each patch of ``image`` falls in.
 
     Every ``model.patch_size`` patch with its top-left corner on a grid of ``stride`` pixels
@@ -65,6 +67,9 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
     stride : int, optional
         Step between patch origins, at least 1; default the model's fit stride
         (``model.stride``: at it the exemplar's patches are the fit's training patches).
+    progress : callable, optional
+        ``progress(stage, done, total)``, called with stage ``"cluster map"`` and the patches
+        mapped so far, before the first chunk and after each.
 
     Returns
     -------
@@ -78,7 +83,8 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
     NotFittedError
         Before :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`.
     TGHopError
-        An image of another channel count, smaller than a patch, or not an image.
+        An image of another channel count, smaller than a patch, or not an image; a model
+        that is not a :class:`~tghop.synthesis.TGHop` (a material: its ``model_``).
 
     Examples
     --------
@@ -97,19 +103,24 @@ def cluster_map(model, image, *, stride=None) -> np.ndarray:
     rows, cols = windows.shape[:2]
     labels = np.empty(rows * cols, dtype=np.int64)
     step = check_int(CHUNK, "CHUNK", 1)
+    report(progress, "cluster map", 0, labels.size)
     for a in range(0, labels.size, step):
         i, j = np.divmod(np.arange(a, min(a + step, labels.size)), cols)
         patches = windows[i, j].transpose(0, 2, 3, 1)  # (n, P, P, C), a copy of this chunk only
         labels[a: a + step] = model.ichm_.predict(model.encode(patches))
+        report(progress, "cluster map", min(a + step, labels.size), labels.size)
     return labels.reshape(rows, cols)
 
 
 def cluster_colours(n: int) -> np.ndarray:
     """The palette of :func:`cluster_image`: cluster ``k``'s colour, the same for every model.
 
-    Hues step by the golden ratio's fractional part (0.618 of the circle: neighbouring indices
-    far apart, every new hue between earlier ones), with saturation and value alternating
-    over three levels so that clusters whose hues come close still differ.
+    A farthest-point order of the RGB cube's colours on a grid of ``PALETTE_LEVELS`` levels
+    per channel: colour 0 is a red, and each next colour is the grid colour farthest (in RGB
+    distance) from all earlier ones, the first such in raster order on a tie (integer
+    distances: the same order everywhere). Colour ``k`` does not depend on ``n``; any two of
+    the first 50 are at least 0.27 apart in RGB, of the first 100 at least 0.20 (the cube's
+    diagonal is 1.73). Past the grid's 2,197 colours the order repeats.
 
     Parameters
     ----------
@@ -122,13 +133,22 @@ def cluster_colours(n: int) -> np.ndarray:
         RGB of clusters 0 .. n - 1.
     """
     n = check_int(n, "n", 0)
-    return np.array([colorsys.hsv_to_rgb((k * _GOLDEN) % 1.0, (0.95, 0.6, 0.8)[k % 3], (0.95, 0.85, 0.65)[k % 3])
-                     for k in range(n)], dtype=np.float64).reshape(n, 3)
+    levels = PALETTE_LEVELS - 1
+    grid = np.stack(np.meshgrid(*[np.arange(levels + 1)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    order = np.empty(min(n, len(grid)), dtype=np.intp)
+    far = np.full(len(grid), np.iinfo(np.int64).max)
+    pick = int(np.flatnonzero((grid == (levels - 1, 1, 1)).all(axis=1))[0])
+    for k in range(len(order)):
+        order[k] = pick
+        far = np.minimum(far, ((grid - grid[pick]) ** 2).sum(axis=1))
+        pick = int(np.argmax(far))
+    return (grid[order[np.arange(n) % max(len(order), 1)]] / levels).astype(np.float64).reshape(n, 3)
 
 
 def _nearest_cells(n_pixels, n_cells, patch_size, stride):
     """For each pixel index along one axis, the grid index of the patch whose centre (origin
-    + P // 2) is nearest (ties to the earlier patch), clipped to the grid."""
+    + (P - 1) / 2: its middle pixel, or halfway between its two middle ones for an even P) is
+    nearest (ties to the earlier patch), clipped to the grid."""
     y = np.arange(n_pixels)
     # ceil((2y - P + 1 - s) / 2s): the patch i with |y - (i s + (P - 1) / 2)| smallest.
     return np.clip(-((stride + patch_size - 1 - 2 * y) // (2 * stride)), 0, n_cells - 1)
@@ -138,9 +158,10 @@ def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
     """Paint a :func:`cluster_map` as an image of the size it was computed on.
 
     Each pixel takes the colour of the patch whose centre is nearest along each axis: the
-    ``stride`` x ``stride`` cell around each patch's centre (origin + ``patch_size // 2``)
-    has that patch's cluster colour, and the border no patch centre reaches (about
-    ``patch_size / 2`` pixels each side) takes the nearest cell's.
+    ``stride`` x ``stride`` cell around each patch's centre (origin + ``(patch_size - 1) / 2``,
+    between its two middle pixels for an even size; a pixel as near two centres takes the
+    earlier patch's) has that patch's cluster colour, and the border no patch centre
+    reaches (about ``patch_size / 2`` pixels each side) takes the nearest cell's.
 
     Parameters
     ----------
@@ -149,9 +170,9 @@ def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
     patch_size, stride : int
         Those the map was computed with (``model.patch_size``; the ``stride`` given, or
         ``model.stride``).
-    shape : tuple
-        (H, W, ...) of the image the map was computed on: ``rows == (H - P) // stride + 1``
-        and ``cols == (W - P) // stride + 1``.
+    shape : tuple of int
+        (H, W) or (H, W, C) of the image the map was computed on (positive integers):
+        ``rows == (H - P) // stride + 1`` and ``cols == (W - P) // stride + 1``.
 
     Returns
     -------
@@ -164,7 +185,10 @@ def cluster_image(labels, patch_size: int, stride: int, shape) -> np.ndarray:
     if lab.ndim != 2 or lab.size == 0 or not np.issubdtype(lab.dtype, np.integer) or lab.min() < 0:
         raise TGHopError(f"labels must be a non-empty (rows, cols) array of cluster indices (integers, at least 0), "
                          f"got {lab.dtype} of shape {lab.shape}; give cluster_map's result")
-    h, w = (int(v) for v in shape[:2])
+    if isinstance(shape, (str, bytes)) or not hasattr(shape, "__len__") or len(shape) < 2:
+        raise TGHopError(f"cluster_image: shape must be the image's (H, W) or (H, W, C), got {shape!r:.60}; "
+                         "give image.shape")
+    h, w = (check_int(v, f"shape[{k}]", 1, where="cluster_image") for k, v in enumerate(shape[:2]))
     grid = ((h - p) // s + 1, (w - p) // s + 1) if h >= p and w >= p else (0, 0)
     if lab.shape != grid:
         raise TGHopError(f"labels of shape {lab.shape} are not the grid of {p}x{p} patches at stride {s} of a "

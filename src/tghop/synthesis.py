@@ -492,8 +492,8 @@ class TGHop(BaseEstimator):
         Parameters
         ----------
         patches : array_like, shape (n, P, P, C)
-            Patches as :meth:`sample_patches` returns them (in [0, 1]; other values are
-            projected all the same).
+            Patches as :meth:`sample_patches` returns them (in [0, 1]; other values are projected
+            all the same); uint8 and uint16 are read as x / 255 and x / 65535, as :meth:`fit` reads them.
 
         Returns
         -------
@@ -502,7 +502,9 @@ class TGHop(BaseEstimator):
             :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
         """
         check_is_fitted(self, "ichm_")
+        scale = {"uint8": 255.0, "uint16": 65535.0}.get(str(getattr(patches, "dtype", "")))  # as fit reads them
         x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
+        x = x if scale is None else x / scale
         shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
         check_width(x, "patches", "(n, {}, {}, {})".format(*shape), shape)
         return self.sdr_.transform(self.hops_.transform(x))

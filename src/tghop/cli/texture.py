@@ -166,7 +166,8 @@ def patches(model_file, n, output, seed, stages):
               help=f"I{OUTPUT_HELP[1:]}): EXEMPLAR on the left, its cluster map on the right.")
 @click.option("--stride", type=click.IntRange(min=1, max=4096), default=None,
               help="Step between the patches mapped, in pixels; default the model's fit stride.")
-def clusters(model_file, exemplar, output, stride):
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+def clusters(model_file, exemplar, output, stride, quiet):
     """Show which of MODEL's clusters each part of EXEMPLAR (an image file or builtin:NAME,
     with the model's channel count) falls in: the cluster of the patch centred nearest each
     pixel, one colour per cluster, beside the exemplar."""
@@ -176,12 +177,14 @@ def clusters(model_file, exemplar, output, stride):
     from ..imageio import save_image
     from ..modelfile import load_model
 
-    with user_errors():
+    progress = Progress(not quiet)
+    with user_errors(progress):
         check_output(output)
         check_outputs([("-o", output)], [("MODEL", model_file), ("EXEMPLAR", exemplar)])
         model = load_model(model_file)  # a material: one line, fit a plain model from its albedo
         image = load_exemplar(exemplar)
-        labels = cluster_map(model, image, stride=stride)
+        labels = cluster_map(model, image, stride=stride, progress=progress)
+        progress.close()
         painted = cluster_image(labels, model.patch_size, stride or model.stride, image.shape)
         left = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image
         save_image(np.concatenate([left, painted], axis=1), output)
