@@ -358,8 +358,8 @@ def md_clusters(res) -> str:
             for r in res["rows"]]
     text = ("## Fig. 11: number of clusters N (brick_wall, K1=9, K2=22, gamma=0.01)\n\n"
             "Paper: N=50 over-saturates, N=80 less so, ~100-110 good, little change to 200.\n\n")
-    text += markdown_table(["N", "F", "fit (s)", "parameters (paper formula)", "parameters (stored, the paper's modules)"] + METRIC_NAMES,
-                           rows)
+    text += markdown_table(["N", "F", "fit (s)", "parameters (paper formula)",
+                            "parameters (stored, the paper's modules)"] + METRIC_NAMES, rows)
     return text + f"\n\nSheet: `{Path(res['sheet']).name}`"
 
 
@@ -370,8 +370,8 @@ def md_gamma(res) -> str:
         rows.append([r["gamma"], r["dims"]["D_r"], paper_dr, r["dims"]["N"], r["dims"]["F"],
                      round(r["params_paper"] / 1e6, 2), round(r["params_stored"] / 1e6, 2), paper_m, r["fit_s"]])
     text = ("## Table 5 / Fig. 12: SDR threshold gamma (brick_wall, K1=9, K2=22, N=50)\n\n")
-    text += markdown_table(["gamma", "D_r", "D_r paper", "N", "F", "size, paper formula (M)", "size, stored (M; the paper's modules)",
-                            "size paper (M)", "fit (s)"], rows)
+    text += markdown_table(["gamma", "D_r", "D_r paper", "N", "F", "size, paper formula (M)",
+                            "size, stored (M; the paper's modules)", "size paper (M)", "fit (s)"], rows)
     text += ("\n\nThe paper says N also shrinks with gamma but gives no N per row; we keep N=50, so at large gamma "
              "our F (and size) stays higher than the paper's. Sheet: `" + Path(res["sheet"]).name + "`")
     return text
