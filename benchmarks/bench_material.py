@@ -86,6 +86,9 @@ def albedo_decides(material, weight=1e-3):
         def __init__(self, layout):
             self.layout = layout
 
+        def __getattr__(self, name):  # factor, patch_size, ... (tghop.layout.follows_guide reads them)
+            return getattr(self.__dict__["layout"], name)
+
         def guide(self, *args, **kw):
             g = self.layout.guide(*args, **kw)
             g[..., c0:] *= weight
