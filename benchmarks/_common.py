@@ -76,7 +76,19 @@ def timed(out: dict, key: str):
 
 
 def peak_rss_mb() -> float:
-    """Peak resident memory of this process so far, in MB."""
+    """Peak resident memory of this process so far, in MB.
+
+    Linux's ``VmHWM`` (this program's own peak): ``getrusage``'s ``ru_maxrss`` keeps the
+    peak of the process that started this one (it survives ``fork`` + ``exec``), so a child
+    of a large process would report its parent's peak, not its own.
+    """
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024  # kB
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 

@@ -395,12 +395,15 @@ def report(names, out: Path, threads: int):
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] in (["-h"], ["--help"]):
+        print("usage: bench_cooc_report.py baselines NAME...\n\n" + __doc__)
+        raise SystemExit(0)
+    if len(sys.argv) < 3 or sys.argv[1] != "baselines":
+        raise SystemExit("usage: bench_cooc_report.py baselines NAME...")
     warnings.filterwarnings("ignore")
     import torch
 
     torch.set_num_threads(1)
-    if len(sys.argv) < 3 or sys.argv[1] != "baselines":
-        raise SystemExit("usage: bench_cooc_report.py baselines NAME...")
     OUT.mkdir(parents=True, exist_ok=True)
     for texture_name in sys.argv[2:]:
         baselines(texture_name, OUT)

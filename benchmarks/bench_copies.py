@@ -80,7 +80,7 @@ def main(argv=None):
     table = []
     for name in names:
         r = rows[name]
-        ratio = r["tghop_half"] / r["natural"] if r["natural"] > 0 else (float("nan") if r["tghop_half"] else 1.0)
+        ratio = r["tghop_half"] / r["natural"] if r["natural"] > 0 else (float("inf") if r["tghop_half"] else 1.0)
         table.append([name, r["natural"], r["natural_blurred"], r["tghop_half"], r["tghop_whole"], ratio])
     md = (f"## copied_textured: tghop against its exemplar's halves ({args.seeds} outputs of 256x256 each, "
           f"blur sigma {args.blur:g})\n\n" + markdown_table(HEADER, table))

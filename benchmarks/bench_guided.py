@@ -62,6 +62,9 @@ def main():
     ap.add_argument("--name", default="guided", help="results/NAME.json and .md")
     args = ap.parse_args()
     n = args.size
+    if not args.no_sifid and n // 2 - (args.transition + 32) < 256:  # region_crops: 256x256 crops in each half
+        ap.error(f"--size {n} leaves no 256x256 crop in a region (at least transition + 32 px from the middle): "
+                 f"give --size {2 * (256 + args.transition + 32)} or more, or --no-sifid")
     guide = np.zeros((n, n), dtype=np.uint8)
     guide[:, n // 2:] = 255
     rows, morph_rows, payload = [], [], []

@@ -86,6 +86,9 @@ def albedo_decides(material, weight=1e-3):
         def __init__(self, layout):
             self.layout = layout
 
+        def __getattr__(self, name):  # factor, patch_size, ... (tghop.layout.follows_guide reads them)
+            return getattr(self.__dict__["layout"], name)
+
         def guide(self, *args, **kw):
             g = self.layout.guide(*args, **kw)
             g[..., c0:] *= weight
@@ -165,12 +168,12 @@ def main():
             worst = max(PAIRS, key=rel.get)
             row = [name, way] + [f"{target[k]:+.2f} / {mean[k]:+.2f}" for k in PAIRS + EXTRA] + [
                 f"{100 * rel[worst]:.1f}% ({worst})", f"{np.mean(sifids):.3f}" if sifids else "-",
-                f"{fit_s if way.startswith('joint') or way == 'albedo decides' else float('nan'):.1f}",
+                f"{fit_s:.1f}" if way.startswith("joint") or way == "albedo decides" else "- (in synth s)",
                 f"{np.mean(times):.2f}"]
             rows.append(row)
             payload.append({"texture": name, "way": way, "exemplar": target, "output_mean": mean,
                             "relative_difference": rel, "worst": rel[worst], "sifid_albedo": sifids,
-                            "fit_s": fit_s, "synth_s": times, "size": args.size, "seeds": args.seeds})
+                            "fit_s": fit_s if way != "one model per map" else None, "synth_s": times, "size": args.size, "seeds": args.seeds})
             print(" | ".join(str(v) for v in row), flush=True)
     header = ["texture", "way"] + [f"{k} (ex / out)" for k in PAIRS + EXTRA] + ["worst rel. diff", "SIFID albedo",
                                                                         "fit s", "synth s"]

@@ -152,14 +152,17 @@ def fit(img, mode="paper", **kw):
 
 
 def synth(model, size, rng, mode="paper", **kw):
-    """``model.synthesize``; in paper mode without tghop's colour matching and refinement (not in the paper)."""
+    """``model.synthesize``; in paper mode with the paper's generation settings (``tghop.settings``: no
+    colour matching, refinement, patch refinement, seam removal, ... -- none of them in the paper), as
+    ``tghop synth --paper`` and ``bench_quality.py``'s "paper" variant."""
     import inspect
 
-    params = inspect.signature(model.synthesize).parameters
-    if mode == "paper" and "match_colours" in params:
-        kw["match_colours"] = False
-    if mode == "paper" and "refine" in params:
-        kw["refine"] = 0
+    if mode == "paper":
+        from tghop.settings import generate_settings
+
+        params = inspect.signature(model.synthesize).parameters
+        paper = {s.name: s.paper for s in generate_settings() if s.has_paper and s.name in params}
+        kw = {**paper, **kw}
     return model.synthesize(size, rng=rng, **kw)
 
 

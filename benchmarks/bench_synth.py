@@ -1,5 +1,5 @@
 """Time of one image from a fitted model (tghop's default pipeline), split into its stages
-(coarse layout, patch pool, quilting, refinement, colour matching), at 256x256 and
+(coarse layout, patch pool, quilting, refinement, colour matching, patch refinement), at 256x256 and
 2048x2048, on brick_wall and three more textures; a sheet of the images next to each
 exemplar.
 
@@ -33,7 +33,8 @@ def one_image(model, size, seed, tile=False):
     return img, timer.finish(), total
 
 
-STAGES = ("layout", "patch pool", "quilting", "refine", "colour")
+#: ``synthesize``'s progress stages in the order they run ("patch refine" last: after the colours).
+STAGES = ("layout", "patch pool", "quilting", "refine", "colour", "patch refine")
 
 
 def main():
