@@ -173,7 +173,8 @@ def main():
             rows.append(row)
             payload.append({"texture": name, "way": way, "exemplar": target, "output_mean": mean,
                             "relative_difference": rel, "worst": rel[worst], "sifid_albedo": sifids,
-                            "fit_s": fit_s if way != "one model per map" else None, "synth_s": times, "size": args.size, "seeds": args.seeds})
+                            "fit_s": fit_s if way != "one model per map" else None, "synth_s": times,
+                            "size": args.size, "seeds": args.seeds})
             print(" | ".join(str(v) for v in row), flush=True)
     header = ["texture", "way"] + [f"{k} (ex / out)" for k in PAIRS + EXTRA] + ["worst rel. diff", "SIFID albedo",
                                                                         "fit s", "synth s"]
