@@ -21,7 +21,9 @@ Options:
                        shared 2-core machine one thread was faster for both methods)
   --tghop MODES        TGHop variants of the quality table (default "paper,default"):
                        "paper" = the paper's Table 4 setting (tghop.synthesis.PAPER_TABLE4)
-                       without colour matching, "default" = tghop's own defaults; "paper"
+                       and pipeline (as tghop synth --paper: none of tghop's additions;
+                       until 0.37 they were all on but the colour matching and the band
+                       refinement), "default" = tghop's own defaults; "paper"
                        alone saves about a third of the quality table's time
 
 Sections (each a Markdown table in DIR/report.md, data in DIR/<section>.json, images PNG):
