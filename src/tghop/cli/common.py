@@ -179,9 +179,9 @@ def layout_summary(model) -> str:
 def summary(model, params=None) -> str:
     """Dimensions, core model and parameter total of a fitted model (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it)."""
-    d = model.dims_
     from ..parameter_count import PAPER_MODULES
 
+    d = model.dims_
     params = model.n_parameters() if params is None else params
     paper = params[PAPER_MODULES]  # what compares with the paper's total: the total holds our additions too
     dims = " -> ".join(f"D{i}={d[f'D{i}']}" for i in range(len(model.channels_) + 1))
