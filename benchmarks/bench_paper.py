@@ -516,7 +516,8 @@ def md_quality(entries, failed, ust_entries, modes) -> tuple[str, dict]:
     methods = tg + list(BASELINE_KEYS)
     which = "; ".join(
         f"{tghop_label(m)} = the paper's Table 4 setting (" + ", ".join(f"{k}={v}" for k, v in setting("paper").items())
-        + "), no colour matching" if m == "paper" else f"{tghop_label(m)} = tghop's defaults" for m in modes)
+        + "), the paper's generation (as tghop synth --paper: none of tghop's additions)" if m == "paper"
+        else f"{tghop_label(m)} = tghop's defaults" for m in modes)
     parts = [f"## Quality: {len(ok)} exemplars, 256x256 results\n", f"{which}.\n",
              "Lower is better for sifid, gram, swd, cooccurrence; novelty (RMS distance of 8x8 patches to the nearest "
              "exemplar patch) and diversity (the same between two TGHop seeds) are higher for more new content. "
