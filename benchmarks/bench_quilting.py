@@ -1,7 +1,8 @@
 """Speed and memory of :func:`tghop.quilting.quilt`.
 
 Pool: 10,000 patches of 32x32x3, random crops of ``tghop.data.bricks(256)`` (float32, as
-TGHop hands them over). Prints a table and writes ``benchmarks/results/quilting.json``.
+TGHop hands them over). Prints a table and writes ``benchmarks/results/quilting.json`` and a
+Markdown table beside it (``quilting.md``).
 
     python benchmarks/bench_quilting.py            # 256x256 and 2048x2048 (plain and tiled)
     python benchmarks/bench_quilting.py --quick    # small sizes only
@@ -32,6 +33,8 @@ from tghop import quilting
 from tghop.data import bricks
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from _common import markdown_table  # noqa: E402
 
 
 def make_pool(n=10_000, patch=32, seed=0):
@@ -153,7 +156,14 @@ def main(argv=None):
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {out}")
+    table = markdown_table(["size", "tile", "BLAS threads", "mode", "blocks", "steps", "best s", "peak MiB", "out MiB"],
+                           [[r["size"], str(r["tile"]), r["blas_threads"], r["mode"], r["blocks"], r["steps"],
+                             r["seconds_best"], r["peak_mib"], r["output_mib"]] for r in rows])
+    out.with_suffix(".md").write_text(
+        f"# Quilting alone (bench_quilting.py)\n\n{table}\n\nPool: {pool.shape[0]:,} patches of "
+        f"{pool.shape[1]}x{pool.shape[2]}x{pool.shape[3]} ({pool.dtype}); process max RSS {maxrss:.0f} MiB; "
+        f"load average {load_start[0]:.1f} at start, {load[0]:.1f} at end.\n")
+    print(f"wrote {out} and {out.with_suffix('.md')}")
 
 
 if __name__ == "__main__":

@@ -100,7 +100,7 @@ def main():
         smalls = [model.synthesize((256, 256), rng=args.seed + k) for k in range(args.refs)]
         seconds = (time.perf_counter() - t) / args.refs
         ref = [] if args.no_sifid else [metrics.sifid(ex, img) for img in smalls]
-        record(name, 256, "-", smalls[:1], seconds, ex, ref)
+        record(name, 256, "-", smalls, seconds, ex, ref)  # every reference image, as the large rows
         for size in sizes:
             for label, kw in variants:
                 t = time.perf_counter()
