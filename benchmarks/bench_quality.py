@@ -329,6 +329,7 @@ def main(argv=None):
     variants_json = [{"name": n, "fit": f, "synth": s} for n, f, s in variants]
     path = write_results(stem, {"size": args.size, "variants": variants_json, "summary": summary,
                                 "entries": entries, "ust": ust_rows, "failed": failed}, text)
+    (RESULTS / f"{stem}.partial.jsonl").unlink(missing_ok=True)  # the whole run is in the results now
     log(f"wrote {path}")
 
 
