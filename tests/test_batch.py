@@ -562,7 +562,7 @@ def _local_cluster():
 
     with dask.config.set({"distributed.scheduler.allowed-failures": 2}):
         cluster = distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                                           dashboard_address=None, silence_logs=logging.CRITICAL)
+                                           dashboard_address=":0", silence_logs=logging.CRITICAL)
     client = distributed.Client(cluster)
     yield cluster, client
     client.close()
@@ -823,7 +823,23 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path):
     assert usable_cores() == batch._cores()
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
-    results = run(src, out, workers=2, task=probe_threads)
+    import socket
+    import warnings
+
+    held = socket.socket()  # Dask's default dashboard port taken, as by another cluster
+    try:
+        held.bind(("", 8787))
+        held.listen()
+    except OSError:
+        pass  # in use already: the same case
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            results = run(src, out, workers=2, task=probe_threads)
+    finally:
+        held.close()
+    # 0.36 printed Dask's "Port 8787 is already in use. Perhaps you already have a cluster running?"
+    assert not [w for w in caught if "8787" in str(w.message)]
     assert [r["status"] for r in results] == ["ok", "ok"]
     for r in results:
         assert r["seen"] == {"cores": 1, "blas": 1} and r["threads"] == 1 and r["omp_env"] == "1"

@@ -446,8 +446,8 @@ def _import_distributed():
 
 def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     """A local ``dask.distributed`` cluster of ``n_workers`` worker processes (default:
-    one per available core), one thread each, BLAS limited to one thread per worker, no
-    dashboard, a worker's death allowed ``retries`` times per task.
+    one per available core), one thread each, BLAS limited to one thread per worker, the
+    scheduler's HTTP server on a free port, a worker's death allowed ``retries`` times per task.
 
     Each worker runs :func:`dask_setup` first (a preload): among others, its ``malloc``
     keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`)."""
@@ -465,8 +465,10 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     # cluster interrupted half-started cannot be closed cleanly. It lasts a few seconds.
     with _ctrl_c_ignored(), dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
                                              "distributed.nanny.pre-spawn-environ": environ}):
+        # ":0": the scheduler's HTTP server (health, metrics) on a free port; None still took 8787,
+        # and a second cluster (another batch, a notebook's) printed Dask's "Port 8787 is already in use".
         return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, memory_limit=memory_limit,
+                                        dashboard_address=":0", memory_limit=memory_limit,
                                         silence_logs=logging.CRITICAL, preload=[__name__])
 
 
