@@ -9,6 +9,7 @@ here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import numbers
@@ -57,11 +58,13 @@ class BaseEstimator:
     """
 
     @classmethod
+    @functools.cache  # per class: its constructor's signature does not change (check_is_fitted reads it often)
     def _get_param_names(cls):
         if cls.__init__ is object.__init__:
-            return []
+            return ()
         params = inspect.signature(cls.__init__).parameters.values()
-        return sorted(p.name for p in params if p.name != "self" and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD))
+        return tuple(sorted(p.name for p in params if p.name != "self"
+                            and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)))
 
     def get_params(self, deep=True):
         """Parameters of this estimator (and, with ``deep``, of nested estimators as ``name__param``)."""
