@@ -275,6 +275,13 @@ def test_deep_tiffs_with_premultiplied_alpha_are_divided_out(tmp_path, dtype):
     np.testing.assert_allclose(got, expected, atol=tol)
     kept = load_image(tmp_path / "p.tif", keep_alpha=True)
     np.testing.assert_allclose(kept[..., 3:], alpha, atol=1e-6 if dtype == np.float32 else 1 / 65535)
+    if dtype == np.float32:  # a colour a rounding above its alpha: 1, not the whole image read as 0-255 levels
+        samples[1, 1, :3] = samples[1, 1, 3] * np.float32(1 + 1e-6)
+        tifffile.imwrite(tmp_path / "q.tif", samples, photometric="rgb", extrasamples=["assocalpha"])
+        with pytest.warns(UserWarning, match="alpha"):
+            over = load_image(tmp_path / "q.tif")
+        np.testing.assert_allclose(over[1, 1], 1.0)
+        np.testing.assert_allclose(np.delete(over.reshape(-1, 3), 6, axis=0), np.delete(got.reshape(-1, 3), 6, axis=0))
 
 
 @pytest.mark.parametrize("compression", ["lzw", "zlib", "zstd", "packbits"])

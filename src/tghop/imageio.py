@@ -261,14 +261,15 @@ def _tiff_layout(page, path):
 
 def _unpremultiply(arr, colours):
     """An (H, W, colours + 1) array of uint16 or float samples whose colours are multiplied by its
-    last (alpha) sample, with the colours divided by it (0 where alpha is 0), in its own dtype: what
-    Pillow does for 8-bit files (0.36 read 16-bit ones as unassociated alpha: dark, semi-transparent
-    edges)."""
+    last (alpha) sample, with the colours divided by it (0 where alpha is 0), in its own dtype, as
+    Pillow does for 8-bit files (0.36 read them as plain colours: semi-transparent ones darker)."""
     values = arr.astype(np.float64)
     alpha = values[..., colours:]
     colour = np.divide(values[..., :colours], alpha, out=np.zeros_like(values[..., :colours]), where=alpha > 0)
     if arr.dtype == np.uint16:
         colour = np.clip(np.round(colour * 65535.0), 0, 65535)
+    elif alpha.max() <= 1:  # a colour a rounding above its alpha stays in [0, 1] (else read as levels below)
+        colour = np.clip(colour, 0.0, 1.0)
     values[..., :colours] = colour
     return values.astype(arr.dtype)
 
