@@ -237,6 +237,27 @@ def test_gradient_in_bands_matches_one_piece(monkeypatch):
     assert not np.allclose(ranked, whole[0], atol=1e-4)  # other ranks: this path was taken
 
 
+def test_steps_are_adams_textbook_update():
+    """The steps update the image in place through two buffers; the same steps written out as
+    Adam's formulas (Kingma & Ba 2015), with the gradients of the same shifted grids, give the
+    same image."""
+    st = pr.fit_patch_statistics(1, data.cells(64, rng=1))
+    img = data.cells(40, rng=2).astype(np.float32)
+    dirs = st.directions_[0]
+    target = pr._on_ranks(st.quantiles_[0], st.levels_.astype(np.float64))
+    n, stride, lr, b1, b2, eps = 6, 2, 0.01, 0.9, 0.999, 1e-8
+    got = pr._steps(img, dirs, target, n, False, stride, lr)
+    x = np.ascontiguousarray(img.transpose(2, 0, 1))
+    m, v = np.zeros_like(x), np.zeros_like(x)
+    for t in range(n):
+        g = pr._gradient(x, dirs[t % len(dirs)], target[t % len(dirs)], stride, pr._phases(stride)[t % stride**2])
+        m = b1 * m + (1 - b1) * g
+        v = b2 * v + (1 - b2) * g * g
+        x = x - lr / (1 - b1 ** (t + 1)) * m / (np.sqrt(v / (1 - b2 ** (t + 1))) + eps)
+    assert np.abs(got - img).max() > 0.02  # the steps moved it
+    assert np.allclose(got, x.transpose(1, 2, 0), atol=1e-5)
+
+
 def test_large_images_move_through_a_shifted_strided_grid(monkeypatch):
     """Above _STRIDE_PIXELS a step takes every second patch each way, the grid shifted from
     step to step: four steps move the image as a whole, not one phase of it."""

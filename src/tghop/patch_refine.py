@@ -435,6 +435,7 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
     x = np.ascontiguousarray(x.transpose(2, 0, 1))
     m = np.zeros((c, h, w), dtype=np.float32)
     v = np.zeros((c, h, w), dtype=np.float32)
+    buf = np.empty((c, h, w), dtype=np.float32)  # Adam's temporaries, written in place
     b1, b2, eps = 0.9, 0.999, 1e-8
     phases = _phases(stride)
     for t in range(n_steps):
@@ -448,13 +449,21 @@ def _steps(x, dirs, target, n_steps, tile, stride, lr):
             g = np.roll(g[:, :h, :w], (oy, ox), axis=(1, 2)) if oy or ox else g[:, :h, :w]
         else:  # the grid starts at (oy, ox); the first rows and columns are reached by later phases
             g = _gradient(x, dirs[j], target[j], stride, (oy, ox))
+        # m = b1 m + (1 - b1) g; v = b2 v + (1 - b2) g^2; x -= lr m^ / (sqrt(v^) + eps), with the bias
+        # corrections ^; in place, into buf and g (an image-sized array each time otherwise).
+        np.multiply(g, 1 - b1, out=buf)
         m *= b1
-        m += (1 - b1) * g
+        m += buf
         g *= g
+        np.multiply(g, 1 - b2, out=buf)
         v *= b2
-        v += (1 - b2) * g
-        step = (lr / (1 - b1 ** (t + 1))) * m / (np.sqrt(v / (1 - b2 ** (t + 1))) + eps)
-        x -= step
+        v += buf
+        np.divide(v, 1 - b2 ** (t + 1), out=buf)
+        np.sqrt(buf, out=buf)
+        buf += eps
+        np.multiply(m, lr / (1 - b1 ** (t + 1)), out=g)
+        g /= buf
+        x -= g
     return np.ascontiguousarray(x.transpose(1, 2, 0))
 
 
