@@ -1,6 +1,7 @@
 """Input checks of the scikit-learn-style components (:mod:`tghop.saab`, :mod:`tghop.hops`,
 :mod:`tghop.sdr`, :mod:`tghop.core`): arrays of numbers of a given rank, sample counts, and
-forgetting a fitted state; and :func:`check_int`, the library's integer-parameter check.
+forgetting a fitted state; :func:`check_int`, the library's integer-parameter check; and
+:func:`from_levels`, how every entry point reads 8-bit and 16-bit images.
 
 Each check is O(1) or one pass over its input; the fits call them with ``finite=True``,
 the transforms check shapes only.
@@ -14,7 +15,11 @@ import numpy as np
 
 from ._errors import TGHopError
 
-__all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask", "check_width", "forget_fit"]
+__all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask", "check_width", "forget_fit",
+           "from_levels"]
+
+#: Full scale of the integer types read as image levels: ``x / 255`` and ``x / 65535`` lie in [0, 1].
+LEVELS = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
 
 
 def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True) -> np.ndarray:
@@ -50,6 +55,26 @@ def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finit
     if finite and not np.isfinite(arr).all():
         raise TGHopError(f"{name} contains NaN or infinite values; clean it first")
     return arr
+
+
+def from_levels(arr: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """uint8 or uint16 levels as floats of ``dtype`` in [0, 1] (``x / 255``, ``x / 65535``,
+    divided in ``dtype``); any other array is returned as it is, for the caller's own checks.
+
+    Parameters
+    ----------
+    arr : ndarray, any shape
+    dtype : {numpy.float64, numpy.float32}
+
+    Returns
+    -------
+    ndarray, the shape of ``arr``
+    """
+    full = LEVELS.get(arr.dtype)
+    if full is None:
+        return arr
+    dtype = np.dtype(dtype)
+    return np.divide(arr, dtype.type(full), dtype=dtype)
 
 
 def check_width(arr, name: str, shape: str, expected: tuple) -> None:

@@ -44,6 +44,7 @@ __all__ = [
 ]
 
 
+from ._arrays import LEVELS, from_levels
 from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: F401
 
 
@@ -265,11 +266,9 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
         raise InvalidImageError(f"{name} must have shape {', '.join(shapes[:-1])} or {shapes[-1]}, got {arr.shape}; "
                                 "convert it to greyscale or RGB first")
     dtype = np.dtype(dtype)
-    if arr.dtype == np.uint8:
-        arr = np.divide(arr, dtype.type(255.0), dtype=dtype)
-    elif arr.dtype == np.uint16:
-        arr = np.divide(arr, dtype.type(65535.0), dtype=dtype)
-    elif arr.dtype.kind in "fb" or arr.dtype.kind in "iu":
+    if arr.dtype in LEVELS:
+        arr = from_levels(arr, dtype)
+    elif arr.dtype.kind in "fbiu":
         arr = arr.astype(dtype)
     else:
         raise InvalidImageError(f"{name} has unsupported dtype {arr.dtype}; pass a float array in [0, 1]")

@@ -36,7 +36,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ._arrays import check_dtype, check_int
+from ._arrays import LEVELS, check_dtype, check_int, from_levels
 from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
 from .seams import SeamSteps
 
@@ -146,10 +146,8 @@ def _check_pool(pool) -> np.ndarray:
         raise TGHopError("pool is empty; give at least one patch")
     if p < 2:
         raise TGHopError(f"pool patches are {p}x{p} pixels; they must be at least 2x2")
-    if arr.dtype == np.uint8:
-        arr = arr / np.float32(255.0)
-    elif arr.dtype == np.uint16:
-        arr = arr / np.float32(65535.0)
+    if arr.dtype in LEVELS:
+        arr = from_levels(arr, np.float32)
     elif arr.dtype not in (np.float32, np.float64):
         if arr.dtype.kind not in "biuf":
             raise TGHopError(f"pool has unsupported dtype {arr.dtype}; pass a float array in [0, 1]")

@@ -29,7 +29,7 @@ import numpy as np
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture,
                       fitted_settings, in_thread, report)
-from ._arrays import check_array, check_dtype, check_width, forget_fit
+from ._arrays import check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
@@ -502,9 +502,9 @@ class TGHop(BaseEstimator):
             :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
         """
         check_is_fitted(self, "ichm_")
-        scale = {"uint8": 255.0, "uint16": 65535.0}.get(str(getattr(patches, "dtype", "")))  # as fit reads them
+        if isinstance(patches, np.ndarray):
+            patches = from_levels(patches)  # as fit reads them
         x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
-        x = x if scale is None else x / scale
         shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
         check_width(x, "patches", "(n, {}, {}, {})".format(*shape), shape)
         return self.sdr_.transform(self.hops_.transform(x))
