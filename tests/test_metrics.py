@@ -261,7 +261,7 @@ def test_evaluate_names_a_shape_of_too_many_dimensions():
             metrics.evaluate(*args, metrics=["swd"])
 
 
-@pytest.mark.parametrize("name", ["novelty", "copied", "diversity"])
+@pytest.mark.parametrize("name", ["novelty", "copied", "diversity", "copied_textured"])
 def test_nearest_patch_progress_counts_each_chunk_once(name, monkeypatch):
     import tghop.metrics.copies as copies
 
@@ -273,6 +273,28 @@ def test_nearest_patch_progress_counts_each_chunk_once(name, monkeypatch):
     total = calls[0][2]
     assert total > 1 and all(t == total for _, _, t in calls)
     assert [done for _, done, _ in calls] == list(range(total + 1))  # 0 to total, one unit a chunk
+
+
+@pytest.mark.parametrize("chunk", [8192, 300])
+def test_nearest_window_search_finds_what_a_brute_force_search_finds(chunk, monkeypatch):
+    import tghop.metrics.copies as copies
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    monkeypatch.setattr(copies, "_NEAREST_CHUNK", chunk)  # 300: 9 rows of 33 windows a chunk, the last one short
+    rng = np.random.default_rng(0)
+    reference = rng.random((41, 37, 3))
+    p = 5
+    windows = sliding_window_view(reference, (p, p), axis=(0, 1)).reshape(-1, 3 * p * p)
+    d = windows.shape[1]
+    q = np.concatenate([windows[[0, 77, len(windows) - 1]],  # verbatim windows, the last one included
+                        windows[[5, 300]] + rng.normal(0, 0.01, (2, d)), rng.random((4, d))])
+    ticks = []
+    rms = copies._nearest_rms(reference, q, p, tick=lambda: ticks.append(1))
+    brute = np.sqrt(((q[:, None, :] - windows[None]) ** 2).mean(axis=2)).min(axis=1)
+    np.testing.assert_allclose(rms, brute, rtol=1e-12, atol=0)
+    assert rms[:3].tolist() == [0.0, 0.0, 0.0]  # a copy scores exactly 0
+    # 37 rows of windows, 9 rows a chunk at 300
+    assert len(ticks) == copies._nearest_chunks(reference, p) == (1 if chunk == 8192 else 5)
 
 
 @pytest.mark.parametrize("value", [0, -1, 2.5, "8", None, True])

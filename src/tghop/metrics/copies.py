@@ -31,13 +31,8 @@ def _nearest_chunks(reference: np.ndarray, patch_size: int) -> int:
 
 def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int, max_patches: int, seed: int,
                        tick=None):
-    """RMS distance of sampled ``query`` patches to their nearest ``reference`` patch.
-
-    Every stride-1 patch of ``reference`` is a candidate. Neighbours are found with
-    float32 matrix products (``|q|^2 - 2 q.r + |r|^2``, chunked over the reference rows
-    to bound memory: about ``max_patches x 8192`` floats at a time, whatever the image
-    sizes) and their distances recomputed exactly in float64, so a verbatim copy scores
-    exactly 0. ``tick()``, if given, is called once after each chunk.
+    """RMS distance of sampled ``query`` patches to their nearest ``reference`` patch
+    (:func:`_nearest_rms` of up to ``max_patches`` random patches of ``query``, seeded).
 
     Returns
     -------
@@ -46,26 +41,49 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
     n_total = (query.shape[0] - patch_size + 1) * (query.shape[1] - patch_size + 1)
     rng = np.random.default_rng((int(seed), 2))
     q = sample_patches(query, patch_size, min(int(max_patches), n_total), rng)  # (n, d) float64
+    return _nearest_rms(reference, q, patch_size, tick)
+
+
+def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=None) -> np.ndarray:
+    """RMS distance of each window ``q`` (n, P * P * C), float64 in the order of
+    :func:`~numpy.lib.stride_tricks.sliding_window_view`'s (C, P, P), to its nearest
+    ``patch_size`` window of ``reference`` (H, W, C).
+
+    Every stride-1 window of ``reference`` is a candidate. Neighbours are found with
+    float32 matrix products (``|q|^2 - 2 q.r + |r|^2``, chunked over the reference rows
+    to bound memory: about ``n x 8192`` floats at a time, whatever the image sizes; each
+    chunk's rows of pixels are made float32 before their windows are cut, which copies a
+    quarter of the bytes of cutting them in float64 first) and their distances recomputed
+    exactly in float64, so a verbatim copy scores exactly 0. ``tick()``, if given, is
+    called once after each chunk (:func:`_nearest_chunks` of them).
+
+    Returns
+    -------
+    ndarray, shape (n,), float64
+    """
+    n, p = q.shape[0], patch_size
     q32 = q.astype(np.float32)
     q_norm = (q32 * q32).sum(axis=1)
-    windows = sliding_window_view(reference, (patch_size, patch_size), axis=(0, 1))  # (nh, nw, C, P, P)
-    nh, nw = windows.shape[:2]
-    best = np.full(q.shape[0], np.inf, dtype=np.float32)
-    best_index = np.zeros(q.shape[0], dtype=np.int64)
+    nh, nw = reference.shape[0] - p + 1, reference.shape[1] - p + 1
+    best = np.full(n, np.inf, dtype=np.float32)
+    best_index = np.zeros(n, dtype=np.int64)
     rows_per_chunk = max(1, _NEAREST_CHUNK // nw)
     for r0 in range(0, nh, rows_per_chunk):
         r1 = min(nh, r0 + rows_per_chunk)
-        ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
-        d2 = (ref * ref).sum(axis=1)[None, :] - 2.0 * (q32 @ ref.T)
+        strip = reference[r0:r1 + p - 1].astype(np.float32)
+        ref = sliding_window_view(strip, (p, p), axis=(0, 1)).reshape((r1 - r0) * nw, -1)
+        d2 = np.matmul(q32, ref.T)
+        d2 *= -2.0
+        d2 += (ref * ref).sum(axis=1)[None, :]
         local = d2.argmin(axis=1)
-        value = d2[np.arange(q.shape[0]), local] + q_norm
+        value = d2[np.arange(n), local] + q_norm
         better = value < best
         best[better] = value[better]
         best_index[better] = local[better] + r0 * nw
         if tick is not None:
             tick()
     rows, cols = np.divmod(best_index, nw)
-    nearest = windows[rows, cols].reshape(q.shape[0], -1)
+    nearest = sliding_window_view(reference, (p, p), axis=(0, 1))[rows, cols].reshape(n, -1)
     return np.sqrt(np.mean((q - nearest) ** 2, axis=1))
 
 
@@ -103,7 +121,8 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     Notes
     -----
     Memory is bounded (the exemplar's patches are searched in chunks); the time grows
-    with the exemplar's pixels (about 10 s per megapixel on 2 cores).
+    with the exemplar's pixels times ``max_patches`` times the patch's values
+    (``benchmarks/bench_cli.py`` times ``tghop evaluate``).
     """
     patch_size = check_patch_size(patch_size)
     max_patches = check_int(max_patches, "max_patches")
@@ -286,34 +305,13 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     ex, res = pair(exemplar, result, min_size=patch_size)
     rng = np.random.default_rng((int(seed), 3))
     pos = _textured_positions(res, patch_size, float(min_std), max_patches, rng)
-    nh_ex, nw_ex = ex.shape[0] - patch_size + 1, ex.shape[1] - patch_size + 1
-    rows_per_chunk = max(1, 8192 // nw_ex)
-    n_chunks = -(-nh_ex // rows_per_chunk)
+    n_chunks = _nearest_chunks(ex, patch_size)
     tick = counter(progress, "copied_textured", n_chunks)
     if len(pos) == 0:
         for _ in range(n_chunks):
             tick()
         return 0.0
-    q = _windows_at(res, pos, patch_size)
-    q32 = q.astype(np.float32)
-    q_norm = np.einsum("ij,ij->i", q32, q32)
-    windows = sliding_window_view(ex, (patch_size, patch_size), axis=(0, 1))
-    nh, nw = windows.shape[:2]
-    best = np.full(len(q), np.inf, dtype=np.float32)
-    best_index = np.zeros(len(q), dtype=np.int64)
-    for r0 in range(0, nh, rows_per_chunk):
-        r1 = min(nh, r0 + rows_per_chunk)
-        ref = windows[r0:r1].reshape((r1 - r0) * nw, -1).astype(np.float32)
-        d2 = np.einsum("ij,ij->i", ref, ref)[None, :] - 2.0 * (q32 @ ref.T)
-        local = d2.argmin(axis=1)
-        value = d2[np.arange(len(q)), local] + q_norm
-        better = value < best
-        best[better] = value[better]
-        best_index[better] = local[better] + r0 * nw
-        tick()
-    rows, cols = np.divmod(best_index, nw)
-    nearest = windows[rows, cols].reshape(len(q), -1)
-    rms = np.sqrt(np.mean((q - nearest) ** 2, axis=1))
+    rms = _nearest_rms(ex, _windows_at(res, pos, patch_size), patch_size, tick)
     return float(np.mean(rms < threshold))
 
 
