@@ -275,26 +275,40 @@ def test_nearest_patch_progress_counts_each_chunk_once(name, monkeypatch):
     assert [done for _, done, _ in calls] == list(range(total + 1))  # 0 to total, one unit a chunk
 
 
+@pytest.mark.parametrize("within", [None, 0.02, 0.08])
+@pytest.mark.parametrize("p", [4, 5, 6, 8])  # bound blocks of 2, none (5 has no divisor), 2 and 4
 @pytest.mark.parametrize("chunk", [8192, 300])
-def test_nearest_window_search_finds_what_a_brute_force_search_finds(chunk, monkeypatch):
+def test_nearest_window_search_finds_what_a_brute_force_search_finds(chunk, p, within, monkeypatch):
     import tghop.metrics.copies as copies
     from numpy.lib.stride_tricks import sliding_window_view
 
-    monkeypatch.setattr(copies, "_NEAREST_CHUNK", chunk)  # 300: 9 rows of 33 windows a chunk, the last one short
-    rng = np.random.default_rng(0)
-    reference = rng.random((41, 37, 3))
-    p = 5
+    monkeypatch.setattr(copies, "_NEAREST_CHUNK", chunk)  # 300: 9 rows of about 33 windows a chunk, the last short
+    rng = np.random.default_rng(p)
+    # Smooth (a few windows near any query, so the bound keeps many) and rough rows of pixels.
+    reference = np.concatenate([np.repeat(np.repeat(rng.random((5, 10, 3)), 4, axis=0), 4, axis=1)[:, :37],
+                                0.25 + 0.5 * rng.random((21, 37, 3))])  # shifts of 0.09 stay in [0, 1]
+    nw = 37 - p + 1
+    rough = [25 * nw + 3, 28 * nw + 10, 30 * nw + 5]  # windows of the rough rows, far from each other
     windows = sliding_window_view(reference, (p, p), axis=(0, 1)).reshape(-1, 3 * p * p)
     d = windows.shape[1]
+    shift = 0.05 if within is None else within  # a constant offset: the block means' bound is then exact
     q = np.concatenate([windows[[0, 77, len(windows) - 1]],  # verbatim windows, the last one included
-                        windows[[5, 300]] + rng.normal(0, 0.01, (2, d)), rng.random((4, d))])
+                        windows[[5, 300, 600]] + rng.normal(0, 0.01, (3, d)), rng.random((4, d)),
+                        windows[rough[:2]] + [[-0.99 * shift], [0.99 * shift]],  # just within
+                        windows[rough[2:]] - 1.1 * shift])  # just beyond
     ticks = []
-    rms = copies._nearest_rms(reference, q, p, tick=lambda: ticks.append(1))
+    rms = copies._nearest_rms(reference, q, p, tick=lambda: ticks.append(1), within=within)
     brute = np.sqrt(((q[:, None, :] - windows[None]) ** 2).mean(axis=2)).min(axis=1)
-    np.testing.assert_allclose(rms, brute, rtol=1e-12, atol=0)
+    near = brute < (np.inf if within is None else within)
+    # The cases the test means to hold: copies, the near ones at 0.99 ``within`` (nothing nearer), the far one.
+    assert near[:3].all() and (within != 0.02 or not near[6:10].any())
+    assert near[10:12].all() and (within is None or not near[12])
+    np.testing.assert_allclose(brute[10:12], 0.99 * shift, rtol=1e-9)
+    np.testing.assert_allclose(rms[near], brute[near], rtol=1e-12, atol=0)
+    assert within is None or (rms[~near] >= within).all()  # far ones: their distance or inf
     assert rms[:3].tolist() == [0.0, 0.0, 0.0]  # a copy scores exactly 0
-    # 37 rows of windows, 9 rows a chunk at 300
-    assert len(ticks) == copies._nearest_chunks(reference, p) == (1 if chunk == 8192 else 5)
+    assert len(ticks) == copies._nearest_chunks(reference, p)
+    assert chunk == 8192 or len(ticks) > 2
 
 
 @pytest.mark.parametrize("value", [0, -1, 2.5, "8", None, True])

@@ -30,9 +30,10 @@ def _nearest_chunks(reference: np.ndarray, patch_size: int) -> int:
 
 
 def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int, max_patches: int, seed: int,
-                       tick=None):
+                       tick=None, within=None):
     """RMS distance of sampled ``query`` patches to their nearest ``reference`` patch
-    (:func:`_nearest_rms` of up to ``max_patches`` random patches of ``query``, seeded).
+    (:func:`_nearest_rms` of up to ``max_patches`` random patches of ``query``, seeded;
+    ``within`` as there).
 
     Returns
     -------
@@ -41,10 +42,33 @@ def _nearest_patch_rms(reference: np.ndarray, query: np.ndarray, patch_size: int
     n_total = (query.shape[0] - patch_size + 1) * (query.shape[1] - patch_size + 1)
     rng = np.random.default_rng((int(seed), 2))
     q = sample_patches(query, patch_size, min(int(max_patches), n_total), rng)  # (n, d) float64
-    return _nearest_rms(reference, q, patch_size, tick)
+    return _nearest_rms(reference, q, patch_size, tick, within)
 
 
-def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=None) -> np.ndarray:
+def _block_means(x: np.ndarray, block: int) -> np.ndarray:
+    """``block`` x ``block`` means of windows ``x`` (n, C, P, P): (n, C * (P / block)^2) float32."""
+    n, c, p = x.shape[0], x.shape[1], x.shape[2]
+    k = p // block
+    return x.reshape(n, c, k, block, k, block).mean(axis=(3, 5)).reshape(n, -1).astype(np.float32)
+
+
+def _strip_block_means(strip: np.ndarray, p: int, block: int, nw: int) -> np.ndarray:
+    """:func:`_block_means` of every ``p`` x ``p`` window of ``strip`` (h, W, C) whose
+    rows lie in it (``h - p + 1`` rows of ``nw`` windows), from one box-mean image:
+    ((h - p + 1) * nw, C * (p / block)^2) float32."""
+    c, rows, k = strip.shape[2], strip.shape[0] - p + 1, p // block
+    s = np.zeros((strip.shape[0] + 1, strip.shape[1] + 1, c))
+    np.cumsum(np.cumsum(strip, axis=0, dtype=np.float64), axis=1, out=s[1:, 1:])
+    boxes = (s[block:, block:] - s[:-block, block:] - s[block:, :-block] + s[:-block, :-block]) / (block * block)
+    parts = [boxes[a * block: a * block + rows, b * block: b * block + nw] for a in range(k) for b in range(k)]
+    return np.stack(parts, axis=-1).reshape(rows * nw, -1).astype(np.float32)  # (C, a, b) as _block_means
+
+
+#: Block sides of the lower bound that lets :func:`_nearest_rms` skip queries far from a chunk.
+_BOUND_BLOCKS = (4, 2)
+
+
+def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=None, within=None) -> np.ndarray:
     """RMS distance of each window ``q`` (n, P * P * C), float64 in the order of
     :func:`~numpy.lib.stride_tricks.sliding_window_view`'s (C, P, P), to its nearest
     ``patch_size`` window of ``reference`` (H, W, C).
@@ -57,34 +81,62 @@ def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=Non
     exactly in float64, so a verbatim copy scores exactly 0. ``tick()``, if given, is
     called once after each chunk (:func:`_nearest_chunks` of them).
 
+    With ``within`` (an RMS distance), only whether a window lies nearer than ``within``
+    matters: a window's 4 x 4 (or 2 x 2) block means give a lower bound of its distance
+    (``|q - r|^2 >= block^2 |means(q) - means(r)|^2``, each block's mean being its
+    projection on the constant vectors), and a query is compared with a chunk's windows
+    only where the bound of one of them is below ``within``. Distances of ``within`` or
+    more may then be reported as ``inf``; those below are the same as without it.
+
     Returns
     -------
     ndarray, shape (n,), float64
     """
     n, p = q.shape[0], patch_size
+    d = q.shape[1]
     q32 = q.astype(np.float32)
     q_norm = (q32 * q32).sum(axis=1)
+    block = next((b for b in _BOUND_BLOCKS if p % b == 0 and b < p), None) if within is not None else None
+    if block is not None:
+        fq = _block_means(q.reshape(n, -1, p, p), block)
+        # The bound in the block means' units; the margin is far above float32 rounding, so no
+        # window within ``within`` is ever skipped (the exact distances decide).
+        limit = float(within) ** 2 * d / block ** 2 + 1e-3
+        half_gap = 0.5 * ((fq * fq).sum(axis=1) - np.float32(limit))
     nh, nw = reference.shape[0] - p + 1, reference.shape[1] - p + 1
     best = np.full(n, np.inf, dtype=np.float32)
-    best_index = np.zeros(n, dtype=np.int64)
+    best_index = np.full(n, -1, dtype=np.int64)
     rows_per_chunk = max(1, _NEAREST_CHUNK // nw)
     for r0 in range(0, nh, rows_per_chunk):
         r1 = min(nh, r0 + rows_per_chunk)
         strip = reference[r0:r1 + p - 1].astype(np.float32)
-        ref = sliding_window_view(strip, (p, p), axis=(0, 1)).reshape((r1 - r0) * nw, -1)
-        d2 = np.matmul(q32, ref.T)
-        d2 *= -2.0
-        d2 += (ref * ref).sum(axis=1)[None, :]
-        local = d2.argmin(axis=1)
-        value = d2[np.arange(n), local] + q_norm
-        better = value < best
-        best[better] = value[better]
-        best_index[better] = local[better] + r0 * nw
+        sel = slice(None)
+        if block is not None:
+            fr = _strip_block_means(strip, p, block, nw)
+            # |fq|^2 - 2 fq.fr + |fr|^2 < limit, as fq.fr - |fr|^2 / 2 > (|fq|^2 - limit) / 2 (fewer passes)
+            dots = np.matmul(fq, fr.T)
+            dots -= 0.5 * (fr * fr).sum(axis=1)[None, :]
+            sel = np.flatnonzero((dots > half_gap[:, None]).any(axis=1))
+            del dots
+        if block is None or sel.size:
+            ref = sliding_window_view(strip, (p, p), axis=(0, 1)).reshape((r1 - r0) * nw, -1)
+            d2 = np.matmul(q32[sel], ref.T)
+            d2 *= -2.0
+            d2 += (ref * ref).sum(axis=1)[None, :]
+            local = d2.argmin(axis=1)
+            value = d2[np.arange(d2.shape[0]), local] + q_norm[sel]
+            better = value < best[sel]
+            chosen = np.arange(n)[sel][better]
+            best[chosen] = value[better]
+            best_index[chosen] = local[better] + r0 * nw
         if tick is not None:
             tick()
-    rows, cols = np.divmod(best_index, nw)
-    nearest = sliding_window_view(reference, (p, p), axis=(0, 1))[rows, cols].reshape(n, -1)
-    return np.sqrt(np.mean((q - nearest) ** 2, axis=1))
+    found = best_index >= 0
+    rms = np.full(n, np.inf)
+    rows, cols = np.divmod(best_index[found], nw)
+    nearest = sliding_window_view(reference, (p, p), axis=(0, 1))[rows, cols].reshape(rows.size, d)
+    rms[found] = np.sqrt(np.mean((q[found] - nearest) ** 2, axis=1))
+    return rms
 
 
 def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, seed: int = 0,
@@ -176,7 +228,7 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
     max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     tick = counter(progress, "copied", _nearest_chunks(ex, patch_size))
-    rms = _nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick)
+    rms = _nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick, within=threshold)
     return float(np.mean(rms < threshold))
 
 
@@ -311,7 +363,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
         for _ in range(n_chunks):
             tick()
         return 0.0
-    rms = _nearest_rms(ex, _windows_at(res, pos, patch_size), patch_size, tick)
+    rms = _nearest_rms(ex, _windows_at(res, pos, patch_size), patch_size, tick, within=threshold)
     return float(np.mean(rms < threshold))
 
 
