@@ -52,14 +52,21 @@ def _block_means(x: np.ndarray, block: int) -> np.ndarray:
     return x.reshape(n, c, k, block, k, block).mean(axis=(3, 5)).reshape(n, -1).astype(np.float32)
 
 
+def _box_sums(x: np.ndarray, size: int) -> np.ndarray:
+    """Sum of every stride-1 ``size`` x ``size`` window over the first two axes of ``x``
+    (a float64 summed-area table): shape ``(H - size + 1, W - size + 1, ...)``."""
+    s = np.zeros((x.shape[0] + 1, x.shape[1] + 1) + x.shape[2:])
+    np.cumsum(x, axis=0, dtype=np.float64, out=s[1:, 1:])
+    np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
+    return s[size:, size:] - s[:-size, size:] - s[size:, :-size] + s[:-size, :-size]
+
+
 def _strip_block_means(strip: np.ndarray, p: int, block: int, nw: int) -> np.ndarray:
     """:func:`_block_means` of every ``p`` x ``p`` window of ``strip`` (h, W, C) whose
     rows lie in it (``h - p + 1`` rows of ``nw`` windows), from one box-mean image:
     ((h - p + 1) * nw, C * (p / block)^2) float32."""
-    c, rows, k = strip.shape[2], strip.shape[0] - p + 1, p // block
-    s = np.zeros((strip.shape[0] + 1, strip.shape[1] + 1, c))
-    np.cumsum(np.cumsum(strip, axis=0, dtype=np.float64), axis=1, out=s[1:, 1:])
-    boxes = (s[block:, block:] - s[:-block, block:] - s[block:, :-block] + s[:-block, :-block]) / (block * block)
+    rows, k = strip.shape[0] - p + 1, p // block
+    boxes = _box_sums(strip, block) / (block * block)
     parts = [boxes[a * block: a * block + rows, b * block: b * block + nw] for a in range(k) for b in range(k)]
     return np.stack(parts, axis=-1).reshape(rows * nw, -1).astype(np.float32)  # (C, a, b) as _block_means
 
@@ -297,18 +304,11 @@ def _window_std(img: np.ndarray, size: int) -> np.ndarray:
     was "textured", docs/choices.md.)"""
     c = img.shape[2]
     n = float(size * size)
-
-    def box_sums(x):
-        s = np.zeros((x.shape[0] + 1, x.shape[1] + 1))
-        np.cumsum(x, axis=0, out=s[1:, 1:])
-        np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
-        return s[size:, size:] - s[:-size, size:] - s[size:, :-size] + s[:-size, :-size]
-
     x = np.asarray(img, dtype=np.float64)
     var = np.zeros((x.shape[0] - size + 1, x.shape[1] - size + 1))
     for k in range(c):
-        mean = box_sums(x[..., k]) / n
-        var += np.maximum(box_sums(x[..., k] * x[..., k]) / n - mean * mean, 0.0)
+        mean = _box_sums(x[..., k], size) / n
+        var += np.maximum(_box_sums(x[..., k] * x[..., k], size) / n - mean * mean, 0.0)
     return np.sqrt(var / c)
 
 
@@ -369,10 +369,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
 
 def _box_features(img: np.ndarray) -> np.ndarray:
     """``(H - 3, W - 3, C)`` float32 means of every stride-1 4 x 4 box of ``img``."""
-    s = np.zeros((img.shape[0] + 1, img.shape[1] + 1, img.shape[2]))
-    np.cumsum(img, axis=0, out=s[1:, 1:])
-    np.cumsum(s[1:, 1:], axis=1, out=s[1:, 1:])
-    return ((s[4:, 4:] - s[:-4, 4:] - s[4:, :-4] + s[:-4, :-4]) / 16.0).astype(np.float32)
+    return (_box_sums(img, 4) / 16.0).astype(np.float32)
 
 
 def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min_std: float = TEXTURED_STD,
