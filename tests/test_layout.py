@@ -7,7 +7,7 @@ import pytest
 
 from tghop.synthesis import PAPER_TABLE4
 
-from tghop import TGHop, TGHopError, data
+from tghop import TGHop, TGHopError, data, settings
 from tghop.layout import downsample, fits_excluding, follows_guide, guide_fits, upsample, usable_factor
 from tghop.parameter_count import PAPER_MODULES
 from tghop.synthesis import CoarseLayout
@@ -136,21 +136,23 @@ def test_layout_guide_shape_range_determinism(layout):
 
 
 def test_layout_guide_refine_rounds(layout):
-    """The guide is the coarse model's synthesis upsampled; its ``refine`` rounds leave the
-    finest band at factor 2 (the fine level compares 4x4 box means, which hardly see it)."""
+    """The guide is the coarse model's synthesis upsampled, quilted with GUIDE_DETAIL whatever
+    the fine level's detail; its ``refine`` rounds leave the finest band at factor 2 (the fine
+    level compares 4x4 box means, which hardly see it)."""
     from tghop.colour import match_histograms
-    from tghop.layout import upsample
+    from tghop.layout import GUIDE_DETAIL, upsample
     from tghop.refine import refine
 
     model = layout.model_
-    plain = model.synthesize((35, 45), rng=3, n_patches=300, refine=0)
+    assert GUIDE_DETAIL != settings.BY_NAME["detail"].default  # else this test could not tell them apart
+    plain = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, detail=GUIDE_DETAIL)
     assert np.array_equal(layout.guide((70, 90), rng=3, n_patches=300, refine=0),
                           upsample(plain.astype(np.float32), 2, (70, 90)))
-    quilt = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, match_colours=False)
+    quilt = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, match_colours=False, detail=GUIDE_DETAIL)
     coarse = match_histograms(refine(quilt, model.bands_, n_iter=2, first_level=1), model.colour_quantiles_)
     guide = layout.guide((70, 90), rng=3, n_patches=300, refine=2)
     np.testing.assert_array_equal(guide, upsample(coarse.astype(np.float32), 2, (70, 90)))
-    every_band = model.synthesize((35, 45), rng=3, n_patches=300, refine=2)
+    every_band = model.synthesize((35, 45), rng=3, n_patches=300, refine=2, detail=GUIDE_DETAIL)
     assert not np.array_equal(guide, upsample(every_band.astype(np.float32), 2, (70, 90)))
     assert not np.array_equal(guide, layout.guide((70, 90), rng=3, n_patches=300, refine=0))
 

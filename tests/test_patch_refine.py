@@ -342,7 +342,10 @@ def test_checker_of_the_strided_grid_is_taken_off_the_change():
 def test_stride_two_leaves_no_checker(patch_model, monkeypatch):
     """Refining at stride 2 leaves a 2-pixel pattern in the change; the default takes it off.
     Stride 1 leaves none, and its result is not touched."""
-    img = patch_model.synthesize((96, 96), rng=2, patch_refine=0).astype(np.float32)
+    # The input is fixed (quilting's detail of 0.38): the test is about the refinement's
+    # checker, whose size differs from image to image (1.19 times on an image of 0.39's
+    # quilting with the guide's detail at 0.8 too).
+    img = patch_model.synthesize((96, 96), rng=2, patch_refine=0, detail=0.5).astype(np.float32)
     st = patch_model.patches_
     kept = pr.patch_refine(img, st, n_steps=12, stride=2)
     every_patch = pr.patch_refine(img, st, n_steps=12, stride=1)

@@ -267,7 +267,7 @@ def _check_models(models, minimum=1):
 
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
-                      detail=0.5, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
+                      detail=0.8, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
                       layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
@@ -323,7 +323,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
 
 
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
-          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.5, refine=5,
+          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.8, refine=5,
           match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0, layout_refine=3, seam_window=9,
           progress=None, dtype=np.float64):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.

@@ -338,7 +338,7 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("tolerance", 0.1, "float",
             "Quilting picks among pool patches within (1 + tolerance) of the best match.",
             when="generate", low=0, high=1e6),
-    Setting("detail", 0.5, "float",
+    Setting("detail", 0.8, "float",
             "Quilting chooses only among the near-best candidates whose gradient energy is at or above "
             "this quantile of theirs, against the overlap error's preference for smooth patches (ours; "
             "0: the paper's uniform choice).", when="generate", low=0, high=1, high_open=True, paper=0.0),

@@ -589,7 +589,7 @@ class TGHop(BaseEstimator):
         return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, detail=0.5, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
+                   tolerance=0.1, detail=0.8, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
                    patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
                    own_shares=1.0, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
