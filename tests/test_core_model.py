@@ -1042,3 +1042,11 @@ def test_encode_reads_uint8_as_its_floats(small_model, bricks96):
     np.testing.assert_allclose(small_model.encode(eight), small_model.encode(eight / 255.0), rtol=0, atol=1e-12)
     sixteen = eight.astype(np.uint16) * 257
     np.testing.assert_allclose(small_model.encode(sixteen), small_model.encode(eight / 255.0), rtol=0, atol=1e-12)
+
+    class Levels:  # an array-like that is not an ndarray (a memory map's wrapper, a dataset), read the same way
+        dtype = eight.dtype
+
+        def __array__(self, dtype=None, copy=None):
+            return eight if dtype is None else eight.astype(dtype)
+
+    np.testing.assert_array_equal(small_model.encode(Levels()), small_model.encode(eight))

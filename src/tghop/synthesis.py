@@ -502,8 +502,8 @@ class TGHop(BaseEstimator):
             :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
         """
         check_is_fitted(self, "ichm_")
-        if isinstance(patches, np.ndarray):
-            patches = from_levels(patches)  # as fit reads them
+        if str(getattr(patches, "dtype", "")) in ("uint8", "uint16"):  # any array type with a NumPy dtype
+            patches = from_levels(np.asarray(patches))  # as fit reads them
         x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
         shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
         check_width(x, "patches", "(n, {}, {}, {})".format(*shape), shape)
