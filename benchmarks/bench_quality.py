@@ -23,6 +23,17 @@ variant, seed 0). With ``--ust``, the Ustyuzhaninov baseline runs on those exemp
 ``--ust-size`` next to every variant at the same size (slow: minutes per exemplar; its
 images are kept in ``results/ust-cache/`` and reused, since they do not depend on tghop).
 
+``--against RESULTS.json[:VARIANT]`` compares the variants with a variant of an earlier
+run instead of with the first (exemplar by exemplar, as above): a change that no variant
+can express (a module constant, a worktree of other code run with ``PYTHONPATH``) against
+the saved default, without running the default again. The runs are deterministic on one
+machine, so this is only fair with the same size, seeds and fit seed (checked where the
+saved run records them; older results do not) and the same exemplars (compared on those
+in both).
+
+    python benchmarks/bench_quality.py --variants '' --variant 'r6:fit.max_component_ratio=0.6' \
+        --against benchmarks/results/quality-base.json:default
+
 Writes ``benchmarks/results/quality[-TAG].{json,md}`` (and ``quality[-TAG]/*.png``).
 """
 
@@ -241,6 +252,29 @@ def against_first(entries, names, metrics, n_named=3):
     return rows
 
 
+def load_against(spec, args):
+    """``PATH[:VARIANT]`` of ``--against`` -> (label, its fit and synth settings, texture -> its
+    scores), or exit with one line: a missing file, an unknown variant, another size, seeds or
+    fit seed."""
+    path, _, vname = spec.partition(":")
+    try:
+        saved = json.loads(Path(path).read_text())
+        names = [v["name"] for v in saved["variants"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SystemExit(f"--against: cannot read {path} as bench_quality.py results ({exc})")
+    vname = vname or names[0]
+    if vname not in names:
+        raise SystemExit(f"--against: {path} has no variant {vname!r}; it has {', '.join(names)}")
+    for key, ours in (("size", args.size), ("seeds", list(args.seeds)), ("fit_seed", args.fit_seed)):
+        if key in saved and saved[key] != ours:
+            raise SystemExit(f"--against: {path} was run with {key} {saved[key]}, this run with {ours}")
+    if "seeds" not in saved:
+        log(f"--against: {path} does not record its seeds and fit seed; it must have used these ones")
+    settings = next(v for v in saved["variants"] if v["name"] == vname)
+    scores = {e["texture"]: e["variants"][vname] for e in saved["entries"] if vname in e["variants"]}
+    return f"{vname} ({Path(path).stem})", settings.get("fit", {}), settings.get("synth", {}), scores
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--textures", default=None, help="comma-separated exemplar names (default: all)")
@@ -256,6 +290,8 @@ def main(argv=None):
                     help="comma-separated generation seeds, at least two (default 0,1); more lower the noise")
     ap.add_argument("--sheets", action="store_true", help="one sheet per exemplar")
     ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--against", default=None, metavar="RESULTS.json[:VARIANT]",
+                    help="compare with VARIANT (default: its first) of an earlier run's results")
     ap.add_argument("--ust", default="", help="exemplars for the Ustyuzhaninov comparison (comma-separated)")
     ap.add_argument("--ust-size", type=int, default=128)
     ap.add_argument("--ust-iterations", type=int, default=100)
@@ -265,6 +301,9 @@ def main(argv=None):
     variants = ([parse_variant(v) for v in filter(None, args.variants.split(","))]
                 + [parse_variant(v) for v in args.variant])
     metrics = tuple(m for m in args.metrics.split(",") if m)
+    if not variants:
+        ap.error("no variants: give --variants or --variant")
+    saved = load_against(args.against, args) if args.against else None
     stem = "quality" + (f"-{args.tag}" if args.tag else "")
     sheets = str(RESULTS / stem) if args.sheets else None
     size = (args.size, args.size)
@@ -293,6 +332,12 @@ def main(argv=None):
             log(f"{label} done")
 
     entries.sort(key=lambda e: e["texture"])
+    if saved is not None:  # the saved variant first: every variant of this run is compared with it
+        label, fit_kw, synth_kw, scores = saved
+        for e in entries:
+            if e["texture"] in scores:
+                e["variants"] = {label: scores[e["texture"]], **e["variants"]}
+        variants = [(label, fit_kw, synth_kw), *variants]
     cols = [*metrics, "diversity", "fit_s", "synth_s"]
     maxima = [m for m in MAXIMA if m in metrics]
     head = ["variant", *("median " + m for m in metrics), *("max " + m for m in maxima)]
@@ -327,7 +372,8 @@ def main(argv=None):
         text += "\n\nFailed: " + "; ".join(f"{k}: {v}" for k, v in failed.items())
     print(text)
     variants_json = [{"name": n, "fit": f, "synth": s} for n, f, s in variants]
-    path = write_results(stem, {"size": args.size, "variants": variants_json, "summary": summary,
+    path = write_results(stem, {"size": args.size, "seeds": list(args.seeds), "fit_seed": args.fit_seed,
+                                "against": args.against, "variants": variants_json, "summary": summary,
                                 "entries": entries, "ust": ust_rows, "failed": failed}, text)
     (RESULTS / f"{stem}.partial.jsonl").unlink(missing_ok=True)  # the whole run is in the results now
     log(f"wrote {path}")
