@@ -236,7 +236,7 @@ def test_files_without_the_component_ratio_read_as_fitted(saved, tmp_path):
     # Files of tghop 0.26 and before had no max_component_ratio: their clusters were capped at
     # their size less one only, which is 1.0, not today's default, in their settings.
     path, arrays = saved
-    assert load_model(path).max_component_ratio == 0.4
+    assert load_model(path).max_component_ratio == 0.5
     meta = json.loads(str(arrays["__meta__"]))
     del meta["params"]["max_component_ratio"]
     del meta["layout"]["model"]["params"]["max_component_ratio"]

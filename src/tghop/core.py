@@ -10,8 +10,8 @@ Choices the paper leaves open (see also the notes in the docs):
   cluster's variance, at most ``max_cluster_components``, at most ``max_component_ratio``
   of the cluster's samples and fewer than it has. The paper's Table 4 (F = 2,518 CDFs for
   N = 50, about 50 per cluster) is 0.95 and 50; the default 0.99 and 100 gives sharper
-  patches; with N = 100 clusters the cap of 0.4 of the samples keeps each component's
-  histogram from being fitted on too few of them (docs/choices.md).
+  patches; with N = 100 clusters the cap of half the samples keeps each component's
+  histogram from being fitted on too few of them (0.4 until 0.39; docs/choices.md).
 * Clusters with fewer than ``min_cluster_size`` members are merged into the nearest
   larger cluster before modelling (ICA of a handful of points is meaningless).
 * Each CDF is a 256-bin histogram between the component's training minimum and maximum,
@@ -101,7 +101,7 @@ class ICHM(BaseEstimator):
         F = 2,518 for N = 50 corresponds to 0.95 with at most 50 components).
     max_cluster_components : int, default=100
         Upper bound of components per cluster.
-    max_component_ratio : float, default=0.4
+    max_component_ratio : float, default=0.5
         Components per cluster at most this fraction of its members (1: one fewer than
         the members, the paper's only bound): FastICA and 256-bin histograms of fewer
         members per component fit the members rather than their distribution.
@@ -170,7 +170,7 @@ class ICHM(BaseEstimator):
         n_bins=256,
         cluster_energy=0.99,
         max_cluster_components=100,
-        max_component_ratio=0.4,
+        max_component_ratio=0.5,
         min_cluster_size=10,
         reject_threshold=None,
         max_iter=200,

@@ -269,7 +269,7 @@ SETTINGS: Tuple[Setting, ...] = (
             low=0, high=1, low_open=True, target="ichm", paper=0.95),
     Setting("max_cluster_components", 100, "int", "Components per cluster at most.", low=1,
             target="ichm", paper=50),
-    Setting("max_component_ratio", 0.4, "float",
+    Setting("max_component_ratio", 0.5, "float",
             "Components per cluster at most this fraction of its training patches (ours: with fewer "
             "patches per dimension, FastICA and the histograms fit the patches, not their distribution; "
             "1: up to one fewer than the patches, as the paper).",

@@ -155,7 +155,7 @@ class TGHop(BaseEstimator):
     # (tests/test_settings.py checks that they agree). Nothing is checked until ``fit``.
     def __init__(self, patch_size=32, stride=2, n_channels=None, gamma=0.003, gamma_mode="absolute",
                  n_clusters=None, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
-                 max_component_ratio=0.4, norm_match=1.0, coupling=0.95, min_cluster_size=10, reject_threshold=None,
+                 max_component_ratio=0.5, norm_match=1.0, coupling=0.95, min_cluster_size=10, reject_threshold=None,
                  ica_max_iter=200, ica_tol=1e-3, residual=False, max_patches=20000, band_levels=4, band_orientations=4,
                  colour_classes=4, patch_levels=4, patch_whitening=0.0, layout_factor=3, rng=None):
         self.patch_size, self.stride, self.n_channels = patch_size, stride, n_channels
