@@ -702,13 +702,23 @@ def test_with_no_retries_a_dying_worker_fails_only_its_own_exemplar(tmp_path):
     assert not leftovers(out)
 
 
+def _worker_threads(dask_worker):
+    """How many of the worker's threads run a task (``Worker.active_threads``)."""
+    return len(dask_worker.active_threads)
+
+
 def _wait_idle(client, timeout=60):
     """Until the cluster runs nothing: a task already running when its client cancelled it
-    goes on to its end on the worker (Dask cannot stop a running thread)."""
+    goes on to its end on the worker (Dask cannot stop a running thread), and until it ends,
+    its files are still staged (``.partial.*.tmp``). The scheduler forgets a task whose client
+    left while its worker still runs it, so the workers are asked as well."""
+    def busy():
+        return any(client.processing().values()) or any(client.run(_worker_threads).values())
+
     deadline = time.time() + timeout
-    while time.time() < deadline and any(client.processing().values()):
+    while time.time() < deadline and busy():
         time.sleep(0.1)
-    assert not any(client.processing().values())
+    assert not busy()
 
 
 @pytest.fixture
