@@ -29,7 +29,7 @@ import numpy as np
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture,
                       fitted_settings, in_thread, report)
-from ._arrays import check_array, check_dtype, check_width, forget_fit, from_levels
+from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
@@ -502,7 +502,7 @@ class TGHop(BaseEstimator):
             :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
         """
         check_is_fitted(self, "ichm_")
-        if str(getattr(patches, "dtype", "")) in ("uint8", "uint16"):  # any array type with a NumPy dtype
+        if isinstance(getattr(patches, "dtype", None), np.dtype) and patches.dtype in LEVELS:  # any array type
             patches = from_levels(np.asarray(patches))  # as fit reads them
         x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
         shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
