@@ -18,7 +18,12 @@ better, the largest changes): a variant that changes the layout moves single exe
     python benchmarks/bench_quality.py --ust knit,brick_wall --ust-size 128 --ust-iterations 100
 
 A variant is ``name:fit.KEY=VALUE,synth.KEY=VALUE,...`` (VALUE a Python literal), or one
-of the named VARIANTS below. ``--sheets`` writes one image per exemplar (exemplar | each
+of the named VARIANTS below. Its settings reach the fine model and the fine level's
+synthesis only: the coarse layout model (``CoarseLayout``) is fitted with TGHop's *defaults*
+for every setting it does not set itself (``max_component_ratio``, ``coupling``, ...), and the
+guide is quilted with its own ``detail`` (``layout.GUIDE_DETAIL``). So a variant measures a
+new default of such a setting with the old coarse model; once the default is changed, run
+``--variants default`` again (0.40's ``max_component_ratio`` changed the coarse model too). ``--sheets`` writes one image per exemplar (exemplar | each
 variant, seed 0). With ``--ust``, the Ustyuzhaninov baseline runs on those exemplars at
 ``--ust-size`` next to every variant at the same size (slow: minutes per exemplar; its
 images are kept in ``results/ust-cache/`` and reused, since they do not depend on tghop).
