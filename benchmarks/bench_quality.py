@@ -23,9 +23,10 @@ synthesis only: the coarse layout model (``CoarseLayout``) is fitted with TGHop'
 for every setting it does not set itself (``max_component_ratio``, ``coupling``, ...), and the
 guide is quilted with its own ``detail`` (``layout.GUIDE_DETAIL``). So a variant measures a
 new default of such a setting with the old coarse model; once the default is changed, run
-``--variants default`` again (0.40's ``max_component_ratio`` changed the coarse model too). ``--sheets`` writes one image per exemplar (exemplar | each
-variant, seed 0). With ``--ust``, the Ustyuzhaninov baseline runs on those exemplars at
-``--ust-size`` next to every variant at the same size (slow: minutes per exemplar; its
+``--variants default`` again (0.40's ``max_component_ratio`` changed the coarse model too).
+``--sheets`` writes one image per exemplar (exemplar | each variant, seed 0). With
+``--ust``, the Ustyuzhaninov baseline runs on those exemplars at ``--ust-size`` next to
+every variant at the same size (slow: minutes per exemplar; its
 images are kept in ``results/ust-cache/`` and reused, since they do not depend on tghop).
 
 ``--against RESULTS.json[:VARIANT]`` compares the variants with a variant of an earlier
