@@ -26,8 +26,8 @@ new default of such a setting with the old coarse model; once the default is cha
 ``--variants default`` again (0.40's ``max_component_ratio`` changed the coarse model too).
 ``--sheets`` writes one image per exemplar (exemplar | each variant, seed 0). With
 ``--ust``, the Ustyuzhaninov baseline runs on those exemplars at ``--ust-size`` next to
-every variant at the same size (slow: minutes per exemplar; its
-images are kept in ``results/ust-cache/`` and reused, since they do not depend on tghop).
+every variant at the same size (slow: minutes per exemplar; its images are kept in
+``results/ust-cache/`` and reused, since they do not depend on tghop).
 
 ``--against RESULTS.json[:VARIANT]`` compares the variants with a variant of an earlier
 run instead of with the first (exemplar by exemplar, as above): a change that no variant
