@@ -591,6 +591,24 @@ def test_synthesize_matches_colours_only_when_asked(small_model, bricks96):
     assert abs(matched.mean() - bricks96.mean()) < abs(plain.mean() - bricks96.mean()) + 1e-3
 
 
+def test_the_patch_refinement_takes_the_place_of_the_colour_matching(small_model):
+    # Where the patch refinement follows, it matches the colours with the patches, and the
+    # per-channel colour matching before it is skipped; without it the colours are matched.
+    def run(**kw):
+        stages = set()
+        image = small_model.synthesize((64, 64), rng=1, n_patches=300, refine=1,
+                                       progress=lambda stage, done, total: stages.add(stage), **kw)
+        return image, stages
+
+    refined, stages = run()  # the default: the patch refinement (auto) at this size
+    assert "patch refine" in stages and "colour" not in stages
+    np.testing.assert_array_equal(refined, run(match_colours=False)[0])
+    np.testing.assert_array_equal(run(patch_refine=3)[0], run(patch_refine=3, match_colours=False)[0])
+    matched, stages = run(patch_refine=0)
+    assert "colour" in stages and "patch refine" not in stages
+    assert not np.array_equal(matched, run(patch_refine=0, match_colours=False)[0])
+
+
 def test_float16_finiteness_is_checked_in_every_chunk(monkeypatch):
     from tghop import modelfile
 

@@ -343,8 +343,9 @@ SETTINGS: Tuple[Setting, ...] = (
             "this quantile of theirs, against the overlap error's preference for smooth patches (ours; "
             "0: the paper's uniform choice).", when="generate", low=0, high=1, high_open=True, paper=0.0),
     Setting("match_colours", True, "bool",
-            "Match each channel's histogram to the exemplar's after quilting (ours; False: the paper's "
-            "pipeline).", when="generate", paper=False),
+            "Match each channel's histogram to the exemplar's after the refinement, where the patch "
+            "refinement does not follow (it matches the colours with the patches; ours; False: the "
+            "paper's pipeline).", when="generate", paper=False),
     Setting("layout_weight", 3.0, "float",
             "Weight of the coarse layout's guide in quilting, per pixel relative to the overlap error "
             "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0, high=1e6),

@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from . import settings
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_texture,
-                      fitted_settings, in_thread, report)
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_size,
+                      check_texture, fitted_settings, in_thread, report)
 from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
@@ -614,8 +614,8 @@ class TGHop(BaseEstimator):
             above this quantile of theirs (ours, against the overlap error's preference for
             smooth patches; 0: the paper's uniform choice; see :func:`tghop.quilting.quilt`).
         match_colours : bool
-            Match each channel's histogram to the exemplar's after quilting (our
-            addition, see :mod:`tghop.colour`); False reproduces the paper's pipeline.
+            Match each channel's histogram to the exemplar's after the refinement, in images the patch
+            refinement does not refine (our addition, :mod:`tghop.colour`); False: the paper's pipeline.
         layout_weight : float
             Weight of the coarse layout's guide in quilting (models fitted with
             ``layout_factor``, see :mod:`tghop.layout`); 0 ignores it.
@@ -654,7 +654,7 @@ class TGHop(BaseEstimator):
             crops (models fitted with ``colour_classes``; :class:`tghop.colour.ColourClasses`).
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
-            "patch refine" and "colour".
+            "colour" (without the patch refinement) and "patch refine".
         dtype : {numpy.float64, numpy.float32, numpy.uint8}
             Of the image. float32 holds the same values as float64 rounded to float32;
             uint8 the 8-bit values 0-255 that :func:`tghop.imageio.to_uint8` makes of the
@@ -676,6 +676,11 @@ class TGHop(BaseEstimator):
             raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics this model lacks "
                              "(fitted with patch_levels=0, or by tghop 0.14 or older); fit it again, or leave "
                              "patch_refine at None or 0")
+        # Where the patch refinement follows, it gives the image the exemplar's colours with its patches:
+        # no per-channel colour matching before it (docs/choices.md, Colour matching, "0.41").
+        n_steps = steps_for(checked["patch_refine"], check_size(size, limit=None))
+        patches = bool(n_steps) and getattr(self, "patches_", None) is not None
+        match_colours = match_colours and not patches
         regions = (refine or match_colours) and n_regions(size, checked["region"], tile=tile) != (1, 1)
         n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
@@ -724,24 +729,18 @@ class TGHop(BaseEstimator):
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32, pixel_quantiles=pixel_q)
-        n_steps = steps_for(checked["patch_refine"], image.shape[:2])
-        patches = n_steps and getattr(self, "patches_", None) is not None
-        final, dtype = dtype, np.dtype(np.float32) if patches else dtype  # ours, last: colours in float32 first
-        image = image.astype(dtype, copy=False) if patches else image
-        if not match_colours:
-            if dtype == np.uint8:
-                from .imageio import to_uint8
-
-                return to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
-            image = image.astype(dtype, copy=False)
-        else:
+        if patches:  # ours, the last step, in float32 until then
+            return refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
+                                stride=checked["patch_stride"], tile=tile, dtype=dtype, progress=progress)
+        if match_colours:
             report(progress, "colour", 0, 1)
             out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
-            image = match_histograms(image, colour_q, out=out)
-        if patches:
-            image = refine_image(image, self.patches_, n_steps=n_steps, stride=checked["patch_stride"],
-                                 tile=tile, dtype=final, progress=progress)
-        return image
+            return match_histograms(image, colour_q, out=out)
+        if dtype == np.uint8:
+            from .imageio import to_uint8
+
+            return to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
+        return image.astype(dtype, copy=False)
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
