@@ -729,7 +729,7 @@ class TGHop(BaseEstimator):
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32, pixel_quantiles=pixel_q)
-        if patches:  # ours, the last step, in float32 until then
+        if patches:  # ours, the last step: it works in float32 and returns the asked dtype
             return refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
                                 stride=checked["patch_stride"], tile=tile, dtype=dtype, progress=progress)
         if match_colours:
