@@ -273,6 +273,24 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     assert not (tmp_path / "big.png").exists()
 
 
+def test_every_source_is_read_before_any_is_fitted(models, tmp_path, monkeypatch):
+    # A bad second SOURCE (here a mistyped option value taken for one) was named only after the
+    # first exemplar had been fitted.
+    save_model(models[1], tmp_path / "b.npz")
+    Image.fromarray(to_uint8(data.bricks(64, rng=1))).save(tmp_path / "ex.png")
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("an exemplar was fitted")
+
+    monkeypatch.setattr(TGHop, "fit", no_fit)
+    for args in (["synth", "ex.png", "maybe", "-o", "o.png"], ["morph", "ex.png", "missing.npz", "-o", "o.png"],
+                 ["synth", "ex.png", "b.npz", "--clusters", "8", "-o", "o.png"]):
+        r = _run(args, tmp_path)
+        assert_user_error(r, *(["fitting option", "SOURCE 2 (b.npz) is a saved model"] if "b.npz" in args
+                               else [args[2], "no such"]))
+    assert not (tmp_path / "o.png").exists()
+
+
 def test_a_path_or_a_non_callable_progress_is_named(models, tmp_path):
     # A path among the models failed in vars(); a progress that is not a function was called anyway.
     from tghop.modelfile import save_model

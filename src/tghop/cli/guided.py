@@ -23,17 +23,25 @@ GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or 
 TRANSITION_HELP = "Width in pixels of the soft transition where regions meet (with several SOURCEs)."
 
 
-def _model(spec, options, progress, downscale=False):
-    """A saved model (.npz) and True, or a model fitted on an exemplar (a file or
-    builtin:NAME) with the fit ``options`` and False."""
+def _read(spec, downscale=False):
+    """A saved model (.npz), or an exemplar (a file or builtin:NAME) read and checked, to fit
+    with :func:`_fitted`; reading every SOURCE first refuses a bad one before anything is fitted."""
     from ..synthesis import prepare_exemplar
 
     if not spec.startswith("builtin:") and (spec.lower().endswith(".npz") or is_model_file(spec)):
         from ..modelfile import load_model
 
-        return load_model(spec), True
-    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True))
-    return build_model(options, n_colours=image.shape[2]).fit(image, progress=progress), False
+        return load_model(spec)
+    return prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True))
+
+
+def _fitted(source, options, progress):
+    """``source`` from :func:`_read` as a model: a saved one as it is, an exemplar fitted with the fit ``options``."""
+    import numpy as np
+
+    if not isinstance(source, np.ndarray):
+        return source
+    return build_model(options, n_colours=source.shape[2]).fit(source, progress=progress)
 
 
 def _load_guide(path, size, size_given):
@@ -88,14 +96,13 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
 
     fit_only = [s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS) + ["downscale"]
     fitting = given_options(ctx, fit_only)
-    models = []
-    for i, spec in enumerate(sources, start=1):
-        model, saved = _model(spec, options, progress, downscale)
-        if saved and fitting:
+    read = [_read(spec, downscale) for spec in sources]
+    for i, (spec, source) in enumerate(zip(sources, read), start=1):
+        if fitting and not isinstance(source, np.ndarray):
             one = len(fitting) == 1
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
-        models.append(model)
+    models = [_fitted(source, options, progress) for source in read]
     rng = np.random.default_rng(seed)
     for path in outputs:
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
@@ -144,8 +151,8 @@ def morph(source_a, source_b, output, size, grid, seed, stations, quiet):
         check_output(output, allow_stdout=True)
         check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)
-        model_a, _ = _model(source_a, {}, progress)
-        model_b, _ = _model(source_b, {}, progress)
+        read_a, read_b = _read(source_a), _read(source_b)
+        model_a, model_b = _fitted(read_a, {}, progress), _fitted(read_b, {}, progress)
         rows = []
         for row in range(grid):
             rng = np.random.default_rng(None if seed is None else seed + row)
