@@ -10,7 +10,7 @@ from tghop import _fft as F
 from tghop import data
 from tghop._common import TGHopError
 from tghop.pyramid import laplacian_pyramid, reconstruct
-from tghop.refine import BandStatistics, oriented_parts, refine
+from tghop.refine import TAIL_LEVELS, BandStatistics, oriented_parts, refine, tail_quantiles
 
 
 @pytest.fixture(scope="module")
@@ -293,6 +293,47 @@ def test_matching_flat_values_gives_the_target_median():
     levels = np.linspace(0.0, 1.0, 5)
     target = np.array([0.0, 1.0, 2.0, 3.0, 10.0])
     assert np.all(R._match(np.full(100, 0.25, dtype=np.float32), target, levels) == 2.0)
+
+
+def test_tail_quantiles_follow_an_exponential_tail_up_to_the_extremes():
+    # A Laplacian band with one far outlier at each end: the stored extremes are the
+    # outliers. Linear interpolation over the end steps would put a quarter of their 1/256
+    # beyond half the outlier; the added levels follow the Laplacian's own quantiles.
+    rng = np.random.default_rng(2)
+    values = np.concatenate([rng.laplace(0.0, 0.01, 1 << 16), [-0.5, 0.4]])
+    levels = np.linspace(0.0, 1.0, 257)
+    q = np.quantile(values, levels)
+    new_levels, new_q = tail_quantiles(levels, np.stack([q, 2 * q]))
+    assert new_levels.shape == (257 + 2 * TAIL_LEVELS,) and new_q.shape == (2, 257 + 2 * TAIL_LEVELS)
+    assert np.all(np.diff(new_levels) > 0) and np.all(np.diff(new_q, axis=1) >= 0)
+    kept = np.isin(new_levels, levels)
+    np.testing.assert_array_equal(new_levels[kept], levels)  # the stored quantiles stay, extremes included
+    np.testing.assert_array_equal(new_q[:, kept], np.stack([q, 2 * q]))
+    added = ~kept
+    truth = np.quantile(values, new_levels[added])
+    assert np.abs(new_q[0, added] - truth).max() < 0.2 * np.abs(truth).max()
+    linear = np.interp(new_levels[added], levels, q)
+    assert np.abs(linear - truth).max() > 2 * np.abs(truth).max()
+    same_levels, same_q = tail_quantiles(levels, q, n_tail=0)
+    assert same_levels.shape == levels.shape and np.array_equal(same_q, q)
+
+
+def test_refine_makes_no_speckles_of_an_exemplars_lone_extremes():
+    # A smooth exemplar with three bright dots: its finest band's extreme quantiles are the
+    # dots. Matched linearly through the end steps, a smooth image's largest band values
+    # took dot-sized values and came out as bright and dark specks (16 here; blue_bubbles).
+    def smooth(seed):
+        x = ndimage.gaussian_filter(np.random.default_rng(seed).random((128, 128, 3)), (4, 4, 0))
+        return 0.2 + 0.6 * (x - x.min()) / (x.max() - x.min())
+
+    def specks(img):
+        grey = img.mean(axis=2)
+        return int((np.abs(grey - ndimage.median_filter(grey, 3)) > 0.15).sum())
+
+    exemplar = smooth(0)
+    exemplar[[20, 70, 100], [90, 15, 60]] = 1.0
+    assert specks(exemplar) == 3
+    assert specks(refine(smooth(1), BandStatistics().fit(exemplar))) <= 3
 
 
 @pytest.mark.parametrize("n", [0, 1, 2, 3, 4, 5])

@@ -71,7 +71,7 @@ from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
-from .refine import iter_oriented_parts, prepare as prepare_refinement
+from .refine import iter_oriented_parts, prepare as prepare_refinement, tail_quantiles
 from .seams import remove_seams
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
@@ -567,8 +567,8 @@ class _Stations:
                 for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=(1, 2))):
                     for c in range(part.shape[0]):
                         flat = part[c].reshape(-1)
-                        part[c] = _monotone_map(flat, flat[samples[i]], stats.band_quantiles_[i, j, c]).reshape(
-                            part.shape[1:])
+                        part[c] = _monotone_map(flat, flat[samples[i]], stats.band_quantiles_[i, j, c],
+                                                tails=True).reshape(part.shape[1:])
                     total = part if total is None else np.add(total, part, out=total)
                 bands[i] = total
             dec = reconstruct(bands, mode=mode, axes=(1, 2)).astype(np.float32)
@@ -621,19 +621,22 @@ def _dominant(weights):
     return where
 
 
-def _monotone_map(values, sample, target):
+def _monotone_map(values, sample, target, *, tails=False):
     """``values`` (1-d float32) through the monotone map that gives ``sample`` (a subset
     of them) the quantiles ``target`` (Q,): the sample's quantiles at the same levels are
     mapped to the target's, linearly between them (a lookup table of :data:`_TABLE`
-    entries; values beyond the sample's range take the end values)."""
-    q = target.shape[0]
+    entries; values beyond the sample's range take the end values). ``tails``: a band's
+    quantiles, given exponential tails first (:func:`tghop.refine.tail_quantiles`)."""
+    levels = np.linspace(0.0, 1.0, target.shape[0])
     if sample.size == 0:
         return values
+    if tails:
+        levels, target = tail_quantiles(levels, target)
     ordered = np.sort(sample)
-    src = np.interp(np.linspace(0.0, ordered.size - 1, q), np.arange(ordered.size), ordered)
+    src = np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
     lo, hi = float(src[0]), float(src[-1])
     if not hi > lo:
-        return np.full_like(values, float(np.interp(0.5, np.linspace(0.0, 1.0, q), target)))
+        return np.full_like(values, float(np.interp(0.5, levels, target)))
     scale = (_TABLE - 1) / (hi - lo)
     table = np.interp(lo + np.arange(_TABLE) / scale, src, target).astype(values.dtype)
     # The nearest entry, round((v - lo) * scale), as v * scale + (0.5 - lo * scale) truncated.

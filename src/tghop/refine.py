@@ -9,7 +9,8 @@ fine detail at each scale without moving structures or copying exemplar pixels.
 The step works in a decorrelated colour space (the principal axes of the exemplar's
 colours, as Heeger & Bergen and Portilla & Simoncelli do), decomposes each channel into a
 Laplacian pyramid (:mod:`tghop.pyramid`), gives every band the exemplar's distribution (a
-monotone map through quantile tables learned at fit time), rebuilds the image, matches the
+monotone map through quantile tables learned at fit time, their tails made exponential:
+:func:`tail_quantiles`), rebuilds the image, matches the
 pixel histogram, and repeats a few rounds, each but the last over-relaxed (:data:`RELAXATION`).
 Everything it needs at generation time is in :class:`BandStatistics` (a few thousand
 numbers), so the model file does not keep the exemplar.
@@ -30,7 +31,8 @@ from ._fft import fft_for
 from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
 
-__all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_oriented_parts", "RELAXATION"]
+__all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_oriented_parts", "tail_quantiles",
+           "RELAXATION", "TAIL_LEVELS"]
 
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
@@ -56,6 +58,11 @@ _CHANNEL_ARRAYS = 11
 #: together: 3 threads up to about 4096x4096, fewer above (8192x8192: one at a time).
 _REFINE_MEMORY = 3 << 30
 
+
+#: Levels :func:`tail_quantiles` adds inside each end step of a band's quantiles: the end
+#: step's share of the values (1/256 of them with 257 quantiles) halved this many times,
+#: down to one value in 65,536 (docs/choices.md, "0.42").
+TAIL_LEVELS = 8
 
 #: Entries of the lookup table that applies a matching map (uniform steps over the band's
 #: range; each value takes the nearest entry, whose rank among the values gives its new
@@ -134,6 +141,45 @@ def _match(values, target, levels, out=None):
     if not out.flags.c_contiguous:
         out[...] = dst.reshape(out.shape)
     return out
+
+
+def tail_quantiles(levels, quantiles, n_tail=TAIL_LEVELS):
+    """Quantiles of a band with exponential tails: ``n_tail`` levels added inside each end step.
+
+    Between a band's extreme stored quantile (the exemplar's smallest or largest value there,
+    often a lone outlier) and the next lie 1/256 of its values (with 257 quantiles).
+    Interpolated linearly, half of them would take values of the outlier's size, which show
+    as dark or bright speckles on smooth textures. Band values have exponential tails (a
+    Laplacian's), where every halving of the share beyond a quantile moves it by the same
+    step: levels ``l1 / 2, l1 / 4, ...`` (``l1``, the second level) take the quantile one,
+    two, ... steps ``q1 - q2`` beyond ``q1``, never beyond the extreme one; the upper tail
+    likewise.
+
+    Parameters
+    ----------
+    levels : ndarray, shape (Q,)
+        Increasing, from 0 to 1.
+    quantiles : ndarray, shape (..., Q)
+        Non-decreasing along the last axis, at ``levels``.
+    n_tail : int
+        Levels added at each end (0: none; nothing is added when Q < 4).
+
+    Returns
+    -------
+    levels : ndarray, shape (Q + 2 n_tail,)
+    quantiles : ndarray, shape (..., Q + 2 n_tail)
+    """
+    levels, quantiles = np.asarray(levels, dtype=np.float64), np.asarray(quantiles)
+    if n_tail == 0 or levels.size < 4:
+        return levels, quantiles
+    k = np.arange(n_tail, 0, -1)  # the added levels in increasing order: n_tail ... 1 halvings
+    low = np.maximum(quantiles[..., :1], quantiles[..., 1:2] - k * (quantiles[..., 2:3] - quantiles[..., 1:2]))
+    high = np.minimum(quantiles[..., -1:], quantiles[..., -2:-1] + k[::-1] * (quantiles[..., -2:-1]
+                                                                             - quantiles[..., -3:-2]))
+    new_levels = np.concatenate([levels[:1], levels[1] * 0.5 ** k, levels[1:-1],
+                                 1.0 - (1.0 - levels[-2]) * 0.5 ** k[::-1], levels[-1:]])
+    new_quantiles = np.concatenate([quantiles[..., :1], low, quantiles[..., 1:-1], high, quantiles[..., -1:]], axis=-1)
+    return new_levels, new_quantiles
 
 
 def _grid(sample, n_values):
@@ -739,7 +785,8 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
     if single:  # as one channel of a stack: the same numbers
         x, band_q, pixel_q = x[None], band_q[:, :, None], pixel_q[None]
     n_parts, n_channels = band_q.shape[1], band_q.shape[2]
-    qlev = np.linspace(0.0, 1.0, band_q.shape[-1])
+    qlev = np.linspace(0.0, 1.0, pixel_q.shape[-1])
+    band_lev, band_q = tail_quantiles(np.linspace(0.0, 1.0, band_q.shape[-1]), band_q)
     axes = (1, 2)
     for r in range(1, n_iter + 1):
         bands = laplacian_pyramid(x, len(band_q), mode=mode, axes=axes)
@@ -749,13 +796,13 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
         for i in range(first_level, len(bands) - 1):
             # Every oriented part matched, the matched parts summed: the new band.
             if bands[i][0].size > _PARTS_CHUNK:
-                bands[i] = _match_oriented(bands[i], band_q[i], qlev, workers=fft_workers)
+                bands[i] = _match_oriented(bands[i], band_q[i], band_lev, workers=fft_workers)
                 continue
             # A small band (one chunk): part by part, all channels in each step (fewer calls).
             total = None  # the matched parts summed in order, into the first one
             for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=axes, workers=fft_workers)):
                 for k in range(n_channels):
-                    _match(part[k], band_q[i, j, k], qlev, out=part[k])
+                    _match(part[k], band_q[i, j, k], band_lev, out=part[k])
                 if total is None:
                     total = part
                 else:
