@@ -10,8 +10,8 @@ The step works in a decorrelated colour space (the principal axes of the exempla
 colours, as Heeger & Bergen and Portilla & Simoncelli do), decomposes each channel into a
 Laplacian pyramid (:mod:`tghop.pyramid`), gives every band the exemplar's distribution (a
 monotone map through quantile tables learned at fit time, their tails made exponential:
-:func:`tail_quantiles`), rebuilds the image, matches the
-pixel histogram, and repeats a few rounds, each but the last over-relaxed (:data:`RELAXATION`).
+:func:`tail_quantiles`), rebuilds the image, matches the pixel histogram, and repeats a few
+rounds, each but the last over-relaxed (:data:`RELAXATION`).
 Everything it needs at generation time is in :class:`BandStatistics` (a few thousand
 numbers), so the model file does not keep the exemplar.
 """
@@ -61,7 +61,7 @@ _REFINE_MEMORY = 3 << 30
 
 #: Levels :func:`tail_quantiles` adds inside each end step of a band's quantiles: the end
 #: step's share of the values (1/256 of them with 257 quantiles) halved this many times,
-#: down to one value in 65,536 (docs/choices.md, "0.42").
+#: down to one value in 65,536 (docs/choices.md, Refinement, "Exponential tails (0.42)").
 TAIL_LEVELS = 8
 
 #: Entries of the lookup table that applies a matching map (uniform steps over the band's
