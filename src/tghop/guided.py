@@ -502,6 +502,9 @@ class _Stations:
     def __init__(self, weights, mix, models):
         self.mix = np.asarray(mix, dtype=np.float64)
         self.stats = [m.bands_ for m in models]
+        # Each model's band quantiles with exponential tails, and their levels (made once).
+        self.bands = [tail_quantiles(np.linspace(0.0, 1.0, s.band_quantiles_.shape[-1]), s.band_quantiles_)
+                      for s in self.stats]
         self.colours = [m.colour_quantiles_ for m in models]
         self.n_levels = min(s.band_quantiles_.shape[0] for s in self.stats)
         self.stations = []
@@ -560,6 +563,7 @@ class _Stations:
 
         def one(k, crop, samples):
             stats = self.stats[k]
+            band_levels, band_q = self.bands[k]
             dec = _linear(np.moveaxis(crop, 2, 0), stats.colour_basis_, -stats.colour_basis_ @ stats.colour_mean_)
             bands = laplacian_pyramid(dec, self.n_levels, mode=mode, axes=(1, 2))
             for i in range(len(bands) - 1):
@@ -567,8 +571,8 @@ class _Stations:
                 for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=(1, 2))):
                     for c in range(part.shape[0]):
                         flat = part[c].reshape(-1)
-                        part[c] = _monotone_map(flat, flat[samples[i]], stats.band_quantiles_[i, j, c],
-                                                tails=True).reshape(part.shape[1:])
+                        part[c] = _monotone_map(flat, flat[samples[i]], band_q[i, j, c],
+                                                band_levels).reshape(part.shape[1:])
                     total = part if total is None else np.add(total, part, out=total)
                 bands[i] = total
             dec = reconstruct(bands, mode=mode, axes=(1, 2)).astype(np.float32)
@@ -621,17 +625,15 @@ def _dominant(weights):
     return where
 
 
-def _monotone_map(values, sample, target, *, tails=False):
+def _monotone_map(values, sample, target, levels=None):
     """``values`` (1-d float32) through the monotone map that gives ``sample`` (a subset
-    of them) the quantiles ``target`` (Q,): the sample's quantiles at the same levels are
-    mapped to the target's, linearly between them (a lookup table of :data:`_TABLE`
-    entries; values beyond the sample's range take the end values). ``tails``: a band's
-    quantiles, given exponential tails first (:func:`tghop.refine.tail_quantiles`)."""
-    levels = np.linspace(0.0, 1.0, target.shape[0])
+    of them) the quantiles ``target`` (Q,) at ``levels`` (Q,; default evenly spaced from 0
+    to 1): the sample's quantiles at the same levels are mapped to the target's, linearly
+    between them (a lookup table of :data:`_TABLE` entries; values beyond the sample's
+    range take the end values)."""
+    levels = np.linspace(0.0, 1.0, target.shape[0]) if levels is None else levels
     if sample.size == 0:
         return values
-    if tails:
-        levels, target = tail_quantiles(levels, target)
     ordered = np.sort(sample)
     src = np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
     lo, hi = float(src[0]), float(src[-1])
