@@ -61,6 +61,7 @@ def main():
     ap.add_argument("textures", nargs="+")
     ap.add_argument("--sizes", default="2048", help="comma-separated sides (default 2048)")
     ap.add_argument("--models", help="directory of NAME.npz model files (default: fit here)")
+    ap.add_argument("--fit-seed", type=int, default=0, help="the seed of the models fitted here (default 0)")
     ap.add_argument("--old", action="store_true", help="also without the reuse penalty and pool growth")
     ap.add_argument("--variant", action="append", default=[], help="LABEL:KEY=VALUE,... (repeatable)")
     ap.add_argument("--seed", type=int, default=0)
@@ -95,7 +96,7 @@ def main():
         own = float(metrics.self_repetition(ex))
         payload.append(dict(texture=name, size=list(ex.shape[:2]), variant="exemplar", self_repetition=own))
         rows.append([name, "x".join(map(str, ex.shape[:2])), "exemplar", own, "-", "-", "-", "-"])
-        model = load_model(Path(args.models) / f"{name}.npz") if args.models else TGHop().fit(ex)
+        model = load_model(Path(args.models) / f"{name}.npz") if args.models else TGHop(rng=args.fit_seed).fit(ex)
         t = time.perf_counter()
         smalls = [model.synthesize((256, 256), rng=args.seed + k) for k in range(args.refs)]
         seconds = (time.perf_counter() - t) / args.refs
