@@ -381,15 +381,21 @@ def test_synthesis_is_deterministic_and_light_by_default(patch_model):
     b = patch_model.synthesize((64, 64), rng=5, patch_refine=5)
     off = patch_model.synthesize((64, 64), rng=5, patch_refine=0)
     # The default (None, "auto"): AUTO_STEPS on images of up to AUTO_PIXELS pixels, AUTO_LARGE_STEPS up
-    # to AUTO_LARGE_PIXELS, none above.
+    # to AUTO_LARGE_PIXELS, then fewer in proportion to the pixels up to AUTO_LARGEST_PIXELS, none above.
     assert np.array_equal(patch_model.synthesize((64, 64), rng=5),
                           patch_model.synthesize((64, 64), rng=5, patch_refine=pr.AUTO_STEPS))
     assert pr.steps_for(None, (512, 512)) == pr.AUTO_STEPS == 52
     assert pr.steps_for(None, (512, 513)) == pr.steps_for(None, (1024, 1024)) == pr.AUTO_LARGE_STEPS == 24
-    assert pr.steps_for(None, (1024, 1025)) == pr.steps_for(None, (2048, 2048)) == 0
+    assert pr.steps_for(None, (1024, 1025)) == 24 and pr.steps_for(None, (1024, 1100)) == 22
+    assert pr.steps_for(None, (1152, 1152)) == 19 and pr.steps_for(None, (800, 1920)) == 16
+    assert pr.steps_for(None, (1280, 1280)) == 15 == pr.steps_for(None, (2560, 640))
+    assert pr.steps_for(None, (1280, 1281)) == pr.steps_for(None, (2048, 2048)) == 0
+    steps = [pr.steps_for(None, (1024, w)) for w in range(1025, 1601)]
+    assert steps == sorted(steps, reverse=True) and min(steps) == 15  # never more for more pixels
     # The setting's help (settings stays free of NumPy, so it says the numbers itself).
     assert (f"auto (None in Python): {pr.AUTO_STEPS} on images of up to 512x512 pixels, {pr.AUTO_LARGE_STEPS} on "
-            "images of up to 1024x1024, none") in settings.BY_NAME["patch_refine"].help
+            "images of up to 1024x1024, then fewer in proportion to the pixels "
+            f"({pr.steps_for(None, (1280, 1280))} at 1280x1280), none") in settings.BY_NAME["patch_refine"].help
     assert pr.steps_for(3, (4096, 4096)) == 3 and pr.steps_for(0, (64, 64)) == 0
     assert a.shape == (64, 64, 3) and np.array_equal(a, b)
     assert not np.array_equal(a, off)

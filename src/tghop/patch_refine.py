@@ -89,12 +89,14 @@ _MAX_STRIDE = 4
 #: when directions are whitened (flat or noiseless exemplars: no direction of pure noise).
 _EIGEN_FLOOR = 1e-3
 #: The default (``patch_refine`` None): AUTO_STEPS per level on images of at most AUTO_PIXELS
-#: pixels, AUTO_LARGE_STEPS on images of at most AUTO_LARGE_PIXELS, none on larger ones: a step's
-#: cost grows with the image (docs/choices.md, Patch refinement "0.31").
+#: pixels, AUTO_LARGE_STEPS on images of at most AUTO_LARGE_PIXELS, then fewer in proportion to
+#: the pixels up to AUTO_LARGEST_PIXELS (15 at 1280x1280), none on larger ones: a step's cost
+#: grows with the image (docs/choices.md, Patch refinement "0.31" and "0.43").
 AUTO_STEPS = 52
 AUTO_PIXELS = 512 * 512
 AUTO_LARGE_STEPS = 24
 AUTO_LARGE_PIXELS = 1024 * 1024
+AUTO_LARGEST_PIXELS = 1280 * 1280
 #: Pixels added around a change before its checker is measured (:func:`_without_checker`).
 _CHECKER_MARGIN = 8
 #: Smallest side of a level, in patch sides (coarser levels are not made).
@@ -577,13 +579,17 @@ def _without_checker(image, start, tile):
 
 def steps_for(n_steps, size):
     """``patch_refine`` for an image of ``size`` (H, W): ``n_steps``, or for None (auto)
-    AUTO_STEPS up to AUTO_PIXELS pixels, AUTO_LARGE_STEPS up to AUTO_LARGE_PIXELS and 0 above."""
+    AUTO_STEPS up to AUTO_PIXELS pixels, AUTO_LARGE_STEPS up to AUTO_LARGE_PIXELS, then
+    ``AUTO_LARGE_STEPS * AUTO_LARGE_PIXELS / pixels`` (rounded) up to AUTO_LARGEST_PIXELS and
+    0 above."""
     if n_steps is not None:
         return n_steps
     pixels = size[0] * size[1]
     if pixels <= AUTO_PIXELS:
         return AUTO_STEPS
-    return AUTO_LARGE_STEPS if pixels <= AUTO_LARGE_PIXELS else 0
+    if pixels <= AUTO_LARGE_PIXELS:
+        return AUTO_LARGE_STEPS
+    return round(AUTO_LARGE_STEPS * AUTO_LARGE_PIXELS / pixels) if pixels <= AUTO_LARGEST_PIXELS else 0
 
 
 def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):

@@ -358,8 +358,8 @@ SETTINGS: Tuple[Setting, ...] = (
             "Adam steps per pyramid level of sliced Wasserstein matching of the image's 5x5 patches to "
             "the exemplar's, the last step (ours, :mod:`tghop.patch_refine`; models fitted with "
             "patch_levels; 0: off). auto (None in Python): 52 on images of up to 512x512 pixels, 24 on "
-            "images of up to 1024x1024, none on larger ones (the cost grows with the image; give a number "
-            "to refine them too).",
+            "images of up to 1024x1024, then fewer in proportion to the pixels (15 at 1280x1280), none on "
+            "larger ones (the cost grows with the image; give a number to refine them too).",
             when="generate", low=0, high=500, none_ok=True, auto=True, paper=0),
     Setting("patch_stride", 2, "int",
             "The patch refinement's steps take every patch_stride-th patch each way at each level, "

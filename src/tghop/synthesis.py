@@ -631,7 +631,8 @@ class TGHop(BaseEstimator):
             another model is a :class:`TGHopError`); 0: off; None:
             ``AUTO_STEPS`` of :mod:`tghop.patch_refine` on images of at most ``AUTO_PIXELS``
             (512x512) pixels, ``AUTO_LARGE_STEPS`` on images of at most ``AUTO_LARGE_PIXELS``
-            (1024x1024), 0 on larger ones.
+            (1024x1024), fewer in proportion to the pixels up to ``AUTO_LARGEST_PIXELS``
+            (1280x1280), 0 on larger ones (:func:`tghop.patch_refine.steps_for`).
         patch_stride : int
             Its steps take every ``patch_stride``-th patch each way at each level.
         reuse : float
