@@ -355,6 +355,47 @@ def test_stride_two_leaves_no_checker(patch_model, monkeypatch):
     assert np.array_equal(pr.patch_refine(img, st, n_steps=12, stride=1), every_patch)
 
 
+def _period_excess(change, period):
+    """Power of an (H, W, C) change at ``period`` pixels along rows and columns over that of
+    the frequencies next to it."""
+    g = (change - change.mean(axis=(0, 1))).mean(axis=2)
+    s = (np.abs(np.fft.rfft(g, axis=1)) ** 2).mean(0) + (np.abs(np.fft.rfft(g, axis=0)) ** 2).mean(1)
+    k = g.shape[1] // period
+    return s[k] / np.r_[s[k - 3:k - 1], s[k + 2:k + 4]].mean()
+
+
+def test_pattern_of_a_wider_stride_is_taken_off_the_change():
+    """A pattern of period 4 (or 3) whose strength varies over the image goes; a smooth change
+    and a sharp edge stay; a periodic image whose side is not a multiple of the stride is left
+    as it is."""
+    start = data.cells(96, rng=1).astype(np.float32)
+    yy, xx = np.mgrid[:96, :96].astype(np.float32)
+    envelope = (0.05 * (1 + np.sin(xx / 9) * np.cos(yy / 7)))[..., None] * np.ones(3, np.float32)
+    smooth = (0.1 * np.sin((xx + yy) / 13))[..., None] * np.ones(3, np.float32)
+    for step in (3, 4):
+        for pattern in (np.cos(2 * np.pi * yy / step), np.cos(2 * np.pi * xx / step), (xx % step == 1) - 1 / step):
+            out = pr._without_grid(start + smooth + envelope * pattern[..., None], start, step, False)
+            # What is left is the pattern's change in strength within the smoothing (6 px at 4).
+            assert np.abs(out - (start + smooth)).mean() < 0.3 * np.abs(envelope * pattern[..., None]).mean()
+    assert np.abs(pr._without_grid(start + smooth, start, 4, False) - start - smooth).max() < 0.005
+    edge = np.where(xx > 47.5, 0.3, 0.0).astype(np.float32)[..., None] * np.ones(3, np.float32)
+    out = pr._without_grid(start + edge, start, 4, False)
+    assert np.abs(out - start - edge).max() < 0.15 * 0.3 and np.abs(out - start - edge).mean() < 0.005
+    odd = start[:, :94] + 0.01
+    assert pr._without_grid(odd, start[:, :94], 4, True) is odd
+
+
+def test_stride_four_leaves_no_grid(patch_model, monkeypatch):
+    """Refining at stride 4 leaves a pattern of period 4 in the change; the default takes it off."""
+    img = patch_model.synthesize((128, 128), rng=2, patch_refine=0, detail=0.5).astype(np.float32)
+    st = patch_model.patches_
+    kept = pr.patch_refine(img, st, n_steps=12, stride=4)
+    monkeypatch.setattr(pr, "_without_grid", lambda image, start, step, tile: image)
+    left = pr.patch_refine(img, st, n_steps=12, stride=4)
+    assert _period_excess(left - img, 4) > 3 * _period_excess(kept - img, 4)
+    assert _period_excess(kept - img, 4) < 2
+
+
 def test_coarser_levels_travel_a_bounded_distance(patch_model, monkeypatch):
     """The full level steps LEARNING_RATE; a coarser level COARSE_RATE, but at most
     COARSE_TRAVEL over all its steps (more steps take shorter ones)."""

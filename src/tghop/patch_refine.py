@@ -27,7 +27,8 @@ tghop's finished image (which already has the layout, so few steps suffice):
   gradient of the L1 distance between the two (as GPDM). A level's change is upsampled into
   the next finer one.
   At stride 2 the full level's change loses the 2-pixel checker such steps leave
-  (:func:`_without_checker`).
+  (:func:`_without_checker`); at strides 3 and 4 (images of about 724x724 pixels and more)
+  the pattern of that period (:func:`_without_grid`).
 """
 
 from __future__ import annotations
@@ -97,6 +98,9 @@ AUTO_PIXELS = 512 * 512
 AUTO_LARGE_STEPS = 24
 AUTO_LARGE_PIXELS = 1024 * 1024
 AUTO_LARGEST_PIXELS = 1280 * 1280
+#: Scale (pixels of one phase's grid) at which :func:`_without_grid` compares a phase of the change
+#: with the whole change (docs/choices.md, Patch refinement "0.43").
+_GRID_SIGMA = 1.5
 #: Pixels added around a change before its checker is measured (:func:`_without_checker`).
 _CHECKER_MARGIN = 8
 #: Smallest side of a level, in patch sides (coarser levels are not made).
@@ -542,6 +546,8 @@ def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progres
                      float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))
         if i == 0 and step == 2:
             new = _without_checker(new, cur, tile)
+        elif i == 0 and step > 2:  # the larger images' strides, 3 and 4
+            new = _without_grid(new, cur, step, tile)
         np.clip(new, 0.0, 1.0, out=new)
         done += n_steps
         report(progress, "patch refine", done, total)
@@ -575,6 +581,32 @@ def _without_checker(image, start, tile):
         low *= carrier
         change -= low
     return start + change[m:-m, m:-m]
+
+
+def _without_grid(image, start, step, tile):
+    """``image`` (H, W, C) less the pattern of period ``step`` that steps at that stride (3 or 4)
+    leave: the change from ``start`` at each of the ``step x step`` phases of the grid, smoothed
+    on that phase's own pixels, less the whole change smoothed at the same scale, is taken off
+    those pixels (what one phase of the change does unlike its neighbours over a few pixels).
+    A periodic image whose sides are not multiples of ``step`` is returned as it is (its phases
+    would not wrap)."""
+    from scipy import ndimage
+
+    h, w = image.shape[:2]
+    if tile and (h % step or w % step):
+        return image
+    # A margin of whole periods (mirrored, or wrapped) keeps every pixel's phase, so that a smooth
+    # change does not look like a pattern at the borders.
+    m = 4 * step
+    change = np.pad(image - start, ((m, m), (m, m), (0, 0)), mode="wrap" if tile else "reflect")
+    sigma = _GRID_SIGMA
+    whole = ndimage.gaussian_filter(change, (sigma * step, sigma * step, 0), mode="nearest")
+    out = change.copy()
+    for py in range(step):
+        for px in range(step):
+            low = ndimage.gaussian_filter(change[py::step, px::step], (sigma, sigma, 0), mode="nearest")
+            out[py::step, px::step] -= low - whole[py::step, px::step]
+    return start + out[m:-m, m:-m]
 
 
 def steps_for(n_steps, size):
