@@ -71,7 +71,7 @@ from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
-from .refine import iter_oriented_parts, prepare as prepare_refinement, tail_quantiles
+from .refine import iter_oriented_parts, prepare as prepare_refinement, tailed_band_quantiles
 from .seams import remove_seams
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
@@ -503,8 +503,7 @@ class _Stations:
         self.mix = np.asarray(mix, dtype=np.float64)
         self.stats = [m.bands_ for m in models]
         # Each model's band quantiles with exponential tails, and their levels (made once).
-        self.bands = [tail_quantiles(np.linspace(0.0, 1.0, s.band_quantiles_.shape[-1]), s.band_quantiles_)
-                      for s in self.stats]
+        self.bands = [tailed_band_quantiles(s.band_quantiles_) for s in self.stats]
         self.colours = [m.colour_quantiles_ for m in models]
         self.n_levels = min(s.band_quantiles_.shape[0] for s in self.stats)
         self.stations = []

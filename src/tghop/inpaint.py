@@ -42,7 +42,7 @@ from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_rng, checked_image, report
 from .quilting import boundary_cut_mask, default_overlap
 from .pyramid import laplacian_pyramid, reconstruct
-from .refine import oriented_parts, tail_quantiles
+from .refine import oriented_parts, tailed_band_quantiles
 
 __all__ = ["inpaint", "check_hole", "require_hole", "split_alpha", "with_alpha", "refine_hole"]
 
@@ -346,8 +346,7 @@ def refine_hole(image, hole, stats, *, n_iter=5, tile=False, progress=None):
     outside = np.ascontiguousarray(np.moveaxis(stats.to_decorrelated(np.asarray(image, dtype=np.float32)), 2, 0))
     dec = outside.copy()
     levels = np.linspace(0.0, 1.0, stats.pixel_quantiles_.shape[1])
-    band_levels, band_q = tail_quantiles(np.linspace(0.0, 1.0, stats.band_quantiles_.shape[-1]),
-                                         stats.band_quantiles_)
+    band_levels, band_q = tailed_band_quantiles(stats.band_quantiles_)
     c = dec.shape[0]
     report(progress, "refine", 0, n_iter)
     for done in range(1, n_iter + 1):

@@ -32,7 +32,7 @@ from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
 
 __all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_oriented_parts", "tail_quantiles",
-           "RELAXATION", "TAIL_LEVELS"]
+           "tailed_band_quantiles", "RELAXATION", "TAIL_LEVELS"]
 
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
@@ -180,6 +180,13 @@ def tail_quantiles(levels, quantiles, n_tail=TAIL_LEVELS):
                                  1.0 - (1.0 - levels[-2]) * 0.5 ** k[::-1], levels[-1:]])
     new_quantiles = np.concatenate([quantiles[..., :1], low, quantiles[..., 1:-1], high, quantiles[..., -1:]], axis=-1)
     return new_levels, new_quantiles
+
+
+def tailed_band_quantiles(band_quantiles):
+    """Stored band quantiles (..., Q), at Q evenly spaced levels from 0 to 1, with their
+    exponential tails (:func:`tail_quantiles`): ``(levels, quantiles)``, the maps every band
+    matching uses."""
+    return tail_quantiles(np.linspace(0.0, 1.0, band_quantiles.shape[-1]), band_quantiles)
 
 
 def _grid(sample, n_values):
@@ -786,7 +793,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
         x, band_q, pixel_q = x[None], band_q[:, :, None], pixel_q[None]
     n_parts, n_channels = band_q.shape[1], band_q.shape[2]
     qlev = np.linspace(0.0, 1.0, pixel_q.shape[-1])
-    band_lev, band_q = tail_quantiles(np.linspace(0.0, 1.0, band_q.shape[-1]), band_q)
+    band_lev, band_q = tailed_band_quantiles(band_q)
     axes = (1, 2)
     for r in range(1, n_iter + 1):
         bands = laplacian_pyramid(x, len(band_q), mode=mode, axes=axes)
