@@ -57,6 +57,54 @@ def test_statistics_shapes_and_directions(patch_model):
             == 3 * pr.SETS * pr.DIRECTIONS * (d + pr.QUANTILES) + pr.QUANTILES)
 
 
+def test_statistics_describe_the_whole_exemplar_not_its_centre():
+    """A photograph's centre is often unlike the rest (a light source, a vignette): the
+    quantiles come from the whole exemplar. Here two thirds of it are bright, its centre 600
+    columns dark; a constant patch of value a projects to a * sum(direction), so the median
+    projection is the bright one's (0.1's, when only a centre crop was measured)."""
+    rng = np.random.default_rng(0)
+    img = np.full((40, 1800, 3), 0.9, np.float32)
+    img[:, 600:1200] = 0.1
+    img += rng.normal(0, 0.002, img.shape).astype(np.float32)
+    for exemplar in (img, np.round(img * 255).astype(np.uint8)):
+        st = pr.fit_patch_statistics(1, exemplar)
+        median = st.quantiles_[0, ..., pr.QUANTILES // 2]
+        bright = 0.9 * st.directions_[0].sum(axis=-1)
+        assert np.abs(median - bright).max() < 0.05 * np.abs(bright).max()
+    # With a mask, the statistics are those of the rest: only the dark centre left.
+    hole = np.zeros(img.shape[:2], bool)
+    hole[:, :600] = hole[:, 1200:] = True
+    st = pr.fit_patch_statistics(1, img, exclude=hole)
+    dark = 0.1 * st.directions_[0].sum(axis=-1)
+    assert np.abs(st.quantiles_[0, ..., pr.QUANTILES // 2] - dark).max() < 0.05 * np.abs(dark).max()
+
+
+def test_fit_measures_large_exemplars_in_parts_that_cover_them():
+    """Parts of at most _FIT_SIDE a side, one at a time (bounded memory): they tile the exemplar
+    up to _FIT_GRID of them a side, and beyond that spread from one end to the other."""
+    def cover(shape):
+        seen = np.zeros(shape, int)
+        for ys, xs in pr._parts(shape):
+            assert ys.stop - ys.start <= pr._FIT_SIDE and xs.stop - xs.start <= pr._FIT_SIDE
+            seen[ys, xs] += 1
+        return seen
+
+    assert pr._parts((512, 700)) == [(slice(0, 512), slice(0, 700))]  # small exemplars: whole, as before
+    assert (cover((1200, 1600)) == 1).all() and len(pr._parts((1200, 1600))) == 4
+    assert (cover((3072, 1025)) == 1).all() and len(pr._parts((3072, 1025))) == 6
+    far = pr._parts((5000, 300))
+    assert [p[0].start for p in far] == [0, 1988, 3976] and far[-1][0].stop == 5000
+    # The parts' patches together: a two-part exemplar's statistics are those of its whole (the
+    # same patches but at the seam, a subset of them), far closer than either half's.
+    rng = np.random.default_rng(1)
+    img = np.concatenate([rng.random((48, 700, 3)) * 0.5, 0.5 + rng.random((48, 700, 3)) * 0.5], axis=1)
+    both = pr.PatchStatistics(1).fit(img).quantiles_
+    half = pr.PatchStatistics(1).fit(img[:, :700]).quantiles_
+    whole = pr._projection_quantiles(pr.PatchStatistics(1).fit(img).directions_[0],
+                                     pr._fit_patches(img.astype(np.float32), None, 1 << 20), pr.quantile_levels())
+    assert np.abs(both[0] - whole).mean() < 0.1 * np.abs(half[0] - whole).mean()
+
+
 def test_quantiles_never_decrease_on_an_exemplar_of_tied_patches(tmp_path):
     """Flat ground makes many patches project to the same value; crowded levels read
     between tied or close order statistics must not step back by a float32 rounding, or the

@@ -59,11 +59,14 @@ DIRECTIONS = 32
 QUANTILES = 129
 #: Patches measured per level at fit (a strided subset beyond this): enough for the tails.
 _FIT_PATCHES = 1 << 15
+#: The fit measures the exemplar in parts of at most _FIT_SIDE pixels a side, one at a time (its
+#: memory stays bounded): the whole exemplar up to _FIT_GRID parts a side, else _FIT_GRID x
+#: _FIT_GRID parts spread evenly over it (:func:`_parts`).
+_FIT_SIDE = 1024
+_FIT_GRID = 3
 #: Evenly spaced levels the stored quantiles are read at during generation (:func:`_on_ranks`):
 #: as good as 4,097 and cheaper (docs/choices.md, Patch refinement "0.25").
 _RANKS = 1025
-#: Exemplar pixels measured at fit: the centre crop of at most this side.
-_FIT_SIDE = 512
 #: Adam's step at full resolution, in pixel values of [0, 1] (GPDM: 0.01 in [-1, 1] from
 #: noise; from a finished image smaller steps: docs/choices.md).
 LEARNING_RATE = 0.002
@@ -204,7 +207,9 @@ class PatchStatistics(BaseEstimator):
         ----------
         image : ndarray, shape (H, W) or (H, W, C)
             Float in [0, 1], or uint8 (read as ``x / 255``, as :meth:`tghop.TGHop.fit` does);
-            at least PATCH pixels a side.
+            at least PATCH pixels a side. Measured in parts of at most 1024x1024 pixels, one at
+            a time (:func:`_parts`): the whole of it up to 3072 pixels a side, else 3 x 3
+            parts spread over it.
         exclude : ndarray, shape (H, W), bool, optional
             Patches touching these pixels (at each level: touching pixels reached by them)
             are left out.
@@ -221,27 +226,29 @@ class PatchStatistics(BaseEstimator):
         if not isinstance(w, numbers.Real) or isinstance(w, bool) or not 0 <= w <= 1:
             raise TGHopError(f"PatchStatistics: whitening must be a number in [0, 1], got {w!r}")
         rng = check_rng(rng)
-        image = check_image(image, min_size=PATCH, name="PatchStatistics.fit: image", dtype=np.float32, channels=None)
-        hole = check_mask(exclude, image.shape, "PatchStatistics.fit")
-        levels = _levels_of(image, n, "reflect", PATCH)
-        d = PATCH * PATCH * image.shape[2]
-        dirs = rng.standard_normal((len(levels), SETS, DIRECTIONS, d)).astype(np.float32)
+        arr = np.asarray(image)
+        parts = _parts(arr.shape[:2]) if arr.ndim in (2, 3) else [(Ellipsis,)]  # (Ellipsis,): for the error
+        rows_of, counts = [[] for _ in range(n)], []  # per level, the patches (n, D) measured in each part
+        for j, part in enumerate(parts):  # one part's pixels as floats at a time
+            img = check_image(arr[part], min_size=PATCH, name="PatchStatistics.fit: image", dtype=np.float32,
+                              channels=None)
+            if j == 0 and exclude is not None:
+                exclude = check_mask(exclude, arr.shape[:2] + img.shape[2:], "PatchStatistics.fit")
+            hole = None if exclude is None else exclude[part]
+            levels = _levels_of(img, n, "reflect", PATCH)
+            counts.append(len(levels))
+            for i, level in enumerate(levels):
+                rows_of[i].append(_fit_patches(level, hole, -(-_FIT_PATCHES // len(parts))))
+                if hole is not None:  # the next level's mask: pixels whose 5-tap neighbourhood met a hole
+                    hole = downsample(hole.astype(np.float32)[..., None])[..., 0] > 0
+        n_levels = min(counts)  # as many as every part has
+        d = PATCH * PATCH * img.shape[2]
+        dirs = rng.standard_normal((n_levels, SETS, DIRECTIONS, d)).astype(np.float32)
         dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
         qlev = quantile_levels(QUANTILES)
-        quantiles = np.empty((len(levels), SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
-        for i, img in enumerate(levels):
-            # Which windows (row-major numbers) are measured; only those are copied.
-            v = np.lib.stride_tricks.sliding_window_view(img, (PATCH, PATCH), axis=(0, 1))
-            rows = np.arange(v.shape[0] * v.shape[1])
-            if hole is not None:
-                keep = clean_windows(hole, PATCH).ravel()
-                if keep.any():
-                    rows = np.flatnonzero(keep)
-                # The next level's mask: pixels whose 5-tap neighbourhood met a hole.
-                hole = downsample(hole.astype(np.float32)[..., None])[..., 0] > 0
-            if len(rows) > _FIT_PATCHES:
-                rows = rows[:: -(-len(rows) // _FIT_PATCHES)]
-            x = v[rows // v.shape[1], rows % v.shape[1]].reshape(len(rows), d)
+        quantiles = np.empty((n_levels, SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
+        for i in range(n_levels):
+            x = rows_of[i][0] if len(rows_of[i]) == 1 else np.concatenate(rows_of[i])
             if w:
                 dirs[i] = _whitened(dirs[i].reshape(-1, d), x, w).reshape(dirs[i].shape)
             quantiles[i] = _projection_quantiles(dirs[i], x, qlev)
@@ -286,6 +293,36 @@ class PatchStatistics(BaseEstimator):
             ("patch.quantiles", ("Lp", SETS, DIRECTIONS, QUANTILES), "f", says, (("nondecreasing",),)),
         ) + (() if format5 else (("patch.levels", (QUANTILES,), "f", f"{QUANTILES} quantile levels",
                                   (("range", 0.0, 1.0), ("nondecreasing",))),))
+
+
+def _parts(shape):
+    """The parts (row slice, column slice) of an exemplar of ``shape`` (H, W) that the fit
+    measures: along each side ``k = ceil(n / _FIT_SIDE)`` parts that tile it (at most
+    _FIT_SIDE pixels each), or, beyond _FIT_GRID of them, _FIT_GRID parts of _FIT_SIDE pixels
+    spread evenly from one end to the other."""
+    def spans(n):
+        k = -(-n // _FIT_SIDE)
+        if k <= _FIT_GRID:
+            cuts = [round(j * n / k) for j in range(k + 1)]
+            return [slice(a, b) for a, b in zip(cuts[:-1], cuts[1:])]
+        return [slice(a, a + _FIT_SIDE) for a in np.linspace(0, n - _FIT_SIDE, _FIT_GRID).round().astype(int)]
+
+    return [(ys, xs) for ys in spans(shape[0]) for xs in spans(shape[1])]
+
+
+def _fit_patches(level, hole, limit):
+    """At most about ``limit`` of the PATCH x PATCH windows of an (H, W, C) pyramid level, none
+    touching ``hole`` (H, W) where others are left: a strided subset of them (row-major), as
+    rows (n, D)."""
+    v = np.lib.stride_tricks.sliding_window_view(level, (PATCH, PATCH), axis=(0, 1))
+    rows = np.arange(v.shape[0] * v.shape[1])
+    if hole is not None:
+        keep = clean_windows(hole, PATCH).ravel()
+        if keep.any():
+            rows = np.flatnonzero(keep)
+    if len(rows) > limit:
+        rows = rows[:: -(-len(rows) // limit)]
+    return v[rows // v.shape[1], rows % v.shape[1]].reshape(len(rows), -1)
 
 
 def _whitened(u, x, w):
@@ -625,20 +662,16 @@ def steps_for(n_steps, size):
 
 
 def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
-    """:class:`PatchStatistics` of an exemplar (H, W, C; float in [0, 1] or uint8): its
-    centre crop of at most _FIT_SIDE squared; None when ``levels`` is 0 (nothing stored)."""
+    """:class:`PatchStatistics` of a whole exemplar (H, W, C; float in [0, 1] or uint8, read in
+    parts: :func:`_parts`); None when ``levels`` is 0 (nothing stored). Until 0.43 only its centre
+    crop of at most 512x512 pixels was measured, which misled the refinement wherever the centre
+    differs from the rest, as in many photographs (docs/choices.md, Patch refinement "0.44")."""
     if not levels:
         return None
     levels = check_int(levels, "patch_levels")
     if not isinstance(whitening, numbers.Real) or isinstance(whitening, bool) or not 0 <= whitening <= 1:
         raise TGHopError(f"patch_whitening must be a number in [0, 1], got {whitening!r}")
-    h, w = image.shape[:2]
-    y, x = max(0, (h - _FIT_SIDE) // 2), max(0, (w - _FIT_SIDE) // 2)
-    crop = image[y:y + _FIT_SIDE, x:x + _FIT_SIDE].astype(np.float32)
-    if image.dtype == np.uint8:
-        crop *= np.float32(1.0 / 255.0)
-    hole = None if exclude is None else exclude[y:y + _FIT_SIDE, x:x + _FIT_SIDE]
-    return PatchStatistics(levels, whitening).fit(crop, exclude=hole)
+    return PatchStatistics(levels, whitening).fit(image, exclude=exclude)
 
 
 def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, progress=None):
