@@ -1,15 +1,16 @@
 """Picture quality over many exemplars: TGHop variants side by side, medians, ablations.
 
 Every exemplar (``../shared/textures``; larger than 512 px: its centre 256x256, as in
-``bench_paper.py``) is fitted once per distinct fit setting; each variant then makes a
-256x256 image with seed 0 and one with seed 1 (``--seeds``: others, or more), and
-``tghop.metrics`` scores each against the exemplar (SIFID, SWD, co-occurrence, copied,
-copied_textured) plus the diversity between them. The table gives medians over exemplars
-(of the seeds' mean), the maxima of ``copied`` and ``copied_textured`` (issue #25: median
-<= 0.02, maximum <= 0.10), and the fit and per-image times; a second table compares each
-variant with the first, exemplar by exemplar (geometric mean of the ratios, how many got
-better, the largest changes): a variant that changes the layout moves single exemplars by
-10-20 % by chance with two seeds, so look there before at the medians.
+``bench_paper.py``; with ``--whole`` the whole exemplar, as a user gives it) is fitted once
+per distinct fit setting; each variant then makes a 256x256 image with seed 0 and one with
+seed 1 (``--seeds``: others, or more), and ``tghop.metrics`` scores each against the
+exemplar (SIFID, SWD, co-occurrence, copied, copied_textured) plus the diversity between
+them. The table gives medians over exemplars (of the seeds' mean), the maxima of ``copied``
+and ``copied_textured`` (issue #25: median <= 0.02, maximum <= 0.10), and the fit and per-
+image times; a second table compares each variant with the first, exemplar by exemplar
+(geometric mean of the ratios, how many got better, the largest changes): a variant that
+changes the layout moves single exemplars by 10-20 % by chance with two seeds, so look there
+before at the medians.
 
     python benchmarks/bench_quality.py                                 # all exemplars, paper + default
     python benchmarks/bench_quality.py --textures knit,brick_wall --variants default
@@ -113,10 +114,10 @@ def parse_variant(spec: str):
     return name, fit_kw, synth_kw
 
 
-def prepare(name: str):
+def prepare(name: str, whole: bool = False):
     img = texture(name)
     h, w = img.shape[:2]
-    if max(h, w) > EXEMPLAR_MAX:
+    if max(h, w) > EXEMPLAR_MAX and not whole:
         y, x = (h - CENTRE_CROP) // 2, (w - CENTRE_CROP) // 2
         return img[y:y + CENTRE_CROP, x:x + CENTRE_CROP].copy()
     return img
@@ -154,12 +155,13 @@ def _init_worker():
         pass
 
 
-def task(name, variants, size, metrics, sheets, fit_seed=0, seeds=(0, 1)):
-    """Fit ``name`` once per distinct fit setting (seed ``fit_seed``), run every variant with ``seeds``, score."""
+def task(name, variants, size, metrics, sheets, fit_seed=0, seeds=(0, 1), whole=False):
+    """Fit ``name`` (``whole``: not cropped) once per distinct fit setting (seed ``fit_seed``), run every
+    variant with ``seeds``, score."""
     from tghop import TGHop
     from tghop.metrics import diversity
 
-    exemplar = prepare(name)
+    exemplar = prepare(name, whole)
     models, out, images = {}, {}, {}
     for vname, fit_kw, synth_kw in variants:
         kw = fit_kwargs(fit_kw, exemplar)
@@ -271,9 +273,11 @@ def load_against(spec, args):
     vname = vname or names[0]
     if vname not in names:
         raise SystemExit(f"--against: {path} has no variant {vname!r}; it has {', '.join(names)}")
-    for key, ours in (("size", args.size), ("seeds", list(args.seeds)), ("fit_seed", args.fit_seed)):
-        if key in saved and saved[key] != ours:
-            raise SystemExit(f"--against: {path} was run with {key} {saved[key]}, this run with {ours}")
+    for key, ours in (("size", args.size), ("seeds", list(args.seeds)), ("fit_seed", args.fit_seed),
+                      ("whole", args.whole)):
+        theirs = saved.get(key, False if key == "whole" else ours)  # runs before --whole cropped
+        if theirs != ours:
+            raise SystemExit(f"--against: {path} was run with {key} {theirs}, this run with {ours}")
     if "seeds" not in saved:
         log(f"--against: {path} does not record its seeds and fit seed; it must have used these ones")
     settings = next(v for v in saved["variants"] if v["name"] == vname)
@@ -295,6 +299,8 @@ def main(argv=None):
     ap.add_argument("--seeds", default="0,1", type=_seeds,
                     help="comma-separated generation seeds, at least two (default 0,1); more lower the noise")
     ap.add_argument("--sheets", action="store_true", help="one sheet per exemplar")
+    ap.add_argument("--whole", action="store_true",
+                    help="fit and score exemplars over 512 px whole, not their centre 256x256")
     ap.add_argument("--tag", default="", help="suffix of the result files")
     ap.add_argument("--against", default=None, metavar="RESULTS.json[:VARIANT]",
                     help="compare with VARIANT (default: its first) of an earlier run's results")
@@ -321,7 +327,8 @@ def main(argv=None):
 
     entries, ust_rows, failed = [], [], {}
     with ProcessPoolExecutor(max_workers=args.jobs, initializer=_init_worker) as pool:
-        futures = {pool.submit(task, n, variants, size, metrics, sheets, args.fit_seed, args.seeds): n for n in names}
+        futures = {pool.submit(task, n, variants, size, metrics, sheets, args.fit_seed, args.seeds,
+                               args.whole): n for n in names}
         futures.update({pool.submit(ust_task, n, variants, args.ust_size, args.ust_iterations, metrics): f"ust:{n}"
                         for n in filter(None, args.ust.split(","))})
         for fut in as_completed(futures):
@@ -356,7 +363,8 @@ def main(argv=None):
                            med["diversity"], med["fit_s"], med["synth_s"]])
     seeds_text = ", ".join(map(str, args.seeds[:-1])) + f" and {args.seeds[-1]}"
     text = (f"## Quality, {args.size}x{args.size}, seeds {seeds_text} (models: seed {args.fit_seed}), "
-            f"medians over {len(entries)} exemplars\n\n" + markdown_table(head, table_rows))
+            f"medians over {len(entries)} {'whole ' if args.whole else ''}exemplars\n\n"
+            + markdown_table(head, table_rows))
     against = against_first(entries, [v[0] for v in variants], metrics)
     if against:
         text += (f"\n\n### Against {variants[0][0]}, exemplar by exemplar\n\n"
@@ -379,6 +387,7 @@ def main(argv=None):
     print(text)
     variants_json = [{"name": n, "fit": f, "synth": s} for n, f, s in variants]
     path = write_results(stem, {"size": args.size, "seeds": list(args.seeds), "fit_seed": args.fit_seed,
+                                "whole": args.whole,
                                 "against": args.against, "variants": variants_json, "summary": summary,
                                 "entries": entries, "ust": ust_rows, "failed": failed}, text)
     (RESULTS / f"{stem}.partial.jsonl").unlink(missing_ok=True)  # the whole run is in the results now
