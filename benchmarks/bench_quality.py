@@ -194,15 +194,16 @@ def task(name, variants, size, metrics, sheets, fit_seed=0, seeds=(0, 1), whole=
     return {"texture": name, "shape": list(exemplar.shape), "variants": out, "sheet": str(sheet) if sheet else None}
 
 
-def ust_task(name, variants, size, n_iter, metrics):
+def ust_task(name, variants, size, n_iter, metrics, whole=False):
     """The Ustyuzhaninov baseline next to each variant, all at ``size`` x ``size``, seed 0."""
     from tghop import TGHop
     from tghop.baselines import ustyuzhaninov
 
     from tghop.imageio import load_image, save_image
 
-    exemplar = prepare(name)
-    cached = RESULTS / "ust-cache" / f"{name}-{size}-{n_iter}.png"  # the baseline does not change with tghop
+    exemplar = prepare(name, whole)
+    # The baseline does not change with tghop.
+    cached = RESULTS / "ust-cache" / f"{name}{'-whole' if whole else ''}-{size}-{n_iter}.png"
     t = time.perf_counter()
     if cached.exists():
         ust = load_image(cached)
@@ -329,7 +330,8 @@ def main(argv=None):
     with ProcessPoolExecutor(max_workers=args.jobs, initializer=_init_worker) as pool:
         futures = {pool.submit(task, n, variants, size, metrics, sheets, args.fit_seed, args.seeds,
                                args.whole): n for n in names}
-        futures.update({pool.submit(ust_task, n, variants, args.ust_size, args.ust_iterations, metrics): f"ust:{n}"
+        futures.update({pool.submit(ust_task, n, variants, args.ust_size, args.ust_iterations, metrics,
+                                    args.whole): f"ust:{n}"
                         for n in filter(None, args.ust.split(","))})
         for fut in as_completed(futures):
             label = futures[fut]
