@@ -233,7 +233,7 @@ class PatchStatistics(BaseEstimator):
             img = check_image(arr[part], min_size=PATCH, name="PatchStatistics.fit: image", dtype=np.float32,
                               channels=None)
             if j == 0 and exclude is not None:
-                exclude = check_mask(exclude, arr.shape[:2] + img.shape[2:], "PatchStatistics.fit")
+                exclude = check_mask(exclude, arr.shape, "PatchStatistics.fit")
             hole = None if exclude is None else exclude[part]
             levels = _levels_of(img, n, "reflect", PATCH)
             counts.append(len(levels))
@@ -248,7 +248,7 @@ class PatchStatistics(BaseEstimator):
         qlev = quantile_levels(QUANTILES)
         quantiles = np.empty((n_levels, SETS, DIRECTIONS, QUANTILES), dtype=np.float32)
         for i in range(n_levels):
-            x = rows_of[i][0] if len(rows_of[i]) == 1 else np.concatenate(rows_of[i])
+            x = np.concatenate(rows_of[i])
             if w:
                 dirs[i] = _whitened(dirs[i].reshape(-1, d), x, w).reshape(dirs[i].shape)
             quantiles[i] = _projection_quantiles(dirs[i], x, qlev)
