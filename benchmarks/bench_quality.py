@@ -25,7 +25,9 @@ for every setting it does not set itself (``max_component_ratio``, ``coupling``,
 guide is quilted with its own ``detail`` (``layout.GUIDE_DETAIL``). So a variant measures a
 new default of such a setting with the old coarse model; once the default is changed, run
 ``--variants default`` again (0.40's ``max_component_ratio`` changed the coarse model too).
-``--sheets`` writes one image per exemplar (exemplar | each variant, seed 0). With
+A variant with ``fit.scale`` (the working scale, :mod:`tghop.scale`) is scored against the
+exemplar resampled by it: the texture it was asked to make. ``--sheets`` writes one image per
+exemplar (exemplar | each variant, seed 0). With
 ``--ust``, the Ustyuzhaninov baseline runs on those exemplars at ``--ust-size`` next to
 every variant at the same size (slow: minutes per exemplar; its images are kept in
 ``results/ust-cache/`` and reused, since they do not depend on tghop).
@@ -161,6 +163,8 @@ def task(name, variants, size, metrics, sheets, fit_seed=0, seeds=(0, 1), whole=
     from tghop import TGHop
     from tghop.metrics import diversity
 
+    from tghop.scale import rescale
+
     exemplar = prepare(name, whole)
     models, out, images = {}, {}, {}
     for vname, fit_kw, synth_kw in variants:
@@ -175,7 +179,8 @@ def task(name, variants, size, metrics, sheets, fit_seed=0, seeds=(0, 1), whole=
             t = time.perf_counter()
             results.append(model.synthesize(size, rng=seed, **synth_kwargs(synth_kw)))
             synth_s.append(time.perf_counter() - t)
-        per_seed = [score(exemplar, r, metrics) for r in results]
+        reference = rescale(exemplar, model.scale)  # what the model was asked to reproduce (fit.scale)
+        per_seed = [score(reference, r, metrics) for r in results]
         out[vname] = {
             **{m: float(np.mean([s[m] for s in per_seed])) for m in metrics},
             "diversity": diversity(*results),

@@ -58,6 +58,20 @@ def test_maps_come_out_aligned_and_normal_maps_unit(material, exemplar, maps):
     assert _corr(gx, out["normal"][..., 0]) < -0.6 and _corr(gy, out["normal"][..., 1]) < -0.6
 
 
+def test_a_material_at_a_working_scale_learns_every_map_there(exemplar, maps):
+    from tghop.refine import BandStatistics
+    from tghop.scale import rescale
+
+    material = Material(model=TGHop(scale=0.75, **FAST), rng=0).fit(exemplar, maps)
+    assert material.model_.exemplar_shape_[:2] == (96, 96)
+    height = BandStatistics(n_levels=material.model_.band_levels,
+                            n_orientations=material.model_.band_orientations).fit(rescale(maps["height"], 0.75))
+    np.testing.assert_array_equal(material.bands_[3].band_quantiles_, height.band_quantiles_)
+    out = material.synthesize(SIZE, rng=3, **POOL)
+    lengths = np.linalg.norm(out["normal"] * 2 - 1, axis=2)
+    np.testing.assert_allclose(lengths, 1.0, atol=1e-6)
+
+
 def test_same_seed_same_maps(material):
     a, b = material.synthesize(SIZE, rng=5, **POOL), material.synthesize(SIZE, rng=5, **POOL)
     assert all(np.array_equal(a[k], b[k]) for k in a)

@@ -35,6 +35,7 @@ from . import settings
 from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
+from .scale import rescale, rescale_mask
 from .synthesis import TGHop, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "ALBEDO"]
@@ -278,9 +279,10 @@ class Material(BaseEstimator):
             params["rng"] = check_rng(params["rng"])
         params["patch_levels"] = 0  # the patch refinement does not apply to materials
         self.model_ = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
-        ex = None if exclude is None else np.asarray(exclude, dtype=bool)
+        scale = self.model_.scale  # each map's bands at the joint model's working scale
+        ex = None if exclude is None else rescale_mask(np.asarray(exclude, dtype=bool), scale)
         self.bands_ = [BandStatistics(n_levels=self.model_.band_levels, n_orientations=self.model_.band_orientations)
-                       .fit(img, exclude=ex) for _, img, _, _ in items]
+                       .fit(rescale(img, scale), exclude=ex) for _, img, _, _ in items]
         return self
 
     def _slices(self):

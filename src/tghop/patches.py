@@ -6,12 +6,14 @@ The data flow of tghop: ``patches`` -> ``hops`` (``saab``) -> ``core`` -> back t
 
 from __future__ import annotations
 
+import math
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
 from ._common import TGHopError, check_image, check_rng
+from .scale import scaled_shape
 
 __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",
            "check_exemplar_size", "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth",
@@ -186,10 +188,10 @@ def _n_patches(shape, patch_size, stride, max_patches):
     return n if max_patches is None else min(n, int(max_patches))
 
 
-def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches):
+def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches, scale=1.0):
     """Raise a one-line :class:`TGHopError` when an exemplar of ``shape`` gives too few
     training patches for ``ichm``, naming the smallest square exemplar that works (and a
-    smaller stride or N where one would do).
+    smaller stride, N or a larger scale where one would do).
 
     Parameters
     ----------
@@ -200,6 +202,9 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches):
         ``clusters_for``).
     patch_size, stride, max_patches
         The training patches' settings.
+    scale : float
+        The working scale (:mod:`tghop.scale`): the patches are those of the exemplar resampled
+        by it; the message speaks of the exemplar as given.
 
     Notes
     -----
@@ -209,6 +214,7 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches):
         n = _n_patches(shape, patch_size, stride, max_patches)
         return n >= ichm.clusters_for(n) * ichm.min_cluster_size
 
+    given, shape = shape, scaled_shape(shape, scale)
     if enough(shape, stride):
         return
     n = _n_patches(shape, patch_size, stride, max_patches)
@@ -219,16 +225,22 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches):
             return  # max_patches caps the patches below the need: ICHM's message
         side += 1
     clusters = ichm.clusters_for(n)
+    side = math.ceil(side / scale)
     fixes = [f"use an exemplar of at least {side}x{side} pixels"]
     smaller = next((s for s in range(stride - 1, 0, -1) if enough(shape, s)), None)
     if smaller:
         fixes.append(f"a stride of {smaller} (stride, --stride)")
     if n >= ichm.min_cluster_size:
         fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
+    larger = next((k / 100 for k in range(math.floor(scale * 100) + 1, 101) if enough(scaled_shape(given, k / 100),
+                                                                                      stride)), None)
+    if scale < 1 and larger:
+        fixes.append(f"a scale of at least {larger:g} (scale, --scale)")
     h, w = shape[:2]
+    at = "" if scale == 1 else f" at scale {scale:g} (given {given[0]}x{given[1]})"
     auto = " (auto)" if ichm.n_clusters is None else ""
     raise TGHopError(
-        f"exemplar is {h}x{w} pixels, {n} training patch{'es' if n != 1 else ''} of {patch_size}x{patch_size} "
+        f"exemplar is {h}x{w} pixels{at}, {n} training patch{'es' if n != 1 else ''} of {patch_size}x{patch_size} "
         f"at stride {stride}, but N={clusters}{auto} cluster{'s' if clusters != 1 else ''} of at least "
         f"{ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; " + ", or ".join(fixes))
 

@@ -326,6 +326,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "smaller than 48 times the factor gets the largest smaller one it allows (at least 2), or none.",
             low=2, high=16, none_ok=True,
             cli=("--layout",), paper=None),
+    Setting("scale", 1.0, "float",
+            "Working scale (ours, :mod:`tghop.scale`): the exemplar is resampled by this factor before "
+            "anything is learned, so every output is a texture at that scale (0.5: elements half as large "
+            "in pixels). Below 1 for photographs whose elements are larger than about 100 pixels, which "
+            "the patches cannot hold whole at 1.", low=0, low_open=True, high=4, paper=1.0),
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); model files "
             "record an int seed (a Generator: not).",
             cli=("--fit-seed",)),

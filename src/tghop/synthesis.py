@@ -42,6 +42,7 @@ from .parameter_count import parameter_groups, table4
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
 from .regions import match_regions, n_regions, prepare as prepare_regions
+from .scale import rescale, rescale_mask
 from .seams import remove_seams
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "grey_as_rgb", "prepare_exemplar", "PAPER_TABLE4"]
@@ -157,12 +158,11 @@ class TGHop(BaseEstimator):
                  n_clusters=None, n_codewords=200, n_bins=256, cluster_energy=0.99, max_cluster_components=100,
                  max_component_ratio=0.5, norm_match=1.0, coupling=0.95, min_cluster_size=10, reject_threshold=None,
                  ica_max_iter=200, ica_tol=1e-3, residual=False, max_patches=20000, band_levels=4, band_orientations=4,
-                 colour_classes=4, patch_levels=4, patch_whitening=0.0, layout_factor=3, rng=None):
+                 colour_classes=4, patch_levels=4, patch_whitening=0.0, layout_factor=3, scale=1.0, rng=None):
         self.patch_size, self.stride, self.n_channels = patch_size, stride, n_channels
         self.gamma, self.gamma_mode = gamma, gamma_mode
         self.n_clusters, self.n_codewords, self.n_bins = n_clusters, n_codewords, n_bins
-        self.cluster_energy = cluster_energy
-        self.max_cluster_components = max_cluster_components
+        self.cluster_energy, self.max_cluster_components = cluster_energy, max_cluster_components
         self.max_component_ratio = max_component_ratio
         self.norm_match, self.coupling = norm_match, coupling
         self.min_cluster_size = min_cluster_size
@@ -170,7 +170,7 @@ class TGHop(BaseEstimator):
         self.ica_max_iter, self.ica_tol = ica_max_iter, ica_tol
         self.residual, self.max_patches, self.band_levels = residual, max_patches, band_levels
         self.band_orientations, self.colour_classes, self.patch_levels = band_orientations, colour_classes, patch_levels
-        self.patch_whitening, self.layout_factor = patch_whitening, layout_factor
+        self.patch_whitening, self.layout_factor, self.scale = patch_whitening, layout_factor, scale
         self.rng = rng
 
     # ---------------------------------------------------------------- fitting
@@ -185,18 +185,18 @@ class TGHop(BaseEstimator):
             settings.BY_NAME[name].check(getattr(self, name))
         rules = default_channels(self.patch_size, n_colours) if self.n_channels is None else tuple(self.n_channels)
         if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
-            raise TGHopError(
-                f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} a patch size divisible by "
-                f"{2 ** len(rules)} leaving a core of at least 2x2, got patch_size={self.patch_size}"
-            )
+            raise TGHopError(f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} a patch size divisible by "
+                             f"{2 ** len(rules)} leaving a core of at least 2x2, got patch_size={self.patch_size}")
         return rules
 
     def check_exemplar_size(self, shape, ichm=None):
-        """Raise :func:`tghop.patches.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...)."""
+        """Raise :func:`tghop.patches.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...),
+        as given (before the working ``scale``)."""
         if ichm is None:
             self.check_settings()
             ichm = ICHM(**settings.component_params(self, "ichm"))
-        check_exemplar_size(shape, ichm, patch_size=self.patch_size, stride=self.stride, max_patches=self.max_patches)
+        check_exemplar_size(shape, ichm, patch_size=self.patch_size, stride=self.stride, max_patches=self.max_patches,
+                            scale=self.scale)
 
     def fit(self, image, y=None, *, exclude=None, progress=None):
         """Learn the model from one exemplar.
@@ -247,10 +247,13 @@ class TGHop(BaseEstimator):
         ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
         image = prepare_exemplar(image, channels=None)
         self.check_exemplar_size(image.shape, ichm)  # names the smallest exemplar that works
+        exclude = check_exclude(exclude, image.shape)
+        if self.scale != 1:  # the working scale: the model sees only the resampled exemplar from here on
+            image, exclude = rescale(image, self.scale), rescale_mask(exclude, self.scale)
+            image = prepare_exemplar(image, channels=None)  # and checks it again (flat, grey)
         if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
             image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
         rules = self._channel_rules(image.shape[2])
-        exclude = check_exclude(exclude, image.shape)
         sdr = SpatialReduction(**settings.component_params(self, "sdr"))
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
                                 max_patches=self.max_patches, rng=rng, exclude=exclude)
@@ -271,8 +274,7 @@ class TGHop(BaseEstimator):
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)
         report(progress, "SDR", 0, 1)
-        z = sdr.fit_transform(core)
-        self.sdr_ = sdr
+        z, self.sdr_ = sdr.fit_transform(core), sdr
         report(progress, "SDR", 1, 1)
         del core
         self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)

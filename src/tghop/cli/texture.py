@@ -373,7 +373,8 @@ def info(model_file, as_json):
     click.echo(f"tghop model {model_file}")
     if material is not model:
         click.echo(f"material: {material_summary(material)}")
-    click.echo(f"exemplar: {h}x{w}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
+    scaled = "" if model.scale == 1 else f" (resampled by --scale {model.scale:g})"
+    click.echo(f"exemplar: {h}x{w}{scaled}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
                f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
     seed = info_dict(model, params)["fit_seed"]
     click.echo(f"fit seed: {seed}" if seed is not None else

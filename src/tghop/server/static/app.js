@@ -58,8 +58,9 @@ async function showSummary(id) {
   const s = await response.json();
   const dims = Object.entries(s.dims).map(([k, v]) => `${k}=${v}`).join(", ");
   const [h, w, c] = s.exemplar_shape;
+  const scaled = s.params && s.params.scale !== 1 ? ` (resampled by ${s.params.scale})` : "";
   $("summary").textContent =
-    `model ${id.slice(0, 12)}: exemplar ${h}x${w}, ${c} channel${c > 1 ? "s" : ""}; ` +
+    `model ${id.slice(0, 12)}: exemplar ${h}x${w}${scaled}, ${c} channel${c > 1 ? "s" : ""}; ` +
     `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}`;
   $("summary").hidden = false;
 }
@@ -69,7 +70,7 @@ function fitFields() {
   const form = new FormData();
   if (!$("layout").checked) form.append("layout_factor", "none");
   if ($("paper-fit").checked) form.append("paper", "true");
-  for (const name of ["n_clusters", "n_codewords", "stride", "max_patches"]) {
+  for (const name of ["scale", "n_clusters", "n_codewords", "stride", "max_patches"]) {
     const value = $(name).value.trim();
     if (value) form.append(name, value);
   }
