@@ -392,6 +392,27 @@ def test_manifests_give_per_row_settings(tmp_path):
     assert missing["status"] == "failed" and "no such file" in missing["error"] and missing["sha256"] is None
 
 
+def test_a_manifest_row_gives_its_own_working_scale(tmp_path):
+    from tghop.modelfile import load_model
+
+    make_folder(tmp_path / "img", bad=False)
+    csv_file = tmp_path / "list.csv"
+    csv_file.write_text("path,scale\nimg/a.png,1.5\nimg/sub/a.png,\n")
+    a, b = run(csv_file, tmp_path / "out", workers=1)
+    assert a["settings"]["fit"] == {**FIT, "scale": 1.5} and b["settings"]["fit"] == FIT
+    assert load_model(tmp_path / "out" / a["model"]).exemplar_shape_[:2] == (96, 96)
+    assert load_model(tmp_path / "out" / b["model"]).exemplar_shape_[:2] == (64, 64)
+    csv_file.write_text("path,scale\nimg/a.png,1.25\nimg/sub/a.png,\n")  # a changed scale redoes its row only
+    a, b = run(csv_file, tmp_path / "out", workers=1)
+    assert not a["skipped"] and b["skipped"]
+    assert load_model(tmp_path / "out" / a["model"]).exemplar_shape_[:2] == (80, 80)
+    for cell, words in (("0", "scale must be a finite number > 0 and <= 4, got 0.0"), ("big", "'big' is not a number")):
+        csv_file.write_text(f"path,scale\nimg/a.png,{cell}\n")
+        with pytest.raises(TGHopError, match="list.csv line 2: " + re.escape(words)):
+            run(csv_file, tmp_path / "out2", workers=1)
+    assert not (tmp_path / "out2").exists()
+
+
 def test_an_interrupted_exemplar_leaves_no_files_of_its_own(tmp_path, monkeypatch):
     # Ctrl-C in process during the second image: nothing of this try is left, an earlier run's files stay.
     from tghop.synthesis import TGHop

@@ -549,6 +549,7 @@ def _cost(job) -> float:
 
 def _settings(item_settings, defaults, fit, generate):
     s = {**defaults, **item_settings}
+    fit = {**fit, "scale": item_settings["scale"]} if "scale" in item_settings else fit  # a row's own working scale
     return {"size": list(s["size"]), "count": int(s["count"]), "seed": s["seed"], "tile": bool(s["tile"]),
             "fit": fit, "generate": generate}
 
@@ -696,7 +697,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         settings = _settings(it["settings"], defaults, fit, generate)
         job = {"name": it["name"], "source": str(it["path"]), "folder": str(outdir / it["name"]),
                "sha256": file_sha256(it["path"]), "settings": settings, "size": settings["size"],
-               "count": settings["count"], "seed": settings["seed"], "fit": fit,
+               "count": settings["count"], "seed": settings["seed"], "fit": settings["fit"],
                "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1}
         if _is_done(previous.get(it["name"]), job, outdir):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}

@@ -3,8 +3,8 @@ line naming a ``path`` column, or as JSON lines ``{"path": ...}``; each row opti
 with its own ``name`` and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
 
 Every bad row is a one-line :class:`~tghop.TGHopError` naming its line, before any work.
-Only the standard library is imported here (and, when called, :func:`tghop._common.check_size`
-and :func:`tghop._arrays.check_int`).
+Only the standard library is imported here (and, when called, :func:`tghop._common.check_size`,
+:func:`tghop._arrays.check_int` and :mod:`tghop.settings`).
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from pathlib import Path
 from ._errors import TGHopError
 
 __all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int",
-           "split_size"]
+           "parse_scale", "split_size"]
 
 #: Per-exemplar settings a manifest row may give.
-ROW_SETTINGS = ("size", "count", "seed", "tile")
+ROW_SETTINGS = ("size", "count", "seed", "tile", "scale")
 
 
 def _shown(value, most: int = 60) -> str:
@@ -104,9 +104,22 @@ def row_settings(row: dict, where: str) -> dict:
             out["count"] = parse_int(value, where, "count", 1, 1000)
         elif key == "seed":
             out["seed"] = parse_int(value, where, "seed", 0)
-        else:
+        elif key == "tile":
             out["tile"] = parse_bool(value, "tile", where=where)
+        else:
+            out["scale"] = parse_scale(value, where)
     return out
+
+
+def parse_scale(value, where):
+    """A row's working scale (the fit setting ``scale``, :mod:`tghop.scale`): a number, or its text."""
+    from .settings import BY_NAME
+
+    setting = BY_NAME["scale"]
+    try:
+        return setting.check(setting.parse(value) if isinstance(value, str) else value)
+    except TGHopError as exc:
+        raise TGHopError(f"{where}: {exc}") from None
 
 
 def manifest_rows(path: Path):
