@@ -33,19 +33,19 @@ def text(d, selector):
 def fit_settings(d, fields):
     """Layout off and ``fields`` (name: value; '' for the default) in the fit settings."""
     d.run("document.getElementById('layout').checked = false;")
-    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+    for name in ("scale", "n_clusters", "n_codewords", "stride", "max_patches"):
         d.fill(f"#{name}", fields.get(name, ""))
 
 
 def drop_steps(d, png, name="dropped bricks.png"):
-    """Drop ``png`` (bytes of a 64x64 image) on the drop area: it is fitted (fast settings)
-    and shown as the exemplar, and the model's summary says 64x64."""
-    fit_settings(d, FAST_FIT)
+    """Drop ``png`` (bytes of a 64x64 image) on the drop area: it is fitted (fast settings, at
+    the working scale 1.5) and shown as the exemplar, and the model's summary says 96x96."""
+    fit_settings(d, {**FAST_FIT, "scale": "1.5"})
     over, after = d.run(DROP_JS, base64.b64encode(png).decode(), name, "image/png")
     assert over is True and after is False  # highlighted while dragged over, not after the drop
     assert d.wait_for(FIT_END, timeout=120) == "done", text(d, "#message")
     d.wait_for("!document.getElementById('summary').hidden")
-    assert "exemplar 64x64, 3 channels" in text(d, "#summary")
+    assert "exemplar 96x96 (resampled by 1.5), 3 channels" in text(d, "#summary")
     assert d.run("const i = document.getElementById('exemplar'); return [i.complete, i.naturalWidth]") == [True, 64]
     assert name in text(d, "#morph-a")  # the session's models are named by the file
     assert d.run("return document.getElementById('go').disabled") is False

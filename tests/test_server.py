@@ -339,6 +339,15 @@ def test_a_fit_field_that_does_not_parse_is_named(client):
         assert len(message) < 200
 
 
+def test_a_fit_at_a_working_scale(client):
+    body = fit_with(client, **FAST_FIT, scale="0.75").json()
+    assert events(client, body["job"])[-1][1]["state"] == "done"
+    summary = client.get(f"/api/models/{body['id']}").json()
+    assert summary["params"]["scale"] == 0.75 and summary["exemplar_shape"][:2] == [192, 192]
+    assert_error(fit_with(client, scale="0"), 422, "scale must be a finite number > 0 and <= 4, got 0.0")
+    assert_error(fit_with(client, scale="half"), 422, "scale: 'half' is not a number")
+
+
 def test_fit_fields_that_do_not_go_together_are_named_as_the_apis_fields(client):
     for fields, words in (({"patch_size": "7"}, "patch_size 7 needs k1 and k2 (defaults exist for 32 and 64)"),
                           ({"k3": "3"}, "k3 applies to patch_size 64 only")):
