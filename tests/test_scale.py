@@ -131,6 +131,9 @@ def test_command_line_scale(tmp_path):
                "--clusters", "10", "--codewords", "40", "--max-patches", "1200", "--pool", "300", "-q")
     assert done.returncode == 0, done.stderr.decode()
     assert load_image(tmp_path / "out.png").shape == (64, 64, 3)
+    done = cli("clusters", tmp_path / "m.npz", tmp_path / "ex.png", "-o", tmp_path / "map.png", "-q")
+    assert done.returncode == 0, done.stderr.decode()
+    assert load_image(tmp_path / "map.png").shape == (96, 192, 3)  # the exemplar as the model saw it, and its map
     for bad, why in (("0", "'--scale': '0' must be a finite number > 0"), ("x", "'x' is not a number"),
                      ("0.05", "at scale 0.05 (given 128x128)")):
         assert_user_error(cli("synth", tmp_path / "ex.png", "-o", tmp_path / "bad.png", "--scale", bad), why)

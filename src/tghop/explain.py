@@ -63,7 +63,9 @@ def cluster_map(model, image, *, stride=None, progress=None) -> np.ndarray:
         Fitted.
     image : array_like, shape (H, W) or (H, W, C)
         Float in [0, 1] or integer (uint8, uint16), with the model's channel count C (an RGB
-        image with three equal channels is read as grey for a grey model); ``H, W >= P``.
+        image with three equal channels is read as grey for a grey model); ``H, W >= P``. Taken
+        at the model's scale: an exemplar of a model fitted with ``scale`` goes through
+        :func:`tghop.scale.rescale` first, as ``tghop clusters`` does.
     stride : int, optional
         Step between patch origins, at least 1; default the model's fit stride
         (``model.stride``: at it the exemplar's patches are the fit's training patches).

@@ -170,19 +170,21 @@ def patches(model_file, n, output, seed, stages):
 def clusters(model_file, exemplar, output, stride, quiet):
     """Show which of MODEL's clusters each part of EXEMPLAR (an image file or builtin:NAME,
     with the model's channel count) falls in: the cluster of the patch centred nearest each
-    pixel, one colour per cluster, beside the exemplar."""
+    pixel, one colour per cluster, beside the exemplar (resampled by the model's --scale, as
+    the model saw it)."""
     import numpy as np
 
     from ..explain import cluster_image, cluster_map
     from ..imageio import save_image
     from ..modelfile import load_model
+    from ..scale import rescale
 
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output)
         check_outputs([("-o", output)], [("MODEL", model_file), ("EXEMPLAR", exemplar)])
         model = load_model(model_file)  # a material: one line, fit a plain model from its albedo
-        image = load_exemplar(exemplar)
+        image = rescale(load_exemplar(exemplar), model.scale)
         labels = cluster_map(model, image, stride=stride, progress=progress)
         progress.close()
         painted = cluster_image(labels, model.patch_size, stride or model.stride, image.shape)
