@@ -1,5 +1,7 @@
 """The working scale (tghop.scale, ``TGHop(scale=...)``, ``--scale``), on textures made in code."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -134,6 +136,12 @@ def test_command_line_scale(tmp_path):
     done = cli("clusters", tmp_path / "m.npz", tmp_path / "ex.png", "-o", tmp_path / "map.png", "-q")
     assert done.returncode == 0, done.stderr.decode()
     assert load_image(tmp_path / "map.png").shape == (96, 192, 3)  # the exemplar as the model saw it, and its map
+    scores = [cli("evaluate", tmp_path / "ex.png", tmp_path / "out.png", "--metrics", "swd", "--json", *extra)
+              for extra in ((), ("--scale", "0.75"))]
+    assert all(r.returncode == 0 for r in scores)
+    plain, scaled = (json.loads(r.stdout)["swd"] for r in scores)
+    assert scaled != plain  # scored against the exemplar resampled as the model saw it
+    assert_user_error(cli("evaluate", tmp_path / "ex.png", tmp_path / "out.png", "--scale", "0"), "--scale")
     for bad, why in (("0", "'--scale': '0' must be a finite number > 0"), ("x", "'x' is not a number"),
                      ("0.05", "at scale 0.05 (given 128x128)")):
         assert_user_error(cli("synth", tmp_path / "ex.png", "-o", tmp_path / "bad.png", "--scale", bad), why)

@@ -24,8 +24,11 @@ __all__ = ["evaluate", "baseline"]
                    "(default all of these), and self_repetition (only when named).")
 @click.option("--repetition", is_flag=True,
               help="Also score each result's self_repetition (added to --metrics or to the default set).")
+@click.option("--scale", type=click.FloatRange(min=0, max=4, min_open=True), default=1.0, show_default=True,
+              help="Score against EXEMPLAR resampled by this factor: the working scale the results were made "
+                   "at (tghop synth --scale).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def evaluate(exemplar, results, as_json, names, repetition, quiet):
+def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
     """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
 
     copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
@@ -51,6 +54,7 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
     Images over 8192x8192 pixels are refused.
     """
     from .. import metrics as M
+    from ..scale import rescale
 
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -63,7 +67,7 @@ def evaluate(exemplar, results, as_json, names, repetition, quiet):
         checked = None if chosen is None and not repetition else [*(chosen or M.METRICS)]
         if repetition and "self_repetition" not in checked:
             checked.append("self_repetition")
-        ex = load_exemplar(exemplar)
+        ex = rescale(load_exemplar(exemplar), scale)
         images = [load_exemplar(r) for r in results]
         M.check_sizes({exemplar: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, checked,
                       diversity=len(images) > 1)
