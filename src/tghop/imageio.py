@@ -13,11 +13,11 @@ import zlib
 from pathlib import Path
 
 import numpy as np
-from struct import error as struct_error
 
 from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
 from ._formats import DEPTHS, FORMATS, extensions
+from .profiles import to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
            "check_output_path", "check_depth", "deepest", "save_images", "DEPTHS"]
@@ -39,15 +39,14 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     Parameters
     ----------
     path : str or os.PathLike
-        Any format Pillow reads, turned or flipped as its EXIF orientation says (as
-        photos are shown). Palette, CMYK, YCbCr and LAB images (TIFF files too) are
-        converted to RGB, bilevel ones to grey; an alpha channel (in TIFF, an extra sample
-        its ExtraSamples tag calls alpha) is dropped with a warning. 16-bit PNG and TIFF
-        files and float TIFF files are read without loss (16-bit levels ``v`` become
-        ``v / 65535``; float values in [0, 1] are kept, others taken as 8-bit or 16-bit
-        levels); colour ones in TIFF need :mod:`tifffile` (``pip install 'tghop[tiff]'``)
-        and must be grey or RGB (a 16-bit CMYK TIFF, say, is refused), 16-bit colour PNG
-        files are decoded by tghop itself (Pillow reduces them to 8 bits).
+        Any format Pillow reads, turned or flipped as its EXIF orientation says (as photos
+        are shown), in sRGB (:mod:`tghop.profiles`). Palette, CMYK, YCbCr and LAB images (TIFF
+        files too) are converted to RGB, bilevel ones to grey; an alpha channel (in TIFF, an
+        extra sample its ExtraSamples tag calls alpha) is dropped with a warning. 16-bit PNG
+        and TIFF files and float TIFF files are read without loss (16-bit levels ``v`` become
+        ``v / 65535``; float values in [0, 1] are kept, others taken as 8-bit or 16-bit levels);
+        colour ones in TIFF need :mod:`tifffile` (``pip install 'tghop[tiff]'``) and must be
+        grey or RGB (a 16-bit CMYK TIFF is refused); tghop decodes 16-bit colour PNG itself.
     max_pixels : int
         Images with more pixels (read from the header, before decoding) are refused
         with :class:`InvalidImageError`, or, with ``downscale``, reduced to at most this
@@ -106,7 +105,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     except MemoryError:
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
-            struct_error, ZeroDivisionError, zlib.error) as exc:
+            struct.error, ZeroDivisionError, zlib.error) as exc:
         raise InvalidImageError(
             f"{path}: not a readable image ({exc.__class__.__name__}); give a PNG, JPEG or other common image file"
         ) from None
@@ -366,6 +365,7 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
     else:
         im.load()
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
+    im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"

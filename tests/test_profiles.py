@@ -1,0 +1,96 @@
+"""Colour profiles (tghop.profiles): images with an ICC profile other than sRGB are read as sRGB."""
+
+import io
+import struct
+import warnings
+
+import numpy as np
+import pytest
+from PIL import Image, ImageCms
+
+from tghop.imageio import load_image
+
+
+def _s15(x):
+    return struct.pack(">i", round(x * 65536))
+
+
+def _tag(kind, body):
+    data = kind + b"\0\0\0\0" + body
+    return data + b"\0" * (-len(data) % 4)
+
+
+def matrix_profile(name, red, green, blue, gamma=2.2):
+    """The bytes of a minimal ICC v2 RGB display profile: D50-adapted colorants and one gamma,
+    as a camera's Adobe RGB or a phone's Display P3 profile is built."""
+    text = name.encode() + b"\0"
+    desc = struct.pack(">I", len(text)) + text + struct.pack(">II", 0, 0) + struct.pack(">HB", 0, 0) + b"\0" * 67
+    xyz = [_tag(b"XYZ ", b"".join(_s15(v) for v in c)) for c in (red, green, blue, (0.9642, 1.0, 0.8249))]
+    curve = _tag(b"curv", struct.pack(">IH", 1, round(gamma * 256)))
+    tags = [(b"desc", _tag(b"desc", desc)), (b"rXYZ", xyz[0]), (b"gXYZ", xyz[1]), (b"bXYZ", xyz[2]),
+            (b"wtpt", xyz[3]), (b"rTRC", curve), (b"gTRC", curve), (b"bTRC", curve)]
+    offset = 128 + 4 + 12 * len(tags)
+    table, blobs = b"", b""
+    for sig, blob in tags:
+        table += sig + struct.pack(">II", offset + len(blobs), len(blob))
+        blobs += blob
+    size = offset + len(blobs)
+    header = (struct.pack(">I", size) + b"\0" * 4 + struct.pack(">I", 0x02100000) + b"mntrRGB XYZ " + b"\0" * 12
+              + b"acsp" + b"\0" * 24 + struct.pack(">I", 0) + b"".join(_s15(v) for v in (0.9642, 1.0, 0.8249)))
+    header += b"\0" * (128 - len(header))
+    return header + struct.pack(">I", len(tags)) + table + blobs
+
+
+#: A Display P3-like profile: wider primaries than sRGB's.
+P3 = matrix_profile("Test P3", (0.5151, 0.2412, -0.0011), (0.2920, 0.6922, 0.0419), (0.1571, 0.0666, 0.7841))
+SRGB = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
+
+
+@pytest.fixture()
+def colours():
+    """Muted colours, inside both gamuts."""
+    rng = np.random.default_rng(0)
+    return (rng.integers(90, 180, size=(24, 32, 1)) + rng.integers(-25, 26, size=(24, 32, 3))).astype(np.uint8)
+
+
+def test_a_wide_gamut_photo_is_read_in_srgb(tmp_path, colours):
+    Image.fromarray(colours).save(tmp_path / "p3.png", icc_profile=P3)
+    with pytest.warns(UserWarning, match=r"p3.png: colours converted to sRGB from its colour profile 'Test P3'"):
+        read = load_image(tmp_path / "p3.png", dtype=None)
+    assert np.abs(read.astype(int) - colours).max() > 10  # other values for the same colours
+    back = ImageCms.profileToProfile(Image.fromarray(read), ImageCms.createProfile("sRGB"),
+                                     ImageCms.ImageCmsProfile(io.BytesIO(P3)))
+    assert np.abs(np.asarray(back).astype(int) - colours).max() <= 2  # the same colours, in sRGB's values
+    grey = np.full((8, 8, 3), 128, dtype=np.uint8)
+    Image.fromarray(grey).save(tmp_path / "grey.jpg", icc_profile=P3, quality=100)
+    with pytest.warns(UserWarning):
+        read = load_image(tmp_path / "grey.jpg", dtype=None)
+    assert np.ptp(read.astype(int), axis=2).max() <= 1  # neutral stays neutral
+
+
+def test_srgb_under_any_name_and_no_profile_leave_the_pixels_as_they_are(tmp_path, colours):
+    Image.fromarray(colours).save(tmp_path / "srgb.png", icc_profile=SRGB)
+    Image.fromarray(colours).save(tmp_path / "plain.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.array_equal(load_image(tmp_path / "srgb.png", dtype=None), colours)
+        assert np.array_equal(load_image(tmp_path / "plain.png", dtype=None), colours)
+
+
+def test_alpha_and_palette_images_are_converted_too(tmp_path, colours):
+    alpha = np.linspace(0, 255, 24 * 32).astype(np.uint8).reshape(24, 32, 1)
+    Image.fromarray(np.concatenate([colours, alpha], axis=2), "RGBA").save(tmp_path / "rgba.png", icc_profile=P3)
+    with pytest.warns(UserWarning, match="converted to sRGB"):
+        read = load_image(tmp_path / "rgba.png", dtype=None, keep_alpha=True)
+    assert read.shape == (24, 32, 4) and np.array_equal(read[..., 3:], alpha)
+    with pytest.warns(UserWarning, match="converted to sRGB"):  # and "alpha channel dropped"
+        assert np.array_equal(load_image(tmp_path / "rgba.png", dtype=None), read[..., :3])
+    Image.fromarray(colours).quantize(16).save(tmp_path / "palette.png", icc_profile=P3)
+    with pytest.warns(UserWarning, match="converted to sRGB"):
+        assert load_image(tmp_path / "palette.png", dtype=None).shape == (24, 32, 3)
+
+
+def test_a_damaged_profile_is_said_and_ignored(tmp_path, colours):
+    Image.fromarray(colours).save(tmp_path / "bad.png", icc_profile=b"not a profile at all" * 8)
+    with pytest.warns(UserWarning, match="bad.png: its colour profile could not be read; colours taken as sRGB"):
+        assert np.array_equal(load_image(tmp_path / "bad.png", dtype=None), colours)
