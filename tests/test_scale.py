@@ -146,3 +146,24 @@ def test_command_line_scale(tmp_path):
                      ("0.05", "at scale 0.05 (given 128x128)")):
         assert_user_error(cli("synth", tmp_path / "ex.png", "-o", tmp_path / "bad.png", "--scale", bad), why)
         assert not (tmp_path / "bad.png").exists()
+
+
+def test_inpaint_fits_a_source_exemplar_at_a_working_scale(tmp_path):
+    picture = to_uint8(data.cells(96, rng=3))
+    hole = np.zeros((96, 96), dtype=bool)
+    hole[30:62, 34:66] = True
+    save_image(picture, tmp_path / "photo.png")
+    save_image(hole.astype(float), tmp_path / "hole.png")
+    save_image(data.cells(192, rng=5), tmp_path / "closeup.png")
+    done = cli("inpaint", tmp_path / "photo.png", tmp_path / "hole.png", "-o", tmp_path / "out.png", "--source",
+               tmp_path / "closeup.png", "--scale", "0.5", "--seed", "1", "-q")
+    assert done.returncode == 0, done.stderr.decode()
+    out = load_image(tmp_path / "out.png", dtype=None)
+    assert np.array_equal(out[~hole], picture[~hole]) and not np.array_equal(out[hole], picture[hole])
+    save_model(TGHop(rng=0, **FAST).fit(data.cells(128)), tmp_path / "m.npz")
+    for source, why in (((), "IMAGE's own texture is at IMAGE's scale already"),
+                        (("--source", tmp_path / "m.npz"), "a saved model keeps the scale it was fitted at")):
+        r = cli("inpaint", tmp_path / "photo.png", tmp_path / "hole.png", "-o", tmp_path / "bad.png", *source,
+                "--scale", "0.5")
+        assert_user_error(r, "--scale applies to an exemplar given as --source", why)
+        assert not (tmp_path / "bad.png").exists()

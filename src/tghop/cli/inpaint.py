@@ -21,12 +21,15 @@ __all__ = ["inpaint"]
 @click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
               help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead of "
                    "fitting on the part of IMAGE outside the hole.")
+@click.option("--scale", type=click.FloatRange(min=0, max=4, min_open=True), default=1.0, show_default=True,
+              help="With an exemplar as --source: fit it at this working scale (0.25 for a photo of the "
+                   "material four times closer than IMAGE).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--tile", is_flag=True, help="IMAGE wraps around: the fill continues across its edges.")
 @depth_option("IMAGE's, as far as the output's format holds it")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def inpaint(image, mask, output, source, seed, tile, quiet, depth):
+def inpaint(image, mask, output, source, scale, seed, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
 
@@ -49,6 +52,12 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
         check_outputs([("-o", output)], [("IMAGE", image), ("MASK", mask), ("--source", source)])
         if is_model_file(image):
             raise TGHopError(f"IMAGE {image} is a model file; give the image to fill (a model goes to --source)")
+        source_is_model = source is not None and not source.startswith("builtin:") and (
+            source.lower().endswith(".npz") or is_model_file(source))
+        if scale != 1 and (source is None or source_is_model):
+            raise TGHopError("--scale applies to an exemplar given as --source; "
+                             + ("a saved model keeps the scale it was fitted at" if source else
+                                "IMAGE's own texture is at IMAGE's scale already"))
         # 8-bit stays 8-bit: copied as bytes; an alpha channel is kept apart and written back.
         picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True)
         picture, alpha = split_alpha(picture)
@@ -58,8 +67,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
         rng = np.random.default_rng(seed)
         model = None
-        if source is not None and not source.startswith("builtin:") and (
-                source.lower().endswith(".npz") or is_model_file(source)):
+        if source_is_model:
             from ..modelfile import load_model
 
             model = load_model(source)
@@ -68,7 +76,7 @@ def inpaint(image, mask, output, source, seed, tile, quiet, depth):
                     else " of the model fitted on --source")
         if model is None and source is not None:
             exemplar = prepare_exemplar(load_exemplar(source, dtype=None))  # fit names the smallest size that works
-            model = TGHop(rng=rng).fit(exemplar, progress=progress)
+            model = TGHop(rng=rng, scale=scale).fit(exemplar, progress=progress)
         elif model is None:
             try:
                 model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
