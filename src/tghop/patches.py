@@ -232,10 +232,11 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches, scale=1
         fixes.append(f"a stride of {smaller} (stride, --stride)")
     if n >= ichm.min_cluster_size:
         fixes.append(f"N of at most {n // ichm.min_cluster_size} (n_clusters, --clusters)")
-    larger = next((k / 100 for k in range(math.floor(scale * 100) + 1, 101) if enough(scaled_shape(given, k / 100),
-                                                                                      stride)), None)
-    if scale < 1 and larger:
-        fixes.append(f"a scale of at least {larger:g} (scale, --scale)")
+    if scale < 1:  # the least scale, in hundredths, at which the exemplar as given is enough
+        larger = next((k / 100 for k in range(math.floor(scale * 100) + 1, 101)
+                       if enough(scaled_shape(given, k / 100), stride)), None)
+        if larger:
+            fixes.append(f"a scale of at least {larger:g} (scale, --scale)")
     h, w = shape[:2]
     at = "" if scale == 1 else f" at scale {scale:g} (given {given[0]}x{given[1]})"
     auto = " (auto)" if ichm.n_clusters is None else ""

@@ -57,7 +57,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
     SOURCE is a folder (every image in it, recursively) or a manifest: a CSV file with a
     'path' column, or JSON lines {"path": ...}; optional per-exemplar size, count, seed,
     tile, scale (the working scale, as --scale) and name. A rerun skips exemplars already
-    done with the same input and settings. Exit status 1 when any exemplar failed (the ledger and the summary say why).
+    done with the same input and settings. Exit status 1 when any exemplar failed (the
+    ledger and the summary say why).
     """
     from .. import batch as library
 

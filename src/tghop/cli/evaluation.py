@@ -10,7 +10,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors
-from .options import Size
+from .options import Size, scale_option
 
 __all__ = ["evaluate", "baseline"]
 
@@ -24,9 +24,8 @@ __all__ = ["evaluate", "baseline"]
                    "(default all of these), and self_repetition (only when named).")
 @click.option("--repetition", is_flag=True,
               help="Also score each result's self_repetition (added to --metrics or to the default set).")
-@click.option("--scale", type=click.FloatRange(min=0, max=4, min_open=True), default=1.0, show_default=True,
-              help="Score against EXEMPLAR resampled by this factor: the working scale the results were made "
-                   "at (tghop synth --scale).")
+@scale_option("Score against EXEMPLAR resampled by this factor: the working scale the results were made at "
+              "(tghop synth --scale).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
     """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).

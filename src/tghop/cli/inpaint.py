@@ -7,7 +7,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
-from .options import depth_option
+from .options import depth_option, scale_option
 
 __all__ = ["inpaint"]
 
@@ -21,9 +21,8 @@ __all__ = ["inpaint"]
 @click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
               help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead of "
                    "fitting on the part of IMAGE outside the hole.")
-@click.option("--scale", type=click.FloatRange(min=0, max=4, min_open=True), default=1.0, show_default=True,
-              help="With an exemplar as --source: fit it at this working scale (0.25 for a photo of the "
-                   "material four times closer than IMAGE).")
+@scale_option("With an exemplar as --source: fit it at this working scale (0.25 for a photo of the material "
+              "four times closer than IMAGE).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--tile", is_flag=True, help="IMAGE wraps around: the fill continues across its edges.")

@@ -40,6 +40,16 @@ def depth_option(default: str):
                              f"[default: {default}]")
 
 
+def scale_option(help: str):
+    """``--scale S`` outside ``fit`` and ``synth`` (whose ``--scale`` is the setting's own): the
+    working scale (:mod:`tghop.scale`), in the settings table's range, default 1."""
+    from ..settings import BY_NAME
+
+    setting = BY_NAME["scale"]
+    return click.option("--scale", type=click.FloatRange(min=setting.low, max=setting.high, min_open=setting.low_open),
+                        default=setting.default, show_default=True, help=help)
+
+
 class ChannelRule(click.ParamType):
     """An int count, a fraction in (0, 1], or 'knee' (:func:`tghop.settings.check_channel_rule`)."""
 
