@@ -83,8 +83,9 @@ def test_alpha_and_palette_images_are_converted_too(tmp_path, colours):
     with pytest.warns(UserWarning, match="converted to sRGB"):
         read = load_image(tmp_path / "rgba.png", dtype=None, keep_alpha=True)
     assert read.shape == (24, 32, 4) and np.array_equal(read[..., 3:], alpha)
-    with pytest.warns(UserWarning, match="converted to sRGB"):  # and "alpha channel dropped"
+    with pytest.warns(UserWarning) as said:
         assert np.array_equal(load_image(tmp_path / "rgba.png", dtype=None), read[..., :3])
+    assert sorted(str(w.message).split(": ")[1][:20] for w in said) == ["alpha channel droppe", "colours converted to"]
     Image.fromarray(colours).quantize(16).save(tmp_path / "palette.png", icc_profile=P3)
     with pytest.warns(UserWarning, match="converted to sRGB"):
         assert load_image(tmp_path / "palette.png", dtype=None).shape == (24, 32, 3)
