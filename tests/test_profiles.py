@@ -95,3 +95,19 @@ def test_a_damaged_profile_is_said_and_ignored(tmp_path, colours):
     Image.fromarray(colours).save(tmp_path / "bad.png", icc_profile=b"not a profile at all" * 8)
     with pytest.warns(UserWarning, match="bad.png: its colour profile could not be read; colours taken as sRGB"):
         assert np.array_equal(load_image(tmp_path / "bad.png", dtype=None), colours)
+
+
+def test_a_deep_file_says_its_profile_is_not_applied(tmp_path, colours):
+    import zlib
+
+    from tghop.imageio import write_png
+
+    buffer = io.BytesIO()
+    write_png(buffer, colours.astype(np.uint16) * 257)  # 16-bit colour: decoded by tghop itself
+    png = buffer.getvalue()
+    body = b"P3\0\0" + zlib.compress(P3)
+    chunk = struct.pack(">I", len(body)) + b"iCCP" + body + struct.pack(">I", zlib.crc32(b"iCCP" + body))
+    (tmp_path / "deep.png").write_bytes(png[:33] + chunk + png[33:])  # after the signature and IHDR
+    with pytest.warns(UserWarning, match="deep.png: its colour profile 'Test P3' is not applied to 16-bit"):
+        read = load_image(tmp_path / "deep.png")
+    assert np.array_equal(np.round(read * 255).astype(np.uint8), colours)  # the values as stored

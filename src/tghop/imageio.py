@@ -17,7 +17,7 @@ import numpy as np
 from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
 from ._formats import DEPTHS, FORMATS, extensions
-from .profiles import to_srgb
+from .profiles import say_unapplied, to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
            "check_output_path", "check_depth", "deepest", "save_images", "DEPTHS"]
@@ -106,9 +106,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
             struct.error, ZeroDivisionError, zlib.error) as exc:
-        raise InvalidImageError(
-            f"{path}: not a readable image ({exc.__class__.__name__}); give a PNG, JPEG or other common image file"
-        ) from None
+        raise InvalidImageError(f"{path}: not a readable image ({exc.__class__.__name__}); "
+                                "give a PNG, JPEG or other common image file") from None
     if not keep_alpha and (mode in ("RGBA", "LA", "PA", "RGBa", "La") or mode == "P+transparency"):
         warnings.warn(f"{path.name}: alpha channel dropped", UserWarning, stacklevel=2)
     if dtype is None and arr.dtype == np.uint8:
@@ -399,14 +398,16 @@ def _exif_orientation(im) -> int:
 
 def _file_orientation(path) -> int:
     """The EXIF orientation of a file tghop decodes itself (16-bit PNG, TIFF by tifffile), from
-    its header (no pixels decoded); 1 where Pillow cannot open it (an LA TIFF)."""
+    its header (no pixels decoded; a colour profile not applied is said); 1 where Pillow cannot open it."""
     from PIL import Image
 
     try:
         with Image.open(path) as im:
-            return _exif_orientation(im)
+            orientation, profile = _exif_orientation(im), im.info.get("icc_profile")
     except Exception:  # noqa: BLE001 - not Pillow's: the pixels as stored
         return 1
+    say_unapplied(profile, path.name)
+    return orientation
 
 
 def _upright(arr, orientation):
@@ -822,9 +823,8 @@ def _tiff_writer(image, depth, path):
     """``write(fileobj)`` for a TIFF file of ``depth`` bits: tifffile where installed (deflate
     compressed), else Pillow, which writes 8-bit ones and grey 16-bit and float ones."""
     if depth == 32:
-        pixels = np.clip(np.asarray(image, dtype=np.float32) / (255.0 if np.asarray(image).dtype == np.uint8 else 1.0),
-                         0.0, 1.0)
-        pixels = pixels[:, :, 0] if pixels.ndim == 3 and pixels.shape[2] == 1 else pixels
+        pixels = np.asarray(image, dtype=np.float32) / (255 if np.asarray(image).dtype == np.uint8 else 1)
+        pixels = np.clip(pixels[:, :, 0] if pixels.ndim == 3 and pixels.shape[2] == 1 else pixels, 0, 1)
     else:
         pixels = to_uint16(image) if depth == 16 else to_uint8(image)
     try:

@@ -11,7 +11,8 @@ names the profile.
 Converted: 8-bit RGB, RGBA (alpha kept as it is), palette and CMYK images whose profile is
 not sRGB. Left as they are: images without a profile, with an sRGB one under any name
 (a profile that maps a grid of colours onto themselves within one level), grey ones, and
-16-bit and float files (which tghop decodes itself).
+16-bit and float files (which tghop decodes itself; :func:`say_unapplied` warns where their
+colour profile is not sRGB).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["to_srgb"]
+__all__ = ["to_srgb", "say_unapplied"]
 
 #: Levels per channel of the grid of colours that tells an sRGB profile by what it does.
 _GRID = 17
@@ -79,3 +80,17 @@ def to_srgb(im, name: str):
         out = Image.merge("RGBA", (*out.split(), im.getchannel("A")))
     warnings.warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning, stacklevel=4)
     return out
+
+
+def say_unapplied(data, name: str) -> None:
+    """Warn where the ICC profile ``data`` (bytes or None) of a 16-bit or float file, whose pixels
+    tghop decodes itself without converting them, is of other colours than sRGB."""
+    if not data:
+        return
+    try:
+        transform, what = _transform(bytes(data), "RGB")
+    except Exception:  # noqa: BLE001 - a grey or unreadable profile: nothing to say of colours
+        return
+    if transform is not None:
+        warnings.warn(f"{name}: its colour profile {what!r} is not applied to 16-bit and float images; "
+                      "colours taken as sRGB", UserWarning, stacklevel=4)
