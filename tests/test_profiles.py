@@ -97,17 +97,45 @@ def test_a_damaged_profile_is_said_and_ignored(tmp_path, colours):
         assert np.array_equal(load_image(tmp_path / "bad.png", dtype=None), colours)
 
 
-def test_a_deep_file_says_its_profile_is_not_applied(tmp_path, colours):
+def test_a_deep_file_is_converted_as_an_8_bit_one_is(tmp_path, colours):
     import zlib
 
     from tghop.imageio import write_png
 
+    def with_profile(png):  # an iCCP chunk after the signature and IHDR
+        body = b"P3\0\0" + zlib.compress(P3)
+        return png[:33] + struct.pack(">I", len(body)) + b"iCCP" + body + struct.pack(
+            ">I", zlib.crc32(b"iCCP" + body)) + png[33:]
+
     buffer = io.BytesIO()
     write_png(buffer, colours.astype(np.uint16) * 257)  # 16-bit colour: decoded by tghop itself
-    png = buffer.getvalue()
-    body = b"P3\0\0" + zlib.compress(P3)
-    chunk = struct.pack(">I", len(body)) + b"iCCP" + body + struct.pack(">I", zlib.crc32(b"iCCP" + body))
-    (tmp_path / "deep.png").write_bytes(png[:33] + chunk + png[33:])  # after the signature and IHDR
-    with pytest.warns(UserWarning, match="deep.png: its colour profile 'Test P3' is not applied to 16-bit"):
-        read = load_image(tmp_path / "deep.png")
-    assert np.array_equal(np.round(read * 255).astype(np.uint8), colours)  # the values as stored
+    (tmp_path / "deep.png").write_bytes(with_profile(buffer.getvalue()))
+    Image.fromarray(colours).save(tmp_path / "eight.png", icc_profile=P3)
+    with pytest.warns(UserWarning, match="deep.png: colours converted to sRGB from its colour profile 'Test P3'"):
+        deep = load_image(tmp_path / "deep.png")
+    with pytest.warns(UserWarning, match="converted to sRGB"):
+        eight = load_image(tmp_path / "eight.png")
+    assert np.abs(deep - colours / 255).max() > 10 / 255  # converted
+    assert np.abs(deep - eight).max() <= 1.5 / 255  # as the 8-bit file of the same values is
+    buffer = io.BytesIO()
+    alpha = np.full((24, 32, 1), 40000, dtype=np.uint16)
+    write_png(buffer, np.concatenate([colours.astype(np.uint16) * 257, alpha], axis=2))
+    (tmp_path / "deep_rgba.png").write_bytes(with_profile(buffer.getvalue()))
+    with pytest.warns(UserWarning, match="converted to sRGB"):
+        rgba = load_image(tmp_path / "deep_rgba.png", keep_alpha=True)
+    assert np.allclose(rgba[..., :3], deep) and np.allclose(rgba[..., 3], 40000 / 65535)
+
+
+def test_a_float_colour_tiff_is_converted_too(tmp_path, colours):
+    tifffile = pytest.importorskip("tifffile")
+    tifffile.imwrite(tmp_path / "deep.tif", (colours / 255).astype(np.float32), iccprofile=P3, photometric="rgb")
+    tifffile.imwrite(tmp_path / "plain.tif", (colours / 255).astype(np.float32), photometric="rgb")
+    Image.fromarray(colours).save(tmp_path / "eight.png", icc_profile=P3)
+    with pytest.warns(UserWarning, match="deep.tif: colours converted to sRGB from its colour profile 'Test P3'"):
+        deep = load_image(tmp_path / "deep.tif")
+    with pytest.warns(UserWarning):
+        eight = load_image(tmp_path / "eight.png")
+    assert np.abs(deep - eight).max() <= 1.5 / 255
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.allclose(load_image(tmp_path / "plain.tif"), colours / 255, atol=1e-6)

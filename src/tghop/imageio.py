@@ -17,7 +17,7 @@ import numpy as np
 from ._common import InvalidImageError, TGHopError, check_image, usable_cores
 from ._errors import ImageTooLargeError
 from ._formats import DEPTHS, FORMATS, extensions
-from .profiles import say_unapplied, to_srgb
+from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
            "check_output_path", "check_depth", "deepest", "save_images", "DEPTHS"]
@@ -91,8 +91,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit applies
             deep = _read_deep(path, max_pixels, keep_alpha)
             if deep is not None:
-                arr, mode, depth = deep
-                arr = _upright(arr, _file_orientation(path))
+                (arr, mode, depth), (orientation, profile) = deep, _file_header(path)
+                arr = deep_to_srgb(_upright(arr, orientation), profile, path.name)  # a colour profile: sRGB
             else:
                 with Image.open(path) as im:
                     arr, mode = _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
@@ -396,18 +396,16 @@ def _exif_orientation(im) -> int:
         return 1
 
 
-def _file_orientation(path) -> int:
-    """The EXIF orientation of a file tghop decodes itself (16-bit PNG, TIFF by tifffile), from
-    its header (no pixels decoded; a colour profile not applied is said); 1 where Pillow cannot open it."""
+def _file_header(path):
+    """(EXIF orientation, ICC profile bytes or None) of a file tghop decodes itself (16-bit PNG,
+    TIFF by tifffile), from its header (no pixels decoded); orientation 1 where Pillow cannot open it."""
     from PIL import Image
 
     try:
         with Image.open(path) as im:
-            orientation, profile = _exif_orientation(im), im.info.get("icc_profile")
-    except Exception:  # noqa: BLE001 - not Pillow's: the pixels as stored
-        return 1
-    say_unapplied(profile, path.name)
-    return orientation
+            return _exif_orientation(im), im.info.get("icc_profile")
+    except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): the pixels as stored
+        return 1, tiff_profile(path)
 
 
 def _upright(arr, orientation):

@@ -9,10 +9,10 @@ colorimetric: colours outside sRGB are clipped to its gamut) and says so in a wa
 names the profile.
 
 Converted: 8-bit RGB, RGBA (alpha kept as it is), palette and CMYK images whose profile is
-not sRGB. Left as they are: images without a profile, with an sRGB one under any name
-(a profile that maps a grid of colours onto themselves within one level), grey ones, and
-16-bit and float files (which tghop decodes itself; :func:`say_unapplied` warns where their
-colour profile is not sRGB).
+not sRGB, and 16-bit and float colour files, which tghop decodes itself, by the same transform
+sampled on a grid and interpolated (:func:`deep_to_srgb`). Left as they are: images without a
+profile, with an sRGB one under any name (a profile that maps a grid of colours onto themselves
+within one level), and grey ones.
 """
 
 from __future__ import annotations
@@ -23,10 +23,12 @@ import warnings
 
 import numpy as np
 
-__all__ = ["to_srgb", "say_unapplied"]
+__all__ = ["to_srgb", "deep_to_srgb", "tiff_profile"]
 
 #: Levels per channel of the grid of colours that tells an sRGB profile by what it does.
 _GRID = 17
+#: Levels per channel of the table that converts 16-bit and float images: every fifth 8-bit level.
+_TABLE = 52
 
 
 def _description(profile) -> str:
@@ -82,15 +84,68 @@ def to_srgb(im, name: str):
     return out
 
 
-def say_unapplied(data, name: str) -> None:
-    """Warn where the ICC profile ``data`` (bytes or None) of a 16-bit or float file, whose pixels
-    tghop decodes itself without converting them, is of other colours than sRGB."""
-    if not data:
-        return
+@functools.lru_cache(maxsize=4)
+def _table(data: bytes):
+    """The sRGB colour (float32 in [0, 1]) of each of _TABLE^3 evenly spaced 8-bit colours, as
+    ``table[r, g, b]``, by the same LittleCMS transform as 8-bit images (:func:`_transform`)."""
+    from PIL import Image, ImageCms
+
+    nodes = (np.arange(_TABLE) * (255 // (_TABLE - 1))).astype(np.uint8)
+    grid = np.stack(np.meshgrid(nodes, nodes, nodes, indexing="ij"), axis=-1).reshape(_TABLE, _TABLE ** 2, 3)
+    mapped = np.asarray(ImageCms.applyTransform(Image.fromarray(grid, "RGB"), _transform(data, "RGB")[0]))
+    return (mapped.reshape(_TABLE ** 3, 3) / np.float32(255)).astype(np.float32)
+
+
+def _trilinear(table, rgb):
+    """``table`` (_TABLE^3, 3) at the colours ``rgb`` (n, 3) in [0, 1], trilinearly interpolated."""
+    pos = np.clip(rgb, 0.0, 1.0) * (_TABLE - 1)
+    low = np.minimum(pos.astype(np.intp), _TABLE - 2)
+    frac = (pos - low).astype(np.float32)
+    base = (low[:, 0] * _TABLE + low[:, 1]) * _TABLE + low[:, 2]
+    out = np.zeros((len(rgb), 3), dtype=np.float32)
+    for dr in (0, 1):
+        for dg in (0, 1):
+            for db in (0, 1):
+                weight = ((frac[:, 0] if dr else 1 - frac[:, 0]) * (frac[:, 1] if dg else 1 - frac[:, 1])
+                          * (frac[:, 2] if db else 1 - frac[:, 2]))
+                out += weight[:, None] * table[base + (dr * _TABLE + dg) * _TABLE + db]
+    return out
+
+
+def deep_to_srgb(arr, data, name: str):
+    """A 16-bit or float colour image (H, W, 3 or 4; float in [0, 1]) whose ICC profile ``data``
+    (bytes or None) is not sRGB, in sRGB: Pillow's colour management takes 8-bit images only, so
+    the same transform is sampled on a grid of _TABLE^3 colours and interpolated trilinearly (on
+    average within half an 8-bit level of the 8-bit conversion; up to several levels for colours
+    outside sRGB, whose clipping the grid smooths); alpha as it is. Others as they are."""
+    if not data or arr.ndim != 3 or arr.shape[2] not in (3, 4):
+        return arr
     try:
         transform, what = _transform(bytes(data), "RGB")
-    except Exception:  # noqa: BLE001 - a grey or unreadable profile: nothing to say of colours
-        return
-    if transform is not None:
-        warnings.warn(f"{name}: its colour profile {what!r} is not applied to 16-bit and float images; "
-                      "colours taken as sRGB", UserWarning, stacklevel=4)
+    except Exception:  # noqa: BLE001 - a damaged profile, or one for other colours than RGB
+        warnings.warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
+                      stacklevel=3)
+        return arr
+    if transform is None:
+        return arr
+    table = _table(bytes(data))
+    out = np.array(arr, dtype=np.float64)
+    rows = max(1, (1 << 18) // max(1, arr.shape[1]))  # about a quarter of a million colours at a time
+    for y in range(0, arr.shape[0], rows):
+        part = out[y: y + rows, :, :3]
+        part[...] = _trilinear(table, part.reshape(-1, 3)).reshape(part.shape)
+    warnings.warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning, stacklevel=3)
+    return np.clip(out, 0.0, 1.0)
+
+
+def tiff_profile(path):
+    """The ICC profile (bytes) of a TIFF file's first page, read by :mod:`tifffile` from its
+    header (a float colour TIFF, which Pillow cannot open); None where there is none."""
+    try:
+        import tifffile
+
+        with tifffile.TiffFile(path) as tif:
+            tag = tif.pages[0].tags.get(34675)  # InterColorProfile
+            return None if tag is None else bytes(tag.value)
+    except Exception:  # noqa: BLE001 - not a TIFF, or no tifffile: no profile to apply
+        return None
