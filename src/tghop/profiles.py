@@ -86,8 +86,9 @@ def to_srgb(im, name: str):
 
 @functools.lru_cache(maxsize=4)
 def _table(data: bytes):
-    """The sRGB colour (float32 in [0, 1]) of each of _TABLE^3 evenly spaced 8-bit colours, as
-    ``table[r, g, b]``, by the same LittleCMS transform as 8-bit images (:func:`_transform`)."""
+    """The sRGB colour (float32 in [0, 1]) of each of _TABLE^3 evenly spaced 8-bit colours, by the
+    same LittleCMS transform as 8-bit images (:func:`_transform`): (_TABLE^3, 3), the colour of
+    nodes ``(r, g, b)`` in row ``(r * _TABLE + g) * _TABLE + b``."""
     from PIL import Image, ImageCms
 
     nodes = (np.arange(_TABLE) * (255 // (_TABLE - 1))).astype(np.uint8)
