@@ -40,23 +40,54 @@ def _description(profile) -> str:
         return "unnamed"
 
 
+def _mapped(transform, nodes):
+    """The ``transform``'s image of every colour whose channels are among ``nodes`` (uint8, n of
+    them): (n^3, 3) uint8, the colour ``(r, g, b)`` of node indices in row ``(r * n + g) * n + b``;
+    and the colours themselves, alike."""
+    from PIL import Image, ImageCms
+
+    n = len(nodes)
+    grid = np.stack(np.meshgrid(nodes, nodes, nodes, indexing="ij"), axis=-1).reshape(n, n * n, 3)
+    mapped = np.asarray(ImageCms.applyTransform(Image.fromarray(grid, "RGB"), transform))
+    return mapped.reshape(-1, 3), grid.reshape(-1, 3)
+
+
 @functools.lru_cache(maxsize=8)
 def _transform(data: bytes, mode: str):
     """(transform to sRGB or None where the profile is sRGB, the profile's description) for an
     image of ``mode`` ("RGB" or "CMYK") with the ICC profile ``data``; raises where LittleCMS
     cannot read the profile or it does not fit the mode."""
-    from PIL import Image, ImageCms
+    from PIL import ImageCms
 
     source = ImageCms.ImageCmsProfile(io.BytesIO(data))
     transform = ImageCms.buildTransform(source, ImageCms.createProfile("sRGB"), mode, "RGB",
                                         renderingIntent=ImageCms.Intent.RELATIVE_COLORIMETRIC)
     if mode == "RGB":
-        levels = np.linspace(0, 255, _GRID).round().astype(np.uint8)
-        grid = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1).reshape(_GRID, _GRID ** 2, 3)
-        mapped = np.asarray(ImageCms.applyTransform(Image.fromarray(grid, "RGB"), transform))
+        mapped, grid = _mapped(transform, np.linspace(0, 255, _GRID).round().astype(np.uint8))
         if np.abs(mapped.astype(int) - grid).max() <= 1:
             return None, _description(source)
     return transform, _description(source)
+
+
+def _source(data, mode, name, stacklevel):
+    """(transform to sRGB, description) of the ICC profile ``data`` for an image of ``mode``, or
+    None where there is nothing to convert: no profile, an sRGB one, or one LittleCMS cannot use
+    (said in a warning; ``stacklevel``: the caller's own, as it would give :func:`warnings.warn`)."""
+    if not data:
+        return None
+    try:
+        transform, what = _transform(bytes(data), mode)
+    except Exception:  # noqa: BLE001 - a damaged profile, or one for other colours than the image's
+        warnings.warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
+                      stacklevel=stacklevel + 1)
+        return None
+    return None if transform is None else (transform, what)
+
+
+def _said(name, what, stacklevel):
+    """The warning that ``name``'s colours were converted (``stacklevel``: as for :func:`_source`)."""
+    warnings.warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning,
+                  stacklevel=stacklevel + 1)
 
 
 def to_srgb(im, name: str):
@@ -68,19 +99,13 @@ def to_srgb(im, name: str):
 
     if im.mode == "P":
         im = im.convert("RGBA" if "transparency" in im.info else "RGB")
-    colours = im.convert("RGB") if im.mode == "RGBA" else im
-    try:
-        transform, what = _transform(bytes(data), "CMYK" if im.mode == "CMYK" else "RGB")
-    except Exception:  # noqa: BLE001 - a damaged profile, or one for other colours than the image's
-        warnings.warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
-                      stacklevel=4)
+    found = _source(data, "CMYK" if im.mode == "CMYK" else "RGB", name, stacklevel=4)
+    if found is None:
         return im
-    if transform is None:
-        return im
-    out = ImageCms.applyTransform(colours, transform)
+    out = ImageCms.applyTransform(im.convert("RGB") if im.mode == "RGBA" else im, found[0])
     if im.mode == "RGBA":
         out = Image.merge("RGBA", (*out.split(), im.getchannel("A")))
-    warnings.warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning, stacklevel=4)
+    _said(name, found[1], stacklevel=4)
     return out
 
 
@@ -89,12 +114,8 @@ def _table(data: bytes):
     """The sRGB colour (float32 in [0, 1]) of each of _TABLE^3 evenly spaced 8-bit colours, by the
     same LittleCMS transform as 8-bit images (:func:`_transform`): (_TABLE^3, 3), the colour of
     nodes ``(r, g, b)`` in row ``(r * _TABLE + g) * _TABLE + b``."""
-    from PIL import Image, ImageCms
-
-    nodes = (np.arange(_TABLE) * (255 // (_TABLE - 1))).astype(np.uint8)
-    grid = np.stack(np.meshgrid(nodes, nodes, nodes, indexing="ij"), axis=-1).reshape(_TABLE, _TABLE ** 2, 3)
-    mapped = np.asarray(ImageCms.applyTransform(Image.fromarray(grid, "RGB"), _transform(data, "RGB")[0]))
-    return (mapped.reshape(_TABLE ** 3, 3) / np.float32(255)).astype(np.float32)
+    mapped, _ = _mapped(_transform(data, "RGB")[0], (np.arange(_TABLE) * (255 // (_TABLE - 1))).astype(np.uint8))
+    return (mapped / np.float32(255)).astype(np.float32)
 
 
 def _trilinear(table, rgb):
@@ -119,15 +140,10 @@ def deep_to_srgb(arr, data, name: str):
     the same transform is sampled on a grid of _TABLE^3 colours and interpolated trilinearly (on
     average within half an 8-bit level of the 8-bit conversion; up to several levels for colours
     outside sRGB, whose clipping the grid smooths); alpha as it is. Others as they are."""
-    if not data or arr.ndim != 3 or arr.shape[2] not in (3, 4):
+    if arr.ndim != 3 or arr.shape[2] not in (3, 4):
         return arr
-    try:
-        transform, what = _transform(bytes(data), "RGB")
-    except Exception:  # noqa: BLE001 - a damaged profile, or one for other colours than RGB
-        warnings.warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
-                      stacklevel=3)
-        return arr
-    if transform is None:
+    found = _source(data, "RGB", name, stacklevel=3)
+    if found is None:
         return arr
     table = _table(bytes(data))
     out = np.array(arr, dtype=np.float64)
@@ -135,7 +151,7 @@ def deep_to_srgb(arr, data, name: str):
     for y in range(0, arr.shape[0], rows):
         part = out[y: y + rows, :, :3]
         part[...] = _trilinear(table, part.reshape(-1, 3)).reshape(part.shape)
-    warnings.warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning, stacklevel=3)
+    _said(name, found[1], stacklevel=3)
     return np.clip(out, 0.0, 1.0)
 
 
