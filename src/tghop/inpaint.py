@@ -42,7 +42,7 @@ from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_rng, checked_image, report
 from .quilting import boundary_cut_mask, default_overlap
 from .pyramid import laplacian_pyramid, reconstruct
-from .refine import oriented_parts, tailed_band_quantiles
+from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
 
 __all__ = ["inpaint", "check_hole", "require_hole", "split_alpha", "with_alpha", "refine_hole"]
 
@@ -295,13 +295,11 @@ def _fill(work, hole, flat, squares, energy, pool, p, tile, tolerance, detail, r
 
 
 def _match_values(values, quantiles, levels):
-    """``values`` (k,) given the distribution of ``quantiles`` by their ranks."""
+    """``values`` (k,) given the distribution of ``quantiles`` by their ranks
+    (:func:`tghop.refine.match_quantiles`: a rank table, no sort)."""
     if values.size < 2:
         return values
-    order = np.argsort(values, kind="stable")
-    out = np.empty_like(values)
-    out[order] = np.interp(np.linspace(0.0, 1.0, values.size), levels, quantiles)
-    return out
+    return match_quantiles(values, quantiles, levels)
 
 
 def _level_mask(hole, level, shape):

@@ -32,7 +32,7 @@ from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
 
 __all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_oriented_parts", "tail_quantiles",
-           "tailed_band_quantiles", "RELAXATION", "TAIL_LEVELS"]
+           "tailed_band_quantiles", "match_quantiles", "RELAXATION", "TAIL_LEVELS"]
 
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
@@ -116,8 +116,24 @@ def _sample_quantiles(sample, levels):
     return np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
 
 
-def _match(values, target, levels, out=None):
+def match_quantiles(values, target, levels, out=None):
     """Monotone map of ``values`` giving them the quantiles ``target`` (at ``levels``).
+
+    Parameters
+    ----------
+    values : ndarray, any shape
+        float32 or float64.
+    target : ndarray, shape (L,)
+        Non-decreasing quantiles of the distribution to give them.
+    levels : ndarray, shape (L,)
+        The levels of ``target``, from 0 to 1.
+    out : ndarray, optional
+        Of ``values``' shape (may be ``values``).
+
+    Returns
+    -------
+    ndarray, shape of ``values``
+        Flat values all map to the target's median.
 
     Histogram matching by ranks (:func:`_matching`), tabulated at uniform steps over the
     values' range (a quarter as many as values, within _LUT_MIN and _LUT_MAX) and applied
@@ -221,7 +237,7 @@ def _rank_table(index, size, target, levels, dtype):
 
 
 def _matching(sample, n_values, target, levels, dtype):
-    """The map :func:`_match` applies to ``n_values`` values whose strided subset
+    """The map :func:`match_quantiles` applies to ``n_values`` values whose strided subset
     (:func:`_subset`) is ``sample``: ``(lo, scale, table)``, or ``(value, None, None)``
     when the values are flat (all map to one value).
 
@@ -458,7 +474,7 @@ def _match_oriented(band, band_q, levels, *, workers=1):
         band = band.copy()
     if n <= 1:
         for k in range(n_channels):
-            _match(band[k], band_q[0, k], levels, out=band[k])
+            match_quantiles(band[k], band_q[0, k], levels, out=band[k])
         return band
     filtered = _filtered(band, n, (1, 2), workers)
     coefs = _part_coefficients(n)
@@ -809,7 +825,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
             total = None  # the matched parts summed in order, into the first one
             for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=axes, workers=fft_workers)):
                 for k in range(n_channels):
-                    _match(part[k], band_q[i, j, k], band_lev, out=part[k])
+                    match_quantiles(part[k], band_q[i, j, k], band_lev, out=part[k])
                 if total is None:
                     total = part
                 else:
@@ -819,7 +835,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
         if before is x:  # no bands: the pyramid is the image itself, matched in place below
             before = x.copy()
         for k in range(n_channels):
-            _match(x[k], pixel_q[k], qlev, out=x[k])
+            match_quantiles(x[k], pixel_q[k], qlev, out=x[k])
         if before is not None:  # x = before + relaxation (x - before), in place
             x -= before
             x *= relaxation
