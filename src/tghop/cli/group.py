@@ -23,7 +23,7 @@ from .common import Terminated, fail, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
 from .guided import morph
-from .inpaint import inpaint
+from .inpaint import extend, inpaint
 from .serve import serve
 from .texture import clusters, fit, info, patches, synth
 
@@ -37,6 +37,7 @@ _COMMAND_MODULES = {
     "clusters": ("numpy", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.explain"),
     "info": ("numpy", "tghop.modelfile"),
     "inpaint": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.inpaint"),
+    "extend": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.inpaint"),
     "morph": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.guided"),
     "batch": ("numpy", "threadpoolctl", "tghop.imageio", "tghop.modelfile", "tghop.synthesis", "tghop.batch"),
 }
@@ -191,5 +192,5 @@ def main():
     """
 
 
-for _command in (synth, fit, inpaint, morph, patches, clusters, info, batch, evaluate, baseline, cooc, serve):
+for _command in (synth, fit, inpaint, extend, morph, patches, clusters, info, batch, evaluate, baseline, cooc, serve):
     main.add_command(_command)
