@@ -554,6 +554,43 @@ def test_inpaint_bad_inputs_get_one_line_and_their_status(client, fitted, to_fil
     assert_error(post("/api/models/nope/inpaint", files=good), 404, "no model")
 
 
+def test_extend_grows_the_picture_as_tghop_extend_does(client, fitted, to_fill, live_server, tmp_path):
+    import numpy as np
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from tghop.cli import main
+
+    model_id, _, _ = fitted
+    image, _, _ = to_fill  # 64x80
+    url = f"/api/models/{model_id}/extend"
+    ask = {"image": ("generated.png", image, "image/png"), "size": (None, "96x120"), "anchor": (None, "top-right"),
+           "seed": (None, "3")}
+    r = client.post(url, files=ask)
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "image/png" and r.headers["x-tghop-seed"] == "3"
+    out = decoded(r.content)
+    assert out.shape == (96, 120, 3) and (out[:64, 40:] == decoded(image)).all()
+    assert out[64:].reshape(-1, 3).std(axis=0).min() > 5  # texture in the new area
+    (tmp_path / "in.png").write_bytes(image)
+    model_file = str(live_server.cache / "models" / f"{model_id}.npz")
+    cli = CliRunner().invoke(main, ["extend", str(tmp_path / "in.png"), "--size", "96x120", "--anchor", "top-right",
+                                    "--seed", "3", "-q", "--source", model_file, "-o", str(tmp_path / "c.png")])
+    assert cli.exit_code == 0, cli.output
+    assert (np.asarray(Image.open(tmp_path / "c.png")) == out).all()  # the command's very pixels
+    centred = client.post(url, files={k: v for k, v in ask.items() if k != "anchor"})  # center by default
+    assert centred.status_code == 200 and (decoded(centred.content)[16:80, 20:100] == decoded(image)).all()
+    post = client.post
+    for size, words in (("60x80", "the size 60x80 is smaller than the image (64x80) in height"),
+                        ("64x80", "nothing to extend")):
+        assert_error(post(url, files={**ask, "size": (None, size)}), 400, words)
+    assert_error(post(url, files={k: v for k, v in ask.items() if k != "size"}), 422, "size must be HEIGHTxWIDTH")
+    assert_error(post(url, files={**ask, "size": (None, "9000x9000")}), 422, "size")
+    assert_error(post(url, files={**ask, "anchor": (None, "middle")}), 422, "anchor must be one of center, top")
+    assert_error(post(url, files={**ask, "mask": ("m.png", image)}), 422, "unknown field 'mask'")
+    assert_error(post(url, files={"size": (None, "96x120")}), 400, "no image")
+
+
 # ------------------------------------------------------------------ quality, several models
 @pytest.fixture(scope="module")
 def second(client):

@@ -218,6 +218,21 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     filled = np.array(page.eval_on_selector("#result", PIXELS)).reshape(64, 80, 4)[..., :3]
     assert (filled[~hole] == own[~hole]).all()  # the picture's pixels outside the stroke, as they were
     assert (filled[hole] != own[hole]).any(axis=1).mean() > 0.5
+    # Extend: the filled picture grown to 80x120, kept at its top-left corner; a bad size is said.
+    page.wait_for_selector("#editor[data-ready='1']")
+    page.fill("#extend-height", "80")
+    page.fill("#extend-width", "120")
+    page.select_option("#extend-anchor", "top-left")
+    page.click("#extend-go")
+    page.wait_for_function(RESULT_SHOWN % "extended: 80x120, seed 5", timeout=60_000)
+    grown = np.array(page.eval_on_selector("#result", PIXELS)).reshape(80, 120, 4)[..., :3]
+    assert (grown[:64, :80] == filled).all() and grown[64:].reshape(-1, 3).std(axis=0).min() > 5
+    assert page.get_attribute("#download-png", "download") == "tghop-extended-seed5.png"
+    page.wait_for_selector("#editor[data-ready='1']")
+    page.fill("#extend-height", "40")  # smaller than the picture: said, not sent
+    page.click("#extend-go")
+    page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith("
+                           "\"give a height and width of at least the picture's 80x120\")")
     mode(page, "view")
     assert page.is_visible("#pair") and page.is_hidden("#inpaint")
     assert not page.errors, page.errors

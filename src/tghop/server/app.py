@@ -54,7 +54,7 @@ from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from . import cooc
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
-from .requests import RequestError, parse_bool, parse_generation, parse_guided, parse_morph
+from .requests import RequestError, parse_bool, parse_generation, parse_growth, parse_guided, parse_morph
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -585,26 +585,28 @@ class Server:
             self.cache.path(model_id)
         return await self._png_response(request, self._morph, [a, b], size, stations, settings, seed=seed)
 
-    def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool) -> bytes:
-        """Read the picture and its mask, fill the mask's white pixels with the model's
-        texture (:func:`tghop.inpaint.inpaint`): the PNG's bytes. As ``tghop inpaint`` does
-        (its code): an alpha channel is kept (opaque in the hole), and so are 16 bits per
-        channel (a float picture: 16 bits, the most a PNG holds)."""
+    def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool, grow) -> bytes:
+        """Read the picture and its mask (``grow`` None) or grow the picture to ``grow``'s
+        ``(size, anchor)`` (:func:`tghop.inpaint.expand_canvas`), and fill the mask's white
+        pixels or the new area with the model's texture (:func:`tghop.inpaint.inpaint`): the
+        PNG's bytes. As ``tghop inpaint`` and ``tghop extend`` do (their code): an alpha channel
+        is kept (opaque where filled), and so are 16 bits per channel (a float picture: 16
+        bits, the most a PNG holds)."""
         import numpy as np
 
         from .._errors import HINT_DOWNSCALE_YOURSELF
         from ..imageio import deepest, load_image, to_uint8, to_uint16, write_png
-        from ..inpaint import check_hole, inpaint, require_hole, split_alpha, with_alpha
+        from ..inpaint import check_hole, expand_canvas, inpaint, require_hole, split_alpha, with_alpha
 
         model = self.cache.load(model_id)
         picture = mask = None
-        for name, default in (("image", "image"), ("mask", "mask")):
+        for name in ("image",) if grow else ("image", "mask"):
             upload = fields.get(name)
             if not isinstance(upload, tuple):
-                raise RequestError(400, f"no {name}: send the picture as the file field 'image' and its mask "
-                                        "(white: the hole) as the file field 'mask'")
+                raise RequestError(400, f"no {name}: send the picture as the file field 'image'" + (
+                    "" if grow else " and its mask (white: the hole) as the file field 'mask'"))
             filename, content = upload
-            filename = _safe_name(filename, default)
+            filename = _safe_name(filename, name)
             if not content:
                 raise RequestError(400, f"{filename} is empty; send an image file")
             if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
@@ -616,8 +618,12 @@ class Server:
                     p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
                 mask, mask_name = read.mean(axis=2), filename
         try:
-            hole = check_hole(mask, picture.shape)
-            require_hole(hole, f"the mask {mask_name}")  # as tghop inpaint: nothing would change
+            if grow:
+                picture, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
+                alpha = None if alpha is None else expand_canvas(alpha, grow[0], anchor=grow[1])[0]
+            else:
+                hole = check_hole(mask, picture.shape)
+                require_hole(hole, f"the mask {mask_name}")  # as tghop inpaint: nothing would change
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
         with self.generating:
@@ -633,26 +639,37 @@ class Server:
         return buf.getvalue()
 
     async def inpaint(self, request):
+        return await self._fill_request(request, grow=False)
+
+    async def extend(self, request):
+        return await self._fill_request(request, grow=True)
+
+    async def _fill_request(self, request, *, grow: bool):
+        """``POST /api/models/{id}/inpaint`` (the fields image, mask, seed, tile) or
+        ``/extend`` (image, size, anchor, seed, tile)."""
         model_id = request.path_params["id"]
         self.cache.path(model_id)  # 404 for a malformed id before the body is read
         body = await read_body(request)
-        fields = await read_form(request, body, "the file fields 'image' and 'mask', white where to fill; "
-                                                "optionally the fields 'seed' and 'tile'")
-        unknown = [k for k in fields if k not in ("image", "mask", "seed", "tile")]
+        names = ("image", "size", "anchor", "seed", "tile") if grow else ("image", "mask", "seed", "tile")
+        fields = await read_form(request, body, "the file field 'image' and the fields 'size' (HEIGHTxWIDTH) and "
+                                 "optionally 'anchor', 'seed' and 'tile'" if grow else "the file fields 'image' and "
+                                 "'mask', white where to fill; optionally the fields 'seed' and 'tile'")
+        unknown = [k for k in fields if k not in names]
         if unknown:
-            raise RequestError(422, f"unknown field {unknown[0]!r}; known: image, mask, seed, tile")
-        seed, tile = fields.get("seed"), fields.get("tile", "false")
-        if isinstance(seed, tuple) or isinstance(tile, tuple):
-            raise RequestError(422, "seed and tile are plain fields, not files")
-        seed = (seed or "").strip()
+            raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)}")
+        plain = {k: fields.get(k) for k in names if k not in ("image", "mask")}
+        if any(isinstance(v, tuple) for v in plain.values()):
+            raise RequestError(422, f"{', '.join(plain)}: plain fields, not files")
+        seed = (plain["seed"] or "").strip()
         if seed == "":
             seed = secrets.randbelow(2**31)
         elif not re.fullmatch(r"[0-9]{1,19}", seed) or int(seed) >= 2**63:
             raise RequestError(422, f"seed must be an integer from 0 to 2**63 - 1, got {seed[:40]!r}")
         else:
             seed = int(seed)
-        tile = parse_bool("tile", tile)
-        png = await self.in_executor(request, self._inpaint, model_id, fields, seed, tile)
+        tile = parse_bool("tile", plain["tile"] or "false")
+        growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
+        png = await self.in_executor(request, self._inpaint, model_id, fields, seed, tile, growth)
         return Response(png, media_type="image/png", headers={"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"})
 
     # ---------------------------------------------------------------- co-occurrence
@@ -781,6 +798,7 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         Route("/api/models/{id}/file", _wrap(server.model_file)),
         Route("/api/models/{id}/images", _wrap(server.generate), methods=["POST"]),
         Route("/api/models/{id}/inpaint", _wrap(server.inpaint), methods=["POST"]),
+        Route("/api/models/{id}/extend", _wrap(server.extend), methods=["POST"]),
         Route("/api/images/guided", _wrap(server.guided), methods=["POST"]),
         Route("/api/images/morph", _wrap(server.morph), methods=["POST"]),
         Route("/api/cooc", _wrap(server.upload_cooc), methods=["POST"]),

@@ -16,8 +16,8 @@ import re
 from .. import manifest
 from .._errors import TGHopError
 
-__all__ = ["RequestError", "decode_png_field", "json_bool", "parse_bool", "parse_generation", "parse_guided",
-           "parse_morph", "MAX_MODELS", "MAX_TRANSITION"]
+__all__ = ["RequestError", "decode_png_field", "json_bool", "parse_bool", "parse_generation", "parse_growth",
+           "parse_guided", "parse_morph", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -42,6 +42,26 @@ def parse_bool(name, value) -> bool:
         return manifest.parse_bool(value, name, empty=False)
     except TGHopError as exc:
         raise RequestError(422, str(exc)) from None
+
+
+def parse_growth(size, anchor) -> tuple:
+    """``/extend``'s form fields -> ``(size, anchor)``: ``size`` HEIGHTxWIDTH within the
+    output limit, ``anchor`` one of :data:`tghop.inpaint.ANCHORS` (empty: ``center``); 422
+    otherwise. Whether the size is larger than the picture is the fill's check (400)."""
+    from .._common import MAX_PIXELS, check_size
+    from ..inpaint import ANCHORS
+
+    pair = manifest.split_size(size or "")
+    if pair is None:
+        raise RequestError(422, f"size must be HEIGHTxWIDTH in pixels, e.g. 512x1024, got {(size or '')[:40]!r}")
+    try:
+        size = check_size(pair, limit=MAX_PIXELS, name="size")
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    anchor = (anchor or "center").strip().lower()
+    if anchor not in ANCHORS:
+        raise RequestError(422, f"anchor must be one of {', '.join(ANCHORS)}; got {anchor[:40]!r}")
+    return size, anchor
 
 
 def json_bool(name, value, default: bool = False) -> bool:

@@ -31,7 +31,7 @@ function setExemplar(url) {
 
 function updateButtons() {
   $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId;
-  $("fill").disabled = state.busy || !state.modelId || !editor.blob;
+  $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob;
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
   $("morph-go").disabled = state.busy || state.models.length < 2;
   if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js
@@ -338,6 +338,8 @@ function setEditorPicture(blob, name) {
     const w = img.naturalWidth, h = img.naturalHeight;
     canvas.width = w;  // a new size clears the mask
     canvas.height = h;
+    $("extend-height").placeholder = String(h);  // Extend's fields start from the picture's size
+    $("extend-width").placeholder = String(w);
     clearMask();
     // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on.
     $("editor").style.width = `${Math.max(w, Math.min(3 * w, 640))}px`;
@@ -449,6 +451,34 @@ function onFill() {
     const used = response.headers.get("X-Tghop-Seed");
     showResult(URL.createObjectURL(blob), used, blob, "inpainted");
     sayInpaint(`filled (seed ${used}): paint again to fill more, or download it`);
+  }, sayInpaint);
+}
+
+function onExtend() {
+  if (!state.modelId || !editor.blob) return;
+  withBusy($("extend-go"), async () => {
+    const img = $("editor-base");
+    const h = $("extend-height").value.trim() || String(img.naturalHeight);
+    const w = $("extend-width").value.trim() || String(img.naturalWidth);
+    const [ph, pw] = [img.naturalHeight, img.naturalWidth];
+    if (Number(h) < ph || Number(w) < pw || (Number(h) === ph && Number(w) === pw)) {  // said, not sent
+      sayInpaint(`give a height and width of at least the picture's ${ph}x${pw}, larger in one`, true);
+      return;
+    }
+    const seed = $("inpaint-seed").value.trim();
+    const form = new FormData();
+    form.append("image", editor.blob, editor.name);
+    form.append("size", `${h}x${w}`);
+    form.append("anchor", $("extend-anchor").value);
+    if (seed !== "") form.append("seed", seed);
+    form.append("tile", $("inpaint-tile").checked ? "true" : "false");
+    sayInpaint("extending");
+    const response = await fetch(`/api/models/${state.modelId}/extend`, { method: "POST", body: form });
+    if (!response.ok) throw new Error(await errorOf(response));
+    const blob = await response.blob();
+    const used = response.headers.get("X-Tghop-Seed");
+    showResult(URL.createObjectURL(blob), used, blob, "extended");
+    sayInpaint(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`);
   }, sayInpaint);
 }
 
@@ -750,6 +780,7 @@ async function init() {
   $("brush").addEventListener("input", () => { $("brush-size").textContent = `${$("brush").value} px`; });
   $("clear").addEventListener("click", clearMask);
   $("fill").addEventListener("click", onFill);
+  $("extend-go").addEventListener("click", onExtend);
   $("picture").addEventListener("change", (e) => onPicture(e.target.files[0]));
   const mask = $("mask");
   mask.addEventListener("pointerdown", onBrushDown);
