@@ -7,7 +7,8 @@
 Writes docs/gallery/{bricks,cells}.png: exemplar | 256x256 result | the same with
 ``--quality best`` | tileable result 2x2 |
 generated 32x32 patches | Fig. 6 stage views; docs/gallery/control.png: an inpainted
-image (hole outlined) | a guide map and the image it paints from two models | a morph strip;
+image (hole outlined) | a picture grown by ``tghop extend`` | a guide map and the image it
+paints from two models | a morph strip;
 and docs/gallery/serve.png: a screenshot of ``tghop serve``'s page (the web extra and
 headless Chromium through Playwright, as tests/test_server_browser.py drives it) after
 fitting builtin:bricks and generating; the last two with a 256-colour palette to keep them small.
@@ -26,7 +27,7 @@ sys.path.insert(1, str(ROOT / "tests"))  # chromium.py: the browser tests' launc
 from _common import image_sheet  # noqa: E402
 
 from tghop import data, morph, synthesize_guided  # noqa: E402
-from tghop.inpaint import inpaint  # noqa: E402
+from tghop.inpaint import expand_canvas, extend, inpaint  # noqa: E402
 from tghop.patches import patch_grid, stage_sheet  # noqa: E402
 from tghop.imageio import save_image  # noqa: E402
 from tghop.settings import QUALITY  # noqa: E402
@@ -54,14 +55,19 @@ def control_sheet():
     filled = inpaint(model, image, hole, rng=1)
     holed = image.copy()
     holed[hole] = 0.5
+    # Extend: a 128x128 picture of cells grown to 192x320 around it (its model fitted on it).
+    picture = data.builtin("cells", 128, rng=5)
+    grown = extend(TGHop(rng=0).fit(picture), picture, (n, 320), rng=1)
+    new_area = expand_canvas(picture, (n, 320))[1]
     # Guided: bricks everywhere but a disc of cells (map: dark = first model).
     guide = np.where((yy - n // 2) ** 2 + (xx - n // 2) ** 2 < 60 ** 2, 255, 0).astype(np.uint8)
     painted = synthesize_guided([bricks, cells], guide, rng=1)
     strip = morph(bricks, cells, (n, 4 * n), rng=1)
     return image_sheet(
-        [outline(holed, hole), outline(filled, hole), guide.astype(np.float64) / 255, painted, strip],
-        ["tghop inpaint: hole", "filled (outlined)", "--guide map", "synth bricks cells --guide",
-         "tghop morph bricks cells"],
+        [outline(holed, hole), outline(filled, hole), outline(grown, ~new_area), guide.astype(np.float64) / 255,
+         painted, strip],
+        ["tghop inpaint: hole", "filled (outlined)", "tghop extend (picture outlined)", "--guide map",
+         "synth bricks cells --guide", "tghop morph bricks cells"],
         height=n,
     )
 

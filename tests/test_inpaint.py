@@ -135,6 +135,9 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
         inpaint(model, cells, square, rng=1, n_patches=10**9)
     with pytest.raises(TGHopError, match=r"^blend must be an integer >= 0, got -1$"):
         inpaint(model, cells, square, blend=-1, **fast)
+    for weight in (-1, float("inf"), True):
+        with pytest.raises(TGHopError, match=r"^layout_weight must be a finite number >= 0, got "):
+            inpaint(model, cells, square, layout_weight=weight, **fast)
     for steps in (-1, 2.5, "10"):
         with pytest.raises(TGHopError, match=r"^patch_refine must be an integer >= 0, got "):
             inpaint(model, cells, square, patch_refine=steps, **fast)

@@ -222,13 +222,13 @@ def test_matching_in_chunks_is_pointwise_and_handles_strided_outputs(monkeypatch
     values = (rng.standard_normal((61, 53)) ** 3).astype(np.float32)
     levels = np.linspace(0.0, 1.0, 33)
     target = np.sort(rng.standard_normal(33))
-    whole = R._match(values, target, levels)
+    whole = R.match_quantiles(values, target, levels)
     monkeypatch.setattr(R, "_MATCH_CHUNK", 7)
-    np.testing.assert_array_equal(R._match(values, target, levels), whole)
+    np.testing.assert_array_equal(R.match_quantiles(values, target, levels), whole)
     big = np.zeros((61, 106), dtype=np.float32)
     big[:, ::2] = values
     strided = big[:, ::2]
-    assert R._match(strided, target, levels, out=strided) is strided
+    assert R.match_quantiles(strided, target, levels, out=strided) is strided
     np.testing.assert_array_equal(big[:, ::2], whole)
     assert not big[:, 1::2].any()
     # The map is monotone and reaches the target's range.
@@ -249,7 +249,7 @@ def test_matching_maps_values_beyond_the_sampled_range_to_the_ends_of_the_target
     values[3::1024] = -1e6
     levels = np.linspace(0.0, 1.0, 65)
     target = np.sort(rng.uniform(-2.0, 3.0, 65))
-    out = R._match(values, target, levels)
+    out = R.match_quantiles(values, target, levels)
     assert np.all(out[1::1024] == np.float32(target[-1])) and np.all(out[3::1024] == np.float32(target[0]))
     inside = np.abs(values) < 1e6
     # Ranks of a quarter of the values: the quantiles of all of them within sampling error
@@ -269,7 +269,7 @@ def test_matching_gives_the_values_the_target_distribution(n_values, dist):
               "two-valued": rng.integers(0, 2, n_values) * 0.7}[dist].astype(np.float32)
     levels = np.linspace(0.0, 1.0, 257)
     target = np.sort(rng.gamma(2.0, 1.0, 257))
-    out = R._match(values, target, levels)
+    out = R.match_quantiles(values, target, levels)
     assert out.dtype == np.float32
     order = np.argsort(values, kind="stable")
     assert np.all(np.diff(out[order]) >= 0)
@@ -292,7 +292,7 @@ def test_matching_flat_values_gives_the_target_median():
 
     levels = np.linspace(0.0, 1.0, 5)
     target = np.array([0.0, 1.0, 2.0, 3.0, 10.0])
-    assert np.all(R._match(np.full(100, 0.25, dtype=np.float32), target, levels) == 2.0)
+    assert np.all(R.match_quantiles(np.full(100, 0.25, dtype=np.float32), target, levels) == 2.0)
 
 
 def test_tail_quantiles_follow_an_exponential_tail_up_to_the_extremes():
@@ -349,7 +349,7 @@ def test_oriented_parts_matched_in_chunks_equal_matching_each_part(n, monkeypatc
     total = None
     for j, part in enumerate(R.iter_oriented_parts(band.copy(), n, axes=(1, 2))):
         for k in range(2):
-            R._match(part[k], q[j, k], levels, out=part[k])
+            R.match_quantiles(part[k], q[j, k], levels, out=part[k])
         total = part if total is None else total + part
     monkeypatch.setattr(R, "_PARTS_CHUNK", 256)  # several chunks and a short last one
     got = band.copy()
