@@ -6,21 +6,13 @@ import pytest
 from PIL import Image
 
 from tghop import TGHopError, data
-from tghop.imageio import save_image, to_uint8
+from tghop.imageio import save_image
 from tghop.inpaint import ANCHORS, expand_canvas, extend
 from tghop.modelfile import save_model
 from tghop.synthesis import TGHop
 
 from conftest import assert_user_error, cli
-
-#: A small model, fast to fit.
-FAST = dict(n_clusters=10, n_codewords=40, max_patches=1200, layout_factor=None)
-POOL = dict(n_patches=600, refine=2)
-
-
-@pytest.fixture(scope="module")
-def cells():
-    return to_uint8(data.cells(96, rng=3))  # (96, 96, 3) uint8
+from test_inpaint import FAST, POOL, cells  # noqa: F401 (cells: the fixture of a 96x96 uint8 texture)
 
 
 @pytest.fixture(scope="module")

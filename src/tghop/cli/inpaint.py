@@ -17,22 +17,37 @@ __all__ = ["inpaint", "extend", "ANCHOR_CHOICES"]
 ANCHOR_CHOICES = ("center", "top", "bottom", "left", "right", "top-left", "top-right", "bottom-left", "bottom-right")
 
 
+def _fill_options(fitted_on: str, tile_help: str):
+    """The options ``inpaint`` and ``extend`` share, after their own: --source (instead of
+    fitting on ``fitted_on``), --scale, --seed, --tile (``tile_help``), --depth and -q."""
+    options = [
+        click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
+                     help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead "
+                          f"of fitting on {fitted_on}."),
+        scale_option("With an exemplar as --source: fit it at this working scale (0.25 for a photo of the "
+                     "material four times closer than IMAGE)."),
+        click.option("--seed", type=click.IntRange(min=0), default=None,
+                     help="Seed: the same seed gives the same image; without it every run differs."),
+        click.option("--tile", is_flag=True, help=tile_help),
+        depth_option("IMAGE's, as far as the output's format holds it"),
+        click.option("-q", "--quiet", is_flag=True, help="No progress bars."),
+    ]
+
+    def apply(func):
+        for option in reversed(options):  # as decorators written in this order
+            func = option(func)
+        return func
+
+    return apply
+
+
 @click.command()
 @click.argument("image")
 @click.argument("mask")
 @click.option("-o", "--output", required=True,
               help=f"{OUTPUT_HELP}; .png keeps every pixel outside the hole bit for bit; - writes PNG "
                    "to stdout).")
-@click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
-              help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead of "
-                   "fitting on the part of IMAGE outside the hole.")
-@scale_option("With an exemplar as --source: fit it at this working scale (0.25 for a photo of the material "
-              "four times closer than IMAGE).")
-@click.option("--seed", type=click.IntRange(min=0), default=None,
-              help="Seed: the same seed gives the same image; without it every run differs.")
-@click.option("--tile", is_flag=True, help="IMAGE wraps around: the fill continues across its edges.")
-@depth_option("IMAGE's, as far as the output's format holds it")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@_fill_options("the part of IMAGE outside the hole", "IMAGE wraps around: the fill continues across its edges.")
 def inpaint(image, mask, output, source, scale, seed, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
@@ -68,16 +83,7 @@ def inpaint(image, mask, output, source, scale, seed, tile, quiet, depth):
 @click.option("--anchor", type=click.Choice(ANCHOR_CHOICES, case_sensitive=False), default="center",
               show_default=True, help="Where IMAGE stays on the larger canvas: top-left grows it to the right and "
                                       "downwards, center evenly all round.")
-@click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
-              help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead of "
-                   "fitting on IMAGE.")
-@scale_option("With an exemplar as --source: fit it at this working scale (0.25 for a photo of the material "
-              "four times closer than IMAGE).")
-@click.option("--seed", type=click.IntRange(min=0), default=None,
-              help="Seed: the same seed gives the same image; without it every run differs.")
-@click.option("--tile", is_flag=True, help="The result tiles seamlessly: the fill continues across its edges.")
-@depth_option("IMAGE's, as far as the output's format holds it")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@_fill_options("IMAGE", "The result tiles seamlessly: the fill continues across its edges.")
 def extend(image, output, size, anchor, source, scale, seed, tile, quiet, depth):
     """Grow IMAGE to --size: IMAGE stays as it is at --anchor, and the new area is filled
     with texture that continues it (outpainting).

@@ -433,23 +433,32 @@ function maskBlob() {
   return new Promise((resolve) => out.toBlob(resolve, "image/png"));
 }
 
+// POST the editor's picture with the fields of `fields` (and the seed and tile of the inpaint
+// toolbar) to /api/models/{id}/{path}; the answer becomes the result. Returns the seed used.
+async function sendPicture(path, fields, what) {
+  const seed = $("inpaint-seed").value.trim();
+  const form = new FormData();
+  form.append("image", editor.blob, editor.name);
+  for (const [name, value, filename] of fields) {  // a file takes its name; a plain value has none
+    if (filename === undefined) form.append(name, value); else form.append(name, value, filename);
+  }
+  if (seed !== "") form.append("seed", seed);
+  form.append("tile", $("inpaint-tile").checked ? "true" : "false");
+  const response = await fetch(`/api/models/${state.modelId}/${path}`, { method: "POST", body: form });
+  if (!response.ok) throw new Error(await errorOf(response));
+  const blob = await response.blob();
+  const used = response.headers.get("X-Tghop-Seed");
+  showResult(URL.createObjectURL(blob), used, blob, what);
+  return used;
+}
+
 function onFill() {
   if (!state.modelId || !editor.blob) return;
   withBusy($("fill"), async () => {
     const mask = await maskBlob();
     if (!mask) { sayInpaint("paint the hole first: drag the brush over the picture", true); return; }
-    const seed = $("inpaint-seed").value.trim();
-    const form = new FormData();
-    form.append("image", editor.blob, editor.name);
-    form.append("mask", mask, "mask.png");
-    if (seed !== "") form.append("seed", seed);
-    form.append("tile", $("inpaint-tile").checked ? "true" : "false");
     sayInpaint("filling");
-    const response = await fetch(`/api/models/${state.modelId}/inpaint`, { method: "POST", body: form });
-    if (!response.ok) throw new Error(await errorOf(response));
-    const blob = await response.blob();
-    const used = response.headers.get("X-Tghop-Seed");
-    showResult(URL.createObjectURL(blob), used, blob, "inpainted");
+    const used = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted");
     sayInpaint(`filled (seed ${used}): paint again to fill more, or download it`);
   }, sayInpaint);
 }
@@ -458,26 +467,16 @@ function onExtend() {
   if (!state.modelId || !editor.blob) return;
   withBusy($("extend-go"), async () => {
     const img = $("editor-base");
-    const h = $("extend-height").value.trim() || String(img.naturalHeight);
-    const w = $("extend-width").value.trim() || String(img.naturalWidth);
     const [ph, pw] = [img.naturalHeight, img.naturalWidth];
+    const h = $("extend-height").value.trim() || String(ph);
+    const w = $("extend-width").value.trim() || String(pw);
     if (Number(h) < ph || Number(w) < pw || (Number(h) === ph && Number(w) === pw)) {  // said, not sent
       sayInpaint(`give a height and width of at least the picture's ${ph}x${pw}, larger in one`, true);
       return;
     }
-    const seed = $("inpaint-seed").value.trim();
-    const form = new FormData();
-    form.append("image", editor.blob, editor.name);
-    form.append("size", `${h}x${w}`);
-    form.append("anchor", $("extend-anchor").value);
-    if (seed !== "") form.append("seed", seed);
-    form.append("tile", $("inpaint-tile").checked ? "true" : "false");
     sayInpaint("extending");
-    const response = await fetch(`/api/models/${state.modelId}/extend`, { method: "POST", body: form });
-    if (!response.ok) throw new Error(await errorOf(response));
-    const blob = await response.blob();
-    const used = response.headers.get("X-Tghop-Seed");
-    showResult(URL.createObjectURL(blob), used, blob, "extended");
+    const used = await sendPicture("extend", [["size", `${h}x${w}`], ["anchor", $("extend-anchor").value]],
+                                   "extended");
     sayInpaint(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`);
   }, sayInpaint);
 }
