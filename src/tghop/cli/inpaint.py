@@ -118,7 +118,7 @@ def _open(image, output, source, scale, depth, *, others):
     check_output(output, allow_stdout=True)
     check_outputs([("-o", output)], [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):
-        raise TGHopError(f"IMAGE {image} is a model file; give the image to fill (a model goes to --source)")
+        raise TGHopError(f"IMAGE {image} is a model file; give a picture as IMAGE (a model goes to --source)")
     source_is_model = source is not None and not source.startswith("builtin:") and (
         source.lower().endswith(".npz") or is_model_file(source))
     if scale != 1 and (source is None or source_is_model):
