@@ -187,7 +187,7 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
         across its edges).
     **options
         Further keywords of :func:`inpaint` (``n_patches``, ``tolerance``, ``detail``,
-        ``refine``, ``blend``).
+        ``layout_weight``, ``refine``, ``patch_refine``, ``blend``).
 
     Returns
     -------
@@ -275,7 +275,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         block's error also counts the distance of the candidates' ``GUIDE_SCALE`` box means
         to that coarse fill's, upsampled, over the block's pixels not yet filled, with this
         weight per pixel against the known pixels' error (quilting's ``guide_weight``;
-        ``synthesize``'s ``layout_weight``). 0: no coarse fill.
+        ``synthesize``'s ``layout_weight``), growing from nothing at the hole's edge to the
+        whole weight a patch side inside it. 0: no coarse fill.
     refine : int
         Rounds of the refinement (0: off), kept in the hole only.
     patch_refine : int or None
@@ -287,7 +288,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     blend : int
         Width in pixels, inside the hole, over which the refinements fade in.
     progress : callable, optional
-        Stages "patch pool", "inpainting" (blocks), "refine" and "patch refine".
+        Stages "patch pool", "layout" (the coarse fill), "inpainting" (blocks), "refine" and
+        "patch refine".
 
     Returns
     -------

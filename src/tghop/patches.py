@@ -16,8 +16,8 @@ from ._common import TGHopError, check_image, check_rng
 from .scale import scaled_shape
 
 __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",
-           "check_exemplar_size", "TooLittleTextureError", "downsample_mask", "count_patches", "space_to_depth",
-           "depth_to_space", "patch_grid", "stage_sheet"]
+           "check_exemplar_size", "ExemplarTooSmallError", "TooLittleTextureError", "downsample_mask",
+           "count_patches", "space_to_depth", "depth_to_space", "patch_grid", "stage_sheet"]
 
 
 def _check_max_patches(max_patches):
@@ -170,6 +170,13 @@ class TooLittleTextureError(TGHopError):
     fix (``tghop inpaint``: ``--source``)."""
 
 
+class ExemplarTooSmallError(TGHopError):
+    """An exemplar too small for its model's settings (:func:`check_exemplar_size`). Its
+    ``least_side`` is the side of the smallest square exemplar that works (as given, before
+    a working scale), so that a caller whose user gave no exemplar can word its own fix
+    (``tghop extend``: IMAGE)."""
+
+
 def enough_patches(n_patches, need, patch_size):
     """Raise a one-line :class:`TooLittleTextureError` when a mask leaves fewer than ``need``
     training patches."""
@@ -240,10 +247,12 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches, scale=1
     h, w = shape[:2]
     at = "" if scale == 1 else f" at scale {scale:g} (given {given[0]}x{given[1]})"
     auto = " (auto)" if ichm.n_clusters is None else ""
-    raise TGHopError(
+    exc = ExemplarTooSmallError(
         f"exemplar is {h}x{w} pixels{at}, {n} training patch{'es' if n != 1 else ''} of {patch_size}x{patch_size} "
         f"at stride {stride}, but N={clusters}{auto} cluster{'s' if clusters != 1 else ''} of at least "
         f"{ichm.min_cluster_size} need {clusters * ichm.min_cluster_size}; " + ", or ".join(fixes))
+    exc.least_side = side
+    raise exc
 
 
 def downsample_mask(mask, factor):

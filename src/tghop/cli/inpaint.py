@@ -137,7 +137,7 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
     patches are left to fit on."""
     import numpy as np
 
-    from ..patches import TooLittleTextureError
+    from ..patches import ExemplarTooSmallError, TooLittleTextureError
     from ..synthesis import TGHop, prepare_exemplar
 
     rng = np.random.default_rng(seed)
@@ -155,6 +155,10 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
     elif model is None:
         try:
             model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)
+        except ExemplarTooSmallError as exc:  # its fixes name fit options these commands lack
+            raise TGHopError(f"IMAGE {image} is {picture.shape[0]}x{picture.shape[1]} pixels, too small to fit a "
+                             f"model on (at least {exc.least_side}x{exc.least_side} pixels); give --source (an "
+                             "exemplar of the same texture or a saved model) or a larger IMAGE") from None
         except TooLittleTextureError as exc:
             raise TGHopError(f"{too_little}: {exc.n_patches} training patches of {exc.patch_size}x{exc.patch_size} "
                              f"avoid the hole, at least {exc.need} are needed; give --source (an exemplar of the "
