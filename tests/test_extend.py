@@ -51,6 +51,20 @@ def test_extend_keeps_the_image_bit_for_bit_and_fills_the_rest_with_its_texture(
     assert out.dtype == np.float64 and np.array_equal(out[16:112, 16:112], floats)
 
 
+def test_extend_fills_row_by_row_and_inpaint_from_the_edge_inwards(model, cells):
+    # Row by row measured better around a picture, from the edge inwards better for holes
+    # (docs/choices.md, Inpainting "0.46"); either can be asked for.
+    from tghop.inpaint import inpaint
+
+    canvas, hole, _ = expand_canvas(cells, (96, 160), anchor="left")
+    grown = extend(model, cells, (96, 160), anchor="left", rng=3, **POOL)
+    assert np.array_equal(grown, inpaint(model, canvas, hole, rng=3, order="raster", **POOL))
+    edge = extend(model, cells, (96, 160), anchor="left", rng=3, order="edge", **POOL)
+    assert np.array_equal(edge, inpaint(model, canvas, hole, rng=3, **POOL)) and not np.array_equal(edge, grown)
+    with pytest.raises(TGHopError, match="order must be 'edge' or 'raster', got 'spiral'"):
+        inpaint(model, canvas, hole, order="spiral", **POOL)
+
+
 def test_the_same_seed_gives_the_same_image(model, cells):
     a, b, c = (extend(model, cells, (96, 160), rng=seed, **POOL) for seed in (4, 4, 5))
     assert np.array_equal(a, b) and not np.array_equal(a, c)
