@@ -343,9 +343,9 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
 
     guide = _coarse_fill(model, work, hole, tile, order, rng, progress) if layout_weight else None
     guide = None if guide is None else (guide, float(layout_weight))
-    filled = _fill(work, hole, flat, squares, energy, pool, p, tile, float(tolerance), float(detail), guide, order,
-                   rng, progress)
-    distance = _distance_to_known(hole, tile)
+    distance = _distance_to_known(hole, tile)  # once: the fill's order, its guide's ramp and the fades
+    filled = _fill(work, hole, distance, flat, squares, energy, pool, p, tile, float(tolerance), float(detail), guide,
+                   order, rng, progress)
     alpha = np.clip(distance / (blend + 1), 0.0, 1.0).astype(np.float32)[..., None] if blend else None
     result = filled
     if refine:
@@ -387,16 +387,17 @@ def _patch_refine_hole(image, hole, stats, n_steps, tile, alpha, progress):
     return out
 
 
-def _fill_order(hole, p, step, tile, order="edge"):
+def _fill_order(hole, p, step, tile, order="edge", distance=None):
     """The (y, x) of the ``p x p`` blocks that touch the hole, in the order they are filled:
     from the hole's edge inwards (then in raster order), those that see no known pixel after
     all the others (a block next to the hole's edge but not across it, such as the first
     block of a hole at a periodic image's edge: filled before its neighbours, at random, it
     set them a second border to match, and the fill there was chopped). ``order`` "raster":
-    row by row instead, as quilting does (:func:`extend`)."""
+    row by row instead, as quilting does (:func:`extend`). ``distance``: the hole's
+    :func:`_distance_to_known`, where the caller has it."""
     h, w = hole.shape
     offsets = np.arange(p)
-    distance = _distance_to_known(hole, tile)
+    distance = _distance_to_known(hole, tile) if distance is None else distance
     blocks = []
     for y in _grid(h, p, step, tile).tolist():
         rows = (y + offsets) % h
@@ -435,8 +436,9 @@ def _coarse_fill(model, work, hole, tile, order, rng, progress):
     return guide
 
 
-def _fill(work, hole, flat, squares, energy, pool, p, tile, tolerance, detail, guide, order, rng, progress):
+def _fill(work, hole, distance, flat, squares, energy, pool, p, tile, tolerance, detail, guide, order, rng, progress):
     """Quilt generated patches into the hole of ``work`` (float32, (H, W, C)); returns the canvas.
+    ``distance``: the hole's :func:`_distance_to_known`.
     ``guide``: None, or an (H, W, C) coarse fill and its weight (:func:`inpaint`'s ``layout_weight``)."""
     h, w, c = work.shape
     overlap = default_overlap(p)
@@ -449,12 +451,12 @@ def _fill(work, hole, flat, squares, energy, pool, p, tile, tolerance, detail, g
         guide, guide_weight = guide
         # The guide counts from nothing at the hole's edge to whole a patch side inside it:
         # next to the known pixels the fill follows them (a coarse fill is a few pixels off).
-        reach = np.clip(_distance_to_known(hole, tile) / p, 0.0, 1.0).astype(np.float32)
+        reach = np.clip(distance / p, 0.0, 1.0).astype(np.float32)
         s = GUIDE_SCALE if p % GUIDE_SCALE == 0 else 1
         q = p // s
         low = pool.reshape(len(pool), q, s, q, s, c).mean(axis=(2, 4), dtype=np.float32).reshape(len(pool), -1)
         low_squares = low * low
-    blocks = _fill_order(hole, p, step, tile, order)
+    blocks = _fill_order(hole, p, step, tile, order, distance)
     report(progress, "inpainting", 0, len(blocks))
     for done, (y, x) in enumerate(blocks, start=1):
         window = np.ix_((y + offsets) % h, (x + offsets) % w)
