@@ -196,7 +196,7 @@ def _n_patches(shape, patch_size, stride, max_patches):
 
 
 def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches, scale=1.0):
-    """Raise a one-line :class:`TGHopError` when an exemplar of ``shape`` gives too few
+    """Raise a one-line :class:`ExemplarTooSmallError` when an exemplar of ``shape`` gives too few
     training patches for ``ichm``, naming the smallest square exemplar that works (and a
     smaller stride, N or a larger scale where one would do).
 
