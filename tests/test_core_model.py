@@ -275,13 +275,13 @@ def test_small_images_generate_their_pool_on_demand(small_model, monkeypatch):
     whole = []
     all_of = GeneratedPool.all
     monkeypatch.setattr(GeneratedPool, "all", lambda self: whole.append(1) or all_of(self))
-    args = (1000, None, False, 0.5, None)
-    on_demand = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
+    options = dict(overlap=None, tile=False, detail=0.5, flat_share=0.25, guide_scale=None)
+    on_demand = pool.prepared_pool(small_model, 1000, np.random.default_rng(3), (48, 48), **options)
     assert isinstance(on_demand.patches, GeneratedPool) and not whole
     monkeypatch.setattr(pool, "ON_DEMAND_BLOCKS", 0.0)
-    stored = small_model._prepared_pool(args[0], np.random.default_rng(3), (48, 48), *args[1:])
+    stored = pool.prepared_pool(small_model, 1000, np.random.default_rng(3), (48, 48), **options)
     assert isinstance(stored.patches, np.ndarray) and whole
-    for name in ("_table", "_bound", "_energy"):
+    for name in ("_table", "_bound", "_energy", "flat_factor"):
         np.testing.assert_array_equal(getattr(on_demand, name), getattr(stored, name))
     some = np.array([999, 3, 500, 3])
     np.testing.assert_allclose(on_demand.patches[some], stored.patches[some], atol=1e-6)

@@ -1,5 +1,5 @@
-"""The two steps against soft output: the residual Gaussian of the core model and the
-quilting choice that does not favour smooth patches."""
+"""The steps against soft output: the residual Gaussian of the core model, the quilting
+choice that does not favour smooth patches, and the pool's flattest patches passed over."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,10 @@ from tghop import TGHop
 from tghop._common import TGHopError
 from tghop.core import ICHM
 from tghop.modelfile import load_model, save_model
-from tghop.quilting import quilt
+from tghop.inpaint import inpaint
+from tghop.guided import synthesize_guided
+from tghop.quilting import FLAT_PENALTY, flat_factors, quilt
+from tghop.settings import BY_NAME, PAPER
 from tghop.synthesis import PAPER_TABLE4
 
 from conftest import SMALL
@@ -120,3 +123,55 @@ def test_detail_prefers_patches_with_gradient_energy():
 def test_bad_detail(detail):
     with pytest.raises(TGHopError, match="detail"):
         quilt(_mixed_pool(20), (20, 20), detail=detail)
+
+
+# ----------------------------------------------------------------------------- flat_share
+
+
+def test_flat_factors_mark_the_least_energy_share_of_each_group():
+    energy = np.arange(100, dtype=np.float32)[::-1]
+    factors = flat_factors(energy, 0.25)
+    assert factors.dtype == np.float32
+    assert np.array_equal(np.flatnonzero(factors == FLAT_PENALTY), np.arange(75, 100)) and (factors[:75] == 1).all()
+    # Taken of each group apart: group 1 is all rougher than group 0, yet its flattest fifth counts too.
+    energy = np.concatenate([np.arange(50), 100 + np.arange(50)]).astype(np.float32)
+    grouped = flat_factors(energy, 0.2, groups=np.repeat([0, 1], 50))
+    assert np.array_equal(np.flatnonzero(grouped == FLAT_PENALTY), np.r_[0:10, 50:60])
+
+
+def test_flat_share_places_textured_patches_where_only_flat_ones_were_near_best():
+    # Flat patches of 0.6 match an overlap of noise (0.5, sd 0.15) with an error of 0.01 +
+    # 0.0225 per value, noisy ones with 0.045: within a tolerance of 0.1 only the flat ones
+    # qualify, and the detail preference cannot help. Counted FLAT_PENALTY (>= 1.5) times,
+    # they lose.
+    assert FLAT_PENALTY >= 1.5
+    pool = _mixed_pool()
+    pool[: len(pool) // 2] = 0.6
+    plain = quilt(pool, (60, 60), rng=0, detail=0.5)
+    flat_passed = quilt(pool, (60, 60), rng=0, detail=0.5, flat_share=0.5)
+    assert _gradient_energy(flat_passed) > 2 * _gradient_energy(plain)
+    assert np.array_equal(flat_passed, quilt(pool, (60, 60), rng=0, detail=0.5, flat_share=0.5))
+    assert np.array_equal(plain, quilt(pool, (60, 60), rng=0, detail=0.5, flat_share=0.0))
+
+
+@pytest.mark.parametrize("share", [-0.1, 1.0, True, "high", float("nan")])
+def test_bad_flat_share(share, small_model):
+    with pytest.raises(TGHopError, match="flat_share"):
+        quilt(_mixed_pool(20), (20, 20), flat_share=share)
+    with pytest.raises(TGHopError, match="flat_share"):
+        small_model.synthesize((40, 40), flat_share=share)
+
+
+def test_flat_share_reaches_every_quilt_and_is_off_in_paper_mode(small_model, bricks96):
+    assert PAPER["flat_share"] == 0.0
+    assert FLAT_PENALTY == 2.0 and "twice" in BY_NAME["flat_share"].help  # the option's help says the factor
+    size = (64, 64)
+    image = small_model.synthesize(size, rng=1, patch_refine=0)
+    assert not np.array_equal(image, small_model.synthesize(size, rng=1, patch_refine=0, flat_share=0.0))
+    assert np.array_equal(image, small_model.synthesize(size, rng=1, patch_refine=0))
+    hole = np.zeros(bricks96.shape[:2], dtype=bool)
+    hole[20:70, 20:70] = True
+    filled = inpaint(small_model, bricks96, hole, rng=1, patch_refine=0)
+    assert not np.array_equal(filled, inpaint(small_model, bricks96, hole, rng=1, patch_refine=0, flat_share=0.0))
+    painted = synthesize_guided([small_model, small_model], size=size, rng=1)
+    assert not np.array_equal(painted, synthesize_guided([small_model, small_model], size=size, rng=1, flat_share=0))

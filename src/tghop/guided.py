@@ -267,8 +267,8 @@ def _check_models(models, minimum=1):
 
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
-                      detail=0.8, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
-                      layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
+                      detail=0.8, flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5,
+                      layout_weight=3.0, layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
     Parameters
@@ -286,10 +286,10 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         statistics; 0: the quilting seam decides alone).
     rng : int or numpy.random.Generator, optional
         Same seed, same image (on the same machine).
-    n_patches, tile, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block, seam_window
+    n_patches, tile, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block, seam_window
         As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out among the models
         in proportion to their areas (each at least a quarter of it), ``pool_per_block``
-        counts each region's blocks.
+        counts each region's blocks, ``flat_share`` is taken of each model's pool.
     layout_weight, layout_refine
         As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's (over
         its region's bounding box) blended by the region weights; off unless every model
@@ -317,15 +317,16 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         size = labels.shape
     weights = region_weights(labels, k, transition, tile=tile)
     return _synthesize(models, size, weights, np.eye(k), weights, rng=rng, n_patches=n_patches, tile=tile,
-                       overlap=overlap, tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours,
-                       reuse=reuse, pool_per_block=pool_per_block, layout_weight=layout_weight,
-                       layout_refine=layout_refine, seam_window=seam_window, progress=progress, dtype=dtype)
+                       overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
+                       match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
+                       layout_weight=layout_weight, layout_refine=layout_refine, seam_window=seam_window,
+                       progress=progress, dtype=dtype)
 
 
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
-          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.8, refine=5,
-          match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0, layout_refine=3, seam_window=9,
-          progress=None, dtype=np.float64):
+          n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.8,
+          flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
+          layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.
 
     Column ``x`` is at ``t = x / (W - 1)`` of the way: its blocks take B's patches with
@@ -341,7 +342,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     stations : int, optional
         Steps of the statistics across the width (at least 2); default one per 128
         columns, at least 3.
-    rng, n_patches, overlap, tolerance, detail, refine, match_colours, reuse, pool_per_block, seam_window
+    rng, n_patches, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block, seam_window
         As :func:`synthesize_guided`.
     layout_weight, layout_refine, progress, dtype
         As :func:`synthesize_guided`.
@@ -362,24 +363,27 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     mix = np.stack([1.0 - centres, centres], axis=1)
     ramp = np.broadcast_to(np.stack([1.0 - t, t]).astype(np.float32)[:, None, :], (2, h, w))
     return _synthesize(models, (h, w), weights, mix, ramp, rng=rng, n_patches=n_patches, tile=False, overlap=overlap,
-                       tolerance=tolerance, detail=detail, refine=refine, match_colours=match_colours, reuse=reuse,
-                       pool_per_block=pool_per_block, layout_weight=layout_weight, layout_refine=layout_refine,
-                       seam_window=seam_window, progress=progress, dtype=dtype)
+                       tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
+                       match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
+                       layout_weight=layout_weight, layout_refine=layout_refine, seam_window=seam_window,
+                       progress=progress, dtype=dtype)
 
 
 # ----------------------------------------------------------------------------- the pipeline
 
 
-def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, refine,
-                match_colours, reuse, pool_per_block, layout_weight, layout_refine, seam_window, progress, dtype):
+def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
+                refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine, seam_window, progress,
+                dtype):
     """Quilt the union of the models' pools (each block its drawn model's patches, drawn
     from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
     ``weights`` (S, H, W) and ``mix`` (S, K)."""
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
-                                           detail=detail, match_colours=match_colours, refine=refine, reuse=reuse,
-                                           pool_per_block=pool_per_block, layout_weight=layout_weight,
-                                           layout_refine=layout_refine, seam_window=seam_window))
+                                           detail=detail, flat_share=flat_share, match_colours=match_colours,
+                                           refine=refine, reuse=reuse, pool_per_block=pool_per_block,
+                                           layout_weight=layout_weight, layout_refine=layout_refine,
+                                           seam_window=seam_window))
     from threadpoolctl import threadpool_limits
 
     rng = check_rng(rng)
@@ -410,14 +414,15 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
             pool[start:start + n] = model.sample_patches(n, rng=rng, dtype=np.float32)
             start += n
             report(progress, "patch pool", i, k)
+        groups = np.repeat(np.arange(k), counts)
         prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=checked["detail"],
-                                guide_scale=GUIDE_SCALE if guided else None)
+                                guide_scale=GUIDE_SCALE if guided else None, flat_share=checked["flat_share"],
+                                groups=groups)
         if checked["refine"]:
             prepare_refinement(size, models[0].bands_)
         report(progress, "layout", 0, 1)
         guide = pending() if guided else None
         report(progress, "layout", 1, 1)
-    groups = np.repeat(np.arange(k), counts)
     group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
     reuse = 0.0 if on_demand(size, p, len(pool), overlap=overlap, tile=tile) else checked["reuse"]
     image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,

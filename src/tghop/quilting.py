@@ -41,6 +41,7 @@ from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_
 from .seams import SeamSteps
 
 __all__ = [
+    "FLAT_PENALTY",
     "GUIDE_SCALE",
     "MAX_BLOCKS",
     "MAX_PIXELS",
@@ -51,6 +52,7 @@ __all__ = [
     "block_labels",
     "boundary_cut_mask",
     "default_overlap",
+    "flat_factors",
     "min_error_boundary_cut",
     "prepare_pool",
     "quilt",
@@ -66,6 +68,9 @@ MAX_BLOCKS = 2**22
 _OFFSETS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 #: Default box size of the low pass that guided quilting compares with the guide.
 GUIDE_SCALE = 4
+#: Factor of the errors of the pool's flattest patches (``flat_share``): they win only
+#: where they match this many times better than any other patch (docs/choices.md, Quilting).
+FLAT_PENALTY = 2.0
 
 # Pool patches are converted to float32 in chunks of this many patches (small enough for
 # the chunk to stay in cache between the steps that read it, large enough that the
@@ -799,6 +804,22 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
     return table, bound, energies
 
 
+def flat_factors(energy, share: float, *, groups=None) -> np.ndarray:
+    """The factors of a pool's errors for ``flat_share``: :data:`FLAT_PENALTY` for the
+    ``share`` of the pool whose gradient ``energy`` (n,) is least (below its ``share``
+    quantile; with ``groups`` (n,) int, of each group's), 1 for the rest; float32 (n,)."""
+    energy = np.asarray(energy)
+    if groups is None:
+        flat = energy < np.quantile(energy, share)
+    else:
+        groups = np.asarray(groups)
+        flat = np.zeros(energy.shape, dtype=bool)
+        for g in np.unique(groups).tolist():  # a few models
+            members = groups == g
+            flat[members] = energy[members] < np.quantile(energy[members], share)
+    return np.where(flat, np.float32(FLAT_PENALTY), np.float32(1.0))
+
+
 def _gradient_energy(arr: np.ndarray) -> np.ndarray:
     """``(n,)`` float32: mean squared difference of neighbouring pixels of each patch."""
     x = np.asarray(arr, dtype=np.float32)
@@ -930,6 +951,7 @@ def quilt(
     guide_weight: float = 1.0,
     guide_scale: int = GUIDE_SCALE,
     reuse: float = 0.0,
+    flat_share: float = 0.0,
 ) -> np.ndarray:
     """Stitch patches from ``pool`` into an image by image quilting (Efros & Freeman 2001).
 
@@ -974,6 +996,12 @@ def quilt(
         placed ``u`` times is multiplied by ``1 + reuse * u`` (counted after each
         wavefront), so that a large image does not repeat the same few (mostly smooth)
         patches; the tolerance then applies to the penalised errors.
+    flat_share : float in [0, 1)
+        Counter the same preference in the pool (ours; 0: off, Efros & Freeman): the errors
+        of this share of the pool, its patches of least gradient energy, count
+        :data:`FLAT_PENALTY` times, so a flat patch is placed only where it matches that
+        much better than any other (generated patches are blurrier than the exemplar's,
+        the flattest most).
 
     Returns
     -------
@@ -998,7 +1026,7 @@ def quilt(
     and the float64 result; per block the plan keeps only a few integers.
     """
     _check_tolerance(tolerance)
-    prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail,
+    prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, flat_share=flat_share,
                             guide_scale=None if guide is None else guide_scale)
     return quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
                           guide_weight=guide_weight, reuse=reuse)
@@ -1050,12 +1078,16 @@ class PreparedPool:
     detail : float
     guide_scale : int or None
         Box size of the low pass compared with a guide; None: quilting without a guide.
+    flat_factor : ndarray, shape (n,), float32, or None
+        Factor of each pool patch's errors (``flat_share``: :data:`FLAT_PENALTY` or 1);
+        None: all 1.
     """
 
     patches: np.ndarray
     plan: QuiltingPlan
     detail: float
     guide_scale: Optional[int]
+    flat_factor: Optional[np.ndarray]
     _slices: list
     _masks_f: np.ndarray
     _masks_fc: np.ndarray
@@ -1068,10 +1100,12 @@ class PreparedPool:
 
 
 def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = False, detail: float = 0.0,
-                 guide_scale: Optional[int] = None) -> PreparedPool:
+                 guide_scale: Optional[int] = None, flat_share: float = 0.0, groups=None) -> PreparedPool:
     """Precompute what quilting ``pool`` into an image of ``size`` needs from the pool alone.
 
-    Parameters are those of :func:`quilt` (``guide_scale=None``: no guide will be used).
+    Parameters are those of :func:`quilt` (``guide_scale=None``: no guide will be used);
+    ``groups`` (n,) int (as :func:`quilt_prepared`'s): ``flat_share`` is taken of each group
+    apart (a smooth texture's pool among a rough one's keeps its own choice).
     ``quilt(pool, size, ...)`` is ``quilt_prepared(prepare_pool(pool, size, ...), ...)``.
 
     Returns
@@ -1080,13 +1114,15 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
         Holds the float32 overlap table of the pool (``n`` rows of about ``2 P overlap
         C`` values), its box sums (about a tenth of that) and, with ``detail > 0`` /
         ``guide_scale``, ``n`` gradient energies / ``n (P / guide_scale)^2 C`` low-pass
-        values.
+        values; with ``flat_share > 0`` the factors of the flattest patches' errors.
     """
     arr = _check_pool(pool)
     p, c = arr.shape[1], arr.shape[3]
     if isinstance(detail, bool) or not isinstance(detail, numbers.Real) or not 0 <= detail < 1:
         raise TGHopError(f"detail must be a number in [0, 1), got {detail!r}")
     detail = float(detail)
+    if isinstance(flat_share, bool) or not isinstance(flat_share, numbers.Real) or not 0 <= flat_share < 1:
+        raise TGHopError(f"flat_share must be a number in [0, 1), got {flat_share!r}")
     plan = quilting_plan(size, p, overlap=overlap, tile=tile)
     scale = None if guide_scale is None else _check_guide_scale(guide_scale, p)
     # One float32 row per pool patch: [squared norm over each of the m overlap shapes |
@@ -1098,12 +1134,16 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     masks_fc = np.repeat(masks_f, c, axis=1)  # (m, nf * c), matches the (pixel, channel) layout
     boxes = _overlap_boxes(masks_fc, slices, p, c)
     # The low pass and its norm (with a guide) are the bound's last columns (views into them).
-    table, bound, energy = _pool_table(arr, slices, masks_fc, boxes, energy=detail > 0, guide_scale=scale)
+    table, bound, energy = _pool_table(arr, slices, masks_fc, boxes, energy=detail > 0 or flat_share > 0,
+                                       guide_scale=scale)
+    flat = flat_factors(energy, flat_share, groups=groups) if flat_share else None
+    energy = energy if detail > 0 else None  # without a detail preference the choice keeps pool order
     low = low_norm = None
     if scale is not None:  # the columns after the m overlap shapes' bounds and the g box sums
         start = len(masks_fc) + boxes.scale.size
         low, low_norm = bound[:, start:-1], bound[:, -1]
-    return PreparedPool(patches=arr, plan=plan, detail=detail, guide_scale=scale, _slices=slices, _masks_f=masks_f,
+    return PreparedPool(patches=arr, plan=plan, detail=detail, guide_scale=scale, flat_factor=flat, _slices=slices,
+                        _masks_f=masks_f,
                         _masks_fc=masks_fc, _table=table, _boxes=boxes, _bound=bound, _energy=energy, _low=low,
                         _low_norm=low_norm)
 
@@ -1147,10 +1187,10 @@ def quilt_prepared(
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
     costs = _check_groups(groups, group_cost, arr.shape[0], plan)
-    # Uses of each pool patch and the factors (1 + reuse * uses) of its errors; None
-    # without a penalty (the same arithmetic as before it existed).
+    # Uses of each pool patch and the factors (1 + reuse * uses) of its errors, times the
+    # flat patches' factors; None without either (the same arithmetic as before they existed).
     uses = np.zeros(arr.shape[0], dtype=np.int64) if reuse else None
-    penalty = None
+    penalty = flat = prepared.flat_factor
     p, c = arr.shape[1], arr.shape[3]
     slices, masks_fc, table, energy = prepared._slices, prepared._masks_fc, prepared._table, prepared._energy
     m, k = masks_fc.shape
@@ -1224,6 +1264,8 @@ def quilt_prepared(
         if uses is not None:
             np.add.at(uses, chosen, 1)
             penalty = (1.0 + reuse * uses).astype(np.float32)
+            if flat is not None:
+                penalty *= flat
 
         new = np.ascontiguousarray(arr[chosen], dtype=np.float32)
         _check_values(new)

@@ -347,6 +347,11 @@ SETTINGS: Tuple[Setting, ...] = (
             "Quilting chooses only among the near-best candidates whose gradient energy is at or above "
             "this quantile of theirs, against the overlap error's preference for smooth patches (ours; "
             "0: the paper's uniform choice).", when="generate", low=0, high=1, high_open=True, paper=0.0),
+    Setting("flat_share", 0.25, "float",
+            "Quilting counts the errors of this share of the pool, its flattest patches by gradient energy, "
+            "twice: generated patches are blurrier than the exemplar's and the overlap error prefers them, "
+            "which leaves smeared blocks (ours; 0: off, the paper's rule).",
+            when="generate", low=0, high=1, high_open=True, paper=0.0),
     Setting("match_colours", True, "bool",
             "Match each channel's histogram to the exemplar's after the refinement, where the patch "
             "refinement does not follow (it matches the colours with the patches; ours; False: the "

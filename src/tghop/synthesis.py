@@ -36,8 +36,8 @@ from .hops import Hop, HopStack, stage_views
 from .colour import ColourClasses, channel_quantiles, match_histograms
 from .patches import check_exclude, check_exemplar_size, downsample_mask, enough_patches, patch_origins
 from . import layout
-from .pool import GeneratedPool, on_demand, pool_size
-from .quilting import GUIDE_SCALE, prepare_pool, quilt_prepared
+from .pool import GeneratedPool, pool_size, prepared_pool
+from .quilting import GUIDE_SCALE, quilt_prepared
 from .parameter_count import parameter_groups, table4
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
@@ -576,24 +576,10 @@ class TGHop(BaseEstimator):
         check_is_fitted(self, "ichm_")
         return stage_views(spaces, self.exemplar_shape_[2])
 
-    def _prepared_pool(self, n_patches, rng, size, overlap, tile, detail, guide_scale):
-        """A new pool of ``n_patches`` (float32) made ready for quilting (:func:`tghop.quilting.prepare_pool`).
-
-        When quilting will place few blocks (:func:`tghop.pool.on_demand`: a 256x256
-        image places about 100 of 5,000 patches), the pool is not kept:
-        its patches are generated a chunk at a time as their tables are made, and again
-        for the few that are placed (:class:`GeneratedPool`). Else they are generated
-        once, into an array.
-        """
-        pool = GeneratedPool(self, *self.sample_vectors(n_patches, rng, np.dtype(np.float32)))
-        if not on_demand(size, self.patch_size, n_patches, overlap=overlap, tile=tile):
-            pool = pool.all()
-        return prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, guide_scale=guide_scale)
-
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
-                   tolerance=0.1, detail=0.8, match_colours=True, layout_weight=3.0, refine=5, layout_refine=3,
-                   patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9, region=1024,
-                   own_shares=1.0, progress=None, dtype=np.float64):
+                   tolerance=0.1, detail=0.8, flat_share=0.25, match_colours=True, layout_weight=3.0, refine=5,
+                   layout_refine=3, patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9,
+                   region=1024, own_shares=1.0, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -615,6 +601,9 @@ class TGHop(BaseEstimator):
             Quilting picks only among those candidates whose gradient energy is at or
             above this quantile of theirs (ours, against the overlap error's preference for
             smooth patches; 0: the paper's uniform choice; see :func:`tghop.quilting.quilt`).
+        flat_share : float in [0, 1)
+            Quilting counts the errors of this share of the pool, its flattest patches, twice
+            (ours, against smeared blocks; 0: the paper's rule; see :func:`tghop.quilting.quilt`).
         match_colours : bool
             Match each channel's histogram to the exemplar's after the refinement, in images the patch
             refinement does not refine (our addition, :mod:`tghop.colour`); False: the paper's pipeline.
@@ -672,9 +661,9 @@ class TGHop(BaseEstimator):
         dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
-            match_colours=match_colours, layout_weight=layout_weight, refine=refine, layout_refine=layout_refine,
-            patch_refine=patch_refine, patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block,
-            seam_window=seam_window, region=region, own_shares=own_shares))
+            flat_share=flat_share, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
+            layout_refine=layout_refine, patch_refine=patch_refine, patch_stride=patch_stride, reuse=reuse,
+            pool_per_block=pool_per_block, seam_window=seam_window, region=region, own_shares=own_shares))
         if checked["patch_refine"] and getattr(self, "patches_", None) is None:  # None (auto) skips it quietly
             raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics this model lacks "
                              "(fitted with patch_levels=0, or by tghop 0.14 or older); fit it again, or leave "
@@ -702,13 +691,15 @@ class TGHop(BaseEstimator):
                                     seam_window=checked["seam_window"])
                 if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
                     prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
-                prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=GUIDE_SCALE)
+                prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
+                                         flat_share=checked["flat_share"], guide_scale=GUIDE_SCALE)
                 guide = pending()
             report(progress, "layout", 1, 1)
             report(progress, "patch pool", 0, 1)
         else:
             report(progress, "patch pool", 0, 1)
-            prepared = self._prepared_pool(n_patches, rng, size, overlap, tile, detail, guide_scale=None)
+            prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
+                                     flat_share=checked["flat_share"], guide_scale=None)
         report(progress, "patch pool", 1, 1)
         # float32 unless a float64 image is wanted unrefined and unsmoothed (the refinement
         # and the seam removal work in float32; so does quilting's canvas): half the memory.
