@@ -224,9 +224,15 @@ def test_synthesize_seam_window(small_model):
 @pytest.mark.parametrize("window", [9, 1])
 def test_synthesize_tile_stays_tileable(small_model, window):
     # The periodic solve keeps a tileable image tileable: across its wrap-around edges the
-    # differences are like those inside.
-    img = small_model.synthesize((64, 80), rng=2, n_patches=300, tile=True, seam_window=window)
-    for axis in (0, 1):
-        inside = np.abs(np.diff(img, axis=axis)).mean(axis=(1 - axis, 2))  # one value per edge line
-        first, last = np.take(img, 0, axis=axis), np.take(img, -1, axis=axis)
-        assert np.abs(first - last).mean() <= np.percentile(inside, 90), (axis, window)
+    # differences are like those inside. Where the wrap-around line ranks among the inside
+    # lines varies from image to image (one at the 92nd percentile in ten), so four images
+    # are taken: on average it ranks mid-field (about 0.4), as an inside line would; across
+    # the edges of an image made without tile it ranks at 0.95.
+    ranks = []
+    for seed in range(4):
+        img = small_model.synthesize((64, 80), rng=seed, n_patches=300, tile=True, seam_window=window)
+        for axis in (0, 1):
+            inside = np.abs(np.diff(img, axis=axis)).mean(axis=(1 - axis, 2))  # one value per edge line
+            first, last = np.take(img, 0, axis=axis), np.take(img, -1, axis=axis)
+            ranks.append(float((inside < np.abs(first - last).mean()).mean()))
+    assert np.mean(ranks) <= 0.7 and max(ranks) < 1, (ranks, window)
