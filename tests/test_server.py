@@ -306,6 +306,7 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert_error(post(images, json={"size": [64, 64], "zoom": 2}), 422, "unknown setting 'zoom'")
     assert_error(post(images, json={"size": [64, 64], "pool_per_block": 1e308}), 422, "pool_per_block must be")
     assert_error(post(images, json={"size": [64, 64], "layout_weight": 1e100}), 422, "layout_weight must be")
+    assert_error(post(images, json={"size": [64, 64], "flat_share": 1}), 422, "flat_share must be")
     assert_error(post(images, content=b"[" * 100_000 + b"]" * 100_000), 400, "not JSON")  # nested too deep
     assert_error(post(images, content=b"{not json"), 400, "not JSON")
     # 404: no such model, job, or path; never a file outside the static folder and the cache
@@ -681,6 +682,9 @@ def test_morph_goes_from_a_to_b(client, fitted, second):
     again = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
                                                    "n_patches": 400})
     assert again.content == r.content
+    plain = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
+                                                   "n_patches": 400, "flat_share": 0})
+    assert plain.status_code == 200 and plain.content != r.content  # the setting reaches the morph's quilt
 
 
 def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitted, second, live_server, tmp_path):
