@@ -175,3 +175,30 @@ def test_flat_share_reaches_every_quilt_and_is_off_in_paper_mode(small_model, br
     assert not np.array_equal(filled, inpaint(small_model, bricks96, hole, rng=1, patch_refine=0, flat_share=0.0))
     painted = synthesize_guided([small_model, small_model], size=size, rng=1)
     assert not np.array_equal(painted, synthesize_guided([small_model, small_model], size=size, rng=1, flat_share=0))
+
+
+def test_flat_share_zero_passes_over_nothing_in_any_quilt(small_model, bricks96, monkeypatch):
+    # 0 switches the step off everywhere, the coarse layout's guide and coarse fill included
+    # (their quilts are the coarse model's own, whose default is on).
+    import tghop.inpaint
+    import tghop.quilting
+
+    calls = []
+
+    def recorded(energy, share, **kw):
+        calls.append(len(energy))
+        return flat_factors(energy, share, **kw)
+
+    monkeypatch.setattr(tghop.quilting, "flat_factors", recorded)
+    monkeypatch.setattr(tghop.inpaint, "flat_factors", recorded)
+    assert small_model.layout_ is not None
+    hole = np.zeros(bricks96.shape[:2], dtype=bool)
+    hole[20:70, 20:70] = True
+    small_model.synthesize((64, 64), rng=1, patch_refine=0, flat_share=0.0)
+    inpaint(small_model, bricks96, hole, rng=1, patch_refine=0, flat_share=0.0)
+    synthesize_guided([small_model, small_model], size=(64, 64), rng=1, flat_share=0.0)
+    assert calls == []
+    small_model.synthesize((64, 64), rng=1, patch_refine=0)
+    assert len(calls) == 2  # the fine pool's and the coarse guide's
+    inpaint(small_model, bricks96, hole, rng=1, patch_refine=0)
+    assert len(calls) == 4  # the fill's and the coarse fill's

@@ -406,7 +406,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
         if guided:
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"],
-                                checked["seam_window"])
+                                checked["seam_window"], checked["flat_share"])
         report(progress, "patch pool", 0, k)
         pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
         start = 0
@@ -444,7 +444,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     return image.astype(dtype)
 
 
-def _layout_guide(models, shares, rng, tile, refine, seam_window):
+def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share):
     """``sum_k W_k guide_k``: each model's coarse layout guide over the bounding box of its
     share (the whole image with ``tile``), weighted by its share; (H, W, C) float32."""
     k, h, w = shares.shape
@@ -457,7 +457,7 @@ def _layout_guide(models, shares, rng, tile, refine, seam_window):
                 continue
             box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         part = model.layout_.guide((box[0].stop - box[0].start, box[1].stop - box[1].start), rng=rng, tile=tile,
-                                   refine=refine, seam_window=seam_window)
+                                   refine=refine, seam_window=seam_window, flat_share=flat_share)
         guide[box] += part * share[box][..., None]
     return guide
 

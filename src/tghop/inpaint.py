@@ -346,7 +346,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     flat = flat_factors(energy, flat_share) if flat_share else None
     report(progress, "patch pool", 1, 1)
 
-    guide = _coarse_fill(model, work, hole, tile, order, rng, progress) if layout_weight else None
+    guide = _coarse_fill(model, work, hole, tile, order, flat_share, rng, progress) if layout_weight else None
     guide = None if guide is None else (guide, float(layout_weight))
     distance = _distance_to_known(hole, tile)  # once: the fill's order, its guide's ramp and the fades
     filled = _fill(work, hole, distance, pool, (flat_pool, squares, energy, flat), p, tile, float(tolerance),
@@ -416,7 +416,7 @@ def _fill_order(hole, p, step, tile, order="edge", distance=None):
     return [(y, x) for _, _, y, x in sorted(blocks)]
 
 
-def _coarse_fill(model, work, hole, tile, order, rng, progress):
+def _coarse_fill(model, work, hole, tile, order, flat_share, rng, progress):
     """The layout of the fill: ``work``'s hole filled at the scale of the model's coarse layout
     by its coarse model (:func:`inpaint` without a layout of its own or a patch refinement),
     upsampled to ``work``'s (H, W, C), float32; None without a layout, or where the downsampled
@@ -435,7 +435,7 @@ def _coarse_fill(model, work, hole, tile, order, rng, progress):
     small = downsample(np.pad(work, pad + ((0, 0),), mode="edge"), f)
     small_hole = downsample_mask(np.pad(hole, pad, mode="edge"), f)
     filled = inpaint(coarse.model_, small, small_hole, rng=rng, tile=tile, layout_weight=0, order=order, refine=3,
-                     patch_refine=0, n_patches=COARSE_PATCHES)
+                     patch_refine=0, n_patches=COARSE_PATCHES, flat_share=flat_share)
     guide = upsample(filled.astype(np.float32), f, (hh * f, ww * f), wrap=tile)[:h, :w]
     report(progress, "layout", 1, 1)
     return guide

@@ -221,7 +221,7 @@ def fits_excluding(exclude, factor, *, patch_size=32, n_clusters=50, min_patches
 
 
 def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, refine=3,
-                 seam_window=9) -> np.ndarray:
+                 seam_window=9, flat_share=0.25) -> np.ndarray:
     """A coarse synthesis from ``model`` upsampled by ``factor`` to ``size``: the layout
     the fine level follows.
 
@@ -244,6 +244,8 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     seam_window : int
         Remove the steps across the coarse image's quilting seams (:mod:`tghop.seams`),
         averaged over squares of this side (0: off).
+    flat_share : float in [0, 1)
+        The coarse quilt's share of its pool passed over (:func:`tghop.quilting.quilt`).
 
     Returns
     -------
@@ -268,7 +270,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     # Measured better on 20 exemplars in SIFID, SWD and co-occurrence, and faster
     # (docs/choices.md).
     coarse = model.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False,
-                              seam_window=seam_window, detail=GUIDE_DETAIL, dtype=np.float32)
+                              seam_window=seam_window, detail=GUIDE_DETAIL, flat_share=flat_share, dtype=np.float32)
     coarse = refine_bands(coarse, model.bands_, n_iter=int(refine), tile=tile,
                           first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
     coarse = match_histograms(coarse, model.colour_quantiles_, out=coarse)

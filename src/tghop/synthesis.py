@@ -688,7 +688,7 @@ class TGHop(BaseEstimator):
             report(progress, "layout", 0, 1)
             with threadpool_limits(limits=1, user_api="blas"):
                 pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
-                                    seam_window=checked["seam_window"])
+                                    seam_window=checked["seam_window"], flat_share=checked["flat_share"])
                 if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
                     prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
                 prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
@@ -833,9 +833,9 @@ class CoarseLayout(BaseEstimator):
         ).fit(small, exclude=small_exclude)
         return self
 
-    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3, seam_window=9):
+    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3, seam_window=9, flat_share=0.25):
         """A coarse synthesis upsampled to ``size``, (H, W, C) float32 in [0, 1]: the layout the
         fine level follows (:func:`tghop.layout.coarse_guide`)."""
         check_is_fitted(self, "model_")
         return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
-                                   refine=refine, seam_window=seam_window)
+                                   refine=refine, seam_window=seam_window, flat_share=flat_share)
