@@ -107,6 +107,10 @@ CASES = [
     (["synth", "model.npz", "-o", "o.png", "--pool", "200001"], ["--pool", "<= 200,000, got 200001"]),
     (["synth", "model.npz", "-o", "o.png", "--pool-per-block", "1e308"], ["--pool-per-block", "<= 1,000,000"]),
     (["synth", "model.npz", "-o", "o.png", "--layout-weight", "1e100"], ["--layout-weight", "<= 1,000,000"]),
+    # None as the command line writes it ('auto' or 'none'), not Python's word
+    (["synth", "model.npz", "-o", "o.png", "--layout-patch-refine", "-1"],
+     ["--layout-patch-refine", "or auto, got -1"]),
+    (["synth", "model.npz", "-o", "o.png", "--region", "5"], ["--region", ">= 256 or none, got 5"]),
     # an image where a model is expected
     (["info", "bricks.png"], ["bricks.png is an image", "tghop fit bricks.png"]),
     # truncated model files

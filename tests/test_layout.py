@@ -8,7 +8,8 @@ import pytest
 from tghop.synthesis import PAPER_TABLE4
 
 from tghop import TGHop, TGHopError, data, settings
-from tghop.layout import downsample, fits_excluding, follows_guide, guide_fits, upsample, usable_factor
+from tghop.layout import (GUIDE_PIXELS, GUIDE_STEPS, PATCH_LEVELS, coarse_guide, downsample, fits_excluding,
+                          follows_guide, guide_fits, guide_steps, upsample, usable_factor)
 from tghop.parameter_count import PAPER_MODULES
 from tghop.synthesis import CoarseLayout
 from tghop.modelfile import load_model, save_model
@@ -138,21 +139,23 @@ def test_layout_guide_shape_range_determinism(layout):
 def test_layout_guide_refine_rounds(layout):
     """The guide is the coarse model's synthesis upsampled, quilted with GUIDE_DETAIL whatever
     the fine level's detail; its ``refine`` rounds leave the finest band at factor 2 (the fine
-    level compares 4x4 box means, which hardly see it)."""
+    level compares 4x4 box means, which hardly see it). Its patch refinement (after the colours)
+    is off by default in ``guide`` (``TGHop.synthesize`` asks for it)."""
     from tghop.colour import match_histograms
     from tghop.layout import GUIDE_DETAIL, upsample
     from tghop.refine import refine
 
     model = layout.model_
     assert GUIDE_DETAIL != settings.BY_NAME["detail"].default  # else this test could not tell them apart
-    plain = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, detail=GUIDE_DETAIL)
+    plain = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, detail=GUIDE_DETAIL, patch_refine=0)
     assert np.array_equal(layout.guide((70, 90), rng=3, n_patches=300, refine=0),
                           upsample(plain.astype(np.float32), 2, (70, 90)))
-    quilt = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, match_colours=False, detail=GUIDE_DETAIL)
+    quilt = model.synthesize((35, 45), rng=3, n_patches=300, refine=0, match_colours=False, detail=GUIDE_DETAIL,
+                             patch_refine=0)
     coarse = match_histograms(refine(quilt, model.bands_, n_iter=2, first_level=1), model.colour_quantiles_)
     guide = layout.guide((70, 90), rng=3, n_patches=300, refine=2)
     np.testing.assert_array_equal(guide, upsample(coarse.astype(np.float32), 2, (70, 90)))
-    every_band = model.synthesize((35, 45), rng=3, n_patches=300, refine=2, detail=GUIDE_DETAIL)
+    every_band = model.synthesize((35, 45), rng=3, n_patches=300, refine=2, detail=GUIDE_DETAIL, patch_refine=0)
     assert not np.array_equal(guide, upsample(every_band.astype(np.float32), 2, (70, 90)))
     assert not np.array_equal(guide, layout.guide((70, 90), rng=3, n_patches=300, refine=0))
 
@@ -265,6 +268,44 @@ def test_tghop_layout_refine_reaches_the_guide(layout_model, monkeypatch):
     assert seen == [0, 2]
     with pytest.raises(TGHopError, match="layout_refine"):
         layout_model.synthesize((64, 64), rng=2, n_patches=300, layout_refine=-1)
+
+
+def test_the_guide_is_patch_refined_with_the_coarse_models_statistics(layout_model, monkeypatch):
+    """The coarse model keeps patch statistics (at most PATCH_LEVELS levels); the guide's patch
+    refinement moves the coarse image's patches towards them; synthesize's layout_patch_refine
+    reaches it; a model fitted without patch statistics has none in its layout either."""
+    from test_patch_refine import _patch_swd
+
+    coarse = layout_model.layout_.model_
+    assert layout_model.layout_.patch_levels == coarse.patch_levels == min(layout_model.patch_levels, PATCH_LEVELS)
+    kw = dict(rng=3, n_patches=300)
+    plain = coarse_guide(coarse, 1, (64, 64), patch_refine=0, **kw)
+    refined = coarse_guide(coarse, 1, (64, 64), patch_refine=20, **kw)
+    assert _patch_swd(refined, coarse.patches_).mean() < 0.8 * _patch_swd(plain, coarse.patches_).mean()
+    assert 0 < np.abs(refined - plain).mean() < 0.05  # it refines the guide, it does not replace it
+    seen = []
+    guide_of = layout_model.layout_.guide
+    monkeypatch.setattr(layout_model.layout_, "guide",
+                        lambda *a, **k: seen.append(k["patch_refine"]) or guide_of(*a, **k))
+    for steps in (0, 7, None):
+        layout_model.synthesize((64, 64), rng=2, n_patches=300,
+                                **({} if steps is None else {"layout_patch_refine": steps}))
+    assert seen == [0, 7, settings.BY_NAME["layout_patch_refine"].default]
+    from tghop import morph, synthesize_guided
+
+    synthesize_guided([layout_model, layout_model], size=(64, 64), rng=3, n_patches=300, layout_patch_refine=5)
+    morph(layout_model, layout_model, (64, 128), rng=3, n_patches=300, layout_patch_refine=6)
+    assert seen[3:] == [5, 5, 6, 6]  # each model's guide
+    # By default (None) only images of up to GUIDE_PIXELS are patch-refined; a number is taken as given.
+    side = GUIDE_PIXELS // 512
+    assert guide_steps(None, (side, 512)) == GUIDE_STEPS > 0 and guide_steps(None, (side + 1, 512)) == 0
+    assert guide_steps(5, (4096, 4096)) == 5 and guide_steps(0, (64, 64)) == 0
+    with pytest.raises(TGHopError, match="layout_patch_refine must be an integer >= 0"):
+        layout_model.synthesize((64, 64), rng=2, n_patches=300, layout_patch_refine=-1)
+    bare = TGHop(**SMALL, layout_factor=2, patch_levels=0).fit(data.bricks(128, rng=1))
+    assert bare.layout_.patch_levels == 0 and bare.layout_.model_.patches_ is None
+    assert np.array_equal(bare.layout_.guide((64, 64), patch_refine=20, **kw),
+                          bare.layout_.guide((64, 64), patch_refine=0, **kw))
 
 
 def test_an_error_in_the_guides_thread_reaches_the_caller(layout_model, monkeypatch):

@@ -312,6 +312,29 @@ def test_files_without_colour_classes_read_as_fitted(saved, tmp_path):
         load_model(tmp_path / "bad.npz")
 
 
+def test_files_without_the_coarse_patch_statistics_read_as_fitted(saved, tmp_path):
+    # Version 9 files (tghop 0.47) have no patch statistics in the coarse layout model: they load
+    # with none and generate as layout_patch_refine 0; today's files hold them (layout.patch.*).
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["layout"]["params"]["patch_levels"] == 3 == meta["layout"]["model"]["params"]["patch_levels"]
+    del meta["layout"]["params"]["patch_levels"]
+    meta["layout"]["model"]["params"]["patch_levels"] = 0
+    meta["format_version"] = 9
+    old_arrays = {k: v for k, v in arrays.items() if not k.startswith("layout.patch.")}
+    assert len(old_arrays) == len(arrays) - 3  # the directions, quantiles and their levels
+    _write(tmp_path / "old.npz", {**old_arrays, "__meta__": np.array(json.dumps(meta))})
+    old = load_model(tmp_path / "old.npz")
+    assert old.layout_.patch_levels == 0 and old.layout_.model_.patches_ is None
+    new = load_model(path)
+    expected = new.synthesize((64, 64), rng=2, n_patches=200, layout_patch_refine=0)
+    assert np.array_equal(old.synthesize((64, 64), rng=2, n_patches=200), expected)
+    assert not np.array_equal(new.synthesize((64, 64), rng=2, n_patches=200), expected)
+    _write(tmp_path / "missing.npz", {**old_arrays, "__meta__": arrays["__meta__"]})
+    with pytest.raises(ModelFileError, match="layout.patch.directions is missing"):
+        load_model(tmp_path / "missing.npz")
+
+
 def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved, tmp_path):
     # Files recorded "rng": null although the fit had an int seed, so `tghop info` could not show it.
     import copy

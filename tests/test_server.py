@@ -307,6 +307,7 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert_error(post(images, json={"size": [64, 64], "pool_per_block": 1e308}), 422, "pool_per_block must be")
     assert_error(post(images, json={"size": [64, 64], "layout_weight": 1e100}), 422, "layout_weight must be")
     assert_error(post(images, json={"size": [64, 64], "flat_share": 1}), 422, "flat_share must be")
+    assert_error(post(images, json={"size": [64, 64], "layout_patch_refine": -1}), 422, "layout_patch_refine must be")
     assert_error(post(images, content=b"[" * 100_000 + b"]" * 100_000), 400, "not JSON")  # nested too deep
     assert_error(post(images, content=b"{not json"), 400, "not JSON")
     # 404: no such model, job, or path; never a file outside the static folder and the cache

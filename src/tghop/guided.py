@@ -268,7 +268,8 @@ def _check_models(models, minimum=1):
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
                       detail=0.8, flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5,
-                      layout_weight=3.0, layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
+                      layout_weight=3.0, layout_refine=3, layout_patch_refine=None, seam_window=9, progress=None,
+                      dtype=np.float64):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
     Parameters
@@ -290,7 +291,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out among the models
         in proportion to their areas (each at least a quarter of it), ``pool_per_block``
         counts each region's blocks, ``flat_share`` is taken of each model's pool.
-    layout_weight, layout_refine
+    layout_weight, layout_refine, layout_patch_refine
         As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's (over
         its region's bounding box) blended by the region weights; off unless every model
         has a coarse layout.
@@ -319,14 +320,15 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     return _synthesize(models, size, weights, np.eye(k), weights, rng=rng, n_patches=n_patches, tile=tile,
                        overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                        match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
-                       layout_weight=layout_weight, layout_refine=layout_refine, seam_window=seam_window,
+                       layout_weight=layout_weight, layout_refine=layout_refine,
+                       layout_patch_refine=layout_patch_refine, seam_window=seam_window,
                        progress=progress, dtype=dtype)
 
 
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
           n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.8,
           flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
-          layout_refine=3, seam_window=9, progress=None, dtype=np.float64):
+          layout_refine=3, layout_patch_refine=None, seam_window=9, progress=None, dtype=np.float64):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.
 
     Column ``x`` is at ``t = x / (W - 1)`` of the way: its blocks take B's patches with
@@ -344,7 +346,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         columns, at least 3.
     rng, n_patches, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block, seam_window
         As :func:`synthesize_guided`.
-    layout_weight, layout_refine, progress, dtype
+    layout_weight, layout_refine, layout_patch_refine, progress, dtype
         As :func:`synthesize_guided`.
 
     Returns
@@ -365,7 +367,8 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     return _synthesize(models, (h, w), weights, mix, ramp, rng=rng, n_patches=n_patches, tile=False, overlap=overlap,
                        tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                        match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
-                       layout_weight=layout_weight, layout_refine=layout_refine, seam_window=seam_window,
+                       layout_weight=layout_weight, layout_refine=layout_refine,
+                       layout_patch_refine=layout_patch_refine, seam_window=seam_window,
                        progress=progress, dtype=dtype)
 
 
@@ -373,8 +376,8 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
 
 
 def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
-                refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine, seam_window, progress,
-                dtype):
+                refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine, layout_patch_refine,
+                seam_window, progress, dtype):
     """Quilt the union of the models' pools (each block its drawn model's patches, drawn
     from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
     ``weights`` (S, H, W) and ``mix`` (S, K)."""
@@ -383,7 +386,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
                                            detail=detail, flat_share=flat_share, match_colours=match_colours,
                                            refine=refine, reuse=reuse, pool_per_block=pool_per_block,
                                            layout_weight=layout_weight, layout_refine=layout_refine,
-                                           seam_window=seam_window))
+                                           layout_patch_refine=layout_patch_refine, seam_window=seam_window))
     from threadpoolctl import threadpool_limits
 
     rng = check_rng(rng)
@@ -406,7 +409,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
         if guided:
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"],
-                                checked["seam_window"], checked["flat_share"])
+                                checked["seam_window"], checked["flat_share"], checked["layout_patch_refine"])
         report(progress, "patch pool", 0, k)
         pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
         start = 0
@@ -444,7 +447,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     return image.astype(dtype)
 
 
-def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share):
+def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share, patch_refine):
     """``sum_k W_k guide_k``: each model's coarse layout guide over the bounding box of its
     share (the whole image with ``tile``), weighted by its share; (H, W, C) float32."""
     k, h, w = shares.shape
@@ -457,7 +460,8 @@ def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share):
                 continue
             box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         part = model.layout_.guide((box[0].stop - box[0].start, box[1].stop - box[1].start), rng=rng, tile=tile,
-                                   refine=refine, seam_window=seam_window, flat_share=flat_share)
+                                   refine=refine, seam_window=seam_window, flat_share=flat_share,
+                                   patch_refine=patch_refine)
         guide[box] += part * share[box][..., None]
     return guide
 

@@ -36,9 +36,17 @@ from ._common import TGHopError, check_size, checked_image, usable_cores
 #: Quilting's detail preference in the coarse guide: 0.5, the fine level's until 0.38. 0.39 raised
 #: the fine level's to 0.8, measured with the guide at 0.5 (docs/choices.md, Quilting).
 GUIDE_DETAIL = 0.5
+#: Pyramid levels of the coarse model's patch statistics (0.48), at most the fine model's: its
+#: guide is patch-refined (``layout_patch_refine``). A coarse exemplar is often under 100 px a side.
+PATCH_LEVELS = 3
+#: The guide's patch refinement by default (``layout_patch_refine`` None, :func:`guide_steps`):
+#: GUIDE_STEPS steps per level for images of at most GUIDE_PIXELS pixels, none on larger ones,
+#: where it was measured no better at twice the time (docs/choices.md, Coarse-to-fine layout).
+GUIDE_STEPS = 20
+GUIDE_PIXELS = 512 * 512
 
-__all__ = ["downsample", "upsample", "fits", "guide_fits", "follows_guide", "usable_factor",
-           "coarse_training", "coarse_guide"]
+__all__ = ["PATCH_LEVELS", "GUIDE_STEPS", "GUIDE_PIXELS", "guide_steps", "downsample", "upsample", "fits",
+           "guide_fits", "follows_guide", "usable_factor", "coarse_training", "coarse_guide"]
 
 
 def downsample(image, factor: int) -> np.ndarray:
@@ -220,8 +228,16 @@ def fits_excluding(exclude, factor, *, patch_size=32, n_clusters=50, min_patches
     return n >= training["n_clusters"] * BY_NAME["min_cluster_size"].default
 
 
+def guide_steps(n_steps, size) -> int:
+    """``layout_patch_refine`` for an image of ``size`` (H, W): ``n_steps``, or for None
+    :data:`GUIDE_STEPS` on images of at most :data:`GUIDE_PIXELS` pixels and 0 on larger ones."""
+    if n_steps is not None:
+        return int(n_steps)
+    return GUIDE_STEPS if size[0] * size[1] <= GUIDE_PIXELS else 0
+
+
 def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, refine=3,
-                 seam_window=9, flat_share=0.25) -> np.ndarray:
+                 seam_window=9, flat_share=0.25, patch_refine=0) -> np.ndarray:
     """A coarse synthesis from ``model`` upsampled by ``factor`` to ``size``: the layout
     the fine level follows.
 
@@ -246,6 +262,11 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
         averaged over squares of this side (0: off).
     flat_share : float in [0, 1)
         The coarse quilt's share of its pool passed over (:func:`tghop.quilting.quilt`).
+    patch_refine : int or None
+        Steps per level of the patch refinement of the coarse image, after its colours are
+        matched (:func:`tghop.patch_refine.refine_image`, every patch, with the coarse
+        model's statistics; a model without them is left as it is); 0: off; None:
+        :func:`guide_steps` for ``size``.
 
     Returns
     -------
@@ -255,6 +276,7 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     f = int(factor)
     refine = check_int(refine, "refine", 0)
     h, w = check_size(size)
+    patch_refine = guide_steps(None if patch_refine is None else check_int(patch_refine, "patch_refine", 0), (h, w))
     small = (math.ceil(h / f), math.ceil(w / f))  # tileable: stretched to (h, w) when not divisible
     if not guide_fits((h, w), f, model.patch_size, tile=tile):
         raise TGHopError(f"a tileable output with a coarse layout at factor {f} needs at least "
@@ -268,10 +290,15 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     # GUIDE_SCALE x GUIDE_SCALE box means, which at factor 2 average 2x2 coarse pixels
     # of the bilinear upsampling and pass at most half of that band (none at its top).
     # Measured better on 20 exemplars in SIFID, SWD and co-occurrence, and faster
-    # (docs/choices.md).
+    # (docs/choices.md). Its patch refinement comes last, after the colours (0.48).
     coarse = model.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False,
-                              seam_window=seam_window, detail=GUIDE_DETAIL, flat_share=flat_share, dtype=np.float32)
+                              seam_window=seam_window, detail=GUIDE_DETAIL, flat_share=flat_share, patch_refine=0,
+                              dtype=np.float32)
     coarse = refine_bands(coarse, model.bands_, n_iter=int(refine), tile=tile,
                           first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
     coarse = match_histograms(coarse, model.colour_quantiles_, out=coarse)
+    if patch_refine and getattr(model, "patches_", None) is not None:
+        from .patch_refine import refine_image
+
+        coarse = refine_image(coarse, model.patches_, n_steps=patch_refine, stride=1, tile=tile, dtype=np.float32)
     return upsample(coarse, None if tile and (h % f or w % f) else f, (h, w), wrap=tile)

@@ -39,7 +39,7 @@ from .synthesis import TGHop
 __all__ = ["save_model", "load_model", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 9  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+FORMAT_VERSION = 10  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: tghop 0.14's patch refinement statistics (patch.rotations, patch.quantiles: 5x5 patches on
 # random rotations; read without them, with a warning); 5: the sliced Wasserstein statistics
 # (patch.directions, patch.quantiles) and whole materials (below); 6: their quantiles' levels
@@ -48,14 +48,16 @@ FORMAT_VERSION = 9  # 2: refinement statistics (refine.*); 3: float16 mixing row
 # coupled draws (ichm_coupling.member_ranks, index.ichm_member_counts; setting coupling; older files
 # read as coupling 0); 9: colour classes (colour.centres, colour.shares, colour.class_quantiles,
 # refine.class_quantiles, colour.separation, colour.share_spread; setting colour_classes; older
-# files read as colour_classes 0); files without patch statistics, norm quantiles, ranks, colour
-# classes or a material are written as version 3, which older tghop reads
+# files read as colour_classes 0); 10: the coarse layout model's patch statistics (layout.patch.*;
+# layout parameter patch_levels; older files read as 0, their guide not patch-refined); files
+# without patch statistics, norm quantiles, ranks, colour classes or a material are written as
+# version 3, which older tghop reads
 #: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
 #: each map's statistics as material.<name>.*) are version 5 or later, so that an older tghop
 #: refuses them by their version.
 MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9)
+READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9, 10)
 
 
 def save_model(model, path) -> None:

@@ -115,7 +115,8 @@ class Setting:
     def has_paper(self) -> bool:
         return self.paper is not _MISSING
 
-    def range_text(self) -> str:
+    def range_text(self, *, cli: bool = False) -> str:
+        """The values the setting takes, in words; ``cli``: None as the command line writes it."""
         if self.kind == "choice":
             return "one of " + ", ".join(repr(c) for c in self.choices)
         parts = []
@@ -125,23 +126,26 @@ class Setting:
             parts.append(f"{'<' if self.high_open else '<='} {_number(self.high)}")
         noun = {"int": "an integer", "float": "a finite number", "bool": "True or False"}.get(self.kind, "")
         text = noun + (" " + " and ".join(parts) if parts else "")
-        return text + (" or None" if self.none_ok else "")
+        none = ("auto" if self.auto else "none") if cli else "None"
+        return text + (f" or {none}" if self.none_ok else "")
 
-    def check(self, value, *, label=None):
+    def check(self, value, *, label=None, cli=False):
         """Return ``value`` (normalised) or raise a one-line :class:`TGHopError`; an ``"int"``
-        setting takes integers only (Python or NumPy, not a float such as 2.0)."""
+        setting takes integers only (Python or NumPy, not a float such as 2.0); ``cli``: the
+        message names None as the command line writes it (``auto`` or ``none``)."""
         label = label or self.name
+        allowed = self.range_text(cli=cli)
         if self.kind == "rng":
             return value  # checked where it is used (check_rng)
         if value is None:
             if self.none_ok:
                 return None
-            raise TGHopError(f"{label} must be {self.range_text()}, got None")
+            raise TGHopError(f"{label} must be {allowed}, got None")
         if self.kind == "channels":
             return _check_channels(value, label)
         if self.kind == "choice":
             if value not in self.choices:
-                raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+                raise TGHopError(f"{label} must be {allowed}, got {value!r}")
             return value
         if self.kind == "bool":
             if type(value).__name__ not in ("bool", "bool_") and not (
@@ -149,21 +153,21 @@ class Setting:
                 raise TGHopError(f"{label} must be True or False, got {value!r}")
             return bool(value)
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+            raise TGHopError(f"{label} must be {allowed}, got {value!r}")
         if self.kind == "int":
             if not isinstance(value, numbers.Integral):  # 2.0 too, as the server and the other entry points
                 whole = math.isfinite(value) and float(value).is_integer()
-                raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}"
+                raise TGHopError(f"{label} must be {allowed}, got {value!r}"
                                  + (f"; write {int(value)}" if whole else ""))
             value = int(value)
         else:
             value = float(value)
             if not math.isfinite(value):
-                raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+                raise TGHopError(f"{label} must be {allowed}, got {value!r}")
         bad_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
         bad_high = self.high is not None and (value >= self.high if self.high_open else value > self.high)
         if bad_low or bad_high:
-            raise TGHopError(f"{label} must be {self.range_text()}, got {value!r}")
+            raise TGHopError(f"{label} must be {allowed}, got {value!r}")
         return value
 
     def parse(self, text: str):
@@ -405,6 +409,13 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("layout_refine", 3, "int",
             "Rounds of the refinement after quilting (as ``refine``) of the coarse layout's guide "
             "(models fitted with a layout factor).", when="generate", low=0, high=20),
+    Setting("layout_patch_refine", None, "int",
+            "Steps per pyramid level of the patch refinement (as patch_refine, every patch) of the coarse "
+            "layout's guide, after its refinement: the coarse image's patches take the downsampled "
+            "exemplar's statistics, so the fine level follows sharper large shapes (ours; models fitted "
+            "by tghop 0.48 or newer; 0: off). auto (None in Python): 20 on images of up to 512x512 "
+            "pixels, none on larger ones (tghop.layout.guide_steps).",
+            when="generate", low=0, high=500, none_ok=True, auto=True),
 )
 
 BY_NAME = {s.name: s for s in SETTINGS}

@@ -282,7 +282,8 @@ class TGHop(BaseEstimator):
         factor = self.layout_factor and CoarseLayout(factor=self.layout_factor).usable_factor(image.shape, exclude)
         if factor:
             report(progress, "layout", 0, 1)
-            self.layout_ = CoarseLayout(factor=factor, rng=rng).fit(image, exclude=exclude)
+            levels = min(int(self.patch_levels), layout.PATCH_LEVELS)
+            self.layout_ = CoarseLayout(factor=factor, patch_levels=levels, rng=rng).fit(image, exclude=exclude)
             report(progress, "layout", 1, 1)
         return self
 
@@ -347,7 +348,7 @@ class TGHop(BaseEstimator):
         model.patches_ = PatchStatistics(model.patch_levels)._from_arrays(arrays) if model.patch_levels else None
         model.layout_ = None
         if meta.get("layout") is not None:
-            model.layout_ = CoarseLayout(**meta["layout"]["params"])
+            model.layout_ = CoarseLayout(**{"patch_levels": 0, **meta["layout"]["params"]})  # 0.47 and older: 0
             sub = {k[len("layout."):]: v for k, v in arrays.items() if k.startswith("layout.")}
             model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
         model._check_consistent()
@@ -578,8 +579,8 @@ class TGHop(BaseEstimator):
 
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.8, flat_share=0.25, match_colours=True, layout_weight=3.0, refine=5,
-                   layout_refine=3, patch_refine=None, patch_stride=2, reuse=1.0, pool_per_block=1.5, seam_window=9,
-                   region=1024, own_shares=1.0, progress=None, dtype=np.float64):
+                   layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2, reuse=1.0,
+                   pool_per_block=1.5, seam_window=9, region=1024, own_shares=1.0, progress=None, dtype=np.float64):
         # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
         """Generate a texture image of any size: a patch pool quilted together.
 
@@ -616,14 +617,14 @@ class TGHop(BaseEstimator):
             0 is off, as in the paper.
         layout_refine : int
             Rounds of that refinement for the coarse layout's guide.
+        layout_patch_refine : int or None
+            Steps per level of the patch refinement of the coarse layout's guide (ours; coarse
+            models with patch statistics, tghop 0.48 on; 0: off; None: :func:`tghop.layout.guide_steps`).
         patch_refine : int or None
             Adam steps per pyramid level of the patch refinement, the last step
             (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``, a number asked of
-            another model is a :class:`TGHopError`); 0: off; None:
-            ``AUTO_STEPS`` of :mod:`tghop.patch_refine` on images of at most ``AUTO_PIXELS``
-            (512x512) pixels, ``AUTO_LARGE_STEPS`` on images of at most ``AUTO_LARGE_PIXELS``
-            (1024x1024), fewer in proportion to the pixels up to ``AUTO_LARGEST_PIXELS``
-            (1280x1280), 0 on larger ones (:func:`tghop.patch_refine.steps_for`).
+            another model is a :class:`TGHopError`); 0: off; None: by the image's pixels, none
+            over 1280x1280 (:func:`tghop.patch_refine.steps_for`).
         patch_stride : int
             Its steps take every ``patch_stride``-th patch each way at each level.
         reuse : float
@@ -662,7 +663,8 @@ class TGHop(BaseEstimator):
         checked = settings.check_settings(dict(
             n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             flat_share=flat_share, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
-            layout_refine=layout_refine, patch_refine=patch_refine, patch_stride=patch_stride, reuse=reuse,
+            layout_refine=layout_refine, layout_patch_refine=layout_patch_refine, patch_refine=patch_refine,
+            patch_stride=patch_stride, reuse=reuse,
             pool_per_block=pool_per_block, seam_window=seam_window, region=region, own_shares=own_shares))
         if checked["patch_refine"] and getattr(self, "patches_", None) is None:  # None (auto) skips it quietly
             raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics this model lacks "
@@ -688,7 +690,8 @@ class TGHop(BaseEstimator):
             report(progress, "layout", 0, 1)
             with threadpool_limits(limits=1, user_api="blas"):
                 pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
-                                    seam_window=checked["seam_window"], flat_share=checked["flat_share"])
+                                    seam_window=checked["seam_window"], flat_share=checked["flat_share"],
+                                    patch_refine=checked["layout_patch_refine"])
                 if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
                     prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
                 prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
@@ -767,6 +770,9 @@ class CoarseLayout(BaseEstimator):
     gamma : float, default=0.01
         SDR threshold of the coarse model (the paper's value: the layout needs no fine
         detail, so it keeps the smaller core of the paper, unlike the fine model's 0.003).
+    patch_levels : int, default=3
+        Pyramid levels of the coarse model's patch statistics, for the guide's patch
+        refinement (0: none, as up to tghop 0.47).
     rng : int or numpy.random.Generator, optional
 
     Attributes
@@ -783,7 +789,8 @@ class CoarseLayout(BaseEstimator):
     """
 
     def __init__(self, factor=3, patch_size=32, n_clusters=50, min_patches=2000, max_patches=4000,
-                 cluster_energy=0.95, max_cluster_components=50, gamma=0.01, rng=None):
+                 cluster_energy=0.95, max_cluster_components=50, gamma=0.01, patch_levels=layout.PATCH_LEVELS,
+                 rng=None):
         self.factor = factor
         self.patch_size = patch_size
         self.n_clusters = n_clusters
@@ -792,6 +799,7 @@ class CoarseLayout(BaseEstimator):
         self.cluster_energy = cluster_energy
         self.max_cluster_components = max_cluster_components
         self.gamma = gamma
+        self.patch_levels = patch_levels
         self.rng = rng
 
     def fits(self, shape) -> bool:
@@ -827,15 +835,15 @@ class CoarseLayout(BaseEstimator):
                                                                       int(self.factor))
         self.model_ = TGHop(
             patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
-            max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None, patch_levels=0,
-            colour_classes=0,
+            max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None,
+            patch_levels=self.patch_levels, colour_classes=0,
             rng=check_rng(self.rng), **training,
         ).fit(small, exclude=small_exclude)
         return self
 
-    def guide(self, size, *, rng=None, n_patches=4000, tile=False, refine=3, seam_window=9, flat_share=0.25):
+    def guide(self, size, **options):
         """A coarse synthesis upsampled to ``size``, (H, W, C) float32 in [0, 1]: the layout the
-        fine level follows (:func:`tghop.layout.coarse_guide`)."""
+        fine level follows. ``options``: the keywords of :func:`tghop.layout.coarse_guide` (``rng``,
+        ``n_patches``, ``tile``, ``refine``, ``seam_window``, ``flat_share``, ``patch_refine``)."""
         check_is_fitted(self, "model_")
-        return layout.coarse_guide(self.model_, self.factor, size, rng=rng, n_patches=n_patches, tile=tile,
-                                   refine=refine, seam_window=seam_window, flat_share=flat_share)
+        return layout.coarse_guide(self.model_, self.factor, size, **options)

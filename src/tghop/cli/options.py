@@ -123,7 +123,7 @@ class SettingType(click.ParamType):
             return value
         s = self.setting
         try:
-            out = s.check(s.parse(value), label=repr(value))
+            out = s.check(s.parse(value), label=repr(value), cli=True)
         except TGHopError as exc:
             self.fail(str(exc), param, ctx)
         return OFF if out is None else out
