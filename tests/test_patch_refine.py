@@ -8,7 +8,7 @@ import pytest
 from tghop import data, settings
 from tghop._common import TGHopError
 from tghop import patch_refine as pr
-from tghop.modelfile import ModelFileError, load_model, save_model
+from tghop.modelfile import FORMAT_VERSION, ModelFileError, load_model, save_model
 from tghop.synthesis import TGHop
 
 from conftest import SMALL
@@ -523,14 +523,17 @@ def test_model_without_statistics_refuses_a_number_of_steps_and_skips_auto():
 
 
 def test_fit_is_unchanged_by_the_statistics(patch_model):
+    # Nor the coarse layout model's, whose own statistics only its guide's patch refinement reads.
     plain = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
-    assert np.array_equal(plain.synthesize((64, 64), rng=3), patch_model.synthesize((64, 64), rng=3, patch_refine=0))
+    assert plain.layout_.model_.patches_ is None and patch_model.layout_.model_.patches_ is not None
+    assert np.array_equal(plain.synthesize((64, 64), rng=3),
+                          patch_model.synthesize((64, 64), rng=3, patch_refine=0, layout_patch_refine=0))
 
 
 def test_model_file_round_trip(patch_model, tmp_path):
     save_model(patch_model, tmp_path / "m.npz")
     with np.load(tmp_path / "m.npz") as f:
-        assert json.loads(str(f["__meta__"]))["format_version"] == 9
+        assert json.loads(str(f["__meta__"]))["format_version"] == FORMAT_VERSION
         assert np.array_equal(f["patch.levels"], pr.quantile_levels().astype(np.float32))
     loaded = load_model(tmp_path / "m.npz")
     assert np.array_equal(loaded.synthesize((64, 64), rng=4, patch_refine=3),
