@@ -134,18 +134,17 @@ class Setting:
         setting takes integers only (Python or NumPy, not a float such as 2.0); ``cli``: the
         message names None as the command line writes it (``auto`` or ``none``)."""
         label = label or self.name
-        allowed = self.range_text(cli=cli)
         if self.kind == "rng":
             return value  # checked where it is used (check_rng)
         if value is None:
             if self.none_ok:
                 return None
-            raise TGHopError(f"{label} must be {allowed}, got None")
+            raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got None")
         if self.kind == "channels":
             return _check_channels(value, label)
         if self.kind == "choice":
             if value not in self.choices:
-                raise TGHopError(f"{label} must be {allowed}, got {value!r}")
+                raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
             return value
         if self.kind == "bool":
             if type(value).__name__ not in ("bool", "bool_") and not (
@@ -153,21 +152,21 @@ class Setting:
                 raise TGHopError(f"{label} must be True or False, got {value!r}")
             return bool(value)
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise TGHopError(f"{label} must be {allowed}, got {value!r}")
+            raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
         if self.kind == "int":
             if not isinstance(value, numbers.Integral):  # 2.0 too, as the server and the other entry points
                 whole = math.isfinite(value) and float(value).is_integer()
-                raise TGHopError(f"{label} must be {allowed}, got {value!r}"
+                raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}"
                                  + (f"; write {int(value)}" if whole else ""))
             value = int(value)
         else:
             value = float(value)
             if not math.isfinite(value):
-                raise TGHopError(f"{label} must be {allowed}, got {value!r}")
+                raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
         bad_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
         bad_high = self.high is not None and (value >= self.high if self.high_open else value > self.high)
         if bad_low or bad_high:
-            raise TGHopError(f"{label} must be {allowed}, got {value!r}")
+            raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
         return value
 
     def parse(self, text: str):
