@@ -152,6 +152,7 @@ def test_quantiles_are_read_at_even_ranks_between_their_levels():
     quantiles = np.sort(rng.gamma(2.0, 1.0, (2, 3, 33)), axis=-1).astype(np.float32)
     got = pr._on_ranks(quantiles, levels, n=1025)
     assert got.shape == (2, 3, 1025) and got.dtype == np.float32
+    assert got.flags.c_contiguous  # each step's rank table reads it flat: no copy per step
     grid = np.linspace(0, 1, 1025)
     want = np.stack([np.interp(grid, levels, row) for row in quantiles.reshape(6, 33)]).reshape(2, 3, 1025)
     assert np.allclose(got, want, atol=1e-5)

@@ -121,12 +121,18 @@ def quantile_levels(n=QUANTILES):
 def _on_ranks(quantiles, levels, n=_RANKS):
     """``quantiles`` (..., Q) at probability ``levels`` (Q,), read at ``n`` evenly spaced
     levels by linear interpolation between them: (..., n) float32, what the rank tables of
-    :func:`_table` take."""
+    :func:`_table` take. By ``take``, whose result is C-contiguous: indexing the last axis
+    (``quantiles[..., j]``) gives another layout, five times slower to make and copied again
+    by each step's table."""
     pos = np.interp(np.linspace(0.0, 1.0, n), levels, np.arange(len(levels), dtype=np.float64))
     j = np.minimum(pos.astype(np.int64), len(levels) - 2)
     frac = (pos - j).astype(np.float32)
-    low = quantiles[..., j]
-    return low + (quantiles[..., j + 1] - low) * frac
+    low = quantiles.take(j, axis=-1)
+    out = quantiles.take(j + 1, axis=-1)
+    out -= low
+    out *= frac
+    out += low  # low + (high - low) * frac
+    return out
 
 
 def _projection_quantiles(dirs, x, qlev):
@@ -578,7 +584,9 @@ def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progres
         # levels every patch: their steps cost little (docs/choices.md, Patch refinement "0.30").
         pixels = cur.shape[0] * cur.shape[1]
         step = 1 if pixels <= _DENSE_PIXELS else max(_stride(pixels), int(stride))
-        target = _on_ranks(stats.quantiles_[i], stats.levels_.astype(np.float64))
+        # Step t uses set t mod SETS: fewer steps than sets read only the first ones.
+        target = _on_ranks(stats.quantiles_[i][: min(n_steps, len(stats.quantiles_[i]))],
+                           stats.levels_.astype(np.float64))
         new = _steps(cur, stats.directions_[i], target, int(n_steps), tile, step,
                      float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))
         if i == 0 and step == 2:
