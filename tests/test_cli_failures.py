@@ -356,6 +356,7 @@ def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
         "print('HEAVY', heavy, file=sys.stderr)\n"
         "print('NUMPY', 'numpy' in sys.modules, file=sys.stderr)\n"
         "print('NUMPY_MA', 'numpy.ma' in sys.modules, file=sys.stderr)\n"  # 10 ms (np.unique imports it)
+        "print('LOGGING', 'logging' in sys.modules, file=sys.stderr)\n"  # concurrent.futures imports it: 3 ms
     )
     for args in (["--help"], ["--version"], ["info", "model.npz"],
                  ["synth", "model.npz", "-o", "lazy.png", "--size", "40", "--pool", "100", "-q"],
@@ -365,5 +366,6 @@ def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
         assert p.returncode == 0
         assert "HEAVY []" in err.decode(), (args, err.decode())
         assert "NUMPY_MA False" in err.decode(), (args, err.decode())
+        assert "LOGGING False" in err.decode(), (args, err.decode())
         if args[0].startswith("--"):  # help and version do not even import NumPy
             assert "NUMPY False" in err.decode(), (args, err.decode())

@@ -16,8 +16,6 @@ function then only reports that (:func:`n_regions`), and small images are unchan
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 
 from ._common import TGHopError, check_size, report, usable_cores
@@ -151,6 +149,8 @@ def match_regions(image, *, bands=None, colour_quantiles=None, pixel_quantiles=N
     # time with their channels in threads kept the cores less busy (docs/choices.md).
     # The regions are added in a fixed order: the same numbers on any number of cores.
     cores = min(usable_cores(), len(spans))
+    from concurrent.futures import ThreadPoolExecutor  # here: an image of one region needs none (it imports logging)
+
     with ThreadPoolExecutor(max_workers=cores) as pool:
         results = pool.map(lambda span: matched(span, threads=1), spans) if cores > 1 else map(matched, spans)
         for done, ((y, wy, x, wx), part) in enumerate(zip(spans, results), start=1):
