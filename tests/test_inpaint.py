@@ -121,7 +121,7 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
             inpaint(model, cells, mask, **fast)
     with pytest.raises(TGHopError, match=r"the mask is 96x96x3x1 but the image is 96x96"):
         check_hole(np.zeros((96, 96, 3, 1), bool), (96, 96))
-    for tile in ("no", 1, None):
+    for tile in ("no", 2, None):  # synthesize's rule (the settings table): 0 and 1 are taken
         with pytest.raises(TGHopError, match="tile must be True or False"):
             inpaint(model, cells, square, tile=tile, **fast)
     with pytest.raises(TGHopError, match="the image is empty"):
@@ -131,16 +131,20 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
         inpaint(model, cells.astype(np.int64), square, **fast)
     with pytest.raises(TGHopError, match=r"^inpaint: image values must lie in \[0, 1\], got \["):
         inpaint(model, cells.astype(np.float64), square, **fast)
-    with pytest.raises(TGHopError, match="n_patches must be an integer from 1 to 10,000,000, got 1000000000"):
+    with pytest.raises(TGHopError, match="n_patches must be an integer >= 1 and <= 10,000,000, got 1000000000"):
         inpaint(model, cells, square, rng=1, n_patches=10**9)
     with pytest.raises(TGHopError, match=r"^blend must be an integer >= 0, got -1$"):
         inpaint(model, cells, square, blend=-1, **fast)
     for weight in (-1, float("inf"), True):
-        with pytest.raises(TGHopError, match=r"^layout_weight must be a finite number >= 0, got "):
+        with pytest.raises(TGHopError, match=r"^layout_weight must be a finite number >= 0 and <= 1,000,000, got "):
             inpaint(model, cells, square, layout_weight=weight, **fast)
-    for steps in (-1, 2.5, "10"):
-        with pytest.raises(TGHopError, match=r"^patch_refine must be an integer >= 0, got "):
+    for steps in (-1, 2.5, "10", 501):
+        with pytest.raises(TGHopError, match=r"^patch_refine must be an integer >= 0 and <= 500 or None, got "):
             inpaint(model, cells, square, patch_refine=steps, **fast)
+    # The rest of the settings it shares with synthesize: the same table, the same words.
+    for name, value in (("tolerance", -0.5), ("detail", 1.0), ("flat_share", -0.1), ("refine", 21)):
+        with pytest.raises(TGHopError, match=f"^{name} must be .*, got {value}$"):
+            inpaint(model, cells, square, **{**fast, name: value})
     with pytest.raises(TGHopError, match="rng"):
         inpaint(model, cells, np.zeros((96, 96), bool), rng="x")
 

@@ -44,8 +44,6 @@ Example
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
 from ._arrays import check_int
@@ -56,7 +54,7 @@ from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_fact
 from .pyramid import laplacian_pyramid, reconstruct
 from .patch_refine import refine_image, steps_for
 from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
-from .settings import BY_NAME
+from .settings import BY_NAME, check_settings
 
 __all__ = ["inpaint", "extend", "expand_canvas", "ANCHORS", "check_hole", "require_hole", "split_alpha", "with_alpha",
            "refine_hole"]
@@ -316,21 +314,14 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         raise TGHopError(f"the image is {h}x{w}; inpainting with {p}x{p} patches needs at least {p}x{p}: "
                          "use a model fitted with a smaller patch_size (or a larger image)")
     hole = check_hole(mask, (h, w))
-    blend, refine = check_int(blend, "blend", 0), check_int(refine, "refine", 0)
-    patch_refine = None if patch_refine is None else check_int(patch_refine, "patch_refine", 0)
-    n_patches = check_int(n_patches, "n_patches", 1, 10_000_000)
-    if not isinstance(tile, (bool, np.bool_)):
-        raise TGHopError(f"tile must be True or False, got {tile!r}")
-    if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not 0 <= tolerance < np.inf:
-        raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
-    if isinstance(detail, bool) or not isinstance(detail, numbers.Real) or not 0 <= detail < 1:
-        raise TGHopError(f"detail must be a number in [0, 1), got {detail!r}")
-    flat_share = BY_NAME["flat_share"].check(flat_share)
+    blend = check_int(blend, "blend", 0)
+    # The settings synthesize shares, checked by the same table (the same ranges and words).
+    checked = check_settings(dict(n_patches=n_patches, tile=tile, tolerance=tolerance, detail=detail,
+                                  flat_share=flat_share, layout_weight=layout_weight, refine=refine,
+                                  patch_refine=patch_refine))
+    n_patches, tile, tolerance, detail, flat_share, layout_weight, refine, patch_refine = checked.values()
     if order not in ("edge", "raster"):
         raise TGHopError(f"order must be 'edge' or 'raster', got {order!r}")
-    if isinstance(layout_weight, bool) or not isinstance(layout_weight, numbers.Real) \
-            or not 0 <= layout_weight < np.inf:
-        raise TGHopError(f"layout_weight must be a finite number >= 0, got {layout_weight!r}")
     out = original.astype(np.float64) if original.dtype != np.uint8 else original.copy()
     rng = check_rng(rng)
     if not hole.any():
