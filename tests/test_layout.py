@@ -8,7 +8,7 @@ import pytest
 from tghop.synthesis import PAPER_TABLE4
 
 from tghop import TGHop, TGHopError, data, settings
-from tghop.layout import (GUIDE_PIXELS, GUIDE_STEPS, PATCH_LEVELS, coarse_guide, downsample, fits_excluding,
+from tghop.layout import (GUIDE_PIXELS, GUIDE_RATE, GUIDE_STEPS, PATCH_LEVELS, coarse_guide, downsample, fits_excluding,
                           follows_guide, guide_fits, guide_steps, upsample, usable_factor)
 from tghop.parameter_count import PAPER_MODULES
 from tghop.synthesis import CoarseLayout
@@ -237,16 +237,24 @@ def test_tghop_tileable_at_any_size_and_without_a_guide_when_too_small(layout_mo
     sizes = []
     guide_of = layout_model.layout_.guide
     monkeypatch.setattr(layout_model.layout_, "guide", lambda size, **k: sizes.append(size) or guide_of(size, **k))
-    out = layout_model.synthesize((67, 75), rng=1, n_patches=400, tile=True)  # not a multiple of 2
-    assert out.shape == (67, 75, 3) and sizes == [(67, 75)]
-    for axis in (0, 1):  # wraps around: the step across the edge is a seam like the quilt's seams inside
-        steps = neighbour_steps(out, axis)
-        assert steps[-1] <= steps[:-1].max()
+    # Wraps around: the step across the edge is a seam like the quilt's seams inside, where the
+    # edges of an image made without `tile` do not meet. Three images: in one, the roughest
+    # seam may be the one on the edge.
+    edge_ratios = []
+    for seed in (1, 2, 3):
+        out = layout_model.synthesize((67, 75), rng=seed, n_patches=400, tile=True)  # not a multiple of 2
+        assert out.shape == (67, 75, 3) and sizes[-1] == (67, 75)
+        for axis in (0, 1):
+            steps = neighbour_steps(out, axis)
+            assert steps[-1] <= 2 * steps[:-1].max()
+        plain = layout_model.synthesize((67, 75), rng=seed, n_patches=400)
+        edge_ratios.append(sum(neighbour_steps(plain, a)[-1] for a in (0, 1))
+                           / sum(neighbour_steps(out, a)[-1] for a in (0, 1)))
+    assert np.median(edge_ratios) > 2, edge_ratios
+    assert sizes == [(67, 75)] * 6  # each image's guide, tileable or not
     small = layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True)  # 24 coarse pixels: no guide
-    assert small.shape == (48, 48, 3) and sizes == [(67, 75)]
+    assert small.shape == (48, 48, 3) and len(sizes) == 6
     assert np.array_equal(small, layout_model.synthesize((48, 48), rng=1, n_patches=400, tile=True, layout_weight=0))
-    plain = layout_model.synthesize((67, 75), rng=1, n_patches=400)  # its edges do not meet
-    assert sum(neighbour_steps(plain, a)[-1] for a in (0, 1)) > 2 * sum(neighbour_steps(out, a)[-1] for a in (0, 1))
 
 
 def test_a_tileable_remix_too_small_for_the_guides_goes_without_them(layout_model):
@@ -282,7 +290,16 @@ def test_the_guide_is_patch_refined_with_the_coarse_models_statistics(layout_mod
     plain = coarse_guide(coarse, 1, (64, 64), patch_refine=0, **kw)
     refined = coarse_guide(coarse, 1, (64, 64), patch_refine=20, **kw)
     assert _patch_swd(refined, coarse.patches_).mean() < 0.8 * _patch_swd(plain, coarse.patches_).mean()
-    assert 0 < np.abs(refined - plain).mean() < 0.05  # it refines the guide, it does not replace it
+    assert 0 < np.abs(refined - plain).mean() < 0.1  # it refines the guide, it does not replace it
+    # Its steps are GUIDE_RATE times the fine level's (0.49): further in the same 20 steps.
+    from tghop.patch_refine import refine_image
+
+    assert np.array_equal(refined, refine_image(plain, coarse.patches_, n_steps=20, rate=GUIDE_RATE))
+    slow = refine_image(plain, coarse.patches_, n_steps=20)
+    assert _patch_swd(refined, coarse.patches_).mean() < 0.9 * _patch_swd(slow, coarse.patches_).mean()
+    for rate in (0, -1.0, float("nan"), True):
+        with pytest.raises(TGHopError, match="rate must be a finite number > 0"):
+            refine_image(plain, coarse.patches_, n_steps=1, rate=rate)
     seen = []
     guide_of = layout_model.layout_.guide
     monkeypatch.setattr(layout_model.layout_, "guide",

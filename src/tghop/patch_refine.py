@@ -552,9 +552,9 @@ def patch_refine(image, stats, *, n_steps=30, stride=1, tile=False, learning_rat
                          progress=progress, names=("n_steps", "stride"))
 
 
-def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progress, names):
+def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progress, names, rate=1.0):
     """:func:`patch_refine`; ``names``: what its ``n_steps`` and ``stride`` are called in
-    errors (TGHop's settings for :func:`refine_image`)."""
+    errors (TGHop's settings for :func:`refine_image`); ``rate`` multiplies every level's step."""
     n_steps = check_int(n_steps, names[0], 0)
     check_is_fitted(stats, ("side_", "directions_", "quantiles_", "levels_"))
     p = stats.side_
@@ -588,7 +588,7 @@ def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progres
         target = _on_ranks(stats.quantiles_[i][: min(n_steps, len(stats.quantiles_[i]))],
                            stats.levels_.astype(np.float64))
         new = _steps(cur, stats.directions_[i], target, int(n_steps), tile, step,
-                     float(learning_rate) if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps))
+                     float(learning_rate) * rate if i == 0 else min(COARSE_RATE, COARSE_TRAVEL / n_steps) * rate)
         if i == 0 and step == 2:
             new = _without_checker(new, cur, tile)
         elif i == 0 and step > 2:  # the larger images' strides, 3 and 4
@@ -682,11 +682,14 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     return PatchStatistics(levels, whitening).fit(image, exclude=exclude)
 
 
-def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, progress=None):
+def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, progress=None, rate=1.0):
     """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine`, as
-    ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`)."""
+    ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`).
+    ``rate`` multiplies every level's Adam step (the coarse guide's: :data:`tghop.layout.GUIDE_RATE`)."""
+    if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not (math.isfinite(rate) and rate > 0):
+        raise TGHopError(f"patch_refine: rate must be a finite number > 0, got {rate!r}")
     out = _patch_refine(image, stats, n_steps=n_steps, stride=stride, tile=tile, learning_rate=LEARNING_RATE,
-                        progress=progress, names=("patch_refine", "patch_stride"))
+                        progress=progress, names=("patch_refine", "patch_stride"), rate=float(rate))
     dtype = np.dtype(dtype or np.asarray(image).dtype)
     if dtype == np.uint8:
         from .imageio import to_uint8
