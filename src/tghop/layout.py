@@ -45,7 +45,7 @@ PATCH_LEVELS = 3
 GUIDE_STEPS = 20
 GUIDE_PIXELS = 512 * 512
 #: The guide's patch refinement takes steps GUIDE_RATE times the fine level's at every level (0.49):
-#: its 20 steps then go further than 80 of the fine level's size did, at the cost of 20
+#: its 20 steps then do about what 80 of the fine level's size did, at the cost of 20
 #: (docs/choices.md, Coarse-to-fine layout, "0.49").
 GUIDE_RATE = 8.0
 
