@@ -96,8 +96,8 @@ def test_refine_takes_integers_only_at_every_entry_point(small_model, bricks96):
         guided.morph(small_model, small_model, (40, 80), rng=0, refine=2.0)
     hole = np.zeros(bricks96.shape[:2], dtype=bool)
     hole[40:50, 40:50] = True
-    with pytest.raises(TGHopError, match=r"refine must be an integer >= 0, got 2.0"):
-        inpaint(small_model, bricks96, hole, rng=0, refine=2.0)
+    with pytest.raises(TGHopError, match=r"refine must be an integer >= 0 and <= 20, got 2.0; write 2"):
+        inpaint(small_model, bricks96, hole, rng=0, refine=2.0)  # the settings table, as synthesize (0.49)
     with pytest.raises(TGHopError, match=r"refine: n_iter must be an integer >= 0, got 2.0"):
         refine(bricks96, small_model.bands_, n_iter=2.0)
     with pytest.raises(TGHopError, match=r"refine_hole: n_iter must be an integer >= 0, got 2.0"):
