@@ -559,9 +559,10 @@ def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progres
     check_is_fitted(stats, ("side_", "directions_", "quantiles_", "levels_"))
     p = stats.side_
     stride = check_int(stride, names[1], 1, p)  # at most the patch side
-    if isinstance(learning_rate, bool) or not isinstance(learning_rate, numbers.Real) \
-            or not (math.isfinite(learning_rate) and learning_rate > 0):
-        raise TGHopError(f"patch_refine: learning_rate must be a finite number > 0, got {learning_rate!r}")
+    for name, value in (("learning_rate", learning_rate), ("rate", rate)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value > 0):
+            raise TGHopError(f"patch_refine: {name} must be a finite number > 0, got {value!r}")
+    rate = float(rate)
     img = checked_image(image, "patch_refine")
     img = check_image(img, name="patch_refine: image", dtype=np.float32, channels=None) if img.dtype.kind == "u" \
         else np.asarray(img, dtype=np.float32)
@@ -686,10 +687,8 @@ def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, pro
     """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine`, as
     ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`).
     ``rate`` multiplies every level's Adam step (the coarse guide's: :data:`tghop.layout.GUIDE_RATE`)."""
-    if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not (math.isfinite(rate) and rate > 0):
-        raise TGHopError(f"patch_refine: rate must be a finite number > 0, got {rate!r}")
     out = _patch_refine(image, stats, n_steps=n_steps, stride=stride, tile=tile, learning_rate=LEARNING_RATE,
-                        progress=progress, names=("patch_refine", "patch_stride"), rate=float(rate))
+                        progress=progress, names=("patch_refine", "patch_stride"), rate=rate)
     dtype = np.dtype(dtype or np.asarray(image).dtype)
     if dtype == np.uint8:
         from .imageio import to_uint8
