@@ -482,13 +482,13 @@ def test_box_means_are_the_means_of_the_boxes(s):
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_gradient_energy_is_the_mean_squared_neighbour_difference(dtype):
-    from tghop.quilting import POOL_CHUNK, _gradient_energy
+    from tghop.quilting import POOL_CHUNK, gradient_energy
 
     x = np.random.default_rng(3).random((POOL_CHUNK + 7, 8, 6, 3)).astype(dtype)  # not square
     x[:, :, :, 1] **= 3
     ref = (np.square(np.diff(x.astype(np.float64), axis=1)).mean(axis=(1, 2, 3))
            + np.square(np.diff(x.astype(np.float64), axis=2)).mean(axis=(1, 2, 3)))
-    out = _gradient_energy(x)
+    out = gradient_energy(x)
     assert out.dtype == np.float32 and out.shape == (len(x),)
     np.testing.assert_allclose(out, ref, rtol=1e-5)
 

@@ -50,7 +50,7 @@ from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, checked_image, report
 from .layout import downsample, upsample
 from .patches import downsample_mask
-from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors
+from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
 from .pyramid import laplacian_pyramid, reconstruct
 from .patch_refine import refine_image, steps_for
 from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
@@ -332,8 +332,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     n = len(pool)
     flat_pool = pool.reshape(n, p * p * n_channels)
     squares = np.einsum("npc,npc->np", pool.reshape(n, p * p, n_channels), pool.reshape(n, p * p, n_channels))
-    energy = (np.square(np.diff(pool, axis=1)).mean(axis=(1, 2, 3))
-              + np.square(np.diff(pool, axis=2)).mean(axis=(1, 2, 3)))
+    energy = gradient_energy(pool)
     flat = flat_factors(energy, flat_share) if flat_share else None
     report(progress, "patch pool", 1, 1)
 

@@ -53,6 +53,7 @@ __all__ = [
     "boundary_cut_mask",
     "default_overlap",
     "flat_factors",
+    "gradient_energy",
     "min_error_boundary_cut",
     "prepare_pool",
     "quilt",
@@ -770,7 +771,7 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
     ``m`` overlap shapes, then its ``k`` frame values (channels innermost); ``bound``
     ``(n, m + g [+ l + 1])``: the same for its ``g`` scaled box sums (:class:`_Boxes`),
     then with ``guide_scale`` its ``l`` low-pass values (:func:`_box_means`) and their
-    squared norm; and ``energy`` ``(n,)`` (:func:`_gradient_energy`) or None.
+    squared norm; and ``energy`` ``(n,)`` (:func:`gradient_energy`) or None.
 
     The pool is worked through :data:`POOL_CHUNK` patches at a time, every step of a
     chunk done while it is in cache: the pool is read from memory once, not once per step
@@ -796,7 +797,7 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
         sums[...] = _box_sums(rows, boxes)
         np.matmul(np.square(sums), boxes.in_mask.T, out=bound[a:e, :m])
         if energy:
-            energies[a:e] = _gradient_energy(chunk)
+            energies[a:e] = gradient_energy(chunk)
         if guide_scale is not None:
             low = bound[a:e, m + g : m + g + n_low]
             low[...] = _box_means(chunk, guide_scale)
@@ -819,8 +820,18 @@ def flat_factors(energy, share: float, *, groups=None) -> np.ndarray:
     return np.where(flat, np.float32(FLAT_PENALTY), np.float32(1.0))
 
 
-def _gradient_energy(arr: np.ndarray) -> np.ndarray:
-    """``(n,)`` float32: mean squared difference of neighbouring pixels of each patch."""
+def gradient_energy(arr: np.ndarray) -> np.ndarray:
+    """Mean squared difference of neighbouring pixels of each patch (quilting's ``detail`` and
+    ``flat_share`` rank patches by it).
+
+    Parameters
+    ----------
+    arr : ndarray, shape (n, P, P, C)
+
+    Returns
+    -------
+    ndarray, shape (n,), float32
+    """
     x = np.asarray(arr, dtype=np.float32)
     n = len(x)
     dy = (x[:, 1:] - x[:, :-1]).reshape(n, -1)  # vertical neighbours
