@@ -6,6 +6,7 @@ one LocalCluster(n_workers=2, processes=True, threads_per_worker=1) whose schedu
 task's worker die twice (``allowed-failures`` 2).
 """
 
+import gc
 import hashlib
 import json
 import os
@@ -613,7 +614,7 @@ def test_local_cluster_run(tmp_path, cluster):
 
 
 def test_cli_to_a_scheduler_address(tmp_path, cluster):
-    local, _ = cluster
+    local, fixture_client = cluster
     make_folder(tmp_path / "src", bad=False)
     code, _, err, _ = invoke("batch", "src", "-o", "out", "--scheduler", local.scheduler_address, "--size", "48",
                              "--seed", "2", *CLI_FAST, cwd=tmp_path)
@@ -624,6 +625,10 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
                                cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)
     assert not (tmp_path / "out2").exists()  # OUTDIR is made once the scheduler is reached
+    # The failed Client was closed then, not left to a later collection (which deadlocked in
+    # the next LocalCluster's start): none is left apart from the fixture's.
+    import distributed
+    assert [c for c in gc.get_objects() if isinstance(c, distributed.Client)] == [fixture_client]
     code, _, err, exc = invoke("batch", "src", "-o", "out3", "--scheduler", "notanaddress", *CLI_FAST, cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler at notanaddress", exception=exc)
     assert not (tmp_path / "out3" / "index.html").exists()  # nothing finished: no empty contact sheet

@@ -24,6 +24,7 @@ The library never prints: ``progress(stage, done, total)`` reports exemplars fin
 from __future__ import annotations
 
 import contextlib
+import gc
 import hashlib
 import json
 import numbers
@@ -783,7 +784,13 @@ def _connect(scheduler):
     try:
         return distributed.Client(scheduler, timeout="5s")
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
-        raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({_one_line(exc)})") from None
+        reason = _one_line(exc)
+    # The half-started Client is left in a reference cycle (held by the traceback until the
+    # except clause ends). Collected later, its __del__ closes it again from whatever the
+    # collector interrupts: inside a LocalCluster's start that deadlocks on the loop runner's
+    # lock. Collect it here, where nothing else runs.
+    gc.collect()
+    raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
 
 
 def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries):
