@@ -629,3 +629,27 @@ def testblock_count_is_the_plans(size, tile):
     for overlap in (None, 3, 8):
         assert block_count(size, 32 if not tile else 16, overlap=overlap, tile=tile) == quilting_plan(
             size, 32 if not tile else 16, overlap=overlap, tile=tile).n_blocks
+
+
+def test_real_number_settings_are_checked_by_one_helper_with_the_same_words():
+    """check_number: finite, >= 0 (> 0 with positive), not a bool; its message at every caller."""
+    from tghop._arrays import check_number
+    from tghop.guided import random_labels, region_weights
+
+    assert check_number(0, "x") == 0.0 and isinstance(check_number(np.float32(2.5), "x", positive=True), float)
+    for value in (-1, float("nan"), float("inf"), True, "1", None):
+        with pytest.raises(TGHopError, match=r"^x must be a finite number >= 0, got "):
+            check_number(value, "x")
+    with pytest.raises(TGHopError, match=r"^w: x must be a finite number > 0 \(pixels\), got 0$"):
+        check_number(0, "x", positive=True, where="w", unit="pixels")
+    pool = np.random.default_rng(0).random((20, 8, 8, 3))
+    for kw, words in ((dict(tolerance=-1), "tolerance must be a finite number >= 0, got -1"),
+                      (dict(reuse=float("nan")), "reuse must be a finite number >= 0, got nan"),
+                      (dict(guide=np.zeros((16, 16, 3)), guide_weight=-0.5),
+                       "guide_weight must be a finite number >= 0, got -0.5")):
+        with pytest.raises(TGHopError, match=f"^{words}$"):
+            quilt(pool, (16, 16), rng=0, **kw)
+    with pytest.raises(TGHopError, match=r"^transition must be a finite number >= 0 \(pixels\), got -4$"):
+        region_weights(np.array([[0, 1], [1, 0]]), 2, -4)
+    with pytest.raises(TGHopError, match=r"^scale must be a finite number > 0 \(pixels\), got 0$"):
+        random_labels((64, 64), 3, scale=0, rng=1)

@@ -9,6 +9,7 @@ the transforms check shapes only.
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -140,6 +141,41 @@ def check_int(value, name: str, low: int = 1, high: int | None = None, *, where:
         wanted = f">= {low}" if high is None else f"from {low:,} to {high:,}"
         raise TGHopError(("" if where is None else f"{where}: ") + f"{name} must be an integer {wanted}, got {value!r}")
     return int(value)
+
+
+def check_number(value, name: str, *, positive: bool = False, where: str | None = None,
+                 unit: str | None = None) -> float:
+    """``value`` as a float, finite and at least 0 (above 0 with ``positive``), or a one-line
+    :class:`TGHopError`: the real-number twin of :func:`check_int`.
+
+    Parameters
+    ----------
+    value : object
+        A Python or NumPy real number (not a bool).
+    name : str
+        The parameter, for the message.
+    positive : bool
+        Refuse 0 as well.
+    where : str or None
+        The function checking, put before the message (``"where: name must be ..."``).
+    unit : str or None
+        Put in brackets after the bound (``"(pixels)"``).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    TGHopError
+        ``name must be a finite number >= 0, got value`` (``> 0`` with ``positive``).
+    """
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
+            or not ((0 < value) if positive else (0 <= value)) or not value < math.inf):
+        wanted = "> 0" if positive else ">= 0"
+        raise TGHopError(("" if where is None else f"{where}: ") + f"{name} must be a finite number {wanted}"
+                         + ("" if unit is None else f" ({unit})") + f", got {value!r}")
+    return float(value)
 
 
 def check_mask(mask, shape, where: str, name: str = "exclude"):

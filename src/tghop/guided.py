@@ -58,14 +58,13 @@ Example
 from __future__ import annotations
 
 import math
-import numbers
 import os
 from contextlib import nullcontext
 
 import numpy as np
 
 from . import settings
-from ._arrays import check_dtype, check_int
+from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
 from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
@@ -192,8 +191,7 @@ def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=Fals
         In [0, 1], summing to 1 at every pixel; 0 or 1 everywhere for ``transition`` 0.
     """
     n_models = check_int(n_models, "n_models", 1)
-    if isinstance(transition, bool) or not isinstance(transition, numbers.Real) or not 0 <= transition < np.inf:
-        raise TGHopError(f"transition must be a finite number >= 0 (pixels), got {transition!r}")
+    check_number(transition, "transition", unit="pixels")
     labels = np.asarray(labels)
     if labels.ndim != 2 or labels.size == 0 or labels.dtype.kind not in "iu" or labels.min() < 0 \
             or labels.max() >= n_models:
@@ -471,8 +469,7 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
     cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64."""
     h, w = check_size(size)
     n_models = check_int(n_models, "n_models", 1)
-    if isinstance(scale, bool) or not isinstance(scale, numbers.Real) or not 0 < scale < np.inf:
-        raise TGHopError(f"scale must be a finite number > 0 (pixels), got {scale!r}")
+    check_number(scale, "scale", positive=True, unit="pixels")
     rng = check_rng(rng)
     cell = max(1, int(scale) // 4)
     small = (max(1, -(-h // cell)), max(1, -(-w // cell)))

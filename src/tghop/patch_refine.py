@@ -33,12 +33,11 @@ tghop's finished image (which already has the layout, so few steps suffice):
 
 from __future__ import annotations
 
-import math
 import numbers
 
 import numpy as np
 
-from ._arrays import check_int, check_mask
+from ._arrays import check_int, check_mask, check_number
 from ._common import (BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng,
                       checked_image, report)
 from .patches import clean_windows
@@ -559,10 +558,8 @@ def _patch_refine(image, stats, *, n_steps, stride, tile, learning_rate, progres
     check_is_fitted(stats, ("side_", "directions_", "quantiles_", "levels_"))
     p = stats.side_
     stride = check_int(stride, names[1], 1, p)  # at most the patch side
-    for name, value in (("learning_rate", learning_rate), ("rate", rate)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value > 0):
-            raise TGHopError(f"patch_refine: {name} must be a finite number > 0, got {value!r}")
-    rate = float(rate)
+    check_number(learning_rate, "learning_rate", positive=True, where="patch_refine")
+    rate = check_number(rate, "rate", positive=True, where="patch_refine")
     img = checked_image(image, "patch_refine")
     img = check_image(img, name="patch_refine: image", dtype=np.float32, channels=None) if img.dtype.kind == "u" \
         else np.asarray(img, dtype=np.float32)

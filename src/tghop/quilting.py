@@ -36,7 +36,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ._arrays import LEVELS, check_dtype, check_int, from_levels
+from ._arrays import LEVELS, check_dtype, check_int, check_number, from_levels
 from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
 from .seams import SeamSteps
 
@@ -630,8 +630,7 @@ def _guide_setup(guide, weight, prepared):
         g = g[..., None]
     if g.shape != (*plan.size, c):
         raise TGHopError(f"guide must have the output's shape {(*plan.size, c)}, got {g.shape}")
-    if isinstance(weight, bool) or not isinstance(weight, numbers.Real) or not (math.isfinite(weight) and weight >= 0):
-        raise TGHopError(f"guide_weight must be a finite number >= 0, got {weight!r}")
+    check_number(weight, "guide_weight")
     if scale is None:
         raise TGHopError("this pool was prepared without a guide_scale; give prepare_pool a guide_scale to quilt "
                          "with a guide")
@@ -1035,19 +1034,11 @@ def quilt(
     ``tile``) and its box sums, ``n x`` (blocks per wavefront) bounds, a float32 canvas
     and the float64 result; per block the plan keeps only a few integers.
     """
-    _check_tolerance(tolerance)
+    check_number(tolerance, "tolerance")
     prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=detail, flat_share=flat_share,
                             guide_scale=None if guide is None else guide_scale)
     return quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
                           guide_weight=guide_weight, reuse=reuse)
-
-
-def _check_tolerance(tolerance) -> float:
-    if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real) or not (
-        math.isfinite(tolerance) and tolerance >= 0
-    ):
-        raise TGHopError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
-    return float(tolerance)
 
 
 def _check_groups(groups, group_cost, n, plan):
@@ -1191,9 +1182,8 @@ def quilt_prepared(
     if not isinstance(prepared, PreparedPool):
         raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
     dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")  # "junk" too: one line
-    tolerance = _check_tolerance(tolerance)
-    if isinstance(reuse, bool) or not isinstance(reuse, numbers.Real) or not (math.isfinite(reuse) and reuse >= 0):
-        raise TGHopError(f"reuse must be a finite number >= 0, got {reuse!r}")
+    tolerance = check_number(tolerance, "tolerance")
+    check_number(reuse, "reuse")
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
     costs = _check_groups(groups, group_cost, arr.shape[0], plan)
