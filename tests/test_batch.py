@@ -628,7 +628,7 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     # The failed Client was closed then, not left to a later collection (which deadlocked in
     # the next LocalCluster's start): none is left apart from the fixture's.
     import distributed
-    assert [c for c in gc.get_objects() if isinstance(c, distributed.Client)] == [fixture_client]
+    assert [c for c in gc.get_objects() if type(c) is distributed.Client] == [fixture_client]
     code, _, err, exc = invoke("batch", "src", "-o", "out3", "--scheduler", "notanaddress", *CLI_FAST, cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler at notanaddress", exception=exc)
     assert not (tmp_path / "out3" / "index.html").exists()  # nothing finished: no empty contact sheet

@@ -494,16 +494,12 @@ def dask_setup(worker):
     the modules of a task are imported. (Workers started by hand for ``--scheduler`` get
     the same from the environment: ``MALLOC_ARENA_MAX=1 MALLOC_MMAP_MAX_=0
     MALLOC_TRIM_THRESHOLD_=1073741824 dask worker ...``.)"""
-    import signal
-    import threading
-
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     # Dask's MALLOC_TRIM_THRESHOLD_ is replaced; a value of one's own in the environment is kept.
     tune_malloc(keep=[k for k, (name, dask_value) in _MALLOC_ENV.items()
                       if os.environ.get(name, dask_value) != dask_value])
-    # What a task needs, imported while the cluster starts (in every worker at once)
-    # rather than in each worker's first task.
+    # What a task needs, imported while the cluster starts (in every worker at once), not in its first task.
     import numpy.fft  # noqa: F401
     import PIL.Image  # noqa: F401
     import threadpoolctl  # noqa: F401
@@ -785,10 +781,8 @@ def _connect(scheduler):
         return distributed.Client(scheduler, timeout="5s")
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
         reason = _one_line(exc)
-    # The half-started Client is left in a reference cycle (held by the traceback until the
-    # except clause ends). Collected later, its __del__ closes it again from whatever the
-    # collector interrupts: inside a LocalCluster's start that deadlocks on the loop runner's
-    # lock. Collect it here, where nothing else runs.
+    # The half-started Client is in a reference cycle: collected later, inside a LocalCluster's
+    # start, its __del__ deadlocks on the loop runner's lock. Collect it now (after the except).
     gc.collect()
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
 
