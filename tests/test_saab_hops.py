@@ -262,6 +262,14 @@ def test_saab_and_hops_refuse_bad_input_with_one_line_errors(small_patches, call
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize("max_sq_norm", [True, np.bool_(True), -1.0, np.inf, np.nan, "4", None])
+def test_saab_from_moments_refuses_a_largest_norm_that_is_not_a_finite_number(max_sq_norm):
+    mean, second = np.zeros(4), np.eye(4)
+    with pytest.raises(TGHopError, match=r"^max_sq_norm must be a finite number >= 0, got "):
+        Saab().fit_moments(mean, second, max_sq_norm)
+    assert Saab().fit_moments(mean, second, np.float32(4.0)).bias_ == 2.0
+
+
 def test_saab_transforms_check_the_fitted_width(rng):
     X = rng.random((200, 12))
     s = Saab().fit(X)

@@ -38,13 +38,13 @@ texture model behind :func:`tghop.metrics.gram_distance`.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Optional
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 
+from ._arrays import check_number
 from ._common import (
     MissingExtraError,
     ProgressCallback,
@@ -215,10 +215,7 @@ def blurred_crop(
         cropping, so the crop's own borders are not darkened.
     """
     img = check_image(exemplar, name="exemplar")
-    if isinstance(sigma, (bool, np.bool_)) or not isinstance(sigma, (numbers.Real, np.floating, np.integer)) \
-            or not (math.isfinite(sigma) and sigma > 0):
-        raise TGHopError(f"sigma must be a finite positive number, got {sigma!r}")
-    sigma = float(sigma)
+    sigma = check_number(sigma, "sigma", positive=True)
     h, w = check_size(size, default=img.shape[:2])
     check_memory(memory_estimate("blurred-crop", img.shape), (h, w), what="the blurred-crop baseline")
     y, x = _random_offset(check_rng(rng), img.shape, (h, w))

@@ -22,10 +22,11 @@ Choices not fixed by the paper (documented here and in the notes):
 
 from __future__ import annotations
 
+import math
 
 import numpy as np
 
-from ._arrays import check_array, check_width, forget_fit
+from ._arrays import check_array, check_number, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
 from .settings import check_channel_rule
 
@@ -184,8 +185,7 @@ class Saab(TransformerMixin, BaseEstimator):
         second_moment = check_array(second_moment, "second_moment", f"(d, d) = ({d}, {d})", ndim=2)
         if second_moment.shape != (d, d):
             raise TGHopError(f"second_moment must have shape (d, d) = ({d}, {d}), got {second_moment.shape}")
-        if not (isinstance(max_sq_norm, (int, float, np.integer, np.floating)) and 0 <= max_sq_norm < np.inf):
-            raise TGHopError(f"max_sq_norm must be a finite number >= 0, got {max_sq_norm!r}")
+        max_sq_norm = check_number(max_sq_norm, "max_sq_norm")
         if isinstance(rule, int) and rule > d:
             raise TGHopError(f"a Saab transform of {d}-dimensional vectors has at most {d} components, "
                              f"got n_components={rule}; choose at most {d}")
@@ -196,7 +196,7 @@ class Saab(TransformerMixin, BaseEstimator):
         ac = 1 + select_channels(energy[order][1:], rule, n_fixed=1)
         self.energy_ = energy[order]
         self.n_features_in_ = mean.size
-        self.bias_ = float(np.sqrt(max_sq_norm))
+        self.bias_ = math.sqrt(max_sq_norm)
         self._all_kernels_ = kernels[order]
         self._set_channels(np.concatenate([[0], np.sort(ac)]))
         return self
