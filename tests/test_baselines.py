@@ -333,6 +333,15 @@ def test_gpdm_refusals(exemplar, monkeypatch):
         baselines.gpdm(exemplar, 16, scale_factor=1.0)
     with pytest.raises(TGHopError, match="init"):
         baselines.gpdm(exemplar, 16, init="zeros")
+    bad = [("n_steps", -1, "an integer >= 0"), ("n_steps", 2.5, "an integer >= 0"),
+           ("n_projections", 0, "an integer >= 1"),
+           ("patch_size", True, "an integer >= 1"), ("coarsest", "8", "an integer >= 1"),
+           ("scale_factor", 0.0, "a finite number > 0"), ("scale_factor", float("nan"), "a finite number > 0"),
+           ("lr", 0, "a finite number > 0"), ("lr", float("inf"), "a finite number > 0"),
+           ("noise_sigma", -0.5, "a finite number >= 0"), ("noise_sigma", "0.5", "a finite number >= 0")]
+    for name, value, wanted in bad:
+        with pytest.raises(TGHopError, match=rf"^gpdm: {name} must be {wanted}, got "):
+            baselines.gpdm(exemplar, 16, **{name: value})
     from tghop import _common
 
     monkeypatch.setattr(_common, "available_memory", lambda: 8 * 2**20)  # 8 MB available

@@ -161,9 +161,13 @@ def test_boost_condition_scales_one_bin_and_its_mirror():
             and np.allclose(np.delete(out, [2, 6], 0), np.delete(cond, [2, 6], 0)))
     assert np.allclose(boost_condition(cond, 1, 1, 0.5)[4], 0.5 * cond[4])
     assert out is not cond and np.array_equal(cond, np.random.default_rng(0).random((9, 2, 3)))  # a copy
-    for a, b, f in ((0, 3, 2.0), (-1, 0, 2.0), (0, 0, -1.0), (0, 0, float("inf")), (True, 0, 2.0)):
-        with pytest.raises(TGHopError, match=r"must lie in 0\.\.2 \(this model has 3 colour clusters\)"):
-            boost_condition(cond, a, b, f)
+    for a, b in ((0, 3), (-1, 0), (True, 0), (0, 1.0)):
+        with pytest.raises(TGHopError, match=r"^the boosted clusters must lie in 0\.\.2 \(this model has 3 colour "
+                                             r"clusters\), got "):
+            boost_condition(cond, a, b, 2.0)
+    for f in (-1.0, float("inf"), float("nan"), "2", True):
+        with pytest.raises(TGHopError, match=r"^the factor must be a finite number >= 0, got "):
+            boost_condition(cond, 0, 0, f)
 
 
 @needs_torch

@@ -16,6 +16,7 @@ from typing import Optional
 
 import numpy as np
 
+from ._arrays import check_int, check_number
 from ._common import (ProgressCallback, TGHopError, check_image, check_memory, check_rng, check_size, import_torch,
                       report, usable_cores)
 
@@ -164,16 +165,15 @@ def gpdm(
     """
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
-    n_steps, n_projections, patch_size, coarsest = int(n_steps), int(n_projections), int(patch_size), int(coarsest)
-    scale_factor, lr, noise_sigma = float(scale_factor), float(lr), float(noise_sigma)
-    if n_steps < 0 or n_projections < 1:
-        raise TGHopError(f"n_steps must be >= 0 and n_projections >= 1, got {n_steps} and {n_projections}")
-    if patch_size < 1 or coarsest < 1:
-        raise TGHopError(f"patch_size and coarsest must be positive, got {patch_size} and {coarsest}")
-    if not 0.0 < scale_factor < 1.0:
-        raise TGHopError(f"scale_factor must lie in (0, 1), got {scale_factor}")
-    if not (math.isfinite(lr) and lr > 0) or not (math.isfinite(noise_sigma) and noise_sigma >= 0):
-        raise TGHopError(f"lr must be positive and noise_sigma non-negative, got {lr} and {noise_sigma}")
+    n_steps = check_int(n_steps, "n_steps", 0, where="gpdm")
+    n_projections = check_int(n_projections, "n_projections", where="gpdm")
+    patch_size = check_int(patch_size, "patch_size", where="gpdm")
+    coarsest = check_int(coarsest, "coarsest", where="gpdm")
+    scale_factor = check_number(scale_factor, "scale_factor", positive=True, where="gpdm")
+    if not scale_factor < 1.0:
+        raise TGHopError(f"gpdm: scale_factor must lie in (0, 1), got {scale_factor!r}")
+    lr = check_number(lr, "lr", positive=True, where="gpdm")
+    noise_sigma = check_number(noise_sigma, "noise_sigma", where="gpdm")
     if init not in ("noise", "blurred"):
         raise TGHopError(f"init must be 'noise' or 'blurred', got {init!r}")
     if min(img.shape[:2]) < patch_size or min(h, w) < patch_size:

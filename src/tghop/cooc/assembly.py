@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._arrays import check_number
 from .._common import TGHopError
 
 __all__ = [
@@ -113,9 +114,10 @@ def boost_condition(cond, a: int, b: int, factor: float) -> np.ndarray:
     if k == 0 or k * k != cond.shape[0]:
         raise TGHopError(f"cond must be a (k*k, h, w) co-occurrence tensor, got shape {cond.shape}")
     ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v < k for v in (a, b))
-    if not ok or not (isinstance(factor, (int, float, np.number)) and np.isfinite(factor) and factor >= 0):
-        raise TGHopError(f"the boosted clusters must lie in 0..{k - 1} (this model has {k} colour clusters) and "
-                         f"the factor be a finite number >= 0, got {a!r}, {b!r}, {factor!r}")
+    if not ok:
+        raise TGHopError(f"the boosted clusters must lie in 0..{k - 1} (this model has {k} colour clusters), "
+                         f"got {a!r} and {b!r}")
+    factor = check_number(factor, "the factor")
     cond[a * k + b] *= factor
     if a != b:
         cond[b * k + a] *= factor
