@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tghop.colour import (ColourClasses, channel_quantiles, class_separation, class_shares, colour_classes,
-                          match_histograms, mixed_quantiles)
+                          match_histograms, mixed_quantiles, share_spread)
 from tghop.refine import BandStatistics
 from tghop._common import TGHopError
 
@@ -90,6 +90,24 @@ def test_shares_move_only_as_far_as_the_exemplars_crops_vary(rng):
         colour_q = classes.targets(image)[1]
         grey_share = np.mean(match_histograms(image, colour_q).mean(axis=2) < 0.7)
         assert moved[0] <= grey_share - 0.4 <= moved[1], (stripes, grey_share)
+
+
+def test_the_spread_is_over_crops_at_every_position_not_a_grid_in_step_with_the_stripes():
+    # Stripes of period 32 and crops of 48x48 on a 144x96 exemplar: crops started every 32
+    # rows (tghop 0.49.0's 4x4 grid) all hold the same shares, and measured no spread at all.
+    rows = (np.arange(144) // 16) % 2
+    exemplar = np.repeat(np.repeat(rows[:, None, None], 96, axis=1), 3, axis=2).astype(float)
+    centres = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    every = np.array([class_shares(exemplar[y:y + 48, :48], centres) for y in range(97)])
+    spread = share_spread(exemplar, centres)
+    assert spread[-1] == 48 and every.std(axis=0)[0] > 0.09
+    np.testing.assert_allclose(spread[:-1], every.std(axis=0), rtol=0.02)
+    # A mask: each crop's shares over its pixels outside it, crops mostly under it left out.
+    exclude = np.zeros((144, 96), dtype=bool)
+    exclude[:, :60] = True
+    kept = [class_shares(exemplar[y:y + 48, x:x + 48][~exclude[y:y + 48, x:x + 48]], centres)
+            for y in range(97) for x in range(49) if (~exclude[y:y + 48, x:x + 48]).sum() * 2 >= 48 * 48]
+    np.testing.assert_allclose(share_spread(exemplar, centres, exclude)[:-1], np.std(kept, axis=0), rtol=0.02)
 
 
 def test_a_sample_mask_is_checked_as_patch_statistics_checks_it(rng):

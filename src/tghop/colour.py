@@ -255,31 +255,49 @@ def class_separation(pixels, centres) -> float:
     return float(np.clip((_CONTINUOUS - near) / (_CONTINUOUS - _SEPARATE), 0.0, 1.0))
 
 
-#: Crops per side of :func:`share_spread` (a grid of them, overlapping where they must).
-_SPREAD_GRID = 4
+#: Pixels :func:`share_spread` labels: a strided grid of the exemplar beyond this.
+_SPREAD_PIXELS = 1 << 18
+#: Crop positions per axis of :func:`share_spread` at most (every position below).
+_SPREAD_POSITIONS = 64
 
 
 def share_spread(image, centres, exclude=None) -> np.ndarray:
     """How much the class shares vary between crops of ``image`` (H, W, C) of half its
-    shorter side, on a 4x4 grid: (K + 1,), each class's standard deviation, then the
-    crops' side (a share's spread in an image of side L is about the crops' times
-    side / L). With ``exclude`` (H, W) bool, a sample mask, each crop's shares are those of
-    its pixels outside the mask, and crops with less than half of theirs outside are left
-    out; fewer than two left: no spread (zeros), so images keep the exemplar's shares."""
+    shorter side: (K + 1,), each class's standard deviation over the crops, then the crops'
+    side (a share's spread in an image of side L is about the crops' times side / L).
+
+    The crops start at every position, or at up to 64 evenly spaced ones per axis: a
+    sparse grid of them can fall in step with a periodic exemplar (a stripe's period) and
+    find every crop alike. Pixels are labelled once, on a strided grid of at most about
+    262,144 of them, and each crop's shares are read from summed-area tables. With
+    ``exclude`` (H, W) bool, a sample mask, each crop's shares are those of its pixels
+    outside the mask, and crops with less than half of theirs outside are left out; fewer
+    than two left: no spread (zeros), so images keep the exemplar's shares."""
     h, w = image.shape[:2]
     side = max(1, min(h, w) // 2)
-    starts = [np.linspace(0, n - side, _SPREAD_GRID).round().astype(int) for n in (h, w)]
-    shares = []
-    for y in starts[0]:
-        for x in starts[1]:
-            crop = image[y:y + side, x:x + side]
-            if exclude is None:
-                shares.append(class_shares(crop, centres))
-            elif 2 * np.count_nonzero(keep := ~exclude[y:y + side, x:x + side]) >= keep.size:
-                shares.append(class_shares(crop[keep], centres))
-    if len(shares) < 2:
+    k = max(1, int(np.ceil(np.sqrt(h * w / _SPREAD_PIXELS))))  # the labelling grid's stride
+    grid = np.asarray(image)[::k, ::k]
+    gh, gw = grid.shape[:2]
+    pixels = np.asarray(grid.reshape(-1, grid.shape[-1]), dtype=np.float64)
+    if grid.dtype == np.uint8:
+        pixels /= 255.0
+    labels = class_labels(pixels, centres).reshape(gh, gw)
+    keep = np.ones((gh, gw), dtype=bool) if exclude is None else ~np.asarray(exclude, dtype=bool)[::k, ::k]
+    counts = np.zeros((gh + 1, gw + 1, len(centres) + 1))  # summed-area tables: each class, then pixels kept
+    counts[1:, 1:, :-1] = (labels[..., None] == np.arange(len(centres))) & keep[..., None]
+    counts[1:, 1:, -1] = keep
+    counts.cumsum(axis=0, out=counts)
+    counts.cumsum(axis=1, out=counts)
+    s = max(1, -(-side // k))  # the crop's side on the grid
+    ys, xs = (np.unique(np.linspace(0, n - s, min(n - s + 1, _SPREAD_POSITIONS)).round().astype(int))
+              for n in (gh, gw))
+    y0, x0 = ys[:, None], xs[None, :]
+    sums = counts[y0 + s, x0 + s] - counts[y0, x0 + s] - counts[y0 + s, x0] + counts[y0, x0]
+    sums = sums.reshape(-1, len(centres) + 1)
+    sums = sums[2 * sums[:, -1] >= s * s]  # crops with at least half their pixels kept
+    if len(sums) < 2:
         return np.zeros(len(centres) + 1)
-    return np.append(np.std(shares, axis=0), side)
+    return np.append(np.std(sums[:, :-1] / sums[:, -1:], axis=0), side)
 
 
 def class_shares(image, centres) -> np.ndarray:
