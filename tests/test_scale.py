@@ -141,7 +141,10 @@ def test_command_line_scale(tmp_path):
     assert all(r.returncode == 0 for r in scores)
     plain, scaled = (json.loads(r.stdout)["swd"] for r in scores)
     assert scaled != plain  # scored against the exemplar resampled as the model saw it
-    assert_user_error(cli("evaluate", tmp_path / "ex.png", tmp_path / "out.png", "--scale", "0"), "--scale")
+    for bad in ("0", "nan"):  # NaN passed click's FloatRange and reached the resampling (a traceback)
+        for command in (("evaluate", tmp_path / "ex.png", tmp_path / "out.png"),
+                        ("extend", tmp_path / "ex.png", "-o", tmp_path / "bad.png")):
+            assert_user_error(cli(*command, "--scale", bad), f"'--scale': '{bad}' must be a finite number > 0")
     for bad, why in (("0", "'--scale': '0' must be a finite number > 0"), ("x", "'x' is not a number"),
                      ("0.05", "at scale 0.05 (given 128x128)")):
         assert_user_error(cli("synth", tmp_path / "ex.png", "-o", tmp_path / "bad.png", "--scale", bad), why)

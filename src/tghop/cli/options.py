@@ -46,8 +46,7 @@ def scale_option(help: str):
     from ..settings import BY_NAME
 
     setting = BY_NAME["scale"]
-    return click.option("--scale", type=click.FloatRange(min=setting.low, max=setting.high, min_open=setting.low_open),
-                        default=setting.default, show_default=True, help=help)
+    return click.option("--scale", type=SettingType(setting), default=setting.default, show_default=True, help=help)
 
 
 class ChannelRule(click.ParamType):
