@@ -100,8 +100,13 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     # names of OUTDIR's own files are kept for them; OUTDIR cannot be SOURCE itself
     (tmp_path / "batch.jsonl.png").write_bytes(b"x")
     (tmp_path / "INDEX.HTML.png").write_bytes(b"x")
+    # and the thumbnail's: with --count 1 exemplar.png's image was the thumbnail's file, and
+    # a name of no letters (\u7eb9\u7406.png) fell back to that name.
+    (tmp_path / "Exemplar.png").write_bytes(b"x")
+    (tmp_path / "\u7eb9\u7406.png").write_bytes(b"x")
     names = sorted(it["name"] for it in batch.find_work(tmp_path))
-    assert names == ["INDEX.HTML_exemplar", "a", "b_jpg", "b_png", "batch.jsonl_exemplar", "sub__a"]
+    assert names == ["Exemplar_exemplar", "INDEX.HTML_exemplar", "a", "b_jpg", "b_png", "batch.jsonl_exemplar",
+                     "sub__a", "unnamed"]
     with pytest.raises(TGHopError, match="OUTDIR is the SOURCE folder"):
         batch.find_work(tmp_path, outdir=tmp_path / "sub" / "..")
     with pytest.raises(TGHopError, match="count must be an integer from 1 to 1,000, got 0"):

@@ -53,8 +53,8 @@ LEDGER = "batch.jsonl"
 INSTALL_HINT = "pip install 'tghop[batch]'"
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
-#: Longest side of the exemplar thumbnail of the contact sheet.
-THUMBNAIL = 128
+#: Longest side of the exemplar thumbnail of the contact sheet, and its file in NAME/.
+THUMBNAIL, THUMBNAIL_FILE = 128, "exemplar.png"
 #: glibc ``malloc`` settings a worker makes (:func:`dask_setup`, ``mallopt``): no array gets
 #: a mapping of its own (``M_MMAP_MAX`` 0: every array, however large, comes from the heap and
 #: goes back to it), and up to 1 GB freed at the top of the heap is kept for the next one. A
@@ -93,9 +93,9 @@ def _scan_folder(folder: Path, outdir: Path):
 
 
 def _safe(text: str) -> str:
-    name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "exemplar"
-    # OUTDIR's own files: an exemplar's folder of that name would stand where they go.
-    return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET) else name
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "unnamed"
+    # OUTDIR's own files (a folder of that name would stand there) and the thumbnail (<name>.png's).
+    return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET, Path(THUMBNAIL_FILE).stem) else name
 
 
 def _unique_names(items):
@@ -277,7 +277,7 @@ def process_exemplar(job: dict) -> dict:
             t = time.time()
             model.fit(image)
             record["fit_seconds"] = time.time() - t
-            thumb = "exemplar.png"
+            thumb = THUMBNAIL_FILE
             _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8),
                        stage / thumb)
             model_file = f"{name}.npz"
