@@ -91,6 +91,33 @@ def test_float_tiff_in_unit_range_is_read_as_is(tmp_path):
     np.testing.assert_allclose(load_image(tmp_path / "g.tif")[..., 0], levels / 255.0, atol=1e-7)
 
 
+def test_a_float_image_outside_the_unit_range_is_clipped_within_rounding_or_refused(tmp_path):
+    # tghop 0.49.0 took any float image outside [0, 1] for 8-bit levels: one pixel at 1.0001
+    # made the whole exemplar nearly black, and heights of 0-3 came out as 0-0.012.
+    from PIL import Image
+
+    from tghop._errors import InvalidImageError
+    from tghop.imageio import load_image
+
+    tifffile = pytest.importorskip("tifffile")
+    values = np.random.default_rng(0).random((40, 30)).astype(np.float32)
+    over, heights, nan = values.copy(), values * 3 + 0.25, values.copy()
+    over[0, 0], nan[3, 4] = 1.0004, np.nan
+    for name, write in (("grey", lambda a, f: Image.fromarray(a, mode="F").save(f)),  # Pillow's path
+                        ("rgb", lambda a, f: tifffile.imwrite(f, np.repeat(a[..., None], 3, 2), photometric="rgb"))):
+        write(over, tmp_path / f"{name}_over.tif")
+        got = load_image(tmp_path / f"{name}_over.tif")
+        assert got.max() == 1.0 and np.allclose(got[..., 0].ravel()[1:], values.ravel()[1:], atol=1e-7)
+        write(heights, tmp_path / f"{name}_heights.tif")
+        with pytest.raises(InvalidImageError, match=rf"^\S*{name}_heights.tif: float pixel values from 0\.25\d* to "
+                                                    r"3\.2\d*; tghop reads float images with values in \[0, 1\]; "
+                                                    r"rescale it"):
+            load_image(tmp_path / f"{name}_heights.tif")
+        write(nan, tmp_path / f"{name}_nan.tif")
+        with pytest.raises(InvalidImageError, match=rf"{name}_nan.tif: NaN or infinite pixel values"):
+            load_image(tmp_path / f"{name}_nan.tif")
+
+
 def test_save_image_refuses_pixels_it_would_write_wrong(tmp_path, monkeypatch):
     import sys
 

@@ -210,12 +210,27 @@ def _read_deep(path, max_pixels, keep_alpha=False):
         return arr, mode, 8
     if arr.dtype == np.uint16:
         return arr / 65535.0, mode, 16
-    arr = arr.astype(np.float64)
+    return _float_pixels(arr.astype(np.float64), path), mode, 32
+
+
+def _float_pixels(arr, path):
+    """A float image's pixels (float64) in [0, 1], or a one-line :class:`InvalidImageError`.
+
+    Values within :data:`RANGE_TOLERANCE` of [0, 1] are clipped (float rounding, as
+    :func:`save_image` allows); whole numbers up to 65535 are integer levels in a float file
+    (an 8-bit range, else 16-bit, as Pillow's path reads integer images). Anything else (NaN,
+    infinity, heights in metres, HDR) is refused: divided as levels it became a nearly black
+    image without a word (tghop 0.49.0)."""
     if not np.all(np.isfinite(arr)):
-        raise ValueError("non-finite pixel values")
-    if arr.size and (arr.min() < 0.0 or arr.max() > 1.0):  # levels, as Pillow's path reads them
-        arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
-    return arr, mode, 32
+        raise InvalidImageError(f"{path}: NaN or infinite pixel values; tghop reads float images with values in "
+                                "[0, 1]; replace them first")
+    lo, hi = (arr.min(), arr.max()) if arr.size else (0.0, 1.0)
+    if lo >= -RANGE_TOLERANCE and hi <= 1.0 + RANGE_TOLERANCE:
+        return np.clip(arr, 0.0, 1.0)
+    if lo >= 0 and hi <= 65535 and np.array_equal(arr, np.round(arr)):
+        return arr / (65535.0 if hi > 255 else 255.0)
+    raise InvalidImageError(f"{path}: float pixel values from {lo:.6g} to {hi:.6g}; tghop reads float images with "
+                            "values in [0, 1]; rescale it to [0, 1] first (or save it with 8 or 16 bits)")
 
 
 #: Names of the TIFF photometric interpretations (tag 262) tghop does not read as grey or RGB itself.
@@ -376,10 +391,8 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
         arr = np.asarray(im.convert("L"))
     elif im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
         arr = np.asarray(im, dtype=np.float64)
-        if not np.all(np.isfinite(arr)):
-            raise ValueError("non-finite pixel values")
-        if im.mode == "F" and arr.size and arr.min() >= 0.0 and arr.max() <= 1.0:
-            pass  # a float image (TIFF, PFM) in [0, 1]: already in tghop's units
+        if im.mode == "F":  # a float image (TIFF, PFM)
+            arr = _float_pixels(arr, path)
         else:  # integer levels: 8-bit range, else 16-bit
             arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
     else:
