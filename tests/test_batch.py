@@ -621,11 +621,18 @@ def test_local_cluster_run(tmp_path, cluster):
 def test_cli_to_a_scheduler_address(tmp_path, cluster):
     local, fixture_client = cluster
     make_folder(tmp_path / "src", bad=False)
+    rgba = np.concatenate([data.bricks(64, rng=3), np.ones((64, 64, 1))], axis=2)
+    save_image(rgba, tmp_path / "src" / "a.png")
     code, _, err, _ = invoke("batch", "src", "-o", "out", "--scheduler", local.scheduler_address, "--size", "48",
                              "--seed", "2", *CLI_FAST, cwd=tmp_path)
     assert code == 0, err
     assert "2 of 2 exemplars done" in err
     assert {line["worker"].split(":")[1] for line in ledger(tmp_path / "out")} != {str(os.getpid())}
+    # A worker's warning is the ledger's and the command's one line (it was the worker's raw
+    # Python warning, with its source line).
+    assert err.count("Warning: a.png: alpha channel dropped\n") == 1 and "UserWarning" not in err
+    assert {line["name"]: line["warnings"] for line in ledger(tmp_path / "out")} == {
+        "a": ["a.png: alpha channel dropped"], "sub__a": []}
     code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,
                                cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)

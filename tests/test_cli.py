@@ -183,6 +183,13 @@ def test_rgba_warns_and_works(workdir):
     assert r.returncode == 0, r.stderr.decode()
     assert "alpha channel dropped" in r.stderr.decode()
 
+    # A warning comes before the error, so that the error is the last line (it came after).
+    Image.fromarray(np.full((64, 64, 4), 200, np.uint8), "RGBA").save(workdir / "flat.png")
+    r = run("fit", workdir / "flat.png", "-o", workdir / "flat.npz", *FAST)
+    lines = r.stderr.decode().strip().splitlines()
+    assert r.returncode == 1 and not (workdir / "flat.npz").exists()
+    assert lines[-2] == "Warning: flat.png: alpha channel dropped"
+    assert lines[-1].startswith("Error: the exemplar has no texture")
 
 # ------------------------------------------------------------------ evaluate / baseline
 def run_without_torch(*args, cwd=None):

@@ -35,6 +35,7 @@ import signal
 import tempfile
 import threading
 import time
+import warnings
 from pathlib import Path
 
 from ._errors import MissingExtraError, TGHopError
@@ -226,19 +227,19 @@ def process_exemplar(job: dict) -> dict:
     """Fit one exemplar and write its model, images and thumbnail (a plain top-level
     function, so that Dask pickles it by reference).
 
-    ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``,
-    ``size``, ``count``, ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's
-    parameters), ``generate`` (keywords of :meth:`TGHop.synthesize`), ``threads`` (threads at
-    most, BLAS's and tghop's own: :func:`tghop._common.limit_cores`; None: no limit).
+    ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``, ``size``, ``count``,
+    ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's parameters), ``generate`` (keywords of
+    :meth:`TGHop.synthesize`), ``threads`` (threads at most, BLAS's and tghop's own:
+    :func:`tghop._common.limit_cores`; None: no limit).
 
-    Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line),
-    ``outputs``, ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, times
-    (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part
-    of them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the
-    worker and its peak memory. Bad input is a "failed" record, never an exception.
-    The files are made in a hidden folder and moved into place together at the end: a
-    failed or interrupted exemplar (Ctrl-C, a killed worker: :func:`remove_temporaries`)
-    leaves none of its own, and an earlier run's files of it as they were.
+    Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``outputs``,
+    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (their messages),
+    times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
+    them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the worker and
+    its peak memory. Bad input is a "failed" record, never an exception. The files are made in a
+    hidden folder and moved into place together at the end: a failed or interrupted exemplar (Ctrl-C,
+    a killed worker: :func:`remove_temporaries`) leaves none of its own, and an earlier run's files of
+    it as they were.
     """
     import resource
     import socket
@@ -249,7 +250,7 @@ def process_exemplar(job: dict) -> dict:
     record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
               "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
               "worker": f"{socket.gethostname()}:{os.getpid()}"}
-    stage = None
+    stage, caught = None, []
     try:
         import numpy as np
         from threadpoolctl import threadpool_limits
@@ -266,7 +267,9 @@ def process_exemplar(job: dict) -> dict:
         # once all are made: a failed, interrupted or killed task leaves none of its files
         # (and the files of an earlier run of this exemplar as they were).
         stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
-        with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")):
+        with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")), \
+                warnings.catch_warnings(record=True) as caught:  # the ledger's, not a worker's stderr
+            warnings.simplefilter("always")
             fit = job.get("fit") or {}
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
                 raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
@@ -307,10 +310,9 @@ def process_exemplar(job: dict) -> dict:
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
         if record["status"] != "ok":
-            try:
+            with contextlib.suppress(OSError):
                 folder.rmdir()  # only when empty
-            except OSError:
-                pass
+    record["warnings"] = [str(w.message) for w in caught if issubclass(w.category, (UserWarning, RuntimeWarning))]
     record["seconds"] = time.time() - start
     record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
     now = resource.getrusage(resource.RUSAGE_SELF)
@@ -429,10 +431,8 @@ def _remove_stale(outdir: Path, prev: dict | None, rec: dict) -> None:
     folder = (outdir / rec["name"]).resolve()
     for f in set(_listed_files(prev)) - keep:
         if (outdir / f).resolve().parent == folder:
-            try:
+            with contextlib.suppress(OSError):
                 (outdir / f).unlink()
-            except OSError:
-                pass
 
 
 # ------------------------------------------------------------------ running
@@ -752,10 +752,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             ledger_file.close()
         for job in jobs:
             remove_temporaries(job["folder"])
-            try:
+            with contextlib.suppress(OSError):
                 os.rmdir(job["folder"])  # only when empty: a failed exemplar's
-            except OSError:
-                pass
         ordered = [results[it["name"]] for it in items if it["name"] in results]
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
             write_contact_sheet(outdir, ordered, total=len(items))

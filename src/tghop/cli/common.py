@@ -89,36 +89,38 @@ def fail(message: str, code: int = 1):
     sys.exit(code)
 
 
+def _show_warnings(caught):
+    """Each caught user or runtime warning as one ``Warning:`` line on stderr; the list emptied."""
+    for w in caught:
+        if issubclass(w.category, (UserWarning, RuntimeWarning)):
+            click.echo(f"Warning: {w.message}", err=True)
+    caught.clear()
+
+
 @contextmanager
 def user_errors(progress=None):
-    """Turn library errors into one line on stderr; show warnings as one line each."""
+    """Turn library errors into one line on stderr; show warnings as one line each (before
+    the error, so that the error is the last line)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             yield
-        except TGHopError as exc:
+        except (TGHopError, MemoryError, OSError, KeyboardInterrupt) as exc:
             if progress:
                 progress.close()
-            fail(str(exc))
-        except MemoryError:
-            if progress:
-                progress.close()
-            fail("out of memory; use a smaller output size, pool or exemplar")
-        except OSError as exc:  # a file system error the checks above did not foresee
-            if progress:
-                progress.close()
-            where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
-            fail(f"{where}{exc.strerror or exc}")
-        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
-            if progress:
-                progress.close()
-            fail(*stop_message(exc))
+            _show_warnings(caught)
+            if isinstance(exc, TGHopError):
+                fail(str(exc))
+            if isinstance(exc, MemoryError):
+                fail("out of memory; use a smaller output size, pool or exemplar")
+            if isinstance(exc, OSError):  # a file system error the checks above did not foresee
+                where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
+                fail(f"{where}{exc.strerror or exc}")
+            fail(*stop_message(exc))  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
         finally:
             if progress:
                 progress.close()
-            for w in caught:
-                if issubclass(w.category, (UserWarning, RuntimeWarning)):
-                    click.echo(f"Warning: {w.message}", err=True)
+            _show_warnings(caught)
 
 
 #: What to do about an image over the size limit, in a command with ``--downscale`` and in one without.
