@@ -33,6 +33,9 @@ def folder(tmp_path_factory, small_model):
     (d / "garbage.npz").write_bytes(b"not a zip, not an image")
     (d / "notes.npz").write_bytes(b"PK\x03\x04 and then nothing a zip reader wants")
     np.savez(d / "plain.npz", a=np.arange(3))
+    hole = np.zeros((72, 72))
+    hole[20:40, 20:40] = 1
+    save_image(hole, d / "hole.png")
     os.mkdir(d / "cnt_2.png")  # the second file of a --count 3 set is a folder
     os.mkdir(d / "sheet_stages.png")  # the --stages file is a folder
     return d
@@ -73,6 +76,16 @@ CASES = [
     (["evaluate", "big.png", "keep.png"], ["9000x9000", "downscale it first"]),
     (["evaluate", "keep.png", "big.png"], ["9000x9000", "downscale it first"]),
     (["baseline", "crop", "big.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
+    # commands without --downscale were told "pass downscale=True" or "pass --downscale"
+    (["inpaint", "big.png", "keep.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
+    (["morph", "big.png", "model.npz", "-o", "o.png"], ["9000x9000", "downscale it first"]),
+    (["synth", "model.npz", "model.npz", "--guide", "big.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
+    (["synth", "big.png", "model.npz", "-o", "o.png"], ["9000x9000", "pass --downscale"]),
+    # an exemplar too small for the default fit (keep.png is 72x72): named, with the fixes the command has
+    (["morph", "model.npz", "keep.png", "-o", "o.png"], ["B keep.png is 72x72 pixels, too small", "76x76"]),
+    (["inpaint", "keep.png", "hole.png", "--source", "keep.png", "-o", "o.png"],
+     ["--source keep.png is 72x72 pixels, too small", "76x76"]),
+    (["synth", "model.npz", "keep.png", "-o", "o.png"], ["SOURCE 2 (keep.png): exemplar is 72x72", "--stride"]),
     # the other commands: baseline and the cGAN's (checked before torch or a checkpoint is read)
     (["baseline", "crop", "keep.png", "-o", "keep.png"], ["-o would overwrite EXEMPLAR"]),
     (["cooc", "train", "keep.png", "-o", "-"], ["-o -", "checkpoint cannot go to stdout"]),
@@ -88,8 +101,10 @@ def test_refused_before_anything_is_written(folder, args, fragments):
     before = snapshot(folder)
     code, _, err, exc = invoke(*args, cwd=folder)
     assert_one_line(code, err, *fragments, exception=exc)
-    if args[0] in ("evaluate", "baseline"):  # no --downscale there: the advice does not name it
-        assert "--downscale" not in err
+    if "downscale it first" in fragments:  # no --downscale there: the advice does not name it
+        assert "--downscale" not in err and "downscale=True" not in err
+    if args[0] in ("morph", "inpaint"):  # nor fit options they lack
+        assert "--stride" not in err and "--clusters" not in err
     assert snapshot(folder) == before  # nothing written, nothing replaced, no temporary file
 
 

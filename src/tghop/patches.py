@@ -177,13 +177,15 @@ class ExemplarTooSmallError(TGHopError):
     (``tghop extend``: IMAGE)."""
 
 
-def enough_patches(n_patches, need, patch_size):
+def enough_patches(n_patches, need, patch_size, per_cluster=None):
     """Raise a one-line :class:`TooLittleTextureError` when a mask leaves fewer than ``need``
-    training patches."""
+    training patches; with ``per_cluster`` (ICHM's least cluster size) it names the N that fits."""
     if n_patches < need:
+        fewer = (f", or N of at most {n_patches // per_cluster} (n_clusters, --clusters)"
+                 if per_cluster and n_patches >= per_cluster else "")
         exc = TooLittleTextureError(
             f"too little texture outside the mask: {n_patches} training patches of {patch_size}x{patch_size} "
-            f"avoid it, at least {need} are needed; use a smaller mask or a larger image")
+            f"avoid it, at least {need} are needed; use a smaller mask or a larger image{fewer}")
         exc.n_patches, exc.need, exc.patch_size = n_patches, need, patch_size
         raise exc
 

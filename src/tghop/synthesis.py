@@ -258,7 +258,8 @@ class TGHop(BaseEstimator):
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
                                 max_patches=self.max_patches, rng=rng, exclude=exclude)
         if exclude is not None:
-            enough_patches(len(origins), ichm.clusters_for(len(origins)) * ichm.min_cluster_size, self.patch_size)
+            enough_patches(len(origins), ichm.clusters_for(len(origins)) * ichm.min_cluster_size, self.patch_size,
+                           ichm.min_cluster_size)
         ichm._check_params(len(origins))  # fail before the expensive stages
         forget_fit(self, private=("_fitted_params",))  # an earlier fit's state goes now, not on a bad setting
         self.exemplar_shape_ = image.shape

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .._errors import TGHopError
+from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors
 from ..fit_options import build_model
@@ -23,25 +23,38 @@ GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or 
 TRANSITION_HELP = "Width in pixels of the soft transition where regions meet (with several SOURCEs)."
 
 
-def _read(spec, downscale=False):
+def _read(spec, downscale=None):
     """A saved model (.npz), or an exemplar (a file or builtin:NAME) read and checked, to fit
-    with :func:`_fitted`; reading every SOURCE first refuses a bad one before anything is fitted."""
+    with :func:`_fitted`; reading every SOURCE first refuses a bad one before anything is fitted.
+    ``downscale``: the command's ``--downscale`` (None: it has none)."""
     from ..synthesis import prepare_exemplar
 
     if not spec.startswith("builtin:") and (spec.lower().endswith(".npz") or is_model_file(spec)):
         from ..modelfile import load_model
 
         return load_model(spec)
-    return prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True))
+    return prepare_exemplar(load_exemplar(spec, downscale=bool(downscale), dtype=None,
+                                          has_downscale=downscale is not None))
 
 
-def _fitted(source, options, progress):
-    """``source`` from :func:`_read` as a model: a saved one as it is, an exemplar fitted with the fit ``options``."""
+def _fitted(source, options, progress, label):
+    """``source`` from :func:`_read` as a model: a saved one as it is, an exemplar fitted with the fit
+    ``options`` (None: the command has none, and a too small exemplar is told so in its own words).
+    ``label``: the input, for the message (``SOURCE 2 (x.png)``)."""
     import numpy as np
+
+    from ..patches import ExemplarTooSmallError
 
     if not isinstance(source, np.ndarray):
         return source
-    return build_model(options, n_colours=source.shape[2]).fit(source, progress=progress)
+    try:
+        return build_model(options or {}, n_colours=source.shape[2]).fit(source, progress=progress)
+    except ExemplarTooSmallError as exc:
+        if options is not None:
+            raise TGHopError(f"{label}: {exc}") from None
+        raise TGHopError(f"{label} is {source.shape[0]}x{source.shape[1]} pixels, too small to fit a model on (at "
+                         f"least {exc.least_side}x{exc.least_side} pixels); give a larger exemplar or a saved model "
+                         "fitted with other settings ('tghop fit')") from None
 
 
 def _load_guide(path, size, size_given):
@@ -50,7 +63,7 @@ def _load_guide(path, size, size_given):
 
     if is_model_file(path):
         raise TGHopError(f"--guide {path} is a model file, not an image; give a painted map")
-    guide = load_image(path, dtype=None)
+    guide = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
     if size_given and tuple(guide.shape[:2]) != tuple(size):
         raise TGHopError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is {size[0]}x{size[1]}; "
                          "paint the map at the output size or drop --size (the map's size is taken)")
@@ -102,7 +115,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             one = len(fitting) == 1
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
-    models = [_fitted(source, options, progress) for source in read]
+    models = [_fitted(source, options, progress, f"SOURCE {i} ({spec})")
+              for i, (spec, source) in enumerate(zip(sources, read), start=1)]
     rng = np.random.default_rng(seed)
     for path in outputs:
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
@@ -152,7 +166,8 @@ def morph(source_a, source_b, output, size, grid, seed, stations, quiet):
         check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)
         read_a, read_b = _read(source_a), _read(source_b)
-        model_a, model_b = _fitted(read_a, {}, progress), _fitted(read_b, {}, progress)
+        model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
+                                                                                     f"B {source_b}")
         rows = []
         for row in range(grid):
             rng = np.random.default_rng(None if seed is None else seed + row)

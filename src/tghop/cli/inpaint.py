@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from .._errors import TGHopError
+from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
 from .options import Size, depth_option, scale_option
@@ -125,7 +125,8 @@ def _open(image, output, source, scale, depth, *, others):
         raise TGHopError("--scale applies to an exemplar given as --source; "
                          + ("a saved model keeps the scale it was fitted at" if source else
                             "IMAGE's own texture is at IMAGE's scale already"))
-    picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True)
+    picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True,
+                                      too_large_hint=HINT_DOWNSCALE_YOURSELF)
     picture, alpha = split_alpha(picture)
     return picture, alpha, check_depth(output, depth or deepest(output, image_depth)), source_is_model
 
@@ -150,8 +151,14 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                 "" if source is None else " of --source's model" if model is not None
                 else " of the model fitted on --source")
     if model is None and source is not None:
-        exemplar = prepare_exemplar(load_exemplar(source, dtype=None))  # fit names the smallest size that works
-        model = TGHop(rng=rng, scale=scale).fit(exemplar, progress=progress)
+        exemplar = prepare_exemplar(load_exemplar(source, dtype=None))
+        try:
+            model = TGHop(rng=rng, scale=scale).fit(exemplar, progress=progress)
+        except ExemplarTooSmallError as exc:  # its fixes name fit options these commands lack
+            at = "" if scale == 1 else f" at --scale {scale:g}"
+            raise TGHopError(f"--source {source} is {exemplar.shape[0]}x{exemplar.shape[1]} pixels, too small to fit a "
+                             f"model on{at} (at least {exc.least_side}x{exc.least_side} pixels); give a larger "
+                             "exemplar or a saved model") from None
     elif model is None:
         try:
             model = TGHop(rng=rng).fit(picture, exclude=hole, progress=progress)

@@ -10,8 +10,8 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
-from .common import (Progress, check_model_output, check_output, check_outputs, check_stdout, is_model_file,
-                     load_exemplar, load_mask, numbered, summary, user_errors)
+from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
+                     is_model_file, load_exemplar, load_mask, numbered, summary, user_errors)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
                       generation_options, generation_params, given_options, model_options)
@@ -42,7 +42,8 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     def read(path, label):
         if is_model_file(path):
             raise TGHopError(f"{label} {path} is a model file, not an image")
-        return load_image(path, dtype=None, downscale=downscale, with_depth=True)
+        return load_image(path, dtype=None, downscale=downscale, with_depth=True,
+                          too_large_hint=HINT_DOWNSCALE_OPTION)
 
     albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
                      else read(spec, "EXEMPLAR"))
