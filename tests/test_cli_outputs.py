@@ -86,6 +86,16 @@ CASES = [
     (["inpaint", "keep.png", "hole.png", "--source", "keep.png", "-o", "o.png"],
      ["--source keep.png is 72x72 pixels, too small", "76x76"]),
     (["synth", "model.npz", "keep.png", "-o", "o.png"], ["SOURCE 2 (keep.png): exemplar is 72x72", "--stride"]),
+    # empty names and folder-like ones: "" was the current folder (a traceback for fit, a batch run
+    # into it), "x.png/" wrote a file x.png, and a file taken for a folder "did not exist"
+    (["synth", "model.npz", "-o", "", "--size", "40"], ["the image's file name is empty"]),
+    (["synth", "", "-o", "o.png"], ["the image's file name is empty"]),
+    (["fit", "keep.png", "-o", ""], ["-o: the model's file name is empty", "-o model.npz"]),
+    (["synth", "model.npz", "-o", "new.png/", "--size", "40"], ["new.png/ ends with a slash"]),
+    (["fit", "keep.png", "-o", "new.npz/"], ["new.npz/ ends with a slash"]),
+    (["synth", "model.npz", "-o", "keep.png/x.png", "--size", "40"], ["keep.png is a file, not a folder"]),
+    (["batch", "", "-o", "out", "--workers", "1"], ["SOURCE is empty"]),
+    (["batch", ".", "-o", "", "--workers", "1"], ["outdir must be a folder path", "got ''"]),
     # the other commands: baseline and the cGAN's (checked before torch or a checkpoint is read)
     (["baseline", "crop", "keep.png", "-o", "keep.png"], ["-o would overwrite EXEMPLAR"]),
     (["cooc", "train", "keep.png", "-o", "-"], ["-o -", "checkpoint cannot go to stdout"]),

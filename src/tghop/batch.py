@@ -149,6 +149,8 @@ def find_work(source, outdir=None):
     name in OUTDIR) and ``settings`` (the row's own settings). A bad manifest row is a
     :class:`TGHopError` naming its line, before any work.
     """
+    if not os.fsdecode(source).strip():  # "" would be the current folder
+        raise TGHopError("SOURCE is empty; give a folder of exemplars or a manifest")
     source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
     if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
         raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
@@ -604,7 +606,7 @@ def _check_call(outdir, fit, generate, workers, callables) -> None:
     """Refuse :func:`run`'s bad arguments (not its settings' values) before any work or file."""
     from .settings import fit_settings
 
-    if not isinstance(outdir, (str, os.PathLike)):
+    if not isinstance(outdir, (str, os.PathLike)) or not os.fsdecode(outdir).strip():  # "": the current folder
         raise TGHopError(f"outdir must be a folder path (str or Path), got {outdir!r}")
     names = {s.name for s in fit_settings()}
     for name, value in (("fit", fit), ("generate", generate)):

@@ -81,6 +81,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     if wanted is not None and wanted not in (np.float64, np.float32):
         raise TGHopError(f"dtype must be numpy.float64, numpy.float32 or None (uint8 for 8-bit images), "
                          f"not {wanted.name if wanted is not False else repr(dtype)}")
+    if not os.fsdecode(path).strip():  # Path("") is the current folder
+        raise InvalidImageError("the image's file name is empty; give one")
     path = Path(path)
     if not path.exists():
         raise InvalidImageError(f"{path}: no such file; check the path")
@@ -507,6 +509,11 @@ def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> 
 
     Returns the folder the file will be written to; ``error`` is the exception class raised.
     """
+    text = os.fsdecode(path)
+    if not text.strip():
+        raise error(f"the {what}'s file name is empty; give one")
+    if text.endswith(("/", os.sep)):  # Path() would drop the slash and write a file of that name
+        raise error(f"{text} ends with a slash, as a folder does; give a file name for the {what}")
     path = Path(path)
     try:
         is_dir = path.is_dir()
@@ -516,6 +523,8 @@ def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> 
         raise error(f"{path} is a folder; give a file name for the {what}")
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
+        if directory.exists():
+            raise error(f"{directory} is a file, not a folder; give the {what} a path in a folder")
         raise error(f"{directory}: output folder does not exist; create it first")
     try:
         fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=directory)
@@ -566,6 +575,8 @@ def output_format(path) -> str:
         raise TGHopError(f"the output path must be a str or os.PathLike, got {type(path).__name__}")
     if str(path) == "-":
         return "PNG"
+    if not os.fsdecode(path).strip():
+        raise InvalidImageError("the image's file name is empty; give one")
     ext = Path(path).suffix.lower()
     if ext not in FORMATS:
         raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use {extensions()}")

@@ -287,6 +287,8 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
 
     if str(path) == "-":
         raise ModelFileError(f"{label} -: a {what} cannot go to stdout; give a file name, e.g. {label} {what}{suffix}")
+    if not str(path).strip():  # Path("") is the current folder, which has no name to add to
+        raise ModelFileError(f"{label}: the {what}'s file name is empty; give one, e.g. {label} {what}{suffix}")
     p = Path(path)
     ext = p.suffix.lower()
     if ext != suffix:
