@@ -127,6 +127,9 @@ CASES = [
     (["synth"], ["SOURCE", "--help"]),
     (["fit", "bricks.png", "-o", "m.npz", "--bogus"], ["--bogus"]),
     (["synth", "bricks.png", "-o", "o.png", "--size", "12x"], ["--size"]),
+    # a missing option value: the subcommand's help (it said 'tghop --help')
+    (["synth", "bricks.png", "-o"], ["'-o' requires an argument", "(see 'tghop synth --help')"]),
+    (["cooc", "train", "bricks.png", "-o"], ["'-o' requires an argument", "(see 'tghop cooc train --help')"]),
 ]
 
 

@@ -160,8 +160,9 @@ def test_max_minutes_nan_is_refused_as_out_of_range(files, tmp_path, monkeypatch
     monkeypatch.setattr(cooc.CoocGAN, "fit", lambda *a, **k: pytest.fail("training started"))
     r = invoke("cooc", "train", files / "ex.png", "-o", tmp_path / "x.pt", "--max-minutes", bad, *TINY_SET)
     assert r.exit_code == 2 and not (tmp_path / "x.pt").exists()  # click's usage error, as for 0 and inf
-    assert f"Invalid value for '--max-minutes': {bad!r} is not a number; give a number in the option's range" \
+    assert f"Invalid value for '--max-minutes': {bad!r} is not a number; give a number in the option's range (see " \
         in r.stderr, r.stderr
+    assert r.stderr.count("(see ") == 1 and r.stderr.endswith(" cooc train --help')\n")  # the hint once (it was twice)
 
 
 # ------------------------------------------------------------------ integer settings given as fractions

@@ -158,7 +158,8 @@ class OneLineGroup(click.Group):
         except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
             fail(*stop_message(exc))
         except click.UsageError as exc:
-            command = exc.ctx.command_path if exc.ctx is not None else "tghop"
+            command = (exc.ctx.command_path if exc.ctx is not None and exc.ctx.command is not self
+                       else self._command_path(sys.argv[1:] if args is None else list(args)))
             fail(f"{exc.format_message()} (see '{command} --help')", exc.exit_code)
         except click.ClickException as exc:
             fail(exc.format_message(), exc.exit_code)
@@ -178,6 +179,21 @@ class OneLineGroup(click.Group):
             if as_command:
                 gc.freeze()  # nothing left for the collections at exit to walk
         sys.exit(rc if isinstance(rc, int) else 0)
+
+
+    def _command_path(self, args):
+        """``tghop SUBCOMMAND ...`` as far as ``args`` name commands (click reports some usage
+        errors, a missing option value, before the subcommand has a context)."""
+        path, group = ["tghop"], self
+        for arg in args:
+            command = group.commands.get(arg) if isinstance(group, click.Group) else None
+            if command is None:
+                if arg.startswith("-") or not isinstance(group, click.Group):
+                    continue  # an option of the group, or the command's own arguments
+                break
+            path.append(arg)
+            group = command
+        return " ".join(path)
 
 
 @click.group(cls=OneLineGroup, context_settings={"help_option_names": ["-h", "--help"]})

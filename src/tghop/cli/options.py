@@ -80,7 +80,7 @@ class FloatRange(click.FloatRange):
     def convert(self, value, param, ctx):
         rv = super().convert(value, param, ctx)
         if math.isnan(rv):
-            self.fail(f"{value!r} is not a number; give a number in the option's range (see --help)", param, ctx)
+            self.fail(f"{value!r} is not a number; give a number in the option's range", param, ctx)
         return rv
 
 
