@@ -28,6 +28,7 @@ from test_cli_failures import FAST, assert_one_line, invoke, png_header
 def folder(tmp_path_factory, small_model):
     d = tmp_path_factory.mktemp("outputs")
     save_image(data.bricks(72, rng=2), d / "keep.png")
+    save_image(data.bricks(72, rng=2), d / "keep_2.png")
     save_model(small_model, d / "model.npz")
     (d / "big.png").write_bytes(png_header(9000, 9000))  # over 64 Mpx, under Pillow's bomb limit
     (d / "garbage.npz").write_bytes(b"not a zip, not an image")
@@ -54,6 +55,7 @@ CASES = [
     (["synth", "keep.png", "-o", "keep.png", *FAST], ["keep.png", "-o would overwrite SOURCE"]),
     (["synth", "keep.png", "-o", "./keep.png", *FAST], ["-o would overwrite SOURCE"]),
     (["synth", "keep_2.png", "-o", "keep.png", "--count", "3", *FAST], ["keep_2.png", "-o would overwrite SOURCE"]),
+    (["synth", "nope_2.png", "-o", "nope.png", "--count", "3"], ["nope_2.png: no such file"]),  # not "overwrite"
     (["fit", "model.npz", "-o", "model.npz", *FAST], ["model.npz", "-o would overwrite EXEMPLAR"]),
     (["fit", "keep.png", "-o", "model", *FAST], ["-o model", ".npz", "name it model.npz"]),
     (["fit", "keep.png", "-o", "model.v2", *FAST], ["name it model.v2.npz"]),
@@ -153,6 +155,7 @@ def test_check_outputs_sees_links_and_spellings(tmp_path, monkeypatch):
     # not files: stdout, built-in exemplars, options not given
     check_outputs([("-o", "-"), ("--save-model", None)], [("SOURCE", "builtin:bricks"), ("IN", "-")])
     check_outputs([("-o", tmp_path / "b.png")], [("IN", tmp_path / "a.png")])
+    check_outputs([("-o", tmp_path / "c.png")], [("IN", tmp_path / "c.png")])  # no such input: its reader says so
     # --count's largest set: each name looked at once, not every pair (1000 names: 38 s pairwise)
     import tghop.cli.common as common
 
@@ -163,6 +166,7 @@ def test_check_outputs_sees_links_and_spellings(tmp_path, monkeypatch):
                   [("IN", tmp_path / "a.png")])
     assert len(looked_at) == 1001
     monkeypatch.undo()
+    (tmp_path / "a_0500.png").write_bytes(b"x")
     with pytest.raises(TGHopError, match="would overwrite IN"):
         check_outputs([("-o", path) for path in common.numbered(str(tmp_path / "a.png"), 1000)],
                       [("IN", tmp_path / "a_0500.png")])

@@ -244,7 +244,8 @@ def check_outputs(outputs, inputs=()):
         Compared as files (:func:`_file_key`: the same inode when they exist, else the
         same resolved path). ``label`` says where the path came from on the command line
         (``"-o"``, ``"--save-model"``, ``"--stages"``, ``"EXEMPLAR"``, ...). ``None``,
-        ``-`` (stdout or stdin) and ``builtin:NAME`` are not files and are skipped.
+        ``-`` (stdout or stdin) and ``builtin:NAME`` are not files and are skipped, and so
+        are inputs that do not exist (their readers say so).
 
     Raises
     ------
@@ -257,7 +258,8 @@ def check_outputs(outputs, inputs=()):
 
     seen = {}
     for label, path in files(inputs):
-        seen.setdefault(_file_key(path), (label, path, True))
+        if os.path.lexists(path):  # a missing input is its reader's "no such file", not an overwrite
+            seen.setdefault(_file_key(path), (label, path, True))
     for label, path in files(outputs):  # one key each: --count 1000 stays linear
         key = _file_key(path)
         if key in seen:
