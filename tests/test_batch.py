@@ -140,7 +140,7 @@ def test_bad_settings_are_refused_before_any_work(tmp_path):
     for kw, words in ((dict(generate={**GEN, "overlap": 100}), "overlap must be between 1 and 16 (half the patch "
                                                                "size 32), got 100"),
                       (dict(generate=GEN, fit={**FIT, "patch_size": 64}, size=(48, 48), tile=True),
-                       "tile=True needs an output height of at least the patch size 64, got 48"),
+                       "a tileable output (tile, --tile) needs a height of at least the patch size 64, got 48"),
                       (dict(generate={**GEN, "tolerance": -1}), "tolerance must be"),
                       (dict(generate={**GEN, "colour": 1}), "unknown setting 'colour'"),
                       (dict(generate=GEN, fit={**FIT, "n_clusters": 0}), "n_clusters must be")):
@@ -150,8 +150,8 @@ def test_bad_settings_are_refused_before_any_work(tmp_path):
         assert not out.exists()
     # a manifest row's own size or tile: named by its line
     (tmp_path / "m.csv").write_text("path,size,tile\nsrc/a.png,,\nsrc/sub/a.png,20,true\n")
-    with pytest.raises(TGHopError, match=re.escape("m.csv line 3: tile=True needs an output height of at least the "
-                                                   "patch size 32, got 20")):
+    with pytest.raises(TGHopError, match=re.escape("m.csv line 3: a tileable output (tile, --tile) needs a height "
+                                                   "of at least the patch size 32, got 20")):
         run(tmp_path / "m.csv", out, workers=1, task=_no_work)
     assert not out.exists()
     code, _, err, exc = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "64", "--overlap", "100",

@@ -458,7 +458,8 @@ def test_too_many_blocks():
 
 
 def test_tile_needs_a_patch_sized_output(brick_pool):
-    with pytest.raises(TGHopError, match="tile=True needs"):
+    with pytest.raises(TGHopError, match=r"a tileable output \(tile, --tile\) needs a height of at least the patch "
+                                         r"size 32, got 20; ask for a larger image, or fit with smaller patches"):
         quilt(brick_pool, (20, 64), tile=True)
 
 

@@ -430,8 +430,8 @@ def _axis_positions(length: int, p: int, overlap: int, tile: bool, name: str):
         return starts, widths, widths, int((count - 1) * step + p)
     if length < p:
         raise TGHopError(
-            f"tile=True needs an output {name} of at least the patch size {p}, got {length}; "
-            "ask for a larger image or use smaller patches"
+            f"a tileable output (tile, --tile) needs a {name} of at least the patch size {p}, got {length}; "
+            "ask for a larger image, or fit with smaller patches (patch_size, --patch-size)"
         )
     # The blocks must fit the period exactly: spread `count` blocks evenly over `length`
     # (steps differ by at most one pixel). Use as many as needed for overlaps >= `overlap`,
