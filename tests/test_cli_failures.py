@@ -247,6 +247,18 @@ def test_help_shows_each_default_as_its_kind():
     assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
 
 
+def test_a_model_without_a_layout_warns_of_the_layout_options(folder, tmp_path):
+    # --layout-weight, --layout-refine and --layout-patch-refine on such a model were ignored without a word.
+    code, _, err, _ = invoke("fit", folder / "bricks.png", "-o", "flat.npz", *FAST, "--layout", "none", cwd=tmp_path)
+    assert code == 0, err
+    synth = ["synth", "flat.npz", "-o", "o.png", "--size", "48", "-q"]
+    code, _, err, _ = invoke(*synth, "--layout-weight", "2", "--layout-refine", "1", cwd=tmp_path)
+    assert code == 0 and "Warning: --layout-weight, --layout-refine have no effect: the model has no coarse layout" \
+        in err, err
+    code, _, err, _ = invoke(*synth, cwd=tmp_path)
+    assert code == 0 and "Warning" not in err, err
+
+
 def test_a_model_without_colour_classes_warns_of_own_shares_and_info_says_so(folder, tmp_path):
     # `--own-shares 0.5` on a model fitted with --colour-classes 0 had no effect without a word.
     code, _, err, _ = invoke("fit", folder / "bricks.png", "-o", "plain.npz", *FAST, "--colour-classes", "0",

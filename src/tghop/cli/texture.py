@@ -311,12 +311,17 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
         if save_model:
             write_model(model, save_model)
+    import warnings
+
     if (given_options(ctx, ["own_shares"]) and generation["own_shares"] != BY_NAME["own_shares"].default
             and getattr(model, "classes_", None) is None):
-        import warnings
-
         warnings.warn(f"--own-shares {generation['own_shares']:g} has no effect: the model has no colour classes "
                       "(fitted with --colour-classes 0); fit it with --colour-classes above 0, or drop --own-shares")
+    unused = given_options(ctx, ["layout_weight", "layout_refine", "layout_patch_refine"])
+    if unused and getattr(model, "layout_", None) is None:
+        warnings.warn(f"{', '.join(unused)} {'has' if len(unused) == 1 else 'have'} no effect: the model has no "
+                      "coarse layout (fitted with --layout none); fit it with a layout factor, or drop "
+                      f"{'it' if len(unused) == 1 else 'them'}")
     import numpy as np
 
     rng = np.random.default_rng(seed)
