@@ -141,6 +141,8 @@ def test_command_line_scale(tmp_path):
     assert all(r.returncode == 0 for r in scores)
     plain, scaled = (json.loads(r.stdout)["swd"] for r in scores)
     assert scaled != plain  # scored against the exemplar resampled as the model saw it
+    r = cli("evaluate", tmp_path / "ex.png", tmp_path / "out.png", "--scale", "0.1", "--metrics", "swd")
+    assert_user_error(r, "ex.png at --scale 0.1 is 13x13 pixels but swd needs at least")  # not "ex.png is 13x13"
     for bad in ("0", "nan"):  # NaN passed click's FloatRange and reached the resampling (a traceback)
         for command in (("evaluate", tmp_path / "ex.png", tmp_path / "out.png"),
                         ("extend", tmp_path / "ex.png", "-o", tmp_path / "bad.png")):

@@ -68,7 +68,8 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
             checked.append("self_repetition")
         ex = rescale(load_exemplar(exemplar), scale)
         images = [load_exemplar(r) for r in results]
-        M.check_sizes({exemplar: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, checked,
+        scaled = exemplar if scale == 1 else f"{exemplar} at --scale {scale:g}"
+        M.check_sizes({scaled: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, checked,
                       diversity=len(images) > 1)
         rows = []
         for i, (path, img) in enumerate(zip(results, images), start=1):
