@@ -114,8 +114,11 @@ def user_errors(progress=None):
             if isinstance(exc, MemoryError):
                 fail("out of memory; use a smaller output size, pool or exemplar")
             if isinstance(exc, OSError):  # a file system error the checks above did not foresee
-                where = f"{str(exc.filename)[:80]}: " if exc.filename else ""
-                fail(f"{where}{exc.strerror or exc}")
+                import errno
+
+                hint = "; free some space or write elsewhere" if exc.errno == errno.ENOSPC else ""
+                where = f"{str(exc.filename)[:80]}: " if exc.filename else "cannot write the output: "
+                fail(f"{where}{exc.strerror or exc}{hint}")
             fail(*stop_message(exc))  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
         finally:
             if progress:
