@@ -37,10 +37,10 @@ def test_uint8_images_are_written_as_they_are(tmp_path):
 def test_png_writer_gives_pillow_the_same_pixels(monkeypatch, shape, part):
     # One part, or several compressed on threads (small parts, more "cores" than parts):
     # Pillow reads back every pixel, from a file that passes its checks.
-    from tghop import imageio
+    from tghop import imageio, png
 
-    monkeypatch.setattr(imageio, "_PNG_PART", part)
-    monkeypatch.setattr(imageio, "usable_cores", lambda: 5)
+    monkeypatch.setattr(png, "_PNG_PART", part)
+    monkeypatch.setattr(png, "usable_cores", lambda: 5)
     pixels = np.random.default_rng(sum(shape)).integers(0, 256, shape, dtype=np.uint8)
     pixels[:, : shape[1] // 2] = 255 - pixels[:, : shape[1] // 2] // 7  # runs that compress
     buf = io.BytesIO()
@@ -62,14 +62,14 @@ def test_png_writer_refuses_what_png_cannot_hold():
 def test_png_writer_raises_a_parts_error(monkeypatch):
     # A part compressed on another thread that fails (e.g. out of memory) fails the write:
     # no PNG with a part missing.
-    from tghop import imageio
+    from tghop import imageio, png
 
     def boom(*args):
         raise MemoryError("no memory for this part")
 
-    monkeypatch.setattr(imageio, "_PNG_PART", 64)
-    monkeypatch.setattr(imageio, "usable_cores", lambda: 4)
-    monkeypatch.setattr(imageio.zlib, "compressobj", boom)
+    monkeypatch.setattr(png, "_PNG_PART", 64)
+    monkeypatch.setattr(png, "usable_cores", lambda: 4)
+    monkeypatch.setattr(png.zlib, "compressobj", boom)
     with pytest.raises(MemoryError, match="this part"):
         imageio.write_png(io.BytesIO(), np.zeros((40, 30, 3), dtype=np.uint8))
 

@@ -152,8 +152,9 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
 def test_too_large_a_hole_is_refused_naming_the_minimum(cells):
     hole = np.ones((96, 96), dtype=bool)
     hole[:40, :40] = False
-    with pytest.raises(TGHopError, match=r"too little texture outside the mask: 25 training patches .* at least 100 are "
-                                         r"needed; use a smaller mask or a larger image, or N of at most 2 \(n_clusters, "):
+    with pytest.raises(TGHopError, match=r"too little texture outside the mask: 25 training patches .* at least "
+                                         r"100 are needed; use a smaller mask or a larger image, or N of at most 2 "
+                                         r"\(n_clusters, "):
         TGHop(rng=0, **FAST).fit(cells, exclude=hole)
     TGHop(rng=0, **{**FAST, "n_clusters": 2}).fit(cells, exclude=hole)  # the N it names fits
 

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import InvalidImageError, TGHopError, check_image, usable_cores
+from ._common import InvalidImageError, TGHopError, check_image
 from ._errors import ImageTooLargeError
 from ._formats import DEPTHS, FORMATS, extensions
+from .png import decode_png16, write_png
 from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
@@ -146,7 +147,7 @@ def _read_deep(path, max_pixels, keep_alpha=False):
         width, height = struct.unpack(">II", head[16:24])
         if width * height > max_pixels or head[28] != 0:  # too large, or interlaced: Pillow's path (its errors)
             return None
-        levels, ctype = _decode_png16(path.read_bytes())
+        levels, ctype = decode_png16(path.read_bytes())
         arr, mode = _drop_alpha(levels, {4: "LA", 6: "RGBA"}.get(ctype, ""), keep_alpha)
         return arr / 65535.0, mode, 16
     if head[:4] not in (b"II*\x00", b"MM\x00*"):
@@ -295,67 +296,6 @@ def _drop_alpha(arr, mode, keep_alpha=False):
     if mode and not keep_alpha:
         arr = arr[..., :-1]
     return (arr[..., 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr), mode
-
-
-def _decode_png16(data):
-    """A non-interlaced 16-bit PNG file's samples: (uint16 array (H, W, S), colour type).
-
-    Pillow reduces 16-bit colour PNG files to 8 bits; this reads every type of them
-    (grey, grey+alpha, RGB, RGBA). Rows filtered with None, Sub or Up only (tghop's and
-    Pillow's writers) are unfiltered a row at a time; others (Average, Paeth) along
-    anti-diagonals, every pixel of one at once (a pixel depends on its left, upper and
-    upper-left neighbours only)."""
-    pos, idat, header = 8, [], None
-    while pos + 8 <= len(data):
-        length, kind = struct.unpack(">I4s", data[pos: pos + 8])
-        body = data[pos + 8: pos + 8 + length]
-        if kind == b"IHDR":
-            header = struct.unpack(">IIBBBBB", body)
-        elif kind == b"IDAT":
-            idat.append(body)
-        elif kind == b"IEND":
-            break
-        pos += 12 + length
-    if header is None:
-        raise ValueError("no PNG header")
-    w, h, bits, ctype = header[:4]
-    samples = {0: 1, 2: 3, 4: 2, 6: 4}.get(ctype)
-    if bits != 16 or samples is None:
-        raise ValueError(f"PNG colour type {ctype} at {bits} bits")
-    bpp = 2 * samples
-    raw = np.frombuffer(zlib.decompress(b"".join(idat)), dtype=np.uint8)
-    if raw.size < h * (1 + w * bpp):
-        raise ValueError("truncated PNG data")
-    raw = raw[: h * (1 + w * bpp)].reshape(h, 1 + w * bpp)
-    kinds = raw[:, 0]
-    if kinds.max(initial=0) > 4:
-        raise ValueError(f"PNG filter type {kinds.max()}")
-    rows = raw[:, 1:].reshape(h, w, bpp)
-    if np.all(kinds <= 2):
-        out = np.empty((h, w, bpp), dtype=np.uint8)
-        prev = np.zeros((w, bpp), dtype=np.uint8)
-        for y in range(h):
-            if kinds[y] == 1:
-                out[y] = np.cumsum(rows[y], axis=0, dtype=np.uint8)  # modulo 256
-            elif kinds[y] == 2:
-                np.add(rows[y], prev, out=out[y])
-            else:
-                out[y] = rows[y]
-            prev = out[y]
-    else:
-        pad = np.zeros((h + 1, w + 1, bpp), dtype=np.int32)  # a zero row above and column to the left
-        rows = rows.astype(np.int32)
-        for t in range(h + w - 1):
-            ys = np.arange(max(0, t - w + 1), min(h, t + 1))
-            xs = t - ys
-            a, b, c = pad[ys + 1, xs], pad[ys, xs + 1], pad[ys, xs]
-            pa, pb, pc = np.abs(b - c), np.abs(a - c), np.abs(a + b - 2 * c)
-            paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
-            f = kinds[ys][:, None]
-            pred = np.select([f == 0, f == 1, f == 2, f == 3], [0, a, b, (a + b) >> 1], paeth)
-            pad[ys + 1, xs + 1] = (rows[ys, xs] + pred) & 255
-        out = pad[1:, 1:].astype(np.uint8)
-    return out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16), ctype
 
 
 def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
@@ -581,85 +521,6 @@ def output_format(path) -> str:
     if ext not in FORMATS:
         raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use {extensions()}")
     return FORMATS[ext]
-
-
-#: Raw bytes per part of a PNG compressed in parallel (smaller images: one part).
-_PNG_PART = 1 << 20
-
-
-def _png_chunk(fh, kind: bytes, *pieces) -> None:
-    """Write one PNG chunk: length, type, data (given in ``pieces``), CRC."""
-    crc = zlib.crc32(kind)
-    for piece in pieces:
-        crc = zlib.crc32(piece, crc)
-    fh.write(struct.pack(">I", sum(len(piece) for piece in pieces)) + kind)
-    for piece in pieces:
-        fh.write(piece)
-    fh.write(struct.pack(">I", crc))
-
-
-def write_png(fh, pixels, *, level: int = 1) -> None:
-    """Write a uint8 (uint16) image as an 8-bit (16-bit) PNG, its compression spread over the
-    processor's cores.
-
-    Parameters
-    ----------
-    fh : binary file object
-    pixels : ndarray of uint8 or uint16, shape (H, W) or (H, W, C), C in 1-4
-        Grey, grey and alpha, RGB or RGBA.
-    level : int
-        zlib level (1: synthesised texture is noise-like, so higher levels barely shrink
-        it but take noticeably longer; measured: docs/choices.md).
-
-    Notes
-    -----
-    Every row uses PNG's "Sub" filter (the byte one pixel to the left subtracted; 16-bit
-    samples are stored big-endian, two bytes each, and filtered as bytes). The rows
-    are compressed in parts of about :data:`_PNG_PART` bytes on as many threads (zlib
-    lets go of the interpreter lock), each part a separate deflate stream ended at a
-    byte boundary, and the parts are joined into one zlib stream, as ``pigz`` does: the
-    same image as Pillow's writer (tested), in less time on several cores.
-    """
-    px = np.asarray(pixels)
-    if px.dtype not in (np.uint8, np.uint16) or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] > 4):
-        raise ValueError(f"write_png takes a uint8 or uint16 (H, W) or (H, W, C) array with C up to 4, "
-                         f"got {px.dtype} {px.shape}")
-    if px.size == 0:
-        raise InvalidImageError(f"write_png: the image has no pixels (shape {px.shape}); give at least 1x1 pixels")
-    if not isinstance(level, (int, np.integer)) or isinstance(level, bool) or not 0 <= level <= 9:
-        raise TGHopError(f"write_png: level must be a zlib level, an integer 0 to 9, got {level!r}")
-    h, w = px.shape[:2]
-    channels = 1 if px.ndim == 2 else px.shape[2]
-    bits = 8 * px.dtype.itemsize
-    c = channels * px.dtype.itemsize  # bytes per pixel
-    rows = px.reshape(h, w * channels)
-    if bits == 16:
-        rows = rows.astype(">u2").view(np.uint8).reshape(h, w * c)
-    raw = np.empty((h, 1 + w * c), dtype=np.uint8)
-    raw[:, 0] = 1  # filter type Sub
-    raw[:, 1 : 1 + c] = rows[:, :c]
-    np.subtract(rows[:, c:], rows[:, :-c], out=raw[:, 1 + c :])  # modulo 256
-    n_parts = max(1, min(usable_cores(), raw.nbytes // _PNG_PART, h))
-    bounds = [h * i // n_parts for i in range(n_parts + 1)]
-    blobs = [b""] * n_parts
-
-    def compress(i):
-        stream = zlib.compressobj(level, zlib.DEFLATED, -15)  # raw deflate: the header comes once
-        blobs[i] = stream.compress(raw[bounds[i] : bounds[i + 1]].data) + stream.flush(
-            zlib.Z_FINISH if i == n_parts - 1 else zlib.Z_SYNC_FLUSH)
-
-    if n_parts == 1:
-        compress(0)
-    else:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=n_parts) as pool:
-            list(pool.map(compress, range(n_parts)))  # a part's error (e.g. out of memory) is raised here
-    fh.write(b"\x89PNG\r\n\x1a\n")
-    colour_type = {1: 0, 2: 4, 3: 2, 4: 6}[channels]  # grey, grey + alpha, RGB, RGBA
-    _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, bits, colour_type, 0, 0, 0))
-    _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))
-    _png_chunk(fh, b"IEND")
 
 
 #: How far outside [0, 1] a float image to save may stray (float rounding after clipping; less than
