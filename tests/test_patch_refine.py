@@ -710,3 +710,20 @@ def test_patch_refine_errors_name_its_own_arguments(patch_model):
     # TGHop's own settings keep their names.
     with pytest.raises(TGHopError, match="^patch_refine must be"):
         pr.refine_image(img, p, n_steps=-1)
+
+
+def test_the_same_image_with_any_number_of_blas_threads_and_in_concurrent_threads(patch_model):
+    # The patch refinement and quilting ran on the process's BLAS threads (their products round
+    # differently on more), so a batch worker's one thread, tghop synth's two and the server's
+    # threads made different images of one seed. Generation now holds one BLAS thread.
+    from concurrent.futures import ThreadPoolExecutor
+
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        two = patch_model.synthesize((72, 72), rng=0)
+    with threadpool_limits(limits=1, user_api="blas"):  # as tghop serve holds its process
+        one = patch_model.synthesize((72, 72), rng=0)
+        with ThreadPoolExecutor(max_workers=4) as pool:
+            images = list(pool.map(lambda _: patch_model.synthesize((72, 72), rng=0), range(8)))
+    assert np.array_equal(two, one) and all(np.array_equal(image, one) for image in images)

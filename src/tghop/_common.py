@@ -9,6 +9,7 @@ here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import inspect
 import math
@@ -562,6 +563,24 @@ class limit_cores:
         global _core_limit
         _core_limit = self._previous
         return False
+
+
+@contextlib.contextmanager
+def one_blas_thread():
+    """Context manager (and decorator): one BLAS thread while inside
+    (``threadpoolctl.threadpool_limits(limits=1, user_api="blas")``, entered and left in the
+    calling thread).
+
+    OpenBLAS's products round differently on more threads, so generating inside it gives the
+    same image on a machine of any number of cores (a batch worker's one thread, ``tghop
+    synth``'s all). Its limit is the process's: a caller that generates in several threads at
+    once gets the same images only with the process held at one BLAS thread throughout, as
+    ``tghop serve`` holds it (threadpoolctl lets only one thread at a time change the limit).
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
 
 
 def in_thread(fn, *args, **kwargs) -> Callable:

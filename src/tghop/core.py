@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, check_count, check_int, check_width, forget_fit
-from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, usable_cores, report
+from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, one_blas_thread, usable_cores, report
 from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
 from .sdr import flip_signs
 from .settings import BY_NAME as _SETTINGS
@@ -270,14 +270,12 @@ class ICHM(BaseEstimator):
 
         from concurrent.futures import ThreadPoolExecutor  # not at module level: loading a model needs none
 
-        from threadpoolctl import threadpool_limits
-
         residuals = [] if self.residual else None
 
         # One BLAS thread each (the clusters' results do not depend on how many run at
         # once); as many at once as there are idle cores: on a busy machine more only compete.
         workers = max(1, min(n_clusters, usable_cores()))
-        with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=workers) as pool:
+        with one_blas_thread(), ThreadPoolExecutor(max_workers=workers) as pool:
             fitted = []
             for i, result in enumerate(pool.map(one, range(n_clusters))):
                 report(progress, "ICA", i, n_clusters)
@@ -824,10 +822,8 @@ class ICHM(BaseEstimator):
                 len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
             raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "
                              f"shape {labels.shape} and type {labels.dtype}")
-        from threadpoolctl import threadpool_limits  # as in fit: threaded BLAS only slows many small matrices
-
         mixing, sources = self.mixing_, []
-        with threadpool_limits(limits=1, user_api="blas"):
+        with one_blas_thread():  # as in fit: threaded BLAS only slows many small matrices
             for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
                 # mixing[comp].T = Q R: the least-squares s of s @ mixing[comp] = z - mean is ((z - mean) Q) R^-T
                 # (the rows are independent as fit makes them: R is invertible).

@@ -59,13 +59,12 @@ from __future__ import annotations
 
 import math
 import os
-from contextlib import nullcontext
 
 import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
-from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
+from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
 from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
@@ -263,6 +262,7 @@ def _check_models(models, minimum=1):
 # ----------------------------------------------------------------------------- public API
 
 
+@one_blas_thread()  # the same image with any number of threads or concurrent callers
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
                       detail=0.8, flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5,
@@ -385,8 +385,6 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
                                            refine=refine, reuse=reuse, pool_per_block=pool_per_block,
                                            layout_weight=layout_weight, layout_refine=layout_refine,
                                            layout_patch_refine=layout_patch_refine, seam_window=seam_window))
-    from threadpoolctl import threadpool_limits
-
     rng = check_rng(rng)
     k = len(models)
     p = int(models[0].patch_size)
@@ -402,28 +400,27 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
         follows_guide(m.layout_, size, tile=tile) for m in models)
     pending = None
     # The coarse guides are made in a second thread (their own random stream) while the
-    # pools are generated and prepared, one BLAS thread each (as TGHop.synthesize does).
-    with threadpool_limits(limits=1, user_api="blas") if guided else nullcontext():
-        if guided:
-            layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
-            pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"],
-                                checked["seam_window"], checked["flat_share"], checked["layout_patch_refine"])
-        report(progress, "patch pool", 0, k)
-        pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
-        start = 0
-        for i, (model, n) in enumerate(zip(models, counts), start=1):
-            pool[start:start + n] = model.sample_patches(n, rng=rng, dtype=np.float32)
-            start += n
-            report(progress, "patch pool", i, k)
-        groups = np.repeat(np.arange(k), counts)
-        prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=checked["detail"],
-                                guide_scale=GUIDE_SCALE if guided else None, flat_share=checked["flat_share"],
-                                groups=groups)
-        if checked["refine"]:
-            prepare_refinement(size, models[0].bands_)
-        report(progress, "layout", 0, 1)
-        guide = pending() if guided else None
-        report(progress, "layout", 1, 1)
+    # pools are generated and prepared (one BLAS thread, as everything here).
+    if guided:
+        layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
+        pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"],
+                            checked["seam_window"], checked["flat_share"], checked["layout_patch_refine"])
+    report(progress, "patch pool", 0, k)
+    pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
+    start = 0
+    for i, (model, n) in enumerate(zip(models, counts), start=1):
+        pool[start:start + n] = model.sample_patches(n, rng=rng, dtype=np.float32)
+        start += n
+        report(progress, "patch pool", i, k)
+    groups = np.repeat(np.arange(k), counts)
+    prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=checked["detail"],
+                            guide_scale=GUIDE_SCALE if guided else None, flat_share=checked["flat_share"],
+                            groups=groups)
+    if checked["refine"]:
+        prepare_refinement(size, models[0].bands_)
+    report(progress, "layout", 0, 1)
+    guide = pending() if guided else None
+    report(progress, "layout", 1, 1)
     group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
     reuse = 0.0 if on_demand(size, p, len(pool), overlap=overlap, tile=tile) else checked["reuse"]
     image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,

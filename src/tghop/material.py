@@ -32,7 +32,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from . import settings
-from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, one_blas_thread
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -290,6 +290,7 @@ class Material(BaseEstimator):
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
     # ------------------------------------------------------------- generation
+    @one_blas_thread()  # the same image with any number of threads or concurrent callers
     def synthesize(self, size, *, rng=None, refine=5, match_colours=True, tile=False, refine_maps=True,
                    progress=None, dtype=np.float64, **options):
         """Generate every map of the material, aligned.

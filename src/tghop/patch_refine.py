@@ -39,7 +39,7 @@ import numpy as np
 
 from ._arrays import check_int, check_mask, check_number
 from ._common import (BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng,
-                      checked_image, report)
+                      checked_image, one_blas_thread, report)
 from .patches import clean_windows
 from .pyramid import downsample, upsample
 
@@ -680,6 +680,7 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     return PatchStatistics(levels, whitening).fit(image, exclude=exclude)
 
 
+@one_blas_thread()  # the same image with any number of threads or concurrent callers
 def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, progress=None, rate=1.0):
     """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine`, as
     ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`).

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_size,
-                      check_texture, fitted_settings, in_thread, report)
+                      check_texture, fitted_settings, in_thread, one_blas_thread, report)
 from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
@@ -578,6 +578,7 @@ class TGHop(BaseEstimator):
         check_is_fitted(self, "ichm_")
         return stage_views(spaces, self.exemplar_shape_[2])
 
+    @one_blas_thread()  # the same image with any number of threads or concurrent callers
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.8, flat_share=0.25, match_colours=True, layout_weight=3.0, refine=5,
                    layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2, reuse=1.0,
@@ -684,20 +685,17 @@ class TGHop(BaseEstimator):
         if layout_weight and layout.follows_guide(self.layout_, size, tile=tile):
             # The coarse guide and the pool are independent: the guide is made in a second
             # thread (its own random stream) while the pool is generated and made ready
-            # for quilting, one BLAS thread each.
-            from threadpoolctl import threadpool_limits
-
+            # for quilting (one BLAS thread, as everything here).
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             report(progress, "layout", 0, 1)
-            with threadpool_limits(limits=1, user_api="blas"):
-                pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
-                                    seam_window=checked["seam_window"], flat_share=checked["flat_share"],
-                                    patch_refine=checked["layout_patch_refine"])
-                if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
-                    prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
-                prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
-                                         flat_share=checked["flat_share"], guide_scale=GUIDE_SCALE)
-                guide = pending()
+            pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
+                                seam_window=checked["seam_window"], flat_share=checked["flat_share"],
+                                patch_refine=checked["layout_patch_refine"])
+            if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
+                prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
+            prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
+                                     flat_share=checked["flat_share"], guide_scale=GUIDE_SCALE)
+            guide = pending()
             report(progress, "layout", 1, 1)
             report(progress, "patch pool", 0, 1)
         else:

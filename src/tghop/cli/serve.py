@@ -128,8 +128,14 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
 
     config = uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on")
     server = Server(config)
+    from threadpoolctl import threadpool_limits
+
     try:
-        server.run(sockets=[sock])
+        # One BLAS thread for the whole process, held by this thread: generation in the
+        # request threads then gives the same image for the same seed whatever runs beside it
+        # (threadpoolctl's limit is the process's; a request thread's own would come and go).
+        with threadpool_limits(limits=1, user_api="blas"):
+            server.run(sockets=[sock])
     except KeyboardInterrupt:  # a second Ctrl-C, or SIGTERM through the command's handler
         pass
     finally:
