@@ -386,6 +386,16 @@ def test_stage_views_before_fit_is_not_fitted():
 def test_bad_settings(bricks96):
     with pytest.raises(TGHopError, match="at least 76x76"):
         TGHop().fit(bricks96[:20])
+    # The least exemplar and stride are found by bisection and within the exemplar's side:
+    # counted one pixel or one stride at a time, these took hours and 53 s (a server's thread).
+    with pytest.raises(TGHopError, match=r"1 training patch of 32x32 at stride 1000000000, .* at least "
+                                         r"22000000032x22000000032 pixels, or a stride of 1 \(stride"):
+        TGHop(stride=10**9).fit(bricks96[:60, :60])
+    with pytest.raises(TGHopError, match="needs at least 50000000000000 training patches"):
+        TGHop(min_cluster_size=10**12).fit(bricks96[:60, :60])
+    for stride, side in ((2, 76), (3, 98), (7, 186)):  # (side - 32) / stride + 1 positions a row, 23 of them
+        with pytest.raises(TGHopError, match=f"at least {side}x{side} pixels"):
+            TGHop(stride=stride).fit(bricks96[:60, :60])
     with pytest.raises(TGHopError, match="patch_size must be 32 or 64"):
         TGHop(patch_size=48).fit(bricks96)
     with pytest.raises(TGHopError, match="divisible by 8"):

@@ -228,15 +228,23 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches, scale=1
         return
     n = _n_patches(shape, patch_size, stride, max_patches)
     most = ichm.clusters_for(2**62) * ichm.min_cluster_size  # no larger exemplar needs more
-    side = patch_size
-    while not enough((side, side), stride):
-        if _n_patches((side, side), patch_size, stride, None) >= most:
-            return  # max_patches caps the patches below the need: ICHM's message
-        side += 1
+
+    def square(k):  # the smallest square exemplar with k patch positions a row
+        return (patch_size + (k - 1) * stride,) * 2
+
+    # The fewest positions a row that are enough, by bisection (one pixel at a time took
+    # hours at a stride of 10^9).
+    low, top = 1, math.isqrt(most - 1) + 1  # top * top >= most
+    if not enough(square(top), stride):
+        return  # max_patches caps the patches below the need: ICHM's message
+    while low < top:
+        mid = (low + top) // 2
+        low, top = (low, mid) if enough(square(mid), stride) else (mid + 1, top)
     clusters = ichm.clusters_for(n)
-    side = math.ceil(side / scale)
+    side = math.ceil(square(low)[0] / scale)
     fixes = [f"use an exemplar of at least {side}x{side} pixels"]
-    smaller = next((s for s in range(stride - 1, 0, -1) if enough(shape, s)), None)
+    # A stride beyond the exemplar's side gives one position a row, as that side does.
+    smaller = next((s for s in range(min(stride - 1, max(shape[:2])), 0, -1) if enough(shape, s)), None)
     if smaller:
         fixes.append(f"a stride of {smaller} (stride, --stride)")
     if n >= ichm.min_cluster_size:
