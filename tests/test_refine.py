@@ -609,3 +609,18 @@ def test_the_first_level_docstring_names_an_existing_api():
 
     assert "tghop.synthesis.CoarseLayout.guide" in refine.__doc__
     assert hasattr(tghop.synthesis.CoarseLayout, "guide")
+
+
+def test_too_small_or_empty_inputs_are_one_line_errors():
+    # A 1x1 exemplar reached NumPy's LinAlgError (a covariance of one pixel), an empty image an
+    # IndexError, and NaN quantiles made a NaN image without a word.
+    from tghop.colour import channel_quantiles, match_histograms
+
+    with pytest.raises(TGHopError, match=r"^BandStatistics.fit: the exemplar has 1 pixel; give at least 2$"):
+        BandStatistics().fit(np.full((1, 1, 3), 0.5))
+    BandStatistics().fit(np.random.default_rng(0).random((2, 2, 3)))
+    with pytest.raises(TGHopError, match=r"^channel_quantiles: the image is empty \(shape \(0, 0, 3\)\)"):
+        channel_quantiles(np.zeros((0, 0, 3)))
+    quantiles = np.full((3, 257), np.nan)
+    with pytest.raises(TGHopError, match=r"^match_histograms: quantiles must be finite numbers"):
+        match_histograms(np.full((4, 4, 3), 0.5), quantiles)

@@ -337,3 +337,15 @@ def test_fit_image_checks_image_and_origins(bricks96, image, origins, error, mes
         stack.fit_image(image(bricks96), 32, np.asarray(origins))
     with pytest.raises(NotFittedError):
         stack.transform(extract_patches(bricks96, 32, stride=32))
+
+
+def test_saab_transform_refuses_what_is_not_finite_numbers(rng):
+    # Strings reached NumPy's ValueError, and NaN went through to a NaN response (ICHM and
+    # SpatialReduction refused both).
+    saab = Saab().fit(rng.random((50, 12)))
+    for bad, message in (([["a"] * 12], r"^X must be an array of numbers"), (np.full((2, 12), np.nan), "NaN")):
+        with pytest.raises(TGHopError, match=message):
+            saab.transform(bad)
+    with pytest.raises(TGHopError, match="NaN"):
+        saab.inverse_transform(np.full((2, len(saab.channels_)), np.inf))
+    assert saab.transform(np.zeros((0, 12))).shape == (0, len(saab.channels_))

@@ -38,7 +38,7 @@ def channel_quantiles(image, n: int = N_QUANTILES) -> np.ndarray:
     -------
     ndarray, shape (C, n)
     """
-    image = checked_image(image, "channel_quantiles")
+    image = checked_image(image, "channel_quantiles", empty=False)
     n = check_int(n, "n", 2, where="channel_quantiles")
     if image.dtype.kind == "u" and image.dtype != np.uint8:
         image = check_image(image, name="channel_quantiles: image", channels=None)
@@ -100,6 +100,8 @@ def match_histograms(image, quantiles, *, out=None) -> np.ndarray:
     if quantiles.ndim != 2 or quantiles.shape[1] < 2 or quantiles.dtype.kind not in "fiu":
         raise TGHopError(f"match_histograms: quantiles must be a (C, n) array of numbers, n >= 2, "
                          f"got {quantiles.dtype} of shape {quantiles.shape}")
+    if not np.all(np.isfinite(quantiles)):  # NaN made a NaN image without a word
+        raise TGHopError("match_histograms: quantiles must be finite numbers (no NaN or infinity)")
     image = checked_image(image, "match_histograms", channels=len(quantiles))
     if image.dtype.kind == "u":
         image = check_image(image, name="match_histograms: image", channels=None)

@@ -572,6 +572,9 @@ class BandStatistics(StoredArrays, BaseEstimator):
         flat = exemplar[::step, ::step].reshape(-1, c).astype(np.float64) * scale
         if exclude is not None:
             flat = flat[~exclude[::step, ::step].ravel()]
+        if len(flat) < 2:  # no covariance of the colours (1x1: NumPy's LinAlgError)
+            raise InvalidImageError(f"BandStatistics.fit: the exemplar has {len(flat)} pixel{'s' * (len(flat) != 1)}"
+                                    f"{' outside the mask' if exclude is not None else ''}; give at least 2")
         self.colour_mean_ = flat.mean(axis=0)
         cov = np.cov(flat - self.colour_mean_, rowvar=False).reshape(c, c)
         _, vecs = np.linalg.eigh(cov)

@@ -227,14 +227,14 @@ class Saab(TransformerMixin, BaseEstimator):
     def transform(self, X):
         """Responses of ``X`` (n, d) to the kept kernels: shape (n, k)."""
         check_is_fitted(self, "kernels_")
-        X = np.asarray(X, dtype=np.float64)
+        X = check_array(X, "X", f"(n, d) = (n, {self.n_features_in_})", ndim=2, min_rows=0)  # numbers, finite
         check_width(X, "X", f"(n, d) = (n, {self.n_features_in_})", (self.n_features_in_,))
         return X @ self.kernels_.T + self._ac_bias()
 
     def inverse_transform(self, Y):
         """Vectors (n, d) from responses (n, k); discarded channels count as zero."""
         check_is_fitted(self, "kernels_")
-        Y = np.asarray(Y, dtype=np.float64)
         k = len(self.channels_)
+        Y = check_array(Y, "Y", f"(n, k) = (n, {k})", ndim=2, min_rows=0)
         check_width(Y, "Y", f"(n, k) = (n, {k}), one column per kept channel", (k,))
         return (Y - self._ac_bias()) @ self.kernels_
