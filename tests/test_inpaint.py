@@ -373,3 +373,16 @@ def test_blocks_that_see_no_known_pixel_are_filled_last():
     order = _fill_order(hole, 32, 27, tile=False)
     assert len(order) == len(set(order)) and not any(
         hole[y:y + 32, x:x + 32].all() for y, x in order[:4])
+
+
+def test_a_float_sample_mask_excludes_above_one_half_as_a_hole_does():
+    # A float mask excluded every pixel above 0: a grey picture's faint pixels took the whole image.
+    from tghop.patches import check_exclude
+
+    grey = np.full((8, 8), 0.3)
+    grey[:2] = 0.7
+    assert check_exclude(grey * 0 + 0.3, (8, 8)) is None
+    np.testing.assert_array_equal(check_exclude(grey, (8, 8)), grey > 0.5)
+    ones = np.zeros((8, 8), np.uint8)
+    ones[3, 3] = 1  # 0/1 integers: the boolean mask
+    np.testing.assert_array_equal(check_exclude(ones, (8, 8)), ones == 1)

@@ -147,7 +147,10 @@ def check_exclude(exclude, shape, *, name="exclude"):
     """A sample mask as an (H, W) bool array for an image of ``shape``, or None.
 
     None or a mask without a True pixel give None (nothing excluded: the same model as
-    without a mask). Raises :class:`TGHopError` for a mask of another size or not 2-d.
+    without a mask). An integer mask excludes its pixels above 0 (0/1, 0/255), a float one
+    those above 0.5, as :func:`tghop.inpaint.inpaint`'s hole (a float mask of a grey or JPEG
+    picture excluded its every faintly grey pixel). Raises :class:`TGHopError` for a mask of
+    another size or not 2-d.
     """
     if exclude is None:
         return None
@@ -160,7 +163,7 @@ def check_exclude(exclude, shape, *, name="exclude"):
     if mask.dtype != bool:
         if mask.dtype.kind not in "biuf" or not np.isfinite(mask).all():
             raise TGHopError(f"{name} must be a boolean mask (True: excluded), got dtype {mask.dtype}")
-        mask = mask > 0
+        mask = mask > (0.5 if mask.dtype.kind == "f" else 0)
     return mask if mask.any() else None
 
 
