@@ -264,7 +264,7 @@ SETTINGS: Tuple[Setting, ...] = (
             low=1, none_ok=True, auto=True, cli=("--clusters", "-N"), cli_high=5000, target="ichm", paper=50),
     Setting("n_codewords", 200, "int", "W, size of the CDF codebook.", low=1, cli=("--codewords", "-W"),
             cli_high=100000, target="ichm", paper=200),
-    Setting("n_bins", 256, "int", "Histogram bins per CDF.", low=2, cli=("--bins",), cli_high=65536,
+    Setting("n_bins", 256, "int", "Histogram bins per CDF.", low=2, high=65536, cli=("--bins",),
             target="ichm"),
     Setting("cluster_energy", 0.99, "float",
             "Variance fraction each cluster's PCA keeps before FastICA (the paper's F = 2,518 for "
