@@ -180,7 +180,6 @@ class OneLineGroup(click.Group):
                 gc.freeze()  # nothing left for the collections at exit to walk
         sys.exit(rc if isinstance(rc, int) else 0)
 
-
     def _command_path(self, args):
         """``tghop SUBCOMMAND ...`` as far as ``args`` name commands (click reports some usage
         errors, a missing option value, before the subcommand has a context)."""
