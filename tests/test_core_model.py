@@ -393,6 +393,11 @@ def test_bad_settings(bricks96):
         TGHop(stride=10**9).fit(bricks96[:60, :60])
     with pytest.raises(TGHopError, match="needs at least 50000000000000 training patches"):
         TGHop(min_cluster_size=10**12).fit(bricks96[:60, :60])
+    # A hop-1 count no exemplar of its channels has: before any patch is cut out, by its name.
+    for image, most in ((bricks96, 12), (bricks96[..., :1], 4)):
+        with pytest.raises(TGHopError, match=rf"^K1 \(n_channels\[0\], --k1\) is 13, .* has {most}; choose at most "):
+            TGHop(n_channels=(13, 22)).fit(image)
+    assert TGHop(n_channels=(13, 22)).check_channels() == (13, 22)  # no exemplar yet: any count
     for stride, side in ((2, 76), (3, 98), (7, 186)):  # (side - 32) / stride + 1 positions a row, 23 of them
         with pytest.raises(TGHopError, match=f"at least {side}x{side} pixels"):
             TGHop(stride=stride).fit(bricks96[:60, :60])

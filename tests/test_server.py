@@ -336,6 +336,9 @@ def test_a_fit_field_that_does_not_parse_is_named(client):
     assert_error(fit_with(client, stride="1.5"), 422, "stride: '1.5' is not an integer")
     assert_error(fit_with(client, layout_factor="abc"), 422, "layout_factor: 'abc' is not an integer (or none)")
     assert_error(fit_with(client, k1="abc"), 422, "k1: 'abc' is not a channel count; give a count")
+    # out of the image's range: refused before a job starts (the job failed), in the API's name
+    message = assert_error(fit_with(client, k1="100000"), 422, "K1 (k1) is 100000, but hop 1 of an exemplar of 3 ")
+    assert "--k1" not in message
     for value in ("x" * 5000, "9" * 1000):  # not the whole value back
         message = assert_error(fit_with(client, n_bins=value), 422, f"n_bins: '{value[:9]}")
         assert len(message) < 200
@@ -857,7 +860,7 @@ def test_concurrent_requests_of_one_seed_get_the_same_bytes(tmp_path, fitted, li
         finally:
             if p.poll() is None:
                 p.kill()
-    assert all(image == alone for image in together)
+    assert all(image == alone for image in together), [hash(i) for i in [alone, *together]]
 
 def test_a_generation_stops_at_its_next_progress_report_once_the_server_stops(tmp_path, fitted, live_server):
     # What lets `tghop serve` exit at once on Ctrl-C: the generation's progress callback

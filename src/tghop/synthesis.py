@@ -51,8 +51,7 @@ __all__ = ["TGHop", "CoarseLayout", "default_channels", "grey_as_rgb", "prepare_
 #: per-cluster PCA size that reproduces its F = 2,518 CDFs (95 % of the variance, at most 50
 #: components). Our default keeps more (99 %, at most 100): sharper patches, about twice
 #: the model size (docs/choices.md). From the ``paper`` column of the settings table.
-PAPER_TABLE4 = {"n_channels": (9, 22),
-                **{s.name: s.paper for s in settings.fit_settings() if s.has_paper}}
+PAPER_TABLE4 = {"n_channels": (9, 22), **{s.name: s.paper for s in settings.fit_settings() if s.has_paper}}
 
 #: Pool of generated patches quilted into one image (paper: 5,000-10,000).
 DEFAULT_POOL = settings.BY_NAME["n_patches"].default
@@ -65,11 +64,10 @@ FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 def default_channels(patch_size: int, n_colours: int = 3):
     """Channels kept per hop when none are given.
 
-    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps
-    40 channels (our choice: the paper gives no K3), so the core is 8x8 spatially in both
-    cases. Grey (one channel, 4 hop-1 channels in all): K1=4, K2=10 (, K3=20), our choice
-    in the same proportions. Other channel counts C (a material's stacked maps): the colour
-    counts times C / 3.
+    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps 40 channels
+    (our choice: the paper gives no K3), so the core is 8x8 spatially in both cases. Grey (one channel, 4
+    hop-1 channels in all): K1=4, K2=10 (, K3=20), our choice in the same proportions. Other channel
+    counts C (a material's stacked maps): the colour counts times C / 3.
     """
     if patch_size not in (32, 64):
         raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
@@ -175,18 +173,23 @@ class TGHop(BaseEstimator):
 
     # ---------------------------------------------------------------- fitting
     def check_settings(self):
-        """Raise the :class:`TGHopError` :meth:`fit` would raise for a bad setting, fitting nothing
-        (every setting against the settings table, then the patch size against the hops)."""
+        """Raise the :class:`TGHopError` :meth:`fit` would raise for a bad setting, fitting nothing (every
+        setting against the settings table, then the patch size against the hops)."""
         settings.check_settings({s.name: getattr(self, s.name) for s in settings.fit_settings()})
-        self._channel_rules()
+        self.check_channels()
 
-    def _channel_rules(self, n_colours=3):
+    def check_channels(self, n_colours=None):
+        """The hops' channel rules for an exemplar of ``n_colours`` channels (None: any), or a one-line TGHopError
+        before any work: a patch size the hops cannot halve, or a hop-1 count above 4 C (its 2x2 blocks)."""
         for name in ("patch_size", "stride"):
             settings.BY_NAME[name].check(getattr(self, name))
-        rules = default_channels(self.patch_size, n_colours) if self.n_channels is None else tuple(self.n_channels)
+        rules = default_channels(self.patch_size, n_colours or 3) if self.n_channels is None else tuple(self.n_channels)
         if not rules or self.patch_size % (2 ** len(rules)) or self.patch_size // 2 ** len(rules) < 2:
             raise TGHopError(f"{len(rules)} hop{'s need' if len(rules) != 1 else ' needs'} a patch size divisible by "
                              f"{2 ** len(rules)} leaving a core of at least 2x2, got patch_size={self.patch_size}")
+        if n_colours and isinstance(rules[0], (int, np.integer)) and rules[0] > 4 * n_colours:
+            raise TGHopError(f"K1 (n_channels[0], --k1) is {rules[0]}, but hop 1 of an exemplar of {n_colours} "
+                             f"channel{'s' * (n_colours != 1)} has {4 * n_colours}; choose at most {4 * n_colours}")
         return rules
 
     def check_exemplar_size(self, shape, ichm=None):
@@ -228,9 +231,9 @@ class TGHop(BaseEstimator):
         """
         from threadpoolctl import threadpool_limits
 
-        # One BLAS / OpenMP thread: the model is the same bit for bit on every machine
-        # (OpenBLAS's results change with its thread count) and a busy machine is not
-        # oversubscribed; ICHM.fit runs its clusters in threads of its own (usable_cores).
+        # One BLAS / OpenMP thread: the model is the same bit for bit on every machine (OpenBLAS's
+        # results change with its thread count) and a busy machine is not oversubscribed; ICHM.fit
+        # runs its clusters in threads of its own (usable_cores).
         with threadpool_limits(limits=1):
             try:
                 self._fit(image, exclude=exclude, progress=progress)
@@ -253,7 +256,7 @@ class TGHop(BaseEstimator):
             image = prepare_exemplar(image, channels=None)  # and checks it again (flat, grey)
         if image.dtype == np.uint8 and image.shape[0] * image.shape[1] <= FLOAT_EXEMPLAR_PIXELS:
             image = image / 255.0  # the floats of the same pixels: the same model (0.32: another one)
-        rules = self._channel_rules(image.shape[2])
+        rules = self.check_channels(image.shape[2])
         sdr = SpatialReduction(**settings.component_params(self, "sdr"))
         origins = patch_origins(image.shape, self.patch_size, stride=self.stride,
                                 max_patches=self.max_patches, rng=rng, exclude=exclude)
@@ -334,7 +337,7 @@ class TGHop(BaseEstimator):
         model = cls(**settings.file_settings(meta["params"]))
         model.exemplar_shape_ = tuple(int(v) for v in meta["exemplar_shape"])
         model.n_patches_ = int(meta["n_patches"])
-        stack = HopStack(n_channels=model._channel_rules(model.exemplar_shape_[2]))
+        stack = HopStack(n_channels=model.check_channels(model.exemplar_shape_[2]))
         stack.hops_ = [Hop._from_arrays(i, info, arrays) for i, info in enumerate(meta["hops"], start=1)]
         stack.dims_ = [int(d) for d in meta["hop_dims"]]
         model.hops_ = stack
@@ -378,7 +381,7 @@ class TGHop(BaseEstimator):
         h, w, c = (count(v, "exemplar_shape") for v in shape)
         count(meta["n_patches"], "n_patches")
         p = model.patch_size
-        n = len(model._channel_rules(c))
+        n = len(model.check_channels(c))
         hops, dims = meta["hops"], meta["hop_dims"]
         if not isinstance(hops, list) or len(hops) != n or not isinstance(dims, list) or len(dims) != n + 1:
             raise TGHopError(f"{where} hops and hop_dims do not describe {n} hops")
@@ -683,9 +686,8 @@ class TGHop(BaseEstimator):
         rng = check_rng(rng)
         guide = None
         if layout_weight and layout.follows_guide(self.layout_, size, tile=tile):
-            # The coarse guide and the pool are independent: the guide is made in a second
-            # thread (its own random stream) while the pool is generated and made ready
-            # for quilting (one BLAS thread, as everything here).
+            # The coarse guide and the pool are independent: the guide is made in a second thread (its
+            # own random stream) while the pool is generated and made ready for quilting.
             layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
             report(progress, "layout", 0, 1)
             pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
@@ -830,8 +832,7 @@ class CoarseLayout(BaseEstimator):
                                           n_clusters=self.n_clusters, min_patches=self.min_patches,
                                           max_patches=self.max_patches)
         small = layout.downsample(img, int(self.factor))  # 8-bit stays 8-bit: a byte per value
-        small_exclude = None if exclude is None else downsample_mask(np.asarray(exclude, dtype=bool),
-                                                                      int(self.factor))
+        small_exclude = None if exclude is None else downsample_mask(np.asarray(exclude, dtype=bool), int(self.factor))
         self.model_ = TGHop(
             patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
             max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None,

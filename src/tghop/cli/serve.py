@@ -128,6 +128,8 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
 
     config = uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on")
     server = Server(config)
+    import numpy  # noqa: F401 - their BLAS libraries loaded, so that the limit below reaches them
+    import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     try:

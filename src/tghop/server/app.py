@@ -329,6 +329,13 @@ class Server:
         try:
             image = prepare_exemplar(image)
             model = build_model(options, n_colours=image.shape[2], api=True)
+        except TGHopError as exc:
+            raise RequestError(400, str(exc)) from None
+        try:  # a channel count out of the image's range: a setting's (422), before a job starts
+            model.check_channels(image.shape[2])
+        except TGHopError as exc:
+            raise RequestError(422, str(exc).replace("n_channels[0], --k1", "k1")) from None
+        try:
             model.check_exemplar_size(image.shape)  # the smallest exemplar that works, before a job starts
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
