@@ -219,6 +219,8 @@ def test_hop_channel_errors_count_in_the_singular_too():
 
     grey = data.cells(64, rng=1)[..., :1]
     with pytest.raises(TGHopError, match="a hop on 1 input channel has at most 4 channels, 5 were asked for"):
+        Hop(n_channels=5).fit(np.random.default_rng(0).random((20, 8, 8, 1)))
+    with pytest.raises(TGHopError, match="hop 1 of an exemplar of 1 channel has 4"):  # TGHop says it before any work
         TGHop(n_channels=(5, 10), n_clusters=5, max_patches=200, layout_factor=None, rng=0).fit(grey)
     with pytest.raises(TGHopError, match="1 hop needs a patch size divisible by 2"):
         TGHop(n_channels=(4,), patch_size=5, rng=0).fit(grey)
