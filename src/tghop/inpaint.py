@@ -194,6 +194,13 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
     ndarray, shape (size[0], size[1]) + image.shape[2:]
         As :func:`inpaint`: ``image``'s pixels the same bytes (uint8) or values (float).
     """
+    import inspect
+
+    known = [p for p in inspect.signature(inpaint).parameters if p not in ("model", "image", "mask", "rng", "tile",
+                                                                             "progress")]
+    unknown = sorted(set(options) - set(known))
+    if unknown:  # Python's TypeError, naming inpaint, said it
+        raise TGHopError(f"extend: unknown keyword {unknown[0]!r}; the further keywords are {', '.join(known)}")
     canvas, hole, _ = expand_canvas(image, size, anchor=anchor)
     options.setdefault("order", "raster")
     return inpaint(model, canvas, hole, rng=rng, tile=tile, progress=progress, **options)
