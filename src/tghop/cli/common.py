@@ -89,6 +89,17 @@ def fail(message: str, code: int = 1):
     sys.exit(code)
 
 
+def os_error_message(exc: OSError) -> str:
+    """A file system or output error the checks did not foresee, in one line: the file (or "cannot
+    write the output" when it has none, as a full stdout), the system's words, and a fix for a
+    full disk."""
+    import errno
+
+    hint = "; free some space or write elsewhere" if exc.errno == errno.ENOSPC else ""
+    where = f"{str(exc.filename)[:80]}: " if exc.filename else "cannot write the output: "
+    return f"{where}{exc.strerror or exc}{hint}"
+
+
 def _show_warnings(caught):
     """Each caught user or runtime warning as one ``Warning:`` line on stderr; the list emptied."""
     for w in caught:
@@ -113,12 +124,8 @@ def user_errors(progress=None):
                 fail(str(exc))
             if isinstance(exc, MemoryError):
                 fail("out of memory; use a smaller output size, pool or exemplar")
-            if isinstance(exc, OSError):  # a file system error the checks above did not foresee
-                import errno
-
-                hint = "; free some space or write elsewhere" if exc.errno == errno.ENOSPC else ""
-                where = f"{str(exc.filename)[:80]}: " if exc.filename else "cannot write the output: "
-                fail(f"{where}{exc.strerror or exc}{hint}")
+            if isinstance(exc, OSError):
+                fail(os_error_message(exc))
             fail(*stop_message(exc))  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
         finally:
             if progress:

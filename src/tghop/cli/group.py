@@ -19,7 +19,7 @@ import click
 
 from .. import __version__
 from .batch import batch
-from .common import Terminated, fail, stop_message
+from .common import Terminated, fail, os_error_message, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
 from .guided import morph
@@ -170,11 +170,7 @@ class OneLineGroup(click.Group):
             sys.exit(1)
         except OSError as exc:  # printing failed (`tghop info M > /dev/full`); files fail in user_errors
             _drop_stdout()
-            import errno
-
-            hint = "; free some space or write elsewhere" if exc.errno == errno.ENOSPC else ""
-            fail(f"cannot write the output: {exc.strerror or exc}{hint}" if exc.filename is None
-                 else f"{str(exc.filename)[:80]}: {exc.strerror or exc}")
+            fail(os_error_message(exc))
         finally:
             if as_command:
                 gc.freeze()  # nothing left for the collections at exit to walk
