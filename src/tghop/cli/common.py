@@ -89,6 +89,17 @@ def fail(message: str, code: int = 1):
     sys.exit(code)
 
 
+def drop_stdout():
+    """Point standard output at the null device: what is still buffered for a pipe that was
+    closed or a full disk would fail again as the interpreter exits ("Exception ignored")."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):  # no file descriptor (an in-process run's stdout)
+        pass
+
+
 def os_error_message(exc: OSError) -> str:
     """A file system or output error the checks did not foresee, in one line: the file (or "cannot
     write the output" when it has none, as a full stdout), the system's words, and a fix for a
@@ -125,6 +136,8 @@ def user_errors(progress=None):
             if isinstance(exc, MemoryError):
                 fail("out of memory; use a smaller output size, pool or exemplar")
             if isinstance(exc, OSError):
+                if not exc.filename:  # the output stream (an image to a full stdout): not flushed again at exit
+                    drop_stdout()
                 fail(os_error_message(exc))
             fail(*stop_message(exc))  # Ctrl-C, or SIGTERM/SIGHUP to the command (Terminated)
         finally:

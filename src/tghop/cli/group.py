@@ -19,7 +19,7 @@ import click
 
 from .. import __version__
 from .batch import batch
-from .common import Terminated, fail, os_error_message, stop_message
+from .common import Terminated, drop_stdout, fail, os_error_message, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
 from .guided import morph
@@ -112,19 +112,6 @@ def _import_for(args):
             pass
 
 
-def _drop_stdout():
-    """Point standard output at the null device: what is still buffered for a pipe that was
-    closed or a full disk would fail again as the interpreter exits ("Exception ignored")."""
-    import os
-
-    try:
-        null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(null, sys.stdout.fileno())
-        os.close(null)
-    except (OSError, ValueError, AttributeError):  # no file descriptor (an in-process run's stdout)
-        pass
-
-
 class OneLineGroup(click.Group):
     """Every failure of the command line, click's usage errors and Ctrl-C included, is one
     line on stderr (``Error: ...``) and a non-zero exit status, never a traceback."""
@@ -166,10 +153,10 @@ class OneLineGroup(click.Group):
         except KeyboardInterrupt as exc:
             fail(*stop_message(exc))
         except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
-            _drop_stdout()
+            drop_stdout()
             sys.exit(1)
         except OSError as exc:  # printing failed (`tghop info M > /dev/full`); files fail in user_errors
-            _drop_stdout()
+            drop_stdout()
             fail(os_error_message(exc))
         finally:
             if as_command:
