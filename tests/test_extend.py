@@ -64,7 +64,7 @@ def test_extend_fills_row_by_row_and_inpaint_from_the_edge_inwards(model, cells)
     with pytest.raises(TGHopError, match="order must be 'edge' or 'raster', got 'spiral'"):
         inpaint(model, canvas, hole, order="spiral", **POOL)
     # An unknown keyword was Python's TypeError, naming inpaint
-    with pytest.raises(TGHopError, match=r"^extend: unknown keyword 'orde'; the further keywords are n_patches, "):
+    with pytest.raises(TGHopError, match=r"^extend: unknown keyword 'orde'; the keywords are n_patches, "):
         extend(model, cells, (96, 160), orde="raster")
 
 

@@ -172,6 +172,8 @@ def test_layout_errors(layout):
     assert guide_fits((63, 64), 2, 32, tile=True)
     assert follows_guide(layout, (61, 64)) and not follows_guide(layout, (61, 64), tile=True)
     assert not follows_guide(None, (256, 256))  # a model without a layout
+    with pytest.raises(TGHopError, match=r"^guide: unknown keyword 'seed'; the keywords are rng, n_patches, tile, "):
+        layout.guide((64, 64), seed=1)  # was Python's TypeError naming coarse_guide
 
 
 def neighbour_steps(image, axis):

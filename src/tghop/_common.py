@@ -219,6 +219,16 @@ def report(progress: Optional[ProgressCallback], stage: str, done: int, total: i
         progress(stage, int(done), int(total))
 
 
+def check_keywords(options, function, *, where: str, exclude=()) -> None:
+    """Refuse a keyword of ``options`` that ``function`` does not take, in one line naming the
+    keywords it does take (all but ``exclude``), instead of Python's TypeError naming an inner
+    function."""
+    known = [p for p in inspect.signature(function).parameters if p not in exclude]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise TGHopError(f"{where}: unknown keyword {unknown[0]!r}; the keywords are {', '.join(known)}")
+
+
 def check_rng(rng: RngLike) -> np.random.Generator:
     """Turn ``rng`` (None, an int seed or a Generator) into a ``numpy.random.Generator``.
 

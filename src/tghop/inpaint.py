@@ -47,7 +47,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_is_fitted, check_rng, check_size, checked_image, one_blas_thread, report
+from ._common import (TGHopError, check_is_fitted, check_keywords, check_rng, check_size, checked_image,
+                      one_blas_thread, report)
 from .layout import downsample, upsample
 from .patches import downsample_mask
 from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
@@ -194,13 +195,7 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
     ndarray, shape (size[0], size[1]) + image.shape[2:]
         As :func:`inpaint`: ``image``'s pixels the same bytes (uint8) or values (float).
     """
-    import inspect
-
-    known = [p for p in inspect.signature(inpaint).parameters if p not in ("model", "image", "mask", "rng", "tile",
-                                                                             "progress")]
-    unknown = sorted(set(options) - set(known))
-    if unknown:  # Python's TypeError, naming inpaint, said it
-        raise TGHopError(f"extend: unknown keyword {unknown[0]!r}; the further keywords are {', '.join(known)}")
+    check_keywords(options, inpaint, where="extend", exclude=("model", "image", "mask", "rng", "tile", "progress"))
     canvas, hole, _ = expand_canvas(image, size, anchor=anchor)
     options.setdefault("order", "raster")
     return inpaint(model, canvas, hole, rng=rng, tile=tile, progress=progress, **options)

@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from . import settings
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, check_size,
-                      check_texture, fitted_settings, in_thread, one_blas_thread, report)
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_rng,
+                      check_size, check_texture, fitted_settings, in_thread, one_blas_thread, report)
 from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
@@ -846,4 +846,5 @@ class CoarseLayout(BaseEstimator):
         fine level follows. ``options``: the keywords of :func:`tghop.layout.coarse_guide` (``rng``,
         ``n_patches``, ``tile``, ``refine``, ``seam_window``, ``flat_share``, ``patch_refine``)."""
         check_is_fitted(self, "model_")
+        check_keywords(options, layout.coarse_guide, where="guide", exclude=("model", "factor", "size"))
         return layout.coarse_guide(self.model_, self.factor, size, **options)
