@@ -351,3 +351,18 @@ def test_saab_transform_refuses_what_is_not_finite_numbers(rng):
     with pytest.raises(TGHopError, match="NaN"):
         saab.inverse_transform(np.full((2, len(saab.channels_)), np.inf))
     assert saab.transform(np.zeros((0, 12))).shape == (0, len(saab.channels_))
+
+
+def test_hop_transforms_refuse_what_is_not_finite_numbers(small_patches):
+    # A NaN went through a hop and its inverse to NaN responses and patches without a word.
+    hop = Hop().fit(small_patches)
+    core = hop.transform(small_patches[:2])
+    for call, arg, name in ((hop.transform, small_patches[:2], "X"), (hop.inverse_transform, core, "Y")):
+        with pytest.raises(TGHopError, match=rf"^{name} contains NaN or infinite values"):
+            call(_nan(arg))
+        with pytest.raises(TGHopError, match=rf"^{name} must be an array of numbers"):
+            call(np.full(arg.shape, "a"))
+    stack = HopStack().fit(small_patches)
+    with pytest.raises(TGHopError, match=r"^Y contains NaN"):
+        stack.inverse_transform(_nan(stack.transform(small_patches[:2])))
+    assert hop.transform(small_patches[:0]).shape == (0,) + core.shape[1:]

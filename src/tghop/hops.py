@@ -227,8 +227,8 @@ class Hop(TransformerMixin, BaseEstimator):
     def transform(self, X):
         """``(n, H, W, C)`` -> ``(n, H/2, W/2, K)``."""
         check_is_fitted(self, "kernels_")
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 4 or X.shape[3] != self.n_channels_in_:
+        X = check_array(X, "X", f"(n, H, W, {self.n_channels_in_})", ndim=4, min_rows=0)  # numbers, finite
+        if X.shape[3] != self.n_channels_in_:
             raise TGHopError(f"this hop takes (n, H, W, {self.n_channels_in_}) arrays, got shape {X.shape}")
         blocks = space_to_depth(X)
         return blocks @ self.kernels_.T + self.bias_
@@ -236,8 +236,8 @@ class Hop(TransformerMixin, BaseEstimator):
     def inverse_transform(self, Y):
         """``(n, h, w, K)`` -> ``(n, 2h, 2w, C)``; discarded channels are zero."""
         check_is_fitted(self, "kernels_")
-        Y = np.asarray(Y, dtype=np.float64)
-        if Y.ndim != 4 or Y.shape[3] != self.n_channels_out_:
+        Y = check_array(Y, "Y", f"(n, h, w, {self.n_channels_out_})", ndim=4, min_rows=0)  # numbers, finite
+        if Y.shape[3] != self.n_channels_out_:
             raise TGHopError(f"this hop inverts (n, h, w, {self.n_channels_out_}) arrays, got shape {Y.shape}")
         return depth_to_space((Y - self.bias_) @ self.kernels_)
 
