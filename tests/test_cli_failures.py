@@ -291,6 +291,13 @@ def test_help_states_the_range_of_fractions():
     assert "<=x<=1e+06" not in flat and "<=x<=1000000" not in flat  # caps, not ranges: not shown
 
 
+@pytest.mark.parametrize("command", ["fit", "synth", "batch"])
+def test_help_names_the_values_of_a_choice(command):
+    # `--gamma-mode CHOICE` never said which values it takes (only its error did).
+    flat = " ".join(CliRunner().invoke(main, [command, "--help"]).stdout.split())
+    assert "--gamma-mode [absolute|relative] " in flat and "CHOICE" not in flat
+
+
 @pytest.mark.parametrize("command", [[], ["fit"], ["synth"], ["info"], ["evaluate"], ["patches"], ["baseline"],
                                      ["cooc"], ["cooc", "train"], ["cooc", "morph"], ["cooc", "edit"]])
 def test_help_is_plain_text(command):

@@ -117,6 +117,10 @@ class SettingType(click.ParamType):
         self.setting = setting if setting.cli_high is None else dataclasses.replace(setting, high=setting.cli_high)
         self.name = setting.kind.upper()
 
+    def get_metavar(self, param, ctx=None):
+        """A choice's values, as click.Choice shows them (``[absolute|relative]``); else the kind."""
+        return "[" + "|".join(self.setting.choices) + "]" if self.setting.kind == "choice" else None
+
     def convert(self, value, param, ctx):
         if not isinstance(value, str):
             return value
