@@ -897,3 +897,30 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path):
         assert int(r["worker"].split(":")[1]) != os.getpid()
     (inline,) = run(src / "sub", tmp_path / "out2", workers=1, task=probe_threads)
     assert inline["seen"]["cores"] == usable_cores() and inline["threads"] is None  # in process: every core
+
+
+def test_an_exemplar_over_the_pixel_limit_is_told_to_downscale_itself(tmp_path):
+    # batch has no --downscale (and run no downscale=): it was told "pass downscale=True"
+    from test_cli_failures import png_header
+
+    src = make_folder(tmp_path / "src", bad=False)
+    (src / "big.png").write_bytes(png_header(9000, 9000))
+    records = {r["name"]: r for r in run(src, tmp_path / "out", workers=1)}
+    assert records["big"]["status"] == "failed" and "9000x9000" in records["big"]["error"]
+    assert records["big"]["error"].endswith("downscale it first (e.g. to 8192x8192)")
+    assert all(r["status"] == "ok" for name, r in records.items() if name != "big")
+
+
+def test_a_script_without_the_main_guard_is_told_to_add_it(tmp_path):
+    # Dask's worker processes import the calling script again; unguarded, each started a batch of
+    # its own and the run ended in "RuntimeError: Nanny failed to start" under their tracebacks.
+    pytest.importorskip("distributed")
+    src = make_folder(tmp_path / "src", bad=False)
+    script = tmp_path / "script.py"
+    script.write_text(f"import tghop.batch\ntghop.batch.run({str(src)!r}, 'out', workers=2)\n")
+    p = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    last = p.stderr.strip().splitlines()[-1]
+    assert p.returncode == 1 and last.startswith("tghop._errors.TGHopError: the local Dask cluster's workers did not "
+                                                 "start"), p.stderr[-2000:]
+    assert """'if __name__ == "__main__":' around the call""" in last and last.endswith("or workers=1")
+    assert (tmp_path / "out" / "batch.jsonl").read_text() == ""  # opened before the cluster: nothing done

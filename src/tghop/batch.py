@@ -1,21 +1,18 @@
 """Many exemplars at once: a model and N images per exemplar, in process or on Dask.
 
-:func:`run` finds the work (every image of a folder, or the rows of a manifest:
-:mod:`tghop.manifest`), skips what a previous run finished (the ledger
-``OUTDIR/batch.jsonl``: one JSON line per finished exemplar with its input's SHA-256,
-its settings and its outputs), runs :func:`process_exemplar` for the rest, in this
-process (``workers=1``), on a local ``dask.distributed`` cluster of worker processes
-(the default), or on a given :class:`distributed.Client`, and writes an HTML contact
-sheet ``OUTDIR/index.html``.
+:func:`run` finds the work (every image of a folder, or the rows of a manifest: :mod:`tghop.manifest`),
+skips what a previous run finished (the ledger ``OUTDIR/batch.jsonl``: one JSON line per finished
+exemplar with its input's SHA-256, its settings and its outputs), runs :func:`process_exemplar` for the
+rest, in this process (``workers=1``), on a local ``dask.distributed`` cluster of worker processes (the
+default), or on a given :class:`distributed.Client`, and writes an HTML contact sheet ``OUTDIR/index.html``.
 
 * Every file is written atomically (:func:`tghop.imageio.write_atomic`); a worker killed
   mid-task leaves at most a temporary file, which the retry (or the end of the run)
   removes. A task whose worker dies is run again elsewhere, up to ``retries`` times
   (distributed's ``allowed-failures``), then recorded as failed.
-* A bad exemplar (not an image, flat, too small) is recorded with its one-line error and
-  the others go on.
-* Dask is an optional extra (``pip install 'tghop[batch]'``): it is imported inside the
-  functions that use it, and ``workers=1`` never needs it.
+* A bad exemplar (not an image, flat, too small) is recorded with its one-line error; the others go on.
+* Dask is an optional extra (``pip install 'tghop[batch]'``), imported inside the functions that use it;
+  ``workers=1`` never needs it.
 
 The library never prints: ``progress(stage, done, total)`` reports exemplars finished,
 ``on_result(record, counts)`` each finished exemplar with the running counts.
@@ -38,7 +35,7 @@ import time
 import warnings
 from pathlib import Path
 
-from ._errors import MissingExtraError, TGHopError
+from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError
 from ._formats import is_model_file
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size, read_manifest
@@ -275,7 +272,7 @@ def process_exemplar(job: dict) -> dict:
             fit = job.get("fit") or {}
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
                 raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
-            raw = load_image(job["source"], dtype=None)
+            raw = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
             image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])
             model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
@@ -470,9 +467,14 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
                                              "distributed.nanny.pre-spawn-environ": environ}):
         # ":0": the scheduler's HTTP server (health, metrics) on a free port; None still took 8787,
         # and a second cluster (another batch, a notebook's) printed Dask's "Port 8787 is already in use".
-        return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        dashboard_address=":0", memory_limit=memory_limit,
-                                        silence_logs=logging.CRITICAL, preload=[__name__])
+        try:
+            return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                            dashboard_address=":0", memory_limit=memory_limit,
+                                            silence_logs=logging.CRITICAL, preload=[__name__])
+        except RuntimeError as exc:  # most often a script without the guard: each worker ran it again
+            raise TGHopError(f"the local Dask cluster's workers did not start ({exc}); a script that runs a "
+                             "batch needs 'if __name__ == \"__main__\":' around the call (workers import it), "
+                             "or workers=1") from exc
 
 
 @contextlib.contextmanager
@@ -531,10 +533,9 @@ def _cores() -> int:
 
 
 def _cost(job) -> float:
-    """A rough relative cost of a job, to start the longest first (a shorter tail at the
-    end of a run): one fit (a little more for a larger exemplar: its pixels read from the
-    file's header, capped at 4 MP) plus a tenth of a fit per 512x512 output pixels
-    (measured in one thread: a fit about 11 s, a 512x512 image about 1 s; docs/choices.md)."""
+    """A job's rough relative cost, to start the longest first (a shorter tail): one fit (more
+    for a larger exemplar: its header's pixels, capped at 4 MP) plus a tenth of a fit per 512x512
+    output pixels (in one thread a fit takes about 11 s, a 512x512 image about 1 s; docs/choices.md)."""
     try:
         from PIL import Image
 
@@ -633,22 +634,22 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     source : str or Path
         A folder of images (recursively) or a manifest (:func:`find_work`).
     outdir : str or Path
-        Created if needed. ``OUTDIR/<name>/`` gets ``<name>.npz``, ``<name>.png`` (or
-        ``<name>_1.png`` ...) and ``exemplar.png`` (a thumbnail); ``OUTDIR/batch.jsonl``
-        one line per finished exemplar; ``OUTDIR/index.html`` the contact sheet.
+        Created if needed. ``OUTDIR/<name>/`` gets ``<name>.npz``, ``<name>.png`` (or ``<name>_1.png``
+        ...) and ``exemplar.png`` (a thumbnail); ``OUTDIR/batch.jsonl`` one line per finished
+        exemplar; ``OUTDIR/index.html`` the contact sheet.
     count, size, seed, tile
-        Defaults for every exemplar (a manifest row may give its own). ``seed`` None: a
-        fresh seed per exemplar, recorded in the ledger.
+        Defaults for every exemplar (a manifest row gives its own). ``seed`` None: a fresh seed each, in the ledger.
     fit : dict
-        :class:`~tghop.synthesis.TGHop` parameters; ``n_channels`` entries may be None
-        (the default for the exemplar's colours).
+        :class:`~tghop.synthesis.TGHop` parameters; ``n_channels`` entries may be None (the default
+        for the exemplar's colours).
     generate : dict
         Other keywords of :meth:`TGHop.synthesize` (``tile`` comes from ``tile``).
     workers : int, optional
-        1: in this process, without Dask, each exemplar on every core. Otherwise a local
-        cluster of that many worker processes (None: one per core, :func:`local_cluster`).
-        On a cluster (also a given one) each exemplar runs on one thread (BLAS's and
-        tghop's own), the longest first. Ignored when ``client`` or ``scheduler`` is given.
+        1: in this process, without Dask, each exemplar on every core. Otherwise a local cluster of
+        that many worker processes (None: one per core, :func:`local_cluster`), which import the
+        calling script: call ``run`` under its ``if __name__ == "__main__":``. On a cluster (also a
+        given one) each exemplar runs on one thread (BLAS's and tghop's own), the longest first.
+        Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
         Run on this client's cluster. ``scheduler``: the address of one to connect to.
     retries : int
@@ -658,20 +659,19 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         own setting (Dask's default: 3). The task itself never raises for bad input.
     progress : callable(stage, done, total), optional
     on_result : callable(record, counts), optional
-        Called with each finished exemplar's record and ``counts`` (done, failed,
-        running, total, skipped).
+        Called with each finished exemplar's record and ``counts`` (done, failed, running, total, skipped).
     contact_sheet : bool
         Write ``OUTDIR/index.html`` at the end (also after an interruption).
     task : callable(job) -> record, optional
-        What runs per exemplar (default :func:`process_exemplar`); a wrapper of it, e.g.
-        to log or to test what a dying worker does. Dask must be able to pickle it.
+        What runs per exemplar (default :func:`process_exemplar`); a wrapper of it, e.g. to log
+        or to test what a dying worker does. Dask must be able to pickle it.
 
     Returns
     -------
     list of dict
-        One record per exemplar, in the order of ``source``: the ledger's fields
-        (``name``, ``source``, ``sha256``, ``settings``, ``status``, ``error``,
-        ``outputs``, ``model``, times, ...) and ``skipped`` (True: done by an earlier run).
+        One record per exemplar, in the order of ``source``: the ledger's fields (``name``, ``source``,
+        ``sha256``, ``settings``, ``status``, ``error``, ``outputs``, ``model``, times, ...) and
+        ``skipped`` (True: done by an earlier run).
     """
     _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task})
     outdir = Path(os.path.abspath(outdir))
