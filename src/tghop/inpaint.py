@@ -187,8 +187,8 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
         across its edges).
     **options
         Further keywords of :func:`inpaint` (``n_patches``, ``tolerance``, ``detail``,
-        ``layout_weight``, ``order``: "raster" here by default, ``refine``, ``patch_refine``,
-        ``blend``).
+        ``flat_share``, ``layout_weight``, ``order``: "raster" here by default, ``refine``,
+        ``patch_refine``, ``blend``).
 
     Returns
     -------

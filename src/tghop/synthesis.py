@@ -223,7 +223,7 @@ class TGHop(BaseEstimator):
             training patches left is a :class:`TGHopError` naming the minimum.
         progress : callable, optional
             ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
-            "SDR", "clusters", "ICA", "CDF codebook".
+            "SDR", "clusters", "ICA", "CDF codebook", and "layout" with a ``layout_factor``.
 
         Returns
         -------
