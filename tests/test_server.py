@@ -236,6 +236,35 @@ def test_a_generation_whose_client_went_away_never_runs(client, fitted, live_ser
     assert r.status_code == 200 and seeds == [102]  # 101 never ran
 
 
+def test_a_running_generation_whose_client_went_away_stops(client, fitted, live_server, monkeypatch):
+    # It used to run to its end (about 100 s and 4 GB for 8192x8192 on 2 cores), its image thrown
+    # away: a page's Stop, a reload or a mistyped size held a generation thread all that time.
+    server = live_server.app.state.server
+    model_id, _, _ = fitted
+    calls, check = [], server.unless_stopping
+
+    def progress(*args):
+        try:
+            check(*args)
+        except Exception as exc:
+            calls.append(exc)
+            raise
+        calls.append(args)
+
+    monkeypatch.setattr(server, "unless_stopping", progress)
+    with pytest.raises(httpx.TimeoutException):  # the client gives up while the image is being made
+        httpx.post(f"{live_server.url}/api/models/{model_id}/images", json={"size": [2048, 2048], "seed": 1},
+                   timeout=1)
+    deadline = time.monotonic() + 120
+    while not (calls and isinstance(calls[-1], Exception)):
+        assert time.monotonic() < deadline, "the running generation did not stop"
+        time.sleep(0.05)
+    assert len(calls) > 1 and str(calls[-1]) == "the work was dropped"  # stopped between two of its stages
+    monkeypatch.undo()
+    r = client.post(f"/api/models/{model_id}/images", json={"size": [16, 16], "seed": 3})
+    assert r.status_code == 200  # the thread serves the next request
+
+
 def test_a_client_that_drops_mid_upload_is_dropped_quietly(client, fitted, live_server):
     import logging
     import socket
@@ -336,6 +365,8 @@ def test_a_fit_field_that_does_not_parse_is_named(client):
     assert_error(fit_with(client, stride="1.5"), 422, "stride: '1.5' is not an integer")
     assert_error(fit_with(client, layout_factor="abc"), 422, "layout_factor: 'abc' is not an integer (or none)")
     assert_error(fit_with(client, k1="abc"), 422, "k1: 'abc' is not a channel count; give a count")
+    # a value out of range named Python's None, where the form writes auto (its field's placeholder)
+    assert_error(fit_with(client, n_clusters="0"), 422, "n_clusters must be an integer >= 1 or auto, got 0")
     # out of the image's range: refused before a job starts (the job failed), in the API's name
     message = assert_error(fit_with(client, k1="100000"), 422, "K1 (k1) is 100000, but hop 1 of an exemplar of 3 ")
     assert "--k1" not in message
@@ -384,6 +415,8 @@ def test_an_integer_setting_given_a_float_is_refused_as_seed_and_size_are(client
     images = f"/api/models/{'0' * 64}/images"  # the body is checked before the model is looked up
     assert_error(client.post(images, json={"refine": 5.0}), 422, "refine must be an integer", "got 5.0; write 5")
     assert_error(client.post(images, json={"overlap": 8.0}), 422, "overlap must be an integer >= 1 or null")
+    # JSON's null, not Python's None, for a value out of range too
+    assert_error(client.post(images, json={"region": 1}), 422, "region must be an integer >= 256 or null, got 1")
     assert_error(client.post("/api/images/guided", json={"models": ["0" * 64] * 2, "n_patches": 400.0}), 422,
                  "n_patches must be an integer")
     assert_error(client.post(images, json={"refine": 5, "tolerance": 1}), 404, "no model")  # 1 is a number

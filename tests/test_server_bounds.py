@@ -49,7 +49,10 @@ def test_waiting_fits_are_capped():
         assert queue.submit("2" * 64, work) is waiting[0]  # the same model: its job, not a new one
         with pytest.raises(QueueFull, match="2 fits are waiting"):
             queue.submit("4" * 64, work)
-        queue.cancel(waiting[0].id)  # a place frees up
+        queue.cancel(waiting[0].id)  # one of the two that asked for it withdraws: it still waits
+        with pytest.raises(QueueFull):
+            queue.submit("4" * 64, work)
+        queue.cancel(waiting[0].id)  # the other too: a place frees up
         assert queue.submit("4" * 64, work).state == "queued"
     finally:
         release.set()
@@ -81,6 +84,41 @@ def test_a_fit_asked_for_again_after_its_cancel_runs_anew():
     finally:
         release.set()
         queue.shutdown()
+
+
+def test_a_fit_two_clients_asked_for_stops_only_when_both_withdraw():
+    # Two pages that chose the same exemplar and settings share one job; one page's Cancel
+    # (or its switch to another exemplar) cancelled the other's fit as well.
+    queue = FitQueue(1)
+    started, release = threading.Event(), threading.Event()
+
+    def work(job):
+        started.set()
+        release.wait(10)
+        job.progress("hop 1", 0, 1)  # raises Cancelled once every asker withdrew
+
+    try:
+        job = queue.submit("6" * 64, work)
+        assert queue.submit("6" * 64, work) is job and job.snapshot()["askers"] == 2
+        assert started.wait(10)
+        assert queue.cancel(job.id) is job and not job.cancel_requested
+        assert job.snapshot()["askers"] == 1 and job.snapshot()["state"] == "running"
+        assert queue.cancel(job.id).cancel_requested and job.askers == 0
+        release.set()
+        job.future.result(timeout=10)
+        assert job.state == "cancelled" and queue.cancel(job.id).askers == 0  # once more: nothing changes
+
+        def busy(j):  # reports progress for up to 10 s; done unless cancelled before
+            for _ in range(1000):
+                j.progress("hop 1", 0, 1)
+                time.sleep(0.01)
+
+        shared = queue.submit("7" * 64, busy)
+        assert queue.submit("7" * 64, busy) is shared
+    finally:
+        release.set()
+        queue.shutdown()  # cancels for every asker
+    assert shared.state == "cancelled" and shared.askers == 0
 
 
 @pytest.fixture(scope="module")

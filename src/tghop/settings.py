@@ -115,8 +115,9 @@ class Setting:
     def has_paper(self) -> bool:
         return self.paper is not _MISSING
 
-    def range_text(self, *, cli: bool = False) -> str:
-        """The values the setting takes, in words; ``cli``: None as the command line writes it."""
+    def range_text(self, *, cli: bool = False, json: bool = False) -> str:
+        """The values the setting takes, in words; ``cli``: None as the command line writes it,
+        ``json``: as JSON does (``null``)."""
         if self.kind == "choice":
             return "one of " + ", ".join(repr(c) for c in self.choices)
         parts = []
@@ -126,25 +127,27 @@ class Setting:
             parts.append(f"{'<' if self.high_open else '<='} {_number(self.high)}")
         noun = {"int": "an integer", "float": "a finite number", "bool": "True or False"}.get(self.kind, "")
         text = noun + (" " + " and ".join(parts) if parts else "")
-        none = ("auto" if self.auto else "none") if cli else "None"
+        none = ("auto" if self.auto else "none") if cli else "null" if json else "None"
         return text + (f" or {none}" if self.none_ok else "")
 
-    def check(self, value, *, label=None, cli=False):
+    def check(self, value, *, label=None, cli=False, json=False):
         """Return ``value`` (normalised) or raise a one-line :class:`TGHopError`; an ``"int"``
         setting takes integers only (Python or NumPy, not a float such as 2.0); ``cli``: the
-        message names None as the command line writes it (``auto`` or ``none``)."""
+        message names None as the command line writes it (``auto`` or ``none``), ``json`` as
+        JSON does (``null``)."""
         label = label or self.name
+        words = self.range_text(cli=cli, json=json)
         if self.kind == "rng":
             return value  # checked where it is used (check_rng)
         if value is None:
             if self.none_ok:
                 return None
-            raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got None")
+            raise TGHopError(f"{label} must be {words}, got {'null' if json else None}")
         if self.kind == "channels":
             return _check_channels(value, label)
         if self.kind == "choice":
             if value not in self.choices:
-                raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
+                raise TGHopError(f"{label} must be {words}, got {value!r}")
             return value
         if self.kind == "bool":
             if type(value).__name__ not in ("bool", "bool_") and not (
@@ -152,21 +155,21 @@ class Setting:
                 raise TGHopError(f"{label} must be True or False, got {value!r}")
             return bool(value)
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
+            raise TGHopError(f"{label} must be {words}, got {value!r}")
         if self.kind == "int":
             if not isinstance(value, numbers.Integral):  # 2.0 too, as the server and the other entry points
                 whole = math.isfinite(value) and float(value).is_integer()
-                raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}"
+                raise TGHopError(f"{label} must be {words}, got {value!r}"
                                  + (f"; write {int(value)}" if whole else ""))
             value = int(value)
         else:
             value = float(value)
             if not math.isfinite(value):
-                raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
+                raise TGHopError(f"{label} must be {words}, got {value!r}")
         bad_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
         bad_high = self.high is not None and (value >= self.high if self.high_open else value > self.high)
         if bad_low or bad_high:
-            raise TGHopError(f"{label} must be {self.range_text(cli=cli)}, got {value!r}")
+            raise TGHopError(f"{label} must be {words}, got {value!r}")
         return value
 
     def parse(self, text: str):

@@ -3,9 +3,8 @@ model cache (see docs/serve.md for the API).
 
 The cache (:class:`tghop.server.cache.ModelCache`) is a folder, ``<cache>/models``, of model
 files named ``<id>.npz`` (and ``<cache>/cooc`` of co-occurrence checkpoints, ``<id>.pt``:
-:mod:`tghop.server.cooc`). An id is
-a content hash (SHA-256 of the exemplar's bytes and the fit settings, or of an uploaded
-model file), so the same exemplar with the same settings is fitted once. Every file
+:mod:`tghop.server.cooc`). An id is a content hash (SHA-256 of the exemplar's bytes and the fit
+settings, or of an uploaded model file), so the same exemplar with the same settings is fitted once. Every file
 appears whole or not at all (:func:`tghop.modelfile.save_model` writes atomically; an
 upload is checked in a temporary file that is removed whatever happens); leftovers of a
 killed server (``.*.tmp``) are removed at start. The folder is bounded (``max_bytes``,
@@ -18,14 +17,13 @@ Everything tghop does here is the library's own code: :func:`tghop.imageio.load_
 (with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
 :func:`tghop.inpaint.inpaint`, :func:`tghop.synthesize_guided` and :func:`tghop.morph` (several
 models; their JSON is checked by :mod:`tghop.server.requests`), :func:`tghop.modelfile.save_model` /
-:func:`~tghop.modelfile.load_model` (with their
-checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a
-status code: 400 (not an image, a decompression bomb, a corrupt model, a malformed
-request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
+:func:`~tghop.modelfile.load_model` (with their checks of a file). Bad input is answered with
+one line, ``{"error": "..."}``, and a status code: 400 (not an image, a decompression bomb, a
+corrupt model, a malformed request), 404 (no such model or job), 413 (over 50 MB or over the exemplar pixel limit),
 422 (a setting out of range, a size over the output limit), 501 (a co-occurrence route
 without PyTorch), 503 (too many fits waiting); a generation whose client has gone away is
-dropped (:meth:`Server.in_executor`; 499, to nobody), and so is a request whose client goes
-away before it has sent the whole body (:func:`read_body`).
+dropped, also while it runs (:meth:`Server.in_executor`; 499, to nobody), and so is a request
+whose client goes away before it has sent the whole body (:func:`read_body`).
 
 Generations run on a thread pool of their own (:attr:`Server.executor`, as many threads as
 generations may run at once), not on Starlette's pool of 40 threads: fewer threads touching
@@ -168,7 +166,7 @@ def parse_fit_settings(fields: dict) -> dict:
                 if s.kind == "bool":
                     options[name] = parse_bool(name, text)
                 else:
-                    value = s.check(None if text == "" else _parse_field(s, text), label=name)
+                    value = s.check(None if text == "" else _parse_field(s, text), label=name, cli=True)
                     if s.cli_high is not None and value is not None and value > s.cli_high:
                         raise TGHopError(f"{name} {text} is more than the server allows ({s.cli_high:,g})")
                     options[name] = OFF if value is None else value  # "none": off, not the default
@@ -253,11 +251,12 @@ class Server:
         self.cooc = cooc.cooc_cache(cache_dir, cache_bytes)
         self.queue = FitQueue(max_fits)
         self.generating = threading.BoundedSemaphore(max_fits)
-        # Generations (and their image reading and PNG encoding) run on threads of their own,
-        # as many as may generate at once, not on Starlette's pool of 40: fewer threads
-        # touching big arrays, fewer glibc malloc arenas holding freed memory (docs/serve.md).
+        # Generations (and their image reading and PNG encoding) run on threads of their own, as many as
+        # may generate at once, not on Starlette's pool of 40: fewer threads touching big arrays, fewer
+        # glibc malloc arenas holding freed memory (docs/serve.md).
         self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
         self.stopping = asyncio.Event()
+        self._work = threading.local()  # .dropped: the running request's flag, on its generation thread
 
     def stop(self) -> None:
         """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
@@ -267,17 +266,27 @@ class Server:
         self.stopping.set()
 
     def unless_stopping(self, stage=None, done=0, total=0) -> None:
-        """The progress callback of a generation: stops it (503, to nobody: :meth:`in_executor`
-        has answered) once the server stops, so that the process does not wait for it."""
-        if self.stopping.is_set():
-            raise RequestError(503, "the server is stopping; the work was dropped")
+        """A generation's progress callback: stops it (to nobody: :meth:`in_executor` has answered)
+        once its client went away or the server stops: no thread or process waits for it."""
+        dropped = getattr(self._work, "dropped", None)
+        if self.stopping.is_set() or (dropped is not None and dropped.is_set()):
+            raise RequestError(503, "the work was dropped")
+
+    def _flagged(self, dropped, work, *args):
+        """``work(*args)`` with ``dropped`` as this thread's flag for :meth:`unless_stopping`."""
+        self._work.dropped = dropped
+        try:
+            return work(*args)
+        finally:
+            self._work.dropped = None
 
     async def in_executor(self, request, work, *args):
-        """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of
-        ``request`` goes away first: still waiting for a thread, it never runs (running, it
-        finishes and its result is dropped); then 499. Dropped the same way when the server
-        stops (:meth:`stop`): then 503."""
-        future = asyncio.get_running_loop().run_in_executor(self.executor, functools.partial(work, *args))
+        """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of ``request``
+        goes away first (a page's Stop or reload): still waiting, it never runs; running, it stops at its
+        next progress report; then 499. Dropped the same way when the server stops (:meth:`stop`): 503."""
+        dropped = threading.Event()
+        future = asyncio.get_running_loop().run_in_executor(
+            self.executor, functools.partial(self._flagged, dropped, work, *args))
         gone = asyncio.ensure_future(_disconnected(request))
         stopped = asyncio.ensure_future(self.stopping.wait())
         try:
@@ -286,6 +295,7 @@ class Server:
             gone.cancel()
             stopped.cancel()
         if not future.done():
+            dropped.set()
             future.cancel()
             if not gone.done() and self.stopping.is_set():
                 raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")

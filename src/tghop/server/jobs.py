@@ -56,6 +56,8 @@ class Job:
     error : str or None
     version : int
         Grows with every change (what the event stream waits on).
+    askers : int
+        The requests that asked for this fit and have not withdrawn (:meth:`FitQueue.cancel`).
     """
 
     def __init__(self, model_id: str, state: str = "queued"):
@@ -70,6 +72,7 @@ class Job:
         self.created = time.time()
         self.finished_at = None  # time.monotonic() when it became final
         self.cancel_requested = False
+        self.askers = 1
         self.future = None
         self._seen = []  # stages in the order they came
         self._lock = threading.Lock()
@@ -95,7 +98,7 @@ class Job:
         with self._lock:
             out = {"job": self.id, "id": self.model_id, "state": self.state, "stage": self.stage,
                    "stages": list(self._seen), "done": self.done, "total": self.total,
-                   "progress": round(self.fraction(), 4), "version": self.version}
+                   "progress": round(self.fraction(), 4), "version": self.version, "askers": self.askers}
             if self.error:
                 out["error"] = self.error
             return out
@@ -123,7 +126,8 @@ class FitQueue:
     """At most ``max_fits`` fits at once on a thread pool; jobs by id.
 
     ``submit(model_id, work)`` runs ``work(job)`` (which calls ``job.progress``) in turn;
-    a second submit of a model that is still queued or running returns the same job.
+    a second submit of a model that is still queued or running returns the same job, and
+    the job is cancelled only once every submit that got it has withdrawn (:meth:`cancel`).
 
     Parameters
     ----------
@@ -192,6 +196,7 @@ class FitQueue:
             self._prune()
             active = self._active.get(model_id)
             if active is not None and not active.final and not active.cancel_requested:
+                active._update(askers=active.askers + 1)
                 return active
             waiting = sum(1 for j in self._active.values() if j.state == "queued")
             if waiting >= self.max_waiting:
@@ -229,10 +234,15 @@ class FitQueue:
             self._prune()
             return self._jobs.get(job_id)
 
-    def cancel(self, job_id: str):
-        """Ask the job to stop (a queued one never starts); returns the job or None."""
+    def cancel(self, job_id: str, *, everyone: bool = False):
+        """Withdraw one request for the job (``everyone``: all of them); the last to withdraw
+        stops it (a queued one never starts). Returns the job or None."""
         job = self.get(job_id)
-        if job is None or job.final:
+        if job is None or job.final or job.cancel_requested:
+            return job
+        with self._lock:  # with submit's count
+            job._update(askers=0 if everyone else max(0, job.askers - 1))  # wakes the event streams
+        if job.askers:  # another client still waits for this model: it goes on for them
             return job
         job.cancel_requested = True
         if job.future is not None and job.future.cancel():  # still waiting: it never runs
@@ -249,5 +259,5 @@ class FitQueue:
         with self._lock:
             ids = list(self._jobs)
         for job_id in ids:
-            self.cancel(job_id)
+            self.cancel(job_id, everyone=True)
         self._pool.shutdown(wait=True, cancel_futures=True)

@@ -129,11 +129,11 @@ def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -
             if s.name in body and (body[s.name] is not None or s.none_ok):
                 given = body[s.name]
                 if s.kind == "int" and isinstance(given, float):  # as seed and size: 5.0 is not taken as 5
-                    raise TGHopError(f"{s.name} must be {s.range_text().replace('None', 'null')}, got {given!r}"
+                    raise TGHopError(f"{s.name} must be {s.range_text(json=True)}, got {given!r}"
                                      + (f"; write {int(given)}" if given.is_integer() else ""))
                 if s.kind == "bool":
                     given = json_bool(s.name, given)
-                value = s.check(given, label=s.name)
+                value = s.check(given, label=s.name, json=True)
                 if s.cli_high is not None and value is not None and value > s.cli_high:
                     raise TGHopError(f"{s.name} {value} is more than the server allows ({s.cli_high:,g})")
                 settings[s.name] = value
