@@ -59,6 +59,17 @@ def fit_bricks(page):
 
 
 def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
+    # Hidden links were shown (.button's display beat the hidden attribute) and did nothing.
+    assert page.is_hidden("#download-png") and page.is_hidden("#download-model")
+    # The file inputs take the keyboard's focus, and Enter on the drop zone opens the chooser.
+    assert page.eval_on_selector_all("input[type=file]", "l => l.every(i => !i.hidden && i.tabIndex >= 0)")
+    with page.expect_file_chooser() as chooser:
+        page.focus("#drop")
+        page.keyboard.press("Enter")
+    assert chooser.value.element.evaluate("i => i.id") == "file"
+    page.set_viewport_size({"width": 390, "height": 900})  # a phone: the toolbars wrap (they ran off the page)
+    assert page.evaluate("document.documentElement.scrollWidth") <= 390
+    page.set_viewport_size({"width": 1200, "height": 1400})
     fit_bricks(page)
     assert page.eval_on_selector("#progress", "p => p.value") == 1
     assert page.is_enabled("#go")
@@ -84,6 +95,9 @@ def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
     page.wait_for_function("document.querySelectorAll('#strip img').length === 8 && "
                            "[...document.querySelectorAll('#strip img')].every(i => i.complete && i.naturalWidth)",
                            timeout=90_000)
+    page.focus("#strip img[data-seed='5']")  # by keyboard too
+    page.keyboard.press("Enter")
+    page.wait_for_function("document.getElementById('result-caption').textContent.endsWith('seed 5')")
     page.click("#strip img[data-seed='7']")
     page.wait_for_function("document.getElementById('result-caption').textContent.endsWith('seed 7')")
     assert page.input_value("#seed") == "7"
@@ -199,6 +213,9 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     assert mask_of(page).any()
     page.click("#clear")
     assert not mask_of(page).any()
+    stroke(page, (50, 50), (50, 50))  # a click paints a disc of the brush (a line of length 0 painted nothing)
+    assert mask_of(page)[48:53, 48:53].all() and 40 < mask_of(page).sum() < 120
+    page.click("#clear")
     # A picture of the user's own: painted and filled the same way.
     from PIL import Image
 
@@ -261,7 +278,9 @@ def test_paint_two_models_and_morph(page, live_server):
     page.wait_for_selector("#guide[data-ready='1']")
     assert page.eval_on_selector("#guide", "c => [c.height, c.width]") == [64, 96]
     assert page.eval_on_selector_all("#paint-models input", "b => b.map(x => x.checked)") == [True, True]
-    page.locator("label", has=page.locator("#paint-colour-1")).click()  # the second model's colour
+    assert page.is_checked("#paint-colour-1")  # the brush starts on the second model (the first is the background)
+    page.locator("label", has=page.locator("#paint-colour-0")).click()
+    page.locator("label", has=page.locator("#paint-colour-1")).click()  # the user's choice is kept from here on
     assert page.is_checked("#paint-colour-1")
     page.eval_on_selector("#paint-brush", "b => { b.value = '24'; b.dispatchEvent(new Event('input')); }")
     for x in (60, 84):  # two strokes top to bottom: the right half, x 48 to 95
@@ -292,6 +311,36 @@ def test_paint_two_models_and_morph(page, live_server):
     page.wait_for_function(RESULT_SHOWN % "morph: 32x128", timeout=60_000)
     mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_stop_a_generation_and_a_large_tiled_preview(page, live_server):
+    mode(page, "view")
+    if not page.is_enabled("#go"):  # run alone: fit first
+        fit_bricks(page)
+    page.fill("#n_patches", "400")
+    page.fill("#height", "1376")  # 3 x 3 of it is over 16 Mpx: the preview is scaled down, not left blank
+    page.fill("#width", "1376")
+    page.uncheck("#tile")
+    page.fill("#seed", "1")
+    page.click("#go")
+    page.wait_for_function(RESULT_SHOWN % "result: 1376x1376, seed 1", timeout=120_000)
+    page.wait_for_selector("#tiled[data-ready='1']")
+    assert page.eval_on_selector("#tiled", "c => [c.height, c.width]") == [3 * 1365, 3 * 1365]
+    assert page.text_content("#tiled-title").startswith("Tiled 3\u00d73, shown at 99 %")
+    corner = page.eval_on_selector("#tiled", "c => Array.from(c.getContext('2d').getImageData(4090, 4090, 1, 1).data)")
+    assert corner[3] == 255  # drawn (a canvas over the browser's limit reads as transparent)
+    page.fill("#height", "4096")  # long enough to stop: the button reads Stop while it works
+    page.fill("#width", "4096")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('go').textContent === 'Stop'")
+    assert page.is_enabled("#go") and not page.is_enabled("#strip-go")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('message').textContent === 'stopped'", timeout=30_000)
+    assert page.text_content("#go") == "Generate" and page.is_enabled("#go")
+    assert page.text_content("#result-caption") == "result: 1376x1376, seed 1"  # the last result stays
+    page.fill("#height", "256")
+    page.fill("#width", "256")
+    page.errors.clear()  # Chromium logs the aborted request
 
 
 class PlaywrightDriver:

@@ -3,7 +3,7 @@
 
 const $ = (id) => document.getElementById(id);
 const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false,
-  models: [], pendingName: null };
+  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false };
@@ -35,6 +35,7 @@ function updateButtons() {
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
   $("morph-go").disabled = state.busy || state.models.length < 2;
   if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js
+  if (state.busyButton) state.busyButton.disabled = false;  // it reads Stop
 }
 
 function setModel(id) {
@@ -81,8 +82,17 @@ function stopEvents() {
   if (state.events) { state.events.close(); state.events = null; }
 }
 
-async function startFit(form) {
+// A fit still running when another exemplar or a model file replaces it is cancelled: the page forgets it.
+function dropRunningFit() {
   stopEvents();
+  if (state.job && !$("fit-status").hidden && !$("fit-status").dataset.state) {
+    fetch(`/api/jobs/${state.job}`, { method: "DELETE" }).catch(() => {});
+  }
+  state.job = null;
+}
+
+async function startFit(form) {
+  dropRunningFit();
   setModel(null);
   $("summary").hidden = true;
   $("fit-status").hidden = false;
@@ -115,8 +125,8 @@ function follow(id, job) {
   state.events = events;
   const update = (snap) => {
     $("progress").value = snap.progress;
-    $("stage").textContent = snap.state === "running" ? `${snap.stage} ${Math.round(100 * snap.progress)} %`
-      : snap.state;
+    $("stage").textContent = snap.state !== "running" ? snap.state
+      : snap.stage ? `${snap.stage} ${Math.round(100 * snap.progress)} %` : "starting";
   };
   events.addEventListener("progress", (e) => update(JSON.parse(e.data)));
   events.addEventListener("end", (e) => {
@@ -135,6 +145,7 @@ function follow(id, job) {
     } else {
       say(snap.error || "the fit failed", true);
     }
+    if (snap.state !== "done") $("builtin").value = "";  // so that choosing the same one again fits it
   });
   events.onerror = () => {
     if (state.events !== events) return;
@@ -149,7 +160,14 @@ async function cancelFit() {
   if (!state.job) return;
   $("cancel").disabled = true;
   const response = await fetch(`/api/jobs/${state.job}`, { method: "DELETE" });
-  if (!response.ok) say(await errorOf(response), true);
+  if (!response.ok) { say(await errorOf(response), true); return; }
+  if ((await response.json()).askers > 0) {  // another page asked for the same model: it fits on for that page
+    stopEvents();
+    $("fit-status").dataset.state = "cancelled";
+    $("stage").textContent = "cancelled";
+    $("builtin").value = "";
+    say("fit cancelled here (it goes on for another page that asked for the same model)");
+  }
 }
 
 function fitFile(file) {
@@ -173,7 +191,7 @@ function fitBuiltin(name) {
 
 async function uploadModel(file) {
   if (!file) return;
-  stopEvents();
+  dropRunningFit();
   $("fit-status").hidden = true;
   setExemplar(null);
   setModel(null);
@@ -206,7 +224,7 @@ function generation(seed, size) {
 }
 
 async function generate(body) {
-  const response = await fetch(`/api/models/${state.modelId}/images`, {
+  const response = await busyFetch(`/api/models/${state.modelId}/images`, {
     method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
   });
   if (!response.ok) throw new Error(await errorOf(response));
@@ -230,31 +248,50 @@ function showResult(url, seed, blob, what) {
   if (blob) setEditorPicture(blob, `tghop-seed${seed}.png`);
 }
 
+// At most TILED_PIXELS (browsers leave a larger canvas blank): a large result's tiling is shown scaled down.
+const TILED_PIXELS = 4096 * 4096;
+
 function drawTiled(img) {
   const canvas = $("tiled");
-  const w = img.naturalWidth, h = img.naturalHeight;
+  const scale = Math.min(1, Math.sqrt(TILED_PIXELS / (9 * img.naturalWidth * img.naturalHeight)));
+  const w = Math.max(1, Math.floor(img.naturalWidth * scale)), h = Math.max(1, Math.floor(img.naturalHeight * scale));
   canvas.width = 3 * w;
   canvas.height = 3 * h;
   const ctx = canvas.getContext("2d");
-  for (let y = 0; y < 3; y++) for (let x = 0; x < 3; x++) ctx.drawImage(img, x * w, y * h);
+  for (let y = 0; y < 3; y++) for (let x = 0; x < 3; x++) ctx.drawImage(img, x * w, y * h, w, h);
+  $("tiled-title").textContent = scale < 1 ? `Tiled 3\u00d73, shown at ${Math.round(100 * scale)} % (seams show here)`
+    : "Tiled 3\u00d73 (seams show here)";
   canvas.dataset.ready = "1";
 }
 
+// Runs `work` with the other buttons disabled; meanwhile `button` reads Stop and aborts the request
+// (state.abort's signal), and the server stops that work at its next progress report.
 async function withBusy(button, work, report) {
   if (state.busy) return;
   state.busy = true;
+  state.abort = new AbortController();
   const old = button.textContent;
-  button.textContent = "working...";
+  const stop = (e) => { e.preventDefault(); e.stopImmediatePropagation(); state.abort.abort(); };
+  button.textContent = "Stop";
+  state.busyButton = button;
   updateButtons();
+  button.addEventListener("click", stop, true);
   try {
     await work();
   } catch (e) {
-    (report || say)(e.message, true);
+    if (e.name === "AbortError") (report || say)("stopped"); else (report || say)(e.message, true);
   } finally {
+    button.removeEventListener("click", stop, true);
     button.textContent = old;
     state.busy = false;
+    state.abort = state.busyButton = null;
     updateButtons();
   }
+}
+
+// fetch() that the Stop of withBusy aborts.
+function busyFetch(url, options) {
+  return fetch(url, { ...options, signal: state.abort ? state.abort.signal : undefined });
 }
 
 function onGenerate(event) {
@@ -270,7 +307,7 @@ function onGenerate(event) {
 }
 
 function onStrip() {
-  if (!state.modelId) return;
+  if (!state.modelId || !$("gen-form").reportValidity()) return;  // an empty seed was seed 0
   withBusy($("strip-go"), async () => {
     const strip = $("strip");
     for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
@@ -287,12 +324,17 @@ function onStrip() {
       img.alt = `seed ${seed}`;
       img.title = `seed ${seed}: click to pick`;
       img.dataset.seed = String(seed);
+      img.tabIndex = 0;  // Enter or Space picks it too
+      img.setAttribute("role", "button");
       img.addEventListener("click", async () => {
         for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
         img.classList.add("chosen");
         $("seed").value = String(seed);
         const blob = await (await fetch(url)).blob();
         showResult(URL.createObjectURL(blob), seed, blob);
+      });
+      img.addEventListener("keydown", (e) => {
+        if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
       });
       const caption = document.createElement("figcaption");
       caption.textContent = `seed ${seed}`;
@@ -346,7 +388,12 @@ function setEditorPicture(blob, name) {
     $("editor").hidden = false;
     $("editor").dataset.ready = "1";
   };
-  img.onerror = () => sayInpaint(`the browser cannot show ${editor.name}; use a PNG or JPEG picture`, true);
+  img.onerror = () => {
+    editor.blob = null;  // not sent to Fill or Extend
+    $("editor").hidden = true;
+    updateButtons();
+    sayInpaint(`the browser cannot show ${editor.name}; use a PNG or JPEG picture`, true);
+  };
   $("editor").dataset.ready = "";
   img.src = editor.url;
   updateButtons();
@@ -372,6 +419,11 @@ function paint(from, to) {
   ctx.lineWidth = Number($("brush").value);
   ctx.lineCap = ctx.lineJoin = "round";
   ctx.beginPath();
+  if (from[0] === to[0] && from[1] === to[1]) {  // a click: browsers draw no line of length 0
+    ctx.arc(from[0], from[1], ctx.lineWidth / 2, 0, 2 * Math.PI);
+    ctx.fill();
+    return;
+  }
   ctx.moveTo(from[0], from[1]);
   ctx.lineTo(to[0], to[1]);
   ctx.stroke();
@@ -444,7 +496,7 @@ async function sendPicture(path, fields, what) {
   }
   if (seed !== "") form.append("seed", seed);
   form.append("tile", $("inpaint-tile").checked ? "true" : "false");
-  const response = await fetch(`/api/models/${state.modelId}/${path}`, { method: "POST", body: form });
+  const response = await busyFetch(`/api/models/${state.modelId}/${path}`, { method: "POST", body: form });
   if (!response.ok) throw new Error(await errorOf(response));
   const blob = await response.blob();
   const used = response.headers.get("X-Tghop-Seed");
@@ -583,11 +635,14 @@ function renderColours() {
     radio.value = String(m.index);
     radio.id = `paint-colour-${m.index}`;
     label.title = m.name;
+    radio.addEventListener("change", () => { state.brushChosen = true; });
     label.append(radio, swatch(m.index), m.name.split(" (")[0]);
     group.append(label);
   }
+  // The user's colour is kept; until they choose one, the brush is the second picked model's
+  // (the first is the canvas's background, so painting with it showed nothing).
   const radios = group.querySelectorAll("input");
-  const keep = [...radios].find((r) => Number(r.value) === old);
+  const keep = state.brushChosen && [...radios].find((r) => Number(r.value) === old);
   if (keep) keep.checked = true; else if (radios.length) radios[radios.length > 1 ? 1 : 0].checked = true;
 }
 
@@ -710,7 +765,7 @@ function severalSettings(body) {
 }
 
 async function postImage(url, body) {
-  const response = await fetch(url, {
+  const response = await busyFetch(url, {
     method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
   });
   if (!response.ok) throw new Error(await errorOf(response));
@@ -798,6 +853,9 @@ async function init() {
   $("morph-go").addEventListener("click", onMorph);
   $("zoom").addEventListener("change", (e) => document.body.classList.toggle("zoom", e.target.checked));
   const drop = $("drop");
+  drop.addEventListener("keydown", (e) => {  // Enter or Space on the drop zone itself: the file chooser
+    if (e.target === drop && (e.key === "Enter" || e.key === " ")) { e.preventDefault(); $("file").click(); }
+  });
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
   drop.addEventListener("dragleave", () => drop.classList.remove("over"));
   drop.addEventListener("drop", (e) => {
