@@ -332,7 +332,9 @@ def test_three_hops_for_64_patches():
     from tghop.data import bricks
 
     m = TGHop(patch_size=64, stride=8, n_clusters=4, n_codewords=20, rng=0).fit(bricks(128))
-    assert m.dims_["D0"] == 64 * 64 * 3 and m.dims_["D3"] == 8 * 8 * 40
+    # the paper's Fig. 7: "three-stage c/w Saab transforms on 64 x 64 patches, whose core subspace
+    # dimensions are ... 4032" (8 x 8 x 63; 0.49.1 kept 40 channels, a core of 2,560)
+    assert m.dims_["D0"] == 64 * 64 * 3 and m.dims_["D3"] == 4032
     assert m.sample_patches(3, rng=0).shape == (3, 64, 64, 3)
 
 

@@ -64,14 +64,14 @@ FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 def default_channels(patch_size: int, n_colours: int = 3):
     """Channels kept per hop when none are given.
 
-    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps 40 channels
-    (our choice: the paper gives no K3), so the core is 8x8 spatially in both cases. Grey (one channel, 4
-    hop-1 channels in all): K1=4, K2=10 (, K3=20), our choice in the same proportions. Other channel
-    counts C (a material's stacked maps): the colour counts times C / 3.
+    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps 63 channels
+    (the paper's Fig. 7: a core of 8 x 8 x 63 = 4,032; 40 until 0.49.1), so the core is 8x8 spatially in
+    both cases. Grey (one channel, 4 hop-1 channels in all): K1=4, K2=10 (, K3=28), our choice in the
+    same proportions. Other channel counts C (a material's stacked maps): the colour counts times C / 3.
     """
     if patch_size not in (32, 64):
         raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
-    channels = (4, 10, 20) if n_colours == 1 else tuple(math.ceil(k * n_colours / 3) for k in (9, 22, 40))
+    channels = (4, 10, 28) if n_colours == 1 else tuple(math.ceil(k * n_colours / 3) for k in (9, 22, 63))
     return channels[: 2 if patch_size == 32 else 3]
 
 
