@@ -76,6 +76,26 @@ def test_patches_grid_and_stages(model_path, workdir):
     assert np.array_equal(np.asarray(Image.open(again)), grid)
 
 
+def test_synth_stages_writes_each_steps_image(model_path, workdir):
+    # Every step's output can be looked at (the researcher's view of the pipeline): OUT_quilt ... beside OUT.
+    r = run("synth", model_path, "-o", workdir / "st.png", "--size", "48x64", "--pool", "300", "--seed", "4",
+            "--stages", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    written = sorted(p.name for p in workdir.glob("st_*.png"))
+    assert written == ["st_patch-refine.png", "st_quilt.png", "st_refine.png", "st_seams.png"]  # no guide this small
+    image = np.asarray(Image.open(workdir / "st.png"))
+    steps = {n: np.asarray(Image.open(workdir / f"st_{n}.png")) for n in ("quilt", "seams", "refine")}
+    assert all(step.shape == image.shape for step in steps.values())
+    assert np.array_equal(np.asarray(Image.open(workdir / "st_patch-refine.png")), image)  # the last step's
+    assert not np.array_equal(steps["quilt"], steps["seams"]) and not np.array_equal(steps["refine"], image)
+    run("synth", model_path, "-o", workdir / "plain.png", "--size", "48x64", "--pool", "300", "--seed", "4", "-q")
+    assert np.array_equal(np.asarray(Image.open(workdir / "plain.png")), image)  # --stages changes nothing
+    for args, message in ((["-o", "-"], "--stages needs a file name"),
+                          ([model_path, "-o", workdir / "two.png"], "--stages applies to one SOURCE")):
+        r = run("synth", model_path, *args, "--stages")
+        assert r.returncode != 0 and message in r.stderr.decode()
+
+
 def test_synth_from_model_numbered_and_tiled(model_path, workdir):
     r = run("synth", model_path, "-o", workdir / "out.png", "--size", "70x90", "--count", "2", "--seed", "5",
             "--tile", "--pool", "500", "-q")

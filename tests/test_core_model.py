@@ -316,6 +316,27 @@ def test_stage_views(small_model):
     np.testing.assert_allclose(views["core_dc"][unclipped], blocks.mean(axis=(2, 4, 5))[unclipped], atol=1e-9)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.uint8])
+def test_synthesize_returns_each_steps_image(small_model, dtype):
+    # The steps inside synthesize could not be looked at: the raw quilt, the seam removal's, ...
+    from tghop.imageio import to_uint8
+
+    image, stages = small_model.synthesize((48, 64), rng=2, n_patches=200, dtype=dtype, return_stages=True)
+    assert np.array_equal(image, small_model.synthesize((48, 64), rng=2, n_patches=200, dtype=dtype))
+    assert list(stages) == ["guide", "quilt", "seams", "refine", "patch refine"]
+    assert all(s.shape == (48, 64, 3) and s.dtype == np.float32 and 0 <= s.min() and s.max() <= 1
+               for s in stages.values())
+    assert not np.array_equal(stages["quilt"], stages["seams"]) and not np.array_equal(stages["seams"],
+                                                                                        stages["refine"])
+    last = stages["patch refine"]
+    np.testing.assert_array_equal(image, to_uint8(last) if dtype == np.uint8 else last)
+    _, plain = small_model.synthesize((48, 64), rng=2, n_patches=200, patch_refine=0, seam_window=0,
+                                      return_stages=True)
+    assert list(plain) == ["guide", "quilt", "refine", "colour"]
+    assert list(small_model.synthesize((48, 64), rng=2, n_patches=200, layout_weight=0, return_stages=True)[1]) \
+        == ["quilt", "seams", "refine", "patch refine"]
+
+
 @pytest.mark.parametrize("as_rgb", [False, True])
 def test_grey_exemplar_with_default_channels(bricks96, as_rgb):
     grey = bricks96.mean(axis=2)

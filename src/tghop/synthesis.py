@@ -23,6 +23,7 @@ Example
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
 
@@ -585,8 +586,8 @@ class TGHop(BaseEstimator):
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.8, flat_share=0.25, match_colours=True, layout_weight=3.0, refine=5,
                    layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2, reuse=1.0,
-                   pool_per_block=1.5, seam_window=9, region=1024, own_shares=1.0, progress=None, dtype=np.float64):
-        # Keywords n_patches ... match_colours: the generation settings of tghop.settings.
+                   pool_per_block=1.5, seam_window=9, region=1024, own_shares=1.0, progress=None, dtype=np.float64,
+                   return_stages=False):
         """Generate a texture image of any size: a patch pool quilted together.
 
         Parameters
@@ -594,62 +595,7 @@ class TGHop(BaseEstimator):
         size : (int, int)
             Output (height, width).
         rng : int or numpy.random.Generator, optional
-        n_patches : int
-            Pool size (paper: 5,000-10,000).
-        tile : bool
-            Make the output wrap around seamlessly (under 94 px a side at layout factor 3,
-            63 at 2: without the layout's guide, :func:`tghop.layout.guide_fits`).
-        overlap : int, optional
-            Quilting overlap (default ``patch_size // 6``).
-        tolerance : float
-            Quilting picks among pool patches within ``(1 + tolerance)`` of the best error.
-        detail : float in [0, 1)
-            Quilting picks only among those candidates whose gradient energy is at or
-            above this quantile of theirs (ours, against the overlap error's preference for
-            smooth patches; 0: the paper's uniform choice; see :func:`tghop.quilting.quilt`).
-        flat_share : float in [0, 1)
-            Quilting counts the errors of this share of the pool, its flattest patches, twice
-            (ours, against smeared blocks; 0: the paper's rule; see :func:`tghop.quilting.quilt`).
-        match_colours : bool
-            Match each channel's histogram to the exemplar's after the refinement, in images the patch
-            refinement does not refine (our addition, :mod:`tghop.colour`); False: the paper's pipeline.
-        layout_weight : float
-            Weight of the coarse layout's guide in quilting (models fitted with
-            ``layout_factor``, see :mod:`tghop.layout`); 0 ignores it.
-        refine : int
-            Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style,
-            our addition, see :mod:`tghop.refine`): restores the contrast of fine detail;
-            0 is off, as in the paper.
-        layout_refine : int
-            Rounds of that refinement for the coarse layout's guide.
-        layout_patch_refine : int or None
-            Steps per level of the patch refinement of the coarse layout's guide (ours; coarse
-            models with patch statistics, tghop 0.48 on; 0: off; None: :func:`tghop.layout.guide_steps`).
-        patch_refine : int or None
-            Adam steps per pyramid level of the patch refinement, the last step
-            (:mod:`tghop.patch_refine`; models fitted with ``patch_levels``, a number asked of
-            another model is a :class:`TGHopError`); 0: off; None: by the image's pixels, none
-            over 1280x1280 (:func:`tghop.patch_refine.steps_for`).
-        patch_stride : int
-            Its steps take every ``patch_stride``-th patch each way at each level.
-        reuse : float
-            Quilting multiplies the error of a pool patch placed ``u`` times by ``1 + reuse
-            * u`` (ours, against repeated patches in large images; not applied to images of
-            at most one block per 8 pool patches; 0: the paper's rule).
-        pool_per_block : float
-            Generate this many pool patches per quilted block where that is more than
-            ``n_patches`` (at most 30,000; ours; 0: always ``n_patches``).
-        seam_window : int
-            Remove the steps across quilting seams by gradient-domain stitching (ours,
-            :func:`tghop.seams.remove_seams`, before the refinement; also in the coarse
-            guide), each seam edge's step averaged over a square of this side; 0: off.
-        region : int or None
-            Side of the regions refined and colour-matched apart in large images (:mod:`tghop.regions`).
-        own_shares : float
-            In [0, 1]: how far the histograms the refinement and the colour matching give the
-            image follow its own shares of the exemplar's colour classes, from the exemplar's
-            (0), times the classes' separation and within the spread of the exemplar's own
-            crops (models fitted with ``colour_classes``; :class:`tghop.colour.ColourClasses`).
+{settings}
         progress : callable, optional
             Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
             "colour" (without the patch refinement) and "patch refine".
@@ -658,10 +604,16 @@ class TGHop(BaseEstimator):
             uint8 the 8-bit values 0-255 that :func:`tghop.imageio.to_uint8` makes of the
             float64 image (what ``tghop synth`` writes), without making that image (an
             8192x8192 RGB image is 1.6 GB in float64, 0.2 GB in uint8).
+        return_stages : bool
+            Also return each step's image, to look at: a dict of float32 (H, W, C) arrays in [0, 1]
+            in the order made: "guide" (the coarse layout's, with one), "quilt" (as quilted),
+            "seams" (seam removal), "refine" (the band refinement; regions too), then "patch
+            refine" or "colour", the last step's (float32; the image itself is ``dtype``).
 
         Returns
         -------
         ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
+            And the dict of stages with ``return_stages``.
         """
         check_is_fitted(self, "ichm_")
         dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
@@ -684,6 +636,12 @@ class TGHop(BaseEstimator):
         n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
                                      tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
         rng = check_rng(rng)
+        stages = {}
+
+        def keep(name, img):  # a copy of this step's image (return_stages)
+            if return_stages and img is not None:
+                stages[name] = np.array(img, dtype=np.float32)
+
         guide = None
         if layout_weight and layout.follows_guide(self.layout_, size, tile=tile):
             # The coarse guide and the pool are independent: the guide is made in a second thread (its
@@ -705,6 +663,7 @@ class TGHop(BaseEstimator):
             prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
                                      flat_share=checked["flat_share"], guide_scale=None)
         report(progress, "patch pool", 1, 1)
+        keep("guide", guide)
         # float32 unless a float64 image is wanted unrefined and unsmoothed (the refinement
         # and the seam removal work in float32; so does quilting's canvas): half the memory.
         wide = np.float64 if dtype == np.float64 and not (refine or checked["seam_window"]) else np.float32
@@ -712,8 +671,10 @@ class TGHop(BaseEstimator):
                                guide_weight=layout_weight, dtype=wide, reuse=reuse,
                                return_seams=checked["seam_window"] > 0)
         del prepared, guide  # the pool, its tables and the guide: not needed from here on
+        keep("quilt", image[0] if checked["seam_window"] else image)
         if checked["seam_window"]:  # (image, steps)
             image = remove_seams(*image, window=checked["seam_window"], out=image[0])
+            keep("seams", image)
         # The histograms to match: of the exemplar's colour classes in shares towards the quilt's.
         classes = getattr(self, "classes_", None) if refine or match_colours else None
         classes = classes if classes is not None and classes.weight(checked["own_shares"]) else None
@@ -724,24 +685,38 @@ class TGHop(BaseEstimator):
                                   colour_quantiles=colour_q if match_colours else None, pixel_quantiles=pixel_q,
                                   region=checked["region"], progress=progress)
             refine = match_colours = 0
+            keep("refine", image)
         if refine:  # float64 only for a float64 image, whose colours are then matched in place
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32, pixel_quantiles=pixel_q)
+            keep("refine", image)
         if patches:  # ours, the last step: it works in float32 and returns the asked dtype
-            return refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
-                                stride=checked["patch_stride"], tile=tile, dtype=dtype, progress=progress)
-        if match_colours:
+            if return_stages:  # the float32 image, then the asked dtype of it (as refine_image makes it)
+                keep("patch refine", refine_image(image.astype(np.float32, copy=False), self.patches_,
+                                                  n_steps=n_steps, stride=checked["patch_stride"], tile=tile,
+                                                  progress=progress))
+                image = stages["patch refine"]
+            else:
+                return refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
+                                    stride=checked["patch_stride"], tile=tile, dtype=dtype, progress=progress)
+        elif match_colours:
             report(progress, "colour", 0, 1)
             out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
-            return match_histograms(image, colour_q, out=out)
+            out = match_histograms(image, colour_q, out=out)
+            keep("colour", out)
+            return (out, stages) if return_stages else out
         if dtype == np.uint8:
             from .imageio import to_uint8
 
-            return to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
-        return image.astype(dtype, copy=False)
+            out = to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
+        else:
+            out = image.astype(dtype, copy=False)
+        return (out, stages) if return_stages else out
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
+TGHop.synthesize.__doc__ = TGHop.synthesize.__doc__.replace(  # the generation settings, from the table
+    "{settings}", textwrap.indent(settings.numpydoc_parameters(settings.generate_settings()), "    "))
 
 
 class CoarseLayout(BaseEstimator):

@@ -164,7 +164,8 @@ def _channel_options():
         click.option("--k1", type=ChannelRule(), default=None,
                      help="Hop-1 channels (paper: 9): count, energy fraction or 'knee'."),
         click.option("--k2", type=ChannelRule(), default=None, help="Hop-2 channels in total (paper: 22)."),
-        click.option("--k3", type=ChannelRule(), default=None, help="Hop-3 channels (64x64 patches; paper and default 63)."),
+        click.option("--k3", type=ChannelRule(), default=None,
+                     help="Hop-3 channels (64x64 patches; paper and default 63)."),
     ]
 
 

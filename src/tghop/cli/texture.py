@@ -218,10 +218,13 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
+@click.option("--stages", is_flag=True,
+              help="Also write each step's image beside OUTPUT: OUTPUT_guide (the coarse layout's), _quilt, _seams, "
+                   "_refine, then _patch-refine or _colour (the last step's, 8-bit: the image itself).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, quiet, depth,
-          **options):
+def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, stages, quiet,
+          depth, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model.
 
     Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
@@ -236,9 +239,14 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         check_depth(output, depth or 8)
         if output == "-" and count > 1:
             raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
+        if stages and output == "-":
+            raise TGHopError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's image, "
+                             "so give -o a file name (e.g. -o out.png) or drop --stages")
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
 
+            if stages:
+                raise TGHopError("--stages applies to one SOURCE; drop it with several or with --guide")
             if depth:
                 raise TGHopError("--depth applies to one SOURCE; drop it with several")
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
@@ -248,7 +256,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             raise TGHopError("--transition applies to several SOURCEs or --guide; drop it")
         else:
             outputs, from_model = _synth_one(ctx, sources[0], output, size, count, seed, save_model, exclude,
-                                             downscale, progress, options, depth)
+                                             downscale, progress, options, depth, stages)
             if outputs is None:  # a material: it said what it wrote
                 return
     if output != "-":
@@ -258,7 +266,18 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             click.echo(f"model written to {save_model}", err=True)
 
 
-def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options, depth):
+#: The steps ``synth --stages`` writes, as ``TGHop.synthesize(return_stages=True)`` names them.
+STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour")
+
+
+def _stage_paths(path):
+    """``OUT_<step>.png`` for each of :data:`STAGES` beside the output ``path``."""
+    path = Path(path)
+    return {name: str(path.with_name(f"{path.stem}_{name.replace(' ', '-')}{path.suffix}")) for name in STAGES}
+
+
+def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options, depth,
+               stages=False):
     """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
     written (None for a material, which says what it wrote) and whether SOURCE was a saved model."""
     from ..imageio import save_image
@@ -278,16 +297,21 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     generation = generation_params(options)
     # Every output checked before the fit and before the first image is written.
     outputs = [output] if count == 1 else numbered(output, count)
+    staged = [_stage_paths(path) for path in outputs] if stages else []
     if count > 1:
         for path in outputs:
             check_output(path)
+    for path in (p for paths in staged for p in paths.values()):
+        check_output(path)
     if save_model and not from_model:
         check_model_output(save_model, "--save-model")
-    check_outputs([("-o", path) for path in outputs] + [("--save-model", save_model)],
-                  [("SOURCE", source), ("--exclude", exclude)])
+    check_outputs([("-o", path) for path in outputs] + [("--stages", p) for paths in staged for p in paths.values()]
+                  + [("--save-model", save_model)], [("SOURCE", source), ("--exclude", exclude)])
     if from_model:
         model = load_model(source, material=True)
         if hasattr(model, "names_"):  # a whole material: every map, written together
+            if stages:
+                raise TGHopError("--stages applies to a texture model, not a material; drop it")
             stride = given_options(ctx, ["patch_stride"])  # would be ignored: a material has no patch refinement
             if generation["patch_refine"] or stride:  # refused here by the options typed, not the library's keyword
                 typed = (["--quality best"] if ctx.params.get("quality") == "best" else []) + given_options(
@@ -325,12 +349,19 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     import numpy as np
 
     rng = np.random.default_rng(seed)
-    for path in outputs:
+    for i, path in enumerate(outputs):
         # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
-        image = model.synthesize(size, rng=rng, progress=progress,
+        image = model.synthesize(size, rng=rng, progress=progress, return_stages=stages,
                                  dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
         progress.close()
+        if stages:
+            image, steps = image
+            for name, step in steps.items():
+                save_image(step, staged[i][name], depth=depth or 8)
         save_image(image, path, depth=depth or 8)
+    if stages:
+        written = ", ".join(Path(p).name for p in staged[0].values() if Path(p).exists())
+        click.echo(f"steps written beside {'it' if count == 1 else 'each'}: {written}", err=True)
     return outputs, from_model
 
 
