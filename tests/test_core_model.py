@@ -909,6 +909,11 @@ def test_settings_changed_after_fit_are_refused_until_set_back(small_model, tmp_
         with pytest.raises(TGHopError, match=changed):
             use()
     assert not (tmp_path / "m.npz").exists()
+    # A NotFittedError (an AttributeError): hasattr of a fitted property is False, as before fit; it
+    # raised the plain TGHopError through hasattr.
+    assert not hasattr(model, "dims_") and not hasattr(model, "channels_")
+    with pytest.raises(NotFittedError, match=changed):
+        model.encode(np.zeros((1, 32, 32, 3)))
     model.set_params(gamma=0.01)  # set back: the same model
     np.testing.assert_array_equal(model.synthesize((48, 48), rng=0), before)
     save_model(model, tmp_path / "m.npz")

@@ -147,9 +147,10 @@ class StoredArrays:
 
 
 def check_is_fitted(estimator, attributes) -> None:
-    """Raise :class:`NotFittedError` unless ``estimator`` has every attribute in ``attributes``, and a
-    :class:`TGHopError` when its settings differ from those it was fitted with (``set_params``
-    after ``fit``: its learned state, and a model file's metadata, would not match them)."""
+    """Raise :class:`NotFittedError` unless ``estimator`` has every attribute in ``attributes``, or when
+    its settings differ from those it was fitted with (``set_params`` after ``fit``: its learned state,
+    and a model file's metadata, would not match them; an AttributeError, so ``hasattr`` of a fitted
+    property is False then, as before ``fit``)."""
     names = [attributes] if isinstance(attributes, str) else list(attributes)
     if not hasattr(estimator, "__dict__"):  # a path or a number where a model belongs
         raise TGHopError(f"expected a fitted model, got {type(estimator).__name__} {str(estimator)[:60]!r} "
@@ -165,8 +166,8 @@ def check_is_fitted(estimator, attributes) -> None:
         changed = [k for k in now if k in fitted and k.split(".")[-1] != "rng" and not _same_setting(now[k], fitted[k])]
         if changed:
             what = ", ".join(f"{k} {fitted[k]!r} -> {now[k]!r}" for k in changed)
-            raise TGHopError(f"this {type(estimator).__name__}'s settings changed after it was fitted ({what}); "
-                             "fit it again, or set them back with set_params")
+            raise NotFittedError(f"this {type(estimator).__name__}'s settings changed after it was fitted ({what}); "
+                                 "fit it again, or set them back with set_params")
 
 
 def fitted_settings(estimator) -> dict:
