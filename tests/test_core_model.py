@@ -165,13 +165,28 @@ def test_a_cluster_with_more_members_than_dimensions_is_fitted_as_through_its_gr
 
 def test_ichm_reject_threshold(ichm_fit):
     _, model = ichm_fit
+    plain_labels, plain = model.sample_sources(2000, rng=5)
     model.set_params(reject_threshold=1.0)
     try:
-        _, sources = model.sample_sources(2000, rng=5)
+        labels, sources = model.sample_sources(2000, rng=5)
+        unreachable = r"^ICHM: 50 samples still have no component above reject_threshold=1e\+09 after 100 redraws"
+        with pytest.warns(UserWarning, match=unreachable):
+            model.set_params(reject_threshold=1e9).sample_sources(50, rng=5)
     finally:
         model.set_params(reject_threshold=None)
+    assert [len(s) for s in sources] == list(np.bincount(labels, minlength=len(sources)))
     for s in sources:
         assert np.all((s > 1.0).any(axis=1))
+    # The paper's step (iv) repeats steps 1-3: a rejected sample draws its cluster again too (0.49.1 kept
+    # it); a sample that passed the first time is kept as it was.
+    passed = np.zeros(2000, bool)
+    for i, s in enumerate(plain):
+        passed[np.flatnonzero(plain_labels == i)[(s > 1.0).any(axis=1)]] = True
+    assert 0 < (~passed).sum() < 2000 and (labels[passed] == plain_labels[passed]).all()
+    assert (labels[~passed] != plain_labels[~passed]).mean() > 0.5
+    for i, s in enumerate(sources):
+        kept = passed[labels == i] & (plain_labels[labels == i] == i)
+        np.testing.assert_array_equal(s[kept], plain[i][passed[plain_labels == i]])
 
 
 def test_ichm_bad_params():

@@ -27,8 +27,9 @@ Choices the paper leaves open (see also the notes in the docs):
 * ``coupling`` (ours, 0 in the paper's pipeline): a draw's components follow a random
   training member's ranks with this correlation of their normal scores, so that components
   that act together in the exemplar's patches are drawn together (:mod:`tghop.coupling`).
-* The rejection step (iv) is off by default (``reject_threshold=None``); when set, a draw
-  whose matched independent components are all <= the threshold is redrawn.
+* The rejection step (iv) is off by default (``reject_threshold=None``; the paper gives no
+  threshold); when set, a draw whose matched independent components are all <= the threshold
+  is drawn again, its cluster too ("repeat steps 1-3"), up to 100 times (then a warning).
 * ``residual=True`` (ours, off in the paper's pipeline) also models what each cluster's
   PCA drops: the residual ``z - mean - projection`` of every training vector, pooled over
   clusters, as a zero-mean Gaussian per group of dimensions (per core channel: the SDR
@@ -38,6 +39,8 @@ Choices the paper leaves open (see also the notes in the docs):
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -80,6 +83,16 @@ def _dequantize(rows, scale):
     """Inverse of :func:`_quantize`, in float64 (the same numbers at fit and after loading)."""
     out = rows.astype(np.float64)
     out *= np.asarray(scale, dtype=np.float32).astype(np.float64)[:, None]  # in place: no second matrix
+    return out
+
+
+def _merge_rows(labels, i, kept, new_positions, new):
+    """Cluster ``i``'s rows in the order of its positions in ``labels``: its ``kept`` rows (its old
+    positions that stay) and the ``new`` rows of ``new_positions``."""
+    positions = np.flatnonzero(labels == i)
+    out = np.empty((positions.size,) + kept.shape[1:], dtype=kept.dtype)
+    is_new = np.isin(positions, new_positions)
+    out[is_new], out[~is_new] = new, kept
     return out
 
 
@@ -671,21 +684,32 @@ class ICHM(BaseEstimator):
         check_is_fitted(self, "means_")
         n = check_count(n)
         rng = check_rng(rng)
-        # (i) the interval representation: a uniform number picks the segment.
-        labels = np.minimum(np.searchsorted(np.cumsum(self.weights_), rng.random(n), side="right"),
-                            len(self.weights_) - 1)
-        table = self._quantile_table()
-        sources = []
-        for i, comp in enumerate(self._blocks()):
-            m = int(np.count_nonzero(labels == i))
-            s = self._match_norm(self._match(self._uniforms(i, m, rng), comp, table), i)
-            if self.reject_threshold is not None:
-                for _ in range(100):  # (iv) redraw samples with no value above the threshold
-                    bad = ~(s > self.reject_threshold).any(axis=1)
-                    if not bad.any():
-                        break
-                    s[bad] = self._match_norm(self._match(self._uniforms(i, bad.sum(), rng), comp, table), i)
-            sources.append(s)
+        table, blocks = self._quantile_table(), self._blocks()
+
+        def draw(m):  # steps (i)-(iii) for m samples: their clusters and matched components
+            # (i) the interval representation: a uniform number picks the segment.
+            labels = np.minimum(np.searchsorted(np.cumsum(self.weights_), rng.random(m), side="right"),
+                                len(self.weights_) - 1)
+            return labels, [self._match_norm(self._match(self._uniforms(i, int(np.count_nonzero(labels == i)), rng),
+                                                         comp, table), i) for i, comp in enumerate(blocks)]
+
+        labels, sources = draw(n)
+        if self.reject_threshold is None:
+            return labels, sources
+        for _ in range(100):  # (iv) "repeat steps 1-3" for the samples with no value above the threshold
+            bad = [~(s > self.reject_threshold).any(axis=1) for s in sources]
+            where = np.concatenate([np.flatnonzero(labels == i)[b] for i, b in enumerate(bad)])
+            if not where.size:
+                return labels, sources
+            new_labels, new_sources = draw(where.size)
+            where.sort()
+            labels = labels.copy()
+            labels[where] = new_labels  # each cluster's rows: its kept ones and its new ones, by position
+            sources = [_merge_rows(labels, i, s[~b], where[new_labels == i], new)
+                       for i, (s, b, new) in enumerate(zip(sources, bad, new_sources))]
+        warnings.warn(f"ICHM: {int(sum((~(s > self.reject_threshold).any(axis=1)).sum() for s in sources))} samples "
+                      f"still have no component above reject_threshold={self.reject_threshold:g} after 100 redraws; "
+                      "kept as drawn (lower the threshold)")
         return labels, sources
 
     def _match(self, uniform, comp, table):

@@ -293,7 +293,8 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("min_cluster_size", 10, "int", "Clusters with fewer training patches are merged into the nearest one.",
             low=2, target="ichm"),
     Setting("reject_threshold", None, "float",
-            "Sampling step (iv): redraw samples with no independent component above this (None: off).",
+            "Sampling step (iv): draw again (cluster and components) the samples with no independent "
+            "component above this (None: off; the paper gives no value).",
             none_ok=True, target="ichm"),
     Setting("ica_max_iter", 200, "int", "FastICA iterations per cluster at most.", low=1,
             cli=("--ica-iterations",), target="ichm.max_iter"),

@@ -181,7 +181,8 @@ def _fit_options():
     options.append(click.option("--paper", is_flag=True,
                                 help="The paper's pipeline exactly: Table 4 core model (F about 2,500) and no "
                                      "colour matching; options given as well override it. With a saved model: "
-                                     "the paper's generation settings."))
+                                     "the paper's generation settings. Its sampling step (iv), a rejection "
+                                     "threshold it does not give, stays off: --reject-threshold T sets one."))
     return options
 
 
