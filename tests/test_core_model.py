@@ -320,6 +320,9 @@ def test_fit_deterministic(bricks96):
 
 def test_stage_views(small_model):
     patches, views = small_model.sample_patches(5, rng=1, return_stages=True)
+    # the cluster each patch was drawn from (the nearest cluster of its encoding is not always it)
+    labels, _ = small_model.ichm_.sample_sources(5, rng=1)
+    assert np.array_equal(views["cluster"], labels)
     assert views["core_dc"].shape == (5, 8, 8)
     assert views["S1_dc"].shape == (5, 16, 16)
     assert np.array_equal(views["S0"], patches)

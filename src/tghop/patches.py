@@ -356,7 +356,7 @@ def stage_sheet(views, patch_size):
     ----------
     views : dict of ndarray
         :meth:`tghop.TGHop.stage_views`: DC maps (n, h, w) by name, then ``"S0"``, the
-        patches (n, P, P, C).
+        patches (n, P, P, C); a ``"cluster"`` entry (:meth:`tghop.TGHop.sample_patches`) is left out.
     patch_size : int
 
     Returns
@@ -366,6 +366,8 @@ def stage_sheet(views, patch_size):
     """
     columns = []
     for name, maps in views.items():
+        if name == "cluster":  # labels, not an image
+            continue
         if name == "S0":
             columns.append(maps)
             continue

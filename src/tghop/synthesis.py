@@ -535,17 +535,17 @@ class TGHop(BaseEstimator):
         patches = np.clip(spaces[-1], 0.0, 1.0)
         return (patches, spaces) if return_stages else patches
 
-    def sample_vectors(self, n, rng, dtype):
+    def sample_vectors(self, n, rng, dtype, *, return_labels=False):
         """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
         cluster as mixed (:meth:`ICHM.mix_by_cluster`), and ``position``: ``z[position]``
-        are the samples in order."""
+        are the samples in order (and, with ``return_labels``, each sample's cluster, in order)."""
         ichm = self.ichm_
         labels, sources = ichm.sample_sources(n, rng=rng)
         z, position = ichm.mix_by_cluster(labels, [s.astype(dtype, copy=False) for s in sources],
                                           mixing=ichm.mixing_as(dtype), means=ichm.means_.astype(dtype, copy=False))
         if ichm.residual_factor_.size > 0:
             z[position] += ichm.sample_residual(n, rng=rng).astype(dtype, copy=False)
-        return z, position
+        return (z, position, labels) if return_labels else (z, position)
 
     def sample_patches(self, n, *, rng=None, return_stages=False, dtype=np.float64):
         """Generate new patches.
@@ -556,7 +556,8 @@ class TGHop(BaseEstimator):
         rng : int or numpy.random.Generator, optional
             Same seed, same patches (on the same machine).
         return_stages : bool
-            Also return the stage views of the paper's Fig. 6 (see :meth:`stage_views`).
+            Also return the stage views of the paper's Fig. 6 (see :meth:`stage_views`), and
+            ``"cluster"``: (n,) the cluster each patch was drawn from (step i).
         dtype : {numpy.float64, numpy.float32}
             float32 halves memory and time for large pools (quilting works in float32).
 
@@ -570,9 +571,9 @@ class TGHop(BaseEstimator):
         dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
         rng = check_rng(rng)
         if return_stages:  # the paper's step-by-step inverse, keeping every space (in float64)
-            z, position = self.sample_vectors(n, rng, np.dtype(np.float64))
+            z, position, labels = self.sample_vectors(n, rng, np.dtype(np.float64), return_labels=True)
             patches, spaces = self.decode(z[position], return_stages=True)
-            return patches.astype(dtype, copy=False), self.stage_views(spaces)
+            return patches.astype(dtype, copy=False), {**self.stage_views(spaces), "cluster": labels}
         return GeneratedPool(self, *self.sample_vectors(n, rng, dtype)).all()
 
     def stage_views(self, spaces):
