@@ -111,6 +111,27 @@ def test_cli_synth_depth(tmp_path):
     assert bad.output.strip().count("\n") == 0 and "JPEG" in bad.output
 
 
+def test_cli_synth_warns_that_a_16bit_exemplar_is_written_8bit(tmp_path):
+    # synth writes 8 bits unless --depth (as documented): a height map artist's 16-bit exemplar lost its
+    # depth without a word, where inpaint and extend keep it.
+    from click.testing import CliRunner
+
+    from tghop import data
+    from tghop.cli import main
+
+    save_image(data.bricks()[:96, :96], tmp_path / "deep.png", depth=16)
+    fast = ["--size", "48", "--seed", "1", "-q", "--max-patches", "1000", "--clusters", "10", "--layout", "none"]
+    runner = CliRunner()
+    res = runner.invoke(main, ["synth", str(tmp_path / "deep.png"), "-o", str(tmp_path / "o.png"), *fast])
+    assert res.exit_code == 0 and "has more than 8 bits a channel" in res.output and "--depth 16" in res.output
+    assert load_image(tmp_path / "o.png", with_depth=True)[1] == 8
+    res = runner.invoke(main, ["synth", str(tmp_path / "deep.png"), "-o", str(tmp_path / "d.png"), "--depth", "16",
+                               *fast])
+    assert res.exit_code == 0 and "Warning" not in res.output
+    res = runner.invoke(main, ["synth", "builtin:bricks", "-o", str(tmp_path / "b.png"), *fast])
+    assert res.exit_code == 0 and "Warning" not in res.output  # the built-ins are 8-bit
+
+
 def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     from click.testing import CliRunner
 

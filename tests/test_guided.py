@@ -264,6 +264,17 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     strip = np.asarray(Image.open(tmp_path / "strip.png"))
     assert strip.shape == (96, 192, 3)
     assert strip[:, :32, 2].mean() < strip[:, -32:, 2].mean()
+    # 16 bits a channel for painted height or roughness maps too (--depth was refused with several SOURCEs,
+    # and morph had none): the same image as the 8-bit one, to within a level
+    from tghop.imageio import load_image
+
+    for args, eight in ((["synth", "a.npz", "b.npz", "--guide", "map.png", "--seed", "1", *fast], "out.png"),
+                        (["morph", "a.npz", "b.npz", "--size", "48x192", "--grid", "2", "--seed", "3", "-q"],
+                         "strip.png")):
+        r = _run([*args, "-o", "deep.png", "--depth", "16"], tmp_path)
+        assert r.returncode == 0, r.stderr.decode()
+        deep, depth = load_image(tmp_path / "deep.png", dtype=None, with_depth=True)
+        assert depth == 16 and np.abs(deep * 255 - np.asarray(Image.open(tmp_path / eight))).max() <= 0.5 + 1e-6
     Image.fromarray(to_uint8(data.bricks(64, rng=1))).save(tmp_path / "ex.png")
     r = _run(["morph", "ex.png", "b.npz", "-o", "ex.png"], tmp_path)
     assert_user_error(r, "-o would overwrite A")

@@ -8,7 +8,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors
 from ..fit_options import build_model
-from .options import Size
+from .options import Size, depth_option
 
 __all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION"]
 
@@ -71,7 +71,7 @@ def _load_guide(path, size, size_given):
 
 
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
-                  progress, generation, options):
+                  progress, generation, options, depth=None):
     """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors)."""
     import numpy as np
 
@@ -120,9 +120,9 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     rng = np.random.default_rng(seed)
     for path in outputs:
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
-                                  dtype=np.uint8, **generation)
+                                  dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
         progress.close()
-        save_image(image, path)
+        save_image(image, path, depth=depth or 8)
     return outputs, size
 
 
@@ -151,18 +151,20 @@ def _check_grid(size, grid):
               help="Seed: the same seed gives the same strip; without it every run differs.")
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
               help="Steps of the statistics from A to B (default one per 128 columns, at least 3).")
+@depth_option("8")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
-def morph(source_a, source_b, output, size, grid, seed, stations, quiet):
+def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     """A strip from texture A on the left to texture B on the right (A and B: exemplars,
     builtin:NAME or saved models); every column is a texture between them."""
     import numpy as np
 
     from ..guided import morph as make_strip
-    from ..imageio import save_image
+    from ..imageio import check_depth, save_image
 
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
+        check_depth(output, depth or 8)
         check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)
         read_a, read_b = _read(source_a), _read(source_b)
@@ -172,8 +174,8 @@ def morph(source_a, source_b, output, size, grid, seed, stations, quiet):
         for row in range(grid):
             rng = np.random.default_rng(None if seed is None else seed + row)
             rows.append(make_strip(model_a, model_b, size, rng=rng, stations=stations, progress=progress,
-                                   dtype=np.uint8))
+                                   dtype=np.float32 if (depth or 8) > 8 else np.uint8))
             progress.close()
-        save_image(np.concatenate(rows, axis=0), output)
+        save_image(np.concatenate(rows, axis=0), output, depth=depth or 8)
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)

@@ -19,12 +19,19 @@ from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
 
-def fit_exemplar(spec, options, *, exclude, downscale, progress):
+def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=None):
     """A TGHop fitted on exemplar ``spec`` (a file or builtin:NAME) with the fit options,
-    leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``)."""
+    leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``); with
+    ``deep_warning`` (a label), a warning when the exemplar has more than 8 bits a channel."""
+    import warnings
+
     from ..synthesis import prepare_exemplar
 
-    image = prepare_exemplar(load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True))
+    raw = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True)
+    if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
+        warnings.warn(f"{deep_warning} {spec} has more than 8 bits a channel, but the image is written with 8; "
+                      "pass --depth 16 to keep them")
+    image = prepare_exemplar(raw)
     model = build_model(options, n_colours=image.shape[2])
     model.check_exemplar_size(image.shape)  # before the mask is read
     mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar")
@@ -247,10 +254,8 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
 
             if stages:
                 raise TGHopError("--stages applies to one SOURCE; drop it with several or with --guide")
-            if depth:
-                raise TGHopError("--depth applies to one SOURCE; drop it with several")
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
-                                          exclude, downscale, progress, generation_params(options), options)
+                                          exclude, downscale, progress, generation_params(options), options, depth)
             from_model = True  # nothing saved
         elif given_options(ctx, ["transition"]):
             raise TGHopError("--transition applies to several SOURCEs or --guide; drop it")
@@ -332,7 +337,8 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         # that quilting refuses is refused at once, not after the fit.
         block_count(size, build_model(dict(options)).patch_size, overlap=generation["overlap"],
                     tile=generation["tile"])
-        model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress)
+        model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress,
+                             deep_warning=None if depth else "SOURCE")
         if save_model:
             write_model(model, save_model)
     import warnings
