@@ -86,16 +86,6 @@ def _dequantize(rows, scale):
     return out
 
 
-def _merge_rows(labels, i, kept, new_positions, new):
-    """Cluster ``i``'s rows in the order of its positions in ``labels``: its ``kept`` rows (its old
-    positions that stay) and the ``new`` rows of ``new_positions``."""
-    positions = np.flatnonzero(labels == i)
-    out = np.empty((positions.size,) + kept.shape[1:], dtype=kept.dtype)
-    is_new = np.isin(positions, new_positions)
-    out[is_new], out[~is_new] = new, kept
-    return out
-
-
 class ICHM(BaseEstimator):
     """Independent-components histogram matching: a mixture of per-cluster ICA models.
 
@@ -703,10 +693,11 @@ class ICHM(BaseEstimator):
                 return labels, sources
             new_labels, new_sources = draw(where.size)
             where.sort()
-            labels = labels.copy()
-            labels[where] = new_labels  # each cluster's rows: its kept ones and its new ones, by position
-            sources = [_merge_rows(labels, i, s[~b], where[new_labels == i], new)
-                       for i, (s, b, new) in enumerate(zip(sources, bad, new_sources))]
+            labels[where] = new_labels
+            for i, (s, b, new) in enumerate(zip(sources, bad, new_sources)):  # kept rows and new ones, by position
+                fresh = np.isin(np.flatnonzero(labels == i), where[new_labels == i])
+                sources[i] = np.empty((fresh.size,) + s.shape[1:], dtype=s.dtype)
+                sources[i][fresh], sources[i][~fresh] = new, s[~b]
         warnings.warn(f"ICHM: {int(sum((~(s > self.reject_threshold).any(axis=1)).sum() for s in sources))} samples "
                       f"still have no component above reject_threshold={self.reject_threshold:g} after 100 redraws; "
                       "kept as drawn (lower the threshold)")
