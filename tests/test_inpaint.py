@@ -65,6 +65,55 @@ def test_the_same_seed_gives_the_same_image(model, cells, square):
     assert np.array_equal(a, b) and not np.array_equal(a, c)
 
 
+def test_a_fill_is_stitched_to_its_surroundings_by_default(model, cells, square):
+    # inpaint's seam removal (seam_window, 9 as synthesize's; 0: none, as up to 0.49.1) is on by default
+    # and makes the steps across the hole's edge smaller; the known pixels stay.
+    plain = inpaint(model, cells, square, rng=1, seam_window=0, refine=0, patch_refine=0, n_patches=600)
+    stitched = inpaint(model, cells, square, rng=1, refine=0, patch_refine=0, n_patches=600)
+    assert np.array_equal(stitched[~square], cells[~square]) and not np.array_equal(stitched, plain)
+
+    def edge_steps(img):  # the tone steps across the hole's left and right edges: means over 8 rows
+        img = img.astype(np.float64)
+        return np.abs((img[30:62, [33, 65]] - img[30:62, [34, 66]]).reshape(4, 8, 2, 3).mean(axis=1)).mean()
+
+    assert edge_steps(stitched) < 0.9 * edge_steps(plain)  # 0.80 here
+
+
+@pytest.mark.parametrize("tile", [False, True])
+def test_stitching_removes_the_fills_tone_steps_and_keeps_the_known_pixels(tile, monkeypatch):
+    # A fill's blocks differ in tone from each other and from the image around the hole: its
+    # seams showed as a patchwork and the hole's outline (a game artist's audit, 0.49.1).
+    from tghop.inpaint import stitch_hole
+
+    canvas = np.full((40, 48, 2), 0.5, dtype=np.float32)
+    hole = np.zeros((40, 48), bool)
+    hole[10:30, 12:36] = True
+    owner = np.full((40, 48), -1)
+    owner[10:30, 12:24], owner[10:30, 24:36] = 1, 2
+    canvas[10:30, 12:24] = 0.6  # tone steps: 0.1 at the hole's left edge, 0.15 between the blocks
+    canvas[10:30, 24:36] = 0.45
+    canvas[10:30, 12:36, 1] += np.linspace(0, 0.1, 24, dtype=np.float32)  # detail: a ramp, kept
+    out = stitch_hole(canvas, hole, owner, tile=tile)
+    assert out.dtype == np.float32 and np.array_equal(out[~hole], canvas[~hole])  # the known pixels, exactly
+    steps = np.abs(np.diff(out[..., 0], axis=1))
+    assert steps[20, 11] < 0.02 and steps[20, 23] < 0.04 and steps[20, 35] < 0.02  # were 0.1, 0.15, 0.05
+    inner = np.diff(out[20, 13:23, 1]) - np.diff(canvas[20, 13:23, 1])
+    assert np.abs(inner).max() < 0.01  # inside a block its own differences stay
+    same = np.where(hole, 1, -1)  # one block: no seam inside, only the hole's edge
+    flat = np.where(hole[..., None], np.float32(0.5), canvas)
+    assert np.array_equal(stitch_hole(flat, hole, same, tile=tile), flat)  # nothing to remove
+    # A content edge at the hole's edge (a white label beside the fill) is no tone step: the fill keeps
+    # its own tone there instead of taking the label's colour along the seam.
+    label = canvas.copy()
+    label[4:36, 4:12] = 1.0
+    kept = stitch_hole(label, hole, owner, tile=tile)
+    assert np.array_equal(kept[~hole], label[~hole]) and 0.5 < kept[20, 12, 0] < 0.65  # near 1 if pulled
+    import tghop.inpaint
+
+    monkeypatch.setattr(tghop.inpaint, "STITCH_LU", 0)  # a large hole's conjugate gradients: the same, nearly
+    np.testing.assert_allclose(stitch_hole(canvas, hole, owner, tile=tile), out, atol=2e-3)
+
+
 def test_odd_shapes_holes_at_the_border_and_nearly_everything(model, cells):
     yy, xx = np.mgrid[:96, :96]
     shapes = {
