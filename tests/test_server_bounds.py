@@ -59,17 +59,24 @@ def test_waiting_fits_are_capped():
         queue.shutdown()
 
 
-def test_a_fit_asked_for_again_after_its_cancel_runs_anew():
-    # The cancelled fit stops only at its next progress call: until then it still runs, and
-    # the same model asked for again must get a job of its own, not the one about to stop.
-    queue = FitQueue(2)
+def gated_fit():
+    """``(started, release, work)``: a fit ``work(job)`` that sets ``started``, waits for ``release``,
+    then reports progress (which raises Cancelled once its cancel was asked for)."""
     started, release = threading.Event(), threading.Event()
 
     def work(job):
         started.set()
         release.wait(10)
-        job.progress("hop 1", 0, 1)  # raises Cancelled once the cancel was asked for
+        job.progress("hop 1", 0, 1)
 
+    return started, release, work
+
+
+def test_a_fit_asked_for_again_after_its_cancel_runs_anew():
+    # The cancelled fit stops only at its next progress call: until then it still runs, and
+    # the same model asked for again must get a job of its own, not the one about to stop.
+    queue = FitQueue(2)
+    started, release, work = gated_fit()
     try:
         old = queue.submit("5" * 64, work)
         assert started.wait(10)
@@ -90,13 +97,7 @@ def test_a_fit_two_clients_asked_for_stops_only_when_both_withdraw():
     # Two pages that chose the same exemplar and settings share one job; one page's Cancel
     # (or its switch to another exemplar) cancelled the other's fit as well.
     queue = FitQueue(1)
-    started, release = threading.Event(), threading.Event()
-
-    def work(job):
-        started.set()
-        release.wait(10)
-        job.progress("hop 1", 0, 1)  # raises Cancelled once every asker withdrew
-
+    started, release, work = gated_fit()
     try:
         job = queue.submit("6" * 64, work)
         assert queue.submit("6" * 64, work) is job and job.snapshot()["askers"] == 2
