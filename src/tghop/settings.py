@@ -344,7 +344,8 @@ SETTINGS: Tuple[Setting, ...] = (
     # ---------------------------------------------------------------- generation time
     Setting("n_patches", 5000, "int", "Generated patches quilted into each image (paper: 5,000-10,000).",
             when="generate", low=1, high=10_000_000, cli=("--pool",), cli_high=200_000),
-    Setting("tile", False, "bool", "Make the output wrap around seamlessly (tileable).", when="generate"),
+    Setting("tile", False, "bool", "Make the output wrap around seamlessly (tileable; under 94 px a side at layout "
+            "factor 3, 63 at 2, without the layout's guide: tghop.layout.guide_fits).", when="generate"),
     Setting("overlap", None, "int", "Quilting overlap in pixels (None: patch_size // 6).", when="generate",
             low=1, none_ok=True),
     Setting("tolerance", 0.1, "float",
