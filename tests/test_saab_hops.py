@@ -257,6 +257,11 @@ def _nan(a, value=np.nan):
     (lambda p: Saab(n_components=100).fit(p.reshape(len(p), -1)[:, :12]),
      r"at most 12 components, got n_components=100; choose at most 12"),
     (lambda p: Saab(n_components=0).fit(p.reshape(len(p), -1)[:, :12]), "n_components must be at least 1"),
+    # complex numbers lost their imaginary parts with a NumPy warning; a sparse matrix was "not an array"
+    (lambda p: Saab().fit(p.reshape(len(p), -1)[:, :12] + 1j), r"^X holds complex numbers; give real ones"),
+    (lambda p: Hop().fit(p.astype(complex)), r"^X holds complex numbers"),
+    (lambda p: Saab().fit(__import__("scipy.sparse").sparse.csr_matrix(p.reshape(len(p), -1)[:, :12])),
+     r"^X is a sparse csr_matrix; give a dense array of shape \(n_samples, d\) \(X.toarray\(\)\)"),
 ])
 def test_saab_and_hops_refuse_bad_input_with_one_line_errors(small_patches, call, message):
     with pytest.raises(TGHopError, match=message) as info:

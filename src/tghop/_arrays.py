@@ -44,6 +44,12 @@ def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finit
     -------
     ndarray of float64
     """
+    if hasattr(X, "toarray") and hasattr(X, "nnz"):  # SciPy's sparse matrices and arrays
+        raise TGHopError(f"{name} is a sparse {type(X).__name__}; give a dense array of shape {shape} "
+                         f"({name}.toarray())")
+    if getattr(X, "dtype", None) is not None and np.dtype(X.dtype).kind == "c" or (
+            isinstance(X, (list, tuple)) and np.iscomplexobj(X)):  # NumPy would drop the imaginary parts
+        raise TGHopError(f"{name} holds complex numbers; give real ones, of shape {shape}")
     try:
         arr = np.asarray(X, dtype=np.float64)
     except (TypeError, ValueError):
