@@ -18,7 +18,9 @@ __all__ = ["evaluate", "baseline"]
 @click.command()
 @click.argument("exemplar")
 @click.argument("results", nargs=-1, required=True)
-@click.option("--json", "as_json", is_flag=True, help="One JSON object per result (JSON lines).")
+@click.option("--json", "as_json", is_flag=True,
+              help="One JSON object per result (JSON lines), then with several results one of their diversity; "
+                   "a score that is not a finite number is null.")
 @click.option("--metrics", "names", default=None,
               help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied, copied_textured "
                    "(default all of these), and self_repetition (only when named).")
@@ -83,8 +85,11 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
         progress.close()
     skipped = rows[0][1].skipped if rows else {}
     if as_json:
+        def finite(scores):  # JSON has no Infinity or NaN (json.dumps wrote them, which parsers refuse)
+            return {k: v if v == v and abs(v) != float("inf") else None for k, v in scores.items()}
+
         for path, scores in rows:
-            click.echo(json.dumps({"exemplar": exemplar, "result": path, **scores}))
+            click.echo(json.dumps({"exemplar": exemplar, "result": path, **finite(scores)}, allow_nan=False))
         if div is not None:
             click.echo(json.dumps({"exemplar": exemplar, "results": list(results), "diversity": div}))
     else:

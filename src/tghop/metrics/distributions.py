@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from .._common import InvalidImageError, TGHopError
+from .._common import InvalidImageError, TGHopError, check_texture
 from . import common
 from .._arrays import check_int
 from .common import pair, counter, check_patch_size, sample_patches
@@ -170,6 +170,7 @@ def cooccurrence_distance(
         raise TGHopError("sigma, window and n_clusters must be positive")
     max_fit_pixels = check_int(max_fit_pixels, "max_fit_pixels")
     ex, res = pair(exemplar, result)
+    check_texture(ex)  # one colour cluster: its 1x1 matrix matched any result (a distance of 0)
     centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=max_fit_pixels,
                                            seed=int(seed))
     tick = counter(progress, "cooccurrence", len(_cooc_strips(ex, int(window))) + len(_cooc_strips(res, int(window))))

@@ -9,7 +9,7 @@ from typing import Callable
 
 import numpy as np
 
-from .._common import MAX_PIXELS, InvalidImageError, MissingExtraError, TGHopError
+from .._common import MAX_PIXELS, InvalidImageError, MissingExtraError, TGHopError, check_texture
 from .._random_cnn import USTYUZHANINOV_SCALES
 from .common import pair
 from .copies import copied, copied_textured, novelty, self_repetition
@@ -188,6 +188,8 @@ def evaluate(exemplar, result, *, metrics=None, repetition: bool = False, progre
         check_sizes(shapes, names)
     ex, res = pair(exemplar, result)
     check_sizes({"exemplar": ex.shape, "result": res.shape}, names)
+    if any(name in METRICS for name in names):  # a flat exemplar: no statistics to compare (gram was 1e23)
+        check_texture(ex, name="exemplar")
     scores = Scores()
     for name in [*METRICS, *RESULT_METRICS]:
         if name not in names:
