@@ -32,6 +32,7 @@ __all__ = [
     "check_image",
     "checked_image",
     "check_texture",
+    "grey_as_rgb",
     "report",
     "in_thread",
     "usable_cores",
@@ -348,6 +349,13 @@ def checked_image(image, where, name="image", channels=None, *, only_uint8=False
 #: Largest per-channel standard deviation (in [0, 1] units) below which an exemplar is
 #: flat: a quarter of an 8-bit grey level.
 FLAT_SPREAD = 1 / 1024
+
+
+def grey_as_rgb(image) -> bool:
+    """Whether a float (H, W, C) image in [0, 1] is a grey one stored as RGB: three channels within
+    1/512 (half an 8-bit level) of each other, which :func:`tghop.synthesis.prepare_exemplar` models
+    as one, and :func:`tghop.metrics.common.pair` compares as one."""
+    return image.shape[2] == 3 and bool(np.abs(image[..., 1:] - image[..., :1]).max() < 1 / 512)
 
 
 def check_texture(image, *, name: str = "exemplar") -> None:

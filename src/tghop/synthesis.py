@@ -29,7 +29,7 @@ import numpy as np
 
 from . import settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_rng,
-                      check_size, check_texture, fitted_settings, in_thread, one_blas_thread, report)
+                      check_size, check_texture, fitted_settings, grey_as_rgb, in_thread, one_blas_thread, report)
 from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
@@ -74,12 +74,6 @@ def default_channels(patch_size: int, n_colours: int = 3):
         raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
     channels = (4, 10, 28) if n_colours == 1 else tuple(math.ceil(k * n_colours / 3) for k in (9, 22, 63))
     return channels[: 2 if patch_size == 32 else 3]
-
-
-def grey_as_rgb(image) -> bool:
-    """Whether a float (H, W, C) image in [0, 1] is a grey one stored as RGB: three channels within
-    1/512 (half an 8-bit level) of each other, which :func:`prepare_exemplar` models as one."""
-    return image.shape[2] == 3 and bool(np.abs(image[..., 1:] - image[..., :1]).max() < 1 / 512)
 
 
 def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .._common import TGHopError, check_image, report
+from .._common import TGHopError, check_image, grey_as_rgb, report
 
 __all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "sample_patches"]
 
@@ -17,11 +17,6 @@ __all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "sample_pa
 #: rounding: both are sums over pixels, accumulated strip by strip).
 PLAIN_MAX_PIXELS = 512 * 512
 
-def _grey(img) -> bool:
-    """One channel, or three within 1/512 of each other (a grey image stored as RGB)."""
-    return img.shape[2] == 1 or (img.shape[2] == 3 and bool(np.abs(img[..., 1:] - img[..., :1]).max() < 1 / 512))
-
-
 def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Validate two images and give them the same number of channels: two grey images one
     channel each, however they are stored (a grey PNG or an RGB one scores alike), grey and
@@ -29,7 +24,7 @@ def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray
     ex = check_image(exemplar, min_size=min_size, name="exemplar")
     res = check_image(result, min_size=min_size, name="result")
     if ex.shape[2] != 1 or res.shape[2] != 1:
-        if _grey(ex) and _grey(res):
+        if all(a.shape[2] == 1 or grey_as_rgb(a) for a in (ex, res)):
             ex, res = ex[..., :1], res[..., :1]
         elif ex.shape[2] != res.shape[2]:
             ex, res = (np.repeat(a, 3, axis=2) if a.shape[2] == 1 else a for a in (ex, res))
