@@ -59,7 +59,7 @@ from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_fact
 from .pyramid import laplacian_pyramid, reconstruct
 from .patch_refine import refine_image, steps_for
 from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
-from .seams import SCREENING
+from .seams import SCREENING, SeamSteps, local_means
 from .settings import BY_NAME, check_settings
 
 __all__ = ["inpaint", "extend", "expand_canvas", "ANCHORS", "check_hole", "require_hole", "split_alpha", "with_alpha",
@@ -559,37 +559,43 @@ def stitch_hole(canvas, hole, owner, *, tile=False, window=9):
         ``canvas`` with its hole corrected; the other pixels are the same.
     """
     from scipy import sparse
-    from scipy.ndimage import uniform_filter
     from scipy.sparse.linalg import cg, splu
 
     h, w, c = canvas.shape
     k = int(hole.sum())
     index = np.full((h, w), -1, dtype=np.int64)
     index[hole] = np.arange(k)
-    size, mode = 2 * (int(window) // 2) + 1, "wrap" if tile else "constant"
-    rhs, degree, pairs = np.zeros((k, c)), np.zeros(k), []
-    for axis in (0, 1):
-        def after(a, by=1):  # each pixel's value at the next pixel along ``axis``
-            return np.roll(a, -by, axis=axis)
 
+    def after(a, axis):  # each pixel's value at the next pixel along ``axis``
+        return np.roll(a, -1, axis=axis)
+
+    edges = {}  # axis -> the edges that touch the hole, the seam edges among them, their changes
+    for axis in (0, 1):
         valid = np.ones((h, w), dtype=bool)  # an edge to the next pixel exists
         if not tile:
             (valid[-1] if axis == 0 else valid[:, -1])[...] = False
-        touches = valid & (hole | after(hole))
-        seam = touches & (owner != after(owner))
-        diff = after(canvas) - canvas  # across each edge
+        touches = valid & (hole | after(hole, axis))
+        seam = touches & (owner != after(owner, axis))
+        diff = after(canvas, axis) - canvas  # across each edge
         # The edges before and after: their mean is what a seam edge's difference should be.
         near = [(np.roll(diff, by, axis=axis), np.roll(valid, by, axis=axis)) for by in (1, -1)]
         count = sum(ok.astype(np.float32) for _, ok in near)
         wanted = sum(d * ok[..., None] for d, ok in near) / np.maximum(count, 1)[..., None]
-        change = np.where(seam[..., None], wanted - diff, 0.0)
+        change = (wanted - diff)[seam]
         # A step far larger than tone steps is an edge of the content (a stone, a label at the hole's
         # edge): left alone, or the fill takes its colour along the seam (the smear of 0.46's try).
         change *= 1.0 / (1.0 + (np.sqrt(np.square(change).sum(axis=-1, keepdims=True)) / STITCH_STEP) ** 4)
-        seams = uniform_filter(seam.astype(np.float64), size, mode=mode)
-        means = np.stack([uniform_filter(change[..., ch], size, mode=mode) for ch in range(c)], axis=-1)
-        change = np.where(seam[..., None], means / np.maximum(seams, 1e-12)[..., None], 0.0)[touches]
-        first, second = index[touches], after(index)[touches]
+        edges[axis] = touches, seam, change
+    # Each seam edge's change averaged over those nearby, as the seam removal of a quilt averages its own.
+    steps = SeamSteps((h, w), bool(tile), tuple(np.flatnonzero(edges[a][1]) for a in (1, 0)),
+                      tuple(edges[a][2] for a in (1, 0)))
+    rhs, degree, pairs = np.zeros((k, c)), np.zeros(k), []
+    for axis in (0, 1):
+        touches, seam, _ = edges[axis]
+        dense = np.zeros((h, w, c))
+        dense[seam] = local_means(steps, axis, window)
+        change = dense[touches]
+        first, second = index[touches], after(index, axis)[touches]
         # The misfit (u[second] - u[first] - change)^2: each end in the hole adds 1 to its degree,
         # -change (first) or +change (second) to its right-hand side, and -1 between two hole ends.
         for end, sign in ((first, -1.0), (second, 1.0)):

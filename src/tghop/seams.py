@@ -33,7 +33,7 @@ from ._arrays import check_int
 from ._common import TGHopError
 from ._fft import fft_for
 
-__all__ = ["SCREENING", "SeamSteps", "remove_seams"]
+__all__ = ["SCREENING", "SeamSteps", "local_means", "remove_seams"]
 
 
 @dataclass(frozen=True)
@@ -167,9 +167,10 @@ def _box_sums(a, size, wrap):
     return a
 
 
-def _local_means(steps, axis, window):
-    """The change at each seam edge along ``axis`` averaged over the seam edges along the
-    same axis within the ``window x window`` square around it, (n, C)."""
+def local_means(steps, axis, window):
+    """The change at each seam edge along ``axis`` (1: x, 0: y) averaged over the seam edges along
+    the same axis within the ``window x window`` square around it, (n, C) float32 in the order of
+    ``steps.index`` (:func:`remove_seams`' ``window``; :func:`tghop.inpaint.stitch_hole`'s too)."""
     h, w = steps.shape
     index, change = steps.index[0 if axis == 1 else 1], steps.change[0 if axis == 1 else 1]
     dense = np.zeros(h * w, dtype=np.float32)
@@ -229,7 +230,7 @@ def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.nd
     # arriving at i from behind): each seam edge adds +d at its first pixel and -d at its
     # second; all of them in one weighted count per channel.
     where = np.concatenate([index for n, axis in enumerate((1, 0)) for index in (steps.index[n], steps.second(axis))])
-    changes = [_local_means(steps, axis, window) if window > 1 else steps.change[n] for n, axis in enumerate((1, 0))]
+    changes = [local_means(steps, axis, window) if window > 1 else steps.change[n] for n, axis in enumerate((1, 0))]
     solve = _poisson_solver(h, w, steps.tile, out.dtype)
     for k in range(c):
         weights = np.concatenate([part for change in changes for part in (change[:, k], -change[:, k])])
