@@ -685,15 +685,13 @@ class TGHop(BaseEstimator):
             image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
                                  dtype=np.float64 if dtype == np.float64 else np.float32, pixel_quantiles=pixel_q)
             keep("refine", image)
-        if patches:  # ours, the last step: it works in float32 and returns the asked dtype
-            if return_stages:  # the float32 image, then the asked dtype of it (as refine_image makes it)
-                keep("patch refine", refine_image(image.astype(np.float32, copy=False), self.patches_,
-                                                  n_steps=n_steps, stride=checked["patch_stride"], tile=tile,
-                                                  progress=progress))
-                image = stages["patch refine"]
-            else:
-                return refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
-                                    stride=checked["patch_stride"], tile=tile, dtype=dtype, progress=progress)
+        if patches:  # ours, the last step: in float32, then the asked dtype (below, as refine_image makes it)
+            image = refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
+                                 stride=checked["patch_stride"], tile=tile,
+                                 dtype=np.float32 if return_stages else dtype, progress=progress)
+            if not return_stages:
+                return image
+            keep("patch refine", image)
         elif match_colours:
             report(progress, "colour", 0, 1)
             out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
