@@ -21,7 +21,7 @@ from .png import decode_png16, write_png
 from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
-           "check_output_path", "check_depth", "deepest", "save_images", "DEPTHS"]
+           "check_output_path", "check_depth", "deepest", "generation_dtype", "save_images", "DEPTHS"]
 
 #: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
 TIFF_HINT = "pip install 'tghop[tiff]'"
@@ -418,6 +418,12 @@ def to_uint16(image) -> np.ndarray:
         _refuse_nan(arr)
         out = np.round(np.clip(arr, 0.0, 1.0) * 65535.0).astype(np.uint16)
     return out[:, :, 0] if out.ndim == 3 and out.shape[2] == 1 else out
+
+
+def generation_dtype(depth):
+    """The dtype to generate an image in that is written with ``depth`` bits a channel (None: 8):
+    uint8 for 8 bits (straight from the generation, no float image), float32 for more."""
+    return np.float32 if (depth or 8) > 8 else np.uint8
 
 
 def check_depth(path, depth) -> int:

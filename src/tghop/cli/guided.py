@@ -76,7 +76,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     import numpy as np
 
     from ..guided import guide_labels, synthesize_guided
-    from ..imageio import save_image
+    from ..imageio import generation_dtype, save_image
     from .options import FIT_OPTION_PARAMS, given_options
 
     refused = given_options(ctx, ["patch_refine", "patch_stride", "region", "own_shares"])
@@ -120,7 +120,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     rng = np.random.default_rng(seed)
     for path in outputs:
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
-                                  dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
+                                  dtype=generation_dtype(depth), **generation)
         progress.close()
         save_image(image, path, depth=depth or 8)
     return outputs, size
@@ -159,7 +159,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     import numpy as np
 
     from ..guided import morph as make_strip
-    from ..imageio import check_depth, save_image
+    from ..imageio import check_depth, generation_dtype, save_image
 
     progress = Progress(not quiet)
     with user_errors(progress):
@@ -174,7 +174,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         for row in range(grid):
             rng = np.random.default_rng(None if seed is None else seed + row)
             rows.append(make_strip(model_a, model_b, size, rng=rng, stations=stations, progress=progress,
-                                   dtype=np.float32 if (depth or 8) > 8 else np.uint8))
+                                   dtype=generation_dtype(depth)))
             progress.close()
         save_image(np.concatenate(rows, axis=0), output, depth=depth or 8)
     if output != "-":

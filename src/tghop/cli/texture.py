@@ -285,7 +285,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                stages=False):
     """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
     written (None for a material, which says what it wrote) and whether SOURCE was a saved model."""
-    from ..imageio import save_image
+    from ..imageio import generation_dtype, save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
 
@@ -358,7 +358,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     for i, path in enumerate(outputs):
         # 8-bit straight from the colour matching: no float64 image (1.6 GB at 8192x8192).
         image = model.synthesize(size, rng=rng, progress=progress, return_stages=stages,
-                                 dtype=np.float32 if (depth or 8) > 8 else np.uint8, **generation)
+                                 dtype=generation_dtype(depth), **generation)
         progress.close()
         if stages:
             image, steps = image
