@@ -226,8 +226,8 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("--stages", is_flag=True,
-              help="Also write each step's image beside OUTPUT: OUTPUT_guide (the coarse layout's), _quilt, _seams, "
-                   "_refine, then _patch-refine or _colour (the last step's, 8-bit: the image itself).")
+              help="Also write each step's image beside OUTPUT, at its depth: OUTPUT_guide (the coarse layout's), "
+                   "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
 def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, stages, quiet,
