@@ -745,8 +745,9 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
     assert_error(post(guided, json={"size": [32, 32]}), 422, "no models")
     assert_error(post(guided, json={"models": two, "transition": -1}), 422, "transition must be an integer")
     assert_error(post(guided, json={"models": two, "seed": "x"}), 422, "seed must be")
-    for setting in ("quality", "patch_refine", "region", "own_shares", "zoom"):
-        assert_error(post(guided, json={"models": two, setting: 1}), 422, f"unknown setting '{setting}'")
+    assert_error(post(guided, json={"models": two, "zoom": 1}), 422, "unknown setting 'zoom'")
+    for setting in ("quality", "patch_refine", "region", "own_shares"):  # each region is its model's own synthesis
+        assert_error(post(morph, json={"a": two[0], "b": two[1], setting: 1}), 422, f"unknown setting '{setting}'")
     assert_error(post(morph, json={"a": two[0], "size": [32, 64]}), 422, "b must be a model id")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "tile": True}), 422, "unknown setting 'tile'")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "stations": 1}), 422, "stations must be")

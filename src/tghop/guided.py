@@ -2,33 +2,43 @@
 
 Every function here makes one image from the *generated* patches of several fitted
 models (never pieces of an exemplar), with the quality steps of
-:meth:`tghop.TGHop.synthesize` (quilting, band refinement, colour matching):
+:meth:`tghop.TGHop.synthesize`:
 
 * :func:`synthesize_guided` with a ``guide``: a painted map with one grey level (or
-  colour) per model; each region is texture of its model, with soft transitions where
-  regions meet (``transition`` pixels wide).
+  colour) per model; each region is texture of its model, joined to its neighbours
+  along the content within ``transition`` pixels of the painted edge.
 * :func:`synthesize_guided` without a guide: one texture that mixes the models ("remix"):
   random regions of each.
 * :func:`morph`: from model A's texture on the left to B's on the right.
 
-How it works
-------------
+How painted regions (and a remix) are made
+-------------------------------------------
 1. **Weights.** Each model ``k`` has a share ``W_k(x)`` of every pixel (they sum to 1):
    the guide's regions as one-hot maps blurred by a box of ``transition`` pixels
-   (:func:`region_weights`); a linear ramp across the width for the morph. The remix is
-   a guided synthesis whose map is random: a smooth random field cut into ``K`` classes
-   of equal area (:func:`random_labels`, blobs of about 150 px).
+   (:func:`region_weights`). The remix is a guided synthesis whose map is random: a
+   smooth random field cut into ``K`` classes of equal area (:func:`random_labels`, blobs
+   of about 150 px).
+2. **Layers.** Each model synthesises its own image (:meth:`tghop.TGHop.synthesize`, all
+   its steps and settings) over the box where its weight is above 0, so every region is as
+   good as a plain image of its model.
+3. **Join** (:mod:`tghop.composite`). A pixel away from the painted edges shows its own
+   region's layer; in the band of ``transition`` pixels around an edge, one minimum cut
+   decides which of the two layers each pixel shows, so the join runs where the layers
+   look alike (along their elements' outlines) and stays near the paint. The join is
+   antialiased over about a pixel.
+
+How a morph is made
+-------------------
+1. **Weights.** ``W_k(x)``: a linear ramp across the width.
 2. **Quilting** from the union of the models' pools (``n_patches`` shared out by area,
-   at least a quarter each, grown with the region's blocks as
-   :meth:`tghop.TGHop.synthesize` grows its pool). Each block draws
-   the model whose patches it takes, with probabilities ``W_k`` at its centre, through a
-   smooth random field (in a transition the models come in blobs of a few blocks, in
-   their proportions); the other models' patches cost :data:`REGION_COST` per overlap
-   value more (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``: more than any
-   overlap error), only :data:`MIXED_COST` in blocks where several models have a share
-   (a texture may go on where it fits much better), and the boundary cuts join the
-   regions along the content. The coarse
-   layout guide is each model's own (over its region's bounding box) blended by ``W``.
+   at least a quarter each, grown with the blocks as :meth:`tghop.TGHop.synthesize` grows
+   its pool). Each block draws the model whose patches it takes, with probabilities
+   ``W_k`` at its centre, through a smooth random field (the models come in blobs of a few
+   blocks, in their proportions); the other models' patches cost :data:`MIXED_COST` per
+   overlap value more (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``: a
+   preference a much better fitting patch overrides; :data:`REGION_COST`, more than any
+   overlap error, where one model has all the weight), and the boundary cuts join the
+   models along the content. The coarse layout guide is each model's own blended by ``W``.
 3. **Refinement by stations.** A *station* is a weight map ``w_s`` (the stations'
    weights sum to 1 at every pixel) and a mix ``a_s`` of the models. Each round, every
    station's bounding box is refined once per model of its mix as
@@ -37,8 +47,7 @@ How it works
    monotone map is estimated from the pixels where the station dominates
    (``w_s >= 0.5``) and applied to the whole box; the image becomes
    ``sum_s w_s sum_k a_sk refined_sk``. The colours likewise (each model's colour
-   quantiles, RGB). Guided and remix: one station per model (``a`` the identity, ``w``
-   the region weights). Morph: stations at evenly spaced ``t`` across the width with
+   quantiles, RGB). The stations lie at evenly spaced ``t`` across the width with
    hat-function weights, each mixing A and B as ``(1 - t, t)``: in a common colour space
    a mix of monotone maps *is* the map to the interpolated quantiles (the displacement
    interpolation of the two distributions), so each column's band statistics move from
@@ -65,6 +74,7 @@ import numpy as np
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
+from .composite import cut_regions, join_layers, layer_boxes
 from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
@@ -266,8 +276,8 @@ def _check_models(models, minimum=1):
 def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
                       detail=0.8, flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5,
-                      layout_weight=3.0, layout_refine=3, layout_patch_refine=None, seam_window=9, progress=None,
-                      dtype=np.float64):
+                      layout_weight=3.0, layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2,
+                      region=1024, own_shares=1.0, seam_window=9, progress=None, dtype=np.float64):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
     Parameters
@@ -281,20 +291,19 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         Output (height, width); default the guide's size. A guide of another size is
         refused.
     transition : int
-        Width in pixels over which regions blend (their weights, the models' patches and
-        statistics; 0: the quilting seam decides alone).
+        Width in pixels of the band around each painted edge in which the join between two
+        regions follows the content (:mod:`tghop.composite`); 0: the join is the painted
+        edge itself.
     rng : int or numpy.random.Generator, optional
         Same seed, same image (on the same machine).
-    n_patches, tile, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block, seam_window
-        As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out among the models
-        in proportion to their areas (each at least a quarter of it), ``pool_per_block``
-        counts each region's blocks, ``flat_share`` is taken of each model's pool.
-    layout_weight, layout_refine, layout_patch_refine
-        As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's (over
-        its region's bounding box) blended by the region weights; off unless every model
-        has a coarse layout.
+    n_patches, tile, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block
+        As :meth:`tghop.TGHop.synthesize`, for each model's layer (its synthesis over the
+        box its region reaches).
+    layout_weight, layout_refine, layout_patch_refine, patch_refine, patch_stride, region, own_shares, seam_window
+        As :meth:`tghop.TGHop.synthesize`, for each layer.
     progress : callable, optional
-        Stages "patch pool", "layout", "quilting", "refine", "colour".
+        Each layer's stages of :meth:`tghop.TGHop.synthesize` named with the layer's
+        number, e.g. "quilting 2/3"; then "join".
     dtype : {numpy.float64, numpy.float32, numpy.uint8}
 
     Returns
@@ -315,12 +324,12 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         labels = guide_labels(guide, k, size=size)
         size = labels.shape
     weights = region_weights(labels, k, transition, tile=tile)
-    return _synthesize(models, size, weights, np.eye(k), weights, rng=rng, n_patches=n_patches, tile=tile,
-                       overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
-                       match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
-                       layout_weight=layout_weight, layout_refine=layout_refine,
-                       layout_patch_refine=layout_patch_refine, seam_window=seam_window,
-                       progress=progress, dtype=dtype)
+    return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, n_patches=n_patches, tile=tile,
+                    overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
+                    match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
+                    layout_weight=layout_weight, layout_refine=layout_refine, layout_patch_refine=layout_patch_refine,
+                    patch_refine=patch_refine, patch_stride=patch_stride, region=region, own_shares=own_shares,
+                    seam_window=seam_window)
 
 
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
@@ -343,9 +352,15 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         Steps of the statistics across the width (at least 2); default one per 128
         columns, at least 3.
     rng, n_patches, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block, seam_window
-        As :func:`synthesize_guided`.
-    layout_weight, layout_refine, layout_patch_refine, progress, dtype
-        As :func:`synthesize_guided`.
+        As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out between the models in
+        proportion to their areas (each at least a quarter of it), ``pool_per_block`` counts
+        each model's share of the blocks, ``flat_share`` is taken of each model's pool.
+    layout_weight, layout_refine, layout_patch_refine
+        As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's blended by
+        the ramp; off unless both models have a coarse layout.
+    progress : callable, optional
+        Stages "patch pool", "layout", "quilting", "refine", "colour".
+    dtype : {numpy.float64, numpy.float32, numpy.uint8}
 
     Returns
     -------
@@ -371,6 +386,35 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
 
 
 # ----------------------------------------------------------------------------- the pipeline
+
+
+def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generation):
+    """Painted regions: each model's own synthesis over the box its region reaches (a layer),
+    joined by :func:`tghop.composite.cut_regions`; (H, W, C) ``dtype``."""
+    dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
+    checked = settings.check_settings(dict(generation, tile=tile))  # refused before any layer is made
+    for i, model in enumerate(models, start=1):
+        if checked["patch_refine"] and getattr(model, "patches_", None) is None:
+            raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics input {i} lacks "
+                             "(fitted with patch_levels=0, or by tghop 0.14 or older); fit it again, or leave "
+                             "patch_refine at None or 0")
+    k = len(models)
+    boxes = layer_boxes(weights, tile=tile)
+    layers = []
+    for i, (model, (rows, cols)) in enumerate(zip(models, boxes), start=1):
+        layer_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
+        staged = None if progress is None else \
+            (lambda stage, done, total, i=i: progress(f"{stage} {i}/{k}", done, total))
+        # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
+        layers.append(model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng, tile=tile,
+                                       progress=staged, dtype=np.float64 if dtype == np.float64 else np.float32,
+                                       **generation))
+    report(progress, "join", 0, 1)
+    image = join_layers(cut_regions(labels, weights, layers, boxes, tile=tile), layers, boxes, tile=tile)
+    report(progress, "join", 1, 1)
+    if dtype == np.uint8:
+        return np.round(image * np.float32(255.0)).astype(np.uint8)
+    return image
 
 
 def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,

@@ -20,7 +20,8 @@ GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or 
               "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture. "
               "The output takes its size (--size, if given, must agree). Without --guide several SOURCEs make "
               "one texture of random regions of each (a remix).")
-TRANSITION_HELP = "Width in pixels of the soft transition where regions meet (with several SOURCEs)."
+TRANSITION_HELP = ("Width in pixels of the band around each painted edge in which the join between two regions "
+                   "follows the textures (with several SOURCEs); 0: the painted edge itself.")
 
 
 def _read(spec, downscale=None):
@@ -79,15 +80,6 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     from ..imageio import generation_dtype, save_image
     from .options import FIT_OPTION_PARAMS, given_options
 
-    refused = given_options(ctx, ["patch_refine", "patch_stride", "region", "own_shares"])
-    if ctx.params.get("quality") not in (None, "default"):  # a preset of the patch refinement
-        refused.append(f"--quality {ctx.params['quality']}")
-    if refused:
-        raise TGHopError(f"{refused[0]} is not used with several SOURCEs or --guide; drop it")
-    generation.pop("patch_refine", None)
-    generation.pop("patch_stride", None)
-    generation.pop("region", None)  # each texture's own statistics already vary over the image
-    generation.pop("own_shares", None)  # (and are matched as they are there)
     if save_model:
         raise TGHopError("--save-model takes one exemplar; save each model with 'tghop fit' and give the .npz files")
     if exclude:

@@ -193,9 +193,7 @@ def parse_guided(body) -> tuple:
         transition = _integer("transition", body.pop("transition", 32), 0, MAX_TRANSITION)
     except TGHopError as exc:
         raise RequestError(422, str(exc)) from None
-    size, seed, settings = parse_generation(body,
-                                            skip=("patch_refine", "patch_stride", "quality", "region", "own_shares"),
-                                            default_size=None if guide is not None else (256, 256),
+    size, seed, settings = parse_generation(body, default_size=None if guide is not None else (256, 256),
                                             what="/api/images/guided")
     return ids, guide, size, seed, transition, settings
 

@@ -757,10 +757,10 @@ function guidePng(picked) {
   return boardPng(guide, new Map(picked.map((m, j) => [m.index, Math.round(255 * j / (picked.length - 1))])));
 }
 
-// The generation settings that several models take (not the quality preset: one model's).
+// The generation settings of a painted guide or a remix: each model's region is its own synthesis.
 function severalSettings(body) {
   const one = generation(null);
-  for (const name of ["tile", "refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
+  for (const name of ["tile", "refine", "n_patches", "paper", "quality"]) if (name in one) body[name] = one[name];
   return body;
 }
 

@@ -1,0 +1,101 @@
+"""Painted regions joined by a minimum cut (tghop.composite), on layers made in code."""
+
+import numpy as np
+import pytest
+
+from tghop import TGHopError
+from tghop.composite import cut_regions, join_layers, layer_boxes
+from tghop.guided import region_weights
+
+
+def _halves(h=24, w=64, split=32):
+    labels = np.zeros((h, w), dtype=np.int64)
+    labels[:, split:] = 1
+    return labels
+
+
+def _noise(shape, seed):
+    return np.random.default_rng(seed).random(shape).astype(np.float32)
+
+
+def _whole(labels, layers):
+    return [(slice(0, labels.shape[0]), slice(0, labels.shape[1]))] * len(layers)
+
+
+def test_the_join_runs_where_the_layers_look_alike():
+    labels = _halves()
+    a = _noise((24, 64, 3), 0)
+    b = _noise((24, 64, 3), 1)
+    b[:, :28] = a[:, :28]  # alike left of column 28, unlike from there to the painted edge at 32
+    weights = region_weights(labels, 2, 16)
+    shows = cut_regions(labels, weights, [a, b], _whole(labels, [a, b]))
+    assert shows.shape == labels.shape and shows.dtype == np.int64
+    assert (shows[:, 28:] == 1).all()  # the join moved off the painted edge into where they agree
+    assert (shows[:, :16] == 0).all()  # outside the band: the own region's layer
+    # Unlike everywhere: the join stays near the painted edge (the stray cost), further off without it.
+    c = _noise((24, 64, 3), 2)
+    off = [(cut_regions(labels, weights, [a, c], _whole(labels, [a, c]), stray_cost=cost) != labels).sum(axis=1)
+           for cost in (0.1, 0.0)]
+    assert off[0].max() <= 3 and off[1].min() > off[0].max()
+
+
+def test_pixels_outside_every_band_show_their_own_region():
+    h = w = 80
+    yy, xx = np.mgrid[:h, :w]
+    labels = ((yy - 40) ** 2 + (xx - 40) ** 2 < 25 ** 2).astype(np.int64)  # a disc: no block staircase to follow
+    layers = [_noise((h, w, 3), 0), _noise((h, w, 3), 1)]
+    weights = region_weights(labels, 2, 12)
+    shows = cut_regions(labels, weights, layers, _whole(labels, layers))
+    band = weights.max(axis=0) < 1
+    assert np.array_equal(shows[~band], labels[~band]) and band.any()
+    assert set(np.unique(shows[band])) == {0, 1}
+    assert np.array_equal(cut_regions(labels, region_weights(labels, 2, 0), layers, _whole(labels, layers)), labels)
+
+
+def test_the_cut_wraps_around_a_tileable_image():
+    labels = _halves()  # regions meet at column 32 and, wrapping, between the last column and the first
+    a = _noise((24, 64, 3), 0)
+    b = _noise((24, 64, 3), 1)
+    a[:, 58:] = b[:, 58:]  # alike in the last columns: the wrapped join moves off the edge into them
+    for tile, shown in ((True, 0), (False, 1)):
+        weights = region_weights(labels, 2, 16, tile=tile)
+        shows = cut_regions(labels, weights, [a, b], _whole(labels, [a, b]), tile=tile)
+        assert (shows[:, 63] == shown).all()
+
+
+def test_three_regions_meet_and_the_boxes_cover_what_the_cut_reads():
+    h, w = 60, 90
+    labels = np.zeros((h, w), dtype=np.int64)
+    labels[:, 30:] = 1
+    labels[30:, 60:] = 2
+    weights = region_weights(labels, 3, 10)
+    boxes = layer_boxes(weights)
+    assert boxes[0] == (slice(0, 60), slice(0, 36)) and boxes[2] == (slice(24, 60), slice(54, 90))  # 5 + 1 px more
+    full = [_noise((h, w, 3), seed) for seed in range(3)]
+    layers = [layer[box] for layer, box in zip(full, boxes)]  # each only over its box
+    shows = cut_regions(labels, weights, layers, boxes)
+    assert np.array_equal(shows, cut_regions(labels, weights, full, _whole(labels, full)))
+    out = join_layers(shows, layers, boxes)
+    far = weights.max(axis=0) == 1
+    expected = np.choose(labels[..., None], full)
+    assert np.array_equal(out[far], expected[far])
+
+
+def test_join_layers_antialiases_over_a_pixel():
+    labels = _halves(8, 20, 10)
+    layers = [np.zeros((8, 20, 1), np.float32), np.ones((8, 20, 1), np.float32)]
+    out = join_layers(labels, layers, _whole(labels, layers))
+    assert out.dtype == np.float32
+    assert np.allclose(out[:, 9, 0], 3 / 9) and np.allclose(out[:, 10, 0], 6 / 9)
+    assert (out[:, :9] == 0).all() and (out[:, 11:] == 1).all()
+    wrapped = join_layers(labels, layers, _whole(labels, layers), tile=True)
+    assert np.allclose(wrapped[:, 0, 0], 3 / 9) and np.allclose(wrapped[:, 19, 0], 6 / 9)
+
+
+def test_one_region_or_mismatched_layers():
+    labels = np.zeros((8, 8), dtype=np.int64)
+    layers = [_noise((8, 8, 3), 0)]
+    assert np.array_equal(cut_regions(labels, region_weights(labels, 1, 4), layers, _whole(labels, layers)), labels)
+    two = _halves(8, 8, 4)
+    with pytest.raises(TGHopError, match="2 layers but 1 boxes"):
+        cut_regions(two, region_weights(two, 2, 4), [layers[0], layers[0]], _whole(two, layers))
