@@ -14,7 +14,7 @@ import numbers
 
 import numpy as np
 
-from ._errors import TGHopError
+from ._errors import NonNumericError, TGHopError
 
 __all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask", "check_width", "forget_fit",
            "from_levels"]
@@ -23,7 +23,8 @@ __all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask
 LEVELS = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
 
 
-def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True) -> np.ndarray:
+def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finite: bool = True,
+                samples: bool = True) -> np.ndarray:
     """``X`` as a float64 array (no copy where it is one already), or a one-line :class:`TGHopError`.
 
     Parameters
@@ -39,23 +40,40 @@ def check_array(X, name: str, shape: str, *, ndim: int, min_rows: int = 1, finit
         Fewest rows (first axis) allowed.
     finite : bool
         Refuse NaN and infinite values (one pass over ``X``).
+    samples : bool
+        The rows are samples: a 1-D ``X`` where a 2-D one belongs is told how to reshape it.
 
     Returns
     -------
     ndarray of float64
+
+    Raises
+    ------
+    TGHopError
+        One line; it also holds scikit-learn's wording where its estimator checks look for
+        one ("Complex data not supported", "Reshape your data").
+    NonNumericError
+        ``X`` holds something NumPy cannot read as a number (also a TypeError, as NumPy's).
     """
     if hasattr(X, "toarray") and hasattr(X, "nnz"):  # SciPy's sparse matrices and arrays
         raise TGHopError(f"{name} is a sparse {type(X).__name__}; give a dense array of shape {shape} "
                          f"({name}.toarray())")
     if getattr(X, "dtype", None) is not None and np.dtype(X.dtype).kind == "c" or (
             isinstance(X, (list, tuple)) and np.iscomplexobj(X)):  # NumPy would drop the imaginary parts
-        raise TGHopError(f"{name} holds complex numbers; give real ones, of shape {shape}")
+        raise TGHopError(f"{name} holds complex numbers; give real ones, of shape {shape} (Complex data not supported)")
     try:
         arr = np.asarray(X, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TGHopError(f"{name} must be an array of numbers of shape {shape}, got {type(X).__name__}") from None
+    except (TypeError, ValueError) as exc:  # NumPy's reason names the culprit ("... not 'dict'", "... 'abc'")
+        what = f"{type(X).__name__} of dtype {X.dtype}" if isinstance(X, np.ndarray) else type(X).__name__
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise (NonNumericError if isinstance(exc, TypeError) else TGHopError)(
+            f"{name} must be an array of numbers of shape {shape}, got {what} ({reason})") from None
     if arr.ndim != ndim:
-        raise TGHopError(f"{name} must have shape {shape}, got {arr.shape}")
+        hint = ""
+        if samples and ndim == 2 and arr.ndim == 1:
+            hint = (f". Reshape your data: {name}.reshape(1, -1) if it is one sample, "
+                    f"{name}.reshape(-1, 1) if one feature")
+        raise TGHopError(f"{name} must have shape {shape}, got {arr.shape}{hint}")
     if arr.shape[0] < min_rows:
         raise TGHopError(f"{name} must have at least {min_rows} row{'s' if min_rows != 1 else ''} "
                          f"(samples), got shape {arr.shape}")
@@ -84,11 +102,16 @@ def from_levels(arr: np.ndarray, dtype=np.float64) -> np.ndarray:
     return np.divide(arr, dtype.type(full), dtype=dtype)
 
 
-def check_width(arr, name: str, shape: str, expected: tuple) -> None:
+def check_width(arr, name: str, shape: str, expected: tuple, *, who: str | None = None) -> None:
     """Refuse ``arr`` unless its shape after the first axis is ``expected`` (shape checks only:
-    the transforms' check, for arrays already made by :func:`numpy.asarray`)."""
+    the transforms' check, for arrays already made by :func:`numpy.asarray`). With ``who`` (the
+    estimator's class name), a 2-D ``arr`` of another width is also told so in scikit-learn's
+    words (``X has 1 features, but Saab is expecting 4 features as input``)."""
     if arr.ndim != len(expected) + 1 or tuple(arr.shape[1:]) != tuple(expected):
-        raise TGHopError(f"{name} must have shape {shape} for this fitted model, got {arr.shape}")
+        features = ""
+        if who is not None and arr.ndim == 2 and len(expected) == 1:
+            features = f"; {name} has {arr.shape[1]} features, but {who} is expecting {expected[0]} features as input"
+        raise TGHopError(f"{name} must have shape {shape} for this fitted model, got {arr.shape}{features}")
 
 
 def check_count(n, name: str = "n") -> int:

@@ -2,7 +2,7 @@
 CLI's --help and --version load only this)."""
 
 __all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
-           "NotFittedError", "HINT_DOWNSCALE_YOURSELF"]
+           "NonNumericError", "NotFittedError", "HINT_DOWNSCALE_YOURSELF"]
 
 #: What to do about an image over the pixel limit where no --downscale option is at hand
 #: (the command line's commands without it, the web server's uploads).
@@ -37,6 +37,14 @@ class MissingExtraError(TGHopError):
 
 class ModelFileError(TGHopError):
     """A file is not a tghop model, is corrupt, or was written by another format version."""
+
+
+class NonNumericError(TGHopError, TypeError):
+    """An array holds something that is not a number (a dict, an object NumPy cannot read as one).
+
+    Also a TypeError, as NumPy's own error for it and as scikit-learn's estimator checks
+    expect; a string that is not a number stays a plain TGHopError (NumPy's ValueError).
+    """
 
 
 class NotFittedError(TGHopError, AttributeError):
