@@ -153,8 +153,13 @@ class Saab(TransformerMixin, BaseEstimator):
         self
         """
         X = check_array(X, "X", "(n_samples, d)", ndim=2, finite=False)
-        if X.shape[0] < 2 or X.shape[1] < 2:
-            raise TGHopError(f"Saab needs at least 2 vectors of dimension >= 2, got shape {X.shape}")
+        # In scikit-learn's words too ("found 1 sample(s) (shape=(1, 10)) while a minimum of 2 is required").
+        if X.shape[1] < 2:
+            raise TGHopError(f"Saab needs vectors of dimension d >= 2: found {X.shape[1]} feature(s) (shape={X.shape}) "
+                             "while a minimum of 2 is required; give X of shape (n_samples, d) with d >= 2")
+        if X.shape[0] < 2:
+            raise TGHopError(f"Saab needs at least 2 vectors: found {X.shape[0]} sample(s) (shape={X.shape}) "
+                             "while a minimum of 2 is required; give X at least 2 rows")
         if not np.isfinite(X).all():
             raise TGHopError("X contains NaN or infinite values; clean it first")
         return self.fit_moments(
@@ -182,7 +187,7 @@ class Saab(TransformerMixin, BaseEstimator):
         d = mean.size
         if d < 2:
             raise TGHopError(f"Saab needs vectors of dimension >= 2, got a mean of shape {mean.shape}")
-        second_moment = check_array(second_moment, "second_moment", f"(d, d) = ({d}, {d})", ndim=2)
+        second_moment = check_array(second_moment, "second_moment", f"(d, d) = ({d}, {d})", ndim=2, samples=False)
         if second_moment.shape != (d, d):
             raise TGHopError(f"second_moment must have shape (d, d) = ({d}, {d}), got {second_moment.shape}")
         max_sq_norm = check_number(max_sq_norm, "max_sq_norm")
@@ -228,7 +233,8 @@ class Saab(TransformerMixin, BaseEstimator):
         """Responses of ``X`` (n, d) to the kept kernels: shape (n, k)."""
         check_is_fitted(self, "kernels_")
         X = check_array(X, "X", f"(n, d) = (n, {self.n_features_in_})", ndim=2, min_rows=0)  # numbers, finite
-        check_width(X, "X", f"(n, d) = (n, {self.n_features_in_})", (self.n_features_in_,))
+        check_width(X, "X", f"(n, d) = (n, {self.n_features_in_})", (self.n_features_in_,),
+                    who=type(self).__name__)
         return X @ self.kernels_.T + self._ac_bias()
 
     def inverse_transform(self, Y):
