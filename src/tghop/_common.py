@@ -26,6 +26,7 @@ __all__ = [
     "NotFittedError",
     "BaseEstimator",
     "TransformerMixin",
+    "FourDInputMixin",
     "check_is_fitted",
     "ProgressCallback",
     "check_rng",
@@ -128,6 +129,17 @@ class TransformerMixin:
 
         tags = super().__sklearn_tags__()
         tags.transformer_tags = TransformerTags()
+        return tags
+
+
+class FourDInputMixin:
+    """Mixin, before :class:`TransformerMixin`: the input is a 4-D array ((n, H, W, C) images or
+    responses), which scikit-learn's tags say (``input_tags.two_d_array`` False), so that its
+    ``check_estimator``, whose checks feed 2-D arrays, skips the estimator instead of failing."""
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False
         return tags
 
 

@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, forget_fit
-from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted, checked_image, report
+from ._common import (BaseEstimator, FourDInputMixin, TGHopError, TransformerMixin, check_is_fitted, checked_image,
+                      report)
 from .patches import depth_to_space, space_to_depth
 from .saab import Saab, select_channels
 from .settings import check_channel_rule
@@ -25,7 +26,7 @@ from .settings import check_channel_rule
 __all__ = ["Hop", "HopStack", "stage_views"]
 
 
-class Hop(TransformerMixin, BaseEstimator):
+class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
     """One hop: a (channel-wise) Saab transform of non-overlapping 2x2 blocks.
 
     Parameters
@@ -391,7 +392,7 @@ def _coverage(shape, starts, side):
     return total[: shape[0], : shape[1]]
 
 
-class HopStack(TransformerMixin, BaseEstimator):
+class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
     """Successive hops from patches (S0) to the core (Sn).
 
     Parameters

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, check_width, forget_fit
-from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
+from ._common import BaseEstimator, FourDInputMixin, TGHopError, TransformerMixin, check_is_fitted
 from .settings import BY_NAME as _SETTINGS
 
 __all__ = ["SpatialReduction", "flip_signs"]
@@ -43,7 +43,7 @@ def _channel_major(Y, chunk=64):
     return out
 
 
-class SpatialReduction(TransformerMixin, BaseEstimator):
+class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
     """Spatial dimension reduction: per-channel PCA of each core channel's spatial map.
 
     Parameters
