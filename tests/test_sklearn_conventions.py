@@ -1,8 +1,9 @@
 """scikit-learn's estimator checks on the components that follow its conventions (Saab), and the
 one-line messages that keep tghop's wording beside the phrases those checks look for.
 
-Hop, HopStack and SpatialReduction take (n, H, W, C) arrays and ICHM's ``transform`` returns
-``(labels, sources)``: scikit-learn's checks, which feed 2-D arrays, do not apply to them.
+Hop, HopStack and SpatialReduction take (n, H, W, C) arrays, which their tags say, so that
+scikit-learn's checks (which feed 2-D arrays) skip them; ICHM's ``transform`` returns
+``(labels, sources)``, not a transformer's array, and it is not checked.
 """
 
 import warnings
@@ -11,13 +12,16 @@ import numpy as np
 import pytest
 
 from tghop._errors import NonNumericError, TGHopError
+from tghop.hops import Hop, HopStack
 from tghop.saab import Saab
+from tghop.sdr import SpatialReduction
 
 sklearn = pytest.importorskip("sklearn")
 if tuple(int(v) for v in sklearn.__version__.split(".")[:2]) < (1, 6):
     pytest.skip("scikit-learn before 1.6 has no __sklearn_tags__", allow_module_level=True)
 
-from sklearn.utils.estimator_checks import parametrize_with_checks  # noqa: E402
+from sklearn.exceptions import SkipTestWarning  # noqa: E402
+from sklearn.utils.estimator_checks import check_estimator, parametrize_with_checks  # noqa: E402
 
 
 with warnings.catch_warnings():  # tghop's own BaseEstimator, by design: no scikit-learn import to generate
@@ -47,7 +51,7 @@ def test_saab_passes_scikit_learn_estimator_checks(estimator, check):
      r"^X holds complex numbers; give real ones, of shape \(n_samples, d\) \(Complex data not supported\)$"),
     (lambda s: Saab().fit([["a"] * 4] * 3),
      r"^X must be an array of numbers of shape \(n_samples, d\), got list \(could not convert string to float: 'a'\)$"),
-])
+], ids=["1 sample", "0 features", "1-D", "width", "complex", "string"])
 def test_saab_messages_name_the_problem_and_the_fix_in_one_line(call, words):
     fitted = Saab().fit(np.random.default_rng(0).normal(size=(20, 4)))
     with pytest.raises(TGHopError, match=words) as caught:
@@ -63,3 +67,11 @@ def test_a_non_number_in_an_array_is_a_type_error_too():
                                               r"\(float\(\) argument must be a string or a real number, not 'dict'\)"):
         Saab().fit(X)
     assert issubclass(NonNumericError, TypeError) and issubclass(NonNumericError, TGHopError)
+
+
+@pytest.mark.parametrize("estimator", [Hop(), HopStack(), SpatialReduction()], ids=lambda e: type(e).__name__)
+def test_four_d_components_tell_scikit_learn_its_checks_do_not_apply(estimator):
+    with pytest.warns(SkipTestWarning, match="Can't test estimator"):
+        results = check_estimator(estimator, on_fail=None)
+    assert [r["status"] for r in results if r["status"] != "passed"] == []
+    assert not estimator.__sklearn_tags__().input_tags.two_d_array
