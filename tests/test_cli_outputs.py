@@ -130,6 +130,28 @@ def test_an_output_may_replace_a_file_that_is_not_an_input(folder):
     os.unlink(folder / "victim.png")
 
 
+def test_an_output_that_is_a_symbolic_link_is_written_through_it(folder, tmp_path):
+    # -o link.png replaced the link with a file; now the link stays and its target gets the image
+    # (a model through --save-model alike). A link into a missing folder is refused before any work.
+    (tmp_path / "real").mkdir()
+    (tmp_path / "real" / "out.png").write_bytes(b"old")
+    os.symlink("real/out.png", tmp_path / "link.png")
+    os.symlink("real/saved.npz", tmp_path / "model_link.npz")  # dangling: its folder exists
+    code, _, err, _ = invoke("synth", folder / "keep.png", "-o", "link.png", "--save-model", "model_link.npz",
+                             "--size", "40", *FAST, cwd=tmp_path)
+    assert code == 0, err
+    assert os.path.islink(tmp_path / "link.png") and os.path.islink(tmp_path / "model_link.npz")
+    assert (tmp_path / "real" / "out.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "real" / "saved.npz").read_bytes()[:2] == b"PK"
+    assert sorted(os.listdir(tmp_path / "real")) == ["out.png", "saved.npz"]
+    os.symlink("missing/out.png", tmp_path / "nowhere.png")
+    before = sorted(os.listdir(tmp_path))
+    code, _, err, exc = invoke("synth", "real/saved.npz", "-o", "nowhere.png", "--size", "40", "-q", cwd=tmp_path)
+    assert_one_line(code, err, "nowhere.png is a symbolic link to", "does not exist; create that folder",
+                    exception=exc)
+    assert sorted(os.listdir(tmp_path)) == before and os.path.islink(tmp_path / "nowhere.png")
+
+
 def test_a_model_output_named_npz_is_written(folder):
     code, _, err, _ = invoke("fit", "keep.png", "-o", "new.NPZ", *FAST, cwd=folder)
     assert code == 0, err

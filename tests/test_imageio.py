@@ -431,3 +431,86 @@ def test_helpers_refuse_nan_empty_and_bad_level():
     for level in (10, -1, 1.5):
         with pytest.raises(TGHopError, match="level must be a zlib level"):
             write_png(io.BytesIO(), np.zeros((2, 2), np.uint8), level=level)
+
+
+def test_writing_a_symbolic_link_writes_its_target(tmp_path, monkeypatch):
+    # An atomic write replaced the link itself with a file; now the link stays and its target
+    # (through a chain of links) gets the content, written in the target's folder.
+    from tghop.imageio import save_image, write_atomic
+
+    monkeypatch.chdir(tmp_path)
+    img = np.random.default_rng(0).random((8, 8, 3))
+    (tmp_path / "real").mkdir()
+    save_image(np.zeros((8, 8, 3)), "real/t.png")
+    os.symlink("real/t.png", "hop.png")
+    os.symlink("hop.png", "link.png")
+    save_image(img, "link.png")
+    assert os.path.islink("link.png") and os.path.islink("hop.png")
+    np.testing.assert_array_equal(load_image("real/t.png"), to_uint8(img) / 255.0)
+    write_atomic("link.png", lambda fh: fh.write(b"new"))
+    assert os.path.islink("link.png") and (tmp_path / "real" / "t.png").read_bytes() == b"new"
+    assert sorted(os.listdir("real")) == ["t.png"] and sorted(os.listdir(".")) == ["hop.png", "link.png", "real"]
+    # a relative link in another folder points from its own folder
+    (tmp_path / "other").mkdir()
+    os.symlink("../real/t.png", "other/rel.png")
+    save_image(img * 0, "other/rel.png")
+    assert os.path.islink("other/rel.png") and load_image("real/t.png").max() == 0
+
+
+def test_a_dangling_link_writes_its_target_where_its_folder_exists(tmp_path, monkeypatch):
+    # Written as a shell's `>` would: the target is made. A target whose folder is missing, and
+    # a loop of links, are one line each, before anything is written.
+    from tghop import InvalidImageError
+    from tghop.imageio import check_output_path, save_image
+
+    monkeypatch.chdir(tmp_path)
+    img = np.random.default_rng(1).random((8, 8, 3))
+    (tmp_path / "real").mkdir()
+    os.symlink("real/new.png", "dangling.png")
+    save_image(img, "dangling.png")
+    assert os.path.islink("dangling.png") and os.listdir("real") == ["new.png"]
+    np.testing.assert_array_equal(load_image("dangling.png"), to_uint8(img) / 255.0)
+    os.symlink("missing/x.png", "nowhere.png")
+    with pytest.raises(InvalidImageError, match=r"^nowhere\.png is a symbolic link to .*missing.x\.png, whose folder "
+                                                r".*missing does not exist; create that folder or point the link"):
+        save_image(img, "nowhere.png")
+    os.symlink("real/new.png/x.png", "under_a_file.png")
+    with pytest.raises(InvalidImageError, match=r"whose folder .*new\.png is a file; point the link elsewhere"):
+        check_output_path("under_a_file.png")
+    os.symlink("loop_b.png", "loop_a.png")
+    os.symlink("loop_a.png", "loop_b.png")
+    with pytest.raises(InvalidImageError, match=r"^loop_a\.png is a loop of symbolic links"):
+        save_image(img, "loop_a.png")
+    assert sorted(os.listdir(".")) == ["dangling.png", "loop_a.png", "loop_b.png", "nowhere.png", "real",
+                                       "under_a_file.png"]
+    assert not os.path.exists("missing") and os.listdir("real") == ["new.png"]
+
+
+def test_save_images_writes_through_links_and_rolls_them_back(tmp_path, monkeypatch):
+    from tghop import InvalidImageError
+    from tghop.imageio import save_images
+
+    img = np.random.default_rng(0).random((8, 8, 3))
+    (tmp_path / "real").mkdir()
+    (tmp_path / "real" / "old.png").write_bytes(b"old")
+    os.symlink(tmp_path / "real" / "old.png", tmp_path / "link.png")
+    with pytest.raises(InvalidImageError, match="given twice"):  # the link and its target are one file
+        save_images([(img, tmp_path / "link.png", 8), (img, tmp_path / "real" / "old.png", 8)])
+    real, calls = os.replace, []
+
+    def failing(src, dst):
+        calls.append(dst)
+        if str(dst).endswith("second.png"):
+            raise PermissionError(13, "Permission denied")
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", failing)
+    with pytest.raises(InvalidImageError, match=r"second\.png: writing the image failed .*none of the images"):
+        save_images([(img, tmp_path / "link.png", 8), (img, tmp_path / "second.png", 8)])
+    monkeypatch.setattr(os, "replace", real)
+    assert os.path.islink(tmp_path / "link.png") and (tmp_path / "real" / "old.png").read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.png", "real"] and os.listdir(tmp_path / "real") == [
+        "old.png"]
+    save_images([(img, tmp_path / "link.png", 8), (img, tmp_path / "second.png", 8)])
+    assert os.path.islink(tmp_path / "link.png") and os.listdir(tmp_path / "real") == ["old.png"]
+    np.testing.assert_array_equal(load_image(tmp_path / "real" / "old.png"), to_uint8(img) / 255.0)

@@ -21,7 +21,7 @@ from .png import decode_png16, write_png
 from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
-           "check_output_path", "check_depth", "deepest", "generation_dtype", "save_images", "DEPTHS"]
+           "check_output_path", "written_file", "check_depth", "deepest", "generation_dtype", "save_images", "DEPTHS"]
 
 #: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
 TIFF_HINT = "pip install 'tghop[tiff]'"
@@ -448,12 +448,30 @@ def deepest(path, depth: int) -> int:
     return max(d for d in DEPTHS[output_format(path)] if d <= max(depth, 8))
 
 
+def written_file(path, *, what: str = "image", error=InvalidImageError) -> Path:
+    """The file that writing ``path`` replaces: ``path`` itself, or, where ``path`` is a
+    symbolic link, the file the link (through a chain of links) points to, so that the link
+    stays and its target gets the new content, as ``cp`` and a shell's ``>`` do. A dangling
+    link gives the file it names (written if that file's folder exists,
+    :func:`check_output_path`); a loop of links is an ``error``.
+    """
+    path = Path(path)
+    if not path.is_symlink():
+        return path
+    target = Path(os.path.realpath(path))
+    if target.is_symlink():  # realpath stops at a loop of links
+        raise error(f"{path} is a loop of symbolic links; point the link at a file, or give the {what} another name")
+    return target
+
+
 def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> Path:
     """Refuse an output path that is a folder, whose folder does not exist, or where no
     file can be created (read-only or unwritable folder, name too long): checked by
-    creating and removing a probe file, before any long work.
+    creating and removing a probe file, before any long work. A symbolic link is checked
+    as the file it points to (:func:`written_file`).
 
-    Returns the folder the file will be written to; ``error`` is the exception class raised.
+    Returns the folder the file will be written to (the link's target's, for a link);
+    ``error`` is the exception class raised.
     """
     text = os.fsdecode(path)
     if not text.strip():
@@ -463,17 +481,22 @@ def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> 
     path = Path(path)
     try:
         is_dir = path.is_dir()
+        target = written_file(path, what=what, error=error)
     except OSError as exc:  # e.g. a name too long
         raise error(f"{str(path)[:80]}: cannot write the {what} there ({exc.strerror}); choose another name") from None
     if is_dir:
         raise error(f"{path} is a folder; give a file name for the {what}")
-    directory = path.parent if str(path.parent) else Path(".")
+    directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
+        if target != path:
+            fix = "point the link elsewhere" if directory.exists() else "create that folder or point the link elsewhere"
+            raise error(f"{path} is a symbolic link to {target}, whose folder {directory} "
+                        f"{'is a file' if directory.exists() else 'does not exist'}; {fix}")
         if directory.exists():
             raise error(f"{directory} is a file, not a folder; give the {what} a path in a folder")
         raise error(f"{directory}: output folder does not exist; create it first")
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=directory)
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".probe", dir=directory)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
@@ -486,19 +509,22 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
     """Call ``write(fileobj)`` on a temporary file next to ``path``, then move it into place.
 
     If ``write`` raises, no file (and no partial file) is left at ``path``; an operating
-    system error (disk full, ...) becomes one ``error`` line.
+    system error (disk full, ...) becomes one ``error`` line. Where ``path`` is a symbolic
+    link, its target is written (:func:`written_file`; the temporary file beside the
+    target, so that the move stays atomic) and the link stays.
     """
     path = Path(path)
     directory = check_output_path(path, what=what, error=error)
+    target = written_file(path, what=what, error=error)
     tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except BaseException as exc:  # Ctrl-C and the command's SIGTERM/SIGHUP (tghop.cli.common.Terminated) too
         if tmp is None:  # mkstemp failed: nothing to remove
             if isinstance(exc, OSError):
@@ -613,6 +639,7 @@ def save_images(items) -> None:
         first (:func:`check_output_path`); each image is then written to a temporary name
         beside its path, and once all are written they are moved into place. If a move
         fails, the files already moved are taken back (a file they replaced is restored).
+        A path that is a symbolic link has its target written, as :func:`write_atomic` does.
 
     Raises
     ------
@@ -627,30 +654,30 @@ def save_images(items) -> None:
     done = []  # (temporary, path) written
     moved = []  # (path, backup or None) in place
     try:
-        for image, path, depth in checked:
-            tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
+        for image, path, target, depth in checked:
+            tmp = target.with_name(f".{target.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
             try:
                 save_image(image, tmp, depth=depth)
             except TGHopError as exc:
                 raise type(exc)(str(exc).replace(str(tmp), str(path))) from None
-            done.append((tmp, path))
-        for tmp, path in done:
+            done.append((tmp, path, target))
+        for tmp, path, target in done:
             backup = None
             try:
-                if os.path.lexists(path):
-                    backup = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.old")
-                    os.replace(path, backup)
-                os.replace(tmp, path)
+                if os.path.lexists(target):
+                    backup = target.with_name(f".{target.name}.{uuid.uuid4().hex[:8]}.old")
+                    os.replace(target, backup)
+                os.replace(tmp, target)
             except OSError as exc:
-                if backup is not None and not os.path.lexists(path):
-                    os.replace(backup, path)
+                if backup is not None and not os.path.lexists(target):
+                    os.replace(backup, target)
                 raise InvalidImageError(f"{path}: writing the image failed ({exc.strerror or exc.__class__.__name__}); "
                                         "none of the images was written") from None
-            moved.append((path, backup))
+            moved.append((target, backup))
     except BaseException:
-        for path, backup in reversed(moved):
-            _undo_move(path, backup)
-        for tmp, _ in done:
+        for target, backup in reversed(moved):
+            _undo_move(target, backup)
+        for tmp, _, _ in done:
             _unlink_quietly(tmp)
         raise
     for _, backup in moved:
@@ -659,8 +686,8 @@ def save_images(items) -> None:
 
 
 def _check_items(items):
-    """:func:`save_images`' items as a list of (image, Path, depth), every path checked
-    (format, depth, folder) before anything is written."""
+    """:func:`save_images`' items as a list of (image, Path, the file written, depth), every
+    path checked (format, depth, folder; a symbolic link as its target) before anything is written."""
     try:
         entries = list(items)
     except TypeError:
@@ -681,11 +708,12 @@ def _check_items(items):
         check_depth(path, depth)
         check_output_path(path)
         path = Path(path)
-        key = os.path.abspath(path)
+        target = written_file(path)
+        key = os.path.abspath(target)
         if key in seen:
             raise InvalidImageError(f"{path}: given twice to save_images; give each image its own name")
         seen.add(key)
-        checked.append((image, path, depth))
+        checked.append((image, path, target, depth))
     return checked
 
 
