@@ -72,7 +72,8 @@ def test_patches_grid_and_stages(model_path, workdir):
     stages = np.asarray(Image.open(workdir / "grid_stages.png"))
     assert stages.shape == (9 * 34 - 2, 3 * 34 - 2, 3)
     again = workdir / "grid2.png"
-    run("patches", model_path, "-n", "9", "-o", again, "--seed", "3")
+    r = run("patches", model_path, "-n", "9", "-o", again, "--seed", "3", "-q")  # -q as every command takes it
+    assert r.returncode == 0, r.stderr.decode()
     assert np.array_equal(np.asarray(Image.open(again)), grid)
 
 

@@ -194,6 +194,27 @@ def test_help_says_what_sizes_cost_and_the_size_order():
     assert "HEIGHTxWIDTH" in flat and "--seed" in flat
 
 
+def test_every_command_that_writes_files_takes_the_same_quiet_option():
+    # patches, cooc morph and cooc edit had no -q: a script passing -q to every command failed there.
+    # info prints a description and serve serves; every other command writes files.
+    import click
+
+    def leaves(group, path):
+        for name, command in group.commands.items():
+            if isinstance(command, click.Group):
+                yield from leaves(command, path + [name])
+            else:
+                yield path + [name], command
+
+    found = {}
+    for path, command in leaves(main, []):
+        quiet = [p for p in command.params if "-q" in getattr(p, "opts", ())]
+        found[" ".join(path)] = [(p.opts, p.is_flag, p.help) for p in quiet]
+    takes = {name: q for name, q in found.items() if name not in ("info", "serve")}
+    assert {"patches", "cooc morph", "cooc edit", "synth", "fit"} <= set(takes)
+    assert all(q == [(["-q", "--quiet"], True, "No progress bars.")] for q in takes.values()), takes
+
+
 @pytest.mark.parametrize("command", [["synth"], ["patches"], ["morph"], ["baseline"], ["inpaint"],
                                      ["cooc", "morph"], ["cooc", "edit"]])
 def test_image_outputs_name_every_extension_tghop_writes(command):

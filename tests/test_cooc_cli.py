@@ -82,7 +82,7 @@ def test_morph_takes_images_of_any_size(files):
         r = invoke("cooc", "morph", files / "m.pt", a, b, "-o", out, "--length", "5", "--seed", "1")
         assert r.exit_code == 0, r.output
         assert png(out).shape == (32, 40, 3)
-    r = invoke("cooc", "morph", files / "m.pt", files / "wide.png", "crop:0,0", "-o", out, "--grid", "2x2")
+    r = invoke("cooc", "morph", files / "m.pt", files / "wide.png", "crop:0,0", "-o", out, "--grid", "2x2", "-q")
     assert r.exit_code == 0, r.output
     assert png(out).shape == (2 * 34 - 2, 2 * 34 - 2, 3)
 
@@ -90,7 +90,7 @@ def test_morph_takes_images_of_any_size(files):
 def test_edit_takes_images_of_any_size(files):
     out = files / "edit.png"
     r = invoke("cooc", "edit", files / "m.pt", files / "wide.png", "crop:0,0", files / "other.png", "-o", out,
-               "--size", "24x64", "--seed", "2")
+               "--size", "24x64", "--seed", "2", "--quiet")
     assert r.exit_code == 0, r.output
     assert png(out).shape == (24, 64, 3)
 

@@ -8,7 +8,7 @@ import click
 from .._errors import TGHopError
 from ..fit_options import fit_params
 from .common import Progress, fail, stop_message, user_errors
-from .options import MAX_COUNT, Size, generation_options, generation_params, model_options
+from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
 
 __all__ = ["batch"]
 
@@ -50,7 +50,7 @@ class BatchProgress(Progress):
               help="Run on an existing dask.distributed scheduler (e.g. tcp://host:8786) instead.")
 @click.option("--retries", type=click.IntRange(min=0, max=20), default=3, show_default=True,
               help="Tries again elsewhere for a task whose worker died (local cluster), then recorded as failed.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@QUIET_OPTION
 def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet, **options):
     """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.
 

@@ -15,7 +15,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
-from .options import FloatRange, Size
+from .options import QUIET_OPTION, FloatRange, Size
 
 #: Longest morph strip, in condition cells.
 MAX_CELLS = 4096
@@ -124,7 +124,7 @@ def cooc():
               help="Stop training after M minutes and write the checkpoint (--resume continues it).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the training (initial weights, batches).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@QUIET_OPTION
 def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, quiet):
     """Train the co-occurrence cGAN on EXEMPLAR (an image file or builtin:NAME).
 
@@ -181,7 +181,8 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the noise: the same seed gives the same image; without it every run differs.")
 @WINDOWS_OPTION
-def morph(model_file, a, b, output, length, grid, seed, windows):
+@QUIET_OPTION
+def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
     """Morph from A to B: a strip (or a grid) whose co-occurrence moves from A to B.
 
     A and B are crop:ROW,COL (the training exemplar's training-size crop at that pixel) or
@@ -192,6 +193,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
     from ..imageio import save_image
     from ..patches import patch_grid
 
+    del quiet  # taken as every command takes it: nothing here draws a progress bar
     with user_errors():
         check_output(output)
         check_outputs([("-o", output)], [("MODEL", model_file), *[(label, spec) for label, spec in (("A", a), ("B", b))
@@ -228,7 +230,8 @@ def morph(model_file, a, b, output, length, grid, seed, windows):
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the noise: the same seed gives the same image; without it every run differs.")
 @WINDOWS_OPTION
-def edit(model_file, sources, output, size, mask, boost, seed, windows):
+@QUIET_OPTION
+def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
     """Generate from edited co-occurrence: SOURCES' statistics painted where you want them.
 
     SOURCES are crop:ROW,COL or images, as for morph (an image: its whole co-occurrence
@@ -240,6 +243,7 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows):
     from ..cooc import boost_condition, paint_condition
     from ..imageio import save_image
 
+    del quiet  # taken as every command takes it: nothing here draws a progress bar
     with user_errors():
         check_output(output)
         check_outputs([("-o", output)], [("MODEL", model_file), ("--mask", mask),

@@ -10,7 +10,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors
-from .options import Size, scale_option
+from .options import QUIET_OPTION, Size, scale_option
 
 __all__ = ["evaluate", "baseline"]
 
@@ -28,7 +28,7 @@ __all__ = ["evaluate", "baseline"]
               help="Also score each result's self_repetition (added to --metrics or to the default set).")
 @scale_option("Score against EXEMPLAR resampled by this factor: the working scale the results were made at "
               "(tghop synth --scale).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@QUIET_OPTION
 def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
     """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
 
@@ -123,7 +123,7 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
               help="cooc: how the image is made from the generator: quilt (default: generated training-size "
                    "crops stitched by image quilting), pass (the paper's: one pass over the whole condition), "
                    "windows (that condition in training-size windows).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@QUIET_OPTION
 def baseline(name, exemplar, output, size, seed, iterations, model_file, assembly, quiet):
     """Make a reference texture from EXEMPLAR with baseline NAME.
 

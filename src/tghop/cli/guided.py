@@ -8,7 +8,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors
 from ..fit_options import build_model
-from .options import Size, depth_option
+from .options import QUIET_OPTION, Size, depth_option
 
 __all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION"]
 
@@ -144,7 +144,7 @@ def _check_grid(size, grid):
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
               help="Steps of the statistics from A to B (default one per 128 columns, at least 3).")
 @depth_option("8")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@QUIET_OPTION
 def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     """A strip from texture A on the left to texture B on the right (A and B: exemplars,
     builtin:NAME or saved models); every column is a texture between them."""

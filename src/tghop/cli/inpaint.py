@@ -8,7 +8,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
-from .options import Size, depth_option, scale_option
+from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES"]
 
@@ -30,7 +30,7 @@ def _fill_options(fitted_on: str, tile_help: str):
                      help="Seed: the same seed gives the same image; without it every run differs."),
         click.option("--tile", is_flag=True, help=tile_help),
         depth_option("IMAGE's, as far as the output's format holds it"),
-        click.option("-q", "--quiet", is_flag=True, help="No progress bars."),
+        QUIET_OPTION,
     ]
 
     def apply(func):

@@ -17,8 +17,8 @@ import click
 from .._errors import TGHopError
 from ..fit_options import OFF, setting_value
 
-__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "depth_option", "ChannelRule", "Size", "FloatRange",
-           "SettingType", "model_options", "generation_options", "FIT_OPTION_PARAMS", "generation_params",
+__all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "QUIET_OPTION", "depth_option", "ChannelRule", "Size",
+           "FloatRange", "SettingType", "model_options", "generation_options", "FIT_OPTION_PARAMS", "generation_params",
            "given_options"]
 
 #: Largest accepted --count.
@@ -29,6 +29,10 @@ EXCLUDE_HELP = ("A mask image of the exemplar's size: its white parts (a logo, a
 
 DOWNSCALE_HELP = ("Exemplars over 64 Mpx (8192x8192) are refused; with --downscale they are reduced to "
                   "64 Mpx instead (with a warning).")
+
+#: ``-q/--quiet`` of every command that writes files: no progress bars. Those that draw none
+#: (patches, cooc morph, cooc edit) take it too, so that a script can pass it to any of them.
+QUIET_OPTION = click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 
 
 def depth_option(default: str):

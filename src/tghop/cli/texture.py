@@ -13,8 +13,8 @@ from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_model_file, load_exemplar, load_mask, numbered, summary, user_errors)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
-from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, Size, depth_option,
-                      generation_options, generation_params, given_options, model_options)
+from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
+                      depth_option, generation_options, generation_params, given_options, model_options)
 
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
@@ -92,7 +92,7 @@ def material_outputs(material, output, depth):
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@QUIET_OPTION
 def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **options):
     """Learn a model from EXEMPLAR (an image file or builtin:NAME) and save it; with
     --maps, a material from EXEMPLAR and its MAPs."""
@@ -137,8 +137,10 @@ def material_summary(material) -> str:
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed (same seed, same patches).")
 @click.option("--stages", is_flag=True,
               help="Also write OUTPUT_stages: per sample the core DC map, the S1 DC map and the patch (paper Fig. 6).")
-def patches(model_file, n, output, seed, stages):
+@QUIET_OPTION
+def patches(model_file, n, output, seed, stages, quiet):
     """Generate N patches from a saved MODEL and write them as a grid image."""
+    del quiet  # taken as every command takes it: nothing here draws a progress bar
     from ..imageio import save_image
     from ..modelfile import load_model
     from ..patches import patch_grid, stage_sheet
@@ -174,7 +176,7 @@ def patches(model_file, n, output, seed, stages):
               help=f"I{OUTPUT_HELP[1:]}): EXEMPLAR on the left, its cluster map on the right.")
 @click.option("--stride", type=click.IntRange(min=1, max=4096), default=None,
               help="Step between the patches mapped, in pixels; default the model's fit stride.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@QUIET_OPTION
 def clusters(model_file, exemplar, output, stride, quiet):
     """Show which of MODEL's clusters each part of EXEMPLAR (an image file or builtin:NAME,
     with the model's channel count) falls in: the cluster of the patch centred nearest each
@@ -228,7 +230,7 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--stages", is_flag=True,
               help="Also write each step's image beside OUTPUT, at its depth: OUTPUT_guide (the coarse layout's), "
                    "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@QUIET_OPTION
 @click.pass_context
 def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, stages, quiet,
           depth, **options):
