@@ -246,6 +246,47 @@ def test_a_result_for_a_closed_stdout_is_one_line(folder, args):
     assert_one_line(p.returncode, p.stderr.decode(), "standard output is closed")
 
 
+def _to_a_closed_pipe(args, cwd, stream="stdout"):
+    """``python -m tghop ARGS`` with ``stream`` a pipe whose reader has already gone (as
+    ``| head -1`` leaves it once head has its line): every write there fails with EPIPE."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        other = {"stderr": subprocess.PIPE} if stream == "stdout" else {"stdout": subprocess.DEVNULL}
+        return subprocess.run([sys.executable, "-m", "tghop", *args], cwd=cwd, timeout=120, **{stream: write},
+                              **other)
+    finally:
+        os.close(write)
+
+
+@pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"], ["--help"], ["synth", "--help"],
+                                  ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],
+                                  ["patches", "model.npz", "-o", "-", "-n", "4"]])
+def test_a_reader_that_went_away_ends_the_command_quietly(folder, args):
+    # `tghop info MODEL | head -1` exited 1 (click answers a broken pipe so), an image to such a
+    # pipe said "Error: cannot write the output: Broken pipe". Now: no word, exit status 0.
+    p = _to_a_closed_pipe(args, folder)
+    assert p.returncode == 0 and p.stderr == b"", (p.returncode, p.stderr)
+
+
+def test_an_error_to_a_stderr_whose_reader_went_away_still_fails(folder):
+    # the error line cannot be written, but the exit status says the command failed
+    p = _to_a_closed_pipe(["synth", "nope.png", "-o", "o.png"], folder, stream="stderr")
+    assert p.returncode == 1 and not (folder / "o.png").exists()
+
+
+def test_a_broken_pipe_that_is_not_the_outputs_is_one_line(folder, monkeypatch):
+    # In process the output is no pipe: a BrokenPipeError is some other pipe's, a failure like any other.
+    import tghop.modelfile
+
+    def broken(*args, **kwargs):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(tghop.modelfile, "load_model", broken)
+    code, _, err, exc = invoke("info", "model.npz", cwd=folder)
+    assert_one_line(code, err, "Broken pipe", exception=exc)
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a device where every write fails)")
 @pytest.mark.parametrize("args", [["info", "model.npz"], ["--help"], ["--version"],
                                   ["evaluate", "bricks.png", "bricks.png", "--metrics", "swd", "-q"],

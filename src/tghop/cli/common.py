@@ -85,7 +85,10 @@ class Progress:
 
 
 def fail(message: str, code: int = 1):
-    click.echo(f"Error: {message}", err=True)
+    try:
+        click.echo(f"Error: {message}", err=True)
+    except BrokenPipeError:  # stderr's reader went away: the exit status still says it failed
+        pass
     sys.exit(code)
 
 
@@ -98,6 +101,27 @@ def drop_stdout():
         os.close(null)
     except (OSError, ValueError, AttributeError):  # no file descriptor (an in-process run's stdout)
         pass
+
+
+def output_gone() -> bool:
+    """Whether the reader of the standard output or error went away: the other end of its
+    pipe is closed (``tghop info M | head -1``), so that writing there fails with EPIPE. A
+    broken pipe elsewhere (a socket, a worker's pipe) is not the output's: a failure like any
+    other. Where the system cannot tell (no ``poll``), a broken pipe is taken for the output's."""
+    import select
+
+    if not hasattr(select, "poll"):
+        return True
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            fd = stream.fileno()
+            poller = select.poll()
+            poller.register(fd, select.POLLOUT)
+            if any(event & (select.POLLERR | select.POLLHUP) for _, event in poller.poll(0)):
+                return True
+        except (AttributeError, OSError, ValueError):  # closed, or no file descriptor (an in-process run's)
+            continue
+    return False
 
 
 def os_error_message(exc: OSError) -> str:
@@ -127,6 +151,8 @@ def user_errors(progress=None):
         warnings.simplefilter("always")
         try:
             yield
+        except BrokenPipeError:  # the output's reader went away: the group answers it (OneLineGroup.main)
+            raise
         except (TGHopError, MemoryError, OSError, KeyboardInterrupt) as exc:
             if progress:
                 progress.close()

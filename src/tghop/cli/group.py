@@ -14,12 +14,13 @@ import gc
 import signal
 import sys
 import threading
+from contextlib import contextmanager
 
 import click
 
 from .. import __version__
 from .batch import batch
-from .common import Terminated, drop_stdout, fail, os_error_message, stop_message
+from .common import Terminated, drop_stdout, fail, os_error_message, output_gone, stop_message
 from .cooc import cooc
 from .evaluation import baseline, evaluate
 from .guided import morph
@@ -112,9 +113,36 @@ def _import_for(args):
             pass
 
 
+class _OutputGone(Exception):
+    """A command's BrokenPipeError (its ``__cause__``), carried past click to
+    :meth:`OneLineGroup.main`: click answers a broken pipe itself, with exit status 1."""
+
+
+@contextmanager
+def _past_click():
+    try:
+        yield
+    except BrokenPipeError as exc:
+        raise _OutputGone() from exc
+
+
+def _output_gone(exc: BrokenPipeError):
+    """Exit 0 without a word where the output's reader went away (``tghop info M | head -1``:
+    the reader took what it wanted, as with the tools that exit quietly there), standard
+    output pointed at the null device first so that the interpreter's last flush does not
+    fail again ("Exception ignored"). A broken pipe that is not the output's is one line."""
+    gone = output_gone()
+    drop_stdout()
+    if not gone:
+        fail(os_error_message(exc))
+    sys.exit(0)
+
+
 class OneLineGroup(click.Group):
     """Every failure of the command line, click's usage errors and Ctrl-C included, is one
-    line on stderr (``Error: ...``) and a non-zero exit status, never a traceback."""
+    line on stderr (``Error: ...``) and a non-zero exit status, never a traceback. A reader
+    of the output that went away (``tghop info M | head -1``) is no failure: the command
+    stops there, without a word, exit status 0 (:func:`~tghop.cli.common.output_gone`)."""
 
     def main(self, args=None, prog_name=None, as_command=False, **extra):
         """Run the command line and exit.
@@ -152,9 +180,10 @@ class OneLineGroup(click.Group):
             fail(exc.format_message(), exc.exit_code)
         except KeyboardInterrupt as exc:
             fail(*stop_message(exc))
-        except BrokenPipeError:  # e.g. `tghop synth ... -o - | head -c 10`
-            drop_stdout()
-            sys.exit(1)
+        except _OutputGone as exc:  # `tghop info M | head -1`, `tghop synth ... -o - | head -c 10`
+            _output_gone(exc.__cause__)
+        except BrokenPipeError as exc:  # the flush above
+            _output_gone(exc)
         except OSError as exc:  # printing failed (`tghop info M > /dev/full`); files fail in user_errors
             drop_stdout()
             fail(os_error_message(exc))
@@ -162,6 +191,14 @@ class OneLineGroup(click.Group):
             if as_command:
                 gc.freeze()  # nothing left for the collections at exit to walk
         sys.exit(rc if isinstance(rc, int) else 0)
+
+    def make_context(self, *args, **kwargs):  # `tghop --help | head -1` writes here
+        with _past_click():
+            return super().make_context(*args, **kwargs)
+
+    def invoke(self, ctx):  # the commands, and their --help
+        with _past_click():
+            return super().invoke(ctx)
 
     def _command_path(self, args):
         """``tghop SUBCOMMAND ...`` as far as ``args`` name commands (click reports some usage
