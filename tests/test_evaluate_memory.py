@@ -109,6 +109,23 @@ def test_sizes_are_checked_before_any_work():
         metrics.check_sizes({"result": (5, 5, 3)}, ["cooccurrence"], diversity=True)
 
 
+def test_the_exemplar_is_held_only_to_the_metrics_that_use_it():
+    # self_repetition (and diversity) look at the results alone: an 8x8 exemplar was refused for them.
+    metrics.check_sizes({"exemplar": (8, 8, 3), "result": (64, 64, 3)}, ["self_repetition"], diversity=True)
+    with pytest.raises(InvalidImageError, match="^exemplar is 8x8 pixels but swd needs at least 28x28"):
+        metrics.check_sizes({"exemplar": (8, 8, 3), "result": (64, 64, 3)}, ["self_repetition", "swd"])
+    with pytest.raises(InvalidImageError, match="^result is 12x12 pixels but self_repetition needs at least 16x16"):
+        metrics.check_sizes({"exemplar": (8, 8, 3), "result": (12, 12, 3)}, ["self_repetition"])
+    with pytest.raises(InvalidImageError, match="^ex.png is 8x8 pixels but self_repetition"):  # no exemplar named
+        metrics.check_sizes({"ex.png": (8, 8, 3)}, ["self_repetition"], exemplar=None)
+    with pytest.raises(InvalidImageError, match="above the"):  # the exemplar's own limits still hold
+        metrics.check_sizes({"exemplar": (MAX_PIXELS, 2, 3)}, ["self_repetition"])
+    tiny = np.random.default_rng(0).random((8, 8, 3))
+    tiled = np.tile(data.bricks(32, rng=1), (2, 2, 1))
+    scores = metrics.evaluate(tiny, tiled, metrics=["self_repetition"])
+    assert scores == {"self_repetition": metrics.self_repetition(tiled)}
+
+
 def test_evaluate_refuses_a_tiny_image_saying_what_size_is_needed():
     with pytest.raises(InvalidImageError) as info:
         metrics.evaluate(data.bricks(64), np.zeros((1, 1, 3)))
@@ -200,6 +217,21 @@ def test_cli_refuses_a_tiny_image_naming_the_size(images):
     assert "patch size" not in r.stderr.decode()
     r = run("evaluate", images / "ex.png", images / "res.png", images / "dot.png", "--metrics", "cooccurrence")
     assert_user_error(r, "dot.png", "diversity needs at least 8x8")
+
+
+def test_cli_takes_a_small_exemplar_for_self_repetition_alone(images, tmp_path):
+    save_image(np.random.default_rng(0).random((8, 8, 3)), tmp_path / "tiny.png")
+    save_image(data.bricks(32, rng=3)[:12, :12], tmp_path / "small.png")
+    for args in (["--metrics", "self_repetition"], ["--metrics", "self_repetition", images / "res.png"]):
+        r = run("evaluate", tmp_path / "tiny.png", images / "res.png", "-q", *args)
+        assert r.returncode == 0, r.stderr.decode()
+        assert r.stdout.decode().split()[:2] == ["result", "self_repetition"]
+    r = run("evaluate", tmp_path / "tiny.png", images / "res.png", "-q", "--metrics", "swd", "--repetition")
+    assert_user_error(r, "tiny.png is 8x8 pixels but swd needs at least 28x28")
+    r = run("evaluate", tmp_path / "tiny.png", tmp_path / "small.png", "-q", "--metrics", "self_repetition")
+    assert_user_error(r, "small.png is 12x12 pixels but self_repetition needs at least 16x16")
+    r = run("evaluate", tmp_path / "small.png", tmp_path / "small.png", "-q", "--metrics", "self_repetition")
+    assert_user_error(r, "small.png is 12x12 pixels but self_repetition needs at least 16x16")  # as a result
 
 
 def test_cli_shows_progress_unless_quiet(images):

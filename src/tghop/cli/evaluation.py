@@ -40,7 +40,8 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
 
     self_repetition (opt-in: --repetition or --metrics self_repetition): the fraction of a
     result's textured 16x16 windows that recur elsewhere in the same result (about 1 for a
-    tiling of one crop, 0 for no repetition). It looks at the result alone, not the exemplar.
+    tiling of one crop, 0 for no repetition). It looks at the result alone, not the exemplar:
+    asked alone, it takes an exemplar of any size.
 
     With two or more results, also their diversity (higher: more different from each other).
     SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
@@ -71,8 +72,9 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
         ex = rescale(load_exemplar(exemplar), scale)
         images = [load_exemplar(r) for r in results]
         scaled = exemplar if scale == 1 else f"{exemplar} at --scale {scale:g}"
-        M.check_sizes({scaled: ex.shape, **{r: img.shape for r, img in zip(results, images)}}, checked,
-                      diversity=len(images) > 1)
+        M.check_sizes({scaled: ex.shape}, checked, exemplar=scaled)  # as large as the metrics that use it need
+        M.check_sizes({r: img.shape for r, img in zip(results, images)}, checked, diversity=len(images) > 1,
+                      exemplar=None)
         rows = []
         for i, (path, img) in enumerate(zip(results, images), start=1):
             if len(images) > 1:

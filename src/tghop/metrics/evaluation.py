@@ -87,7 +87,7 @@ def _info(name: str) -> MetricInfo:
     return METRICS[name] if name in METRICS else RESULT_METRICS[name]
 
 
-def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
+def check_sizes(shapes, metrics=None, *, diversity: bool = False, exemplar: str | None = "exemplar") -> None:
     """Check image sizes for :func:`evaluate` before any work; a one-line :class:`TGHopError` if not.
 
     Parameters
@@ -97,7 +97,12 @@ def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
     metrics : sequence of str, optional
         The metrics that will be computed (default all).
     diversity : bool
-        Whether :func:`diversity` will be computed too.
+        Whether :func:`diversity` will be computed too (of the results alone).
+    exemplar : str or None
+        The name in ``shapes`` of the exemplar (None: none of them is), held only to the
+        sizes of the chosen metrics that compare with it (:data:`METRICS`): those of
+        :data:`RESULT_METRICS` (``self_repetition``) and diversity look at the results alone,
+        so with them alone any exemplar size will do.
 
     Raises
     ------
@@ -110,8 +115,9 @@ def check_sizes(shapes, metrics=None, *, diversity: bool = False) -> None:
     needs = [(_info(n).min_size, n) for n in names]
     if diversity:
         needs.append((DIVERSITY_MIN_SIZE, "diversity"))
-    need, which = max(needs)
+    exemplar_needs = [(METRICS[n].min_size, n) for n in names if n in METRICS]
     for name, shape in shapes.items():
+        need, which = max(exemplar_needs, default=(1, None)) if name == exemplar else max(needs)
         if len(shape) not in (2, 3):
             raise InvalidImageError(f"{name} must have shape (H, W) or (H, W, C), got {tuple(shape)}")
         h, w = int(shape[0]), int(shape[1])
