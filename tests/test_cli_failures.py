@@ -259,8 +259,8 @@ def _to_a_closed_pipe(args, cwd, stream="stdout"):
         os.close(write)
 
 
-@pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"], ["--help"], ["synth", "--help"],
-                                  ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],
+@pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"], ["--help"],
+                                  ["synth", "--help"], ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],
                                   ["patches", "model.npz", "-o", "-", "-n", "4"]])
 def test_a_reader_that_went_away_ends_the_command_quietly(folder, args):
     # `tghop info MODEL | head -1` exited 1 (click answers a broken pipe so), an image to such a
