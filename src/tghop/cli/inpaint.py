@@ -189,8 +189,8 @@ def _check_size(image, shape, p, whose):
     h, w = shape[:2]
     if h >= p and w >= p:
         return
-    fix = (f"give --source a model of smaller patches, e.g. one fitted with 'tghop fit EXEMPLAR --patch-size 16 "
-           f"--k1 9 --k2 22 -o small.npz'" if p > 16 and min(h, w) >= 16 else f"give an IMAGE of at least {p}x{p}")
+    fix = ("give --source a model of smaller patches, e.g. one fitted with 'tghop fit EXEMPLAR --patch-size 16 "
+           "--k1 9 --k2 22 -o small.npz'" if p > 16 and min(h, w) >= 16 else f"give an IMAGE of at least {p}x{p}")
     raise TGHopError(f"IMAGE {image} is {h}x{w} pixels, smaller than the {p}x{p} patches{whose} that fill the hole; "
                      f"{fix}")
 
