@@ -31,7 +31,7 @@ import numpy as np
 
 from ._common import TGHopError
 
-__all__ = ["cut_regions", "join_layers", "layer_boxes", "STRAY_COST"]
+__all__ = ["cut_regions", "join_layers", "layer_boxes", "band_boxes", "STRAY_COST"]
 
 #: Cost of showing the other region's layer at the band's border (in the units of the
 #: neighbour cost: a mean absolute difference of values in [0, 1], summed over two pixels).
@@ -68,6 +68,52 @@ def layer_boxes(weights, *, tile=False):
         boxes.append((slice(max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, h)),
                       slice(max(int(cols[0]) - 1, 0), min(int(cols[-1]) + 2, w))))
     return boxes
+
+
+def band_boxes(weights, *, tile=False):
+    """The part of each model's layer that :func:`cut_regions` and :func:`join_layers` read:
+    the box of the band pixels where its weight is above 0, one pixel more.
+
+    Every other pixel of the image shows its own region's layer, so a caller can write those
+    as each layer is made and keep only these boxes of the layers (a disc in a large
+    background keeps the disc's box of the background, not the whole image).
+
+    Parameters
+    ----------
+    weights : ndarray, shape (K, H, W)
+        Region weights (:func:`tghop.guided.region_weights`).
+    tile : bool
+        The band wraps around (its boxes are then the whole image where it reaches an edge).
+
+    Returns
+    -------
+    list of (slice, slice)
+        One box per model, inside its :func:`layer_boxes` box (empty where it meets no band).
+    """
+    k, h, w = weights.shape
+    band = weights.max(axis=0) < 1.0 - 1e-6
+    boxes = []
+    for share in weights:
+        near = _grown(band & (share > 0), tile)
+        rows, cols = np.flatnonzero(near.any(axis=1)), np.flatnonzero(near.any(axis=0))
+        if rows.size == 0:
+            boxes.append((slice(0, 0), slice(0, 0)))
+        elif tile and (near[:, 0].any() or near[:, -1].any() or near[0].any() or near[-1].any()):
+            boxes.append((slice(0, h), slice(0, w)))
+        else:
+            boxes.append((slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)))
+    return boxes
+
+
+def _grown(mask, tile):
+    """``mask`` grown by one pixel in each of the eight directions (wrapping with ``tile``)."""
+    padded = np.pad(mask, 1, mode="wrap" if tile else "constant")
+    h, w = mask.shape
+    out = np.zeros_like(mask)
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            out |= padded[dy:dy + h, dx:dx + w]
+    return out
 
 
 def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_COST):
@@ -165,7 +211,7 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     return out
 
 
-def join_layers(shows, layers, boxes, *, tile=False):
+def join_layers(shows, layers, boxes, *, tile=False, out=None):
     """The image: each pixel from the layer ``shows`` names, the join antialiased.
 
     A pixel next to a join (a pixel of its 3x3 neighbourhood shows another layer) is the mean
@@ -181,14 +227,18 @@ def join_layers(shows, layers, boxes, *, tile=False):
         (as :func:`layer_boxes`'s do).
     tile : bool
         Neighbourhoods wrap around.
+    out : ndarray, shape (H, W, C), optional
+        The image with every pixel outside the layers' boxes already its own region's layer
+        (then the boxes need to cover only the bands, :func:`band_boxes`); written in place.
 
     Returns
     -------
     ndarray, shape (H, W, C)
-        Of the layers' dtype.
+        ``out``, or a new array of the layers' dtype.
     """
     h, w = shows.shape
-    out = np.empty((h, w, layers[0].shape[2]), dtype=layers[0].dtype)
+    if out is None:
+        out = np.empty((h, w, layers[0].shape[2]), dtype=layers[0].dtype)
     for which, (layer, box) in enumerate(zip(layers, boxes)):
         mine = shows[box] == which
         out[box][mine] = layer[mine]

@@ -74,7 +74,7 @@ import numpy as np
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
-from .composite import cut_regions, join_layers, layer_boxes
+from .composite import band_boxes, cut_regions, join_layers, layer_boxes
 from .layout import follows_guide
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
@@ -400,17 +400,28 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
                              "patch_refine at None or 0")
     k = len(models)
     boxes = layer_boxes(weights, tile=tile)
-    layers = []
-    for i, (model, (rows, cols)) in enumerate(zip(models, boxes), start=1):
+    # Each layer's pixels of its own region go to the image as it is made; only the part the join
+    # reads is kept (one layer in memory at a time besides the bands).
+    keep = band_boxes(weights, tile=tile)
+    image = kept = None
+    for i, (model, (rows, cols), near) in enumerate(zip(models, boxes, keep), start=1):
         layer_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
         staged = None if progress is None else \
             (lambda stage, done, total, i=i: progress(f"{stage} {i}/{k}", done, total))
         # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
-        layers.append(model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng, tile=tile,
-                                       progress=staged, dtype=np.float64 if dtype == np.float64 else np.float32,
-                                       **generation))
+        layer = model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng, tile=tile,
+                                 progress=staged, dtype=np.float64 if dtype == np.float64 else np.float32,
+                                 **generation)
+        if image is None:
+            image, kept = np.empty(labels.shape + layer.shape[2:], dtype=layer.dtype), []
+        own = labels[rows, cols] == i - 1
+        image[rows, cols][own] = layer[own]
+        inside = (slice(near[0].start - rows.start, near[0].stop - rows.start),
+                  slice(near[1].start - cols.start, near[1].stop - cols.start))
+        kept.append(layer[inside].copy() if near[0].stop > near[0].start else layer[:0, :0].copy())
+        del layer
     report(progress, "join", 0, 1)
-    image = join_layers(cut_regions(labels, weights, layers, boxes, tile=tile), layers, boxes, tile=tile)
+    image = join_layers(cut_regions(labels, weights, kept, keep, tile=tile), kept, keep, tile=tile, out=image)
     report(progress, "join", 1, 1)
     if dtype == np.uint8:
         return np.round(image * np.float32(255.0)).astype(np.uint8)
