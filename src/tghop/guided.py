@@ -85,14 +85,13 @@ from .seams import remove_seams
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
            "REGION_COST", "MIXED_COST"]
 
-#: Default width in pixels of the soft transition between painted regions.
+#: Default width in pixels of the band around a painted edge where the join follows the textures.
 DEFAULT_TRANSITION = 32
-#: Extra error per overlap value (a squared difference, in [0, 1] units) of a patch of a
-#: model other than the one a block drew: more than any overlap error (at most 1 per
-#: value), so a region takes its own model's patches.
+#: The morph's quilting: extra error per overlap value (a squared difference, in [0, 1]
+#: units) of a patch of a model other than the one a block drew where that model has all the
+#: weight: more than any overlap error (at most 1 per value).
 REGION_COST = 1.0
-#: The same in blocks of a transition (or a morph), where several models have a share: a
-#: preference for the drawn model that a clearly better fitting patch of another overrides,
+#: The same in blocks where several models have a share: a preference for the drawn model that a clearly better fitting patch of another overrides,
 #: so that a texture can continue across a few blocks (fewer block-shaped islands).
 MIXED_COST = 0.003
 #: A guide with more distinct levels than inputs and at most this many was painted with
