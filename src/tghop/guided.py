@@ -91,8 +91,9 @@ DEFAULT_TRANSITION = 32
 #: units) of a patch of a model other than the one a block drew where that model has all the
 #: weight: more than any overlap error (at most 1 per value).
 REGION_COST = 1.0
-#: The same in blocks where several models have a share: a preference for the drawn model that a clearly better fitting patch of another overrides,
-#: so that a texture can continue across a few blocks (fewer block-shaped islands).
+#: The same in blocks where several models have a share: a preference for the drawn model
+#: that a clearly better fitting patch of another overrides, so that a texture can continue
+#: across a few blocks (fewer block-shaped islands).
 MIXED_COST = 0.003
 #: A guide with more distinct levels than inputs and at most this many was painted with
 #: one level per texture (more inputs wanted); more levels are antialiased or JPEG edges.
