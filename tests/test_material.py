@@ -235,16 +235,64 @@ def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp
     assert not list(tmp_path.glob("*.png"))
 
 
-def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, tmp_path):
+@pytest.fixture(scope="module")
+def second():
+    cells = data.cells(128, rng=3)
+    return Material(model=TGHop(**FAST), rng=0).fit(cells, example_maps(cells))
+
+
+def test_painted_materials_share_one_join_in_every_map(material, second):
+    from tghop import synthesize_guided
+
+    guide = np.zeros((64, 96), np.uint8)
+    guide[:, 48:] = 255
+    out = synthesize_guided([material, second], guide, rng=2, transition=16, **POOL)
+    assert list(out) == material.names_ and [v.shape for v in out.values()] == [(64, 96, 3)] * 2 + [(64, 96, 1)] * 2
+    np.testing.assert_allclose(np.linalg.norm(out["normal"] * 2 - 1, axis=2), 1.0, atol=1e-6)
+    # Away from the band (8 px each side of column 48) every map is its material's own synthesis with the
+    # layer's stream: the regions are whole materials, aligned, and the join is one for all maps.
+    rng = np.random.default_rng(2)
+    seeds = [np.random.default_rng(rng.integers(0, 2**63 - 1)) for _ in range(2)]
+    a = material.synthesize((64, 57), rng=seeds[0], **POOL)  # the boxes: each half, 8 + 1 px more
+    b = second.synthesize((64, 57), rng=seeds[1], **POOL)
+    for name in out:
+        np.testing.assert_allclose(out[name][:, :38], a[name][:, :38], atol=1e-12)
+        np.testing.assert_allclose(out[name][:, 58:], b[name][:, 19:], atol=1e-12)
+    eight = synthesize_guided([material, second], guide, rng=2, transition=16, dtype=np.uint8, **POOL)
+    assert all(v.dtype == np.uint8 for v in eight.values())
+    with pytest.raises(TGHopError, match="input 2 is not a material but input 1 is; give all materials"):
+        synthesize_guided([material, material.model_], guide, **POOL)
+    with pytest.raises(TGHopError, match="patch_refine does not apply to materials"):
+        synthesize_guided([material, second], guide, patch_refine=2, **POOL)
+
+
+def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, second, tmp_path):
     # Review 58, item 7: `tghop synth MAT OTHER` said "only 'tghop synth' and 'tghop info' take it".
     save_model(material, tmp_path / "mat.npz")
-    save_image(np.full((64, 64), 0.5), tmp_path / "g.png")  # one level: one SOURCE
-    for args in (["synth", "mat.npz", "mat.npz", "-o", "o.png"],
-                 ["synth", "mat.npz", "-o", "o.png", "--guide", "g.png"], ["patches", "mat.npz", "-o", "o.png"]):
-        res = CliRunner().invoke(main, [str(tmp_path / a) if a.endswith(("npz", "g.png")) else a for a in args])
-        assert res.exit_code == 1 and "Traceback" not in res.output, res.output
-        assert "is a material (" in res.output and "one SOURCE of 'tghop synth' without --guide" in res.output
-        assert "only 'tghop synth'" not in res.output, res.output
+    save_model(second, tmp_path / "cells.npz")
+    save_model(material.model_, tmp_path / "plain.npz")
+
+    def run(*args):
+        return CliRunner().invoke(main, [str(tmp_path / a) if a.endswith(("npz", "g.png")) else a for a in args])
+
+    res = run("patches", "mat.npz", "-o", "o.png")
+    assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+    assert "is a material (" in res.output and "only 'tghop synth'" not in res.output, res.output
+    with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
+        load_model(tmp_path / "mat.npz")
+    # Painted (since 0.50) and remixed materials: every map, one join
+    save_image(np.repeat([[0.0, 1.0]], 48, axis=0).repeat(32, axis=1), tmp_path / "g.png")  # 48x64, two levels
+    res = run("synth", "mat.npz", "cells.npz", "--guide", "g.png", "-o", str(tmp_path / "p.png"), "--seed", "1",
+              "--pool", "1000", "-q")
+    assert res.exit_code == 0, res.output
+    for name in ("p", "p_normal", "p_roughness", "p_height"):
+        assert load_image(tmp_path / f"{name}.png").shape[:2] == (48, 64)
+    for args, words in ((["mat.npz", "plain.npz"], "SOURCE 2 (" + str(tmp_path / "plain.npz") + ") is a texture model "
+                         "but SOURCE 1"), (["mat.npz", "cells.npz", "--quality", "best"], "do not apply to materials")):
+        res = run("synth", *args, "-o", str(tmp_path / "o.png"), "--size", "48x64", "-q")
+        assert res.exit_code == 1 and words in res.output and "Traceback" not in res.output, res.output
+    res = run("morph", "mat.npz", "cells.npz", "-o", str(tmp_path / "o.png"), "-q")
+    assert res.exit_code == 1 and "a morph takes texture models" in res.output, res.output
     with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
         load_model(tmp_path / "mat.npz")
     assert not (tmp_path / "o.png").exists()

@@ -76,6 +76,7 @@ from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
 from .composite import band_boxes, cut_regions, join_layers, layer_boxes
 from .layout import follows_guide
+from .material import Material, renormalise
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
@@ -246,13 +247,32 @@ def _smooth(field, sigma, wrap):
 # ----------------------------------------------------------------------------- checks
 
 
-def _check_models(models, minimum=1):
+def _check_models(models, minimum=1, materials=False):
+    """The fitted models as a list, refused in one line where they cannot share an image. With
+    ``materials``, all may be :class:`tghop.material.Material` s with the same maps (their joint
+    models are then checked)."""
     if not isinstance(models, (list, tuple)):
         raise TGHopError(f"models must be a list of fitted models, got {type(models).__name__}; "
                          "give [model] for one")
     models = list(models)
     if len(models) < minimum:
         raise TGHopError(f"give at least {minimum} fitted model{'s' if minimum > 1 else ''}, got {len(models)}")
+    whole = [isinstance(m, Material) for m in models]
+    if any(whole):
+        if not materials:
+            raise TGHopError(f"input {whole.index(True) + 1} is a material; a morph takes texture models")
+        if not all(whole):
+            raise TGHopError(f"input {whole.index(not whole[0]) + 1} is {'not ' if whole[0] else ''}a material but "
+                             f"input 1 is{'' if whole[0] else ' not'}; give all materials or all texture models")
+        for m in models:
+            check_is_fitted(m, "model_")
+        for i, m in enumerate(models[1:], start=2):
+            if (m.names_, m.map_channels_, m.normal_) != (models[0].names_, models[0].map_channels_, models[0].normal_):
+                raise TGHopError(f"input {i}'s maps are {', '.join(m.names_)} but input 1's are "
+                                 f"{', '.join(models[0].names_)} (or their channels differ); give materials with the "
+                                 "same maps")
+        _check_models([m.model_ for m in models])
+        return models
     for m in models:
         check_is_fitted(m, "ichm_")
     first = models[0]
@@ -282,8 +302,9 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
 
     Parameters
     ----------
-    models : sequence of tghop.TGHop
-        Fitted, with the same patch size and colour channels.
+    models : sequence of tghop.TGHop, or of tghop.material.Material
+        Fitted, with the same patch size and colour channels; materials with the same maps
+        (every map is painted alike: the join follows all of them).
     guide : array_like, shape (H, W) or (H, W, C), optional
         One grey level (or colour) per model, the darkest for the first
         (:func:`guide_labels`). None: a remix (``size`` needed) of the models' textures.
@@ -309,8 +330,10 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     Returns
     -------
     ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
+        For materials a dict ``name -> (H, W, c)`` array as
+        :meth:`tghop.material.Material.synthesize` gives, each map of that ``dtype``.
     """
-    models = _check_models(models, 1 if guide is not None else 2)
+    models = _check_models(models, 1 if guide is not None else 2, materials=True)
     transition = check_int(transition, "transition", 0)
     k = len(models)
     rng = check_rng(rng)
@@ -393,6 +416,10 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
     joined by :func:`tghop.composite.cut_regions`; (H, W, C) ``dtype``."""
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(generation, tile=tile))  # refused before any layer is made
+    materials = isinstance(models[0], Material)
+    if materials and checked["patch_refine"]:
+        raise TGHopError("patch_refine does not apply to materials (their joint models have no patch statistics); "
+                         "leave it at 0 or None")
     for i, model in enumerate(models, start=1):
         if checked["patch_refine"] and getattr(model, "patches_", None) is None:
             raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics input {i} lacks "
@@ -404,14 +431,16 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
     # reads is kept (one layer in memory at a time besides the bands).
     keep = band_boxes(weights, tile=tile)
     image = kept = None
+    dtype_layers = np.float64 if dtype == np.float64 else np.float32
     for i, (model, (rows, cols), near) in enumerate(zip(models, boxes, keep), start=1):
         layer_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
         staged = None if progress is None else \
             (lambda stage, done, total, i=i: progress(f"{stage} {i}/{k}", done, total))
         # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
         layer = model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng, tile=tile,
-                                 progress=staged, dtype=np.float64 if dtype == np.float64 else np.float32,
-                                 **generation)
+                                 progress=staged, dtype=dtype_layers, **generation)
+        if materials:  # the maps stacked: the join follows them all and is the same in every map
+            layer = np.concatenate(list(layer.values()), axis=2)
         if image is None:
             image, kept = np.empty(labels.shape + layer.shape[2:], dtype=layer.dtype), []
         own = labels[rows, cols] == i - 1
@@ -423,9 +452,21 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
     report(progress, "join", 0, 1)
     image = join_layers(cut_regions(labels, weights, kept, keep, tile=tile), kept, keep, tile=tile, out=image)
     report(progress, "join", 1, 1)
+    if materials:
+        first = models[0]
+        maps = {name: image[..., part] for name, part in zip(first.names_, first.map_slices())}
+        for name, normal in zip(first.names_, first.normal_):
+            if normal:  # the join's means of unit vectors, unit again
+                maps[name] = renormalise(maps[name]).astype(image.dtype, copy=False)
+        return {name: _as_dtype(m, dtype) for name, m in maps.items()}
+    return _as_dtype(image, dtype)
+
+
+def _as_dtype(image, dtype):
+    """A float image in [0, 1] as ``dtype`` (uint8: rounded to 0-255)."""
     if dtype == np.uint8:
         return np.round(image * np.float32(255.0)).astype(np.uint8)
-    return image
+    return np.ascontiguousarray(image)
 
 
 def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,

@@ -285,7 +285,9 @@ class Material(BaseEstimator):
                        .fit(rescale(img, scale), exclude=ex) for _, img, _, _ in items]
         return self
 
-    def _slices(self):
+    def map_slices(self):
+        """Each map's channels in the joint model's stacked channels, in :attr:`names_`'s order:
+        a list of slices."""
         bounds = np.concatenate([[0], np.cumsum(self.map_channels_)]).tolist()
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
@@ -336,7 +338,7 @@ class Material(BaseEstimator):
                                        progress=progress, dtype=np.float32, **checked)
         quantiles = self.model_.colour_quantiles_
         out = {}
-        for i, (name, part) in enumerate(zip(self.names_, self._slices())):
+        for i, (name, part) in enumerate(zip(self.names_, self.map_slices())):
             img = np.ascontiguousarray(stack[..., part])
             if refine and (refine_maps or i == 0):
                 img = refine_bands(img, self.bands_[i], n_iter=refine, tile=tile, dtype=np.float32)

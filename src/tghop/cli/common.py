@@ -354,3 +354,40 @@ def numbered(path: str, count: int):
     p = Path(path)
     width = len(str(count))
     return [str(p.with_name(f"{p.stem}_{i:0{width}d}{p.suffix}")) for i in range(1, count + 1)]
+
+
+def material_outputs(material, output, depth):
+    """``[(name, path, depth)]`` of a material's maps for output ``output``: the albedo at
+    ``output``, each other map at ``OUT_<name>.EXT``; each at ``depth``, or without it at
+    the depth its file had (as far as the format holds it)."""
+    from ..imageio import check_depth, deepest
+
+    p = Path(output)
+    out = []
+    for name, own in zip(material.names_, material.depths_):
+        path = output if name == material.names_[0] else str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
+        out.append((name, path, check_depth(path, depth or deepest(path, own))))
+    return out
+
+
+def write_materials(material, output, outputs, size, depth, make, inputs):
+    """Materials' maps, OUT, OUT_<map>, ... for each path of ``outputs``: all checked before any
+    work (``inputs``: ``(label, path)`` pairs that no output may be), each set made by ``make()``
+    (a dict of maps, ``material``'s names) and written together (all or none); then one line
+    says what was written. ``material`` names the maps and their depths."""
+    from ..imageio import save_images
+
+    if output == "-":
+        raise TGHopError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
+    plans = [material_outputs(material, path, depth) for path in outputs]
+    for plan in plans:
+        for _, path, _ in plan:
+            check_output(path)
+    check_outputs([("-o", path) for plan in plans for _, path, _ in plan], inputs)
+    for plan in plans:
+        maps = make()
+        save_images([(maps[name], path, d) for name, path, d in plan])
+    written = ", ".join(path for _, path, _ in plans[0])
+    more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
+    click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
+               f"{written}{more}", err=True)

@@ -6,7 +6,8 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
-from .common import Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors
+from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors,
+                     write_materials)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -33,7 +34,7 @@ def _read(spec, downscale=None):
     if not spec.startswith("builtin:") and (spec.lower().endswith(".npz") or is_model_file(spec)):
         from ..modelfile import load_model
 
-        return load_model(spec)
+        return load_model(spec, material=True)  # a material is refused where it cannot go, in the inputs' words
     return prepare_exemplar(load_exemplar(spec, downscale=bool(downscale), dtype=None,
                                           has_downscale=downscale is not None))
 
@@ -107,15 +108,48 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             one = len(fitting) == 1
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
+    _same_kind(sources, read, "SOURCE")
     models = [_fitted(source, options, progress, f"SOURCE {i} ({spec})")
               for i, (spec, source) in enumerate(zip(sources, read), start=1)]
     rng = np.random.default_rng(seed)
+    if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<map>, ...
+        if generation["patch_refine"]:
+            raise TGHopError("--patch-refine and --quality best do not apply to materials (they have no patch "
+                             "statistics); drop them")
+
+        def make():
+            maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
+                                     dtype=np.float32, **generation)
+            progress.close()
+            return maps
+
+        write_materials(models[0], output, outputs, size, depth, make,
+                        [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
+        return None, size
     for path in outputs:
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
                                   dtype=generation_dtype(depth), **generation)
         progress.close()
         save_image(image, path, depth=depth or 8)
     return outputs, size
+
+
+def _same_kind(specs, read, label):
+    """Refuse materials mixed with textures (or with exemplar images, which fit texture models), and
+    a material where the command takes textures only (``label`` "A"/"B": a morph), in one line."""
+    import numpy as np
+
+    whole = [hasattr(r, "names_") for r in read]
+    if not any(whole):
+        return
+    first = whole.index(True)
+    if label != "SOURCE":
+        raise TGHopError(f"{label} {specs[first]} is a material; a morph takes texture models or exemplars")
+    for i, (spec, r, w) in enumerate(zip(specs, read, whole), start=1):
+        if not w:
+            what = "an exemplar image" if isinstance(r, np.ndarray) else "a texture model"
+            raise TGHopError(f"SOURCE {i} ({spec}) is {what} but SOURCE {first + 1} ({specs[first]}) is a material; "
+                             "paint with all materials (fit each with 'tghop fit ALBEDO --maps ...') or all textures")
 
 
 def _check_grid(size, grid):
@@ -160,6 +194,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)
         read_a, read_b = _read(source_a), _read(source_b)
+        _same_kind([source_a, source_b], [read_a, read_b], "A" if hasattr(read_a, "names_") else "B")
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
                                                                                      f"B {source_b}")
         rows = []

@@ -11,7 +11,7 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_model_file, load_exemplar, load_mask, numbered, summary, user_errors)
+                     is_model_file, load_exemplar, load_mask, numbered, summary, user_errors, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options)
@@ -65,20 +65,6 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     params = fit_params(options)
     return Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
                                                                   progress=progress)
-
-
-def material_outputs(material, output, depth):
-    """``[(name, path, depth)]`` of a material's maps for output ``output``: the albedo at
-    ``output``, each other map at ``OUT_<name>.EXT``; each at ``depth``, or without it at
-    the depth its file had (as far as the format holds it)."""
-    from ..imageio import check_depth, deepest
-
-    p = Path(output)
-    out = []
-    for name, own in zip(material.names_, material.depths_):
-        path = output if name == material.names_[0] else str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
-        out.append((name, path, check_depth(path, depth or deepest(path, own))))
-    return out
 
 
 @click.command()
@@ -258,6 +244,8 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
                 raise TGHopError("--stages applies to one SOURCE; drop it with several or with --guide")
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
                                           exclude, downscale, progress, generation_params(options), options, depth)
+            if outputs is None:  # materials: it said what it wrote
+                return
             from_model = True  # nothing saved
         elif given_options(ctx, ["transition"]):
             raise TGHopError("--transition applies to several SOURCEs or --guide; drop it")
@@ -374,28 +362,17 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
 
 
 def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source):
-    """``synth`` from a material: OUT, OUT_<map>, ... for each image, all checked before
-    any work and each image's maps written together (all or none)."""
+    """``synth`` from a material: OUT, OUT_<map>, ... for each image (:func:`~tghop.cli.common.write_materials`)."""
     import numpy as np
 
-    from ..imageio import save_images
-
-    if output == "-":
-        raise TGHopError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
-    plans = [material_outputs(material, path, depth) for path in outputs]
-    for plan in plans:
-        for _, path, _ in plan:
-            check_output(path)
-    check_outputs([("-o", path) for plan in plans for _, path, _ in plan], [("SOURCE", source)])
     rng = np.random.default_rng(rng)
-    for plan in plans:
+
+    def make():
         maps = material.synthesize(size, rng=rng, progress=progress, dtype=np.float32, **generation)
         progress.close()
-        save_images([(maps[name], path, d) for name, path, d in plan])
-    written = ", ".join(path for _, path, _ in plans[0])
-    more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
-    click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
-               f"{written}{more}", err=True)
+        return maps
+
+    write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)])
 
 
 @click.command()
