@@ -397,21 +397,27 @@ def test_save_images_checks_every_path_before_moving_any(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["isdir.png"]
 
 
+def _replace_failing_on(monkeypatch, name):
+    """``os.replace`` made to fail (permission denied) for a destination named ``name``; returns
+    the real one, to put back."""
+    real = os.replace
+
+    def failing(src, dst):
+        if str(dst).endswith(name):
+            raise PermissionError(13, "Permission denied")
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", failing)
+    return real
+
+
 def test_save_images_rolls_back_when_a_move_fails(tmp_path, monkeypatch):
     from tghop import InvalidImageError
     from tghop.imageio import save_images
 
     img = np.random.default_rng(0).random((8, 8, 3))
     (tmp_path / "old.png").write_bytes(b"old")
-    real, calls = os.replace, []
-
-    def failing(src, dst):
-        calls.append(dst)
-        if str(dst).endswith("second.png"):
-            raise PermissionError(13, "Permission denied")
-        return real(src, dst)
-
-    monkeypatch.setattr(os, "replace", failing)
+    real = _replace_failing_on(monkeypatch, "second.png")
     with pytest.raises(InvalidImageError, match=r"second\.png: writing the image failed .*none of the images"):
         save_images([(img, tmp_path / "old.png", 8), (img, tmp_path / "new.png", 8), (img, tmp_path / "second.png", 8)])
     monkeypatch.setattr(os, "replace", real)
@@ -496,15 +502,7 @@ def test_save_images_writes_through_links_and_rolls_them_back(tmp_path, monkeypa
     os.symlink(tmp_path / "real" / "old.png", tmp_path / "link.png")
     with pytest.raises(InvalidImageError, match="given twice"):  # the link and its target are one file
         save_images([(img, tmp_path / "link.png", 8), (img, tmp_path / "real" / "old.png", 8)])
-    real, calls = os.replace, []
-
-    def failing(src, dst):
-        calls.append(dst)
-        if str(dst).endswith("second.png"):
-            raise PermissionError(13, "Permission denied")
-        return real(src, dst)
-
-    monkeypatch.setattr(os, "replace", failing)
+    real = _replace_failing_on(monkeypatch, "second.png")
     with pytest.raises(InvalidImageError, match=r"second\.png: writing the image failed .*none of the images"):
         save_images([(img, tmp_path / "link.png", 8), (img, tmp_path / "second.png", 8)])
     monkeypatch.setattr(os, "replace", real)
