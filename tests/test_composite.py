@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tghop import TGHopError
-from tghop.composite import cut_regions, join_layers, layer_boxes
+from tghop.composite import band_boxes, cut_regions, join_layers, layer_boxes
 from tghop.guided import region_weights
 
 
@@ -99,3 +99,21 @@ def test_one_region_or_mismatched_layers():
     two = _halves(8, 8, 4)
     with pytest.raises(TGHopError, match="2 layers but 1 boxes"):
         cut_regions(two, region_weights(two, 2, 4), [layers[0], layers[0]], _whole(two, layers))
+
+
+@pytest.mark.parametrize("transition", [0, 1, 2, 12])
+@pytest.mark.parametrize("tile", [False, True])
+def test_the_band_boxes_hold_what_the_join_reads(transition, tile):
+    # Without a band (transition 0 or 1) the boxes were empty, and the antialiased join read
+    # outside them: IndexError for `tghop synth A B --guide map --transition 0`.
+    h, w = 40, 56
+    yy, xx = np.mgrid[:h, :w]
+    labels = ((yy - 20) ** 2 + (xx - 20) ** 2 < 12 ** 2).astype(np.int64)
+    labels[:, 44:] = 2  # three regions, one at the image's edge
+    full = [_noise((h, w, 3), seed) for seed in range(3)]
+    weights = region_weights(labels, 3, transition, tile=tile)
+    shows = cut_regions(labels, weights, full, _whole(labels, full), tile=tile)
+    keep = band_boxes(weights, tile=tile)
+    image = np.choose(labels[..., None], full)  # every pixel its own region's layer, as _layered writes it
+    joined = join_layers(shows, [layer[box] for layer, box in zip(full, keep)], keep, tile=tile, out=image)
+    assert np.array_equal(joined, join_layers(shows, full, _whole(labels, full), tile=tile))

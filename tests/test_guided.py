@@ -339,3 +339,12 @@ def test_a_path_or_a_non_callable_progress_is_named(models, tmp_path):
     with pytest.raises(TGHopError, match=r"progress must be a function progress\(stage, done, total\) or None, got "
                                          "str"):
         models[0].synthesize((48, 48), rng=0, progress="x", **GEN)
+
+
+@pytest.mark.parametrize("transition", [0, 1])
+def test_no_transition_joins_on_the_painted_edge(models, transition):
+    # The layers' kept parts were empty without a band: IndexError in the join.
+    guide = np.zeros((48, 64), dtype=np.uint8)
+    guide[:, 32:] = 255
+    out = tghop.synthesize_guided(models, guide, transition=transition, rng=1, **GEN)
+    assert out.shape == (48, 64, 3) and np.isfinite(out).all()

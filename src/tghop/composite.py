@@ -72,7 +72,8 @@ def layer_boxes(weights, *, tile=False):
 
 def band_boxes(weights, *, tile=False):
     """The part of each model's layer that :func:`cut_regions` and :func:`join_layers` read:
-    the box of the band pixels where its weight is above 0, one pixel more.
+    the box of the band pixels where its weight is above 0, one pixel more (without a band,
+    ``transition`` below 2: of the pixels next to a painted edge).
 
     Every other pixel of the image shows its own region's layer, so a caller can write those
     as each layer is made and keep only these boxes of the layers (a disc in a large
@@ -92,6 +93,8 @@ def band_boxes(weights, *, tile=False):
     """
     k, h, w = weights.shape
     band = weights.max(axis=0) < 1.0 - 1e-6
+    if not band.any():  # transition 0 or 1: no band, but join_layers still antialiases each painted edge
+        band = _next_to_another(np.argmax(weights, axis=0), tile)
     boxes = []
     for share in weights:
         near = _grown(band & (share > 0), tile)
@@ -103,6 +106,18 @@ def band_boxes(weights, *, tile=False):
         else:
             boxes.append((slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)))
     return boxes
+
+
+def _next_to_another(labels, tile):
+    """The pixels with another label in their 3x3 neighbourhood (wrapping with ``tile``, else the
+    edge's pixels repeated): the pixels :func:`join_layers` antialiases."""
+    padded = np.pad(labels, 1, mode="wrap" if tile else "edge")
+    h, w = labels.shape
+    out = np.zeros((h, w), dtype=bool)
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            out |= padded[dy:dy + h, dx:dx + w] != labels
+    return out
 
 
 def _grown(mask, tile):
@@ -245,10 +260,7 @@ def join_layers(shows, layers, boxes, *, tile=False, out=None):
     small = shows.astype(np.min_scalar_type(len(layers)))
     padded = np.pad(small, 1, mode="wrap" if tile else "edge")
     offsets = [(dy, dx) for dy in (0, 1, 2) for dx in (0, 1, 2)]
-    edge = np.zeros((h, w), dtype=bool)
-    for dy, dx in offsets:
-        edge |= padded[dy:dy + h, dx:dx + w] != small
-    edge_y, edge_x = np.nonzero(edge)
+    edge_y, edge_x = np.nonzero(_next_to_another(small, tile))
     if edge_y.size == 0:
         return out
     near = np.stack([padded[edge_y + dy, edge_x + dx] for dy, dx in offsets])  # (9, n)
