@@ -229,10 +229,24 @@ def test_public_helpers_name_their_bad_arguments(models):
 
 
 def test_cli_default_transition_is_the_librarys():
-    from tghop.cli.guided import DEFAULT_TRANSITION
-    from tghop.guided import DEFAULT_TRANSITION as LIBRARY
+    from tghop.cli.guided import DEFAULT_TRANSITION, MAX_TRANSITION
+    from tghop.guided import DEFAULT_TRANSITION as LIBRARY, MAX_TRANSITION as LIBRARY_MAX
 
-    assert DEFAULT_TRANSITION == LIBRARY
+    assert DEFAULT_TRANSITION == LIBRARY and MAX_TRANSITION == LIBRARY_MAX
+
+
+def test_bad_progress_transition_or_guide_size_is_one_line_error(models):
+    # A progress that is not a function was called by the layers' wrapper (TypeError), a transition of 10**9
+    # padded the weights by it (MemoryError), and a guide above the pixel limit was made into an image.
+    guide = np.zeros((48, 64), dtype=np.uint8)
+    guide[:, 32:] = 255
+    with pytest.raises(TGHopError, match="progress must be a function"):
+        tghop.synthesize_guided(models, guide, rng=1, progress="x", **GEN)
+    with pytest.raises(TGHopError, match="transition must be an integer from 0 to 4,096, got 1000000000"):
+        tghop.synthesize_guided(models, guide, transition=10**9)
+    huge = np.broadcast_to(np.uint8(0), (8200, 8200))
+    with pytest.raises(TGHopError, match="the guide's size 8200x8200 is 67,240,000 pixels, above the limit"):
+        tghop.synthesize_guided(models, huge)
 
 
 def _run(args, cwd):

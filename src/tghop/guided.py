@@ -84,10 +84,12 @@ from .refine import iter_oriented_parts, prepare as prepare_refinement, tailed_b
 from .seams import remove_seams
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",
-           "REGION_COST", "MIXED_COST"]
+           "MAX_TRANSITION", "REGION_COST", "MIXED_COST"]
 
 #: Default width in pixels of the band around a painted edge where the join follows the textures.
 DEFAULT_TRANSITION = 32
+#: The widest band (the command line's ``--transition`` range): wider took memory for nothing.
+MAX_TRANSITION = 4096
 #: The morph's quilting: extra error per overlap value (a squared difference, in [0, 1]
 #: units) of a patch of a model other than the one a block drew where that model has all the
 #: weight: more than any overlap error (at most 1 per value).
@@ -128,6 +130,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     n_models : int
     size : (int, int), optional
         The output size; a guide of another size is refused (paint it at the output size).
+        None: the guide's, refused above :data:`tghop._common.MAX_PIXELS`.
     input_name, no_guide : str
         What the messages call a model and the fix of leaving the guide out (the CLI's
         "SOURCE" and "drop --guide").
@@ -148,7 +151,9 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         raise TGHopError(f"the guide must be an (H, W) or (H, W, C) image of numbers, got {arr.dtype} {arr.shape}")
     if arr.dtype.kind == "f" and not np.isfinite(arr).all():
         raise TGHopError("the guide has NaN or infinite values")
-    if size is not None and tuple(arr.shape[:2]) != tuple(size):
+    if size is None:  # the output takes the guide's size: within the limit
+        check_size(arr.shape[:2], name="the guide's size")
+    elif tuple(arr.shape[:2]) != tuple(size):
         raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}; "
                          "paint the guide at the output size (or leave the size out to take the guide's)")
     values, labels = _distinct(arr)
@@ -314,7 +319,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     transition : int
         Width in pixels of the band around each painted edge in which the join between two
         regions follows the content (:mod:`tghop.composite`); 0: the join is the painted
-        edge itself.
+        edge itself. At most :data:`MAX_TRANSITION`.
     rng : int or numpy.random.Generator, optional
         Same seed, same image (on the same machine).
     n_patches, tile, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block
@@ -334,7 +339,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         :meth:`tghop.material.Material.synthesize` gives, each map of that ``dtype``.
     """
     models = _check_models(models, 1 if guide is not None else 2, materials=True)
-    transition = check_int(transition, "transition", 0)
+    transition = check_int(transition, "transition", 0, MAX_TRANSITION)
     k = len(models)
     rng = check_rng(rng)
     if guide is None:
@@ -435,7 +440,7 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
     for i, (model, (rows, cols), near) in enumerate(zip(models, boxes, keep), start=1):
         layer_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
         staged = None if progress is None else \
-            (lambda stage, done, total, i=i: progress(f"{stage} {i}/{k}", done, total))
+            (lambda stage, done, total, i=i: report(progress, f"{stage} {i}/{k}", done, total))
         # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
         layer = model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng, tile=tile,
                                  progress=staged, dtype=dtype_layers, **generation)

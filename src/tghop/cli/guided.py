@@ -11,11 +11,13 @@ from .common import (Progress, check_output, check_outputs, is_model_file, load_
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
-__all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION"]
+__all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION", "MAX_TRANSITION"]
 
 #: :data:`tghop.guided.DEFAULT_TRANSITION`, here so that ``tghop --help`` imports no NumPy
 #: (tests/test_guided.py checks that the two agree).
 DEFAULT_TRANSITION = 32
+#: :data:`tghop.guided.MAX_TRANSITION`, likewise.
+MAX_TRANSITION = 4096
 
 GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or colour) per SOURCE, the darkest "
               "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture. "

@@ -12,7 +12,7 @@ from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_model_file, load_exemplar, load_mask, numbered, summary, user_errors, write_materials)
-from .guided import DEFAULT_TRANSITION, GUIDE_HELP, TRANSITION_HELP
+from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options)
 
@@ -206,8 +206,8 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
 @click.option("--guide", metavar="MAP", default=None, help=GUIDE_HELP)
-@click.option("--transition", type=click.IntRange(min=0, max=4096), default=DEFAULT_TRANSITION, show_default=True,
-              help=TRANSITION_HELP)
+@click.option("--transition", type=click.IntRange(min=0, max=MAX_TRANSITION), default=DEFAULT_TRANSITION,
+              show_default=True, help=TRANSITION_HELP)
 @depth_option("8; a material's maps: each at its file's depth, as far as the format holds it")
 @generation_options
 @model_options
