@@ -99,6 +99,15 @@ def test_one_region_or_mismatched_layers():
     two = _halves(8, 8, 4)
     with pytest.raises(TGHopError, match="2 layers but 1 boxes"):
         cut_regions(two, region_weights(two, 2, 4), [layers[0], layers[0]], _whole(two, layers))
+    # Labels out of range or of another size than the weights: an IndexError, or a wrong answer without a word.
+    weights = region_weights(two, 2, 4)
+    for bad in (two + 1, two[:4], two.astype(float)):
+        with pytest.raises(TGHopError, match=r"labels must be an integer map of shape \(8, 8\) with values in \[0, 2"):
+            cut_regions(bad, weights, layers * 2, _whole(two, layers * 2))
+    with pytest.raises(TGHopError, match="2 regions' weights but 1 layers"):
+        cut_regions(two, weights, layers, _whole(two, layers))
+    with pytest.raises(TGHopError, match=r"shows must be .* values in \[0, 2\)"):
+        join_layers(two + 1, layers * 2, _whole(two, layers * 2))
 
 
 @pytest.mark.parametrize("transition", [0, 1, 2, 12])

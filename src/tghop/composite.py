@@ -155,9 +155,13 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     ndarray of int64, shape (H, W)
         The layer each pixel shows.
     """
-    labels = np.asarray(labels, dtype=np.int64)
-    h, w = labels.shape
+    labels = np.asarray(labels)
     k = weights.shape[0]
+    _check_labels(labels, "labels", weights.shape[1:], k)
+    labels = labels.astype(np.int64, copy=False)
+    if len(layers) != k:
+        raise TGHopError(f"{k} regions' weights but {len(layers)} layers")
+    h, w = labels.shape
     band = weights.max(axis=0) < 1.0 - 1e-6
     if k < 2 or not band.any():
         return labels.copy()
@@ -251,6 +255,8 @@ def join_layers(shows, layers, boxes, *, tile=False, out=None):
     ndarray, shape (H, W, C)
         ``out``, or a new array of the layers' dtype.
     """
+    shows = np.asarray(shows)
+    _check_labels(shows, "shows", shows.shape, len(layers))
     h, w = shows.shape
     if out is None:
         out = np.empty((h, w, layers[0].shape[2]), dtype=layers[0].dtype)
@@ -274,6 +280,14 @@ def join_layers(shows, layers, boxes, *, tile=False, out=None):
             mean[some] += values.at(labels, edge_y[some], edge_x[some]) * (count[some, None] / out.dtype.type(9))
     out[edge_y, edge_x] = mean
     return out
+
+
+def _check_labels(labels, name, shape, k):
+    """``labels`` an (H, W) integer map of ``shape`` with values in [0, k), or a one-line TGHopError."""
+    if labels.ndim != 2 or labels.shape != tuple(shape) or labels.dtype.kind not in "iu" or labels.size == 0 \
+            or labels.min() < 0 or labels.max() >= k:
+        raise TGHopError(f"{name} must be an integer map of shape {tuple(shape)} with values in [0, {k}), got "
+                         f"{labels.dtype} {labels.shape}")
 
 
 def _pairs(band, dy, dx, tile):
