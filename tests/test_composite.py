@@ -126,3 +126,23 @@ def test_the_band_boxes_hold_what_the_join_reads(transition, tile):
     image = np.choose(labels[..., None], full)  # every pixel its own region's layer, as _layered writes it
     joined = join_layers(shows, [layer[box] for layer, box in zip(full, keep)], keep, tile=tile, out=image)
     assert np.array_equal(joined, join_layers(shows, full, _whole(labels, full), tile=tile))
+
+
+@pytest.mark.parametrize("tile", [False, True])
+def test_a_region_narrower_than_the_band_keeps_its_middle(tile):
+    # Showing the other layer cost nothing where the other region's weight was the larger, which is
+    # everywhere in a region narrower than the band: a painted line, a dot or a stripe narrower than
+    # the transition vanished whole (and with --transition 512, a disc of 300 px).
+    h, w = 64, 160
+    labels = np.zeros((h, w), dtype=np.int64)
+    labels[8:56, 10] = 1  # a line
+    labels[8:56, 40:42] = 1  # two pixels wide
+    labels[8:56, 70:82] = 1  # 12
+    labels[30:33, 120:123] = 1  # a dot
+    labels[0:6, 140:] = 1  # a short strip at the image's edge (across the wrap with tile)
+    layers = [_noise((h, w, 3), 0), _noise((h, w, 3), 1)]
+    shows = cut_regions(labels, region_weights(labels, 2, 32, tile=tile), layers, _whole(labels, layers), tile=tile)
+    assert (shows[8:56, 10] == 1).all() and (shows[8:56, 40:42] == 1).all() and shows[31, 121] == 1
+    assert (shows[14:50, 73:79] == 1).all()  # the middle half of the 12 (its ends rounded off at most as much)
+    assert (shows[1:3, 146:154] == 1).all()
+    assert (shows == 1).sum() >= 0.5 * (labels == 1).sum()
