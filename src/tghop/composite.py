@@ -36,7 +36,7 @@ import numpy as np
 
 from ._common import TGHopError
 
-__all__ = ["cut_regions", "join_layers", "layer_boxes", "band_boxes", "STRAY_COST"]
+__all__ = ["cut_regions", "join_layers", "layer_boxes", "band_boxes", "wraps", "STRAY_COST"]
 
 #: Cost of showing the other region's layer at the band's border (in the units of the
 #: neighbour cost: a mean absolute difference of values in [0, 1], summed over two pixels).
@@ -53,7 +53,8 @@ def layer_boxes(weights, *, tile=False):
     weights : ndarray, shape (K, H, W)
         Region weights (:func:`tghop.guided.region_weights`).
     tile : bool
-        The whole image for every model (regions wrap around).
+        Regions wrap around: the whole image for a model whose weight reaches the image's edge
+        (its layer must tile), its own box for one that stays inside (:func:`wraps`).
 
     Returns
     -------
@@ -63,16 +64,23 @@ def layer_boxes(weights, *, tile=False):
     k, h, w = weights.shape
     boxes = []
     for share in weights:
-        if tile:
-            boxes.append((slice(0, h), slice(0, w)))
-            continue
-        rows, cols = np.flatnonzero((share > 0).any(axis=1)), np.flatnonzero((share > 0).any(axis=0))
+        some = share > 0
+        rows, cols = np.flatnonzero(some.any(axis=1)), np.flatnonzero(some.any(axis=0))
         if rows.size == 0:
             boxes.append((slice(0, 0), slice(0, 0)))
+            continue
+        if tile and (some[0].any() or some[-1].any() or some[:, 0].any() or some[:, -1].any()):
+            boxes.append((slice(0, h), slice(0, w)))
             continue
         boxes.append((slice(max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, h)),
                       slice(max(int(cols[0]) - 1, 0), min(int(cols[-1]) + 2, w))))
     return boxes
+
+
+def wraps(box, shape, tile):
+    """Whether the layer over ``box`` of an image of ``shape`` (H, W) must tile: with ``tile``, a
+    box of the whole image (:func:`layer_boxes` gives one to a region that reaches the edge)."""
+    return bool(tile) and (box[0].start, box[0].stop, box[1].start, box[1].stop) == (0, shape[0], 0, shape[1])
 
 
 def band_boxes(weights, *, tile=False):

@@ -74,7 +74,7 @@ import numpy as np
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
-from .composite import band_boxes, cut_regions, join_layers, layer_boxes
+from .composite import band_boxes, cut_regions, join_layers, layer_boxes, wraps
 from .layout import follows_guide
 from .material import Material, renormalise
 from .pool import MAX_GROWN_POOL, on_demand
@@ -442,8 +442,9 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
         staged = None if progress is None else \
             (lambda stage, done, total, i=i: report(progress, f"{stage} {i}/{k}", done, total))
         # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
-        layer = model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng, tile=tile,
-                                 progress=staged, dtype=dtype_layers, **generation)
+        layer = model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng,
+                                 tile=wraps((rows, cols), labels.shape, tile), progress=staged, dtype=dtype_layers,
+                                 **generation)
         if materials:  # the maps stacked: the join follows them all and is the same in every map
             layer = np.concatenate(list(layer.values()), axis=2)
         if image is None:
