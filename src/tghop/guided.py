@@ -435,10 +435,13 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
     # Each layer's pixels of its own region go to the image as it is made; only the part the join
     # reads is kept (one layer in memory at a time besides the bands).
     keep = band_boxes(weights, tile=tile)
-    image = kept = None
+    image, kept = None, []
     dtype_layers = np.float64 if dtype == np.float64 else np.float32
     for i, (model, (rows, cols), near) in enumerate(zip(models, boxes, keep), start=1):
         layer_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
+        if rows.stop == rows.start:  # no pixel of this model (a remix too small for every class)
+            kept.append(None)
+            continue
         staged = None if progress is None else \
             (lambda stage, done, total, i=i: report(progress, f"{stage} {i}/{k}", done, total))
         # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
@@ -448,13 +451,14 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
         if materials:  # the maps stacked: the join follows them all and is the same in every map
             layer = np.concatenate(list(layer.values()), axis=2)
         if image is None:
-            image, kept = np.empty(labels.shape + layer.shape[2:], dtype=layer.dtype), []
+            image = np.empty(labels.shape + layer.shape[2:], dtype=layer.dtype)
         own = labels[rows, cols] == i - 1
         image[rows, cols][own] = layer[own]
         inside = (slice(near[0].start - rows.start, near[0].stop - rows.start),
                   slice(near[1].start - cols.start, near[1].stop - cols.start))
         kept.append(layer[inside].copy() if near[0].stop > near[0].start else layer[:0, :0].copy())
         del layer
+    kept = [np.zeros((0, 0) + image.shape[2:], image.dtype) if layer is None else layer for layer in kept]
     report(progress, "join", 0, 1)
     image = join_layers(cut_regions(labels, weights, kept, keep, tile=tile), kept, keep, tile=tile, out=image)
     report(progress, "join", 1, 1)
