@@ -699,6 +699,9 @@ def test_guided_paints_each_model_in_its_region_and_remixes_without_a_guide(clie
     assert again.content == r.content
     swapped = decoded(client.post("/api/images/guided", json={**ask, "models": [cells, bricks]}).content)
     assert closer(swapped[:, :40], alone[cells], alone[bricks])
+    # each region is its model's own synthesis: one model's settings apply (refused up to 0.49.2)
+    refined = client.post("/api/images/guided", json={**ask, "patch_refine": 2, "patch_stride": 1})
+    assert refined.status_code == 200 and refined.content != r.content, refined.text
     remix = client.post("/api/images/guided", json={"models": [bricks, cells], "size": [48, 64], "seed": 1,
                                                     "n_patches": 400})
     assert remix.status_code == 200, remix.text
