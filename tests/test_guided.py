@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 import pytest
-from PIL import Image
+from PIL import Image, ImageFilter
 
 import tghop
 from tghop import TGHopError, data, guided
@@ -57,7 +57,7 @@ def test_guide_levels_sorted_dark_to_light_and_colours():
 def test_guide_with_an_unknown_level_or_another_size_is_one_line_error():
     guide = np.zeros((64, 64), dtype=np.uint8)
     guide[:, 32:] = 255
-    guide[3, 3] = 128  # a third level for two inputs
+    guide[3:13, 3:13] = 128  # a third level for two inputs
     with pytest.raises(TGHopError, match="3 distinct grey levels.*2 inputs") as info:
         guide_labels(guide, 2)
     assert "\n" not in str(info.value)
@@ -80,9 +80,35 @@ def test_a_guide_with_a_few_more_levels_than_inputs_asks_for_more_inputs():
     assert "antialiasing" not in message
     with pytest.raises(TGHopError, match="but 3 SOURCEs were given; give one SOURCE per level .* or drop --guide"):
         guide_labels(np.arange(4096).reshape(64, 64) % 5, 3, input_name="SOURCE", no_guide="drop --guide")
-    painted = np.linspace(0, 255, 64 * 64).reshape(64, 64).astype(np.uint8)  # a smooth map: antialiased edges
-    with pytest.raises(TGHopError, match="no antialiasing"):
+    painted = np.linspace(0, 255, 64 * 64).reshape(64, 64).astype(np.uint8)  # a smooth map: no levels
+    with pytest.raises(TGHopError, match="paint one flat level per input .soft or JPEG edges are taken"):
         guide_labels(painted, 2)
+
+
+def test_a_guide_with_soft_or_jpeg_edges_is_taken_level_by_level():
+    import io
+
+    yy, xx = np.mgrid[:96, :128]
+    flat = np.zeros((96, 128), np.uint8)
+    flat[(yy - 48) ** 2 + (xx - 40) ** 2 < 30 ** 2] = 255
+    flat[:, 100:] = 128  # three levels: 0 (first), 128, 255
+    want = guide_labels(flat, 3)
+    soft = np.asarray(Image.fromarray(flat).filter(ImageFilter.GaussianBlur(1.2)))  # a soft brush's edges
+    assert len(np.unique(soft)) > 50
+    got = guide_labels(soft, 3)
+    assert (got == want).mean() > 0.995
+    # the blend from 0 to 255 round the disc passes 128: no ring of the middle level's region there
+    assert not ((got == 1) & (xx < 90)).any()
+    buf = io.BytesIO()
+    Image.fromarray(np.stack([flat, flat // 2, 255 - flat], axis=2)).save(buf, "JPEG", quality=75)
+    jpeg = np.asarray(Image.open(io.BytesIO(buf.getvalue())))
+    assert (guide_labels(jpeg, 3) == guide_labels(np.stack([flat, flat // 2, 255 - flat], axis=2), 3)).mean() > 0.99
+    stray = flat.copy()
+    stray[3, 3] = 60  # a stray pixel of another value: the region round it
+    assert np.array_equal(guide_labels(stray, 3), want)
+    with pytest.raises(TGHopError, match="3 inputs"):  # two levels painted, softly: no third one made of the blend
+        guide_labels(np.asarray(Image.fromarray(np.where(flat == 128, 0, flat).astype(np.uint8))
+                                .filter(ImageFilter.GaussianBlur(1.2))), 3)
 
 
 def test_region_weights_blend_over_the_transition():
@@ -296,7 +322,7 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
         assert r.returncode == 0, r.stderr.decode()
         assert not np.array_equal(np.asarray(Image.open(tmp_path / name)), out)
 
-    guide[5, 5] = 100
+    guide[5:15, 5:15] = 100  # a third level (a stray pixel or soft edges would be taken)
     Image.fromarray(guide).save(tmp_path / "bad.png")
     r = _run(["synth", "a.npz", "b.npz", "--guide", "bad.png", "-o", "bad_out.png", *fast], tmp_path)
     assert_user_error(r, "3 distinct grey levels", "2 SOURCEs")
