@@ -20,9 +20,10 @@ DEFAULT_TRANSITION = 32
 MAX_TRANSITION = 4096
 
 GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or colour) per SOURCE, the darkest "
-              "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture. "
-              "The output takes its size (--size, if given, must agree). Without --guide several SOURCEs make "
-              "one texture of random regions of each (a remix).")
+              "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture "
+              "(or material: every map), made as one SOURCE's image with the same options. Soft (antialiased) or "
+              "JPEG edges are taken. The output takes its size (--size, if given, must agree). Without --guide "
+              "several SOURCEs make one texture of random regions of each (a remix).")
 TRANSITION_HELP = ("Width in pixels of the band around each painted edge in which the join between two regions "
                    "follows the textures (with several SOURCEs); 0: the painted edge itself.")
 

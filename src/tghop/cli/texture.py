@@ -224,7 +224,8 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
 
     Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
     texture; without it, random regions of each (a remix). A saved material (tghop fit
-    EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned.
+    EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned; several
+    materials with the same maps are painted or remixed alike.
     """
     from ..imageio import check_depth
 
