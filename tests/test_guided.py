@@ -180,6 +180,26 @@ def test_a_tileable_image_tiles_only_the_layers_that_reach_its_edge(models, monk
     assert out.shape == (96, 128, 3)
 
 
+def test_a_model_given_twice_is_one_synthesis_without_a_join(models, tmp_path):
+    three = np.zeros((64, 96), np.uint8)
+    three[:, 48:] = 255
+    three[20:40] = 128  # bricks left and right of cells' middle band: one bricks synthesis, no join at 48
+    two = np.where(three == 128, 255, 0).astype(np.uint8)  # the same regions as two levels
+    once = tghop.synthesize_guided([models[0], models[1]], two, rng=3, **GEN)
+    twice = tghop.synthesize_guided([models[0], models[1], models[0]], three, rng=3, **GEN)
+    assert np.array_equal(once, twice)
+    save_model(models[0], tmp_path / "a.npz")
+    save_model(models[1], tmp_path / "b.npz")
+    Image.fromarray(three).save(tmp_path / "map.png")
+    Image.fromarray(two).save(tmp_path / "two.png")
+    fast = ["-q", "--pool", "500", "--refine", "2", "--seed", "3"]
+    for args, out in ((["a.npz", "b.npz", "a.npz", "--guide", "map.png"], "twice.png"),
+                      (["a.npz", "b.npz", "--guide", "two.png"], "once.png")):
+        r = _run(["synth", *args, "-o", out, *fast], tmp_path)
+        assert r.returncode == 0, r.stderr.decode()
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "twice.png")), np.asarray(Image.open(tmp_path / "once.png")))
+
+
 def test_region_settings_reach_every_layer(models):
     guide = np.zeros((64, 96), dtype=np.uint8)
     guide[:, 48:] = 255

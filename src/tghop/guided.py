@@ -380,7 +380,8 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     ----------
     models : sequence of tghop.TGHop, or of tghop.material.Material
         Fitted, with the same patch size and colour channels; materials with the same maps
-        (every map is painted alike: the join follows all of them).
+        (every map is painted alike: the join follows all of them). A model given more than
+        once (the same object) paints its regions as one synthesis, with no join between them.
     guide : array_like, shape (H, W) or (H, W, C), optional
         One grey level (or colour) per model, the darkest for the first
         (:func:`guide_labels`). None: a remix (``size`` needed) of the models' textures.
@@ -422,7 +423,8 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         size = None if size is None else check_size(size)
         labels = guide_labels(guide, k, size=size)
         size = labels.shape
-    weights = region_weights(labels, k, transition, tile=tile)
+    models, labels = _one_region_per_model(models, labels)
+    weights = region_weights(labels, len(models), transition, tile=tile)
     return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, n_patches=n_patches, tile=tile,
                     overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                     match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
@@ -485,6 +487,17 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
 
 
 # ----------------------------------------------------------------------------- the pipeline
+
+
+def _one_region_per_model(models, labels):
+    """``(models, labels)`` with the regions of a model given more than once (the same object) made
+    one: one layer for them, so that no join shows where they meet (two syntheses of one regular
+    texture do not line up)."""
+    first = {}
+    index = np.array([first.setdefault(id(m), len(first)) for m in models])
+    if len(first) == len(models):
+        return models, labels
+    return [models[index.tolist().index(j)] for j in range(len(first))], index[labels]
 
 
 def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generation):

@@ -112,8 +112,14 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
-    models = [_fitted(source, options, progress, f"SOURCE {i} ({spec})")
-              for i, (spec, source) in enumerate(zip(sources, read), start=1)]
+    import os
+
+    same, models = {}, []  # a file given twice is one model (fitted once): its regions are one synthesis
+    for i, (spec, source) in enumerate(zip(sources, read), start=1):
+        key = spec if spec.startswith("builtin:") else os.path.realpath(spec)
+        if key not in same:
+            same[key] = _fitted(source, options, progress, f"SOURCE {i} ({spec})")
+        models.append(same[key])
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<map>, ...
         if generation["patch_refine"]:
