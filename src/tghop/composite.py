@@ -181,9 +181,6 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     band &= ~_cores(labels, band, tile)
     if not band.any():
         return labels.copy()
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import breadth_first_order, maximum_flow
-
     ys, xs = np.nonzero(band)
     own = labels[ys, xs]
     w_at = weights[:, ys, xs]  # (K, n)
@@ -224,12 +221,26 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
         heads.append(s_node[both])
         tails.append(t_node[both])
         caps.append(np.maximum(b + c - a - d, 0.0))  # 0 below: truncated where three regions meet
-    cost -= cost.min(axis=0)
+    out = labels.copy()
+    out[ys, xs] = np.where(_min_cut(cost, np.concatenate(heads), np.concatenate(tails), np.concatenate(caps)), hi, lo)
+    return out
+
+
+def _min_cut(cost, heads, tails, caps):
+    """The binary choice of ``n`` nodes of least total cost: ``cost`` (2, n) of each node's
+    x = 0 and x = 1, and ``caps[i]`` paid where node ``heads[i]`` has x = 0 and ``tails[i]`` x = 1.
+    One maximum flow (SciPy's, whole-number capacities) and the nodes the source still reaches
+    after it (x = 0); (n,) bool, True for x = 1."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import breadth_first_order, maximum_flow
+
+    n = cost.shape[1]
+    cost = cost - cost.min(axis=0)
     source, sink = n, n + 1
-    heads = np.concatenate(heads + [np.full(n, source), np.arange(n)])
-    tails = np.concatenate(tails + [np.arange(n), np.full(n, sink)])
+    heads = np.concatenate([heads, np.full(n, source), np.arange(n)])
+    tails = np.concatenate([tails, np.arange(n), np.full(n, sink)])
     # A node on the sink's side (x = 1) cuts its edge from the source; on the source's side its edge to the sink.
-    caps = np.concatenate(caps + [cost[1], cost[0]])
+    caps = np.concatenate([caps, cost[1], cost[0]])
     caps = np.minimum(np.round(caps * _UNITS), np.iinfo(np.int32).max).astype(np.int32)
     keep = caps > 0
     graph = csr_matrix((caps[keep], (heads[keep], tails[keep])), shape=(n + 2, n + 2))
@@ -239,11 +250,9 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     residual.data[residual.data < 0] = 0
     residual.eliminate_zeros()
     reached = breadth_first_order(residual, source, directed=True, return_predecessors=False)
-    shows_hi = np.ones(n, dtype=bool)
-    shows_hi[reached[reached < n]] = False
-    out = labels.copy()
-    out[ys, xs] = np.where(shows_hi, hi, lo)
-    return out
+    ones = np.ones(n, dtype=bool)
+    ones[reached[reached < n]] = False
+    return ones
 
 
 def join_layers(shows, layers, boxes, *, tile=False, out=None):
