@@ -1,0 +1,172 @@
+"""Painted guide maps: the region of every pixel (ours; :func:`tghop.synthesize_guided`, the
+web server's painted guides and the co-occurrence model's painted crops).
+
+A guide holds one grey level (or colour) per model, the darkest for the first. A map with
+soft (antialiased) or JPEG edges is read as its flat levels: each pixel of an edge's blend
+takes the nearest level's region (:func:`guide_labels`, :func:`_snap_levels`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._arrays import check_int
+from ._common import TGHopError, check_size
+
+__all__ = ["guide_labels", "FEW_LEVELS", "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK"]
+
+#: A guide with more distinct levels than inputs (not soft edges of its levels) and at most
+#: this many was painted with one level per texture (more inputs wanted); more is a picture.
+FEW_LEVELS = 8
+#: A guide with more distinct values than inputs whose pixels lie, but for a few, within this
+#: (the largest channel difference, in 0-1 units) of as many flat levels as inputs, at least
+#: SNAP_SHARE of them and each level painted as a SNAP_BLOCK x SNAP_BLOCK block somewhere, is a
+#: guide of those levels with soft or JPEG edges (:func:`guide_labels`).
+SNAP_DISTANCE = 0.1
+SNAP_SHARE = 0.9
+SNAP_BLOCK = 5
+
+
+def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide") -> np.ndarray:
+    """The region of every pixel of a painted guide, as (H, W) int labels in ``[0, n_models)``.
+
+    The rule: the guide's distinct values (grey levels, or colours) sorted from dark to
+    light (by their mean over the channels, then by R, G, B) are the models in the order
+    given: the darkest is the first model. An integer label map 0, 1, ... follows the same
+    rule. A guide with more distinct values than models whose pixels lie, but for a few, near
+    as many flat levels as models is such a map with soft (antialiased) or JPEG edges: its
+    levels are those, and a pixel of an edge's blend takes the nearest level's region
+    (:data:`SNAP_DISTANCE`). Any other guide with more distinct values than models (a smooth
+    picture, or too few models given) or fewer is refused, naming the counts and the likely fix.
+
+    Parameters
+    ----------
+    guide : array_like, shape (H, W) or (H, W, C)
+        uint8, integers or floats.
+    n_models : int
+    size : (int, int), optional
+        The output size; a guide of another size is refused (paint it at the output size).
+        None: the guide's, refused above :data:`tghop._common.MAX_PIXELS`.
+    input_name, no_guide : str
+        What the messages call a model and the fix of leaving the guide out (the CLI's
+        "SOURCE" and "drop --guide").
+
+    Returns
+    -------
+    ndarray of int64, shape (H, W)
+    """
+    n_models = check_int(n_models, "n_models", 1)
+    size = None if size is None else check_size(size, limit=None)
+    try:
+        arr = np.asarray(guide)
+    except ValueError:  # ragged nested lists
+        raise TGHopError("the guide must be an (H, W) or (H, W, C) image of numbers, got ragged rows") from None
+    if arr.ndim == 3 and arr.shape[2] == 1:
+        arr = arr[..., 0]
+    if arr.ndim not in (2, 3) or arr.dtype.kind not in "biuf" or arr.size == 0:
+        raise TGHopError(f"the guide must be an (H, W) or (H, W, C) image of numbers, got {arr.dtype} {arr.shape}")
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        raise TGHopError("the guide has NaN or infinite values")
+    if size is None:  # the output takes the guide's size: within the limit
+        check_size(arr.shape[:2], name="the guide's size")
+    elif tuple(arr.shape[:2]) != tuple(size):
+        raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}; "
+                         "paint the guide at the output size (or leave the size out to take the guide's)")
+    values, labels = _distinct(arr)
+    n = len(values)
+    if n > n_models:  # antialiased or JPEG edges: each pixel to the nearest of the guide's flat levels
+        snapped = _snap_levels(values, labels, n_models, arr.dtype)
+        if snapped is not None:
+            values, labels = snapped
+            n = len(values)
+    if n != n_models:
+        if n > FEW_LEVELS:
+            hint = (f"paint one flat level per {input_name} (soft or JPEG edges are taken, "
+                    "a smooth picture is not)")
+        elif n > n_models:
+            hint = f"give one {input_name} per level ({n} {input_name}s for {n} levels) or {no_guide}"
+        else:
+            hint = f"paint one level per {input_name}"
+        levels = "one grey level/colour" if n == 1 else f"{n} distinct grey levels/colours"
+        inputs = f"one {input_name} was" if n_models == 1 else f"{n_models} {input_name}s were"
+        raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first {input_name}")
+    order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
+    rank = np.empty(n, dtype=np.int64)
+    rank[order] = np.arange(n)
+    return rank[labels]
+
+
+def _snap_levels(values, labels, k, dtype):
+    """``(levels (k, C), labels (H, W))`` of a guide whose pixels lie, all but a few, near ``k``
+    flat levels (a soft brush's or a JPEG file's edges); None where they do not (another count
+    of levels painted, or a smooth picture).
+
+    The levels: k-means of the distinct values weighted by their counts, started from the
+    commonest value and each next the farthest (by count times squared distance). Near: within
+    :data:`SNAP_DISTANCE` (the largest channel difference, 0-1 units) for at least
+    :data:`SNAP_SHARE` of the pixels, and every level painted somewhere as a block of
+    :data:`SNAP_BLOCK` pixels a side (the blend across an edge between two levels is no level of
+    its own, however near a third level's value it passes), and no such block of one value near
+    none of them (another level painted). A pixel in no level's block (on an edge's blend, or a
+    stray one) takes the level of the nearest pixel that is.
+    """
+    full = 255.0 if dtype == np.uint8 else 65535.0 if dtype == np.uint16 else 1.0
+    points = values.astype(np.float64) / full  # (n, C)
+    counts = np.bincount(labels.ravel(), minlength=len(values)).astype(np.float64)
+    centres = [points[np.argmax(counts)]]
+    for _ in range(k - 1):
+        far = np.min([np.square(points - c).sum(axis=1) for c in centres], axis=0)
+        centres.append(points[np.argmax(counts * far)])
+    centres = np.array(centres)
+    for _ in range(20):  # Lloyd's rounds, weighted by the counts
+        nearest = np.argmin(np.square(points[:, None, :] - centres[None]).sum(axis=2), axis=1)
+        moved = np.array([np.average(points[nearest == j], axis=0, weights=counts[nearest == j])
+                          if counts[nearest == j].sum() else centres[j] for j in range(k)])
+        if np.allclose(moved, centres):
+            break
+        centres = moved
+    nearest = np.argmin(np.square(points[:, None, :] - centres[None]).sum(axis=2), axis=1)
+    close = np.abs(points - centres[nearest]).max(axis=1) <= SNAP_DISTANCE
+    if counts[close].sum() < SNAP_SHARE * counts.sum():
+        return None
+    level, near = nearest[labels], close[labels]
+    from scipy.ndimage import distance_transform_edt, maximum_filter, minimum_filter
+
+    flat = maximum_filter(labels, size=SNAP_BLOCK) == minimum_filter(labels, size=SNAP_BLOCK)
+    if (flat & ~near).any():  # a block of one value near no level: a level of its own, not an edge
+        return None
+    solid = np.zeros(level.shape, dtype=bool)  # the pixels of a level's blocks: near it, and not a blend
+    for j in range(k):
+        mine = (level == j) & near
+        centres_j = minimum_filter(mine, size=SNAP_BLOCK, mode="nearest")  # of a block all near level j
+        if not centres_j.any():
+            return None
+        solid |= mine & maximum_filter(centres_j, size=SNAP_BLOCK, mode="nearest")
+    near = solid
+    if not near.all():
+        rows, cols = distance_transform_edt(~near, return_distances=False, return_indices=True)
+        level = level[rows, cols]
+    return centres, level
+
+
+def _distinct(arr):
+    """``(values (n, C), labels (H, W))``: the distinct pixels of an (H, W) or (H, W, C)
+    image and each pixel's index among them (8-bit images by counting, in linear time)."""
+    h, w = arr.shape[:2]
+    c = 1 if arr.ndim == 2 else arr.shape[2]
+    if arr.dtype == np.uint8 and c in (1, 3):
+        code = arr.astype(np.int32) if c == 1 else (arr[..., 0].astype(np.int32) << 16) | (
+            arr[..., 1].astype(np.int32) << 8) | arr[..., 2]
+        if c == 1:
+            present = np.flatnonzero(np.bincount(code.ravel(), minlength=256))
+            index = np.zeros(256, dtype=np.int64)
+            index[present] = np.arange(present.size)
+            return present[:, None].astype(np.uint8), index[code]
+        codes, labels = np.unique(code.ravel(), return_inverse=True)
+        values = np.stack([(codes >> 16) & 255, (codes >> 8) & 255, codes & 255], axis=1).astype(np.uint8)
+        return values, labels.reshape(h, w)
+    if c == 1:
+        values, labels = np.unique(arr.reshape(-1), return_inverse=True)
+        return values[:, None], labels.reshape(h, w)
+    values, labels = np.unique(arr.reshape(h * w, c), axis=0, return_inverse=True)
+    return values, labels.reshape(h, w)
