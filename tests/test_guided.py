@@ -111,6 +111,17 @@ def test_a_guide_with_soft_or_jpeg_edges_is_taken_level_by_level():
                                 .filter(ImageFilter.GaussianBlur(1.2))), 3)
 
 
+def test_a_photograph_given_as_a_guide_is_refused():
+    from scipy.ndimage import gaussian_filter
+
+    field = gaussian_filter(np.random.default_rng(0).normal(size=(96, 128)), 3)
+    cloud = np.round(128 + 40 * field / field.std()).clip(0, 255).astype(np.uint8)  # smooth, low contrast
+    cells = np.round(data.cells(96, rng=3) * 255).astype(np.uint8)
+    for picture, k in ((cloud, 3), (cloud, 4), (cloud, 8), (cells, 3)):  # all were taken as soft levels
+        with pytest.raises(TGHopError, match="paint one flat level per input"):
+            guide_labels(picture, k)
+
+
 def test_region_weights_blend_over_the_transition():
     labels = np.zeros((4, 40), dtype=int)
     labels[:, 20:] = 1
