@@ -111,6 +111,18 @@ def test_a_guide_with_soft_or_jpeg_edges_is_taken_level_by_level():
                                 .filter(ImageFilter.GaussianBlur(1.2))), 3)
 
 
+def test_soft_colour_levels_of_equal_brightness_keep_the_flat_maps_order():
+    from scipy.ndimage import gaussian_filter
+
+    yy, xx = np.mgrid[:128, :128]
+    label = np.zeros((128, 128), int)
+    label[(yy - 64) ** 2 + (xx - 50) ** 2 < 30 ** 2] = 1
+    label[:, 100:] = 2
+    flat = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255]], np.uint8)[label]  # means equal: R, G, B decide
+    soft = np.round(gaussian_filter(flat.astype(float), (2, 2, 0))).astype(np.uint8)
+    assert (guide_labels(soft, 3) == guide_labels(flat, 3)).mean() > 0.99  # was 61 %: the k-means' means ranked
+
+
 def test_a_photograph_given_as_a_guide_is_refused():
     from scipy.ndimage import gaussian_filter
 

@@ -114,8 +114,9 @@ def _snap_levels(values, labels, k, dtype):
     :data:`SNAP_BLOCK` pixels a side (the blend across an edge between two levels is no level of
     its own, however near a third level's value it passes), no such block of one value near
     none of them (another level painted), and the flat areas on the levels
-    (:func:`_flat_areas_are_levels`: not a photograph). A pixel in no level's block (on an edge's blend, or a
-    stray one) takes the level of the nearest pixel that is.
+    (:func:`_flat_areas_are_levels`: not a photograph). A pixel in no level's block (on an edge's
+    blend, or a stray one) takes the level of the nearest pixel that is. Each level is given as
+    its commonest value (the painted one, where the k-means' mean is pulled by the blends).
     """
     full = 255.0 if dtype == np.uint8 else 65535.0 if dtype == np.uint16 else 1.0
     points = values.astype(np.float64) / full  # (n, C)
@@ -159,7 +160,7 @@ def _snap_levels(values, labels, k, dtype):
     if not near.all():
         rows, cols = distance_transform_edt(~near, return_distances=False, return_indices=True)
         level = level[rows, cols]
-    return centres, level
+    return values[modes], level
 
 
 def _flat_areas_are_levels(points, labels, off):
