@@ -123,6 +123,19 @@ def test_soft_colour_levels_of_equal_brightness_keep_the_flat_maps_order():
     assert (guide_labels(soft, 3) == guide_labels(flat, 3)).mean() > 0.99  # was 61 %: the k-means' means ranked
 
 
+def test_thin_strokes_and_small_dots_of_a_soft_guide_are_kept():
+    from scipy.ndimage import gaussian_filter
+
+    flat = np.zeros((96, 128), np.uint8)
+    flat[:, 100:] = 255
+    flat[40:44, 10:90] = 255  # a 4 px stroke
+    flat[70:76, 20:26] = 255  # a 6x6 dot
+    soft = np.round(gaussian_filter(flat.astype(float), 1)).astype(np.uint8)  # a soft brush
+    got = guide_labels(soft, 2)
+    assert got[40:44, 12:88].all() and got[71:75, 21:25].all()  # were lost whole (no 5x5 block of their own)
+    assert (got == guide_labels(flat, 2)).mean() > 0.999
+
+
 def test_a_photograph_given_as_a_guide_is_refused():
     from scipy.ndimage import gaussian_filter
 

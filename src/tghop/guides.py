@@ -114,9 +114,11 @@ def _snap_levels(values, labels, k, dtype):
     :data:`SNAP_BLOCK` pixels a side (the blend across an edge between two levels is no level of
     its own, however near a third level's value it passes), no such block of one value near
     none of them (another level painted), and the flat areas on the levels
-    (:func:`_flat_areas_are_levels`: not a photograph). A pixel in no level's block (on an edge's
-    blend, or a stray one) takes the level of the nearest pixel that is. Each level is given as
-    its commonest value (the painted one, where the k-means' mean is pulled by the blends).
+    (:func:`_flat_areas_are_levels`: not a photograph). A pixel near a level that no other's blends
+    or noise reach (:func:`_reached`; thin strokes, small dots), or in a level's block, is painted;
+    any other (on an edge's blend, or a stray one) takes the level of the nearest painted pixel.
+    Each level is given as its commonest value (the painted one; the k-means' mean is pulled by
+    the blends).
     """
     full = 255.0 if dtype == np.uint8 else 65535.0 if dtype == np.uint16 else 1.0
     points = values.astype(np.float64) / full  # (n, C)
@@ -149,18 +151,38 @@ def _snap_levels(values, labels, k, dtype):
     flat = maximum_filter(labels, size=SNAP_BLOCK) == minimum_filter(labels, size=SNAP_BLOCK)
     if (flat & ~near).any():  # a block of one value near no level: a level of its own, not an edge
         return None
-    solid = np.zeros(level.shape, dtype=bool)  # the pixels of a level's blocks: near it, and not a blend
+    solid = np.zeros(level.shape, dtype=bool)  # the pixels taken as painted: near a level, and not a blend
+    reached = _reached(points[modes])
     for j in range(k):
         mine = (level == j) & near
         centres_j = minimum_filter(mine, size=SNAP_BLOCK, mode="nearest")  # of a block all near level j
         if not centres_j.any():
             return None
-        solid |= mine & maximum_filter(centres_j, size=SNAP_BLOCK, mode="nearest")
+        # a level that blends or noise of others reach: only its blocks' pixels; any other: all its near
+        # pixels (no other's pass near it), its thin strokes and small dots kept
+        solid |= mine & maximum_filter(centres_j, size=SNAP_BLOCK, mode="nearest") if reached[j] else mine
     near = solid
     if not near.all():
         rows, cols = distance_transform_edt(~near, return_distances=False, return_indices=True)
         level = level[rows, cols]
     return values[modes], level
+
+
+def _reached(levels):
+    """Whether each of the levels ``(k, C)`` (0-1 units) lies within :data:`SNAP_DISTANCE` (the
+    largest channel difference) of the straight blend between two others (where a soft edge
+    between those passes near it), or within twice that of another level (where that level's
+    noise, a JPEG file's ringing, comes near it)."""
+    gaps = np.abs(levels[:, None] - levels[None]).max(axis=2) + np.eye(len(levels)) * 2 * SNAP_DISTANCE
+    out = gaps.min(axis=1) < 2 * SNAP_DISTANCE
+    t = np.linspace(0.0, 1.0, 129)[:, None, None]
+    for a in range(len(levels)):
+        for b in range(a + 1, len(levels)):
+            blend = levels[a] + t * (levels[b] - levels[a])  # (129, 1, C)
+            near = np.abs(blend - levels[None]).max(axis=2).min(axis=0) <= SNAP_DISTANCE
+            near[[a, b]] = False
+            out |= near
+    return out
 
 
 def _flat_areas_are_levels(points, labels, off):
