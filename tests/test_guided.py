@@ -111,6 +111,23 @@ def test_a_guide_with_soft_or_jpeg_edges_is_taken_level_by_level():
                                 .filter(ImageFilter.GaussianBlur(1.2))), 3)
 
 
+def test_a_soft_guide_given_another_count_of_inputs_is_told_its_count_of_levels():
+    from scipy.ndimage import gaussian_filter
+
+    flat = np.zeros((96, 128), np.uint8)
+    flat[:, 64:] = 255
+    flat[20:60, 100:] = 128
+    soft = np.round(gaussian_filter(flat.astype(float), 1.5)).astype(np.uint8)
+    with pytest.raises(TGHopError, match="has 3 grey levels/colours with soft or JPEG edges but 2 inputs were given; "
+                                         r"give one input per level \(3 inputs for 3 levels\)"):
+        guide_labels(soft, 2)  # said "has 97 distinct grey levels/colours ...; paint one flat level per input"
+    two = np.round(gaussian_filter(np.where(flat == 128, 255, flat).astype(float), 1.5)).astype(np.uint8)
+    with pytest.raises(TGHopError, match="has 2 grey levels/colours with soft or JPEG edges but one input was given"):
+        guide_labels(two, 1)
+    with pytest.raises(TGHopError, match="has 2 grey levels/.* soft or JPEG edges but 3 inputs .* paint one level per"):
+        guide_labels(two, 3)
+
+
 def test_soft_colour_levels_of_equal_brightness_keep_the_flat_maps_order():
     from scipy.ndimage import gaussian_filter
 

@@ -86,6 +86,10 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
             values, labels = snapped
             n = len(values)
     if n != n_models:
+        soft = n > n_models and next((m for m in range(2, min(n, FEW_LEVELS + 1)) if m != n_models and
+                                      _snap_levels(values, labels, m, arr.dtype) is not None), None)
+        if soft:  # levels with soft or JPEG edges, as many as that: named, not the blends' values
+            n = soft
         if n > FEW_LEVELS:
             hint = (f"paint one flat level per {input_name} (soft or JPEG edges are taken, "
                     "a smooth picture is not)")
@@ -94,6 +98,8 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         else:
             hint = f"paint one level per {input_name}"
         levels = "one grey level/colour" if n == 1 else f"{n} distinct grey levels/colours"
+        if soft:
+            levels = f"{n} grey levels/colours with soft or JPEG edges"
         inputs = f"one {input_name} was" if n_models == 1 else f"{n_models} {input_name}s were"
         raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first {input_name}")
     order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
