@@ -232,7 +232,7 @@ def test_bad_requests_get_one_line_and_their_status(client, cid):
     assert_error(client.post(edit, json={"crops": []}), 422, "crops must be a list of 1 to 8")
     assert_error(client.post(edit, json={"crops": two, "labels": "!!"}), 400, "labels is not valid base64")
     assert_error(client.post(edit, json={"crops": two, "labels": labels_png([[0, 128, 255]])}), 400,
-                 "3 distinct grey levels", "2 crops")
+                 "3 distinct grey levels", "2 crops were given; give one crop per level (3 crops for 3 levels)")
     assert_error(client.post(edit, json={"crops": two, "labels": labels_png([[0, 255]]), "size": [8, 8]}), 400,
                  "the label map is 1x2 but the output is 8x8")
     assert_error(client.post(edit, json={"crops": [[0, 0]], "size": [4096, 4096]}), 422, "size")

@@ -250,9 +250,9 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels) -> t
             if size[0] * size[1] > MAX_COOC_PIXELS:
                 raise RequestError(422, f"labels is {size[0]}x{size[1]}, over the server's {MAX_COOC_PIXELS:,} pixels")
         try:
-            pixels = guide_labels(painted, len(crops), size=size)
+            pixels = guide_labels(painted, len(crops), size=size, input_name="crop", no_guide="send no labels")
         except TGHopError as exc:
-            raise RequestError(400, str(exc).replace("the guide", "the label map").replace("inputs", "crops")) from None
+            raise RequestError(400, str(exc).replace("the guide", "the label map")) from None
     s, (h, w) = model.s, size
     hh, ww = -(-h // s), -(-w // s)
     if pixels is None:
