@@ -99,7 +99,10 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     painted = None
     if guide is not None:  # read and checked (size, levels) before anything is fitted
         painted = _load_guide(guide, size, size_given)
-        guide_labels(painted, len(sources), input_name="SOURCE", no_guide="drop --guide")
+        labels = guide_labels(painted, len(sources), input_name="SOURCE", no_guide="drop --guide")
+        # its regions as grey levels 0, 1, ...: the same regions, read again at once (a soft map's levels took
+        # seconds at 4096x4096)
+        painted = labels.astype(np.uint8) if len(sources) < 256 else labels
         size = painted.shape[:2]
     from ..settings import BY_NAME
 
