@@ -401,10 +401,10 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
 
 
 def _as_dtype(image, dtype):
-    """A float image in [0, 1] as ``dtype`` (uint8: rounded to 0-255)."""
+    """A float image in [0, 1] as a contiguous array of ``dtype`` (uint8: rounded to 0-255)."""
     if dtype == np.uint8:
         return np.round(image * np.float32(255.0)).astype(np.uint8)
-    return np.ascontiguousarray(image)
+    return np.ascontiguousarray(image, dtype=dtype)
 
 
 def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
@@ -470,10 +470,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
         report(progress, "colour", 0, 1)
         image = stations.match_colours(image)
         report(progress, "colour", 1, 1)
-    image = np.clip(image, 0.0, 1.0)
-    if dtype == np.uint8:
-        return np.round(image * np.float32(255.0)).astype(np.uint8)
-    return image.astype(dtype)
+    return _as_dtype(np.clip(image, 0.0, 1.0), dtype)
 
 
 def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share, patch_refine):
