@@ -1,6 +1,7 @@
-"""The JSON bodies of the generation routes, checked (docs/serve.md): one image from a
-model (``POST /api/models/{id}/images``), several models through a painted guide or a
-remix (``POST /api/images/guided``), a morph between two (``POST /api/images/morph``).
+"""The requests' fields, checked (docs/serve.md): a fit's form fields (``POST /api/models``)
+and the JSON bodies of the generation routes: one image from a model (``POST
+/api/models/{id}/images``), several models through a painted guide or a remix (``POST
+/api/images/guided``), a morph between two (``POST /api/images/morph``).
 
 Every bad value is a :class:`RequestError` with its status and one line: 400 for a body
 that is not a JSON object or a guide that is not base64, 422 for a setting out of its
@@ -16,13 +17,15 @@ import re
 from .. import manifest
 from .._errors import TGHopError
 
-__all__ = ["RequestError", "decode_png_field", "json_bool", "parse_bool", "parse_generation", "parse_growth",
-           "parse_guided", "parse_morph", "MAX_MODELS", "MAX_TRANSITION"]
+__all__ = ["RequestError", "decode_png_field", "fit_fields", "json_bool", "parse_bool", "parse_fit_settings",
+           "parse_generation", "parse_growth", "parse_guided", "parse_morph", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
 #: Widest transition between painted regions the server takes, in pixels.
 MAX_TRANSITION = 512
+#: Fit settings the API takes as form fields (besides ``paper`` and ``k1``/``k2``/``k3``).
+_NOT_FIELDS = ("n_channels", "rng")
 
 
 class RequestError(Exception):
@@ -42,6 +45,69 @@ def parse_bool(name, value) -> bool:
         return manifest.parse_bool(value, name, empty=False)
     except TGHopError as exc:
         raise RequestError(422, str(exc)) from None
+
+
+def fit_fields():
+    """Names of the fit settings the API takes (form fields of ``POST /api/models``)."""
+    from ..settings import fit_settings
+
+    return [s.name for s in fit_settings() if s.name not in _NOT_FIELDS] + ["k1", "k2", "k3", "paper"]
+
+
+def parse_fit_settings(fields: dict) -> dict:
+    """Form fields -> the options :func:`tghop.fit_options.build_model` takes, each checked by
+    the settings table, and together by :func:`~tghop.fit_options.fit_params` (422 with its
+    one line, naming the field)."""
+    from ..fit_options import OFF, fit_params
+    from ..settings import BY_NAME, check_channel_rule
+
+    known = fit_fields()
+    options = {}
+    for name, raw in fields.items():
+        if name not in known:
+            raise RequestError(422, f"unknown fit setting {name!r}; known: {', '.join(known)}")
+        if not isinstance(raw, str):  # a file upload: (filename, bytes)
+            raise RequestError(422, f"{name} must be a plain form field, not a file")
+        text = raw.strip()
+        if len(text) > 64:  # the messages below repeat the value
+            raise RequestError(422, f"{name}: {text[:40]!r}... is {len(text):,} characters, too long for a setting")
+        try:
+            if name == "paper":
+                options[name] = parse_bool(name, text)
+            elif name in ("k1", "k2", "k3"):
+                if text == "":
+                    continue
+                rule = text if text == "knee" else (float(text) if "." in text else int(text))
+                options[name] = check_channel_rule(rule, name)
+            else:
+                s = BY_NAME[name]
+                if text == "" and not s.none_ok:
+                    continue
+                if s.kind == "bool":
+                    options[name] = parse_bool(name, text)
+                else:
+                    value = s.check(None if text == "" else _parse_field(s, text), label=name, cli=True)
+                    if s.cli_high is not None and value is not None and value > s.cli_high:
+                        raise TGHopError(f"{name} {text} is more than the server allows ({s.cli_high:,g})")
+                    options[name] = OFF if value is None else value  # "none": off, not the default
+        except ValueError as exc:  # TGHopError is one
+            message = str(exc) if isinstance(exc, TGHopError) else (
+                f"{name}: {text[:40]!r} is not a channel count; give a count, a fraction in (0, 1] or 'knee'")
+            raise RequestError(422, message) from None
+    try:
+        fit_params(options, api=True)  # settings that do not go together (patch_size without k1, k2)
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    return options
+
+
+def _parse_field(s, text: str):
+    """A form field's text -> the value of setting ``s``; the one line names the field."""
+    try:
+        return s.parse(text)
+    except TGHopError as exc:
+        word = ("auto" if s.auto else "none") if s.none_ok else ""
+        raise TGHopError(f"{s.name}: {exc}" + (f" (or {word})" if word else "")) from None
 
 
 def parse_growth(size, anchor) -> tuple:
