@@ -49,11 +49,11 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
-from . import cooc
+from . import cooc, materials
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
 from .requests import (RequestError, fit_fields, parse_bool, parse_fit_settings, parse_generation, parse_growth,
-                       parse_guided, parse_morph)
+                       parse_guided, parse_morph, safe_name)
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -117,14 +117,6 @@ def model_id_for(content: bytes, settings: dict) -> str:
     return digest.hexdigest()
 
 
-def _safe_name(name, default: str) -> str:
-    """An uploaded file's name as it may appear in a message and a temporary file: the
-    last part of the path, only letters, digits, ``.``, ``_`` and ``-``."""
-    base = re.split(r"[\\/]", str(name or ""))[-1]
-    base = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")[:80]
-    return base or default
-
-
 # ------------------------------------------------------------------ requests
 async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
     """The request's body, or 413 as soon as it is over ``limit`` bytes; 499 (to nobody) when
@@ -161,7 +153,8 @@ async def read_form(request, body: bytes, fields: str = "a form with an 'image' 
     if not request.headers.get("content-type", "").startswith("multipart/form-data"):
         raise RequestError(400, f"send the fields as multipart/form-data ({fields})")
     try:
-        form = await MultiPartParser(request.headers, stream(), max_files=4, max_fields=64).parse()
+        form = await MultiPartParser(request.headers, stream(), max_files=4 + materials.MAX_MAPS,
+                                     max_fields=64).parse()
     except (MultiPartException, ValueError) as exc:
         raise RequestError(400, f"malformed multipart request ({getattr(exc, 'message', exc)})") from None
     out, twice = {}, []
@@ -239,13 +232,18 @@ class Server:
 
     # ---------------------------------------------------------------- fitting
     def prepare_fit(self, fields: dict):
-        """Check the request and read the exemplar (in a worker thread): returns
-        ``(model id, TGHop, image)``; ``image`` is None when the model is in the cache."""
+        """Check the request and read the exemplar, and the maps of a material (fields ``map:<name>``;
+        :mod:`tghop.server.materials`), in a worker thread: returns ``(model id, fit)``, ``fit(progress)``
+        fitting the model (a TGHop, or with maps a Material); ``fit`` is None when the model is in the cache."""
         from .._errors import HINT_DOWNSCALE_YOURSELF
         from ..data import builtin
         from ..fit_options import build_model
         from ..imageio import load_image
+        from ..material import Material
         from ..synthesis import prepare_exemplar
+
+        def read(path):
+            return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
 
         upload = fields.pop("image", None)
         name = fields.pop("builtin", None)
@@ -258,7 +256,9 @@ class Server:
             raise RequestError(400, "give either an 'image' file or a 'builtin' name, not both")
         if upload is None and not name:
             raise RequestError(400, "no exemplar: send an 'image' file or a 'builtin' name (bricks or cells)")
+        uploads = materials.map_uploads(fields)  # before the settings: they are not settings
         options = parse_fit_settings(fields)
+        depth = 8
         if name:
             name = str(name).removeprefix("builtin:")
             try:
@@ -268,16 +268,16 @@ class Server:
         else:
             filename, content = upload
             if not content:
-                raise RequestError(400, f"{_safe_name(filename, 'the upload')} is empty; send an image file")
-            image = self._read_image(content, _safe_name(filename, "exemplar"),
-                                     lambda p: load_image(p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF))
+                raise RequestError(400, f"{safe_name(filename, 'the upload')} is empty; send an image file")
+            image, depth = self._read_image(content, safe_name(filename, "exemplar"), read)
         try:
             image = prepare_exemplar(image)
             model = build_model(options, n_colours=image.shape[2], api=True)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
         try:  # a channel count out of the image's range: a setting's (422), before a job starts
-            model.check_channels(image.shape[2])
+            if not uploads:  # a material's joint model has the maps' channels too
+                model.check_channels(image.shape[2])
         except TGHopError as exc:
             raise RequestError(422, str(exc).replace("n_channels[0], --k1", "k1")) from None
         try:
@@ -285,8 +285,19 @@ class Server:
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
         params = {k: v for k, v in model.get_params().items()}
-        model_id = model_id_for(content, params)
-        return model_id, model, (None if self.cache.has(model_id) else image)
+        if uploads:
+            maps, depths = materials.read_maps(
+                uploads, lambda data, filename: self._read_image(data, filename, read), image.shape)
+            model_id = materials.material_id(content, uploads, params, model_id_for)
+
+            def fit(progress):
+                return Material(model=model).fit(image, maps, depths={"albedo": depth, **depths}, progress=progress)
+        else:
+            model_id = model_id_for(content, params)
+
+            def fit(progress):
+                return model.fit(image, progress=progress)
+        return model_id, (None if self.cache.has(model_id) else fit)
 
     @staticmethod
     def _read_image(content: bytes, filename: str, load):
@@ -305,12 +316,12 @@ class Server:
                 raise RequestError(413, f"{filename}: not enough memory to decode this image; "
                                         "downscale it first") from None
 
-    def fit_work(self, model_id: str, model, image):
-        """What a fit job runs: fit, then save atomically into the cache."""
+    def fit_work(self, model_id: str, fit):
+        """What a fit job runs: ``fit(progress)``, then save atomically into the cache."""
         from ..modelfile import save_model
 
         def work(job):
-            model.fit(image, progress=job.progress)
+            model = fit(job.progress)
             job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
             save_model(model, self.cache.path(model_id))
             self.cache.added(model_id, model)
@@ -321,13 +332,13 @@ class Server:
     async def create_model(self, request):
         body = await read_body(request)
         fields = await read_form(request, body)
-        model_id, model, image = await run_in_threadpool(self.prepare_fit, fields)
-        if image is None:
+        model_id, fit = await run_in_threadpool(self.prepare_fit, fields)
+        if fit is None:
             self.cache.touch(model_id)
             job = self.queue.finished(model_id)
         else:
             try:
-                job = self.queue.submit(model_id, self.fit_work(model_id, model, image))
+                job = self.queue.submit(model_id, self.fit_work(model_id, fit))
             except QueueFull as exc:
                 raise RequestError(503, f"the server is busy: {exc}") from None
         return _json({"id": model_id, "job": job.id, "state": job.state}, status=202 if not job.final else 200)
@@ -375,9 +386,11 @@ class Server:
     def _summary(self, model_id: str) -> dict:
         from ..modelfile import info_dict
 
-        model = self.cache.load(model_id)
+        loaded = self.cache.load(model_id)
+        model = getattr(loaded, "model_", loaded)  # a material's joint model
         return {"id": model_id, "file_bytes": self.cache.path(model_id).stat().st_size,
-                "layout": model.layout_ is not None, **info_dict(model)}
+                "layout": model.layout_ is not None, **info_dict(model),
+                **({"material": {"maps": loaded.map_info()}} if model is not loaded else {})}
 
     async def model_summary(self, request):
         return _json(await run_in_threadpool(self._summary, request.path_params["id"]))
@@ -419,25 +432,35 @@ class Server:
             filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
         else:
             filename, content = None, body  # no name: messages say "the upload"
-        model_id = await run_in_threadpool(self._store_upload, content, _safe_name(filename, "the upload"))
+        model_id = await run_in_threadpool(self._store_upload, content, safe_name(filename, "the upload"))
         return _json({"id": model_id})
 
-    def _generate(self, model_id: str, size, seed, settings) -> bytes:
+    def _generate(self, model_id: str, size, seed, settings):
+        """One model's image as PNG bytes; a material's maps as a list (:func:`materials.encode_maps`)."""
         import numpy as np
 
         from ..imageio import write_png
 
         model = self.cache.load(model_id)
+        material = materials.is_material(model)
+        if settings.get("patch_refine") and material:
+            raise RequestError(422, "patch_refine and quality best do not apply to a material (it has no patch "
+                                    "statistics); leave them out")
         if settings.get("patch_refine") and getattr(model, "patches_", None) is None:  # as tghop synth says
             raise RequestError(422, "this model holds no patch statistics for patch_refine or quality best (fitted "
                                     "with patch_levels 0, or by tghop 0.14 or older); fit it again")
+        if material:
+            settings = {k: v for k, v in settings.items() if k != "patch_refine"}  # 0 or None: nothing to do
         with self.generating:
             try:
-                image = model.synthesize(size, rng=seed, dtype=np.uint8, progress=self.unless_stopping, **settings)
+                image = model.synthesize(size, rng=seed, dtype=np.float32 if material else np.uint8,
+                                         progress=self.unless_stopping, **settings)
             except MemoryError:
                 raise RequestError(422, "out of memory; ask for a smaller image") from None
             except TGHopError as exc:
                 raise RequestError(422, str(exc)) from None
+        if material:
+            return materials.encode_maps(image, model)
         buf = io.BytesIO()
         write_png(buf, image)
         return buf.getvalue()
@@ -451,15 +474,19 @@ class Server:
             raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
 
     async def _png_response(self, request, work, *args, seed):
-        """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer."""
+        """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer, or
+        ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON."""
         if seed is None:
             seed = secrets.randbelow(2**31)
         start = time.perf_counter()
         png, size = await self.in_executor(request, work, *args, seed)
         took = (time.perf_counter() - start) * 1000
-        return Response(png, media_type="image/png",
-                        headers={"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
-                                 "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"})
+        headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
+                   "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
+        if isinstance(png, list):  # a material: every map
+            return Response(json.dumps({"size": list(size), "seed": seed, "maps": png}), headers=headers,
+                            media_type="application/json")
+        return Response(png, media_type="image/png", headers=headers)
 
     async def generate(self, request):
         model_id = request.path_params["id"]
@@ -472,18 +499,22 @@ class Server:
         return await self._png_response(request, work, seed=seed)
 
     def _several(self, make, models, seed) -> tuple:
-        """``make(models, seed, dtype)`` under the bound on generations: the PNG and its size."""
+        """``make(models, seed, dtype)`` under the bound on generations: the PNG and its size (the
+        maps of materials: a list, :func:`materials.encode_maps`)."""
         import numpy as np
 
         from ..imageio import write_png
 
+        material = materials.is_material(models[0])
         with self.generating:
             try:
-                image = make(models, seed, np.uint8)
+                image = make(models, seed, np.float32 if material else np.uint8)
             except MemoryError:
                 raise RequestError(422, "out of memory; ask for a smaller image") from None
             except TGHopError as exc:  # models that cannot be combined, a setting the library refuses
                 raise RequestError(422, str(exc)) from None
+        if isinstance(image, dict):  # materials (the library checked that all are, with the same maps)
+            return materials.encode_maps(image, models[0]), next(iter(image.values())).shape[:2]
         buf = io.BytesIO()
         write_png(buf, image)
         return buf.getvalue(), image.shape[:2]
@@ -492,10 +523,11 @@ class Server:
     def _same_patches(models, names) -> None:
         """Models to combine have one patch size, or 422 naming them as the request does and
         the fit field (the library's words name the command line's --patch-size)."""
-        p = models[0].patch_size
+        p = materials.patch_size(models[0])
         for name, model in zip(names[1:], models[1:]):
-            if model.patch_size != p:
-                raise RequestError(422, f"{name} has {model.patch_size}x{model.patch_size} patches but {names[0]} has "
+            q = materials.patch_size(model)
+            if q != p:
+                raise RequestError(422, f"{name} has {q}x{q} patches but {names[0]} has "
                                         f"{p}x{p}; fit them with the same patch_size (a field of POST /api/models)")
 
     def _guided(self, ids, guide, size, transition, settings, seed) -> tuple:
@@ -527,6 +559,8 @@ class Server:
         from ..guided import morph
 
         models = [self.cache.load(model_id) for model_id in ids]
+        for label, model in zip(["a", "b"], models):
+            materials.texture_only(model, label, "a morph")
         self._same_patches(models, ["a", "b"])
         return self._several(lambda m, rng, dtype: morph(m[0], m[1], size, rng=rng, stations=stations, dtype=dtype,
                                                          progress=self.unless_stopping, **settings), models, seed)
@@ -551,6 +585,7 @@ class Server:
         from ..inpaint import check_hole, expand_canvas, inpaint, require_hole, split_alpha, with_alpha
 
         model = self.cache.load(model_id)
+        materials.texture_only(model, f"model {model_id[:12]}", "extend" if grow else "inpaint")
         picture = mask = None
         for name in ("image",) if grow else ("image", "mask"):
             upload = fields.get(name)
@@ -558,7 +593,7 @@ class Server:
                 raise RequestError(400, f"no {name}: send the picture as the file field 'image'" + (
                     "" if grow else " and its mask (white: the hole) as the file field 'mask'"))
             filename, content = upload
-            filename = _safe_name(filename, name)
+            filename = safe_name(filename, name)
             if not content:
                 raise RequestError(400, f"{filename} is empty; send an image file")
             if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
@@ -636,7 +671,7 @@ class Server:
             filename, content = upload
         else:
             filename, content = None, body  # no name: messages say "the upload"
-        cid = await run_in_threadpool(cooc.store_checkpoint, self.cooc, content, _safe_name(filename, "the upload"))
+        cid = await run_in_threadpool(cooc.store_checkpoint, self.cooc, content, safe_name(filename, "the upload"))
         return _json({"id": cid})
 
     def _cooc_id(self, request) -> str:

@@ -30,9 +30,10 @@ DEFAULT_CACHE_BYTES = 2 * 1000**3
 
 
 def _load_model(path):
+    """A texture model or a whole material (:mod:`tghop.server.materials`)."""
     from ..modelfile import load_model
 
-    return load_model(path)
+    return load_model(path, material=True)
 
 
 class ModelCache:

@@ -18,7 +18,8 @@ from .. import manifest
 from .._errors import TGHopError
 
 __all__ = ["RequestError", "decode_png_field", "fit_fields", "json_bool", "parse_bool", "parse_fit_settings",
-           "parse_generation", "parse_growth", "parse_guided", "parse_morph", "MAX_MODELS", "MAX_TRANSITION"]
+           "parse_generation", "parse_growth", "parse_guided", "parse_morph", "safe_name", "MAX_MODELS",
+           "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -35,6 +36,14 @@ class RequestError(Exception):
         super().__init__(message)
         self.status = status
         self.message = " ".join(str(message).split())
+
+
+def safe_name(name, default: str) -> str:
+    """An uploaded file's name as it may appear in a message and a temporary file: the
+    last part of the path, only letters, digits, ``.``, ``_`` and ``-``."""
+    base = re.split(r"[\\/]", str(name or ""))[-1]
+    base = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")[:80]
+    return base or default
 
 
 def parse_bool(name, value) -> bool:

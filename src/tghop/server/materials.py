@@ -1,0 +1,116 @@
+"""Whole materials on the web server (docs/serve.md, "Materials"): an albedo fitted with its
+maps (:class:`tghop.material.Material`), and a material's images as one answer of every map.
+
+- ``POST /api/models`` takes each map as a file field ``map:<name>`` beside the albedo
+  (``image`` or ``builtin``), as ``tghop fit ALBEDO --maps NAME.png ...`` takes files whose
+  stems name the maps. The maps are checked (names, sizes) before a fit job starts.
+- A material's ``POST /api/models/{id}/images``, and a painted guide or a remix of materials
+  (``POST /api/images/guided``), answer JSON instead of a PNG: ``{"size": [h, w], "seed": s,
+  "maps": [{"name", "depth", "normal", "png"}, ...]}``, the albedo first, each map a base64
+  PNG at its file's depth (8 or 16 bits; a float map's 32 as 16, the most a PNG holds), as
+  ``tghop synth`` writes each map.
+- Routes that take texture models only (inpaint, extend, a morph) refuse a material with one
+  line (422).
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import io
+import re
+
+from .requests import RequestError, safe_name
+
+__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "material_id", "texture_only",
+           "patch_size", "encode_maps"]
+
+#: Prefix of a map's form field: ``map:normal`` is the map named "normal".
+MAP_FIELD = "map:"
+#: Most maps of one material in a fit request.
+MAX_MAPS = 8
+# A map's name becomes a file name (OUT_<name>.png): tghop.material's rule.
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
+
+
+def is_material(model) -> bool:
+    """Whether ``model`` is a whole material (:class:`tghop.material.Material`)."""
+    from ..material import Material
+
+    return isinstance(model, Material)
+
+
+def map_uploads(fields: dict) -> list:
+    """Take the maps' fields (``map:<name>``) out of a fit's form: ``[(name, filename,
+    bytes)]`` in the order sent; 400 for a bad name, a name given twice (in any case), a map
+    that is not a file or is empty, or more than :data:`MAX_MAPS`."""
+    out, seen = [], {"albedo"}
+    for field in [k for k in fields if k.startswith(MAP_FIELD)]:
+        name, value = field[len(MAP_FIELD):], fields.pop(field)
+        if not _NAME.match(name):
+            raise RequestError(400, f"the map name {name[:40]!r} (field {field[:44]!r}) must be letters, digits, "
+                                    "'.', '_' or '-', starting with a letter or digit (it names the map's file)")
+        if name.lower() in seen:
+            raise RequestError(400, f"two maps are named {name!r} (or a map is named albedo); name each map once")
+        seen.add(name.lower())
+        if not isinstance(value, tuple):
+            raise RequestError(400, f"the field {field!r} must be a file upload (the map's image)")
+        filename, content = value
+        filename = safe_name(filename, f"{name}.png")
+        if not content:
+            raise RequestError(400, f"the map {name} ({filename}) is empty; send an image file")
+        out.append((name, filename, content))
+    if len(out) > MAX_MAPS:
+        raise RequestError(400, f"{len(out)} maps; a material takes at most {MAX_MAPS}")
+    return out
+
+
+def read_maps(uploads, read, albedo_shape) -> tuple:
+    """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename)``
+    returns ``(image, depth)`` (the server's upload reader); a map of another height and
+    width than the albedo's is refused (400)."""
+    maps, depths = {}, {}
+    for name, filename, content in uploads:
+        image, depth = read(content, filename)
+        if image.shape[:2] != tuple(albedo_shape[:2]):
+            h, w = albedo_shape[:2]
+            raise RequestError(400, f"the map {name} ({filename}) is {image.shape[0]}x{image.shape[1]} but the "
+                                    f"albedo is {h}x{w}; give maps of the albedo's size, aligned with it")
+        maps[name], depths[name] = image, depth
+    return maps, depths
+
+
+def material_id(albedo_content: bytes, uploads, settings: dict, model_id_for) -> str:
+    """The content hash of a material's fit: the albedo's bytes, each map's name and bytes,
+    and the settings (``model_id_for`` hashes the first and last)."""
+    digest = hashlib.sha256(albedo_content)
+    for name, _, content in uploads:
+        digest.update(b"\0tghop-map\0" + name.encode() + b"\0" + hashlib.sha256(content).digest())
+    return model_id_for(digest.digest(), {**settings, "material": [name for name, _, _ in uploads]})
+
+
+def texture_only(model, label: str, work: str) -> None:
+    """Refuse a material where ``work`` takes texture models only (422, one line naming
+    ``label``, the model as the request names it)."""
+    if is_material(model):
+        raise RequestError(422, f"{label} is a material ({', '.join(model.names_)}); {work} takes texture models: "
+                                "fit one from the material's albedo")
+
+
+def patch_size(model) -> int:
+    """A texture model's or a material's patch size (a material's joint model's)."""
+    return (model.model_ if is_material(model) else model).patch_size
+
+
+def encode_maps(maps: dict, material) -> list:
+    """A material's maps (``name -> (H, W, c)`` floats in [0, 1]) as the JSON answer's
+    ``maps``: each a base64 PNG at its depth (8, else 16 bits), in ``material``'s order."""
+    from ..imageio import to_uint8, to_uint16, write_png
+
+    out = []
+    for name, depth, normal in zip(material.names_, material.depths_, material.normal_):
+        buf = io.BytesIO()
+        write_png(buf, to_uint8(maps[name]) if depth == 8 else to_uint16(maps[name]))
+        out.append({"name": name, "depth": 8 if depth == 8 else 16, "normal": bool(normal),
+                    "png": base64.b64encode(buf.getvalue()).decode("ascii")})
+    return out

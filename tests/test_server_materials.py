@@ -1,0 +1,191 @@
+"""Whole materials on ``tghop serve`` (a real uvicorn server, httpx as the client): an albedo
+fitted with its maps (``map:<name>`` fields), a material's images as JSON of every map at its
+depth (the library's maps, bit for bit), a material file uploaded, painted and remixed, and
+each request a material cannot take refused in one line."""
+
+import base64
+import io
+
+import numpy as np
+import pytest
+
+httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+from conftest import FAST_FIT  # noqa: E402
+
+from tghop import data  # noqa: E402
+from tghop.imageio import to_uint8, to_uint16  # noqa: E402
+from tghop.material import example_maps  # noqa: E402
+from tghop.modelfile import load_model  # noqa: E402
+
+SIZE = 96
+
+
+def png(pixels) -> bytes:
+    from tghop.imageio import write_png
+
+    buf = io.BytesIO()
+    write_png(buf, pixels)
+    return buf.getvalue()
+
+
+def decode(data_b64: str) -> np.ndarray:
+    """A base64 PNG's pixels at its depth: uint8 or uint16 (Pillow reads 16-bit RGB as 8 bits)."""
+    import tempfile
+
+    from tghop.imageio import load_image
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = f"{folder}/map.png"
+        with open(path, "wb") as fh:
+            fh.write(base64.b64decode(data_b64))
+        image, depth = load_image(path, dtype=None, with_depth=True)
+        return to_uint16(image) if depth == 16 else image
+
+
+@pytest.fixture(scope="module")
+def client(live_server):
+    with httpx.Client(base_url=live_server.url, timeout=120) as c:
+        yield c
+
+
+def map_files(albedo=None):
+    """The example maps of the built-in bricks as uploads: normal at 16 bits, height at 8."""
+    maps = example_maps(data.bricks(SIZE) if albedo is None else albedo)
+    return {"map:normal": ("bricks_normal.png", png(to_uint16(maps["normal"]))),
+            "map:height": ("height.png", png(to_uint8(maps["height"][..., 0])))}
+
+
+def albedo_file():
+    return {"image": ("bricks.png", png(to_uint8(data.bricks(SIZE))))}
+
+
+def fit(client, files):
+    r = client.post("/api/models", files={**files, **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert r.status_code in (200, 202), r.text
+    body = r.json()
+    deadline = 120
+    while True:
+        state = client.get(f"/api/jobs/{body['job']}").json()
+        if state["state"] in ("done", "failed", "cancelled"):
+            break
+        deadline -= 0.1
+        assert deadline > 0
+        import time
+
+        time.sleep(0.1)
+    assert state["state"] == "done", state
+    return body["id"]
+
+
+@pytest.fixture(scope="module")
+def material_id(client):
+    return fit(client, {**albedo_file(), **map_files()})
+
+
+def assert_error(r, status, *words):
+    assert r.status_code == status, (r.status_code, r.text)
+    message = r.json()["error"]
+    assert "\n" not in message and "Traceback" not in message
+    for word in words:
+        assert word in message, message
+
+
+def test_a_fit_with_maps_is_a_material_named_by_its_maps(client, material_id):
+    summary = client.get(f"/api/models/{material_id}").json()
+    assert summary["material"]["maps"] == [
+        {"name": "albedo", "channels": 3, "normal": False, "depth": 8},
+        {"name": "normal", "channels": 3, "normal": True, "depth": 16},
+        {"name": "height", "channels": 1, "normal": False, "depth": 8}]
+    assert summary["exemplar_shape"][:2] == [SIZE, SIZE]
+    # The same albedo without maps is another model; the same maps again are the same material
+    assert fit(client, {**albedo_file(), **map_files()}) == material_id
+    plain = fit(client, albedo_file())
+    assert plain != material_id and "material" not in client.get(f"/api/models/{plain}").json()
+
+
+def test_a_materials_images_are_every_map_at_its_depth_as_the_library_makes_them(client, material_id, tmp_path):
+    from tghop.imageio import to_uint8 as u8, to_uint16 as u16
+
+    r = client.post(f"/api/models/{material_id}/images", json={"size": [40, 56], "seed": 5, "refine": 2})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"].startswith("application/json") and r.headers["x-tghop-seed"] == "5"
+    body = r.json()
+    assert body["size"] == [40, 56] and body["seed"] == 5
+    assert [(m["name"], m["depth"], m["normal"]) for m in body["maps"]] == [
+        ("albedo", 8, False), ("normal", 16, True), ("height", 8, False)]
+    got = {m["name"]: decode(m["png"]) for m in body["maps"]}
+    assert got["albedo"].shape == (40, 56, 3) and got["albedo"].dtype == np.uint8
+    assert got["normal"].shape == (40, 56, 3) and got["normal"].dtype == np.uint16
+    assert got["height"].shape == (40, 56, 1)
+    # The library's maps from the downloaded file, bit for bit
+    path = tmp_path / "m.npz"
+    path.write_bytes(client.get(f"/api/models/{material_id}/file").content)
+    want = load_model(path, material=True).synthesize((40, 56), rng=5, refine=2, dtype=np.float32)
+    np.testing.assert_array_equal(got["albedo"], u8(want["albedo"]))
+    np.testing.assert_array_equal(got["normal"], u16(want["normal"]))
+    np.testing.assert_array_equal(got["height"][..., 0], u8(want["height"]))
+    # Unit normals, decoded
+    n = got["normal"].astype(float) / 65535 * 2 - 1
+    np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-3)
+    again = client.post(f"/api/models/{material_id}/images", json={"size": [40, 56], "seed": 5, "refine": 2})
+    assert again.json()["maps"] == body["maps"]
+
+
+def test_a_material_file_uploads_and_paints(client, material_id):
+    content = client.get(f"/api/models/{material_id}/file").content
+    r = client.post("/api/models/upload", content=content, headers={"Content-Type": "application/octet-stream"})
+    assert r.status_code == 200, r.text
+    uploaded = r.json()["id"]
+    assert client.get(f"/api/models/{uploaded}").json()["material"]["maps"][1]["name"] == "normal"
+    guide = np.zeros((48, 64), dtype=np.uint8)
+    guide[:, 32:] = 255
+    body = {"models": [material_id, uploaded], "guide": base64.b64encode(png(guide)).decode(), "seed": 3}
+    r = client.post("/api/images/guided", json=body)
+    assert r.status_code == 200, r.text
+    maps = r.json()["maps"]
+    assert [m["name"] for m in maps] == ["albedo", "normal", "height"]
+    assert decode(maps[1]["png"]).shape == (48, 64, 3) and maps[1]["depth"] == 16
+    remix = client.post("/api/images/guided", json={"models": [material_id, uploaded], "size": [48, 64], "seed": 3})
+    assert remix.status_code == 200, remix.text
+    assert len(remix.json()["maps"]) == 3
+
+
+def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
+    plain = fit(client, albedo_file())
+    assert_error(client.post(f"/api/models/{material_id}/images", json={"size": [32, 32], "quality": "best"}),
+                 422, "do not apply to a material")
+    assert_error(client.post(f"/api/models/{material_id}/images", json={"size": [32, 32], "patch_refine": 4}),
+                 422, "do not apply to a material")
+    picture = png(to_uint8(data.bricks(48)))
+    mask = np.zeros((48, 48), dtype=np.uint8)
+    mask[10:30, 10:30] = 255
+    assert_error(client.post(f"/api/models/{material_id}/inpaint", files={
+        "image": ("p.png", picture), "mask": ("m.png", png(mask))}), 422, "is a material", "inpaint", "albedo")
+    assert_error(client.post(f"/api/models/{material_id}/extend", files={
+        "image": ("p.png", picture), "size": (None, "64x64")}), 422, "is a material", "extend")
+    assert_error(client.post("/api/images/morph", json={"a": material_id, "b": plain, "size": [32, 64]}),
+                 422, "a is a material", "morph")
+    assert_error(client.post("/api/images/guided", json={"models": [material_id, plain], "size": [32, 32]}),
+                 422, "material")
+
+
+@pytest.mark.parametrize("files, words", [
+    ({"map:normal": ("n.png", png(np.zeros((SIZE, SIZE + 8, 3), dtype=np.uint8)))},
+     ["the map normal (n.png) is 96x104", "albedo is 96x96"]),
+    ({"map:my map": ("n.png", b"x")}, ["the map name 'my map'"]),
+    ({"map:Albedo": ("n.png", b"x")}, ["named 'Albedo'"]),
+    ({"map:normal": (None, "text")}, ["'map:normal' must be a file upload"]),
+    ({"map:normal": ("n.png", b"")}, ["the map normal (n.png) is empty"]),
+    ({"map:normal": ("n.png", b"not an image")}, ["n.png"]),
+])
+def test_bad_maps_are_refused_before_a_fit_starts(client, files, words):
+    r = client.post("/api/models", files={**albedo_file(), **files, **{k: (None, v) for k, v in FAST_FIT.items()}})
+    assert_error(r, 400, *words)
+
+
+def test_more_maps_than_a_material_takes_are_refused(client):
+    one = png(to_uint8(data.bricks(SIZE))[..., 0])
+    files = {f"map:m{i}": (f"m{i}.png", one) for i in range(9)}
+    assert_error(client.post("/api/models", files={**albedo_file(), **files}), 400, "at most 8")
