@@ -3,7 +3,10 @@
 
 const $ = (id) => document.getElementById(id);
 const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false,
-  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null };
+  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null,
+  // A whole material: the map files to fit with the exemplar (section 1), the last exemplar
+  // fitted (refitted when the maps change), and the maps of the result shown (section 3).
+  mapFiles: [], source: null, material: false, shown: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false };
@@ -40,6 +43,7 @@ function updateButtons() {
 
 function setModel(id) {
   state.modelId = id;
+  setMaterial(false);  // until its summary says it is one
   if (id) addSessionModel(id, state.pendingName);
   updateButtons();
   offerDownload($("download-model"), id && `/api/models/${id}/file`, id && `tghop-${id.slice(0, 12)}.npz`);
@@ -60,10 +64,21 @@ async function showSummary(id) {
   const dims = Object.entries(s.dims).map(([k, v]) => `${k}=${v}`).join(", ");
   const [h, w, c] = s.exemplar_shape;
   const scaled = s.params && s.params.scale !== 1 ? ` (resampled by ${s.params.scale})` : "";
+  const maps = s.material ? s.material.maps : null;
+  const what = maps ? "material" : "model";
   $("summary").textContent =
-    `model ${id.slice(0, 12)}: exemplar ${h}x${w}${scaled}, ${c} channel${c > 1 ? "s" : ""}; ` +
-    `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}`;
+    `${what} ${id.slice(0, 12)}: exemplar ${h}x${w}${scaled}, ${c} channel${c > 1 ? "s" : ""}; ` +
+    `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}` +
+    (maps ? `\nmaps: ${maps.map((m) => `${m.name}${m.normal ? " (normal)" : ""}, ${m.depth}-bit`).join("; ")}` : "");
   $("summary").hidden = false;
+  if (state.modelId === id) setMaterial(Boolean(maps));
+}
+
+// A material has no patch statistics: the quality preset does not apply to it.
+function setMaterial(on) {
+  state.material = on;
+  $("quality").disabled = on;
+  $("quality").title = on ? "a material has no patch statistics: quality best does not apply" : "";
 }
 
 // ------------------------------------------------------------------ fitting
@@ -75,7 +90,25 @@ function fitFields() {
     const value = $(name).value.trim();
     if (value) form.append(name, value);
   }
+  for (const file of state.mapFiles) form.append(`map:${mapName(file.name)}`, file, file.name);
   return form;
+}
+
+// A map's name from its file's: the stem, as tghop fit --maps names it (other characters as "_").
+function mapName(filename) {
+  const stem = filename.replace(/\.[^.]*$/, "").replace(/[^A-Za-z0-9._-]/g, "_").replace(/^[^A-Za-z0-9]+/, "");
+  return stem.slice(0, 64) || "map";
+}
+
+// The map files chosen (none: a texture model); the exemplar fitted last is fitted again with them.
+function setMapFiles(files) {
+  state.mapFiles = [...files];
+  const names = state.mapFiles.map((f) => mapName(f.name));
+  $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
+  $("maps-clear").hidden = !names.length;
+  $("maps").value = "";  // choosing the same files again is a change
+  if (state.source && state.source.file) fitFile(state.source.file);
+  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin);
 }
 
 function stopEvents() {
@@ -172,7 +205,8 @@ async function cancelFit() {
 
 function fitFile(file) {
   if (!file) return;
-  state.pendingName = file.name;
+  state.source = { file };
+  state.pendingName = file.name + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
   $("builtin").value = "";
   setExemplar(URL.createObjectURL(file));
   const form = fitFields();
@@ -182,7 +216,8 @@ function fitFile(file) {
 
 function fitBuiltin(name) {
   if (!name) return;
-  state.pendingName = `builtin:${name}`;
+  state.source = { builtin: name };
+  state.pendingName = `builtin:${name}` + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
   setExemplar(`/api/builtins/${name}.png`);
   const form = fitFields();
   form.append("builtin", name);
@@ -192,6 +227,7 @@ function fitBuiltin(name) {
 async function uploadModel(file) {
   if (!file) return;
   dropRunningFit();
+  state.source = null;
   $("fit-status").hidden = true;
   setExemplar(null);
   setModel(null);
@@ -219,7 +255,7 @@ function generation(seed, size) {
   if (refine !== "") body.refine = Number(refine);
   const pool = $("n_patches").value.trim();
   if (pool !== "") body.n_patches = Number(pool);
-  if ($("quality").value !== "default") body.quality = $("quality").value;
+  if (!$("quality").disabled && $("quality").value !== "default") body.quality = $("quality").value;
   return body;
 }
 
@@ -228,24 +264,86 @@ async function generate(body) {
     method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
   });
   if (!response.ok) throw new Error(await errorOf(response));
-  return response.blob();
+  return answerOf(response);
 }
 
-function showResult(url, seed, blob, what) {
+// A generation's answer: a texture's PNG ({blob, maps: null}), or a material's maps (JSON of base64
+// PNGs, the albedo first: {blob: the albedo's, maps: [{name, depth, blob}]}).
+async function answerOf(response) {
+  if (!(response.headers.get("Content-Type") || "").startsWith("application/json")) {
+    return { blob: await response.blob(), maps: null };
+  }
+  const maps = (await response.json()).maps.map((m) => ({
+    name: m.name, depth: m.depth, blob: new Blob([Uint8Array.from(atob(m.png), (ch) => ch.charCodeAt(0))],
+      { type: "image/png" }),
+  }));
+  return { blob: maps[0].blob, maps };
+}
+
+// Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable.
+function showResult(url, seed, blob, what, maps) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
+  if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
   state.resultUrl = url;
+  const base = what ? `tghop-${what}-seed${seed}` : `tghop-seed${seed}`;
+  state.shown = maps ? { seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })) }
+    : null;
+  renderMaps();
+  showPicture(url, `${what || "result"}`, seed, `${base}.png`);
+  if (blob && !maps) setEditorPicture(blob, `tghop-seed${seed}.png`);  // a material cannot be inpainted
+}
+
+function showPicture(url, what, seed, filename) {
   const img = $("result");
   img.onload = () => {
-    $("result-caption").textContent = `${what || "result"}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
+    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
     drawTiled(img);
   };
   img.src = url;
   img.hidden = false;
   const link = $("download-png");
   link.href = url;
-  link.setAttribute("download", what ? `tghop-${what}-seed${seed}.png` : `tghop-seed${seed}.png`);
+  link.setAttribute("download", filename);
   link.hidden = false;
-  if (blob) setEditorPicture(blob, `tghop-seed${seed}.png`);
+}
+
+// The maps of the material shown: one radio each (the picture, its tiling and Download PNG follow it),
+// and Download all (the files as tghop synth names them: OUT.png, OUT_<map>.png).
+function renderMaps() {
+  const group = $("maps-view"), shown = state.shown;
+  group.textContent = "";
+  group.hidden = $("download-maps").hidden = !shown;
+  if (!shown) return;
+  shown.maps.forEach((m, i) => {
+    const label = document.createElement("label");
+    const radio = document.createElement("input");
+    radio.type = "radio";
+    radio.name = "map-shown";
+    radio.value = m.name;
+    radio.checked = i === 0;
+    radio.addEventListener("change", () => {
+      if (radio.checked) showPicture(m.url, `${shown.what || "result"} (${m.name})`, shown.seed, mapFile(shown, i));
+    });
+    label.append(radio, ` ${m.name}${m.depth === 16 ? " (16-bit)" : ""}`);
+    group.append(label);
+  });
+}
+
+function mapFile(shown, i) {
+  return i ? `${shown.base}_${shown.maps[i].name}.png` : `${shown.base}.png`;
+}
+
+function downloadMaps() {
+  const shown = state.shown;
+  if (!shown) return;
+  shown.maps.forEach((m, i) => {
+    const link = document.createElement("a");
+    link.href = m.url;
+    link.download = mapFile(shown, i);
+    document.body.append(link);
+    link.click();
+    link.remove();
+  });
 }
 
 // At most TILED_PIXELS (browsers leave a larger canvas blank): a large result's tiling is shown scaled down.
@@ -300,8 +398,8 @@ function onGenerate(event) {
   withBusy($("go"), async () => {
     const seed = Number($("seed").value);
     say("generating");
-    const blob = await generate(generation(seed));
-    showResult(URL.createObjectURL(blob), seed, blob);
+    const { blob, maps } = await generate(generation(seed));
+    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps);
     say("");
   });
 }
@@ -317,7 +415,8 @@ function onStrip() {
     for (let i = 0; i < 8; i++) {
       const seed = first + i;
       say(`seed ${seed} (${i + 1} of 8)`);
-      const url = URL.createObjectURL(await generate(generation(seed, [h, w])));
+      const answer = await generate(generation(seed, [h, w]));
+      const url = URL.createObjectURL(answer.blob);
       const figure = document.createElement("figure");
       const img = document.createElement("img");
       img.src = url;
@@ -330,8 +429,7 @@ function onStrip() {
         for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
         img.classList.add("chosen");
         $("seed").value = String(seed);
-        const blob = await (await fetch(url)).blob();
-        showResult(URL.createObjectURL(blob), seed, blob);
+        showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps);
       });
       img.addEventListener("keydown", (e) => {
         if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
@@ -769,7 +867,8 @@ async function postImage(url, body) {
     method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
   });
   if (!response.ok) throw new Error(await errorOf(response));
-  return [await response.blob(), response.headers.get("X-Tghop-Seed")];
+  const { blob, maps } = await answerOf(response);
+  return [blob, response.headers.get("X-Tghop-Seed"), maps];  // maps: materials painted or remixed
 }
 
 function onPaintGenerate(remix) {
@@ -785,8 +884,8 @@ function onPaintGenerate(remix) {
       body.transition = Number($("transition").value);
     }
     sayPaint(remix ? "remixing" : "generating");
-    const [blob, seed] = await postImage("/api/images/guided", body);
-    showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted");
+    const [blob, seed, maps] = await postImage("/api/images/guided", body);
+    showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps);
     sayPaint(`done (seed ${seed}): the result is below`);
   }, sayPaint);
 }
@@ -825,6 +924,9 @@ async function init() {
   select.addEventListener("change", () => fitBuiltin(select.value));
   $("file").addEventListener("change", (e) => fitFile(e.target.files[0]));
   $("model-file").addEventListener("change", (e) => uploadModel(e.target.files[0]));
+  $("maps").addEventListener("change", (e) => setMapFiles(e.target.files));
+  $("maps-clear").addEventListener("click", () => setMapFiles([]));
+  $("download-maps").addEventListener("click", downloadMaps);
   $("cancel").addEventListener("click", cancelFit);
   $("gen-form").addEventListener("submit", onGenerate);
   $("strip-go").addEventListener("click", onStrip);

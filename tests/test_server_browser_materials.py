@@ -1,0 +1,126 @@
+"""A whole material on ``tghop serve``'s page in a real browser (Chromium through Playwright)
+against a real uvicorn server: add two maps (one 16-bit), pick builtin:bricks as the albedo,
+generate, switch the map shown, download every map (the 16-bit one still 16-bit), pick one of
+8 seeds, and drop the maps again (a texture model)."""
+
+import io
+import os
+
+import pytest
+
+import chromium
+
+if chromium.missing():
+    pytest.skip(chromium.missing(), allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed: pip install -e '.[web-test]'")
+
+from conftest import FAST_FIT  # noqa: E402
+
+#: Where the test leaves a screenshot of the page (to look at).
+SCREENSHOT = os.environ.get("TGHOP_MATERIAL_SCREENSHOT", "/tmp/tghop-material-page.png")
+
+
+def png(pixels) -> bytes:
+    from tghop.imageio import write_png
+
+    buf = io.BytesIO()
+    write_png(buf, pixels)
+    return buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def page(live_server):
+    with sync_api.sync_playwright() as p:
+        browser = chromium.launch(p)
+        try:
+            page = browser.new_page(viewport={"width": 1200, "height": 1400}, accept_downloads=True)
+            errors = []
+            page.on("pageerror", lambda exc: errors.append(str(exc)))
+            page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+            page.goto(live_server.url + "/")
+            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
+            page.errors = errors
+            yield page
+        finally:
+            browser.close()
+
+
+def wait_fitted(page):
+    page.wait_for_selector("#fit-status:not([hidden])")
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
+    page.wait_for_selector("#summary:not([hidden])")
+
+
+def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
+    from tghop import data
+    from tghop.imageio import load_image, to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    maps = example_maps(data.builtin("bricks"))
+    normal, height = tmp_path / "bricks normal.png", tmp_path / "height.png"
+    normal.write_bytes(png(to_uint16(maps["normal"])))
+    height.write_bytes(png(to_uint8(maps["height"][..., 0])))
+    page.click("#fit-settings summary")
+    page.uncheck("#layout")
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", FAST_FIT[name])
+    page.set_input_files("#maps", [str(normal), str(height)])
+    assert page.text_content("#maps-list") == "maps: bricks_normal, height"
+    assert page.is_visible("#maps-clear")
+    page.select_option("#builtin", "bricks")
+    wait_fitted(page)
+    summary = page.text_content("#summary")
+    assert summary.startswith("material ")
+    assert "maps: albedo, 8-bit; bricks_normal (normal), 16-bit; height, 8-bit" in summary
+    page.wait_for_function("document.getElementById('quality').disabled")
+
+    page.fill("#height", "64")
+    page.fill("#width", "80")
+    page.fill("#seed", "3")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 3'")
+    assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == [
+        "albedo", "bricks_normal", "height"]
+    assert page.get_attribute("#download-png", "download") == "tghop-seed3.png"
+    page.locator("#maps-view label", has_text="bricks_normal").click()
+    page.wait_for_function("document.getElementById('result-caption').textContent"
+                           " === 'result (bricks_normal): 64x80, seed 3'")
+    assert page.get_attribute("#download-png", "download") == "tghop-seed3_bricks_normal.png"
+    page.wait_for_function("document.getElementById('tiled').width === 240")
+
+    downloads = []
+    page.on("download", lambda d: downloads.append(d))
+    page.click("#download-maps")
+    for _ in range(100):
+        if len(downloads) == 3:
+            break
+        page.wait_for_timeout(100)
+    names = sorted(d.suggested_filename for d in downloads)
+    assert names == ["tghop-seed3.png", "tghop-seed3_bricks_normal.png", "tghop-seed3_height.png"]
+    for d in downloads:
+        path = tmp_path / d.suggested_filename
+        d.save_as(path)
+        image, depth = load_image(path, dtype=None, with_depth=True)
+        assert image.shape[:2] == (64, 80)
+        assert depth == (16 if "normal" in d.suggested_filename else 8), d.suggested_filename
+    page.screenshot(path=SCREENSHOT, full_page=True)
+
+    page.click("#strip-go")
+    page.wait_for_function("document.querySelectorAll('#strip img').length === 8"
+                           " && document.getElementById('message').textContent === 'click a seed to pick it'",
+                           timeout=60_000)
+    page.click("#strip img[data-seed='5']")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 5'")
+    assert page.eval_on_selector_all("#maps-view input", "l => l.length") == 3
+
+    page.click("#maps-clear")  # the same exemplar fitted again without maps: a texture model
+    assert page.text_content("#maps-list") == ""
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('model ')", timeout=90_000)
+    assert not page.is_disabled("#quality")
+    page.fill("#seed", "3")  # picking seed 5 set it
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 3'"
+                           " && document.getElementById('maps-view').hidden")
+    assert page.is_hidden("#download-maps")
+    assert not page.errors, page.errors
