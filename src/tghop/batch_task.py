@@ -1,0 +1,187 @@
+"""The task :mod:`tghop.batch` runs per exemplar: fit its model (a texture model, or with maps
+a whole material, :class:`tghop.material.Material`) and write the model, its images and a
+thumbnail into the exemplar's folder, all together or none (:func:`process_exemplar`).
+
+A plain top-level function, so that Dask pickles it by reference; it never raises for bad
+input: a failure is a record with its one-line error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+from ._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
+from ._formats import is_model_file
+
+__all__ = ["process_exemplar", "remove_temporaries", "one_line", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
+
+#: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
+STAGE = (".partial.", ".tmp")
+#: Longest side of the exemplar thumbnail of the contact sheet, and its file in NAME/.
+THUMBNAIL, THUMBNAIL_FILE = 128, "exemplar.png"
+
+
+def _numbered(name: str, count: int):
+    if count == 1:
+        return [f"{name}.png"]
+    width = len(str(count))
+    return [f"{name}_{i:0{width}d}.png" for i in range(1, count + 1)]
+
+
+def remove_temporaries(folder) -> int:
+    """Remove what :func:`tghop.imageio.write_atomic` leaves when its process is killed
+    (``.NAME.*.tmp``) in ``folder``, and :func:`process_exemplar`'s folders of files not yet
+    moved into place (``.partial.*.tmp``); returns how many."""
+    removed = 0
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    for entry in entries:
+        if entry.name.startswith(STAGE[0]) and entry.name.endswith(STAGE[1]) and entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed += 1
+        elif entry.name.startswith(".") and entry.name.endswith((".tmp", ".probe")) and entry.is_file():
+            try:
+                os.unlink(entry.path)
+                removed += 1
+            except OSError:
+                pass
+    return removed
+
+
+def _thumbnail(image, path):
+    import numpy as np
+    from PIL import Image
+
+    from .imageio import save_image
+
+    arr = np.asarray(image)
+    pil = Image.fromarray(arr[..., 0] if arr.shape[2] == 1 else arr)
+    pil.thumbnail((THUMBNAIL, THUMBNAIL))
+    save_image(np.asarray(pil), path)
+
+
+def one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text if isinstance(exc, TGHopError) else f"{exc.__class__.__name__}: {text}"
+
+
+def process_exemplar(job: dict) -> dict:
+    """Fit one exemplar and write its model, images and thumbnail (a plain top-level
+    function, so that Dask pickles it by reference).
+
+    ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``, ``size``, ``count``,
+    ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's parameters), ``generate`` (keywords of
+    :meth:`TGHop.synthesize`), ``threads`` (threads at most, BLAS's and tghop's own:
+    :func:`tghop._common.limit_cores`; None: no limit).
+
+    Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``outputs``,
+    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (their messages),
+    times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
+    them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the worker and
+    its peak memory. Bad input is a "failed" record, never an exception. The files are made in a
+    hidden folder and moved into place together at the end: a failed or interrupted exemplar (Ctrl-C,
+    a killed worker: :func:`remove_temporaries`) leaves none of its own, and an earlier run's files of
+    it as they were.
+    """
+    import resource
+    import socket
+
+    start, cpu_start, usage = time.time(), time.process_time(), resource.getrusage(resource.RUSAGE_SELF)
+    folder = Path(job["folder"])
+    name = job["name"]
+    record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
+              "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
+              "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    stage, caught = None, []
+    try:
+        import numpy as np
+        from threadpoolctl import threadpool_limits
+
+        from ._common import limit_cores
+        from .fit_options import model_for
+        from .imageio import load_image, save_image
+        from .modelfile import save_model
+        from .synthesis import prepare_exemplar
+
+        folder.mkdir(parents=True, exist_ok=True)
+        remove_temporaries(folder)  # left by a worker killed while writing here
+        # Every file is made in a hidden folder of its own, then moved into place together
+        # once all are made: a failed, interrupted or killed task leaves none of its files
+        # (and the files of an earlier run of this exemplar as they were).
+        stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
+        with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")), \
+                warnings.catch_warnings(record=True) as caught:  # the ledger's, not a worker's stderr
+            warnings.simplefilter("always")
+            fit = job.get("fit") or {}
+            if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
+                raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
+            raw = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+            image = prepare_exemplar(raw)
+            model = model_for(fit, image.shape[2])
+            model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
+            t = time.time()
+            model.fit(image)
+            record["fit_seconds"] = time.time() - t
+            thumb = THUMBNAIL_FILE
+            _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8),
+                       stage / thumb)
+            model_file = f"{name}.npz"
+            save_model(model, stage / model_file)
+            seed = job.get("seed")
+            if seed is None:
+                seed = int(np.random.SeedSequence().generate_state(1)[0])
+            record["seed_used"] = seed
+            rng = np.random.default_rng(seed)
+            t = time.time()
+            outputs = []
+            for file in _numbered(name, job.get("count", 1)):
+                img = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.uint8, **(job.get("generate") or {}))
+                save_image(img, stage / file)
+                outputs.append(file)
+            record["synth_seconds"] = time.time() - t
+        for file in [*outputs, thumb, model_file]:
+            os.replace(stage / file, folder / file)
+        prefix = folder.name
+        record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_file}",
+                      thumbnail=f"{prefix}/{thumb}")
+    except MemoryError:
+        record["error"] = "out of memory; use a smaller size or exemplar, or fewer workers per machine"
+    except Exception as exc:  # noqa: BLE001 - one exemplar's failure is recorded, the batch goes on
+        record["error"] = one_line(exc)
+    finally:  # Ctrl-C (KeyboardInterrupt) and the command's SIGTERM too: they go on once this is done
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        if record["status"] != "ok":
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when empty
+    record["warnings"] = [str(w.message) for w in caught if issubclass(w.category, (UserWarning, RuntimeWarning))]
+    record["seconds"] = time.time() - start
+    record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
+    now = resource.getrusage(resource.RUSAGE_SELF)
+    record["sys_seconds"] = now.ru_stime - usage.ru_stime  # mostly page faults of fresh memory
+    record["page_faults"] = (now.ru_minflt + now.ru_majflt) - (usage.ru_minflt + usage.ru_majflt)
+    record["threads"] = job.get("threads")
+    record["peak_rss_mb"] = _peak_rss_mb(resource)
+    return record
+
+
+def _peak_rss_mb(resource) -> float:
+    """This process's peak resident memory in MB: VmHWM where Linux gives it, since
+    ``ru_maxrss`` survives fork and exec (a spawned Dask worker would report its parent's
+    peak when that is larger)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except (OSError, ValueError):
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
