@@ -99,6 +99,9 @@ def test_a_fit_with_maps_is_a_material_named_by_its_maps(client, material_id):
         {"name": "normal", "channels": 3, "normal": True, "depth": 16},
         {"name": "height", "channels": 1, "normal": False, "depth": 8}]
     assert summary["exemplar_shape"][:2] == [SIZE, SIZE]
+    # The joint model's channels are the defaults for its 7 stacked channels, as tghop fit --maps gives
+    # (K1 = 3 per channel), not those of a 3-colour exemplar (9)
+    assert summary["exemplar_shape"][2] == 7 and summary["channels"][0] == 21
     # The same albedo without maps is another model; the same maps again are the same material
     assert fit(client, {**albedo_file(), **map_files()}) == material_id
     plain = fit(client, albedo_file())

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from ._errors import TGHopError
 
-__all__ = ["OFF", "setting_value", "fit_params", "model_for", "build_model"]
+__all__ = ["OFF", "setting_value", "fit_params", "model_for", "material_model", "build_model"]
 
 
 class _Off:
@@ -96,6 +96,21 @@ def model_for(params: dict, n_colours: int = 3):
         defaults = default_channels(patch_size, n_colours)
         given = params.get("n_channels") or (None,) * len(defaults)
         params["n_channels"] = tuple(d if g is None else g for g, d in zip(given, defaults))
+    if params.get("rng") is None:
+        params["rng"] = 0
+    return TGHop(**params)
+
+
+def material_model(params: dict):
+    """The joint model of a whole material (:class:`tghop.material.Material`'s ``model``) from
+    TGHop's parameters (:func:`fit_params`): channel counts not given stay None, the default for
+    the stacked channels of the albedo and its maps, found at the fit (as ``tghop fit --maps``);
+    ``rng`` None is 0."""
+    from .synthesis import TGHop
+
+    params = dict(params)
+    if params.get("n_channels") is not None and all(g is None for g in params["n_channels"]):
+        params["n_channels"] = None
     if params.get("rng") is None:
         params["rng"] = 0
     return TGHop(**params)

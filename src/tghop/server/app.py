@@ -237,7 +237,7 @@ class Server:
         fitting the model (a TGHop, or with maps a Material); ``fit`` is None when the model is in the cache."""
         from .._errors import HINT_DOWNSCALE_YOURSELF
         from ..data import builtin
-        from ..fit_options import build_model
+        from ..fit_options import build_model, fit_params, material_model
         from ..imageio import load_image
         from ..material import Material
         from ..synthesis import prepare_exemplar
@@ -288,10 +288,11 @@ class Server:
         if uploads:
             maps, depths = materials.read_maps(
                 uploads, lambda data, filename: self._read_image(data, filename, read), image.shape)
-            model_id = materials.material_id(content, uploads, params, model_id_for)
+            joint = material_model(fit_params(options, api=True))  # channels for the maps too, as fit --maps
+            model_id = materials.material_id(content, uploads, joint.get_params(), model_id_for)
 
             def fit(progress):
-                return Material(model=model).fit(image, maps, depths={"albedo": depth, **depths}, progress=progress)
+                return Material(model=joint).fit(image, maps, depths={"albedo": depth, **depths}, progress=progress)
         else:
             model_id = model_id_for(content, params)
 
