@@ -38,8 +38,8 @@ from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
-           "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT", "WORKER_MALLOC",
-           "WORKER_ENVIRON", "tune_malloc", "dask_setup"]
+           "inputs_sha256", "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT",
+           "WORKER_MALLOC", "WORKER_ENVIRON", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
@@ -154,6 +154,22 @@ def find_work(source, outdir=None):
     else:
         raise TGHopError(f"{source}: no such folder or manifest; check the path")
     return _unique_names(items)
+
+
+def inputs_sha256(path, maps=()) -> str | None:
+    """What the ledger compares to know an exemplar unchanged: its file's SHA-256, or for a
+    material (``maps``: ``[(name, path)]``) the SHA-256 of the albedo's and each named map's
+    (None when one cannot be read)."""
+    first = file_sha256(path)
+    if not maps or first is None:
+        return first
+    h = hashlib.sha256(first.encode())
+    for name, file in maps:
+        digest = file_sha256(file)
+        if digest is None:
+            return None
+        h.update(f"\0{name}\0{digest}".encode())
+    return h.hexdigest()
 
 
 def file_sha256(path) -> str | None:
@@ -341,7 +357,7 @@ def dask_setup(worker):
     import PIL.Image  # noqa: F401
     import threadpoolctl  # noqa: F401
 
-    from . import fit_options, imageio, modelfile, synthesis  # noqa: F401
+    from . import batch_task, fit_options, imageio, material, modelfile, synthesis  # noqa: F401
 
 
 def tune_malloc(keep=()) -> bool:
@@ -377,7 +393,8 @@ def _cost(job) -> float:
     except Exception:  # noqa: BLE001 - not an image: it fails at once, last is fine
         return 0.0
     out = job["size"][0] * job["size"][1] * job["count"]
-    return 1.0 + 0.25 * min(pixels, 4 << 20) / (1 << 20) + 0.1 * out / (512 * 512)
+    maps = len(job.get("maps") or ())  # a material's joint fit and maps: about 1.6 times with three
+    return (1.0 + 0.25 * min(pixels, 4 << 20) / (1 << 20) + 0.1 * out / (512 * 512)) * (1 + 0.3 * maps)
 
 
 def _settings(item_settings, defaults, fit, generate):
@@ -414,7 +431,12 @@ def check_options(items, defaults, fit, generate) -> None:
 
     model = model_for(fit, 3)
     model.check_settings()  # what TGHop.fit checks first
-    overlap = check_settings(generate).get("overlap")
+    checked = check_settings(generate)
+    overlap = checked.get("overlap")
+    material = next((it for it in items if it.get("maps")), None)
+    if material is not None and checked.get("patch_refine"):
+        raise TGHopError(f"{material.get('where')}: a material (maps) has no patch statistics for --quality best or "
+                         "--patch-refine; drop them, or batch the materials apart")
     seen = set()
     for it in items:
         own = it["settings"]
@@ -527,8 +549,12 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     jobs, results = [], {}
     for it in items:
         settings = _settings(it["settings"], defaults, fit, generate)
+        maps = it.get("maps") or []
+        if maps:  # a material: its maps' names are settings too (none: the settings of a texture, as before)
+            settings["maps"] = [name for name, _ in maps]
         job = {"name": it["name"], "source": str(it["path"]), "folder": str(outdir / it["name"]),
-               "sha256": file_sha256(it["path"]), "settings": settings, "size": settings["size"],
+               "maps": [[name, str(file)] for name, file in maps],
+               "sha256": inputs_sha256(it["path"], maps), "settings": settings, "size": settings["size"],
                "count": settings["count"], "seed": settings["seed"], "fit": settings["fit"],
                "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1}
         if _is_done(previous.get(it["name"]), job, outdir):

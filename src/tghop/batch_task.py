@@ -68,6 +68,16 @@ def _thumbnail(image, path):
     save_image(np.asarray(pil), path)
 
 
+def _read_maps(maps, load_image) -> dict:
+    """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``)."""
+    out = {}
+    for name, file in maps or ():
+        if Path(file).suffix.lower() == ".npz" or is_model_file(file):
+            raise TGHopError(f"the map {name} ({file}) is a model file, not an image; list the map's image")
+        out[name] = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
+    return out
+
+
 def one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     return text if isinstance(exc, TGHopError) else f"{exc.__class__.__name__}: {text}"
@@ -80,7 +90,10 @@ def process_exemplar(job: dict) -> dict:
     ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``, ``size``, ``count``,
     ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's parameters), ``generate`` (keywords of
     :meth:`TGHop.synthesize`), ``threads`` (threads at most, BLAS's and tghop's own:
-    :func:`tghop._common.limit_cores`; None: no limit).
+    :func:`tghop._common.limit_cores`; None: no limit), ``maps`` (``[[name, file]]``: the exemplar
+    is the albedo of a whole material, :class:`tghop.material.Material`; each image is then the
+    albedo ``NAME.png`` and a file per map, ``NAME_<map>.png``, at the map's depth, as ``tghop
+    synth`` writes a material).
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``outputs``,
     ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (their messages),
@@ -106,8 +119,9 @@ def process_exemplar(job: dict) -> dict:
         from threadpoolctl import threadpool_limits
 
         from ._common import limit_cores
-        from .fit_options import model_for
-        from .imageio import load_image, save_image
+        from .fit_options import material_model, model_for
+        from .imageio import deepest, load_image, save_image
+        from .material import Material
         from .modelfile import save_model
         from .synthesis import prepare_exemplar
 
@@ -123,12 +137,19 @@ def process_exemplar(job: dict) -> dict:
             fit = job.get("fit") or {}
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
                 raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
-            raw = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+            raw, depth = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF,
+                                    with_depth=True)
             image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])
             model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
+            maps = _read_maps(job.get("maps"), load_image)
             t = time.time()
-            model.fit(image)
+            if maps:
+                model = Material(model=material_model(fit)).fit(
+                    image, {k: v for k, (v, _) in maps.items()},
+                    depths={"albedo": depth, **{k: d for k, (_, d) in maps.items()}})
+            else:
+                model.fit(image)
             record["fit_seconds"] = time.time() - t
             thumb = THUMBNAIL_FILE
             _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8),
@@ -143,6 +164,14 @@ def process_exemplar(job: dict) -> dict:
             t = time.time()
             outputs = []
             for file in _numbered(name, job.get("count", 1)):
+                if maps:  # the albedo at NAME.png, each map at NAME_<map>.png (a PNG holds 16 bits at most)
+                    made = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.float32,
+                                            **(job.get("generate") or {}))
+                    files = [file] + [f"{Path(file).stem}_{m}.png" for m in model.names_[1:]]
+                    for img, each, d in zip(made.values(), files, model.depths_):
+                        save_image(img, stage / each, depth=deepest(each, d))
+                    outputs.extend(files)
+                    continue
                 img = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.uint8, **(job.get("generate") or {}))
                 save_image(img, stage / file)
                 outputs.append(file)

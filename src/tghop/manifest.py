@@ -1,6 +1,7 @@
 """A ``tghop batch`` manifest: the exemplars to process, one row each, as CSV with a header
 line naming a ``path`` column, or as JSON lines ``{"path": ...}``; each row optionally
-with its own ``name`` and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
+with its own ``name``, ``maps`` (:func:`parse_maps`: the row is a whole material, ``path`` its
+albedo) and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
 
 Every bad row is a one-line :class:`~tghop.TGHopError` naming its line, before any work.
 Only the standard library is imported here (and, when called, :func:`tghop._common.check_size`,
@@ -18,10 +19,14 @@ from pathlib import Path
 from ._errors import TGHopError
 
 __all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int",
-           "parse_scale", "split_size"]
+           "parse_scale", "parse_maps", "split_size", "MAX_MAPS"]
 
 #: Per-exemplar settings a manifest row may give.
 ROW_SETTINGS = ("size", "count", "seed", "tile", "scale")
+#: Most maps of one material in a manifest row.
+MAX_MAPS = 16
+# A map's name names its output file (NAME_<map>.png): tghop.material's rule.
+_MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 
 
 def _shown(value, most: int = 60) -> str:
@@ -122,6 +127,47 @@ def parse_scale(value, where):
         raise TGHopError(f"{where}: {exc}") from None
 
 
+def parse_maps(value, where, base: Path) -> list:
+    """A row's ``maps``: the maps of a whole material whose albedo is the row's ``path``, as
+    ``[(name, Path)]``. JSON: an object ``{"normal": "rock_n.png", ...}`` or a list of paths;
+    CSV: paths separated by ``;``, each optionally ``name=path``. A map without a name is
+    named by its file's stem (as ``tghop fit --maps``). Relative paths are from ``base`` (the
+    manifest's folder). A name that cannot name a file, a name given twice (without case;
+    ``albedo`` is the exemplar's) or more than :data:`MAX_MAPS` maps is refused, naming the line."""
+    if isinstance(value, dict):
+        pairs = list(value.items())
+    elif isinstance(value, list):
+        pairs = [(None, v) for v in value]
+    elif isinstance(value, str):
+        pairs = []
+        for part in (s.strip() for s in value.split(";")):
+            if not part:
+                continue
+            name, eq, file = part.partition("=")
+            pairs.append((name.strip(), file.strip()) if eq else (None, part))
+    else:
+        raise TGHopError(f'{where}: maps {_shown(value)} must be paths separated by ";" (CSV), or a JSON object '
+                         '{"normal": "a_normal.png", ...} or list of paths')
+    out, seen = [], {"albedo"}
+    for name, file in pairs:
+        if not isinstance(file, str) or not file.strip():
+            raise TGHopError(f"{where}: the map {_shown(name if name is not None else file)} has no path; "
+                             "give each map's image file")
+        file = file.strip()
+        name = Path(file).stem if name is None else name
+        if not isinstance(name, str) or not _MAP_NAME.fullmatch(name):
+            raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
+                             "'_', '-' and '.' (name=path in CSV)")
+        if name.lower() in seen:
+            raise TGHopError(f"{where}: two maps are named {name!r} (or a map is named albedo, the exemplar's "
+                             "name); name each map once, e.g. normal=rock_n.png")
+        seen.add(name.lower())
+        out.append((name, Path(file) if os.path.isabs(file) else base / file))
+    if len(out) > MAX_MAPS:
+        raise TGHopError(f"{where}: {len(out)} maps; a material takes at most {MAX_MAPS}")
+    return out
+
+
 def manifest_rows(path: Path):
     """(line number, row dict) of a CSV or JSON-lines manifest."""
     try:
@@ -145,7 +191,7 @@ def manifest_rows(path: Path):
     header = [f.strip() for f in next(reader, [])]
     if "path" not in header:
         raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
-                         f"(and optionally {', '.join(ROW_SETTINGS)})")
+                         f"(and optionally name, maps, {', '.join(ROW_SETTINGS)})")
     twice = [f for i, f in enumerate(header) if f and f in header[:i]]
     if twice:
         raise TGHopError(f"{path}: the header names the column {twice[0]!r} twice; keep one")
@@ -169,10 +215,10 @@ def read_manifest(path: Path):
     items = []
     for number, row in manifest_rows(path):
         where = f"{path} line {number}"  # as manifest_rows names it
-        unknown = sorted(k for k in row if k not in ("path", "name") + ROW_SETTINGS)
+        unknown = sorted(k for k in row if k not in ("path", "name", "maps") + ROW_SETTINGS)
         if unknown:
             shown = ", ".join(k if k and k.strip() == k else repr(k) for k in unknown)
-            raise TGHopError(f"{where}: unknown column {shown}; a manifest gives path, name, "
+            raise TGHopError(f"{where}: unknown column {shown}; a manifest gives path, name, maps, "
                              f"{', '.join(ROW_SETTINGS)}")
         for key, example in (("path", "textures/a.png"), ("name", "bricks")):
             if row.get(key) is not None and not isinstance(row[key], str):  # JSON: not str() of a list
@@ -183,8 +229,11 @@ def read_manifest(path: Path):
             raise TGHopError(f"{where}: no path")
         file = Path(source) if os.path.isabs(source) else path.parent / source
         name = (row.get("name") or "").strip() or None
+        maps = row.get("maps")
+        maps = [] if maps is None or (isinstance(maps, str) and not maps.strip()) else parse_maps(
+            maps, where, path.parent)
         items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None, "given": name,
-                      "settings": row_settings(row, where), "where": where})
+                      "settings": row_settings(row, where), "maps": maps, "where": where})
     if not items:
         raise TGHopError(f"{path}: the manifest lists no exemplar")
     return items

@@ -56,9 +56,12 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
 
     SOURCE is a folder (every image in it, recursively) or a manifest: a CSV file with a
     'path' column, or JSON lines {"path": ...}; optional per-exemplar size, count, seed,
-    tile, scale (the working scale, as --scale) and name. A rerun skips exemplars already
-    done with the same input and settings. Exit status 1 when any exemplar failed (the
-    ledger and the summary say why).
+    tile, scale (the working scale, as --scale) and name. A row's 'maps' make it a whole
+    material whose albedo is 'path' (as tghop fit --maps): in CSV the maps' files separated
+    by ';', each optionally name=file (normal=rock_n.png;rock_h.png), in JSON an object
+    {"normal": "rock_n.png"} or a list; each image is then NAME.png and NAME_<map>.png. A
+    rerun skips exemplars already done with the same input (maps too) and settings. Exit
+    status 1 when any exemplar failed (the ledger and the summary say why).
     """
     from .. import batch as library
 

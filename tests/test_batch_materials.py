@@ -1,0 +1,159 @@
+"""Whole materials in ``tghop batch`` (issue #29's material library): a manifest row's ``maps``
+make it a material (:class:`tghop.material.Material`) whose albedo is its ``path``; each image
+is then the albedo and a file per map at the map's depth, the library's maps bit for bit; a
+rerun skips it until a map changes; bad maps are refused (the manifest's) or recorded (the
+task's); and the same on a real local Dask cluster.
+
+Exemplars and maps are made in code (no ../shared); fits use tiny settings.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from tghop import batch, data
+from tghop._errors import TGHopError
+from tghop.imageio import load_image, save_image, to_uint8
+from tghop.manifest import MAX_MAPS, parse_maps
+from tghop.material import example_maps
+from tghop.modelfile import load_model
+
+from test_cli_failures import assert_one_line, invoke
+
+FIT = dict(n_clusters=6, n_codewords=30, stride=4)
+GEN = dict(n_patches=300)
+SIZE = (40, 48)
+
+
+def make_material(d, stem="rock", size=64, rng=3):
+    """An albedo and its normal (16-bit) and height (8-bit) maps in ``d``."""
+    d.mkdir(parents=True, exist_ok=True)
+    albedo = data.bricks(size, rng=rng)
+    maps = example_maps(albedo)
+    save_image(albedo, d / f"{stem}.png")
+    save_image(maps["normal"], d / f"{stem}_n.png", depth=16)
+    save_image(maps["height"], d / f"{stem}_h.png")
+    return d
+
+
+def ledger(out):
+    return [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+
+
+def pixels(path):
+    image, depth = load_image(path, dtype=None, with_depth=True)
+    return image, depth
+
+
+@pytest.mark.parametrize("value, want", [
+    ("normal=rock_n.png; rock_h.png", [("normal", "rock_n.png"), ("rock_h", "rock_h.png")]),
+    ({"normal": "rock_n.png", "height": "sub/h.png"}, [("normal", "rock_n.png"), ("height", "sub/h.png")]),
+    (["rock_n.png", "/abs/h.png"], [("rock_n", "rock_n.png"), ("h", "/abs/h.png")]),
+])
+def test_a_rows_maps_are_named_and_found_beside_the_manifest(tmp_path, value, want):
+    got = parse_maps(value, "m.csv line 2", tmp_path)
+    assert got == [(n, tmp_path / f) for n, f in want]  # an absolute path stays itself
+
+
+@pytest.mark.parametrize("value, words", [
+    ("my map=a.png", ["the map name 'my map' cannot name a file"]),
+    ("albedo=a.png", ["two maps are named 'albedo'"]),
+    ("n=a.png;N=b.png", ["two maps are named 'N'"]),
+    ("normal=", ["the map 'normal' has no path"]),
+    (3, ["maps 3 must be paths separated by"]),
+    ({"normal": 5}, ["the map 'normal' has no path"]),
+    (";".join(f"m{i}.png" for i in range(MAX_MAPS + 1)), [f"a material takes at most {MAX_MAPS}"]),
+])
+def test_bad_maps_in_a_manifest_are_refused_naming_the_line(tmp_path, value, words):
+    with pytest.raises(TGHopError) as info:
+        parse_maps(value, "m.csv line 2", tmp_path)
+    message = str(info.value)
+    assert message.startswith("m.csv line 2: ") and "\n" not in message
+    for word in words:
+        assert word in message, message
+
+
+def test_a_material_row_writes_every_map_as_the_library_makes_them(tmp_path):
+    src = make_material(tmp_path / "src")
+    save_image(data.cells(64, rng=4), src / "cells.png")
+    (src / "list.csv").write_text("path,maps,count\nrock.png,normal=rock_n.png;rock_h.png,2\ncells.png,,1\n")
+    out = tmp_path / "out"
+    results = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert [r["status"] for r in results] == ["ok", "ok"], results
+    rock = results[0]
+    assert rock["settings"]["maps"] == ["normal", "rock_h"] and "maps" not in results[1]["settings"]
+    assert rock["outputs"] == ["rock/rock_1.png", "rock/rock_1_normal.png", "rock/rock_1_rock_h.png",
+                               "rock/rock_2.png", "rock/rock_2_normal.png", "rock/rock_2_rock_h.png"]
+    assert results[1]["outputs"] == ["cells/cells.png"]
+    material = load_model(out / rock["model"], material=True)
+    assert material.names_ == ["albedo", "normal", "rock_h"] and material.depths_ == [8, 16, 8]
+    rng = np.random.default_rng(5)  # the task's images, one generator after another
+    for i in (1, 2):
+        want = material.synthesize(SIZE, rng=rng, dtype=np.float32, tile=False, **GEN)
+        for name, suffix, depth in (("albedo", "", 8), ("normal", "_normal", 16), ("rock_h", "_rock_h", 8)):
+            image, got_depth = pixels(out / "rock" / f"rock_{i}{suffix}.png")
+            assert got_depth == depth
+            if depth == 8:
+                np.testing.assert_array_equal(to_uint8(image).ravel(), to_uint8(want[name]).ravel())
+            else:
+                np.testing.assert_allclose(image, want[name], atol=1 / 65535)
+    # A rerun skips it; a changed map redoes it alone; a map dropped removes its files
+    again = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert [r["skipped"] for r in again] == [True, True]
+    save_image(example_maps(data.bricks(64, rng=3))["height"] * 0.5, src / "rock_h.png")
+    again = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert [r["skipped"] for r in again] == [False, True]
+    (src / "list.csv").write_text("path,maps,count\nrock.png,normal=rock_n.png,2\ncells.png,,1\n")
+    again = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert [r["skipped"] for r in again] == [False, True]
+    assert sorted(p.name for p in (out / "rock").iterdir()) == [
+        "exemplar.png", "rock.npz", "rock_1.png", "rock_1_normal.png", "rock_2.png", "rock_2_normal.png"]
+    names = [rec["name"] for rec in ledger(out)]
+    assert names.count("rock") == 3 and names.count("cells") == 1
+
+
+def test_a_bad_map_is_recorded_and_the_rest_finish(tmp_path):
+    src = make_material(tmp_path / "src")
+    save_image(np.zeros((32, 32, 3)) + np.linspace(0, 1, 32)[:, None, None], src / "small.png")
+    (src / "notimage.png").write_bytes(b"not an image")
+    (src / "list.jsonl").write_text(
+        '{"path": "rock.png", "name": "wrong_size", "maps": {"height": "small.png"}}\n'
+        '{"path": "rock.png", "name": "not_image", "maps": ["notimage.png"]}\n'
+        '{"path": "rock.png", "name": "missing", "maps": ["nowhere.png"]}\n'
+        '{"path": "rock.png", "name": "good", "maps": {"normal": "rock_n.png"}}\n')
+    results = batch.run(src / "list.jsonl", tmp_path / "out", size=SIZE, seed=1, fit=FIT, generate=GEN, workers=1)
+    status = {r["name"]: (r["status"], r["error"]) for r in results}
+    assert status["good"] == ("ok", None)
+    assert "'height' is 32x32 but the albedo is 64x64" in status["wrong_size"][1]
+    assert "notimage.png" in status["not_image"][1]
+    assert "nowhere.png" in status["missing"][1]
+    for name in ("wrong_size", "not_image", "missing"):
+        assert status[name][0] == "failed" and "\n" not in status[name][1]
+        assert not (tmp_path / "out" / name).exists()
+
+
+def test_quality_best_with_a_material_is_refused_before_any_work(tmp_path):
+    src = make_material(tmp_path / "src")
+    (src / "list.csv").write_text("path,maps\nrock.png,rock_n.png\n")
+    code, _, err, exc = invoke("batch", "src/list.csv", "-o", "out", "--quality", "best", "--workers", "1", "-q",
+                               cwd=tmp_path)
+    assert_one_line(code, err, "line 2: a material (maps) has no patch statistics", exception=exc)
+    assert not (tmp_path / "out").exists()
+
+
+def test_materials_on_a_local_dask_cluster(tmp_path):
+    pytest.importorskip("distributed", reason="the batch extra is not installed: pip install -e '.[batch]'")
+    src = make_material(tmp_path / "src")
+    make_material(tmp_path / "src", stem="wall", rng=7)
+    (src / "list.csv").write_text("path,maps\nrock.png,normal=rock_n.png;height=rock_h.png\n"
+                                  "wall.png,normal=wall_n.png\n")
+    results = batch.run(src / "list.csv", tmp_path / "out", size=SIZE, seed=2, fit=FIT, generate=GEN, workers=2)
+    assert [r["status"] for r in results] == ["ok", "ok"], results
+    assert results[0]["outputs"] == ["rock/rock.png", "rock/rock_normal.png", "rock/rock_height.png"]
+    assert results[1]["outputs"] == ["wall/wall.png", "wall/wall_normal.png"]
+    assert all(r["threads"] == 1 for r in results)  # a cluster's task: one thread
+    one = batch.run(src / "list.csv", tmp_path / "one", size=SIZE, seed=2, fit=FIT, generate=GEN, workers=1)
+    for a, b in zip(results, one):  # a worker's maps are the same bytes as in process
+        for f, g in zip(a["outputs"], b["outputs"]):
+            assert (tmp_path / "out" / f).read_bytes() == (tmp_path / "one" / g).read_bytes(), f
