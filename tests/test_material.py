@@ -72,6 +72,13 @@ def test_a_material_at_a_working_scale_learns_every_map_there(exemplar, maps):
     np.testing.assert_allclose(lengths, 1.0, atol=1e-6)
 
 
+def test_channel_counts_not_given_are_the_stacked_channels_defaults(exemplar, maps):
+    # 3 + 3 + 1 + 1 stacked channels: K2 by default 22 * 8 / 3 -> 59, with K1 given (tghop fit --k1 alone)
+    material = Material(model=TGHop(n_channels=(20, None), **FAST), rng=0).fit(exemplar, maps)
+    assert material.model_.channels_ == [20, 59]
+    assert Material(model=TGHop(**FAST), rng=0).fit(exemplar, maps).model_.channels_ == [24, 59]
+
+
 def test_same_seed_same_maps(material):
     a, b = material.synthesize(SIZE, rng=5, **POOL), material.synthesize(SIZE, rng=5, **POOL)
     assert all(np.array_equal(a[k], b[k]) for k in a)

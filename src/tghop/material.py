@@ -36,7 +36,7 @@ from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, ch
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
-from .synthesis import TGHop, prepare_exemplar
+from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "ALBEDO"]
 
@@ -137,8 +137,8 @@ class Material(BaseEstimator):
     ----------
     model : TGHop, optional
         Its settings are those of the joint model (default: ``TGHop()``'s); it is not
-        changed (a copy is fitted). ``n_channels`` None: the default for the stacked
-        channel count (:func:`tghop.synthesis.default_channels`).
+        changed (a copy is fitted). ``n_channels`` None, or entries of it None: the default
+        for the stacked channel count (:func:`tghop.synthesis.default_channels`).
     normal : "auto", str or sequence of str
         Which maps are normal maps: by name ("auto", :func:`is_normal_name`), or the map
         of this name, or the maps of these names (``[]``: none). A single string other than
@@ -278,6 +278,10 @@ class Material(BaseEstimator):
         if settings.recorded_seed(params["rng"]) is None:  # an int seed stays one: the model file records it
             params["rng"] = check_rng(params["rng"])
         params["patch_levels"] = 0  # the patch refinement does not apply to materials
+        given = params.get("n_channels")
+        if given is not None and any(k is None for k in given):  # some given (--k1 alone): the rest by default
+            defaults = default_channels(params["patch_size"], stack.shape[2])
+            params["n_channels"] = tuple(d if k is None else k for k, d in zip(given, defaults))
         self.model_ = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
         scale = self.model_.scale  # each map's bands at the joint model's working scale
         ex = None if exclude is None else rescale_mask(np.asarray(exclude, dtype=bool), scale)
