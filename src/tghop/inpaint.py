@@ -62,8 +62,8 @@ from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
 from .seams import SCREENING, SeamSteps, local_means
 from .settings import BY_NAME, check_settings
 
-__all__ = ["inpaint", "extend", "expand_canvas", "ANCHORS", "check_hole", "require_hole", "split_alpha", "with_alpha",
-           "refine_hole"]
+__all__ = ["inpaint", "inpaint_material", "extend", "expand_canvas", "ANCHORS", "check_hole", "require_hole",
+           "split_alpha", "with_alpha", "refine_hole"]
 
 #: Pixels around the hole's bounding box that the patch refinement sees with it.
 PATCH_MARGIN = 64
@@ -212,7 +212,7 @@ def _working_image(image, n_channels):
     arr = np.asarray(image)
     if arr.ndim == 2:
         arr = arr[:, :, None]
-    if arr.ndim != 3 or arr.shape[2] not in (1, 3):
+    if arr.ndim != 3 or arr.shape[2] not in (1, 3, n_channels):  # n_channels: a material's stacked maps
         raise TGHopError(f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {np.asarray(image).shape}")
     arr = checked_image(arr, "inpaint", only_uint8=True, empty=False)
     work = arr.astype(np.float32) / np.float32(255.0) if arr.dtype == np.uint8 else arr.astype(np.float32)
@@ -376,6 +376,96 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         out[hole] = np.round(np.clip(values.astype(np.float64), 0.0, 1.0) * 255.0).astype(np.uint8)
     else:
         out[hole] = np.clip(values.astype(np.float64), 0.0, 1.0)
+    return out
+
+
+def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, blend=3, progress=None, **options):
+    """Fill the same hole in every map of a whole material's picture (its albedo and maps,
+    aligned) with the material's texture: one fill of the maps stacked, as the material
+    generates them, so that what is filled in each map belongs with the others.
+
+    The stacked maps are filled by :func:`inpaint` with the material's joint model (its
+    pool, seams and coarse layout); then each map is refined in the hole by its own band
+    statistics, as :meth:`tghop.material.Material.synthesize` refines it, and a normal
+    map's filled pixels are made unit vectors again. Every pixel outside the hole is kept
+    exactly.
+
+    Parameters
+    ----------
+    material : tghop.material.Material
+        Fitted, e.g. on the picture's maps with ``exclude=mask``.
+    images : dict of str to ndarray
+        Each map of ``material.names_`` (the albedo first) -> (H, W) or (H, W, C) uint8 or
+        float in [0, 1], all of one height and width; a map's channels are the material's
+        (a grey map may come as three equal channels).
+    mask : array_like, shape (H, W)
+        The hole, as :func:`inpaint` takes it.
+    rng, tile, refine, blend, progress
+        As :func:`inpaint` (``refine``: each map's rounds; progress: "refine" counts maps).
+    **options
+        Further keywords of :func:`inpaint` (``n_patches``, ``tolerance``, ``detail``,
+        ``flat_share``, ``layout_weight``, ``order``, ``seam_window``); a material has no
+        patch statistics, so no ``patch_refine``.
+
+    Returns
+    -------
+    dict of str to ndarray
+        Each map filled, in ``material.names_``'s order: its own shape, uint8 kept (known
+        pixels the same bytes), else float64 (the same values).
+    """
+    from collections.abc import Mapping
+
+    from .material import Material, renormalise
+
+    if not isinstance(material, Material):
+        raise TGHopError(f"inpaint_material takes a tghop.material.Material, got {type(material).__name__}; "
+                         "a texture model fills with inpaint")
+    check_is_fitted(material, "model_")
+    check_keywords(options, inpaint, where="inpaint_material",
+                   exclude=("model", "image", "mask", "rng", "tile", "progress", "refine", "blend", "patch_refine"))
+    names = material.names_
+    if not isinstance(images, Mapping) or sorted(images) != sorted(names):
+        given = ", ".join(map(str, images)) if isinstance(images, Mapping) else type(images).__name__
+        raise TGHopError(f"images must be a dict of the material's maps, {', '.join(names)}; got {given}")
+    refine, blend = check_int(refine, "refine", 0, where="inpaint_material"), check_int(blend, "blend", 0)
+    works, greys = [], []
+    for name, c in zip(names, material.map_channels_):
+        arr = np.asarray(images[name])
+        try:
+            work, grey = _working_image(arr, c)
+        except TGHopError as exc:
+            raise TGHopError(f"map {name}: {exc}") from None
+        if works and work.shape[:2] != works[0].shape[:2]:
+            raise TGHopError(f"map {name} is {work.shape[0]}x{work.shape[1]} but the albedo is "
+                             f"{works[0].shape[0]}x{works[0].shape[1]}; give every map at the albedo's size")
+        works.append(work)
+        greys.append(grey)
+    hole = check_hole(mask, works[0].shape[:2])
+    stack = np.concatenate(works, axis=2)
+    filled = inpaint(material.model_, stack, hole, rng=rng, tile=tile, refine=0, patch_refine=0, progress=progress,
+                     **options).astype(np.float32)
+    alpha = None
+    if refine and blend and hole.any():
+        alpha = np.clip(_distance_to_known(hole, tile) / (blend + 1), 0.0, 1.0).astype(np.float32)[..., None]
+    out = {}
+    for i, (name, part) in enumerate(zip(names, material.map_slices())):
+        img = np.ascontiguousarray(filled[..., part])
+        if refine and hole.any():
+            refined = refine_hole(img, hole, material.bands_[i], n_iter=refine, tile=tile)
+            img = refined if alpha is None else img + alpha * (refined - img)
+        if material.normal_[i]:
+            img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
+        original = np.asarray(images[name])
+        values = img[hole]
+        if greys[i]:
+            values = np.repeat(values, 3, axis=1)
+        result = original.copy() if original.dtype == np.uint8 else original.astype(np.float64)
+        if result.ndim == 2:
+            values = values[:, 0]
+        result[hole] = (np.round(np.clip(values, 0.0, 1.0) * 255.0).astype(np.uint8) if result.dtype == np.uint8
+                        else np.clip(values.astype(np.float64), 0.0, 1.0))
+        out[name] = result
+        report(progress, "refine", i + 1, len(names))
     return out
 
 

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
@@ -10,7 +12,7 @@ from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
-__all__ = ["inpaint", "extend", "ANCHOR_CHOICES"]
+__all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
 
 #: ``--anchor``'s values: :data:`tghop.inpaint.ANCHORS` (not imported: the command line
 #: starts without NumPy; a test checks that the two agree).
@@ -41,16 +43,25 @@ def _fill_options(fitted_on: str, tile_help: str):
     return apply
 
 
+MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} are its maps (normal, roughness, "
+             "height, ...: of IMAGE's size, aligned), {what} alike; each written as OUT_<map>.EXT at its depth. "
+             "Without --source the material is fitted on them (each map named by its file stem); a saved material "
+             "(tghop fit ALBEDO --maps ...) as --source takes its maps in its order.")
+
+
 @click.command()
 @click.argument("image")
 @click.argument("mask")
+@click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True,
               help=f"{OUTPUT_HELP}; .png keeps every pixel outside the hole bit for bit; - writes PNG "
                    "to stdout).")
+@click.option("--maps", "with_maps", is_flag=True, help=MAPS_HELP.format(after="MASK", what="filled in the same hole"))
 @_fill_options("the part of IMAGE outside the hole", "IMAGE wraps around: the fill continues across its edges.")
-def inpaint(image, mask, output, source, scale, seed, tile, quiet, depth):
+def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
+    With --maps, the same hole in every map of a whole material.
 
     Without --source the model is fitted on IMAGE's patches that do not touch the hole.
 
@@ -62,6 +73,10 @@ def inpaint(image, mask, output, source, scale, seed, tile, quiet, depth):
 
     progress = Progress(not quiet)
     with user_errors(progress):
+        _check_maps(map_paths, with_maps, "MASK")
+        if with_maps:
+            _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, mask=mask)
+            return
         picture, alpha, depth, source_is_model = _open(image, output, source, scale, depth, others=[("MASK", mask)])
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
@@ -76,17 +91,19 @@ def inpaint(image, mask, output, source, scale, seed, tile, quiet, depth):
 
 @click.command()
 @click.argument("image")
+@click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True,
               help=f"{OUTPUT_HELP}; .png keeps IMAGE's pixels bit for bit; - writes PNG to stdout).")
+@click.option("--maps", "with_maps", is_flag=True, help=MAPS_HELP.format(after="IMAGE", what="grown"))
 @click.option("--size", type=Size(), required=True,
               help="HEIGHTxWIDTH of the result, at least IMAGE's in both (e.g. 1024x2048).")
 @click.option("--anchor", type=click.Choice(ANCHOR_CHOICES, case_sensitive=False), default="center",
               show_default=True, help="Where IMAGE stays on the larger canvas: top-left grows it to the right and "
                                       "downwards, center evenly all round.")
 @_fill_options("IMAGE", "The result tiles seamlessly: the fill continues across its edges.")
-def extend(image, output, size, anchor, source, scale, seed, tile, quiet, depth):
+def extend(image, map_paths, output, with_maps, size, anchor, source, scale, seed, tile, quiet, depth):
     """Grow IMAGE to --size: IMAGE stays as it is at --anchor, and the new area is filled
-    with texture that continues it (outpainting).
+    with texture that continues it (outpainting). With --maps, every map of a whole material.
 
     Without --source the model is fitted on IMAGE. An alpha channel of IMAGE is kept
     (PNG, TIFF), the new area opaque.
@@ -95,6 +112,11 @@ def extend(image, output, size, anchor, source, scale, seed, tile, quiet, depth)
 
     progress = Progress(not quiet)
     with user_errors(progress):
+        _check_maps(map_paths, with_maps, "IMAGE")
+        if with_maps:
+            _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress,
+                           grow=(size, anchor.lower()))
+            return
         picture, alpha, depth, source_is_model = _open(image, output, source, scale, depth, others=[])
         canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
         if alpha is not None:
@@ -105,6 +127,15 @@ def extend(image, output, size, anchor, source, scale, seed, tile, quiet, depth)
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}, written to {output}",
                    err=True)
+
+
+def _check_maps(map_paths, with_maps, last):
+    """MAPs only with --maps (a stray argument is most likely a typo), and --maps with some."""
+    if map_paths and not with_maps:
+        raise TGHopError(f"an argument too many after {last} ({map_paths[0]}); to fill a whole material's maps "
+                         f"too, give them after --maps")
+    if with_maps and not map_paths:
+        raise TGHopError("--maps without maps; give the map images after it")
 
 
 def _open(image, output, source, scale, depth, *, others):
@@ -209,3 +240,97 @@ def _with_alpha(result, alpha, hole, image, output):
                       f"{extensions(['PNG', 'TIFF'])} to keep it)")
         return result
     return with_alpha(result, alpha, hole)
+
+
+def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, *, mask=None, grow=None):
+    """``inpaint --maps`` (``mask``) or ``extend --maps`` (``grow``: ``(size, anchor)``): IMAGE
+    and its maps filled alike (:func:`tghop.inpaint.inpaint_material`) and written together,
+    OUT and OUT_<map>.EXT, each at its file's depth (or ``depth``)."""
+    import numpy as np
+
+    from ..imageio import check_depth, deepest, load_image, save_images
+    from ..inpaint import expand_canvas, inpaint_material, require_hole
+
+    if output == "-":
+        raise TGHopError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
+    if source is not None and not (source.lower().endswith(".npz") or is_model_file(source)):
+        raise TGHopError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit ALBEDO "
+                         "--maps ...), or leave --source out to fit one on IMAGE and its maps")
+    others = ([] if mask is None else [("MASK", mask)]) + [("MAP", m) for m in map_paths]
+    picture, alpha, depth_albedo, _ = _open(image, output, source, scale, depth, others=others)
+    material = None
+    if source is not None:
+        from ..modelfile import load_model
+
+        material = load_model(source, material=True)
+        if not hasattr(material, "names_"):
+            raise TGHopError(f"--source {source} is a texture model; with --maps give a saved material (tghop fit "
+                             "ALBEDO --maps ...), or leave --source out")
+        if len(map_paths) != len(material.names_) - 1:
+            raise TGHopError(f"--source {source} is a material of {len(material.names_) - 1} maps "
+                             f"({', '.join(material.names_[1:])}) but {len(map_paths)} were given; give its maps "
+                             "after --maps, in that order")
+    names = material.names_[1:] if material is not None else [Path(m).stem for m in map_paths]
+    seen = {"albedo"}
+    for name, path in zip(names, map_paths):
+        if name.lower() in seen:
+            raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
+                             f"OUT_{name}.png); rename one")
+        seen.add(name.lower())
+    plan = [("albedo", output, depth_albedo)]
+    maps, depths = {}, {}
+    for name, path in zip(names, map_paths):
+        if is_model_file(path):
+            raise TGHopError(f"MAP {path} is a model file, not an image; give the map's image")
+        maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+        if maps[name].shape[:2] != picture.shape[:2]:
+            raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
+                             f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")
+        p = Path(output)
+        out = str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
+        plan.append((name, out, check_depth(out, depth or deepest(out, depths[name]))))
+    for _, out, _ in plan[1:]:
+        check_output(out)
+    check_outputs([("-o", out) for _, out, _ in plan], [("IMAGE", image), ("--source", source)] + others)
+    if grow is not None:
+        canvas, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
+        images = {"albedo": canvas, **{k: expand_canvas(v, grow[0], anchor=grow[1])[0] for k, v in maps.items()}}
+        if alpha is not None:
+            alpha = expand_canvas(alpha, grow[0], anchor=grow[1])[0]
+    else:
+        hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
+        require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
+        images = {"albedo": picture, **maps}
+    rng = np.random.default_rng(seed)
+    if material is None:
+        material = _fit_material(picture, maps, depths, depth_albedo, None if grow is not None else hole, image, rng,
+                                 progress)
+    _check_size(image, picture.shape, material.model_.patch_size,
+                " of --source's material" if source is not None else "")
+    filled = inpaint_material(material, images, hole, rng=rng, tile=tile, progress=progress,
+                              **({"order": "raster"} if grow is not None else {}))
+    progress.close()
+    filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, output)
+    save_images([(filled[name], out, d) for name, out, d in plan])
+    what = (f"{int(hole.sum()):,} pixels filled" if grow is None
+            else f"{picture.shape[0]}x{picture.shape[1]} extended to {grow[0][0]}x{grow[0][1]}")
+    click.echo(f"{what} in {len(plan)} maps, written to {', '.join(out for _, out, _ in plan)}", err=True)
+
+
+def _fit_material(picture, maps, depths, depth_albedo, hole, image, rng, progress):
+    """The material fitted on IMAGE's ``picture`` and ``maps`` outside ``hole`` (None: all)."""
+    from ..fit_options import fit_params, material_model
+    from ..material import Material
+    from ..patches import ExemplarTooSmallError, TooLittleTextureError
+
+    try:
+        return Material(model=material_model(fit_params({})), rng=rng).fit(
+            picture, maps, exclude=hole, depths={"albedo": depth_albedo, **depths}, progress=progress)
+    except ExemplarTooSmallError as exc:
+        raise TGHopError(f"IMAGE {image} is {picture.shape[0]}x{picture.shape[1]} pixels, too small to fit a "
+                         f"material on (at least {exc.least_side}x{exc.least_side} pixels); give --source (a saved "
+                         "material of the same texture) or a larger IMAGE") from None
+    except TooLittleTextureError as exc:
+        raise TGHopError(f"the hole leaves too little of IMAGE {image} to fit a material on: {exc.n_patches} "
+                         f"training patches of {exc.patch_size}x{exc.patch_size} avoid it, at least {exc.need} are "
+                         "needed; give --source (a saved material) or paint a smaller hole") from None

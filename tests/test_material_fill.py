@@ -1,0 +1,171 @@
+"""A whole material's hole filled, or its picture grown, in every map alike
+(:func:`tghop.inpaint.inpaint_material`, ``tghop inpaint/extend IMAGE ... --maps``): known
+pixels kept exactly, the maps' fills aligned as the material's own images are, normal maps
+unit vectors, and each bad input one line with no file written."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from tghop import TGHop, TGHopError, data
+from tghop.cli import main
+from tghop.imageio import load_image, save_image, to_uint8
+from tghop.inpaint import inpaint_material
+from tghop.material import Material, example_maps
+from tghop.modelfile import save_model
+
+FAST = dict(max_patches=1500, n_clusters=10, layout_factor=None)
+SIZE = 128
+
+
+@pytest.fixture(scope="module")
+def picture():
+    """An albedo (uint8) and its maps (floats), with a hole."""
+    albedo = data.bricks(SIZE, rng=5)
+    maps = example_maps(albedo)
+    hole = np.zeros((SIZE, SIZE), dtype=bool)
+    hole[44:84, 40:96] = True
+    return {"albedo": to_uint8(albedo), **maps}, hole
+
+
+@pytest.fixture(scope="module")
+def material(picture):
+    images, hole = picture
+    maps = {k: v for k, v in images.items() if k != "albedo"}
+    return Material(model=TGHop(**FAST), rng=0).fit(images["albedo"], maps, exclude=hole)
+
+
+def _corr(a, b):
+    return float(np.corrcoef(np.ravel(a), np.ravel(b))[0, 1])
+
+
+def test_every_map_is_filled_alike_and_the_rest_kept(material, picture):
+    images, hole = picture
+    out = inpaint_material(material, images, hole, rng=1, n_patches=1500)
+    assert list(out) == ["albedo", "normal", "roughness", "height"]
+    assert out["albedo"].dtype == np.uint8 and out["height"].dtype == np.float64
+    for name, image in images.items():
+        assert out[name].shape == image.shape
+        np.testing.assert_array_equal(out[name][~hole], image[~hole])  # bit for bit
+        assert not np.array_equal(out[name][hole], image[hole])
+    n = out["normal"][hole] * 2 - 1
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-6)
+    # The fill's height goes with its albedo's brightness as the picture's does (the maps are aligned);
+    # a height filled on its own would not
+    lum = out["albedo"][hole].mean(axis=1)
+    inside, outside = _corr(lum, out["height"][hole]), _corr(images["albedo"][~hole].mean(axis=1),
+                                                              images["height"][~hole])
+    assert inside > 0.6 and outside > 0.6, (inside, outside)
+    again = inpaint_material(material, images, hole, rng=1, n_patches=1500)
+    for name in out:
+        np.testing.assert_array_equal(again[name], out[name])
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda im: {k: v for k, v in im.items() if k != "height"}, "dict of the material's maps, albedo, normal"),
+    (lambda im: {**im, "height": im["height"][:100]}, "map height is 100x128 but the albedo is 128x128"),
+    (lambda im: {**im, "roughness": np.repeat(im["roughness"], 3, axis=2) * [1, 0.5, 0.2]},
+     "map roughness: the model is greyscale but the image has colour"),
+])
+def test_bad_maps_are_refused_naming_them(material, picture, change, words):
+    images, hole = picture
+    with pytest.raises(TGHopError, match=words):
+        inpaint_material(material, change(images), hole, rng=1)
+    with pytest.raises(TGHopError, match="a texture model fills with inpaint"):
+        inpaint_material(material.model_, images, hole)
+    with pytest.raises(TGHopError, match="patch_refine"):
+        inpaint_material(material, images, hole, patch_refine=4)
+
+
+def _write(folder, picture):
+    images, hole = picture
+    save_image(images["albedo"], folder / "wall.png")
+    save_image(images["normal"], folder / "wall_normal.png", depth=16)
+    save_image(images["height"], folder / "h.png")
+    save_image(hole.astype(float), folder / "mask.png")
+
+
+def run(*args):
+    result = CliRunner().invoke(main, [*args, "-q"], catch_exceptions=False)
+    return result.exit_code, result.output
+
+
+def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _write(tmp_path, picture)
+    images, hole = picture
+    mat = Material(model=TGHop(**FAST), rng=0).fit(
+        images["albedo"], {"wall_normal": images["normal"], "h": images["height"]}, exclude=hole)
+    save_model(mat, tmp_path / "mat.npz")
+    code, out = run("inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png",
+                    "--source", "mat.npz", "-o", "out.png", "--seed", "3")
+    assert code == 0, out
+    albedo = load_image("out.png", dtype=None)
+    np.testing.assert_array_equal(albedo[~hole], images["albedo"][~hole])
+    normal, depth = load_image("out_wall_normal.png", dtype=None, with_depth=True)
+    assert depth == 16 and normal.shape == (SIZE, SIZE, 3)
+    height, depth = load_image("out_h.png", dtype=None, with_depth=True)
+    assert depth == 8 and height.shape == (SIZE, SIZE, 1)
+    code, out = run("extend", "wall.png", "--maps", "wall_normal.png", "h.png", "--source", "mat.npz",
+                    "-o", "big.png", "--size", "128x192", "--anchor", "left", "--seed", "3")
+    assert code == 0, out
+    big = load_image("big.png", dtype=None)
+    assert big.shape == (SIZE, 192, 3)
+    np.testing.assert_array_equal(big[:, :SIZE], images["albedo"])
+    assert load_image("big_h.png").shape == (SIZE, 192, 1)
+
+
+def test_cli_inpaint_with_maps_fits_a_material_on_the_picture(tmp_path):
+    albedo = data.bricks(192, rng=2)
+    maps = example_maps(albedo)
+    save_image(albedo, tmp_path / "a.png")
+    save_image(maps["height"], tmp_path / "a_height.png")
+    hole = np.zeros((192, 192))
+    hole[80:120, 60:130] = 1
+    save_image(hole, tmp_path / "m.png")
+    result = CliRunner().invoke(main, ["inpaint", str(tmp_path / "a.png"), str(tmp_path / "m.png"), "--maps",
+                                       str(tmp_path / "a_height.png"), "-o", str(tmp_path / "o.png"), "--seed", "1"])
+    assert result.exit_code == 0, result.output
+    assert "2,800 pixels filled in 2 maps, written to" in result.output
+    assert load_image(tmp_path / "o_a_height.png").shape == (192, 192, 1)
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory, picture):
+    """The picture's files, a saved material of two maps and a texture model."""
+    d = tmp_path_factory.mktemp("fill")
+    _write(d, picture)
+    (d / "sub").mkdir()
+    save_image(picture[0]["height"], d / "sub" / "h.png")
+    save_image(picture[0]["height"][:64], d / "small.png")
+    two = Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {
+        "wall_normal": picture[0]["normal"], "h": picture[0]["height"]})
+    save_model(two, d / "mat.npz")
+    save_model(TGHop(**FAST).fit(picture[0]["albedo"]), d / "tex.npz")
+    return d
+
+
+@pytest.mark.parametrize("args, words", [
+    (["inpaint", "wall.png", "mask.png", "h.png", "-o", "o.png"], "an argument too many after MASK (h.png)"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "-o", "o.png"], "--maps without maps"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "-o", "-"], "a file per map"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "wall.png", "-o", "o.png"],
+     "--source wall.png is an exemplar"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "mat.npz", "-o", "o.png"],
+     "a material of 2 maps (wall_normal, h) but 1 were given"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "small.png", "-o", "o.png"], "MAP small.png is 64x128"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/h.png", "-o", "o.png"], "two maps are named 'h'"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "tex.npz", "-o", "o.png"],
+     "--source tex.npz is a texture model"),
+    (["extend", "wall.png", "h.png", "--size", "200x200", "-o", "o.png"], "an argument too many after IMAGE"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "mat.npz", "h.png", "--source", "mat.npz", "-o", "o.png"],
+     "MAP mat.npz is a model file"),
+])
+def test_cli_bad_input_with_maps_is_one_line_and_writes_nothing(folder, monkeypatch, args, words):
+    monkeypatch.chdir(folder)
+    before = sorted(p.name for p in folder.rglob("*"))
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code != 0
+    text = result.output.strip()
+    assert "\n" not in text and "Traceback" not in text and words in text, text
+    assert sorted(p.name for p in folder.rglob("*")) == before
