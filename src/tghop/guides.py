@@ -13,7 +13,8 @@ import numpy as np
 from ._arrays import check_int
 from ._common import TGHopError, check_size
 
-__all__ = ["guide_labels", "FEW_LEVELS", "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE"]
+__all__ = ["guide_labels", "FEW_LEVELS", "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE",
+           "SNAP_TIE"]
 
 #: A guide with more distinct levels than inputs (not soft edges of its levels) and at most
 #: this many was painted with one level per texture (more inputs wanted); more is a picture.
@@ -31,6 +32,10 @@ SNAP_BLOCK = 5
 #: a photograph's smooth areas take any value: at most 64 % of them on the 44 exemplars).
 SNAP_FLAT = 0.02
 SNAP_FLAT_SHARE = 0.8
+#: The levels of such a guide whose means (then R, G or B) lie within this of each other (0-1 units,
+#: about 2 of 255) are ranked as equal there: a JPEG file moves a level's commonest value by a
+#: level or two (pure red, green and blue, of equal means, read as 254, 0, 2 and 1, 254, 0).
+SNAP_TIE = 0.008
 
 
 def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide") -> np.ndarray:
@@ -42,8 +47,10 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     rule. A guide with more distinct values than models whose pixels lie, but for a few, near
     as many flat levels as models is such a map with soft (antialiased) or JPEG edges: its
     levels are those, and a pixel of an edge's blend takes the nearest level's region
-    (:data:`SNAP_DISTANCE`). Any other guide with more distinct values than models (a smooth
-    picture, or too few models given) or fewer is refused, naming the counts and the likely fix.
+    (:data:`SNAP_DISTANCE`); its levels' means (then R, G, B) within :data:`SNAP_TIE` of each
+    other count as equal (a JPEG file's noise), the exact values deciding only after. Any other
+    guide with more distinct values than models (a smooth picture, or too few models given) or
+    fewer is refused, naming the counts and the likely fix.
 
     Parameters
     ----------
@@ -80,11 +87,13 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
                          "paint the guide at the output size (or leave the size out to take the guide's)")
     values, labels = _distinct(arr)
     n = len(values)
+    tie = 0.0  # a flat map's levels: ranked by their exact values
     if n > n_models:  # antialiased or JPEG edges: each pixel to the nearest of the guide's flat levels
         snapped = _snap_levels(values, labels, n_models, arr.dtype)
         if snapped is not None:
             values, labels = snapped
             n = len(values)
+            tie = SNAP_TIE * _full_scale(arr.dtype)  # their values moved by a JPEG file's noise
     if n != n_models:
         soft = n > n_models and next((m for m in range(2, min(n, FEW_LEVELS + 1)) if m != n_models and
                                       _snap_levels(values, labels, m, arr.dtype) is not None), None)
@@ -102,10 +111,29 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
             levels = f"{n} grey levels/colours with soft or JPEG edges"
         inputs = f"one {input_name} was" if n_models == 1 else f"{n_models} {input_name}s were"
         raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first {input_name}")
-    order = np.lexsort(tuple(values[:, ::-1].T.astype(np.float64)) + (values.astype(np.float64).mean(axis=1),))
     rank = np.empty(n, dtype=np.int64)
-    rank[order] = np.arange(n)
+    rank[_dark_to_light(values, tie)] = np.arange(n)
     return rank[labels]
+
+
+def _dark_to_light(values, tie):
+    """The order of the levels ``values`` (n, C) from dark to light: by their mean over the channels,
+    then by R, G, B; values within ``tie`` of each other (chained, in the values' units) count as
+    equal first, so that a JPEG file's noise (pure red, green and blue, of equal means, read as
+    254, 0, 2 and 1, 254, 0) does not decide, and exact values only after (a flat map: ``tie`` 0)."""
+    keys = [values.astype(np.float64).mean(axis=1)] + list(values.astype(np.float64).T)
+    if tie > 0:
+        keys = [_tied(key, tie) for key in keys] + keys
+    return np.lexsort(tuple(reversed(keys)))
+
+
+def _tied(key, tie):
+    """Each value's group among ``key`` (n,): sorted, a new group where the next lies more than ``tie``
+    above the last."""
+    order = np.argsort(key, kind="stable")
+    group = np.empty(key.size, dtype=np.int64)
+    group[order] = np.concatenate([[0], np.cumsum(np.diff(key[order]) > tie)])
+    return group
 
 
 def _snap_levels(values, labels, k, dtype):
@@ -126,8 +154,7 @@ def _snap_levels(values, labels, k, dtype):
     Each level is given as its commonest value (the painted one; the k-means' mean is pulled by
     the blends).
     """
-    full = 255.0 if dtype == np.uint8 else 65535.0 if dtype == np.uint16 else 1.0
-    points = values.astype(np.float64) / full  # (n, C)
+    points = values.astype(np.float64) / _full_scale(dtype)  # (n, C)
     counts = np.bincount(labels.ravel(), minlength=len(values)).astype(np.float64)
     centres = [points[np.argmax(counts)]]
     for _ in range(k - 1):
@@ -172,6 +199,11 @@ def _snap_levels(values, labels, k, dtype):
         rows, cols = distance_transform_edt(~near, return_distances=False, return_indices=True)
         level = level[rows, cols]
     return values[modes], level
+
+
+def _full_scale(dtype):
+    """The value of full white in a guide of ``dtype``: what 1 is in the snap's 0-1 units."""
+    return 255.0 if dtype == np.uint8 else 65535.0 if dtype == np.uint16 else 1.0
 
 
 def _reached(levels):
