@@ -171,6 +171,24 @@ def test_thin_strokes_and_small_dots_of_a_soft_guide_are_kept():
     assert (got == guide_labels(flat, 2)).mean() > 0.999
 
 
+def test_a_rare_level_at_the_end_of_the_range_with_soft_edges_is_taken():
+    from scipy.ndimage import gaussian_filter
+
+    yy, xx = np.mgrid[:128, :128]
+    for levels, rare, radius, sigma in (((0, 255), 0, 5, 1), ((0, 255), 1, 10, 2), ((0, 128, 255), 2, 5, 1),
+                                        ((30, 120, 220), 0, 5, 1), ((0, 85, 170, 255), 3, 5, 1)):
+        label = np.zeros((128, 128), int)
+        common = [j for j in range(len(levels)) if j != rare]
+        for i, j in enumerate(common):
+            label[:, i * 128 // len(common):] = j
+        dot = (yy - 64) ** 2 + (xx - 32) ** 2 < radius ** 2
+        label[dot] = rare  # its blends outnumber its own pixels: the k-means took a blend for it
+        flat = np.array(levels, np.uint8)[label]
+        soft = np.round(gaussian_filter(flat.astype(float), sigma)).astype(np.uint8)
+        got = guide_labels(soft, len(levels))  # was refused
+        assert (got == guide_labels(flat, len(levels))).mean() > 0.99 and (got[dot] == rare).mean() > 0.9
+
+
 def test_a_photograph_given_as_a_guide_is_refused():
     from scipy.ndimage import gaussian_filter
 

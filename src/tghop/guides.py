@@ -87,16 +87,17 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
                          "paint the guide at the output size (or leave the size out to take the guide's)")
     values, labels = _distinct(arr)
     n = len(values)
-    tie = 0.0  # a flat map's levels: ranked by their exact values
+    tie, smooth = 0.0, None  # a flat map's levels: ranked by their exact values
     if n > n_models:  # antialiased or JPEG edges: each pixel to the nearest of the guide's flat levels
-        snapped = _snap_levels(values, labels, n_models, arr.dtype)
+        smooth = _smooth(values.astype(np.float64) / _full_scale(arr.dtype), labels)  # once: each count reads it
+        snapped = _snap_levels(values, labels, n_models, arr.dtype, smooth)
         if snapped is not None:
             values, labels = snapped
             n = len(values)
             tie = SNAP_TIE * _full_scale(arr.dtype)  # their values moved by a JPEG file's noise
     if n != n_models:
         soft = n > n_models and next((m for m in range(2, min(n, FEW_LEVELS + 1)) if m != n_models and
-                                      _snap_levels(values, labels, m, arr.dtype) is not None), None)
+                                      _snap_levels(values, labels, m, arr.dtype, smooth) is not None), None)
         if soft:  # levels with soft or JPEG edges, as many as that: named, not the blends' values
             n = soft
         if n > FEW_LEVELS:
@@ -136,47 +137,83 @@ def _tied(key, tie):
     return group
 
 
-def _snap_levels(values, labels, k, dtype):
+def _snap_levels(values, labels, k, dtype, smooth):
     """``(levels (k, C), labels (H, W))`` of a guide whose pixels lie, all but a few, near ``k``
     flat levels (a soft brush's or a JPEG file's edges); None where they do not (another count
     of levels painted, or a smooth picture).
 
     The levels: k-means of the distinct values weighted by their counts, started from the
-    commonest value and each next the farthest (by count times squared distance). Near: within
-    :data:`SNAP_DISTANCE` (the largest channel difference, 0-1 units) for at least
+    commonest value and each next the farthest (by count times squared distance); where those
+    fail the checks, k-means again weighted by the counts of ``smooth``'s pixels (:func:`_smooth`,
+    the flat areas: a rare level's blends outnumber its own pixels, so the first took a blend
+    for a level, or the level's mean far from its value). Near: within :data:`SNAP_DISTANCE`
+    (the largest channel difference, 0-1 units) of the k-means' mean for at least
     :data:`SNAP_SHARE` of the pixels, and every level painted somewhere as a block of
     :data:`SNAP_BLOCK` pixels a side (the blend across an edge between two levels is no level of
     its own, however near a third level's value it passes), no such block of one value near
-    none of them (another level painted), and the flat areas on the levels
+    none of them (another level painted), in the second k-means the levels more than
+    :data:`SNAP_FLAT` apart (not one level's noise split in two), and the flat areas on the levels
     (:func:`_flat_areas_are_levels`: not a photograph). A pixel near a level that no other's blends
     or noise reach (:func:`_reached`; thin strokes, small dots), or in a level's block, is painted;
     any other (on an edge's blend, or a stray one) takes the level of the nearest painted pixel.
-    Each level is given as its commonest value (the painted one; the k-means' mean is pulled by
-    the blends).
+    Each level is given as its commonest value (of the flat pixels, in the second k-means: the
+    painted one; the k-means' mean is pulled by the blends).
     """
     points = values.astype(np.float64) / _full_scale(dtype)  # (n, C)
     counts = np.bincount(labels.ravel(), minlength=len(values)).astype(np.float64)
-    centres = [points[np.argmax(counts)]]
+    for weights in (counts, None):
+        split = weights is None  # the levels again, of the flat pixels' values only (no blends pulling them)
+        if split:
+            weights = np.bincount(labels[smooth], minlength=len(values)).astype(np.float64)
+            if np.count_nonzero(weights) < k:
+                return None
+        centres, nearest = _kmeans(points, weights, k)
+        snapped = _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart=split)
+        if snapped is not None:
+            modes, level = snapped
+            return values[modes], level
+    return None
+
+
+def _kmeans(points, weights, k):
+    """``(centres (k, C), nearest (n,))``: a k-means of the distinct values ``points`` (n, C) weighted
+    by ``weights`` (n,), started from the heaviest value and each next the farthest (by weight times
+    squared distance), and each value's level."""
+    centres = [points[np.argmax(weights)]]
     for _ in range(k - 1):
         far = np.min([np.square(points - c).sum(axis=1) for c in centres], axis=0)
-        centres.append(points[np.argmax(counts * far)])
+        centres.append(points[np.argmax(weights * far)])
     centres = np.array(centres)
-    for _ in range(20):  # Lloyd's rounds, weighted by the counts
+    for _ in range(20):  # Lloyd's rounds, weighted
         nearest = np.argmin(np.square(points[:, None, :] - centres[None]).sum(axis=2), axis=1)
-        moved = np.array([np.average(points[nearest == j], axis=0, weights=counts[nearest == j])
-                          if counts[nearest == j].sum() else centres[j] for j in range(k)])
+        moved = np.array([np.average(points[nearest == j], axis=0, weights=weights[nearest == j])
+                          if weights[nearest == j].sum() else centres[j] for j in range(k)])
         if np.allclose(moved, centres):
             break
         centres = moved
-    nearest = np.argmin(np.square(points[:, None, :] - centres[None]).sum(axis=2), axis=1)
+    return centres, np.argmin(np.square(points[:, None, :] - centres[None]).sum(axis=2), axis=1)
+
+
+def _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart=False):
+    """``(modes (k,), labels (H, W))`` of the guide's pixels given the levels' ``centres`` (k, C)
+    and each distinct value's (``nearest`` (n,)): the checks and the snap of :func:`_snap_levels`;
+    None where they fail. ``counts`` (n,): each value's pixels; ``weights`` (n,): the k-means',
+    whose heaviest value in each level is its mode; ``smooth``: :func:`_smooth`'s mask; ``apart``:
+    the levels' modes must lie more than :data:`SNAP_FLAT` apart (the flat areas' k-means: not a
+    level's noise, or the flat tail of a blend, split off as a level of its own)."""
+    k = len(centres)
     close = np.abs(points - centres[nearest]).max(axis=1) <= SNAP_DISTANCE
     if counts[close].sum() < SNAP_SHARE * counts.sum():
         return None
     if not all((nearest == j).any() for j in range(k)):
         return None
-    # each level's commonest value: the painted one (a JPEG file's within a few levels of it)
-    modes = np.array([np.flatnonzero(nearest == j)[np.argmax(counts[nearest == j])] for j in range(k)])
-    if not _flat_areas_are_levels(points, labels, np.abs(points - points[modes][nearest]).max(axis=1)):
+    # each level's commonest value (of its flat pixels, in the second k-means): the painted one (a JPEG
+    # file's within a few levels of it; a rare level's commonest of all may be a blend)
+    heaviest = [weights if weights[nearest == j].any() else counts for j in range(k)]
+    modes = np.array([np.flatnonzero(nearest == j)[np.argmax(w[nearest == j])] for j, w in enumerate(heaviest)])
+    if apart and (np.abs(points[modes][:, None] - points[modes][None]).max(axis=2) + np.eye(k)).min() <= 2 * SNAP_FLAT:
+        return None
+    if not _flat_areas_are_levels(labels, smooth, np.abs(points - points[modes][nearest]).max(axis=1)):
         return None
     level, near = nearest[labels], close[labels]
     from scipy.ndimage import distance_transform_edt, maximum_filter, minimum_filter
@@ -198,7 +235,7 @@ def _snap_levels(values, labels, k, dtype):
     if not near.all():
         rows, cols = distance_transform_edt(~near, return_distances=False, return_indices=True)
         level = level[rows, cols]
-    return values[modes], level
+    return modes, level
 
 
 def _full_scale(dtype):
@@ -223,16 +260,23 @@ def _reached(levels):
     return out
 
 
-def _flat_areas_are_levels(points, labels, off):
-    """Whether at least :data:`SNAP_FLAT_SHARE` of the pixels whose 3x3 neighbourhood varies by at
-    most :data:`SNAP_FLAT` lie within it of their level (``off``: each distinct value's distance to
-    its level's): a painted map's flat areas are its levels, a photograph's smooth ones any value."""
+def _smooth(points, labels):
+    """The pixels whose 3x3 neighbourhood varies by at most :data:`SNAP_FLAT` (each channel):
+    ``points`` (n, C) the distinct values in 0-1 units, ``labels`` (H, W) each pixel's."""
     from scipy.ndimage import maximum_filter, minimum_filter
 
     smooth = np.ones(labels.shape, dtype=bool)
     for channel in points.T.astype(np.float32):
         value = channel[labels]
         smooth &= maximum_filter(value, size=3) - minimum_filter(value, size=3) <= SNAP_FLAT + 1e-6
+    return smooth
+
+
+def _flat_areas_are_levels(labels, smooth, off):
+    """Whether at least :data:`SNAP_FLAT_SHARE` of the pixels whose 3x3 neighbourhood varies by at
+    most :data:`SNAP_FLAT` (``smooth``) lie within it of their level (``off``: each distinct value's
+    distance to its level's): a painted map's flat areas are its levels, a photograph's smooth ones any
+    value."""
     if not smooth.any():
         return False
     return (off <= SNAP_FLAT + 1e-6)[labels[smooth]].mean() >= SNAP_FLAT_SHARE
