@@ -111,6 +111,24 @@ def test_a_guide_with_soft_or_jpeg_edges_is_taken_level_by_level():
                                 .filter(ImageFilter.GaussianBlur(1.2))), 3)
 
 
+def test_a_float_guide_of_0_to_255_with_soft_edges_is_read_as_the_8_bit_one():
+    from scipy.ndimage import gaussian_filter
+
+    yy, xx = np.mgrid[:96, :128]
+    flat = np.zeros((96, 128), np.uint8)
+    flat[(yy - 48) ** 2 + (xx - 40) ** 2 < 30 ** 2] = 255
+    flat[:, 100:] = 128
+    soft = gaussian_filter(flat.astype(float), 1.5)
+    want = guide_labels(np.round(soft).astype(np.uint8), 3)
+    assert (want == guide_labels(flat, 3)).mean() > 0.99
+    for guide in (soft, np.round(soft), soft.astype(np.float32), soft / 255, soft * 257):
+        assert np.array_equal(guide_labels(guide, 3), want)  # 0-255 was refused ("437 distinct grey levels")
+    labels = np.arange(64)[None, :].repeat(64, axis=0) // 16  # a label map 0-3, given two inputs
+    for dtype in (np.uint8, np.float64, np.int64):  # 8 bits took it as two levels: 0-1 and 2-3
+        with pytest.raises(TGHopError, match="4 distinct grey levels/colours but 2 inputs"):
+            guide_labels(labels.astype(dtype), 2)
+
+
 def test_a_soft_guide_given_another_count_of_inputs_is_told_its_count_of_levels():
     from scipy.ndimage import gaussian_filter
 

@@ -55,7 +55,9 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     Parameters
     ----------
     guide : array_like, shape (H, W) or (H, W, C)
-        uint8, integers or floats.
+        uint8, uint16, integers or floats. Soft or JPEG edges are judged in 0-255 (8 bits),
+        0-65535 (16 bits), 0-1 (floats; floats above 1 in 0-255, above 255 in 0-65535) and,
+        for other integers, in label units.
     n_models : int
     size : (int, int), optional
         The output size; a guide of another size is refused (paint it at the output size).
@@ -89,15 +91,16 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     n = len(values)
     tie, smooth = 0.0, None  # a flat map's levels: ranked by their exact values
     if n > n_models:  # antialiased or JPEG edges: each pixel to the nearest of the guide's flat levels
-        smooth = _smooth(values.astype(np.float64) / _full_scale(arr.dtype), labels)  # once: each count reads it
-        snapped = _snap_levels(values, labels, n_models, arr.dtype, smooth)
+        full = _full_scale(arr)
+        smooth = _smooth(values.astype(np.float64) / full, labels)  # once: each count reads it
+        snapped = _snap_levels(values, labels, n_models, full, smooth)
         if snapped is not None:
             values, labels = snapped
             n = len(values)
-            tie = SNAP_TIE * _full_scale(arr.dtype)  # their values moved by a JPEG file's noise
+            tie = SNAP_TIE * full  # their values moved by a JPEG file's noise
     if n != n_models:
         soft = n > n_models and next((m for m in range(2, min(n, FEW_LEVELS + 1)) if m != n_models and
-                                      _snap_levels(values, labels, m, arr.dtype, smooth) is not None), None)
+                                      _snap_levels(values, labels, m, full, smooth) is not None), None)
         if soft:  # levels with soft or JPEG edges, as many as that: named, not the blends' values
             n = soft
         if n > FEW_LEVELS:
@@ -137,7 +140,7 @@ def _tied(key, tie):
     return group
 
 
-def _snap_levels(values, labels, k, dtype, smooth):
+def _snap_levels(values, labels, k, full, smooth):
     """``(levels (k, C), labels (H, W))`` of a guide whose pixels lie, all but a few, near ``k``
     flat levels (a soft brush's or a JPEG file's edges); None where they do not (another count
     of levels painted, or a smooth picture).
@@ -151,15 +154,16 @@ def _snap_levels(values, labels, k, dtype, smooth):
     :data:`SNAP_SHARE` of the pixels, and every level painted somewhere as a block of
     :data:`SNAP_BLOCK` pixels a side (the blend across an edge between two levels is no level of
     its own, however near a third level's value it passes), no such block of one value near
-    none of them (another level painted), in the second k-means the levels more than
-    :data:`SNAP_FLAT` apart (not one level's noise split in two), and the flat areas on the levels
+    none of them (another level painted), the levels' values more than :data:`SNAP_FLAT` apart,
+    twice that in the second k-means (not one level's noise split in two; a label map 0-3 of
+    8 bits given two inputs was taken as two levels), and the flat areas on the levels
     (:func:`_flat_areas_are_levels`: not a photograph). A pixel near a level that no other's blends
     or noise reach (:func:`_reached`; thin strokes, small dots), or in a level's block, is painted;
     any other (on an edge's blend, or a stray one) takes the level of the nearest painted pixel.
     Each level is given as its commonest value (of the flat pixels, in the second k-means: the
     painted one; the k-means' mean is pulled by the blends).
     """
-    points = values.astype(np.float64) / _full_scale(dtype)  # (n, C)
+    points = values.astype(np.float64) / full  # (n, C)
     counts = np.bincount(labels.ravel(), minlength=len(values)).astype(np.float64)
     for weights in (counts, None):
         split = weights is None  # the levels again, of the flat pixels' values only (no blends pulling them)
@@ -168,7 +172,7 @@ def _snap_levels(values, labels, k, dtype, smooth):
             if np.count_nonzero(weights) < k:
                 return None
         centres, nearest = _kmeans(points, weights, k)
-        snapped = _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart=split)
+        snapped = _levels_of(points, counts, weights, labels, centres, nearest, smooth, (1 + split) * SNAP_FLAT)
         if snapped is not None:
             modes, level = snapped
             return values[modes], level
@@ -194,13 +198,13 @@ def _kmeans(points, weights, k):
     return centres, np.argmin(np.square(points[:, None, :] - centres[None]).sum(axis=2), axis=1)
 
 
-def _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart=False):
+def _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart):
     """``(modes (k,), labels (H, W))`` of the guide's pixels given the levels' ``centres`` (k, C)
     and each distinct value's (``nearest`` (n,)): the checks and the snap of :func:`_snap_levels`;
     None where they fail. ``counts`` (n,): each value's pixels; ``weights`` (n,): the k-means',
     whose heaviest value in each level is its mode; ``smooth``: :func:`_smooth`'s mask; ``apart``:
-    the levels' modes must lie more than :data:`SNAP_FLAT` apart (the flat areas' k-means: not a
-    level's noise, or the flat tail of a blend, split off as a level of its own)."""
+    how far apart the levels' modes must lie, more than (0-1 units, the largest channel difference:
+    not one level's noise, or a blend's flat tail, split off as a level of its own)."""
     k = len(centres)
     close = np.abs(points - centres[nearest]).max(axis=1) <= SNAP_DISTANCE
     if counts[close].sum() < SNAP_SHARE * counts.sum():
@@ -211,7 +215,7 @@ def _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart=
     # file's within a few levels of it; a rare level's commonest of all may be a blend)
     heaviest = [weights if weights[nearest == j].any() else counts for j in range(k)]
     modes = np.array([np.flatnonzero(nearest == j)[np.argmax(w[nearest == j])] for j, w in enumerate(heaviest)])
-    if apart and (np.abs(points[modes][:, None] - points[modes][None]).max(axis=2) + np.eye(k)).min() <= 2 * SNAP_FLAT:
+    if (np.abs(points[modes][:, None] - points[modes][None]).max(axis=2) + np.eye(k)).min() <= apart:
         return None
     if not _flat_areas_are_levels(labels, smooth, np.abs(points - points[modes][nearest]).max(axis=1)):
         return None
@@ -238,9 +242,16 @@ def _levels_of(points, counts, weights, labels, centres, nearest, smooth, apart=
     return modes, level
 
 
-def _full_scale(dtype):
-    """The value of full white in a guide of ``dtype``: what 1 is in the snap's 0-1 units."""
-    return 255.0 if dtype == np.uint8 else 65535.0 if dtype == np.uint16 else 1.0
+def _full_scale(arr):
+    """The value of full white in the guide ``arr``: what 1 is in the snap's 0-1 units. 255 for
+    8 bits, 65535 for 16; a float guide's 1, or, where its values go above 1 (a 0-255 image read
+    as floats), 255, and above that 65535, then its largest; other integers' 1 (label maps)."""
+    if arr.dtype == np.uint8:
+        return 255.0
+    if arr.dtype == np.uint16:
+        return 65535.0
+    top = float(np.abs(arr).max()) if arr.dtype.kind == "f" else 1.0
+    return next(full for full in (1.0, 255.0, 65535.0, top) if top <= full)
 
 
 def _reached(levels):
