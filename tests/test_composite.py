@@ -92,6 +92,24 @@ def test_join_layers_antialiases_over_a_pixel():
     assert np.allclose(wrapped[:, 0, 0], 3 / 9) and np.allclose(wrapped[:, 19, 0], 6 / 9)
 
 
+@pytest.mark.parametrize("tile", [False, True])
+def test_join_layers_keeps_a_thin_region_its_own_layer(tile):
+    # The mean over 3x3 faded a painted 1 px line to a third of its contrast, a 2 px one to two thirds.
+    shows = np.zeros((24, 60), dtype=np.int64)
+    shows[4:20, 10] = 1  # a line
+    shows[4:20, 20:22] = 1  # two pixels wide
+    shows[4:20, 30:33] = 1  # three: antialiased as before
+    shows[22:, 40:50] = shows[:2, 40:50] = 1  # two pixels at each of the image's edges (four across the wrap)
+    shows[[3, 4, 5], [50, 51, 52]] = 1  # a diagonal line
+    layers = [np.zeros((24, 60, 1), np.float32), np.ones((24, 60, 1), np.float32)]
+    out = join_layers(shows, layers, _whole(shows, layers), tile=tile)[..., 0]
+    assert (out[4:20, 10] == 1).all() and (out[4:20, 20:22] == 1).all()
+    assert (out[[3, 4, 5], [50, 51, 52]] == 1).all()
+    assert np.allclose(out[8:16, 9], 3 / 9) and np.allclose(out[8:16, 19], 3 / 9)  # its neighbours: their share
+    assert np.allclose(out[8:16, 30], 6 / 9) and np.allclose(out[8:16, 31], 1) and np.allclose(out[8:16, 29], 3 / 9)
+    assert np.allclose(out[[1, 22], 42:48], 6 / 9 if tile else 1)
+
+
 def test_one_region_or_mismatched_layers():
     labels = np.zeros((8, 8), dtype=np.int64)
     layers = [_noise((8, 8, 3), 0)]

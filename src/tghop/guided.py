@@ -25,7 +25,7 @@ How painted regions (and a remix) are made
    region's layer; in the band of ``transition`` pixels around an edge, one minimum cut
    decides which of the two layers each pixel shows, so the join runs where the layers
    look alike (along their elements' outlines) and stays near the paint. The join is
-   antialiased over about a pixel.
+   antialiased over about a pixel (a region 1-2 px wide keeps its own layer on its pixels).
 
 How a morph is made
 -------------------
