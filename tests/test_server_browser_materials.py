@@ -124,3 +124,58 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
                            " && document.getElementById('maps-view').hidden")
     assert page.is_hidden("#download-maps")
     assert not page.errors, page.errors
+
+
+def test_map_files_naming_one_map_twice_are_refused_on_the_page_before_any_fit(page, tmp_path):
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    page.goto(page.url)  # a fresh page: no exemplar, no maps
+    page.wait_for_selector("body[data-ready='1']")
+    grey = png(to_uint8(data.bricks(64))[..., 0])
+    for name in ("rock_normal.png", "rock normal.png", "Albedo.png", "height.png"):
+        (tmp_path / name).write_bytes(grey)
+    page.set_input_files("#maps", [str(tmp_path / "height.png")])  # before an exemplar: the page says what next
+    assert page.text_content("#maps-list") == "maps: height"
+    assert "pick or drop the exemplar" in page.text_content("#message")
+    # Two files whose names make the same map's: said on the page (the server's words were about form fields)
+    page.set_input_files("#maps", [str(tmp_path / "rock_normal.png"), str(tmp_path / "rock normal.png")])
+    message = page.text_content("#message")
+    assert "rock_normal.png and rock normal.png" in message and "rename one" in message, message
+    assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
+    assert page.text_content("#maps-list") == "maps: height"  # the maps chosen before stay
+    page.set_input_files("#maps", [str(tmp_path / "Albedo.png")])
+    assert "the exemplar's name" in page.text_content("#message")
+    page.select_option("#builtin", "bricks")  # the fit starts with the maps kept (bricks is 256x256: refused)
+    page.wait_for_function("document.getElementById('message').textContent.includes('albedo is')", timeout=30_000)
+    assert page.is_hidden("#fit-status")
+    page.click("#maps-clear")
+
+
+def test_a_materials_answer_decodes_to_its_bytes(page):
+    same = page.evaluate("""async () => {
+      const bytes = Uint8Array.from({length: 1024}, (_, i) => (i * 7) % 256);
+      const body = {size: [1, 1], seed: 1, maps: [{name: "albedo", depth: 8, normal: false,
+                    png: btoa(String.fromCharCode(...bytes))}]};
+      const answer = await answerOf(new Response(JSON.stringify(body), {headers: {"Content-Type": "application/json"}}));
+      const got = new Uint8Array(await answer.maps[0].blob.arrayBuffer());
+      return got.length === bytes.length && got.every((v, i) => v === bytes[i]);
+    }""")
+    assert same
+
+
+def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):
+    from tghop import TGHop, data
+    from tghop.material import Material, example_maps
+    from tghop.modelfile import save_model
+
+    albedo = data.bricks(64)
+    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}),
+               tmp_path / "material.npz")
+    page.set_input_files("#model-file", str(tmp_path / "material.npz"))
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+    page.click("label:has(#mode-inpaint)")
+    assert "is a material" in page.text_content("#inpaint-message")
+    page.click("label:has(#mode-view)")
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors

@@ -100,15 +100,31 @@ function mapName(filename) {
   return stem.slice(0, 64) || "map";
 }
 
+// Why the map files cannot be one material's (their names, as the server would refuse them), or "".
+function mapsProblem(files) {
+  const seen = new Map([["albedo", "the exemplar"]]);
+  for (const file of files) {
+    const name = mapName(file.name), key = name.toLowerCase();
+    if (key === "albedo") return `${file.name} would be the map "albedo", the exemplar's name: rename the file`;
+    if (seen.has(key)) return `${seen.get(key)} and ${file.name} both name the map "${name}": rename one of them`;
+    seen.set(key, file.name);
+  }
+  return "";
+}
+
 // The map files chosen (none: a texture model); the exemplar fitted last is fitted again with them.
 function setMapFiles(files) {
-  state.mapFiles = [...files];
+  files = [...files];  // before the input is emptied: its FileList is live
+  const problem = mapsProblem(files);
+  $("maps").value = "";  // choosing the same files again is a change
+  if (problem) { say(problem, true); return; }  // the maps chosen before stay
+  state.mapFiles = files;
   const names = state.mapFiles.map((f) => mapName(f.name));
   $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
   $("maps-clear").hidden = !names.length;
-  $("maps").value = "";  // choosing the same files again is a change
   if (state.source && state.source.file) fitFile(state.source.file);
   else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin);
+  else if (names.length) say("now pick or drop the exemplar (the albedo): it is fitted with these maps");
 }
 
 function stopEvents() {
@@ -274,10 +290,17 @@ async function answerOf(response) {
     return { blob: await response.blob(), maps: null };
   }
   const maps = (await response.json()).maps.map((m) => ({
-    name: m.name, depth: m.depth, blob: new Blob([Uint8Array.from(atob(m.png), (ch) => ch.charCodeAt(0))],
-      { type: "image/png" }),
+    name: m.name, depth: m.depth, blob: new Blob([base64Bytes(m.png)], { type: "image/png" }),
   }));
   return { blob: maps[0].blob, maps };
+}
+
+// Base64 text -> its bytes, in a plain loop: Uint8Array.from(text, fn) calls a function per byte, many
+// times slower on a large material's maps.
+function base64Bytes(text) {
+  const binary = atob(text), bytes = new Uint8Array(binary.length);
+  for (let i = 0; i < binary.length; i++) bytes[i] = binary.charCodeAt(i);
+  return bytes;
 }
 
 // Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable.
@@ -458,7 +481,9 @@ function setMode(mode) {
   $("morph").hidden = mode !== "morph";
   $("cooc").hidden = mode !== "cooc";
   if (mode === "cooc") coocShown();
-  if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
+  if (inpaint && state.material) {
+    sayInpaint("this model is a material: Fill and Extend take texture models; fit its albedo without maps", true);
+  } else if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
   if (mode === "paint") {
     resizeGuide();
     if (state.models.length < 2) sayPaint("fit or load a second model above to paint with two");
