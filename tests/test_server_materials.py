@@ -170,8 +170,17 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
         "image": ("p.png", picture), "size": (None, "64x64")}), 422, "is a material", "extend")
     assert_error(client.post("/api/images/morph", json={"a": material_id, "b": plain, "size": [32, 64]}),
                  422, "a is a material", "morph")
+    # Named as the request and the page name them (models[i], the start of the id)
     assert_error(client.post("/api/images/guided", json={"models": [material_id, plain], "size": [32, 32]}),
-                 422, "material")
+                 422, f"models[1] ({plain[:8]}) is a texture model but models[0] ({material_id[:8]}) is a material")
+    assert_error(client.post("/api/images/guided", json={"models": [plain, material_id], "size": [32, 32]}),
+                 422, f"models[1] ({material_id[:8]}) is a material but models[0] ({plain[:8]}) is a texture model")
+
+
+def test_materials_with_other_maps_are_not_painted_together(client, material_id):
+    other = fit(client, {**albedo_file(), "map:normal": map_files()["map:normal"]})
+    assert_error(client.post("/api/images/guided", json={"models": [material_id, other], "size": [32, 32]}),
+                 422, f"models[1] ({other[:8]}) has the maps albedo, normal but models[0]", "the same maps")
 
 
 @pytest.mark.parametrize("files, words", [

@@ -537,6 +537,7 @@ class Server:
         from ..imageio import load_image
 
         models = [self.cache.load(model_id) for model_id in ids]
+        materials.same_kind(models, ids)
         self._same_patches(models, [f"models[{i}]" for i in range(len(models))])
         painted = None
         if guide is not None:

@@ -23,7 +23,7 @@ import re
 from .requests import RequestError, safe_name
 
 __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "material_id", "texture_only",
-           "patch_size", "encode_maps"]
+           "same_kind", "patch_size", "encode_maps"]
 
 #: Prefix of a map's form field: ``map:normal`` is the map named "normal".
 MAP_FIELD = "map:"
@@ -95,6 +95,23 @@ def texture_only(model, label: str, work: str) -> None:
     if is_material(model):
         raise RequestError(422, f"{label} is a material ({', '.join(model.names_)}); {work} takes texture models: "
                                 "fit one from the material's albedo")
+
+
+def same_kind(models, ids) -> None:
+    """Models to paint or remix together: all texture models, or all materials with the same maps;
+    else 422 naming ``models[i]`` and the start of its id (as the page lists each model)."""
+    def named(i):
+        return f"models[{i}] ({ids[i][:8]})"
+
+    first = is_material(models[0])
+    for i, model in enumerate(models[1:], start=1):
+        if is_material(model) != first:
+            kinds = ("a texture model", "a material") if first else ("a material", "a texture model")
+            raise RequestError(422, f"{named(i)} is {kinds[0]} but {named(0)} is {kinds[1]}; paint or remix "
+                                    "all materials (with the same maps) or all texture models")
+        if first and (model.names_, model.map_channels_) != (models[0].names_, models[0].map_channels_):
+            raise RequestError(422, f"{named(i)} has the maps {', '.join(model.names_)} but {named(0)} has "
+                                    f"{', '.join(models[0].names_)}; paint or remix materials with the same maps")
 
 
 def patch_size(model) -> int:
