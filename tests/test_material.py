@@ -86,6 +86,26 @@ def test_same_seed_same_maps(material):
     assert not np.array_equal(a["albedo"], c["albedo"])
 
 
+def test_progress_goes_on_through_the_maps_and_stops_them(material):
+    """The maps' refinement reports progress too: a server's Stop (a progress callback that
+    raises) stopped only the joint model's quilting, the maps' refinement ran on to its end."""
+    stages = []
+    material.synthesize((40, 40), rng=1, refine=2, progress=lambda stage, done, total: stages.append(stage))
+    last_quilt = max(i for i, s in enumerate(stages) if s != "refine" and s != "maps")
+    assert "refine" in stages[last_quilt:] and stages[-1] == "maps"
+    assert stages.count("maps") == len(material.names_)
+
+    class Stop(Exception):
+        pass
+
+    def stop_in_refine(stage, done, total):
+        if stage in ("refine", "maps"):
+            raise Stop
+
+    with pytest.raises(Stop):
+        material.synthesize((40, 40), rng=1, refine=2, progress=stop_in_refine)
+
+
 def test_model_file_round_trip(material, tmp_path):
     save_model(material, tmp_path / "m.npz")
     loaded = load_model(tmp_path / "m.npz", material=True)

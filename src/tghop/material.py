@@ -32,7 +32,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from . import settings
-from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, one_blas_thread
+from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, one_blas_thread, report
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -314,6 +314,9 @@ class Material(BaseEstimator):
         refine_maps : bool
             Refine the maps other than the albedo too (the albedo always is, with ``refine``).
         progress : callable, optional
+            ``progress(stage, done, total)``: the joint model's stages, then each map's
+            refinement ("refine", as :func:`tghop.refine.refine` reports it) and a "maps" stage
+            after each map (``done`` of ``total`` maps); an exception it raises stops the work.
         dtype : {numpy.float64, numpy.float32}
         **options
             The other generation settings of :meth:`TGHop.synthesize` (``n_patches``,
@@ -345,12 +348,13 @@ class Material(BaseEstimator):
         for i, (name, part) in enumerate(zip(self.names_, self.map_slices())):
             img = np.ascontiguousarray(stack[..., part])
             if refine and (refine_maps or i == 0):
-                img = refine_bands(img, self.bands_[i], n_iter=refine, tile=tile, dtype=np.float32)
+                img = refine_bands(img, self.bands_[i], n_iter=refine, tile=tile, dtype=np.float32, progress=progress)
             if match_colours:
                 img = match_histograms(img, quantiles[part])
             if self.normal_[i]:
                 img = renormalise(img)
             out[name] = img.astype(dtype, copy=False)
+            report(progress, "maps", i + 1, len(self.names_))
         return out
 
     # ------------------------------------------------------------- model files
