@@ -157,7 +157,8 @@ def test_a_materials_answer_decodes_to_its_bytes(page):
       const bytes = Uint8Array.from({length: 1024}, (_, i) => (i * 7) % 256);
       const body = {size: [1, 1], seed: 1, maps: [{name: "albedo", depth: 8, normal: false,
                     png: btoa(String.fromCharCode(...bytes))}]};
-      const answer = await answerOf(new Response(JSON.stringify(body), {headers: {"Content-Type": "application/json"}}));
+      const json = {headers: {"Content-Type": "application/json"}};
+      const answer = await answerOf(new Response(JSON.stringify(body), json));
       const got = new Uint8Array(await answer.maps[0].blob.arrayBuffer());
       return got.length === bytes.length && got.every((v, i) => v === bytes[i]);
     }""")
