@@ -78,7 +78,10 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     page.fill("#height", "64")
     page.fill("#width", "80")
     page.fill("#seed", "3")
-    page.click("#go")
+    with page.expect_response(lambda r: r.url.endswith("/images")) as answer:
+        page.click("#go")
+    # The page asks for multipart: the maps as files, nothing to decode
+    assert answer.value.headers["content-type"].startswith("multipart/form-data; boundary=")
     page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 3'")
     assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == [
         "albedo", "bricks_normal", "height"]

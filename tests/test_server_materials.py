@@ -5,6 +5,7 @@ each request a material cannot take refused in one line."""
 
 import base64
 import io
+import json
 
 import numpy as np
 import pytest
@@ -134,6 +135,28 @@ def test_a_materials_images_are_every_map_at_its_depth_as_the_library_makes_them
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-3)
     again = client.post(f"/api/models/{material_id}/images", json={"size": [40, 56], "seed": 5, "refine": 2})
     assert again.json()["maps"] == body["maps"]
+    # Asked for multipart (as the page asks): the same PNGs as files, after the JSON without them
+    r = client.post(f"/api/models/{material_id}/images", json={"size": [40, 56], "seed": 5, "refine": 2},
+                    headers={"Accept": "multipart/form-data, application/json"})
+    assert r.status_code == 200 and r.headers["content-type"].startswith("multipart/form-data; boundary=")
+    parts = multipart_parts(r)
+    assert list(parts) == ["_meta", "albedo", "normal", "height"]
+    meta = json.loads(parts["_meta"][1])
+    assert meta == {"size": [40, 56], "seed": 5, "maps": [{k: v for k, v in m.items() if k != "png"}
+                                                         for m in body["maps"]]}
+    for m in body["maps"]:
+        assert parts[m["name"]] == (f"{m['name']}.png", base64.b64decode(m["png"]))
+
+
+def multipart_parts(response) -> dict:
+    """A multipart/form-data answer's parts: name -> (filename or None, bytes), in order."""
+    from email.parser import BytesParser
+    from email.policy import HTTP
+
+    message = BytesParser(policy=HTTP).parsebytes(
+        b"Content-Type: " + response.headers["content-type"].encode() + b"\r\n\r\n" + response.content)
+    return {part.get_param("name", header="content-disposition"): (part.get_filename(), part.get_payload(decode=True))
+            for part in message.iter_parts()}
 
 
 def test_a_material_file_uploads_and_paints(client, material_id):
@@ -201,3 +224,11 @@ def test_more_maps_than_a_material_takes_are_refused(client):
     one = png(to_uint8(data.bricks(SIZE))[..., 0])
     files = {f"map:m{i}": (f"m{i}.png", one) for i in range(9)}
     assert_error(client.post("/api/models", files={**albedo_file(), **files}), 400, "at most 8")
+
+
+def test_a_fit_with_maps_may_send_more_than_one_files_limit_but_no_file_over_it(client):
+    # Two maps of 30 MB each: over 50 MB together, within the fit's 200 MB (they are no images: 400, not 413)
+    files = {**albedo_file(), "map:a": ("a.png", b"\0" * (30 << 20)), "map:b": ("b.png", b"\0" * (30 << 20))}
+    assert_error(client.post("/api/models", files=files), 400, "a.png")
+    files = {**albedo_file(), "map:a": ("a.png", b"\0" * ((50 << 20) + 10))}
+    assert_error(client.post("/api/models", files=files), 413, "a.png is over the limit of 50 MB a file")

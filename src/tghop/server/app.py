@@ -67,13 +67,16 @@ try:  # the web extra; create_app says how to install it when it is missing
 except ImportError:  # pragma: no cover - tested by the missing-extra test in a fresh interpreter
     Starlette = None
 
-__all__ = ["create_app", "require_web", "WEB_HINT", "MAX_UPLOAD_BYTES", "STATIC", "model_id_for", "ModelCache",
-           "DEFAULT_CACHE_BYTES"]
+__all__ = ["create_app", "require_web", "WEB_HINT", "MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "STATIC", "model_id_for",
+           "ModelCache", "DEFAULT_CACHE_BYTES"]
 
 #: How to install what the server needs.
 WEB_HINT = "pip install 'tghop[web]'"
 #: Largest request body accepted (an exemplar or a model file).
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
+#: Largest body of a fit (``POST /api/models``): a material's albedo and maps together, each file
+#: still at most MAX_UPLOAD_BYTES (a 2K set with a 16-bit normal map is about 40 MB).
+MAX_FIT_BYTES = 4 * MAX_UPLOAD_BYTES
 #: The page's files.
 STATIC = Path(__file__).resolve().parent / "static"
 _JOB = re.compile(r"[0-9a-f]{32}\Z")
@@ -118,10 +121,10 @@ def model_id_for(content: bytes, settings: dict) -> str:
 
 
 # ------------------------------------------------------------------ requests
-async def read_body(request, limit: int = MAX_UPLOAD_BYTES) -> bytes:
-    """The request's body, or 413 as soon as it is over ``limit`` bytes; 499 (to nobody) when
-    the client goes away before it has sent the whole body."""
-    too_large = RequestError(413, f"the upload is over the limit of {limit // (1024 * 1024)} MB; "
+async def read_body(request, limit: int = MAX_UPLOAD_BYTES, *, what: str = "the upload") -> bytes:
+    """The request's body, or 413 as soon as it is over ``limit`` bytes (``what``: the message's
+    words for it); 499 (to nobody) when the client goes away before it has sent the whole body."""
+    too_large = RequestError(413, f"{what} is over the limit of {limit // (1024 * 1024)} MB; "
                                   "send a smaller file")
     declared = request.headers.get("content-length")
     over = bool(declared and declared.isdigit() and int(declared) > limit)
@@ -331,8 +334,12 @@ class Server:
         return work
 
     async def create_model(self, request):
-        body = await read_body(request)
+        body = await read_body(request, MAX_FIT_BYTES, what="the upload (the exemplar and its maps together)")
         fields = await read_form(request, body)
+        for value in fields.values():  # each file within the limit of one
+            if isinstance(value, tuple) and len(value[1]) > MAX_UPLOAD_BYTES:
+                raise RequestError(413, f"{safe_name(value[0], 'a file')} is over the limit of "
+                                        f"{MAX_UPLOAD_BYTES // (1024 * 1024)} MB a file; send a smaller file")
         model_id, fit = await run_in_threadpool(self.prepare_fit, fields)
         if fit is None:
             self.cache.touch(model_id)
@@ -476,7 +483,7 @@ class Server:
 
     async def _png_response(self, request, work, *args, seed):
         """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer, or
-        ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON."""
+        ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON or multipart."""
         if seed is None:
             seed = secrets.randbelow(2**31)
         start = time.perf_counter()
@@ -484,9 +491,11 @@ class Server:
         took = (time.perf_counter() - start) * 1000
         headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                    "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
-        if isinstance(png, list):  # a material: every map
-            return Response(json.dumps({"size": list(size), "seed": seed, "maps": png}), headers=headers,
-                            media_type="application/json")
+        if isinstance(png, list):  # a material: every map, as multipart where the client takes it (the page)
+            if "multipart/form-data" in request.headers.get("accept", ""):
+                body, kind = materials.maps_multipart(png, size, seed)
+                return Response(body, headers=headers, media_type=kind)
+            return Response(materials.maps_json(png, size, seed), headers=headers, media_type="application/json")
         return Response(png, media_type="image/png", headers=headers)
 
     async def generate(self, request):

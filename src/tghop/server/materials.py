@@ -5,10 +5,13 @@ maps (:class:`tghop.material.Material`), and a material's images as one answer o
   (``image`` or ``builtin``), as ``tghop fit ALBEDO --maps NAME.png ...`` takes files whose
   stems name the maps. The maps are checked (names, sizes) before a fit job starts.
 - A material's ``POST /api/models/{id}/images``, and a painted guide or a remix of materials
-  (``POST /api/images/guided``), answer JSON instead of a PNG: ``{"size": [h, w], "seed": s,
-  "maps": [{"name", "depth", "normal", "png"}, ...]}``, the albedo first, each map a base64
-  PNG at its file's depth (8 or 16 bits; a float map's 32 as 16, the most a PNG holds), as
-  ``tghop synth`` writes each map.
+  (``POST /api/images/guided``), answer every map instead of one PNG, each a PNG at its file's
+  depth (8 or 16 bits; a float map's 32 as 16, the most a PNG holds), as ``tghop synth`` writes
+  each map, the albedo first: JSON ``{"size": [h, w], "seed": s, "maps": [{"name", "depth",
+  "normal", "png"}, ...]}`` with base64 PNGs (:func:`maps_json`), or, for a request that
+  accepts ``multipart/form-data`` (the page: a browser's ``Response.formData()`` reads it, a
+  third smaller and nothing to decode), a part per map, named by the map, its PNG as a file,
+  after a part ``_meta`` with the JSON without the PNGs (:func:`maps_multipart`).
 - Routes that take texture models only (inpaint, extend, a morph) refuse a material with one
   line (422).
 """
@@ -18,13 +21,18 @@ from __future__ import annotations
 import base64
 import hashlib
 import io
+import json
 import re
+import secrets
 
 from .requests import RequestError, safe_name
 
 __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "material_id", "texture_only",
-           "same_kind", "patch_size", "encode_maps"]
+           "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "META_PART"]
 
+#: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
+#: name cannot begin with "_", so no map's part has this name).
+META_PART = "_meta"
 #: Prefix of a map's form field: ``map:normal`` is the map named "normal".
 MAP_FIELD = "map:"
 #: Most maps of one material in a fit request.
@@ -120,14 +128,34 @@ def patch_size(model) -> int:
 
 
 def encode_maps(maps: dict, material) -> list:
-    """A material's maps (``name -> (H, W, c)`` floats in [0, 1]) as the JSON answer's
-    ``maps``: each a base64 PNG at its depth (8, else 16 bits), in ``material``'s order."""
+    """A material's maps (``name -> (H, W, c)`` floats in [0, 1]) as PNGs: a list of ``{"name",
+    "depth", "normal", "png"}`` (``png``: the file's bytes, at the map's depth: 8, else 16 bits),
+    in ``material``'s order."""
     from ..imageio import to_uint8, to_uint16, write_png
 
     out = []
     for name, depth, normal in zip(material.names_, material.depths_, material.normal_):
         buf = io.BytesIO()
         write_png(buf, to_uint8(maps[name]) if depth == 8 else to_uint16(maps[name]))
-        out.append({"name": name, "depth": 8 if depth == 8 else 16, "normal": bool(normal),
-                    "png": base64.b64encode(buf.getvalue()).decode("ascii")})
+        out.append({"name": name, "depth": 8 if depth == 8 else 16, "normal": bool(normal), "png": buf.getvalue()})
     return out
+
+
+def maps_json(maps: list, size, seed) -> bytes:
+    """The JSON answer of :func:`encode_maps`'s ``maps``: each PNG as base64."""
+    return json.dumps({"size": list(size), "seed": seed, "maps": [
+        {**m, "png": base64.b64encode(m["png"]).decode("ascii")} for m in maps]}).encode()
+
+
+def maps_multipart(maps: list, size, seed) -> tuple:
+    """The ``multipart/form-data`` answer of :func:`encode_maps`'s ``maps`` (RFC 7578): a part
+    :data:`META_PART` (the JSON of :func:`maps_json` without the PNGs), then a part per map named
+    by it, its PNG as the file ``<name>.png``. Returns ``(body, content type)``."""
+    boundary = "tghop-" + secrets.token_hex(16)  # 38 characters: no PNG is likely to hold it at a line start
+    meta = {"size": list(size), "seed": seed, "maps": [{k: v for k, v in m.items() if k != "png"} for m in maps]}
+    parts = [(f'Content-Disposition: form-data; name="{META_PART}"\r\nContent-Type: application/json',
+              json.dumps(meta).encode())]
+    parts += [(f'Content-Disposition: form-data; name="{m["name"]}"; filename="{m["name"]}.png"\r\n'
+               "Content-Type: image/png", m["png"]) for m in maps]
+    body = b"".join(f"--{boundary}\r\n{head}\r\n\r\n".encode() + data + b"\r\n" for head, data in parts)
+    return body + f"--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"

@@ -275,20 +275,31 @@ function generation(seed, size) {
   return body;
 }
 
+// A generation's request headers: a material's maps come as multipart (Response.formData() reads it:
+// no base64 to decode, a third smaller); a texture's image is a PNG whatever is asked.
+const GENERATION_HEADERS = { "Content-Type": "application/json", Accept: "multipart/form-data, application/json" };
+
 async function generate(body) {
   const response = await busyFetch(`/api/models/${state.modelId}/images`, {
-    method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
+    method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS,
   });
   if (!response.ok) throw new Error(await errorOf(response));
   return answerOf(response);
 }
 
-// A generation's answer: a texture's PNG ({blob, maps: null}), or a material's maps (JSON of base64
-// PNGs, the albedo first: {blob: the albedo's, maps: [{name, depth, blob}]}).
+// A generation's answer: a texture's PNG ({blob, maps: null}), or a material's maps, the albedo first
+// ({blob: the albedo's, maps: [{name, depth, blob}]}): multipart (a part "_meta" of JSON, then a PNG
+// file per map, named by it) or JSON of base64 PNGs.
 async function answerOf(response) {
-  if (!(response.headers.get("Content-Type") || "").startsWith("application/json")) {
-    return { blob: await response.blob(), maps: null };
+  const kind = response.headers.get("Content-Type") || "";
+  if (kind.startsWith("multipart/form-data")) {
+    const form = await response.formData();
+    const maps = JSON.parse(form.get("_meta")).maps.map((m) => ({
+      name: m.name, depth: m.depth, blob: form.get(m.name),
+    }));
+    return { blob: maps[0].blob, maps };
   }
+  if (!kind.startsWith("application/json")) return { blob: await response.blob(), maps: null };
   const maps = (await response.json()).maps.map((m) => ({
     name: m.name, depth: m.depth, blob: new Blob([base64Bytes(m.png)], { type: "image/png" }),
   }));
@@ -309,8 +320,9 @@ function showResult(url, seed, blob, what, maps) {
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
   state.resultUrl = url;
   const base = what ? `tghop-${what}-seed${seed}` : `tghop-seed${seed}`;
-  state.shown = maps ? { seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })) }
-    : null;
+  state.shown = maps ? {
+    seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })),
+  } : null;
   renderMaps();
   showPicture(url, `${what || "result"}`, seed, `${base}.png`);
   if (blob && !maps) setEditorPicture(blob, `tghop-seed${seed}.png`);  // a material cannot be inpainted
@@ -888,9 +900,7 @@ function severalSettings(body) {
 }
 
 async function postImage(url, body) {
-  const response = await busyFetch(url, {
-    method: "POST", body: JSON.stringify(body), headers: { "Content-Type": "application/json" },
-  });
+  const response = await busyFetch(url, { method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS });
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
   return [blob, response.headers.get("X-Tghop-Seed"), maps];  // maps: materials painted or remixed
