@@ -64,6 +64,7 @@ def test_a_rows_maps_are_named_and_found_beside_the_manifest(tmp_path, value, wa
     (3, ["maps 3 must be paths separated by"]),
     ({"normal": 5}, ["the map 'normal' has no path"]),
     (";".join(f"m{i}.png" for i in range(MAX_MAPS + 1)), [f"a material takes at most {MAX_MAPS}"]),
+    (" ; ;", ["maps ' ; ;' lists no file"]),
 ])
 def test_bad_maps_in_a_manifest_are_refused_naming_the_line(tmp_path, value, words):
     with pytest.raises(TGHopError) as info:
@@ -72,6 +73,15 @@ def test_bad_maps_in_a_manifest_are_refused_naming_the_line(tmp_path, value, wor
     assert message.startswith("m.csv line 2: ") and "\n" not in message
     for word in words:
         assert word in message, message
+
+
+def test_a_rows_map_that_is_its_albedo_is_refused_and_no_maps_is_a_texture(tmp_path):
+    src = make_material(tmp_path / "src")
+    (src / "list.csv").write_text("path,maps\nrock.png,normal=./rock.png\n")
+    with pytest.raises(TGHopError, match="line 2: the map normal is the row's path itself, the albedo"):
+        batch.find_work(src / "list.csv")
+    (src / "list.jsonl").write_text('{"path": "rock.png", "maps": []}\n{"path": "rock.png", "maps": {}}\n')
+    assert [it["maps"] for it in batch.find_work(src / "list.jsonl")] == [[], []]
 
 
 def test_a_material_row_writes_every_map_as_the_library_makes_them(tmp_path):

@@ -23,8 +23,8 @@ __all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "pa
 
 #: Per-exemplar settings a manifest row may give.
 ROW_SETTINGS = ("size", "count", "seed", "tile", "scale")
-#: Most maps of one material in a manifest row.
-MAX_MAPS = 16
+#: Most maps of one material besides its albedo, in a manifest row (and a web server's fit).
+MAX_MAPS = 8
 # A map's name names its output file (NAME_<map>.png): tghop.material's rule.
 _MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 
@@ -148,6 +148,9 @@ def parse_maps(value, where, base: Path) -> list:
     else:
         raise TGHopError(f'{where}: maps {_shown(value)} must be paths separated by ";" (CSV), or a JSON object '
                          '{"normal": "a_normal.png", ...} or list of paths')
+    if not pairs and isinstance(value, str):  # only separators: a slip (an empty cell is a texture)
+        raise TGHopError(f"{where}: maps {_shown(value)} lists no file; give the maps' files, or leave the cell "
+                         "empty for a texture")
     out, seen = [], {"albedo"}
     for name, file in pairs:
         if not isinstance(file, str) or not file.strip():
@@ -232,6 +235,10 @@ def read_manifest(path: Path):
         maps = row.get("maps")
         maps = [] if maps is None or (isinstance(maps, str) and not maps.strip()) else parse_maps(
             maps, where, path.parent)
+        for map_name, map_file in maps:
+            if os.path.abspath(map_file) == os.path.abspath(file):
+                raise TGHopError(f"{where}: the map {map_name} is the row's path itself, the albedo; give the map's "
+                                 "own file")
         items.append({"path": file, "rel": Path(source), "name": name, "named": name is not None, "given": name,
                       "settings": row_settings(row, where), "maps": maps, "where": where})
     if not items:

@@ -25,6 +25,7 @@ import json
 import re
 import secrets
 
+from ..manifest import MAX_MAPS
 from .requests import RequestError, safe_name
 
 __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "material_id", "texture_only",
@@ -35,8 +36,6 @@ __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "
 META_PART = "_meta"
 #: Prefix of a map's form field: ``map:normal`` is the map named "normal".
 MAP_FIELD = "map:"
-#: Most maps of one material in a fit request.
-MAX_MAPS = 8
 # A map's name becomes a file name (OUT_<name>.png): tghop.material's rule.
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 
