@@ -179,6 +179,8 @@ def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):
                tmp_path / "material.npz")
     page.set_input_files("#model-file", str(tmp_path / "material.npz"))
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+    page.wait_for_function("document.getElementById('message').textContent"
+                           " === 'material material.npz loaded: generate below (every map)'")
     page.click("label:has(#mode-inpaint)")
     assert "is a material" in page.text_content("#inpaint-message")
     page.click("label:has(#mode-view)")

@@ -256,7 +256,8 @@ async function uploadModel(file) {
   state.pendingName = file.name;
   setModel(id);
   say(`model ${file.name} loaded: generate below`);
-  showSummary(id);
+  await showSummary(id);
+  if (state.modelId === id && state.material) say(`material ${file.name} loaded: generate below (every map)`);
 }
 
 // ------------------------------------------------------------------ generating
