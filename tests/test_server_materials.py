@@ -232,3 +232,9 @@ def test_a_fit_with_maps_may_send_more_than_one_files_limit_but_no_file_over_it(
     assert_error(client.post("/api/models", files=files), 400, "a.png")
     files = {**albedo_file(), "map:a": ("a.png", b"\0" * ((50 << 20) + 10))}
     assert_error(client.post("/api/models", files=files), 413, "a.png is over the limit of 50 MB a file")
+
+
+def test_a_normal_map_that_holds_no_unit_vectors_is_refused_before_a_fit_starts(client):
+    grey = png(to_uint8(data.bricks(SIZE)))  # named normal, but colours
+    r = client.post("/api/models", files={**albedo_file(), "map:normal": ("n.png", grey)})
+    assert_error(r, 400, "n.png: map 'normal' is a normal map by its name but its pixels are not unit vectors")

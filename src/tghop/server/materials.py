@@ -75,7 +75,12 @@ def map_uploads(fields: dict) -> list:
 def read_maps(uploads, read, albedo_shape) -> tuple:
     """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename)``
     returns ``(image, depth)`` (the server's upload reader); a map of another height and
-    width than the albedo's is refused (400)."""
+    width than the albedo's, or a normal map by its name that holds no unit vectors
+    (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
+    from .._common import check_image
+    from .._errors import TGHopError
+    from ..material import check_normal_map, is_normal_name
+
     maps, depths = {}, {}
     for name, filename, content in uploads:
         image, depth = read(content, filename)
@@ -83,6 +88,11 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
             h, w = albedo_shape[:2]
             raise RequestError(400, f"the map {name} ({filename}) is {image.shape[0]}x{image.shape[1]} but the "
                                     f"albedo is {h}x{w}; give maps of the albedo's size, aligned with it")
+        if is_normal_name(name):
+            try:
+                check_normal_map(check_image(image[::2, ::2], name=f"map {name!r}"), name)  # a sample: the median
+            except TGHopError as exc:
+                raise RequestError(400, f"{filename}: {exc}") from None
         maps[name], depths[name] = image, depth
     return maps, depths
 
