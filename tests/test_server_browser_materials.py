@@ -185,3 +185,42 @@ def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):
     assert "is a material" in page.text_content("#inpaint-message")
     page.click("label:has(#mode-view)")
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_fill_a_hole_in_every_map_of_a_material_result(page, tmp_path):
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    page.locator("label", has=page.locator("#mode-view")).click()
+    maps = example_maps(data.builtin("bricks"))
+    (tmp_path / "normal.png").write_bytes(png(to_uint16(maps["normal"])))
+    (tmp_path / "height.png").write_bytes(png(to_uint8(maps["height"][..., 0])))
+    page.set_input_files("#maps", [str(tmp_path / "normal.png"), str(tmp_path / "height.png")])
+    page.select_option("#builtin", "")
+    page.select_option("#builtin", "bricks")
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')", timeout=90_000)
+    page.fill("#height", "64")
+    page.fill("#width", "80")
+    page.fill("#seed", "4")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 4'")
+    page.locator("label", has=page.locator("#mode-inpaint")).click()
+    page.wait_for_selector("#editor[data-ready='1']")
+    assert "is a material" not in page.text_content("#inpaint-message")
+    page.fill("#inpaint-seed", "6")
+    box = page.locator("#mask").bounding_box()
+    sx, sy = box["width"] / 80, box["height"] / 64
+    page.mouse.move(box["x"] + 20 * sx, box["y"] + 30 * sy)
+    page.mouse.down()
+    page.mouse.move(box["x"] + 60 * sx, box["y"] + 34 * sy, steps=10)
+    page.mouse.up()
+    with page.expect_response(lambda r: r.url.endswith("/inpaint")) as answer:
+        page.click("#fill")
+    assert answer.value.status == 200
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x80, seed 6'",
+                           timeout=60_000)
+    assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == ["albedo", "normal", "height"]
+    page.locator("#maps-view label", has_text="normal").click()
+    assert page.get_attribute("#download-png", "download") == "tghop-inpainted-seed6_normal.png"
+    assert not [e for e in page.errors if "status of 4" not in e], page.errors

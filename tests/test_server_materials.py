@@ -187,10 +187,15 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     picture = png(to_uint8(data.bricks(48)))
     mask = np.zeros((48, 48), dtype=np.uint8)
     mask[10:30, 10:30] = 255
+    # A material's fill needs its maps, all of them and no others; a texture model's takes none
     assert_error(client.post(f"/api/models/{material_id}/inpaint", files={
-        "image": ("p.png", picture), "mask": ("m.png", png(mask))}), 422, "is a material", "inpaint", "albedo")
+        "image": ("p.png", picture), "mask": ("m.png", png(mask))}), 400, "this material's maps are normal, height")
     assert_error(client.post(f"/api/models/{material_id}/extend", files={
-        "image": ("p.png", picture), "size": (None, "64x64")}), 422, "is a material", "extend")
+        "image": ("p.png", picture), "size": (None, "64x64"), "map:normal": ("n.png", picture),
+        "map:rough": ("r.png", picture)}), 400, "this material's maps are normal, height")
+    assert_error(client.post(f"/api/models/{plain}/inpaint", files={
+        "image": ("p.png", picture), "mask": ("m.png", png(mask)), "map:height": ("h.png", picture)}),
+        422, "is a texture model; map:<name> fields go with a material")
     assert_error(client.post("/api/images/morph", json={"a": material_id, "b": plain, "size": [32, 64]}),
                  422, "a is a material", "morph")
     # Named as the request and the page name them (models[i], the start of the id)
@@ -238,3 +243,44 @@ def test_a_normal_map_that_holds_no_unit_vectors_is_refused_before_a_fit_starts(
     grey = png(to_uint8(data.bricks(SIZE)))  # named normal, but colours
     r = client.post("/api/models", files={**albedo_file(), "map:normal": ("n.png", grey)})
     assert_error(r, 400, "n.png: map 'normal' is a normal map by its name but its pixels are not unit vectors")
+
+
+def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client, material_id, tmp_path):
+    from tghop.inpaint import inpaint_material
+
+    albedo = to_uint8(data.bricks(SIZE, rng=8))
+    maps = example_maps(albedo)
+    hole = np.zeros((SIZE, SIZE), dtype=bool)
+    hole[30:60, 20:70] = True
+    files = {"image": ("p.png", png(albedo)), "mask": ("m.png", png(hole.astype(np.uint8) * 255)),
+             "map:normal": ("n.png", png(to_uint16(maps["normal"]))),
+             "map:height": ("h.png", png(to_uint8(maps["height"])))}
+    r = client.post(f"/api/models/{material_id}/inpaint", files={**files, "seed": (None, "4")})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["size"] == [SIZE, SIZE] and [m["name"] for m in body["maps"]] == ["albedo", "normal", "height"]
+    got = {m["name"]: decode(m["png"]) for m in body["maps"]}
+    np.testing.assert_array_equal(got["albedo"][~hole], albedo[~hole])
+    assert not np.array_equal(got["albedo"][hole], albedo[hole])
+    path = tmp_path / "m.npz"
+    path.write_bytes(client.get(f"/api/models/{material_id}/file").content)
+    from tghop.imageio import load_image
+
+    read = {}
+    for name, (_, content) in [("normal", files["map:normal"]), ("height", files["map:height"])]:
+        (tmp_path / f"{name}.png").write_bytes(content)
+        read[name] = load_image(tmp_path / f"{name}.png", dtype=None)
+    want = inpaint_material(load_model(path, material=True), {"albedo": albedo, **read}, hole, rng=4)
+    np.testing.assert_array_equal(got["albedo"], want["albedo"])
+    np.testing.assert_array_equal(got["normal"], to_uint16(want["normal"]))
+    # Grown (extend): the picture kept at its anchor in every map, as multipart to the page
+    r = client.post(f"/api/models/{material_id}/extend", headers={"Accept": "multipart/form-data"}, files={
+        "image": files["image"], "map:normal": files["map:normal"], "map:height": files["map:height"],
+        "size": (None, f"{SIZE}x{SIZE + 32}"), "anchor": (None, "left"), "seed": (None, "2")})
+    assert r.status_code == 200 and r.headers["content-type"].startswith("multipart/form-data"), r.text
+    parts = multipart_parts(r)
+    assert list(parts) == ["_meta", "albedo", "normal", "height"]
+    (tmp_path / "grown.png").write_bytes(parts["albedo"][1])
+    grown = load_image(tmp_path / "grown.png", dtype=None)
+    assert grown.shape == (SIZE, SIZE + 32, 3)
+    np.testing.assert_array_equal(grown[:, :SIZE], albedo)

@@ -492,10 +492,8 @@ class Server:
         headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                    "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
         if isinstance(png, list):  # a material: every map, as multipart where the client takes it (the page)
-            if "multipart/form-data" in request.headers.get("accept", ""):
-                body, kind = materials.maps_multipart(png, size, seed)
-                return Response(body, headers=headers, media_type=kind)
-            return Response(materials.maps_json(png, size, seed), headers=headers, media_type="application/json")
+            body, kind = materials.answer(request.headers.get("accept", ""), png, size, seed)
+            return Response(body, headers=headers, media_type=kind)
         return Response(png, media_type="image/png", headers=headers)
 
     async def generate(self, request):
@@ -582,13 +580,14 @@ class Server:
             self.cache.path(model_id)
         return await self._png_response(request, self._morph, [a, b], size, stations, settings, seed=seed)
 
-    def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool, grow) -> bytes:
+    def _inpaint(self, model_id: str, fields: dict, seed: int, tile: bool, grow):
         """Read the picture and its mask (``grow`` None) or grow the picture to ``grow``'s
         ``(size, anchor)`` (:func:`tghop.inpaint.expand_canvas`), and fill the mask's white
         pixels or the new area with the model's texture (:func:`tghop.inpaint.inpaint`): the
         PNG's bytes. As ``tghop inpaint`` and ``tghop extend`` do (their code): an alpha channel
         is kept (opaque where filled), and so are 16 bits per channel (a float picture: 16
-        bits, the most a PNG holds)."""
+        bits, the most a PNG holds). A material fills its maps too (``map:<name>`` fields):
+        ``(maps, (h, w))`` (:func:`materials.fill`)."""
         import numpy as np
 
         from .._errors import HINT_DOWNSCALE_YOURSELF
@@ -596,7 +595,9 @@ class Server:
         from ..inpaint import check_hole, expand_canvas, inpaint, require_hole, split_alpha, with_alpha
 
         model = self.cache.load(model_id)
-        materials.texture_only(model, f"model {model_id[:12]}", "extend" if grow else "inpaint")
+        uploads = materials.map_uploads(fields)  # a material's maps (none for a texture model)
+        if uploads and not materials.is_material(model):
+            raise RequestError(422, f"model {model_id[:12]} is a texture model; map:<name> fields go with a material")
         picture = mask = None
         for name in ("image",) if grow else ("image", "mask"):
             upload = fields.get(name)
@@ -625,6 +626,10 @@ class Server:
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
         with self.generating:
+            if materials.is_material(model):  # every map alike
+                return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename: self._read_image(
+                    data, filename, lambda p: load_image(p, dtype=None, with_depth=True)), grow=grow, seed=seed,
+                    tile=tile, progress=self.unless_stopping)
             try:
                 filled = inpaint(model, picture, hole, rng=seed, tile=tile, progress=self.unless_stopping)
             except MemoryError:
@@ -652,7 +657,7 @@ class Server:
         fields = await read_form(request, body, "the file field 'image' and the fields 'size' (HEIGHTxWIDTH) and "
                                  "optionally 'anchor', 'seed' and 'tile'" if grow else "the file fields 'image' and "
                                  "'mask', white where to fill; optionally the fields 'seed' and 'tile'")
-        unknown = [k for k in fields if k not in names]
+        unknown = [k for k in fields if k not in names and not k.startswith(materials.MAP_FIELD)]
         if unknown:
             raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)}")
         plain = {k: fields.get(k) for k in names if k not in ("image", "mask")}
@@ -668,7 +673,11 @@ class Server:
         tile = parse_bool("tile", plain["tile"] or "false")
         growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
         png = await self.in_executor(request, self._inpaint, model_id, fields, seed, tile, growth)
-        return Response(png, media_type="image/png", headers={"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"})
+        headers = {"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"}
+        if isinstance(png, tuple):  # a material's maps and their size
+            body, kind = materials.answer(request.headers.get("accept", ""), *png, seed)
+            return Response(body, media_type=kind, headers=headers)
+        return Response(png, media_type="image/png", headers=headers)
 
     # ---------------------------------------------------------------- co-occurrence
     async def upload_cooc(self, request):

@@ -12,7 +12,10 @@ maps (:class:`tghop.material.Material`), and a material's images as one answer o
   accepts ``multipart/form-data`` (the page: a browser's ``Response.formData()`` reads it, a
   third smaller and nothing to decode), a part per map, named by the map, its PNG as a file,
   after a part ``_meta`` with the JSON without the PNGs (:func:`maps_multipart`).
-- Routes that take texture models only (inpaint, extend, a morph) refuse a material with one
+- A material's inpaint and extend (``POST /api/models/{id}/inpaint``, ``/extend``) take its maps
+  beside the picture (its albedo) as file fields ``map:<name>``, every map of the material, and
+  fill them alike (:func:`tghop.inpaint.inpaint_material`; :func:`fill`): the answer is every
+  map, as a generation's. A morph takes texture models only: a material is refused in one
   line (422).
 """
 
@@ -29,7 +32,7 @@ from ..manifest import MAX_MAPS
 from .requests import RequestError, safe_name
 
 __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "material_id", "texture_only",
-           "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "META_PART"]
+           "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill", "META_PART"]
 
 #: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
 #: name cannot begin with "_", so no map's part has this name).
@@ -168,3 +171,46 @@ def maps_multipart(maps: list, size, seed) -> tuple:
                "Content-Type: image/png", m["png"]) for m in maps]
     body = b"".join(f"--{boundary}\r\n{head}\r\n\r\n".encode() + data + b"\r\n" for head, data in parts)
     return body + f"--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"
+
+
+def answer(accept: str, maps: list, size, seed) -> tuple:
+    """``(body, media type)`` of a material's maps (:func:`encode_maps`): multipart where the
+    request's ``Accept`` header names ``multipart/form-data`` (the page), else JSON."""
+    if "multipart/form-data" in accept:
+        return maps_multipart(maps, size, seed)
+    return maps_json(maps, size, seed), "application/json"
+
+
+def fill(material, picture, alpha, hole, uploads, read, *, grow, seed, tile, progress) -> tuple:
+    """A material's inpaint or extend: ``picture`` (its albedo, grown already with ``grow``,
+    ``(size, anchor)``, else None) and the maps sent as ``map:<name>`` (``uploads``, as
+    :func:`map_uploads` gives them; ``read(content, filename)`` -> ``(image, depth)``), filled
+    alike in ``hole`` (:func:`tghop.inpaint.inpaint_material`; the albedo's alpha channel kept,
+    opaque in the hole): ``(the maps encoded (:func:`encode_maps`), (h, w))``. A map missing,
+    unknown or of another size than the picture is 400."""
+    from .._errors import TGHopError
+    from ..inpaint import expand_canvas, inpaint_material, with_alpha
+
+    names = material.names_[1:]
+    given = {name: (filename, content) for name, filename, content in uploads}
+    if sorted(given) != sorted(names):
+        raise RequestError(400, f"this material's maps are {', '.join(names)}; send each of them, and no other, as "
+                                "the file field map:<name> beside the picture (its albedo)")
+    maps = {}
+    for name in names:
+        image, _ = read(given[name][1], given[name][0])
+        if grow is not None:
+            image = expand_canvas(image, grow[0], anchor=grow[1])[0]
+        if image.shape[:2] != picture.shape[:2]:
+            raise RequestError(400, f"the map {name} ({given[name][0]}) is {image.shape[0]}x{image.shape[1]} but the "
+                                    f"picture is {picture.shape[0]}x{picture.shape[1]}; give maps of its size")
+        maps[name] = image
+    try:
+        filled = inpaint_material(material, {"albedo": picture, **maps}, hole, rng=seed, tile=tile, progress=progress,
+                                  **({"order": "raster"} if grow is not None else {}))
+    except MemoryError:
+        raise RequestError(413, "out of memory; send a smaller picture") from None
+    except TGHopError as exc:
+        raise RequestError(400, str(exc)) from None
+    filled["albedo"] = with_alpha(filled["albedo"], alpha, hole)
+    return encode_maps(filled, material), picture.shape[:2]

@@ -9,7 +9,7 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   mapFiles: [], source: null, material: false, shown: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
-const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false };
+const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null };
 
 function say(text, isError) {
   const el = $("message");
@@ -326,7 +326,7 @@ function showResult(url, seed, blob, what, maps) {
   } : null;
   renderMaps();
   showPicture(url, `${what || "result"}`, seed, `${base}.png`);
-  if (blob && !maps) setEditorPicture(blob, `tghop-seed${seed}.png`);  // a material cannot be inpainted
+  if (blob) setEditorPicture(blob, `tghop-seed${seed}.png`, maps);  // a material's maps are filled alike
 }
 
 function showPicture(url, what, seed, filename) {
@@ -494,8 +494,8 @@ function setMode(mode) {
   $("morph").hidden = mode !== "morph";
   $("cooc").hidden = mode !== "cooc";
   if (mode === "cooc") coocShown();
-  if (inpaint && state.material) {
-    sayInpaint("this model is a material: Fill and Extend take texture models; fit its albedo without maps", true);
+  if (inpaint && state.material && !editor.maps) {
+    sayInpaint("this model is a material: Fill and Extend fill every map of one of its results; generate first", true);
   } else if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
   if (mode === "paint") {
     resizeGuide();
@@ -505,7 +505,9 @@ function setMode(mode) {
 }
 
 // The picture to paint on: the latest result, or a picture the user chose.
-function setEditorPicture(blob, name) {
+// `maps`: a material result's maps (the albedo first), sent with the picture to Fill and Extend.
+function setEditorPicture(blob, name, maps) {
+  editor.maps = maps || null;
   if (editor.url) URL.revokeObjectURL(editor.url);
   editor.blob = blob;
   editor.name = name || "picture.png";
@@ -632,11 +634,16 @@ async function sendPicture(path, fields, what) {
   }
   if (seed !== "") form.append("seed", seed);
   form.append("tile", $("inpaint-tile").checked ? "true" : "false");
-  const response = await busyFetch(`/api/models/${state.modelId}/${path}`, { method: "POST", body: form });
+  if (state.material && editor.maps) {  // a material's result: every map filled alike
+    for (const m of editor.maps.slice(1)) form.append(`map:${m.name}`, m.blob, `${m.name}.png`);
+  }
+  const response = await busyFetch(`/api/models/${state.modelId}/${path}`, {
+    method: "POST", body: form, headers: { Accept: GENERATION_HEADERS.Accept },
+  });
   if (!response.ok) throw new Error(await errorOf(response));
-  const blob = await response.blob();
+  const { blob, maps } = await answerOf(response);
   const used = response.headers.get("X-Tghop-Seed");
-  showResult(URL.createObjectURL(blob), used, blob, what);
+  showResult(URL.createObjectURL(blob), used, blob, what, maps);
   return used;
 }
 
