@@ -207,8 +207,7 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
         s_in, t_in = s_node >= 0, t_node >= 0
         s_opts = _options(s_node, s_in, labels[s_y, s_x], lo, hi)
         t_opts = _options(t_node, t_in, labels[t_y, t_x], lo, hi)
-        e = [[value.difference(a, b, (s_y, s_x), (t_y, t_x)) for b in t_opts] for a in s_opts]
-        (e00, e01), (e10, e11) = e
+        (e00, e01), (e10, e11) = value.differences(s_opts, t_opts, (s_y, s_x), (t_y, t_x))
         only_s = s_in & ~t_in  # t shows its own layer: a cost for each of s's choices
         np.add.at(cost[0], s_node[only_s], e00[only_s])
         np.add.at(cost[1], s_node[only_s], e10[only_s])
@@ -344,20 +343,29 @@ def _cores(labels, band, tile):
     # the maximum filters, most of the time, read half the bytes).
     np.minimum(depth, min(2 * int(depth[band].max()) + 1, np.iinfo(np.uint16).max), out=depth)
     depth = depth.astype(np.uint16)
-    scale = np.zeros(depth.shape, dtype=np.int8)  # log2 of each band pixel's r / 2
-    np.ceil(np.log2(depth, where=band, out=np.zeros(depth.shape)), out=scale, where=band, casting="unsafe")
+    ys, xs = np.nonzero(band)
+    at_depth = depth[ys, xs]
+    scale = np.zeros(at_depth.shape, dtype=np.int8)  # log2 of each band pixel's r / 2
+    np.ceil(np.log2(at_depth, out=np.zeros(at_depth.shape)), out=scale, casting="unsafe")
+    mine = labels[ys, xs]
     cores = np.zeros_like(band)
-    for k in np.unique(labels[band]):
-        mine = labels == k
-        box = (slice(None), slice(None))
+    h, w = labels.shape
+    for k in np.unique(mine):
+        region = labels == k
+        own = np.where(region, depth, 0) if tile else None
         if not tile:  # the region's bounding box: outside it no pixel of the region counts
-            rows, cols = np.flatnonzero(mine.any(axis=1)), np.flatnonzero(mine.any(axis=0))
-            box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-        own, here = np.where(mine[box], depth[box], 0), band[box] & mine[box]
-        for j in np.unique(scale[box][here]):
-            at = here & (scale[box] == j)
-            thick = maximum_filter(own, size=2 * (2 << int(j)) + 1, mode="wrap" if tile else "constant")
-            cores[box] |= at & (2 * own > thick)
+            rows, cols = np.flatnonzero(region.any(axis=1)), np.flatnonzero(region.any(axis=0))
+        for j in np.unique(scale[mine == k]):
+            at = np.flatnonzero((mine == k) & (scale == j))
+            ay, ax, reach = ys[at], xs[at], 2 << int(j)
+            if tile:
+                thick = maximum_filter(own, size=2 * reach + 1, mode="wrap")[ay, ax]
+            else:  # the filter over the part of that box its pixels' windows reach
+                box = (slice(max(int(ay.min()) - reach, int(rows[0])), min(int(ay.max()) + reach, int(rows[-1])) + 1),
+                       slice(max(int(ax.min()) - reach, int(cols[0])), min(int(ax.max()) + reach, int(cols[-1])) + 1))
+                thick = maximum_filter(np.where(region[box], depth[box], 0), size=2 * reach + 1,
+                                       mode="constant")[ay - box[0].start, ax - box[1].start]
+            cores[ay, ax] = 2 * at_depth[at] > thick
     return cores
 
 
@@ -417,19 +425,37 @@ class _Values:
 
     def at(self, which, y, x):
         """(n, C), the layers' dtype: layer ``which[i]`` at pixel ``(y[i], x[i])``."""
-        out = np.empty((which.size, self.layers[0].shape[2]), dtype=self.layers[0].dtype)
+        c = self.layers[0].shape[2]
+        out = np.empty((which.size, c), dtype=self.layers[0].dtype)
         for k, (layer, (rows, cols)) in enumerate(zip(self.layers, self.boxes)):
-            m = which == k
-            if m.any():
-                out[m] = layer[y[m] - rows.start, x[m] - cols.start]
+            m = np.flatnonzero(which == k)
+            if m.size:  # flat positions in the layer: one take of whole rows of channels
+                out[m] = layer.reshape(-1, c).take((y[m] - rows.start) * layer.shape[1] + (x[m] - cols.start), axis=0)
         return out
 
-    def difference(self, a, b, s, t):
-        """Per pair: ``|L_a(s) - L_b(s)| + |L_a(t) - L_b(t)|``, each a mean over channels."""
-        total = np.zeros(a.size, dtype=np.float64)
-        differ = a != b
-        if differ.any():
-            for y, x in (s, t):
-                total[differ] += np.abs(self.at(a[differ], y[differ], x[differ])
-                                        - self.at(b[differ], y[differ], x[differ])).mean(axis=1)
-        return total
+    def differences(self, s_options, t_options, s, t):
+        """``[[e(a, b) for b in t_options] for a in s_options]``, per pair ``e(a, b) = |L_a(s) - L_b(s)| +
+        |L_a(t) - L_b(t)|``, each a mean over channels (float64; 0 where ``a = b``): each layer's value
+        at each pixel read once."""
+        out = [[np.zeros(s[0].size) for _ in t_options] for _ in s_options]
+        for y, x in (s, t):
+            mine = [self.at(a, y, x) for a in s_options]
+            theirs = [self.at(b, y, x) for b in t_options]
+            for row, va in zip(out, mine):
+                for total, vb in zip(row, theirs):
+                    total += _channel_mean(np.abs(va - vb))
+        return out
+
+
+def _channel_mean(values):
+    """``values.mean(axis=1)`` of an (n, C) array, the same numbers: below 8 channels NumPy adds them in
+    order and divides in their dtype, done here a channel at a time (a reduction over so short an axis
+    is slow); from 8 on, NumPy's own."""
+    c = values.shape[1]
+    if c >= 8:
+        return values.mean(axis=1)
+    total = values[:, 0].copy()
+    for i in range(1, c):
+        total += values[:, i]
+    total /= values.dtype.type(c)
+    return total
