@@ -132,8 +132,15 @@ def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=Fals
     if radius:
         # Box sums of the 0/1 maps are whole numbers (exact in float32), divided once.
         area = np.float32((2 * radius + 1) ** 2)
-        for k in range(n_models):
-            out[k] = _box_sum(_box_sum(out[k], radius, 0, tile), radius, 1, tile) / area
+        h, w = labels.shape
+        # While every running sum stays below 2^24 they are exact, and the maps' box sums add up to the
+        # box's area everywhere: the last map's is the area less the others'.
+        exact = n_models > 1 and max(h + 2 * radius + 1, (w + 2 * radius + 1) * (2 * radius + 1)) < 1 << 24
+        for k in range(n_models - 1 if exact else n_models):
+            out[k] = _box_sum(_box_sum(out[k], radius, 0, tile), radius, 1, tile)
+        if exact:
+            np.subtract(area, out[:-1].sum(axis=0) if n_models > 2 else out[0], out=out[-1])
+        out /= area
     return out
 
 
@@ -380,8 +387,7 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
             layer = np.concatenate(list(layer.values()), axis=2)
         if image is None:
             image = np.empty(labels.shape + layer.shape[2:], dtype=layer.dtype)
-        own = labels[rows, cols] == i - 1
-        image[rows, cols][own] = layer[own]
+        np.copyto(image[rows, cols], layer, where=(labels[rows, cols] == i - 1)[..., None])
         inside = (slice(near[0].start - rows.start, near[0].stop - rows.start),
                   slice(near[1].start - cols.start, near[1].stop - cols.start))
         kept.append(layer[inside].copy() if near[0].stop > near[0].start else layer[:0, :0].copy())
@@ -397,13 +403,17 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
             if normal:  # the join's means of unit vectors, unit again
                 maps[name] = renormalise(maps[name]).astype(image.dtype, copy=False)
         return {name: _as_dtype(m, dtype) for name, m in maps.items()}
-    return _as_dtype(image, dtype)
+    return _as_dtype(image, dtype, scratch=True)
 
 
-def _as_dtype(image, dtype):
-    """A float image in [0, 1] as a contiguous array of ``dtype`` (uint8: rounded to 0-255)."""
+def _as_dtype(image, dtype, scratch=False):
+    """A float image in [0, 1] as a contiguous array of ``dtype`` (uint8: rounded to 0-255; with
+    ``scratch``, in ``image`` itself on the way)."""
     if dtype == np.uint8:
-        return np.round(image * np.float32(255.0)).astype(np.uint8)
+        if not scratch:
+            return np.round(image * np.float32(255.0)).astype(np.uint8)
+        image *= np.float32(255.0)
+        return np.round(image, out=image).astype(np.uint8)
     return np.ascontiguousarray(image, dtype=dtype)
 
 
