@@ -36,7 +36,7 @@ import numpy as np
 
 from ._common import TGHopError
 
-__all__ = ["cut_regions", "join_layers", "layer_boxes", "band_boxes", "wraps", "STRAY_COST"]
+__all__ = ["cut_regions", "join_layers", "layer_boxes", "band_boxes", "in_band", "wraps", "STRAY_COST"]
 
 #: Cost of showing the other region's layer at the band's border (in the units of the
 #: neighbour cost: a mean absolute difference of values in [0, 1], summed over two pixels).
@@ -83,7 +83,13 @@ def wraps(box, shape, tile):
     return bool(tile) and (box[0].start, box[0].stop, box[1].start, box[1].stop) == (0, shape[0], 0, shape[1])
 
 
-def band_boxes(weights, *, tile=False):
+def in_band(weights):
+    """The pixels of the edges' bands, (H, W) bool: those whose largest weight (``weights`` (K, H, W),
+    :func:`tghop.guided.region_weights`) is below 1."""
+    return weights.max(axis=0) < 1.0 - 1e-6
+
+
+def band_boxes(weights, *, tile=False, band=None):
     """The part of each model's layer that :func:`cut_regions` and :func:`join_layers` read:
     the box of the band pixels where its weight is above 0, one pixel more (without a band,
     ``transition`` below 2: of the pixels next to a painted edge).
@@ -98,6 +104,8 @@ def band_boxes(weights, *, tile=False):
         Region weights (:func:`tghop.guided.region_weights`).
     tile : bool
         The band wraps around (its boxes are then the whole image where it reaches an edge).
+    band : ndarray of bool, shape (H, W), optional
+        :func:`in_band` of ``weights``, where the caller has it.
 
     Returns
     -------
@@ -105,7 +113,7 @@ def band_boxes(weights, *, tile=False):
         One box per model, inside its :func:`layer_boxes` box (empty where it meets no band).
     """
     k, h, w = weights.shape
-    band = weights.max(axis=0) < 1.0 - 1e-6
+    band = in_band(weights) if band is None else band
     if not band.any():  # transition 0 or 1: no band, but join_layers still antialiases each painted edge
         band = _next_to_another(np.argmax(weights, axis=0), tile)
     boxes = []
@@ -145,7 +153,7 @@ def _grown(mask, tile):
     return out
 
 
-def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_COST):
+def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_COST, band=None):
     """Which layer each pixel shows: its region's, or across a minimum cut in an edge's band.
 
     Parameters
@@ -163,6 +171,8 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
         Edges wrap around (a tileable image).
     stray_cost : float
         Cost of showing the other region's layer at the band's border.
+    band : ndarray of bool, shape (H, W), optional
+        :func:`in_band` of ``weights``, where the caller has it (not changed).
 
     Returns
     -------
@@ -176,10 +186,10 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     if len(layers) != k:
         raise TGHopError(f"{k} regions' weights but {len(layers)} layers")
     h, w = labels.shape
-    band = weights.max(axis=0) < 1.0 - 1e-6
+    band = in_band(weights) if band is None else band
     if k < 2 or not band.any():
         return labels.copy()
-    band &= ~_cores(labels, band, tile)
+    band = band & ~_cores(labels, band, tile)
     if not band.any():
         return labels.copy()
     ys, xs = np.nonzero(band)

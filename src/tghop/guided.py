@@ -74,7 +74,7 @@ import numpy as np
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
-from .composite import band_boxes, cut_regions, join_layers, layer_boxes, wraps
+from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
 from .guides import guide_labels
 from .layout import follows_guide
 from .material import Material, renormalise
@@ -369,7 +369,8 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
     boxes = layer_boxes(weights, tile=tile)
     # Each layer's pixels of its own region go to the image as it is made; only the part the join
     # reads is kept (one layer in memory at a time besides the bands).
-    keep = band_boxes(weights, tile=tile)
+    band = in_band(weights)
+    keep = band_boxes(weights, tile=tile, band=band)
     image, kept = None, []
     dtype_layers = np.float64 if dtype == np.float64 else np.float32
     for i, (model, (rows, cols), near) in enumerate(zip(models, boxes, keep), start=1):
@@ -394,7 +395,8 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
         del layer
     kept = [np.zeros((0, 0) + image.shape[2:], image.dtype) if layer is None else layer for layer in kept]
     report(progress, "join", 0, 1)
-    image = join_layers(cut_regions(labels, weights, kept, keep, tile=tile), kept, keep, tile=tile, out=image)
+    shows = cut_regions(labels, weights, kept, keep, tile=tile, band=band)
+    image = join_layers(shows, kept, keep, tile=tile, out=image)
     report(progress, "join", 1, 1)
     if materials:
         first = models[0]
