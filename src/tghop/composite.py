@@ -359,7 +359,6 @@ def _cores(labels, band, tile):
     np.ceil(np.log2(at_depth, out=np.zeros(at_depth.shape)), out=scale, casting="unsafe")
     mine = labels[ys, xs]
     cores = np.zeros_like(band)
-    h, w = labels.shape
     for k in np.unique(mine):
         region = labels == k
         own = np.where(region, depth, 0) if tile else None
