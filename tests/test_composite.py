@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tghop import TGHopError
-from tghop.composite import band_boxes, cut_regions, join_layers, layer_boxes
+from tghop.composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes
 from tghop.guided import region_weights
 
 
@@ -164,3 +164,33 @@ def test_a_region_narrower_than_the_band_keeps_its_middle(tile):
     assert (shows[14:50, 73:79] == 1).all()  # the middle half of the 12 (its ends rounded off at most as much)
     assert (shows[1:3, 146:154] == 1).all()
     assert (shows == 1).sum() >= 0.5 * (labels == 1).sum()
+
+
+@pytest.mark.parametrize("tile", [False, True])
+def test_region_weights_are_each_maps_box_mean(tile):
+    # The last map's weights are the box's area less the others' sums: the same numbers as its own box sums.
+    labels = np.random.default_rng(0).integers(0, 4, (37, 53))
+    labels[labels == 2] = 1  # a label with no pixel
+    for transition in (0, 1, 6, 31):
+        weights = region_weights(labels, 4, transition, tile=tile)
+        r = transition // 2
+        padded = np.pad(labels, r, mode="wrap" if tile else "edge")
+        windows = np.lib.stride_tricks.sliding_window_view(padded, (2 * r + 1, 2 * r + 1))
+        for k in range(4):
+            mean = (windows == k).sum(axis=(2, 3)).astype(np.float32) / np.float32((2 * r + 1) ** 2)
+            assert np.array_equal(weights[k], mean)
+
+
+def test_the_band_given_is_the_one_found():
+    h = w = 48
+    yy, xx = np.mgrid[:h, :w]
+    labels = ((yy - 24) ** 2 + (xx - 20) ** 2 < 14 ** 2).astype(np.int64)
+    layers = [_noise((h, w, 3), 0), _noise((h, w, 3), 1)]
+    weights = region_weights(labels, 2, 10)
+    band = in_band(weights)
+    kept = band.copy()
+    assert np.array_equal(band, weights.max(axis=0) < 1 - 1e-6) and band.any()
+    assert band_boxes(weights, band=band) == band_boxes(weights)
+    shows = cut_regions(labels, weights, layers, _whole(labels, layers), band=band)
+    assert np.array_equal(shows, cut_regions(labels, weights, layers, _whole(labels, layers)))
+    assert np.array_equal(band, kept)  # not changed
