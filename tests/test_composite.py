@@ -194,3 +194,20 @@ def test_the_band_given_is_the_one_found():
     shows = cut_regions(labels, weights, layers, _whole(labels, layers), band=band)
     assert np.array_equal(shows, cut_regions(labels, weights, layers, _whole(labels, layers)))
     assert np.array_equal(band, kept)  # not changed
+
+
+def test_separate_shapes_are_cut_as_each_alone():
+    # The bands of separate shapes are separate minimum cuts (small ones together): the same pixels
+    # as each shape's cut alone.
+    h = w = 260
+    yy, xx = np.mgrid[:h, :w]
+    shapes = [(yy - 65) ** 2 + (xx - 65) ** 2 < 50 ** 2, (yy - 185) ** 2 + (xx - 180) ** 2 < 55 ** 2]
+    shapes += [(yy - y) ** 2 + (xx - x) ** 2 < 9 for y, x in ((20, 230), (230, 20), (130, 250))]
+    layers = [_noise((h, w, 3), 0), _noise((h, w, 3), 1)]
+    labels = np.any(shapes, axis=0).astype(np.int64)
+    shows = cut_regions(labels, region_weights(labels, 2, 24), layers, _whole(labels, layers))
+    for shape in shapes:
+        alone = shape.astype(np.int64)
+        cut = cut_regions(alone, region_weights(alone, 2, 24), layers, _whole(alone, layers))
+        near = region_weights(alone, 2, 26)[1] > 0
+        assert np.array_equal(shows[near], cut[near]) and (cut[near] != alone[near]).any()
