@@ -1,7 +1,8 @@
 """Headless Chromium (Debian's ``chromium`` package, never a downloaded browser) driven by
-Playwright: used by ``test_server_browser.py`` and by ``scripts/make_gallery.py serve``
-(the README's screenshot of ``tghop serve``'s page)."""
+Playwright: used by ``test_server_browser.py``, ``test_server_browser_materials.py`` and by
+``scripts/make_gallery.py serve`` (the README's screenshot of ``tghop serve``'s page)."""
 
+import contextlib
 import os
 
 #: The browser: ``$TGHOP_CHROMIUM`` or Debian's.
@@ -23,3 +24,24 @@ def missing():
 def launch(playwright):
     """The headless browser, from a started ``playwright.sync_api.sync_playwright()``."""
     return playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+
+
+@contextlib.contextmanager
+def served_page(url):
+    """A page of the headless browser at ``url`` (tghop serve's page), ready (its body's
+    ``data-ready``); ``page.errors`` collects its JavaScript errors and console errors."""
+    from playwright import sync_api
+
+    with sync_api.sync_playwright() as p:
+        browser = launch(p)
+        try:
+            page = browser.new_page(viewport={"width": 1200, "height": 1400}, accept_downloads=True)
+            errors = []
+            page.on("pageerror", lambda exc: errors.append(str(exc)))
+            page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+            page.goto(url)
+            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
+            page.errors = errors
+            yield page
+        finally:
+            browser.close()

@@ -31,19 +31,8 @@ def png(pixels) -> bytes:
 
 @pytest.fixture(scope="module")
 def page(live_server):
-    with sync_api.sync_playwright() as p:
-        browser = chromium.launch(p)
-        try:
-            page = browser.new_page(viewport={"width": 1200, "height": 1400}, accept_downloads=True)
-            errors = []
-            page.on("pageerror", lambda exc: errors.append(str(exc)))
-            page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
-            page.goto(live_server.url + "/")
-            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
-            page.errors = errors
-            yield page
-        finally:
-            browser.close()
+    with chromium.served_page(live_server.url + "/") as page:
+        yield page
 
 
 def wait_fitted(page):
