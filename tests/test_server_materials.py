@@ -284,3 +284,8 @@ def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client,
     grown = load_image(tmp_path / "grown.png", dtype=None)
     assert grown.shape == (SIZE, SIZE + 32, 3)
     np.testing.assert_array_equal(grown[:, :SIZE], albedo)
+    # A map of another size than the picture is refused, though grown it would be of the new size
+    r = client.post(f"/api/models/{material_id}/extend", files={
+        "image": files["image"], "map:normal": ("n.png", png(to_uint16(maps["normal"][:, :SIZE - 8]))),
+        "map:height": files["map:height"], "size": (None, f"{SIZE}x{SIZE + 32}"), "anchor": (None, "left")})
+    assert_error(r, 400, f"the map normal (n.png) is {SIZE}x{SIZE - 8} but the picture is {SIZE}x{SIZE}")

@@ -196,15 +196,15 @@ def fill(material, picture, alpha, hole, uploads, read, *, grow, seed, tile, pro
     if sorted(given) != sorted(names):
         raise RequestError(400, f"this material's maps are {', '.join(names)}; send each of them, and no other, as "
                                 "the file field map:<name> beside the picture (its albedo)")
+    known = ~hole  # grown: the picture as sent is the known rectangle
+    shape = picture.shape[:2] if grow is None else (int(known.any(axis=1).sum()), int(known.any(axis=0).sum()))
     maps = {}
     for name in names:
         image, _ = read(given[name][1], given[name][0])
-        if grow is not None:
-            image = expand_canvas(image, grow[0], anchor=grow[1])[0]
-        if image.shape[:2] != picture.shape[:2]:
+        if image.shape[:2] != shape:  # before it is grown: a map of another size would be grown to the same
             raise RequestError(400, f"the map {name} ({given[name][0]}) is {image.shape[0]}x{image.shape[1]} but the "
-                                    f"picture is {picture.shape[0]}x{picture.shape[1]}; give maps of its size")
-        maps[name] = image
+                                    f"picture is {shape[0]}x{shape[1]}; give maps of its size")
+        maps[name] = image if grow is None else expand_canvas(image, grow[0], anchor=grow[1])[0]
     try:
         filled = inpaint_material(material, {"albedo": picture, **maps}, hole, rng=seed, tile=tile, progress=progress,
                                   **({"order": "raster"} if grow is not None else {}))
