@@ -79,6 +79,15 @@ def test_channel_counts_not_given_are_the_stacked_channels_defaults(exemplar, ma
     assert Material(model=TGHop(**FAST), rng=0).fit(exemplar, maps).model_.channels_ == [24, 59]
 
 
+@pytest.mark.parametrize("path, name", [("Rock Normal.png", "Rock_Normal"), ("a/b/rock_n.png", "rock_n"),
+                                        ("..hidden.png", "hidden"), ("\u00fc.png", "map"), ("a.b.tif", "a.b"),
+                                        ("x" * 80 + ".png", "x" * 64)])
+def test_a_maps_name_from_its_file_is_one_that_can_name_a_file(path, name):
+    from tghop.material import map_name
+
+    assert map_name(path) == name
+
+
 def test_same_seed_same_maps(material):
     a, b = material.synthesize(SIZE, rng=5, **POOL), material.synthesize(SIZE, rng=5, **POOL)
     assert all(np.array_equal(a[k], b[k]) for k in a)
@@ -161,6 +170,15 @@ def test_cli_fit_and_synth_write_every_map(tmp_path, exemplar, maps):
         assert (got, image.shape) == (depth, (64, 64, channels)), name
     info = runner.invoke(main, ["info", str(tmp_path / "mat.npz")])
     assert info.exit_code == 0 and "height (1 channel, 16-bit)" in info.output
+
+
+def test_cli_fit_names_a_map_file_with_spaces_as_the_page_does(tmp_path, exemplar, maps):
+    save_image(exemplar, tmp_path / "albedo.png")
+    save_image(maps["height"], tmp_path / "Rock Height.png")
+    res = CliRunner().invoke(main, ["fit", str(tmp_path / "albedo.png"), "--maps", str(tmp_path / "Rock Height.png"),
+                                    "-o", str(tmp_path / "mat.npz"), "-q", *FAST_CLI])
+    assert res.exit_code == 0, res.output
+    assert load_model(tmp_path / "mat.npz", material=True).names_ == ["albedo", "Rock_Height"]
 
 
 def test_cli_failures_are_one_line_and_write_nothing(tmp_path, exemplar, maps):

@@ -131,9 +131,12 @@ def parse_maps(value, where, base: Path) -> list:
     """A row's ``maps``: the maps of a whole material whose albedo is the row's ``path``, as
     ``[(name, Path)]``. JSON: an object ``{"normal": "rock_n.png", ...}`` or a list of paths;
     CSV: paths separated by ``;``, each optionally ``name=path``. A map without a name is
-    named by its file's stem (as ``tghop fit --maps``). Relative paths are from ``base`` (the
-    manifest's folder). A name that cannot name a file, a name given twice (without case;
-    ``albedo`` is the exemplar's) or more than :data:`MAX_MAPS` maps is refused, naming the line."""
+    named by its file (:func:`tghop.material.map_name`, as ``tghop fit --maps``). Relative paths
+    are from ``base`` (the manifest's folder). A name that cannot name a file, a name given twice
+    (without case; ``albedo`` is the exemplar's) or more than :data:`MAX_MAPS` maps is refused,
+    naming the line."""
+    from .material import map_name
+
     if isinstance(value, dict):
         pairs = list(value.items())
     elif isinstance(value, list):
@@ -157,7 +160,7 @@ def parse_maps(value, where, base: Path) -> list:
             raise TGHopError(f"{where}: the map {_shown(name if name is not None else file)} has no path; "
                              "give each map's image file")
         file = file.strip()
-        name = Path(file).stem if name is None else name
+        name = map_name(file) if name is None else name
         if not isinstance(name, str) or not _MAP_NAME.fullmatch(name):
             raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
                              "'_', '-' and '.' (name=path in CSV)")

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numbers
 import re
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
@@ -53,6 +54,15 @@ DEPTHS = (8, 16, 32)
 #: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
 REFINE_MAPS = settings.Setting("refine_maps", True, "bool", "Refine the maps other than the albedo too.",
                                when="generate", cli=None)
+
+
+def map_name(path) -> str:
+    """The name of the map in file ``path``: its stem, other characters than letters, digits,
+    ``.``, ``_`` and ``-`` as ``_``, without a leading ``.``, ``_`` or ``-``, at most 64
+    characters ("map" when nothing is left): ``Rock Normal.png`` -> ``Rock_Normal``. What
+    ``tghop fit --maps``, ``inpaint --maps``, a batch manifest and the web page name a map by."""
+    stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
+    return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:64] or "map"
 
 
 def is_normal_name(name: str) -> bool:

@@ -250,6 +250,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
+    from ..material import map_name
 
     if output == "-":
         raise TGHopError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
@@ -270,7 +271,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
             raise TGHopError(f"--source {source} is a material of {len(material.names_) - 1} maps "
                              f"({', '.join(material.names_[1:])}) but {len(map_paths)} were given; give its maps "
                              "after --maps, in that order")
-    names = material.names_[1:] if material is not None else [Path(m).stem for m in map_paths]
+    names = material.names_[1:] if material is not None else [map_name(m) for m in map_paths]
     seen = {"albedo"}
     for name, path in zip(names, map_paths):
         if name.lower() in seen:

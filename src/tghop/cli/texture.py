@@ -42,7 +42,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
     maps in ``map_paths`` (named by their file stems)."""
     from ..imageio import load_image
-    from ..material import Material
+    from ..material import Material, map_name
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
@@ -56,7 +56,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
     for path in map_paths:
-        name = Path(path).stem
+        name = map_name(path)
         if name.lower() in (n.lower() for n in ["albedo", *maps]):
             raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
                              f"OUT_{name}.png); rename one")
