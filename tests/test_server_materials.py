@@ -289,3 +289,14 @@ def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client,
         "image": files["image"], "map:normal": ("n.png", png(to_uint16(maps["normal"][:, :SIZE - 8]))),
         "map:height": files["map:height"], "size": (None, f"{SIZE}x{SIZE + 32}"), "anchor": (None, "left")})
     assert_error(r, 400, f"the map normal (n.png) is {SIZE}x{SIZE - 8} but the picture is {SIZE}x{SIZE}")
+
+
+def test_a_materials_fill_may_send_as_much_as_its_fit_but_no_file_over_one_files_limit(client, material_id):
+    # The picture and two maps of 30 MB each (no images: 400 naming one), over 50 MB together: not 413
+    picture = png(to_uint8(data.bricks(48)))
+    files = {"image": ("p.png", picture), "size": (None, "64x64"),
+             "map:normal": ("n.png", b"\0" * (30 << 20)), "map:height": ("h.png", b"\0" * (30 << 20))}
+    assert_error(client.post(f"/api/models/{material_id}/extend", files=files), 400, "n.png")
+    files["map:normal"] = ("n.png", b"\0" * ((50 << 20) + 10))
+    assert_error(client.post(f"/api/models/{material_id}/extend", files=files), 413,
+                 "n.png is over the limit of 50 MB a file")

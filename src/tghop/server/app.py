@@ -74,8 +74,8 @@ __all__ = ["create_app", "require_web", "WEB_HINT", "MAX_UPLOAD_BYTES", "MAX_FIT
 WEB_HINT = "pip install 'tghop[web]'"
 #: Largest request body accepted (an exemplar or a model file).
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
-#: Largest body of a fit (``POST /api/models``): a material's albedo and maps together, each file
-#: still at most MAX_UPLOAD_BYTES (a 2K set with a 16-bit normal map is about 40 MB).
+#: Largest body of a fit (``POST /api/models``), an inpaint or an extend: a material's albedo and maps
+#: together, each file still at most MAX_UPLOAD_BYTES (a 2K set with a 16-bit normal map is about 40 MB).
 MAX_FIT_BYTES = 4 * MAX_UPLOAD_BYTES
 #: The page's files.
 STATIC = Path(__file__).resolve().parent / "static"
@@ -172,6 +172,16 @@ async def read_form(request, body: bytes, fields: str = "a form with an 'image' 
     if twice:  # which one counts would be a guess
         raise RequestError(400, f"the field {twice[0][:40]!r} is given twice; send it once")
     return out
+
+
+def each_file_within(fields: dict) -> dict:
+    """``fields`` (:func:`read_form`'s) once each file is at most :data:`MAX_UPLOAD_BYTES` (a body
+    of several files may be up to :data:`MAX_FIT_BYTES`); else 413 naming the file."""
+    for value in fields.values():
+        if isinstance(value, tuple) and len(value[1]) > MAX_UPLOAD_BYTES:
+            raise RequestError(413, f"{safe_name(value[0], 'a file')} is over the limit of "
+                                    f"{MAX_UPLOAD_BYTES // (1024 * 1024)} MB a file; send a smaller file")
+    return fields
 
 
 class Server:
@@ -335,11 +345,7 @@ class Server:
 
     async def create_model(self, request):
         body = await read_body(request, MAX_FIT_BYTES, what="the upload (the exemplar and its maps together)")
-        fields = await read_form(request, body)
-        for value in fields.values():  # each file within the limit of one
-            if isinstance(value, tuple) and len(value[1]) > MAX_UPLOAD_BYTES:
-                raise RequestError(413, f"{safe_name(value[0], 'a file')} is over the limit of "
-                                        f"{MAX_UPLOAD_BYTES // (1024 * 1024)} MB a file; send a smaller file")
+        fields = each_file_within(await read_form(request, body))
         model_id, fit = await run_in_threadpool(self.prepare_fit, fields)
         if fit is None:
             self.cache.touch(model_id)
@@ -652,11 +658,13 @@ class Server:
         ``/extend`` (image, size, anchor, seed, tile)."""
         model_id = request.path_params["id"]
         self.cache.path(model_id)  # 404 for a malformed id before the body is read
-        body = await read_body(request)
+        # A material's picture comes with its maps: as much in all as its fit
+        body = await read_body(request, MAX_FIT_BYTES, what="the upload (the picture and its maps together)")
         names = ("image", "size", "anchor", "seed", "tile") if grow else ("image", "mask", "seed", "tile")
-        fields = await read_form(request, body, "the file field 'image' and the fields 'size' (HEIGHTxWIDTH) and "
-                                 "optionally 'anchor', 'seed' and 'tile'" if grow else "the file fields 'image' and "
-                                 "'mask', white where to fill; optionally the fields 'seed' and 'tile'")
+        fields = each_file_within(await read_form(
+            request, body, "the file field 'image' and the fields 'size' (HEIGHTxWIDTH) and optionally 'anchor', "
+            "'seed' and 'tile'" if grow else "the file fields 'image' and 'mask', white where to fill; optionally "
+            "the fields 'seed' and 'tile'"))
         unknown = [k for k in fields if k not in names and not k.startswith(materials.MAP_FIELD)]
         if unknown:
             raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)}")
