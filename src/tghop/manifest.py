@@ -25,8 +25,6 @@ __all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "pa
 ROW_SETTINGS = ("size", "count", "seed", "tile", "scale")
 #: Most maps of one material besides its albedo, in a manifest row (and a web server's fit).
 MAX_MAPS = 8
-# A map's name names its output file (NAME_<map>.png): tghop.material's rule.
-_MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 
 
 def _shown(value, most: int = 60) -> str:
@@ -135,7 +133,7 @@ def parse_maps(value, where, base: Path) -> list:
     are from ``base`` (the manifest's folder). A name that cannot name a file, a name given twice
     (without case; ``albedo`` is the exemplar's) or more than :data:`MAX_MAPS` maps is refused,
     naming the line."""
-    from .material import map_name
+    from .material import MAP_NAME, map_name  # a map's name names its output file (NAME_<map>.png)
 
     if isinstance(value, dict):
         pairs = list(value.items())
@@ -161,7 +159,7 @@ def parse_maps(value, where, base: Path) -> list:
                              "give each map's image file")
         file = file.strip()
         name = map_name(file) if name is None else name
-        if not isinstance(name, str) or not _MAP_NAME.fullmatch(name):
+        if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
             raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
                              "'_', '-' and '.' (name=path in CSV)")
         if name.lower() in seen:

@@ -39,7 +39,8 @@ from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
-__all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "ALBEDO"]
+__all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "ALBEDO",
+           "MAP_NAME"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -48,7 +49,7 @@ NORMAL_WORDS = ("normal", "nrm")
 #: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
 NORMAL_TOLERANCE = 0.1
 #: Map names: what a file name can hold (they become ``OUT_<name>.png``).
-_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 #: Bits per channel a map's file may have (what a model file accepts).
 DEPTHS = (8, 16, 32)
 #: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
@@ -219,7 +220,7 @@ class Material(BaseEstimator):
         items = [(ALBEDO, albedo)] + list((maps or {}).items())
         names, seen = [name for name, _ in items], set()
         for name in names:
-            if not isinstance(name, str) or not _NAME.fullmatch(name):
+            if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
                 raise TGHopError(f"map name {name!r} cannot name a file; use letters, digits, '_', '-' and '.'")
             if name.lower() in seen:
                 raise TGHopError(f"two maps are named {name!r}; give each map its own name")
@@ -394,7 +395,7 @@ class Material(BaseEstimator):
         names = []
         for m in maps:
             name, c, depth = m["name"], m["channels"], m["depth"]
-            if not isinstance(name, str) or not _NAME.fullmatch(name) or name.lower() in names:
+            if not isinstance(name, str) or not MAP_NAME.fullmatch(name) or name.lower() in names:
                 raise TGHopError(f"the material metadata has a bad or repeated map name {name!r}")
             if c not in (1, 3) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
                     m["normal"] and c != 3):

@@ -667,7 +667,8 @@ class Server:
             "the fields 'seed' and 'tile'"))
         unknown = [k for k in fields if k not in names and not k.startswith(materials.MAP_FIELD)]
         if unknown:
-            raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)}")
+            raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)} (and a material's "
+                                    "map:<name>)")
         plain = {k: fields.get(k) for k in names if k not in ("image", "mask")}
         if any(isinstance(v, tuple) for v in plain.values()):
             raise RequestError(422, f"{', '.join(plain)}: plain fields, not files")
