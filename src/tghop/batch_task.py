@@ -121,7 +121,7 @@ def process_exemplar(job: dict) -> dict:
         from ._common import limit_cores
         from .fit_options import material_model, model_for
         from .imageio import deepest, load_image, save_image
-        from .material import Material
+        from .material import Material, map_file
         from .modelfile import save_model
         from .synthesis import prepare_exemplar
 
@@ -167,7 +167,7 @@ def process_exemplar(job: dict) -> dict:
                 if maps:  # the albedo at NAME.png, each map at NAME_<map>.png (a PNG holds 16 bits at most)
                     made = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.float32,
                                             **(job.get("generate") or {}))
-                    files = [file] + [f"{Path(file).stem}_{m}.png" for m in model.names_[1:]]
+                    files = [map_file(file, m) for m in model.names_]
                     for img, each, d in zip(made.values(), files, model.depths_):
                         save_image(img, stage / each, depth=deepest(each, d))
                     outputs.extend(files)

@@ -39,7 +39,8 @@ from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
-__all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "ALBEDO",
+__all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "map_file",
+           "ALBEDO",
            "MAP_NAME"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
@@ -64,6 +65,16 @@ def map_name(path) -> str:
     ``tghop fit --maps``, ``inpaint --maps``, a batch manifest and the web page name a map by."""
     stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
     return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:64] or "map"
+
+
+def map_file(path, name: str) -> str:
+    """Where map ``name`` of a material written to ``path`` goes: ``path`` itself for the albedo,
+    else ``<stem>_<name><suffix>`` beside it (``OUT_<map>.EXT``: ``tghop synth``, ``inpaint`` and
+    ``extend --maps`` and ``tghop batch`` name a material's files so)."""
+    if name == ALBEDO:
+        return str(path)
+    p = Path(path)
+    return str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
 
 
 def is_normal_name(name: str) -> bool:

@@ -361,11 +361,11 @@ def material_outputs(material, output, depth):
     ``output``, each other map at ``OUT_<name>.EXT``; each at ``depth``, or without it at
     the depth its file had (as far as the format holds it)."""
     from ..imageio import check_depth, deepest
+    from ..material import map_file
 
-    p = Path(output)
     out = []
     for name, own in zip(material.names_, material.depths_):
-        path = output if name == material.names_[0] else str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
+        path = map_file(output, name)
         out.append((name, path, check_depth(path, depth or deepest(path, own))))
     return out
 

@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
@@ -250,7 +248,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..material import map_name
+    from ..material import map_file, map_name
 
     if output == "-":
         raise TGHopError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
@@ -287,8 +285,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
                              f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")
-        p = Path(output)
-        out = str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
+        out = map_file(output, name)
         plan.append((name, out, check_depth(out, depth or deepest(out, depths[name]))))
     for _, out, _ in plan[1:]:
         check_output(out)
