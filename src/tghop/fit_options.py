@@ -103,14 +103,12 @@ def model_for(params: dict, n_colours: int = 3):
 
 def material_model(params: dict):
     """The joint model of a whole material (:class:`tghop.material.Material`'s ``model``) from
-    TGHop's parameters (:func:`fit_params`): channel counts not given stay None, the default for
-    the stacked channels of the albedo and its maps, found at the fit (as ``tghop fit --maps``);
-    ``rng`` None is 0."""
+    TGHop's parameters (:func:`fit_params`): channel counts not given stay None, which the
+    material's fit takes as the defaults for the stacked channels of the albedo and its maps
+    (as ``tghop fit --maps``); ``rng`` None is 0."""
     from .synthesis import TGHop
 
     params = dict(params)
-    if params.get("n_channels") is not None and all(g is None for g in params["n_channels"]):
-        params["n_channels"] = None
     if params.get("rng") is None:
         params["rng"] = 0
     return TGHop(**params)
