@@ -356,6 +356,20 @@ def numbered(path: str, count: int):
     return [str(p.with_name(f"{p.stem}_{i:0{width}d}{p.suffix}")) for i in range(1, count + 1)]
 
 
+def map_names(paths) -> list:
+    """The names of the maps in files ``paths`` (:func:`tghop.material.map_name`), or a one-line
+    error where two are one name (in any case) or one is the albedo's."""
+    from ..material import ALBEDO, map_name
+
+    names, seen = [map_name(path) for path in paths], {ALBEDO}
+    for name in names:
+        if name.lower() in seen:
+            raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
+                             f"OUT_{name}.png); rename one")
+        seen.add(name.lower())
+    return names
+
+
 def material_outputs(material, output, depth):
     """``[(name, path, depth)]`` of a material's maps for output ``output``: the albedo at
     ``output``, each other map at ``OUT_<name>.EXT``; each at ``depth``, or without it at

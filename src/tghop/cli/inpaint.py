@@ -7,7 +7,8 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
-from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, user_errors)
+from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, map_names,
+                     user_errors)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -248,7 +249,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..material import map_file, map_name
+    from ..material import map_file
 
     if output == "-":
         raise TGHopError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
@@ -269,13 +270,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
             raise TGHopError(f"--source {source} is a material of {len(material.names_) - 1} maps "
                              f"({', '.join(material.names_[1:])}) but {len(map_paths)} were given; give its maps "
                              "after --maps, in that order")
-    names = material.names_[1:] if material is not None else [map_name(m) for m in map_paths]
-    seen = {"albedo"}
-    for name, path in zip(names, map_paths):
-        if name.lower() in seen:
-            raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
-                             f"OUT_{name}.png); rename one")
-        seen.add(name.lower())
+    names = material.names_[1:] if material is not None else map_names(map_paths)
     plan = [("albedo", output, depth_albedo)]
     maps, depths = {}, {}
     for name, path in zip(names, map_paths):

@@ -11,7 +11,8 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_model_file, load_exemplar, load_mask, numbered, summary, user_errors, write_materials)
+                     is_model_file, load_exemplar, load_mask, map_names, numbered, summary, user_errors,
+                     write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options)
@@ -42,7 +43,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
     maps in ``map_paths`` (named by their file stems)."""
     from ..imageio import load_image
-    from ..material import Material, map_name
+    from ..material import Material
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
@@ -55,11 +56,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
-    for path in map_paths:
-        name = map_name(path)
-        if name.lower() in (n.lower() for n in ["albedo", *maps]):
-            raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
-                             f"OUT_{name}.png); rename one")
+    for path, name in zip(map_paths, map_names(map_paths)):
         maps[name], depths[name] = read(path, "--maps")
     mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar")
     params = fit_params(options)
