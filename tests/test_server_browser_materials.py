@@ -212,3 +212,27 @@ def test_fill_a_hole_in_every_map_of_a_material_result(page, tmp_path):
     page.locator("#maps-view label", has_text="normal").click()
     assert page.get_attribute("#download-png", "download") == "tghop-inpainted-seed6_normal.png"
     assert not [e for e in page.errors if "status of 4" not in e], page.errors
+
+
+def test_maps_added_while_a_fit_runs_fit_the_material(page, tmp_path):
+    # Dropping the maps and adding them again at once: the first fit's answer came after the second's
+    # was asked for and took its place (the page ended with the texture model, the maps listed).
+    from tghop import data
+    from tghop.imageio import to_uint16
+    from tghop.material import example_maps
+
+    (tmp_path / "normal.png").write_bytes(png(to_uint16(example_maps(data.builtin("bricks"))["normal"])))
+    page.locator("label", has=page.locator("#mode-view")).click()
+    if page.is_visible("#maps-clear"):
+        page.click("#maps-clear")
+    if not page.eval_on_selector("#fit-settings", "d => d.open"):
+        page.click("#fit-settings summary")
+    page.fill("#stride", "5")  # settings fitted nowhere yet: each fit takes a while
+    page.select_option("#builtin", "")
+    page.select_option("#builtin", "bricks")  # a texture fit starts
+    page.set_input_files("#maps", [str(tmp_path / "normal.png")])  # and at once the material's
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')", timeout=30_000)
+    page.wait_for_timeout(1500)  # a replaced fit's answer, had it come later, would show by now
+    assert page.text_content("#summary").startswith("material ")
+    assert "maps: albedo, 8-bit; normal (normal), 16-bit" in page.text_content("#summary")

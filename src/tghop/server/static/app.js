@@ -3,7 +3,7 @@
 
 const $ = (id) => document.getElementById(id);
 const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false,
-  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null,
+  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null, fitRequest: 0,
   // A whole material: the map files to fit with the exemplar (section 1), the last exemplar
   // fitted (refitted when the maps change), and the maps of the result shown (section 3).
   mapFiles: [], source: null, material: false, shown: null };
@@ -142,6 +142,7 @@ function dropRunningFit() {
 
 async function startFit(form) {
   dropRunningFit();
+  const request = ++state.fitRequest;  // a later fit or upload asked for meanwhile replaces this one
   setModel(null);
   $("summary").hidden = true;
   $("fit-status").hidden = false;
@@ -154,16 +155,23 @@ async function startFit(form) {
   try {
     response = await fetch("/api/models", { method: "POST", body: form });
   } catch (e) {
+    if (request !== state.fitRequest) return;
     say(`the server did not answer (${e.message})`, true);
     $("fit-status").hidden = true;
     return;
   }
   if (!response.ok) {
-    say(await errorOf(response), true);
+    const error = await errorOf(response);
+    if (request !== state.fitRequest) return;
+    say(error, true);
     $("fit-status").hidden = true;
     return;
   }
   const { id, job } = await response.json();
+  if (request !== state.fitRequest) {  // replaced while its answer came: withdrawn, as dropRunningFit does
+    fetch(`/api/jobs/${job}`, { method: "DELETE" }).catch(() => {});
+    return;
+  }
   state.job = job;
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
   follow(id, job);
@@ -243,6 +251,7 @@ function fitBuiltin(name) {
 async function uploadModel(file) {
   if (!file) return;
   dropRunningFit();
+  state.fitRequest++;  // a fit whose answer is still on its way is replaced
   state.source = null;
   $("fit-status").hidden = true;
   setExemplar(null);
