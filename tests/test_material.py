@@ -341,3 +341,18 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, s
     with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
         load_model(tmp_path / "mat.npz")
     assert not (tmp_path / "o.png").exists()
+
+
+def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):
+    # A second fit on other maps that fails (too little texture outside the mask) used to leave the new
+    # maps' names and channels beside the earlier joint model: synthesize then broke on a shape mismatch.
+    mat = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"height": maps["height"]})
+    before = mat.synthesize(SIZE, rng=1, **POOL)
+    exclude = np.zeros(exemplar.shape[:2], dtype=bool)
+    exclude[:, :100] = True
+    with pytest.raises(TGHopError, match="too little texture"):
+        mat.fit(exemplar, maps, exclude=exclude)
+    assert mat.names_ == ["albedo", "height"] and mat.map_channels_ == [3, 1]
+    after = mat.synthesize(SIZE, rng=1, **POOL)
+    assert all(np.array_equal(before[k], after[k]) for k in before)
+

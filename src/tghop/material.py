@@ -286,10 +286,6 @@ class Material(BaseEstimator):
         self
         """
         items = self._maps(albedo, maps, depths, self._checked_params())
-        self.names_ = [name for name, _, _, _ in items]
-        self.normal_ = [is_normal for _, _, _, is_normal in items]
-        self.map_channels_ = [img.shape[2] for _, img, _, _ in items]
-        self.depths_ = [depth for _, _, depth, _ in items]
         stack = np.concatenate([img for _, img, _, _ in items], axis=2)
         if stack.shape[2] == 3 and np.abs(stack[..., 1:] - stack[..., :1]).max() < 1 / 512:
             raise TGHopError("every map equals the grey albedo; there is nothing to model apart from it")
@@ -304,11 +300,17 @@ class Material(BaseEstimator):
         if given is not None and any(k is None for k in given):  # some given (--k1 alone): the rest by default
             defaults = default_channels(params["patch_size"], stack.shape[2])
             params["n_channels"] = tuple(d if k is None else k for k, d in zip(given, defaults))
-        self.model_ = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
-        scale = self.model_.scale  # each map's bands at the joint model's working scale
+        model = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
+        scale = model.scale  # each map's bands at the joint model's working scale
         ex = None if exclude is None else rescale_mask(np.asarray(exclude, dtype=bool), scale)
-        self.bands_ = [BandStatistics(n_levels=self.model_.band_levels, n_orientations=self.model_.band_orientations)
-                       .fit(rescale(img, scale), exclude=ex) for _, img, _, _ in items]
+        bands = [BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)
+                 .fit(rescale(img, scale), exclude=ex) for _, img, _, _ in items]
+        # Only now, all together: a fit that fails leaves an earlier fit whole, not its model beside new maps.
+        self.model_, self.bands_ = model, bands
+        self.names_ = [name for name, _, _, _ in items]
+        self.normal_ = [is_normal for _, _, _, is_normal in items]
+        self.map_channels_ = [img.shape[2] for _, img, _, _ in items]
+        self.depths_ = [depth for _, _, depth, _ in items]
         return self
 
     def map_slices(self):
