@@ -356,3 +356,7 @@ def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):
     after = mat.synthesize(SIZE, rng=1, **POOL)
     assert all(np.array_equal(before[k], after[k]) for k in before)
 
+
+def test_material_synthesize_refuses_a_bad_dtype_in_one_line(material):
+    with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64 \(e\.g\. numpy\.float32\), got 'junk'$"):
+        material.synthesize(SIZE, rng=1, dtype="junk")

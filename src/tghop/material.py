@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from . import settings
+from ._arrays import check_dtype
 from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, one_blas_thread, report
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
@@ -355,9 +356,7 @@ class Material(BaseEstimator):
             ``name -> (H, W, c)`` array in [0, 1], ``"albedo"`` first, in :attr:`names_`'s order.
         """
         check_is_fitted(self, "model_")
-        dtype = np.dtype(dtype)
-        if dtype not in (np.float32, np.float64):
-            raise TGHopError(f"dtype must be float32 or float64, got {dtype}")
+        dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
         # The checks of TGHop.synthesize (refine and match_colours are applied here, per map, not by it)
         checked = settings.check_settings(dict(refine=refine, match_colours=match_colours, tile=tile, **options))
         refine, match_colours, tile = checked.pop("refine"), checked.pop("match_colours"), checked.pop("tile")
