@@ -371,3 +371,19 @@ def test_hop_transforms_refuse_what_is_not_finite_numbers(small_patches):
     with pytest.raises(TGHopError, match=r"^Y contains NaN"):
         stack.inverse_transform(_nan(stack.transform(small_patches[:2])))
     assert hop.transform(small_patches[:0]).shape == (0,) + core.shape[1:]
+
+
+def test_hop_stack_transforms_refuse_complex_and_sparse_input_in_one_line(small_patches):
+    # HopStack's transform and inverse_transform read X with numpy.asarray: complex numbers lost their
+    # imaginary parts with only NumPy's ComplexWarning (Saab and Hop refuse them).
+    stack = HopStack().fit(small_patches)
+    core = stack.transform(small_patches[:2])
+    for call, arg, name in ((stack.transform, small_patches[:2], "X"), (stack.inverse_transform, core, "Y")):
+        with pytest.raises(TGHopError, match=rf"^{name} holds complex numbers") as info:
+            call(arg + 1j)
+        assert "\n" not in str(info.value)
+        with pytest.raises(TGHopError, match=rf"^{name} must be an array of numbers"):
+            call(np.full(arg.shape, "a"))
+    with pytest.raises(TGHopError, match=r"^X must have shape \(n, P, P, 3\), got \(32, 32, 3\)"):
+        stack.transform(small_patches[0])
+    np.testing.assert_array_equal(stack.transform(small_patches[:2].tolist()), core)

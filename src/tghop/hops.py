@@ -541,7 +541,8 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
     def transform(self, X, *, return_all=False):
         """Patches ``(n, P, P, C)`` -> core ``(n, p, p, Kn)`` (or every space with ``return_all``)."""
         check_is_fitted(self, "hops_")
-        spaces = [np.asarray(X, dtype=np.float64)]
+        c = self.hops_[0].n_channels_in_  # numbers (not complex, sparse or strings); each hop checks the rest
+        spaces = [check_array(X, "X", f"(n, P, P, {c})", ndim=4, min_rows=0, finite=False)]
         for hop in self.hops_:
             spaces.append(hop.transform(spaces[-1]))
         return spaces if return_all else spaces[-1]
@@ -552,7 +553,8 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         With ``return_all``, the list ``[Sn, ..., S1, S0]`` of every intermediate space.
         """
         check_is_fitted(self, "hops_")
-        spaces = [np.asarray(Y, dtype=np.float64)]
+        k = self.hops_[-1].n_channels_out_
+        spaces = [check_array(Y, "Y", f"(n, p, p, {k})", ndim=4, min_rows=0, finite=False)]
         for hop in reversed(self.hops_):
             spaces.append(hop.inverse_transform(spaces[-1]))
         return spaces if return_all else spaces[-1]
