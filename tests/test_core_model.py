@@ -1129,3 +1129,18 @@ def test_encode_reads_uint8_as_its_floats(small_model, bricks96):
             return eight if dtype is None else eight.astype(dtype)
 
     np.testing.assert_array_equal(small_model.encode(Levels()), small_model.encode(eight))
+
+
+def test_sdr_transforms_refuse_what_is_not_finite_real_numbers(core_and_z):
+    # They read their input with numpy.asarray: complex numbers lost their imaginary parts (NumPy's
+    # warning only), strings were NumPy's ValueError and NaN went through to NaN vectors, where the
+    # hops and ICHM refuse all three in one line.
+    Y, z = core_and_z
+    s = SpatialReduction(gamma=0.001).fit(Y)
+    for call, arg, name in ((s.transform, Y, "Y"), (s.inverse_transform, z, "Z")):
+        for bad, message in ((arg + 1j, "holds complex numbers"), (_with(arg, np.nan), "contains NaN or infinite"),
+                             (np.full(arg.shape, "a"), "must be an array of numbers")):
+            with pytest.raises(TGHopError, match=rf"^{name} {message}") as info:
+                call(bad)
+            assert "\n" not in str(info.value)
+    np.testing.assert_array_equal(s.transform(Y.tolist()), z)

@@ -158,7 +158,8 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
     def transform(self, Y):
         """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r)."""
         check_is_fitted(self, "components_")
-        Y = np.asarray(Y, dtype=np.float64)
+        # Finite real numbers of any rank here (a scalar: check_array's message), the shape just below.
+        Y = check_array(Y, "Y", "(n, {}, {}, {})".format(*self.shape_), ndim=max(np.ndim(Y), 1), min_rows=0)
         check_width(Y, "Y", "(n, {}, {}, {})".format(*self.shape_), self.shape_)
         return self._project(_channel_major(Y))
 
@@ -180,7 +181,7 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
     def inverse_transform(self, Z):
         """``z`` (n, D_r) -> core responses (n, h, w, K); dropped components are zero."""
         check_is_fitted(self, "components_")
-        Z = np.asarray(Z, dtype=np.float64)
+        Z = check_array(Z, "Z", f"(n, D_r) = (n, {self.components_.shape[0]})", ndim=max(np.ndim(Z), 1), min_rows=0)
         check_width(Z, "Z", f"(n, D_r) = (n, {self.components_.shape[0]})", self.components_.shape[:1])
         h, w, k = self.shape_
         out = np.repeat(self.mean_.T[None], Z.shape[0], axis=0)
