@@ -15,6 +15,7 @@ from tghop._errors import NonNumericError, TGHopError
 from tghop.hops import Hop, HopStack
 from tghop.saab import Saab
 from tghop.sdr import SpatialReduction
+from tghop.synthesis import TGHop
 
 sklearn = pytest.importorskip("sklearn")
 if tuple(int(v) for v in sklearn.__version__.split(".")[:2]) < (1, 6):
@@ -75,3 +76,14 @@ def test_four_d_components_tell_scikit_learn_its_checks_do_not_apply(estimator):
         results = check_estimator(estimator, on_fail=None)
     assert [r["status"] for r in results if r["status"] != "passed"] == []
     assert not estimator.__sklearn_tags__().input_tags.two_d_array
+
+
+def test_rng_refuses_a_bool_as_every_integer_parameter_does(small_model):
+    # True was taken as the seed 1 at fit, but a model file records no seed for it (settings.recorded_seed).
+    from tghop._common import check_rng
+
+    for call in (lambda: check_rng(True), lambda: small_model.sample_patches(2, rng=False),
+                 lambda: TGHop(rng=True).fit(np.zeros((40, 40, 3)))):
+        with pytest.raises(TGHopError, match=r"^rng must be None, an int seed or numpy.random.Generator, got bool$"):
+            call()
+    assert check_rng(np.int64(3)).integers(100) == np.random.default_rng(3).integers(100)

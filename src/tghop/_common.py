@@ -244,14 +244,14 @@ def check_keywords(options, function, *, where: str, exclude=()) -> None:
 
 
 def check_rng(rng: RngLike) -> np.random.Generator:
-    """Turn ``rng`` (None, an int seed or a Generator) into a ``numpy.random.Generator``.
+    """Turn ``rng`` (None, an int seed, not a bool, or a Generator) into a ``numpy.random.Generator``.
 
     A Generator is returned as is (so consecutive calls advance it); an int gives the same
     stream every time; None gives fresh OS entropy.
     """
     if isinstance(rng, np.random.Generator):
         return rng
-    if rng is None or isinstance(rng, (numbers.Integral, np.integer)):
+    if rng is None or isinstance(rng, (numbers.Integral, np.integer)) and not isinstance(rng, (bool, np.bool_)):
         if rng is not None and int(rng) < 0:
             raise TGHopError(f"seed must be a non-negative integer, got {rng}")
         return np.random.default_rng(None if rng is None else int(rng))
