@@ -13,6 +13,7 @@ import pytest
 
 from tghop._errors import NonNumericError, TGHopError
 from tghop.hops import Hop, HopStack
+from tghop.material import Material
 from tghop.saab import Saab
 from tghop.sdr import SpatialReduction
 from tghop.synthesis import TGHop
@@ -21,6 +22,7 @@ sklearn = pytest.importorskip("sklearn")
 if tuple(int(v) for v in sklearn.__version__.split(".")[:2]) < (1, 6):
     pytest.skip("scikit-learn before 1.6 has no __sklearn_tags__", allow_module_level=True)
 
+import sklearn.base  # noqa: E402
 from sklearn.exceptions import SkipTestWarning  # noqa: E402
 from sklearn.utils.estimator_checks import check_estimator, parametrize_with_checks  # noqa: E402
 
@@ -87,3 +89,12 @@ def test_rng_refuses_a_bool_as_every_integer_parameter_does(small_model):
         with pytest.raises(TGHopError, match=r"^rng must be None, an int seed or numpy.random.Generator, got bool$"):
             call()
     assert check_rng(np.int64(3)).integers(100) == np.random.default_rng(3).integers(100)
+
+
+def test_set_params_of_a_nested_parameter_of_no_estimator_is_a_one_line_error():
+    # Material().set_params(model__rng=1) with model None was Python's AttributeError on None.
+    with pytest.raises(TGHopError, match=r"^invalid parameter 'model__rng' for Material: its model is None, "
+                                         r"not an estimator; set model first"):
+        Material().set_params(model__rng=1)
+    mat = Material().set_params(model=TGHop(), model__rng=4)
+    assert mat.model.rng == 4 and sklearn.base.clone(mat).get_params()["model__rng"] == 4

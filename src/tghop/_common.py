@@ -93,7 +93,12 @@ class BaseEstimator:
             else:
                 setattr(self, name, value)
         for name, sub_params in nested.items():
-            getattr(self, name).set_params(**sub_params)
+            part = getattr(self, name)
+            if not callable(getattr(part, "set_params", None)) or isinstance(part, type):
+                key = f"{name}__{next(iter(sub_params))}"
+                raise TGHopError(f"invalid parameter {key!r} for {type(self).__name__}: its {name} is {part!r:.60}, "
+                                 f"not an estimator; set {name} first")
+            part.set_params(**sub_params)
         return self
 
     def __sklearn_tags__(self):
