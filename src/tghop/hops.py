@@ -539,7 +539,20 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         return self._fit(X, progress)
 
     def transform(self, X, *, return_all=False):
-        """Patches ``(n, P, P, C)`` -> core ``(n, p, p, Kn)`` (or every space with ``return_all``)."""
+        """Patches -> core responses, hop by hop (each hop's :meth:`Hop.transform`).
+
+        Parameters
+        ----------
+        X : array_like, shape (n, P, P, C)
+            Patches (any side divisible by ``2**n_hops``; the fit's ``P`` gives the fit's core).
+        return_all : bool
+            Return every space, not only the core.
+
+        Returns
+        -------
+        ndarray, shape (n, P / 2**n, P / 2**n, Kn)
+            The core; with ``return_all`` the list ``[S0, S1, ..., Sn]``, ``S0`` the patches as float64.
+        """
         check_is_fitted(self, "hops_")
         c = self.hops_[0].n_channels_in_  # numbers (not complex, sparse or strings); each hop checks the rest
         spaces = [check_array(X, "X", f"(n, P, P, {c})", ndim=4, min_rows=0, finite=False)]
@@ -548,9 +561,20 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         return spaces if return_all else spaces[-1]
 
     def inverse_transform(self, Y, *, return_all=False):
-        """Core ``(n, p, p, Kn)`` -> patches ``(n, P, P, C)``.
+        """Core responses -> patches: each hop's :meth:`Hop.inverse_transform`, last hop first (the
+        channels a hop dropped count as zero, so with fewer kept this is a projection, not an inverse).
 
-        With ``return_all``, the list ``[Sn, ..., S1, S0]`` of every intermediate space.
+        Parameters
+        ----------
+        Y : array_like, shape (n, p, p, Kn)
+            Core responses.
+        return_all : bool
+            Return every intermediate space, not only the patches.
+
+        Returns
+        -------
+        ndarray, shape (n, p * 2**n, p * 2**n, C)
+            The patches (not clipped); with ``return_all`` the list ``[Sn, ..., S1, S0]``.
         """
         check_is_fitted(self, "hops_")
         k = self.hops_[-1].n_channels_out_

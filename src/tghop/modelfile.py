@@ -61,7 +61,20 @@ READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9, 10)
 
 
 def save_model(model, path) -> None:
-    """Write a fitted model to ``path`` (any name; the file appears whole or not at all)."""
+    """Write a fitted model to ``path`` (any name; the file appears whole or not at all).
+
+    Parameters
+    ----------
+    model : tghop.synthesis.TGHop or tghop.material.Material
+        Fitted (:class:`~tghop.NotFittedError` before ``fit``).
+    path : str or os.PathLike
+        The file; an ``.npz`` archive of the learned arrays and JSON metadata whatever its name.
+
+    Raises
+    ------
+    ModelFileError
+        ``path`` cannot be written (a folder, no permission, a missing folder).
+    """
     if not isinstance(model, (TGHop, Material)):
         raise TGHopError(f"save_model writes a fitted TGHop or Material, got {type(model).__name__}")
     _check_path(path, "save_model", "write the model to")
@@ -362,6 +375,18 @@ def load_model(path, *, material=False):
 
     Every array is checked against the metadata before it is used (shape, type, finite
     values, ranges; see :func:`_check_arrays`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file :func:`save_model` (or ``tghop fit``) wrote; read with ``allow_pickle=False``.
+    material : bool
+        Accept a file of a whole material too.
+
+    Returns
+    -------
+    tghop.synthesis.TGHop or tghop.material.Material
+        Fitted: it generates what the saved model generated, bit for bit, with the same seeds.
 
     Raises
     ------

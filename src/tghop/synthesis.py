@@ -514,8 +514,21 @@ class TGHop(BaseEstimator):
     def decode(self, z, *, return_stages=False):
         """Core-model vectors ``z`` (n, D_r) -> patches (n, P, P, C), clipped to [0, 1].
 
-        With ``return_stages``, also the list of spaces ``[Sn, ..., S1, S0]`` before
-        clipping (the inverse c/w Saab path of the paper, section IV.D).
+        Parameters
+        ----------
+        z : array_like, shape (n, D_r)
+            Core vectors (:meth:`sample_vectors`, :meth:`ICHM.sample <tghop.core.ICHM.sample>`,
+            :meth:`encode`), finite numbers.
+        return_stages : bool
+            Also return every space of the way back, before clipping (the inverse c/w Saab path
+            of the paper, section IV.D).
+
+        Returns
+        -------
+        patches : ndarray, shape (n, P, P, C), float64 in [0, 1]
+        spaces : list of ndarray, only with ``return_stages``
+            ``[Sn, ..., S1, S0]``: the core (n, P / 2**n, P / 2**n, Kn) after the inverse SDR, each
+            hop's input, and the unclipped patches (n, P, P, C) last (:meth:`stage_views` shows them).
         """
         check_is_fitted(self, "ichm_")
         z, d = np.asarray(z), self.dims_["D_r"]
