@@ -419,6 +419,16 @@ def test_not_fitted():
         TGHop().encode(np.zeros((1, 32, 32, 3)))
 
 
+def test_sample_vectors_before_fit_is_not_fitted_and_checks_its_dtype(small_model):
+    # It reached for ichm_ unchecked (Python's AttributeError) and took any dtype to NumPy's TypeError.
+    with pytest.raises(NotFittedError, match="not fitted yet"):
+        TGHop().sample_vectors(3, 0, np.float64)
+    with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64 \(e\.g\. numpy\.float32\), got 'junk'$"):
+        small_model.sample_vectors(3, 0, "junk")
+    z, position = small_model.sample_vectors(3, 0, np.float32)
+    assert z.dtype == np.float32 and sorted(position) == [0, 1, 2]
+
+
 def test_stage_views_before_fit_is_not_fitted():
     with pytest.raises(NotFittedError, match="fit"):
         TGHop().stage_views([np.zeros((1, 2, 2, 3)), np.zeros((1, 4, 4, 3))])

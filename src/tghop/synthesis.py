@@ -546,6 +546,8 @@ class TGHop(BaseEstimator):
         """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
         cluster as mixed (:meth:`ICHM.mix_by_cluster`), and ``position``: ``z[position]``
         are the samples in order (and, with ``return_labels``, each sample's cluster, in order)."""
+        check_is_fitted(self, "ichm_")
+        dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
         ichm = self.ichm_
         labels, sources = ichm.sample_sources(n, rng=rng)
         z, position = ichm.mix_by_cluster(labels, [s.astype(dtype, copy=False) for s in sources],
