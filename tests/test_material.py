@@ -360,3 +360,11 @@ def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):
 def test_material_synthesize_refuses_a_bad_dtype_in_one_line(material):
     with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64 \(e\.g\. numpy\.float32\), got 'junk'$"):
         material.synthesize(SIZE, rng=1, dtype="junk")
+
+
+def test_map_slices_before_fit_is_not_fitted():
+    # It read map_channels_ unchecked: Python's AttributeError naming the attribute.
+    from tghop import NotFittedError
+
+    with pytest.raises(NotFittedError, match="this Material is not fitted yet"):
+        Material().map_slices()

@@ -317,6 +317,7 @@ class Material(BaseEstimator):
     def map_slices(self):
         """Each map's channels in the joint model's stacked channels, in :attr:`names_`'s order:
         a list of slices."""
+        check_is_fitted(self, "model_")
         bounds = np.concatenate([[0], np.cumsum(self.map_channels_)]).tolist()
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
