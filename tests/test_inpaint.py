@@ -435,3 +435,27 @@ def test_a_float_sample_mask_excludes_above_one_half_as_a_hole_does():
     ones = np.zeros((8, 8), np.uint8)
     ones[3, 3] = 1  # 0/1 integers: the boolean mask
     np.testing.assert_array_equal(check_exclude(ones, (8, 8)), ones == 1)
+
+
+def test_cli_a_source_exemplar_of_other_colours_is_refused_before_its_fit(files, monkeypatch):
+    # A grey --source exemplar for a colour IMAGE (or the reverse) was fitted first, seconds to
+    # minutes, and then refused as "the model is greyscale ...; fit the model on a colour exemplar".
+    from tghop.synthesis import TGHop as Fitted
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("fitted before the channels were checked")
+
+    monkeypatch.setattr(Fitted, "fit", no_fit)
+    rng = np.random.default_rng(0)
+    Image.fromarray((rng.random((96, 96)) * 255).astype(np.uint8)).save(files / "grey_source.png")
+    r = run("inpaint", files / "cells.png", files / "mask.png", "-o", files / "g.png", "-q",
+            "--source", files / "grey_source.png")
+    assert_user_error(r, "--source", "grey_source.png", "is greyscale", "IMAGE", "cells.png", "has colour")
+    Image.fromarray(np.asarray(Image.open(files / "cells.png").convert("L"))).save(files / "grey_cells.png")
+    r = run("extend", files / "grey_cells.png", "-o", files / "g.png", "--size", "96x128", "-q",
+            "--source", files / "cells.png")
+    assert_user_error(r, "--source", "cells.png", "in colour", "IMAGE", "grey_cells.png", "is greyscale")
+    r = run("inpaint", files / "grey_cells.png", files / "mask.png", "-o", files / "g.png", "-q",
+            "--source", files / "model.npz")
+    assert_user_error(r, "--source", "model.npz", "in colour", "IMAGE", "grey_cells.png", "is greyscale")
+    assert not (files / "g.png").exists()

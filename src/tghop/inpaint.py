@@ -63,7 +63,7 @@ from .seams import SCREENING, SeamSteps, local_means
 from .settings import BY_NAME, check_settings
 
 __all__ = ["inpaint", "inpaint_material", "extend", "expand_canvas", "ANCHORS", "check_hole", "require_hole",
-           "split_alpha", "with_alpha", "refine_hole"]
+           "split_alpha", "with_alpha", "refine_hole", "channel_mismatch"]
 
 #: Pixels around the hole's bounding box that the patch refinement sees with it.
 PATCH_MARGIN = 64
@@ -219,13 +219,26 @@ def _working_image(image, n_channels):
     c = work.shape[2]
     if c == n_channels:
         return work, False
+    mismatch = channel_mismatch(arr, n_channels)
+    if mismatch is None:
+        return np.ascontiguousarray(work[..., :1]), True
+    raise TGHopError(f"the model is {mismatch[0]} but the image {mismatch[1]}; fit the model on a "
+                     f"{'colour' if n_channels == 1 else 'greyscale'} exemplar (or on the image itself)")
+
+
+def channel_mismatch(image, n_channels):
+    """Why a model of ``n_channels`` channels cannot fill ``image`` ((H, W) or (H, W, C)), as
+    ``(what the model is, what the image is)`` ("greyscale", "has colour"), or None when it can:
+    the same channels, or a greyscale model and an RGB image whose three channels are equal.
+    What :func:`inpaint` refuses, for a check before a model is fitted."""
+    arr = np.asarray(image)
+    c = 1 if arr.ndim == 2 else arr.shape[2]
+    if c == n_channels or (n_channels == 1 and c == 3
+                           and np.array_equal(arr[..., 1:], np.repeat(arr[..., :1], 2, axis=2))):
+        return None
     if n_channels == 1 and c == 3:
-        if np.array_equal(arr[..., 1:], np.repeat(arr[..., :1], 2, axis=2)):
-            return np.ascontiguousarray(work[..., :1]), True
-        raise TGHopError("the model is greyscale but the image has colour; fit the model on a colour exemplar "
-                         "(or on the image itself)")
-    raise TGHopError("the model is in colour but the image is greyscale; fit the model on a greyscale exemplar "
-                     "(or on the image itself)")
+        return "greyscale", "has colour"
+    return "in colour", "is greyscale"
 
 
 def _grid(n, p, step, tile):

@@ -177,11 +177,13 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
         from ..modelfile import load_model
 
         model = load_model(source)
+        _check_channels(picture, model.exemplar_shape_[2], image, source)
     _check_size(image, picture.shape, TGHop().patch_size if model is None else model.patch_size,
                 "" if source is None else " of --source's model" if model is not None
                 else " of the model fitted on --source")
     if model is None and source is not None:
         exemplar = prepare_exemplar(load_exemplar(source, dtype=None))
+        _check_channels(picture, exemplar.shape[2], image, source)  # before its fit, which takes seconds or more
         try:
             model = TGHop(rng=rng, scale=scale).fit(exemplar, progress=progress)
         except ExemplarTooSmallError as exc:  # its fixes name fit options these commands lack
@@ -201,6 +203,18 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                              f"avoid the hole, at least {exc.need} are needed; give --source (an exemplar of the "
                              f"same texture or a saved model) or {fix}") from None
     return model, rng
+
+
+def _check_channels(picture, n_channels, image, source):
+    """Refuse a --source whose channels (``n_channels``) cannot fill IMAGE's ``picture``: a
+    greyscale one for a colour picture, or the reverse, naming both (before any fit)."""
+    from ..inpaint import channel_mismatch
+
+    mismatch = channel_mismatch(picture, n_channels)
+    if mismatch is not None:
+        want = "colour" if n_channels == 1 else "greyscale"
+        raise TGHopError(f"--source {source} is {mismatch[0]} but IMAGE {image} {mismatch[1]}; give a {want} "
+                         "exemplar or model as --source, or leave --source out to fit on IMAGE")
 
 
 def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, output, depth):
