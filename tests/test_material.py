@@ -187,7 +187,10 @@ def test_cli_failures_are_one_line_and_write_nothing(tmp_path, exemplar, maps):
     save_image(maps["height"][:100], tmp_path / "small_height.png")
     for args, words in (
             (["fit", "albedo.png", "--maps", "small_height.png", "-o", "m.npz"], "albedo's size"),
-            (["fit", "albedo.png", "height.png", "-o", "m.npz"], "--maps")):
+            (["fit", "albedo.png", "height.png", "-o", "m.npz"], "--maps"),
+            # "two maps are named 'albedo'" with one map given
+            (["fit", "height.png", "--maps", "albedo.png", "-o", "m.npz"],
+             "albedo.png is named 'albedo', the name of EXEMPLAR itself")):
         res = runner.invoke(main, [str(tmp_path / a) if a.endswith(".png") else a for a in args])
         assert res.exit_code != 0 and "Traceback" not in res.output
         assert words in res.output

@@ -137,6 +137,7 @@ def folder(tmp_path_factory, picture):
     _write(d, picture)
     (d / "sub").mkdir()
     save_image(picture[0]["height"], d / "sub" / "h.png")
+    save_image(picture[0]["height"], d / "sub" / "albedo.png")
     save_image(picture[0]["height"][:64], d / "small.png")
     two = Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {
         "wall_normal": picture[0]["normal"], "h": picture[0]["height"]})
@@ -158,6 +159,15 @@ def folder(tmp_path_factory, picture):
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "tex.npz", "-o", "o.png"],
      "--source tex.npz is a texture model"),
     (["extend", "wall.png", "h.png", "--size", "200x200", "-o", "o.png"], "an argument too many after IMAGE"),
+    # a saved material without --maps said "a material is generated alone and whole (one SOURCE of 'tghop synth'
+    # without --guide ...); for this, fit a plain model from its albedo": --maps was the fix
+    (["inpaint", "wall.png", "mask.png", "--source", "mat.npz", "-o", "o.png"],
+     "--source mat.npz is a material (wall_normal, h); give --maps and its maps after MASK"),
+    (["extend", "wall.png", "--source", "mat.npz", "--size", "200x200", "-o", "o.png"],
+     "--source mat.npz is a material (wall_normal, h); give --maps and its maps after IMAGE"),
+    # a map file named albedo said "two maps are named 'albedo'" with one map given
+    (["inpaint", "wall.png", "mask.png", "--maps", "sub/albedo.png", "-o", "o.png"],
+     "MAP sub/albedo.png is named 'albedo', the name of IMAGE itself"),
     (["inpaint", "wall.png", "mask.png", "--maps", "mat.npz", "h.png", "--source", "mat.npz", "-o", "o.png"],
      "MAP mat.npz is a model file"),
 ])

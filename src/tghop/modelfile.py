@@ -427,9 +427,9 @@ def load_model(path, *, material=False):
                              f"{_refit(meta)}") from None
     if kind is Material and not material:
         names = ", ".join(m["name"] for m in meta["material"]["maps"])
-        raise ModelFileError(f"{path} is a material ({names}), not a plain model: a material is generated alone "
-                             "and whole (one SOURCE of 'tghop synth' without --guide; load_model(path, "
-                             "material=True)); for this, fit a plain model from its albedo")
+        raise ModelFileError(f"{path} is a material ({names}), not a plain model: a material makes every map at "
+                             "once ('tghop synth', painted with --guide too; 'tghop inpaint' and 'extend' with --maps; "
+                             "load_model(path, material=True)); for this, fit a plain model from its albedo")
     _check_arrays(path, groups, arrays)
     try:
         model = kind._from_state(meta, arrays)

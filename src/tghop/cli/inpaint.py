@@ -176,7 +176,11 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
     if source_is_model:
         from ..modelfile import load_model
 
-        model = load_model(source)
+        model = load_model(source, material=True)
+        if hasattr(model, "names_"):  # a material fills with every map: --maps
+            raise TGHopError(f"--source {source} is a material ({', '.join(model.names_[1:])}); give --maps and its "
+                             f"maps after {'MASK' if hole is not None else 'IMAGE'}, in that order, or a texture "
+                             "model")
         _check_channels(picture, model.exemplar_shape_[2], image, source)
     _check_size(image, picture.shape, TGHop().patch_size if model is None else model.patch_size,
                 "" if source is None else " of --source's model" if model is not None

@@ -56,7 +56,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
-    for path, name in zip(map_paths, map_names(map_paths)):
+    for path, name in zip(map_paths, map_names(map_paths, label="--maps", albedo="EXEMPLAR")):
         maps[name], depths[name] = read(path, "--maps")
     mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar")
     params = fit_params(options)
