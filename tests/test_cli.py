@@ -401,3 +401,30 @@ def test_patch_refinement_default_is_auto(workdir):
         assert_user_error(r, "no patch statistics")
         assert not (workdir / "plain_x.png").exists()
     assert_user_error(run("synth", plain, "-o", workdir / "plain_x.png", "--patch-refine", "off"), "not an integer")
+
+
+def test_patch_refinement_without_patch_statistics_is_refused_before_the_fit(workdir, monkeypatch):
+    """`synth EXEMPLAR --paper --quality best` (or `--patch-levels 0 --patch-refine 5`) fitted
+    first and then failed in the library's words: "patch_refine=90 needs the patch statistics
+    this model lacks (fitted with patch_levels=0 ...); leave patch_refine at None or 0"."""
+    from tghop.synthesis import TGHop
+
+    plain = workdir / "nostats.npz"
+    assert run("fit", workdir / "bricks.png", "-o", plain, "--patch-levels", "0", *FAST).returncode == 0
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("fitted before the options were checked")
+
+    monkeypatch.setattr(TGHop, "fit", no_fit)
+    out = workdir / "nostats.png"
+    bricks = workdir / "bricks.png"
+    for sources, extra, words in (
+            ([bricks], ("--paper", "--quality", "best"), ("--quality best", "--paper", "--patch-levels")),
+            ([bricks], ("--patch-levels", "0", "--patch-refine", "5"), ("--patch-refine 5", "--patch-levels 0")),
+            ([bricks], ("--paper", "--patch-refine", "3"), ("--patch-refine 3", "--paper")),
+            ([bricks, bricks], ("--paper", "--quality", "best"), ("--quality best", "--paper")),  # a remix too
+            ([plain, plain], ("--quality", "best"), ("SOURCE 1", "nostats.npz", "no patch statistics"))):
+        fast = FAST if sources[0] == bricks else ["-q"]
+        r = run("synth", *sources, "-o", out, "--size", "48", *fast, *extra)
+        assert_user_error(r, *words)
+        assert "patch_refine=" not in r.stderr.decode() and not out.exists()

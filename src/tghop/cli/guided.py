@@ -115,6 +115,16 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
+    if generation["patch_refine"] and not hasattr(read[0], "names_"):  # before any fit (materials: refused below)
+        from .options import refuse_patch_refine_without_statistics
+
+        for i, (spec, source) in enumerate(zip(sources, read), start=1):
+            if not isinstance(source, np.ndarray) and source.patches_ is None:
+                raise TGHopError(f"SOURCE {i} ({spec}) holds no patch statistics for --patch-refine or --quality "
+                                 "best (fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again "
+                                 "with 'tghop fit'")
+        if any(isinstance(source, np.ndarray) for source in read):
+            refuse_patch_refine_without_statistics(ctx, generation, build_model(dict(options)))
     import os
 
     same, models = {}, []  # a file given twice is one model (fitted once): its regions are one synthesis

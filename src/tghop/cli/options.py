@@ -239,3 +239,19 @@ def given_options(ctx, names):
         if param.name in names and ctx.get_parameter_source(param.name) == ParameterSource.COMMANDLINE:
             out.append(param.opts[0] if param.opts else param.name)
     return out
+
+
+def refuse_patch_refine_without_statistics(ctx, generation, planned):
+    """Refuse, before any fit, a patch refinement asked for (``--patch-refine N`` or ``--quality
+    best``: ``generation["patch_refine"]``) from a fit that stores no patch statistics
+    (``planned``: the unfitted model the fit options make; --paper's or --patch-levels 0), in the
+    options typed (the library's error came after the fit, in its keywords)."""
+    from ..settings import BY_NAME
+
+    if not generation["patch_refine"] or planned.patch_levels:
+        return
+    asked = (f"--patch-refine {generation['patch_refine']}" if given_options(ctx, ["patch_refine"])
+             else "--quality best")
+    why = "--patch-levels 0" if given_options(ctx, ["patch_levels"]) else "--paper (its --patch-levels 0)"
+    raise TGHopError(f"{asked} needs the patch statistics that {why} leaves out of the fit; give --patch-levels "
+                     f"{BY_NAME['patch_levels'].default} as well, or drop {asked}")

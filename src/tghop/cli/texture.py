@@ -15,7 +15,8 @@ from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_
                      write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
-                      depth_option, generation_options, generation_params, given_options, model_options)
+                      depth_option, generation_options, generation_params, given_options, model_options,
+                      refuse_patch_refine_without_statistics)
 
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
@@ -323,8 +324,9 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
 
         # The output's blocks at the fit's patch size, before the fit: a --size or --overlap
         # that quilting refuses is refused at once, not after the fit.
-        block_count(size, build_model(dict(options)).patch_size, overlap=generation["overlap"],
-                    tile=generation["tile"])
+        planned = build_model(dict(options))
+        block_count(size, planned.patch_size, overlap=generation["overlap"], tile=generation["tile"])
+        refuse_patch_refine_without_statistics(ctx, generation, planned)
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress,
                              deep_warning=None if depth else "SOURCE")
         if save_model:
