@@ -338,3 +338,26 @@ def test_self_repetition_and_cooccurrence_name_their_counts(exemplar, references
         metrics.self_repetition(references["crop"], max_windows=0)
     with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 0$"):
         metrics.cooccurrence_distance(exemplar, references["crop"], max_fit_pixels=0)
+
+
+SEEDED = ["novelty", "copied", "diversity", "copied_textured", "sliced_wasserstein", "cooccurrence_distance"]
+
+
+@pytest.mark.parametrize("name", SEEDED + ["self_repetition", "gram_distance"])
+def test_a_metric_refuses_a_generator_or_a_bad_seed_in_one_line(name, exemplar, references):
+    """Scores compare only when drawn with the same fixed seed: a Generator is refused by name,
+    not met with int()'s TypeError; a negative or fractional seed and a bool likewise."""
+    images = (references["crop"],) if name == "self_repetition" else (exemplar, references["crop"])
+    with pytest.raises(TGHopError, match=r"^seed must be an int, not a Generator: .* give e\.g\. seed=0$"):
+        getattr(metrics, name)(*images, seed=np.random.default_rng(0))
+    for value in (-1, 2.5, True):
+        with pytest.raises(TGHopError, match=r"^seed must be an integer >= 0, got"):
+            getattr(metrics, name)(*images, seed=value)
+
+
+@pytest.mark.parametrize("name", ["novelty", "copied", "diversity", "copied_textured", "sliced_wasserstein",
+                                  "self_repetition"])
+def test_a_fractional_patch_size_is_refused_not_truncated(name, exemplar, references):
+    images = (references["crop"],) if name == "self_repetition" else (exemplar, references["crop"])
+    with pytest.raises(TGHopError, match=r"^patch_size must be an integer >= 1, got 8.5$"):
+        getattr(metrics, name)(*images, patch_size=8.5)

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from .._arrays import check_int
 from .._common import TGHopError, check_image, grey_as_rgb, report
 
-__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "sample_patches"]
+__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "check_seed", "sample_patches"]
 
 
 #: Images up to this many pixels (512 x 512) are scored in one piece by :func:`sifid` and
@@ -45,10 +46,21 @@ def counter(progress, stage: str, total: int):
 
 
 def check_patch_size(patch_size) -> int:
-    patch_size = int(patch_size)
-    if patch_size < 1:
-        raise TGHopError(f"patch_size must be positive, got {patch_size}")
-    return patch_size
+    """``patch_size`` as a positive int, or a one-line :class:`TGHopError`."""
+    return check_int(patch_size, "patch_size", 1)
+
+
+def check_seed(seed) -> int:
+    """A metric's ``seed`` as a non-negative int, or a one-line :class:`TGHopError`.
+
+    The metrics take a fixed integer seed, not a ``numpy.random.Generator``: their samples
+    (patches, projections, random filters) are then the same for every result scored with
+    the same seed, so that the scores compare.
+    """
+    if isinstance(seed, np.random.Generator):
+        raise TGHopError("seed must be an int, not a Generator: a metric draws its samples from a fixed seed, "
+                         "so that scores of different results compare; give e.g. seed=0")
+    return check_int(seed, "seed", 0)
 
 
 def sample_patches(img: np.ndarray, patch_size: int, n: int, rng: np.random.Generator) -> np.ndarray:

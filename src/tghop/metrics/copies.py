@@ -11,7 +11,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from .._common import TGHopError, check_image
 from .._arrays import check_int
-from .common import pair, counter, check_patch_size, sample_patches
+from .common import pair, counter, check_patch_size, check_seed, sample_patches
 
 __all__ = ["novelty", "copied", "diversity", "TEXTURED_STD", "copied_textured", "self_repetition"]
 
@@ -183,7 +183,7 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     with the exemplar's pixels times ``max_patches`` times the patch's values
     (``benchmarks/bench_cli.py`` times ``tghop evaluate``).
     """
-    patch_size = check_patch_size(patch_size)
+    patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
     tick = counter(progress, "novelty", _nearest_chunks(ex, patch_size))
@@ -228,7 +228,7 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
     -----
     Memory is bounded, as for :func:`novelty`.
     """
-    patch_size = check_patch_size(patch_size)
+    patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
@@ -268,7 +268,7 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
         results = tuple(results[0])
     if len(results) < 2:
         raise TGHopError(f"diversity needs at least two results, got {len(results)}")
-    patch_size = check_patch_size(patch_size)
+    patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     max_patches = check_int(max_patches, "max_patches")
     images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
     if len({img.shape[2] for img in images}) > 1:
@@ -349,7 +349,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     ``progress(stage, done, total)``: stage ``"copied_textured"``, one unit per chunk of
     exemplar rows searched. Memory is bounded as for :func:`copied`.
     """
-    patch_size = check_patch_size(patch_size)
+    patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     threshold = float(threshold)
     if not math.isfinite(threshold) or threshold <= 0:
         raise TGHopError(f"threshold must be a positive number, got {threshold!r}")
@@ -401,7 +401,7 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     for the result when asked by name (``metrics=[..., "self_repetition"]``, ``tghop
     evaluate --repetition``).
     """
-    patch_size = check_patch_size(patch_size)
+    patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     if patch_size % 4:
         raise TGHopError(f"patch_size must be a multiple of 4, got {patch_size}")
     threshold = float(threshold)

@@ -11,7 +11,7 @@ from scipy import ndimage
 from .._common import InvalidImageError, TGHopError, check_texture
 from . import common
 from .._arrays import check_int
-from .common import pair, counter, check_patch_size, sample_patches
+from .common import pair, counter, check_patch_size, check_seed, sample_patches
 
 __all__ = ["sliced_wasserstein", "cooccurrence_distance"]
 
@@ -76,7 +76,7 @@ def sliced_wasserstein(
     Memory: already bounded by sampling (``max_patches`` patches per image and scale);
     beyond that, one blurred copy of each image at a time.
     """
-    patch_size = check_patch_size(patch_size)
+    patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     scales = tuple(int(s) for s in scales)
     if not scales or min(scales) < 1:
         raise TGHopError(f"scales must be positive downsampling factors, got {scales}")
@@ -168,7 +168,7 @@ def cooccurrence_distance(
 
     if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
         raise TGHopError("sigma, window and n_clusters must be positive")
-    max_fit_pixels = check_int(max_fit_pixels, "max_fit_pixels")
+    max_fit_pixels, seed = check_int(max_fit_pixels, "max_fit_pixels"), check_seed(seed)
     ex, res = pair(exemplar, result)
     check_texture(ex)  # one colour cluster: its 1x1 matrix matched any result (a distance of 0)
     centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=max_fit_pixels,
