@@ -91,6 +91,7 @@ def assert_error(r, status, *words):
     assert "\n" not in message and "Traceback" not in message
     for word in words:
         assert word in message, message
+    return message
 
 
 def test_a_fit_with_maps_is_a_material_named_by_its_maps(client, material_id):
@@ -223,6 +224,18 @@ def test_materials_with_other_maps_are_not_painted_together(client, material_id)
 def test_bad_maps_are_refused_before_a_fit_starts(client, files, words):
     r = client.post("/api/models", files={**albedo_file(), **files, **{k: (None, v) for k, v in FAST_FIT.items()}})
     assert_error(r, 400, *words)
+
+
+def test_a_materials_channel_count_out_of_range_is_refused_before_a_fit_starts(client):
+    # K1 above what the stacked channels hold (albedo 3 + normal 3 + height 1 = 7: at most 28), as a
+    # texture fit's: 422 naming the form field, not the job failing with the command line's --k1
+    fields = {**albedo_file(), **map_files(), **{k: (None, v) for k, v in FAST_FIT.items()}, "k1": (None, "1000")}
+    message = assert_error(client.post("/api/models", files=fields), 422, "K1 (k1) is 1000",
+                           "7 channels has 28; choose at most 28", "albedo 3, normal 3, height 1")
+    assert "--k1" not in message
+    # Within the stack's range though over the albedo's (12): fitted
+    material = fit(client, {**albedo_file(), **map_files(), "k1": (None, "20")})
+    assert client.get(f"/api/models/{material}").json()["channels"][0] == 20
 
 
 def test_more_maps_than_a_material_takes_are_refused(client):

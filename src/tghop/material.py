@@ -314,6 +314,14 @@ class Material(BaseEstimator):
         self.depths_ = [depth for _, _, depth, _ in items]
         return self
 
+    def stacked_channels(self, albedo, maps=None) -> dict:
+        """The channels each map takes in the joint model, as :meth:`fit` stacks them (a grey map
+        stored as RGB: one; a normal map: three), by name, the albedo first; fitting nothing (the
+        channel counts of :attr:`model` can be checked against their sum before a fit:
+        :meth:`tghop.synthesis.TGHop.check_channels`). Bad maps raise :meth:`fit`'s one-line
+        :class:`TGHopError`."""
+        return {name: img.shape[2] for name, img, _, _ in self._maps(albedo, maps, None, self._checked_params())}
+
     def map_slices(self):
         """Each map's channels in the joint model's stacked channels, in :attr:`names_`'s order:
         a list of slices."""

@@ -52,8 +52,8 @@ from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from . import cooc, materials
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
-from .requests import (RequestError, fit_fields, parse_bool, parse_fit_settings, parse_generation, parse_growth,
-                       parse_guided, parse_morph, safe_name)
+from .requests import (RequestError, check_channel_counts, fit_fields, parse_bool, parse_fit_settings,
+                       parse_generation, parse_growth, parse_guided, parse_morph, safe_name)
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -288,11 +288,8 @@ class Server:
             model = build_model(options, n_colours=image.shape[2], api=True)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
-        try:  # a channel count out of the image's range: a setting's (422), before a job starts
-            if not uploads:  # a material's joint model has the maps' channels too
-                model.check_channels(image.shape[2])
-        except TGHopError as exc:
-            raise RequestError(422, str(exc).replace("n_channels[0], --k1", "k1")) from None
+        if not uploads:  # a channel count out of the image's range: 422 before a job (a material's: its maps')
+            check_channel_counts(model, image.shape[2])
         try:
             model.check_exemplar_size(image.shape)  # the smallest exemplar that works, before a job starts
         except TGHopError as exc:
@@ -302,6 +299,7 @@ class Server:
             maps, depths = materials.read_maps(
                 uploads, lambda data, filename: self._read_image(data, filename, read), image.shape)
             joint = material_model(fit_params(options, api=True))  # channels for the maps too, as fit --maps
+            materials.check_channels(joint, image, maps)
             model_id = materials.material_id(content, uploads, joint.get_params(), model_id_for)
 
             def fit(progress):

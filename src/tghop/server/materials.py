@@ -28,11 +28,11 @@ import json
 import secrets
 
 from ..manifest import MAX_MAPS
-from .requests import RequestError, safe_name
+from .requests import RequestError, check_channel_counts, safe_name
 
-__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "material_id", "texture_only",
-           "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill", "META_PART",
-           "MAX_NAME"]
+__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "check_channels", "material_id",
+           "texture_only", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
+           "META_PART", "MAX_NAME"]
 
 #: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
 #: name cannot begin with "_", so no map's part has this name).
@@ -100,6 +100,20 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
                 raise RequestError(400, f"{filename}: {exc}") from None
         maps[name], depths[name] = image, depth
     return maps, depths
+
+
+def check_channels(joint, albedo, maps: dict) -> None:
+    """The joint model's channel counts (``k1``) against the stacked channels of ``albedo`` and
+    ``maps`` (:meth:`tghop.material.Material.stacked_channels`), as a texture fit's against its
+    exemplar's (:func:`~tghop.server.requests.check_channel_counts`): 422 before a fit job starts."""
+    from .._errors import TGHopError
+    from ..material import Material
+
+    try:
+        stacked = Material(model=joint).stacked_channels(albedo, maps)
+    except TGHopError as exc:
+        raise RequestError(400, str(exc)) from None
+    check_channel_counts(joint, sum(stacked.values()), stacked)
 
 
 def material_id(albedo_content: bytes, uploads, settings: dict, model_id_for) -> str:

@@ -17,9 +17,9 @@ import re
 from .. import manifest
 from .._errors import TGHopError
 
-__all__ = ["RequestError", "decode_png_field", "fit_fields", "json_bool", "parse_bool", "parse_fit_settings",
-           "parse_generation", "parse_growth", "parse_guided", "parse_morph", "safe_name", "MAX_MODELS",
-           "MAX_TRANSITION"]
+__all__ = ["RequestError", "check_channel_counts", "decode_png_field", "fit_fields", "json_bool", "parse_bool",
+           "parse_fit_settings", "parse_generation", "parse_growth", "parse_guided", "parse_morph", "safe_name",
+           "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -108,6 +108,20 @@ def parse_fit_settings(fields: dict) -> dict:
     except TGHopError as exc:
         raise RequestError(422, str(exc)) from None
     return options
+
+
+def check_channel_counts(model, n_colours: int, stacked=None) -> None:
+    """A fit's channel counts (``k1``...) against its exemplar's ``n_colours`` channels, by the
+    library's own check (:meth:`tghop.synthesis.TGHop.check_channels`: its limits), before a job
+    starts: 422 naming the form field ``k1``, not the command line's ``--k1``. ``stacked``: a
+    material's channels by map (``{name: count}``), named in the message (the joint model's
+    exemplar is the maps stacked)."""
+    try:
+        model.check_channels(n_colours)
+    except TGHopError as exc:
+        parts = "" if not stacked else (" (a material's albedo and maps stacked: "
+                                        + ", ".join(f"{name} {c}" for name, c in stacked.items()) + ")")
+        raise RequestError(422, str(exc).replace("n_channels[0], --k1", "k1") + parts) from None
 
 
 def _parse_field(s, text: str):
