@@ -8,7 +8,7 @@ from PIL import Image
 
 from tghop import TGHopError, data
 from tghop.imageio import save_image, to_uint8
-from tghop.inpaint import check_hole, inpaint
+from tghop.inpaint import check_hole, extend, inpaint
 from tghop.modelfile import save_model
 from tghop.synthesis import TGHop
 
@@ -150,6 +150,21 @@ def test_a_greyscale_model_fills_a_grey_rgb_image(cells):
     assert np.array_equal(out[..., 0], out[..., 1]) and np.array_equal(out[..., 0], out[..., 2])
 
 
+def test_a_16_bit_picture_is_filled_at_16_bits(model, cells, square):
+    deep = cells.astype(np.uint16) * np.uint16(257) ^ np.uint16(5)  # low bits an 8-bit picture cannot hold
+    out = inpaint(model, deep, square, rng=1, **POOL)
+    assert out.dtype == np.uint16
+    assert np.array_equal(out[~square], deep[~square])  # the same levels
+    assert not np.array_equal(out[square], deep[square])
+    # The fill of the same picture as floats (levels / 65535, as a 16-bit file is read), at 16 bits
+    floats = inpaint(model, deep / 65535.0, square, rng=1, **POOL)
+    assert np.abs(out.astype(np.int64) - np.round(floats * 65535).astype(np.int64)).max() <= 1
+    # A 16-bit mask's hole is above half its levels
+    assert np.array_equal(check_hole(np.where(square, 40000, 30000).astype(np.uint16), square.shape), square)
+    grown = extend(model, deep, (96, 128), anchor="left", rng=1, **POOL)
+    assert grown.dtype == np.uint16 and np.array_equal(grown[:, :96], deep)
+
+
 def test_bad_input_is_one_line(model, cells, square):
     with pytest.raises(TGHopError, match="the mask is 10x10 but the image is 96x96"):
         inpaint(model, cells, np.zeros((10, 10), bool))
@@ -176,7 +191,7 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
     with pytest.raises(TGHopError, match="the image is empty"):
         inpaint(model, cells[:0].astype(np.float64), square[:0])
     with pytest.raises(TGHopError, match=r"^inpaint: image must be an \(H, W, C\) float array in \[0, 1\] or "
-                       "uint8, got int64"):
+                       "uint8 or uint16, got int64"):
         inpaint(model, cells.astype(np.int64), square, **fast)
     with pytest.raises(TGHopError, match=r"^inpaint: image values must lie in \[0, 1\], got \["):
         inpaint(model, cells.astype(np.float64), square, **fast)

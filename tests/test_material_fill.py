@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from tghop import TGHop, TGHopError, data
 from tghop.cli import main
-from tghop.imageio import load_image, save_image, to_uint8
+from tghop.imageio import load_image, save_image, to_uint8, to_uint16
 from tghop.inpaint import inpaint_material
 from tghop.material import Material, example_maps
 from tghop.modelfile import save_model
@@ -59,6 +59,23 @@ def test_every_map_is_filled_alike_and_the_rest_kept(material, picture):
     again = inpaint_material(material, images, hole, rng=1, n_patches=1500)
     for name in out:
         np.testing.assert_array_equal(again[name], out[name])
+
+
+def test_16_bit_maps_are_filled_and_kept_at_16_bits(material, picture):
+    # As Material.fit takes them (and inpaint a 16-bit picture): levels / 65535, the result uint16
+    images, hole = picture
+    deep = {**images, "albedo": images["albedo"].astype(np.uint16) * np.uint16(257),
+            "normal": to_uint16(images["normal"]), "height": to_uint16(images["height"])}
+    out = inpaint_material(material, deep, hole, rng=1, n_patches=1500)
+    assert [out[k].dtype for k in out] == [np.uint16, np.uint16, np.float64, np.uint16]
+    for name in ("albedo", "normal", "height"):
+        np.testing.assert_array_equal(out[name][~hole], deep[name][~hole])  # the same levels
+        assert not np.array_equal(out[name][hole], deep[name][hole])
+    n = out["normal"][hole] / 65535.0 * 2 - 1
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-4)
+    # The fill of the 8-bit albedo and float maps, but for the maps' 16-bit rounding (levels / 65535, not 255)
+    eight = inpaint_material(material, images, hole, rng=1, n_patches=1500)
+    assert np.abs(out["albedo"][hole] / 257.0 - eight["albedo"][hole]).mean() < 0.5
 
 
 @pytest.mark.parametrize("change, words", [

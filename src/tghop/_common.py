@@ -317,7 +317,7 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
     return np.clip(arr, 0.0, 1.0, out=arr if arr is not image else None)
 
 
-def checked_image(image, where, name="image", channels=None, *, only_uint8=False, empty=True):
+def checked_image(image, where, name="image", channels=None, *, integers=None, empty=True):
     """``image`` as an (H, W, C) array, not converted, or a one-line :class:`InvalidImageError`
     naming ``where`` and ``name``.
 
@@ -336,8 +336,9 @@ def checked_image(image, where, name="image", channels=None, *, only_uint8=False
         How the image is called in the message.
     channels : int or None
         The channel count the caller's statistics have; None: any.
-    only_uint8 : bool
-        Of the integer images, accept uint8 only (for callers that read it as 8-bit levels).
+    integers : tuple of dtypes, optional
+        The unsigned integer dtypes accepted, e.g. ``(numpy.uint8,)`` for callers that read
+        8-bit levels (None: any).
     empty : bool
         Accept an image of no pixels.
 
@@ -348,9 +349,10 @@ def checked_image(image, where, name="image", channels=None, *, only_uint8=False
     """
     arr = np.asarray(image)
     if (arr.ndim != 3 or arr.shape[2] < 1 or arr.dtype.kind not in "fu"
-            or (only_uint8 and arr.dtype.kind == "u" and arr.dtype != np.uint8)):
-        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1]"
-                                f"{' or uint8' if only_uint8 else ''}, got {arr.dtype} of shape {arr.shape}")
+            or (integers is not None and arr.dtype.kind == "u" and arr.dtype not in integers)):
+        ints = "".join(f" or {np.dtype(d).name}" for d in integers or ())
+        raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1]{ints}, "
+                                f"got {arr.dtype} of shape {arr.shape}")
     if channels is not None and arr.shape[2] != channels:
         raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channels where {channels} are expected "
                                 "(as many as the statistics have)")

@@ -502,7 +502,7 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
             raise TGHopError(f"{n_hops} hop{'s need' if n_hops != 1 else ' needs'} a patch size divisible by {unit}, "
                              f"got {patch_size!r}")
         patch_size = int(patch_size)
-        image = checked_image(image, "HopStack.fit_image", only_uint8=True, empty=False)  # a uint8 one stays uint8
+        image = checked_image(image, "HopStack.fit_image", integers=(np.uint8,), empty=False)  # a uint8 one stays uint8
         origins = _check_origins(origins, image.shape, patch_size)
         tile = max(unit, -(-int(tile) // unit) * unit)
         tiles = _tiles(image, origins, patch_size, tile)
