@@ -304,6 +304,26 @@ def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client,
     assert_error(r, 400, f"the map normal (n.png) is {SIZE}x{SIZE - 8} but the picture is {SIZE}x{SIZE}")
 
 
+def test_a_materials_fill_keeps_each_files_depth_as_a_textures_does(client, material_id):
+    # The material's albedo and height are 8-bit; sent at 16 bits they come back at 16 (the texture
+    # path keeps a 16-bit picture's depth; tghop inpaint --maps writes each map at its file's)
+    albedo = to_uint16(data.bricks(SIZE, rng=8)) ^ np.uint16(5)  # low bits an 8-bit answer would lose
+    maps = example_maps(data.bricks(SIZE, rng=8))
+    hole = np.zeros((SIZE, SIZE), dtype=bool)
+    hole[30:60, 20:70] = True
+    r = client.post(f"/api/models/{material_id}/inpaint", files={
+        "image": ("p.png", png(albedo)), "mask": ("m.png", png(hole.astype(np.uint8) * 255)),
+        "map:normal": ("n.png", png(to_uint8(maps["normal"]))), "map:height": ("h.png", png(to_uint16(maps["height"]))),
+        "seed": (None, "4")})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert [(m["name"], m["depth"]) for m in body["maps"]] == [("albedo", 16), ("normal", 8), ("height", 16)]
+    got = {m["name"]: decode(m["png"]) for m in body["maps"]}
+    assert got["albedo"].dtype == np.uint16 and got["normal"].dtype == np.uint8
+    np.testing.assert_array_equal(got["albedo"][~hole], albedo[~hole])
+    np.testing.assert_array_equal(got["height"][~hole], to_uint16(maps["height"])[~hole])
+
+
 def test_a_materials_fill_may_send_as_much_as_its_fit_but_no_file_over_one_files_limit(client, material_id):
     # The picture and two maps of 30 MB each (no images: 400 naming one), over 50 MB together: not 413
     picture = png(to_uint8(data.bricks(48)))

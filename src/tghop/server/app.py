@@ -632,8 +632,8 @@ class Server:
         with self.generating:
             if materials.is_material(model):  # every map alike
                 return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename: self._read_image(
-                    data, filename, lambda p: load_image(p, dtype=None, with_depth=True)), grow=grow, seed=seed,
-                    tile=tile, progress=self.unless_stopping)
+                    data, filename, lambda p: load_image(p, dtype=None, with_depth=True)), depth=depth, grow=grow,
+                    seed=seed, tile=tile, progress=self.unless_stopping)
             try:
                 filled = inpaint(model, picture, hole, rng=seed, tile=tile, progress=self.unless_stopping)
             except MemoryError:

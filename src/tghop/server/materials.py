@@ -155,14 +155,16 @@ def patch_size(model) -> int:
     return (model.model_ if is_material(model) else model).patch_size
 
 
-def encode_maps(maps: dict, material) -> list:
+def encode_maps(maps: dict, material, depths=None) -> list:
     """A material's maps (``name -> (H, W, c)`` floats in [0, 1]) as PNGs: a list of ``{"name",
     "depth", "normal", "png"}`` (``png``: the file's bytes, at the map's depth: 8, else 16 bits),
-    in ``material``'s order."""
+    in ``material``'s order. ``depths``: ``{name: 8, 16 or 32}``, a depth other than the
+    material's (a fill's: the depth of the file sent)."""
     from ..imageio import to_uint8, to_uint16, write_png
 
     out = []
     for name, depth, normal in zip(material.names_, material.depths_, material.normal_):
+        depth = (depths or {}).get(name, depth)
         buf = io.BytesIO()
         write_png(buf, to_uint8(maps[name]) if depth == 8 else to_uint16(maps[name]))
         out.append({"name": name, "depth": 8 if depth == 8 else 16, "normal": bool(normal), "png": buf.getvalue()})
@@ -197,13 +199,15 @@ def answer(accept: str, maps: list, size, seed) -> tuple:
     return maps_json(maps, size, seed), "application/json"
 
 
-def fill(material, picture, alpha, hole, uploads, read, *, grow, seed, tile, progress) -> tuple:
-    """A material's inpaint or extend: ``picture`` (its albedo, grown already with ``grow``,
-    ``(size, anchor)``, else None) and the maps sent as ``map:<name>`` (``uploads``, as
-    :func:`map_uploads` gives them; ``read(content, filename)`` -> ``(image, depth)``), filled
+def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, tile, progress) -> tuple:
+    """A material's inpaint or extend: ``picture`` (its albedo, of ``depth`` bits, grown already
+    with ``grow``, ``(size, anchor)``, else None) and the maps sent as ``map:<name>`` (``uploads``,
+    as :func:`map_uploads` gives them; ``read(content, filename)`` -> ``(image, depth)``), filled
     alike in ``hole`` (:func:`tghop.inpaint.inpaint_material`; the albedo's alpha channel kept,
-    opaque in the hole): ``(the maps encoded (:func:`encode_maps`), (h, w))``. A map missing,
-    unknown or of another size than the picture is 400."""
+    opaque in the hole): ``(the maps encoded (:func:`encode_maps`), (h, w))``, each at the depth of
+    the file sent, as a texture's fill keeps its picture's and ``tghop inpaint --maps`` writes each
+    map (a float file's as 16 bits, the most a PNG holds). A map missing, unknown or of another
+    size than the picture is 400."""
     from .._errors import TGHopError
     from ..inpaint import expand_canvas, inpaint_material, with_alpha
 
@@ -214,9 +218,9 @@ def fill(material, picture, alpha, hole, uploads, read, *, grow, seed, tile, pro
                                 "the file field map:<name> beside the picture (its albedo)")
     known = ~hole  # grown: the picture as sent is the known rectangle
     shape = picture.shape[:2] if grow is None else (int(known.any(axis=1).sum()), int(known.any(axis=0).sum()))
-    maps = {}
+    maps, depths = {}, {"albedo": depth}
     for name in names:
-        image, _ = read(given[name][1], given[name][0])
+        image, depths[name] = read(given[name][1], given[name][0])
         if image.shape[:2] != shape:  # before it is grown: a map of another size would be grown to the same
             raise RequestError(400, f"the map {name} ({given[name][0]}) is {image.shape[0]}x{image.shape[1]} but the "
                                     f"picture is {shape[0]}x{shape[1]}; give maps of its size")
@@ -229,4 +233,4 @@ def fill(material, picture, alpha, hole, uploads, read, *, grow, seed, tile, pro
     except TGHopError as exc:
         raise RequestError(400, str(exc)) from None
     filled["albedo"] = with_alpha(filled["albedo"], alpha, hole)
-    return encode_maps(filled, material), picture.shape[:2]
+    return encode_maps(filled, material, depths), picture.shape[:2]
