@@ -236,3 +236,69 @@ def test_maps_added_while_a_fit_runs_fit_the_material(page, tmp_path):
     page.wait_for_timeout(1500)  # a replaced fit's answer, had it come later, would show by now
     assert page.text_content("#summary").startswith("material ")
     assert "maps: albedo, 8-bit; normal (normal), 16-bit" in page.text_content("#summary")
+
+
+def fresh_page(page):
+    """The page again (no exemplar, no maps), with the fast fit settings."""
+    page.goto(page.url)
+    page.wait_for_selector("body[data-ready='1']")
+    page.click("#fit-settings summary")
+    page.uncheck("#layout")
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", FAST_FIT[name])
+
+
+#: JavaScript (a function of [[base64 bytes, file name], ...]): drop the files on the drop area at once,
+#: as a drag of several files from the desktop does; returns the message said at once.
+DROP_FILES_JS = """(files) => {
+  const transfer = new DataTransfer();
+  for (const [data, name] of files) {
+    const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
+    transfer.items.add(new File([bytes], name, { type: name.endsWith('.png') ? 'image/png' : '' }));
+  }
+  const area = document.getElementById('drop');
+  for (const type of ['dragover', 'drop']) {
+    area.dispatchEvent(new DragEvent(type, { bubbles: true, cancelable: true, dataTransfer: transfer }));
+  }
+  return document.getElementById('message').textContent;
+}"""
+
+
+def test_several_files_dropped_at_once_are_a_material(page):
+    import base64
+
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    fresh_page(page)
+    albedo = data.bricks(96)
+    maps = example_maps(albedo)
+    files = {"rock_normal.png": png(to_uint16(maps["normal"])), "rock_color.png": png(to_uint8(albedo)),
+             "rock_height.png": png(to_uint8(maps["height"][..., 0]))}
+    dropped = [[base64.b64encode(b).decode(), name] for name, b in files.items()]
+    # The file named like an albedo is the exemplar (not the first), the others its maps; the page says so
+    said = page.evaluate(DROP_FILES_JS, dropped)
+    assert said.startswith("3 files dropped: rock_color.png is the exemplar (the albedo), the others its maps "
+                           "(rock_normal, rock_height)"), said
+    assert page.text_content("#maps-list") == "maps: rock_normal, rock_height"
+    wait_fitted(page)
+    summary = page.text_content("#summary")
+    assert summary.startswith("material ") and "exemplar 96x96" in summary, summary
+    assert "maps: albedo, 8-bit; rock_normal (normal), 16-bit; rock_height, 8-bit" in summary
+    assert page.eval_on_selector("#exemplar", "i => i.complete && i.naturalWidth") == 96
+    # None named like an albedo: the first is the exemplar
+    fresh_page(page)
+    said = page.evaluate(DROP_FILES_JS, [[d, name.replace("_color", "_base")] for d, name in dropped[1:]])
+    assert said.startswith("2 files dropped: rock_base.png is the exemplar (the albedo), the others its maps "
+                           "(rock_height)"), said
+    wait_fitted(page)
+    assert "maps: albedo, 8-bit; rock_height, 8-bit" in page.text_content("#summary")
+    # A model file among them: said, nothing used (the maps and the model stay)
+    said = page.evaluate(DROP_FILES_JS, [dropped[1], [base64.b64encode(b"x").decode(), "saved.npz"]])
+    assert said == "2 files dropped: drop the model file saved.npz on its own (nothing was used)"
+    assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
+    assert page.text_content("#maps-list") == "maps: rock_height"
+    assert page.is_hidden("#fit-status") is False and page.is_enabled("#go")
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors  # the test before's refusal
+

@@ -114,17 +114,44 @@ function mapsProblem(files) {
 
 // The map files chosen (none: a texture model); the exemplar fitted last is fitted again with them.
 function setMapFiles(files) {
+  if (!useMapFiles(files)) return;
+  if (state.source && state.source.file) fitFile(state.source.file);
+  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin);
+  else if (state.mapFiles.length) say("now pick or drop the exemplar (the albedo): it is fitted with these maps");
+}
+
+// The map files to fit with the next exemplar, listed; false (said, the maps chosen before kept) when
+// their names clash.
+function useMapFiles(files) {
   files = [...files];  // before the input is emptied: its FileList is live
   const problem = mapsProblem(files);
   $("maps").value = "";  // choosing the same files again is a change
-  if (problem) { say(problem, true); return; }  // the maps chosen before stay
+  if (problem) { say(problem, true); return false; }
   state.mapFiles = files;
   const names = state.mapFiles.map((f) => mapName(f.name));
   $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
   $("maps-clear").hidden = !names.length;
-  if (state.source && state.source.file) fitFile(state.source.file);
-  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin);
-  else if (names.length) say("now pick or drop the exemplar (the albedo): it is fitted with these maps");
+  return true;
+}
+
+// A name that says albedo (albedo, diff, diffuse, color, colour, basecolor, as a word of the file's name).
+const ALBEDO_NAME = /(^|[^a-z])(albedo|diff|diffuse|(base)?colou?r)([^a-z]|$)/i;
+
+// Several files dropped at once are a material: the exemplar (its albedo) is the one named like an
+// albedo when exactly one is, else the first; the others are its maps. A model file goes on its own.
+function dropFiles(files) {
+  const model = files.find((f) => /\.(npz|pt)$/i.test(f.name));
+  if (model) {
+    say(`${files.length} files dropped: drop the model file ${model.name} on its own (nothing was used)`, true);
+    return;
+  }
+  const named = files.filter((f) => ALBEDO_NAME.test(f.name.replace(/\.[^.]*$/, "")));
+  const albedo = named.length === 1 ? named[0] : files[0];
+  const maps = files.filter((f) => f !== albedo);
+  if (!useMapFiles(maps)) return;
+  fitFile(albedo);
+  say(`${files.length} files dropped: ${albedo.name} is the exemplar (the albedo), the others its maps ` +
+      `(${maps.map((f) => mapName(f.name)).join(", ")}); "Add maps..." changes them`);
 }
 
 function stopEvents() {
@@ -1071,7 +1098,9 @@ async function init() {
   drop.addEventListener("drop", (e) => {
     e.preventDefault();
     drop.classList.remove("over");
-    const file = e.dataTransfer.files[0];
+    const files = [...e.dataTransfer.files];
+    if (files.length > 1) { dropFiles(files); return; }
+    const file = files[0];
     if (!file) return;
     const name = file.name.toLowerCase();
     if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
