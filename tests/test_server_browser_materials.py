@@ -302,3 +302,47 @@ def test_several_files_dropped_at_once_are_a_material(page):
     assert page.is_hidden("#fit-status") is False and page.is_enabled("#go")
     assert not [e for e in page.errors if "status of 400" not in e], page.errors  # the test before's refusal
 
+
+def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
+    # The quality menu was offered from the fit's end until the summary said "material": a quick pick of
+    # best gave a one-line 422. Summaries are held here to see the page in between.
+    from tghop import TGHop, data
+    from tghop.imageio import to_uint16
+    from tghop.material import example_maps
+    from tghop.modelfile import save_model
+
+    fresh_page(page)
+    held = []
+
+    def hold(route):
+        if route.request.method == "GET" and not route.request.url.endswith("/file"):
+            held.append(route)  # a model's summary: answered when the test says
+        else:
+            route.continue_()
+
+    (tmp_path / "normal.png").write_bytes(png(to_uint16(example_maps(data.builtin("bricks"))["normal"])))
+    save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+               .fit(data.bricks(64)), tmp_path / "texture.npz")
+    page.route("**/api/models/*", hold)
+    try:
+        page.set_input_files("#maps", [str(tmp_path / "normal.png")])
+        page.select_option("#builtin", "bricks")  # a material fit: known to be one when it ends
+        page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
+        assert held and page.is_hidden("#summary")
+        assert page.is_disabled("#quality") and page.is_enabled("#go")
+        page.click("#maps-clear")  # a texture fit: quality at once
+        page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'"
+                               " && document.getElementById('summary').hidden", timeout=90_000)
+        assert page.is_enabled("#quality") and page.is_enabled("#go")
+        # An uploaded file: neither quality nor Generate until its summary says what it is
+        page.set_input_files("#model-file", str(tmp_path / "texture.npz"))
+        page.wait_for_function("document.getElementById('message').textContent"
+                               " === 'model texture.npz loaded: generate below'", timeout=30_000)
+        assert page.is_disabled("#quality") and page.is_disabled("#go") and page.is_disabled("#strip-go")
+        for route in held:
+            route.continue_()
+        page.wait_for_selector("#summary:not([hidden])")
+        assert page.is_enabled("#quality") and page.is_enabled("#go")
+    finally:
+        page.unroute("**/api/models/*")
+    assert not [e for e in page.errors if "status of 4" not in e], page.errors

@@ -33,7 +33,8 @@ function setExemplar(url) {
 }
 
 function updateButtons() {
-  $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId;
+  // Not while the model's kind is unknown (state.material null): its summary says whether quality applies
+  $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId || state.material === null;
   $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob;
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
   $("morph-go").disabled = state.busy || state.models.length < 2;
@@ -41,9 +42,11 @@ function updateButtons() {
   if (state.busyButton) state.busyButton.disabled = false;  // it reads Stop
 }
 
-function setModel(id) {
+// `material`: whether the model is a material, when known (a fit's: it sent maps); else null until
+// its summary says (an uploaded file).
+function setModel(id, material = null) {
   state.modelId = id;
-  setMaterial(false);  // until its summary says it is one
+  setMaterial(material);
   if (id) addSessionModel(id, state.pendingName);
   updateButtons();
   offerDownload($("download-model"), id && `/api/models/${id}/file`, id && `tghop-${id.slice(0, 12)}.npz`);
@@ -59,8 +62,9 @@ function offerDownload(link, href, name) {
 
 async function showSummary(id) {
   const response = await fetch(`/api/models/${id}`);
-  if (!response.ok) { say(await errorOf(response), true); return; }
-  const s = await response.json();
+  const s = response.ok ? await response.json() : { error: await errorOf(response) };
+  if (state.modelId !== id) return;  // another model took its place meanwhile: not its summary
+  if (s.error) { say(s.error, true); return; }
   const dims = Object.entries(s.dims).map(([k, v]) => `${k}=${v}`).join(", ");
   const [h, w, c] = s.exemplar_shape;
   const scaled = s.params && s.params.scale !== 1 ? ` (resampled by ${s.params.scale})` : "";
@@ -71,14 +75,17 @@ async function showSummary(id) {
     `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}` +
     (maps ? `\nmaps: ${maps.map((m) => `${m.name}${m.normal ? " (normal)" : ""}, ${m.depth}-bit`).join("; ")}` : "");
   $("summary").hidden = false;
-  if (state.modelId === id) setMaterial(Boolean(maps));
+  setMaterial(Boolean(maps));
 }
 
-// A material has no patch statistics: the quality preset does not apply to it.
+// A material has no patch statistics: the quality preset does not apply to it. `on` null: not known yet
+// (an uploaded file until its summary comes): the menu is off too, as best would be a 422 for a material.
 function setMaterial(on) {
   state.material = on;
-  $("quality").disabled = on;
-  $("quality").title = on ? "a material has no patch statistics: quality best does not apply" : "";
+  $("quality").disabled = on !== false;
+  $("quality").title = on ? "a material has no patch statistics: quality best does not apply"
+    : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
+  updateButtons();
 }
 
 // ------------------------------------------------------------------ fitting
@@ -195,16 +202,17 @@ async function startFit(form) {
     return;
   }
   const { id, job } = await response.json();
+  const material = [...form.keys()].some((k) => k.startsWith("map:"));  // a fit with maps makes a material
   if (request !== state.fitRequest) {  // replaced while its answer came: withdrawn, as dropRunningFit does
     fetch(`/api/jobs/${job}`, { method: "DELETE" }).catch(() => {});
     return;
   }
   state.job = job;
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
-  follow(id, job);
+  follow(id, job, material);
 }
 
-function follow(id, job) {
+function follow(id, job, material) {
   const events = new EventSource(`/api/jobs/${job}/events`);
   state.events = events;
   const update = (snap) => {
@@ -221,7 +229,7 @@ function follow(id, job) {
     $("fit-status").dataset.state = snap.state;
     if (snap.state === "done") {
       $("progress").value = 1;
-      setModel(id);
+      setModel(id, material);
       say("model ready: generate below");
       showSummary(id);
     } else if (snap.state === "cancelled") {
