@@ -17,7 +17,7 @@ for (let y = 0; y < c.height; y++) for (let x = arguments[1]; x < arguments[2]; 
 }
 return [...seen];"""
 
-#: The brush colours of crops 1 and 2 (app.js's PALETTE).
+#: The brush colours of crops 1 and 2 (board.js's PALETTE).
 FIRST, SECOND = "230,25,75", "60,180,75"
 
 

@@ -791,12 +791,16 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
 
 
 def test_the_page_and_its_files_are_served(client):
+    from tghop.server.app import STATIC
+
     page = client.get("/")
     assert page.status_code == 200 and "text/html" in page.headers["content-type"]
-    for name in ("app.js", "cooc.js", "style.css"):
+    scripts = sorted(p.name for p in STATIC.glob("*.js"))
+    assert {"app.js", "cooc.js"} <= set(scripts)
+    for name in (*scripts, "style.css"):  # every script of the folder is the page's
         assert f"/static/{name}" in page.text
         assert client.get(f"/static/{name}").status_code == 200
-    for name in ("app.js", "cooc.js"):  # nothing from the network
+    for name in scripts:  # nothing from the network
         assert "http" not in client.get(f"/static/{name}").text.replace("HTTP API", "")
     assert client.get("/api/builtins/bricks.png").content[:4] == b"\x89PNG"
     assert client.get("/api").json()["builtins"] == ["bricks", "cells"]

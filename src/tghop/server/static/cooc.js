@@ -1,8 +1,8 @@
 // tghop serve's page, Co-occurrence mode (docs/serve.md, /api/cooc): a checkpoint of
 // `tghop cooc train`, crops of its exemplar placed by clicking, a morph from crop 1 to crop 2
-// and an edit painted with the brush of Paint mode (app.js's board). Loaded after app.js,
-// whose helpers it uses ($, errorOf, withBusy, showResult, postImage, offerDownload, the boards,
-// PALETTE).
+// and an edit painted with the brush of Paint mode (board.js's board). Loaded last (app.js lists
+// the files), it uses the others' helpers ($, errorOf, withBusy, showResult, postImage,
+// offerDownload, the boards, swatch and colourOf, brushPoint).
 "use strict";
 
 // The checkpoint (id, its summary), the exemplar's picture (an Image, or null) and the crops:
@@ -203,7 +203,9 @@ function initCooc() {
   });
   $("cooc-exemplar").addEventListener("click", onCoocClick);
   wireBoard(coocBoard);
-  $("cooc-brush").addEventListener("input", () => { $("cooc-brush-size").textContent = `${$("cooc-brush").value} px`; });
+  $("cooc-brush").addEventListener("input", () => {
+    $("cooc-brush-size").textContent = `${$("cooc-brush").value} px`;
+  });
   $("cooc-reset").addEventListener("click", () => { resizeCoocBoard(true); sayCooc(""); });
   for (const id of ["cooc-height", "cooc-width"]) $(id).addEventListener("change", () => resizeCoocBoard());
   $("cooc-morph-go").addEventListener("click", onCoocMorph);

@@ -1,0 +1,104 @@
+// tghop serve's page: its state and what every part of it uses (app.js says which file does what).
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false,
+  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null, fitRequest: 0,
+  // A whole material: the map files to fit with the exemplar (section 1), the last exemplar
+  // fitted (refitted when the maps change), and the maps of the result shown (section 3).
+  mapFiles: [], source: null, material: false, shown: null };
+// The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
+// and the brush's last point while painting.
+const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null };
+
+function say(text, isError) {
+  const el = $("message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+async function errorOf(response) {
+  try {
+    const body = await response.json();
+    if (body && body.error) return body.error;
+  } catch (e) { /* not JSON */ }
+  return `${response.status} ${response.statusText}`;
+}
+
+function updateButtons() {
+  // Not while the model's kind is unknown (state.material null): its summary says whether quality applies
+  $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId || state.material === null;
+  $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob;
+  $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
+  $("morph-go").disabled = state.busy || state.models.length < 2;
+  if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js
+  if (state.busyButton) state.busyButton.disabled = false;  // it reads Stop
+}
+
+// Runs `work` with the other buttons disabled; meanwhile `button` reads Stop and aborts the request
+// (state.abort's signal), and the server stops that work at its next progress report.
+async function withBusy(button, work, report) {
+  if (state.busy) return;
+  state.busy = true;
+  state.abort = new AbortController();
+  const old = button.textContent;
+  const stop = (e) => { e.preventDefault(); e.stopImmediatePropagation(); state.abort.abort(); };
+  button.textContent = "Stop";
+  state.busyButton = button;
+  updateButtons();
+  button.addEventListener("click", stop, true);
+  try {
+    await work();
+  } catch (e) {
+    if (e.name === "AbortError") (report || say)("stopped"); else (report || say)(e.message, true);
+  } finally {
+    button.removeEventListener("click", stop, true);
+    button.textContent = old;
+    state.busy = false;
+    state.abort = state.busyButton = null;
+    updateButtons();
+  }
+}
+
+// fetch() that the Stop of withBusy aborts.
+function busyFetch(url, options) {
+  return fetch(url, { ...options, signal: state.abort ? state.abort.signal : undefined });
+}
+
+// A generation's request headers: a material's maps come as multipart (Response.formData() reads it:
+// no base64 to decode, a third smaller); a texture's image is a PNG whatever is asked.
+const GENERATION_HEADERS = { "Content-Type": "application/json", Accept: "multipart/form-data, application/json" };
+
+// A generation's answer: a texture's PNG ({blob, maps: null}), or a material's maps, the albedo first
+// ({blob: the albedo's, maps: [{name, depth, blob}]}): multipart (a part "_meta" of JSON, then a PNG
+// file per map, named by it) or JSON of base64 PNGs.
+async function answerOf(response) {
+  const kind = response.headers.get("Content-Type") || "";
+  if (kind.startsWith("multipart/form-data")) {
+    const form = await response.formData();
+    const maps = JSON.parse(form.get("_meta")).maps.map((m) => ({
+      name: m.name, depth: m.depth, blob: form.get(m.name),
+    }));
+    return { blob: maps[0].blob, maps };
+  }
+  if (!kind.startsWith("application/json")) return { blob: await response.blob(), maps: null };
+  const maps = (await response.json()).maps.map((m) => ({
+    name: m.name, depth: m.depth, blob: new Blob([base64Bytes(m.png)], { type: "image/png" }),
+  }));
+  return { blob: maps[0].blob, maps };
+}
+
+// Base64 text -> its bytes, in a plain loop: Uint8Array.from(text, fn) calls a function per byte, many
+// times slower on a large material's maps.
+function base64Bytes(text) {
+  const binary = atob(text), bytes = new Uint8Array(binary.length);
+  for (let i = 0; i < binary.length; i++) bytes[i] = binary.charCodeAt(i);
+  return bytes;
+}
+
+async function postImage(url, body) {
+  const response = await busyFetch(url, { method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS });
+  if (!response.ok) throw new Error(await errorOf(response));
+  const { blob, maps } = await answerOf(response);
+  return [blob, response.headers.get("X-Tghop-Seed"), maps];  // maps: materials painted or remixed
+}

@@ -1,0 +1,84 @@
+// tghop serve's page: downloads, a link to a file of the server or the maps of the material shown
+// as one ZIP (made here: nothing fetched for it).
+"use strict";
+
+// A download link for `href` saved as `name` (hidden when href is empty).
+function offerDownload(link, href, name) {
+  link.hidden = !href;
+  if (!href) return;
+  link.href = href;
+  link.setAttribute("download", name);
+}
+
+function mapFile(shown, i) {
+  return i ? `${shown.base}_${shown.maps[i].name}.png` : `${shown.base}.png`;
+}
+
+// One download of every map: a ZIP of the PNGs as tghop synth names them (several downloads at once
+// made browsers ask leave for each).
+async function downloadMaps() {
+  const shown = state.shown;
+  if (!shown) return;
+  const zip = await zipOf(shown.maps.map((m, i) => ({ name: mapFile(shown, i), blob: m.blob })));
+  const link = document.createElement("a");
+  link.href = URL.createObjectURL(zip);
+  link.download = `${shown.base}.zip`;
+  document.body.append(link);
+  link.click();
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(link.href), 60_000);
+}
+
+// CRC-32 (IEEE, as ZIP takes it) of bytes, by a table.
+const CRC_TABLE = (() => {
+  const table = new Uint32Array(256);
+  for (let n = 0; n < 256; n++) {
+    let c = n;
+    for (let k = 0; k < 8; k++) c = c & 1 ? 0xEDB88320 ^ (c >>> 1) : c >>> 1;
+    table[n] = c >>> 0;
+  }
+  return table;
+})();
+
+function crc32(bytes) {
+  let c = 0xFFFFFFFF;
+  for (let i = 0; i < bytes.length; i++) c = CRC_TABLE[(c ^ bytes[i]) & 0xFF] ^ (c >>> 8);
+  return (c ^ 0xFFFFFFFF) >>> 0;
+}
+
+// A ZIP archive of [{name, blob}], stored (PNGs are compressed already; ZIP's own format, APPNOTE
+// 4.3: a local header and the data per file, then the central directory and its end record).
+async function zipOf(files) {
+  const parts = [], central = [];
+  let offset = 0;
+  for (const f of files) {
+    const data = new Uint8Array(await f.blob.arrayBuffer());
+    const name = new TextEncoder().encode(f.name);
+    const crc = crc32(data);
+    const local = new DataView(new ArrayBuffer(30));
+    const entry = new DataView(new ArrayBuffer(46));
+    local.setUint32(0, 0x04034b50, true);  // local file header
+    entry.setUint32(0, 0x02014b50, true);  // central directory header
+    entry.setUint16(4, 20, true);  // made by: version 2.0
+    for (const [view, at] of [[local, 4], [entry, 6]]) {
+      view.setUint16(at, 20, true);  // needed: version 2.0; flags 0, method 0 (stored), time 0 follow
+      view.setUint16(at + 8, 0x21, true);  // date 1980-01-01
+      view.setUint32(at + 10, crc, true);
+      view.setUint32(at + 14, data.length, true);  // sizes, compressed and not
+      view.setUint32(at + 18, data.length, true);
+      view.setUint16(at + 22, name.length, true);
+    }
+    entry.setUint32(42, offset, true);  // where its local header is
+    parts.push(local, name, data);
+    central.push(entry, name);
+    offset += 30 + name.length + data.length;
+  }
+  const size = central.reduce((sum, part) => sum + part.byteLength, 0);
+  const end = new DataView(new ArrayBuffer(22));
+  end.setUint32(0, 0x06054b50, true);  // end of central directory
+  end.setUint16(8, files.length, true);
+  end.setUint16(10, files.length, true);
+  end.setUint32(12, size, true);
+  end.setUint32(16, offset, true);
+  return new Blob([...parts, ...central, end], { type: "application/zip" });
+}

@@ -1,0 +1,263 @@
+// tghop serve's page, section 1 (Exemplar): the exemplar and its maps (a material) are fitted, the fit's
+// progress followed and its model summarized; or a saved model file is loaded.
+"use strict";
+
+function setExemplar(url) {
+  if (state.exemplarUrl && state.exemplarUrl.startsWith("blob:")) URL.revokeObjectURL(state.exemplarUrl);
+  state.exemplarUrl = url;
+  const img = $("exemplar");
+  if (url) { img.src = url; img.hidden = false; } else { img.removeAttribute("src"); img.hidden = true; }
+}
+
+// `material`: whether the model is a material, when known (a fit's: it sent maps); else null until
+// its summary says (an uploaded file).
+function setModel(id, material = null) {
+  state.modelId = id;
+  setMaterial(material);
+  if (id) addSessionModel(id, state.pendingName);
+  updateButtons();
+  offerDownload($("download-model"), id && `/api/models/${id}/file`, id && `tghop-${id.slice(0, 12)}.npz`);
+}
+
+async function showSummary(id) {
+  const response = await fetch(`/api/models/${id}`);
+  const s = response.ok ? await response.json() : { error: await errorOf(response) };
+  if (state.modelId !== id) return;  // another model took its place meanwhile: not its summary
+  if (s.error) { say(s.error, true); return; }
+  const dims = Object.entries(s.dims).map(([k, v]) => `${k}=${v}`).join(", ");
+  const [h, w, c] = s.exemplar_shape;
+  const scaled = s.params && s.params.scale !== 1 ? ` (resampled by ${s.params.scale})` : "";
+  const maps = s.material ? s.material.maps : null;
+  const what = maps ? "material" : "model";
+  $("summary").textContent =
+    `${what} ${id.slice(0, 12)}: exemplar ${h}x${w}${scaled}, ${c} channel${c > 1 ? "s" : ""}; ` +
+    `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}` +
+    (maps ? `\nmaps: ${maps.map((m) => `${m.name}${m.normal ? " (normal)" : ""}, ${m.depth}-bit`).join("; ")}` : "");
+  $("summary").hidden = false;
+  setMaterial(Boolean(maps));
+}
+
+// A material has no patch statistics: the quality preset does not apply to it. `on` null: not known yet
+// (an uploaded file until its summary comes): the menu is off too, as best would be a 422 for a material.
+function setMaterial(on) {
+  state.material = on;
+  $("quality").disabled = on !== false;
+  $("quality").title = on ? "a material has no patch statistics: quality best does not apply"
+    : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
+  updateButtons();
+}
+
+function fitFields() {
+  const form = new FormData();
+  if (!$("layout").checked) form.append("layout_factor", "none");
+  if ($("paper-fit").checked) form.append("paper", "true");
+  for (const name of ["scale", "n_clusters", "n_codewords", "stride", "max_patches"]) {
+    const value = $(name).value.trim();
+    if (value) form.append(name, value);
+  }
+  for (const file of state.mapFiles) form.append(`map:${mapName(file.name)}`, file, file.name);
+  return form;
+}
+
+// A map's name from its file's: the stem, as tghop fit --maps names it (other characters as "_").
+function mapName(filename) {
+  const stem = filename.replace(/\.[^.]*$/, "").replace(/[^A-Za-z0-9._-]/g, "_").replace(/^[^A-Za-z0-9]+/, "");
+  return stem.slice(0, 64) || "map";
+}
+
+// Why the map files cannot be one material's (their names, as the server would refuse them), or "".
+function mapsProblem(files) {
+  const seen = new Map([["albedo", "the exemplar"]]);
+  for (const file of files) {
+    const name = mapName(file.name), key = name.toLowerCase();
+    if (key === "albedo") return `${file.name} would be the map "albedo", the exemplar's name: rename the file`;
+    if (seen.has(key)) return `${seen.get(key)} and ${file.name} both name the map "${name}": rename one of them`;
+    seen.set(key, file.name);
+  }
+  return "";
+}
+
+// The map files chosen (none: a texture model); the exemplar fitted last is fitted again with them.
+function setMapFiles(files) {
+  if (!useMapFiles(files)) return;
+  if (state.source && state.source.file) fitFile(state.source.file);
+  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin);
+  else if (state.mapFiles.length) say("now pick or drop the exemplar (the albedo): it is fitted with these maps");
+}
+
+// The map files to fit with the next exemplar, listed; false (said, the maps chosen before kept) when
+// their names clash.
+function useMapFiles(files) {
+  files = [...files];  // before the input is emptied: its FileList is live
+  const problem = mapsProblem(files);
+  $("maps").value = "";  // choosing the same files again is a change
+  if (problem) { say(problem, true); return false; }
+  state.mapFiles = files;
+  const names = state.mapFiles.map((f) => mapName(f.name));
+  $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
+  $("maps-clear").hidden = !names.length;
+  return true;
+}
+
+// A name that says albedo (albedo, diff, diffuse, color, colour, basecolor, as a word of the file's name).
+const ALBEDO_NAME = /(^|[^a-z])(albedo|diff|diffuse|(base)?colou?r)([^a-z]|$)/i;
+
+// Several files dropped at once are a material: the exemplar (its albedo) is the one named like an
+// albedo when exactly one is, else the first; the others are its maps. A model file goes on its own.
+function dropFiles(files) {
+  const model = files.find((f) => /\.(npz|pt)$/i.test(f.name));
+  if (model) {
+    say(`${files.length} files dropped: drop the model file ${model.name} on its own (nothing was used)`, true);
+    return;
+  }
+  const named = files.filter((f) => ALBEDO_NAME.test(f.name.replace(/\.[^.]*$/, "")));
+  const albedo = named.length === 1 ? named[0] : files[0];
+  const maps = files.filter((f) => f !== albedo);
+  if (!useMapFiles(maps)) return;
+  fitFile(albedo);
+  say(`${files.length} files dropped: ${albedo.name} is the exemplar (the albedo), the others its maps ` +
+      `(${maps.map((f) => mapName(f.name)).join(", ")}); "Add maps..." changes them`);
+}
+
+function stopEvents() {
+  if (state.events) { state.events.close(); state.events = null; }
+}
+
+// A fit still running when another exemplar or a model file replaces it is cancelled: the page forgets it.
+function dropRunningFit() {
+  stopEvents();
+  if (state.job && !$("fit-status").hidden && !$("fit-status").dataset.state) {
+    fetch(`/api/jobs/${state.job}`, { method: "DELETE" }).catch(() => {});
+  }
+  state.job = null;
+}
+
+async function startFit(form) {
+  dropRunningFit();
+  const request = ++state.fitRequest;  // a later fit or upload asked for meanwhile replaces this one
+  setModel(null);
+  $("summary").hidden = true;
+  $("fit-status").hidden = false;
+  delete $("fit-status").dataset.state;  // set again when this fit ends
+  $("progress").value = 0;
+  $("stage").textContent = "sending";
+  $("cancel").disabled = false;
+  say("");
+  let response;
+  try {
+    response = await fetch("/api/models", { method: "POST", body: form });
+  } catch (e) {
+    if (request !== state.fitRequest) return;
+    say(`the server did not answer (${e.message})`, true);
+    $("fit-status").hidden = true;
+    return;
+  }
+  if (!response.ok) {
+    const error = await errorOf(response);
+    if (request !== state.fitRequest) return;
+    say(error, true);
+    $("fit-status").hidden = true;
+    return;
+  }
+  const { id, job } = await response.json();
+  const material = [...form.keys()].some((k) => k.startsWith("map:"));  // a fit with maps makes a material
+  if (request !== state.fitRequest) {  // replaced while its answer came: withdrawn, as dropRunningFit does
+    fetch(`/api/jobs/${job}`, { method: "DELETE" }).catch(() => {});
+    return;
+  }
+  state.job = job;
+  $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
+  follow(id, job, material);
+}
+
+function follow(id, job, material) {
+  const events = new EventSource(`/api/jobs/${job}/events`);
+  state.events = events;
+  const update = (snap) => {
+    $("progress").value = snap.progress;
+    $("stage").textContent = snap.state !== "running" ? snap.state
+      : snap.stage ? `${snap.stage} ${Math.round(100 * snap.progress)} %` : "starting";
+  };
+  events.addEventListener("progress", (e) => update(JSON.parse(e.data)));
+  events.addEventListener("end", (e) => {
+    const snap = JSON.parse(e.data);
+    stopEvents();
+    update(snap);
+    $("cancel").disabled = true;
+    $("fit-status").dataset.state = snap.state;
+    if (snap.state === "done") {
+      $("progress").value = 1;
+      setModel(id, material);
+      say("model ready: generate below");
+      showSummary(id);
+    } else if (snap.state === "cancelled") {
+      say("fit cancelled");
+    } else {
+      say(snap.error || "the fit failed", true);
+    }
+    if (snap.state !== "done") $("builtin").value = "";  // so that choosing the same one again fits it
+  });
+  events.onerror = () => {
+    if (state.events !== events) return;
+    // The browser reconnects by itself; if the job is gone, say so.
+    fetch(`/api/jobs/${job}`).then(async (r) => {
+      if (!r.ok && state.events === events) { stopEvents(); say(await errorOf(r), true); }
+    }).catch(() => {});
+  };
+}
+
+async function cancelFit() {
+  if (!state.job) return;
+  $("cancel").disabled = true;
+  const response = await fetch(`/api/jobs/${state.job}`, { method: "DELETE" });
+  if (!response.ok) { say(await errorOf(response), true); return; }
+  if ((await response.json()).askers > 0) {  // another page asked for the same model: it fits on for that page
+    stopEvents();
+    $("fit-status").dataset.state = "cancelled";
+    $("stage").textContent = "cancelled";
+    $("builtin").value = "";
+    say("fit cancelled here (it goes on for another page that asked for the same model)");
+  }
+}
+
+function fitFile(file) {
+  if (!file) return;
+  state.source = { file };
+  state.pendingName = file.name + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
+  $("builtin").value = "";
+  setExemplar(URL.createObjectURL(file));
+  const form = fitFields();
+  form.append("image", file, file.name);
+  startFit(form);
+}
+
+function fitBuiltin(name) {
+  if (!name) return;
+  state.source = { builtin: name };
+  state.pendingName = `builtin:${name}` + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
+  setExemplar(`/api/builtins/${name}.png`);
+  const form = fitFields();
+  form.append("builtin", name);
+  startFit(form);
+}
+
+async function uploadModel(file) {
+  if (!file) return;
+  dropRunningFit();
+  state.fitRequest++;  // a fit whose answer is still on its way is replaced
+  state.source = null;
+  $("fit-status").hidden = true;
+  setExemplar(null);
+  setModel(null);
+  say(`uploading ${file.name}`);
+  const response = await fetch("/api/models/upload", {
+    method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
+  });
+  if (!response.ok) { say(await errorOf(response), true); return; }
+  const { id } = await response.json();
+  state.pendingName = file.name;
+  setModel(id);
+  say(`model ${file.name} loaded: generate below`);
+  await showSummary(id);
+  if (state.modelId === id && state.material) say(`material ${file.name} loaded: generate below (every map)`);
+}

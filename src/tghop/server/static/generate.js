@@ -1,0 +1,143 @@
+// tghop serve's page, sections 2 and 3 (Generate, Result): the generation settings, Generate and the
+// strip of seeds, the result shown (a material's maps one by one) and tiled 3x3.
+"use strict";
+
+function generation(seed, size) {
+  const body = {
+    size: size || [Number($("height").value), Number($("width").value)],
+    seed: seed,
+    tile: $("tile").checked,
+  };
+  const refine = $("refine").value.trim();
+  if ($("paper-gen").checked) body.paper = true;
+  if (refine !== "") body.refine = Number(refine);
+  const pool = $("n_patches").value.trim();
+  if (pool !== "") body.n_patches = Number(pool);
+  if (!$("quality").disabled && $("quality").value !== "default") body.quality = $("quality").value;
+  return body;
+}
+
+async function generate(body) {
+  const response = await busyFetch(`/api/models/${state.modelId}/images`, {
+    method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS,
+  });
+  if (!response.ok) throw new Error(await errorOf(response));
+  return answerOf(response);
+}
+
+// Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable.
+function showResult(url, seed, blob, what, maps) {
+  if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
+  if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
+  state.resultUrl = url;
+  const base = what ? `tghop-${what}-seed${seed}` : `tghop-seed${seed}`;
+  state.shown = maps ? {
+    seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })),
+  } : null;
+  renderMaps();
+  showPicture(url, `${what || "result"}`, seed, `${base}.png`);
+  if (blob) setEditorPicture(blob, `tghop-seed${seed}.png`, maps);  // a material's maps are filled alike
+}
+
+function showPicture(url, what, seed, filename) {
+  const img = $("result");
+  img.onload = () => {
+    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
+    drawTiled(img);
+  };
+  img.src = url;
+  img.hidden = false;
+  const link = $("download-png");
+  link.href = url;
+  link.setAttribute("download", filename);
+  link.hidden = false;
+}
+
+// The maps of the material shown: one radio each (the picture, its tiling and Download PNG follow it),
+// and Download all (the files as tghop synth names them: OUT.png, OUT_<map>.png).
+function renderMaps() {
+  const group = $("maps-view"), shown = state.shown;
+  group.textContent = "";
+  group.hidden = $("download-maps").hidden = !shown;
+  if (!shown) return;
+  shown.maps.forEach((m, i) => {
+    const label = document.createElement("label");
+    const radio = document.createElement("input");
+    radio.type = "radio";
+    radio.name = "map-shown";
+    radio.value = m.name;
+    radio.checked = i === 0;
+    radio.addEventListener("change", () => {
+      if (radio.checked) showPicture(m.url, `${shown.what || "result"} (${m.name})`, shown.seed, mapFile(shown, i));
+    });
+    label.append(radio, ` ${m.name}${m.depth === 16 ? " (16-bit)" : ""}`);
+    group.append(label);
+  });
+}
+
+// At most TILED_PIXELS (browsers leave a larger canvas blank): a large result's tiling is shown scaled down.
+const TILED_PIXELS = 4096 * 4096;
+
+function drawTiled(img) {
+  const canvas = $("tiled");
+  const scale = Math.min(1, Math.sqrt(TILED_PIXELS / (9 * img.naturalWidth * img.naturalHeight)));
+  const w = Math.max(1, Math.floor(img.naturalWidth * scale)), h = Math.max(1, Math.floor(img.naturalHeight * scale));
+  canvas.width = 3 * w;
+  canvas.height = 3 * h;
+  const ctx = canvas.getContext("2d");
+  for (let y = 0; y < 3; y++) for (let x = 0; x < 3; x++) ctx.drawImage(img, x * w, y * h, w, h);
+  $("tiled-title").textContent = scale < 1 ? `Tiled 3\u00d73, shown at ${Math.round(100 * scale)} % (seams show here)`
+    : "Tiled 3\u00d73 (seams show here)";
+  canvas.dataset.ready = "1";
+}
+
+function onGenerate(event) {
+  event.preventDefault();
+  if (!state.modelId) return;
+  withBusy($("go"), async () => {
+    const seed = Number($("seed").value);
+    say("generating");
+    const { blob, maps } = await generate(generation(seed));
+    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps);
+    say("");
+  });
+}
+
+function onStrip() {
+  if (!state.modelId || !$("gen-form").reportValidity()) return;  // an empty seed was seed 0
+  withBusy($("strip-go"), async () => {
+    const strip = $("strip");
+    for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
+    strip.textContent = "";
+    const first = Number($("seed").value);
+    const [h, w] = [Number($("height").value), Number($("width").value)];
+    for (let i = 0; i < 8; i++) {
+      const seed = first + i;
+      say(`seed ${seed} (${i + 1} of 8)`);
+      const answer = await generate(generation(seed, [h, w]));
+      const url = URL.createObjectURL(answer.blob);
+      const figure = document.createElement("figure");
+      const img = document.createElement("img");
+      img.src = url;
+      img.alt = `seed ${seed}`;
+      img.title = `seed ${seed}: click to pick`;
+      img.dataset.seed = String(seed);
+      img.tabIndex = 0;  // Enter or Space picks it too
+      img.setAttribute("role", "button");
+      img.addEventListener("click", async () => {
+        for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
+        img.classList.add("chosen");
+        $("seed").value = String(seed);
+        showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps);
+      });
+      img.addEventListener("keydown", (e) => {
+        if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
+      });
+      const caption = document.createElement("figcaption");
+      caption.textContent = `seed ${seed}`;
+      figure.append(img, caption);
+      strip.append(figure);
+    }
+    say("click a seed to pick it");
+  });
+}

@@ -1,0 +1,186 @@
+// tghop serve's page, Inpaint mode: a picture (the latest result or the user's), a mask painted on
+// it with the brush, Fill (the masked pixels) and Extend (a larger picture around it).
+"use strict";
+
+function sayInpaint(text, isError) {
+  const el = $("inpaint-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+// The picture to paint on: the latest result, or a picture the user chose.
+// `maps`: a material result's maps (the albedo first), sent with the picture to Fill and Extend.
+function setEditorPicture(blob, name, maps) {
+  editor.maps = maps || null;
+  if (editor.url) URL.revokeObjectURL(editor.url);
+  editor.blob = blob;
+  editor.name = name || "picture.png";
+  editor.url = URL.createObjectURL(blob);
+  const img = $("editor-base");
+  img.onload = () => {
+    const canvas = $("mask");
+    const w = img.naturalWidth, h = img.naturalHeight;
+    canvas.width = w;  // a new size clears the mask
+    canvas.height = h;
+    $("extend-height").placeholder = String(h);  // Extend's fields start from the picture's size
+    $("extend-width").placeholder = String(w);
+    clearMask();
+    // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on.
+    $("editor").style.width = `${Math.max(w, Math.min(3 * w, 640))}px`;
+    $("editor").hidden = false;
+    $("editor").dataset.ready = "1";
+  };
+  img.onerror = () => {
+    editor.blob = null;  // not sent to Fill or Extend
+    $("editor").hidden = true;
+    updateButtons();
+    sayInpaint(`the browser cannot show ${editor.name}; use a PNG or JPEG picture`, true);
+  };
+  $("editor").dataset.ready = "";
+  img.src = editor.url;
+  updateButtons();
+  sayInpaint("");
+}
+
+function clearMask() {
+  const canvas = $("mask");
+  canvas.getContext("2d").clearRect(0, 0, canvas.width, canvas.height);
+}
+
+function brushPoint(event, canvas) {
+  canvas = canvas || $("mask");
+  const rect = canvas.getBoundingClientRect();
+  return [(event.clientX - rect.left) * canvas.width / rect.width,
+    (event.clientY - rect.top) * canvas.height / rect.height];
+}
+
+function paint(from, to) {
+  const ctx = $("mask").getContext("2d");
+  ctx.globalCompositeOperation = $("erase").checked ? "destination-out" : "source-over";
+  ctx.strokeStyle = ctx.fillStyle = "#ff00e6";  // shown at 60 % over the picture
+  ctx.lineWidth = Number($("brush").value);
+  ctx.lineCap = ctx.lineJoin = "round";
+  ctx.beginPath();
+  if (from[0] === to[0] && from[1] === to[1]) {  // a click: browsers draw no line of length 0
+    ctx.arc(from[0], from[1], ctx.lineWidth / 2, 0, 2 * Math.PI);
+    ctx.fill();
+    return;
+  }
+  ctx.moveTo(from[0], from[1]);
+  ctx.lineTo(to[0], to[1]);
+  ctx.stroke();
+}
+
+function onBrushDown(event) {
+  if (event.button !== 0 || !editor.blob) return;
+  event.preventDefault();
+  $("mask").setPointerCapture(event.pointerId);
+  editor.painting = true;
+  editor.last = brushPoint(event);
+  paint(editor.last, editor.last);
+}
+
+// A circle of the brush's size follows the pointer over the picture.
+function moveCursor(event, canvas, cursor, brush) {
+  canvas = canvas || $("mask");
+  cursor = cursor || $("brush-cursor");
+  const rect = canvas.getBoundingClientRect();
+  const size = Number((brush || $("brush")).value) * rect.width / canvas.width;
+  cursor.style.width = cursor.style.height = `${size}px`;
+  cursor.style.left = `${event.clientX - rect.left}px`;
+  cursor.style.top = `${event.clientY - rect.top}px`;
+  cursor.hidden = false;
+}
+
+function onBrushMove(event) {
+  moveCursor(event, null, null, null);
+  if (!editor.painting) return;
+  const point = brushPoint(event);
+  paint(editor.last, point);
+  editor.last = point;
+}
+
+function onBrushUp() {
+  editor.painting = false;
+  editor.last = null;
+}
+
+// The mask as the API wants it: white where painted (more than half opaque), black elsewhere.
+function maskBlob() {
+  const canvas = $("mask");
+  const w = canvas.width, h = canvas.height;
+  const pixels = canvas.getContext("2d").getImageData(0, 0, w, h).data;
+  let painted = false;
+  for (let i = 3; i < pixels.length; i += 4) if (pixels[i] > 127) { painted = true; break; }
+  if (!painted) return Promise.resolve(null);
+  const out = document.createElement("canvas");
+  out.width = w;
+  out.height = h;
+  const ctx = out.getContext("2d");
+  ctx.drawImage(canvas, 0, 0);
+  ctx.globalCompositeOperation = "source-in";
+  ctx.fillStyle = "#fff";
+  ctx.fillRect(0, 0, w, h);
+  ctx.globalCompositeOperation = "destination-over";
+  ctx.fillStyle = "#000";
+  ctx.fillRect(0, 0, w, h);
+  return new Promise((resolve) => out.toBlob(resolve, "image/png"));
+}
+
+// POST the editor's picture with the fields of `fields` (and the seed and tile of the inpaint
+// toolbar) to /api/models/{id}/{path}; the answer becomes the result. Returns the seed used.
+async function sendPicture(path, fields, what) {
+  const seed = $("inpaint-seed").value.trim();
+  const form = new FormData();
+  form.append("image", editor.blob, editor.name);
+  for (const [name, value, filename] of fields) {  // a file takes its name; a plain value has none
+    if (filename === undefined) form.append(name, value); else form.append(name, value, filename);
+  }
+  if (seed !== "") form.append("seed", seed);
+  form.append("tile", $("inpaint-tile").checked ? "true" : "false");
+  if (state.material && editor.maps) {  // a material's result: every map filled alike
+    for (const m of editor.maps.slice(1)) form.append(`map:${m.name}`, m.blob, `${m.name}.png`);
+  }
+  const response = await busyFetch(`/api/models/${state.modelId}/${path}`, {
+    method: "POST", body: form, headers: { Accept: GENERATION_HEADERS.Accept },
+  });
+  if (!response.ok) throw new Error(await errorOf(response));
+  const { blob, maps } = await answerOf(response);
+  const used = response.headers.get("X-Tghop-Seed");
+  showResult(URL.createObjectURL(blob), used, blob, what, maps);
+  return used;
+}
+
+function onFill() {
+  if (!state.modelId || !editor.blob) return;
+  withBusy($("fill"), async () => {
+    const mask = await maskBlob();
+    if (!mask) { sayInpaint("paint the hole first: drag the brush over the picture", true); return; }
+    sayInpaint("filling");
+    const used = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted");
+    sayInpaint(`filled (seed ${used}): paint again to fill more, or download it`);
+  }, sayInpaint);
+}
+
+function onExtend() {
+  if (!state.modelId || !editor.blob) return;
+  withBusy($("extend-go"), async () => {
+    const img = $("editor-base");
+    const [ph, pw] = [img.naturalHeight, img.naturalWidth];
+    const h = $("extend-height").value.trim() || String(ph);
+    const w = $("extend-width").value.trim() || String(pw);
+    if (Number(h) < ph || Number(w) < pw || (Number(h) === ph && Number(w) === pw)) {  // said, not sent
+      sayInpaint(`give a height and width of at least the picture's ${ph}x${pw}, larger in one`, true);
+      return;
+    }
+    sayInpaint("extending");
+    const used = await sendPicture("extend", [["size", `${h}x${w}`], ["anchor", $("extend-anchor").value]],
+                                   "extended");
+    sayInpaint(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`);
+  }, sayInpaint);
+}
+
+function onPicture(file) {
+  if (!file) return;
+  setEditorPicture(file, file.name);
+}

@@ -1,0 +1,165 @@
+// tghop serve's page, the modes with several models: Paint (a guide painted with one colour per
+// model), Remix and Morph (from model A to model B); the session's models, each with its colour.
+"use strict";
+
+// The most models painted or remixed at once.
+const MAX_PICKED = 4;
+
+// Paint mode's board: its labels are indices into state.models, its brush the colour chosen.
+const guide = makeBoard("guide", "guide-cursor", "paint-brush", () => brushLabel());
+
+function sayPaint(text, isError) {
+  const el = $("paint-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+function sayMorph(text, isError) {
+  const el = $("morph-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+}
+
+function addSessionModel(id, name) {
+  if (state.models.some((m) => m.id === id)) return;
+  const index = state.models.length;
+  const label = `${name || "model"} (${id.slice(0, 8)})`;
+  state.models.push({ id, name: label, picked: pickedModels().length < MAX_PICKED });
+  renderModels();
+  if (!$("morph-a").value) $("morph-a").value = String(index);
+  if (index > 0 && $("morph-b").value === $("morph-a").value) $("morph-b").value = String(index);
+}
+
+function pickedModels() {
+  return state.models.map((m, index) => ({ ...m, index })).filter((m) => m.picked);
+}
+
+function renderModels() {
+  const list = $("paint-models");
+  list.textContent = "";
+  state.models.forEach((m, index) => {
+    const label = document.createElement("label");
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.checked = m.picked;
+    box.dataset.index = String(index);
+    box.addEventListener("change", () => {
+      if (box.checked && pickedModels().length >= MAX_PICKED) {
+        box.checked = false;
+        sayPaint(`paint with at most ${MAX_PICKED} models: unpick one first`, true);
+        return;
+      }
+      m.picked = box.checked;
+      renderColours();
+      updateButtons();
+    });
+    label.append(box, swatch(index), m.name);
+    list.append(label);
+  });
+  for (const id of ["morph-a", "morph-b"]) {
+    const select = $(id), old = select.value;
+    select.textContent = "";
+    state.models.forEach((m, index) => {
+      const option = document.createElement("option");
+      option.value = String(index);
+      option.textContent = m.name;
+      select.append(option);
+    });
+    if (old) select.value = old;
+  }
+  renderColours();
+  updateButtons();
+}
+
+// One brush colour per picked model; the first picked is the background of a new canvas.
+function renderColours() {
+  const group = $("paint-colours"), old = brushLabel();
+  group.textContent = "";
+  for (const m of pickedModels()) {
+    const label = document.createElement("label");
+    const radio = document.createElement("input");
+    radio.type = "radio";
+    radio.name = "paint-colour";
+    radio.value = String(m.index);
+    radio.id = `paint-colour-${m.index}`;
+    label.title = m.name;
+    radio.addEventListener("change", () => { state.brushChosen = true; });
+    label.append(radio, swatch(m.index), m.name.split(" (")[0]);
+    group.append(label);
+  }
+  // The user's colour is kept; until they choose one, the brush is the second picked model's
+  // (the first is the canvas's background, so painting with it showed nothing).
+  const radios = group.querySelectorAll("input");
+  const keep = state.brushChosen && [...radios].find((r) => Number(r.value) === old);
+  if (keep) keep.checked = true; else if (radios.length) radios[radios.length > 1 ? 1 : 0].checked = true;
+}
+
+function brushLabel() {
+  const chosen = document.querySelector("input[name=paint-colour]:checked");
+  return chosen ? Number(chosen.value) : null;
+}
+
+// A new canvas at the output's size (the height and width of Generate), all the first picked model.
+function resizeGuide(force) {
+  const h = Number($("height").value), w = Number($("width").value);
+  if (!(h > 0 && w > 0 && h * w <= 4096 * 4096)) { sayPaint("set a height and width above first", true); return; }
+  if (!force && guide.labels && guide.h === h && guide.w === w) return;
+  const first = pickedModels()[0];
+  resetBoard(guide, h, w, first ? first.index : 0);
+}
+
+// The guide as the API wants it: the picked models' grey levels, darkest for the first (a data: URL).
+function guidePng(picked) {
+  const used = new Set(guide.labels);
+  const stray = [...used].find((k) => !picked.some((m) => m.index === k));
+  if (stray !== undefined) {
+    throw new Error(`the canvas has paint of ${state.models[stray].name}, which is not picked: ` +
+                    "pick it or paint over it");
+  }
+  const unused = picked.find((m) => !used.has(m.index));
+  if (unused) throw new Error(`paint some of ${unused.name} (its colour) or unpick it`);
+  return boardPng(guide, new Map(picked.map((m, j) => [m.index, Math.round(255 * j / (picked.length - 1))])));
+}
+
+// The generation settings of a painted guide or a remix: each model's region is its own synthesis.
+function severalSettings(body) {
+  const one = generation(null);
+  for (const name of ["tile", "refine", "n_patches", "paper", "quality"]) if (name in one) body[name] = one[name];
+  return body;
+}
+
+function onPaintGenerate(remix) {
+  const picked = pickedModels();
+  if (picked.length < 2) return;
+  withBusy($(remix ? "remix-go" : "paint-go"), async () => {
+    const body = severalSettings({ models: picked.map((m) => m.id), seed: Number($("paint-seed").value) });
+    if (remix) {
+      body.size = [Number($("height").value), Number($("width").value)];
+    } else {
+      resizeGuide();
+      body.guide = guidePng(picked);
+      body.transition = Number($("transition").value);
+    }
+    sayPaint(remix ? "remixing" : "generating");
+    const [blob, seed, maps] = await postImage("/api/images/guided", body);
+    showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps);
+    sayPaint(`done (seed ${seed}): the result is below`);
+  }, sayPaint);
+}
+
+function onMorph() {
+  const a = state.models[Number($("morph-a").value)], b = state.models[Number($("morph-b").value)];
+  if (!a || !b) return;
+  withBusy($("morph-go"), async () => {
+    const body = {
+      a: a.id, b: b.id, seed: Number($("morph-seed").value),
+      size: [Number($("morph-height").value), Number($("morph-width").value)],
+    };
+    const one = generation(null);
+    for (const name of ["refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
+    sayMorph("morphing");
+    const [blob, seed] = await postImage("/api/images/morph", body);
+    showResult(URL.createObjectURL(blob), seed, blob, "morph");
+    sayMorph(`done (seed ${seed}): the strip is below`);
+  }, sayMorph);
+}
