@@ -288,6 +288,22 @@ def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     assert "1 of 1 exemplars done, 0 failed. 3 not finished yet: run the same command again." in page
 
 
+def test_a_failed_try_in_between_leaves_no_stale_images(tmp_path):
+    # count 2, then the exemplar broken (a failed line, which lists no file: a_1, a_2 stay as
+    # they were), then fixed with count 1: a_1 and a_2 go, as after a rerun straight away.
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    save_image(data.bricks(64, rng=3), src / "a.png")
+    good = (src / "a.png").read_bytes()
+    assert run(src, out, workers=1, count=2)[0]["status"] == "ok"
+    (src / "a.png").write_bytes(b"not an image")
+    assert run(src, out, workers=1, count=2)[0]["status"] == "failed"
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a_1.png", "a_2.png", "exemplar.png"]
+    (src / "a.png").write_bytes(good)
+    assert run(src, out, workers=1, count=1)[0]["status"] == "ok"
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a.png", "exemplar.png"]
+
+
 def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     src, out = tmp_path / "src", tmp_path / "out"
     (src / "sub").mkdir(parents=True)

@@ -188,11 +188,18 @@ def file_sha256(path) -> str | None:
 # ------------------------------------------------------------------ the ledger
 def read_ledger(outdir) -> dict:
     """The last ledger line of each exemplar (by name); unreadable lines are skipped."""
-    records = {}
+    return _read_ledger(outdir)[0]
+
+
+def _read_ledger(outdir):
+    """:func:`read_ledger`'s lines, and the files every line of each exemplar lists (by name):
+    an earlier run's outputs stay in its folder after a later line that lists none (a failed
+    try), until a run of it succeeds (:func:`_remove_stale`)."""
+    records, files = {}, {}
     try:
         text = (Path(outdir) / LEDGER).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
-        return records
+        return records, files
     for line in text.splitlines():
         try:
             rec = json.loads(line)
@@ -200,7 +207,9 @@ def read_ledger(outdir) -> dict:
             continue  # a line torn by a crash
         if isinstance(rec, dict) and isinstance(rec.get("name"), str):
             records[rec["name"]] = rec
-    return records
+            with contextlib.suppress(TypeError):  # a hand-edited line's odd fields list nothing
+                files.setdefault(rec["name"], set()).update(f for f in _listed_files(rec) if isinstance(f, str))
+    return records, files
 
 
 def _keep_ledger_names(items, previous) -> None:
@@ -269,15 +278,14 @@ def _listed_files(rec: dict) -> list:
     return [f for f in [*(rec.get("outputs") or []), rec.get("model"), rec.get("thumbnail")] if f]
 
 
-def _remove_stale(outdir: Path, prev: dict | None, rec: dict) -> None:
-    """Delete the files of an exemplar's earlier ledger line that its new one does not list
+def _remove_stale(outdir: Path, earlier: set, rec: dict) -> None:
+    """Delete the files of an exemplar's earlier ledger lines (``earlier``: all of them, not
+    only the last, which may be a failed try's and list none) that its new one does not list
     (e.g. ``a_1.png``, ``a_2.png`` after a rerun with count 1 wrote ``a.png``): only in its
     own folder."""
-    if not prev:
-        return
     keep = set(_listed_files(rec))
     folder = (outdir / rec["name"]).resolve()
-    for f in set(_listed_files(prev)) - keep:
+    for f in set(earlier) - keep:
         if (outdir / f).resolve().parent == folder:
             with contextlib.suppress(OSError):
                 (outdir / f).unlink()
@@ -544,7 +552,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     if not in_process and client is None:
         _import_distributed()  # a missing extra is said before any work
     task = process_exemplar if task is None else task
-    previous = read_ledger(outdir)
+    previous, earlier_files = _read_ledger(outdir)
     _keep_ledger_names(items, previous)
     jobs, results = [], {}
     for it in items:
@@ -586,7 +594,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         rec["finished"] = time.time()
         _append_ledger(ledger_file, rec)
         if rec["status"] == "ok":
-            _remove_stale(outdir, previous.get(job["name"]), rec)
+            _remove_stale(outdir, earlier_files.get(job["name"], ()), rec)
         results[job["name"]] = {**rec, "skipped": False}
         counts["done"] += 1
         counts["failed"] += rec["status"] != "ok"
