@@ -2,7 +2,8 @@
 
 :func:`run` finds the work (every image of a folder, or the rows of a manifest: :mod:`tghop.manifest`),
 skips what a previous run finished (the ledger ``OUTDIR/batch.jsonl``: one JSON line per finished
-exemplar with its input's SHA-256, its settings and its outputs), runs :func:`process_exemplar` for the
+exemplar with its input's SHA-256, its settings and its outputs; ``interrupted`` for one under way when
+a run stops), runs :func:`process_exemplar` for the
 rest, in this process (``workers=1``), on a local ``dask.distributed`` cluster of worker processes (the
 default), or on a given :class:`distributed.Client`, and writes an HTML contact sheet ``OUTDIR/index.html``.
 
@@ -587,12 +588,14 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             own_client.close()
         raise
     counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results)}
+    started = {}  # name -> job: handed out, no ledger line yet
 
     def finish(job, record):
         rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
                **record}
         rec["finished"] = time.time()
         _append_ledger(ledger_file, rec)
+        started.pop(job["name"], None)
         if rec["status"] == "ok":
             _remove_stale(outdir, earlier_files.get(job["name"], ()), rec)
         results[job["name"]] = {**rec, "skipped": False}
@@ -611,13 +614,18 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if in_process:
             for job in jobs:
                 counts["running"] = 1
+                started[job["name"]] = job
                 finish(job, task(job))
             counts["running"] = 0
         elif jobs:
             _run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
-                             retries=retries)
+                             retries=retries, started=started)
     finally:
         if ledger_file is not None:
+            with _ctrl_c_ignored():  # a second Ctrl-C must not leave a started exemplar without its line
+                for job in list(started.values()):
+                    _append_ledger(ledger_file, {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
+                                                 "settings": job["settings"], **_interrupted_record(job)})
             ledger_file.close()
         for job in jobs:
             remove_temporaries(job["folder"])
@@ -627,6 +635,16 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
             write_contact_sheet(outdir, ordered, total=len(items))
     return ordered
+
+
+def _interrupted_record(job) -> dict:
+    """The ledger line of an exemplar handed out but not finished when the run stopped (Ctrl-C, an
+    error): its task may still have moved its files into place (a local cluster's worker finishes
+    its task while the cluster closes; a given cluster's runs on), so the earlier line no longer
+    describes the folder, and the next run does it again whatever its settings."""
+    return {"status": "interrupted", "error": "the batch stopped before this exemplar's result came back (its "
+            "files may be this run's or an earlier one's); the next run does it again", "outputs": [], "model": None,
+            "thumbnail": None, "seed_used": job.get("seed"), "started": None, "seconds": None, "finished": time.time()}
 
 
 def _died_record(job, exc, retries) -> dict:
@@ -654,9 +672,10 @@ def _connect(scheduler):
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
 
 
-def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries):
+def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, started):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
-    here); ``own_client``, and the cluster started here, are closed at the end."""
+    here); ``own_client``, and the cluster started here, are closed at the end. Each job
+    handed out goes into ``started`` (by name); ``finish`` takes it out."""
     distributed = _import_distributed()
     own_cluster = None
     futures = []
@@ -682,6 +701,7 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client,
                 key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
                 fut = client.submit(task, job, key=key, pure=False)
                 by_key[fut.key] = job
+                started[job["name"]] = job
                 futures.append(fut)
                 running.add(fut)
             counts["running"] = running.count()
