@@ -237,6 +237,22 @@ def test_an_immutable_ledger_is_found_before_the_first_exemplar_is_redone(tmp_pa
     assert (model.stat().st_mtime_ns, model.read_bytes()) == before and len(ledger(out)) == 2
 
 
+def test_a_second_batch_into_the_same_outdir_is_refused(tmp_path):
+    # Two at once redid each other's exemplars under way and removed their files in the
+    # making ("output folder does not exist"); the second is refused while the first runs.
+    fcntl = pytest.importorskip("fcntl")
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (first, _) = run(src, out, workers=1)
+    before = (out / first["model"]).read_bytes()
+    with open(out / "batch.jsonl", "a") as other:  # as the first batch holds it
+        fcntl.flock(other.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(TGHopError, match="another tghop batch is writing to this OUTDIR .*nothing was done"):
+            run(src, out, workers=1, count=2)
+        assert all(r["skipped"] for r in run(src, out, workers=1))  # nothing to do: no lock needed
+    assert (out / first["model"]).read_bytes() == before and len(ledger(out)) == 2
+    assert [r["status"] for r in run(src, out, workers=1, count=2)] == ["ok", "ok"]
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"

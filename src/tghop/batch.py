@@ -246,14 +246,29 @@ def _check_own_files(outdir: Path, contact_sheet: bool) -> None:
 
 def _open_ledger(outdir: Path):
     """The ledger opened for appending, for the whole run: one that cannot be written to is
-    found before any exemplar's files are made (or overwritten)."""
+    found before any exemplar's files are made (or overwritten). It is locked (``flock``) while
+    the run lasts: a second batch into the same OUTDIR is refused (it would redo the exemplars
+    under way and remove their files in the making, which then failed)."""
     path = outdir / LEDGER
     try:
-        return open(path, "a", encoding="utf-8")
+        fh = open(path, "a", encoding="utf-8")
     except OSError as exc:
         raise TGHopError(f"{path}: cannot add to the ledger ({exc.strerror or exc.__class__.__name__}); make it a "
                          "writable file (chmod u+w, or chattr -i where it is immutable) or choose another OUTDIR; "
                          "nothing was done") from None
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        return fh
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.close()
+        raise TGHopError(f"{outdir}: another tghop batch is writing to this OUTDIR (its ledger is locked); wait for "
+                         "it to end or choose another OUTDIR; nothing was done") from None
+    except OSError:  # a file system without locks: the run goes on unlocked
+        pass
+    return fh
 
 
 def _append_ledger(fh, record: dict):
