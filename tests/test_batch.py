@@ -118,6 +118,21 @@ def test_names_are_unique_and_manifest_rows_are_checked(tmp_path):
     assert not (tmp_path / "out").exists()  # refused before any work
 
 
+def test_folders_linked_into_source_are_scanned_once(tmp_path):
+    # A library of symbolic links to asset folders: os.walk skipped them without a word.
+    (tmp_path / "src").mkdir()
+    (tmp_path / "assets" / "rock").mkdir(parents=True)
+    for rel in ("src/a.png", "assets/rock/r.png"):
+        (tmp_path / rel).write_bytes(b"x")
+    try:
+        (tmp_path / "src" / "rock").symlink_to(tmp_path / "assets" / "rock")
+        (tmp_path / "src" / "rock_again").symlink_to(tmp_path / "assets" / "rock")
+        (tmp_path / "src" / "loop").symlink_to(tmp_path / "src")
+    except OSError:
+        pytest.skip("no symbolic links here")
+    assert sorted(str(it["rel"]) for it in batch.find_work(tmp_path / "src")) == ["a.png", os.path.join("rock", "r.png")]
+
+
 def _no_work(job):
     raise AssertionError(f"{job['name']} was run; the settings should have been refused first")
 

@@ -67,14 +67,23 @@ _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("M
 
 # ------------------------------------------------------------------ finding work
 def _scan_folder(folder: Path, outdir: Path):
-    """The images of ``folder``, recursively; hidden files and folders are skipped, and so
-    are ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its
-    thumbnails and results are no exemplars)."""
+    """The images of ``folder``, recursively, symbolic links to folders followed (each folder
+    once: a link back up is no loop); hidden files and folders are skipped, and so are
+    ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its thumbnails and
+    results are no exemplars)."""
     out = Path(outdir).resolve()
-    items = []
-    for root, dirs, files in os.walk(folder):
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(root, d).resolve() != out
-                         and not os.path.lexists(os.path.join(root, d, LEDGER)))
+    items, seen = [], {os.path.realpath(folder)}
+
+    def new(path):
+        real = os.path.realpath(path)
+        if real in seen:
+            return False
+        seen.add(real)
+        return True
+
+    for root, dirs, files in os.walk(folder, followlinks=True):
+        dirs[:] = [d for d in sorted(dirs) if not d.startswith(".") and Path(root, d).resolve() != out
+                   and not os.path.lexists(os.path.join(root, d, LEDGER)) and new(os.path.join(root, d))]
         for f in sorted(files):
             if not f.startswith(".") and Path(f).suffix.lower() in IMAGE_SUFFIXES:
                 p = Path(root, f)
