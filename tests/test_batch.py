@@ -268,6 +268,17 @@ def test_a_second_batch_into_the_same_outdir_is_refused(tmp_path):
     assert [r["status"] for r in run(src, out, workers=1, count=2)] == ["ok", "ok"]
 
 
+def test_a_torn_last_line_does_not_swallow_the_next_runs_first(tmp_path):
+    # A crash or a full disk mid-line: the next line was appended to the torn one, and lost with it.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    out.mkdir()
+    (out / "batch.jsonl").write_text('{"name": "a", "status": "o')
+    assert [r["status"] for r in run(src, out, workers=1)] == ["ok", "ok"]
+    assert [r["skipped"] for r in run(src, out, workers=1)] == [True, True]
+    torn, *lines = (out / "batch.jsonl").read_text().splitlines()
+    assert torn == '{"name": "a", "status": "o' and sorted(json.loads(line)["name"] for line in lines) == ["a", "sub__a"]
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"

@@ -277,6 +277,12 @@ def _open_ledger(outdir: Path):
                          "it to end or choose another OUTDIR; nothing was done") from None
     except OSError:  # a file system without locks: the run goes on unlocked
         pass
+    try:  # a line torn by a crash or a full disk ends apart: this run's first line would join it, and be lost too
+        with open(path, "rb") as tail:
+            if tail.seek(0, os.SEEK_END) and (tail.seek(-1, os.SEEK_END), tail.read(1))[1] != b"\n":
+                fh.write("\n")
+    except OSError:
+        pass
     return fh
 
 
