@@ -279,6 +279,26 @@ def test_a_torn_last_line_does_not_swallow_the_next_runs_first(tmp_path):
     assert torn == '{"name": "a", "status": "o' and sorted(json.loads(line)["name"] for line in lines) == ["a", "sub__a"]
 
 
+def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypatch):
+    import errno
+
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    append, calls = batch._append_ledger, []
+
+    def full_after_one(fh, record):
+        calls.append(record["status"])
+        if len(calls) > 1:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        append(fh, record)
+
+    monkeypatch.setattr(batch, "_append_ledger", full_after_one)
+    with pytest.raises(OSError, match="No space left"):
+        run(src, out, workers=1)
+    assert calls == ["ok", "ok", "interrupted"]  # the second's line, then its "interrupted" one: both refused
+    assert [line["name"] for line in ledger(out)] == ["a"] and "1 of 1 exemplars done" in (out / "index.html").read_text()
+    assert not leftovers(out)
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"

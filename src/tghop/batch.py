@@ -652,11 +652,14 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                              retries=retries, started=started)
     finally:
         if ledger_file is not None:
-            with _ctrl_c_ignored():  # a second Ctrl-C must not leave a started exemplar without its line
+            # A second Ctrl-C must not leave a started exemplar without its line; a full disk must not
+            # leave the temporaries and the contact sheet below undone.
+            with _ctrl_c_ignored(), contextlib.suppress(OSError):
                 for job in list(started.values()):
                     _append_ledger(ledger_file, {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
                                                  "settings": job["settings"], **_interrupted_record(job)})
-            ledger_file.close()
+            with contextlib.suppress(OSError):  # every line was flushed when appended
+                ledger_file.close()
         for job in jobs:
             remove_temporaries(job["folder"])
             with contextlib.suppress(OSError):
