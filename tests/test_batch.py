@@ -130,7 +130,8 @@ def test_folders_linked_into_source_are_scanned_once(tmp_path):
         (tmp_path / "src" / "loop").symlink_to(tmp_path / "src")
     except OSError:
         pytest.skip("no symbolic links here")
-    assert sorted(str(it["rel"]) for it in batch.find_work(tmp_path / "src")) == ["a.png", os.path.join("rock", "r.png")]
+    found = sorted(str(it["rel"]) for it in batch.find_work(tmp_path / "src"))
+    assert found == ["a.png", os.path.join("rock", "r.png")]
 
 
 def _no_work(job):
@@ -276,7 +277,8 @@ def test_a_torn_last_line_does_not_swallow_the_next_runs_first(tmp_path):
     assert [r["status"] for r in run(src, out, workers=1)] == ["ok", "ok"]
     assert [r["skipped"] for r in run(src, out, workers=1)] == [True, True]
     torn, *lines = (out / "batch.jsonl").read_text().splitlines()
-    assert torn == '{"name": "a", "status": "o' and sorted(json.loads(line)["name"] for line in lines) == ["a", "sub__a"]
+    assert torn == '{"name": "a", "status": "o'
+    assert sorted(json.loads(line)["name"] for line in lines) == ["a", "sub__a"]
 
 
 def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypatch):
@@ -295,7 +297,8 @@ def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypat
     with pytest.raises(OSError, match="No space left"):
         run(src, out, workers=1)
     assert calls == ["ok", "ok", "interrupted"]  # the second's line, then its "interrupted" one: both refused
-    assert [line["name"] for line in ledger(out)] == ["a"] and "1 of 1 exemplars done" in (out / "index.html").read_text()
+    assert [line["name"] for line in ledger(out)] == ["a"]
+    assert "1 of 1 exemplars done" in (out / "index.html").read_text()
     assert not leftovers(out)
 
 
