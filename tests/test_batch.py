@@ -369,6 +369,17 @@ def test_a_failed_try_in_between_leaves_no_stale_images(tmp_path):
     assert sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a.png", "exemplar.png"]
 
 
+def test_accented_names_keep_their_letters(tmp_path):
+    """Accents are dropped, not the letters: "ünï/béans.jpg" is uni__beans (it was __n___b_ans); a
+    name of no Latin letter at all is still a safe, unique name."""
+    for rel in ("ünï/béans.jpg", "Crème brûlée.png", "石头.png", "砖.png"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_bytes(b"x")
+    names = sorted(it["name"] for it in batch.find_work(tmp_path))
+    assert names[:2] == ["Creme_brulee", "uni__beans"], names
+    assert len(set(names)) == 4 and all(re.fullmatch(r"[A-Za-z0-9._-]+", n) for n in names), names
+
+
 def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     src, out = tmp_path / "src", tmp_path / "out"
     (src / "sub").mkdir(parents=True)

@@ -31,6 +31,7 @@ import re
 import signal
 import threading
 import time
+import unicodedata
 from pathlib import Path
 
 from ._errors import MissingExtraError, TGHopError
@@ -94,6 +95,8 @@ def _scan_folder(folder: Path, outdir: Path):
 
 
 def _safe(text: str) -> str:
+    # Accents dropped first (NFKD: "é" is "e" and a combining mark), so that "béans" is "beans", not "b_ans".
+    text = "".join(ch for ch in unicodedata.normalize("NFKD", text) if not unicodedata.combining(ch))
     name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "unnamed"
     # OUTDIR's own files (a folder of that name would stand there) and the thumbnail (<name>.png's).
     return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET, Path(THUMBNAIL_FILE).stem) else name
