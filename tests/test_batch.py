@@ -15,6 +15,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -1042,3 +1043,27 @@ def test_a_script_without_the_main_guard_is_told_to_add_it(tmp_path):
                                                  "start"), p.stderr[-2000:]
     assert """'if __name__ == "__main__":' around the call""" in last and last.endswith("or workers=1")
     assert (tmp_path / "out" / "batch.jsonl").read_text() == ""  # opened before the cluster: nothing done
+
+
+def test_a_scheduler_without_workers_is_said_and_the_run_goes_on_when_one_joins(tmp_path):
+    """`--scheduler` of a cluster whose workers have not started: a warning says the run waits
+    for one (it waited without a word), and the run ends once a worker joins."""
+    pytest.importorskip("dask")
+    distributed = pytest.importorskip("distributed")
+    import logging
+
+    cluster = distributed.LocalCluster(n_workers=0, processes=True, threads_per_worker=1, dashboard_address=":0",
+                                       silence_logs=logging.CRITICAL)
+    try:
+        src = tmp_path / "src"
+        src.mkdir()
+        save_image(data.bricks(64, rng=3), src / "a.png")
+        joins = threading.Timer(1.0, cluster.scale, args=(1,))
+        joins.start()
+        with pytest.warns(UserWarning, match=r"has no workers yet: the exemplars wait until one joins \(start one: "
+                                             r"dask worker tcp://"):
+            results = run(src, tmp_path / "out", scheduler=cluster.scheduler_address)
+        joins.join()
+        assert [r["status"] for r in results] == ["ok"]
+    finally:
+        cluster.close()

@@ -32,6 +32,7 @@ import signal
 import threading
 import time
 import unicodedata
+import warnings
 from pathlib import Path
 
 from ._errors import MissingExtraError, TGHopError
@@ -699,9 +700,14 @@ def _connect(scheduler):
     """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached."""
     distributed = _import_distributed()
     try:
-        return distributed.Client(scheduler, timeout="5s")
+        client = distributed.Client(scheduler, timeout="5s")
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
         reason = one_line(exc)
+    else:
+        if not client.nthreads():  # the run would wait without a word
+            warnings.warn(f"the Dask scheduler at {scheduler} has no workers yet: the exemplars wait until one joins "
+                          f"(start one: dask worker {scheduler} --nthreads 1; docs/batch.md)", stacklevel=2)
+        return client
     # The half-started Client is in a reference cycle: collected later, inside a LocalCluster's
     # start, its __del__ deadlocks on the loop runner's lock. Collect it now (after the except).
     gc.collect()
