@@ -11,6 +11,7 @@ import hashlib
 import json
 import os
 import re
+import select
 import shutil
 import signal
 import subprocess
@@ -1065,5 +1066,20 @@ def test_a_scheduler_without_workers_is_said_and_the_run_goes_on_when_one_joins(
             results = run(src, tmp_path / "out", scheduler=cluster.scheduler_address)
         joins.join()
         assert [r["status"] for r in results] == ["ok"]
+        # The command line says it while it waits (warnings were shown only at the command's end).
+        args = [sys.executable, "-m", "tghop", "batch", "src", "-o", "out2", "--size", "48", *CLI_FAST,
+                "--scheduler", cluster.scheduler_address]
+        cluster.scale(0)
+        deadline = time.time() + 60
+        while time.time() < deadline and cluster.scheduler_info["workers"]:
+            time.sleep(0.1)
+        p = subprocess.Popen(args, cwd=tmp_path, stderr=subprocess.PIPE, text=True)
+        try:  # the warning, while no worker can finish anything (a minute for a loaded machine's start)
+            first = p.stderr.readline() if select.select([p.stderr], [], [], 60)[0] else "(nothing said)"
+        finally:
+            p.send_signal(signal.SIGINT)
+            rest = p.communicate(timeout=60)[1]
+        assert first.startswith("Warning: the Dask scheduler at tcp://") and "has no workers yet" in first, first + rest
+        assert p.returncode == 130 and rest.rstrip().splitlines()[-1].startswith("Error: interrupted"), rest
     finally:
         cluster.close()

@@ -135,20 +135,26 @@ def os_error_message(exc: OSError) -> str:
     return f"{where}{exc.strerror or exc}{hint}"
 
 
-def _show_warnings(caught):
-    """Each caught user or runtime warning as one ``Warning:`` line on stderr; the list emptied."""
-    for w in caught:
-        if issubclass(w.category, (UserWarning, RuntimeWarning)):
-            click.echo(f"Warning: {w.message}", err=True)
-    caught.clear()
+def _show_now(progress):
+    """A ``warnings.showwarning`` that writes a user or runtime warning as its one line at once,
+    below the progress bar's line (a long batch's warning is read while it waits, not at its end)."""
+
+    def show(message, category, *args, **kwargs):
+        if issubclass(category, (UserWarning, RuntimeWarning)):
+            if progress is not None and progress.bar is not None and sys.stderr.isatty():
+                click.echo("", err=True)  # the bar's line ends; its next update draws it again below
+            click.echo(f"Warning: {message}", err=True)
+
+    return show
 
 
 @contextmanager
 def user_errors(progress=None):
-    """Turn library errors into one line on stderr; show warnings as one line each (before
-    the error, so that the error is the last line)."""
-    with warnings.catch_warnings(record=True) as caught:
+    """Turn library errors into one line on stderr; show warnings as one line each, as they
+    come (before the error, so that the error is the last line)."""
+    with warnings.catch_warnings():  # the filters and showwarning restored on exit
         warnings.simplefilter("always")
+        warnings.showwarning = _show_now(progress)
         try:
             yield
         except BrokenPipeError:  # the output's reader went away: the group answers it (OneLineGroup.main)
@@ -156,7 +162,6 @@ def user_errors(progress=None):
         except (TGHopError, MemoryError, OSError, KeyboardInterrupt) as exc:
             if progress:
                 progress.close()
-            _show_warnings(caught)
             if isinstance(exc, TGHopError):
                 fail(str(exc))
             if isinstance(exc, MemoryError):
@@ -169,7 +174,6 @@ def user_errors(progress=None):
         finally:
             if progress:
                 progress.close()
-            _show_warnings(caught)
 
 
 #: What to do about an image over the size limit, in a command with ``--downscale`` and in one without.
