@@ -175,7 +175,12 @@ class TGHop(BaseEstimator):
 
     def check_channels(self, n_colours=None):
         """The hops' channel rules for an exemplar of ``n_colours`` channels (None: any), or a one-line TGHopError
-        before any work: a patch size the hops cannot halve, or a hop-1 count above 4 C (its 2x2 blocks)."""
+        before any work: a patch size the hops cannot halve, or a hop-1 count above 4 C (its 2x2 blocks).
+
+        Returns
+        -------
+        tuple : the channels kept per hop, ``n_channels`` or :func:`default_channels`
+        """
         for name in ("patch_size", "stride"):
             settings.BY_NAME[name].check(getattr(self, name))
         rules = default_channels(self.patch_size, n_colours or 3) if self.n_channels is None else tuple(self.n_channels)
@@ -545,7 +550,14 @@ class TGHop(BaseEstimator):
     def sample_vectors(self, n, rng, dtype, *, return_labels=False):
         """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
         cluster as mixed (:meth:`ICHM.mix_by_cluster`), and ``position``: ``z[position]``
-        are the samples in order (and, with ``return_labels``, each sample's cluster, in order)."""
+        are the samples in order (and, with ``return_labels``, each sample's cluster, in order).
+
+        Returns
+        -------
+        z : ndarray, shape (n, D_r), float32 or float64 as ``dtype`` (a :class:`~tghop.TGHopError` for others)
+        position : ndarray of intp, shape (n,)
+        labels : ndarray of int, shape (n,), only with ``return_labels``
+        """
         check_is_fitted(self, "ichm_")
         dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
         ichm = self.ichm_
@@ -588,7 +600,12 @@ class TGHop(BaseEstimator):
     def stage_views(self, spaces):
         """The three views of the paper's Fig. 6 for generated samples: :func:`tghop.hops.stage_views`
         of ``spaces`` (``[Sn, ..., S1, S0]`` from :meth:`decode` with ``return_stages``); before
-        :meth:`fit`, :class:`~tghop.NotFittedError`."""
+        :meth:`fit`, :class:`~tghop.NotFittedError`.
+
+        Returns
+        -------
+        dict of ndarray : ``"core_dc"`` (n, h, w), ``"S1_dc"`` (n, 2h, 2w), ..., ``"S0"`` (n, P, P, C) in [0, 1]
+        """
         check_is_fitted(self, "ichm_")
         return stage_views(spaces, self.exemplar_shape_[2])
 
