@@ -63,7 +63,18 @@ def map_name(path) -> str:
     """The name of the map in file ``path``: its stem, other characters than letters, digits,
     ``.``, ``_`` and ``-`` as ``_``, without a leading ``.``, ``_`` or ``-``, at most 64
     characters ("map" when nothing is left): ``Rock Normal.png`` -> ``Rock_Normal``. What
-    ``tghop fit --maps``, ``inpaint --maps``, a batch manifest and the web page name a map by."""
+    ``tghop fit --maps``, ``inpaint --maps``, a batch manifest and the web page name a map by.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A map's file; only its name is read (the file need not exist).
+
+    Returns
+    -------
+    str
+        The map's name, 1 to 64 characters of ``[A-Za-z0-9._-]``, starting with a letter or digit.
+    """
     stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
     return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:64] or "map"
 
@@ -71,7 +82,20 @@ def map_name(path) -> str:
 def map_file(path, name: str) -> str:
     """Where map ``name`` of a material written to ``path`` goes: ``path`` itself for the albedo,
     else ``<stem>_<name><suffix>`` beside it (``OUT_<map>.EXT``: ``tghop synth``, ``inpaint`` and
-    ``extend --maps`` and ``tghop batch`` name a material's files so)."""
+    ``extend --maps`` and ``tghop batch`` name a material's files so).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The material's output file (its albedo's).
+    name : str
+        The map's name (:func:`map_name`); ``"albedo"`` is the albedo.
+
+    Returns
+    -------
+    str
+        The map's file path (nothing is created or checked).
+    """
     if name == ALBEDO:
         return str(path)
     p = Path(path)
@@ -79,7 +103,18 @@ def map_file(path, name: str) -> str:
 
 
 def is_normal_name(name: str) -> bool:
-    """Whether a map's name says it is a normal map ("normal", "nrm", any case)."""
+    """Whether a map's name says it is a normal map ("normal", "nrm", any case).
+
+    Parameters
+    ----------
+    name : str
+        A map's name (:func:`map_name`).
+
+    Returns
+    -------
+    bool
+        True when ``name`` contains one of the words, anywhere (``"RockNormalGL"`` is one).
+    """
     return any(word in name.lower() for word in NORMAL_WORDS)
 
 
@@ -105,7 +140,20 @@ def check_normal_map(values, name: str = "normal map"):
 
 def renormalise(values, out=None):
     """Normal map values (H, W, 3) in [0, 1] -> the same directions as unit vectors, encoded
-    as ``(n + 1) / 2`` (a zero vector becomes (0, 0, 1), straight up)."""
+    as ``(n + 1) / 2`` (a zero vector becomes (0, 0, 1), straight up).
+
+    Parameters
+    ----------
+    values : array_like, shape (H, W, 3), float in [0, 1]
+        Vectors encoded as ``(n + 1) / 2``, of any length (computed in float64).
+    out : ndarray, shape (H, W, 3), optional
+        Where to write the result (it may be ``values`` itself); None: a new float64 array.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float in [0, 1]
+        ``out`` when given, else a new float64 array.
+    """
     n = np.asarray(values, dtype=np.float64) * 2.0 - 1.0
     length = np.linalg.norm(n, axis=2, keepdims=True)
     flat = length[..., 0] < 1e-6
@@ -138,6 +186,19 @@ def example_maps(albedo, *, strength=8.0):
     The height is the luminance blurred (sigma 1.5 px), the normal map its slope
     (``(-strength dh/dx, -strength dh/dy, 1)`` normalised, encoded as ``(n + 1) / 2``), the
     roughness one minus the luminance blurred more (sigma 3 px).
+
+    Parameters
+    ----------
+    albedo : array_like, shape (H, W) or (H, W, C), C in {1, 3}
+        Float in [0, 1], or uint8 / uint16 (rescaled); a bad shape, dtype or range raises
+        :class:`~tghop.InvalidImageError`.
+    strength : float
+        Slope of the normal map per unit of height (larger: steeper normals).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``"normal"`` (H, W, 3), ``"roughness"`` (H, W, 1), ``"height"`` (H, W, 1), float64 in [0, 1].
     """
     img = check_image(albedo, name="albedo")
     lum = img.mean(axis=2)
@@ -319,12 +380,32 @@ class Material(BaseEstimator):
         stored as RGB: one; a normal map: three), by name, the albedo first; fitting nothing (the
         channel counts of :attr:`model` can be checked against their sum before a fit:
         :meth:`tghop.synthesis.TGHop.check_channels`). Bad maps raise :meth:`fit`'s one-line
-        :class:`TGHopError`."""
+        :class:`TGHopError`.
+
+        Parameters
+        ----------
+        albedo : array_like, shape (H, W) or (H, W, C)
+            As :meth:`fit` takes it.
+        maps : dict of str to ndarray, optional
+            As :meth:`fit` takes them.
+
+        Returns
+        -------
+        dict of str to int
+            Map name -> its channels in the joint model (1 or 3), ``"albedo"`` first.
+        """
         return {name: img.shape[2] for name, img, _, _ in self._maps(albedo, maps, None, self._checked_params())}
 
     def map_slices(self):
         """Each map's channels in the joint model's stacked channels, in :attr:`names_`'s order:
-        a list of slices."""
+        a list of slices.
+
+        Returns
+        -------
+        list of slice
+            One per map, ``"albedo"`` first: ``stack[..., s]`` is the map's (H, W, c) part of an
+            (H, W, sum(map_channels_)) stack. Before :meth:`fit`, :class:`~tghop.NotFittedError`.
+        """
         check_is_fitted(self, "model_")
         bounds = np.concatenate([[0], np.cumsum(self.map_channels_)]).tolist()
         return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
@@ -399,7 +480,14 @@ class Material(BaseEstimator):
 
     def map_info(self) -> list:
         """Each map's name, channels, whether it is a normal map and its depth, as
-        JSON-ready dicts (what the model file's metadata and ``tghop info --json`` hold)."""
+        JSON-ready dicts (what the model file's metadata and ``tghop info --json`` hold).
+
+        Returns
+        -------
+        list of dict
+            One per map, in :attr:`names_`'s order: ``{"name": str, "channels": int, "normal": bool,
+            "depth": int}`` (depth 8, 16 or 32). Before :meth:`fit`, :class:`~tghop.NotFittedError`.
+        """
         check_is_fitted(self, "model_")
         return [{"name": n, "channels": int(c), "normal": bool(nm), "depth": int(d)}
                 for n, c, nm, d in zip(self.names_, self.map_channels_, self.normal_, self.depths_)]
