@@ -82,9 +82,18 @@ ANCHORS = ("center", "top", "bottom", "left", "right", "top-left", "top-right", 
 def check_hole(mask, shape) -> np.ndarray:
     """The hole of an image of ``shape`` as an (H, W) bool array.
 
-    ``mask`` is bool (True: hole), or numbers (> 0.5: hole; uint8 and uint16 levels: above
-    half their top; an (H, W, C) mask counts a pixel as hole when its channels' mean is).
     Raises :class:`TGHopError` for a mask of another size, or with NaN or infinite values.
+
+    Parameters
+    ----------
+    mask : array_like, shape (H, W) or (H, W, C)
+        bool (True: hole), or numbers (> 0.5: hole; uint8 and uint16 levels: above half their
+        top; an (H, W, C) mask counts a pixel as hole when its channels' mean is).
+    shape : tuple of int, the image's shape (H, W) or (H, W, C); only H and W are read
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W): True in the hole (it may be empty: :func:`require_hole` refuses that)
     """
     arr = original = np.asarray(mask)
     if arr.dtype.kind not in "biuf":
@@ -104,7 +113,10 @@ def check_hole(mask, shape) -> np.ndarray:
 def require_hole(hole, mask_name: str) -> None:
     """Refuse a hole (from :func:`check_hole`) with no pixel in it: nothing would be filled.
 
-    ``mask_name`` names the mask in the message, e.g. ``"MASK m.png"``.
+    Parameters
+    ----------
+    hole : array_like of bool, shape (H, W)
+    mask_name : str, the mask in the message, e.g. ``"MASK m.png"``
     """
     if not np.any(hole):
         raise TGHopError(f"{mask_name} has no white pixel, so there is nothing to fill; paint the hole white "
@@ -113,7 +125,17 @@ def require_hole(hole, mask_name: str) -> None:
 
 def split_alpha(picture):
     """A grey+alpha or RGBA picture (H, W, 2 or 4) as its colours and its alpha channel
-    (H, W, 1), of the picture's dtype; other pictures as they are and None."""
+    (H, W, 1), of the picture's dtype; other pictures as they are and None.
+
+    Parameters
+    ----------
+    picture : array_like, shape (H, W) or (H, W, C), any dtype (nothing is checked or converted)
+
+    Returns
+    -------
+    colours : ndarray, shape (H, W, C - 1) (a copy) for C in {2, 4}, else ``picture`` as an array
+    alpha : ndarray, shape (H, W, 1) (a view), or None
+    """
     arr = np.asarray(picture)
     if arr.ndim == 3 and arr.shape[2] in (2, 4):
         return np.ascontiguousarray(arr[..., :-1]), arr[..., -1:]
@@ -121,9 +143,19 @@ def split_alpha(picture):
 
 
 def with_alpha(filled, alpha, hole):
-    """The filled picture (H, W, C) with the alpha channel :func:`split_alpha` took (or
-    None: ``filled`` as it is) back as its last channel: as it was outside the hole, opaque
-    in it (255 for 8-bit alpha, 65535 for 16-bit, else 1.0), of ``filled``'s dtype."""
+    """The filled picture (H, W, C) with the alpha channel :func:`split_alpha` took (or None: ``filled`` as
+    it is) back as its last channel: as it was outside the hole, opaque in it (8-bit 255, 16-bit 65535, else 1.0).
+
+    Parameters
+    ----------
+    filled : ndarray, shape (H, W, C), of the alpha's depth (its levels are cast, not rescaled)
+    alpha : ndarray, shape (H, W, 1), or None
+    hole : ndarray of bool, shape (H, W)
+
+    Returns
+    -------
+    ndarray, shape (H, W, C + 1), ``filled``'s dtype; ``filled`` itself when ``alpha`` is None
+    """
     if alpha is None:
         return filled
     alpha = np.where(hole[..., None], LEVELS.get(alpha.dtype, 1.0), alpha).astype(filled.dtype)
@@ -232,9 +264,19 @@ def _working_image(image, n_channels):
 
 def channel_mismatch(image, n_channels):
     """Why a model of ``n_channels`` channels cannot fill ``image`` ((H, W) or (H, W, C)), as
-    ``(what the model is, what the image is)`` ("greyscale", "has colour"), or None when it can:
-    the same channels, or a greyscale model and an RGB image whose three channels are equal.
-    What :func:`inpaint` refuses, for a check before a model is fitted."""
+    ``(what the model is, what the image is)`` ("greyscale", "has colour"), or None when it can: the same
+    channels, or a greyscale model and an RGB image whose three channels are equal. What :func:`inpaint`
+    refuses, for a check before a model is fitted.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C)
+    n_channels : int, the model's channels
+
+    Returns
+    -------
+    tuple of (str, str), or None: ``("in colour", "is greyscale")`` for any other mismatch than the one above
+    """
     arr = np.asarray(image)
     c = 1 if arr.ndim == 2 else arr.shape[2]
     if c == n_channels or (n_channels == 1 and c == 3
