@@ -115,6 +115,18 @@ _TABLE = 4096
 def region_weights(labels, n_models, transition=DEFAULT_TRANSITION, *, tile=False) -> np.ndarray:
     """Soft region weights: each label's one-hot map blurred by a box of ``transition`` pixels.
 
+    Parameters
+    ----------
+    labels : array_like of int, shape (H, W)
+        Each pixel's region, in ``[0, n_models)``; another shape, dtype or value raises
+        :class:`~tghop.TGHopError`.
+    n_models : int
+        Number of regions (at least 1).
+    transition : float
+        Width in pixels of the box (``2 (transition // 2) + 1`` samples a side); below 2: hard edges.
+    tile : bool
+        Blur periodically (the weights of a tileable output), else with repeated edges.
+
     Returns
     -------
     ndarray of float32, shape (n_models, H, W)
@@ -506,7 +518,27 @@ def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share, pa
 
 def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.ndarray:
     """Random regions for a remix: a smooth random field (Gaussian of ``scale`` pixels)
-    cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64."""
+    cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64.
+
+    Parameters
+    ----------
+    size : int or (int, int)
+        Output (height, width); ``n`` means ``(n, n)``.
+    n_models : int
+        Number of classes (at least 1).
+    rng : int or numpy.random.Generator, optional
+        Same seed, same regions.
+    scale : float
+        Size of the blobs in pixels (positive); the field is drawn on a grid of ``scale // 4``
+        pixels, smoothed and repeated up to ``size``.
+    tile : bool
+        Make the field periodic, so that the regions tile.
+
+    Returns
+    -------
+    ndarray of int64, shape (H, W)
+        Each pixel's class in ``[0, n_models)``, the classes of about equal area.
+    """
     h, w = check_size(size)
     n_models = check_int(n_models, "n_models", 1)
     check_number(scale, "scale", positive=True, unit="pixels")
