@@ -123,7 +123,16 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
 
 def is_image(path) -> bool:
     """Whether Pillow recognises ``path`` (a path or a binary file object) as an image,
-    without decoding it: a decompression bomb counts."""
+    without decoding it: a decompression bomb counts.
+
+    Parameters
+    ----------
+    path : str, os.PathLike or binary file object
+
+    Returns
+    -------
+    bool : False for any failure to open it (a missing file, another format, a truncated header)
+    """
     from PIL import Image
 
     try:
@@ -381,7 +390,17 @@ def _upright(arr, orientation):
 
 def to_uint8(image) -> np.ndarray:
     """Convert a float image in [0, 1] to ``uint8`` (rounding), dropping a singleton channel.
-    A uint8 image is taken as it is (e.g. from ``TGHop.synthesize(..., dtype=numpy.uint8)``)."""
+    A uint8 image is taken as it is (e.g. from ``TGHop.synthesize(..., dtype=numpy.uint8)``).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C), float in [0, 1] (clipped; NaN: InvalidImageError) or uint8
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W) or (H, W, C) with C > 1
+        Levels ``round(255 x)``; a uint8 input itself (a view without its singleton channel).
+    """
     arr = np.asarray(image)
     if arr.dtype == np.uint8:
         return arr[:, :, 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr
@@ -409,7 +428,16 @@ def _refuse_nan(arr) -> None:
 
 def to_uint16(image) -> np.ndarray:
     """Convert a float image in [0, 1] to ``uint16`` levels 0-65535 (rounding), dropping a
-    singleton channel (uint8 levels ``v`` become ``257 v``: the same value)."""
+    singleton channel (uint8 levels ``v`` become ``257 v``: the same value).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C), float in [0, 1] (clipped; NaN: InvalidImageError) or uint8
+
+    Returns
+    -------
+    ndarray of uint16, shape (H, W) or (H, W, C) with C > 1
+    """
     arr = np.asarray(image)
     if arr.dtype == np.uint8:
         out = arr.astype(np.uint16) * np.uint16(257)
@@ -422,13 +450,32 @@ def to_uint16(image) -> np.ndarray:
 
 def generation_dtype(depth):
     """The dtype to generate an image in that is written with ``depth`` bits a channel (None: 8):
-    uint8 for 8 bits (straight from the generation, no float image), float32 for more."""
+    uint8 for 8 bits (straight from the generation, no float image), float32 for more.
+
+    Parameters
+    ----------
+    depth : int or None, bits per channel of the output file (8, 16 or 32)
+
+    Returns
+    -------
+    type : ``numpy.uint8`` or ``numpy.float32``
+    """
     return np.float32 if (depth or 8) > 8 else np.uint8
 
 
 def check_depth(path, depth) -> int:
     """Refuse a bit depth the output's format cannot hold (one line naming the fix);
-    returns the depth (8, 16 or 32)."""
+    returns the depth (8, 16 or 32).
+
+    Parameters
+    ----------
+    path : str or os.PathLike, the output file; its extension names the format (PNG: 8 or 16, JPEG: 8, TIFF: any)
+    depth : int, bits per channel (a float such as 16.0, or a bool, is refused)
+
+    Returns
+    -------
+    int : an :class:`InvalidImageError` for another depth, one the format cannot hold or an unknown extension
+    """
     fmt = output_format(path)
     if isinstance(depth, (bool, np.bool_)) or not isinstance(depth, (int, np.integer)) or depth not in (8, 16, 32):
         whole = isinstance(depth, (float, np.floating)) and float(depth) in (8.0, 16.0, 32.0)
@@ -444,7 +491,17 @@ def check_depth(path, depth) -> int:
 
 def deepest(path, depth: int) -> int:
     """The largest depth, at most ``depth``, that ``path``'s format holds (a 16-bit image
-    written as JPEG: 8; a float one as PNG: 16)."""
+    written as JPEG: 8; a float one as PNG: 16).
+
+    Parameters
+    ----------
+    path : str or os.PathLike, the output file (an unknown extension: :class:`InvalidImageError`)
+    depth : int, bits per channel wanted (below 8 counts as 8)
+
+    Returns
+    -------
+    int : 8, 16 or 32
+    """
     return max(d for d in DEPTHS[output_format(path)] if d <= max(depth, 8))
 
 
@@ -454,6 +511,16 @@ def written_file(path, *, what: str = "image", error=InvalidImageError) -> Path:
     stays and its target gets the new content, as ``cp`` and a shell's ``>`` do. A dangling
     link gives the file it names (written if that file's folder exists,
     :func:`check_output_path`); a loop of links is an ``error``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    what : str, what is written, in the error message ("image", "model", ...)
+    error : type, the exception class raised
+
+    Returns
+    -------
+    pathlib.Path : ``path``, or the link's resolved target (nothing is created)
     """
     path = Path(path)
     if not path.is_symlink():
@@ -470,8 +537,15 @@ def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> 
     creating and removing a probe file, before any long work. A symbolic link is checked
     as the file it points to (:func:`written_file`).
 
-    Returns the folder the file will be written to (the link's target's, for a link);
-    ``error`` is the exception class raised.
+    Parameters
+    ----------
+    path : str or os.PathLike
+    what : str, what is written, in the error messages ("image", "model", ...)
+    error : type, the exception class raised
+
+    Returns
+    -------
+    pathlib.Path : the folder the file will be written to (the link's target's, for a link)
     """
     text = os.fsdecode(path)
     if not text.strip():
@@ -512,6 +586,13 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
     system error (disk full, ...) becomes one ``error`` line. Where ``path`` is a symbolic
     link, its target is written (:func:`written_file`; the temporary file beside the
     target, so that the move stays atomic) and the link stays.
+
+    Parameters
+    ----------
+    path : str or os.PathLike, the file to write (checked first by :func:`check_output_path`)
+    write : callable, ``write(fileobj)`` writes the content to a binary file object
+    what : str, what is written, in the error messages
+    error : type, the exception class raised for a bad path or an operating system error
     """
     path = Path(path)
     directory = check_output_path(path, what=what, error=error)
