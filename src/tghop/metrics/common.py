@@ -21,7 +21,20 @@ PLAIN_MAX_PIXELS = 512 * 512
 def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Validate two images and give them the same number of channels: two grey images one
     channel each, however they are stored (a grey PNG or an RGB one scores alike), grey and
-    colour three each."""
+    colour three each.
+
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C), C in {1, 3}
+        Float in [0, 1], or uint8 / uint16 (rescaled); the two sizes may differ.
+    min_size : int
+        Smallest height and width accepted (a smaller image: :class:`~tghop.InvalidImageError`).
+
+    Returns
+    -------
+    exemplar, result : ndarray, shape (H, W, C), float64 in [0, 1]
+        The same C for both: 1 when both are grey, else 3.
+    """
     ex = check_image(exemplar, min_size=min_size, name="exemplar")
     res = check_image(result, min_size=min_size, name="result")
     if ex.shape[2] != 1 or res.shape[2] != 1:
@@ -34,7 +47,20 @@ def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray
 
 
 def counter(progress, stage: str, total: int):
-    """A ``tick()`` that reports ``stage`` one unit further each call (out of ``total``)."""
+    """A ``tick()`` that reports ``stage`` one unit further each call (out of ``total``).
+
+    Parameters
+    ----------
+    progress : callable or None
+        ``progress(stage, done, total)``; called once with ``done`` 0 at once.
+    stage : str
+    total : int
+
+    Returns
+    -------
+    callable
+        ``tick()``, taking no argument; ``done`` stops at ``total``.
+    """
     done = [0]
     report(progress, stage, 0, total)
 
@@ -46,7 +72,17 @@ def counter(progress, stage: str, total: int):
 
 
 def check_patch_size(patch_size) -> int:
-    """``patch_size`` as a positive int, or a one-line :class:`TGHopError`."""
+    """``patch_size`` as a positive int, or a one-line :class:`TGHopError`.
+
+    Parameters
+    ----------
+    patch_size : int
+        A Python or NumPy integer (a bool or a float, even a whole one, is refused).
+
+    Returns
+    -------
+    int
+    """
     return check_int(patch_size, "patch_size", 1)
 
 
@@ -56,6 +92,15 @@ def check_seed(seed) -> int:
     The metrics take a fixed integer seed, not a ``numpy.random.Generator``: their samples
     (patches, projections, random filters) are then the same for every result scored with
     the same seed, so that the scores compare.
+
+    Parameters
+    ----------
+    seed : int
+
+    Returns
+    -------
+    int
+        At least 0.
     """
     if isinstance(seed, np.random.Generator):
         raise TGHopError("seed must be an int, not a Generator: a metric draws its samples from a fixed seed, "
@@ -66,9 +111,20 @@ def check_seed(seed) -> int:
 def sample_patches(img: np.ndarray, patch_size: int, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` random stride-1 patches of ``img`` (all, in raster order, if ``n`` is the total).
 
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, C)
+        H and W at least ``patch_size``.
+    patch_size : int
+    n : int
+        Patches wanted; at least the number of positions gives every one.
+    rng : numpy.random.Generator
+        Draws the positions (without replacement) when ``n`` is below their number.
+
     Returns
     -------
-    ndarray, shape (n, patch_size * patch_size * C), float64
+    ndarray, shape (min(n, (H - P + 1)(W - P + 1)), C * P * P), ``img``'s dtype
+        Each patch flattened channel first (C, P, P), P = ``patch_size``.
     """
     windows = sliding_window_view(img, (patch_size, patch_size), axis=(0, 1))  # (nh, nw, C, P, P)
     nh, nw = windows.shape[:2]

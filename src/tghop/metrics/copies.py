@@ -338,6 +338,22 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     none) is at least ``min_std`` are sampled (up to ``max_patches``, seeded), and each
     counts as copied when some exemplar window (stride 1) is within RMS ``threshold``.
 
+    Parameters
+    ----------
+    exemplar, result : array_like, shape (H, W) or (H, W, C), float in [0, 1] (or uint8 / uint16)
+        Both at least ``patch_size`` a side; grey and colour are matched as :func:`pair` does.
+    patch_size : int
+        Window side in pixels.
+    threshold : float
+        RMS difference (in [0, 1] units) below which a window is a copy; positive.
+    min_std : float
+        Smallest standard deviation of a textured window.
+    max_patches : int
+        Most textured windows sampled from the result.
+    seed : int
+        Seed of the sample (an int, not a Generator: :func:`check_seed`).
+    progress : callable, optional
+
     Returns
     -------
     float
@@ -400,6 +416,31 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     It looks at one image only (no exemplar): :func:`tghop.metrics.evaluate` computes it
     for the result when asked by name (``metrics=[..., "self_repetition"]``, ``tghop
     evaluate --repetition``).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C), float in [0, 1] (or uint8 / uint16)
+        At least ``patch_size`` a side; scored in float32.
+    patch_size : int
+        Window side in pixels, a multiple of 4 (else :class:`~tghop.TGHopError`).
+    threshold : float
+        RMS difference (in [0, 1] units) below which two windows are the same; positive.
+    min_std : float
+        Smallest standard deviation of a textured (sampled) window.
+    region : int
+        Side of the central square the windows are sampled from (at most ``search``).
+    search : int
+        Side of the central square searched for repeats.
+    max_windows : int
+        Most windows sampled.
+    seed : int
+        Seed of the sample (:func:`check_seed`).
+    progress : callable, optional
+
+    Returns
+    -------
+    float
+        The fraction of sampled windows that repeat, in [0, 1].
     """
     patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     if patch_size % 4:
