@@ -151,6 +151,21 @@ def check_exclude(exclude, shape, *, name="exclude"):
     those above 0.5, as :func:`tghop.inpaint.inpaint`'s hole (a float mask of a grey or JPEG
     picture excluded its every faintly grey pixel). Raises :class:`TGHopError` for a mask of
     another size or not 2-d.
+
+    Parameters
+    ----------
+    exclude : array_like, shape (H, W) or (H, W, 1), or None
+        bool (True: excluded), integer or float; another dtype, NaN or infinite values raise
+        :class:`TGHopError`.
+    shape : tuple of int
+        The image's shape, (H, W) or (H, W, C); only H and W are read.
+    name : str
+        The mask's name in the error messages.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W), or None
+        True where excluded; None when nothing is.
     """
     if exclude is None:
         return None
@@ -182,7 +197,19 @@ class ExemplarTooSmallError(TGHopError):
 
 def enough_patches(n_patches, need, patch_size, per_cluster=None):
     """Raise a one-line :class:`TooLittleTextureError` when a mask leaves fewer than ``need``
-    training patches; with ``per_cluster`` (ICHM's least cluster size) it names the N that fits."""
+    training patches; with ``per_cluster`` (ICHM's least cluster size) it names the N that fits.
+
+    Parameters
+    ----------
+    n_patches : int
+        Training patches the mask leaves.
+    need : int
+        The fewest the model needs.
+    patch_size : int
+        Their side, for the message (and the error's ``patch_size``).
+    per_cluster : int, optional
+        Least patches a cluster needs.
+    """
     if n_patches < need:
         fewer = (f", or N of at most {n_patches // per_cluster} (n_clusters, --clusters)"
                  if per_cluster and n_patches >= per_cluster else "")
@@ -307,7 +334,20 @@ def space_to_depth(x: np.ndarray, block: int = 2) -> np.ndarray:
 
 
 def depth_to_space(y: np.ndarray, block: int = 2) -> np.ndarray:
-    """Inverse of :func:`space_to_depth`: ``(n, h, w, b*b*C)`` -> ``(n, h*b, w*b, C)``."""
+    """Inverse of :func:`space_to_depth`: ``(n, h, w, b*b*C)`` -> ``(n, h*b, w*b, C)``.
+
+    Parameters
+    ----------
+    y : ndarray, shape (n, h, w, b*b*C)
+        The last axis ordered (row in block, column in block, channel); any dtype.
+    block : int
+        The block side ``b``.
+
+    Returns
+    -------
+    ndarray, shape (n, h*b, w*b, C)
+        ``y``'s dtype (a copy, or a view where NumPy can make one).
+    """
     n, h, w, d = y.shape
     c = d // (block * block)
     x = y.reshape(n, h, w, block, block, c).transpose(0, 1, 3, 2, 4, 5)
