@@ -148,6 +148,13 @@ class Saab(TransformerMixin, BaseEstimator):
     def fit(self, X, y=None):
         """Learn the kernels from vectors ``X`` of shape (n_samples, d).
 
+        Parameters
+        ----------
+        X : array_like, shape (n_samples, d)
+            At least 2 vectors of dimension d >= 2, finite (else :class:`~tghop.TGHopError`).
+        y : None
+            Ignored (scikit-learn's signature).
+
         Returns
         -------
         self
@@ -215,6 +222,11 @@ class Saab(TransformerMixin, BaseEstimator):
 
         Channel-wise hops use this to choose channels across several Saab transforms.
 
+        Parameters
+        ----------
+        channels : array_like of int
+            Indices in ``[0, d)`` (0: the DC kernel); sorted and made unique. An empty list keeps none.
+
         Returns
         -------
         self
@@ -230,7 +242,18 @@ class Saab(TransformerMixin, BaseEstimator):
         return self.bias_ * (self.channels_ != 0)
 
     def transform(self, X):
-        """Responses of ``X`` (n, d) to the kept kernels: shape (n, k)."""
+        """Responses of ``X`` (n, d) to the kept kernels: shape (n, k).
+
+        Parameters
+        ----------
+        X : array_like, shape (n, d)
+            Finite numbers; n may be 0.
+
+        Returns
+        -------
+        ndarray of float64, shape (n, k)
+            ``X @ kernels_.T`` plus the bias on the AC channels (not on the DC one).
+        """
         check_is_fitted(self, "kernels_")
         X = check_array(X, "X", f"(n, d) = (n, {self.n_features_in_})", ndim=2, min_rows=0)  # numbers, finite
         check_width(X, "X", f"(n, d) = (n, {self.n_features_in_})", (self.n_features_in_,),
@@ -238,7 +261,18 @@ class Saab(TransformerMixin, BaseEstimator):
         return X @ self.kernels_.T + self._ac_bias()
 
     def inverse_transform(self, Y):
-        """Vectors (n, d) from responses (n, k); discarded channels count as zero."""
+        """Vectors (n, d) from responses (n, k); discarded channels count as zero.
+
+        Parameters
+        ----------
+        Y : array_like, shape (n, k)
+            One column per kept channel, as :meth:`transform` gives them.
+
+        Returns
+        -------
+        ndarray of float64, shape (n, d)
+            Exact for vectors whose discarded responses are zero (the kernels are orthonormal).
+        """
         check_is_fitted(self, "kernels_")
         k = len(self.channels_)
         Y = check_array(Y, "Y", f"(n, k) = (n, {k})", ndim=2, min_rows=0)
