@@ -62,6 +62,14 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
     def fit(self, X, y=None):
         """Learn the hop from ``X`` of shape (n, H, W, C), ``H`` and ``W`` even.
 
+        Parameters
+        ----------
+        X : array_like, shape (n, H, W, C)
+            Finite numbers (patches or spaces), ``H`` and ``W`` even, ``C >= 1``; its 2x2 blocks
+            (stride 2) are the training vectors. Another shape raises :class:`~tghop.TGHopError`.
+        y : None
+            Ignored (scikit-learn's signature).
+
         Returns
         -------
         self
@@ -103,6 +111,12 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
         over any number of image tiles: the fit is the same as on all blocks at once).
 
         A failed fit leaves the hop unfitted.
+
+        Parameters
+        ----------
+        sums : tuple
+            ``(total, moment, max_sq, count)``: weighted sum (4C,) and sum of outer products (4C, 4C)
+            of the blocks, the largest squared norm of each channel group, and the total weight (> 0).
 
         Returns
         -------
@@ -226,7 +240,18 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
         return len(self.channels_)
 
     def transform(self, X):
-        """``(n, H, W, C)`` -> ``(n, H/2, W/2, K)``."""
+        """``(n, H, W, C)`` -> ``(n, H/2, W/2, K)``.
+
+        Parameters
+        ----------
+        X : array_like, shape (n, H, W, C)
+            Finite numbers, ``H`` and ``W`` even, ``C`` the fit's (else :class:`~tghop.TGHopError`).
+
+        Returns
+        -------
+        ndarray of float64, shape (n, H/2, W/2, K)
+            Each 2x2 block's responses to the kept kernels, plus their biases.
+        """
         check_is_fitted(self, "kernels_")
         X = check_array(X, "X", f"(n, H, W, {self.n_channels_in_})", ndim=4, min_rows=0)  # numbers, finite
         if X.shape[3] != self.n_channels_in_:
@@ -235,7 +260,17 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
         return blocks @ self.kernels_.T + self.bias_
 
     def inverse_transform(self, Y):
-        """``(n, h, w, K)`` -> ``(n, 2h, 2w, C)``; discarded channels are zero."""
+        """``(n, h, w, K)`` -> ``(n, 2h, 2w, C)``; discarded channels are zero.
+
+        Parameters
+        ----------
+        Y : array_like, shape (n, h, w, K)
+            Finite numbers, one channel per kept kernel (as :meth:`transform` gives them).
+
+        Returns
+        -------
+        ndarray of float64, shape (n, 2h, 2w, C)
+        """
         check_is_fitted(self, "kernels_")
         Y = check_array(Y, "Y", f"(n, h, w, {self.n_channels_out_})", ndim=4, min_rows=0)  # numbers, finite
         if Y.shape[3] != self.n_channels_out_:
@@ -427,6 +462,14 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         ``progress(stage, done, total)`` is called once per hop. Only the hops are kept,
         not the training patches' core responses (:meth:`fit_transform` returns those).
 
+        Parameters
+        ----------
+        X : array_like, shape (n, P, P, C)
+            Square patches, finite, ``P`` divisible by ``2**n_hops`` (else :class:`~tghop.TGHopError`).
+        y : None
+            Ignored (scikit-learn's signature).
+        progress : callable, optional
+
         Returns
         -------
         self
@@ -535,7 +578,21 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         return core
 
     def fit_transform(self, X, y=None, *, progress=None):
-        """Fit and return the core responses ``(n, P / 2**n, P / 2**n, Kn)``."""
+        """Fit and return the core responses ``(n, P / 2**n, P / 2**n, Kn)``.
+
+        Parameters
+        ----------
+        X : array_like, shape (n, P, P, C)
+            As :meth:`fit` takes them.
+        y : None
+            Ignored.
+        progress : callable, optional
+
+        Returns
+        -------
+        ndarray of float64, shape (n, P / 2**n, P / 2**n, Kn)
+            The training patches' core responses, what :meth:`transform` gives for ``X``.
+        """
         return self._fit(X, progress)
 
     def transform(self, X, *, return_all=False):
