@@ -153,7 +153,22 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
 
 def fits(shape, factor, patch_size=32) -> bool:
     """Whether an exemplar of ``shape`` (H, W, ...) is large enough for a coarse layout:
-    at least ``(p/2 + 1)**2`` coarse training patches of side ``p`` at stride 1."""
+    at least ``(p/2 + 1)**2`` coarse training patches of side ``p`` at stride 1.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The exemplar's (H, W, ...); only H and W are read.
+    factor : int
+        The layout factor, at least 2 (else :class:`~tghop.TGHopError`).
+    patch_size : int
+        The coarse model's patch side ``p``, at least 4.
+
+    Returns
+    -------
+    bool
+        Whether ``min(H, W) // factor >= p + p // 2``.
+    """
     f = check_int(factor, "factor", 2)
     p = check_int(patch_size, "patch_size", 4)
     return min(shape[0] // f, shape[1] // f) >= p + p // 2
@@ -164,6 +179,21 @@ def coarse_training(shape, factor, *, patch_size=32, n_clusters=50, min_patches=
 
     Stride 2 unless that gives fewer than ``min_patches`` training patches (then 1), at
     most ``max_patches`` of them, and at most one cluster per 40 patches (at least 2).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The exemplar's (H, W, ...), at full resolution.
+    factor : int
+        The layout factor, at least 2.
+    patch_size : int
+        The coarse patches' side, at least 4.
+    n_clusters : int
+        Most clusters (at least 2).
+    min_patches : int
+        Fewest training patches at stride 2 before stride 1 is used.
+    max_patches : int
+        Most training patches (at least 100).
 
     Returns
     -------
@@ -194,14 +224,44 @@ def guide_fits(size, factor, patch_size=32, *, tile=False) -> bool:
     """Whether an output of ``size`` (H, W) can have a coarse guide at ``factor``: always,
     unless it is tileable and its coarse image (``ceil(H / factor)`` a side) is smaller
     than a patch, which cannot wrap around (:meth:`tghop.TGHop.synthesize` then quilts
-    without the guide)."""
+    without the guide).
+
+    Parameters
+    ----------
+    size : int or (int, int)
+        The output's (H, W) (checked as every output size: :class:`~tghop.TGHopError`).
+    factor : int
+        The layout factor.
+    patch_size : int
+        The coarse model's patch side.
+    tile : bool
+        Whether the output is tileable.
+
+    Returns
+    -------
+    bool
+    """
     h, w = check_size(size)
     return not tile or min(math.ceil(h / factor), math.ceil(w / factor)) >= patch_size
 
 
 def follows_guide(coarse, size, *, tile=False) -> bool:
     """Whether an output of ``size`` gets the guide of ``coarse``: a fitted
-    :class:`tghop.synthesis.CoarseLayout`, or None (a model without a layout: never)."""
+    :class:`tghop.synthesis.CoarseLayout`, or None (a model without a layout: never).
+
+    Parameters
+    ----------
+    coarse : tghop.synthesis.CoarseLayout or None
+        Its ``factor`` and ``patch_size`` are read.
+    size : int or (int, int)
+        The output's (H, W).
+    tile : bool
+        Whether the output is tileable (:func:`guide_fits`).
+
+    Returns
+    -------
+    bool
+    """
     return coarse is not None and guide_fits(size, coarse.factor, coarse.patch_size, tile=tile)
 
 
@@ -209,7 +269,26 @@ def usable_factor(shape, factor, *, patch_size=32, exclude=None, **training):
     """The layout factor an exemplar of ``shape`` gets for the setting ``factor``: the
     largest of ``factor``, ``factor - 1``, ..., 2 that it is large enough for (:func:`fits`;
     with ``exclude``, also :func:`fits_excluding`), or None when none is. A 128x128
-    exemplar gets 2 from the default 3: a coarser layout than asked beats none."""
+    exemplar gets 2 from the default 3: a coarser layout than asked beats none.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The exemplar's (H, W, ...).
+    factor : int
+        The layout factor asked for, at least 2 (else :class:`~tghop.TGHopError`).
+    patch_size : int
+        The coarse model's patch side.
+    exclude : ndarray of bool, shape (H, W), optional
+        Pixels left out of training (True: excluded).
+    **training
+        ``n_clusters``, ``min_patches``, ``max_patches``, as :func:`coarse_training` takes them.
+
+    Returns
+    -------
+    int or None
+        A factor in ``[2, factor]``.
+    """
     f = check_int(factor, "factor", 2)
     for g in range(f, 1, -1):
         if fits(shape, g, patch_size) and fits_excluding(exclude, g, patch_size=patch_size, **training):
@@ -234,7 +313,19 @@ def fits_excluding(exclude, factor, *, patch_size=32, n_clusters=50, min_patches
 
 def guide_steps(n_steps, size) -> int:
     """``layout_patch_refine`` for an image of ``size`` (H, W): ``n_steps``, or for None
-    :data:`GUIDE_STEPS` on images of at most :data:`GUIDE_PIXELS` pixels and 0 on larger ones."""
+    :data:`GUIDE_STEPS` on images of at most :data:`GUIDE_PIXELS` pixels and 0 on larger ones.
+
+    Parameters
+    ----------
+    n_steps : int or None
+        The setting (an int is returned as it is, unchecked).
+    size : (int, int)
+        The image's (H, W).
+
+    Returns
+    -------
+    int
+    """
     if n_steps is not None:
         return int(n_steps)
     return GUIDE_STEPS if size[0] * size[1] <= GUIDE_PIXELS else 0
