@@ -656,7 +656,20 @@ def steps_for(n_steps, size):
     """``patch_refine`` for an image of ``size`` (H, W): ``n_steps``, or for None (auto)
     AUTO_STEPS up to AUTO_PIXELS pixels, AUTO_LARGE_STEPS up to AUTO_LARGE_PIXELS, then
     ``AUTO_LARGE_STEPS * AUTO_LARGE_PIXELS / pixels`` (rounded) up to AUTO_LARGEST_PIXELS and
-    0 above."""
+    0 above.
+
+    Parameters
+    ----------
+    n_steps : int or None
+        The setting; an int is returned as it is (unchecked).
+    size : (int, int)
+        The image's (H, W).
+
+    Returns
+    -------
+    int
+        Adam steps per pyramid level (0: no patch refinement).
+    """
     if n_steps is not None:
         return n_steps
     pixels = size[0] * size[1]
@@ -671,7 +684,23 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     """:class:`PatchStatistics` of a whole exemplar (H, W, C; float in [0, 1] or uint8, read in
     parts: :func:`_parts`); None when ``levels`` is 0 (nothing stored). Until 0.43 only its centre
     crop of at most 512x512 pixels was measured, which misled the refinement wherever the centre
-    differs from the rest, as in many photographs (docs/choices.md, Patch refinement "0.44")."""
+    differs from the rest, as in many photographs (docs/choices.md, Patch refinement "0.44").
+
+    Parameters
+    ----------
+    levels : int
+        Pyramid levels measured (``patch_levels``); 0 or None: nothing.
+    image : array_like, shape (H, W, C)
+        The exemplar, float in [0, 1] or uint8.
+    whitening : float
+        ``patch_whitening``, in [0, 1] (else :class:`~tghop.TGHopError`).
+    exclude : ndarray of bool, shape (H, W), optional
+        Pixels left out of the statistics (True: excluded).
+
+    Returns
+    -------
+    PatchStatistics or None
+    """
     if not levels:
         return None
     levels = check_int(levels, "patch_levels")
@@ -684,7 +713,31 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
 def refine_image(image, stats, *, n_steps, stride=1, tile=False, dtype=None, progress=None, rate=1.0):
     """The generation step: an (H, W, C) image in [0, 1] -> :func:`patch_refine`, as
     ``dtype`` (default the image's; uint8: the 8-bit values of :func:`tghop.imageio.to_uint8`).
-    ``rate`` multiplies every level's Adam step (the coarse guide's: :data:`tghop.layout.GUIDE_RATE`)."""
+    ``rate`` multiplies every level's Adam step (the coarse guide's: :data:`tghop.layout.GUIDE_RATE`).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        Float in [0, 1], or uint8 / uint16 (rescaled to [0, 1]).
+    stats : PatchStatistics
+        The exemplar's, fitted (:func:`fit_patch_statistics`).
+    n_steps : int
+        Adam steps per pyramid level (``patch_refine``; 0: the image unchanged, converted to ``dtype``).
+    stride : int
+        ``patch_stride``: every ``stride``-th patch each way, 1 to the patch side.
+    tile : bool
+        Periodic boundaries.
+    dtype : numpy dtype, optional
+        Of the result.
+    progress : callable, optional
+        ``progress("patch refine", done_steps, total_steps)``.
+    rate : float
+        Positive.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), in [0, 1] (0-255 for uint8)
+    """
     out = _patch_refine(image, stats, n_steps=n_steps, stride=stride, tile=tile, learning_rate=LEARNING_RATE,
                         progress=progress, names=("patch_refine", "patch_stride"), rate=rate)
     dtype = np.dtype(dtype or np.asarray(image).dtype)
