@@ -30,7 +30,20 @@ __all__ = ["scaled_shape", "rescale", "rescale_mask"]
 
 def scaled_shape(shape, scale: float) -> tuple:
     """(H, W, ...) of an exemplar of ``shape`` resampled by ``scale``: each side rounded to
-    the nearest pixel, at least 1; the other dimensions as they are."""
+    the nearest pixel, at least 1; the other dimensions as they are.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        (H, W, ...).
+    scale : float
+        Greater than 0 (not checked here); 1 gives ``shape`` as a tuple.
+
+    Returns
+    -------
+    tuple of int
+        (H', W', ...).
+    """
     if scale == 1:
         return tuple(shape)
     return tuple(max(1, round(side * scale)) for side in shape[:2]) + tuple(shape[2:])
@@ -77,7 +90,18 @@ def rescale(image, scale: float) -> np.ndarray:
 
 def rescale_mask(mask, scale: float):
     """A sample mask (H, W) bool resampled by ``scale``: True wherever an excluded pixel reaches
-    (its box-filtered share above zero); None stays None."""
+    (its box-filtered share above zero); None stays None.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (H, W), or None
+    scale : float
+        Greater than 0; 1 returns ``mask`` itself.
+
+    Returns
+    -------
+    ndarray of bool, shape (H', W') (:func:`scaled_shape`), or None
+    """
     if mask is None or scale == 1:
         return mask
     from PIL import Image
