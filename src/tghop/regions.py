@@ -36,7 +36,22 @@ def _count(n: int, region: int) -> int:
 def n_regions(size, region, *, tile=False) -> tuple:
     """Regions along each axis of an image of ``size`` (H, W): ``round(side / region)``, at
     least 1; (1, 1) for ``region`` None, and in tileable images unless both axes have
-    several (a single region along one axis would have to wrap around on its own)."""
+    several (a single region along one axis would have to wrap around on its own).
+
+    Parameters
+    ----------
+    size : int or (int, int)
+        The image's (H, W) (no pixel limit).
+    region : int or None
+        The regions' side in pixels.
+    tile : bool
+        Whether the image is tileable.
+
+    Returns
+    -------
+    (int, int)
+        Regions along the rows and along the columns.
+    """
     h, w = check_size(size, limit=None)
     if region is None:
         return 1, 1
@@ -52,6 +67,17 @@ def region_spans(n: int, count: int, *, periodic: bool = False, overlap: int = O
     start and falls at its end, so that the weights of all spans sum to 1 at every pixel.
     Periodic axes (tileable images) are cut at 0 as well: the first span starts before 0,
     and its indices wrap around.
+
+    Parameters
+    ----------
+    n : int
+        The axis' length.
+    count : int
+        Spans wanted (1: the whole axis, weight 1).
+    periodic : bool
+        Whether the axis wraps around (a tileable image's).
+    overlap : int
+        Pixels shared by neighbouring spans; a span narrower than it raises :class:`~tghop.TGHopError`.
 
     Returns
     -------
@@ -88,7 +114,19 @@ def _index(start: int, length: int, n: int):
 
 def prepare(size, bands, *, region, tile=False):
     """:func:`tghop.refine.prepare` for the regions of an image of ``size`` (their first
-    region's shape; the whole image's where it is one region)."""
+    region's shape; the whole image's where it is one region).
+
+    Parameters
+    ----------
+    size : int or (int, int)
+        The image's (H, W).
+    bands : tghop.refine.BandStatistics
+        The refinement's statistics.
+    region : int or None
+        The regions' side in pixels (:func:`n_regions`).
+    tile : bool
+        Whether the image is tileable.
+    """
     h, w = check_size(size, limit=None)
     counts = n_regions((h, w), region, tile=tile)
     shape = [len(region_spans(n, k, periodic=tile)[0][1]) for n, k in zip((h, w), counts)]
