@@ -61,7 +61,19 @@ class SeamSteps:
     change: Tuple[np.ndarray, np.ndarray]
 
     def second(self, axis: int) -> np.ndarray:
-        """Flat indices of the second pixel of the seam edges along ``axis`` (1: x, 0: y)."""
+        """Flat indices of the second pixel of the seam edges along ``axis`` (1: x, 0: y).
+
+        Parameters
+        ----------
+        axis : int
+            1: the edges along x (the pixel to the right), 0: along y (the pixel below).
+
+        Returns
+        -------
+        ndarray of int, shape (n_x,) or (n_y,)
+            Flat indices into the (H, W) image, in the order of :attr:`index`, wrapping around
+            the image's last column or row.
+        """
         h, w = self.shape
         rows, cols = np.divmod(self.index[0 if axis == 1 else 1], w)
         if axis == 1:
@@ -170,7 +182,21 @@ def _box_sums(a, size, wrap):
 def local_means(steps, axis, window):
     """The change at each seam edge along ``axis`` (1: x, 0: y) averaged over the seam edges along
     the same axis within the ``window x window`` square around it, (n, C) float32 in the order of
-    ``steps.index`` (:func:`remove_seams`' ``window``; :func:`tghop.inpaint.stitch_hole`'s too)."""
+    ``steps.index`` (:func:`remove_seams`' ``window``; :func:`tghop.inpaint.stitch_hole`'s too).
+
+    Parameters
+    ----------
+    steps : SeamSteps
+    axis : int
+        1: the seam edges along x, 0: along y.
+    window : int
+        Side of the square, ``2 * (window // 2) + 1`` pixels (wrapping around for a tileable image).
+
+    Returns
+    -------
+    ndarray of float32, shape (n, C)
+        ``n`` the number of seam edges along ``axis``.
+    """
     h, w = steps.shape
     index, change = steps.index[0 if axis == 1 else 1], steps.change[0 if axis == 1 else 1]
     dense = np.zeros(h * w, dtype=np.float32)
