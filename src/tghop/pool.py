@@ -30,7 +30,25 @@ MAX_GROWN_POOL = 30_000
 
 def on_demand(size, patch_size, n_patches, *, overlap=None, tile=False) -> bool:
     """Whether an image of ``size`` places few enough blocks (at most
-    :data:`ON_DEMAND_BLOCKS` per pool patch) for its pool to be generated on demand."""
+    :data:`ON_DEMAND_BLOCKS` per pool patch) for its pool to be generated on demand.
+
+    Parameters
+    ----------
+    size : int or (int, int)
+        The output's (H, W).
+    patch_size : int
+        The pool's patch side P.
+    n_patches : int
+        The pool's size.
+    overlap : int, optional
+        Quilting's overlap (None: its default for ``patch_size``).
+    tile : bool
+        Whether the output is tileable.
+
+    Returns
+    -------
+    bool
+    """
     return block_count(size, patch_size, overlap=overlap, tile=tile) <= ON_DEMAND_BLOCKS * n_patches
 
 
@@ -42,10 +60,27 @@ def pool_size(size, patch_size, *, n_patches, pool_per_block, reuse, overlap=Non
     and 512x512 from 5,000) hardly reuse a patch (100 blocks: 81 patches, at most 3 uses):
     no penalty, the same images as without it.
 
+    Parameters
+    ----------
+    size : int or (int, int)
+        The output's (H, W).
+    patch_size : int
+        The pool's patch side P.
+    n_patches : int
+        The pool asked for.
+    pool_per_block : float
+        Patches per placed block the pool grows to (0 or None: no growth).
+    reuse : float
+        The reuse penalty asked for.
+    overlap : int, optional
+    tile : bool
+
     Returns
     -------
     n_patches : int
+        At least the ``n_patches`` given.
     reuse : float
+        ``reuse``, or 0.0 for an on-demand pool.
     """
     if pool_per_block:
         blocks = block_count(size, patch_size, overlap=overlap, tile=tile)
@@ -64,6 +99,22 @@ def prepared_pool(model, n_patches, rng, size, *, overlap, tile, detail, flat_sh
     100 of 5,000 patches), the pool is not kept: its patches are generated a chunk at a
     time as their tables are made, and again for the few that are placed
     (:class:`GeneratedPool`). Else they are generated once, into an array.
+
+    Parameters
+    ----------
+    model : tghop.TGHop
+        Fitted.
+    n_patches : int
+    rng : numpy.random.Generator
+    size : int or (int, int)
+        The output's (H, W).
+    overlap, tile, detail, flat_share, guide_scale
+        As :func:`tghop.quilting.prepare_pool` takes them.
+
+    Returns
+    -------
+    tghop.quilting.PreparedPool
+        Over a (n_patches, P, P, C) float32 pool in [0, 1] (an array, or a :class:`GeneratedPool`).
     """
     pool = GeneratedPool(model, *model.sample_vectors(n_patches, rng, np.dtype(np.float32)))
     if not on_demand(size, model.patch_size, n_patches, overlap=overlap, tile=tile):
@@ -77,8 +128,17 @@ def block_decoder(model):
 
     The hops act on non-overlapping 2x2 blocks, so the whole inverse c/w Saab path
     maps each core position's K-vector to its own ``b x b`` pixel block (b = 2 ** hops):
-    ``block = v @ linear + constant``. Returns ``linear`` (K, b*b*C) and ``constant``
-    (b*b*C,), in float64.
+    ``block = v @ linear + constant``.
+
+    Parameters
+    ----------
+    model : tghop.TGHop
+        Fitted.
+
+    Returns
+    -------
+    linear : ndarray of float64, shape (K, b*b*C)
+    constant : ndarray of float64, shape (b*b*C,)
     """
     k = model.sdr_.shape_[2]
     linear = np.eye(k).reshape(k, 1, 1, k)
@@ -101,6 +161,18 @@ def patch_decoder(model, dtype):
     once, as one offset per core position. Given :data:`DECODE_CHUNK` patches at a time its
     intermediate arrays stay in the processor's cache. Made for each pool, not cached, so
     the first pool from a loaded model costs what every later one does.
+
+    Parameters
+    ----------
+    model : tghop.TGHop
+        Fitted.
+    dtype : numpy dtype
+        float32 or float64: of the computation and of ``out``.
+
+    Returns
+    -------
+    callable
+        ``decode(z, out)``, ``z`` array_like (m, D_r), ``out`` ndarray (m, P, P, C), filled in place.
     """
     sdr = model.sdr_
     h, w, k = sdr.shape_
@@ -186,5 +258,11 @@ class GeneratedPool:
         return self._fill(rows, np.empty((len(rows),) + self.shape[1:], dtype=self.dtype))
 
     def all(self):
-        """The whole pool as an array (n, P, P, C)."""
+        """The whole pool as an array (n, P, P, C).
+
+        Returns
+        -------
+        ndarray, shape (n, P, P, C), in [0, 1]
+            Of the pool's dtype; every patch decoded anew (nothing is kept).
+        """
         return self._fill(np.arange(self.shape[0]), np.empty(self.shape, dtype=self.dtype))
