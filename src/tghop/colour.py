@@ -222,13 +222,41 @@ def _squared_distances(pixels, centres) -> np.ndarray:
 
 
 def class_labels(pixels, centres) -> np.ndarray:
-    """The nearest centre of each pixel: (n,) int of ``pixels`` (n, C)."""
+    """The nearest centre of each pixel: (n,) int of ``pixels`` (n, C).
+
+    Parameters
+    ----------
+    pixels : array_like, shape (n, C)
+        Colours, float in [0, 1].
+    centres : ndarray, shape (K, C)
+        Class centres (:attr:`ColourClasses.centres_`).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        Each pixel's class in ``[0, K)`` (Euclidean distance; ties: the first centre).
+    """
     return np.argmin(_squared_distances(pixels, centres), axis=1)
 
 
 def class_quantiles(values, labels, n_classes, n: int = N_QUANTILES) -> np.ndarray:
     """Quantiles of ``values`` (m, C) within each class of ``labels`` (m,): (n_classes, C, n).
-    A class without values gets the quantiles of all of them."""
+    A class without values gets the quantiles of all of them.
+
+    Parameters
+    ----------
+    values : array_like, shape (m, C)
+        At least one row (read as float64).
+    labels : ndarray of int, shape (m,)
+        Each row's class (:func:`class_labels`).
+    n_classes : int
+    n : int
+        Quantiles per channel, at evenly spaced levels from 0 to 1.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_classes, C, n)
+    """
     values = np.asarray(values, dtype=np.float64)[:, None, :]  # (m, 1, C): an image, for channel_quantiles
     members = [values[labels == k] for k in range(n_classes)]
     return np.stack([_channel_quantiles(m if len(m) else values, n) for m in members])
@@ -248,6 +276,17 @@ def class_separation(pixels, centres) -> float:
     classes leaves about 15 % of the pixels within a margin of 0.2 (a uniform one in four
     classes: 15 %); separate colours (stripes, tiles and their joints) leave few. The
     separation goes linearly from 1, at 5 % of the pixels or fewer, to 0 at 15 % or more.
+
+    Parameters
+    ----------
+    pixels : array_like, shape (n, C)
+        Colours, float in [0, 1].
+    centres : ndarray, shape (K, C)
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 for fewer than two centres.
     """
     if len(centres) < 2:
         return 0.0
@@ -274,7 +313,22 @@ def share_spread(image, centres, exclude=None) -> np.ndarray:
     262,144 of them, and each crop's shares are read from summed-area tables. With
     ``exclude`` (H, W) bool, a sample mask, each crop's shares are those of its pixels
     outside the mask, and crops with less than half of theirs outside are left out; fewer
-    than two left: no spread (zeros), so images keep the exemplar's shares."""
+    than two left: no spread (zeros), so images keep the exemplar's shares.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        Float in [0, 1], or uint8 (divided by 255).
+    centres : ndarray, shape (K, C)
+    exclude : array_like of bool, shape (H, W), optional
+        True: left out.
+
+    Returns
+    -------
+    ndarray of float64, shape (K + 1,)
+        Each class's standard deviation of its share over the crops, then the crops' side in
+        pixels; all zeros (the side too) when fewer than two crops count.
+    """
     h, w = image.shape[:2]
     side = max(1, min(h, w) // 2)
     k = max(1, int(np.ceil(np.sqrt(h * w / _SPREAD_PIXELS))))  # the labelling grid's stride
@@ -304,7 +358,18 @@ def share_spread(image, centres, exclude=None) -> np.ndarray:
 
 def class_shares(image, centres) -> np.ndarray:
     """The share of each colour class among the pixels of ``image`` (H, W, C) (counted on a
-    strided subset of about 65,536 of them): (K,), summing to 1."""
+    strided subset of about 65,536 of them): (K,), summing to 1.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W, C)
+        Float in [0, 1], or uint8 (divided by 255).
+    centres : ndarray, shape (K, C)
+
+    Returns
+    -------
+    ndarray of float64, shape (K,)
+    """
     image = np.asarray(image)
     pixels = np.ascontiguousarray(_strided(image.reshape(-1, image.shape[-1]), CLASS_PIXELS), dtype=np.float64)
     if image.dtype == np.uint8:
@@ -376,7 +441,21 @@ class ColourClasses(StoredArrays, BaseEstimator):
     def fit(self, image, bands, *, exclude=None):
         """Fit on ``image`` (H, W, C) in [0, 1], without the pixels where ``exclude`` (H, W)
         is true; ``bands``: the fitted :class:`tghop.refine.BandStatistics` (its colour
-        axes). Measured on a strided subset of about 65,536 pixels. Returns self."""
+        axes). Measured on a strided subset of about 65,536 pixels. Returns self.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W, C)
+            Float in [0, 1], or uint8 / uint16; C the channels ``bands`` was fitted on.
+        bands : tghop.refine.BandStatistics
+            Fitted on the same exemplar.
+        exclude : array_like of bool, shape (H, W), optional
+            True: left out.
+
+        Returns
+        -------
+        self
+        """
         k = self.n_classes
         k = check_int(k, "n_classes", where="ColourClasses")
         check_is_fitted(bands, "colour_mean_")
@@ -404,6 +483,15 @@ class ColourClasses(StoredArrays, BaseEstimator):
         the image's own (a continuum cut into classes keeps the exemplar's histograms: there
         the shares are the image's tone, which matching should correct).
 
+        Parameters
+        ----------
+        image : ndarray, shape (H, W, C)
+            Float in [0, 1] (or uint8), C the exemplar's.
+        own_shares : float
+            How far towards the image's own shares (0: the exemplar's; 1: the full way the
+            separation allows). Each share moves at most two standard deviations of the exemplar's
+            own crops, scaled to the image's size.
+
         Returns
         -------
         (ndarray, ndarray), shapes (C, 257) and (C, 257)
@@ -424,7 +512,18 @@ class ColourClasses(StoredArrays, BaseEstimator):
     def weight(self, own_shares) -> float:
         """How far :meth:`targets` moves the shares towards an image's own: ``own_shares``
         times the separation (0: the exemplar's histograms, which a model without classes
-        matches; :meth:`tghop.synthesis.TGHop.synthesize` then uses those)."""
+        matches; :meth:`tghop.synthesis.TGHop.synthesize` then uses those).
+
+        Parameters
+        ----------
+        own_shares : float
+            The setting (:meth:`targets`); not checked.
+
+        Returns
+        -------
+        float
+            ``own_shares * separation_[0]``. Before :meth:`fit`, :class:`~tghop.NotFittedError`.
+        """
         check_is_fitted(self, "centres_")
         return float(own_shares) * float(self.separation_[0])
 
