@@ -80,7 +80,18 @@ POOL_CHUNK = 128
 
 
 def default_overlap(patch_size: int) -> int:
-    """The default overlap for ``patch_size``: ``round(P / 6)``, at least 1."""
+    """The default overlap for ``patch_size``: ``round(P / 6)``, at least 1.
+
+    Parameters
+    ----------
+    patch_size : int
+        The patch side P (not checked).
+
+    Returns
+    -------
+    int
+        Pixels of overlap between neighbouring blocks.
+    """
     return max(1, int(round(patch_size / 6)))
 
 
@@ -451,7 +462,24 @@ def _axis_positions(length: int, p: int, overlap: int, tile: bool, name: str):
 
 
 def block_count(size, patch_size: int, *, overlap: Optional[int] = None, tile: bool = False) -> int:
-    """How many blocks :func:`quilting_plan` lays out (without the plan's masks)."""
+    """How many blocks :func:`quilting_plan` lays out (without the plan's masks).
+
+    Parameters
+    ----------
+    size : (int, int) or int
+        Output height and width (checked as :func:`quilt` checks them).
+    patch_size : int
+        The patch side P, at least 2.
+    overlap : int, optional
+        In ``[1, P // 2]``; default :func:`default_overlap`.
+    tile : bool
+        Tileable output (its last blocks overlap the first ones).
+
+    Returns
+    -------
+    int
+        ``ny * nx`` blocks; a bad size, patch size or overlap raises :class:`TGHopError`.
+    """
     h, w = check_size(size)
     p, o = _check_patch_overlap(patch_size, overlap)
     return len(_axis_positions(h, p, o, tile, "height")[0]) * len(_axis_positions(w, p, o, tile, "width")[0])
@@ -807,7 +835,22 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
 def flat_factors(energy, share: float, *, groups=None) -> np.ndarray:
     """The factors of a pool's errors for ``flat_share``: :data:`FLAT_PENALTY` for the
     ``round(share * n)`` patches of least gradient ``energy`` (n,) (those below the next
-    one's; with ``groups`` (n,) int, of each group's n), 1 for the rest; float32 (n,)."""
+    one's; with ``groups`` (n,) int, of each group's n), 1 for the rest; float32 (n,).
+
+    Parameters
+    ----------
+    energy : array_like, shape (n,)
+        Each patch's gradient energy (:func:`gradient_energy`).
+    share : float
+        ``flat_share``, in [0, 1) (not checked here); at most ``n - 1`` patches are flat.
+    groups : array_like of int, shape (n,), optional
+        Each patch's group; the share is taken of each group apart.
+
+    Returns
+    -------
+    ndarray of float32, shape (n,)
+        :data:`FLAT_PENALTY` or 1.
+    """
     energy = np.asarray(energy)
     flat = np.zeros(energy.shape, dtype=bool)
     groups = None if groups is None else np.asarray(groups)
@@ -1109,6 +1152,21 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     apart (a smooth texture's pool among a rough one's keeps its own choice).
     ``quilt(pool, size, ...)`` is ``quilt_prepared(prepare_pool(pool, size, ...), ...)``.
 
+    Parameters
+    ----------
+    pool : array_like, shape (n, P, P, C) or (n, P, P), or a pool read on demand
+        Candidate patches in [0, 1] (:func:`quilt`'s ``pool``).
+    size : (int, int) or int
+        Output height and width.
+    overlap : int, optional
+    tile : bool
+    detail : float in [0, 1)
+    guide_scale : int, optional
+        Box size of the guide's low pass, dividing P; None: no guide will be used.
+    flat_share : float in [0, 1)
+    groups : array_like of int, shape (n,), optional
+        Each patch's group, for ``flat_share``.
+
     Returns
     -------
     PreparedPool
@@ -1178,6 +1236,22 @@ def quilt_prepared(
     every seam edge it has (two neighbours pasted from two blocks), the change that
     replaces the step between the two patches by the mean of their own differences
     (:func:`tghop.seams.remove_seams`). The image is the same either way.
+
+    Parameters
+    ----------
+    prepared : PreparedPool
+        From :func:`prepare_pool` (anything else raises :class:`TGHopError`).
+    tolerance, rng, progress, guide, guide_weight, reuse
+        As :func:`quilt` takes them.
+    dtype : {numpy.float64, numpy.float32}
+    groups : array_like of int, shape (n,), optional
+    group_cost : array_like, shape (ny, nx, K), optional
+    return_seams : bool
+
+    Returns
+    -------
+    image : ndarray, shape (H, W, C), ``dtype`` in [0, 1]
+    seams : tghop.seams.SeamSteps, only with ``return_seams``
     """
     if not isinstance(prepared, PreparedPool):
         raise TGHopError(f"quilt_prepared takes the result of prepare_pool, got {type(prepared).__name__}")
@@ -1379,6 +1453,11 @@ def block_labels(plan: QuiltingPlan) -> np.ndarray:
     Block ``(i, j)`` gets ``5 * r(i) + r(j)`` with ``r(i) = i % 4``, except that the last
     row and column get 4 (so that, with ``tile``, they differ from the first ones they
     wrap onto). Blocks two steps apart never overlap (the overlap is at most half a patch).
+
+    Parameters
+    ----------
+    plan : QuiltingPlan
+        Its ``ys`` (ny,) and ``xs`` (nx,) block positions are read.
 
     Returns
     -------
