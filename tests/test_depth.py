@@ -156,6 +156,32 @@ def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     assert depth == 16 and np.array_equal(out[keep], levels[keep])  # every known pixel, all 16 bits
 
 
+def test_cli_inpaint_and_extend_warn_that_a_16bit_image_is_written_8bit_as_jpeg(tmp_path):
+    # They keep IMAGE's depth as far as the output's format holds it: a JPEG output lost it without a word.
+    from click.testing import CliRunner
+
+    from tghop import TGHop, data
+    from tghop.cli import main
+    from tghop.modelfile import save_model
+
+    exemplar = data.bricks()[:96, :96]
+    save_model(TGHop(max_patches=1000, n_clusters=10, layout_factor=None, rng=0).fit(exemplar), tmp_path / "m.npz")
+    save_image(exemplar, tmp_path / "in.png", depth=16)
+    hole = np.zeros((96, 96))
+    hole[30:60, 30:60] = 1
+    save_image(hole, tmp_path / "hole.png")
+    warning = (f"Warning: IMAGE {tmp_path / 'in.png'} (16-bit) has more bits a channel than JPEG holds, but is "
+               "written with 8; name the output .png, .tif or .tiff to keep them")
+    for command in (["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png")],
+                    ["extend", str(tmp_path / "in.png"), "--size", "96x128"]):
+        for name, warned in (("o.jpg", [warning]), ("o.png", []), ("d.jpg", [])):
+            depth = ["--depth", "8"] if name == "d.jpg" else []  # asked for: no warning
+            res = CliRunner().invoke(main, [*command, "-o", str(tmp_path / name), "--source", str(tmp_path / "m.npz"),
+                                            "--seed", "1", "-q", *depth])
+            assert res.exit_code == 0, res.output
+            assert [line for line in res.output.splitlines() if line.startswith("Warning")] == warned, command
+
+
 def test_colour_tiff_without_tifffile_is_one_line(tmp_path, monkeypatch):
     pytest.importorskip("tifffile")
     from tghop import MissingExtraError

@@ -172,6 +172,32 @@ def test_cli_fit_and_synth_write_every_map(tmp_path, exemplar, maps):
     assert info.exit_code == 0 and "height (1 channel, 16-bit)" in info.output
 
 
+def test_cli_synth_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, exemplar, maps):
+    # synth mat.npz -o out.jpg wrote a 16-bit and a float map as 8-bit JPEG without a word, where a
+    # 16-bit exemplar written with 8 bits is warned of: one warning naming those maps and the fix.
+    material = Material(model=TGHop(**FAST), rng=0).fit(
+        exemplar, {"height": maps["height"], "roughness": maps["roughness"], "normal": maps["normal"]},
+        depths={"albedo": 8, "height": 16, "roughness": 32, "normal": 8})
+    save_model(material, tmp_path / "mat.npz")
+
+    def synth(name, *more):
+        res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / name), "--size",
+                                        "64", "--seed", "2", "-q", "--pool", "1000", *more])
+        assert res.exit_code == 0, res.output
+        return [line for line in res.output.splitlines() if line.startswith("Warning")]
+
+    warned = synth("out.jpg")
+    assert warned == ["Warning: maps height (16-bit) and roughness (float) have more bits a channel than JPEG "
+                      "holds, but are written with 8; name the output .tif or .tiff to keep them"]
+    assert load_image(tmp_path / "out_height.jpg", with_depth=True)[1] == 8
+    warned = synth("out.png")
+    assert warned == ["Warning: map roughness (float) has more bits a channel than PNG holds, but is written with "
+                      "16; name the output .tif or .tiff to keep them"]
+    assert load_image(tmp_path / "out_height.png", with_depth=True)[1] == 16
+    assert synth("out.tif") == []  # every depth held
+    assert synth("chosen.jpg", "--depth", "8") == []  # asked for
+
+
 def test_cli_fit_names_a_map_file_with_spaces_as_the_page_does(tmp_path, exemplar, maps):
     save_image(exemplar, tmp_path / "albedo.png")
     save_image(maps["height"], tmp_path / "Rock Height.png")

@@ -132,6 +132,27 @@ def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
     assert load_image("big_h.png").shape == (SIZE, 192, 1)
 
 
+def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, picture,
+                                                                                       monkeypatch):
+    # A 16-bit map written as JPEG lost its depth without a word: one warning names it (as synth's).
+    monkeypatch.chdir(tmp_path)
+    _write(tmp_path, picture)
+    images, hole = picture
+    mat = Material(model=TGHop(**FAST), rng=0).fit(
+        images["albedo"], {"wall_normal": images["normal"], "h": images["height"]}, exclude=hole)
+    save_model(mat, tmp_path / "mat.npz")
+    args = ["inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed",
+            "3"]
+    code, out = run(*args, "-o", "out.jpg")
+    assert code == 0, out
+    assert [line for line in out.splitlines() if line.startswith("Warning")] == [
+        "Warning: map wall_normal (16-bit) has more bits a channel than JPEG holds, but is written with 8; name "
+        "the output .png, .tif or .tiff to keep them"]
+    for name in ("out.png", "out.tif"):  # every depth held
+        code, out = run(*args, "-o", name)
+        assert code == 0 and "Warning" not in out, out
+
+
 def test_cli_inpaint_with_maps_fits_a_material_on_the_picture(tmp_path):
     albedo = data.bricks(192, rng=2)
     maps = example_maps(albedo)

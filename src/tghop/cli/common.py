@@ -22,7 +22,8 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import is_model_file
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout"]
+           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout",
+           "warn_lost_depth"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -392,6 +393,31 @@ def material_outputs(material, output, depth):
     return out
 
 
+def warn_lost_depth(items, path, depth, noun=None):
+    """One warning naming the images written to ``path``'s format with fewer bits a channel
+    than they had (a 16-bit map as JPEG, a float one as PNG), as ``synth`` warns of a deep
+    exemplar written with 8: ``items`` are ``(label, own depth, written depth)``; none when
+    ``depth`` (``--depth``) was given (the user chose it). ``noun`` (``"map"``) goes before
+    the labels, with an s for several."""
+    import warnings
+
+    from .._formats import DEPTHS, extensions
+    from ..imageio import output_format
+
+    lost = [(label, own) for label, own, written in items if written < own]
+    if depth is not None or not lost:
+        return
+    fmt = output_format(path)
+    keep = extensions([f for f, held in DEPTHS.items() if max(own for _, own in lost) in held])
+    names = [f"{label} ({'float' if own == 32 else f'{own}-bit'})" for label, own in lost]
+    named = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+    if noun:
+        named = f"{noun}{'s' if len(names) > 1 else ''} {named}"
+    warnings.warn(f"{named} {'has' if len(names) == 1 else 'have'} more bits a channel than {fmt} holds, but "
+                  f"{'is' if len(names) == 1 else 'are'} written with {max(DEPTHS[fmt])}; name the output {keep} "
+                  "to keep them")
+
+
 def write_materials(material, output, outputs, size, depth, make, inputs):
     """Materials' maps, OUT, OUT_<map>, ... for each path of ``outputs``: all checked before any
     work (``inputs``: ``(label, path)`` pairs that no output may be), each set made by ``make()``
@@ -406,6 +432,7 @@ def write_materials(material, output, outputs, size, depth, make, inputs):
         for _, path, _ in plan:
             check_output(path)
     check_outputs([("-o", path) for plan in plans for _, path, _ in plan], inputs)
+    warn_lost_depth([(name, own, d) for (name, _, d), own in zip(plans[0], material.depths_)], output, depth, "map")
     for plan in plans:
         maps = make()
         save_images([(maps[name], path, d) for name, path, d in plan])

@@ -8,7 +8,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, map_names,
-                     user_errors)
+                     user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -76,7 +76,7 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
         if with_maps:
             _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, mask=mask)
             return
-        picture, alpha, depth, source_is_model = _open(image, output, source, scale, depth, others=[("MASK", mask)])
+        picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[("MASK", mask)])
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
         model, rng = _model(picture, hole, image, source, source_is_model, scale, seed, progress,
@@ -116,7 +116,7 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
             _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress,
                            grow=(size, anchor.lower()))
             return
-        picture, alpha, depth, source_is_model = _open(image, output, source, scale, depth, others=[])
+        picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[])
         canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
         if alpha is not None:
             alpha = expand_canvas(alpha, size, anchor=anchor.lower())[0]
@@ -137,11 +137,12 @@ def _check_maps(map_paths, with_maps, last):
         raise TGHopError("--maps without maps; give the map images after it")
 
 
-def _open(image, output, source, scale, depth, *, others):
+def _open(image, output, source, scale, depth, *, others, maps=False):
     """Check the outputs and options shared by inpaint and extend, and read IMAGE: its
     colours (8-bit stays 8-bit), its alpha channel apart (or None), the output's depth
-    (without --depth IMAGE's own, as far as the output's format holds it) and whether
-    --source is a saved model."""
+    (without --depth IMAGE's own, as far as the output's format holds it, with a warning
+    when that is less; with ``maps`` the caller warns, with the maps), whether --source
+    is a saved model and IMAGE's depth."""
     from ..imageio import check_depth, deepest, load_image
     from ..inpaint import split_alpha
 
@@ -158,7 +159,10 @@ def _open(image, output, source, scale, depth, *, others):
     picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True,
                                       too_large_hint=HINT_DOWNSCALE_YOURSELF)
     picture, alpha = split_alpha(picture)
-    return picture, alpha, check_depth(output, depth or deepest(output, image_depth)), source_is_model
+    written = check_depth(output, depth or deepest(output, image_depth))
+    if not maps:
+        warn_lost_depth([(f"IMAGE {image}", image_depth, written)], output, depth)
+    return picture, alpha, written, source_is_model, image_depth
 
 
 def _model(picture, hole, image, source, source_is_model, scale, seed, progress, *, too_little, fix):
@@ -275,7 +279,8 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         raise TGHopError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit ALBEDO "
                          "--maps ...), or leave --source out to fit one on IMAGE and its maps")
     others = ([] if mask is None else [("MASK", mask)]) + [("MAP", m) for m in map_paths]
-    picture, alpha, depth_albedo, _ = _open(image, output, source, scale, depth, others=others)
+    picture, alpha, depth_albedo, _, image_depth = _open(image, output, source, scale, depth, others=others,
+                                                         maps=True)
     material = None
     if source is not None:
         from ..modelfile import load_model
@@ -303,6 +308,8 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     for _, out, _ in plan[1:]:
         check_output(out)
     check_outputs([("-o", out) for _, out, _ in plan], [("IMAGE", image), ("--source", source)] + others)
+    own = {"albedo": image_depth, **depths}
+    warn_lost_depth([(name, own[name], d) for name, _, d in plan], output, depth, "map")
     if grow is not None:
         canvas, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
         images = {"albedo": canvas, **{k: expand_canvas(v, grow[0], anchor=grow[1])[0] for k, v in maps.items()}}
