@@ -261,6 +261,35 @@ def test_cli_refuses_a_size_beyond_the_memory_in_one_line(tmp_path, monkeypatch)
     assert "largest size that fits" in lines[0] and "Traceback" not in result.output
 
 
+def test_cli_keeps_a_16bit_exemplar_with_depth_and_warns_without(tmp_path):
+    # It wrote 8 bits without a word; as synth: a warning naming --depth 16, which keeps every level.
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+    from tghop.imageio import load_image, save_image
+
+    levels = np.random.default_rng(0).integers(0, 65536, (40, 40, 3)).astype(np.uint16)
+    save_image(levels / 65535.0, tmp_path / "deep.png", depth=16)
+
+    def run(source, name, *more):
+        result = CliRunner().invoke(main, ["baseline", "crop", source, "-o", str(tmp_path / name), *more])
+        assert result.exit_code == 0, result.output
+        return [line for line in result.output.splitlines() if line.startswith("Warning")]
+
+    assert run(str(tmp_path / "deep.png"), "a.png") == [
+        f"Warning: EXEMPLAR {tmp_path / 'deep.png'} has more than 8 bits a channel, but the image is written with 8; "
+        "pass --depth 16 to keep them"]
+    assert load_image(tmp_path / "a.png", with_depth=True)[1] == 8
+    assert run(str(tmp_path / "deep.png"), "b.png", "--depth", "16") == []
+    image, depth = load_image(tmp_path / "b.png", with_depth=True)
+    assert depth == 16 and np.array_equal(np.round(image * 65535).astype(np.uint16), levels)  # the crop: all of it
+    assert run("builtin:bricks", "c.png", "--size", "32") == []  # the built-ins are 8-bit
+    bad = CliRunner().invoke(main, ["baseline", "crop", str(tmp_path / "deep.png"), "-o", str(tmp_path / "d.jpg"),
+                                    "--depth", "16"])
+    assert bad.exit_code != 0 and bad.output.count("\n") == 1 and "JPEG cannot hold 16-bit" in bad.output
+    assert not (tmp_path / "d.jpg").exists()
+
+
 # ---------------------------------------------------------------------------------------
 # GPDM
 # ---------------------------------------------------------------------------------------

@@ -23,7 +23,7 @@ from .._formats import is_model_file
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
            "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout",
-           "warn_lost_depth"]
+           "warn_lost_depth", "warn_written_with_8"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -181,8 +181,9 @@ def user_errors(progress=None):
 HINT_DOWNSCALE_OPTION = "pass --downscale to reduce it (or downscale it yourself)"
 
 
-def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False):
-    """An image file, or ``builtin:NAME`` for a built-in exemplar.
+def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False, with_depth=False):
+    """An image file, or ``builtin:NAME`` for a built-in exemplar; with ``with_depth``, and
+    its bits per channel (8 for a built-in one).
 
     ``has_downscale``: the command has a ``--downscale`` option, so an image over the size
     limit is answered with "pass --downscale"; otherwise with "downscale it first".
@@ -191,11 +192,21 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
     from ..imageio import load_image
 
     if spec.startswith("builtin:"):
-        return builtin(spec.split(":", 1)[1])
+        image = builtin(spec.split(":", 1)[1])
+        return (image, 8) if with_depth else image
     if is_model_file(spec):
         raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
-    return load_image(spec, downscale=downscale, dtype=dtype,
+    return load_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
+
+
+def warn_written_with_8(label: str, spec: str):
+    """The warning of a command that writes 8 bits without ``--depth`` (``synth``, ``baseline``)
+    when its input ``label spec`` has more."""
+    import warnings
+
+    warnings.warn(f"{label} {spec} has more than 8 bits a channel, but the image is written with 8; "
+                  "pass --depth 16 to keep them")
 
 
 def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image"):

@@ -9,8 +9,8 @@ import click
 
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
-from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors
-from .options import QUIET_OPTION, Size, scale_option
+from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors, warn_written_with_8
+from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["evaluate", "baseline"]
 
@@ -125,8 +125,9 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
               help="cooc: how the image is made from the generator: quilt (default: generated training-size "
                    "crops stitched by image quilting), pass (the paper's: one pass over the whole condition), "
                    "windows (that condition in training-size windows).")
+@depth_option("8")
 @QUIET_OPTION
-def baseline(name, exemplar, output, size, seed, iterations, model_file, assembly, quiet):
+def baseline(name, exemplar, output, size, seed, iterations, model_file, assembly, depth, quiet):
     """Make a reference texture from EXEMPLAR with baseline NAME.
 
     \b
@@ -143,11 +144,12 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     Sizes whose estimated memory exceeds the memory available are refused at once.
     """
     from ..baselines import BASELINES
-    from ..imageio import save_image
+    from ..imageio import check_depth, save_image
 
     progress = Progress(not quiet)
     with user_errors(progress):
         check_output(output, allow_stdout=True)
+        check_depth(output, depth or 8)
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--model", model_file)])
         if iterations is not None and name not in ("ustyuzhaninov", "cooc", "gpdm"):
             raise TGHopError("--iterations applies to the ustyuzhaninov, cooc and gpdm baselines only")
@@ -157,7 +159,9 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
         if iterations is not None and model_file is not None:
             raise TGHopError("--iterations applies to the cooc baseline without --model only (it sets the training "
                              "steps; the checkpoint is trained already)")
-        ex = load_exemplar(exemplar)
+        ex, own = load_exemplar(exemplar, with_depth=True)
+        if own > 8 and depth is None:
+            warn_written_with_8("EXEMPLAR", exemplar)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
         if name == "gpdm":
             kwargs = {"n_steps": iterations} if iterations is not None else {}
@@ -183,6 +187,6 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                            "'tghop cooc train' and pass --model", err=True)
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
-        save_image(image, output)
+        save_image(image, output, depth=depth or 8)
     if output != "-":
         click.echo(f"{name} result written to {output}", err=True)

@@ -12,7 +12,7 @@ from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_model_file, load_exemplar, load_mask, map_names, numbered, summary, user_errors,
-                     write_materials)
+                     warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -25,14 +25,11 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
     """A TGHop fitted on exemplar ``spec`` (a file or builtin:NAME) with the fit options,
     leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``); with
     ``deep_warning`` (a label), a warning when the exemplar has more than 8 bits a channel."""
-    import warnings
-
     from ..synthesis import prepare_exemplar
 
     raw = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True)
     if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
-        warnings.warn(f"{deep_warning} {spec} has more than 8 bits a channel, but the image is written with 8; "
-                      "pass --depth 16 to keep them")
+        warn_written_with_8(deep_warning, spec)
     image = prepare_exemplar(raw)
     model = build_model(options, n_colours=image.shape[2])
     model.check_exemplar_size(image.shape)  # before the mask is read
