@@ -311,6 +311,61 @@ def test_cli_masks_that_leave_too_little_name_the_fix_of_each_command(files):
     assert "inpaint" not in r.stderr.decode() and not (files / "w.npz").exists()
 
 
+def test_cli_a_hole_painted_as_transparency_is_told_to_be_painted_white(files):
+    # The mask's alpha was dropped: a hole painted as transparency gave "no white pixel" or "leaves too
+    # little" without a word why. The pixels that are the hole stay the same: its colours' white ones.
+    clear = np.zeros((96, 96, 4), np.uint8)
+    clear[..., 3] = 255
+    clear[40:52, 40:52, 3] = 0  # the hole, transparent black
+    Image.fromarray(clear, "RGBA").save(files / "clear.png")
+    r = run("inpaint", files / "cells.png", files / "clear.png", "-o", files / "c.png", "--source", files / "model.npz")
+    assert_user_error(r, "clear.png has no white pixel")
+    warned = [line for line in r.stderr.decode().splitlines() if line.startswith("Warning")]
+    assert warned == [f"Warning: MASK {files / 'clear.png'} has transparent pixels, but transparency is not read as "
+                      "the hole (its alpha channel is ignored; its white pixels are the hole); paint the hole white "
+                      "on black"] and not (files / "c.png").exists()
+    clear[..., :3] = 255  # white and transparent all round: the whole picture is the hole
+    Image.fromarray(clear, "RGBA").save(files / "clear_white.png")
+    r = run("inpaint", files / "cells.png", files / "clear_white.png", "-o", files / "c.png", "-q")
+    assert_user_error(r, "leaves too little")
+    assert "transparency is not read as the hole" in r.stderr.decode()
+    r = run("fit", files / "cells.png", "--exclude", files / "clear.png", "-o", files / "c.npz", "-q", "--clusters",
+            "10", "--max-patches", "1000", "--layout", "none")
+    assert r.returncode == 0 and "paint the part left out white on black" in r.stderr.decode()
+    opaque = np.zeros((96, 96, 4), np.uint8)
+    opaque[..., 3] = 255
+    opaque[40:52, 40:52, :3] = 255
+    Image.fromarray(opaque, "RGBA").save(files / "opaque.png")  # white on black, an alpha that changes nothing
+    r = run("inpaint", files / "cells.png", files / "opaque.png", "-o", files / "o.png", "--source",
+            files / "model.npz", "--seed", "2", "-q")
+    assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()
+
+
+@pytest.mark.parametrize("mode, channels, bits", [("RGBA", 4, 8), ("LA", 2, 8), ("RGBA", 4, 16), ("P", 1, 8)])
+def test_a_masks_hole_is_its_white_pixels_whatever_its_alpha(tmp_path, mode, channels, bits):
+    import warnings
+
+    from tghop.cli.common import load_mask
+    from tghop.imageio import load_image
+
+    rng = np.random.default_rng(bits + channels)
+    if mode == "P":  # a palette with a transparent entry
+        image = Image.fromarray(rng.integers(0, 4, (20, 30)).astype(np.uint8), "P")
+        image.putpalette([0, 0, 0, 255, 255, 255, 200, 90, 30, 250, 250, 250])
+        image.info["transparency"] = 3
+        image.save(tmp_path / "m.png", transparency=3)
+    elif bits == 16:
+        save_image(rng.random((20, 30, channels)), tmp_path / "m.png", depth=16)
+    else:
+        Image.fromarray(rng.integers(0, 256, (20, 30, channels)).astype(np.uint8), mode).save(tmp_path / "m.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        before = load_image(tmp_path / "m.png").mean(axis=2) > 0.5  # the alpha dropped, as the mask was read
+    with pytest.warns(UserWarning, match="transparency is not read as the hole"):
+        hole = load_mask(str(tmp_path / "m.png"), (20, 30))
+    assert np.array_equal(hole, before) and 0 < hole.sum() < hole.size
+
+
 def test_cli_an_image_smaller_than_the_patches_names_a_model_of_smaller_ones(files):
     # inpaint has no --patch-size and IMAGE is no exemplar ("use a larger exemplar or a smaller
     # patch size"); with --source the message named no fix at all.

@@ -209,17 +209,29 @@ def warn_written_with_8(label: str, spec: str):
                   "pass --depth 16 to keep them")
 
 
-def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image"):
-    """A mask image as an (H, W) bool array: True where its pixels are white (channel mean
-    > 0.5). One line when it cannot be read or is not ``shape``'s size (H, W, ...)."""
+def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image", what: str = "hole"):
+    """A mask image as an (H, W) bool array: True where its pixels are white (colour channels'
+    mean > 0.5). One line when it cannot be read or is not ``shape``'s size (H, W, ...).
+
+    Its alpha channel is not read: where it has transparent pixels, a warning says so and
+    to paint the ``what`` (``"hole"``) white on black (a hole painted as transparency was
+    "no white pixel" or "leaves too little" without a word why)."""
+    import warnings
+
     from ..imageio import load_image
 
     if is_model_file(path):
         raise TGHopError(f"{label} {path} is a model file, not an image; give a black and white image")
-    mask = load_image(path, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+    mask = load_image(path, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True)  # the colours as without it
     if mask.shape[:2] != tuple(shape[:2]):
         raise TGHopError(f"{label} {path} is {mask.shape[0]}x{mask.shape[1]} but {image_label} is "
                          f"{shape[0]}x{shape[1]}; give a mask of the same size")
+    if mask.shape[2] in (2, 4):  # grey or RGB, and alpha
+        if (mask[..., -1] < 1).any():
+            warnings.warn(f"{label} {path} has transparent pixels, but transparency is not read as the {what} (its "
+                          f"alpha channel is ignored; its white pixels are the {what}); paint the {what} white on "
+                          "black")
+        mask = mask[..., :-1]
     return mask.mean(axis=2) > 0.5
 
 

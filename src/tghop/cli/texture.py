@@ -33,7 +33,8 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
     image = prepare_exemplar(raw)
     model = build_model(options, n_colours=image.shape[2])
     model.check_exemplar_size(image.shape)  # before the mask is read
-    mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar")
+    mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar",
+                                                    what="part left out")
     return model.fit(image, exclude=mask, progress=progress)
 
 
@@ -56,7 +57,8 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     maps, depths = {}, {"albedo": depth}
     for path, name in zip(map_paths, map_names(map_paths, label="--maps", albedo="EXEMPLAR")):
         maps[name], depths[name] = read(path, "--maps")
-    mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar")
+    mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar",
+                                                    what="part left out")
     params = fit_params(options)
     return Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
                                                                   progress=progress)
