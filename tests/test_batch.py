@@ -155,8 +155,8 @@ def test_an_earlier_outdir_inside_source_is_no_exemplar(tmp_path):
 def test_bad_settings_are_refused_before_any_work(tmp_path):
     # As synth refuses them: the generation settings against the fit's patch size, the fit's own.
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
-    for kw, words in ((dict(generate={**GEN, "overlap": 100}), "overlap must be between 1 and 16 (half the patch "
-                                                               "size 32), got 100"),
+    for kw, words in ((dict(generate={**GEN, "overlap": 100}), "overlap (overlap, --overlap) must be between 1 and 16 "
+                                                               "(half the patch size 32), got 100"),
                       (dict(generate=GEN, fit={**FIT, "patch_size": 64}, size=(48, 48), tile=True),
                        "a tileable output (tile, --tile) needs a height of at least the patch size 64, got 48"),
                       (dict(generate={**GEN, "tolerance": -1}), "tolerance must be"),
@@ -174,7 +174,7 @@ def test_bad_settings_are_refused_before_any_work(tmp_path):
     assert not out.exists()
     code, _, err, exc = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "64", "--overlap", "100",
                                *CLI_FAST, cwd=tmp_path)
-    assert_one_line(code, err, "overlap must be between 1 and 16", exception=exc)
+    assert_one_line(code, err, "--overlap) must be between 1 and 16", exception=exc)
     assert not out.exists()
 
 

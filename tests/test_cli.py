@@ -153,7 +153,12 @@ def test_builtin_exemplar(workdir):
         (["fit", "tiny.png", "-o", "m.npz"], ["at least 76x76"]),
         (["fit", "bricks.png", "-o", "m.npz", "--k1", "13"], ["K1", "at most 12"]),
         (["fit", "bricks.png", "-o", "m.npz", "--k1", "0"], ["--k1"]),
-        (["fit", "bricks.png", "-o", "m.npz", "--k2", "5"], ["K2", "at least 9"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--k2", "5"], ["K2 (n_channels[1], --k2)", "at least 9"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--k1", "9", "--k2", "500"], ["--k2", "at most 36"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--patch-size", "64", "--clusters", "4", "--k3", "5000"],
+         ["--k3", "at most 88"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--max-patches", "10"], ["there are 10", "--max-patches"]),
+        (["fit", "bricks.png", "-o", "m.npz", "--min-cluster-size", "100000"], ["--min-cluster-size"]),
         (["fit", "bricks.png", "-o", "m.npz", "--k2", "lots"], ["--k2"]),
         (["fit", "bricks.png", "-o", "m.npz", "--clusters", "0"], ["--clusters"]),
         (["fit", "bricks.png", "-o", "m.npz", "--clusters", "4000"], ["lower N"]),
@@ -170,6 +175,7 @@ def test_builtin_exemplar(workdir):
         (["synth", "bricks.png", "-o", "out.png", "--size", "100000x100000"], ["above the limit"]),
         (["synth", "bricks.png", "-o", "-", "--count", "2"], ["stdout"]),
         (["synth", "bricks.png", "-o", "out.png", "--pool", "0"], ["--pool"]),
+        (["synth", "bricks.png", "-o", "out.png", "--overlap", "40"], ["--overlap", "got 40; give 16 or less"]),
     ],
 )
 def test_bad_input(workdir, args, fragments):

@@ -141,7 +141,7 @@ def test_failure_is_one_line_and_leaves_nothing(folder, args, fragments):
     assert sorted(os.listdir(folder)) == before
 
 
-@pytest.mark.parametrize("args, fragment", [(["--overlap", "20"], "overlap must be between 1 and 16"),
+@pytest.mark.parametrize("args, fragment", [(["--overlap", "20"], "(overlap, --overlap) must be between 1 and 16"),
                                             (["--size", "20", "--tile"], "at least the patch size 32")])
 def test_an_output_quilting_refuses_is_refused_before_the_fit(folder, args, fragment):
     # From an exemplar: the output's blocks are checked at the fit's patch size first (the

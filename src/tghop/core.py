@@ -223,9 +223,10 @@ class ICHM(BaseEstimator):
         if n_clusters * self.min_cluster_size > n_samples:
             raise TGHopError(
                 f"n_clusters={n_clusters}{' (auto)' if self.n_clusters is None else ''} needs at least "
-                f"{n_clusters * self.min_cluster_size} "
-                f"training patches but there are {n_samples}; lower N (n_clusters, --clusters), take more "
-                "training patches (a smaller stride, a larger max_patches) or use a larger exemplar"
+                f"{n_clusters * self.min_cluster_size} training patches (min_cluster_size={self.min_cluster_size} "
+                f"each) but there are {n_samples}; lower N (n_clusters, --clusters) or the least cluster "
+                "size (min_cluster_size, --min-cluster-size), take more training patches (a smaller stride, --stride, "
+                "or a larger max_patches, --max-patches) or use a larger exemplar"
             )
 
     def fit(self, Z, y=None, *, groups=None, progress=None):

@@ -495,7 +495,7 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
             try:
                 hop = Hop(n_channels=rule, channelwise=i > 0).fit(X)
             except TGHopError as exc:
-                raise TGHopError(f"K{i + 1}: {exc}") from None
+                raise TGHopError(f"K{i + 1} (n_channels[{i}], --k{i + 1}): {exc}") from None
             X = hop.transform(X)
             hops.append(hop)
             dims.append(int(np.prod(X.shape[1:])))
@@ -564,7 +564,7 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
             try:
                 hop = Hop(n_channels=rule, channelwise=level > 1).fit_sums(sums)
             except TGHopError as exc:
-                raise TGHopError(f"K{level}: {exc}") from None
+                raise TGHopError(f"K{level} (n_channels[{level - 1}], --k{level}): {exc}") from None
             hops.append(hop)
             dims.append(side * side * hop.n_channels_out_)
         side = patch_size // unit

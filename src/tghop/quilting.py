@@ -106,7 +106,9 @@ def _check_patch_overlap(patch_size, overlap) -> Tuple[int, int]:
         raise TGHopError(f"overlap must be an integer number of pixels, got {overlap!r}")
     o = int(overlap)
     if not 1 <= o <= p // 2:
-        raise TGHopError(f"overlap must be between 1 and {p // 2} (half the patch size {p}), got {o}")
+        fix = "1 or more" if o < 1 else f"{p // 2} or less, or fit with larger patches (patch_size, --patch-size)"
+        raise TGHopError(f"the overlap (overlap, --overlap) must be between 1 and {p // 2} (half the patch size {p}), "
+                         f"got {o}; give {fix}")
     return p, o
 
 
