@@ -197,9 +197,9 @@ def test_colour_functions_check_their_images(rng):
                             ("ColourClasses.targets", lambda: cc.targets(bad))):
             with pytest.raises(InvalidImageError, match=f"^{where}: image.*{message}"):
                 call()
-    with pytest.raises(InvalidImageError, match="match_histograms: image has 3 channels where 1 are expected"):
+    with pytest.raises(InvalidImageError, match="match_histograms: image has 3 channels where 1 is expected"):
         match_histograms(img, q[:1])
-    with pytest.raises(InvalidImageError, match="ColourClasses.targets: image has 1 channels where 3"):
+    with pytest.raises(InvalidImageError, match="ColourClasses.targets: image has 1 channel where 3 are expected"):
         cc.targets(img[..., :1])
     with pytest.raises(TGHopError, match="match_histograms: quantiles must be a"):
         match_histograms(img, q[0])

@@ -170,7 +170,7 @@ def test_cli_inpaint_with_maps_fits_a_material_on_the_picture(tmp_path):
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory, picture):
-    """The picture's files, a saved material of two maps and a texture model."""
+    """The picture's files, saved materials of two maps and of one, and a texture model."""
     d = tmp_path_factory.mktemp("fill")
     _write(d, picture)
     (d / "sub").mkdir()
@@ -180,6 +180,8 @@ def folder(tmp_path_factory, picture):
     two = Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {
         "wall_normal": picture[0]["normal"], "h": picture[0]["height"]})
     save_model(two, d / "mat.npz")
+    save_model(Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {"h": picture[0]["height"]}),
+               d / "one.npz")
     save_model(TGHop(**FAST).fit(picture[0]["albedo"]), d / "tex.npz")
     return d
 
@@ -191,7 +193,9 @@ def folder(tmp_path_factory, picture):
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "wall.png", "-o", "o.png"],
      "--source wall.png is an exemplar"),
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "mat.npz", "-o", "o.png"],
-     "a material of 2 maps (wall_normal, h) but 1 were given"),
+     "a material of 2 maps (wall_normal, h) but 1 was given;"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "wall_normal.png", "--source", "one.npz", "-o", "o.png"],
+     "a material of 1 map (h) but 2 were given;"),
     (["inpaint", "wall.png", "mask.png", "--maps", "small.png", "-o", "o.png"], "MAP small.png is 64x128"),
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/h.png", "-o", "o.png"], "two maps are named 'h'"),
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "tex.npz", "-o", "o.png"],

@@ -354,8 +354,9 @@ def checked_image(image, where, name="image", channels=None, *, integers=None, e
         raise InvalidImageError(f"{where}: {name} must be an (H, W, C) float array in [0, 1]{ints}, "
                                 f"got {arr.dtype} of shape {arr.shape}")
     if channels is not None and arr.shape[2] != channels:
-        raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channels where {channels} are expected "
-                                "(as many as the statistics have)")
+        raise InvalidImageError(f"{where}: {name} has {arr.shape[2]} channel{'s' if arr.shape[2] != 1 else ''} where "
+                                f"{channels} {'is' if channels == 1 else 'are'} expected (as many as the statistics "
+                                "have)")
     if not empty and arr.size == 0:
         raise InvalidImageError(f"{where}: the {name} is empty (shape {arr.shape}); "
                                 "give an image of at least one pixel")

@@ -290,9 +290,10 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
             raise TGHopError(f"--source {source} is a texture model; with --maps give a saved material (tghop fit "
                              "ALBEDO --maps ...), or leave --source out")
         if len(map_paths) != len(material.names_) - 1:
-            raise TGHopError(f"--source {source} is a material of {len(material.names_) - 1} maps "
-                             f"({', '.join(material.names_[1:])}) but {len(map_paths)} were given; give its maps "
-                             "after --maps, in that order")
+            n, given = len(material.names_) - 1, len(map_paths)
+            raise TGHopError(f"--source {source} is a material of {n} map{'s' if n != 1 else ''} "
+                             f"({', '.join(material.names_[1:])}) but {given} {'was' if given == 1 else 'were'} "
+                             "given; give its maps after --maps, in that order")
     names = material.names_[1:] if material is not None else map_names(map_paths)
     plan = [("albedo", output, depth_albedo)]
     maps, depths = {}, {}
