@@ -366,6 +366,18 @@ def test_a_masks_hole_is_its_white_pixels_whatever_its_alpha(tmp_path, mode, cha
     assert np.array_equal(hole, before) and 0 < hole.sum() < hole.size
 
 
+def test_cli_a_mask_that_leaves_one_patch_says_so_in_the_singular(files):
+    # "1 training patches of 32x32 avoid the hole"
+    corner = np.full((96, 96), 255, np.uint8)
+    corner[:32, :32] = 0  # one patch position outside the hole
+    Image.fromarray(corner).save(files / "corner.png")
+    r = run("inpaint", files / "cells.png", files / "corner.png", "-o", files / "k.png", "-q")
+    assert_user_error(r, "leaves too little", ": 1 training patch of 32x32 avoids the hole, at least")
+    r = run("fit", files / "cells.png", "--exclude", files / "corner.png", "-o", files / "k.npz", "-q")
+    assert_user_error(r, "mask: 1 training patch of 32x32 avoids it, at least")
+    assert not (files / "k.png").exists() and not (files / "k.npz").exists()
+
+
 def test_cli_an_image_smaller_than_the_patches_names_a_model_of_smaller_ones(files):
     # inpaint has no --patch-size and IMAGE is no exemplar ("use a larger exemplar or a smaller
     # patch size"); with --source the message named no fix at all.

@@ -214,8 +214,9 @@ def enough_patches(n_patches, need, patch_size, per_cluster=None):
         fewer = (f", or N of at most {n_patches // per_cluster} (n_clusters, --clusters)"
                  if per_cluster and n_patches >= per_cluster else "")
         exc = TooLittleTextureError(
-            f"too little texture outside the mask: {n_patches} training patches of {patch_size}x{patch_size} "
-            f"avoid it, at least {need} are needed; use a smaller mask or a larger image{fewer}")
+            f"too little texture outside the mask: {n_patches} training patch{'es' if n_patches != 1 else ''} of "
+            f"{patch_size}x{patch_size} avoid{'s' if n_patches == 1 else ''} it, at least {need} are needed; use a "
+            f"smaller mask or a larger image{fewer}")
         exc.n_patches, exc.need, exc.patch_size = n_patches, need, patch_size
         raise exc
 

@@ -207,10 +207,16 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                              f"model on (at least {exc.least_side}x{exc.least_side} pixels); give --source (an "
                              "exemplar of the same texture or a saved model) or a larger IMAGE") from None
         except TooLittleTextureError as exc:
-            raise TGHopError(f"{too_little}: {exc.n_patches} training patches of {exc.patch_size}x{exc.patch_size} "
-                             f"avoid the hole, at least {exc.need} are needed; give --source (an exemplar of the "
-                             f"same texture or a saved model) or {fix}") from None
+            raise TGHopError(f"{too_little}: {_avoiding(exc, 'the hole')}, at least {exc.need} are needed; give "
+                             f"--source (an exemplar of the same texture or a saved model) or {fix}") from None
     return model, rng
+
+
+def _avoiding(exc, what):
+    """"N training patches of PxP avoid ``what``" of a :class:`~tghop.patches.TooLittleTextureError`
+    (1 patch avoids it)."""
+    n, p = exc.n_patches, exc.patch_size
+    return f"{n} training patch{'es' if n != 1 else ''} of {p}x{p} avoid{'s' if n == 1 else ''} {what}"
 
 
 def _check_channels(picture, n_channels, image, source):
@@ -350,6 +356,6 @@ def _fit_material(picture, maps, depths, depth_albedo, hole, image, rng, progres
                          f"material on (at least {exc.least_side}x{exc.least_side} pixels); give --source (a saved "
                          "material of the same texture) or a larger IMAGE") from None
     except TooLittleTextureError as exc:
-        raise TGHopError(f"the hole leaves too little of IMAGE {image} to fit a material on: {exc.n_patches} "
-                         f"training patches of {exc.patch_size}x{exc.patch_size} avoid it, at least {exc.need} are "
-                         "needed; give --source (a saved material) or paint a smaller hole") from None
+        raise TGHopError(f"the hole leaves too little of IMAGE {image} to fit a material on: {_avoiding(exc, 'it')}, "
+                         f"at least {exc.need} are needed; give --source (a saved material) or paint a smaller "
+                         "hole") from None
