@@ -288,6 +288,10 @@ def test_cli_keeps_a_16bit_exemplar_with_depth_and_warns_without(tmp_path):
                                     "--depth", "16"])
     assert bad.exit_code != 0 and bad.output.count("\n") == 1 and "JPEG cannot hold 16-bit" in bad.output
     assert not (tmp_path / "d.jpg").exists()
+    # To JPEG, which --depth 16 alone cannot give, the fix names the formats that hold 16 bits first.
+    assert run(str(tmp_path / "deep.png"), "e.jpg") == [
+        f"Warning: EXEMPLAR {tmp_path / 'deep.png'} has more than 8 bits a channel, but the image is written with 8; "
+        "name the output .png, .tif or .tiff and pass --depth 16 to keep them"]
 
 
 # ---------------------------------------------------------------------------------------

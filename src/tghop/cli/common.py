@@ -200,13 +200,18 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
 
 
-def warn_written_with_8(label: str, spec: str):
+def warn_written_with_8(label: str, spec: str, output=None):
     """The warning of a command that writes 8 bits without ``--depth`` (``synth``, ``baseline``)
-    when its input ``label spec`` has more."""
+    when its input ``label spec`` has more; to an ``output`` of a format of 8 bits only (JPEG),
+    the fix names a format that holds 16 first (``--depth 16`` alone is refused there)."""
     import warnings
 
-    warnings.warn(f"{label} {spec} has more than 8 bits a channel, but the image is written with 8; "
-                  "pass --depth 16 to keep them")
+    from ..imageio import DEPTHS, extensions, output_format
+
+    fix = "pass --depth 16 to keep them"
+    if output is not None and 16 not in DEPTHS[output_format(output)]:
+        fix = f"name the output {extensions([f for f, held in DEPTHS.items() if 16 in held])} and {fix}"
+    warnings.warn(f"{label} {spec} has more than 8 bits a channel, but the image is written with 8; {fix}")
 
 
 def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image", what: str = "hole"):

@@ -161,7 +161,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                              "steps; the checkpoint is trained already)")
         ex, own = load_exemplar(exemplar, with_depth=True)
         if own > 8 and depth is None:
-            warn_written_with_8("EXEMPLAR", exemplar)
+            warn_written_with_8("EXEMPLAR", exemplar, output)
         kwargs = {"n_iter": iterations} if iterations is not None else {}
         if name == "gpdm":
             kwargs = {"n_steps": iterations} if iterations is not None else {}

@@ -21,15 +21,16 @@ from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
 
-def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=None):
+def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=None, output=None):
     """A TGHop fitted on exemplar ``spec`` (a file or builtin:NAME) with the fit options,
     leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``); with
-    ``deep_warning`` (a label), a warning when the exemplar has more than 8 bits a channel."""
+    ``deep_warning`` (a label), a warning when the exemplar has more than 8 bits a channel (written to
+    ``output``)."""
     from ..synthesis import prepare_exemplar
 
     raw = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True)
     if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
-        warn_written_with_8(deep_warning, spec)
+        warn_written_with_8(deep_warning, spec, output)
     image = prepare_exemplar(raw)
     model = build_model(options, n_colours=image.shape[2])
     model.check_exemplar_size(image.shape)  # before the mask is read
@@ -327,7 +328,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         block_count(size, planned.patch_size, overlap=generation["overlap"], tile=generation["tile"])
         refuse_patch_refine_without_statistics(ctx, generation, planned)
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress,
-                             deep_warning=None if depth else "SOURCE")
+                             deep_warning=None if depth else "SOURCE", output=output)
         if save_model:
             write_model(model, save_model)
     import warnings
