@@ -156,15 +156,19 @@ def test_a_materials_answer_decodes_to_its_bytes(page):
     assert same
 
 
-def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):
+def save_material(path):
+    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
     from tghop import TGHop, data
     from tghop.material import Material, example_maps
     from tghop.modelfile import save_model
 
     albedo = data.bricks(64)
     fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}),
-               tmp_path / "material.npz")
+    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
+
+
+def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):
+    save_material(tmp_path / "material.npz")
     page.set_input_files("#model-file", str(tmp_path / "material.npz"))
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
     page.wait_for_function("document.getElementById('message').textContent"
@@ -172,6 +176,35 @@ def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):
     page.click("label:has(#mode-inpaint)")
     assert "is a material" in page.text_content("#inpaint-message")
     page.click("label:has(#mode-view)")
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_fill_and_extend_are_off_for_a_material_and_a_picture_without_maps(page, tmp_path):
+    # They were on: Extend sent the picture alone and the page showed the API's words ("send each of
+    # them ... as the file field map:<name>"), Fill the same once a hole was painted.
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    save_material(tmp_path / "material.npz")
+    page.locator("label", has=page.locator("#mode-inpaint")).click()
+    page.set_input_files("#model-file", str(tmp_path / "material.npz"))
+    page.wait_for_function("document.getElementById('message').textContent"
+                           " === 'material material.npz loaded: generate below (every map)'")
+    (tmp_path / "own.png").write_bytes(png(to_uint8(data.bricks(64))))
+    page.set_input_files("#picture", str(tmp_path / "own.png"))  # a picture of one's own: no maps
+    page.wait_for_selector("#editor[data-ready='1']")
+    assert page.is_disabled("#fill") and page.is_disabled("#extend-go")
+    assert "is a material" in page.text_content("#inpaint-message")
+    page.locator("label", has=page.locator("#mode-view")).click()
+    page.fill("#height", "64")
+    page.fill("#width", "64")
+    page.click("#go")  # a result of the material: its maps, so Fill and Extend work
+    page.wait_for_function("document.getElementById('maps-view').querySelectorAll('input').length === 2")
+    page.locator("label", has=page.locator("#mode-inpaint")).click()
+    page.wait_for_selector("#editor[data-ready='1']")
+    assert page.is_enabled("#fill") and page.is_enabled("#extend-go")
+    assert page.text_content("#inpaint-message") == ""
+    page.locator("label", has=page.locator("#mode-view")).click()
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
 
 

@@ -23,9 +23,7 @@ function setMode(mode) {
   $("morph").hidden = mode !== "morph";
   $("cooc").hidden = mode !== "cooc";
   if (mode === "cooc") coocShown();
-  if (inpaint && state.material && !editor.maps) {
-    sayInpaint("this model is a material: Fill and Extend fill every map of one of its results; generate first", true);
-  } else if (inpaint && !editor.blob) sayInpaint("generate an image first, or use a picture of your own");
+  if (inpaint) inpaintHint();
   if (mode === "paint") {
     resizeGuide();
     if (state.models.length < 2) sayPaint("fit or load a second model above to paint with two");

@@ -28,7 +28,9 @@ async function errorOf(response) {
 function updateButtons() {
   // Not while the model's kind is unknown (state.material null): its summary says whether quality applies
   $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId || state.material === null;
-  $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob;
+  // A material fills every map of one of its results: not a picture without maps, nor before its kind is known
+  $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob ||
+    state.material === null || (state.material && !editor.maps);
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
   $("morph-go").disabled = state.busy || state.models.length < 2;
   if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js

@@ -45,6 +45,7 @@ function setMaterial(on) {
   $("quality").title = on ? "a material has no patch statistics: quality best does not apply"
     : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
   updateButtons();
+  if (!$("inpaint").hidden) inpaintHint();  // Fill and Extend may have changed
 }
 
 function fitFields() {

@@ -8,6 +8,14 @@ function sayInpaint(text, isError) {
   el.classList.toggle("error", Boolean(isError));
 }
 
+// What Fill and Extend need that they lack (their buttons are off meanwhile; updateButtons), or "".
+function inpaintHint() {
+  if (state.material && !editor.maps) {
+    sayInpaint("this model is a material: Fill and Extend fill every map of one of its results; generate first", true);
+  } else if (!editor.blob) sayInpaint("generate an image first, or use a picture of your own");
+  else sayInpaint("");
+}
+
 // The picture to paint on: the latest result, or a picture the user chose.
 // `maps`: a material result's maps (the albedo first), sent with the picture to Fill and Extend.
 function setEditorPicture(blob, name, maps) {
@@ -39,7 +47,7 @@ function setEditorPicture(blob, name, maps) {
   $("editor").dataset.ready = "";
   img.src = editor.url;
   updateButtons();
-  sayInpaint("");
+  inpaintHint();
 }
 
 function clearMask() {
