@@ -258,8 +258,15 @@ def test_paint_two_models_and_morph(page, live_server):
     page.click("#go")
     page.wait_for_function(RESULT_SHOWN % "result: 40x40", timeout=60_000)
     page.select_option("#quality", "default")
+    mode(page, "paint")  # one model: each mode asks for a second
+    assert page.text_content("#paint-message") == "fit or load a second model above to paint with two"
+    mode(page, "morph")
+    assert page.text_content("#morph-message") == "fit or load a second model above: A and B"
     page.select_option("#builtin", "cells")  # a second model, with the same fast fit settings
     page.wait_for_function("document.querySelectorAll('#paint-models input').length === 2", timeout=90_000)
+    # Those requests went stale once it came (they stayed, next to enabled buttons)
+    assert page.text_content("#morph-message") == "" and page.text_content("#paint-message") == ""
+    mode(page, "view")
     page.fill("#height", "64")
     page.fill("#width", "96")
     mode(page, "paint")

@@ -26,9 +26,9 @@ function setMode(mode) {
   if (inpaint) inpaintHint();
   if (mode === "paint") {
     resizeGuide();
-    if (state.models.length < 2) sayPaint("fit or load a second model above to paint with two");
+    if (state.models.length < 2) sayPaint(PAINT_HINT);
   }
-  if (mode === "morph" && state.models.length < 2) sayMorph("fit or load a second model above: A and B");
+  if (mode === "morph" && state.models.length < 2) sayMorph(MORPH_HINT);
 }
 
 // Every control of the page to its handler (cooc.js wires its own), the builtins listed; then the page is ready.

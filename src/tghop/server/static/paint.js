@@ -20,11 +20,19 @@ function sayMorph(text, isError) {
   el.classList.toggle("error", Boolean(isError));
 }
 
+// What Paint and Morph say while the page has fewer than two models (cleared when the second comes).
+const PAINT_HINT = "fit or load a second model above to paint with two";
+const MORPH_HINT = "fit or load a second model above: A and B";
+
 function addSessionModel(id, name) {
   if (state.models.some((m) => m.id === id)) return;
   const index = state.models.length;
   const label = `${name || "model"} (${id.slice(0, 8)})`;
   state.models.push({ id, name: label, picked: pickedModels().length < MAX_PICKED });
+  if (state.models.length === 2) {
+    if ($("paint-message").textContent === PAINT_HINT) sayPaint("");
+    if ($("morph-message").textContent === MORPH_HINT) sayMorph("");
+  }
   renderModels();
   if (!$("morph-a").value) $("morph-a").value = String(index);
   if (index > 0 && $("morph-b").value === $("morph-a").value) $("morph-b").value = String(index);
