@@ -325,6 +325,10 @@ def test_stop_a_generation_and_a_large_tiled_preview(page, live_server):
     assert page.text_content("#tiled-title").startswith("Tiled 3\u00d73, shown at 99 %")
     corner = page.eval_on_selector("#tiled", "c => Array.from(c.getContext('2d').getImageData(4090, 4090, 1, 1).data)")
     assert corner[3] == 255  # drawn (a canvas over the browser's limit reads as transparent)
+    page.check("#zoom")  # 1:1: the tiling scrolls in its box (it ran off the page, which scrolled sideways)
+    assert page.evaluate("document.documentElement.scrollWidth") <= page.viewport_size["width"]
+    assert page.eval_on_selector("#tiled-box", "b => b.scrollWidth > b.clientWidth && b.clientWidth > 0")
+    page.uncheck("#zoom")
     page.fill("#height", "4096")  # long enough to stop: the button reads Stop while it works
     page.fill("#width", "4096")
     page.click("#go")
