@@ -411,3 +411,18 @@ def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model(page, live_server, 
     save_model(small_model, npz)
     upload_steps(driver, npz, small_model.exemplar_shape_[:2])
     assert not page.errors, page.errors
+
+
+def test_a_refused_model_file_leaves_no_summary_of_the_model_before(page, live_server, tmp_path):
+    # The summary of the model it replaced stayed under the error, as if that model were loaded.
+    mode(page, "view")
+    if not page.is_enabled("#go"):  # run alone: fit first
+        fit_bricks(page)
+    page.wait_for_selector("#summary:not([hidden])")
+    bad = tmp_path / "broken.npz"
+    bad.write_bytes(b"PK\x03\x04 not a model")
+    page.set_input_files("#model-file", str(bad))
+    page.wait_for_function("document.getElementById('message').classList.contains('error')")
+    assert "not a tghop model file" in page.text_content("#message")
+    assert page.is_hidden("#summary") and page.is_disabled("#go") and page.is_hidden("#download-model")
+    page.errors.clear()  # Chromium logs the 400

@@ -248,6 +248,7 @@ async function uploadModel(file) {
   state.fitRequest++;  // a fit whose answer is still on its way is replaced
   state.source = null;
   $("fit-status").hidden = true;
+  $("summary").hidden = true;  // the model it replaces: not what is loaded, whatever the answer
   setExemplar(null);
   setModel(null);
   say(`uploading ${file.name}`);
