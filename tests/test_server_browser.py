@@ -426,3 +426,24 @@ def test_a_refused_model_file_leaves_no_summary_of_the_model_before(page, live_s
     assert "not a tghop model file" in page.text_content("#message")
     assert page.is_hidden("#summary") and page.is_disabled("#go") and page.is_hidden("#download-model")
     page.errors.clear()  # Chromium logs the 400
+
+
+def test_cooc_mode_says_when_the_server_has_no_pytorch(page, live_server):
+    # It asked for a checkpoint, and only the upload's 501 told that none could be used.
+    other = page.context.browser.new_page()
+    try:
+        def no_torch(route):
+            answer = route.fetch()
+            route.fulfill(response=answer, json={**answer.json(), "cooc": False})  # as without PyTorch
+
+        other.route(live_server.url + "/api", no_torch)
+        other.goto(live_server.url + "/")
+        other.wait_for_selector("body[data-ready='1']")
+        mode(other, "cooc")
+        assert "no PyTorch" in other.text_content("#cooc-message")
+        assert "pip install 'tghop[metrics]'" in other.text_content("#cooc-message")
+    finally:
+        other.close()
+    mode(page, "cooc")  # this server has it (the tests of this module load a checkpoint)
+    assert "no PyTorch" not in page.text_content("#cooc-message")
+    mode(page, "view")

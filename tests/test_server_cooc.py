@@ -259,6 +259,7 @@ def test_without_torch_the_routes_say_how_to_install_it(tmp_path, monkeypatch):
                       c.post("/api/cooc/" + "0" * 64 + "/morph", json={})):
                 assert_error(r, 501, "PyTorch", "pip install 'tghop[metrics]'")
             assert c.get("/api").status_code == 200  # the rest works
+            assert c.get("/api").json()["cooc"] is False  # the page says so before any upload
     finally:
         server.stop()
 

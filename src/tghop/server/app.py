@@ -756,7 +756,7 @@ class Server:
     async def builtins(self, request):
         from ..data import BUILTIN
 
-        return _json({"builtins": sorted(BUILTIN), "fit_settings": fit_fields()})
+        return _json({"builtins": sorted(BUILTIN), "fit_settings": fit_fields(), "cooc": cooc.has_torch()})
 
     async def index(self, request):
         return FileResponse(STATIC / "index.html", media_type="text/html")

@@ -28,7 +28,7 @@ from .cache import ModelCache
 from .requests import RequestError, decode_png_field, json_bool
 
 __all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "MAX_BOOST",
-           "require_torch", "cooc_cache",
+           "has_torch", "require_torch", "cooc_cache",
            "store_checkpoint", "summary", "parse_morph", "parse_edit", "morph_png", "edit_png"]
 
 #: The 501 answer without PyTorch.
@@ -47,13 +47,17 @@ MAX_LENGTH = 1024
 MAX_BOOST = 1000.0
 
 
+def has_torch() -> bool:
+    """Whether PyTorch can be imported (the co-occurrence routes work): ``GET /api``'s ``cooc``."""
+    try:
+        return importlib.util.find_spec("torch") is not None
+    except (ImportError, ValueError):  # torch set to None in sys.modules
+        return False
+
+
 def require_torch() -> None:
     """501 with one line unless PyTorch can be imported."""
-    try:
-        present = importlib.util.find_spec("torch") is not None
-    except (ImportError, ValueError):  # torch set to None in sys.modules
-        present = False
-    if not present:
+    if not has_torch():
         raise RequestError(501, TORCH_HINT)
 
 

@@ -36,6 +36,7 @@ async function init() {
   const select = $("builtin");
   try {
     const api = await (await fetch("/api")).json();
+    state.coocMissing = api.cooc === false;  // no PyTorch on the server: Co-occurrence mode says so
     for (const name of api.builtins) {
       const option = document.createElement("option");
       option.value = name;

@@ -24,7 +24,10 @@ function updateCoocButtons() {
 }
 
 function coocShown() {
-  if (!cooc.id) sayCooc("load a co-occurrence checkpoint (a .pt file of tghop cooc train)");
+  if (state.coocMissing) {
+    sayCooc("this server has no PyTorch, which co-occurrence models need: install it there " +
+            "(pip install 'tghop[metrics]') and start tghop serve again", true);
+  } else if (!cooc.id) sayCooc("load a co-occurrence checkpoint (a .pt file of tghop cooc train)");
   else resizeCoocBoard();
 }
 
