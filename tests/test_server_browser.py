@@ -447,3 +447,22 @@ def test_cooc_mode_says_when_the_server_has_no_pytorch(page, live_server):
     mode(page, "cooc")  # this server has it (the tests of this module load a checkpoint)
     assert "no PyTorch" not in page.text_content("#cooc-message")
     mode(page, "view")
+
+
+def test_the_strip_of_seeds_goes_on_with_its_model_when_another_exemplar_is_picked(page, live_server):
+    # The rest of the strip asked for /api/models/null/images ("no model 'null'") once the new fit began.
+    mode(page, "view")
+    page.eval_on_selector("#fit-settings", "d => { d.open = false; }")  # fit_bricks opens it
+    page.select_option("#builtin", "")
+    fit_bricks(page)
+    page.fill("#height", "128")
+    page.fill("#width", "128")
+    page.fill("#seed", "20")
+    page.click("#strip-go")
+    page.wait_for_function("document.querySelectorAll('#strip img').length >= 1", timeout=60_000)
+    page.select_option("#builtin", "cells")  # another exemplar: its fit starts while the strip runs
+    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 8
+    assert "null" not in page.text_content("#message")
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
+    assert not page.errors, page.errors

@@ -17,8 +17,9 @@ function generation(seed, size) {
   return body;
 }
 
-async function generate(body) {
-  const response = await busyFetch(`/api/models/${state.modelId}/images`, {
+// `id`: the model (the strip of seeds keeps the one it started with when another exemplar is picked meanwhile).
+async function generate(body, id = state.modelId) {
+  const response = await busyFetch(`/api/models/${id}/images`, {
     method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS,
   });
   if (!response.ok) throw new Error(await errorOf(response));
@@ -109,12 +110,12 @@ function onStrip() {
     const strip = $("strip");
     for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
     strip.textContent = "";
-    const first = Number($("seed").value);
+    const first = Number($("seed").value), id = state.modelId;
     const [h, w] = [Number($("height").value), Number($("width").value)];
     for (let i = 0; i < 8; i++) {
       const seed = first + i;
       say(`seed ${seed} (${i + 1} of 8)`);
-      const answer = await generate(generation(seed, [h, w]));
+      const answer = await generate(generation(seed, [h, w]), id);
       const url = URL.createObjectURL(answer.blob);
       const figure = document.createElement("figure");
       const img = document.createElement("img");
