@@ -105,7 +105,7 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
         require_web(server=True)
         import uvicorn
         cache_dir = Path(cache) if cache else default_cache_dir()
-        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size)
+        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host)
         sock = _bind(host, port)
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host

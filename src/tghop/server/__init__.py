@@ -9,6 +9,8 @@ textures, and the HTTP API under ``/api`` that the page uses (docs/serve.md).
   edit with crops of the exemplar (PyTorch imported only there; 501 without it);
 * :mod:`tghop.server.requests`: the generation routes' JSON, checked (one model, a guided
   image or a remix of several, a morph);
+* :mod:`tghop.server.safety`: requests from another site or to another name (DNS rebinding)
+  refused, 403;
 * :mod:`tghop.server.jobs`: the fit queue (a thread pool, progress through the library's
   callback, cancellation by an exception raised from it);
 * ``static/``: the page (HTML, CSS and JavaScript; no build step, nothing fetched from

@@ -46,6 +46,7 @@ import threading
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import asynccontextmanager
 from pathlib import Path
 
 from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
@@ -54,6 +55,7 @@ from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
 from .requests import (RequestError, check_channel_counts, fit_fields, parse_bool, parse_fit_settings,
                        parse_generation, parse_growth, parse_guided, parse_morph, safe_name)
+from .safety import LocalOnly, allowed_hosts
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -781,7 +783,8 @@ def _wrap(handler):
     return route
 
 
-def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None = DEFAULT_CACHE_BYTES):
+def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None = DEFAULT_CACHE_BYTES,
+               host: str = "127.0.0.1"):
     """The Starlette application of ``tghop serve``.
 
     Parameters
@@ -794,6 +797,9 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
     cache_bytes : int or None
         Bound of the model files' total size (the least recently used go first; the
         newest is kept even when it alone is larger); None: no bound.
+    host : str
+        The address the server listens on (``tghop serve --host``): requests whose Host header names
+        another (or whose Origin is another site) are refused, 403 (:class:`~tghop.server.safety.LocalOnly`).
 
     Raises
     ------
@@ -835,12 +841,8 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         await run_in_threadpool(server.queue.shutdown)
         server.executor.shutdown(wait=False, cancel_futures=True)
 
-    app = Starlette(routes=routes, exception_handlers={HTTPException: http_error}, lifespan=_lifespan(lifespan))
+    app = Starlette(routes=routes, exception_handlers={HTTPException: http_error},
+                    lifespan=asynccontextmanager(lifespan))
     app.state.server = server
+    app.add_middleware(LocalOnly, hosts=allowed_hosts(host))
     return app
-
-
-def _lifespan(fn):
-    from contextlib import asynccontextmanager
-
-    return asynccontextmanager(fn)
