@@ -93,3 +93,59 @@ def test_a_server_given_another_host_answers_to_it_and_every_interface_to_any(tm
             refused(c.post("/api/models", headers={"host": "any.name.example", "origin": "http://evil.example"}))
     finally:
         anywhere.stop()
+
+
+def zip_bomb(unpacked: int, name: str = "big.npy") -> bytes:
+    """A ZIP archive of one deflated member of ``unpacked`` zero bytes (an .npy header first): about
+    a thousandth of that size."""
+    import io
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as archive, archive.open(name, "w", force_zip64=True) as fh:
+        npy.write_array_header_1_0(fh, {"descr": "|u1", "fortran_order": False, "shape": (unpacked,)})
+        chunk, left = bytes(1 << 24), unpacked
+        while left:
+            fh.write(chunk[:left])
+            left -= min(left, len(chunk))
+    return buf.getvalue()
+
+
+def test_a_model_file_that_unpacks_to_too_much_is_refused_before_it_is_read(client, live_server):
+    """A 210 MB array deflated into a 200 KB .npz: refused from the sizes the archive declares,
+    before NumPy unpacks it (50 MB of it would unpack to 50 GB)."""
+    import os
+
+    from tghop.server.safety import MAX_UNPACKED_BYTES
+
+    bomb = zip_bomb(MAX_UNPACKED_BYTES + 10 * 1024**2)
+    assert len(bomb) < 1024**2
+    for r in (client.post("/api/models/upload", content=bomb, headers={"content-type": "application/octet-stream"}),
+              client.post("/api/models/upload", files={"model": ("bomb.npz", bomb)})):
+        assert r.status_code == 400, r.text
+        message = r.json()["error"]
+        assert "unpacks to 210 MB, more than the 200 MB a model may hold" in message and "\n" not in message
+    assert "bomb.npz unpacks" in message
+    assert not [f for f in os.listdir(live_server.cache / "models") if f.endswith(".tmp")]  # nothing was written
+
+
+def test_an_archive_of_too_many_members_is_refused(client):
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as archive:
+        for i in range(5000):
+            archive.writestr(f"a{i}.npy", b"")
+    r = client.post("/api/models/upload", files={"model": ("many.npz", buf.getvalue())})
+    assert r.status_code == 400 and "many.npz is an archive of more than 4,096 members" in r.json()["error"], r.text
+
+
+def test_a_checkpoint_that_unpacks_to_too_much_is_refused(client):
+    pytest.importorskip("torch", reason="the co-occurrence routes need PyTorch")
+    bomb = zip_bomb(300 * 1024**2, "archive/data/0")
+    r = client.post("/api/cooc", files={"checkpoint": ("bomb.pt", bomb)})
+    assert r.status_code == 400, r.text
+    assert "bomb.pt unpacks to 300 MB, more than the 200 MB a co-occurrence checkpoint may hold" in r.json()["error"]

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from .._errors import TGHopError
 from .requests import RequestError
+from .safety import check_archive
 
 __all__ = ["ModelCache", "DEFAULT_CACHE_BYTES", "ID"]
 
@@ -128,6 +129,7 @@ class ModelCache:
         in the folder either way."""
         if not content:
             raise RequestError(400, f"{filename} is empty; {hint}")
+        check_archive(content, filename, self.what)  # a decompression bomb: refused before it is read
         key = hashlib.sha256(content).hexdigest()
         final = self.path(key)
         if final.is_file():

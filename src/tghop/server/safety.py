@@ -1,23 +1,37 @@
-"""What keeps ``tghop serve`` to its own users (docs/serve.md, "Files and safety"):
+"""What keeps ``tghop serve`` to its own users and its memory bounded (docs/serve.md, "Files and
+safety"):
 
 * :class:`LocalOnly`, an ASGI middleware: a request whose ``Host`` header names another server
   than this one (a page of another site that rebinds its name to 127.0.0.1, "DNS rebinding") or
   whose ``Origin`` is another site (a page that posts a form to the server from the user's
-  browser) is refused with 403 and one line, before its body is read.
+  browser) is refused with 403 and one line, before its body is read;
+* :func:`check_archive`: an uploaded model file (``.npz``) or checkpoint (``.pt``), both ZIP
+  archives, is refused (400) when its members would unpack to more than
+  :data:`MAX_UNPACKED_BYTES` or it has more than :data:`MAX_MEMBERS`, before NumPy or PyTorch
+  reads it (a deflated member of zeros unpacks about 1,000 times larger).
 
 Only the standard library is imported.
 """
 
 from __future__ import annotations
 
+import io
 import json
+import zipfile
 
-__all__ = ["LocalOnly", "allowed_hosts", "LOOPBACK"]
+from .requests import RequestError
+
+__all__ = ["LocalOnly", "allowed_hosts", "check_archive", "MAX_UNPACKED_BYTES", "MAX_MEMBERS", "LOOPBACK"]
 
 #: The names of this machine that a local server answers to.
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 #: Addresses that listen on every interface: any name may reach the server, so the Host is not checked.
 _ANY = ("", "0.0.0.0", "::")
+#: Most bytes the members of an uploaded archive may unpack to (a model file tghop writes is stored
+#: uncompressed: as large as the file, at most the upload limit of 50 MB).
+MAX_UNPACKED_BYTES = 200 * 1024 * 1024
+#: Most members of an uploaded archive (a model file has a few dozen arrays, a material's a few hundred).
+MAX_MEMBERS = 4096
 
 
 def _hostname(netloc: str) -> str:
@@ -81,3 +95,24 @@ class LocalOnly:
         return (f"refused: a page of {origin[:80]!r} may not use this server, only its own page ({own} or "
                 "another of its names); a script may leave the Origin header out")
 
+
+def check_archive(content: bytes, filename: str, what: str) -> None:
+    """400 when ``content`` is a ZIP archive with more than :data:`MAX_MEMBERS` members or members
+    that unpack to more than :data:`MAX_UNPACKED_BYTES` (a decompression bomb); anything else
+    (not an archive: the loader's error says what it is) passes. ``what``: the kind of file, as
+    the message names it. The sizes are those the archive declares, which Python's and PyTorch's
+    readers do not read past."""
+    # Each member has a central directory entry beginning with this signature: counted before the
+    # directory is parsed (a 50 MB one of empty members holds a million, 3 s and 700 MB to parse).
+    if content.count(b"PK\x01\x02") > MAX_MEMBERS:
+        raise RequestError(400, f"{filename} is an archive of more than {MAX_MEMBERS:,} members, not a {what}")
+    try:
+        with zipfile.ZipFile(io.BytesIO(content)) as archive:
+            members = archive.infolist()
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, NotImplementedError):
+        return
+    unpacked = sum(member.file_size for member in members)
+    if unpacked > MAX_UNPACKED_BYTES:
+        raise RequestError(400, f"{filename} unpacks to {unpacked / 1024**2:,.0f} MB, more than the "
+                                f"{MAX_UNPACKED_BYTES // 1024**2} MB a {what} may hold (a decompression bomb?); "
+                                f"send a {what} tghop wrote")
