@@ -201,6 +201,43 @@ def test_the_server_keeps_its_cache_under_the_bound(tmp_path, two_model_files):
         server.stop()
 
 
+def test_a_cache_folder_that_cannot_take_a_file_is_one_line(tmp_path, two_model_files, monkeypatch):
+    """An upload the folder cannot keep (gone, read-only, a full disk): 507 and one line naming the
+    folder, not a text 500 and a traceback in the terminal; the server goes on."""
+    import errno
+    import shutil
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+    server = LiveServer(tmp_path)
+    client = httpx.Client(base_url=server.url, timeout=60)
+    models = tmp_path / "models"
+    try:
+        shutil.rmtree(models)
+        models.write_bytes(b"")  # a file where the folder was
+        r = client.post("/api/models/upload", content=two_model_files[0])
+        assert r.status_code == 507, r.text
+        message = r.json()["error"]
+        assert message.startswith(f"cannot write to the cache folder {models} (") and "--cache" in message
+        models.unlink()
+        models.mkdir()
+
+        def full(*args, **kwargs):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        monkeypatch.setattr(os, "replace", full)
+        r = client.post("/api/models/upload", content=two_model_files[0])
+        assert r.status_code == 507 and "(No space left on device)" in r.json()["error"], r.text
+        assert os.listdir(models) == []  # the temporary file went
+        monkeypatch.undo()
+        r = client.post("/api/models/upload", content=two_model_files[0])
+        assert r.status_code == 200 and os.listdir(models) == [f"{r.json()['id']}.npz"]
+    finally:
+        client.close()
+        server.stop()
+
+
 @pytest.mark.parametrize("text, expected", [("2G", 2 * 1000**3), ("500M", 500 * 1000**2), ("1.5GB", 1_500_000_000),
                                             ("800kb", 800_000), ("12345", 12345), ("none", None)])
 def test_cache_size_values(text, expected):

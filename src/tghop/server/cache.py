@@ -88,7 +88,11 @@ class ModelCache:
 
     def _files(self):
         out, n = [], len(self.suffix)
-        for entry in os.scandir(self.models):
+        try:
+            entries = list(os.scandir(self.models))
+        except OSError:  # the folder gone or unreadable: nothing to count or prune
+            return out
+        for entry in entries:
             if entry.name.endswith(self.suffix) and ID.match(entry.name[:-n]):
                 try:
                     st = entry.stat()
@@ -135,26 +139,39 @@ class ModelCache:
         if final.is_file():
             self.touch(key)
             return key
-        fd, tmp = tempfile.mkstemp(prefix=f".upload-{key[:12]}.", suffix=".tmp", dir=self.models)
+        tmp = None
         try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(content)
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".upload-{key[:12]}.", suffix=".tmp", dir=self.models)
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(content)
+            except OSError as exc:
+                raise self._unwritable(exc) from None
             try:
                 loaded = self._load(tmp)
             except TGHopError as exc:
                 raise RequestError(400, str(exc).replace(tmp, filename)) from None
             except MemoryError:
                 raise RequestError(413, f"{filename}: not enough memory to read this {self.what}") from None
-            os.replace(tmp, final)
+            try:
+                os.replace(tmp, final)
+            except OSError as exc:
+                raise self._unwritable(exc) from None
             tmp = None
         finally:
             if tmp is not None:
                 try:
                     os.unlink(tmp)
-                except FileNotFoundError:
+                except OSError:
                     pass
         self.added(key, loaded)
         return key
+
+    def _unwritable(self, exc: OSError) -> RequestError:
+        """507 for a file the folder cannot take (a full disk, a folder made read-only or removed
+        meanwhile): the server's trouble, said in one line, not the upload's."""
+        return RequestError(507, f"cannot write to the cache folder {self.models} ({exc.strerror or exc}); "
+                                 "free some space there or start the server with another --cache")
 
     def added(self, model_id: str, model) -> None:
         """A model file was just written: keep the model in memory and the folder in bounds."""
