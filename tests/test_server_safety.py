@@ -149,3 +149,32 @@ def test_a_checkpoint_that_unpacks_to_too_much_is_refused(client):
     r = client.post("/api/cooc", files={"checkpoint": ("bomb.pt", bomb)})
     assert r.status_code == 400, r.text
     assert "bomb.pt unpacks to 300 MB, more than the 200 MB a co-occurrence checkpoint may hold" in r.json()["error"]
+
+
+def test_malformed_requests_leave_the_terminal_quiet(tmp_path):
+    """``tghop serve``'s terminal shows its address and, at Ctrl-C, one line: a malformed body
+    (python-multipart logs a warning of its own for some) is the client's 400, not a line there."""
+    import signal
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "tghop", "serve", "--port", "0", "--cache", str(tmp_path / "cache")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = p.stdout.readline().split()[3] + "api/models"
+        bodies = [b"nothing", b"--xx\r\nContent-Disposition: form-data; name=\"builtin\"\r\n\r\nbricks",
+                  b"--xx\r\nContent-Disposition: form-data\r\n\r\nbricks\r\n--xx--\r\n", b"--xy\r\n\r\n--xx--",
+                  b"--xx\r\nContent-Disposition: form-data; name=\"\xff\"\r\n\r\n\xff\r\n--xx--\r\n"]
+        for body in bodies:
+            r = httpx.post(url, content=body, headers={"content-type": "multipart/form-data; boundary=xx"}, timeout=30)
+            assert r.status_code == 400 and "\n" not in r.json()["error"], r.text
+        assert httpx.post(url, content=b"x", headers={"content-type": "multipart/form-data"}).status_code == 400
+        assert httpx.get(url, headers={"host": "evil.example"}).status_code == 403
+    finally:
+        p.send_signal(signal.SIGINT)
+        try:
+            out, err = p.communicate(timeout=60)
+        finally:
+            if p.poll() is None:
+                p.kill()
+    assert err.strip().splitlines() == ["tghop server stopped"], err

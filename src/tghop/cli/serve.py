@@ -103,7 +103,14 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
         from ..server.app import create_app, require_web
 
         require_web(server=True)
+        import logging
+
         import uvicorn
+
+        # python-multipart logs a warning of its own for some malformed bodies, which the client is
+        # answered (400): the terminal shows the server's address and its end, not the clients' mistakes.
+        for name in ("python_multipart", "multipart"):
+            logging.getLogger(name).setLevel(logging.ERROR)
         cache_dir = Path(cache) if cache else default_cache_dir()
         app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host)
         sock = _bind(host, port)
