@@ -178,3 +178,21 @@ def test_malformed_requests_leave_the_terminal_quiet(tmp_path):
             if p.poll() is None:
                 p.kill()
     assert err.strip().splitlines() == ["tghop server stopped"], err
+
+
+@pytest.mark.parametrize("route", ["/api/models", "/api/models/upload", "/api/models/{id}/inpaint"])
+def test_a_form_cut_short_says_so(client, route):
+    """A multipart body without its closing boundary (cut short, or empty): the parser dropped the
+    last part without a word, and the route said a field was missing ("no exemplar")."""
+    route = route.format(id="0" * 64)
+    head = b"--xx\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.png\"\r\n\r\n\x89PNG"
+    kind = {"content-type": "multipart/form-data; boundary=xx"}
+    for body in (head, b"", b"--xx\r\nContent-Disposition: form-data; name=\"builtin\"\r\n\r\nbricks"):
+        r = client.post(route, content=body, headers=kind)
+        assert r.status_code == 400, r.text
+        assert r.json()["error"] == (f"malformed multipart request (no closing boundary --xx--: the body of "
+                                     f"{len(body):,} bytes is empty or cut short); send the whole form"), r.text
+    quoted = {"content-type": 'multipart/form-data; boundary="x;y"'}
+    whole = b"--x;y\r\nContent-Disposition: form-data; name=\"builtin\"\r\n\r\nnone\r\n--x;y--\r\n"
+    r = client.post("/api/models", content=whole, headers=quoted)
+    assert r.status_code == 400 and "unknown built-in exemplar 'none'" in r.json()["error"], r.text

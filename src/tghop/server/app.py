@@ -53,8 +53,8 @@ from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from . import cooc, materials
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
-from .requests import (RequestError, check_channel_counts, fit_fields, parse_bool, parse_fit_settings,
-                       parse_generation, parse_growth, parse_guided, parse_morph, safe_name)
+from .requests import (RequestError, check_channel_counts, check_multipart_end, fit_fields, parse_bool,
+                       parse_fit_settings, parse_generation, parse_growth, parse_guided, parse_morph, safe_name)
 from .safety import LocalOnly, allowed_hosts
 
 try:  # the web extra; create_app says how to install it when it is missing
@@ -157,6 +157,7 @@ async def read_form(request, body: bytes, fields: str = "a form with an 'image' 
 
     if not request.headers.get("content-type", "").startswith("multipart/form-data"):
         raise RequestError(400, f"send the fields as multipart/form-data ({fields})")
+    check_multipart_end(request.headers["content-type"], body)
     try:
         form = await MultiPartParser(request.headers, stream(), max_files=4 + materials.MAX_MAPS,
                                      max_fields=64).parse()

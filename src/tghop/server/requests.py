@@ -17,9 +17,9 @@ import re
 from .. import manifest
 from .._errors import TGHopError
 
-__all__ = ["RequestError", "check_channel_counts", "decode_png_field", "fit_fields", "json_bool", "parse_bool",
-           "parse_fit_settings", "parse_generation", "parse_growth", "parse_guided", "parse_morph", "safe_name",
-           "MAX_MODELS", "MAX_TRANSITION"]
+__all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
+           "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth", "parse_guided", "parse_morph",
+           "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -44,6 +44,20 @@ def safe_name(name, default: str) -> str:
     base = re.split(r"[\\/]", str(name or ""))[-1]
     base = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")[:80]
     return base or default
+
+
+def check_multipart_end(content_type: str, body: bytes) -> None:
+    """400 when a multipart ``body`` lacks its closing delimiter (``--BOUNDARY--``): empty or cut short.
+    The parser takes such a body without a word and drops its last part (the fields sent then seemed
+    missing: "no exemplar")."""
+    found = re.search(r'boundary=(?:"([^"]+)"|([^;,\s]+))', content_type, re.IGNORECASE)
+    if found is None:  # the parser says what is wrong
+        return
+    boundary = (found.group(1) or found.group(2)).encode("latin-1", "replace")
+    if b"--" + boundary + b"--" not in body:
+        shown = boundary.decode("latin-1")[:70]
+        raise RequestError(400, f"malformed multipart request (no closing boundary --{shown}--: the body of "
+                                f"{len(body):,} bytes is empty or cut short); send the whole form")
 
 
 def parse_bool(name, value) -> bool:
