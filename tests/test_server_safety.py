@@ -196,3 +196,14 @@ def test_a_form_cut_short_says_so(client, route):
     whole = b"--x;y\r\nContent-Disposition: form-data; name=\"builtin\"\r\n\r\nnone\r\n--x;y--\r\n"
     r = client.post("/api/models", content=whole, headers=quoted)
     assert r.status_code == 400 and "unknown built-in exemplar 'none'" in r.json()["error"], r.text
+
+
+def test_a_method_a_route_does_not_take_says_which_it_does(client):
+    for method, path, allow in [("GET", "/api/models", "POST"), ("PUT", "/api/models/upload", "POST"),
+                                ("OPTIONS", "/api/images/guided", "POST"), ("POST", "/api", "GET, HEAD")]:
+        r = client.request(method, path)
+        assert r.status_code == 405, r.text
+        assert r.json()["error"] == f"{method} is not allowed at {path}; use {allow} (docs/serve.md)"
+        assert r.headers["allow"] == allow
+    r = client.get("/api/nothing")
+    assert r.status_code == 404 and r.json()["error"].startswith("nothing at /api/nothing; the API is under /api")

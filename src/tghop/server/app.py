@@ -53,7 +53,7 @@ from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from . import cooc, materials
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
-from .requests import (RequestError, check_channel_counts, check_multipart_end, fit_fields, parse_bool,
+from .requests import (RequestError, check_channel_counts, check_multipart_end, fit_fields, http_message, parse_bool,
                        parse_fit_settings, parse_generation, parse_growth, parse_guided, parse_morph, safe_name)
 from .safety import LocalOnly, allowed_hosts
 
@@ -834,8 +834,9 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
     ]
 
     async def http_error(request, exc):
-        return _error(exc.status_code, exc.detail if exc.status_code != 404 else
-                      f"nothing at {request.url.path[:200]}; the API is under /api (docs/serve.md)")
+        response = _error(exc.status_code, http_message(exc, request.method, request.url.path))
+        response.headers.update(exc.headers or {})  # a 405's Allow
+        return response
 
     async def lifespan(app):
         yield

@@ -18,8 +18,8 @@ from .. import manifest
 from .._errors import TGHopError
 
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
-           "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth", "parse_guided", "parse_morph",
-           "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
+           "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth", "parse_guided",
+           "parse_morph", "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -58,6 +58,17 @@ def check_multipart_end(content_type: str, body: bytes) -> None:
         shown = boundary.decode("latin-1")[:70]
         raise RequestError(400, f"malformed multipart request (no closing boundary --{shown}--: the body of "
                                 f"{len(body):,} bytes is empty or cut short); send the whole form")
+
+
+def http_message(exc, method: str, path: str) -> str:
+    """The one line of an error the router answers (Starlette's ``HTTPException``): no route (404),
+    or a method the route does not take (405; its ``Allow`` header names the ones it takes)."""
+    status, allow = exc.status_code, (exc.headers or {}).get("Allow")
+    if status == 404:
+        return f"nothing at {path[:200]}; the API is under /api (docs/serve.md)"
+    if status == 405 and allow:
+        return f"{method[:20]} is not allowed at {path[:200]}; use {allow} (docs/serve.md)"
+    return exc.detail
 
 
 def parse_bool(name, value) -> bool:
