@@ -1,17 +1,15 @@
 """The web server's Starlette application: the page, the HTTP API under ``/api`` and the
 model cache (see docs/serve.md for the API).
 
-The cache (:class:`tghop.server.cache.ModelCache`) is a folder, ``<cache>/models``, of model
-files named ``<id>.npz`` (and ``<cache>/cooc`` of co-occurrence checkpoints, ``<id>.pt``:
-:mod:`tghop.server.cooc`). An id is a content hash (SHA-256 of the exemplar's bytes and the fit
-settings, or of an uploaded model file), so the same exemplar with the same settings is fitted once. Every file
-appears whole or not at all (:func:`tghop.modelfile.save_model` writes atomically; an
-upload is checked in a temporary file that is removed whatever happens); leftovers of a
-killed server (``.*.tmp``) are removed at start. The folder is bounded (``max_bytes``,
-``tghop serve --cache-size``): when a new model makes it larger, the least recently used
-model files go (a file's modification time is its last use: set when it is written,
-loaded, generated from or downloaded), never the one just added; a client then gets
-404 for a model that went and fits it again.
+The cache (:class:`tghop.server.cache.ModelCache`) is a folder, ``<cache>/models``, of model files named
+``<id>.npz`` (and ``<cache>/cooc`` of co-occurrence checkpoints, ``<id>.pt``: :mod:`tghop.server.cooc`). An id
+is a content hash (SHA-256 of the exemplar's bytes and the fit settings, or of an uploaded model file), so the
+same exemplar with the same settings is fitted once. Every file appears whole or not at all
+(:func:`tghop.modelfile.save_model` writes atomically; an upload is checked in a temporary file that is removed
+whatever happens); leftovers of a killed server (``.*.tmp``) are removed at start. The folder is bounded
+(``max_bytes``, ``tghop serve --cache-size``): when a new model makes it larger, the least recently used model
+files go (a file's modification time is its last use: set when it is written, loaded, generated from or
+downloaded), never the one just added; a client then gets 404 for a model that went and fits it again.
 
 Everything tghop does here is the library's own code: :func:`tghop.imageio.load_image`
 (with its pixel limit), :class:`tghop.TGHop` (fit with a progress callback, synthesize),
@@ -53,8 +51,9 @@ from .._errors import ImageTooLargeError, MissingExtraError, TGHopError
 from . import cooc, materials
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, FitQueue, QueueFull
-from .requests import (RequestError, check_channel_counts, check_multipart_end, fit_fields, http_message, parse_bool,
-                       parse_fit_settings, parse_generation, parse_growth, parse_guided, parse_morph, safe_name)
+from .requests import (RequestError, check_channel_counts, check_multipart_end, fit_fields, http_headers, http_message,
+                       parse_bool, parse_fit_settings, parse_generation, parse_growth, parse_guided, parse_morph,
+                       safe_name)
 from .safety import LocalOnly, allowed_hosts
 
 try:  # the web extra; create_app says how to install it when it is missing
@@ -835,7 +834,7 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
 
     async def http_error(request, exc):
         response = _error(exc.status_code, http_message(exc, request.method, request.url.path))
-        response.headers.update(exc.headers or {})  # a 405's Allow
+        response.headers.update(http_headers(exc))  # a 405's Allow
         return response
 
     async def lifespan(app):

@@ -18,8 +18,8 @@ from .. import manifest
 from .._errors import TGHopError
 
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
-           "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth", "parse_guided",
-           "parse_morph", "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
+           "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
+           "parse_guided", "parse_morph", "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -60,10 +60,19 @@ def check_multipart_end(content_type: str, body: bytes) -> None:
                                 f"{len(body):,} bytes is empty or cut short); send the whole form")
 
 
+def http_headers(exc) -> dict:
+    """The headers of an error the router answers, a 405's ``Allow`` in alphabetical order (Starlette
+    writes a route's methods from a set: ``GET, HEAD`` or ``HEAD, GET`` from one run to the next)."""
+    headers = dict(exc.headers or {})
+    if "Allow" in headers:
+        headers["Allow"] = ", ".join(sorted(m.strip() for m in headers["Allow"].split(",")))
+    return headers
+
+
 def http_message(exc, method: str, path: str) -> str:
     """The one line of an error the router answers (Starlette's ``HTTPException``): no route (404),
     or a method the route does not take (405; its ``Allow`` header names the ones it takes)."""
-    status, allow = exc.status_code, (exc.headers or {}).get("Allow")
+    status, allow = exc.status_code, http_headers(exc).get("Allow")
     if status == 404:
         return f"nothing at {path[:200]}; the API is under /api (docs/serve.md)"
     if status == 405 and allow:
