@@ -128,7 +128,7 @@ def test_map_files_naming_one_map_twice_are_refused_on_the_page_before_any_fit(p
         (tmp_path / name).write_bytes(grey)
     page.set_input_files("#maps", [str(tmp_path / "height.png")])  # before an exemplar: the page says what next
     assert page.text_content("#maps-list") == "maps: height"
-    assert "pick or drop the exemplar" in page.text_content("#message")
+    assert "pick or drop the albedo (exemplar) now" in page.text_content("#message")
     # Two files whose names make the same map's: said on the page (the server's words were about form fields)
     page.set_input_files("#maps", [str(tmp_path / "rock_normal.png"), str(tmp_path / "rock normal.png")])
     message = page.text_content("#message")

@@ -47,8 +47,9 @@ async function init() {
     say("the server's API did not answer", true);
   }
   select.addEventListener("change", () => fitBuiltin(select.value));
-  $("file").addEventListener("change", (e) => fitFile(e.target.files[0]));
-  $("model-file").addEventListener("change", (e) => uploadModel(e.target.files[0]));
+  // Each chooser emptied once read: the same file chosen again (after a refusal, say) is a change
+  $("file").addEventListener("change", (e) => { fitFile(e.target.files[0]); e.target.value = ""; });
+  $("model-file").addEventListener("change", (e) => { uploadModel(e.target.files[0]); e.target.value = ""; });
   $("maps").addEventListener("change", (e) => setMapFiles(e.target.files));
   $("maps-clear").addEventListener("click", () => setMapFiles([]));
   $("download-maps").addEventListener("click", downloadMaps);

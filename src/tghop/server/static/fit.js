@@ -2,11 +2,41 @@
 // progress followed and its model summarized; or a saved model file is loaded.
 "use strict";
 
+// The exemplar shown (null: none). A URL of the working model's (state.working) is kept for going back to it.
 function setExemplar(url) {
-  if (state.exemplarUrl && state.exemplarUrl.startsWith("blob:")) URL.revokeObjectURL(state.exemplarUrl);
+  const old = state.exemplarUrl;
+  if (old && old !== url && old.startsWith("blob:") && !(state.working && state.working.exemplarUrl === old)) {
+    URL.revokeObjectURL(old);
+  }
   state.exemplarUrl = url;
   const img = $("exemplar");
   if (url) { img.src = url; img.hidden = false; } else { img.removeAttribute("src"); img.hidden = true; }
+}
+
+// The working model: {source, exemplarUrl, modelId, material, name}, or null (none). A refused fit goes
+// back to it (the page as it was before that pick); a fit that ends or a model file loaded replaces it.
+function setWorking(working) {
+  const old = state.working && state.working.exemplarUrl;
+  state.working = working;
+  if (old && old.startsWith("blob:") && old !== state.exemplarUrl && !(working && working.exemplarUrl === old)) {
+    URL.revokeObjectURL(old);
+  }
+}
+
+// A fit refused (before or after its job started): the page goes back to the working model, its source
+// and exemplar (the empty page when there is none), the maps to those before that pick (`undo.mapFiles`).
+function fitRefused(error, undo) {
+  const working = state.working;
+  $("fit-status").hidden = true;
+  listMaps(undo.mapFiles);
+  state.source = working ? working.source : null;
+  state.pendingName = working ? working.name : null;
+  $("builtin").value = (working && working.source && working.source.builtin) || "";
+  setExemplar(working ? working.exemplarUrl : null);
+  setModel(working ? working.modelId : null, working ? working.material : false);
+  const kept = working ? `the model of ${working.name} stays` : "no model yet";
+  say(`${error} (${undo.maps ? "the maps were not added" : `${undo.name} was not used`}; ${kept})`, true);
+  if (working) showSummary(working.modelId);
 }
 
 // `material`: whether the model is a material, when known (a fit's: it sent maps); else null until
@@ -34,6 +64,7 @@ async function showSummary(id) {
     `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}` +
     (maps ? `\nmaps: ${maps.map((m) => `${m.name}${m.normal ? " (normal)" : ""}, ${m.depth}-bit`).join("; ")}` : "");
   $("summary").hidden = false;
+  if (state.working && state.working.modelId === id) state.working.material = Boolean(maps);
   setMaterial(Boolean(maps));
 }
 
@@ -78,12 +109,14 @@ function mapsProblem(files) {
   return "";
 }
 
-// The map files chosen (none: a texture model); the exemplar fitted last is fitted again with them.
+// The map files chosen (none: a texture model); the exemplar fitted last (the working one, or the one being
+// fitted) is fitted again with them. Refused, the maps chosen before stay. With no exemplar they wait for it.
 function setMapFiles(files) {
+  const undo = { mapFiles: state.mapFiles, maps: true };
   if (!useMapFiles(files)) return;
-  if (state.source && state.source.file) fitFile(state.source.file);
-  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin);
-  else if (state.mapFiles.length) say("now pick or drop the exemplar (the albedo): it is fitted with these maps");
+  if (state.source && state.source.file) fitFile(state.source.file, undo);
+  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin, undo);
+  else if (state.mapFiles.length) say("pick or drop the albedo (exemplar) now: it is fitted with these maps");
 }
 
 // The map files to fit with the next exemplar, listed; false (said, the maps chosen before kept) when
@@ -93,11 +126,15 @@ function useMapFiles(files) {
   const problem = mapsProblem(files);
   $("maps").value = "";  // choosing the same files again is a change
   if (problem) { say(problem, true); return false; }
+  listMaps(files);
+  return true;
+}
+
+function listMaps(files) {
   state.mapFiles = files;
-  const names = state.mapFiles.map((f) => mapName(f.name));
+  const names = files.map((f) => mapName(f.name));
   $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
   $("maps-clear").hidden = !names.length;
-  return true;
 }
 
 // A name that says albedo (albedo, diff, diffuse, color, colour, basecolor, as a word of the file's name).
@@ -113,9 +150,9 @@ function dropFiles(files) {
   }
   const named = files.filter((f) => ALBEDO_NAME.test(f.name.replace(/\.[^.]*$/, "")));
   const albedo = named.length === 1 ? named[0] : files[0];
-  const maps = files.filter((f) => f !== albedo);
+  const maps = files.filter((f) => f !== albedo), undo = { mapFiles: state.mapFiles, name: albedo.name };
   if (!useMapFiles(maps)) return;
-  fitFile(albedo);
+  fitFile(albedo, undo);
   say(`${files.length} files dropped: ${albedo.name} is the exemplar (the albedo), the others its maps ` +
       `(${maps.map((f) => mapName(f.name)).join(", ")}); "Add maps..." changes them`);
 }
@@ -133,8 +170,10 @@ function dropRunningFit() {
   state.job = null;
 }
 
-async function startFit(form) {
+// `undo`: how to go back when the fit is refused (fitRefused).
+async function startFit(form, undo) {
   dropRunningFit();
+  const attempt = { source: state.source, exemplarUrl: state.exemplarUrl, name: state.pendingName };
   const request = ++state.fitRequest;  // a later fit or upload asked for meanwhile replaces this one
   setModel(null);
   $("summary").hidden = true;
@@ -149,15 +188,13 @@ async function startFit(form) {
     response = await fetch("/api/models", { method: "POST", body: form });
   } catch (e) {
     if (request !== state.fitRequest) return;
-    say(`the server did not answer (${e.message})`, true);
-    $("fit-status").hidden = true;
+    fitRefused(`the server did not answer (${e.message})`, undo);
     return;
   }
   if (!response.ok) {
     const error = await errorOf(response);
     if (request !== state.fitRequest) return;
-    say(error, true);
-    $("fit-status").hidden = true;
+    fitRefused(error, undo);
     return;
   }
   const { id, job } = await response.json();
@@ -168,10 +205,10 @@ async function startFit(form) {
   }
   state.job = job;
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
-  follow(id, job, material);
+  follow(id, job, material, attempt, undo);
 }
 
-function follow(id, job, material) {
+function follow(id, job, material, attempt, undo) {
   const events = new EventSource(`/api/jobs/${job}/events`);
   state.events = events;
   const update = (snap) => {
@@ -188,15 +225,16 @@ function follow(id, job, material) {
     $("fit-status").dataset.state = snap.state;
     if (snap.state === "done") {
       $("progress").value = 1;
+      setWorking({ ...attempt, modelId: id, material });
       setModel(id, material);
       say("model ready: generate below");
       showSummary(id);
     } else if (snap.state === "cancelled") {
       say("fit cancelled");
     } else {
-      say(snap.error || "the fit failed", true);
+      fitRefused(snap.error || "the fit failed", undo);
     }
-    if (snap.state !== "done") $("builtin").value = "";  // so that choosing the same one again fits it
+    if (snap.state === "cancelled") $("builtin").value = "";  // so that choosing the same one again fits it
   });
   events.onerror = () => {
     if (state.events !== events) return;
@@ -221,7 +259,7 @@ async function cancelFit() {
   }
 }
 
-function fitFile(file) {
+function fitFile(file, undo = { mapFiles: state.mapFiles, name: file && file.name }) {
   if (!file) return;
   state.source = { file };
   state.pendingName = file.name + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
@@ -229,17 +267,17 @@ function fitFile(file) {
   setExemplar(URL.createObjectURL(file));
   const form = fitFields();
   form.append("image", file, file.name);
-  startFit(form);
+  startFit(form, undo);
 }
 
-function fitBuiltin(name) {
+function fitBuiltin(name, undo = { mapFiles: state.mapFiles, name: `builtin:${name}` }) {
   if (!name) return;
   state.source = { builtin: name };
   state.pendingName = `builtin:${name}` + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
   setExemplar(`/api/builtins/${name}.png`);
   const form = fitFields();
   form.append("builtin", name);
-  startFit(form);
+  startFit(form, undo);
 }
 
 async function uploadModel(file) {
@@ -249,6 +287,7 @@ async function uploadModel(file) {
   state.source = null;
   $("fit-status").hidden = true;
   $("summary").hidden = true;  // the model it replaces: not what is loaded, whatever the answer
+  setWorking(null);  // a refused file leaves no model: a refused fit after it goes back to none
   setExemplar(null);
   setModel(null);
   say(`uploading ${file.name}`);
@@ -258,6 +297,7 @@ async function uploadModel(file) {
   if (!response.ok) { say(await errorOf(response), true); return; }
   const { id } = await response.json();
   state.pendingName = file.name;
+  setWorking({ source: null, exemplarUrl: null, modelId: id, material: null, name: file.name });
   setModel(id);
   say(`model ${file.name} loaded: generate below`);
   await showSummary(id);

@@ -1,0 +1,142 @@
+"""What ``tghop serve``'s page keeps when something is refused, in a real browser (Chromium through
+Playwright) against a real uvicorn server: a refused exemplar (not an image, flat, too small) or map
+set leaves the working model and its exemplar as they were, and "Add maps..." then refits that
+exemplar; maps added before any exemplar wait for it."""
+
+import io
+
+import pytest
+
+import chromium
+
+if chromium.missing():
+    pytest.skip(chromium.missing(), allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed: pip install -e '.[web-test]'")
+
+from conftest import FAST_FIT  # noqa: E402
+
+
+def png(pixels) -> bytes:
+    from tghop.imageio import write_png
+
+    buf = io.BytesIO()
+    write_png(buf, pixels)
+    return buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def page(live_server):
+    with chromium.served_page(live_server.url + "/") as page:
+        yield page
+
+
+def fresh_page(page):
+    """The page again (no exemplar, no maps), with the fast fit settings."""
+    page.goto(page.url)
+    page.wait_for_selector("body[data-ready='1']")
+    page.errors.clear()  # the refusals of the test before (Chromium logs each 400)
+    page.click("#fit-settings summary")
+    page.uncheck("#layout")
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", FAST_FIT[name])
+
+
+def wait_said(page, fragment, timeout=90_000):
+    try:
+        page.wait_for_function("(f) => document.getElementById('message').textContent.includes(f)", arg=fragment,
+                               timeout=timeout)
+    except sync_api.TimeoutError:
+        raise AssertionError(f"{fragment!r} never said: {page.text_content('#message')!r}") from None
+    return page.text_content("#message")
+
+
+def wait_model(page, what):
+    """Wait for the fit's end and the summary of a ``what`` ('model' or 'material')."""
+    page.wait_for_function("(w) => document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " !document.getElementById('summary').hidden &&"
+                           " document.getElementById('summary').textContent.startsWith(w + ' ')", arg=what,
+                           timeout=90_000)
+
+
+def exemplar_shown(page):
+    """The exemplar's picture as shown: [its src's end, loaded, its natural width] (None when hidden)."""
+    return page.eval_on_selector("#exemplar", "i => i.hidden ? null :"
+                                 " [i.getAttribute('src').split('/').pop(), i.complete, i.naturalWidth]")
+
+
+def refused_files(tmp_path):
+    """Exemplars the server refuses before a fit: a text file named .png, a flat image, a tiny one."""
+    import numpy as np
+
+    (tmp_path / "notes.png").write_bytes(b"just some notes, not an image\n")
+    (tmp_path / "flat.png").write_bytes(png(np.full((64, 64, 3), 128, np.uint8)))
+    (tmp_path / "tiny.png").write_bytes(png(np.random.default_rng(1).integers(0, 255, (4, 4, 3), np.uint8)))
+    return [tmp_path / name for name in ("notes.png", "flat.png", "tiny.png")]
+
+
+def test_a_refused_exemplar_leaves_the_working_model_and_its_exemplar(page, tmp_path):
+    # The refused file stayed shown as the exemplar (a broken picture for a text file), the page had no
+    # model, and "Add maps..." fitted the refused file again.
+    from tghop import data
+    from tghop.imageio import to_uint16
+    from tghop.material import example_maps
+
+    bad = refused_files(tmp_path)
+    fresh_page(page)
+    page.set_input_files("#file", str(bad[0]))  # nothing before it: the page is empty again
+    page.wait_for_function("document.getElementById('message').classList.contains('error')", timeout=30_000)
+    assert exemplar_shown(page) is None and page.is_hidden("#fit-status") and page.is_disabled("#go")
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "model")
+    summary = page.text_content("#summary")
+    for path in bad:
+        page.set_input_files("#file", str(path))
+        said = wait_said(page, "builtin:bricks")  # the model kept is named
+        assert path.name in said and page.eval_on_selector("#message", "e => e.classList.contains('error')"), said
+        assert exemplar_shown(page) == ["bricks.png", True, 256]
+        assert page.is_enabled("#go") and page.is_visible("#download-model")
+        page.wait_for_selector("#summary:not([hidden])")
+        assert page.text_content("#summary") == summary
+        assert page.input_value("#builtin") == "bricks" and page.is_hidden("#fit-status")
+    (tmp_path / "normal.png").write_bytes(png(to_uint16(example_maps(data.builtin("bricks"))["normal"])))
+    page.set_input_files("#maps", str(tmp_path / "normal.png"))  # the working exemplar with the maps
+    wait_model(page, "material")
+    assert "exemplar 256x256" in page.text_content("#summary")  # bricks (tiny.png was refitted: 400)
+    assert exemplar_shown(page) == ["bricks.png", True, 256]
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_maps_of_another_size_leave_the_working_model(page, tmp_path):
+    # A map set the server refused lost the working model (the page was left with none) and stayed listed.
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    height = to_uint8(data.builtin("bricks")[..., 0])
+    (tmp_path / "height.png").write_bytes(png(height))
+    (tmp_path / "small_normal.png").write_bytes(png(height[:64, :64]))
+    fresh_page(page)
+    page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
+    assert page.text_content("#maps-list") == "maps: height"
+    assert "pick or drop the albedo (exemplar) now" in page.text_content("#message")
+    assert page.is_hidden("#fit-status")
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "material")
+    summary = page.text_content("#summary")
+    assert "maps: albedo, 8-bit; height, 8-bit" in summary
+    for listed in ("maps: height", ""):  # a material's maps replaced, then a texture model's maps added
+        page.set_input_files("#maps", str(tmp_path / "small_normal.png"))
+        said = wait_said(page, "not added")
+        assert "64x64" in said and "256x256" in said, said
+        assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
+        assert page.text_content("#maps-list") == listed
+        assert page.is_visible("#maps-clear") == bool(listed)
+        assert page.is_enabled("#go") and page.is_hidden("#fit-status")
+        assert exemplar_shown(page) == ["bricks.png", True, 256]
+        page.wait_for_selector("#summary:not([hidden])")
+        assert page.text_content("#summary") == summary
+        if listed:
+            page.click("#maps-clear")  # the texture model
+            wait_model(page, "model")
+            summary = page.text_content("#summary")
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors
