@@ -1,7 +1,8 @@
 """What ``tghop serve``'s page keeps when something is refused, in a real browser (Chromium through
 Playwright) against a real uvicorn server: a refused exemplar (not an image, flat, too small) or map
 set leaves the working model and its exemplar as they were, and "Add maps..." then refits that
-exemplar; maps added before any exemplar wait for it."""
+exemplar; maps added before any exemplar wait for it; nothing empty is shown before there is something
+to show (the tiling, a model file's exemplar caption)."""
 
 import io
 
@@ -140,3 +141,29 @@ def test_maps_of_another_size_leave_the_working_model(page, tmp_path):
             wait_model(page, "model")
             summary = page.text_content("#summary")
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_nothing_empty_before_a_result_and_a_model_files_caption(page, tmp_path):
+    # The 3x3 tiling's heading and empty canvas showed before any result; a model file left the caption
+    # "exemplar" under no picture.
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+               .fit(data.bricks(64)), tmp_path / "saved bricks.npz")
+    fresh_page(page)
+    assert page.is_hidden("#tiled-title") and page.is_hidden("#tiled-box")
+    assert page.is_hidden("#exemplar-caption") and page.is_hidden("#result-caption")
+    page.set_input_files("#model-file", str(tmp_path / "saved bricks.npz"))
+    page.wait_for_selector("#summary:not([hidden])")
+    assert page.is_hidden("#exemplar") and page.is_visible("#exemplar-caption")
+    assert "saved bricks.npz" in page.text_content("#exemplar-caption")
+    page.fill("#height", "40")
+    page.fill("#width", "48")
+    page.click("#go")
+    page.wait_for_selector("#tiled[data-ready='1']")
+    assert page.is_visible("#tiled-title") and page.is_visible("#tiled-box") and page.is_visible("#result-caption")
+    page.select_option("#builtin", "bricks")  # an exemplar: its caption again
+    assert page.text_content("#exemplar-caption") == "exemplar"
+    wait_model(page, "model")
+    assert not page.errors, page.errors

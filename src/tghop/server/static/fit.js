@@ -11,6 +11,17 @@ function setExemplar(url) {
   state.exemplarUrl = url;
   const img = $("exemplar");
   if (url) { img.src = url; img.hidden = false; } else { img.removeAttribute("src"); img.hidden = true; }
+  exemplarCaption();
+}
+
+// "exemplar" under a picture; a model file's name where a loaded model has none; nothing under nothing.
+function exemplarCaption() {
+  const caption = $("exemplar-caption");
+  const working = state.working;
+  const file = !state.exemplarUrl && state.modelId && working && working.modelId === state.modelId;
+  caption.textContent = state.exemplarUrl ? "exemplar"
+    : file ? `${working.name} (a model file: no picture of its exemplar)` : "";
+  caption.hidden = !caption.textContent;
 }
 
 // The working model: {source, exemplarUrl, modelId, material, name}, or null (none). A refused fit goes
@@ -21,6 +32,7 @@ function setWorking(working) {
   if (old && old.startsWith("blob:") && old !== state.exemplarUrl && !(working && working.exemplarUrl === old)) {
     URL.revokeObjectURL(old);
   }
+  exemplarCaption();
 }
 
 // A fit refused (before or after its job started): the page goes back to the working model, its source
@@ -46,6 +58,7 @@ function setModel(id, material = null) {
   setMaterial(material);
   if (id) addSessionModel(id, state.pendingName);
   updateButtons();
+  exemplarCaption();
   offerDownload($("download-model"), id && `/api/models/${id}/file`, id && `tghop-${id.slice(0, 12)}.npz`);
 }
 

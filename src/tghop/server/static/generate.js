@@ -44,6 +44,7 @@ function showPicture(url, what, seed, filename) {
   const img = $("result");
   img.onload = () => {
     $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
+    $("result-caption").hidden = false;
     drawTiled(img);
   };
   img.src = url;
@@ -89,6 +90,7 @@ function drawTiled(img) {
   for (let y = 0; y < 3; y++) for (let x = 0; x < 3; x++) ctx.drawImage(img, x * w, y * h, w, h);
   $("tiled-title").textContent = scale < 1 ? `Tiled 3\u00d73, shown at ${Math.round(100 * scale)} % (seams show here)`
     : "Tiled 3\u00d73 (seams show here)";
+  $("tiled-title").hidden = $("tiled-box").hidden = false;  // hidden until there is a result
   canvas.dataset.ready = "1";
 }
 
