@@ -2,7 +2,7 @@
 Playwright) against a real uvicorn server: a refused exemplar (not an image, flat, too small) or map
 set leaves the working model and its exemplar as they were, and "Add maps..." then refits that
 exemplar; maps added before any exemplar wait for it; nothing empty is shown before there is something
-to show (the tiling, a model file's exemplar caption)."""
+to show (the tiling, a model file's exemplar caption); the canvases read back are made for it."""
 
 import io
 
@@ -29,6 +29,8 @@ def png(pixels) -> bytes:
 @pytest.fixture(scope="module")
 def page(live_server):
     with chromium.served_page(live_server.url + "/") as page:
+        page.warnings = []
+        page.on("console", lambda msg: page.warnings.append(msg.text) if msg.type == "warning" else None)
         yield page
 
 
@@ -167,3 +169,28 @@ def test_nothing_empty_before_a_result_and_a_model_files_caption(page, tmp_path)
     assert page.text_content("#exemplar-caption") == "exemplar"
     wait_model(page, "model")
     assert not page.errors, page.errors
+
+
+def test_the_canvases_read_back_are_made_for_it(page):
+    # Chromium warned "Multiple readback operations using getImageData are faster with the
+    # willReadFrequently attribute set to true" (the mask read at each Fill, the tests' reads).
+    if not page.query_selector("#tiled[data-ready='1']"):  # run alone
+        fresh_page(page)
+        page.select_option("#builtin", "bricks")
+        wait_model(page, "model")
+        page.click("#go")
+        page.wait_for_selector("#tiled[data-ready='1']")
+    page.locator("label", has=page.locator("#mode-inpaint")).click()
+    page.wait_for_selector("#editor[data-ready='1']")
+    page.locator("label", has=page.locator("#mode-paint")).click()
+    page.wait_for_selector("#guide[data-ready='1']")
+    page.locator("label", has=page.locator("#mode-view")).click()
+    for canvas in ("#tiled", "#mask", "#guide"):
+        # getContext gives the context the page made first, with its attributes
+        assert page.eval_on_selector(canvas, "c => c.getContext('2d').getContextAttributes().willReadFrequently"
+                                     " === true"), canvas
+        page.eval_on_selector(canvas, "c => { for (let i = 0; i < 4; i++)"
+                              " c.getContext('2d').getImageData(0, 0, c.width, c.height); }")
+    page.wait_for_timeout(200)
+    assert not [w for w in page.warnings if "willReadFrequently" in w], page.warnings
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors

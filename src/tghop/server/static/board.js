@@ -39,7 +39,7 @@ function drawBoard(b, x0, y0, x1, y1) {
   const w = x1 - x0, h = y1 - y0;
   if (w <= 0 || h <= 0) return;
   const rgb = PALETTE.map((c) => [1, 3, 5].map((k) => parseInt(c.slice(k, k + 2), 16)));
-  const ctx = $(b.canvas).getContext("2d");
+  const ctx = context2d($(b.canvas));
   const image = ctx.createImageData(w, h);
   for (let y = 0; y < h; y++) {
     for (let x = 0; x < w; x++) {

@@ -12,6 +12,12 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
 // and the brush's last point while painting.
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null };
 
+// The 2d context of a canvas whose pixels are read back (getImageData: the mask at each Fill, the boards and
+// the tiling by the tests): made for it, or Chromium warns that it is slow. The first getContext sets it.
+function context2d(canvas) {
+  return canvas.getContext("2d", { willReadFrequently: true });
+}
+
 function say(text, isError) {
   const el = $("message");
   el.textContent = text || "";

@@ -86,7 +86,7 @@ function drawTiled(img) {
   const w = Math.max(1, Math.floor(img.naturalWidth * scale)), h = Math.max(1, Math.floor(img.naturalHeight * scale));
   canvas.width = 3 * w;
   canvas.height = 3 * h;
-  const ctx = canvas.getContext("2d");
+  const ctx = context2d(canvas);
   for (let y = 0; y < 3; y++) for (let x = 0; x < 3; x++) ctx.drawImage(img, x * w, y * h, w, h);
   $("tiled-title").textContent = scale < 1 ? `Tiled 3\u00d73, shown at ${Math.round(100 * scale)} % (seams show here)`
     : "Tiled 3\u00d73 (seams show here)";

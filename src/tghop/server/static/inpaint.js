@@ -52,7 +52,7 @@ function setEditorPicture(blob, name, maps) {
 
 function clearMask() {
   const canvas = $("mask");
-  canvas.getContext("2d").clearRect(0, 0, canvas.width, canvas.height);
+  context2d(canvas).clearRect(0, 0, canvas.width, canvas.height);
 }
 
 function brushPoint(event, canvas) {
@@ -63,7 +63,7 @@ function brushPoint(event, canvas) {
 }
 
 function paint(from, to) {
-  const ctx = $("mask").getContext("2d");
+  const ctx = context2d($("mask"));
   ctx.globalCompositeOperation = $("erase").checked ? "destination-out" : "source-over";
   ctx.strokeStyle = ctx.fillStyle = "#ff00e6";  // shown at 60 % over the picture
   ctx.lineWidth = Number($("brush").value);
@@ -117,7 +117,7 @@ function onBrushUp() {
 function maskBlob() {
   const canvas = $("mask");
   const w = canvas.width, h = canvas.height;
-  const pixels = canvas.getContext("2d").getImageData(0, 0, w, h).data;
+  const pixels = context2d(canvas).getImageData(0, 0, w, h).data;
   let painted = false;
   for (let i = 3; i < pixels.length; i += 4) if (pixels[i] > 127) { painted = true; break; }
   if (!painted) return Promise.resolve(null);
