@@ -111,6 +111,40 @@ def test_cli_synth_depth(tmp_path):
     assert bad.output.strip().count("\n") == 0 and "JPEG" in bad.output
 
 
+def test_colour_tiff_without_tifffile_is_refused_before_the_work(tmp_path, monkeypatch):
+    # A core-only install (no tiff extra): synth -o x.tif --depth 16 fitted and generated the whole image,
+    # then said that tifffile was missing. Now every command says so before the fit, in one line.
+    from click.testing import CliRunner
+
+    from tghop import MissingExtraError
+    from tghop.cli import main
+    from tghop.synthesis import TGHop
+
+    monkeypatch.setitem(__import__("sys").modules, "tifffile", None)  # as if not installed
+
+    def reached(*args, **kwargs):
+        raise AssertionError("the work started before the missing tifffile was told")
+
+    monkeypatch.setattr(TGHop, "fit", reached)
+    assert check_depth(tmp_path / "g.tif", 16, channels=1) == 16  # grey: Pillow writes it
+    assert check_depth(tmp_path / "c.tif", 8, channels=3) == 8
+    with pytest.raises(MissingExtraError, match=r"tghop\[tiff\]"):
+        check_depth(tmp_path / "c.tif", 32, channels=3)
+    picture = tmp_path / "p.png"
+    save_image(np.random.default_rng(0).random((64, 64, 3)), picture)
+    hole = tmp_path / "h.png"
+    save_image(np.pad(np.ones((8, 8)), 28), hole)
+    runner = CliRunner()
+    out = str(tmp_path / "o.tif")
+    for command in (["synth", "builtin:bricks", "--size", "64"], ["synth", "builtin:bricks", "builtin:cells"],
+                    ["morph", "builtin:bricks", "builtin:cells", "--size", "64x128"],
+                    ["inpaint", str(picture), str(hole)], ["extend", str(picture), "--size", "64x96"]):
+        res = runner.invoke(main, [*command, "-o", out, "--depth", "16", "-q"])
+        assert res.exit_code == 1 and "Traceback" not in res.output, (command, res.output)
+        assert res.output.strip().count("\n") == 0 and "pip install 'tghop[tiff]'" in res.output, command
+        assert not (tmp_path / "o.tif").exists()
+
+
 def test_cli_synth_warns_that_a_16bit_exemplar_is_written_8bit(tmp_path):
     # synth writes 8 bits unless --depth (as documented): a height map artist's 16-bit exemplar lost its
     # depth without a word, where inpaint and extend keep it.

@@ -2,12 +2,14 @@
 :mod:`tghop.imageio` writes by and every message and ``--help`` text names (no imports:
 the command line's help is made from it without loading NumPy)."""
 
-__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file"]
+__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "TIFF_HINT", "check_tifffile"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
 #: Bits per channel each output format can be written with (32: float32 TIFF).
 DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
+#: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
+TIFF_HINT = "pip install 'tghop[tiff]'"
 
 
 def extensions(formats=None) -> str:
@@ -30,3 +32,14 @@ def is_model_file(path) -> bool:
             return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
     except OSError:
         return False
+
+
+def check_tifffile(path, depth):
+    """A one-line :class:`~tghop.MissingExtraError` unless :mod:`tifffile` (the tiff extra)
+    imports: Pillow writes no colour TIFF of ``depth`` (16 or 32) bits."""
+    try:
+        import tifffile  # noqa: F401
+    except ImportError:
+        from ._errors import MissingExtraError
+
+        raise MissingExtraError(f"{path}: writing a {depth}-bit colour TIFF needs tifffile: {TIFF_HINT}") from None

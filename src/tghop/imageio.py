@@ -16,15 +16,12 @@ import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image
 from ._errors import ImageTooLargeError
-from ._formats import DEPTHS, FORMATS, extensions
+from ._formats import DEPTHS, FORMATS, TIFF_HINT, check_tifffile, extensions
 from .png import decode_png16, write_png
 from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
            "check_output_path", "written_file", "check_depth", "deepest", "generation_dtype", "save_images", "DEPTHS"]
-
-#: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
-TIFF_HINT = "pip install 'tghop[tiff]'"
 
 #: Largest image :func:`load_image` reads (pixels), checked from the file's header before
 #: decoding: 64 Mpx (8192x8192, the largest output tghop writes). A larger file is refused
@@ -463,7 +460,7 @@ def generation_dtype(depth):
     return np.float32 if (depth or 8) > 8 else np.uint8
 
 
-def check_depth(path, depth) -> int:
+def check_depth(path, depth, *, channels=None) -> int:
     """Refuse a bit depth the output's format cannot hold (one line naming the fix);
     returns the depth (8, 16 or 32).
 
@@ -471,6 +468,8 @@ def check_depth(path, depth) -> int:
     ----------
     path : str or os.PathLike, the output file; its extension names the format (PNG: 8 or 16, JPEG: 8, TIFF: any)
     depth : int, bits per channel (a float such as 16.0, or a bool, is refused)
+    channels : int, optional, the image's, where known before the work: a colour TIFF of 16 or 32
+        bits without tifffile is then refused here (:func:`tghop._formats.check_tifffile`)
 
     Returns
     -------
@@ -486,6 +485,8 @@ def check_depth(path, depth) -> int:
             " (float TIFF)" if depth == 32 else "")
         raise InvalidImageError(f"{path}: {fmt} cannot hold {depth}-bit {'float ' if depth == 32 else ''}values "
                                 f"(it takes {' or '.join(map(str, DEPTHS[fmt]))} bits); {fix}, or pick another depth")
+    if fmt == "TIFF" and channels is not None and channels > 1 and depth > 8:
+        check_tifffile(path, depth)
     return depth
 
 
@@ -829,9 +830,7 @@ def _tiff_writer(image, depth, path):
         import tifffile
     except ImportError:
         if pixels.ndim == 3 and depth > 8:
-            from ._errors import MissingExtraError
-
-            raise MissingExtraError(f"{path}: writing a {depth}-bit colour TIFF needs tifffile: {TIFF_HINT}") from None
+            check_tifffile(path, depth)
         from PIL import Image
 
         pil = Image.fromarray(pixels)  # grey uint16: mode I;16, float32: F

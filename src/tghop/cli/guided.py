@@ -42,6 +42,20 @@ def _read(spec, downscale=None):
                                           has_downscale=downscale is not None))
 
 
+def _check_channels(output, depth, read):
+    """Refuse, before anything is fitted, a colour TIFF of 16 or 32 bits that cannot be written
+    (no tifffile): the output has the most channels of the sources ``read`` (:func:`_read`);
+    a material's maps are checked where they are written."""
+    import numpy as np
+
+    from ..imageio import check_depth
+
+    channels = [source.shape[2] if isinstance(source, np.ndarray) else source.exemplar_shape_[2]
+                for source in read if not hasattr(source, "names_")]
+    if channels:
+        check_depth(output, depth or 8, channels=max(channels))
+
+
 def _fitted(source, options, progress, label):
     """``source`` from :func:`_read` as a model: a saved one as it is, an exemplar fitted with the fit
     ``options`` (None: the command has none, and a too small exemplar is told so in its own words).
@@ -115,6 +129,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
+    _check_channels(output, depth, read)
     if generation["patch_refine"] and not hasattr(read[0], "names_"):  # before any fit (materials: refused below)
         from .options import refuse_patch_refine_without_statistics
 
@@ -217,6 +232,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         _check_grid(size, grid)
         read_a, read_b = _read(source_a), _read(source_b)
         _same_kind([source_a, source_b], [read_a, read_b], "A" if hasattr(read_a, "names_") else "B")
+        _check_channels(output, depth, [read_a, read_b])
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
                                                                                      f"B {source_b}")
         rows = []

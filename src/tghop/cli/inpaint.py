@@ -159,7 +159,8 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True,
                                       too_large_hint=HINT_DOWNSCALE_YOURSELF)
     picture, alpha = split_alpha(picture)
-    written = check_depth(output, depth or deepest(output, image_depth))
+    written = check_depth(output, depth or deepest(output, image_depth),
+                          channels=picture.shape[2] + (alpha is not None))
     if not maps:
         warn_lost_depth([(f"IMAGE {image}", image_depth, written)], output, depth)
     return picture, alpha, written, source_is_model, image_depth

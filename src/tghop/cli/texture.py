@@ -21,17 +21,21 @@ from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
 
-def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=None, output=None):
+def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=None, output=None, depth=None):
     """A TGHop fitted on exemplar ``spec`` (a file or builtin:NAME) with the fit options,
     leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``); with
     ``deep_warning`` (a label), a warning when the exemplar has more than 8 bits a channel (written to
-    ``output``)."""
+    ``output``). With ``output`` and ``depth`` (synth's), an image of the exemplar's channels that
+    ``output`` cannot take at ``depth`` is refused before the fit (:func:`tghop.imageio.check_depth`)."""
+    from ..imageio import check_depth
     from ..synthesis import prepare_exemplar
 
     raw = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True)
     if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
         warn_written_with_8(deep_warning, spec, output)
     image = prepare_exemplar(raw)
+    if output is not None and depth is not None:
+        check_depth(output, depth, channels=image.shape[2])
     model = build_model(options, n_colours=image.shape[2])
     model.check_exemplar_size(image.shape)  # before the mask is read
     mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar",
@@ -274,7 +278,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                stages=False):
     """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
     written (None for a material, which says what it wrote) and whether SOURCE was a saved model."""
-    from ..imageio import generation_dtype, save_image
+    from ..imageio import check_depth, generation_dtype, save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
 
@@ -316,6 +320,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
             _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
                             source=source)
             return None, True
+        check_depth(output, depth or 8, channels=model.exemplar_shape_[2])
         if generation["patch_refine"] and model.patches_ is None:
             raise TGHopError(f"{source} holds no patch statistics for --patch-refine or --quality best "
                              "(fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again with 'tghop fit'")
@@ -328,7 +333,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         block_count(size, planned.patch_size, overlap=generation["overlap"], tile=generation["tile"])
         refuse_patch_refine_without_statistics(ctx, generation, planned)
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress,
-                             deep_warning=None if depth else "SOURCE", output=output)
+                             deep_warning=None if depth else "SOURCE", output=output, depth=depth or 8)
         if save_model:
             write_model(model, save_model)
     import warnings
