@@ -41,7 +41,7 @@ def built(tmp_path_factory):
     if int(setuptools.__version__.split(".")[0]) < 77:
         pytest.skip(f"setuptools {setuptools.__version__}: the build needs 77 or newer (pip install 'tghop[test]')")
     tree = tmp_path_factory.mktemp("tree")
-    for name in ("pyproject.toml", "README.md", "MANIFEST.in"):
+    for name in ("pyproject.toml", "README.md", "MANIFEST.in", "LICENSE"):
         shutil.copy2(ROOT / name, tree / name)
     shutil.copytree(ROOT / "src", tree / "src", ignore=IGNORED)
     shutil.copytree(ROOT / "tests", tree / "tests", ignore=IGNORED)
@@ -68,7 +68,8 @@ def test_wheel_holds_the_package_and_nothing_else(built):
     assert {"tghop/server/static/index.html", "tghop/server/static/style.css"} <= static <= package
     assert "tghop = tghop.__main__:run" in entry_points
     assert "Requires-Python: >=3.10" in metadata
-    assert "License-Expression: BSD-3-Clause" in metadata
+    assert "License-Expression: BSD-3-Clause" in metadata and "License-File: LICENSE" in metadata
+    assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)  # the licence's text ships with it
     assert "Description-Content-Type: text/markdown" in metadata
 
 
@@ -78,7 +79,7 @@ def test_sdist_holds_the_whole_test_suite_and_builds_the_same_wheel(built):
         names = {n.split("/", 1)[1] for n in tar.getnames() if "/" in n}
     tests = {p.relative_to(ROOT).as_posix() for p in (ROOT / "tests").glob("*.py")}
     assert tests <= names  # conftest.py and the browser helpers too, not only test_*.py
-    assert {"pyproject.toml", "README.md"} <= names and {f"src/{n}" for n in _package_files()} <= names
+    assert {"pyproject.toml", "README.md", "LICENSE"} <= names and {f"src/{n}" for n in _package_files()} <= names
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
     with zipfile.ZipFile(wheel) as first, zipfile.ZipFile(again) as second:
         assert sorted(first.namelist()) == sorted(second.namelist())
