@@ -1,6 +1,7 @@
 """Shared fixtures: small textures made in code and a small fitted model (no ../shared)."""
 
 import signal
+import sys
 
 import numpy as np
 import pytest
@@ -54,6 +55,24 @@ SMALL = dict(n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, strid
 #: A tiny co-occurrence cGAN (tghop.cooc): 32 x 32 crops, s = 8, a few filters, two steps; trains in a few seconds.
 TINY_COOC = dict(n_clusters=3, crop_size=32, n_layers=3, patch=9, window=7, sigma=2.0, g_widths=(8, 4), d_widths=(4, 8),
                  noise_channels=2, n_crops=12, batch_size=4, n_steps=2, n_critic=1)
+
+
+class _NoTorch:
+    """A finder that answers every ``import torch`` as if PyTorch were not installed."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "torch" or name.startswith("torch."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+
+@pytest.fixture
+def without_torch(monkeypatch):
+    """As if PyTorch were not installed: ``import torch`` raises ModuleNotFoundError. ``torch`` is
+    taken out of ``sys.modules`` rather than set to None there, which SciPy's array API helpers
+    read as a module (a test of it alone failed with "'NoneType' object has no attribute 'Tensor'")."""
+    monkeypatch.delitem(sys.modules, "torch", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [_NoTorch(), *sys.meta_path])
 
 
 @pytest.fixture(scope="session")

@@ -681,8 +681,7 @@ def test_morph_strip_and_grid(tiny_model):
     np.testing.assert_allclose(grid[0, 0], tiny_model.generate(a, noise=z), atol=1e-6)
 
 
-def test_without_torch(monkeypatch, exemplar):
-    monkeypatch.setitem(sys.modules, "torch", None)
+def test_without_torch(monkeypatch, exemplar, without_torch):
     with pytest.raises(MissingExtraError, match=r"pip install 'tghop\[metrics\]'"):
         cooc.CoocGAN(**TINY).fit(exemplar)
     with pytest.raises(MissingExtraError):

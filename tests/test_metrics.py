@@ -216,15 +216,13 @@ def test_copied_textured_and_self_repetition_report_progress(exemplar, reference
 
 
 @pytest.mark.parametrize("name", TORCH_METRICS)
-def test_torch_metric_with_torch_missing_raises_install_hint(name, exemplar, monkeypatch):
-    monkeypatch.setitem(sys.modules, "torch", None)
+def test_torch_metric_with_torch_missing_raises_install_hint(name, exemplar, monkeypatch, without_torch):
     with pytest.raises(MissingExtraError, match=r"pip install 'tghop\[metrics\]'"):
         metrics.METRICS[name].function(exemplar, exemplar)
     assert issubclass(MissingExtraError, TGHopError)
 
 
-def test_evaluate_without_torch_skips_or_raises(exemplar, monkeypatch):
-    monkeypatch.setitem(sys.modules, "torch", None)
+def test_evaluate_without_torch_skips_or_raises(exemplar, monkeypatch, without_torch):
     scores = metrics.evaluate(exemplar, exemplar)
     assert set(scores.skipped) == set(TORCH_METRICS)
     assert all("pip install 'tghop[metrics]'" in why for why in scores.skipped.values())

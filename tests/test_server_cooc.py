@@ -7,7 +7,6 @@ import hashlib
 import io
 import json
 import os
-import sys
 
 import numpy as np
 import pytest
@@ -247,10 +246,9 @@ def test_bad_requests_get_one_line_and_their_status(client, cid):
                  "0..2 (this model has 3 colour clusters)")
 
 
-def test_without_torch_the_routes_say_how_to_install_it(tmp_path, monkeypatch):
+def test_without_torch_the_routes_say_how_to_install_it(tmp_path, monkeypatch, without_torch):
     from conftest import LiveServer
 
-    monkeypatch.setitem(sys.modules, "torch", None)  # as if PyTorch were not installed
     server = LiveServer(tmp_path)
     try:
         with httpx.Client(base_url=server.url, timeout=60) as c:

@@ -548,7 +548,9 @@ def import_torch(what: str):
     try:
         import torch
     except ImportError:
-        raise MissingExtraError(f"{what} needs PyTorch; install it with: {INSTALL_HINT}") from None
+        raise MissingExtraError(f"{what} needs PyTorch; install it with: {INSTALL_HINT} (where pip would fetch a "
+                                "CUDA build of several GB, install PyTorch's CPU build of torch 2.13.0 first: "
+                                "README)") from None
     return torch
 
 
