@@ -646,6 +646,15 @@ def test_without_dask_one_line_and_workers_1_still_works(tmp_path):
     p = _run_cli(["batch", "src", "-o", "out", "--workers", "1", "-q"], tmp_path, block_dask=True)
     _, err = p.communicate(timeout=120)
     assert_one_line(p.returncode, err.decode(), "1 of 1 exemplar failed", "flat")
+    # The default (no --workers) on a core install works the first time: in this process, said in a warning.
+    save_image(data.bricks(64, rng=3), tmp_path / "src" / "bricks.png")
+    p = _run_cli(["batch", "src", "-o", "out", "--size", "48", *CLI_FAST], tmp_path, block_dask=True)
+    _, err = p.communicate(timeout=120)
+    lines = err.decode().strip().splitlines()
+    assert p.returncode == 1 and lines[-1].startswith("Error: 1 of 2 exemplars failed"), err.decode()  # flat.png
+    said = [line for line in lines if line.startswith("Warning: Dask is not installed")]
+    assert len(said) == (len(os.sched_getaffinity(0)) > 1), err.decode()  # one core: in process anyway
+    assert [line["status"] for line in ledger(tmp_path / "out") if line["name"] == "bricks"] == ["ok"]
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])

@@ -544,8 +544,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         Other keywords of :meth:`TGHop.synthesize` (``tile`` comes from ``tile``).
     workers : int, optional
         1: in this process, without Dask, each exemplar on every core. Otherwise a local cluster of
-        that many worker processes (None: one per core, :func:`local_cluster`), which import the
-        calling script: call ``run`` under its ``if __name__ == "__main__":``. On a cluster (also a
+        that many worker processes (None: one per core, :func:`local_cluster`, or in this process
+        with a warning where Dask is not installed), which import the calling script: call ``run``
+        under its ``if __name__ == "__main__":``. On a cluster (also a
         given one) each exemplar runs on one thread (BLAS's and tghop's own), the longest first.
         Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
@@ -585,7 +586,15 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     _check_own_files(outdir, contact_sheet)
     in_process = client is None and scheduler is None and (workers == 1 or (workers is None and _cores() == 1))
     if not in_process and client is None:
-        _import_distributed()  # a missing extra is said before any work
+        try:
+            _import_distributed()  # a missing extra is said before any work
+        except MissingExtraError:
+            if workers is not None or scheduler is not None:
+                raise
+            # The default on a core install: it works the first time, one exemplar after another.
+            warnings.warn(f"Dask is not installed: the exemplars run one after another in this process; for one "
+                          f"worker per core install it with: {INSTALL_HINT}", stacklevel=2)
+            in_process = True
     task = process_exemplar if task is None else task
     previous, earlier_files = _read_ledger(outdir)
     _keep_ledger_names(items, previous)
