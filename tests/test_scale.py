@@ -113,6 +113,25 @@ def test_too_small_at_the_scale_names_the_scale_that_works():
     model.set_params(scale=0.5).check_exemplar_size((256, 256, 3))
 
 
+def test_the_least_exemplar_named_at_a_scale_is_the_least_that_fits():
+    # At scale 0.5 it said "at least 152x152 pixels", but 151 pixels resample to round(75.5) = 76, as 152 do.
+    model = TGHop(scale=0.5)
+    with pytest.raises(TGHopError, match="at least 151x151 pixels") as info:
+        model.check_exemplar_size((60, 60, 3))
+    side = info.value.least_side
+    model.check_exemplar_size((side, side, 3))  # the side named is enough
+    with pytest.raises(TGHopError):
+        model.check_exemplar_size((side - 1, side - 1, 3))  # and one pixel less is not
+    for scale in (0.3, 0.7, 1.7, 2.5):
+        model.set_params(scale=scale)
+        with pytest.raises(TGHopError) as info:
+            model.check_exemplar_size((16, 16, 3))
+        side = info.value.least_side
+        model.check_exemplar_size((side, side, 3))
+        with pytest.raises(TGHopError):
+            model.check_exemplar_size((side - 1, side - 1, 3))
+
+
 def test_model_files_keep_the_scale(tmp_path):
     model = TGHop(scale=0.75, rng=0, **FAST).fit(data.cells(128, rng=2))
     save_model(model, tmp_path / "m.npz")

@@ -272,7 +272,10 @@ def check_exemplar_size(shape, ichm, *, patch_size, stride, max_patches, scale=1
         mid = (low + top) // 2
         low, top = (low, mid) if enough(square(mid), stride) else (mid + 1, top)
     clusters = ichm.clusters_for(n)
-    side = math.ceil(square(low)[0] / scale)
+    least = square(low)[0]
+    side = math.ceil(least / scale)  # enough; a side resampled to round(side * scale) may be one less
+    while side > 1 and scaled_shape((side - 1, side - 1), scale)[0] >= least:
+        side -= 1
     fixes = [f"use an exemplar of at least {side}x{side} pixels"]
     # A stride beyond the exemplar's side gives one position a row, as that side does.
     smaller = next((s for s in range(min(stride - 1, max(shape[:2])), 0, -1) if enough(shape, s)), None)
