@@ -457,6 +457,26 @@ def test_too_many_blocks():
         quilting_plan((8192, 8192), 2)
 
 
+def test_a_strip_thinner_than_a_patch_is_refused_where_its_canvas_is_above_the_limit(small_model):
+    # 1x67108864 is within the pixel limit, but quilting lays it on a 32-pixel-high canvas, 32 times the
+    # limit (about 100 GB and half an hour): it was accepted and run.
+    from tghop._common import MAX_PIXELS
+
+    for size in ((1, MAX_PIXELS), (MAX_PIXELS // 2, 2), (16, MAX_PIXELS // 16)):
+        for check in (quilting_plan, quilting.block_count):
+            with pytest.raises(TGHopError, match=r"is quilted on a canvas of .* above the limit of 67,108,864"):
+                check(size, 32)
+
+    def no_work(stage, done, total):
+        raise AssertionError(f"{stage} began")
+
+    with pytest.raises(TGHopError, match=r"^size 1x67108864 is quilted on a canvas of 32x67108864 pixels"):
+        small_model.synthesize((1, MAX_PIXELS), progress=no_work)
+    # The largest outputs are not: no side under the patch, or the canvas at the limit.
+    assert quilting.block_count((8192, 8192), 32) and quilting.block_count((32, MAX_PIXELS // 32), 32)
+    assert quilting.block_count((1, MAX_PIXELS // 32), 32) and quilting.block_count((4096, 16384), 32)
+
+
 def test_tile_needs_a_patch_sized_output(brick_pool):
     with pytest.raises(TGHopError, match=r"a tileable output \(tile, --tile\) needs a height of at least the patch "
                                          r"size 32, got 20; ask for a larger image, or fit with smaller patches"):

@@ -112,6 +112,19 @@ def _check_patch_overlap(patch_size, overlap) -> Tuple[int, int]:
     return p, o
 
 
+def _check_canvas(h: int, w: int, p: int) -> None:
+    """Refuse an output whose quilting canvas (each side at least a patch) is above
+    :data:`MAX_PIXELS`: a strip thinner than a patch is quilted (and refined) at the patch's
+    height, so 1x67108864 would cost 32 times an 8192x8192 image."""
+    ch, cw = max(h, p), max(w, p)
+    if ch * cw > MAX_PIXELS:
+        side = math.isqrt(MAX_PIXELS)
+        raise TGHopError(
+            f"size {h}x{w} is quilted on a canvas of {ch}x{cw} pixels (each side at least the patch size {p}), "
+            f"{ch * cw:,} pixels, above the limit of {MAX_PIXELS:,} ({side}x{side}); "
+            f"ask for a smaller image, or for one at least {p} pixels a side")
+
+
 def _check_values(values: np.ndarray) -> None:
     """Raise unless ``values`` are finite and in [0, 1]."""
     if values.size == 0:
@@ -484,6 +497,7 @@ def block_count(size, patch_size: int, *, overlap: Optional[int] = None, tile: b
     """
     h, w = check_size(size)
     p, o = _check_patch_overlap(patch_size, overlap)
+    _check_canvas(h, w, p)
     return len(_axis_positions(h, p, o, tile, "height")[0]) * len(_axis_positions(w, p, o, tile, "width")[0])
 
 
@@ -543,6 +557,7 @@ def quilting_plan(size, patch_size: int, *, overlap: Optional[int] = None, tile:
     """
     h, w = check_size(size)
     p, o = _check_patch_overlap(patch_size, overlap)
+    _check_canvas(h, w, p)
     tile = bool(tile)
     ys, up, down, hc = _axis_positions(h, p, o, tile, "height")
     xs, lw, rw, wc = _axis_positions(w, p, o, tile, "width")
