@@ -348,18 +348,34 @@ def test_morph_goes_from_a_on_the_left_to_b_on_the_right(models, exemplars, monk
     assert np.array_equal(strip, tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN))
 
 
-def test_morph_holds_its_station_weights_as_one_row(models, monkeypatch):
+def test_morph_holds_each_station_over_its_own_columns(models, monkeypatch):
     # (S, H, W) copies of the same row took S images' memory: 17 GB at 8192x8192 (65 stations),
-    # where the process was killed without a word.
+    # where the process was killed without a word. Then an (S, W) table of the hats, and a pass of
+    # every station over the whole image: S grows with W, so a 64x1048576 strip took 100 GB.
+    import tracemalloc
+
     from tghop import guided
 
     seen = []
     original = guided._Stations.__init__
     monkeypatch.setattr(guided._Stations, "__init__",
-                        lambda self, weights, mix, ms: seen.append(weights) or original(self, weights, mix, ms))
+                        lambda self, st, mix, ms: original(self, seen.append(list(st)) or seen[-1], mix, ms))
     tghop.morph(models[0], models[1], (48, 400), rng=1, **GEN)
-    (weights,) = seen
-    assert weights.shape == (5, 48, 400) and weights.strides[1] == 0  # a view: no copy per row
+    (stations,) = seen
+    assert len(stations) == 5 and all(wb.shape == (48, box[1].stop - box[1].start) for box, wb in stations)
+    t = np.linspace(0.0, 1.0, 400)
+    for s, (box, wb) in enumerate(stations):  # the hats, 1 - |t - c| (n - 1), where above 1e-3
+        hat = np.clip(1.0 - np.abs(t - s / 4) * 4, 0.0, 1.0).astype(np.float32)
+        on = np.flatnonzero(hat > 1e-3)
+        assert box[1] == slice(on[0], on[-1] + 1) and np.array_equal(wb, np.broadcast_to(hat[box[1]], wb.shape))
+    monkeypatch.undo()
+    tracemalloc.start()
+    try:
+        tghop.morph(models[0], models[1], (2, 32768), rng=1, n_patches=100, refine=0, seam_window=0)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 90e6, peak  # 141 MB with the (S, W) table of 257 stations, 41 MB without
 
 
 def test_models_that_cannot_mix_are_refused(models):

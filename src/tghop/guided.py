@@ -335,18 +335,33 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     n = max(3, int(math.ceil(w / 128)) + 1) if stations is None else check_int(stations, "stations", 2)
     t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
     centres = np.linspace(0.0, 1.0, n)
-    hats = np.clip(1.0 - np.abs(t[None, :] - centres[:, None]) * (n - 1), 0.0, 1.0)  # (n, W), sum 1
-    # Read-only views, the same in every row: (S, H, W) copies took S images' memory (17 GB at
-    # 8192x8192, whose default has 65 stations); each station copies only its own columns.
-    weights = np.broadcast_to(hats.astype(np.float32)[:, None, :], (n, h, w))
     mix = np.stack([1.0 - centres, centres], axis=1)
     ramp = np.broadcast_to(np.stack([1.0 - t, t]).astype(np.float32)[:, None, :], (2, h, w))
-    return _synthesize(models, (h, w), weights, mix, ramp, rng=rng, n_patches=n_patches, tile=False, overlap=overlap,
-                       tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
-                       match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
+    return _synthesize(models, (h, w), _hat_stations(h, t, centres), mix, ramp, rng=rng, n_patches=n_patches,
+                       tile=False, overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share,
+                       refine=refine, match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
                        layout_weight=layout_weight, layout_refine=layout_refine,
                        layout_patch_refine=layout_patch_refine, seam_window=seam_window,
                        progress=progress, dtype=dtype)
+
+
+def _hat_stations(h, t, centres):
+    """Each station's box and hat weights over it (None where it has none), for :class:`_Stations`:
+    the hat of centre ``c`` is ``1 - |t - c| (n - 1)``, clipped to [0, 1] (they sum to 1), the same
+    in every row. Only its own columns are computed: an (n, W) table of them took n * W * 12 bytes
+    and every station a pass over the whole image (a 64x1048576 strip, 8,193 stations: 100 GB)."""
+    n, w = centres.size, t.size
+    for c in centres:
+        lo, hi = np.searchsorted(t, [c - 1.0 / (n - 1), c + 1.0 / (n - 1)])
+        lo, hi = max(int(lo) - 1, 0), min(int(hi) + 1, w)  # a column more each side: the hat is 0 beyond
+        hat = np.clip(1.0 - np.abs(t[lo:hi] - c) * (n - 1), 0.0, 1.0).astype(np.float32)
+        on = np.flatnonzero(hat > 1e-3)
+        if on.size == 0:
+            yield None
+            continue
+        part = hat[on[0]:on[-1] + 1]
+        yield ((slice(0, h), slice(lo + int(on[0]), lo + int(on[-1]) + 1)),
+               np.ascontiguousarray(np.broadcast_to(part, (h, part.size))))
 
 
 # ----------------------------------------------------------------------------- the pipeline
@@ -431,12 +446,12 @@ def _as_dtype(image, dtype, scratch=False):
     return np.ascontiguousarray(image, dtype=dtype)
 
 
-def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
+def _synthesize(models, size, stations, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
                 refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine, layout_patch_refine,
                 seam_window, progress, dtype):
     """Quilt the union of the models' pools (each block its drawn model's patches, drawn
-    from the models' ``shares`` (K, H, W)), refine and colour-match by the stations
-    ``weights`` (S, H, W) and ``mix`` (S, K)."""
+    from the models' ``shares`` (K, H, W)), refine and colour-match by the ``stations`` (each
+    one's box and weights over it, as :func:`_hat_stations` gives them) and ``mix`` (S, K)."""
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
                                            detail=detail, flat_share=flat_share, match_colours=match_colours,
@@ -487,7 +502,7 @@ def _synthesize(models, size, weights, mix, shares, *, rng, n_patches, tile, ove
     del prepared, pool
     if checked["seam_window"]:  # (image, steps)
         image = remove_seams(*image, window=checked["seam_window"], out=image[0])
-    stations = _Stations(weights, mix, models)
+    stations = _Stations(stations, mix, models)
     if checked["refine"]:
         image = stations.refine(image, n_iter=checked["refine"], tile=tile, progress=progress)
     if checked["match_colours"]:
@@ -572,12 +587,13 @@ def _group_cost(shares, plan, p, c, rng):
 
 
 class _Stations:
-    """Station weights (S, H, W) and mixes (S, K) of the models' statistics.
+    """Stations (each one's box and its weights over it, or None) and mixes (S, K) of the models'
+    statistics.
 
     Each station is worked on over the bounding box of its weights only; its monotone
     maps are estimated from the pixels (of each band level) where it dominates."""
 
-    def __init__(self, weights, mix, models):
+    def __init__(self, stations, mix, models):
         self.mix = np.asarray(mix, dtype=np.float64)
         self.stats = [m.bands_ for m in models]
         # Each model's band quantiles with exponential tails, and their levels (made once).
@@ -585,14 +601,11 @@ class _Stations:
         self.colours = [m.colour_quantiles_ for m in models]
         self.n_levels = min(s.band_quantiles_.shape[0] for s in self.stats)
         self.stations = []
-        for ws in weights:
-            support = ws > 1e-3
-            rows, cols = np.flatnonzero(support.any(axis=1)), np.flatnonzero(support.any(axis=0))
-            if rows.size == 0:
+        for station in stations:
+            if station is None:
                 self.stations.append(None)
                 continue
-            box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-            wb = np.ascontiguousarray(ws[box], dtype=np.float32)
+            box, wb = station
             samples, level = [], wb
             for i in range(self.n_levels + 1):  # each band level's, then (last) the pixels'
                 if i == self.n_levels:
