@@ -378,6 +378,22 @@ def test_morph_holds_each_station_over_its_own_columns(models, monkeypatch):
     assert peak < 90e6, peak  # 141 MB with the (S, W) table of 257 stations, 41 MB without
 
 
+def test_a_remix_the_quilt_refuses_is_refused_before_any_work(models, monkeypatch):
+    # 33554432x2 (within the pixel limit, its canvas 16 times above it): 45 s of random regions and their weights,
+    # then the refusal; a tileable 7x900 remix, or an overlap above half a patch, likewise.
+    from tghop import guided
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the regions were drawn")
+
+    monkeypatch.setattr(guided, "random_labels", no_work)
+    for size, kw, words in (((2**25, 2), {}, "is quilted on a canvas of 33554432x32 pixels"),
+                            ((7, 900), dict(tile=True), "tileable output"),
+                            ((64, 64), dict(overlap=17), "overlap")):
+        with pytest.raises(TGHopError, match=words):
+            tghop.synthesize_guided(models, size=size, rng=1, **kw)
+
+
 def test_models_that_cannot_mix_are_refused(models):
     grey = TGHop(rng=0, **FAST).fit(data.cells(96, rng=3).mean(axis=2))
     with pytest.raises(TGHopError, match="all colour or all greyscale"):

@@ -281,11 +281,16 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         if size is None:
             raise TGHopError("a remix without a guide needs a size")
         size = check_size(size)
-        labels = random_labels(size, k, rng=rng, tile=tile)
     else:
         size = None if size is None else check_size(size)
         labels = guide_labels(guide, k, size=size)
         size = labels.shape
+    # The quilt's checks (a size, tile or overlap it refuses) before any work: the random regions and their
+    # weights took 45 s at 33554432x2, whose canvas quilting refuses.
+    block_count(size, (models[0].model_ if isinstance(models[0], Material) else models[0]).patch_size,
+                overlap=overlap, tile=tile)
+    if guide is None:
+        labels = random_labels(size, k, rng=rng, tile=tile)
     models, labels = _one_region_per_model(models, labels)
     weights = region_weights(labels, len(models), transition, tile=tile)
     return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, n_patches=n_patches, tile=tile,
