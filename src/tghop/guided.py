@@ -301,6 +301,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
                     seam_window=seam_window)
 
 
+@one_blas_thread()  # the same image with any number of threads or concurrent callers
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
           n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.8,
           flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
