@@ -17,6 +17,17 @@ for _sig, _default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGH
     if signal.getsignal(_sig) == signal.SIG_IGN:
         signal.signal(_sig, _default)
 
+def png(pixels) -> bytes:
+    """``pixels`` (an (H, W, C) or (H, W) array, as :func:`tghop.imageio.write_png` takes) as a PNG file's bytes."""
+    import io
+
+    from tghop.imageio import write_png
+
+    buf = io.BytesIO()
+    write_png(buf, pixels)
+    return buf.getvalue()
+
+
 def cli(*args, cwd=None, stdin=None):
     """The ``tghop`` command line in this process, as :func:`subprocess.run` would give it.
 

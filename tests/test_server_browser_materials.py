@@ -3,7 +3,6 @@ against a real uvicorn server: add two maps (one 16-bit), pick builtin:bricks as
 generate, switch the map shown, download every map (the 16-bit one still 16-bit), pick one of
 8 seeds, and drop the maps again (a texture model)."""
 
-import io
 import os
 import zipfile
 
@@ -16,18 +15,10 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT  # noqa: E402
+from conftest import FAST_FIT, png  # noqa: E402
 
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_MATERIAL_SCREENSHOT", "/tmp/tghop-material-page.png")
-
-
-def png(pixels) -> bytes:
-    from tghop.imageio import write_png
-
-    buf = io.BytesIO()
-    write_png(buf, pixels)
-    return buf.getvalue()
 
 
 @pytest.fixture(scope="module")

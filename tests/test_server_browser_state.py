@@ -4,7 +4,6 @@ set leaves the working model and its exemplar as they were, and "Add maps..." th
 exemplar; maps added before any exemplar wait for it; nothing empty is shown before there is something
 to show (the tiling, a model file's exemplar caption); the canvases read back are made for it."""
 
-import io
 
 import pytest
 
@@ -15,15 +14,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT  # noqa: E402
-
-
-def png(pixels) -> bytes:
-    from tghop.imageio import write_png
-
-    buf = io.BytesIO()
-    write_png(buf, pixels)
-    return buf.getvalue()
+from conftest import FAST_FIT, png  # noqa: E402
 
 
 @pytest.fixture(scope="module")

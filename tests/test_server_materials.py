@@ -4,7 +4,6 @@ depth (the library's maps, bit for bit), a material file uploaded, painted and r
 each request a material cannot take refused in one line."""
 
 import base64
-import io
 import json
 
 import numpy as np
@@ -13,7 +12,7 @@ import pytest
 httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
 pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
 
-from conftest import FAST_FIT  # noqa: E402
+from conftest import FAST_FIT, png  # noqa: E402
 
 from tghop import data  # noqa: E402
 from tghop.imageio import to_uint8, to_uint16  # noqa: E402
@@ -21,14 +20,6 @@ from tghop.material import example_maps  # noqa: E402
 from tghop.modelfile import load_model  # noqa: E402
 
 SIZE = 96
-
-
-def png(pixels) -> bytes:
-    from tghop.imageio import write_png
-
-    buf = io.BytesIO()
-    write_png(buf, pixels)
-    return buf.getvalue()
 
 
 def decode(data_b64: str) -> np.ndarray:
