@@ -107,13 +107,19 @@ def run(*args):
     return result.exit_code, result.output
 
 
-def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
+def _saved_material(tmp_path, picture, monkeypatch):
+    """The picture's files in tmp_path (the working folder) and its material, fitted around the hole, as mat.npz."""
     monkeypatch.chdir(tmp_path)
     _write(tmp_path, picture)
     images, hole = picture
     mat = Material(model=TGHop(**FAST), rng=0).fit(
         images["albedo"], {"wall_normal": images["normal"], "h": images["height"]}, exclude=hole)
     save_model(mat, tmp_path / "mat.npz")
+    return images, hole
+
+
+def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
+    images, hole = _saved_material(tmp_path, picture, monkeypatch)
     code, out = run("inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png",
                     "--source", "mat.npz", "-o", "out.png", "--seed", "3")
     assert code == 0, out
@@ -135,12 +141,7 @@ def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
 def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, picture,
                                                                                        monkeypatch):
     # A 16-bit map written as JPEG lost its depth without a word: one warning names it (as synth's).
-    monkeypatch.chdir(tmp_path)
-    _write(tmp_path, picture)
-    images, hole = picture
-    mat = Material(model=TGHop(**FAST), rng=0).fit(
-        images["albedo"], {"wall_normal": images["normal"], "h": images["height"]}, exclude=hole)
-    save_model(mat, tmp_path / "mat.npz")
+    images, hole = _saved_material(tmp_path, picture, monkeypatch)
     args = ["inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed",
             "3"]
     code, out = run(*args, "-o", "out.jpg")
