@@ -50,6 +50,24 @@ def test_png_writer_gives_pillow_the_same_pixels(monkeypatch, shape, part):
     np.testing.assert_array_equal(back, pixels[..., 0] if pixels.ndim == 3 and shape[2] == 1 else pixels)
 
 
+def test_png_writer_gives_the_same_bytes_on_any_number_of_cores(monkeypatch):
+    # The parts are set by the image alone, not the cores: a batch worker's one core, tghop
+    # synth's two and a server's many write the same file (1, 2 and 5 "cores" gave 1, 2 and 5
+    # deflate streams: files of one image that differed in their bytes).
+    from tghop import imageio, png
+
+    monkeypatch.setattr(png, "_PNG_PART", 64)
+    pixels = np.random.default_rng(3).integers(0, 256, (40, 30, 3), dtype=np.uint8)
+    files = []
+    for cores in (1, 2, 5):
+        monkeypatch.setattr(png, "usable_cores", lambda: cores)
+        buf = io.BytesIO()
+        imageio.write_png(buf, pixels)
+        files.append(buf.getvalue())
+    assert files[0] == files[1] == files[2]
+    np.testing.assert_array_equal(np.asarray(Image.open(io.BytesIO(files[0]))), pixels)
+
+
 def test_png_writer_refuses_what_png_cannot_hold():
     # (2 and 4 channels are grey and RGB with alpha: PNG holds them.)
     from tghop.imageio import write_png

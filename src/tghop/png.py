@@ -107,10 +107,11 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     -----
     Every row uses PNG's "Sub" filter (the byte one pixel to the left subtracted; 16-bit
     samples are stored big-endian, two bytes each, and filtered as bytes). The rows
-    are compressed in parts of about :data:`_PNG_PART` bytes on as many threads (zlib
-    lets go of the interpreter lock), each part a separate deflate stream ended at a
-    byte boundary, and the parts are joined into one zlib stream, as ``pigz`` does: the
-    same image as Pillow's writer (tested), in less time on several cores.
+    are compressed in parts of about :data:`_PNG_PART` bytes, on as many threads as there
+    are cores (zlib lets go of the interpreter lock), each part a separate deflate stream
+    ended at a byte boundary, and the parts are joined into one zlib stream, as ``pigz``
+    does: the same image as Pillow's writer (tested), in less time on several cores. The
+    parts depend on the image alone: the same bytes on any number of cores.
     """
     px = np.asarray(pixels)
     if px.dtype not in (np.uint8, np.uint16) or px.ndim not in (2, 3) or (px.ndim == 3 and px.shape[2] > 4):
@@ -131,7 +132,7 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     raw[:, 0] = 1  # filter type Sub
     raw[:, 1 : 1 + c] = rows[:, :c]
     np.subtract(rows[:, c:], rows[:, :-c], out=raw[:, 1 + c :])  # modulo 256
-    n_parts = max(1, min(usable_cores(), raw.nbytes // _PNG_PART, h))
+    n_parts = max(1, min(raw.nbytes // _PNG_PART, h))  # not the cores: the same file on every machine
     bounds = [h * i // n_parts for i in range(n_parts + 1)]
     blobs = [b""] * n_parts
 
@@ -140,12 +141,14 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
         blobs[i] = stream.compress(raw[bounds[i] : bounds[i + 1]].data) + stream.flush(
             zlib.Z_FINISH if i == n_parts - 1 else zlib.Z_SYNC_FLUSH)
 
-    if n_parts == 1:
-        compress(0)
+    threads = min(usable_cores(), n_parts)
+    if threads == 1:
+        for i in range(n_parts):
+            compress(i)
     else:
         from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(max_workers=n_parts) as pool:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
             list(pool.map(compress, range(n_parts)))  # a part's error (e.g. out of memory) is raised here
     fh.write(b"\x89PNG\r\n\x1a\n")
     colour_type = {1: 0, 2: 4, 3: 2, 4: 6}[channels]  # grey, grey + alpha, RGB, RGBA
