@@ -1,5 +1,8 @@
 """Thread counts of a fit (issue #26): one BLAS / OpenMP thread inside TGHop.fit, ICA
-clusters on the idle cores, and the model the same bit for bit whatever the counts."""
+clusters on the idle cores, and the model the same bit for bit whatever the counts; one
+BLAS thread for the sampling too."""
+
+import sys
 
 import numpy as np
 import pytest
@@ -47,3 +50,28 @@ def test_usable_cores_is_the_affinity_mask(monkeypatch):
     assert _common.usable_cores() == 4
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(), raising=False)
     assert _common.usable_cores() == 1  # never 0
+
+
+def test_sampling_holds_one_blas_thread(monkeypatch, small_model):
+    # TGHop.sample_patches, sample_vectors and ICHM.sample mix by matrix products: at two BLAS
+    # threads they rounded otherwise than at one (synthesize's), so the same seed gave other
+    # patches on a machine of another core count (and ICHM.sample other vectors).
+    seen = []
+    blocks = core.ICHM._blocks
+
+    def spy(self):  # the BLAS threads of the products (mix_by_cluster's loop over the blocks)
+        if sys._getframe(1).f_code.co_name == "mix_by_cluster":
+            seen.append({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+        return blocks(self)
+
+    monkeypatch.setattr(core.ICHM, "_blocks", spy)
+    with threadpool_limits(limits=2, user_api="blas"):
+        patches = small_model.sample_patches(500, rng=3)
+        patches32 = small_model.sample_patches(500, rng=3, dtype=np.float32)  # its decoding's products too
+        z, _ = small_model.ichm_.sample(500, rng=3)
+        assert {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"} <= {2}  # restored after
+    assert seen and all(s == {1} for s in seen)
+    with threadpool_limits(limits=1, user_api="blas"):
+        np.testing.assert_array_equal(small_model.sample_patches(500, rng=3), patches)
+        np.testing.assert_array_equal(small_model.sample_patches(500, rng=3, dtype=np.float32), patches32)
+        np.testing.assert_array_equal(small_model.ichm_.sample(500, rng=3)[0], z)

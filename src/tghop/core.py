@@ -762,13 +762,14 @@ class ICHM(BaseEstimator):
                              f"labels' counts {counts.tolist()}")
         out = np.empty((len(labels), mixing.shape[1]), dtype=mixing.dtype)
         start = 0
-        for i, (s, comp) in enumerate(zip(sources, self._blocks(), strict=True)):
-            stop = start + len(s)
-            if stop > start:
-                block = out[start:stop]
-                np.matmul(s, mixing[comp], out=block)
-                block += means[i]
-            start = stop
+        with one_blas_thread():  # the same vectors for a seed on any number of cores (OpenBLAS rounds by its threads)
+            for i, (s, comp) in enumerate(zip(sources, self._blocks(), strict=True)):
+                stop = start + len(s)
+                if stop > start:
+                    block = out[start:stop]
+                    np.matmul(s, mixing[comp], out=block)
+                    block += means[i]
+                start = stop
         position = np.empty(len(labels), dtype=np.intp)
         position[np.argsort(labels, kind="stable")] = np.arange(len(labels))
         return out, position

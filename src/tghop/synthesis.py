@@ -158,8 +158,7 @@ class TGHop(BaseEstimator):
         self.cluster_energy, self.max_cluster_components = cluster_energy, max_cluster_components
         self.max_component_ratio = max_component_ratio
         self.norm_match, self.coupling = norm_match, coupling
-        self.min_cluster_size = min_cluster_size
-        self.reject_threshold = reject_threshold
+        self.min_cluster_size, self.reject_threshold = min_cluster_size, reject_threshold
         self.ica_max_iter, self.ica_tol = ica_max_iter, ica_tol
         self.residual, self.max_patches, self.band_levels = residual, max_patches, band_levels
         self.band_orientations, self.colour_classes, self.patch_levels = band_orientations, colour_classes, patch_levels
@@ -568,6 +567,7 @@ class TGHop(BaseEstimator):
             z[position] += ichm.sample_residual(n, rng=rng).astype(dtype, copy=False)
         return (z, position, labels) if return_labels else (z, position)
 
+    @one_blas_thread()  # the same patches on any number of cores (OpenBLAS's products round by its threads)
     def sample_patches(self, n, *, rng=None, return_stages=False, dtype=np.float64):
         """Generate new patches.
 
