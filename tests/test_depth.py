@@ -166,6 +166,38 @@ def test_cli_synth_warns_that_a_16bit_exemplar_is_written_8bit(tmp_path):
     assert res.exit_code == 0 and "Warning" not in res.output  # the built-ins are 8-bit
 
 
+def test_cli_synth_of_several_sources_warns_once_naming_the_deep_ones(tmp_path):
+    # A remix or a painted --guide of 16-bit (or float) exemplars wrote 8 bits without the warning one
+    # deep exemplar gets: one warning naming each deep SOURCE, none with --depth.
+    from click.testing import CliRunner
+
+    from tghop import data
+    from tghop.cli import main
+
+    save_image(data.bricks()[:96, :96], tmp_path / "a.png", depth=16)
+    save_image(data.cells(96, rng=0), tmp_path / "b.png")
+    save_image(data.cells(96, rng=1), tmp_path / "c.tif", depth=32)
+    fast = ["--size", "48", "--seed", "1", "-q", "--max-patches", "1000", "--clusters", "10", "--pool", "400",
+            "--refine", "1"]
+    sources = [str(tmp_path / n) for n in ("a.png", "b.png", "c.tif")]
+    runner = CliRunner()
+    res = runner.invoke(main, ["synth", *sources, "-o", str(tmp_path / "o.png"), *fast])
+    assert res.exit_code == 0, res.output
+    assert [line for line in res.output.splitlines() if line.startswith("Warning")] == [
+        f"Warning: SOURCE 1 ({sources[0]}) and SOURCE 3 ({sources[2]}) have more than 8 bits a channel, but the "
+        "image is written with 8; pass --depth 16 to keep them"]
+    assert load_image(tmp_path / "o.png", with_depth=True)[1] == 8
+    res = runner.invoke(main, ["synth", *sources[:2], "-o", str(tmp_path / "o.jpg"), *fast])
+    assert res.exit_code == 0, res.output
+    assert [line for line in res.output.splitlines() if line.startswith("Warning")] == [
+        f"Warning: SOURCE 1 ({sources[0]}) has more than 8 bits a channel, but the image is written with 8; "
+        "name the output .png, .tif or .tiff and pass --depth 16 to keep them"]
+    res = runner.invoke(main, ["synth", *sources, "-o", str(tmp_path / "d.png"), "--depth", "16", *fast])
+    assert res.exit_code == 0 and "Warning" not in res.output, res.output
+    res = runner.invoke(main, ["synth", "builtin:bricks", sources[1], "-o", str(tmp_path / "e.png"), *fast])
+    assert res.exit_code == 0 and "Warning" not in res.output, res.output  # 8-bit and built-in sources
+
+
 def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     from click.testing import CliRunner
 

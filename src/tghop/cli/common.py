@@ -200,10 +200,13 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
 
 
-def warn_written_with_8(label: str, spec: str, output=None):
+def warn_written_with_8(label: str, spec: str, output=None, *, several=()):
     """The warning of a command that writes 8 bits without ``--depth`` (``synth``, ``baseline``)
     when its input ``label spec`` has more; to an ``output`` of a format of 8 bits only (JPEG),
-    the fix names a format that holds 16 first (``--depth 16`` alone is refused there)."""
+    the fix names a format that holds 16 first (``--depth 16`` alone is refused there).
+
+    ``several``: instead, the deep ones of several inputs as (label, spec) pairs (``label`` and
+    ``spec`` None), all named in the one warning: ``SOURCE 1 (a.png) and SOURCE 3 (c.tif) have ...``."""
     import warnings
 
     from ..imageio import DEPTHS, extensions, output_format
@@ -211,7 +214,10 @@ def warn_written_with_8(label: str, spec: str, output=None):
     fix = "pass --depth 16 to keep them"
     if output is not None and 16 not in DEPTHS[output_format(output)]:
         fix = f"name the output {extensions([f for f, held in DEPTHS.items() if 16 in held])} and {fix}"
-    warnings.warn(f"{label} {spec} has more than 8 bits a channel, but the image is written with 8; {fix}")
+    named = [f"{name} ({path})" for name, path in several] or [f"{label} {spec}"]
+    inputs = named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"
+    warnings.warn(f"{inputs} {'has' if len(named) == 1 else 'have'} more than 8 bits a channel, but the image is "
+                  f"written with 8; {fix}")
 
 
 def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image", what: str = "hole"):

@@ -7,7 +7,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors,
-                     write_materials)
+                     warn_written_with_8, write_materials)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -130,6 +130,10 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
     _check_channels(output, depth, read)
+    deep = [(f"SOURCE {i}", spec) for i, (spec, source) in enumerate(zip(sources, read), start=1)
+            if isinstance(source, np.ndarray) and source.dtype != np.uint8 and not spec.startswith("builtin:")]
+    if deep and not depth:  # 16-bit or float exemplars (read as floats), as one such SOURCE is warned of
+        warn_written_with_8(None, None, output, several=deep)
     if generation["patch_refine"] and not hasattr(read[0], "names_"):  # before any fit (materials: refused below)
         from .options import refuse_patch_refine_without_statistics
 
