@@ -220,6 +220,29 @@ def test_cli_an_image_too_small_to_fit_on_names_the_least_size_and_source(files,
         assert "--clusters" not in r.stderr.decode() and not (files / "bad.png").exists()
 
 
+def test_cli_a_strip_thinner_than_a_patch_names_image_the_size_asked_and_extend(files, cells):
+    # `extend small.png --size 8x400` said "the image is 8x400; inpainting with 32x32 patches ...", naming the
+    # canvas and inpainting where the user gave an 8x50 IMAGE to extend (or, with --source, refused IMAGE
+    # itself, though the canvas is what the patches fill: an 8x50 IMAGE grown to 40x400 is filled).
+    save_image(cells[:8, :50], files / "strip.png")
+    for source in ([], ["--source", files / "model.npz"], ["--source", "builtin:bricks"]):
+        r = cli("extend", files / "strip.png", "-o", files / "bad.png", "--size", "8x400", "-q", *source)
+        assert_user_error(r, "extend", "IMAGE", "strip.png (8x50)", "--size 8x400", "32x32 patches",
+                          "ask for a --size of at least 32x400")
+        assert "inpainting" not in r.stderr.decode() and "the image is" not in r.stderr.decode()
+        assert not (files / "bad.png").exists()
+    r = cli("extend", files / "strip.png", "-o", files / "thin.png", "--size", "20x400", "-q", "--source",
+            files / "model.npz")  # a model of 16x16 patches: named where it can fill the strip
+    assert_user_error(r, "--size 20x400", "ask for a --size of at least 32x400",
+                      "or give --source a model of smaller patches", "--patch-size 16")
+    r = cli("extend", files / "strip.png", "-o", files / "wide.png", "--size", "40x400", "--source",
+            files / "model.npz", "--seed", "1", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert np.asarray(Image.open(files / "wide.png")).shape == (40, 400, 3)
+    r = cli("extend", files / "strip.png", "-o", files / "fit.png", "--size", "40x400", "-q")  # fitted on IMAGE
+    assert_user_error(r, "IMAGE", "strip.png is 8x50 pixels, too small to fit a model on", "give --source")
+
+
 def test_cli_an_image_that_is_no_image_or_a_model_is_one_line(files):
     (files / "notes.txt").write_text("not an image")
     r = cli("extend", files / "notes.txt", "-o", files / "bad.png", "--size", "128")

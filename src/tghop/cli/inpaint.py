@@ -121,7 +121,8 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         if alpha is not None:
             alpha = expand_canvas(alpha, size, anchor=anchor.lower())[0]
         model, rng = _model(picture, None, image, source, source_is_model, scale, seed, progress,
-                            too_little=f"IMAGE {image} is too small to fit a model on", fix="give a larger IMAGE")
+                            too_little=f"IMAGE {image} is too small to fit a model on", fix="give a larger IMAGE",
+                            grown=size)
         _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, output, depth)
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}, written to {output}",
@@ -166,11 +167,11 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     return picture, alpha, written, source_is_model, image_depth
 
 
-def _model(picture, hole, image, source, source_is_model, scale, seed, progress, *, too_little, fix):
+def _model(picture, hole, image, source, source_is_model, scale, seed, progress, *, too_little, fix, grown=None):
     """The model that fills the hole, and the generator of the seed: --source's saved
     model, or one fitted on --source's exemplar, or on IMAGE's ``picture`` outside ``hole``
     (None: all of it). ``too_little`` and ``fix`` word the error when too few of IMAGE's
-    patches are left to fit on."""
+    patches are left to fit on. ``grown``: extend's --size (the canvas its patches fill)."""
     import numpy as np
 
     from ..patches import ExemplarTooSmallError, TooLittleTextureError
@@ -189,7 +190,7 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
         _check_channels(picture, model.exemplar_shape_[2], image, source)
     _check_size(image, picture.shape, TGHop().patch_size if model is None else model.patch_size,
                 "" if source is None else " of --source's model" if model is not None
-                else " of the model fitted on --source")
+                else " of the model fitted on --source", grown)
     if model is None and source is not None:
         exemplar = prepare_exemplar(load_exemplar(source, dtype=None))
         _check_channels(picture, exemplar.shape[2], image, source)  # before its fit, which takes seconds or more
@@ -242,16 +243,22 @@ def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, out
     save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth)
 
 
-def _check_size(image, shape, p, whose):
+def _check_size(image, shape, p, whose, grown=None):
     """Refuse, before any fit, an IMAGE smaller than the ``p`` x ``p`` patches that fill its
-    hole (``whose``: which model's), naming the fix: a model of smaller patches."""
+    hole (``whose``: which model's), naming the fix: a model of smaller patches. ``grown``:
+    extend's --size, the canvas that the patches fill instead (IMAGE may be smaller than one)."""
     h, w = shape[:2]
-    if h >= p and w >= p:
+    hh, ww = (h, w) if grown is None else grown
+    if hh >= p and ww >= p:
         return
-    fix = ("give --source a model of smaller patches, e.g. one fitted with 'tghop fit EXEMPLAR --patch-size 16 "
-           "--k1 9 --k2 22 -o small.npz'" if p > 16 and min(h, w) >= 16 else f"give an IMAGE of at least {p}x{p}")
+    smaller = ("give --source a model of smaller patches, e.g. one fitted with 'tghop fit EXEMPLAR --patch-size 16 "
+               "--k1 9 --k2 22 -o small.npz'" if p > 16 and min(hh, ww) >= 16 else None)
+    if grown is not None:
+        raise TGHopError(f"extend: IMAGE {image} ({h}x{w}) grown to --size {hh}x{ww} is thinner than the {p}x{p} "
+                         f"patches{whose} that fill the new area; ask for a --size of at least "
+                         f"{max(hh, p)}x{max(ww, p)}" + (f", or {smaller}" if smaller else ""))
     raise TGHopError(f"IMAGE {image} is {h}x{w} pixels, smaller than the {p}x{p} patches{whose} that fill the hole; "
-                     f"{fix}")
+                     f"{smaller or f'give an IMAGE of at least {p}x{p}'}")
 
 
 def _with_alpha(result, alpha, hole, image, output):
@@ -332,7 +339,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         material = _fit_material(picture, maps, depths, depth_albedo, None if grow is not None else hole, image, rng,
                                  progress)
     _check_size(image, picture.shape, material.model_.patch_size,
-                " of --source's material" if source is not None else "")
+                " of --source's material" if source is not None else "", None if grow is None else grow[0])
     filled = inpaint_material(material, images, hole, rng=rng, tile=tile, progress=progress,
                               **({"order": "raster"} if grow is not None else {}))
     progress.close()
