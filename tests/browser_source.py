@@ -2,7 +2,8 @@
 (Chromium through Playwright in ``test_server_browser.py``, Firefox through Marionette in
 ``test_server_firefox.py``), written against the calls both drivers offer (``run``,
 ``wait_for``, ``fill``, ``click``, ``send_keys``): drop an image on the drop area, cancel a
-running fit with the Cancel button, and upload a saved ``.npz`` model, then generate."""
+running fit with the Cancel button (back to the dropped image's model), and upload a saved ``.npz``
+model, then generate."""
 
 import base64
 
@@ -51,19 +52,28 @@ def drop_steps(d, png, name="dropped bricks.png"):
     assert d.run("return document.getElementById('go').disabled") is False
 
 
-def cancel_steps(d):
+def cancel_steps(d, working="dropped bricks.png"):
     """Pick builtin:cells with the default fit (seconds), click Cancel once it runs: the job
-    ends cancelled on the server, the page says so and has no model to generate from."""
+    ends cancelled on the server, and the page goes back to the ``working`` model (that of
+    :func:`drop_steps`): the message says so, its exemplar, its summary (not the cancelled
+    pick's) and Generate are back."""
+    summary = text(d, "#summary")
     fit_settings(d, {})
     d.run("const s = document.getElementById('builtin'); s.value = 'cells';"
           "s.dispatchEvent(new Event('change', {bubbles: true}));")
     d.wait_for("document.getElementById('stage').textContent.endsWith('%')", timeout=60)  # running
     assert d.run("return document.getElementById('go').disabled") is True
+    assert d.run("return document.getElementById('summary').hidden") is True  # the model it replaces: not shown
     d.click("#cancel")
     assert d.wait_for(FIT_END, timeout=60) == "cancelled", text(d, "#message")
-    assert text(d, "#message") == "fit cancelled"
+    d.wait_for("!document.getElementById('summary').hidden")
+    assert text(d, "#message") == f"fit cancelled (builtin:cells was not used; the model of {working} stays)"
+    assert d.run("return document.getElementById('message').classList.contains('error')") is False
+    assert text(d, "#summary") == summary  # the working model's, as before the pick
+    assert d.run("const i = document.getElementById('exemplar'); return [i.hidden, i.naturalWidth]") == [False, 64]
     assert d.run("return document.getElementById('cancel').disabled") is True
-    assert d.run("return document.getElementById('go').disabled") is True
+    assert d.run("return document.getElementById('go').disabled") is False
+    assert d.run("return document.getElementById('builtin').value") == ""  # cells again fits it again
     # the page's job, as the server has it
     snap = d.run("return fetch(`/api/jobs/${document.getElementById('fit-status').dataset.job}`)"
                  ".then((r) => r.json());")

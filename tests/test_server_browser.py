@@ -413,18 +413,23 @@ def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model(page, live_server, 
     assert not page.errors, page.errors
 
 
-def test_a_refused_model_file_leaves_no_summary_of_the_model_before(page, live_server, tmp_path):
-    # The summary of the model it replaced stayed under the error, as if that model were loaded.
+def test_a_refused_model_file_goes_back_to_the_working_model(page, live_server, tmp_path):
+    # It left no model (Generate off, no summary), though the model before it was working; before that,
+    # the summary of the model it replaced stayed under the error with no model loaded.
     mode(page, "view")
     if not page.is_enabled("#go"):  # run alone: fit first
         fit_bricks(page)
     page.wait_for_selector("#summary:not([hidden])")
+    summary, working = page.text_content("#summary"), page.evaluate("() => state.working.name")
     bad = tmp_path / "broken.npz"
     bad.write_bytes(b"PK\x03\x04 not a model")
     page.set_input_files("#model-file", str(bad))
     page.wait_for_function("document.getElementById('message').classList.contains('error')")
-    assert "not a tghop model file" in page.text_content("#message")
-    assert page.is_hidden("#summary") and page.is_disabled("#go") and page.is_hidden("#download-model")
+    said = page.text_content("#message")
+    assert "not a tghop model file" in said and f"(broken.npz was not used; the model of {working} stays)" in said
+    page.wait_for_selector("#summary:not([hidden])")
+    assert page.text_content("#summary") == summary  # the working model's: no other was loaded
+    assert page.is_enabled("#go") and page.is_visible("#download-model")
     page.errors.clear()  # Chromium logs the 400
 
 

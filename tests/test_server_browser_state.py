@@ -1,8 +1,9 @@
 """What ``tghop serve``'s page keeps when something is refused, in a real browser (Chromium through
 Playwright) against a real uvicorn server: a refused exemplar (not an image, flat, too small) or map
-set leaves the working model and its exemplar as they were, and "Add maps..." then refits that
-exemplar; maps added before any exemplar wait for it; nothing empty is shown before there is something
-to show (the tiling, a model file's exemplar caption); the canvases read back are made for it."""
+set, a cancelled fit or a refused model file leaves the working model and its exemplar as they were,
+and "Add maps..." then refits that exemplar; maps added before any exemplar wait for it; nothing empty is
+shown before there is something to show (the tiling, a model file's exemplar caption); the canvases read
+back are made for it."""
 
 
 import pytest
@@ -133,6 +134,84 @@ def test_maps_of_another_size_leave_the_working_model(page, tmp_path):
             page.click("#maps-clear")  # the texture model
             wait_model(page, "model")
             summary = page.text_content("#summary")
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def cancel_a_fit_of_cells(page):
+    """Pick builtin:cells with the default fit settings (seconds), click Cancel once it runs, then put the
+    fast settings back; returns the message."""
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", "")
+    page.select_option("#builtin", "cells")
+    page.wait_for_function("document.getElementById('stage').textContent.endsWith('%')", timeout=60_000)
+    assert page.is_disabled("#go") and page.is_hidden("#summary")
+    page.click("#cancel")
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'cancelled'", timeout=60_000)
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", FAST_FIT[name])
+    return wait_said(page, "fit cancelled (")
+
+
+def test_a_cancelled_fit_goes_back_to_the_working_model(page):
+    # Cancel left no model (Generate off, no summary) and the cancelled exemplar shown, though the model
+    # before that pick was working.
+    fresh_page(page)
+    said = cancel_a_fit_of_cells(page)  # nothing before it: the page is empty again
+    assert said == "fit cancelled (builtin:cells was not used; no model yet)"
+    assert exemplar_shown(page) is None and page.is_disabled("#go") and page.is_hidden("#summary")
+    assert page.is_hidden("#download-model") and page.input_value("#builtin") == ""
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "model")
+    summary = page.text_content("#summary")
+    said = cancel_a_fit_of_cells(page)
+    assert said == "fit cancelled (builtin:cells was not used; the model of builtin:bricks stays)"
+    assert not page.eval_on_selector("#message", "e => e.classList.contains('error')")
+    assert exemplar_shown(page) == ["bricks.png", True, 256] and page.is_hidden("#fit-status")
+    page.wait_for_selector("#summary:not([hidden])")
+    assert page.text_content("#summary") == summary  # the working model's, not the cancelled pick's
+    assert page.is_enabled("#go") and page.is_visible("#download-model")
+    assert page.input_value("#builtin") == "bricks"
+    page.select_option("#builtin", "cells")  # picked again: fitted
+    wait_model(page, "model")
+    assert page.text_content("#summary") != summary
+    assert not page.errors, page.errors
+
+
+def test_a_refused_model_file_goes_back_to_the_working_model(page, tmp_path):
+    # A model file the server refused left no model, though the model before it was working.
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    (tmp_path / "broken.npz").write_bytes(b"PK\x03\x04 not a model")
+    save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+               .fit(data.bricks(64)), tmp_path / "saved.npz")
+    fresh_page(page)
+    page.set_input_files("#model-file", str(tmp_path / "broken.npz"))  # nothing before it: the empty page
+    said = wait_said(page, "was not used")
+    assert "not a tghop model file" in said and said.endswith("(broken.npz was not used; no model yet)"), said
+    assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
+    assert exemplar_shown(page) is None and page.is_disabled("#go") and page.is_hidden("#summary")
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "model")
+    summary = page.text_content("#summary")
+    page.set_input_files("#model-file", str(tmp_path / "broken.npz"))  # an exemplar's model before it
+    said = wait_said(page, "was not used")
+    assert said.endswith("(broken.npz was not used; the model of builtin:bricks stays)"), said
+    assert exemplar_shown(page) == ["bricks.png", True, 256] and page.input_value("#builtin") == "bricks"
+    page.wait_for_selector("#summary:not([hidden])")
+    assert page.text_content("#summary") == summary
+    assert page.is_enabled("#go") and page.is_visible("#download-model")
+    page.set_input_files("#model-file", str(tmp_path / "saved.npz"))  # a model file's model before it
+    wait_said(page, "model saved.npz loaded")
+    page.wait_for_selector("#summary:not([hidden])")
+    summary = page.text_content("#summary")
+    page.set_input_files("#model-file", str(tmp_path / "broken.npz"))
+    said = wait_said(page, "was not used")
+    assert said.endswith("(broken.npz was not used; the model of saved.npz stays)"), said
+    assert exemplar_shown(page) is None and "saved.npz" in page.text_content("#exemplar-caption")
+    page.wait_for_selector("#summary:not([hidden])")
+    assert page.text_content("#summary") == summary
+    assert page.is_enabled("#go") and page.is_visible("#download-model")
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
 
 

@@ -7,7 +7,9 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   // A whole material: the map files to fit with the exemplar (section 1), the last exemplar
   // fitted (refitted when the maps change), and the maps of the result shown (section 3).
   mapFiles: [], source: null, material: false, shown: null,
-  working: null };  // the working model, what a refused fit goes back to (fit.js, setWorking)
+  // The working model, what a refused or cancelled fit or a refused model file goes back to (fit.js,
+  // setWorking), and the running fit's way back to it (its `undo`, for cancelFit).
+  working: null, fitUndo: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null };

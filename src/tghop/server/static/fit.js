@@ -24,8 +24,9 @@ function exemplarCaption() {
   caption.hidden = !caption.textContent;
 }
 
-// The working model: {source, exemplarUrl, modelId, material, name}, or null (none). A refused fit goes
-// back to it (the page as it was before that pick); a fit that ends or a model file loaded replaces it.
+// The working model: {source, exemplarUrl, modelId, material, name}, or null (none). A refused or cancelled
+// fit and a refused model file go back to it (the page as it was before that pick); a fit that ends or a
+// model file loaded replaces it.
 function setWorking(working) {
   const old = state.working && state.working.exemplarUrl;
   state.working = working;
@@ -35,9 +36,10 @@ function setWorking(working) {
   exemplarCaption();
 }
 
-// A fit refused (before or after its job started): the page goes back to the working model, its source
-// and exemplar (the empty page when there is none), the maps to those before that pick (`undo.mapFiles`).
-function fitRefused(error, undo) {
+// A fit refused (before or after its job started) or cancelled, or a model file refused: the page goes back
+// to the working model, its source and exemplar (the empty page when there is none), the maps to those
+// before that pick (`undo.mapFiles`). `lead`: what happened, said first (an error unless `error` is false).
+function backToWorking(lead, undo, error = true) {
   const working = state.working;
   $("fit-status").hidden = true;
   listMaps(undo.mapFiles);
@@ -47,7 +49,7 @@ function fitRefused(error, undo) {
   setExemplar(working ? working.exemplarUrl : null);
   setModel(working ? working.modelId : null, working ? working.material : false);
   const kept = working ? `the model of ${working.name} stays` : "no model yet";
-  say(`${error} (${undo.maps ? "the maps were not added" : `${undo.name} was not used`}; ${kept})`, true);
+  say(`${lead} (${undo.maps ? "the maps were not added" : `${undo.name} was not used`}; ${kept})`, error);
   if (working) showSummary(working.modelId);
 }
 
@@ -183,7 +185,7 @@ function dropRunningFit() {
   state.job = null;
 }
 
-// `undo`: how to go back when the fit is refused (fitRefused).
+// `undo`: how to go back when the fit is refused or cancelled (backToWorking).
 async function startFit(form, undo) {
   dropRunningFit();
   const attempt = { source: state.source, exemplarUrl: state.exemplarUrl, name: state.pendingName };
@@ -201,13 +203,13 @@ async function startFit(form, undo) {
     response = await fetch("/api/models", { method: "POST", body: form });
   } catch (e) {
     if (request !== state.fitRequest) return;
-    fitRefused(`the server did not answer (${e.message})`, undo);
+    backToWorking(`the server did not answer (${e.message})`, undo);
     return;
   }
   if (!response.ok) {
     const error = await errorOf(response);
     if (request !== state.fitRequest) return;
-    fitRefused(error, undo);
+    backToWorking(error, undo);
     return;
   }
   const { id, job } = await response.json();
@@ -217,6 +219,7 @@ async function startFit(form, undo) {
     return;
   }
   state.job = job;
+  state.fitUndo = undo;  // for a Cancel that another page's ask outlives (cancelFit)
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
   follow(id, job, material, attempt, undo);
 }
@@ -243,11 +246,10 @@ function follow(id, job, material, attempt, undo) {
       say("model ready: generate below");
       showSummary(id);
     } else if (snap.state === "cancelled") {
-      say("fit cancelled");
+      backToWorking("fit cancelled", undo, false);
     } else {
-      fitRefused(snap.error || "the fit failed", undo);
+      backToWorking(snap.error || "the fit failed", undo);
     }
-    if (snap.state === "cancelled") $("builtin").value = "";  // so that choosing the same one again fits it
   });
   events.onerror = () => {
     if (state.events !== events) return;
@@ -267,8 +269,8 @@ async function cancelFit() {
     stopEvents();
     $("fit-status").dataset.state = "cancelled";
     $("stage").textContent = "cancelled";
-    $("builtin").value = "";
-    say("fit cancelled here (it goes on for another page that asked for the same model)");
+    backToWorking("fit cancelled here, going on for another page that asked for the same model", state.fitUndo,
+      false);
   }
 }
 
@@ -293,22 +295,34 @@ function fitBuiltin(name, undo = { mapFiles: state.mapFiles, name: `builtin:${na
   startFit(form, undo);
 }
 
+// A model file refused goes back to the working model, as a refused exemplar does (backToWorking).
 async function uploadModel(file) {
   if (!file) return;
   dropRunningFit();
-  state.fitRequest++;  // a fit whose answer is still on its way is replaced
+  const request = ++state.fitRequest;  // a fit whose answer is still on its way is replaced; so is this upload
+  const undo = { mapFiles: state.mapFiles, name: file.name };
   state.source = null;
   $("fit-status").hidden = true;
   $("summary").hidden = true;  // the model it replaces: not what is loaded, whatever the answer
-  setWorking(null);  // a refused file leaves no model: a refused fit after it goes back to none
   setExemplar(null);
   setModel(null);
   say(`uploading ${file.name}`);
-  const response = await fetch("/api/models/upload", {
-    method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
-  });
-  if (!response.ok) { say(await errorOf(response), true); return; }
+  let response;
+  try {
+    response = await fetch("/api/models/upload", {
+      method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
+    });
+  } catch (e) {
+    if (request === state.fitRequest) backToWorking(`the server did not answer (${e.message})`, undo);
+    return;
+  }
+  if (!response.ok) {
+    const error = await errorOf(response);
+    if (request === state.fitRequest) backToWorking(error, undo);
+    return;
+  }
   const { id } = await response.json();
+  if (request !== state.fitRequest) return;  // another exemplar or model file asked for meanwhile
   state.pendingName = file.name;
   setWorking({ source: null, exemplarUrl: null, modelId: id, material: null, name: file.name });
   setModel(id);
