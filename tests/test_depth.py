@@ -196,6 +196,13 @@ def test_cli_synth_of_several_sources_warns_once_naming_the_deep_ones(tmp_path):
     assert res.exit_code == 0 and "Warning" not in res.output, res.output
     res = runner.invoke(main, ["synth", "builtin:bricks", sources[1], "-o", str(tmp_path / "e.png"), *fast])
     assert res.exit_code == 0 and "Warning" not in res.output, res.output  # 8-bit and built-in sources
+    # A morph of them likewise names its A and B.
+    res = runner.invoke(main, ["morph", sources[1], sources[0], "-o", str(tmp_path / "m.png"), "--size", "48x96",
+                               "--seed", "1", "-q"])
+    assert res.exit_code == 0, res.output
+    assert [line for line in res.output.splitlines() if line.startswith("Warning")] == [
+        f"Warning: B ({sources[0]}) has more than 8 bits a channel, but the image is written with 8; "
+        "pass --depth 16 to keep them"]
 
 
 def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):

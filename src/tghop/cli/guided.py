@@ -56,6 +56,19 @@ def _check_channels(output, depth, read):
         check_depth(output, depth or 8, channels=max(channels))
 
 
+def _warn_deep(specs, read, labels, output, depth):
+    """Without ``depth``, one warning naming the 16-bit or float exemplars among the sources ``read``
+    (:func:`_read`, read as floats) that the image is written with 8 bits, as one such SOURCE of
+    ``synth`` is warned of; ``labels``: "SOURCE" (numbered) or one label per source ("A", "B")."""
+    import numpy as np
+
+    names = [f"{labels} {i}" for i in range(1, len(specs) + 1)] if isinstance(labels, str) else list(labels)
+    deep = [(name, spec) for name, spec, source in zip(names, specs, read)
+            if isinstance(source, np.ndarray) and source.dtype != np.uint8 and not spec.startswith("builtin:")]
+    if deep and not depth:
+        warn_written_with_8(None, None, output, several=deep)
+
+
 def _fitted(source, options, progress, label):
     """``source`` from :func:`_read` as a model: a saved one as it is, an exemplar fitted with the fit
     ``options`` (None: the command has none, and a too small exemplar is told so in its own words).
@@ -130,10 +143,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
     _check_channels(output, depth, read)
-    deep = [(f"SOURCE {i}", spec) for i, (spec, source) in enumerate(zip(sources, read), start=1)
-            if isinstance(source, np.ndarray) and source.dtype != np.uint8 and not spec.startswith("builtin:")]
-    if deep and not depth:  # 16-bit or float exemplars (read as floats), as one such SOURCE is warned of
-        warn_written_with_8(None, None, output, several=deep)
+    _warn_deep(sources, read, "SOURCE", output, depth)
     if generation["patch_refine"] and not hasattr(read[0], "names_"):  # before any fit (materials: refused below)
         from .options import refuse_patch_refine_without_statistics
 
@@ -237,6 +247,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         read_a, read_b = _read(source_a), _read(source_b)
         _same_kind([source_a, source_b], [read_a, read_b], "A" if hasattr(read_a, "names_") else "B")
         _check_channels(output, depth, [read_a, read_b])
+        _warn_deep([source_a, source_b], [read_a, read_b], ("A", "B"), output, depth)
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
                                                                                      f"B {source_b}")
         rows = []
