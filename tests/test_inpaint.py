@@ -290,6 +290,16 @@ def test_cli_bad_masks_are_one_line(files, mask, words):
     assert not (files / "bad.png").exists()
 
 
+@pytest.mark.parametrize("command", ["inpaint", "extend"])
+def test_cli_a_built_in_exemplar_as_image_is_sent_to_source(files, command):
+    # It said "builtin:bricks: no such file; check the path".
+    more = [files / "mask.png"] if command == "inpaint" else ["--size", "128x128"]
+    r = run(command, "builtin:bricks", *more, "-o", files / "bad.png")
+    assert_user_error(r, "IMAGE builtin:bricks is a built-in exemplar, not a picture file",
+                      "a built-in exemplar goes to --source")
+    assert not (files / "bad.png").exists()
+
+
 def test_cli_exclude_on_fit_and_synth(files):
     r = run("fit", files / "cells.png", "-o", files / "ex.npz", "--exclude", files / "small_mask.png", "-q")
     assert_user_error(r, "--exclude", "is 50x96 but the exemplar is 96x96")
