@@ -367,6 +367,23 @@ def test_several_models_generate_at_one_blas_thread_throughout(name, models):
     assert seen == {1} or not seen, seen  # no BLAS library: nothing to hold
 
 
+def test_morph_stations_stay_in_the_callers_thread_on_one_usable_core(models, monkeypatch):
+    """A batch worker's task has one usable core (limit_cores): the stations started threads by
+    os.cpu_count() all the same. The image is the same either way."""
+    import concurrent.futures
+
+    from tghop._common import limit_cores
+
+    monkeypatch.setattr(guided, "_THREADED_PIXELS", 1)
+    strip = tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN)
+    started = []
+    real = concurrent.futures.ThreadPoolExecutor
+    monkeypatch.setattr(concurrent.futures, "ThreadPoolExecutor", lambda *a, **k: started.append(1) or real(*a, **k))
+    with limit_cores(1):
+        assert np.array_equal(strip, tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN))
+    assert not started
+
+
 def test_morph_holds_each_station_over_its_own_columns(models, monkeypatch):
     # (S, H, W) copies of the same row took S images' memory: 17 GB at 8192x8192 (65 stations),
     # where the process was killed without a word. Then an (S, W) table of the hats, and a pass of

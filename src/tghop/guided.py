@@ -67,13 +67,13 @@ Example
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
-from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report
+from ._common import (TGHopError, check_is_fitted, check_rng, check_size, in_thread, one_blas_thread, report,
+                      usable_cores)
 from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
 from .guides import guide_labels
 from .layout import follows_guide
@@ -637,7 +637,7 @@ class _Stations:
 
         todo = [s for s, station in enumerate(self.stations) if station is not None]
         out = np.zeros(image.shape, dtype=np.float32)
-        workers = min(len(todo), os.cpu_count() or 1, 4)
+        workers = min(len(todo), usable_cores(), 4)  # a batch worker's task: one (limit_cores)
         if workers > 1 and image.shape[0] * image.shape[1] >= _THREADED_PIXELS:
             # Stations in threads (NumPy and the FFTs let go of the interpreter lock),
             # added in station order: the same image as one at a time.
