@@ -120,7 +120,11 @@ def parse_scale(value, where):
 
     setting = BY_NAME["scale"]
     try:
-        return setting.check(setting.parse(value) if isinstance(value, str) else value)
+        value = setting.parse(value) if isinstance(value, str) else value
+    except TGHopError as exc:  # the text's words name no setting: the column's name goes first
+        raise TGHopError(f"{where}: scale {exc}") from None
+    try:
+        return setting.check(value)
     except TGHopError as exc:
         raise TGHopError(f"{where}: {exc}") from None
 
