@@ -506,7 +506,8 @@ def test_a_manifest_row_gives_its_own_working_scale(tmp_path):
     a, b = run(csv_file, tmp_path / "out", workers=1)
     assert not a["skipped"] and b["skipped"]
     assert load_model(tmp_path / "out" / a["model"]).exemplar_shape_[:2] == (80, 80)
-    for cell, words in (("0", "scale must be a finite number > 0 and <= 4, got 0.0"), ("big", "scale 'big' is not a number")):
+    for cell, words in (("0", "scale must be a finite number > 0 and <= 4, got 0.0"),
+                        ("big", "scale 'big' is not a number")):
         csv_file.write_text(f"path,scale\nimg/a.png,{cell}\n")
         with pytest.raises(TGHopError, match="list.csv line 2: " + re.escape(words)):
             run(csv_file, tmp_path / "out2", workers=1)
