@@ -243,8 +243,8 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
 
 
 def _working_image(image, n_channels):
-    """The image as float32 (H, W, n_channels) in [0, 1], and whether the model's one channel
-    stands for an RGB image's three equal ones."""
+    """The image as float32 (H, W, n_channels) in [0, 1] (the model's one channel may stand for an
+    RGB image's three equal ones: :func:`_into` spreads it back)."""
     arr = np.asarray(image)
     if arr.ndim == 2:
         arr = arr[:, :, None]
@@ -254,10 +254,10 @@ def _working_image(image, n_channels):
     work = arr.astype(np.float32) / np.float32(LEVELS[arr.dtype]) if arr.dtype in LEVELS else arr.astype(np.float32)
     c = work.shape[2]
     if c == n_channels:
-        return work, False
+        return work
     mismatch = channel_mismatch(arr, n_channels)
     if mismatch is None:
-        return np.ascontiguousarray(work[..., :1]), True
+        return np.ascontiguousarray(work[..., :1])
     raise TGHopError(f"the model is {mismatch[0]} but the image {mismatch[1]}; fit the model on a "
                      f"{'colour' if n_channels == 1 else 'greyscale'} exemplar (or on the image itself)")
 
@@ -288,9 +288,14 @@ def channel_mismatch(image, n_channels):
 
 
 def _into(original, hole, values):
-    """``original`` with ``values`` (floats, (k, C) or (k,)) in its ``hole``: a copy of a uint8 or
-    uint16 image with the values rounded to its levels (known pixels: the same levels), else
-    float64 (known pixels: the same values)."""
+    """``original`` with ``values`` (floats (k, C) of :func:`_working_image`'s channels) in its
+    ``hole``: a copy of a uint8 or uint16 image with the values rounded to its levels (known
+    pixels: the same levels), else float64 (known pixels: the same values). One channel fills
+    an RGB ``original``'s three, and an (H, W) one takes its one channel."""
+    if original.ndim == 2:
+        values = values[:, 0]
+    elif values.shape[1] != original.shape[2]:  # a greyscale model's channel, for three equal ones
+        values = np.repeat(values, original.shape[2], axis=1)
     if original.dtype in LEVELS:
         out, top = original.copy(), LEVELS[original.dtype]
         out[hole] = np.round(np.clip(values.astype(np.float64), 0.0, 1.0) * top).astype(out.dtype)
@@ -396,7 +401,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     p = int(model.patch_size)
     n_channels = int(model.exemplar_shape_[2])
     original = np.asarray(image)
-    work, grey = _working_image(original, n_channels)
+    work = _working_image(original, n_channels)
     h, w = work.shape[:2]
     if h < p or w < p:
         raise TGHopError(f"the image is {h}x{w}; inpainting with {p}x{p} patches needs at least {p}x{p}: "
@@ -413,7 +418,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         raise TGHopError(f"order must be 'edge' or 'raster', got {order!r}")
     rng = check_rng(rng)
     if not hole.any():
-        return _into(original, hole, np.zeros((0,) + original.shape[2:]))
+        return _into(original, hole, np.zeros((0, work.shape[2])))
 
     report(progress, "patch pool", 0, 1)
     pool = model.sample_patches(int(n_patches), rng=rng, dtype=np.float32)  # (n, P, P, C)
@@ -441,12 +446,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         result = refined if alpha is None else filled + alpha * (refined - filled)
     if patch_refine != 0 and getattr(model, "patches_", None) is not None:
         result = _patch_refine_hole(result, hole, model.patches_, patch_refine, tile, alpha, progress)
-    values = result[hole]  # (k, C)
-    if grey:
-        values = np.repeat(values, 3, axis=1)
-    if original.ndim == 2:
-        values = values[:, 0]
-    return _into(original, hole, values)
+    return _into(original, hole, result[hole])
 
 
 def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, blend=3, progress=None, **options):
@@ -498,18 +498,17 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         given = ", ".join(map(str, images)) if isinstance(images, Mapping) else type(images).__name__
         raise TGHopError(f"images must be a dict of the material's maps, {', '.join(names)}; got {given}")
     refine, blend = check_int(refine, "refine", 0, where="inpaint_material"), check_int(blend, "blend", 0)
-    works, greys = [], []
+    works = []
     for name, c in zip(names, material.map_channels_):
         arr = np.asarray(images[name])
         try:
-            work, grey = _working_image(arr, c)
+            work = _working_image(arr, c)
         except TGHopError as exc:
             raise TGHopError(f"map {name}: {exc}") from None
         if works and work.shape[:2] != works[0].shape[:2]:
             raise TGHopError(f"map {name} is {work.shape[0]}x{work.shape[1]} but the albedo is "
                              f"{works[0].shape[0]}x{works[0].shape[1]}; give every map at the albedo's size")
         works.append(work)
-        greys.append(grey)
     hole = check_hole(mask, works[0].shape[:2])
     stack = np.concatenate(works, axis=2)
     filled = inpaint(material.model_, stack, hole, rng=rng, tile=tile, refine=0, patch_refine=0, progress=progress,
@@ -525,13 +524,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
             img = refined if alpha is None else img + alpha * (refined - img)
         if material.normal_[i]:
             img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
-        original = np.asarray(images[name])
-        values = img[hole]
-        if greys[i]:
-            values = np.repeat(values, 3, axis=1)
-        if original.ndim == 2:
-            values = values[:, 0]
-        out[name] = _into(original, hole, values)
+        out[name] = _into(np.asarray(images[name]), hole, img[hole])
         report(progress, "refine", i + 1, len(names))
     return out
 
