@@ -209,15 +209,20 @@ def warn_written_with_8(label: str, spec: str, output=None, *, several=()):
     ``spec`` None), all named in the one warning: ``SOURCE 1 (a.png) and SOURCE 3 (c.tif) have ...``."""
     import warnings
 
-    from ..imageio import DEPTHS, extensions, output_format
+    from .._formats import DEPTHS, extensions
+    from ..imageio import output_format
 
     fix = "pass --depth 16 to keep them"
     if output is not None and 16 not in DEPTHS[output_format(output)]:
         fix = f"name the output {extensions([f for f, held in DEPTHS.items() if 16 in held])} and {fix}"
     named = [f"{name} ({path})" for name, path in several] or [f"{label} {spec}"]
-    inputs = named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"
-    warnings.warn(f"{inputs} {'has' if len(named) == 1 else 'have'} more than 8 bits a channel, but the image is "
-                  f"written with 8; {fix}")
+    warnings.warn(f"{_and(named)} {'has' if len(named) == 1 else 'have'} more than 8 bits a channel, but the image "
+                  f"is written with 8; {fix}")
+
+
+def _and(names) -> str:
+    """``a``, ``a and b``, ``a, b and c``: the names of a warning, in one phrase."""
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
 def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image", what: str = "hole"):
@@ -444,7 +449,7 @@ def warn_lost_depth(items, path, depth, noun=None):
     fmt = output_format(path)
     keep = extensions([f for f, held in DEPTHS.items() if max(own for _, own in lost) in held])
     names = [f"{label} ({'float' if own == 32 else f'{own}-bit'})" for label, own in lost]
-    named = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+    named = _and(names)
     if noun:
         named = f"{noun}{'s' if len(names) > 1 else ''} {named}"
     warnings.warn(f"{named} {'has' if len(names) == 1 else 'have'} more bits a channel than {fmt} holds, but "
