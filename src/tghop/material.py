@@ -41,8 +41,7 @@ from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "map_file",
-           "ALBEDO",
-           "MAP_NAME"]
+           "ALBEDO", "MAP_NAME", "MAP_NAME_MAX"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -52,6 +51,8 @@ NORMAL_WORDS = ("normal", "nrm")
 NORMAL_TOLERANCE = 0.1
 #: Map names: what a file name can hold (they become ``OUT_<name>.png``).
 MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+#: Longest name :func:`map_name` gives a map's file (and the web server takes in a request).
+MAP_NAME_MAX = 64
 #: Bits per channel a map's file may have (what a model file accepts).
 DEPTHS = (8, 16, 32)
 #: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
@@ -76,7 +77,7 @@ def map_name(path) -> str:
         The map's name, 1 to 64 characters of ``[A-Za-z0-9._-]``, starting with a letter or digit.
     """
     stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
-    return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:64] or "map"
+    return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:MAP_NAME_MAX] or "map"
 
 
 def map_file(path, name: str) -> str:

@@ -32,15 +32,13 @@ from .requests import RequestError, check_channel_counts, safe_name
 
 __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "check_channels", "material_id",
            "texture_only", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
-           "META_PART", "MAX_NAME"]
+           "META_PART"]
 
 #: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
 #: name cannot begin with "_", so no map's part has this name).
 META_PART = "_meta"
 #: Prefix of a map's form field: ``map:normal`` is the map named "normal".
 MAP_FIELD = "map:"
-#: Longest map name a request may give (the messages repeat it).
-MAX_NAME = 64
 
 
 def is_material(model) -> bool:
@@ -54,12 +52,12 @@ def map_uploads(fields: dict) -> list:
     """Take the maps' fields (``map:<name>``) out of a form (a fit's, an inpaint's or an
     extend's): ``[(name, filename, bytes)]`` in the order sent; 400 for a bad name, a name given
     twice (in any case), a map that is not a file or is empty, or more than :data:`MAX_MAPS`."""
-    from ..material import MAP_NAME
+    from ..material import MAP_NAME, MAP_NAME_MAX
 
     out, seen = [], {"albedo"}
     for field in [k for k in fields if k.startswith(MAP_FIELD)]:
         name, value = field[len(MAP_FIELD):], fields.pop(field)
-        if len(name) > MAX_NAME or not MAP_NAME.fullmatch(name):
+        if len(name) > MAP_NAME_MAX or not MAP_NAME.fullmatch(name):
             raise RequestError(400, f"the map name {name[:40]!r} (field {field[:44]!r}) must be letters, digits, "
                                     "'.', '_' or '-', starting with a letter or digit (it names the map's file)")
         if name.lower() in seen:
