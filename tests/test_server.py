@@ -212,12 +212,14 @@ def test_fits_queue_and_cancel(client, live_server):
 def test_a_generation_whose_client_went_away_never_runs(client, fitted, live_server, monkeypatch):
     import threading
 
+    from tghop.server.routes import images
+
     server = live_server.app.state.server
     model_id, _, _ = fitted
     seeds = []
-    generate = server._generate
-    monkeypatch.setattr(server, "_generate", lambda mid, size, seed, settings: seeds.append(seed) or
-                        generate(mid, size, seed, settings))
+    generate = images.model_png
+    monkeypatch.setattr(images, "model_png", lambda server, mid, size, seed, settings: seeds.append(seed) or
+                        generate(server, mid, size, seed, settings))
     gate = threading.Event()
     server.executor.submit(gate.wait, 60)  # the one generation thread (max_fits=1) is busy
     submitted, submit = [], server.executor.submit

@@ -7,7 +7,7 @@ reads the outcome in that time) and at most ``max_finished`` finished jobs are k
 oldest go first); at most ``max_waiting`` jobs wait for a thread (a further one is
 refused with :class:`QueueFull`). Queued and running jobs are never dropped.
 
-Nothing here knows about HTTP; :mod:`tghop.server.app` turns jobs into JSON and
+Nothing here knows about HTTP; :mod:`tghop.server.routes.fit` turns jobs into JSON and
 server-sent events. Only the standard library is imported.
 """
 

@@ -1,0 +1,105 @@
+"""The state behind the web server's routes (:class:`Server`): the model cache, the fit queue,
+the bound on generations and the thread pool they run on, and how a request's work is dropped
+when its client goes away or the server stops; the JSON answers every route gives.
+
+Generations run on a thread pool of their own (:attr:`Server.executor`, as many threads as
+generations may run at once), not on Starlette's pool of 40 threads: fewer threads touching
+big arrays keep fewer glibc malloc arenas (docs/serve.md: 20 clients peaked at 375-382 MiB
+instead of 905-924 MiB).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+import json
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+from . import cooc
+from .cache import DEFAULT_CACHE_BYTES, ModelCache
+from .jobs import FitQueue
+from .requests import RequestError
+
+__all__ = ["Server", "json_response", "error_response", "disconnected"]
+
+
+def error_response(status: int, message: str, headers: dict | None = None):
+    """``{"error": message}`` (one line) with ``status``."""
+    from starlette.responses import JSONResponse
+
+    return JSONResponse({"error": " ".join(str(message).split())}, status_code=status, headers=headers)
+
+
+def json_response(data, status: int = 200):
+    """``data`` as JSON (what JSON cannot hold, as text; no NaN)."""
+    from starlette.responses import Response
+
+    return Response(json.dumps(data, default=str, allow_nan=False), status_code=status,
+                    media_type="application/json")
+
+
+async def disconnected(request) -> None:
+    """Return when the client of ``request`` (whose body has been read) disconnects."""
+    while (await request.receive())["type"] != "http.disconnect":
+        pass
+
+
+class Server:
+    """The state behind the routes: the cache, the fit queue, a bound on generations."""
+
+    def __init__(self, cache_dir, max_fits: int, cache_bytes=DEFAULT_CACHE_BYTES):
+        self.cache = ModelCache(cache_dir, cache_bytes)
+        self.cooc = cooc.cooc_cache(cache_dir, cache_bytes)
+        self.queue = FitQueue(max_fits)
+        self.generating = threading.BoundedSemaphore(max_fits)
+        # Generations (and their image reading and PNG encoding) run on threads of their own, as many as
+        # may generate at once, not on Starlette's pool of 40: fewer threads touching big arrays, fewer
+        # glibc malloc arenas holding freed memory (docs/serve.md).
+        self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
+        self.stopping = asyncio.Event()
+        self._work = threading.local()  # .dropped: the running request's flag, on its generation thread
+
+    def stop(self) -> None:
+        """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
+        requests waiting for a generation answer 503 at once and event streams end, so that
+        uvicorn's graceful shutdown finds no request to cancel (a cancelled one was logged
+        with a traceback, and its client got a text 500)."""
+        self.stopping.set()
+
+    def unless_stopping(self, stage=None, done=0, total=0) -> None:
+        """A generation's progress callback: stops it (to nobody: :meth:`in_executor` has answered)
+        once its client went away or the server stops: no thread or process waits for it."""
+        dropped = getattr(self._work, "dropped", None)
+        if self.stopping.is_set() or (dropped is not None and dropped.is_set()):
+            raise RequestError(503, "the work was dropped")
+
+    def _flagged(self, dropped, work, *args):
+        """``work(*args)`` with ``dropped`` as this thread's flag for :meth:`unless_stopping`."""
+        self._work.dropped = dropped
+        try:
+            return work(*args)
+        finally:
+            self._work.dropped = None
+
+    async def in_executor(self, request, work, *args):
+        """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of ``request``
+        goes away first (a page's Stop or reload): still waiting, it never runs; running, it stops at its
+        next progress report; then 499. Dropped the same way when the server stops (:meth:`stop`): 503."""
+        dropped = threading.Event()
+        future = asyncio.get_running_loop().run_in_executor(
+            self.executor, functools.partial(self._flagged, dropped, work, *args))
+        gone = asyncio.ensure_future(disconnected(request))
+        stopped = asyncio.ensure_future(self.stopping.wait())
+        try:
+            await asyncio.wait({future, gone, stopped}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            gone.cancel()
+            stopped.cancel()
+        if not future.done():
+            dropped.set()
+            future.cancel()
+            if not gone.done() and self.stopping.is_set():
+                raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
+            raise RequestError(499, "the client went away; its work was dropped")
+        return future.result()

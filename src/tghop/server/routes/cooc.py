@@ -1,0 +1,84 @@
+"""Co-occurrence checkpoints on the web server (``/api/cooc``; docs/serve.md, "Co-occurrence
+checkpoints"): the routes; what they do with a checkpoint is :mod:`tghop.server.cooc`'s (PyTorch
+imported only there: 501 without it)."""
+
+from __future__ import annotations
+
+from .. import cooc
+from ..core import json_response
+from ..requests import RequestError, safe_name
+from ..uploads import MAX_UPLOAD_BYTES, json_body, read_body, read_form, read_image
+from .images import png_response
+from .models import send_file
+
+__all__ = ["upload_cooc", "checkpoint_id", "cooc_summary", "cooc_file", "cooc_morph", "cooc_edit"]
+
+
+async def upload_cooc(server, request):
+    """``POST /api/cooc``: the checkpoint as the whole body or the multipart field ``checkpoint``."""
+    from starlette.concurrency import run_in_threadpool
+
+    cooc.require_torch()
+    body = await read_body(request)
+    if request.headers.get("content-type", "").startswith("multipart/form-data"):
+        fields = await read_form(request, body)
+        upload = fields.get("checkpoint")
+        if not isinstance(upload, tuple):
+            raise RequestError(400, "no checkpoint: send it as the file field 'checkpoint' (or as the whole body)")
+        filename, content = upload
+    else:
+        filename, content = None, body  # no name: messages say "the upload"
+    cid = await run_in_threadpool(cooc.store_checkpoint, server.cooc, content, safe_name(filename, "the upload"))
+    return json_response({"id": cid})
+
+
+def checkpoint_id(server, request) -> str:
+    """The path's ``{id}`` (501 without PyTorch, 404 when malformed)."""
+    cooc.require_torch()
+    cid = request.path_params["id"]
+    server.cooc.path(cid)  # 404 for a malformed id before the body is read
+    return cid
+
+
+async def cooc_summary(server, request):
+    """``GET /api/cooc/{id}``."""
+    from starlette.concurrency import run_in_threadpool
+
+    cid = checkpoint_id(server, request)
+    return json_response(await run_in_threadpool(cooc.summary, server.cooc, cid))
+
+
+async def cooc_file(server, request):
+    """``GET /api/cooc/{id}/file``: the checkpoint as uploaded."""
+    cid = checkpoint_id(server, request)
+    return send_file(server.cooc, cid, f"no co-occurrence checkpoint {cid}; {cooc.COOC_HINT}")
+
+
+async def cooc_morph(server, request):
+    """``POST /api/cooc/{id}/morph``: a strip from crop ``a`` to crop ``b``."""
+    cid = checkpoint_id(server, request)
+    a, b, crop, length, seed, windows = cooc.parse_morph(await json_body(request))
+
+    def work(seed):
+        with server.generating:
+            return cooc.morph_png(server.cooc.load(cid), a, b, crop, length, windows, seed)
+
+    return await png_response(server, request, work, seed=seed)
+
+
+async def cooc_edit(server, request):
+    """``POST /api/cooc/{id}/edit``: an image painted with crops, boosted or not."""
+    from ...imageio import load_image
+
+    cid = checkpoint_id(server, request)
+    size, labels, crops, boost, seed, windows = cooc.parse_edit(
+        await json_body(request, limit=MAX_UPLOAD_BYTES))
+
+    def read_labels(content):
+        return read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
+
+    def work(seed):
+        with server.generating:
+            return cooc.edit_png(server.cooc.load(cid), size, labels, crops, boost, windows, seed, read_labels)
+
+    return await png_response(server, request, work, seed=seed)

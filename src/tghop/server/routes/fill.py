@@ -1,0 +1,129 @@
+"""Filling on the web server: a hole in a picture (``POST /api/models/{id}/inpaint``, the fields
+``image``, ``mask``, ``seed``, ``tile``) or a picture grown to a larger canvas (``POST
+/api/models/{id}/extend``, ``image``, ``size``, ``anchor``, ``seed``, ``tile``), with a model's
+texture, as ``tghop inpaint`` and ``tghop extend`` do; a material's maps come along as ``map:<name>``
+fields (docs/serve.md)."""
+
+from __future__ import annotations
+
+import io
+import re
+import secrets
+
+from ..._errors import TGHopError
+from .. import materials
+from ..requests import RequestError, parse_bool, parse_growth, safe_name
+from ..uploads import MAX_FIT_BYTES, each_file_within, read_body, read_form, read_image
+
+__all__ = ["fill_png", "inpaint", "extend", "fill_request"]
+
+
+def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
+    """Read the picture and its mask (``grow`` None) or grow the picture to ``grow``'s
+    ``(size, anchor)`` (:func:`tghop.inpaint.expand_canvas`), and fill the mask's white
+    pixels or the new area with the model's texture (:func:`tghop.inpaint.inpaint`): the
+    PNG's bytes. As ``tghop inpaint`` and ``tghop extend`` do (their code): an alpha channel
+    is kept (opaque where filled), and so are 16 bits per channel (a float picture: 16
+    bits, the most a PNG holds). A material fills its maps too (``map:<name>`` fields):
+    ``(maps, (h, w))`` (:func:`materials.fill`)."""
+    import numpy as np
+
+    from ..._errors import HINT_DOWNSCALE_YOURSELF
+    from ...imageio import deepest, load_image, to_uint8, to_uint16, write_png
+    from ...inpaint import check_hole, expand_canvas, require_hole, split_alpha, with_alpha
+    from ...inpaint import inpaint as fill_hole
+
+    model = server.cache.load(model_id)
+    uploads = materials.map_uploads(fields)  # a material's maps (none for a texture model)
+    if uploads and not materials.is_material(model):
+        raise RequestError(422, f"model {model_id[:12]} is a texture model; map:<name> fields go with a material")
+    picture = mask = None
+    for name in ("image",) if grow else ("image", "mask"):
+        upload = fields.get(name)
+        if not isinstance(upload, tuple):
+            raise RequestError(400, f"no {name}: send the picture as the file field 'image'" + (
+                "" if grow else " and its mask (white: the hole) as the file field 'mask'"))
+        filename, content = upload
+        filename = safe_name(filename, name)
+        if not content:
+            raise RequestError(400, f"{filename} is empty; send an image file")
+        if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
+            picture, depth = read_image(content, filename, lambda p: load_image(
+                p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True))
+            picture, alpha = split_alpha(picture)
+        else:
+            read = read_image(content, filename, lambda p: load_image(
+                p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
+            mask, mask_name = read.mean(axis=2), filename
+    try:
+        if grow:
+            picture, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
+            alpha = None if alpha is None else expand_canvas(alpha, grow[0], anchor=grow[1])[0]
+        else:
+            hole = check_hole(mask, picture.shape)
+            require_hole(hole, f"the mask {mask_name}")  # as tghop inpaint: nothing would change
+    except TGHopError as exc:
+        raise RequestError(400, str(exc)) from None
+    with server.generating:
+        if materials.is_material(model):  # every map alike
+            return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename: read_image(
+                data, filename, lambda p: load_image(p, dtype=None, with_depth=True)), depth=depth, grow=grow,
+                seed=seed, tile=tile, progress=server.unless_stopping)
+        try:
+            filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping)
+        except MemoryError:
+            raise RequestError(413, "out of memory; send a smaller picture") from None
+        except TGHopError as exc:
+            raise RequestError(400, str(exc)) from None
+    filled = with_alpha(filled, alpha, hole)  # a PNG holds it
+    buf = io.BytesIO()
+    write_png(buf, to_uint16(filled) if deepest("filled.png", depth) == 16 else to_uint8(filled))
+    return buf.getvalue()
+
+
+async def inpaint(server, request):
+    """``POST /api/models/{id}/inpaint``."""
+    return await fill_request(server, request, grow=False)
+
+
+async def extend(server, request):
+    """``POST /api/models/{id}/extend``."""
+    return await fill_request(server, request, grow=True)
+
+
+async def fill_request(server, request, *, grow: bool):
+    """``POST /api/models/{id}/inpaint`` (the fields image, mask, seed, tile) or
+    ``/extend`` (image, size, anchor, seed, tile)."""
+    from starlette.responses import Response
+
+    model_id = request.path_params["id"]
+    server.cache.path(model_id)  # 404 for a malformed id before the body is read
+    # A material's picture comes with its maps: as much in all as its fit
+    body = await read_body(request, MAX_FIT_BYTES, what="the upload (the picture and its maps together)")
+    names = ("image", "size", "anchor", "seed", "tile") if grow else ("image", "mask", "seed", "tile")
+    fields = each_file_within(await read_form(
+        request, body, "the file field 'image' and the fields 'size' (HEIGHTxWIDTH) and optionally 'anchor', "
+        "'seed' and 'tile'" if grow else "the file fields 'image' and 'mask', white where to fill; optionally "
+        "the fields 'seed' and 'tile'"))
+    unknown = [k for k in fields if k not in names and not k.startswith(materials.MAP_FIELD)]
+    if unknown:
+        raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)} (and a material's "
+                                "map:<name>)")
+    plain = {k: fields.get(k) for k in names if k not in ("image", "mask")}
+    if any(isinstance(v, tuple) for v in plain.values()):
+        raise RequestError(422, f"{', '.join(plain)}: plain fields, not files")
+    seed = (plain["seed"] or "").strip()
+    if seed == "":
+        seed = secrets.randbelow(2**31)
+    elif not re.fullmatch(r"[0-9]{1,19}", seed) or int(seed) >= 2**63:
+        raise RequestError(422, f"seed must be an integer from 0 to 2**63 - 1, got {seed[:40]!r}")
+    else:
+        seed = int(seed)
+    tile = parse_bool("tile", plain["tile"] or "false")
+    growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
+    png = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth)
+    headers = {"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"}
+    if isinstance(png, tuple):  # a material's maps and their size
+        body, kind = materials.answer(request.headers.get("accept", ""), *png, seed)
+        return Response(body, media_type=kind, headers=headers)
+    return Response(png, media_type="image/png", headers=headers)

@@ -1,0 +1,163 @@
+"""Images on the web server: one model's (``POST /api/models/{id}/images``), several models
+through a painted guide or a remix (``POST /api/images/guided``), a morph between two (``POST
+/api/images/morph``); docs/serve.md. Each runs on a generation thread
+(:meth:`tghop.server.core.Server.in_executor`) under the bound on generations; a material's
+answer is every map (:func:`tghop.server.materials.answer`)."""
+
+from __future__ import annotations
+
+import io
+import secrets
+import time
+
+from ..._errors import TGHopError
+from .. import materials
+from ..requests import RequestError, parse_generation, parse_guided, parse_morph
+from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
+
+__all__ = ["model_png", "png_response", "generate", "several_png", "same_patches", "guided_png", "guided",
+           "morph_png", "morph"]
+
+
+def model_png(server, model_id: str, size, seed, settings):
+    """One model's image as PNG bytes; a material's maps as a list (:func:`materials.encode_maps`)."""
+    import numpy as np
+
+    from ...imageio import write_png
+
+    model = server.cache.load(model_id)
+    material = materials.is_material(model)
+    if settings.get("patch_refine") and material:
+        raise RequestError(422, "patch_refine and quality best do not apply to a material (it has no patch "
+                                "statistics); leave them out")
+    if settings.get("patch_refine") and getattr(model, "patches_", None) is None:  # as tghop synth says
+        raise RequestError(422, "this model holds no patch statistics for patch_refine or quality best (fitted "
+                                "with patch_levels 0, or by tghop 0.14 or older); fit it again")
+    if material:
+        settings = {k: v for k, v in settings.items() if k != "patch_refine"}  # 0 or None: nothing to do
+    with server.generating:
+        try:
+            image = model.synthesize(size, rng=seed, dtype=np.float32 if material else np.uint8,
+                                     progress=server.unless_stopping, **settings)
+        except MemoryError:
+            raise RequestError(422, "out of memory; ask for a smaller image") from None
+        except TGHopError as exc:
+            raise RequestError(422, str(exc)) from None
+    if material:
+        return materials.encode_maps(image, model)
+    buf = io.BytesIO()
+    write_png(buf, image)
+    return buf.getvalue()
+
+
+async def png_response(server, request, work, *args, seed):
+    """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer, or
+    ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON or multipart."""
+    from starlette.responses import Response
+
+    if seed is None:
+        seed = secrets.randbelow(2**31)
+    start = time.perf_counter()
+    png, size = await server.in_executor(request, work, *args, seed)
+    took = (time.perf_counter() - start) * 1000
+    headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
+               "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
+    if isinstance(png, list):  # a material: every map, as multipart where the client takes it (the page)
+        body, kind = materials.answer(request.headers.get("accept", ""), png, size, seed)
+        return Response(body, headers=headers, media_type=kind)
+    return Response(png, media_type="image/png", headers=headers)
+
+
+async def generate(server, request):
+    """``POST /api/models/{id}/images``."""
+    model_id = request.path_params["id"]
+    server.cache.path(model_id)  # 404 for a malformed id before the body is read
+    size, seed, settings = parse_generation(await json_body(request))
+
+    def work(seed):
+        return model_png(server, model_id, size, seed, settings), size
+
+    return await png_response(server, request, work, seed=seed)
+
+
+def several_png(server, make, models, seed) -> tuple:
+    """``make(models, seed, dtype)`` under the bound on generations: the PNG and its size (the
+    maps of materials: a list, :func:`materials.encode_maps`)."""
+    import numpy as np
+
+    from ...imageio import write_png
+
+    material = materials.is_material(models[0])
+    with server.generating:
+        try:
+            image = make(models, seed, np.float32 if material else np.uint8)
+        except MemoryError:
+            raise RequestError(422, "out of memory; ask for a smaller image") from None
+        except TGHopError as exc:  # models that cannot be combined, a setting the library refuses
+            raise RequestError(422, str(exc)) from None
+    if isinstance(image, dict):  # materials (the library checked that all are, with the same maps)
+        return materials.encode_maps(image, models[0]), next(iter(image.values())).shape[:2]
+    buf = io.BytesIO()
+    write_png(buf, image)
+    return buf.getvalue(), image.shape[:2]
+
+
+def same_patches(models, names) -> None:
+    """Models to combine have one patch size, or 422 naming them as the request does and
+    the fit field (the library's words name the command line's --patch-size)."""
+    p = materials.patch_size(models[0])
+    for name, model in zip(names[1:], models[1:]):
+        q = materials.patch_size(model)
+        if q != p:
+            raise RequestError(422, f"{name} has {q}x{q} patches but {names[0]} has "
+                                    f"{p}x{p}; fit them with the same patch_size (a field of POST /api/models)")
+
+
+def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
+    """Several models through a painted guide (its PNG's bytes), or a remix (None)."""
+    from ...guided import guide_labels, synthesize_guided
+    from ...imageio import load_image
+
+    models = [server.cache.load(model_id) for model_id in ids]
+    materials.same_kind(models, ids)
+    same_patches(models, [f"models[{i}]" for i in range(len(models))])
+    painted = None
+    if guide is not None:
+        painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
+        try:
+            guide_labels(painted, len(models), size=size)
+        except TGHopError as exc:
+            raise RequestError(400, str(exc)) from None
+    return several_png(server, lambda m, rng, dtype: synthesize_guided(
+        m, painted, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
+        **settings), models, seed)
+
+
+async def guided(server, request):
+    """``POST /api/images/guided``."""
+    ids, guide, size, seed, transition, settings = parse_guided(
+        await json_body(request, limit=MAX_UPLOAD_BYTES))
+    for model_id in ids:
+        server.cache.path(model_id)  # 404 for a malformed id before any work
+    return await png_response(server, request, guided_png, server, ids, guide, size, transition, settings, seed=seed)
+
+
+def morph_png(server, ids, size, stations, settings, seed) -> tuple:
+    """A morph from model ``ids[0]`` to ``ids[1]`` (texture models of one patch size)."""
+    from ...guided import morph as morph_strip
+
+    models = [server.cache.load(model_id) for model_id in ids]
+    for label, model in zip(["a", "b"], models):
+        materials.texture_only(model, label, "a morph")
+    same_patches(models, ["a", "b"])
+    return several_png(server, lambda m, rng, dtype: morph_strip(
+        m[0], m[1], size, rng=rng, stations=stations, dtype=dtype, progress=server.unless_stopping, **settings),
+        models, seed)
+
+
+async def morph(server, request):
+    """``POST /api/images/morph``."""
+    a, b, size, seed, stations, settings = parse_morph(await json_body(request))
+    for model_id in (a, b):
+        server.cache.path(model_id)
+    return await png_response(server, request, morph_png, server, [a, b], size, stations, settings, seed=seed)

@@ -1,0 +1,81 @@
+"""A model's file on the web server: ``GET /api/models/{id}`` (its summary, as ``tghop info --json``),
+``GET /api/models/{id}/file`` (the download) and ``POST /api/models/upload`` (a saved model file,
+checked and kept under its content hash); docs/serve.md, "Models"."""
+
+from __future__ import annotations
+
+import io
+
+from ..core import json_response
+from ..requests import RequestError, safe_name
+from ..uploads import read_body, read_form
+
+__all__ = ["summary", "model_summary", "send_file", "model_file", "store_upload", "upload_model"]
+
+
+def summary(server, model_id: str) -> dict:
+    """The summary of ``GET /api/models/{id}`` (the model loaded: a worker thread)."""
+    from ...modelfile import info_dict
+
+    loaded = server.cache.load(model_id)
+    model = getattr(loaded, "model_", loaded)  # a material's joint model
+    return {"id": model_id, "file_bytes": server.cache.path(model_id).stat().st_size,
+            "layout": model.layout_ is not None, **info_dict(model),
+            **({"material": {"maps": loaded.map_info()}} if model is not loaded else {})}
+
+
+async def model_summary(server, request):
+    """``GET /api/models/{id}``."""
+    from starlette.concurrency import run_in_threadpool
+
+    return json_response(await run_in_threadpool(summary, server, request.path_params["id"]))
+
+
+def send_file(cache, file_id: str, missing: str):
+    """The file ``file_id`` of ``cache`` (a :class:`~tghop.server.cache.ModelCache`) as a download
+    (404 with ``missing`` if none)."""
+    from starlette.responses import FileResponse
+
+    path = cache.path(file_id)
+    if not path.is_file():
+        raise RequestError(404, missing)
+    cache.touch(file_id)
+    return FileResponse(path, media_type="application/octet-stream",
+                        filename=f"tghop-{file_id[:12]}{path.suffix}")
+
+
+async def model_file(server, request):
+    """``GET /api/models/{id}/file``: the model file as ``tghop fit`` writes it."""
+    model_id = request.path_params["id"]
+    return send_file(server.cache, model_id, f"no model {model_id}; fit one with POST /api/models")
+
+
+def store_upload(server, content: bytes, filename: str) -> str:
+    """Check an uploaded model file and keep it under its content hash (400 if it is not
+    a good tghop model; nothing is left in the cache either way)."""
+    from ...imageio import is_image
+
+    try:
+        return server.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
+    except RequestError as exc:  # the loader's advice for an image is a command line's
+        if exc.status == 400 and is_image(io.BytesIO(content)):
+            raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
+                                    "to /api/models as the file field 'image'") from None
+        raise
+
+
+async def upload_model(server, request):
+    """``POST /api/models/upload``: the file as the whole body or the multipart field ``model``."""
+    from starlette.concurrency import run_in_threadpool
+
+    body = await read_body(request)
+    if request.headers.get("content-type", "").startswith("multipart/form-data"):
+        fields = await read_form(request, body)
+        files = [v for v in fields.values() if isinstance(v, tuple)]
+        if not files:
+            raise RequestError(400, "no model file: send it as the field 'model' (or as the whole body)")
+        filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
+    else:
+        filename, content = None, body  # no name: messages say "the upload"
+    model_id = await run_in_threadpool(store_upload, server, content, safe_name(filename, "the upload"))
+    return json_response({"id": model_id})

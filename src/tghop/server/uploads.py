@@ -1,0 +1,128 @@
+"""What a request sends, read: its body within a size limit, a multipart form's fields, a JSON
+body, an uploaded image decoded by the library (docs/serve.md, "The API").
+
+Starlette is imported only inside these functions: the module imports without the web extra,
+as the rest of :mod:`tghop.server` does.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+from .._errors import ImageTooLargeError, TGHopError
+from . import materials
+from .requests import RequestError, check_multipart_end, safe_name
+
+__all__ = ["MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "DRAIN", "read_body", "read_form", "each_file_within", "json_body",
+           "read_image"]
+
+#: Largest request body accepted (an exemplar or a model file).
+MAX_UPLOAD_BYTES = 50 * 1024 * 1024
+#: Largest body of a fit (``POST /api/models``), an inpaint or an extend: a material's albedo and maps
+#: together, each file still at most MAX_UPLOAD_BYTES (a 2K set with a 16-bit normal map is about 40 MB).
+MAX_FIT_BYTES = 4 * MAX_UPLOAD_BYTES
+#: An upload over the limit is read (and dropped) up to this many times the limit, then the
+#: connection is closed.
+DRAIN = 4
+
+
+async def read_body(request, limit: int = MAX_UPLOAD_BYTES, *, what: str = "the upload") -> bytes:
+    """The request's body, or 413 as soon as it is over ``limit`` bytes (``what``: the message's
+    words for it); 499 (to nobody) when the client goes away before it has sent the whole body."""
+    from starlette.requests import ClientDisconnect
+
+    too_large = RequestError(413, f"{what} is over the limit of {limit // (1024 * 1024)} MB; "
+                                  "send a smaller file")
+    declared = request.headers.get("content-length")
+    over = bool(declared and declared.isdigit() and int(declared) > limit)
+    chunks, n = [], 0
+    try:
+        async for chunk in request.stream():
+            n += len(chunk)
+            if n > limit:
+                over = True
+            if over:  # the rest is read and dropped, so that the client gets the answer and not a reset
+                chunks = []
+                if n > DRAIN * limit:
+                    break
+                continue
+            chunks.append(chunk)
+    except ClientDisconnect:  # not the server's error: no traceback, and the answer goes nowhere
+        raise RequestError(499, "the client went away before it sent the whole body") from None
+    if over:
+        raise too_large
+    return b"".join(chunks)
+
+
+async def read_form(request, body: bytes, fields: str = "a form with an 'image' file or a 'builtin' name") -> dict:
+    """A multipart body -> ``{name: str or (filename, bytes)}`` (400 when malformed; when it
+    is not multipart, the message says to send ``fields``, what the route takes)."""
+    from starlette.formparsers import MultiPartException, MultiPartParser
+
+    async def stream():
+        yield body
+
+    if not request.headers.get("content-type", "").startswith("multipart/form-data"):
+        raise RequestError(400, f"send the fields as multipart/form-data ({fields})")
+    check_multipart_end(request.headers["content-type"], body)
+    try:
+        form = await MultiPartParser(request.headers, stream(), max_files=4 + materials.MAX_MAPS,
+                                     max_fields=64).parse()
+    except (MultiPartException, ValueError) as exc:
+        raise RequestError(400, f"malformed multipart request ({getattr(exc, 'message', exc)})") from None
+    out, twice = {}, []
+    for name, value in form.multi_items():
+        if name in out:
+            twice.append(name)
+        if hasattr(value, "read"):
+            out[name] = (value.filename, await value.read())
+            await value.close()
+        else:
+            out[name] = value
+    if twice:  # which one counts would be a guess
+        raise RequestError(400, f"the field {twice[0][:40]!r} is given twice; send it once")
+    return out
+
+
+def each_file_within(fields: dict) -> dict:
+    """``fields`` (:func:`read_form`'s) once each file is at most :data:`MAX_UPLOAD_BYTES` (a body
+    of several files may be up to :data:`MAX_FIT_BYTES`); else 413 naming the file."""
+    for value in fields.values():
+        if isinstance(value, tuple) and len(value[1]) > MAX_UPLOAD_BYTES:
+            raise RequestError(413, f"{safe_name(value[0], 'a file')} is over the limit of "
+                                    f"{MAX_UPLOAD_BYTES // (1024 * 1024)} MB a file; send a smaller file")
+    return fields
+
+
+async def json_body(request, limit: int = 1024 * 1024):
+    """The request's body as JSON (400 when it is not JSON; 413 over ``limit`` bytes)."""
+    body = await read_body(request, limit=limit)
+    try:
+        return json.loads(body or b"{}")
+    except (ValueError, RecursionError):  # RecursionError: nested deeper than the parser goes
+        raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
+
+
+def read_image(content: bytes, filename: str, load):
+    """``load(path)`` of the uploaded ``content`` written as ``filename`` (already
+    :func:`~tghop.server.requests.safe_name`'d) in a temporary folder, removed at once: the
+    library's reading (e.g. :func:`tghop.imageio.load_image`). Its errors are one line without
+    the folder: 413 over the pixel limit or out of memory, 400 otherwise."""
+    with tempfile.TemporaryDirectory(prefix="tghop-upload-") as folder:
+        path = Path(folder) / filename
+        path.write_bytes(content)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # an alpha channel dropped: not an error
+                return load(path)
+        except ImageTooLargeError as exc:
+            raise RequestError(413, str(exc).replace(f"{folder}{os.sep}", "")) from None
+        except TGHopError as exc:
+            raise RequestError(400, str(exc).replace(f"{folder}{os.sep}", "")) from None
+        except MemoryError:
+            raise RequestError(413, f"{filename}: not enough memory to decode this image; "
+                                    "downscale it first") from None
