@@ -288,3 +288,73 @@ def test_the_default_cache_is_the_users_cache_folder(tmp_path, monkeypatch):
     for unset in ("", "relative/cache"):  # empty or relative: ignored, as the XDG specification says
         monkeypatch.setenv("XDG_CACHE_HOME", unset)
         assert default_cache_dir() == Path.home() / ".cache" / "tghop"
+
+
+def test_uploads_decoded_at_once_are_bounded_the_next_wait_and_one_more_is_503(tmp_path, monkeypatch):
+    """A small file may decode to hundreds of MB (an 8000x8000 PNG of 760 KB: 700 MB): uploads are
+    decoded max_decodes at once, decodes_waiting more wait their turn (a page's user sees a wait, not
+    an error), and one more is refused at once with Retry-After; real requests at once, a real server."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop.server.routes import fit
+
+    buf = io.BytesIO()
+    Image.fromarray(np.full((64, 64, 3), 128, np.uint8)).save(buf, format="PNG")  # flat: read, then refused
+    flat = buf.getvalue()
+    release, lock = threading.Event(), threading.Lock()
+    inside, peak = [0], [0]
+    prepare = fit.prepare_fit
+
+    def held(server, fields):  # the real preparation (decoding included), held until released
+        with lock:
+            inside[0] += 1
+            peak[0] = max(peak[0], inside[0])
+        try:
+            release.wait(60)
+            return prepare(server, fields)
+        finally:
+            with lock:
+                inside[0] -= 1
+
+    monkeypatch.setattr(fit, "prepare_fit", held)
+    live = LiveServer(tmp_path, max_decodes=1, decodes_waiting=1)
+    gate = live.app.state.server.decoding
+    answers = {}
+
+    def post(name, path, **kwargs):
+        with httpx.Client(base_url=live.url, timeout=60) as client:
+            answers[name] = client.post(path, **kwargs)
+
+    def until(done):
+        deadline = time.monotonic() + 30
+        while not done():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+
+    threads = []
+    try:
+        for name in ("first", "second"):
+            threads.append(threading.Thread(target=post, args=(name, "/api/models"),
+                                            kwargs={"files": {"image": (f"{name}.png", flat)}}))
+            threads[-1].start()
+            until(lambda: inside[0] == 2 or gate.waiting == 1 if name == "second" else inside[0] == 1)
+        third = httpx.post(f"{live.url}/api/models/upload", content=b"not a model", timeout=60)  # the same bound
+        assert third.status_code == 503, third.text
+        assert third.headers["retry-after"] == "5" and "the server is busy" in third.json()["error"]
+        assert "first" not in answers and "second" not in answers  # still decoding, still waiting
+        release.set()
+        for thread in threads:
+            thread.join(60)
+    finally:
+        release.set()
+        live.stop()
+    assert peak[0] == 1  # one decoded at a time; the second waited its turn and was read, not refused
+    for name in ("first", "second"):
+        answer = answers[name]
+        assert answer.status_code == 400 and "has no texture" in answer.json()["error"], answer.text
+    assert gate.holding == 0 and gate.waiting == 0

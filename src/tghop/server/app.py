@@ -46,7 +46,7 @@ from .routes import cooc as cooc_routes
 from .routes import fill, fit, images, models
 from .routes.fit import model_id_for
 from .safety import LocalOnly, allowed_hosts
-from .uploads import MAX_FIT_BYTES, MAX_UPLOAD_BYTES
+from .uploads import MAX_DECODES, MAX_DECODES_WAITING, MAX_FIT_BYTES, MAX_UPLOAD_BYTES
 
 try:  # the web extra; create_app says how to install it when it is missing
     from starlette.applications import Starlette
@@ -116,13 +116,13 @@ def _wrap(handler, server):
         try:
             return await handler(server, request)
         except RequestError as exc:
-            return error_response(exc.status, exc.message)
+            return error_response(exc.status, exc.message, exc.headers)
         except TGHopError as exc:  # a library check the route did not foresee: the input's fault
             return error_response(400, str(exc))
 
     return route
 def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None = DEFAULT_CACHE_BYTES,
-               host: str = "127.0.0.1"):
+               host: str = "127.0.0.1", max_decodes: int = MAX_DECODES, decodes_waiting: int = MAX_DECODES_WAITING):
     """The Starlette application of ``tghop serve``.
 
     Parameters
@@ -138,6 +138,10 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
     host : str
         The address the server listens on (``tghop serve --host``): requests whose Host header names
         another (or whose Origin is another site) are refused, 403 (:class:`~tghop.server.safety.LocalOnly`).
+    max_decodes, decodes_waiting : int
+        Uploads decoded or read at once (a fit's exemplar and maps, a model file, a checkpoint: each may
+        take hundreds of MB), and how many more wait their turn; one more is refused, 503 with
+        ``Retry-After``.
 
     Raises
     ------
@@ -145,7 +149,8 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         Starlette or python-multipart is not installed (one line naming ``tghop[web]``).
     """
     require_web()
-    server = Server(cache_dir, max_fits or os.cpu_count() or 1, cache_bytes)
+    server = Server(cache_dir, max_fits or os.cpu_count() or 1, cache_bytes, max_decodes=max_decodes,
+                    decodes_waiting=decodes_waiting)
     routes = [
         Route("/", _wrap(index, server)),
         Route("/api", _wrap(builtins, server)),
@@ -179,6 +184,7 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         yield
         await run_in_threadpool(server.queue.shutdown)
         server.executor.shutdown(wait=False, cancel_futures=True)
+        server.decoder.shutdown(wait=False, cancel_futures=True)
 
     app = Starlette(routes=routes, exception_handlers={HTTPException: http_error},
                     lifespan=asynccontextmanager(lifespan))

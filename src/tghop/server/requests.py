@@ -30,12 +30,14 @@ _NOT_FIELDS = ("n_channels", "rng")
 
 
 class RequestError(Exception):
-    """A bad request: answered with ``status`` and ``{"error": message}`` (one line)."""
+    """A bad request: answered with ``status``, ``{"error": message}`` (one line) and ``headers``
+    (e.g. a 503's ``Retry-After``)."""
 
-    def __init__(self, status: int, message: str):
+    def __init__(self, status: int, message: str, headers: dict | None = None):
         super().__init__(message)
         self.status = status
         self.message = " ".join(str(message).split())
+        self.headers = dict(headers or {})
 
 
 def safe_name(name, default: str) -> str:

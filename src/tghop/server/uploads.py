@@ -1,5 +1,6 @@
 """What a request sends, read: its body within a size limit, a multipart form's fields, a JSON
-body, an uploaded image decoded by the library (docs/serve.md, "The API").
+body, an uploaded image decoded by the library (docs/serve.md, "The API"); and the bound on
+uploads decoded at once (:class:`Gate`).
 
 Starlette is imported only inside these functions: the module imports without the web extra,
 as the rest of :mod:`tghop.server` does.
@@ -7,6 +8,7 @@ as the rest of :mod:`tghop.server` does.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import tempfile
@@ -17,8 +19,8 @@ from .._errors import ImageTooLargeError, TGHopError
 from . import materials
 from .requests import RequestError, check_multipart_end, safe_name
 
-__all__ = ["MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "DRAIN", "read_body", "read_form", "each_file_within", "json_body",
-           "read_image"]
+__all__ = ["MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "DRAIN", "MAX_DECODES", "MAX_DECODES_WAITING", "RETRY_AFTER", "Gate",
+           "read_body", "read_form", "each_file_within", "json_body", "read_image"]
 
 #: Largest request body accepted (an exemplar or a model file).
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
@@ -28,6 +30,44 @@ MAX_FIT_BYTES = 4 * MAX_UPLOAD_BYTES
 #: An upload over the limit is read (and dropped) up to this many times the limit, then the
 #: connection is closed.
 DRAIN = 4
+#: Uploads decoded or prepared at once (a fit's exemplar and maps, a model file or checkpoint read), by
+#: default: a small file may decode to hundreds of MB (an 8000x8000 PNG of 760 KB: a peak of 700 MB),
+#: so their number has a bound of its own, whatever the number of cores (``create_app(max_decodes=)``).
+MAX_DECODES = 2
+#: Uploads that wait for their turn beyond the decoding ones, by default; one more is 503 with Retry-After.
+MAX_DECODES_WAITING = 16
+#: Seconds a busy server tells a client to wait before it tries again (``Retry-After``).
+RETRY_AFTER = 5
+
+
+class Gate:
+    """At most ``slots`` holders at once (``async with gate:``); up to ``waiting`` more wait for
+    their turn, in order, and one more is refused at once: 503 with ``Retry-After``
+    (:data:`RETRY_AFTER`). For the event loop only (its counts need no lock)."""
+
+    def __init__(self, slots: int, waiting: int, *, what: str = "uploads are being read"):
+        if slots < 1 or waiting < 0:
+            raise ValueError(f"a gate needs slots >= 1 and waiting >= 0, got {slots} and {waiting}")
+        self.slots, self.max_waiting, self.what = slots, waiting, what
+        self.holding = 0  # in the gate now
+        self.waiting = 0  # waiting for a slot
+        self._free = asyncio.Semaphore(slots)
+
+    async def __aenter__(self):
+        if self.holding >= self.slots and self.waiting >= self.max_waiting:
+            raise RequestError(503, f"the server is busy: {self.holding} {self.what} and {self.waiting} wait; "
+                                    f"try again in {RETRY_AFTER} s", headers={"Retry-After": str(RETRY_AFTER)})
+        self.waiting += 1
+        try:
+            await self._free.acquire()
+        finally:
+            self.waiting -= 1
+        self.holding += 1
+        return self
+
+    async def __aexit__(self, *exc_info):
+        self.holding -= 1
+        self._free.release()
 
 
 async def read_body(request, limit: int = MAX_UPLOAD_BYTES, *, what: str = "the upload") -> bytes:

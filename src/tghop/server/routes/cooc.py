@@ -16,8 +16,6 @@ __all__ = ["upload_cooc", "checkpoint_id", "cooc_summary", "cooc_file", "cooc_mo
 
 async def upload_cooc(server, request):
     """``POST /api/cooc``: the checkpoint as the whole body or the multipart field ``checkpoint``."""
-    from starlette.concurrency import run_in_threadpool
-
     cooc.require_torch()
     body = await read_body(request)
     if request.headers.get("content-type", "").startswith("multipart/form-data"):
@@ -28,7 +26,7 @@ async def upload_cooc(server, request):
         filename, content = upload
     else:
         filename, content = None, body  # no name: messages say "the upload"
-    cid = await run_in_threadpool(cooc.store_checkpoint, server.cooc, content, safe_name(filename, "the upload"))
+    cid = await server.decode(cooc.store_checkpoint, server.cooc, content, safe_name(filename, "the upload"))
     return json_response({"id": cid})
 
 

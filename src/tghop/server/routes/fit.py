@@ -14,7 +14,7 @@ from .. import materials
 from ..core import json_response
 from ..jobs import FINAL, QueueFull
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
-from ..uploads import MAX_FIT_BYTES, each_file_within, read_body, read_form, read_image
+from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, each_file_within, read_body, read_form, read_image
 
 __all__ = ["model_id_for", "prepare_fit", "fit_work", "create_model", "find_job", "job_state", "cancel_job",
            "job_events", "JOB"]
@@ -115,13 +115,12 @@ def fit_work(server, model_id: str, fit):
 
 
 async def create_model(server, request):
-    """``POST /api/models``: check the fields and read the exemplar (a worker thread), then queue
-    the fit (202), or answer the model already in the cache (200)."""
-    from starlette.concurrency import run_in_threadpool
-
+    """``POST /api/models``: check the fields and read the exemplar (a decoding thread, in its turn:
+    :meth:`~tghop.server.core.Server.decode`), then queue the fit (202), or answer the model already in
+    the cache (200)."""
     body = await read_body(request, MAX_FIT_BYTES, what="the upload (the exemplar and its maps together)")
     fields = each_file_within(await read_form(request, body))
-    model_id, fit = await run_in_threadpool(prepare_fit, server, fields)
+    model_id, fit = await server.decode(prepare_fit, server, fields)  # the exemplar and maps: their turn, or 503
     if fit is None:
         server.cache.touch(model_id)
         job = server.queue.finished(model_id)
@@ -129,7 +128,7 @@ async def create_model(server, request):
         try:
             job = server.queue.submit(model_id, fit_work(server, model_id, fit))
         except QueueFull as exc:
-            raise RequestError(503, f"the server is busy: {exc}") from None
+            raise RequestError(503, f"the server is busy: {exc}", headers={"Retry-After": str(RETRY_AFTER)}) from None
     return json_response({"id": model_id, "job": job.id, "state": job.state}, status=202 if not job.final else 200)
 
 

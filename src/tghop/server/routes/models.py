@@ -66,8 +66,6 @@ def store_upload(server, content: bytes, filename: str) -> str:
 
 async def upload_model(server, request):
     """``POST /api/models/upload``: the file as the whole body or the multipart field ``model``."""
-    from starlette.concurrency import run_in_threadpool
-
     body = await read_body(request)
     if request.headers.get("content-type", "").startswith("multipart/form-data"):
         fields = await read_form(request, body)
@@ -77,5 +75,5 @@ async def upload_model(server, request):
         filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
     else:
         filename, content = None, body  # no name: messages say "the upload"
-    model_id = await run_in_threadpool(store_upload, server, content, safe_name(filename, "the upload"))
+    model_id = await server.decode(store_upload, server, content, safe_name(filename, "the upload"))
     return json_response({"id": model_id})
