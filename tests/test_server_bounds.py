@@ -358,3 +358,56 @@ def test_uploads_decoded_at_once_are_bounded_the_next_wait_and_one_more_is_503(t
         answer = answers[name]
         assert answer.status_code == 400 and "has no texture" in answer.json()["error"], answer.text
     assert gate.holding == 0 and gate.waiting == 0
+
+
+def test_a_model_the_bound_drops_meanwhile_is_404_or_sent_whole_never_500(tmp_path, two_model_files, monkeypatch):
+    """The bound may drop a model file between a route's look at it and its use (another model
+    added meanwhile): a download then still sends the file it opened, whole; a summary or an
+    image whose file went is 404 with one line; never a 500 (nor a 400 naming the server's path)."""
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+    first = two_model_files[0]
+    server = LiveServer(tmp_path)
+    cache = server.app.state.server.cache
+    client = httpx.Client(base_url=server.url, timeout=60)
+
+    def drop():  # the bound, lowered for a moment, drops every file (as a new model over the bound does)
+        cache.max_bytes = 0
+        cache.prune()
+        cache.max_bytes = None
+
+    def one_line_404(r):
+        assert r.status_code == 404, r.text
+        assert r.json()["error"].startswith(f"no model {model_id}") and str(tmp_path) not in r.text
+
+    try:
+        model_id = client.post("/api/models/upload", content=first).json()["id"]
+        touch = cache.touch  # called once the route has found the file
+        monkeypatch.setattr(cache, "touch", lambda mid: (drop(), touch(mid)))
+        r = client.get(f"/api/models/{model_id}/file")
+        assert r.status_code == 200 and r.content == first  # the file it opened, whole
+        monkeypatch.undo()
+        assert os.listdir(tmp_path / "models") == []
+        one_line_404(client.get(f"/api/models/{model_id}/file"))
+
+        assert client.post("/api/models/upload", content=first).json()["id"] == model_id
+        load = cache.load
+        monkeypatch.setattr(cache, "load", lambda mid: (load(mid), drop())[0])  # gone once loaded
+        r = client.get(f"/api/models/{model_id}")
+        assert r.status_code == 200 and r.json()["file_bytes"] == len(first), r.text
+        monkeypatch.undo()
+
+        read = cache._load  # reads a file not in memory
+        for ask in (lambda: client.get(f"/api/models/{model_id}"),
+                    lambda: client.post(f"/api/models/{model_id}/images", json={"size": [16, 16]})):
+            assert client.post("/api/models/upload", content=first).json()["id"] == model_id
+            with cache._lock:
+                cache._loaded.clear()
+            monkeypatch.setattr(cache, "_load", lambda path: (drop(), read(path))[1])  # gone just before it is read
+            one_line_404(ask())
+            monkeypatch.undo()
+        assert client.get("/api").status_code == 200
+    finally:
+        client.close()
+        server.stop()

@@ -193,6 +193,11 @@ class ModelCache:
             while len(self._loaded) > _LOADED:
                 self._loaded.popitem(last=False)
 
+    def missing(self, model_id: str) -> RequestError:
+        """The 404 of a model (or checkpoint) that is not in the folder: never made, or dropped by the bound."""
+        extra = " (or it is still being fitted: see its job)" if self.what == "model" else ""
+        return RequestError(404, f"no {self.what} {model_id}; {self.hint}{extra}")
+
     def load(self, model_id: str):
         """The fitted model (404 if there is none)."""
         path = self.path(model_id)
@@ -207,9 +212,13 @@ class ModelCache:
             with self._lock:  # removed by the bound (or by hand): as if never fitted
                 self._loaded.pop(model_id, None)
         if not path.is_file():
-            extra = " (or it is still being fitted: see its job)" if self.what == "model" else ""
-            raise RequestError(404, f"no {self.what} {model_id}; {self.hint}{extra}")
-        model = self._load(path)
+            raise self.missing(model_id)
+        try:
+            model = self._load(path)
+        except TGHopError:
+            if not path.is_file():  # dropped by the bound since (another model added meanwhile)
+                raise self.missing(model_id) from None
+            raise
         self.touch(model_id)
         self.remember(model_id, model)
         return model

@@ -5,6 +5,7 @@ checked and kept under its content hash); docs/serve.md, "Models"."""
 from __future__ import annotations
 
 import io
+import os
 
 from ..core import json_response
 from ..requests import RequestError, safe_name
@@ -14,12 +15,17 @@ __all__ = ["summary", "model_summary", "send_file", "model_file", "store_upload"
 
 
 def summary(server, model_id: str) -> dict:
-    """The summary of ``GET /api/models/{id}`` (the model loaded: a worker thread)."""
+    """The summary of ``GET /api/models/{id}`` (the model loaded: a worker thread). The file's size
+    is read first: a file the bound drops meanwhile is 404, as one gone before."""
     from ...modelfile import info_dict
 
-    loaded = server.cache.load(model_id)
+    try:
+        file_bytes = server.cache.path(model_id).stat().st_size
+    except FileNotFoundError:
+        raise server.cache.missing(model_id) from None
+    loaded = server.cache.load(model_id)  # 404 when the file went since
     model = getattr(loaded, "model_", loaded)  # a material's joint model
-    return {"id": model_id, "file_bytes": server.cache.path(model_id).stat().st_size,
+    return {"id": model_id, "file_bytes": file_bytes,
             "layout": model.layout_ is not None, **info_dict(model),
             **({"material": {"maps": loaded.map_info()}} if model is not loaded else {})}
 
@@ -33,15 +39,25 @@ async def model_summary(server, request):
 
 def send_file(cache, file_id: str, missing: str):
     """The file ``file_id`` of ``cache`` (a :class:`~tghop.server.cache.ModelCache`) as a download
-    (404 with ``missing`` if none)."""
-    from starlette.responses import FileResponse
+    (404 with ``missing`` if none). The file is opened here and sent from the open file: one the
+    cache's bound drops meanwhile (another model added) is still sent whole."""
+    from starlette.responses import StreamingResponse
 
     path = cache.path(file_id)
-    if not path.is_file():
-        raise RequestError(404, missing)
+    try:
+        handle = open(path, "rb")
+    except (FileNotFoundError, IsADirectoryError):
+        raise RequestError(404, missing) from None
     cache.touch(file_id)
-    return FileResponse(path, media_type="application/octet-stream",
-                        filename=f"tghop-{file_id[:12]}{path.suffix}")
+
+    def chunks():
+        with handle:
+            while block := handle.read(1024 * 1024):
+                yield block
+
+    name = f"tghop-{file_id[:12]}{path.suffix}"
+    return StreamingResponse(chunks(), media_type="application/octet-stream", headers={
+        "Content-Length": str(os.fstat(handle.fileno()).st_size), "Content-Disposition": f'attachment; filename="{name}"'})
 
 
 async def model_file(server, request):
