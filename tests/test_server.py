@@ -443,14 +443,35 @@ def test_a_boolean_setting_is_asked_for_in_jsons_words(client):
         _common({"windows": "yes"})
 
 
-def test_a_form_boolean_is_the_manifests_rule_and_an_empty_field_is_false():
+def test_a_form_boolean_is_the_json_rule_and_an_empty_field_is_false():
     from tghop.server.requests import RequestError, parse_bool
 
     assert parse_bool("paper", "") is False and parse_bool("paper", " ") is False  # an unset form field
-    assert parse_bool("tile", "on") is True and parse_bool("tile", "No") is False
-    with pytest.raises(RequestError, match=re.escape("tile must be true or false, got 'maybe'")) as info:
-        parse_bool("tile", "maybe")
-    assert info.value.status == 422
+    assert parse_bool("tile", "true") is True and parse_bool("tile", " False ") is False
+    assert parse_bool("tile", "1") is True and parse_bool("tile", "0") is False
+    for word in ("maybe", "yes", "no", "on", "off", "2", "1.0"):  # what a JSON body refuses
+        expected = re.escape(f"tile must be true or false (or 1 or 0), got {word!r}")
+        with pytest.raises(RequestError, match=expected) as info:
+            parse_bool("tile", word)
+        assert info.value.status == 422
+
+
+def test_a_boolean_is_one_rule_in_a_form_and_in_json(client):
+    """paper=yes was taken as a form field and refused in JSON: now true or false (or 1 or 0) in both,
+    yes/no/on/off refused by both; an empty field or a null, the default."""
+    images, inpaint = f"/api/models/{'0' * 64}/images", f"/api/models/{'0' * 64}/inpaint"
+    for word in ("yes", "no", "on", "off"):
+        assert_error(client.post(images, json={"paper": word}), 422, "paper must be true or false")
+        assert_error(client.post("/api/models", files={"builtin": (None, "bricks"), "paper": (None, word)}), 422,
+                     f"paper must be true or false (or 1 or 0), got {word!r}")
+        assert_error(client.post("/api/models", files={"builtin": (None, "bricks"), "residual": (None, word)}), 422,
+                     f"residual must be true or false (or 1 or 0), got {word!r}")
+        fill = {"image": ("a.png", b"x"), "mask": ("m.png", b"x"), "tile": (None, word)}
+        assert_error(client.post(inpaint, files=fill), 422, f"tile must be true or false (or 1 or 0), got {word!r}")
+    for word, value in (("true", True), ("0", False)):  # JSON's own literals, or 1 or 0, in both
+        assert_error(client.post(images, json={"paper": value}), 404, "no model")
+        fill = {"image": ("a.png", b"x"), "mask": ("m.png", b"x"), "tile": (None, word)}
+        assert_error(client.post(inpaint, files=fill), 404, "no model")
 
 
 def test_a_body_that_is_not_a_form_is_told_what_the_route_takes(client):

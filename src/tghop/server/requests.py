@@ -83,13 +83,15 @@ def http_message(exc, method: str, path: str) -> str:
 
 
 def parse_bool(name, value) -> bool:
-    """A form field's boolean: :func:`tghop.manifest.parse_bool` (``true``/``false``, 1/0,
-    on/off, yes/no), an empty field false (a form sends an unset field empty: its default);
-    422 otherwise (a JSON body's: :func:`json_bool`)."""
-    try:
-        return manifest.parse_bool(value, name, empty=False)
-    except TGHopError as exc:
-        raise RequestError(422, str(exc)) from None
+    """A form field's boolean, by a JSON body's rule (:func:`json_bool`): ``true`` or ``false`` (any
+    case, spaces around ignored), or 1 or 0; an empty field false (a form sends an unset field empty:
+    its default); 422 otherwise (yes/no and on/off too, as in JSON)."""
+    text = str(value).strip().lower()
+    if text in ("true", "1"):
+        return True
+    if text in ("false", "0", ""):
+        return False
+    raise RequestError(422, f"{name} must be true or false (or 1 or 0), got {str(value)[:40]!r}")
 
 
 def fit_fields():
@@ -192,7 +194,8 @@ def parse_growth(size, anchor) -> tuple:
 def json_bool(name, value, default: bool = False) -> bool:
     """A boolean of a JSON body, one rule for all (``paper``, ``windows`` and the settings
     table's, e.g. ``tile``): ``true``/``false`` (or 1/0); missing or ``null``: ``default``
-    (as a setting's ``null`` is its default); 422 otherwise ("yes" is a form's word, not JSON's)."""
+    (as a setting's ``null`` is its default); 422 otherwise ("yes" too). A form field's is the same
+    rule in text (:func:`parse_bool`)."""
     if value is None:
         return default
     if isinstance(value, bool):
