@@ -55,9 +55,9 @@ def send_file(cache, file_id: str, missing: str):
             while block := handle.read(1024 * 1024):
                 yield block
 
-    name = f"tghop-{file_id[:12]}{path.suffix}"
-    return StreamingResponse(chunks(), media_type="application/octet-stream", headers={
-        "Content-Length": str(os.fstat(handle.fileno()).st_size), "Content-Disposition": f'attachment; filename="{name}"'})
+    headers = {"Content-Length": str(os.fstat(handle.fileno()).st_size),
+               "Content-Disposition": f'attachment; filename="tghop-{file_id[:12]}{path.suffix}"'}
+    return StreamingResponse(chunks(), media_type="application/octet-stream", headers=headers)
 
 
 async def model_file(server, request):
