@@ -108,9 +108,9 @@ def test_stitching_removes_the_fills_tone_steps_and_keeps_the_known_pixels(tile,
     label[4:36, 4:12] = 1.0
     kept = stitch_hole(label, hole, owner, tile=tile)
     assert np.array_equal(kept[~hole], label[~hole]) and 0.5 < kept[20, 12, 0] < 0.65  # near 1 if pulled
-    import tghop.inpaint
+    import tghop.hole_refine
 
-    monkeypatch.setattr(tghop.inpaint, "STITCH_LU", 0)  # a large hole's conjugate gradients: the same, nearly
+    monkeypatch.setattr(tghop.hole_refine, "STITCH_LU", 0)  # a large hole's conjugate gradients: the same, nearly
     np.testing.assert_allclose(stitch_hole(canvas, hole, owner, tile=tile), out, atol=2e-3)
 
 

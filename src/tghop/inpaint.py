@@ -17,14 +17,15 @@ an exemplar), chosen so that they continue what surrounds them:
    filled at its scale by its coarse model, and each block's error also counts the distance
    to that coarse fill away from the hole's edge (``layout_weight``), so that structures
    larger than a patch carry on across a large hole.
-3. Seam removal in the hole (:func:`stitch_hole`, ``seam_window``): the steps in tone between
-   its blocks, and between the fill and the known pixels around it, taken out in the gradient
-   domain with the known pixels as the fixed boundary, as :func:`tghop.seams.remove_seams` does
-   for a quilted image (without it a fill shows its patchwork and the hole's outline).
+3. Seam removal in the hole (:func:`tghop.hole_refine.stitch_hole`, ``seam_window``): the steps
+   in tone between its blocks, and between the fill and the known pixels around it, taken out in
+   the gradient domain with the known pixels as the fixed boundary, as
+   :func:`tghop.seams.remove_seams` does for a quilted image (without it a fill shows its
+   patchwork and the hole's outline).
 4. The refinement (:func:`tghop.refine.refine`, the model's band statistics) of the whole
-   canvas, kept in the hole only, faded into the quilted pixels over ``blend`` pixels at
-   the hole's edge (inside the hole: the known pixels never change), so that the pixels
-   next to the known ones stay those matched to them.
+   canvas, kept in the hole only (:func:`tghop.hole_refine.refine_hole`), faded into the
+   quilted pixels over ``blend`` pixels at the hole's edge (inside the hole: the known pixels
+   never change), so that the pixels next to the known ones stay those matched to them.
 5. The patch refinement (:mod:`tghop.patch_refine`, the model's patch statistics) of the
    hole's surroundings, kept in the hole and faded in as the refinement.
 
@@ -53,13 +54,11 @@ import numpy as np
 from ._arrays import check_int
 from ._common import (TGHopError, check_is_fitted, check_keywords, check_rng, check_size, checked_image,
                       one_blas_thread, report)
+from .hole_refine import refine_hole, stitch_hole
 from .layout import downsample, upsample
 from .patches import downsample_mask
 from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
-from .pyramid import laplacian_pyramid, reconstruct
 from .patch_refine import refine_image, steps_for
-from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
-from .seams import SCREENING, SeamSteps, local_means
 from .settings import BY_NAME, check_settings
 
 __all__ = ["inpaint", "inpaint_material", "extend", "expand_canvas", "ANCHORS", "check_hole", "require_hole",
@@ -374,7 +373,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         pixels, worse for a hole inside them; docs/choices.md, Inpainting "0.46").
     seam_window : int
         Remove the steps in tone across the fill's seams, between its blocks and at the hole's
-        edge, in the gradient domain (:func:`stitch_hole`, the known pixels held), each seam
+        edge, in the gradient domain (:func:`tghop.hole_refine.stitch_hole`, the known pixels held), each seam
         edge's step averaged over a square of this side; 0: off (as up to tghop 0.49.1).
     refine : int
         Rounds of the refinement (0: off), kept in the hole only.
@@ -669,175 +668,3 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
         known[window] |= hole[window]
         report(progress, "inpainting", done, len(blocks))
     return canvas, owner
-
-
-#: Unknowns up to which :func:`stitch_hole` solves by a sparse LU factorisation; conjugate gradients above.
-STITCH_LU = 400_000
-#: A seam edge's change (the norm over the channels) counts ``1 / (1 + (change / STITCH_STEP)**4)``
-#: of itself in :func:`stitch_hole`: tone steps whole, content edges (a change of several times this) not.
-STITCH_STEP = 0.3
-
-
-def stitch_hole(canvas, hole, owner, *, tile=False, window=9):
-    """Remove the steps in tone and colour across the seams of a fill, in the gradient domain,
-    inside the hole only (the known pixels are the fixed boundary), as :func:`tghop.seams.remove_seams`
-    does for a quilted image.
-
-    A seam edge joins two pixels of different blocks, or a filled pixel and a known one. The
-    difference across it should be like those beside it (the mean of the differences one pixel
-    before and after it along the same axis, within each side's own patch), and it is a step
-    instead; that change, averaged over the seam edges in a ``window x window`` square (a tone
-    step is about the same along a seam, its detail is not), is what the correction ``u`` of the
-    hole must make. ``u`` minimises the squared misfit over every edge that touches the hole plus
-    ``u**2 / SCREENING**2`` (corrections fade within about a block), with ``u = 0`` at the known
-    pixels: one sparse symmetric system per image, a solve per channel.
-
-    Parameters
-    ----------
-    canvas : ndarray, shape (H, W, C), float32
-        The filled image.
-    hole : ndarray of bool, shape (H, W)
-    owner : ndarray of int, shape (H, W)
-        The block each hole pixel came from (-1 outside the hole).
-    tile : bool
-        The image wraps around.
-    window : int
-
-    Returns
-    -------
-    ndarray, shape (H, W, C), float32, in [0, 1]
-        ``canvas`` with its hole corrected; the other pixels are the same.
-    """
-    from scipy import sparse
-    from scipy.sparse.linalg import cg, splu
-
-    h, w, c = canvas.shape
-    k = int(hole.sum())
-    index = np.full((h, w), -1, dtype=np.int64)
-    index[hole] = np.arange(k)
-
-    def after(a, axis):  # each pixel's value at the next pixel along ``axis``
-        return np.roll(a, -1, axis=axis)
-
-    edges = {}  # axis -> the edges that touch the hole, the seam edges among them, their changes
-    for axis in (0, 1):
-        valid = np.ones((h, w), dtype=bool)  # an edge to the next pixel exists
-        if not tile:
-            (valid[-1] if axis == 0 else valid[:, -1])[...] = False
-        touches = valid & (hole | after(hole, axis))
-        seam = touches & (owner != after(owner, axis))
-        diff = after(canvas, axis) - canvas  # across each edge
-        # The edges before and after: their mean is what a seam edge's difference should be.
-        near = [(np.roll(diff, by, axis=axis), np.roll(valid, by, axis=axis)) for by in (1, -1)]
-        count = sum(ok.astype(np.float32) for _, ok in near)
-        wanted = sum(d * ok[..., None] for d, ok in near) / np.maximum(count, 1)[..., None]
-        change = (wanted - diff)[seam]
-        # A step far larger than tone steps is an edge of the content (a stone, a label at the hole's
-        # edge): left alone, or the fill takes its colour along the seam (the smear of 0.46's try).
-        change *= 1.0 / (1.0 + (np.sqrt(np.square(change).sum(axis=-1, keepdims=True)) / STITCH_STEP) ** 4)
-        edges[axis] = touches, seam, change
-    # Each seam edge's change averaged over those nearby, as the seam removal of a quilt averages its own.
-    steps = SeamSteps((h, w), bool(tile), tuple(np.flatnonzero(edges[a][1]) for a in (1, 0)),
-                      tuple(edges[a][2] for a in (1, 0)))
-    rhs, degree, pairs = np.zeros((k, c)), np.zeros(k), []
-    for axis in (0, 1):
-        touches, seam, _ = edges[axis]
-        dense = np.zeros((h, w, c))
-        dense[seam] = local_means(steps, axis, window)
-        change = dense[touches]
-        first, second = index[touches], after(index, axis)[touches]
-        # The misfit (u[second] - u[first] - change)^2: each end in the hole adds 1 to its degree,
-        # -change (first) or +change (second) to its right-hand side, and -1 between two hole ends.
-        for end, sign in ((first, -1.0), (second, 1.0)):
-            inside = end >= 0
-            degree += np.bincount(end[inside], minlength=k)
-            for ch in range(c):
-                rhs[:, ch] += sign * np.bincount(end[inside], weights=change[inside, ch], minlength=k)
-        both = (first >= 0) & (second >= 0)
-        pairs.append((first[both], second[both]))
-    i = np.concatenate([a for a, _ in pairs] + [b for _, b in pairs])
-    j = np.concatenate([b for _, b in pairs] + [a for a, _ in pairs])
-    matrix = (sparse.diags(degree + 1.0 / SCREENING ** 2)
-              + sparse.csr_matrix((np.full(i.size, -1.0), (i, j)), shape=(k, k))).tocsc()
-    if k <= STITCH_LU:  # a symmetric ordering: faster than COLAMD's (docs/choices.md, Inpainting "0.49.2")
-        solve = splu(matrix, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}).solve
-    else:  # a factorisation would take tens of seconds and gigabytes
-        jacobi = sparse.diags(1.0 / matrix.diagonal())
-        solve = lambda b: cg(matrix, b, rtol=1e-4, maxiter=1000, M=jacobi)[0]  # noqa: E731
-    out = canvas.copy()
-    for ch in range(c):
-        out[hole, ch] += solve(rhs[:, ch]).astype(out.dtype)
-    return np.clip(out, 0.0, 1.0, out=out)
-
-
-def _match_values(values, quantiles, levels):
-    """``values`` (k,) given the distribution of ``quantiles`` by their ranks
-    (:func:`tghop.refine.match_quantiles`: a rank table, no sort)."""
-    if values.size < 2:
-        return values
-    return match_quantiles(values, quantiles, levels)
-
-
-def _level_mask(hole, level, shape):
-    """Band ``level``'s pixels (of ``shape``) that see the hole: any hole pixel in their
-    ``2**level`` box, grown by one band pixel."""
-    from scipy.ndimage import binary_dilation
-
-    step = 2 ** level
-    hh, ww = shape
-    padded = np.zeros((hh * step, ww * step), dtype=bool)
-    padded[: hole.shape[0], : hole.shape[1]] = hole[: hh * step, : ww * step]
-    small = padded.reshape(hh, step, ww, step).any(axis=(1, 3))
-    return binary_dilation(small, iterations=1) if level else small
-
-
-def refine_hole(image, hole, stats, *, n_iter=5, tile=False, progress=None):
-    """The refinement of :func:`tghop.refine.refine` restricted to a hole.
-
-    Each round gives the values of every band (and oriented part) of the image's
-    Laplacian pyramid that lie over the hole, and then the hole's pixels, the
-    distributions of ``stats`` (the model's exemplar's) by their ranks, in its
-    decorrelated colour space; the pixels outside the hole are put back after each round,
-    so they are the context, not part of what is matched.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W, C), float in [0, 1]
-    hole : ndarray of bool, shape (H, W)
-    stats : tghop.refine.BandStatistics
-    n_iter : int
-    tile : bool
-        Periodic boundaries.
-    progress : callable, optional
-        ``progress("refine", done, n_iter)``.
-
-    Returns
-    -------
-    ndarray, shape (H, W, C), float32 in [0, 1]
-    """
-    n_iter = check_int(n_iter, "n_iter", 0, where="refine_hole")
-    mode = "wrap" if tile else "reflect"
-    outside = np.ascontiguousarray(np.moveaxis(stats.to_decorrelated(np.asarray(image, dtype=np.float32)), 2, 0))
-    dec = outside.copy()
-    levels = np.linspace(0.0, 1.0, stats.pixel_quantiles_.shape[1])
-    band_levels, band_q = tailed_band_quantiles(stats.band_quantiles_)
-    c = dec.shape[0]
-    report(progress, "refine", 0, n_iter)
-    for done in range(1, n_iter + 1):
-        bands = laplacian_pyramid(dec, band_q.shape[0], mode=mode, axes=(1, 2))
-        for i, band in enumerate(bands[:-1]):
-            where = _level_mask(hole, i, band.shape[1:])
-            parts = oriented_parts(band, stats.n_orientations, axes=(1, 2))
-            new = band.copy()
-            new[:, where] = 0.0
-            for j, part in enumerate(parts):
-                for k in range(c):
-                    new[k][where] += _match_values(part[k][where], band_q[i, j, k], band_levels).astype(new.dtype)
-            bands[i] = new
-        dec = reconstruct(bands, mode=mode, axes=(1, 2)).astype(np.float32)
-        for k in range(c):
-            dec[k][hole] = _match_values(dec[k][hole], stats.pixel_quantiles_[k], levels)
-        dec[:, ~hole] = outside[:, ~hole]
-        report(progress, "refine", done, n_iter)
-    colours = stats.from_decorrelated(np.ascontiguousarray(np.moveaxis(dec, 0, 2)))
-    return np.clip(colours, 0.0, 1.0).astype(np.float32)

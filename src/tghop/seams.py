@@ -182,7 +182,7 @@ def _box_sums(a, size, wrap):
 def local_means(steps, axis, window):
     """The change at each seam edge along ``axis`` (1: x, 0: y) averaged over the seam edges along
     the same axis within the ``window x window`` square around it, (n, C) float32 in the order of
-    ``steps.index`` (:func:`remove_seams`' ``window``; :func:`tghop.inpaint.stitch_hole`'s too).
+    ``steps.index`` (:func:`remove_seams`' ``window``; :func:`tghop.hole_refine.stitch_hole`'s too).
 
     Parameters
     ----------
