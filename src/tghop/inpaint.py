@@ -33,7 +33,7 @@ With ``tile`` the image is a torus: blocks wrap around its edges and the filled 
 tiles seamlessly when the input does.
 
 :func:`extend` grows an image to a larger size (outpainting): the image stays at an
-anchor of the larger canvas (:func:`expand_canvas`) and the rest is the hole.
+anchor of the larger canvas (:func:`tghop.canvas.expand_canvas`) and the rest is the hole.
 
 Example
 -------
@@ -52,8 +52,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int
-from ._common import (TGHopError, check_is_fitted, check_keywords, check_rng, check_size, checked_image,
-                      one_blas_thread, report)
+from ._common import TGHopError, check_is_fitted, check_keywords, check_rng, checked_image, one_blas_thread, report
+from .canvas import ANCHORS, expand_canvas
 from .hole_refine import refine_hole, stitch_hole
 from .layout import downsample, upsample
 from .patches import downsample_mask
@@ -73,9 +73,6 @@ COARSE_PATCHES = 4000
 #: The integer images filled, each kept at its depth: its levels' top (``v / top`` is the value in [0, 1],
 #: as :func:`tghop.imageio.load_image` reads 16-bit files); a mask's hole is above half of it.
 LEVELS = {np.dtype(np.uint8): 255, np.dtype(np.uint16): 65535}
-
-#: Where :func:`extend` keeps the image on the larger canvas (a canvas-size dialog's anchor).
-ANCHORS = ("center", "top", "bottom", "left", "right", "top-left", "top-right", "bottom-left", "bottom-right")
 
 
 def check_hole(mask, shape) -> np.ndarray:
@@ -159,51 +156,6 @@ def with_alpha(filled, alpha, hole):
         return filled
     alpha = np.where(hole[..., None], LEVELS.get(alpha.dtype, 1.0), alpha).astype(filled.dtype)
     return np.concatenate([filled, alpha], axis=2)
-
-
-def expand_canvas(image, size, *, anchor="center"):
-    """``image`` on a larger canvas of ``size``, at ``anchor``, and the canvas's hole (the rest).
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W) or (H, W, C)
-        Any dtype.
-    size : int or (int, int)
-        The canvas's (height, width), at least ``image``'s in both and larger in one.
-    anchor : str
-        One of :data:`ANCHORS`: where the image sits (``"top-left"``: the canvas grows
-        to the right and downwards; ``"center"``: evenly all round, the odd pixel
-        below and to the right).
-
-    Returns
-    -------
-    canvas : ndarray, shape (size[0], size[1]) + image.shape[2:]
-        ``image``'s dtype: ``image`` at its place, zeros elsewhere.
-    hole : ndarray of bool, shape size
-        True outside the image.
-    offset : (int, int)
-        The canvas row and column of ``image``'s top-left pixel.
-    """
-    arr = np.asarray(image)
-    if arr.ndim not in (2, 3):
-        raise TGHopError(f"image must have shape (H, W) or (H, W, C), got {arr.shape}")
-    if anchor not in ANCHORS:
-        raise TGHopError(f"anchor must be one of {', '.join(ANCHORS)}; got {anchor!r}")
-    hh, ww = check_size(size)
-    h, w = arr.shape[:2]
-    if hh < h or ww < w:
-        raise TGHopError(f"the size {hh}x{ww} is smaller than the image ({h}x{w}) in "
-                         f"{'height' if hh < h else 'width'}; give a size at least {h}x{w} (crop the image first "
-                         "to make it smaller)")
-    if (hh, ww) == (h, w):
-        raise TGHopError(f"the size {hh}x{ww} is the image's own, so there is nothing to extend; give a larger size")
-    y = 0 if anchor.startswith("top") else hh - h if anchor.startswith("bottom") else (hh - h) // 2
-    x = 0 if anchor.endswith("left") else ww - w if anchor.endswith("right") else (ww - w) // 2
-    canvas = np.zeros((hh, ww) + arr.shape[2:], dtype=arr.dtype)
-    canvas[y:y + h, x:x + w] = arr
-    hole = np.ones((hh, ww), dtype=bool)
-    hole[y:y + h, x:x + w] = False
-    return canvas, hole, (y, x)
 
 
 @one_blas_thread()  # the same image with any number of threads or concurrent callers
