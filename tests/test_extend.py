@@ -51,6 +51,20 @@ def test_extend_keeps_the_image_bit_for_bit_and_fills_the_rest_with_its_texture(
     assert out.dtype == np.float64 and np.array_equal(out[16:112, 16:112], floats)
 
 
+
+def test_extend_of_a_canvas_thinner_than_a_patch_names_extending_the_image(model, cells):
+    # extend(model, 8x50 image, (8, 400)) said "the image is 8x400; inpainting with 32x32 patches ...": the
+    # canvas, and inpainting, where the caller extended an 8x50 image (`tghop extend` named it already).
+    for size, least in (((8, 400), "32x400"), ((20, 60), "32x60")):
+        with pytest.raises(TGHopError) as err:
+            extend(model, cells[:8, :50], size, rng=0)
+        message = str(err.value)
+        assert f"the image (8x50) extended to {size[0]}x{size[1]} is thinner than the 32x32 patches" in message
+        assert f"give a size of at least {least}" in message and "smaller patch_size" in message
+        assert "inpainting" not in message
+    out = extend(model, cells[:8, :50], (40, 100), anchor="top-left", rng=0, **POOL)  # a canvas a patch fits
+    assert out.shape == (40, 100, 3) and np.array_equal(out[:8, :50], cells[:8, :50])
+
 def test_extend_fills_row_by_row_and_inpaint_from_the_edge_inwards(model, cells):
     # Row by row measured better around a picture, from the edge inwards better for holes
     # (docs/choices.md, Inpainting "0.46"); either can be asked for.

@@ -645,6 +645,9 @@ def test_extend_grows_the_picture_as_tghop_extend_does(client, fitted, to_fill, 
     for size, words in (("60x80", "the size 60x80 is smaller than the image (64x80) in height"),
                         ("64x80", "nothing to extend")):
         assert_error(post(url, files={**ask, "size": (None, size)}), 400, words)
+    strip = png_of(np.full((8, 50, 3), 128, np.uint8))  # the library's words, naming extending (not inpainting)
+    assert_error(post(url, files={**ask, "image": ("strip.png", strip), "size": (None, "8x400")}), 400,
+                 "the image (8x50) extended to 8x400 is thinner than the 32x32 patches", "at least 32x400")
     assert_error(post(url, files={k: v for k, v in ask.items() if k != "size"}), 422, "size must be HEIGHTxWIDTH")
     assert_error(post(url, files={**ask, "size": (None, "9000x9000")}), 422, "size")
     assert_error(post(url, files={**ask, "anchor": (None, "middle")}), 422, "anchor must be one of center, top")

@@ -185,6 +185,10 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     assert_error(client.post(f"/api/models/{material_id}/extend", files={
         "image": ("p.png", picture), "size": (None, "64x64"), "map:normal": ("n.png", picture),
         "map:rough": ("r.png", picture)}), 400, "this material's maps are normal, height")
+    strip = png(to_uint8(data.bricks(48))[:8])  # an 8x48 picture grown to 8x96: thinner than a patch
+    assert_error(client.post(f"/api/models/{material_id}/extend", files={
+        "image": ("p.png", strip), "size": (None, "8x96"), "map:normal": ("n.png", strip),
+        "map:height": ("h.png", strip)}), 400, "the image (8x48) extended to 8x96 is thinner than the")
     assert_error(client.post(f"/api/models/{plain}/inpaint", files={
         "image": ("p.png", picture), "mask": ("m.png", png(mask)), "map:height": ("h.png", picture)}),
         422, "is a texture model; map:<name> fields go with a material")

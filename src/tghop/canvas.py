@@ -24,7 +24,7 @@ __all__ = ["expand_canvas", "ANCHORS"]
 ANCHORS = ("center", "top", "bottom", "left", "right", "top-left", "top-right", "bottom-left", "bottom-right")
 
 
-def expand_canvas(image, size, *, anchor="center"):
+def expand_canvas(image, size, *, anchor="center", patch_size=None):
     """``image`` on a larger canvas of ``size``, at ``anchor``, and the canvas's hole (the rest).
 
     Parameters
@@ -37,6 +37,10 @@ def expand_canvas(image, size, *, anchor="center"):
         One of :data:`ANCHORS`: where the image sits (``"top-left"``: the canvas grows
         to the right and downwards; ``"center"``: evenly all round, the odd pixel
         below and to the right).
+    patch_size : int, optional
+        The side of the patches that will fill the new area (the model's ``patch_size``): a
+        canvas thinner than one is refused, naming the image, the size and the size that
+        would do (as :func:`tghop.inpaint.extend` says it). None: not checked.
 
     Returns
     -------
@@ -60,6 +64,11 @@ def expand_canvas(image, size, *, anchor="center"):
                          "to make it smaller)")
     if (hh, ww) == (h, w):
         raise TGHopError(f"the size {hh}x{ww} is the image's own, so there is nothing to extend; give a larger size")
+    if patch_size is not None and min(hh, ww) < patch_size:
+        p = int(patch_size)
+        raise TGHopError(f"the image ({h}x{w}) extended to {hh}x{ww} is thinner than the {p}x{p} patches that fill "
+                         f"the new area; give a size of at least {max(hh, p)}x{max(ww, p)}, or use a model fitted "
+                         "with a smaller patch_size")
     y = 0 if anchor.startswith("top") else hh - h if anchor.startswith("bottom") else (hh - h) // 2
     x = 0 if anchor.endswith("left") else ww - w if anchor.endswith("right") else (ww - w) // 2
     canvas = np.zeros((hh, ww) + arr.shape[2:], dtype=arr.dtype)

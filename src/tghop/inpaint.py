@@ -188,7 +188,9 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
         As :func:`inpaint`: ``image``'s pixels the same levels (uint8, uint16) or values (float).
     """
     check_keywords(options, inpaint, where="extend", exclude=("model", "image", "mask", "rng", "tile", "progress"))
-    canvas, hole, _ = expand_canvas(image, size, anchor=anchor)
+    check_is_fitted(model, "ichm_")
+    # A canvas thinner than a patch: said as extending this image (inpaint would name the canvas, and inpainting).
+    canvas, hole, _ = expand_canvas(image, size, anchor=anchor, patch_size=int(model.patch_size))
     options.setdefault("order", "raster")
     return inpaint(model, canvas, hole, rng=rng, tile=tile, progress=progress, **options)
 

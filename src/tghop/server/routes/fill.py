@@ -57,7 +57,8 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
             mask, mask_name = read.mean(axis=2), filename
     try:
         if grow:
-            picture, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
+            picture, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1],
+                                             patch_size=materials.patch_size(model))  # as tghop.inpaint.extend
             alpha = None if alpha is None else expand_canvas(alpha, grow[0], anchor=grow[1])[0]
         else:
             hole = check_hole(mask, picture.shape)
