@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from tghop import ModelFileError, TGHop, TGHopError, data
 from tghop.cli import main
 from tghop.imageio import load_image, save_image
-from tghop.material import Material, example_maps, renormalise
+from tghop.material import Material, MapNameClashError, check_map_names, example_maps, renormalise
 from tghop.modelfile import load_model, save_model
 
 SIZE = (96, 96)
@@ -206,6 +206,24 @@ def test_cli_fit_names_a_map_file_with_spaces_as_the_page_does(tmp_path, exempla
     assert res.exit_code == 0, res.output
     assert load_model(tmp_path / "mat.npz", material=True).names_ == ["albedo", "Rock_Height"]
 
+
+
+def test_one_check_refuses_two_maps_of_one_name_or_a_map_named_as_the_albedo(exemplar, maps):
+    # The command line, a batch manifest, the web server and Material.fit each had their own loop for it.
+    check_map_names(["normal", "height", "Rock_Height"])  # distinct: nothing raised
+    check_map_names([])
+    for names, index, albedo in ((["normal", "height", "Normal"], 2, False), (["h", "ALBEDO", "h"], 1, True),
+                                 (["a", "b", "a", "b"], 2, False)):
+        with pytest.raises(MapNameClashError) as err:
+            check_map_names(names)
+        exc = err.value
+        assert isinstance(exc, TGHopError) and (exc.name, exc.index, exc.albedo) == (names[index], index, albedo)
+        assert repr(names[index]) in str(exc) and "\n" not in str(exc)
+        assert ("the albedo's name" in str(exc)) == albedo
+    # Each caller words it as before: Material.fit's own message
+    for named in ({"height": maps["height"], "Height": maps["height"]}, {"Albedo": maps["height"]}):
+        with pytest.raises(TGHopError, match=r"^two maps are named '(Height|Albedo)'; give each map its own name$"):
+            Material(model=TGHop(**FAST), rng=0).fit(exemplar, named)
 
 def test_cli_failures_are_one_line_and_write_nothing(tmp_path, exemplar, maps):
     _write_material(tmp_path, exemplar, maps)

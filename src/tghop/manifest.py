@@ -135,9 +135,10 @@ def parse_maps(value, where, base: Path) -> list:
     CSV: paths separated by ``;``, each optionally ``name=path``. A map without a name is
     named by its file (:func:`tghop.material.map_name`, as ``tghop fit --maps``). Relative paths
     are from ``base`` (the manifest's folder). A name that cannot name a file, a name given twice
-    (without case; ``albedo`` is the exemplar's) or more than :data:`MAX_MAPS` maps is refused,
-    naming the line."""
-    from .material import MAP_NAME, map_name  # a map's name names its output file (NAME_<map>.png)
+    (without case; ``albedo`` is the exemplar's: :func:`tghop.material.check_map_names`) or more
+    than :data:`MAX_MAPS` maps is refused, naming the line."""
+    # A map's name names its output file (NAME_<map>.png).
+    from .material import MAP_NAME, MapNameClashError, check_map_names, map_name
 
     if isinstance(value, dict):
         pairs = list(value.items())
@@ -156,7 +157,7 @@ def parse_maps(value, where, base: Path) -> list:
     if not pairs and isinstance(value, str):  # only separators: a slip (an empty cell is a texture)
         raise TGHopError(f"{where}: maps {_shown(value)} lists no file; give the maps' files, or leave the cell "
                          "empty for a texture")
-    out, seen = [], {"albedo"}
+    out = []
     for name, file in pairs:
         if not isinstance(file, str) or not file.strip():
             raise TGHopError(f"{where}: the map {_shown(name if name is not None else file)} has no path; "
@@ -166,11 +167,12 @@ def parse_maps(value, where, base: Path) -> list:
         if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
             raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
                              "'_', '-' and '.' (name=path in CSV)")
-        if name.lower() in seen:
-            raise TGHopError(f"{where}: two maps are named {name!r} (or a map is named albedo, the exemplar's "
-                             "name); name each map once, e.g. normal=rock_n.png")
-        seen.add(name.lower())
         out.append((name, Path(file) if os.path.isabs(file) else base / file))
+    try:
+        check_map_names([name for name, _ in out])
+    except MapNameClashError as exc:
+        raise TGHopError(f"{where}: two maps are named {exc.name!r} (or a map is named albedo, the exemplar's "
+                         "name); name each map once, e.g. normal=rock_n.png") from None
     if len(out) > MAX_MAPS:
         raise TGHopError(f"{where}: {len(out)} maps; a material takes at most {MAX_MAPS}")
     return out

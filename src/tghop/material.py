@@ -41,7 +41,7 @@ from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "map_file",
-           "ALBEDO", "MAP_NAME", "MAP_NAME_MAX"]
+           "check_map_names", "MapNameClashError", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -78,6 +78,51 @@ def map_name(path) -> str:
     """
     stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
     return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:MAP_NAME_MAX] or "map"
+
+
+class MapNameClashError(TGHopError):
+    """Two maps of a material named alike (in any case), or a map named as the albedo
+    (:func:`check_map_names`). Its ``name`` (as given), ``index`` (that name's place in the names
+    checked) and ``albedo`` (True: the name is the albedo's, else an earlier map's) let a caller
+    word the message its user reads, naming what was given (a manifest's line, a command's
+    files, a request's fields)."""
+
+
+def check_map_names(names) -> None:
+    """Refuse names of a material's maps that name two maps alike, or a map as the albedo, in
+    any case: each name names its map's file (``OUT_<name>.png``; the albedo's is ``OUT``
+    itself), so the second would overwrite the first, on a file system that ignores case too.
+    The one check of ``tghop fit/inpaint/extend --maps``, a batch manifest's ``maps``, the web
+    server's ``map:<name>`` fields and :meth:`Material.fit`, each wording it for its user.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The maps' names (the albedo's not among them), in the order given; their form is
+        not checked here (:data:`MAP_NAME`).
+
+    Raises
+    ------
+    MapNameClashError
+        At the first name that is the albedo's or an earlier one's (``index``: its place).
+
+    Examples
+    --------
+    >>> check_map_names(["normal", "Normal"])
+    Traceback (most recent call last):
+    ...
+    tghop.material.MapNameClashError: two maps are named 'Normal' (in any case); give each map its own name
+    """
+    seen = set()
+    for index, name in enumerate(names):
+        key = name.lower()
+        if key == ALBEDO or key in seen:
+            albedo = key == ALBEDO
+            exc = MapNameClashError(f"a map is named {name!r}, the albedo's name; give each map its own name" if albedo
+                                    else f"two maps are named {name!r} (in any case); give each map its own name")
+            exc.name, exc.index, exc.albedo = name, index, albedo
+            raise exc
+        seen.add(key)
 
 
 def map_file(path, name: str) -> str:
@@ -292,13 +337,14 @@ class Material(BaseEstimator):
         if maps is not None and not isinstance(maps, Mapping):
             raise TGHopError(f"maps must be a dict of map name -> array, got {type(maps).__name__}")
         items = [(ALBEDO, albedo)] + list((maps or {}).items())
-        names, seen = [name for name, _ in items], set()
+        names = [name for name, _ in items]
         for name in names:
             if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
                 raise TGHopError(f"map name {name!r} cannot name a file; use letters, digits, '_', '-' and '.'")
-            if name.lower() in seen:
-                raise TGHopError(f"two maps are named {name!r}; give each map its own name")
-            seen.add(name.lower())
+        try:
+            check_map_names(names[1:])
+        except MapNameClashError as exc:
+            raise TGHopError(f"two maps are named {exc.name!r}; give each map its own name") from None
         depths = self._checked_depths(depths, names)
         if normal != "auto":
             unknown = set(normal) - set(names)

@@ -404,17 +404,18 @@ def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
     """The names of the maps in files ``paths`` (:func:`tghop.material.map_name`), or a one-line
     error where two are one name (in any case) or one is the albedo's (``label``: what the
     command calls a map, ``albedo``: what it calls the albedo)."""
-    from ..material import ALBEDO, map_name
+    from ..material import MapNameClashError, check_map_names, map_name
 
-    names, seen = [map_name(path) for path in paths], set()
-    for path, name in zip(paths, names):
-        if name.lower() == ALBEDO:
-            raise TGHopError(f"{label} {path} is named {name!r}, the name of {albedo} itself (written to OUT, the "
-                             "other maps to OUT_<map>); rename the file")
-        if name.lower() in seen:
-            raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
-                             f"OUT_{name}.png); rename one")
-        seen.add(name.lower())
+    names = [map_name(path) for path in paths]
+    try:
+        check_map_names(names)
+    except MapNameClashError as exc:
+        name = exc.name
+        if exc.albedo:
+            raise TGHopError(f"{label} {paths[exc.index]} is named {name!r}, the name of {albedo} itself (written to "
+                             "OUT, the other maps to OUT_<map>); rename the file") from None
+        raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
+                         f"OUT_{name}.png); rename one") from None
     return names
 
 

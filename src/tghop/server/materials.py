@@ -52,17 +52,21 @@ def map_uploads(fields: dict) -> list:
     """Take the maps' fields (``map:<name>``) out of a form (a fit's, an inpaint's or an
     extend's): ``[(name, filename, bytes)]`` in the order sent; 400 for a bad name, a name given
     twice (in any case), a map that is not a file or is empty, or more than :data:`MAX_MAPS`."""
-    from ..material import MAP_NAME, MAP_NAME_MAX
+    from ..material import MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names
 
-    out, seen = [], {"albedo"}
-    for field in [k for k in fields if k.startswith(MAP_FIELD)]:
-        name, value = field[len(MAP_FIELD):], fields.pop(field)
+    named = [(field[len(MAP_FIELD):], field) for field in fields if field.startswith(MAP_FIELD)]
+    for name, field in named:
         if len(name) > MAP_NAME_MAX or not MAP_NAME.fullmatch(name):
             raise RequestError(400, f"the map name {name[:40]!r} (field {field[:44]!r}) must be letters, digits, "
                                     "'.', '_' or '-', starting with a letter or digit (it names the map's file)")
-        if name.lower() in seen:
-            raise RequestError(400, f"two maps are named {name!r} (or a map is named albedo); name each map once")
-        seen.add(name.lower())
+    try:
+        check_map_names([name for name, _ in named])
+    except MapNameClashError as exc:
+        raise RequestError(400, f"two maps are named {exc.name!r} (or a map is named albedo); name each map "
+                                "once") from None
+    out = []
+    for name, field in named:
+        value = fields.pop(field)
         if not isinstance(value, tuple):
             raise RequestError(400, f"the field {field!r} must be a file upload (the map's image)")
         filename, content = value
