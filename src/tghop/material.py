@@ -108,6 +108,7 @@ def check_map_names(names) -> None:
 
     Examples
     --------
+    >>> from tghop.material import check_map_names
     >>> check_map_names(["normal", "Normal"])
     Traceback (most recent call last):
     ...
