@@ -186,6 +186,12 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
     -------
     ndarray, shape (size[0], size[1]) + image.shape[2:]
         As :func:`inpaint`: ``image``'s pixels the same levels (uint8, uint16) or values (float).
+
+    Raises
+    ------
+    TGHopError
+        A size smaller than ``image`` or its own, a canvas thinner than ``model``'s patches
+        (:func:`tghop.canvas.expand_canvas`), or what :func:`inpaint` refuses.
     """
     check_keywords(options, inpaint, where="extend", exclude=("model", "image", "mask", "rng", "tile", "progress"))
     check_is_fitted(model, "ichm_")
