@@ -264,3 +264,73 @@ def test_the_canvases_read_back_are_made_for_it(page):
     page.wait_for_timeout(200)
     assert not [w for w in page.warnings if "willReadFrequently" in w], page.warnings
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def pick_builtin(page, name):
+    """Pick ``name`` in the built-in menu as a browser does: its list opened by a click, the option chosen,
+    a change event only when that option is not the one selected (Playwright's select_option always sends one)."""
+    page.click("#builtin")
+    page.eval_on_selector("#builtin", """(s, name) => {
+      const i = [...s.options].findIndex((o) => !o.hidden && o.value === name);
+      if (s.selectedIndex === i) return;
+      s.selectedIndex = i;
+      s.dispatchEvent(new Event("input", { bubbles: true }));
+      s.dispatchEvent(new Event("change", { bubbles: true }));
+    }""", name)
+
+
+def test_the_built_in_shown_picked_again_is_fitted_again(page, tmp_path):
+    # After a cancelled fit of the working model's built-in (with maps), the menu showed that built-in, so
+    # picking it again was no change: nothing was fitted; nor with other fit settings.
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    (tmp_path / "height.png").write_bytes(png(to_uint8(data.builtin("bricks")[..., 0])))
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    summary = page.text_content("#summary")
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", "")  # the default settings: seconds, time to cancel
+    page.set_input_files("#maps", str(tmp_path / "height.png"))
+    page.wait_for_function("document.getElementById('stage').textContent.endsWith('%')", timeout=60_000)
+    page.click("#cancel")
+    assert wait_said(page, "fit cancelled (") == ("fit cancelled (the maps were not added;"
+                                                  " the model of builtin:bricks stays)")
+    assert page.input_value("#builtin") == "bricks" and page.text_content("#maps-list") == ""
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", FAST_FIT[name])
+    page.fill("#n_codewords", "41")  # another model than the working one
+    pick_builtin(page, "bricks")
+    page.wait_for_selector("#fit-status:not([hidden])", timeout=10_000)
+    wait_model(page, "model")
+    assert page.text_content("#summary") != summary and page.input_value("#builtin") == "bricks"
+    summary = page.text_content("#summary")
+    pick_builtin(page, "")  # "choose...": nothing fitted, the menu shows the working model's built-in
+    page.click("#fit-settings summary")  # the menu loses the focus
+    assert page.input_value("#builtin") == "bricks" and page.text_content("#summary") == summary
+    assert page.eval_on_selector("#builtin", "s => s.selectedOptions[0].textContent") == "builtin:bricks"
+    assert not page.eval_on_selector("#builtin", "s => [...s.options].some((o) => o.hidden)")
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_a_cancel_before_the_fit_started_is_not_ignored(page):
+    # Cancel clicked while the exemplar was still being sent did nothing: the fit ran on and its model
+    # replaced the working one.
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    summary = page.text_content("#summary")
+    with page.expect_request(lambda r: r.method == "DELETE" and "/api/jobs/" in r.url, timeout=30_000):
+        page.eval_on_selector("#builtin", """(s) => {
+          s.value = "cells";
+          s.dispatchEvent(new Event("change", { bubbles: true }));
+          document.getElementById("cancel").click();  // before the server answered
+        }""")
+    assert wait_said(page, "fit cancelled (", timeout=10_000) == ("fit cancelled (builtin:cells was not used;"
+                                                                  " the model of builtin:bricks stays)")
+    assert page.input_value("#builtin") == "bricks" and page.is_hidden("#fit-status")
+    page.wait_for_selector("#summary:not([hidden])")
+    assert page.text_content("#summary") == summary and page.is_enabled("#go")
+    assert exemplar_shown(page) == ["bricks.png", True, 256]
+    assert not page.errors, page.errors

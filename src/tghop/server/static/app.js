@@ -31,6 +31,36 @@ function setMode(mode) {
   if (mode === "morph" && state.models.length < 2) sayMorph(MORPH_HINT);
 }
 
+// The built-in menu shows the exemplar of the working model (or of the fit running). Picking the one it
+// shows fits it again (after a cancel, or with other fit settings): while its list is open the menu shows a
+// hidden copy of that option, so that any pick is a change; put back when the list closes with no pick.
+function wireBuiltinMenu(select) {
+  const copy = document.createElement("option");
+  copy.hidden = true;
+  copy.value = "";
+  const showSource = () => {  // the option of state.source's built-in ("choose..." for none)
+    copy.remove();
+    select.value = (state.source && state.source.builtin) || "";
+  };
+  const open = () => {
+    if (select.selectedOptions[0] === copy) return;  // open already
+    copy.textContent = select.selectedOptions[0].textContent;
+    select.insertBefore(copy, select.selectedOptions[0]);  // Down in the list: the option shown
+    select.selectedIndex = copy.index;
+  };
+  select.addEventListener("pointerdown", open);
+  select.addEventListener("mousedown", open);
+  select.addEventListener("keydown", (e) => {  // the keys that open the list
+    if (e.key === " " || e.key === "F4" || (e.altKey && (e.key === "ArrowDown" || e.key === "ArrowUp"))) open();
+    else if (e.key === "Escape" && select.selectedOptions[0] === copy) showSource();
+  });
+  select.addEventListener("blur", () => { if (select.selectedOptions[0] === copy) showSource(); });
+  select.addEventListener("change", () => {
+    copy.remove();
+    if (select.value) fitBuiltin(select.value); else showSource();
+  });
+}
+
 // Every control of the page to its handler (cooc.js wires its own), the builtins listed; then the page is ready.
 async function init() {
   const select = $("builtin");
@@ -46,7 +76,7 @@ async function init() {
   } catch (e) {
     say("the server's API did not answer", true);
   }
-  select.addEventListener("change", () => fitBuiltin(select.value));
+  wireBuiltinMenu(select);
   // Each chooser emptied once read: the same file chosen again (after a refusal, say) is a change
   $("file").addEventListener("change", (e) => { fitFile(e.target.files[0]); e.target.value = ""; });
   $("model-file").addEventListener("change", (e) => { uploadModel(e.target.files[0]); e.target.value = ""; });

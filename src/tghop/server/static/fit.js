@@ -189,7 +189,8 @@ function dropRunningFit() {
 async function startFit(form, undo) {
   dropRunningFit();
   const attempt = { source: state.source, exemplarUrl: state.exemplarUrl, name: state.pendingName };
-  const request = ++state.fitRequest;  // a later fit or upload asked for meanwhile replaces this one
+  const request = ++state.fitRequest;  // a later fit or upload, or a Cancel, meanwhile replaces this one
+  state.fitUndo = undo;  // for a Cancel (cancelFit)
   setModel(null);
   $("summary").hidden = true;
   $("fit-status").hidden = false;
@@ -214,12 +215,11 @@ async function startFit(form, undo) {
   }
   const { id, job } = await response.json();
   const material = [...form.keys()].some((k) => k.startsWith("map:"));  // a fit with maps makes a material
-  if (request !== state.fitRequest) {  // replaced while its answer came: withdrawn, as dropRunningFit does
+  if (request !== state.fitRequest) {  // replaced or cancelled while its answer came: withdrawn, as dropRunningFit does
     fetch(`/api/jobs/${job}`, { method: "DELETE" }).catch(() => {});
     return;
   }
   state.job = job;
-  state.fitUndo = undo;  // for a Cancel that another page's ask outlives (cancelFit)
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
   follow(id, job, material, attempt, undo);
 }
@@ -261,8 +261,13 @@ function follow(id, job, material, attempt, undo) {
 }
 
 async function cancelFit() {
-  if (!state.job) return;
   $("cancel").disabled = true;
+  if (!state.job) {  // its request still on its way (an exemplar sending): withdrawn, startFit cancels its job
+    state.fitRequest++;
+    $("fit-status").dataset.state = "cancelled";
+    backToWorking("fit cancelled", state.fitUndo, false);
+    return;
+  }
   const response = await fetch(`/api/jobs/${state.job}`, { method: "DELETE" });
   if (!response.ok) { say(await errorOf(response), true); return; }
   if ((await response.json()).askers > 0) {  // another page asked for the same model: it fits on for that page
