@@ -334,3 +334,51 @@ def test_a_cancel_before_the_fit_started_is_not_ignored(page):
     assert page.text_content("#summary") == summary and page.is_enabled("#go")
     assert exemplar_shown(page) == ["bricks.png", True, 256]
     assert not page.errors, page.errors
+
+
+def test_cancel_says_cancelling_until_the_fit_stops(page):
+    # After Cancel the stage went on showing the fit's progress ("hop 2 26 %", then "ICA 56 %") until the
+    # fit stopped at its next progress report: the cancel looked ignored.
+    fresh_page(page)
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", "")
+    page.select_option("#builtin", "cells")
+    page.wait_for_function("document.getElementById('stage').textContent.endsWith('%')", timeout=60_000)
+    page.evaluate("""() => { window.stages = [];
+      new MutationObserver(() => stages.push(document.getElementById("stage").textContent))
+        .observe(document.getElementById("stage"), { childList: true, characterData: true, subtree: true }); }""")
+    page.click("#cancel")
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'cancelled'", timeout=60_000)
+    stages = page.evaluate("stages")
+    first = stages.index("cancelled")  # no progress shown after the click
+    assert stages[0] == "cancelling" and set(stages[:first]) == {"cancelling"}, stages
+    assert set(stages[first:]) == {"cancelled"}, stages
+    assert not page.errors, page.errors
+
+
+def test_the_focused_brush_colour_shows_its_focus(page):
+    # The brush colours (radios hidden in their labels) showed no focus: Tab reached the chosen one,
+    # which looked the same with the focus or without.
+    fresh_page(page)
+    for name in ("bricks", "cells"):
+        page.select_option("#builtin", name)
+        wait_model(page, "model")
+    page.locator("label", has=page.locator("#mode-paint")).click()
+    page.focus("#paint-models label:last-child input")
+    page.keyboard.press("Tab")
+    assert page.evaluate("document.activeElement.name") == "paint-colour"
+    outline = "() => getComputedStyle(document.activeElement.closest('label')).outlineStyle"
+    assert page.evaluate(outline) == "solid"
+    page.keyboard.press("ArrowLeft")  # the other colour: chosen, with the focus
+    assert page.evaluate("document.activeElement.checked && document.activeElement.value") == "0"
+    assert page.evaluate(outline) == "solid"
+    page.click("#paint-reset")  # a click: no ring on the colours
+    assert page.eval_on_selector_all("#paint-colours label", "ls => ls.map((l) => getComputedStyle(l).outlineStyle)"
+                                     ) == ["none", "none"]
+    assert not page.errors, page.errors
+
+
+def test_an_option_in_the_text_is_not_broken_at_its_hyphens(page):
+    # "the paper's settings (--paper)" broke "--paper" after its first hyphen at 1200 px.
+    fresh_page(page)
+    assert page.eval_on_selector("#fit-settings code", "c => c.getClientRects().length") == 1

@@ -229,7 +229,7 @@ function follow(id, job, material, attempt, undo) {
   state.events = events;
   const update = (snap) => {
     $("progress").value = snap.progress;
-    $("stage").textContent = snap.state !== "running" ? snap.state
+    $("stage").textContent = snap.state !== "running" ? snap.state : $("cancel").disabled ? "cancelling"
       : snap.stage ? `${snap.stage} ${Math.round(100 * snap.progress)} %` : "starting";
   };
   events.addEventListener("progress", (e) => update(JSON.parse(e.data)));
@@ -261,7 +261,8 @@ function follow(id, job, material, attempt, undo) {
 }
 
 async function cancelFit() {
-  $("cancel").disabled = true;
+  $("cancel").disabled = true;  // and the stage says so until the fit stops (follow)
+  $("stage").textContent = "cancelling";
   if (!state.job) {  // its request still on its way (an exemplar sending): withdrawn, startFit cancels its job
     state.fitRequest++;
     $("fit-status").dataset.state = "cancelled";
