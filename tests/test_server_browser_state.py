@@ -382,3 +382,23 @@ def test_an_option_in_the_text_is_not_broken_at_its_hyphens(page):
     # "the paper's settings (--paper)" broke "--paper" after its first hyphen at 1200 px.
     fresh_page(page)
     assert page.eval_on_selector("#fit-settings code", "c => c.getClientRects().length") == 1
+
+
+def test_a_reload_withdraws_the_running_fit(page):
+    # A reload left the page's fit running on the server for no page (its generations are stopped).
+    fresh_page(page)
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", "")
+    page.fill("#max_patches", "19999")  # a model no other test fits: its own job
+    page.select_option("#builtin", "cells")
+    page.wait_for_function("document.getElementById('stage').textContent.endsWith('%')", timeout=60_000)
+    job = page.get_attribute("#fit-status", "data-job")
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    for _ in range(120):  # the fit stops at its next progress report
+        snap = page.evaluate("(job) => fetch(`/api/jobs/${job}`).then((r) => r.json())", job)
+        if snap["state"] != "running":
+            break
+        page.wait_for_timeout(500)
+    assert snap["state"] == "cancelled" and snap["askers"] == 0, snap
+    assert not page.errors, page.errors

@@ -128,6 +128,7 @@ async function init() {
     const name = file.name.toLowerCase();
     if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
   });
+  window.addEventListener("pagehide", onPageHide);
   document.body.dataset.ready = "1";
 }
 

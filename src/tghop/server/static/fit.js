@@ -176,13 +176,24 @@ function stopEvents() {
   if (state.events) { state.events.close(); state.events = null; }
 }
 
-// A fit still running when another exemplar or a model file replaces it is cancelled: the page forgets it.
+// A fit still running when another exemplar or a model file replaces it, or when the page is left (a reload),
+// is cancelled: the page forgets it (keepalive: the request outlives the page). Whether there was one.
 function dropRunningFit() {
   stopEvents();
-  if (state.job && !$("fit-status").hidden && !$("fit-status").dataset.state) {
-    fetch(`/api/jobs/${state.job}`, { method: "DELETE" }).catch(() => {});
-  }
+  const running = Boolean(state.job && !$("fit-status").hidden && !$("fit-status").dataset.state);
+  if (running) fetch(`/api/jobs/${state.job}`, { method: "DELETE", keepalive: true }).catch(() => {});
   state.job = null;
+  return running;
+}
+
+// The page left (a reload, another address): its running fit is withdrawn, as its generations are stopped;
+// the page shown again from the browser's cache goes back to its working model.
+function onPageHide() {
+  if (dropRunningFit()) {
+    state.fitRequest++;
+    $("fit-status").dataset.state = "cancelled";
+    backToWorking("fit cancelled when the page was left", state.fitUndo, false);
+  }
 }
 
 // `undo`: how to go back when the fit is refused or cancelled (backToWorking).
