@@ -3,7 +3,9 @@ Playwright) against a real uvicorn server: a refused exemplar (not an image, fla
 set, a cancelled fit or a refused model file leaves the working model and its exemplar as they were,
 and "Add maps..." then refits that exemplar; maps added before any exemplar wait for it; nothing empty is
 shown before there is something to show (the tiling, a model file's exemplar caption); the canvases read
-back are made for it."""
+back are made for it; the built-in the menu shows, picked again, is fitted again; Cancel works before the
+fit's job is known, says "cancelling" until the fit stops, and a reload withdraws the fit; the brush
+colour focused by keyboard shows it."""
 
 
 import pytest
