@@ -4,6 +4,14 @@
 :class:`tghop.sdr.SpatialReduction` turns core responses ``(n, 8, 8, K2)`` into vectors ``z``
 of dimension ``D_r``; ``ICHM`` learns the distribution of ``z`` and samples new vectors.
 
+Where its parts are: this module holds ``ICHM``'s settings and its steps (``fit``; drawing,
+``sample_sources`` / ``sample`` / ``mix``; inspecting, ``predict`` / ``transform``).
+:mod:`tghop.ichm_clusters` holds the per-cluster work those steps call, as functions of arrays
+(merging small clusters, PCA + FastICA, the residual Gaussian, histogram CDFs and their
+codebook, inverse-CDF and norm matching of draws); :mod:`tghop.ichm_storage` how the fitted
+state is kept (the mixing matrix quantised) and written to and read from model files.
+:mod:`tghop.unsupervised` has the K-means and FastICA, :mod:`tghop.coupling` the coupled draws.
+
 Choices the paper leaves open (see also the notes in the docs):
 
 * Per-cluster PCA keeps the fewest components that reach ``cluster_energy`` of the
@@ -46,47 +54,22 @@ import numpy as np
 
 from ._arrays import check_array, check_count, check_int, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, one_blas_thread, usable_cores, report
-from .coupling import RANK_LEVELS, coupled_uniforms, member_ranks
-from .sdr import flip_signs
+from .coupling import coupled_uniforms, member_ranks
+from .ichm_clusters import (AUTO_CLUSTERS, AUTO_PER_CLUSTER, NORM_DRAWS, NORM_QUANTILES, QUANTILE_STEPS,
+                            cdf_codebook, fit_cluster, histogram_cdfs, match_components, match_norms,
+                            merge_small_clusters, quantile_table, residual_factors)
+from .ichm_storage import ICHMStorageMixin, quantize
 from .settings import BY_NAME as _SETTINGS
 from .unsupervised import fast_ica, kmeans, nearest  # noqa: F401 (fast_ica: also tghop.core's)
 
-__all__ = ["ICHM", "fast_ica"]
+#: The constants of :mod:`tghop.ichm_clusters` are tghop.core's too, as they were before it.
+__all__ = ["ICHM", "fast_ica", "AUTO_CLUSTERS", "AUTO_PER_CLUSTER", "QUANTILE_STEPS", "NORM_QUANTILES", "NORM_DRAWS"]
 
 #: ICHM's private caches of a fitted state, forgotten with it (:func:`tghop._arrays.forget_fit`).
 _CACHES = ("_stored_mixing", "_mixing", "_mixing32", "_ranks", "_quantiles")
 
-#: Resolution of the tabulated inverse CDFs used for sampling.
-QUANTILE_STEPS = 1024
 
-
-#: ``n_clusters=None``: one cluster per AUTO_PER_CLUSTER training vectors, within these bounds
-#: (docs/choices.md, ICHM "0.27").
-AUTO_CLUSTERS = (50, 100)
-AUTO_PER_CLUSTER = 40
-#: ``norm_match``: quantiles of the source norms stored per cluster (evenly spaced levels),
-#: and the draws per cluster at fit that give the quantiles of the sampled norms.
-NORM_QUANTILES = 33
-NORM_DRAWS = 1000
-
-
-def _quantize(mixing):
-    """Rows of ``mixing`` as float16 in [-1, 1] and a float32 scale per row (the row's
-    largest magnitude): relative rounding error at most 2**-11 of the row's largest entry,
-    far below the spread of the sampled sources."""
-    scale = np.abs(mixing).max(axis=1).astype(np.float32)
-    scale[scale == 0] = 1.0
-    return (mixing / scale[:, None].astype(np.float64)).astype(np.float16), scale
-
-
-def _dequantize(rows, scale):
-    """Inverse of :func:`_quantize`, in float64 (the same numbers at fit and after loading)."""
-    out = rows.astype(np.float64)
-    out *= np.asarray(scale, dtype=np.float32).astype(np.float64)[:, None]  # in place: no second matrix
-    return out
-
-
-class ICHM(BaseEstimator):
+class ICHM(ICHMStorageMixin, BaseEstimator):
     """Independent-components histogram matching: a mixture of per-cluster ICA models.
 
     Parameters
@@ -211,7 +194,18 @@ class ICHM(BaseEstimator):
     def clusters_for(self, n_samples) -> int:
         """N for ``n_samples`` training vectors: ``n_clusters``, or with None one per
         ``AUTO_PER_CLUSTER`` vectors within ``AUTO_CLUSTERS`` (the paper's 50 up to 2,000
-        vectors, 100 from 4,000: a 256x256 exemplar at stride 2 gives 12,769)."""
+        vectors, 100 from 4,000: a 256x256 exemplar at stride 2 gives 12,769).
+
+        Parameters
+        ----------
+        n_samples : int
+            Training vectors.
+
+        Returns
+        -------
+        n_clusters : int
+            K-means's N (clusters under ``min_cluster_size`` are merged after it).
+        """
         if self.n_clusters is not None:
             return self.n_clusters
         return int(min(AUTO_CLUSTERS[1], max(AUTO_CLUSTERS[0], n_samples // AUTO_PER_CLUSTER)))
@@ -230,17 +224,25 @@ class ICHM(BaseEstimator):
             )
 
     def fit(self, Z, y=None, *, groups=None, progress=None):
-        """Learn the mixture from vectors ``Z`` of shape (n, D_r).
+        """Learn the mixture from vectors ``Z``. A failed fit leaves the model unfitted.
 
-        ``groups`` (D_r,) ints: with ``residual``, dimensions of one group share a
-        Gaussian and groups are independent (None: one Gaussian over all dimensions).
-
-        ``progress(stage, done, total)`` reports "clusters" (K-means), "ICA" (per
-        cluster) and "CDF codebook". A failed fit leaves the model unfitted.
+        Parameters
+        ----------
+        Z : array_like, shape (n, D_r)
+            Training vectors (:class:`tghop.sdr.SpatialReduction`'s of the core's patches),
+            at least ``min_cluster_size`` per cluster.
+        y : None
+            Ignored (scikit-learn's signature).
+        groups : array_like of int, shape (D_r,), optional
+            With ``residual``: dimensions of one group share a Gaussian and groups are
+            independent (None: one Gaussian over all dimensions).
+        progress : callable, optional
+            ``progress(stage, done, total)``, with stages "clusters" (K-means), "ICA" (per
+            cluster) and "CDF codebook".
 
         Returns
         -------
-        self
+        self : ICHM
         """
         forget_fit(self, _CACHES)
         try:
@@ -296,7 +298,7 @@ class ICHM(BaseEstimator):
         # Model files store the mixing matrix (most of the model) as float16 rows with a
         # float32 scale each (a quarter of float64's size); rounding here keeps a fitted
         # model and its saved copy generating the same patches.
-        self._set_stored_mixing(*_quantize(np.vstack(mixing)))
+        self._set_stored_mixing(*quantize(np.vstack(mixing)))
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
         report(progress, "CDF codebook", 0, 1)
         self._fit_cdfs(sources, rng)
@@ -306,67 +308,39 @@ class ICHM(BaseEstimator):
         return self
 
     def _cluster(self, Z, rng):
-        # float32 halves K-means time; the clustering only routes samples to clusters.
-        n_clusters = self.clusters_for(len(Z))
-        labels, centres = kmeans(Z, n_clusters, rng)
-        counts = np.bincount(labels, minlength=n_clusters)
-        small = counts < self.min_cluster_size
-        if small.any():
-            big = np.flatnonzero(~small)
-            moved = small[labels]
-            d = ((Z[moved, None, :] - centres[None, big, :]) ** 2).sum(-1)
-            labels[moved] = big[np.argmin(d, axis=1)]
-        # Renumber 0..N'-1 in order of first appearance of the kept clusters.
-        _, labels = np.unique(labels, return_inverse=True)
-        return labels
+        """K-means labels (n,) of ``Z``, small clusters merged (:func:`merge_small_clusters`)."""
+        labels, centres = kmeans(Z, self.clusters_for(len(Z)), rng)  # float32: it only routes samples
+        return merge_small_clusters(Z, labels, centres, self.min_cluster_size)
 
     def _fit_cluster(self, centred, rng):
-        """PCA-whiten one cluster, run FastICA; return (mixing (k, D_r), sources (n_i, k), converged)."""
-        n, d = centred.shape
-        # PCA through the smaller of the n x n Gram matrix (a patch model's clusters have
-        # fewer members than dimensions) and the d x d scatter matrix.
-        gram = n <= d
-        vals, vecs = np.linalg.eigh(centred @ centred.T if gram else centred.T @ centred)
-        vals, vecs = np.maximum(vals[::-1], 0), vecs[:, ::-1]
-        var = vals / n
-        cum = np.cumsum(var) / max(var.sum(), 1e-300)
-        k = int(np.searchsorted(cum, self.cluster_energy - 1e-12)) + 1
-        k = max(1, min(k, self.max_cluster_components, int(self.max_component_ratio * n), n - 1,
-                       int(np.count_nonzero(var > 1e-12 * var[0]))))
-        std = np.sqrt(var[:k])
-        basis = flip_signs((vecs[:, :k].T @ centred) / np.sqrt(vals[:k])[:, None] if gram else vecs[:, :k].T)
-        white = centred @ basis.T / std
-        unmix, converged = fast_ica(white, max_iter=self.max_iter, tol=self.tol, rng=rng)
-        sources = white @ unmix.T
-        # z - mean = white * std @ basis = sources @ inv(unmix).T * std @ basis
-        mixing = np.linalg.inv(unmix).T @ (std[:, None] * basis)
-        if self.residual:  # what the kept components miss (basis rows are orthonormal)
-            return mixing, sources, converged, (centred - (centred @ basis.T) @ basis).astype(np.float32)
-        return mixing, sources, converged
+        """:func:`tghop.ichm_clusters.fit_cluster` with this model's settings."""
+        return fit_cluster(centred, rng, energy=self.cluster_energy, max_components=self.max_cluster_components,
+                           max_ratio=self.max_component_ratio, max_iter=self.max_iter, tol=self.tol,
+                           residual=self.residual)
 
     def _fit_residual(self, residuals, d_r, groups):
-        """Gaussian of the residuals ``(n_i, D_r)`` of all clusters, block-diagonal by group."""
+        """The Gaussian of the residuals ``(n_i, D_r)`` of all clusters (empty without ``residual``)."""
         if residuals is None:
-            self.residual_group_ = np.zeros(0, dtype=np.int64)
-            self.residual_factor_ = np.zeros(0)
-            return
-        groups = np.zeros(d_r, dtype=np.int64) if groups is None else np.asarray(groups, dtype=np.int64)
-        if groups.shape != (d_r,):
-            raise TGHopError(f"groups must have one entry per dimension ({d_r}), got shape {groups.shape}")
-        R = np.vstack(residuals)
-        factors = []
-        for g in np.unique(groups):
-            block = R[:, groups == g]
-            vals, vecs = np.linalg.eigh(block.T.astype(np.float64) @ block / len(R))
-            factors.append((vecs * np.sqrt(np.maximum(vals, 0.0))).ravel())
-        self.residual_group_ = groups
-        self.residual_factor_ = np.concatenate(factors)
+            self.residual_group_, self.residual_factor_ = np.zeros(0, dtype=np.int64), np.zeros(0)
+        else:
+            self.residual_group_, self.residual_factor_ = residual_factors(residuals, d_r, groups)
 
     def residual_draws(self, n, *, rng=None):
-        """Standard normals for ``n`` residual draws, group by group.
+        """Standard normals for ``n`` residual draws, group by group (a generator).
 
-        Yields ``(dims, normals, factor)``: the group's dimensions (k,), normals (n, k)
-        and its factor (k, k); the group's residuals are ``normals @ factor.T``.
+        Parameters
+        ----------
+        n : int
+            Draws, at least 0.
+        rng : int or numpy.random.Generator, optional
+
+        Yields
+        ------
+        dims : ndarray of int, shape (k,)
+            The group's dimensions.
+        normals : ndarray, shape (n, k)
+        factor : ndarray, shape (k, k)
+            The group's residuals are ``normals @ factor.T``.
         """
         check_is_fitted(self, "means_")
         n = check_count(n)
@@ -381,7 +355,18 @@ class ICHM(BaseEstimator):
             yield dims, rng.standard_normal((int(n), k)), factor
 
     def sample_residual(self, n, *, rng=None):
-        """Draw ``n`` residual vectors (n, D_r) from the Gaussian (zeros without ``residual``)."""
+        """Draw ``n`` residual vectors from the Gaussian (zeros without ``residual``).
+
+        Parameters
+        ----------
+        n : int
+            Draws, at least 0.
+        rng : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        residuals : ndarray, shape (n, D_r)
+        """
         check_is_fitted(self, "means_")
         out = np.zeros((check_count(n), self.means_.shape[1]))
         for dims, normals, factor in self.residual_draws(n, rng=rng):
@@ -390,28 +375,8 @@ class ICHM(BaseEstimator):
 
     def _fit_cdfs(self, sources, rng):
         """Histogram CDFs of all components, vector-quantised into the codebook."""
-        nb = self.n_bins
-        cdfs, lo, hi = [], [], []
-        for s in sources:
-            smin, smax = s.min(axis=0), s.max(axis=0)
-            width = np.where(smax > smin, smax - smin, 1.0)
-            idx = np.clip(((s - smin) / width * nb).astype(np.int64), 0, nb - 1)
-            k = s.shape[1]
-            hist = np.bincount((idx + nb * np.arange(k)).ravel(), minlength=k * nb).reshape(k, nb)
-            cdfs.append(np.cumsum(hist, axis=1) / s.shape[0])
-            lo.append(smin)
-            hi.append(smax)
-        cdfs = np.vstack(cdfs)
-        self.cdf_min_ = np.concatenate(lo)
-        self.cdf_max_ = np.concatenate(hi)
-        if cdfs.shape[0] <= self.n_codewords:
-            self.codebook_ = cdfs
-            self.cdf_index_ = np.arange(cdfs.shape[0], dtype=np.int64)
-        else:
-            labels, centres = kmeans(cdfs, self.n_codewords, rng)
-            self.cdf_index_ = labels.astype(np.int64)
-            self.codebook_ = np.maximum.accumulate(np.clip(centres, 0.0, 1.0), axis=1)
-            self.codebook_[:, -1] = 1.0
+        cdfs, self.cdf_min_, self.cdf_max_ = histogram_cdfs(sources, self.n_bins)
+        self.codebook_, self.cdf_index_ = cdf_codebook(cdfs, self.n_codewords, rng)
 
     def _fit_norms(self, sources, rng):
         """Quantiles of each cluster's training source norms, and of the norms of
@@ -449,188 +414,17 @@ class ICHM(BaseEstimator):
         return coupled_uniforms(self._ranks[i], float(self.coupling), m, rng)
 
     def _match_norm(self, s, i):
-        """Cluster ``i``'s drawn sources ``s`` (m, k), each row rescaled by (training norm at
-        its norm's rank among the draws / its norm) ** ``norm_match``, in place."""
-        if self.norm_quantiles_.shape[1] == 0 or not self.norm_match or not len(s):
+        """Cluster ``i``'s drawn sources ``s`` (m, k) rescaled towards the training norms in place
+        (:func:`tghop.ichm_clusters.match_norms`; as drawn without ``norm_match``)."""
+        if self.norm_quantiles_.shape[1] == 0 or not self.norm_match:
             return s
-        levels = np.linspace(0.0, 1.0, self.norm_quantiles_.shape[1])
-        r = np.linalg.norm(s, axis=1)
-        target = np.interp(np.interp(r, self.sampled_norm_quantiles_[i], levels), levels, self.norm_quantiles_[i])
-        s *= ((target / np.maximum(r, 1e-300)) ** self.norm_match)[:, None]
-        return s
-
-    # ------------------------------------------------------------------ mixing matrix
-    # The fitted (or loaded) mixing matrix is kept as what the model file stores: float16
-    # rows and a float32 scale per row. ``mixing_`` (float64) is made from them on first
-    # use and generation takes a float32 copy made straight from them: a model loaded for
-    # generation never holds the float64 matrix, which would raise the peak memory of a
-    # small synthesis.
-    def _set_stored_mixing(self, rows, scale):
-        self._stored_mixing = (rows, scale)
-        self._mixing = self._mixing32 = None
-
-    @property
-    def mixing_(self):
-        mixing = vars(self).get("_mixing")
-        if mixing is None:
-            stored = vars(self).get("_stored_mixing")
-            if stored is None:
-                check_is_fitted(self, "means_")  # NotFittedError before fit
-                raise AttributeError(f"this {type(self).__name__} has no mixing_")
-            mixing = self._mixing = _dequantize(*stored)
-        return mixing
-
-    @mixing_.setter
-    def mixing_(self, value):
-        # Set by hand (or from a version 2 file): saved by quantising it again.
-        self._mixing = np.asarray(value)
-        self._stored_mixing = self._mixing32 = None
-
-    @property
-    def mixing_shape_(self):
-        """``mixing_.shape`` (F, D_r), without making the float64 matrix."""
-        check_is_fitted(self, "means_")
-        stored = vars(self).get("_stored_mixing")
-        return tuple(stored[0].shape) if stored is not None else self.mixing_.shape
-
-    def mixing_as(self, dtype):
-        """:attr:`mixing_` in ``dtype`` (float32 or float64).
-
-        float32 is made straight from the stored float16 rows and float32 scales, and kept
-        for later calls: the same numbers as ``mixing_.astype(float32)`` (a float16 times a
-        float32 is exact in float64, so rounding the product to float32 once is the same
-        either way), without making the float64 matrix."""
-        check_is_fitted(self, "means_")
-        dtype = np.dtype(dtype)
-        if dtype != np.float32:
-            return self.mixing_.astype(dtype, copy=False)
-        if vars(self).get("_mixing32") is None:
-            stored = vars(self).get("_stored_mixing")
-            if stored is None:
-                self._mixing32 = self.mixing_.astype(np.float32)
-            else:
-                rows, scale = stored
-                self._mixing32 = np.multiply(rows, np.asarray(scale, dtype=np.float32)[:, None], dtype=np.float32)
-        return self._mixing32
+        return match_norms(s, self.norm_quantiles_[i], self.sampled_norm_quantiles_[i], self.norm_match)
 
     @property
     def p_(self):
         """Alias of :attr:`weights_` (the paper's cluster probabilities p)."""
         check_is_fitted(self, "weights_")
         return self.weights_
-
-    #: (file name, attribute, dtype): the arrays of a model file that belong to ICHM.
-    _ARRAYS = (
-        ("ichm_i.p", "weights_", np.float64),
-        ("ichm_ii.mixing", "mixing_", np.float64),
-        ("ichm_ii.means", "means_", np.float64),
-        ("index.ichm_n_components", "n_components_", np.int64),
-        ("ichm_iii.cdf_index", "cdf_index_", np.int64),
-        ("ichm_iii.cdf_min", "cdf_min_", np.float64),
-        ("ichm_iii.cdf_max", "cdf_max_", np.float64),
-        ("ichm_iii.codebook", "codebook_", np.float64),
-        ("index.ichm_residual_group", "residual_group_", np.int64),
-        ("residual.factor", "residual_factor_", np.float64),
-    )
-    #: The same for ``norm_match``: written only where it is on (format version 7).
-    _NORM_ARRAYS = (
-        ("ichm_iv.norm_quantiles", "norm_quantiles_", np.float64),
-        ("ichm_iv.sampled_norm_quantiles", "sampled_norm_quantiles_", np.float64),
-    )
-    #: And for ``coupling`` (format version 8).
-    _RANK_ARRAYS = (("index.ichm_member_counts", "member_counts_", np.int64),
-                    ("ichm_coupling.member_ranks", "member_ranks_", np.uint8))
-
-    def _to_arrays(self) -> dict:
-        out = {name: getattr(self, attr) for name, attr, _ in self._ARRAYS if attr != "mixing_"}
-        if self.norm_match and self.norm_quantiles_.size:  # what the metadata's setting says is there
-            out.update({name: getattr(self, attr) for name, attr, _ in self._NORM_ARRAYS})
-        if self.coupling and self.member_counts_.size:
-            out.update({name: getattr(self, attr) for name, attr, _ in self._RANK_ARRAYS})
-        # The float16 rows as fitted or loaded (mixing_ is made from them), unless mixing_ was
-        # set since; quantising again gives the same numbers, it only costs time.
-        stored = vars(self).get("_stored_mixing")
-        if stored is None:
-            stored = _quantize(self.mixing_)
-        out["ichm_ii.mixing"], out["index.ichm_mixing_scale"] = stored
-        return out
-
-    def _from_arrays(self, arrays):
-        """Restore the fitted state from :meth:`_to_arrays` output; returns self.
-
-        Files of format version 2 hold the mixing matrix in float32 and no scale."""
-        quantised = "index.ichm_mixing_scale" in arrays
-        for name, attr, dtype in self._ARRAYS:
-            if not (quantised and attr == "mixing_"):
-                setattr(self, attr, arrays[name].astype(dtype, copy=False))
-        for name, attr, dtype in self._NORM_ARRAYS:  # absent where norm_match is 0 (and before version 7)
-            setattr(self, attr, arrays[name].astype(dtype, copy=False) if name in arrays
-                    else np.zeros((len(self.weights_), 0)))
-        for name, attr, dtype in self._RANK_ARRAYS:  # absent where coupling is 0 (and before version 8)
-            setattr(self, attr, arrays[name].astype(dtype, copy=False) if name in arrays else np.zeros(0, dtype))
-        self._ranks = None
-        if quantised:
-            scale, rows = arrays["index.ichm_mixing_scale"], arrays["ichm_ii.mixing"]
-            if rows.ndim != 2 or scale.shape != rows.shape[:1] or scale.dtype.kind != "f":
-                raise TGHopError(f"mixing scales of shape {scale.shape} and type {scale.dtype} for "
-                                 f"mixing rows of shape {rows.shape}")
-            self._set_stored_mixing(rows, scale)
-        self._quantiles = None
-        return self
-
-    def _array_specs(self, quantised=True):
-        """ICHM's arrays for the checks of :mod:`tghop.modelfile` (``quantised``: float16
-        mixing rows with a scale each, format version 3): ``(name, shape, kind, says,
-        rules)`` each; needs D_r, sets N, F, W."""
-        n_codewords = self.n_codewords
-
-        def codewords(arr, dims):
-            w = min(dims["F"], n_codewords)
-            return None if len(arr) == w else f"has {len(arr)} CDFs, not {w} (the smaller of F and n_codewords)"
-
-        specs = [
-            ("ichm_i.p", ("N",), "f", "one probability per cluster",
-             (("dim", 0, 1, self.n_clusters or AUTO_CLUSTERS[1]), ("positive",), ("sum", 1.0, 1e-6))),
-            ("ichm_ii.means", ("N", "D_r"), "f", "a mean per cluster of ichm_i.p, of D_r values", ()),
-            ("index.ichm_n_components", ("N",), "i", "a component count per cluster of ichm_i.p",
-             (("range", 1, self.max_cluster_components), ("sum_defines", "F"))),
-            ("ichm_ii.mixing", ("F", "D_r"), "f", "F = the sum of index.ichm_n_components rows of D_r values", ()),
-        ]
-        if quantised:
-            specs.append(("index.ichm_mixing_scale", ("F",), "f", "one of the mixing scales per row of ichm_ii.mixing",
-                          (("positive",),)))
-        specs += [
-            ("ichm_iii.codebook", ("W", self.n_bins), "f", f"the metadata says CDFs of n_bins={self.n_bins}",
-             (("range", 0.0, 1.0), ("nondecreasing",), ("last", 1.0, 1e-6), codewords)),
-            ("ichm_iii.cdf_index", ("F",), "i", "one codeword per component", (("index", "W"),)),
-            ("ichm_iii.cdf_min", ("F",), "f", "one minimum per component", ()),
-            ("ichm_iii.cdf_max", ("F",), "f", "one maximum per component", (("not_below", "ichm_iii.cdf_min"),)),
-        ]
-
-        def group_sizes(arr, dims):
-            _, counts = np.unique(arr, return_counts=True)
-            dims["R"] = int((counts.astype(np.int64) ** 2).sum())
-
-        if self.residual:
-            specs += [("index.ichm_residual_group", ("D_r",), "i",
-                       "the metadata says residual: one group per dimension", (("range", 0, None), group_sizes)),
-                      ("residual.factor", ("R",), "f", "the squared sizes of the groups of index.ichm_residual_group",
-                       ())]
-        else:
-            specs += [("index.ichm_residual_group", (0,), "i", "the metadata says no residual", ()),
-                      ("residual.factor", (0,), "f", "the metadata says no residual", ())]
-        if self.norm_match:
-            says = f"the metadata says norm_match={self.norm_match}: {NORM_QUANTILES} quantiles per cluster"
-            specs += [(name, ("N", NORM_QUANTILES), "f", says, (("range", 0.0, None), ("nondecreasing",)))
-                      for name, _, _ in self._NORM_ARRAYS]
-        if self.coupling:
-            says = f"the metadata says coupling={self.coupling}"
-            # M, the ranks stored: each cluster's members times its components.
-            specs += [("index.ichm_member_counts", ("N",), "i", f"{says}: a member count per cluster",
-                       (("range", 1, None), ("products_define", "M", "index.ichm_n_components"))),
-                      ("ichm_coupling.member_ranks", ("M",), "i", f"{says}: a rank per member and component",
-                       (("range", 0, RANK_LEVELS - 1),))]
-        return tuple(specs)
 
     # ------------------------------------------------------------------ sampling
     def _blocks(self):
@@ -645,13 +439,9 @@ class ICHM(BaseEstimator):
         return int(self.n_components_.sum())
 
     def _quantile_table(self):
-        """Inverse CDF of each codeword on a regular grid of probabilities, in [0, 1]."""
+        """:func:`tghop.ichm_clusters.quantile_table` of the codebook, made once."""
         if getattr(self, "_quantiles", None) is None:
-            nb = self.codebook_.shape[1]
-            edges = np.linspace(0.0, 1.0, nb + 1)
-            grid = np.linspace(0.0, 1.0, QUANTILE_STEPS + 1)
-            cdf = np.hstack([np.zeros((len(self.codebook_), 1)), self.codebook_])
-            self._quantiles = np.vstack([np.interp(grid, c, edges) for c in cdf])
+            self._quantiles = quantile_table(self.codebook_)
         return self._quantiles
 
     def sample_sources(self, n, *, rng=None):
@@ -662,6 +452,7 @@ class ICHM(BaseEstimator):
         Parameters
         ----------
         n : int
+            Samples to draw, at least 0.
         rng : int or numpy.random.Generator, optional
 
         Returns
@@ -705,21 +496,18 @@ class ICHM(BaseEstimator):
         return labels, sources
 
     def _match(self, uniform, comp, table):
-        """(ii-iii) Map probabilities through each component's inverse CDF.
-
-        The paper draws standard normals and maps them through Phi; Phi of a standard
-        normal is uniform on [0, 1), so we draw the uniform numbers directly (the same
-        distribution, without SciPy's ``ndtr`` on the generation path).
-        """
-        u = uniform * QUANTILE_STEPS
-        lo = np.minimum(u.astype(np.int64), QUANTILE_STEPS - 1)
-        frac = u - lo
-        codes = self.cdf_index_[comp]
-        t = table[codes, lo] * (1.0 - frac) + table[codes, lo + 1] * frac
-        return self.cdf_min_[comp] + (self.cdf_max_[comp] - self.cdf_min_[comp]) * t
+        """(ii-iii) Probabilities (m, k) -> the values of the components ``comp`` (a slice of F)
+        through their inverse CDFs (:func:`tghop.ichm_clusters.match_components`)."""
+        return match_components(uniform, self.cdf_index_[comp], self.cdf_min_[comp], self.cdf_max_[comp], table)
 
     def sample(self, n, *, rng=None):
         """Draw ``n`` new vectors (steps i-v).
+
+        Parameters
+        ----------
+        n : int
+            Samples to draw, at least 0.
+        rng : int or numpy.random.Generator, optional
 
         Returns
         -------
@@ -733,8 +521,24 @@ class ICHM(BaseEstimator):
     def mix(self, labels, sources, *, mixing=None, means=None):
         """(v) Inverse ICA and PCA: independent components -> vectors.
 
-        ``mixing`` and ``means`` default to :attr:`mixing_` and :attr:`means_`; a caller
-        may pass them in another dtype (float32 for generation).
+        Parameters
+        ----------
+        labels : array_like of int, shape (n,)
+            The cluster of each vector, in [0, N).
+        sources : list of ndarray
+            ``sources[i]`` has shape (count of label i, n_components_[i]), cluster ``i``'s
+            vectors in their order in ``labels`` (as :meth:`sample_sources` and
+            :meth:`transform` return them).
+        mixing : ndarray, shape (F, D_r), optional
+            Default :attr:`mixing_`; a caller may pass it in another dtype (float32 for
+            generation, :meth:`mixing_as`).
+        means : ndarray, shape (N, D_r), optional
+            Default :attr:`means_`.
+
+        Returns
+        -------
+        Z : ndarray, shape (n, D_r)
+            In ``mixing``'s dtype, in the order of ``labels``.
         """
         z, position = self.mix_by_cluster(labels, sources, mixing=mixing, means=means)
         return z[position]
@@ -743,7 +547,12 @@ class ICHM(BaseEstimator):
         """:meth:`mix` with the vectors grouped by cluster, as the matrix products make them.
 
         Each cluster's block is written by one product straight into its rows (no scatter
-        into the samples' order, a pass over the whole output saved).
+        into the samples' order, a pass over the whole output saved), at one BLAS thread.
+
+        Parameters
+        ----------
+        labels, sources, mixing, means
+            As for :meth:`mix`.
 
         Returns
         -------
@@ -847,4 +656,3 @@ class ICHM(BaseEstimator):
                 q, r = np.linalg.qr(mixing[comp].T)
                 sources.append(np.linalg.solve(r, ((Z[labels == i] - self.means_[i]) @ q).T).T)
         return labels.astype(np.int64, copy=False), sources
-
