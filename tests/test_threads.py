@@ -1,11 +1,10 @@
 """Thread counts of a fit (issue #26): one BLAS / OpenMP thread inside TGHop.fit, ICA
 clusters on the idle cores, and the model the same bit for bit whatever the counts; one
-BLAS thread for the sampling too."""
+BLAS thread for the sampling and for ICHM.predict too."""
 
 import sys
 
 import numpy as np
-import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from tghop import _common, core, data
@@ -75,3 +74,26 @@ def test_sampling_holds_one_blas_thread(monkeypatch, small_model):
         np.testing.assert_array_equal(small_model.sample_patches(500, rng=3), patches)
         np.testing.assert_array_equal(small_model.sample_patches(500, rng=3, dtype=np.float32), patches32)
         np.testing.assert_array_equal(small_model.ichm_.sample(500, rng=3)[0], z)
+
+
+def test_predict_holds_one_blas_thread(monkeypatch, small_model):
+    # ICHM.predict (transform's and tghop clusters') finds the nearest mean by a matrix product:
+    # at two BLAS threads it rounded otherwise than at one, so a vector near a boundary between
+    # clusters could get another cluster on a machine of another core count.
+    seen = []
+    nearest = core.nearest
+
+    def spy(*args, **kwargs):
+        seen.append({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+        return nearest(*args, **kwargs)
+
+    monkeypatch.setattr(core, "nearest", spy)
+    z, _ = small_model.ichm_.sample(500, rng=3)
+    with threadpool_limits(limits=2, user_api="blas"):
+        labels = small_model.ichm_.predict(z, chunk=128)
+        transformed, _ = small_model.ichm_.transform(z)
+        assert {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"} <= {2}  # restored after
+    assert len(seen) == 2 and all(s == {1} for s in seen)
+    np.testing.assert_array_equal(transformed, labels)
+    with threadpool_limits(limits=1, user_api="blas"):
+        np.testing.assert_array_equal(small_model.ichm_.predict(z), labels)

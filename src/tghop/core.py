@@ -612,7 +612,10 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         -------
         labels : ndarray of int, shape (n,)
         """
-        return nearest(self._check_vectors(Z), self.means_, chunk=check_int(chunk, "chunk", 1, where="ICHM.predict"))
+        Z = self._check_vectors(Z)
+        chunk = check_int(chunk, "chunk", 1, where="ICHM.predict")
+        with one_blas_thread():  # the same labels on any number of cores (OpenBLAS rounds by its threads)
+            return nearest(Z, self.means_, chunk=chunk)
 
     def transform(self, Z, *, labels=None):
         """The independent components of each vector in its cluster: the inverse of :meth:`mix`.
