@@ -216,14 +216,14 @@ def test_matching_in_chunks_is_pointwise_and_handles_strided_outputs(monkeypatch
     # The table lookup runs a chunk of values at a time; the result must not depend on
     # the chunk size, and an ``out`` that is a strided view (or the input itself) must
     # receive the values.
-    from tghop import refine as R
+    from tghop import quantiles as Q, refine as R
 
     rng = np.random.default_rng(3)
     values = (rng.standard_normal((61, 53)) ** 3).astype(np.float32)
     levels = np.linspace(0.0, 1.0, 33)
     target = np.sort(rng.standard_normal(33))
     whole = R.match_quantiles(values, target, levels)
-    monkeypatch.setattr(R, "_MATCH_CHUNK", 7)
+    monkeypatch.setattr(Q, "_MATCH_CHUNK", 7)
     np.testing.assert_array_equal(R.match_quantiles(values, target, levels), whole)
     big = np.zeros((61, 106), dtype=np.float32)
     big[:, ::2] = values
@@ -340,7 +340,7 @@ def test_refine_makes_no_speckles_of_an_exemplars_lone_extremes():
 def test_oriented_parts_matched_in_chunks_equal_matching_each_part(n, monkeypatch):
     # _match_oriented makes, matches and sums the parts a chunk at a time; it must give
     # exactly what matching each whole part (iter_oriented_parts) and summing gives.
-    from tghop import refine as R
+    from tghop import oriented as O, refine as R
 
     rng = np.random.default_rng(n)
     band = rng.standard_normal((2, 45, 38)).astype(np.float32)
@@ -351,15 +351,17 @@ def test_oriented_parts_matched_in_chunks_equal_matching_each_part(n, monkeypatc
         for k in range(2):
             R.match_quantiles(part[k], q[j, k], levels, out=part[k])
         total = part if total is None else total + part
-    monkeypatch.setattr(R, "_PARTS_CHUNK", 256)  # several chunks and a short last one
+    np.testing.assert_array_equal(O.match_oriented(band.copy(), q, levels), total)  # one chunk: part by part
+    monkeypatch.setattr(O, "_PARTS_CHUNK", 256)  # several chunks and a short last one
     got = band.copy()
-    assert R._match_oriented(got, q, levels) is got
+    assert O._match_oriented(got, q, levels) is got
     np.testing.assert_array_equal(got, total)
+    np.testing.assert_array_equal(O.match_oriented(band.copy(), q, levels), total)
     # The refinement takes that path for bands above one chunk: the same image either way.
     img = np.clip(rng.random((50, 60, 3)) * 0.5 + 0.2, 0, 1)
     st = BandStatistics(n_orientations=n).fit(np.clip(rng.random((64, 64, 3)), 0, 1))
     chunked = refine(img, st, n_iter=2)
-    monkeypatch.setattr(R, "_PARTS_CHUNK", 1 << 30)
+    monkeypatch.setattr(O, "_PARTS_CHUNK", 1 << 30)
     np.testing.assert_array_equal(refine(img, st, n_iter=2), chunked)
 
 
@@ -439,16 +441,16 @@ def test_pad_is_numpys_wrap_or_symmetric_padding(mode):
 def test_prepare_tabulates_what_refine_needs(cells):
     # synthesize prepares the refinement while the coarse guide is made: afterwards the
     # refinement finds every table it needs, and a bad size is refused before any work.
-    from tghop import refine as refine_module
+    from tghop import oriented, refine as refine_module
 
     st = BandStatistics().fit(cells)
     img = _blurred(cells)[:70, :90] * 0.8 + 0.1
-    refine_module._double_angle.cache_clear()
+    oriented.double_angle.cache_clear()
     refine_module.prepare(img.shape[:2], st)
-    made = refine_module._double_angle.cache_info().misses
+    made = oriented.double_angle.cache_info().misses
     assert made == st.band_quantiles_.shape[0]  # one per band size
     refine(img, st, n_iter=1)
-    assert refine_module._double_angle.cache_info().misses == made
+    assert oriented.double_angle.cache_info().misses == made
     with pytest.raises(TGHopError, match="size must be positive"):
         refine_module.prepare((0, 5), st)
 
@@ -459,8 +461,6 @@ def test_pocketfft_without_scipy_fft_gives_scipy_fft_numbers(shape, axes, dtype,
     # Large bands are transformed by SciPy's compiled pocketfft module loaded alone (no
     # 0.2-0.3 s import of scipy.fft): bit for bit what scipy.fft gives.
     import scipy.fft
-
-    from tghop import refine as R
 
     fft = F.PocketFFT(F.load_pocketfft())
     x = rng.standard_normal(shape).astype(dtype)

@@ -78,10 +78,12 @@ from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxe
 from .guides import guide_labels
 from .layout import follows_guide
 from .material import Material, renormalise
+from .oriented import iter_oriented_parts
 from .pool import MAX_GROWN_POOL, on_demand
 from .quilting import GUIDE_SCALE, block_count, prepare_pool, quilt_prepared
 from .pyramid import downsample, laplacian_pyramid, reconstruct
-from .refine import iter_oriented_parts, prepare as prepare_refinement, tailed_band_quantiles
+from .quantiles import tailed_band_quantiles
+from .refine import prepare as prepare_refinement
 from .seams import remove_seams
 
 __all__ = ["synthesize_guided", "morph", "guide_labels", "region_weights", "random_labels", "DEFAULT_TRANSITION",

@@ -14,11 +14,20 @@ monotone map through quantile tables learned at fit time, their tails made expon
 rounds, each but the last over-relaxed (:data:`RELAXATION`).
 Everything it needs at generation time is in :class:`BandStatistics` (a few thousand
 numbers), so the model file does not keep the exemplar.
+
+Its parts, in their own modules (their public names are imported from here too):
+
+- :mod:`tghop.quantiles`: quantile tables and the matching by rank tables
+  (:func:`match_quantiles`, :func:`tail_quantiles`, :func:`tailed_band_quantiles`);
+- :mod:`tghop.oriented`: the oriented parts of a band and their matching
+  (:func:`oriented_parts`, :func:`iter_oriented_parts`, :func:`tghop.oriented.match_oriented`).
+
+Here: what is learned (:class:`BandStatistics`), the rounds (:func:`refine`) and what they
+need ready (:func:`prepare`).
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import numbers
 
@@ -28,8 +37,11 @@ from ._arrays import check_int, check_mask
 from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
                       check_size, checked_image, report, usable_cores)
 from ._fft import fft_for
+from .oriented import double_angle, iter_oriented_parts, match_oriented, oriented_parts
 from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
+from .quantiles import (TAIL_LEVELS, match_quantiles, strided_subset, tail_quantiles, tailed_band_quantiles,
+                        value_quantiles)
 
 __all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_oriented_parts", "tail_quantiles",
            "tailed_band_quantiles", "match_quantiles", "RELAXATION", "TAIL_LEVELS"]
@@ -37,10 +49,6 @@ __all__ = ["BandStatistics", "refine", "prepare", "oriented_parts", "iter_orient
 #: Side of the largest region :meth:`BandStatistics.fit` measures at once (larger exemplars:
 #: up to four crops of this size), so that fitting memory does not grow with the exemplar.
 _FIT_SIDE = 1024
-
-#: Values ranked to make a band's matching map, and used to estimate an exemplar band's
-#: quantiles at fit time (a strided subset beyond this).
-_MAX_VALUES = 1 << 16
 
 #: Over-relaxation of the rounds: every round but the last moves the image this many times
 #: as far as its matching asks (1: plain Heeger-Bergen rounds); the last round's matching is
@@ -59,19 +67,6 @@ _CHANNEL_ARRAYS = 11
 _REFINE_MEMORY = 3 << 30
 
 
-#: Levels :func:`tail_quantiles` adds inside each end step of a band's quantiles: the end
-#: step's share of the values (1/256 of them with 257 quantiles) halved this many times,
-#: down to one value in 65,536 (docs/choices.md, Refinement, "Exponential tails (0.42)").
-TAIL_LEVELS = 8
-
-#: Entries of the lookup table that applies a matching map (uniform steps over the band's
-#: range; each value takes the nearest entry, whose rank among the values gives its new
-#: value): a quarter of the values matched, within these bounds (docs/choices.md).
-_LUT_MIN, _LUT_MAX = 4096, 1 << 16
-# Values mapped per step of a table lookup (the temporaries of one step fit in L2 cache).
-_MATCH_CHUNK = 1 << 16
-
-
 def _crops(h, w, side):
     """``(y, x, height, width)`` of the regions :meth:`BandStatistics.fit` measures: the whole
     image when both sides are at most ``side``, else up to 2 x 2 crops of at most
@@ -80,14 +75,6 @@ def _crops(h, w, side):
     ys = sorted({0, h - ch}) if h > side else [0]
     xs = sorted({0, w - cw}) if w > side else [0]
     return [(y, x, ch, cw) for y in ys for x in xs]
-
-
-def _subset(values, n_crops):
-    """A strided subset of ``values`` (flattened), so that ``n_crops`` crops together keep
-    about _MAX_VALUES values (what :func:`_quantiles` would use of one image)."""
-    values = values.ravel()
-    limit = max(1, _MAX_VALUES // n_crops)
-    return values[:: -(-values.size // limit)] if values.size > limit else values
 
 
 def _clean_band(hole, level, shape, radius=3):
@@ -103,256 +90,24 @@ def _clean_band(hole, level, shape, radius=3):
     return clean if clean.any() else None
 
 
-def _quantiles(values, levels):
-    """Quantiles at ``levels`` of ``values`` (of a strided subset of at most _MAX_VALUES)."""
-    return _sample_quantiles(_subset(values, 1), levels)
-
-
-def _sample_quantiles(sample, levels):
-    """Quantiles at ``levels`` of the values in ``sample``."""
-    # Sorted in the values' own dtype, then widened: the same numbers, and NumPy's SIMD sort
-    # of float32 is faster than of float64 (twice as many values per SIMD register).
-    ordered = np.sort(sample).astype(np.float64)
-    return np.interp(levels * (ordered.size - 1), np.arange(ordered.size), ordered)
-
-
-def match_quantiles(values, target, levels, out=None):
-    """Monotone map of ``values`` giving them the quantiles ``target`` (at ``levels``).
-
-    Parameters
-    ----------
-    values : ndarray, any shape
-        float32 or float64.
-    target : ndarray, shape (L,)
-        Non-decreasing quantiles of the distribution to give them.
-    levels : ndarray, shape (L,)
-        The levels of ``target``, from 0 to 1.
-    out : ndarray, optional
-        Of ``values``' shape (may be ``values``).
-
-    Returns
-    -------
-    ndarray, shape of ``values``
-        Flat values all map to the target's median.
-
-    Histogram matching by ranks (:func:`_matching`), tabulated at uniform steps over the
-    values' range (a quarter as many as values, within _LUT_MIN and _LUT_MAX) and applied
-    by looking up the nearest entry: linear time, no sort. When the ranks come from every
-    value (at most _MAX_VALUES of them), each value's table entry is found once and used
-    for both the ranks and the lookup.
-    """
-    out = np.empty_like(values) if out is None else out
-    src = np.ascontiguousarray(values).reshape(-1)
-    dst = out.reshape(-1) if out.flags.c_contiguous else np.empty(out.size, dtype=out.dtype)
-    sample = _subset(src, 1)
-    if sample.size < src.size:
-        _apply_matching(_matching(sample, src.size, target, levels, src.dtype), src, dst)
-    else:
-        lo, scale, size = _grid(src, src.size)
-        if scale is None:
-            dst[...] = _flat_value(target, levels)
-        else:
-            index = _table_index(src, lo, scale, size - 1)
-            np.take(_rank_table(index, size, target, levels, src.dtype), index, out=dst, mode="clip")
-    if not out.flags.c_contiguous:
-        out[...] = dst.reshape(out.shape)
-    return out
-
-
-def tail_quantiles(levels, quantiles, n_tail=TAIL_LEVELS):
-    """Quantiles of a band with exponential tails: ``n_tail`` levels added inside each end step.
-
-    Between a band's extreme stored quantile (the exemplar's smallest or largest value there,
-    often a lone outlier) and the next lie 1/256 of its values (with 257 quantiles).
-    Interpolated linearly, half of them would take values of the outlier's size, which show
-    as dark or bright speckles on smooth textures. Band values have exponential tails (a
-    Laplacian's), where every halving of the share beyond a quantile moves it by the same
-    step: levels ``l1 / 2, l1 / 4, ...`` (``l1``, the second level) take the quantile one,
-    two, ... steps ``q1 - q2`` beyond ``q1``, never beyond the extreme one; the upper tail
-    likewise.
-
-    Parameters
-    ----------
-    levels : ndarray, shape (Q,)
-        Increasing, from 0 to 1.
-    quantiles : ndarray, shape (..., Q)
-        Non-decreasing along the last axis, at ``levels``.
-    n_tail : int
-        Levels added at each end (0: none; nothing is added when Q < 4).
-
-    Returns
-    -------
-    levels : ndarray, shape (Q + 2 n_tail,)
-    quantiles : ndarray, shape (..., Q + 2 n_tail)
-    """
-    levels, quantiles = np.asarray(levels, dtype=np.float64), np.asarray(quantiles)
-    if n_tail == 0 or levels.size < 4:
-        return levels, quantiles
-    k = np.arange(n_tail, 0, -1)  # the added levels in increasing order: n_tail ... 1 halvings
-    low = np.maximum(quantiles[..., :1], quantiles[..., 1:2] - k * (quantiles[..., 2:3] - quantiles[..., 1:2]))
-    high = np.minimum(quantiles[..., -1:], quantiles[..., -2:-1] + k[::-1] * (quantiles[..., -2:-1]
-                                                                             - quantiles[..., -3:-2]))
-    new_levels = np.concatenate([levels[:1], levels[1] * 0.5 ** k, levels[1:-1],
-                                 1.0 - (1.0 - levels[-2]) * 0.5 ** k[::-1], levels[-1:]])
-    new_quantiles = np.concatenate([quantiles[..., :1], low, quantiles[..., 1:-1], high, quantiles[..., -1:]], axis=-1)
-    return new_levels, new_quantiles
-
-
-def tailed_band_quantiles(band_quantiles):
-    """Stored band quantiles (..., Q), at Q evenly spaced levels from 0 to 1, with their
-    exponential tails (:func:`tail_quantiles`): ``(levels, quantiles)``, the maps every band
-    matching uses."""
-    return tail_quantiles(np.linspace(0.0, 1.0, band_quantiles.shape[-1]), band_quantiles)
-
-
-def _grid(sample, n_values):
-    """``(lo, scale, size)`` of the table for ``n_values`` values whose strided subset is
-    ``sample``: entry ``i`` stands for ``lo + i / scale``; ``scale`` is None when the
-    values are flat (or not finite)."""
-    lo, hi = float(np.min(sample)), float(np.max(sample))
-    if not hi > lo:
-        return lo, None, 0
-    size = min(_LUT_MAX, max(_LUT_MIN, n_values // 4))
-    return lo, (size - 1) / (hi - lo), size
-
-
-def _flat_value(target, levels):
-    """What flat values map to: the target's median."""
-    return float(np.interp(0.5, levels, target))
-
-
-def _rank_table(index, size, target, levels, dtype):
-    """Each table entry's value: the target quantile at the mid-rank of the values that
-    take that entry (``index``: their entries).
-
-    A value of rank ``r`` among ``n`` (ties share their middle rank) takes the target's
-    quantile at level ``r / (n - 1)``, where NumPy's quantiles put the ``r``-th order
-    statistic: the smallest value gets ``target[0]``, the largest ``target[-1]``. Entries
-    no value takes lie between their neighbours (the map stays monotone).
-    """
-    counts = np.bincount(index, minlength=size)
-    mid_rank = np.cumsum(counts) - 0.5 * (counts + 1)
-    mid_rank *= 1.0 / max(index.size - 1, 1)
-    return np.interp(mid_rank, levels, target).astype(dtype)
-
-
-def _matching(sample, n_values, target, levels, dtype):
-    """The map :func:`match_quantiles` applies to ``n_values`` values whose strided subset
-    (:func:`_subset`) is ``sample``: ``(lo, scale, table)``, or ``(value, None, None)``
-    when the values are flat (all map to one value).
-
-    Histogram matching by ranks: the sample's values are put on the table's grid, counted
-    (``bincount``), and each entry takes the target quantile at the mid-rank of its values
-    (:func:`_rank_table`), as :func:`tghop.colour.match_histograms` does. That is the
-    sample's exact distribution at the table's resolution, in linear time: the quantiles
-    of each band used to come from a sort, most of the refinement's time.
-    """
-    lo, scale, size = _grid(sample, n_values)
-    if scale is None:
-        return _flat_value(target, levels), None, None
-    index = _table_index(sample, lo, scale, size - 1)
-    return lo, scale, _rank_table(index, size, target, levels, dtype)
-
-
-def _apply_matching(matching, src, dst):
-    """Apply a :func:`_matching` map to the 1-d array ``src``, into ``dst`` (may be ``src``)."""
-    lo, scale, table = matching
-    if table is None:
-        dst[...] = lo
-    else:
-        _apply_table(src, lo, scale, table, dst)
-
-
-def _table_index(src, lo, scale, top, out=None, scratch=None):
-    """The nearest table entry of each value of the 1-d array ``src``:
-    ``round((src - lo) * scale)`` clipped to ``[0, top]``, as int32 (into ``out``).
-
-    Computed in ``src``'s dtype, _MATCH_CHUNK values at a time (the temporaries stay in
-    cache; ``scratch``: a buffer of at least that many values, or of ``src``'s size).
-    int32: float32 -> int32 is a SIMD conversion and float32 -> int64 is not.
-    """
-    dtype = src.dtype
-    scale = dtype.type(scale)
-    offset = dtype.type(0.5 - lo * float(scale))  # + 0.5: truncation then rounds to nearest
-    n = src.size
-    out = np.empty(n, dtype=np.int32) if out is None else out
-    pos = np.empty(min(_MATCH_CHUNK, n), dtype=dtype) if scratch is None else scratch
-    for a in range(0, n, _MATCH_CHUNK):
-        e = min(n, a + _MATCH_CHUNK)
-        p = pos[: e - a]
-        np.multiply(src[a:e], scale, out=p)
-        p += offset
-        np.clip(p, 0, top, out=p)
-        out[a:e] = p  # truncation: p >= 0
-    return out
-
-
-def _apply_table(src, lo, scale, table, dst):
-    """``dst = table[round((src - lo) * scale)]``, the index clipped to the table: the
-    nearest entry (1-d arrays; ``dst`` may be ``src``).
-
-    _MATCH_CHUNK values at a time, so that the temporaries stay in cache. Four passes,
-    against nine for linear interpolation in a table of 4,096 entries, whose largest
-    errors were of the same size."""
-    n = src.size
-    # ``take`` with mode "clip" skips the bounds check that raises (the index is in range
-    # already), which NumPy does slowly for indices that are not intp, as these int32 ones.
-    idx = np.empty(min(_MATCH_CHUNK, n), dtype=np.int32)
-    pos = np.empty(idx.shape, dtype=src.dtype)
-    for a in range(0, n, _MATCH_CHUNK):
-        e = min(n, a + _MATCH_CHUNK)
-        i = _table_index(src[a:e], lo, scale, len(table) - 1, out=idx[: e - a], scratch=pos)
-        np.take(table, i, out=dst[a:e], mode="clip")
-
-
-def _irfft2(fft, spectrum, shape, axes, threads):
-    """Inverse of ``rfft2`` over ``axes``; ``spectrum`` is scratch (overwritten).
-
-    With ``scipy.fft``, as its two passes written out (the complex pass along ``axes[0]`` in
-    place, then the real pass along ``axes[1]``): ``scipy.fft.irfft2`` copies the spectrum
-    first, an extra pass over a large array. The same numbers for
-    power-of-two sides, else up to float32 round-off (5e-7).
-    """
-    if fft is np.fft:
-        return np.fft.irfft2(spectrum, s=shape, axes=axes)
-    half = fft.ifft(spectrum, axis=axes[0], overwrite_x=True, **threads)
-    return fft.irfft(half, n=shape[1], axis=axes[1], overwrite_x=True, **threads)
-
-
-@functools.lru_cache(maxsize=16)
-def _double_angle(h, w, dtype):
-    """``cos(2 theta)`` and ``sin(2 theta)`` over the rfft2 grid (``theta``: the frequency's
-    direction).
-
-    The oriented windows ``cos^2(theta - k pi / n) * 2 / n`` are
-    ``(1 + cos(2 k pi / n) cos(2 theta) + sin(2 k pi / n) sin(2 theta)) / n``, so every part
-    is a combination of the band and of its two filtered versions: two inverse transforms
-    for any number of orientations. Cached: every round of :func:`refine` and every channel
-    uses the same few shapes (the arrays are read-only)."""
-    fy = np.fft.fftfreq(h)[:, None]
-    fx = np.fft.rfftfreq(w)[None, :]
-    # cos 2theta = (fx^2 - fy^2) / r^2 and sin 2theta = 2 fx fy / r^2: no trigonometry
-    # (arctan2, cos and sin over a band-sized grid cost far more than these products;
-    # made once per shape); the origin counts as theta = 0.
-    fx2, fy2 = fx * fx, fy * fy
-    r2 = fx2 + fy2
-    r2[0, 0] = 1.0
-    cos2 = (fx2 - fy2) / r2
-    sin2 = (2.0 * fx * fy) / r2
-    cos2[0, 0], sin2[0, 0] = 1.0, 0.0
-    out = (cos2.astype(dtype), sin2.astype(dtype))
-    for m in out:
-        m.flags.writeable = False
-    return out
-
-
 def prepare(size, stats):
     """Do ahead of time what refining an image of ``size`` (H, W) first needs: SciPy's FFT
     module loaded for large bands (:func:`tghop._fft.fft_for`) and the oriented windows of every
-    band size tabulated. :meth:`tghop.TGHop.synthesize` calls it while
-    the coarse guide is made in another thread, so that neither is on the guide's path.
+    band size tabulated (:func:`tghop.oriented.double_angle`). :meth:`tghop.TGHop.synthesize`
+    calls it while the coarse guide is made in another thread, so that neither is on the
+    guide's path.
+
+    Parameters
+    ----------
+    size : int or (int, int)
+        The (height, width) of the image to be refined (one number: a square).
+    stats : BandStatistics
+        Fitted; its bands and orientations say which tables are needed.
+
+    Returns
+    -------
+    None
     """
-    
     h, w = check_size(size)
     check_is_fitted(stats, "band_quantiles_")
     for _ in range(stats.band_quantiles_.shape[0]):
@@ -360,159 +115,8 @@ def prepare(size, stats):
             break
         fft_for(h * w)
         if stats.band_quantiles_.shape[1] > 1:
-            _double_angle(h, w, np.dtype(np.float32))
+            double_angle(h, w, np.dtype(np.float32))
         h, w = (h + 1) // 2, (w + 1) // 2
-
-
-def oriented_parts(band, n_orientations, *, axes=(0, 1)):
-    """Split a band into ``n_orientations`` oriented parts that sum to it.
-
-    Part ``k`` keeps the band's spatial frequencies weighted by the angular window
-    ``cos^2(theta - k pi / n) * 2 / n`` (steerable-pyramid style, in the Fourier domain,
-    periodic boundaries; the windows sum to 1). 0 or 1: the band itself. ``axes``: the
-    spatial axes, as in :func:`laplacian_pyramid`.
-    """
-    return list(iter_oriented_parts(band, n_orientations, axes=axes))
-
-
-def iter_oriented_parts(band, n_orientations, *, axes=(0, 1), workers=1):
-    """:func:`oriented_parts` one part at a time, each a new array the caller may change
-    in place (the parts that follow do not depend on it).
-
-    Holding one part at a time instead of all of them keeps about two fewer band-sized
-    arrays alive (the refinement of a large band goes further: :func:`_match_oriented`).
-    ``workers``: threads of each Fourier transform of a large band (``scipy.fft``; the
-    same numbers for any count).
-    """
-    if n_orientations <= 1:
-        yield band
-        return
-    n = int(n_orientations)
-    filtered = _filtered(band, n, axes, workers)
-    rest = None  # the sum of the parts so far, in order: p0 + p1 + ...
-    for coefs in _part_coefficients(n):
-        part = _part(band, filtered, coefs, n)
-        if rest is None:
-            rest = part.copy()
-        else:
-            rest += part
-        yield part
-    # The last part is the rest, so that the parts sum to the band: band - (p0 + p1 + ...).
-    del filtered
-    yield np.subtract(band, rest, out=rest)
-
-
-def _part_coefficients(n):
-    """``(cos 2 theta_k, sin 2 theta_k)`` of parts ``k = 0 .. n - 2`` (``theta_k = k pi / n``),
-    with exact zeros where they vanish (those terms are skipped)."""
-    angles = 2.0 * np.pi * np.arange(n - 1) / n
-    cos, sin = np.cos(angles), np.sin(angles)
-    cos[np.abs(cos) < 1e-12] = 0.0
-    sin[np.abs(sin) < 1e-12] = 0.0
-    return list(zip(cos.tolist(), sin.tolist()))
-
-
-def _filtered(band, n, axes, workers):
-    """The band filtered by the windows ``cos 2 theta`` (and ``sin 2 theta`` for ``n > 2``):
-    every oriented part is ``(band + cos 2 theta_k f_cos + sin 2 theta_k f_sin) / n``."""
-    h, w = band.shape[axes[0]], band.shape[axes[1]]
-    fft = fft_for(h * w)
-    threads = {"workers": int(workers)} if fft is not np.fft else {}
-    spectrum = fft.rfft2(band, axes=axes, **threads)  # complex64 for float32 bands (NumPy >= 2, SciPy)
-    harmonics = _double_angle(h, w, np.dtype(band.dtype))
-    if band.ndim == 3 and tuple(axes) == (0, 1):  # (H, W, C): the windows broadcast over C
-        harmonics = [m[..., None] for m in harmonics]
-    return [_irfft2(fft, np.multiply(spectrum, m, out=np.empty_like(spectrum) if i == 0 else spectrum),
-                    (h, w), axes, threads).astype(band.dtype, copy=False)
-            for i, m in enumerate(harmonics[: 1 if n == 2 else 2])]
-
-
-def _part(band, filtered, coefs, n, out=None):
-    """Oriented part ``(band + cos f_cos + sin f_sin) / n`` (``coefs``: :func:`_part_coefficients`
-    entry), in this order of operations whatever the slice of the arrays it is given."""
-    if out is None:
-        part = band.copy()
-    else:
-        part = out
-        np.copyto(part, band)
-    for coef, f in zip(coefs, filtered):
-        if coef == 1.0:
-            part += f
-        elif coef == -1.0:
-            part -= f
-        elif coef:
-            part += band.dtype.type(coef) * f
-    part *= band.dtype.type(1.0 / n)
-    return part
-
-
-#: Values per step of :func:`_match_oriented` (smaller steps cost more calls; larger
-#: ones gain nothing, in threads either; measured: docs/choices.md); bands of at most
-#: this many values per channel are matched part by part instead.
-_PARTS_CHUNK = 1 << 16
-
-
-def _match_oriented(band, band_q, levels, *, workers=1):
-    """Match every oriented part of a ``(C, H, W)`` band to its quantiles and sum them:
-    the band's new value, written into ``band`` (a C-contiguous one; else into a copy) and
-    returned.
-
-    What ``for part in iter_oriented_parts(band): match part; sum`` does, with the same
-    numbers, but in one pass over the band, _PARTS_CHUNK values at a time: each part's
-    map comes from the strided subset of its values (made from the subsets of the band
-    and of its filtered versions, with the same operations), then every chunk's parts are
-    made, mapped and summed while in cache, without band-sized parts. One channel alone
-    (as for very large images, and on one core): faster, as the band is read once. Three
-    channels in threads: no faster (the steps are shorter, the threads wait for each
-    other more), but the parts no longer take memory, which lowers the peak memory of
-    large images (measured: docs/choices.md).
-
-    ``band_q``: ``(n_parts, C, n_quantiles)``.
-    """
-    n, n_channels = band_q.shape[0], band.shape[0]
-    if not band.flags.c_contiguous:  # the channels are worked on as flat views
-        band = band.copy()
-    if n <= 1:
-        for k in range(n_channels):
-            match_quantiles(band[k], band_q[0, k], levels, out=band[k])
-        return band
-    filtered = _filtered(band, n, (1, 2), workers)
-    coefs = _part_coefficients(n)
-    size = band[0].size
-    for k in range(n_channels):
-        flat_band = band[k].reshape(-1)  # a view: written in place
-        flat_f = [f[k].reshape(-1) for f in filtered]
-        # Each part's map, from the strided subsets (the positions _subset takes of the part).
-        sub_band = _subset(flat_band, 1)
-        sub_f = [_subset(f, 1) for f in flat_f]
-        maps = []
-        rest = None
-        for j, c in enumerate(coefs):
-            part = _part(sub_band, sub_f, c, n)
-            rest = part.copy() if rest is None else np.add(rest, part, out=rest)
-            maps.append(_matching(part, size, band_q[j, k], levels, band.dtype))
-        maps.append(_matching(sub_band - rest, size, band_q[n - 1, k], levels, band.dtype))
-        # The chunks: parts made, mapped and summed in the order of the loop above.
-        chunk = min(size, _PARTS_CHUNK)
-        parts = np.empty((n, chunk), dtype=band.dtype)
-        for a in range(0, size, chunk):
-            e = min(size, a + chunk)
-            p = parts[:, : e - a]
-            b = flat_band[a:e]
-            for j, c in enumerate(coefs):
-                _part(b, [f[a:e] for f in flat_f], c, n, out=p[j])
-            last = p[n - 1]
-            np.copyto(last, p[0])
-            for j in range(1, n - 1):
-                last += p[j]
-            np.subtract(b, last, out=last)
-            for j in range(n):
-                _apply_matching(maps[j], p[j], p[j])
-            total = p[0]
-            for j in range(1, n):
-                total += p[j]
-            b[...] = total
-    return band
 
 
 class BandStatistics(StoredArrays, BaseEstimator):
@@ -544,16 +148,25 @@ class BandStatistics(StoredArrays, BaseEstimator):
         self.n_quantiles = n_quantiles
 
     def fit(self, exemplar, *, exclude=None):
-        """Learn from an (H, W, C) exemplar (float in [0, 1], or uint8); returns self.
+        """Learn the exemplar's colour axes and its band and pixel distributions.
 
-        Exemplars larger than :data:`_FIT_SIDE` squared are measured on up to four crops of
+        Exemplars larger than _FIT_SIDE (1024) squared are measured on up to four crops of
         that size spread over the image (one at a time, the values pooled), so memory does
         not grow with the exemplar.
 
-        ``exclude`` (H, W) bool, optional: pixels left out (a sample mask). The colour axes
-        and pixel quantiles come from the other pixels; excluded pixels are set to the
-        mean colour before the pyramid, and each band's values are taken only where no
-        excluded pixel lies within a few of that band's pixels (all of them if none is left).
+        Parameters
+        ----------
+        exemplar : ndarray, shape (H, W, C)
+            Float in [0, 1], or uint8 (read as x / 255; uint16 as x / 65535).
+        exclude : array_like of bool, shape (H, W), optional
+            Pixels left out (a sample mask). The colour axes and pixel quantiles come from
+            the other pixels; excluded pixels are set to the mean colour before the pyramid,
+            and each band's values are taken only where no excluded pixel lies within a few of
+            that band's pixels (all of them if none is left).
+
+        Returns
+        -------
+        self
         """
         for name, low in (("n_levels", 0), ("n_orientations", 0), ("n_quantiles", 2)):
             value = getattr(self, name)
@@ -596,15 +209,15 @@ class BandStatistics(StoredArrays, BaseEstimator):
                 for j, part in enumerate(oriented_parts(b, self.n_orientations, axes=(1, 2))):
                     for k in range(c):
                         values = part[k] if keep is None else part[k][keep]
-                        band_values.setdefault((i, j, k), []).append(_subset(values, len(crops)))
+                        band_values.setdefault((i, j, k), []).append(strided_subset(values, len(crops)))
             for k in range(c):
                 values = dec[k] if hole is None or hole.all() else dec[k][~hole]
-                pixel_values[k].append(_subset(values, len(crops)))
+                pixel_values[k].append(strided_subset(values, len(crops)))
         n_bands = 1 + max((i for i, _, _ in band_values), default=-1)
         self.band_quantiles_ = np.array(
-            [[[_quantiles(np.concatenate(band_values[i, j, k]), levels) for k in range(c)]
+            [[[value_quantiles(np.concatenate(band_values[i, j, k]), levels) for k in range(c)]
               for j in range(n_parts)] for i in range(n_bands)]).reshape(n_bands, n_parts, c, self.n_quantiles)
-        self.pixel_quantiles_ = np.array([_quantiles(np.concatenate(v), levels) for v in pixel_values])
+        self.pixel_quantiles_ = np.array([value_quantiles(np.concatenate(v), levels) for v in pixel_values])
         return self
 
     #: Fitted arrays in model files: (file name, attribute).
@@ -631,14 +244,36 @@ class BandStatistics(StoredArrays, BaseEstimator):
         )
 
     def to_decorrelated(self, img):
-        """(H, W, C) colours -> coordinates on the principal axes (same dtype)."""
+        """Colours -> coordinates on the principal axes of the exemplar's colours.
+
+        Parameters
+        ----------
+        img : array_like, shape (H, W, C) (or any (..., C))
+            Float colours.
+
+        Returns
+        -------
+        ndarray, ``img``'s shape and dtype
+            ``(img - colour_mean_) @ colour_basis_.T``.
+        """
         check_is_fitted(self, "colour_mean_")
         img = np.asarray(img)
         mean, basis = (a.astype(img.dtype) for a in (self.colour_mean_, self.colour_basis_))
         return ((img - mean).reshape(-1, img.shape[-1]) @ basis.T).reshape(img.shape)
 
     def from_decorrelated(self, dec):
-        """Inverse of :meth:`to_decorrelated`."""
+        """Inverse of :meth:`to_decorrelated`: coordinates on the principal axes -> colours.
+
+        Parameters
+        ----------
+        dec : array_like, shape (H, W, C) (or any (..., C))
+            Float coordinates.
+
+        Returns
+        -------
+        ndarray, ``dec``'s shape and dtype
+            ``dec @ colour_basis_ + colour_mean_`` (not clipped).
+        """
         check_is_fitted(self, "colour_mean_")
         dec = np.asarray(dec)
         mean, basis = (a.astype(dec.dtype) for a in (self.colour_mean_, self.colour_basis_))
@@ -810,7 +445,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
     single = x.ndim == 2
     if single:  # as one channel of a stack: the same numbers
         x, band_q, pixel_q = x[None], band_q[:, :, None], pixel_q[None]
-    n_parts, n_channels = band_q.shape[1], band_q.shape[2]
+    n_channels = band_q.shape[2]
     qlev = np.linspace(0.0, 1.0, pixel_q.shape[-1])
     band_lev, band_q = tailed_band_quantiles(band_q)
     axes = (1, 2)
@@ -821,19 +456,7 @@ def _refine_channel(x, band_q, pixel_q, *, n_iter, mode, first_level=0, on_round
         x = None
         for i in range(first_level, len(bands) - 1):
             # Every oriented part matched, the matched parts summed: the new band.
-            if bands[i][0].size > _PARTS_CHUNK:
-                bands[i] = _match_oriented(bands[i], band_q[i], band_lev, workers=fft_workers)
-                continue
-            # A small band (one chunk): part by part, all channels in each step (fewer calls).
-            total = None  # the matched parts summed in order, into the first one
-            for j, part in enumerate(iter_oriented_parts(bands[i], n_parts, axes=axes, workers=fft_workers)):
-                for k in range(n_channels):
-                    match_quantiles(part[k], band_q[i, j, k], band_lev, out=part[k])
-                if total is None:
-                    total = part
-                else:
-                    total += part
-            bands[i] = total
+            bands[i] = match_oriented(bands[i], band_q[i], band_lev, workers=fft_workers)
         x = reconstruct(bands, mode=mode, axes=axes)
         if before is x:  # no bands: the pyramid is the image itself, matched in place below
             before = x.copy()
