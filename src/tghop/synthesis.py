@@ -5,13 +5,20 @@ The data flows one way::
     exemplar --patches--> S0 --hops--> S1 --> ... --> Sn (core)
              --sdr.SpatialReduction--> z --core.ICHM--> p(z)
 
-and back for generation (:meth:`TGHop.synthesize`; the words on the arrows are tghop's modules)::
+and back for generation (:meth:`TGHop.synthesize`, whose steps :func:`tghop.generation.synthesize`
+takes in order; the words on the arrows are tghop's modules)::
 
     CoarseLayout (a small TGHop of the downsampled exemplar) --> layout guide
     ICHM.sample -> z -> inverse SDR -> inverse hops -> patches (pool)
         --quilting, following the guide--> image --seams--> seams removed
         --refine (regions, by region, for a large image)--> band statistics matched
         --colour--> colour histograms matched --patch_refine--> image
+
+Here: the estimator :class:`TGHop` (fit, model-file state, patches in and out of the core
+model) and :class:`CoarseLayout`, the small TGHop a fine one owns. Elsewhere: the generation
+steps (:mod:`tghop.generation`), the exemplar's checks and the default channels per hop
+(:mod:`tghop.exemplar`; :func:`prepare_exemplar` and :func:`default_channels` are imported
+from here too).
 
 Example
 -------
@@ -22,29 +29,26 @@ Example
 
 from __future__ import annotations
 
-import math
 import textwrap
 
 import numpy as np
 
-from . import settings
+from . import generation, settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_rng,
-                      check_size, check_texture, fitted_settings, grey_as_rgb, in_thread, one_blas_thread, report)
+                      fitted_settings, grey_as_rgb, one_blas_thread, report)
 from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
 from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack, stage_views
-from .colour import ColourClasses, channel_quantiles, match_histograms
+from .colour import ColourClasses, channel_quantiles
+from .exemplar import default_channels, prepare_exemplar
 from .patches import check_exclude, check_exemplar_size, downsample_mask, enough_patches, patch_origins
 from . import layout
-from .pool import GeneratedPool, pool_size, prepared_pool
-from .quilting import GUIDE_SCALE, quilt_prepared
+from .pool import GeneratedPool
 from .parameter_count import parameter_groups, table4
-from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
-from .refine import BandStatistics, refine as refine_bands
-from .regions import match_regions, n_regions, prepare as prepare_regions
+from .patch_refine import PatchStatistics, fit_patch_statistics
+from .refine import BandStatistics
 from .scale import rescale, rescale_mask
-from .seams import remove_seams
 
 __all__ = ["TGHop", "CoarseLayout", "default_channels", "grey_as_rgb", "prepare_exemplar", "PAPER_TABLE4"]
 
@@ -60,54 +64,6 @@ DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 #: Largest uint8 exemplar (pixels) :meth:`TGHop.fit` turns into floats ``x / 255`` first: the model of its
 #: pixels as floats, bit for bit (larger ones stay uint8, memory bounded: docs/choices.md, "Patches").
 FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
-
-
-def default_channels(patch_size: int, n_colours: int = 3):
-    """Channels kept per hop when none are given.
-
-    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps 63 channels
-    (the paper's Fig. 7: a core of 8 x 8 x 63 = 4,032; 40 until 0.49.1), so the core is 8x8 spatially in
-    both cases. Grey (one channel, 4 hop-1 channels in all): K1=4, K2=10 (, K3=28), our choice in the
-    same proportions. Other channel counts C (a material's stacked maps): the colour counts times C / 3.
-    """
-    if patch_size not in (32, 64):
-        raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
-    channels = (4, 10, 28) if n_colours == 1 else tuple(math.ceil(k * n_colours / 3) for k in (9, 22, 63))
-    return channels[: 2 if patch_size == 32 else 3]
-
-
-def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:
-    """A validated exemplar; a grey image stored as RGB becomes single-channel (``channels``:
-    the counts accepted, None for any: :class:`TGHop` models the stacked maps of a material).
-
-    Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
-    channel is the same texture at a third of the cost, and the output is grey. A flat
-    exemplar (every channel's standard deviation below a quarter of an 8-bit grey level)
-    has nothing to learn and is refused at once.
-
-    Returns
-    -------
-    ndarray, shape (H, W, C), C in {1, 3}
-        float64 in [0, 1]; a uint8 image stays uint8 (0-255), so that a large exemplar
-        costs one byte per pixel and channel (:meth:`TGHop.fit` converts tile by tile).
-    """
-    if isinstance(image, np.ndarray) and image.dtype == np.uint8:
-        img = image[:, :, None] if image.ndim == 2 else image
-        if img.ndim != 3 or (channels is not None and img.shape[2] not in channels):
-            check_image(img, name="exemplar", channels=channels)  # the usual shape error
-        h, w = img.shape[:2]
-        if h < min_size or w < min_size:
-            check_image(np.zeros((h, w, 1), dtype=np.uint8), min_size=min_size, name="exemplar")
-        grey = img.shape[2] == 3 and all(
-            np.array_equal(img[y: y + 512, :, 1:], np.repeat(img[y: y + 512, :, :1], 2, axis=2))
-            for y in range(0, h, 512))
-    else:
-        img = check_image(image, min_size=min_size, name="exemplar", channels=channels)
-        grey = grey_as_rgb(img)
-    check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
-    if grey:
-        img = np.ascontiguousarray(img[..., :1])
-    return img
 
 
 class TGHop(BaseEstimator):
@@ -643,101 +599,12 @@ class TGHop(BaseEstimator):
             And the dict of stages with ``return_stages``.
         """
         check_is_fitted(self, "ichm_")
-        dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
-        checked = settings.check_settings(dict(
-            n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
+        return generation.synthesize(
+            self, size, rng=rng, n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             flat_share=flat_share, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
             layout_refine=layout_refine, layout_patch_refine=layout_patch_refine, patch_refine=patch_refine,
-            patch_stride=patch_stride, reuse=reuse,
-            pool_per_block=pool_per_block, seam_window=seam_window, region=region, own_shares=own_shares))
-        if checked["patch_refine"] and getattr(self, "patches_", None) is None:  # None (auto) skips it quietly
-            raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics this model lacks "
-                             "(fitted with patch_levels=0, or by tghop 0.14 or older); fit it again, or leave "
-                             "patch_refine at None or 0")
-        # Where the patch refinement follows, it gives the image the exemplar's colours with its patches:
-        # no per-channel colour matching before it (docs/choices.md, Colour matching, "0.41").
-        n_steps = steps_for(checked["patch_refine"], check_size(size, limit=None))
-        patches = bool(n_steps) and getattr(self, "patches_", None) is not None
-        match_colours = match_colours and not patches
-        regions = (refine or match_colours) and n_regions(size, checked["region"], tile=tile) != (1, 1)
-        n_patches, reuse = pool_size(size, self.patch_size, n_patches=checked["n_patches"], overlap=overlap,
-                                     tile=tile, pool_per_block=checked["pool_per_block"], reuse=checked["reuse"])
-        rng = check_rng(rng)
-        stages = {}
-
-        def keep(name, img):  # a copy of this step's image (return_stages)
-            if return_stages and img is not None:
-                stages[name] = np.array(img, dtype=np.float32)
-
-        guide = None
-        if layout_weight and layout.follows_guide(self.layout_, size, tile=tile):
-            # The coarse guide and the pool are independent: the guide is made in a second thread (its
-            # own random stream) while the pool is generated and made ready for quilting.
-            layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
-            report(progress, "layout", 0, 1)
-            pending = in_thread(self.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
-                                seam_window=checked["seam_window"], flat_share=checked["flat_share"],
-                                patch_refine=checked["layout_patch_refine"])
-            if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
-                prepare_regions(size, self.bands_, region=checked["region"] if regions else None, tile=tile)
-            prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
-                                     flat_share=checked["flat_share"], guide_scale=GUIDE_SCALE)
-            guide = pending()
-            report(progress, "layout", 1, 1)
-            report(progress, "patch pool", 0, 1)
-        else:
-            report(progress, "patch pool", 0, 1)
-            prepared = prepared_pool(self, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
-                                     flat_share=checked["flat_share"], guide_scale=None)
-        report(progress, "patch pool", 1, 1)
-        keep("guide", guide)
-        # float32 unless a float64 image is wanted unrefined and unsmoothed (the refinement
-        # and the seam removal work in float32; so does quilting's canvas): half the memory.
-        wide = np.float64 if dtype == np.float64 and not (refine or checked["seam_window"]) else np.float32
-        image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, guide=guide,
-                               guide_weight=layout_weight, dtype=wide, reuse=reuse,
-                               return_seams=checked["seam_window"] > 0)
-        del prepared, guide  # the pool, its tables and the guide: not needed from here on
-        keep("quilt", image[0] if checked["seam_window"] else image)
-        if checked["seam_window"]:  # (image, steps)
-            image = remove_seams(*image, window=checked["seam_window"], out=image[0])
-            keep("seams", image)
-        # The histograms to match: of the exemplar's colour classes in shares towards the quilt's.
-        classes = getattr(self, "classes_", None) if refine or match_colours else None
-        classes = classes if classes is not None and classes.weight(checked["own_shares"]) else None
-        pixel_q, colour_q = (self.bands_.pixel_quantiles_, self.colour_quantiles_) if classes is None else \
-            classes.targets(image, own_shares=checked["own_shares"])
-        if regions:  # refined and colour-matched here; float32
-            image = match_regions(image, bands=self.bands_ if refine else None, n_iter=refine, tile=tile,
-                                  colour_quantiles=colour_q if match_colours else None, pixel_quantiles=pixel_q,
-                                  region=checked["region"], progress=progress)
-            refine = match_colours = 0
-            keep("refine", image)
-        if refine:  # float64 only for a float64 image, whose colours are then matched in place
-            image = refine_bands(image, self.bands_, n_iter=refine, tile=tile, progress=progress,
-                                 dtype=np.float64 if dtype == np.float64 else np.float32, pixel_quantiles=pixel_q)
-            keep("refine", image)
-        if patches:  # ours, the last step: in float32, then the asked dtype (below, as refine_image makes it)
-            image = refine_image(image.astype(np.float32, copy=False), self.patches_, n_steps=n_steps,
-                                 stride=checked["patch_stride"], tile=tile,
-                                 dtype=np.float32 if return_stages else dtype, progress=progress)
-            if not return_stages:
-                return image
-            keep("patch refine", image)
-        elif match_colours:
-            report(progress, "colour", 0, 1)
-            out = image if image.dtype == dtype else np.empty(image.shape, dtype=dtype)
-            out = match_histograms(image, colour_q, out=out)
-            keep("colour", out)
-            return (out, stages) if return_stages else out
-        if dtype == np.uint8:
-            from .imageio import to_uint8
-
-            out = to_uint8(image).reshape(image.shape)  # (H, W, 1) stays so
-        else:
-            out = image.astype(dtype, copy=False)
-        return (out, stages) if return_stages else out
-
+            patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window,
+            region=region, own_shares=own_shares, progress=progress, dtype=dtype, return_stages=return_stages)
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
 TGHop.synthesize.__doc__ = TGHop.synthesize.__doc__.replace(  # the generation settings, from the table

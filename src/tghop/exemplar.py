@@ -1,0 +1,96 @@
+"""The exemplar as :class:`~tghop.synthesis.TGHop` takes it, and the channels its hops keep by default.
+
+:func:`prepare_exemplar` validates an exemplar (shape, range, not flat) and turns a grey image
+stored as RGB into one channel; :func:`default_channels` gives the channels each hop keeps
+when ``n_channels`` is not given, from the patch size and the exemplar's channel count. Both
+are imported from :mod:`tghop.synthesis` too; the command line, ``tghop serve`` and ``tghop
+batch`` prepare their exemplars with the first before fitting.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._common import TGHopError, check_image, check_texture, grey_as_rgb
+
+__all__ = ["default_channels", "prepare_exemplar"]
+
+
+def default_channels(patch_size: int, n_colours: int = 3):
+    """Channels kept per hop when none are given.
+
+    Colour: the paper's K1=9, K2=22 for 32x32 patches; for 64x64 patches a third hop keeps 63 channels
+    (the paper's Fig. 7: a core of 8 x 8 x 63 = 4,032; 40 until 0.49.1), so the core is 8x8 spatially in
+    both cases. Grey (one channel, 4 hop-1 channels in all): K1=4, K2=10 (, K3=28), our choice in the
+    same proportions. Other channel counts C (a material's stacked maps): the colour counts times C / 3.
+
+    Parameters
+    ----------
+    patch_size : int
+        32 (two hops) or 64 (three); others are a :class:`~tghop.TGHopError` (give ``n_channels``).
+    n_colours : int
+        The exemplar's channels C.
+
+    Returns
+    -------
+    tuple of int
+        K1, K2 (, K3): the channels hop 1, 2 (, 3) keep, in all.
+    """
+    if patch_size not in (32, 64):
+        raise TGHopError(f"patch_size must be 32 or 64 unless n_channels is given, got {patch_size}")
+    channels = (4, 10, 28) if n_colours == 1 else tuple(math.ceil(k * n_colours / 3) for k in (9, 22, 63))
+    return channels[: 2 if patch_size == 32 else 3]
+
+
+def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray:
+    """A validated exemplar; a grey image stored as RGB becomes single-channel.
+
+    Three equal channels would leave 8 of the 12 hop-1 directions empty; modelling one
+    channel is the same texture at a third of the cost, and the output is grey. A flat
+    exemplar (every channel's standard deviation below a quarter of an 8-bit grey level)
+    has nothing to learn and is refused at once.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], uint8 or uint16 (read as x / 65535). An RGB image whose channels
+        are within 1/512 of each other (uint8: equal) is grey.
+    min_size : int
+        Smallest height and width accepted.
+    channels : tuple of int or None
+        The channel counts C accepted (None: any; :class:`~tghop.synthesis.TGHop` models
+        the stacked maps of a material).
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), C in ``channels`` (1 for a grey image stored as RGB)
+        float64 in [0, 1]; a uint8 image stays uint8 (0-255), so that a large exemplar
+        costs one byte per pixel and channel (:meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`
+        converts tile by tile).
+
+    Raises
+    ------
+    tghop.InvalidImageError
+        A bad shape, dtype or range, or smaller than ``min_size`` (one line).
+    tghop.TGHopError
+        A flat exemplar (one line).
+    """
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8:
+        img = image[:, :, None] if image.ndim == 2 else image
+        if img.ndim != 3 or (channels is not None and img.shape[2] not in channels):
+            check_image(img, name="exemplar", channels=channels)  # the usual shape error
+        h, w = img.shape[:2]
+        if h < min_size or w < min_size:
+            check_image(np.zeros((h, w, 1), dtype=np.uint8), min_size=min_size, name="exemplar")
+        grey = img.shape[2] == 3 and all(
+            np.array_equal(img[y: y + 512, :, 1:], np.repeat(img[y: y + 512, :, :1], 2, axis=2))
+            for y in range(0, h, 512))
+    else:
+        img = check_image(image, min_size=min_size, name="exemplar", channels=channels)
+        grey = grey_as_rgb(img)
+    check_texture(img)  # the one flat-image check (tghop cooc train makes it too)
+    if grey:
+        img = np.ascontiguousarray(img[..., :1])
+    return img
