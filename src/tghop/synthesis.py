@@ -14,9 +14,11 @@ takes in order; the words on the arrows are tghop's modules)::
         --refine (regions, by region, for a large image)--> band statistics matched
         --colour--> colour histograms matched --patch_refine--> image
 
-Here: the estimator :class:`TGHop` (fit, model-file state, patches in and out of the core
-model) and :class:`CoarseLayout`, the small TGHop a fine one owns. Elsewhere: the generation
-steps (:mod:`tghop.generation`), the exemplar's checks and the default channels per hop
+Here: the estimator :class:`TGHop` (settings, fit, model-file state, sizes) and
+:class:`CoarseLayout`, the small TGHop a fine one owns. Elsewhere: TGHop's methods between
+patches and core vectors (``encode``, ``decode``, ``sample_vectors``, ``sample_patches``,
+``stage_views``: :mod:`tghop.codec`, which it inherits), the generation steps
+(:mod:`tghop.generation`), the exemplar's checks and the default channels per hop
 (:mod:`tghop.exemplar`; :func:`prepare_exemplar` and :func:`default_channels` are imported
 from here too).
 
@@ -36,15 +38,15 @@ import numpy as np
 from . import generation, settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_rng,
                       fitted_settings, grey_as_rgb, one_blas_thread, report)
-from ._arrays import LEVELS, check_array, check_dtype, check_width, forget_fit, from_levels
+from ._arrays import forget_fit
+from .codec import PatchCodec
 from .core import ICHM
 from .sdr import SpatialReduction
-from .hops import Hop, HopStack, stage_views
+from .hops import Hop, HopStack
 from .colour import ColourClasses, channel_quantiles
 from .exemplar import default_channels, prepare_exemplar
 from .patches import check_exclude, check_exemplar_size, downsample_mask, enough_patches, patch_origins
 from . import layout
-from .pool import GeneratedPool
 from .parameter_count import parameter_groups, table4
 from .patch_refine import PatchStatistics, fit_patch_statistics
 from .refine import BandStatistics
@@ -66,7 +68,7 @@ DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 
 
-class TGHop(BaseEstimator):
+class TGHop(PatchCodec, BaseEstimator):
     """Texture generation by successive subspace learning (Lei, Zhao, Zhang, Kuo 2021).
 
     The parameters are the fit-time settings of :data:`tghop.settings.SETTINGS` (one
@@ -124,7 +126,17 @@ class TGHop(BaseEstimator):
     # ---------------------------------------------------------------- fitting
     def check_settings(self):
         """Raise the :class:`TGHopError` :meth:`fit` would raise for a bad setting, fitting nothing (every
-        setting against the settings table, then the patch size against the hops)."""
+        setting against the settings table, then the patch size against the hops).
+
+        Returns
+        -------
+        None
+
+        Raises
+        ------
+        tghop.TGHopError
+            One line naming the setting and what it accepts.
+        """
         settings.check_settings({s.name: getattr(self, s.name) for s in settings.fit_settings()})
         self.check_channels()
 
@@ -132,9 +144,16 @@ class TGHop(BaseEstimator):
         """The hops' channel rules for an exemplar of ``n_colours`` channels (None: any), or a one-line TGHopError
         before any work: a patch size the hops cannot halve, or a hop-1 count above 4 C (its 2x2 blocks).
 
+        Parameters
+        ----------
+        n_colours : int, optional
+            The exemplar's channels C (None: not known yet; the colour defaults then).
+
         Returns
         -------
-        tuple : the channels kept per hop, ``n_channels`` or :func:`default_channels`
+        tuple
+            The channels kept per hop: ``n_channels`` as given (counts, energy fractions or "knee"),
+            or :func:`default_channels` of the patch size and C.
         """
         for name in ("patch_size", "stride"):
             settings.BY_NAME[name].check(getattr(self, name))
@@ -149,7 +168,24 @@ class TGHop(BaseEstimator):
 
     def check_exemplar_size(self, shape, ichm=None):
         """Raise :func:`tghop.patches.check_exemplar_size`'s error for an exemplar of ``shape`` (H, W, ...),
-        as given (before the working ``scale``)."""
+        as given (before the working ``scale``).
+
+        Parameters
+        ----------
+        shape : tuple
+            (H, W, ...) of the exemplar.
+        ichm : tghop.core.ICHM, optional
+            The core model of these settings (None: made from them, after :meth:`check_settings`).
+
+        Returns
+        -------
+        None
+
+        Raises
+        ------
+        tghop.patches.ExemplarTooSmallError
+            A :class:`TGHopError` of one line naming the smallest square exemplar that works.
+        """
         if ichm is None:
             self.check_settings()
             ichm = ICHM(**settings.component_params(self, "ichm"))
@@ -170,6 +206,8 @@ class TGHop(BaseEstimator):
             (``max_patches``), not on the exemplar's size: the hops see the image tile by tile,
             and a larger uint8 image is never converted whole (its model then differs a little
             from the float image's: the coarse layout is fitted on box means rounded to 8 bits).
+        y : None
+            Ignored (scikit-learn's signature).
         exclude : array_like of bool, shape (H, W), optional
             A sample mask: True where the model must not learn (a logo, a label, a stain,
             a hole to inpaint). Training patches that overlap it are dropped, and the
@@ -402,7 +440,8 @@ class TGHop(BaseEstimator):
     # ------------------------------------------------------------- dimensions
     @property
     def dims_(self) -> dict:
-        """Dimensions of every space: D0, D1, ..., Dn, D_r, and N, F, W of the core model."""
+        """dict of str to int: dimensions of every space, D0 (P x P x C), D1, ..., Dn, D_r (the core
+        vectors), and N (clusters), F (CDFs) and W (codewords) of the core model (the paper's Table 4)."""
         check_is_fitted(self, "ichm_")
         out = {f"D{i}": d for i, d in enumerate(self.hops_.dims_)}
         out.update(D_r=self.sdr_.n_components_, N=len(self.ichm_.weights_), F=self.ichm_.n_cdfs_,
@@ -411,7 +450,7 @@ class TGHop(BaseEstimator):
 
     @property
     def channels_(self) -> list:
-        """Kept channels per hop (K1, K2, ...)."""
+        """list of int: kept channels per hop (K1, K2, ...), as fitted."""
         check_is_fitted(self, "hops_")
         return [hop.n_channels_out_ for hop in self.hops_.hops_]
 
@@ -438,132 +477,6 @@ class TGHop(BaseEstimator):
         return table4(self.dims_, self.channels_, self.exemplar_shape_[2], self.ichm_.codebook_.shape[1],
                       self.sdr_.shape_, parameter_groups(self._to_arrays()),
                       n_classes=getattr(getattr(self, "classes_", None), "n_classes", 0))
-
-    # ------------------------------------------------------------- generation
-    def encode(self, patches):
-        """Patches (n, P, P, C) -> core-model vectors ``z`` (n, D_r): the hops, then SDR, as
-        :meth:`fit` takes its training patches (the counterpart of :meth:`decode`).
-
-        Every hop and SDR is an affine map with orthonormal rows and :meth:`decode` applies
-        their transposes, so ``encode`` inverts ``decode`` before its clip: for ``z`` of
-        :meth:`sample_vectors` (or any ``z``), ``encode(decode(z, return_stages=True)[1][-1])``
-        is ``z`` to float precision, and ``encode(decode(z))`` too where no pixel was clipped.
-        The other way round, ``decode(encode(x))`` is ``x`` projected orthogonally onto the
-        model's patch space (the channels and spatial components kept), clipped to [0, 1].
-
-        Parameters
-        ----------
-        patches : array_like, shape (n, P, P, C)
-            Patches as :meth:`sample_patches` returns them (in [0, 1]; other values are projected
-            all the same); uint8 and uint16 are read as x / 255 and x / 65535, as :meth:`fit` reads them.
-
-        Returns
-        -------
-        z : ndarray, shape (n, D_r)
-            :meth:`ICHM.predict <tghop.core.ICHM.predict>` gives their clusters and
-            :meth:`ICHM.transform <tghop.core.ICHM.transform>` their independent components.
-        """
-        check_is_fitted(self, "ichm_")
-        if isinstance(getattr(patches, "dtype", None), np.dtype) and patches.dtype in LEVELS:  # any array type
-            patches = from_levels(np.asarray(patches))  # as fit reads them
-        x = check_array(patches, "patches", "(n, P, P, C)", ndim=4, min_rows=0)
-        shape = (self.patch_size, self.patch_size, self.exemplar_shape_[2])
-        check_width(x, "patches", "(n, {}, {}, {})".format(*shape), shape)
-        return self.sdr_.transform(self.hops_.transform(x))
-
-    def decode(self, z, *, return_stages=False):
-        """Core-model vectors ``z`` (n, D_r) -> patches (n, P, P, C), clipped to [0, 1].
-
-        Parameters
-        ----------
-        z : array_like, shape (n, D_r)
-            Core vectors (:meth:`sample_vectors`, :meth:`ICHM.sample <tghop.core.ICHM.sample>`,
-            :meth:`encode`), finite numbers.
-        return_stages : bool
-            Also return every space of the way back, before clipping (the inverse c/w Saab path
-            of the paper, section IV.D).
-
-        Returns
-        -------
-        patches : ndarray, shape (n, P, P, C), float64 in [0, 1]
-        spaces : list of ndarray, only with ``return_stages``
-            ``[Sn, ..., S1, S0]``: the core (n, P / 2**n, P / 2**n, Kn) after the inverse SDR, each
-            hop's input, and the unclipped patches (n, P, P, C) last (:meth:`stage_views` shows them).
-        """
-        check_is_fitted(self, "ichm_")
-        z, d = np.asarray(z), self.dims_["D_r"]
-        if z.dtype.kind not in "iuf":
-            raise TGHopError(f"z must be numbers, got an array of {z.dtype}")
-        if z.ndim != 2 or z.shape[1] != d:
-            raise TGHopError(f"z must have shape (n, D_r) = (n, {d}) for this model, got {z.shape}")
-        if not np.isfinite(z).all():
-            raise TGHopError("z holds NaN or infinite values")
-        spaces = self.hops_.inverse_transform(self.sdr_.inverse_transform(z), return_all=True)
-        patches = np.clip(spaces[-1], 0.0, 1.0)
-        return (patches, spaces) if return_stages else patches
-
-    def sample_vectors(self, n, rng, dtype, *, return_labels=False):
-        """Steps i-v of the core model: ``n`` vectors ``z`` (n, D_r) in ``dtype``, grouped by
-        cluster as mixed (:meth:`ICHM.mix_by_cluster`), and ``position``: ``z[position]``
-        are the samples in order (and, with ``return_labels``, each sample's cluster, in order).
-
-        Returns
-        -------
-        z : ndarray, shape (n, D_r), float32 or float64 as ``dtype`` (a :class:`~tghop.TGHopError` for others)
-        position : ndarray of intp, shape (n,)
-        labels : ndarray of int, shape (n,), only with ``return_labels``
-        """
-        check_is_fitted(self, "ichm_")
-        dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
-        ichm = self.ichm_
-        labels, sources = ichm.sample_sources(n, rng=rng)
-        z, position = ichm.mix_by_cluster(labels, [s.astype(dtype, copy=False) for s in sources],
-                                          mixing=ichm.mixing_as(dtype), means=ichm.means_.astype(dtype, copy=False))
-        if ichm.residual_factor_.size > 0:
-            z[position] += ichm.sample_residual(n, rng=rng).astype(dtype, copy=False)
-        return (z, position, labels) if return_labels else (z, position)
-
-    @one_blas_thread()  # the same patches on any number of cores (OpenBLAS's products round by its threads)
-    def sample_patches(self, n, *, rng=None, return_stages=False, dtype=np.float64):
-        """Generate new patches.
-
-        Parameters
-        ----------
-        n : int
-        rng : int or numpy.random.Generator, optional
-            Same seed, same patches (on the same machine).
-        return_stages : bool
-            Also return the stage views of the paper's Fig. 6 (see :meth:`stage_views`), and
-            ``"cluster"``: (n,) the cluster each patch was drawn from (step i).
-        dtype : {numpy.float64, numpy.float32}
-            float32 halves memory and time for large pools (quilting works in float32).
-
-        Returns
-        -------
-        patches : ndarray, shape (n, P, P, C), in [0, 1]
-        stages : dict, only with ``return_stages``
-        """
-        check_is_fitted(self, "ichm_")
-        n = settings.BY_NAME["n_patches"].check(n, label="n")
-        dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
-        rng = check_rng(rng)
-        if return_stages:  # the paper's step-by-step inverse, keeping every space (in float64)
-            z, position, labels = self.sample_vectors(n, rng, np.dtype(np.float64), return_labels=True)
-            patches, spaces = self.decode(z[position], return_stages=True)
-            return patches.astype(dtype, copy=False), {**self.stage_views(spaces), "cluster": labels}
-        return GeneratedPool(self, *self.sample_vectors(n, rng, dtype)).all()
-
-    def stage_views(self, spaces):
-        """The three views of the paper's Fig. 6 for generated samples: :func:`tghop.hops.stage_views`
-        of ``spaces`` (``[Sn, ..., S1, S0]`` from :meth:`decode` with ``return_stages``); before
-        :meth:`fit`, :class:`~tghop.NotFittedError`.
-
-        Returns
-        -------
-        dict of ndarray : ``"core_dc"`` (n, h, w), ``"S1_dc"`` (n, 2h, 2w), ..., ``"S0"`` (n, P, P, C) in [0, 1]
-        """
-        check_is_fitted(self, "ichm_")
-        return stage_views(spaces, self.exemplar_shape_[2])
 
     @one_blas_thread()  # the same image with any number of threads or concurrent callers
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
@@ -671,20 +584,50 @@ class CoarseLayout(BaseEstimator):
         self.rng = rng
 
     def fits(self, shape) -> bool:
-        """Whether an exemplar of ``shape`` (H, W, ...) is large enough for this layout."""
+        """Whether an exemplar of ``shape`` is large enough for this layout (:func:`tghop.layout.fits`).
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The exemplar's (H, W, ...).
+
+        Returns
+        -------
+        bool
+        """
         return layout.fits(shape, self.factor, self.patch_size)
 
     def usable_factor(self, shape, exclude=None):
-        """:func:`tghop.layout.usable_factor` with these settings: ``factor`` or smaller, or None."""
+        """:func:`tghop.layout.usable_factor` with these settings: ``factor`` or smaller, or None.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The exemplar's (H, W, ...).
+        exclude : ndarray of bool, shape (H, W), optional
+            Pixels left out of training (True: excluded).
+
+        Returns
+        -------
+        int or None
+            The largest factor in ``[2, factor]`` the exemplar is large enough for; None: none is.
+        """
         return layout.usable_factor(shape, self.factor, patch_size=self.patch_size, exclude=exclude,
                                     n_clusters=self.n_clusters, min_patches=self.min_patches,
                                     max_patches=self.max_patches)
 
     def fit(self, image, y=None, *, exclude=None):
-        """Fit the coarse model on ``image`` (H, W, C) downsampled by ``factor``.
+        """Fit the coarse model on ``image`` downsampled by ``factor``.
 
-        ``exclude`` (H, W) bool, optional: pixels to leave out (:meth:`TGHop.fit`); a
-        coarse pixel is left out when any of its pixels is.
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, C)
+            The exemplar: float in [0, 1], or uint8 (downsampled without a float copy).
+        y : None
+            Ignored (scikit-learn's signature).
+        exclude : array_like of bool, shape (H, W), optional
+            Pixels to leave out (:meth:`TGHop.fit`); a coarse pixel is left out when any of
+            its pixels is.
 
         Returns
         -------
@@ -709,9 +652,21 @@ class CoarseLayout(BaseEstimator):
         return self
 
     def guide(self, size, **options):
-        """A coarse synthesis upsampled to ``size``, (H, W, C) float32 in [0, 1]: the layout the
-        fine level follows. ``options``: the keywords of :func:`tghop.layout.coarse_guide` (``rng``,
-        ``n_patches``, ``tile``, ``refine``, ``seam_window``, ``flat_share``, ``patch_refine``)."""
+        """A coarse synthesis upsampled to ``size``: the layout the fine level follows.
+
+        Parameters
+        ----------
+        size : int or (int, int)
+            Output (H, W).
+        **options
+            The keywords of :func:`tghop.layout.coarse_guide` (``rng``, ``n_patches``, ``tile``,
+            ``refine``, ``seam_window``, ``flat_share``, ``patch_refine``); others are a
+            :class:`TGHopError`.
+
+        Returns
+        -------
+        ndarray, shape (H, W, C), float32 in [0, 1]
+        """
         check_is_fitted(self, "model_")
         check_keywords(options, layout.coarse_guide, where="guide", exclude=("model", "factor", "size"))
         return layout.coarse_guide(self.model_, self.factor, size, **options)
