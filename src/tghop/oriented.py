@@ -76,6 +76,8 @@ def double_angle(h, w, dtype):
     for m in out:
         m.flags.writeable = False
     return out
+
+
 def oriented_parts(band, n_orientations, *, axes=(0, 1)):
     """Split a band into ``n_orientations`` oriented parts that sum to it.
 

@@ -519,6 +519,7 @@ class TGHop(PatchCodec, BaseEstimator):
             patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window,
             region=region, own_shares=own_shares, progress=progress, dtype=dtype, return_stages=return_stages)
 
+
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
 TGHop.synthesize.__doc__ = TGHop.synthesize.__doc__.replace(  # the generation settings, from the table
     "{settings}", textwrap.indent(settings.numpydoc_parameters(settings.generate_settings()), "    "))
