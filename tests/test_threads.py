@@ -97,3 +97,25 @@ def test_predict_holds_one_blas_thread(monkeypatch, small_model):
     np.testing.assert_array_equal(transformed, labels)
     with threadpool_limits(limits=1, user_api="blas"):
         np.testing.assert_array_equal(small_model.ichm_.predict(z), labels)
+
+
+def test_cluster_map_holds_one_blas_thread(monkeypatch, small_model):
+    # tghop clusters: the patches' encoding (the hops' matrix products) as well as predict runs
+    # at one BLAS thread, so that a machine of any core count paints the same clusters.
+    from tghop import explain
+
+    seen = []
+    encode = TGHop.encode
+
+    def spy(self, *args, **kwargs):
+        seen.append({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+        return encode(self, *args, **kwargs)
+
+    monkeypatch.setattr(TGHop, "encode", spy)
+    image = data.bricks(64, rng=5)
+    with threadpool_limits(limits=2, user_api="blas"):
+        labels = explain.cluster_map(small_model, image, stride=4)
+        assert {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"} <= {2}  # restored after
+    assert seen and all(s == {1} for s in seen)
+    with threadpool_limits(limits=1, user_api="blas"):
+        np.testing.assert_array_equal(explain.cluster_map(small_model, image, stride=4), labels)

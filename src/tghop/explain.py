@@ -14,7 +14,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
-from ._common import TGHopError, check_image, check_is_fitted, report
+from ._common import TGHopError, check_image, check_is_fitted, one_blas_thread, report
 from .synthesis import TGHop, grey_as_rgb
 
 __all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK", "PALETTE_LEVELS"]
@@ -48,6 +48,7 @@ def _model_image(model, image):
     return img
 
 
+@one_blas_thread()  # the same clusters on any number of cores (the hops' products round by BLAS's threads)
 def cluster_map(model, image, *, stride=None, progress=None) -> np.ndarray:
     """The cluster of the model's core model that each patch of ``image`` falls in.
 
