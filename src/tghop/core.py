@@ -326,7 +326,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
             self.residual_group_, self.residual_factor_ = residual_factors(residuals, d_r, groups)
 
     def residual_draws(self, n, *, rng=None):
-        """Standard normals for ``n`` residual draws, group by group (a generator).
+        """Standard normals for ``n`` residual draws, group by group (an iterator; ``n`` and the fit checked at the call).
 
         Parameters
         ----------
@@ -342,17 +342,21 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         factor : ndarray, shape (k, k)
             The group's residuals are ``normals @ factor.T``.
         """
-        check_is_fitted(self, "means_")
+        check_is_fitted(self, "means_")  # checked at the call, not at the first draw
         n = check_count(n)
         rng = check_rng(rng)
         groups = getattr(self, "residual_group_", np.zeros(0, dtype=np.int64))
-        start = 0
-        for g in np.unique(groups):
-            dims = np.flatnonzero(groups == g)
-            k = dims.size
-            factor = self.residual_factor_[start: start + k * k].reshape(k, k)
-            start += k * k
-            yield dims, rng.standard_normal((int(n), k)), factor
+
+        def draws():
+            start = 0
+            for g in np.unique(groups):
+                dims = np.flatnonzero(groups == g)
+                k = dims.size
+                factor = self.residual_factor_[start: start + k * k].reshape(k, k)
+                start += k * k
+                yield dims, rng.standard_normal((int(n), k)), factor
+
+        return draws()
 
     def sample_residual(self, n, *, rng=None):
         """Draw ``n`` residual vectors from the Gaussian (zeros without ``residual``).
