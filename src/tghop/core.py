@@ -326,7 +326,9 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
             self.residual_group_, self.residual_factor_ = residual_factors(residuals, d_r, groups)
 
     def residual_draws(self, n, *, rng=None):
-        """Standard normals for ``n`` residual draws, group by group (an iterator; ``n`` and the fit checked at the call).
+        """Standard normals for ``n`` residual draws, group by group (an iterator).
+
+        The fit and ``n`` are checked at the call, before the first draw.
 
         Parameters
         ----------
