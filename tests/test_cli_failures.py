@@ -312,6 +312,16 @@ def test_help_shows_each_default_as_its_kind():
     assert "[default: auto; --paper: 50]" in flat.split("--clusters", 1)[1].split(" --codewords", 1)[0]
 
 
+def test_help_shows_each_paper_value_in_the_command_lines_words():
+    # `--paper: False` and `--paper: None` (Python's words) beside `[default: on` for a flag and `--layout none`.
+    flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())
+    colours = flat.split("--match-colours / --no-match-colours", 1)[1].split(" --layout-weight", 1)[0]
+    assert colours.endswith("[default: on; --paper: off]"), colours
+    assert "[default: 3; --paper: none]" in flat.split("--layout INT", 1)[1].split(" --scale", 1)[0]
+    assert "[default: 1024; --paper: none]" in flat.split("--region INT", 1)[1].split(" --own-shares", 1)[0]
+    assert "--paper: None" not in flat and "--paper: False" not in flat and "--paper: True" not in flat
+
+
 def test_a_model_without_a_layout_warns_of_the_layout_options(folder, tmp_path):
     # --layout-weight, --layout-refine and --layout-patch-refine on such a model were ignored without a word.
     code, _, err, _ = invoke("fit", folder / "bricks.png", "-o", "flat.npz", *FAST, "--layout", "none", cwd=tmp_path)

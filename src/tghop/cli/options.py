@@ -141,20 +141,24 @@ def _plain(text: str) -> str:
     return re.sub(r"``([^`]+)``", r"\1", re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text))
 
 
+def _shown(s, value):
+    """``value`` of setting ``s`` as the command line writes it: on / off, auto / none, else the value."""
+    # By kind, not by value: 1.0 == True and 0.0 == False as dictionary keys.
+    if isinstance(value, bool):
+        return {True: "on", False: "off"}[value]
+    return ("auto" if s.auto else "none") if value is None else value
+
+
 def _setting_option(s):
     """A click option for setting ``s``, its help and default taken from the table."""
     names = list(s.option_names)
     help_text = _plain(s.help)
-    default = s.default
-    # By kind, not by value: 1.0 == True and 0.0 == False as dictionary keys.
-    shown = {True: "on", False: "off"}[default] if isinstance(default, bool) else (
-        ("auto" if s.auto else "none") if default is None else default)
-    extra = f"default: {shown}"
+    extra = f"default: {_shown(s, s.default)}"
     if s.kind == "rng":
         return click.option(*names, "rng", type=click.IntRange(min=0), default=None,
                             help="Seed of fitting (K-means, FastICA). [default: 0]")
     if s.has_paper and s.paper != s.default:
-        extra += f"; --paper: {s.paper}"
+        extra += f"; --paper: {_shown(s, s.paper)}"
     if s.kind == "float" and s.low is not None and s.high is not None and s.high <= 1:  # a fraction: its range
         extra += f"; {s.low:g}{'<' if s.low_open else '<='}x{'<' if s.high_open else '<='}{s.high:g}"
     if s.kind == "bool":
