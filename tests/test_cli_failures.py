@@ -322,6 +322,14 @@ def test_help_shows_each_paper_value_in_the_command_lines_words():
     assert "--paper: None" not in flat and "--paper: False" not in flat and "--paper: True" not in flat
 
 
+def test_serve_and_batch_help_say_what_the_code_does():
+    # --host named 127.0.0.1 (localhost) only, though ::1 is quiet too; --retries read "Tries again elsewhere".
+    serve = " ".join(CliRunner().invoke(main, ["serve", "--help"]).stdout.split())
+    assert "Any other than 127.0.0.1, localhost or ::1 lets other machines use the server" in serve, serve
+    batch = " ".join(CliRunner().invoke(main, ["batch", "--help"]).stdout.split())
+    assert "Times a task whose worker died" in batch and "Tries again elsewhere" not in batch, batch
+
+
 def test_a_model_without_a_layout_warns_of_the_layout_options(folder, tmp_path):
     # --layout-weight, --layout-refine and --layout-patch-refine on such a model were ignored without a word.
     code, _, err, _ = invoke("fit", folder / "bricks.png", "-o", "flat.npz", *FAST, "--layout", "none", cwd=tmp_path)

@@ -49,7 +49,8 @@ class BatchProgress(Progress):
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Run on an existing dask.distributed scheduler (e.g. tcp://host:8786) instead.")
 @click.option("--retries", type=click.IntRange(min=0, max=20), default=3, show_default=True,
-              help="Tries again elsewhere for a task whose worker died (local cluster), then recorded as failed.")
+              help="Times a task whose worker died (killed, out of memory) runs again on another worker of the "
+                   "local cluster before it is recorded as failed.")
 @QUIET_OPTION
 def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet, **options):
     """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.

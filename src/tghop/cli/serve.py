@@ -80,8 +80,8 @@ def _bind(host: str, port: int):
 
 @click.command()
 @click.option("--host", default="127.0.0.1", show_default=True,
-              help="Address to listen on. Other than 127.0.0.1 (localhost) lets other machines use the server: "
-                   "a warning is printed.")
+              help="Address to listen on. Any other than 127.0.0.1, localhost or ::1 lets other machines use the "
+                   "server (it has no login): a warning is printed.")
 @click.option("--port", type=click.IntRange(0, 65535), default=8000, show_default=True,
               help="Port to listen on (0: a free one).")
 @click.option("--open", "open_browser", is_flag=True, help="Open the page in a web browser.")
