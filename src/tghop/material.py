@@ -18,8 +18,11 @@ named in ``normal``; it must have 3 channels holding unit vectors encoded as ``(
 
 Example
 -------
->>> from tghop.material import Material                                       # doctest: +SKIP
->>> mat = Material(rng=0).fit(albedo, maps={"normal": normal, "height": height})  # doctest: +SKIP
+>>> from tghop import data
+>>> from tghop.material import Material, example_maps
+>>> albedo = data.bricks()
+>>> maps = example_maps(albedo)   # made from the albedo; your own: arrays of its size (a normal map: 3 channels)
+>>> mat = Material(rng=0).fit(albedo, maps={"normal": maps["normal"], "height": maps["height"]})  # doctest: +SKIP
 >>> out = mat.synthesize((512, 512), rng=1)   # {"albedo": ..., "normal": ..., "height": ...}  # doctest: +SKIP
 """
 
