@@ -256,3 +256,41 @@ def test_docstring_examples_run_as_pasted():
             result = runner.run(test, out=failures.append)
             attempted += result.attempted
     assert attempted >= 5 and not failures, "".join(failures)[:2000]
+
+
+def test_docstring_examples_define_every_name_they_use():
+    # The lines marked `# doctest: +SKIP` are not run, but a reader pastes them too: tghop.material's
+    # example fitted `albedo`, `normal` and `height`, which no line of it made.
+    import builtins
+    import doctest
+    import importlib
+
+    finder = doctest.DocTestFinder(exclude_empty=True)
+    undefined = []
+    for name in MODULES:
+        if name.endswith("__main__"):
+            continue
+        for test in finder.find(importlib.import_module(name), name, globs={}):
+            tree = ast.parse("".join(example.source for example in test.examples))
+            made = set(dir(builtins))
+            for node in ast.walk(tree):
+                if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                    made.add(node.id)
+                elif isinstance(node, (ast.Import, ast.ImportFrom)):
+                    made.update((a.asname or a.name).split(".")[0] for a in node.names)
+            used = {node.id for node in ast.walk(tree) if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load)}
+            undefined += [f"{test.name}: {n}" for n in sorted(used - made)]
+    assert not undefined, undefined
+
+
+def test_the_readme_names_every_module():
+    # "How it works (one module per stage)" listed tghop.server's modules but for `safety`.
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    table = {line.split("|")[1]: line for line in readme.splitlines() if line.startswith("| `tghop.")}
+    missing = [f"tghop.{p.stem}" for p in SRC.glob("*.py")
+               if not p.stem.startswith("__") and f"`tghop.{p.stem}`" not in readme]
+    for package in ("server", "cooc"):
+        row = next(line for key, line in table.items() if f"`tghop.{package}`" in key)
+        missing += [f"tghop.{package}.{p.stem}" for p in (SRC / package).glob("*.py")
+                    if not p.stem.startswith("__") and f"`{p.stem}`" not in row]
+    assert not missing, missing
