@@ -322,6 +322,19 @@ def test_help_shows_each_paper_value_in_the_command_lines_words():
     assert "--paper: None" not in flat and "--paper: False" not in flat and "--paper: True" not in flat
 
 
+def test_help_gives_the_channel_options_defaults():
+    # --k1, --k2 and --k3 said the paper's counts but not what tghop takes without them.
+    from tghop.synthesis import default_channels
+
+    flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())
+    for hop, (colour, grey, six) in enumerate(zip(default_channels(64, 3), default_channels(64, 1),
+                                                  default_channels(64, 6))):
+        text = flat.split(f"--k{hop + 1} ", 1)[1].split(" --", 1)[0]
+        assert f"[default: {colour}; grey exemplars {grey}; a material of C channels {colour} x C / 3, rounded up]" \
+            in text, text
+        assert six == -(-colour * 6 // 3)
+
+
 def test_serve_and_batch_help_say_what_the_code_does():
     # --host named 127.0.0.1 (localhost) only, though ::1 is quiet too; --retries read "Tries again elsewhere".
     serve = " ".join(CliRunner().invoke(main, ["serve", "--help"]).stdout.split())

@@ -170,11 +170,19 @@ def _setting_option(s):
 def _channel_options():
     return [
         click.option("--k1", type=ChannelRule(), default=None,
-                     help="Hop-1 channels (paper: 9): count, energy fraction or 'knee'."),
-        click.option("--k2", type=ChannelRule(), default=None, help="Hop-2 channels in total (paper: 22)."),
+                     help="Hop-1 channels (paper: 9): count, energy fraction or 'knee'. " + _channels_default(0)),
+        click.option("--k2", type=ChannelRule(), default=None,
+                     help="Hop-2 channels in total (paper: 22). " + _channels_default(1)),
         click.option("--k3", type=ChannelRule(), default=None,
-                     help="Hop-3 channels (64x64 patches; paper and default 63)."),
+                     help="Hop-3 channels (64x64 patches only; paper: 63). " + _channels_default(2)),
     ]
+
+
+def _channels_default(hop):
+    """The default of ``--k<hop + 1>`` in words: tghop.synthesis.default_channels's counts (not imported here,
+    which would load the library for ``--help``; a test holds the two alike)."""
+    colour, grey = (9, 22, 63)[hop], (4, 10, 28)[hop]
+    return f"[default: {colour}; grey exemplars {grey}; a material of C channels {colour} x C / 3, rounded up]"
 
 
 def _fit_options():
