@@ -335,6 +335,15 @@ def test_help_gives_the_channel_options_defaults():
         assert six == -(-colour * 6 // 3)
 
 
+def test_cooc_train_help_gives_the_steps_default():
+    # --steps said "(default: the configuration's)", a number nowhere on the page for --paper.
+    from tghop.cooc.config import PAPER, SMALL
+
+    flat = " ".join(CliRunner().invoke(main, ["cooc", "train", "--help"]).stdout.split())
+    assert (f"[default: the configuration's: {SMALL['n_steps']:,} small, {PAPER['n_steps']:,} with --paper]"
+            in flat), flat
+
+
 def test_serve_and_batch_help_say_what_the_code_does():
     # --host named 127.0.0.1 (localhost) only, though ::1 is quiet too; --retries read "Tries again elsewhere".
     serve = " ".join(CliRunner().invoke(main, ["serve", "--help"]).stdout.split())

@@ -116,7 +116,7 @@ def cooc():
               help="The paper's configuration (128 px crops, s = 32, 2,000 crops; ~10 min on an H100 GPU, "
                    "far too slow for a CPU).")
 @click.option("--steps", type=click.IntRange(min=0), default=None,
-              help="Generator steps (default: the configuration's).")
+              help="Generator steps. [default: the configuration's: 5,500 small, 3,750 with --paper]")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a setting, e.g. --set crop_size=32 --set g_widths=[32,16] (repeatable).")
 @click.option("--resume", is_flag=True, help="Continue the checkpoint at OUTPUT (same exemplar) up to --steps.")
