@@ -499,3 +499,10 @@ def test_help_info_and_generation_do_not_import_sklearn_or_scipy(folder):
         assert "LOGGING False" in err.decode(), (args, err.decode())
         if args[0].startswith("--"):  # help and version do not even import NumPy
             assert "NUMPY False" in err.decode(), (args, err.decode())
+
+
+def test_evaluate_help_says_which_way_each_score_is_better():
+    # "Score RESULT images ... (lower is better but novelty)": RESULTS is the argument, and novelty went unexplained.
+    flat = " ".join(CliRunner().invoke(main, ["evaluate", "--help"]).stdout.split())
+    assert "Score RESULTS against EXEMPLAR with texture metrics: lower is better, except novelty (the distance to " \
+           "the nearest exemplar patch: higher is newer)." in flat, flat

@@ -30,7 +30,8 @@ __all__ = ["evaluate", "baseline"]
               "(tghop synth --scale).")
 @QUIET_OPTION
 def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
-    """Score RESULT images against EXEMPLAR with texture metrics (lower is better but novelty).
+    """Score RESULTS against EXEMPLAR with texture metrics: lower is better, except novelty (the
+    distance to the nearest exemplar patch: higher is newer).
 
     copied: the fraction of 16x16 result patches nearly equal to an exemplar patch (0: all new).
 
