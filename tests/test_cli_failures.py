@@ -506,3 +506,12 @@ def test_evaluate_help_says_which_way_each_score_is_better():
     flat = " ".join(CliRunner().invoke(main, ["evaluate", "--help"]).stdout.split())
     assert "Score RESULTS against EXEMPLAR with texture metrics: lower is better, except novelty (the distance to " \
            "the nearest exemplar patch: higher is newer)." in flat, flat
+
+
+@pytest.mark.parametrize("args, words", [(["--layout", "auto"], "'auto' is not an integer (or none)"),
+                                         (["--clusters", "none"], "'none' is not an integer (or auto)"),
+                                         (["--reject-threshold", "y"], "'y' is not a number (or none)")])
+def test_a_bad_word_for_an_option_that_takes_none_names_the_word(folder, args, words):
+    # `--layout auto` said "'auto' is not an integer", never that the option takes `none` (the server's fit said it).
+    code, _, err, _ = invoke("synth", "model.npz", "-o", "o.png", *args, cwd=folder)
+    assert code == 2 and words in err, err

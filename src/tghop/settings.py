@@ -173,20 +173,22 @@ class Setting:
         return value
 
     def parse(self, text: str):
-        """A command-line string -> value (then :meth:`check`); raises TGHopError."""
+        """A command-line string -> value (then :meth:`check`); raises TGHopError, whose line names
+        the word for None where the setting takes it (``'abc' is not an integer (or auto)``)."""
         text = str(text).strip()
         if self.none_ok and text.lower() in (("auto",) if self.auto else ("none", "off")):
             return None
+        word = f" (or {'auto' if self.auto else 'none'})" if self.none_ok else ""
         if self.kind == "int":
             try:
                 return int(text)
             except ValueError:
-                raise TGHopError(f"{text!r} is not an integer") from None
+                raise TGHopError(f"{text!r} is not an integer{word}") from None
         if self.kind == "float":
             try:
                 return float(text)
             except ValueError:
-                raise TGHopError(f"{text!r} is not a number") from None
+                raise TGHopError(f"{text!r} is not a number{word}") from None
         if self.kind == "choice":
             for c in self.choices:
                 if str(c) == text:

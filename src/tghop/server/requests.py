@@ -167,8 +167,7 @@ def _parse_field(s, text: str):
     try:
         return s.parse(text)
     except TGHopError as exc:
-        word = ("auto" if s.auto else "none") if s.none_ok else ""
-        raise TGHopError(f"{s.name}: {exc}" + (f" (or {word})" if word else "")) from None
+        raise TGHopError(f"{s.name}: {exc}") from None
 
 
 def parse_growth(size, anchor) -> tuple:
