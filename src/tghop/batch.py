@@ -550,7 +550,10 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         given one) each exemplar runs on one thread (BLAS's and tghop's own), the longest first.
         Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
-        Run on this client's cluster. ``scheduler``: the address of one to connect to.
+        Run on this client's cluster.
+    scheduler : str, optional
+        The address of a running dask.distributed scheduler to connect to (``tcp://host:8786``, as
+        ``tghop batch --scheduler``).
     retries : int
         How often a task whose worker died (killed, out of memory) is run again elsewhere
         before it is recorded as failed: ``distributed.scheduler.allowed-failures`` of the

@@ -324,6 +324,8 @@ def space_to_depth(x: np.ndarray, block: int = 2) -> np.ndarray:
     ----------
     x : ndarray, shape (n, H, W, C)
         ``H`` and ``W`` divisible by ``block``.
+    block : int, default=2
+        Side of the blocks.
 
     Returns
     -------

@@ -73,6 +73,8 @@ class Setting:
         refit to change). "generate": a ``synthesize`` keyword, given per call.
     low, high : float, optional
         Allowed range (inclusive unless ``low_open`` / ``high_open``).
+    low_open, high_open : bool
+        The bound itself is not allowed.
     none_ok : bool
         None is allowed (meaning "off" or "automatic", see the help).
     auto : bool
