@@ -515,3 +515,13 @@ def test_a_bad_word_for_an_option_that_takes_none_names_the_word(folder, args, w
     # `--layout auto` said "'auto' is not an integer", never that the option takes `none` (the server's fit said it).
     code, _, err, _ = invoke("synth", "model.npz", "-o", "o.png", *args, cwd=folder)
     assert code == 2 and words in err, err
+
+
+@pytest.mark.parametrize("args", [[], ["cooc"]])
+def test_a_group_without_a_command_prints_its_help_not_an_error(args):
+    # `tghop` alone printed "Error: Usage: tghop ..." and the whole help, then "(see 'tghop --help')".
+    p = subprocess.run([sys.executable, "-m", "tghop", *args], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and p.stdout == "", (p.returncode, p.stdout)
+    assert p.stderr.startswith(f"Usage: {' '.join(['tghop', *args])} [OPTIONS] COMMAND") and "Error" not in p.stderr, \
+        p.stderr
+    assert "Commands:" in p.stderr and "(see '" not in p.stderr, p.stderr

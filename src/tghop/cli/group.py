@@ -138,11 +138,17 @@ def _output_gone(exc: BrokenPipeError):
     sys.exit(0)
 
 
+#: click 8.2's usage error for a group called without a command, whose message is the whole help (none before 8.2,
+#: which prints the help itself).
+_NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
 class OneLineGroup(click.Group):
     """Every failure of the command line, click's usage errors and Ctrl-C included, is one
     line on stderr (``Error: ...``) and a non-zero exit status, never a traceback. A reader
     of the output that went away (``tghop info M | head -1``) is no failure: the command
-    stops there, without a word, exit status 0 (:func:`~tghop.cli.common.output_gone`)."""
+    stops there, without a word, exit status 0 (:func:`~tghop.cli.common.output_gone`). ``tghop``
+    (or ``tghop cooc``) without a command prints its help on stderr, as click does, exit status 2."""
 
     def main(self, args=None, prog_name=None, as_command=False, **extra):
         """Run the command line and exit.
@@ -172,6 +178,9 @@ class OneLineGroup(click.Group):
             sys.stdout.flush()  # a full disk behind `> file` shows here, not at exit
         except click.exceptions.Abort as exc:  # Ctrl-C (or SIGTERM/SIGHUP) or EOF inside click
             fail(*stop_message(exc))
+        except _NO_ARGS_IS_HELP as exc:  # `tghop` or `tghop cooc` alone: its help, as click shows it (stderr, 2)
+            exc.show()
+            sys.exit(exc.exit_code)
         except click.UsageError as exc:
             command = (exc.ctx.command_path if exc.ctx is not None and exc.ctx.command is not self
                        else self._command_path(sys.argv[1:] if args is None else list(args)))
