@@ -525,3 +525,10 @@ def test_a_group_without_a_command_prints_its_help_not_an_error(args):
     assert p.stderr.startswith(f"Usage: {' '.join(['tghop', *args])} [OPTIONS] COMMAND") and "Error" not in p.stderr, \
         p.stderr
     assert "Commands:" in p.stderr and "(see '" not in p.stderr, p.stderr
+
+
+def test_file_options_name_what_they_take():
+    # `baseline --model TEXT` and `cooc edit --mask TEXT` said nothing of the file each takes.
+    baseline = " ".join(CliRunner().invoke(main, ["baseline", "--help"]).stdout.split())
+    edit = " ".join(CliRunner().invoke(main, ["cooc", "edit", "--help"]).stdout.split())
+    assert "--model CHECKPOINT " in baseline and "--mask IMAGE " in edit, (baseline, edit)

@@ -222,7 +222,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
 @click.argument("sources", nargs=-1)
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
-@click.option("--mask", default=None,
+@click.option("--mask", default=None, metavar="IMAGE",
               help="Grey image: its levels, quantised to the number of SOURCES, say which source goes where "
                    "(default: SOURCES side by side, left to right).")
 @click.option("--boost", default=None, metavar="A,B,FACTOR",

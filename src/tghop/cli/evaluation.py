@@ -120,7 +120,7 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
               help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
                    "cooc: training steps (default 5500; not with --model). "
                    "gpdm: Adam steps per pyramid level (default 300).")
-@click.option("--model", "model_file", default=None,
+@click.option("--model", "model_file", default=None, metavar="CHECKPOINT",
               help="cooc: a checkpoint from 'tghop cooc train' on this EXEMPLAR to generate from instead of training.")
 @click.option("--assembly", type=click.Choice(["quilt", "pass", "windows"]), default=None,
               help="cooc: how the image is made from the generator: quilt (default: generated training-size "
