@@ -872,7 +872,8 @@ def test_ichm_fit_refuses_bad_vectors(core_and_z, make, message):
 
 def test_ichm_members_raise_not_fitted_before_fit():
     u = ICHM(n_clusters=4)
-    calls = [lambda: u.sample_residual(3), lambda: u.residual_draws(3), lambda: u.mix(np.zeros(3, int), [np.zeros((3, 2))]),
+    calls = [lambda: u.sample_residual(3), lambda: u.residual_draws(3),
+             lambda: u.mix(np.zeros(3, int), [np.zeros((3, 2))]),
              lambda: u.mix_by_cluster(np.zeros(3, int), [np.zeros((3, 2))]), lambda: u.mixing_shape_,
              lambda: u.mixing_as(np.float32), lambda: u.p_, lambda: u.mixing_, lambda: u.sample(3),
              lambda: u.predict(np.zeros((3, 2))), lambda: u.transform(np.zeros((3, 2)))]
