@@ -152,7 +152,7 @@ def _shown(s, value):
 def _setting_option(s):
     """A click option for setting ``s``, its help and default taken from the table."""
     names = list(s.option_names)
-    help_text = _plain(s.help)
+    help_text = _plain(s.help).replace("None: ", f"{_shown(s, None)}: ")  # the word the option takes for None
     extra = f"default: {_shown(s, s.default)}"
     if s.kind == "rng":
         return click.option(*names, "rng", type=click.IntRange(min=0), default=None,
