@@ -105,7 +105,7 @@ class Size(click.ParamType):
             self.fail(f"{value!r} is not a size; write HEIGHTxWIDTH, e.g. 512x512", param, ctx)
         h, w = pair
         try:
-            return check_size((h, w), name="--size")
+            return check_size((h, w), name="the size")  # click names the option before it
         except TGHopError as exc:
             self.fail(str(exc), param, ctx)
 
