@@ -192,8 +192,13 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     assert_error(client.post(f"/api/models/{plain}/inpaint", files={
         "image": ("p.png", picture), "mask": ("m.png", png(mask)), "map:height": ("h.png", picture)}),
         422, "is a texture model; map:<name> fields go with a material")
+    # In a person's words (the page's A and B, the id's start as the page lists the model; what to do), not
+    # the API's field name ("a is a material")
     assert_error(client.post("/api/images/morph", json={"a": material_id, "b": plain, "size": [32, 64]}),
-                 422, "a is a material", "morph")
+                 422, f"A ({material_id[:8]}) is a material (albedo, normal, height), and a morph goes between two "
+                 "texture models: pick a texture model as A (fit one from the material's albedo alone")
+    assert_error(client.post("/api/images/morph", json={"a": plain, "b": material_id, "size": [32, 64]}),
+                 422, f"B ({material_id[:8]}) is a material", "pick a texture model as B")
     # Named as the request and the page name them (models[i], the start of the id)
     assert_error(client.post("/api/images/guided", json={"models": [material_id, plain], "size": [32, 32]}),
                  422, f"models[1] ({plain[:8]}) is a texture model but models[0] ({material_id[:8]}) is a material")

@@ -31,7 +31,7 @@ from ..manifest import MAX_MAPS
 from .requests import RequestError, check_channel_counts, safe_name
 
 __all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "check_channels", "material_id",
-           "texture_only", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
+           "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
            "META_PART"]
 
 #: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
@@ -125,14 +125,6 @@ def material_id(albedo_content: bytes, uploads, settings: dict, model_id_for) ->
     for name, _, content in uploads:
         digest.update(b"\0tghop-map\0" + name.encode() + b"\0" + hashlib.sha256(content).digest())
     return model_id_for(digest.digest(), {**settings, "material": [name for name, _, _ in uploads]})
-
-
-def texture_only(model, label: str, work: str) -> None:
-    """Refuse a material where ``work`` takes texture models only (422, one line naming
-    ``label``, the model as the request names it)."""
-    if is_material(model):
-        raise RequestError(422, f"{label} is a material ({', '.join(model.names_)}); {work} takes texture models: "
-                                "fit one from the material's albedo")
 
 
 def same_kind(models, ids) -> None:

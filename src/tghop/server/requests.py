@@ -48,6 +48,14 @@ def safe_name(name, default: str) -> str:
     return base or default
 
 
+def file_stem(name) -> str:
+    """A name as part of a download's file name (``?name=`` of a file's download, as the page makes it
+    too): runs of other characters than letters, digits, ``.``, ``_`` and ``-`` as one ``-``, none at
+    either end, at most 40 characters; ``""`` for none."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "-", str(name or "")).strip("-._")
+    return stem[:40].rstrip("-._")
+
+
 def check_multipart_end(content_type: str, body: bytes) -> None:
     """400 when a multipart ``body`` lacks its closing delimiter (``--BOUNDARY--``): empty or cut short.
     The parser takes such a body without a word and drops its last part (the fields sent then seemed

@@ -49,7 +49,8 @@ async def cooc_summary(server, request):
 async def cooc_file(server, request):
     """``GET /api/cooc/{id}/file``: the checkpoint as uploaded."""
     cid = checkpoint_id(server, request)
-    return send_file(server.cooc, cid, f"no co-occurrence checkpoint {cid}; {cooc.COOC_HINT}")
+    return send_file(server.cooc, cid, f"no co-occurrence checkpoint {cid}; {cooc.COOC_HINT}", kind="cooc",
+                     name=request.query_params.get("name"))
 
 
 async def cooc_morph(server, request):

@@ -147,8 +147,11 @@ def morph_png(server, ids, size, stations, settings, seed) -> tuple:
     from ...guided import morph as morph_strip
 
     models = [server.cache.load(model_id) for model_id in ids]
-    for label, model in zip(["a", "b"], models):
-        materials.texture_only(model, label, "a morph")
+    for label, model_id, model in zip(["A", "B"], ids, models):
+        if materials.is_material(model):  # in a person's words: the page's A and B, the model as it lists it
+            raise RequestError(422, f"{label} ({model_id[:8]}) is a material ({', '.join(model.names_)}), and a "
+                                    "morph goes between two texture models: pick a texture model as "
+                                    f"{label} (fit one from the material's albedo alone, without its maps)")
     same_patches(models, ["a", "b"])
     return several_png(server, lambda m, rng, dtype: morph_strip(
         m[0], m[1], size, rng=rng, stations=stations, dtype=dtype, progress=server.unless_stopping, **settings),

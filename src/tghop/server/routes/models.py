@@ -8,10 +8,10 @@ import io
 import os
 
 from ..core import json_response
-from ..requests import RequestError, safe_name
+from ..requests import RequestError, file_stem, safe_name
 from ..uploads import read_body, read_form
 
-__all__ = ["summary", "model_summary", "send_file", "model_file", "store_upload", "upload_model"]
+__all__ = ["summary", "model_summary", "download_name", "send_file", "model_file", "store_upload", "upload_model"]
 
 
 def summary(server, model_id: str) -> dict:
@@ -37,10 +37,16 @@ async def model_summary(server, request):
     return json_response(await run_in_threadpool(summary, server, request.path_params["id"]))
 
 
-def send_file(cache, file_id: str, missing: str):
+def download_name(file_id: str, suffix: str, *, kind: str = "", name=None) -> str:
+    """A download's file name: ``tghop[-kind][-name]-<first 12 of the id><suffix>``, ``name`` (``?name=``,
+    the page's name of the model: its exemplar's or file's) made safe by :func:`file_stem`."""
+    return "-".join(part for part in ("tghop", kind, file_stem(name), file_id[:12]) if part) + suffix
+
+
+def send_file(cache, file_id: str, missing: str, *, kind: str = "", name=None):
     """The file ``file_id`` of ``cache`` (a :class:`~tghop.server.cache.ModelCache`) as a download
-    (404 with ``missing`` if none). The file is opened here and sent from the open file: one the
-    cache's bound drops meanwhile (another model added) is still sent whole."""
+    (404 with ``missing`` if none), named by :func:`download_name`. The file is opened here and sent from
+    the open file: one the cache's bound drops meanwhile (another model added) is still sent whole."""
     from starlette.responses import StreamingResponse
 
     path = cache.path(file_id)
@@ -55,15 +61,18 @@ def send_file(cache, file_id: str, missing: str):
             while block := handle.read(1024 * 1024):
                 yield block
 
+    filename = download_name(file_id, path.suffix, kind=kind, name=name)
     headers = {"Content-Length": str(os.fstat(handle.fileno()).st_size),
-               "Content-Disposition": f'attachment; filename="tghop-{file_id[:12]}{path.suffix}"'}
+               "Content-Disposition": f'attachment; filename="{filename}"'}
     return StreamingResponse(chunks(), media_type="application/octet-stream", headers=headers)
 
 
 async def model_file(server, request):
-    """``GET /api/models/{id}/file``: the model file as ``tghop fit`` writes it."""
+    """``GET /api/models/{id}/file``: the model file as ``tghop fit`` writes it (``?name=``: a name for
+    its file, ``tghop-<name>-<id>.npz``)."""
     model_id = request.path_params["id"]
-    return send_file(server.cache, model_id, f"no model {model_id}; fit one with POST /api/models")
+    return send_file(server.cache, model_id, f"no model {model_id}; fit one with POST /api/models",
+                     name=request.query_params.get("name"))
 
 
 def store_upload(server, content: bytes, filename: str) -> str:
