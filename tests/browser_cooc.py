@@ -8,6 +8,8 @@ The checkpoint is ``conftest.tiny_cooc_checkpoint``: a 64x64 exemplar, 32 px cro
 3 colour clusters.
 """
 
+import os
+
 #: JavaScript (a function body; arguments: a canvas's selector, x0, x1): the distinct
 #: colours ``"r,g,b"`` of the canvas's columns x0 to x1 - 1, over its whole height.
 COLUMN_COLOURS_JS = """const c = document.querySelector(arguments[0]);
@@ -44,10 +46,11 @@ def cooc_steps(d, checkpoint):
     assert d.run("const c = document.getElementById('cooc-exemplar'); return [c.height, c.width]") == [64, 64]
     assert "exemplar 64x64, 32 px crops" in d.run("return document.getElementById('cooc-summary').textContent")
     assert d.run("return !document.getElementById('cooc-picture-button').hidden")  # not a built-in exemplar
+    stem = os.path.splitext(os.path.basename(str(checkpoint)))[0]  # tiny.pt: tiny
     link = d.run("const a = document.getElementById('cooc-download');"
                  "return [a.hidden, a.getAttribute('href'), a.getAttribute('download')]")
-    assert link[0] is False and link[1].startswith("/api/cooc/") and link[1].endswith("/file")
-    assert link[2] == f"tghop-cooc-{link[1].split('/')[3][:12]}.pt"
+    assert link[0] is False and link[1].startswith("/api/cooc/") and link[1].endswith(f"/file?name={stem}")
+    assert link[2] == f"tghop-cooc-{stem}-{link[1].split('/')[3][:12]}.pt"  # as the server names it
     assert d.run("return document.getElementById('cooc-boost-a').max") == "2"  # 3 colour clusters
     scale = d.run("const c = document.getElementById('cooc-exemplar');"
                   " return c.getBoundingClientRect().width / c.width")

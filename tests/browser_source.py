@@ -91,7 +91,11 @@ def upload_steps(d, npz, exemplar_size):
     h, w = exemplar_size
     assert f"exemplar {h}x{w}, 3 channels" in text(d, "#summary")
     assert d.run("return document.getElementById('exemplar').hidden") is True  # a model has no exemplar to show
-    assert d.run("return document.getElementById('download-model').getAttribute('href')").endswith("/file")
+    # Named for the file ("saved bricks.npz": saved-bricks), as the server's Content-Disposition names it
+    href, download = d.run("const a = document.getElementById('download-model');"
+                           " return [a.getAttribute('href'), a.getAttribute('download')]")
+    stem = "-".join(npz.stem.split())
+    assert href.endswith(f"/file?name={stem}") and download == f"tghop-{stem}-{href.split('/')[3][:12]}.npz"
     d.fill("#height", "48")
     d.fill("#width", "64")
     d.fill("#seed", "9")

@@ -79,7 +79,7 @@ def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
     assert page.eval_on_selector("#tiled", "c => [c.height, c.width]") == [3 * 72, 3 * 104]
     assert page.get_attribute("#download-png", "href").startswith("blob:")
     model_link = page.get_attribute("#download-model", "href")
-    assert model_link.startswith("/api/models/") and model_link.endswith("/file")
+    assert model_link.startswith("/api/models/") and model_link.endswith("/file?name=bricks")
     page.click("#strip-go")  # 8 seeds from the seed field on; clicking one makes it the result
     page.wait_for_function("document.querySelectorAll('#strip img').length === 8 && "
                            "[...document.querySelectorAll('#strip img')].every(i => i.complete && i.naturalWidth)",
@@ -192,7 +192,7 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     changed = (after != before).any(axis=2)
     assert changed[painted].mean() > 0.5  # the painted stroke is filled...
     assert not changed[:28].any() and not changed[72:].any()  # ...and far from it nothing changed
-    assert page.get_attribute("#download-png", "download") == "tghop-inpainted-seed5.png"
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-inpainted-96x128-seed5.png"
     assert page.get_attribute("#download-png", "href") == page.get_attribute("#result", "src")
     page.wait_for_selector("#editor[data-ready='1']")  # the filled picture is the one to paint on next
     assert not mask_of(page).any()
@@ -233,7 +233,7 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     page.wait_for_function(RESULT_SHOWN % "extended: 80x120, seed 5", timeout=60_000)
     grown = np.array(page.eval_on_selector("#result", PIXELS)).reshape(80, 120, 4)[..., :3]
     assert (grown[:64, :80] == filled).all() and grown[64:].reshape(-1, 3).std(axis=0).min() > 5
-    assert page.get_attribute("#download-png", "download") == "tghop-extended-seed5.png"
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-extended-80x120-seed5.png"
     page.wait_for_selector("#editor[data-ready='1']")
     page.fill("#extend-height", "40")  # smaller than the picture: said, not sent
     page.click("#extend-go")

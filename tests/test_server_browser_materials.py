@@ -66,21 +66,21 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 3'")
     assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == [
         "albedo", "bricks_normal", "height"]
-    assert page.get_attribute("#download-png", "download") == "tghop-seed3.png"
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-64x80-seed3.png"
     page.locator("#maps-view label", has_text="bricks_normal").click()
     page.wait_for_function("document.getElementById('result-caption').textContent"
                            " === 'result (bricks_normal): 64x80, seed 3'")
-    assert page.get_attribute("#download-png", "download") == "tghop-seed3_bricks_normal.png"
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-64x80-seed3_bricks_normal.png"
     page.wait_for_function("document.getElementById('tiled').width === 240")
 
     with page.expect_download() as download:  # one ZIP of every map, the files as tghop synth names them
         page.click("#download-maps")
-    assert download.value.suggested_filename == "tghop-seed3.zip"
+    assert download.value.suggested_filename == "tghop-bricks-64x80-seed3.zip"
     download.value.save_as(tmp_path / "maps.zip")
     with zipfile.ZipFile(tmp_path / "maps.zip") as archive:
         assert archive.testzip() is None  # every CRC right
         names = archive.namelist()
-        assert names == ["tghop-seed3.png", "tghop-seed3_bricks_normal.png", "tghop-seed3_height.png"]
+        assert names == [f"tghop-bricks-64x80-seed3{m}.png" for m in ("", "_bricks_normal", "_height")]
         archive.extractall(tmp_path)
     for name in names:
         image, depth = load_image(tmp_path / name, dtype=None, with_depth=True)
@@ -234,7 +234,7 @@ def test_fill_a_hole_in_every_map_of_a_material_result(page, tmp_path):
                            timeout=60_000)
     assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == ["albedo", "normal", "height"]
     page.locator("#maps-view label", has_text="normal").click()
-    assert page.get_attribute("#download-png", "download") == "tghop-inpainted-seed6_normal.png"
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-inpainted-64x80-seed6_normal.png"
     assert not [e for e in page.errors if "status of 4" not in e], page.errors
 
 

@@ -16,6 +16,7 @@
 
 // The mode of section 3 (view, inpaint, paint, morph, cooc): its panel shown, what it needs said.
 function setMode(mode) {
+  clearStrip();  // the seeds are of View's Generate
   const inpaint = mode === "inpaint";
   document.body.classList.toggle("inpaint", inpaint);
   $("inpaint").hidden = !inpaint;
@@ -29,6 +30,7 @@ function setMode(mode) {
     if (state.models.length < 2) sayPaint(PAINT_HINT);
   }
   if (mode === "morph" && state.models.length < 2) sayMorph(MORPH_HINT);
+  else if (mode === "morph") morphPicked();
 }
 
 // The built-in menu shows the exemplar of the working model (or of the fit running). Picking the one it
@@ -86,6 +88,7 @@ async function init() {
   $("cancel").addEventListener("click", cancelFit);
   $("gen-form").addEventListener("submit", onGenerate);
   $("strip-go").addEventListener("click", onStrip);
+  $("gen-form").addEventListener("invalid", onInvalidField, true);  // said in the status too
   for (const radio of document.querySelectorAll("input[name=mode]")) {
     radio.addEventListener("change", () => { if (radio.checked) setMode(radio.value); });
   }
@@ -111,6 +114,7 @@ async function init() {
   $("paint-go").addEventListener("click", () => onPaintGenerate(false));
   $("remix-go").addEventListener("click", () => onPaintGenerate(true));
   $("morph-go").addEventListener("click", onMorph);
+  for (const id of ["morph-a", "morph-b"]) $(id).addEventListener("change", morphPicked);
   $("zoom").addEventListener("change", (e) => document.body.classList.toggle("zoom", e.target.checked));
   const drop = $("drop");
   drop.addEventListener("keydown", (e) => {  // Enter or Space on the drop zone itself: the file chooser

@@ -41,7 +41,8 @@ function updateButtons() {
   $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob ||
     state.material === null || (state.material && !editor.maps);
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
-  $("morph-go").disabled = state.busy || state.models.length < 2;
+  $("morph-go").disabled = state.busy || state.models.length < 2 ||
+    (typeof morphProblem === "function" && morphProblem() !== "");  // paint.js: a material as A or B
   if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js
   if (state.busyButton) state.busyButton.disabled = false;  // it reads Stop
 }

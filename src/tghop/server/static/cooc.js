@@ -7,7 +7,7 @@
 
 // The checkpoint (id, its summary), the exemplar's picture (an Image, or null) and the crops:
 // one [y, x] (or null) per slot; `active` is the slot the next click places and the brush paints.
-const cooc = { id: null, info: null, picture: null, crops: [], active: 0 };
+const cooc = { id: null, info: null, picture: null, crops: [], active: 0, stem: "cooc" };
 const COOC_SLOTS = 4;
 const coocBoard = makeBoard("cooc-guide", "cooc-cursor", "cooc-brush", () => cooc.active);
 
@@ -51,7 +51,9 @@ async function uploadCooc(file) {
   const [h, w] = cooc.info.exemplar_shape;
   $("cooc-summary").textContent = `${file.name}: exemplar ${h}x${w}, ${cooc.info.crop_size} px crops, ` +
     `${cooc.info.step} of ${cooc.info.n_steps} steps trained`;
-  offerDownload($("cooc-download"), `/api/cooc/${id}/file`, `tghop-cooc-${id.slice(0, 12)}.pt`);
+  cooc.stem = modelStem(file.name);  // its name as the server's Content-Disposition gives it (download_name)
+  offerDownload($("cooc-download"), `/api/cooc/${id}/file?name=${encodeURIComponent(cooc.stem)}`,
+                `tghop-cooc-${cooc.stem}-${id.slice(0, 12)}.pt`);
   for (const which of ["a", "b"]) $(`cooc-boost-${which}`).max = String(cooc.info.n_clusters - 1);
   $("cooc-work").hidden = false;
   $("cooc-picture-button").hidden = Boolean(cooc.info.builtin);
@@ -162,7 +164,8 @@ function onCoocMorph() {
       seed: Number($("cooc-morph-seed").value) };
     sayCooc("morphing");
     const [blob, seed] = await postImage(`/api/cooc/${cooc.id}/morph`, body);
-    showResult(URL.createObjectURL(blob), seed, blob, "cooc-morph");
+    showResult(URL.createObjectURL(blob), seed, blob, "cooc-morph", undefined,
+               { models: [cooc.stem], size: [cooc.info.crop_size, body.length * cooc.info.s], tile: false });
     sayCooc(`done (seed ${seed}): the strip is below`);
   }, sayCooc);
 }
@@ -193,7 +196,8 @@ function onCoocEdit() {
     }
     sayCooc("generating");
     const [blob, seed] = await postImage(`/api/cooc/${cooc.id}/edit`, body);
-    showResult(URL.createObjectURL(blob), seed, blob, "cooc-edit");
+    showResult(URL.createObjectURL(blob), seed, blob, "cooc-edit", undefined,
+               { models: [cooc.stem], size: body.size, tile: false });
     sayCooc(`done (seed ${seed}): the result is below`);
   }, sayCooc);
 }

@@ -10,6 +10,40 @@ function offerDownload(link, href, name) {
   link.setAttribute("download", name);
 }
 
+// A name's characters safe in a file's name: runs of other characters than letters, digits, ".", "_" and "-"
+// as one "-", none at either end, at most 40 (the server's Content-Disposition makes the same of ?name=:
+// requests.file_stem).
+function fileStem(text) {
+  return String(text ?? "").replace(/[^A-Za-z0-9._-]+/g, "-").replace(/^[-._]+|[-._]+$/g, "").slice(0, 40)
+    .replace(/[-._]+$/, "");
+}
+
+// A model's part of a file name, from the page's name of it ("builtin:bricks + 2 maps", "wall.jpg"): "bricks",
+// "wall".
+function modelStem(name) {
+  const plain = String(name || "").replace(/^builtin:/, "").replace(/ \+ \d+ maps?$/, "")
+    .replace(/\.[A-Za-z0-9]+$/, "");
+  return fileStem(plain) || "model";
+}
+
+// The model file's download: its name as the server's Content-Disposition gives it (routes/models.py,
+// download_name), which wins over the link's own where they differ.
+function modelDownload(id, stem) {
+  return [`/api/models/${id}/file?name=${encodeURIComponent(stem)}`, `tghop-${stem}-${id.slice(0, 12)}.npz`];
+}
+
+// A result's file name, without ".png": tghop-<model(s)>[-<what>]-<H>x<W>-seed<N>[-tile] (`models`: their stems).
+function resultBase(seed, what, { models, size, tile }) {
+  const parts = ["tghop", ...models, ...(what ? [what] : []), `${size[0]}x${size[1]}`, `seed${fileStem(seed)}`];
+  return parts.join("-") + (tile ? "-tile" : "");
+}
+
+// The working model's stem (its name in state.models), "model" for none.
+function workingStem() {
+  const m = state.models.find((model) => model.id === state.modelId);
+  return m ? m.stem : "model";
+}
+
 function mapFile(shown, i) {
   return i ? `${shown.base}_${shown.maps[i].name}.png` : `${shown.base}.png`;
 }

@@ -28,6 +28,7 @@ function exemplarCaption() {
 // fit and a refused model file go back to it (the page as it was before that pick); a fit that ends or a
 // model file loaded replaces it.
 function setWorking(working) {
+  if (!working || $("strip").dataset.model !== working.modelId) clearStrip();  // an earlier model's seeds
   const old = state.working && state.working.exemplarUrl;
   state.working = working;
   if (old && old.startsWith("blob:") && old !== state.exemplarUrl && !(working && working.exemplarUrl === old)) {
@@ -61,7 +62,8 @@ function setModel(id, material = null) {
   if (id) addSessionModel(id, state.pendingName);
   updateButtons();
   exemplarCaption();
-  offerDownload($("download-model"), id && `/api/models/${id}/file`, id && `tghop-${id.slice(0, 12)}.npz`);
+  const [href, name] = id ? modelDownload(id, workingStem()) : [null, null];
+  offerDownload($("download-model"), href, name);
 }
 
 async function showSummary(id) {
@@ -87,11 +89,14 @@ async function showSummary(id) {
 // (an uploaded file until its summary comes): the menu is off too, as best would be a 422 for a material.
 function setMaterial(on) {
   state.material = on;
+  const listed = state.models.find((m) => m.id === state.modelId);
+  if (listed && on !== null) listed.material = on;  // Morph takes texture models only (morphProblem)
   $("quality").disabled = on !== false;
   $("quality").title = on ? "a material has no patch statistics: quality best does not apply"
     : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
   updateButtons();
   if (!$("inpaint").hidden) inpaintHint();  // Fill and Extend may have changed
+  if (!$("morph").hidden && state.models.length > 1) morphPicked();  // so may Morph
 }
 
 function fitFields() {

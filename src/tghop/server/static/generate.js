@@ -26,18 +26,19 @@ async function generate(body, id = state.modelId) {
   return answerOf(response);
 }
 
-// Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable.
-function showResult(url, seed, blob, what, maps) {
+// Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable. `name`: what
+// names its file, {models: their stems, size, tile} (resultBase); the working model's at the size asked for.
+function showResult(url, seed, blob, what, maps, name) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
   state.resultUrl = url;
-  const base = what ? `tghop-${what}-seed${seed}` : `tghop-seed${seed}`;
+  const base = resultBase(seed, what, name);
   state.shown = maps ? {
     seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })),
   } : null;
   renderMaps();
   showPicture(url, `${what || "result"}`, seed, `${base}.png`);
-  if (blob) setEditorPicture(blob, `tghop-seed${seed}.png`, maps);  // a material's maps are filled alike
+  if (blob) setEditorPicture(blob, `${base}.png`, maps);  // a material's maps are filled alike
 }
 
 function showPicture(url, what, seed, filename) {
@@ -100,19 +101,50 @@ function onGenerate(event) {
   withBusy($("go"), async () => {
     const seed = Number($("seed").value);
     say("generating");
-    const { blob, maps } = await generate(generation(seed));
-    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps);
+    const body = generation(seed);
+    const { blob, maps } = await generate(body);
+    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps, { models: [workingStem()], ...body });
     say("");
   });
 }
 
+// The strip of seeds is of one model, in View mode: cleared when the working model or the mode changes (it
+// showed an earlier model's seeds). A strip still running goes on with its model (onStrip) and is kept.
+function clearStrip() {
+  if (state.busyButton === $("strip-go")) return;
+  const strip = $("strip");
+  for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
+  strip.textContent = "";
+  delete strip.dataset.model;
+}
+
+// The browser's own check of Generate's fields (a size over its max, an empty seed) refuses with a bubble only:
+// the status says what is wrong now, not what an earlier action left there ("stopped"). `invalid`, caught for
+// the first field refused.
+function onInvalidField(event) {
+  const input = event.target;
+  if (input.form.querySelector(":invalid") === input) say(fieldProblem(input), true);
+}
+
+function fieldProblem(input) {
+  const label = input.closest("label"), name = label ? label.firstChild.textContent.trim() : input.id;
+  const v = input.validity, range = input.max ? `from ${input.min} to ${input.max}` : `of at least ${input.min}`;
+  if (v.valueMissing) return `give a ${name}, a number ${range}`;
+  if (v.rangeOverflow) return `${name} ${input.value} is more than ${input.max}: give a number ${range}`;
+  if (v.rangeUnderflow) return `${name} ${input.value} is less than ${input.min}: give a number ${range}`;
+  if (v.badInput) return `the ${name} is not a number: give one ${range}`;
+  return `${name}: ${input.validationMessage}`;
+}
+
 function onStrip() {
   if (!state.modelId || !$("gen-form").reportValidity()) return;  // an empty seed was seed 0
+  const id = state.modelId;
   withBusy($("strip-go"), async () => {
     const strip = $("strip");
     for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
     strip.textContent = "";
-    const first = Number($("seed").value), id = state.modelId;
+    strip.dataset.model = id;
+    const first = Number($("seed").value), stem = workingStem(), tile = $("tile").checked;
     const [h, w] = [Number($("height").value), Number($("width").value)];
     for (let i = 0; i < 8; i++) {
       const seed = first + i;
@@ -131,7 +163,8 @@ function onStrip() {
         for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
         img.classList.add("chosen");
         $("seed").value = String(seed);
-        showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps);
+        showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps,
+                   { models: [stem], size: [h, w], tile });
       });
       img.addEventListener("keydown", (e) => {
         if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }

@@ -137,7 +137,7 @@ function maskBlob() {
 
 // POST the editor's picture with the fields of `fields` (and the seed and tile of the inpaint
 // toolbar) to /api/models/{id}/{path}; the answer becomes the result. Returns the seed used.
-async function sendPicture(path, fields, what) {
+async function sendPicture(path, fields, what, size) {
   const seed = $("inpaint-seed").value.trim();
   const form = new FormData();
   form.append("image", editor.blob, editor.name);
@@ -155,7 +155,8 @@ async function sendPicture(path, fields, what) {
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
   const used = response.headers.get("X-Tghop-Seed");
-  showResult(URL.createObjectURL(blob), used, blob, what, maps);
+  showResult(URL.createObjectURL(blob), used, blob, what, maps,
+             { models: [workingStem()], size, tile: $("inpaint-tile").checked });
   return used;
 }
 
@@ -165,7 +166,9 @@ function onFill() {
     const mask = await maskBlob();
     if (!mask) { sayInpaint("paint the hole first: drag the brush over the picture", true); return; }
     sayInpaint("filling");
-    const used = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted");
+    const img = $("editor-base");
+    const used = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted",
+                                   [img.naturalHeight, img.naturalWidth]);
     sayInpaint(`filled (seed ${used}): paint again to fill more, or download it`);
   }, sayInpaint);
 }
@@ -183,7 +186,7 @@ function onExtend() {
     }
     sayInpaint("extending");
     const used = await sendPicture("extend", [["size", `${h}x${w}`], ["anchor", $("extend-anchor").value]],
-                                   "extended");
+                                   "extended", [h, w]);
     sayInpaint(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`);
   }, sayInpaint);
 }

@@ -28,7 +28,9 @@ function addSessionModel(id, name) {
   if (state.models.some((m) => m.id === id)) return;
   const index = state.models.length;
   const label = `${name || "model"} (${id.slice(0, 8)})`;
-  state.models.push({ id, name: label, picked: pickedModels().length < MAX_PICKED });
+  // stem: its part of a file's name; material: whether it is one, when known (Morph takes texture models only)
+  state.models.push({ id, name: label, stem: modelStem(name), material: id === state.modelId ? state.material : null,
+    picked: pickedModels().length < MAX_PICKED });
   if (state.models.length === 2) {
     if ($("paint-message").textContent === PAINT_HINT) sayPaint("");
     if ($("morph-message").textContent === MORPH_HINT) sayMorph("");
@@ -150,14 +152,34 @@ function onPaintGenerate(remix) {
     }
     sayPaint(remix ? "remixing" : "generating");
     const [blob, seed, maps] = await postImage("/api/images/guided", body);
-    showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps);
+    const name = { models: picked.map((m) => m.stem), size: body.size || [guide.h, guide.w], tile: Boolean(body.tile) };
+    showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps, name);
     sayPaint(`done (seed ${seed}): the result is below`);
   }, sayPaint);
 }
 
+// A morph goes between two texture models: why the A and B picked cannot be morphed (a material), or "".
+function morphProblem() {
+  for (const [label, id] of [["A", "morph-a"], ["B", "morph-b"]]) {
+    const m = state.models[Number($(id).value)];
+    if (m && m.material) {
+      return `${label}, ${m.name}, is a material: a morph goes between two texture models; pick a texture ` +
+             `model as ${label} (fit one from the material's albedo alone, without its maps)`;
+    }
+  }
+  return "";
+}
+
+// Morph's button and message follow the A and B picked (a material: off, and said why).
+function morphPicked() {
+  const problem = morphProblem(), shown = $("morph-message").textContent;
+  if (problem) sayMorph(problem, true); else if (shown.includes(", is a material: ")) sayMorph("");
+  updateButtons();
+}
+
 function onMorph() {
   const a = state.models[Number($("morph-a").value)], b = state.models[Number($("morph-b").value)];
-  if (!a || !b) return;
+  if (!a || !b || morphProblem()) return;
   withBusy($("morph-go"), async () => {
     const body = {
       a: a.id, b: b.id, seed: Number($("morph-seed").value),
@@ -167,7 +189,8 @@ function onMorph() {
     for (const name of ["refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
     sayMorph("morphing");
     const [blob, seed] = await postImage("/api/images/morph", body);
-    showResult(URL.createObjectURL(blob), seed, blob, "morph");
+    showResult(URL.createObjectURL(blob), seed, blob, "morph", undefined,
+               { models: [a.stem, "to", b.stem], size: body.size, tile: false });
     sayMorph(`done (seed ${seed}): the strip is below`);
   }, sayMorph);
 }

@@ -1,0 +1,147 @@
+"""An artist's audit of ``tghop serve``'s page, in a real browser (Chromium through Playwright) against a
+real uvicorn server: form controls in the page's font; downloads named for what they are (model, size,
+seed, tileable), the model file's as the server's Content-Disposition names it; the strip of seeds cleared
+when the mode or the working model changes; a size the browser's own check refuses said in the status;
+Morph off, and said why, with a material as A or B."""
+
+import pytest
+
+import chromium
+
+if chromium.missing():
+    pytest.skip(chromium.missing(), allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed: pip install -e '.[web-test]'")
+
+from conftest import FAST_FIT  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def page(live_server):
+    with chromium.served_page(live_server.url + "/") as page:
+        page.click("#fit-settings summary")
+        page.uncheck("#layout")
+        for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+            page.fill(f"#{name}", FAST_FIT[name])
+        yield page
+
+
+def fit(page, name):
+    page.select_option("#builtin", name)
+    page.wait_for_function("(n) => document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " document.getElementById('summary').textContent.startsWith('model ') &&"
+                           " document.getElementById('builtin').value === n", arg=name, timeout=90_000)
+
+
+def mode(page, name):
+    page.click(f"label:has(#mode-{name})")
+
+
+def strip(page):
+    page.click("#strip-go")
+    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' &&"
+                           " document.querySelectorAll('#strip img').length === 8", timeout=90_000)
+
+
+def test_form_controls_use_the_pages_font(page):
+    # Inputs and menus had the browser's own 13.33 px next to 16 px labels.
+    body = page.evaluate("getComputedStyle(document.body).font")
+    for selector in ("#height", "#quality", "#builtin", "#seed", "#morph-a", "#go"):
+        assert page.eval_on_selector(selector, "e => getComputedStyle(e).font") == body, selector
+
+
+def test_downloads_are_named_for_what_they_are(page):
+    # Every result was tghop-seed1.png, whatever the model or size.
+    fit(page, "bricks")
+    page.fill("#height", "40")
+    page.fill("#width", "56")
+    page.fill("#seed", "3")
+    page.fill("#n_patches", "300")
+    page.check("#tile")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 40x56, seed 3'",
+                           timeout=60_000)
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-40x56-seed3-tile.png"
+    with page.expect_download() as download:
+        page.click("#download-png")
+    assert download.value.suggested_filename == "tghop-bricks-40x56-seed3-tile.png"
+    # The model file: the page's name and the server's Content-Disposition (which wins) agree
+    model_id = page.evaluate("state.modelId")
+    name = f"tghop-bricks-{model_id[:12]}.npz"
+    assert page.get_attribute("#download-model", "download") == name
+    with page.expect_download() as download:
+        page.click("#download-model")
+    assert download.value.suggested_filename == name
+    page.uncheck("#tile")
+    strip(page)
+    page.click("#strip img[data-seed='6']")
+    page.wait_for_function("document.getElementById('result-caption').textContent.endsWith('seed 6')")
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-40x56-seed6.png"
+    assert not page.errors, page.errors
+
+
+def test_the_strip_of_seeds_goes_with_a_change_of_mode_or_model(page):
+    # The strip of an earlier model stayed shown after switching models or modes.
+    if page.eval_on_selector_all("#strip img", "l => l.length") != 8:
+        strip(page)
+    mode(page, "paint")
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    mode(page, "view")
+    strip(page)
+    fit(page, "cells")
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    assert not page.errors, page.errors
+
+
+def test_a_size_the_browser_refuses_is_said_in_the_status(page):
+    # The browser's own check refused width 100000 with a bubble only; the status kept what was there before.
+    page.evaluate("say('stopped')")
+    page.fill("#width", "100000")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('message').textContent !== 'stopped'", timeout=5_000)
+    assert page.text_content("#message") == "width 100000 is more than 8192: give a number from 1 to 8192"
+    assert "error" in page.get_attribute("#message", "class")
+    page.fill("#width", "56")
+    page.fill("#seed", "")
+    page.click("#strip-go")
+    page.wait_for_function("document.getElementById('message').textContent.startsWith('give a seed')", timeout=5_000)
+    page.fill("#seed", "1")
+    assert not page.errors, page.errors
+
+
+def save_material(path):
+    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
+    from tghop import TGHop, data
+    from tghop.material import Material, example_maps
+    from tghop.modelfile import save_model
+
+    albedo = data.bricks(64)
+    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
+
+
+def test_morph_is_off_and_says_why_with_a_material(page, tmp_path):
+    # Morph stayed on with a material as A or B, and the server's 422 said "a is a material..." (the API's name).
+    save_material(tmp_path / "wall material.npz")
+    page.set_input_files("#model-file", str(tmp_path / "wall material.npz"))
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+    mode(page, "morph")
+    names = page.eval_on_selector_all("#morph-a option", "l => l.map(o => o.textContent)")
+    material = next(i for i, n in enumerate(names) if n.startswith("wall material.npz"))
+    page.select_option("#morph-a", "0")
+    page.select_option("#morph-b", "1")
+    assert page.is_enabled("#morph-go")
+    page.select_option("#morph-b", str(material))
+    assert page.is_disabled("#morph-go")
+    said = page.text_content("#morph-message")
+    assert said.startswith(f"B, {names[material]}, is a material: a morph goes between two texture models; "
+                           "pick a texture model as B"), said
+    page.select_option("#morph-a", str(material))
+    page.select_option("#morph-b", "0")
+    assert page.is_disabled("#morph-go") and page.text_content("#morph-message").startswith("A, wall material.npz")
+    page.select_option("#morph-a", "1")
+    assert page.is_enabled("#morph-go") and page.text_content("#morph-message") == ""
+    # The material's model file downloads by its file's name
+    model_id = page.evaluate("state.modelId")
+    assert page.get_attribute("#download-model", "download") == f"tghop-wall-material-{model_id[:12]}.npz"
+    assert not page.errors, page.errors
