@@ -288,12 +288,14 @@ def test_paint_two_models_and_morph(page, live_server):
     page.fill("#paint-seed", "2")
     page.click("#paint-go")
     page.wait_for_function(RESULT_SHOWN % "painted: 64x96, seed 2", timeout=60_000)
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-cells-painted-64x96-seed2.png"
     assert page.eval_on_selector("#result", "i => [i.naturalHeight, i.naturalWidth]") == [64, 96]
     painted = np.array(page.eval_on_selector("#result", PIXELS)).reshape(64, 96, 4)[..., :3]
     assert painted[:, :40].std() > 5 and painted[:, 56:].std() > 5  # texture on both sides
     page.screenshot(path=PAINT_SCREENSHOT, full_page=True)
     page.click("#remix-go")  # random regions of both, at the same size
     page.wait_for_function(RESULT_SHOWN % "remix: 64x96, seed 2", timeout=60_000)
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-cells-remix-64x96-seed2.png"
     page.click("#paint-reset")  # all the first model's colour: said, not sent
     page.click("#paint-go")
     page.wait_for_function("document.getElementById('paint-message').textContent"
@@ -305,6 +307,7 @@ def test_paint_two_models_and_morph(page, live_server):
     page.fill("#morph-width", "128")
     page.click("#morph-go")
     page.wait_for_function(RESULT_SHOWN % "morph: 32x128", timeout=60_000)
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-to-cells-morph-32x128-seed1.png"
     mode(page, "view")
     assert not page.errors, page.errors
 

@@ -174,7 +174,10 @@ def test_the_checkpoint_downloads_as_uploaded(client, checkpoint, cid):
     r = client.get(f"/api/cooc/{cid}/file")
     assert r.status_code == 200 and r.content == checkpoint[0]
     assert r.headers["content-type"] == "application/octet-stream"
-    assert r.headers["content-disposition"] == f'attachment; filename="tghop-{cid[:12]}.pt"'
+    # Named as the page names the link (tghop-cooc-..., ?name= its file's name): the header wins over the link's
+    assert r.headers["content-disposition"] == f'attachment; filename="tghop-cooc-{cid[:12]}.pt"'
+    named = client.get(f"/api/cooc/{cid}/file", params={"name": "my run"}).headers["content-disposition"]
+    assert named == f'attachment; filename="tghop-cooc-my-run-{cid[:12]}.pt"'
     assert client.post("/api/cooc", content=r.content).json()["id"] == cid  # uploads back to the same id
     assert_error(client.get(f"/api/cooc/{'0' * 64}/file"), 404, "no co-occurrence checkpoint", "POST /api/cooc")
     assert_error(client.get("/api/cooc/not-an-id/file"), 404, "no co-occurrence checkpoint")
