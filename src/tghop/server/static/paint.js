@@ -38,6 +38,7 @@ function addSessionModel(id, name) {
   renderModels();
   if (!$("morph-a").value) $("morph-a").value = String(index);
   if (index > 0 && $("morph-b").value === $("morph-a").value) $("morph-b").value = String(index);
+  if (!$("morph").hidden && state.models.length > 1) morphPicked();  // a material picked as B: said
 }
 
 function pickedModels() {
