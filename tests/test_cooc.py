@@ -289,7 +289,7 @@ def test_baseline_with_a_model_takes_only_its_exemplar(tiny_model, exemplar):
         with pytest.raises(TGHopError) as error:  # it made the model's texture, whatever the exemplar
             make(other, 32, rng=0, model=tiny_model)
         assert str(error.value) == ("the cooc baseline: this exemplar is not the one the model was trained on; "
-                                    "give the same image, or a model trained on this one (model, --model)")
+                                    "give the same image, or as model (--model) a checkpoint trained on this exemplar")
         with pytest.raises(TGHopError, match="not the one"):  # the same pixels in another shape
             make(exemplar.reshape(96, 24, 3), 32, rng=0, model=tiny_model)
         with pytest.raises(TGHopError, match=r"n_steps \(--iterations\) trains the baseline's own model"):

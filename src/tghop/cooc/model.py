@@ -785,8 +785,8 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
                              f"got {type(model).__name__}")
         if n_steps is not None:
             raise TGHopError("n_steps (--iterations) trains the baseline's own model: drop it, or drop model (--model)")
-        model._check_exemplar(img, "the cooc baseline", "give the same image, or a model trained on this one "
-                              "(model, --model)")
+        model._check_exemplar(img, "the cooc baseline", "give the same image, or as model (--model) a checkpoint "
+                              "trained on this exemplar")
     h, w = check_size(size, default=img.shape[:2])  # likewise
     if model is None:
         check_texture(img)  # fit's own check, made before the memory's
