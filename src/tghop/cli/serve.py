@@ -101,6 +101,7 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
     with user_errors():
         check_stdout("the server's address")  # (uvicorn's logging fails there too)
         from ..server.app import create_app, require_web
+        from ..server.safety import LOOPBACK
 
         require_web(server=True)
         import logging
@@ -117,7 +118,7 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::', '') else shown}:{bound}/"
-    if host not in ("127.0.0.1", "localhost", "::1"):
+    if host not in LOOPBACK:  # the addresses whose clients LocalOnly lets in
         click.echo(f"Warning: listening on {host}: other machines on the network can use this server "
                    "(it has no login); use --host 127.0.0.1 to keep it to this machine", err=True)
     click.echo(f"tghop serving on {url} (models in {cache_dir}; Ctrl-C stops it)")
