@@ -200,7 +200,8 @@ def test_every_command_that_writes_files_takes_the_same_quiet_option():
     import click
 
     def leaves(group, path):
-        for name, command in group.commands.items():
+        for name in group.list_commands(None):
+            command = group.get_command(None, name)
             if isinstance(command, click.Group):
                 yield from leaves(command, path + [name])
             else:
@@ -543,3 +544,36 @@ def test_file_options_name_what_they_take():
     baseline = " ".join(CliRunner().invoke(main, ["baseline", "--help"]).stdout.split())
     edit = " ".join(CliRunner().invoke(main, ["cooc", "edit", "--help"]).stdout.split())
     assert "--model CHECKPOINT " in baseline and "--mask IMAGE " in edit, (baseline, edit)
+
+
+def test_a_command_imports_only_its_own_module_of_the_command_line(folder):
+    # `tghop synth` builds no other command's options (batch's, evaluate's, cooc's ...; texture's
+    # commands take guided's constants); the list of commands (--help) and a mistyped name
+    # (click's "Did you mean") see them all.
+    code = (
+        "import atexit, sys\n"
+        "import tghop.cli\n"
+        "def loaded():\n"
+        "    return sorted(m.split('.')[2] for m in sys.modules if m.startswith('tghop.cli.')\n"
+        "                  and m.split('.')[2] not in ('common', 'group', 'options'))\n"
+        "print('AT_IMPORT', loaded(), file=sys.stderr)\n"
+        "atexit.register(lambda: print('AT_EXIT', loaded(), file=sys.stderr))\n"
+        "sys.argv[0] = 'tghop'\n"
+        "from tghop.__main__ import run\n"
+        "run()\n"
+    )
+    everything = ["batch", "cooc", "evaluation", "guided", "inpaint", "serve", "texture"]
+    for args, code_expected, loaded in (
+            (["synth", "model.npz", "-o", "own.png", "--size", "40", "--pool", "100", "-q"], 0, ["guided", "texture"]),
+            (["info", "model.npz"], 0, ["guided", "texture"]),
+            (["evaluate", "--help"], 0, ["evaluation"]),
+            (["--version"], 0, []),
+            (["--help"], 0, everything),
+            (["synt"], 2, everything)):
+        p = _python(code, *args, cwd=folder)
+        _, err = p.communicate(timeout=120)
+        err = err.decode()
+        assert p.returncode == code_expected, (args, err)
+        assert "AT_IMPORT []" in err, (args, err)
+        assert f"AT_EXIT {loaded}" in err, (args, err)
+    assert "Did you mean 'synth'?" in err

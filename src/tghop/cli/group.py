@@ -19,16 +19,16 @@ from contextlib import contextmanager
 import click
 
 from .. import __version__
-from .batch import batch
 from .common import Terminated, drop_stdout, fail, os_error_message, output_gone, stop_message
-from .cooc import cooc
-from .evaluation import baseline, evaluate
-from .guided import morph
-from .inpaint import extend, inpaint
-from .serve import serve
-from .texture import clusters, fit, info, patches, synth
 
 __all__ = ["OneLineGroup", "main"]
+
+#: Each command of ``tghop`` and the module of :mod:`tghop.cli` that defines it, imported
+#: when the command is run or listed (:class:`OneLineGroup` ``lazy_commands``): ``tghop
+#: synth`` does not build the options of ``batch``, ``evaluate``, ``cooc`` and the others.
+_COMMANDS = {"synth": "texture", "fit": "texture", "patches": "texture", "clusters": "texture", "info": "texture",
+             "inpaint": "inpaint", "extend": "inpaint", "morph": "guided", "batch": "batch",
+             "evaluate": "evaluation", "baseline": "evaluation", "cooc": "cooc", "serve": "serve"}
 
 #: The modules each command imports when it runs (besides those of the command line).
 _COMMAND_MODULES = {
@@ -98,14 +98,17 @@ def _stop_on_signals():
             signal.signal(signum, _terminated)
 
 
-def _import_for(args):
-    """Import what the command named in ``args`` will import (nothing for ``--help``)."""
+def _import_for(group, args):
+    """Import what the command named in ``args`` will import, its own module of ``group``'s
+    first (nothing for ``--help``)."""
     import importlib
 
     words = [a for a in args if isinstance(a, str)]
     if any(a in ("-h", "--help", "--version") for a in words):
         return
     command = next((a for a in words if not a.startswith("-")), None)
+    if command is not None:
+        group.get_command(None, command)
     for name in _COMMAND_MODULES.get(command, ()):
         try:
             importlib.import_module(name)
@@ -148,7 +151,33 @@ class OneLineGroup(click.Group):
     line on stderr (``Error: ...``) and a non-zero exit status, never a traceback. A reader
     of the output that went away (``tghop info M | head -1``) is no failure: the command
     stops there, without a word, exit status 0 (:func:`~tghop.cli.common.output_gone`). ``tghop``
-    (or ``tghop cooc``) without a command prints its help on stderr, as click does, exit status 2."""
+    (or ``tghop cooc``) without a command prints its help on stderr, as click does, exit status 2.
+
+    ``lazy_commands``: ``{name: module}``, commands defined in those modules of
+    :mod:`tghop.cli` (``"texture"``), each imported when its command is first looked up
+    (run, listed in ``--help``), not when the group is made.
+    """
+
+    def __init__(self, *args, lazy_commands=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.lazy_commands = dict(lazy_commands or {})
+
+    def list_commands(self, ctx):
+        return sorted({*self.commands, *self.lazy_commands})
+
+    def get_command(self, ctx, cmd_name):
+        if cmd_name not in self.commands and cmd_name in self.lazy_commands:
+            import importlib
+
+            module = importlib.import_module(f"{__package__}.{self.lazy_commands[cmd_name]}")
+            self.add_command(getattr(module, cmd_name), cmd_name)
+        return self.commands.get(cmd_name)
+
+    def resolve_command(self, ctx, args):
+        if self.get_command(ctx, args[0]) is None:  # not a command: click's "Did you mean" looks through them all
+            for name in self.list_commands(ctx):
+                self.get_command(ctx, name)
+        return super().resolve_command(ctx, args)
 
     def main(self, args=None, prog_name=None, as_command=False, **extra):
         """Run the command line and exit.
@@ -168,7 +197,7 @@ class OneLineGroup(click.Group):
         """
         try:
             if as_command:
-                _import_for(sys.argv[1:] if args is None else list(args))
+                _import_for(self, sys.argv[1:] if args is None else list(args))
                 gc.freeze()
                 if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:  # `tghop ... &` in a script ignores it
                     signal.signal(signal.SIGINT, _interrupted)
@@ -214,7 +243,7 @@ class OneLineGroup(click.Group):
         errors, a missing option value, before the subcommand has a context)."""
         path, group = ["tghop"], self
         for arg in args:
-            command = group.commands.get(arg) if isinstance(group, click.Group) else None
+            command = group.get_command(None, arg) if isinstance(group, click.Group) else None
             if command is None:
                 if arg.startswith("-") or not isinstance(group, click.Group):
                     continue  # an option of the group, or the command's own arguments
@@ -224,7 +253,7 @@ class OneLineGroup(click.Group):
         return " ".join(path)
 
 
-@click.group(cls=OneLineGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=OneLineGroup, lazy_commands=_COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="tghop")
 def main():
     """tghop: explainable, fast texture synthesis from one exemplar (TGHop).
@@ -234,7 +263,3 @@ def main():
       tghop synth builtin:bricks -o bricks.png --size 512x512
       tghop synth my_texture.jpg -o out.png --count 4 --seed 7 --tile
     """
-
-
-for _command in (synth, fit, inpaint, extend, morph, patches, clusters, info, batch, evaluate, baseline, cooc, serve):
-    main.add_command(_command)
