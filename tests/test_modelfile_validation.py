@@ -126,6 +126,8 @@ CASES = {
     "negative variance": _set("index.sdr_variance", 0, -1.0) + ("below 0",),
     "huge means": _set("ichm_ii.means", (0, 0), 1e30) + ("beyond 10000",),
     "huge layout cdf": ("layout.ichm_iii.cdf_max", lambda a: a * 1e6, "beyond 10000"),
+    "long directions": ("patch.directions", lambda a: a * np.float32(1.001), "not of unit length"),
+    "short layout direction": _set("layout.patch.directions", (0, 1, 2, 3), 0.0) + ("not of unit length",),
     # missing and unknown arrays
     "missing mixing": ("ichm_ii.mixing", None, "array ichm_ii.mixing is missing"),
     "missing kernels": ("hop2.kernels", None, "array hop2.kernels is missing"),
@@ -404,3 +406,29 @@ def test_npy_file_and_missing_paths_are_one_line_errors(tmp_path, small_model):
     assert info_dict(small_model)["n_parameters"] == small_model.n_parameters()
     params = small_model.n_parameters()  # what tghop info and the server pass, as a dict
     assert info_dict(small_model, params=params)["n_parameters"] is params
+
+
+def test_a_changed_byte_or_a_cut_member_of_the_archive_is_refused(saved, tmp_path):
+    path, arrays = saved
+    # One byte of an array's values changed (a value that passes every check): the archive's CRC refuses it.
+    blob = bytearray(path.read_bytes())
+    values = arrays["ichm_ii.mixing"].tobytes()
+    at = bytes(blob).index(values[: 64]) + 32
+    blob[at] ^= 1
+    (tmp_path / "flipped.npz").write_bytes(bytes(blob))
+    with pytest.raises(ModelFileError, match=r"flipped\.npz: truncated, corrupt or not a tghop model file"):
+        load_model(tmp_path / "flipped.npz")
+    # A member cut short inside the archive (its size in the directory kept): refused the same way.
+    cut = bytearray(path.read_bytes())
+    del cut[at: at + 8]
+    (tmp_path / "cut.npz").write_bytes(bytes(cut))
+    with pytest.raises(ModelFileError, match=r"cut\.npz: truncated, corrupt or not a tghop model file"):
+        load_model(tmp_path / "cut.npz")
+
+
+def test_directions_within_the_tolerance_of_unit_length_load(saved, tmp_path):
+    path, arrays = saved
+    scale = np.float32(1 + 5e-5)  # lengths off by less than the check's 1e-4
+    _write(tmp_path / "d.npz", {**arrays, "patch.directions": arrays["patch.directions"] * scale,
+                                "layout.patch.directions": arrays["layout.patch.directions"] / scale})
+    assert load_model(tmp_path / "d.npz").patches_ is not None
