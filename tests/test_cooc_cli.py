@@ -208,7 +208,7 @@ def test_baseline_cooc_model_refuses_another_exemplar_and_iterations(files, tmp_
     # m.pt was trained on ex.png: other.png would have been ex.png's texture, without a word.
     r = invoke("baseline", "cooc", files / "other.png", "--model", files / "m.pt", "-o", out, "--size", "32", "-q")
     assert_user_error(r, "the cooc baseline: this exemplar is not the one the model was trained on",
-                      "(model, --model)")
+                      "as model (--model) a checkpoint trained on this exemplar")
     # --iterations (training steps) with a trained checkpoint was ignored: refused before anything is read.
     r = invoke("baseline", "cooc", files / "ex.png", "--model", tmp_path / "none.pt", "-o", out, "--iterations", "5")
     assert_user_error(r, "--iterations applies to the cooc baseline without --model only")

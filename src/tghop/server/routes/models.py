@@ -38,8 +38,9 @@ async def model_summary(server, request):
 
 
 def download_name(file_id: str, suffix: str, *, kind: str = "", name=None) -> str:
-    """A download's file name: ``tghop[-kind][-name]-<first 12 of the id><suffix>``, ``name`` (``?name=``,
-    the page's name of the model: its exemplar's or file's) made safe by :func:`file_stem`."""
+    """A download's file name: ``tghop``, then ``-kind`` and ``-name`` where given, then
+    ``-<first 12 of the id><suffix>``; ``name`` (``?name=``, the page's name of the model: its
+    exemplar's or file's) made safe by :func:`file_stem`."""
     return "-".join(part for part in ("tghop", kind, file_stem(name), file_id[:12]) if part) + suffix
 
 
