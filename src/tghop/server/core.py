@@ -18,11 +18,15 @@ from concurrent.futures import ThreadPoolExecutor
 
 from . import cooc
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
-from .jobs import FitQueue
+from .jobs import FINAL, JOB_ID, FitQueue, GenerationJob
 from .requests import RequestError
 from .uploads import MAX_DECODES, MAX_DECODES_WAITING, Gate
 
-__all__ = ["Server", "json_response", "error_response", "disconnected"]
+__all__ = ["Server", "json_response", "error_response", "disconnected", "JOB_HEADER"]
+
+#: The request header naming a generation's job (32 hex digits the client chose): its progress is then
+#: ``GET /api/jobs/{job}`` (docs/serve.md, "Jobs").
+JOB_HEADER = "X-Tghop-Job"
 
 
 def error_response(status: int, message: str, headers: dict | None = None):
@@ -84,26 +88,66 @@ class Server:
 
     def unless_stopping(self, stage=None, done=0, total=0) -> None:
         """A generation's progress callback: stops it (to nobody: :meth:`in_executor` has answered)
-        once its client went away or the server stops: no thread or process waits for it."""
+        once its client went away or the server stops: no thread or process waits for it. A generation
+        with a job (:data:`JOB_HEADER`) reports its progress there, and stops once the job is cancelled."""
         dropped = getattr(self._work, "dropped", None)
         if self.stopping.is_set() or (dropped is not None and dropped.is_set()):
             raise RequestError(503, "the work was dropped")
+        job = getattr(self._work, "job", None)
+        if job is not None and stage is not None:
+            if job.cancel_requested:
+                raise RequestError(409, f"the generation was cancelled (DELETE /api/jobs/{job.id})")
+            job.progress(stage, done, total, cancellable=False)
 
-    def _flagged(self, dropped, work, *args):
-        """``work(*args)`` with ``dropped`` as this thread's flag for :meth:`unless_stopping`."""
-        self._work.dropped = dropped
+    def _flagged(self, dropped, job, work, *args):
+        """``work(*args)`` with ``dropped`` and ``job`` (or None) as this thread's for :meth:`unless_stopping`;
+        the job's state follows the work."""
+        self._work.dropped, self._work.job = dropped, job
         try:
-            return work(*args)
+            if job is not None:
+                self.unless_stopping()  # dropped or cancelled while it waited: it never starts
+                if job.cancel_requested:
+                    raise RequestError(409, f"the generation was cancelled (DELETE /api/jobs/{job.id})")
+                job._update(state="running")
+            result = work(*args)
+        except BaseException as exc:
+            if job is not None and not job.final:
+                if job.cancel_requested or dropped.is_set() or self.stopping.is_set():
+                    job._update(state="cancelled")
+                else:
+                    job._update(state="failed", error=getattr(exc, "message", None) or str(exc) or type(exc).__name__)
+            raise
+        else:
+            if job is not None and not job.final:
+                job._update(state="done")
+            return result
         finally:
-            self._work.dropped = None
+            self._work.dropped = self._work.job = None
+
+    def generation_job(self, request):
+        """The job of a request that names one (:data:`JOB_HEADER`), put in the job table; None without
+        the header. 400 for a malformed id, 409 for one in use."""
+        job_id = request.headers.get(JOB_HEADER)
+        if job_id is None:
+            return None
+        job_id = job_id.strip().lower()
+        if not JOB_ID.match(job_id):
+            raise RequestError(400, f"{JOB_HEADER} must be 32 hex digits (a new id for this generation's "
+                                    f"progress), got {job_id[:40]!r}")
+        job = GenerationJob(request.path_params.get("id"), job_id)
+        if not self.queue.add(job):
+            raise RequestError(409, f"{JOB_HEADER} {job_id} is in use; choose a new id for each generation")
+        return job
 
     async def in_executor(self, request, work, *args):
         """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of ``request``
         goes away first (a page's Stop or reload): still waiting, it never runs; running, it stops at its
-        next progress report; then 499. Dropped the same way when the server stops (:meth:`stop`): 503."""
+        next progress report; then 499. Dropped the same way when the server stops (:meth:`stop`): 503.
+        A request with a job (:data:`JOB_HEADER`, :meth:`generation_job`) reports its progress there."""
+        job = self.generation_job(request)
         dropped = threading.Event()
         future = asyncio.get_running_loop().run_in_executor(
-            self.executor, functools.partial(self._flagged, dropped, work, *args))
+            self.executor, functools.partial(self._flagged, dropped, job, work, *args))
         gone = asyncio.ensure_future(disconnected(request))
         stopped = asyncio.ensure_future(self.stopping.wait())
         try:
@@ -114,6 +158,8 @@ class Server:
         if not future.done():
             dropped.set()
             future.cancel()
+            if job is not None and job.state not in FINAL:
+                job._update(state="cancelled")
             if not gone.done() and self.stopping.is_set():
                 raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
             raise RequestError(499, "the client went away; its work was dropped")

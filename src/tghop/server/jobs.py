@@ -13,12 +13,17 @@ server-sent events. Only the standard library is imported.
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["Cancelled", "QueueFull", "Job", "FitQueue", "STATES", "FIT_STAGES"]
+__all__ = ["JOB_ID", "Cancelled", "QueueFull", "Job", "GenerationJob", "FitQueue", "STATES", "FIT_STAGES",
+           "GENERATION_STAGES", "generation_fraction"]
+
+#: A job's id: 32 hex digits.
+JOB_ID = re.compile(r"[0-9a-f]{32}\Z")
 
 #: Job states; the last three are final.
 STATES = ("queued", "running", "done", "failed", "cancelled")
@@ -28,6 +33,37 @@ FINAL = ("done", "failed", "cancelled")
 #: (rough times of a small fit): the progress bar's fraction.
 FIT_STAGES = {"hop 1": 0.15, "hop 2": 0.1, "hop 3": 0.05, "SDR": 0.05, "clusters": 0.15, "ICA": 0.3,
               "CDF codebook": 0.1, "layout": 0.1, "saving": 0.05}
+
+
+#: The stages a generation reports (:meth:`tghop.TGHop.synthesize`, :func:`tghop.inpaint.inpaint`,
+#: :func:`tghop.guided.morph`; the server's own "encoding" of the PNG), in the order they come, and their
+#: rough share of the whole: the progress bar's fraction. "quilting" and "inpainting" take one place (a
+#: generation makes one or the other). Stages left out (no layout, no refinement) count as passed once a
+#: later one comes; a painted guide's or a remix's layers ("quilting 1/2": layer 1 of 2) share the part
+#: before "join" equally.
+GENERATION_STAGES = (("layout", 0.06), ("patch pool", 0.04), (("quilting", "inpainting"), 0.45), ("seams", 0.02),
+                     ("refine", 0.2), ("patch refine", 0.15), ("colour", 0.01), ("maps", 0.02), ("join", 0.03),
+                     ("encoding", 0.02))
+
+
+def generation_fraction(stage: str, done: int, total: int):
+    """Where ``progress(stage, done, total)`` of a generation is in the whole, in [0, 1]
+    (:data:`GENERATION_STAGES`); None for a stage not in the table."""
+    whole = sum(share for _, share in GENERATION_STAGES)
+    layer = re.fullmatch(r"(.+) ([0-9]+)/([0-9]+)", stage)
+    if layer is not None:  # one layer of several: its stages in the part before "join"
+        inner = generation_fraction(layer.group(1), done, total)
+        i, k = int(layer.group(2)), int(layer.group(3))
+        before_join = generation_fraction("join", 0, 1)
+        if inner is None or not 1 <= i <= k or before_join is None:
+            return None
+        return before_join * ((i - 1) + min(1.0, inner / before_join)) / k
+    passed = 0.0
+    for names, share in GENERATION_STAGES:
+        if stage in ((names,) if isinstance(names, str) else names):
+            return (passed + share * (min(done, total) / total if total > 0 else 0.0)) / whole
+        passed += share
+    return None
 
 
 class Cancelled(Exception):
@@ -60,8 +96,10 @@ class Job:
         The requests that asked for this fit and have not withdrawn (:meth:`FitQueue.cancel`).
     """
 
-    def __init__(self, model_id: str, state: str = "queued"):
-        self.id = uuid.uuid4().hex
+    kind = "fit"
+
+    def __init__(self, model_id, state: str = "queued", job_id: str | None = None):
+        self.id = job_id or uuid.uuid4().hex
         self.model_id = model_id
         self.state = state
         self.stage = ""
@@ -96,7 +134,7 @@ class Job:
     def snapshot(self) -> dict:
         """The job as JSON-ready data."""
         with self._lock:
-            out = {"job": self.id, "id": self.model_id, "state": self.state, "stage": self.stage,
+            out = {"job": self.id, "kind": self.kind, "id": self.model_id, "state": self.state, "stage": self.stage,
                    "stages": list(self._seen), "done": self.done, "total": self.total,
                    "progress": round(self.fraction(), 4), "version": self.version, "askers": self.askers}
             if self.error:
@@ -120,6 +158,33 @@ class Job:
         if stage != self.stage and stage not in self._seen:
             self._seen.append(stage)
         self._update(stage=stage, done=int(done), total=int(total))
+
+
+class GenerationJob(Job):
+    """A generation's progress, under an id its client chose (the request's ``X-Tghop-Job`` header:
+    :meth:`tghop.server.core.Server.in_executor`), in the same table as the fits: ``GET /api/jobs/{job}``
+    follows it and ``DELETE`` stops it. ``model_id``: the model of the route's path, or None (several)."""
+
+    kind = "generation"
+
+    def __init__(self, model_id, job_id: str):
+        super().__init__(model_id, job_id=job_id)
+        self._fraction = 0.0
+
+    def fraction(self) -> float:
+        """Progress of the whole generation in [0, 1] (1 when done), by :data:`GENERATION_STAGES`;
+        it never goes back (a stage not in the table keeps the last value)."""
+        if self.state == "done":
+            return 1.0
+        where = generation_fraction(self.stage, self.done, self.total) if self.stage else None
+        if where is not None:
+            self._fraction = max(self._fraction, min(0.99, where))
+        return self._fraction
+
+    def progress(self, stage: str, done: int, total: int, *, cancellable: bool = True) -> None:
+        super().progress(stage, done, total, cancellable=cancellable)
+        with self._lock:
+            self.fraction()  # remembered at every report, not only when read
 
 
 class FitQueue:
@@ -182,6 +247,15 @@ class FitQueue:
             self._prune()
             self._jobs[job.id] = job
         return job
+
+    def add(self, job: Job) -> bool:
+        """Put a job made elsewhere (a generation's) in the table; False when its id is taken."""
+        with self._lock:
+            self._prune()
+            if job.id in self._jobs:
+                return False
+            self._jobs[job.id] = job
+            return True
 
     def submit(self, model_id: str, work) -> Job:
         """Queue ``work(job)`` for ``model_id`` (or return its job still queued or running,

@@ -76,6 +76,7 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
             raise RequestError(413, "out of memory; send a smaller picture") from None
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
+    server.unless_stopping("encoding", 0, 1)
     filled = with_alpha(filled, alpha, hole)  # a PNG holds it
     buf = io.BytesIO()
     write_png(buf, to_uint16(filled) if deepest("filled.png", depth) == 16 else to_uint8(filled))

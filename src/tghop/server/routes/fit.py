@@ -7,12 +7,11 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import json
-import re
 
 from ..._errors import TGHopError
 from .. import materials
 from ..core import json_response
-from ..jobs import FINAL, QueueFull
+from ..jobs import FINAL, JOB_ID, QueueFull
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
 from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, each_file_within, read_body, read_form, read_image
 
@@ -20,7 +19,7 @@ __all__ = ["model_id_for", "prepare_fit", "fit_work", "create_model", "find_job"
            "job_events", "JOB"]
 
 #: A job's id: 32 hex digits.
-JOB = re.compile(r"[0-9a-f]{32}\Z")
+JOB = JOB_ID
 
 
 def model_id_for(content: bytes, settings: dict) -> str:

@@ -43,6 +43,7 @@ def model_png(server, model_id: str, size, seed, settings):
             raise RequestError(422, "out of memory; ask for a smaller image") from None
         except TGHopError as exc:
             raise RequestError(422, str(exc)) from None
+    server.unless_stopping("encoding", 0, 1)  # the PNG (a job's last stage)
     if material:
         return materials.encode_maps(image, model)
     buf = io.BytesIO()
@@ -95,6 +96,7 @@ def several_png(server, make, models, seed) -> tuple:
             raise RequestError(422, "out of memory; ask for a smaller image") from None
         except TGHopError as exc:  # models that cannot be combined, a setting the library refuses
             raise RequestError(422, str(exc)) from None
+    server.unless_stopping("encoding", 0, 1)
     if isinstance(image, dict):  # materials (the library checked that all are, with the same maps)
         return materials.encode_maps(image, models[0]), next(iter(image.values())).shape[:2]
     buf = io.BytesIO()
