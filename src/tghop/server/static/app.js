@@ -27,7 +27,7 @@ function setMode(mode) {
   if (inpaint) inpaintHint();
   if (mode === "paint") {
     resizeGuide();
-    if (state.models.length < 2) sayPaint(PAINT_HINT);
+    if (state.models.length < 2) sayPaint(PAINT_HINT); else paintPicked();
   }
   if (mode === "morph" && state.models.length < 2) sayMorph(MORPH_HINT);
   else if (mode === "morph") morphPicked();

@@ -40,7 +40,8 @@ function updateButtons() {
   // A material fills every map of one of its results: not a picture without maps, nor before its kind is known
   $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob ||
     state.material === null || (state.material && !editor.maps);
-  $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2;
+  $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2 ||
+    (typeof paintProblem === "function" && paintProblem() !== "");  // paint.js: a material with a texture model
   $("morph-go").disabled = state.busy || state.models.length < 2 ||
     (typeof morphProblem === "function" && morphProblem() !== "");  // paint.js: a material as A or B
   if (typeof updateCoocButtons === "function") updateCoocButtons();  // cooc.js
@@ -64,6 +65,7 @@ async function withBusy(button, work, report) {
   } catch (e) {
     if (e.name === "AbortError") (report || say)("stopped"); else (report || say)(e.message, true);
   } finally {
+    for (const box of document.querySelectorAll(".gen-progress")) box.hidden = true;  // withProgress's bars
     button.removeEventListener("click", stop, true);
     button.textContent = old;
     state.busy = false;
@@ -108,9 +110,52 @@ function base64Bytes(text) {
   return bytes;
 }
 
-async function postImage(url, body) {
-  const response = await busyFetch(url, { method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS });
+async function postImage(url, body, headers) {
+  const response = await busyFetch(url, { method: "POST", body: JSON.stringify(body),
+    headers: { ...GENERATION_HEADERS, ...headers } });
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
   return [blob, response.headers.get("X-Tghop-Seed"), maps];  // maps: materials painted or remixed
+}
+
+// A new job id for a generation: 32 hex digits (the request's X-Tghop-Job header; docs/serve.md, "Jobs").
+function newJobId() {
+  return [...crypto.getRandomValues(new Uint8Array(16))].map((b) => b.toString(16).padStart(2, "0")).join("");
+}
+
+// How often a generation's progress is asked for, in milliseconds.
+const PROGRESS_POLL_MS = 200;
+
+// Runs `request(headers)`, a generation whose headers name a new job, and meanwhile shows that job's progress
+// (GET /api/jobs/{job}) in the bar `boxId` (a .gen-progress: a <progress> and its label) until the answer comes;
+// withBusy hides the bar when its work ends. `from`, `to`: the part of the bar this generation fills (the strip's
+// 8 seeds fill one bar), `label` goes before the stage.
+async function withProgress(boxId, request, { from = 0, to = 1, label = "" } = {}) {
+  const job = newJobId(), box = $(boxId), bar = box.querySelector("progress"), text = box.querySelector("span");
+  let ended = false, timer = null;
+  box.dataset.job = job;  // for scripts and tests
+  if (from === 0 || box.hidden) bar.value = from;
+  text.textContent = `${label}waiting`;
+  box.hidden = false;
+  const poll = async () => {
+    try {
+      const response = await fetch(`/api/jobs/${job}`);  // 404 until the server has the request
+      const snap = response.ok ? await response.json() : null;
+      if (snap && !ended) {
+        bar.value = Math.max(bar.value, from + (to - from) * snap.progress);  // it never goes back
+        const stage = snap.state === "queued" ? "waiting" : snap.stage || "starting";
+        text.textContent = `${label}${stage} ${Math.round(100 * bar.value)} %`;
+      }
+    } catch (e) { /* the next poll asks again */ }
+    if (!ended) timer = setTimeout(poll, PROGRESS_POLL_MS);
+  };
+  timer = setTimeout(poll, PROGRESS_POLL_MS);
+  try {
+    const answer = await request({ "X-Tghop-Job": job });
+    bar.value = to;
+    return answer;
+  } finally {
+    ended = true;
+    clearTimeout(timer);
+  }
 }

@@ -97,6 +97,7 @@ function setMaterial(on) {
   updateButtons();
   if (!$("inpaint").hidden) inpaintHint();  // Fill and Extend may have changed
   if (!$("morph").hidden && state.models.length > 1) morphPicked();  // so may Morph
+  if (!$("paint").hidden) paintPicked();  // and Paint
 }
 
 function fitFields() {

@@ -18,9 +18,10 @@ function generation(seed, size) {
 }
 
 // `id`: the model (the strip of seeds keeps the one it started with when another exemplar is picked meanwhile).
-async function generate(body, id = state.modelId) {
+// `headers`: more of them (withProgress's job).
+async function generate(body, id = state.modelId, headers = {}) {
   const response = await busyFetch(`/api/models/${id}/images`, {
-    method: "POST", body: JSON.stringify(body), headers: GENERATION_HEADERS,
+    method: "POST", body: JSON.stringify(body), headers: { ...GENERATION_HEADERS, ...headers },
   });
   if (!response.ok) throw new Error(await errorOf(response));
   return answerOf(response);
@@ -102,7 +103,7 @@ function onGenerate(event) {
     const seed = Number($("seed").value);
     say("generating");
     const body = generation(seed);
-    const { blob, maps } = await generate(body);
+    const { blob, maps } = await withProgress("gen-progress", (headers) => generate(body, state.modelId, headers));
     showResult(URL.createObjectURL(blob), seed, blob, undefined, maps, { models: [workingStem()], ...body });
     say("");
   });
@@ -136,9 +137,13 @@ function fieldProblem(input) {
   return `${name}: ${input.validationMessage}`;
 }
 
+// A strip still running when the working model (or the mode) changes goes on with its model, and is cleared when it
+// ends (clearStrip waits for it): its seeds are of a model that is no longer the working one.
 function onStrip() {
   if (!state.modelId || !$("gen-form").reportValidity()) return;  // an empty seed was seed 0
   const id = state.modelId;
+  const stale = () => !state.working || state.working.modelId !== id ||
+    document.querySelector("input[name=mode]:checked").value !== "view";
   withBusy($("strip-go"), async () => {
     const strip = $("strip");
     for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
@@ -149,7 +154,8 @@ function onStrip() {
     for (let i = 0; i < 8; i++) {
       const seed = first + i;
       say(`seed ${seed} (${i + 1} of 8)`);
-      const answer = await generate(generation(seed, [h, w]), id);
+      const answer = await withProgress("gen-progress", (headers) => generate(generation(seed, [h, w]), id, headers),
+                                        { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
       const url = URL.createObjectURL(answer.blob);
       const figure = document.createElement("figure");
       const img = document.createElement("img");
@@ -174,6 +180,10 @@ function onStrip() {
       figure.append(img, caption);
       strip.append(figure);
     }
-    say("click a seed to pick it");
+    if (!stale()) say("click a seed to pick it");
+  }).then(() => {
+    if (!stale() || !$("strip").dataset.model) return;
+    clearStrip();
+    if (state.working && state.modelId === state.working.modelId) say("model ready: generate below");
   });
 }

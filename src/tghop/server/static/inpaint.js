@@ -149,9 +149,10 @@ async function sendPicture(path, fields, what, size) {
   if (state.material && editor.maps) {  // a material's result: every map filled alike
     for (const m of editor.maps.slice(1)) form.append(`map:${m.name}`, m.blob, `${m.name}.png`);
   }
-  const response = await busyFetch(`/api/models/${state.modelId}/${path}`, {
-    method: "POST", body: form, headers: { Accept: GENERATION_HEADERS.Accept },
-  });
+  const url = `/api/models/${state.modelId}/${path}`;
+  const response = await withProgress("inpaint-progress", (headers) => busyFetch(url, {
+    method: "POST", body: form, headers: { Accept: GENERATION_HEADERS.Accept, ...headers },
+  }));
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
   const used = response.headers.get("X-Tghop-Seed");

@@ -39,6 +39,7 @@ function addSessionModel(id, name) {
   if (!$("morph-a").value) $("morph-a").value = String(index);
   if (index > 0 && $("morph-b").value === $("morph-a").value) $("morph-b").value = String(index);
   if (!$("morph").hidden && state.models.length > 1) morphPicked();  // a material picked as B: said
+  if (!$("paint").hidden) paintPicked();  // a material picked with texture models: said
 }
 
 function pickedModels() {
@@ -62,7 +63,7 @@ function renderModels() {
       }
       m.picked = box.checked;
       renderColours();
-      updateButtons();
+      paintPicked();
     });
     label.append(box, swatch(index), m.name);
     list.append(label);
@@ -139,9 +140,27 @@ function severalSettings(body) {
   return body;
 }
 
+// Models painted or remixed together are all texture models or all materials: why the picked ones are not
+// (a material with a texture model; kinds not known yet are left to the server), or "".
+function paintProblem() {
+  const picked = pickedModels();
+  const material = picked.find((m) => m.material === true), texture = picked.find((m) => m.material === false);
+  if (!material || !texture) return "";
+  return `${material.name} is a material and ${texture.name} a texture model: paint or remix all materials ` +
+         "(with the same maps) or all texture models; unpick one of them";
+}
+
+// Paint's and Remix's buttons and message follow the models picked (a material with a texture model: off,
+// and said why), as Morph's do.
+function paintPicked() {
+  const problem = paintProblem(), shown = $("paint-message").textContent;
+  if (problem) sayPaint(problem, true); else if (shown.includes(" a texture model: paint or remix all ")) sayPaint("");
+  updateButtons();
+}
+
 function onPaintGenerate(remix) {
   const picked = pickedModels();
-  if (picked.length < 2) return;
+  if (picked.length < 2 || paintProblem()) return;
   withBusy($(remix ? "remix-go" : "paint-go"), async () => {
     const body = severalSettings({ models: picked.map((m) => m.id), seed: Number($("paint-seed").value) });
     if (remix) {
@@ -152,7 +171,8 @@ function onPaintGenerate(remix) {
       body.transition = Number($("transition").value);
     }
     sayPaint(remix ? "remixing" : "generating");
-    const [blob, seed, maps] = await postImage("/api/images/guided", body);
+    const [blob, seed, maps] = await withProgress("paint-progress",
+                                                  (headers) => postImage("/api/images/guided", body, headers));
     const name = { models: picked.map((m) => m.stem), size: body.size || [guide.h, guide.w], tile: Boolean(body.tile) };
     showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps, name);
     sayPaint(`done (seed ${seed}): the result is below`);
@@ -181,6 +201,9 @@ function morphPicked() {
 function onMorph() {
   const a = state.models[Number($("morph-a").value)], b = state.models[Number($("morph-b").value)];
   if (!a || !b || morphProblem()) return;
+  // The fields checked here, as Generate's are by its form (fieldProblem): not sent to be refused
+  const bad = ["morph-height", "morph-width", "morph-seed"].map($).find((input) => !input.checkValidity());
+  if (bad) { sayMorph(fieldProblem(bad), true); bad.focus(); return; }
   withBusy($("morph-go"), async () => {
     const body = {
       a: a.id, b: b.id, seed: Number($("morph-seed").value),
@@ -189,7 +212,8 @@ function onMorph() {
     const one = generation(null);
     for (const name of ["refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
     sayMorph("morphing");
-    const [blob, seed] = await postImage("/api/images/morph", body);
+    const [blob, seed] = await withProgress("morph-progress",
+                                            (headers) => postImage("/api/images/morph", body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "morph", undefined,
                { models: [a.stem, "to", b.stem], size: body.size, tile: false });
     sayMorph(`done (seed ${seed}): the strip is below`);

@@ -1,0 +1,174 @@
+"""``tghop serve``'s page in a real browser (Chromium through Playwright) against a real uvicorn server:
+a long generation shows its progress (a bar that advances before the image comes, from the job its
+request names: test_server_progress.py); a strip of seeds whose model is no longer the working one when it
+ends is cleared; Morph's fields and Paint's mix of a material with a texture model are said on the page,
+not sent to be refused."""
+
+import pytest
+
+import chromium
+
+if chromium.missing():
+    pytest.skip(chromium.missing(), allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed: pip install -e '.[web-test]'")
+
+from conftest import FAST_FIT  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def page(live_server):
+    with chromium.served_page(live_server.url + "/") as page:
+        page.click("#fit-settings summary")
+        page.uncheck("#layout")
+        for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+            page.fill(f"#{name}", FAST_FIT[name])
+        yield page
+
+
+def fit(page, name):
+    """builtin:NAME fitted with the fast settings (from the server's cache when it is there)."""
+    page.select_option("#builtin", name)
+    page.wait_for_function(f"document.getElementById('fit-status').dataset.state === 'done' && "
+                           f"state.working && state.working.name === 'builtin:{name}'", timeout=90_000)
+    page.wait_for_selector("#summary:not([hidden])")
+
+
+def mode(page, name):
+    page.click(f"label:has(#mode-{name})")
+
+
+#: JavaScript (a function of a button's id and the result's caption to wait for): click the button and
+#: record the generation bar's values while it is shown, until the caption reads so; the values seen.
+BAR_UNTIL_RESULT_JS = """([button, caption]) => new Promise((done) => {
+  const box = document.getElementById("gen-progress"), bar = box.querySelector("progress"), seen = [];
+  document.getElementById(button).click();
+  const look = () => {
+    if (document.getElementById("result-caption").textContent === caption) { done(seen); return; }
+    if (!box.hidden && seen[seen.length - 1] !== bar.value) seen.push(bar.value);
+    setTimeout(look, 10);
+  };
+  look();
+})"""
+
+
+def test_a_long_generation_shows_its_progress_before_the_image(page):
+    # It said "generating" until the image came (tens of seconds at 8192x8192).
+    mode(page, "view")
+    fit(page, "bricks")
+    page.fill("#height", "2048")
+    page.fill("#width", "2048")
+    page.fill("#n_patches", "400")
+    page.fill("#seed", "2")
+    seen = page.evaluate(BAR_UNTIL_RESULT_JS, ["go", "result: 2048x2048, seed 2"])
+    during = [v for v in seen if 0 < v < 1]
+    assert len(during) >= 2 and during == sorted(during), seen  # it advanced before the image came
+    assert page.is_hidden("#gen-progress")  # gone with the answer
+    assert len(page.get_attribute("#gen-progress", "data-job")) == 32
+    job = page.evaluate("(id) => fetch('/api/jobs/' + id).then((r) => r.json())",
+                        page.get_attribute("#gen-progress", "data-job"))
+    assert job["kind"] == "generation" and job["state"] == "done" and "quilting" in job["stages"]
+    page.fill("#height", "128")
+    page.fill("#width", "128")
+    assert not page.errors, page.errors
+
+
+def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_ends(page):
+    # It stayed shown: eight seeds of bricks under the model of cells.
+    mode(page, "view")
+    fit(page, "cells")  # in the server's cache: picked again below, it is the working model at once
+    fit(page, "bricks")
+    page.fill("#height", "512")
+    page.fill("#width", "512")
+    page.fill("#n_patches", "400")
+    page.fill("#seed", "30")
+    page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {
+      for (const c of changes) window.stripImages += [...c.addedNodes].filter((n) => n.querySelector).length;
+    }).observe(document.getElementById('strip'), { childList: true }); }""")
+    page.click("#strip-go")
+    page.wait_for_function("document.querySelectorAll('#strip img').length >= 1", timeout=60_000)
+    assert page.is_visible("#gen-progress")  # the strip's 8 seeds fill one bar
+    page.select_option("#builtin", "cells")
+    page.wait_for_function("state.working.name === 'builtin:cells'", timeout=30_000)
+    assert page.eval_on_selector_all("#strip img", "l => l.length") < 8  # still running, with bricks
+    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
+    assert page.evaluate("window.stripImages") == 8  # it went on with its model to the end
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    assert page.get_attribute("#strip", "data-model") is None
+    assert page.text_content("#message") == "model ready: generate below"
+    page.fill("#seed", "40")  # a strip of the working model that ends is kept
+    page.fill("#height", "64")
+    page.fill("#width", "64")
+    page.click("#strip-go")
+    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' && "
+                           "document.querySelectorAll('#strip img').length === 8", timeout=120_000)
+    assert page.text_content("#message") == "click a seed to pick it"
+    assert not page.errors, page.errors
+
+
+def test_morphs_fields_are_checked_on_the_page(page):
+    # The server's 422 came back ("size must be ..."), after a round trip.
+    fit(page, "cells")
+    fit(page, "bricks")
+    mode(page, "morph")
+    sent = []
+    page.on("request", lambda r: sent.append(r.url) if r.url.endswith("/api/images/morph") else None)
+    for field, value, said in [("#morph-height", "9000", "height 9000 is more than 8192: give a number from 1 to 8192"),
+                               ("#morph-width", "0", "width 0 is less than 1: give a number from 1 to 8192"),
+                               ("#morph-width", "", "give a width, a number from 1 to 8192"),
+                               ("#morph-seed", "", "give a seed, a number of at least 0")]:
+        page.fill("#morph-height", "32")
+        page.fill("#morph-width", "128")
+        page.fill("#morph-seed", "1")
+        page.fill(field, value)
+        page.click("#morph-go")
+        assert page.text_content("#morph-message") == said
+        assert page.eval_on_selector("#morph-message", "m => m.classList.contains('error')")
+    assert sent == []
+    page.fill("#morph-width", "128")
+    page.fill("#morph-seed", "1")
+    page.click("#morph-go")
+    page.wait_for_function("document.getElementById('morph-message').textContent.startsWith('done (seed 1)')",
+                           timeout=60_000)
+    assert len(sent) == 1
+    mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def save_material(path):
+    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
+    from tghop import TGHop, data
+    from tghop.material import Material, example_maps
+    from tghop.modelfile import save_model
+
+    albedo = data.bricks(64)
+    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
+
+
+def test_paint_says_a_material_does_not_go_with_a_texture_model(page, tmp_path):
+    # Only the server refused it, after the click (422 "models[1] ... is a material but models[0] ...").
+    fit(page, "cells")
+    fit(page, "bricks")
+    save_material(tmp_path / "stone.npz")
+    page.set_input_files("#model-file", str(tmp_path / "stone.npz"))
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+    mode(page, "paint")
+
+    def box(name):
+        return page.locator("#paint-models label", has_text=name).locator("input")
+
+    box("builtin:cells").uncheck()  # bricks and the material
+    box("stone.npz").check()
+    said = page.text_content("#paint-message")
+    assert "stone.npz" in said and "is a material and builtin:bricks" in said, said
+    assert "a texture model: paint or remix all materials (with the same maps) or all texture models" in said
+    assert page.is_disabled("#paint-go") and page.is_disabled("#remix-go")
+    box("builtin:bricks").uncheck()  # cells instead of bricks: still the material with a texture model
+    box("builtin:cells").check()
+    assert "is a material and builtin:cells" in page.text_content("#paint-message")
+    box("stone.npz").uncheck()  # two texture models: nothing to say
+    box("builtin:bricks").check()
+    assert page.text_content("#paint-message") == "" and page.is_enabled("#remix-go")
+    mode(page, "view")
+    assert not page.errors, page.errors
