@@ -2,7 +2,8 @@
 // step) that share the page's global scope, loaded by index.html in this order (deferred: each runs
 // whole, in order, before DOMContentLoaded):
 //   common.js    the page's state (state, editor) and what every part uses: $, say, errorOf,
-//                updateButtons, withBusy and busyFetch (Stop), answerOf and postImage (the API's answers)
+//                updateButtons, withBusy and busyFetch (Stop), withProgress (a generation's bar), answerOf and
+//                postImage (the API's answers)
 //   download.js  download links; a material's maps as one ZIP
 //   fit.js       1. Exemplar: the fit of an exemplar and its maps, its progress; a model file
 //   generate.js  2. Generate and 3. Result: generating, the strip of seeds, the result and its tiling
