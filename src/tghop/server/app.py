@@ -22,12 +22,15 @@ Everything tghop does here is the library's own code: :func:`tghop.imageio.load_
 :func:`tghop.synthesize_guided` and :func:`tghop.morph` (several models; their JSON is checked by
 :mod:`tghop.server.requests`), :func:`tghop.modelfile.save_model` / :func:`~tghop.modelfile.load_model` (with
 their checks of a file). Bad input is answered with one line, ``{"error": "..."}``, and a status code: 400 (not
-an image, a decompression bomb, a corrupt model, a malformed request), 404 (no such model or job), 413 (over
-50 MB or over the exemplar pixel limit), 422 (a setting out of range, a size over the output limit), 501 (a
-co-occurrence route without PyTorch), 503 (too many fits, or uploads to decode, waiting; with ``Retry-After``);
-a generation whose client has gone away is dropped, also while it runs
+an image, a decompression bomb, a corrupt model, a malformed request), 404 (no such model or job), 409 (a
+generation stopped through its job, a job id in use), 413 (over 50 MB or over the exemplar pixel limit), 422 (a
+setting out of range, a size over the output limit), 501 (a co-occurrence route without PyTorch), 503 (too
+many fits, or uploads to decode, waiting; with ``Retry-After``); a generation whose client has gone away is
+dropped, also while it runs
 (:meth:`~tghop.server.core.Server.in_executor`; 499, to nobody), and so is a request whose client goes away
-before it has sent the whole body (:func:`~tghop.server.uploads.read_body`).
+before it has sent the whole body (:func:`~tghop.server.uploads.read_body`). A generation whose request
+names a job (the header ``X-Tghop-Job``) reports its progress at ``/api/jobs/{job}``, as a fit does
+(:meth:`~tghop.server.core.Server.generation_job`).
 """
 
 from __future__ import annotations
