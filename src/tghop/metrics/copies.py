@@ -92,7 +92,8 @@ def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=Non
     matters: a window's 4 x 4 (or 2 x 2) block means give a lower bound of its distance
     (``|q - r|^2 >= block^2 |means(q) - means(r)|^2``, each block's mean being its
     projection on the constant vectors), and a query is compared with a chunk's windows
-    only where the bound of one of them is below ``within``. Distances of ``within`` or
+    only where the bound of one of them is below ``within``, and then only with the windows
+    whose bound is below ``within`` for some such query. Distances of ``within`` or
     more may then be reported as ``inf``; those below are the same as without it.
 
     Returns
@@ -103,13 +104,15 @@ def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=Non
     d = q.shape[1]
     q32 = q.astype(np.float32)
     q_norm = (q32 * q32).sum(axis=1)
+    q_m2 = -2.0 * q32  # (-2 q).r is exactly -2 (q.r): scaling by a power of two rounds nothing
     block = next((b for b in _BOUND_BLOCKS if p % b == 0 and b < p), None) if within is not None else None
     if block is not None:
         fq = _block_means(q.reshape(n, -1, p, p), block)
         # The bound in the block means' units; the margin is far above float32 rounding, so no
         # window within ``within`` is ever skipped (the exact distances decide).
         limit = float(within) ** 2 * d / block ** 2 + 1e-3
-        half_gap = 0.5 * ((fq * fq).sum(axis=1) - np.float32(limit))
+        half_gap = (0.5 * ((fq * fq).sum(axis=1) - np.float32(limit)))[:, None]
+        fq_aug = np.concatenate([fq, np.ones((n, 1), np.float32)], axis=1)  # [fq | 1]
     nh, nw = reference.shape[0] - p + 1, reference.shape[1] - p + 1
     best = np.full(n, np.inf, dtype=np.float32)
     best_index = np.full(n, -1, dtype=np.int64)
@@ -117,25 +120,33 @@ def _nearest_rms(reference: np.ndarray, q: np.ndarray, patch_size: int, tick=Non
     for r0 in range(0, nh, rows_per_chunk):
         r1 = min(nh, r0 + rows_per_chunk)
         strip = reference[r0:r1 + p - 1].astype(np.float32)
-        sel = slice(None)
+        sel, cols = slice(None), None
         if block is not None:
             fr = _strip_block_means(strip, p, block, nw)
-            # |fq|^2 - 2 fq.fr + |fr|^2 < limit, as fq.fr - |fr|^2 / 2 > (|fq|^2 - limit) / 2 (fewer passes)
-            dots = np.matmul(fq, fr.T)
-            dots -= 0.5 * (fr * fr).sum(axis=1)[None, :]
-            sel = np.flatnonzero((dots > half_gap[:, None]).any(axis=1))
-            del dots
+            # |fq|^2 - 2 fq.fr + |fr|^2 < limit, as fq.fr - |fr|^2 / 2 > (|fq|^2 - limit) / 2: one
+            # product of [fq | 1] and [fr | -|fr|^2 / 2], no pass over it but the comparison.
+            fr_aug = np.empty((fr.shape[0], fr.shape[1] + 1), dtype=np.float32)
+            fr_aug[:, :-1] = fr
+            fr_aug[:, -1] = -0.5 * (fr * fr).sum(axis=1)
+            passes = np.matmul(fq_aug, fr_aug.T) > half_gap  # (n, windows of the chunk)
+            sel = np.flatnonzero(passes.any(axis=1))
+            # Only the windows that pass for some kept query: every window within ``within`` of a
+            # query passes for it, so its nearest one, if within, is among them (the first of ties too).
+            cols = np.flatnonzero(passes[sel].any(axis=0)) if sel.size else None
+            del passes
         if block is None or sel.size:
-            ref = sliding_window_view(strip, (p, p), axis=(0, 1)).reshape((r1 - r0) * nw, -1)
-            d2 = np.matmul(q32[sel], ref.T)
-            d2 *= -2.0
+            if cols is None:
+                ref = sliding_window_view(strip, (p, p), axis=(0, 1)).reshape((r1 - r0) * nw, -1)
+            else:
+                ref = sliding_window_view(strip, (p, p), axis=(0, 1))[cols // nw, cols % nw].reshape(cols.size, -1)
+            d2 = np.matmul(q_m2[sel], ref.T)
             d2 += (ref * ref).sum(axis=1)[None, :]
             local = d2.argmin(axis=1)
             value = d2[np.arange(d2.shape[0]), local] + q_norm[sel]
             better = value < best[sel]
             chosen = np.arange(n)[sel][better]
             best[chosen] = value[better]
-            best_index[chosen] = local[better] + r0 * nw
+            best_index[chosen] = (local[better] if cols is None else cols[local[better]]) + r0 * nw
         if tick is not None:
             tick()
     found = best_index >= 0
