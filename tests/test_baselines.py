@@ -156,6 +156,17 @@ def test_ustyuzhaninov_greyscale_and_zero_iterations(exemplar):
         baselines.ustyuzhaninov(grey, n_iter=1, scales=(4,))
 
 
+@pytest.mark.parametrize("options, message", [
+    ({"n_iter": 2.5}, r"^n_iter must be an integer >= 0, got 2.5$"),  # was run as 2 iterations
+    ({"n_maps": 1.5}, r"^n_maps must be an integer >= 1, got 1.5$"),  # was run with 1 map
+    ({"scales": (3, 4.9)}, r"^scales must be odd positive filter sizes, got \(3, 4.9\)$"),  # was a filter of 4
+])
+def test_ustyuzhaninov_refuses_fractional_counts_instead_of_truncating(options, message, exemplar):
+    pytest.importorskip("torch")
+    with pytest.raises(TGHopError, match=message):
+        baselines.ustyuzhaninov(exemplar, 16, rng=0, **options)
+
+
 def test_ustyuzhaninov_without_torch_raises_install_hint(exemplar, monkeypatch, without_torch):
     with pytest.raises(MissingExtraError, match=r"needs PyTorch; install it with: pip install 'tghop\[metrics\]' "
                                                 r"\(where pip would fetch a CUDA build .* CPU build of torch 2\.13\.0"):

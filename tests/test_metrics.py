@@ -359,3 +359,37 @@ def test_a_fractional_patch_size_is_refused_not_truncated(name, exemplar, refere
     images = (references["crop"],) if name == "self_repetition" else (exemplar, references["crop"])
     with pytest.raises(TGHopError, match=r"^patch_size must be an integer >= 1, got 8.5$"):
         getattr(metrics, name)(*images, patch_size=8.5)
+
+
+BAD_OPTIONS = [
+    # A NaN min_std made no window textured: a silent 0 whatever was copied or repeated.
+    ("copied_textured", {"min_std": float("nan")}, r"^min_std must be a finite number >= 0, got nan$"),
+    ("self_repetition", {"min_std": float("nan")}, r"^min_std must be a finite number >= 0, got nan$"),
+    ("self_repetition", {"min_std": -0.1}, r"^min_std must be a finite number >= 0, got -0.1$"),
+    # Areas of a fractional, negative or text side were truncated or clamped to one window: a silent 0.
+    ("self_repetition", {"region": 2.7}, r"^region must be an integer >= 1, got 2.7$"),
+    ("self_repetition", {"search": -5}, r"^search must be an integer >= 1, got -5$"),
+    ("self_repetition", {"region": "x"}, r"^region must be an integer >= 1, got 'x'$"),
+    ("copied", {"threshold": "a"}, r"^threshold must be a finite number > 0, got 'a'$"),
+    ("copied_textured", {"threshold": True}, r"^threshold must be a finite number > 0, got True$"),
+    # A fractional scale or window was truncated (2.5 scored as 2); text and a bare int raised Python's errors.
+    ("sliced_wasserstein", {"scales": (1, 2.5)}, r"^each of scales must be an integer >= 1, got 2.5$"),
+    ("sliced_wasserstein", {"scales": 3}, r"^scales must be a sequence of positive downsampling factors, got 3$"),
+    ("sliced_wasserstein", {"scales": "ab"}, r"^each of scales must be an integer >= 1, got 'a'$"),
+    ("cooccurrence_distance", {"window": 2.5}, r"^window must be an integer >= 1, got 2.5$"),
+    ("cooccurrence_distance", {"n_clusters": "a"}, r"^n_clusters must be an integer >= 1, got 'a'$"),
+    ("cooccurrence_distance", {"sigma": float("nan")}, r"^sigma must be a finite number > 0, got nan$"),
+    # n_maps=0 raised MKL's FFT error, a negative one ZeroDivisionError; a filter of 3.5 was a 3.
+    ("gram_distance", {"n_maps": 0}, r"^n_maps must be an integer >= 1, got 0$"),
+    ("gram_distance", {"n_maps": -3}, r"^n_maps must be an integer >= 1, got -3$"),
+    ("gram_distance", {"scales": (3, 5.5)}, r"^scales must be odd positive filter sizes, got \(3, 5.5\)$"),
+]
+
+
+@pytest.mark.parametrize("name, options, message", BAD_OPTIONS)
+def test_a_bad_option_is_refused_in_one_line_not_truncated_or_scored(name, options, message, exemplar, references):
+    if name == "gram_distance":
+        pytest.importorskip("torch")
+    images = (references["crop"],) if name == "self_repetition" else (exemplar, references["crop"])
+    with pytest.raises(TGHopError, match=message):
+        getattr(metrics, name)(*images, **options)

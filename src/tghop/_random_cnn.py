@@ -12,6 +12,7 @@ Nothing here imports PyTorch: the caller passes the ``torch`` module in (from
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 from scipy.fft import next_fast_len
@@ -56,14 +57,16 @@ def random_filters(scales, n_maps: int, channels: int, rng: np.random.Generator)
 
 
 def check_scales(scales) -> tuple:
-    """``scales`` as a tuple of odd positive filter sizes, or a one-line :class:`TGHopError`."""
+    """``scales`` as a tuple of odd positive filter sizes, or a one-line :class:`TGHopError`
+    (a size that is not an integer, such as 3.5, "3" or True, is refused, not truncated)."""
     try:
-        scales = tuple(int(k) for k in scales)
-    except (TypeError, ValueError):
+        items = tuple(scales)
+    except TypeError:
         raise TGHopError(f"scales must be a sequence of odd filter sizes, got {scales!r}") from None
-    if not scales or any(k < 1 or k % 2 == 0 for k in scales):
-        raise TGHopError(f"scales must be odd positive filter sizes, got {scales}")
-    return scales
+    whole = all(isinstance(k, (numbers.Integral, np.integer)) and not isinstance(k, (bool, np.bool_)) for k in items)
+    if not items or not whole or any(k < 1 or k % 2 == 0 for k in items):
+        raise TGHopError(f"scales must be odd positive filter sizes, got {items}")
+    return tuple(int(k) for k in items)
 
 
 class RandomCNN:

@@ -44,7 +44,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 
-from ._arrays import check_number
+from ._arrays import check_int, check_number
 from ._common import (
     MissingExtraError,
     ProgressCallback,
@@ -411,9 +411,7 @@ def ustyuzhaninov(
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
     scales = check_scales(scales)
-    n_iter, n_maps = int(n_iter), int(n_maps)
-    if n_iter < 0 or n_maps < 1:
-        raise TGHopError(f"n_iter must be >= 0 and n_maps >= 1, got {n_iter} and {n_maps}")
+    n_iter, n_maps = check_int(n_iter, "n_iter", 0), check_int(n_maps, "n_maps", 1)
     check_memory(memory_estimate("ustyuzhaninov", img.shape, scales=scales, n_maps=n_maps), (h, w),
                  what="the ustyuzhaninov baseline")
     rng = check_rng(rng)

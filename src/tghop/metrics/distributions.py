@@ -10,7 +10,7 @@ from scipy import ndimage
 
 from .._common import InvalidImageError, TGHopError, check_texture
 from . import common
-from .._arrays import check_int
+from .._arrays import check_int, check_number
 from .common import pair, counter, check_patch_size, check_seed, sample_patches
 
 __all__ = ["sliced_wasserstein", "cooccurrence_distance"]
@@ -77,9 +77,13 @@ def sliced_wasserstein(
     beyond that, one blurred copy of each image at a time.
     """
     patch_size, seed = check_patch_size(patch_size), check_seed(seed)
-    scales = tuple(int(s) for s in scales)
-    if not scales or min(scales) < 1:
-        raise TGHopError(f"scales must be positive downsampling factors, got {scales}")
+    try:
+        scales = tuple(scales)
+    except TypeError:
+        raise TGHopError(f"scales must be a sequence of positive downsampling factors, got {scales!r}") from None
+    if not scales:
+        raise TGHopError("scales must be positive downsampling factors, got ()")
+    scales = tuple(check_int(s, "each of scales") for s in scales)  # 2.5 is refused, not truncated to 2
     n_projections = check_int(n_projections, "n_projections")
     max_patches = check_int(max_patches, "max_patches")  # as the nearest-patch metrics: 2.5 is not rounded down
     ex, res = pair(exemplar, result, min_size=patch_size * max(scales))
@@ -166,8 +170,8 @@ def cooccurrence_distance(
     """
     from ..cooccurrence import cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
 
-    if not sigma > 0 or int(window) < 1 or int(n_clusters) < 1:
-        raise TGHopError("sigma, window and n_clusters must be positive")
+    sigma = check_number(sigma, "sigma", positive=True)
+    window, n_clusters = check_int(window, "window"), check_int(n_clusters, "n_clusters")
     max_fit_pixels, seed = check_int(max_fit_pixels, "max_fit_pixels"), check_seed(seed)
     ex, res = pair(exemplar, result)
     check_texture(ex)  # one colour cluster: its 1x1 matrix matched any result (a distance of 0)

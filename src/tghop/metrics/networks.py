@@ -13,6 +13,7 @@ from scipy import linalg
 from .._common import INSTALL_HINT, InvalidImageError, MissingExtraError, check_texture, import_torch, report
 from .._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 from . import common
+from .._arrays import check_int
 from .common import pair, counter, check_seed
 
 __all__ = ["GRAM_TILE", "GRAM_N_MAPS", "sifid", "gram_distance"]
@@ -331,7 +332,7 @@ def gram_distance(
     not grow with the image (measured: the metric on a 2048 x 2048 pair peaks at 1.6 GB
     for the whole process, images included, against over 16 GB in one piece).
     """
-    seed = check_seed(seed)
+    seed, n_maps = check_seed(seed), check_int(n_maps, "n_maps")
     torch = import_torch("The Gram distance")
     ex, res = pair(exemplar, result)
     check_texture(ex)  # a flat exemplar's Gram matrix is rounding residue: the ratio was about 1e23
