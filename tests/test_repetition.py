@@ -122,3 +122,37 @@ def test_reuse_penalty_without_the_bound_agrees():
     finally:
         quilting._bounded_candidates = old
     assert np.allclose(a, b)
+
+
+def _brute_self_repetition(img, p, threshold, min_std):
+    """Every textured p x p window of ``img``: does a non-overlapping one lie within RMS ``threshold``?"""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    win = sliding_window_view(img, (p, p), axis=(0, 1))  # (nh, nw, C, p, p)
+    nh, nw = win.shape[:2]
+    flat = win.reshape(nh * nw, -1)
+    std = np.sqrt(win.reshape(nh * nw, img.shape[2], -1).var(axis=2).mean(axis=1))  # TEXTURED_STD's measure
+    ys, xs = np.divmod(np.arange(nh * nw), nw)
+    found = []
+    for i in np.flatnonzero(std >= min_std):
+        far = (np.abs(ys - ys[i]) >= p) | (np.abs(xs - xs[i]) >= p)
+        found.append(bool((np.sqrt(((flat[far] - flat[i]) ** 2).mean(axis=1)) < threshold).any()))
+    return float(np.mean(found))
+
+
+@pytest.mark.parametrize("kind, amount", [("noise", 0.022), ("noise", 0.025), ("offset", 0.029), ("offset", 0.031)])
+def test_self_repetition_matches_a_brute_force_search(kind, amount):
+    # Tiles of one 12 x 12 texture, each repeat differing from the next by noise (which the box
+    # means' bound averages away) or by a constant just within or just beyond the threshold (for
+    # which the bound is tight): a bound that skipped a pair within 0.03 would lower the score.
+    rng = np.random.default_rng(0)
+    tile = _texture((12, 12, 3))
+    if kind == "noise":
+        img = np.clip(np.tile(tile, (4, 4, 1)) + rng.normal(0, amount, (48, 48, 3)), 0, 1)
+    else:
+        steps = np.arange(4)[:, None] * amount + np.arange(4)[None, :] * 0.07
+        img = np.tile(0.1 + 0.5 * tile, (4, 4, 1)) + np.kron(steps, np.ones((12, 12)))[..., None]
+    expected = _brute_self_repetition(img, 8, 0.03, metrics.TEXTURED_STD)
+    assert 0.0 < expected  # the cases are near the threshold, not trivially 0 ...
+    assert expected < 1.0 or amount < 0.03  # ... nor 1 beyond it
+    assert metrics.self_repetition(img, patch_size=8, max_windows=10**6) == expected
