@@ -436,3 +436,23 @@ def test_patch_refinement_without_patch_statistics_is_refused_before_the_fit(wor
         r = run("synth", *sources, "-o", out, "--size", "48", *fast, *extra)
         assert_user_error(r, *words)
         assert "patch_refine=" not in r.stderr.decode() and not out.exists()
+
+
+def test_evaluate_no_diversity_leaves_out_the_pairwise_comparison(workdir):
+    # diversity compares every pair of results (4,950 searches for 100 results): a researcher
+    # scoring many results must be able to leave it out, of the table and of the JSON lines.
+    save_image(data.bricks(64, rng=2), workdir / "r1.png")
+    save_image(data.bricks(64, rng=3), workdir / "r2.png")
+    paths = [workdir / "bricks.png", workdir / "r1.png", workdir / "r2.png"]
+    r = run("evaluate", *paths, "--metrics", "swd", "--no-diversity", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    out = r.stdout.decode()
+    assert "r1.png" in out and "r2.png" in out and "diversity" not in out
+    r = run("evaluate", *paths, "--metrics", "swd", "--no-diversity", "--json", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    import json
+
+    lines = [json.loads(line) for line in r.stdout.decode().splitlines()]
+    assert [sorted(line) for line in lines] == [["exemplar", "result", "swd"]] * 2
+    r = run("evaluate", *paths, "--metrics", "swd", "-q")  # the default keeps it
+    assert "diversity of the 2 results" in r.stdout.decode()

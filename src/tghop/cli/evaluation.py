@@ -24,12 +24,15 @@ __all__ = ["evaluate", "baseline"]
 @click.option("--metrics", "names", default=None,
               help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied, copied_textured "
                    "(default all of these), and self_repetition (only when named).")
+@click.option("--no-diversity", "no_diversity", is_flag=True,
+              help="Leave out the diversity of several results: it compares every pair of them, so its time grows "
+                   "with the square of their number (190 pairs for 20 results, 4,950 for 100).")
 @click.option("--repetition", is_flag=True,
               help="Also score each result's self_repetition (added to --metrics or to the default set).")
 @scale_option("Score against EXEMPLAR resampled by this factor: the working scale the results were made at "
               "(tghop synth --scale).")
 @QUIET_OPTION
-def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
+def evaluate(exemplar, results, as_json, names, no_diversity, repetition, scale, quiet):
     """Score RESULTS against EXEMPLAR with texture metrics: lower is better, except novelty (the
     distance to the nearest exemplar patch: higher is newer).
 
@@ -44,7 +47,9 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
     tiling of one crop, 0 for no repetition). It looks at the result alone, not the exemplar:
     asked alone, it takes an exemplar of any size.
 
-    With two or more results, also their diversity (higher: more different from each other).
+    With two or more results, also their diversity (higher: more different from each other):
+    every pair of results is compared, so with many results it takes longer than the scores
+    themselves; --no-diversity leaves it out.
     SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
 
     Large images: memory stays bounded. Images above 512x512 pixels are scored in strips
@@ -74,7 +79,8 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
         images = [load_exemplar(r) for r in results]
         scaled = exemplar if scale == 1 else f"{exemplar} at --scale {scale:g}"
         M.check_sizes({scaled: ex.shape}, checked, exemplar=scaled)  # as large as the metrics that use it need
-        M.check_sizes({r: img.shape for r, img in zip(results, images)}, checked, diversity=len(images) > 1,
+        with_diversity = len(images) > 1 and not no_diversity
+        M.check_sizes({r: img.shape for r, img in zip(results, images)}, checked, diversity=with_diversity,
                       exemplar=None)
         rows = []
         for i, (path, img) in enumerate(zip(results, images), start=1):
@@ -84,7 +90,7 @@ def evaluate(exemplar, results, as_json, names, repetition, scale, quiet):
             else:
                 step = progress
             rows.append((path, M.evaluate(ex, img, metrics=chosen, repetition=repetition, progress=step)))
-        div = M.diversity(*images, progress=progress) if len(images) > 1 else None
+        div = M.diversity(*images, progress=progress) if with_diversity else None
         progress.close()
     skipped = rows[0][1].skipped if rows else {}
     if as_json:
