@@ -76,7 +76,8 @@ def evaluate(exemplar, results, as_json, names, no_diversity, repetition, scale,
         if repetition and "self_repetition" not in checked:
             checked.append("self_repetition")
         ex = rescale(load_exemplar(exemplar), scale)
-        images = [load_exemplar(r) for r in results]
+        # 8-bit results held as uint8 (an eighth of float64): converted one at a time as they are scored
+        images = [load_exemplar(r, dtype=None) for r in results]
         scaled = exemplar if scale == 1 else f"{exemplar} at --scale {scale:g}"
         M.check_sizes({scaled: ex.shape}, checked, exemplar=scaled)  # as large as the metrics that use it need
         with_diversity = len(images) > 1 and not no_diversity
