@@ -441,3 +441,16 @@ def test_the_cells_exemplar_needs_memory_of_its_pixels_not_of_pixels_times_seeds
     finally:
         tracemalloc.stop()
     assert img.shape == (384, 384, 3) and peak < 100 * 2**20, peak
+
+
+@pytest.mark.parametrize("name, options, message", [
+    ("quilting", {"patch_size": 16.7}, r"^patch_size must be an integer >= 2, got 16.7$"),  # was quilted with 16
+    ("quilting", {"patch_size": "a"}, r"^patch_size must be an integer >= 2, got 'a'$"),  # was Python's ValueError
+    ("quilting", {"max_patches": 2.5}, r"^max_patches must be an integer >= 1, got 2.5$"),  # was a pool of 2
+    ("gpdm", {"n_threads": 0}, r"^gpdm: n_threads must be an integer >= 1, got 0$"),  # was torch's RuntimeError
+])
+def test_a_baseline_refuses_a_bad_count_in_one_line(name, options, message, exemplar):
+    if name == "gpdm":
+        pytest.importorskip("torch")
+    with pytest.raises(TGHopError, match=message):
+        BASELINES[name](exemplar[:48, :48], 32, rng=0, **options)

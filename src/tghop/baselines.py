@@ -327,17 +327,14 @@ def quilting(
     """
     from .quilting import quilt  # another stage of the pipeline; imported when used
 
-    patch_size = int(patch_size)
-    if patch_size < 2:
-        raise TGHopError(f"patch_size must be at least 2, got {patch_size}")
-    if max_patches is not None and int(max_patches) < 1:
-        raise TGHopError(f"max_patches must be positive or None, got {max_patches}")
+    patch_size = check_int(patch_size, "patch_size", 2)  # 16.7 is refused, not a 16
+    max_patches = None if max_patches is None else check_int(max_patches, "max_patches")
     img = check_image(exemplar, min_size=patch_size, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
     check_memory(memory_estimate("quilting", img.shape, patch_size=patch_size, max_patches=max_patches), (h, w),
                  what="image quilting")
     rng = check_rng(rng)
-    pool = _all_patches(img, patch_size, None if max_patches is None else int(max_patches), rng)
+    pool = _all_patches(img, patch_size, max_patches, rng)
     out = quilt(pool.astype(np.float32), (h, w), overlap=overlap, tolerance=tolerance, tile=tile,
                 rng=rng, progress=progress)
     return np.clip(np.asarray(out, dtype=np.float64), 0.0, 1.0)

@@ -174,6 +174,8 @@ def gpdm(
         raise TGHopError(f"gpdm: scale_factor must lie in (0, 1), got {scale_factor!r}")
     lr = check_number(lr, "lr", positive=True, where="gpdm")
     noise_sigma = check_number(noise_sigma, "noise_sigma", where="gpdm")
+    if n_threads is not None:
+        n_threads = check_int(n_threads, "n_threads", where="gpdm")  # 0 was torch's RuntimeError
     if init not in ("noise", "blurred"):
         raise TGHopError(f"init must be 'noise' or 'blurred', got {init!r}")
     if min(img.shape[:2]) < patch_size or min(h, w) < patch_size:
