@@ -61,6 +61,14 @@ def test_identical_images_score_zero(name, exemplar):
     assert metrics.METRICS[name].function(exemplar, exemplar) == pytest.approx(0.0, abs=1e-6)
 
 
+@pytest.mark.parametrize("name", ["sifid", "gram", "swd", "cooccurrence", "novelty"])
+def test_identical_images_score_exactly_zero(name, exemplar):
+    # "0 for identical images", as documented: a sanity check of a pipeline (SIFID of an image
+    # with itself) reads 0, not sqrtm's round-off (SIFID was 2.3e-13).
+    _needs(name)
+    assert metrics.METRICS[name].function(exemplar, exemplar.copy()) == 0.0
+
+
 @pytest.mark.parametrize("name", FIDELITY)
 def test_crop_beats_blur_beats_noise(name, scores):
     _needs(name)

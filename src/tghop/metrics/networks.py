@@ -162,6 +162,8 @@ def _frechet(f1: np.ndarray, f2: np.ndarray) -> float:
 
 def _frechet_moments(mu1, s1, mu2, s2) -> float:
     """Frechet distance between two Gaussians given by their means and covariances."""
+    if np.array_equal(mu1, mu2) and np.array_equal(s1, s2):
+        return 0.0  # the same Gaussian: sqrtm's round-off left about 1e-13
     covmean = linalg.sqrtm(s1 @ s2)
     if not np.all(np.isfinite(covmean)):  # singular product: regularise both covariances
         eps = 1e-6 * np.eye(s1.shape[0])
