@@ -401,3 +401,33 @@ def test_a_bad_option_is_refused_in_one_line_not_truncated_or_scored(name, optio
     images = (references["crop"],) if name == "self_repetition" else (exemplar, references["crop"])
     with pytest.raises(TGHopError, match=message):
         getattr(metrics, name)(*images, **options)
+
+
+def test_the_exemplar_statistics_are_reused_for_the_next_result_not_recomputed(exemplar, references, monkeypatch):
+    # Scoring many results against one exemplar computed its Inception moments, Gram matrix and
+    # colour clusters again for every result (half of those metrics' time); now once, and again
+    # only for another exemplar, with the scores of a fresh computation.
+    pytest.importorskip("torch")
+    import tghop.cooccurrence as cooccurrence
+    from tghop.metrics import common, networks
+
+    monkeypatch.setattr(common, "_LAST_EXEMPLAR", {}, raising=False)
+    sizes = []
+    for module, name in ((networks, "_inception_run"), (networks, "_gram"), (cooccurrence, "fit_colour_clusters")):
+        def spy(*args, _f=getattr(module, name), _name=name, **kwargs):
+            image = next(a for a in args if isinstance(a, np.ndarray))
+            sizes.append((_name, image.shape[:2]))
+            return _f(*args, **kwargs)
+        monkeypatch.setattr(module, name, spy)
+    chosen = ["sifid", "gram", "cooccurrence"]
+    first = [metrics.evaluate(exemplar, references[r], metrics=chosen) for r in ("crop", "noise", "blurred")]
+    exemplar_runs = [name for name, size in sizes if size == exemplar.shape[:2]]
+    assert sorted(exemplar_runs) == ["_gram", "_inception_run", "fit_colour_clusters"]  # once each
+    other = exemplar.copy()
+    other[0, 0] = 1.0 - other[0, 0]
+    changed = metrics.evaluate(other, references["crop"], metrics=chosen)
+    assert len([name for name, size in sizes if size == exemplar.shape[:2]]) == 6  # recomputed for it
+    monkeypatch.setattr(common, "_LAST_EXEMPLAR", {}, raising=False)
+    assert metrics.evaluate(exemplar, references["noise"], metrics=chosen) == first[1]  # the same bits as fresh
+    monkeypatch.setattr(common, "_LAST_EXEMPLAR", {}, raising=False)
+    assert metrics.evaluate(other, references["crop"], metrics=chosen) == changed

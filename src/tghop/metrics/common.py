@@ -9,7 +9,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 from .._arrays import check_int
 from .._common import TGHopError, check_image, grey_as_rgb, report
 
-__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "check_seed", "sample_patches"]
+__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "check_seed", "sample_patches",
+           "exemplar_statistics"]
 
 
 #: Images up to this many pixels (512 x 512) are scored in one piece by :func:`sifid` and
@@ -44,6 +45,56 @@ def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray
             ex, res = (np.repeat(a, 3, axis=2) if a.shape[2] == 1 else a for a in (ex, res))
     return ex, res
 
+
+
+#: kind -> (key, value): the statistics of the last exemplar each metric computed (:func:`exemplar_statistics`).
+_LAST_EXEMPLAR: dict = {}
+
+
+def exemplar_statistics(kind: str, image: np.ndarray, options: tuple, compute, units: int = 0, tick=None):
+    """``compute()``, or what it gave for the same exemplar and options the last time.
+
+    Scoring many results against one exemplar (``tghop evaluate ex r1 ... r100``) computed the
+    exemplar's side of :func:`~tghop.metrics.sifid`, :func:`~tghop.metrics.gram_distance` and
+    :func:`~tghop.metrics.cooccurrence_distance` (its Inception moments, Gram matrix, colour
+    clusters and co-occurrences) again for every result: half the work of those metrics. The
+    last one of each ``kind`` is kept, keyed by ``image``'s shape, dtype and a hash of its bytes
+    and by ``options``: the same values, not recomputed. Only statistics are kept, never images
+    (the largest, the Gram matrix: 0.5 MB at the defaults); the values returned must not be
+    modified. Hashing the exemplar's bytes costs far less than any of these statistics.
+
+    Parameters
+    ----------
+    kind : str
+        The metric (one entry each).
+    image : ndarray
+        The exemplar as the metric sees it (after :func:`pair`).
+    options : tuple
+        Whatever else the statistics depend on (hashable).
+    compute : callable
+        ``compute()`` gives the statistics, calling ``tick`` ``units`` times on its way.
+    units, tick
+        When the statistics are reused, ``tick()`` is called ``units`` times, so that the
+        progress counts the same units either way.
+
+    Returns
+    -------
+    object
+        What ``compute()`` returned.
+    """
+    import hashlib
+
+    data = np.ascontiguousarray(image)
+    key = (data.shape, data.dtype.str, hashlib.blake2b(data.view(np.uint8).ravel(), digest_size=16).digest(),
+           options)
+    last = _LAST_EXEMPLAR.get(kind)
+    if last is not None and last[0] == key:
+        for _ in range(units if tick is not None else 0):
+            tick()
+        return last[1]
+    value = compute()
+    _LAST_EXEMPLAR[kind] = (key, value)
+    return value
 
 
 def counter(progress, stage: str, total: int):

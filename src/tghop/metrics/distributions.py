@@ -11,7 +11,7 @@ from scipy import ndimage
 from .._common import InvalidImageError, TGHopError, check_texture
 from . import common
 from .._arrays import check_int, check_number
-from .common import pair, counter, check_patch_size, check_seed, sample_patches
+from .common import pair, counter, check_patch_size, check_seed, exemplar_statistics, sample_patches
 
 __all__ = ["sliced_wasserstein", "cooccurrence_distance"]
 
@@ -175,19 +175,27 @@ def cooccurrence_distance(
     max_fit_pixels, seed = check_int(max_fit_pixels, "max_fit_pixels"), check_seed(seed)
     ex, res = pair(exemplar, result)
     check_texture(ex)  # one colour cluster: its 1x1 matrix matched any result (a distance of 0)
-    centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=max_fit_pixels,
-                                           seed=int(seed))
     tick = counter(progress, "cooccurrence", len(_cooc_strips(ex, int(window))) + len(_cooc_strips(res, int(window))))
-    matrices = []
-    for img in (ex, res):
+
+    def matrix(img, centres, spreads):
         if img.shape[0] * img.shape[1] <= common.PLAIN_MAX_PIXELS:  # one piece, exactly as before
             # A tiny floor keeps the matrix defined for a result far from every exemplar colour.
-            matrices.append(cooccurrence_matrix(img.transpose(2, 0, 1)[None], centres, spreads, sigma=float(sigma),
-                                                window=int(window), floor=1e-12)[0])
+            out = cooccurrence_matrix(img.transpose(2, 0, 1)[None], centres, spreads, sigma=float(sigma),
+                                      window=int(window), floor=1e-12)[0]
             tick()
-        else:
-            matrices.append(_cooccurrence_strips(img, centres, spreads, float(sigma), int(window), tick))
-    return float(np.abs(matrices[0] - matrices[1]).sum())
+            return out
+        return _cooccurrence_strips(img, centres, spreads, float(sigma), int(window), tick)
+
+    def exemplar():
+        centres, spreads = fit_colour_clusters(ex, n_clusters=int(n_clusters), max_fit_pixels=max_fit_pixels,
+                                               seed=int(seed))
+        return centres, spreads, matrix(ex, centres, spreads)
+
+    # The exemplar's clusters and matrix, reused for the next result scored against it.
+    options = (n_clusters, sigma, window, max_fit_pixels, seed, common.PLAIN_MAX_PIXELS)
+    centres, spreads, m_ex = exemplar_statistics("cooccurrence", ex, options, exemplar,
+                                                 len(_cooc_strips(ex, int(window))), tick)
+    return float(np.abs(m_ex - matrix(res, centres, spreads)).sum())
 
 
 def _cooc_strips(img: np.ndarray, window: int):

@@ -14,7 +14,7 @@ from .._common import INSTALL_HINT, InvalidImageError, MissingExtraError, check_
 from .._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 from . import common
 from .._arrays import check_int
-from .common import pair, counter, check_seed
+from .common import pair, counter, check_seed, exemplar_statistics
 
 __all__ = ["GRAM_TILE", "GRAM_N_MAPS", "sifid", "gram_distance"]
 
@@ -155,11 +155,6 @@ def _inception_moments(torch, blocks, img: np.ndarray, before_pool: bool, tick=N
     return shift + s1 / n, (s2 - np.outer(s1, s1) / n) / (n - 1)
 
 
-def _frechet(f1: np.ndarray, f2: np.ndarray) -> float:
-    """Frechet distance between Gaussians fitted to two ``(n, d)`` feature sets, in float64."""
-    return _frechet_moments(*_moments(f1), *_moments(f2))
-
-
 def _frechet_moments(mu1, s1, mu2, s2) -> float:
     """Frechet distance between two Gaussians given by their means and covariances."""
     if np.array_equal(mu1, mu2) and np.array_equal(s1, s2):
@@ -224,15 +219,24 @@ def sifid(exemplar, result, *, before_pool: bool = False, progress=None) -> floa
     blocks = _inception_blocks(torch, bool(before_pool))
     if ex.shape[0] * ex.shape[1] <= common.PLAIN_MAX_PIXELS and res.shape[0] * res.shape[1] <= common.PLAIN_MAX_PIXELS:
         report(progress, "sifid", 0, 2)
-        f_ex = _inception_features(torch, blocks, ex)
+        m_ex = _exemplar_moments(torch, blocks, ex, bool(before_pool))
         report(progress, "sifid", 1, 2)
-        f_res = _inception_features(torch, blocks, res)
+        m_res = _moments(_inception_features(torch, blocks, res))
         report(progress, "sifid", 2, 2)
-        return _frechet(f_ex, f_res)
+        return _frechet_moments(*m_ex, *m_res)
     total = sum(_sifid_units(img, bool(before_pool)) for img in (ex, res))
     tick = counter(progress, "sifid", total)
-    return _frechet_moments(*_inception_moments(torch, blocks, ex, bool(before_pool), tick),
+    return _frechet_moments(*_exemplar_moments(torch, blocks, ex, bool(before_pool), tick),
                             *_inception_moments(torch, blocks, res, bool(before_pool), tick))
+
+
+def _exemplar_moments(torch, blocks, ex: np.ndarray, before_pool: bool, tick=None):
+    """:func:`_inception_moments` of the exemplar, reused for the next result scored against it
+    (:func:`common.exemplar_statistics`; an image of up to :data:`common.PLAIN_MAX_PIXELS` pixels
+    gives the moments of its features in one piece, in either of :func:`sifid`'s paths)."""
+    return exemplar_statistics("sifid", ex, (before_pool, common.PLAIN_MAX_PIXELS),
+                               lambda: _inception_moments(torch, blocks, ex, before_pool, tick),
+                               _sifid_units(ex, before_pool), tick)
 
 
 def _sifid_units(img: np.ndarray, before_pool: bool) -> int:
@@ -359,6 +363,7 @@ def gram_distance(
     m = cnn.margin("valid")
     tick = counter(progress, "gram", len(_gram_tiles(ex, m)) + len(_gram_tiles(res, m)))
     with torch.no_grad():
-        g_ex = _gram(torch, cnn, ex, mean, tick)
+        g_ex = exemplar_statistics("gram", ex, key + (GRAM_TILE,), lambda: _gram(torch, cnn, ex, mean, tick),
+                                   len(_gram_tiles(ex, m)), tick)
         g_res = _gram(torch, cnn, res, mean, tick)
         return float(torch.linalg.norm(g_res - g_ex)) / float(torch.linalg.norm(g_ex))
