@@ -1,5 +1,5 @@
 """Headless Chromium (Debian's ``chromium`` package, never a downloaded browser) driven by
-Playwright: used by ``test_server_browser.py``, ``test_server_browser_materials.py`` and by
+Playwright: used by the ``test_server_browser*.py`` tests and by
 ``scripts/make_gallery.py serve`` (the README's screenshot of ``tghop serve``'s page)."""
 
 import contextlib
@@ -45,3 +45,12 @@ def served_page(url):
             yield page
         finally:
             browser.close()
+
+
+def set_fit_settings(page, values):
+    """Open the page's fit settings, turn the coarse-to-fine layout off and fill the fields of
+    ``values`` (``{field id: text}``: the tests' fast fit, ``conftest.FAST_FIT``)."""
+    page.click("#fit-settings summary")
+    page.uncheck("#layout")
+    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
+        page.fill(f"#{name}", values[name])

@@ -38,10 +38,7 @@ def page(live_server):
 
 def fit_bricks(page):
     """Fit builtin:bricks with the fast settings (from the server's cache when it is there)."""
-    page.click("#fit-settings summary")
-    page.uncheck("#layout")
-    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
-        page.fill(f"#{name}", FAST_FIT[name])
+    chromium.set_fit_settings(page, FAST_FIT)
     page.select_option("#builtin", "bricks")
     page.wait_for_selector("#fit-status:not([hidden])")
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)

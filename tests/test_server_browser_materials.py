@@ -42,10 +42,7 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     normal, height = tmp_path / "bricks normal.png", tmp_path / "height.png"
     normal.write_bytes(png(to_uint16(maps["normal"])))
     height.write_bytes(png(to_uint8(maps["height"][..., 0])))
-    page.click("#fit-settings summary")
-    page.uncheck("#layout")
-    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
-        page.fill(f"#{name}", FAST_FIT[name])
+    chromium.set_fit_settings(page, FAST_FIT)
     page.set_input_files("#maps", [str(normal), str(height)])
     assert page.text_content("#maps-list") == "maps: bricks_normal, height"
     assert page.is_visible("#maps-clear")
@@ -266,10 +263,7 @@ def fresh_page(page):
     """The page again (no exemplar, no maps), with the fast fit settings."""
     page.goto(page.url)
     page.wait_for_selector("body[data-ready='1']")
-    page.click("#fit-settings summary")
-    page.uncheck("#layout")
-    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
-        page.fill(f"#{name}", FAST_FIT[name])
+    chromium.set_fit_settings(page, FAST_FIT)
 
 
 #: JavaScript (a function of [[base64 bytes, file name], ...]): drop the files on the drop area at once,

@@ -19,10 +19,7 @@ from conftest import FAST_FIT  # noqa: E402
 @pytest.fixture(scope="module")
 def page(live_server):
     with chromium.served_page(live_server.url + "/") as page:
-        page.click("#fit-settings summary")
-        page.uncheck("#layout")
-        for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
-            page.fill(f"#{name}", FAST_FIT[name])
+        chromium.set_fit_settings(page, FAST_FIT)
         yield page
 
 

@@ -33,10 +33,7 @@ def fresh_page(page):
     page.goto(page.url)
     page.wait_for_selector("body[data-ready='1']")
     page.errors.clear()  # the refusals of the test before (Chromium logs each 400)
-    page.click("#fit-settings summary")
-    page.uncheck("#layout")
-    for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
-        page.fill(f"#{name}", FAST_FIT[name])
+    chromium.set_fit_settings(page, FAST_FIT)
 
 
 def wait_said(page, fragment, timeout=90_000):
