@@ -108,18 +108,18 @@ class Server:
                 self.unless_stopping()  # dropped or cancelled while it waited: it never starts
                 if job.cancel_requested:
                     raise RequestError(409, f"the generation was cancelled (DELETE /api/jobs/{job.id})")
-                job._update(state="running")
+                job.set_state("running")
             result = work(*args)
         except BaseException as exc:
             if job is not None and not job.final:
                 if job.cancel_requested or dropped.is_set() or self.stopping.is_set():
-                    job._update(state="cancelled")
+                    job.set_state("cancelled")
                 else:
-                    job._update(state="failed", error=getattr(exc, "message", None) or str(exc) or type(exc).__name__)
+                    job.set_state("failed", error=getattr(exc, "message", None) or str(exc) or type(exc).__name__)
             raise
         else:
             if job is not None and not job.final:
-                job._update(state="done")
+                job.set_state("done")
             return result
         finally:
             self._work.dropped = self._work.job = None
@@ -159,7 +159,7 @@ class Server:
             dropped.set()
             future.cancel()
             if job is not None and job.state not in FINAL:
-                job._update(state="cancelled")
+                job.set_state("cancelled")
             if not gone.done() and self.stopping.is_set():
                 raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
             raise RequestError(499, "the client went away; its work was dropped")

@@ -150,6 +150,10 @@ class Job:
                 self.finished_at = time.monotonic()
             self.version += 1
 
+    def set_state(self, state: str, *, error: str | None = None) -> None:
+        """Move the job to ``state`` (one of :data:`STATES`), with its message when it ``failed``."""
+        self._update(state=state, **({} if error is None else {"error": error}))
+
     def progress(self, stage: str, done: int, total: int, *, cancellable: bool = True) -> None:
         """The library's progress callback; raises :class:`Cancelled` once cancelled (unless
         not ``cancellable``: past the point of no return, such as a file written)."""
