@@ -9,7 +9,8 @@ import click
 
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
-from .common import Progress, check_output, check_outputs, check_stdout, load_exemplar, user_errors, warn_written_with_8
+from .common import (Progress, check_output, check_outputs, check_stdout, fail, load_exemplar, stop_message,
+                     user_errors, warn_written_with_8)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["evaluate", "baseline"]
@@ -21,6 +22,10 @@ __all__ = ["evaluate", "baseline"]
 @click.option("--json", "as_json", is_flag=True,
               help="One JSON object per result (JSON lines), then with several results one of their diversity; "
                    "a score that is not a finite number is null.")
+@click.option("--csv", "as_csv", is_flag=True,
+              help="CSV: a header (exemplar, result, the metrics), then one row per result; with several results "
+                   "a diversity column, filled on a last row whose result is empty. A score that is not a finite "
+                   "number is an empty cell.")
 @click.option("--metrics", "names", default=None,
               help="Comma-separated subset of: sifid, gram, swd, cooccurrence, novelty, copied, copied_textured "
                    "(default all of these), and self_repetition (only when named).")
@@ -32,7 +37,7 @@ __all__ = ["evaluate", "baseline"]
 @scale_option("Score against EXEMPLAR resampled by this factor: the working scale the results were made at "
               "(tghop synth --scale).")
 @QUIET_OPTION
-def evaluate(exemplar, results, as_json, names, no_diversity, repetition, scale, quiet):
+def evaluate(exemplar, results, as_json, as_csv, names, no_diversity, repetition, scale, quiet):
     """Score RESULTS against EXEMPLAR with texture metrics: lower is better, except novelty (the
     distance to the nearest exemplar patch: higher is newer).
 
@@ -52,6 +57,10 @@ def evaluate(exemplar, results, as_json, names, no_diversity, repetition, scale,
     themselves; --no-diversity leaves it out.
     SIFID and the Gram distance need the metrics extra: pip install 'tghop[metrics]'.
 
+    Each result's row is written as soon as it is scored (the diversity last): Ctrl-C keeps
+    the rows written, whole lines, and says how many; running the command again scores every
+    result again.
+
     Large images: memory stays bounded. Images above 512x512 pixels are scored in strips
     (sifid, cooccurrence) or tiles of 256x256 positions (gram, above 310x310), which gives
     the same scores up to float rounding; smaller images are scored in one piece. swd,
@@ -66,7 +75,9 @@ def evaluate(exemplar, results, as_json, names, no_diversity, repetition, scale,
 
     progress = Progress(not quiet)
     with user_errors(progress):
-        check_stdout("the table of scores" if not as_json else "the scores (JSON lines)")
+        if as_json and as_csv:
+            raise TGHopError("--json and --csv: give one (the scores are written in one format)")
+        check_stdout("the scores (JSON lines)" if as_json else "the scores (CSV)" if as_csv else "the table of scores")
         chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
         if chosen == []:
             raise TGHopError(f"--metrics is empty; give one or more of: {', '.join([*M.METRICS, *M.RESULT_METRICS])}")
@@ -83,36 +94,98 @@ def evaluate(exemplar, results, as_json, names, no_diversity, repetition, scale,
         with_diversity = len(images) > 1 and not no_diversity
         M.check_sizes({r: img.shape for r, img in zip(results, images)}, checked, diversity=with_diversity,
                       exemplar=None)
-        rows = []
-        for i, (path, img) in enumerate(zip(results, images), start=1):
-            if len(images) > 1:
-                def step(stage, done, total, _i=i):
-                    progress(f"{stage} {_i}/{len(images)}", done, total)
-            else:
-                step = progress
-            rows.append((path, M.evaluate(ex, img, metrics=chosen, repetition=repetition, progress=step)))
-        div = M.diversity(*images, progress=progress) if with_diversity else None
-        progress.close()
-    skipped = rows[0][1].skipped if rows else {}
-    if as_json:
-        def finite(scores):  # JSON has no Infinity or NaN (json.dumps wrote them, which parsers refuse)
-            return {k: v if v == v and abs(v) != float("inf") else None for k, v in scores.items()}
-
-        for path, scores in rows:
-            click.echo(json.dumps({"exemplar": exemplar, "result": path, **finite(scores)}, allow_nan=False))
-        if div is not None:
-            click.echo(json.dumps({"exemplar": exemplar, "results": list(results), "diversity": div}))
-    else:
-        cols = list(rows[0][1])
-        width = max(len("result"), *(len(p) for p, _ in rows))
-        sides = [max(14, len(c) + 2) for c in cols]  # a long name (copied_textured) keeps a gap
-        click.echo(f"{'result':<{width}}" + "".join(f"{c:>{n}}" for c, n in zip(cols, sides)))
-        for path, scores in rows:
-            click.echo(f"{path:<{width}}" + "".join(f"{scores[c]:>{n}.4g}" for c, n in zip(cols, sides)))
-        if div is not None:
-            click.echo(f"diversity of the {len(images)} results: {div:.4g}")
-    for name, why in skipped.items():
+        out = ScoreWriter(exemplar, results, "csv" if as_csv else "json" if as_json else "table",
+                          with_diversity=with_diversity)
+        scored = 0
+        try:
+            for i, (path, img) in enumerate(zip(results, images), start=1):
+                if len(images) > 1:
+                    def step(stage, done, total, _i=i):
+                        progress(f"{stage} {_i}/{len(images)}", done, total)
+                else:
+                    step = progress
+                scores = M.evaluate(ex, img, metrics=chosen, repetition=repetition, progress=step)
+                progress.close()  # the bar's line ends before the row (both on one terminal)
+                out.row(path, scores)
+                scored = i
+            div = M.diversity(*images, progress=progress) if with_diversity else None
+            progress.close()
+        except KeyboardInterrupt as exc:
+            progress.close()
+            message, code = stop_message(exc)
+            n = len(results)
+            during = " (during their diversity)" if scored == n and with_diversity else ""
+            fail(f"{message} after {scored} of {n} result{'s' if n != 1 else ''} scored{during}, their rows written; "
+                 "running the same command again scores them all again", code)
+        out.end(div)
+    for name, why in out.skipped.items():
         click.echo(f"Note: {name} skipped: {why}", err=True)
+
+
+class ScoreWriter:
+    """Writes ``tghop evaluate``'s scores as each result is scored, one whole line at a time,
+    flushed (``click.echo``): the rows of a run stopped by Ctrl-C or a crash stay.
+
+    ``fmt``: ``"table"`` (the header with the first row: its columns are the first result's
+    scores, the metrics not skipped), ``"json"`` (JSON lines) or ``"csv"`` (a header, one row a
+    result; with the diversity, a ``diversity`` column filled on a last row whose ``result`` is
+    empty). A score that is not a finite number is ``null`` in JSON, an empty cell in CSV.
+    """
+
+    def __init__(self, exemplar, results, fmt, *, with_diversity):
+        self.exemplar, self.results, self.fmt, self.with_diversity = exemplar, list(results), fmt, with_diversity
+        self.cols = None
+        self.skipped = {}
+        self.width = max(len("result"), *(len(p) for p in self.results))
+
+    def row(self, path, scores):
+        """The row of the result at ``path``; before the first, the header."""
+        if self.cols is None:
+            self.cols = list(scores)
+            self.skipped = scores.skipped
+            self.sides = [max(14, len(c) + 2) for c in self.cols]  # a long name (copied_textured) keeps a gap
+            if self.fmt == "table":
+                click.echo(f"{'result':<{self.width}}" + "".join(f"{c:>{n}}" for c, n in zip(self.cols, self.sides)))
+            elif self.fmt == "csv":
+                self._csv(["exemplar", "result", *self.cols, *(["diversity"] if self.with_diversity else [])])
+        if self.fmt == "json":
+            click.echo(json.dumps({"exemplar": self.exemplar, "result": path, **_finite(scores)}, allow_nan=False))
+        elif self.fmt == "csv":
+            self._csv([self.exemplar, path, *(_csv_number(scores[c]) for c in self.cols),
+                       *([""] if self.with_diversity else [])])
+        else:
+            click.echo(f"{path:<{self.width}}" + "".join(f"{scores[c]:>{n}.4g}" for c, n in zip(self.cols, self.sides)))
+
+    @staticmethod
+    def _csv(cells):
+        import csv
+        import io
+
+        line = io.StringIO()
+        csv.writer(line, lineterminator="\n").writerow(cells)
+        click.echo(line.getvalue(), nl=False)  # the whole line in one write
+
+    def end(self, div):
+        """The rows after every result's: their diversity (``div``, None without it)."""
+        if div is None:
+            return
+        if self.fmt == "json":
+            click.echo(json.dumps({"exemplar": self.exemplar, "results": self.results, "diversity": div}))
+        elif self.fmt == "csv":
+            self._csv([self.exemplar, "", *([""] * len(self.cols)), _csv_number(div)])
+        else:
+            click.echo(f"diversity of the {len(self.results)} results: {div:.4g}")
+
+
+def _finite(scores):
+    """JSON has no Infinity or NaN (json.dumps wrote them, which parsers refuse): null instead."""
+    return {k: v if v == v and abs(v) != float("inf") else None for k, v in scores.items()}
+
+
+def _csv_number(value) -> str:
+    """A score in a CSV cell: the shortest text that reads back as the same float (as JSON
+    writes it); empty when it is not a finite number."""
+    return repr(float(value)) if value == value and abs(value) != float("inf") else ""
 
 
 @click.command()
