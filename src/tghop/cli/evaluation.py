@@ -115,7 +115,8 @@ def evaluate(exemplar, results, as_json, as_csv, names, no_diversity, repetition
             message, code = stop_message(exc)
             n = len(results)
             during = " (during their diversity)" if scored == n and with_diversity else ""
-            fail(f"{message} after {scored} of {n} result{'s' if n != 1 else ''} scored{during}, their rows written; "
+            written = ", their rows written" if scored else ""
+            fail(f"{message} after {scored} of {n} result{'s' if n != 1 else ''} scored{during}{written}; "
                  "running the same command again scores them all again", code)
         out.end(div)
     for name, why in out.skipped.items():
