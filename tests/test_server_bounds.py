@@ -411,3 +411,72 @@ def test_a_model_the_bound_drops_meanwhile_is_404_or_sent_whole_never_500(tmp_pa
     finally:
         client.close()
         server.stop()
+
+
+def test_an_upload_waiting_for_the_gate_whose_client_went_away_leaves_the_queue_never_decoded(tmp_path, monkeypatch):
+    """An upload waiting its turn to be decoded whose client disconnects is dropped at once: it is never
+    decoded (the real preparation counts its calls), and its waiting place goes to the next request."""
+    import io
+    import socket
+
+    import numpy as np
+    from PIL import Image
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop.server.routes import fit
+
+    buf = io.BytesIO()
+    Image.fromarray(np.full((64, 64, 3), 128, np.uint8)).save(buf, format="PNG")  # flat: read, then refused
+    flat = buf.getvalue()
+    release, lock, decoded = threading.Event(), threading.Lock(), []
+    prepare = fit.prepare_fit
+
+    def held(server, fields):  # the real preparation, counted by the exemplar's name, held until released
+        with lock:
+            decoded.append(fields["image"][0])
+        release.wait(60)
+        return prepare(server, fields)
+
+    monkeypatch.setattr(fit, "prepare_fit", held)
+    live = LiveServer(tmp_path, max_decodes=1, decodes_waiting=1)
+    gate = live.app.state.server.decoding
+    answers = {}
+
+    def post(name):
+        with httpx.Client(base_url=live.url, timeout=60) as client:
+            answers[name] = client.post("/api/models", files={"image": (f"{name}.png", flat)})
+
+    def until(done, seconds=30):
+        deadline = time.monotonic() + seconds
+        while not done():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+
+    threads = []
+    try:
+        threads.append(threading.Thread(target=post, args=("first",)))
+        threads[-1].start()
+        until(lambda: decoded == ["first.png"])
+        request = httpx.Request("POST", f"{live.url}/api/models", files={"image": ("gone.png", flat)})
+        raw = (f"POST /api/models HTTP/1.1\r\nHost: {live.url[7:]}\r\n"
+               + "".join(f"{k}: {v}\r\n" for k, v in request.headers.items() if k.lower() != "host")
+               + "\r\n").encode() + request.read()
+        with socket.create_connection(("127.0.0.1", int(live.url.rsplit(":", 1)[1])), timeout=10) as sock:
+            sock.sendall(raw)  # the whole request, then waits its turn...
+            until(lambda: gate.waiting == 1)
+        until(lambda: gate.waiting == 0, seconds=10)  # ...and is gone: out of the queue at once
+        threads.append(threading.Thread(target=post, args=("next",)))
+        threads[-1].start()  # its place: the next waits, not refused
+        until(lambda: gate.waiting == 1)
+        release.set()
+        for thread in threads:
+            thread.join(60)
+    finally:
+        release.set()
+        live.stop()
+    assert decoded == ["first.png", "next.png"]  # the one whose client went away was never decoded
+    for name in ("first", "next"):
+        answer = answers[name]
+        assert answer.status_code == 400 and "has no texture" in answer.json()["error"], answer.text
+    assert gate.holding == 0 and gate.waiting == 0

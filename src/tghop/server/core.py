@@ -74,10 +74,14 @@ class Server:
         self.stopping = asyncio.Event()
         self._work = threading.local()  # .dropped: the running request's flag, on its generation thread
 
-    async def decode(self, work, *args):
-        """``work(*args)`` on a decoding thread once :attr:`decoding` lets it in (503 when too many wait)."""
-        async with self.decoding:
+    async def decode(self, request, work, *args):
+        """``work(*args)`` on a decoding thread once :attr:`decoding` lets it in (503 when too many wait);
+        a request whose client goes away while it waits leaves the queue, never decoded (499, to nobody)."""
+        await self.decoding.enter(gone=functools.partial(disconnected, request))
+        try:
             return await asyncio.get_running_loop().run_in_executor(self.decoder, functools.partial(work, *args))
+        finally:
+            await self.decoding.__aexit__(None, None, None)
 
     def stop(self) -> None:
         """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):

@@ -54,16 +54,41 @@ class Gate:
         self._free = asyncio.Semaphore(slots)
 
     async def __aenter__(self):
+        return await self.enter()
+
+    async def enter(self, gone=None):
+        """Take a slot, waiting for one in order (503 when too many wait); ``gone()``: an awaitable that,
+        done first (its client went away), withdraws the wait: its place is freed, it never holds a slot,
+        499. Leave with :meth:`__aexit__`."""
         if self.holding >= self.slots and self.waiting >= self.max_waiting:
             raise RequestError(503, f"the server is busy: {self.holding} {self.what} and {self.waiting} wait; "
                                     f"try again in {RETRY_AFTER} s", headers={"Retry-After": str(RETRY_AFTER)})
         self.waiting += 1
         try:
-            await self._free.acquire()
+            if gone is None:
+                await self._free.acquire()
+            elif not await self._acquire_unless(gone):
+                raise RequestError(499, "the client went away while its upload waited; it was dropped")
         finally:
             self.waiting -= 1
         self.holding += 1
         return self
+
+    async def _acquire_unless(self, gone) -> bool:
+        """A slot (True), or none once ``gone`` is done first (False: out of the queue)."""
+        acquiring = asyncio.ensure_future(self._free.acquire())
+        gone = asyncio.ensure_future(gone())
+        got = False
+        try:
+            await asyncio.wait({acquiring, gone}, return_when=asyncio.FIRST_COMPLETED)
+            got = acquiring.done() and not gone.done()
+        finally:
+            gone.cancel()
+            if not got:  # still waiting, it leaves the queue (a slot granted meanwhile is given back on its cancel)
+                acquiring.cancel()
+                if acquiring.done() and not acquiring.cancelled():  # granted before: given back here
+                    self._free.release()
+        return got
 
     async def __aexit__(self, *exc_info):
         self.holding -= 1

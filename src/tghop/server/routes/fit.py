@@ -119,7 +119,7 @@ async def create_model(server, request):
     the cache (200)."""
     body = await read_body(request, MAX_FIT_BYTES, what="the upload (the exemplar and its maps together)")
     fields = each_file_within(await read_form(request, body))
-    model_id, fit = await server.decode(prepare_fit, server, fields)  # the exemplar and maps: their turn, or 503
+    model_id, fit = await server.decode(request, prepare_fit, server, fields)  # exemplar and maps: their turn, or 503
     if fit is None:
         server.cache.touch(model_id)
         job = server.queue.finished(model_id)

@@ -101,5 +101,5 @@ async def upload_model(server, request):
         filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
     else:
         filename, content = None, body  # no name: messages say "the upload"
-    model_id = await server.decode(store_upload, server, content, safe_name(filename, "the upload"))
+    model_id = await server.decode(request, store_upload, server, content, safe_name(filename, "the upload"))
     return json_response({"id": model_id})
