@@ -402,8 +402,9 @@ def test_a_model_the_bound_drops_meanwhile_is_404_or_sent_whole_never_500(tmp_pa
         for ask in (lambda: client.get(f"/api/models/{model_id}"),
                     lambda: client.post(f"/api/models/{model_id}/images", json={"size": [16, 16]})):
             assert client.post("/api/models/upload", content=first).json()["id"] == model_id
-            with cache._lock:
+            with cache._lock:  # as a fresh server: neither the model nor its summary in memory
                 cache._loaded.clear()
+                cache._summaries.clear()
             monkeypatch.setattr(cache, "_load", lambda path: (drop(), read(path))[1])  # gone just before it is read
             one_line_404(ask())
             monkeypatch.undo()
@@ -479,4 +480,67 @@ def test_an_upload_waiting_for_the_gate_whose_client_went_away_leaves_the_queue_
     for name in ("first", "next"):
         answer = answers[name]
         assert answer.status_code == 400 and "has no texture" in answer.json()["error"], answer.text
+    assert gate.holding == 0 and gate.waiting == 0
+
+
+def test_summaries_asked_at_once_load_the_model_in_the_decoding_turn_once(tmp_path, two_model_files, monkeypatch):
+    """A model may take hundreds of MB while it is read: summaries of models not in memory (a fresh server)
+    asked at once load them max_decodes at a time, and each model once: its summary is kept (the file of an
+    id never changes), still 404 once the file is gone."""
+    import hashlib
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop import modelfile
+
+    ids = [hashlib.sha256(content).hexdigest() for content in two_model_files]
+    (tmp_path / "models").mkdir()
+    for model_id, content in zip(ids, two_model_files):
+        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    release, lock = threading.Event(), threading.Lock()
+    inside, peak, loads = [0], [0], []
+    load = modelfile.load_model
+
+    def held(path, **kwargs):  # the real loading, counted, held until every request is in
+        with lock:
+            inside[0] += 1
+            peak[0] = max(peak[0], inside[0])
+            loads.append(path.name[:64] if hasattr(path, "name") else str(path))
+        try:
+            release.wait(60)
+            return load(path, **kwargs)
+        finally:
+            with lock:
+                inside[0] -= 1
+
+    monkeypatch.setattr(modelfile, "load_model", held)
+    live = LiveServer(tmp_path, max_decodes=1, decodes_waiting=16)
+    gate = live.app.state.server.decoding
+    answers = []
+
+    def get(model_id):
+        answers.append(httpx.get(f"{live.url}/api/models/{model_id}", timeout=60))
+
+    threads = [threading.Thread(target=get, args=(ids[i % 2],)) for i in range(8)]
+    try:
+        for thread in threads:
+            thread.start()
+        deadline = time.monotonic() + 30
+        while inside[0] + gate.waiting < len(threads):  # all in: loading, or waiting their turn
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        release.set()
+        for thread in threads:
+            thread.join(60)
+        assert [a.status_code for a in answers] == [200] * 8, [a.text for a in answers]
+        assert peak[0] == 1 and sorted(loads) == sorted(ids)  # one at a time, each model once
+        assert {a.json()["id"] for a in answers} == set(ids)
+        again = httpx.get(f"{live.url}/api/models/{ids[0]}", timeout=60)
+        assert again.json() == next(a.json() for a in answers if a.json()["id"] == ids[0]) and len(loads) == 2
+        (tmp_path / "models" / f"{ids[0]}.npz").unlink()
+        gone = httpx.get(f"{live.url}/api/models/{ids[0]}", timeout=60)
+        assert gone.status_code == 404 and "no model" in gone.json()["error"], gone.text
+    finally:
+        release.set()
+        live.stop()
     assert gate.holding == 0 and gate.waiting == 0

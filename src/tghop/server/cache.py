@@ -26,6 +26,8 @@ __all__ = ["ModelCache", "DEFAULT_CACHE_BYTES", "ID"]
 ID = re.compile(r"[0-9a-f]{64}\Z")
 #: Fitted models kept in memory (the last used ones).
 _LOADED = 4
+#: Summaries kept (:meth:`ModelCache.summary`; a few KB each), the last used ones.
+_SUMMARIES = 256
 #: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
 DEFAULT_CACHE_BYTES = 2 * 1000**3
 
@@ -72,6 +74,7 @@ class ModelCache:
             except OSError:
                 pass
         self._loaded = OrderedDict()
+        self._summaries = OrderedDict()
         self._lock = threading.Lock()
         self.prune()  # the bound may be lower than the last server's
 
@@ -125,6 +128,7 @@ class ModelCache:
             removed.append(model_id)
             with self._lock:
                 self._loaded.pop(model_id, None)
+                self._summaries.pop(model_id, None)
         return removed
 
     def store(self, content: bytes, filename: str, *, hint: str) -> str:
@@ -192,6 +196,32 @@ class ModelCache:
             self._loaded.move_to_end(model_id)
             while len(self._loaded) > _LOADED:
                 self._loaded.popitem(last=False)
+
+    def summary(self, model_id: str):
+        """The summary kept for ``model_id`` (:meth:`keep_summary`), the file marked as used; None if none is
+        kept; 404 when the file is gone (dropped by the bound, or by hand)."""
+        path = self.path(model_id)
+        with self._lock:
+            known = self._summaries.get(model_id)
+            if known is not None:
+                self._summaries.move_to_end(model_id)
+        if known is None:
+            return None
+        if not path.is_file():
+            with self._lock:
+                self._summaries.pop(model_id, None)
+            raise self.missing(model_id)
+        self.touch(model_id)
+        return known
+
+    def keep_summary(self, model_id: str, summary) -> None:
+        """Keep ``summary`` of ``model_id`` (a file named by its content's hash never changes, nor does its
+        summary): asked again, it is answered without loading the model. The last used are kept."""
+        with self._lock:
+            self._summaries[model_id] = summary
+            self._summaries.move_to_end(model_id)
+            while len(self._summaries) > _SUMMARIES:
+                self._summaries.popitem(last=False)
 
     def missing(self, model_id: str) -> RequestError:
         """The 404 of a model (or checkpoint) that is not in the folder: never made, or dropped by the bound."""

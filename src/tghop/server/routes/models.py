@@ -15,26 +15,35 @@ __all__ = ["summary", "model_summary", "download_name", "send_file", "model_file
 
 
 def summary(server, model_id: str) -> dict:
-    """The summary of ``GET /api/models/{id}`` (the model loaded: a worker thread). The file's size
-    is read first: a file the bound drops meanwhile is 404, as one gone before."""
+    """The summary of ``GET /api/models/{id}`` (the model loaded: a decoding thread), kept once made
+    (:meth:`~tghop.server.cache.ModelCache.keep_summary`). The file's size is read first: a file the bound
+    drops meanwhile is 404, as one gone before."""
     from ...modelfile import info_dict
 
+    known = server.cache.summary(model_id)  # made while this one waited its turn
+    if known is not None:
+        return known
     try:
         file_bytes = server.cache.path(model_id).stat().st_size
     except FileNotFoundError:
         raise server.cache.missing(model_id) from None
     loaded = server.cache.load(model_id)  # 404 when the file went since
     model = getattr(loaded, "model_", loaded)  # a material's joint model
-    return {"id": model_id, "file_bytes": file_bytes,
+    made = {"id": model_id, "file_bytes": file_bytes,
             "layout": model.layout_ is not None, **info_dict(model),
             **({"material": {"maps": loaded.map_info()}} if model is not loaded else {})}
+    server.cache.keep_summary(model_id, made)
+    return made
 
 
 async def model_summary(server, request):
-    """``GET /api/models/{id}``."""
-    from starlette.concurrency import run_in_threadpool
-
-    return json_response(await run_in_threadpool(summary, server, request.path_params["id"]))
+    """``GET /api/models/{id}``: the summary kept, or the model loaded in the decoding threads' turn
+    (:meth:`~tghop.server.core.Server.decode`: a model may take hundreds of MB while it is read)."""
+    model_id = request.path_params["id"]
+    known = server.cache.summary(model_id)
+    if known is None:
+        known = await server.decode(request, summary, server, model_id)
+    return json_response(known)
 
 
 def download_name(file_id: str, suffix: str, *, kind: str = "", name=None) -> str:
