@@ -34,6 +34,18 @@ def wait_result(d, caption, old_src=""):
                f" document.getElementById('result-caption').textContent === {caption!r}; }})()", timeout=60)
 
 
+def assert_progress_was_followed(d):
+    """The last morph or edit named a job (the bar's ``data-job``) whose stages the server reported, and
+    the bar went with its answer."""
+    import json
+
+    job = d.run("return document.getElementById('cooc-progress').dataset.job || ''")
+    assert len(job) == 32 and d.run("return document.getElementById('cooc-progress').hidden") is True, job
+    snap = json.loads(d.run("const r = new XMLHttpRequest(); r.open('GET', '/api/jobs/' + arguments[0], false);"
+                            " r.send(); return r.responseText;", job))
+    assert snap["state"] == "done" and snap["stages"] == ["generating", "encoding"], snap
+
+
 def cooc_steps(d, checkpoint):
     """Load ``checkpoint``, place crop 1 top left and crop 2 bottom right by clicking on the
     exemplar, morph from 1 to 2, paint the right half of a 40x64 edit with crop 2 and
@@ -63,6 +75,7 @@ def cooc_steps(d, checkpoint):
     d.click("#cooc-morph-go")
     wait_result(d, "cooc-morph: 32x48, seed 3")
     assert result_size(d) == [32, 48]
+    assert_progress_was_followed(d)
     d.fill("#cooc-height", "40")
     d.fill("#cooc-width", "64")
     assert d.run("const c = document.getElementById('cooc-guide'); return [c.height, c.width]") == [40, 64]
@@ -78,6 +91,7 @@ def cooc_steps(d, checkpoint):
     d.click("#cooc-edit-go")
     wait_result(d, "cooc-edit: 40x64, seed 2")
     assert result_size(d) == [40, 64]
+    assert_progress_was_followed(d)
     plain = d.run("return document.getElementById('result').src")
     for name, value in (("a", "0"), ("b", "1"), ("factor", "4")):
         d.fill(f"#cooc-boost-{name}", value)

@@ -151,6 +151,26 @@ def test_edit_with_a_boost_is_the_libraries_boosted_condition(client, checkpoint
     assert np.abs(same.astype(int) - plain).max() <= 1  # a factor of 1 changes nothing
 
 
+@needs_torch
+def test_a_morph_or_edit_with_a_job_reports_its_stages_there_same_bytes(client, cid):
+    """As the other generations (the page's progress bar): a request naming a job (X-Tghop-Job) reports
+    the generator's pass and the PNG's encoding there, and its image is the same as without one."""
+    import secrets
+
+    from tghop.server.jobs import generation_fraction
+
+    for path, body in (("morph", {"a": [0, 0], "b": [32, 32], "length": 6, "seed": 3}),
+                       ("edit", {"crops": [[0, 0]], "size": [32, 48], "seed": 2})):
+        plain = client.post(f"/api/cooc/{cid}/{path}", json=body)
+        job = secrets.token_hex(16)
+        followed = client.post(f"/api/cooc/{cid}/{path}", json=body, headers={"X-Tghop-Job": job})
+        assert followed.status_code == 200 and followed.content == plain.content, followed.text
+        snap = client.get(f"/api/jobs/{job}").json()
+        assert snap["kind"] == "generation" and snap["id"] == cid and snap["state"] == "done"
+        assert snap["stages"] == ["generating", "encoding"] and snap["progress"] == 1.0
+    assert 0 < generation_fraction("generating", 0, 1) < generation_fraction("generating", 1, 1) < 1
+
+
 def test_boost_condition_scales_one_bin_and_its_mirror():
     from tghop.cooc import boost_condition
 

@@ -220,26 +220,37 @@ def _conditions(model, crops, crop=None):
         raise RequestError(422, str(exc)) from None
 
 
-def morph_png(model, a, b, crop, length, windows, seed) -> tuple:
-    """``tghop cooc morph MODEL crop:A crop:B --length LENGTH``: ``(png, (h, w))``."""
+def _reported(progress):
+    """``progress`` (a generation's callback: stages ``generating``, then ``encoding``), or one doing nothing."""
+    return progress if progress is not None else (lambda stage, done, total: None)
+
+
+def morph_png(model, a, b, crop, length, windows, seed, progress=None) -> tuple:
+    """``tghop cooc morph MODEL crop:A crop:B --length LENGTH``: ``(png, (h, w))``; ``progress(stage, done,
+    total)`` told ``generating`` before and after the generator's pass, then ``encoding``."""
+    progress = _reported(progress)
     s = model.s
     side = max(1, int(model.settings_["crop_size"] if crop is None else crop) // s) * s
     if side * length * s > MAX_COOC_PIXELS:
         raise RequestError(422, f"a {side}x{length * s} strip is over the server's {MAX_COOC_PIXELS:,} pixels; "
                                 "ask for a shorter strip or smaller crops")
     ca, cb = _conditions(model, [a, b], crop)
+    progress("generating", 0, 1)
     try:
         image = model.morph_strip(ca, cb, length=length, rng=seed, windows=windows)
     except MemoryError:
         raise RequestError(422, "out of memory; ask for a shorter strip") from None
+    progress("generating", 1, 1)
+    progress("encoding", 0, 1)
     return _png(image), image.shape[:2]
 
 
-def edit_png(model, size, labels, crops, boost, windows, seed, read_labels) -> tuple:
+def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, progress=None) -> tuple:
     """``tghop cooc edit MODEL crop:... --mask LABELS [--boost A,B,FACTOR]``: every crop's
     statistics where its label is painted (each cell of ``s`` x ``s`` pixels takes its centre
     pixel's label), bin ``(a, b)`` of every cell times ``factor`` with a ``boost``:
-    ``(png, (h, w))``. ``read_labels(png bytes)`` decodes the label map's image."""
+    ``(png, (h, w))``. ``read_labels(png bytes)`` decodes the label map's image; ``progress``:
+    as :func:`morph_png`'s."""
     import numpy as np
 
     from ..cooc import boost_condition, paint_condition
@@ -271,6 +282,8 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels) -> t
             cond = boost_condition(cond, *boost)
         except TGHopError as exc:
             raise RequestError(422, f"boost {list(boost)}: {exc}") from None
+    progress = _reported(progress)
+    progress("generating", 0, 1)
     try:
         image = model.generate(cond, rng=seed, windows=windows)[:h, :w]
     except MemoryError:
@@ -279,4 +292,6 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels) -> t
         if boost is None:
             raise
         raise RequestError(422, f"boost {list(boost)}: {exc}; use a factor above 0") from None  # a cell emptied
+    progress("generating", 1, 1)
+    progress("encoding", 0, 1)
     return _png(image), image.shape[:2]

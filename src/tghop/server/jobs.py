@@ -37,13 +37,14 @@ FIT_STAGES = {"hop 1": 0.15, "hop 2": 0.1, "hop 3": 0.05, "SDR": 0.05, "clusters
 
 #: The stages a generation reports (:meth:`tghop.TGHop.synthesize`, :func:`tghop.inpaint.inpaint`,
 #: :func:`tghop.guided.morph`; the server's own "encoding" of the PNG), in the order they come, and their
-#: rough share of the whole: the progress bar's fraction. "quilting" and "inpainting" take one place (a
-#: generation makes one or the other). Stages left out (no layout, no refinement) count as passed once a
+#: rough share of the whole: the progress bar's fraction. "quilting", "inpainting" and "generating" (the
+#: co-occurrence generator's pass, :mod:`tghop.server.cooc`) take one place (a generation makes one of
+#: them). Stages left out (no layout, no refinement) count as passed once a
 #: later one comes; a painted guide's or a remix's layers ("quilting 1/2": layer 1 of 2) share the part
 #: before "join" equally.
-GENERATION_STAGES = (("layout", 0.06), ("patch pool", 0.04), (("quilting", "inpainting"), 0.45), ("seams", 0.02),
-                     ("refine", 0.2), ("patch refine", 0.15), ("colour", 0.01), ("maps", 0.02), ("join", 0.03),
-                     ("encoding", 0.02))
+GENERATION_STAGES = (("layout", 0.06), ("patch pool", 0.04), (("quilting", "inpainting", "generating"), 0.45),
+                     ("seams", 0.02), ("refine", 0.2), ("patch refine", 0.15), ("colour", 0.01), ("maps", 0.02),
+                     ("join", 0.03), ("encoding", 0.02))
 
 
 def generation_fraction(stage: str, done: int, total: int):

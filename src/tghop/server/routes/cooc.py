@@ -60,7 +60,8 @@ async def cooc_morph(server, request):
 
     def work(seed):
         with server.generating:
-            return cooc.morph_png(server.cooc.load(cid), a, b, crop, length, windows, seed)
+            return cooc.morph_png(server.cooc.load(cid), a, b, crop, length, windows, seed,
+                                  progress=server.unless_stopping)
 
     return await png_response(server, request, work, seed=seed)
 
@@ -78,6 +79,7 @@ async def cooc_edit(server, request):
 
     def work(seed):
         with server.generating:
-            return cooc.edit_png(server.cooc.load(cid), size, labels, crops, boost, windows, seed, read_labels)
+            return cooc.edit_png(server.cooc.load(cid), size, labels, crops, boost, windows, seed, read_labels,
+                                 progress=server.unless_stopping)
 
     return await png_response(server, request, work, seed=seed)

@@ -163,7 +163,8 @@ function onCoocMorph() {
     const body = { a: cooc.crops[0], b: cooc.crops[1], length: Number($("cooc-length").value),
       seed: Number($("cooc-morph-seed").value) };
     sayCooc("morphing");
-    const [blob, seed] = await postImage(`/api/cooc/${cooc.id}/morph`, body);
+    const [blob, seed] = await withProgress("cooc-progress",
+                                            (headers) => postImage(`/api/cooc/${cooc.id}/morph`, body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "cooc-morph", undefined,
                { models: [cooc.stem], size: [cooc.info.crop_size, body.length * cooc.info.s], tile: false });
     sayCooc(`done (seed ${seed}): the strip is below`);
@@ -195,7 +196,8 @@ function onCoocEdit() {
       body.labels = boardPng(coocBoard, new Map(used.map((k, j) => [k, Math.round(255 * j / (used.length - 1))])));
     }
     sayCooc("generating");
-    const [blob, seed] = await postImage(`/api/cooc/${cooc.id}/edit`, body);
+    const [blob, seed] = await withProgress("cooc-progress",
+                                            (headers) => postImage(`/api/cooc/${cooc.id}/edit`, body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "cooc-edit", undefined,
                { models: [cooc.stem], size: body.size, tile: false });
     sayCooc(`done (seed ${seed}): the result is below`);
