@@ -544,3 +544,111 @@ def test_summaries_asked_at_once_load_the_model_in_the_decoding_turn_once(tmp_pa
         release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
+
+
+def test_a_model_asked_for_at_once_is_loaded_once_and_a_failed_load_fails_each_asker(tmp_path):
+    """Generations and summaries of one model not in memory each read it from disk at once: twice
+    the memory and time. They share one load; other models' loads do not wait for it; a failed
+    load's error reaches each asker, and the next call loads again."""
+    from tghop._errors import TGHopError
+    from tghop.server.cache import ModelCache
+
+    ids = [c * 64 for c in "ab"]
+    release, lock, fail = threading.Event(), threading.Lock(), [True]
+    loads = []
+
+    def held(path):  # model a held until every caller is in (and failing the first time); b at once
+        with lock:
+            loads.append(path.stem)
+        if path.stem == ids[0]:
+            if not release.wait(30):  # a lock across models: b's load never came back to release it
+                raise RuntimeError("model a was never released")
+            if fail[0]:
+                raise TGHopError("a broken model file")
+        return path.stem
+
+    cache = ModelCache(tmp_path, None, load=held)
+    for model_id in ids:
+        cache.path(model_id).write_bytes(b"model")
+    entered, load = [0], cache.load
+
+    def counted(model_id):
+        with lock:
+            entered[0] += 1
+        return load(model_id)
+
+    cache.load = counted
+    for round_ in ("fails", "loads"):
+        answers = []
+
+        def ask():
+            try:
+                answers.append(cache.load(ids[0]))
+            except TGHopError as exc:
+                answers.append(str(exc))
+
+        release.clear()
+        entered[0] = 0
+        threads = [threading.Thread(target=ask) for _ in range(6)]
+        for thread in threads:
+            thread.start()
+        deadline = time.monotonic() + 30
+        while entered[0] < len(threads):
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        time.sleep(0.2)  # each in its load, or waiting for one
+        if round_ == "fails":
+            assert cache.load(ids[1]) == ids[1]  # another model: not held up by the first's load
+        release.set()
+        for thread in threads:
+            thread.join(30)
+        expected = "a broken model file" if round_ == "fails" else ids[0]
+        assert answers == [expected] * len(threads)
+        fail[0] = False
+    assert sorted(loads) == [ids[0], ids[0], ids[1]]  # one load a round: the failed one, then the next
+    assert cache.load(ids[0]) == ids[0] and len(loads) == 3  # in memory now
+    assert not cache._loading
+
+
+def test_summaries_of_one_model_asked_at_once_load_it_once(tmp_path, two_model_files, monkeypatch):
+    """Summaries of a model not in memory asked at once, each on a decoding thread of its own: one load."""
+    import hashlib
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop import modelfile
+
+    model_id = hashlib.sha256(two_model_files[0]).hexdigest()
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / f"{model_id}.npz").write_bytes(two_model_files[0])
+    release, loads, load = threading.Event(), [], modelfile.load_model
+
+    def held(path, **kwargs):
+        loads.append(path)
+        release.wait(60)
+        return load(path, **kwargs)
+
+    monkeypatch.setattr(modelfile, "load_model", held)
+    live = LiveServer(tmp_path, max_decodes=4)
+    server = live.app.state.server
+    entered, cache_load = [], server.cache.load
+    monkeypatch.setattr(server.cache, "load", lambda mid: (entered.append(mid), cache_load(mid))[1])
+    answers = []
+    threads = [threading.Thread(target=lambda: answers.append(httpx.get(f"{live.url}/api/models/{model_id}",
+                                                                         timeout=60))) for _ in range(4)]
+    try:
+        for thread in threads:
+            thread.start()
+        deadline = time.monotonic() + 30
+        while len(entered) < len(threads):
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        time.sleep(0.2)  # each in its load, or waiting for one
+        release.set()
+        for thread in threads:
+            thread.join(60)
+        assert [a.status_code for a in answers] == [200] * 4, [a.text for a in answers]
+        assert len(loads) == 1 and {a.json()["id"] for a in answers} == {model_id}
+    finally:
+        release.set()
+        live.stop()

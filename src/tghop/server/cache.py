@@ -14,6 +14,7 @@ import re
 import tempfile
 import threading
 from collections import OrderedDict
+from concurrent.futures import Future
 from pathlib import Path
 
 from .._errors import TGHopError
@@ -75,6 +76,7 @@ class ModelCache:
                 pass
         self._loaded = OrderedDict()
         self._summaries = OrderedDict()
+        self._loading = {}  # id -> the Future of its load under way: callers asking meanwhile wait for it
         self._lock = threading.Lock()
         self.prune()  # the bound may be lower than the last server's
 
@@ -192,10 +194,14 @@ class ModelCache:
 
     def remember(self, model_id: str, model) -> None:
         with self._lock:
-            self._loaded[model_id] = model
-            self._loaded.move_to_end(model_id)
-            while len(self._loaded) > _LOADED:
-                self._loaded.popitem(last=False)
+            self._keep(model_id, model)
+
+    def _keep(self, model_id: str, model) -> None:
+        """``model`` in memory, the least recently used dropped (the lock held)."""
+        self._loaded[model_id] = model
+        self._loaded.move_to_end(model_id)
+        while len(self._loaded) > _LOADED:
+            self._loaded.popitem(last=False)
 
     def summary(self, model_id: str):
         """The summary kept for ``model_id`` (:meth:`keep_summary`), the file marked as used; None if none is
@@ -229,18 +235,43 @@ class ModelCache:
         return RequestError(404, f"no {self.what} {model_id}; {self.hint}{extra}")
 
     def load(self, model_id: str):
-        """The fitted model (404 if there is none)."""
+        """The fitted model (404 if there is none). Callers asking at once for a model not in memory share
+        one load (each model's own: loads of different models do not wait for each other); a failed load's
+        error reaches each of them, and the next call tries again."""
         path = self.path(model_id)
         with self._lock:
             model = self._loaded.get(model_id)
             if model is not None:
                 self._loaded.move_to_end(model_id)
+            else:
+                loading = self._loading.get(model_id)
+                first = loading is None
+                if first:
+                    loading = self._loading[model_id] = Future()
         if model is not None:
             if path.is_file():
                 self.touch(model_id)
                 return model
             with self._lock:  # removed by the bound (or by hand): as if never fitted
                 self._loaded.pop(model_id, None)
+            return self.load(model_id)  # now not in memory: 404 unless the file is back meanwhile
+        if not first:
+            return loading.result()  # another caller's load: its model, or its error
+        try:
+            model = self._read(model_id, path)
+        except BaseException as exc:
+            with self._lock:
+                del self._loading[model_id]
+            loading.set_exception(exc)
+            raise
+        with self._lock:  # in memory as it stops being loaded: a caller now finds one or the other
+            del self._loading[model_id]
+            self._keep(model_id, model)
+        loading.set_result(model)
+        return model
+
+    def _read(self, model_id: str, path: Path):
+        """The model read from ``path`` (404 if it is not there, or dropped by the bound meanwhile)."""
         if not path.is_file():
             raise self.missing(model_id)
         try:
@@ -250,5 +281,4 @@ class ModelCache:
                 raise self.missing(model_id) from None
             raise
         self.touch(model_id)
-        self.remember(model_id, model)
         return model
