@@ -295,3 +295,33 @@ def test_the_checkpoints_folder_is_bounded(tmp_path):
         os.utime(folder / f"{name}.pt", (1000 + i, 1000 + i))
     cache = cooc_cache(tmp_path, 1500)  # the older one goes at start
     assert sorted(os.listdir(folder)) == ["b" * 64 + ".pt"] and cache.size() == 1000
+
+
+@needs_torch
+def test_a_summary_loads_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoint):
+    """A checkpoint read for its summary may take hundreds of MB, as a model: it is read on a decoding
+    thread holding the decode gate's slot (as GET /api/models/{id}), not on Starlette's threads."""
+    import threading
+
+    from conftest import LiveServer
+
+    (tmp_path / "cooc").mkdir()
+    cid = hashlib.sha256(checkpoint[0]).hexdigest()
+    (tmp_path / "cooc" / f"{cid}.pt").write_bytes(checkpoint[0])
+    server = LiveServer(tmp_path, max_decodes=1)
+    state = server.app.state.server
+    seen, load = [], state.cooc._load
+
+    def watched(path):
+        seen.append((threading.current_thread().name, state.decoding.holding))
+        return load(path)
+
+    state.cooc._load = watched
+    try:
+        with httpx.Client(base_url=server.url, timeout=120) as c:
+            r = c.get(f"/api/cooc/{cid}")
+            assert r.status_code == 200 and r.json()["id"] == cid, r.text
+        assert len(seen) == 1 and seen[0][0].startswith("tghop-decode") and seen[0][1] == 1, seen
+    finally:
+        server.stop()
+    assert state.decoding.holding == 0 and state.decoding.waiting == 0

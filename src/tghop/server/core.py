@@ -65,8 +65,8 @@ class Server:
         # glibc malloc arenas holding freed memory (docs/serve.md).
         self.executor = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-generate")
         # Uploads decoded or read at once (a fit's exemplar and maps, a model file, a checkpoint, a stored model
-        # read for its summary), the rest waiting in order: each may take hundreds of MB, whatever its file's
-        # size. On threads of their own, as generations: on Starlette's pool each new thread kept its freed
+        # or checkpoint read for its summary), the rest waiting in order: each may take hundreds of MB, whatever
+        # its file's size. On threads of their own, as generations: on Starlette's pool each new thread kept its freed
         # memory (8 decodes of an 8000x8000 PNG, 2 at a time, peaked at 2.3 GB there). Fills, painted guides
         # and labels are decoded on the generation threads, bounded by them.
         self.decoding = Gate(max_decodes, decodes_waiting)

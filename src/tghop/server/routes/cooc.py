@@ -39,11 +39,10 @@ def checkpoint_id(server, request) -> str:
 
 
 async def cooc_summary(server, request):
-    """``GET /api/cooc/{id}``."""
-    from starlette.concurrency import run_in_threadpool
-
+    """``GET /api/cooc/{id}``: the checkpoint loaded in the decoding threads' turn
+    (:meth:`~tghop.server.core.Server.decode`), as ``GET /api/models/{id}`` loads a model."""
     cid = checkpoint_id(server, request)
-    return json_response(await run_in_threadpool(cooc.summary, server.cooc, cid))
+    return json_response(await server.decode(request, cooc.summary, server.cooc, cid))
 
 
 async def cooc_file(server, request):
