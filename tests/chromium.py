@@ -54,3 +54,9 @@ def set_fit_settings(page, values):
     page.uncheck("#layout")
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
         page.fill(f"#{name}", values[name])
+
+
+def choose_mode(page, name):
+    """Click the result's mode ``name`` (its label: the radio button is hidden behind it), as a user does."""
+    page.locator("label", has=page.locator(f"#mode-{name}")).click()
+    assert page.is_checked(f"#mode-{name}")

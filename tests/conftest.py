@@ -28,6 +28,17 @@ def png(pixels) -> bytes:
     return buf.getvalue()
 
 
+def save_material(path):
+    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
+    from tghop import TGHop, data
+    from tghop.material import Material, example_maps
+    from tghop.modelfile import save_model
+
+    albedo = data.bricks(64)
+    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
+
+
 def cli(*args, cwd=None, stdin=None):
     """The ``tghop`` command line in this process, as :func:`subprocess.run` would give it.
 

@@ -94,7 +94,7 @@ def test_pick_builtin_fit_generate_and_see_the_tiled_preview(page, live_server):
 
 
 def test_a_512x512_result_appears_after_the_click(page, live_server, record_property):
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     if not page.is_enabled("#go"):  # run alone: fit first
         fit_bricks(page)
     page.fill("#height", "512")
@@ -143,16 +143,10 @@ def mask_of(page, shape=(96, 128)):
     return np.array(alpha).reshape(shape) > 127
 
 
-def mode(page, name):
-    """Click the mode's label (its radio button is hidden behind it), as a user does."""
-    page.locator("label", has=page.locator(f"#mode-{name}")).click()
-    assert page.is_checked(f"#mode-{name}")
-
-
 def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     import numpy as np
 
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     if not page.is_enabled("#go"):  # run alone: fit first
         fit_bricks(page)
     page.fill("#height", "96")
@@ -164,7 +158,7 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     page.wait_for_function(RESULT_SHOWN % "result: 96x128, seed 3", timeout=60_000)
     before = np.array(page.eval_on_selector("#result", PIXELS)).reshape(96, 128, 4)
     assert page.is_hidden("#inpaint")
-    mode(page, "inpaint")
+    chromium.choose_mode(page, "inpaint")
     assert page.is_visible("#inpaint") and page.is_hidden("#pair")
     page.wait_for_selector("#editor[data-ready='1']")
     assert page.eval_on_selector("#mask", "c => [c.height, c.width]") == [96, 128]
@@ -236,7 +230,7 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
     page.click("#extend-go")
     page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith("
                            "\"give a height and width of at least the picture's 80x120\")")
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     assert page.is_visible("#pair") and page.is_hidden("#inpaint")
     assert not page.errors, page.errors
 
@@ -244,7 +238,7 @@ def test_inpaint_paint_a_stroke_and_fill_it(page, live_server):
 def test_paint_two_models_and_morph(page, live_server):
     import numpy as np
 
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     if not page.is_enabled("#go"):  # run alone: fit first
         fit_bricks(page)
     page.fill("#height", "40")
@@ -255,18 +249,18 @@ def test_paint_two_models_and_morph(page, live_server):
     page.click("#go")
     page.wait_for_function(RESULT_SHOWN % "result: 40x40", timeout=60_000)
     page.select_option("#quality", "default")
-    mode(page, "paint")  # one model: each mode asks for a second
+    chromium.choose_mode(page, "paint")  # one model: each mode asks for a second
     assert page.text_content("#paint-message") == "fit or load a second model above to paint with two"
-    mode(page, "morph")
+    chromium.choose_mode(page, "morph")
     assert page.text_content("#morph-message") == "fit or load a second model above: A and B"
     page.select_option("#builtin", "cells")  # a second model, with the same fast fit settings
     page.wait_for_function("document.querySelectorAll('#paint-models input').length === 2", timeout=90_000)
     # Those requests went stale once it came (they stayed, next to enabled buttons)
     assert page.text_content("#morph-message") == "" and page.text_content("#paint-message") == ""
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     page.fill("#height", "64")
     page.fill("#width", "96")
-    mode(page, "paint")
+    chromium.choose_mode(page, "paint")
     assert page.is_visible("#paint") and page.is_visible("#pair")
     page.wait_for_selector("#guide[data-ready='1']")
     assert page.eval_on_selector("#guide", "c => [c.height, c.width]") == [64, 96]
@@ -297,7 +291,7 @@ def test_paint_two_models_and_morph(page, live_server):
     page.click("#paint-go")
     page.wait_for_function("document.getElementById('paint-message').textContent"
                            ".startsWith('paint some of builtin:cells')")
-    mode(page, "morph")
+    chromium.choose_mode(page, "morph")
     assert page.is_visible("#morph") and page.is_hidden("#paint")
     assert page.eval_on_selector_all("#morph-b option", "o => o.length") == 2 and page.input_value("#morph-b") == "1"
     page.fill("#morph-height", "32")
@@ -305,12 +299,12 @@ def test_paint_two_models_and_morph(page, live_server):
     page.click("#morph-go")
     page.wait_for_function(RESULT_SHOWN % "morph: 32x128", timeout=60_000)
     assert page.get_attribute("#download-png", "download") == "tghop-bricks-to-cells-morph-32x128-seed1.png"
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 
 
 def test_stop_a_generation_and_a_large_tiled_preview(page, live_server):
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     if not page.is_enabled("#go"):  # run alone: fit first
         fit_bricks(page)
     page.fill("#n_patches", "400")
@@ -381,7 +375,7 @@ class PlaywrightDriver:
 def test_cooc_load_a_checkpoint_place_crops_morph_and_edit(page, live_server, tiny_cooc_checkpoint):
     cooc_steps(PlaywrightDriver(page), tiny_cooc_checkpoint)
     page.screenshot(path=COOC_SCREENSHOT, full_page=True)
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     assert page.is_hidden("#cooc")
     # the bad boost's answer, which Chromium also logs; nothing else
     assert page.errors == ["Failed to load resource: the server responded with a status of 422 (Unprocessable Entity)"]
@@ -404,7 +398,7 @@ def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model(page, live_server, 
     from tghop.modelfile import save_model
 
     driver = PlaywrightDriver(page)
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     drop_steps(driver, png_bytes(data.bricks(64, rng=11)))
     cancel_steps(driver)
     npz = tmp_path / "saved bricks.npz"
@@ -416,7 +410,7 @@ def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model(page, live_server, 
 def test_a_refused_model_file_goes_back_to_the_working_model(page, live_server, tmp_path):
     # It left no model (Generate off, no summary), though the model before it was working; before that,
     # the summary of the model it replaced stayed under the error with no model loaded.
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     if not page.is_enabled("#go"):  # run alone: fit first
         fit_bricks(page)
     page.wait_for_selector("#summary:not([hidden])")
@@ -444,19 +438,19 @@ def test_cooc_mode_says_when_the_server_has_no_pytorch(page, live_server):
         other.route(live_server.url + "/api", no_torch)
         other.goto(live_server.url + "/")
         other.wait_for_selector("body[data-ready='1']")
-        mode(other, "cooc")
+        chromium.choose_mode(other, "cooc")
         assert "no PyTorch" in other.text_content("#cooc-message")
         assert "pip install 'tghop[metrics]'" in other.text_content("#cooc-message")
     finally:
         other.close()
-    mode(page, "cooc")  # this server has it (the tests of this module load a checkpoint)
+    chromium.choose_mode(page, "cooc")  # this server has it (the tests of this module load a checkpoint)
     assert "no PyTorch" not in page.text_content("#cooc-message")
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
 
 
 def test_the_strip_of_seeds_goes_on_with_its_model_when_another_exemplar_is_picked(page, live_server):
     # The rest of the strip asked for /api/models/null/images ("no model 'null'") once the new fit began.
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     page.eval_on_selector("#fit-settings", "d => { d.open = false; }")  # fit_bricks opens it
     page.select_option("#builtin", "")
     fit_bricks(page)

@@ -15,7 +15,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT, png  # noqa: E402
+from conftest import FAST_FIT, png, save_material  # noqa: E402
 
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_MATERIAL_SCREENSHOT", "/tmp/tghop-material-page.png")
@@ -142,17 +142,6 @@ def test_a_materials_answer_decodes_to_its_bytes(page):
       return got.length === bytes.length && got.every((v, i) => v === bytes[i]);
     }""")
     assert same
-
-
-def save_material(path):
-    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
-    from tghop import TGHop, data
-    from tghop.material import Material, example_maps
-    from tghop.modelfile import save_model
-
-    albedo = data.bricks(64)
-    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
 
 
 def test_inpaint_says_a_material_is_not_inpainted(page, tmp_path):

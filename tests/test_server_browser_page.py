@@ -13,7 +13,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT  # noqa: E402
+from conftest import FAST_FIT, save_material  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -28,10 +28,6 @@ def fit(page, name):
     page.wait_for_function("(n) => document.getElementById('fit-status').dataset.state === 'done' &&"
                            " document.getElementById('summary').textContent.startsWith('model ') &&"
                            " document.getElementById('builtin').value === n", arg=name, timeout=90_000)
-
-
-def mode(page, name):
-    page.click(f"label:has(#mode-{name})")
 
 
 def strip(page):
@@ -81,9 +77,9 @@ def test_the_strip_of_seeds_goes_with_a_change_of_mode_or_model(page):
     # The strip of an earlier model stayed shown after switching models or modes.
     if page.eval_on_selector_all("#strip img", "l => l.length") != 8:
         strip(page)
-    mode(page, "paint")
+    chromium.choose_mode(page, "paint")
     assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     strip(page)
     fit(page, "cells")
     assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
@@ -106,23 +102,12 @@ def test_a_size_the_browser_refuses_is_said_in_the_status(page):
     assert not page.errors, page.errors
 
 
-def save_material(path):
-    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
-    from tghop import TGHop, data
-    from tghop.material import Material, example_maps
-    from tghop.modelfile import save_model
-
-    albedo = data.bricks(64)
-    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
-
-
 def test_morph_is_off_and_says_why_with_a_material(page, tmp_path):
     # Morph stayed on with a material as A or B, and the server's 422 said "a is a material..." (the API's name).
     save_material(tmp_path / "wall material.npz")
     page.set_input_files("#model-file", str(tmp_path / "wall material.npz"))
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
-    mode(page, "morph")
+    chromium.choose_mode(page, "morph")
     names = page.eval_on_selector_all("#morph-a option", "l => l.map(o => o.textContent)")
     material = next(i for i, n in enumerate(names) if n.startswith("wall material.npz"))
     page.select_option("#morph-a", "0")

@@ -13,7 +13,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT  # noqa: E402
+from conftest import FAST_FIT, save_material  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -29,10 +29,6 @@ def fit(page, name):
     page.wait_for_function(f"document.getElementById('fit-status').dataset.state === 'done' && "
                            f"state.working && state.working.name === 'builtin:{name}'", timeout=90_000)
     page.wait_for_selector("#summary:not([hidden])")
-
-
-def mode(page, name):
-    page.click(f"label:has(#mode-{name})")
 
 
 #: JavaScript (a function of a button's id and the result's caption to wait for): click the button and
@@ -51,7 +47,7 @@ BAR_UNTIL_RESULT_JS = """([button, caption]) => new Promise((done) => {
 
 def test_a_long_generation_shows_its_progress_before_the_image(page):
     # It said "generating" until the image came (tens of seconds at 8192x8192).
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     fit(page, "bricks")
     page.fill("#height", "2048")
     page.fill("#width", "2048")
@@ -72,7 +68,7 @@ def test_a_long_generation_shows_its_progress_before_the_image(page):
 
 def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_ends(page):
     # It stayed shown: eight seeds of bricks under the model of cells.
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     fit(page, "cells")  # in the server's cache: picked again below, it is the working model at once
     fit(page, "bricks")
     page.fill("#height", "512")
@@ -107,7 +103,7 @@ def test_morphs_fields_are_checked_on_the_page(page):
     # The server's 422 came back ("size must be ..."), after a round trip.
     fit(page, "cells")
     fit(page, "bricks")
-    mode(page, "morph")
+    chromium.choose_mode(page, "morph")
     sent = []
     page.on("request", lambda r: sent.append(r.url) if r.url.endswith("/api/images/morph") else None)
     for field, value, said in [("#morph-height", "9000", "height 9000 is more than 8192: give a number from 1 to 8192"),
@@ -128,19 +124,8 @@ def test_morphs_fields_are_checked_on_the_page(page):
     page.wait_for_function("document.getElementById('morph-message').textContent.startsWith('done (seed 1)')",
                            timeout=60_000)
     assert len(sent) == 1
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
-
-
-def save_material(path):
-    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
-    from tghop import TGHop, data
-    from tghop.material import Material, example_maps
-    from tghop.modelfile import save_model
-
-    albedo = data.bricks(64)
-    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
 
 
 def test_paint_says_a_material_does_not_go_with_a_texture_model(page, tmp_path):
@@ -150,7 +135,7 @@ def test_paint_says_a_material_does_not_go_with_a_texture_model(page, tmp_path):
     save_material(tmp_path / "stone.npz")
     page.set_input_files("#model-file", str(tmp_path / "stone.npz"))
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
-    mode(page, "paint")
+    chromium.choose_mode(page, "paint")
 
     def box(name):
         return page.locator("#paint-models label", has_text=name).locator("input")
@@ -167,5 +152,5 @@ def test_paint_says_a_material_does_not_go_with_a_texture_model(page, tmp_path):
     box("stone.npz").uncheck()  # two texture models: nothing to say
     box("builtin:bricks").check()
     assert page.text_content("#paint-message") == "" and page.is_enabled("#remix-go")
-    mode(page, "view")
+    chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
