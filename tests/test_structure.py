@@ -296,6 +296,18 @@ def test_the_readme_names_every_module():
     assert not missing, missing
 
 
+def test_choices_contents_lists_every_section():
+    # docs/choices.md's contents table is the newcomer's way in: a section added or renamed without it is lost.
+    import re
+
+    text = (ROOT / "docs" / "choices.md").read_text(encoding="utf-8")
+    heads = [line[3:] for line in text.splitlines() if line.startswith("## ")][2:]  # after Contents, How to read
+    anchors = [re.sub(r"[^\w\- ]", "", head.lower()).replace(" ", "-") for head in heads]
+    contents = text.split("## Contents", 1)[1].split("\n## ", 1)[0]
+    listed = re.findall(r"^\| \[[^]]+\]\(#([^)]+)\) \|", contents, re.M)
+    assert listed == anchors
+    assert len([head for head in heads if head.startswith("Where tghop stands")]) == 1  # the older ones: history.md
+
 def _documented_parameters(doc: str):
     """The names a numpydoc ``Parameters`` section gives (``a, b : int`` gives both), or None."""
     import re
