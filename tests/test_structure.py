@@ -289,7 +289,7 @@ def test_the_readme_names_every_module():
     table = {line.split("|")[1]: line for line in readme.splitlines() if line.startswith("| `tghop.")}
     missing = [f"tghop.{p.stem}" for p in SRC.glob("*.py")
                if not p.stem.startswith("__") and f"`tghop.{p.stem}`" not in readme]
-    for package in ("server", "cooc"):
+    for package in ("server", "cooc", "metrics"):
         row = next(line for key, line in table.items() if f"`tghop.{package}`" in key)
         missing += [f"tghop.{package}.{p.stem}" for p in (SRC / package).glob("*.py")
                     if not p.stem.startswith("__") and f"`{p.stem}`" not in row]
