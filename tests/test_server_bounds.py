@@ -652,3 +652,36 @@ def test_summaries_of_one_model_asked_at_once_load_it_once(tmp_path, two_model_f
     finally:
         release.set()
         live.stop()
+
+
+def test_finished_generations_are_bounded_apart_from_fits_and_never_drop_a_fits_outcome():
+    """Generation jobs (X-Tghop-Job) shared the bound of finished jobs with the fits: a flood of
+    generations dropped the outcome of a fit its page had not read yet. Each kind has its own bound."""
+    from tghop.server.jobs import GenerationJob
+
+    queue = FitQueue(1, max_finished=3)  # as many finished generations, counted apart
+    try:
+        fits = [queue.finished(f"{i:064x}") for i in range(2)]
+        generations = []
+        for i in range(10):  # a flood of finished generations, all after the fits
+            job = GenerationJob("a" * 64, f"{i:032x}")
+            assert queue.add(job)
+            job.set_state("done")
+            generations.append(job)
+        assert all(queue.get(j.id) is j for j in fits)  # the fits' outcomes stay
+        assert [queue.get(j.id) for j in generations[:7]] == [None] * 7  # the oldest generations went
+        assert all(queue.get(j.id) is j for j in generations[7:]) and len(queue) == 5
+        newer = [queue.finished(c * 64) for c in "ef"]  # two more fits: the oldest fit goes, not a generation
+        assert queue.get(fits[0].id) is None and all(queue.get(j.id) is j for j in [fits[1], *newer])
+        assert all(queue.get(j.id) is j for j in generations[7:])
+    finally:
+        queue.shutdown()
+    small = FitQueue(1, max_finished=5, max_finished_generations=1)
+    try:
+        for i in range(3):
+            job = GenerationJob(None, f"{i:032x}")
+            small.add(job)
+            job.set_state("failed", error="x")
+        assert len(small) == 1 and small.get(job.id) is job
+    finally:
+        small.shutdown()

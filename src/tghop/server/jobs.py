@@ -3,8 +3,9 @@ once (the rest wait in order), report progress through the library's ``progress`
 callback and stop when cancelled (the callback raises :class:`Cancelled`).
 
 The job table is bounded: a finished job is kept ``keep_finished`` seconds (its client
-reads the outcome in that time) and at most ``max_finished`` finished jobs are kept (the
-oldest go first); at most ``max_waiting`` jobs wait for a thread (a further one is
+reads the outcome in that time) and at most ``max_finished`` finished fits and as many finished
+generations are kept, each kind on its own (the oldest of the kind go first: a flood of generations
+never drops a fit's outcome); at most ``max_waiting`` jobs wait for a thread (a further one is
 refused with :class:`QueueFull`). Queued and running jobs are never dropped.
 
 Nothing here knows about HTTP; :mod:`tghop.server.routes.fit` turns jobs into JSON and
@@ -208,35 +209,40 @@ class FitQueue:
     keep_finished : float
         Seconds a finished job stays in the table (then :meth:`get` answers None).
     max_finished : int
-        Finished jobs kept at most (the oldest are dropped first).
+        Finished fits kept at most (the oldest are dropped first).
+    max_finished_generations : int, optional
+        Finished generation jobs kept at most, counted apart from the fits (default ``max_finished``).
     """
 
     def __init__(self, max_fits: int, *, max_waiting: int = 64, keep_finished: float = 3600.0,
-                 max_finished: int = 1000):
+                 max_finished: int = 1000, max_finished_generations: int | None = None):
         if max_fits < 1:
             raise ValueError(f"max_fits must be at least 1, got {max_fits}")
         self.max_fits = max_fits
         self.max_waiting = max_waiting
         self.keep_finished = keep_finished
         self.max_finished = max_finished
+        self.max_finished_generations = max_finished if max_finished_generations is None else max_finished_generations
         self._pool = ThreadPoolExecutor(max_workers=max_fits, thread_name_prefix="tghop-fit")
         self._jobs = {}  # in the order they were made
         self._active = {}  # model id -> job still queued or running
         self._lock = threading.Lock()
 
     def _prune(self) -> None:
-        """Drop expired finished jobs, then the oldest finished ones over ``max_finished``
+        """Drop expired finished jobs, then the oldest finished fits over ``max_finished`` and the
+        oldest finished generations over ``max_finished_generations``, each kind counted on its own
         (with the lock held)."""
         now = time.monotonic()
         finished = [j for j in self._jobs.values() if j.final and j.finished_at is not None]
         for job in finished:
             if now - job.finished_at > self.keep_finished:
                 del self._jobs[job.id]
-        finished = [j for j in finished if j.id in self._jobs]
-        if len(finished) > self.max_finished:
-            finished.sort(key=lambda j: j.finished_at)
-            for job in finished[: len(finished) - self.max_finished]:
-                del self._jobs[job.id]
+        for generations, bound in ((False, self.max_finished), (True, self.max_finished_generations)):
+            kept = [j for j in finished if j.id in self._jobs and (j.kind == "generation") == generations]
+            if len(kept) > bound:
+                kept.sort(key=lambda j: j.finished_at)
+                for job in kept[: len(kept) - bound]:
+                    del self._jobs[job.id]
 
     def __len__(self) -> int:
         """Jobs in the table (finished ones not yet dropped included)."""
