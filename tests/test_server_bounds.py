@@ -256,6 +256,44 @@ def test_a_bad_cache_size_is_one_line(tmp_path):
     assert "Traceback" not in r.output and not (tmp_path / "models").exists()
 
 
+@pytest.mark.parametrize("value, said", [("0", "0 is not in the range 1<=x<=64"), ("65", "65 is not in the range"),
+                                         ("two", "'two' is not a valid integer")])
+def test_a_bad_max_decodes_is_one_line(tmp_path, value, said):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    r = CliRunner().invoke(main, ["serve", "--cache", str(tmp_path), "--max-decodes", value])
+    assert r.exit_code == 2 and f"Invalid value for '--max-decodes': {said}" in r.output, r.output
+    assert "Traceback" not in r.output and not (tmp_path / "models").exists()
+
+
+def test_max_decodes_sets_the_servers_decode_gate(tmp_path, monkeypatch):
+    """create_app(max_decodes=) had no option of tghop serve: the gate of uploads decoded at once was 2
+    whatever the machine. The option reaches the server's gate; its default is the library's."""
+    from click.testing import CliRunner
+
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop._errors import TGHopError
+    from tghop.cli import main
+    from tghop.server import app as server_app
+    from tghop.server.uploads import MAX_DECODES
+
+    made, create = [], server_app.create_app
+
+    def create_and_stop(*args, **kwargs):  # the real application, then a one-line stop before it listens
+        made.append(create(*args, **kwargs))
+        raise TGHopError("stopped by the test")
+
+    monkeypatch.setattr(server_app, "create_app", create_and_stop)
+    for options, slots in ((["--max-decodes", "5"], 5), ([], MAX_DECODES)):
+        r = CliRunner().invoke(main, ["serve", "--port", "0", "--cache", str(tmp_path), *options])
+        assert r.exit_code != 0 and "stopped by the test" in r.output, r.output
+        assert made[-1].state.server.decoding.slots == slots
+    help_text = " ".join(CliRunner().invoke(main, ["serve", "--help"]).output.split())
+    assert "--max-decodes" in help_text and "[default: 2; 1<=x<=64]" in help_text, help_text
+
+
 def test_a_restarted_server_finds_the_cached_models_again(tmp_path, two_model_files):
     httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
     pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")

@@ -92,7 +92,11 @@ def _bind(host: str, port: int):
                    "used models are removed first.")
 @click.option("--max-fits", type=click.IntRange(min=1, max=256), default=None,
               help="Fits that run at once; the rest wait. [default: the number of cores]")
-def serve(host, port, open_browser, cache, cache_size, max_fits):
+@click.option("--max-decodes", type=click.IntRange(min=1, max=64), default=2, show_default=True,
+              help="Uploads decoded at once (exemplars, model files, checkpoints) and models read from disk: "
+                   "each may take hundreds of MB whatever its file's size. 16 more wait their turn; one more "
+                   "is refused (503).")
+def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes):
     """Start a local web server: fit, generate and download textures in a browser.
 
     Prints the page's address; the same HTTP API the page uses is under /api
@@ -113,7 +117,7 @@ def serve(host, port, open_browser, cache, cache_size, max_fits):
         for name in ("python_multipart", "multipart"):
             logging.getLogger(name).setLevel(logging.ERROR)
         cache_dir = Path(cache) if cache else default_cache_dir()
-        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host)
+        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host, max_decodes=max_decodes)
         sock = _bind(host, port)
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host
