@@ -325,3 +325,34 @@ def test_a_summary_loads_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoin
     finally:
         server.stop()
     assert state.decoding.holding == 0 and state.decoding.waiting == 0
+
+
+@needs_torch
+def test_a_checkpoints_summary_is_kept_as_a_models_is(tmp_path, checkpoint):
+    """GET /api/cooc/{id} read the checkpoint from disk (in the decoding turn) each time it was not in
+    memory; a model's summary is kept once made. A checkpoint's is kept too: asked again once the
+    checkpoint has left memory, it is answered without reading the file; a file gone is still 404."""
+    from conftest import LiveServer
+
+    (tmp_path / "cooc").mkdir()
+    cid = hashlib.sha256(checkpoint[0]).hexdigest()
+    (tmp_path / "cooc" / f"{cid}.pt").write_bytes(checkpoint[0])
+    server = LiveServer(tmp_path, max_decodes=1)
+    state = server.app.state.server
+    reads, load = [], state.cooc._load
+    state.cooc._load = lambda path: (reads.append(path), load(path))[1]
+    try:
+        with httpx.Client(base_url=server.url, timeout=120) as c:
+            first = c.get(f"/api/cooc/{cid}")
+            assert first.status_code == 200 and first.json()["id"] == cid, first.text
+            for _ in range(3):
+                with state.cooc._lock:  # out of memory (as after four other checkpoints were used)
+                    state.cooc._loaded.clear()
+                again = c.get(f"/api/cooc/{cid}")
+                assert again.status_code == 200 and again.json() == first.json(), again.text
+            assert len(reads) == 1, reads  # read once, for the first summary
+            (tmp_path / "cooc" / f"{cid}.pt").unlink()
+            assert_error(c.get(f"/api/cooc/{cid}"), 404, f"no co-occurrence checkpoint {cid}")
+    finally:
+        server.stop()
+    assert state.decoding.holding == 0 and state.decoding.waiting == 0

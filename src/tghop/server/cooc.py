@@ -94,13 +94,24 @@ def _builtin_hashes() -> dict:
 def summary(cache: ModelCache, cid: str) -> dict:
     """What the page needs of a checkpoint: the exemplar's shape (to pick crops on), the
     crop size, ``s`` (crop positions are rounded down to multiples of it), the training
-    steps, and ``builtin``: the built-in exemplar it was trained on, or None."""
-    model = cache.load(cid)
+    steps, and ``builtin``: the built-in exemplar it was trained on, or None. Kept once made
+    (:meth:`~tghop.server.cache.ModelCache.keep_summary`: the file of an id never changes), as a
+    model's; the file's size is read first, so that a file the bound drops meanwhile is 404."""
+    known = cache.summary(cid)  # made while this one waited its turn
+    if known is not None:
+        return known
+    try:
+        file_bytes = cache.path(cid).stat().st_size
+    except FileNotFoundError:
+        raise cache.missing(cid) from None
+    model = cache.load(cid)  # 404 when the file went since
     st = model.settings_
-    return {"id": cid, "file_bytes": cache.path(cid).stat().st_size, "exemplar_shape": list(model.exemplar_shape_),
+    made = {"id": cid, "file_bytes": file_bytes, "exemplar_shape": list(model.exemplar_shape_),
             "crop_size": int(st["crop_size"]), "s": int(model.s), "n_clusters": int(st["n_clusters"]),
             "step": int(model.step_), "n_steps": int(st["n_steps"]), "exemplar_hash": model.exemplar_hash_,
             "builtin": _builtin_hashes().get(model.exemplar_hash_)}
+    cache.keep_summary(cid, made)
+    return made
 
 
 # ------------------------------------------------------------------ the JSON

@@ -39,10 +39,13 @@ def checkpoint_id(server, request) -> str:
 
 
 async def cooc_summary(server, request):
-    """``GET /api/cooc/{id}``: the checkpoint loaded in the decoding threads' turn
-    (:meth:`~tghop.server.core.Server.decode`), as ``GET /api/models/{id}`` loads a model."""
+    """``GET /api/cooc/{id}``: the summary kept, or the checkpoint loaded in the decoding threads' turn
+    (:meth:`~tghop.server.core.Server.decode`), as ``GET /api/models/{id}`` answers for a model."""
     cid = checkpoint_id(server, request)
-    return json_response(await server.decode(request, cooc.summary, server.cooc, cid))
+    known = server.cooc.summary(cid)
+    if known is None:
+        known = await server.decode(request, cooc.summary, server.cooc, cid)
+    return json_response(known)
 
 
 async def cooc_file(server, request):
