@@ -723,3 +723,87 @@ def test_finished_generations_are_bounded_apart_from_fits_and_never_drop_a_fits_
         assert len(small) == 1 and small.get(job.id) is job
     finally:
         small.shutdown()
+
+
+def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more_is_503(
+        tmp_path, two_model_files, monkeypatch):
+    """Generations read a model not in memory on their own threads, outside the bound of uploads decoded at
+    once: requests for many models not in memory read them all at once (hundreds of MB each). They take the
+    decoding turn now: max_decodes read at once, decodes_waiting more wait, one more is 503 with Retry-After,
+    and one whose client goes away while it waits leaves the queue, its model never read. Real requests, a
+    real server; the library's loading is only held (and counted) until the test lets it go."""
+    import hashlib
+    import socket
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop import modelfile
+
+    # Four models not in memory (the same file under other ids: each is its own model to the cache)
+    ids = [hashlib.sha256(two_model_files[0]).hexdigest(), hashlib.sha256(two_model_files[1]).hexdigest(),
+           "c" * 64, "d" * 64]
+    (tmp_path / "models").mkdir()
+    for model_id, content in zip(ids, two_model_files * 2):
+        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    release, lock = threading.Event(), threading.Lock()
+    inside, peak, loads = [0], [0], []
+    load = modelfile.load_model
+
+    def held(path, **kwargs):  # the real loading, counted, held until released
+        with lock:
+            inside[0] += 1
+            peak[0] = max(peak[0], inside[0])
+            loads.append(path.name[:64])
+        try:
+            release.wait(60)
+            return load(path, **kwargs)
+        finally:
+            with lock:
+                inside[0] -= 1
+
+    monkeypatch.setattr(modelfile, "load_model", held)
+    live = LiveServer(tmp_path, max_fits=4, max_decodes=1, decodes_waiting=1)
+    gate = live.app.state.server.decoding
+    ask = {"size": [16, 16], "seed": 1, "n_patches": 100}
+    answers = {}
+
+    def post(model_id):
+        answers[model_id] = httpx.post(f"{live.url}/api/models/{model_id}/images", json=ask, timeout=60)
+
+    def until(done, seconds=30):
+        deadline = time.monotonic() + seconds
+        while not done():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+
+    threads = []
+    try:
+        threads.append(threading.Thread(target=post, args=(ids[0],)))
+        threads[-1].start()
+        until(lambda: inside[0] == 1 and gate.holding == 1)  # the first model read, holding the turn
+        request = httpx.Request("POST", f"{live.url}/api/models/{ids[3]}/images", json=ask)
+        raw = (f"POST /api/models/{ids[3]}/images HTTP/1.1\r\nHost: {live.url[7:]}\r\n"
+               + "".join(f"{k}: {v}\r\n" for k, v in request.headers.items() if k.lower() != "host")
+               + "\r\n").encode() + request.read()
+        with socket.create_connection(("127.0.0.1", int(live.url.rsplit(":", 1)[1])), timeout=10) as sock:
+            sock.sendall(raw)  # waits its turn to read its model...
+            until(lambda: gate.waiting == 1)
+        until(lambda: gate.waiting == 0, seconds=10)  # ...and leaves the queue once its client has gone
+        threads.append(threading.Thread(target=post, args=(ids[1],)))
+        threads[-1].start()
+        until(lambda: gate.waiting == 1)  # the second waits its turn, not read beside the first
+        third = httpx.post(f"{live.url}/api/models/{ids[2]}/images", json=ask, timeout=60)
+        assert third.status_code == 503, third.text
+        assert third.headers["retry-after"] == "5" and "the server is busy" in third.json()["error"]
+        assert inside[0] == 1 and not answers  # still reading the first, the second waiting
+        release.set()
+        for thread in threads:
+            thread.join(60)
+        assert [answers[m].status_code for m in ids[:2]] == [200, 200], [answers[m].text for m in ids[:2]]
+        assert peak[0] == 1 and loads == ids[:2]  # one read at a time; neither the gone one's nor the refused one's
+        again = httpx.post(f"{live.url}/api/models/{ids[2]}/images", json=ask, timeout=60)
+        assert again.status_code == 200 and again.content == answers[ids[0]].content  # its turn now: the same file
+    finally:
+        release.set()
+        live.stop()
+    assert gate.holding == 0 and gate.waiting == 0

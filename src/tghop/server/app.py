@@ -25,8 +25,8 @@ their checks of a file). Bad input is answered with one line, ``{"error": "..."}
 an image, a decompression bomb, a corrupt model, a malformed request), 404 (no such model or job), 409 (a
 generation stopped through its job, a job id in use), 413 (over 50 MB or over the exemplar pixel limit), 422 (a
 setting out of range, a size over the output limit), 501 (a co-occurrence route without PyTorch), 503 (too
-many fits, or uploads to decode, waiting; with ``Retry-After``); a generation whose client has gone away is
-dropped, also while it runs
+many fits, or uploads to decode or models to read from disk, waiting; with ``Retry-After``); a generation
+whose client has gone away is dropped, also while it runs
 (:meth:`~tghop.server.core.Server.in_executor`; 499, to nobody), and so is a request whose client goes away
 before it has sent the whole body (:func:`~tghop.server.uploads.read_body`). A generation whose request
 names a job (the header ``X-Tghop-Job``) reports its progress at ``/api/jobs/{job}``, as a fit does
@@ -143,8 +143,8 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         another (or whose Origin is another site) are refused, 403 (:class:`~tghop.server.safety.LocalOnly`).
     max_decodes, decodes_waiting : int
         Uploads decoded or read at once (a fit's exemplar and maps, a model file, a checkpoint: each may
-        take hundreds of MB), and how many more wait their turn; one more is refused, 503 with
-        ``Retry-After``.
+        take hundreds of MB; and a model or checkpoint read from disk for a summary or a generation), and how
+        many more wait their turn; one more is refused, 503 with ``Retry-After`` (``tghop serve --max-decodes``).
 
     Raises
     ------

@@ -11,6 +11,8 @@ instead of 905-924 MiB).
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
+import contextlib
 import functools
 import json
 import threading
@@ -52,7 +54,7 @@ async def disconnected(request) -> None:
 
 class Server:
     """The state behind the routes: the cache, the fit queue, a bound on generations and one on
-    uploads decoded at once (:attr:`decoding`, :class:`~tghop.server.uploads.Gate`)."""
+    uploads decoded and models read from disk at once (:attr:`decoding`, :class:`~tghop.server.uploads.Gate`)."""
 
     def __init__(self, cache_dir, max_fits: int, cache_bytes=DEFAULT_CACHE_BYTES, *, max_decodes: int = MAX_DECODES,
                  decodes_waiting: int = MAX_DECODES_WAITING):
@@ -68,8 +70,9 @@ class Server:
         # or checkpoint read for its summary), the rest waiting in order: each may take hundreds of MB, whatever
         # its file's size. On threads of their own, as generations: on Starlette's pool each new thread kept its freed
         # memory (8 decodes of an 8000x8000 PNG, 2 at a time, peaked at 2.3 GB there). Fills, painted guides
-        # and labels are decoded on the generation threads, bounded by them.
-        self.decoding = Gate(max_decodes, decodes_waiting)
+        # and labels are decoded on the generation threads, bounded by them; a model or checkpoint a generation
+        # reads from disk takes a turn here too (:meth:`model`).
+        self.decoding = Gate(max_decodes, decodes_waiting, what="uploads or models are being read")
         self.decoder = ThreadPoolExecutor(max_workers=max_decodes, thread_name_prefix="tghop-decode")
         self.stopping = asyncio.Event()
         self._work = threading.local()  # .dropped: the running request's flag, on its generation thread
@@ -82,6 +85,40 @@ class Server:
             return await asyncio.get_running_loop().run_in_executor(self.decoder, functools.partial(work, *args))
         finally:
             await self.decoding.__aexit__(None, None, None)
+
+    def model(self, model_id: str):
+        """The model ``model_id`` for a generation (on its thread, :meth:`in_executor`): one not in memory is
+        read from disk in the turn of uploads decoded at once (:attr:`decoding`; 503 with ``Retry-After`` when
+        too many wait; dropped when the request's client goes away meanwhile), so that generations of many
+        models not in memory do not read them all at once."""
+        return self.cache.load(model_id, turn=self.reading_turn)
+
+    def checkpoint(self, cid: str):
+        """The co-occurrence checkpoint ``cid`` for a generation, read in its turn as :meth:`model` reads a model."""
+        return self.cooc.load(cid, turn=self.reading_turn)
+
+    @contextlib.contextmanager
+    def reading_turn(self):
+        """A slot of :attr:`decoding` held by a generation thread (:meth:`in_executor`'s) while it reads a file:
+        waited for on the event loop, in order with the uploads; 503 when too many wait, 499 once the request's
+        work is dropped (its client gone, the server stopping). Outside a request's work, no slot is taken."""
+        loop, withdrawn = getattr(self._work, "loop", None), getattr(self._work, "withdrawn", None)
+        if loop is None:
+            yield
+            return
+        entered = asyncio.run_coroutine_threadsafe(self.decoding.enter(gone=withdrawn.wait), loop)
+        while True:  # the loop answers once the slot is taken, refused or withdrawn (in_executor sets withdrawn)
+            try:
+                entered.result(timeout=1.0)
+                break
+            except concurrent.futures.TimeoutError:
+                if loop.is_closed():  # no loop left to answer: the server has stopped
+                    raise RequestError(503, "the server is stopping; the work was dropped") from None
+        try:
+            yield
+        finally:
+            if not loop.is_closed():
+                loop.call_soon_threadsafe(self.decoding.leave)
 
     def stop(self) -> None:
         """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
@@ -103,10 +140,12 @@ class Server:
                 raise RequestError(409, f"the generation was cancelled (DELETE /api/jobs/{job.id})")
             job.progress(stage, done, total, cancellable=False)
 
-    def _flagged(self, dropped, job, work, *args):
-        """``work(*args)`` with ``dropped`` and ``job`` (or None) as this thread's for :meth:`unless_stopping`;
+    def _flagged(self, dropped, job, turn, work, *args):
+        """``work(*args)`` with ``dropped`` and ``job`` (or None) as this thread's for :meth:`unless_stopping`,
+        ``turn`` (the event loop, and the asyncio event set when the work is dropped) for :meth:`reading_turn`;
         the job's state follows the work."""
         self._work.dropped, self._work.job = dropped, job
+        self._work.loop, self._work.withdrawn = turn
         try:
             if job is not None:
                 self.unless_stopping()  # dropped or cancelled while it waited: it never starts
@@ -126,7 +165,7 @@ class Server:
                 job.set_state("done")
             return result
         finally:
-            self._work.dropped = self._work.job = None
+            self._work.dropped = self._work.job = self._work.loop = self._work.withdrawn = None
 
     def generation_job(self, request):
         """The job of a request that names one (:data:`JOB_HEADER`), put in the job table; None without
@@ -149,9 +188,10 @@ class Server:
         next progress report; then 499. Dropped the same way when the server stops (:meth:`stop`): 503.
         A request with a job (:data:`JOB_HEADER`, :meth:`generation_job`) reports its progress there."""
         job = self.generation_job(request)
-        dropped = threading.Event()
-        future = asyncio.get_running_loop().run_in_executor(
-            self.executor, functools.partial(self._flagged, dropped, job, work, *args))
+        dropped, withdrawn = threading.Event(), asyncio.Event()  # withdrawn: its wait for a reading turn ends
+        loop = asyncio.get_running_loop()
+        future = loop.run_in_executor(
+            self.executor, functools.partial(self._flagged, dropped, job, (loop, withdrawn), work, *args))
         gone = asyncio.ensure_future(disconnected(request))
         stopped = asyncio.ensure_future(self.stopping.wait())
         try:
@@ -161,6 +201,7 @@ class Server:
             stopped.cancel()
         if not future.done():
             dropped.set()
+            withdrawn.set()
             future.cancel()
             if job is not None and job.state not in FINAL:
                 job.set_state("cancelled")

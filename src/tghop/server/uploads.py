@@ -91,6 +91,10 @@ class Gate:
         return got
 
     async def __aexit__(self, *exc_info):
+        self.leave()
+
+    def leave(self) -> None:
+        """Give the slot taken by :meth:`enter` back (on the event loop)."""
         self.holding -= 1
         self._free.release()
 

@@ -61,9 +61,9 @@ async def cooc_morph(server, request):
     a, b, crop, length, seed, windows = cooc.parse_morph(await json_body(request))
 
     def work(seed):
+        model = server.checkpoint(cid)  # read in its turn when not in memory
         with server.generating:
-            return cooc.morph_png(server.cooc.load(cid), a, b, crop, length, windows, seed,
-                                  progress=server.unless_stopping)
+            return cooc.morph_png(model, a, b, crop, length, windows, seed, progress=server.unless_stopping)
 
     return await png_response(server, request, work, seed=seed)
 
@@ -80,8 +80,9 @@ async def cooc_edit(server, request):
         return read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
 
     def work(seed):
+        model = server.checkpoint(cid)  # read in its turn when not in memory
         with server.generating:
-            return cooc.edit_png(server.cooc.load(cid), size, labels, crops, boost, windows, seed, read_labels,
+            return cooc.edit_png(model, size, labels, crops, boost, windows, seed, read_labels,
                                  progress=server.unless_stopping)
 
     return await png_response(server, request, work, seed=seed)

@@ -33,7 +33,7 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     from ...inpaint import check_hole, expand_canvas, require_hole, split_alpha, with_alpha
     from ...inpaint import inpaint as fill_hole
 
-    model = server.cache.load(model_id)
+    model = server.model(model_id)  # read in its turn when not in memory
     uploads = materials.map_uploads(fields)  # a material's maps (none for a texture model)
     if uploads and not materials.is_material(model):
         raise RequestError(422, f"model {model_id[:12]} is a texture model; map:<name> fields go with a material")

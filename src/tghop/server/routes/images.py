@@ -25,7 +25,7 @@ def model_png(server, model_id: str, size, seed, settings):
 
     from ...imageio import write_png
 
-    model = server.cache.load(model_id)
+    model = server.model(model_id)  # read in its turn when not in memory
     material = materials.is_material(model)
     if settings.get("patch_refine") and material:
         raise RequestError(422, "patch_refine and quality best do not apply to a material (it has no patch "
@@ -120,7 +120,7 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     from ...guided import guide_labels, synthesize_guided
     from ...imageio import load_image
 
-    models = [server.cache.load(model_id) for model_id in ids]
+    models = [server.model(model_id) for model_id in ids]
     materials.same_kind(models, ids)
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
     painted = None
@@ -148,7 +148,7 @@ def morph_png(server, ids, size, stations, settings, seed) -> tuple:
     """A morph from model ``ids[0]`` to ``ids[1]`` (texture models of one patch size)."""
     from ...guided import morph as morph_strip
 
-    models = [server.cache.load(model_id) for model_id in ids]
+    models = [server.model(model_id) for model_id in ids]
     for label, model_id, model in zip(["A", "B"], ids, models):
         if materials.is_material(model):  # in a person's words: the page's A and B, the model as it lists it
             raise RequestError(422, f"{label} ({model_id[:8]}) is a material ({', '.join(model.names_)}), and a "
