@@ -807,3 +807,107 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
         release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
+
+
+def _sent_and_left(live, request, entered, until):
+    """Send ``request`` (an httpx.Request) whole on a socket of its own, wait until ``entered()`` (its
+    decoding has begun), then close the socket: its client goes away while it is decoded; returns once the
+    server has seen the connection go."""
+    import socket
+
+    raw = (f"{request.method} {request.url.raw_path.decode()} HTTP/1.1\r\nHost: {live.url[7:]}\r\n"
+           + "".join(f"{k}: {v}\r\n" for k, v in request.headers.items() if k.lower() != "host")
+           + "\r\n").encode() + request.read()
+    with socket.create_connection(("127.0.0.1", int(live.url.rsplit(":", 1)[1])), timeout=10) as sock:
+        sock.sendall(raw)
+        until(entered)
+    until(lambda: not live.server.server_state.connections)  # the server saw it go...
+    time.sleep(0.1)  # ...and its loop has run the request's watch of its client
+
+
+def test_a_fit_whose_client_went_away_while_its_exemplar_was_decoded_is_never_queued(tmp_path, monkeypatch):
+    """Decoding cannot be stopped midway, but a fit whose client went away while its exemplar was decoded
+    was then queued and fitted for nobody. Its result is dropped: no job, no model; the next one is served."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from conftest import FAST_FIT
+    from tghop.server.routes import fit
+
+    buf = io.BytesIO()
+    Image.fromarray(np.random.default_rng(0).integers(0, 256, (96, 96, 3), dtype=np.uint8)).save(buf, format="PNG")
+    release, entered, prepare = threading.Event(), threading.Event(), fit.prepare_fit
+
+    def held(server, fields):  # the real preparation (decoding included), held until released
+        entered.set()
+        release.wait(60)
+        return prepare(server, fields)
+
+    monkeypatch.setattr(fit, "prepare_fit", held)
+    live = LiveServer(tmp_path, max_decodes=1)
+    state = live.app.state.server
+
+    def until(done, seconds=30):
+        deadline = time.monotonic() + seconds
+        while not done():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+
+    try:
+        request = httpx.Request("POST", f"{live.url}/api/models", data=FAST_FIT,
+                                files={"image": ("noise.png", buf.getvalue())})
+        _sent_and_left(live, request, entered.is_set, until)
+        release.set()
+        until(lambda: state.decoding.holding == 0)
+        time.sleep(0.2)  # the route has gone on (or not) after its decoding
+        assert len(state.queue) == 0 and os.listdir(tmp_path / "models") == []  # no fit started for nobody
+        r = httpx.post(f"{live.url}/api/models", data=FAST_FIT, files={"image": ("noise.png", buf.getvalue())},
+                       timeout=60)
+        assert r.status_code == 202 and len(state.queue) == 1, r.text  # the same upload, its client still there
+        state.queue.cancel(r.json()["job"], everyone=True)
+    finally:
+        release.set()
+        live.stop()
+    assert state.decoding.holding == 0 and state.decoding.waiting == 0
+
+
+def test_a_model_file_whose_client_went_away_while_it_was_read_is_not_kept(tmp_path, two_model_files, monkeypatch):
+    """An uploaded model file whose client went away while it was read was kept in the cache for nobody
+    (its id never reached anyone). It is not kept now: no file left in the folder, not even a temporary one."""
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop import modelfile
+
+    release, entered, load = threading.Event(), threading.Event(), modelfile.load_model
+
+    def held(path, **kwargs):  # the real loading, held until released
+        entered.set()
+        release.wait(60)
+        return load(path, **kwargs)
+
+    monkeypatch.setattr(modelfile, "load_model", held)
+    live = LiveServer(tmp_path, max_decodes=1)
+    state = live.app.state.server
+
+    def until(done, seconds=30):
+        deadline = time.monotonic() + seconds
+        while not done():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+
+    try:
+        request = httpx.Request("POST", f"{live.url}/api/models/upload", content=two_model_files[0])
+        _sent_and_left(live, request, entered.is_set, until)
+        release.set()
+        until(lambda: state.decoding.holding == 0)
+        assert os.listdir(tmp_path / "models") == []  # neither kept nor left as a temporary file
+        r = httpx.post(f"{live.url}/api/models/upload", content=two_model_files[0], timeout=60)
+        assert r.status_code == 200 and os.listdir(tmp_path / "models") == [f"{r.json()['id']}.npz"], r.text
+    finally:
+        release.set()
+        live.stop()
+    assert state.decoding.holding == 0 and state.decoding.waiting == 0

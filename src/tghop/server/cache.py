@@ -134,10 +134,11 @@ class ModelCache:
                 self._summaries.pop(model_id, None)
         return removed
 
-    def store(self, content: bytes, filename: str, *, hint: str) -> str:
+    def store(self, content: bytes, filename: str, *, hint: str, wanted=None) -> str:
         """Keep uploaded bytes under their SHA-256 once this cache's loader accepts them: the
         id. Not loadable: 400 (no room: 413), ``hint`` saying what to send; nothing is left
-        in the folder either way."""
+        in the folder either way. ``wanted()``, asked once the file is read and before it is kept: False
+        (its client has gone) drops it, 499 (:meth:`tghop.server.core.Server.still_wanted`)."""
         if not content:
             raise RequestError(400, f"{filename} is empty; {hint}")
         check_archive(content, filename, self.what)  # a decompression bomb: refused before it is read
@@ -160,6 +161,8 @@ class ModelCache:
                 raise RequestError(400, str(exc).replace(tmp, filename)) from None
             except MemoryError:
                 raise RequestError(413, f"{filename}: not enough memory to read this {self.what}") from None
+            if wanted is not None and not wanted():
+                raise RequestError(499, f"the client went away while {filename} was read; it was not kept")
             try:
                 os.replace(tmp, final)
             except OSError as exc:

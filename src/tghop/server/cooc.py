@@ -73,10 +73,11 @@ def cooc_cache(cache_dir, max_bytes) -> ModelCache:
                       what="co-occurrence checkpoint", hint=COOC_HINT)
 
 
-def store_checkpoint(cache: ModelCache, content: bytes, filename: str) -> str:
+def store_checkpoint(cache: ModelCache, content: bytes, filename: str, wanted=None) -> str:
     """Check an uploaded checkpoint and keep it under its SHA-256 (400 if it is not a good
-    co-occurrence checkpoint; nothing is left in the cache either way): its id."""
-    return cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'")
+    co-occurrence checkpoint; nothing is left in the cache either way): its id. ``wanted``: as
+    :meth:`~tghop.server.cache.ModelCache.store`'s."""
+    return cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'", wanted=wanted)
 
 
 @functools.lru_cache(maxsize=1)

@@ -78,13 +78,42 @@ class Server:
         self._work = threading.local()  # .dropped: the running request's flag, on its generation thread
 
     async def decode(self, request, work, *args):
-        """``work(*args)`` on a decoding thread once :attr:`decoding` lets it in (503 when too many wait);
-        a request whose client goes away while it waits leaves the queue, never decoded (499, to nobody)."""
+        """``work(*args)`` on a decoding thread once :attr:`decoding` lets it in (503 when too many wait); a request
+        whose client goes away while it waits leaves the queue, never decoded, and so does one whose client has
+        gone when its turn comes. Decoding cannot be stopped midway: a request whose client goes away while it
+        is decoded has its result dropped (no fit queued; an upload kept only if :meth:`still_wanted` says so
+        before it is). All three: 499, to nobody."""
         await self.decoding.enter(gone=functools.partial(disconnected, request))
+        left = threading.Event()
+        gone = asyncio.ensure_future(disconnected(request))
+        gone.add_done_callback(lambda task: task.cancelled() or left.set())
         try:
-            return await asyncio.get_running_loop().run_in_executor(self.decoder, functools.partial(work, *args))
+            await asyncio.sleep(0)  # a disconnect the server already knows of ends `gone` here
+            if gone.done():
+                raise RequestError(499, "the client went away before its upload was decoded; it was dropped")
+            result = await asyncio.get_running_loop().run_in_executor(
+                self.decoder, functools.partial(self._decoding, left, work, *args))
+            if gone.done():
+                raise RequestError(499, "the client went away while its upload was decoded; the result was dropped")
+            return result
         finally:
+            gone.cancel()
             await self.decoding.__aexit__(None, None, None)
+
+    def _decoding(self, left, work, *args):
+        """``work(*args)`` with ``left`` (set once the request's client goes away) as this thread's for
+        :meth:`still_wanted`."""
+        self._work.left = left
+        try:
+            return work(*args)
+        finally:
+            self._work.left = None
+
+    def still_wanted(self) -> bool:
+        """On a decoding thread (:meth:`decode`): whether the request's client is still there, so that what it
+        decoded is worth keeping (an upload is not kept once its client has gone). True elsewhere."""
+        left = getattr(self._work, "left", None)
+        return left is None or not left.is_set()
 
     def model(self, model_id: str):
         """The model ``model_id`` for a generation (on its thread, :meth:`in_executor`): one not in memory is

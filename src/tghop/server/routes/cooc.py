@@ -26,7 +26,8 @@ async def upload_cooc(server, request):
         filename, content = upload
     else:
         filename, content = None, body  # no name: messages say "the upload"
-    cid = await server.decode(request, cooc.store_checkpoint, server.cooc, content, safe_name(filename, "the upload"))
+    cid = await server.decode(request, cooc.store_checkpoint, server.cooc, content, safe_name(filename, "the upload"),
+                              server.still_wanted)
     return json_response({"id": cid})
 
 

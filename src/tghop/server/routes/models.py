@@ -91,7 +91,8 @@ def store_upload(server, content: bytes, filename: str) -> str:
     from ...imageio import is_image
 
     try:
-        return server.cache.store(content, filename, hint="send a model file written by 'tghop fit'")
+        return server.cache.store(content, filename, hint="send a model file written by 'tghop fit'",
+                                  wanted=server.still_wanted)
     except RequestError as exc:  # the loader's advice for an image is a command line's
         if exc.status == 400 and is_image(io.BytesIO(content)):
             raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
