@@ -146,8 +146,10 @@ class Server:
         try:
             yield
         finally:
-            if not loop.is_closed():
+            try:
                 loop.call_soon_threadsafe(self.decoding.leave)
+            except RuntimeError:  # the loop closed meanwhile: the server has stopped, its gate with it
+                pass
 
     def stop(self) -> None:
         """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
