@@ -75,7 +75,9 @@ class Server:
         self.decoding = Gate(max_decodes, decodes_waiting, what="uploads or models are being read")
         self.decoder = ThreadPoolExecutor(max_workers=max_decodes, thread_name_prefix="tghop-decode")
         self.stopping = asyncio.Event()
-        self._work = threading.local()  # .dropped: the running request's flag, on its generation thread
+        # The running request's flags on its thread: .dropped, .job, .loop and .withdrawn on a generation thread
+        # (unless_stopping, reading_turn), .left on a decoding thread (still_wanted)
+        self._work = threading.local()
 
     async def decode(self, request, work, *args):
         """``work(*args)`` on a decoding thread once :attr:`decoding` lets it in (503 when too many wait); a request
