@@ -911,3 +911,52 @@ def test_a_model_file_whose_client_went_away_while_it_was_read_is_not_kept(tmp_p
         release.set()
         live.stop()
     assert state.decoding.holding == 0 and state.decoding.waiting == 0
+
+
+def test_every_generation_route_reads_its_models_in_the_decoding_turn(tmp_path, two_model_files):
+    """An image, a remix, a morph and an extend each read the models they need that are not in memory on
+    their generation thread holding a slot of the decoding turn (given back after), once per model."""
+    import hashlib
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+    ids = [hashlib.sha256(content).hexdigest() for content in two_model_files]
+    (tmp_path / "models").mkdir()
+    for model_id, content in zip(ids, two_model_files):
+        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    live = LiveServer(tmp_path, max_decodes=1)
+    state = live.app.state.server
+    seen, read = [], state.cache._load
+
+    def watched(path):  # the cache's real reading, with the thread and the gate seen as it starts
+        seen.append((path.name[:64], threading.current_thread().name, state.decoding.holding))
+        return read(path)
+
+    state.cache._load = watched
+    buf = io.BytesIO()
+    Image.fromarray(np.random.default_rng(1).integers(0, 256, (32, 32, 3), dtype=np.uint8)).save(buf, format="PNG")
+    asks = {"image": lambda c: c.post(f"/api/models/{ids[0]}/images", json={"size": [16, 16], "n_patches": 100}),
+            "remix": lambda c: c.post("/api/images/guided", json={"models": ids, "size": [24, 24], "n_patches": 100}),
+            "morph": lambda c: c.post("/api/images/morph", json={"a": ids[0], "b": ids[1], "size": [24, 48]}),
+            "extend": lambda c: c.post(f"/api/models/{ids[1]}/extend", data={"size": "48x48"},
+                                       files={"image": ("picture.png", buf.getvalue())})}
+    try:
+        with httpx.Client(base_url=live.url, timeout=120) as client:
+            for name, ask in asks.items():
+                with state.cache._lock:  # neither model in memory, as on a fresh server
+                    state.cache._loaded.clear()
+                seen.clear()
+                r = ask(client)
+                assert r.status_code == 200, (name, r.text)
+                wanted = {"image": ids[:1], "extend": ids[1:]}.get(name, ids)
+                assert sorted(m for m, _, _ in seen) == sorted(wanted), (name, seen)
+                assert all(thread.startswith("tghop-generate") and holding == 1 for _, thread, holding in seen), \
+                    (name, seen)
+                assert state.decoding.holding == 0 and state.decoding.waiting == 0
+    finally:
+        live.stop()

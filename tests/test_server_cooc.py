@@ -356,3 +356,38 @@ def test_a_checkpoints_summary_is_kept_as_a_models_is(tmp_path, checkpoint):
     finally:
         server.stop()
     assert state.decoding.holding == 0 and state.decoding.waiting == 0
+
+
+@needs_torch
+def test_a_morph_and_an_edit_read_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoint):
+    """A checkpoint not in memory that a morph or an edit needs is read on its generation thread holding a
+    slot of the decoding turn, as an upload is decoded (503 when too many wait: tests/test_server_bounds.py)."""
+    import threading
+
+    from conftest import LiveServer
+
+    (tmp_path / "cooc").mkdir()
+    cid = hashlib.sha256(checkpoint[0]).hexdigest()
+    (tmp_path / "cooc" / f"{cid}.pt").write_bytes(checkpoint[0])
+    server = LiveServer(tmp_path, max_decodes=1)
+    state = server.app.state.server
+    seen, load = [], state.cooc._load
+
+    def watched(path):
+        seen.append((threading.current_thread().name, state.decoding.holding))
+        return load(path)
+
+    state.cooc._load = watched
+    try:
+        with httpx.Client(base_url=server.url, timeout=120) as c:
+            for path, body in (("morph", {"a": [0, 0], "b": [32, 32], "length": 2, "seed": 1}),
+                               ("edit", {"crops": [[0, 0]], "size": [16, 16], "seed": 1})):
+                with state.cooc._lock:  # not in memory, as on a fresh server
+                    state.cooc._loaded.clear()
+                seen.clear()
+                r = c.post(f"/api/cooc/{cid}/{path}", json=body)
+                assert r.status_code == 200, r.text
+                assert len(seen) == 1 and seen[0][0].startswith("tghop-generate") and seen[0][1] == 1, (path, seen)
+    finally:
+        server.stop()
+    assert state.decoding.holding == 0 and state.decoding.waiting == 0
