@@ -401,3 +401,40 @@ def test_a_reload_withdraws_the_running_fit(page):
         page.wait_for_timeout(500)
     assert snap["state"] == "cancelled" and snap["askers"] == 0, snap
     assert not page.errors, page.errors
+
+
+def test_arrow_keys_on_the_built_in_menu_fit_only_the_option_settled_on(page):
+    # Each arrow press on the closed menu (a change per option passed) started a fit of that option, the one
+    # before it cancelled: browsing the built-ins by keyboard asked the server for a fit per option.
+    fresh_page(page)
+    fits = []
+    page.on("request", lambda r: fits.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    page.focus("#builtin")
+    page.keyboard.press("ArrowDown")  # builtin:bricks
+    page.keyboard.press("ArrowDown")  # builtin:cells
+    assert page.input_value("#builtin") == "cells"
+    assert page.is_hidden("#fit-status") and not fits  # the choice not settled yet
+    page.wait_for_selector("#fit-status:not([hidden])", timeout=10_000)
+    wait_model(page, "model")
+    assert len(fits) == 1 and b'name="builtin"\r\n\r\ncells' in fits[0], fits
+    assert exemplar_shown(page) == ["cells.png", True, 256]
+    page.keyboard.press("ArrowUp")  # away and back to the model's built-in before it settles: nothing to fit
+    page.keyboard.press("ArrowDown")
+    page.wait_for_timeout(1500)
+    assert len(fits) == 1 and page.is_visible("#summary") and page.input_value("#builtin") == "cells"
+    page.keyboard.press("ArrowUp")  # Enter settles the choice at once
+    page.keyboard.press("Enter")
+    assert page.is_visible("#fit-status") and len(fits) == 2 and b"bricks" in fits[1]
+    wait_model(page, "model")
+    page.click("#fit-settings summary")  # the focus elsewhere: a click's pick is fitted at once
+    started = page.eval_on_selector("#builtin", """(s) => {
+      s.value = "cells";
+      s.dispatchEvent(new Event("input", { bubbles: true }));
+      s.dispatchEvent(new Event("change", { bubbles: true }));
+      return !document.getElementById("fit-status").hidden && document.getElementById("stage").textContent;
+    }""")
+    assert started == "sending"
+    wait_model(page, "model")
+    assert len(fits) == 3 and exemplar_shown(page) == ["cells.png", True, 256]
+    assert not page.errors, page.errors

@@ -51,18 +51,32 @@ function wireBuiltinMenu(select) {
     select.insertBefore(copy, select.selectedOptions[0]);  // Down in the list: the option shown
     select.selectedIndex = copy.index;
   };
-  select.addEventListener("pointerdown", open);
+  // A key that moves the closed menu's choice (an arrow, Home, End, a page key, a letter: the browser fires a
+  // change per option passed) is down: that change is browsing, fitted once the choice settles (fitBuiltinSoon).
+  let browsing = false;
+  select.addEventListener("pointerdown", () => { browsing = false; open(); });
   select.addEventListener("mousedown", open);
   select.addEventListener("keydown", (e) => {  // the keys that open the list
+    const closed = select.selectedOptions[0] !== copy;
+    browsing = closed && !e.altKey && !e.ctrlKey && !e.metaKey && BROWSE_KEY.test(e.key);
     if (e.key === " " || e.key === "F4" || (e.altKey && (e.key === "ArrowDown" || e.key === "ArrowUp"))) open();
-    else if (e.key === "Escape" && select.selectedOptions[0] === copy) showSource();
+    else if (e.key === "Escape" && !closed) showSource();
+    else if (e.key === "Enter" && closed) settleBuiltin();  // the choice made: fitted now
   });
-  select.addEventListener("blur", () => { if (select.selectedOptions[0] === copy) showSource(); });
+  select.addEventListener("keyup", () => { browsing = false; });
+  select.addEventListener("blur", () => {
+    browsing = false;
+    if (select.selectedOptions[0] === copy) showSource(); else settleBuiltin();  // left: the choice made
+  });
   select.addEventListener("change", () => {
     copy.remove();
-    if (select.value) fitBuiltin(select.value); else showSource();
+    if (!select.value) { withdrawBuiltin(); showSource(); } else if (browsing) fitBuiltinSoon(select.value);
+    else { withdrawBuiltin(); fitBuiltin(select.value); }
   });
 }
+
+// The keys that move a closed select's choice: arrows, Home, End, Page Up and Down, a letter or digit (type-ahead).
+const BROWSE_KEY = /^(Arrow(Up|Down|Left|Right)|Home|End|Page(Up|Down)|\S)$/u;
 
 // Every control of the page to its handler (cooc.js wires its own), the builtins listed; then the page is ready.
 async function init() {

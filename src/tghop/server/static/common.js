@@ -9,7 +9,9 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   mapFiles: [], source: null, material: false, shown: null,
   // The working model, what a refused or cancelled fit or a refused model file goes back to (fit.js,
   // setWorking), and the running fit's way back to it (its `undo`, for cancelFit).
-  working: null, fitUndo: null };
+  working: null, fitUndo: null,
+  // A built-in browsed to by keyboard in the closed menu, fitted once the choice settles ({name, timer}; fit.js).
+  browsed: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null };

@@ -135,7 +135,9 @@ function mapsProblem(files) {
 function setMapFiles(files) {
   const undo = { mapFiles: state.mapFiles, maps: true };
   if (!useMapFiles(files)) return;
-  if (state.source && state.source.file) fitFile(state.source.file, undo);
+  const browsed = withdrawBuiltin();  // browsed to by keyboard, waiting: the exemplar these maps go with
+  if (browsed) fitBuiltin(browsed, undo);
+  else if (state.source && state.source.file) fitFile(state.source.file, undo);
   else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin, undo);
   else if (state.mapFiles.length) say("pick or drop the albedo (exemplar) now: it is fitted with these maps");
 }
@@ -185,6 +187,7 @@ function stopEvents() {
 // A fit still running when another exemplar or a model file replaces it, or when the page is left (a reload),
 // is cancelled: the page forgets it (keepalive: the request outlives the page). Whether there was one.
 function dropRunningFit() {
+  withdrawBuiltin();  // a built-in browsed to by keyboard, still waiting: replaced too
   stopEvents();
   const running = Boolean(state.job && !$("fit-status").hidden && !$("fit-status").dataset.state);
   if (running) fetch(`/api/jobs/${state.job}`, { method: "DELETE", keepalive: true }).catch(() => {});
@@ -316,6 +319,31 @@ function fitBuiltin(name, undo = { mapFiles: state.mapFiles, name: `builtin:${na
   const form = fitFields();
   form.append("builtin", name);
   startFit(form, undo);
+}
+
+// Browsing the closed built-in menu by keyboard (app.js, wireBuiltinMenu: a change per option passed) fits the
+// option it settles on, BROWSE_SETTLE_MS after the last change, or at once on Enter or when the menu is left;
+// each change withdraws the fit still waiting, and so does any fit or model file asked for meanwhile. Settling
+// back on the exemplar already fitted (or being fitted) fits nothing. A click's pick is fitted at once.
+const BROWSE_SETTLE_MS = 700;
+
+function fitBuiltinSoon(name) {
+  withdrawBuiltin();
+  if (state.source && state.source.builtin === name) return;
+  state.browsed = { name, timer: setTimeout(settleBuiltin, BROWSE_SETTLE_MS) };
+}
+
+// The built-in waiting to be fitted, no longer waiting (null: none was).
+function withdrawBuiltin() {
+  const browsed = state.browsed;
+  state.browsed = null;
+  if (browsed) clearTimeout(browsed.timer);
+  return browsed ? browsed.name : null;
+}
+
+function settleBuiltin() {
+  const name = withdrawBuiltin();
+  if (name) fitBuiltin(name);
 }
 
 // A model file refused goes back to the working model, as a refused exemplar does (backToWorking).
