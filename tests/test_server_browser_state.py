@@ -438,3 +438,43 @@ def test_arrow_keys_on_the_built_in_menu_fit_only_the_option_settled_on(page):
     wait_model(page, "model")
     assert len(fits) == 3 and exemplar_shown(page) == ["cells.png", True, 256]
     assert not page.errors, page.errors
+
+
+def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
+    # The maps listed for a material went on to the next exemplar: builtin:cells picked after a bricks material
+    # was fitted with bricks' height map, and so was the exemplar after a model file.
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    (tmp_path / "height.png").write_bytes(png(to_uint8(data.builtin("bricks")[..., 0])))
+    fits = []
+    page.on("request", lambda r: fits.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    fresh_page(page)
+    page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "material")
+    page.set_input_files("#file", str(refused_files(tmp_path)[0]))  # refused: the maps listed again
+    assert "bricks" in wait_said(page, "notes.png")
+    assert page.text_content("#maps-list") == "maps: height" and page.is_visible("#maps-clear")
+    pick_builtin(page, "bricks")  # the same exemplar again: fitted with its maps
+    page.wait_for_selector("#fit-status:not([hidden])", timeout=10_000)
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: height"
+    page.select_option("#builtin", "cells")
+    assert page.text_content("#maps-list") == "maps cleared: height went with builtin:bricks, not this exemplar's"
+    assert page.is_hidden("#maps-clear")
+    wait_model(page, "model")
+    assert b"map:" not in fits[-1] and b"cells" in fits[-1]
+    assert page.text_content("#maps-list").startswith("maps cleared: height")  # still said once fitted
+    page.set_input_files("#maps", str(tmp_path / "height.png"))  # cells' own maps (its size): a material
+    wait_model(page, "material")
+    model = tmp_path / "cells.npz"  # a model file loaded: the maps listed are not its own either
+    model.write_bytes(page.request.get(page.url.rstrip("/") + page.get_attribute("#download-model", "href")).body())
+    page.set_input_files("#model-file", str(model))
+    assert "loaded" in wait_said(page, "loaded: generate below")
+    assert page.text_content("#maps-list") == "maps cleared: height went with builtin:cells, not the model file's"
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "model")
+    assert b"map:" not in fits[-1] and b"bricks" in fits[-1]
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors

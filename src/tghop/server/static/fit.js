@@ -160,6 +160,25 @@ function listMaps(files) {
   $("maps-clear").hidden = !names.length;
 }
 
+// Another exemplar picked or a model file loaded (`source` null) than the one the maps listed go with
+// (state.source, the last exemplar: the working one or the one being fitted): they are that material's, not
+// the new one's, and are cleared, the list saying so (`whose`: whose maps they are not). A refused or cancelled
+// pick lists them again (backToWorking). Maps listed with no exemplar yet wait for the one picked; the same
+// exemplar picked again is fitted with them.
+function clearOthersMaps(source, whose) {
+  const old = state.source, files = state.mapFiles;
+  if (!files.length || !old || (source && sameSource(old, source))) return;
+  listMaps([]);
+  $("maps-list").textContent = `maps cleared: ${files.map((f) => mapName(f.name)).join(", ")} went with ` +
+    `${old.builtin ? `builtin:${old.builtin}` : old.file.name}, not ${whose}`;
+}
+
+// Whether two exemplars are the same: a built-in's name, or a file's name, size and date.
+function sameSource(a, b) {
+  if (a.builtin || b.builtin) return a.builtin === b.builtin;
+  return a.file.name === b.file.name && a.file.size === b.file.size && a.file.lastModified === b.file.lastModified;
+}
+
 // A name that says albedo (albedo, diff, diffuse, color, colour, basecolor, as a word of the file's name).
 const ALBEDO_NAME = /(^|[^a-z])(albedo|diff|diffuse|(base)?colou?r)([^a-z]|$)/i;
 
@@ -300,8 +319,13 @@ async function cancelFit() {
   }
 }
 
-function fitFile(file, undo = { mapFiles: state.mapFiles, name: file && file.name }) {
+// `undo` given: a refit with other maps (setMapFiles) or a material dropped (dropFiles); else a pick.
+function fitFile(file, undo) {
   if (!file) return;
+  if (!undo) {
+    undo = { mapFiles: state.mapFiles, name: file.name };
+    clearOthersMaps({ file }, "this exemplar's");
+  }
   state.source = { file };
   state.pendingName = file.name + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
   $("builtin").value = "";
@@ -311,8 +335,12 @@ function fitFile(file, undo = { mapFiles: state.mapFiles, name: file && file.nam
   startFit(form, undo);
 }
 
-function fitBuiltin(name, undo = { mapFiles: state.mapFiles, name: `builtin:${name}` }) {
+function fitBuiltin(name, undo) {
   if (!name) return;
+  if (!undo) {
+    undo = { mapFiles: state.mapFiles, name: `builtin:${name}` };
+    clearOthersMaps({ builtin: name }, "this exemplar's");
+  }
   state.source = { builtin: name };
   state.pendingName = `builtin:${name}` + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
   setExemplar(`/api/builtins/${name}.png`);
@@ -352,6 +380,7 @@ async function uploadModel(file) {
   dropRunningFit();
   const request = ++state.fitRequest;  // a fit whose answer is still on its way is replaced; so is this upload
   const undo = { mapFiles: state.mapFiles, name: file.name };
+  clearOthersMaps(null, "the model file's");
   state.source = null;
   $("fit-status").hidden = true;
   $("summary").hidden = true;  // the model it replaces: not what is loaded, whatever the answer
