@@ -236,3 +236,28 @@ def test_synthesize_tile_stays_tileable(small_model, window):
             first, last = np.take(img, 0, axis=axis), np.take(img, -1, axis=axis)
             ranks.append(float((inside < np.abs(first - last).mean()).mean()))
     assert np.mean(ranks) <= 0.7 and max(ranks) < 1, (ranks, window)
+
+
+def test_the_seam_removal_reports_its_progress(small_model):
+    # Nothing was reported between the last quilting block and the refinement: the seam removal (the local
+    # means of each axis, a screened Poisson solve per channel) ran silent, and at 4096x4096 the progress
+    # bar of tghop serve stood still for seconds.
+    calls = []
+    kw = dict(rng=4, n_patches=300, layout_weight=0.0)
+    image = small_model.synthesize((80, 96), progress=lambda *call: calls.append(call), **kw)
+    np.testing.assert_array_equal(image, small_model.synthesize((80, 96), **kw))  # the same image
+    stages = [stage for stage, _, _ in calls]
+    last_quilt, first_refine = len(stages) - stages[::-1].index("quilting"), stages.index("refine")
+    between = calls[last_quilt:first_refine]
+    assert between == [("seams", done, 5) for done in range(6)]  # the two axes' means, then 3 channels
+    calls.clear()
+    small_model.synthesize((80, 96), progress=lambda *call: calls.append(call), seam_window=1, **kw)
+    assert [c for c in calls if c[0] == "seams"] == [("seams", done, 3) for done in range(4)]
+    calls.clear()
+    small_model.synthesize((80, 96), progress=lambda *call: calls.append(call), seam_window=0, **kw)
+    assert "seams" not in [c[0] for c in calls]
+    image = smooth_image(24, 32)
+    labels = np.zeros((24, 32), dtype=int)
+    calls.clear()
+    remove_seams(image, steps_between(image, image, labels), window=3, progress=lambda *call: calls.append(call))
+    assert calls == [("seams", 0, 5), ("seams", 5, 5)]  # no seam edges: done at once

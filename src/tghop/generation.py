@@ -123,7 +123,7 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
     del prepared, guide  # the pool, its tables and the guide: not needed from here on
     keep("quilt", image[0] if checked["seam_window"] else image)
     if checked["seam_window"]:  # (image, steps)
-        image = remove_seams(*image, window=checked["seam_window"], out=image[0])
+        image = remove_seams(*image, window=checked["seam_window"], out=image[0], progress=progress)
         keep("seams", image)
     # The histograms to match: of the exemplar's colour classes in shares towards the quilt's.
     classes = getattr(model, "classes_", None) if refine or match_colours else None

@@ -331,7 +331,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's blended by
         the ramp; off unless both models have a coarse layout.
     progress : callable, optional
-        Stages "patch pool", "layout", "quilting", "refine", "colour".
+        Stages "patch pool", "layout", "quilting", "seams" (with ``seam_window``), "refine", "colour".
     dtype : {numpy.float64, numpy.float32, numpy.uint8}
 
     Returns
@@ -509,7 +509,7 @@ def _synthesize(models, size, stations, mix, shares, *, rng, n_patches, tile, ov
                            return_seams=checked["seam_window"] > 0)
     del prepared, pool
     if checked["seam_window"]:  # (image, steps)
-        image = remove_seams(*image, window=checked["seam_window"], out=image[0])
+        image = remove_seams(*image, window=checked["seam_window"], out=image[0], progress=progress)
     stations = _Stations(stations, mix, models)
     if checked["refine"]:
         image = stations.refine(image, n_iter=checked["refine"], tile=tile, progress=progress)

@@ -30,7 +30,7 @@ from typing import Tuple
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError
+from ._common import TGHopError, report
 from ._fft import fft_for
 
 __all__ = ["SCREENING", "SeamSteps", "local_means", "remove_seams"]
@@ -209,7 +209,7 @@ def local_means(steps, axis, window):
     return out
 
 
-def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.ndarray:
+def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None, progress=None) -> np.ndarray:
     """Remove the steps across quilting seams by gradient-domain stitching.
 
     Parameters
@@ -227,6 +227,9 @@ def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.nd
     out : ndarray, optional
         Where to write the result (may be ``image``); a new array of ``image``'s dtype
         otherwise.
+    progress : callable, optional
+        ``progress("seams", done, total)``: 0 first, then after each seam axis's local means
+        (with ``window`` over 1) and after each channel's correction.
 
     Returns
     -------
@@ -250,16 +253,24 @@ def remove_seams(image, steps: SeamSteps, *, window: int = 1, out=None) -> np.nd
         out = image.copy()
     elif out is not image:
         np.copyto(out, image)
+    total = c + (2 if window > 1 else 0)
+    report(progress, "seams", 0, total)
     if not any(index.size for index in steps.index):
+        report(progress, "seams", total, total)
         return out
     # The least-squares condition: laplacian(u)[i] = d(edge leaving i forwards) - d(edge
     # arriving at i from behind): each seam edge adds +d at its first pixel and -d at its
     # second; all of them in one weighted count per channel.
     where = np.concatenate([index for n, axis in enumerate((1, 0)) for index in (steps.index[n], steps.second(axis))])
-    changes = [local_means(steps, axis, window) if window > 1 else steps.change[n] for n, axis in enumerate((1, 0))]
+    changes = list(steps.change)
+    if window > 1:
+        for n, axis in enumerate((1, 0)):
+            changes[n] = local_means(steps, axis, window)
+            report(progress, "seams", n + 1, total)
     solve = _poisson_solver(h, w, steps.tile, out.dtype)
     for k in range(c):
         weights = np.concatenate([part for change in changes for part in (change[:, k], -change[:, k])])
         div = np.bincount(where, weights=weights, minlength=h * w)
         out[..., k] += solve(div.reshape(h, w).astype(out.dtype))
+        report(progress, "seams", total - c + k + 1, total)
     return np.clip(out, 0.0, 1.0, out=out)

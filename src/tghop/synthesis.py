@@ -493,8 +493,9 @@ class TGHop(PatchCodec, BaseEstimator):
         rng : int or numpy.random.Generator, optional
 {settings}
         progress : callable, optional
-            Stages "layout" (with a coarse layout), "patch pool", "quilting", "refine",
-            "colour" (without the patch refinement) and "patch refine".
+            Stages "layout" (with a coarse layout), "patch pool", "quilting", "seams" (the seam
+            removal, with ``seam_window``), "refine", "colour" (without the patch refinement) and
+            "patch refine".
         dtype : {numpy.float64, numpy.float32, numpy.uint8}
             Of the image. float32 holds the same values as float64 rounded to float32;
             uint8 the 8-bit values 0-255 that :func:`tghop.imageio.to_uint8` makes of the

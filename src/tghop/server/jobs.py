@@ -43,8 +43,8 @@ FIT_STAGES = {"hop 1": 0.15, "hop 2": 0.1, "hop 3": 0.05, "SDR": 0.05, "clusters
 #: them). Stages left out (no layout, no refinement) count as passed once a
 #: later one comes; a painted guide's or a remix's layers ("quilting 1/2": layer 1 of 2) share the part
 #: before "join" equally.
-GENERATION_STAGES = (("layout", 0.06), ("patch pool", 0.04), (("quilting", "inpainting", "generating"), 0.45),
-                     ("seams", 0.02), ("refine", 0.2), ("patch refine", 0.15), ("colour", 0.01), ("maps", 0.02),
+GENERATION_STAGES = (("layout", 0.06), ("patch pool", 0.04), (("quilting", "inpainting", "generating"), 0.42),
+                     ("seams", 0.05), ("refine", 0.2), ("patch refine", 0.15), ("colour", 0.01), ("maps", 0.02),
                      ("join", 0.03), ("encoding", 0.02))
 
 
