@@ -249,10 +249,11 @@ def test_the_seam_removal_reports_its_progress(small_model):
     stages = [stage for stage, _, _ in calls]
     last_quilt, first_refine = len(stages) - stages[::-1].index("quilting"), stages.index("refine")
     between = calls[last_quilt:first_refine]
-    assert between == [("seams", done, 5) for done in range(6)]  # the two axes' means, then 3 channels
+    # the steps gathered (quilting), the two axes' local means, then 3 channels' solves
+    assert between == [("seams", 0, 1)] + [("seams", done, 5) for done in range(6)]
     calls.clear()
     small_model.synthesize((80, 96), progress=lambda *call: calls.append(call), seam_window=1, **kw)
-    assert [c for c in calls if c[0] == "seams"] == [("seams", done, 3) for done in range(4)]
+    assert [c for c in calls if c[0] == "seams"] == [("seams", 0, 1)] + [("seams", done, 3) for done in range(4)]
     calls.clear()
     small_model.synthesize((80, 96), progress=lambda *call: calls.append(call), seam_window=0, **kw)
     assert "seams" not in [c[0] for c in calls]

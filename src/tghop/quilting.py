@@ -1252,7 +1252,8 @@ def quilt_prepared(
     ``return_seams``: also return the :class:`tghop.seams.SeamSteps` of the image: at
     every seam edge it has (two neighbours pasted from two blocks), the change that
     replaces the step between the two patches by the mean of their own differences
-    (:func:`tghop.seams.remove_seams`). The image is the same either way.
+    (:func:`tghop.seams.remove_seams`). The image is the same either way. ``progress`` is then
+    told ``("seams", 0, 1)`` once the blocks are placed, while the steps are gathered.
 
     Parameters
     ----------
@@ -1380,6 +1381,7 @@ def quilt_prepared(
     # Cropped, clipped and converted in one pass (the bounds are exact in float32).
     image = np.clip(canvas[:h, :w], 0.0, 1.0, out=np.empty((h, w, c), dtype=dtype))
     if log is not None:
+        report(progress, "seams", 0, 1)  # the seam removal's first part: its steps gathered from the log
         return image, log.steps()
     return image
 
