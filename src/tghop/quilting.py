@@ -1377,11 +1377,12 @@ def quilt_prepared(
         done += b
         report(progress, "quilting", done, plan.n_blocks)
 
+    if log is not None:
+        report(progress, "seams", 0, 1)  # the seam removal's first part: its steps gathered from the log
     h, w = plan.size
     # Cropped, clipped and converted in one pass (the bounds are exact in float32).
     image = np.clip(canvas[:h, :w], 0.0, 1.0, out=np.empty((h, w, c), dtype=dtype))
     if log is not None:
-        report(progress, "seams", 0, 1)  # the seam removal's first part: its steps gathered from the log
         return image, log.steps()
     return image
 
