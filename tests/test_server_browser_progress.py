@@ -96,6 +96,9 @@ def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_end
     page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' && "
                            "document.querySelectorAll('#strip img').length === 8", timeout=120_000)
     assert page.text_content("#message") == "click a seed to pick it"
+    chromium.choose_mode(page, "inpaint")  # the strip cleared: its hint too (it said to click seeds not shown)
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0 and page.text_content("#message") == ""
+    chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 
 

@@ -111,13 +111,17 @@ function onGenerate(event) {
 
 // The strip of seeds is of one model, in View mode: cleared when the working model or the mode changes (it
 // showed an earlier model's seeds). A strip still running goes on with its model (onStrip) and is kept.
+// Its hint goes with it (it asked to click seeds no longer shown).
 function clearStrip() {
   if (state.busyButton === $("strip-go")) return;
   const strip = $("strip");
   for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
   strip.textContent = "";
   delete strip.dataset.model;
+  if ($("message").textContent === STRIP_HINT) say("");
 }
+
+const STRIP_HINT = "click a seed to pick it";
 
 // The browser's own check of Generate's fields (a size over its max, an empty seed) refuses with a bubble only:
 // the status says what is wrong now, not what an earlier action left there ("stopped"). `invalid`, caught for
@@ -180,7 +184,7 @@ function onStrip() {
       figure.append(img, caption);
       strip.append(figure);
     }
-    if (!stale()) say("click a seed to pick it");
+    if (!stale()) say(STRIP_HINT);
   }).then(() => {
     if (!stale() || !$("strip").dataset.model) return;
     clearStrip();
