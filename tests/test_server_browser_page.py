@@ -2,7 +2,7 @@
 real uvicorn server: form controls in the page's font; downloads named for what they are (model, size,
 seed, tileable), the model file's as the server's Content-Disposition names it; the strip of seeds cleared
 when the mode or the working model changes; a size the browser's own check refuses said in the status;
-Morph off, and said why, with a material as A or B."""
+Morph off, and said why, with a material as A or B; each field of the settings beside its name."""
 
 import pytest
 
@@ -127,3 +127,24 @@ def test_morph_is_off_and_says_why_with_a_material(page, tmp_path):
     model_id = page.evaluate("state.modelId")
     assert page.get_attribute("#download-model", "download") == f"tghop-wall-material-{model_id[:12]}.npz"
     assert not page.errors, page.errors
+
+
+def test_each_field_of_the_settings_is_beside_its_name(page):
+    # At 1280x800 the fit settings' and Generate's grids had five columns too narrow for some names and their
+    # field: "codewords (W)", "training patches" and "refinement rounds" had theirs on a line below, the others
+    # beside them, a ragged grid.
+    page.set_viewport_size({"width": 1280, "height": 800})
+    try:
+        if not page.is_visible("#n_codewords"):
+            page.click("#fit-settings summary")
+        for width in (1280, 1000, 700):
+            page.set_viewport_size({"width": width, "height": 800})
+            below = page.eval_on_selector_all(".grid label", """ls => ls.filter((l) => {
+              const field = l.querySelector("input:not([type=checkbox]), select");
+              if (!field) return false;
+              const f = field.getBoundingClientRect(), box = l.closest("section").getBoundingClientRect();
+              return f.top > l.getBoundingClientRect().top + 8 || f.right > box.right;
+            }).map((l) => l.textContent.trim())""")
+            assert below == [], (width, below)
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
