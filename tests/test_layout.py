@@ -468,3 +468,18 @@ def test_coarse_guide_names_its_refine():
     model = TGHop(**SMALL, layout_factor=2).fit(data.bricks(96))
     with pytest.raises(TGHopError, match="^refine must be an integer >= 0, got -1"):
         model.layout_.guide((64, 64), refine=-1)
+
+
+def test_the_layout_guide_reports_its_progress(layout_model):
+    # The coarse guide ran silent: between "layout" 0/1 and 1/1 (the guide of a 4096x4096 image: many
+    # seconds) tghop serve's bar stood at its start.
+    calls = []
+    kw = dict(rng=7, n_patches=800, layout_patch_refine=2)
+    image = layout_model.synthesize((96, 96), progress=lambda *call: calls.append(call), **kw)
+    np.testing.assert_array_equal(image, layout_model.synthesize((96, 96), **kw))  # the same image
+    layout = [(done, total) for stage, done, total in calls[:calls.index(("patch pool", 1, 1))] if stage == "layout"]
+    assert layout[0] == (0, 1) and layout[-1] == (1, 1)
+    inner = [done for done, total in layout[1:-1] if total == 1000]
+    assert len(inner) == len(layout) - 2 > 10 and inner == sorted(inner)  # its steps, going forward
+    assert inner[0] < 250 and inner[-1] == 1000  # quilting first ... the patch refinement's end last
+    assert {500, 750} <= set(inner)  # the refinement's and the patch refinement's starts

@@ -98,9 +98,10 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
         # own random stream) while the pool is generated and made ready for quilting.
         layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
         report(progress, "layout", 0, 1)
+        # Its steps are told as "layout" (from its thread; this one reports nothing until it has the guide).
         pending = in_thread(model.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
                             seam_window=checked["seam_window"], flat_share=checked["flat_share"],
-                            patch_refine=checked["layout_patch_refine"])
+                            patch_refine=checked["layout_patch_refine"], progress=progress)
         if refine:  # SciPy's FFT module and the windows for a large image, here, not on the guide's path
             prepare_regions(size, model.bands_, region=checked["region"] if regions else None, tile=tile)
         prepared = prepared_pool(model, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,

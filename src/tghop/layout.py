@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_size, checked_image, usable_cores
+from ._common import TGHopError, check_size, checked_image, report, usable_cores
 
 #: Quilting's detail preference in the coarse guide: 0.5, the fine level's until 0.38. 0.39 raised
 #: the fine level's to 0.8, measured with the guide at 0.5 (docs/choices.md, Quilting).
@@ -331,8 +331,27 @@ def guide_steps(n_steps, size) -> int:
     return GUIDE_STEPS if size[0] * size[1] <= GUIDE_PIXELS else 0
 
 
+#: The coarse image's steps that report their progress, in order: each an equal part of one "layout" stage
+#: (:func:`coarse_guide`'s ``progress``).
+GUIDE_PARTS = ("quilting", "seams", "refine", "patch refine")
+
+
+def as_layout_progress(progress):
+    """``progress`` told the coarse image's steps (:data:`GUIDE_PARTS`) as one stage "layout",
+    ``done`` of 1000 (None for None); other stages are not passed on."""
+    if progress is None:
+        return None
+
+    def inner(stage, done, total):
+        if stage in GUIDE_PARTS:
+            share = min(done, total) / total if total > 0 else 0.0
+            report(progress, "layout", round(1000 * (GUIDE_PARTS.index(stage) + share) / len(GUIDE_PARTS)), 1000)
+
+    return inner
+
+
 def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, refine=3,
-                 seam_window=9, flat_share=0.25, patch_refine=0) -> np.ndarray:
+                 seam_window=9, flat_share=0.25, patch_refine=0, progress=None) -> np.ndarray:
     """A coarse synthesis from ``model`` upsampled by ``factor`` to ``size``: the layout
     the fine level follows.
 
@@ -363,6 +382,9 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
         model's statistics, steps :data:`GUIDE_RATE` times the fine level's; a model without
         them is left as it is); 0: off; None:
         :func:`guide_steps` for ``size``.
+    progress : callable, optional
+        ``progress("layout", done, 1000)`` as the coarse image is quilted, its seams removed,
+        refined and patch-refined (:data:`GUIDE_PARTS`, a quarter each).
 
     Returns
     -------
@@ -387,15 +409,16 @@ def coarse_guide(model, factor, size, *, rng=None, n_patches=4000, tile=False, r
     # of the bilinear upsampling and pass at most half of that band (none at its top).
     # Measured better on 20 exemplars in SIFID, SWD and co-occurrence, and faster
     # (docs/choices.md). Its patch refinement comes last, after the colours (0.48).
+    progress = as_layout_progress(progress)
     coarse = model.synthesize(small, rng=rng, n_patches=n_patches, tile=tile, refine=0, match_colours=False,
                               seam_window=seam_window, detail=GUIDE_DETAIL, flat_share=flat_share, patch_refine=0,
-                              dtype=np.float32)
+                              dtype=np.float32, progress=progress)
     coarse = refine_bands(coarse, model.bands_, n_iter=int(refine), tile=tile,
-                          first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32)
+                          first_level=1 if GUIDE_SCALE // f >= 2 else 0, dtype=np.float32, progress=progress)
     coarse = match_histograms(coarse, model.colour_quantiles_, out=coarse)
     if patch_refine and getattr(model, "patches_", None) is not None:
         from .patch_refine import refine_image
 
         coarse = refine_image(coarse, model.patches_, n_steps=patch_refine, stride=1, tile=tile, dtype=np.float32,
-                              rate=GUIDE_RATE)
+                              rate=GUIDE_RATE, progress=progress)
     return upsample(coarse, None if tile and (h % f or w % f) else f, (h, w), wrap=tile)

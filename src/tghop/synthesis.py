@@ -493,7 +493,8 @@ class TGHop(PatchCodec, BaseEstimator):
         rng : int or numpy.random.Generator, optional
 {settings}
         progress : callable, optional
-            Stages "layout" (with a coarse layout), "patch pool", "quilting", "seams" (the seam
+            Stages "layout" (with a coarse layout: its guide's steps, from the thread that makes
+            it, as ``done`` of 1000), "patch pool", "quilting", "seams" (the seam
             removal, with ``seam_window``), "refine", "colour" (without the patch refinement) and
             "patch refine".
         dtype : {numpy.float64, numpy.float32, numpy.uint8}
