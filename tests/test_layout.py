@@ -478,8 +478,9 @@ def test_the_layout_guide_reports_its_progress(layout_model):
     image = layout_model.synthesize((96, 96), progress=lambda *call: calls.append(call), **kw)
     np.testing.assert_array_equal(image, layout_model.synthesize((96, 96), **kw))  # the same image
     layout = [(done, total) for stage, done, total in calls[:calls.index(("patch pool", 1, 1))] if stage == "layout"]
-    assert layout[0] == (0, 1) and layout[-1] == (1, 1)
-    inner = [done for done, total in layout[1:-1] if total == 1000]
+    # One unit throughout (the CLI's bar is made at the first report: 0 of 1, then 250 of 1000, read 100 %)
+    assert layout[0] == (0, 1000) and layout[-1] == (1000, 1000) and {total for _, total in layout} == {1000}
+    inner = [done for done, total in layout[1:-1]]
     assert len(inner) == len(layout) - 2 > 10 and inner == sorted(inner)  # its steps, going forward
     assert inner[0] < 250 and inner[-1] == 1000  # quilting first ... the patch refinement's end last
     assert {500, 750} <= set(inner)  # the refinement's and the patch refinement's starts

@@ -46,7 +46,8 @@ def new_job():
 
 
 def test_a_generations_stages_go_forward_in_one_bar():
-    trace = [("layout", 0, 1), ("layout", 1, 1), ("patch pool", 0, 1), ("patch pool", 1, 1), ("quilting", 1, 361),
+    trace = [("layout", 0, 1000), ("layout", 1000, 1000), ("patch pool", 0, 1), ("patch pool", 1, 1),
+             ("quilting", 1, 361),
              ("quilting", 200, 361), ("quilting", 361, 361), ("refine", 0, 15), ("refine", 15, 15),
              ("patch refine", 0, 208), ("patch refine", 208, 208), ("encoding", 0, 1)]
     where = [generation_fraction(*step) for step in trace]

@@ -97,8 +97,9 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
         # The coarse guide and the pool are independent: the guide is made in a second thread (its
         # own random stream) while the pool is generated and made ready for quilting.
         layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
-        report(progress, "layout", 0, 1)
-        # Its steps are told as "layout" (from its thread; this one reports nothing until it has the guide).
+        # Its steps are told as "layout" done of 1000 (from its thread; this one reports nothing until it has
+        # the guide), so its start and end here are in the same units: a bar made at the first report keeps them.
+        report(progress, "layout", 0, 1000)
         pending = in_thread(model.layout_.guide, size, rng=layout_rng, tile=tile, refine=layout_refine,
                             seam_window=checked["seam_window"], flat_share=checked["flat_share"],
                             patch_refine=checked["layout_patch_refine"], progress=progress)
@@ -107,7 +108,7 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
         prepared = prepared_pool(model, n_patches, rng, size, overlap=overlap, tile=tile, detail=detail,
                                  flat_share=checked["flat_share"], guide_scale=GUIDE_SCALE)
         guide = pending()
-        report(progress, "layout", 1, 1)
+        report(progress, "layout", 1000, 1000)
         report(progress, "patch pool", 0, 1)
     else:
         report(progress, "patch pool", 0, 1)
