@@ -164,6 +164,35 @@ def test_diversity_reports_progress(pair):
     assert calls[0][1] == 0 and calls[-1][1] == calls[-1][2] and {c[0] for c in calls} == {"diversity"}
 
 
+def test_diversity_is_the_mean_of_both_novelties_of_every_pair():
+    # diversity converts each result to float64 when a pair needs it (not all at once): its value is unchanged,
+    # the mean over pairs, in order, of each one's nearest-patch distance to the other.
+    rng = np.random.default_rng(5)
+    results = [data.bricks(40, rng=1), (data.bricks(36, rng=2) * 255).round().astype(np.uint8),
+               np.clip(data.bricks(44, rng=3) + 0.1 * rng.standard_normal((44, 44, 3)), 0, 1).tolist()]
+    options = dict(patch_size=6, max_patches=50, seed=3)
+    both = [metrics.novelty(a, b, **options) for i, j in [(0, 1), (0, 2), (1, 2)]
+            for a, b in [(results[i], results[j]), (results[j], results[i])]]
+    assert metrics.diversity(*results, **options) == float(np.mean(both))
+    assert metrics.diversity(results, **options) == float(np.mean(both))
+
+
+def test_diversity_holds_two_results_as_float64_at_a_time_not_all():
+    import tracemalloc
+
+    n, side = 8, 256
+    base = (data.bricks(side, rng=1) * 255).astype(np.uint8)
+    results = [np.roll(base, 9 * k, axis=1) for k in range(n)]
+    one = side * side * 3 * 8  # one result in float64: 1.6 MB, 12.6 MB for all eight
+    tracemalloc.start()
+    try:
+        metrics.diversity(*results, patch_size=2, max_patches=8)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 * one, f"peak {peak / 1e6:.1f} MB"
+
+
 # ------------------------------------------------------------------ the command line
 
 

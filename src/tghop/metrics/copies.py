@@ -22,9 +22,9 @@ __all__ = ["novelty", "copied", "diversity", "TEXTURED_STD", "copied_textured", 
 _NEAREST_CHUNK = 8192  # reference patches compared at once: a (max_patches, 8192) float32 block
 
 
-def _nearest_chunks(reference: np.ndarray, patch_size: int) -> int:
-    """How many chunks :func:`_nearest_patch_rms` searches ``reference`` in."""
-    nh, nw = reference.shape[0] - patch_size + 1, reference.shape[1] - patch_size + 1
+def _nearest_chunks(shape, patch_size: int) -> int:
+    """How many chunks :func:`_nearest_patch_rms` searches a reference of ``shape`` (H, W, ...) in."""
+    nh, nw = shape[0] - patch_size + 1, shape[1] - patch_size + 1
     return -(-nh // max(1, _NEAREST_CHUNK // nw))
 
 
@@ -196,7 +196,7 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
-    tick = counter(progress, "novelty", _nearest_chunks(ex, patch_size))
+    tick = counter(progress, "novelty", _nearest_chunks(ex.shape, patch_size))
     return float(_nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick).mean())
 
 
@@ -242,7 +242,7 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
     threshold = check_number(threshold, "threshold", positive=True)
     max_patches = check_int(max_patches, "max_patches")
     ex, res = pair(exemplar, result, min_size=patch_size)
-    tick = counter(progress, "copied", _nearest_chunks(ex, patch_size))
+    tick = counter(progress, "copied", _nearest_chunks(ex.shape, patch_size))
     rms = _nearest_patch_rms(ex, res, patch_size, max_patches, int(seed), tick, within=threshold)
     return float(np.mean(rms < threshold))
 
@@ -279,16 +279,28 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
         raise TGHopError(f"diversity needs at least two results, got {len(results)}")
     patch_size, seed = check_patch_size(patch_size), check_seed(seed)
     max_patches = check_int(max_patches, "max_patches")
-    images = [check_image(r, min_size=patch_size, name=f"result {i + 1}") for i, r in enumerate(results)]
-    if len({img.shape[2] for img in images}) > 1:
-        images = [np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img for img in images]
-    pairs = list(itertools.combinations(images, 2))
+    # Each result is checked here, before any long work, and converted to float64 again when a pair
+    # needs it: at most two converted results are held at once, not all of them (many large results).
+    names = [f"result {i + 1}" for i in range(len(results))]
+    shapes = [check_image(r, min_size=patch_size, name=name).shape for r, name in zip(results, names)]
+    to_rgb = len({shape[2] for shape in shapes}) > 1
+
+    def image(i):
+        img = check_image(results[i], min_size=patch_size, name=names[i])
+        return np.repeat(img, 3, axis=2) if to_rgb and img.shape[2] == 1 else img
+
+    pairs = list(itertools.combinations(range(len(results)), 2))
     tick = counter(progress, "diversity",
-                    sum(_nearest_chunks(a, patch_size) + _nearest_chunks(b, patch_size) for a, b in pairs))
+                   sum(_nearest_chunks(shapes[i], patch_size) + _nearest_chunks(shapes[j], patch_size)
+                       for i, j in pairs))
     values = []
-    for a, b in pairs:
-        values.append(_nearest_patch_rms(a, b, patch_size, max_patches, int(seed), tick).mean())
-        values.append(_nearest_patch_rms(b, a, patch_size, max_patches, int(seed), tick).mean())
+    for i in range(len(results) - 1):
+        a = image(i)
+        for j in range(i + 1, len(results)):
+            b = image(j)
+            values.append(_nearest_patch_rms(a, b, patch_size, max_patches, int(seed), tick).mean())
+            values.append(_nearest_patch_rms(b, a, patch_size, max_patches, int(seed), tick).mean())
+            del b
     return float(np.mean(values))
 
 
@@ -380,7 +392,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
     ex, res = pair(exemplar, result, min_size=patch_size)
     rng = np.random.default_rng((int(seed), 3))
     pos = _textured_positions(res, patch_size, min_std, max_patches, rng)
-    n_chunks = _nearest_chunks(ex, patch_size)
+    n_chunks = _nearest_chunks(ex.shape, patch_size)
     tick = counter(progress, "copied_textured", n_chunks)
     if len(pos) == 0:
         for _ in range(n_chunks):
