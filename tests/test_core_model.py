@@ -334,6 +334,18 @@ def test_stage_views(small_model):
     np.testing.assert_allclose(views["core_dc"][unclipped], blocks.mean(axis=(2, 4, 5))[unclipped], atol=1e-9)
 
 
+def test_stage_views_are_images_in_0_1_as_documented(small_model):
+    # The DC maps were the DC channel in pixel units unclipped: a generated S1 DC reached -0.02 (builtin bricks'
+    # default model), so "in [0, 1]" did not hold and the views could not be saved as they were.
+    z, position = small_model.sample_vectors(6, np.random.default_rng(0), np.float64)
+    _, spaces = small_model.decode(3.0 * z[position], return_stages=True)  # far outside the pixel range
+    assert min(s.min() for s in spaces) < 0 and max(s.max() for s in spaces) > 1
+    views = small_model.stage_views(spaces)
+    assert list(views) == ["core_dc", "S1_dc", "S0"]
+    assert all(v.dtype == np.float64 and 0 <= v.min() and v.max() <= 1 for v in views.values())
+    np.testing.assert_array_equal(views["S1_dc"], np.clip(spaces[1][..., 0] / np.sqrt(4.0 * 3), 0, 1))
+
+
 @pytest.mark.parametrize("dtype", [np.float64, np.uint8])
 def test_synthesize_returns_each_steps_image(small_model, dtype):
     # The steps inside synthesize could not be looked at: the raw quilt, the seam removal's, ...

@@ -657,7 +657,9 @@ def stage_views(spaces, n_colours):
         ``"core_dc"`` (n, h, w): the DC map in the core (the channel that descends
         from the DC of every hop, a grey low-resolution pattern); ``"S1_dc"`` (n, 2h,
         2w) etc.: the DC map in each intermediate space; ``"S0"`` (n, P, P, C): the
-        patch. DC maps are divided by their DC gain, so they are in pixel units.
+        patch. DC maps are divided by their DC gain, so they are in pixel units, and every
+        view is clipped to [0, 1] as the patches are (float64 images to look at; the unclipped
+        values are in ``spaces``).
     """
     views = {}
     n_hops = len(spaces) - 1
@@ -665,6 +667,6 @@ def stage_views(spaces, n_colours):
         # DC channel of the hop: index 0 (DC is kept first in every group).
         gain = np.sqrt(4.0 ** level * n_colours)  # a DC kernel has entries 1/sqrt(block size)
         name = "core_dc" if level == n_hops else f"S{level}_dc"
-        views[name] = space[..., 0] / gain
+        views[name] = np.clip(space[..., 0] / gain, 0.0, 1.0)  # generated DC can overshoot [0, 1] a little
     views["S0"] = np.clip(spaces[-1], 0.0, 1.0)
     return views
