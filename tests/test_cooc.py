@@ -180,6 +180,20 @@ def test_not_fitted_and_bad_settings(exemplar):
         cooc.CoocGAN(**{**TINY, "crop_size": 64}).fit(exemplar)
 
 
+def test_fit_leaves_torch_global_generator_as_it_was(exemplar):
+    # The fit seeded torch's global generator (torch.manual_seed) to draw the networks' initial weights: after it the
+    # caller's torch.rand gave the fit seed's numbers, not those of the caller's own seed.
+    torch = pytest.importorskip("torch")
+    torch.manual_seed(1234)
+    state = torch.get_rng_state()
+    a = cooc.CoocGAN(**{**TINY, "n_steps": 0}, device="cpu", rng=0).fit(exemplar)
+    assert torch.equal(torch.get_rng_state(), state)
+    torch.manual_seed(99)  # the weights do not depend on the global generator's state either
+    b = cooc.CoocGAN(**{**TINY, "n_steps": 0}, device="cpu", rng=0).fit(exemplar)
+    assert all(torch.equal(x, y) for x, y in zip(a.generator_.state_dict().values(),
+                                                 b.generator_.state_dict().values()))
+
+
 @pytest.mark.parametrize("name, value, words", [
     ("crop_size", 32.5, "crop_size must be an integer, got 32.5"),  # was trained at 32
     ("batch_size", 2.5, "batch_size must be an integer, got 2.5"),

@@ -183,8 +183,12 @@ class TrainingMixin:
         self.cond_std_ = np.maximum(flat.std(1).cpu().numpy(), 1e-4)
         self._to_device(torch)
         self.exemplar_cooc_ = self._exemplar_tensor(torch, img)
-        torch.manual_seed(seed)
-        self.generator_, self.critic_ = build_networks(torch, img.shape[2], self._conds.shape[1], p)
+        # The networks are made on the CPU, their initial weights drawn from torch's global CPU generator, seeded here
+        # (torch.manual_seed seeded every device's too); fork_rng puts its state back after, so that a fit leaves the
+        # caller's torch.rand & co. as they were. The weights are those torch.manual_seed gave.
+        with torch.random.fork_rng(devices=[]):
+            torch.default_generator.manual_seed(seed)
+            self.generator_, self.critic_ = build_networks(torch, img.shape[2], self._conds.shape[1], p)
         self.generator_.to(self._device)
         self.critic_.to(self._device)
         self._make_averaged()
