@@ -3,7 +3,9 @@ one-line messages that keep tghop's wording beside the phrases those checks look
 
 Hop, HopStack and SpatialReduction take (n, H, W, C) arrays, which their tags say, so that
 scikit-learn's checks (which feed 2-D arrays) skip them; ICHM's ``transform`` returns
-``(labels, sources)``, not a transformer's array, and it is not checked.
+``(labels, sources)``, not a transformer's array, and it is not checked. Every component (TGHop, its parts,
+CoarseLayout, Material) is held below to the conventions those checks would look at: a constructor that stores its
+parameters, clone and set_params, learned state ending in ``_``, NotFittedError from every public method before fit.
 """
 
 import warnings
@@ -98,3 +100,98 @@ def test_set_params_of_a_nested_parameter_of_no_estimator_is_a_one_line_error():
         Material().set_params(model__rng=1)
     mat = Material().set_params(model=TGHop(), model__rng=4)
     assert mat.model.rng == 4 and sklearn.base.clone(mat).get_params()["model__rng"] == 4
+
+
+# ------------------------------------------------------------------ every learned component
+# The conventions the components not checked above keep (scikit-learn's check_estimator cannot run on them: images,
+# not 2-D arrays, or ICHM's transform giving (labels, sources)), each over all of them, so that a new component or
+# method is held to them too.
+
+def _components():
+    from tghop.colour import ColourClasses
+    from tghop.core import ICHM
+    from tghop.patch_refine import PatchStatistics
+    from tghop.refine import BandStatistics
+    from tghop.synthesis import CoarseLayout
+
+    return [Saab, Hop, HopStack, SpatialReduction, ICHM, TGHop, CoarseLayout, Material, BandStatistics, ColourClasses,
+            PatchStatistics]
+
+
+COMPONENTS = _components()
+
+#: Public methods that need no fit (settings' checks, sizes): every other one raises NotFittedError before fit.
+NO_FIT_NEEDED = {"ICHM": {"clusters_for"}, "TGHop": {"check_channels", "check_exemplar_size", "check_settings"},
+                 "CoarseLayout": {"fits", "usable_factor"}, "Material": {"stacked_channels"}}
+
+
+def _fitted_parts(model):
+    hop = model.hops_.hops_[1]
+    return {"TGHop": model, "HopStack": model.hops_, "Hop": hop, "Saab": hop.saabs_[0], "SpatialReduction": model.sdr_,
+            "ICHM": model.ichm_, "CoarseLayout": model.layout_, "BandStatistics": model.bands_,
+            "ColourClasses": model.classes_, "PatchStatistics": model.patches_}
+
+
+@pytest.mark.parametrize("cls", COMPONENTS, ids=lambda c: c.__name__)
+def test_a_constructor_stores_its_parameters_and_nothing_else(cls):
+    import inspect
+
+    est = cls()
+    names = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+    assert sorted(vars(est)) == sorted(names) == sorted(est.get_params(deep=False))
+    assert repr(est) == f"{cls.__name__}()"
+    copy = sklearn.base.clone(est)
+    assert copy is not est and type(copy) is cls and copy.get_params(deep=False) == est.get_params(deep=False)
+    assert est.set_params(**est.get_params(deep=False)) is est
+    with pytest.raises(TGHopError, match=f"^invalid parameter 'no_such' for {cls.__name__}; valid: "):
+        est.set_params(no_such=1)
+
+
+@pytest.mark.parametrize("name", ["TGHop", "HopStack", "Hop", "Saab", "SpatialReduction", "ICHM", "CoarseLayout",
+                                  "BandStatistics", "ColourClasses", "PatchStatistics"])
+def test_a_fitted_component_keeps_its_learned_state_in_trailing_underscores_and_clones_unfitted(small_model, name):
+    part = _fitted_parts(small_model)[name]
+    params = part.get_params(deep=False)
+    learned = [k for k in vars(part) if k not in params]
+    assert learned and all(k.endswith("_") or k.startswith("_") for k in learned), learned
+    assert any(k.endswith("_") and not k.startswith("_") for k in learned)
+    fresh = sklearn.base.clone(part)
+    assert sorted(vars(fresh)) == sorted(params)
+    def same(a, b):  # a Generator is cloned as a copy
+        return a is b or isinstance(a, np.random.Generator) or np.array_equal(np.asarray(a, dtype=object),
+                                                                              np.asarray(b, dtype=object))
+
+    changed = {k for k, v in fresh.get_params(deep=False).items() if not same(v, params[k])}
+    assert not changed, changed
+
+
+def _dummy(cls, name):
+    """An argument for a required parameter ``name`` of a method of ``cls``: any that gets as far as the fit check."""
+    if name in ("size", "shape"):
+        return (64, 64, 3) if name == "shape" else (64, 64)
+    if name in ("n", "n_samples"):
+        return 4
+    four_d = cls.__name__ in ("Hop", "HopStack", "SpatialReduction")
+    return np.random.default_rng(0).random((4, 8, 8, 3) if four_d else (4, 8))
+
+
+@pytest.mark.parametrize("cls", COMPONENTS, ids=lambda c: c.__name__)
+def test_every_public_method_before_fit_is_not_fitted(cls):
+    import inspect
+
+    from tghop import NotFittedError
+
+    skip = {"fit", "fit_transform", "get_params", "set_params"} | NO_FIT_NEEDED.get(cls.__name__, set())
+    est, checked = cls(), []
+    for name in sorted(n for n in dir(cls) if not n.startswith("_") and n not in skip and not n.startswith("fit_")):
+        attr = inspect.getattr_static(cls, name)
+        with pytest.raises(NotFittedError, match=f"this {cls.__name__} is not fitted yet"):
+            if isinstance(attr, property):
+                getattr(est, name)
+            else:
+                method = getattr(est, name)
+                required = [p.name for p in inspect.signature(method).parameters.values()
+                            if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+                method(*[_dummy(cls, p) for p in required])
+        checked.append(name)
+    assert checked or cls.__name__ == "PatchStatistics"  # its one public method is fit
