@@ -779,6 +779,21 @@ def test_lloyd_stopping_scale_is_the_mean_column_variance(rng, n):
     assert _mean_variance(X) == pytest.approx(float(X.var(axis=0, dtype=np.float64).mean()), rel=1e-12, abs=1e-15)
 
 
+def test_the_core_models_steps_take_an_int_seed_as_every_rng_does(rng):
+    # kmeans and kmeans_plusplus (and cdf_codebook through kmeans) took only a Generator: an int seed was Python's
+    # "'int' object has no attribute 'integers'".
+    from tghop.ichm_clusters import cdf_codebook
+    from tghop.unsupervised import kmeans, kmeans_plusplus
+
+    X = rng.normal(size=(300, 4)).astype(np.float32)
+    assert np.array_equal(kmeans_plusplus(X, 5, 3), kmeans_plusplus(X, 5, np.random.default_rng(3)))
+    for a, b in zip(kmeans(X, 5, 3), kmeans(X, 5, np.random.default_rng(3))):
+        assert np.array_equal(a, b)
+    cdfs = np.sort(rng.random((60, 16)), axis=1)
+    for a, b in zip(cdf_codebook(cdfs, 6, 2), cdf_codebook(cdfs, 6, np.random.default_rng(2))):
+        assert np.array_equal(a, b)
+
+
 def test_scikit_learn_tools_work_on_tghop_estimators(small_model):
     # tghop's own BaseEstimator: scikit-learn's tools ask for tags (1.6 and later).
     sklearn = pytest.importorskip("sklearn")

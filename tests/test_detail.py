@@ -77,6 +77,15 @@ def residual_model(bricks96):
     return TGHop(**SMALL, residual=True).fit(bricks96)
 
 
+def test_sample_vectors_takes_an_int_seed_as_its_generator(residual_model):
+    # An int seed was given to the sources' draw and again to the residual's, each restarting default_rng(seed): the
+    # residual's normals were the sources' first numbers (and the vectors differed from those of default_rng(seed)).
+    for dtype in (np.float32, np.float64):
+        by_int = residual_model.sample_vectors(9, 4, dtype)
+        by_generator = residual_model.sample_vectors(9, np.random.default_rng(4), dtype)
+        assert all(np.array_equal(a, b) for a, b in zip(by_int, by_generator))
+
+
 def test_residual_same_seed_same_patches_and_survives_save_load(residual_model, tmp_path):
     n = residual_model.ichm_.n_cdfs_ + 7  # the folded path
     a = residual_model.sample_patches(n, rng=5, dtype=np.float32)

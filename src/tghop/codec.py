@@ -104,8 +104,9 @@ class PatchCodec:
         ----------
         n : int
             Samples.
-        rng : numpy.random.Generator
-            Their random stream (a Generator already: :func:`tghop._common.check_rng`).
+        rng : int or numpy.random.Generator
+            Their random stream: a Generator is advanced; an int seed gives the draws of
+            ``numpy.random.default_rng(seed)``, one stream for the sources and the residual alike.
         dtype : {numpy.float32, numpy.float64}
             Of ``z``.
         return_labels : bool
@@ -119,6 +120,7 @@ class PatchCodec:
         """
         check_is_fitted(self, "ichm_")
         dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
+        rng = check_rng(rng)  # one stream: an int given to each draw below restarted it for the residual
         ichm = self.ichm_
         labels, sources = ichm.sample_sources(n, rng=rng)
         z, position = ichm.mix_by_cluster(labels, [s.astype(dtype, copy=False) for s in sources],

@@ -90,7 +90,7 @@ def fit_cluster(centred, rng, *, energy, max_components, max_ratio, max_iter, to
     ----------
     centred : ndarray, shape (n, D_r)
         The cluster's members less their mean, n >= 2.
-    rng : numpy.random.Generator
+    rng : int or numpy.random.Generator
         FastICA's initial rotation.
     energy : float
         ``cluster_energy`` of :class:`tghop.core.ICHM`.
@@ -206,7 +206,7 @@ def cdf_codebook(cdfs, n_codewords, rng):
         :func:`histogram_cdfs`'s.
     n_codewords : int
         W at most; with F <= W every CDF is its own codeword.
-    rng : numpy.random.Generator
+    rng : int or numpy.random.Generator
         For K-means (not drawn from with F <= W).
 
     Returns

@@ -16,7 +16,25 @@ __all__ = ["kmeans", "kmeans_plusplus", "lloyd", "nearest", "fast_ica"]
 
 
 def kmeans_plusplus(X, n_clusters, rng, n_trials=None):
-    """Greedy k-means++ seeding (Arthur & Vassilvitskii 2007), vectorised over candidates."""
+    """Greedy k-means++ seeding (Arthur & Vassilvitskii 2007), vectorised over candidates.
+
+    Parameters
+    ----------
+    X : ndarray, shape (n, d)
+        Points, at least one.
+    n_clusters : int
+        Centres to pick.
+    rng : int or numpy.random.Generator
+        The picks' random stream.
+    n_trials : int, optional
+        Candidates tried per centre (default ``2 + log(n_clusters)``, scikit-learn's).
+
+    Returns
+    -------
+    centres : ndarray, shape (n_clusters, d), ``X``'s dtype
+        Rows of ``X`` (repeated where ``X`` has fewer distinct points).
+    """
+    rng = check_rng(rng)
     n = len(X)
     n_trials = n_trials or 2 + int(np.log(n_clusters))
     sq = np.einsum("nd,nd->n", X, X)
@@ -47,7 +65,25 @@ def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
     of points, at a negligible rise in inertia; measured: docs/choices.md), after
     ``max_iter`` steps at the latest. The cluster sums are updated with the points that
     changed cluster only (few after the first steps). An emptied cluster is re-seeded with
-    the point farthest from its centre. Returns ``(labels, centres)``.
+    the point farthest from its centre.
+
+    Parameters
+    ----------
+    X : ndarray, shape (n, d), float32
+        Points.
+    centres : ndarray, shape (k, d)
+        Initial centres (:func:`kmeans_plusplus`).
+    max_iter : int
+        Steps at most.
+    tol : float
+        Centre movement below which it stops, relative to the points' mean variance.
+    settled : float
+        Fraction of points changing cluster at or below which it stops.
+
+    Returns
+    -------
+    labels : ndarray of int, shape (n,)
+    centres : ndarray, shape (k, d), float32
     """
     n, k = len(X), len(centres)
     threshold = tol * _mean_variance(X)
@@ -88,7 +124,19 @@ def lloyd(X, centres, max_iter=100, tol=1e-4, settled=1e-3):
 def nearest(X, centres, chunk=None):
     """The index of each row of ``X`` (n, d)'s nearest row of ``centres`` (k, d) in Euclidean
     distance: ``argmin_j |c_j|^2 - 2 x.c_j`` (``|x|^2`` is the same for all j), ``chunk`` rows
-    at a time (None: all at once; memory ``chunk x k``). Returns (n,) int."""
+    at a time (None: all at once; memory ``chunk x k``).
+
+    Parameters
+    ----------
+    X : ndarray, shape (n, d)
+    centres : ndarray, shape (k, d)
+    chunk : int, optional
+        Rows of ``X`` at a time.
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+    """
     sq = np.einsum("kd,kd->k", centres, centres)[None, :]
     if chunk is None:
         return np.argmin(sq - 2.0 * (X @ centres.T), axis=1)
@@ -117,7 +165,27 @@ def kmeans(X, n_clusters, rng, max_iter=100, init_sample=2000, fit_sample=5000, 
     vectors took 40-60 steps; this ends 0.05-0.6 % higher in inertia in a third to a half of the time:
     docs/choices.md); all in float32 (the clustering only routes samples to clusters; each
     step reads the points, so half the bytes is about half the time). NumPy only: importing
-    scikit-learn's KMeans would add its long import time to every fit."""
+    scikit-learn's KMeans would add its long import time to every fit.
+
+    Parameters
+    ----------
+    X : array_like, shape (n, d)
+        Points, at least ``n_clusters``.
+    n_clusters : int
+        k.
+    rng : int or numpy.random.Generator
+        The subsamples' and the seeding's random stream.
+    max_iter : int
+        Lloyd steps at most.
+    init_sample, fit_sample, polish : int
+        As above.
+
+    Returns
+    -------
+    labels : ndarray of int, shape (n,)
+    centres : ndarray, shape (n_clusters, d), float64 (found in float32)
+    """
+    rng = check_rng(rng)
     centres = kmeans_plusplus(np.asarray(_sample_rows(X, init_sample, rng), dtype=np.float32), n_clusters, rng)
     X = np.asarray(X, dtype=np.float32)
     steps = max_iter
