@@ -195,3 +195,21 @@ def test_every_public_method_before_fit_is_not_fitted(cls):
                 method(*[_dummy(cls, p) for p in required])
         checked.append(name)
     assert checked or cls.__name__ == "PatchStatistics"  # its one public method is fit
+
+
+@pytest.mark.parametrize("cls", COMPONENTS, ids=lambda c: c.__name__)
+def test_every_public_method_has_numpydoc_parameters_and_returns(cls):
+    # SpatialReduction's fit, fit_transform, transform and inverse_transform, get_params, set_params and the
+    # transformers' fit_transform had a line or no docstring: no Parameters nor Returns section.
+    import inspect
+
+    undocumented = []
+    for name in dir(cls):
+        method = inspect.getattr_static(cls, name)
+        if name.startswith("_") or not inspect.isfunction(method):
+            continue
+        doc = inspect.getdoc(method) or ""
+        takes = [p for p in inspect.signature(method).parameters if p not in ("self", "y")]
+        if (takes and "\nParameters\n----" not in doc) or not ("\nReturns\n----" in doc or "\nYields\n----" in doc):
+            undocumented.append(name)
+    assert not undocumented

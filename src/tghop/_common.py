@@ -71,7 +71,19 @@ class BaseEstimator:
                             and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)))
 
     def get_params(self, deep=True):
-        """Parameters of this estimator (and, with ``deep``, of nested estimators as ``name__param``)."""
+        """Parameters of this estimator (and, with ``deep``, of nested estimators as ``name__param``).
+
+        Parameters
+        ----------
+        deep : bool, default=True
+            Also the parameters of parameters that are estimators (a :class:`~tghop.material.Material`'s
+            ``model``), as ``model__rng`` etc.
+
+        Returns
+        -------
+        dict of str to object
+            The constructor's arguments by name, as stored.
+        """
         out = {}
         for name in self._get_param_names():
             value = getattr(self, name)
@@ -81,7 +93,19 @@ class BaseEstimator:
         return out
 
     def set_params(self, **params):
-        """Set parameters (``name`` or nested ``name__param``); returns self."""
+        """Set parameters (``name`` or nested ``name__param``); returns self.
+
+        Parameters
+        ----------
+        **params
+            New values by name, as :meth:`get_params` names them. A fitted
+            :class:`~tghop.synthesis.TGHop` whose settings change is no longer fitted
+            (:class:`~tghop.NotFittedError` until it is fitted again).
+
+        Returns
+        -------
+        self
+        """
         valid = self._get_param_names()
         nested = {}
         for key, value in params.items():
@@ -127,6 +151,22 @@ class TransformerMixin:
     """``fit_transform`` as ``fit(X).transform(X)`` (as scikit-learn's mixin)."""
 
     def fit_transform(self, X, y=None, **fit_params):
+        """Fit to ``X``, then transform it.
+
+        Parameters
+        ----------
+        X : array_like
+            As ``fit`` takes it.
+        y : None
+            Ignored (scikit-learn's signature).
+        **fit_params
+            Passed to ``fit``.
+
+        Returns
+        -------
+        ndarray
+            ``self.fit(X, y, **fit_params).transform(X)``.
+        """
         return self.fit(X, y, **fit_params).transform(X)
 
     def __sklearn_tags__(self):

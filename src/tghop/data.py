@@ -110,7 +110,21 @@ BUILTIN = {"bricks": bricks, "cells": cells}
 
 
 def builtin(name: str, size: int = 256, *, rng=0) -> np.ndarray:
-    """A built-in exemplar by name (see :data:`BUILTIN`)."""
+    """A built-in exemplar by name (see :data:`BUILTIN`).
+
+    Parameters
+    ----------
+    name : {"bricks", "cells"}
+        As ``builtin:NAME`` names it on the command line.
+    size : int
+        Height and width in pixels, as :func:`bricks` takes it.
+    rng : int or numpy.random.Generator
+        Same seed, same image.
+
+    Returns
+    -------
+    ndarray, shape (size, size, 3), float64 in [0, 1]
+    """
     if name not in BUILTIN:
         raise TGHopError(f"unknown built-in exemplar {name!r}; choose one of {', '.join(sorted(BUILTIN))}")
     return BUILTIN[name](size, rng=rng)

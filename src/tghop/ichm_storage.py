@@ -78,6 +78,8 @@ class ICHMStorageMixin:
 
     @property
     def mixing_(self):
+        """The mixing matrices of every cluster, stacked: ndarray, shape (F, D_r), float64 (the inverse
+        PCA and ICA of step v; made from the stored float16 rows and float32 scales on first use)."""
         mixing = vars(self).get("_mixing")
         if mixing is None:
             stored = vars(self).get("_stored_mixing")

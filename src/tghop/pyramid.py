@@ -81,12 +81,42 @@ def _up(img, shape, mode, axes):
 
 
 def downsample(img, mode="reflect", axes=(0, 1)):
-    """One step down the pyramid of :func:`laplacian_pyramid` (blur, every second sample)."""
+    """One step down the pyramid of :func:`laplacian_pyramid` (blur, every second sample).
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, C) or (C, H, W)
+        Float; ``axes`` are its spatial axes.
+    mode : {"reflect", "wrap"}
+        Mirrored borders, or periodic ones (tileable images).
+    axes : tuple of int
+        The spatial axes: (0, 1) for (H, W, C), (1, 2) for (C, H, W).
+
+    Returns
+    -------
+    ndarray, shape (ceil(H / 2), ceil(W / 2)) along ``axes``, the other axes as ``img``'s
+    """
     return _down(img, mode, axes)
 
 
 def upsample(img, shape, mode="reflect", axes=(0, 1)):
-    """One step up (:func:`reconstruct`'s interpolation) to ``shape``."""
+    """One step up (:func:`reconstruct`'s interpolation) to ``shape``.
+
+    Parameters
+    ----------
+    img : ndarray, shape (h, w, C) or (C, h, w)
+        Float; ``axes`` are its spatial axes.
+    shape : tuple of int
+        The shape to reach (``h`` and ``w`` along ``axes`` are ``ceil`` of half of it).
+    mode : {"reflect", "wrap"}
+        As :func:`downsample`.
+    axes : tuple of int
+        As :func:`downsample`.
+
+    Returns
+    -------
+    ndarray, shape ``shape``, ``img``'s dtype
+    """
     return _up(img, shape, mode, axes)
 
 
@@ -96,6 +126,22 @@ def laplacian_pyramid(img, n_levels, *, mode="reflect", axes=(0, 1)):
     ``axes`` are the spatial axes: (0, 1) for (H, W, C), (1, 2) for (C, H, W). Fewer
     levels when the image gets smaller than 2 pixels. Exact: :func:`reconstruct`
     returns the image (up to rounding).
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, C) or (C, H, W)
+        Float.
+    n_levels : int
+        Band-pass levels wanted (at most; see above).
+    mode : {"reflect", "wrap"}
+        As :func:`downsample`.
+    axes : tuple of int
+        As :func:`downsample`.
+
+    Returns
+    -------
+    list of ndarray
+        Band ``k`` of (about) ``H / 2**k`` x ``W / 2**k`` along ``axes``; the low-pass last.
     """
     bands = []
     cur = img
@@ -110,7 +156,22 @@ def laplacian_pyramid(img, n_levels, *, mode="reflect", axes=(0, 1)):
 
 
 def reconstruct(bands, *, mode="reflect", axes=(0, 1)):
-    """Inverse of :func:`laplacian_pyramid`."""
+    """Inverse of :func:`laplacian_pyramid`.
+
+    Parameters
+    ----------
+    bands : list of ndarray
+        As :func:`laplacian_pyramid` returns them (the low-pass last).
+    mode : {"reflect", "wrap"}
+        The pyramid's.
+    axes : tuple of int
+        The pyramid's.
+
+    Returns
+    -------
+    ndarray, shape of ``bands[0]``
+        The image (exactly, up to rounding, for an unchanged pyramid).
+    """
     cur = bands[-1]
     for band in reversed(bands[:-1]):
         cur = band + _up(cur, band.shape, mode, axes)

@@ -74,6 +74,13 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
     def fit(self, Y, y=None):
         """Learn from core responses ``Y`` of shape (n, h, w, K).
 
+        Parameters
+        ----------
+        Y : array_like, shape (n_samples, h, w, K)
+            Core responses (:meth:`tghop.hops.HopStack.transform`), at least 2 samples.
+        y : None
+            Ignored (scikit-learn's signature).
+
         Returns
         -------
         self
@@ -85,6 +92,18 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
         """Fit, then return ``z`` of shape (n, D_r).
 
         A failed fit leaves the estimator unfitted (a previous fit is forgotten).
+
+        Parameters
+        ----------
+        Y : array_like, shape (n_samples, h, w, K)
+            As :meth:`fit` takes it.
+        y : None
+            Ignored (scikit-learn's signature).
+
+        Returns
+        -------
+        z : ndarray, shape (n_samples, D_r), float64
+            :meth:`transform` of ``Y``.
         """
         forget_fit(self)
         _SETTINGS["gamma"].check(self.gamma)
@@ -156,7 +175,18 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
         return self.components_.shape[0]
 
     def transform(self, Y):
-        """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r)."""
+        """Core responses ``(n, h, w, K)`` -> ``z`` of shape (n, D_r).
+
+        Parameters
+        ----------
+        Y : array_like, shape (n, h, w, K)
+            Of the fitted ``shape_`` (h, w, K).
+
+        Returns
+        -------
+        z : ndarray, shape (n, D_r), float64
+            Each channel's spatial map, less its mean, on the channel's kept components, channel by channel.
+        """
         check_is_fitted(self, "components_")
         # Finite real numbers of any rank here (a scalar: check_array's message), the shape just below.
         Y = check_array(Y, "Y", "(n, {}, {}, {})".format(*self.shape_), ndim=max(np.ndim(Y), 1), min_rows=0)
@@ -164,9 +194,14 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
         return self._project(_channel_major(Y))
 
     def channel_ranges(self):
-        """``[(start, stop), ...]``: each core channel's rows of :attr:`components_` (and
-        columns of ``z``); fit keeps the components in channel order, so each channel's are
-        one range (empty where a channel keeps none)."""
+        """Each core channel's rows of :attr:`components_` (and columns of ``z``): fit keeps the
+        components in channel order, so each channel's are one range (empty where a channel keeps none).
+
+        Returns
+        -------
+        list of tuple of int
+            ``[(start, stop), ...]``, one per core channel (K of them).
+        """
         check_is_fitted(self, "components_")
         bounds = np.searchsorted(self.channel_, np.arange(self.shape_[2] + 1))
         return list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
@@ -179,7 +214,19 @@ class SpatialReduction(FourDInputMixin, TransformerMixin, BaseEstimator):
         return z
 
     def inverse_transform(self, Z):
-        """``z`` (n, D_r) -> core responses (n, h, w, K); dropped components are zero."""
+        """``z`` (n, D_r) -> core responses (n, h, w, K); dropped components are zero.
+
+        Parameters
+        ----------
+        Z : array_like, shape (n, D_r)
+            As :meth:`transform` returns it (or drawn by the core model).
+
+        Returns
+        -------
+        Y : ndarray, shape (n, h, w, K), float64
+            The input of :meth:`transform` projected on the kept components (about its mean): the
+            input itself where they span every spatial map (``gamma`` 0 and training data of full rank).
+        """
         check_is_fitted(self, "components_")
         Z = check_array(Z, "Z", f"(n, D_r) = (n, {self.components_.shape[0]})", ndim=max(np.ndim(Z), 1), min_rows=0)
         check_width(Z, "Z", f"(n, D_r) = (n, {self.components_.shape[0]})", self.components_.shape[:1])
