@@ -213,3 +213,30 @@ def test_every_public_method_has_numpydoc_parameters_and_returns(cls):
         if (takes and "\nParameters\n----" not in doc) or not ("\nReturns\n----" in doc or "\nYields\n----" in doc):
             undocumented.append(name)
     assert not undocumented
+
+
+#: scikit-learn's checks that apply to ICHM, which check_estimator cannot run whole: its transform gives
+#: (labels, sources), so the transformer checks (and those comparing transform's outputs) do not apply, and its
+#: NotFittedError is tghop's, not scikit-learn's class (generation never imports scikit-learn); its vectors are
+#: ``Z``, so a message naming them is not the "X has 1 features" check_n_features_in_after_fitting looks for.
+ICHM_CHECKS = ["check_no_attributes_set_in_init", "check_estimators_dtypes", "check_fit_score_takes_y",
+               "check_estimators_fit_returns_self", "check_complex_data", "check_dtype_object",
+               "check_pipeline_consistency", "check_estimators_nan_inf", "check_estimators_overwrite_params",
+               "check_estimator_sparse_array", "check_f_contiguous_array_estimator", "check_fit2d_predict1d",
+               "check_methods_subset_invariance", "check_fit2d_1feature", "check_get_params_invariance",
+               "check_set_params", "check_dont_overwrite_parameters", "check_fit_check_is_fitted",
+               "check_n_features_in", "check_fit1d",
+               "check_parameters_default_constructible", "check_estimator_repr", "check_estimator_cloneable",
+               "check_readonly_memmap_input", "check_requires_y_none"]
+
+
+@pytest.mark.parametrize("name", ICHM_CHECKS)
+def test_ichm_passes_the_scikit_learn_checks_that_apply_to_it(name):
+    # check_n_features_in failed: ICHM had no n_features_in_.
+    from sklearn.utils import estimator_checks
+
+    from tghop.core import ICHM
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        getattr(estimator_checks, name)("ICHM", ICHM(n_clusters=2, min_cluster_size=2, rng=0))

@@ -117,6 +117,8 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         Cluster probabilities (the paper's interval representation; the name of
         scikit-learn's ``GaussianMixture.weights_``). ``p_`` is an alias.
     means_ : ndarray, shape (N, D_r)
+    n_features_in_ : int
+        D_r, the width of the ``Z`` it was fitted on (scikit-learn's name).
     mixing_ : ndarray, shape (F, D_r)
         Row block ``i`` maps cluster ``i``'s independent components back to ``z``
         (inverse ICA and inverse PCA in one matrix). This is the transpose of
@@ -437,6 +439,12 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         """Each cluster's components: its slice of the F rows of the mixing matrix and CDFs."""
         ends = np.cumsum(self.n_components_)
         return [slice(int(e - k), int(e)) for e, k in zip(ends, self.n_components_)]
+
+    @property
+    def n_features_in_(self) -> int:
+        """D_r, the width of the vectors it was fitted on (scikit-learn's name for it)."""
+        check_is_fitted(self, "means_")
+        return int(self.means_.shape[1])
 
     @property
     def n_cdfs_(self) -> int:
