@@ -180,6 +180,21 @@ def test_not_fitted_and_bad_settings(exemplar):
         cooc.CoocGAN(**{**TINY, "crop_size": 64}).fit(exemplar)
 
 
+def test_condition_for_and_noise_take_a_size_as_sample_does(tiny_model):
+    # condition_for((0, 10)) and ((-8, 16)) gave empty tensors, (16.7, 16) was cut to 16, 64 was Python's "'int' object
+    # is not iterable" and ("a", 3) int()'s ValueError; noise(4) the same TypeError.
+    k2, s = len(tiny_model.cond_mean_), tiny_model.s
+    assert tiny_model.condition_for(64, rng=0).shape == tiny_model.condition_for((64, 64), rng=0).shape \
+        == (k2, 64 // s, 64 // s)
+    np.testing.assert_array_equal(tiny_model.condition_for(64, rng=0), tiny_model.condition_for((64, 64), rng=0))
+    assert tiny_model.noise(4, rng=0).shape == tiny_model.noise((4, 4), rng=0).shape
+    for size in [(0, 10), (-8, 16), (16.7, 16), ("a", 3), (2**14, 2**14)]:
+        with pytest.raises(TGHopError, match=r"^size "):
+            tiny_model.condition_for(size, rng=0)
+    with pytest.raises(TGHopError, match=r"^the noise's shape must be two integers"):
+        tiny_model.noise((4.5, 4), rng=0)
+
+
 def test_fit_leaves_torch_global_generator_as_it_was(exemplar):
     # The fit seeded torch's global generator (torch.manual_seed) to draw the networks' initial weights: after it the
     # caller's torch.rand gave the fit seed's numbers, not those of the caller's own seed.

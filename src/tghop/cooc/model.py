@@ -368,12 +368,19 @@ class CoocGAN(TrainingMixin):
     def noise(self, shape, *, rng=None) -> np.ndarray:
         """A noise tensor for a condition of spatial ``shape = (h, w)``.
 
+        Parameters
+        ----------
+        shape : int or (int, int)
+            The condition's cells (h, w); ``n`` means ``(n, n)``.
+        rng : int or numpy.random.Generator, optional
+            Same seed, same noise.
+
         Returns
         -------
         ndarray, shape (noise_channels, h, w), float32, N(0, 1)
         """
         self._check_fitted()
-        h, w = (check_int(v, "the noise's shape") for v in shape)
+        h, w = check_size(shape, name="the noise's shape")
         return check_rng(rng).standard_normal((int(self.settings_["noise_channels"]), h, w)).astype(np.float32)
 
     def generate(self, cond, *, noise=None, rng=None, windows: bool = False,
@@ -414,6 +421,21 @@ class CoocGAN(TrainingMixin):
 
         ``windows=True`` generates each item in windows (:meth:`generate_windows`);
         conditions no larger than the training crops' are one window, i.e. one pass.
+
+        Parameters
+        ----------
+        conds : sequence of array_like, shape (k*k, h, w) each
+            Co-occurrence tensors of one shape (:meth:`crop_condition`, :meth:`condition_for`).
+        noise : array_like, shape (N, noise_channels, h, w), optional
+            Default: drawn from ``rng`` (:meth:`noise`, item by item).
+        rng : int or numpy.random.Generator, optional
+            The noise's, when ``noise`` is not given.
+        windows : bool
+            As :meth:`generate`.
+
+        Returns
+        -------
+        ndarray, shape (N, h*s, w*s, C), float64 in [0, 1]
         """
         self._check_fitted()
         torch = import_torch("The co-occurrence cGAN")
@@ -533,6 +555,13 @@ class CoocGAN(TrainingMixin):
         Taken from :attr:`exemplar_cooc_` at cell resolution (``y``, ``x`` and ``size``,
         integers, are rounded down to multiples of ``s``; default size ``crop_size``).
 
+        Parameters
+        ----------
+        y, x : int
+            The crop's top-left pixel, at least 0.
+        size : int, optional
+            Its side in pixels (default ``crop_size``); the crop must lie inside the exemplar.
+
         Returns
         -------
         ndarray, shape (k*k, size // s, size // s)
@@ -551,12 +580,20 @@ class CoocGAN(TrainingMixin):
     def condition_for(self, size, *, rng=None) -> np.ndarray:
         """The exemplar's own co-occurrence tensor, mirror-tiled from a random offset to cover ``size``.
 
+        Parameters
+        ----------
+        size : int or (int, int)
+            The image (h, w) in pixels it is for (:func:`tghop._common.check_size`: at least 1,
+            at most :data:`tghop._common.MAX_PIXELS`); ``n`` means ``(n, n)``.
+        rng : int or numpy.random.Generator, optional
+            The offset's.
+
         Returns
         -------
         ndarray, shape (k*k, ceil(h / s), ceil(w / s))
         """
         self._check_fitted()
-        h, w = (int(v) for v in size)
+        h, w = check_size(size)
         s = self.s
         hh, ww = -(-h // s), -(-w // s)
         t = self.exemplar_cooc_
@@ -704,6 +741,11 @@ class CoocGAN(TrainingMixin):
         """Write a ``.pt`` checkpoint: tensors only (networks, optimisers, statistics, random
         states) and the settings as JSON bytes inside; loads with ``weights_only=True``
         (:func:`load`; the format: :mod:`tghop.cooc.checkpoints`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.pt`` file to write.
         """
         save_checkpoint(self, path)
 
