@@ -180,6 +180,22 @@ def test_not_fitted_and_bad_settings(exemplar):
         cooc.CoocGAN(**{**TINY, "crop_size": 64}).fit(exemplar)
 
 
+def test_scikit_learn_clone_repr_and_params_work_on_the_cgan(tiny_model):
+    # CoocGAN had its own get_params without ``deep``: sklearn.base.clone was a TypeError, and its repr the object's.
+    sklearn = pytest.importorskip("sklearn")
+    import sklearn.base  # noqa: F401
+
+    model = cooc.CoocGAN(n_clusters=3, g_widths=(8, 4), rng=2)
+    assert repr(model) == "CoocGAN(g_widths=(8, 4), n_clusters=3, rng=2)"
+    copy = sklearn.base.clone(model)
+    assert copy is not model and copy.get_params(deep=False) == model.get_params(deep=False) == model.get_params()
+    fresh = sklearn.base.clone(tiny_model)
+    assert fresh.get_params() == tiny_model.get_params() and not hasattr(fresh, "generator_")
+    assert model.set_params(n_steps=4) is model and model.n_steps == 4
+    with pytest.raises(TGHopError, match=r"^invalid parameter 'steps' for CoocGAN; valid: "):
+        model.set_params(steps=4)
+
+
 def test_condition_for_and_noise_take_a_size_as_sample_does(tiny_model):
     # condition_for((0, 10)) and ((-8, 16)) gave empty tensors, (16.7, 16) was cut to 16, 64 was Python's "'int' object
     # is not iterable" and ("a", 3) int()'s ValueError; noise(4) the same TypeError.

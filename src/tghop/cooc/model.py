@@ -23,6 +23,7 @@ import numpy as np
 
 from .._arrays import check_int
 from .._common import (
+    BaseEstimator,
     NotFittedError,
     ProgressCallback,
     TGHopError,
@@ -49,7 +50,7 @@ from .assembly import (
 )
 from .checkpoints import read as read_checkpoint
 from .checkpoints import save as save_checkpoint
-from .config import PARAMS, check_settings, torch_device
+from .config import check_settings, torch_device
 from .training import TrainingMixin
 
 __all__ = ["CoocGAN", "load", "baseline", "memory_estimate"]
@@ -61,12 +62,14 @@ def check_noise(noise: np.ndarray) -> None:
         raise TGHopError("noise contains NaN or infinite values; give finite noise (CoocGAN.noise draws it)")
 
 
-class CoocGAN(TrainingMixin):
+class CoocGAN(TrainingMixin, BaseEstimator):
     """Co-occurrence conditional GAN of Darzi et al. (texture from local statistics and noise).
 
     Parameters are those of :data:`~tghop.cooc.config.SMALL` (the defaults) and
     :data:`~tghop.cooc.config.PAPER`; ``CoocGAN(**PAPER)`` is the paper's setting. Settings
     are stored as given; :meth:`fit` checks them (:func:`~tghop.cooc.config.check_settings`).
+    ``get_params``, ``set_params``, the repr and ``sklearn.base.clone`` are those of every tghop
+    estimator (:class:`tghop._common.BaseEstimator`).
 
     Parameters
     ----------
@@ -185,16 +188,6 @@ class CoocGAN(TrainingMixin):
         self.rng = rng
 
     # ------------------------------------------------------------------ parameters
-    def get_params(self) -> dict:
-        return {name: getattr(self, name) for name in PARAMS}
-
-    def set_params(self, **params) -> "CoocGAN":
-        for name, value in params.items():
-            if name not in PARAMS:
-                raise TGHopError(f"unknown CoocGAN parameter {name!r}")
-            setattr(self, name, value)
-        return self
-
     @property
     def s(self) -> int:
         """Co-occurrence downsampling factor ``2**n_layers``."""
