@@ -125,6 +125,32 @@ def test_model_file_round_trip(material, tmp_path):
         load_model(tmp_path / "m.npz")
 
 
+def test_settings_changed_after_fit_are_refused_as_a_tghops_are(material, tmp_path):
+    # A TGHop whose settings change after fit is refused until it is fitted again; a Material synthesised on with
+    # the old joint model, its get_params saying another (set_params(model__gamma=...), normal=...).
+    import copy
+
+    from tghop import NotFittedError
+
+    mat = copy.deepcopy(material)
+    gamma = mat.model.gamma
+    mat.set_params(model__gamma=0.5)
+    with pytest.raises(NotFittedError, match=rf"^this Material's settings changed after it was fitted "
+                                             rf"\(model__gamma {gamma} -> 0.5\); fit it again"):
+        mat.synthesize(SIZE, rng=1, **POOL)
+    mat.set_params(model__gamma=gamma)
+    assert set(mat.synthesize(SIZE, rng=1, **POOL)) == set(material.names_)
+    for change in (dict(normal="none"), dict(model=TGHop(**FAST))):
+        with pytest.raises(NotFittedError, match="settings changed after it was fitted"):
+            copy.deepcopy(material).set_params(**change).map_slices()
+    copy.deepcopy(material).set_params(rng=5, model__rng=3).map_slices()  # the fit's seed: nothing learned changes
+    save_model(material, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz", material=True)
+    loaded.map_slices()
+    with pytest.raises(NotFittedError, match=r"\(model__n_clusters 10 -> 9\)"):
+        loaded.set_params(model__n_clusters=9).map_slices()
+
+
 def test_maps_of_another_size_are_refused(exemplar, maps):
     with pytest.raises(TGHopError, match="albedo's size") as err:
         Material(model=TGHop(**FAST)).fit(exemplar, {"height": maps["height"][:100]})

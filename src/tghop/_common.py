@@ -221,7 +221,8 @@ def check_is_fitted(estimator, attributes) -> None:
     fitted = vars(estimator).get("_fitted_params")  # kept by TGHop.fit and load: the settings of its state
     if fitted is not None:
         now = fitted_settings(estimator)
-        changed = [k for k in now if k in fitted and k.split(".")[-1] != "rng" and not _same_setting(now[k], fitted[k])]
+        changed = [k for k in now if k in fitted and k.replace("__", ".").split(".")[-1] != "rng"
+                   and not _same_setting(now[k], fitted[k])]
         if changed:
             what = ", ".join(f"{k} {fitted[k]!r} -> {now[k]!r}" for k in changed)
             raise NotFittedError(f"this {type(estimator).__name__}'s settings changed after it was fitted ({what}); "
@@ -229,7 +230,8 @@ def check_is_fitted(estimator, attributes) -> None:
 
 
 def fitted_settings(estimator) -> dict:
-    """What :func:`check_is_fitted` holds a fitted estimator's settings to: its own (``get_params``) and
+    """What :func:`check_is_fitted` holds a fitted estimator's settings to: its own (``get_params``, with
+    those of a parameter that is an estimator as ``model__name``: a Material's ``model``) and
     those of its fitted parts (attributes ending in ``_`` that have ``get_params``, as ``part_.name``),
     lists and arrays copied, so that a list the caller changes later counts as a change. ``rng`` (the
     fit's seed) is kept but not compared: changing it after fit changes nothing learned. A part set to
@@ -237,7 +239,7 @@ def fitted_settings(estimator) -> dict:
     def copied(value):
         return [copied(v) for v in value] if isinstance(value, (list, tuple, np.ndarray)) else value
 
-    out = {k: copied(v) for k, v in estimator.get_params(deep=False).items()}
+    out = {k: copied(v) for k, v in estimator.get_params(deep=True).items()}
     for name, part in vars(estimator).items():
         if name.endswith("_") and not name.startswith("_") and callable(getattr(part, "get_params", None)):
             out.update({f"{name}.{k}": copied(v) for k, v in part.get_params(deep=False).items()})

@@ -37,7 +37,8 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype
-from ._common import BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, one_blas_thread, report
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fitted_settings,
+                      one_blas_thread, report)
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -424,6 +425,7 @@ class Material(BaseEstimator):
         self.normal_ = [is_normal for _, _, _, is_normal in items]
         self.map_channels_ = [img.shape[2] for _, img, _, _ in items]
         self.depths_ = [depth for _, _, depth, _ in items]
+        self._fitted_params = fitted_settings(self)  # as TGHop's: set_params after fit is refused until a new fit
         return self
 
     def stacked_channels(self, albedo, maps=None) -> dict:
@@ -591,4 +593,5 @@ class Material(BaseEstimator):
             sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
             mat.bands_.append(BandStatistics(n_levels=model.band_levels,
                                              n_orientations=model.band_orientations)._from_arrays(sub))
+        mat._fitted_params = fitted_settings(mat)
         return mat
