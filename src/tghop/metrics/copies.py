@@ -266,7 +266,9 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
         As for :func:`novelty`.
     progress : callable, optional
         ``progress(stage, done, total)``: stage ``"diversity"``, one unit per chunk of
-        patches searched, over all pairs. Memory is bounded as for :func:`novelty`.
+        patches searched, over all pairs. Memory is bounded as for :func:`novelty`, and at
+        most two results are held as float64 at a time (uint8 results stay uint8 until a pair
+        needs them).
 
     Returns
     -------
