@@ -598,3 +598,32 @@ def test_no_transition_joins_on_the_painted_edge(models, transition):
     guide[:, 32:] = 255
     out = tghop.synthesize_guided(models, guide, transition=transition, rng=1, **GEN)
     assert out.shape == (48, 64, 3) and np.isfinite(out).all()
+
+
+def test_cli_sources_that_cannot_mix_are_refused_by_name_before_any_fit(models, tmp_path, monkeypatch):
+    # A grey exemplar with a colour one (or a model of other patches) was refused by the library after every
+    # exemplar's fit (54 s for stone_wall.jpg and grass_gray.png on 2 busy cores) as "input 2 is grey but
+    # input 1 is not", naming no file.
+    save_model(models[1], tmp_path / "b.npz")
+    save_model(TGHop(rng=0, patch_size=16, n_channels=(9, 22), **FAST).fit(_blue_cells()), tmp_path / "p16.npz")
+    Image.fromarray(to_uint8(data.cells(96, rng=3).mean(axis=2))).save(tmp_path / "grey.png")
+    Image.fromarray(to_uint8(data.bricks(96, rng=1))).save(tmp_path / "colour.png")
+    guide = np.zeros((64, 128), dtype=np.uint8)
+    guide[:, 64:] = 255
+    Image.fromarray(guide).save(tmp_path / "map.png")
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("an exemplar was fitted")
+
+    monkeypatch.setattr(TGHop, "fit", no_fit)
+    for args, words in (
+            (["synth", "colour.png", "grey.png", "--guide", "map.png"],
+             "SOURCE 2 (grey.png) is greyscale but SOURCE 1 (colour.png) is in colour; give all colour or all grey"),
+            (["synth", "grey.png", "b.npz", "--size", "64"], "SOURCE 2 (b.npz) is in colour but SOURCE 1 (grey.png)"),
+            (["morph", "b.npz", "grey.png"], "B grey.png is greyscale but A b.npz is in colour"),
+            (["synth", "colour.png", "p16.npz", "--size", "64"],
+             "SOURCE 2 (p16.npz) has 16x16 patches but SOURCE 1 (colour.png) has 32x32; fit them with the same "
+             "--patch-size")):
+        r = _run([*args, "-o", "out.png", "-q"], tmp_path)
+        assert_user_error(r, words)
+    assert not (tmp_path / "out.png").exists()

@@ -416,6 +416,28 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, s
     assert not (tmp_path / "o.png").exists()
 
 
+def test_painted_materials_of_the_same_maps_in_another_order_are_told_so(material, tmp_path, monkeypatch):
+    # They were refused as "input 2's maps are albedo, height, normal, roughness but input 1's are albedo,
+    # normal, roughness, height (or their channels differ); give materials with the same maps": the same maps.
+    cells = data.cells(128, rng=3)
+    maps = example_maps(cells)
+    reordered = Material(model=TGHop(**FAST), rng=0).fit(cells, {k: maps[k] for k in ("height", "normal",
+                                                                                       "roughness")})
+    fewer = Material(model=TGHop(**FAST), rng=0).fit(cells, {"height": maps["height"]})
+    for name, m in (("mat", material), ("re", reordered), ("few", fewer)):
+        save_model(m, tmp_path / f"{name}.npz")
+    monkeypatch.chdir(tmp_path)
+    for second, words in (("re.npz", "SOURCE 2 (re.npz) has its maps in another order (height, normal, roughness) "
+                                     "than SOURCE 1 (mat.npz) (normal, roughness, height); fit it again with its "
+                                     "maps after --maps in SOURCE 1 (mat.npz)'s order"),
+                          ("few.npz", "SOURCE 2 (few.npz) has the maps height but SOURCE 1 (mat.npz) has normal, "
+                                      "roughness, height; give materials with the same maps")):
+        res = CliRunner().invoke(main, ["synth", "mat.npz", second, "-o", "o.png", "--size", "48x64", "-q"])
+        assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+        assert res.output.count("Error:") == 1 and words in res.output, res.output
+    assert not list(tmp_path.glob("o*.png"))
+
+
 def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):
     # A second fit on other maps that fails (too little texture outside the mask) used to leave the new
     # maps' names and channels beside the earlier joint model: synthesize then broke on a shape mismatch.

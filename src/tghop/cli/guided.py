@@ -142,6 +142,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
+    _check_mixable([f"SOURCE {i} ({spec})" for i, spec in enumerate(sources, start=1)], read, options)
     _check_channels(output, depth, read)
     _warn_deep(sources, read, "SOURCE", output, depth)
     if generation["patch_refine"] and not hasattr(read[0], "names_"):  # before any fit (materials: refused below)
@@ -203,6 +204,43 @@ def _same_kind(specs, read, label):
                              "paint with all materials (fit each with 'tghop fit ALBEDO --maps ...') or all textures")
 
 
+def _check_mixable(labels, read, options):
+    """Refuse, before anything is fitted, sources that cannot share an image, naming them
+    (``labels``: "SOURCE 2 (x.png)", "B x.npz"): grey with colour, other patch sizes (an
+    exemplar's: the fit ``options``' or the default), or materials of other maps (the library
+    refuses them too, but after every exemplar's fit and as "input 2")."""
+    import numpy as np
+
+    def shape(source):  # an exemplar's or texture model's (channels, patch size)
+        if isinstance(source, np.ndarray):
+            return source.shape[2], build_model(options or {}, n_colours=source.shape[2]).patch_size
+        return source.exemplar_shape_[2], source.patch_size
+
+    first, label1 = read[0], labels[0]
+    if hasattr(first, "names_"):  # all materials (_same_kind): the same maps, in the same order
+        for label, source in zip(labels[1:], read[1:]):
+            if (source.names_, source.map_channels_) == (first.names_, first.map_channels_):
+                continue
+            mine, theirs = ", ".join(source.names_[1:]), ", ".join(first.names_[1:])
+            if sorted(source.names_) == sorted(first.names_) and source.names_ != first.names_:
+                raise TGHopError(f"{label} has its maps in another order ({mine}) than {label1} ({theirs}); fit it "
+                                 f"again with its maps after --maps in {label1}'s order")
+            raise TGHopError(f"{label} has the maps {mine} but {label1} has {theirs}; give materials with the same "
+                             "maps (of the same channels)")
+        return
+    channels1, patch1 = shape(first)
+    for label, source in zip(labels[1:], read[1:]):
+        channels, patch = shape(source)
+        if channels != channels1:
+            kind = {1: "greyscale"}
+            raise TGHopError(f"{label} is {kind.get(channels, 'in colour')} but {label1} is "
+                             f"{kind.get(channels1, 'in colour')}; give all colour or all greyscale exemplars or "
+                             "models")
+        if patch != patch1:
+            raise TGHopError(f"{label} has {patch}x{patch} patches but {label1} has {patch1}x{patch1}; fit them with "
+                             "the same --patch-size")
+
+
 def _check_grid(size, grid):
     """The stacked strips within the output size limit (each strip's --size is checked alone)."""
     import math
@@ -246,6 +284,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         _check_grid(size, grid)
         read_a, read_b = _read(source_a), _read(source_b)
         _same_kind([source_a, source_b], [read_a, read_b], "A" if hasattr(read_a, "names_") else "B")
+        _check_mixable([f"A {source_a}", f"B {source_b}"], [read_a, read_b], None)
         _check_channels(output, depth, [read_a, read_b])
         _warn_deep([source_a, source_b], [read_a, read_b], ("A", "B"), output, depth)
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
