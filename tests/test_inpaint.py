@@ -551,3 +551,19 @@ def test_cli_a_source_exemplar_of_other_colours_is_refused_before_its_fit(files,
             "--source", files / "model.npz")
     assert_user_error(r, "--source", "model.npz", "in colour", "IMAGE", "grey_cells.png", "is greyscale")
     assert not (files / "g.png").exists()
+
+
+def test_cli_a_mask_whose_hole_is_most_of_the_image_warns_it_may_be_inverted(files):
+    # A mask painted the other way round (what to keep white, the hole black) filled 86 % of the picture
+    # without a word.
+    inverted = np.full((96, 96), 255, np.uint8)
+    inverted[20:80, 20:80] = 0
+    Image.fromarray(inverted).save(files / "inverted.png")
+    for mask, warned in (("inverted.png", True), ("mask.png", False)):
+        r = run("inpaint", files / "cells.png", files / mask, "-o", files / "inv.png", "--source", files / "model.npz",
+                "--seed", "1", "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        lines = [line for line in r.stderr.decode().splitlines() if line.startswith("Warning")]
+        assert lines == ([f"Warning: MASK {files / mask}: its white pixels, the hole that is filled, are 61% of IMAGE "
+                          f"{files / 'cells.png'}; if you painted the part to keep white, invert the mask"]
+                         if warned else []), r.stderr.decode()

@@ -81,6 +81,7 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
         picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[("MASK", mask)])
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
+        _warn_most(hole, mask, image)
         model, rng = _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                             too_little=f"MASK {mask} leaves too little of IMAGE {image} to fit a model on",
                             fix="paint a smaller hole")
@@ -170,6 +171,17 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     if not maps:
         warn_lost_depth([(f"IMAGE {image}", image_depth, written)], output, depth)
     return picture, alpha, written, source_is_model, image_depth
+
+
+def _warn_most(hole, mask, image):
+    """Warn when ``hole`` (MASK's white pixels) is most but not all of IMAGE: a mask painted the
+    other way round (the part to keep white) fills nearly everything without a word."""
+    import warnings
+
+    share = hole.mean()
+    if 0.5 < share < 1:
+        warnings.warn(f"MASK {mask}: its white pixels, the hole that is filled, are {share:.0%} of IMAGE {image}; "
+                      "if you painted the part to keep white, invert the mask")
 
 
 def _model(picture, hole, image, source, source_is_model, scale, seed, progress, *, too_little, fix, grown=None):
@@ -338,6 +350,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     else:
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
+        _warn_most(hole, mask, image)
         images = {"albedo": picture, **maps}
     rng = np.random.default_rng(seed)
     if material is None:
