@@ -567,3 +567,22 @@ def test_cli_a_mask_whose_hole_is_most_of_the_image_warns_it_may_be_inverted(fil
         assert lines == ([f"Warning: MASK {files / mask}: its white pixels, the hole that is filled, are 61% of IMAGE "
                           f"{files / 'cells.png'}; if you painted the part to keep white, invert the mask"]
                          if warned else []), r.stderr.decode()
+
+
+def test_cli_a_picture_given_as_mask_is_warned_of_and_a_feathered_mask_is_not(files):
+    # A photograph as MASK (or IMAGE and MASK swapped) had its light pixels filled, or was "leaves too little
+    # ... paint a smaller hole", without a word that the mask was not a mask.
+    save_image(data.bricks(96, rng=1), files / "photo.png")
+    yy, xx = np.mgrid[:96, :96]
+    feathered = np.clip((30 - np.hypot(yy - 48, xx - 48)) / 6 + 0.5, 0, 1)  # a 6 px soft edge
+    save_image(feathered, files / "feathered.png")
+    for mask, warned in (("photo.png", True), ("feathered.png", False)):
+        r = run("inpaint", files / "cells.png", files / mask, "-o", files / "pic.png", "--source", files / "model.npz",
+                "--seed", "1", "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        lines = [line for line in r.stderr.decode().splitlines() if "not black and white" in line]
+        assert lines == ([f"Warning: MASK {files / mask} is not black and white: 100% of its pixels are grey or "
+                          "coloured (a picture?), and those lighter than mid-grey are taken as the hole; paint the "
+                          "hole white on black (IMAGE comes first, then MASK)"] if warned else []), r.stderr.decode()
+    r = run("fit", files / "cells.png", "--exclude", files / "photo.png", "-o", files / "pic.npz", "-q")
+    assert "Warning: --exclude" in r.stderr.decode() and "taken as the part left out" in r.stderr.decode()
