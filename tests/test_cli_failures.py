@@ -577,3 +577,17 @@ def test_a_command_imports_only_its_own_module_of_the_command_line(folder):
         assert "AT_IMPORT []" in err, (args, err)
         assert f"AT_EXIT {loaded}" in err, (args, err)
     assert "Did you mean 'synth'?" in err
+
+
+@pytest.mark.parametrize("word, words", [("fill", "to fill a hole, use 'tghop inpaint IMAGE MASK -o OUT'"),
+                                         ("outpaint", "to grow an image, use 'tghop extend IMAGE -o OUT --size HxW'"),
+                                         ("Paint", "use 'tghop synth A B ... --guide MAP -o OUT'"),
+                                         ("synt", "Did you mean 'synth'?")])
+def test_another_name_of_a_commands_task_names_the_command(word, words):
+    # click's "Did you mean" picks by spelling: 'tghop outpaint' was sent to inpaint (a hole's fill, not a
+    # grown image) and 'tghop fill' had no answer at all.
+    from conftest import assert_user_error, cli
+
+    r = cli(word, "x.png")
+    assert_user_error(r, f"No such command '{word}'", words)
+    assert r.returncode == 2

@@ -155,12 +155,15 @@ class OneLineGroup(click.Group):
 
     ``lazy_commands``: ``{name: module}``, commands defined in those modules of
     :mod:`tghop.cli` (``"texture"``), each imported when its command is first looked up
-    (run, listed in ``--help``), not when the group is made.
+    (run, listed in ``--help``), not when the group is made. ``synonyms``: ``{word: hint}``,
+    other names of a command's task, answered with the hint (click's "Did you mean" picks by
+    spelling: ``outpaint`` was sent to ``inpaint``).
     """
 
-    def __init__(self, *args, lazy_commands=None, **kwargs):
+    def __init__(self, *args, lazy_commands=None, synonyms=None, **kwargs):
         super().__init__(*args, **kwargs)
         self.lazy_commands = dict(lazy_commands or {})
+        self.synonyms = dict(synonyms or {})
 
     def list_commands(self, ctx):
         return sorted({*self.commands, *self.lazy_commands})
@@ -174,6 +177,8 @@ class OneLineGroup(click.Group):
         return self.commands.get(cmd_name)
 
     def resolve_command(self, ctx, args):
+        if self.get_command(ctx, args[0]) is None and args[0].lower() in self.synonyms:
+            raise click.UsageError(f"No such command {args[0]!r}; {self.synonyms[args[0].lower()]}", ctx)
         if self.get_command(ctx, args[0]) is None:  # not a command: click's "Did you mean" looks through them all
             for name in self.list_commands(ctx):
                 self.get_command(ctx, name)
@@ -253,7 +258,22 @@ class OneLineGroup(click.Group):
         return " ".join(path)
 
 
-@click.group(cls=OneLineGroup, lazy_commands=_COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
+#: Other names of the commands' tasks that an artist types (``tghop fill``), with the command to use.
+SYNONYMS = {
+    **dict.fromkeys(("fill", "repair", "heal"), "to fill a hole, use 'tghop inpaint IMAGE MASK -o OUT'"),
+    **dict.fromkeys(("outpaint", "grow", "expand", "enlarge"),
+                    "to grow an image, use 'tghop extend IMAGE -o OUT --size HxW'"),
+    **dict.fromkeys(("paint", "guide", "guided"),
+                    "to paint with several textures, use 'tghop synth A B ... --guide MAP -o OUT'"),
+    "remix": "to remix several textures, use 'tghop synth A B ... -o OUT'",
+    **dict.fromkeys(("generate", "synthesize", "synthesise"), "to make a texture, use 'tghop synth SOURCE -o OUT'"),
+    **dict.fromkeys(("train", "learn"), "to learn a model, use 'tghop fit EXEMPLAR -o MODEL.npz'"),
+    **dict.fromkeys(("material", "maps"), "to learn a whole material, use 'tghop fit ALBEDO --maps MAP... -o MAT.npz'"),
+}
+
+
+@click.group(cls=OneLineGroup, lazy_commands=_COMMANDS, synonyms=SYNONYMS,
+             context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="tghop")
 def main():
     """tghop: explainable, fast texture synthesis from one exemplar (TGHop).
