@@ -62,7 +62,9 @@ MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} 
 def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
-    With --maps, the same hole in every map of a whole material.
+    With --maps, the same hole in every map of a whole material. A MASK that is not black and
+    white (a photograph), or whose hole is most of IMAGE (painted the other way round?), is
+    warned of.
 
     Without --source the model is fitted on IMAGE's patches that do not touch the hole.
 
