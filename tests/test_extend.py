@@ -264,3 +264,16 @@ def test_cli_an_image_that_is_no_image_or_a_model_is_one_line(files):
     r = cli("extend", files / "model.npz", "-o", files / "bad.png", "--size", "128")
     assert_user_error(r, "is a model file")
     assert not (files / "bad.png").exists()
+
+
+def test_cli_tile_warns_where_the_image_spans_the_whole_height_or_width(files):
+    # 'extend --tile' promises a result that tiles, but IMAGE is kept as it is: where it spans the whole height
+    # (or width) of --size its own top and bottom rows meet at the wrap, and the result tiled only as IMAGE did.
+    args = ("extend", files / "cells.png", "--source", files / "model.npz", "--tile", "--seed", "1", "-q")
+    for size, words in (("96x160", "spans the whole height of --size 96x160 and is kept as it is, so the result "
+                                    "tiles top to bottom only if IMAGE does; give a --size larger in height too"),
+                        ("160x160", None)):
+        r = cli(*args, "-o", files / "tiled.png", "--size", size)
+        assert r.returncode == 0, r.stderr.decode()
+        lines = [line for line in r.stderr.decode().splitlines() if line.startswith("Warning")]
+        assert lines == ([f"Warning: --tile: IMAGE {files / 'cells.png'} {words}"] if words else []), lines

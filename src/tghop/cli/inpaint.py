@@ -104,7 +104,8 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
 @click.option("--anchor", type=click.Choice(ANCHOR_CHOICES, case_sensitive=False), default="center",
               show_default=True, help="Where IMAGE stays on the larger canvas: top-left grows it to the right and "
                                       "downwards, center evenly all round.")
-@_fill_options("IMAGE", "The result tiles seamlessly: the fill continues across its edges.")
+@_fill_options("IMAGE", "The result tiles seamlessly: the fill continues across its edges (where IMAGE spans the "
+                        "whole height or width, IMAGE must tile there itself: it is kept as it is).")
 def extend(image, map_paths, output, with_maps, size, anchor, source, scale, seed, tile, quiet, depth):
     """Grow IMAGE to --size: IMAGE stays as it is at --anchor, and the new area is filled
     with texture that continues it (outpainting). With --maps, every map of a whole material.
@@ -123,6 +124,7 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
             return
         picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[])
         canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
+        _warn_untileable(tile, picture.shape, size, image)
         if alpha is not None:
             alpha = expand_canvas(alpha, size, anchor=anchor.lower())[0]
         model, rng = _model(picture, None, image, source, source_is_model, scale, seed, progress,
@@ -132,6 +134,19 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}, written to {output}",
                    err=True)
+
+
+def _warn_untileable(tile, shape, size, image):
+    """With --tile, warn where IMAGE (``shape``) spans the whole height or width of --size
+    (``size``): its pixels are kept, so the result wraps there only as far as IMAGE itself does."""
+    import warnings
+
+    spans = [what for what, n, m in (("height", shape[0], size[0]), ("width", shape[1], size[1])) if n == m]
+    if tile and spans:
+        across = " and ".join({"height": "top to bottom", "width": "left to right"}[w] for w in spans)
+        warnings.warn(f"--tile: IMAGE {image} spans the whole {' and '.join(spans)} of --size {size[0]}x{size[1]} "
+                      f"and is kept as it is, so the result tiles {across} only if IMAGE does; give a --size "
+                      f"larger in {' and '.join(spans)} too")
 
 
 def _check_maps(map_paths, with_maps, last):
@@ -346,6 +361,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     warn_lost_depth([(name, own[name], d) for name, _, d in plan], output, depth, "map")
     if grow is not None:
         canvas, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
+        _warn_untileable(tile, picture.shape, grow[0], image)
         images = {"albedo": canvas, **{k: expand_canvas(v, grow[0], anchor=grow[1])[0] for k, v in maps.items()}}
         if alpha is not None:
             alpha = expand_canvas(alpha, grow[0], anchor=grow[1])[0]
