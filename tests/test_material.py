@@ -463,3 +463,15 @@ def test_map_slices_before_fit_is_not_fitted():
 
     with pytest.raises(NotFittedError, match="this Material is not fitted yet"):
         Material().map_slices()
+
+
+def test_synth_given_maps_says_to_fit_the_material_first(tmp_path):
+    # 'tghop synth albedo.png --maps normal.png' said "No such option '--maps'. (Did you mean one of: '--gamma',
+    # '--max-patches', '--paper'?)".
+    res = CliRunner().invoke(main, ["synth", "builtin:bricks", "--maps", str(tmp_path / "normal.png"), "-o",
+                                    str(tmp_path / "o.png")])
+    assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+    assert res.output.strip() == ("Error: synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps "
+                                  "MAP... -o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> "
+                                  "for each map"), res.output
+    assert not list(tmp_path.iterdir())

@@ -219,9 +219,10 @@ def clusters(model_file, exemplar, output, stride, quiet):
               help="Also write each step's image beside OUTPUT, at its depth: OUTPUT_guide (the coarse layout's), "
                    "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself).")
 @QUIET_OPTION
+@click.option("--maps", "maps_given", is_flag=True, hidden=True)  # fit's: said so (click offered --gamma, --paper)
 @click.pass_context
 def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, stages, quiet,
-          depth, **options):
+          depth, maps_given, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model.
 
     Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
@@ -233,6 +234,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
 
     progress = Progress(not quiet)
     with user_errors(progress):
+        if maps_given:
+            raise TGHopError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... -o "
+                             "MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> for each map")
         check_output(output, allow_stdout=True)
         check_depth(output, depth or 8)
         if output == "-" and count > 1:
