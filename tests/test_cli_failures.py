@@ -591,3 +591,21 @@ def test_another_name_of_a_commands_task_names_the_command(word, words):
     r = cli(word, "x.png")
     assert_user_error(r, f"No such command '{word}'", words)
     assert r.returncode == 2
+
+
+@pytest.mark.parametrize("args, words", [
+    (["inpaint", "a.png", "--mask", "m.png", "-o", "o.png"], "No such option '--mask'; MASK is the second argument"),
+    (["synth", "a.png", "--seamless", "-o", "o.png"], "No such option '--seamless'; for a seamless tile, give --tile"),
+    (["extend", "a.png", "--width", "512", "-o", "o.png"], "No such option '--width'; give --size HEIGHTxWIDTH"),
+    (["synth", "a.png", "--bit-depth", "16", "-o", "o.png"], "No such option '--bit-depth'; give --depth 16"),
+    (["fit", "a.png", "--mask", "m.png", "-o", "o.npz"], "No such option '--mask'; to leave part of the exemplar out, "
+                                                         "give --exclude MASK"),
+    (["info", "--width", "3", "m.npz"], "No such option '--width'.")])  # info has no --size: click's own words
+def test_another_name_of_an_option_names_the_option(args, words):
+    # click's "Did you mean" picks by spelling: --mask was sent to --maps, --seamless to --scale, --seed or
+    # --stages, --width to --depth.
+    from conftest import assert_user_error, cli
+
+    r = cli(*args)
+    assert_user_error(r, words)
+    assert r.returncode == 2 and "--maps" not in r.stderr.decode()

@@ -218,7 +218,7 @@ class OneLineGroup(click.Group):
         except click.UsageError as exc:
             command = (exc.ctx.command_path if exc.ctx is not None and exc.ctx.command is not self
                        else self._command_path(sys.argv[1:] if args is None else list(args)))
-            fail(f"{exc.format_message()} (see '{command} --help')", exc.exit_code)
+            fail(f"{_option_synonym(exc) or exc.format_message()} (see '{command} --help')", exc.exit_code)
         except click.ClickException as exc:
             fail(exc.format_message(), exc.exit_code)
         except KeyboardInterrupt as exc:
@@ -256,6 +256,32 @@ class OneLineGroup(click.Group):
             path.append(arg)
             group = command
         return " ".join(path)
+
+
+#: Other names of options that an artist types, with the option of a command that does it: click's "Did you
+#: mean" picks by spelling (--mask was sent to --maps, --seamless to --scale, --width to --depth).
+OPTION_SYNONYMS = {
+    **dict.fromkeys(("--seamless", "--tileable", "--tiled", "--wrap"), ("tile", "for a seamless tile, give --tile")),
+    **dict.fromkeys(("--width", "--height", "--resolution", "--res", "--dimensions"),
+                    ("size", "give --size HEIGHTxWIDTH (e.g. --size 512x1024: 1024 wide), or one number for a "
+                             "square")),
+    **dict.fromkeys(("--bit-depth", "--bits", "--16bit", "--16-bit"), ("depth", "give --depth 16 (or 8, or 32)")),
+    **dict.fromkeys(("--mask", "--hole"), ("mask", "MASK is the second argument: 'tghop inpaint IMAGE MASK -o OUT'")),
+}
+
+
+def _option_synonym(exc):
+    """The message of a usage error for an option that a command lacks but does under
+    another name (:data:`OPTION_SYNONYMS`), or None."""
+    name = getattr(exc, "option_name", None)
+    if not isinstance(exc, click.NoSuchOption) or exc.ctx is None or name not in OPTION_SYNONYMS:
+        return None
+    param, hint = OPTION_SYNONYMS[name]
+    if param == "mask" and exc.ctx.command.name != "inpaint":
+        param, hint = "exclude", "to leave part of the exemplar out, give --exclude MASK (its white pixels)"
+    if param not in {p.name for p in exc.ctx.command.params}:
+        return None
+    return f"No such option '{name}'; {hint}"
 
 
 #: Other names of the commands' tasks that an artist types (``tghop fill``), with the command to use.
