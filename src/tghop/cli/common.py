@@ -261,7 +261,9 @@ def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the 
                           "black")
         mask = mask[..., :-1]
     mean = mask.mean(axis=2)
-    black_white = (np.abs(mean - 0.5) > 0.5 - MASK_BLACK_WHITE) & (np.ptp(mask, axis=2) <= MASK_BLACK_WHITE)
+    sample = mask[::2, ::2]  # every other pixel: a share, at a quarter of the memory of a large mask's
+    black_white = ((np.abs(sample.mean(axis=2) - 0.5) > 0.5 - MASK_BLACK_WHITE)
+                   & (np.ptp(sample, axis=2) <= MASK_BLACK_WHITE))
     other = 1 - float(black_white.mean())
     if other > MASK_PICTURE_SHARE:  # a photograph (or IMAGE and MASK swapped): its light pixels were the hole
         order = " (IMAGE comes first, then MASK)" if label == "MASK" else ""
