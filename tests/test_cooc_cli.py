@@ -224,3 +224,60 @@ def test_help_and_readme_agree_on_the_training_time():
                  " ".join(run("baseline", "--help").stdout.decode().split()), readme):
         assert "about 15 min" in text and "2-core CPU" in text
         assert "~14 min" not in text
+
+
+# ------------------------------------------------------------------ changed checkpoints
+def _settings_json(raw, **changes):
+    import json
+
+    settings = json.loads(bytes(raw["settings_json"].numpy().tobytes()).decode())
+    for key, value in changes.items():
+        if key in settings["settings"]:
+            settings["settings"][key] = value
+        else:
+            settings[key] = value
+    return torch.frombuffer(bytearray(json.dumps(settings).encode()), dtype=torch.uint8)
+
+
+def _set(name, where, value):
+    def change(raw):
+        t = raw[name].clone()
+        t[where] = value
+        return {name: t}
+    return change
+
+
+#: (change of the checkpoint's tensors, fragment of the message)
+CHANGED = {
+    "nan centre": (_set("centres_", (0, 0), float("nan")), "centres_ has NaN or infinite values"),
+    "zero spread": (_set("spreads_", (1, 2), 0.0), "spreads_ has values not above 0"),
+    "zero condition spread": (_set("cond_std_", 0, 0.0), "cond_std_ has values not above 0"),
+    "negative exemplar tensor": (_set("exemplar_cooc_", (0, 0, 0), -1.0), "exemplar_cooc_ has negative values"),
+    "short centres": (lambda raw: {"centres_": raw["centres_"][:1]}, "spreads_ has shape"),
+    "short condition mean": (lambda raw: {"cond_mean_": raw["cond_mean_"][:2]}, "cond_mean_ has shape"),
+    "nan generator": (_set("generator_ema.net.1.weight", 0, float("nan")), "generator_ema.net.1.weight has NaN"),
+    "inf generator": (_set("generator.net.1.weight", 0, float("inf")), "generator.net.1.weight has NaN"),
+    # crops larger than the exemplar: generation tried to allocate an exabyte (a traceback)
+    "huge crops": (lambda raw: {"settings_json": _settings_json(raw, crop_size=2**30)}, "training crops of 1073741824"),
+    "negative exemplar shape": (lambda raw: {"settings_json": _settings_json(raw, exemplar_shape=[-1, 0, 3])},
+                                "exemplar shape [-1, 0, 3]"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CHANGED))
+def test_a_changed_checkpoint_is_refused_at_load_naming_what_changed(files, tmp_path, case):
+    # Such files generated nonsense with exit status 0, or failed later with an error naming no
+    # file ("a co-occurrence tensor must be finite", "an image to save has NaN"), or a traceback.
+    from tghop._common import ModelFileError
+
+    change, fragment = CHANGED[case]
+    raw = torch.load(files / "m.pt", map_location="cpu", weights_only=True)
+    torch.save({**raw, **change(raw)}, tmp_path / "changed.pt")
+    with pytest.raises(ModelFileError, match="corrupt tghop co-occurrence checkpoint") as error:
+        cooc.load(tmp_path / "changed.pt", device="cpu")
+    assert fragment in str(error.value) and "train it again" in str(error.value), str(error.value)
+    for args in (["cooc", "morph", tmp_path / "changed.pt", files / "ex.png", files / "other.png", "--length", "4"],
+                 ["cooc", "edit", tmp_path / "changed.pt", files / "ex.png", "--size", "32x32"]):
+        out = tmp_path / "o.png"
+        assert_user_error(invoke(*args, "-o", out, "-q"), "changed.pt", fragment)
+        assert not out.exists()

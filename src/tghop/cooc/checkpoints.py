@@ -142,6 +142,7 @@ def read(path, model_class, *, device: str = "auto"):
         model.step_ = int(settings["step"])
         for name in _STATISTICS:
             setattr(model, name, tensors[name].numpy())
+        _check_state(path, model, torch, tensors)
         model._to_device(torch)
         model.generator_, model.critic_ = build_networks(torch, model.exemplar_shape_[2], len(model.cond_mean_),
                                                          model.settings_)
@@ -166,3 +167,40 @@ def read(path, model_class, *, device: str = "auto"):
         raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({exc.__class__.__name__}); "
                              "train it again") from None
     return model
+
+
+def _check_state(path, model, torch, tensors) -> None:
+    """A one-line :class:`ModelFileError` where the checkpoint's statistics, exemplar shape or
+    generator weights disagree with its settings or are not finite (a changed or damaged file
+    generated nonsense, or failed at generation with an error naming no file)."""
+    p = model.settings_
+
+    def corrupt(what):
+        raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({what}); train it again")
+
+    shape = model.exemplar_shape_
+    if (len(shape) != 3 or not all(isinstance(v, int) and not isinstance(v, bool) for v in shape)
+            or min(shape[:2]) < p["crop_size"] * p["tiles"] or shape[2] < 1):
+        corrupt(f"exemplar shape {list(shape)} for training crops of {p['crop_size'] * p['tiles']} pixels")
+    k = model.centres_.shape[0] if model.centres_.ndim == 2 else 0
+    expected = {"centres_": (k, shape[2]), "spreads_": (k, shape[2]), "cond_mean_": (k * k,),
+                "cond_std_": (k * k,), "exemplar_cooc_": (k * k, shape[0] // model.s, shape[1] // model.s)}
+    if not 1 <= k <= p["n_clusters"]:
+        corrupt(f"centres_ of shape {model.centres_.shape} for n_clusters {p['n_clusters']}")
+    for name, want in expected.items():
+        value = getattr(model, name)
+        if value.shape != want:
+            corrupt(f"{name} has shape {value.shape}, not {want}")
+        if not np.isfinite(value).all():
+            corrupt(f"{name} has NaN or infinite values")
+    for name in ("spreads_", "cond_std_"):
+        if not (getattr(model, name) > 0).all():
+            corrupt(f"{name} has values not above 0")
+    if (model.exemplar_cooc_ < 0).any():
+        corrupt("exemplar_cooc_ has negative values")
+    if model.history_.ndim != 2 or model.history_.shape[1] != 5:
+        corrupt(f"history_ has shape {model.history_.shape}, not (steps, 5)")
+    for key, value in tensors.items():
+        if key.startswith(("generator.", "generator_ema.")) and value.is_floating_point() \
+                and not bool(torch.isfinite(value).all()):
+            corrupt(f"{key} has NaN or infinite values")
