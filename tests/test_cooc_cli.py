@@ -281,3 +281,17 @@ def test_a_changed_checkpoint_is_refused_at_load_naming_what_changed(files, tmp_
         out = tmp_path / "o.png"
         assert_user_error(invoke(*args, "-o", out, "-q"), "changed.pt", fragment)
         assert not out.exists()
+
+
+def test_training_crops_beyond_the_memory_are_refused_before_they_are_cut(files, tmp_path, monkeypatch):
+    # --set n_crops=1000000000 grew a list of crops until the machine ran out of memory.
+    from tghop.cooc import training
+
+    monkeypatch.setattr(training, "available_memory", lambda: 1_000_000)
+    out = tmp_path / "m.pt"
+    r = invoke("cooc", "train", files / "ex.png", "-o", out, "--steps", "1", *TINY_SET, "--set", "n_crops=100", "-q")
+    assert_user_error(r, "n_crops=100 training crops need about", "only 0.0 GB is available", "use at most n_crops=26")
+    assert not out.exists()
+    monkeypatch.setattr(training, "available_memory", lambda: None)  # unknown: not checked
+    r = invoke("cooc", "train", files / "ex.png", "-o", out, "--steps", "1", *TINY_SET, "--set", "n_crops=4", "-q")
+    assert r.exit_code == 0 and out.exists(), r.stderr

@@ -32,7 +32,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .._common import ProgressCallback, TGHopError, check_image, check_rng, check_texture, import_torch, report
+from .._common import (ProgressCallback, TGHopError, available_memory, check_image, check_rng, check_texture,
+                       import_torch, report)
 from ..cooccurrence import fit_colour_clusters
 from .networks import average_step, build_networks, join_tiles, split_tiles
 
@@ -211,6 +212,7 @@ class TrainingMixin:
         if img.shape[0] < n * t or img.shape[1] < n * t:
             raise TGHopError(f"the exemplar is {img.shape[0]}x{img.shape[1]} pixels but the training crops are "
                              f"{n * t} (crop_size {n} x tiles {t}); use a larger exemplar or a smaller crop_size")
+        self._check_crops_memory(img.shape[2])
         ys = rng.integers(img.shape[0] - n * t + 1, size=p["n_crops"])
         xs = rng.integers(img.shape[1] - n * t + 1, size=p["n_crops"])
         crops = np.stack([img[y + i * n : y + (i + 1) * n, x + j * n : x + (j + 1) * n]
@@ -235,6 +237,21 @@ class TrainingMixin:
                     block = torch.as_tensor(block.transpose(0, 3, 1, 2), dtype=torch.float32, device=self._device)
                     ctx.append(split_tiles(self._cooc_context(block, cells, cells), t))
             self._conds = torch.cat(ctx)
+
+    def _check_crops_memory(self, channels: int) -> None:
+        """A one-line :class:`TGHopError` naming ``n_crops`` where the training crops and their
+        co-occurrence tensors would not fit in the available memory (``n_crops=1000000000``
+        grew a list of views until the machine ran out of memory)."""
+        p = self.settings_
+        n, t, k = p["crop_size"], p["tiles"], p["n_clusters"]
+        # per tile: its pixels as float64 (the stack) and float32 (the tensor), its condition
+        # and target (float32; k*k cells of (n / s)**2 each), and the view that cut it
+        per_crop = t * t * (12.0 * channels * n * n + 8.0 * k * k * (n // self.s) ** 2 + 200.0)
+        avail = available_memory()
+        if avail is not None and p["n_crops"] * per_crop > avail:
+            raise TGHopError(f"n_crops={p['n_crops']:,} training crops need about {p['n_crops'] * per_crop / 1e9:,.1f} "
+                             f"GB but only {avail / 1e9:,.1f} GB is available; use at most "
+                             f"n_crops={max(1, int(avail // per_crop)):,}")
 
     def _rebuild_crops(self, torch, img, progress):
         """The training crops of a fresh fit with this seed (a resumed fit needs them again)."""
