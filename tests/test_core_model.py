@@ -1182,3 +1182,15 @@ def test_sdr_transforms_refuse_what_is_not_finite_real_numbers(core_and_z):
                 call(bad)
             assert "\n" not in str(info.value)
     np.testing.assert_array_equal(s.transform(Y.tolist()), z)
+
+
+@pytest.mark.parametrize("size, said", [(np.zeros((72, 72, 3)), "got an array of shape (72, 72, 3) (float64)"),
+                                        (list(range(100)), "got list '[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10"),
+                                        (np.array([1.5, 2.0]), "got array([1.5, 2. ])"),
+                                        ((1.5, 2), "got (1.5, 2)")])
+def test_a_size_that_is_not_two_integers_is_named_in_one_short_line(small_model, size, said):
+    # synthesize(image), an image where the size goes, quoted the whole array: a message of many lines.
+    with pytest.raises(TGHopError) as error:
+        small_model.synthesize(size, rng=0)
+    message = str(error.value)
+    assert "\n" not in message and len(message) < 200 and said in message, message

@@ -465,6 +465,15 @@ def _std_uint8(img) -> float:
 MAX_PIXELS = 2**26
 
 
+def _brief(value) -> str:
+    """``value`` for a one-line message: an array by its shape and type (its repr is many
+    lines: ``synthesize(image)`` quoted every pixel), anything else by a repr of at most 60 characters."""
+    if isinstance(value, np.ndarray) and value.size > 4:
+        return f"an array of shape {value.shape} ({value.dtype})"
+    text = repr(value)
+    return text if len(text) <= 60 and "\n" not in text else f"{type(value).__name__} {text[:60]!r}..."
+
+
 def check_size(size, *, default=None, limit: Optional[int] = MAX_PIXELS, name: str = "size") -> tuple:
     """An output size as ``(height, width)``, or a one-line :class:`TGHopError`.
 
@@ -497,7 +506,7 @@ def check_size(size, *, default=None, limit: Optional[int] = MAX_PIXELS, name: s
     if len(dims) != 2 or not all(
         isinstance(d, (numbers.Integral, np.integer)) and not isinstance(d, (bool, np.bool_)) for d in dims
     ):
-        raise TGHopError(f"{name} must be two integers (height, width), got {size!r}")
+        raise TGHopError(f"{name} must be two integers (height, width), got {_brief(size)}")
     h, w = int(dims[0]), int(dims[1])
     if h < 1 or w < 1:
         raise TGHopError(f"{name} must be positive, got {h}x{w}; give a height and width of at least 1 pixel")
