@@ -2,6 +2,8 @@
 ``--exclude``), on textures made in code."""
 
 
+import warnings
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -185,6 +187,14 @@ def test_masks_and_arguments_are_checked_as_documented(model, cells, square):
             inpaint(model, cells, mask, **fast)
     with pytest.raises(TGHopError, match=r"the mask is 96x96x3x1 but the image is 96x96"):
         check_hole(np.zeros((96, 96, 3, 1), bool), (96, 96))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a mask of no channels warned "Mean of empty slice" first
+        with pytest.raises(TGHopError, match=r"the mask is 96x96x0 but the image is 96x96"):
+            check_hole(np.zeros((96, 96, 0)), (96, 96))
+    # an empty image was grown to a canvas all hole: a texture with nothing of the image kept
+    for empty in (cells[:0], cells[:, :0], cells[..., :0]):
+        with pytest.raises(TGHopError, match=r"the image is empty \(shape"):
+            extend(model, empty, (120, 120), **fast)
     for tile in ("no", 2, None):  # synthesize's rule (the settings table): 0 and 1 are taken
         with pytest.raises(TGHopError, match="tile must be True or False"):
             inpaint(model, cells, square, tile=tile, **fast)

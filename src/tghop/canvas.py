@@ -54,6 +54,8 @@ def expand_canvas(image, size, *, anchor="center", patch_size=None):
     arr = np.asarray(image)
     if arr.ndim not in (2, 3):
         raise TGHopError(f"image must have shape (H, W) or (H, W, C), got {arr.shape}")
+    if arr.size == 0:  # it was grown to a canvas all hole: a texture, with none of the image kept
+        raise TGHopError(f"the image is empty (shape {arr.shape}); give an image of at least one pixel")
     if anchor not in ANCHORS:
         raise TGHopError(f"anchor must be one of {', '.join(ANCHORS)}; got {anchor!r}")
     hh, ww = check_size(size)

@@ -96,7 +96,7 @@ def check_hole(mask, shape) -> np.ndarray:
         raise TGHopError(f"the mask must be numbers or booleans, got dtype {arr.dtype}")
     if arr.dtype.kind == "f" and not np.isfinite(arr).all():
         raise TGHopError("the mask has NaN or infinite values; give True (or 1) in the hole and False (0) elsewhere")
-    if arr.ndim == 3:
+    if arr.ndim == 3 and arr.shape[2]:  # no channels: refused as of another shape below (a mean of none was NaN)
         arr = arr.mean(axis=2)
     if arr.dtype != bool:
         arr = arr > (LEVELS[original.dtype] / 2 if original.dtype in LEVELS else 0.5)
