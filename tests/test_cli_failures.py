@@ -123,6 +123,12 @@ CASES = [
     (["synth", "model.npz", "-o", "o.png", "-N", "9", "--gamma", "0.1"], ["--clusters", "--gamma", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "--save-model", "again.npz"], ["--save-model", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "--fit-seed", "3"], ["--fit-seed", "saved model"]),
+    # the albedo given as one of its own maps (a material with the albedo twice; batch's manifest refused it)
+    (["fit", "bricks.png", "--maps", "bricks.png", "-o", "m.npz", *FAST], ["--maps bricks.png is EXEMPLAR itself"]),
+    (["extend", "bricks.png", "--maps", "./bricks.png", "--size", "96x96", "-o", "o.png"],
+     ["MAP ./bricks.png is IMAGE itself"]),
+    (["inpaint", "bricks.png", "two_levels.png", "--maps", "bricks.png", "-o", "o.png"],
+     ["MAP bricks.png is IMAGE itself", "give the map's own file"]),
     # usage errors are one line too
     (["synth"], ["SOURCE", "--help"]),
     (["fit", "bricks.png", "-o", "m.npz", "--bogus"], ["--bogus"]),

@@ -422,6 +422,18 @@ def numbered(path: str, count: int):
     return [str(p.with_name(f"{p.stem}_{i:0{width}d}{p.suffix}")) for i in range(1, count + 1)]
 
 
+def refuse_albedo_as_map(paths, albedo_path, *, label: str = "MAP", albedo: str = "IMAGE") -> None:
+    """A one-line error where a map's file is the albedo's own (the manifest of ``tghop batch``
+    refuses it too): the material had the albedo twice, one copy as a map."""
+    for path in paths:
+        try:
+            same = os.path.samefile(path, albedo_path)
+        except OSError:  # a missing file: said where it is read
+            continue
+        if same:
+            raise TGHopError(f"{label} {path} is {albedo} itself, the albedo; give the map's own file")
+
+
 def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
     """The names of the maps in files ``paths`` (:func:`tghop.material.map_name`), or a one-line
     error where two are one name (in any case) or one is the albedo's (``label``: what the

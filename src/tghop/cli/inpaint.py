@@ -10,7 +10,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, map_names,
-                     user_errors, warn_lost_depth)
+                     refuse_albedo_as_map, user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -326,6 +326,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     if source is not None and not (source.lower().endswith(".npz") or is_model_file(source)):
         raise TGHopError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit ALBEDO "
                          "--maps ...), or leave --source out to fit one on IMAGE and its maps")
+    refuse_albedo_as_map(map_paths, image)
     others = ([] if mask is None else [("MASK", mask)]) + [("MAP", m) for m in map_paths]
     picture, alpha, depth_albedo, _, image_depth = _open(image, output, source, scale, depth, others=others,
                                                          maps=True)

@@ -11,8 +11,8 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_model_file, load_exemplar, load_mask, map_names, numbered, summary, user_errors,
-                     warn_written_with_8, write_materials)
+                     is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map, summary,
+                     user_errors, warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -57,6 +57,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
         return load_image(path, dtype=None, downscale=downscale, with_depth=True,
                           too_large_hint=HINT_DOWNSCALE_OPTION)
 
+    refuse_albedo_as_map(map_paths, spec, label="--maps", albedo="EXEMPLAR")
     albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
