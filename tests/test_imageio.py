@@ -530,3 +530,25 @@ def test_save_images_writes_through_links_and_rolls_them_back(tmp_path, monkeypa
     save_images([(img, tmp_path / "link.png", 8), (img, tmp_path / "second.png", 8)])
     assert os.path.islink(tmp_path / "link.png") and os.listdir(tmp_path / "real") == ["old.png"]
     np.testing.assert_array_equal(load_image(tmp_path / "real" / "old.png"), to_uint8(img) / 255.0)
+
+
+def test_an_unreadable_image_says_why_in_words(tmp_path):
+    # Each said only the class name of Pillow's exception: "(OSError)" for a download cut short,
+    # "(UnidentifiedImageError)" for an empty file and for a NumPy array file alike.
+    from tghop import InvalidImageError
+    from tghop.imageio import save_image
+
+    save_image(np.random.default_rng(0).random((40, 40, 3)), tmp_path / "whole.png")
+    blob = (tmp_path / "whole.png").read_bytes()
+    (tmp_path / "cut.png").write_bytes(blob[: len(blob) // 2])
+    (tmp_path / "empty.png").write_bytes(b"")
+    np.save(tmp_path / "array.npy", np.zeros((4, 4)))
+    (tmp_path / "notes.png").write_text("hello")
+    for name, why in (("cut.png", "(truncated or corrupt: OSError: image file is truncated)"),
+                      ("empty.png", "(the file is empty)"),
+                      ("array.npy", "(a NumPy array file (.npy), not an image)"),
+                      ("notes.png", "(not an image format tghop reads)")):
+        with pytest.raises(InvalidImageError) as error:
+            load_image(tmp_path / name)
+        assert str(error.value) == f"{tmp_path / name}: not a readable image {why}; give a PNG, JPEG or other " \
+                                   "common image file", str(error.value)

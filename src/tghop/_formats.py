@@ -2,7 +2,8 @@
 :mod:`tghop.imageio` writes by and every message and ``--help`` text names (no imports:
 the command line's help is made from it without loading NumPy)."""
 
-__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "TIFF_HINT", "check_tifffile"]
+__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "TIFF_HINT", "check_tifffile",
+           "why_unreadable"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -43,3 +44,21 @@ def check_tifffile(path, depth):
         from ._errors import MissingExtraError
 
         raise MissingExtraError(f"{path}: writing a {depth}-bit colour TIFF needs tifffile: {TIFF_HINT}") from None
+
+
+def why_unreadable(path, exc) -> str:
+    """Why Pillow could not read the image at ``path`` (raising ``exc``), in a few words: the
+    exception's class name alone ("OSError") did not say that a download was cut short."""
+    from PIL import UnidentifiedImageError
+
+    if not isinstance(exc, UnidentifiedImageError):
+        return f"truncated or corrupt: {exc.__class__.__name__}" + (f": {str(exc)[:80]}" if str(exc) else "")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError:
+        head = b""
+    if not head:
+        return "the file is empty"
+    return "a NumPy array file (.npy), not an image" if head.startswith(b"\x93NUMPY") else \
+        "not an image format tghop reads"

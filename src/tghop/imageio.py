@@ -16,7 +16,7 @@ import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image
 from ._errors import ImageTooLargeError
-from ._formats import DEPTHS, FORMATS, TIFF_HINT, check_tifffile, extensions
+from ._formats import DEPTHS, FORMATS, TIFF_HINT, check_tifffile, extensions, why_unreadable
 from .png import decode_png16, write_png
 from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
@@ -106,7 +106,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
             struct.error, ZeroDivisionError, zlib.error) as exc:
-        raise InvalidImageError(f"{path}: not a readable image ({exc.__class__.__name__}); "
+        raise InvalidImageError(f"{path}: not a readable image ({why_unreadable(path, exc)}); "
                                 "give a PNG, JPEG or other common image file") from None
     if not keep_alpha and (mode in ("RGBA", "LA", "PA", "RGBa", "La") or mode == "P+transparency"):
         warnings.warn(f"{path.name}: alpha channel dropped", UserWarning, stacklevel=2)
