@@ -432,3 +432,17 @@ def test_directions_within_the_tolerance_of_unit_length_load(saved, tmp_path):
     _write(tmp_path / "d.npz", {**arrays, "patch.directions": arrays["patch.directions"] * scale,
                                 "layout.patch.directions": arrays["layout.patch.directions"] / scale})
     assert load_model(tmp_path / "d.npz").patches_ is not None
+
+
+def test_an_array_of_objects_and_a_file_of_text_are_named_as_such(saved, tmp_path):
+    # Both said "truncated, corrupt or not a tghop model file (cannot read it: ValueError); fit the
+    # model again": NumPy's refusal to unpickle, which a text file meets too.
+    path, arrays = saved
+    _write(tmp_path / "objects.npz", {**arrays, "hop1.kernels": np.array([{"a": 1}], dtype=object)})
+    with pytest.raises(ModelFileError) as error:
+        load_model(tmp_path / "objects.npz")
+    assert str(error.value) == (f"{tmp_path / 'objects.npz'}: not a tghop model file (an array of Python objects, "
+                                "which tghop does not unpickle); give a model file tghop wrote")
+    (tmp_path / "notes.npz").write_text("hello\n")
+    with pytest.raises(ModelFileError, match=r"notes\.npz: not a tghop model file \(not a NumPy archive\)"):
+        load_model(tmp_path / "notes.npz")

@@ -31,6 +31,7 @@ import numpy as np
 
 from . import __version__
 from ._common import ModelFileError, TGHopError
+from ._formats import is_model_file
 from .imageio import check_output_path, write_atomic
 from .material import Material
 from .settings import fit_seed
@@ -145,6 +146,10 @@ def _read(path):
         if is_image(path):
             raise ModelFileError(f"{path} is an image, not a model file; fit a model from it first "
                                  f"('tghop fit {path} -o model.npz', or TGHop().fit and save_model)") from None
+        if isinstance(exc, ValueError) and "allow_pickle" in str(exc):  # NumPy's word for "not .npy, not .npz"
+            why = ("an array of Python objects, which tghop does not unpickle" if is_model_file(path)
+                   else "not a NumPy archive")
+            raise ModelFileError(f"{path}: not a tghop model file ({why}); give a model file tghop wrote") from None
         raise ModelFileError(
             f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); "
             "fit the model again"
