@@ -552,3 +552,19 @@ def test_an_unreadable_image_says_why_in_words(tmp_path):
             load_image(tmp_path / name)
         assert str(error.value) == f"{tmp_path / name}: not a readable image {why}; give a PNG, JPEG or other " \
                                    "common image file", str(error.value)
+
+
+@pytest.mark.parametrize("name", ["moving.gif", "pages.tif"])
+def test_a_file_of_several_frames_warns_that_the_first_is_read(tmp_path, name):
+    # An animated GIF and a TIFF of several pages were read (the first frame) without a word.
+    import warnings
+
+    frames = [Image.fromarray(np.full((8, 8, 3), v, np.uint8)) for v in (10, 200, 90)]
+    frames[0].save(tmp_path / name, save_all=True, append_images=frames[1:])
+    frames[0].save(tmp_path / ("one" + name[-4:]))
+    with pytest.warns(UserWarning, match=rf"^{name}: 3 frames \(or pages\); only the first is read$"):
+        image = load_image(tmp_path / name, dtype=None)
+    assert (image == 10).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_image(tmp_path / ("one" + name[-4:]))

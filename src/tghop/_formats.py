@@ -3,7 +3,7 @@
 the command line's help is made from it without loading NumPy)."""
 
 __all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "TIFF_HINT", "check_tifffile",
-           "why_unreadable"]
+           "why_unreadable", "warn_frames"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -62,3 +62,14 @@ def why_unreadable(path, exc) -> str:
         return "the file is empty"
     return "a NumPy array file (.npy), not an image" if head.startswith(b"\x93NUMPY") else \
         "not an image format tghop reads"
+
+
+def warn_frames(path, count) -> None:
+    """Warn that only the first of an image file's ``count`` frames is read (an animated GIF, a
+    TIFF of several pages: each was read without a word)."""
+    if count > 1:
+        import os
+        import warnings
+
+        warnings.warn(f"{os.path.basename(path)}: {count} frames (or pages); only the first is read", UserWarning,
+                      stacklevel=4)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image
 from ._errors import ImageTooLargeError
-from ._formats import DEPTHS, FORMATS, TIFF_HINT, check_tifffile, extensions, why_unreadable
+from ._formats import DEPTHS, FORMATS, TIFF_HINT, check_tifffile, extensions, warn_frames, why_unreadable
 from .png import decode_png16, write_png
 from .profiles import deep_to_srgb, tiff_profile, to_srgb
 
@@ -182,7 +182,7 @@ def _read_deep(path, max_pixels, keep_alpha=False):
     except Exception:  # noqa: BLE001 - a TIFF tifffile cannot parse: Pillow's path (its error if any)
         return None
     with tif:
-        page = tif.pages[0]
+        page, _ = tif.pages[0], warn_frames(path, len(tif.pages))
         layout = _tiff_layout(page, path)
         if layout is None:
             return None
@@ -326,6 +326,7 @@ def _decode(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
             im = small
     else:
         im.load()
+    warn_frames(path, getattr(im, "n_frames", 1))
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
     im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
     mode = im.mode
