@@ -123,6 +123,9 @@ CASES = [
     (["synth", "model.npz", "-o", "o.png", "-N", "9", "--gamma", "0.1"], ["--clusters", "--gamma", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "--save-model", "again.npz"], ["--save-model", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "--fit-seed", "3"], ["--fit-seed", "saved model"]),
+    # an empty --save-model was taken for none: the image written, the model not, exit status 0
+    (["synth", "bricks.png", "-o", "o.png", "--save-model", "", *FAST],
+     ["--save-model: the model's file name is empty"]),
     # the albedo given as one of its own maps (a material with the albedo twice; batch's manifest refused it)
     (["fit", "bricks.png", "--maps", "bricks.png", "-o", "m.npz", *FAST], ["--maps bricks.png is EXEMPLAR itself"]),
     (["extend", "bricks.png", "--maps", "./bricks.png", "--size", "96x96", "-o", "o.png"],

@@ -111,7 +111,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     from ..imageio import generation_dtype, save_image
     from .options import FIT_OPTION_PARAMS, given_options
 
-    if save_model:
+    if save_model is not None:
         raise TGHopError("--save-model takes one exemplar; save each model with 'tghop fit' and give the .npz files")
     if exclude:
         raise TGHopError("--exclude takes one exemplar; fit each with 'tghop fit --exclude' and give the .npz files")

@@ -265,7 +265,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
-        if save_model and not from_model:
+        if save_model is not None and not from_model:
             click.echo(f"model written to {save_model}", err=True)
 
 
@@ -306,7 +306,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
             check_output(path)
     for path in (p for paths in staged for p in paths.values()):
         check_output(path)
-    if save_model and not from_model:
+    if save_model is not None and not from_model:
         check_model_output(save_model, "--save-model")
     check_outputs([("-o", path) for path in outputs] + [("--stages", p) for paths in staged for p in paths.values()]
                   + [("--save-model", save_model)], [("SOURCE", source), ("--exclude", exclude)])
@@ -339,7 +339,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         refuse_patch_refine_without_statistics(ctx, generation, planned)
         model = fit_exemplar(source, options, exclude=exclude, downscale=downscale, progress=progress,
                              deep_warning=None if depth else "SOURCE", output=output, depth=depth or 8)
-        if save_model:
+        if save_model is not None:
             write_model(model, save_model)
     import warnings
 
