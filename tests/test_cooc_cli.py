@@ -295,3 +295,15 @@ def test_training_crops_beyond_the_memory_are_refused_before_they_are_cut(files,
     monkeypatch.setattr(training, "available_memory", lambda: None)  # unknown: not checked
     r = invoke("cooc", "train", files / "ex.png", "-o", out, "--steps", "1", *TINY_SET, "--set", "n_crops=4", "-q")
     assert r.exit_code == 0 and out.exists(), r.stderr
+
+
+def test_an_empty_checkpoint_name_is_said_so(files, tmp_path):
+    # It said ".: no such checkpoint; ... or 'tghop cooc train EXEMPLAR -o '" (Path("") is the current folder).
+    from tghop._common import ModelFileError
+
+    with pytest.raises(ModelFileError, match="^the checkpoint's file name is empty; give one$"):
+        cooc.load("")
+    out = tmp_path / "o.png"
+    assert_user_error(invoke("baseline", "cooc", files / "ex.png", "--model", "", "-o", out, "-q"),
+                      "the checkpoint's file name is empty")
+    assert not out.exists()

@@ -110,6 +110,8 @@ def read(path, model_class, *, device: str = "auto"):
     TGHopError
         An unknown ``device``, or CUDA where there is none.
     """
+    if not str(path).strip():  # Path("") is the current folder: ".: no such checkpoint"
+        raise ModelFileError("the checkpoint's file name is empty; give one")
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such checkpoint; check the path, or train one (CoocGAN().fit(exemplar)"
