@@ -618,3 +618,11 @@ def test_another_name_of_an_option_names_the_option(args, words):
     r = cli(*args)
     assert_user_error(r, words)
     assert r.returncode == 2 and "--maps" not in r.stderr.decode()
+
+
+def test_a_file_name_with_a_newline_is_still_a_one_line_error(folder):
+    # A name's newline printed as it is made the error two lines (the second without "Error: ").
+    code, _, err, exc = invoke("synth", "no\nsuch.png", "-o", "out.png", cwd=folder)
+    assert_one_line(code, err, "no\\nsuch.png", exception=exc)
+    assert len(err.strip().splitlines()) == 1, err
+    assert not (folder / "out.png").exists()

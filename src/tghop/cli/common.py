@@ -85,9 +85,14 @@ class Progress:
             self.stage = None
 
 
+#: Control characters (a newline in a file's name, say) as Python writes them in a string: an error stays one line.
+_CONTROL = {c: repr(chr(c))[1:-1] for c in (*range(32), 127)}
+
+
 def fail(message: str, code: int = 1):
+    """Print ``Error: message`` on one line (control characters escaped) and exit with ``code``."""
     try:
-        click.echo(f"Error: {message}", err=True)
+        click.echo(f"Error: {message.translate(_CONTROL)}", err=True)
     except BrokenPipeError:  # stderr's reader went away: the exit status still says it failed
         pass
     sys.exit(code)
