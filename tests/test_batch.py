@@ -200,6 +200,19 @@ def test_bad_run_arguments_are_refused_before_any_file(tmp_path):
         batch.run(src, None, workers=1)
 
 
+def test_a_local_cluster_of_too_many_workers_is_refused_before_it_starts(tmp_path):
+    # `--workers 1000000` (a typo) kept the run making worker processes for ever, Ctrl-C ignored
+    # while a cluster starts; one line now, before any file (the most: 4 per core).
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    too_many = batch.WORKERS_PER_CORE * len(os.sched_getaffinity(0)) + 1
+    with pytest.raises(TGHopError, match=rf"\(workers, --workers\): {too_many} on this machine's"):
+        batch.run(src, out, workers=too_many, task=_no_work)
+    assert not out.exists()
+    code, _, err, exc = invoke("batch", "src", "-o", "out", "--workers", too_many, *CLI_FAST, cwd=tmp_path)
+    assert_one_line(code, err, f"at most {too_many - 1} (4 per core", exception=exc)
+    assert not out.exists()
+
+
 def test_a_small_exemplar_is_told_the_fits_minimum(tmp_path):
     # The fit's check (the smallest exemplar that works), as synth and fit say, whatever the size.
     src = tmp_path / "src"

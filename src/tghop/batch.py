@@ -42,7 +42,7 @@ from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
            "inputs_sha256", "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT",
-           "WORKER_MALLOC", "WORKER_ENVIRON", "tune_malloc", "dask_setup"]
+           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
@@ -62,6 +62,10 @@ WORKER_MALLOC = {"M_MMAP_MAX": 0, "M_TRIM_THRESHOLD": 1 << 30}
 #: keeps large arrays in: a thread's own arena maps anything above 64 MB). glibc reads it at
 #: start only; a value of one's own in the environment is kept.
 WORKER_ENVIRON = {"MALLOC_ARENA_MAX": "1"}
+#: A local cluster's worker processes per usable core at most (:func:`run`'s ``workers``): each
+#: exemplar runs on one core, so more only share the cores and the memory (a typo's million
+#: worker processes kept the run starting for ever, with Ctrl-C ignored while a cluster starts).
+WORKERS_PER_CORE = 4
 _MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_MAX": -4}  # glibc's malloc.h
 #: Each WORKER_MALLOC setting's environment variable, and the value Dask puts there (None: none).
 _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("MALLOC_TRIM_THRESHOLD_", "65536")}
@@ -548,7 +552,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         with a warning where Dask is not installed), which import the calling script: call ``run``
         under its ``if __name__ == "__main__":``. On a cluster (also a
         given one) each exemplar runs on one thread (BLAS's and tghop's own), the longest first.
-        Ignored when ``client`` or ``scheduler`` is given.
+        At most :data:`WORKERS_PER_CORE` per usable core. Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
         Run on this client's cluster.
     scheduler : str, optional
@@ -576,6 +580,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         ``skipped`` (True: done by an earlier run).
     """
     _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task})
+    most = WORKERS_PER_CORE * _cores()
+    if client is None and scheduler is None and workers is not None and workers > most:
+        raise TGHopError(f"the worker processes (workers, --workers): {workers} on this machine's {_cores()} cores; "
+                         f"a local cluster takes at most {most} ({WORKERS_PER_CORE} per core: each exemplar runs on "
+                         "one core); give fewer, none for one per core, or a scheduler's cluster")
     outdir = Path(os.path.abspath(outdir))
     items = find_work(source, outdir)
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),

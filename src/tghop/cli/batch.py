@@ -44,8 +44,8 @@ class BatchProgress(Progress):
 @generation_options
 @model_options
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Worker processes of the local Dask cluster [default: one per core]; 1 runs in this "
-                   "process, without Dask.")
+              help="Worker processes of the local Dask cluster [default: one per core; at most 4 per core]; 1 runs "
+                   "in this process, without Dask.")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Run on an existing dask.distributed scheduler (e.g. tcp://host:8786) instead.")
 @click.option("--retries", type=click.IntRange(min=0, max=20), default=3, show_default=True,
