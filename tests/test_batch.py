@@ -395,6 +395,24 @@ def test_accented_names_keep_their_letters(tmp_path):
     assert len(set(names)) == 4 and all(re.fullmatch(r"[A-Za-z0-9._-]+", n) for n in names), names
 
 
+def test_an_exemplar_deep_in_folders_gets_a_name_its_files_fit(tmp_path):
+    # Folders joined by "__" made a name of 264 characters: "File name too long" for a good
+    # exemplar. A long path's name is its start and a hash; a long given name is refused.
+    src, out = tmp_path / "src", tmp_path / "out"
+    deep = src / ("a" * 100) / ("b" * 100)
+    deep.mkdir(parents=True)
+    save_image(data.bricks(64, rng=3), deep / ("c" * 60 + ".png"))
+    save_image(data.cells(64, rng=4), deep / ("c" * 60 + ".jpg"))  # the same name, then its extension
+    results = run(src, out, workers=1, count=2)
+    assert [r["status"] for r in results] == ["ok", "ok"], [r["error"] for r in results]
+    names = [r["name"] for r in results]
+    assert len(set(names)) == 2 and all(len(n) <= batch.NAME_MAX and n.startswith("a" * 100) for n in names)
+    assert all((out / f).is_file() for r in results for f in r["outputs"])
+    (tmp_path / "m.csv").write_text(f"path,name\nsrc/x.png,{'n' * 161}\n")
+    with pytest.raises(TGHopError, match="m.csv line 2: the name 'nnn.*is 161 characters long"):
+        run(tmp_path / "m.csv", out, workers=1, task=_no_work)
+
+
 def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     src, out = tmp_path / "src", tmp_path / "out"
     (src / "sub").mkdir(parents=True)

@@ -42,7 +42,7 @@ from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
            "inputs_sha256", "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT",
-           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "tune_malloc", "dask_setup"]
+           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "NAME_MAX", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
@@ -99,6 +99,11 @@ def _scan_folder(folder: Path, outdir: Path):
     return items
 
 
+#: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
+#: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
+NAME_MAX = 160
+
+
 def _safe(text: str) -> str:
     # Accents dropped first (NFKD: "é" is "e" and a combining mark), so that "béans" is "beans", not "b_ans".
     text = "".join(ch for ch in unicodedata.normalize("NFKD", text) if not unicodedata.combining(ch))
@@ -111,14 +116,18 @@ def _unique_names(items):
     """A folder name per exemplar. A name a manifest row gives is kept (made safe for a
     file name: ``_`` for other characters); two that are one folder name, compared without
     case, are a :class:`TGHopError` naming both lines. Others: the path without the
-    extension, folders joined by ``__`` (``a/x.png`` -> ``a__x``); a name taken (by
-    another exemplar or a given name) gets its extension, then a short hash of the path,
-    then a number."""
+    extension, folders joined by ``__`` (``a/x.png`` -> ``a__x``; over 140 characters, its
+    first 131 and a short hash of the path); a name taken (by another exemplar or a given
+    name) gets its extension, then a short hash of the path, then a number. No name is longer
+    than :data:`NAME_MAX` (a longer given one is refused)."""
     given = {}
     for it in items:
         if not it.get("named"):
             continue
         it["name"] = _safe(it["name"])
+        if len(it["name"]) > NAME_MAX:
+            raise TGHopError(f"{it['where']}: the name {it['given'][:40]!r}... is {len(it['name'])} characters long; "
+                             f"its files could not be named (at most {NAME_MAX}); give a shorter name")
         other = given.setdefault(it["name"].lower(), it)
         if other is not it:
             raise TGHopError(f"{it['where']}: the name {it['given']!r} and {other['where']}'s {other['given']!r} are "
@@ -127,6 +136,8 @@ def _unique_names(items):
     for it in free:
         rel = it["rel"]
         it["name"] = _safe("__".join(rel.parts[:-1] + (rel.stem,)))
+        if len(it["name"]) > NAME_MAX - 20:  # a deep path: its start and a hash (the steps below add up to 20)
+            it["name"] = it["name"][:NAME_MAX - 29] + "_" + hashlib.sha256(str(rel).encode()).hexdigest()[:8]
     for step in ("suffix", "hash"):
         seen = {}
         for it in free:
