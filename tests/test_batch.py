@@ -976,6 +976,34 @@ def test_ctrl_c_with_a_scheduler_address_leaves_the_cluster_running(tmp_path, ow
     assert not leftovers(out)
 
 
+def test_a_driver_killed_while_its_tasks_run_on_a_scheduler_leaves_them_to_be_redone(tmp_path, cluster):
+    # `tghop batch --scheduler` killed (kill -9, out of memory): its tasks run on without it and move
+    # seed 2's files into place with no ledger line; a rerun with seed 1 took them for the earlier
+    # line's (seed 1) and kept them. The folder's RUNNING file, made at the hand-out, says so now.
+    local, client = cluster
+    make_folder(tmp_path / "src", bad=False)
+    out = tmp_path / "out"
+    args = ["batch", "src", "-o", "out", "--scheduler", local.scheduler_address, "--size", "48", "--count", "2",
+            *CLI_FAST]
+    assert subprocess.run([sys.executable, "-m", "tghop", *args, "--seed", "1"], cwd=tmp_path, timeout=120,
+                          capture_output=True).returncode == 0
+    seed_1 = {p: p.read_bytes() for p in out.rglob("*.png")}
+    p = subprocess.Popen([sys.executable, "-m", "tghop", *args, "--seed", "2"], cwd=tmp_path,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while time.time() < deadline and p.poll() is None and not any(out.glob("*/.partial.*.tmp")):
+        time.sleep(0.01)
+    p.kill()  # while a task makes its files
+    p.wait()
+    _wait_idle(client)
+    assert any(path.read_bytes() != seed_1[path] for path in seed_1)  # a task ran on: seed 2's files
+    again = subprocess.run([sys.executable, "-m", "tghop", *args, "--seed", "1"], cwd=tmp_path, timeout=120,
+                           capture_output=True)
+    assert again.returncode == 0, again.stderr.decode()
+    assert {p: p.read_bytes() for p in out.rglob("*.png")} == seed_1
+    assert not list(out.rglob(batch.RUNNING)) and not leftovers(out)
+
+
 def probe_threads(job):
     """The task, noting how many threads tghop and BLAS may use while it fits."""
     from threadpoolctl import threadpool_info

@@ -42,7 +42,7 @@ from .manifest import parse_bool, parse_int, parse_size, read_manifest
 
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
            "inputs_sha256", "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT",
-           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "NAME_MAX", "tune_malloc", "dask_setup"]
+           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "NAME_MAX", "RUNNING", "tune_malloc", "dask_setup"]
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
@@ -99,6 +99,10 @@ def _scan_folder(folder: Path, outdir: Path):
     return items
 
 
+#: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
+#: an exemplar that has one (the run that wrote it was killed, its task may have run on and
+#: replaced the files an earlier line lists: a given cluster's task runs on without its client).
+RUNNING = ".batch-running"
 #: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
 #: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
 NAME_MAX = 160
@@ -315,6 +319,8 @@ def _append_ledger(fh, record: dict):
 def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
     if not prev or prev.get("status") != "ok" or prev.get("sha256") != job["sha256"]:
         return False
+    if os.path.lexists(os.path.join(job["folder"], RUNNING)):  # handed out by a run killed before its line
+        return False
     if prev.get("settings") != job["settings"]:
         return False
     # A model and no empty output name, and every file the line lists (the thumbnail too: the
@@ -326,6 +332,18 @@ def _is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
 def _listed_files(rec: dict) -> list:
     """The files (relative to OUTDIR) a ledger line lists: images, model, thumbnail."""
     return [f for f in [*(rec.get("outputs") or []), rec.get("model"), rec.get("thumbnail")] if f]
+
+
+def _mark_running(job, on: bool) -> None:
+    """Make (``on``) or remove the exemplar's :data:`RUNNING` file (its folder made as needed;
+    one that cannot be made: its task fails and says why)."""
+    path = Path(job["folder"]) / RUNNING
+    with contextlib.suppress(OSError):
+        if on:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.touch()
+        else:
+            path.unlink()
 
 
 def _remove_stale(outdir: Path, earlier: set, rec: dict) -> None:
@@ -656,12 +674,17 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results)}
     started = {}  # name -> job: handed out, no ledger line yet
 
+    def begin(job):
+        _mark_running(job, True)  # before the task can move any file into place
+        started[job["name"]] = job
+
     def finish(job, record):
         rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
                **record}
         rec["finished"] = time.time()
         _append_ledger(ledger_file, rec)
         started.pop(job["name"], None)
+        _mark_running(job, False)
         if rec["status"] == "ok":
             _remove_stale(outdir, earlier_files.get(job["name"], ()), rec)
         results[job["name"]] = {**rec, "skipped": False}
@@ -680,12 +703,12 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if in_process:
             for job in jobs:
                 counts["running"] = 1
-                started[job["name"]] = job
+                begin(job)
                 finish(job, task(job))
             counts["running"] = 0
         elif jobs:
             _run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
-                             retries=retries, started=started)
+                             retries=retries, begin=begin)
     finally:
         if ledger_file is not None:
             # A second Ctrl-C must not leave a started exemplar without its line; a full disk must not
@@ -694,6 +717,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                 for job in list(started.values()):
                     _append_ledger(ledger_file, {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
                                                  "settings": job["settings"], **_interrupted_record(job)})
+                    _mark_running(job, False)  # the line says it now
             with contextlib.suppress(OSError):  # every line was flushed when appended
                 ledger_file.close()
         for job in jobs:
@@ -746,10 +770,10 @@ def _connect(scheduler):
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
 
 
-def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, started):
+def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
-    handed out goes into ``started`` (by name); ``finish`` takes it out."""
+    goes to ``begin`` before it is handed out; ``finish`` takes its result."""
     distributed = _import_distributed()
     own_cluster = None
     futures = []
@@ -773,9 +797,9 @@ def _run_distributed(jobs, finish, counts, task, *, workers, client, own_client,
                 if job is None:
                     break
                 key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
+                begin(job)
                 fut = client.submit(task, job, key=key, pure=False)
                 by_key[fut.key] = job
-                started[job["name"]] = job
                 futures.append(fut)
                 running.add(fut)
             counts["running"] = running.count()
