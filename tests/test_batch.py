@@ -136,6 +136,20 @@ def test_folders_linked_into_source_are_scanned_once(tmp_path):
     assert found == ["a.png", os.path.join("rock", "r.png")]
 
 
+def test_a_named_pipe_is_no_exemplar_but_a_broken_link_is_said(tmp_path):
+    # A FIFO named like an image was hashed before any work: the run waited for ever on it.
+    (tmp_path / "a.png").write_bytes(b"x")
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no named pipes here")
+    os.mkfifo(tmp_path / "pipe.png")
+    try:
+        (tmp_path / "gone.png").symlink_to(tmp_path / "nowhere.png")
+        (tmp_path / "self.png").symlink_to(tmp_path / "self.png")  # a loop
+    except OSError:
+        pytest.skip("no symbolic links here")
+    assert sorted(it["name"] for it in batch.find_work(tmp_path)) == ["a", "gone", "self"]
+
+
 def _no_work(job):
     raise AssertionError(f"{job['name']} was run; the settings should have been refused first")
 

@@ -74,7 +74,8 @@ _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("M
 # ------------------------------------------------------------------ finding work
 def _scan_folder(folder: Path, outdir: Path):
     """The images of ``folder``, recursively, symbolic links to folders followed (each folder
-    once: a link back up is no loop); hidden files and folders are skipped, and so are
+    once: a link back up is no loop); hidden files and folders, and what is not a regular file
+    (a named pipe: a broken link is kept, to be said), are skipped, and so are
     ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its thumbnails and
     results are no exemplars)."""
     out = Path(outdir).resolve()
@@ -91,8 +92,8 @@ def _scan_folder(folder: Path, outdir: Path):
         dirs[:] = [d for d in sorted(dirs) if not d.startswith(".") and Path(root, d).resolve() != out
                    and not os.path.lexists(os.path.join(root, d, LEDGER)) and new(os.path.join(root, d))]
         for f in sorted(files):
-            if not f.startswith(".") and Path(f).suffix.lower() in IMAGE_SUFFIXES:
-                p = Path(root, f)
+            p = Path(root, f)  # a named pipe, socket or device is no image (reading one waited for ever)
+            if not f.startswith(".") and p.suffix.lower() in IMAGE_SUFFIXES and (p.is_file() or not p.exists()):
                 items.append({"path": p, "rel": p.relative_to(folder), "name": None, "settings": {}})
     if not items:
         raise TGHopError(f"{folder}: no image files in this folder ({', '.join(IMAGE_SUFFIXES[:3])}, ...)")
