@@ -427,6 +427,18 @@ def test_an_exemplar_deep_in_folders_gets_a_name_its_files_fit(tmp_path):
         run(tmp_path / "m.csv", out, workers=1, task=_no_work)
 
 
+def test_no_name_starts_with_a_dash(tmp_path):
+    # "-dash/--2.png" was the folder "-dash__--2" and the model "-dash__--2.npz": options to
+    # `tghop synth`, `ls` and `rm`. Names start with a letter or digit, as a map's do.
+    for rel in ("-dash/--2.png", "-lead.png", "lead.png", "_x/.-y/z.png"):
+        (tmp_path / "src" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "src" / rel).write_bytes(b"x")
+    names = sorted(it["name"] for it in batch.find_work(tmp_path / "src"))
+    assert len(set(names)) == 3 and names[0] == "dash__--2" and all(n.startswith("lead_png_") for n in names[1:])
+    (tmp_path / "m.csv").write_text("path,name\nsrc/lead.png,-given\n")
+    assert [it["name"] for it in batch.find_work(tmp_path / "m.csv")] == ["given"]
+
+
 def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     src, out = tmp_path / "src", tmp_path / "out"
     (src / "sub").mkdir(parents=True)

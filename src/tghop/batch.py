@@ -112,7 +112,8 @@ NAME_MAX = 160
 def _safe(text: str) -> str:
     # Accents dropped first (NFKD: "é" is "e" and a combining mark), so that "béans" is "beans", not "b_ans".
     text = "".join(ch for ch in unicodedata.normalize("NFKD", text) if not unicodedata.combining(ch))
-    name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "unnamed"
+    # No leading "-" either (as a map's name): "-x/-x.npz" was taken for options by tghop synth, ls, ...
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).lstrip("._-").rstrip("._") or "unnamed"
     # OUTDIR's own files (a folder of that name would stand there) and the thumbnail (<name>.png's).
     return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET, Path(THUMBNAIL_FILE).stem) else name
 
