@@ -417,6 +417,10 @@ def test_an_exemplar_deep_in_folders_gets_a_name_its_files_fit(tmp_path):
     deep.mkdir(parents=True)
     save_image(data.bricks(64, rng=3), deep / ("c" * 60 + ".png"))
     save_image(data.cells(64, rng=4), deep / ("c" * 60 + ".jpg"))  # the same name, then its extension
+    out.mkdir()  # the line of an earlier version's try, under the name too long (its name is not kept)
+    long_name = "__".join(["a" * 100, "b" * 100, "c" * 60, "png"])
+    (out / "batch.jsonl").write_text(json.dumps({"name": long_name, "source": str(deep / ("c" * 60 + ".png")),
+                                                 "status": "failed", "error": "File name too long"}) + "\n")
     results = run(src, out, workers=1, count=2)
     assert [r["status"] for r in results] == ["ok", "ok"], [r["error"] for r in results]
     names = [r["name"] for r in results]

@@ -260,7 +260,8 @@ def _keep_ledger_names(items, previous) -> None:
     taken = {it["name"].lower() for it in items}
     for it, source in zip(items, sources):
         names = by_source.get(source, [])
-        if it.get("named") or it["name"] in names or len(names) != 1 or sources.count(source) != 1:
+        if it.get("named") or it["name"] in names or len(names) != 1 or sources.count(source) != 1 \
+                or len(names[0]) > NAME_MAX:  # a name too long for its files: that run failed
             continue
         if names[0].lower() not in taken:
             taken.discard(it["name"].lower())
