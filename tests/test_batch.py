@@ -1015,8 +1015,8 @@ def test_a_driver_killed_while_its_tasks_run_on_a_scheduler_leaves_them_to_be_re
     out = tmp_path / "out"
     args = ["batch", "src", "-o", "out", "--scheduler", local.scheduler_address, "--size", "48", "--count", "2",
             *CLI_FAST]
-    assert subprocess.run([sys.executable, "-m", "tghop", *args, "--seed", "1"], cwd=tmp_path, timeout=120,
-                          capture_output=True).returncode == 0
+    code, _, err, _ = invoke(*args, "--seed", "1", cwd=tmp_path)
+    assert code == 0, err
     seed_1 = {p: p.read_bytes() for p in out.rglob("*.png")}
     p = subprocess.Popen([sys.executable, "-m", "tghop", *args, "--seed", "2"], cwd=tmp_path,
                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -1027,9 +1027,8 @@ def test_a_driver_killed_while_its_tasks_run_on_a_scheduler_leaves_them_to_be_re
     p.wait()
     _wait_idle(client)
     assert any(path.read_bytes() != seed_1[path] for path in seed_1)  # a task ran on: seed 2's files
-    again = subprocess.run([sys.executable, "-m", "tghop", *args, "--seed", "1"], cwd=tmp_path, timeout=120,
-                           capture_output=True)
-    assert again.returncode == 0, again.stderr.decode()
+    code, _, err, _ = invoke(*args, "--seed", "1", cwd=tmp_path)
+    assert code == 0, err
     assert {p: p.read_bytes() for p in out.rglob("*.png")} == seed_1
     assert not list(out.rglob(batch.RUNNING)) and not leftovers(out)
 
