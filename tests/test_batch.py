@@ -682,6 +682,18 @@ def test_cli_end_to_end_in_process(tmp_path):
     assert_one_line(code, err, "nothere", "no such folder or manifest", exception=exc)
 
 
+def test_a_warning_names_its_exemplar(tmp_path):
+    # Two exemplars a.png in two folders, each with an alpha channel: the command said
+    # "Warning: a.png: alpha channel dropped" twice, and which was which the ledger alone told.
+    src = make_folder(tmp_path / "src", bad=False)
+    for rel, rng in (("a.png", 3), ("sub/a.png", 4)):
+        save_image(np.concatenate([data.bricks(64, rng=rng), np.ones((64, 64, 1))], axis=2), src / rel)
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "48", *CLI_FAST, cwd=tmp_path)
+    assert code == 0, err
+    said = sorted(line for line in err.splitlines() if line.startswith("Warning: "))
+    assert said == ["Warning: a: a.png: alpha channel dropped", "Warning: sub__a: a.png: alpha channel dropped"], err
+
+
 def _run_cli(args, cwd, block_dask=False, **kw):
     code = ("import sys\n"
             "class Block:\n"
@@ -821,7 +833,7 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     assert {line["worker"].split(":")[1] for line in ledger(tmp_path / "out")} != {str(os.getpid())}
     # A worker's warning is the ledger's and the command's one line (it was the worker's raw
     # Python warning, with its source line).
-    assert err.count("Warning: a.png: alpha channel dropped\n") == 1 and "UserWarning" not in err
+    assert err.count("Warning: a: a.png: alpha channel dropped\n") == 1 and "UserWarning" not in err
     assert {line["name"]: line["warnings"] for line in ledger(tmp_path / "out")} == {
         "a": ["a.png: alpha channel dropped"], "sub__a": []}
     code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,

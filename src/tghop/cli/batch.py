@@ -86,9 +86,9 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
             done = progress.last
             where = f" after {done['done']} of {_exemplars(done['total'])}" if done else ""
             fail(f"{message}{where}; run the same command again to finish the rest", code)
-    for r in results:  # what the workers warned of (an alpha channel dropped), as other commands show it
-        for message in [] if r.get("skipped") else r.get("warnings") or []:
-            click.echo(f"Warning: {message}", err=True)
+    for r in results:  # what the workers warned of (an alpha channel dropped), by exemplar as the failures below
+        for message in [] if r.get("skipped") else r.get("warnings") or []:  # (a/x.png and b/x.png: "x.png: ...")
+            click.echo(f"Warning: {r['name']}: {message}", err=True)
     failed = [r for r in results if r["status"] != "ok"]
     skipped = sum(bool(r.get("skipped")) for r in results)
     ok = len(results) - len(failed)
