@@ -148,6 +148,9 @@ def test_a_named_pipe_is_no_exemplar_but_a_broken_link_is_said(tmp_path):
     except OSError:
         pytest.skip("no symbolic links here")
     assert sorted(it["name"] for it in batch.find_work(tmp_path)) == ["a", "gone", "self"]
+    by = {r["name"]: r["error"] for r in batch.run(tmp_path, tmp_path / "out", workers=1)}  # nothing to fit
+    assert "not a readable image" in by["a"], by
+    assert all("a symbolic link to no file" in by[n] for n in ("gone", "self")), by  # it said "no such file"
 
 
 def _no_work(job):
