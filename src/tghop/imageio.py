@@ -84,7 +84,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     path = Path(path)
     if not path.exists():
         if path.is_symlink():  # it said "no such file" of a link that is there
-            raise InvalidImageError(f"{path}: a symbolic link to no file (a missing target or a loop); fix or remove it")
+            raise InvalidImageError(f"{path}: a symbolic link to no file (missing target, or a loop); fix or remove it")
         raise InvalidImageError(f"{path}: no such file; check the path")
     if path.is_dir():
         raise InvalidImageError(f"{path} is a folder, not an image; give an image file")
