@@ -697,6 +697,18 @@ def test_a_warning_names_its_exemplar(tmp_path):
     assert said == ["Warning: a: a.png: alpha channel dropped", "Warning: sub__a: a.png: alpha channel dropped"], err
 
 
+def test_progress_into_a_log_is_a_line_per_tenth(tmp_path):
+    # Without a terminal (nohup, a job's log) click draws no bar: a run of hours said "exemplars" and
+    # nothing more until its end. Now a line at each tenth of the exemplars (here each of the 4).
+    make_folder(tmp_path / "src")
+    fast = [a for a in CLI_FAST if a != "-q"]
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "48", *fast, cwd=tmp_path)
+    assert code == 1, err
+    said = [line for line in err.splitlines() if line.startswith("exemplars: ")]
+    assert [line.split(",")[0] for line in said] == [f"exemplars: {n} of 4 done" for n in range(1, 5)], err
+    assert said[-1] == "exemplars: 4 of 4 done, 2 failed, 0 running", err
+
+
 def _run_cli(args, cwd, block_dask=False, **kw):
     code = ("import sys\n"
             "class Block:\n"

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import click
 
 from .._errors import TGHopError
@@ -14,17 +16,20 @@ __all__ = ["batch"]
 
 
 class BatchProgress(Progress):
-    """The bar over exemplars, with how many failed and are running, and the time left."""
+    """The bar over exemplars, with how many failed and are running, and the time left; where
+    stderr is no terminal (a log), a line at each tenth of the exemplars instead."""
 
     def __init__(self, enabled):
         super().__init__(enabled, show_eta=True)
         self.note = ""
-
+        self.lines = enabled and not sys.stderr.isatty()  # click draws no bar there: a log showed nothing for hours
         self.last = None
 
     def __call__(self, stage, done, total):
         self.last = {"done": done, "total": total}  # for the line after Ctrl-C, with or without a bar
         super().__call__(stage, done, total)
+        if self.lines and done and (done == total or done % -(-total // 10) == 0):
+            click.echo(f"{stage}: {done} of {total} done, {self.note}", err=True)
 
     def result(self, record, counts):
         self.note = f"{counts['failed']} failed, {counts['running']} running"
