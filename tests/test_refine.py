@@ -402,8 +402,8 @@ def test_refine_takes_float32_without_changing_the_result(cells):
 @pytest.mark.parametrize("path", ["stacked", "threads", "one by one"])
 def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, path):
     # Small images: all channels at once, after each round; large ones: a thread per
-    # channel, after each channel; too large for several at once: after each round of
-    # each channel. The same numbers on every path.
+    # channel, after each round of each channel (from the channels' threads); too large for
+    # several at once: after each round of each channel. The same numbers on every path.
     from tghop import refine as refine_module
 
     st = BandStatistics().fit(cells)
@@ -417,7 +417,7 @@ def test_refine_reports_progress_per_round_or_channel(cells, monkeypatch, path):
     assert {c[0] for c in calls} == {"refine"} and {c[2] for c in calls} == {6}  # 3 channels x 2 rounds
     done = [c[1] for c in calls]
     assert done[0] == 0 and done[-1] == 6 and done == sorted(done)
-    assert len(done) == {"stacked": 3, "threads": 4, "one by one": 7}[path]  # start, then each step
+    assert len(done) == {"stacked": 3, "threads": 7, "one by one": 7}[path]  # start, then each step
     monkeypatch.undo()
     assert np.array_equal(out, refine(img, st, n_iter=2))
 

@@ -138,3 +138,24 @@ def test_regions_give_the_same_image_on_any_number_of_cores(small_model):
     with limit_cores(1):
         one = match_regions(quilt, **kw)
     np.testing.assert_array_equal(many, one)
+
+
+@pytest.mark.parametrize("cores", [1, 2])
+def test_regions_report_each_round_of_their_refinement(small_model, cores):
+    # A large region's refinement takes seconds: the bar moves after each of its rounds (told from the thread
+    # that refines it), not only as each region is added; the counts only grow, the total stays, the same image.
+    from tghop._common import limit_cores
+
+    quilt = small_model.synthesize((520, 540), rng=5, refine=0, match_colours=False, seam_window=0, patch_refine=0,
+                                   dtype=np.float32)
+    kw = dict(bands=small_model.bands_, colour_quantiles=small_model.colour_quantiles_, region=256, n_iter=2)
+    calls = []
+    with limit_cores(cores):
+        out = match_regions(quilt, progress=lambda *a: calls.append(a), **kw)
+    assert {c[0] for c in calls} == {"refine"}
+    total = 4 * (3 * 2 + 1)  # 4 regions: 3 channels x 2 rounds each, and one step as it is added
+    assert {c[2] for c in calls} == {total}
+    done = [c[1] for c in calls]
+    assert done[0] == 0 and done[-1] == total and done == sorted(done)
+    assert len(set(done)) >= 1 + 4 * (2 + 1)  # at least each round of each region (all channels at once here)
+    np.testing.assert_array_equal(out, match_regions(quilt, **kw))

@@ -280,6 +280,44 @@ def report(progress: Optional[ProgressCallback], stage: str, done: int, total: i
         progress(stage, int(done), int(total))
 
 
+class ProgressCounter:
+    """``progress(stage, done, total)`` of steps done in several threads: ``counter(n)`` adds ``n`` steps and
+    reports the sum (under a lock, so that the counts reported only grow, from whichever thread did the step).
+
+    Parameters
+    ----------
+    progress : callable or None
+        The callback (None: the steps are only counted).
+    stage : str
+    total : int
+        The steps of the whole stage.
+    """
+
+    def __init__(self, progress, stage, total):
+        import threading
+
+        self.progress, self.stage, self.total = progress, stage, total
+        self.done = 0
+        self._lock = threading.Lock()
+
+    def __call__(self, n):
+        with self._lock:
+            self.done += n
+            report(self.progress, self.stage, self.done, self.total)
+
+    def relay(self):
+        """A ``progress(stage, done, total)`` callback for a part of the work: each of its reports adds the
+        steps its ``done`` gained since its last one (its own stage and total are not used)."""
+        last = [0]
+
+        def told(stage, done, total):
+            if done > last[0]:
+                self(done - last[0])
+                last[0] = done
+
+        return told
+
+
 def check_keywords(options, function, *, where: str, exclude=()) -> None:
     """Refuse a keyword of ``options`` that ``function`` does not take, in one line naming the
     keywords it does take (all but ``exclude``), instead of Python's TypeError naming an inner

@@ -34,8 +34,8 @@ import numbers
 import numpy as np
 
 from ._arrays import check_int, check_mask
-from ._common import (BaseEstimator, InvalidImageError, StoredArrays, TGHopError, check_image, check_is_fitted,
-                      check_size, checked_image, report, usable_cores)
+from ._common import (BaseEstimator, InvalidImageError, ProgressCounter, StoredArrays, TGHopError, check_image,
+                      check_is_fitted, check_size, checked_image, report, usable_cores)
 from ._fft import fft_for
 from .oriented import double_angle, iter_oriented_parts, match_oriented, oriented_parts
 from .patches import clean_windows
@@ -306,8 +306,8 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
         (:meth:`tghop.synthesis.CoarseLayout.guide`).
     progress : callable, optional
         ``progress("refine", done, total)``, ``total`` = channels x rounds: after each
-        round (small images: all channels at once; very large ones: one channel at a
-        time) or each channel (channels in threads).
+        round (small images: all channels at once; large ones: of each channel, from the
+        channel's thread when the channels run in threads).
     dtype : {numpy.float64, numpy.float32}
         Of the result; the values are computed in float32 either way, so float32 gives
         the same numbers in half the memory.
@@ -375,11 +375,12 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     if workers > 1 and cores > 1 and pixels >= _THREADED_PIXELS:
         from concurrent.futures import ThreadPoolExecutor, as_completed
 
+        # Progress: after each round of each channel, from the channel's thread (a channel's rounds of a large
+        # image take a while); the counter keeps the counts growing.
+        advance = ProgressCounter(progress, "refine", total)
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            # Progress is reported from this thread, as channels finish.
-            for done, future in enumerate(as_completed([pool.submit(one, k) for k in range(n_channels)]), start=1):
+            for future in as_completed([pool.submit(one, k, on_round=lambda r: advance(1)) for k in range(n_channels)]):
                 future.result()
-                report(progress, "refine", done * n_iter, total)
     elif pixels < _THREADED_PIXELS:
         # A small image: all channels at once, stacked (one NumPy call per step instead of
         # one per channel, whose call overhead dominates on small arrays; the same

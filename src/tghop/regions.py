@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import TGHopError, check_size, report, usable_cores
+from ._common import ProgressCounter, TGHopError, check_size, usable_cores
 from .colour import match_histograms
 from .refine import prepare as prepare_refinement, refine as refine_bands
 
@@ -154,7 +154,8 @@ def match_regions(image, *, bands=None, colour_quantiles=None, pixel_quantiles=N
     tile : bool
         The image wraps around: so do the regions at its borders.
     progress : callable, optional
-        ``progress("refine", done, total)`` after each region.
+        ``progress("refine", done, total)``: after each round of a region's refinement (the
+        refinement's own reports for an image of one region) and as each region is added.
 
     Returns
     -------
@@ -169,29 +170,36 @@ def match_regions(image, *, bands=None, colour_quantiles=None, pixel_quantiles=N
     rows, cols = (region_spans(n, k, periodic=tile and not whole) for n, k in zip((h, w), counts))
     spans = [(y, wy, x, wx) for y, wy in rows for x, wx in cols]
 
-    def matched(span, threads=None):
+    def matched(span, threads=None, progress=None):
         y, wy, x, wx = span
         part = image[_index(y, len(wy), h)][:, _index(x, len(wx), w)].astype(np.float32)  # a copy
         if bands is not None and n_iter:
             part = refine_bands(part, bands, n_iter=n_iter, tile=tile and whole, dtype=np.float32, threads=threads,
-                                pixel_quantiles=pixel_quantiles)
+                                pixel_quantiles=pixel_quantiles, progress=progress)
         if colour_quantiles is not None:
             part = match_histograms(part, colour_quantiles, out=part)
         return part
 
     if whole:
-        return matched(spans[0])
+        return matched(spans[0], progress=progress)
     out = np.zeros(image.shape, dtype=np.float32)
-    report(progress, "refine", 0, len(spans))
+    # Each region counts its refinement's rounds (channels x rounds, told from the thread that refines it:
+    # a large region's rounds take a while) and one step more when it is added here.
+    steps = (image.shape[2] * n_iter if bands is not None else 0) + 1
+    advance = ProgressCounter(progress, "refine", len(spans) * steps)
+    advance(0)
     # A region per core, each refining its channels one after another: regions one at a
     # time with their channels in threads kept the cores less busy (docs/choices.md).
     # The regions are added in a fixed order: the same numbers on any number of cores.
     cores = min(usable_cores(), len(spans))
     from concurrent.futures import ThreadPoolExecutor  # here: an image of one region needs none (it imports logging)
 
+    def one(span, threads=None):
+        return matched(span, threads=threads, progress=None if progress is None else advance.relay())
+
     with ThreadPoolExecutor(max_workers=cores) as pool:
-        results = pool.map(lambda span: matched(span, threads=1), spans) if cores > 1 else map(matched, spans)
-        for done, ((y, wy, x, wx), part) in enumerate(zip(spans, results), start=1):
+        results = pool.map(lambda span: one(span, threads=1), spans) if cores > 1 else map(one, spans)
+        for (y, wy, x, wx), part in zip(spans, results):
             part *= wy[:, None, None]
             part *= wx[None, :, None]
             ys, xs = _index(y, len(wy), h), _index(x, len(wx), w)
@@ -199,5 +207,5 @@ def match_regions(image, *, bands=None, colour_quantiles=None, pixel_quantiles=N
                 out[ys, xs] += part
             else:
                 out[np.ix_(np.arange(h)[ys], np.arange(w)[xs])] += part
-            report(progress, "refine", done, len(spans))
+            advance(1)
     return out
