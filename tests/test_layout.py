@@ -484,3 +484,45 @@ def test_the_layout_guide_reports_its_progress(layout_model):
     assert len(inner) == len(layout) - 2 > 10 and inner == sorted(inner)  # its steps, going forward
     assert inner[0] < 250 and inner[-1] == 1000  # quilting first ... the patch refinement's end last
     assert {500, 750} <= set(inner)  # the refinement's and the patch refinement's starts
+
+
+def _layout_reports(calls, after):
+    """The "layout" reports before the first report of stage ``after``; checked as one stage of 1000 units that
+    goes forward from 0 to 1000, not interleaved with another stage."""
+    head = calls[:[stage for stage, _, _ in calls].index(after)]
+    first = head.index(("layout", 0, 1000))
+    layout = head[first:]
+    assert {stage for stage, _, _ in layout} == {"layout"} and {total for _, _, total in layout} == {1000}
+    done = [d for _, d, _ in layout]
+    assert done[0] == 0 and done[-1] == 1000 and done == sorted(done)
+    return done
+
+
+def test_a_morphs_layout_guides_report_their_progress(layout_model):
+    # morph's coarse guides (one per model, in a second thread) ran silent between "layout" 0/1 and 1/1, and
+    # the pools' "patch pool" reports came while the guides were made.
+    import tghop
+
+    calls = []
+    kw = dict(rng=3, n_patches=600, refine=1)
+    image = tghop.morph(layout_model, layout_model, (64, 192), progress=lambda *call: calls.append(call), **kw)
+    np.testing.assert_array_equal(image, tghop.morph(layout_model, layout_model, (64, 192), **kw))  # the same image
+    done = _layout_reports(calls, "patch pool")
+    assert len(set(done)) > 10 and 500 in done  # both guides' steps: the first's end is half of the whole
+    assert calls[0] == ("layout", 0, 1000)
+
+
+def test_inpaintings_coarse_fill_reports_its_progress(layout_model):
+    # The coarse fill (an inpainting of the downsampled image) ran silent between "layout" 0/1 and 1/1.
+    from tghop.inpaint import inpaint
+
+    image = data.bricks(96, rng=2)
+    hole = np.zeros((96, 96), dtype=bool)
+    hole[24:72, 30:70] = True
+    calls = []
+    kw = dict(rng=4, n_patches=600, refine=1, patch_refine=0)
+    out = inpaint(layout_model, image, hole, progress=lambda *call: calls.append(call), **kw)
+    np.testing.assert_array_equal(out, inpaint(layout_model, image, hole, **kw))  # the same image
+    assert ("layout", 0, 1000) in calls  # there is a coarse fill
+    done = _layout_reports(calls, "inpainting")
+    assert len(set(done)) > 5  # its steps

@@ -331,7 +331,8 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         As :meth:`tghop.TGHop.synthesize`. The coarse layout guide is each model's blended by
         the ramp; off unless both models have a coarse layout.
     progress : callable, optional
-        Stages "patch pool", "layout", "quilting", "seams" (with ``seam_window``), "refine", "colour".
+        Stages "layout" (with the coarse guides: their steps, done of 1000), "patch pool", "quilting",
+        "seams" (with ``seam_window``), "refine", "colour".
     dtype : {numpy.float64, numpy.float32, numpy.uint8}
 
     Returns
@@ -481,27 +482,35 @@ def _synthesize(models, size, stations, mix, shares, *, rng, n_patches, tile, ov
         follows_guide(m.layout_, size, tile=tile) for m in models)
     pending = None
     # The coarse guides are made in a second thread (their own random stream) while the
-    # pools are generated and prepared (one BLAS thread, as everything here).
+    # pools are generated and prepared (one BLAS thread, as everything here). Their steps are
+    # told as "layout" done of 1000 (from their thread), and this one is silent until it has
+    # them (the CLI's bar is of one stage at a time); its start and end in the same units.
     if guided:
         layout_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
+        report(progress, "layout", 0, 1000)
         pending = in_thread(_layout_guide, models, shares, layout_rng, tile, checked["layout_refine"],
-                            checked["seam_window"], checked["flat_share"], checked["layout_patch_refine"])
-    report(progress, "patch pool", 0, k)
+                            checked["seam_window"], checked["flat_share"], checked["layout_patch_refine"],
+                            progress=progress)
+    pool_progress = None if guided else progress
+    report(pool_progress, "patch pool", 0, k)
     pool = np.empty((sum(counts), p, p, models[0].exemplar_shape_[2]), dtype=np.float32)
     start = 0
     for i, (model, n) in enumerate(zip(models, counts), start=1):
         pool[start:start + n] = model.sample_patches(n, rng=rng, dtype=np.float32)
         start += n
-        report(progress, "patch pool", i, k)
+        report(pool_progress, "patch pool", i, k)
     groups = np.repeat(np.arange(k), counts)
     prepared = prepare_pool(pool, size, overlap=overlap, tile=tile, detail=checked["detail"],
                             guide_scale=GUIDE_SCALE if guided else None, flat_share=checked["flat_share"],
                             groups=groups)
     if checked["refine"]:
         prepare_refinement(size, models[0].bands_)
-    report(progress, "layout", 0, 1)
-    guide = pending() if guided else None
-    report(progress, "layout", 1, 1)
+    guide = None
+    if guided:
+        guide = pending()
+        report(progress, "layout", 1000, 1000)
+        report(progress, "patch pool", 0, k)
+        report(progress, "patch pool", k, k)
     group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
     reuse = 0.0 if on_demand(size, p, len(pool), overlap=overlap, tile=tile) else checked["reuse"]
     image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,
@@ -520,12 +529,13 @@ def _synthesize(models, size, stations, mix, shares, *, rng, n_patches, tile, ov
     return _as_dtype(np.clip(image, 0.0, 1.0), dtype)
 
 
-def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share, patch_refine):
+def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share, patch_refine, progress=None):
     """``sum_k W_k guide_k``: each model's coarse layout guide over the bounding box of its
-    share (the whole image with ``tile``), weighted by its share; (H, W, C) float32."""
+    share (the whole image with ``tile``), weighted by its share; (H, W, C) float32.
+    ``progress("layout", done, 1000)``: the guides' steps, each guide an equal part."""
     k, h, w = shares.shape
     guide = np.zeros((h, w, models[0].exemplar_shape_[2]), dtype=np.float32)
-    for model, share in zip(models, shares):
+    for i, (model, share) in enumerate(zip(models, shares)):
         box = (slice(0, h), slice(0, w))
         if not tile:
             rows, cols = np.flatnonzero((share > 1e-3).any(axis=1)), np.flatnonzero((share > 1e-3).any(axis=0))
@@ -534,9 +544,17 @@ def _layout_guide(models, shares, rng, tile, refine, seam_window, flat_share, pa
             box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         part = model.layout_.guide((box[0].stop - box[0].start, box[1].stop - box[1].start), rng=rng, tile=tile,
                                    refine=refine, seam_window=seam_window, flat_share=flat_share,
-                                   patch_refine=patch_refine)
+                                   patch_refine=patch_refine, progress=_one_of(progress, i, k))
         guide[box] += part * share[box][..., None]
     return guide
+
+
+def _one_of(progress, i, k):
+    """``progress`` told the i-th (from 0) of ``k`` equal parts of a stage: each report's ``done`` of
+    ``total`` moved into its part (None for None)."""
+    if progress is None:
+        return None
+    return lambda stage, done, total: report(progress, stage, (i * total + done) // k, total)
 
 
 def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.ndarray:

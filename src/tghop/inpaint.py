@@ -55,7 +55,7 @@ from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_keywords, check_rng, checked_image, one_blas_thread, report
 from .canvas import ANCHORS, expand_canvas
 from .hole_refine import refine_hole, stitch_hole
-from .layout import downsample, upsample
+from .layout import as_layout_progress, downsample, upsample
 from .patches import downsample_mask
 from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
 from .patch_refine import refine_image, steps_for
@@ -346,7 +346,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     blend : int
         Width in pixels, inside the hole, over which the refinements fade in.
     progress : callable, optional
-        Stages "patch pool", "layout" (the coarse fill), "inpainting" (blocks), "refine" and
+        Stages "patch pool", "layout" (the coarse fill's steps, done of 1000), "inpainting" (blocks), "refine" and
         "patch refine" (and "seams" before "refine", with ``seam_window``).
 
     Returns
@@ -534,6 +534,10 @@ def _fill_order(hole, p, step, tile, order="edge", distance=None):
     return [(y, x) for _, _, y, x in sorted(blocks)]
 
 
+#: The coarse fill's steps that report their progress (:func:`inpaint`'s), each an equal part of its "layout".
+COARSE_FILL_PARTS = ("inpainting", "seams", "refine")
+
+
 def _coarse_fill(model, work, hole, tile, order, flat_share, seam_window, rng, progress):
     """The layout of the fill: ``work``'s hole filled at the scale of the model's coarse layout
     by its coarse model (:func:`inpaint` without a layout of its own or a patch refinement),
@@ -548,14 +552,16 @@ def _coarse_fill(model, work, hole, tile, order, flat_share, seam_window, rng, p
     hh, ww = -(-h // f), -(-w // f)
     if min(hh, ww) < int(coarse.model_.patch_size) or (tile and (h % f or w % f)):
         return None
-    report(progress, "layout", 0, 1)
+    # Its steps told as "layout" done of 1000, as the coarse guide of a synthesis (tghop.layout.coarse_guide).
+    report(progress, "layout", 0, 1000)
     pad = ((0, hh * f - h), (0, ww * f - w))
     small = downsample(np.pad(work, pad + ((0, 0),), mode="edge"), f)
     small_hole = downsample_mask(np.pad(hole, pad, mode="edge"), f)
     filled = inpaint(coarse.model_, small, small_hole, rng=rng, tile=tile, layout_weight=0, order=order, refine=3,
-                     patch_refine=0, n_patches=COARSE_PATCHES, flat_share=flat_share, seam_window=seam_window)
+                     patch_refine=0, n_patches=COARSE_PATCHES, flat_share=flat_share, seam_window=seam_window,
+                     progress=as_layout_progress(progress, COARSE_FILL_PARTS))
     guide = upsample(filled.astype(np.float32), f, (hh * f, ww * f), wrap=tile)[:h, :w]
-    report(progress, "layout", 1, 1)
+    report(progress, "layout", 1000, 1000)
     return guide
 
 

@@ -336,16 +336,16 @@ def guide_steps(n_steps, size) -> int:
 GUIDE_PARTS = ("quilting", "seams", "refine", "patch refine")
 
 
-def as_layout_progress(progress):
-    """``progress`` told the coarse image's steps (:data:`GUIDE_PARTS`) as one stage "layout",
-    ``done`` of 1000 (None for None); other stages are not passed on."""
+def as_layout_progress(progress, parts=GUIDE_PARTS):
+    """``progress`` told the coarse image's steps (``parts``, :data:`GUIDE_PARTS` by default, each an equal
+    part of it) as one stage "layout", ``done`` of 1000 (None for None); other stages are not passed on."""
     if progress is None:
         return None
 
     def inner(stage, done, total):
-        if stage in GUIDE_PARTS:
+        if stage in parts:
             share = min(done, total) / total if total > 0 else 0.0
-            report(progress, "layout", round(1000 * (GUIDE_PARTS.index(stage) + share) / len(GUIDE_PARTS)), 1000)
+            report(progress, "layout", round(1000 * (parts.index(stage) + share) / len(parts)), 1000)
 
     return inner
 
