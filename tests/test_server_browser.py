@@ -329,7 +329,7 @@ def test_stop_a_generation_and_a_large_tiled_preview(page, live_server):
     page.wait_for_function("document.getElementById('go').textContent === 'Stop'")
     assert page.is_enabled("#go") and not page.is_enabled("#strip-go")
     page.click("#go")
-    page.wait_for_function("document.getElementById('message').textContent === 'stopped'", timeout=30_000)
+    page.wait_for_function("document.getElementById('gen-message').textContent === 'stopped'", timeout=30_000)
     assert page.text_content("#go") == "Generate" and page.is_enabled("#go")
     assert page.text_content("#result-caption") == "result: 1376x1376, seed 1"  # the last result stays
     page.fill("#height", "256")
@@ -465,7 +465,7 @@ def test_the_strip_of_seeds_goes_on_with_its_model_when_another_exemplar_is_pick
     page.select_option("#builtin", "cells")  # another exemplar: its fit starts while the strip runs
     page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
     assert page.evaluate("window.stripImages") == 8  # all of them, of its model
-    assert "null" not in page.text_content("#message")
+    assert "null" not in page.text_content("#message") and "null" not in page.text_content("#gen-message")
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
     # Cleared once cells is the working model: when the fit ends after the strip, or when the strip ends after it
     page.wait_for_function("document.querySelectorAll('#strip img').length === 0")

@@ -87,7 +87,7 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
 
     page.click("#strip-go")
     page.wait_for_function("document.querySelectorAll('#strip img').length === 8"
-                           " && document.getElementById('message').textContent === 'click a seed to pick it'",
+                           " && document.getElementById('gen-message').textContent === 'click a seed to pick it'",
                            timeout=60_000)
     page.click("#strip img[data-seed='5']")
     page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 5'")

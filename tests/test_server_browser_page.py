@@ -88,16 +88,17 @@ def test_the_strip_of_seeds_goes_with_a_change_of_mode_or_model(page):
 
 def test_a_size_the_browser_refuses_is_said_in_the_status(page):
     # The browser's own check refused width 100000 with a bubble only; the status kept what was there before.
-    page.evaluate("say('stopped')")
+    page.evaluate("sayGenerate('stopped')")
     page.fill("#width", "100000")
     page.click("#go")
-    page.wait_for_function("document.getElementById('message').textContent !== 'stopped'", timeout=5_000)
-    assert page.text_content("#message") == "width 100000 is more than 8192: give a number from 1 to 8192"
-    assert "error" in page.get_attribute("#message", "class")
+    page.wait_for_function("document.getElementById('gen-message').textContent !== 'stopped'", timeout=5_000)
+    assert page.text_content("#gen-message") == "width 100000 is more than 8192: give a number from 1 to 8192"
+    assert "error" in page.get_attribute("#gen-message", "class")
     page.fill("#width", "56")
     page.fill("#seed", "")
     page.click("#strip-go")
-    page.wait_for_function("document.getElementById('message').textContent.startsWith('give a seed')", timeout=5_000)
+    page.wait_for_function("document.getElementById('gen-message').textContent.startsWith('give a seed')",
+                           timeout=5_000)
     page.fill("#seed", "1")
     assert not page.errors, page.errors
 

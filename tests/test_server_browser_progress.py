@@ -1,8 +1,10 @@
 """``tghop serve``'s page in a real browser (Chromium through Playwright) against a real uvicorn server:
 a long generation shows its progress (a bar that advances before the image comes, from the job its
-request names: test_server_progress.py); a strip of seeds whose model is no longer the working one when it
-ends is cleared; Morph's fields and Paint's mix of a material with a texture model are said on the page,
-not sent to be refused."""
+request names: test_server_progress.py); Generate's and 8 seeds' errors are said where the user is; a
+strip of seeds whose model is no longer the working one when it ends is cleared; Morph's fields and
+Paint's mix of a material with a texture model are said on the page, not sent to be refused."""
+
+import json
 
 import pytest
 
@@ -95,9 +97,9 @@ def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_end
     page.click("#strip-go")
     page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' && "
                            "document.querySelectorAll('#strip img').length === 8", timeout=120_000)
-    assert page.text_content("#message") == "click a seed to pick it"
+    assert page.text_content("#gen-message") == "click a seed to pick it"
     chromium.choose_mode(page, "inpaint")  # the strip cleared: its hint too (it said to click seeds not shown)
-    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0 and page.text_content("#message") == ""
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0 and page.text_content("#gen-message") == ""
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 
@@ -157,3 +159,43 @@ def test_paint_says_a_material_does_not_go_with_a_texture_model(page, tmp_path):
     assert page.text_content("#paint-message") == "" and page.is_enabled("#remix-go")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+#: JavaScript (a function of an element's id): whether the element is shown, wholly within the window.
+IN_VIEW_JS = """(id) => { const r = document.getElementById(id).getBoundingClientRect();
+  return r.height > 0 && r.top >= 0 && r.bottom <= window.innerHeight; }"""
+
+
+def test_generates_errors_are_said_where_the_user_is(page):
+    # Generate's and 8 seeds' messages went to section 1's status: an error that came once the user had
+    # scrolled down to the result or the seeds was out of sight (the bar went away, nothing else said why).
+    chromium.choose_mode(page, "view")
+    fit(page, "bricks")
+    page.fill("#height", "64")
+    page.fill("#width", "64")
+    page.evaluate("""() => { const d = document.createElement('div'); d.id = 'tall'; d.style.height = '3000px';
+      document.getElementById('results').append(d); }""")  # results long enough to scroll down to
+    held = []
+
+    def hold(route):  # answered below, once the user has scrolled
+        held.append(route)
+
+    page.route("**/api/models/*/images", hold)
+    try:
+        for button in ("go", "strip-go"):
+            page.click(f"#{button}")
+            while not held:
+                page.wait_for_timeout(20)
+            page.evaluate("window.scrollTo(0, document.documentElement.scrollHeight)")
+            assert not page.evaluate(IN_VIEW_JS, button)  # the user is down at the results
+            said = f"the server broke ({button})"
+            held.pop().fulfill(status=500, content_type="application/json", body=json.dumps({"error": said}))
+            page.wait_for_function("(id) => document.getElementById(id).textContent !== 'Stop'", arg=button)
+            where = page.evaluate("""(said) => [...document.querySelectorAll('[role=status]')]
+              .filter((e) => e.textContent === said && e.classList.contains('error')).map((e) => e.id)""", said)
+            assert where, f"{said!r} not said"
+            assert any(page.evaluate(IN_VIEW_JS, i) for i in where), f"{said!r} said out of sight, in {where}"
+    finally:
+        page.unroute("**/api/models/*/images", hold)
+        page.evaluate("() => { document.getElementById('tall').remove(); window.scrollTo(0, 0); }")
+    assert not [e for e in page.errors if "500" not in e], page.errors

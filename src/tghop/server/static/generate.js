@@ -96,17 +96,26 @@ function drawTiled(img) {
   canvas.dataset.ready = "1";
 }
 
+// Generate's and 8 seeds' status, under their bar (section 1's, where it was, is out of sight once the results
+// are scrolled to): an error is scrolled into view where it is not (the result or seeds waited for will not come).
+function sayGenerate(text, isError) {
+  const el = $("gen-message");
+  el.textContent = text || "";
+  el.classList.toggle("error", Boolean(isError));
+  if (isError) el.scrollIntoView({ block: "nearest" });  // "nearest": no scroll where it is in view
+}
+
 function onGenerate(event) {
   event.preventDefault();
   if (!state.modelId) return;
   withBusy($("go"), async () => {
     const seed = Number($("seed").value);
-    say("generating");
+    sayGenerate("generating");
     const body = generation(seed);
     const { blob, maps } = await withProgress("gen-progress", (headers) => generate(body, state.modelId, headers));
     showResult(URL.createObjectURL(blob), seed, blob, undefined, maps, { models: [workingStem()], ...body });
-    say("");
-  });
+    sayGenerate("");
+  }, sayGenerate);
 }
 
 // The strip of seeds is of one model, in View mode: cleared when the working model or the mode changes (it
@@ -118,7 +127,7 @@ function clearStrip() {
   for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
   strip.textContent = "";
   delete strip.dataset.model;
-  if ($("message").textContent === STRIP_HINT) say("");
+  if ($("gen-message").textContent === STRIP_HINT) sayGenerate("");
 }
 
 const STRIP_HINT = "click a seed to pick it";
@@ -128,7 +137,7 @@ const STRIP_HINT = "click a seed to pick it";
 // the first field refused.
 function onInvalidField(event) {
   const input = event.target;
-  if (input.form.querySelector(":invalid") === input) say(fieldProblem(input), true);
+  if (input.form.querySelector(":invalid") === input) sayGenerate(fieldProblem(input), true);
 }
 
 function fieldProblem(input) {
@@ -157,7 +166,7 @@ function onStrip() {
     const [h, w] = [Number($("height").value), Number($("width").value)];
     for (let i = 0; i < 8; i++) {
       const seed = first + i;
-      say(`seed ${seed} (${i + 1} of 8)`);
+      sayGenerate(`seed ${seed} (${i + 1} of 8)`);
       const answer = await withProgress("gen-progress", (headers) => generate(generation(seed, [h, w]), id, headers),
                                         { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
       const url = URL.createObjectURL(answer.blob);
@@ -184,10 +193,11 @@ function onStrip() {
       figure.append(img, caption);
       strip.append(figure);
     }
-    if (!stale()) say(STRIP_HINT);
-  }).then(() => {
+    if (!stale()) sayGenerate(STRIP_HINT);
+  }, sayGenerate).then(() => {
     if (!stale() || !$("strip").dataset.model) return;
     clearStrip();
+    if (!$("gen-message").classList.contains("error")) sayGenerate("");  // "seed 8 (8 of 8)": of seeds not shown
     if (state.working && state.modelId === state.working.modelId) say("model ready: generate below");
   });
 }
