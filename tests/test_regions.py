@@ -159,3 +159,27 @@ def test_regions_report_each_round_of_their_refinement(small_model, cores):
     assert done[0] == 0 and done[-1] == total and done == sorted(done)
     assert len(set(done)) >= 1 + 4 * (2 + 1)  # at least each round of each region (all channels at once here)
     np.testing.assert_array_equal(out, match_regions(quilt, **kw))
+
+
+def test_regions_stop_starting_once_progress_raises(small_model, monkeypatch):
+    # A cancelled server job's progress raises: the regions still waiting for a core were all refined
+    # before the error came out (the pool's end waited for them), seconds each at 4096x4096.
+    import threading
+
+    from tghop import regions
+    from tghop._common import limit_cores
+
+    quilt = small_model.synthesize((1024, 1024), rng=5, refine=0, match_colours=False, seam_window=0,
+                                   patch_refine=0, dtype=np.float32)
+    started = []
+    refine_bands = regions.refine_bands
+    monkeypatch.setattr(regions, "refine_bands", lambda *a, **k: started.append(1) or refine_bands(*a, **k))
+
+    def cancelled(stage, done, total):  # raises first where a region is added (the regions' threads' errors
+        if done and threading.current_thread() is threading.main_thread():  # stopped the pool's map already)
+            raise KeyboardInterrupt("stop")
+
+    with limit_cores(2), pytest.raises(KeyboardInterrupt, match="stop"):
+        match_regions(quilt, bands=small_model.bands_, region=256, n_iter=3, progress=cancelled)
+    assert n_regions((1024, 1024), 256) == (4, 4)
+    assert len(started) <= 8, len(started)  # the first, those running by then (a few on 2 cores); not all 16

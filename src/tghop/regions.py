@@ -199,13 +199,17 @@ def match_regions(image, *, bands=None, colour_quantiles=None, pixel_quantiles=N
 
     with ThreadPoolExecutor(max_workers=cores) as pool:
         results = pool.map(lambda span: one(span, threads=1), spans) if cores > 1 else map(one, spans)
-        for (y, wy, x, wx), part in zip(spans, results):
-            part *= wy[:, None, None]
-            part *= wx[None, :, None]
-            ys, xs = _index(y, len(wy), h), _index(x, len(wx), w)
-            if isinstance(ys, slice) and isinstance(xs, slice):
-                out[ys, xs] += part
-            else:
-                out[np.ix_(np.arange(h)[ys], np.arange(w)[xs])] += part
-            advance(1)
+        try:
+            for (y, wy, x, wx), part in zip(spans, results):
+                part *= wy[:, None, None]
+                part *= wx[None, :, None]
+                ys, xs = _index(y, len(wy), h), _index(x, len(wx), w)
+                if isinstance(ys, slice) and isinstance(xs, slice):
+                    out[ys, xs] += part
+                else:
+                    out[np.ix_(np.arange(h)[ys], np.arange(w)[xs])] += part
+                advance(1)
+        except BaseException:  # a region failed, or progress raised (a job cancelled): the regions waiting
+            pool.shutdown(wait=False, cancel_futures=True)  # do not start (the pool's end waited for all of them)
+            raise
     return out
