@@ -116,6 +116,29 @@ def test_stitching_removes_the_fills_tone_steps_and_keeps_the_known_pixels(tile,
     np.testing.assert_allclose(stitch_hole(canvas, hole, owner, tile=tile), out, atol=2e-3)
 
 
+@pytest.mark.parametrize("width", [4, 10])
+def test_stitching_continues_the_known_detail_across_the_holes_rim(width):
+    # A thin stripe's fill showed hard edges at its borders (an artist's audit): the steps of detail across
+    # the rim (a known pixel beside a filled one) were left, only their tone (mean over 9 x 9) was removed.
+    from tghop.inpaint import stitch_hole
+
+    rng = np.random.default_rng(0)
+    smooth = np.cumsum(rng.normal(0, 0.03, (48, 1, 1)), axis=0)  # detail that changes along the rim, not across
+    canvas = np.clip(0.5 + smooth - smooth.mean() + rng.normal(0, 0.01, (48, 40, 1)), 0, 1).astype(np.float32)
+    hole = np.zeros((48, 40), bool)
+    hole[:, 18:18 + width] = True
+    owner = np.where(hole, 1, -1)
+    canvas[hole] = np.clip(0.5 + rng.normal(0, 0.01, (48 * width, 1)), 0, 1)  # a fill blind to that detail
+    out = stitch_hole(canvas, hole, owner)
+    assert np.array_equal(out[~hole], canvas[~hole])
+
+    def rim_step(img):  # mean absolute step across the stripe's two borders, over the known area's median
+        across = np.abs(img[:, [17, 18 + width], 0] - img[:, [18, 17 + width], 0]).mean()
+        return across / np.median(np.abs(np.diff(img[:, :16, 0], axis=1)))
+
+    assert rim_step(out) < 0.25 * rim_step(canvas)  # 0.10-0.12 here; the rim's tone alone: 1.0 (4 px), 0.38 (10 px)
+
+
 def test_odd_shapes_holes_at_the_border_and_nearly_everything(model, cells):
     yy, xx = np.mgrid[:96, :96]
     shapes = {

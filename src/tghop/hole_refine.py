@@ -26,13 +26,18 @@ from .pyramid import laplacian_pyramid, reconstruct
 from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
 from .seams import SCREENING, SeamSteps, local_means
 
-__all__ = ["stitch_hole", "refine_hole", "STITCH_LU", "STITCH_STEP"]
+__all__ = ["stitch_hole", "refine_hole", "STITCH_LU", "STITCH_STEP", "STITCH_RIM_STEP", "STITCH_RIM_WEIGHT"]
 
 #: Unknowns up to which :func:`stitch_hole` solves by a sparse LU factorisation; conjugate gradients above.
 STITCH_LU = 400_000
 #: A seam edge's change (the norm over the channels) counts ``1 / (1 + (change / STITCH_STEP)**4)``
 #: of itself in :func:`stitch_hole`: tone steps whole, content edges (a change of several times this) not.
 STITCH_STEP = 0.3
+#: The same for the detail of the hole's rim (a known pixel beside a filled one: each edge's change less the rim's
+#: mean around it, taken pixel by pixel), whose edges count ``STITCH_RIM_WEIGHT`` times in the misfit: the fill's
+#: first pixels continue the known ones beside them (docs/choices.md, Inpainting "the hole's rim").
+STITCH_RIM_STEP = 0.6
+STITCH_RIM_WEIGHT = 4.0
 
 
 def stitch_hole(canvas, hole, owner, *, tile=False, window=9):
@@ -45,9 +50,13 @@ def stitch_hole(canvas, hole, owner, *, tile=False, window=9):
     before and after it along the same axis, within each side's own patch), and it is a step
     instead; that change, averaged over the seam edges in a ``window x window`` square (a tone
     step is about the same along a seam, its detail is not), is what the correction ``u`` of the
-    hole must make. ``u`` minimises the squared misfit over every edge that touches the hole plus
-    ``u**2 / SCREENING**2`` (corrections fade within about a block), with ``u = 0`` at the known
-    pixels: one sparse symmetric system per image, a solve per channel.
+    hole must make. On the hole's rim (a filled pixel beside a known one) each edge's own detail
+    (its change less the rim's mean in the window, a larger step let through: ``STITCH_RIM_STEP``)
+    is wanted too, ``STITCH_RIM_WEIGHT`` times as much, so that the fill's first pixels continue
+    the known ones beside them (the rim's steps were the hole's outline, hard at a thin hole).
+    ``u`` minimises the squared misfit over every edge that touches the hole plus
+    ``u**2 / SCREENING**2`` (corrections fade within about a block), with ``u = 0`` at the
+    known pixels: one sparse symmetric system per image, a solve per channel.
 
     Parameters
     ----------
@@ -92,25 +101,38 @@ def stitch_hole(canvas, hole, owner, *, tile=False, window=9):
         change = (wanted - diff)[seam]
         # A step far larger than tone steps is an edge of the content (a stone, a label at the hole's
         # edge): left alone, or the fill takes its colour along the seam (the smear of 0.46's try).
-        change *= 1.0 / (1.0 + (np.sqrt(np.square(change).sum(axis=-1, keepdims=True)) / STITCH_STEP) ** 4)
-        edges[axis] = touches, seam, change
+        size = np.sqrt(np.square(change).sum(axis=-1, keepdims=True))
+        # The hole's rim (an edge between a known pixel and a filled one): its detail, each edge's change less
+        # the rim's mean around it, lets larger steps through (the fill's detail meets the known pixels' there).
+        rim = touches & ((owner < 0) | (after(owner, axis) < 0))
+        detail = (change / (1.0 + (size / STITCH_RIM_STEP) ** 4))[rim[seam]]
+        change *= 1.0 / (1.0 + (size / STITCH_STEP) ** 4)
+        edges[axis] = touches, seam, change, rim, np.concatenate([change[rim[seam]], detail], axis=1)
     # Each seam edge's change averaged over those nearby, as the seam removal of a quilt averages its own.
     steps = SeamSteps((h, w), bool(tile), tuple(np.flatnonzero(edges[a][1]) for a in (1, 0)),
                       tuple(edges[a][2] for a in (1, 0)))
+    rims = SeamSteps((h, w), bool(tile), tuple(np.flatnonzero(edges[a][3]) for a in (1, 0)),
+                     tuple(edges[a][4] for a in (1, 0)))
     rhs, degree, pairs = np.zeros((k, c)), np.zeros(k), []
     for axis in (0, 1):
-        touches, seam, _ = edges[axis]
+        touches, seam, _, rim, detail = edges[axis]
         dense = np.zeros((h, w, c))
         dense[seam] = local_means(steps, axis, window)
+        # The rim's tone step as every seam's, and its detail pixel by pixel: a content edge along the rim
+        # (the same change all along it) has no detail, and the detail's corrections fade within pixels.
+        means = local_means(rims, axis, window)
+        dense[rim] = means[:, :c] + detail[:, c:] - means[:, c:]
         change = dense[touches]
+        weight = np.where(rim, STITCH_RIM_WEIGHT, 1.0)[touches]
         first, second = index[touches], after(index, axis)[touches]
-        # The misfit (u[second] - u[first] - change)^2: each end in the hole adds 1 to its degree,
-        # -change (first) or +change (second) to its right-hand side, and -1 between two hole ends.
+        # The misfit weight * (u[second] - u[first] - change)^2: each end in the hole adds its weight to its
+        # degree, -weight * change (first) or +weight * change (second) to its right-hand side, and -1 between
+        # two hole ends (a rim edge has one end known: its weight is on the diagonal only).
         for end, sign in ((first, -1.0), (second, 1.0)):
             inside = end >= 0
-            degree += np.bincount(end[inside], minlength=k)
+            degree += np.bincount(end[inside], weights=weight[inside], minlength=k)
             for ch in range(c):
-                rhs[:, ch] += sign * np.bincount(end[inside], weights=change[inside, ch], minlength=k)
+                rhs[:, ch] += sign * np.bincount(end[inside], weights=weight[inside] * change[inside, ch], minlength=k)
         both = (first >= 0) & (second >= 0)
         pairs.append((first[both], second[both]))
     i = np.concatenate([a for a, _ in pairs] + [b for _, b in pairs])
