@@ -28,7 +28,7 @@ import hashlib
 import math
 import numbers
 import time
-from typing import Callable, Optional
+from typing import Callable, Optional, TypeVar
 
 import numpy as np
 
@@ -38,6 +38,10 @@ from ..cooccurrence import fit_colour_clusters
 from .networks import average_step, build_networks, join_tiles, split_tiles
 
 __all__ = ["TrainingMixin", "keep_mmap_threshold"]
+
+#: The class ``fit`` is called on (a :class:`tghop.cooc.model.CoocGAN`), which it returns: named by a
+#: bound type variable, as this module cannot import the model that imports it (``typing.Self`` is 3.11+).
+_Self = TypeVar("_Self", bound="TrainingMixin")
 
 
 def keep_mmap_threshold() -> None:
@@ -84,9 +88,9 @@ class TrainingMixin:
             raise TGHopError(f"{what}: this exemplar is not the one the model was trained on; {fix}")
 
     # ------------------------------------------------------------------ the loop
-    def fit(self, exemplar, *, resume: bool = False, max_seconds: Optional[float] = None,
+    def fit(self: _Self, exemplar, *, resume: bool = False, max_seconds: Optional[float] = None,
             progress: Optional[ProgressCallback] = None,
-            log: Optional[Callable[[int, dict], None]] = None) -> "CoocGAN":
+            log: Optional[Callable[[int, dict], None]] = None) -> _Self:
         """Train on one exemplar.
 
         Parameters
