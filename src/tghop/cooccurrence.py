@@ -117,6 +117,20 @@ def spread_pairs(assign, sigma: float, radius: int):
 
     The 2-D Gaussian over a square window is separable, so two 1-D passes give it
     exactly; pixels outside the image contribute nothing (zero padding).
+
+    Parameters
+    ----------
+    assign : ndarray or torch.Tensor, shape (N, k, H, W)
+        Soft assignments ``K_b`` (:func:`soft_assign`).
+    sigma : float
+        Spatial scale in pixels.
+    radius : int
+        Half the window's side: ``q`` within ``radius`` pixels of ``p`` on each axis.
+
+    Returns
+    -------
+    same type, shape (N, k, H, W)
+        ``S_b``; a tensor keeps its dtype and device (and its gradient).
     """
     g = _gauss_kernel(sigma, radius)
     if isinstance(assign, np.ndarray):
@@ -154,7 +168,18 @@ def _pair_maps(assign, sigma: float, radius: int):
 
 
 def symmetric_normalised(m):
-    """``(M + M^T) / 2`` over the last two axes, scaled to sum to 1."""
+    """``(M + M^T) / 2`` over the last two axes, scaled to sum to 1.
+
+    Parameters
+    ----------
+    m : ndarray or torch.Tensor, shape (..., k, k)
+        Unnormalised co-occurrence matrices, with a positive sum each.
+
+    Returns
+    -------
+    same type, shape (..., k, k)
+        Symmetric, each matrix summing to 1.
+    """
     m = 0.5 * (m + m.swapaxes(-1, -2))
     return m / m.sum((-2, -1))[..., None, None]
 

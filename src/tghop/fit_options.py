@@ -32,7 +32,22 @@ OFF = _Off()
 
 def setting_value(s, options: dict, paper: bool):
     """The value of setting ``s`` from ``options``: the one given (:data:`OFF`: None), else
-    the table's default, or its paper value with ``paper``."""
+    the table's default, or its paper value with ``paper``.
+
+    Parameters
+    ----------
+    s : tghop.settings.Setting
+        The setting.
+    options : dict
+        Fit options by setting name (not checked here).
+    paper : bool
+        A setting not given takes its paper value, where it has one.
+
+    Returns
+    -------
+    object
+        The value given, None for :data:`OFF`, or the default (paper) value.
+    """
     value = options.get(s.name)
     if value is OFF:
         return None
@@ -61,6 +76,21 @@ def fit_params(options: dict, *, api: bool = False) -> dict:
     colours: :func:`model_for` fills them in when the exemplar is known; ``tghop batch``
     fits many exemplars).
 
+    Parameters
+    ----------
+    options : dict
+        Fit options: ``paper`` (bool), ``k1``, ``k2``, ``k3`` (channel rules or None),
+        ``rng`` and fit settings by name; absent or None: not given.
+    api : bool
+        Name the web API's fields in messages.
+
+    Returns
+    -------
+    dict
+        Keyword arguments of :class:`~tghop.TGHop`: every fit setting, ``n_channels``
+        (a tuple, entries not given None, or None when none is given) and ``rng`` (0 when
+        not given). Values are not checked here (``TGHop.fit`` checks them).
+
     Raises
     ------
     TGHopError
@@ -87,7 +117,20 @@ def fit_params(options: dict, *, api: bool = False) -> dict:
 def model_for(params: dict, n_colours: int = 3):
     """A TGHop from its parameters (:func:`fit_params`) for an exemplar of ``n_colours``
     channels: channel counts that are None (all of ``n_channels``, or some entries) take
-    :func:`tghop.synthesis.default_channels`; ``rng`` None is 0."""
+    :func:`tghop.synthesis.default_channels`; ``rng`` None is 0.
+
+    Parameters
+    ----------
+    params : dict
+        Keyword arguments of :class:`~tghop.TGHop` (:func:`fit_params`); not changed.
+    n_colours : int
+        The exemplar's channels (C of its (H, W, C) array): 1 for grey, 3 for colour.
+
+    Returns
+    -------
+    TGHop
+        Unfitted. Channel defaults are filled in for 32x32 and 64x64 patches only.
+    """
     from .synthesis import TGHop, default_channels
 
     params = dict(params)
@@ -105,7 +148,18 @@ def material_model(params: dict):
     """The joint model of a whole material (:class:`tghop.material.Material`'s ``model``) from
     TGHop's parameters (:func:`fit_params`): channel counts not given stay None, which the
     material's fit takes as the defaults for the stacked channels of the albedo and its maps
-    (as ``tghop fit --maps``); ``rng`` None is 0."""
+    (as ``tghop fit --maps``); ``rng`` None is 0.
+
+    Parameters
+    ----------
+    params : dict
+        Keyword arguments of :class:`~tghop.TGHop` (:func:`fit_params`); not changed.
+
+    Returns
+    -------
+    TGHop
+        Unfitted.
+    """
     from .synthesis import TGHop
 
     params = dict(params)
@@ -116,5 +170,25 @@ def material_model(params: dict):
 
 def build_model(options: dict, n_colours: int = 3, *, api: bool = False):
     """A TGHop from the fit options for an exemplar of ``n_colours`` channels:
-    ``model_for(fit_params(options, api=api), n_colours)``."""
+    ``model_for(fit_params(options, api=api), n_colours)``.
+
+    Parameters
+    ----------
+    options : dict
+        Fit options (:func:`fit_params`).
+    n_colours : int
+        The exemplar's channels: 1 for grey, 3 for colour.
+    api : bool
+        Name the web API's fields in messages.
+
+    Returns
+    -------
+    TGHop
+        Unfitted.
+
+    Raises
+    ------
+    TGHopError
+        As :func:`fit_params`.
+    """
     return model_for(fit_params(options, api=api), n_colours)

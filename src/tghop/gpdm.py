@@ -35,6 +35,24 @@ def gpdm_levels(exemplar_shape, size, *, scale_factor: float = 0.85, coarsest: i
     (the output's and the exemplar's) at least ``coarsest`` pixels -- one level when it
     is already below. No side goes below ``patch_size``. The finest level is the output
     size and the exemplar itself.
+
+    Parameters
+    ----------
+    exemplar_shape : tuple of int
+        The exemplar's shape, (H, W) or (H, W, C).
+    size : (int, int)
+        The output's (height, width).
+    scale_factor : float
+        Scale between neighbouring levels, in (0, 1).
+    coarsest : int
+        The least smallest side (pixels) a coarser level may have.
+    patch_size : int
+        The least side of any level.
+
+    Returns
+    -------
+    list of ((int, int), (int, int))
+        Per level, coarse to fine: the output's and the exemplar's (height, width).
     """
     (h, w), (eh, ew) = tuple(size), tuple(exemplar_shape[:2])
     side = min(h, w, eh, ew)
@@ -60,6 +78,22 @@ def gpdm_memory(exemplar_shape, size, *, n_projections: int = 64, patch_size: in
     quantiles, the gradient and Adam's two moments. Measured peaks (growth of the
     process's resident memory, 256 x 256 exemplar): 162 MB at 128 x 128 (estimate 158 MB),
     268 MB at 256 x 256 (estimate 326 MB).
+
+    Parameters
+    ----------
+    exemplar_shape : tuple of int
+        The exemplar's shape, (H, W) or (H, W, C) (no C: one channel).
+    size : (int, int)
+        The output's (height, width).
+    n_projections : int
+        Random directions of the sliced distance (:func:`gpdm`'s).
+    patch_size : int
+        Side of the compared patches.
+
+    Returns
+    -------
+    int
+        Bytes.
     """
     (h, w), (eh, ew) = tuple(size), tuple(exemplar_shape[:2])
     c = exemplar_shape[2] if len(exemplar_shape) > 2 else 1

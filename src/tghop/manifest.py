@@ -36,14 +36,47 @@ def _shown(value, most: int = 60) -> str:
 def split_size(text, *, signed=False):
     """``HxW`` text (or ``H*W``, ``H,W``; ``N``: a square) -> ``(height, width)`` ints,
     unchecked; None where it is not one. ``signed``: a minus sign is read too (the command
-    line's ``--size``, whose check then states the range)."""
+    line's ``--size``, whose check then states the range).
+
+    Parameters
+    ----------
+    text : str or object
+        ``"512x256"``, ``"512*256"``, ``"512, 256"`` or ``"512"`` (spaces around allowed);
+        anything else is read as ``str(text)``.
+    signed : bool
+        Read ``-5x10`` too (default: digits only).
+
+    Returns
+    -------
+    (int, int) or None
+        ``(height, width)``, not checked against any bound; None where ``text`` is not a size.
+    """
     number = r"(-?\d+)" if signed else r"(\d+)"
     m = re.fullmatch(rf"\s*{number}\s*(?:[xX*,]\s*{number}\s*)?", str(text))
     return None if m is None else (int(m.group(1)), int(m.group(2) or m.group(1)))
 
 
 def parse_size(value, where):
-    """A size (``HxW``, ``N``, ``[H, W]`` or ``[N]``) -> ``[height, width]``, checked."""
+    """A size (``HxW``, ``N``, ``[H, W]`` or ``[N]``) -> ``[height, width]``, checked.
+
+    Parameters
+    ----------
+    value : str or list
+        A CSV cell's or JSON value's size: text as :func:`split_size` reads it, or a JSON
+        list of one or two whole numbers.
+    where : str
+        The row, for messages (``"list.csv line 3"``).
+
+    Returns
+    -------
+    list of int
+        ``[height, width]``, within :func:`tghop._common.check_size`'s bounds.
+
+    Raises
+    ------
+    TGHopError
+        One line starting with ``where``.
+    """
     from ._common import check_size
 
     if isinstance(value, (list, tuple)):
@@ -65,6 +98,21 @@ def parse_bool(value, name, *, where=None, empty=None):
 
     Otherwise a one-line :class:`~tghop.TGHopError`: ``name must be true or false, got value``
     (after ``where: `` where given).
+
+    Parameters
+    ----------
+    value : bool, str or object
+        The cell, JSON value or form field; anything else is read as ``str(value)``.
+    name : str
+        The setting's name, for the message.
+    where : str, optional
+        The row or the request, put before the message.
+    empty : bool, optional
+        The value of blank text; None refuses it.
+
+    Returns
+    -------
+    bool
     """
     if isinstance(value, bool):
         return value
@@ -81,7 +129,31 @@ def parse_bool(value, name, *, where=None, empty=None):
 def parse_int(value, where, what, low, high=None):
     """A whole number from ``low`` to ``high`` (None: no bound): text is parsed, then
     :func:`tghop._arrays.check_int` checks it (not a bool, nor a float: a JSON ``2.0``; as
-    ``"2.0"`` in a CSV cell and as the library's sizes)."""
+    ``"2.0"`` in a CSV cell and as the library's sizes).
+
+    Parameters
+    ----------
+    value : int, str or object
+        A JSON number or a CSV cell's text (spaces around ignored).
+    where : str
+        The row, for messages.
+    what : str
+        The column's name, for messages (``"count"``).
+    low : int
+        The least value allowed.
+    high : int, optional
+        The most value allowed; None: no bound.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    TGHopError
+        One line starting with ``where``, for text that is not a whole number, a float, a
+        bool or a value out of range.
+    """
     from ._arrays import check_int
 
     if isinstance(value, float) and value.is_integer():
@@ -95,7 +167,22 @@ def parse_int(value, where, what, low, high=None):
 
 
 def row_settings(row: dict, where: str) -> dict:
-    """The settings a manifest row gives (empty cells left out), checked."""
+    """The settings a manifest row gives (empty cells left out), checked.
+
+    Parameters
+    ----------
+    row : dict
+        The row's column -> cell (text from a CSV, any JSON value from JSON lines).
+    where : str
+        The row, for messages.
+
+    Returns
+    -------
+    dict
+        The :data:`ROW_SETTINGS` the row gives, each checked: ``size`` a list
+        ``[height, width]`` (:func:`parse_size`), ``count`` an int in 1..1000, ``seed`` an
+        int >= 0, ``tile`` a bool, ``scale`` a float (:func:`parse_scale`).
+    """
     out = {}
     for key in ROW_SETTINGS:
         value = row.get(key)
@@ -115,7 +202,20 @@ def row_settings(row: dict, where: str) -> dict:
 
 
 def parse_scale(value, where):
-    """A row's working scale (the fit setting ``scale``, :mod:`tghop.scale`): a number, or its text."""
+    """A row's working scale (the fit setting ``scale``, :mod:`tghop.scale`): a number, or its text.
+
+    Parameters
+    ----------
+    value : float or str
+        A JSON number or a CSV cell's text.
+    where : str
+        The row, for messages.
+
+    Returns
+    -------
+    float
+        In (0, 4], as the setting allows (:data:`tghop.settings.BY_NAME` ``["scale"]``).
+    """
     from .settings import BY_NAME
 
     setting = BY_NAME["scale"]
@@ -136,7 +236,22 @@ def parse_maps(value, where, base: Path) -> list:
     named by its file (:func:`tghop.material.map_name`, as ``tghop fit --maps``). Relative paths
     are from ``base`` (the manifest's folder). A name that cannot name a file, a name given twice
     (without case; ``albedo`` is the exemplar's: :func:`tghop.material.check_map_names`) or more
-    than :data:`MAX_MAPS` maps is refused, naming the line."""
+    than :data:`MAX_MAPS` maps is refused, naming the line.
+
+    Parameters
+    ----------
+    value : dict, list or str
+        The row's ``maps``: a JSON object of name -> path, a JSON list of paths, or CSV text.
+    where : str
+        The row, for messages.
+    base : pathlib.Path
+        The folder relative paths are from.
+
+    Returns
+    -------
+    list of (str, pathlib.Path)
+        Each map's name and file, in the order given; the files are not opened here.
+    """
     # A map's name names its output file (NAME_<map>.png).
     from .material import MAP_NAME, MapNameClashError, check_map_names, map_name
 
@@ -179,7 +294,25 @@ def parse_maps(value, where, base: Path) -> list:
 
 
 def manifest_rows(path: Path):
-    """(line number, row dict) of a CSV or JSON-lines manifest."""
+    """(line number, row dict) of a CSV or JSON-lines manifest.
+
+    A ``.jsonl``, ``.json`` or ``.ndjson`` file is read as JSON lines, anything else as CSV
+    with a header line; blank lines are skipped. A one-line :class:`~tghop.TGHopError`
+    names the file and the line of the first unreadable row (raised as the rows are read).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The manifest (UTF-8, a byte-order mark allowed).
+
+    Yields
+    ------
+    number : int
+        The row's line in the file (for a CSV row over several lines, its last).
+    row : dict
+        Column -> cell: CSV text (columns the header leaves unnamed dropped), or the JSON
+        object.
+    """
     try:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
@@ -220,8 +353,28 @@ def manifest_rows(path: Path):
 
 
 def read_manifest(path: Path):
-    """The exemplars a manifest lists: dicts of ``path``, ``rel``, ``name`` and ``given`` (the
-    row's name, or None), ``named``, ``settings`` and ``where`` (the row's line, for messages)."""
+    """The exemplars a manifest lists, every row checked before any is returned.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The manifest, CSV or JSON lines (:func:`manifest_rows`).
+
+    Returns
+    -------
+    list of dict
+        One per row, in the file's order: ``path`` (the exemplar's file, relative paths from
+        the manifest's folder), ``rel`` (the row's path as written), ``name`` and ``given``
+        (the row's name, or None), ``named`` (whether it gave one), ``settings``
+        (:func:`row_settings`), ``maps`` (:func:`parse_maps`; empty for a texture) and
+        ``where`` (the row's line, for messages).
+
+    Raises
+    ------
+    TGHopError
+        One line naming the file and line of the first bad row, or saying that the
+        manifest lists no exemplar.
+    """
     items = []
     for number, row in manifest_rows(path):
         where = f"{path} line {number}"  # as manifest_rows names it

@@ -91,7 +91,23 @@ def _said(name, what, stacklevel):
 
 
 def to_srgb(im, name: str):
-    """An open Pillow image in sRGB (see the module's notes); ``name`` names it in the warnings."""
+    """An open Pillow image in sRGB (see the module's notes); ``name`` names it in the warnings.
+
+    Parameters
+    ----------
+    im : PIL.Image.Image
+        An open image; its ``info["icc_profile"]`` is read.
+    name : str
+        The image's name in the warnings (its file).
+
+    Returns
+    -------
+    PIL.Image.Image
+        ``im`` itself where there is nothing to convert (no profile, an sRGB one, one
+        LittleCMS cannot read, a grey or other mode); else a new ``"RGB"`` image (``"RGBA"``
+        with the alpha kept), after a :class:`UserWarning` naming the profile. A palette
+        image with a profile comes back as RGB (RGBA with transparency) even when sRGB.
+    """
     data = im.info.get("icc_profile")
     if not data or im.mode not in ("RGB", "RGBA", "P", "CMYK"):
         return im
@@ -139,7 +155,23 @@ def deep_to_srgb(arr, data, name: str):
     (bytes or None) is not sRGB, in sRGB: Pillow's colour management takes 8-bit images only, so
     the same transform is sampled on a grid of _TABLE^3 colours and interpolated trilinearly (on
     average within half an 8-bit level of the 8-bit conversion; up to several levels for colours
-    outside sRGB, whose clipping the grid smooths); alpha as it is. Others as they are."""
+    outside sRGB, whose clipping the grid smooths); alpha as it is. Others as they are.
+
+    Parameters
+    ----------
+    arr : ndarray, shape (H, W, C)
+        Float in [0, 1], decoded from a 16-bit or float file; only C = 3 or 4 is converted.
+    data : bytes or None
+        The file's ICC profile.
+    name : str
+        The image's name in the warnings.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C)
+        ``arr`` itself where there is nothing to convert; else a new float64 array in
+        [0, 1], after a :class:`UserWarning` naming the profile.
+    """
     if arr.ndim != 3 or arr.shape[2] not in (3, 4):
         return arr
     found = _source(data, "RGB", name, stacklevel=3)
@@ -157,7 +189,18 @@ def deep_to_srgb(arr, data, name: str):
 
 def tiff_profile(path):
     """The ICC profile (bytes) of a TIFF file's first page, read by :mod:`tifffile` from its
-    header (a float colour TIFF, which Pillow cannot open); None where there is none."""
+    header (a float colour TIFF, which Pillow cannot open); None where there is none.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+
+    Returns
+    -------
+    bytes or None
+        None also where the file is not a TIFF or :mod:`tifffile` is not installed.
+    """
     try:
         import tifffile
 

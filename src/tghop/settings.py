@@ -119,7 +119,20 @@ class Setting:
 
     def range_text(self, *, cli: bool = False, json: bool = False) -> str:
         """The values the setting takes, in words; ``cli``: None as the command line writes it,
-        ``json``: as JSON does (``null``)."""
+        ``json``: as JSON does (``null``).
+
+        Parameters
+        ----------
+        cli : bool
+            Name None ``auto`` or ``none``, as the command line takes it.
+        json : bool
+            Name None ``null`` (when not ``cli``).
+
+        Returns
+        -------
+        str
+            E.g. ``"an integer >= 1 or None"``, ``"one of 'a', 'b'"``.
+        """
         if self.kind == "choice":
             return "one of " + ", ".join(repr(c) for c in self.choices)
         parts = []
@@ -136,7 +149,23 @@ class Setting:
         """Return ``value`` (normalised) or raise a one-line :class:`TGHopError`; an ``"int"``
         setting takes integers only (Python or NumPy, not a float such as 2.0); ``cli``: the
         message names None as the command line writes it (``auto`` or ``none``), ``json`` as
-        JSON does (``null``)."""
+        JSON does (``null``).
+
+        Parameters
+        ----------
+        value : object
+            The value given.
+        label : str, optional
+            The name in the message (default the setting's name).
+        cli, json : bool
+            How the message writes None (:meth:`range_text`).
+
+        Returns
+        -------
+        object
+            ``value`` normalised: an ``int`` or ``float`` for numbers, ``bool``, a tuple of
+            rules for ``"channels"``, None where allowed; an ``"rng"`` setting's value as given.
+        """
         label = label or self.name
         words = self.range_text(cli=cli, json=json)
         if self.kind == "rng":
@@ -176,7 +205,20 @@ class Setting:
 
     def parse(self, text: str):
         """A command-line string -> value (then :meth:`check`); raises TGHopError, whose line names
-        the word for None where the setting takes it (``'abc' is not an integer (or auto)``)."""
+        the word for None where the setting takes it (``'abc' is not an integer (or auto)``).
+
+        Parameters
+        ----------
+        text : str
+            An option's value (spaces around ignored); ``auto`` (or ``none``, ``off``) is
+            None where the setting takes None.
+
+        Returns
+        -------
+        int, float, object or None
+            The value, not yet checked against the range (:meth:`check`); a ``"choice"``
+            setting's choice whose text is ``text``.
+        """
         text = str(text).strip()
         if self.none_ok and text.lower() in (("auto",) if self.auto else ("none", "off")):
             return None
@@ -206,6 +248,14 @@ class Setting:
         return self.cli or ("--" + self.name.replace("_", "-"),)
 
     def doc_type(self) -> str:
+        """The setting's type line in numpydoc form.
+
+        Returns
+        -------
+        str
+            E.g. ``"int, default=32"``, ``"float or None, default=None"``; the ``rng``
+            setting's without a default.
+        """
         kinds = {"int": "int", "float": "float", "bool": "bool", "channels": "sequence or None",
                  "rng": "int or numpy.random.Generator, optional",
                  "choice": "{" + ", ".join(repr(c) for c in self.choices) + "}"}
@@ -223,6 +273,25 @@ def check_channel_rule(rule, name: str = "channel count", *, none_ok: bool = Fal
     The one check of a channel rule (the settings table, :mod:`tghop.saab` and the
     command line's ``--k1``/``--k2``/``--k3`` call it). ``none_ok``: None ("keep every
     non-empty channel") is allowed too.
+
+    Parameters
+    ----------
+    rule : int, float, str or None
+        The rule given.
+    name : str
+        What the message calls it (``"n_channels: K1"``).
+    none_ok : bool
+        Allow None.
+
+    Returns
+    -------
+    int, float, str or None
+        ``rule`` as an ``int`` count, a ``float`` fraction, ``"knee"`` or None.
+
+    Raises
+    ------
+    TGHopError
+        One line naming ``name`` and the rules allowed.
     """
     if rule is None and none_ok:
         return None
@@ -430,12 +499,24 @@ BY_NAME = {s.name: s for s in SETTINGS}
 
 
 def fit_settings():
-    """Settings that are constructor parameters of TGHop (stored in model files)."""
+    """Settings that are constructor parameters of TGHop (stored in model files).
+
+    Returns
+    -------
+    list of Setting
+        In :data:`SETTINGS`' order (the constructor's).
+    """
     return [s for s in SETTINGS if s.when == "fit"]
 
 
 def generate_settings():
-    """Settings that are keywords of ``TGHop.synthesize``."""
+    """Settings that are keywords of ``TGHop.synthesize``.
+
+    Returns
+    -------
+    list of Setting
+        In :data:`SETTINGS`' order.
+    """
     return [s for s in SETTINGS if s.when == "generate"]
 
 
@@ -450,7 +531,25 @@ QUALITY = {"default": {}, "best": {"patch_refine": 90, "patch_stride": 1}}
 
 
 def check_settings(values: dict, *, prefix: str = "") -> dict:
-    """Check every ``name: value`` against the table; unknown names are refused."""
+    """Check every ``name: value`` against the table; unknown names are refused.
+
+    Parameters
+    ----------
+    values : dict
+        Setting name -> value (fit or generation settings, any subset).
+    prefix : str
+        Put before each name in messages (``"setting "``: ``setting 'x'``).
+
+    Returns
+    -------
+    dict
+        The same names, each value normalised by :meth:`Setting.check`.
+
+    Raises
+    ------
+    TGHopError
+        One line for the first unknown name or bad value.
+    """
     out = {}
     for name, value in values.items():
         if name not in BY_NAME:
@@ -466,7 +565,18 @@ BEFORE_ADDED = {"max_component_ratio": 1.0, "norm_match": 0.0, "coupling": 0.0, 
 
 def recorded_seed(rng):
     """What a model file records of the fit's ``rng``: an int seed as it is, anything else
-    (a Generator, None: no seed to give again) as None."""
+    (a Generator, None: no seed to give again) as None.
+
+    Parameters
+    ----------
+    rng : int, numpy.random.Generator or None
+        A ``rng`` argument as given to ``TGHop``.
+
+    Returns
+    -------
+    int or None
+        ``rng`` as an int where it is an integer >= 0 (a NumPy integer too), else None.
+    """
     if isinstance(rng, numbers.Integral) and not isinstance(rng, bool) and rng >= 0:
         return int(rng)
     return None
@@ -474,7 +584,18 @@ def recorded_seed(rng):
 
 def fit_seed(model):
     """:func:`recorded_seed` of the ``rng`` a fitted model was fitted with (its ``rng`` now may
-    have been changed by ``set_params`` since, which changes nothing learned)."""
+    have been changed by ``set_params`` since, which changes nothing learned).
+
+    Parameters
+    ----------
+    model : TGHop
+        A fitted (or loaded) model.
+
+    Returns
+    -------
+    int or None
+        The seed the model was fitted with, or None (fitted from a Generator or None).
+    """
     return recorded_seed(vars(model).get("_fitted_params", {}).get("rng", model.rng))
 
 
@@ -482,7 +603,25 @@ def file_settings(params: dict) -> dict:
     """The checked constructor settings of a model file's metadata ``params`` (a JSON
     object): lists back to tuples, :data:`BEFORE_ADDED` for settings it predates, and
     ``rng`` the fit's seed where one was recorded (None in files before 0.33, and for a
-    Generator)."""
+    Generator).
+
+    Parameters
+    ----------
+    params : dict
+        The constructor settings a model file records (JSON values: lists for tuples,
+        whole floats such as 2.0 from files before they were refused).
+
+    Returns
+    -------
+    dict
+        Setting name -> checked value (:func:`check_settings`), with the settings the file
+        predates at their :data:`BEFORE_ADDED` value.
+
+    Raises
+    ------
+    TGHopError
+        One line naming an unknown or bad setting (``setting 'x' ...``).
+    """
     params = {**BEFORE_ADDED, **params}
     for name, value in params.items():  # files written before whole floats (2.0) were refused
         if (name in BY_NAME and BY_NAME[name].kind == "int" and isinstance(value, float) and math.isfinite(value)
@@ -495,7 +634,22 @@ def file_settings(params: dict) -> dict:
 
 
 def component_params(estimator, component: str) -> dict:
-    """The constructor arguments of fitted component ``component`` ("ichm", "sdr")."""
+    """The constructor arguments of fitted component ``component`` ("ichm", "sdr").
+
+    Parameters
+    ----------
+    estimator : TGHop
+        Its fit settings are read (the attributes of the settings whose ``target`` names
+        ``component``).
+    component : str
+        ``"ichm"`` or ``"sdr"``.
+
+    Returns
+    -------
+    dict
+        The component's parameter name (the target's part after the dot, else the
+        setting's name) -> the estimator's value.
+    """
     out = {}
     for s in fit_settings():
         if s.target and s.target.split(".")[0] == component:
@@ -504,7 +658,22 @@ def component_params(estimator, component: str) -> dict:
 
 
 def numpydoc_parameters(settings, indent: str = "    ") -> str:
-    """The "Parameters" entries of ``settings`` in numpydoc form."""
+    """The "Parameters" entries of ``settings`` in numpydoc form.
+
+    Parameters
+    ----------
+    settings : iterable of Setting
+        In the order to list them.
+    indent : str
+        One level of indentation: the name line gets one, its help (wrapped at 88
+        characters) two.
+
+    Returns
+    -------
+    str
+        ``name : type`` lines (:meth:`Setting.doc_type`) each followed by its help, without
+        the section's heading.
+    """
     import textwrap
 
     lines = []

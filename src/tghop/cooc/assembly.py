@@ -54,7 +54,18 @@ QUILT_DETAIL = 0.5
 
 
 def check_assembly(assembly) -> None:
-    """A one-line :class:`TGHopError` unless ``assembly`` is one of :data:`ASSEMBLIES`."""
+    """A one-line :class:`TGHopError` unless ``assembly`` is one of :data:`ASSEMBLIES`.
+
+    Parameters
+    ----------
+    assembly : str
+        ``"quilt"``, ``"pass"`` or ``"windows"`` (anything else is refused).
+
+    Raises
+    ------
+    TGHopError
+        Naming the allowed values and the one given.
+    """
     if assembly not in ASSEMBLIES:
         raise TGHopError(f"assembly must be one of {', '.join(ASSEMBLIES)}, got {assembly!r}")
 
@@ -125,14 +136,47 @@ def boost_condition(cond, a: int, b: int, factor: float) -> np.ndarray:
 
 
 def tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
-    """Periodic tiling of a ``(c, th, tw)`` tensor to ``(c, h, w)`` from ``offset``."""
+    """Periodic tiling of a ``(c, th, tw)`` tensor to ``(c, h, w)`` from ``offset``.
+
+    Parameters
+    ----------
+    t : ndarray, shape (c, th, tw)
+        A co-occurrence tensor, or any array with cells on its last two axes.
+    h, w : int
+        Output cells (rows, columns); larger or smaller than ``(th, tw)``.
+    offset : (int, int)
+        Cell of ``t`` (row, column; taken modulo ``(th, tw)``, negative allowed) placed at
+        the output's ``[:, 0, 0]``.
+
+    Returns
+    -------
+    ndarray, shape (c, h, w)
+        ``out[:, y, x] = t[:, (y + offset[0]) % th, (x + offset[1]) % tw]``; ``t``'s dtype.
+    """
     rows = (np.arange(h) + offset[0]) % t.shape[1]
     cols = (np.arange(w) + offset[1]) % t.shape[2]
     return t[:, rows][:, :, cols]
 
 
 def reflect_tile(t: np.ndarray, h: int, w: int, offset=(0, 0)) -> np.ndarray:
-    """Mirror tiling (..., a b c c b a a b ...) of ``(c, th, tw)`` to ``(c, h, w)``: no jumps at the joins."""
+    """Mirror tiling (..., a b c c b a a b ...) of ``(c, th, tw)`` to ``(c, h, w)``: no jumps at the joins.
+
+    Parameters
+    ----------
+    t : ndarray, shape (c, th, tw)
+        A co-occurrence tensor, or any array with cells on its last two axes.
+    h, w : int
+        Output cells (rows, columns).
+    offset : (int, int)
+        Position (row, column) in the mirrored period of ``2 * th`` by ``2 * tw`` cells
+        placed at the output's ``[:, 0, 0]``; ``(-p, -q)`` starts ``p`` rows and ``q``
+        columns before ``t`` (as :func:`mirror_pad`).
+
+    Returns
+    -------
+    ndarray, shape (c, h, w)
+        ``t``'s dtype; each edge cell repeated once at a join.
+    """
 
     def index(n, size, start):
         period = 2 * size
@@ -149,6 +193,25 @@ def window_layout(length: int, n: int, stride: int):
     ``[t*stride, (t+1)*stride)`` of the image (its centre), so the axis is padded by the
     margin ``(n - stride) // 2`` before and up to the last window's end after. An axis of
     at most ``n`` cells is one window of its own length, unpadded.
+
+    Parameters
+    ----------
+    length : int
+        Cells along the axis (of the condition to generate for).
+    n : int
+        Window length in cells (the training crops' condition size).
+    stride : int
+        Cells between window starts, at most ``n``.
+
+    Returns
+    -------
+    starts : list of int
+        Each window's first cell in the padded axis: ``0, stride, 2 * stride, ...``,
+        ``ceil(length / stride)`` of them (``[0]`` for a short axis).
+    pads : (int, int)
+        Cells to pad before and after (:func:`mirror_pad`); ``(0, 0)`` for a short axis.
+    window : int
+        Window length: ``n``, or ``length`` for an axis of at most ``n`` cells.
     """
     if length <= n:
         return [0], (0, 0), length
@@ -161,7 +224,24 @@ def window_layout(length: int, n: int, stride: int):
 def blend_weights(size: int, lo: int, hi: int, feather: int, blend: bool) -> np.ndarray:
     """Per-pixel weight of a window along one axis: 1 on ``[lo, hi)``, raised-cosine ramps
     ``feather`` pixels wide centred on ``lo`` and ``hi``; a neighbour's ramp is the
-    complement, so overlapping windows' weights sum to one. All ones if ``not blend``."""
+    complement, so overlapping windows' weights sum to one. All ones if ``not blend``.
+
+    Parameters
+    ----------
+    size : int
+        The window's length in pixels.
+    lo, hi : int
+        The window's own part, ``[lo, hi)`` pixels (its centre of ``stride`` cells).
+    feather : int
+        Ramp width in pixels; 0 or less: hard steps at ``lo`` and ``hi``.
+    blend : bool
+        False for an axis of a single window: no ramps, all ones.
+
+    Returns
+    -------
+    ndarray, shape (size,), float64
+        Weights in [0, 1], of pixel centres ``0.5, 1.5, ...``.
+    """
     if not blend:
         return np.ones(size)
     x = np.arange(size) + 0.5
@@ -176,7 +256,21 @@ def blend_weights(size: int, lo: int, hi: int, feather: int, blend: bool) -> np.
 
 def mirror_pad(t: np.ndarray, pads_y, pads_x) -> np.ndarray:
     """Mirror padding (edge cell repeated) of a ``(c, h, w)`` array: :func:`reflect_tile`
-    started ``pads_y[0]`` rows and ``pads_x[0]`` columns before the array."""
+    started ``pads_y[0]`` rows and ``pads_x[0]`` columns before the array.
+
+    Parameters
+    ----------
+    t : ndarray, shape (c, h, w)
+        A condition or a noise array.
+    pads_y, pads_x : (int, int)
+        Rows (columns) to add before and after, each at most ``h`` (``w``) for a plain
+        mirror (:func:`window_layout`'s pads).
+
+    Returns
+    -------
+    ndarray, shape (c, h + sum(pads_y), w + sum(pads_x))
+        ``t`` itself when nothing is padded, else a new array of ``t``'s dtype.
+    """
     if not any(pads_y) and not any(pads_x):
         return t
     _, h, w = t.shape

@@ -52,6 +52,21 @@ def save(model, path) -> None:
     """Write a trained :class:`~tghop.cooc.model.CoocGAN` to ``path`` (atomically).
 
     See the module's docstring for what is stored.
+
+    Parameters
+    ----------
+    model : tghop.cooc.model.CoocGAN
+        Fitted (or loaded): its networks, optimiser states, statistics, settings and the
+        random-number state of its training.
+    path : str or path-like
+        The ``.pt`` file to write; a half-written file is never left there.
+
+    Raises
+    ------
+    NotFittedError
+        Before ``fit``.
+    ModelFileError
+        When ``path`` cannot be written (a folder, a missing parent, ...).
     """
     model._check_fitted()
     torch = import_torch("The co-occurrence cGAN")

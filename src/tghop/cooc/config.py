@@ -86,6 +86,12 @@ def check_settings(values) -> dict:
     Integer settings take integers (or floats without a fraction, 64.0), never a bool or
     a fraction; the widths are sequences of them; ``context`` is a bool (or 0 or 1).
 
+    Parameters
+    ----------
+    values : mapping
+        Setting name -> value, with every key of :data:`SMALL` (other keys, such as
+        ``device`` and ``rng``, are ignored).
+
     Returns
     -------
     dict
@@ -133,7 +139,19 @@ def check_settings(values) -> dict:
 
 def torch_device(torch, device):
     """The torch device named by ``device`` (``"auto"`` or None: CUDA when present), or a
-    one-line :class:`TGHopError` naming the device (an unknown name, or CUDA where there is none)."""
+    one-line :class:`TGHopError` naming the device (an unknown name, or CUDA where there is none).
+
+    Parameters
+    ----------
+    torch : module
+        The imported ``torch`` (passed in: this module does not import PyTorch).
+    device : str, torch.device or None
+        ``"auto"`` or None, ``"cpu"``, ``"cuda"``, ``"cuda:1"``, ...
+
+    Returns
+    -------
+    torch.device
+    """
     if device in (None, "auto"):
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     try:

@@ -23,6 +23,19 @@ def average_step(torch, average, module, decay: float, step: int) -> None:
     ``beta = decay (1 - decay**(step-1)) / (1 - decay**step)``: the average is then exactly
     the normalised mean of the weights after steps 1..step with weights
     ``decay**(step-i)``. Buffers (batch-norm statistics) are copied from ``module``.
+
+    Parameters
+    ----------
+    torch : module
+        The imported ``torch``.
+    average : torch.nn.Module
+        The weight average, updated in place; the same architecture as ``module``.
+    module : torch.nn.Module
+        The network just trained (read only).
+    decay : float
+        In [0, 1): the weight of the previous average (the model's ``ema``).
+    step : int
+        The training step just done, from 1 (step 1 copies ``module``: ``beta = 0``).
     """
     beta = decay * (1.0 - decay ** (step - 1)) / (1.0 - decay**step)
     with torch.no_grad():
@@ -33,7 +46,36 @@ def average_step(torch, average, module, decay: float, step: int) -> None:
 
 
 def build_networks(torch, n_colours: int, n_cond: int, p: dict):
-    """Generator and critic modules for settings ``p``."""
+    """Generator and critic modules for settings ``p``, initialised as DCGAN / PSGAN do.
+
+    Parameters
+    ----------
+    torch : module
+        The imported ``torch``.
+    n_colours : int
+        Colour channels of the images (the exemplar's C: 1 or 3).
+    n_cond : int
+        Channels of the condition: ``k*k``, one per bin of a cell's co-occurrence matrix.
+    p : dict
+        Checked settings (:func:`tghop.cooc.config.check_settings`): ``n_layers``,
+        ``g_widths`` and ``d_widths`` (``n_layers - 1`` entries each), ``noise_channels``,
+        ``padding`` and ``kernel`` (default 5).
+
+    Returns
+    -------
+    generator : torch.nn.Module
+        ``generator(cond, noise)``: ``cond`` shape (m, n_cond, h, w), ``noise`` shape
+        (m, noise_channels, h, w) -> images shape (m, n_colours, h * 2**n_layers,
+        w * 2**n_layers) in [-1, 1] (tanh).
+    critic : torch.nn.Module
+        ``critic(x, cond)``: ``x`` shape (m, n_colours, H, W), ``cond`` shape
+        (m, n_cond, h, w) -> shape (m,), one critic value per image.
+
+    Raises
+    ------
+    TGHopError
+        When ``g_widths`` or ``d_widths`` has not ``n_layers - 1`` entries.
+    """
     nn = torch.nn
     n_layers = int(p["n_layers"])
     kernel = int(p.get("kernel", 5))
@@ -97,7 +139,20 @@ def build_networks(torch, n_colours: int, n_cond: int, p: dict):
 
 
 def split_tiles(x, t: int):
-    """``(m, c, t*a, t*b)`` -> ``(m*t*t, c, a, b)``: each item's t x t tiles, row by row."""
+    """``(m, c, t*a, t*b)`` -> ``(m*t*t, c, a, b)``: each item's t x t tiles, row by row.
+
+    Parameters
+    ----------
+    x : torch.Tensor, shape (m, c, t*a, t*b)
+        A batch of images (or conditions) whose sides are multiples of ``t``.
+    t : int
+        Tiles per side; 1 returns ``x`` itself.
+
+    Returns
+    -------
+    torch.Tensor, shape (m*t*t, c, a, b)
+        Item ``i``'s tile ``(r, s)`` at index ``i*t*t + r*t + s``.
+    """
     if t == 1:
         return x
     m, c, h, w = x.shape
@@ -106,7 +161,19 @@ def split_tiles(x, t: int):
 
 
 def join_tiles(x, t: int):
-    """The inverse of :func:`split_tiles`: ``(m*t*t, c, a, b)`` -> ``(m, c, t*a, t*b)``."""
+    """The inverse of :func:`split_tiles`: ``(m*t*t, c, a, b)`` -> ``(m, c, t*a, t*b)``.
+
+    Parameters
+    ----------
+    x : torch.Tensor, shape (m*t*t, c, a, b)
+        Tiles in :func:`split_tiles`' order.
+    t : int
+        Tiles per side; 1 returns ``x`` itself.
+
+    Returns
+    -------
+    torch.Tensor, shape (m, c, t*a, t*b)
+    """
     if t == 1:
         return x
     n, c, a, b = x.shape
