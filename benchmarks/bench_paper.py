@@ -1,22 +1,30 @@
 """Reproduce the TGHop paper's tables and figures (Lei, Zhao, Zhang, Kuo 2021) in one command.
 
-    python benchmarks/bench_paper.py            # everything: about 20 min on 2 cores (14 with --tghop paper)
-    python benchmarks/bench_paper.py --quick    # 3 textures, smaller sweeps: 3-8 min (by machine)
+    python benchmarks/bench_paper.py            # everything: about 20 min on 2 idle cores (14 with
+                                                # --tghop paper); more on a machine busy with other jobs
+    python benchmarks/bench_paper.py --quick    # 3 textures, smaller sweeps, Table 2's Ustyuzhaninov run
+                                                # not timed: 8 min on 2 cores busy with other jobs
 
 Options:
 
   --out DIR            output folder (default benchmarks/results/paper/)
-  --quick              3 textures in the quality table, fewer sweep points, short
-                       Ustyuzhaninov runs (explicit options below still win)
+  --quick              3 textures in the quality table (--textures), fewer sweep points
+                       (Table 1: settings a, d; Fig. 11: N = 50, 110; Table 5: gamma 0,
+                       0.01, 0.1), Ustyuzhaninov in the quality table on brick_wall only at
+                       20 iterations, and Table 2's timed 256x256 Ustyuzhaninov run skipped
+                       (--time-ust-iters 0; that run alone took 7 min of a loaded 2-core
+                       machine at 5 iterations). Explicit options below still win.
   --textures a,b,...   exemplars of the quality table (file stems in ../shared/textures
                        or TGHOP_TEXTURES; default: all of them)
-  --ust-textures a,b   exemplars on which the Ustyuzhaninov et al. baseline runs
-                       (default brick_wall,red_peppers,grass_lawn; "" skips it)
+  --ust-textures a,b   exemplars on which the Ustyuzhaninov et al. baseline runs in the
+                       quality table (default brick_wall,red_peppers,grass_lawn; brick_wall
+                       with --quick; "" skips those runs, not Table 2's timed one)
   --ust-size S         output side of those runs (default 128)
-  --ust-iters N        L-BFGS iterations of those runs (default 100)
+  --ust-iters N        L-BFGS iterations of those runs (default 100, 20 with --quick)
   --time-ust-iters N   iterations of the timed 256x256 Ustyuzhaninov run of Table 2 (default
-                       10, 5 with --quick; the paper's 100 are extrapolated by loss evaluations: the
-                       measured ones, and the rest at the rate of the iterations after the first two)
+                       10; 0 skips it, the default with --quick: Table 2 then says "not timed");
+                       the paper's 100 are extrapolated by loss evaluations: the measured ones,
+                       and the rest at the rate of the iterations after the first two
   --workers N          processes for everything after the timing section (default 2)
   --threads N          BLAS / PyTorch threads of the timing section (default 1: on this
                        shared 2-core machine one thread was faster for both methods)
@@ -31,7 +39,8 @@ Sections (each a Markdown table in DIR/report.md, data in DIR/<section>.json, im
 
 1. Table 2/3 -- time of one 256x256 brick_wall image: analysis, generation of the
    10,000-patch pool, quilting; Ustyuzhaninov et al. timed in the same run (measured and
-   extrapolated to the paper's 100 iterations); ratios next to the paper's.
+   extrapolated to the paper's 100 iterations; not with --quick or --time-ust-iters 0);
+   ratios next to the paper's.
 2. Table 1 / Fig. 8 -- four (K1, K2) dimension settings: dims, patches, metrics.
 3. Fig. 11 -- N = 50, 80, 110, 200 clusters: patches, metrics, fit time, parameters.
 4. Table 5 / Fig. 12 -- gamma sweep: D_r and model size against the paper's, patches.
@@ -486,18 +495,7 @@ def section_time(args, out):
                "quilting_s": quilts, "tghop_with_analysis_s": with_a, "tghop_without_analysis_s": without,
                "ustyuzhaninov": ust, "peak_rss_mb": peak_rss_mb()}
 
-    rows2 = []
-    if ust:
-        rows2.append([f"Ustyuzhaninov et al. [25], {ust['iterations']} iterations (measured)", ust["measured_s"],
-                      f"{ust['measured_s'] / without:.0f}x", "-", "-"])
-        rows2.append(["Ustyuzhaninov et al. [25], 100 iterations (extrapolated by loss evaluations)",
-                      ust["extrapolated_100_s"], f"{ust['extrapolated_100_s'] / without:.0f}x",
-                      PAPER_TABLE2["Ustyuzhaninov et al. [25]"], "4.62x"])
-    rows2.append(["Gatys et al. [20]", "not run", "-", PAPER_TABLE2["Gatys et al. [20]"], "2.50x"])
-    rows2.append(["TGHop with analysis overhead (fit + first image)", with_a, f"{with_a / without:.0f}x",
-                  PAPER_TABLE2["TGHop with analysis overhead"], "1.42x"])
-    rows2.append(["TGHop w/o analysis overhead (pool + quilting)", without, "1x",
-                  PAPER_TABLE2["TGHop w/o analysis overhead"], "1x"])
+    rows2 = table2_rows(args, ust, with_a, without)
     text = (f"## Table 2: time of one 256x256 brick_wall image (this machine, {args.threads} thread(s); "
             "paper: 12-core i7-5930K + Titan X GPU for the DL methods)\n\n")
     text += markdown_table(["method", "time here (s)", "factor here", "paper (s)", "factor paper"], rows2)
@@ -520,6 +518,27 @@ def section_time(args, out):
         ["quilting 256x256 (median of 4)", q, PAPER_TABLE3["quilting"]]])
     text += "\n\nFit stages (s): " + ", ".join(f"{k} {v:.2f}" for k, v in stages.items())
     return text, payload, model
+
+
+def table2_rows(args, ust, with_a, without) -> list:
+    """Table 2's rows: Ustyuzhaninov et al. (timed, or why not), Gatys et al., TGHop with and without analysis."""
+    rows = []
+    if not ust:
+        rows.append([f"Ustyuzhaninov et al. [25]: not timed (skipped by {args.time_ust_skipped}; "
+                     "--time-ust-iters N times N iterations)", "-", "-",
+                     PAPER_TABLE2["Ustyuzhaninov et al. [25]"], "4.62x"])
+    else:
+        rows.append([f"Ustyuzhaninov et al. [25], {ust['iterations']} iterations (measured)", ust["measured_s"],
+                     f"{ust['measured_s'] / without:.0f}x", "-", "-"])
+        rows.append(["Ustyuzhaninov et al. [25], 100 iterations (extrapolated by loss evaluations)",
+                     ust["extrapolated_100_s"], f"{ust['extrapolated_100_s'] / without:.0f}x",
+                     PAPER_TABLE2["Ustyuzhaninov et al. [25]"], "4.62x"])
+    rows.append(["Gatys et al. [20]", "not run", "-", PAPER_TABLE2["Gatys et al. [20]"], "2.50x"])
+    rows.append(["TGHop with analysis overhead (fit + first image)", with_a, f"{with_a / without:.0f}x",
+                 PAPER_TABLE2["TGHop with analysis overhead"], "1.42x"])
+    rows.append(["TGHop w/o analysis overhead (pool + quilting)", without, "1x",
+                 PAPER_TABLE2["TGHop w/o analysis overhead"], "1x"])
+    return rows
 
 
 def section_params(model):
@@ -668,19 +687,21 @@ def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=usage, epilog="Sections" + rest.split("\nSections", 1)[1],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
-                    help="3 textures in the quality table, fewer sweep points, short Ustyuzhaninov runs (3-8 min; "
-                         "explicit options below still win)")
+                    help="3 textures in the quality table, fewer sweep points, Ustyuzhaninov on brick_wall only at 20 "
+                         "iterations, Table 2's timed Ustyuzhaninov run skipped (8 min on 2 cores busy with other "
+                         "jobs; explicit options below still win)")
     ap.add_argument("--out", type=Path, default=RESULTS / "paper", help="output folder (default %(default)s)")
     ap.add_argument("--textures", default=None, help="comma-separated exemplars of the quality table (file stems in "
                     "../shared/textures or TGHOP_TEXTURES; default all)")
-    ap.add_argument("--ust-textures", default=None, help="exemplars on which Ustyuzhaninov et al. runs (default "
-                    "brick_wall,red_peppers,grass_lawn; brick_wall with --quick; \"\" skips it)")
+    ap.add_argument("--ust-textures", default=None, help="exemplars on which Ustyuzhaninov et al. runs in the "
+                    "quality table (default brick_wall,red_peppers,grass_lawn; brick_wall with --quick; \"\" skips "
+                    "those runs, not Table 2's timed one: --time-ust-iters 0)")
     ap.add_argument("--ust-size", type=int, default=None, help="output side of those runs (default 128)")
     ap.add_argument("--ust-iters", type=int, default=None,
                     help="L-BFGS iterations of those runs (default 100, 20 with --quick)")
     ap.add_argument("--time-ust-iters", type=int, default=None,
-                    help="iterations of Table 2's timed 256x256 Ustyuzhaninov run (default 10, 5 with --quick; "
-                         "extrapolated to the paper's 100)")
+                    help="iterations of Table 2's timed 256x256 Ustyuzhaninov run, extrapolated to the paper's 100 "
+                         "(default 10; 0 skips it, the default with --quick)")
     ap.add_argument("--workers", type=int, default=2,
                     help="processes for everything after the timing section (default 2)")
     ap.add_argument("--threads", type=int, default=1, help="BLAS / PyTorch threads of the timing section (default 1)")
@@ -694,7 +715,15 @@ def parse_args(argv=None):
         args.ust_textures = "brick_wall" if quick else "brick_wall,red_peppers,grass_lawn"
     args.ust_size = args.ust_size or (128 if quick else 128)
     args.ust_iters = args.ust_iters if args.ust_iters is not None else (20 if quick else 100)
-    args.time_ust_iters = args.time_ust_iters if args.time_ust_iters is not None else (5 if quick else 10)
+    if args.time_ust_iters is not None and args.time_ust_iters < 0:
+        ap.error(f"--time-ust-iters takes 0 (skip the timed run) or more iterations, got {args.time_ust_iters}")
+    # time_ust_skipped: the option that skipped Table 2's timed Ustyuzhaninov run ("" when it runs). A few
+    # iterations at 256x256 take minutes of one core, most of a quick run's budget: --quick skips it.
+    if args.time_ust_iters is None:
+        args.time_ust_iters = 0 if quick else 10
+        args.time_ust_skipped = "--quick" if quick else ""
+    else:
+        args.time_ust_skipped = "" if args.time_ust_iters else "--time-ust-iters 0"
     args.modes = [m for m in args.tghop.split(",") if m]
     if not args.modes or any(m not in ("paper", "default") for m in args.modes):
         ap.error(f"--tghop takes paper, default or paper,default, got {args.tghop!r}")
@@ -727,7 +756,9 @@ def main(argv=None):
     textures = [t for t in args.textures.split(",") if t]
     ust_textures = [t for t in args.ust_textures.split(",") if t]
     log(f"output {out}; {len(textures)} exemplars in the quality table; Ustyuzhaninov on {ust_textures or 'none'} "
-        f"at {args.ust_size}^2 x {args.ust_iters} iterations; quick={args.quick}")
+        f"at {args.ust_size}^2 x {args.ust_iters} iterations; Table 2's timed Ustyuzhaninov run: "
+        f"{'skipped by ' + args.time_ust_skipped if args.time_ust_skipped else f'{args.time_ust_iters} iterations'}; "
+        f"quick={args.quick}")
 
     version = git_version()
     order = ["time", "settings", "clusters", "gamma", "params", "stages", "fig3", "fig7", "quality", "runtime"]

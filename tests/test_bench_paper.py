@@ -1,0 +1,101 @@
+"""benchmarks/bench_paper.py's options do what its help says, without running the reproduction.
+
+Only the argument parsing and Table 2's rows are exercised: no exemplar, fit or Ustyuzhaninov run.
+"""
+
+import importlib.util
+import itertools
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_paper.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    """The script as a module; sys.path and sys.modules as they were afterwards."""
+    path, modules = list(sys.path), set(sys.modules)
+    spec = importlib.util.spec_from_file_location("bench_paper_under_test", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    yield module
+    sys.path[:] = path
+    for name in set(sys.modules) - modules:
+        if name in ("_common", "bench_paper_under_test"):
+            del sys.modules[name]
+
+
+def _rows(bench, args):
+    return [row[0] for row in bench.table2_rows(args, None, with_a=3.0, without=1.0)]
+
+
+def test_quick_skips_table2s_timed_ustyuzhaninov_run_and_says_so(bench):
+    args = bench.parse_args(["--quick"])
+    assert args.time_ust_iters == 0  # section_time runs ustyuzhaninov only when it is above 0
+    assert args.time_ust_skipped == "--quick"
+    first = _rows(bench, args)[0]
+    assert "not timed" in first and "--quick" in first and "--time-ust-iters N" in first
+
+
+def test_the_full_run_times_ustyuzhaninov(bench):
+    args = bench.parse_args(["--textures", "a"])  # not the shared folder's listing
+    assert args.time_ust_iters == 10
+    assert args.time_ust_skipped == ""
+
+
+def test_an_explicit_time_ust_iters_wins_over_quick(bench):
+    args = bench.parse_args(["--quick", "--time-ust-iters", "3"])
+    assert (args.time_ust_iters, args.time_ust_skipped) == (3, "")
+    args = bench.parse_args(["--textures", "a", "--time-ust-iters", "0"])
+    assert (args.time_ust_iters, args.time_ust_skipped) == (0, "--time-ust-iters 0")
+    assert "skipped by --time-ust-iters 0" in _rows(bench, args)[0]
+
+
+def test_empty_ust_textures_leaves_the_timed_run_to_time_ust_iters(bench):
+    # --ust-textures "" is the quality table's subset only, as its help says.
+    args = bench.parse_args(["--textures", "a", "--ust-textures", ""])
+    assert args.ust_textures == "" and args.time_ust_iters == 10
+
+
+def test_quick_shrinks_the_sweeps_and_the_quality_table(bench):
+    args = bench.parse_args(["--quick"])
+    assert args.textures.split(",") == ["brick_wall", "grass_lawn", "red_peppers"]
+    assert args.ust_textures == "brick_wall" and args.ust_iters == 20
+    assert args.settings == ["a", "d"] and tuple(args.clusters) == (50, 110) and tuple(args.gammas) == (0, 0.01, 0.1)
+
+
+def test_a_negative_time_ust_iters_is_refused(bench, capsys):
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--quick", "--time-ust-iters", "-1"])
+    assert "--time-ust-iters" in capsys.readouterr().err
+
+
+def test_the_help_says_what_skips_the_timed_run(bench, capsys):
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "0 skips it, the default with --quick" in text
+    assert "not Table 2's timed one" in text
+
+
+
+def _options(text):
+    return set(re.findall(r"(?<![\w-])(--[a-z][\w-]*)", text))
+
+
+def test_the_docs_name_only_the_scripts_options(bench, capsys):
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--help"])
+    known = _options(capsys.readouterr().out.split("\n\n")[0])  # argparse's usage lines: the real options
+    assert {"--quick", "--time-ust-iters", "--ust-textures"} <= known
+    usage, options = bench.__doc__.split("\nOptions:\n", 1)
+    listed = set(re.findall(r"^  (--[a-z][\w-]*)", options.split("\nSections")[0], re.M))
+    assert listed == known - {"--help"}  # the docstring's list (--help shows it) has every option
+    readme = (SCRIPT.parents[1] / "README.md").read_text(encoding="utf-8").splitlines()
+    start = next(i for i, line in enumerate(readme) if line.startswith("python benchmarks/bench_paper.py"))
+    block = [readme[start]] + list(itertools.takewhile(lambda line: line.startswith(" "), readme[start + 1:]))
+    assert "--quick" in " ".join(block)
+    assert _options(usage + " ".join(block)) <= known
