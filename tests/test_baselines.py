@@ -157,7 +157,7 @@ def test_ustyuzhaninov_greyscale_and_zero_iterations(exemplar):
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"n_iter": 2.5}, r"^n_iter must be an integer >= 0, got 2.5$"),  # was run as 2 iterations
+    ({"n_iter": 2.5}, r"^n_iter must be an integer from 0 to 20,000, got 2.5$"),  # was run as 2 iterations
     ({"n_maps": 1.5}, r"^n_maps must be an integer >= 1, got 1.5$"),  # was run with 1 map
     ({"scales": (3, 4.9)}, r"^scales must be odd positive filter sizes, got \(3, 4.9\)$"),  # was a filter of 4
 ])
@@ -165,6 +165,22 @@ def test_ustyuzhaninov_refuses_fractional_counts_instead_of_truncating(options, 
     pytest.importorskip("torch")
     with pytest.raises(TGHopError, match=message):
         baselines.ustyuzhaninov(exemplar, 16, rng=0, **options)
+
+
+def test_step_counts_without_end_are_refused_before_any_work(exemplar, monkeypatch):
+    # n_iter = 10**11 ran for days; the bounds are ten times the papers' counts.
+    pytest.importorskip("torch")
+    from tghop import gpdm
+
+    def work(*args, **kwargs):
+        pytest.fail("the work started: the count was not refused first")
+
+    monkeypatch.setattr(baselines, "RandomCNN", work)
+    monkeypatch.setattr(gpdm, "_run", work)
+    with pytest.raises(TGHopError, match=r"^n_iter must be an integer from 0 to 20,000, got 20001$"):
+        baselines.ustyuzhaninov(exemplar, 16, n_iter=20_001)
+    with pytest.raises(TGHopError, match=r"^gpdm: n_steps must be an integer from 0 to 3,000, got 3001$"):
+        baselines.gpdm(exemplar, 16, n_steps=3_001)
 
 
 def test_ustyuzhaninov_without_torch_raises_install_hint(exemplar, monkeypatch, without_torch):
@@ -377,7 +393,7 @@ def test_gpdm_refusals(exemplar, monkeypatch):
         baselines.gpdm(exemplar, 16, scale_factor=1.0)
     with pytest.raises(TGHopError, match="init"):
         baselines.gpdm(exemplar, 16, init="zeros")
-    bad = [("n_steps", -1, "an integer >= 0"), ("n_steps", 2.5, "an integer >= 0"),
+    bad = [("n_steps", -1, "an integer from 0 to 3,000"), ("n_steps", 2.5, "an integer from 0 to 3,000"),
            ("n_projections", 0, "an integer >= 1"),
            ("patch_size", True, "an integer >= 1"), ("coarsest", "8", "an integer >= 1"),
            ("scale_factor", 0.0, "a finite number > 0"), ("scale_factor", float("nan"), "a finite number > 0"),

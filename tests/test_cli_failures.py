@@ -150,6 +150,28 @@ def test_failure_is_one_line_and_leaves_nothing(folder, args, fragments):
     assert sorted(os.listdir(folder)) == before
 
 
+@pytest.mark.parametrize("args, fragments", [
+    (["baseline", "ustyuzhaninov", "bricks.png", "-o", "o.png", "--iterations", "99999999999"],
+     ["'--iterations'", "ustyuzhaninov baseline runs at most 20,000, got 99,999,999,999"]),
+    (["baseline", "gpdm", "bricks.png", "-o", "o.png", "--iterations", "3001"], ["gpdm baseline runs at most 3,000"]),
+    (["baseline", "cooc", "bricks.png", "-o", "o.png", "--iterations", "150001"],
+     ["cooc baseline runs at most 150,000"]),
+    (["cooc", "train", "bricks.png", "-o", "m.pt", "--steps", "99999999999"], ["'--steps'", "at most 150,000"]),
+])
+def test_too_many_steps_is_a_usage_error(folder, monkeypatch, args, fragments):
+    # Without a bound these ran for days; refused before the exemplar is read, exit status 2.
+    from tghop.cli import cooc, evaluation
+
+    def read(*args, **kwargs):
+        pytest.fail("the exemplar was read: the count was not refused first")
+
+    for module in (cooc, evaluation):
+        monkeypatch.setattr(module, "load_exemplar", read)
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, exception=exc)
+    assert code == 2, err
+
+
 @pytest.mark.parametrize("args, fragment", [(["--overlap", "20"], "(overlap, --overlap) must be between 1 and 16"),
                                             (["--size", "20", "--tile"], "at least the patch size 32")])
 def test_an_output_quilting_refuses_is_refused_before_the_fit(folder, args, fragment):

@@ -237,6 +237,7 @@ def test_fit_leaves_torch_global_generator_as_it_was(exemplar):
     ("context", "no", "context must be True or False"),
     ("tiles", 0, "tiles must be positive, got 0"),
     ("n_steps", -1, "n_steps must be 0 or more, got -1"),
+    ("n_steps", 10**11, "n_steps must be at most 150,000, got 100,000,000,000"),  # trained for ever
 ])
 def test_settings_of_the_wrong_kind_are_refused_by_name(exemplar, monkeypatch, name, value, words):
     monkeypatch.setattr(cooc.CoocGAN, "_build", lambda *a: pytest.fail("training started"))

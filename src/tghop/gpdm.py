@@ -20,7 +20,11 @@ from ._arrays import check_int, check_number
 from ._common import (ProgressCallback, TGHopError, check_image, check_memory, check_rng, check_size, import_torch,
                       report, usable_cores)
 
-__all__ = ["gpdm", "gpdm_levels", "gpdm_memory"]
+__all__ = ["gpdm", "gpdm_levels", "gpdm_memory", "GPDM_MAX_STEPS"]
+
+#: Most Adam steps per level :func:`gpdm` runs: ten times the paper's 300 (a larger count is
+#: refused instead of running for days).
+GPDM_MAX_STEPS = 3_000
 
 #: Bytes of an element of the float32 tensors GPDM works with.
 _F32 = 4
@@ -150,7 +154,8 @@ def gpdm(
     progress : callable, optional
         ``progress("gpdm level k/n", done_steps, n_steps)``, one stage per level.
     n_steps : int
-        Adam steps per level (default 300, the paper's); 0 returns the upsampled start.
+        Adam steps per level (default 300, the paper's), at most :data:`GPDM_MAX_STEPS` = 3,000;
+        0 returns the upsampled start.
     n_projections : int
         Random directions per step (default 64).
     patch_size : int
@@ -199,7 +204,7 @@ def gpdm(
     """
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
-    n_steps = check_int(n_steps, "n_steps", 0, where="gpdm")
+    n_steps = check_int(n_steps, "n_steps", 0, GPDM_MAX_STEPS, where="gpdm")
     n_projections = check_int(n_projections, "n_projections", where="gpdm")
     patch_size = check_int(patch_size, "patch_size", where="gpdm")
     coarsest = check_int(coarsest, "coarsest", where="gpdm")

@@ -116,7 +116,8 @@ def cooc():
               help="The paper's configuration (128 px crops, s = 32, 2,000 crops; ~10 min on an H100 GPU, "
                    "far too slow for a CPU).")
 @click.option("--steps", type=click.IntRange(min=0), default=None,
-              help="Generator steps. [default: the configuration's: 5,500 small, 3,750 with --paper]")
+              help="Generator steps, at most 150,000 (--max-minutes bounds the time). "
+                   "[default: the configuration's: 5,500 small, 3,750 with --paper]")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a setting, e.g. --set crop_size=32 --set g_widths=[32,16] (repeatable).")
 @click.option("--resume", is_flag=True, help="Continue the checkpoint at OUTPUT (same exemplar) up to --steps.")
@@ -136,6 +137,11 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
         from .._common import import_torch
         from ..cooc import PAPER, CoocGAN
 
+        from ..cooc.config import MAX_STEPS
+
+        if steps is not None and steps > MAX_STEPS:
+            raise click.BadParameter(f"at most {MAX_STEPS:,}, got {steps:,}; give fewer steps (and --max-minutes "
+                                     "to bound the time)", param_hint="'--steps'")
         overrides = parse_settings(settings)
         import_torch("The co-occurrence cGAN")  # the one-line hint before the exemplar is read
         check_model_output(output, "-o", suffix=".pt", what="checkpoint")

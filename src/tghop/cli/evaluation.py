@@ -189,6 +189,18 @@ def _csv_number(value) -> str:
     return repr(float(value)) if value == value and abs(value) != float("inf") else ""
 
 
+def check_iterations(name, iterations):
+    """Refuse (a usage error, exit status 2) more ``--iterations`` than baseline ``name`` runs."""
+    from ..baselines import USTYUZHANINOV_MAX_ITER
+    from ..cooc.config import MAX_STEPS
+    from ..gpdm import GPDM_MAX_STEPS
+
+    high = {"ustyuzhaninov": USTYUZHANINOV_MAX_ITER, "cooc": MAX_STEPS, "gpdm": GPDM_MAX_STEPS}.get(name)
+    if iterations is not None and high is not None and iterations > high:
+        raise click.BadParameter(f"the {name} baseline runs at most {high:,}, got {iterations:,}; give a smaller "
+                                 "count", param_hint="'--iterations'")
+
+
 @click.command()
 @click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov",
                                            "cooc", "gpdm"]))
@@ -198,9 +210,9 @@ def _csv_number(value) -> str:
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same image; without it every run differs.")
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
-              help="ustyuzhaninov: L-BFGS iterations (default 500; the paper used 2000). "
-                   "cooc: training steps (default 5500; not with --model). "
-                   "gpdm: Adam steps per pyramid level (default 300).")
+              help="ustyuzhaninov: L-BFGS iterations (default 500, at most 20,000; the paper used 2000). "
+                   "cooc: training steps (default 5500, at most 150,000; not with --model). "
+                   "gpdm: Adam steps per pyramid level (default 300, at most 3,000).")
 @click.option("--model", "model_file", default=None, metavar="CHECKPOINT",
               help="cooc: a checkpoint from 'tghop cooc train' on this EXEMPLAR to generate from instead of training.")
 @click.option("--assembly", type=click.Choice(["quilt", "pass", "windows"]), default=None,
@@ -238,6 +250,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
         for option, value in (("--model", model_file), ("--assembly", assembly)):
             if value is not None and name != "cooc":
                 raise TGHopError(f"{option} applies to the cooc baseline only")
+        check_iterations(name, iterations)
         if iterations is not None and model_file is not None:
             raise TGHopError("--iterations applies to the cooc baseline without --model only (it sets the training "
                              "steps; the checkpoint is trained already)")
