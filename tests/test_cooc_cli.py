@@ -105,6 +105,22 @@ def test_sources_too_small_or_of_other_channels_are_refused(files, tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("args, fragments", [
+    (["morph", "M", "crop:0,0", "crop:0,0", "--grid", "40x2"], ["'--grid'", "'40x2': write COLSxROWS with 1 to 32"]),
+    (["morph", "M", "crop:0,0", "crop:0,0", "--grid", "five"], ["'--grid'", "'five': write COLSxROWS"]),
+    (["edit", "M", "--boost", "0,1,1e308"], ["'--boost'", "FACTOR must be from 0 to 1,000, got 1e+308"]),
+    (["edit", "M", "--boost", "0,1,nan"], ["'--boost'", "FACTOR must be from 0 to 1,000, got nan"]),
+    (["edit", "M", "--boost", "0,1"], ["'--boost'", "'0,1': write A,B,FACTOR"]),
+    (["edit", "M", "--boost", "0,7,2"], ["'--boost'", "0,7: the boosted clusters must lie in 0..2"]),
+])
+def test_grid_and_boost_errors_are_usage_errors(files, tmp_path, args, fragments):
+    # They exited with status 1 (click's usage errors: 2), and --boost took any finite factor.
+    args = [files / "m.pt" if a == "M" else a for a in args]
+    r = invoke("cooc", *args, "-o", tmp_path / "o.png")
+    assert_user_error(r, *fragments)
+    assert r.exit_code == 2 and not (tmp_path / "o.png").exists()
+
+
 def test_help_says_what_an_image_stands_for():
     for command in ("morph", "edit"):
         r = run("cooc", command, "--help")

@@ -187,6 +187,9 @@ def test_boost_condition_scales_one_bin_and_its_mirror():
     for f in (-1.0, float("inf"), float("nan"), "2", True):
         with pytest.raises(TGHopError, match=r"^the factor must be a finite number >= 0, got "):
             boost_condition(cond, 0, 0, f)
+    assert np.allclose(boost_condition(cond, 0, 0, 1000)[0], 1000 * cond[0])
+    with pytest.raises(TGHopError, match=r"^the factor must be at most 1,000, got 1e\+308$"):  # sums overflowed
+        boost_condition(cond, 0, 0, 1e308)
 
 
 @needs_torch

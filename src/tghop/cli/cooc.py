@@ -20,6 +20,48 @@ from .options import QUIET_OPTION, FloatRange, Size
 #: Longest morph strip, in condition cells.
 MAX_CELLS = 4096
 
+#: Largest ``--boost`` factor (:data:`tghop.cooc.assembly.MAX_BOOST`; the command line does not import NumPy).
+MAX_BOOST = 1000.0
+
+
+class Grid(click.ParamType):
+    """``COLSxROWS`` of morph's grid, 1 to 32 each: a usage error (exit status 2) otherwise."""
+
+    name = "COLSxROWS"
+
+    def get_metavar(self, param, ctx=None):
+        return self.name  # as written (click would upper-case it)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", value)
+        if not m or not (1 <= int(m.group(1)) <= 32 and 1 <= int(m.group(2)) <= 32):
+            self.fail(f"{value!r}: write COLSxROWS with 1 to 32 each, e.g. 5x3", param, ctx)
+        return int(m.group(1)), int(m.group(2))
+
+
+class Boost(click.ParamType):
+    """``A,B,FACTOR`` of edit's boost: two cluster numbers and a factor from 0 to :data:`MAX_BOOST`
+    (a usage error otherwise: more changes next to nothing, and 1e308 overflowed)."""
+
+    name = "A,B,FACTOR"
+
+    def get_metavar(self, param, ctx=None):
+        return self.name  # as written (click would upper-case it)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            ia, ib, factor = value.split(",")
+            ia, ib, factor = int(ia), int(ib), float(factor)
+        except ValueError:
+            self.fail(f"{value!r}: write A,B,FACTOR, e.g. 0,0,2", param, ctx)
+        if not 0 <= factor <= MAX_BOOST:  # NaN too
+            self.fail(f"{value!r}: FACTOR must be from 0 to {MAX_BOOST:,.0f}, got {factor:g}", param, ctx)
+        return ia, ib, factor
+
 
 class LossProgress(Progress):
     """A progress bar that also shows the latest training losses."""
@@ -182,7 +224,7 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--length", type=click.IntRange(min=2, max=MAX_CELLS), default=8, show_default=True,
               help="Strip length in co-occurrence cells (s pixels each).")
-@click.option("--grid", default=None, metavar="COLSxROWS",
+@click.option("--grid", type=Grid(), default=None,
               help="Write the paper's Fig. 2 grid instead: co-occurrence A->B across, noise down, e.g. 5x3.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the noise: the same seed gives the same image; without it every run differs.")
@@ -204,12 +246,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
         check_output(output)
         check_outputs([("-o", output)], [("MODEL", model_file), *[(label, spec) for label, spec in (("A", a), ("B", b))
                                                                    if not spec.startswith("crop:")]])
-        cols = rows = None
-        if grid is not None:
-            m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", grid)
-            if not m or not (1 <= int(m.group(1)) <= 32 and 1 <= int(m.group(2)) <= 32):
-                raise TGHopError(f"--grid {grid!r}: write COLSxROWS with 1 to 32 each, e.g. 5x3")
-            cols, rows = int(m.group(1)), int(m.group(2))
+        cols, rows = grid or (None, None)
         model = load_checkpoint(model_file)
         ca, cb = condition(model, a), condition(model, b)
         if grid is None:
@@ -231,8 +268,9 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
 @click.option("--mask", default=None, metavar="IMAGE",
               help="Grey image: its levels, quantised to the number of SOURCES, say which source goes where "
                    "(default: SOURCES side by side, left to right).")
-@click.option("--boost", default=None, metavar="A,B,FACTOR",
-              help="Multiply bin M(A, B) (and M(B, A)) by FACTOR everywhere, then re-normalise (paper Fig. 11).")
+@click.option("--boost", type=Boost(), default=None,
+              help="Multiply bin M(A, B) (and M(B, A)) by FACTOR (0 to 1,000) everywhere, then re-normalise "
+                   "(paper Fig. 11).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the noise: the same seed gives the same image; without it every run differs.")
 @WINDOWS_OPTION
@@ -273,14 +311,9 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
             cond = paint_condition(tensors, labels)
         if boost is not None:
             try:
-                ia, ib, factor = boost.split(",")
-                ia, ib, factor = int(ia), int(ib), float(factor)
-            except ValueError:
-                raise TGHopError(f"--boost {boost!r}: write A,B,FACTOR, e.g. 0,0,2") from None
-            try:
-                cond = boost_condition(cond, ia, ib, factor)
-            except TGHopError as exc:
-                raise TGHopError(f"--boost {boost!r}: {exc}") from None
+                cond = boost_condition(cond, *boost)
+            except TGHopError as exc:  # a cluster the model has not: a usage error too
+                raise click.BadParameter(f"{','.join(map(str, boost[:2]))}: {exc}", param_hint="'--boost'") from None
         image = model.generate(cond, rng=seed, windows=windows)[: size[0], : size[1]]
         save_image(image, output)
     click.echo(f"edited texture written to {output}", err=True)

@@ -27,12 +27,17 @@ __all__ = [
     "check_assembly",
     "paint_condition",
     "boost_condition",
+    "MAX_BOOST",
     "tile",
     "reflect_tile",
     "window_layout",
     "blend_weights",
     "mirror_pad",
 ]
+
+#: Largest factor of :func:`boost_condition`, as the local page's edits (a bin's share p of a
+#: cell becomes p f / (p f + 1 - p): 1000 takes a 1 % bin to 91 %; more changes next to nothing).
+MAX_BOOST = 1000.0
 
 #: Default blend width of :meth:`~tghop.cooc.model.CoocGAN.generate_windows`, as a fraction
 #: of the windows' stride (1: the whole overlap, a sin^2 window; 0: hard seams).
@@ -113,7 +118,8 @@ def boost_condition(cond, a: int, b: int, factor: float) -> np.ndarray:
     a, b : int
         Colour clusters, each in ``0..k-1``.
     factor : float
-        Finite, >= 0.
+        From 0 to :data:`MAX_BOOST` (1000: more changes next to nothing, and near 1e308 the
+        cells' sums overflowed to infinity).
 
     Returns
     -------
@@ -129,6 +135,8 @@ def boost_condition(cond, a: int, b: int, factor: float) -> np.ndarray:
         raise TGHopError(f"the boosted clusters must lie in 0..{k - 1} (this model has {k} colour clusters), "
                          f"got {a!r} and {b!r}")
     factor = check_number(factor, "the factor")
+    if factor > MAX_BOOST:
+        raise TGHopError(f"the factor must be at most {MAX_BOOST:,.0f}, got {factor:g}")
     cond[a * k + b] *= factor
     if a != b:
         cond[b * k + a] *= factor
