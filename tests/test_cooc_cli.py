@@ -121,6 +121,19 @@ def test_grid_and_boost_errors_are_usage_errors(files, tmp_path, args, fragments
     assert r.exit_code == 2 and not (tmp_path / "o.png").exists()
 
 
+def test_a_checkpoint_given_as_an_image_is_named_with_where_it_goes(files, tmp_path):
+    # It said "is a model file, not an image", the words for a tghop .npz.
+    r = invoke("fit", files / "m.pt", "-o", tmp_path / "m.npz")
+    assert_user_error(r, "m.pt is a co-occurrence cGAN checkpoint, not an image",
+                      "'tghop cooc morph', 'tghop cooc edit' or 'tghop baseline cooc EXEMPLAR --model CHECKPOINT'")
+    assert_user_error(invoke("inpaint", files / "ex.png", files / "m.pt", "-o", tmp_path / "o.png"),
+                      "MASK", "m.pt is a co-occurrence cGAN checkpoint, not an image; give a black and white image")
+    torch.save({"w": torch.zeros(2)}, tmp_path / "other.pt")
+    r = invoke("fit", tmp_path / "other.pt", "-o", tmp_path / "m.npz")
+    assert_user_error(r, "other.pt is a PyTorch file, not an image; this command needs an image")
+    assert "cooc" not in r.stderr and not (tmp_path / "m.npz").exists()
+
+
 def test_help_says_what_an_image_stands_for():
     for command in ("morph", "edit"):
         r = run("cooc", command, "--help")

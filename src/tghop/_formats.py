@@ -2,7 +2,8 @@
 :mod:`tghop.imageio` writes by and every message and ``--help`` text names (no imports:
 the command line's help is made from it without loading NumPy)."""
 
-__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "TIFF_HINT", "check_tifffile",
+__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "model_file_kind",
+           "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
            "why_unreadable", "warn_frames"]
 
 #: Output formats chosen by file extension.
@@ -33,6 +34,28 @@ def is_model_file(path) -> bool:
             return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
     except OSError:
         return False
+
+
+#: :func:`model_file_kind`'s words for a checkpoint of ``tghop cooc train``.
+COOC_CHECKPOINT = "a co-occurrence cGAN checkpoint"
+
+
+def model_file_kind(path) -> str:
+    """What the zip archive at ``path`` (:func:`is_model_file`) is, in words for "PATH is ...,
+    not an image": :data:`COOC_CHECKPOINT` (``torch.save``'s layout naming the checkpoint's
+    ``settings_json``), "a PyTorch file" (that layout otherwise) or "a model file" (a tghop
+    ``.npz``, or an archive cut short)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            pickles = [info for info in archive.infolist() if info.filename.endswith("/data.pkl")]
+            if not pickles:
+                return "a model file"
+            small = pickles[0].file_size < 2**20  # the tensors' names and shapes only
+            return COOC_CHECKPOINT if small and b"settings_json" in archive.read(pickles[0]) else "a PyTorch file"
+    except (zipfile.BadZipFile, OSError, EOFError, NotImplementedError, ValueError):
+        return "a model file"
 
 
 def check_tifffile(path, depth):

@@ -17,7 +17,7 @@ import warnings
 from pathlib import Path
 
 from ._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
-from ._formats import is_model_file
+from ._formats import is_model_file, model_file_kind
 
 __all__ = ["process_exemplar", "remove_temporaries", "one_line", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
 
@@ -73,7 +73,7 @@ def _read_maps(maps, load_image) -> dict:
     out = {}
     for name, file in maps or ():
         if Path(file).suffix.lower() == ".npz" or is_model_file(file):
-            raise TGHopError(f"the map {name} ({file}) is a model file, not an image; list the map's image")
+            raise TGHopError(f"the map {name} ({file}) is {model_file_kind(file)}, not an image; list the map's image")
         out[name] = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
     return out
 
@@ -136,7 +136,8 @@ def process_exemplar(job: dict) -> dict:
             warnings.simplefilter("always")
             fit = job.get("fit") or {}
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
-                raise TGHopError(f"{job['source']} is a model file, not an image; list the exemplar image")
+                kind = model_file_kind(job["source"])
+                raise TGHopError(f"{job['source']} is {kind}, not an image; list the exemplar image")
             raw, depth = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF,
                                     with_depth=True)
             image = prepare_exemplar(raw)

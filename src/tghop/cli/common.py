@@ -19,7 +19,7 @@ from pathlib import Path
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
-from .._formats import is_model_file
+from .._formats import COOC_CHECKPOINT, is_model_file, model_file_kind
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
            "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout",
@@ -200,7 +200,10 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
         image = builtin(spec.split(":", 1)[1])
         return (image, 8) if with_depth else image
     if is_model_file(spec):
-        raise TGHopError(f"{spec} is a model file, not an image; this command needs an image")
+        kind = model_file_kind(spec)
+        hint = (" (a checkpoint goes to 'tghop cooc morph', 'tghop cooc edit' or 'tghop baseline cooc EXEMPLAR "
+                "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else "")
+        raise TGHopError(f"{spec} is {kind}, not an image; this command needs an image{hint}")
     return load_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
 
@@ -254,7 +257,7 @@ def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the 
     from ..imageio import load_image
 
     if is_model_file(path):
-        raise TGHopError(f"{label} {path} is a model file, not an image; give a black and white image")
+        raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image; give a black and white image")
     mask = load_image(path, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True)  # the colours as without it
     if mask.shape[:2] != tuple(shape[:2]):
         raise TGHopError(f"{label} {path} is {mask.shape[0]}x{mask.shape[1]} but {image_label} is "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
-from .._formats import OUTPUT_HELP
+from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors,
                      warn_written_with_8, write_materials)
 from ..fit_options import build_model
@@ -94,7 +94,7 @@ def _load_guide(path, size, size_given):
     from ..imageio import load_image
 
     if is_model_file(path):
-        raise TGHopError(f"--guide {path} is a model file, not an image; give a painted map")
+        raise TGHopError(f"--guide {path} is {model_file_kind(path)}, not an image; give a painted map")
     guide = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
     if size_given and tuple(guide.shape[:2]) != tuple(size):
         raise TGHopError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is {size[0]}x{size[1]}; "

@@ -8,7 +8,7 @@ import os
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
-from .._formats import OUTPUT_HELP
+from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, map_names,
                      refuse_albedo_as_map, user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
@@ -348,7 +348,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     maps, depths = {}, {}
     for name, path in zip(names, map_paths):
         if is_model_file(path):
-            raise TGHopError(f"MAP {path} is a model file, not an image; give the map's image")
+            raise TGHopError(f"MAP {path} is {model_file_kind(path)}, not an image; give the map's image")
         maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, too_large_hint=HINT_DOWNSCALE_YOURSELF)
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "

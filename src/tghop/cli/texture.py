@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .._formats import OUTPUT_HELP
+from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map, summary,
@@ -53,7 +53,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
 
     def read(path, label):
         if is_model_file(path):
-            raise TGHopError(f"{label} {path} is a model file, not an image")
+            raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image")
         return load_image(path, dtype=None, downscale=downscale, with_depth=True,
                           too_large_hint=HINT_DOWNSCALE_OPTION)
 
