@@ -134,6 +134,26 @@ def test_a_checkpoint_given_as_an_image_is_named_with_where_it_goes(files, tmp_p
     assert "cooc" not in r.stderr and not (tmp_path / "m.npz").exists()
 
 
+def test_edit_refuses_a_mask_of_another_size_than_the_output(files, tmp_path):
+    # It was resized to the output silently (inpaint refuses a mask of another size than its image).
+    from tghop.imageio import save_image
+
+    mask = np.zeros((24, 64, 3))
+    mask[:, 32:] = 1.0
+    save_image(mask, tmp_path / "mask.png")
+    out = tmp_path / "o.png"
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png", "-o", out)
+    assert_user_error(r, "--mask", "mask.png is 24x64 but --size is 256x256",
+                      "give a mask of the output's size (or --size 24x64)")
+    assert not out.exists()
+    r = invoke("cooc", "edit", files / "m.pt", "--mask", tmp_path / "mask.png", "--size", "24x64", "-o", out)
+    assert_user_error(r, "--mask says which SOURCE goes where")  # it was ignored
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png",
+               "--size", "24x64", "--seed", "0", "-o", out)
+    assert r.exit_code == 0, r.output
+    assert png(out).shape == (24, 64, 3)
+
+
 def test_help_says_what_an_image_stands_for():
     for command in ("morph", "edit"):
         r = run("cooc", command, "--help")

@@ -266,8 +266,8 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
 @click.option("--mask", default=None, metavar="IMAGE",
-              help="Grey image: its levels, quantised to the number of SOURCES, say which source goes where "
-                   "(default: SOURCES side by side, left to right).")
+              help="Grey image of --size's size: its levels, quantised to the number of SOURCES, say which source "
+                   "goes where (default: SOURCES side by side, left to right).")
 @click.option("--boost", type=Boost(), default=None,
               help="Multiply bin M(A, B) (and M(B, A)) by FACTOR (0 to 1,000) everywhere, then re-normalise "
                    "(paper Fig. 11).")
@@ -292,6 +292,13 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
         check_output(output)
         check_outputs([("-o", output)], [("MODEL", model_file), ("--mask", mask),
                                          *[("SOURCE", spec) for spec in sources if not spec.startswith("crop:")]])
+        if mask is not None and not sources:
+            raise TGHopError("--mask says which SOURCE goes where; give the SOURCES (crop:ROW,COL or images) too")
+        if mask is not None:  # refused before the checkpoint is read, as inpaint refuses a mask of another size
+            grey = load_exemplar(mask).mean(axis=2)
+            if grey.shape != tuple(size):
+                raise TGHopError(f"--mask {mask} is {grey.shape[0]}x{grey.shape[1]} but --size is {size[0]}x{size[1]}; "
+                                 f"give a mask of the output's size (or --size {grey.shape[0]}x{grey.shape[1]})")
         model = load_checkpoint(model_file)
         s = model.s
         hh, ww = -(-size[0] // s), -(-size[1] // s)
@@ -305,7 +312,6 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
             else:
                 from PIL import Image
 
-                grey = load_exemplar(mask).mean(axis=2)
                 pil = Image.fromarray(np.round(grey * 255).astype(np.uint8)).resize((ww, hh), Image.BILINEAR)
                 labels = np.minimum((np.asarray(pil) / 256.0 * len(tensors)).astype(int), len(tensors) - 1)
             cond = paint_condition(tensors, labels)
