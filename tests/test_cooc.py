@@ -156,7 +156,7 @@ def test_colour_clusters_name_a_bad_count():
         cooccurrence.fit_colour_clusters(img, max_fit_pixels=0)
     with pytest.raises(TGHopError, match=r"^max_fit_pixels must be an integer >= 1, got 10.5$"):
         cooccurrence.fit_colour_clusters(img, max_fit_pixels=10.5)
-    with pytest.raises(TGHopError, match=r"^n_clusters must be an integer >= 1, got 0$"):
+    with pytest.raises(TGHopError, match=r"^n_clusters must be an integer from 1 to 32, got 0$"):
         cooccurrence.fit_colour_clusters(img, n_clusters=0)
 
 

@@ -121,6 +121,26 @@ def test_sliced_wasserstein_options_and_errors(exemplar, references):
         metrics.sliced_wasserstein(exemplar, references["crop"], scales=(0,))
 
 
+def test_counts_beyond_the_bounds_are_refused_before_any_work(exemplar, monkeypatch):
+    # n_projections=10**9 and n_clusters=10**9 ended in a bare MemoryError (or ran k-means with
+    # as many clusters as colours).
+    small = exemplar[:24, :24]
+    with pytest.raises(TGHopError, match=r"^n_projections must be an integer from 1 to 4,096, got 1000000000$"):
+        metrics.sliced_wasserstein(small, small, n_projections=10**9, scales=(1,))
+    with pytest.raises(TGHopError, match=r"^n_clusters must be an integer from 1 to 32, got 1000000000$"):
+        metrics.cooccurrence_distance(small, small[::-1], n_clusters=10**9)
+    from tghop import _common
+    from tghop.cooccurrence import fit_colour_clusters
+
+    with pytest.raises(TGHopError, match=r"^n_clusters must be an integer from 1 to 32, got 33$"):
+        fit_colour_clusters(small, n_clusters=33)
+    monkeypatch.setattr(_common, "available_memory", lambda: 2**20)  # 1 MB available
+    with pytest.raises(TGHopError, match=r"^sliced_wasserstein: 324 patches on 4,096 projections need about "
+                                         r"0\.0[0-9]+ GB of memory but 0\.00105 GB is available; lower "
+                                         r"max_patches or n_projections$"):
+        metrics.sliced_wasserstein(small, small, n_projections=4096, scales=(1,))
+
+
 def test_cooccurrence_is_bounded_and_a_flat_exemplar_is_refused(exemplar):
     flat = np.full((64, 64, 3), 0.5)
     d = metrics.cooccurrence_distance(exemplar, flat)
@@ -335,7 +355,7 @@ def test_nearest_patch_metrics_refuse_a_bad_max_patches(name, value, exemplar, r
 
 
 def test_sliced_wasserstein_refuses_a_fractional_number_of_projections(exemplar, references):
-    with pytest.raises(TGHopError, match=r"^n_projections must be an integer >= 1, got 8.5$"):
+    with pytest.raises(TGHopError, match=r"^n_projections must be an integer from 1 to 4,096, got 8.5$"):
         metrics.sliced_wasserstein(exemplar, references["crop"], n_projections=8.5)
 
 
@@ -385,7 +405,7 @@ BAD_OPTIONS = [
     ("sliced_wasserstein", {"scales": 3}, r"^scales must be a sequence of positive downsampling factors, got 3$"),
     ("sliced_wasserstein", {"scales": "ab"}, r"^each of scales must be an integer >= 1, got 'a'$"),
     ("cooccurrence_distance", {"window": 2.5}, r"^window must be an integer >= 1, got 2.5$"),
-    ("cooccurrence_distance", {"n_clusters": "a"}, r"^n_clusters must be an integer >= 1, got 'a'$"),
+    ("cooccurrence_distance", {"n_clusters": "a"}, r"^n_clusters must be an integer from 1 to 32, got 'a'$"),
     ("cooccurrence_distance", {"sigma": float("nan")}, r"^sigma must be a finite number > 0, got nan$"),
     # n_maps=0 raised MKL's FFT error, a negative one ZeroDivisionError; a filter of 3.5 was a 3.
     ("gram_distance", {"n_maps": 0}, r"^n_maps must be an integer >= 1, got 0$"),

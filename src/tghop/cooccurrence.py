@@ -26,13 +26,19 @@ import numpy as np
 from ._arrays import check_int
 from ._common import TGHopError, check_image, import_torch
 
-__all__ = ["fit_colour_clusters", "soft_assign", "spread_pairs", "symmetric_normalised", "cooccurrence_matrix",
-           "cooccurrence_tensor"]
+__all__ = ["MAX_CLUSTERS", "fit_colour_clusters", "soft_assign", "spread_pairs", "symmetric_normalised",
+           "cooccurrence_matrix", "cooccurrence_tensor"]
 
 
 def _torch():
     """``torch``, for the tensor paths (a one-line hint if it is missing)."""
     return import_torch("Co-occurrence on tensors")
+
+
+#: Most colour clusters :func:`fit_colour_clusters` fits: four times the paper's largest k = 8
+#: (the k x k pair maps of :func:`cooccurrence_matrix` grow as k**2: about 2.4 GB for a
+#: 512 x 512 image at k = 32; k = 10**9 ended in a MemoryError).
+MAX_CLUSTERS = 32
 
 
 def fit_colour_clusters(image, *, n_clusters: int = 8, max_fit_pixels: int = 20_000, seed: int = 0):
@@ -43,7 +49,8 @@ def fit_colour_clusters(image, *, n_clusters: int = 8, max_fit_pixels: int = 20_
     image : array_like, shape (H, W) or (H, W, C)
         Float in [0, 1].
     n_clusters : int
-        k (the paper uses 2, 4 or 8). Fewer if the image has fewer distinct colours.
+        k (the paper uses 2, 4 or 8), at most :data:`MAX_CLUSTERS` = 32. Fewer if the image
+        has fewer distinct colours.
     max_fit_pixels : int
         Pixels sampled for k-means (default 20,000).
     seed : int
@@ -60,7 +67,7 @@ def fit_colour_clusters(image, *, n_clusters: int = 8, max_fit_pixels: int = 20_
     from sklearn.cluster import KMeans
     from threadpoolctl import threadpool_limits
 
-    n_clusters = check_int(n_clusters, "n_clusters")
+    n_clusters = check_int(n_clusters, "n_clusters", 1, MAX_CLUSTERS)
     max_fit_pixels = check_int(max_fit_pixels, "max_fit_pixels")  # 0 failed inside scikit-learn
     img = check_image(image)
     pixels = img.reshape(-1, img.shape[2])

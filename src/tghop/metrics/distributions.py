@@ -13,7 +13,11 @@ from . import common
 from .._arrays import check_int, check_number
 from .common import pair, counter, check_patch_size, check_seed, exemplar_statistics, sample_patches
 
-__all__ = ["sliced_wasserstein", "cooccurrence_distance"]
+__all__ = ["sliced_wasserstein", "cooccurrence_distance", "MAX_PROJECTIONS"]
+
+#: Most random directions of :func:`sliced_wasserstein`: 16 times its default 256 (each is a
+#: column of the patches' projections; 10**9 ended in a MemoryError).
+MAX_PROJECTIONS = 4096
 
 # ---------------------------------------------------------------------------------------
 # Sliced Wasserstein distance between patch sets
@@ -57,10 +61,11 @@ def sliced_wasserstein(
         Downsampling factors (default ``(1, 2, 4)``: fine grain, mid-size and large
         structure).
     n_projections : int
-        Random directions per scale (default 256).
+        Random directions per scale (default 256), at most :data:`MAX_PROJECTIONS` = 4,096.
     max_patches : int
         Patches sampled per image and scale (default 4,096); both images use the same
-        number, so sets of different sizes are comparable.
+        number, so sets of different sizes are comparable. Patches and projections whose
+        memory exceeds the memory available are refused before any work.
     seed : int
         Seed of the directions and of the patch sampling.
     progress : callable, optional
@@ -84,10 +89,11 @@ def sliced_wasserstein(
     if not scales:
         raise TGHopError("scales must be positive downsampling factors, got ()")
     scales = tuple(check_int(s, "each of scales") for s in scales)  # 2.5 is refused, not truncated to 2
-    n_projections = check_int(n_projections, "n_projections")
+    n_projections = check_int(n_projections, "n_projections", 1, MAX_PROJECTIONS)
     max_patches = check_int(max_patches, "max_patches")  # as the nearest-patch metrics: 2.5 is not rounded down
     ex, res = pair(exemplar, result, min_size=patch_size * max(scales))
     dim = patch_size * patch_size * ex.shape[2]
+    _check_swd_memory(ex, res, patch_size, dim, n_projections, max_patches)
     directions = np.random.default_rng((int(seed), 0)).standard_normal((dim, int(n_projections)))
     directions /= np.linalg.norm(directions, axis=0, keepdims=True)
     per_scale = []
@@ -108,6 +114,19 @@ def sliced_wasserstein(
     return float(np.mean(per_scale))
 
 
+def _check_swd_memory(ex, res, patch_size, dim, n_projections, max_patches):
+    """Refuse, before any work, patches and projections of :func:`sliced_wasserstein` (at its
+    finest scale, the most patches) whose float64 arrays exceed the memory available."""
+    from .._common import available_memory
+
+    count = min(int(max_patches), *((img.shape[0] - patch_size + 1) * (img.shape[1] - patch_size + 1)
+                                    for img in (ex, res)))
+    need = 8.0 * (dim * n_projections + count * (2 * dim + 4 * n_projections))  # 2 patch sets, 2 sorted projections
+    avail = available_memory()
+    if avail is not None and need > avail:
+        raise TGHopError(f"sliced_wasserstein: {count:,} patches on {n_projections:,} projections need about "
+                         f"{need / 1e9:.3g} GB of memory but {avail / 1e9:.3g} GB is available; lower max_patches "
+                         "or n_projections")
 
 # ---------------------------------------------------------------------------------------
 # Co-occurrence distance (Darzi et al.)
@@ -141,8 +160,9 @@ def cooccurrence_distance(
     exemplar, result : array_like, shape (H, W) or (H, W, C)
         Float in [0, 1], any sizes. The clusters come from the exemplar only.
     n_clusters : int
-        k (paper: 2, 4 or 8 depending on the texture; default 8). Fewer if the exemplar
-        has fewer distinct colours.
+        k (paper: 2, 4 or 8 depending on the texture; default 8), at most
+        :data:`tghop.cooccurrence.MAX_CLUSTERS` = 32 (memory grows as k**2). Fewer if the
+        exemplar has fewer distinct colours.
     sigma : float
         Spatial scale in pixels (paper: sigma^2 = 51, the default).
     window : int
@@ -168,10 +188,10 @@ def cooccurrence_distance(
     sees its whole neighbourhood; the matrix is the sum over strips, the same up to float
     rounding, in memory that does not grow with the image.
     """
-    from ..cooccurrence import cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
+    from ..cooccurrence import MAX_CLUSTERS, cooccurrence_matrix, fit_colour_clusters  # Eq. 1-2, shared with the cGAN
 
     sigma = check_number(sigma, "sigma", positive=True)
-    window, n_clusters = check_int(window, "window"), check_int(n_clusters, "n_clusters")
+    window, n_clusters = check_int(window, "window"), check_int(n_clusters, "n_clusters", 1, MAX_CLUSTERS)
     max_fit_pixels, seed = check_int(max_fit_pixels, "max_fit_pixels"), check_seed(seed)
     ex, res = pair(exemplar, result)
     check_texture(ex)  # one colour cluster: its 1x1 matrix matched any result (a distance of 0)
