@@ -18,6 +18,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -475,6 +476,37 @@ def test_a_csv_manifest_refuses_cells_its_header_does_not_name(tmp_path):
             batch.find_work(bad)
     bad.write_text("path,size,\na.png,32,,\n")  # empty trailing cells, as spreadsheets write them, are no cells
     assert [it["settings"] for it in batch.find_work(bad)] == [{"size": [32, 32]}]
+
+
+def test_a_manifest_separated_by_semicolons_is_told_so(tmp_path):
+    # It said "needs a header line with a 'path' column" of a header that has one, between ';'.
+    for sep, shown in ((";", "';'"), ("\t", "'\\t'")):
+        bad = tmp_path / "m.csv"
+        bad.write_text(f"path{sep}size\na.png{sep}32\n")
+        with pytest.raises(TGHopError, match=re.escape(f"m.csv: the header line is separated by {shown}, not commas; "
+                                                       "a CSV manifest's cells are separated by commas")):
+            batch.find_work(bad)
+    bad.write_text("file;size\na.png;32\n")  # no path column whatever the separator: the plain message
+    with pytest.raises(TGHopError, match="needs a header line with a 'path' column"):
+        batch.find_work(bad)
+
+
+def test_a_manifest_that_lists_one_file_twice_warns_naming_the_lines(tmp_path):
+    # It was made twice (NAME and NAME_2) without a word.
+    m = tmp_path / "m.csv"
+    m.write_text("path,size\na.png,32\nb.png,32\n./a.png,32\na.png,64\nb.png,32\n")
+    with pytest.warns(UserWarning) as caught:
+        names = [it["name"] for it in batch.find_work(m)]
+    assert [str(w.message) for w in caught] == [
+        f"{m} line 4 lists a.png as line 2 does, with the same settings: it is made twice; remove the line, or give "
+        "count for more results of one exemplar",
+        f"{m} line 6 lists b.png as line 3 does, with the same settings: it is made twice; remove the line, or give "
+        "count for more results of one exemplar"]
+    assert len(set(names)) == 5  # still each its own folder
+    m.write_text("path,size,name\na.png,32,one\na.png,32,two\na.png,64\n")  # named, or other settings: meant
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(batch.find_work(m)) == 3
 
 
 def test_a_json_manifest_takes_path_and_name_only_as_strings(tmp_path):

@@ -81,7 +81,8 @@ def test_a_rows_map_that_is_its_albedo_is_refused_and_no_maps_is_a_texture(tmp_p
     with pytest.raises(TGHopError, match="line 2: the map normal is the row's path itself, the albedo"):
         batch.find_work(src / "list.csv")
     (src / "list.jsonl").write_text('{"path": "rock.png", "maps": []}\n{"path": "rock.png", "maps": {}}\n')
-    assert [it["maps"] for it in batch.find_work(src / "list.jsonl")] == [[], []]
+    with pytest.warns(UserWarning, match="line 2 lists rock.png as line 1 does, with the same settings"):
+        assert [it["maps"] for it in batch.find_work(src / "list.jsonl")] == [[], []]
 
 
 def test_a_material_row_writes_every_map_as_the_library_makes_them(tmp_path):

@@ -333,6 +333,10 @@ def manifest_rows(path: Path):
     reader = csv.reader(text.splitlines())
     header = [f.strip() for f in next(reader, [])]
     if "path" not in header:
+        other = [d for d in (";", "\t", "|") if len(header) == 1 and "path" in header[0].split(d)]
+        if other:  # a spreadsheet's export where the decimal comma is taken (one cell: path;size;count)
+            raise TGHopError(f"{path}: the header line is separated by {other[0]!r}, not commas; a CSV manifest's "
+                             "cells are separated by commas: save it with commas")
         raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
                          f"(and optionally name, maps, {', '.join(ROW_SETTINGS)})")
     twice = [f for i, f in enumerate(header) if f and f in header[:i]]
@@ -403,4 +407,21 @@ def read_manifest(path: Path):
                       "settings": row_settings(row, where), "maps": maps, "where": where})
     if not items:
         raise TGHopError(f"{path}: the manifest lists no exemplar")
+    _warn_repeated(items, path)
     return items
+
+
+def _warn_repeated(items, path) -> None:
+    """Warn of rows that list the same file, maps and settings as an earlier row without a name of their
+    own: each was made again (as NAME_2, ...), naming both lines."""
+    import warnings
+
+    first = {}
+    for it in items:
+        key = (os.path.abspath(it["path"]), json.dumps(it["settings"], sort_keys=True),
+               tuple((name, os.path.abspath(file)) for name, file in it["maps"]))
+        earlier = first.setdefault(key, it)
+        if earlier is not it and not (it["named"] and earlier["named"]):
+            warnings.warn(f"{it['where']} lists {it['rel']} as {earlier['where'].removeprefix(f'{path} ')} does, "
+                          "with the same settings: it is made twice; remove the line, or give count for more results "
+                          "of one exemplar", UserWarning, stacklevel=3)
