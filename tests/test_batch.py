@@ -588,6 +588,21 @@ def test_manifests_give_per_row_settings(tmp_path):
     assert missing["status"] == "failed" and "no such file" in missing["error"] and missing["sha256"] is None
 
 
+def test_a_python_run_over_the_commands_outdir_does_nothing_again(tmp_path):
+    # The command recorded every setting and run() only those given: a run() over the
+    # command's OUTDIR (the same settings) fitted every exemplar again, and the other way round.
+    make_folder(tmp_path / "img", bad=False)
+    out = tmp_path / "out"
+    code, _, err, _ = invoke("batch", tmp_path / "img", "-o", out, "--size", "32", "--seed", "1", "--clusters", "6",
+                             "--codewords", "30", "--stride", "4", "--workers", "1", "-q", cwd=tmp_path)
+    assert code == 0, err
+    again = batch.run(tmp_path / "img", out, size=32, seed=1, fit=FIT, workers=1)
+    assert [r["skipped"] for r in again] == [True, True]
+    defaults = batch.run(tmp_path / "img", tmp_path / "out2", size=32, seed=1, workers=1,
+                         fit={"n_clusters": 6, "n_codewords": 30, "stride": 4, "rng": 0, "gamma": 0.003})
+    assert [r["settings"] for r in defaults] == [r["settings"] for r in again]  # defaults given or not: the same
+
+
 def test_a_manifest_row_gives_its_own_working_scale(tmp_path):
     from tghop.modelfile import load_model
 
@@ -595,7 +610,7 @@ def test_a_manifest_row_gives_its_own_working_scale(tmp_path):
     csv_file = tmp_path / "list.csv"
     csv_file.write_text("path,scale\nimg/a.png,1.5\nimg/sub/a.png,\n")
     a, b = run(csv_file, tmp_path / "out", workers=1)
-    assert a["settings"]["fit"] == {**FIT, "scale": 1.5} and b["settings"]["fit"] == FIT
+    assert a["settings"]["fit"] == {**b["settings"]["fit"], "scale": 1.5} and b["settings"]["fit"]["scale"] == 1.0
     assert load_model(tmp_path / "out" / a["model"]).exemplar_shape_[:2] == (96, 96)
     assert load_model(tmp_path / "out" / b["model"]).exemplar_shape_[:2] == (64, 64)
     csv_file.write_text("path,scale\nimg/a.png,1.25\nimg/sub/a.png,\n")  # a changed scale redoes its row only

@@ -622,8 +622,12 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
                 "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
                 "tile": parse_bool(tile, "tile", where="run")}
-    fit = _jsonable(dict(fit or {}), "fit")
-    generate = _jsonable({k: v for k, v in (generate or {}).items() if k != "tile"}, "generate")
+    from .fit_options import fit_params
+    from .settings import generate_settings
+
+    fit = _jsonable({**fit_params({}), **(fit or {})}, "fit")  # every setting, as tghop batch records them
+    generate = _jsonable({**{s.name: s.default for s in generate_settings() if s.name != "tile"},
+                          **{k: v for k, v in (generate or {}).items() if k != "tile"}}, "generate")
     check_options(items, defaults, fit, generate)  # before any work, as synth would refuse them
     if outdir.exists() and not outdir.is_dir():
         raise TGHopError(f"{outdir} is a file; OUTDIR must be a folder")
