@@ -137,6 +137,15 @@ def test_folders_linked_into_source_are_scanned_once(tmp_path):
     assert found == ["a.png", os.path.join("rock", "r.png")]
 
 
+def test_a_truncated_jpeg_says_so_in_the_ledger(tmp_path):
+    # A guard: it was "not a readable image (OSError)", without the words the rest of tghop gives.
+    save_image(data.bricks(64, rng=3), tmp_path / "a.jpg")
+    blob = (tmp_path / "a.jpg").read_bytes()
+    (tmp_path / "a.jpg").write_bytes(blob[: len(blob) // 2])
+    (record,) = batch.run(tmp_path, tmp_path / "out", workers=1)
+    assert record["status"] == "failed" and "a.jpg: not a readable image (truncated or corrupt: " in record["error"]
+
+
 def test_a_named_pipe_is_no_exemplar_but_a_broken_link_is_said(tmp_path):
     # A FIFO named like an image was hashed before any work: the run waited for ever on it.
     (tmp_path / "a.png").write_bytes(b"x")
