@@ -1,0 +1,311 @@
+"""Decoding image files into arrays, for :func:`tghop.imageio.load_image`: Pillow's path
+(:func:`decode_pillow`: any format, downscaled on request, colour profiles and EXIF orientation applied)
+and tghop's own for what Pillow would not read whole (:func:`read_deep`: 16-bit PNG, and TIFF files
+through :mod:`tifffile`: 16-bit and float, alpha, min-is-white, premultiplied)."""
+
+from __future__ import annotations
+
+import struct
+import warnings
+
+import numpy as np
+
+from ._common import InvalidImageError
+from ._errors import ImageTooLargeError
+from ._formats import TIFF_HINT, warn_frames
+from .depths import RANGE_TOLERANCE
+from .png import decode_png16
+from .profiles import tiff_profile, to_srgb
+
+__all__ = ["read_deep", "decode_pillow", "file_header", "upright"]
+
+
+def read_deep(path, max_pixels, keep_alpha=False):
+    """16-bit PNG and TIFF files and float TIFF files that Pillow would not read whole:
+    ``(array, mode, depth)`` with the array float64 in [0, 1] (uint8 for an 8-bit TIFF read
+    by tifffile), or None for every other file (Pillow reads it: TIFF files too, but grey and RGB
+    ones tifffile decodes, :func:`_tiff_layout`). ``mode`` is "RGBA" or "LA" when the file has
+    an alpha channel: dropped, or, with ``keep_alpha``, kept last.
+
+    Parameters
+    ----------
+    path : pathlib.Path, the image file
+    max_pixels : int, a larger image is left to Pillow's path (its size error, or downscaling)
+    keep_alpha : bool, keep an alpha channel last
+
+    Returns
+    -------
+    tuple (ndarray of shape (H, W) or (H, W, C), str, int) or None
+        The pixels, the mode ("", "LA" or "RGBA") and the bits per channel (8, 16 or 32).
+    """
+    with open(path, "rb") as fh:
+        head = fh.read(33)
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 33 and head[24] == 16:
+        width, height = struct.unpack(">II", head[16:24])
+        if width * height > max_pixels or head[28] != 0:  # too large, or interlaced: Pillow's path (its errors)
+            return None
+        levels, ctype = decode_png16(path.read_bytes())
+        arr, mode = _drop_alpha(levels, {4: "LA", 6: "RGBA"}.get(ctype, ""), keep_alpha)
+        return arr / 65535.0, mode, 16
+    if head[:4] not in (b"II*\x00", b"MM\x00*"):
+        return None
+    try:
+        import tifffile
+    except ImportError:
+        from PIL import Image
+
+        with Image.open(path) as im:  # grey 16-bit and float TIFF: Pillow; deeper colour ones: refused
+            tags = im.tag_v2 if hasattr(im, "tag_v2") else {}
+            bits, photometric = max(tags.get(258, (8,))), tags.get(262, 1)
+            if bits > 8 and photometric not in (0, 1, 2, 3):
+                _refuse_deep_tiff(path, photometric, bits)
+            if bits > 8 and (photometric == 0 or im.mode in ("RGB", "RGBA")):  # Pillow: 8 bits, or not inverted
+                from ._errors import MissingExtraError
+
+                kind = "colour" if photometric == 2 else _PHOTOMETRIC_NAMES.get(photometric, "colour")
+                raise MissingExtraError(f"{path}: a {bits}-bit {kind} TIFF; reading it without loss needs "
+                                        f"tifffile: {TIFF_HINT}")
+        return None
+    try:
+        tif = tifffile.TiffFile(path)
+    except MemoryError:
+        raise
+    except Exception:  # noqa: BLE001 - a TIFF tifffile cannot parse: Pillow's path (its error if any)
+        return None
+    with tif:
+        page, _ = tif.pages[0], warn_frames(path, len(tif.pages))
+        layout = _tiff_layout(page, path)
+        if layout is None:
+            return None
+        shape = page.shape
+        if int(np.prod(shape[:2] if page.axes.startswith("YX") else shape[-2:])) > max_pixels:
+            return None  # Pillow's path: its size error (or downscaling)
+        try:
+            arr = page.asarray()
+        except MemoryError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - e.g. LZW or JPEG compression without imagecodecs
+            if page.dtype != np.uint8 and (layout[0] == 3 or layout[2]):  # Pillow: 8 bits, or not inverted
+                reason = (str(exc).splitlines() or [exc.__class__.__name__])[0][:120]
+                raise InvalidImageError(
+                    f"{path}: tifffile cannot decode this {page.bitspersample}-bit "
+                    f"{'min-is-white' if layout[2] else 'colour'} TIFF ({reason}); "
+                    "pip install imagecodecs, or save it uncompressed or zlib-compressed") from None
+            return None  # Pillow's path: it decodes 8-bit and grey 16-bit and float TIFF files whole
+    colours, alpha, inverted, premultiplied = layout
+    if page.axes.startswith("S"):  # planar: (S, H, W)
+        arr = np.moveaxis(arr, 0, -1)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    if arr.ndim != 3 or arr.shape[2] < colours + alpha:
+        return None  # an arrangement of samples tghop does not know: Pillow's path
+    arr = arr[:, :, : colours + alpha]  # extra samples that are not alpha are dropped, as Pillow drops them
+    if inverted:  # min-is-white integer levels
+        arr = arr.copy()
+        arr[:, :, 0] = np.iinfo(arr.dtype).max - arr[:, :, 0]
+    if premultiplied:
+        arr = _unpremultiply(arr, colours)
+    arr, mode = _drop_alpha(arr, ("LA" if colours == 1 else "RGBA") if alpha else "", keep_alpha)
+    if arr.dtype == np.uint8:
+        return arr, mode, 8
+    if arr.dtype == np.uint16:
+        return arr / 65535.0, mode, 16
+    return _float_pixels(arr.astype(np.float64), path), mode, 32
+
+
+def _float_pixels(arr, path):
+    """A float image's pixels (float64) in [0, 1], or a one-line :class:`InvalidImageError`.
+
+    Values within :data:`RANGE_TOLERANCE` of [0, 1] are clipped (float rounding, as
+    :func:`save_image` allows); whole numbers up to 65535 are integer levels in a float file
+    (an 8-bit range, else 16-bit, as Pillow's path reads integer images). Anything else (NaN,
+    infinity, heights in metres, HDR) is refused: divided as levels it became a nearly black
+    image without a word (tghop 0.49.0)."""
+    if not np.all(np.isfinite(arr)):
+        raise InvalidImageError(f"{path}: NaN or infinite pixel values; tghop reads float images with values in "
+                                "[0, 1]; replace them first")
+    lo, hi = (arr.min(), arr.max()) if arr.size else (0.0, 1.0)
+    if lo >= -RANGE_TOLERANCE and hi <= 1.0 + RANGE_TOLERANCE:
+        return np.clip(arr, 0.0, 1.0)
+    if lo >= 0 and hi <= 65535 and np.array_equal(arr, np.round(arr)):
+        return arr / (65535.0 if hi > 255 else 255.0)
+    raise InvalidImageError(f"{path}: float pixel values from {lo:.6g} to {hi:.6g}; tghop reads float images with "
+                            "values in [0, 1]; rescale it to [0, 1] first (or save it with 8 or 16 bits)")
+
+
+#: Names of the TIFF photometric interpretations (tag 262) tghop does not read as grey or RGB itself.
+_PHOTOMETRIC_NAMES = {0: "min-is-white", 3: "palette", 4: "mask", 5: "CMYK", 6: "YCbCr", 8: "CIELAB",
+                      9: "ICCLAB", 10: "ITULAB", 32803: "CFA", 32844: "LogL", 32845: "LogLuv", 34892: "LinearRaw"}
+
+
+def _refuse_deep_tiff(path, photometric, bits):
+    """The error for a 16-bit or float TIFF whose colours tghop cannot convert without loss."""
+    name = _PHOTOMETRIC_NAMES.get(photometric, f"photometric {photometric}")
+    raise InvalidImageError(f"{path}: a {bits}-bit {name} TIFF; tghop reads 16-bit and float TIFF files as grey "
+                            "or RGB only; convert it to RGB (or grey) first, or save it with 8 bits")
+
+
+def _tiff_layout(page, path):
+    """How tghop reads a TIFF page itself: ``(colours, alpha, inverted, premultiplied)`` (1 or 3
+    colour samples; whether the next sample is alpha, as its ExtraSamples tag says; min-is-white
+    levels to invert; whether that alpha is associated, the colours multiplied by it), or None for
+    Pillow's path: 8-bit and bilevel TIFF files of other colour kinds (palette, CMYK, YCbCr, LAB,
+    min-is-white), which Pillow converts to RGB or grey, and samples
+    tifffile gives in no type tghop reads. Refused: a 16-bit or float one of those colour kinds
+    (Pillow would reduce it to 8 bits or read it wrong)."""
+    photometric, dtype = page.photometric, page.dtype
+    if photometric is None or dtype is None or not (dtype in (np.uint8, np.uint16) or dtype.kind == "f"):
+        return None  # bilevel (bool), signed or 32-bit integers: Pillow's path
+    photometric = int(photometric)
+    colours = {0: 1, 1: 1, 2: 3}.get(photometric)
+    inverted = photometric == 0
+    if colours is None or (inverted and dtype == np.uint8):
+        if dtype == np.uint8 or photometric == 3:
+            return None
+        _refuse_deep_tiff(path, photometric, page.bitspersample)
+    if inverted and dtype.kind == "f":
+        _refuse_deep_tiff(path, photometric, page.bitspersample)
+    extras = tuple(int(e) for e in (page.extrasamples or ()))
+    if page.samplesperpixel > colours and extras[:1] == (1,) and dtype == np.uint8:
+        return None  # premultiplied alpha: Pillow's path, which divides it out
+    alpha = page.samplesperpixel > colours and extras[:1] in ((1,), (2,))  # associated, unassociated
+    return colours, int(alpha), inverted, alpha and extras[0] == 1
+
+
+def _unpremultiply(arr, colours):
+    """An (H, W, colours + 1) array of uint16 or float samples whose colours are multiplied by its
+    last (alpha) sample, with the colours divided by it (0 where alpha is 0), in its own dtype, as
+    Pillow does for 8-bit files (0.36 read them as plain colours: semi-transparent ones darker)."""
+    values = arr.astype(np.float64)
+    alpha = values[..., colours:]
+    colour = np.divide(values[..., :colours], alpha, out=np.zeros_like(values[..., :colours]), where=alpha > 0)
+    if arr.dtype == np.uint16:
+        colour = np.clip(np.round(colour * 65535.0), 0, 65535)
+    elif alpha.max() <= 1:  # a colour a rounding above its alpha stays in [0, 1] (else read as levels below)
+        colour = np.clip(colour, 0.0, 1.0)
+    values[..., :colours] = colour
+    return values.astype(arr.dtype)
+
+
+def _drop_alpha(arr, mode, keep_alpha=False):
+    """The colour channels of an (H, W, C) array whose last channel is alpha when ``mode`` says
+    so (all of them with ``keep_alpha``)."""
+    if mode and not keep_alpha:
+        arr = arr[..., :-1]
+    return (arr[..., 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr), mode
+
+
+def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
+    """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode).
+    With ``keep_alpha`` an image with alpha (or a palette with transparency) is LA or RGBA.
+
+    Parameters
+    ----------
+    im : PIL.Image.Image, open (and closed by the caller; replaced by a smaller copy when downscaled)
+    path : pathlib.Path, the file's path, in messages
+    max_pixels : int, the most pixels read
+    downscale : bool, reduce a larger image to ``max_pixels`` (a warning) instead of refusing it
+    too_large_hint : str, the advice that ends the error for a larger image
+    keep_alpha : bool, keep an alpha channel last
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, C), uint8 or float64 in [0, 1], upright (EXIF orientation applied)
+    mode : str, the image's Pillow mode ("P+transparency" for a palette with transparency)
+    """
+    width, height = im.size
+    if width < 1 or height < 1:
+        raise ValueError("empty image")
+    if width * height > max_pixels:
+        if not downscale:
+            raise ImageTooLargeError(
+                f"{path}: the image is {width}x{height} pixels, more than the {max_pixels:,} tghop reads; "
+                f"{too_large_hint}")
+        factor = (width * height / max_pixels) ** 0.5
+        size = (max(1, int(width / factor)), max(1, int(height / factor)))
+        im.draft(im.mode, size)  # JPEG: decode at reduced size directly
+        warnings.warn(f"{path.name}: {width}x{height} pixels downscaled to {size[0]}x{size[1]} "
+                      f"(at most {max_pixels:,} pixels)", UserWarning, stacklevel=3)
+        if im.size != size:
+            small = im.resize(size, resample=1, reducing_gap=2.0)  # 1 = LANCZOS
+            im.close()  # frees the full-size pixels before the copies below
+            im = small
+    else:
+        im.load()
+    warn_frames(path, getattr(im, "n_frames", 1))
+    orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
+    im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
+    mode = im.mode
+    if mode == "P" and "transparency" in im.info:
+        mode = "P+transparency"
+    if keep_alpha and (mode in ("RGBA", "LA", "PA", "RGBa", "La") or mode == "P+transparency"):
+        arr = np.asarray(im if im.mode in ("RGBA", "LA") else im.convert("LA" if im.mode == "La" else "RGBA"))
+    elif im.mode in ("L", "RGB"):
+        arr = np.asarray(im)  # no converted copy of a large image
+    elif im.mode in ("LA", "1"):
+        arr = np.asarray(im.convert("L"))
+    elif im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+        arr = np.asarray(im, dtype=np.float64)
+        if im.mode == "F":  # a float image (TIFF, PFM)
+            arr = _float_pixels(arr, path)
+        else:  # integer levels: 8-bit range, else 16-bit
+            arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
+    else:
+        arr = np.asarray(im.convert("RGB"))
+    return upright(arr, orientation), mode
+
+
+def _exif_orientation(im) -> int:
+    """An open Pillow image's EXIF orientation (tag 0x0112): 1 (as stored) when it has none or
+    a damaged EXIF block."""
+    try:
+        return int(im.getexif().get(0x0112, 1))
+    except Exception:  # noqa: BLE001 - a damaged EXIF block: the pixels as stored
+        return 1
+
+
+def file_header(path):
+    """(EXIF orientation, ICC profile bytes or None) of a file tghop decodes itself (16-bit PNG,
+    TIFF by tifffile), from its header (no pixels decoded); orientation 1 where Pillow cannot open it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    tuple (int, bytes or None)
+    """
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            return _exif_orientation(im), im.info.get("icc_profile")
+    except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): the pixels as stored
+        return 1, tiff_profile(path)
+
+
+def upright(arr, orientation):
+    """An (H, W[, C]) array as it is displayed: turned or flipped as its EXIF ``orientation``
+    says (cameras and phones store JPEG pixels sideways and record how to show them); the
+    array itself for orientation 1 or an unknown one.
+
+    Parameters
+    ----------
+    arr : ndarray, shape (H, W) or (H, W, C)
+    orientation : int, the EXIF orientation (1-8)
+
+    Returns
+    -------
+    ndarray, shape (H, W[, C]) or (W, H[, C]) for orientations 5-8
+    """
+    if orientation not in range(2, 9):
+        return arr
+    if orientation >= 5:  # the four that swap height and width: a transposition, then as 1-4
+        arr = np.swapaxes(arr, 0, 1)
+        orientation -= 4
+    if orientation in (2, 3):
+        arr = arr[:, ::-1]
+    if orientation in (3, 4):
+        arr = arr[::-1]
+    return np.ascontiguousarray(arr)
