@@ -50,6 +50,8 @@ The modules, in the order data flows through them (none imports this package's
 * :mod:`tghop.cooc.assembly` -- tiling conditions, windows, :func:`paint_condition`, :func:`boost_condition`;
 * :mod:`tghop.cooc.training` -- ``fit`` and its steps (mixed into :class:`CoocGAN`), and
   :func:`tghop.cooc.training.keep_mmap_threshold` for programs that train on a CPU;
+* :mod:`tghop.cooc.generation` -- ``generate``, ``sample``, the morphs and the other controls
+  (mixed into :class:`CoocGAN`);
 * :mod:`tghop.cooc.checkpoints` -- the ``.pt`` file (:data:`KIND`, :data:`FORMAT`);
 * :mod:`tghop.cooc.model` -- :class:`CoocGAN`, :func:`load`, :func:`baseline`.
 """
