@@ -327,7 +327,7 @@ def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypat
     import errno
 
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
-    append, calls = batch._append_ledger, []
+    append, calls = batch.append_ledger, []
 
     def full_after_one(fh, record):
         calls.append(record["status"])
@@ -335,7 +335,7 @@ def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypat
             raise OSError(errno.ENOSPC, "No space left on device")
         append(fh, record)
 
-    monkeypatch.setattr(batch, "_append_ledger", full_after_one)
+    monkeypatch.setattr(batch, "append_ledger", full_after_one)
     with pytest.raises(OSError, match="No space left"):
         run(src, out, workers=1)
     assert calls == ["ok", "ok", "interrupted"]  # the second's line, then its "interrupted" one: both refused
@@ -1169,8 +1169,8 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path):
     with limit_cores(3):
         with limit_cores(1):
             assert usable_cores() == 1
-        assert usable_cores() == min(3, batch._cores())
-    assert usable_cores() == batch._cores()
+        assert usable_cores() == min(3, batch.affinity_cores())
+    assert usable_cores() == batch.affinity_cores()
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
     import socket

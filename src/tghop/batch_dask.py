@@ -1,0 +1,260 @@
+"""Running a batch's exemplars on ``dask.distributed``: a local cluster of worker processes
+(:func:`local_cluster`) or a running scheduler's (:func:`connect`), the tasks handed out the
+longest first, one per free thread (:func:`run_distributed`), and what each worker sets up
+(:func:`dask_setup`: Ctrl-C ignored, :func:`tune_malloc`, the task's modules imported).
+
+Dask is an optional extra (:data:`INSTALL_HINT`), imported inside the functions that use it
+(:func:`import_distributed`). :func:`tghop.batch.run` plans the work and calls these.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import os
+import signal
+import threading
+import time
+import warnings
+
+from ._errors import MissingExtraError, TGHopError
+from .batch_task import one_line
+
+__all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "import_distributed", "local_cluster",
+           "ctrl_c_ignored", "dask_setup", "tune_malloc", "affinity_cores", "connect", "run_distributed"]
+
+
+INSTALL_HINT = "pip install 'tghop[batch]'"
+
+
+#: glibc ``malloc`` settings a worker makes (:func:`dask_setup`, ``mallopt``): no array gets
+#: a mapping of its own (``M_MMAP_MAX`` 0: every array, however large, comes from the heap and
+#: goes back to it), and up to 1 GB freed at the top of the heap is kept for the next one. A
+#: task allocates and frees arrays of tens to hundreds of MB many times; each fresh mapping is
+#: page-faulted and zeroed by the kernel again. Dask starts its workers with
+#: ``MALLOC_TRIM_THRESHOLD_=65536`` (every array above 64 KB a fresh mapping: an exemplar took
+#: 37 % longer); glibc's own adaptive thresholds map arrays above 32 MB (docs/batch.md).
+WORKER_MALLOC = {"M_MMAP_MAX": 0, "M_TRIM_THRESHOLD": 1 << 30}
+
+
+#: Set in a worker's environment before it starts (:func:`local_cluster`): one malloc arena,
+#: so that the task's thread allocates from the main heap (the only one ``M_MMAP_MAX``
+#: keeps large arrays in: a thread's own arena maps anything above 64 MB). glibc reads it at
+#: start only; a value of one's own in the environment is kept.
+WORKER_ENVIRON = {"MALLOC_ARENA_MAX": "1"}
+
+
+#: A local cluster's worker processes per usable core at most (:func:`run`'s ``workers``): each
+#: exemplar runs on one core, so more only share the cores and the memory (a typo's million
+#: worker processes kept the run starting for ever, with Ctrl-C ignored while a cluster starts).
+WORKERS_PER_CORE = 4
+
+
+_MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_MAX": -4}  # glibc's malloc.h
+
+
+#: Each WORKER_MALLOC setting's environment variable, and the value Dask puts there (None: none).
+_MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("MALLOC_TRIM_THRESHOLD_", "65536")}
+
+
+# ------------------------------------------------------------------ running
+def import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise MissingExtraError(f"running on Dask needs dask.distributed; install it with: {INSTALL_HINT} "
+                                "(or run in this process with workers=1 / --workers 1)") from None
+    return distributed
+
+
+def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
+    """A local ``dask.distributed`` cluster of ``n_workers`` worker processes (default:
+    one per available core), one thread each, BLAS limited to one thread per worker, the
+    scheduler's HTTP server on a free port, a worker's death allowed ``retries`` times per task.
+
+    Each worker runs :func:`dask_setup` first (a preload): among others, its ``malloc``
+    keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`)."""
+    distributed = import_distributed()
+    import logging
+
+    import dask
+
+    n = n_workers or affinity_cores()
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    environ.update({v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
+    environ.update(WORKER_ENVIRON)
+    # Ctrl-C is ignored while the workers start: a worker process inherits that (its preload
+    # ignores Ctrl-C only once its imports are done; before, each printed a traceback), and a
+    # cluster interrupted half-started cannot be closed cleanly. It lasts a few seconds.
+    with ctrl_c_ignored(), dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
+                                             "distributed.nanny.pre-spawn-environ": environ}):
+        # ":0": the scheduler's HTTP server (health, metrics) on a free port; None still took 8787,
+        # and a second cluster (another batch, a notebook's) printed Dask's "Port 8787 is already in use".
+        try:
+            return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                            dashboard_address=":0", memory_limit=memory_limit,
+                                            silence_logs=logging.CRITICAL, preload=[__name__])
+        except RuntimeError as exc:  # most often a script without the guard: each worker ran it again
+            raise TGHopError(f"the local Dask cluster's workers did not start ({exc}); a script that runs a "
+                             "batch needs 'if __name__ == \"__main__\":' around the call (workers import it), "
+                             "or workers=1") from exc
+
+
+@contextlib.contextmanager
+def ctrl_c_ignored():
+    """Ctrl-C (SIGINT) ignored inside, where this is the main thread (else nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def dask_setup(worker):
+    """Run in each worker process of :func:`local_cluster` (a Dask preload): Ctrl-C in a
+    terminal reaches the whole process group, but only the caller stops the batch (it
+    closes the cluster, which ends the workers), so the workers ignore it instead of each
+    printing a traceback; malloc keeps freed memory for reuse (:func:`tune_malloc`); and
+    the modules of a task are imported. (Workers started by hand for ``--scheduler`` get
+    the same from the environment: ``MALLOC_ARENA_MAX=1 MALLOC_MMAP_MAX_=0
+    MALLOC_TRIM_THRESHOLD_=1073741824 dask worker ...``.)"""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Dask's MALLOC_TRIM_THRESHOLD_ is replaced; a value of one's own in the environment is kept.
+    tune_malloc(keep=[k for k, (name, dask_value) in _MALLOC_ENV.items()
+                      if os.environ.get(name, dask_value) != dask_value])
+    # What a task needs, imported while the cluster starts (in every worker at once), not in its first task.
+    import numpy.fft  # noqa: F401
+    import PIL.Image  # noqa: F401
+    import threadpoolctl  # noqa: F401
+
+    from . import batch_task, fit_options, imageio, material, modelfile, synthesis  # noqa: F401
+
+
+def tune_malloc(keep=()) -> bool:
+    """Set :data:`WORKER_MALLOC` in this process's glibc ``malloc`` (``mallopt``), but for
+    the settings named in ``keep``; False where there is no glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    return all(mallopt(_MALLOPT[k], int(v)) == 1 for k, v in WORKER_MALLOC.items() if k not in keep)
+
+
+def affinity_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _cost(job) -> float:
+    """A job's rough relative cost, to start the longest first (a shorter tail): one fit (more
+    for a larger exemplar: its header's pixels, capped at 4 MP) plus a tenth of a fit per 512x512
+    output pixels (in one thread a fit takes about 11 s, a 512x512 image about 1 s; docs/choices.md)."""
+    try:
+        from PIL import Image
+
+        with Image.open(job["source"]) as img:
+            pixels = img.size[0] * img.size[1]
+    except Exception:  # noqa: BLE001 - not an image: it fails at once, last is fine
+        return 0.0
+    out = job["size"][0] * job["size"][1] * job["count"]
+    maps = len(job.get("maps") or ())  # a material's joint fit and maps: about 1.6 times with three
+    return (1.0 + 0.25 * min(pixels, 4 << 20) / (1 << 20) + 0.1 * out / (512 * 512)) * (1 + 0.3 * maps)
+
+
+def _died_record(job, exc, retries) -> dict:
+    name = exc.__class__.__name__
+    if name == "KilledWorker":
+        error = ("the worker running it died on every try (killed or out of memory; "
+                 f"{retries + 1} {'try' if retries == 0 else 'tries'} on a local cluster); use fewer workers per "
+                 "machine or a smaller size")
+    else:
+        error = one_line(exc)
+    return {"status": "failed", "error": error, "outputs": [], "model": None, "thumbnail": None,
+            "seed_used": job.get("seed"), "started": None, "seconds": None}
+
+
+def connect(scheduler):
+    """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached."""
+    distributed = import_distributed()
+    try:
+        client = distributed.Client(scheduler, timeout="5s")
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
+        reason = one_line(exc)
+    else:
+        if not client.nthreads():  # the run would wait without a word
+            warnings.warn(f"the Dask scheduler at {scheduler} has no workers yet: the exemplars wait until one joins "
+                          f"(start one: dask worker {scheduler} --nthreads 1; docs/batch.md)", stacklevel=2)
+        return client
+    # The half-started Client is in a reference cycle: collected later, inside a LocalCluster's
+    # start, its __del__ deadlocks on the loop runner's lock. Collect it now (after the except).
+    gc.collect()
+    raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
+
+
+def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin):
+    """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
+    here); ``own_client``, and the cluster started here, are closed at the end. Each job
+    goes to ``begin`` before it is handed out; ``finish`` takes its result."""
+    distributed = import_distributed()
+    own_cluster = None
+    futures = []
+    try:
+        if client is None:
+            own_cluster = local_cluster(workers, retries=retries)
+            client = own_client = distributed.Client(own_cluster)
+        # The longest first (a shorter tail), handed out one per free thread as tasks finish:
+        # a worker holds only the task it runs. Dask would place every task on a worker at
+        # once (tasks of different names are not "root-ish", so it queues none on the
+        # scheduler), and a worker's death would count against the tasks waiting on it too.
+        order = iter(sorted(jobs, key=_cost, reverse=True))
+        # This client's loop: as_completed would take the default client's, which may be another
+        # (one closed by now: its futures were never reported, and the run waited for ever).
+        by_key, running = {}, distributed.as_completed(loop=client.loop)
+
+        def hand_out():
+            slots = max(1, sum(client.nthreads().values()))  # again each time: a cluster may grow
+            while running.count() < slots:
+                job = next(order, None)
+                if job is None:
+                    break
+                key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
+                begin(job)
+                fut = client.submit(task, job, key=key, pure=False)
+                by_key[fut.key] = job
+                futures.append(fut)
+                running.add(fut)
+            counts["running"] = running.count()
+
+        hand_out()
+        for fut in running:
+            job = by_key[fut.key]
+            try:
+                record = fut.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
+                record = _died_record(job, exc, retries)
+            fut.release()
+            hand_out()  # before the ledger line: the freed worker starts at once
+            finish(job, record)
+    except BaseException:
+        try:
+            if client is not None:
+                client.cancel([f for f in futures if not f.done()])
+        except Exception:  # noqa: BLE001 - stopping anyway
+            pass
+        raise
+    finally:
+        with ctrl_c_ignored():  # a second Ctrl-C must not leave the cluster half-closed
+            if own_client is not None:
+                own_client.close()
+            if own_cluster is not None:
+                own_cluster.close()

@@ -1,0 +1,333 @@
+"""What a batch does, decided before any work: the exemplars and their folder names, and the
+ledger that says what an earlier run finished.
+
+* :func:`find_work` -- the exemplars of a folder (recursively) or a manifest (:mod:`tghop.manifest`),
+  each with a unique folder name in OUTDIR (at most :data:`NAME_MAX` characters);
+* :func:`inputs_sha256` -- what the ledger compares to know an exemplar unchanged;
+* the ledger ``OUTDIR/batch.jsonl`` (:data:`LEDGER`): read (:func:`read_ledger`,
+  :func:`read_ledger_files`), opened locked for a run (:func:`open_ledger`), appended to
+  (:func:`append_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
+  keeps the names it had, :func:`remove_stale` deletes the files a new line no longer lists, and
+  :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out.
+
+:func:`tghop.batch.run` uses them; :mod:`tghop.batch_dask` runs the work on Dask.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import re
+import unicodedata
+from pathlib import Path
+
+from ._errors import TGHopError
+from .batch_task import THUMBNAIL_FILE
+from .contact_sheet import CONTACT_SHEET
+from .manifest import read_manifest
+
+__all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "find_work", "inputs_sha256", "file_sha256",
+           "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files", "open_ledger", "append_ledger",
+           "is_done", "mark_running", "remove_stale"]
+
+
+#: File extensions taken as exemplars when SOURCE is a folder.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
+
+
+#: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
+LEDGER = "batch.jsonl"
+
+
+#: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
+#: an exemplar that has one (the run that wrote it was killed, its task may have run on and
+#: replaced the files an earlier line lists: a given cluster's task runs on without its client).
+RUNNING = ".batch-running"
+
+
+#: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
+#: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
+NAME_MAX = 160
+
+
+# ------------------------------------------------------------------ finding work
+def _scan_folder(folder: Path, outdir: Path):
+    """The images of ``folder``, recursively, symbolic links to folders followed (each folder
+    once: a link back up is no loop); hidden files and folders, and what is not a regular file
+    (a named pipe: a broken link is kept, to be said), are skipped, and so are
+    ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its thumbnails and
+    results are no exemplars)."""
+    out = Path(outdir).resolve()
+    items, seen = [], {os.path.realpath(folder)}
+
+    def new(path):
+        real = os.path.realpath(path)
+        if real in seen:
+            return False
+        seen.add(real)
+        return True
+
+    for root, dirs, files in os.walk(folder, followlinks=True):
+        dirs[:] = [d for d in sorted(dirs) if not d.startswith(".") and Path(root, d).resolve() != out
+                   and not os.path.lexists(os.path.join(root, d, LEDGER)) and new(os.path.join(root, d))]
+        for f in sorted(files):
+            p = Path(root, f)  # a named pipe, socket or device is no image (reading one waited for ever)
+            if not f.startswith(".") and p.suffix.lower() in IMAGE_SUFFIXES and (p.is_file() or not p.exists()):
+                items.append({"path": p, "rel": p.relative_to(folder), "name": None, "settings": {}})
+    if not items:
+        raise TGHopError(f"{folder}: no image files in this folder ({', '.join(IMAGE_SUFFIXES[:3])}, ...)")
+    return items
+
+
+def _safe(text: str) -> str:
+    # Accents dropped first (NFKD: "é" is "e" and a combining mark), so that "béans" is "beans", not "b_ans".
+    text = "".join(ch for ch in unicodedata.normalize("NFKD", text) if not unicodedata.combining(ch))
+    # No leading "-" either (as a map's name): "-x/-x.npz" was taken for options by tghop synth, ls, ...
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).lstrip("._-").rstrip("._") or "unnamed"
+    # OUTDIR's own files (a folder of that name would stand there) and the thumbnail (<name>.png's).
+    return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET, Path(THUMBNAIL_FILE).stem) else name
+
+
+def _unique_names(items):
+    """A folder name per exemplar. A name a manifest row gives is kept (made safe for a
+    file name: ``_`` for other characters); two that are one folder name, compared without
+    case, are a :class:`TGHopError` naming both lines. Others: the path without the
+    extension, folders joined by ``__`` (``a/x.png`` -> ``a__x``; over 140 characters, its
+    first 131 and a short hash of the path); a name taken (by another exemplar or a given
+    name) gets its extension, then a short hash of the path, then a number. No name is longer
+    than :data:`NAME_MAX` (a longer given one is refused)."""
+    given = {}
+    for it in items:
+        if not it.get("named"):
+            continue
+        it["name"] = _safe(it["name"])
+        if len(it["name"]) > NAME_MAX:
+            raise TGHopError(f"{it['where']}: the name {it['given'][:40]!r}... is {len(it['name'])} characters long; "
+                             f"its files could not be named (at most {NAME_MAX}); give a shorter name")
+        other = given.setdefault(it["name"].lower(), it)
+        if other is not it:
+            raise TGHopError(f"{it['where']}: the name {it['given']!r} and {other['where']}'s {other['given']!r} are "
+                             "one folder name in OUTDIR (names are compared without case); give each its own name")
+    free = [it for it in items if not it.get("named")]
+    for it in free:
+        rel = it["rel"]
+        it["name"] = _safe("__".join(rel.parts[:-1] + (rel.stem,)))
+        if len(it["name"]) > NAME_MAX - 20:  # a deep path: its start and a hash (the steps below add up to 20)
+            it["name"] = it["name"][:NAME_MAX - 29] + "_" + hashlib.sha256(str(rel).encode()).hexdigest()[:8]
+    for step in ("suffix", "hash"):
+        seen = {}
+        for it in free:
+            seen.setdefault(it["name"].lower(), []).append(it)
+        for key, group in seen.items():
+            if len(group) < 2 and key not in given:
+                continue
+            for it in group:
+                if step == "suffix" and it["rel"].suffix:
+                    it["name"] += "_" + _safe(it["rel"].suffix[1:])
+                elif step == "hash":
+                    it["name"] += "_" + hashlib.sha256(str(it["rel"]).encode()).hexdigest()[:8]
+    seen = dict.fromkeys(given, 1)
+    for it in free:  # a manifest that lists one file twice: _2, _3, ...
+        n = seen[it["name"].lower()] = seen.get(it["name"].lower(), 0) + 1
+        if n > 1:
+            it["name"] += f"_{n}"
+    return items
+
+
+def find_work(source, outdir=None):
+    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files,
+    ``outdir`` and the folders that hold a ledger ``batch.jsonl`` skipped) or a manifest
+    (``.csv`` with a ``path`` column, or JSON lines ``{"path": ...}``; optional ``name``,
+    ``size``, ``count``, ``seed``, ``tile``; paths relative to the manifest's folder).
+
+    Returns a list of dicts: ``path`` (Path), ``rel`` (as listed), ``name`` (unique folder
+    name in OUTDIR) and ``settings`` (the row's own settings). A bad manifest row is a
+    :class:`TGHopError` naming its line, before any work.
+    """
+    if not os.fsdecode(source).strip():  # "" would be the current folder
+        raise TGHopError("SOURCE is empty; give a folder of exemplars or a manifest")
+    source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
+    if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
+        raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
+                         "exemplars; give another folder, e.g. -o " + str(source.parent / (source.name + "_out")))
+    if source.is_dir():
+        items = _scan_folder(source, outdir if outdir is not None else source / ".none")
+    elif source.is_file():
+        if source.suffix.lower() not in (".csv", ".jsonl", ".json", ".ndjson"):
+            raise TGHopError(f"{source}: SOURCE is a folder of images or a manifest (.csv or .jsonl)")
+        items = read_manifest(source)
+    else:
+        raise TGHopError(f"{source}: no such folder or manifest; check the path")
+    return _unique_names(items)
+
+
+def inputs_sha256(path, maps=()) -> str | None:
+    """What the ledger compares to know an exemplar unchanged: its file's SHA-256, or for a
+    material (``maps``: ``[(name, path)]``) the SHA-256 of the albedo's and each named map's
+    (None when one cannot be read)."""
+    first = file_sha256(path)
+    if not maps or first is None:
+        return first
+    h = hashlib.sha256(first.encode())
+    for name, file in maps:
+        digest = file_sha256(file)
+        if digest is None:
+            return None
+        h.update(f"\0{name}\0{digest}".encode())
+    return h.hexdigest()
+
+
+def file_sha256(path) -> str | None:
+    """SHA-256 of a file's bytes (None when it cannot be read)."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError:
+        return None
+    return h.hexdigest()
+
+
+# ------------------------------------------------------------------ the ledger
+def read_ledger(outdir) -> dict:
+    """The last ledger line of each exemplar (by name); unreadable lines are skipped."""
+    return read_ledger_files(outdir)[0]
+
+
+def read_ledger_files(outdir):
+    """:func:`read_ledger`'s lines, and the files every line of each exemplar lists (by name):
+    an earlier run's outputs stay in its folder after a later line that lists none (a failed
+    try), until a run of it succeeds (:func:`remove_stale`)."""
+    records, files = {}, {}
+    try:
+        text = (Path(outdir) / LEDGER).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return records, files
+    for line in text.splitlines():
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            continue  # a line torn by a crash
+        if isinstance(rec, dict) and isinstance(rec.get("name"), str):
+            records[rec["name"]] = rec
+            with contextlib.suppress(TypeError):  # a hand-edited line's odd fields list nothing
+                files.setdefault(rec["name"], set()).update(f for f in _listed_files(rec) if isinstance(f, str))
+    return records, files
+
+
+def keep_ledger_names(items, previous) -> None:
+    """An exemplar keeps the name its ledger line has (a file added next to it can change the
+    name :func:`find_work` gives it: ``sub/a.png`` is ``sub__a`` until a ``sub__a.png``
+    arrives, then both get longer names, and it would be done again under the new one): where
+    one earlier line names its file and no other exemplar takes that name or lists that file
+    (a name a manifest row gives is kept as it is)."""
+    by_source = {}
+    for name, rec in previous.items():
+        by_source.setdefault(str(rec.get("source")), []).append(name)
+    sources = [str(it["path"]) for it in items]
+    taken = {it["name"].lower() for it in items}
+    for it, source in zip(items, sources):
+        names = by_source.get(source, [])
+        if it.get("named") or it["name"] in names or len(names) != 1 or sources.count(source) != 1 \
+                or len(names[0]) > NAME_MAX:  # a name too long for its files: that run failed
+            continue
+        if names[0].lower() not in taken:
+            taken.discard(it["name"].lower())
+            it["name"] = names[0]
+            taken.add(names[0].lower())
+
+
+def check_own_files(outdir: Path, contact_sheet: bool) -> None:
+    """Refuse a folder where OUTDIR's ledger or contact sheet goes (found before any work)."""
+    for name, what in ((LEDGER, "the ledger"), (CONTACT_SHEET, "the contact sheet")):
+        if name == CONTACT_SHEET and not contact_sheet:
+            continue
+        if (outdir / name).is_dir():
+            raise TGHopError(f"{outdir / name} is a folder, where {what} of the batch goes; remove that folder "
+                             "or choose another OUTDIR")
+
+
+def open_ledger(outdir: Path):
+    """The ledger opened for appending, for the whole run: one that cannot be written to is
+    found before any exemplar's files are made (or overwritten). It is locked (``flock``) while
+    the run lasts: a second batch into the same OUTDIR is refused (it would redo the exemplars
+    under way and remove their files in the making, which then failed)."""
+    path = outdir / LEDGER
+    try:
+        fh = open(path, "a", encoding="utf-8")
+    except OSError as exc:
+        raise TGHopError(f"{path}: cannot add to the ledger ({exc.strerror or exc.__class__.__name__}); make it a "
+                         "writable file (chmod u+w, or chattr -i where it is immutable) or choose another OUTDIR; "
+                         "nothing was done") from None
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        return fh
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.close()
+        raise TGHopError(f"{outdir}: another tghop batch is writing to this OUTDIR (its ledger is locked); wait for "
+                         "it to end or choose another OUTDIR; nothing was done") from None
+    except OSError:  # a file system without locks: the run goes on unlocked
+        pass
+    try:  # a line torn by a crash or a full disk ends apart: this run's first line would join it, and be lost too
+        with open(path, "rb") as tail:
+            if tail.seek(0, os.SEEK_END) and (tail.seek(-1, os.SEEK_END), tail.read(1))[1] != b"\n":
+                fh.write("\n")
+    except OSError:
+        pass
+    return fh
+
+
+def append_ledger(fh, record: dict):
+    line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
+    fh.write(line)
+    fh.flush()
+    os.fsync(fh.fileno())
+
+
+def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
+    if not prev or prev.get("status") != "ok" or prev.get("sha256") != job["sha256"]:
+        return False
+    if os.path.lexists(os.path.join(job["folder"], RUNNING)):  # handed out by a run killed before its line
+        return False
+    if prev.get("settings") != job["settings"]:
+        return False
+    # A model and no empty output name, and every file the line lists (the thumbnail too: the
+    # contact sheet shows it).
+    return all([*(prev.get("outputs") or []), prev.get("model")]) and all(
+        (outdir / f).is_file() for f in _listed_files(prev))
+
+
+def _listed_files(rec: dict) -> list:
+    """The files (relative to OUTDIR) a ledger line lists: images, model, thumbnail."""
+    return [f for f in [*(rec.get("outputs") or []), rec.get("model"), rec.get("thumbnail")] if f]
+
+
+def mark_running(job, on: bool) -> None:
+    """Make (``on``) or remove the exemplar's :data:`RUNNING` file (its folder made as needed;
+    one that cannot be made: its task fails and says why)."""
+    path = Path(job["folder"]) / RUNNING
+    with contextlib.suppress(OSError):
+        if on:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.touch()
+        else:
+            path.unlink()
+
+
+def remove_stale(outdir: Path, earlier: set, rec: dict) -> None:
+    """Delete the files of an exemplar's earlier ledger lines (``earlier``: all of them, not
+    only the last, which may be a failed try's and list none) that its new one does not list
+    (e.g. ``a_1.png``, ``a_2.png`` after a rerun with count 1 wrote ``a.png``): only in its
+    own folder."""
+    keep = set(_listed_files(rec))
+    folder = (outdir / rec["name"]).resolve()
+    for f in set(earlier) - keep:
+        if (outdir / f).resolve().parent == folder:
+            with contextlib.suppress(OSError):
+                (outdir / f).unlink()
