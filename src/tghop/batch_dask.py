@@ -24,9 +24,8 @@ __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE"
            "ctrl_c_ignored", "dask_setup", "tune_malloc", "affinity_cores", "connect", "run_distributed"]
 
 
+#: What to install for running on Dask.
 INSTALL_HINT = "pip install 'tghop[batch]'"
-
-
 #: glibc ``malloc`` settings a worker makes (:func:`dask_setup`, ``mallopt``): no array gets
 #: a mapping of its own (``M_MMAP_MAX`` 0: every array, however large, comes from the heap and
 #: goes back to it), and up to 1 GB freed at the top of the heap is kept for the next one. A
@@ -35,30 +34,23 @@ INSTALL_HINT = "pip install 'tghop[batch]'"
 #: ``MALLOC_TRIM_THRESHOLD_=65536`` (every array above 64 KB a fresh mapping: an exemplar took
 #: 37 % longer); glibc's own adaptive thresholds map arrays above 32 MB (docs/batch.md).
 WORKER_MALLOC = {"M_MMAP_MAX": 0, "M_TRIM_THRESHOLD": 1 << 30}
-
-
 #: Set in a worker's environment before it starts (:func:`local_cluster`): one malloc arena,
 #: so that the task's thread allocates from the main heap (the only one ``M_MMAP_MAX``
 #: keeps large arrays in: a thread's own arena maps anything above 64 MB). glibc reads it at
 #: start only; a value of one's own in the environment is kept.
 WORKER_ENVIRON = {"MALLOC_ARENA_MAX": "1"}
-
-
-#: A local cluster's worker processes per usable core at most (:func:`run`'s ``workers``): each
+#: A local cluster's worker processes per usable core at most (:func:`tghop.batch.run`'s ``workers``): each
 #: exemplar runs on one core, so more only share the cores and the memory (a typo's million
 #: worker processes kept the run starting for ever, with Ctrl-C ignored while a cluster starts).
 WORKERS_PER_CORE = 4
-
-
 _MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_MAX": -4}  # glibc's malloc.h
-
-
 #: Each WORKER_MALLOC setting's environment variable, and the value Dask puts there (None: none).
 _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("MALLOC_TRIM_THRESHOLD_", "65536")}
 
 
 # ------------------------------------------------------------------ running
 def import_distributed():
+    """The ``distributed`` module, or a one-line :class:`~tghop.MissingExtraError` saying what to install."""
     try:
         import distributed
     except ImportError:
@@ -149,6 +141,7 @@ def tune_malloc(keep=()) -> bool:
 
 
 def affinity_cores() -> int:
+    """Cores this process may run on (its affinity mask; ``os.cpu_count()`` where there is none)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux

@@ -35,18 +35,12 @@ __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "find_work", "inpu
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
-
-
 #: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
 LEDGER = "batch.jsonl"
-
-
 #: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
 #: an exemplar that has one (the run that wrote it was killed, its task may have run on and
 #: replaced the files an earlier line lists: a given cluster's task runs on without its client).
 RUNNING = ".batch-running"
-
-
 #: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
 #: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
 NAME_MAX = 160
@@ -284,6 +278,7 @@ def open_ledger(outdir: Path):
 
 
 def append_ledger(fh, record: dict):
+    """Write ``record`` as one JSON line to the open ledger ``fh`` and make it durable (flush, fsync)."""
     line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
     fh.write(line)
     fh.flush()
@@ -291,6 +286,8 @@ def append_ledger(fh, record: dict):
 
 
 def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
+    """Whether an earlier run finished ``job`` (its last ledger line ``prev``): same inputs and
+    settings, no :data:`RUNNING` file left, and every file the line lists still in OUTDIR."""
     if not prev or prev.get("status") != "ok" or prev.get("sha256") != job["sha256"]:
         return False
     if os.path.lexists(os.path.join(job["folder"], RUNNING)):  # handed out by a run killed before its line
