@@ -344,6 +344,27 @@ def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypat
     assert not leftovers(out)
 
 
+def test_a_ctrl_c_right_after_a_line_is_written_leaves_that_exemplar_done(tmp_path, monkeypatch):
+    # A Ctrl-C between the ledger line and the removal of the exemplar's RUNNING file left the file: the rerun
+    # redid an exemplar its line said was done ("(0 by an earlier run)", a flaky Ctrl-C test under load).
+    import signal
+
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    append = batch.append_ledger
+
+    def ctrl_c_after_the_line(fh, record):
+        append(fh, record)
+        signal.raise_signal(signal.SIGINT)  # Ctrl-C as the line reaches the disk
+
+    monkeypatch.setattr(batch, "append_ledger", ctrl_c_after_the_line)
+    with pytest.raises(KeyboardInterrupt):
+        run(src, out, workers=1)
+    monkeypatch.setattr(batch, "append_ledger", append)
+    assert [line["status"] for line in ledger(out)] == ["ok"]
+    assert not list(out.rglob(batch.RUNNING))
+    assert [r["skipped"] for r in run(src, out, workers=1)] == [True, False]  # the first is not redone
+
+
 # ------------------------------------------------------------------ in process
 def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"

@@ -37,7 +37,8 @@ from pathlib import Path
 
 from ._errors import MissingExtraError, TGHopError
 from .batch_dask import (INSTALL_HINT, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE, affinity_cores, connect,
-                         ctrl_c_ignored, dask_setup, import_distributed, local_cluster, run_distributed, tune_malloc)
+                         ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
+                         run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_work,
                          inputs_sha256, is_done, keep_ledger_names, mark_running, open_ledger, read_ledger,
                          read_ledger_files, remove_stale)
@@ -264,9 +265,10 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
                **record}
         rec["finished"] = time.time()
-        append_ledger(ledger_file, rec)
-        started.pop(job["name"], None)
-        mark_running(job, False)
+        with ctrl_c_deferred():  # the line and its RUNNING file's removal as one (else a rerun redoes it)
+            append_ledger(ledger_file, rec)
+            started.pop(job["name"], None)
+            mark_running(job, False)
         if rec["status"] == "ok":
             remove_stale(outdir, earlier_files.get(job["name"], ()), rec)
         results[job["name"]] = {**rec, "skipped": False}

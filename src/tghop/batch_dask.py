@@ -21,7 +21,7 @@ from ._errors import MissingExtraError, TGHopError
 from .batch_task import one_line
 
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "import_distributed", "local_cluster",
-           "ctrl_c_ignored", "dask_setup", "tune_malloc", "affinity_cores", "connect", "run_distributed"]
+           "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc", "affinity_cores", "connect", "run_distributed"]
 
 
 #: What to install for running on Dask.
@@ -103,6 +103,23 @@ def ctrl_c_ignored():
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def ctrl_c_deferred():
+    """A Ctrl-C (SIGINT) inside takes effect once the block is done (where this is the main thread), as
+    :func:`ctrl_c_ignored` but not lost."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if caught:
+            signal.raise_signal(signal.SIGINT)  # to the handler it had: KeyboardInterrupt, as a Ctrl-C anywhere
 
 
 def dask_setup(worker):
