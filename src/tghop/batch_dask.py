@@ -21,7 +21,8 @@ from ._errors import MissingExtraError, TGHopError
 from .batch_task import one_line
 
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "import_distributed", "local_cluster",
-           "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc", "affinity_cores", "connect", "run_distributed"]
+           "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc", "affinity_cores", "connect",
+           "run_distributed"]
 
 
 #: What to install for running on Dask.
