@@ -368,12 +368,6 @@ def test_uploads_decoded_at_once_are_bounded_the_next_wait_and_one_more_is_503(t
         with httpx.Client(base_url=live.url, timeout=60) as client:
             answers[name] = client.post(path, **kwargs)
 
-    def until(done):
-        deadline = time.monotonic() + 30
-        while not done():
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-
     threads = []
     try:
         for name in ("first", "second"):
@@ -485,12 +479,6 @@ def test_an_upload_waiting_for_the_gate_whose_client_went_away_leaves_the_queue_
     def post(name):
         with httpx.Client(base_url=live.url, timeout=60) as client:
             answers[name] = client.post("/api/models", files={"image": (f"{name}.png", flat)})
-
-    def until(done, seconds=30):
-        deadline = time.monotonic() + seconds
-        while not done():
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
 
     threads = []
     try:
@@ -770,12 +758,6 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
     def post(model_id):
         answers[model_id] = httpx.post(f"{live.url}/api/models/{model_id}/images", json=ask, timeout=60)
 
-    def until(done, seconds=30):
-        deadline = time.monotonic() + seconds
-        while not done():
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-
     threads = []
     try:
         threads.append(threading.Thread(target=post, args=(ids[0],)))
@@ -807,6 +789,14 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
         release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
+
+
+def until(done, seconds=30):
+    """Wait until ``done()`` (a test's condition), failing after ``seconds``."""
+    deadline = time.monotonic() + seconds
+    while not done():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
 
 
 def _sent_and_left(live, request, entered, until):
@@ -851,12 +841,6 @@ def test_a_fit_whose_client_went_away_while_its_exemplar_was_decoded_is_never_qu
     live = LiveServer(tmp_path, max_decodes=1)
     state = live.app.state.server
 
-    def until(done, seconds=30):
-        deadline = time.monotonic() + seconds
-        while not done():
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-
     try:
         request = httpx.Request("POST", f"{live.url}/api/models", data=FAST_FIT,
                                 files={"image": ("noise.png", buf.getvalue())})
@@ -892,12 +876,6 @@ def test_a_model_file_whose_client_went_away_while_it_was_read_is_not_kept(tmp_p
     monkeypatch.setattr(modelfile, "load_model", held)
     live = LiveServer(tmp_path, max_decodes=1)
     state = live.app.state.server
-
-    def until(done, seconds=30):
-        deadline = time.monotonic() + seconds
-        while not done():
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
 
     try:
         request = httpx.Request("POST", f"{live.url}/api/models/upload", content=two_model_files[0])
