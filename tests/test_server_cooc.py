@@ -300,10 +300,9 @@ def test_the_checkpoints_folder_is_bounded(tmp_path):
     assert sorted(os.listdir(folder)) == ["b" * 64 + ".pt"] and cache.size() == 1000
 
 
-@needs_torch
-def test_a_summary_loads_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoint):
-    """A checkpoint read for its summary may take hundreds of MB, as a model: it is read on a decoding
-    thread holding the decode gate's slot (as GET /api/models/{id}), not on Starlette's threads."""
+def _served_checkpoint(tmp_path, checkpoint):
+    """A live server (one decode at a time) with ``checkpoint`` in its cache folder, not in memory, and a
+    list where each read of a checkpoint file puts (its thread's name, the decode gate's slots held)."""
     import threading
 
     from conftest import LiveServer
@@ -320,6 +319,14 @@ def test_a_summary_loads_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoin
         return load(path)
 
     state.cooc._load = watched
+    return server, state, cid, seen
+
+
+@needs_torch
+def test_a_summary_loads_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoint):
+    """A checkpoint read for its summary may take hundreds of MB, as a model: it is read on a decoding
+    thread holding the decode gate's slot (as GET /api/models/{id}), not on Starlette's threads."""
+    server, state, cid, seen = _served_checkpoint(tmp_path, checkpoint)
     try:
         with httpx.Client(base_url=server.url, timeout=120) as c:
             r = c.get(f"/api/cooc/{cid}")
@@ -365,22 +372,7 @@ def test_a_checkpoints_summary_is_kept_as_a_models_is(tmp_path, checkpoint):
 def test_a_morph_and_an_edit_read_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoint):
     """A checkpoint not in memory that a morph or an edit needs is read on its generation thread holding a
     slot of the decoding turn, as an upload is decoded (503 when too many wait: tests/test_server_bounds.py)."""
-    import threading
-
-    from conftest import LiveServer
-
-    (tmp_path / "cooc").mkdir()
-    cid = hashlib.sha256(checkpoint[0]).hexdigest()
-    (tmp_path / "cooc" / f"{cid}.pt").write_bytes(checkpoint[0])
-    server = LiveServer(tmp_path, max_decodes=1)
-    state = server.app.state.server
-    seen, load = [], state.cooc._load
-
-    def watched(path):
-        seen.append((threading.current_thread().name, state.decoding.holding))
-        return load(path)
-
-    state.cooc._load = watched
+    server, state, cid, seen = _served_checkpoint(tmp_path, checkpoint)
     try:
         with httpx.Client(base_url=server.url, timeout=120) as c:
             for path, body in (("morph", {"a": [0, 0], "b": [32, 32], "length": 2, "seed": 1}),
