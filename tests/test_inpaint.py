@@ -385,6 +385,7 @@ def test_cli_a_hole_painted_as_transparency_is_told_to_be_painted_white(files):
 
 
 @pytest.mark.parametrize("mode, channels, bits", [("RGBA", 4, 8), ("LA", 2, 8), ("RGBA", 4, 16), ("P", 1, 8)])
+@pytest.mark.filterwarnings("ignore:MASK .* is not black and white")  # its masks are noise: rightly said
 def test_a_masks_hole_is_its_white_pixels_whatever_its_alpha(tmp_path, mode, channels, bits):
     import warnings
 
