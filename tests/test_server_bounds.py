@@ -149,6 +149,18 @@ def _put(cache, model_id, content, mtime=None):
         os.utime(path, (mtime, mtime))
 
 
+def _in_cache_folder(tmp_path, contents, ids=None):
+    """Model files ``contents`` (bytes) in the server's cache folder under ``tmp_path`` (made), each under its
+    id (by default its SHA-256, as an upload's), not in memory as on a fresh server: the ids."""
+    import hashlib
+
+    ids = ids or [hashlib.sha256(content).hexdigest() for content in contents]
+    (tmp_path / "models").mkdir()
+    for model_id, content in zip(ids, contents):
+        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    return ids
+
+
 def test_the_cache_folder_drops_the_least_recently_used_models(tmp_path, two_model_files):
     from tghop.modelfile import load_model
     from tghop.server.app import ModelCache
@@ -513,16 +525,11 @@ def test_summaries_asked_at_once_load_the_model_in_the_decoding_turn_once(tmp_pa
     """A model may take hundreds of MB while it is read: summaries of models not in memory (a fresh server)
     asked at once load them max_decodes at a time, and each model once: its summary is kept (the file of an
     id never changes), still 404 once the file is gone."""
-    import hashlib
-
     httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
     pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
     from tghop import modelfile
 
-    ids = [hashlib.sha256(content).hexdigest() for content in two_model_files]
-    (tmp_path / "models").mkdir()
-    for model_id, content in zip(ids, two_model_files):
-        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    ids = _in_cache_folder(tmp_path, two_model_files)
     release, lock = threading.Event(), threading.Lock()
     inside, peak, loads = [0], [0], []
     load = modelfile.load_model
@@ -638,15 +645,11 @@ def test_a_model_asked_for_at_once_is_loaded_once_and_a_failed_load_fails_each_a
 
 def test_summaries_of_one_model_asked_at_once_load_it_once(tmp_path, two_model_files, monkeypatch):
     """Summaries of a model not in memory asked at once, each on a decoding thread of its own: one load."""
-    import hashlib
-
     httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
     pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
     from tghop import modelfile
 
-    model_id = hashlib.sha256(two_model_files[0]).hexdigest()
-    (tmp_path / "models").mkdir()
-    (tmp_path / "models" / f"{model_id}.npz").write_bytes(two_model_files[0])
+    [model_id] = _in_cache_folder(tmp_path, two_model_files[:1])
     release, loads, load = threading.Event(), [], modelfile.load_model
 
     def held(path, **kwargs):
@@ -730,9 +733,7 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
     # Four models not in memory (the same file under other ids: each is its own model to the cache)
     ids = [hashlib.sha256(two_model_files[0]).hexdigest(), hashlib.sha256(two_model_files[1]).hexdigest(),
            "c" * 64, "d" * 64]
-    (tmp_path / "models").mkdir()
-    for model_id, content in zip(ids, two_model_files * 2):
-        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    _in_cache_folder(tmp_path, two_model_files * 2, ids)
     release, lock = threading.Event(), threading.Lock()
     inside, peak, loads = [0], [0], []
     load = modelfile.load_model
@@ -894,7 +895,6 @@ def test_a_model_file_whose_client_went_away_while_it_was_read_is_not_kept(tmp_p
 def test_every_generation_route_reads_its_models_in_the_decoding_turn(tmp_path, two_model_files):
     """An image, a remix, a morph and an extend each read the models they need that are not in memory on
     their generation thread holding a slot of the decoding turn (given back after), once per model."""
-    import hashlib
     import io
 
     import numpy as np
@@ -903,10 +903,7 @@ def test_every_generation_route_reads_its_models_in_the_decoding_turn(tmp_path, 
     httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
     pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
 
-    ids = [hashlib.sha256(content).hexdigest() for content in two_model_files]
-    (tmp_path / "models").mkdir()
-    for model_id, content in zip(ids, two_model_files):
-        (tmp_path / "models" / f"{model_id}.npz").write_bytes(content)
+    ids = _in_cache_folder(tmp_path, two_model_files)
     live = LiveServer(tmp_path, max_decodes=1)
     state = live.app.state.server
     seen, read = [], state.cache._load
