@@ -60,3 +60,15 @@ def choose_mode(page, name):
     """Click the result's mode ``name`` (its label: the radio button is hidden behind it), as a user does."""
     page.locator("label", has=page.locator(f"#mode-{name}")).click()
     assert page.is_checked(f"#mode-{name}")
+
+
+def fit_builtin(page, name):
+    """Pick builtin:``name`` in the menu and wait until its fit is done (from the server's cache when it is
+    there) and its model is the working one, summarised."""
+    page.select_option("#builtin", name)
+    page.wait_for_function("(n) => document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " state.working && state.working.name === 'builtin:' + n &&"
+                           " document.getElementById('builtin').value === n &&"
+                           " document.getElementById('summary').textContent.startsWith('model ')",
+                           arg=name, timeout=90_000)
+    page.wait_for_selector("#summary:not([hidden])")

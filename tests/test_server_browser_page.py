@@ -23,11 +23,7 @@ def page(live_server):
         yield page
 
 
-def fit(page, name):
-    page.select_option("#builtin", name)
-    page.wait_for_function("(n) => document.getElementById('fit-status').dataset.state === 'done' &&"
-                           " document.getElementById('summary').textContent.startsWith('model ') &&"
-                           " document.getElementById('builtin').value === n", arg=name, timeout=90_000)
+fit = chromium.fit_builtin  # builtin:NAME fitted with the fast settings
 
 
 def strip(page):

@@ -25,12 +25,7 @@ def page(live_server):
         yield page
 
 
-def fit(page, name):
-    """builtin:NAME fitted with the fast settings (from the server's cache when it is there)."""
-    page.select_option("#builtin", name)
-    page.wait_for_function(f"document.getElementById('fit-status').dataset.state === 'done' && "
-                           f"state.working && state.working.name === 'builtin:{name}'", timeout=90_000)
-    page.wait_for_selector("#summary:not([hidden])")
+fit = chromium.fit_builtin  # builtin:NAME fitted with the fast settings
 
 
 #: JavaScript (a function of a button's id and the result's caption to wait for): click the button and
