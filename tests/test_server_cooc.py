@@ -192,6 +192,22 @@ def test_boost_condition_scales_one_bin_and_its_mirror():
         boost_condition(cond, 0, 0, 1e308)
 
 
+def test_an_edits_boost_is_bounded_by_the_librarys_bound(monkeypatch):
+    """tghop.server.cooc kept its own copy of the library's bound of a boost's factor
+    (tghop.cooc.assembly.MAX_BOOST): a change of the library's did not reach the server's check of
+    an edit's JSON. The server asks the library's bound now."""
+    from tghop.cooc import assembly
+    from tghop.server.cooc import parse_edit
+    from tghop.server.requests import RequestError
+
+    monkeypatch.setattr(assembly, "MAX_BOOST", 10.0)
+    body = {"crops": [[0, 0]], "size": [16, 16]}
+    assert parse_edit({**body, "boost": [0, 1, 10]})[3] == (0, 1, 10.0)
+    with pytest.raises(RequestError) as refused:
+        parse_edit({**body, "boost": [0, 1, 11]})
+    assert refused.value.status == 422 and "and a factor from 0 to 10, e.g." in refused.value.message
+
+
 @needs_torch
 def test_the_checkpoint_downloads_as_uploaded(client, checkpoint, cid):
     r = client.get(f"/api/cooc/{cid}/file")

@@ -27,7 +27,7 @@ from .._errors import TGHopError
 from .cache import ModelCache
 from .requests import RequestError, decode_png_field, json_bool
 
-__all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH", "MAX_BOOST",
+__all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGTH",
            "has_torch", "require_torch", "cooc_cache",
            "store_checkpoint", "summary", "parse_morph", "parse_edit", "morph_png", "edit_png"]
 
@@ -42,9 +42,6 @@ MAX_COOC_PIXELS = 2048 * 2048
 MAX_CROPS = 8
 #: Longest morph strip, in condition cells.
 MAX_LENGTH = 1024
-#: Largest factor of an edit's ``boost`` (a bin's share p of a cell becomes
-#: p f / (p f + 1 - p): 1000 takes a 1 % bin to 91 %; more changes next to nothing).
-MAX_BOOST = 1000.0
 
 
 def has_torch() -> bool:
@@ -168,9 +165,12 @@ def parse_morph(body) -> tuple:
 
 def _boost(value):
     """``boost``: ``[a, b, factor]`` (colour clusters, checked against the checkpoint's
-    ``n_clusters`` by :func:`tghop.cooc.boost_condition`; a finite factor >= 0) or null."""
+    ``n_clusters`` by :func:`tghop.cooc.boost_condition`; a finite factor from 0 to the library's
+    :data:`tghop.cooc.assembly.MAX_BOOST`) or null."""
     if value is None:
         return None
+    from ..cooc.assembly import MAX_BOOST  # NumPy's, not PyTorch's: only when a boost is given
+
     if (isinstance(value, list) and len(value) == 3
             and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < 2**31 for v in value[:2])
             and isinstance(value[2], (int, float)) and not isinstance(value[2], bool)
