@@ -306,6 +306,46 @@ def test_max_decodes_sets_the_servers_decode_gate(tmp_path, monkeypatch):
     assert "--max-decodes" in help_text and "[default: 2; 1<=x<=64]" in help_text, help_text
 
 
+@pytest.mark.parametrize("value, said", [("-1", "-1 is not in the range 0<=x<=256"),
+                                         ("257", "257 is not in the range 0<=x<=256"),
+                                         ("many", "'many' is not a valid integer")])
+def test_a_bad_decodes_waiting_is_one_line(tmp_path, value, said):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    r = CliRunner().invoke(main, ["serve", "--cache", str(tmp_path), "--decodes-waiting", value])
+    assert r.exit_code == 2 and f"Invalid value for '--decodes-waiting': {said}" in r.output, r.output
+    assert "Traceback" not in r.output and not (tmp_path / "models").exists()
+
+
+def test_decodes_waiting_sets_how_many_wait_for_the_decode_gate(tmp_path, monkeypatch):
+    """create_app(decodes_waiting=) had no option of tghop serve: 16 uploads or reads waited for the decode
+    gate whatever the machine. --decodes-waiting reaches the gate (0: none waits); its default is the library's."""
+    from click.testing import CliRunner
+
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    from tghop._errors import TGHopError
+    from tghop.cli import main
+    from tghop.server import app as server_app
+    from tghop.server.uploads import MAX_DECODES_WAITING
+
+    made, create = [], server_app.create_app
+
+    def create_and_stop(*args, **kwargs):  # the real application, then a one-line stop before it listens
+        made.append(create(*args, **kwargs))
+        raise TGHopError("stopped by the test")
+
+    monkeypatch.setattr(server_app, "create_app", create_and_stop)
+    for options, waiting in ((["--decodes-waiting", "40"], 40), (["--decodes-waiting", "0"], 0),
+                             ([], MAX_DECODES_WAITING)):
+        r = CliRunner().invoke(main, ["serve", "--port", "0", "--cache", str(tmp_path), *options])
+        assert r.exit_code != 0 and "stopped by the test" in r.output, r.output
+        assert made[-1].state.server.decoding.max_waiting == waiting
+    help_text = " ".join(CliRunner().invoke(main, ["serve", "--help"]).output.split())
+    assert "--decodes-waiting" in help_text and "[default: 16; 0<=x<=256]" in help_text, help_text
+
+
 def test_a_restarted_server_finds_the_cached_models_again(tmp_path, two_model_files):
     httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
     pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")

@@ -94,9 +94,12 @@ def _bind(host: str, port: int):
               help="Fits that run at once; the rest wait. [default: the number of cores]")
 @click.option("--max-decodes", type=click.IntRange(min=1, max=64), default=2, show_default=True,
               help="Uploads decoded at once (exemplars, model files, checkpoints) and models read from disk: "
-                   "each may take hundreds of MB whatever its file's size. 16 more wait their turn; one more "
-                   "is refused (503).")
-def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes):
+                   "each may take hundreds of MB whatever its file's size. --decodes-waiting more wait their "
+                   "turn; one more is refused (503).")
+@click.option("--decodes-waiting", type=click.IntRange(min=0, max=256), default=16, show_default=True,
+              help="Uploads and reads from disk that wait their turn beyond --max-decodes (their bodies are held "
+                   "meanwhile); one more is refused (503 with Retry-After).")
+def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes, decodes_waiting):
     """Start a local web server: fit, generate and download textures in a browser.
 
     Prints the page's address; the same HTTP API the page uses is under /api
@@ -117,7 +120,8 @@ def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes):
         for name in ("python_multipart", "multipart"):
             logging.getLogger(name).setLevel(logging.ERROR)
         cache_dir = Path(cache) if cache else default_cache_dir()
-        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host, max_decodes=max_decodes)
+        app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host, max_decodes=max_decodes,
+                         decodes_waiting=decodes_waiting)
         sock = _bind(host, port)
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host
