@@ -832,6 +832,159 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
     assert gate.holding == 0 and gate.waiting == 0
 
 
+def _held_loads(monkeypatch, held_ids):
+    """The library's model loading, held (until the returned event is set) for the ids in ``held_ids`` (a set
+    the test may fill later) and counted: (release, the ids loaded in order, the number being loaded now)."""
+    from tghop import modelfile
+
+    release, lock, loads, inside = threading.Event(), threading.Lock(), [], [0]
+    load = modelfile.load_model
+
+    def held(path, **kwargs):
+        with lock:
+            loads.append(path.name[:64])
+            inside[0] += 1
+        try:
+            if path.name[:64] in held_ids:
+                release.wait(60)
+            return load(path, **kwargs)
+        finally:
+            with lock:
+                inside[0] -= 1
+
+    monkeypatch.setattr(modelfile, "load_model", held)
+    return release, loads, inside
+
+
+def test_a_generation_cancelled_while_it_waits_to_read_its_model_leaves_the_queue_at_once(
+        tmp_path, two_model_files, monkeypatch):
+    """DELETE /api/jobs/{job} of a generation waiting for its turn to read its model did not wake it: it
+    stayed in the queue until its turn came and stopped only at its first progress report. It leaves the
+    queue at once now (its place to the next, its model never read), answers 409 and ends cancelled."""
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    import uuid
+
+    ids = _in_cache_folder(tmp_path, two_model_files)
+    release, loads, inside = _held_loads(monkeypatch, {ids[0]})
+    live = LiveServer(tmp_path, max_fits=2, max_decodes=1, decodes_waiting=1)
+    gate = live.app.state.server.decoding
+    ask, job, answers = {"size": [16, 16], "seed": 1, "n_patches": 100}, uuid.uuid4().hex, {}
+
+    def post(model_id, headers=None):
+        answers[model_id] = httpx.post(f"{live.url}/api/models/{model_id}/images", json=ask, headers=headers,
+                                       timeout=60)
+
+    threads = [threading.Thread(target=post, args=(ids[0],)),
+               threading.Thread(target=post, args=(ids[1], {"X-Tghop-Job": job}))]
+    try:
+        threads[0].start()
+        until(lambda: inside[0] == 1 and gate.holding == 1)  # the first model read, holding the only turn
+        threads[1].start()
+        until(lambda: gate.waiting == 1)  # the second waits its turn
+        assert httpx.delete(f"{live.url}/api/jobs/{job}").status_code == 200
+        until(lambda: gate.waiting == 0 and ids[1] in answers, seconds=10)  # out of the queue, answered
+        cancelled = answers[ids[1]]
+        assert cancelled.status_code == 409 and "cancelled" in cancelled.json()["error"], cancelled.text
+        assert httpx.get(f"{live.url}/api/jobs/{job}").json()["state"] == "cancelled"
+        assert ids[0] not in answers and gate.holding == 1  # the first still reading, in its turn
+        release.set()
+        threads[0].join(60)
+        assert answers[ids[0]].status_code == 200, answers[ids[0]].text
+        assert loads == ids[:1]  # the cancelled one's model never read
+    finally:
+        release.set()
+        live.stop()
+    assert gate.holding == 0 and gate.waiting == 0
+
+
+def test_a_generation_cancelled_while_it_waits_for_a_generation_thread_ends_at_once(
+        tmp_path, two_model_files, monkeypatch):
+    """A generation whose job was cancelled while it waited for a generation thread answered only once a
+    thread was free (then it stopped before it began). It leaves the thread pool's queue at once now: 409,
+    cancelled, its work never run."""
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+    import uuid
+
+    from tghop.server.routes import images
+
+    ids = _in_cache_folder(tmp_path, two_model_files[:1])
+    release, started, made = threading.Event(), [], images.model_png
+
+    def held(*args):  # the real generation, held (counted) until released
+        started.append(args[1])
+        release.wait(60)
+        return made(*args)
+
+    monkeypatch.setattr(images, "model_png", held)
+    live = LiveServer(tmp_path, max_fits=1)
+    ask, job, answers = {"size": [16, 16], "seed": 1, "n_patches": 100}, uuid.uuid4().hex, {}
+
+    def post(name, headers=None):
+        answers[name] = httpx.post(f"{live.url}/api/models/{ids[0]}/images", json=ask, headers=headers, timeout=60)
+
+    threads = [threading.Thread(target=post, args=("first",)),
+               threading.Thread(target=post, args=("second", {"X-Tghop-Job": job}))]
+    try:
+        threads[0].start()
+        until(lambda: len(started) == 1)  # the only generation thread taken
+        threads[1].start()
+        until(lambda: httpx.get(f"{live.url}/api/jobs/{job}").status_code == 200)  # queued for a thread
+        assert httpx.delete(f"{live.url}/api/jobs/{job}").status_code == 200
+        until(lambda: "second" in answers, seconds=10)  # answered while the first still holds the thread
+        assert answers["second"].status_code == 409 and "cancelled" in answers["second"].json()["error"]
+        assert httpx.get(f"{live.url}/api/jobs/{job}").json()["state"] == "cancelled"
+        release.set()
+        threads[0].join(60)
+        assert answers["first"].status_code == 200 and len(started) == 1  # the cancelled one never ran
+    finally:
+        release.set()
+        live.stop()
+
+
+def test_a_generation_waiting_for_or_reading_its_model_holds_no_generation_thread(
+        tmp_path, two_model_files, monkeypatch):
+    """A generation read its model not in memory on its generation thread, and waited for its turn there:
+    generations waiting to read (a slow disk, many models) took every generation thread, and one of a model
+    in memory, which needs no read, waited behind them. Its model is read first now, on a decoding thread,
+    before the generation takes a thread: the one in memory is made while the others wait and read."""
+    httpx = pytest.importorskip("httpx", reason="the server's tests need httpx: pip install -e '.[test,web,web-test]'")
+    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
+
+    ids = _in_cache_folder(tmp_path, two_model_files + two_model_files[:1], ["a" * 64, "b" * 64, "c" * 64])
+    held_ids = set()
+    release, loads, inside = _held_loads(monkeypatch, held_ids)
+    live = LiveServer(tmp_path, max_fits=2, max_decodes=1)
+    gate = live.app.state.server.decoding
+    ask, answers = {"size": [16, 16], "seed": 1, "n_patches": 100}, {}
+
+    def post(model_id):
+        answers[model_id] = httpx.post(f"{live.url}/api/models/{model_id}/images", json=ask, timeout=60)
+
+    threads = [threading.Thread(target=post, args=(model_id,)) for model_id in ids]
+    try:
+        post(ids[2])  # read now: in memory
+        assert answers.pop(ids[2]).status_code == 200 and loads == ids[2:]
+        held_ids.update(ids[:2])
+        threads[0].start()
+        until(lambda: inside[0] == 1 and gate.holding == 1)  # one model read (held), in the only turn...
+        threads[1].start()
+        until(lambda: gate.waiting == 1)  # ...the other waiting: as many as there are generation threads
+        threads[2].start()
+        until(lambda: ids[2] in answers, seconds=20)  # the model in memory is made meanwhile
+        assert answers[ids[2]].status_code == 200, answers[ids[2]].text
+        assert not answers.keys() & ids[:2] and gate.waiting == 1  # the others still reading and waiting
+        release.set()
+        for thread in threads:
+            thread.join(60)
+        assert [answers[m].status_code for m in ids] == [200] * 3
+    finally:
+        release.set()
+        live.stop()
+    assert gate.holding == 0 and gate.waiting == 0
+
+
 def until(done, seconds=30):
     """Wait until ``done()`` (a test's condition), failing after ``seconds``."""
     deadline = time.monotonic() + seconds
@@ -934,7 +1087,8 @@ def test_a_model_file_whose_client_went_away_while_it_was_read_is_not_kept(tmp_p
 
 def test_every_generation_route_reads_its_models_in_the_decoding_turn(tmp_path, two_model_files):
     """An image, a remix, a morph and an extend each read the models they need that are not in memory on
-    their generation thread holding a slot of the decoding turn (given back after), once per model."""
+    a decoding thread holding a slot of the decoding turn (given back after), once per model, before the
+    generation takes its thread."""
     import io
 
     import numpy as np
@@ -970,7 +1124,7 @@ def test_every_generation_route_reads_its_models_in_the_decoding_turn(tmp_path, 
                 assert r.status_code == 200, (name, r.text)
                 wanted = {"image": ids[:1], "extend": ids[1:]}.get(name, ids)
                 assert sorted(m for m, _, _ in seen) == sorted(wanted), (name, seen)
-                assert all(thread.startswith("tghop-generate") and holding == 1 for _, thread, holding in seen), \
+                assert all(thread.startswith("tghop-decode") and holding == 1 for _, thread, holding in seen), \
                     (name, seen)
                 assert state.decoding.holding == 0 and state.decoding.waiting == 0
     finally:

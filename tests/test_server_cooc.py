@@ -386,8 +386,9 @@ def test_a_checkpoints_summary_is_kept_as_a_models_is(tmp_path, checkpoint):
 
 @needs_torch
 def test_a_morph_and_an_edit_read_the_checkpoint_in_the_decoding_turn(tmp_path, checkpoint):
-    """A checkpoint not in memory that a morph or an edit needs is read on its generation thread holding a
-    slot of the decoding turn, as an upload is decoded (503 when too many wait: tests/test_server_bounds.py)."""
+    """A checkpoint not in memory that a morph or an edit needs is read on a decoding thread holding a slot
+    of the decoding turn before the generation takes its thread, as an upload is decoded (503 when too many
+    wait: tests/test_server_bounds.py)."""
     server, state, cid, seen = _served_checkpoint(tmp_path, checkpoint)
     try:
         with httpx.Client(base_url=server.url, timeout=120) as c:
@@ -398,7 +399,7 @@ def test_a_morph_and_an_edit_read_the_checkpoint_in_the_decoding_turn(tmp_path, 
                 seen.clear()
                 r = c.post(f"/api/cooc/{cid}/{path}", json=body)
                 assert r.status_code == 200, r.text
-                assert len(seen) == 1 and seen[0][0].startswith("tghop-generate") and seen[0][1] == 1, (path, seen)
+                assert len(seen) == 1 and seen[0][0].startswith("tghop-decode") and seen[0][1] == 1, (path, seen)
     finally:
         server.stop()
     assert state.decoding.holding == 0 and state.decoding.waiting == 0

@@ -8,7 +8,6 @@ An id is 64 hex digits (a content hash); anything else is 404 before the file sy
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 import re
@@ -238,56 +237,63 @@ class ModelCache:
         extra = " (or it is still being fitted: see its job)" if self.what == "model" else ""
         return RequestError(404, f"no {self.what} {model_id}; {self.hint}{extra}")
 
-    def load(self, model_id: str, turn=None):
+    def in_memory(self, model_id: str) -> tuple:
+        """``(model, None)`` when ``model_id`` is in memory (its file marked as used), ``(None, future)`` while
+        another caller reads it (:meth:`load`'s ``concurrent.futures.Future``: its model or its error), else
+        ``(None, None)``: a caller reads it with :meth:`load`. Never reads a file (for the event loop)."""
+        path = self.path(model_id)
+        with self._lock:
+            model = self._loaded.get(model_id)
+            if model is None:
+                return None, self._loading.get(model_id)
+            self._loaded.move_to_end(model_id)
+        if path.is_file():
+            self.touch(model_id)
+            return model, None
+        with self._lock:  # removed by the bound (or by hand): as if never fitted
+            self._loaded.pop(model_id, None)
+        return None, None
+
+    def load(self, model_id: str):
         """The fitted model (404 if there is none). Callers asking at once for a model not in memory share
         one load (each model's own: loads of different models do not wait for each other); a failed load's
-        error reaches each of them, and the next call tries again.
-
-        ``turn``: None, or a function returning a context manager held while the file is read, and only then
-        (a model in memory or one another caller is reading takes none): the server's bound on what is read at
-        once (:meth:`tghop.server.core.Server.model`); its errors (503: too many wait) are the caller's."""
+        error reaches each of them, and the next call tries again. The server reads a model a generation
+        needs in its turn of the decode gate, on a decoding thread (:meth:`tghop.server.core.Server.in_executor`;
+        :meth:`in_memory` tells it whether a read is needed)."""
         path = self.path(model_id)
-        with contextlib.ExitStack() as held:
-            has_turn = False
-            while True:
-                with self._lock:
-                    model = self._loaded.get(model_id)
-                    loading, first = None, False
-                    if model is not None:
-                        self._loaded.move_to_end(model_id)
-                    else:
-                        loading = self._loading.get(model_id)
-                        first = loading is None and (turn is None or has_turn)
-                        if first:
-                            loading = self._loading[model_id] = Future()
+        while True:
+            with self._lock:
+                model = self._loaded.get(model_id)
+                loading, first = None, False
                 if model is not None:
-                    if path.is_file():
-                        self.touch(model_id)
-                        return model
-                    with self._lock:  # removed by the bound (or by hand): as if never fitted
-                        self._loaded.pop(model_id, None)
-                    continue  # now not in memory: 404 unless the file is back meanwhile
-                if loading is not None and not first:
-                    held.close()  # its turn, if it had one, goes to the next: another caller reads this model
-                    return loading.result()  # another caller's load: its model, or its error
-                if first:
-                    break
-                if not path.is_file():  # no turn to wait for a 404
-                    raise self.missing(model_id)
-                held.enter_context(turn())  # its turn to read the file; then a look again (read meanwhile?)
-                has_turn = True
-            try:
-                model = self._read(model_id, path)
-            except BaseException as exc:
-                with self._lock:
-                    del self._loading[model_id]
-                loading.set_exception(exc)
-                raise
-            with self._lock:  # in memory as it stops being loaded: a caller now finds one or the other
+                    self._loaded.move_to_end(model_id)
+                else:
+                    loading = self._loading.get(model_id)
+                    first = loading is None
+                    if first:
+                        loading = self._loading[model_id] = Future()
+            if model is None:
+                break
+            if path.is_file():
+                self.touch(model_id)
+                return model
+            with self._lock:  # removed by the bound (or by hand): as if never fitted
+                self._loaded.pop(model_id, None)
+            # now not in memory: 404 unless the file is back meanwhile
+        if not first:
+            return loading.result()  # another caller's load: its model, or its error
+        try:
+            model = self._read(model_id, path)
+        except BaseException as exc:
+            with self._lock:
                 del self._loading[model_id]
-                self._keep(model_id, model)
-            loading.set_result(model)
-            return model
+            loading.set_exception(exc)
+            raise
+        with self._lock:  # in memory as it stops being loaded: a caller now finds one or the other
+            del self._loading[model_id]
+            self._keep(model_id, model)
+        loading.set_result(model)
+        return model
 
     def _read(self, model_id: str, path: Path):
         """The model read from ``path`` (404 if it is not there, or dropped by the bound meanwhile)."""

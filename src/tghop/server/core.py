@@ -11,8 +11,6 @@ instead of 905-924 MiB).
 from __future__ import annotations
 
 import asyncio
-import concurrent.futures
-import contextlib
 import functools
 import json
 import threading
@@ -71,12 +69,12 @@ class Server:
         # its file's size. On threads of their own, as generations: on Starlette's pool each new thread kept its freed
         # memory (8 decodes of an 8000x8000 PNG, 2 at a time, peaked at 2.3 GB there). Fills, painted guides
         # and labels are decoded on the generation threads, bounded by them; a model or checkpoint a generation
-        # reads from disk takes a turn here too (:meth:`model`).
+        # needs from disk is read here too, in its turn, before the generation takes a thread (:meth:`_read_first`).
         self.decoding = Gate(max_decodes, decodes_waiting, what="uploads or models are being read")
         self.decoder = ThreadPoolExecutor(max_workers=max_decodes, thread_name_prefix="tghop-decode")
         self.stopping = asyncio.Event()
-        # The running request's flags on its thread: .dropped, .job, .loop and .withdrawn on a generation thread
-        # (unless_stopping, reading_turn), .left on a decoding thread (still_wanted)
+        # The running request's flags on its thread: .dropped, .job and .read on a generation thread
+        # (unless_stopping, model), .left on a decoding thread (still_wanted)
         self._work = threading.local()
 
     async def decode(self, request, work, *args):
@@ -118,40 +116,62 @@ class Server:
         return left is None or not left.is_set()
 
     def model(self, model_id: str):
-        """The model ``model_id`` for a generation (on its thread, :meth:`in_executor`): one not in memory is
-        read from disk in the turn of uploads decoded at once (:attr:`decoding`; 503 with ``Retry-After`` when
-        too many wait; dropped when the request's client goes away meanwhile), so that generations of many
-        models not in memory do not read them all at once."""
-        return self.cache.load(model_id, turn=self.reading_turn)
+        """The model ``model_id`` for a generation (on its thread, :meth:`in_executor`): read before the generation
+        took its thread (``in_executor(models=)``, :meth:`_read_first`). Outside a request's work, read here."""
+        return self._read_before(self.cache, model_id)
 
     def checkpoint(self, cid: str):
-        """The co-occurrence checkpoint ``cid`` for a generation, read in its turn as :meth:`model` reads a model."""
-        return self.cooc.load(cid, turn=self.reading_turn)
+        """The co-occurrence checkpoint ``cid`` for a generation, read before it as :meth:`model` reads a model
+        (``in_executor(checkpoints=)``)."""
+        return self._read_before(self.cooc, cid)
 
-    @contextlib.contextmanager
-    def reading_turn(self):
-        """A slot of :attr:`decoding` held by a generation thread (:meth:`in_executor`'s) while it reads a file:
-        waited for on the event loop, in order with the uploads; 503 when too many wait, 499 once the request's
-        work is dropped (its client gone, the server stopping). Outside a request's work, no slot is taken."""
-        loop, withdrawn = getattr(self._work, "loop", None), getattr(self._work, "withdrawn", None)
-        if loop is None:
-            yield
-            return
-        entered = asyncio.run_coroutine_threadsafe(self.decoding.enter(gone=withdrawn.wait), loop)
-        while True:  # the loop answers once the slot is taken, refused or withdrawn (in_executor sets withdrawn)
-            try:
-                entered.result(timeout=1.0)
-                break
-            except concurrent.futures.TimeoutError:
-                if loop.is_closed():  # no loop left to answer: the server has stopped
-                    raise RequestError(503, "the server is stopping; the work was dropped") from None
+    def _read_before(self, cache, key: str):
+        read = getattr(self._work, "read", None)
+        if read is None:  # not a request's work (a script's call): read here, in no turn
+            return cache.load(key)
         try:
-            yield
-        finally:
-            try:
-                loop.call_soon_threadsafe(self.decoding.leave)
-            except RuntimeError:  # the loop closed meanwhile: the server has stopped, its gate with it
-                pass
+            return read[cache, key]
+        except KeyError:  # a route that did not name it: it would read it outside the turn
+            raise RuntimeError(f"{cache.what} {key} was not read before its generation; name it in "
+                               "in_executor's models or checkpoints") from None
+
+    async def _read_first(self, needs, ended: asyncio.Event):
+        """``{(cache, id): model}`` of ``needs`` (``(cache, id)`` pairs: models and checkpoints a generation
+        needs), on the event loop before the generation takes a thread: one in memory as it is; one another
+        request is reading, once that read ends (its error too); one neither, read on a decoding thread in
+        its turn of :attr:`decoding` (503 when too many wait; 404 when its file is not there). Waiting holds
+        no thread. None as soon as ``ended`` is set (its client gone, its job cancelled, the server
+        stopping): a wait is withdrawn, its place goes to the next. A read cannot be stopped midway: it ends,
+        and its model stays in memory for the next."""
+        loop = asyncio.get_running_loop()
+        read = {}
+        for cache, key in needs:
+            if (cache, key) in read:
+                continue
+            model, loading = cache.in_memory(key)
+            if loading is not None:  # another request reads it: its read, shared
+                shared = asyncio.wrap_future(loading)
+                shared.add_done_callback(lambda future: future.cancelled() or future.exception())  # seen, if left
+                if not await _first(shared, ended):
+                    return None
+                model = shared.result()
+            if model is None:
+                if not cache.has(key):  # no turn to wait for a 404
+                    raise cache.missing(key)
+                try:
+                    await self.decoding.enter(gone=ended.wait)
+                except RequestError as exc:
+                    if exc.status == 499:  # withdrawn while it waited
+                        return None
+                    raise
+                try:
+                    if ended.is_set():
+                        return None
+                    model = await loop.run_in_executor(self.decoder, cache.load, key)
+                finally:
+                    self.decoding.leave()
+            read[cache, key] = model
+        return None if ended.is_set() else read
 
     def stop(self) -> None:
         """The server is stopping (``tghop serve``'s Ctrl-C; call it on the event loop):
@@ -173,12 +193,11 @@ class Server:
                 raise RequestError(409, f"the generation was cancelled (DELETE /api/jobs/{job.id})")
             job.progress(stage, done, total, cancellable=False)
 
-    def _flagged(self, dropped, job, turn, work, *args):
+    def _flagged(self, dropped, job, read, work, *args):
         """``work(*args)`` with ``dropped`` and ``job`` (or None) as this thread's for :meth:`unless_stopping`,
-        ``turn`` (the event loop, and the asyncio event set when the work is dropped) for :meth:`reading_turn`;
-        the job's state follows the work."""
-        self._work.dropped, self._work.job = dropped, job
-        self._work.loop, self._work.withdrawn = turn
+        ``read`` (:meth:`_read_first`'s) for :meth:`model` and :meth:`checkpoint`; the job's state follows
+        the work."""
+        self._work.dropped, self._work.job, self._work.read = dropped, job, read
         try:
             if job is not None:
                 self.unless_stopping()  # dropped or cancelled while it waited: it never starts
@@ -187,18 +206,23 @@ class Server:
                 job.set_state("running")
             result = work(*args)
         except BaseException as exc:
-            if job is not None and not job.final:
-                if job.cancel_requested or dropped.is_set() or self.stopping.is_set():
-                    job.set_state("cancelled")
-                else:
-                    job.set_state("failed", error=getattr(exc, "message", None) or str(exc) or type(exc).__name__)
+            self._job_ended(job, exc, dropped.is_set())
             raise
         else:
             if job is not None and not job.final:
                 job.set_state("done")
             return result
         finally:
-            self._work.dropped = self._work.job = self._work.loop = self._work.withdrawn = None
+            self._work.dropped = self._work.job = self._work.read = None
+
+    def _job_ended(self, job, exc: BaseException, dropped: bool) -> None:
+        """A generation's job ended by ``exc``: cancelled (asked to, dropped, the server stopping) or failed."""
+        if job is None or job.final:
+            return
+        if job.cancel_requested or dropped or self.stopping.is_set() or isinstance(exc, asyncio.CancelledError):
+            job.set_state("cancelled")
+        else:
+            job.set_state("failed", error=getattr(exc, "message", None) or str(exc) or type(exc).__name__)
 
     def generation_job(self, request):
         """The job of a request that names one (:data:`JOB_HEADER`), put in the job table; None without
@@ -215,30 +239,81 @@ class Server:
             raise RequestError(409, f"{JOB_HEADER} {job_id} is in use; choose a new id for each generation")
         return job
 
-    async def in_executor(self, request, work, *args):
-        """``work(*args)`` on a generation thread (:attr:`executor`), dropped if the client of ``request``
-        goes away first (a page's Stop or reload): still waiting, it never runs; running, it stops at its
-        next progress report; then 499. Dropped the same way when the server stops (:meth:`stop`): 503.
-        A request with a job (:data:`JOB_HEADER`, :meth:`generation_job`) reports its progress there."""
+    async def in_executor(self, request, work, *args, models=(), checkpoints=()):
+        """``work(*args)`` on a generation thread (:attr:`executor`) once the ``models`` and ``checkpoints``
+        (ids) it needs are read (:meth:`_read_first`: in the turn of :attr:`decoding`, holding no generation
+        thread while they wait or are read; :meth:`model` and :meth:`checkpoint` give them to the work).
+        Dropped if the client of ``request`` goes away first (a page's Stop or reload): still waiting, it never
+        runs; running, it stops at its next progress report; then 499. Dropped the same way when the server
+        stops (:meth:`stop`): 503. A request with a job (:data:`JOB_HEADER`, :meth:`generation_job`) reports
+        its progress there; the job cancelled (``DELETE /api/jobs/{job}``) while it waits, it leaves the queue
+        at once, running at its next progress report: 409."""
         job = self.generation_job(request)
-        dropped, withdrawn = threading.Event(), asyncio.Event()  # withdrawn: its wait for a reading turn ends
         loop = asyncio.get_running_loop()
-        future = loop.run_in_executor(
-            self.executor, functools.partial(self._flagged, dropped, job, (loop, withdrawn), work, *args))
+        dropped, ended = threading.Event(), asyncio.Event()
         gone = asyncio.ensure_future(disconnected(request))
         stopped = asyncio.ensure_future(self.stopping.wait())
+        watched = [gone, stopped]
+        if job is not None:
+            withdrawn = asyncio.Event()
+            job.on_cancel = functools.partial(_soon, loop, withdrawn.set)
+            watched.append(asyncio.ensure_future(withdrawn.wait()))
+        for end in watched:
+            end.add_done_callback(lambda task: task.cancelled() or ended.set())
         try:
-            await asyncio.wait({future, gone, stopped}, return_when=asyncio.FIRST_COMPLETED)
+            needs = [(self.cache, m) for m in models] + [(self.cooc, c) for c in checkpoints]
+            try:
+                read = await self._read_first(needs, ended)
+            except BaseException as exc:
+                self._job_ended(job, exc, ended.is_set())
+                raise
+            if read is None:
+                raise self._dropped(job, gone)
+            submitted = self.executor.submit(self._flagged, dropped, job, read, work, *args)
+            future, ends = asyncio.wrap_future(submitted), set(watched)
+            while True:
+                await asyncio.wait({future, *ends}, return_when=asyncio.FIRST_COMPLETED)
+                if future.done():
+                    return future.result()
+                if gone.done() or stopped.done() or submitted.cancel():  # cancelled still waiting: it never runs
+                    break
+                ends = {gone, stopped}  # cancelled while it runs: it stops at its next progress report (409)
+            dropped.set()
+            future.cancel()
+            raise self._dropped(job, gone)
         finally:
             gone.cancel()
             stopped.cancel()
-        if not future.done():
-            dropped.set()
-            withdrawn.set()
-            future.cancel()
-            if job is not None and job.state not in FINAL:
-                job.set_state("cancelled")
-            if not gone.done() and self.stopping.is_set():
-                raise RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
-            raise RequestError(499, "the client went away; its work was dropped")
-        return future.result()
+            for end in watched:
+                end.cancel()
+            if job is not None:
+                job.on_cancel = None
+
+    def _dropped(self, job, gone) -> RequestError:
+        """The answer of a generation dropped before its work ended, its job (if any) cancelled: 499 (its client
+        gone, to nobody), 503 (the server stopping) or 409 (its job cancelled through ``DELETE``)."""
+        if job is not None and job.state not in FINAL:
+            job.set_state("cancelled")
+        if gone.done():
+            return RequestError(499, "the client went away; its work was dropped")
+        if self.stopping.is_set():
+            return RequestError(503, "the server is stopping; the work was dropped (try again when it is back)")
+        return RequestError(409, f"the generation was cancelled (DELETE /api/jobs/{job.id if job else ''})")
+
+
+async def _first(future, ended: asyncio.Event) -> bool:
+    """Whether ``future`` is done before ``ended`` is set (neither is cancelled)."""
+    ending = asyncio.ensure_future(ended.wait())
+    try:
+        await asyncio.wait({future, ending}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        ending.cancel()
+    return future.done() and not ended.is_set()
+
+
+def _soon(loop, callback) -> None:
+    """``callback()`` on ``loop`` (from any thread); nothing once the loop has closed (the server stopped)."""
+    try:
+        loop.call_soon_threadsafe(callback)
+    except RuntimeError:
+        pass

@@ -114,6 +114,7 @@ class Job:
         self.cancel_requested = False
         self.askers = 1
         self.future = None
+        self.on_cancel = None  # called (on any thread) once the job is asked to stop: a generation's wait ends
         self._seen = []  # stages in the order they came
         self._lock = threading.Lock()
 
@@ -330,6 +331,8 @@ class FitQueue:
         if job.askers:  # another client still waits for this model: it goes on for them
             return job
         job.cancel_requested = True
+        if job.on_cancel is not None:
+            job.on_cancel()
         if job.future is not None and job.future.cancel():  # still waiting: it never runs
             job._update(state="cancelled")
             with self._lock:

@@ -62,11 +62,11 @@ async def cooc_morph(server, request):
     a, b, crop, length, seed, windows = cooc.parse_morph(await json_body(request))
 
     def work(seed):
-        model = server.checkpoint(cid)  # read in its turn when not in memory
+        model = server.checkpoint(cid)  # read before, in its turn, when not in memory
         with server.generating:
             return cooc.morph_png(model, a, b, crop, length, windows, seed, progress=server.unless_stopping)
 
-    return await png_response(server, request, work, seed=seed)
+    return await png_response(server, request, work, seed=seed, checkpoints=[cid])
 
 
 async def cooc_edit(server, request):
@@ -81,9 +81,9 @@ async def cooc_edit(server, request):
         return read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
 
     def work(seed):
-        model = server.checkpoint(cid)  # read in its turn when not in memory
+        model = server.checkpoint(cid)  # read before, in its turn, when not in memory
         with server.generating:
             return cooc.edit_png(model, size, labels, crops, boost, windows, seed, read_labels,
                                  progress=server.unless_stopping)
 
-    return await png_response(server, request, work, seed=seed)
+    return await png_response(server, request, work, seed=seed, checkpoints=[cid])

@@ -33,7 +33,7 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     from ...inpaint import check_hole, expand_canvas, require_hole, split_alpha, with_alpha
     from ...inpaint import inpaint as fill_hole
 
-    model = server.model(model_id)  # read in its turn when not in memory
+    model = server.model(model_id)  # read before, in its turn, when not in memory (fill_request)
     uploads = materials.map_uploads(fields)  # a material's maps (none for a texture model)
     if uploads and not materials.is_material(model):
         raise RequestError(422, f"model {model_id[:12]} is a texture model; map:<name> fields go with a material")
@@ -123,7 +123,8 @@ async def fill_request(server, request, *, grow: bool):
         seed = int(seed)
     tile = parse_bool("tile", plain["tile"] or "false")
     growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
-    png = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth)
+    png = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth,
+                                   models=[model_id])
     headers = {"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"}
     if isinstance(png, tuple):  # a material's maps and their size
         body, kind = materials.answer(request.headers.get("accept", ""), *png, seed)

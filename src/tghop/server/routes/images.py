@@ -25,7 +25,7 @@ def model_png(server, model_id: str, size, seed, settings):
 
     from ...imageio import write_png
 
-    model = server.model(model_id)  # read in its turn when not in memory
+    model = server.model(model_id)  # read before, in its turn, when not in memory (png_response's models)
     material = materials.is_material(model)
     if settings.get("patch_refine") and material:
         raise RequestError(422, "patch_refine and quality best do not apply to a material (it has no patch "
@@ -51,15 +51,16 @@ def model_png(server, model_id: str, size, seed, settings):
     return buf.getvalue()
 
 
-async def png_response(server, request, work, *args, seed):
-    """Run ``work(*args, seed)`` on a generation thread: its ``(png, (h, w))`` as the answer, or
+async def png_response(server, request, work, *args, seed, models=(), checkpoints=()):
+    """Run ``work(*args, seed)`` on a generation thread once the ``models`` and ``checkpoints`` (ids) it needs
+    are read (:meth:`~tghop.server.core.Server.in_executor`): its ``(png, (h, w))`` as the answer, or
     ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON or multipart."""
     from starlette.responses import Response
 
     if seed is None:
         seed = secrets.randbelow(2**31)
     start = time.perf_counter()
-    png, size = await server.in_executor(request, work, *args, seed)
+    png, size = await server.in_executor(request, work, *args, seed, models=models, checkpoints=checkpoints)
     took = (time.perf_counter() - start) * 1000
     headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
@@ -78,7 +79,7 @@ async def generate(server, request):
     def work(seed):
         return model_png(server, model_id, size, seed, settings), size
 
-    return await png_response(server, request, work, seed=seed)
+    return await png_response(server, request, work, seed=seed, models=[model_id])
 
 
 def several_png(server, make, models, seed) -> tuple:
@@ -141,7 +142,8 @@ async def guided(server, request):
         await json_body(request, limit=MAX_UPLOAD_BYTES))
     for model_id in ids:
         server.cache.path(model_id)  # 404 for a malformed id before any work
-    return await png_response(server, request, guided_png, server, ids, guide, size, transition, settings, seed=seed)
+    return await png_response(server, request, guided_png, server, ids, guide, size, transition, settings, seed=seed,
+                              models=ids)
 
 
 def morph_png(server, ids, size, stations, settings, seed) -> tuple:
@@ -165,4 +167,5 @@ async def morph(server, request):
     a, b, size, seed, stations, settings = parse_morph(await json_body(request))
     for model_id in (a, b):
         server.cache.path(model_id)
-    return await png_response(server, request, morph_png, server, [a, b], size, stations, settings, seed=seed)
+    return await png_response(server, request, morph_png, server, [a, b], size, stations, settings, seed=seed,
+                              models=[a, b])
