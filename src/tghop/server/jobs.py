@@ -96,6 +96,9 @@ class Job:
         Grows with every change (what the event stream waits on).
     askers : int
         The requests that asked for this fit and have not withdrawn (:meth:`FitQueue.cancel`).
+    on_cancel : callable or None
+        Called (on any thread) once the job is asked to stop: a generation waiting for its turn or a
+        thread leaves its queue at once (:meth:`tghop.server.core.Server.in_executor`).
     """
 
     kind = "fit"
