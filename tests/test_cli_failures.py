@@ -172,6 +172,34 @@ def test_too_many_steps_is_a_usage_error(folder, monkeypatch, args, fragments):
     assert code == 2, err
 
 
+@pytest.mark.parametrize("args, fragments", [
+    (["cooc", "train", "bricks.png", "-o", "m.pt", "--set", "lr=fast"], ["--set 'lr=fast': lr takes a number"]),
+    (["cooc", "train", "bricks.png", "-o", "m.pt", "--set", "bogus=1"], ["--set 'bogus=1': write KEY=VALUE"]),
+    (["cooc", "train", "bricks.png", "-o", "m.pt", "--set", "crop_size=32.9"],
+     ["'--set'", "crop_size must be an integer, got 32.9"]),
+    (["cooc", "train", "bricks.png", "-o", "m.pt", "--set", "crop_size=40"], ["'--set'", "multiple of 2**n_layers"]),
+    (["cooc", "train", "bricks.png", "-o", "m.pt", "--resume", "--paper"], ["--resume continues a checkpoint"]),
+    (["baseline", "crop", "bricks.png", "-o", "o.png", "--iterations", "5"],
+     ["--iterations applies to the ustyuzhaninov, cooc and gpdm baselines only"]),
+    (["baseline", "crop", "bricks.png", "-o", "o.png", "--assembly", "pass"], ["--assembly applies to the cooc"]),
+    (["baseline", "cooc", "bricks.png", "-o", "o.png", "--model", "m.pt", "--iterations", "5"],
+     ["--iterations applies to the cooc baseline without --model only"]),
+])
+def test_set_and_options_of_another_baseline_are_usage_errors(folder, monkeypatch, args, fragments):
+    # They exited 1, as a bad file does; a usage error is click's 2, as everywhere else in tghop. Refused before
+    # the exemplar is read (a --set value was checked only when the training started).
+    from tghop.cli import cooc, evaluation
+
+    def read(*args, **kwargs):
+        pytest.fail("the exemplar was read: the usage error was not refused first")
+
+    for module in (cooc, evaluation):
+        monkeypatch.setattr(module, "load_exemplar", read)
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, exception=exc)
+    assert code == 2 and " --help')" in err, err
+
+
 @pytest.mark.parametrize("args, fragment", [(["--overlap", "20"], "(overlap, --overlap) must be between 1 and 16"),
                                             (["--size", "20", "--tile"], "at least the patch size 32")])
 def test_an_output_quilting_refuses_is_refused_before_the_fit(folder, args, fragment):

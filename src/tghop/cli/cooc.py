@@ -113,6 +113,23 @@ def parse_settings(pairs) -> dict:
     return out
 
 
+def usage_settings(pairs, base) -> dict:
+    """:func:`parse_settings` of ``--set``'s ``pairs``, checked over the configuration ``base``
+    (:func:`tghop.cooc.config.check_settings`) before anything is read: a bad one is a usage
+    error (exit status 2), one line naming it, as click's own option errors are."""
+    from ..cooc.config import check_settings
+
+    try:
+        overrides = parse_settings(pairs)
+    except TGHopError as exc:  # its words name the --set item already
+        raise click.UsageError(str(exc)) from None
+    try:
+        check_settings({**base, **overrides})
+    except TGHopError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--set'") from None
+    return overrides
+
+
 def load_checkpoint(path):
     from ..cooc import load
 
@@ -177,14 +194,16 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
     progress = LossProgress(not quiet)
     with user_errors(progress):
         from .._common import import_torch
-        from ..cooc import PAPER, CoocGAN
+        from ..cooc import PAPER, SMALL, CoocGAN
 
         from ..cooc.config import MAX_STEPS
 
         if steps is not None and steps > MAX_STEPS:
             raise click.BadParameter(f"at most {MAX_STEPS:,}, got {steps:,}; give fewer steps (and --max-minutes "
                                      "to bound the time)", param_hint="'--steps'")
-        overrides = parse_settings(settings)
+        overrides = usage_settings(settings, PAPER if paper else SMALL)
+        if resume and (paper or overrides):
+            raise click.UsageError("--resume continues a checkpoint with its own settings; drop --paper and --set")
         import_torch("The co-occurrence cGAN")  # the one-line hint before the exemplar is read
         check_model_output(output, "-o", suffix=".pt", what="checkpoint")
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar)])  # (--resume reads and rewrites -o on purpose)
@@ -194,8 +213,6 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
         keep_mmap_threshold()  # the command's process only: a long CPU training's memory stays flat
         max_seconds = None if max_minutes is None else 60.0 * max_minutes
         if resume:
-            if paper or overrides:
-                raise TGHopError("--resume continues a checkpoint with its own settings; drop --paper and --set")
             model = load_checkpoint(output)
             if steps is not None:
                 model.set_params(n_steps=steps)

@@ -246,14 +246,14 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
         check_depth(output, depth or 8)
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--model", model_file)])
         if iterations is not None and name not in ("ustyuzhaninov", "cooc", "gpdm"):
-            raise TGHopError("--iterations applies to the ustyuzhaninov, cooc and gpdm baselines only")
+            raise click.UsageError("--iterations applies to the ustyuzhaninov, cooc and gpdm baselines only")
         for option, value in (("--model", model_file), ("--assembly", assembly)):
             if value is not None and name != "cooc":
-                raise TGHopError(f"{option} applies to the cooc baseline only")
+                raise click.UsageError(f"{option} applies to the cooc baseline only")
         check_iterations(name, iterations)
         if iterations is not None and model_file is not None:
-            raise TGHopError("--iterations applies to the cooc baseline without --model only (it sets the training "
-                             "steps; the checkpoint is trained already)")
+            raise click.UsageError("--iterations applies to the cooc baseline without --model only (it sets the "
+                                   "training steps; the checkpoint is trained already)")
         ex, own = load_exemplar(exemplar, with_depth=True)
         if own > 8 and depth is None:
             warn_written_with_8("EXEMPLAR", exemplar, output)
