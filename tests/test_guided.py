@@ -627,3 +627,45 @@ def test_cli_sources_that_cannot_mix_are_refused_by_name_before_any_fit(models, 
         r = _run([*args, "-o", "out.png", "-q"], tmp_path)
         assert_user_error(r, words)
     assert not (tmp_path / "out.png").exists()
+
+
+def test_map_kind_reads_the_map_a_file_name_ends_in():
+    from tghop.material import map_kind
+
+    for name, kind in (("rock_albedo.png", "albedo"), ("Rock_NormalGL_2K.jpg", "normal"), ("RockNormal.png", "normal"),
+                       ("wall_diff_2k.jpg", "albedo"), ("a/b_Roughness.tif", "roughness"), ("height.png", "height"),
+                       ("bricks.jpg", None), ("2k.png", None), ("cells_1.png", None), ("alcohol.png", None)):
+        assert map_kind(name) == kind, name
+
+
+def test_a_remix_of_one_materials_maps_is_warned_of(exemplars, tmp_path):
+    # `tghop synth albedo.png normal.png -o out.png` remixed the maps as two textures without a word.
+    from tghop.imageio import save_image
+    from tghop.material import example_maps
+
+    albedo = exemplars[0]
+    save_image(albedo, tmp_path / "rock_albedo.png")
+    save_image(example_maps(albedo)["normal"], tmp_path / "rock_normal.png")
+    save_image(exemplars[1], tmp_path / "cells.png")
+    fast = ["-q", "--pool", "400", "--refine", "1", "--clusters", "6", "--codewords", "30", "--stride", "4",
+            "--size", "48x64", "--layout", "none"]
+    r = _run(["synth", "rock_albedo.png", "rock_normal.png", "-o", "out.png", *fast], tmp_path)
+    err = r.stderr.decode()
+    assert r.returncode == 0, err  # not refused: a remix of them is allowed
+    warnings = [line for line in err.splitlines() if line.startswith("Warning:")]
+    assert len(warnings) == 1, err
+    assert "SOURCE 1 (rock_albedo.png: albedo), SOURCE 2 (rock_normal.png: normal) look like maps of one material" \
+        in warnings[0] and "remix them as separate textures" in warnings[0], err
+    assert "'tghop fit rock_albedo.png --maps rock_normal.png -o material.npz'" in warnings[0], err
+    assert (tmp_path / "out.png").exists()
+    # The albedo named first in the fix wherever it is given; textures of other names, and a guide, are not warned of.
+    r = _run(["synth", "rock_normal.png", "rock_albedo.png", "-o", "out2.png", *fast], tmp_path)
+    assert "tghop fit rock_albedo.png --maps rock_normal.png" in r.stderr.decode()
+    r = _run(["synth", "rock_albedo.png", "cells.png", "-o", "out3.png", *fast], tmp_path)
+    assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()
+    guide = np.zeros((48, 64), dtype=np.uint8)
+    guide[:, 32:] = 255
+    Image.fromarray(guide).save(tmp_path / "map.png")
+    r = _run(["synth", "rock_albedo.png", "rock_normal.png", "--guide", "map.png", "-o", "out4.png",
+              *[a for a in fast if a not in ("--size", "48x64")]], tmp_path)
+    assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()

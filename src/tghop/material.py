@@ -45,7 +45,7 @@ from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "map_file",
-           "check_map_names", "MapNameClashError", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX"]
+           "check_map_names", "MapNameClashError", "map_kind", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -62,6 +62,49 @@ DEPTHS = (8, 16, 32)
 #: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
 REFINE_MAPS = settings.Setting("refine_maps", True, "bool", "Refine the maps other than the albedo too.",
                                when="generate", cli=None)
+
+
+#: The words a material's map files are commonly named with (the last word of the file's stem, any
+#: case, or its end when it has five letters or more: ``RockNormal``), by the kind of map they name:
+#: what :func:`map_kind` reads. Not a limit on a material's maps (any name is one); ``tghop synth``
+#: warns by them that a remix of such files is no material.
+MAP_KINDS = {
+    ALBEDO: ("albedo", "basecolor", "basecolour", "diffuse", "diff", "color", "colour", "col"),
+    "normal": ("normal", "normalgl", "normaldx", "nrm", "nor", "norm"),
+    "roughness": ("roughness", "rough", "rgh"),
+    "height": ("height", "displacement", "disp", "bump"),
+    "ao": ("ao", "occlusion", "ambientocclusion"),
+    "metallic": ("metallic", "metalness", "metal"),
+    "specular": ("specular", "spec", "glossiness", "gloss"),
+    "opacity": ("opacity",),
+    "emission": ("emission", "emissive"),
+}
+
+
+def map_kind(path):
+    """The kind of a material's map (a key of :data:`MAP_KINDS`) that file ``path``'s name ends
+    in, or None: ``rock_albedo.png`` -> ``"albedo"``, ``Rock_NormalGL_2K.jpg`` -> ``"normal"``
+    (a trailing resolution, ``2K`` or ``1024``, is passed over), ``bricks.jpg`` -> None.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file; only its name is read (the file need not exist).
+
+    Returns
+    -------
+    str or None
+    """
+    words = [w for w in re.split(r"[^a-z0-9]+", Path(path).stem.lower()) if w]
+    while len(words) > 1 and re.fullmatch(r"\d+k?", words[-1]):  # rock_diff_2k, Rock_Color_1024
+        words.pop()
+    if not words:
+        return None
+    last = words[-1]
+    for kind, names in MAP_KINDS.items():
+        if last in names or any(len(name) >= 5 and last.endswith(name) for name in names):
+            return kind
+    return None
 
 
 def map_name(path) -> str:

@@ -69,6 +69,32 @@ def _warn_deep(specs, read, labels, output, depth):
         warn_written_with_8(None, None, output, several=deep)
 
 
+def _warn_material_maps(specs, read):
+    """One warning where the exemplar images among a remix's SOURCEs (``read``: :func:`_read`'s)
+    are named as maps of one material (two kinds or more of :func:`tghop.material.map_kind`:
+    ``rock_albedo.png rock_normal.png``): the remix makes them one texture of random regions of
+    each, not a material's aligned maps; the warning names the commands that make the material.
+    A remix of such files is allowed (it may be what was meant)."""
+    import shlex
+    import warnings
+
+    import numpy as np
+
+    from ..material import ALBEDO, map_kind
+
+    maps = [(i, spec, map_kind(spec)) for i, (spec, source) in enumerate(zip(specs, read), start=1)
+            if isinstance(source, np.ndarray) and not spec.startswith("builtin:")]
+    maps = [(i, spec, kind) for i, spec, kind in maps if kind is not None]
+    if len({kind for _, _, kind in maps}) < 2:
+        return
+    albedo = next((m for m in maps if m[2] == ALBEDO), maps[0])
+    others = " ".join(shlex.quote(spec) for _, spec, _ in maps if spec != albedo[1])
+    named = ", ".join(f"SOURCE {i} ({spec}: {kind})" for i, spec, kind in maps)
+    warnings.warn(f"{named} look like maps of one material, but several SOURCEs without --guide remix them as "
+                  f"separate textures into one image; to make the material (every map, aligned), run 'tghop fit "
+                  f"{shlex.quote(albedo[1])} --maps {others} -o material.npz', then 'tghop synth material.npz -o OUT'")
+
+
 def _fitted(source, options, progress, label):
     """``source`` from :func:`_read` as a model: a saved one as it is, an exemplar fitted with the fit
     ``options`` (None: the command has none, and a too small exemplar is told so in its own words).
@@ -142,6 +168,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
                              f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
+    if guide is None:  # before _check_mixable: a grey map among them is refused there
+        _warn_material_maps(sources, read)
     _check_mixable([f"SOURCE {i} ({spec})" for i, spec in enumerate(sources, start=1)], read, options)
     _check_channels(output, depth, read)
     _warn_deep(sources, read, "SOURCE", output, depth)
