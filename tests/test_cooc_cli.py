@@ -134,8 +134,9 @@ def test_a_checkpoint_given_as_an_image_is_named_with_where_it_goes(files, tmp_p
     assert "cooc" not in r.stderr and not (tmp_path / "m.npz").exists()
 
 
-def test_edit_refuses_a_mask_of_another_size_than_the_output(files, tmp_path):
-    # It was resized to the output silently (inpaint refuses a mask of another size than its image).
+def test_edit_refuses_a_mask_of_another_shape_than_the_output(files, tmp_path):
+    # It was resized to the output silently (inpaint refuses a mask of another size than its image); then one of
+    # another size was refused too, though synth scales a guide of the output's shape: so does edit, saying so.
     from tghop.imageio import save_image
 
     mask = np.zeros((24, 64, 3))
@@ -143,9 +144,19 @@ def test_edit_refuses_a_mask_of_another_size_than_the_output(files, tmp_path):
     save_image(mask, tmp_path / "mask.png")
     out = tmp_path / "o.png"
     r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png", "-o", out)
-    assert_user_error(r, "--mask", "mask.png is 24x64 but --size is 256x256",
-                      "give a mask of the output's size (or --size 24x64)")
+    assert_user_error(r, "--mask", "mask.png is 24x64 but --size is 256x256, another shape",
+                      "give a mask of the output's shape, it is scaled to its size (or --size 24x64)")
     assert not out.exists()
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png",
+               "--size", "48x128", "-o", out, "--seed", "1")
+    assert r.exit_code == 0, r.output
+    assert f"Warning: --mask {tmp_path / 'mask.png'} was scaled from 24x64 to 48x128, --size" in r.stderr, r.stderr
+    big = np.repeat(np.repeat(mask, 2, axis=0), 2, axis=1)  # the same mask at the output's size: the same image
+    save_image(big, tmp_path / "big.png")
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "big.png",
+               "--size", "48x128", "-o", tmp_path / "o2.png", "--seed", "1")
+    assert r.exit_code == 0 and "Warning" not in r.stderr, r.stderr
+    assert np.array_equal(png(out), png(tmp_path / "o2.png"))
     r = invoke("cooc", "edit", files / "m.pt", "--mask", tmp_path / "mask.png", "--size", "24x64", "-o", out)
     assert_user_error(r, "--mask says which SOURCE goes where")  # it was ignored
     r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png",

@@ -669,3 +669,46 @@ def test_a_remix_of_one_materials_maps_is_warned_of(exemplars, tmp_path):
     r = _run(["synth", "rock_albedo.png", "rock_normal.png", "--guide", "map.png", "-o", "out4.png",
               *[a for a in fast if a not in ("--size", "48x64")]], tmp_path)
     assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()
+
+
+def test_a_guide_of_the_outputs_shape_is_scaled_to_its_size(models, tmp_path):
+    # A guide of another size than the output was refused; an artist paints a small one and expects it scaled.
+    small = np.zeros((24, 32), dtype=np.uint8)
+    small[:, 16:] = 255
+    small[4:12, 4:10] = 128
+    big = np.kron(small, np.ones((2, 2), dtype=np.uint8))  # the same map painted at 48x64
+    with pytest.warns(UserWarning, match=r"the guide was scaled from 24x32 to 48x64, the output's size"):
+        labels = guide_labels(small, 3, size=(48, 64))
+    assert np.array_equal(labels, guide_labels(big, 3))  # nearest neighbour: the regions as painted, no blends
+    with pytest.warns(UserWarning, match="scaled from 48x64 to 24x32"):
+        assert np.array_equal(guide_labels(big, 3, size=(24, 32)), guide_labels(small, 3))
+    with pytest.warns(UserWarning, match="scaled from 24x32 to 25x33"):
+        odd = guide_labels(small, 3, size=(25, 33))  # within 2 % of the shape: scaled, every label kept
+    assert odd.shape == (25, 33) and set(np.unique(odd)) == {0, 1, 2}
+    for size in ((24, 40), (48, 48)):  # another shape: refused, as before
+        with pytest.raises(TGHopError, match=f"the guide is 24x32 but the output is {size[0]}x{size[1]}, of another "
+                                             "shape") as info:
+            guide_labels(small, 3, size=size)
+        assert "\n" not in str(info.value)
+    # The library's function the command line calls: the image of the small guide is the large one's.
+    two = small.copy()
+    two[two == 128] = 0
+    with pytest.warns(UserWarning, match="scaled from 24x32 to 48x64"):
+        scaled = tghop.synthesize_guided(models, two, size=(48, 64), rng=1, **GEN)
+    assert np.array_equal(scaled, tghop.synthesize_guided(models, np.kron(two, np.ones((2, 2), np.uint8)), rng=1,
+                                                          **GEN))
+
+    save_model(models[0], tmp_path / "a.npz")
+    save_model(models[1], tmp_path / "b.npz")
+    Image.fromarray(two).save(tmp_path / "small.png")
+    fast = ["-q", "--pool", "400", "--refine", "1", "--seed", "1"]
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "small.png", "--size", "48x64", "-o", "out.png", *fast], tmp_path)
+    err = r.stderr.decode()
+    assert r.returncode == 0, err
+    assert [line for line in err.splitlines() if line.startswith("Warning:")] == [
+        "Warning: the guide was scaled from 24x32 to 48x64, the output's size (nearest neighbour: its regions kept as "
+        "painted)"], err
+    assert np.asarray(Image.open(tmp_path / "out.png")).shape == (48, 64, 3)
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "small.png", "--size", "48x48", "-o", "bad.png", *fast], tmp_path)
+    assert_user_error(r, "--guide small.png is 24x32 but --size is 48x48, another shape")
+    assert not (tmp_path / "bad.png").exists()

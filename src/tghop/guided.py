@@ -251,8 +251,9 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         One grey level (or colour) per model, the darkest for the first
         (:func:`guide_labels`). None: a remix (``size`` needed) of the models' textures.
     size : (int, int), optional
-        Output (height, width); default the guide's size. A guide of another size is
-        refused.
+        Output (height, width); default the guide's size. A guide of another size but the
+        output's shape (aspect ratios within 2 %) is scaled to it by nearest neighbour, with a
+        warning; one of another shape is refused (:func:`guide_labels`).
     transition : int
         Width in pixels of the band around each painted edge in which the join between two
         regions follows the content (:mod:`tghop.composite`); 0: the join is the painted

@@ -3,18 +3,22 @@ web server's painted guides and the co-occurrence model's painted crops).
 
 A guide holds one grey level (or colour) per model, the darkest for the first. A map with
 soft (antialiased) or JPEG edges is read as its flat levels: each pixel of an edge's blend
-takes the nearest level's region (:func:`guide_labels`, :func:`_snap_levels`).
+takes the nearest level's region (:func:`guide_labels`, :func:`_snap_levels`). A guide of
+another size than the output, of its shape, is scaled to it (:func:`scale_labels`: its regions,
+nearest neighbour, so that no label is blended into another).
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
 from ._arrays import check_int
 from ._common import TGHopError, check_size
 
-__all__ = ["guide_labels", "FEW_LEVELS", "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE",
-           "SNAP_TIE"]
+__all__ = ["guide_labels", "same_shape", "scale_labels", "ASPECT_TOLERANCE", "FEW_LEVELS", "SNAP_DISTANCE",
+           "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
 
 #: A guide with more distinct levels than inputs (not soft edges of its levels) and at most
 #: this many was painted with one level per texture (more inputs wanted); more is a picture.
@@ -36,6 +40,28 @@ SNAP_FLAT_SHARE = 0.8
 #: about 2 of 255) are ranked as equal there: a JPEG file moves a level's commonest value by a
 #: level or two (pure red, green and blue, of equal means, read as 254, 0, 2 and 1, 254, 0).
 SNAP_TIE = 0.008
+#: A guide of another size than the output is scaled to it when their aspect ratios (width over
+#: height) differ by at most this share (the larger over the smaller, less 1: a 100x150 map for a
+#: 256x385 output); more is refused, as the regions would be stretched out of the shape painted.
+ASPECT_TOLERANCE = 0.02
+
+
+def same_shape(shape, size) -> bool:
+    """Whether a guide of ``shape`` (H, W, ...) has the shape of an output of ``size`` (H, W):
+    their aspect ratios within :data:`ASPECT_TOLERANCE` of each other, so that it is scaled to it
+    (:func:`guide_labels`); ``tghop synth --guide`` and ``tghop cooc edit --mask`` ask it first."""
+    h, w = int(shape[0]), int(shape[1])
+    return max(w * size[0], size[1] * h) <= (1 + ASPECT_TOLERANCE) * min(w * size[0], size[1] * h)
+
+
+def scale_labels(labels, size) -> np.ndarray:
+    """A label map (H, W) scaled to ``size`` (h, w) by nearest neighbour: each pixel takes the
+    label under its centre, so that the labels stay the ones painted (no blend of two regions
+    becomes a third) and a map scaled by whole factors keeps every edge where it was painted."""
+    h, w = labels.shape[:2]
+    rows = (2 * np.arange(size[0], dtype=np.int64) + 1) * h // (2 * size[0])
+    cols = (2 * np.arange(size[1], dtype=np.int64) + 1) * w // (2 * size[1])
+    return labels[rows[:, None], cols[None, :]]
 
 
 def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide") -> np.ndarray:
@@ -60,8 +86,11 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         for other integers, in label units.
     n_models : int
     size : (int, int), optional
-        The output size; a guide of another size is refused (paint it at the output size).
-        None: the guide's, refused above :data:`tghop._common.MAX_PIXELS`.
+        The output size. A guide of another size but its shape (aspect ratios within
+        :data:`ASPECT_TOLERANCE`: :func:`same_shape`) is read at its own size and its labels
+        scaled to ``size`` by nearest neighbour (:func:`scale_labels`), with a warning saying
+        so; one of another shape is refused (paint it at the output's shape). None: the
+        guide's. The guide's own size is refused above :data:`tghop._common.MAX_PIXELS`.
     input_name, no_guide : str
         What the messages call a model and the fix of leaving the guide out (the CLI's
         "SOURCE" and "drop --guide").
@@ -69,6 +98,12 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     Returns
     -------
     ndarray of int64, shape (H, W)
+        ``size``, or the guide's size without it.
+
+    Warns
+    -----
+    UserWarning
+        A guide of another size than ``size``, scaled to it: from which size to which.
     """
     n_models = check_int(n_models, "n_models", 1)
     size = None if size is None else check_size(size, limit=None)
@@ -82,11 +117,14 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         raise TGHopError(f"the guide must be an (H, W) or (H, W, C) image of numbers, got {arr.dtype} {arr.shape}")
     if arr.dtype.kind == "f" and not np.isfinite(arr).all():
         raise TGHopError("the guide has NaN or infinite values")
-    if size is None:  # the output takes the guide's size: within the limit
+    scaled = size is not None and tuple(arr.shape[:2]) != tuple(size)
+    if scaled and not same_shape(arr.shape, size):
+        raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}, of "
+                         f"another shape (width/height {arr.shape[1] / arr.shape[0]:.3g} against "
+                         f"{size[1] / size[0]:.3g}); paint the guide at the output's shape, it is scaled to its size "
+                         "(or leave the size out to take the guide's)")
+    if size is None or scaled:  # the labels are made at the guide's own size: within the limit
         check_size(arr.shape[:2], name="the guide's size")
-    elif tuple(arr.shape[:2]) != tuple(size):
-        raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}; "
-                         "paint the guide at the output size (or leave the size out to take the guide's)")
     values, labels = _distinct(arr)
     n = len(values)
     tie, smooth = 0.0, None  # a flat map's levels: ranked by their exact values
@@ -117,7 +155,11 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         raise TGHopError(f"the guide has {levels} but {inputs} given; {hint}: the darkest is the first {input_name}")
     rank = np.empty(n, dtype=np.int64)
     rank[_dark_to_light(values, tie)] = np.arange(n)
-    return rank[labels]
+    if not scaled:
+        return rank[labels]
+    warnings.warn(f"the guide was scaled from {arr.shape[0]}x{arr.shape[1]} to {size[0]}x{size[1]}, the output's "
+                  "size (nearest neighbour: its regions kept as painted)")
+    return rank[scale_labels(labels, size)]
 
 
 def _dark_to_light(values, tie):

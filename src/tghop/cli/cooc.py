@@ -283,8 +283,8 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
 @click.option("--mask", default=None, metavar="IMAGE",
-              help="Grey image of --size's size: its levels, quantised to the number of SOURCES, say which source "
-                   "goes where (default: SOURCES side by side, left to right).")
+              help="Grey image of --size's shape (scaled to it): its levels, quantised to the number of SOURCES, "
+                   "say which source goes where (default: SOURCES side by side, left to right).")
 @click.option("--boost", type=Boost(), default=None,
               help="Multiply bin M(A, B) (and M(B, A)) by FACTOR (0 to 1,000) everywhere, then re-normalise "
                    "(paper Fig. 11).")
@@ -311,11 +311,19 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
                                          *[("SOURCE", spec) for spec in sources if not spec.startswith("crop:")]])
         if mask is not None and not sources:
             raise TGHopError("--mask says which SOURCE goes where; give the SOURCES (crop:ROW,COL or images) too")
-        if mask is not None:  # refused before the checkpoint is read, as inpaint refuses a mask of another size
+        if mask is not None:  # refused before the checkpoint is read, as synth refuses a guide of another shape
+            from ..guides import same_shape
+
             grey = load_exemplar(mask).mean(axis=2)
-            if grey.shape != tuple(size):
-                raise TGHopError(f"--mask {mask} is {grey.shape[0]}x{grey.shape[1]} but --size is {size[0]}x{size[1]}; "
-                                 f"give a mask of the output's size (or --size {grey.shape[0]}x{grey.shape[1]})")
+            if not same_shape(grey.shape, size):
+                raise TGHopError(f"--mask {mask} is {grey.shape[0]}x{grey.shape[1]} but --size is {size[0]}x{size[1]}, "
+                                 f"another shape; give a mask of the output's shape, it is scaled to its size (or "
+                                 f"--size {grey.shape[0]}x{grey.shape[1]})")
+            if grey.shape != tuple(size):  # read at the condition's cells below, from any size
+                import warnings
+
+                warnings.warn(f"--mask {mask} was scaled from {grey.shape[0]}x{grey.shape[1]} to {size[0]}x{size[1]}, "
+                              "--size")
         model = load_checkpoint(model_file)
         s = model.s
         hh, ww = -(-size[0] // s), -(-size[1] // s)

@@ -22,7 +22,8 @@ MAX_TRANSITION = 4096
 GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or colour) per SOURCE, the darkest "
               "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture "
               "(or material: every map), made as one SOURCE's image with the same options. Soft (antialiased) or "
-              "JPEG edges are taken. The output takes its size (--size, if given, must agree). Without --guide "
+              "JPEG edges are taken. The output takes its size; with --size, a map of the output's shape (aspect "
+              "ratio within 2 %) is scaled to it, nearest neighbour (a warning says so). Without --guide "
               "several SOURCEs make one texture of random regions of each (a remix).")
 TRANSITION_HELP = ("Width in pixels of the band around each painted edge in which the join between two regions "
                    "follows the textures (with several SOURCEs); 0: the painted edge itself.")
@@ -116,15 +117,18 @@ def _fitted(source, options, progress, label):
 
 
 def _load_guide(path, size, size_given):
-    """The guide map as an array, refused when it is not --size's size (one line)."""
+    """The guide map as an array, refused when it has not --size's shape (one line); of another
+    size, it is scaled to --size when its labels are read (:func:`tghop.guided.guide_labels`)."""
+    from ..guides import same_shape
     from ..imageio import load_image
 
     if is_model_file(path):
         raise TGHopError(f"--guide {path} is {model_file_kind(path)}, not an image; give a painted map")
     guide = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
-    if size_given and tuple(guide.shape[:2]) != tuple(size):
-        raise TGHopError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is {size[0]}x{size[1]}; "
-                         "paint the map at the output size or drop --size (the map's size is taken)")
+    if size_given and not same_shape(guide.shape, size):
+        raise TGHopError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is {size[0]}x{size[1]}, "
+                         "another shape; paint the map at the output's shape (it is scaled to --size) or drop --size "
+                         "(the map's size is taken)")
     return guide
 
 
@@ -152,7 +156,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     painted = None
     if guide is not None:  # read and checked (size, levels) before anything is fitted
         painted = _load_guide(guide, size, size_given)
-        labels = guide_labels(painted, len(sources), input_name="SOURCE", no_guide="drop --guide")
+        labels = guide_labels(painted, len(sources), size=size if size_given else None, input_name="SOURCE",
+                              no_guide="drop --guide")  # scaled to --size, saying so
         # its regions as grey levels 0, 1, ...: the same regions, read again at once (a soft map's levels took
         # seconds at 4096x4096)
         painted = labels.astype(np.uint8) if len(sources) < 256 else labels
