@@ -200,6 +200,15 @@ def test_set_and_options_of_another_baseline_are_usage_errors(folder, monkeypatc
     assert code == 2 and " --help')" in err, err
 
 
+def test_the_progress_shows_the_images_write(folder):
+    # A large PNG took seconds to write after the bar's last stage, showing nothing (a bar's label is its line on a
+    # stderr that is no terminal).
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "written.png", "--size", "48x64", "--seed", "1",
+                               cwd=folder)
+    assert code == 0 and exc is None, err
+    assert [line.strip() for line in err.splitlines()][-2:] == ["writing", "1 image of 48x64 written to written.png"]
+
+
 @pytest.mark.parametrize("args, fragment", [(["--overlap", "20"], "(overlap, --overlap) must be between 1 and 16"),
                                             (["--size", "20", "--tile"], "at least the patch size 32")])
 def test_an_output_quilting_refuses_is_refused_before_the_fit(folder, args, fragment):

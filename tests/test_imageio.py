@@ -68,6 +68,36 @@ def test_png_writer_gives_the_same_bytes_on_any_number_of_cores(monkeypatch):
     np.testing.assert_array_equal(np.asarray(Image.open(io.BytesIO(files[0]))), pixels)
 
 
+def test_an_images_write_is_a_progress_stage_of_the_same_bytes(monkeypatch, tmp_path):
+    # A 4096x4096 PNG took seconds to write with the progress bar showing nothing: its parts are now told as
+    # they are compressed (on threads), then the file's write; the bytes are the same with a progress or without.
+    from tghop import TGHopError, png
+    from tghop.imageio import save_image, save_images
+
+    monkeypatch.setattr(png, "_PNG_PART", 64)
+    monkeypatch.setattr(png, "usable_cores", lambda: 3)
+    rng = np.random.default_rng(4)
+    for pixels in (rng.integers(0, 256, (40, 30, 3), dtype=np.uint8), rng.integers(0, 65536, (9, 8), dtype=np.uint16)):
+        calls, plain, told = [], io.BytesIO(), io.BytesIO()
+        png.write_png(plain, pixels)
+        png.write_png(told, pixels, progress=lambda *a: calls.append(a))
+        assert told.getvalue() == plain.getvalue()
+        parts = max(1, min(pixels.shape[0] * (1 + pixels[0].nbytes) // 64, pixels.shape[0]))
+        assert parts > 1 and calls == [("writing", i, parts + 1) for i in range(parts + 2)], calls
+    calls = []
+    save_image(np.full((6, 5, 3), 0.5), tmp_path / "a.jpg", progress=lambda *a: calls.append(a))
+    assert calls == [("writing", 0, 1), ("writing", 1, 1)]
+    calls = []
+    save_images([(np.zeros((6, 5, 3)), tmp_path / "b.png", 8), (np.ones((6, 5)), tmp_path / "c.tif", 8)],
+                progress=lambda *a: calls.append(a))
+    done = [c[1] for c in calls]
+    assert {c[0] for c in calls} == {"writing"} and {c[2] for c in calls} == {2000}
+    assert done[0] == 0 and done[-1] == 2000 and done == sorted(done), calls
+    with pytest.raises(TGHopError, match="progress must be a function"):  # refused before a file is written
+        save_image(np.zeros((6, 5, 3)), tmp_path / "d.png", progress="bar")
+    assert not (tmp_path / "d.png").exists()
+
+
 def test_png_writer_refuses_what_png_cannot_hold():
     # (2 and 4 channels are grey and RGB with alpha: PNG holds them.)
     from tghop.imageio import write_png

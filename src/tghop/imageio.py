@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import InvalidImageError, TGHopError, check_image
+from ._common import InvalidImageError, TGHopError, check_image, report
 from ._formats import DEPTHS, check_tifffile, extensions, why_unreadable
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import decode_pillow, file_header, read_deep, upright
 from .output_files import check_output_path, write_atomic, written_file
-from .png import write_png
+from .png import WRITING, write_png
 from .profiles import deep_to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
@@ -177,7 +177,7 @@ def _check_pixels(image):
                                     "(image + 1) / 2 for [-1, 1]), or numpy.clip it")
 
 
-def save_image(image, path, *, depth: int = 8) -> None:
+def save_image(image, path, *, depth: int = 8, progress=None) -> None:
     """Write a float image in [0, 1] to ``path`` (PNG, JPEG or TIFF by extension; ``-`` is PNG on stdout).
 
     Parameters
@@ -194,6 +194,10 @@ def save_image(image, path, *, depth: int = 8) -> None:
         So are an empty image, a channel count other than 1-4, pixels neither uint8 nor
         floats, and NaN, infinite or out-of-range floats (outside [0, 1] by more than
         :data:`RANGE_TOLERANCE`; less is clipped).
+    progress : callable, optional
+        ``progress("writing", done, total)`` (:data:`tghop.png.WRITING`): a PNG's compressed
+        parts and its write as they finish (:func:`write_png`), a JPEG or TIFF file 0 then 1
+        of 1. The bytes written are the same with it or without.
     """
     fmt = output_format(path)
     check_depth(path, depth)
@@ -204,14 +208,15 @@ def save_image(image, path, *, depth: int = 8) -> None:
     if str(path) == "-" and sys.stdout is None:
         raise InvalidImageError("-o -: the standard output is closed; give a file name instead")
     if fmt == "TIFF":
-        write = _tiff_writer(image, depth, path)
+        write = _whole_write(_tiff_writer(image, depth, path), progress)
     elif fmt == "PNG":
-        write = functools.partial(write_png, pixels=to_uint16(image) if depth == 16 else to_uint8(image))
+        write = functools.partial(write_png, pixels=to_uint16(image) if depth == 16 else to_uint8(image),
+                                  progress=progress)
     else:
         from PIL import Image
 
         pil = Image.fromarray(to_uint8(image))
-        write = functools.partial(pil.save, format=fmt, quality=95)
+        write = _whole_write(functools.partial(pil.save, format=fmt, quality=95), progress)
     if str(path) == "-":
         buf = io.BytesIO()
         write(buf)
@@ -221,7 +226,30 @@ def save_image(image, path, *, depth: int = 8) -> None:
     write_atomic(path, write)
 
 
-def save_images(items) -> None:
+def _one_of(progress, k, n):
+    """A ``progress`` for image ``k`` of ``n`` written in one stage: its ``done`` of ``total``
+    as 1000 steps after the ``k`` images before it, of ``1000 n``."""
+    if progress is None:
+        return None
+    report(progress, WRITING, 1000 * k, 1000 * n)  # a bad progress refused here, before any file
+    return lambda stage, done, total: report(progress, stage, 1000 * k + 1000 * done // max(total, 1), 1000 * n)
+
+
+def _whole_write(write, progress):
+    """``write(fh)`` told to ``progress`` as one step of :data:`tghop.png.WRITING` (a writer
+    whose parts cannot be counted: JPEG, TIFF)."""
+    if progress is None:
+        return write
+
+    def told(fh):
+        report(progress, WRITING, 0, 1)
+        write(fh)
+        report(progress, WRITING, 1, 1)
+
+    return told
+
+
+def save_images(items, *, progress=None) -> None:
     """Write several images as one: every file appears, or none (a material's maps).
 
     Parameters
@@ -232,6 +260,9 @@ def save_images(items) -> None:
         beside its path, and once all are written they are moved into place. If a move
         fails, the files already moved are taken back (a file they replaced is restored).
         A path that is a symbolic link has its target written, as :func:`write_atomic` does.
+    progress : callable, optional
+        ``progress("writing", done, total)`` over all the images: 1000 steps each, told as
+        :func:`save_image` tells its own.
 
     Raises
     ------
@@ -246,10 +277,10 @@ def save_images(items) -> None:
     done = []  # (temporary, path) written
     moved = []  # (path, backup or None) in place
     try:
-        for image, path, target, depth in checked:
+        for k, (image, path, target, depth) in enumerate(checked):
             tmp = target.with_name(f".{target.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
             try:
-                save_image(image, tmp, depth=depth)
+                save_image(image, tmp, depth=depth, progress=_one_of(progress, k, len(checked)))
             except TGHopError as exc:
                 raise type(exc)(str(exc).replace(str(tmp), str(path))) from None
             done.append((tmp, path, target))

@@ -9,9 +9,13 @@ import zlib
 
 import numpy as np
 
-from ._common import InvalidImageError, TGHopError, usable_cores
+from ._common import InvalidImageError, ProgressCounter, TGHopError, report, usable_cores
 
-__all__ = ["decode_png16", "write_png"]
+__all__ = ["decode_png16", "write_png", "WRITING"]
+
+#: The stage name of an image's write in ``progress(stage, done, total)`` (:func:`write_png`,
+#: :func:`tghop.imageio.save_image`).
+WRITING = "writing"
 
 
 def decode_png16(data):
@@ -90,7 +94,7 @@ def _png_chunk(fh, kind: bytes, *pieces) -> None:
     fh.write(struct.pack(">I", crc))
 
 
-def write_png(fh, pixels, *, level: int = 1) -> None:
+def write_png(fh, pixels, *, level: int = 1, progress=None) -> None:
     """Write a uint8 (uint16) image as an 8-bit (16-bit) PNG, its compression spread over the
     processor's cores.
 
@@ -102,6 +106,10 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     level : int
         zlib level (1: synthesised texture is noise-like, so higher levels barely shrink
         it but take noticeably longer; measured: docs/choices.md).
+    progress : callable, optional
+        ``progress("writing", done, total)`` (:data:`WRITING`): ``total`` is the parts
+        compressed (below) and one for the file's write; ``done`` counts them as they finish
+        (from the compressing threads, one at a time).
 
     Notes
     -----
@@ -135,11 +143,14 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     n_parts = max(1, min(raw.nbytes // _PNG_PART, h))  # not the cores: the same file on every machine
     bounds = [h * i // n_parts for i in range(n_parts + 1)]
     blobs = [b""] * n_parts
+    report(progress, WRITING, 0, n_parts + 1)
+    counter = ProgressCounter(progress, WRITING, n_parts + 1)
 
     def compress(i):
         stream = zlib.compressobj(level, zlib.DEFLATED, -15)  # raw deflate: the header comes once
         blobs[i] = stream.compress(raw[bounds[i] : bounds[i + 1]].data) + stream.flush(
             zlib.Z_FINISH if i == n_parts - 1 else zlib.Z_SYNC_FLUSH)
+        counter(1)
 
     threads = min(usable_cores(), n_parts)
     if threads == 1:
@@ -155,3 +166,4 @@ def write_png(fh, pixels, *, level: int = 1) -> None:
     _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", w, h, bits, colour_type, 0, 0, 0))
     _png_chunk(fh, b"IDAT", b"\x78\x01", *blobs, struct.pack(">I", zlib.adler32(raw.data)))
     _png_chunk(fh, b"IEND")
+    counter(1)

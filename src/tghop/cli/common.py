@@ -500,11 +500,12 @@ def warn_lost_depth(items, path, depth, noun=None):
                   "to keep them")
 
 
-def write_materials(material, output, outputs, size, depth, make, inputs):
+def write_materials(material, output, outputs, size, depth, make, inputs, progress=None):
     """Materials' maps, OUT, OUT_<map>, ... for each path of ``outputs``: all checked before any
     work (``inputs``: ``(label, path)`` pairs that no output may be), each set made by ``make()``
     (a dict of maps, ``material``'s names) and written together (all or none); then one line
-    says what was written. ``material`` names the maps and their depths."""
+    says what was written. ``material`` names the maps and their depths; ``progress`` (a
+    :class:`Progress`) shows each set's write."""
     from ..imageio import save_images
 
     if output == "-":
@@ -517,7 +518,9 @@ def write_materials(material, output, outputs, size, depth, make, inputs):
     warn_lost_depth([(name, own, d) for (name, _, d), own in zip(plans[0], material.depths_)], output, depth, "map")
     for plan in plans:
         maps = make()
-        save_images([(maps[name], path, d) for name, path, d in plan])
+        save_images([(maps[name], path, d) for name, path, d in plan], progress=progress)
+        if progress is not None:
+            progress.close()
     written = ", ".join(path for _, path, _ in plans[0])
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
     click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "

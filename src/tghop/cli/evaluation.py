@@ -282,6 +282,6 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                            "'tghop cooc train' and pass --model", err=True)
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
-        save_image(image, output, depth=depth or 8)
+        save_image(image, output, depth=depth or 8, progress=progress)
     if output != "-":
         click.echo(f"{name} result written to {output}", err=True)

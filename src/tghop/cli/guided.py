@@ -209,13 +209,14 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             return maps
 
         write_materials(models[0], output, outputs, size, depth, make,
-                        [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
+                        [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)], progress)
         return None, size
     for path in outputs:
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
                                   dtype=generation_dtype(depth), **generation)
         progress.close()
-        save_image(image, path, depth=depth or 8)
+        save_image(image, path, depth=depth or 8, progress=progress)
+        progress.close()
     return outputs, size
 
 
@@ -328,6 +329,6 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
             rows.append(make_strip(model_a, model_b, size, rng=rng, stations=stations, progress=progress,
                                    dtype=generation_dtype(depth)))
             progress.close()
-        save_image(np.concatenate(rows, axis=0), output, depth=depth or 8)
+        save_image(np.concatenate(rows, axis=0), output, depth=depth or 8, progress=progress)
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)

@@ -274,7 +274,8 @@ def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, out
 
     result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
     progress.close()
-    save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth)
+    save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
+    progress.close()
 
 
 def _check_size(image, shape, p, whose, grown=None):
@@ -381,7 +382,8 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
                               **({"order": "raster"} if grow is not None else {}))
     progress.close()
     filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, output)
-    save_images([(filled[name], out, d) for name, out, d in plan])
+    save_images([(filled[name], out, d) for name, out, d in plan], progress=progress)
+    progress.close()
     what = (f"{int(hole.sum()):,} pixels filled" if grow is None
             else f"{picture.shape[0]}x{picture.shape[1]} extended to {grow[0][0]}x{grow[0][1]}")
     click.echo(f"{what} in {len(plan)} maps, written to {', '.join(out for _, out, _ in plan)}", err=True)

@@ -364,7 +364,8 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
             image, steps = image
             for name, step in steps.items():
                 save_image(step, staged[i][name], depth=depth or 8)
-        save_image(image, path, depth=depth or 8)
+        save_image(image, path, depth=depth or 8, progress=progress)
+        progress.close()
     if stages:
         written = ", ".join(Path(p).name for p in staged[0].values() if Path(p).exists())
         click.echo(f"steps written beside {'it' if count == 1 else 'each'}: {written}", err=True)
@@ -382,7 +383,7 @@ def _synth_material(material, output, outputs, size, depth, *, rng, progress, ge
         progress.close()
         return maps
 
-    write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)])
+    write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)], progress)
 
 
 @click.command()
