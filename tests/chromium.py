@@ -72,3 +72,50 @@ def fit_builtin(page, name):
                            " document.getElementById('summary').textContent.startsWith('model ')",
                            arg=name, timeout=90_000)
     page.wait_for_selector("#summary:not([hidden])")
+
+
+class HeldAnswers:
+    """The server's answers to the page's requests matching ``pattern`` (the strip's seeds by default), held
+    until the test sends them on (:meth:`send_next`, :meth:`release`): a strip still runs when the test acts on
+    it, however quick its images are. ``urls``: the address of each request, in order. A context manager: the
+    requests after its exit go straight to the server (and what is still held then is sent on)."""
+
+    def __init__(self, page, pattern="**/api/models/*/images"):
+        self.page, self.pattern, self.urls, self.held, self.holding = page, pattern, [], [], True
+
+    def __enter__(self):
+        self.page.route(self.pattern, self._hold)
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+        self.page.unroute(self.pattern, self._hold)
+
+    def _hold(self, route):
+        self.urls.append(route.request.url)
+        if not self.holding:
+            route.continue_()
+            return
+        answer = route.fetch()
+        if self.holding:
+            self.held.append((route, answer))
+        else:  # released while the server answered
+            route.fulfill(response=answer)
+
+    def wait(self):
+        """Wait until an answer is held (the page has asked, and the server answered)."""
+        while not self.held:
+            self.page.wait_for_timeout(20)
+
+    def send_next(self):
+        """Send on the next answer held, once there is one."""
+        self.wait()
+        route, answer = self.held.pop(0)
+        route.fulfill(response=answer)
+
+    def release(self):
+        """Send on the answers held and hold no more."""
+        self.holding = False
+        while self.held:
+            route, answer = self.held.pop(0)
+            route.fulfill(response=answer)

@@ -454,17 +454,25 @@ def test_the_strip_of_seeds_goes_on_with_its_model_when_another_exemplar_is_pick
     page.eval_on_selector("#fit-settings", "d => { d.open = false; }")  # fit_bricks opens it
     page.select_option("#builtin", "")
     fit_bricks(page)
-    page.fill("#height", "128")
-    page.fill("#width", "128")
+    bricks = page.evaluate("state.modelId")
+    page.fill("#height", "64")
+    page.fill("#width", "64")
+    page.fill("#n_patches", "400")
     page.fill("#seed", "20")
     page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {
       for (const c of changes) window.stripImages += [...c.addedNodes].filter((n) => n.querySelector).length;
     }).observe(document.getElementById('strip'), { childList: true }); }""")
-    page.click("#strip-go")
-    page.wait_for_function("document.querySelectorAll('#strip img').length >= 1", timeout=60_000)
-    page.select_option("#builtin", "cells")  # another exemplar: its fit starts while the strip runs
-    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
+    with chromium.HeldAnswers(page) as answers:  # the strip runs until the fit of cells has begun
+        page.click("#strip-go")
+        answers.send_next()  # seed 20
+        page.wait_for_function("document.querySelectorAll('#strip img').length >= 1", timeout=60_000)
+        answers.wait()  # seed 21's: seeds 22 to 27 are asked for once cells is picked
+        page.select_option("#builtin", "cells")  # another exemplar: its fit starts while the strip runs
+        page.wait_for_function("state.source && state.source.builtin === 'cells'")
+        answers.release()
+        page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
     assert page.evaluate("window.stripImages") == 8  # all of them, of its model
+    assert answers.urls == [f"{live_server.url}/api/models/{bricks}/images"] * 8  # seeds 22 to 27 too
     assert "null" not in page.text_content("#message") and "null" not in page.text_content("#gen-message")
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
     # Cleared once cells is the working model: when the fit ends after the strip, or when the strip ends after it

@@ -75,36 +75,17 @@ def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_end
     page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {
       for (const c of changes) window.stripImages += [...c.addedNodes].filter((n) => n.querySelector).length;
     }).observe(document.getElementById('strip'), { childList: true }); }""")
-    held, holding = [], [True]
-
-    def hold(route):  # the server's answer, held until the test says: the strip runs until then, however quick
-        if holding:
-            held.append((route, route.fetch()))
-        else:
-            route.continue_()
-
-    def wait_for_seed():  # the strip's next answer, held
-        while not held:
-            page.wait_for_timeout(20)
-
-    page.route("**/api/models/*/images", hold)
-    try:
+    with chromium.HeldAnswers(page) as answers:  # the strip runs until cells is the working model
         page.click("#strip-go")
-        wait_for_seed()
-        route, answer = held.pop()  # seed 30
-        route.fulfill(response=answer)
+        answers.send_next()  # seed 30
         page.wait_for_function("document.querySelectorAll('#strip img').length >= 1", timeout=60_000)
-        wait_for_seed()  # seed 31's, held while cells is picked
+        answers.wait()  # seed 31's, held while cells is picked
         assert page.is_visible("#gen-progress")  # the strip's 8 seeds fill one bar
         page.select_option("#builtin", "cells")
         page.wait_for_function("state.working.name === 'builtin:cells'", timeout=30_000)
         assert page.eval_on_selector_all("#strip img", "l => l.length") == 1  # still running, with bricks
-    finally:
-        holding.clear()  # the rest of the strip goes straight to the server
-        for route, answer in held:
-            route.fulfill(response=answer)
-    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
-    page.unroute("**/api/models/*/images", hold)
+        answers.release()
+        page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds'", timeout=120_000)
     assert page.evaluate("window.stripImages") == 8  # it went on with its model to the end
     assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
     assert page.get_attribute("#strip", "data-model") is None
