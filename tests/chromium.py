@@ -4,6 +4,7 @@ Playwright: used by the ``test_server_browser*.py`` tests and by
 
 import contextlib
 import os
+import time
 
 #: The browser: ``$TGHOP_CHROMIUM`` or Debian's.
 CHROMIUM = os.environ.get("TGHOP_CHROMIUM", "/usr/bin/chromium")
@@ -102,9 +103,12 @@ class HeldAnswers:
         else:  # released while the server answered
             route.fulfill(response=answer)
 
-    def wait(self):
-        """Wait until an answer is held (the page has asked, and the server answered)."""
+    def wait(self, timeout=120.0):
+        """Wait until an answer is held (the page has asked, and the server answered); AssertionError after
+        ``timeout`` seconds without one."""
+        deadline = time.monotonic() + timeout
         while not self.held:
+            assert time.monotonic() < deadline, f"no answer to {self.pattern} came within {timeout:g} s"
             self.page.wait_for_timeout(20)
 
     def send_next(self):
