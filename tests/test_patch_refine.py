@@ -656,9 +656,9 @@ def test_patch_statistics_is_a_scikit_learn_estimator(rng):
     from tghop._common import NotFittedError
 
     st = pr.PatchStatistics(n_levels=2)
-    assert st.get_params() == {"n_levels": 2, "whitening": 0.0}
+    assert st.get_params() == {"n_levels": 2, "whitening": 0.0, "rng": 0}
     assert repr(st) == "PatchStatistics(n_levels=2)"
-    assert clone(st.set_params(whitening=0.5)).get_params() == {"n_levels": 2, "whitening": 0.5}
+    assert clone(st.set_params(whitening=0.5)).get_params() == {"n_levels": 2, "whitening": 0.5, "rng": 0}
     with pytest.raises(NotFittedError):
         pr.patch_refine(rng.random((16, 16, 3)), pr.PatchStatistics(), n_steps=1)
 
@@ -672,10 +672,13 @@ def test_patch_statistics_fit_checks_its_image_and_takes_rng():
     # uint8 is read as x / 255 (as TGHop.fit does), not 255 times too large.
     assert np.array_equal(pr.PatchStatistics(n_levels=1).fit(u8).quantiles_,
                           pr.PatchStatistics(n_levels=1).fit(u8 / 255.0).quantiles_)
-    # rng: an int (the default 0: the same directions as before) or a Generator.
-    assert np.array_equal(pr.PatchStatistics(n_levels=1).fit(img, rng=0).directions_, base.directions_)
-    gen = pr.PatchStatistics(n_levels=1).fit(img, rng=np.random.default_rng(0))
+    # rng: an int (the default 0: the same directions as before) or a Generator, in the constructor.
+    assert np.array_equal(pr.PatchStatistics(n_levels=1, rng=0).fit(img).directions_, base.directions_)
+    gen = pr.PatchStatistics(n_levels=1, rng=np.random.default_rng(0)).fit(img)
     assert np.array_equal(gen.directions_, base.directions_)
+    other = pr.PatchStatistics(n_levels=1, rng=5)
+    assert not np.array_equal(other.fit(img).directions_, base.directions_)
+    assert np.array_equal(pr.PatchStatistics(**other.get_params()).fit(img).directions_, other.directions_)
     nan = img.copy()
     nan[2, 2, 2] = np.nan
     for bad, message in ((img * 255, r"values must lie in \[0, 1\]"), (nan, "NaN"), (img[None], "must have shape"),
@@ -683,6 +686,18 @@ def test_patch_statistics_fit_checks_its_image_and_takes_rng():
         with pytest.raises(InvalidImageError, match="PatchStatistics.fit: image.*" + message):
             pr.PatchStatistics(n_levels=1).fit(bad)
     with pytest.raises(TGHopError, match="seed must be a non-negative integer"):
+        pr.PatchStatistics(n_levels=1, rng=-1).fit(img)
+
+
+def test_patch_statistics_fits_old_keyword_rng_still_works_with_a_future_warning():
+    # rng was fit's keyword until 0.54, where the other estimators take it in the constructor.
+    img = data.bricks(40)
+    with pytest.warns(FutureWarning, match=r"PatchStatistics.fit\(rng=...\) is deprecated .*"
+                                           r"PatchStatistics\(..., rng=...\)"):
+        old = pr.PatchStatistics(n_levels=1).fit(img, rng=5)
+    assert np.array_equal(old.directions_, pr.PatchStatistics(n_levels=1, rng=5).fit(img).directions_)
+    assert old.rng == 0  # fit leaves the parameters as given
+    with pytest.raises(TGHopError, match="seed must be a non-negative integer"), pytest.warns(FutureWarning):
         pr.PatchStatistics(n_levels=1).fit(img, rng=-1)
 
 

@@ -34,6 +34,7 @@ tghop's finished image (which already has the layout, so few steps suffice):
 from __future__ import annotations
 
 import numbers
+import warnings
 
 import numpy as np
 
@@ -56,6 +57,8 @@ SETS = 32
 DIRECTIONS = 32
 #: Quantiles stored per direction (at :func:`quantile_levels`).
 QUANTILES = 129
+#: ``PatchStatistics.fit``'s deprecated ``rng`` keyword, not given.
+_NOT_GIVEN = object()
 #: Patches measured per level at fit (a strided subset beyond this): enough for the tails.
 _FIT_PATCHES = 1 << 15
 #: The fit measures the exemplar in parts of at most _FIT_SIDE pixels a side, one at a time (its
@@ -186,6 +189,10 @@ class PatchStatistics(BaseEstimator):
         Directions ``C^-whitening u`` (normalised) for Gaussian ``u`` and the level's patch
         covariance ``C`` (its eigenvalues floored at ``_EIGEN_FLOOR`` times the largest):
         0 uniform random directions (tghop 0.15 to 0.20), 0.5 uniform in whitened space.
+    rng : int or numpy.random.Generator, default=0
+        The directions come from it alone (as every estimator of tghop, a constructor
+        parameter; the default 0 gives the directions of every model so far, which
+        :meth:`tghop.TGHop.fit` keeps whatever its own ``rng``).
 
     Attributes
     ----------
@@ -201,11 +208,12 @@ class PatchStatistics(BaseEstimator):
         The patches' side: PATCH (7 in model files of format 5).
     """
 
-    def __init__(self, n_levels=4, whitening=0.0):
+    def __init__(self, n_levels=4, whitening=0.0, rng=0):
         self.n_levels = n_levels
         self.whitening = whitening
+        self.rng = rng
 
-    def fit(self, image, *, exclude=None, rng=0):
+    def fit(self, image, *, exclude=None, rng=_NOT_GIVEN):
         """Learn from the exemplar; returns self.
 
         Parameters
@@ -218,8 +226,9 @@ class PatchStatistics(BaseEstimator):
         exclude : ndarray, shape (H, W), bool, optional
             Patches touching these pixels (at each level: touching pixels reached by them)
             are left out.
-        rng : int or numpy.random.Generator, default=0
-            The directions come from it alone (the default: those of every model so far).
+        rng : int or numpy.random.Generator, optional
+            Deprecated (a FutureWarning): give ``rng`` to the constructor, as every estimator
+            of tghop takes it. Given, it is used in place of the constructor's for this fit.
 
         Returns
         -------
@@ -230,6 +239,11 @@ class PatchStatistics(BaseEstimator):
         w = self.whitening
         if not isinstance(w, numbers.Real) or isinstance(w, bool) or not 0 <= w <= 1:
             raise TGHopError(f"PatchStatistics: whitening must be a number in [0, 1], got {w!r}")
+        if rng is _NOT_GIVEN:
+            rng = self.rng
+        else:
+            warnings.warn("PatchStatistics.fit(rng=...) is deprecated and will be removed; give it to the "
+                          "constructor: PatchStatistics(..., rng=...).fit(image)", FutureWarning, stacklevel=2)
         rng = check_rng(rng)
         arr = np.asarray(image)
         parts = _parts(arr.shape[:2]) if arr.ndim in (2, 3) else [(Ellipsis,)]  # (Ellipsis,): for the error
@@ -707,7 +721,7 @@ def fit_patch_statistics(levels, image, *, whitening=0.0, exclude=None):
     levels = check_int(levels, "patch_levels")
     if not isinstance(whitening, numbers.Real) or isinstance(whitening, bool) or not 0 <= whitening <= 1:
         raise TGHopError(f"patch_whitening must be a number in [0, 1], got {whitening!r}")
-    return PatchStatistics(levels, whitening).fit(image, exclude=exclude)
+    return PatchStatistics(levels, whitening, rng=0).fit(image, exclude=exclude)  # the directions of every model
 
 
 @one_blas_thread()  # the same image with any number of threads or concurrent callers
