@@ -18,9 +18,6 @@ import tghop.cooc
 MODULES = sorted({f"tghop.cooc.{m.name}" for m in pkgutil.iter_modules(tghop.cooc.__path__)} | {
     "tghop.cooc", "tghop.manifest", "tghop.settings", "tghop.fit_options", "tghop.profiles", "tghop.gpdm",
     "tghop.cooccurrence"})
-#: Left to the branch that splits tghop.cooc.model (its docstrings are not edited elsewhere meanwhile), by
-#: qualified name wherever they end up.
-NOT_YET = {"check_noise", "memory_estimate", "CoocGAN.raw"}
 
 
 def _returns_value(function) -> bool:
@@ -73,8 +70,6 @@ def test_every_public_function_has_numpydoc_parameters_and_returns(module_name):
     # pyramid and memory, the cGAN's tiling and networks, ...) had a line or a paragraph: neither section.
     missing = []
     for qualname, function, bound in _public_functions(module_name):
-        if qualname in NOT_YET:
-            continue
         doc = inspect.getdoc(function) or ""
         takes = list(inspect.signature(function).parameters)[1 if bound else 0:]
         if takes and "\nParameters\n----" not in doc:

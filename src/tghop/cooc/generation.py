@@ -45,7 +45,18 @@ __all__ = ["GenerationMixin", "check_noise"]
 
 
 def check_noise(noise: np.ndarray) -> None:
-    """Refuse a noise tensor with NaN or infinite values (they give a NaN image)."""
+    """Refuse a noise tensor with NaN or infinite values (they give a NaN image).
+
+    Parameters
+    ----------
+    noise : ndarray
+        The noise the generator is given (:meth:`CoocGAN.noise <tghop.cooc.model.CoocGAN.noise>` draws it).
+
+    Raises
+    ------
+    TGHopError
+        If any value of ``noise`` is NaN or infinite.
+    """
     if not np.isfinite(noise).all():
         raise TGHopError("noise contains NaN or infinite values; give finite noise (CoocGAN.noise draws it)")
 

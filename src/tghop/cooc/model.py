@@ -318,6 +318,12 @@ class CoocGAN(TrainingMixin, GenerationMixin, BaseEstimator):
 
         A shallow copy sharing the networks and statistics; without an average (``ema=0``)
         the same as this model. For comparing the two (benchmarks/bench_cooc.py).
+
+        Returns
+        -------
+        CoocGAN
+            The copy, without ``generator_ema_``: it generates with ``generator_``. This model is
+            left as it is.
         """
         import copy
 
@@ -374,6 +380,21 @@ def memory_estimate(exemplar_shape, *, model: Optional["CoocGAN"] = None, assemb
     (float32) and about 45 bytes per output pixel and channel for the quilting;
     ``"pass"`` and ``"windows"`` about 60 (the generator's output, the canvas and the
     float64 result).
+
+    Parameters
+    ----------
+    exemplar_shape : tuple of int
+        ``(H, W)`` or ``(H, W, C)`` of the exemplar.
+    model : CoocGAN, optional
+        A trained model, whose window size sets the pool's crops; None: the small configuration,
+        trained first (its training counted).
+    assembly : {"quilt", "pass", "windows"}, default="quilt"
+        How the result is assembled (:func:`baseline`'s ``assembly``).
+
+    Returns
+    -------
+    callable
+        ``estimate(h, w) -> float``: bytes for an ``h x w`` result.
     """
     eh, ew = int(exemplar_shape[0]), int(exemplar_shape[1])
     c = int(exemplar_shape[2]) if len(exemplar_shape) > 2 else 1
