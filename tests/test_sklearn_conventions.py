@@ -165,6 +165,30 @@ def test_a_fitted_component_keeps_its_learned_state_in_trailing_underscores_and_
     assert not changed, changed
 
 
+def test_scikit_learns_check_is_fitted_agrees_with_tghops(small_model):
+    # scikit-learn's check_is_fitted took a TGHop whose settings changed after fit (set_params) as fitted, where
+    # every method of it raised NotFittedError: it looked at the learned state alone.
+    import copy
+
+    from sklearn.exceptions import NotFittedError as TheirNotFittedError
+    from sklearn.utils.validation import check_is_fitted as their_check
+
+    from tghop import NotFittedError
+
+    model = copy.deepcopy(small_model)
+    for part in _fitted_parts(model).values():
+        their_check(part)
+    for cls in COMPONENTS:
+        with pytest.raises(TheirNotFittedError):
+            their_check(cls())
+    model.set_params(n_codewords=model.n_codewords + 1)
+    with pytest.raises(NotFittedError, match="settings changed after it was fitted"):
+        model.sample_patches(2, rng=0)
+    with pytest.raises(TheirNotFittedError, match="This TGHop instance is not fitted yet"):
+        their_check(model)
+    their_check(model.set_params(n_codewords=model.n_codewords - 1))
+
+
 def _dummy(cls, name):
     """An argument for a required parameter ``name`` of a method of ``cls``: any that gets as far as the fit check."""
     if name in ("size", "shape"):

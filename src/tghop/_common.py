@@ -132,6 +132,19 @@ class BaseEstimator:
 
         return SklearnBase.__sklearn_tags__(self)
 
+    def __sklearn_is_fitted__(self):
+        """Whether scikit-learn's ``check_is_fitted`` takes this estimator as fitted: as tghop's own
+        check does, learned state (an attribute ending in ``_``) and the settings it was fitted
+        with (``set_params`` after ``fit`` unfits a :class:`~tghop.synthesis.TGHop`; scikit-learn's
+        own test, learned state alone, took it as fitted still)."""
+        if not any(k.endswith("_") and not k.startswith("__") for k in vars(self)):
+            return False
+        try:
+            check_is_fitted(self, ())
+        except NotFittedError:
+            return False
+        return True
+
     def __repr__(self):
         defaults = {p.name: p.default for p in inspect.signature(type(self).__init__).parameters.values()}
         changed = []
