@@ -20,6 +20,8 @@ from tghop.saab import Saab
 from tghop.sdr import SpatialReduction
 from tghop.synthesis import TGHop
 
+from conftest import SMALL
+
 sklearn = pytest.importorskip("sklearn")
 if tuple(int(v) for v in sklearn.__version__.split(".")[:2]) < (1, 6):
     pytest.skip("scikit-learn before 1.6 has no __sklearn_tags__", allow_module_level=True)
@@ -187,6 +189,25 @@ def test_scikit_learns_check_is_fitted_agrees_with_tghops(small_model):
     with pytest.raises(TheirNotFittedError, match="This TGHop instance is not fitted yet"):
         their_check(model)
     their_check(model.set_params(n_codewords=model.n_codewords - 1))
+
+
+def test_a_loaded_models_parts_have_the_parameters_they_were_fitted_with(bricks96, tmp_path):
+    # A loaded model's PatchStatistics said whitening=0.0 whatever its patch_whitening, and its hops (and hop 1's
+    # Saab) n_channels=None (n_components=None): get_params and clone gave settings other than the fit's.
+    from tghop.modelfile import load_model, save_model
+
+    model = TGHop(**{**SMALL, "n_channels": (6, 14)}, patch_whitening=0.5, max_patches=600).fit(bricks96)
+    save_model(model, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz")
+    fitted, back = _fitted_parts(model), _fitted_parts(loaded)
+    fitted["Saab"], back["Saab"] = model.hops_.hops_[0].saabs_[0], loaded.hops_.hops_[0].saabs_[0]  # hop 1's
+    fitted["Hop 1"], back["Hop 1"] = model.hops_.hops_[0], loaded.hops_.hops_[0]  # "Hop" is hop 2
+    differ = {}
+    for name, part in fitted.items():
+        a, b = part.get_params(deep=False), back[name].get_params(deep=False)
+        differ.update({f"{name}.{k}": (a[k], b[k]) for k in a if k != "rng" and repr(a[k]) != repr(b[k])})
+    assert not differ
+    assert loaded.patches_.whitening == 0.5 and [h.n_channels for h in loaded.hops_.hops_] == [6, 14]
 
 
 def _dummy(cls, name):

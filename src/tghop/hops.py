@@ -198,9 +198,10 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
                 f"index.hop{i}_channels": self.channels_, f"index.hop{i}_energy": self.energy_}
 
     @classmethod
-    def _from_arrays(cls, i, info, arrays):
-        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise" and "n_channels_in"."""
-        hop = cls(channelwise=bool(info["channelwise"]))
+    def _from_arrays(cls, i, info, arrays, n_channels=None):
+        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise" and "n_channels_in";
+        ``n_channels``: the rule it was fitted with (its stack's), a parameter as after ``fit``."""
+        hop = cls(n_channels=n_channels, channelwise=bool(info["channelwise"]))
         c = hop.n_channels_in_ = int(info["n_channels_in"])
         hop.channels_ = arrays[f"index.hop{i}_channels"].astype(np.int64)
         hop.energy_ = arrays[f"index.hop{i}_energy"].astype(np.float64)
@@ -208,7 +209,7 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
         bias = arrays[f"hop{i}.bias"].astype(np.float64)
         hop.saabs_ = []
         for p in (range(c) if hop.channelwise else [0]):
-            saab = Saab()
+            saab = Saab() if hop.channelwise else Saab(n_components=n_channels)  # as fit makes them
             rows = hop.channels_[:, 0] == p
             saab.channels_ = hop.channels_[rows, 1]
             saab.kernels_ = kernels[rows]

@@ -121,7 +121,9 @@ class Saab(TransformerMixin, BaseEstimator):
         Index of each kept kernel among all ``d`` (0 is DC, then AC by decreasing energy).
     energy_ : ndarray, shape (d,)
         Mean squared response (bias excluded) of all ``d`` channels, kept or not, in the
-        same order: the squared error per vector that dropping the channel costs.
+        same order: the squared error per vector that dropping the channel costs. Not set on the
+        Saabs of a loaded model: model files keep the kept channels' energies only
+        (:attr:`tghop.hops.Hop.energy_`).
     bias_ : float
         Added to AC responses: the largest norm of the fitting vectors.
     n_features_in_ : int

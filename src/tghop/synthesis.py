@@ -331,7 +331,9 @@ class TGHop(PatchCodec, BaseEstimator):
         model.exemplar_shape_ = tuple(int(v) for v in meta["exemplar_shape"])
         model.n_patches_ = int(meta["n_patches"])
         stack = HopStack(n_channels=model.check_channels(model.exemplar_shape_[2]))
-        stack.hops_ = [Hop._from_arrays(i, info, arrays) for i, info in enumerate(meta["hops"], start=1)]
+        rules = [settings.check_channel_rule(r, "n_channels", none_ok=True) for r in stack.n_channels]  # as fit
+        stack.hops_ = [Hop._from_arrays(i, info, arrays, rules[i - 1] if i <= len(rules) else None)
+                       for i, info in enumerate(meta["hops"], start=1)]
         stack.dims_ = [int(d) for d in meta["hop_dims"]]
         model.hops_ = stack
         model.sdr_ = SpatialReduction(**settings.component_params(model, "sdr"))._from_arrays(
@@ -342,7 +344,8 @@ class TGHop(PatchCodec, BaseEstimator):
         model.classes_ = ColourClasses(model.colour_classes)._from_arrays(arrays) if model.colour_classes else None
         model.bands_ = BandStatistics(n_levels=model.band_levels,
                                       n_orientations=model.band_orientations)._from_arrays(arrays)
-        model.patches_ = PatchStatistics(model.patch_levels)._from_arrays(arrays) if model.patch_levels else None
+        model.patches_ = (PatchStatistics(model.patch_levels, model.patch_whitening)._from_arrays(arrays)
+                          if model.patch_levels else None)
         model.layout_ = None
         if meta.get("layout") is not None:
             model.layout_ = CoarseLayout(**{"patch_levels": 0, **meta["layout"]["params"]})  # 0.47 and older: 0
