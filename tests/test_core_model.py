@@ -1194,3 +1194,19 @@ def test_a_size_that_is_not_two_integers_is_named_in_one_short_line(small_model,
         small_model.synthesize(size, rng=0)
     message = str(error.value)
     assert "\n" not in message and len(message) < 200 and said in message, message
+
+
+def test_stage_views_of_anything_but_decodes_spaces_is_a_one_line_error(small_model):
+    # An array of patches (what sample_patches returns) was read as a list of 5 spaces: views of nothing, no error.
+    z, position = small_model.sample_vectors(4, 0, np.float64)
+    patches, spaces = small_model.decode(z[position], return_stages=True)
+    want = (r"^spaces must be the list \[Sn, \.\.\., S1, S0\] that decode\(z, return_stages=True\) returns .*; "
+            r"3 arrays for 2 hops\), got ")
+    for bad, got in ((patches, r"an array of shape \(4, 32, 32, 3\)$"), (spaces[-1:], "list of 1$"),
+                     (spaces[1:], r"shapes \(4, 16, 16, 9\), \(4, 32, 32, 3\)$"),
+                     (spaces[:-1] + [spaces[-1][:2]], r"shapes .*, \(2, 32, 32, 3\)$"),
+                     (spaces[:-1] + [spaces[-1][..., :1]], r"shapes .*, \(4, 32, 32, 1\)$"), (None, "NoneType$")):
+        with pytest.raises(TGHopError, match=want + got) as caught:
+            small_model.stage_views(bad)
+        assert "\n" not in str(caught.value)
+    assert list(small_model.stage_views(tuple(spaces))) == ["core_dc", "S1_dc", "S0"]

@@ -175,4 +175,4 @@ class PatchCodec:
             ``"core_dc"`` (n, h, w), ``"S1_dc"`` (n, 2h, 2w), ..., ``"S0"`` (n, P, P, C) in [0, 1].
         """
         check_is_fitted(self, "ichm_")
-        return stage_views(spaces, self.exemplar_shape_[2])
+        return stage_views(spaces, self.exemplar_shape_[2], n_hops=len(self.hops_.hops_))

@@ -642,7 +642,7 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         return spaces if return_all else spaces[-1]
 
 
-def stage_views(spaces, n_colours):
+def stage_views(spaces, n_colours, *, n_hops=None):
     """The three views of the paper's Fig. 6 for generated samples.
 
     Parameters
@@ -651,6 +651,8 @@ def stage_views(spaces, n_colours):
         ``[Sn, ..., S1, S0]`` as :meth:`tghop.TGHop.decode` returns with ``return_stages``.
     n_colours : int
         Colour channels of the exemplar.
+    n_hops : int, optional
+        The model's hops, when known: ``spaces`` holds one more array.
 
     Returns
     -------
@@ -661,7 +663,14 @@ def stage_views(spaces, n_colours):
         patch. DC maps are divided by their DC gain, so they are in pixel units, and every
         view is clipped to [0, 1] as the patches are (float64 images to look at; the unclipped
         values are in ``spaces``).
+
+    Raises
+    ------
+    TGHopError
+        If ``spaces`` is not such a list (an array of patches, one space alone, sides that do not
+        halve from S0 on, another count of samples, colours or hops).
     """
+    _check_spaces(spaces, n_colours, n_hops)
     views = {}
     n_hops = len(spaces) - 1
     for level, space in zip(range(n_hops, 0, -1), spaces[:-1]):
@@ -671,3 +680,22 @@ def stage_views(spaces, n_colours):
         views[name] = np.clip(space[..., 0] / gain, 0.0, 1.0)  # generated DC can overshoot [0, 1] a little
     views["S0"] = np.clip(spaces[-1], 0.0, 1.0)
     return views
+
+
+def _check_spaces(spaces, n_colours, n_hops=None):
+    """One TGHopError line unless ``spaces`` is a list ``[Sn, ..., S1, S0]`` of 4-D arrays of as many samples,
+    each half the side of the next, S0 of ``n_colours`` channels (an array of patches was read as a list of
+    spaces: views of nothing, without a word)."""
+    want = (f"spaces must be the list [Sn, ..., S1, S0] that decode(z, return_stages=True) returns (arrays (n, side, "
+            f"side, K), each half the side of the next, S0 (n, P, P, {n_colours})"
+            f"{'' if n_hops is None else f'; {n_hops + 1} arrays for {n_hops} hops'})")
+    if isinstance(spaces, np.ndarray):
+        raise TGHopError(f"{want}, got an array of shape {spaces.shape}")
+    if not isinstance(spaces, (list, tuple)) or len(spaces) < 2:
+        count = f" of {len(spaces)}" if isinstance(spaces, (list, tuple)) else ""
+        raise TGHopError(f"{want}, got {type(spaces).__name__}{count}")
+    shapes = [np.shape(s) for s in spaces]
+    p = shapes[-1][1] if len(shapes[-1]) == 4 else 0
+    if any(len(s) != 4 or s[0] != shapes[0][0] or s[1] != s[2] or s[1] * 2 ** (len(shapes) - 1 - i) != p
+           for i, s in enumerate(shapes)) or shapes[-1][3] != n_colours or n_hops not in (None, len(shapes) - 1):
+        raise TGHopError(f"{want}, got shapes {', '.join(str(s) for s in shapes)}")
