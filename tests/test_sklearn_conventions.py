@@ -305,6 +305,23 @@ def test_not_fitted_is_scikit_learns_error_too_once_scikit_learn_is_imported_and
     assert r.returncode == 0 and r.stdout == "ok\n", r.stderr[-2000:]
 
 
+def test_a_scikit_learn_error_that_cannot_be_joined_leaves_tghops_error_alone(monkeypatch):
+    # Its class made at the raise: a layout Python cannot join would otherwise make every raise a TypeError.
+    import sys
+    import types
+
+    from tghop import NotFittedError
+
+    class OfAnotherLayout(OSError):
+        pass
+
+    monkeypatch.setitem(sys.modules, "sklearn.exceptions", types.SimpleNamespace(NotFittedError=OfAnotherLayout))
+    for _ in range(2):
+        with pytest.raises(NotFittedError, match="^not fitted$") as caught:
+            raise NotFittedError("not fitted")
+        assert type(caught.value) is NotFittedError
+
+
 #: scikit-learn's checks that apply to ICHM, which check_estimator cannot run whole: its transform gives
 #: (labels, sources), so the transformer checks (and those comparing transform's outputs) do not apply; its vectors
 #: are ``Z``, so a message naming them is not the "X has 1 features" check_n_features_in_after_fitting looks for.

@@ -69,9 +69,12 @@ class NotFittedError(TGHopError, AttributeError):
             key = (cls, theirs)
             joined = _WITH_SKLEARN.get(key)
             if joined is None:
-                joined = _WITH_SKLEARN.setdefault(key, type(cls.__name__, (cls, theirs), {
-                    "__module__": cls.__module__, "__qualname__": cls.__qualname__, "__doc__": cls.__doc__,
-                    "_tghop_class": cls}))
+                try:
+                    names = {"__module__": cls.__module__, "__qualname__": cls.__qualname__, "__doc__": cls.__doc__}
+                    joined = type(cls.__name__, (cls, theirs), {**names, "_tghop_class": cls})
+                except TypeError:  # a scikit-learn whose class cannot be joined (its layout): tghop's alone
+                    joined = cls
+                joined = _WITH_SKLEARN.setdefault(key, joined)
             cls = joined
         return super().__new__(cls, *args, **kwargs)
 
