@@ -63,6 +63,47 @@ def test_a_long_generation_shows_its_progress_before_the_image(page):
     assert not page.errors, page.errors
 
 
+def test_a_poll_that_comes_before_the_server_has_the_generation_is_no_error(page):
+    # Under load the page's first poll of a generation's job (200 ms after the click) came before the server had
+    # read the request and put its job in the table: a 404, which Chromium logs as a console error.
+    chromium.choose_mode(page, "view")
+    fit(page, "bricks")
+    page.fill("#height", "64")
+    page.fill("#width", "64")
+    page.fill("#n_patches", "400")
+    page.fill("#seed", "3")
+    held, polls = [], []
+
+    def hold(route):
+        held.append(route)
+
+    def poll(response):
+        if "/api/jobs/" in response.url:
+            polls.append(response.status)
+
+    page.route("**/api/models/*/images", hold)  # the request on its way: the server has no job yet
+    page.on("response", poll)
+    try:
+        page.click("#go")
+        while not held or len(polls) < 2:  # the page has asked for the job twice before the server has it
+            page.wait_for_timeout(20)
+        assert page.text_content("#gen-progress span") == "waiting"
+        answer = held[0].fetch()  # now the server has it: its job is made, and done when the answer comes
+        seen = len(polls)
+        page.wait_for_function("document.querySelector('#gen-progress span').textContent === 'encoding 100 %'",
+                               timeout=30_000)  # the page's next poll finds the job
+        assert len(polls) > seen
+        held[0].fulfill(response=answer)
+    finally:
+        page.unroute("**/api/models/*/images", hold)
+        page.remove_listener("response", poll)
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x64, seed 3'",
+                           timeout=60_000)
+    assert page.is_hidden("#gen-progress")
+    assert not page.errors, page.errors
+    assert set(polls) == {200}, polls
+
+
 def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_ends(page):
     # It stayed shown: eight seeds of bricks under the model of cells.
     chromium.choose_mode(page, "view")

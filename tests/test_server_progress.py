@@ -137,6 +137,44 @@ def post_in_background(url, body, job):
     return out, thread
 
 
+def test_a_job_asked_for_before_its_request_is_read_is_unknown_when_expected(client, models, live_server):
+    # The page's first poll can come before the server has read the request as far as its job header (a body
+    # on its way, a loaded server): it got 404, a console error in the browser.
+    bricks, _ = models
+    job, body_sent = new_job(), threading.Event()
+
+    def body():  # the request's body waits until the job has been asked for
+        yield b'{"size": [32, 32], '
+        body_sent.wait(60)
+        yield b'"seed": 4, "n_patches": 400}'
+
+    out = []
+    thread = threading.Thread(target=lambda: out.append(httpx.post(
+        f"{live_server.url}/api/models/{bricks}/images", content=body(), timeout=300,
+        headers={"X-Tghop-Job": job, "content-type": "application/json"})), daemon=True)
+    thread.start()
+    try:
+        time.sleep(0.2)  # the headers are there, not the whole body
+        r = client.get(f"/api/jobs/{job}", params={"expected": "1"})
+        assert r.status_code == 200 and r.json()["state"] == "unknown", r.text
+        assert set(r.json()) == set(GenerationJob(None, job).snapshot()) and r.json()["job"] == job
+        assert client.get(f"/api/jobs/{job}", params={"expected": "true"}).json()["state"] == "unknown"
+        plain = client.get(f"/api/jobs/{job}")  # without it (curl, a typo): no such job, said
+        assert plain.status_code == 404 and "X-Tghop-Job" in plain.json()["error"], plain.text
+        assert client.get(f"/api/jobs/{job}", params={"expected": "0"}).status_code == 404
+    finally:
+        body_sent.set()
+    thread.join(timeout=120)
+    assert out and out[0].status_code == 200
+    snap = client.get(f"/api/jobs/{job}", params={"expected": "1"}).json()  # the job itself once it is there
+    assert snap["kind"] == "generation" and snap["state"] == "done" and snap["id"] == bricks
+    assert client.get(f"/api/jobs/{job}").json() == snap
+    # a malformed id never becomes a job: 404 even when expected; a bad value of expected: 400
+    assert client.get("/api/jobs/nope", params={"expected": "1"}).status_code == 404
+    r = client.get(f"/api/jobs/{new_job()}", params={"expected": "yes"})
+    assert r.status_code == 400 and r.json()["error"] == "expected must be 1 or 0, got 'yes'"
+
+
 def test_a_running_generations_progress_advances_before_its_image_comes(client, models, live_server):
     bricks, _ = models
     job = new_job()

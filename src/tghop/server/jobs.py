@@ -21,7 +21,7 @@ import uuid
 from concurrent.futures import ThreadPoolExecutor
 
 __all__ = ["JOB_ID", "Cancelled", "QueueFull", "Job", "GenerationJob", "FitQueue", "STATES", "FIT_STAGES",
-           "GENERATION_STAGES", "generation_fraction"]
+           "GENERATION_STAGES", "generation_fraction", "unknown_snapshot"]
 
 #: A job's id: 32 hex digits.
 JOB_ID = re.compile(r"[0-9a-f]{32}\Z")
@@ -66,6 +66,14 @@ def generation_fraction(stage: str, done: int, total: int):
             return (passed + share * (min(done, total) / total if total > 0 else 0.0)) / whole
         passed += share
     return None
+
+
+def unknown_snapshot(job_id: str) -> dict:
+    """What a client that expects the job ``job_id`` is told while it is not in the table: the keys of
+    :meth:`Job.snapshot`, ``state`` ``unknown`` (a generation's request not yet read as far as its job header,
+    or one that never will be: refused before, or its job finished and dropped)."""
+    return {"job": job_id, "kind": None, "id": None, "state": "unknown", "stage": "", "stages": [], "done": 0,
+            "total": 0, "progress": 0.0, "version": 0, "askers": 0}
 
 
 class Cancelled(Exception):

@@ -11,7 +11,7 @@ import json
 from ..._errors import TGHopError
 from .. import materials
 from ..core import json_response
-from ..jobs import FINAL, JOB_ID, QueueFull
+from ..jobs import FINAL, JOB_ID, QueueFull, unknown_snapshot
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
 from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, each_file_within, read_body, read_form, read_image
 
@@ -136,13 +136,26 @@ def find_job(server, request):
     job_id = request.path_params["job"]
     job = server.queue.get(job_id) if JOB.match(job_id) else None
     if job is None:
-        raise RequestError(404, f"no job {job_id[:80]!r}; POST /api/models starts one")
+        raise RequestError(404, f"no job {job_id[:80]!r}; POST /api/models starts one, and so does a generation "
+                                "that names it (X-Tghop-Job) once the server has read its request")
     return job
 
 
 async def job_state(server, request):
-    """``GET /api/jobs/{job}``: its snapshot."""
-    return json_response(find_job(server, request).snapshot())
+    """``GET /api/jobs/{job}``: its snapshot. With ``?expected=1`` (a client that has sent, or is sending, a
+    generation naming this job: the page's poll), a well-formed id not in the table is 200 and state ``unknown``
+    (:func:`~tghop.server.jobs.unknown_snapshot`), not 404: its request may not be read as far as its header yet
+    (a body on its way, a request waiting for the event loop)."""
+    expected = request.query_params.get("expected", "0").strip().lower()
+    if expected not in ("0", "1", "false", "true"):
+        raise RequestError(400, f"expected must be 1 or 0, got {expected[:40]!r}")
+    try:
+        return json_response(find_job(server, request).snapshot())
+    except RequestError:
+        job_id = request.path_params["job"]
+        if expected in ("1", "true") and JOB.match(job_id):
+            return json_response(unknown_snapshot(job_id))
+        raise
 
 
 async def cancel_job(server, request):

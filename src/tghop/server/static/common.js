@@ -141,9 +141,10 @@ async function withProgress(boxId, request, { from = 0, to = 1, label = "" } = {
   box.hidden = false;
   const poll = async () => {
     try {
-      const response = await fetch(`/api/jobs/${job}`);  // 404 until the server has the request
+      // "unknown" (not 404, a console error) until the server has read the request as far as its job header
+      const response = await fetch(`/api/jobs/${job}?expected=1`);
       const snap = response.ok ? await response.json() : null;
-      if (snap && !ended) {
+      if (snap && snap.state !== "unknown" && !ended) {
         bar.value = Math.max(bar.value, from + (to - from) * snap.progress);  // it never goes back
         const stage = snap.state === "queued" ? "waiting" : snap.stage || "starting";
         text.textContent = `${label}${stage} ${Math.round(100 * bar.value)} %`;
