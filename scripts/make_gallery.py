@@ -157,7 +157,7 @@ def main():
             [exemplar, image, best, np.tile(tiled, (2, 2, 1)), patch_grid(patches, n_cols=4), stage_sheet(
                 {k: v[:6] for k, v in views.items()}, model.patch_size)],
             ["exemplar (built in)", "tghop synth 256x256", "--quality best", "--tile, repeated 2x2",
-             "generated patches", "core DC | S1 DC | patch"],
+             "generated patches", "core | hop 1 | patch"],
             height=200,
         )
         save_image(sheet, out / f"{name}.png")
