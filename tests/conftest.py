@@ -160,15 +160,17 @@ def tiny_cooc_checkpoint(tiny_cooc_exemplar, tmp_path_factory):
     return path
 
 
-def assert_user_error(r, *fragments):
+def assert_user_error(r, *fragments, status=None):
     """Non-zero exit, one 'Error:' line naming the problem, no traceback. ``r``: a finished
-    process (``subprocess.run``'s) or click's in-process ``Result``."""
+    process (``subprocess.run``'s) or click's in-process ``Result``; ``status``: the exit status
+    it must be (2 for a usage error), where given."""
     if hasattr(r, "exit_code"):  # click's CliRunner: the exception would have been a traceback
         err, code = r.stderr, r.exit_code
         assert r.exception is None or isinstance(r.exception, SystemExit), repr(r.exception)
     else:
         err, code = r.stderr.decode(), r.returncode
     assert code != 0
+    assert status is None or code == status, (code, err)
     assert "Traceback" not in err
     lines = [line for line in err.strip().splitlines() if line.startswith("Error")]
     assert len(lines) == 1, err

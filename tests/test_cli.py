@@ -91,10 +91,10 @@ def test_synth_stages_writes_each_steps_image(model_path, workdir):
     assert not np.array_equal(steps["quilt"], steps["seams"]) and not np.array_equal(steps["refine"], image)
     run("synth", model_path, "-o", workdir / "plain.png", "--size", "48x64", "--pool", "300", "--seed", "4", "-q")
     assert np.array_equal(np.asarray(Image.open(workdir / "plain.png")), image)  # --stages changes nothing
-    for args, message in ((["-o", "-"], "--stages needs a file name"),
-                          ([model_path, "-o", workdir / "two.png"], "--stages applies to one SOURCE")):
+    for args, message, status in ((["-o", "-"], "--stages needs a file name", 1),
+                                  ([model_path, "-o", workdir / "two.png"], "--stages applies to one SOURCE", 2)):
         r = run("synth", model_path, *args, "--stages")
-        assert r.returncode != 0 and message in r.stderr.decode()
+        assert r.returncode == status and message in r.stderr.decode(), r.stderr.decode()  # 2: a usage error
 
 
 def test_synth_from_model_numbered_and_tiled(model_path, workdir):

@@ -200,6 +200,28 @@ def test_set_and_options_of_another_baseline_are_usage_errors(folder, monkeypatc
     assert code == 2 and " --help')" in err, err
 
 
+@pytest.mark.parametrize("args, fragments", [
+    (["synth", "model.npz", "model.npz", "-o", "o.png", "--stages"], ["--stages applies to one SOURCE"]),
+    (["synth", "model.npz", "-o", "o.png", "--transition", "8"], ["--transition applies to several SOURCEs"]),
+    (["synth", "model.npz", "model.npz", "-o", "o.png", "--save-model", "m.npz"], ["--save-model takes one exemplar"]),
+    (["synth", "model.npz", "model.npz", "-o", "o.png", "--exclude", "two_levels.png"], ["--exclude takes one"]),
+    (["synth", "model.npz", "-o", "o.png", "--maps", "bricks.png"], ["synth takes no --maps"]),
+    (["inpaint", "bricks.png", "two_levels.png", "-o", "o.png", "--scale", "0.5"],
+     ["--scale applies to an exemplar given as --source", "IMAGE's own texture"]),
+    (["inpaint", "bricks.png", "two_levels.png", "-o", "o.png", "--source", "model.npz", "--scale", "0.5"],
+     ["--scale applies to an exemplar given as --source", "a saved model keeps the scale"]),
+    (["extend", "bricks.png", "-o", "o.png", "--size", "96", "--scale", "0.5"], ["--scale applies to an exemplar"]),
+])
+def test_options_that_do_not_go_together_are_usage_errors(folder, args, fragments):
+    # They exited 1, as a bad file does; an option given where it does not apply is a usage error, 2, as click's
+    # own and the baselines' (above), with the command's --help named.
+    before = sorted(os.listdir(folder))
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, f"(see 'main {args[0]} --help')", exception=exc)
+    assert code == 2, err
+    assert sorted(os.listdir(folder)) == before
+
+
 def test_the_progress_shows_the_images_write(folder):
     # A large PNG took seconds to write after the bar's last stage, showing nothing (a bar's label is its line on a
     # stderr that is no terminal).

@@ -209,16 +209,17 @@ def test_cli_keeps_the_alpha_channel_and_makes_the_new_area_opaque(files, cells)
     assert out.shape == (96, 130, 4) and np.array_equal(out[:, :96], pixels) and (out[:, 96:, 3] == 255).all()
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--size", "64x200"], ["the size 64x200 is smaller than the image (96x96) in height"]),
-    (["--size", "96x96"], ["nothing to extend"]),
-    (["--size", "128", "--anchor", "middle"], ["--anchor", "middle"]),
-    (["--size", "128", "--scale", "0.5"], ["--scale applies to an exemplar given as --source"]),
-    (["--size", "wide"], ["--size", "write HEIGHTxWIDTH"]),
+@pytest.mark.parametrize("args, words, status", [
+    (["--size", "64x200"], ["the size 64x200 is smaller than the image (96x96) in height"], 1),
+    (["--size", "96x96"], ["nothing to extend"], 1),
+    (["--size", "128", "--anchor", "middle"], ["--anchor", "middle"], 2),
+    # a usage error, 2 (it exited 1, as a bad file does)
+    (["--size", "128", "--scale", "0.5"], ["--scale applies to an exemplar given as --source", "extend --help"], 2),
+    (["--size", "wide"], ["--size", "write HEIGHTxWIDTH"], 2),
 ])
-def test_cli_bad_options_are_one_line_and_write_nothing(files, args, words):
+def test_cli_bad_options_are_one_line_and_write_nothing(files, args, words, status):
     r = cli("extend", files / "cells.png", "-o", files / "bad.png", "-q", *args)
-    assert_user_error(r, *words)
+    assert_user_error(r, *words, status=status)
     assert not (files / "bad.png").exists()
 
 

@@ -526,9 +526,11 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     assert_user_error(r, "--guide map.png is 64x128 but --size is 64x64")
     r = _run(["synth", "a.npz", "b.npz", "--guide", "map.png", "--save-model", "m.npz", "-o", "bad_out.png"],
              tmp_path)
-    assert_user_error(r, "--save-model takes one exemplar")
+    assert_user_error(r, "--save-model takes one exemplar", "(see 'tghop synth --help')", status=2)  # usage errors
+    r = _run(["synth", "a.npz", "b.npz", "--exclude", "a.png", "-o", "bad_out.png"], tmp_path)
+    assert_user_error(r, "--exclude takes one exemplar", "(see 'tghop synth --help')", status=2)
     r = _run(["synth", "a.npz", "--transition", "8", "-o", "bad_out.png"], tmp_path)
-    assert_user_error(r, "--transition applies to several SOURCEs")
+    assert_user_error(r, "--transition applies to several SOURCEs", status=2)
     assert not (tmp_path / "bad_out.png").exists()  # nothing written, not even in part
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".") or p.endswith(".tmp")]
 

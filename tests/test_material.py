@@ -344,10 +344,11 @@ def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp
                         # --patch-stride was silently ignored (a material has no patch refinement)
                         (["--patch-stride", "3"], "Error: --patch-stride does not apply to a material (it has no "
                                                   "patch statistics); drop it"),
-                        (["--patch-refine", "5", "--patch-stride", "3"], "--patch-refine and --patch-stride do not")):
+                        (["--patch-refine", "5", "--patch-stride", "3"], "--patch-refine and --patch-stride do not"),
+                        (["--stages"], "Error: --stages applies to a texture model, not a material; drop it")):
         res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size", "64",
                                    "-q", *args])
-        assert res.exit_code != 0 and "Traceback" not in res.output, res.output
+        assert res.exit_code == 2 and "Traceback" not in res.output, res.output  # usage errors (they exited 1)
         assert words in res.output and "patch_refine" not in res.output, res.output
         assert res.output.strip().count("\n") == 0
     assert not list(tmp_path.glob("*.png"))
@@ -405,10 +406,11 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, s
     assert res.exit_code == 0, res.output
     for name in ("p", "p_normal", "p_roughness", "p_height"):
         assert load_image(tmp_path / f"{name}.png").shape[:2] == (48, 64)
-    for args, words in ((["mat.npz", "plain.npz"], "SOURCE 2 (" + str(tmp_path / "plain.npz") + ") is a texture model "
-                         "but SOURCE 1"), (["mat.npz", "cells.npz", "--quality", "best"], "do not apply to materials")):
+    for args, words, status in ((["mat.npz", "plain.npz"], "SOURCE 2 (" + str(tmp_path / "plain.npz") + ") is a "
+                                 "texture model but SOURCE 1", 1),
+                                (["mat.npz", "cells.npz", "--quality", "best"], "do not apply to materials", 2)):
         res = run("synth", *args, "-o", str(tmp_path / "o.png"), "--size", "48x64", "-q")
-        assert res.exit_code == 1 and words in res.output and "Traceback" not in res.output, res.output
+        assert res.exit_code == status and words in res.output and "Traceback" not in res.output, res.output
     res = run("morph", "mat.npz", "cells.npz", "-o", str(tmp_path / "o.png"), "-q")
     assert res.exit_code == 1 and "a morph takes texture models" in res.output, res.output
     with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
@@ -469,9 +471,9 @@ def test_synth_given_maps_says_to_fit_the_material_first(tmp_path):
     # 'tghop synth albedo.png --maps normal.png' said "No such option '--maps'. (Did you mean one of: '--gamma',
     # '--max-patches', '--paper'?)".
     res = CliRunner().invoke(main, ["synth", "builtin:bricks", "--maps", str(tmp_path / "normal.png"), "-o",
-                                    str(tmp_path / "o.png")])
-    assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+                                    str(tmp_path / "o.png")], prog_name="tghop")
+    assert res.exit_code == 2 and "Traceback" not in res.output, res.output  # a usage error (it exited 1)
     assert res.output.strip() == ("Error: synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps "
                                   "MAP... -o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> "
-                                  "for each map"), res.output
+                                  "for each map (see 'tghop synth --help')"), res.output
     assert not list(tmp_path.iterdir())

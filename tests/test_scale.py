@@ -189,5 +189,5 @@ def test_inpaint_fits_a_source_exemplar_at_a_working_scale(tmp_path):
                         (("--source", tmp_path / "m.npz"), "a saved model keeps the scale it was fitted at")):
         r = cli("inpaint", tmp_path / "photo.png", tmp_path / "hole.png", "-o", tmp_path / "bad.png", *source,
                 "--scale", "0.5")
-        assert_user_error(r, "--scale applies to an exemplar given as --source", why)
+        assert_user_error(r, "--scale applies to an exemplar given as --source", why, status=2)  # a usage error
         assert not (tmp_path / "bad.png").exists()

@@ -142,9 +142,11 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     from .options import FIT_OPTION_PARAMS, given_options
 
     if save_model is not None:
-        raise TGHopError("--save-model takes one exemplar; save each model with 'tghop fit' and give the .npz files")
+        raise click.UsageError("--save-model takes one exemplar; save each model with 'tghop fit' and give the "
+                               ".npz files")
     if exclude:
-        raise TGHopError("--exclude takes one exemplar; fit each with 'tghop fit --exclude' and give the .npz files")
+        raise click.UsageError("--exclude takes one exemplar; fit each with 'tghop fit --exclude' and give the "
+                               ".npz files")
     if guide is None and len(sources) < 2:
         raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
     size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
@@ -199,8 +201,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<map>, ...
         if generation["patch_refine"]:
-            raise TGHopError("--patch-refine and --quality best do not apply to materials (they have no patch "
-                             "statistics); drop them")
+            raise click.UsageError("--patch-refine and --quality best do not apply to materials (they have no patch "
+                                   "statistics); drop them")
 
         def make():
             maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,

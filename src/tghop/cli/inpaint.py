@@ -177,9 +177,9 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     source_is_model = source is not None and not source.startswith("builtin:") and (
         source.lower().endswith(".npz") or is_model_file(source))
     if scale != 1 and (source is None or source_is_model):
-        raise TGHopError("--scale applies to an exemplar given as --source; "
-                         + ("a saved model keeps the scale it was fitted at" if source else
-                            "IMAGE's own texture is at IMAGE's scale already"))
+        raise click.UsageError("--scale applies to an exemplar given as --source; "
+                               + ("a saved model keeps the scale it was fitted at" if source else
+                                  "IMAGE's own texture is at IMAGE's scale already"))
     picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True,
                                       too_large_hint=HINT_DOWNSCALE_YOURSELF)
     picture, alpha = split_alpha(picture)

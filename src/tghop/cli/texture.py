@@ -236,8 +236,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     progress = Progress(not quiet)
     with user_errors(progress):
         if maps_given:
-            raise TGHopError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... -o "
-                             "MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> for each map")
+            raise click.UsageError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... "
+                                   "-o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> for "
+                                   "each map")
         check_output(output, allow_stdout=True)
         check_depth(output, depth or 8)
         if output == "-" and count > 1:
@@ -249,14 +250,14 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             from .guided import synth_several
 
             if stages:
-                raise TGHopError("--stages applies to one SOURCE; drop it with several or with --guide")
+                raise click.UsageError("--stages applies to one SOURCE; drop it with several or with --guide")
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
                                           exclude, downscale, progress, generation_params(options), options, depth)
             if outputs is None:  # materials: it said what it wrote
                 return
             from_model = True  # nothing saved
         elif given_options(ctx, ["transition"]):
-            raise TGHopError("--transition applies to several SOURCEs or --guide; drop it")
+            raise click.UsageError("--transition applies to several SOURCEs or --guide; drop it")
         else:
             outputs, from_model = _synth_one(ctx, sources[0], output, size, count, seed, save_model, exclude,
                                              downscale, progress, options, depth, stages)
@@ -314,14 +315,15 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         model = load_model(source, material=True)
         if hasattr(model, "names_"):  # a whole material: every map, written together
             if stages:
-                raise TGHopError("--stages applies to a texture model, not a material; drop it")
+                raise click.UsageError("--stages applies to a texture model, not a material; drop it")
             stride = given_options(ctx, ["patch_stride"])  # would be ignored: a material has no patch refinement
             if generation["patch_refine"] or stride:  # refused here by the options typed, not the library's keyword
                 typed = (["--quality best"] if ctx.params.get("quality") == "best" else []) + given_options(
                     ctx, ["patch_refine", "patch_stride"])
                 typed = typed or ["--patch-refine"]
-                raise TGHopError(f"{' and '.join(typed)} {'do' if len(typed) > 1 else 'does'} not apply to a "
-                                 f"material (it has no patch statistics); drop {'them' if len(typed) > 1 else 'it'}")
+                several = len(typed) > 1
+                raise click.UsageError(f"{' and '.join(typed)} {'do' if several else 'does'} not apply to a material "
+                                       f"(it has no patch statistics); drop {'them' if several else 'it'}")
             _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
                             source=source)
             return None, True
