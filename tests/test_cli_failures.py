@@ -222,6 +222,25 @@ def test_options_that_do_not_go_together_are_usage_errors(folder, args, fragment
     assert sorted(os.listdir(folder)) == before
 
 
+def test_the_boost_bound_is_one_value_for_the_command_line_and_the_library():
+    # tghop.cli.cooc kept its own MAX_BOOST = 1000.0 beside tghop.cooc.assembly's (the command line does not import
+    # NumPy, which the library's module does): a change of one would not have reached the other. Both take
+    # tghop._limits's, which imports nothing, so the command line still starts without NumPy.
+    import ast
+    from pathlib import Path
+
+    from tghop import _limits
+    from tghop.cli import cooc as cli_cooc
+    from tghop.cooc import assembly
+
+    assert cli_cooc.MAX_BOOST is _limits.MAX_BOOST and assembly.MAX_BOOST is _limits.MAX_BOOST
+    tree = ast.parse(Path(_limits.__file__).read_text(encoding="utf-8"))
+    assert not [node for node in ast.walk(tree) if isinstance(node, (ast.Import, ast.ImportFrom))]
+    p = subprocess.run([sys.executable, "-c", "import sys\nimport tghop.cli.cooc\nprint('numpy' in sys.modules)"],
+                       capture_output=True, timeout=120)
+    assert p.returncode == 0 and p.stdout.decode().strip() == "False", p.stderr.decode()
+
+
 def test_the_progress_shows_the_images_write(folder):
     # A large PNG took seconds to write after the bar's last stage, showing nothing (a bar's label is its line on a
     # stderr that is no terminal).

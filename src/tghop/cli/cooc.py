@@ -14,14 +14,12 @@ import click
 
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
+from .._limits import MAX_BOOST
 from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
 from .options import QUIET_OPTION, FloatRange, Size
 
 #: Longest morph strip, in condition cells.
 MAX_CELLS = 4096
-
-#: Largest ``--boost`` factor (:data:`tghop.cooc.assembly.MAX_BOOST`; the command line does not import NumPy).
-MAX_BOOST = 1000.0
 
 
 class Grid(click.ParamType):

@@ -17,6 +17,7 @@ import numpy as np
 
 from .._arrays import check_number
 from .._common import TGHopError
+from .._limits import MAX_BOOST
 
 __all__ = [
     "FEATHER",
@@ -34,10 +35,6 @@ __all__ = [
     "blend_weights",
     "mirror_pad",
 ]
-
-#: Largest factor of :func:`boost_condition`, as the local page's edits (a bin's share p of a
-#: cell becomes p f / (p f + 1 - p): 1000 takes a 1 % bin to 91 %; more changes next to nothing).
-MAX_BOOST = 1000.0
 
 #: Default blend width of :meth:`~tghop.cooc.model.CoocGAN.generate_windows`, as a fraction
 #: of the windows' stride (1: the whole overlap, a sin^2 window; 0: hard seams).
