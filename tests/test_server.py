@@ -738,6 +738,42 @@ def test_guided_paints_each_model_in_its_region_and_remixes_without_a_guide(clie
     assert decoded(remix.content).shape == (48, 64, 3) and int(remix.headers["x-tghop-seed"]) == 1
 
 
+def test_a_guide_scaled_to_the_size_is_read_once_and_the_client_is_told(client, fitted, second, monkeypatch):
+    # A guide of another size than `size` (its shape) is scaled by the library with a warning, which went to the
+    # server's console, never to the client; and its labels were read twice (a check, then synthesize_guided),
+    # so it was scaled twice. Read and scaled once now, the warning the answer's X-Tghop-Warning.
+    import warnings
+
+    import numpy as np
+
+    from tghop import guides
+
+    scalings = []
+    scale = guides.scale_labels
+    monkeypatch.setattr(guides, "scale_labels", lambda *a: scalings.append(a[1]) or scale(*a))
+    guide = np.zeros((64, 96), np.uint8)
+    guide[:, 48:] = 255
+    ask = {"models": [fitted[0], second], "seed": 3, "n_patches": 400, "transition": 8}
+    with warnings.catch_warnings(record=True) as console:  # the server's thread runs while this one waits
+        warnings.simplefilter("always")
+        r = client.post("/api/images/guided", json={**ask, "guide": guide_b64(guide), "size": [32, 48]})
+    assert r.status_code == 200, r.text
+    assert r.headers["x-tghop-warning"] == ("the guide was scaled from 64x96 to 32x48, the output's size (nearest "
+                                            "neighbour: its regions kept as painted)")
+    assert r.headers["x-tghop-size"] == "32x48" and decoded(r.content).shape == (32, 48, 3)
+    assert [tuple(s) for s in scalings] == [(32, 48)], scalings  # once
+    assert not [w for w in console if "the guide was scaled" in str(w.message)]  # the client's, not the console's
+    # the same image as the guide painted at that size, which is not scaled and says nothing
+    painted = client.post("/api/images/guided", json={**ask, "guide": guide_b64(guide[::2, ::2])})
+    assert painted.status_code == 200 and painted.content == r.content, painted.text
+    assert "x-tghop-warning" not in painted.headers and len(scalings) == 1
+    # a region thinner than a pixel of the output would be gone: said, not the library's "one grey level but 2"
+    thin = np.zeros((64, 96), np.uint8)
+    thin[:, 48] = 255
+    assert_error(client.post("/api/images/guided", json={**ask, "guide": guide_b64(thin), "size": [32, 48]}), 400,
+                 "the guide's region of models[1] is gone once the guide is scaled from 64x96 to 32x48")
+
+
 def test_morph_goes_from_a_to_b(client, fitted, second):
     bricks, cells = fitted[0], second
     alone = {m: decoded(client.post(f"/api/models/{m}/images", json={"size": [40, 64], "seed": 1,

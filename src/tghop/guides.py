@@ -17,8 +17,8 @@ import numpy as np
 from ._arrays import check_int
 from ._common import TGHopError, check_size
 
-__all__ = ["guide_labels", "same_shape", "scale_labels", "ASPECT_TOLERANCE", "FEW_LEVELS", "SNAP_DISTANCE",
-           "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
+__all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "ASPECT_TOLERANCE", "FEW_LEVELS",
+           "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
 
 #: A guide with more distinct levels than inputs (not soft edges of its levels) and at most
 #: this many was painted with one level per texture (more inputs wanted); more is a picture.
@@ -52,6 +52,13 @@ def same_shape(shape, size) -> bool:
     (:func:`guide_labels`); ``tghop synth --guide`` and ``tghop cooc edit --mask`` ask it first."""
     h, w = int(shape[0]), int(shape[1])
     return max(w * size[0], size[1] * h) <= (1 + ASPECT_TOLERANCE) * min(w * size[0], size[1] * h)
+
+
+def scaled_message(shape, size) -> str:
+    """What :func:`guide_labels` warns of a guide of ``shape`` (H, W, ...) scaled to ``size``
+    (h, w); the web server tells its clients the same words (docs/serve.md)."""
+    return (f"the guide was scaled from {shape[0]}x{shape[1]} to {size[0]}x{size[1]}, the output's size (nearest "
+            "neighbour: its regions kept as painted)")
 
 
 def scale_labels(labels, size) -> np.ndarray:
@@ -157,8 +164,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     rank[_dark_to_light(values, tie)] = np.arange(n)
     if not scaled:
         return rank[labels]
-    warnings.warn(f"the guide was scaled from {arr.shape[0]}x{arr.shape[1]} to {size[0]}x{size[1]}, the output's "
-                  "size (nearest neighbour: its regions kept as painted)")
+    warnings.warn(scaled_message(arr.shape, size))
     return rank[scale_labels(labels, size)]
 
 

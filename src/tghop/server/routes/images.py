@@ -16,7 +16,11 @@ from ..requests import RequestError, parse_generation, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
 __all__ = ["model_png", "png_response", "generate", "several_png", "same_patches", "guided_png", "guided",
-           "morph_png", "morph"]
+           "morph_png", "morph", "WARNING_HEADER"]
+
+#: The answer's header that tells the client what the library warned of (one line, its words; several joined by
+#: "; "): a painted guide scaled to the size asked (docs/serve.md).
+WARNING_HEADER = "X-Tghop-Warning"
 
 
 def model_png(server, model_id: str, size, seed, settings):
@@ -54,16 +58,19 @@ def model_png(server, model_id: str, size, seed, settings):
 async def png_response(server, request, work, *args, seed, models=(), checkpoints=()):
     """Run ``work(*args, seed)`` on a generation thread once the ``models`` and ``checkpoints`` (ids) it needs
     are read (:meth:`~tghop.server.core.Server.in_executor`): its ``(png, (h, w))`` as the answer, or
-    ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON or multipart."""
+    ``(maps, (h, w))`` of a material (a list, :func:`materials.encode_maps`) as JSON or multipart; a third
+    item, warnings to tell the client (lines), goes in :data:`WARNING_HEADER`."""
     from starlette.responses import Response
 
     if seed is None:
         seed = secrets.randbelow(2**31)
     start = time.perf_counter()
-    png, size = await server.in_executor(request, work, *args, seed, models=models, checkpoints=checkpoints)
+    png, size, *told = await server.in_executor(request, work, *args, seed, models=models, checkpoints=checkpoints)
     took = (time.perf_counter() - start) * 1000
     headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
+    if told and told[0]:
+        headers[WARNING_HEADER] = "; ".join(told[0])
     if isinstance(png, list):  # a material: every map, as multipart where the client takes it (the page)
         body, kind = materials.answer(request.headers.get("accept", ""), png, size, seed)
         return Response(body, headers=headers, media_type=kind)
@@ -117,23 +124,42 @@ def same_patches(models, names) -> None:
 
 
 def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
-    """Several models through a painted guide (its PNG's bytes), or a remix (None)."""
-    from ...guided import guide_labels, synthesize_guided
+    """Several models through a painted guide (its PNG's bytes), or a remix (None): the PNG (a material's
+    maps), its size and what to tell the client (a guide scaled to ``size``: the library's warning)."""
+    import numpy as np
+
+    from ...guided import synthesize_guided
+    from ...guides import guide_labels, same_shape, scale_labels, scaled_message
     from ...imageio import load_image
 
     models = [server.model(model_id) for model_id in ids]
     materials.same_kind(models, ids)
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
-    painted = None
+    labels, told = None, []
     if guide is not None:
         painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
+        # Its labels read once (they were read here for the check, then again by synthesize_guided: a guide of
+        # another size scaled twice); one to be scaled is read at its own size and scaled here, so that the
+        # library's warning, which would go to the server's console (warnings cannot be caught on one thread
+        # alone), is the client's header instead.
+        scaled = size is not None and painted.shape[:2] != tuple(size) and same_shape(painted.shape, size)
         try:
-            guide_labels(painted, len(models), size=size)
+            labels = guide_labels(painted, len(models), size=None if scaled else size)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
-    return several_png(server, lambda m, rng, dtype: synthesize_guided(
-        m, painted, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
+        if scaled:
+            labels = scale_labels(labels, size)
+            gone = np.flatnonzero(np.bincount(labels.ravel(), minlength=len(models)) == 0)
+            if len(gone):  # read again, it would be "one grey level but 2 inputs were given"
+                raise RequestError(400, f"the guide's region of models[{gone[0]}] is gone once the guide is scaled "
+                                        f"from {painted.shape[0]}x{painted.shape[1]} to {size[0]}x{size[1]} (it is "
+                                        "thinner than a pixel of the output); paint it wider or ask for a larger size")
+            told.append(scaled_message(painted.shape, size))
+        labels = labels.astype(np.uint8)  # as grey levels 0, 1, ... (at most 8 models): the same regions
+    png, shape = several_png(server, lambda m, rng, dtype: synthesize_guided(
+        m, labels, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
         **settings), models, seed)
+    return png, shape, told
 
 
 async def guided(server, request):
