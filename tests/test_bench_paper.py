@@ -99,3 +99,37 @@ def test_the_docs_name_only_the_scripts_options(bench, capsys):
     block = [readme[start]] + list(itertools.takewhile(lambda line: line.startswith(" "), readme[start + 1:]))
     assert "--quick" in " ".join(block)
     assert _options(usage + " ".join(block)) <= known
+
+
+def test_a_missing_exemplar_stops_the_run_before_any_work_or_output(bench, tmp_path, monkeypatch, capsys):
+    # A fresh checkout without ../shared/textures: one line naming what is missing and the fix, status 2,
+    # no output folder (it stopped with a traceback-free SystemExit at the first fit, the folder made).
+    monkeypatch.setattr(sys.modules["_common"], "TEXTURES", tmp_path / "no-such-folder")
+    out = tmp_path / "out"
+    assert bench.main(["--quick", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("Error: exemplars brick_wall, grass_lawn, red_peppers not found in ")
+    assert "TGHOP_TEXTURES" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_every_exemplar_a_run_reads_is_looked_for(bench, tmp_path, monkeypatch):
+    monkeypatch.setattr(sys.modules["_common"], "TEXTURES", tmp_path)
+    (tmp_path / "brick_wall.jpg").write_bytes(b"")
+    args = bench.parse_args(["--textures", "bricks,knit", "--ust-textures", "brick_wall,fur"])
+    assert bench.needed_exemplars(args) == ["brick_wall", "grass_lawn", "bricks", "knit", "fur"]
+    assert bench.missing_exemplars(bench.needed_exemplars(args)) == ["grass_lawn", "knit", "fur"]  # bricks: built in
+
+
+def test_fig3_follows_the_paper_panels_and_claim(bench):
+    # The paper's Fig. 3: (a) without SDR, (b) with SDR, and "the quality with SDR significantly improves";
+    # the report said SDR left the grass "about as it was" (the paper's Fig. 9 remark) and put "with" first.
+    (first, first_kw), (second, second_kw) = bench.FIG3_PANELS
+    assert first.startswith("(a) without SDR") and first_kw == {"gamma": 0.0}
+    assert second.startswith("(b) with SDR") and second_kw == {}
+    rows = [{"label": label, "dims": {"D2": 1408, "D_r": 1408}, "fit_s": 1.0, "scores": {}}
+            for label, _ in bench.FIG3_PANELS]
+    res = {"sheet": "fig3_sdr.png", "rows": rows}
+    text = bench.md_fig3(res)
+    assert "significantly improves" in text and "about as it was" not in text
+    assert text.index("(a) without SDR") < text.index("(b) with SDR")
