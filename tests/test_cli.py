@@ -334,6 +334,21 @@ def test_paper_with_a_saved_model_gives_the_papers_image_again(workdir):
     assert again.read_bytes() == first.read_bytes() and ours.read_bytes() != first.read_bytes()
 
 
+def test_paper_with_a_layout_model_quilts_without_its_guide(workdir):
+    # The coarse layout's guide is tghop's own: --paper's generation settings leave it out (layout_weight 0).
+    # A model fitted with a layout (the default) still quilted following its guide under --paper.
+    path, out, unguided = workdir / "paper_layout.npz", workdir / "paper_layout.png", workdir / "paper_unguided.png"
+    save_image(data.bricks(112, rng=2), workdir / "bricks112p.png")  # >= 48 * 2: the coarse model is fitted
+    assert run("fit", workdir / "bricks112p.png", "-o", path, *FAST, "--layout", "2").returncode == 0
+    common = ("--paper", "--size", "48", "--seed", "1", "--pool", "300", "-q")
+    r = run("synth", path, "-o", out, "--stages", *common)
+    assert r.returncode == 0, r.stderr.decode()
+    assert (workdir / "paper_layout_quilt.png").exists() and not (workdir / "paper_layout_guide.png").exists()
+    r = run("synth", path, "-o", unguided, "--layout-weight", "0", *common)
+    assert r.returncode == 0, r.stderr.decode()
+    assert out.read_bytes() == unguided.read_bytes()
+
+
 def test_residual_and_detail_switches(workdir):
     import json
 

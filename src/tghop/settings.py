@@ -439,7 +439,8 @@ SETTINGS: Tuple[Setting, ...] = (
             "paper's pipeline).", when="generate", paper=False),
     Setting("layout_weight", 3.0, "float",
             "Weight of the coarse layout's guide in quilting, per pixel relative to the overlap error "
-            "(models fitted with a layout factor; 0 ignores the guide).", when="generate", low=0, high=1e6),
+            "(models fitted with a layout factor; 0 ignores the guide, as the paper's quilting).",
+            when="generate", low=0, high=1e6, paper=0.0),
     Setting("refine", 5, "int",
             "Rounds of multi-scale histogram matching after quilting (Heeger-Bergen style, ours; "
             ":mod:`tghop.refine`; each but the last over-relaxed): restores the contrast of fine detail; "
