@@ -4,7 +4,8 @@
                                                 # --tghop paper); more on a machine busy with other jobs
     python benchmarks/bench_paper.py --quick    # 3 textures, smaller sweeps, Table 2's Ustyuzhaninov run
                                                 # not timed: 8 min on 2 cores busy with other jobs
-                                                # (5 with --ust-textures "")
+                                                # (5 with --ust-textures ""; 12.5 at a load average
+                                                # of 50-85)
 
 Options:
 
