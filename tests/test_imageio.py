@@ -192,6 +192,36 @@ def test_save_image_refuses_pixels_it_would_write_wrong(tmp_path, monkeypatch):
         save_image(levels.astype(np.uint8), "-")
 
 
+@pytest.mark.parametrize("depth", [8, 16])
+@pytest.mark.parametrize("channels", [2, 4])
+def test_dropped_alpha_warning_says_how_much_was_transparent(tmp_path, depth, channels):
+    # An artist's cut-out (a texture on a transparent background) read without its alpha: the
+    # colours under the transparent part (black here) were learnt as texture, and the warning said
+    # only "alpha channel dropped". It now says how much was transparent and how to leave it out;
+    # an opaque image keeps the plain warning; the colours read are the same either way.
+    import warnings
+
+    from tghop.imageio import save_image
+
+    rgba = np.zeros((20, 10, channels))
+    rgba[:, :4, :-1], rgba[:, :4, -1] = 0.6, 1.0  # the left 4 of 10 columns opaque: 60 % transparent
+    save_image(rgba, tmp_path / "cut.png", depth=depth)
+    with pytest.warns(UserWarning) as said:
+        cut = load_image(tmp_path / "cut.png")
+    assert len(said) == 1 and str(said[0].message).startswith("cut.png: alpha channel dropped, though 60% of its "
+                                                              "pixels are transparent")
+    assert "--exclude MASK" in str(said[0].message)
+    assert np.array_equal(cut, rgba[..., :-1] if channels == 4 else rgba[..., :1])
+    rgba[..., -1] = 1.0
+    save_image(rgba, tmp_path / "opaque.png", depth=depth)
+    with pytest.warns(UserWarning) as said:
+        load_image(tmp_path / "opaque.png")
+    assert [str(w.message) for w in said] == ["opaque.png: alpha channel dropped"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_image(tmp_path / "cut.png", keep_alpha=True).shape == (20, 10, channels)
+
+
 @pytest.mark.parametrize("channels, mode", [(2, "LA"), (4, "RGBA")])
 @pytest.mark.parametrize("suffix", [".png", ".tif"])
 def test_alpha_is_written_and_read_back_with_keep_alpha(tmp_path, channels, mode, suffix):

@@ -17,7 +17,38 @@ from .depths import RANGE_TOLERANCE
 from .png import decode_png16
 from .profiles import tiff_profile, to_srgb
 
-__all__ = ["read_deep", "decode_pillow", "file_header", "upright"]
+__all__ = ["read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
+           "transparency_note"]
+
+
+#: Pillow's modes with an alpha channel ("P+transparency": a palette with a transparent entry, as
+#: :func:`decode_pillow` names it).
+ALPHA_MODES = ("RGBA", "LA", "PA", "RGBa", "La", "P+transparency")
+
+
+def has_alpha(mode: str) -> bool:
+    """Whether an image of ``mode`` (as :func:`decode_pillow` or :func:`read_deep` return it) has alpha."""
+    return mode in ALPHA_MODES
+
+
+def transparent_share(alpha) -> float:
+    """The share of an alpha channel's pixels (an array: uint8 or float in [0, 1]) that are more
+    transparent than opaque: those whose colours an exemplar read without its alpha shows anyway."""
+    alpha = np.asarray(alpha)
+    return float(np.mean(alpha < (128 if alpha.dtype == np.uint8 else 0.5))) if alpha.size else 0.0
+
+
+def transparency_note(share) -> str:
+    """What follows "alpha channel dropped" in :func:`tghop.imageio.load_image`'s warning: nothing
+    for an opaque image (or ``share`` None: not known), else how much was transparent and what to do,
+    since the colours under transparent pixels (black, white, whatever the editor left) are then
+    taken as they are, learnt as part of the texture."""
+    if not share:
+        return ""
+    told = "under 1%" if share < 0.005 else f"{share:.0%}"
+    return (f", though {told} of its pixels are transparent: the colours under them are taken as texture; "
+            "crop it to its opaque part, or leave that part out with an exclude mask (--exclude MASK, white "
+            "where it is transparent)")
 
 
 def read_deep(path, max_pixels, keep_alpha=False):
