@@ -1003,3 +1003,31 @@ def test_without_the_web_extra_serve_says_how_to_install_it(tmp_path):
     assert p.returncode == 1
     assert p.stderr.strip().splitlines() == ["Error: tghop serve needs Starlette, uvicorn and python-multipart; "
                                              "install them with: pip install 'tghop[web]'"]
+
+
+def test_a_fit_of_a_partly_transparent_upload_says_so(client):
+    # A cut-out (the texture on a transparent background) dropped on the page: the colours under the
+    # transparent part (black here) were learnt as texture, the results full of black, and the page said
+    # nothing (the command line warned). The fit's answer now carries a note the page shows with
+    # "model ready"; an opaque upload, or a built-in, has none.
+    import numpy as np
+    from PIL import Image
+
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    rgba = np.zeros((96, 96, 4), np.uint8)
+    rgba[:, :48, :3], rgba[:, :48, 3] = to_uint8(data.bricks(96, rng=3))[:, :48], 255  # the right half transparent
+    fits = []
+    for alpha in (rgba, np.dstack([rgba[..., :3], np.full((96, 96), 255, np.uint8)])):
+        buf = io.BytesIO()
+        Image.fromarray(alpha, "RGBA").save(buf, format="PNG")
+        r = client.post("/api/models", files={"image": ("cut out.png", buf.getvalue(), "image/png"),
+                                              **{k: (None, v) for k, v in FAST_FIT.items()}})
+        assert r.status_code in (200, 202), r.text
+        fits.append(r.json())
+    assert fits[0]["notes"] == ["cut_out.png: 50% of its pixels are transparent, and the colours under them are "
+                                "learnt as texture; to leave them out, crop the image to its opaque part"]
+    assert fits[1]["notes"] == [] and fit_with(client, **FAST_FIT).json()["notes"] == []
+    for fit in fits:
+        assert events(client, fit["job"])[-1][1]["state"] == "done"

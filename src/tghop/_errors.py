@@ -4,7 +4,7 @@ always loaded: the CLI's --help and --version load only this)."""
 import sys
 
 __all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
-           "NonNumericError", "NotFittedError", "HINT_DOWNSCALE_YOURSELF"]
+           "NonNumericError", "NotFittedError", "TransparencyWarning", "HINT_DOWNSCALE_YOURSELF"]
 
 #: What to do about an image over the pixel limit where no --downscale option is at hand
 #: (the command line's commands without it, the web server's uploads).
@@ -87,3 +87,14 @@ class NotFittedError(TGHopError, AttributeError):
 
 #: NotFittedError's subclasses that derive from scikit-learn's NotFittedError too, by (class, theirs).
 _WITH_SKLEARN: dict = {}
+
+
+class TransparencyWarning(UserWarning):
+    """An image read without its alpha channel had transparent pixels, whose hidden colours are
+    then taken as they are (:func:`tghop.imageio.load_image`): ``name`` the file's name, ``share``
+    the share of its pixels more transparent than opaque (so that a caller, such as the web
+    server, can say it in its own words)."""
+
+    def __init__(self, message: str, name: str = "", share: float = 0.0):
+        super().__init__(message)
+        self.name, self.share = name, share

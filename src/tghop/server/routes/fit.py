@@ -5,8 +5,10 @@ events of the progress, cancel); docs/serve.md, "POST /api/models" and "Jobs".""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import hashlib
 import json
+import warnings
 
 from ..._errors import TGHopError
 from .. import materials
@@ -15,8 +17,8 @@ from ..jobs import FINAL, JOB_ID, QueueFull, unknown_snapshot
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
 from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, each_file_within, read_body, read_form, read_image
 
-__all__ = ["model_id_for", "prepare_fit", "fit_work", "create_model", "find_job", "job_state", "cancel_job",
-           "job_events", "JOB"]
+__all__ = ["model_id_for", "prepare_fit", "transparency_notes", "fit_work", "create_model", "find_job", "job_state",
+           "cancel_job", "job_events", "JOB"]
 
 #: A job's id: 32 hex digits.
 JOB = JOB_ID
@@ -33,8 +35,10 @@ def model_id_for(content: bytes, settings: dict) -> str:
 
 def prepare_fit(server, fields: dict):
     """Check the request and read the exemplar, and the maps of a material (fields ``map:<name>``;
-    :mod:`tghop.server.materials`), in a worker thread: returns ``(model id, fit)``, ``fit(progress)``
-    fitting the model (a TGHop, or with maps a Material); ``fit`` is None when the model is in the cache."""
+    :mod:`tghop.server.materials`), in a worker thread: returns ``(model id, fit, notes)``, ``fit(progress)``
+    fitting the model (a TGHop, or with maps a Material); ``fit`` is None when the model is in the cache.
+    ``notes``: what the page should tell of the images (an upload's transparent part, whose hidden
+    colours are learnt as texture: :func:`transparency_notes`)."""
     from ..._errors import HINT_DOWNSCALE_YOURSELF
     from ...data import builtin
     from ...fit_options import build_model, fit_params, material_model
@@ -42,8 +46,11 @@ def prepare_fit(server, fields: dict):
     from ...material import Material
     from ...synthesis import prepare_exemplar
 
+    notes = []
+
     def read(path):
-        return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
+        with transparency_notes(notes):
+            return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
 
     upload = fields.pop("image", None)
     name = fields.pop("builtin", None)
@@ -96,7 +103,25 @@ def prepare_fit(server, fields: dict):
 
         def fit(progress):
             return model.fit(image, progress=progress)
-    return model_id, (None if server.cache.has(model_id) else fit)
+    return model_id, (None if server.cache.has(model_id) else fit), notes
+
+
+@contextlib.contextmanager
+def transparency_notes(notes: list):
+    """Within it, an image read without its alpha channel whose pixels were partly transparent
+    (:class:`tghop.TransparencyWarning`) adds a line to ``notes``: the colours under them are
+    learnt as texture, which the page says with the fit (the command line's warning names its
+    ``--exclude``, which the page has not). Other warnings are ignored, as before."""
+    from ..._errors import TransparencyWarning
+
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        yield
+    for w in said:
+        if isinstance(w.message, TransparencyWarning):
+            told = "under 1%" if w.message.share < 0.005 else f"{w.message.share:.0%}"
+            notes.append(f"{w.message.name}: {told} of its pixels are transparent, and the colours under them "
+                         "are learnt as texture; to leave them out, crop the image to its opaque part")
 
 
 def fit_work(server, model_id: str, fit):
@@ -119,7 +144,7 @@ async def create_model(server, request):
     the cache (200)."""
     body = await read_body(request, MAX_FIT_BYTES, what="the upload (the exemplar and its maps together)")
     fields = each_file_within(await read_form(request, body))
-    model_id, fit = await server.decode(request, prepare_fit, server, fields)  # exemplar and maps: their turn, or 503
+    model_id, fit, notes = await server.decode(request, prepare_fit, server, fields)  # exemplar, maps: in turn, or 503
     if fit is None:
         server.cache.touch(model_id)
         job = server.queue.finished(model_id)
@@ -128,7 +153,8 @@ async def create_model(server, request):
             job = server.queue.submit(model_id, fit_work(server, model_id, fit))
         except QueueFull as exc:
             raise RequestError(503, f"the server is busy: {exc}", headers={"Retry-After": str(RETRY_AFTER)}) from None
-    return json_response({"id": model_id, "job": job.id, "state": job.state}, status=202 if not job.final else 200)
+    return json_response({"id": model_id, "job": job.id, "state": job.state, "notes": notes},
+                         status=202 if not job.final else 200)
 
 
 def find_job(server, request):

@@ -252,7 +252,7 @@ async function startFit(form, undo) {
     backToWorking(error, undo);
     return;
   }
-  const { id, job } = await response.json();
+  const { id, job, notes } = await response.json();
   const material = [...form.keys()].some((k) => k.startsWith("map:"));  // a fit with maps makes a material
   if (request !== state.fitRequest) {  // replaced or cancelled while its answer came: withdrawn, as dropRunningFit does
     fetch(`/api/jobs/${job}`, { method: "DELETE" }).catch(() => {});
@@ -260,10 +260,11 @@ async function startFit(form, undo) {
   }
   state.job = job;
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
-  follow(id, job, material, attempt, undo);
+  follow(id, job, material, attempt, undo, notes || []);
 }
 
-function follow(id, job, material, attempt, undo) {
+// `notes`: what the server said of the upload (a transparent part learnt as texture), told with "model ready".
+function follow(id, job, material, attempt, undo, notes) {
   const events = new EventSource(`/api/jobs/${job}/events`);
   state.events = events;
   const update = (snap) => {
@@ -282,7 +283,7 @@ function follow(id, job, material, attempt, undo) {
       $("progress").value = 1;
       setWorking({ ...attempt, modelId: id, material });
       setModel(id, material);
-      say("model ready: generate below");
+      say(["model ready: generate below", ...notes].join(". "));
       showSummary(id);
     } else if (snap.state === "cancelled") {
       backToWorking("fit cancelled", undo, false);
