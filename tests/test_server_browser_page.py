@@ -2,7 +2,8 @@
 real uvicorn server: form controls in the page's font; downloads named for what they are (model, size,
 seed, tileable), the model file's as the server's Content-Disposition names it; the strip of seeds cleared
 when the mode or the working model changes; a size the browser's own check refuses said in the status;
-Morph off, and said why, with a material as A or B; each field of the settings beside its name."""
+Morph off, and said why, with a material as A or B; each field of the settings beside its name; at a
+phone's 400 px the summary wrapped in its box and each progress label on one line."""
 
 import pytest
 
@@ -144,4 +145,26 @@ def test_each_field_of_the_settings_is_beside_its_name(page):
             }).map((l) => l.textContent.trim())""")
             assert below == [], (width, below)
     finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+
+
+def test_a_phone_wide_page_wraps_the_summary_and_keeps_each_progress_label_on_one_line(page):
+    # At 400 px the model's summary ran out of its box (half of each line out of sight, scrolled), and the
+    # generation's label beside its fixed 20rem bar broke over two lines ("layout" above "0 %").
+    fit(page, "bricks")
+    page.set_viewport_size({"width": 400, "height": 900})
+    try:
+        box = page.eval_on_selector("#summary", "e => [e.scrollWidth, e.clientWidth]")
+        assert box[0] <= box[1], box
+        page.evaluate("""() => { const p = document.getElementById('gen-progress'); p.hidden = false;
+                                 p.querySelector('span').textContent = 'patch refine 88 %'; }""")
+        for label in ("#gen-progress span", "#stage"):
+            ems = page.eval_on_selector(label, """e => e.getBoundingClientRect().height
+                                                   / parseFloat(getComputedStyle(e).fontSize)""")
+            assert ems < 1.8, (label, ems)  # one line (about 1.2 em), not two
+            inside = page.eval_on_selector(label, """e => e.getBoundingClientRect().right
+                                                     <= e.closest('section').getBoundingClientRect().right""")
+            assert inside, label
+    finally:
+        page.evaluate("() => { document.getElementById('gen-progress').hidden = true; }")
         page.set_viewport_size({"width": 1200, "height": 1400})
