@@ -3,7 +3,8 @@ real uvicorn server: form controls in the page's font; downloads named for what 
 seed, tileable), the model file's as the server's Content-Disposition names it; the strip of seeds cleared
 when the mode or the working model changes; a size the browser's own check refuses said in the status;
 Morph off, and said why, with a material as A or B; each field of the settings beside its name; at a
-phone's 400 px the summary wrapped in its box and each progress label on one line."""
+phone's 400 px the summary wrapped in its box and each progress label on one line; the tiling's caption
+saying when its seams are expected."""
 
 import pytest
 
@@ -168,3 +169,24 @@ def test_a_phone_wide_page_wraps_the_summary_and_keeps_each_progress_label_on_on
     finally:
         page.evaluate("() => { document.getElementById('gen-progress').hidden = true; }")
         page.set_viewport_size({"width": 1200, "height": 1400})
+
+
+def test_the_tilings_caption_says_when_its_seams_are_expected(page):
+    # The 3x3 tiling was captioned "seams show here" whether or not the result was made tileable: an artist's
+    # plain result showed its edges as seams under a caption that read as a check failed.
+    fit(page, "bricks")
+    page.fill("#height", "48")
+    page.fill("#width", "48")
+    for tile, caption in ((False, "Tiled 3\u00d73 (not made tileable: its edges show as seams)"),
+                          (True, "Tiled 3\u00d73 (seams show here)")):
+        page.set_checked("#tile", tile)
+        page.click("#go")
+        page.wait_for_function("(t) => document.getElementById('download-png').download.endsWith(t ? '-tile.png' : "
+                               "'seed1.png') && document.getElementById('tiled').dataset.ready === '1'", arg=tile,
+                               timeout=90_000)
+        page.wait_for_function("(c) => document.getElementById('tiled-title').textContent === c", arg=caption,
+                               timeout=30_000)
+    page.set_checked("#tile", False)
+    page.fill("#height", "256")
+    page.fill("#width", "256")
+    assert not page.errors, page.errors

@@ -3,7 +3,7 @@
 
 const $ = (id) => document.getElementById(id);
 const state = { modelId: null, job: null, events: null, resultUrl: null, exemplarUrl: null, busy: false,
-  models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null, fitRequest: 0,
+  resultTiles: false, models: [], pendingName: null, brushChosen: false, abort: null, busyButton: null, fitRequest: 0,
   // A whole material: the map files to fit with the exemplar (section 1), the last exemplar
   // fitted (refitted when the maps change), and the maps of the result shown (section 3).
   mapFiles: [], source: null, material: false, shown: null,

@@ -33,6 +33,7 @@ function showResult(url, seed, blob, what, maps, name) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
   state.resultUrl = url;
+  state.resultTiles = Boolean(name && name.tile);  // the tiling's caption says whether its seams are expected
   const base = resultBase(seed, what, name);
   state.shown = maps ? {
     seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })),
@@ -90,8 +91,10 @@ function drawTiled(img) {
   canvas.height = 3 * h;
   const ctx = context2d(canvas);
   for (let y = 0; y < 3; y++) for (let x = 0; x < 3; x++) ctx.drawImage(img, x * w, y * h, w, h);
-  $("tiled-title").textContent = scale < 1 ? `Tiled 3\u00d73, shown at ${Math.round(100 * scale)} % (seams show here)`
-    : "Tiled 3\u00d73 (seams show here)";
+  // A result not made tileable shows its edges as seams here, as it should: said, lest they look like a fault.
+  const seams = state.resultTiles ? "(seams show here)" : "(not made tileable: its edges show as seams)";
+  $("tiled-title").textContent = scale < 1 ? `Tiled 3\u00d73, shown at ${Math.round(100 * scale)} % ${seams}`
+    : `Tiled 3\u00d73 ${seams}`;
   $("tiled-title").hidden = $("tiled-box").hidden = false;  // hidden until there is a result
   canvas.dataset.ready = "1";
 }
