@@ -347,3 +347,21 @@ def test_ichm_passes_the_scikit_learn_checks_that_apply_to_it(name):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         getattr(estimator_checks, name)("ICHM", ICHM(n_clusters=2, min_cluster_size=2, rng=0))
+
+
+def test_ichm_alone_learns_the_same_on_one_blas_thread_or_several():
+    # ICHM.fit's K-means of the vectors and of the CDF codebook ran on as many BLAS threads as the process had: alone
+    # (not inside TGHop.fit, which holds one), OpenBLAS's rounding by thread count gave another codebook, so a clone
+    # of a fitted model's ichm_ refitted on its input learned something else.
+    from threadpoolctl import threadpool_limits
+
+    from tghop.core import ICHM
+
+    z = np.random.default_rng(1).standard_normal((3000, 120)) @ np.random.default_rng(2).standard_normal((120, 120))
+    learned = []
+    for threads in (1, 2):
+        with threadpool_limits(limits=threads):
+            learned.append(ICHM(n_clusters=8, n_codewords=40, rng=0).fit(z)._to_arrays())
+    one, two = learned
+    assert sorted(one) == sorted(two)
+    assert not [k for k in one if not np.array_equal(one[k], two[k])]

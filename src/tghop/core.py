@@ -248,7 +248,8 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         """
         forget_fit(self, _CACHES)
         try:
-            return self._fit(Z, groups, progress)
+            with one_blas_thread():  # the same model on any number of cores, alone as inside TGHop.fit
+                return self._fit(Z, groups, progress)
         except BaseException:
             forget_fit(self, _CACHES)
             raise
