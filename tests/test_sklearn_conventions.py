@@ -365,3 +365,95 @@ def test_ichm_alone_learns_the_same_on_one_blas_thread_or_several():
     one, two = learned
     assert sorted(one) == sorted(two)
     assert not [k for k in one if not np.array_equal(one[k], two[k])]
+
+
+# ------------------------------------------------------------------ the parts' generators
+# A fitted TGHop's ICHM, CoarseLayout and the layout's own TGHop (and a Material's TGHop) held the fit's Generator
+# itself, used up by the fit: their repr showed it, get_params gave a live generator shared with the fit and with each
+# other, and clone(part).fit(the same input) learned something else. Each now holds a copy as it was before its fit.
+
+def _fitted_subparts(est, path):
+    """Every fitted part under ``est`` (attributes ending in ``_`` with get_params, lists of them too), by path."""
+    out = {}
+    for name, value in vars(est).items():
+        if not name.endswith("_") or name.startswith("_"):
+            continue
+        for i, part in enumerate(value if isinstance(value, list) else [value]):
+            if callable(getattr(part, "get_params", None)):
+                where = f"{path}.{name}" + (f"[{i}]" if isinstance(value, list) else "")
+                out[where] = part
+                out.update(_fitted_subparts(part, where))
+    return out
+
+
+def _recording_fits(monkeypatch, *classes):
+    """Each fit of an instance of ``classes``' input, by the instance's id."""
+    calls = {}
+    for cls in classes:
+        def spy(self, *args, _fit=cls.fit, **kwargs):
+            calls[id(self)] = (args, kwargs)
+            return _fit(self, *args, **kwargs)
+        monkeypatch.setattr(cls, "fit", spy)
+    return calls
+
+
+def _assert_same_arrays(a, b, what):
+    assert sorted(a) == sorted(b), what
+    differ = [k for k in a if not np.array_equal(a[k], b[k])]
+    assert not differ, f"{what}: {differ[:5]}"
+
+
+def _assert_no_shared_generator(parts, given):
+    """No part's parameters hold ``given`` (the fit's Generator) or a Generator another part holds."""
+    seen = {}
+    for where, part in parts.items():
+        for k, v in part.get_params(deep=False).items():
+            if isinstance(v, np.random.Generator):
+                assert v is not given, f"{where}.{k} is the fit's own generator"
+                assert id(v) not in seen, f"{where}.{k} is {seen[id(v)]}'s generator too"
+                seen[id(v)] = f"{where}.{k}"
+    return seen
+
+
+def test_a_fitted_parts_clone_refitted_on_its_input_learns_it_again(bricks96, monkeypatch, tmp_path):
+    from tghop.core import ICHM
+    from tghop.modelfile import load_model, save_model
+    from tghop.synthesis import CoarseLayout
+
+    calls = _recording_fits(monkeypatch, ICHM, CoarseLayout, TGHop)
+    given = np.random.default_rng(5)
+    model = TGHop(**{**SMALL, "rng": given, "max_patches": 200}).fit(bricks96)
+    after = given.bit_generator.state
+    assert model.layout_ is not None
+    parts = _fitted_subparts(model, "model")
+    held = _assert_no_shared_generator(parts, given)
+    assert {"model.ichm_.rng", "model.layout_.rng", "model.layout_.model_.rng", "model.layout_.model_.ichm_.rng"} \
+        <= set(held.values())
+    assert "Generator" in repr(model.ichm_) and repr(model.ichm_.rng) != repr(given)
+    for where in ("model.ichm_", "model.layout_", "model.layout_.model_", "model.layout_.model_.ichm_"):
+        part = parts[where]
+        args, kwargs = calls[id(part)]
+        again = sklearn.base.clone(part).fit(*args, **kwargs)
+        state = (lambda p: p.model_) if isinstance(part, CoarseLayout) else (lambda p: p)
+        _assert_same_arrays(state(part)._to_arrays(), state(again)._to_arrays(), where)
+    assert given.bit_generator.state == after  # refitting the parts drew nothing from the fit's generator
+    save_model(model, tmp_path / "m.npz")  # the parts' generators are not in the file: loaded, they hold none
+    loaded = _fitted_subparts(load_model(tmp_path / "m.npz"), "model")
+    assert sorted(loaded) == sorted(parts)
+    assert not [where for where, part in loaded.items()
+                if isinstance(part.get_params().get("rng"), np.random.Generator)]
+
+
+def test_a_materials_model_holds_its_own_generator_as_it_was_before_the_fit(bricks96, monkeypatch):
+    calls = _recording_fits(monkeypatch, TGHop)
+    given = np.random.default_rng(6)
+    mat = Material(model=TGHop(**{**SMALL, "layout_factor": None}), rng=given).fit(
+        bricks96, {"height": bricks96.mean(axis=2)})
+    _assert_no_shared_generator(_fitted_subparts(mat, "material"), given)
+    assert isinstance(mat.model_.rng, np.random.Generator) and mat.get_params()["rng"] is given
+    args, kwargs = calls[id(mat.model_)]
+    _assert_same_arrays(mat.model_._to_arrays(), sklearn.base.clone(mat.model_).fit(*args, **kwargs)._to_arrays(),
+                        "material.model_")
+    seeded = Material(model=TGHop(**{**SMALL, "layout_factor": None}), rng=3).fit(bricks96)
+    assert seeded.model_.rng == 3  # an int seed stays one (the model file records it)
+

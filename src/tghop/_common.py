@@ -10,6 +10,7 @@ here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`
 from __future__ import annotations
 
 import contextlib
+import copy
 import functools
 import inspect
 import math
@@ -30,6 +31,7 @@ __all__ = [
     "check_is_fitted",
     "ProgressCallback",
     "check_rng",
+    "fit_part",
     "check_image",
     "checked_image",
     "check_texture",
@@ -354,6 +356,24 @@ def check_rng(rng: RngLike) -> np.random.Generator:
             raise TGHopError(f"seed must be a non-negative integer, got {rng}")
         return np.random.default_rng(None if rng is None else int(rng))
     raise TGHopError(f"rng must be None, an int seed or numpy.random.Generator, got {type(rng).__name__}")
+
+
+def fit_part(part, rng: np.random.Generator, *args, **kwargs):
+    """``part.fit(*args, **kwargs)`` drawing from ``rng`` as if ``rng`` were its own, leaving ``part.rng``
+    a copy of ``rng`` as it was before: what reproduces it (``sklearn.base.clone(part).fit(*args)``).
+
+    The fit draws from that copy; ``rng`` is then moved on to where the fit left it (also when the fit
+    fails), so the caller's later draws are those a fit from ``rng`` itself leaves, bit for bit, and no
+    fitted part holds the caller's generator, used up. Returns ``part``.
+    """
+    own = copy.deepcopy(rng)
+    start = own.bit_generator.state
+    part.rng = own
+    try:
+        return part.fit(*args, **kwargs)
+    finally:
+        rng.bit_generator.state = own.bit_generator.state
+        own.bit_generator.state = start
 
 
 def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float64, channels=(1, 3)) -> np.ndarray:

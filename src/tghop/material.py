@@ -37,7 +37,7 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fitted_settings,
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fit_part, fitted_settings,
                       one_blas_thread, report)
 from .colour import match_histograms
 from .refine import BandStatistics, refine as refine_bands
@@ -450,14 +450,17 @@ class Material(BaseEstimator):
         params = base.get_params()
         if self.rng is not None:
             params["rng"] = self.rng
-        if settings.recorded_seed(params["rng"]) is None:  # an int seed stays one: the model file records it
-            params["rng"] = check_rng(params["rng"])
         params["patch_levels"] = 0  # the patch refinement does not apply to materials
         given = params.get("n_channels")
         if given is not None and any(k is None for k in given):  # some given (--k1 alone): the rest by default
             defaults = default_channels(params["patch_size"], stack.shape[2])
             params["n_channels"] = tuple(d if k is None else k for k, d in zip(given, defaults))
-        model = TGHop(**params).fit(stack, exclude=exclude, progress=progress)
+        model = TGHop(**params)
+        if settings.recorded_seed(params["rng"]) is None:  # an int seed stays one: the model file records it
+            # A Generator (None: a fresh one) is drawn from as before; the model keeps a copy of it as it was.
+            model = fit_part(model, check_rng(params["rng"]), stack, exclude=exclude, progress=progress)
+        else:
+            model.fit(stack, exclude=exclude, progress=progress)
         scale = model.scale  # each map's bands at the joint model's working scale
         ex = None if exclude is None else rescale_mask(np.asarray(exclude, dtype=bool), scale)
         bands = [BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)

@@ -37,7 +37,7 @@ import numpy as np
 
 from . import generation, settings
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_rng,
-                      fitted_settings, grey_as_rgb, one_blas_thread, report)
+                      fit_part, fitted_settings, grey_as_rgb, one_blas_thread, report)
 from ._arrays import forget_fit
 from .codec import PatchCodec
 from .core import ICHM
@@ -84,6 +84,8 @@ class TGHop(PatchCodec, BaseEstimator):
     hops_ : HopStack
     sdr_ : SpatialReduction
     ichm_ : ICHM
+        Its ``rng``: a copy of the fit's generator as it was before this part's fit (what refits it;
+        None in a loaded model).
     exemplar_shape_ : tuple
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
@@ -100,7 +102,7 @@ class TGHop(PatchCodec, BaseEstimator):
         Training patches used.
     layout_ : tghop.synthesis.CoarseLayout or None
         The coarse layout model (``layout_factor`` set and the exemplar large enough; its
-        ``factor`` is the one used: :func:`tghop.layout.usable_factor`).
+        ``factor`` is the one used: :func:`tghop.layout.usable_factor`); its ``rng`` as ``ichm_``'s.
     """
 
     # The fit settings of tghop.settings.SETTINGS, in its order and with its defaults
@@ -240,7 +242,7 @@ class TGHop(PatchCodec, BaseEstimator):
     def _fit(self, image, *, exclude=None, progress=None):
         self.check_settings()  # parameter errors before touching the image
         rng = check_rng(self.rng)
-        ichm = ICHM(**settings.component_params(self, "ichm"), rng=rng)
+        ichm = ICHM(**settings.component_params(self, "ichm"))  # rng: fit_part's copy of the fit's, at its fit
         image = prepare_exemplar(image, channels=None)
         self.check_exemplar_size(image.shape, ichm)  # names the smallest exemplar that works
         exclude = check_exclude(exclude, image.shape)
@@ -274,13 +276,13 @@ class TGHop(PatchCodec, BaseEstimator):
         z, self.sdr_ = sdr.fit_transform(core), sdr
         report(progress, "SDR", 1, 1)
         del core
-        self.ichm_ = ichm.fit(z, groups=sdr.channel_, progress=progress)
+        self.ichm_ = fit_part(ichm, rng, z, groups=sdr.channel_, progress=progress)
         self.layout_ = None
         factor = self.layout_factor and CoarseLayout(factor=self.layout_factor).usable_factor(image.shape, exclude)
         if factor:
             report(progress, "layout", 0, 1)
             levels = min(int(self.patch_levels), layout.PATCH_LEVELS)
-            self.layout_ = CoarseLayout(factor=factor, patch_levels=levels, rng=rng).fit(image, exclude=exclude)
+            self.layout_ = fit_part(CoarseLayout(factor=factor, patch_levels=levels), rng, image, exclude=exclude)
             report(progress, "layout", 1, 1)
         return self
 
@@ -561,11 +563,13 @@ class CoarseLayout(BaseEstimator):
         Pyramid levels of the coarse model's patch statistics, for the guide's patch
         refinement (0: none, as up to tghop 0.47).
     rng : int or numpy.random.Generator, optional
+        A Generator is drawn from (advanced); the coarse model keeps a copy of it as it was.
 
     Attributes
     ----------
     model_ : TGHop
-        The coarse model (fitted on the downsampled exemplar).
+        The coarse model (fitted on the downsampled exemplar; its ``rng`` the int seed given, or
+        a copy of the generator as it was before the fit).
 
     Example
     -------
@@ -649,12 +653,17 @@ class CoarseLayout(BaseEstimator):
                                           max_patches=self.max_patches)
         small = layout.downsample(img, int(self.factor))  # 8-bit stays 8-bit: a byte per value
         small_exclude = None if exclude is None else downsample_mask(np.asarray(exclude, dtype=bool), int(self.factor))
-        self.model_ = TGHop(
+        model = TGHop(
             patch_size=int(self.patch_size), cluster_energy=self.cluster_energy,
             max_cluster_components=self.max_cluster_components, gamma=self.gamma, layout_factor=None,
-            patch_levels=self.patch_levels, colour_classes=0,
-            rng=check_rng(self.rng), **training,
-        ).fit(small, exclude=small_exclude)
+            patch_levels=self.patch_levels, colour_classes=0, rng=self.rng, **training,
+        )
+        # An int seed stays one (the model file records it); a Generator (or None's fresh one) is drawn
+        # from as before, the model keeping a copy of it as it was (fit_part).
+        if settings.recorded_seed(self.rng) is None:
+            self.model_ = fit_part(model, check_rng(self.rng), small, exclude=small_exclude)
+        else:
+            self.model_ = model.fit(small, exclude=small_exclude)
         return self
 
     def guide(self, size, **options):
