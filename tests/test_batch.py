@@ -1222,6 +1222,95 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path):
     assert inline["seen"]["cores"] == usable_cores() and inline["threads"] is None  # in process: every core
 
 
+def _threads_now():
+    from threadpoolctl import threadpool_info
+
+    from tghop import _common
+
+    return {"cores": _common.usable_cores(),
+            "blas": max([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] or [1])}
+
+
+def _wait_for(path, timeout=120):
+    deadline = time.time() + timeout
+    while not path.exists():
+        assert time.time() < deadline, f"{path.name} never came"
+        time.sleep(0.02)
+
+
+def two_at_once(job):
+    """The task, two at once in one worker process: A enters its thread limits, then B, then A
+    ends; B notes the limits it runs under after that (files in OUTDIR's parent order them)."""
+    import threading
+
+    from tghop import fit_options
+
+    sync, me, seen = Path(job["folder"]).parent.parent, job["name"], {}
+    if not hasattr(fit_options, "test_hooks"):  # one hook per process (both tasks would patch it)
+        fit_options.test_hooks, original = {}, fit_options.model_for
+
+        def model_for(*args, **kwargs):  # called inside the task's thread limits
+            fit_options.test_hooks.get(threading.get_ident(), lambda: None)()
+            return original(*args, **kwargs)
+
+        fit_options.model_for = model_for
+
+    def hook():
+        if me == "a":
+            (sync / "a-in").touch()
+            _wait_for(sync / "b-in")
+        else:
+            (sync / "b-in").touch()
+            _wait_for(sync / "a-done")
+            seen.update(_threads_now())
+
+    fit_options.test_hooks[threading.get_ident()] = hook
+    if me == "b":
+        _wait_for(sync / "a-in")  # A is inside its limits first
+    try:
+        record = batch.process_exemplar(job)
+    finally:
+        del fit_options.test_hooks[threading.get_ident()]
+    if me == "a":
+        (sync / "a-done").touch()
+    return {**record, "seen": seen}
+
+
+def test_two_tasks_in_one_worker_keep_one_thread_each(tmp_path, monkeypatch):
+    # A worker started by hand with --nthreads 2 runs two tasks in one process, and BLAS's thread
+    # limit and tghop's own (usable_cores) are the process's: when the first task ended it put
+    # back the limits from before it while the second still ran, which then fitted on every core
+    # (and on every BLAS thread where the worker's default is more: dask worker --no-nanny).
+    dask = pytest.importorskip("dask")
+    distributed = pytest.importorskip("distributed")
+    import cloudpickle
+    import logging
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    src = tmp_path / "src"
+    src.mkdir()
+    save_image(data.bricks(64, rng=3), src / "a.png")
+    save_image(data.cells(64, rng=4), src / "b.png")
+    if batch.affinity_cores() < 2:
+        pytest.skip("one core: every limit is one thread anyway")
+    # A worker's BLAS on 2 threads (Dask's nanny sets OPENBLAS_NUM_THREADS=1, --no-nanny does not;
+    # the parent's environment wins, and an earlier cluster left 1 there).
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": {"OPENBLAS_NUM_THREADS": "2"}}):
+        cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=True,
+                                           dashboard_address=":0", silence_logs=logging.CRITICAL)
+    client = distributed.Client(cluster)
+    try:
+        (before,) = client.run(_threads_now).values()
+        assert before["blas"] == 2 and before["cores"] >= 2, before
+        results = run(src, tmp_path / "out", client=client, task=two_at_once)
+        assert [r["status"] for r in results] == ["ok", "ok"], results
+        assert results[1]["seen"] == {"cores": 1, "blas": 1}  # it was {"cores": 2, "blas": 2} (2 cores)
+    finally:
+        client.close()
+        cluster.close()
+
+
 def test_an_exemplar_over_the_pixel_limit_is_told_to_downscale_itself(tmp_path):
     # batch has no --downscale (and run no downscale=): it was told "pass downscale=True"
     from test_cli_failures import png_header

@@ -12,6 +12,7 @@ import contextlib
 import os
 import shutil
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -19,12 +20,55 @@ from pathlib import Path
 from ._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from ._formats import is_model_file, model_file_kind
 
-__all__ = ["process_exemplar", "remove_temporaries", "one_line", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
+__all__ = ["process_exemplar", "remove_temporaries", "one_line", "task_threads", "STAGE", "THUMBNAIL",
+           "THUMBNAIL_FILE"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
 #: Longest side of the exemplar thumbnail of the contact sheet, and its file in NAME/.
 THUMBNAIL, THUMBNAIL_FILE = 128, "exemplar.png"
+#: The process-wide thread limits of the tasks running in this process (:func:`task_threads`).
+_HOLD = {"lock": threading.Lock(), "count": 0, "limit": None, "stack": None}
+
+
+@contextlib.contextmanager
+def task_threads(n):
+    """Context manager: BLAS (``threadpoolctl``) and tghop's own threads
+    (:func:`tghop._common.limit_cores`) at most ``n`` (None: no limit) while any task of this
+    process is inside, OpenMP's in the calling thread.
+
+    Both limits are the process's, not a thread's: on a worker that runs two tasks at once
+    (``dask worker --nthreads 2``) each task entering and leaving limits of its own put back,
+    when the first ended, the limits from before it while the other still ran (its ICHM clusters
+    and refinement on every core, its BLAS too where the worker's default is more than one
+    thread: ``--no-nanny``). So the first task to enter sets them, a task asking for fewer
+    lowers them, and the last to leave puts back what was there before (BLAS's only where it left
+    in the thread that set it: threadpoolctl lets that thread alone change OpenBLAS's limit, so
+    a worker may keep one BLAS thread after its tasks)."""
+    if n is None:
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    from ._common import limit_cores
+
+    with _HOLD["lock"]:
+        if _HOLD["count"] == 0:
+            _HOLD["stack"], _HOLD["limit"] = contextlib.ExitStack(), None
+        if _HOLD["limit"] is None or n < _HOLD["limit"]:
+            _HOLD["stack"].enter_context(threadpool_limits(limits=n, user_api="blas"))
+            _HOLD["stack"].enter_context(limit_cores(n))
+            _HOLD["limit"] = n
+        _HOLD["count"] += 1
+    try:
+        with threadpool_limits(limits=n, user_api="openmp"):  # a thread's own setting (omp_set_num_threads)
+            yield
+    finally:
+        with _HOLD["lock"]:
+            _HOLD["count"] -= 1
+            if _HOLD["count"] == 0:
+                _HOLD["stack"].close()
+                _HOLD["stack"] = _HOLD["limit"] = None
 
 
 def _numbered(name: str, count: int):
@@ -90,7 +134,7 @@ def process_exemplar(job: dict) -> dict:
     ``job``: ``source`` (the image file), ``folder`` (its output folder), ``name``, ``size``, ``count``,
     ``seed`` (None: a fresh one, recorded), ``fit`` (TGHop's parameters), ``generate`` (keywords of
     :meth:`TGHop.synthesize`), ``threads`` (threads at most, BLAS's and tghop's own:
-    :func:`tghop._common.limit_cores`; None: no limit), ``maps`` (``[[name, file]]``: the exemplar
+    :func:`task_threads`; None: no limit), ``maps`` (``[[name, file]]``: the exemplar
     is the albedo of a whole material, :class:`tghop.material.Material`; each image is then the
     albedo ``NAME.png`` and a file per map, ``NAME_<map>.png``, at the map's depth, as ``tghop
     synth`` writes a material).
@@ -116,9 +160,7 @@ def process_exemplar(job: dict) -> dict:
     stage, caught = None, []
     try:
         import numpy as np
-        from threadpoolctl import threadpool_limits
 
-        from ._common import limit_cores
         from .fit_options import material_model, model_for
         from .imageio import deepest, load_image, save_image
         from .material import Material, map_file
@@ -131,8 +173,8 @@ def process_exemplar(job: dict) -> dict:
         # once all are made: a failed, interrupted or killed task leaves none of its files
         # (and the files of an earlier run of this exemplar as they were).
         stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
-        with threadpool_limits(limits=job.get("threads")), limit_cores(job.get("threads")), \
-                warnings.catch_warnings(record=True) as caught:  # the ledger's, not a worker's stderr
+        # The warnings are the ledger's, not a worker's stderr.
+        with task_threads(job.get("threads")), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             fit = job.get("fit") or {}
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
