@@ -477,6 +477,39 @@ def test_no_name_starts_with_a_dash(tmp_path):
     assert [it["name"] for it in batch.find_work(tmp_path / "m.csv")] == ["given"]
 
 
+def test_no_name_is_one_windows_keeps_for_a_device(tmp_path):
+    # "con.png" was the folder "con" and the model "con/con.npz": an OUTDIR copied to Windows (or
+    # made on a share it serves) cannot hold them. Such a name gets "_" after its device's name;
+    # every other name is as before, so resumed runs find their work.
+    from tghop.batch_plan import keep_ledger_names, windows_reserved
+
+    src = tmp_path / "src"
+    rels = ("con.png", "Nul.jpg", "aux.v2.png", "com1.png", "LPT9.png", "prn.png", "lpt0.png",  # devices
+            "com10.png", "console.png", "x.con.png", "sub/con.png", "comx.png", "a.nul.png")  # ordinary
+    for rel in rels:
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        (src / rel).write_bytes(b"x")
+    names = {str(it["rel"]): it["name"] for it in batch.find_work(src)}
+    assert names == {"con.png": "con_", "Nul.jpg": "Nul_", "aux.v2.png": "aux_.v2", "com1.png": "com1_",
+                     "LPT9.png": "LPT9_", "prn.png": "prn_", "lpt0.png": "lpt0_", "com10.png": "com10",
+                     "console.png": "console", "x.con.png": "x.con", "sub/con.png": "sub__con", "comx.png": "comx",
+                     "a.nul.png": "a.nul"}, names
+    assert not any(windows_reserved(n) for n in names.values())
+    (src / "con_.png").write_bytes(b"x")  # "con_" is "con" too (no name ends in "_"): still two names
+    names = [it["name"] for it in batch.find_work(src)]
+    assert len({n.lower() for n in names}) == len(names) and not any(windows_reserved(n) for n in names)
+    (tmp_path / "m.csv").write_text("path,name\nsrc/con.png,AUX\nsrc/Nul.jpg,nul.tex\nsrc/prn.png,prn tex\n")
+    assert [it["name"] for it in batch.find_work(tmp_path / "m.csv")] == ["AUX_", "nul_.tex", "prn_tex"]
+    # An earlier run's folder "con" (before names avoided devices) is not kept; an ordinary one is.
+    items = batch.find_work(src)
+    previous = {"con": {"source": str(src / "con.png")}, "old_console": {"source": str(src / "console.png")}}
+    keep_ledger_names(items, previous)
+    by = {str(it["rel"]): it["name"] for it in items}
+    assert by["console.png"] == "old_console" and not windows_reserved(by["con.png"])
+    assert [windows_reserved(n) for n in ("con", "CON.txt", "nul .x", "a.", "a ", "com0", "comx", "aa")] == \
+        [True, True, True, True, True, True, False, False]
+
+
 def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     src, out = tmp_path / "src", tmp_path / "out"
     (src / "sub").mkdir(parents=True)

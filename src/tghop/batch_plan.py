@@ -28,9 +28,9 @@ from .batch_task import THUMBNAIL_FILE
 from .contact_sheet import CONTACT_SHEET
 from .manifest import read_manifest
 
-__all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "find_work", "inputs_sha256", "file_sha256",
-           "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files", "open_ledger", "append_ledger",
-           "is_done", "mark_running", "remove_stale"]
+__all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED", "windows_reserved", "find_work",
+           "inputs_sha256", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
+           "open_ledger", "append_ledger", "is_done", "mark_running", "remove_stale"]
 
 
 #: File extensions taken as exemplars when SOURCE is a folder.
@@ -75,11 +75,26 @@ def _scan_folder(folder: Path, outdir: Path):
     return items
 
 
-def _safe(text: str) -> str:
+#: Names Windows keeps for devices, with or without an extension and in any case (``con``,
+#: ``Nul.png``, ``com1.tar.gz``): no file or folder can have one there.
+WINDOWS_RESERVED = frozenset({"CON", "PRN", "AUX", "NUL", *(f"{d}{i}" for d in ("COM", "LPT") for i in range(10))})
+
+
+def windows_reserved(name: str) -> bool:
+    """Whether ``name`` cannot name a file or folder on Windows: a device's name
+    (:data:`WINDOWS_RESERVED`, before its first ``.``, trailing spaces aside) or one ending in
+    ``.`` or a space (Windows drops them: ``a.`` is ``a``)."""
+    return name.endswith((".", " ")) or name.split(".", 1)[0].rstrip(" ").upper() in WINDOWS_RESERVED
+
+
+def _safe(text: str, reserved: bool = True) -> str:
     # Accents dropped first (NFKD: "é" is "e" and a combining mark), so that "béans" is "beans", not "b_ans".
     text = "".join(ch for ch in unicodedata.normalize("NFKD", text) if not unicodedata.combining(ch))
     # No leading "-" either (as a map's name): "-x/-x.npz" was taken for options by tghop synth, ls, ...
     name = re.sub(r"[^A-Za-z0-9._-]+", "_", text).lstrip("._-").rstrip("._") or "unnamed"
+    if reserved and windows_reserved(name):  # "con" -> "con_", "nul.x" -> "nul_.x": no such folder on Windows
+        first, dot, rest = name.partition(".")
+        name = f"{first}_{dot}{rest}"
     # OUTDIR's own files (a folder of that name would stand there) and the thumbnail (<name>.png's).
     return name + "_exemplar" if name.lower() in (LEDGER, CONTACT_SHEET, Path(THUMBNAIL_FILE).stem) else name
 
@@ -119,7 +134,7 @@ def _unique_names(items):
                 continue
             for it in group:
                 if step == "suffix" and it["rel"].suffix:
-                    it["name"] += "_" + _safe(it["rel"].suffix[1:])
+                    it["name"] += "_" + _safe(it["rel"].suffix[1:], reserved=False)  # not its name's start
                 elif step == "hash":
                     it["name"] += "_" + hashlib.sha256(str(it["rel"]).encode()).hexdigest()[:8]
     seen = dict.fromkeys(given, 1)
@@ -226,8 +241,8 @@ def keep_ledger_names(items, previous) -> None:
     for it, source in zip(items, sources):
         names = by_source.get(source, [])
         if it.get("named") or it["name"] in names or len(names) != 1 or sources.count(source) != 1 \
-                or len(names[0]) > NAME_MAX:  # a name too long for its files: that run failed
-            continue
+                or len(names[0]) > NAME_MAX or windows_reserved(names[0]):  # too long for its files (that run
+            continue  # failed), or a name Windows keeps for a device (an earlier version's): the plan's instead
         if names[0].lower() not in taken:
             taken.discard(it["name"].lower())
             it["name"] = names[0]
