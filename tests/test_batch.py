@@ -795,6 +795,51 @@ def test_cli_end_to_end_in_process(tmp_path):
     assert_one_line(code, err, "nothere", "no such folder or manifest", exception=exc)
 
 
+def test_folders_of_exemplars_gone_from_source_are_said_and_pruned_on_request(tmp_path):
+    # Exemplars removed from SOURCE between runs left their folders in OUTDIR, and nothing said
+    # so. Now each run names them; --prune deletes the files the ledger says tghop made there,
+    # and the folder where nothing else is in it; never anything else.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    save_image(data.cells(64, rng=5), src / "c.png")
+    args = ["batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--seed", "1", *CLI_FAST]
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 0, err
+    (src / "c.png").unlink()
+    (src / "sub" / "a.png").unlink()
+    (out / "sub__a" / "notes.txt").write_text("mine")  # the user's own file in one of them
+    (out / "mine").mkdir()  # a folder no ledger line names
+    (out / "mine" / "mine.png").write_bytes(b"x")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "e.png").write_bytes(b"x")
+    (out / "link").symlink_to(elsewhere)
+    with open(out / "batch.jsonl", "a") as fh:  # hand-edited lines: a link, a path out of OUTDIR
+        for name, files in (("link", ["link/e.png"]), ("..", ["../src/a.png"]), ("x/..", ["src/a.png"])):
+            fh.write(json.dumps({"name": name, "status": "ok", "outputs": files, "model": files[0]}) + "\n")
+    every = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (a,) = run(src, out, workers=1)
+    assert a["skipped"]
+    said = [str(w.message) for w in caught if "no longer in SOURCE" in str(w.message)]
+    assert len(said) == 1 and "2 folders of exemplars no longer in SOURCE: c, sub__a; prune=True" in said[0], said
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 0, err
+    assert "no longer in SOURCE: c: kept\nno longer in SOURCE: sub__a: kept\n" in err, err
+    assert "; 2 folders of exemplars no longer in SOURCE kept (--prune removes them)" in err, err
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == every  # nothing removed
+    code, _, err, _ = invoke(*args, "--prune", cwd=tmp_path)
+    assert code == 0, err
+    assert "no longer in SOURCE: c: removed\n" in err and "sub__a: its files removed, the folder kept" in err, err
+    assert "2 folders of exemplars no longer in SOURCE: 1 removed, 1 kept for files tghop did not make" in err, err
+    left = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    assert left == sorted([p for p in every if not p.startswith(("out/c", "out/sub__a/"))] + ["out/sub__a/notes.txt"])
+    code, _, err, _ = invoke(*args, "--prune", cwd=tmp_path)  # the user's folder is not tghop's any more
+    assert code == 0 and "no longer in SOURCE" not in err, err
+    (a,) = run(src, out, workers=1)
+    assert a["skipped"] and a["status"] == "ok"
+
+
 def test_a_warning_names_its_exemplar(tmp_path):
     # Two exemplars a.png in two folders, each with an alpha channel: the command said
     # "Warning: a.png: alpha channel dropped" twice, and which was which the ledger alone told.

@@ -39,9 +39,9 @@ from ._errors import MissingExtraError, TGHopError
 from .batch_dask import (INSTALL_HINT, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE, affinity_cores, connect,
                          ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
                          run_distributed, tune_malloc)
-from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_work,
-                         inputs_sha256, is_done, keep_ledger_names, mark_running, open_ledger, read_ledger,
-                         read_ledger_files, remove_stale)
+from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_orphans,
+                         find_work, inputs_sha256, is_done, keep_ledger_names, mark_running, open_ledger,
+                         prune_orphans, read_ledger, read_ledger_files, remove_stale)
 from .batch_task import process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -135,7 +135,7 @@ def _check_call(outdir, fit, generate, workers, callables) -> None:
 
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
         workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
-        task=None):
+        task=None, prune=False, on_orphans=None):
     """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
 
     Parameters
@@ -178,6 +178,14 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     task : callable(job) -> record, optional
         What runs per exemplar (default :func:`process_exemplar`); a wrapper of it, e.g. to log
         or to test what a dying worker does. Dask must be able to pickle it.
+    prune : bool
+        Delete the folders an earlier run made in OUTDIR for exemplars no longer in ``source``
+        (removed or renamed there since; :func:`tghop.batch_plan.find_orphans`): the files their
+        ledger lines list, and the folder where nothing else is in it (:func:`tghop.batch_plan.prune_orphans`).
+    on_orphans : callable(orphans), optional
+        Called once, before any work, where there are such folders: a list of dicts, ``name``
+        (the folder's), ``pruned`` (its files removed) and ``kept`` (the entries left in it: not
+        tghop's, so the folder stays). Without it, a warning names them.
 
     Returns
     -------
@@ -186,7 +194,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         ``sha256``, ``settings``, ``status``, ``error``, ``outputs``, ``model``, times, ...) and
         ``skipped`` (True: done by an earlier run).
     """
-    _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task})
+    _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task,
+                                                  "on_orphans": on_orphans})
     most = WORKERS_PER_CORE * affinity_cores()
     if client is None and scheduler is None and workers is not None and workers > most:
         raise TGHopError(f"the worker processes (workers, --workers): {workers} on this machine's "
@@ -222,6 +231,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     task = process_exemplar if task is None else task
     previous, earlier_files = read_ledger_files(outdir)
     keep_ledger_names(items, previous)
+    orphans = find_orphans(outdir, earlier_files, [it["name"] for it in items])
     jobs, results = [], {}
     for it in items:
         settings = _settings(it["settings"], defaults, fit, generate)
@@ -248,8 +258,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         from .imageio import check_output_path
 
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
-        if jobs:
-            ledger_file = open_ledger(outdir)
+        if jobs or (prune and orphans):
+            ledger_file = open_ledger(outdir)  # locked: pruning too waits for no other run
     except BaseException:
         if own_client is not None:
             own_client.close()
@@ -284,6 +294,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     if progress is not None and jobs:
         progress("exemplars", 0, len(jobs))
     try:
+        if orphans:  # before the work: a long run's log says it at its start
+            _report_orphans(outdir, orphans, prune_orphans(outdir, orphans, earlier_files) if prune else None,
+                            on_orphans)
         if in_process:
             for job in jobs:
                 counts["running"] = 1
@@ -312,6 +325,22 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
             write_contact_sheet(outdir, ordered, total=len(items))
     return ordered
+
+
+def _report_orphans(outdir, names, kept, on_orphans) -> None:
+    """Say the folders of exemplars no longer in SOURCE (``kept``: None when not pruned, else
+    :func:`prune_orphans`'s folders left) to ``on_orphans``, or in a warning."""
+    found = [{"name": n, "pruned": kept is not None, "kept": (kept or {}).get(n, [])} for n in names]
+    if on_orphans is not None:
+        on_orphans(found)
+        return
+    shown = ", ".join(names[:10]) + (" ..." if len(names) > 10 else "")
+    if kept is None:
+        warnings.warn(f"{outdir}: {len(names)} folder{'s' if len(names) != 1 else ''} of exemplars no longer in "
+                      f"SOURCE: {shown}; prune=True (tghop batch --prune) removes them", stacklevel=3)
+    elif kept:
+        warnings.warn(f"{outdir}: {len(kept)} folder{'s' if len(kept) != 1 else ''} of exemplars no longer in SOURCE "
+                      f"kept, with files tghop did not make: {', '.join(sorted(kept)[:10])}", stacklevel=3)
 
 
 def _interrupted_record(job) -> dict:

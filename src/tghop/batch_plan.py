@@ -8,7 +8,9 @@ ledger that says what an earlier run finished.
   :func:`read_ledger_files`), opened locked for a run (:func:`open_ledger`), appended to
   (:func:`append_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
   keeps the names it had, :func:`remove_stale` deletes the files a new line no longer lists, and
-  :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out.
+  :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out;
+* :func:`find_orphans` -- the folders an earlier run made for exemplars no longer in SOURCE, and
+  :func:`prune_orphans`, which deletes the files the ledger says a run made there.
 
 :func:`tghop.batch.run` uses them; :mod:`tghop.batch_dask` runs the work on Dask.
 """
@@ -24,13 +26,13 @@ import unicodedata
 from pathlib import Path
 
 from ._errors import TGHopError
-from .batch_task import THUMBNAIL_FILE
+from .batch_task import THUMBNAIL_FILE, remove_temporaries
 from .contact_sheet import CONTACT_SHEET
 from .manifest import read_manifest
 
 __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED", "windows_reserved", "find_work",
            "inputs_sha256", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
-           "open_ledger", "append_ledger", "is_done", "mark_running", "remove_stale"]
+           "open_ledger", "append_ledger", "is_done", "mark_running", "remove_stale", "find_orphans", "prune_orphans"]
 
 
 #: File extensions taken as exemplars when SOURCE is a folder.
@@ -343,3 +345,70 @@ def remove_stale(outdir: Path, earlier: set, rec: dict) -> None:
         if (outdir / f).resolve().parent == folder:
             with contextlib.suppress(OSError):
                 (outdir / f).unlink()
+
+
+# ------------------------------------------------------------------ exemplars no longer in SOURCE
+def _own_folder(outdir: Path, name: str):
+    """OUTDIR/NAME where ``name`` (a ledger's) names a real folder right in OUTDIR, else None
+    (a hand-edited line's ``..``, ``a/b`` or a symbolic link)."""
+    if not name or name in (".", "..") or "/" in name or "\\" in name or "\0" in name:
+        return None
+    folder = outdir / name
+    try:  # a name too long for a file (an earlier version's line) is no folder either
+        if folder.is_symlink() or not folder.is_dir() or folder.resolve().parent != outdir.resolve():
+            return None
+    except OSError:
+        return None
+    return folder
+
+
+def _own_files(outdir: Path, folder: Path, listed) -> list:
+    """The regular files in ``folder`` that ledger lines list (``listed``, relative to OUTDIR)."""
+    inside = folder.resolve()
+    out = []
+    for f in sorted(listed):
+        path = outdir / f
+        with contextlib.suppress(OSError):
+            if not path.is_symlink() and path.is_file() and path.resolve().parent == inside:
+                out.append(path)
+    return out
+
+
+def find_orphans(outdir: Path, files: dict, names) -> list:
+    """The names of the exemplars an earlier run made a folder for, which are not among
+    ``names`` (this run's exemplars, compared without case: one folder on macOS and Windows)
+    and whose folder still holds a file a ledger line of theirs lists (``files``:
+    :func:`read_ledger_files`'s second part) or their :data:`RUNNING` file: exemplars removed
+    from SOURCE (or renamed there) since, sorted."""
+    current = {n.lower() for n in names}
+    found = []
+    for name in sorted(files):
+        if name.lower() in current:
+            continue
+        folder = _own_folder(outdir, name)
+        if folder is not None and (_own_files(outdir, folder, files[name]) or os.path.isfile(folder / RUNNING)):
+            found.append(name)
+    return found
+
+
+def prune_orphans(outdir: Path, orphans, files: dict) -> dict:
+    """Delete what a run made in each orphan's folder (:func:`find_orphans`): the files its
+    ledger lines list, its :data:`RUNNING` file and a killed task's temporaries; then the folder
+    where it is empty. Nothing else is touched. Returns, by name, the entries left in a folder
+    kept (files not made by tghop: they and the folder stay); a name not in it was removed whole."""
+    kept = {}
+    for name in orphans:
+        folder = _own_folder(outdir, name)
+        if folder is None:
+            continue
+        for path in [*_own_files(outdir, folder, files.get(name, ())), folder / RUNNING]:
+            with contextlib.suppress(OSError):
+                if path.is_file() and not path.is_symlink():
+                    path.unlink()
+        remove_temporaries(folder)
+        try:
+            folder.rmdir()
+        except OSError:
+            with contextlib.suppress(OSError):
+                kept[name] = sorted(p.name for p in folder.iterdir())
+    return kept

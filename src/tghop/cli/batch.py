@@ -56,8 +56,11 @@ class BatchProgress(Progress):
 @click.option("--retries", type=click.IntRange(min=0, max=20), default=3, show_default=True,
               help="Times a task whose worker died (killed, out of memory) runs again on another worker of the "
                    "local cluster before it is recorded as failed.")
+@click.option("--prune", is_flag=True,
+              help="Delete the folders an earlier run made in OUTDIR for exemplars no longer in SOURCE (only the files "
+                   "its ledger lists; a folder holding other files stays). Without it they are kept and named.")
 @QUIET_OPTION
-def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet, **options):
+def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, quiet, **options):
     """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.
 
     SOURCE is a folder (every image in it, recursively) or a manifest: a CSV file with a
@@ -72,6 +75,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
     from .. import batch as library
 
     progress = BatchProgress(not quiet)
+    orphans = []
     with user_errors(progress):
         if scheduler is not None and workers is not None:
             raise TGHopError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
@@ -84,7 +88,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
         try:
             results = library.run(source, outdir, count=count, size=size, seed=seed, tile=generate.pop("tile"),
                                   fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,
-                                  progress=progress, on_result=progress.result)
+                                  progress=progress, on_result=progress.result, prune=prune,
+                                  on_orphans=orphans.extend)
         except KeyboardInterrupt as exc:
             progress.close()
             message, code = stop_message(exc)
@@ -98,13 +103,29 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, quiet,
     skipped = sum(bool(r.get("skipped")) for r in results)
     ok = len(results) - len(failed)
     earlier = f" ({skipped} by an earlier run)" if skipped else ""
+    for o in orphans:  # one line each: a log of thousands says which
+        said = "removed" if o["pruned"] and not o["kept"] else "kept" if not o["pruned"] else \
+            f"its files removed, the folder kept for what tghop did not make ({', '.join(o['kept'][:3])})"
+        click.echo(f"no longer in SOURCE: {o['name']}: {said}", err=True)
     click.echo(f"{ok} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
-               f"contact sheet {outdir}/index.html", err=True)
+               f"contact sheet {outdir}/index.html{_orphans(orphans)}", err=True)
     if failed:
         for r in failed:
             click.echo(f"failed: {r['name']}: {r['error']}", err=True)
         fail(f"{len(failed)} of {_exemplars(len(results))} failed: {', '.join(r['name'] for r in failed[:10])}"
              f"{' ...' if len(failed) > 10 else ''} (see {outdir}/batch.jsonl)", 1)
+
+
+def _orphans(orphans) -> str:
+    """The summary's part on the folders of exemplars no longer in SOURCE."""
+    if not orphans:
+        return ""
+    folders = f"{len(orphans)} folder{'s' if len(orphans) != 1 else ''} of exemplars no longer in SOURCE"
+    if not orphans[0]["pruned"]:
+        return f"; {folders} kept (--prune removes them)"
+    left = sum(bool(o["kept"]) for o in orphans)
+    return f"; {folders}: {len(orphans) - left} removed, {left} kept for files tghop did not make" if left else \
+        f"; {folders} removed"
 
 
 def _exemplars(n: int) -> str:
