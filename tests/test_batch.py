@@ -1341,6 +1341,7 @@ def two_at_once(job):
             (sync / "b-in").touch()
             _wait_for(sync / "a-done")
             seen.update(_threads_now())
+        warnings.warn(f"{me}'s own warning")
 
     fit_options.test_hooks[threading.get_ident()] = hook
     if me == "b":
@@ -1359,6 +1360,7 @@ def test_two_tasks_in_one_worker_keep_one_thread_each(tmp_path, monkeypatch):
     # limit and tghop's own (usable_cores) are the process's: when the first task ended it put
     # back the limits from before it while the second still ran, which then fitted on every core
     # (and on every BLAS thread where the worker's default is more: dask worker --no-nanny).
+    # So are the warnings' filters and showwarning, which each task's catch_warnings replaced.
     dask = pytest.importorskip("dask")
     distributed = pytest.importorskip("distributed")
     import cloudpickle
@@ -1384,6 +1386,8 @@ def test_two_tasks_in_one_worker_keep_one_thread_each(tmp_path, monkeypatch):
         results = run(src, tmp_path / "out", client=client, task=two_at_once)
         assert [r["status"] for r in results] == ["ok", "ok"], results
         assert results[1]["seen"] == {"cores": 1, "blas": 1}  # it was {"cores": 2, "blas": 2} (2 cores)
+        # Each task's warnings in its own ledger line: A's went to B's list, B's to the worker's stderr.
+        assert [r["warnings"] for r in results] == [["a's own warning"], ["b's own warning"]]
     finally:
         client.close()
         cluster.close()
