@@ -792,6 +792,7 @@ def test_cli_end_to_end_in_process(tmp_path):
     assert "2 of 2 exemplars done (2 by an earlier run)" in err
     code, _, err, exc = invoke("batch", "src", "-o", "o2", "--workers", "2", "--scheduler", "tcp://x:1", cwd=tmp_path)
     assert_one_line(code, err, "--workers and --scheduler", exception=exc)
+    assert code == 2  # a usage error (it exited 1)
     code, _, err, exc = invoke("batch", "nothere", "-o", "o3", cwd=tmp_path)
     assert_one_line(code, err, "nothere", "no such folder or manifest", exception=exc)
 

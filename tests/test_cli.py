@@ -91,7 +91,7 @@ def test_synth_stages_writes_each_steps_image(model_path, workdir):
     assert not np.array_equal(steps["quilt"], steps["seams"]) and not np.array_equal(steps["refine"], image)
     run("synth", model_path, "-o", workdir / "plain.png", "--size", "48x64", "--pool", "300", "--seed", "4", "-q")
     assert np.array_equal(np.asarray(Image.open(workdir / "plain.png")), image)  # --stages changes nothing
-    for args, message, status in ((["-o", "-"], "--stages needs a file name", 1),
+    for args, message, status in ((["-o", "-"], "--stages needs a file name", 2),
                                   ([model_path, "-o", workdir / "two.png"], "--stages applies to one SOURCE", 2)):
         r = run("synth", model_path, *args, "--stages")
         assert r.returncode == status and message in r.stderr.decode(), r.stderr.decode()  # 2: a usage error
@@ -441,15 +441,15 @@ def test_patch_refinement_without_patch_statistics_is_refused_before_the_fit(wor
     monkeypatch.setattr(TGHop, "fit", no_fit)
     out = workdir / "nostats.png"
     bricks = workdir / "bricks.png"
-    for sources, extra, words in (
-            ([bricks], ("--paper", "--quality", "best"), ("--quality best", "--paper", "--patch-levels")),
-            ([bricks], ("--patch-levels", "0", "--patch-refine", "5"), ("--patch-refine 5", "--patch-levels 0")),
-            ([bricks], ("--paper", "--patch-refine", "3"), ("--patch-refine 3", "--paper")),
-            ([bricks, bricks], ("--paper", "--quality", "best"), ("--quality best", "--paper")),  # a remix too
-            ([plain, plain], ("--quality", "best"), ("SOURCE 1", "nostats.npz", "no patch statistics"))):
+    for sources, extra, words, status in (  # options that do not go together: usage errors, 2 (they exited 1)
+            ([bricks], ("--paper", "--quality", "best"), ("--quality best", "--paper", "--patch-levels"), 2),
+            ([bricks], ("--patch-levels", "0", "--patch-refine", "5"), ("--patch-refine 5", "--patch-levels 0"), 2),
+            ([bricks], ("--paper", "--patch-refine", "3"), ("--patch-refine 3", "--paper"), 2),
+            ([bricks, bricks], ("--paper", "--quality", "best"), ("--quality best", "--paper"), 2),  # a remix too
+            ([plain, plain], ("--quality", "best"), ("SOURCE 1", "nostats.npz", "no patch statistics"), 1)):
         fast = FAST if sources[0] == bricks else ["-q"]
         r = run("synth", *sources, "-o", out, "--size", "48", *fast, *extra)
-        assert_user_error(r, *words)
+        assert_user_error(r, *words, status=status)
         assert "patch_refine=" not in r.stderr.decode() and not out.exists()
 
 

@@ -211,6 +211,27 @@ def test_set_and_options_of_another_baseline_are_usage_errors(folder, monkeypatc
     (["inpaint", "bricks.png", "two_levels.png", "-o", "o.png", "--source", "model.npz", "--scale", "0.5"],
      ["--scale applies to an exemplar given as --source", "a saved model keeps the scale"]),
     (["extend", "bricks.png", "-o", "o.png", "--size", "96", "--scale", "0.5"], ["--scale applies to an exemplar"]),
+    # these exited 1 too
+    (["synth", "model.npz", "-o", "o.png", "--clusters", "8"], ["--clusters: fitting option but SOURCE is a saved"]),
+    (["synth", "model.npz", "bricks.png", "-o", "o.png", "--clusters", "8"],
+     ["--clusters: fitting option but SOURCE 1 (model.npz) is a saved model"]),
+    (["evaluate", "bricks.png", "bricks.png", "--json", "--csv"], ["--json and --csv: give one"]),
+    (["evaluate", "bricks.png", "bricks.png", "--metrics", " , "], ["--metrics is empty"]),
+    (["synth", "model.npz", "-o", "-", "--count", "2"], ["--count > 1 cannot write to stdout"]),
+    (["synth", "model.npz", "-o", "-", "--stages"], ["--stages needs a file name"]),
+    (["patches", "model.npz", "-o", "-", "--stages"], ["--stages needs a file name"]),
+    (["fit", "bricks.png", "two_levels.png", "-o", "m.npz"], ["more than one EXEMPLAR (two_levels.png, ...)"]),
+    (["fit", "bricks.png", "--maps", "-o", "m.npz"], ["--maps without maps"]),
+    (["fit", "bricks.png", "-o", "-"], ["-o -: a model cannot go to stdout"]),
+    (["synth", "bricks.png", "-o", "o.png", "--save-model", "-"], ["--save-model -: a model cannot go to stdout"]),
+    (["clusters", "model.npz", "bricks.png", "-o", "-"], ["this command cannot write to stdout"]),
+    (["synth", "bricks.png", "-o", "o.png", "--patch-levels", "0", "--patch-refine", "2"],
+     ["--patch-refine 2 needs the patch statistics that --patch-levels 0 leaves out"]),
+    (["morph", "model.npz", "model.npz", "-o", "o.png", "--size", "4096", "--grid", "8"],
+     ["--grid 8 strips of 4096x4096 make a 32768x4096 image"]),
+    (["inpaint", "bricks.png", "two_levels.png", "small.png", "-o", "o.png"], ["an argument too many after MASK"]),
+    (["inpaint", "bricks.png", "two_levels.png", "--maps", "-o", "o.png"], ["--maps without maps"]),
+    (["inpaint", "bricks.png", "two_levels.png", "--maps", "small.png", "-o", "-"], ["--maps writes a file per map"]),
 ])
 def test_options_that_do_not_go_together_are_usage_errors(folder, args, fragments):
     # They exited 1, as a bad file does; an option given where it does not apply is a usage error, 2, as click's

@@ -112,6 +112,9 @@ def test_sources_too_small_or_of_other_channels_are_refused(files, tmp_path):
     (["edit", "M", "--boost", "0,1,nan"], ["'--boost'", "FACTOR must be from 0 to 1,000, got nan"]),
     (["edit", "M", "--boost", "0,1"], ["'--boost'", "'0,1': write A,B,FACTOR"]),
     (["edit", "M", "--boost", "0,7,2"], ["'--boost'", "0,7: the boosted clusters must lie in 0..2"]),
+    # these exited 1 too
+    (["morph", "M", "crop:0,0", "crop:0;0"], ["'crop:0;0': write crop:ROW,COL"]),
+    (["edit", "M", "--mask", "M"], ["--mask says which SOURCE goes where"]),
 ])
 def test_grid_and_boost_errors_are_usage_errors(files, tmp_path, args, fragments):
     # They exited with status 1 (click's usage errors: 2), and --boost took any finite factor.
@@ -158,7 +161,7 @@ def test_edit_refuses_a_mask_of_another_shape_than_the_output(files, tmp_path):
     assert r.exit_code == 0 and "Warning" not in r.stderr, r.stderr
     assert np.array_equal(png(out), png(tmp_path / "o2.png"))
     r = invoke("cooc", "edit", files / "m.pt", "--mask", tmp_path / "mask.png", "--size", "24x64", "-o", out)
-    assert_user_error(r, "--mask says which SOURCE goes where")  # it was ignored
+    assert_user_error(r, "--mask says which SOURCE goes where", status=2)  # it was ignored; a usage error
     r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png",
                "--size", "24x64", "--seed", "0", "-o", out)
     assert r.exit_code == 0, r.output

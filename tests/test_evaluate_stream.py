@@ -151,5 +151,6 @@ def test_csv_has_the_numbers_of_json(images, monkeypatch):
 
 def test_json_and_csv_together_are_refused(images):
     r = cli("evaluate", images / "ex.png", images / "r0.png", "--json", "--csv")
-    assert r.returncode == 1 and r.stdout == b""
-    assert r.stderr.decode().strip() == "Error: --json and --csv: give one (the scores are written in one format)"
+    assert r.returncode == 2 and r.stdout == b""  # a usage error (it exited 1)
+    assert r.stderr.decode().strip() == ("Error: --json and --csv: give one (the scores are written in one format) "
+                                         "(see 'tghop evaluate --help')")

@@ -556,7 +556,8 @@ def test_cli_guided_synth_and_morph(models, tmp_path):
     assert_user_error(r, "-o would overwrite A")
     # strips within the size limit each but not stacked: refused before the models are read
     r = _run(["morph", "missing.npz", "b.npz", "-o", "big.png", "--size", "8192x8192", "--grid", "2"], tmp_path)
-    assert_user_error(r, "--grid 2 strips of 8192x8192 make a 16384x8192 image", "fewer strips or a smaller --size")
+    assert_user_error(r, "--grid 2 strips of 8192x8192 make a 16384x8192 image", "fewer strips or a smaller --size",
+                      status=2)
     assert not (tmp_path / "big.png").exists()
 
 
@@ -573,8 +574,9 @@ def test_every_source_is_read_before_any_is_fitted(models, tmp_path, monkeypatch
     for args in (["synth", "ex.png", "maybe", "-o", "o.png"], ["morph", "ex.png", "missing.npz", "-o", "o.png"],
                  ["synth", "ex.png", "b.npz", "--clusters", "8", "-o", "o.png"]):
         r = _run(args, tmp_path)
-        assert_user_error(r, *(["fitting option", "SOURCE 2 (b.npz) is a saved model"] if "b.npz" in args
-                               else [args[2], "no such"]))
+        fitting = "b.npz" in args  # a usage error, 2; a missing file 1
+        assert_user_error(r, *(["fitting option", "SOURCE 2 (b.npz) is a saved model"] if fitting
+                               else [args[2], "no such"]), status=2 if fitting else 1)
     assert not (tmp_path / "o.png").exists()
 
 

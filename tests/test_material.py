@@ -345,7 +345,8 @@ def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp
                         (["--patch-stride", "3"], "Error: --patch-stride does not apply to a material (it has no "
                                                   "patch statistics); drop it"),
                         (["--patch-refine", "5", "--patch-stride", "3"], "--patch-refine and --patch-stride do not"),
-                        (["--stages"], "Error: --stages applies to a texture model, not a material; drop it")):
+                        (["--stages"], "Error: --stages applies to a texture model, not a material; drop it"),
+                        (["-o", "-"], "Error: a material writes a file per map; give -o a file name")):
         res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size", "64",
                                    "-q", *args])
         assert res.exit_code == 2 and "Traceback" not in res.output, res.output  # usage errors (they exited 1)

@@ -7,7 +7,6 @@ import sys
 
 import click
 
-from .._errors import TGHopError
 from ..fit_options import fit_params
 from .common import Progress, fail, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
@@ -78,7 +77,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     orphans = []
     with user_errors(progress):
         if scheduler is not None and workers is not None:
-            raise TGHopError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
+            raise click.UsageError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
         generate = generation_params(options)
         fit = fit_params(options)
         if workers != 1 or scheduler is not None:

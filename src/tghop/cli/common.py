@@ -335,7 +335,7 @@ def check_output(path: str, allow_stdout=False):
     from ..imageio import check_output_path, output_format
 
     if path == "-" and not allow_stdout:
-        raise TGHopError("this command cannot write to stdout; give a file name with -o")
+        raise click.UsageError("this command cannot write to stdout; give a file name with -o")
     if path == "-" and sys.stdout is None:  # before the work, not when the image is written
         raise TGHopError("-o -: the standard output is closed; give a file name instead")
     output_format(path)
@@ -411,7 +411,8 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
     from ..imageio import check_output_path
 
     if str(path) == "-":
-        raise ModelFileError(f"{label} -: a {what} cannot go to stdout; give a file name, e.g. {label} {what}{suffix}")
+        raise click.UsageError(f"{label} -: a {what} cannot go to stdout; give a file name, e.g. {label} "
+                               f"{what}{suffix}")
     if not str(path).strip():  # Path("") is the current folder, which has no name to add to
         raise ModelFileError(f"{label}: the {what}'s file name is empty; give one, e.g. {label} {what}{suffix}")
     p = Path(path)
@@ -509,7 +510,7 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     from ..imageio import save_images
 
     if output == "-":
-        raise TGHopError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
+        raise click.UsageError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
     plans = [material_outputs(material, path, depth) for path in outputs]
     for plan in plans:
         for _, path, _ in plan:

@@ -142,7 +142,7 @@ def condition(model, spec: str):
     if m:
         return model.crop_condition(int(m.group(1)), int(m.group(2)))
     if spec.startswith("crop:"):
-        raise TGHopError(f"{spec!r}: write crop:ROW,COL (pixel position of a crop in the training exemplar)")
+        raise click.UsageError(f"{spec!r}: write crop:ROW,COL (pixel position of a crop in the training exemplar)")
     return model.image_condition(load_exemplar(spec))
 
 
@@ -308,7 +308,8 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
         check_outputs([("-o", output)], [("MODEL", model_file), ("--mask", mask),
                                          *[("SOURCE", spec) for spec in sources if not spec.startswith("crop:")]])
         if mask is not None and not sources:
-            raise TGHopError("--mask says which SOURCE goes where; give the SOURCES (crop:ROW,COL or images) too")
+            raise click.UsageError("--mask says which SOURCE goes where; give the SOURCES (crop:ROW,COL or images) "
+                                   "too")
         if mask is not None:  # refused before the checkpoint is read, as synth refuses a guide of another shape
             from ..guides import same_shape
 

@@ -7,7 +7,6 @@ import json
 
 import click
 
-from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, check_stdout, fail, load_exemplar, stop_message,
                      user_errors, warn_written_with_8)
@@ -76,11 +75,12 @@ def evaluate(exemplar, results, as_json, as_csv, names, no_diversity, repetition
     progress = Progress(not quiet)
     with user_errors(progress):
         if as_json and as_csv:
-            raise TGHopError("--json and --csv: give one (the scores are written in one format)")
+            raise click.UsageError("--json and --csv: give one (the scores are written in one format)")
         check_stdout("the scores (JSON lines)" if as_json else "the scores (CSV)" if as_csv else "the table of scores")
         chosen = None if names is None else [n.strip() for n in names.split(",") if n.strip()]
         if chosen == []:
-            raise TGHopError(f"--metrics is empty; give one or more of: {', '.join([*M.METRICS, *M.RESULT_METRICS])}")
+            raise click.UsageError(f"--metrics is empty; give one or more of: "
+                                   f"{', '.join([*M.METRICS, *M.RESULT_METRICS])}")
         if chosen is not None:
             M.check_sizes({}, chosen)  # unknown names: refused before any image is read
         checked = None if chosen is None and not repetition else [*(chosen or M.METRICS)]

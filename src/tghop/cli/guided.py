@@ -177,8 +177,9 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     for i, (spec, source) in enumerate(zip(sources, read), start=1):
         if fitting and not isinstance(source, np.ndarray):
             one = len(fitting) == 1
-            raise TGHopError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) is a "
-                             f"saved model; fit the exemplars with 'tghop fit' or drop {'it' if one else 'them'}")
+            raise click.UsageError(f"{', '.join(fitting)}: fitting option{'' if one else 's'} but SOURCE {i} ({spec}) "
+                                   f"is a saved model; fit the exemplars with 'tghop fit' or drop "
+                                   f"{'it' if one else 'them'}")
     _same_kind(sources, read, "SOURCE")
     if guide is None:  # before _check_mixable: a grey map among them is refused there
         _warn_material_maps(sources, read)
@@ -291,9 +292,9 @@ def _check_grid(size, grid):
     height, width = size[0] * grid, size[1]
     if height * width > MAX_PIXELS:
         side = math.isqrt(MAX_PIXELS)
-        raise TGHopError(f"--grid {grid} strips of {size[0]}x{size[1]} make a {height}x{width} image, "
-                         f"{height * width:,} pixels, above the limit of {MAX_PIXELS:,} ({side}x{side}); "
-                         "ask for fewer strips or a smaller --size")
+        raise click.UsageError(f"--grid {grid} strips of {size[0]}x{size[1]} make a {height}x{width} image, "
+                               f"{height * width:,} pixels, above the limit of {MAX_PIXELS:,} ({side}x{side}); "
+                               "ask for fewer strips or a smaller --size")
 
 
 @click.command()

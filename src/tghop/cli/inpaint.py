@@ -152,10 +152,10 @@ def _warn_untileable(tile, shape, size, image):
 def _check_maps(map_paths, with_maps, last):
     """MAPs only with --maps (a stray argument is most likely a typo), and --maps with some."""
     if map_paths and not with_maps:
-        raise TGHopError(f"an argument too many after {last} ({map_paths[0]}); to fill a whole material's maps "
-                         f"too, give them after --maps")
+        raise click.UsageError(f"an argument too many after {last} ({map_paths[0]}); to fill a whole material's "
+                               f"maps too, give them after --maps")
     if with_maps and not map_paths:
-        raise TGHopError("--maps without maps; give the map images after it")
+        raise click.UsageError("--maps without maps; give the map images after it")
 
 
 def _open(image, output, source, scale, depth, *, others, maps=False):
@@ -323,7 +323,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     from ..material import map_file
 
     if output == "-":
-        raise TGHopError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
+        raise click.UsageError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
     if source is not None and not (source.lower().endswith(".npz") or is_model_file(source)):
         raise TGHopError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit ALBEDO "
                          "--maps ...), or leave --source out to fit one on IMAGE and its maps")

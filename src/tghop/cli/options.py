@@ -265,5 +265,5 @@ def refuse_patch_refine_without_statistics(ctx, generation, planned):
     asked = (f"--patch-refine {generation['patch_refine']}" if given_options(ctx, ["patch_refine"])
              else "--quality best")
     why = "--patch-levels 0" if given_options(ctx, ["patch_levels"]) else "--paper (its --patch-levels 0)"
-    raise TGHopError(f"{asked} needs the patch statistics that {why} leaves out of the fit; give --patch-levels "
-                     f"{BY_NAME['patch_levels'].default} as well, or drop {asked}")
+    raise click.UsageError(f"{asked} needs the patch statistics that {why} leaves out of the fit; give "
+                           f"--patch-levels {BY_NAME['patch_levels'].default} as well, or drop {asked}")

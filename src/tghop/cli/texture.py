@@ -90,10 +90,10 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         from ..modelfile import save_model
 
         if map_paths and not with_maps:
-            raise TGHopError(f"more than one EXEMPLAR ({map_paths[0]}, ...); to fit a material give its maps "
-                             "after --maps, e.g. tghop fit albedo.png --maps normal.png height.png -o mat.npz")
+            raise click.UsageError(f"more than one EXEMPLAR ({map_paths[0]}, ...); to fit a material give its maps "
+                                   "after --maps, e.g. tghop fit albedo.png --maps normal.png height.png -o mat.npz")
         if with_maps and not map_paths:
-            raise TGHopError("--maps without maps; give the map images after it")
+            raise click.UsageError("--maps without maps; give the map images after it")
         check_model_output(output, "-o")  # before any work
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)]
                       + [("--maps", m) for m in map_paths])
@@ -136,8 +136,8 @@ def patches(model_file, n, output, seed, stages, quiet):
 
     with user_errors():
         if stages and output == "-":
-            raise TGHopError("--stages needs a file name: it writes OUTPUT_stages next to -o's image, "
-                             "so give -o a file name (e.g. -o patches.png) or drop --stages")
+            raise click.UsageError("--stages needs a file name: it writes OUTPUT_stages next to -o's image, "
+                                   "so give -o a file name (e.g. -o patches.png) or drop --stages")
         check_output(output, allow_stdout=True)
         stage_path = None
         if stages:  # checked with the grid, before anything is generated or written
@@ -242,10 +242,10 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         check_output(output, allow_stdout=True)
         check_depth(output, depth or 8)
         if output == "-" and count > 1:
-            raise TGHopError("--count > 1 cannot write to stdout; give a file name with -o")
+            raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
         if stages and output == "-":
-            raise TGHopError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's image, "
-                             "so give -o a file name (e.g. -o out.png) or drop --stages")
+            raise click.UsageError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's "
+                                   "image, so give -o a file name (e.g. -o out.png) or drop --stages")
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
 
@@ -296,8 +296,9 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                     + ["save_model", "downscale"])
         refused = given_options(ctx, fit_only)
         if refused:
-            raise TGHopError(f"{', '.join(refused)}: fitting option{'s' if len(refused) > 1 else ''} but SOURCE "
-                             f"is a saved model; refit with 'tghop fit' or drop {'them' if len(refused) > 1 else 'it'}")
+            several = len(refused) > 1
+            raise click.UsageError(f"{', '.join(refused)}: fitting option{'s' if several else ''} but SOURCE is a "
+                                   f"saved model; refit with 'tghop fit' or drop {'them' if several else 'it'}")
     generation = generation_params(options)
     # Every output checked before the fit and before the first image is written.
     outputs = [output] if count == 1 else numbered(output, count)
