@@ -135,6 +135,28 @@ def test_edit_paints_each_crops_statistics_where_its_label_is(client, checkpoint
 
 
 @needs_torch
+def test_an_edits_labels_scaled_to_the_size_tell_the_client(client, cid):
+    # Labels of another size than `size` (their shape) were scaled by the library with a warning, which went to
+    # the server's console, never to the client: the answer's X-Tghop-Warning says so now, as a guided image's.
+    import warnings
+
+    levels = np.zeros((80, 128), dtype=np.uint8)
+    levels[:, 64:] = 255
+    ask = {"crops": [[0, 0], [32, 32]], "seed": 5}
+    with warnings.catch_warnings(record=True) as console:  # the server's thread runs while this one waits
+        warnings.simplefilter("always")
+        r = client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": labels_png(levels), "size": [40, 64]})
+    assert decoded(r).shape == (40, 64, 3) and r.headers["X-Tghop-Size"] == "40x64"
+    assert r.headers["X-Tghop-Warning"] == ("the label map was scaled from 80x128 to 40x64, the output's size "
+                                            "(nearest neighbour: its regions kept as painted)")
+    assert not [w for w in console if "was scaled" in str(w.message)]  # the client's, not the console's
+    # the same image as the labels painted at that size, which are not scaled and say nothing
+    painted = client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": labels_png(levels[::2, ::2])})
+    assert painted.status_code == 200 and painted.content == r.content, painted.text
+    assert "X-Tghop-Warning" not in painted.headers
+
+
+@needs_torch
 def test_edit_with_a_boost_is_the_libraries_boosted_condition(client, checkpoint, cid):
     from tghop import cooc
 

@@ -261,25 +261,33 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, prog
     """``tghop cooc edit MODEL crop:... --mask LABELS [--boost A,B,FACTOR]``: every crop's
     statistics where its label is painted (each cell of ``s`` x ``s`` pixels takes its centre
     pixel's label), bin ``(a, b)`` of every cell times ``factor`` with a ``boost``:
-    ``(png, (h, w))``. ``read_labels(png bytes)`` decodes the label map's image; ``progress``:
-    as :func:`morph_png`'s."""
+    ``(png, (h, w), told)``, ``told`` what to tell the client (a label map scaled to ``size``:
+    the library's warning, in the answer's ``X-Tghop-Warning``). ``read_labels(png bytes)``
+    decodes the label map's image; ``progress``: as :func:`morph_png`'s."""
     import numpy as np
 
     from ..cooc import boost_condition, paint_condition
-    from ..guided import guide_labels
+    from ..guides import guide_labels, same_shape, scale_labels, scaled_message
 
     tensors = _conditions(model, crops)
-    pixels = None
+    pixels, told = None, []
     if labels is not None:
         painted = read_labels(labels)
         if size is None:
             size = painted.shape[:2]
             if size[0] * size[1] > MAX_COOC_PIXELS:
                 raise RequestError(422, f"labels is {size[0]}x{size[1]}, over the server's {MAX_COOC_PIXELS:,} pixels")
+        # One of another size is read at its own and scaled here, so that the library's warning, which would go
+        # to the server's console (warnings cannot be caught on one thread alone), is the client's header instead.
+        scaled = painted.shape[:2] != tuple(size) and same_shape(painted.shape, size)
         try:
-            pixels = guide_labels(painted, len(crops), size=size, input_name="crop", no_guide="send no labels")
+            pixels = guide_labels(painted, len(crops), size=None if scaled else size, input_name="crop",
+                                  no_guide="send no labels")
         except TGHopError as exc:
             raise RequestError(400, str(exc).replace("the guide", "the label map")) from None
+        if scaled:
+            pixels = scale_labels(pixels, size)
+            told.append(scaled_message(painted.shape, size).replace("the guide", "the label map"))
     s, (h, w) = model.s, size
     hh, ww = -(-h // s), -(-w // s)
     if pixels is None:
@@ -306,4 +314,4 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, prog
         raise RequestError(422, f"boost {list(boost)}: {exc}; use a factor above 0") from None  # a cell emptied
     progress("generating", 1, 1)
     progress("encoding", 0, 1)
-    return _png(image), image.shape[:2]
+    return _png(image), image.shape[:2], told
