@@ -2,7 +2,8 @@
 a long generation shows its progress (a bar that advances before the image comes, from the job its
 request names: test_server_progress.py); Generate's and 8 seeds' errors are said where the user is; a
 strip of seeds whose model is no longer the working one when it ends is cleared; Morph's fields and
-Paint's mix of a material with a texture model are said on the page, not sent to be refused."""
+Paint's mix of a material with a texture model are said on the page, not sent to be refused; the server's
+warning of a guide or label map it scaled (X-Tghop-Warning) is said with the result."""
 
 import json
 
@@ -237,3 +238,94 @@ def test_generates_errors_are_said_where_the_user_is(page):
         page.unroute("**/api/models/*/images", hold)
         page.evaluate("() => { document.getElementById('tall').remove(); window.scrollTo(0, 0); }")
     assert not [e for e in page.errors if "500" not in e], page.errors
+
+
+def halved(page, pattern, default=None):
+    """Route the page's requests matching ``pattern`` with their ``size`` (or ``default``) halved: the guide or
+    label map the page paints at its own size is then one the server scales, saying so in X-Tghop-Warning, as it
+    does for any client's (a context manager)."""
+    import contextlib
+
+    def halve(route):
+        body = json.loads(route.request.post_data)
+        h, w = body.get("size") or default
+        body["size"] = [h // 2, w // 2]
+        route.continue_(post_data=json.dumps(body))
+
+    @contextlib.contextmanager
+    def routed():
+        page.route(pattern, halve)
+        try:
+            yield
+        finally:
+            page.unroute(pattern, halve)
+
+    return routed()
+
+
+#: The status said with a result, with the server's warning of the guide (or label map) scaled.
+SCALED = ("done (seed 2): the result is below. Warning: the {what} was scaled from {h}x{w} to {hh}x{ww}, the "
+          "output's size (nearest neighbour: its regions kept as painted)")
+
+
+def test_a_guide_the_server_scaled_is_said_with_the_result(page):
+    # The server's X-Tghop-Warning on a painted image whose guide it scaled to the size asked was not shown: the
+    # page said "done" as for a guide painted at that size.
+    page.errors.clear()  # an earlier test's answers of 500, held by the module's page
+    chromium.choose_mode(page, "view")
+    fit(page, "cells")
+    fit(page, "bricks")
+    page.fill("#height", "64")
+    page.fill("#width", "96")
+    page.fill("#n_patches", "300")
+    chromium.choose_mode(page, "paint")
+    for box in page.locator("#paint-models input").all():  # bricks and cells only (the others' tests add more)
+        box.uncheck()
+    for name in ("builtin:bricks", "builtin:cells"):
+        page.locator("#paint-models label", has_text=name).locator("input").check()
+    # the left half the first model's, the right half the second's (painting by hand is another test's)
+    page.evaluate("""() => { resizeGuide(); const [a, b] = pickedModels();
+      for (let i = 0; i < guide.labels.length; i++) guide.labels[i] = i % guide.w < 48 ? a.index : b.index; }""")
+    page.fill("#paint-seed", "2")
+
+    def paint():
+        page.evaluate("() => { document.getElementById('paint-message').textContent = ''; }")
+        page.click("#paint-go")
+        return page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('done')"
+                                      " && document.getElementById('paint-message').textContent",
+                                      timeout=120_000).json_value()
+
+    with halved(page, "**/api/images/guided", default=(64, 96)):
+        said = paint()
+    assert said == SCALED.format(what="guide", h=64, w=96, hh=32, ww=48), said
+    assert not page.eval_on_selector("#paint-message", "e => e.classList.contains('error')")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'painted: 32x48, seed 2'")
+    assert paint() == "done (seed 2): the result is below"  # painted at the size asked: nothing to warn of
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_a_label_map_the_server_scaled_is_said_with_the_result(page, tiny_cooc_checkpoint):
+    # The same for a co-occurrence edit's label map (X-Tghop-Warning since the server scales it, not the library
+    # with a warning on the server's console).
+    page.errors.clear()
+    chromium.choose_mode(page, "cooc")
+    page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+    page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=60_000)
+    scale = page.eval_on_selector("#cooc-exemplar", "c => c.getBoundingClientRect().width / c.width")
+    for x, y in ((16, 16), (50, 50)):  # crop 1 top left, crop 2 bottom right, as a click places them
+        page.locator("#cooc-exemplar").click(position={"x": x * scale, "y": y * scale})
+    page.fill("#cooc-height", "40")
+    page.fill("#cooc-width", "64")
+    page.evaluate("""() => { resizeCoocBoard();
+      for (let i = 0; i < coocBoard.labels.length; i++) coocBoard.labels[i] = i % coocBoard.w < 32 ? 0 : 1; }""")
+    page.fill("#cooc-edit-seed", "2")
+    with halved(page, "**/api/cooc/*/edit"):
+        page.click("#cooc-edit-go")
+        said = page.wait_for_function("document.getElementById('cooc-message').textContent.startsWith('done')"
+                                      " && document.getElementById('cooc-message').textContent",
+                                      timeout=120_000).json_value()
+    assert said == SCALED.format(what="label map", h=40, w=64, hh=20, ww=32), said
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'cooc-edit: 20x32, seed 2'")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

@@ -3,7 +3,7 @@
 // whole, in order, before DOMContentLoaded):
 //   common.js    the page's state (state, editor) and what every part uses: $, say, errorOf,
 //                updateButtons, withBusy and busyFetch (Stop), withProgress (a generation's bar), answerOf and
-//                postImage (the API's answers)
+//                postImage (the API's answers), withWarning (a result's status with the server's warning)
 //   download.js  download links; a material's maps as one ZIP
 //   fit.js       1. Exemplar: the fit of an exemplar and its maps, its progress; a model file
 //   generate.js  2. Generate and 3. Result: generating, the strip of seeds, the result and its tiling

@@ -112,12 +112,19 @@ function base64Bytes(text) {
   return bytes;
 }
 
+// The answer's image, seed, maps (materials painted or remixed) and the server's warning of it, or "" (its
+// X-Tghop-Warning: a guide or a label map of another size scaled to the size asked; docs/serve.md).
 async function postImage(url, body, headers) {
   const response = await busyFetch(url, { method: "POST", body: JSON.stringify(body),
     headers: { ...GENERATION_HEADERS, ...headers } });
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
-  return [blob, response.headers.get("X-Tghop-Seed"), maps];  // maps: materials painted or remixed
+  return [blob, response.headers.get("X-Tghop-Seed"), maps, response.headers.get("X-Tghop-Warning") || ""];
+}
+
+// A result's status with the server's warning of it (postImage's) after it, said as the command line says one.
+function withWarning(text, warning) {
+  return warning ? `${text}. Warning: ${warning}` : text;
 }
 
 // A new job id for a generation: 32 hex digits (the request's X-Tghop-Job header; docs/serve.md, "Jobs").

@@ -1,7 +1,7 @@
 // tghop serve's page, Co-occurrence mode (docs/serve.md, /api/cooc): a checkpoint of
 // `tghop cooc train`, crops of its exemplar placed by clicking, a morph from crop 1 to crop 2
 // and an edit painted with the brush of Paint mode (board.js's board). Loaded last (app.js lists
-// the files), it uses the others' helpers ($, errorOf, withBusy, showResult, postImage,
+// the files), it uses the others' helpers ($, errorOf, withBusy, showResult, postImage, withWarning,
 // offerDownload, the boards, swatch and colourOf, brushPoint).
 "use strict";
 
@@ -196,11 +196,11 @@ function onCoocEdit() {
       body.labels = boardPng(coocBoard, new Map(used.map((k, j) => [k, Math.round(255 * j / (used.length - 1))])));
     }
     sayCooc("generating");
-    const [blob, seed] = await withProgress("cooc-progress",
-                                            (headers) => postImage(`/api/cooc/${cooc.id}/edit`, body, headers));
+    const [blob, seed, , warning] = await withProgress(
+      "cooc-progress", (headers) => postImage(`/api/cooc/${cooc.id}/edit`, body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "cooc-edit", undefined,
                { models: [cooc.stem], size: body.size, tile: false });
-    sayCooc(`done (seed ${seed}): the result is below`);
+    sayCooc(withWarning(`done (seed ${seed}): the result is below`, warning));
   }, sayCooc);
 }
 

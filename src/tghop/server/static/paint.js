@@ -171,11 +171,11 @@ function onPaintGenerate(remix) {
       body.transition = Number($("transition").value);
     }
     sayPaint(remix ? "remixing" : "generating");
-    const [blob, seed, maps] = await withProgress("paint-progress",
-                                                  (headers) => postImage("/api/images/guided", body, headers));
+    const [blob, seed, maps, warning] = await withProgress(
+      "paint-progress", (headers) => postImage("/api/images/guided", body, headers));
     const name = { models: picked.map((m) => m.stem), size: body.size || [guide.h, guide.w], tile: Boolean(body.tile) };
     showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps, name);
-    sayPaint(`done (seed ${seed}): the result is below`);
+    sayPaint(withWarning(`done (seed ${seed}): the result is below`, warning));
   }, sayPaint);
 }
 
