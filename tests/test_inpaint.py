@@ -139,6 +139,36 @@ def test_stitching_continues_the_known_detail_across_the_holes_rim(width):
     assert rim_step(out) < 0.25 * rim_step(canvas)  # 0.10-0.12 here; the rim's tone alone: 1.0 (4 px), 0.38 (10 px)
 
 
+class _TwoPatches:
+    """A stand-in for a fitted model whose pool is two given patches (``inpaint`` without refinements)."""
+
+    def __init__(self, *patches):
+        self.patches = np.stack(patches).astype(np.float32)
+        self.patch_size, self.exemplar_shape_, self.ichm_ = self.patches.shape[1], self.patches.shape[1:], True
+
+    def sample_patches(self, n, *, rng=None, dtype=np.float32):
+        return self.patches.astype(dtype)
+
+
+def test_a_block_is_matched_most_on_the_pixels_beside_the_hole():
+    # red_bricks_512's thin stripe kept a mortar joint's edge on the known side of its rim and filled the
+    # stripe from a patch that matched the block's far pixels but not that edge: a thin stripe at the rim
+    # (docs/choices.md, Inpainting "the hole's rim"). The pixels beside the hole now count more.
+    image = np.full((32, 32, 1), 0.5, np.float32)
+    image[:, 10:12] = 0.0  # a dark line beside the hole's left rim
+    hole = np.zeros((32, 32), bool)
+    hole[:, 12:20] = True
+    blind = image.copy()
+    blind[:, 10:12] = 0.5  # the far pixels exactly, not the line
+    blind[hole] = 0.9
+    continues = np.full((32, 32, 1), 0.7, np.float32)  # the far pixels 0.2 off, the line carried into the hole
+    continues[:, 10:14] = 0.0
+    out = inpaint(_TwoPatches(blind, continues), image, hole, rng=0, detail=0.0, flat_share=0.0, tolerance=0.0,
+                  seam_window=0, refine=0, patch_refine=0)
+    assert np.array_equal(out[~hole], image[~hole])
+    assert out[:, 12:14].max() == 0.0 and np.allclose(out[:, 14:20], 0.7)
+
+
 def test_odd_shapes_holes_at_the_border_and_nearly_everything(model, cells):
     yy, xx = np.mgrid[:96, :96]
     shapes = {

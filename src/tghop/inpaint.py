@@ -70,6 +70,12 @@ PATCH_MARGIN = 64
 #: Pool of the coarse fill (:func:`inpaint`'s ``layout_weight``), as the coarse guide's.
 COARSE_PATCHES = 4000
 
+#: The image's known pixels within ``RIM_MATCH_WIDTH`` pixels of the hole (4-neighbour steps) count
+#: ``RIM_MATCH_WEIGHT`` times in a block's error: the pixels beside the hole decide the step at its rim, where a
+#: fill's pixels meet the image's without a cut (docs/choices.md, Inpainting "the hole's rim").
+RIM_MATCH_WIDTH = 3
+RIM_MATCH_WEIGHT = 4.0
+
 #: The integer images filled, each kept at its depth: its levels' top (``v / top`` is the value in [0, 1],
 #: as :func:`tghop.imageio.load_image` reads 16-bit files); a mask's hole is above half of it.
 LEVELS = {np.dtype(np.uint8): 255, np.dtype(np.uint16): 65535}
@@ -510,6 +516,18 @@ def _patch_refine_hole(image, hole, stats, n_steps, tile, alpha, progress):
     return out
 
 
+def _rim_weights(hole, tile):
+    """(H, W) float32: ``RIM_MATCH_WEIGHT`` on the known pixels within ``RIM_MATCH_WIDTH`` 4-neighbour steps of
+    ``hole`` (around a periodic image's edges with ``tile``), 1 elsewhere."""
+    from scipy.ndimage import binary_dilation
+
+    r = RIM_MATCH_WIDTH
+    if r <= 0 or RIM_MATCH_WEIGHT == 1.0:
+        return np.ones(hole.shape, dtype=np.float32)
+    grown = binary_dilation(np.pad(hole, r, mode="wrap" if tile else "constant"), iterations=r)[r:-r, r:-r]
+    return np.where(grown & ~hole, np.float32(RIM_MATCH_WEIGHT), np.float32(1.0))
+
+
 def _fill_order(hole, p, step, tile, order="edge", distance=None):
     """The (y, x) of the ``p x p`` blocks that touch the hole, in the order they are filled:
     from the hole's edge inwards (then in raster order), those that see no known pixel after
@@ -580,6 +598,7 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
     known = ~hole
     owner = np.full((h, w), -1, dtype=np.int32)  # the block each hole pixel was pasted from last
     offsets = np.arange(p)
+    rim = _rim_weights(hole, tile)
     if guide is not None:  # the pool's box means, as quilting compares them with its guide
         guide, guide_weight = guide
         # The guide counts from nothing at the hole's edge to whole a patch side inside it:
@@ -595,12 +614,12 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
         window = np.ix_((y + offsets) % h, (x + offsets) % w)
         old = canvas[window]  # (P, P, C)
         have = known[window]  # pixels with a value: the image's and those filled before
-        weight = have.astype(np.float32)
+        weight = np.where(have, rim[window], np.float32(0.0))
         err = None
         if weight.any():
             target = (old * weight[..., None]).ravel()
-            # ||p||^2 over the known pixels - 2 p.o + ||o||^2, for every pool patch at once.
-            err = squares @ weight.ravel() - 2.0 * (flat @ target) + float(target @ target)
+            # ||p||^2 over the known pixels - 2 p.o + ||o||^2 (each pixel weighted), for every pool patch at once.
+            err = squares @ weight.ravel() - 2.0 * (flat @ target) + float(target @ old.ravel())
         if guide is not None and not have.all():
             # The same over the guide's box means, each box weighted by its share of pixels not
             # yet filled, per pixel as the known pixels' error (quilting's guide term).
