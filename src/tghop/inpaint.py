@@ -8,7 +8,8 @@ an exemplar), chosen so that they continue what surrounds them:
 2. Blocks of ``P x P`` on the quilting grid (step ``P - overlap``) that touch the hole are
    filled from the hole's edge inwards (smallest distance to a known pixel first). Each
    takes a pool patch whose squared error over the block's *known* pixels (the image's
-   own and those filled before) is within ``1 + tolerance`` of the best, preferring
+   own and those filled before; the image's within ``RIM_MATCH_WIDTH`` of the hole count
+   ``RIM_MATCH_WEIGHT`` times) is within ``1 + tolerance`` of the best, preferring
    detailed ones as quilting does (``detail``); the error of every pool patch is one
    matrix-vector product. It is pasted on the block's hole pixels only, along
    minimum-error boundary cuts (:func:`tghop.quilting.boundary_cut_mask`) through the
