@@ -153,7 +153,7 @@ class _TwoPatches:
 def test_a_block_is_matched_most_on_the_pixels_beside_the_hole():
     # red_bricks_512's thin stripe kept a mortar joint's edge on the known side of its rim and filled the
     # stripe from a patch that matched the block's far pixels but not that edge: a thin stripe at the rim
-    # (docs/choices.md, Inpainting "the hole's rim"). The pixels beside the hole now count more.
+    # (docs/choices.md, Inpainting "the rim in the matching"). The pixels beside the hole now count more.
     image = np.full((32, 32, 1), 0.5, np.float32)
     image[:, 10:12] = 0.0  # a dark line beside the hole's left rim
     hole = np.zeros((32, 32), bool)

@@ -73,7 +73,7 @@ COARSE_PATCHES = 4000
 
 #: The image's known pixels within ``RIM_MATCH_WIDTH`` pixels of the hole (4-neighbour steps) count
 #: ``RIM_MATCH_WEIGHT`` times in a block's error: the pixels beside the hole decide the step at its rim, where a
-#: fill's pixels meet the image's without a cut (docs/choices.md, Inpainting "the hole's rim").
+#: fill's pixels meet the image's without a cut (docs/choices.md, Inpainting "the rim in the matching").
 RIM_MATCH_WIDTH = 3
 RIM_MATCH_WEIGHT = 4.0
 
