@@ -80,32 +80,6 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
         blocks = space_to_depth(X).reshape(-1, 4 * X.shape[3])
         return self.fit_sums(_block_sums(blocks, 1 if self.channelwise else X.shape[3]))
 
-    def fit_blocks(self, blocks, weights=None):
-        """Learn the hop from flattened 2x2 blocks.
-
-        Parameters
-        ----------
-        blocks : ndarray, shape (m, 4 * C)
-            Blocks as :func:`tghop.patches.space_to_depth` flattens them.
-        weights : ndarray, shape (m,), optional
-            How often each block occurs (a block shared by several training patches
-            counts once per patch); blocks of weight 0 are ignored.
-
-        Returns
-        -------
-        self
-        """
-        blocks = check_array(blocks, "blocks", "(m, 4 * C)", ndim=2)
-        m, d = blocks.shape
-        if d < 4 or d % 4:
-            raise TGHopError(f"blocks must have shape (m, 4 * C), 4 values (a 2x2 block) per channel, "
-                             f"got {blocks.shape}")
-        if weights is not None:
-            weights = check_array(weights, "weights", f"(m,) = ({m},)", ndim=1, min_rows=0)
-            if weights.shape != (m,) or (weights < 0).any():
-                raise TGHopError(f"weights must be ({m},) numbers >= 0, one per block, got shape {weights.shape}")
-        return self.fit_sums(_block_sums(blocks, 1 if self.channelwise else d // 4, weights))
-
     def fit_sums(self, sums):
         """Learn the hop from block statistics accumulated by :func:`_block_sums` (summed
         over any number of image tiles: the fit is the same as on all blocks at once).

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._common import TGHopError
 
-__all__ = ["SMALL", "PAPER", "PARAMS", "MAX_STEPS", "check_settings", "torch_device"]
+__all__ = ["SMALL", "PAPER", "MAX_STEPS", "check_settings", "torch_device"]
 
 #: The small configuration, the default of :class:`~tghop.cooc.model.CoocGAN`: made to
 #: train on a 2-core CPU for a 256 x 256 exemplar. Everything spatial is at half the paper's
@@ -61,11 +61,6 @@ PAPER = dict(
 #: released code (120 epochs there; about 7 hours of the small configuration on a 2-core
 #: CPU). A larger count is refused instead of training for days.
 MAX_STEPS = 150_000
-
-#: Every parameter of :class:`~tghop.cooc.model.CoocGAN`: the settings, then where and from
-#: which seed it trains.
-PARAMS = tuple(SMALL) + ("device", "rng")
-
 
 def _whole(name, value) -> int:
     """``value`` as an int (a Python or NumPy integer); a bool, a float (64.0 too, as TGHop's

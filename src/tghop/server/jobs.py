@@ -120,7 +120,6 @@ class Job:
         self.total = 0
         self.error = None
         self.version = 0
-        self.created = time.time()
         self.finished_at = None  # time.monotonic() when it became final
         self.cancel_requested = False
         self.askers = 1
