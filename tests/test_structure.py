@@ -9,6 +9,7 @@ from __future__ import annotations
 import ast
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -283,17 +284,57 @@ def test_docstring_examples_define_every_name_they_use():
     assert not undefined, undefined
 
 
-def test_the_readme_names_every_module():
-    # "How it works (one module per stage)" listed tghop.server's modules but for `safety`.
+def _readme_table():
+    """The rows of the README's "How it works" table: {first cell: whole line}, in order."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    table = {line.split("|")[1]: line for line in readme.splitlines() if line.startswith("| `tghop.")}
+    return {line.split("|")[1]: line for line in readme.splitlines() if line.startswith("| `tghop.")}
+
+
+def test_the_readme_names_every_module():
+    # "How it works (one module per stage)" listed tghop.server's modules but for `safety`, and the command
+    # line's modules, server's routes and the batch's manifest not at all (or without a purpose).
+    table = _readme_table()
     missing = [f"tghop.{p.stem}" for p in SRC.glob("*.py")
-               if not p.stem.startswith("__") and f"`tghop.{p.stem}`" not in readme]
-    for package in ("server", "cooc", "metrics"):
-        row = next(line for key, line in table.items() if f"`tghop.{package}`" in key)
-        missing += [f"tghop.{package}.{p.stem}" for p in (SRC / package).glob("*.py")
-                    if not p.stem.startswith("__") and f"`{p.stem}`" not in row]
+               if not p.stem.startswith("__") and not any(f"`tghop.{p.stem}`" in key for key in table)]
+    for package in ("server", "cooc", "metrics", "cli", "server/routes"):
+        top = package.split("/")[0]
+        row = next(line for key, line in table.items() if f"`tghop.{top}`" in key)
+        prefix = "routes." if package == "server/routes" else ""
+        missing += [f"tghop.{package.replace('/', '.')}.{p.stem}" for p in (SRC / package).glob("*.py")
+                    if not p.stem.startswith("__") and f"`{prefix}{p.stem}`" not in row]
     assert not missing, missing
+
+
+def test_each_package_docstring_maps_every_module():
+    # A package's docstring is its module map: tghop.cli's left out inpaint, batch and serve, tghop.server's materials.
+    missing = []
+    for package in ("tghop.cli", "tghop.server", "tghop.server.routes", "tghop.cooc"):
+        doc = ast.get_docstring(ast.parse(MODULES[package].read_text())) or ""
+        missing += [module for module in MODULES if module.rpartition(".")[0] == package
+                    and f"{module}`" not in doc and module != f"{PACKAGE}.__main__"]
+    assert not missing, "modules their package's docstring does not name: " + ", ".join(missing)
+
+
+def test_the_readme_table_is_in_import_order():
+    # The README promises that a module imports only modules of its own row or above it: the table is the
+    # order to read the code in. tghop._common sat above tghop._arrays, which it imports; tghop.fit_options
+    # (which makes a TGHop) near the top; tghop.cli above tghop.server and tghop.baselines above tghop.cooc,
+    # which they run. Imports inside functions count too: they load a later stage all the same.
+    rows = {}
+    for index, key in enumerate(_readme_table()):
+        for name in re.findall(r"`(tghop[\w.]*)`", key):
+            rows[name] = index
+
+    def row(module):
+        parts = module.split(".")
+        return next((rows[".".join(parts[:i])] for i in range(len(parts), 1, -1) if ".".join(parts[:i]) in rows),
+                    None)
+
+    assert all(row(m) is not None for m in MODULES if m not in (PACKAGE, f"{PACKAGE}.__main__"))
+    later = sorted({f"{module} imports {target}" for module in MODULES for target, _ in _imports(module)
+                    if target != PACKAGE and row(module) is not None and row(target) is not None
+                    and row(target) > row(module)})
+    assert not later, "modules importing a module of a later row of the README's table:\n" + "\n".join(later)
 
 
 def test_choices_contents_lists_every_section():

@@ -3,8 +3,9 @@
 :mod:`~tghop.cli.group` holds the command group (``main``) and how every command fails;
 one module per family of commands stands below it (:mod:`~tghop.cli.texture`: fit,
 synth, patches, clusters, info; :mod:`~tghop.cli.guided`: synth with several SOURCEs, morph;
-:mod:`~tghop.cli.evaluation`: evaluate, baseline; :mod:`~tghop.cli.cooc`: the
-co-occurrence cGAN), and below them the shared helpers
+:mod:`~tghop.cli.inpaint`: inpaint, extend; :mod:`~tghop.cli.evaluation`: evaluate,
+baseline; :mod:`~tghop.cli.cooc`: the co-occurrence cGAN; :mod:`~tghop.cli.batch`: batch;
+:mod:`~tghop.cli.serve`: serve), and below them the shared helpers
 (:mod:`~tghop.cli.options`, :mod:`~tghop.cli.common`). The ``tghop`` command itself
 starts in :func:`tghop.__main__.run`.
 """

@@ -17,6 +17,8 @@ textures, and the HTTP API under ``/api`` that the page uses (docs/serve.md).
   (one model, a guided image or a remix of several, a morph);
 * :mod:`tghop.server.safety`: requests from another site or to another name (DNS rebinding)
   refused, 403;
+* :mod:`tghop.server.materials`: whole materials (:class:`tghop.material.Material`): an albedo
+  fitted with its maps, and a material's images as one answer of every map;
 * :mod:`tghop.server.jobs`: the fit queue (a thread pool, progress through the library's
   callback, cancellation by an exception raised from it);
 * ``static/``: the page (HTML, CSS and JavaScript; no build step, nothing fetched from
