@@ -8,7 +8,8 @@ counts are ``k1``, ``k2``, ``k3`` (a count, a fraction or ``"knee"``); those not
 take :func:`tghop.synthesis.default_channels` for the exemplar's colours, filled in by
 :func:`model_for` once the exemplar is known.
 
-Only the standard library is imported here (the estimator when a model is made).
+Only :mod:`tghop._errors` is imported at the top (no NumPy: the command line builds its options
+from this module); the settings table when options are read, the estimator when a model is made.
 """
 
 from __future__ import annotations

@@ -198,13 +198,13 @@ def parse_growth(size, anchor) -> tuple:
     return size, anchor
 
 
-def json_bool(name, value, default: bool = False) -> bool:
+def json_bool(name, value) -> bool:
     """A boolean of a JSON body, one rule for all (``paper``, ``windows`` and the settings
-    table's, e.g. ``tile``): ``true``/``false`` (or 1/0); missing or ``null``: ``default``
-    (as a setting's ``null`` is its default); 422 otherwise ("yes" too). A form field's is the same
-    rule in text (:func:`parse_bool`)."""
+    table's, e.g. ``tile``): ``true``/``false`` (or 1/0); missing or ``null``: false (a setting's
+    ``null`` never comes here: it is the setting's default); 422 otherwise ("yes" too). A form
+    field's is the same rule in text (:func:`parse_bool`)."""
     if value is None:
-        return default
+        return False
     if isinstance(value, bool):
         return value
     if type(value) is int and value in (0, 1):
