@@ -754,9 +754,12 @@ def in_thread(fn, *args, **kwargs) -> Callable:
     alone: ``concurrent.futures`` imports ``logging``, a noticeable part of a small
     ``tghop synth``.) With one usable core (:func:`usable_cores`, e.g. a batch worker's
     task) no thread is started: ``fn`` runs in the caller's thread when its result is asked for.
+    The thread runs in a copy of the caller's context (as ``asyncio.to_thread``): its warnings
+    go where the caller's would (:func:`tghop._errors.collect_warnings`).
     """
     if usable_cores() == 1:
         return lambda: fn(*args, **kwargs)
+    import contextvars
     import threading
 
     outcome = {}
@@ -767,7 +770,7 @@ def in_thread(fn, *args, **kwargs) -> Callable:
         except BaseException as exc:  # handed to the caller, who raises it
             outcome["error"] = exc
 
-    thread = threading.Thread(target=run, daemon=True)
+    thread = threading.Thread(target=contextvars.copy_context().run, args=(run,), daemon=True)
     thread.start()
 
     def result():

@@ -1,10 +1,15 @@
-"""tghop's exception classes and the hint of an image over the pixel limit (no imports but ``sys``,
-always loaded: the CLI's --help and --version load only this)."""
+"""tghop's exception classes, the hint of an image over the pixel limit and how the library warns
+(:func:`warn`, :func:`collect_warnings`). No imports but ``sys``, ``contextvars`` and ``warnings``:
+always loaded, the CLI's --help and --version load only this."""
 
+import contextlib
+import contextvars
 import sys
+import warnings
 
 __all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
-           "NonNumericError", "NotFittedError", "TransparencyWarning", "HINT_DOWNSCALE_YOURSELF"]
+           "NonNumericError", "NotFittedError", "TransparencyWarning", "HINT_DOWNSCALE_YOURSELF", "warn",
+           "collect_warnings"]
 
 #: What to do about an image over the pixel limit where no --downscale option is at hand
 #: (the command line's commands without it, the web server's uploads).
@@ -98,3 +103,38 @@ class TransparencyWarning(UserWarning):
     def __init__(self, message: str, name: str = "", share: float = 0.0):
         super().__init__(message)
         self.name, self.share = name, share
+
+
+#: The list :func:`collect_warnings` keeps this thread's (this context's) warnings in; None outside it.
+_COLLECTED: contextvars.ContextVar = contextvars.ContextVar("tghop_collected_warnings", default=None)
+
+
+def warn(message, category=UserWarning, stacklevel: int = 1) -> None:
+    """How the library warns: :func:`warnings.warn` (``stacklevel`` as it takes it, counted from
+    the caller), or, inside :func:`collect_warnings` in this thread, the warning kept in its list
+    (filters not consulted: the collector decides)."""
+    kept = _COLLECTED.get()
+    if kept is None:
+        warnings.warn(message, category, stacklevel=stacklevel + 1)
+    else:
+        kept.append(message if isinstance(message, Warning) else category(message))
+
+
+@contextlib.contextmanager
+def collect_warnings():
+    """Within it, tghop's own warnings (:func:`warn`) in this thread (this context: an asyncio
+    task, a thread's ``contextvars.copy_context().run``) are kept in the list it gives, as
+    :class:`Warning` instances, instead of being issued.
+
+    The thread-safe counterpart of ``warnings.catch_warnings(record=True)``, which is process-wide
+    in Python < 3.14: a web server's or a batch worker's thread inside it swapped every thread's
+    filters and ``showwarning``, took their warnings, and two at once could leave the process with
+    the wrong ones for good. Other libraries' warnings are not kept: they go to
+    :mod:`warnings` as ever. Nested, the innermost keeps them.
+    """
+    kept = []
+    token = _COLLECTED.set(kept)
+    try:
+        yield kept
+    finally:
+        _COLLECTED.reset(token)

@@ -92,7 +92,8 @@ def warn_frames(path, count) -> None:
     TIFF of several pages: each was read without a word)."""
     if count > 1:
         import os
-        import warnings
 
-        warnings.warn(f"{os.path.basename(path)}: {count} frames (or pages); only the first is read", UserWarning,
-                      stacklevel=4)
+        from ._errors import warn
+
+        warn(f"{os.path.basename(path)}: {count} frames (or pages); only the first is read", UserWarning,
+             stacklevel=4)

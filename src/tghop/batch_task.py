@@ -186,7 +186,8 @@ def process_exemplar(job: dict) -> dict:
     synth`` writes a material).
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``outputs``,
-    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (their messages),
+    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (the messages raised in it,
+    :func:`task_warnings`: of this task alone where a worker runs several on threads),
     times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
     them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the worker and
     its peak memory. Bad input is a "failed" record, never an exception. The files are made in a

@@ -48,12 +48,11 @@ Choices the paper leaves open (see also the notes in the docs):
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ._arrays import check_array, check_count, check_int, check_width, forget_fit
 from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, one_blas_thread, usable_cores, report
+from ._errors import warn
 from .coupling import coupled_uniforms, member_ranks
 from .ichm_clusters import (AUTO_CLUSTERS, AUTO_PER_CLUSTER, NORM_DRAWS, NORM_QUANTILES, QUANTILE_STEPS,
                             cdf_codebook, fit_cluster, histogram_cdfs, match_components, match_norms,
@@ -505,9 +504,9 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
                 fresh = np.isin(np.flatnonzero(labels == i), where[new_labels == i])
                 sources[i] = np.empty((fresh.size,) + s.shape[1:], dtype=s.dtype)
                 sources[i][fresh], sources[i][~fresh] = new, s[~b]
-        warnings.warn(f"ICHM: {int(sum((~(s > self.reject_threshold).any(axis=1)).sum() for s in sources))} samples "
-                      f"still have no component above reject_threshold={self.reject_threshold:g} after 100 redraws; "
-                      "kept as drawn (lower the threshold)")
+        warn(f"ICHM: {int(sum((~(s > self.reject_threshold).any(axis=1)).sum() for s in sources))} samples "
+             f"still have no component above reject_threshold={self.reject_threshold:g} after 100 redraws; "
+             "kept as drawn (lower the threshold)")
         return labels, sources
 
     def _match(self, uniform, comp, table):

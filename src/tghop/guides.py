@@ -10,12 +10,11 @@ nearest neighbour, so that no label is blended into another).
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ._arrays import check_int
 from ._common import TGHopError, check_size
+from ._errors import warn
 
 __all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "ASPECT_TOLERANCE", "FEW_LEVELS",
            "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
@@ -164,7 +163,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     rank[_dark_to_light(values, tie)] = np.arange(n)
     if not scaled:
         return rank[labels]
-    warnings.warn(scaled_message(arr.shape, size))
+    warn(scaled_message(arr.shape, size))
     return rank[scale_labels(labels, size)]
 
 

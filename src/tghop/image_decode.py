@@ -5,19 +5,19 @@ through :mod:`tifffile`: 16-bit and float, alpha, min-is-white, premultiplied)."
 
 from __future__ import annotations
 
+import os
 import struct
-import warnings
 
 import numpy as np
 
 from ._common import InvalidImageError
-from ._errors import ImageTooLargeError
+from ._errors import ImageTooLargeError, warn
 from ._formats import TIFF_HINT, warn_frames
 from .depths import RANGE_TOLERANCE
 from .png import decode_png16
 from .profiles import tiff_profile, to_srgb
 
-__all__ = ["read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
+__all__ = ["open_image", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
            "transparency_note"]
 
 
@@ -49,6 +49,45 @@ def transparency_note(share) -> str:
     return (f", though {told} of its pixels are transparent: the colours under them are taken as texture; "
             "crop it to its opaque part, or leave that part out with an exclude mask (--exclude MASK, white "
             "where it is transparent)")
+
+
+def open_image(path):
+    """``PIL.Image.open(path)`` less its DecompressionBombWarning: the file identified by the same
+    plugins, its header read, no pixels decoded (the caller closes it, e.g. ``with``).
+
+    Pillow warns of a header over its ``Image.MAX_IMAGE_PIXELS`` as it opens one; tghop's own limit
+    applies instead (:func:`decode_pillow` refuses or downscales before decoding), and hiding the
+    warning took ``warnings.catch_warnings``, which is process-wide (not thread-safe) in Python < 3.14.
+    A header of more than twice that is still Pillow's ``DecompressionBombError``, and a file no
+    plugin identifies its ``UnidentifiedImageError`` (with the plugins' remarks warned, as Pillow does).
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    with open(path, "rb") as fh:
+        prefix = fh.read(16)
+    remarks = []
+    for load in (Image.preinit, Image.init):  # the common formats' plugins, then all (as Image.open)
+        load()
+        for fmt in list(Image.ID):
+            factory, accept = Image.OPEN[fmt]
+            try:
+                said = accept(prefix) if accept else True
+                if isinstance(said, str):
+                    remarks.append(said)
+                if not said or isinstance(said, str):
+                    continue
+                im = factory(os.fspath(path))  # the plugin opens the file and closes it with the image
+            except (SyntaxError, IndexError, TypeError, struct.error):  # not this plugin's: the next one
+                continue
+            limit = Image.MAX_IMAGE_PIXELS
+            if limit is not None and max(1, im.width) * max(1, im.height) > 2 * limit:
+                im.close()
+                raise Image.DecompressionBombError(f"Image size ({im.width * im.height} pixels) exceeds limit of "
+                                                   f"{2 * limit} pixels, could be decompression bomb DOS attack.")
+            return im
+    for remark in dict.fromkeys(remarks):
+        warn(remark, UserWarning, stacklevel=2)
+    raise UnidentifiedImageError(f"cannot identify image file {os.fspath(path)!r}")
 
 
 def read_deep(path, max_pixels, keep_alpha=False):
@@ -83,9 +122,7 @@ def read_deep(path, max_pixels, keep_alpha=False):
     try:
         import tifffile
     except ImportError:
-        from PIL import Image
-
-        with Image.open(path) as im:  # grey 16-bit and float TIFF: Pillow; deeper colour ones: refused
+        with open_image(path) as im:  # grey 16-bit and float TIFF: Pillow; deeper colour ones: refused
             tags = im.tag_v2 if hasattr(im, "tag_v2") else {}
             bits, photometric = max(tags.get(258, (8,))), tags.get(262, 1)
             if bits > 8 and photometric not in (0, 1, 2, 3):
@@ -255,8 +292,8 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
         factor = (width * height / max_pixels) ** 0.5
         size = (max(1, int(width / factor)), max(1, int(height / factor)))
         im.draft(im.mode, size)  # JPEG: decode at reduced size directly
-        warnings.warn(f"{path.name}: {width}x{height} pixels downscaled to {size[0]}x{size[1]} "
-                      f"(at most {max_pixels:,} pixels)", UserWarning, stacklevel=3)
+        warn(f"{path.name}: {width}x{height} pixels downscaled to {size[0]}x{size[1]} "
+             f"(at most {max_pixels:,} pixels)", UserWarning, stacklevel=3)
         if im.size != size:
             small = im.resize(size, resample=1, reducing_gap=2.0)  # 1 = LANCZOS
             im.close()  # frees the full-size pixels before the copies below
@@ -307,10 +344,8 @@ def file_header(path):
     -------
     tuple (int, bytes or None)
     """
-    from PIL import Image
-
     try:
-        with Image.open(path) as im:
+        with open_image(path) as im:
             return _exif_orientation(im), im.info.get("icc_profile")
     except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): the pixels as stored
         return 1, tiff_profile(path)

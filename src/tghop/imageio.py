@@ -15,18 +15,17 @@ import io
 import os
 import struct
 import sys
-import warnings
 import zlib
 from pathlib import Path
 
 import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image, report
-from ._errors import TransparencyWarning
+from ._errors import TransparencyWarning, warn
 from ._formats import DEPTHS, check_tifffile, extensions, why_unreadable
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
-from .image_decode import (decode_pillow, file_header, has_alpha, read_deep, transparency_note, transparent_share,
-                           upright)
+from .image_decode import (decode_pillow, file_header, has_alpha, open_image, read_deep, transparency_note,
+                           transparent_share, upright)
 from .output_files import check_output_path, write_atomic, written_file
 from .png import WRITING, write_png
 from .profiles import deep_to_srgb
@@ -100,23 +99,21 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     if path.is_dir():
         raise InvalidImageError(f"{path} is a folder, not an image; give an image file")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit applies
-            deep = read_deep(path, max_pixels, keep_alpha=True)  # an alpha dropped below, its transparency told
-            if deep is not None:
-                (arr, mode, depth), (orientation, profile) = deep, file_header(path)
-                arr = deep_to_srgb(upright(arr, orientation), profile, path.name)  # a colour profile: sRGB
-                hidden = None
-                if mode and not keep_alpha:
-                    hidden = transparent_share(arr[..., -1])
-                    arr = arr[..., :-1] if arr.shape[2] > 2 else arr[..., 0]
-            else:
-                with Image.open(path) as im:
-                    arr, mode = decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
-                    depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
-                    hidden = (None if keep_alpha or not has_alpha(mode) or im.width * im.height > max_pixels
-                              else transparent_share(np.asarray((im if "A" in im.getbands() else im.convert("RGBA"))
-                                                                .getchannel("A"))))  # not of a downscaled one
+        deep = read_deep(path, max_pixels, keep_alpha=True)  # an alpha dropped below, its transparency told
+        if deep is not None:
+            (arr, mode, depth), (orientation, profile) = deep, file_header(path)
+            arr = deep_to_srgb(upright(arr, orientation), profile, path.name)  # a colour profile: sRGB
+            hidden = None
+            if mode and not keep_alpha:
+                hidden = transparent_share(arr[..., -1])
+                arr = arr[..., :-1] if arr.shape[2] > 2 else arr[..., 0]
+        else:
+            with open_image(path) as im:  # no DecompressionBombWarning: our own limit applies
+                arr, mode = decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
+                depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
+                hidden = (None if keep_alpha or not has_alpha(mode) or im.width * im.height > max_pixels
+                          else transparent_share(np.asarray((im if "A" in im.getbands() else im.convert("RGBA"))
+                                                            .getchannel("A"))))  # not of a downscaled one
     except TGHopError:  # ours: already one line (a missing extra too)
         raise
     except Image.DecompressionBombError:
@@ -130,7 +127,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
                                 "give a PNG, JPEG or other common image file") from None
     if not keep_alpha and has_alpha(mode):
         said = f"{path.name}: alpha channel dropped{transparency_note(hidden)}"
-        warnings.warn(TransparencyWarning(said, path.name, hidden) if hidden else UserWarning(said), stacklevel=2)
+        warn(TransparencyWarning(said, path.name, hidden) if hidden else UserWarning(said), stacklevel=2)
     if dtype is None and arr.dtype == np.uint8:
         out = arr[:, :, None] if arr.ndim == 2 else arr
     else:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import warnings
 import zipfile
 import zlib
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 
 from . import __version__
 from ._common import ModelFileError, TGHopError
+from ._errors import warn
 from ._formats import is_model_file
 from .imageio import check_output_path, write_atomic
 from .material import Material
@@ -405,9 +405,9 @@ def load_model(path, *, material=False):
             arrays.pop(name, None)
         if meta["params"].get("patch_levels"):
             meta["params"]["patch_levels"] = 0
-            warnings.warn(f"{path}: its patch refinement statistics are of tghop 0.14 and are not used; "
-                          "fit the model again (patch_levels, --patch-levels) for the patch refinement",
-                          stacklevel=2)
+            warn(f"{path}: its patch refinement statistics are of tghop 0.14 and are not used; "
+                 "fit the model again (patch_levels, --patch-levels) for the patch refinement",
+                 stacklevel=2)
     # Files before the settings (0.13 and older) have none: no patch statistics (0.20 and
     # older: directions not whitened).
     for part in (meta, (meta.get("layout") or {}).get("model") if isinstance(meta.get("layout"), dict) else None):
@@ -444,8 +444,8 @@ def load_model(path, *, material=False):
         raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); {_refit(meta)}") from None
     newer = _newer_maker(meta)
     if newer:
-        warnings.warn(f"{path}: made by tghop {newer}, newer than this {__version__}, which reads it as a model of "
-                      "its own version (what the newer one added is not used); upgrade tghop to use it", stacklevel=2)
+        warn(f"{path}: made by tghop {newer}, newer than this {__version__}, which reads it as a model of "
+             "its own version (what the newer one added is not used); upgrade tghop to use it", stacklevel=2)
     return model
 
 

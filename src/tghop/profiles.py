@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import functools
 import io
-import warnings
 
 import numpy as np
+
+from ._errors import warn
 
 __all__ = ["to_srgb", "deep_to_srgb", "tiff_profile"]
 
@@ -78,16 +79,16 @@ def _source(data, mode, name, stacklevel):
     try:
         transform, what = _transform(bytes(data), mode)
     except Exception:  # noqa: BLE001 - a damaged profile, or one for other colours than the image's
-        warnings.warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
-                      stacklevel=stacklevel + 1)
+        warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
+             stacklevel=stacklevel + 1)
         return None
     return None if transform is None else (transform, what)
 
 
 def _said(name, what, stacklevel):
     """The warning that ``name``'s colours were converted (``stacklevel``: as for :func:`_source`)."""
-    warnings.warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning,
-                  stacklevel=stacklevel + 1)
+    warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning,
+         stacklevel=stacklevel + 1)
 
 
 def to_srgb(im, name: str):

@@ -12,10 +12,9 @@ import asyncio
 import json
 import os
 import tempfile
-import warnings
 from pathlib import Path
 
-from .._errors import ImageTooLargeError, TGHopError
+from .._errors import ImageTooLargeError, TGHopError, collect_warnings
 from . import materials
 from .requests import RequestError, check_multipart_end, safe_name
 
@@ -185,8 +184,7 @@ def read_image(content: bytes, filename: str, load):
         path = Path(folder) / filename
         path.write_bytes(content)
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # an alpha channel dropped: not an error
+            with collect_warnings():  # tghop's (an alpha channel dropped): not an error; this thread's alone
                 return load(path)
         except ImageTooLargeError as exc:
             raise RequestError(413, str(exc).replace(f"{folder}{os.sep}", "")) from None

@@ -8,7 +8,6 @@ import asyncio
 import contextlib
 import hashlib
 import json
-import warnings
 
 from ..._errors import TGHopError
 from .. import materials
@@ -111,16 +110,17 @@ def transparency_notes(notes: list):
     """Within it, an image read without its alpha channel whose pixels were partly transparent
     (:class:`tghop.TransparencyWarning`) adds a line to ``notes``: the colours under them are
     learnt as texture, which the page says with the fit (the command line's warning names its
-    ``--exclude``, which the page has not). Other warnings are ignored, as before."""
-    from ..._errors import TransparencyWarning
+    ``--exclude``, which the page has not). tghop's other warnings are ignored, as before; this
+    thread's alone (:func:`tghop._errors.collect_warnings`: other threads' warnings, and the
+    process's filters, untouched)."""
+    from ..._errors import TransparencyWarning, collect_warnings
 
-    with warnings.catch_warnings(record=True) as said:
-        warnings.simplefilter("always")
+    with collect_warnings() as said:
         yield
     for w in said:
-        if isinstance(w.message, TransparencyWarning):
-            told = "under 1%" if w.message.share < 0.005 else f"{w.message.share:.0%}"
-            notes.append(f"{w.message.name}: {told} of its pixels are transparent, and the colours under them "
+        if isinstance(w, TransparencyWarning):
+            told = "under 1%" if w.share < 0.005 else f"{w.share:.0%}"
+            notes.append(f"{w.name}: {told} of its pixels are transparent, and the colours under them "
                          "are learnt as texture; to leave them out, crop the image to its opaque part")
 
 
