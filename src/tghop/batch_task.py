@@ -14,13 +14,12 @@ import shutil
 import tempfile
 import threading
 import time
-import warnings
 from pathlib import Path
 
-from ._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
+from ._errors import HINT_DOWNSCALE_YOURSELF, TGHopError, collect_warnings
 from ._formats import is_model_file, model_file_kind
 
-__all__ = ["process_exemplar", "remove_temporaries", "one_line", "task_threads", "task_warnings", "STAGE", "THUMBNAIL",
+__all__ = ["process_exemplar", "remove_temporaries", "one_line", "task_threads", "STAGE", "THUMBNAIL",
            "THUMBNAIL_FILE"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
@@ -69,52 +68,6 @@ def task_threads(n):
             if _HOLD["count"] == 0:
                 _HOLD["stack"].close()
                 _HOLD["stack"] = _HOLD["limit"] = None
-
-
-#: The warnings of the tasks running in this process, by thread (:func:`task_warnings`).
-_WARNINGS = {"lock": threading.Lock(), "logs": {}, "saved": None}
-
-
-@contextlib.contextmanager
-def task_warnings():
-    """Context manager: a list of the warnings raised inside (each one, ``"always"``), shown
-    nowhere else; with several tasks at once in this process, each gets those of its own thread.
-
-    ``warnings.catch_warnings`` is the process's, not a thread's: on a worker running two tasks
-    at once (``dask worker --nthreads 2``), the first to end put back the filters and
-    ``showwarning`` while the other ran (whose warnings then went to the worker's stderr, not
-    its ledger line), and the other's end put back the first's list, which took every later
-    warning of the process. So the first task to enter files each warning under its thread's
-    task (a thread of no task's: the only task's, as its helper threads' in process), and the
-    last to leave puts back what was there."""
-    log, me = [], threading.get_ident()
-    with _WARNINGS["lock"]:
-        logs = _WARNINGS["logs"]
-        if not logs:
-            saved = _WARNINGS["saved"] = warnings.catch_warnings()
-            saved.__enter__()
-            warnings.simplefilter("always")
-            shown = warnings.showwarning
-
-            def show(message, category, filename, lineno, file=None, line=None):
-                target = logs.get(threading.get_ident())
-                if target is None and len(logs) == 1:
-                    target = next(iter(logs.values()))
-                if target is None:
-                    shown(message, category, filename, lineno, file, line)
-                else:
-                    target.append(warnings.WarningMessage(message, category, filename, lineno, file, line))
-
-            warnings.showwarning = show
-        logs[me] = log
-    try:
-        yield log
-    finally:
-        with _WARNINGS["lock"]:
-            del _WARNINGS["logs"][me]
-            if not _WARNINGS["logs"]:
-                _WARNINGS["saved"].__exit__(None, None, None)
-                _WARNINGS["saved"] = None
 
 
 def _numbered(name: str, count: int):
@@ -186,8 +139,8 @@ def process_exemplar(job: dict) -> dict:
     synth`` writes a material).
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``outputs``,
-    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (the messages raised in it,
-    :func:`task_warnings`: of this task alone where a worker runs several on threads),
+    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (the messages of tghop's own,
+    :func:`tghop._errors.collect_warnings`: of this task alone where a worker runs several on threads),
     times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
     them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the worker and
     its peak memory. Bad input is a "failed" record, never an exception. The files are made in a
@@ -220,7 +173,7 @@ def process_exemplar(job: dict) -> dict:
         # once all are made: a failed, interrupted or killed task leaves none of its files
         # (and the files of an earlier run of this exemplar as they were).
         stage = Path(tempfile.mkdtemp(prefix=STAGE[0], suffix=STAGE[1], dir=folder))
-        with task_threads(job.get("threads")), task_warnings() as caught:  # the ledger's, not a worker's stderr
+        with task_threads(job.get("threads")), collect_warnings() as caught:  # the ledger line: this task's own
             fit = job.get("fit") or {}
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
                 kind = model_file_kind(job["source"])
@@ -279,7 +232,7 @@ def process_exemplar(job: dict) -> dict:
         if record["status"] != "ok":
             with contextlib.suppress(OSError):
                 folder.rmdir()  # only when empty
-    record["warnings"] = [str(w.message) for w in caught if issubclass(w.category, (UserWarning, RuntimeWarning))]
+    record["warnings"] = [str(w) for w in caught if isinstance(w, (UserWarning, RuntimeWarning))]
     record["seconds"] = time.time() - start
     record["cpu_seconds"] = time.process_time() - cpu_start  # this process's threads, all of them
     now = resource.getrusage(resource.RUSAGE_SELF)

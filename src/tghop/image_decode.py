@@ -5,8 +5,9 @@ through :mod:`tifffile`: 16-bit and float, alpha, min-is-white, premultiplied)."
 
 from __future__ import annotations
 
-import os
 import struct
+import threading
+import warnings
 
 import numpy as np
 
@@ -52,42 +53,22 @@ def transparency_note(share) -> str:
 
 
 def open_image(path):
-    """``PIL.Image.open(path)`` less its DecompressionBombWarning: the file identified by the same
-    plugins, its header read, no pixels decoded (the caller closes it, e.g. ``with``).
+    """``PIL.Image.open(path)`` (the header read, no pixels decoded; the caller closes it, e.g.
+    ``with``), less Pillow's DecompressionBombWarning on the main thread.
 
     Pillow warns of a header over its ``Image.MAX_IMAGE_PIXELS`` as it opens one; tghop's own limit
-    applies instead (:func:`decode_pillow` refuses or downscales before decoding), and hiding the
-    warning took ``warnings.catch_warnings``, which is process-wide (not thread-safe) in Python < 3.14.
-    A header of more than twice that is still Pillow's ``DecompressionBombError``, and a file no
-    plugin identifies its ``UnidentifiedImageError`` (with the plugins' remarks warned, as Pillow does).
+    applies instead (:func:`decode_pillow` refuses or downscales before decoding). Hiding the warning
+    takes ``warnings.catch_warnings``, which is process-wide (not thread-safe) before Python 3.14: it is
+    used on the main thread alone (the command line's reads). On other threads (the server's uploads,
+    a batch worker's tasks) Pillow's warning of such a header goes to the console as Pillow says it.
     """
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
 
-    with open(path, "rb") as fh:
-        prefix = fh.read(16)
-    remarks = []
-    for load in (Image.preinit, Image.init):  # the common formats' plugins, then all (as Image.open)
-        load()
-        for fmt in list(Image.ID):
-            factory, accept = Image.OPEN[fmt]
-            try:
-                said = accept(prefix) if accept else True
-                if isinstance(said, str):
-                    remarks.append(said)
-                if not said or isinstance(said, str):
-                    continue
-                im = factory(os.fspath(path))  # the plugin opens the file and closes it with the image
-            except (SyntaxError, IndexError, TypeError, struct.error):  # not this plugin's: the next one
-                continue
-            limit = Image.MAX_IMAGE_PIXELS
-            if limit is not None and max(1, im.width) * max(1, im.height) > 2 * limit:
-                im.close()
-                raise Image.DecompressionBombError(f"Image size ({im.width * im.height} pixels) exceeds limit of "
-                                                   f"{2 * limit} pixels, could be decompression bomb DOS attack.")
-            return im
-    for remark in dict.fromkeys(remarks):
-        warn(remark, UserWarning, stacklevel=2)
-    raise UnidentifiedImageError(f"cannot identify image file {os.fspath(path)!r}")
+    if threading.current_thread() is not threading.main_thread():
+        return Image.open(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        return Image.open(path)
 
 
 def read_deep(path, max_pixels, keep_alpha=False):
