@@ -235,6 +235,32 @@ def test_rank_tables_give_each_projection_the_target_at_its_rank():
         assert np.median(err) < 0.002 and np.quantile(err, 0.99) < 0.02, (n, np.median(err), np.quantile(err, 0.99))
 
 
+def test_rank_tables_are_exactly_the_plain_formula():
+    """The table's entries are, bit for bit, the plain formula's: the mid-rank of each entry
+    in float64, scaled to the quantiles' positions, and the line between the two quantiles
+    around it in float64, rounded to float32 once (the images' bytes depend on it; the table
+    is made in place, from the mid-rank's double)."""
+    def plain(idxs, target, bins):
+        k, n = target.shape[0], sum(idx.shape[1] for idx in idxs)
+        counts = sum(np.bincount(idx.ravel(), minlength=k * bins) for idx in idxs).reshape(k, bins)
+        mid = (np.cumsum(counts, axis=1) - 0.5 * (counts + 1)) * ((target.shape[1] - 1) / max(n - 1, 1))
+        j = np.clip(mid.astype(np.int64), 0, target.shape[1] - 2)
+        frac = mid - j
+        rows = np.arange(k)[:, None]
+        return (target[rows, j] * (1 - frac) + target[rows, j + 1] * frac).astype(np.float32).ravel()
+
+    rng = np.random.default_rng(5)
+    for k, n, q, parts in ((3, 1, 1025, 1), (4, 900, 129, 2), (32, 15876, 1025, 1), (7, 20000, 1025, 3)):
+        y = (rng.standard_normal((k, n)) * rng.gamma(1.0, 1.0, (k, 1))).astype(np.float32)
+        target = np.sort(rng.gamma(2.0, 1.0, (k, q)), axis=1).astype(np.float32)
+        bins = pr._n_bins(n)
+        pieces = np.array_split(y, parts, axis=1)
+        lo, scale = pr._grid(pieces, bins)
+        idxs = [pr._bins(p, lo, scale, bins) for p in pieces]
+        got, want = pr._table(idxs, target, bins), plain(idxs, target, bins)
+        assert got.dtype == np.float32 and np.array_equal(got.view(np.uint32), want.view(np.uint32)), (k, n, q)
+
+
 def test_every_phase_of_the_shifted_grid_is_used():
     for stride in (1, 2, 3, 4):
         phases = pr._phases(stride)
