@@ -261,6 +261,20 @@ def test_rank_tables_are_exactly_the_plain_formula():
         assert got.dtype == np.float32 and np.array_equal(got.view(np.uint32), want.view(np.uint32)), (k, n, q)
 
 
+def test_columns_at_every_stride_are_the_strided_windows():
+    """_columns copies, at any stride, exactly the windows of the strided sliding view (at a
+    stride above 1 it copies from each phase's plane): sides that leave a remainder, patches
+    smaller and larger than the stride, a view that is not contiguous."""
+    rng = np.random.default_rng(2)
+    for c, p, stride, h, w in ((3, 5, 2, 256, 256), (3, 5, 3, 31, 44), (1, 5, 4, 9, 23), (2, 7, 5, 40, 17),
+                               (3, 5, 5, 5, 5), (3, 3, 2, 3, 30), (2, 4, 3, 10, 11)):
+        img = rng.random((c, h + 3, w + 2)).astype(np.float32)[:, 1: h + 1, 2:]
+        v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(1, 2))[:, ::stride, ::stride]
+        want = v.transpose(0, 3, 4, 1, 2).reshape(c * p * p, -1)
+        got = pr._columns(img, p, stride)
+        assert got.flags.c_contiguous and np.array_equal(got, want), (c, p, stride, h, w)
+
+
 def test_every_phase_of_the_shifted_grid_is_used():
     for stride in (1, 2, 3, 4):
         phases = pr._phases(stride)

@@ -173,9 +173,25 @@ def _levels_of(img, n_levels, mode, p):
 
 def _columns(img, p, stride=1):
     """The p x p windows at ``stride`` of a channel-first (C, H, W) image, as columns
-    (C * p * p, n) (channel, row, column; windows row-major), a contiguous copy."""
-    v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(1, 2))[:, ::stride, ::stride]
-    return np.ascontiguousarray(v.transpose(0, 3, 4, 1, 2)).reshape(img.shape[0] * p * p, -1)
+    (C * p * p, n) (channel, row, column; windows row-major), a contiguous copy.
+
+    At a stride above 1, from each phase of the grid (its pixels at offsets ``(py, px)``
+    modulo ``stride``) copied into a plane of its own first: the window offsets of that phase
+    then read contiguous runs of that plane (rather than every stride-th pixel of the image).
+    """
+    window = np.lib.stride_tricks.sliding_window_view
+    if stride == 1:
+        return np.ascontiguousarray(window(img, (p, p), axis=(1, 2)).transpose(0, 3, 4, 1, 2)).reshape(
+            img.shape[0] * p * p, -1)
+    c, h, w = img.shape
+    hh, ww = (h - p) // stride + 1, (w - p) // stride + 1
+    out = np.empty((c, p, p, hh, ww), dtype=img.dtype)
+    for py in range(min(stride, p)):
+        for px in range(min(stride, p)):
+            plane = np.ascontiguousarray(img[:, py::stride, px::stride])
+            v = window(plane, (len(range(py, p, stride)), len(range(px, p, stride))), axis=(1, 2))
+            out[:, py::stride, px::stride] = v[:, :hh, :ww].transpose(0, 3, 4, 1, 2)
+    return out.reshape(c * p * p, -1)
 
 
 class PatchStatistics(BaseEstimator):
