@@ -262,12 +262,12 @@ def test_rank_tables_are_exactly_the_plain_formula():
 
 
 def test_columns_at_every_stride_are_the_strided_windows():
-    """_columns copies, at any stride, exactly the windows of the strided sliding view (at a
-    stride above 1 it copies from each phase's plane): sides that leave a remainder, patches
-    smaller and larger than the stride, a view that is not contiguous."""
+    """_columns copies, at any stride, exactly the windows of the strided sliding view (where
+    windows overlap by half or more it copies from each phase's plane): sides that leave a
+    remainder, patches smaller and larger than the stride, a view that is not contiguous."""
     rng = np.random.default_rng(2)
     for c, p, stride, h, w in ((3, 5, 2, 256, 256), (3, 5, 3, 31, 44), (1, 5, 4, 9, 23), (2, 7, 5, 40, 17),
-                               (3, 5, 5, 5, 5), (3, 3, 2, 3, 30), (2, 4, 3, 10, 11)):
+                               (3, 5, 5, 5, 5), (3, 3, 2, 3, 30), (2, 4, 3, 10, 11), (2, 7, 3, 29, 40)):
         img = rng.random((c, h + 3, w + 2)).astype(np.float32)[:, 1: h + 1, 2:]
         v = np.lib.stride_tricks.sliding_window_view(img, (p, p), axis=(1, 2))[:, ::stride, ::stride]
         want = v.transpose(0, 3, 4, 1, 2).reshape(c * p * p, -1)

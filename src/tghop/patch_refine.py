@@ -175,14 +175,16 @@ def _columns(img, p, stride=1):
     """The p x p windows at ``stride`` of a channel-first (C, H, W) image, as columns
     (C * p * p, n) (channel, row, column; windows row-major), a contiguous copy.
 
-    At a stride above 1, from each phase of the grid (its pixels at offsets ``(py, px)``
-    modulo ``stride``) copied into a plane of its own first: the window offsets of that phase
-    then read contiguous runs of that plane (rather than every stride-th pixel of the image).
+    Where windows overlap by at least half (``2 * stride <= p``, stride above 1), from each
+    phase of the grid (its pixels at offsets ``(py, px)`` modulo ``stride``) copied into a plane
+    of its own first: the window offsets of that phase then read contiguous runs of that plane
+    (rather than every stride-th pixel of the image). At larger strides the planes would copy
+    about as much as the windows themselves.
     """
     window = np.lib.stride_tricks.sliding_window_view
-    if stride == 1:
-        return np.ascontiguousarray(window(img, (p, p), axis=(1, 2)).transpose(0, 3, 4, 1, 2)).reshape(
-            img.shape[0] * p * p, -1)
+    if stride == 1 or 2 * stride > p:
+        v = window(img, (p, p), axis=(1, 2))[:, ::stride, ::stride]
+        return np.ascontiguousarray(v.transpose(0, 3, 4, 1, 2)).reshape(img.shape[0] * p * p, -1)
     c, h, w = img.shape
     hh, ww = (h - p) // stride + 1, (w - p) // stride + 1
     out = np.empty((c, p, p, hh, ww), dtype=img.dtype)
