@@ -348,6 +348,21 @@ def test_morph_goes_from_a_on_the_left_to_b_on_the_right(models, exemplars, monk
     assert np.array_equal(strip, tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN))
 
 
+def test_quilt_group_map_names_the_group_each_pixel_shows(models):
+    pool = np.concatenate([m.sample_patches(60, rng=0, dtype=np.float32) for m in models])
+    groups = np.repeat([0, 1], 60)
+    prepared = prepare_pool(pool, (64, 96), groups=groups)
+    cost = np.zeros((prepared.plan.ys.size, prepared.plan.xs.size, 2), np.float32)
+    cost[:, :, 1] = 1e6  # every block takes group 0's patches but those in the last column
+    cost[:, -1] = [1e6, 0.0]
+    shown = np.full((64, 96), 7)
+    image = quilt_prepared(prepared, rng=1, groups=groups, group_cost=cost, group_map=shown)
+    assert np.array_equal(image, quilt_prepared(prepared, rng=1, groups=groups, group_cost=cost))
+    assert shown[:, :40].max() == 0 and shown[:, -8:].min() == 1 and set(np.unique(shown)) == {0, 1}
+    with pytest.raises(TGHopError, match="group_map must be"):
+        quilt_prepared(prepared, rng=1, groups=groups, group_cost=cost, group_map=np.zeros((3, 3), int))
+
+
 @pytest.mark.parametrize("name", ["morph", "synthesize_guided"])
 def test_several_models_generate_at_one_blas_thread_throughout(name, models):
     """The same seed, the same image: morph ran at the process's BLAS threads while its coarse guide's
