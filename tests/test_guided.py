@@ -348,6 +348,27 @@ def test_morph_goes_from_a_on_the_left_to_b_on_the_right(models, exemplars, monk
     assert np.array_equal(strip, tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN))
 
 
+def test_morph_middle_is_each_texture_in_its_own_colours(models, exemplars):
+    """The middle third is regions of A and of B, each refined to its own model's statistics: its
+    pixels' colours are the exemplars' own, and as saturated. Each station mixed both models'
+    maps over all its pixels (the interpolated quantiles), which greyed both textures into a
+    colour of neither: nearest exemplar colour 0.16 away on average (now 0.005), saturation
+    0.37 against the exemplars' 0.52 and 0.83 (now 0.81)."""
+    a, b = exemplars
+    strip = tghop.morph(models[0], models[1], (64, 256), rng=1, **GEN)
+    rng = np.random.default_rng(0)
+    colours = np.concatenate([a.reshape(-1, 3), b.reshape(-1, 3)])[rng.choice(2 * 96 * 96, 4000, replace=False)]
+    middle = strip[:, 85:171]
+    some = middle.reshape(-1, 3)[rng.choice(64 * 86, 2000, replace=False)]
+    nearest = np.sqrt(((some[:, None] - colours[None]) ** 2).sum(axis=2)).min(axis=1)
+    assert nearest.mean() < 0.03, nearest.mean()
+
+    def saturation(x):
+        return ((x.max(axis=2) - x.min(axis=2)) / np.maximum(x.max(axis=2), 1e-9)).mean()
+
+    assert saturation(middle) > 0.8 * min(saturation(a), saturation(b)), saturation(middle)
+
+
 def test_quilt_group_map_names_the_group_each_pixel_shows(models):
     pool = np.concatenate([m.sample_patches(60, rng=0, dtype=np.float32) for m in models])
     groups = np.repeat([0, 1], 60)

@@ -33,25 +33,26 @@ How a morph is made
 2. **Quilting** from the union of the models' pools (``n_patches`` shared out by area,
    at least a quarter each, grown with the blocks as :meth:`tghop.TGHop.synthesize` grows
    its pool). Each block draws the model whose patches it takes, with probabilities
-   ``W_k`` at its centre, through a smooth random field (the models come in blobs of a few
-   blocks, in their proportions); the other models' patches cost :data:`MIXED_COST` per
-   overlap value more (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``: a
-   preference a much better fitting patch overrides; :data:`REGION_COST`, more than any
-   overlap error, where one model has all the weight), and the boundary cuts join the
-   models along the content. The coarse layout guide is each model's own blended by ``W``.
+   ``W_k`` at its centre, through a smooth random field made uniform by its ranks in each
+   column of blocks (the models come in blobs of a few blocks, each column in its
+   proportions); the other models' patches cost :data:`MIXED_COST` per overlap value more
+   (:func:`tghop.quilting.quilt_prepared`'s ``group_cost``; more than any overlap error, so
+   each block takes its drawn model's patches), and the boundary cuts join the models along
+   the content. The quilt tells which model's patch each pixel shows (``group_map``): its
+   *owner*, blurred by a box of :data:`OWNER_BLUR` pixels (``o_k``). The coarse layout
+   guide is each model's own blended by ``W``.
 3. **Refinement by stations.** A *station* is a weight map ``w_s`` (the stations'
-   weights sum to 1 at every pixel) and a mix ``a_s`` of the models. Each round, every
-   station's bounding box is refined once per model of its mix as
-   :func:`tghop.refine.refine` does (the model's decorrelated colour space, Laplacian
-   bands and oriented parts given its quantiles, then the pixels), except that each
-   monotone map is estimated from the pixels where the station dominates
-   (``w_s >= 0.5``) and applied to the whole box; the image becomes
-   ``sum_s w_s sum_k a_sk refined_sk``. The colours likewise (each model's colour
-   quantiles, RGB). The stations lie at evenly spaced ``t`` across the width with
-   hat-function weights, each mixing A and B as ``(1 - t, t)``: in a common colour space
-   a mix of monotone maps *is* the map to the interpolated quantiles (the displacement
-   interpolation of the two distributions), so each column's band statistics move from
-   A's to B's.
+   weights sum to 1 at every pixel; hat functions at evenly spaced ``t`` across the
+   width). Each round, every station's bounding box is refined once per model that owns
+   pixels there as :func:`tghop.refine.refine` does (the model's decorrelated colour
+   space, Laplacian bands and oriented parts given its quantiles, then the pixels),
+   except that each monotone map is estimated from the pixels the model owns where the
+   station dominates (``w_s >= 0.5``) and applied to the whole box; the image becomes
+   ``sum_s w_s sum_k o_k refined_sk``. The colours likewise (each model's colour
+   quantiles, RGB). So each region keeps its own model's statistics and colours, and the
+   columns go from A to B by the share of each model's regions. (Up to 0.54 every station
+   mixed both models' maps over all its pixels, ``(1 - t, t)``, the interpolated
+   quantiles: both textures in the middle were greyed into a colour of neither.)
 
 Example
 -------
@@ -97,14 +98,21 @@ MAX_TRANSITION = 4096
 #: units) of a patch of a model other than the one a block drew where that model has all the
 #: weight: more than any overlap error (at most 1 per value).
 REGION_COST = 1.0
-#: The same in blocks where several models have a share: a preference for the drawn model
-#: that a clearly better fitting patch of another overrides, so that a texture can continue
-#: across a few blocks (fewer block-shaped islands).
-MIXED_COST = 0.003
+#: The same in blocks where several models have a share. Strict as :data:`REGION_COST` (it was
+#: 0.003, a preference): the smoother model's patches fit the overlaps better and took most of
+#: the middle (grass to bark: grass up to three quarters of the width), so the share of each
+#: model's pixels now follows the ramp (each block its drawn model, in blobs).
+MIXED_COST = 1.0
 #: Length scale in pixels of the random regions of a remix.
 _BLOB = 64
 #: Values ranked to estimate each monotone map of the refinement.
 _SAMPLES = 1 << 14
+#: Fewer pixels of a model than this where a station dominates: its maps are estimated from the
+#: model's pixels over the station's whole box.
+_FEW_SAMPLES = 256
+#: The morph's share of each model in a pixel: which model's patch the quilt shows there (the
+#: boundary cuts decide), blurred by a box of this many pixels (antialiased where they meet).
+OWNER_BLUR = 3
 #: Images from this many pixels on are refined a station per thread.
 _THREADED_PIXELS = 512 * 512
 #: Entries of the lookup table that applies a monotone map.
@@ -311,9 +319,9 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
           layout_refine=3, layout_patch_refine=None, seam_window=9, progress=None, dtype=np.float64):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.
 
-    Column ``x`` is at ``t = x / (W - 1)`` of the way: its blocks take B's patches with
-    probability ``t`` (in blobs of a few blocks), and its band, pixel and colour
-    statistics are A's and B's quantiles interpolated at ``t`` (``stations`` evenly
+    Column ``x`` is at ``t = x / (W - 1)`` of the way: a share ``t`` of its blocks take B's
+    patches, the others A's (in blobs of a few blocks), and each region is refined to its
+    own model's band, pixel and colour statistics, estimated locally (``stations`` evenly
     spaced stations with hat-function weights, see the module's notes).
 
     Parameters
@@ -322,8 +330,8 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     size : (int, int)
         (height, width) of the strip.
     stations : int, optional
-        Steps of the statistics across the width (at least 2); default one per 128
-        columns, at least 3.
+        Windows across the width in which each model's statistics are matched (at least 2);
+        default one per 128 columns, at least 3.
     rng, n_patches, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block, seam_window
         As :meth:`tghop.TGHop.synthesize`; ``n_patches`` is shared out between the models in
         proportion to their areas (each at least a quarter of it), ``pool_per_block`` counts
@@ -345,9 +353,8 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     n = max(3, int(math.ceil(w / 128)) + 1) if stations is None else check_int(stations, "stations", 2)
     t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
     centres = np.linspace(0.0, 1.0, n)
-    mix = np.stack([1.0 - centres, centres], axis=1)
     ramp = np.broadcast_to(np.stack([1.0 - t, t]).astype(np.float32)[:, None, :], (2, h, w))
-    return _synthesize(models, (h, w), _hat_stations(h, t, centres), mix, ramp, rng=rng, n_patches=n_patches,
+    return _synthesize(models, (h, w), _hat_stations(h, t, centres), ramp, rng=rng, n_patches=n_patches,
                        tile=False, overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share,
                        refine=refine, match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
                        layout_weight=layout_weight, layout_refine=layout_refine,
@@ -456,12 +463,13 @@ def _as_dtype(image, dtype, scratch=False):
     return np.ascontiguousarray(image, dtype=dtype)
 
 
-def _synthesize(models, size, stations, mix, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
+def _synthesize(models, size, stations, shares, *, rng, n_patches, tile, overlap, tolerance, detail, flat_share,
                 refine, match_colours, reuse, pool_per_block, layout_weight, layout_refine, layout_patch_refine,
                 seam_window, progress, dtype):
     """Quilt the union of the models' pools (each block its drawn model's patches, drawn
     from the models' ``shares`` (K, H, W)), refine and colour-match by the ``stations`` (each
-    one's box and weights over it, as :func:`_hat_stations` gives them) and ``mix`` (S, K)."""
+    one's box and weights over it, as :func:`_hat_stations` gives them), each pixel by the
+    model whose patch it shows."""
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance,
                                            detail=detail, flat_share=flat_share, match_colours=match_colours,
@@ -514,13 +522,14 @@ def _synthesize(models, size, stations, mix, shares, *, rng, n_patches, tile, ov
         report(progress, "patch pool", k, k)
     group_cost = _group_cost(shares, prepared.plan, p, pool.shape[3], rng)
     reuse = 0.0 if on_demand(size, p, len(pool), overlap=overlap, tile=tile) else checked["reuse"]
+    shown = np.zeros(size, dtype=np.uint8)  # the model whose patch each pixel shows
     image = quilt_prepared(prepared, tolerance=tolerance, rng=rng, progress=progress, dtype=np.float32, reuse=reuse,
                            guide=guide, guide_weight=checked["layout_weight"], groups=groups, group_cost=group_cost,
-                           return_seams=checked["seam_window"] > 0)
+                           return_seams=checked["seam_window"] > 0, group_map=shown)
     del prepared, pool
     if checked["seam_window"]:  # (image, steps)
         image = remove_seams(*image, window=checked["seam_window"], out=image[0], progress=progress)
-    stations = _Stations(stations, mix, models)
+    stations = _Stations(stations, region_weights(shown, k, OWNER_BLUR), models)
     if checked["refine"]:
         image = stations.refine(image, n_iter=checked["refine"], tile=tile, progress=progress)
     if checked["match_colours"]:
@@ -603,7 +612,9 @@ def _group_cost(shares, plan, p, c, rng):
     cx = np.minimum(plan.xs + p // 2, w - 1)
     at = shares[:, cy[:, None], cx[None, :]]  # (K, ny, nx)
     field = _smooth(rng.standard_normal(at.shape[1:]), 1.0, plan.tile)
-    u = (np.argsort(np.argsort(field, axis=None)).reshape(field.shape) + 0.5) / field.size
+    # Made uniform by its ranks in each column of blocks: every column draws each model in its share
+    # (to within a block), and the blobs of the smooth field hold across the columns.
+    u = (np.argsort(np.argsort(field, axis=0), axis=0) + 0.5) / field.shape[0]
     drawn = np.minimum((np.cumsum(at, axis=0) < u[None]).sum(axis=0), k - 1)  # (ny, nx)
     n_values = 2 * p * plan.overlap * c
     mixed = at.max(axis=0) < 1.0 - 1e-6  # blocks in a transition: a preference only
@@ -614,14 +625,15 @@ def _group_cost(shares, plan, p, c, rng):
 
 
 class _Stations:
-    """Stations (each one's box and its weights over it, or None) and mixes (S, K) of the models'
-    statistics.
+    """Stations (each one's box and its weights over it, or None) and each model's soft share of
+    every pixel (``owners`` (K, H, W), summing to 1: which model's patch the pixel shows).
 
-    Each station is worked on over the bounding box of its weights only; its monotone
-    maps are estimated from the pixels (of each band level) where it dominates."""
+    Each station is worked on over the bounding box of its weights only; each model's monotone
+    maps are estimated from the pixels (of each band level) that the model owns where the station
+    dominates, and applied where the model owns the pixels."""
 
-    def __init__(self, stations, mix, models):
-        self.mix = np.asarray(mix, dtype=np.float64)
+    def __init__(self, stations, owners, models):
+        self.owners = np.asarray(owners, dtype=np.float32)
         self.stats = [m.bands_ for m in models]
         # Each model's band quantiles with exponential tails, and their levels (made once).
         self.bands = [tailed_band_quantiles(s.band_quantiles_) for s in self.stats]
@@ -633,26 +645,35 @@ class _Stations:
                 self.stations.append(None)
                 continue
             box, wb = station
-            samples, level = [], wb
-            for i in range(self.n_levels + 1):  # each band level's, then (last) the pixels'
-                if i == self.n_levels:
-                    level = wb
-                elif i:
-                    level = downsample(level, mode="reflect")
-                samples.append(_dominant(level))
-            self.stations.append((box, wb, samples))
+            per_model = {}
+            for k in range(len(models)):
+                own = self.owners[k][box]
+                if not (own >= 0.5).any():  # no pixel of this model here
+                    continue
+                samples, level, owned = [], wb, own
+                for i in range(self.n_levels + 1):  # each band level's, then (last) the pixels'
+                    if i == self.n_levels:
+                        level, owned = wb, own
+                    elif i:
+                        level, owned = downsample(level, mode="reflect"), downsample(owned, mode="reflect")
+                    samples.append(_dominant(level, owned))
+                per_model[k] = (own, samples)
+            self.stations.append((box, wb, per_model))
 
     def _each(self, image, one):
-        """``sum_s w_s sum_k a_sk one(k, crop, samples)`` over the stations' boxes; (H, W, C) float32."""
+        """``sum_s w_s sum_k o_k one(k, crop, samples)`` over the stations' boxes (``o_k`` the
+        model's share of each pixel, over the models present); (H, W, C) float32."""
         def station_value(s):
-            box, wb, samples = self.stations[s]
+            box, wb, per_model = self.stations[s]
             crop = image[box]
-            acc = None
-            for k in np.flatnonzero(self.mix[s] > 0):
+            acc = total = None
+            for k, (own, samples) in per_model.items():
                 value = one(k, crop, samples)
-                if self.mix[s, k] != 1.0:
-                    value *= np.float32(self.mix[s, k])
+                value *= own[..., None]
                 acc = value if acc is None else np.add(acc, value, out=acc)
+                total = own.copy() if total is None else np.add(total, own, out=total)
+            if len(per_model) < len(self.owners):  # a model owns no pixel here: the others' share it
+                acc /= np.maximum(total, np.float32(1e-6))[..., None]
             acc *= wb[..., None]
             return acc
 
@@ -731,12 +752,14 @@ def _linear(x, matrix, offset):
     return out
 
 
-def _dominant(weights):
-    """Flat indices of at most :data:`_SAMPLES` pixels (evenly strided) where ``weights``
-    (h, w) is at least 0.5 (else above zero)."""
-    where = np.flatnonzero(weights.ravel() >= 0.5)
-    if where.size == 0:
-        where = np.flatnonzero(weights.ravel() > 1e-3)
+def _dominant(weights, owned):
+    """Flat indices of at most :data:`_SAMPLES` pixels (evenly strided) that a model owns
+    (``owned`` (h, w) at least 0.5) where ``weights`` (h, w) is at least 0.5; where those are
+    fewer than :data:`_FEW_SAMPLES`, those it owns where ``weights`` is above zero."""
+    mine = owned.ravel() >= 0.5
+    where = np.flatnonzero(mine & (weights.ravel() >= 0.5))
+    if where.size < _FEW_SAMPLES:
+        where = np.flatnonzero(mine & (weights.ravel() > 1e-3))
     if where.size > _SAMPLES:
         where = where[:: int(math.ceil(where.size / _SAMPLES))]
     return where

@@ -307,12 +307,13 @@ def _check_grid(size, grid):
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same strip; without it every run differs.")
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
-              help="Steps of the statistics from A to B (default one per 128 columns, at least 3).")
+              help="Windows across the width in which each texture's statistics are matched (default one "
+                   "per 128 columns, at least 3).")
 @depth_option("8")
 @QUIET_OPTION
 def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     """A strip from texture A on the left to texture B on the right (A and B: exemplars,
-    builtin:NAME or saved models); every column is a texture between them."""
+    builtin:NAME or saved models); every column mixes regions of the two in its proportion."""
     import numpy as np
 
     from ..guided import morph as make_strip
