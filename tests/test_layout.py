@@ -498,20 +498,6 @@ def _layout_reports(calls, after):
     return done
 
 
-def test_a_morphs_layout_guides_report_their_progress(layout_model):
-    # morph's coarse guides (one per model, in a second thread) ran silent between "layout" 0/1 and 1/1, and
-    # the pools' "patch pool" reports came while the guides were made.
-    import tghop
-
-    calls = []
-    kw = dict(rng=3, n_patches=600, refine=1)
-    image = tghop.morph(layout_model, layout_model, (64, 192), progress=lambda *call: calls.append(call), **kw)
-    np.testing.assert_array_equal(image, tghop.morph(layout_model, layout_model, (64, 192), **kw))  # the same image
-    done = _layout_reports(calls, "patch pool")
-    assert len(set(done)) > 10 and 500 in done  # both guides' steps: the first's end is half of the whole
-    assert calls[0] == ("layout", 0, 1000)
-
-
 def test_inpaintings_coarse_fill_reports_its_progress(layout_model):
     # The coarse fill (an inpainting of the downsampled image) ran silent between "layout" 0/1 and 1/1.
     from tghop.inpaint import inpaint

@@ -787,7 +787,11 @@ def test_morph_goes_from_a_to_b(client, fitted, second):
     assert closer(strip[:, :32], alone[bricks], alone[cells]) and closer(strip[:, -32:], alone[cells], alone[bricks])
     again = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
                                                    "n_patches": 400})
-    assert again.content == r.content
+    assert again.content == r.content and "x-tghop-warning" not in r.headers
+    # stations no longer applies: the same strip, and the answer says so
+    told = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
+                                                  "n_patches": 400, "stations": 5})
+    assert told.content == r.content and told.headers["x-tghop-warning"].startswith("stations no longer applies")
     plain = client.post("/api/images/morph", json={"a": bricks, "b": cells, "size": [40, 192], "seed": 4,
                                                    "n_patches": 400, "flat_share": 0})
     assert plain.status_code == 200 and plain.content != r.content  # the setting reaches the morph's quilt

@@ -1237,7 +1237,6 @@ def quilt_prepared(
     groups=None,
     group_cost=None,
     return_seams: bool = False,
-    group_map=None,
 ):
     """Quilt a pool made ready by :func:`prepare_pool`; parameters and result as :func:`quilt`.
 
@@ -1248,10 +1247,7 @@ def quilt_prepared(
     :func:`quilting_plan`): each pool patch belongs to a group (e.g. the model that made
     it), and its error at block (i, j) counts ``group_cost[i, j, group]`` more (in the
     units of the overlap error, a sum of squared differences): a per-block preference for
-    some groups (:mod:`tghop.guided`). Both or neither. ``group_map`` (H, W) int array (with
-    ``groups``): filled with the group of the patch each pixel of the image shows (the
-    boundary cuts decide it, as the pixels; :func:`tghop.guided.morph` refines each
-    group's pixels to its own model). The image is the same either way.
+    some groups (:mod:`tghop.guided`). Both or neither.
 
     ``return_seams``: also return the :class:`tghop.seams.SeamSteps` of the image: at
     every seam edge it has (two neighbours pasted from two blocks), the change that
@@ -1269,7 +1265,6 @@ def quilt_prepared(
     groups : array_like of int, shape (n,), optional
     group_cost : array_like, shape (ny, nx, K), optional
     return_seams : bool
-    group_map : ndarray of int, shape (H, W), optional
 
     Returns
     -------
@@ -1284,13 +1279,6 @@ def quilt_prepared(
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
     costs = _check_groups(groups, group_cost, arr.shape[0], plan)
-    shown = None  # the group each canvas pixel shows (group_map's)
-    if group_map is not None:
-        if costs is None or not isinstance(group_map, np.ndarray) or group_map.shape != plan.size \
-                or group_map.dtype.kind not in "iu":
-            raise TGHopError(f"group_map must be an integer array of shape {plan.size} (the image's), given with "
-                             "groups")
-        shown = np.zeros(plan.canvas_shape, dtype=np.uint8 if costs[1].shape[2] <= 256 else np.int64)
     # Uses of each pool patch and the factors (1 + reuse * uses) of its errors, times the
     # flat patches' factors; None without either (the same arithmetic as before they existed).
     uses = np.zeros(arr.shape[0], dtype=np.int64) if reuse else None
@@ -1386,18 +1374,12 @@ def quilt_prepared(
         np.copyto(old.view(pixel)[..., 0], new.view(pixel)[..., 0], where=paste)
         for t, win in enumerate(windows):
             canvas[win] = old[t]
-        if shown is not None:
-            drawn = costs[0][chosen]
-            for t, win in enumerate(windows):
-                shown[win] = np.where(paste[t], drawn[t], shown[win])
         done += b
         report(progress, "quilting", done, plan.n_blocks)
 
     if log is not None:
         report(progress, "seams", 0, 1)  # the seam removal's first part: its steps gathered from the log
     h, w = plan.size
-    if shown is not None:
-        group_map[...] = shown[:h, :w]
     # Cropped, clipped and converted in one pass (the bounds are exact in float32).
     image = np.clip(canvas[:h, :w], 0.0, 1.0, out=np.empty((h, w, c), dtype=dtype))
     if log is not None:

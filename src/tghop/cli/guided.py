@@ -307,15 +307,16 @@ def _check_grid(size, grid):
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed: the same seed gives the same strip; without it every run differs.")
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
-              help="Windows across the width in which each texture's statistics are matched (default one "
-                   "per 128 columns, at least 3).")
+              help="No longer applies (accepted with a warning, and ignored).")
 @depth_option("8")
 @QUIET_OPTION
 def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     """A strip from texture A on the left to texture B on the right (A and B: exemplars,
-    builtin:NAME or saved models); every column mixes regions of the two in its proportion."""
+    builtin:NAME or saved models); every column mixes regions of the two, with organic outlines, in its
+    proportion."""
     import numpy as np
 
+    from ..guided import STATIONS_GONE
     from ..guided import morph as make_strip
     from ..imageio import check_depth, generation_dtype, save_image
 
@@ -332,11 +333,12 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         _warn_deep([source_a, source_b], [read_a, read_b], ("A", "B"), output, depth)
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
                                                                                      f"B {source_b}")
+        if stations is not None:  # (the library's FutureWarning is not among the warnings shown)
+            click.echo(f"Warning: --{STATIONS_GONE}", err=True)
         rows = []
         for row in range(grid):
             rng = np.random.default_rng(None if seed is None else seed + row)
-            rows.append(make_strip(model_a, model_b, size, rng=rng, stations=stations, progress=progress,
-                                   dtype=generation_dtype(depth)))
+            rows.append(make_strip(model_a, model_b, size, rng=rng, progress=progress, dtype=generation_dtype(depth)))
             progress.close()
         save_image(np.concatenate(rows, axis=0), output, depth=depth or 8, progress=progress)
     if output != "-":

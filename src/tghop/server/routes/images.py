@@ -173,7 +173,10 @@ async def guided(server, request):
 
 
 def morph_png(server, ids, size, stations, settings, seed) -> tuple:
-    """A morph from model ``ids[0]`` to ``ids[1]`` (texture models of one patch size)."""
+    """A morph from model ``ids[0]`` to ``ids[1]`` (texture models of one patch size); ``stations`` (no longer
+    applies) is told in the answer's warning header, not passed on (the library's warning would go to the
+    server's console)."""
+    from ...guided import STATIONS_GONE
     from ...guided import morph as morph_strip
 
     models = [server.model(model_id) for model_id in ids]
@@ -183,9 +186,9 @@ def morph_png(server, ids, size, stations, settings, seed) -> tuple:
                                     "morph goes between two texture models: pick a texture model as "
                                     f"{label} (fit one from the material's albedo alone, without its maps)")
     same_patches(models, ["a", "b"])
-    return several_png(server, lambda m, rng, dtype: morph_strip(
-        m[0], m[1], size, rng=rng, stations=stations, dtype=dtype, progress=server.unless_stopping, **settings),
-        models, seed)
+    png, shape = several_png(server, lambda m, rng, dtype: morph_strip(
+        m[0], m[1], size, rng=rng, dtype=dtype, progress=server.unless_stopping, **settings), models, seed)
+    return png, shape, [] if stations is None else [STATIONS_GONE]
 
 
 async def morph(server, request):
