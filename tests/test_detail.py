@@ -137,15 +137,11 @@ def test_bad_detail(detail):
 # ----------------------------------------------------------------------------- flat_share
 
 
-def test_flat_factors_mark_the_least_energy_share_of_each_group():
+def test_flat_factors_mark_the_least_energy_share():
     energy = np.arange(100, dtype=np.float32)[::-1]
     factors = flat_factors(energy, 0.25)
     assert factors.dtype == np.float32
     assert np.array_equal(np.flatnonzero(factors == FLAT_PENALTY), np.arange(75, 100)) and (factors[:75] == 1).all()
-    # Taken of each group apart: group 1 is all rougher than group 0, yet its flattest fifth counts too.
-    energy = np.concatenate([np.arange(50), 100 + np.arange(50)]).astype(np.float32)
-    grouped = flat_factors(energy, 0.2, groups=np.repeat([0, 1], 50))
-    assert np.array_equal(np.flatnonzero(grouped == FLAT_PENALTY), np.r_[0:10, 50:60])
 
 
 def test_flat_share_places_textured_patches_where_only_flat_ones_were_near_best():

@@ -13,7 +13,6 @@ from tghop import TGHopError, data, guided
 from tghop.guided import guide_labels, region_weights
 from tghop.imageio import to_uint8
 from tghop.modelfile import save_model
-from tghop.quilting import prepare_pool, quilt_prepared
 from tghop.synthesis import TGHop
 
 from conftest import assert_user_error, cli
@@ -227,27 +226,6 @@ def test_region_weights_blend_over_the_transition():
     ramp = w[1, 0, 12:28]
     assert np.all(np.diff(ramp) >= 0) and 0.3 < w[1, 0, 20] < 0.7
     assert set(np.unique(region_weights(labels, 2, 0))) == {0.0, 1.0}
-
-
-def test_group_cost_keeps_each_block_to_its_group():
-    """Quilting's per-block group cost: black patches (group 0) on the left, white (1) on the right."""
-    pool = np.concatenate([np.full((20, 8, 8, 1), 0.1), np.full((20, 8, 8, 1), 0.9)]).astype(np.float32)
-    pool += np.random.default_rng(0).random(pool.shape).astype(np.float32) * 0.05
-    groups = np.repeat([0, 1], 20)
-    prepared = prepare_pool(pool, (40, 80))
-    ny, nx = prepared.plan.ys.size, prepared.plan.xs.size
-    cost = np.zeros((ny, nx, 2), dtype=np.float32)
-    right = prepared.plan.xs >= 40
-    cost[:, ~right, 1] = 100.0
-    cost[:, right, 0] = 100.0
-    out = quilt_prepared(prepared, rng=0, groups=groups, group_cost=cost)
-    assert out[:, :30].max() < 0.5 and out[:, 50:].min() > 0.5
-    with pytest.raises(TGHopError, match="both or neither"):
-        quilt_prepared(prepared, groups=groups)
-    with pytest.raises(TGHopError, match="group_cost must have shape"):
-        quilt_prepared(prepared, groups=groups, group_cost=cost[:1])
-    with pytest.raises(TGHopError, match="groups must lie"):
-        quilt_prepared(prepared, groups=groups + 1, group_cost=cost)
 
 
 def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):

@@ -849,10 +849,10 @@ def _pool_table(arr: np.ndarray, slices, masks_fc: np.ndarray, boxes: _Boxes, *,
     return table, bound, energies
 
 
-def flat_factors(energy, share: float, *, groups=None) -> np.ndarray:
+def flat_factors(energy, share: float) -> np.ndarray:
     """The factors of a pool's errors for ``flat_share``: :data:`FLAT_PENALTY` for the
     ``round(share * n)`` patches of least gradient ``energy`` (n,) (those below the next
-    one's; with ``groups`` (n,) int, of each group's n), 1 for the rest; float32 (n,).
+    one's), 1 for the rest; float32 (n,).
 
     Parameters
     ----------
@@ -860,8 +860,6 @@ def flat_factors(energy, share: float, *, groups=None) -> np.ndarray:
         Each patch's gradient energy (:func:`gradient_energy`).
     share : float
         ``flat_share``, in [0, 1) (not checked here); at most ``n - 1`` patches are flat.
-    groups : array_like of int, shape (n,), optional
-        Each patch's group; the share is taken of each group apart.
 
     Returns
     -------
@@ -870,12 +868,9 @@ def flat_factors(energy, share: float, *, groups=None) -> np.ndarray:
     """
     energy = np.asarray(energy)
     flat = np.zeros(energy.shape, dtype=bool)
-    groups = None if groups is None else np.asarray(groups)
-    for members in [slice(None)] if groups is None else [groups == g for g in sorted(set(groups.tolist()))]:
-        values = energy[members]
-        k = min(int(round(share * values.size)), values.size - 1)
-        if k > 0:  # np.partition, not np.quantile: that imports numpy.ma (generation keeps it out)
-            flat[members] = values < np.partition(values, k)[k]
+    k = min(int(round(share * energy.size)), energy.size - 1)
+    if k > 0:  # np.partition, not np.quantile: that imports numpy.ma (generation keeps it out)
+        flat = energy < np.partition(energy, k)[k]
     return np.where(flat, np.float32(FLAT_PENALTY), np.float32(1.0))
 
 
@@ -901,10 +896,9 @@ def gradient_energy(arr: np.ndarray) -> np.ndarray:
             + np.einsum("ij,ij->i", dx, dx) / np.float32(dx.shape[1]))
 
 
-def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx, grouped=None):
-    """Overlap error (plus guide distance, plus group cost) of pool patch ``pool_idx[i]`` at block
-    ``block_idx[i]``; ``wraps`` (b,): the blocks that also overlap the columns from ``k1`` on;
-    ``grouped``: ``(groups (n,), cost (b, K))`` or None."""
+def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx):
+    """Overlap error (plus guide distance) of pool patch ``pool_idx[i]`` at block
+    ``block_idx[i]``; ``wraps`` (b,): the blocks that also overlap the columns from ``k1`` on."""
     table = prepared._table
     err = np.einsum("ij,ij->i", table[pool_idx, :k1], query[block_idx, :k1])
     err += onorm[block_idx]
@@ -914,29 +908,23 @@ def _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, b
     if target is not None:
         diff = prepared._low[pool_idx] - target[block_idx]
         err += factor[block_idx] * np.einsum("ij,ij->i", diff, diff)
-    if grouped is not None:
-        err += grouped[1][block_idx, grouped[0][pool_idx]]
     return err
 
 
-def _full_errors(table, query, k1, wraps, guided, target, factor, grouped=None):
+def _full_errors(table, query, k1, wraps, guided, target, factor):
     """Every pool patch's error against every block of a wavefront, less the blocks'
     constant ``onorm`` (pool x blocks): the overlap columns, the wrapped columns of the
-    blocks that wrap, the guide term and the group cost; when the bound rules out too few
-    patches."""
+    blocks that wrap and the guide term; when the bound rules out too few patches."""
     err = table[:, :k1] @ query[:, :k1].T
     sel = np.flatnonzero(wraps)
     if sel.size:
         err[:, sel] += table[:, k1:] @ query[sel, k1:].T
     if target is not None:
         err += _guide_distances(guided, target, factor)
-    if grouped is not None:
-        err += grouped[1][:, grouped[0]].T
     return err
 
 
-def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack, penalty=None,
-                        grouped=None):
+def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, tolerance, slack, penalty=None):
     """The candidates of :func:`quilt_prepared`'s rule, with full errors only where needed.
 
     A lower bound of every pool patch's error (the box sums of :class:`_Boxes` instead of
@@ -951,9 +939,6 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     applies to the penalised errors: a factor >= 1 times a lower bound is a lower bound
     of the penalised error (also where the bound is negative), and the penalised full
     error of the patch with the smallest penalised bound an upper bound of the best.
-
-    With ``grouped`` (``(groups (n,), cost (b, K))``: each patch's group and each block's
-    cost of each group), the cost is added to the bound and to the full errors alike.
 
     Returns
     -------
@@ -979,14 +964,12 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     # product's left, which OpenBLAS reads faster (measured: docs/choices.md).
     lower = (bound @ lb_query.T).T
     lower += offset[:, None]
-    if grouped is not None:
-        lower += grouped[1][:, grouped[0]]
     if penalty is not None:
         lower *= penalty
         slack = slack * penalty.max()
     first = lower.argmin(axis=1)
     blocks = np.arange(b)
-    upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, blocks, grouped)
+    upper = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, first, blocks)
     if penalty is not None:
         upper *= penalty[first]
     # Twice the slack: the bound's own round-off; and never below the smallest bound, so
@@ -997,7 +980,7 @@ def _bounded_candidates(prepared, o, query, onorm, k1, wraps, target, factor, to
     block_idx, pool_idx = np.divmod(np.flatnonzero(lower <= limit[:, None]), n)
     if pool_idx.size > n * b // 8:
         return None
-    err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx, grouped)
+    err = _exact_errors(prepared, query, onorm, k1, wraps, target, factor, pool_idx, block_idx)
     if penalty is not None:
         err *= penalty[pool_idx]
     best = np.full(b, np.inf, dtype=err.dtype)
@@ -1101,26 +1084,6 @@ def quilt(
                           guide_weight=guide_weight, reuse=reuse)
 
 
-def _check_groups(groups, group_cost, n, plan):
-    """``(groups, cost)`` as int64 (n,) and float32 (ny, nx, K), or None without them."""
-    if groups is None and group_cost is None:
-        return None
-    if groups is None or group_cost is None:
-        raise TGHopError("groups and group_cost go together: give both or neither")
-    labels = np.asarray(groups)
-    cost = np.asarray(group_cost, dtype=np.float32)
-    shape = (plan.ys.size, plan.xs.size)
-    if labels.shape != (n,) or labels.dtype.kind not in "iu":
-        raise TGHopError(f"groups must be {n} integers (one per pool patch), got {labels.dtype} {labels.shape}")
-    if cost.ndim != 3 or cost.shape[:2] != shape:
-        raise TGHopError(f"group_cost must have shape {shape + ('K',)} (one row per block), got {cost.shape}")
-    if labels.size and (labels.min() < 0 or labels.max() >= cost.shape[2]):
-        raise TGHopError(f"groups must lie in [0, {cost.shape[2]}) (group_cost's last axis)")
-    if not np.isfinite(cost).all() or cost.min(initial=0.0) < 0:
-        raise TGHopError("group_cost must be finite and >= 0")
-    return labels.astype(np.int64), cost
-
-
 @dataclass(frozen=True, eq=False)
 class PreparedPool:
     """A patch pool made ready for quilting one image: :func:`prepare_pool`'s result.
@@ -1161,12 +1124,10 @@ class PreparedPool:
 
 
 def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = False, detail: float = 0.0,
-                 guide_scale: Optional[int] = None, flat_share: float = 0.0, groups=None) -> PreparedPool:
+                 guide_scale: Optional[int] = None, flat_share: float = 0.0) -> PreparedPool:
     """Precompute what quilting ``pool`` into an image of ``size`` needs from the pool alone.
 
-    Parameters are those of :func:`quilt` (``guide_scale=None``: no guide will be used);
-    ``groups`` (n,) int (as :func:`quilt_prepared`'s): ``flat_share`` is taken of each group
-    apart (a smooth texture's pool among a rough one's keeps its own choice).
+    Parameters are those of :func:`quilt` (``guide_scale=None``: no guide will be used).
     ``quilt(pool, size, ...)`` is ``quilt_prepared(prepare_pool(pool, size, ...), ...)``.
 
     Parameters
@@ -1181,8 +1142,6 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     guide_scale : int, optional
         Box size of the guide's low pass, dividing P; None: no guide will be used.
     flat_share : float in [0, 1)
-    groups : array_like of int, shape (n,), optional
-        Each patch's group, for ``flat_share``.
 
     Returns
     -------
@@ -1212,7 +1171,7 @@ def prepare_pool(pool, size, *, overlap: Optional[int] = None, tile: bool = Fals
     # The low pass and its norm (with a guide) are the bound's last columns (views into them).
     table, bound, energy = _pool_table(arr, slices, masks_fc, boxes, energy=detail > 0 or flat_share > 0,
                                        guide_scale=scale)
-    flat = flat_factors(energy, flat_share, groups=groups) if flat_share else None
+    flat = flat_factors(energy, flat_share) if flat_share else None
     energy = energy if detail > 0 else None  # without a detail preference the choice keeps pool order
     low = low_norm = None
     if scale is not None:  # the columns after the m overlap shapes' bounds and the g box sums
@@ -1234,20 +1193,12 @@ def quilt_prepared(
     guide_weight: float = 1.0,
     dtype=np.float64,
     reuse: float = 0.0,
-    groups=None,
-    group_cost=None,
     return_seams: bool = False,
 ):
     """Quilt a pool made ready by :func:`prepare_pool`; parameters and result as :func:`quilt`.
 
     ``dtype`` float32 returns the quilting canvas's own precision at half the memory of
     float64 (the same values; :meth:`tghop.TGHop.synthesize` refines it in float32 anyway).
-
-    ``groups`` (n,) int in ``[0, K)`` and ``group_cost`` (ny, nx, K) (the plan's blocks,
-    :func:`quilting_plan`): each pool patch belongs to a group (e.g. the model that made
-    it), and its error at block (i, j) counts ``group_cost[i, j, group]`` more (in the
-    units of the overlap error, a sum of squared differences): a per-block preference for
-    some groups (:mod:`tghop.guided`). Both or neither.
 
     ``return_seams``: also return the :class:`tghop.seams.SeamSteps` of the image: at
     every seam edge it has (two neighbours pasted from two blocks), the change that
@@ -1262,8 +1213,6 @@ def quilt_prepared(
     tolerance, rng, progress, guide, guide_weight, reuse
         As :func:`quilt` takes them.
     dtype : {numpy.float64, numpy.float32}
-    groups : array_like of int, shape (n,), optional
-    group_cost : array_like, shape (ny, nx, K), optional
     return_seams : bool
 
     Returns
@@ -1278,7 +1227,6 @@ def quilt_prepared(
     check_number(reuse, "reuse")
     rng = check_rng(rng)
     arr, plan, detail = prepared.patches, prepared.plan, prepared.detail
-    costs = _check_groups(groups, group_cost, arr.shape[0], plan)
     # Uses of each pool patch and the factors (1 + reuse * uses) of its errors, times the
     # flat patches' factors; None without either (the same arithmetic as before they existed).
     uses = np.zeros(arr.shape[0], dtype=np.int64) if reuse else None
@@ -1326,20 +1274,19 @@ def quilt_prepared(
         target = factor = None
         if guided is not None:
             target, factor = guided["targets"][bi, bj], guided["factor"][mid]
-        grouped = None if costs is None else (costs[0], costs[1][bi, bj])
         # Candidates: error <= (1 + tolerance) * best error, with a little slack for the
         # float32 round-off of the expansion; the best match always qualifies.
         slack = 1e-5 * (onorm + norm_max[mid])
         found = _bounded_candidates(prepared, o, query, onorm, k1, wraps[mid], target, factor, tolerance, slack,
-                                    penalty, grouped)
+                                    penalty)
         if found is None and penalty is not None:  # every error in full, penalised
-            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor, grouped)
+            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor)
             err += onorm
             err *= penalty[:, None]
             best = np.maximum(err.min(axis=0), 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack * penalty.max())
         if found is None:  # the bound rules out too few patches: every error in full
-            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor, grouped)
+            err = _full_errors(table, query, k1, wraps[mid], guided, target, factor)
             best = np.maximum(err.min(axis=0) + onorm, 0.0)
             found = np.nonzero(err <= best * (1.0 + tolerance) + slack - onorm)
         pool_idx, block_idx = found  # in pool order within each block (the choice below depends on that only)
