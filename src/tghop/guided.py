@@ -346,8 +346,8 @@ def morph_labels(size, *, rng=None, scale=MORPH_BLOB * 32) -> np.ndarray:
     check_number(scale, "scale", positive=True, unit="pixels")
     rng = check_rng(rng)
     cell = max(1, int(scale) // 4)
-    field = _smooth(rng.standard_normal((-(-h // cell), -(-w // cell))), scale / cell, False)
-    field = _upsample(_upsample(field, cell, h, 0), cell, w, 1)
+    field = _smooth(rng.standard_normal((-(-h // cell), -(-w // cell))), scale / cell, False).astype(np.float32)
+    field = _upsample(_upsample(field, cell, h, 0), cell, w, 1)  # float32: a large strip's field at half the memory
     t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
     # Each threshold a quantile of the columns within a window (one column's quantiles jump where
     # its few blobs leave gaps between their values: straight vertical edges and slivers), taken
@@ -371,8 +371,11 @@ def _upsample(field, cell, n, axis):
     hi = np.minimum(lo + 1, field.shape[axis] - 1)
     shape = [1, 1]
     shape[axis] = n
-    frac = (pos - lo).reshape(shape)
-    return np.take(field, lo, axis=axis) * (1.0 - frac) + np.take(field, hi, axis=axis) * frac
+    frac = (pos - lo).astype(field.dtype).reshape(shape)
+    out = np.take(field, lo, axis=axis)
+    out *= 1 - frac
+    out += np.take(field, hi, axis=axis) * frac
+    return out
 
 
 # ----------------------------------------------------------------------------- the pipeline
