@@ -73,8 +73,8 @@ MAX_TRANSITION = 4096
 #: Length scale in pixels of the random regions of a remix.
 _BLOB = 64
 #: Length scale of a morph's regions (the Gaussian of its random field), in the models' patch sizes: blobs
-#: of about a patch, as fine as the textures' elements allow (at 2 patch sizes the strips' middles were
-#: few large islands; at the blocks' own outlines, 32 px squares, a staircase).
+#: of about a patch, as fine as the textures' elements allow (at 2 patch sizes a few large regions, the
+#: ramp lost; the quilt's blocks as outlines, 32 px squares, were a staircase).
 MORPH_BLOB = 0.75
 #: The warning for a morph given ``stations`` (the server's header says it too).
 STATIONS_GONE = "stations no longer applies to a morph (each region keeps its own model's statistics); leave it out"
