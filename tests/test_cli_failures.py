@@ -160,16 +160,23 @@ def test_failure_is_one_line_and_leaves_nothing(folder, args, fragments):
 ])
 def test_too_many_steps_is_a_usage_error(folder, monkeypatch, args, fragments):
     # Without a bound these ran for days; refused before the exemplar is read, exit status 2.
+    code, err = _refused_before_reading(folder, monkeypatch, args, fragments)
+    assert code == 2, err
+
+
+def _refused_before_reading(folder, monkeypatch, args, fragments):
+    """``tghop ARGS``'s exit status and stderr, checked to be one line with ``fragments``, the
+    exemplar never read (the cooc and baseline commands' ``load_exemplar`` fails the test)."""
     from tghop.cli import cooc, evaluation
 
     def read(*args, **kwargs):
-        pytest.fail("the exemplar was read: the count was not refused first")
+        pytest.fail("the exemplar was read: the command line was not refused first")
 
     for module in (cooc, evaluation):
         monkeypatch.setattr(module, "load_exemplar", read)
     code, _, err, exc = invoke(*args, cwd=folder)
     assert_one_line(code, err, *fragments, exception=exc)
-    assert code == 2, err
+    return code, err
 
 
 @pytest.mark.parametrize("args, fragments", [
@@ -188,15 +195,7 @@ def test_too_many_steps_is_a_usage_error(folder, monkeypatch, args, fragments):
 def test_set_and_options_of_another_baseline_are_usage_errors(folder, monkeypatch, args, fragments):
     # They exited 1, as a bad file does; a usage error is click's 2, as everywhere else in tghop. Refused before
     # the exemplar is read (a --set value was checked only when the training started).
-    from tghop.cli import cooc, evaluation
-
-    def read(*args, **kwargs):
-        pytest.fail("the exemplar was read: the usage error was not refused first")
-
-    for module in (cooc, evaluation):
-        monkeypatch.setattr(module, "load_exemplar", read)
-    code, _, err, exc = invoke(*args, cwd=folder)
-    assert_one_line(code, err, *fragments, exception=exc)
+    code, err = _refused_before_reading(folder, monkeypatch, args, fragments)
     assert code == 2 and " --help')" in err, err
 
 

@@ -280,29 +280,38 @@ def test_a_bad_max_decodes_is_one_line(tmp_path, value, said):
     assert "Traceback" not in r.output and not (tmp_path / "models").exists()
 
 
-def test_max_decodes_sets_the_servers_decode_gate(tmp_path, monkeypatch):
-    """create_app(max_decodes=) had no option of tghop serve: the gate of uploads decoded at once was 2
-    whatever the machine. The option reaches the server's gate; its default is the library's."""
+def _serve_gates(tmp_path, monkeypatch, runs):
+    """The decode gate of the server ``tghop serve OPTIONS`` makes, for each OPTIONS of ``runs``: the real
+    application, stopped by a one-line error before it listens."""
     from click.testing import CliRunner
 
     pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
     from tghop._errors import TGHopError
     from tghop.cli import main
     from tghop.server import app as server_app
-    from tghop.server.uploads import MAX_DECODES
 
     made, create = [], server_app.create_app
 
-    def create_and_stop(*args, **kwargs):  # the real application, then a one-line stop before it listens
+    def create_and_stop(*args, **kwargs):
         made.append(create(*args, **kwargs))
         raise TGHopError("stopped by the test")
 
     monkeypatch.setattr(server_app, "create_app", create_and_stop)
-    for options, slots in ((["--max-decodes", "5"], 5), ([], MAX_DECODES)):
+    gates = []
+    for options in runs:
         r = CliRunner().invoke(main, ["serve", "--port", "0", "--cache", str(tmp_path), *options])
         assert r.exit_code != 0 and "stopped by the test" in r.output, r.output
-        assert made[-1].state.server.decoding.slots == slots
-    help_text = " ".join(CliRunner().invoke(main, ["serve", "--help"]).output.split())
+        gates.append(made[-1].state.server.decoding)
+    return gates, " ".join(CliRunner().invoke(main, ["serve", "--help"]).output.split())
+
+
+def test_max_decodes_sets_the_servers_decode_gate(tmp_path, monkeypatch):
+    """create_app(max_decodes=) had no option of tghop serve: the gate of uploads decoded at once was 2
+    whatever the machine. The option reaches the server's gate; its default is the library's."""
+    from tghop.server.uploads import MAX_DECODES
+
+    gates, help_text = _serve_gates(tmp_path, monkeypatch, [["--max-decodes", "5"], []])
+    assert [g.slots for g in gates] == [5, MAX_DECODES]
     assert "--max-decodes" in help_text and "[default: 2; 1<=x<=64]" in help_text, help_text
 
 
@@ -322,27 +331,11 @@ def test_a_bad_decodes_waiting_is_one_line(tmp_path, value, said):
 def test_decodes_waiting_sets_how_many_wait_for_the_decode_gate(tmp_path, monkeypatch):
     """create_app(decodes_waiting=) had no option of tghop serve: 16 uploads or reads waited for the decode
     gate whatever the machine. --decodes-waiting reaches the gate (0: none waits); its default is the library's."""
-    from click.testing import CliRunner
-
-    pytest.importorskip("uvicorn", reason="the web extra is not installed: pip install -e '.[web]'")
-    from tghop._errors import TGHopError
-    from tghop.cli import main
-    from tghop.server import app as server_app
     from tghop.server.uploads import MAX_DECODES_WAITING
 
-    made, create = [], server_app.create_app
-
-    def create_and_stop(*args, **kwargs):  # the real application, then a one-line stop before it listens
-        made.append(create(*args, **kwargs))
-        raise TGHopError("stopped by the test")
-
-    monkeypatch.setattr(server_app, "create_app", create_and_stop)
-    for options, waiting in ((["--decodes-waiting", "40"], 40), (["--decodes-waiting", "0"], 0),
-                             ([], MAX_DECODES_WAITING)):
-        r = CliRunner().invoke(main, ["serve", "--port", "0", "--cache", str(tmp_path), *options])
-        assert r.exit_code != 0 and "stopped by the test" in r.output, r.output
-        assert made[-1].state.server.decoding.max_waiting == waiting
-    help_text = " ".join(CliRunner().invoke(main, ["serve", "--help"]).output.split())
+    runs = [["--decodes-waiting", "40"], ["--decodes-waiting", "0"], []]
+    gates, help_text = _serve_gates(tmp_path, monkeypatch, runs)
+    assert [g.max_waiting for g in gates] == [40, 0, MAX_DECODES_WAITING]
     assert "--decodes-waiting" in help_text and "[default: 16; 0<=x<=256]" in help_text, help_text
 
 
