@@ -862,8 +862,12 @@ def test_progress_into_a_log_is_a_line_per_tenth(tmp_path):
     code, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "48", *fast, cwd=tmp_path)
     assert code == 1, err
     said = [line for line in err.splitlines() if line.startswith("exemplars: ")]
-    assert [line.split(",")[0] for line in said] == [f"exemplars: {n} of 4 done" for n in range(1, 5)], err
-    assert said[-1] == "exemplars: 4 of 4 done, 2 failed, 0 running", err
+    assert [line.split(" (")[0] for line in said] == [f"exemplars: {n} of 4 finished" for n in range(1, 5)], err
+    # "4 of 4 done, 2 failed" beside the summary's "2 of 4 exemplars done" read as 4 made
+    assert said[-1] == "exemplars: 4 of 4 finished (2 done, 2 failed), 0 running", err
+    assert "2 of 4 exemplars done" in err, err
+    # click's bar, which draws nothing into a log, wrote its label alone on the first line
+    assert [line for line in err.splitlines() if line.strip() == "exemplars"] == [], err
 
 
 def _run_cli(args, cwd, block_dask=False, **kw):

@@ -23,15 +23,21 @@ class BatchProgress(Progress):
         self.note = ""
         self.lines = enabled and not sys.stderr.isatty()  # click draws no bar there: a log showed nothing for hours
         self.last = None
+        self.failed = self.running = 0
 
     def __call__(self, stage, done, total):
         self.last = {"done": done, "total": total}  # for the line after Ctrl-C, with or without a bar
-        super().__call__(stage, done, total)
-        if self.lines and done and (done == total or done % -(-total // 10) == 0):
-            click.echo(f"{stage}: {done} of {total} done, {self.note}", err=True)
+        if not self.lines:  # into a log click's bar wrote its label alone on a line ("exemplars     ") and no more
+            super().__call__(stage, done, total)
+        elif done and (done == total or done % -(-total // 10) == 0):
+            # "finished", the failed among them: "306 of 306 done, 49 failed" read as 306 made, where the
+            # summary's "257 of 306 exemplars done" counts those that succeeded
+            click.echo(f"{stage}: {done} of {total} finished ({done - self.failed} done, {self.failed} failed), "
+                       f"{self.running} running", err=True)
 
     def result(self, record, counts):
-        self.note = f"{counts['failed']} failed, {counts['running']} running"
+        self.failed, self.running = counts["failed"], counts["running"]
+        self.note = f"{self.failed} failed, {self.running} running"
 
 
 @click.command()
