@@ -185,8 +185,10 @@ def _cost(job) -> float:
 def _died_record(job, exc, retries) -> dict:
     name = exc.__class__.__name__
     if name == "KilledWorker":
-        error = ("the worker running it died on every try (killed or out of memory; "
-                 f"{retries + 1} {'try' if retries == 0 else 'tries'} on a local cluster); use fewer workers per "
+        # retries None: a cluster of one's own (--scheduler, client=), whose scheduler sets the tries, not retries
+        tries = f"{retries + 1} {'try' if retries == 0 else 'tries'} on a local cluster" if retries is not None \
+            else "as many tries as the scheduler's distributed.scheduler.allowed-failures allows"
+        error = (f"the worker running it died on every try (killed or out of memory; {tries}); use fewer workers per "
                  "machine or a smaller size")
     else:
         error = one_line(exc)
@@ -252,7 +254,7 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             try:
                 record = fut.result()
             except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
-                record = _died_record(job, exc, retries)
+                record = _died_record(job, exc, retries if own_cluster is not None else None)
             fut.release()
             hand_out()  # before the ledger line: the freed worker starts at once
             finish(job, record)
