@@ -854,6 +854,20 @@ def test_a_warning_names_its_exemplar(tmp_path):
     assert said == ["Warning: a: a.png: alpha channel dropped", "Warning: sub__a: a.png: alpha channel dropped"], err
 
 
+def test_a_folder_s_images_of_other_types_are_said_not_left_out_unsaid(tmp_path):
+    # A studio's folder of .png and .tga: the .tga were skipped without a word, and a rerun said all done.
+    src = make_folder(tmp_path / "src", bad=False)
+    Image.new("RGB", (64, 64)).save(src / "sub" / "wall.tga")
+    with pytest.warns(UserWarning, match=r"1 image file of another type skipped \(sub/wall.tga\).*convert them to PNG"):
+        items = batch.find_work(src, tmp_path / "out")
+    assert sorted(str(it["rel"]) for it in items) == ["a.png", "sub/a.png"]
+    only = tmp_path / "only"
+    only.mkdir()
+    Image.new("RGB", (64, 64)).save(only / "wall.tga")
+    with pytest.raises(TGHopError, match=r"no image files in this folder .*1 image file of another type skipped"):
+        batch.find_work(only, tmp_path / "out2")
+
+
 def test_progress_into_a_log_is_a_line_per_tenth(tmp_path):
     # Without a terminal (nohup, a job's log) click draws no bar: a run of hours said "exemplars" and
     # nothing more until its end. Now a line at each tenth of the exemplars (here each of the 4).

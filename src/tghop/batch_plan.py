@@ -23,6 +23,7 @@ import json
 import os
 import re
 import unicodedata
+import warnings
 from pathlib import Path
 
 from ._errors import TGHopError
@@ -37,6 +38,9 @@ __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED"
 
 #: File extensions taken as exemplars when SOURCE is a folder.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
+#: Other images' extensions: a folder's files of these are skipped, and said (a studio's .tga were left out unsaid).
+OTHER_IMAGE_SUFFIXES = (".tga", ".psd", ".exr", ".hdr", ".dds", ".jfif", ".jpe", ".jp2", ".j2k", ".heic", ".heif",
+                        ".avif", ".jxl", ".pbm", ".ico", ".raw", ".dng", ".cr2", ".nef", ".arw")
 #: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
 LEDGER = "batch.jsonl"
 #: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
@@ -56,7 +60,7 @@ def _scan_folder(folder: Path, outdir: Path):
     ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its thumbnails and
     results are no exemplars)."""
     out = Path(outdir).resolve()
-    items, seen = [], {os.path.realpath(folder)}
+    items, others, seen = [], [], {os.path.realpath(folder)}
 
     def new(path):
         real = os.path.realpath(path)
@@ -72,8 +76,16 @@ def _scan_folder(folder: Path, outdir: Path):
             p = Path(root, f)  # a named pipe, socket or device is no image (reading one waited for ever)
             if not f.startswith(".") and p.suffix.lower() in IMAGE_SUFFIXES and (p.is_file() or not p.exists()):
                 items.append({"path": p, "rel": p.relative_to(folder), "name": None, "settings": {}})
+            elif not f.startswith(".") and p.suffix.lower() in OTHER_IMAGE_SUFFIXES:
+                others.append(str(p.relative_to(folder)))
+    skipped = (f"{len(others)} image file{'s' if len(others) != 1 else ''} of another type skipped "
+               f"({', '.join(others[:3])}{', ...' if len(others) > 3 else ''}): a batch reads "
+               f"{', '.join(IMAGE_SUFFIXES)}; convert them to PNG") if others else ""
     if not items:
-        raise TGHopError(f"{folder}: no image files in this folder ({', '.join(IMAGE_SUFFIXES[:3])}, ...)")
+        raise TGHopError(f"{folder}: no image files in this folder ({', '.join(IMAGE_SUFFIXES[:3])}, ...)"
+                         + (f"; {skipped}" if skipped else ""))
+    if skipped:
+        warnings.warn(f"{folder}: {skipped}", stacklevel=3)
     return items
 
 
