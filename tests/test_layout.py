@@ -317,7 +317,7 @@ def test_the_guide_is_patch_refined_with_the_coarse_models_statistics(layout_mod
     # two models (one given twice would be one synthesis), sharing the coarse layout watched above
     synthesize_guided([layout_model, copy.copy(layout_model)], size=(64, 64), rng=3, n_patches=300,
                       layout_patch_refine=5)
-    morph(layout_model, layout_model, (64, 128), rng=3, n_patches=300, layout_patch_refine=6)
+    morph(layout_model, copy.copy(layout_model), (64, 128), rng=3, n_patches=300, layout_patch_refine=6)
     assert seen[3:] == [5, 5, 6, 6]  # each model's guide
     # By default (None) only images of up to GUIDE_PIXELS are patch-refined; a number is taken as given.
     side = GUIDE_PIXELS // 512
