@@ -267,7 +267,8 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, prog
     import numpy as np
 
     from ..cooc import boost_condition, paint_condition
-    from ..guides import guide_labels, same_shape, scale_labels, scaled_message
+    from .._errors import collect_warnings
+    from ..guides import guide_labels
 
     tensors = _conditions(model, crops)
     pixels, told = None, []
@@ -277,17 +278,14 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, prog
             size = painted.shape[:2]
             if size[0] * size[1] > MAX_COOC_PIXELS:
                 raise RequestError(422, f"labels is {size[0]}x{size[1]}, over the server's {MAX_COOC_PIXELS:,} pixels")
-        # One of another size is read at its own and scaled here, so that the library's warning, which would go
-        # to the server's console (warnings cannot be caught on one thread alone), is the client's header instead.
-        scaled = painted.shape[:2] != tuple(size) and same_shape(painted.shape, size)
+        # The library's warning of one scaled to the size, collected on this thread (it would go to the server's
+        # console), is the client's header instead.
         try:
-            pixels = guide_labels(painted, len(crops), size=None if scaled else size, input_name="crop",
-                                  no_guide="send no labels")
+            with collect_warnings() as said:
+                pixels = guide_labels(painted, len(crops), size=size, input_name="crop", no_guide="send no labels")
         except TGHopError as exc:
             raise RequestError(400, str(exc).replace("the guide", "the label map")) from None
-        if scaled:
-            pixels = scale_labels(pixels, size)
-            told.append(scaled_message(painted.shape, size).replace("the guide", "the label map"))
+        told.extend(str(w).replace("the guide", "the label map") for w in said)
     s, (h, w) = model.s, size
     hh, ww = -(-h // s), -(-w // s)
     if pixels is None:

@@ -128,8 +128,9 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     maps), its size and what to tell the client (a guide scaled to ``size``: the library's warning)."""
     import numpy as np
 
+    from ..._errors import collect_warnings
     from ...guided import synthesize_guided
-    from ...guides import guide_labels, same_shape, scale_labels, scaled_message
+    from ...guides import guide_labels
     from ...imageio import load_image
 
     models = [server.model(model_id) for model_id in ids]
@@ -139,22 +140,19 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     if guide is not None:
         painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
         # Its labels read once (they were read here for the check, then again by synthesize_guided: a guide of
-        # another size scaled twice); one to be scaled is read at its own size and scaled here, so that the
-        # library's warning, which would go to the server's console (warnings cannot be caught on one thread
-        # alone), is the client's header instead.
-        scaled = size is not None and painted.shape[:2] != tuple(size) and same_shape(painted.shape, size)
+        # another size scaled twice); the library's warning of one scaled to the size, collected on this
+        # thread (it would go to the server's console), is the client's header instead.
         try:
-            labels = guide_labels(painted, len(models), size=None if scaled else size)
+            with collect_warnings() as said:
+                labels = guide_labels(painted, len(models), size=size)
         except TGHopError as exc:
             raise RequestError(400, str(exc)) from None
-        if scaled:
-            labels = scale_labels(labels, size)
-            gone = np.flatnonzero(np.bincount(labels.ravel(), minlength=len(models)) == 0)
-            if len(gone):  # read again, it would be "one grey level but 2 inputs were given"
-                raise RequestError(400, f"the guide's region of models[{gone[0]}] is gone once the guide is scaled "
-                                        f"from {painted.shape[0]}x{painted.shape[1]} to {size[0]}x{size[1]} (it is "
-                                        "thinner than a pixel of the output); paint it wider or ask for a larger size")
-            told.append(scaled_message(painted.shape, size))
+        told.extend(str(w) for w in said)
+        gone = np.flatnonzero(np.bincount(labels.ravel(), minlength=len(models)) == 0)
+        if len(gone):  # only a guide scaled to the size loses one; read again, "one grey level but 2 were given"
+            raise RequestError(400, f"the guide's region of models[{gone[0]}] is gone once the guide is scaled "
+                                    f"from {painted.shape[0]}x{painted.shape[1]} to {size[0]}x{size[1]} (it is "
+                                    "thinner than a pixel of the output); paint it wider or ask for a larger size")
         labels = labels.astype(np.uint8)  # as grey levels 0, 1, ... (at most 8 models): the same regions
     png, shape = several_png(server, lambda m, rng, dtype: synthesize_guided(
         m, labels, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
