@@ -692,6 +692,23 @@ def test_a_guide_of_the_outputs_shape_is_scaled_to_its_size(models, tmp_path):
                                              "shape") as info:
             guide_labels(small, 3, size=size)
         assert "\n" not in str(info.value)
+    # A region the scaling loses (thinner than a pixel of the output) is refused by the library, once for every
+    # caller (the command line and the server each checked it, in their own words), naming the input and the fix.
+    from tghop.guides import LostRegionError
+
+    thin = np.zeros((24, 32), dtype=np.uint8)
+    thin[:, 16] = 255
+    with pytest.raises(LostRegionError, match=r"^the guide: input 2's region is gone once the map is scaled from "
+                                              r"24x32 to size 12x16 \(it is thinner than a pixel of the output\); "
+                                              r"paint it wider or give a larger size$"):
+        guide_labels(thin, 2, size=(12, 16))
+    with pytest.raises(LostRegionError, match=r"^--guide t.png: SOURCE 2's region .* to --size 12x16 .* larger --size"):
+        guide_labels(thin, 2, size=(12, 16), names=["SOURCE 1", "SOURCE 2"], guide_name="--guide t.png",
+                     size_name="--size")
+    with pytest.raises(LostRegionError, match="input 2's region is gone"):  # synthesize_guided's too (it was dropped)
+        tghop.synthesize_guided(models, thin, size=(12, 16), rng=1, **GEN)
+    with pytest.warns(UserWarning, match="scaled from 24x32 to 48x64"):  # scaled up, the stroke is kept
+        assert set(np.unique(guide_labels(thin, 2, size=(48, 64)))) == {0, 1}
     # The library's function the command line calls: the image of the small guide is the large one's.
     two = small.copy()
     two[two == 128] = 0
@@ -720,5 +737,5 @@ def test_a_guide_of_the_outputs_shape_is_scaled_to_its_size(models, tmp_path):
     Image.fromarray(thin).save(tmp_path / "thin.png")
     r = _run(["synth", "a.npz", "b.npz", "--guide", "thin.png", "--size", "12x16", "-o", "bad.png", *fast], tmp_path)
     assert_user_error(r, "--guide thin.png: SOURCE 2's region is gone once the map is scaled from 24x32 to --size "
-                         "12x16", "paint it wider or give a larger --size")
+                         "12x16", "paint it wider or give a larger --size", status=2)  # a usage error (of --size)
     assert not (tmp_path / "bad.png").exists()

@@ -771,7 +771,8 @@ def test_a_guide_scaled_to_the_size_is_read_once_and_the_client_is_told(client, 
     thin = np.zeros((64, 96), np.uint8)
     thin[:, 48] = 255
     assert_error(client.post("/api/images/guided", json={**ask, "guide": guide_b64(thin), "size": [32, 48]}), 400,
-                 "the guide's region of models[1] is gone once the guide is scaled from 64x96 to 32x48")
+                 "the guide: models[1]'s region is gone once the map is scaled from 64x96 to size 32x48 (it is "
+                 "thinner than a pixel of the output); paint it wider or give a larger size")
 
 
 def test_morph_goes_from_a_to_b(client, fitted, second):

@@ -16,7 +16,8 @@ from ._arrays import check_int
 from ._common import TGHopError, check_size
 from ._errors import warn
 
-__all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "ASPECT_TOLERANCE", "FEW_LEVELS",
+__all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "LostRegionError", "ASPECT_TOLERANCE",
+           "FEW_LEVELS",
            "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
 
 #: A guide with more distinct levels than inputs (not soft edges of its levels) and at most
@@ -45,6 +46,11 @@ SNAP_TIE = 0.008
 ASPECT_TOLERANCE = 0.02
 
 
+class LostRegionError(TGHopError):
+    """A guide scaled to the output's size lost a region: one thinner than a pixel of the output
+    (:func:`guide_labels`). A usage error on the command line (its --size), 400 on the web server."""
+
+
 def same_shape(shape, size) -> bool:
     """Whether a guide of ``shape`` (H, W, ...) has the shape of an output of ``size`` (H, W):
     their aspect ratios within :data:`ASPECT_TOLERANCE` of each other, so that it is scaled to it
@@ -70,7 +76,8 @@ def scale_labels(labels, size) -> np.ndarray:
     return labels[rows[:, None], cols[None, :]]
 
 
-def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide") -> np.ndarray:
+def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide", names=None,
+                 guide_name="the guide", size_name="size") -> np.ndarray:
     """The region of every pixel of a painted guide, as (H, W) int labels in ``[0, n_models)``.
 
     The rule: the guide's distinct values (grey levels, or colours) sorted from dark to
@@ -100,11 +107,22 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     input_name, no_guide : str
         What the messages call a model and the fix of leaving the guide out (the CLI's
         "SOURCE" and "drop --guide").
+    names : sequence of str, optional
+        Each model's name in the message of a region lost by the scaling (the CLI's "SOURCE 2",
+        the server's "models[1]"); default ``input_name`` numbered from 1.
+    guide_name, size_name : str
+        What that message calls the guide and the size (the CLI's "--guide map.png" and "--size").
 
     Returns
     -------
     ndarray of int64, shape (H, W)
         ``size``, or the guide's size without it.
+
+    Raises
+    ------
+    LostRegionError
+        A guide scaled to ``size`` whose region of a model is gone (thinner than a pixel of the
+        output), naming the model and the fix (paint it wider, or a larger size).
 
     Warns
     -----
@@ -163,8 +181,15 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     rank[_dark_to_light(values, tie)] = np.arange(n)
     if not scaled:
         return rank[labels]
+    scaled = rank[scale_labels(labels, size)]
+    gone = np.flatnonzero(np.bincount(scaled.ravel(), minlength=n_models) == 0)
+    if len(gone):  # read again, it would be "one grey level but 2 inputs were given"
+        name = names[gone[0]] if names is not None else f"{input_name} {gone[0] + 1}"
+        raise LostRegionError(f"{guide_name}: {name}'s region is gone once the map is scaled from {arr.shape[0]}x"
+                              f"{arr.shape[1]} to {size_name} {size[0]}x{size[1]} (it is thinner than a pixel of the "
+                              f"output); paint it wider or give a larger {size_name}")
     warn(scaled_message(arr.shape, size))
-    return rank[scale_labels(labels, size)]
+    return scaled
 
 
 def _dark_to_light(values, tie):

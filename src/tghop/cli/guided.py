@@ -158,13 +158,14 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     painted = None
     if guide is not None:  # read and checked (size, levels) before anything is fitted
         painted = _load_guide(guide, size, size_given)
-        labels = guide_labels(painted, len(sources), size=size if size_given else None, input_name="SOURCE",
-                              no_guide="drop --guide")  # scaled to --size, saying so
-        gone = np.flatnonzero(np.bincount(labels.ravel(), minlength=len(sources)) == 0)
-        if len(gone):  # read again below, it would be "one grey level but 2 inputs were given"
-            raise TGHopError(f"--guide {guide}: SOURCE {gone[0] + 1}'s region is gone once the map is scaled from "
-                             f"{painted.shape[0]}x{painted.shape[1]} to --size {size[0]}x{size[1]} (it is thinner "
-                             "than a pixel of the output); paint it wider or give a larger --size")
+        from ..guides import LostRegionError
+
+        try:  # scaled to --size, saying so; a region it loses refused, a usage error (of --size)
+            labels = guide_labels(painted, len(sources), size=size if size_given else None, input_name="SOURCE",
+                                  no_guide="drop --guide", names=[f"SOURCE {i}" for i in range(1, len(sources) + 1)],
+                                  guide_name=f"--guide {guide}", size_name="--size")
+        except LostRegionError as exc:
+            raise click.UsageError(str(exc)) from None
         # its regions as grey levels 0, 1, ...: the same regions, read again at once (a soft map's levels took
         # seconds at 4096x4096)
         painted = labels.astype(np.uint8) if len(sources) < 256 else labels

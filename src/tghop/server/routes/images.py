@@ -144,15 +144,11 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
         # thread (it would go to the server's console), is the client's header instead.
         try:
             with collect_warnings() as said:
-                labels = guide_labels(painted, len(models), size=size)
-        except TGHopError as exc:
+                labels = guide_labels(painted, len(models), size=size, names=[f"models[{i}]" for i in
+                                                                              range(len(models))])
+        except TGHopError as exc:  # a region that the scaling to the size loses too
             raise RequestError(400, str(exc)) from None
         told.extend(str(w) for w in said)
-        gone = np.flatnonzero(np.bincount(labels.ravel(), minlength=len(models)) == 0)
-        if len(gone):  # only a guide scaled to the size loses one; read again, "one grey level but 2 were given"
-            raise RequestError(400, f"the guide's region of models[{gone[0]}] is gone once the guide is scaled "
-                                    f"from {painted.shape[0]}x{painted.shape[1]} to {size[0]}x{size[1]} (it is "
-                                    "thinner than a pixel of the output); paint it wider or ask for a larger size")
         labels = labels.astype(np.uint8)  # as grey levels 0, 1, ... (at most 8 models): the same regions
     png, shape = several_png(server, lambda m, rng, dtype: synthesize_guided(
         m, labels, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
