@@ -168,6 +168,41 @@ def test_edit_refuses_a_mask_of_another_shape_than_the_output(files, tmp_path):
     assert png(out).shape == (24, 64, 3)
 
 
+def test_edit_reads_its_mask_as_synths_guide_and_refuses_a_region_the_scaling_loses(files, tmp_path):
+    # The mask's grey was quantised to the number of SOURCES and scaled bilinearly to the cells: levels 0 and 100
+    # were both the first SOURCE's, and a stroke thinner than a pixel of --size was lost without a word (the server's
+    # labels and synth --guide refused it). It is read as they are (tghop.guides.guide_labels), which refuses it.
+    from PIL import Image
+
+    two = np.zeros((24, 64), dtype=np.uint8)
+    two[:, 32:] = 100  # the second SOURCE's level: the lighter, whatever its grey
+    Image.fromarray(two).save(tmp_path / "grey.png")
+    Image.fromarray(np.where(two > 0, 255, 0).astype(np.uint8)).save(tmp_path / "white.png")
+    ask = ["cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--size", "24x64", "--seed", "1"]
+    for name in ("grey", "white"):
+        r = invoke(*ask, "--mask", tmp_path / f"{name}.png", "-o", tmp_path / f"{name}-out.png")
+        assert r.exit_code == 0, r.output
+    assert np.array_equal(png(tmp_path / "grey-out.png"), png(tmp_path / "white-out.png"))
+    thin = np.zeros((24, 64), dtype=np.uint8)
+    thin[:, 32] = 255
+    Image.fromarray(thin).save(tmp_path / "thin.png")
+    out = tmp_path / "o.png"
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "thin.png", "--size",
+               "12x32", "-o", out)
+    assert_user_error(r, f"--mask {tmp_path / 'thin.png'}: SOURCE 2's region is gone once the map is scaled from "
+                         "24x64 to --size 12x32 (it is thinner than a pixel of the output); paint it wider or give a "
+                         "larger --size", status=2)
+    assert not out.exists() and "Warning" not in r.stderr
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "thin.png", "--size",
+               "48x128", "-o", out)  # scaled up, the stroke is kept
+    assert r.exit_code == 0 and "was scaled from 24x64 to 48x128" in r.stderr, r.output
+    r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "crop:0,16", "--mask", tmp_path / "thin.png",
+               "--size", "24x64", "-o", tmp_path / "o3.png")  # the library's other refusals name the mask
+    assert_user_error(r, f"--mask {tmp_path / 'thin.png'}: the mask has 2 distinct grey levels/colours but 3 SOURCEs "
+                         "were given")
+    assert not (tmp_path / "o3.png").exists()
+
+
 def test_help_says_what_an_image_stands_for():
     for command in ("morph", "edit"):
         r = run("cooc", command, "--help")

@@ -154,6 +154,13 @@ def test_an_edits_labels_scaled_to_the_size_tell_the_client(client, cid):
     painted = client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": labels_png(levels[::2, ::2])})
     assert painted.status_code == 200 and painted.content == r.content, painted.text
     assert "X-Tghop-Warning" not in painted.headers
+    # a region that the scaling loses (thinner than a pixel of the output) is refused, as the guided route's: its crop
+    # was painted nowhere, without a word
+    thin = np.zeros((80, 128), dtype=np.uint8)
+    thin[:, 64] = 255
+    assert_error(client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": labels_png(thin), "size": [40, 64]}),
+                 400, "the label map: crops[1]'s region is gone once the map is scaled from 80x128 to size 40x64 (it "
+                      "is thinner than a pixel of the output); paint it wider or give a larger size")
 
 
 @needs_torch

@@ -153,6 +153,37 @@ WINDOWS_OPTION = click.option(
          "(the paper's way).")
 
 
+def _mask_labels(mask, n_sources, size):
+    """``--mask``'s region of every pixel of the output, (H, W) labels in ``[0, n_sources)``: one flat grey
+    level (or colour) per SOURCE, the darkest for the first (:func:`tghop.guides.guide_labels`, as ``synth
+    --guide`` reads its map); one of --size's shape but another size scaled to it, nearest neighbour, saying
+    so in the command's words; another shape refused, and a region the scaling loses (a usage error, of
+    --size)."""
+    import warnings
+
+    from .._errors import collect_warnings
+    from ..guides import LostRegionError, guide_labels, same_shape
+
+    painted = load_exemplar(mask, dtype=None)
+    if not same_shape(painted.shape, size):
+        raise TGHopError(f"--mask {mask} is {painted.shape[0]}x{painted.shape[1]} but --size is {size[0]}x{size[1]}, "
+                         f"another shape; give a mask of the output's shape, it is scaled to its size (or --size "
+                         f"{painted.shape[0]}x{painted.shape[1]})")
+    try:
+        with collect_warnings() as said:  # the library's words name a guide
+            pixels = guide_labels(painted, n_sources, size=size, input_name="SOURCE", no_guide="drop --mask",
+                                  names=[f"SOURCE {i}" for i in range(1, n_sources + 1)], guide_name=f"--mask {mask}",
+                                  size_name="--size")
+    except LostRegionError as exc:
+        raise click.UsageError(str(exc)) from None
+    except TGHopError as exc:
+        raise TGHopError(f"--mask {mask}: {str(exc).replace('the guide', 'the mask')}") from None
+    if said:
+        warnings.warn(f"--mask {mask} was scaled from {painted.shape[0]}x{painted.shape[1]} to {size[0]}x{size[1]}, "
+                      "--size (nearest neighbour: its regions kept as painted)")
+    return pixels
+
+
 @click.group("cooc")
 def cooc():
     """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
@@ -281,8 +312,9 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
 @click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
 @click.option("--mask", default=None, metavar="IMAGE",
-              help="Grey image of --size's shape (scaled to it): its levels, quantised to the number of SOURCES, "
-                   "say which source goes where (default: SOURCES side by side, left to right).")
+              help="Image of --size's shape (scaled to it, nearest neighbour) painted with one flat grey level (or "
+                   "colour) per SOURCE, the darkest for the first, as synth's --guide: each SOURCE goes to its "
+                   "region (default: SOURCES side by side, left to right).")
 @click.option("--boost", type=Boost(), default=None,
               help="Multiply bin M(A, B) (and M(B, A)) by FACTOR (0 to 1,000) everywhere, then re-normalise "
                    "(paper Fig. 11).")
@@ -299,7 +331,7 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
     """
     import numpy as np
 
-    from ..cooc import boost_condition, paint_condition
+    from ..cooc import boost_condition, cell_labels, paint_condition
     from ..imageio import save_image
 
     del quiet  # taken as every command takes it: nothing here draws a progress bar
@@ -310,19 +342,9 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
         if mask is not None and not sources:
             raise click.UsageError("--mask says which SOURCE goes where; give the SOURCES (crop:ROW,COL or images) "
                                    "too")
-        if mask is not None:  # refused before the checkpoint is read, as synth refuses a guide of another shape
-            from ..guides import same_shape
-
-            grey = load_exemplar(mask).mean(axis=2)
-            if not same_shape(grey.shape, size):
-                raise TGHopError(f"--mask {mask} is {grey.shape[0]}x{grey.shape[1]} but --size is {size[0]}x{size[1]}, "
-                                 f"another shape; give a mask of the output's shape, it is scaled to its size (or "
-                                 f"--size {grey.shape[0]}x{grey.shape[1]})")
-            if grey.shape != tuple(size):  # read at the condition's cells below, from any size
-                import warnings
-
-                warnings.warn(f"--mask {mask} was scaled from {grey.shape[0]}x{grey.shape[1]} to {size[0]}x{size[1]}, "
-                              "--size")
+        pixels = None
+        if mask is not None:  # read and refused before the checkpoint is read, as synth reads a --guide
+            pixels = _mask_labels(mask, len(sources), size)
         model = load_checkpoint(model_file)
         s = model.s
         hh, ww = -(-size[0] // s), -(-size[1] // s)
@@ -330,14 +352,11 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
             cond = model.condition_for(size, rng=seed)
         else:
             tensors = [condition(model, spec) for spec in sources]
-            if mask is None:
+            if pixels is None:
                 labels = np.minimum(np.arange(ww) * len(tensors) // ww, len(tensors) - 1)
                 labels = np.broadcast_to(labels[None], (hh, ww))
-            else:
-                from PIL import Image
-
-                pil = Image.fromarray(np.round(grey * 255).astype(np.uint8)).resize((ww, hh), Image.BILINEAR)
-                labels = np.minimum((np.asarray(pil) / 256.0 * len(tensors)).astype(int), len(tensors) - 1)
+            else:  # each cell its centre pixel's region, as the web server's edit
+                labels = cell_labels(pixels, s)
             cond = paint_condition(tensors, labels)
         if boost is not None:
             try:

@@ -59,7 +59,8 @@ The modules, in the order data flows through them (none imports this package's
 from __future__ import annotations
 
 from ..cooccurrence import cooccurrence_matrix, cooccurrence_tensor, fit_colour_clusters, soft_assign
-from .assembly import ASSEMBLIES, FEATHER, QUILT_DETAIL, QUILT_POOL, QUILT_TOLERANCE, boost_condition, paint_condition
+from .assembly import (ASSEMBLIES, FEATHER, QUILT_DETAIL, QUILT_POOL, QUILT_TOLERANCE, boost_condition, cell_labels,
+                       paint_condition)
 from .checkpoints import FORMAT, KIND
 from .config import PAPER, SMALL
 from .model import CoocGAN, baseline, load
@@ -76,6 +77,7 @@ __all__ = [
     "cooccurrence_matrix",
     "cooccurrence_tensor",
     "paint_condition",
+    "cell_labels",
     "boost_condition",
     "load",
     "baseline",

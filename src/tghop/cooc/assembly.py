@@ -27,6 +27,7 @@ __all__ = [
     "QUILT_DETAIL",
     "check_assembly",
     "paint_condition",
+    "cell_labels",
     "boost_condition",
     "MAX_BOOST",
     "tile",
@@ -100,6 +101,28 @@ def paint_condition(tensors, labels):
     h, w = labels.shape
     tiled = np.stack([tile(t, h, w) for t in srcs])  # (n, k*k, h, w)
     return np.take_along_axis(tiled, labels[None, None], axis=0)[0]
+
+
+def cell_labels(labels, s: int) -> np.ndarray:
+    """The label of every condition cell of ``s`` x ``s`` pixels over a pixel label map: its centre
+    pixel's (the last row or column's for a cell past the edge), for :func:`paint_condition`
+    (``tghop cooc edit --mask`` and the web server's edit).
+
+    Parameters
+    ----------
+    labels : array_like, shape (H, W)
+    s : int
+        The cells' side in pixels (the model's ``s``).
+
+    Returns
+    -------
+    ndarray, shape (ceil(H / s), ceil(W / s))
+    """
+    labels = np.asarray(labels)
+    h, w = labels.shape
+    rows = np.minimum(np.arange(-(-h // s)) * s + s // 2, h - 1)
+    cols = np.minimum(np.arange(-(-w // s)) * s + s // 2, w - 1)
+    return labels[rows][:, cols]
 
 
 def boost_condition(cond, a: int, b: int, factor: float) -> np.ndarray:

@@ -266,7 +266,7 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, prog
     decodes the label map's image; ``progress``: as :func:`morph_png`'s."""
     import numpy as np
 
-    from ..cooc import boost_condition, paint_condition
+    from ..cooc import boost_condition, cell_labels, paint_condition
     from .._errors import collect_warnings
     from ..guides import guide_labels
 
@@ -282,18 +282,14 @@ def edit_png(model, size, labels, crops, boost, windows, seed, read_labels, prog
         # console), is the client's header instead.
         try:
             with collect_warnings() as said:
-                pixels = guide_labels(painted, len(crops), size=size, input_name="crop", no_guide="send no labels")
-        except TGHopError as exc:
+                pixels = guide_labels(painted, len(crops), size=size, input_name="crop", no_guide="send no labels",
+                                      names=[f"crops[{i}]" for i in range(len(crops))], guide_name="the label map")
+        except TGHopError as exc:  # a region that the scaling to the size loses too
             raise RequestError(400, str(exc).replace("the guide", "the label map")) from None
         told.extend(str(w).replace("the guide", "the label map") for w in said)
     s, (h, w) = model.s, size
     hh, ww = -(-h // s), -(-w // s)
-    if pixels is None:
-        cells = np.zeros((hh, ww), dtype=np.int64)
-    else:
-        rows = np.minimum(np.arange(hh) * s + s // 2, h - 1)
-        cols = np.minimum(np.arange(ww) * s + s // 2, w - 1)
-        cells = pixels[rows][:, cols]
+    cells = np.zeros((hh, ww), dtype=np.int64) if pixels is None else cell_labels(pixels, s)
     cond = paint_condition(tensors, cells)
     if boost is not None:
         try:
