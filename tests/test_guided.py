@@ -665,6 +665,23 @@ def test_a_remix_of_one_materials_maps_is_warned_of(exemplars, tmp_path):
     assert "tghop fit rock_albedo.png --maps rock_normal.png" in r.stderr.decode()
     r = _run(["synth", "rock_albedo.png", "cells.png", "-o", "out3.png", *fast], tmp_path)
     assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()
+    # A normal map named as none is one by its content (the names alone said nothing of `rock.png`); with one image
+    # of no kind beside it, that one is its albedo by elimination.
+    save_image(example_maps(albedo)["normal"], tmp_path / "rock.png")
+    for sources, said, fix in (
+            (["rock_albedo.png", "rock.png"], "SOURCE 1 (rock_albedo.png: albedo), SOURCE 2 (rock.png: normal, by its "
+             "colours) look like maps of one material", "'tghop fit rock_albedo.png --maps rock.png -o material.npz' "
+             "(name rock.png *_normal* first: --maps takes a map as a normal map by its name)"),
+            (["cells.png", "rock.png"], "SOURCE 1 (cells.png), SOURCE 2 (rock.png: normal, by its colours) look like "
+             "maps of one material", "'tghop fit cells.png --maps rock.png -o material.npz'"),
+            (["rock_normal.png", "cells.png"], "SOURCE 1 (rock_normal.png: normal), SOURCE 2 (cells.png) look like",
+             "'tghop fit cells.png --maps rock_normal.png -o material.npz', then")):
+        r = _run(["synth", *sources, "-o", "out5.png", *fast], tmp_path)
+        err = r.stderr.decode()
+        warned = [line for line in err.splitlines() if line.startswith("Warning:")]
+        assert r.returncode == 0 and len(warned) == 1 and said in warned[0] and fix in warned[0], err
+    r = _run(["synth", "rock.png", "rock_normal.png", "-o", "out6.png", *fast], tmp_path)  # normal maps alone: a remix
+    assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()
     guide = np.zeros((48, 64), dtype=np.uint8)
     guide[:, 32:] = 255
     Image.fromarray(guide).save(tmp_path / "map.png")

@@ -478,3 +478,28 @@ def test_synth_given_maps_says_to_fit_the_material_first(tmp_path):
                                   "MAP... -o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> "
                                   "for each map (see 'tghop synth --help')"), res.output
     assert not list(tmp_path.iterdir())
+
+
+def test_a_normal_map_is_recognised_by_its_content():
+    # tghop synth's remix warning read the file names alone: a normal map named rock.png went unwarned.
+    from tghop import data
+    from tghop.material import example_maps, looks_like_normal_map
+
+    normal = example_maps(data.bricks(96, rng=1))["normal"]
+    assert looks_like_normal_map(normal) and looks_like_normal_map(np.round(normal * 255).astype(np.uint8))
+    assert looks_like_normal_map(np.round(normal * 65535).astype(np.uint16))
+    flat = np.zeros((16, 16, 3))
+    flat[...] = (0.5, 0.5, 1.0)  # a flat normal map: straight up everywhere
+    assert looks_like_normal_map(flat)
+    assert not looks_like_normal_map(data.bricks(96, rng=1)) and not looks_like_normal_map(data.cells(96, rng=1))
+    assert not looks_like_normal_map(np.random.default_rng(0).random((32, 32, 3)))
+    assert not looks_like_normal_map(flat[..., :1]) and not looks_like_normal_map(np.full((16, 16, 3), 0.5))
+    cyan = np.zeros((16, 16, 3))
+    cyan[...] = (0.0, 0.5, 0.5)  # unit vectors (-1, 0, 0) facing up, as water_caustics.jpg's: red far from 0.5
+    assert not looks_like_normal_map(cyan)
+    down = flat.copy()
+    down[...] = (0.5, 0.5, 0.0)  # unit vectors facing down
+    assert not looks_like_normal_map(down)
+    mostly = normal.copy()
+    mostly[: mostly.shape[0] // 4] = data.bricks(96, rng=1)[: mostly.shape[0] // 4]  # a quarter not one
+    assert not looks_like_normal_map(mostly)

@@ -45,7 +45,8 @@ from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "map_file",
-           "check_map_names", "MapNameClashError", "map_kind", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS"]
+           "check_map_names", "MapNameClashError", "map_kind", "looks_like_normal_map", "ALBEDO", "MAP_NAME",
+           "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE", "NORMAL_LOOK_MEAN"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -53,6 +54,13 @@ ALBEDO = "albedo"
 NORMAL_WORDS = ("normal", "nrm")
 #: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
 NORMAL_TOLERANCE = 0.1
+#: An image whose pixels, all but this share, are unit vectors facing up (``2 v - 1`` of length
+#: within 0.15 of 1, blue at least 0.5) and whose mean red and green lie within
+#: NORMAL_LOOK_MEAN of 0.5 (its slopes cancel out) is a normal map by its content
+#: (:func:`looks_like_normal_map`). Of the 44 exemplars, the closest photograph had 95 % of such
+#: pixels (water_caustics: mean red 0.04); the next 71 %.
+NORMAL_LOOK_SHARE = 0.9
+NORMAL_LOOK_MEAN = 0.1
 #: Map names: what a file name can hold (they become ``OUT_<name>.png``).
 MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 #: Longest name :func:`map_name` gives a map's file (and the web server takes in a request).
@@ -105,6 +113,35 @@ def map_kind(path):
         if last in names or any(len(name) >= 5 and last.endswith(name) for name in names):
             return kind
     return None
+
+
+def looks_like_normal_map(image) -> bool:
+    """Whether an image's content is a tangent-space normal map (whatever its name): at least
+    :data:`NORMAL_LOOK_SHARE` of its pixels unit vectors encoded as ``(n + 1) / 2`` facing up
+    (blue at least 0.5), and its mean red and green within :data:`NORMAL_LOOK_MEAN` of 0.5: the
+    blue-violet of a normal map, mean about (0.5, 0.5, 1). ``tghop synth`` warns by it, as by
+    :func:`map_kind`, of a remix of a material's maps.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W, C)
+        Floats in [0, 1], or unsigned integers at their full range (8 or 16 bits); only an image of
+        3 channels can be one (every other pixel of every other row is read).
+
+    Returns
+    -------
+    bool
+    """
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] != 3 or arr.size == 0 or arr.dtype.kind not in "uf":
+        return False
+    v = arr[::2, ::2].reshape(-1, 3).astype(np.float64)
+    if arr.dtype.kind == "u":
+        v /= np.iinfo(arr.dtype).max
+    length = np.linalg.norm(v * 2.0 - 1.0, axis=1)
+    unit_up = (np.abs(length - 1.0) <= 0.15) & (v[:, 2] >= 0.5)
+    mean = v.mean(axis=0)
+    return bool(unit_up.mean() >= NORMAL_LOOK_SHARE and np.abs(mean[:2] - 0.5).max() <= NORMAL_LOOK_MEAN)
 
 
 def map_name(path) -> str:

@@ -72,28 +72,43 @@ def _warn_deep(specs, read, labels, output, depth):
 
 def _warn_material_maps(specs, read):
     """One warning where the exemplar images among a remix's SOURCEs (``read``: :func:`_read`'s)
-    are named as maps of one material (two kinds or more of :func:`tghop.material.map_kind`:
-    ``rock_albedo.png rock_normal.png``): the remix makes them one texture of random regions of
-    each, not a material's aligned maps; the warning names the commands that make the material.
-    A remix of such files is allowed (it may be what was meant)."""
+    look like maps of one material: two kinds or more by their names (:func:`tghop.material.map_kind`:
+    ``rock_albedo.png rock_normal.png``), an image of no such name taken as a normal map by its
+    content (:func:`tghop.material.looks_like_normal_map`: ``rock.png`` of blue-violet unit vectors),
+    or a normal map with one other image of no kind (its albedo, by elimination). The remix makes
+    them one texture of random regions of each, not a material's aligned maps; the warning names
+    the commands that make the material. A remix of such files is allowed (it may be what was meant)."""
     import shlex
     import warnings
 
     import numpy as np
 
-    from ..material import ALBEDO, map_kind
+    from ..material import ALBEDO, looks_like_normal_map, map_kind
 
-    maps = [(i, spec, map_kind(spec)) for i, (spec, source) in enumerate(zip(specs, read), start=1)
-            if isinstance(source, np.ndarray) and not spec.startswith("builtin:")]
-    maps = [(i, spec, kind) for i, spec, kind in maps if kind is not None]
-    if len({kind for _, _, kind in maps}) < 2:
+    images = [(i, spec, source) for i, (spec, source) in enumerate(zip(specs, read), start=1)
+              if isinstance(source, np.ndarray) and not spec.startswith("builtin:")]
+    named = [(i, spec, map_kind(spec)) for i, spec, _ in images]
+    by_content = {i for (i, _, kind), (_, _, source) in zip(named, images)
+                  if kind is None and looks_like_normal_map(source)}
+    maps = [(i, spec, "normal" if i in by_content else kind) for i, spec, kind in named]
+    kinds = {kind for _, _, kind in maps if kind is not None}
+    plain = [m for m in maps if m[2] is None]  # one with a normal map and no albedo: the albedo, by elimination
+    stand_in = plain[0] if len(plain) == 1 and "normal" in kinds and ALBEDO not in kinds else None
+    if len(kinds) < 2 and stand_in is None:
         return
-    albedo = next((m for m in maps if m[2] == ALBEDO), maps[0])
+    maps = [m for m in maps if m[2] is not None or m is stand_in]
+    albedo = next((m for m in maps if m[2] == ALBEDO), stand_in or maps[0])
     others = " ".join(shlex.quote(spec) for _, spec, _ in maps if spec != albedo[1])
-    named = ", ".join(f"SOURCE {i} ({spec}: {kind})" for i, spec, kind in maps)
-    warnings.warn(f"{named} look like maps of one material, but several SOURCEs without --guide remix them as "
+    said = ", ".join(f"SOURCE {i} ({spec})" if kind is None else
+                     f"SOURCE {i} ({spec}: {'normal, by its colours' if i in by_content else kind})"
+                     for i, spec, kind in maps)
+    rename = [spec for i, spec, _ in maps if i in by_content]
+    hint = (f" (name {' and '.join(rename)} *_normal* first: --maps takes a map as a normal map by its name)"
+            if rename else "")
+    warnings.warn(f"{said} look like maps of one material, but several SOURCEs without --guide remix them as "
                   f"separate textures into one image; to make the material (every map, aligned), run 'tghop fit "
-                  f"{shlex.quote(albedo[1])} --maps {others} -o material.npz', then 'tghop synth material.npz -o OUT'")
+                  f"{shlex.quote(albedo[1])} --maps {others} -o material.npz'{hint}, then 'tghop synth material.npz "
+                  "-o OUT'")
 
 
 def _fitted(source, options, progress, label):
