@@ -222,7 +222,8 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     size : (int, int), optional
         Output (height, width); default the guide's size. A guide of another size but the
         output's shape (aspect ratios within 2 %) is scaled to it by nearest neighbour, with a
-        warning; one of another shape is refused (:func:`guide_labels`).
+        warning; one of another shape is refused, and so is one whose scaling loses a model's
+        region (:class:`tghop.guides.LostRegionError`; :func:`guide_labels`).
     transition : int
         Width in pixels of the band around each painted edge in which the join between two
         regions follows the content (:mod:`tghop.composite`); 0: the join is the painted
