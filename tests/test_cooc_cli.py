@@ -148,7 +148,7 @@ def test_edit_refuses_a_mask_of_another_shape_than_the_output(files, tmp_path):
     out = tmp_path / "o.png"
     r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png", "-o", out)
     assert_user_error(r, "--mask", "mask.png is 24x64 but --size is 256x256, another shape",
-                      "give a mask of the output's shape, it is scaled to its size (or --size 24x64)")
+                      "give a mask of the output's shape, it is scaled to its size (or --size 24x64)", status=2)
     assert not out.exists()
     r = invoke("cooc", "edit", files / "m.pt", "crop:0,0", "crop:16,16", "--mask", tmp_path / "mask.png",
                "--size", "48x128", "-o", out, "--seed", "1")

@@ -746,7 +746,7 @@ def test_a_guide_of_the_outputs_shape_is_scaled_to_its_size(models, tmp_path):
         "painted)"], err
     assert np.asarray(Image.open(tmp_path / "out.png")).shape == (48, 64, 3)
     r = _run(["synth", "a.npz", "b.npz", "--guide", "small.png", "--size", "48x48", "-o", "bad.png", *fast], tmp_path)
-    assert_user_error(r, "--guide small.png is 24x32 but --size is 48x48, another shape")
+    assert_user_error(r, "--guide small.png is 24x32 but --size is 48x48, another shape", status=2)
     # A region thinner than a pixel of the output is gone once scaled: said so (it was "the guide has one grey
     # level/colour but 2 inputs were given", of the scaled labels read again).
     thin = np.zeros((24, 32), dtype=np.uint8)

@@ -166,9 +166,9 @@ def _mask_labels(mask, n_sources, size):
 
     painted = load_exemplar(mask, dtype=None)
     if not same_shape(painted.shape, size):
-        raise TGHopError(f"--mask {mask} is {painted.shape[0]}x{painted.shape[1]} but --size is {size[0]}x{size[1]}, "
-                         f"another shape; give a mask of the output's shape, it is scaled to its size (or --size "
-                         f"{painted.shape[0]}x{painted.shape[1]})")
+        raise click.UsageError(f"--mask {mask} is {painted.shape[0]}x{painted.shape[1]} but --size is "
+                               f"{size[0]}x{size[1]}, another shape; give a mask of the output's shape, it is scaled "
+                               f"to its size (or --size {painted.shape[0]}x{painted.shape[1]})")
     try:
         with collect_warnings() as said:  # the library's words name a guide
             pixels = guide_labels(painted, n_sources, size=size, input_name="SOURCE", no_guide="drop --mask",

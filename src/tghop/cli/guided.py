@@ -141,9 +141,9 @@ def _load_guide(path, size, size_given):
         raise TGHopError(f"--guide {path} is {model_file_kind(path)}, not an image; give a painted map")
     guide = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
     if size_given and not same_shape(guide.shape, size):
-        raise TGHopError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is {size[0]}x{size[1]}, "
-                         "another shape; paint the map at the output's shape (it is scaled to --size) or drop --size "
-                         "(the map's size is taken)")
+        raise click.UsageError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is "
+                               f"{size[0]}x{size[1]}, another shape; paint the map at the output's shape (it is "
+                               "scaled to --size) or drop --size (the map's size is taken)")
     return guide
 
 
