@@ -137,6 +137,44 @@ def test_folders_linked_into_source_are_scanned_once(tmp_path):
     assert found == ["a.png", os.path.join("rock", "r.png")]
 
 
+def test_max_depth_limits_how_deep_a_folder_is_searched(tmp_path):
+    # A folder SOURCE was searched at every depth, with no way to take a folder's own images alone
+    # (a studio's exemplars beside folders of references, renders, variants).
+    src = tmp_path / "src"
+    for rel in ("top.png", "a/one.png", "a/b/two.png", "a/b/c/three.png"):
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        (src / rel).write_bytes(b"x")
+    found = {d: sorted(it["name"] for it in batch.find_work(src, max_depth=d)) for d in (None, 0, 1, 2, 3)}
+    assert found == {None: ["a__b__c__three", "a__b__two", "a__one", "top"], 0: ["top"], 1: ["a__one", "top"],
+                     2: ["a__b__two", "a__one", "top"], 3: ["a__b__c__three", "a__b__two", "a__one", "top"]}
+    (tmp_path / "deep" / "x" / "y").mkdir(parents=True)
+    (tmp_path / "deep" / "x" / "y" / "z.png").write_bytes(b"x")
+    with pytest.raises(TGHopError, match=r"no image files in this folder or 1 level of subfolders .*--max-depth"):
+        batch.find_work(tmp_path / "deep", max_depth=1)
+    with pytest.raises(TGHopError, match=r"no image files in this folder itself \("):
+        batch.find_work(tmp_path / "deep", max_depth=0)
+    for bad in (-1, 1.5, True, "2"):
+        with pytest.raises(TGHopError, match="max_depth must be an integer >= 0"):
+            batch.find_work(src, max_depth=bad)
+    (src / "list.csv").write_text("path\ntop.png\n")
+    with pytest.raises(TGHopError, match="for a folder SOURCE; a manifest lists its files"):
+        batch.find_work(src / "list.csv", max_depth=0)
+    by = {r["name"]: r for r in batch.run(src, tmp_path / "out", workers=1, max_depth=0)}  # nothing to fit
+    assert list(by) == ["top"] and "not a readable image" in by["top"]["error"]
+    for value, said in (("-1", "-1 is not in the range x>=0"), ("x", "'x' is not a valid integer"),
+                        ("", "'' is not a valid integer")):
+        code, _, err, exc = invoke("batch", "src", "-o", "out", "--max-depth", value, cwd=tmp_path)
+        assert_one_line(code, err, "--max-depth", said, exception=exc)
+        assert code == 2
+    code, _, err, exc = invoke("batch", "src/list.csv", "-o", "out", "--max-depth", "1", cwd=tmp_path)
+    assert_one_line(code, err, "--max-depth is for a folder SOURCE", exception=exc)
+    assert code == 2
+    for other in ("--depth", "--recursive", "-r"):  # the names a user tries; --depth is a bit depth elsewhere
+        code, _, err, exc = invoke("batch", "src", "-o", "out", other, "1", cwd=tmp_path)
+        assert_one_line(code, err, f"No such option '{other}'", "give --max-depth N", exception=exc)
+        assert code == 2
+
+
 def test_a_truncated_jpeg_says_so_in_the_ledger(tmp_path):
     # A guard: it was "not a readable image (OSError)", without the words the rest of tghop gives.
     save_image(data.bricks(64, rng=3), tmp_path / "a.jpg")
@@ -392,10 +430,10 @@ def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     assert a["page_faults"] >= 0
     check_sheet(out, results)
 
-    # a rerun skips what is done; failed exemplars are tried again
+    # a rerun skips what is done, and the exemplars whose input failed (unchanged: they would fail again)
     again = {r["name"]: r for r in run(src, out, count=2, workers=1)}
     assert again["a"]["skipped"] and again["sub__a"]["skipped"]
-    assert not again["bad"]["skipped"] and len(ledger(out)) == 6
+    assert again["bad"]["skipped"] and again["bad"]["status"] == "failed" and len(ledger(out)) == 4
     # a changed input is redone, the unchanged one is not
     save_image(data.bricks(64, rng=9), src / "a.png")
     again = {r["name"]: r for r in run(src, out, count=2, workers=1)}
@@ -414,6 +452,59 @@ def test_in_process_run_records_bad_exemplars_and_resumes(tmp_path):
     # a contact sheet of an unfinished batch says so
     page = batch.write_contact_sheet(out, [again["a"]], total=4).read_text()
     assert "1 of 1 exemplars done, 0 failed. 3 not finished yet: run the same command again." in page
+
+
+def test_a_rerun_skips_the_failures_of_the_input_until_it_changes(tmp_path, monkeypatch):
+    # A studio's rerun of thousands tried every bad exemplar again (not an image, flat, too small),
+    # each failing as before, and listed them all again. Now the ledger says whose fault a failure
+    # was (cause); a rerun skips the input's until its files, settings or tghop change, or retry_failed.
+    import tghop
+    from tghop import synthesis
+
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    save_image(data.bricks(64, rng=5)[:16, :16], src / "small.png")
+    bad = ("bad", "flat", "small")
+    first = {r["name"]: r for r in run(src, out, workers=1)}
+    assert [first[n]["cause"] for n in bad] == ["input"] * 3 and first["a"]["cause"] is None
+    assert {line["version"] for line in ledger(out)} == {tghop.__version__}
+    plans = []
+    again = {r["name"]: r for r in run(src, out, workers=1, on_plan=plans.append)}
+    assert plans == [{"exemplars": 5, "done_before": 2, "failed_before": 3, "to_do": 0}]
+    assert all(again[n]["skipped"] and again[n]["status"] == "failed" for n in bad) and len(ledger(out)) == 5
+    assert again["small"]["error"] == first["small"]["error"]  # the earlier record, its reason
+    # a changed file is tried again (still no image: a new line), the others are not
+    (src / "bad.png").write_bytes(b"still not an image")
+    again = {r["name"]: r for r in run(src, out, workers=1)}
+    assert [again[n]["skipped"] for n in bad] == [False, True, True] and len(ledger(out)) == 6
+    # so is every failure of the input with retry_failed, and with other settings
+    again = {r["name"]: r for r in run(src, out, workers=1, retry_failed=True)}
+    assert [again[n]["skipped"] for n in bad] == [False] * 3 and again["a"]["skipped"] and len(ledger(out)) == 9
+    again = {r["name"]: r for r in run(src, out, workers=1, count=2)}
+    assert not any(r["skipped"] for r in again.values()) and len(ledger(out)) == 14
+    # a line of another tghop, or of one before causes were recorded: tried again (it may read it now)
+    lines = ledger(out)
+    for line in lines:
+        if line["name"] == "flat":
+            line["version"] = "0.54.0"
+        if line["name"] == "small":
+            del line["cause"]
+    (out / "batch.jsonl").write_text("".join(json.dumps(line) + "\n" for line in lines))
+    again = {r["name"]: r for r in run(src, out, workers=1, count=2)}
+    assert [again[n]["skipped"] for n in bad] == [True, False, False]
+    # a failure of the run's (memory, a lost worker, an interruption) is always tried again
+    one = tmp_path / "one"
+    one.mkdir()
+    save_image(data.bricks(64, rng=3), one / "a.png")
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError
+
+    with monkeypatch.context() as m:
+        m.setattr(synthesis, "prepare_exemplar", no_memory)  # the task's, in the task
+        (r,) = run(one, tmp_path / "out1", workers=1)
+    assert r["status"] == "failed" and r["cause"] == "run" and "out of memory" in r["error"]
+    (r,) = run(one, tmp_path / "out1", workers=1)
+    assert r["status"] == "ok" and not r["skipped"]
 
 
 def test_a_failed_try_in_between_leaves_no_stale_images(tmp_path):
@@ -884,6 +975,38 @@ def test_progress_into_a_log_is_a_line_per_tenth(tmp_path):
     assert [line for line in err.splitlines() if line.strip() == "exemplars"] == [], err
 
 
+def test_a_rerun_says_what_an_earlier_run_did_before_its_bar(tmp_path):
+    # A rerun's bar counted only what was left ("exemplars 0/50" of a batch of 1,250), and each rerun
+    # tried and listed every bad exemplar again. Now a line first says what was done before, the
+    # bar counts the rest, and the failures of unchanged input are skipped, counted, not listed.
+    from tghop.cli.batch import plan_line
+
+    assert plan_line({"exemplars": 1250, "done_before": 1200, "failed_before": 0, "to_do": 50}) == \
+        "1,200 of 1,250 exemplars already done; 50 to make"
+    make_folder(tmp_path / "src")
+    fast = [a for a in CLI_FAST if a != "-q"]
+    args = ["batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--seed", "1", *fast]
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 1 and "already done" not in err and "failed: bad: " in err, err  # the bar says it all
+    save_image(data.bricks(64, rng=7), tmp_path / "src" / "new.png")
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    lines = err.splitlines()
+    assert lines[:2] == ["2 of 5 exemplars already done, 2 skipped as failed before (--retry-failed tries them "
+                         "again); 1 to make", "exemplars: 1 of 1 finished (1 done, 0 failed), 0 running"], err
+    assert "3 of 5 exemplars done (2 by an earlier run); results in out" in err, err
+    assert "\n2 skipped as failed before, their input and settings unchanged (bad, flat; their errors are in " \
+           "out/batch.jsonl); fix or remove them, or --retry-failed tries them again\n" in err, err
+    assert "failed: " not in err and code == 1  # the batch is still incomplete
+    assert lines[-1] == "Error: 2 of 5 exemplars failed; 2 of them before: bad, flat (see out/batch.jsonl)", err
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert err.splitlines()[0].endswith("; nothing to make") and "exemplars: " not in err, err  # no bar of 0
+    code, _, err, _ = invoke(*args, "--retry-failed", cwd=tmp_path)
+    assert err.splitlines()[0] == "3 of 5 exemplars already done; 2 to make", err
+    assert "failed: bad: " in err and "failed: flat: " in err and "skipped as failed" not in err, err
+    code, _, err, _ = invoke(*args, "-q", cwd=tmp_path)
+    assert "already done" not in err and "skipped as failed before" in err, err  # -q: the summary alone
+
+
 def _run_cli(args, cwd, block_dask=False, **kw):
     code = ("import sys\n"
             "class Block:\n"
@@ -1008,7 +1131,7 @@ def test_local_cluster_run(tmp_path, cluster):
     assert len(ledger(out)) == 4
     check_sheet(out, results)
     again = run(src, out, count=2, client=client)
-    assert [r["skipped"] for r in again] == [True, False, False, True]
+    assert [r["skipped"] for r in again] == [True, True, True, True]  # bad and flat: their input failed
 
 
 def test_cli_to_a_scheduler_address(tmp_path, cluster):
@@ -1276,7 +1399,7 @@ def reuse_faults(n):
     return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
 
 
-def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path):
+def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path, monkeypatch):
     # The default layout: one worker process per core (here 2), each task limited to one
     # thread, BLAS's and tghop's own (ICHM's clusters, refinement, ...): no oversubscription;
     # glibc's malloc reuses freed memory, even arrays of hundreds of MB made in the task's
@@ -1303,12 +1426,18 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path):
         held.listen()
     except OSError:
         pass  # in use already: the same case
+    # The workers' environment is theirs: Dask's nanny wrote it into the caller's os.environ, where
+    # it stayed after the run (what the caller started next ran on one BLAS thread and one arena).
+    for name in ("OMP_NUM_THREADS", "MALLOC_ARENA_MAX"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")  # one set before: kept as it was
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             results = run(src, out, workers=2, task=probe_threads)
     finally:
         held.close()
+    assert [os.environ.get(n) for n in ("OMP_NUM_THREADS", "MALLOC_ARENA_MAX", "MKL_NUM_THREADS")] == [None, None, "3"]
     # 0.36 printed Dask's "Port 8787 is already in use. Perhaps you already have a cluster running?"
     assert not [w for w in caught if "8787" in str(w.message)]
     assert [r["status"] for r in results] == ["ok", "ok"]

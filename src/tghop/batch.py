@@ -35,13 +35,14 @@ import time
 import warnings
 from pathlib import Path
 
+from . import __version__
 from ._errors import MissingExtraError, TGHopError
 from .batch_dask import (INSTALL_HINT, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE, affinity_cores, connect,
                          ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
                          run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_orphans,
-                         find_work, inputs_sha256, is_done, keep_ledger_names, mark_running, open_ledger,
-                         prune_orphans, read_ledger, read_ledger_files, remove_stale)
+                         find_work, inputs_sha256, is_done, is_known_failure, keep_ledger_names, mark_running,
+                         open_ledger, prune_orphans, read_ledger, read_ledger_files, remove_stale)
 from .batch_task import process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -135,7 +136,7 @@ def _check_call(outdir, fit, generate, workers, callables) -> None:
 
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
         workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
-        task=None, prune=False, on_orphans=None):
+        task=None, prune=False, on_orphans=None, retry_failed=False, max_depth=None, on_plan=None):
     """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
 
     Parameters
@@ -187,15 +188,43 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         (the folder's), ``pruned`` (its files removed) and ``kept`` (the entries left in it: not
         tghop's, so the folder stays). Without it, a warning names them.
 
+    retry_failed : bool
+        Try again the exemplars whose input failed in an earlier run (``cause`` "input": not an
+        image, flat, too small, a bad map) although their files, settings and tghop's version are
+        unchanged. Without it a rerun skips them (:func:`tghop.batch_plan.is_known_failure`) and
+        returns their earlier record; a failure of the run's (memory, a lost worker, an
+        interruption) is always tried again.
+    max_depth : int, optional
+        How many levels of subfolders of a folder ``source`` are searched: 0 its own images only,
+        1 those of its subfolders too, ...; None (the default) every level. Refused for a manifest.
+    on_plan : callable(plan), optional
+        Called once before any work with a dict: ``exemplars`` (all of ``source``), ``done_before``
+        (skipped: done by an earlier run), ``failed_before`` (skipped: failed before, input unchanged)
+        and ``to_do`` (what this run makes; ``progress``'s total).
+
     Returns
     -------
     list of dict
         One record per exemplar, in the order of ``source``: the ledger's fields (``name``, ``source``,
-        ``sha256``, ``settings``, ``status``, ``error``, ``outputs``, ``model``, times, ...) and
-        ``skipped`` (True: done by an earlier run).
+        ``sha256``, ``settings``, ``status``, ``error``, ``cause``, ``outputs``, ``model``, ``version``,
+        times, ...) and ``skipped`` (True: an earlier run's record, done or a known failure).
+
+    Notes
+    -----
+    What the calling process keeps: its environment (a local cluster's workers get their limits, one
+    BLAS and OpenMP thread and :data:`WORKER_ENVIRON`, in their own; Dask's nanny writes them into this
+    process's ``os.environ`` while it starts them, and ``run`` puts back the values from before, also
+    after a worker restarted); its threads with ``workers=1`` (no limit is set) and with a cluster of
+    worker processes (the default, a scheduler's). A given ``client`` whose workers are threads of this
+    process (``processes=False``) is the exception: each task limits BLAS and tghop's own threads for
+    the whole process while it runs (:func:`tghop.batch_task.task_threads`), and the last to end puts
+    back tghop's limit but may leave OpenBLAS's at one thread: OpenBLAS takes a new limit only from the
+    thread that set the last one while that thread lives, and Dask keeps its worker threads until the
+    client closes. Run such a batch in worker processes, or reset BLAS's limit in a thread of one's
+    own once the client is closed.
     """
     _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task,
-                                                  "on_orphans": on_orphans})
+                                                  "on_orphans": on_orphans, "on_plan": on_plan})
     most = WORKERS_PER_CORE * affinity_cores()
     if client is None and scheduler is None and workers is not None and workers > most:
         raise TGHopError(f"the worker processes (workers, --workers): {workers} on this machine's "
@@ -203,7 +232,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                          f"({WORKERS_PER_CORE} per core: each exemplar runs on one core); give fewer, none for one per "
                          "core, or a scheduler's cluster")
     outdir = Path(os.path.abspath(outdir))
-    items = find_work(source, outdir)
+    items = find_work(source, outdir, max_depth=max_depth)
     defaults = {"size": list(parse_size(size, "size")), "count": parse_int(count, "run", "count", 1, 1000),
                 "seed": None if seed is None else parse_int(seed, "run", "seed", 0),
                 "tile": parse_bool(tile, "tile", where="run")}
@@ -232,7 +261,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     previous, earlier_files = read_ledger_files(outdir)
     keep_ledger_names(items, previous)
     orphans = find_orphans(outdir, earlier_files, [it["name"] for it in items])
-    jobs, results = [], {}
+    jobs, results, failed_before = [], {}, 0
     for it in items:
         settings = _settings(it["settings"], defaults, fit, generate)
         maps = it.get("maps") or []
@@ -245,6 +274,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1}
         if is_done(previous.get(it["name"]), job, outdir):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
+        elif not retry_failed and is_known_failure(previous.get(it["name"]), job, __version__):
+            results[it["name"]] = {**previous[it["name"]], "skipped": True}
+            failed_before += 1
         else:
             jobs.append(job)
     own_client = ledger_file = None
@@ -273,7 +305,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
 
     def finish(job, record):
         rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
-               **record}
+               "version": __version__, **record}
         rec["finished"] = time.time()
         with ctrl_c_deferred():  # the line and its RUNNING file's removal as one (else a rerun redoes it)
             append_ledger(ledger_file, rec)
@@ -291,6 +323,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if progress is not None:
             progress("exemplars", counts["done"], counts["total"])
 
+    if on_plan is not None:  # once OUTDIR and its ledger are ready: a refused run says no plan
+        on_plan({"exemplars": len(items), "done_before": len(results) - failed_before,
+                 "failed_before": failed_before, "to_do": len(jobs)})
     if progress is not None and jobs:
         progress("exemplars", 0, len(jobs))
     try:
@@ -348,7 +383,8 @@ def _interrupted_record(job) -> dict:
     error): its task may still have moved its files into place (a local cluster's worker finishes
     its task while the cluster closes; a given cluster's runs on), so the earlier line no longer
     describes the folder, and the next run does it again whatever its settings."""
-    return {"status": "interrupted", "error": "the batch stopped before this exemplar's result came back (its "
+    return {"status": "interrupted", "cause": "run",
+            "error": "the batch stopped before this exemplar's result came back (its "
             "files may be this run's or an earlier one's); the next run does it again", "outputs": [], "model": None,
             "thumbnail": None, "seed_used": job.get("seed"), "started": None, "seconds": None, "finished": time.time()}
 

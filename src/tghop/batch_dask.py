@@ -21,8 +21,8 @@ from ._errors import MissingExtraError, TGHopError
 from .batch_task import one_line
 
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "import_distributed", "local_cluster",
-           "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc", "affinity_cores", "connect",
-           "run_distributed"]
+           "worker_environ", "environ_kept", "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc",
+           "affinity_cores", "connect", "run_distributed"]
 
 
 #: What to install for running on Dask.
@@ -66,21 +66,26 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     scheduler's HTTP server on a free port, a worker's death allowed ``retries`` times per task.
 
     Each worker runs :func:`dask_setup` first (a preload): among others, its ``malloc``
-    keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`)."""
+    keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`).
+
+    The workers' environment (those settings, one BLAS and OpenMP thread) is theirs alone: Dask's
+    nanny writes it into this process's ``os.environ`` before it starts each worker, and the values
+    from before are put back once they have started, so that what this process starts later (a
+    subprocess, its own pool) does not run on one thread. A worker Dask restarts (after a death)
+    writes them again: :func:`run_distributed` puts them back when it closes its cluster."""
     distributed = import_distributed()
     import logging
 
     import dask
 
     n = n_workers or affinity_cores()
-    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
-    environ.update({v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
-    environ.update(WORKER_ENVIRON)
+    environ = worker_environ()
     # Ctrl-C is ignored while the workers start: a worker process inherits that (its preload
     # ignores Ctrl-C only once its imports are done; before, each printed a traceback), and a
     # cluster interrupted half-started cannot be closed cleanly. It lasts a few seconds.
-    with ctrl_c_ignored(), dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
-                                             "distributed.nanny.pre-spawn-environ": environ}):
+    with ctrl_c_ignored(), environ_kept(environ), \
+            dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
+                             "distributed.nanny.pre-spawn-environ": environ}):
         # ":0": the scheduler's HTTP server (health, metrics) on a free port; None still took 8787,
         # and a second cluster (another batch, a notebook's) printed Dask's "Port 8787 is already in use".
         try:
@@ -91,6 +96,32 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
             raise TGHopError(f"the local Dask cluster's workers did not start ({exc}); a script that runs a "
                              "batch needs 'if __name__ == \"__main__\":' around the call (workers import it), "
                              "or workers=1") from exc
+
+
+def worker_environ() -> dict:
+    """The environment a local cluster's worker starts with (:func:`local_cluster`): Dask's
+    ``distributed.nanny.pre-spawn-environ``, one BLAS and OpenMP thread, :data:`WORKER_ENVIRON`."""
+    import dask
+
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    environ.update({v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
+    environ.update(WORKER_ENVIRON)
+    return environ
+
+
+@contextlib.contextmanager
+def environ_kept(names):
+    """Context manager: the environment variables ``names`` as they were on entry, put back on
+    exit (set again, or removed where they were not set)."""
+    before = {name: os.environ.get(name) for name in names}
+    try:
+        yield
+    finally:
+        for name, value in before.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 @contextlib.contextmanager
@@ -192,7 +223,7 @@ def _died_record(job, exc, retries) -> dict:
                  "machine or a smaller size")
     else:
         error = one_line(exc)
-    return {"status": "failed", "error": error, "outputs": [], "model": None, "thumbnail": None,
+    return {"status": "failed", "error": error, "cause": "run", "outputs": [], "model": None, "thumbnail": None,
             "seed_used": job.get("seed"), "started": None, "seconds": None}
 
 
@@ -221,6 +252,9 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
     distributed = import_distributed()
     own_cluster = None
     futures = []
+    # A worker restarted after a death writes its environment into this process's again (local_cluster).
+    kept = environ_kept(worker_environ()) if client is None else contextlib.nullcontext()
+    kept.__enter__()
     try:
         if client is None:
             own_cluster = local_cluster(workers, retries=retries)
@@ -267,7 +301,10 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         raise
     finally:
         with ctrl_c_ignored():  # a second Ctrl-C must not leave the cluster half-closed
-            if own_client is not None:
-                own_client.close()
-            if own_cluster is not None:
-                own_cluster.close()
+            try:
+                if own_client is not None:
+                    own_client.close()
+                if own_cluster is not None:
+                    own_cluster.close()
+            finally:
+                kept.__exit__(None, None, None)

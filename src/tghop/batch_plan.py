@@ -7,7 +7,8 @@ ledger that says what an earlier run finished.
 * the ledger ``OUTDIR/batch.jsonl`` (:data:`LEDGER`): read (:func:`read_ledger`,
   :func:`read_ledger_files`), opened locked for a run (:func:`open_ledger`), appended to
   (:func:`append_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
-  keeps the names it had, :func:`remove_stale` deletes the files a new line no longer lists, and
+  keeps the names it had, :func:`is_known_failure` an exemplar whose input failed before and is
+  unchanged, :func:`remove_stale` deletes the files a new line no longer lists, and
   :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out;
 * :func:`find_orphans` -- the folders an earlier run made for exemplars no longer in SOURCE, and
   :func:`prune_orphans`, which deletes the files the ledger says a run made there.
@@ -20,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import numbers
 import os
 import re
 import unicodedata
@@ -33,7 +35,8 @@ from .manifest import read_manifest
 
 __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED", "windows_reserved", "find_work",
            "inputs_sha256", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
-           "open_ledger", "append_ledger", "is_done", "mark_running", "remove_stale", "find_orphans", "prune_orphans"]
+           "open_ledger", "append_ledger", "is_done", "is_known_failure", "mark_running", "remove_stale",
+           "find_orphans", "prune_orphans"]
 
 
 #: File extensions taken as exemplars when SOURCE is a folder.
@@ -53,8 +56,9 @@ NAME_MAX = 160
 
 
 # ------------------------------------------------------------------ finding work
-def _scan_folder(folder: Path, outdir: Path):
-    """The images of ``folder``, recursively, symbolic links to folders followed (each folder
+def _scan_folder(folder: Path, outdir: Path, max_depth=None):
+    """The images of ``folder``, recursively (``max_depth`` levels of subfolders at most; None:
+    every level), symbolic links to folders followed (each folder
     once: a link back up is no loop); hidden files and folders, and what is not a regular file
     (a named pipe: a broken link is kept, to be said), are skipped, and so are
     ``outdir`` and every folder holding a ledger (an earlier batch's OUTDIR: its thumbnails and
@@ -70,8 +74,10 @@ def _scan_folder(folder: Path, outdir: Path):
         return True
 
     for root, dirs, files in os.walk(folder, followlinks=True):
-        dirs[:] = [d for d in sorted(dirs) if not d.startswith(".") and Path(root, d).resolve() != out
-                   and not os.path.lexists(os.path.join(root, d, LEDGER)) and new(os.path.join(root, d))]
+        deep = max_depth is not None and len(Path(root).relative_to(folder).parts) >= max_depth
+        dirs[:] = [] if deep else [d for d in sorted(dirs) if not d.startswith(".") and Path(root, d).resolve() != out
+                                   and not os.path.lexists(os.path.join(root, d, LEDGER))
+                                   and new(os.path.join(root, d))]
         for f in sorted(files):
             p = Path(root, f)  # a named pipe, socket or device is no image (reading one waited for ever)
             if not f.startswith(".") and p.suffix.lower() in IMAGE_SUFFIXES and (p.is_file() or not p.exists()):
@@ -82,8 +88,11 @@ def _scan_folder(folder: Path, outdir: Path):
                f"({', '.join(others[:3])}{', ...' if len(others) > 3 else ''}): a batch reads "
                f"{', '.join(IMAGE_SUFFIXES)}; convert them to PNG") if others else ""
     if not items:
-        raise TGHopError(f"{folder}: no image files in this folder ({', '.join(IMAGE_SUFFIXES[:3])}, ...)"
-                         + (f"; {skipped}" if skipped else ""))
+        within = "" if max_depth is None else \
+            " itself" if max_depth == 0 else f" or {max_depth} level{'s' if max_depth != 1 else ''} of subfolders"
+        raise TGHopError(f"{folder}: no image files in this folder{within} ({', '.join(IMAGE_SUFFIXES[:3])}, ...)"
+                         + (f"; {skipped}" if skipped else "")
+                         + ("; a larger max depth (--max-depth) searches deeper" if max_depth is not None else ""))
     if skipped:
         warnings.warn(f"{folder}: {skipped}", stacklevel=3)
     return items
@@ -159,8 +168,9 @@ def _unique_names(items):
     return items
 
 
-def find_work(source, outdir=None):
-    """The exemplars of ``source``: a folder (every image in it, recursively; hidden files,
+def find_work(source, outdir=None, max_depth=None):
+    """The exemplars of ``source``: a folder (every image in it, recursively, ``max_depth``
+    levels of subfolders at most: 0 the folder's own, None every level; hidden files,
     ``outdir`` and the folders that hold a ledger ``batch.jsonl`` skipped) or a manifest
     (``.csv`` with a ``path`` column, or JSON lines ``{"path": ...}``; optional ``name``,
     ``size``, ``count``, ``seed``, ``tile``; paths relative to the manifest's folder).
@@ -171,13 +181,20 @@ def find_work(source, outdir=None):
     """
     if not os.fsdecode(source).strip():  # "" would be the current folder
         raise TGHopError("SOURCE is empty; give a folder of exemplars or a manifest")
+    if max_depth is not None and (isinstance(max_depth, bool) or not isinstance(max_depth, numbers.Integral)
+                                  or max_depth < 0):
+        raise TGHopError(f"max_depth must be an integer >= 0 (0: the folder's own images; None: every level), "
+                         f"got {max_depth!r}")
     source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
     if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
         raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
                          "exemplars; give another folder, e.g. -o " + str(source.parent / (source.name + "_out")))
     if source.is_dir():
-        items = _scan_folder(source, outdir if outdir is not None else source / ".none")
+        items = _scan_folder(source, outdir if outdir is not None else source / ".none", max_depth)
     elif source.is_file():
+        if max_depth is not None:
+            raise TGHopError(f"{source}: max depth (--max-depth) is for a folder SOURCE; a manifest lists its files: "
+                             "drop it, or list fewer")
         if source.suffix.lower() not in (".csv", ".jsonl", ".json", ".ndjson"):
             raise TGHopError(f"{source}: SOURCE is a folder of images or a manifest (.csv or .jsonl)")
         items = read_manifest(source)
@@ -327,6 +344,20 @@ def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
     # contact sheet shows it).
     return all([*(prev.get("outputs") or []), prev.get("model")]) and all(
         (outdir / f).is_file() for f in _listed_files(prev))
+
+
+def is_known_failure(prev: dict | None, job: dict, version: str) -> bool:
+    """Whether ``job`` failed in an earlier run (its last ledger line ``prev``) for a cause in its
+    input (``cause`` "input": not an image, flat, too small, a bad map), which a rerun would only
+    repeat: the same inputs (their SHA-256, read), settings and tghop ``version``, and no
+    :data:`RUNNING` file left. A failure of the run's (memory, a lost worker, an interruption, an
+    unexpected error), or of a line written before causes were recorded, is not one: it is tried again."""
+    if not prev or prev.get("status") != "failed" or prev.get("cause") != "input" or job["sha256"] is None:
+        return False
+    if os.path.lexists(os.path.join(job["folder"], RUNNING)):
+        return False
+    return prev.get("sha256") == job["sha256"] and prev.get("settings") == job["settings"] \
+        and prev.get("version") == version
 
 
 def _listed_files(rec: dict) -> list:

@@ -16,7 +16,7 @@ import threading
 import time
 from pathlib import Path
 
-from ._errors import HINT_DOWNSCALE_YOURSELF, TGHopError, collect_warnings
+from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, collect_warnings
 from ._formats import is_model_file, model_file_kind
 
 __all__ = ["process_exemplar", "remove_temporaries", "one_line", "task_threads", "STAGE", "THUMBNAIL",
@@ -41,9 +41,11 @@ def task_threads(n):
     when the first ended, the limits from before it while the other still ran (its ICHM clusters
     and refinement on every core, its BLAS too where the worker's default is more than one
     thread: ``--no-nanny``). So the first task to enter sets them, a task asking for fewer
-    lowers them, and the last to leave puts back what was there before (BLAS's only where it left
-    in the thread that set it: threadpoolctl lets that thread alone change OpenBLAS's limit, so
-    a worker may keep one BLAS thread after its tasks)."""
+    lowers them, and the last to leave puts back what was there before (BLAS's only where it leaves
+    in the thread that set it, or after that thread ended: OpenBLAS (0.3.31, pthreads, measured)
+    takes no new limit from another thread while the thread that set the last one lives, so a
+    worker, or a program whose Dask client runs tasks in its own threads, may keep one BLAS thread
+    after its tasks: :func:`tghop.batch.run`, Notes)."""
     if n is None:
         yield
         return
@@ -138,7 +140,9 @@ def process_exemplar(job: dict) -> dict:
     albedo ``NAME.png`` and a file per map, ``NAME_<map>.png``, at the map's depth, as ``tghop
     synth`` writes a material).
 
-    Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``outputs``,
+    Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``cause`` (of a
+    failure: "input" where reading, checking or fitting the exemplar refused it, the same each time for
+    the same files and settings; "run" for what may pass, memory, writing, an unexpected error), ``outputs``,
     ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (the messages of tghop's own,
     :func:`tghop._errors.collect_warnings`: of this task alone where a worker runs several on threads),
     times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
@@ -154,10 +158,10 @@ def process_exemplar(job: dict) -> dict:
     start, cpu_start, usage = time.time(), time.process_time(), resource.getrusage(resource.RUSAGE_SELF)
     folder = Path(job["folder"])
     name = job["name"]
-    record = {"status": "failed", "error": None, "outputs": [], "model": None, "thumbnail": None,
+    record = {"status": "failed", "error": None, "cause": None, "outputs": [], "model": None, "thumbnail": None,
               "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
               "worker": f"{socket.gethostname()}:{os.getpid()}"}
-    stage, caught = None, []
+    stage, caught, phase = None, [], "input"  # phase: what a TGHopError is blamed on (the record's cause)
     try:
         import numpy as np
 
@@ -192,6 +196,7 @@ def process_exemplar(job: dict) -> dict:
             else:
                 model.fit(image)
             record["fit_seconds"] = time.time() - t
+            phase = "run"  # read, checked and fitted: what fails from here on is the run's (disk, memory)
             thumb = THUMBNAIL_FILE
             _thumbnail(raw if raw.dtype == np.uint8 else np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8),
                        stage / thumb)
@@ -224,8 +229,13 @@ def process_exemplar(job: dict) -> dict:
                       thumbnail=f"{prefix}/{thumb}")
     except MemoryError:
         record["error"] = "out of memory; use a smaller size or exemplar, or fewer workers per machine"
+        record["cause"] = "run"
     except Exception as exc:  # noqa: BLE001 - one exemplar's failure is recorded, the batch goes on
         record["error"] = one_line(exc)
+        # The input's (not an image, flat, too small, a bad map): a rerun skips it until its files or
+        # settings change (tghop.batch_plan.is_known_failure). Anything else is tried again.
+        input_fault = phase == "input" and isinstance(exc, TGHopError) and not isinstance(exc, MissingExtraError)
+        record["cause"] = "input" if input_fault else "run"
     finally:  # Ctrl-C (KeyboardInterrupt) and the command's SIGTERM too: they go on once this is done
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)

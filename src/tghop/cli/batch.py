@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -12,6 +13,9 @@ from .common import Progress, fail, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
 
 __all__ = ["batch"]
+
+#: How to try the known failures again, said wherever they are skipped.
+RETRY_HINT = "--retry-failed tries them again"
 
 
 class BatchProgress(Progress):
@@ -39,6 +43,21 @@ class BatchProgress(Progress):
         self.failed, self.running = counts["failed"], counts["running"]
         self.note = f"{self.failed} failed, {self.running} running"
 
+    def plan(self, plan):
+        """Before the bar, what an earlier run did (the bar counts this run's exemplars alone: a rerun's
+        bar of 50 read as the whole batch of 1,250)."""
+        if self.enabled and (plan["done_before"] or plan["failed_before"]):
+            click.echo(plan_line(plan), err=True)
+
+
+def plan_line(plan) -> str:
+    """``1,200 of 1,250 exemplars already done; 50 to make`` (and the known failures skipped)."""
+    before = f"{plan['done_before']:,} of {_exemplars(plan['exemplars'])} already done"
+    if plan["failed_before"]:
+        before += f", {plan['failed_before']:,} skipped as failed before ({RETRY_HINT})"
+    to_make = f"{plan['to_do']:,} to make" if plan["to_do"] else "nothing to make"
+    return f"{before}; {to_make}"
+
 
 @click.command()
 @click.argument("source")
@@ -64,18 +83,28 @@ class BatchProgress(Progress):
 @click.option("--prune", is_flag=True,
               help="Delete the folders an earlier run made in OUTDIR for exemplars no longer in SOURCE (only the files "
                    "its ledger lists; a folder holding other files stays). Without it they are kept and named.")
+@click.option("--max-depth", type=click.IntRange(min=0), default=None, metavar="N",
+              help="Levels of subfolders of a folder SOURCE searched for exemplars: 0 its own images only, 1 its "
+                   "subfolders' too, ... [default: every level]")
+@click.option("--retry-failed", is_flag=True,
+              help="Try again the exemplars that failed before for a cause in their input (not an image, flat, too "
+                   "small) although their files and settings are unchanged; without it a rerun skips them.")
 @QUIET_OPTION
-def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, quiet, **options):
+def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, max_depth, retry_failed, quiet,
+          **options):
     """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.
 
     SOURCE is a folder (every image in it, recursively) or a manifest: a CSV file with a
     'path' column, or JSON lines {"path": ...}; optional per-exemplar size, count, seed,
-    tile, scale (the working scale, as --scale) and name. A row's 'maps' make it a whole
+    tile, scale (the working scale, as --scale) and name. --max-depth limits how deep a
+    folder is searched. A row's 'maps' make it a whole
     material whose albedo is 'path' (as tghop fit --maps): in CSV the maps' files separated
     by ';', each optionally name=file (normal=rock_n.png;rock_h.png), in JSON an object
     {"normal": "rock_n.png"} or a list; each image is then NAME.png and NAME_<map>.png. A
-    rerun skips exemplars already done with the same input (maps too) and settings. Exit
-    status 1 when any exemplar failed (the ledger and the summary say why).
+    rerun skips exemplars already done with the same input (maps too) and settings, and
+    those whose input failed (not an image, flat, too small) unless it changed or
+    --retry-failed is given. Exit status 1 when any exemplar failed, now or before (the
+    ledger and the summary say why).
     """
     from .. import batch as library
 
@@ -84,6 +113,9 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     with user_errors(progress):
         if scheduler is not None and workers is not None:
             raise click.UsageError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
+        if max_depth is not None and os.path.isfile(source):
+            raise click.UsageError(f"--max-depth is for a folder SOURCE; the manifest {source} lists its files: drop "
+                                   "--max-depth, or list fewer")
         generate = generation_params(options)
         fit = fit_params(options)
         if workers != 1 or scheduler is not None:
@@ -94,7 +126,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
             results = library.run(source, outdir, count=count, size=size, seed=seed, tile=generate.pop("tile"),
                                   fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,
                                   progress=progress, on_result=progress.result, prune=prune,
-                                  on_orphans=orphans.extend)
+                                  on_orphans=orphans.extend, retry_failed=retry_failed, max_depth=max_depth,
+                                  on_plan=progress.plan)
         except KeyboardInterrupt as exc:
             progress.close()
             message, code = stop_message(exc)
@@ -105,19 +138,26 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         for message in [] if r.get("skipped") else r.get("warnings") or []:  # (a/x.png and b/x.png: "x.png: ...")
             click.echo(f"Warning: {r['name']}: {message}", err=True)
     failed = [r for r in results if r["status"] != "ok"]
-    skipped = sum(bool(r.get("skipped")) for r in results)
+    known = [r for r in failed if r.get("skipped")]  # failed before, input unchanged: not tried, not listed again
+    skipped = sum(bool(r.get("skipped")) for r in results) - len(known)
     ok = len(results) - len(failed)
-    earlier = f" ({skipped} by an earlier run)" if skipped else ""
+    earlier = f" ({skipped:,} by an earlier run)" if skipped else ""
     for o in orphans:  # one line each: a log of thousands says which
         said = "removed" if o["pruned"] and not o["kept"] else "kept" if not o["pruned"] else \
             f"its files removed, the folder kept for what tghop did not make ({', '.join(o['kept'][:3])})"
         click.echo(f"no longer in SOURCE: {o['name']}: {said}", err=True)
-    click.echo(f"{ok} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
+    click.echo(f"{ok:,} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
                f"contact sheet {outdir}/index.html{_orphans(orphans)}", err=True)
+    if known:
+        click.echo(f"{len(known):,} skipped as failed before, their input and settings unchanged "
+                   f"({', '.join(r['name'] for r in known[:3])}{' ...' if len(known) > 3 else ''}; their errors are in "
+                   f"{outdir}/batch.jsonl); fix or remove them, or {RETRY_HINT}", err=True)
     if failed:
         for r in failed:
-            click.echo(f"failed: {r['name']}: {r['error']}", err=True)
-        fail(f"{len(failed)} of {_exemplars(len(results))} failed: {', '.join(r['name'] for r in failed[:10])}"
+            if not r.get("skipped"):
+                click.echo(f"failed: {r['name']}: {r['error']}", err=True)
+        said = f"; {len(known):,} of them before" if known else ""
+        fail(f"{len(failed):,} of {_exemplars(len(results))} failed{said}: {', '.join(r['name'] for r in failed[:10])}"
              f"{' ...' if len(failed) > 10 else ''} (see {outdir}/batch.jsonl)", 1)
 
 
@@ -134,4 +174,4 @@ def _orphans(orphans) -> str:
 
 
 def _exemplars(n: int) -> str:
-    return f"{n} exemplar{'s' if n != 1 else ''}"
+    return f"{n:,} exemplar{'s' if n != 1 else ''}"

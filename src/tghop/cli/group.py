@@ -267,6 +267,10 @@ OPTION_SYNONYMS = {
                              "square")),
     **dict.fromkeys(("--bit-depth", "--bits", "--16bit", "--16-bit"), ("depth", "give --depth 16 (or 8, or 32)")),
     **dict.fromkeys(("--mask", "--hole"), ("mask", "MASK is the second argument: 'tghop inpaint IMAGE MASK -o OUT'")),
+    # tghop batch's: --depth is a bit depth elsewhere (batch writes 8-bit PNGs, a material's maps at their own)
+    **dict.fromkeys(("--depth", "--maxdepth", "--recursive", "--recurse", "--no-recursive", "-r", "-R"),
+                    ("max_depth", "SOURCE is searched at every level of subfolders by default; to limit it, give "
+                                  "--max-depth N (0: the folder's own images only)")),
 }
 
 
