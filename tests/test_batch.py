@@ -1203,7 +1203,9 @@ def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
     # a given cluster's scheduler (allowed-failures 2 here) sets the tries, not retries: "4 tries on a local cluster"
     assert "tries on a local cluster" not in failed["error"] and "allowed-failures" in failed["error"], failed
     assert not leftovers(out2) and not (out2 / "a").exists()
-    assert ledger(out2)[0]["status"] == "failed"
+    assert ledger(out2)[0]["status"] == "failed" and failed["cause"] == "run"
+    (again,) = run(src, out2, client=client)  # a lost worker is no fault of the input: tried again
+    assert again["status"] == "ok" and not again["skipped"]
 
 
 def die_in_the_second_image(job):
