@@ -194,7 +194,7 @@ def find_work(source, outdir=None, max_depth=None):
     elif source.is_file():
         if max_depth is not None:
             raise TGHopError(f"{source}: max depth (--max-depth) is for a folder SOURCE; a manifest lists its files: "
-                             "drop it, or list fewer")
+                             "drop it (the manifest's rows are the exemplars)")
         if source.suffix.lower() not in (".csv", ".jsonl", ".json", ".ndjson"):
             raise TGHopError(f"{source}: SOURCE is a folder of images or a manifest (.csv or .jsonl)")
         items = read_manifest(source)

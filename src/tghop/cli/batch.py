@@ -115,7 +115,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
             raise click.UsageError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
         if max_depth is not None and os.path.isfile(source):
             raise click.UsageError(f"--max-depth is for a folder SOURCE; the manifest {source} lists its files: drop "
-                                   "--max-depth, or list fewer")
+                                   "--max-depth (the manifest's rows are the exemplars)")
         generate = generation_params(options)
         fit = fit_params(options)
         if workers != 1 or scheduler is not None:
