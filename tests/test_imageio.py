@@ -260,6 +260,28 @@ def test_a_palette_with_transparency_is_rgba_with_keep_alpha_and_jpeg_refuses_al
     assert not (tmp_path / "p.jpg").exists()
 
 
+def test_a_palette_with_transparency_bytes_is_read_in_its_colours_without_pillows_warning(tmp_path):
+    # Pillow warns "Palette images with Transparency expressed in bytes should be converted to RGBA images"
+    # as such an image (tRNS with several entries) is converted to RGB: its words reached the command line
+    # and the web server's console beside tghop's own (the alpha dropped, how much of it shows through).
+    # Read through RGBA: the same colours, tghop's warning alone.
+    import warnings
+
+    indices = (np.arange(12 * 10).reshape(12, 10) % 3).astype(np.uint8)
+    palette = [0, 0, 0, 200, 100, 50, 10, 220, 30]
+    im = Image.fromarray(indices, "P")
+    im.putpalette(palette + [0] * (768 - len(palette)))
+    im.save(tmp_path / "p.png", transparency=bytes([255, 0, 128]))
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.simplefilter("always")
+        image = load_image(tmp_path / "p.png", dtype=None)
+    assert image.tolist() == np.array(palette, np.uint8).reshape(3, 3)[indices].tolist()
+    assert [str(w.message) for w in shown] == [
+        "p.png: alpha channel dropped, though 33% of its pixels are transparent: the colours under them are taken "
+        "as texture; crop it to its opaque part, or leave that part out with an exclude mask (--exclude MASK, "
+        "white where it is transparent)"]
+
+
 @pytest.mark.parametrize("suffix", [".png", ".tif", ".jpg"])
 @pytest.mark.parametrize("orientation", range(1, 9))
 def test_exif_orientation_is_applied(tmp_path, suffix, orientation):

@@ -60,7 +60,9 @@ def open_image(path):
     applies instead (:func:`decode_pillow` refuses or downscales before decoding). Hiding the warning
     takes ``warnings.catch_warnings``, which is process-wide (not thread-safe) before Python 3.14: it is
     used on the main thread alone (the command line's reads). On other threads (the server's uploads,
-    a batch worker's tasks) Pillow's warning of such a header goes to the console as Pillow says it.
+    a batch worker's tasks) Pillow's warning of such a header goes to the console as Pillow says it; the
+    image is then refused or downscaled in tghop's words all the same (on the server, a 413: tghop's
+    64 Mpx limit is below Pillow's 89 Mpx warning threshold).
     """
     from PIL import Image
 
@@ -293,6 +295,8 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
         arr = np.asarray(im)  # no converted copy of a large image
     elif im.mode in ("LA", "1"):
         arr = np.asarray(im.convert("L"))
+    elif mode == "P+transparency":  # its colours through RGBA: the same, without Pillow's warning of bytes of it
+        arr = np.ascontiguousarray(np.asarray(im.convert("RGBA"))[..., :3])
     elif im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
         arr = np.asarray(im, dtype=np.float64)
         if im.mode == "F":  # a float image (TIFF, PFM)
