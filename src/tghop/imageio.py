@@ -108,7 +108,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
                 hidden = transparent_share(arr[..., -1])
                 arr = arr[..., :-1] if arr.shape[2] > 2 else arr[..., 0]
         else:
-            with open_image(path) as im:  # no DecompressionBombWarning: our own limit applies
+            with open_image(path) as im:  # our own limit applies (Pillow's warning of it hidden on the main thread)
                 arr, mode = decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
                 depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
                 hidden = (None if keep_alpha or not has_alpha(mode) or im.width * im.height > max_pixels
