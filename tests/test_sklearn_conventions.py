@@ -457,3 +457,26 @@ def test_a_materials_model_holds_its_own_generator_as_it_was_before_the_fit(bric
     seeded = Material(model=TGHop(**{**SMALL, "layout_factor": None}), rng=3).fit(bricks96)
     assert seeded.model_.rng == 3  # an int seed stays one (the model file records it)
 
+
+
+def test_a_generators_repr_is_the_same_in_every_fit_run_and_process(bricks96):
+    # A fitted part's repr named its copy of the fit's generator by address (rng=Generator(PCG64) at 0x7f...):
+    # two fits of the same seed, in one process or two, printed different reprs. It now says the generator's seed.
+    def reprs(rng):
+        model = TGHop(**{**SMALL, "rng": rng, "max_patches": 200})
+        before = repr(model)
+        model.fit(bricks96)
+        return [before] + [f"{where}: {part!r}" for where, part in _fitted_subparts(model, "model").items()]
+
+    for rng in (0, lambda: np.random.default_rng(7)):
+        one, two = (reprs(rng() if callable(rng) else rng) for _ in range(2))
+        assert one == two and not [r for r in one if " at 0x" in r], one
+    shown = "\n".join(one)
+    assert one[0] == ("TGHop(gamma=0.01, max_patches=200, n_channels=(9, 22), n_clusters=8, n_codewords=40, "
+                      "rng=Generator(PCG64, seed=7), stride=4)")  # before the fit; after it, drawn from:
+    assert "model.ichm_: ICHM(n_clusters=8, n_codewords=40, rng=Generator(PCG64, seed=7, advanced))" in shown
+    from tghop._common import generator_text
+
+    assert generator_text(np.random.default_rng()) == "Generator(PCG64)"  # unseeded: no seed to show
+    assert generator_text(np.random.default_rng(np.random.SeedSequence(3).spawn(1)[0])) == "Generator(PCG64)"
+    assert repr(Material(rng=np.random.default_rng(2))) == "Material(rng=Generator(PCG64, seed=2))"

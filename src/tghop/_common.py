@@ -158,8 +158,26 @@ class BaseEstimator:
             except (ValueError, TypeError):  # arrays
                 same = False
             if not same:
-                changed.append(f"{name}={value!r}")
+                text = generator_text(value) if isinstance(value, np.random.Generator) else repr(value)
+                changed.append(f"{name}={text}")
         return f"{type(self).__name__}({', '.join(changed)})"
+
+
+def generator_text(rng: np.random.Generator) -> str:
+    """A Generator as an estimator's repr shows it, the same in every run and process (NumPy's repr
+    names its address): ``Generator(PCG64, seed=0)`` as ``default_rng(0)`` makes it, ``..., advanced)``
+    once drawn from (a fitted part's copy of the fit's generator), ``Generator(PCG64)`` without a seed
+    that says how it was made (spawned; unseeded, from 128 bits of the system's entropy)."""
+    bits = rng.bit_generator
+    seeds = getattr(bits, "seed_seq", None)
+    entropy = getattr(seeds, "entropy", None)
+    if not isinstance(entropy, int) or not 0 <= entropy < 2**64 or tuple(getattr(seeds, "spawn_key", ())):
+        return f"Generator({type(bits).__name__})"
+    try:
+        fresh = type(bits)(entropy).state == bits.state
+    except (TypeError, ValueError):  # a bit generator of another constructor
+        fresh = False
+    return f"Generator({type(bits).__name__}, seed={entropy}{'' if fresh else ', advanced'})"
 
 
 class TransformerMixin:
