@@ -361,6 +361,34 @@ def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved,
         assert np.array_equal(loaded.synthesize((32, 32), rng=1, n_patches=100), expected)
 
 
+def test_a_loaded_models_saabs_have_every_channels_energy_and_older_files_say_why_not(small_model, saved, tmp_path):
+    # Saab.energy_ (every channel's, kept or not) was not in model files: a loaded model's Saabs had none, a bare
+    # AttributeError. The metadata holds it now (no array, so the format version and older readers are unchanged).
+    path, arrays = saved
+
+    def saabs(model):
+        return [s for m in (model, model.layout_.model_) for hop in m.hops_.hops_ for s in hop.saabs_]
+
+    fitted, loaded = saabs(small_model), saabs(load_model(path))
+    assert len(loaded) == len(fitted) == 1 + 9 + 1 + 9  # a joint and a channel-wise hop, in each model
+    assert all(np.array_equal(a.energy_, b.energy_) for a, b in zip(fitted, loaded))
+    meta = json.loads(str(arrays["__meta__"]))
+    for part in (meta, meta["layout"]["model"]):  # a file of tghop 0.55: loads, and energy_ says why it is absent
+        for hop in part["hops"]:
+            del hop["saab_energy"]
+    _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
+    old = saabs(load_model(tmp_path / "old.npz"))
+    assert not [s for s in old if hasattr(s, "energy_")]
+    with pytest.raises(AttributeError, match=r"^this Saab was loaded from a model file of tghop 0.55 or before, "
+                                             r"which keeps the kept channels' energies only"):
+        old[0].energy_
+    for bad in ([[1.0] * 12] * 2, [[-1.0] * 12], [[1.0] * 11], [[True] * 12], "x"):  # an edited file: one line, not a traceback
+        meta["hops"][0]["saab_energy"] = bad
+        _write(tmp_path / "bad.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
+        with pytest.raises(ModelFileError, match=r"saab_energy of a hop .*; fit the model again$"):
+            load_model(tmp_path / "bad.npz")
+
+
 def test_a_file_of_a_newer_tghop_warns_naming_both_versions(saved, tmp_path):
     # It loaded without a word; a setting it added was "unknown setting setting 'x'; fit the model again".
     import warnings

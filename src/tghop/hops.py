@@ -171,10 +171,37 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
         return {f"hop{i}.kernels": kernels, f"hop{i}.bias": bias,
                 f"index.hop{i}_channels": self.channels_, f"index.hop{i}_energy": self.energy_}
 
+    def _state_meta(self) -> dict:
+        """This hop's part of a model file's metadata: "channelwise", "n_channels_in" and "saab_energy", each
+        Saab's :attr:`~tghop.saab.Saab.energy_` (every channel's, kept or not: a few numbers per input channel;
+        left out when a loaded hop has none). Metadata, not an array: a new array would need a new format version,
+        which older tghop refuses, for numbers generation never uses."""
+        out = {"channelwise": self.channelwise, "n_channels_in": self.n_channels_in_}
+        if all("energy_" in vars(s) for s in self.saabs_):
+            out["saab_energy"] = [s.energy_.tolist() for s in self.saabs_]
+        return out
+
+    def _saab_energy(self, info, d):
+        """The Saabs' energies of the metadata ``info`` (:meth:`_state_meta`), checked: (n_saabs, ``d``), or None
+        (files of tghop 0.55 and before)."""
+        energy = info.get("saab_energy")
+        if energy is None:
+            return None
+        n = len(self.saabs_)
+        if (not isinstance(energy, list) or len(energy) != n
+                or not all(isinstance(row, list) and len(row) == d for row in energy)
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for row in energy for v in row)):
+            raise TGHopError(f"the metadata's saab_energy of a hop is not {n} list(s) of {d} numbers")
+        out = np.array(energy, dtype=np.float64)
+        if not np.isfinite(out).all() or (out < 0).any():
+            raise TGHopError("the metadata's saab_energy of a hop holds a negative, NaN or infinite energy")
+        return out
+
     @classmethod
     def _from_arrays(cls, i, info, arrays, n_channels=None):
-        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise" and "n_channels_in";
-        ``n_channels``: the rule it was fitted with (its stack's), a parameter as after ``fit``."""
+        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise", "n_channels_in" and (after 0.55)
+        "saab_energy" (:meth:`_state_meta`); ``n_channels``: the rule it was fitted with (its stack's), a
+        parameter as after ``fit``."""
         hop = cls(n_channels=n_channels, channelwise=bool(info["channelwise"]))
         c = hop.n_channels_in_ = int(info["n_channels_in"])
         hop.channels_ = arrays[f"index.hop{i}_channels"].astype(np.int64)
@@ -190,6 +217,12 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
             saab.bias_ = float(bias[p])
             saab.n_features_in_ = kernels.shape[1]
             hop.saabs_.append(saab)
+        energy = hop._saab_energy(info, kernels.shape[1])
+        for saab, row in zip(hop.saabs_, energy if energy is not None else [None] * len(hop.saabs_)):
+            if row is None:
+                saab._energy_unknown_ = True
+            else:
+                saab.energy_ = row
         hop._build_matrix()
         return hop
 

@@ -121,9 +121,10 @@ class Saab(TransformerMixin, BaseEstimator):
         Index of each kept kernel among all ``d`` (0 is DC, then AC by decreasing energy).
     energy_ : ndarray, shape (d,)
         Mean squared response (bias excluded) of all ``d`` channels, kept or not, in the
-        same order: the squared error per vector that dropping the channel costs. Not set on the
-        Saabs of a loaded model: model files keep the kept channels' energies only
-        (:attr:`tghop.hops.Hop.energy_`).
+        same order: the squared error per vector that dropping the channel costs. A loaded
+        model's Saabs have it from the model file's metadata; files of tghop 0.55 and before keep
+        the kept channels' energies only (:attr:`tghop.hops.Hop.energy_`), and reading it then is
+        an AttributeError saying so.
     bias_ : float
         Added to AC responses: the largest norm of the fitting vectors.
     n_features_in_ : int
@@ -131,6 +132,13 @@ class Saab(TransformerMixin, BaseEstimator):
 
     def __init__(self, n_components=None):
         self.n_components = n_components
+
+    def __getattr__(self, name):
+        # Only for attributes not found: a loaded Saab without every channel's energy says why it has none.
+        if name == "energy_" and self.__dict__.get("_energy_unknown_"):
+            raise AttributeError("this Saab was loaded from a model file of tghop 0.55 or before, which keeps the kept "
+                                 "channels' energies only (its Hop's energy_); fit the model again for every channel's")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @staticmethod
     def _all_kernels(mean, second_moment):

@@ -313,7 +313,7 @@ class TGHop(PatchCodec, BaseEstimator):
             "params": params,
             "exemplar_shape": list(self.exemplar_shape_),
             "n_patches": self.n_patches_,
-            "hops": [{"channelwise": hop.channelwise, "n_channels_in": hop.n_channels_in_} for hop in self.hops_.hops_],
+            "hops": [hop._state_meta() for hop in self.hops_.hops_],
             "hop_dims": self.hops_.dims_,
             "sdr_shape": list(self.sdr_.shape_),
             "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
@@ -393,7 +393,8 @@ class TGHop(PatchCodec, BaseEstimator):
             channelwise = info["channelwise"]
             if (channelwise is not (i > 1) or count(info["n_channels_in"], "n_channels_in") != c_in
                     or dims[i] != k * side * side or not (c_in if channelwise else 1) <= k <= 4 * c_in):
-                raise TGHopError(f"{where} hop {i} ({info!r}, hop_dims {dims[i]}) does not follow from "
+                shown = {k: info[k] for k in ("channelwise", "n_channels_in")}  # not its energies
+                raise TGHopError(f"{where} hop {i} ({shown!r}, hop_dims {dims[i]}) does not follow from "
                                  f"{c_in} input channels and {side}x{side} outputs")
             specs += Hop._array_specs(i, channelwise, c_in, k)
             c_in = k
