@@ -379,10 +379,11 @@ def test_a_loaded_models_saabs_have_every_channels_energy_and_older_files_say_wh
     _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
     old = saabs(load_model(tmp_path / "old.npz"))
     assert not [s for s in old if hasattr(s, "energy_")]
-    with pytest.raises(AttributeError, match=r"^this Saab was loaded from a model file of tghop 0.55 or before, "
-                                             r"which keeps the kept channels' energies only"):
+    with pytest.raises(AttributeError, match=r"^this Saab was loaded from a model file of tghop 0.55 or "
+                                             r"before, which keeps the kept channels' energies only"):
         old[0].energy_
-    for bad in ([[1.0] * 12] * 2, [[-1.0] * 12], [[1.0] * 11], [[True] * 12], "x"):  # an edited file: one line, not a traceback
+    # An edited file: one line, not a traceback.
+    for bad in ([[1.0] * 12] * 2, [[-1.0] * 12], [[1.0] * 11], [[True] * 12], "x"):
         meta["hops"][0]["saab_energy"] = bad
         _write(tmp_path / "bad.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
         with pytest.raises(ModelFileError, match=r"saab_energy of a hop .*; fit the model again$"):
