@@ -383,7 +383,7 @@ def test_a_loaded_models_saabs_have_every_channels_energy_and_older_files_say_wh
                                              r"before, which keeps the kept channels' energies only"):
         old[0].energy_
     # An edited file: one line, not a traceback.
-    for bad in ([[1.0] * 12] * 2, [[-1.0] * 12], [[1.0] * 11], [[True] * 12], "x"):
+    for bad in ([[1.0] * 12] * 2, [[1.0] * 11], [[True] * 12], [[1e400] * 12], "x"):
         meta["hops"][0]["saab_energy"] = bad
         _write(tmp_path / "bad.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
         with pytest.raises(ModelFileError, match=r"saab_energy of a hop .*; fit the model again$"):

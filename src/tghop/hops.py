@@ -193,8 +193,8 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
                 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for row in energy for v in row)):
             raise TGHopError(f"the metadata's saab_energy of a hop is not {n} list(s) of {d} numbers")
         out = np.array(energy, dtype=np.float64)
-        if not np.isfinite(out).all() or (out < 0).any():
-            raise TGHopError("the metadata's saab_energy of a hop holds a negative, NaN or infinite energy")
+        if not np.isfinite(out).all():  # not its sign: an empty channel's energy is 0 to rounding, either way
+            raise TGHopError("the metadata's saab_energy of a hop holds NaN or infinite energies")
         return out
 
     @classmethod
