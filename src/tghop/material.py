@@ -629,7 +629,42 @@ class Material(BaseEstimator):
                 for n, c, nm, d in zip(self.names_, self.map_channels_, self.normal_, self.depths_)]
 
     def _state_meta(self) -> dict:
-        return {**self.model_._state_meta(), "material": {"maps": self.map_info()}}
+        return {**self.model_._state_meta(), "material": {"maps": self.map_info(), "params": self._params_meta()}}
+
+    def _params_meta(self) -> dict:
+        """The constructor's parameters as given (JSON-ready; rngs as :func:`tghop.settings.recorded_seed`
+        of those fitted with), so that a loaded Material's ``get_params`` are the fitted one's: files of
+        tghop 0.55 and before had them rebuilt from the joint model (its ``patch_levels`` 0, ``rng`` the seed
+        and ``normal`` the maps found normal)."""
+        fitted = vars(self).get("_fitted_params") or {}
+        model = None
+        if self.model is not None:
+            model = {s.name: getattr(self.model, s.name) for s in settings.fit_settings()}
+            model["rng"] = settings.recorded_seed(fitted.get("model__rng", self.model.rng))
+            if model["n_channels"] is not None:
+                model["n_channels"] = list(model["n_channels"])
+        normal = self.normal if isinstance(self.normal, str) else \
+            sorted(self.normal) if isinstance(self.normal, (set, frozenset)) else list(self.normal)
+        return {"model": model, "normal": normal, "rng": settings.recorded_seed(fitted.get("rng", self.rng))}
+
+    @classmethod
+    def _from_params_meta(cls, given) -> "Material":
+        """An unfitted Material of :meth:`_params_meta`'s parameters, checked (:class:`TGHopError`)."""
+        if not isinstance(given, dict) or set(given) != {"model", "normal", "rng"}:
+            raise TGHopError("the material metadata's params are not model, normal and rng")
+        model = given["model"]
+        if model is not None and not isinstance(model, dict):
+            raise TGHopError("the material metadata's model is not null or the joint model's settings")
+        if model is not None:
+            rules = model.get("n_channels")
+            partial = isinstance(rules, list) and None in rules  # some given (--k1 alone): the rest by default at fit
+            model = settings.file_settings({**model, "n_channels": None} if partial else model)
+            if partial:
+                model["n_channels"] = tuple(settings.check_channel_rule(r, "n_channels", none_ok=True) for r in rules)
+            model = TGHop(**model)
+        mat = cls(model=model, normal=given["normal"], rng=settings.recorded_seed(given["rng"]))
+        mat._checked_params()  # normal: 'auto', a name or a list of names
+        return mat
 
     @staticmethod
     def _check_meta(meta):
@@ -664,7 +699,11 @@ class Material(BaseEstimator):
     def _from_state(cls, meta, arrays):
         maps = cls._check_meta(meta)
         model = TGHop._from_state(meta, arrays)
-        mat = cls(model=TGHop(**model.get_params()), normal=[m["name"] for m in maps if m["normal"]])
+        given = meta["material"].get("params")
+        if given is None:  # tghop 0.55 and before: rebuilt from the joint model
+            mat = cls(model=TGHop(**model.get_params()), normal=[m["name"] for m in maps if m["normal"]])
+        else:
+            mat = cls._from_params_meta(given)
         mat.model_ = model
         mat.names_ = [m["name"] for m in maps]
         mat.map_channels_ = [m["channels"] for m in maps]
