@@ -7,6 +7,7 @@ need a real process.
 import errno
 import json
 import os
+import re
 import signal
 import struct
 import subprocess
@@ -261,13 +262,59 @@ def test_the_boost_bound_is_one_value_for_the_command_line_and_the_library():
     assert p.returncode == 0 and p.stdout.decode().strip() == "False", p.stderr.decode()
 
 
+#: A stage's line where stderr is no terminal: the clock time it ended, its name and how long it took.
+STAGE_LINE = r"^\[\d\d:\d\d:\d\d\] ([a-zA-Z0-9 ]+): done in (\d+\.\d\d? s|\d+ min \d\d s)$"
+
+
 def test_the_progress_shows_the_images_write(folder):
     # A large PNG took seconds to write after the bar's last stage, showing nothing (a bar's label is its line on a
     # stderr that is no terminal).
     code, _, err, exc = invoke("synth", "model.npz", "-o", "written.png", "--size", "48x64", "--seed", "1",
                                cwd=folder)
     assert code == 0 and exc is None, err
-    assert [line.strip() for line in err.splitlines()][-2:] == ["writing", "1 image of 48x64 written to written.png"]
+    lines = err.splitlines()
+    assert re.match(STAGE_LINE, lines[-2]).group(1) == "writing"
+    assert lines[-1] == "1 image of 48x64 written to written.png"
+
+
+def test_the_progress_in_a_log_is_a_line_per_stage_with_its_time(folder, tmp_path):
+    # Where stderr is no terminal (2>log, a CI log) click drew no bar but each stage's label alone, padded
+    # ("quilting      "): nothing said when a stage ended or how long it took. Now one line per stage as it ends.
+    with open(tmp_path / "log", "wb") as log:
+        p = subprocess.run([sys.executable, "-m", "tghop", "synth", "model.npz", "-o", str(tmp_path / "o.png"),
+                            "--size", "64x80", "--seed", "1"], cwd=folder, stderr=log, timeout=120)
+    text = (tmp_path / "log").read_text()
+    assert p.returncode == 0, text
+    lines = text.splitlines()
+    assert lines[-1] == f"1 image of 64x80 written to {tmp_path / 'o.png'}"
+    stages = [re.match(STAGE_LINE, line) for line in lines[:-1]]
+    assert all(stages) and "\r" not in text, text
+    names = [m.group(1) for m in stages]
+    assert names[-1] == "writing" and "quilting" in names and len(set(names)) == len(names), names
+
+
+def test_the_progress_in_a_log_says_a_long_stages_tenths_and_where_it_stopped(capsys, monkeypatch):
+    import tghop.cli.common as common
+
+    monkeypatch.setattr(common, "LOG_EVERY", 0.0)  # every tenth, however fast (10 s apart otherwise)
+    progress = common.Progress(True)
+    for done in range(0, 101, 3):
+        progress("quilting", done, 100)
+    progress("quilting", 100, 100)
+    for done in range(0, 45, 3):
+        progress("refine", done, 100)
+    progress.close()
+    lines = [re.sub(r"^\[\d\d:\d\d:\d\d\] ", "", line) for line in capsys.readouterr().err.splitlines()]
+    tenths = [f"quilting: {p} % after" for p in (12, 21, 30, 42, 51, 60, 72, 81, 90)]
+    assert [line[:len(w)] for line, w in zip(lines, tenths)] == tenths, lines
+    assert re.match(r"quilting: done in \d\.\d\d s$", lines[9]), lines
+    assert [line.split(" after")[0] for line in lines[10:]] == [f"refine: {p} %" for p in (12, 21, 30, 42)] + [
+        "refine: stopped at 42 %"], lines
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)  # a terminal: click's bar, as before, and no lines
+    bar = common.Progress(True)
+    bar("quilting", 50, 100)
+    assert bar.bar is not None and not bar.lines
+    bar.close()
 
 
 @pytest.mark.parametrize("args, fragment", [(["--overlap", "20"], "(overlap, --overlap) must be between 1 and 16"),

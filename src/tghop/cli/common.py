@@ -49,11 +49,27 @@ def stop_message(exc: BaseException):
     return "interrupted", 130
 
 
+#: Where stderr is no terminal, the least seconds between two lines of one stage's percentage.
+LOG_EVERY = 10.0
+
+
+def _seconds(elapsed: float) -> str:
+    """A stage's time for a log line: ``0.41 s``, ``12.3 s``, ``2 min 05 s``."""
+    if elapsed < 60:
+        return f"{elapsed:.2f} s" if elapsed < 10 else f"{elapsed:.1f} s"
+    minutes, rest = divmod(int(round(elapsed)), 60)
+    return f"{minutes} min {rest:02d} s"
+
+
 class Progress:
     """Renders the library's ``progress(stage, done, total)`` calls as click progress bars.
 
     ``show_eta`` adds the remaining time; a subclass may set ``note`` (a string) to show it
-    after the bar.
+    after the bar. Where stderr is no terminal (``2>log``, a pipe, a CI log), where click draws
+    no bar but its label alone, once: a line per stage as it ends, with the clock time and how
+    long it took (``[16:52:03] quilting: done in 1.20 s``; ``stopped at 40 %`` when it did not
+    finish), and in a long stage its percentage at each tenth, at most one line every
+    :data:`LOG_EVERY` seconds (and the ``note``).
     """
 
     def __init__(self, enabled: bool, *, show_eta: bool = False):
@@ -63,9 +79,38 @@ class Progress:
         self.bar = None
         self.stage = None
         self.done = 0
+        self.lines = None  # lines instead of bars: decided at the first report (stderr a terminal or not)
+        self.total = self.started = self.logged = self.tenth = self.finished = None
+
+    def _line(self, text, when=None):
+        import time
+
+        clock = time.strftime("%H:%M:%S", time.localtime(when))
+        click.echo(f"[{clock}] {text}" + (f" ({self.note})" if self.note else ""), err=True)
+
+    def _log(self, stage, done, total):
+        import time
+
+        now = time.monotonic()
+        if stage != self.stage:
+            self.close()
+            self.stage, self.done, self.started, self.logged, self.tenth = stage, 0, now, now, 0
+            self.finished = None
+        self.done, self.total = max(self.done, done), max(total, 1)
+        if self.done >= self.total and self.finished is None:  # its end: not the next stage's start (work between)
+            self.finished = (now, time.time())
+        tenth = min(10 * self.done // self.total, 9)
+        if tenth > self.tenth and now - self.logged >= LOG_EVERY:
+            self._line(f"{stage}: {100 * self.done // self.total} % after {_seconds(now - self.started)}")
+            self.logged, self.tenth = now, tenth
 
     def __call__(self, stage, done, total):
         if not self.enabled:
+            return
+        if self.lines is None:
+            self.lines = not sys.stderr.isatty()
+        if self.lines:
+            self._log(stage, done, total)
             return
         if stage != self.stage:
             self.close()
@@ -79,6 +124,15 @@ class Progress:
             self.done = done
 
     def close(self):
+        if self.lines and self.stage is not None:
+            import time
+
+            stage, self.stage = self.stage, None
+            if self.finished is not None:
+                self._line(f"{stage}: done in {_seconds(self.finished[0] - self.started)}", self.finished[1])
+            else:
+                self._line(f"{stage}: stopped at {100 * self.done // self.total} % after "
+                           f"{_seconds(time.monotonic() - self.started)}")
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
