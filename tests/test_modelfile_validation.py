@@ -16,7 +16,7 @@ import os
 import numpy as np
 import pytest
 
-from tghop import ModelFileError
+from tghop import ModelFileError, TGHopError
 from tghop._common import fitted_settings
 from tghop.modelfile import FORMAT_VERSION, load_model, save_model
 
@@ -372,6 +372,10 @@ def test_a_loaded_models_saabs_have_every_channels_energy_and_older_files_say_wh
     fitted, loaded = saabs(small_model), saabs(load_model(path))
     assert len(loaded) == len(fitted) == 1 + 9 + 1 + 9  # a joint and a channel-wise hop, in each model
     assert all(np.array_equal(a.energy_, b.energy_) for a, b in zip(fitted, loaded))
+    # Its other kernels are not in the file: keep() said "'Saab' object has no attribute '_all_kernels_'".
+    with pytest.raises(TGHopError, match=r"^this Saab was loaded from a model file, which keeps the kept channels' "
+                                         r"kernels only; fit it again"):
+        loaded[0].keep([0, 1])
     meta = json.loads(str(arrays["__meta__"]))
     for part in (meta, meta["layout"]["model"]):  # a file of tghop 0.55: loads, and energy_ says why it is absent
         for hop in part["hops"]:

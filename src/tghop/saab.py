@@ -230,7 +230,8 @@ class Saab(TransformerMixin, BaseEstimator):
     def keep(self, channels):
         """Keep only the given channels (indices among all ``d``, as in :attr:`energy_`).
 
-        Channel-wise hops use this to choose channels across several Saab transforms.
+        Channel-wise hops use this to choose channels across several Saab transforms. A loaded
+        Saab cannot (a model file keeps the kept channels' kernels only): :class:`~tghop.TGHopError`.
 
         Parameters
         ----------
@@ -242,6 +243,9 @@ class Saab(TransformerMixin, BaseEstimator):
         self
         """
         check_is_fitted(self, "kernels_")
+        if "_all_kernels_" not in vars(self):
+            raise TGHopError("this Saab was loaded from a model file, which keeps the kept channels' kernels only; "
+                             "fit it again (or the model) to keep other channels")
         channels = np.unique(np.asarray(channels, dtype=np.int64))
         if channels.size and (channels.min() < 0 or channels.max() >= self.n_features_in_):
             raise TGHopError(f"channel indices must lie in [0, {self.n_features_in_}), got {channels.tolist()}")
