@@ -199,7 +199,7 @@ class Hop(FourDInputMixin, TransformerMixin, BaseEstimator):
 
     @classmethod
     def _from_arrays(cls, i, info, arrays, n_channels=None):
-        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise", "n_channels_in" and (after 0.55)
+        """Inverse of :meth:`_to_arrays`; ``info`` holds "channelwise", "n_channels_in" and (since 0.56)
         "saab_energy" (:meth:`_state_meta`); ``n_channels``: the rule it was fitted with (its stack's), a
         parameter as after ``fit``."""
         hop = cls(n_channels=n_channels, channelwise=bool(info["channelwise"]))
