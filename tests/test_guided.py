@@ -398,6 +398,45 @@ def test_morph_labels_go_from_all_a_to_all_b(size):
         guided.morph_labels(size, scale=0)
 
 
+def test_morph_labels_leave_no_specks_near_the_ends():
+    """The field's lone peaks near the ends were small islands of B in A's end (and of A in B's),
+    7-900 px at 256x1024 (about one a strip), which an artist took for dirt: now no region of either
+    within the last tenth at its end is smaller than a blob's area (24 px blobs: 576 px), and the
+    share of B still follows the position."""
+    from scipy import ndimage
+
+    h, w, scale = 256, 1024, 24
+    t = np.linspace(0.0, 1.0, w)
+    bands, ends = [], []
+    for seed in range(8):
+        labels = guided.morph_labels((h, w), rng=seed, scale=scale)
+        for value, end in ((1, slice(0, w // 10)), (0, slice(w - w // 10, w))):
+            parts, _ = ndimage.label(labels == value)
+            sizes = np.bincount(parts.ravel())
+            near = np.unique(parts[:, end])
+            near = near[near > 0]
+            assert sizes[near].min(initial=h * w) >= scale ** 2, (seed, value, sorted(sizes[near]))
+        share = labels.mean(axis=0)
+        bands.append(np.abs(share.reshape(16, -1).mean(axis=1) - t.reshape(16, -1).mean(axis=1)).mean())
+        ends.append((share[:w // 10].mean(), share[-(w // 10):].mean()))
+    assert np.mean(bands) < 0.025, np.mean(bands)  # 64-column bands: about 0.01 before and after
+    first, last = np.mean(ends, axis=0)
+    assert 0.025 < first < 0.075 and 0.925 < last < 0.975, (first, last)  # 0.05 and 0.95 asked
+
+
+@pytest.mark.parametrize("height", [1, 2, 16, 31])
+def test_a_morph_strip_lower_than_a_patch_is_refused(models, tmp_path, height):
+    """A strip up to about a blob tall (3/4 of a patch) had its regions as whole columns: A's half,
+    then B's, with slivers (the share in 16 bands 0.19 from the position; 0.01 at 256 px). Refused,
+    naming the height that works; the command line as a usage error, before any fit."""
+    with pytest.raises(TGHopError, match=f"at least 32 px tall.*got {height}x512"):
+        tghop.morph(models[0], models[1], (height, 512), rng=1, **GEN)
+    r = _run(["morph", "builtin:bricks", "builtin:cells", "-o", "low.png", "--size", f"{height}x512"], tmp_path)
+    assert_user_error(r, f"--size {height}x512: a morph strip must be at least 32 px tall", "--size 32x512",
+                      status=2)
+    assert not (tmp_path / "low.png").exists()
+
+
 def test_morph_stations_are_accepted_with_a_warning(models):
     kw = dict(rng=1, n_patches=200, refine=0, seam_window=0)
     strip = tghop.morph(models[0], models[1], (32, 96), **kw)

@@ -30,11 +30,14 @@ How painted regions (and a remix) are made
 How a morph is made
 -------------------
 A morph is a painted guide that nobody paints: :func:`morph_labels` draws its two regions
-from a smooth random field (a Gaussian of :data:`MORPH_BLOB` patch sizes), ranked in each
-column so that a column at ``t = x / (W - 1)`` of the way gives exactly the share ``t`` of its
-pixels (rounded) to B, those where the field is highest: all A at the left edge, all B at the
-right, and organic outlines in between. Then as painted regions: each model's own synthesis
-over the box its region reaches, joined along the content. Each region keeps its own
+from a smooth random field (a Gaussian of :data:`MORPH_BLOB` patch sizes), B where the field is
+above a threshold chosen over a window of columns so that a column at ``t = x / (W - 1)`` of the
+way gives about the share ``t`` of its pixels to B: all A at the left edge, all B at the right,
+and organic outlines in between. Islands smaller than :data:`MORPH_ISLAND` blob areas (specks that
+an artist takes for dirt, near the ends mostly) are given to the region around them, and the share
+they held is asked for again. A strip lower than a patch cannot show the mix (its regions would be
+whole columns, A's half then B's) and is refused. Then as painted regions: each model's own
+synthesis over the box its region reaches, joined along the content. Each region keeps its own
 model's statistics and colours; the columns go from A to B by the share of each.
 
 Example
@@ -64,7 +67,7 @@ from .material import Material, renormalise
 from .quilting import block_count
 
 __all__ = ["synthesize_guided", "morph", "morph_labels", "guide_labels", "region_weights", "random_labels",
-           "DEFAULT_TRANSITION", "MAX_TRANSITION", "MORPH_BLOB"]
+           "DEFAULT_TRANSITION", "MAX_TRANSITION", "MORPH_BLOB", "MORPH_ISLAND"]
 
 #: Default width in pixels of the band around a painted edge where the join follows the textures.
 DEFAULT_TRANSITION = 32
@@ -76,6 +79,11 @@ _BLOB = 64
 #: of about a patch, as fine as the textures' elements allow (at 2 patch sizes a few large regions, the
 #: ramp lost; the quilt's blocks as outlines, 32 px squares, were a staircase).
 MORPH_BLOB = 0.75
+#: A morph's smallest region, in blob areas (``scale`` squared; in a strip lower than 4 blobs, a quarter of
+#: its height squared): a smaller island of one texture in the other's region (the field's lone peaks,
+#: near the ends mostly, which an artist takes for dirt) is given to the region around it (at 3 blob areas
+#: the share of B fell behind the position at the ends; at 1, specks of 10-20 px stayed).
+MORPH_ISLAND = 2.0
 #: The warning for a morph given ``stations`` (the server's header says it too).
 STATIONS_GONE = "stations no longer applies to a morph (each region keeps its own model's statistics); leave it out"
 
@@ -314,6 +322,9 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         warnings.warn(STATIONS_GONE, FutureWarning, stacklevel=3)
     rng = check_rng(rng)
     p = int(models[0].patch_size)
+    if h < p:  # up to about a blob (MORPH_BLOB patches) the regions are whole columns: A's half, then B's
+        raise TGHopError(f"a morph strip must be at least {p} px tall (the models' patch size; a lower one cannot "
+                         f"mix the two textures by position), got {h}x{w}; give a height of {p} or more")
     block_count((h, w), p, overlap=overlap, tile=False)  # the quilt's refusals before any work
     labels = morph_labels((h, w), rng=rng, scale=MORPH_BLOB * p)
     models, labels = _one_region_per_model(models, labels)
@@ -328,21 +339,27 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
 def morph_labels(size, *, rng=None, scale=MORPH_BLOB * 32) -> np.ndarray:
     """A morph's regions: 0 (A) and 1 (B), where a smooth random field (a Gaussian of ``scale``
     pixels) is above a threshold that falls across the width: at column ``x``, ``t = x / (W - 1)``
-    of the way, the field's ``1 - t`` quantile over the columns within ``scale / 2`` of it. So the
-    share of B follows ``t`` (exactly over a window of a blob's width, to a few hundredths on
-    average in a column), the first column is all A and the last all B, and the outlines are the
-    field's smooth level lines; (H, W) int64.
+    of the way, the field's ``1 - t`` quantile over the columns within ``scale / 2`` of it. Islands
+    smaller than :data:`MORPH_ISLAND` blob areas are given to the region around them, and the
+    thresholds drawn once more with the share each window lost or gained that way added back. So the
+    share of B follows ``t`` (to about a hundredth over a window of a blob's width, a few hundredths
+    on average in a column), the first column is all A and the last all B, and the outlines are the
+    field's smooth level lines, with no specks; (H, W) int64.
 
     Parameters
     ----------
     size : int or (int, int)
-        (height, width); ``n`` means ``(n, n)``.
+        (height, width); ``n`` means ``(n, n)``. The share follows ``t`` in strips taller than a
+        blob; in lower ones the regions are whole columns, A's half then B's (:func:`morph` refuses
+        strips lower than a patch).
     rng : int or numpy.random.Generator, optional
         Same seed, same regions.
     scale : float
         Size of the blobs in pixels (positive); the field is drawn on a grid of ``scale // 4``
         pixels, smoothed and interpolated linearly up to ``size``.
     """
+    from scipy import ndimage
+
     h, w = check_size(size)
     check_number(scale, "scale", positive=True, unit="pixels")
     rng = check_rng(rng)
@@ -350,18 +367,46 @@ def morph_labels(size, *, rng=None, scale=MORPH_BLOB * 32) -> np.ndarray:
     field = _smooth(rng.standard_normal((-(-h // cell), -(-w // cell))), scale / cell, False).astype(np.float32)
     field = _upsample(_upsample(field, cell, h, 0), cell, w, 1)  # float32: a large strip's field at half the memory
     t = np.linspace(0.0, 1.0, w) if w > 1 else np.zeros(1)
-    # Each threshold a quantile of the columns within a window (one column's quantiles jump where
-    # its few blobs leave gaps between their values: straight vertical edges and slivers), taken
-    # every `cell` columns and interpolated between.
+    smallest = MORPH_ISLAND * min(scale, h / 4) ** 2  # in a low strip, specks by its height
+    share = t
+    for again in (True, False):
+        labels = _ranked_columns(field, t, share, scale, cell)
+        _drop_islands(labels, smallest)
+        if again:  # the share the islands took away (or added) in each window, asked for again
+            window = 2 * int(scale) + 1
+            got = ndimage.uniform_filter1d(labels.mean(axis=0), window, mode="nearest")
+            share = np.clip(share + ndimage.uniform_filter1d(t, window, mode="nearest") - got, 0.0, 1.0)
+    return labels
+
+
+def _ranked_columns(field, t, share, scale, cell):
+    """B (1) where ``field`` is above each column's threshold: the ``1 - share`` quantile of the
+    columns within ``scale / 2``, taken every ``cell`` columns and interpolated between (one
+    column's quantiles jump where its few blobs leave gaps between their values: straight vertical
+    edges and slivers); the columns at ``t`` 0 all A, at 1 all B."""
+    w = field.shape[1]
     radius = max(1, int(scale) // 2)
     at = np.arange(1, w - 1, cell)
     threshold = np.zeros(w)
     if at.size:
-        levels = [np.quantile(field[:, max(0, x - radius):x + radius + 1], 1.0 - t[x]) for x in at]
+        levels = [np.quantile(field[:, max(0, x - radius):x + radius + 1], 1.0 - share[x]) for x in at]
         threshold = np.interp(np.arange(w), at, levels)
     threshold[t == 0.0] = np.inf
     threshold[t == 1.0] = -np.inf
     return (field > threshold[None, :]).astype(np.int64)
+
+
+def _drop_islands(labels, smallest):
+    """Give each region (4-connected) of fewer than ``smallest`` pixels to the other label, in
+    ``labels`` (0/1): B's first, then A's; A's regions in the first column and B's in the last stay."""
+    from scipy import ndimage
+
+    for value, edge in ((1, -1), (0, 0)):
+        parts, _ = ndimage.label(labels == value)
+        small = np.bincount(parts.ravel()) < smallest
+        small[0] = False  # the other label's pixels
+        small[parts[:, edge]] = False
+        labels[small[parts]] = 1 - value
 
 
 def _upsample(field, cell, n, axis):

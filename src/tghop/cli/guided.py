@@ -313,11 +313,25 @@ def _check_grid(size, grid):
                                "ask for fewer strips or a smaller --size")
 
 
+def _check_height(size, source):
+    """A strip at least a patch tall (``source``: A, an exemplar or a texture model), refused as a usage
+    error before anything is fitted: the library refuses it too, after the fits."""
+    import numpy as np
+
+    patch = build_model({}, n_colours=source.shape[2]).patch_size if isinstance(source, np.ndarray) \
+        else source.patch_size
+    if size[0] < patch:
+        raise click.UsageError(f"--size {size[0]}x{size[1]}: a morph strip must be at least {patch} px tall (the "
+                               "patch size; a lower one cannot mix the two textures by position); give "
+                               f"--size {patch}x{size[1]} or taller")
+
+
 @click.command()
 @click.argument("source_a", metavar="A")
 @click.argument("source_b", metavar="B")
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")
-@click.option("--size", type=Size(), default="256x1024", show_default=True, help="HEIGHTxWIDTH of one strip.")
+@click.option("--size", type=Size(), default="256x1024", show_default=True,
+              help="HEIGHTxWIDTH of one strip, at least a patch (32 px by default) tall.")
 @click.option("--grid", type=click.IntRange(min=1, max=64), default=1, show_default=True,
               help="Strips of consecutive seeds stacked top to bottom (a grid of seeds).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
@@ -345,6 +359,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
         read_a, read_b = _read(source_a), _read(source_b)
         _same_kind([source_a, source_b], [read_a, read_b], "A" if hasattr(read_a, "names_") else "B")
         _check_mixable([f"A {source_a}", f"B {source_b}"], [read_a, read_b], None)
+        _check_height(size, read_a)
         _check_channels(output, depth, [read_a, read_b])
         _warn_deep([source_a, source_b], [read_a, read_b], ("A", "B"), output, depth)
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
