@@ -87,6 +87,27 @@ def test_morph_takes_images_of_any_size(files):
     assert png(out).shape == (2 * 34 - 2, 2 * 34 - 2, 3)
 
 
+@pytest.mark.parametrize("command", [["morph", "crop:0,0", "crop:8,8", "--length", "5"],
+                                     ["edit", "crop:0,0", "crop:8,8", "--size", "24x64"]])
+def test_morph_and_edit_write_to_stdout_and_say_the_size_as_tghop_morph_does(files, command, tmp_path):
+    """`tghop morph -o -` writes its PNG to stdout and says "1 strip of HxW written to ..."; the
+    co-occurrence morph (and edit) refused -o - and said only "morph written to ..."."""
+    r = run("cooc", command[0], str(files / "m.pt"), *command[1:], "--seed", "1", "-o", "-")
+    assert r.returncode == 0 and r.stdout.startswith(b"\x89PNG"), r.stderr.decode()
+    assert b"written" not in r.stderr  # the image is the output
+    r = run("cooc", command[0], str(files / "m.pt"), *command[1:], "--seed", "1", "-o", str(tmp_path / "o.png"))
+    assert r.returncode == 0, r.stderr.decode()
+    assert (tmp_path / "o.png").read_bytes() == run("cooc", command[0], str(files / "m.pt"), *command[1:], "--seed",
+                                                    "1", "-o", "-").stdout
+    shape = png(tmp_path / "o.png").shape
+    said = "1 strip" if command[0] == "morph" else "edited texture"
+    assert r.stderr.decode().strip().endswith(f"{said} of {shape[0]}x{shape[1]} written to {tmp_path / 'o.png'}")
+    r = run("cooc", "morph", str(files / "m.pt"), "crop:0,0", "crop:8,8", "--grid", "2x3", "-o",
+            str(tmp_path / "g.png"))
+    shape = png(tmp_path / "g.png").shape
+    assert r.stderr.decode().strip().endswith(f"a 2x3 grid of {shape[0]}x{shape[1]} written to {tmp_path / 'g.png'}")
+
+
 def test_edit_takes_images_of_any_size(files):
     out = files / "edit.png"
     r = invoke("cooc", "edit", files / "m.pt", files / "wide.png", "crop:0,0", files / "other.png", "-o", out,

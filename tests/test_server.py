@@ -812,6 +812,8 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
     # 422: sizes over the limit, settings out of range or unknown, too few or too many models
     assert_error(post(guided, json={"models": two, "size": [10000, 10000]}), 422, "above the limit of 67,108,864")
     assert_error(post(morph, json={"a": two[0], "b": two[1], "size": [9000, 9000]}), 422, "above the limit")
+    assert_error(post(morph, json={"a": two[0], "b": two[1], "size": [16, 256]}), 422,
+                 "a morph strip must be at least 32 px tall", "give a height of 32 or more")  # whole columns below
     assert_error(post(guided, json={"models": two, "size": [0, 8]}), 422, "size must be positive")
     assert_error(post(guided, json={"models": two[:1], "size": [32, 32]}), 422, "give 2 to 8")
     assert_error(post(guided, json={"models": two * 5, "size": [32, 32]}), 422, "has 10 model ids")

@@ -1104,7 +1104,7 @@ def test_every_generation_route_reads_its_models_in_the_decoding_turn(tmp_path, 
     Image.fromarray(np.random.default_rng(1).integers(0, 256, (32, 32, 3), dtype=np.uint8)).save(buf, format="PNG")
     asks = {"image": lambda c: c.post(f"/api/models/{ids[0]}/images", json={"size": [16, 16], "n_patches": 100}),
             "remix": lambda c: c.post("/api/images/guided", json={"models": ids, "size": [24, 24], "n_patches": 100}),
-            "morph": lambda c: c.post("/api/images/morph", json={"a": ids[0], "b": ids[1], "size": [24, 48]}),
+            "morph": lambda c: c.post("/api/images/morph", json={"a": ids[0], "b": ids[1], "size": [32, 48]}),
             "extend": lambda c: c.post(f"/api/models/{ids[1]}/extend", data={"size": "48x48"},
                                        files={"image": ("picture.png", buf.getvalue())})}
     try:

@@ -267,7 +267,7 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
 @click.argument("model_file", metavar="MODEL")
 @click.argument("a")
 @click.argument("b")
-@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")
 @click.option("--length", type=click.IntRange(min=2, max=MAX_CELLS), default=8, show_default=True,
               help="Strip length in co-occurrence cells (s pixels each).")
 @click.option("--grid", type=Grid(), default=None,
@@ -289,7 +289,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
 
     del quiet  # taken as every command takes it: nothing here draws a progress bar
     with user_errors():
-        check_output(output)
+        check_output(output, allow_stdout=True)
         check_outputs([("-o", output)], [("MODEL", model_file), *[(label, spec) for label, spec in (("A", a), ("B", b))
                                                                    if not spec.startswith("crop:")]])
         cols, rows = grid or (None, None)
@@ -303,13 +303,15 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
             tiles = model.morph_grid(ca[:, :h, :w], cb[:, :h, :w], n_cols=cols, n_rows=rows, rng=seed)
             image = patch_grid(tiles.reshape((-1,) + tiles.shape[2:]), n_cols=cols)
         save_image(image, output)
-    click.echo(f"morph written to {output}", err=True)
+    if output != "-":  # as tghop morph says it
+        what = "1 strip" if grid is None else f"a {cols}x{rows} grid"
+        click.echo(f"{what} of {image.shape[0]}x{image.shape[1]} written to {output}", err=True)
 
 
 @cooc.command()
 @click.argument("model_file", metavar="MODEL")
 @click.argument("sources", nargs=-1)
-@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}).")
+@click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")
 @click.option("--size", type=Size(), default="256x256", show_default=True, help="Output HEIGHTxWIDTH.")
 @click.option("--mask", default=None, metavar="IMAGE",
               help="Image of --size's shape (scaled to it, nearest neighbour) painted with one flat grey level (or "
@@ -336,7 +338,7 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
 
     del quiet  # taken as every command takes it: nothing here draws a progress bar
     with user_errors():
-        check_output(output)
+        check_output(output, allow_stdout=True)
         check_outputs([("-o", output)], [("MODEL", model_file), ("--mask", mask),
                                          *[("SOURCE", spec) for spec in sources if not spec.startswith("crop:")]])
         if mask is not None and not sources:
@@ -365,4 +367,5 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
                 raise click.BadParameter(f"{','.join(map(str, boost[:2]))}: {exc}", param_hint="'--boost'") from None
         image = model.generate(cond, rng=seed, windows=windows)[: size[0], : size[1]]
         save_image(image, output)
-    click.echo(f"edited texture written to {output}", err=True)
+    if output != "-":
+        click.echo(f"edited texture of {image.shape[0]}x{image.shape[1]} written to {output}", err=True)
