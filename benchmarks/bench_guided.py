@@ -11,11 +11,14 @@ For each pair ``A:B`` of textures (models fitted here with the defaults, or read
   other one, next to the same crops of a plain ``synthesize`` of that model alone;
 * remix ``SIZE x SIZE`` (no guide): time;
 * morph 256 x 1024: time, and the SIFID of its left, middle and right 256x256 against A
-  and B.
+  and B; with ``--morph-only``, only the morph: its time in process and of the whole ``tghop morph
+  A.npz B.npz --size 256x1024`` process, next to a whole ``tghop synth A.npz`` process of that size,
+  ``--repeat`` times each, in turn (the ranges).
 
 Timings are wall clock on whatever machine runs it (noisy on a shared one).
 
     python benchmarks/bench_guided.py brick_wall:grass_lawn red_bricks_512:brick_wall --models /tmp/models
+    python benchmarks/bench_guided.py brick_wall:grass_lawn bricks:cells --morph-only --repeat 3 --no-sifid
 """
 
 from __future__ import annotations
@@ -47,6 +50,63 @@ def median_sifid(ex, crops):
     return float(np.median([metrics.sifid(ex, c) for c in crops]))
 
 
+def fitted(names, models_dir, tmp):
+    """Each name's exemplar and saved model (fitted here with the defaults unless ``models_dir`` has it)."""
+    from tghop import TGHop
+    from tghop.modelfile import save_model
+
+    exemplars, paths = [texture(name) for name in names], []
+    for name, ex in zip(names, exemplars):
+        path = Path(models_dir) / f"{name}.npz" if models_dir else Path(tmp) / f"{name}.npz"
+        if not models_dir:
+            save_model(TGHop(rng=0).fit(ex), path)
+        paths.append(str(path))
+    return exemplars, paths
+
+
+def morph_only(args):
+    """The morph 256x1024 of each pair, timed in process and as a whole ``tghop morph`` process, in turn."""
+    from tghop import morph
+    from tghop.modelfile import load_model
+
+    rows, payload = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for pair in args.pairs:
+            exemplars, paths = fitted(pair.split(":"), args.models, tmp)
+            models = [load_model(p) for p in paths]
+            inside, whole, plain = [], [], []
+            for _ in range(args.repeat):
+                t = time.perf_counter()
+                strip = morph(models[0], models[1], (256, 1024), rng=args.seed)
+                inside.append(time.perf_counter() - t)
+                t = time.perf_counter()
+                subprocess.run([sys.executable, "-m", "tghop", "morph", *paths, "--size", "256x1024", "-o",
+                                os.path.join(tmp, "strip.png"), "--seed", str(args.seed), "-q"], check=True,
+                               capture_output=True)
+                whole.append(time.perf_counter() - t)
+                t = time.perf_counter()  # the same machine's plain synth of A at the strip's size, for comparison
+                subprocess.run([sys.executable, "-m", "tghop", "synth", paths[0], "--size", "256x1024", "-o",
+                                os.path.join(tmp, "plain.png"), "--seed", str(args.seed), "-q"], check=True,
+                               capture_output=True)
+                plain.append(time.perf_counter() - t)
+            row = dict(pair=pair, morph_s=inside, morph_process_s=whole, plain_process_s=plain)
+            if not args.no_sifid:
+                for label, x in (("left", 0), ("middle", 384), ("right", 768)):
+                    for k, e in zip("ab", exemplars):
+                        row[f"morph_{label}_sifid_{k}"] = median_sifid(e, [strip[:, x:x + 256]])
+            payload.append(row)
+            rows.append([pair, *[f"{min(x):.2f}-{max(x):.2f}" for x in (inside, whole, plain)],
+                         *[row.get(f"morph_{p}_sifid_{e}", "-") for p in ("left", "middle", "right") for e in "ab"]])
+            print(rows[-1], flush=True)
+    text = (f"# Morph 256x1024 (bench_guided.py --morph-only)\n\nSeed {args.seed}, {args.repeat} run(s) of each in "
+            "turn (min-max).\n\n" + markdown_table(["A:B", "in process s", "whole process s",
+                                                      "plain synth A 256x1024 s (whole process)", "left vs A",
+                                                      "left vs B", "middle vs A", "middle vs B", "right vs A",
+                                                      "right vs B"], rows))
+    print(text)
+    write_results(args.name, payload, text)
+
+
 def main():
     from tghop import TGHop, morph, synthesize_guided
     from tghop.imageio import save_image
@@ -60,7 +120,11 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-sifid", action="store_true")
     ap.add_argument("--name", default="guided", help="results/NAME.json and .md")
+    ap.add_argument("--morph-only", action="store_true", help="time the morph alone (in process and whole process)")
+    ap.add_argument("--repeat", type=int, default=1, help="timings of each kind with --morph-only, in turn")
     args = ap.parse_args()
+    if args.morph_only:
+        return morph_only(args)
     n = args.size
     if not args.no_sifid and n // 2 - (args.transition + 32) < 256:  # region_crops: 256x256 crops in each half
         ap.error(f"--size {n} leaves no 256x256 crop in a region (at least transition + 32 px from the middle): "
