@@ -313,6 +313,24 @@ def test_exif_orientation_of_a_16_bit_png(tmp_path):
     np.testing.assert_array_equal(np.round(got[:, :, 0] * 65535).astype(np.uint16), np.rot90(levels, -1))
 
 
+@pytest.mark.parametrize("orientation", [3, 6, 8])
+def test_exif_orientation_of_a_float_colour_tiff(tmp_path, orientation):
+    # Pillow cannot open a float RGB TIFF; its Orientation tag is read by tifffile (0.55 read
+    # the pixels as stored: a texture learnt sideways of what every viewer shows).
+    tifffile = pytest.importorskip("tifffile")
+    from PIL import ImageOps
+
+    pixels = _colourful(20, 30)
+    tifffile.imwrite(tmp_path / "turned.tif", (pixels / 255).astype(np.float32), photometric="rgb",
+                     extratags=[(274, 3, 1, orientation, True)])
+    Image.fromarray(pixels).save(tmp_path / "eight.tif", tiffinfo={274: orientation})
+    with Image.open(tmp_path / "eight.tif") as im:
+        shown = np.asarray(ImageOps.exif_transpose(im))
+    got = load_image(tmp_path / "turned.tif")
+    assert got.shape == shown.shape
+    np.testing.assert_allclose(got * 255, shown, atol=0.01)
+
+
 def _colourful(h=24, w=32):
     """A smooth colour image (uint8): JPEG compression keeps it close."""
     y, x = np.mgrid[:h, :w]

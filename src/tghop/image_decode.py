@@ -332,8 +332,22 @@ def file_header(path):
     try:
         with open_image(path) as im:
             return _exif_orientation(im), im.info.get("icc_profile")
-    except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): the pixels as stored
-        return 1, tiff_profile(path)
+    except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): its own tags, read by tifffile
+        return _tiff_orientation(path), tiff_profile(path)
+
+
+def _tiff_orientation(path) -> int:
+    """A TIFF file's first page's Orientation tag (274), read by :mod:`tifffile` (a float colour
+    TIFF, which Pillow cannot open: 0.55 read it as stored, sideways where a viewer shows it upright);
+    1 where it has none or cannot be read."""
+    try:
+        import tifffile
+
+        with tifffile.TiffFile(path) as tif:
+            tag = tif.pages[0].tags.get(274)
+            return 1 if tag is None else int(tag.value)
+    except Exception:  # noqa: BLE001 - not a TIFF, or no tifffile: the pixels as stored
+        return 1
 
 
 def upright(arr, orientation):
