@@ -282,6 +282,38 @@ def test_a_palette_with_transparency_bytes_is_read_in_its_colours_without_pillow
         "white where it is transparent)"]
 
 
+@pytest.mark.parametrize("colour", [False, True])
+@pytest.mark.parametrize("bits", [8, 16])
+def test_a_png_transparent_colour_is_an_alpha_channel(tmp_path, colour, bits):
+    # A grey or RGB PNG may mark one colour transparent (a tRNS chunk) instead of storing alpha:
+    # its pixels are transparent as a palette's transparent entry is (0.55 took them as texture
+    # without a word, while a palette's was warned of and kept by keep_alpha).
+    import struct
+    import zlib
+
+    from tghop.imageio import write_png
+
+    levels = (np.arange(12 * 10).reshape(12, 10) * 523 % 60000 + 1000).astype(np.uint16)
+    if colour:
+        levels = np.stack([levels, levels[::-1], levels[:, ::-1]], axis=2)
+    levels[:3, :4] = 0  # 12 of 120 pixels: the transparent colour
+    buffer = io.BytesIO()
+    write_png(buffer, levels if bits == 16 else (levels >> 8).astype(np.uint8))
+    key = struct.pack(">3H" if colour else ">H", *([0] * (3 if colour else 1)))
+    png = buffer.getvalue()  # a tRNS chunk after the signature and IHDR
+    (tmp_path / "key.png").write_bytes(png[:33] + struct.pack(">I", len(key)) + b"tRNS" + key
+                                       + struct.pack(">I", zlib.crc32(b"tRNS" + key)) + png[33:])
+    with pytest.warns(UserWarning, match="key.png: alpha channel dropped, though 10% of its pixels are transparent"):
+        flat = load_image(tmp_path / "key.png")
+    assert flat.shape == (12, 10, 3 if colour else 1)
+    kept = load_image(tmp_path / "key.png", keep_alpha=True)
+    assert kept.shape == (12, 10, 4 if colour else 2)
+    np.testing.assert_array_equal(kept[..., :-1], flat)
+    opaque = np.ones((12, 10))
+    opaque[:3, :4] = 0
+    np.testing.assert_array_equal(kept[..., -1], opaque)
+
+
 @pytest.mark.parametrize("suffix", [".png", ".tif", ".jpg"])
 @pytest.mark.parametrize("orientation", range(1, 9))
 def test_exif_orientation_is_applied(tmp_path, suffix, orientation):

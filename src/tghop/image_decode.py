@@ -248,7 +248,7 @@ def _drop_alpha(arr, mode, keep_alpha=False):
 
 def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
     """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode).
-    With ``keep_alpha`` an image with alpha (or a palette with transparency) is LA or RGBA.
+    With ``keep_alpha`` an image with alpha (or a palette or a transparent colour) is LA or RGBA.
 
     Parameters
     ----------
@@ -262,7 +262,8 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     Returns
     -------
     ndarray, shape (H, W) or (H, W, C), uint8 or float64 in [0, 1], upright (EXIF orientation applied)
-    mode : str, the image's Pillow mode ("P+transparency" for a palette with transparency)
+    mode : str, the image's Pillow mode ("P+transparency" for a palette with transparency; "LA" and "RGBA"
+        for a grey or RGB image with a transparent colour)
     """
     width, height = im.size
     if width < 1 or height < 1:
@@ -285,11 +286,13 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
         im.load()
     warn_frames(path, getattr(im, "n_frames", 1))
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
+    if im.mode in ("L", "RGB") and "transparency" in im.info:  # a PNG's transparent colour: an alpha channel
+        im = im.convert("LA" if im.mode == "L" else "RGBA")  # (0.55 kept its pixels without a word)
     im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"
-    if keep_alpha and (mode in ("RGBA", "LA", "PA", "RGBa", "La") or mode == "P+transparency"):
+    if keep_alpha and has_alpha(mode):
         arr = np.asarray(im if im.mode in ("RGBA", "LA") else im.convert("LA" if im.mode == "La" else "RGBA"))
     elif im.mode in ("L", "RGB"):
         arr = np.asarray(im)  # no converted copy of a large image

@@ -25,8 +25,10 @@ def decode_png16(data):
     (grey, grey+alpha, RGB, RGBA). Rows filtered with None, Sub or Up only (tghop's and
     Pillow's writers) are unfiltered a row at a time; others (Average, Paeth) along
     anti-diagonals, every pixel of one at once (a pixel depends on its left, upper and
-    upper-left neighbours only)."""
-    pos, idat, header = 8, [], None
+    upper-left neighbours only). A grey or RGB file's transparent colour (a tRNS chunk: every
+    pixel of that level is transparent) comes back as an alpha channel, its colour type 4 or 6,
+    as Pillow reads an 8-bit one's."""
+    pos, idat, header, key = 8, [], None, None
     while pos + 8 <= len(data):
         length, kind = struct.unpack(">I4s", data[pos: pos + 8])
         body = data[pos + 8: pos + 8 + length]
@@ -34,6 +36,8 @@ def decode_png16(data):
             header = struct.unpack(">IIBBBBB", body)
         elif kind == b"IDAT":
             idat.append(body)
+        elif kind == b"tRNS":
+            key = body
         elif kind == b"IEND":
             break
         pos += 12 + length
@@ -76,7 +80,11 @@ def decode_png16(data):
             pred = np.select([f == 0, f == 1, f == 2, f == 3], [0, a, b, (a + b) >> 1], paeth)
             pad[ys + 1, xs + 1] = (rows[ys, xs] + pred) & 255
         out = pad[1:, 1:].astype(np.uint8)
-    return out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16), ctype
+    levels = out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16)
+    if key is not None and ctype in (0, 2) and len(key) == 2 * samples:
+        opaque = ~np.all(levels == np.frombuffer(key, dtype=">u2").astype(np.uint16), axis=2)
+        return np.concatenate([levels, (opaque * np.uint16(65535))[:, :, None]], axis=2), ctype + 4
+    return levels, ctype
 
 
 #: Raw bytes per part of a PNG compressed in parallel (smaller images: one part).
