@@ -700,3 +700,27 @@ def test_a_file_of_several_frames_warns_that_the_first_is_read(tmp_path, name):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         load_image(tmp_path / ("one" + name[-4:]))
+
+
+@pytest.mark.parametrize("tifffile_installed", [True, False])
+@pytest.mark.parametrize("dtype, low, high", [(np.int16, -12700, 12300), (np.uint32, 0, 3_900_000_000),
+                                               (np.int32, -5, 200)])
+def test_integer_levels_outside_16_bits_are_refused(tmp_path, monkeypatch, tifffile_installed, dtype, low, high):
+    # A signed or 32-bit integer TIFF (a height map, a scientific camera's frame) whose values are
+    # outside 0-65535: 0.55 clipped them to black and white (unsigned 32-bit ones wrapped to negative
+    # by Pillow first) without a word. In range they are levels, as 16-bit ones.
+    import sys
+
+    tifffile = pytest.importorskip("tifffile")
+    from tghop import InvalidImageError
+
+    values = np.linspace(low, high, 12 * 10).reshape(12, 10).astype(dtype)
+    tifffile.imwrite(tmp_path / "wide.tif", values)
+    tifffile.imwrite(tmp_path / "fits.tif", ((values.astype(np.int64) - low) * 40000 // (high - low)).astype(np.int32))
+    if not tifffile_installed:
+        monkeypatch.setitem(sys.modules, "tifffile", None)  # Pillow's path alone
+    said = f"wide.tif: integer pixel values from {low} to {high}; tghop reads integer images as levels from 0 to 65535"
+    with pytest.raises(InvalidImageError, match=said if tifffile_installed or dtype != np.uint32 else "levels from 0"):
+        load_image(tmp_path / "wide.tif")
+    got = load_image(tmp_path / "fits.tif")
+    assert got.shape == (12, 10, 1) and got.min() == 0 and got.max() == 40000 / 65535

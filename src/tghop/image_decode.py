@@ -127,6 +127,7 @@ def read_deep(path, max_pixels, keep_alpha=False):
         page, _ = tif.pages[0], warn_frames(path, len(tif.pages))
         layout = _tiff_layout(page, path)
         if layout is None:
+            _check_wide_integers(page, path, max_pixels)
             return None
         shape = page.shape
         if int(np.prod(shape[:2] if page.axes.startswith("YX") else shape[-2:])) > max_pixels:
@@ -182,6 +183,39 @@ def _float_pixels(arr, path):
         return arr / (65535.0 if hi > 255 else 255.0)
     raise InvalidImageError(f"{path}: float pixel values from {lo:.6g} to {hi:.6g}; tghop reads float images with "
                             "values in [0, 1]; rescale it to [0, 1] first (or save it with 8 or 16 bits)")
+
+
+def _integer_levels(arr, path):
+    """An integer image's pixels (float64, as Pillow gives a 16- or 32-bit one) in [0, 1]: levels
+    of an 8-bit range, else a 16-bit one, or a one-line :class:`InvalidImageError` for values
+    outside 0-65535 (a signed or 32-bit TIFF: 0.55 clipped them to black and white without a word)."""
+    lo, hi = (arr.min(), arr.max()) if arr.size else (0.0, 0.0)
+    if lo < 0 or hi > 65535:
+        _refuse_levels(path, lo, hi)
+    return arr / (65535.0 if hi > 255 else 255.0)
+
+
+def _refuse_levels(path, lo, hi):
+    raise InvalidImageError(f"{path}: integer pixel values from {lo:.0f} to {hi:.0f}; tghop reads integer images as "
+                            "levels from 0 to 65535; rescale it to that range (a 16-bit image) or to floats in [0, 1] "
+                            "first")
+
+
+def _check_wide_integers(page, path, max_pixels):
+    """Refuse a TIFF page of signed or 32-bit integer samples (Pillow's path, which wraps 32-bit
+    unsigned values to negative ones) whose values are outside 0-65535 (:func:`_integer_levels`),
+    naming the values as stored."""
+    dtype = page.dtype
+    if dtype is None or dtype.kind not in "iu" or dtype in (np.uint8, np.uint16) or page.size > 4 * max_pixels:
+        return
+    try:
+        arr = page.asarray()
+    except MemoryError:
+        raise
+    except Exception:  # noqa: BLE001 - e.g. a compression tifffile cannot decode: Pillow's path
+        return
+    if arr.size and (arr.min() < 0 or arr.max() > 65535):
+        _refuse_levels(path, arr.min(), arr.max())
 
 
 #: Names of the TIFF photometric interpretations (tag 262) tghop does not read as grey or RGB itself.
@@ -305,7 +339,7 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
         if im.mode == "F":  # a float image (TIFF, PFM)
             arr = _float_pixels(arr, path)
         else:  # integer levels: 8-bit range, else 16-bit
-            arr = np.clip(arr / (65535.0 if arr.max() > 255 else 255.0), 0.0, 1.0)
+            arr = _integer_levels(arr, path)
     else:
         arr = np.asarray(im.convert("RGB"))
     return upright(arr, orientation), mode
