@@ -412,6 +412,16 @@ def test_an_unknown_extension_names_every_one_tghop_writes(folder):
     assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
 
 
+def test_an_output_that_is_a_folder_without_extension_is_called_a_folder(folder):
+    # `-o outputs` (a folder, meaning "write in there") was told of an unknown extension "(none)".
+    (folder / "outputs").mkdir(exist_ok=True)
+    for command in (["synth", "model.npz"], ["extend", "bricks.png", "--size", "72x96"]):
+        code, _, err, exc = invoke(*command, "-o", "outputs", cwd=folder)
+        assert_one_line(code, err, "outputs is a folder; give a file name for the image in it (e.g. outputs",
+                        "texture.png)", exception=exc)
+    assert list((folder / "outputs").iterdir()) == []
+
+
 @pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"],
                                   ["evaluate", "bricks.png", "bricks.png", "--metrics", "swd", "-q"],
                                   ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],

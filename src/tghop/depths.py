@@ -32,6 +32,9 @@ def output_format(path) -> str:
         raise InvalidImageError("the image's file name is empty; give one")
     ext = Path(path).suffix.lower()
     if ext not in FORMATS:
+        if os.path.isdir(path):  # -o outputs/: 0.55 spoke of its extension
+            raise InvalidImageError(f"{path} is a folder; give a file name for the image in it "
+                                    f"(e.g. {os.path.join(path, 'texture.png')})")
         raise InvalidImageError(f"{path}: unknown image extension {ext or '(none)'}; use {extensions()}")
     return FORMATS[ext]
 
