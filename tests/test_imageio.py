@@ -686,6 +686,27 @@ def test_an_unreadable_image_says_why_in_words(tmp_path):
                                    "common image file", str(error.value)
 
 
+@pytest.mark.parametrize("name, head, said", [
+    ("phone.heic", b"\x00\x00\x00\x18ftypheic\x00\x00\x00\x00mif1heic", "a HEIC/HEIF image"),
+    ("photo.HEIF", b"\x00\x00\x00\x18ftypmif1\x00\x00\x00\x00mif1heic", "a HEIC/HEIF image"),
+    ("new.jxl", b"\xff\x0a\xfa\x7f\x01\x90\x08", "a JPEG XL image"),
+    ("boxed.jxl", b"\x00\x00\x00\x0cJXL \r\n\x87\n\x00\x00\x00\x14ftypjxl ", "a JPEG XL image"),
+    ("render.exr", b"\x76\x2f\x31\x01\x02\x00\x00\x00channels", "an OpenEXR image"),
+    ("sky.hdr", b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n", "a Radiance HDR image"),
+    ("scan.pdf", b"%PDF-1.7\n", "a PDF document"),
+    ("logo.svg", b'<svg xmlns="http://www.w3.org/2000/svg"/>', "an SVG or other XML file")])
+def test_a_common_format_pillow_does_not_read_is_named(tmp_path, name, head, said):
+    # A phone's HEIC photo or an artist's EXR texture was "not an image format tghop reads", as a
+    # text file is: the user could not tell that converting it would do.
+    from tghop import InvalidImageError
+
+    (tmp_path / name).write_bytes(head + bytes(200))
+    with pytest.raises(InvalidImageError) as error:
+        load_image(tmp_path / name)
+    assert str(error.value) == f"{tmp_path / name}: {said}, a format tghop does not read; convert it to PNG, " \
+                               "TIFF or JPEG first"
+
+
 @pytest.mark.parametrize("name", ["moving.gif", "pages.tif"])
 def test_a_file_of_several_frames_warns_that_the_first_is_read(tmp_path, name):
     # An animated GIF and a TIFF of several pages were read (the first frame) without a word.

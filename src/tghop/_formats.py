@@ -4,7 +4,7 @@ the command line's help is made from it without loading NumPy)."""
 
 __all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "model_file_kind",
            "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
-           "why_unreadable", "warn_frames"]
+           "why_unreadable", "unread_format", "warn_frames"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -78,13 +78,41 @@ def why_unreadable(path, exc) -> str:
         return f"truncated or corrupt: {exc.__class__.__name__}" + (f": {str(exc)[:80]}" if str(exc) else "")
     try:
         with open(path, "rb") as fh:
-            head = fh.read(8)
+            head = fh.read(16)
     except OSError:
         head = b""
     if not head:
         return "the file is empty"
     return "a NumPy array file (.npy), not an image" if head.startswith(b"\x93NUMPY") else \
         "not an image format tghop reads"
+
+
+#: ISO base media brands of HEIF images (a phone's photos: .heic, .heif); AVIF ones Pillow reads.
+_HEIF_BRANDS = (b"heic", b"heix", b"hevc", b"hevx", b"heim", b"heis", b"hevm", b"hevs", b"mif1", b"msf1")
+
+
+def unread_format(path):
+    """The name of a common image format that Pillow does not read ("a HEIC/HEIF image"), from
+    the first bytes of the file at ``path`` (a phone's HEIC photo, a texture artist's EXR or JPEG
+    XL were only "not an image format tghop reads"), or None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+    except OSError:
+        return None
+    if head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS:
+        return "a HEIC/HEIF image"
+    if head.startswith((b"\xff\x0a", b"\x00\x00\x00\x0cJXL ")):
+        return "a JPEG XL image"
+    if head.startswith(b"\x76\x2f\x31\x01"):
+        return "an OpenEXR image"
+    if head.startswith((b"#?RADIANCE", b"#?RGBE")):
+        return "a Radiance HDR image"
+    if head.startswith(b"%PDF"):
+        return "a PDF document"
+    if head.lstrip().startswith((b"<svg", b"<?xml")):
+        return "an SVG or other XML file"
+    return None
 
 
 def warn_frames(path, count) -> None:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image, report
 from ._errors import TransparencyWarning, warn
-from ._formats import DEPTHS, check_tifffile, extensions, why_unreadable
+from ._formats import DEPTHS, check_tifffile, extensions, unread_format, why_unreadable
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import (decode_pillow, file_header, has_alpha, open_image, read_deep, transparency_note,
                            transparent_share, upright)
@@ -125,6 +125,10 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
             struct.error, ZeroDivisionError, zlib.error) as exc:
+        known = unread_format(path) if isinstance(exc, UnidentifiedImageError) else None
+        if known:
+            raise InvalidImageError(f"{path}: {known}, a format tghop does not read; convert it to PNG, TIFF "
+                                    "or JPEG first") from None
         raise InvalidImageError(f"{path}: not a readable image ({why_unreadable(path, exc)}); "
                                 "give a PNG, JPEG or other common image file") from None
     if not keep_alpha and has_alpha(mode):
