@@ -745,3 +745,33 @@ def test_integer_levels_outside_16_bits_are_refused(tmp_path, monkeypatch, tifff
         load_image(tmp_path / "wide.tif")
     got = load_image(tmp_path / "fits.tif")
     assert got.shape == (12, 10, 1) and got.min() == 0 and got.max() == 40000 / 65535
+
+
+@pytest.mark.parametrize("shape", [(13, 11, 3), (3, 2, 1), (9, 17, 2)])
+def test_an_interlaced_16_bit_png_is_read_whole(tmp_path, shape):
+    # Adam7-interlaced 16-bit PNG files went to Pillow, which reduces colour ones to 8 bits: read
+    # as 8-bit, without a word, and `tghop inpaint` wrote them back 8-bit.
+    import struct
+    import zlib
+
+    levels = np.random.default_rng(shape[0]).integers(0, 65536, shape, dtype=np.uint16)
+    rows = b""
+    for x0, y0, dx, dy in ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2),
+                           (0, 1, 1, 2)):
+        part = levels[y0::dy, x0::dx]
+        if part.size:
+            for k, row in enumerate(part):  # filter Sub on odd rows: unfiltered per pass
+                data = np.frombuffer(row.astype(">u2").tobytes(), np.uint8).copy()
+                if k % 2:
+                    data[2 * shape[2]:] -= np.frombuffer(row.astype(">u2").tobytes(), np.uint8)[: -2 * shape[2]]
+                rows += (b"\x01" if k % 2 else b"\x00") + data.tobytes()
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    header = struct.pack(">IIBBBBB", shape[1], shape[0], 16, {1: 0, 2: 4, 3: 2}[shape[2]], 0, 0, 1)
+    (tmp_path / "adam7.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+                                         + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+    got, depth = load_image(tmp_path / "adam7.png", with_depth=True, keep_alpha=True)
+    assert depth == 16
+    np.testing.assert_array_equal(np.round(got * 65535).astype(np.uint16), levels)

@@ -95,7 +95,7 @@ def read_deep(path, max_pixels, keep_alpha=False):
         head = fh.read(33)
     if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 33 and head[24] == 16:
         width, height = struct.unpack(">II", head[16:24])
-        if width * height > max_pixels or head[28] != 0:  # too large, or interlaced: Pillow's path (its errors)
+        if width * height > max_pixels:  # too large: Pillow's path (its errors)
             return None
         levels, ctype = decode_png16(path.read_bytes())
         arr, mode = _drop_alpha(levels, {4: "LA", 6: "RGBA"}.get(ctype, ""), keep_alpha)

@@ -18,11 +18,16 @@ __all__ = ["decode_png16", "write_png", "WRITING"]
 WRITING = "writing"
 
 
+#: The seven passes of an Adam7-interlaced PNG: (first column, first row, column step, row step).
+_ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
+
+
 def decode_png16(data):
-    """A non-interlaced 16-bit PNG file's samples: (uint16 array (H, W, S), colour type).
+    """A 16-bit PNG file's samples: (uint16 array (H, W, S), colour type).
 
     Pillow reduces 16-bit colour PNG files to 8 bits; this reads every type of them
-    (grey, grey+alpha, RGB, RGBA). Rows filtered with None, Sub or Up only (tghop's and
+    (grey, grey+alpha, RGB, RGBA), interlaced (Adam7: each pass a small image of its own) or not.
+    Rows filtered with None, Sub or Up only (tghop's and
     Pillow's writers) are unfiltered a row at a time; others (Average, Paeth) along
     anti-diagonals, every pixel of one at once (a pixel depends on its left, upper and
     upper-left neighbours only). A grey or RGB file's transparent colour (a tRNS chunk: every
@@ -47,11 +52,31 @@ def decode_png16(data):
     samples = {0: 1, 2: 3, 4: 2, 6: 4}.get(ctype)
     if bits != 16 or samples is None:
         raise ValueError(f"PNG colour type {ctype} at {bits} bits")
+    if header[6] not in (0, 1):
+        raise ValueError(f"PNG interlace method {header[6]}")
     bpp = 2 * samples
     raw = np.frombuffer(zlib.decompress(b"".join(idat)), dtype=np.uint8)
-    if raw.size < h * (1 + w * bpp):
-        raise ValueError("truncated PNG data")
-    raw = raw[: h * (1 + w * bpp)].reshape(h, 1 + w * bpp)
+    out, pos = np.empty((h, w, bpp), dtype=np.uint8), 0
+    for x0, y0, dx, dy in _ADAM7 if header[6] else ((0, 0, 1, 1),):
+        ph, pw = len(range(y0, h, dy)), len(range(x0, w, dx))
+        if not ph or not pw:  # an empty pass (a small image) has no rows at all
+            continue
+        size = ph * (1 + pw * bpp)
+        if raw.size < pos + size:
+            raise ValueError("truncated PNG data")
+        out[y0::dy, x0::dx] = _unfilter(raw[pos: pos + size].reshape(ph, 1 + pw * bpp), bpp)
+        pos += size
+    levels = out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16)
+    if key is not None and ctype in (0, 2) and len(key) == 2 * samples:
+        opaque = ~np.all(levels == np.frombuffer(key, dtype=">u2").astype(np.uint16), axis=2)
+        return np.concatenate([levels, (opaque * np.uint16(65535))[:, :, None]], axis=2), ctype + 4
+    return levels, ctype
+
+
+def _unfilter(raw, bpp):
+    """The bytes (h, w, bpp) of a PNG image's (or an interlaced pass's) rows ``raw`` (h, 1 + w bpp):
+    each row's first byte its filter type."""
+    h, w = raw.shape[0], (raw.shape[1] - 1) // bpp
     kinds = raw[:, 0]
     if kinds.max(initial=0) > 4:
         raise ValueError(f"PNG filter type {kinds.max()}")
@@ -67,24 +92,19 @@ def decode_png16(data):
             else:
                 out[y] = rows[y]
             prev = out[y]
-    else:
-        pad = np.zeros((h + 1, w + 1, bpp), dtype=np.int32)  # a zero row above and column to the left
-        rows = rows.astype(np.int32)
-        for t in range(h + w - 1):
-            ys = np.arange(max(0, t - w + 1), min(h, t + 1))
-            xs = t - ys
-            a, b, c = pad[ys + 1, xs], pad[ys, xs + 1], pad[ys, xs]
-            pa, pb, pc = np.abs(b - c), np.abs(a - c), np.abs(a + b - 2 * c)
-            paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
-            f = kinds[ys][:, None]
-            pred = np.select([f == 0, f == 1, f == 2, f == 3], [0, a, b, (a + b) >> 1], paeth)
-            pad[ys + 1, xs + 1] = (rows[ys, xs] + pred) & 255
-        out = pad[1:, 1:].astype(np.uint8)
-    levels = out.reshape(h, w * bpp).view(">u2").reshape(h, w, samples).astype(np.uint16)
-    if key is not None and ctype in (0, 2) and len(key) == 2 * samples:
-        opaque = ~np.all(levels == np.frombuffer(key, dtype=">u2").astype(np.uint16), axis=2)
-        return np.concatenate([levels, (opaque * np.uint16(65535))[:, :, None]], axis=2), ctype + 4
-    return levels, ctype
+        return out
+    pad = np.zeros((h + 1, w + 1, bpp), dtype=np.int32)  # a zero row above and column to the left
+    rows = rows.astype(np.int32)
+    for t in range(h + w - 1):
+        ys = np.arange(max(0, t - w + 1), min(h, t + 1))
+        xs = t - ys
+        a, b, c = pad[ys + 1, xs], pad[ys, xs + 1], pad[ys, xs]
+        pa, pb, pc = np.abs(b - c), np.abs(a - c), np.abs(a + b - 2 * c)
+        paeth = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
+        f = kinds[ys][:, None]
+        pred = np.select([f == 0, f == 1, f == 2, f == 3], [0, a, b, (a + b) >> 1], paeth)
+        pad[ys + 1, xs + 1] = (rows[ys, xs] + pred) & 255
+    return pad[1:, 1:].astype(np.uint8)
 
 
 #: Raw bytes per part of a PNG compressed in parallel (smaller images: one part).
