@@ -959,6 +959,18 @@ def test_a_folder_s_images_of_other_types_are_said_not_left_out_unsaid(tmp_path)
         batch.find_work(only, tmp_path / "out2")
 
 
+def test_jpeg_files_by_other_names_and_bilevel_pnm_are_exemplars(tmp_path):
+    # A browser saves JPEG photos as .jfif; they, .jpe and .pbm (Pillow reads them all) were skipped
+    # as "of another type" and the user told to convert them to PNG.
+    src = make_folder(tmp_path / "src", bad=False)
+    for name, fmt in (("photo.jfif", "JPEG"), ("old.JPE", "JPEG"), ("bits.pbm", "PPM")):
+        Image.new("1" if fmt == "PPM" else "RGB", (64, 64)).save(src / name, format=fmt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        items = batch.find_work(src, tmp_path / "out")
+    assert sorted(str(it["rel"]) for it in items) == ["a.png", "bits.pbm", "old.JPE", "photo.jfif", "sub/a.png"]
+
+
 def test_progress_into_a_log_is_a_line_per_tenth(tmp_path):
     # Without a terminal (nohup, a job's log) click draws no bar: a run of hours said "exemplars" and
     # nothing more until its end. Now a line at each tenth of the exemplars (here each of the 4).

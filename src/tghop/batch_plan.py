@@ -39,11 +39,13 @@ __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED"
            "find_orphans", "prune_orphans"]
 
 
-#: File extensions taken as exemplars when SOURCE is a folder.
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm")
+#: File extensions taken as exemplars when SOURCE is a folder (.jfif and .jpe: JPEG files by other names, as a
+#: browser saves them; .pbm: the bilevel one of .ppm, .pgm, .pnm; these three were skipped as of another type).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".jfif", ".jpe", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm",
+                  ".pgm", ".pbm", ".pnm")
 #: Other images' extensions: a folder's files of these are skipped, and said (a studio's .tga were left out unsaid).
-OTHER_IMAGE_SUFFIXES = (".tga", ".psd", ".exr", ".hdr", ".dds", ".jfif", ".jpe", ".jp2", ".j2k", ".heic", ".heif",
-                        ".avif", ".jxl", ".pbm", ".ico", ".raw", ".dng", ".cr2", ".nef", ".arw")
+OTHER_IMAGE_SUFFIXES = (".tga", ".psd", ".exr", ".hdr", ".dds", ".jp2", ".j2k", ".heic", ".heif",
+                        ".avif", ".jxl", ".ico", ".raw", ".dng", ".cr2", ".nef", ".arw")
 #: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
 LEDGER = "batch.jsonl"
 #: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
