@@ -412,6 +412,19 @@ def test_an_unknown_extension_names_every_one_tghop_writes(folder):
     assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
 
 
+def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):
+    # The fit command it suggested left a name with spaces unquoted: pasted, it fitted "my".
+    import shlex
+    import shutil
+
+    shutil.copy(folder / "bricks.png", folder / "my wall ü.png")
+    code, _, err, exc = invoke("info", "my wall ü.png", cwd=folder)
+    assert_one_line(code, err, "my wall ü.png is an image, not a model file; fit a model from it first: "
+                    "tghop fit 'my wall ü.png' -o model.npz", exception=exc)
+    command = err.split("first: ", 1)[1].split(" (or", 1)[0]
+    assert shlex.split(command) == ["tghop", "fit", "my wall ü.png", "-o", "model.npz"]
+
+
 def test_an_output_that_is_a_folder_without_extension_is_called_a_folder(folder):
     # `-o outputs` (a folder, meaning "write in there") was told of an unknown extension "(none)".
     (folder / "outputs").mkdir(exist_ok=True)

@@ -144,8 +144,11 @@ def _read(path):
         from .imageio import is_image
 
         if is_image(path):
-            raise ModelFileError(f"{path} is an image, not a model file; fit a model from it first "
-                                 f"('tghop fit {path} -o model.npz', or TGHop().fit and save_model)") from None
+            import shlex  # a name with spaces quoted, so that the command can be pasted as it is
+
+            raise ModelFileError(f"{path} is an image, not a model file; fit a model from it first: "
+                                 f"tghop fit {shlex.quote(str(path))} -o model.npz (or TGHop().fit and "
+                                 "save_model)") from None
         if isinstance(exc, ValueError) and "allow_pickle" in str(exc):  # NumPy's word for "not .npy, not .npz"
             why = ("an array of Python objects, which tghop does not unpickle" if is_model_file(path)
                    else "not a NumPy archive")
