@@ -775,3 +775,24 @@ def test_an_interlaced_16_bit_png_is_read_whole(tmp_path, shape):
     got, depth = load_image(tmp_path / "adam7.png", with_depth=True, keep_alpha=True)
     assert depth == 16
     np.testing.assert_array_equal(np.round(got * 65535).astype(np.uint16), levels)
+
+
+@pytest.mark.parametrize("tifffile_installed", [True, False])
+def test_a_camera_raw_file_s_preview_is_not_learnt(tmp_path, monkeypatch, tifffile_installed):
+    # A DNG's first image is a small preview (NewSubfileType 1), its raw data in a SubIFD: the
+    # preview was read as the exemplar, a few hundred pixels of it, without a word.
+    import sys
+
+    tifffile = pytest.importorskip("tifffile")
+    from tghop import InvalidImageError
+
+    with tifffile.TiffWriter(tmp_path / "camera.dng") as tif:
+        tif.write(_colourful(24, 32), photometric="rgb", subfiletype=1, subifds=1)
+        tif.write(np.zeros((96, 128), np.uint16), photometric="minisblack")
+    tifffile.imwrite(tmp_path / "whole.tif", _colourful(24, 32), photometric="rgb", subfiletype=0)
+    if not tifffile_installed:
+        monkeypatch.setitem(sys.modules, "tifffile", None)  # Pillow's path alone
+    with pytest.raises(InvalidImageError, match="camera.dng: its first image is a reduced-resolution preview "
+                                                r"\(a camera raw file, such as DNG\?\); .* export it as TIFF"):
+        load_image(tmp_path / "camera.dng")
+    np.testing.assert_array_equal(load_image(tmp_path / "whole.tif", dtype=None), _colourful(24, 32))

@@ -125,6 +125,8 @@ def read_deep(path, max_pixels, keep_alpha=False):
         return None
     with tif:
         page, _ = tif.pages[0], warn_frames(path, len(tif.pages))
+        if int(page.subfiletype or 0) & 1:
+            _refuse_preview(path)
         layout = _tiff_layout(page, path)
         if layout is None:
             _check_wide_integers(page, path, max_pixels)
@@ -183,6 +185,14 @@ def _float_pixels(arr, path):
         return arr / (65535.0 if hi > 255 else 255.0)
     raise InvalidImageError(f"{path}: float pixel values from {lo:.6g} to {hi:.6g}; tghop reads float images with "
                             "values in [0, 1]; rescale it to [0, 1] first (or save it with 8 or 16 bits)")
+
+
+def _refuse_preview(path):
+    """The error for a TIFF whose first image is a reduced-resolution one (NewSubfileType bit 0): a
+    camera raw file's (DNG, NEF, ...) preview, whose full image tghop cannot read (0.55 learnt the
+    preview, a few hundred pixels wide, without a word)."""
+    raise InvalidImageError(f"{path}: its first image is a reduced-resolution preview (a camera raw file, such as "
+                            "DNG?); tghop does not develop raw images: export it as TIFF, PNG or JPEG first")
 
 
 def _integer_levels(arr, path):
@@ -319,6 +329,8 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     else:
         im.load()
     warn_frames(path, getattr(im, "n_frames", 1))
+    if int(getattr(im, "tag_v2", {}).get(254, 0) or 0) & 1:  # a TIFF's NewSubfileType: reduced resolution
+        _refuse_preview(path)
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
     if im.mode in ("L", "RGB") and "transparency" in im.info:  # a PNG's transparent colour: an alpha channel
         im = im.convert("LA" if im.mode == "L" else "RGBA")  # (0.55 kept its pixels without a word)

@@ -54,7 +54,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         dropped with a warning. 16-bit PNG
         and TIFF files and float TIFF files are read without loss (16-bit levels ``v`` become
         ``v / 65535``; float values in [0, 1] are kept, others taken as 8-bit or 16-bit levels;
-        signed or 32-bit integer values must be levels from 0 to 65535, as must those floats);
+        signed or 32-bit integer values must be levels from 0 to 65535, as must those floats; a
+        TIFF whose first image is a reduced-resolution preview, as a camera raw file's, is refused);
         colour ones in TIFF need :mod:`tifffile` (``pip install 'tghop[tiff]'``) and must be
         grey or RGB (a 16-bit CMYK TIFF is refused); tghop decodes 16-bit colour PNG itself.
     max_pixels : int
