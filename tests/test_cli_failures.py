@@ -433,6 +433,10 @@ def test_an_output_that_is_a_folder_without_extension_is_called_a_folder(folder)
         assert_one_line(code, err, "outputs is a folder; give a file name for the image in it (e.g. outputs",
                         "texture.png)", exception=exc)
     assert list((folder / "outputs").iterdir()) == []
+    code, _, err, exc = invoke("fit", "bricks.png", "-o", "outputs", cwd=folder)  # was "name it outputs.npz"
+    assert_one_line(code, err, "-o outputs is a folder; give a model file name in it (e.g. outputs",
+                    "model.npz)", exception=exc)
+    assert list((folder / "outputs").iterdir()) == []
 
 
 @pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"],

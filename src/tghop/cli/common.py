@@ -471,6 +471,9 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
         raise ModelFileError(f"{label}: the {what}'s file name is empty; give one, e.g. {label} {what}{suffix}")
     p = Path(path)
     ext = p.suffix.lower()
+    if ext != suffix and p.is_dir():  # -o models/: "name it models.npz" wrote beside the folder
+        raise ModelFileError(f"{label} {path} is a folder; give a {what} file name in it (e.g. "
+                             f"{os.path.join(path, what + suffix)})")
     if ext != suffix:
         fixed = p.with_suffix(suffix) if ext in _IMAGE_EXTENSIONS else p.with_name(p.name + suffix)
         why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in _IMAGE_EXTENSIONS
