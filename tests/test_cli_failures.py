@@ -425,6 +425,21 @@ def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):
     assert shlex.split(command) == ["tghop", "fit", "my wall ü.png", "-o", "model.npz"]
 
 
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_an_image_to_a_terminal_is_refused(folder):
+    # `-o -` without a redirection drew the PNG's bytes in the terminal as garbage, exit status 0.
+    main_fd, terminal = os.openpty()
+    try:
+        p = subprocess.run([sys.executable, "-m", "tghop", "synth", "model.npz", "-o", "-", "--size", "40", "-q"],
+                           cwd=folder, stdout=terminal, stderr=subprocess.PIPE, timeout=120)
+    finally:
+        os.close(terminal)
+        os.close(main_fd)
+    err = p.stderr.decode()
+    assert p.returncode == 2 and err.count("Error: ") == 1 and "Traceback" not in err, err
+    assert "-o -: the standard output is a terminal, which shows no image; redirect it" in err
+
+
 def test_an_output_that_is_a_folder_without_extension_is_called_a_folder(folder):
     # `-o outputs` (a folder, meaning "write in there") was told of an unknown extension "(none)".
     (folder / "outputs").mkdir(exist_ok=True)

@@ -392,6 +392,9 @@ def check_output(path: str, allow_stdout=False):
         raise click.UsageError("this command cannot write to stdout; give a file name with -o")
     if path == "-" and sys.stdout is None:  # before the work, not when the image is written
         raise TGHopError("-o -: the standard output is closed; give a file name instead")
+    if path == "-" and sys.stdout.isatty():  # a PNG's bytes drawn as garbage in the terminal
+        raise click.UsageError("-o -: the standard output is a terminal, which shows no image; redirect it "
+                               "(-o - > out.png, or | another command) or give a file name")
     output_format(path)
     if path != "-":
         check_output_path(path)
