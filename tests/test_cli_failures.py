@@ -408,6 +408,10 @@ def test_an_unknown_extension_names_every_one_tghop_writes(folder):
 
     code, _, err, exc = invoke("synth", "model.npz", "-o", "o.bmp", cwd=folder)
     assert_one_line(code, err, "o.bmp", *FORMATS, exception=exc)
+    assert code == 2  # -o's bad value: a usage error (it was 1, as for a bad file)
+    code, _, err, exc = invoke("extend", "bricks.png", "-o", "o.webp", "--size", "80x80", cwd=folder)
+    assert_one_line(code, err, "o.webp: unknown image extension .webp", "extend --help", exception=exc)
+    assert code == 2
     code, _, err, exc = invoke("synth", "model.npz", "-o", "o.jpeg", "--depth", "16", cwd=folder)
     assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
 

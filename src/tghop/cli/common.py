@@ -18,7 +18,7 @@ from pathlib import Path
 
 import click
 
-from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
+from .._errors import HINT_DOWNSCALE_YOURSELF, InvalidImageError, TGHopError
 from .._formats import COOC_CHECKPOINT, is_model_file, model_file_kind
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
@@ -395,7 +395,12 @@ def check_output(path: str, allow_stdout=False):
     if path == "-" and sys.stdout.isatty():  # a PNG's bytes drawn as garbage in the terminal
         raise click.UsageError("-o -: the standard output is a terminal, which shows no image; redirect it "
                                "(-o - > out.png, or | another command) or give a file name")
-    output_format(path)
+    try:
+        output_format(path)
+    except InvalidImageError as exc:  # an extension tghop does not write: -o's bad value, a usage error
+        if os.path.isdir(path):  # a folder: as one with an image's extension (check_output_path), not usage
+            raise
+        raise click.UsageError(str(exc)) from None
     if path != "-":
         check_output_path(path)
 
