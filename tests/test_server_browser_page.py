@@ -4,8 +4,11 @@ seed, tileable), the model file's as the server's Content-Disposition names it; 
 when the mode or the working model changes; a size the browser's own check refuses said in the status;
 Morph off, and said why, with a material as A or B; each field of the settings beside its name; at a
 phone's 400 px the summary wrapped in its box and each progress label on one line; the tiling's caption
-saying when its seams are expected."""
+saying when its seams are expected; by keyboard and to a screen reader: Generate reached with Tab, started with
+Enter, its focus ring seen, its progress and result told; an error an alert; the focus kept where Cancel or No maps
+turns off."""
 
+import numpy as np
 import pytest
 
 import chromium
@@ -15,7 +18,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT, save_material  # noqa: E402
+from conftest import FAST_FIT, png, save_material  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -190,3 +193,67 @@ def test_the_tilings_caption_says_when_its_seams_are_expected(page):
     page.fill("#height", "256")
     page.fill("#width", "256")
     assert not page.errors, page.errors
+
+
+def test_generate_by_keyboard_shows_its_focus_and_tells_a_screen_reader_its_progress(page):
+    # A blue button's focus was the browser's thin ring hugging its edge; a screen reader heard Generate's bar as a
+    # bare percentage (its stage beside it, untold), and nothing when the result came (the status is cleared then).
+    fit(page, "bricks")
+    page.fill("#height", "40")
+    page.fill("#width", "40")
+    page.fill("#seed", "7")
+    page.fill("#n_patches", "300")
+    page.focus("#quality")
+    page.keyboard.press("Tab")
+    assert page.evaluate("document.activeElement.id") == "go"
+    ring = page.eval_on_selector("#go", "e => [getComputedStyle(e).outlineStyle, getComputedStyle(e).outlineWidth]")
+    assert ring == ["solid", "2px"], ring
+    page.keyboard.press("Enter")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 40x40, seed 7'",
+                           timeout=60_000)
+    said = page.eval_on_selector("#gen-progress progress", "b => [b.getAttribute('aria-valuetext'),"
+                                                           " b.nextElementSibling.textContent]")
+    assert said[0] and said[0] == said[1], said  # the bar's value as a screen reader says it: its label
+    assert page.get_attribute("#result-caption", "aria-live") == "polite"
+    assert page.evaluate("document.activeElement.id") == "go"
+    page.fill("#seed", "1")
+    assert not page.errors, page.errors
+
+
+def test_an_error_is_an_alert_and_a_cancel_by_keyboard_keeps_the_focus(page):
+    # Every status line was a polite status, its errors said whenever the screen reader got to them; Cancel and No
+    # maps, pressed, turned off or hid themselves with the focus on them: it fell to the page's body (nothing said,
+    # Tab starting over).
+    fit(page, "bricks")
+    page.fill("#width", "100000")
+    page.focus("#width")
+    page.keyboard.press("Enter")
+    page.wait_for_function("document.getElementById('gen-message').textContent.startsWith('width 100000')")
+    assert page.get_attribute("#gen-message", "role") == "alert"
+    page.fill("#width", "256")
+    page.evaluate("sayGenerate('stopped')")
+    assert page.get_attribute("#gen-message", "role") == "status"
+    held = []
+    page.route("**/api/models", lambda route: held.append(route))  # the fits' requests: still sending
+    try:
+        # No maps, pressed, hid itself with the focus on it: the focus goes to Add maps
+        page.set_input_files("#maps", files=[{"name": "height.png", "mimeType": "image/png",
+                                              "buffer": png(np.zeros((256, 256), np.uint8))}])
+        page.focus("#maps-clear")
+        page.keyboard.press("Enter")
+        page.wait_for_selector("#maps-clear", state="hidden")
+        assert page.evaluate("document.activeElement.id") == "maps"
+        page.select_option("#builtin", "cells")
+        page.wait_for_function("document.getElementById('stage').textContent === 'sending'")
+        page.focus("#cancel")
+        page.keyboard.press("Enter")
+        page.wait_for_function("document.getElementById('fit-status').hidden")
+        assert page.evaluate("document.activeElement.id") == "drop"
+        assert page.text_content("#message").startswith("fit cancelled")
+        assert page.get_attribute("#message", "role") == "status"
+    finally:
+        for route in held:
+            route.abort()
+        page.unroute("**/api/models")
+    assert page.evaluate("state.working.name") == "builtin:bricks"
+    assert not [e for e in page.errors if "ERR_FAILED" not in e], page.errors

@@ -230,7 +230,7 @@ def test_generates_errors_are_said_where_the_user_is(page):
             said = f"the server broke ({button})"
             held.pop().fulfill(status=500, content_type="application/json", body=json.dumps({"error": said}))
             page.wait_for_function("(id) => document.getElementById(id).textContent !== 'Stop'", arg=button)
-            where = page.evaluate("""(said) => [...document.querySelectorAll('[role=status]')]
+            where = page.evaluate("""(said) => [...document.querySelectorAll('[role=status], [role=alert]')]
               .filter((e) => e.textContent === said && e.classList.contains('error')).map((e) => e.id)""", said)
             assert where, f"{said!r} not said"
             assert any(page.evaluate(IN_VIEW_JS, i) for i in where), f"{said!r} said out of sight, in {where}"

@@ -1,7 +1,8 @@
 // tghop serve's page: the HTTP API under /api (docs/serve.md), nothing else. Plain scripts (no build
 // step) that share the page's global scope, loaded by index.html in this order (deferred: each runs
 // whole, in order, before DOMContentLoaded):
-//   common.js    the page's state (state, editor) and what every part uses: $, say, errorOf,
+//   common.js    the page's state (state, editor) and what every part uses: $, say and sayIn (a status line,
+//                an error an alert), keepFocus, showStage (a progress bar's label, its value told), errorOf,
 //                updateButtons, withBusy and busyFetch (Stop), withProgress (a generation's bar), answerOf and
 //                postImage (the API's answers), withWarning (a result's status with the server's warning)
 //   download.js  download links; a material's maps as one ZIP

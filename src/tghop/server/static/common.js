@@ -22,10 +22,22 @@ function context2d(canvas) {
   return canvas.getContext("2d", { willReadFrequently: true });
 }
 
-function say(text, isError) {
-  const el = $("message");
+// A status line (say, sayGenerate, ...): an error is an alert, which a screen reader says at once; the rest a
+// status, said when it is done speaking. The role is set before the text, so that the text is said in it.
+function sayIn(el, text, isError) {
+  el.setAttribute("role", isError ? "alert" : "status");
   el.textContent = text || "";
   el.classList.toggle("error", Boolean(isError));
+}
+
+function say(text, isError) {
+  sayIn($("message"), text, isError);
+}
+
+// When `el` (a button turned off or hidden) has the keyboard's focus, it goes to `to`: else to the page's body,
+// from where a screen reader says nothing and Tab starts over.
+function keepFocus(el, to) {
+  if (document.activeElement === el) to.focus();
 }
 
 async function errorOf(response) {
@@ -127,6 +139,13 @@ function withWarning(text, warning) {
   return warning ? `${text}. Warning: ${warning}` : text;
 }
 
+// A progress bar's label beside it ("patch refine 88 %"), which is also the value a screen reader says of the bar
+// (the percentage alone without it, the stage untold).
+function showStage(bar, label, text) {
+  label.textContent = text;
+  bar.setAttribute("aria-valuetext", text);
+}
+
 // A new job id for a generation: 32 hex digits (the request's X-Tghop-Job header; docs/serve.md, "Jobs").
 function newJobId() {
   return [...crypto.getRandomValues(new Uint8Array(16))].map((b) => b.toString(16).padStart(2, "0")).join("");
@@ -144,7 +163,7 @@ async function withProgress(boxId, request, { from = 0, to = 1, label = "" } = {
   let ended = false, timer = null;
   box.dataset.job = job;  // for scripts and tests
   if (from === 0 || box.hidden) bar.value = from;
-  text.textContent = `${label}waiting`;
+  showStage(bar, text, `${label}waiting`);
   box.hidden = false;
   const poll = async () => {
     try {
@@ -154,7 +173,7 @@ async function withProgress(boxId, request, { from = 0, to = 1, label = "" } = {
       if (snap && snap.state !== "unknown" && !ended) {
         bar.value = Math.max(bar.value, from + (to - from) * snap.progress);  // it never goes back
         const stage = snap.state === "queued" ? "waiting" : snap.stage || "starting";
-        text.textContent = `${label}${stage} ${Math.round(100 * bar.value)} %`;
+        showStage(bar, text, `${label}${stage} ${Math.round(100 * bar.value)} %`);
       }
     } catch (e) { /* the next poll asks again */ }
     if (!ended) timer = setTimeout(poll, PROGRESS_POLL_MS);

@@ -12,9 +12,7 @@ const COOC_SLOTS = 4;
 const coocBoard = makeBoard("cooc-guide", "cooc-cursor", "cooc-brush", () => cooc.active);
 
 function sayCooc(text, isError) {
-  const el = $("cooc-message");
-  el.textContent = text || "";
-  el.classList.toggle("error", Boolean(isError));
+  sayIn($("cooc-message"), text, isError);
 }
 
 function updateCoocButtons() {

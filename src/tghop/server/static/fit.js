@@ -42,6 +42,7 @@ function setWorking(working) {
 // before that pick (`undo.mapFiles`). `lead`: what happened, said first (an error unless `error` is false).
 function backToWorking(lead, undo, error = true) {
   const working = state.working;
+  keepFocus($("cancel"), $("drop"));
   $("fit-status").hidden = true;
   listMaps(undo.mapFiles);
   state.source = working ? working.source : null;
@@ -157,6 +158,7 @@ function listMaps(files) {
   state.mapFiles = files;
   const names = files.map((f) => mapName(f.name));
   $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
+  if (!names.length) keepFocus($("maps-clear"), $("maps"));  // No maps, pressed: the focus goes to Add maps
   $("maps-clear").hidden = !names.length;
 }
 
@@ -235,7 +237,7 @@ async function startFit(form, undo) {
   $("fit-status").hidden = false;
   delete $("fit-status").dataset.state;  // set again when this fit ends
   $("progress").value = 0;
-  $("stage").textContent = "sending";
+  showStage($("progress"), $("stage"), "sending");
   $("cancel").disabled = false;
   say("");
   let response;
@@ -269,12 +271,13 @@ function follow(id, job, material, attempt, undo, notes) {
   state.events = events;
   const update = (snap) => {
     $("progress").value = snap.progress;
-    $("stage").textContent = snap.state !== "running" ? snap.state : $("cancel").disabled ? "cancelling"
-      : snap.stage ? `${snap.stage} ${Math.round(100 * snap.progress)} %` : "starting";
+    showStage($("progress"), $("stage"), snap.state !== "running" ? snap.state : $("cancel").disabled ? "cancelling"
+      : snap.stage ? `${snap.stage} ${Math.round(100 * snap.progress)} %` : "starting");
   };
   events.addEventListener("progress", (e) => update(JSON.parse(e.data)));
   events.addEventListener("end", (e) => {
     const snap = JSON.parse(e.data);
+    const focused = document.activeElement === $("cancel");  // turned off now: the focus goes on (below)
     stopEvents();
     update(snap);
     $("cancel").disabled = true;
@@ -290,6 +293,7 @@ function follow(id, job, material, attempt, undo, notes) {
     } else {
       backToWorking(snap.error || "the fit failed", undo);
     }
+    if (focused) (snap.state === "done" && !$("go").disabled ? $("go") : $("drop")).focus();  // next: Generate
   });
   events.onerror = () => {
     if (state.events !== events) return;
@@ -301,8 +305,9 @@ function follow(id, job, material, attempt, undo, notes) {
 }
 
 async function cancelFit() {
+  keepFocus($("cancel"), $("drop"));  // pressed: turned off, the focus back at the start, to pick another
   $("cancel").disabled = true;  // and the stage says so until the fit stops (follow)
-  $("stage").textContent = "cancelling";
+  showStage($("progress"), $("stage"), "cancelling");
   if (!state.job) {  // its request still on its way (an exemplar sending): withdrawn, startFit cancels its job
     state.fitRequest++;
     $("fit-status").dataset.state = "cancelled";
@@ -314,7 +319,7 @@ async function cancelFit() {
   if ((await response.json()).askers > 0) {  // another page asked for the same model: it fits on for that page
     stopEvents();
     $("fit-status").dataset.state = "cancelled";
-    $("stage").textContent = "cancelled";
+    showStage($("progress"), $("stage"), "cancelled");
     backToWorking("fit cancelled here, going on for another page that asked for the same model", state.fitUndo,
       false);
   }

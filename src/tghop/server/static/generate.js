@@ -103,8 +103,7 @@ function drawTiled(img) {
 // are scrolled to): an error is scrolled into view where it is not (the result or seeds waited for will not come).
 function sayGenerate(text, isError) {
   const el = $("gen-message");
-  el.textContent = text || "";
-  el.classList.toggle("error", Boolean(isError));
+  sayIn(el, text, isError);
   if (isError) el.scrollIntoView({ block: "nearest" });  // "nearest": no scroll where it is in view
 }
 

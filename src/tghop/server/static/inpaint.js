@@ -3,9 +3,7 @@
 "use strict";
 
 function sayInpaint(text, isError) {
-  const el = $("inpaint-message");
-  el.textContent = text || "";
-  el.classList.toggle("error", Boolean(isError));
+  sayIn($("inpaint-message"), text, isError);
 }
 
 // What Fill and Extend need that they lack (their buttons are off meanwhile; updateButtons), or "".

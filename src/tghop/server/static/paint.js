@@ -9,15 +9,11 @@ const MAX_PICKED = 4;
 const guide = makeBoard("guide", "guide-cursor", "paint-brush", () => brushLabel());
 
 function sayPaint(text, isError) {
-  const el = $("paint-message");
-  el.textContent = text || "";
-  el.classList.toggle("error", Boolean(isError));
+  sayIn($("paint-message"), text, isError);
 }
 
 function sayMorph(text, isError) {
-  const el = $("morph-message");
-  el.textContent = text || "";
-  el.classList.toggle("error", Boolean(isError));
+  sayIn($("morph-message"), text, isError);
 }
 
 // What Paint and Morph say while the page has fewer than two models (cleared when the second comes).
