@@ -273,3 +273,22 @@ def test_each_field_shown_has_a_name_of_its_own(page):
     finally:
         chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_a_fit_that_ends_with_the_focus_on_cancel_leaves_it_on_generate(page):
+    # Cancel, turned off when the fit ended, took the focus with it to the page's body.
+    fit(page, "bricks")
+    held = []
+    page.route("**/api/models", lambda route: held.append(route))  # sent on once Cancel has the focus
+    try:
+        page.select_option("#builtin", "cells")
+        page.wait_for_function("document.getElementById('stage').textContent === 'sending'")
+        page.focus("#cancel")
+        while not held:
+            page.wait_for_timeout(20)
+        held.pop().continue_()
+    finally:
+        page.unroute("**/api/models")
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
+    assert page.evaluate("document.activeElement.id") == "go"
+    assert not page.errors, page.errors
