@@ -67,6 +67,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -288,9 +289,9 @@ def usage_error(message):
 
 def read_against(text, mode):
     """The payload of ``--against`` (a results name or a .json path); a usage error naming the problem."""
-    path = text if text.endswith(".json") else RESULTS / f"{text}.json"
+    path = Path(text) if text.endswith(".json") else RESULTS / f"{text}.json"
     try:
-        payload = json.loads(open(path).read())
+        payload = json.loads(path.read_text())
         payload["results"]
     except (OSError, ValueError, KeyError, TypeError) as exc:
         usage_error(f"--against {text}: cannot read {path} ({type(exc).__name__}); "
@@ -549,7 +550,8 @@ def report(payload):
     failures += "".join(f"\n- {r['exemplar']} {r['hole']:.0%}: tghop failed ({r['tghop_failed_seeds']}); the "
                         "mean over the other seeds" for r in results if "tghop_failed_seeds" in r)
     detail_header = ["exemplar", "hole", *[f"SIFID {m}" for m in methods], *(["tghop SIFID sd"] if several else []),
-                     *[f"seam {m}" for m in methods], "fit s", "tghop inpaint s", "quilting s"]
+                     *[f"seam {m}" for m in methods], "fit or load s" if meta.get("models") else "fit s",
+                     "tghop inpaint s", "quilting s"]
     time_rows = [[t["exemplar"], f"{t['size']}x{t['size']}", t["in_process_s"], t["process_s"]] for t in times]
     timing_text = ("\n\nTime of inpainting a 30 % centred hole from a saved model (`--source model.npz`; the 2048 "
                    "image is synthesised by the model), in process and the whole `tghop inpaint` process (start, "
@@ -587,7 +589,7 @@ def extend_report(payload):
     seeds = meta["seeds"]
     synth = any("synth_sifid" in r for r in results)
     ok = [r for r in results if "corner_sifid" in r]
-    per_seed = [[f"seed {s}", float(np.median([r["per_seed"][str(s)]["corner_sifid"] for r in ok
+    per_seed = [[s, float(np.median([r["per_seed"][str(s)]["corner_sifid"] for r in ok
                                                 if "corner_sifid" in r["per_seed"][str(s)]]))]
                 for s in seeds if any("corner_sifid" in r["per_seed"][str(s)] for r in ok)]
     summary = [["median", float(np.median([r["corner_sifid"] for r in ok])),
@@ -596,7 +598,8 @@ def extend_report(payload):
              *([r["per_seed"][str(s)].get("corner_sifid", "failed") for s in seeds] if len(seeds) > 1 else []),
              r["fit_s"], r["extend_s"]] for r in results]
     header = ["exemplar", "corner SIFID", *(["synth's corners"] if synth else []),
-              *([f"seed {s}" for s in seeds] if len(seeds) > 1 else []), "fit s", "extend s"]
+              *([f"seed {s}" for s in seeds] if len(seeds) > 1 else []),
+              "fit or load s" if meta.get("models") else "fit s", "extend s"]
     failures = "".join(f"\n- {r['exemplar']}: {r['error']}" for r in results if "error" in r)
     side = (meta["size"] - meta["crop"]) // 2
     return (f"# Grown pictures (bench_inpaint.py --extend)\n\n"
