@@ -160,6 +160,25 @@ def tiny_cooc_checkpoint(tiny_cooc_exemplar, tmp_path_factory):
     return path
 
 
+
+def bench_script(script):
+    """A benchmarks/ script (a ``Path``) imported as a module, for a module-scoped fixture to ``yield from``:
+    the script's folder first on sys.path (its ``_common``), and sys.path and sys.modules as they were
+    afterwards."""
+    import importlib.util
+
+    path, modules = list(sys.path), set(sys.modules)
+    sys.path.insert(0, str(script.parent))
+    name = f"{script.stem}_under_test"
+    spec = importlib.util.spec_from_file_location(name, script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    yield module
+    sys.path[:] = path
+    for added in set(sys.modules) - modules:
+        if added in ("_common", name):
+            del sys.modules[added]
+
 def assert_user_error(r, *fragments, status=None):
     """Non-zero exit, one 'Error:' line naming the problem, no traceback. ``r``: a finished
     process (``subprocess.run``'s) or click's in-process ``Result``; ``status``: the exit status

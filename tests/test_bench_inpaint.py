@@ -5,13 +5,12 @@ of ``--against`` are exercised.
 """
 
 import argparse
-import importlib.util
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import bench_script
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_inpaint.py"
 
@@ -19,16 +18,7 @@ SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_inpaint.py"
 @pytest.fixture(scope="module")
 def bench():
     """The script as a module; sys.path and sys.modules as they were afterwards."""
-    path, modules = list(sys.path), set(sys.modules)
-    sys.path.insert(0, str(SCRIPT.parent))
-    spec = importlib.util.spec_from_file_location("bench_inpaint_under_test", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    yield module
-    sys.path[:] = path
-    for name in set(sys.modules) - modules:
-        if name in ("_common", "bench_inpaint_under_test"):
-            del sys.modules[name]
+    yield from bench_script(SCRIPT)
 
 
 def test_seeds_are_read_as_lists_and_ranges(bench):

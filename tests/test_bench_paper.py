@@ -3,13 +3,13 @@
 Only the argument parsing and Table 2's rows are exercised: no exemplar, fit or Ustyuzhaninov run.
 """
 
-import importlib.util
 import itertools
 import re
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import bench_script
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_paper.py"
 
@@ -17,15 +17,7 @@ SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_paper.py"
 @pytest.fixture(scope="module")
 def bench():
     """The script as a module; sys.path and sys.modules as they were afterwards."""
-    path, modules = list(sys.path), set(sys.modules)
-    spec = importlib.util.spec_from_file_location("bench_paper_under_test", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    yield module
-    sys.path[:] = path
-    for name in set(sys.modules) - modules:
-        if name in ("_common", "bench_paper_under_test"):
-            del sys.modules[name]
+    yield from bench_script(SCRIPT)
 
 
 def _rows(bench, args):
