@@ -243,6 +243,29 @@ def test_options_that_do_not_go_together_are_usage_errors(folder, args, fragment
     assert sorted(os.listdir(folder)) == before
 
 
+@pytest.mark.parametrize("args, fragments", [
+    (["synth", "model.npz", "-o", "o.jpg", "--depth", "16"], ["o.jpg: JPEG cannot hold 16-bit", ".png, .tif or .tiff"]),
+    (["synth", "bricks.png", "-o", "o.jpeg", "--depth", "16"], ["o.jpeg: JPEG cannot hold 16-bit"]),
+    (["synth", "model.npz", "model.npz", "-o", "o.jpg", "--depth", "16"], ["o.jpg: JPEG cannot hold 16-bit"]),
+    (["synth", "model.npz", "-o", "o.png", "--depth", "32"], ["o.png: PNG cannot hold 32-bit float", ".tif or .tiff"]),
+    (["synth", "model.npz", "-o", "-", "--depth", "32"], ["PNG cannot hold 32-bit float"]),
+    (["morph", "model.npz", "model.npz", "-o", "o.jpg", "--depth", "16"], ["o.jpg: JPEG cannot hold 16-bit"]),
+    (["baseline", "crop", "bricks.png", "-o", "o.jpg", "--depth", "16"], ["o.jpg: JPEG cannot hold 16-bit"]),
+    (["inpaint", "bricks.png", "two_levels.png", "-o", "o.jpg", "--depth", "16"], ["o.jpg: JPEG cannot hold 16-bit"]),
+    (["inpaint", "bricks.png", "two_levels.png", "--maps", "small.png", "-o", "o.png", "--depth", "32"],
+     ["o.png: PNG cannot hold 32-bit float"]),
+    (["extend", "bricks.png", "-o", "o.png", "--size", "96", "--depth", "32"], ["o.png: PNG cannot hold 32-bit"]),
+])
+def test_a_depth_the_output_cannot_hold_is_a_usage_error(folder, args, fragments):
+    # --depth 16 -o x.jpg exited 1, as a bad file does, where an output extension tghop does not write is a
+    # usage error (2): two options that clash, refused before anything is read, with the command's --help named.
+    before = sorted(os.listdir(folder))
+    code, _, err, exc = invoke(*args, cwd=folder)
+    assert_one_line(code, err, *fragments, f"(see 'main {args[0]} --help')", exception=exc)
+    assert code == 2, err
+    assert sorted(os.listdir(folder)) == before
+
+
 def test_the_boost_bound_is_one_value_for_the_command_line_and_the_library():
     # tghop.cli.cooc kept its own MAX_BOOST = 1000.0 beside tghop.cooc.assembly's (the command line does not import
     # NumPy, which the library's module does): a change of one would not have reached the other. Both take
@@ -414,6 +437,7 @@ def test_an_unknown_extension_names_every_one_tghop_writes(folder):
     assert code == 2
     code, _, err, exc = invoke("synth", "model.npz", "-o", "o.jpeg", "--depth", "16", cwd=folder)
     assert_one_line(code, err, ".png", ".tif", ".tiff", exception=exc)
+    assert code == 2  # a clash of options, as above (it was 1)
 
 
 def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):

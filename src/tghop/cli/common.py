@@ -385,8 +385,12 @@ def check_stdout(what: str):
                          "or redirect it to a file (> FILE)")
 
 
-def check_output(path: str, allow_stdout=False):
-    from ..imageio import check_output_path, output_format
+def check_output(path: str, allow_stdout=False, depth=None):
+    """Refuse, before any work, an image output ``path`` (``-o``) that cannot be written: stdout
+    where the command writes none or to a terminal, an extension tghop does not write, a folder;
+    with ``depth`` (``--depth``), a depth the output's format cannot hold (usage errors: two options
+    that clash, or -o's bad value)."""
+    from ..imageio import check_depth, check_output_path, output_format
 
     if path == "-" and not allow_stdout:
         raise click.UsageError("this command cannot write to stdout; give a file name with -o")
@@ -403,6 +407,11 @@ def check_output(path: str, allow_stdout=False):
         raise click.UsageError(str(exc)) from None
     if path != "-":
         check_output_path(path)
+    if depth is not None:
+        try:
+            check_depth(path, depth)
+        except InvalidImageError as exc:  # --depth 16 -o x.jpg: a clash of options, as an unknown extension
+            raise click.UsageError(str(exc)) from None
 
 
 def _file_key(path: str):

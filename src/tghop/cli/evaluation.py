@@ -242,7 +242,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
 
     progress = Progress(not quiet)
     with user_errors(progress):
-        check_output(output, allow_stdout=True)
+        check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--model", model_file)])
         if iterations is not None and name not in ("ustyuzhaninov", "cooc", "gpdm"):

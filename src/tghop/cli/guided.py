@@ -352,7 +352,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
 
     progress = Progress(not quiet)
     with user_errors(progress):
-        check_output(output, allow_stdout=True)
+        check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
         check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)

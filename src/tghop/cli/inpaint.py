@@ -167,7 +167,7 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     from ..imageio import check_depth, deepest, load_image
     from ..inpaint import split_alpha
 
-    check_output(output, allow_stdout=True)
+    check_output(output, allow_stdout=True, depth=depth)
     check_outputs([("-o", output)], [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):
         raise TGHopError(f"IMAGE {image} is a model file; give a picture as IMAGE (a model goes to --source)")

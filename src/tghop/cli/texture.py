@@ -239,7 +239,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             raise click.UsageError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... "
                                    "-o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> for "
                                    "each map")
-        check_output(output, allow_stdout=True)
+        check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
         if output == "-" and count > 1:
             raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
