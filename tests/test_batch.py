@@ -1623,3 +1623,16 @@ def test_a_scheduler_without_workers_is_said_and_the_run_goes_on_when_one_joins(
         assert p.returncode == 130 and rest.rstrip().splitlines()[-1].startswith("Error: interrupted"), rest
     finally:
         cluster.close()
+
+
+def test_a_model_records_its_exemplars_depth(tmp_path):
+    # tghop synth MODEL.npz warns of a 16-bit exemplar's bits written with 8 when the model records its depth:
+    # the batch's models did not.
+    from tghop.modelfile import load_model
+
+    (tmp_path / "img").mkdir()
+    save_image(data.bricks(64, rng=3), tmp_path / "img" / "deep.png", depth=16)
+    save_image(data.cells(64, rng=4), tmp_path / "img" / "flat.png")
+    by = {r["name"]: r for r in run(tmp_path / "img", tmp_path / "out", workers=1)}
+    assert {name: load_model(tmp_path / "out" / r["model"]).exemplar_depth_ for name, r in by.items()} == {
+        "deep": 16, "flat": 8}

@@ -205,6 +205,93 @@ def test_cli_synth_of_several_sources_warns_once_naming_the_deep_ones(tmp_path):
         "pass --depth 16 to keep them"]
 
 
+def test_a_model_of_a_16bit_exemplar_warns_as_the_exemplar_does(tmp_path):
+    # tghop synth EXEMPLAR16.png warned that the image is written with 8 bits; tghop fit EXEMPLAR16.png, then
+    # tghop synth MODEL.npz wrote 8 bits without a word. The model file's metadata records the exemplar's depth
+    # (no array: the format version stays); files without it (tghop 0.55 and older) stay silent.
+    import json
+
+    from click.testing import CliRunner
+
+    from tghop import TGHop, data
+    from tghop.cli import main
+    from tghop.modelfile import ModelFileError, load_model, save_model
+
+    save_image(data.bricks(72, rng=2), tmp_path / "deep.png", depth=16)
+    save_image(data.bricks(72, rng=2), tmp_path / "flat.png")
+    fast = ["--clusters", "6", "--codewords", "30", "--stride", "4", "--layout", "none", "-q"]
+    runner = CliRunner()
+
+    def run(*args):
+        res = runner.invoke(main, [str(a) for a in args])
+        assert res.exit_code == 0, res.output
+        return [line for line in res.output.splitlines() if line.startswith("Warning")]
+
+    def meta(path):
+        return json.loads(str(np.load(path)["__meta__"]))
+
+    deep, flat = tmp_path / "deep.npz", tmp_path / "flat.npz"
+    assert run("fit", tmp_path / "deep.png", "-o", deep, *fast) == []
+    assert run("fit", tmp_path / "flat.png", "-o", flat, *fast) == []
+    assert meta(deep)["exemplar_depth"] == 16 and meta(flat)["exemplar_depth"] == 8
+    assert load_model(deep).exemplar_depth_ == 16
+    said = ("has more than 8 bits a channel, but the image is written with 8; pass --depth 16 to keep them")
+    assert run("synth", deep, "-o", tmp_path / "o.png", "--size", "48") == [
+        f"Warning: the exemplar of SOURCE {deep} {said}"]
+    assert load_image(tmp_path / "o.png", with_depth=True)[1] == 8
+    assert run("synth", deep, "-o", tmp_path / "o.jpg", "--size", "48") == [
+        f"Warning: the exemplar of SOURCE {deep} has more than 8 bits a channel, but the image is written with 8; "
+        "name the output .png, .tif or .tiff and pass --depth 16 to keep them"]
+    assert run("synth", deep, "-o", tmp_path / "d.png", "--size", "48", "--depth", "16") == []
+    assert run("synth", flat, "-o", tmp_path / "f.png", "--size", "48") == []
+    # Several sources and a morph name the model's exemplar, as they name a deep exemplar.
+    assert run("synth", deep, flat, "-o", tmp_path / "r.png", "--size", "48") == [
+        f"Warning: the exemplar of SOURCE 1 ({deep}) {said}"]
+    assert run("morph", flat, deep, "-o", tmp_path / "m.png", "--size", "48x96", "--seed", "1", "-q") == [
+        f"Warning: the exemplar of B ({deep}) {said}"]
+    # synth --save-model records it too; the info says it.
+    assert run("synth", tmp_path / "deep.png", "-o", tmp_path / "s.png", "--size", "48", "--depth", "16",
+               "--save-model", tmp_path / "s.npz", *fast) == []
+    assert meta(tmp_path / "s.npz")["exemplar_depth"] == 16
+    assert "3 channels, 16-bit;" in runner.invoke(main, ["info", str(deep)]).output
+    assert json.loads(runner.invoke(main, ["info", "--json", str(flat)]).output)["exemplar_depth"] == 8
+    # The depth changes nothing learned: the arrays of a float fit of the same pixels (depth not known).
+    arrays = np.load(deep)
+    refit = TGHop(**load_model(deep).get_params()).fit(load_image(tmp_path / "deep.png"))
+    assert refit.exemplar_depth_ is None and "exemplar_depth" not in refit._state_meta()
+    save_model(refit, tmp_path / "float.npz")
+    other = np.load(tmp_path / "float.npz")
+    assert sorted(other.files) == sorted(arrays.files)
+    assert meta(deep)["format_version"] == meta(tmp_path / "float.npz")["format_version"]
+    assert all(np.array_equal(arrays[k], other[k]) for k in arrays.files if k != "__meta__")
+    # A file without it (tghop 0.55) loads and stays silent; an edited one is one line.
+    old = meta(deep)
+    del old["exemplar_depth"]
+    np.savez(tmp_path / "old.npz", **{**{k: arrays[k] for k in arrays.files}, "__meta__": np.array(json.dumps(old))})
+    assert load_model(tmp_path / "old.npz").exemplar_depth_ is None
+    assert run("synth", tmp_path / "old.npz", "-o", tmp_path / "p.png", "--size", "48") == []
+    for bad in (12, "16", True, 16.0):
+        old["exemplar_depth"] = bad
+        np.savez(tmp_path / "bad.npz", **{**{k: arrays[k] for k in arrays.files},
+                                          "__meta__": np.array(json.dumps(old))})
+        with pytest.raises(ModelFileError, match=r"the metadata's exemplar_depth must be 8, 16 or 32 .*; fit"):
+            load_model(tmp_path / "bad.npz")
+
+
+def test_fit_records_the_depth_it_is_told_or_its_dtypes():
+    from tghop import TGHop, TGHopError, data
+
+    image = data.bricks(64, rng=1)
+    fast = dict(rng=0, max_patches=600, n_clusters=4, layout_factor=None, patch_levels=0)
+    assert TGHop(**fast).fit(image).exemplar_depth_ is None  # floats: any file's levels
+    assert TGHop(**fast).fit(np.round(image * 65535).astype(np.uint16)).exemplar_depth_ == 16
+    assert TGHop(**fast).fit(np.round(image * 255).astype(np.uint8)).exemplar_depth_ == 8
+    assert TGHop(**fast).fit(image, depth=32).exemplar_depth_ == 32
+    for bad in (12, True, 16.0, "16"):
+        with pytest.raises(TGHopError, match=r"^depth must be 8, 16 or 32 \(bits per channel of the exemplar's"):
+            TGHop(**fast).fit(image, depth=bad)
+
+
 def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     from click.testing import CliRunner
 

@@ -194,7 +194,7 @@ def process_exemplar(job: dict) -> dict:
                     image, {k: v for k, (v, _) in maps.items()},
                     depths={"albedo": depth, **{k: d for k, (_, d) in maps.items()}})
             else:
-                model.fit(image)
+                model.fit(image, depth=depth)  # recorded: synth from the model warns of a 16-bit exemplar's bits
             record["fit_seconds"] = time.time() - t
             phase = "run"  # read, checked and fitted: what fails from here on is the run's (disk, memory)
             thumb = THUMBNAIL_FILE

@@ -1,7 +1,7 @@
 """Bit depths and pixel levels: float images in [0, 1] to 8- and 16-bit levels
 (:func:`to_uint8`, :func:`to_uint16`), the output format an extension names (:func:`output_format`),
-the depths it holds (:func:`check_depth`, :func:`deepest`) and the dtype to generate in for a depth
-(:func:`generation_dtype`)."""
+the depths it holds (:func:`check_depth`, :func:`deepest`), the dtype to generate in for a depth
+(:func:`generation_dtype`) and the depth of an exemplar a model records (:func:`exemplar_depth`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ import numpy as np
 from ._common import InvalidImageError, TGHopError
 from ._formats import DEPTHS, FORMATS, check_tifffile, extensions
 
-__all__ = ["RANGE_TOLERANCE", "output_format", "to_uint8", "to_uint16", "generation_dtype", "check_depth", "deepest"]
+__all__ = ["RANGE_TOLERANCE", "output_format", "to_uint8", "to_uint16", "generation_dtype", "check_depth", "deepest",
+           "exemplar_depth"]
 
 
 #: How far outside [0, 1] a float image to save may stray (float rounding after clipping; less than
@@ -158,3 +159,27 @@ def deepest(path, depth: int) -> int:
     int : 8, 16 or 32
     """
     return max(d for d in DEPTHS[output_format(path)] if d <= max(depth, 8))
+
+
+def exemplar_depth(depth, image=None, *, what: str = "depth"):
+    """The bits per channel of an exemplar's file that a model records
+    (:attr:`tghop.TGHop.exemplar_depth_`): ``depth`` checked, or without it ``image``'s dtype's.
+
+    Parameters
+    ----------
+    depth : {8, 16, 32} or None, as given (``fit``'s ``depth``, a model file's metadata)
+    image : array_like, optional, the exemplar: uint8 is 8 bits, uint16 16; any other dtype (floats,
+        which hold any file's levels) leaves the depth unknown
+    what : str, the name of ``depth`` in the error (``the metadata's exemplar_depth``)
+
+    Returns
+    -------
+    int or None : 8, 16 or 32, or None when not known; another ``depth`` is a one-line :class:`TGHopError`
+    """
+    if depth is None:
+        dtype = getattr(image, "dtype", None)
+        return 8 if dtype == np.uint8 else 16 if dtype == np.uint16 else None
+    if isinstance(depth, (bool, np.bool_)) or not isinstance(depth, (int, np.integer)) or depth not in (8, 16, 32):
+        raise TGHopError(f"{what} must be 8, 16 or 32 (bits per channel of the exemplar's file; 32: float) "
+                         f"or None, got {depth!r}")
+    return int(depth)

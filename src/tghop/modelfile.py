@@ -102,7 +102,8 @@ def info_dict(model, params=None) -> dict:
     fit's int seed is ``fit_seed``, None when it was a Generator or not recorded),
     dimensions, channels, exemplar shape, parameter count (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
-    layout's factor (``layout_factor_used``: None without one). What ``tghop info
+    layout's factor (``layout_factor_used``: None without one) and the exemplar's bits per
+    channel (``exemplar_depth``: 8, 16 or 32; None when not recorded). What ``tghop info
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
     if not isinstance(model, TGHop):
         raise TGHopError(f"info_dict: model must be a fitted TGHop (e.g. load_model(path)), got {type(model).__name__}")
@@ -114,7 +115,7 @@ def info_dict(model, params=None) -> dict:
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
             "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor),
-            "fit_seed": fit_seed(model)}
+            "fit_seed": fit_seed(model), "exemplar_depth": getattr(model, "exemplar_depth_", None)}
 
 
 def _check_path(path, caller: str, verb: str) -> None:

@@ -40,6 +40,7 @@ from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, c
                       fit_part, fitted_settings, grey_as_rgb, one_blas_thread, report)
 from ._arrays import forget_fit
 from .codec import PatchCodec
+from .depths import exemplar_depth
 from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack
@@ -87,6 +88,11 @@ class TGHop(PatchCodec, BaseEstimator):
         Its ``rng``: a copy of the fit's generator as it was before this part's fit (what refits it;
         None in a loaded model).
     exemplar_shape_ : tuple
+    exemplar_depth_ : int or None
+        Bits per channel of the exemplar's file: 8, 16 or 32 (float), as ``fit``'s ``depth`` says
+        or its dtype (uint8, uint16); None when not known (a float array, a file of tghop 0.55 or
+        older). Kept in the model file, so that ``tghop synth MODEL`` warns, as from the exemplar,
+        that an image written with 8 bits loses some.
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
     classes_ : tghop.colour.ColourClasses or None
@@ -194,7 +200,7 @@ class TGHop(PatchCodec, BaseEstimator):
         check_exemplar_size(shape, ichm, patch_size=self.patch_size, stride=self.stride, max_patches=self.max_patches,
                             scale=self.scale)
 
-    def fit(self, image, y=None, *, exclude=None, progress=None):
+    def fit(self, image, y=None, *, exclude=None, depth=None, progress=None):
         """Learn the model from one exemplar.
 
         Parameters
@@ -216,6 +222,10 @@ class TGHop(PatchCodec, BaseEstimator):
             colour and band statistics come from the other pixels (the coarse layout's
             model too; it is left out when too few of its patches remain). Too few
             training patches left is a :class:`TGHopError` naming the minimum.
+        depth : {8, 16, 32}, optional
+            Bits per channel of the exemplar's file (32: float), recorded as ``exemplar_depth_``;
+            by default the dtype's (8 for uint8, 16 for uint16; a float array: not known). It
+            changes nothing learned.
         progress : callable, optional
             ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
             "SDR", "clusters", "ICA", "CDF codebook", and "layout" with a ``layout_factor``.
@@ -226,6 +236,7 @@ class TGHop(PatchCodec, BaseEstimator):
         """
         from threadpoolctl import threadpool_limits
 
+        depth = exemplar_depth(depth, image)
         # One BLAS / OpenMP thread: the model is the same bit for bit on every machine (OpenBLAS's
         # results change with its thread count) and a busy machine is not oversubscribed; ICHM.fit
         # runs its clusters in threads of its own (usable_cores).
@@ -236,6 +247,7 @@ class TGHop(PatchCodec, BaseEstimator):
                 if "_fitted_params" not in self.__dict__:
                     forget_fit(self)
                 raise
+        self.exemplar_depth_ = depth
         self._fitted_params = fitted_settings(self)  # what check_is_fitted holds the settings to
         return self
 
@@ -319,6 +331,8 @@ class TGHop(PatchCodec, BaseEstimator):
             "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
             "layout": None if self.layout_ is None else {
                 "params": {**self.layout_.get_params(), "rng": None}, "model": self.layout_.model_._state_meta()},
+            # Metadata, not an array (as a hop's saab_energy): the same format version; left out when not known.
+            **({} if getattr(self, "exemplar_depth_", None) is None else {"exemplar_depth": self.exemplar_depth_}),
         }
 
     @classmethod
@@ -342,6 +356,7 @@ class TGHop(PatchCodec, BaseEstimator):
             arrays, tuple(int(v) for v in meta["sdr_shape"]))
         model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+        model.exemplar_depth_ = exemplar_depth(meta.get("exemplar_depth"), what="the metadata's exemplar_depth")
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
         model.classes_ = ColourClasses(model.colour_classes)._from_arrays(arrays) if model.colour_classes else None
         model.bands_ = BandStatistics(n_levels=model.band_levels,

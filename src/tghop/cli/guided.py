@@ -59,13 +59,16 @@ def _check_channels(output, depth, read):
 
 def _warn_deep(specs, read, labels, output, depth):
     """Without ``depth``, one warning naming the 16-bit or float exemplars among the sources ``read``
-    (:func:`_read`, read as floats) that the image is written with 8 bits, as one such SOURCE of
-    ``synth`` is warned of; ``labels``: "SOURCE" (numbered) or one label per source ("A", "B")."""
+    (:func:`_read`, read as floats), and the models fitted on one (their ``exemplar_depth_``), that the
+    image is written with 8 bits, as one such SOURCE of ``synth`` is warned of; ``labels``: "SOURCE"
+    (numbered) or one label per source ("A", "B")."""
     import numpy as np
 
     names = [f"{labels} {i}" for i in range(1, len(specs) + 1)] if isinstance(labels, str) else list(labels)
-    deep = [(name, spec) for name, spec, source in zip(names, specs, read)
-            if isinstance(source, np.ndarray) and source.dtype != np.uint8 and not spec.startswith("builtin:")]
+    deep = [(name if isinstance(source, np.ndarray) else f"the exemplar of {name}", spec)
+            for name, spec, source in zip(names, specs, read)
+            if (isinstance(source, np.ndarray) and source.dtype != np.uint8 and not spec.startswith("builtin:"))
+            or (getattr(source, "exemplar_depth_", None) or 8) > 8]
     if deep and not depth:
         warn_written_with_8(None, None, output, several=deep)
 

@@ -26,11 +26,12 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
     leaving out the white pixels of the ``--exclude`` mask (``fit`` and ``synth``); with
     ``deep_warning`` (a label), a warning when the exemplar has more than 8 bits a channel (written to
     ``output``). With ``output`` and ``depth`` (synth's), an image of the exemplar's channels that
-    ``output`` cannot take at ``depth`` is refused before the fit (:func:`tghop.imageio.check_depth`)."""
+    ``output`` cannot take at ``depth`` is refused before the fit (:func:`tghop.imageio.check_depth`).
+    The model records the exemplar's bits per channel (``exemplar_depth_``: its file keeps them)."""
     from ..imageio import check_depth
     from ..synthesis import prepare_exemplar
 
-    raw = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True)
+    raw, bits = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True, with_depth=True)
     if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
         warn_written_with_8(deep_warning, spec, output)
     image = prepare_exemplar(raw)
@@ -40,7 +41,7 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
     model.check_exemplar_size(image.shape)  # before the mask is read
     mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar",
                                                     what="part left out")
-    return model.fit(image, exclude=mask, progress=progress)
+    return model.fit(image, exclude=mask, depth=bits, progress=progress)
 
 
 def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
@@ -329,6 +330,8 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                             source=source)
             return None, True
         check_depth(output, depth or 8, channels=model.exemplar_shape_[2])
+        if not depth and (getattr(model, "exemplar_depth_", None) or 8) > 8:  # as from the exemplar (fit_exemplar)
+            warn_written_with_8("the exemplar of SOURCE", source, output)
         if generation["patch_refine"] and model.patches_ is None:
             raise TGHopError(f"{source} holds no patch statistics for --patch-refine or --quality best "
                              "(fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again with 'tghop fit'")
@@ -412,8 +415,10 @@ def info(model_file, as_json):
     if material is not model:
         click.echo(f"material: {material_summary(material)}")
     scaled = "" if model.scale == 1 else f" (resampled by --scale {model.scale:g})"
-    click.echo(f"exemplar: {h}x{w}{scaled}, {c} channel{'s' if c > 1 else ''}; {model.n_patches_:,} training patches "
-               f"of {model.patch_size}x{model.patch_size} at stride {model.stride}")
+    bits = getattr(model, "exemplar_depth_", None)
+    bits = "" if bits is None else ", float" if bits == 32 else f", {bits}-bit"
+    click.echo(f"exemplar: {h}x{w}{scaled}, {c} channel{'s' if c > 1 else ''}{bits}; {model.n_patches_:,} training "
+               f"patches of {model.patch_size}x{model.patch_size} at stride {model.stride}")
     seed = info_dict(model, params)["fit_seed"]
     click.echo(f"fit seed: {seed}" if seed is not None else
                "fit seed: not recorded (fitted with a Generator, or by tghop 0.32 or older)")
