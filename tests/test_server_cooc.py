@@ -164,6 +164,29 @@ def test_an_edits_labels_scaled_to_the_size_tell_the_client(client, cid):
 
 
 @needs_torch
+def test_what_reading_an_edits_labels_said_tells_the_client(client, cid):
+    # The upload's read warnings (a colour profile converted to sRGB) were dropped; the command line warns of them.
+    from PIL import Image
+
+    from test_profiles import P3
+
+    levels = np.zeros((40, 64, 3), dtype=np.uint8)
+    levels[:, 32:] = 255  # black and white: the same in P3 as in sRGB
+    ask = {"crops": [[0, 0], [32, 32]], "seed": 5}
+    plain = client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": labels_png(levels)})
+    buf = io.BytesIO()
+    Image.fromarray(levels).save(buf, format="PNG", icc_profile=P3)
+    p3 = base64.b64encode(buf.getvalue()).decode()
+    r = client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": p3})
+    assert r.status_code == 200 and r.content == plain.content and "X-Tghop-Warning" not in plain.headers
+    said = "labels.png: colours converted to sRGB from its colour profile 'Test P3'"
+    assert r.headers["X-Tghop-Warning"] == said
+    scaled = client.post(f"/api/cooc/{cid}/edit", json={**ask, "labels": p3, "size": [20, 32]})
+    assert scaled.headers["X-Tghop-Warning"] == (f"{said}; the label map was scaled from 40x64 to 20x32, the "
+                                                 "output's size (nearest neighbour: its regions kept as painted)")
+
+
+@needs_torch
 def test_edit_with_a_boost_is_the_libraries_boosted_condition(client, checkpoint, cid):
     from tghop import cooc
 

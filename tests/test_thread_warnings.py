@@ -60,7 +60,7 @@ def _run_with_a_speaker(readers, work):
 
 def test_the_servers_upload_reading_on_threads_leaves_other_threads_warnings_alone():
     from tghop._errors import HINT_DOWNSCALE_YOURSELF
-    from tghop.server.routes.fit import transparency_notes
+    from tghop.server.uploads import read_notes
     from tghop.server.uploads import read_image
 
     content, rounds = _cut_out(), 60
@@ -70,7 +70,7 @@ def test_the_servers_upload_reading_on_threads_leaves_other_threads_warnings_alo
     def reader(i):
         for _ in range(rounds):  # prepare_fit's read: the upload's transparency told in its notes
             def read(path):
-                with transparency_notes(notes[i]):
+                with read_notes(notes[i]):
                     return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
 
             images[i].append(read_image(content, f"cut_{i}.png", read))

@@ -9,17 +9,19 @@ as the rest of :mod:`tghop.server` does.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import os
 import tempfile
 from pathlib import Path
 
-from .._errors import ImageTooLargeError, TGHopError, collect_warnings
+from .._errors import ImageTooLargeError, TGHopError, TransparencyWarning, collect_warnings
 from . import materials
 from .requests import RequestError, check_multipart_end, safe_name
 
 __all__ = ["MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "DRAIN", "MAX_DECODES", "MAX_DECODES_WAITING", "RETRY_AFTER", "Gate",
-           "read_body", "read_form", "each_file_within", "json_body", "read_image"]
+           "read_body", "read_form", "each_file_within", "json_body", "read_image", "read_notes", "depth_note",
+           "MAX_NOTE"]
 
 #: Largest request body accepted (an exemplar or a model file).
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
@@ -175,16 +177,55 @@ async def json_body(request, limit: int = 1024 * 1024):
         raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
 
 
-def read_image(content: bytes, filename: str, load):
+#: The longest note of an upload told to the client (a colour profile's name is the file's, of any length).
+MAX_NOTE = 300
+
+
+@contextlib.contextmanager
+def read_notes(notes: list):
+    """Within it, tghop's warnings of reading an upload (:func:`read_image`) add a line each to
+    ``notes``, in the page's words: what the command line warns of, told to the client (a fit's
+    ``notes``, an image's ``X-Tghop-Warning``). A colour profile converted to sRGB (or one that could not
+    be read), the first of several frames read: the library's words, which name no option. A partly
+    transparent image (:class:`tghop.TransparencyWarning`): the colours under its transparent part are
+    learnt as texture, and the fix is the page's (crop it; the command line's names its ``--exclude``,
+    which the page has not). An opaque alpha channel dropped changes no pixel: nothing. Each line at
+    most :data:`MAX_NOTE` characters. This thread's warnings alone
+    (:func:`tghop._errors.collect_warnings`: other threads' warnings, and the process's filters, untouched)."""
+    with collect_warnings() as said:
+        yield
+    for w in said:
+        if isinstance(w, TransparencyWarning):
+            told = "under 1%" if w.share < 0.005 else f"{w.share:.0%}"
+            line = (f"{w.name}: {told} of its pixels are transparent, and the colours under them are learnt as "
+                    "texture; to leave them out, crop the image to its opaque part")
+        elif str(w).endswith(": alpha channel dropped"):  # an opaque one (imageio's words): no pixel changed
+            continue
+        else:
+            line = " ".join(str(w).split())
+        notes.append(line if len(line) <= MAX_NOTE else line[:MAX_NOTE - 3] + "...")
+
+
+def depth_note(name: str, *, model: bool = False) -> str:
+    """The note of an exemplar ``name`` (or with ``model``, a model file fitted on one) of more than 8 bits a
+    channel: the page's images of a texture model have 8, as ``tghop synth`` warns without ``--depth 16``
+    (which the page has not: no fix named)."""
+    what = f"{name} was fitted on an exemplar of" if model else f"{name} has"
+    return f"{what} more than 8 bits a channel, but the images made here have 8"
+
+
+def read_image(content: bytes, filename: str, load, *, notes=None):
     """``load(path)`` of the uploaded ``content`` written as ``filename`` (already
     :func:`~tghop.server.requests.safe_name`'d) in a temporary folder, removed at once: the
     library's reading (e.g. :func:`tghop.imageio.load_image`). Its errors are one line without
-    the folder: 413 over the pixel limit or out of memory, 400 otherwise."""
+    the folder: 413 over the pixel limit or out of memory, 400 otherwise. Its warnings (a colour
+    profile converted, only the first frame read): lines added to ``notes`` (:func:`read_notes`), or
+    without ``notes`` nowhere (not errors; this thread's alone)."""
     with tempfile.TemporaryDirectory(prefix="tghop-upload-") as folder:
         path = Path(folder) / filename
         path.write_bytes(content)
         try:
-            with collect_warnings():  # tghop's (an alpha channel dropped): not an error; this thread's alone
+            with read_notes([] if notes is None else notes):
                 return load(path)
         except ImageTooLargeError as exc:
             raise RequestError(413, str(exc).replace(f"{folder}{os.sep}", "")) from None

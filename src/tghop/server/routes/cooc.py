@@ -77,13 +77,16 @@ async def cooc_edit(server, request):
     size, labels, crops, boost, seed, windows = cooc.parse_edit(
         await json_body(request, limit=MAX_UPLOAD_BYTES))
 
+    read = []  # what reading the label map said (a colour profile converted), told before the scaling's warning
+
     def read_labels(content):
-        return read_image(content, "labels.png", lambda p: load_image(p, dtype=None))
+        return read_image(content, "labels.png", lambda p: load_image(p, dtype=None), notes=read)
 
     def work(seed):
         model = server.checkpoint(cid)  # read before, in its turn, when not in memory
         with server.generating:
-            return cooc.edit_png(model, size, labels, crops, boost, windows, seed, read_labels,
-                                 progress=server.unless_stopping)
+            png, shape, told = cooc.edit_png(model, size, labels, crops, boost, windows, seed, read_labels,
+                                             progress=server.unless_stopping)
+        return png, shape, read + told
 
     return await png_response(server, request, work, seed=seed, checkpoints=[cid])

@@ -5,7 +5,6 @@ events of the progress, cancel); docs/serve.md, "POST /api/models" and "Jobs".""
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import hashlib
 import json
 
@@ -14,9 +13,9 @@ from .. import materials
 from ..core import json_response
 from ..jobs import FINAL, JOB_ID, QueueFull, unknown_snapshot
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
-from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, each_file_within, read_body, read_form, read_image
+from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, depth_note, each_file_within, read_body, read_form, read_image
 
-__all__ = ["model_id_for", "prepare_fit", "transparency_notes", "fit_work", "create_model", "find_job", "job_state",
+__all__ = ["model_id_for", "prepare_fit", "fit_work", "create_model", "find_job", "job_state",
            "cancel_job", "job_events", "JOB"]
 
 #: A job's id: 32 hex digits.
@@ -36,8 +35,10 @@ def prepare_fit(server, fields: dict):
     """Check the request and read the exemplar, and the maps of a material (fields ``map:<name>``;
     :mod:`tghop.server.materials`), in a worker thread: returns ``(model id, fit, notes)``, ``fit(progress)``
     fitting the model (a TGHop, or with maps a Material); ``fit`` is None when the model is in the cache.
-    ``notes``: what the page should tell of the images (an upload's transparent part, whose hidden
-    colours are learnt as texture: :func:`transparency_notes`)."""
+    ``notes``: what the page should tell of the images, as the command line warns of them: an upload's
+    transparent part, whose hidden colours are learnt as texture, a colour profile converted to sRGB, only
+    the first frame read (:func:`tghop.server.uploads.read_notes`), and the bits of a 16-bit or float
+    exemplar that a texture model's images, 8-bit, lose (:func:`~tghop.server.uploads.depth_note`)."""
     from ..._errors import HINT_DOWNSCALE_YOURSELF
     from ...data import builtin
     from ...fit_options import build_model, fit_params, material_model
@@ -48,8 +49,7 @@ def prepare_fit(server, fields: dict):
     notes = []
 
     def read(path):
-        with transparency_notes(notes):
-            return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
+        return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
 
     upload = fields.pop("image", None)
     name = fields.pop("builtin", None)
@@ -75,7 +75,7 @@ def prepare_fit(server, fields: dict):
         filename, content = upload
         if not content:
             raise RequestError(400, f"{safe_name(filename, 'the upload')} is empty; send an image file")
-        image, depth = read_image(content, safe_name(filename, "exemplar"), read)
+        image, depth = read_image(content, safe_name(filename, "exemplar"), read, notes=notes)
     try:
         image = prepare_exemplar(image)
         model = build_model(options, n_colours=image.shape[2], api=True)
@@ -90,7 +90,7 @@ def prepare_fit(server, fields: dict):
     params = {k: v for k, v in model.get_params().items()}
     if uploads:
         maps, depths = materials.read_maps(
-            uploads, lambda data, filename: read_image(data, filename, read), image.shape)
+            uploads, lambda data, filename: read_image(data, filename, read, notes=notes), image.shape)
         joint = material_model(fit_params(options, api=True))  # channels for the maps too, as fit --maps
         materials.check_channels(joint, image, maps)
         model_id = materials.material_id(content, uploads, joint.get_params(), model_id_for)
@@ -99,29 +99,12 @@ def prepare_fit(server, fields: dict):
             return Material(model=joint).fit(image, maps, depths={"albedo": depth, **depths}, progress=progress)
     else:
         model_id = model_id_for(content, params)
+        if depth > 8:  # a material's maps keep their depths; a texture model's images are 8-bit
+            notes.append(depth_note(safe_name(filename, "exemplar")))
 
         def fit(progress):
-            return model.fit(image, progress=progress)
+            return model.fit(image, depth=depth, progress=progress)  # recorded: its file tells tghop synth
     return model_id, (None if server.cache.has(model_id) else fit), notes
-
-
-@contextlib.contextmanager
-def transparency_notes(notes: list):
-    """Within it, an image read without its alpha channel whose pixels were partly transparent
-    (:class:`tghop.TransparencyWarning`) adds a line to ``notes``: the colours under them are
-    learnt as texture, which the page says with the fit (the command line's warning names its
-    ``--exclude``, which the page has not). tghop's other warnings are ignored, as before; this
-    thread's alone (:func:`tghop._errors.collect_warnings`: other threads' warnings, and the
-    process's filters, untouched)."""
-    from ..._errors import TransparencyWarning, collect_warnings
-
-    with collect_warnings() as said:
-        yield
-    for w in said:
-        if isinstance(w, TransparencyWarning):
-            told = "under 1%" if w.share < 0.005 else f"{w.share:.0%}"
-            notes.append(f"{w.name}: {told} of its pixels are transparent, and the colours under them "
-                         "are learnt as texture; to leave them out, crop the image to its opaque part")
 
 
 def fit_work(server, model_id: str, fit):

@@ -15,12 +15,18 @@ from .. import materials
 from ..requests import RequestError, parse_generation, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
-__all__ = ["model_png", "png_response", "generate", "several_png", "same_patches", "guided_png", "guided",
-           "morph_png", "morph", "WARNING_HEADER"]
+__all__ = ["header_text", "model_png", "png_response", "generate", "several_png", "same_patches", "guided_png",
+           "guided", "morph_png", "morph", "WARNING_HEADER"]
 
 #: The answer's header that tells the client what the library warned of (one line, its words; several joined by
-#: "; "): a painted guide scaled to the size asked (docs/serve.md).
+#: "; "): a painted guide scaled to the size asked, what reading it said (a colour profile converted; docs/serve.md).
 WARNING_HEADER = "X-Tghop-Warning"
+
+
+def header_text(lines) -> str:
+    """``lines`` joined by "; " as a header's value: printable ASCII, any other character "?" (a colour
+    profile's name, from the upload, may hold any)."""
+    return "".join(c if " " <= c <= "~" else "?" for c in "; ".join(lines))
 
 
 def model_png(server, model_id: str, size, seed, settings):
@@ -70,7 +76,7 @@ async def png_response(server, request, work, *args, seed, models=(), checkpoint
     headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
     if told and told[0]:
-        headers[WARNING_HEADER] = "; ".join(told[0])
+        headers[WARNING_HEADER] = header_text(told[0])
     if isinstance(png, list):  # a material: every map, as multipart where the client takes it (the page)
         body, kind = materials.answer(request.headers.get("accept", ""), png, size, seed)
         return Response(body, headers=headers, media_type=kind)
@@ -125,7 +131,8 @@ def same_patches(models, names) -> None:
 
 def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     """Several models through a painted guide (its PNG's bytes), or a remix (None): the PNG (a material's
-    maps), its size and what to tell the client (a guide scaled to ``size``: the library's warning)."""
+    maps), its size and what to tell the client (what reading the guide said, as :func:`read_image`'s notes; a
+    guide scaled to ``size``: the library's warning)."""
     import numpy as np
 
     from ..._errors import collect_warnings
@@ -138,7 +145,7 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
     labels, told = None, []
     if guide is not None:
-        painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None))
+        painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None), notes=told)
         # Its labels read once (they were read here for the check, then again by synthesize_guided: a guide of
         # another size scaled twice); the library's warning of one scaled to the size, collected on this
         # thread (it would go to the server's console), is the client's header instead.

@@ -9,7 +9,7 @@ import os
 
 from ..core import json_response
 from ..requests import RequestError, file_stem, safe_name
-from ..uploads import read_body, read_form
+from ..uploads import depth_note, read_body, read_form
 
 __all__ = ["summary", "model_summary", "download_name", "send_file", "model_file", "store_upload", "upload_model"]
 
@@ -85,19 +85,24 @@ async def model_file(server, request):
                      name=request.query_params.get("name"))
 
 
-def store_upload(server, content: bytes, filename: str) -> str:
+def store_upload(server, content: bytes, filename: str) -> tuple:
     """Check an uploaded model file and keep it under its content hash (400 if it is not
-    a good tghop model; nothing is left in the cache either way)."""
+    a good tghop model; nothing is left in the cache either way): ``(id, notes)``, ``notes`` what the page
+    tells with it (a texture model fitted on a 16-bit or float exemplar, whose images here are 8-bit, as
+    ``tghop synth`` warns: :func:`tghop.server.uploads.depth_note`)."""
     from ...imageio import is_image
 
     try:
-        return server.cache.store(content, filename, hint="send a model file written by 'tghop fit'",
-                                  wanted=server.still_wanted)
+        model_id = server.cache.store(content, filename, hint="send a model file written by 'tghop fit'",
+                                      wanted=server.still_wanted)
     except RequestError as exc:  # the loader's advice for an image is a command line's
         if exc.status == 400 and is_image(io.BytesIO(content)):
             raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
                                     "to /api/models as the file field 'image'") from None
         raise
+    model = server.cache.load(model_id)  # in memory once stored (a file kept before: read here, in its turn)
+    deep = (getattr(model, "exemplar_depth_", None) or 8) > 8  # a material's maps keep their depths: none
+    return model_id, [depth_note(filename, model=True)] if deep else []
 
 
 async def upload_model(server, request):
@@ -111,5 +116,5 @@ async def upload_model(server, request):
         filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
     else:
         filename, content = None, body  # no name: messages say "the upload"
-    model_id = await server.decode(request, store_upload, server, content, safe_name(filename, "the upload"))
-    return json_response({"id": model_id})
+    model_id, notes = await server.decode(request, store_upload, server, content, safe_name(filename, "the upload"))
+    return json_response({"id": model_id, "notes": notes})

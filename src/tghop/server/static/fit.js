@@ -265,7 +265,8 @@ async function startFit(form, undo) {
   follow(id, job, material, attempt, undo, notes || []);
 }
 
-// `notes`: what the server said of the upload (a transparent part learnt as texture), told with "model ready".
+// `notes`: what the server said of the upload (a transparent part learnt as texture, a colour profile converted,
+// the first frame read, 16 bits made 8), told with "model ready".
 function follow(id, job, material, attempt, undo, notes) {
   const events = new EventSource(`/api/jobs/${job}/events`);
   state.events = events;
@@ -407,12 +408,13 @@ async function uploadModel(file) {
     if (request === state.fitRequest) backToWorking(error, undo);
     return;
   }
-  const { id } = await response.json();
+  const { id, notes } = await response.json();
   if (request !== state.fitRequest) return;  // another exemplar or model file asked for meanwhile
   state.pendingName = file.name;
   setWorking({ source: null, exemplarUrl: null, modelId: id, material: null, name: file.name });
   setModel(id);
-  say(`model ${file.name} loaded: generate below`);
+  // `notes`: what the server said of the file (a model of a 16-bit exemplar, whose images here are 8-bit).
+  say([`model ${file.name} loaded: generate below`, ...(notes || [])].join(". "));
   await showSummary(id);
   if (state.modelId === id && state.material) say(`material ${file.name} loaded: generate below (every map)`);
 }
