@@ -892,6 +892,25 @@ def test_the_pages_empty_fields_show_the_settings_defaults(client):
         assert f'placeholder="{BY_NAME[name].default}"' in field, field
 
 
+def test_the_pages_morph_height_is_at_least_a_patch(client, fitted, second):
+    # The field took 1 px, which the server refuses (422) for a morph lower than a patch: the page's least height
+    # is the default patch size, and its script raises it to the patch size of the models' summaries.
+    import re
+
+    from tghop.settings import BY_NAME
+
+    patch = BY_NAME["patch_size"].default
+    field = re.search(r'<input [^>]*id="morph-height"[^>]*>', client.get("/").text).group(0)
+    assert f'min="{patch}"' in field, field
+    script = client.get("/static/paint.js").text
+    assert f"const DEFAULT_PATCH_SIZE = {patch};" in script and "m.patchSize" in script
+    assert "listed.patchSize = s.params.patch_size" in client.get("/static/fit.js").text
+    assert client.get(f"/api/models/{second}").json()["params"]["patch_size"] == patch  # what the page reads
+    ask = {"a": fitted[0], "b": second, "seed": 1, "n_patches": 400}
+    assert_error(client.post("/api/images/morph", json={**ask, "size": [patch - 1, 128]}), 422)
+    assert client.post("/api/images/morph", json={**ask, "size": [patch, 128]}).status_code == 200
+
+
 def test_the_serve_command_prints_its_address_opens_it_and_stops_on_ctrl_c(tmp_path):
     opened = tmp_path / "opened"  # --open: the browser of $BROWSER (Python's webbrowser) gets the address
     browser = f"{sys.executable} -c \"import sys; open(sys.argv[1], 'w').write(sys.argv[2])\" {opened} %s"

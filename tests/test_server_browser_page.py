@@ -131,6 +131,42 @@ def test_morph_is_off_and_says_why_with_a_material(page, tmp_path):
     assert not page.errors, page.errors
 
 
+def test_morphs_least_height_is_a_patch_of_its_models(page, tmp_path):
+    # The height took 1 px, and the server refuses a morph lower than a patch (422): the field's least value
+    # follows the patch size of A's and B's summaries (32 px by default, 64 for these models).
+    import hashlib
+
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    fit(page, "bricks")
+    ids = []
+    for seed in (0, 1):
+        path = tmp_path / f"large patches {seed}.npz"
+        save_model(TGHop(patch_size=64, rng=seed, n_clusters=4, n_codewords=30, max_patches=400, layout_factor=None,
+                         patch_levels=0).fit(data.bricks(96, rng=seed)), path)
+        ids.append(hashlib.sha256(path.read_bytes()).hexdigest())
+        page.set_input_files("#model-file", str(path))
+        page.wait_for_function(f"document.getElementById('summary').textContent.startsWith('model {ids[-1][:12]}')")
+    chromium.choose_mode(page, "morph")
+    models = page.evaluate("state.models.map(m => [m.id, m.name])")
+    index = {model_id: str(i) for i, (model_id, _) in enumerate(models)}
+    bricks = next(str(i) for i, (_, name) in enumerate(models) if name.startswith("builtin:bricks"))
+    page.select_option("#morph-a", index[ids[0]])
+    page.select_option("#morph-b", index[ids[1]])
+    assert page.get_attribute("#morph-height", "min") == "64"
+    page.fill("#morph-height", "48")
+    page.click("#morph-go")
+    assert page.text_content("#morph-message") == ("height 48 is less than 64: give a number from 64 to 8192 (a morph "
+                                                   "is at least a patch of its models tall)")
+    page.select_option("#morph-b", bricks)
+    assert page.get_attribute("#morph-height", "min") == "64"
+    page.select_option("#morph-a", bricks)
+    assert page.get_attribute("#morph-height", "min") == "32"
+    page.fill("#morph-height", "128")
+    assert not page.errors, page.errors
+
+
 def test_each_field_of_the_settings_is_beside_its_name(page):
     # At 1280x800 the fit settings' and Generate's grids had five columns too narrow for some names and their
     # field: "codewords (W)", "training patches" and "refinement rounds" had theirs on a line below, the others

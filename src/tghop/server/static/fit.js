@@ -83,6 +83,8 @@ async function showSummary(id) {
     (maps ? `\nmaps: ${maps.map((m) => `${m.name}${m.normal ? " (normal)" : ""}, ${m.depth}-bit`).join("; ")}` : "");
   $("summary").hidden = false;
   if (state.working && state.working.modelId === id) state.working.material = Boolean(maps);
+  const listed = state.models.find((m) => m.id === id);
+  if (listed && s.params) listed.patchSize = s.params.patch_size;  // Morph's least height (morphMinimum)
   setMaterial(Boolean(maps));
 }
 

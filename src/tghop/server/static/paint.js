@@ -187,8 +187,21 @@ function morphProblem() {
   return "";
 }
 
-// Morph's button and message follow the A and B picked (a material: off, and said why).
+// The patch size of a model whose summary has not come (the fit's default): the page fits no other.
+const DEFAULT_PATCH_SIZE = 32;
+
+// Morph's height is at least a patch of A's and B's (a lower strip is refused by the server, 422): their
+// summaries' patch size (patchSize, showSummary), the default until one comes (the server's message tells of
+// a smaller one).
+function morphMinimum() {
+  const sizes = ["morph-a", "morph-b"].map((id) => state.models[Number($(id).value)])
+    .map((m) => (m && m.patchSize) || DEFAULT_PATCH_SIZE);
+  $("morph-height").min = String(Math.max(...sizes));
+}
+
+// Morph's button, message and least height follow the A and B picked (a material: off, and said why).
 function morphPicked() {
+  morphMinimum();
   const problem = morphProblem(), shown = $("morph-message").textContent;
   if (problem) sayMorph(problem, true); else if (shown.includes(", is a material: ")) sayMorph("");
   updateButtons();
@@ -198,8 +211,14 @@ function onMorph() {
   const a = state.models[Number($("morph-a").value)], b = state.models[Number($("morph-b").value)];
   if (!a || !b || morphProblem()) return;
   // The fields checked here, as Generate's are by its form (fieldProblem): not sent to be refused
+  morphMinimum();
   const bad = ["morph-height", "morph-width", "morph-seed"].map($).find((input) => !input.checkValidity());
-  if (bad) { sayMorph(fieldProblem(bad), true); bad.focus(); return; }
+  if (bad) {
+    const low = bad.id === "morph-height" && bad.validity.rangeUnderflow;
+    sayMorph(fieldProblem(bad) + (low ? " (a morph is at least a patch of its models tall)" : ""), true);
+    bad.focus();
+    return;
+  }
   withBusy($("morph-go"), async () => {
     const body = {
       a: a.id, b: b.id, seed: Number($("morph-seed").value),
