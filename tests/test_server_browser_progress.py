@@ -150,7 +150,8 @@ def test_morphs_fields_are_checked_on_the_page(page):
     chromium.choose_mode(page, "morph")
     sent = []
     page.on("request", lambda r: sent.append(r.url) if r.url.endswith("/api/images/morph") else None)
-    for field, value, said in [("#morph-height", "9000", "height 9000 is more than 8192: give a number from 32 to 8192"),
+    for field, value, said in [("#morph-height", "9000",
+                                "height 9000 is more than 8192: give a number from 32 to 8192"),
                                ("#morph-height", "8", "height 8 is less than 32: give a number from 32 to 8192 (a "
                                                       "morph is at least a patch of its models tall)"),
                                ("#morph-width", "0", "width 0 is less than 1: give a number from 1 to 8192"),
