@@ -44,9 +44,9 @@ from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
-__all__ = ["Material", "is_normal_name", "check_normal_map", "renormalise", "example_maps", "map_name", "map_file",
-           "check_map_names", "MapNameClashError", "map_kind", "looks_like_normal_map", "ALBEDO", "MAP_NAME",
-           "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE", "NORMAL_LOOK_MEAN"]
+__all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "renormalise", "example_maps",
+           "map_name", "map_file", "check_map_names", "MapNameClashError", "map_kind", "looks_like_normal_map",
+           "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE", "NORMAL_LOOK_MEAN"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -77,8 +77,8 @@ REFINE_MAPS = settings.Setting("refine_maps", True, "bool", "Refine the maps oth
 #: what :func:`map_kind` reads. Not a limit on a material's maps (any name is one); ``tghop synth``
 #: warns by them that a remix of such files is no material.
 MAP_KINDS = {
-    ALBEDO: ("albedo", "basecolor", "basecolour", "diffuse", "diff", "color", "colour", "col"),
-    "normal": ("normal", "normalgl", "normaldx", "nrm", "nor", "norm"),
+    ALBEDO: ("albedo", "basecolor", "basecolour", "diffuse", "diff", "color", "colour", "col", "bc"),
+    "normal": ("normal", "normalgl", "normaldx", "nrm", "nrml", "nor", "norm", "n"),
     "roughness": ("roughness", "rough", "rgh"),
     "height": ("height", "displacement", "disp", "bump"),
     "ao": ("ao", "occlusion", "ambientocclusion"),
@@ -86,13 +86,41 @@ MAP_KINDS = {
     "specular": ("specular", "spec", "glossiness", "gloss"),
     "opacity": ("opacity",),
     "emission": ("emission", "emissive"),
+    "packed": ("orm", "arm", "rma", "mra"),
 }
+#: Words after a normal map's name that say its convention (Poly Haven's ``rock_nor_gl_2k``): passed over.
+CONVENTION_WORDS = {"gl": "OpenGL", "ogl": "OpenGL", "opengl": "OpenGL", "dx": "DirectX", "directx": "DirectX"}
+
+
+def _kind_words(stem):
+    """The words of a file's stem, lower case, without a trailing resolution (``2K``, ``1024``)."""
+    words = [w for w in re.split(r"[^a-z0-9]+", stem.lower()) if w]
+    while len(words) > 1 and re.fullmatch(r"\d+k?", words[-1]):  # rock_diff_2k, Rock_Color_1024
+        words.pop()
+    return words
+
+
+def _kind_of(stem):
+    """:func:`map_kind` of a stem (or a map's name, which may hold a ``.``)."""
+    words = _kind_words(stem)
+    if len(words) > 1 and words[-1] in CONVENTION_WORDS:  # rock_nor_gl_2k, Rock_Normal_DX
+        words.pop()
+    if not words:
+        return None
+    last = words[-1]
+    for kind, names in MAP_KINDS.items():
+        if last in names or any(len(name) >= 5 and last.endswith(name) for name in names):
+            return kind
+    return None
 
 
 def map_kind(path):
     """The kind of a material's map (a key of :data:`MAP_KINDS`) that file ``path``'s name ends
     in, or None: ``rock_albedo.png`` -> ``"albedo"``, ``Rock_NormalGL_2K.jpg`` -> ``"normal"``
-    (a trailing resolution, ``2K`` or ``1024``, is passed over), ``bricks.jpg`` -> None.
+    (a trailing resolution, ``2K`` or ``1024``, is passed over, and so is a normal map's convention
+    after its name: Poly Haven's ``rock_nor_gl_2k.png``), Unreal's ``T_Rock_N.png`` -> ``"normal"``,
+    ``T_Rock_ORM.png`` -> ``"packed"`` (occlusion, roughness and metalness in R, G, B), ``bricks.jpg``
+    -> None.
 
     Parameters
     ----------
@@ -103,16 +131,7 @@ def map_kind(path):
     -------
     str or None
     """
-    words = [w for w in re.split(r"[^a-z0-9]+", Path(path).stem.lower()) if w]
-    while len(words) > 1 and re.fullmatch(r"\d+k?", words[-1]):  # rock_diff_2k, Rock_Color_1024
-        words.pop()
-    if not words:
-        return None
-    last = words[-1]
-    for kind, names in MAP_KINDS.items():
-        if last in names or any(len(name) >= 5 and last.endswith(name) for name in names):
-            return kind
-    return None
+    return _kind_of(Path(path).stem)
 
 
 def looks_like_normal_map(image) -> bool:
@@ -234,7 +253,8 @@ def map_file(path, name: str) -> str:
 
 
 def is_normal_name(name: str) -> bool:
-    """Whether a map's name says it is a normal map ("normal", "nrm", any case).
+    """Whether a map's name says it is a normal map: "normal" or "nrm" anywhere (any case), or a
+    normal map's word at its end as :func:`map_kind` reads it (``rock_nor_gl_2k``, ``T_Rock_N``).
 
     Parameters
     ----------
@@ -244,9 +264,32 @@ def is_normal_name(name: str) -> bool:
     Returns
     -------
     bool
-        True when ``name`` contains one of the words, anywhere (``"RockNormalGL"`` is one).
+        True when ``name`` contains one of the words, anywhere (``"RockNormalGL"`` is one), or ends
+        in a normal map's word (``"rock_nor_dx_2k"``, ``"T_Rock_N"``).
     """
-    return any(word in name.lower() for word in NORMAL_WORDS)
+    return any(word in name.lower() for word in NORMAL_WORDS) or _kind_of(name) == "normal"
+
+
+def normal_convention(name: str):
+    """The convention a normal map's name says it is in: ``"OpenGL"`` (green up: Blender, Unity,
+    ambientCG's ``NormalGL``, Poly Haven's ``nor_gl``), ``"DirectX"`` (green down: Unreal,
+    ``NormalDX``, ``nor_dx``) or None (not said). tghop keeps a normal map's convention: its
+    output is in the convention of its input, whatever this says.
+
+    Parameters
+    ----------
+    name : str
+        A map's name (:func:`map_name`).
+
+    Returns
+    -------
+    str or None
+    """
+    words = _kind_words(name)
+    if len(words) > 1 and words[-1] in CONVENTION_WORDS:
+        return CONVENTION_WORDS[words[-1]]
+    last = words[-1] if words else ""
+    return "OpenGL" if last.endswith("normalgl") else "DirectX" if last.endswith("normaldx") else None
 
 
 def check_normal_map(values, name: str = "normal map"):
