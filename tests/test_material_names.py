@@ -2,6 +2,8 @@
 Substance): each read as its kind, a normal map as one, and a set that does not fit together told in
 one line."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -53,3 +55,87 @@ def test_a_poly_haven_normal_map_is_a_normal_map_and_comes_out_unit(exemplar, ma
     out = mat.synthesize((64, 64), rng=1, n_patches=800, refine=1)
     for name in ("rock_wall_nor_gl_2k", "T_Rock_N"):
         np.testing.assert_allclose(np.linalg.norm(out[name] * 2 - 1, axis=2), 1.0, atol=1e-6)
+
+
+def test_a_map_that_looks_like_a_normal_map_but_is_not_named_so_is_warned_of(exemplar, maps):
+    # Rock_bump_nm.png (a normal map by its content, by no known name) was modelled as colours without a word.
+    with pytest.warns(UserWarning, match=r"map 'rock_bump_nm' looks like a normal map but its name does not say so"):
+        mat = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_bump_nm": maps["normal"]})
+    assert mat.normal_ == [False, False]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # named as one, or given in normal: no warning
+        Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_nor_gl": maps["normal"]})
+        Material(model=TGHop(**FAST), normal=["rock_bump_nm"], rng=0).fit(exemplar, {"rock_bump_nm": maps["normal"]})
+
+
+def _cli(args, folder):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    return CliRunner().invoke(main, [str(folder / a) if a.endswith((".png", ".jpg", ".npz")) else a for a in args])
+
+
+FAST_CLI = ["--max-patches", "1500", "--clusters", "10", "--layout", "none", "-q"]
+
+
+def test_a_colour_map_given_after_maps_or_left_out_is_refused_in_one_line(exemplar, maps, tmp_path):
+    # The normal map given first was fitted as the albedo (its vectors modelled as colours, written to OUT).
+    from tghop.imageio import save_image
+
+    save_image(exemplar, tmp_path / "Rock023_2K_Color.jpg")
+    save_image(maps["normal"], tmp_path / "Rock023_2K_NormalGL.png")
+    save_image(maps["roughness"], tmp_path / "Rock023_2K_Roughness.jpg")
+    for args, words in (
+            (["fit", "Rock023_2K_NormalGL.png", "--maps", "Rock023_2K_Roughness.jpg", "Rock023_2K_Color.jpg"],
+             "is named as a normal map and --maps {0}/Rock023_2K_Color.jpg as the colour map; the albedo comes first: "
+             "tghop fit {0}/Rock023_2K_Color.jpg --maps {0}/Rock023_2K_NormalGL.png {0}/Rock023_2K_Roughness.jpg"),
+            (["fit", "Rock023_2K_Roughness.jpg", "--maps", "Rock023_2K_Color.jpg"],
+             "is named as a roughness map and --maps {0}/Rock023_2K_Color.jpg as the colour map"),
+            (["fit", "Rock023_2K_NormalGL.png", "--maps", "Rock023_2K_Roughness.jpg"],
+             "is named as a normal map and no --maps as the colour map; give the material's colour map first")):
+        res = _cli([*args, "-o", "m.npz"], tmp_path)
+        assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+        assert res.output.count("\n") == 1 and words.format(tmp_path) in res.output, res.output
+    assert not (tmp_path / "m.npz").exists()
+
+
+def test_fit_says_which_maps_are_normal_maps_and_that_their_convention_is_kept(exemplar, maps, tmp_path):
+    from tghop.imageio import save_image
+
+    dx = maps["normal"].copy()
+    dx[..., 1] = 1 - dx[..., 1]
+    save_image(exemplar, tmp_path / "rock_wall_diff_2k.jpg")
+    save_image(dx, tmp_path / "rock_wall_nor_dx_2k.png")
+    res = _cli(["fit", "rock_wall_diff_2k.jpg", "--maps", "rock_wall_nor_dx_2k.png", "-o", "m.npz", *FAST_CLI],
+               tmp_path)
+    assert res.exit_code == 0, res.output
+    assert "rock_wall_nor_dx_2k (3 channels, 8-bit, normal map, DirectX convention kept)" in res.output
+    res = _cli(["synth", "m.npz", "-o", "out.png", "--size", "64", "--seed", "1", "-q", "--pool", "800"], tmp_path)
+    assert res.exit_code == 0, res.output
+    from tghop.imageio import load_image
+
+    out = load_image(tmp_path / "out_rock_wall_nor_dx_2k.png")
+    assert np.abs(np.linalg.norm(out * 2 - 1, axis=2) - 1).max() < 0.02  # unit vectors, to 8 bits
+    # kept DirectX (green down): its green follows the brightness's downward slope, as the input's did
+    slope = np.gradient(load_image(tmp_path / "out.png").mean(axis=2), axis=0)
+    assert np.corrcoef(slope.ravel(), out[..., 1].ravel())[0, 1] > 0.3
+
+
+def test_a_batch_folder_of_material_sets_is_warned_of_with_the_manifest_line(tmp_path):
+    # tghop batch of a folder of ambientCG / Unreal sets made every map a texture of its own without a word.
+    from tghop.batch_plan import find_work
+
+    for rel in ("Rock023/Rock023_2K_Color.jpg", "Rock023/Rock023_2K_NormalGL.png", "Rock023/Rock023_2K_Roughness.jpg",
+                "T_Rock/T_Rock_BC.png", "T_Rock/T_Rock_N.png", "bricks/bricks.png", "bricks/cells.png"):
+        (tmp_path / rel).parent.mkdir(exist_ok=True)
+        (tmp_path / rel).write_bytes(b"")  # only the names are read
+    with pytest.warns(UserWarning) as record:
+        assert len(find_work(tmp_path, tmp_path / "out")) == 7  # still every image, as before
+    messages = [str(w.message) for w in record]
+    assert len(messages) == 1 and "Rock023 and 1 other folder hold a material's maps by their names" in messages[0]
+    assert messages[0].endswith("e.g. the line Rock023/Rock023_2K_Color.jpg,Rock023/Rock023_2K_NormalGL.png;"
+                                "Rock023/Rock023_2K_Roughness.jpg")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # textures only: no warning
+        find_work(tmp_path / "bricks", tmp_path / "out")

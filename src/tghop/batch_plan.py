@@ -97,7 +97,33 @@ def _scan_folder(folder: Path, outdir: Path, max_depth=None):
                          + ("; a larger max depth (--max-depth) searches deeper" if max_depth is not None else ""))
     if skipped:
         warnings.warn(f"{folder}: {skipped}", stacklevel=3)
+    _warn_material_sets(folder, items)
     return items
+
+
+def _warn_material_sets(folder: Path, items) -> None:
+    """Warn of the folders whose images are named as one material's maps (a colour map and another
+    kind of map, :func:`tghop.material.map_kind`: ambientCG's ``Rock023_2K_Color.jpg`` beside its
+    ``Rock023_2K_NormalGL.png``): a folder SOURCE makes each a texture of its own, so the warning gives
+    the manifest line that makes them one material."""
+    from .material import ALBEDO, map_kind
+
+    sets = {}
+    for item in items:
+        sets.setdefault(item["rel"].parent, []).append((map_kind(item["rel"]), item["rel"]))
+    sets = {d: files for d, files in sets.items() if sum(kind == ALBEDO for kind, _ in files) == 1
+            and any(kind not in (None, ALBEDO) for kind, _ in files)}
+    if not sets:
+        return
+    first, files = next(iter(sets.items()))
+    albedo = next(rel for kind, rel in files if kind == ALBEDO)
+    maps = ";".join(rel.as_posix() for kind, rel in files if kind not in (None, ALBEDO))
+    where = "it" if first == Path(".") else first.as_posix()
+    where += f" and {len(sets) - 1} other folder{'s' if len(sets) > 2 else ''}" if len(sets) > 1 else ""
+    warnings.warn(f"{folder}: {where} hold{'s' if len(sets) == 1 else ''} a material's maps by their names, and a "
+                  "folder makes each image a texture of its own (maps not aligned, a normal map not kept unit); "
+                  "to make whole materials list them in a CSV manifest in this folder (header path,maps), e.g. "
+                  f"the line {albedo.as_posix()},{maps}", stacklevel=4)
 
 
 #: Names Windows keeps for devices, with or without an extension and in any case (``con``,

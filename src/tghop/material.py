@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numbers
 import re
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -521,8 +522,21 @@ class Material(BaseEstimator):
         Returns
         -------
         self
+
+        Warns
+        -----
+        UserWarning
+            With ``normal="auto"``, of a map that looks like a normal map by its content
+            (:func:`looks_like_normal_map`) but is not one by its name (:func:`is_normal_name`): it is
+            modelled as colours, its output not renormalised.
         """
-        items = self._maps(albedo, maps, depths, self._checked_params())
+        normal = self._checked_params()
+        items = self._maps(albedo, maps, depths, normal)
+        for name, img, _, is_normal in items[1:] if normal == "auto" else ():
+            if not is_normal and looks_like_normal_map(img):
+                warnings.warn(f"map {name!r} looks like a normal map but its name does not say so: it is modelled as "
+                              "colours and not renormalised; name it *normal* or *nrm* (or give it in normal) if it "
+                              "is one", UserWarning, stacklevel=2)
         stack = np.concatenate([img for _, img, _, _ in items], axis=2)
         if stack.shape[2] == 3 and np.abs(stack[..., 1:] - stack[..., :1]).max() < 1 / 512:
             raise TGHopError("every map equals the grey albedo; there is nothing to model apart from it")

@@ -517,6 +517,27 @@ def refuse_albedo_as_map(paths, albedo_path, *, label: str = "MAP", albedo: str 
             raise TGHopError(f"{label} {path} is {albedo} itself, the albedo; give the map's own file")
 
 
+def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", albedo: str = "IMAGE",
+                                   command: str = "tghop fit") -> None:
+    """A one-line error where the albedo's file is named as another kind of map
+    (:func:`tghop.material.map_kind`) and one of the maps as the colour map (the two swapped), or
+    the albedo's file as a normal map and no map as the colour map (the colour map left out: the
+    normal map would be modelled as the albedo's colours, not kept unit vectors)."""
+    from ..material import ALBEDO, map_kind
+
+    kind = map_kind(albedo_path)
+    if kind in (None, ALBEDO):
+        return
+    colour = [path for path in paths if map_kind(path) == ALBEDO]
+    if colour:
+        others = " ".join(str(p) for p in [albedo_path, *paths] if p != colour[0])
+        raise TGHopError(f"{albedo} {albedo_path} is named as a {kind} map and {label} {colour[0]} as the colour map; "
+                         f"the albedo comes first: {command} {colour[0]} --maps {others} ...")
+    if kind == "normal":
+        raise TGHopError(f"{albedo} {albedo_path} is named as a normal map and no {label} as the colour map; give the "
+                         f"material's colour map first ({command} Rock_Color.png --maps {albedo_path} ...)")
+
+
 def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
     """The names of the maps in files ``paths`` (:func:`tghop.material.map_name`), or a one-line
     error where two are one name (in any case) or one is the albedo's (``label``: what the

@@ -11,7 +11,8 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map, summary,
+                     is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map,
+                     refuse_colour_map_out_of_place, summary,
                      user_errors, warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
@@ -59,10 +60,12 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
                           too_large_hint=HINT_DOWNSCALE_OPTION)
 
     refuse_albedo_as_map(map_paths, spec, label="--maps", albedo="EXEMPLAR")
+    names = map_names(map_paths, label="--maps", albedo="EXEMPLAR")
+    refuse_colour_map_out_of_place(spec, map_paths, label="--maps", albedo="EXEMPLAR")
     albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
-    for path, name in zip(map_paths, map_names(map_paths, label="--maps", albedo="EXEMPLAR")):
+    for path, name in zip(map_paths, names):
         maps[name], depths[name] = read(path, "--maps")
     mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar",
                                                     what="part left out")
@@ -78,7 +81,8 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
 @click.option("--maps", "with_maps", is_flag=True,
               help="Fit a whole material: the images after EXEMPLAR (the albedo) are its maps, of its size "
                    "(normal, roughness, height, ...: any depth, 1 or 3 channels), each named by its file stem; "
-                   "a map named *normal* or *nrm* is a normal map (unit vectors, kept so).")
+                   "a map named *normal* or *nrm*, or ending in _nor_gl, _nor_dx or _N, is a normal map (unit "
+                   "vectors, kept so, in its own convention: DirectX stays DirectX). The colour map comes first.")
 @model_options
 @click.option("--exclude", metavar="MASK", default=None, help=EXCLUDE_HELP)
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
@@ -114,7 +118,13 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
 
 
 def material_summary(material) -> str:
-    return ", ".join(f"{n} ({c} channel{'s' if c > 1 else ''}, {d}-bit{', normal map' if nm else ''})"
+    from ..material import normal_convention
+
+    def normal(name, is_normal):  # the convention its name says is the output's too: tghop keeps it
+        convention = normal_convention(name) if is_normal else None
+        return ", normal map" + (f", {convention} convention kept" if convention else "") if is_normal else ""
+
+    return ", ".join(f"{n} ({c} channel{'s' if c > 1 else ''}, {d}-bit{normal(n, nm)})"
                      for n, c, d, nm in zip(material.names_, material.map_channels_, material.depths_,
                                             material.normal_))
 
