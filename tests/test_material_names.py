@@ -139,3 +139,28 @@ def test_a_batch_folder_of_material_sets_is_warned_of_with_the_manifest_line(tmp
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # textures only: no warning
         find_work(tmp_path / "bricks", tmp_path / "out")
+
+
+def test_a_materials_progress_in_a_log_says_each_map_done_not_stopped(capsys, monkeypatch):
+    # A log of `tghop synth MAT.npz -o out.png 2>log` read "maps: stopped at 14 %", "... 28 %", ... at each map.
+    import re
+    import sys
+
+    import tghop.cli.common as common
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    progress = common.Progress(True)
+    progress("quilting", 1, 1)
+    for i in range(3):
+        for done in range(5):
+            progress("refine", done, 4)
+        progress("maps", i + 1, 3)
+    progress("writing", 1, 1)
+    progress("layout", 1, 4)  # a stage that stops, and two after it: said in its order
+    progress("pool", 1, 1)
+    progress("quilting", 1, 1)
+    progress.close()
+    lines = [re.sub(r"^\[\d\d:\d\d:\d\d\] ", "", line).split(" in ")[0].split(" after")[0]
+             for line in capsys.readouterr().err.splitlines()]
+    assert lines == ["quilting: done"] + ["refine: done"] * 3 + [
+        "maps: done", "writing: done", "layout: stopped at 25 %", "pool: done", "quilting: done"], lines

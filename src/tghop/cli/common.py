@@ -69,7 +69,8 @@ class Progress:
     no bar but its label alone, once: a line per stage as it ends, with the clock time and how
     long it took (``[16:52:03] quilting: done in 1.20 s``; ``stopped at 40 %`` when it did not
     finish), and in a long stage its percentage at each tenth, at most one line every
-    :data:`LOG_EVERY` seconds (and the ``note``).
+    :data:`LOG_EVERY` seconds (and the ``note``). A stage left unfinished for another that goes on
+    after it (a material's ``maps`` after each map's ``refine``) is one stage, said once when it ends.
     """
 
     def __init__(self, enabled: bool, *, show_eta: bool = False):
@@ -80,6 +81,7 @@ class Progress:
         self.stage = None
         self.done = 0
         self.lines = None  # lines instead of bars: decided at the first report (stderr a terminal or not)
+        self.paused = None  # a stage left unfinished for another, which may go on: (stage, done, total, started, ...)
         self.total = self.started = self.logged = self.tenth = self.finished = None
 
     def _line(self, text, when=None):
@@ -93,8 +95,16 @@ class Progress:
 
         now = time.monotonic()
         if stage != self.stage:
-            self.close()
-            self.stage, self.done, self.started, self.logged, self.tenth = stage, 0, now, now, 0
+            back = self.paused if self.paused is not None and self.paused[0] == stage else None
+            if back is None and self.paused is not None:  # it did not go on after the stage that followed it
+                self._stopped(*self.paused[:4], at=self.paused[6])
+                self.paused = None
+            self._end(pause=back is None)
+            if back is not None:  # a stage that goes on after another (a material's "maps" after each map's refine)
+                self.paused = None
+                self.stage, self.done, self.total, self.started, self.logged, self.tenth = back[:6]
+            else:
+                self.stage, self.done, self.started, self.logged, self.tenth = stage, 0, now, now, 0
             self.finished = None
         self.done, self.total = max(self.done, done), max(total, 1)
         if self.done >= self.total and self.finished is None:  # its end: not the next stage's start (work between)
@@ -123,16 +133,34 @@ class Progress:
             self.bar.update(done - self.done, current_item=self.note)
             self.done = done
 
-    def close(self):
-        if self.lines and self.stage is not None:
+    def _stopped(self, stage, done, total, started, at=None):
+        import time
+
+        ended = time.monotonic() if at is None else at
+        self._line(f"{stage}: stopped at {100 * done // total} % after {_seconds(ended - started)}")
+
+    def _end(self, pause):
+        """The line of the stage that ends (``pause``: one left unfinished is kept, not said, while the
+        next stage runs: it may go on after it, as a material's "maps" stage goes on after each map's refinement)."""
+        if self.stage is None:
+            return
+        stage, self.stage = self.stage, None
+        if self.finished is not None:
+            self._line(f"{stage}: done in {_seconds(self.finished[0] - self.started)}", self.finished[1])
+            return
+        if pause:
             import time
 
-            stage, self.stage = self.stage, None
-            if self.finished is not None:
-                self._line(f"{stage}: done in {_seconds(self.finished[0] - self.started)}", self.finished[1])
-            else:
-                self._line(f"{stage}: stopped at {100 * self.done // self.total} % after "
-                           f"{_seconds(time.monotonic() - self.started)}")
+            self.paused = (stage, self.done, self.total, self.started, self.logged, self.tenth, time.monotonic())
+        else:
+            self._stopped(stage, self.done, self.total, self.started)
+
+    def close(self):
+        if self.lines:
+            if self.paused is not None:  # began before this stage: said first
+                self._stopped(*self.paused[:4], at=self.paused[6])
+                self.paused = None
+            self._end(pause=False)
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
