@@ -164,3 +164,22 @@ def test_a_materials_progress_in_a_log_says_each_map_done_not_stopped(capsys, mo
              for line in capsys.readouterr().err.splitlines()]
     assert lines == ["quilting: done"] + ["refine: done"] * 3 + [
         "maps: done", "writing: done", "layout: stopped at 25 %", "pool: done", "quilting: done"], lines
+
+
+def test_inpaint_and_extend_refuse_the_colour_map_after_maps_as_fit_does(exemplar, maps, tmp_path):
+    from tghop.imageio import save_image
+
+    save_image(exemplar, tmp_path / "wall_diff_2k.png")
+    save_image(maps["normal"], tmp_path / "wall_nor_gl_2k.png")
+    mask = np.zeros(exemplar.shape[:2])
+    mask[30:50, 30:50] = 1
+    save_image(mask, tmp_path / "hole.png")
+    for args, words in (
+            (["inpaint", "wall_nor_gl_2k.png", "hole.png", "--maps", "wall_diff_2k.png"],
+             "the albedo comes first: tghop inpaint {0}/wall_diff_2k.png MASK --maps {0}/wall_nor_gl_2k.png ..."),
+            (["extend", "wall_nor_gl_2k.png", "--maps", "wall_diff_2k.png", "--size", "128x128"],
+             "the albedo comes first: tghop extend {0}/wall_diff_2k.png --maps {0}/wall_nor_gl_2k.png ...")):
+        res = _cli([*args, "-o", "o.png"], tmp_path)
+        assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+        assert "IMAGE " in res.output and words.format(tmp_path) in res.output, res.output
+    assert not list(tmp_path.glob("o*.png"))

@@ -546,11 +546,12 @@ def refuse_albedo_as_map(paths, albedo_path, *, label: str = "MAP", albedo: str 
 
 
 def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", albedo: str = "IMAGE",
-                                   command: str = "tghop fit") -> None:
+                                   command: str = "tghop fit {} --maps") -> None:
     """A one-line error where the albedo's file is named as another kind of map
     (:func:`tghop.material.map_kind`) and one of the maps as the colour map (the two swapped), or
     the albedo's file as a normal map and no map as the colour map (the colour map left out: the
-    normal map would be modelled as the albedo's colours, not kept unit vectors)."""
+    normal map would be modelled as the albedo's colours, not kept unit vectors). ``command``: the
+    command line up to the maps, ``{}`` where the colour map goes."""
     from ..material import ALBEDO, map_kind
 
     kind = map_kind(albedo_path)
@@ -560,10 +561,10 @@ def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", al
     if colour:
         others = " ".join(str(p) for p in [albedo_path, *paths] if p != colour[0])
         raise TGHopError(f"{albedo} {albedo_path} is named as a {kind} map and {label} {colour[0]} as the colour map; "
-                         f"the albedo comes first: {command} {colour[0]} --maps {others} ...")
+                         f"the albedo comes first: {command.format(colour[0])} {others} ...")
     if kind == "normal":
         raise TGHopError(f"{albedo} {albedo_path} is named as a normal map and no {label} as the colour map; give the "
-                         f"material's colour map first ({command} Rock_Color.png --maps {albedo_path} ...)")
+                         f"material's colour map first ({command.format('Rock_Color.png')} {albedo_path} ...)")
 
 
 def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:

@@ -10,7 +10,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, map_names,
-                     refuse_albedo_as_map, user_errors, warn_lost_depth)
+                     refuse_albedo_as_map, refuse_colour_map_out_of_place, user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -328,6 +328,9 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         raise TGHopError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit ALBEDO "
                          "--maps ...), or leave --source out to fit one on IMAGE and its maps")
     refuse_albedo_as_map(map_paths, image)
+    if source is None:  # a saved material's maps are given in its order, whatever their names
+        command = "tghop inpaint {} MASK --maps" if grow is None else "tghop extend {} --maps"
+        refuse_colour_map_out_of_place(image, map_paths, command=command)
     others = ([] if mask is None else [("MASK", mask)]) + [("MAP", m) for m in map_paths]
     picture, alpha, depth_albedo, _, image_depth = _open(image, output, source, scale, depth, others=others,
                                                          maps=True)
