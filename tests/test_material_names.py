@@ -183,3 +183,29 @@ def test_inpaint_and_extend_refuse_the_colour_map_after_maps_as_fit_does(exempla
         assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
         assert "IMAGE " in res.output and words.format(tmp_path) in res.output, res.output
     assert not list(tmp_path.glob("o*.png"))
+
+
+def test_a_maps_alpha_that_holds_data_is_refused_and_an_opaque_one_dropped(exemplar, maps, tmp_path):
+    # Unity's mask map (metal, occlusion, detail, smoothness in A) lost its smoothness with a warning about
+    # transparency ("crop it to its opaque part"), and the material came out without it.
+    from tghop.batch_task import _read_maps
+    from tghop.imageio import load_image, save_image
+
+    save_image(exemplar, tmp_path / "Rock_BaseColor.png")
+    packed = np.concatenate([maps["roughness"], maps["height"], maps["roughness"]], axis=2)
+    save_image(np.concatenate([packed, 1 - maps["roughness"]], axis=2), tmp_path / "Rock_MaskMap.png")
+    save_image(np.concatenate([packed, np.ones_like(packed[..., :1])], axis=2), tmp_path / "Rock_ORM.png")
+    mask = np.zeros(exemplar.shape[:2])
+    mask[30:50, 30:50] = 1
+    save_image(mask, tmp_path / "hole.png")
+    words = "has an alpha channel that holds data (100% of its pixels not opaque: a mask map's smoothness"
+    for args in (["fit", "Rock_BaseColor.png", "--maps", "Rock_MaskMap.png", "-o", "m.npz", *FAST_CLI],
+                 ["inpaint", "Rock_BaseColor.png", "hole.png", "--maps", "Rock_MaskMap.png", "-o", "o.png"]):
+        res = _cli(args, tmp_path)
+        assert res.exit_code == 1 and res.output.count("\n") == 1 and words in res.output, res.output
+        assert "Rock_MaskMap.png" in res.output and "save the alpha as a map of its own" in res.output
+    with pytest.raises(TGHopError, match=r"the map mask \(.*Rock_MaskMap.png\) has an alpha channel"):
+        _read_maps([("mask", str(tmp_path / "Rock_MaskMap.png"))], load_image)
+    res = _cli(["fit", "Rock_BaseColor.png", "--maps", "Rock_ORM.png", "-o", "m.npz", *FAST_CLI], tmp_path)
+    assert res.exit_code == 0 and "Warning" not in res.output, res.output  # an opaque alpha: dropped, no word
+    assert "Rock_ORM (3 channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output

@@ -114,12 +114,17 @@ def _thumbnail(image, path):
 
 
 def _read_maps(maps, load_image) -> dict:
-    """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``)."""
+    """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``); an alpha
+    channel that holds data fails the row (:func:`tghop.material.drop_opaque_alpha`)."""
+    from .material import drop_opaque_alpha
+
     out = {}
     for name, file in maps or ():
         if Path(file).suffix.lower() == ".npz" or is_model_file(file):
             raise TGHopError(f"the map {name} ({file}) is {model_file_kind(file)}, not an image; list the map's image")
-        out[name] = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
+        image, depth = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True,
+                                  keep_alpha=True)
+        out[name] = drop_opaque_alpha(image, f"the map {name} ({file})"), depth
     return out
 
 

@@ -45,9 +45,10 @@ from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
-__all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "renormalise", "example_maps",
-           "map_name", "map_file", "check_map_names", "MapNameClashError", "map_kind", "looks_like_normal_map",
-           "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE", "NORMAL_LOOK_MEAN"]
+__all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "drop_opaque_alpha", "renormalise",
+           "example_maps", "map_name", "map_file", "check_map_names", "MapNameClashError", "map_kind",
+           "looks_like_normal_map", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE",
+           "NORMAL_LOOK_MEAN"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -311,6 +312,36 @@ def check_normal_map(values, name: str = "normal map"):
         raise TGHopError(f"map {name!r} is a normal map by its name but its pixels are not unit vectors "
                          f"(median length {median:.2f}, not 1 +- {NORMAL_TOLERANCE}); give a normal map encoded "
                          "as (n + 1) / 2, or rename it if it is not one")
+
+
+def drop_opaque_alpha(image, name: str):
+    """A map read with its alpha channel (``load_image(..., keep_alpha=True)``) without it, where
+    every pixel is opaque; a map whose alpha holds data (a Unity mask map's smoothness, a packed
+    map's height or opacity) is refused in one line (:class:`TGHopError`): a material's map has 1
+    or 3 channels, and the alpha was dropped with a warning about transparency, the output without it.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        C of 2 or 4: the alpha last (uint8, uint16 or float in [0, 1]); another C is returned as it is.
+    name : str
+        How the message names the map (``"--maps rock_mask.png"``).
+
+    Returns
+    -------
+    ndarray, shape (H, W, C - 1) or the image itself
+    """
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] not in (2, 4):
+        return arr
+    alpha = arr[..., -1]
+    full = np.iinfo(arr.dtype).max if arr.dtype.kind == "u" else 1.0
+    share = float(np.mean(alpha < full))
+    if share > 0:
+        raise TGHopError(f"{name} has an alpha channel that holds data ({share:.0%} of its pixels not opaque: a "
+                         "mask map's smoothness, an opacity?), and a material's map has 1 or 3 channels; save the "
+                         "alpha as a map of its own and the map without it")
+    return arr[..., :-1]
 
 
 def renormalise(values, out=None):

@@ -320,7 +320,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..material import map_file
+    from ..material import drop_opaque_alpha, map_file
 
     if output == "-":
         raise click.UsageError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
@@ -353,7 +353,9 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     for name, path in zip(names, map_paths):
         if is_model_file(path):
             raise TGHopError(f"MAP {path} is {model_file_kind(path)}, not an image; give the map's image")
-        maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+        maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, keep_alpha=True,
+                                              too_large_hint=HINT_DOWNSCALE_YOURSELF)
+        maps[name] = drop_opaque_alpha(maps[name], f"MAP {path}")
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
                              f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")

@@ -49,15 +49,19 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
     maps in ``map_paths`` (named by their file stems)."""
     from ..imageio import load_image
-    from ..material import Material
+    from ..material import Material, drop_opaque_alpha
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
     def read(path, label):
         if is_model_file(path):
             raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image")
-        return load_image(path, dtype=None, downscale=downscale, with_depth=True,
-                          too_large_hint=HINT_DOWNSCALE_OPTION)
+        if label == "EXEMPLAR":  # the albedo's alpha is transparency (warned of, as for a texture)
+            return load_image(path, dtype=None, downscale=downscale, with_depth=True,
+                              too_large_hint=HINT_DOWNSCALE_OPTION)
+        image, depth = load_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
+                                  too_large_hint=HINT_DOWNSCALE_OPTION)
+        return drop_opaque_alpha(image, f"{label} {path}"), depth
 
     refuse_albedo_as_map(map_paths, spec, label="--maps", albedo="EXEMPLAR")
     names = map_names(map_paths, label="--maps", albedo="EXEMPLAR")
