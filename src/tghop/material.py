@@ -385,13 +385,14 @@ def _blur(x, sigma):
     return x
 
 
-def example_maps(albedo, *, strength=8.0):
+def example_maps(albedo, *, strength=8.0, convention="DirectX"):
     """Maps made from an albedo's luminance, for tests, benchmarks and demonstrations:
     ``{"normal": (H, W, 3), "roughness": (H, W, 1), "height": (H, W, 1)}``, float in [0, 1].
 
     The height is the luminance blurred (sigma 1.5 px), the normal map its slope
-    (``(-strength dh/dx, -strength dh/dy, 1)`` normalised, encoded as ``(n + 1) / 2``), the
-    roughness one minus the luminance blurred more (sigma 3 px).
+    (``(-strength dh/dx, -strength dh/dy, 1)`` normalised, encoded as ``(n + 1) / 2``, ``y`` down
+    the rows: the DirectX convention, green down; ``convention="OpenGL"``: green up, the map for
+    Blender, Unity and glTF), the roughness one minus the luminance blurred more (sigma 3 px).
 
     Parameters
     ----------
@@ -400,16 +401,24 @@ def example_maps(albedo, *, strength=8.0):
         :class:`~tghop.InvalidImageError`.
     strength : float
         Slope of the normal map per unit of height (larger: steeper normals).
+    convention : {"DirectX", "OpenGL"}
+        The normal map's: green down (a bump's upper edge dark in green; Unreal) or up (Blender,
+        Unity). DirectX by default, as tghop made them before this choice was given.
 
     Returns
     -------
     dict of str to ndarray
         ``"normal"`` (H, W, 3), ``"roughness"`` (H, W, 1), ``"height"`` (H, W, 1), float64 in [0, 1].
     """
+    if convention not in ("DirectX", "OpenGL"):
+        raise TGHopError(f"convention must be 'DirectX' or 'OpenGL' (a normal map's green down or up), "
+                         f"got {convention!r}")
     img = check_image(albedo, name="albedo")
     lum = img.mean(axis=2)
     height = _blur(lum, 1.5)
     gy, gx = np.gradient(height)
+    if convention == "OpenGL":
+        gy = -gy
     n = np.stack([-strength * gx, -strength * gy, np.ones_like(height)], axis=2)
     n /= np.linalg.norm(n, axis=2, keepdims=True)
     return {"normal": (n + 1.0) / 2.0, "roughness": np.clip(1.0 - _blur(lum, 3.0), 0.0, 1.0)[..., None],
