@@ -49,7 +49,8 @@ def test_a_normal_maps_convention_is_read_from_its_name():
 
 def test_a_poly_haven_normal_map_is_a_normal_map_and_comes_out_unit(exemplar, maps):
     # rock_wall_nor_gl_2k was fitted as a colour map: not checked, and not renormalised after synthesis.
-    mat = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_wall_nor_gl_2k": maps["normal"],
+    gl = example_maps(exemplar, convention="OpenGL")["normal"]
+    mat = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_wall_nor_gl_2k": gl,
                                                               "T_Rock_N": maps["normal"][:, ::-1]})
     assert mat.normal_ == [False, True, True]
     out = mat.synthesize((64, 64), rng=1, n_patches=800, refine=1)
@@ -64,7 +65,7 @@ def test_a_map_that_looks_like_a_normal_map_but_is_not_named_so_is_warned_of(exe
     assert mat.normal_ == [False, False]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # named as one, or given in normal: no warning
-        Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_nor_gl": maps["normal"]})
+        Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_nor_dx": maps["normal"]})  # DirectX's, as named
         Material(model=TGHop(**FAST), normal=["rock_bump_nm"], rng=0).fit(exemplar, {"rock_bump_nm": maps["normal"]})
 
 
@@ -223,3 +224,35 @@ def test_a_maps_alpha_that_holds_data_is_refused_and_an_opaque_one_dropped(exemp
     res = _cli(["fit", "Rock_BaseColor.png", "--maps", "Rock_ORM.png", "-o", "m.npz", *FAST_CLI], tmp_path)
     assert res.exit_code == 0 and "Warning" not in res.output, res.output  # an opaque alpha: dropped, no word
     assert "Rock_ORM (3 channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output
+
+
+def test_a_normal_maps_convention_is_read_from_its_content():
+    from tghop.normals import convention_of
+
+    for name in ("bricks", "cells"):
+        exemplar = getattr(data, name)()
+        assert convention_of(example_maps(exemplar)["normal"]) == "DirectX"
+        gl = example_maps(exemplar, convention="OpenGL")["normal"]
+        assert convention_of(gl) == "OpenGL" and convention_of((gl * 65535).round().astype(np.uint16)) == "OpenGL"
+    v = np.random.default_rng(0).normal(size=(64, 64, 3)) * 0.2
+    v[..., 2] = 1
+    assert convention_of((v / np.linalg.norm(v, axis=2, keepdims=True) + 1) / 2) is None  # noise: not clear
+    assert convention_of(np.tile([0.5, 0.5, 1.0], (8, 8, 1))) is None  # flat
+
+
+def test_a_normal_map_named_as_one_convention_but_holding_the_other_is_warned_of(exemplar, maps, tmp_path):
+    # A map named NormalGL that holds DirectX's green (a mislabelled export) came out lit upside down, unsaid.
+    gl = example_maps(exemplar, convention="OpenGL")["normal"]
+    with pytest.warns(UserWarning, match=r"map 'Rock_NormalGL' is named as OpenGL's but its content is DirectX's "
+                                         r"\(green down\); it comes out as it is"):
+        Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Rock_NormalGL": maps["normal"]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Rock_NormalGL": gl, "Rock_NormalDX": maps["normal"]})
+    from tghop.imageio import save_image
+
+    save_image(exemplar, tmp_path / "Rock_BaseColor.png")
+    save_image(maps["normal"], tmp_path / "Rock_Normal.png", depth=16)
+    res = _cli(["fit", "Rock_BaseColor.png", "--maps", "Rock_Normal.png", "-o", "m.npz", *FAST_CLI], tmp_path)
+    assert res.exit_code == 0 and "Rock_Normal (3 channels, 16-bit, normal map, DirectX by its content, kept)" \
+        in res.output, res.output

@@ -41,6 +41,7 @@ from ._arrays import check_dtype
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fit_part, fitted_settings,
                       one_blas_thread, report)
 from .colour import match_histograms
+from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
@@ -566,12 +567,19 @@ class Material(BaseEstimator):
         Warns
         -----
         UserWarning
-            With ``normal="auto"``, of a map that looks like a normal map by its content
-            (:func:`looks_like_normal_map`) but is not one by its name (:func:`is_normal_name`): it is
-            modelled as colours, its output not renormalised.
+            Of a normal map named as one convention (:func:`normal_convention`) whose content is the
+            other's (:func:`tghop.normals.convention_of`). With ``normal="auto"``, of a map that
+            looks like a normal map by its content (:func:`looks_like_normal_map`) but is not one by
+            its name (:func:`is_normal_name`): it is modelled as colours, its output not renormalised.
         """
         normal = self._checked_params()
         items = self._maps(albedo, maps, depths, normal)
+        for name, img, _, is_normal in items[1:]:
+            named, found = normal_convention(name), convention_of(img) if is_normal else None
+            if named and found and named != found:
+                warnings.warn(f"map {name!r} is named as {named}'s but its content is {found}'s (green "
+                              f"{'down' if found == 'DirectX' else 'up'}); it comes out as it is, {found}'s: rename "
+                              "it, or flip its green if the name is right", UserWarning, stacklevel=2)
         for name, img, _, is_normal in items[1:] if normal == "auto" else ():
             if not is_normal and looks_like_normal_map(img):
                 warnings.warn(f"map {name!r} looks like a normal map but its name does not say so: it is modelled as "

@@ -47,9 +47,11 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
 
 def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
-    maps in ``map_paths`` (named by their file stems)."""
+    maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
+    content (:func:`tghop.normals.convention_of`), by name."""
     from ..imageio import load_image
     from ..material import Material, drop_opaque_alpha
+    from ..normals import convention_of
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
@@ -74,8 +76,11 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar",
                                                     what="part left out")
     params = fit_params(options)
-    return Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
-                                                                  progress=progress)
+    material = Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
+                                                                      progress=progress)
+    found = {name: convention_of(maps[name]) for name, is_normal in zip(material.names_, material.normal_)
+             if is_normal and name in maps}
+    return material, found
 
 
 @click.command()
@@ -107,8 +112,8 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)]
                       + [("--maps", m) for m in map_paths])
         if with_maps:
-            material = fit_material(exemplar, map_paths, options, exclude=exclude, downscale=downscale,
-                                    progress=progress)
+            material, found = fit_material(exemplar, map_paths, options, exclude=exclude, downscale=downscale,
+                                           progress=progress)
             model = material.model_
         else:
             model = material = fit_exemplar(exemplar, options, exclude=exclude, downscale=downscale,
@@ -116,17 +121,19 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         progress.close()
         save_model(material, output)
     if with_maps:
-        click.echo(f"material: {material_summary(material)}", err=True)
+        click.echo(f"material: {material_summary(material, found)}", err=True)
     click.echo(summary(model), err=True)
     click.echo(f"{'material' if with_maps else 'model'} written to {output}", err=True)
 
 
-def material_summary(material) -> str:
+def material_summary(material, found=None) -> str:
+    """The maps of ``material``, one line; ``found``: normal maps' conventions by their content, by name."""
     from ..material import normal_convention
 
-    def normal(name, is_normal):  # the convention its name says is the output's too: tghop keeps it
-        convention = normal_convention(name) if is_normal else None
-        return ", normal map" + (f", {convention} convention kept" if convention else "") if is_normal else ""
+    def normal(name, is_normal):  # the convention is the output's too: tghop keeps it
+        named, seen = normal_convention(name), (found or {}).get(name)
+        said = f", {named} convention kept" if named else f", {seen} by its content, kept" if seen else ""
+        return ", normal map" + said if is_normal else ""
 
     return ", ".join(f"{n} ({c} channel{'s' if c > 1 else ''}, {d}-bit{normal(n, nm)})"
                      for n, c, d, nm in zip(material.names_, material.map_channels_, material.depths_,
