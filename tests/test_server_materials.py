@@ -221,6 +221,10 @@ def test_materials_with_other_maps_are_not_painted_together(client, material_id)
     ({"map:normal": (None, "text")}, ["'map:normal' must be a file upload"]),
     ({"map:normal": ("n.png", b"")}, ["the map normal (n.png) is empty"]),
     ({"map:normal": ("n.png", b"not an image")}, ["n.png"]),
+    # Unity's mask map (smoothness in A): its alpha was dropped as transparency, the material without it
+    ({"map:mask": ("Rock_MaskMap.png",
+                   png(np.dstack([to_uint8(data.bricks(SIZE)), np.full((SIZE, SIZE), 9, np.uint8)])))},
+     ["Rock_MaskMap.png has an alpha channel that holds data (100% of its pixels not opaque"]),
 ])
 def test_bad_maps_are_refused_before_a_fit_starts(client, files, words):
     r = client.post("/api/models", files={**albedo_file(), **files, **{k: (None, v) for k, v in FAST_FIT.items()}})
@@ -303,6 +307,12 @@ def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client,
         "image": files["image"], "map:normal": ("n.png", png(to_uint16(maps["normal"][:, :SIZE - 8]))),
         "map:height": files["map:height"], "size": (None, f"{SIZE}x{SIZE + 32}"), "anchor": (None, "left")})
     assert_error(r, 400, f"the map normal (n.png) is {SIZE}x{SIZE - 8} but the picture is {SIZE}x{SIZE}")
+    # A map whose alpha holds data is refused, as a fit's (it was dropped as transparency)
+    see_through = np.dstack([to_uint8(maps["height"][..., 0]), np.full((SIZE, SIZE), 9, np.uint8)])
+    r = client.post(f"/api/models/{material_id}/extend", files={
+        "image": files["image"], "map:normal": files["map:normal"], "map:height": ("h.png", png(see_through)),
+        "size": (None, f"{SIZE}x{SIZE + 32}"), "anchor": (None, "left")})
+    assert_error(r, 400, "h.png has an alpha channel that holds data")
 
 
 def test_a_materials_fill_keeps_each_files_depth_as_a_textures_does(client, material_id):

@@ -30,6 +30,7 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
 
     from ..._errors import HINT_DOWNSCALE_YOURSELF
     from ...imageio import deepest, load_image, to_uint8, to_uint16, write_png
+    from ...material import drop_opaque_alpha
     from ...inpaint import check_hole, expand_canvas, require_hole, split_alpha, with_alpha
     from ...inpaint import inpaint as fill_hole
 
@@ -67,9 +68,13 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
         raise RequestError(400, str(exc)) from None
     with server.generating:
         if materials.is_material(model):  # every map alike
+            def read_map(p):  # a map's alpha is data: refused unless every pixel is opaque
+                image, bits = load_image(p, dtype=None, with_depth=True, keep_alpha=True)
+                return drop_opaque_alpha(image, p.name), bits
+
             return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename: read_image(
-                data, filename, lambda p: load_image(p, dtype=None, with_depth=True)), depth=depth, grow=grow,
-                seed=seed, tile=tile, progress=server.unless_stopping)
+                data, filename, read_map), depth=depth, grow=grow, seed=seed, tile=tile,
+                progress=server.unless_stopping)
         try:
             filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping)
         except MemoryError:
