@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONVENTION_CORRELATION", "convention_of"]
+__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "convention_of"]
 
 #: The least correlation, either sign, that decides a normal map's convention by its content.
 CONVENTION_CORRELATION = 0.3
+#: At most this many pixels are read (a larger map every few pixels in each direction).
+SAMPLE_PIXELS = 1 << 20
 
 
 def convention_of(values):
@@ -35,9 +37,12 @@ def convention_of(values):
     str or None
     """
     arr = np.asarray(values)
+    if arr.ndim != 3 or arr.shape[2] != 3 or min(arr.shape[:2]) < 3:
+        return None
+    step = max(1, int(np.ceil(np.sqrt(arr.shape[0] * arr.shape[1] / SAMPLE_PIXELS))))
     scale = np.iinfo(arr.dtype).max if arr.dtype.kind == "u" else 1.0
-    n = arr.astype(np.float64) * (2.0 / scale) - 1.0
-    if n.ndim != 3 or n.shape[2] != 3 or min(n.shape[:2]) < 3:
+    n = arr[::step, ::step].astype(np.float64) * (2.0 / scale) - 1.0  # a large map read every step-th pixel
+    if min(n.shape[:2]) < 3:
         return None
     nz = np.maximum(n[..., 2], 0.05)  # a slope's steepness bounded: a few sideways vectors do not decide
     across = np.gradient(n[..., 0] / nz, axis=0).ravel()
