@@ -256,3 +256,18 @@ def test_a_normal_map_named_as_one_convention_but_holding_the_other_is_warned_of
     res = _cli(["fit", "Rock_BaseColor.png", "--maps", "Rock_Normal.png", "-o", "m.npz", *FAST_CLI], tmp_path)
     assert res.exit_code == 0 and "Rock_Normal (3 channels, 16-bit, normal map, DirectX by its content, kept)" \
         in res.output, res.output
+
+
+def test_maps_of_another_resolutions_download_are_told_so_in_one_line(exemplar, maps, tmp_path):
+    # A 1K roughness beside a 2K colour map was "map 'Rock023_1K_Roughness' is 48x48 but the albedo is 96x96".
+    from tghop.imageio import save_image
+
+    save_image(exemplar, tmp_path / "Rock023_2K_Color.jpg")
+    save_image(maps["roughness"][::2, ::2], tmp_path / "Rock023_1K_Roughness.jpg")
+    save_image(maps["height"][::2, ::2], tmp_path / "height.png")
+    for name, hint in (("Rock023_1K_Roughness.jpg", " (named 1K, EXEMPLAR 2K: take every map from one download)"),
+                       ("height.png", "")):
+        res = _cli(["fit", "Rock023_2K_Color.jpg", "--maps", name, "-o", "m.npz"], tmp_path)
+        assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+        assert f"--maps {tmp_path / name} is 48x48 but EXEMPLAR {tmp_path}/Rock023_2K_Color.jpg is 96x96{hint}; give " \
+               "every map at the albedo's size" in res.output, res.output

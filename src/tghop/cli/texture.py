@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 from pathlib import Path
 
 import click
@@ -73,6 +75,13 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     maps, depths = {}, {"albedo": depth}
     for path, name in zip(map_paths, names):
         maps[name], depths[name] = read(path, "--maps")
+        if maps[name].shape[:2] != albedo.shape[:2]:  # said here with the files, and the resolutions they are named
+            (h, w), (ah, aw) = maps[name].shape[:2], albedo.shape[:2]
+            said, own = _resolution_word(path), _resolution_word(spec)
+            hint = f" (named {said}, EXEMPLAR {own}: take every map from one download)" if said and own and \
+                said != own else ""
+            raise TGHopError(f"--maps {path} is {h}x{w} but EXEMPLAR {spec} is {ah}x{aw}{hint}; give every map at "
+                             "the albedo's size")
     mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar",
                                                     what="part left out")
     params = fit_params(options)
@@ -81,6 +90,14 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     found = {name: convention_of(maps[name]) for name, is_normal in zip(material.names_, material.normal_)
              if is_normal and name in maps}
     return material, found
+
+
+def _resolution_word(path):
+    """The resolution a material's file is named with (``Rock023_2K_Color.jpg``: ``2K``; ``rock-1024.png``:
+    ``1024``), upper case, or None."""
+    words = re.findall(r"[a-z0-9]+", os.path.basename(str(path)).rsplit(".", 1)[0].lower())
+    found = [w for w in words if re.fullmatch(r"\d{1,2}k|\d{3,5}", w)]
+    return found[-1].upper() if found else None
 
 
 @click.command()
