@@ -5,8 +5,11 @@ when the mode or the working model changes; a size the browser's own check refus
 Morph off, and said why, with a material as A or B; each field of the settings beside its name; at a
 phone's 400 px the summary wrapped in its box and each progress label on one line; the tiling's caption
 saying when its seams are expected; by keyboard and to a screen reader: Generate reached with Tab, started with
-Enter, its focus ring seen, its progress and result told; an error an alert; the focus kept where Cancel or No maps
-turns off; each field shown with a name of its own."""
+Enter, its focus ring seen, its progress and result told; an error an alert, a mode's said again only when it
+changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
+off told beside it; each seed of the strip said once."""
+
+import re
 
 import numpy as np
 import pytest
@@ -330,4 +333,108 @@ def test_a_fit_that_ends_with_the_focus_on_cancel_leaves_it_on_generate(page):
         page.unroute("**/api/models")
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
     assert page.evaluate("document.activeElement.id") == "go"
+    assert not page.errors, page.errors
+
+
+def load_material(page, tmp_path):
+    """The small material of conftest's save_material, loaded as the working model from its file."""
+    save_material(tmp_path / "wall material.npz")
+    page.set_input_files("#model-file", str(tmp_path / "wall material.npz"))
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+
+
+def test_why_quality_is_off_is_told_beside_it(page, tmp_path):
+    # Quality, off for a material, said why in its title only: a mouse's tooltip, as a control turned off is not
+    # reached with Tab, and a screen reader did not say it.
+    quality = sync_api.expect(page.locator("#quality"))
+    fit(page, "bricks")
+    assert page.is_enabled("#quality") and page.is_hidden("#quality-off")
+    quality.not_to_have_accessible_description(re.compile("Off "))
+    # While the kind is not known (a fit running), said to a screen reader only: the help keeps its look
+    box = "e => [e.getBoundingClientRect().width, e.getBoundingClientRect().height]"
+    shown = page.eval_on_selector("#quality-help", box)
+    page.evaluate("setMaterial(null)")
+    quality.to_have_accessible_description(re.compile("Off until the page knows whether the model is a material"))
+    assert page.eval_on_selector("#quality-off", box) == [1, 1]
+    assert page.eval_on_selector("#quality-help", box) == shown
+    load_material(page, tmp_path)
+    assert page.is_disabled("#quality")
+    why = "Off now: the model is a material, which has no patch statistics."
+    assert page.is_visible("#quality-off") and page.text_content("#quality-off") == why
+    assert page.eval_on_selector("#quality-off", box)[0] > 100
+    quality.to_have_accessible_description(re.compile(re.escape(why)))
+    fit(page, "bricks")
+    assert page.is_enabled("#quality") and page.is_hidden("#quality-off")
+    quality.not_to_have_accessible_description(re.compile("Off "))
+    assert not page.errors, page.errors
+
+
+def test_a_modes_error_is_put_up_again_only_when_it_changes(page, tmp_path):
+    # Paint's, Morph's and Inpaint's checks are redone whenever the models change: each put its error up again,
+    # unchanged, and a screen reader read it as a new alert every time.
+    fit(page, "bricks")
+    load_material(page, tmp_path)
+    page.evaluate("""() => { window.putUp = {};  // the texts put in each mode's status line
+      for (const id of ['morph-message', 'paint-message', 'inpaint-message']) {
+        putUp[id] = [];
+        new MutationObserver((records) => { for (const r of records) for (const n of r.addedNodes)
+          putUp[id].push(n.textContent); }).observe(document.getElementById(id), {childList: true, subtree: true});
+      } }""")
+
+    def put_up(id, start):
+        return [t for t in page.evaluate(f"putUp['{id}']") if t.startswith(start)]
+    try:
+        chromium.choose_mode(page, "morph")
+        names = page.eval_on_selector_all("#morph-a option", "l => l.map(o => o.textContent)")
+        page.select_option("#morph-a", str(names.index(next(n for n in names if n.startswith("builtin:bricks")))))
+        page.select_option("#morph-b", str(names.index(next(n for n in names if n.startswith("wall material")))))
+        assert len(put_up("morph-message", "B, wall material")) == 1
+        fit(page, "cells")  # the models change while Morph is shown: its error stays as it is
+        assert page.text_content("#morph-message").startswith("B, wall material")
+        assert len(put_up("morph-message", "B, wall material")) == 1
+        chromium.choose_mode(page, "paint")
+        for box in page.query_selector_all("#paint-models label"):
+            box.query_selector("input").set_checked(box.text_content().startswith(("builtin:cells", "wall material")))
+        said = page.text_content("#paint-message")
+        assert said.startswith("wall material") and said in put_up("paint-message", "wall material")
+        before = len(put_up("paint-message", "wall material"))
+        fit(page, "bricks")
+        assert page.text_content("#paint-message") == said
+        assert len(put_up("paint-message", "wall material")) == before
+        # Inpaint: a material's fit tells its kind when it ends, and its summary again
+        chromium.choose_mode(page, "inpaint")
+        page.set_input_files("#maps", files=[{"name": "height.png", "mimeType": "image/png",
+                                              "buffer": png(np.zeros((256, 256), np.uint8))}])
+        page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ') &&"
+                               " state.working.name.startsWith('builtin:bricks + ')", timeout=90_000)
+        assert len(put_up("inpaint-message", "this model is a material")) == 1
+    finally:
+        chromium.choose_mode(page, "view")
+        if page.is_visible("#maps-clear"):
+            page.click("#maps-clear")
+            page.wait_for_function("document.getElementById('summary').textContent.startsWith('model ')",
+                                   timeout=90_000)
+    assert not page.errors, page.errors
+
+
+def test_each_seed_of_the_strip_is_said_once(page):
+    # A seed of the strip was said three times: the picture's alt, its title and the caption under it.
+    fit(page, "bricks")
+    page.fill("#height", "32")
+    page.fill("#width", "32")
+    page.fill("#n_patches", "300")
+    try:
+        strip(page)
+        said = page.locator("#strip").aria_snapshot()
+        seeds = page.eval_on_selector_all("#strip img", "l => l.map(i => i.dataset.seed)")
+        for seed in seeds:
+            assert said.count(f"seed {seed} ") + said.count(f"seed {seed}\"") == 1, said
+        first = page.locator(f"#strip img[data-seed='{seeds[0]}']")
+        sync_api.expect(first).to_have_accessible_name(f"seed {seeds[0]}")
+        sync_api.expect(first).to_have_accessible_description("shows it as the result")
+        assert page.is_visible("#strip figcaption") and page.text_content("#strip figcaption") == f"seed {seeds[0]}"
+    finally:
+        page.fill("#height", "256")
+        page.fill("#width", "256")
+        page.fill("#n_patches", "")
     assert not page.errors, page.errors

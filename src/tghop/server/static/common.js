@@ -24,7 +24,10 @@ function context2d(canvas) {
 
 // A status line (say, sayGenerate, ...): an error is an alert, which a screen reader says at once; the rest a
 // status, said when it is done speaking. The role is set before the text, so that the text is said in it.
-function sayIn(el, text, isError) {
+// `onlyNew`: a check redone whenever the models change (inpaintHint, paintPicked, morphPicked) leaves a line that
+// says the same as it is, untouched: its text put again was said again, an alert each time.
+function sayIn(el, text, isError, onlyNew) {
+  if (onlyNew && el.textContent === (text || "") && el.classList.contains("error") === Boolean(isError)) return;
   el.setAttribute("role", isError ? "alert" : "status");
   el.textContent = text || "";
   el.classList.toggle("error", Boolean(isError));

@@ -97,6 +97,14 @@ function setMaterial(on) {
   $("quality").disabled = on !== false;
   $("quality").title = on ? "a material has no patch statistics: quality best does not apply"
     : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
+  // Why it is off, in its help too (which a screen reader reads with it): a title is a mouse's only, and a control
+  // turned off is not reached with Tab. Shown for a material; for the moments of a fit or an upload, to a screen
+  // reader only (shown, the help grew a line and shrank back with each fit).
+  const off = $("quality-off");
+  off.textContent = on ? "Off now: the model is a material, which has no patch statistics."
+    : on === null ? "Off until the page knows whether the model is a material (its summary)." : "";
+  off.hidden = on === false;
+  off.classList.toggle("to-screen-readers", on === null);
   updateButtons();
   if (!$("inpaint").hidden) inpaintHint();  // Fill and Extend may have changed
   if (!$("morph").hidden && state.models.length > 1) morphPicked();  // so may Morph

@@ -172,11 +172,15 @@ function onStrip() {
       const answer = await withProgress("gen-progress", (headers) => generate(generation(seed, [h, w]), id, headers),
                                         { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
       const url = URL.createObjectURL(answer.blob);
+      // Its seed said once, as the button's name: the caption (for the eye) and the figure are hidden from a
+      // screen reader, the title's "seed N" replaced by what it does (each was read as "seed N" too)
       const figure = document.createElement("figure");
+      figure.setAttribute("role", "none");
       const img = document.createElement("img");
       img.src = url;
       img.alt = `seed ${seed}`;
       img.title = `seed ${seed}: click to pick`;
+      img.setAttribute("aria-description", "shows it as the result");
       img.dataset.seed = String(seed);
       img.tabIndex = 0;  // Enter or Space picks it too
       img.setAttribute("role", "button");
@@ -192,6 +196,7 @@ function onStrip() {
       });
       const caption = document.createElement("figcaption");
       caption.textContent = `seed ${seed}`;
+      caption.setAttribute("aria-hidden", "true");
       figure.append(img, caption);
       strip.append(figure);
     }

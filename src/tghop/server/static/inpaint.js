@@ -2,16 +2,17 @@
 // it with the brush, Fill (the masked pixels) and Extend (a larger picture around it).
 "use strict";
 
-function sayInpaint(text, isError) {
-  sayIn($("inpaint-message"), text, isError);
+function sayInpaint(text, isError, onlyNew) {
+  sayIn($("inpaint-message"), text, isError, onlyNew);
 }
 
 // What Fill and Extend need that they lack (their buttons are off meanwhile; updateButtons), or "".
 function inpaintHint() {
   if (state.material && !editor.maps) {
-    sayInpaint("this model is a material: Fill and Extend fill every map of one of its results; generate first", true);
-  } else if (!editor.blob) sayInpaint("generate an image first, or use a picture of your own");
-  else sayInpaint("");
+    sayInpaint("this model is a material: Fill and Extend fill every map of one of its results; generate first",
+               true, true);
+  } else if (!editor.blob) sayInpaint("generate an image first, or use a picture of your own", false, true);
+  else sayInpaint("", false, true);
 }
 
 // The picture to paint on: the latest result, or a picture the user chose.

@@ -8,12 +8,12 @@ const MAX_PICKED = 4;
 // Paint mode's board: its labels are indices into state.models, its brush the colour chosen.
 const guide = makeBoard("guide", "guide-cursor", "paint-brush", () => brushLabel());
 
-function sayPaint(text, isError) {
-  sayIn($("paint-message"), text, isError);
+function sayPaint(text, isError, onlyNew) {
+  sayIn($("paint-message"), text, isError, onlyNew);
 }
 
-function sayMorph(text, isError) {
-  sayIn($("morph-message"), text, isError);
+function sayMorph(text, isError, onlyNew) {
+  sayIn($("morph-message"), text, isError, onlyNew);
 }
 
 // What Paint and Morph say while the page has fewer than two models (cleared when the second comes).
@@ -150,7 +150,8 @@ function paintProblem() {
 // and said why), as Morph's do.
 function paintPicked() {
   const problem = paintProblem(), shown = $("paint-message").textContent;
-  if (problem) sayPaint(problem, true); else if (shown.includes(" a texture model: paint or remix all ")) sayPaint("");
+  if (problem) sayPaint(problem, true, true);
+  else if (shown.includes(" a texture model: paint or remix all ")) sayPaint("");
   updateButtons();
 }
 
@@ -203,7 +204,7 @@ function morphMinimum() {
 function morphPicked() {
   morphMinimum();
   const problem = morphProblem(), shown = $("morph-message").textContent;
-  if (problem) sayMorph(problem, true); else if (shown.includes(", is a material: ")) sayMorph("");
+  if (problem) sayMorph(problem, true, true); else if (shown.includes(", is a material: ")) sayMorph("");
   updateButtons();
 }
 
