@@ -7,7 +7,7 @@ phone's 400 px the summary wrapped in its box and each progress label on one lin
 saying when its seams are expected; by keyboard and to a screen reader: Generate reached with Tab, started with
 Enter, its focus ring seen, its progress and result told; an error an alert, a mode's said again only when it
 changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
-off told beside it; each seed of the strip said once."""
+off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab."""
 
 import re
 
@@ -440,6 +440,73 @@ def test_each_seed_of_the_strip_is_said_once(page):
         sync_api.expect(first).to_have_accessible_description("shows it as the result")
         assert page.is_visible("#strip figcaption") and page.text_content("#strip figcaption") == f"seed {seeds[0]}"
     finally:
+        page.fill("#height", "256")
+        page.fill("#width", "256")
+        page.fill("#n_patches", "")
+    assert not page.errors, page.errors
+
+
+def test_a_mask_or_a_guide_painted_elsewhere_is_used_by_keyboard(page):
+    # Inpaint's mask and Paint's guide were painted with a pointer only: by keyboard there was no way to either.
+    fit(page, "cells")
+    fit(page, "bricks")
+    page.fill("#height", "40")
+    page.fill("#width", "40")
+    page.fill("#n_patches", "300")
+    try:
+        page.click("#go")  # the picture to fill: this result (an earlier one's caption may say 40x40 too)
+        page.wait_for_function("!state.busy && document.getElementById('editor').dataset.ready === '1' &&"
+                               " document.getElementById('mask').width === 40", timeout=60_000)
+        assert page.text_content("#gen-message") == ""
+        chromium.choose_mode(page, "inpaint")
+        page.focus("#picture")
+        page.keyboard.press("Tab")
+        assert page.evaluate("document.activeElement.id") == "mask-file"
+        hole = np.zeros((40, 40), np.uint8)
+        hole[10:20, 10:30] = 255
+        page.set_input_files("#mask-file", files=[{"name": "hole.png", "mimeType": "image/png", "buffer": png(hole)}])
+        page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('the hole is')")
+        alpha = page.evaluate("""() => { const c = document.getElementById('mask');
+          const a = context2d(c).getImageData(0, 0, 40, 40).data; return [a[4 * (15 * 40 + 15) + 3], a[3]]; }""")
+        assert alpha == [255, 0], alpha
+        page.click("#fill")
+        page.wait_for_function("(m => m.textContent.startsWith('filled') || m.classList.contains('error'))"
+                               "(document.getElementById('inpaint-message'))", timeout=60_000)
+        assert page.text_content("#inpaint-message").startswith("filled"), page.text_content("#inpaint-message")
+        page.set_input_files("#mask-file", files=[{"name": "big.png", "mimeType": "image/png",
+                                                   "buffer": png(np.zeros((41, 40), np.uint8))}])
+        page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('big.png is 41x40')")
+        assert "error" in page.get_attribute("#inpaint-message", "class")
+        # Paint: the guide's flat colours, darkest first, are the picked models in their order
+        chromium.choose_mode(page, "paint")
+        boxes = page.query_selector_all("#paint-models label")
+        names = [box.text_content() for box in boxes]
+        two = [next(n for n in names if n.startswith(f"builtin:{b} (")) for b in ("cells", "bricks")]
+        for box, name in zip(boxes, names):
+            box.query_selector("input").set_checked(name in two)
+        picked = page.evaluate("pickedModels().map(m => m.index)")
+        assert len(picked) == 2
+        page.focus("#paint-reset")
+        page.keyboard.press("Tab")
+        assert page.evaluate("document.activeElement.id") == "guide-file"
+        halves = np.full((40, 40, 3), 30, np.uint8)
+        halves[:, :20] = (200, 180, 60)
+        page.set_input_files("#guide-file", files=[{"name": "halves.png", "mimeType": "image/png",
+                                                    "buffer": png(halves)}])
+        page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('the guide is')")
+        assert page.evaluate("[guide.labels[0], guide.labels[39], guide.labels[40 * 40 - 1]]") == \
+            [picked[1], picked[0], picked[0]]
+        page.click("#paint-go")
+        page.wait_for_function("(m => m.textContent.startsWith('done') || m.classList.contains('error'))"
+                               "(document.getElementById('paint-message'))", timeout=60_000)
+        assert page.text_content("#paint-message").startswith("done"), page.text_content("#paint-message")
+        halves[0, 0] = (90, 90, 90)
+        page.set_input_files("#guide-file", files=[{"name": "three.png", "mimeType": "image/png",
+                                                    "buffer": png(halves)}])
+        page.wait_for_function("document.getElementById('paint-message').textContent.startsWith("
+                               "'three.png has more flat colours than the 2 models picked')")
+    finally:
+        chromium.choose_mode(page, "view")
         page.fill("#height", "256")
         page.fill("#width", "256")
         page.fill("#n_patches", "")

@@ -8,7 +8,7 @@
 //   download.js  download links; a material's maps as one ZIP
 //   fit.js       1. Exemplar: the fit of an exemplar and its maps, its progress; a model file
 //   generate.js  2. Generate and 3. Result: generating, the strip of seeds, the result and its tiling
-//   inpaint.js   Inpaint mode: the mask brush, Fill and Extend
+//   inpaint.js   Inpaint mode: the mask brush (or a mask from a file), Fill and Extend
 //   board.js     the palette and the boards painted by hand (Paint's guide, the co-occurrence edit)
 //   paint.js     Paint, Remix and Morph: several of the session's models
 //   app.js       this file: the modes and the wiring of the page's controls (init)
@@ -113,6 +113,9 @@ async function init() {
   $("fill").addEventListener("click", onFill);
   $("extend-go").addEventListener("click", onExtend);
   $("picture").addEventListener("change", (e) => onPicture(e.target.files[0]));
+  // Each chooser emptied once read, as above
+  $("mask-file").addEventListener("change", (e) => { onMaskFile(e.target.files[0]); e.target.value = ""; });
+  $("guide-file").addEventListener("change", (e) => { onGuideFile(e.target.files[0]); e.target.value = ""; });
   const mask = $("mask");
   mask.addEventListener("pointerdown", onBrushDown);
   mask.addEventListener("pointermove", onBrushMove);

@@ -112,6 +112,47 @@ function onBrushUp() {
   editor.last = null;
 }
 
+// The pixels of an image file as they are (no smoothing), or null (said why with `say`) when the browser cannot read
+// it or it is not h x w: a mask or a guide painted elsewhere, the keyboard's way to one (painting needs a pointer).
+async function filePixels(file, h, w, what, say) {
+  let bitmap;
+  try {
+    bitmap = await createImageBitmap(file);
+  } catch (e) {
+    say(`the browser cannot read ${file.name}: use a PNG ${what}`, true);
+    return null;
+  }
+  if (bitmap.height !== h || bitmap.width !== w) {
+    say(`${file.name} is ${bitmap.height}x${bitmap.width}, not ${h}x${w}: use a ${what} of that size`, true);
+    return null;
+  }
+  const canvas = document.createElement("canvas");
+  canvas.width = w;
+  canvas.height = h;
+  const ctx = context2d(canvas);
+  ctx.drawImage(bitmap, 0, 0);
+  return ctx.getImageData(0, 0, w, h).data;
+}
+
+// A mask from a file: its white pixels (channel mean over half, as the API reads a mask) painted, the rest clear;
+// the brush can add to it or erase.
+async function onMaskFile(file) {
+  if (!file) return;
+  const canvas = $("mask");
+  if (!editor.blob || !canvas.width) {
+    sayInpaint("generate an image first, or use a picture of your own", true);
+    return;
+  }
+  const pixels = await filePixels(file, canvas.height, canvas.width, "mask, white where the hole is", sayInpaint);
+  if (!pixels) return;
+  const ctx = context2d(canvas), image = ctx.createImageData(canvas.width, canvas.height);
+  for (let i = 0; i < pixels.length; i += 4) {
+    if (pixels[i] + pixels[i + 1] + pixels[i + 2] > 1.5 * 255) image.data.set([255, 0, 230, 255], i);  // #ff00e6
+  }
+  ctx.putImageData(image, 0, 0);
+  sayInpaint(`the hole is ${file.name}'s white: Fill, or paint to change it`);
+}
+
 // The mask as the API wants it: white where painted (more than half opaque), black elsewhere.
 function maskBlob() {
   const canvas = $("mask");

@@ -116,6 +116,38 @@ function resizeGuide(force) {
   resetBoard(guide, h, w, first ? first.index : 0);
 }
 
+// A guide from a file (filePixels, inpaint.js): its flat colours, sorted dark to light (by their mean, then R, G,
+// B, as the library's guide_labels does), are the picked models in their order.
+async function onGuideFile(file) {
+  if (!file) return;
+  const picked = pickedModels();
+  if (picked.length < 2) { sayPaint("pick 2 to 4 models first: the guide's colours are theirs", true); return; }
+  resizeGuide();
+  if (!guide.labels) return;
+  const pixels = await filePixels(file, guide.h, guide.w, "guide", sayPaint);
+  if (!pixels) return;
+  const keys = new Uint32Array(pixels.length / 4), colours = new Set();
+  for (let i = 0; i < keys.length; i++) {
+    keys[i] = (pixels[4 * i] << 16) | (pixels[4 * i + 1] << 8) | pixels[4 * i + 2];
+    colours.add(keys[i]);
+    if (colours.size > picked.length) break;
+  }
+  if (colours.size !== picked.length) {
+    sayPaint(`${file.name} has ${colours.size > picked.length ? "more" : "fewer"} flat colours than the ` +
+             `${picked.length} models picked: one colour each, the darkest the first`, true);
+    return;
+  }
+  const rgb = (k) => [k >> 16, (k >> 8) & 255, k & 255];
+  const order = [...colours].sort((a, b) => {
+    const [x, y] = [rgb(a), rgb(b)], mean = (c) => c[0] + c[1] + c[2];
+    return mean(x) - mean(y) || x[0] - y[0] || x[1] - y[1] || x[2] - y[2];
+  });
+  const label = new Map(order.map((k, j) => [k, picked[j].index]));
+  for (let i = 0; i < keys.length; i++) guide.labels[i] = label.get(keys[i]);
+  drawBoard(guide, 0, 0, guide.w, guide.h);
+  sayPaint(`the guide is ${file.name}: Generate, or paint to change it`);
+}
+
 // The guide as the API wants it: the picked models' grey levels, darkest for the first (a data: URL).
 function guidePng(picked) {
   const used = new Set(guide.labels);
