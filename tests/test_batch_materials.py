@@ -168,3 +168,30 @@ def test_materials_on_a_local_dask_cluster(tmp_path):
     for a, b in zip(results, one):  # a worker's maps are the same bytes as in process
         for f, g in zip(a["outputs"], b["outputs"]):
             assert (tmp_path / "out" / f).read_bytes() == (tmp_path / "one" / g).read_bytes(), f
+
+
+def test_a_materials_files_drop_the_prefix_its_maps_share_and_an_earlier_runs_names_are_still_found(tmp_path):
+    # rock_n.png and rock_h.png were written rock/rock_rock_n.png and rock/rock_rock_h.png, as tghop synth now
+    # does not: the maps' shared "rock_" is dropped (tghop.material_files.map_files)
+    src = make_material(tmp_path / "src")
+    (src / "list.csv").write_text("path,maps\nrock.png,rock_n.png;rock_h.png\n")
+    out = tmp_path / "out"
+    first = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert first[0]["outputs"] == ["rock/rock.png", "rock/rock_n.png", "rock/rock_h.png"], first
+    # An earlier version's run: its files and ledger line named by the maps' whole names
+    old = ["rock/rock.png", "rock/rock_rock_n.png", "rock/rock_rock_h.png"]
+    for new, was in zip(first[0]["outputs"][1:], old[1:]):
+        (out / new).rename(out / was)
+    lines = (out / "batch.jsonl").read_text().replace('"rock/rock_n.png", "rock/rock_h.png"',
+                                                       '"rock/rock_rock_n.png", "rock/rock_rock_h.png"')
+    (out / "batch.jsonl").write_text(lines)
+    # A rerun finds them done (the ledger lists the files it made) and keeps them as they are
+    again = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert again[0]["skipped"] is True
+    assert all((out / f).is_file() for f in old)
+    # Redone (a map changed): the files get the new names, and the old ones go
+    save_image(example_maps(data.bricks(64, rng=3))["height"] * 0.5, src / "rock_h.png")
+    again = batch.run(src / "list.csv", out, size=SIZE, seed=5, fit=FIT, generate=GEN, workers=1)
+    assert again[0]["skipped"] is False and again[0]["outputs"] == first[0]["outputs"]
+    assert sorted(p.name for p in (out / "rock").iterdir()) == [
+        "exemplar.png", "rock.npz", "rock.png", "rock_h.png", "rock_n.png"]

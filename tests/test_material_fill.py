@@ -166,7 +166,7 @@ def test_cli_inpaint_with_maps_fits_a_material_on_the_picture(tmp_path):
                                        str(tmp_path / "a_height.png"), "-o", str(tmp_path / "o.png"), "--seed", "1"])
     assert result.exit_code == 0, result.output
     assert "2,800 pixels filled in 2 maps, written to" in result.output
-    assert load_image(tmp_path / "o_a_height.png").shape == (192, 192, 1)
+    assert load_image(tmp_path / "o_height.png").shape == (192, 192, 1)  # a_height: the word before its kind dropped
 
 
 @pytest.fixture(scope="module")

@@ -115,7 +115,7 @@ def test_fit_says_which_maps_are_normal_maps_and_that_their_convention_is_kept(e
     assert res.exit_code == 0, res.output
     from tghop.imageio import load_image
 
-    out = load_image(tmp_path / "out_rock_wall_nor_dx_2k.png")
+    out = load_image(tmp_path / "out_nor_dx.png")  # rock_wall_nor_dx_2k: its name and resolution dropped
     assert np.abs(np.linalg.norm(out * 2 - 1, axis=2) - 1).max() < 0.02  # unit vectors, to 8 bits
     # kept DirectX (green down): its green falls where the brightness rises down the rows, as the input's does
     slope = np.gradient(load_image(tmp_path / "out.png").mean(axis=2), axis=0)

@@ -142,8 +142,8 @@ def process_exemplar(job: dict) -> dict:
     :meth:`TGHop.synthesize`), ``threads`` (threads at most, BLAS's and tghop's own:
     :func:`task_threads`; None: no limit), ``maps`` (``[[name, file]]``: the exemplar
     is the albedo of a whole material, :class:`tghop.material.Material`; each image is then the
-    albedo ``NAME.png`` and a file per map, ``NAME_<map>.png``, at the map's depth, as ``tghop
-    synth`` writes a material).
+    albedo ``NAME.png`` and a file per map, ``NAME_<suffix>.png``
+    (:func:`tghop.material_files.map_files`), at the map's depth, as ``tghop synth`` writes a material).
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``cause`` (of a
     failure: "input" where reading, checking or fitting the exemplar refused it, the same each time for
@@ -172,7 +172,8 @@ def process_exemplar(job: dict) -> dict:
 
         from .fit_options import material_model, model_for
         from .imageio import deepest, load_image, save_image
-        from .material import Material, map_file
+        from .material import Material
+        from .material_files import map_files
         from .modelfile import save_model
         from .synthesis import prepare_exemplar
 
@@ -215,10 +216,10 @@ def process_exemplar(job: dict) -> dict:
             t = time.time()
             outputs = []
             for file in _numbered(name, job.get("count", 1)):
-                if maps:  # the albedo at NAME.png, each map at NAME_<map>.png (a PNG holds 16 bits at most)
+                if maps:  # NAME.png, each map at NAME_<suffix>.png (map_files; a PNG holds 16 bits at most)
                     made = model.synthesize(tuple(job["size"]), rng=rng, dtype=np.float32,
                                             **(job.get("generate") or {}))
-                    files = [map_file(file, m) for m in model.names_]
+                    files = map_files(file, model.names_)
                     for img, each, d in zip(made.values(), files, model.depths_):
                         save_image(img, stage / each, depth=deepest(each, d))
                     outputs.extend(files)

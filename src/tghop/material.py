@@ -47,7 +47,7 @@ from .scale import rescale, rescale_mask
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "drop_opaque_alpha", "renormalise",
-           "example_maps", "map_name", "map_file", "check_map_names", "MapNameClashError", "map_kind",
+           "example_maps", "map_name", "check_map_names", "MapNameClashError", "map_kind",
            "looks_like_normal_map", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE",
            "NORMAL_LOOK_MEAN"]
 
@@ -64,7 +64,7 @@ NORMAL_TOLERANCE = 0.1
 #: pixels (water_caustics: mean red 0.04); the next 71 %.
 NORMAL_LOOK_SHARE = 0.9
 NORMAL_LOOK_MEAN = 0.1
-#: Map names: what a file name can hold (they become ``OUT_<name>.png``).
+#: Map names: what a file name can hold (they name the maps' files: :func:`tghop.material_files.map_files`).
 MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 #: Longest name :func:`map_name` gives a map's file (and the web server takes in a request).
 MAP_NAME_MAX = 64
@@ -196,8 +196,8 @@ class MapNameClashError(TGHopError):
 
 def check_map_names(names) -> None:
     """Refuse names of a material's maps that name two maps alike, or a map as the albedo, in
-    any case: each name names its map's file (``OUT_<name>.png``; the albedo's is ``OUT``
-    itself), so the second would overwrite the first, on a file system that ignores case too.
+    any case: each name names its map's file (:func:`tghop.material_files.map_files`; the albedo's
+    is ``OUT`` itself), so two would be one file, on a file system that ignores case too.
     The one check of ``tghop fit/inpaint/extend --maps``, a batch manifest's ``maps``, the web
     server's ``map:<name>`` fields and :meth:`Material.fit`, each wording it for its user.
 
@@ -230,29 +230,6 @@ def check_map_names(names) -> None:
             exc.name, exc.index, exc.albedo = name, index, albedo
             raise exc
         seen.add(key)
-
-
-def map_file(path, name: str) -> str:
-    """Where map ``name`` of a material written to ``path`` goes: ``path`` itself for the albedo,
-    else ``<stem>_<name><suffix>`` beside it (``OUT_<map>.EXT``: ``tghop synth``, ``inpaint`` and
-    ``extend --maps`` and ``tghop batch`` name a material's files so).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The material's output file (its albedo's).
-    name : str
-        The map's name (:func:`map_name`); ``"albedo"`` is the albedo.
-
-    Returns
-    -------
-    str
-        The map's file path (nothing is created or checked).
-    """
-    if name == ALBEDO:
-        return str(path)
-    p = Path(path)
-    return str(p.with_name(f"{p.stem}_{name}{p.suffix}"))
 
 
 def is_normal_name(name: str) -> bool:
@@ -551,7 +528,8 @@ class Material(BaseEstimator):
             The exemplar (float in [0, 1], uint8 or uint16).
         maps : dict of str to ndarray, optional
             Name -> map of the same H and W (any of 1 or 3 channels, any depth). Names
-            become file names (``OUT_<name>.png``). A list or another type is refused.
+            name the maps' files (:func:`tghop.material_files.map_files`). A list or another type
+            is refused.
         exclude : array_like of bool, shape (H, W), optional
             Pixels not to learn (:meth:`TGHop.fit`).
         depths : dict of str to int, optional

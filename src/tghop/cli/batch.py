@@ -100,7 +100,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     folder is searched. A row's 'maps' make it a whole
     material whose albedo is 'path' (as tghop fit --maps): in CSV the maps' files separated
     by ';', each optionally name=file (normal=rock_n.png;rock_h.png), in JSON an object
-    {"normal": "rock_n.png"} or a list; each image is then NAME.png and NAME_<map>.png. A
+    {"normal": "rock_n.png"} or a list; each image is then NAME.png and NAME_<map>.png (the
+    prefix the maps' names share dropped, as tghop synth names them). A
     rerun skips exemplars already done with the same input (maps too) and settings, and
     those whose input failed (not an image, flat, too small) unless it changed or
     --retry-failed is given. Exit status 1 when any exemplar failed, now or before (the

@@ -580,22 +580,21 @@ def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
         name = exc.name
         if exc.albedo:
             raise TGHopError(f"{label} {paths[exc.index]} is named {name!r}, the name of {albedo} itself (written to "
-                             "OUT, the other maps to OUT_<map>); rename the file") from None
-        raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output "
-                         f"OUT_{name}.png); rename one") from None
+                             "OUT, the other maps beside it); rename the file") from None
+        raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output file); "
+                         "rename one") from None
     return names
 
 
 def material_outputs(material, output, depth):
     """``[(name, path, depth)]`` of a material's maps for output ``output``: the albedo at
-    ``output``, each other map at ``OUT_<name>.EXT``; each at ``depth``, or without it at
-    the depth its file had (as far as the format holds it)."""
+    ``output``, each other map at ``OUT_<suffix>.EXT`` (:func:`tghop.material_files.map_files`);
+    each at ``depth``, or without it at the depth its file had (as far as the format holds it)."""
     from ..imageio import check_depth, deepest
-    from ..material import map_file
+    from ..material_files import map_files
 
     out = []
-    for name, own in zip(material.names_, material.depths_):
-        path = map_file(output, name)
+    for name, path, own in zip(material.names_, map_files(output, material.names_), material.depths_):
         out.append((name, path, check_depth(path, depth or deepest(path, own))))
     return out
 
@@ -626,7 +625,7 @@ def warn_lost_depth(items, path, depth, noun=None):
 
 
 def write_materials(material, output, outputs, size, depth, make, inputs, progress=None):
-    """Materials' maps, OUT, OUT_<map>, ... for each path of ``outputs``: all checked before any
+    """Materials' maps, OUT, OUT_<suffix>, ... for each path of ``outputs``: all checked before any
     work (``inputs``: ``(label, path)`` pairs that no output may be), each set made by ``make()``
     (a dict of maps, ``material``'s names) and written together (all or none); then one line
     says what was written. ``material`` names the maps and their depths; ``progress`` (a

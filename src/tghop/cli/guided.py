@@ -224,7 +224,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             same[key] = _fitted(source, options, progress, f"SOURCE {i} ({spec})")
         models.append(same[key])
     rng = np.random.default_rng(seed)
-    if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<map>, ...
+    if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<suffix>, ...
         if generation["patch_refine"]:
             raise click.UsageError("--patch-refine and --quality best do not apply to materials (they have no patch "
                                    "statistics); drop them")

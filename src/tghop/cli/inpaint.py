@@ -45,7 +45,8 @@ def _fill_options(fitted_on: str, tile_help: str):
 
 
 MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} are its maps (normal, roughness, "
-             "height, ...: of IMAGE's size, aligned), {what} alike; each written as OUT_<map>.EXT at its depth. "
+             "height, ...: of IMAGE's size, aligned), {what} alike; each written as OUT_<map>.EXT at its depth (the "
+             "prefix the maps' names share dropped: Rock023_2K_NormalGL as OUT_NormalGL). "
              "Without --source the material is fitted on them (each map named by its file stem); a saved material "
              "(tghop fit ALBEDO --maps ...) as --source takes its maps in its order.")
 
@@ -315,12 +316,14 @@ def _with_alpha(result, alpha, hole, image, output):
 def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, *, mask=None, grow=None):
     """``inpaint --maps`` (``mask``) or ``extend --maps`` (``grow``: ``(size, anchor)``): IMAGE
     and its maps filled alike (:func:`tghop.inpaint.inpaint_material`) and written together,
-    OUT and OUT_<map>.EXT, each at its file's depth (or ``depth``)."""
+    OUT and OUT_<suffix>.EXT (:func:`tghop.material_files.map_files`), each at its file's depth (or
+    ``depth``)."""
     import numpy as np
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..material import drop_opaque_alpha, map_file
+    from ..material import drop_opaque_alpha
+    from ..material_files import map_files
 
     if output == "-":
         raise click.UsageError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
@@ -350,7 +353,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     names = material.names_[1:] if material is not None else map_names(map_paths)
     plan = [("albedo", output, depth_albedo)]
     maps, depths = {}, {}
-    for name, path in zip(names, map_paths):
+    for name, path, out in zip(names, map_paths, map_files(output, ["albedo", *names])[1:]):
         if is_model_file(path):
             raise TGHopError(f"MAP {path} is {model_file_kind(path)}, not an image; give the map's image")
         maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, keep_alpha=True,
@@ -359,7 +362,6 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
                              f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")
-        out = map_file(output, name)
         plan.append((name, out, check_depth(out, depth or deepest(out, depths[name]))))
     for _, out, _ in plan[1:]:
         check_output(out)

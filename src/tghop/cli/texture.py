@@ -267,8 +267,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
 
     Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
     texture; without it, random regions of each (a remix). A saved material (tghop fit
-    EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned; several
-    materials with the same maps are painted or remixed alike.
+    EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned (the
+    material's name and resolution its maps' names share dropped: Rock023_2K_NormalGL as
+    OUTPUT_NormalGL); several materials with the same maps are painted or remixed alike.
     """
     from ..imageio import check_depth
 
@@ -417,7 +418,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
 
 
 def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source):
-    """``synth`` from a material: OUT, OUT_<map>, ... for each image (:func:`~tghop.cli.common.write_materials`)."""
+    """``synth`` from a material: OUT, OUT_<suffix>, ... for each image (:func:`~tghop.cli.common.write_materials`)."""
     import numpy as np
 
     rng = np.random.default_rng(rng)

@@ -1,0 +1,139 @@
+"""The files a material's maps are written to (:func:`map_files`): the albedo at the output
+itself, ``OUT``, each other map at ``OUT_<suffix>``, its name without the material's name and
+resolution that the maps' names share, as an importer (Blender's Node Wrangler, a game
+engine's) reads a material's files: ``-o Rock.png`` of ``Rock023_2K_NormalGL`` and
+``Rock023_2K_Roughness`` is ``Rock_NormalGL.png`` and ``Rock_Roughness.png``.
+``tghop synth``, ``paint``, ``remix``, ``inpaint`` and ``extend --maps``, ``tghop batch`` and the
+web page's downloads all name a material's files by it.
+
+Example
+-------
+>>> from tghop.material_files import map_files
+>>> map_files("Rock.png", ["albedo", "Rock023_2K_NormalGL", "Rock023_2K_Roughness"])
+['Rock.png', 'Rock_NormalGL.png', 'Rock_Roughness.png']
+>>> map_files("out.png", ["albedo", "normal", "height"])
+['out.png', 'out_normal.png', 'out_height.png']
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from .material import map_kind
+
+__all__ = ["map_files", "map_suffixes", "RESOLUTION"]
+
+#: A word of a map's name that is a resolution (``2K``, ``4k``, ``1024``, ``2048x2048``): dropped at
+#: either end of a map's suffix (Poly Haven's ``rock_wall_nor_gl_2k`` is ``nor_gl``).
+RESOLUTION = re.compile(r"\d+[kK]?|\d+[xX]\d+")
+#: The words of a map's name: runs between ``.``, ``_`` and ``-``.
+WORD = re.compile(r"[^._-]+")
+
+
+def map_suffixes(names) -> list:
+    """What each map's file adds to the material's output name (:func:`map_files`): None for the
+    albedo (the first name: the output itself), else the map's name without the words it shares
+    with every other map's name at its start (the material's name, and a resolution such as
+    ``2K``), and without a resolution at the start or end of what is left. The words shared leave
+    at least one word of each name. A single map (no other to share with) drops the words before
+    its kind's word (:func:`tghop.material.map_kind`: ``T_Rock_N`` is ``N``, ``rock_nor_gl_2k``
+    ``nor_gl``). A map of which no word is dropped (names that share no word at their start, a
+    single map of no kind read) keeps its whole name, as do a map whose suffix would be empty and
+    maps whose suffixes would be the same in any case.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The material's map names, the albedo's first (:attr:`tghop.material.Material.names_`);
+        each of :data:`tghop.material.MAP_NAME`'s form, no two alike in any case
+        (:func:`tghop.material.check_map_names`).
+
+    Returns
+    -------
+    list
+        None, then a str per map, in ``names``' order.
+
+    Examples
+    --------
+    >>> from tghop.material_files import map_suffixes
+    >>> map_suffixes(["albedo", "rock_wall_nor_gl_2k", "rock_wall_rough_2k"])
+    [None, 'nor_gl', 'rough']
+    >>> map_suffixes(["albedo", "T_Rock_N"])
+    [None, 'N']
+    >>> map_suffixes(["albedo", "Rock_1K_Normal", "Rock_2K_Normal"])  # the same suffix: whole names
+    [None, 'Rock_1K_Normal', 'Rock_2K_Normal']
+    """
+    maps = [str(n) for n in list(names)[1:]]
+    words = [list(WORD.finditer(n)) for n in maps]
+    if len(maps) == 1:
+        starts = [_kind_start(maps[0], words[0])]
+    else:
+        shared = _shared_words(words)
+        starts = [w[shared].start() if shared else 0 for w in words]
+    out = [(start and _trimmed(n, w, start)) or n for n, w, start in zip(maps, words, starts)]
+    while True:  # a suffix taken twice: those maps keep their whole names (which check_map_names made distinct)
+        seen = {}
+        for i, s in enumerate(out):
+            seen.setdefault(s.lower(), []).append(i)
+        clash = [i for group in seen.values() if len(group) > 1 for i in group if out[i] != maps[i]]
+        if not clash:
+            return [None, *out]
+        for i in clash:
+            out[i] = maps[i]
+
+
+def map_files(path, names) -> list:
+    """Where each map of a material written to ``path`` goes: ``path`` itself for the albedo (the
+    first name), else ``<stem>_<suffix><ext>`` beside it (:func:`map_suffixes`: ``Rock.png`` of the
+    maps ``Rock023_2K_NormalGL`` and ``Rock023_2K_Roughness`` is ``Rock_NormalGL.png`` and
+    ``Rock_Roughness.png``; of maps named ``normal`` and ``height``, ``Rock_normal.png`` and
+    ``Rock_height.png``). The one naming of a material's files: ``tghop synth`` (and ``paint``,
+    ``remix``), ``inpaint`` and ``extend --maps``, ``tghop batch`` and the web page's downloads.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The material's output file (its albedo's).
+    names : sequence of str
+        The material's map names, the albedo's first (:attr:`tghop.material.Material.names_`).
+
+    Returns
+    -------
+    list of str
+        A file path per name, in ``names``' order (nothing is created or checked).
+    """
+    p = Path(path)
+    return [str(path) if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}"))
+            for suffix in map_suffixes(names)]
+
+
+def _shared_words(words) -> int:
+    """How many words (without case) every name starts with, leaving each at least one."""
+    most = min((len(w) for w in words), default=1) - 1
+    n = 0
+    while n < most and len({w[n].group().lower() for w in words}) == 1:
+        n += 1
+    return n
+
+
+def _kind_start(name, words) -> int:
+    """Where a single map's kind word starts in ``name`` (the shortest end of it, at a word, that
+    :func:`~tghop.material.map_kind` reads as the whole name's kind), else 0 (the whole name)."""
+    kind = map_kind(name + ".png")
+    if kind is None:
+        return 0
+    for w in reversed(words[1:]):
+        if map_kind(name[w.start():] + ".png") == kind:
+            return w.start()
+    return 0
+
+
+def _trimmed(name, words, start) -> str:
+    """``name`` from ``start``, without resolution words at either end ("" when only they are left)."""
+    kept = [w for w in words if w.start() >= start]
+    while kept and RESOLUTION.fullmatch(kept[0].group()):
+        kept.pop(0)
+    while kept and RESOLUTION.fullmatch(kept[-1].group()):
+        kept.pop()
+    return name[kept[0].start():kept[-1].end()] if kept else ""
