@@ -40,18 +40,18 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     from tghop.material import example_maps
 
     maps = example_maps(data.builtin("bricks"))
-    normal, height = tmp_path / "bricks normal.png", tmp_path / "height.png"
+    normal, height = tmp_path / "bricks normal.png", tmp_path / "bricks_height.png"
     normal.write_bytes(png(to_uint16(maps["normal"])))
     height.write_bytes(png(to_uint8(maps["height"][..., 0])))
     chromium.set_fit_settings(page, FAST_FIT)
     page.set_input_files("#maps", [str(normal), str(height)])
-    assert page.text_content("#maps-list") == "maps: bricks_normal, height"
+    assert page.text_content("#maps-list") == "maps: bricks_normal, bricks_height"
     assert page.is_visible("#maps-clear")
     page.select_option("#builtin", "bricks")
     wait_fitted(page)
     summary = page.text_content("#summary")
     assert summary.startswith("material ")
-    assert "maps: albedo, 8-bit; bricks_normal (normal), 16-bit; height, 8-bit" in summary
+    assert "maps: albedo, 8-bit; bricks_normal (normal), 16-bit; bricks_height, 8-bit" in summary
     page.wait_for_function("document.getElementById('quality').disabled")
 
     page.fill("#height", "64")
@@ -63,12 +63,13 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     assert answer.value.headers["content-type"].startswith("multipart/form-data; boundary=")
     page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x80, seed 3'")
     assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == [
-        "albedo", "bricks_normal", "height"]
+        "albedo", "bricks_normal", "bricks_height"]
     assert page.get_attribute("#download-png", "download") == "tghop-bricks-64x80-seed3.png"
     page.locator("#maps-view label", has_text="bricks_normal").click()
     page.wait_for_function("document.getElementById('result-caption').textContent"
                            " === 'result (bricks_normal): 64x80, seed 3'")
-    assert page.get_attribute("#download-png", "download") == "tghop-bricks-64x80-seed3_bricks_normal.png"
+    # Named as tghop synth names the files: the maps' shared "bricks_" dropped (the server's suffix)
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-64x80-seed3_normal.png"
     page.wait_for_function("document.getElementById('tiled').width === 240")
 
     with page.expect_download() as download:  # one ZIP of every map, the files as tghop synth names them
@@ -78,7 +79,7 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     with zipfile.ZipFile(tmp_path / "maps.zip") as archive:
         assert archive.testzip() is None  # every CRC right
         names = archive.namelist()
-        assert names == [f"tghop-bricks-64x80-seed3{m}.png" for m in ("", "_bricks_normal", "_height")]
+        assert names == [f"tghop-bricks-64x80-seed3{m}.png" for m in ("", "_normal", "_height")]
         archive.extractall(tmp_path)
     for name in names:
         image, depth = load_image(tmp_path / name, dtype=None, with_depth=True)

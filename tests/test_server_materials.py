@@ -109,8 +109,8 @@ def test_a_materials_images_are_every_map_at_its_depth_as_the_library_makes_them
     assert r.headers["content-type"].startswith("application/json") and r.headers["x-tghop-seed"] == "5"
     body = r.json()
     assert body["size"] == [40, 56] and body["seed"] == 5
-    assert [(m["name"], m["depth"], m["normal"]) for m in body["maps"]] == [
-        ("albedo", 8, False), ("normal", 16, True), ("height", 8, False)]
+    assert [(m["name"], m["suffix"], m["depth"], m["normal"]) for m in body["maps"]] == [
+        ("albedo", None, 8, False), ("normal", "normal", 16, True), ("height", "height", 8, False)]
     got = {m["name"]: decode(m["png"]) for m in body["maps"]}
     assert got["albedo"].shape == (40, 56, 3) and got["albedo"].dtype == np.uint8
     assert got["normal"].shape == (40, 56, 3) and got["normal"].dtype == np.uint16
@@ -344,3 +344,15 @@ def test_a_materials_fill_may_send_as_much_as_its_fit_but_no_file_over_one_files
     files["map:normal"] = ("n.png", b"\0" * ((50 << 20) + 10))
     assert_error(client.post(f"/api/models/{material_id}/extend", files=files), 413,
                  "n.png is over the limit of 50 MB a file")
+
+
+def test_a_materials_maps_say_the_suffix_of_their_files_as_tghop_synth_names_them():
+    # The page named its downloads <result>_<map name>.png: Rock023_2K_NormalGL kept the source's name and 2K
+    from types import SimpleNamespace
+
+    from tghop.server.materials import encode_maps
+
+    names = ["albedo", "Rock023_2K_NormalGL", "Rock023_2K_Roughness"]
+    material = SimpleNamespace(names_=names, depths_=[8, 16, 8], normal_=[False, True, False])
+    maps = {name: np.full((4, 5, 1 if "Rough" in name else 3), 0.5) for name in names}
+    assert [m["suffix"] for m in encode_maps(maps, material)] == [None, "NormalGL", "Roughness"]

@@ -151,17 +151,22 @@ def patch_size(model) -> int:
 
 def encode_maps(maps: dict, material, depths=None) -> list:
     """A material's maps (``name -> (H, W, c)`` floats in [0, 1]) as PNGs: a list of ``{"name",
-    "depth", "normal", "png"}`` (``png``: the file's bytes, at the map's depth: 8, else 16 bits),
-    in ``material``'s order. ``depths``: ``{name: 8, 16 or 32}``, a depth other than the
-    material's (a fill's: the depth of the file sent)."""
+    "suffix", "depth", "normal", "png"}`` (``suffix``: what the map's file adds to the result's name,
+    ``<result>_<suffix>.png``, as ``tghop synth`` names it, :func:`tghop.material_files.map_suffixes`;
+    None for the albedo; ``png``: the file's bytes, at the map's depth: 8, else 16 bits), in
+    ``material``'s order. ``depths``: ``{name: 8, 16 or 32}``, a depth other than the material's (a
+    fill's: the depth of the file sent)."""
     from ..imageio import to_uint8, to_uint16, write_png
+    from ..material_files import map_suffixes
 
     out = []
-    for name, depth, normal in zip(material.names_, material.depths_, material.normal_):
+    for name, suffix, depth, normal in zip(material.names_, map_suffixes(material.names_), material.depths_,
+                                           material.normal_):
         depth = (depths or {}).get(name, depth)
         buf = io.BytesIO()
         write_png(buf, to_uint8(maps[name]) if depth == 8 else to_uint16(maps[name]))
-        out.append({"name": name, "depth": 8 if depth == 8 else 16, "normal": bool(normal), "png": buf.getvalue()})
+        out.append({"name": name, "suffix": suffix, "depth": 8 if depth == 8 else 16, "normal": bool(normal),
+                    "png": buf.getvalue()})
     return out
 
 

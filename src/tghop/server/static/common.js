@@ -101,20 +101,21 @@ function busyFetch(url, options) {
 const GENERATION_HEADERS = { "Content-Type": "application/json", Accept: "multipart/form-data, application/json" };
 
 // A generation's answer: a texture's PNG ({blob, maps: null}), or a material's maps, the albedo first
-// ({blob: the albedo's, maps: [{name, depth, blob}]}): multipart (a part "_meta" of JSON, then a PNG
-// file per map, named by it) or JSON of base64 PNGs.
+// ({blob: the albedo's, maps: [{name, suffix, depth, blob}]}; suffix: what the map's file adds to the
+// result's, as tghop synth names it): multipart (a part "_meta" of JSON, then a PNG file per map, named
+// by it) or JSON of base64 PNGs.
 async function answerOf(response) {
   const kind = response.headers.get("Content-Type") || "";
   if (kind.startsWith("multipart/form-data")) {
     const form = await response.formData();
     const maps = JSON.parse(form.get("_meta")).maps.map((m) => ({
-      name: m.name, depth: m.depth, blob: form.get(m.name),
+      name: m.name, suffix: m.suffix, depth: m.depth, blob: form.get(m.name),
     }));
     return { blob: maps[0].blob, maps };
   }
   if (!kind.startsWith("application/json")) return { blob: await response.blob(), maps: null };
   const maps = (await response.json()).maps.map((m) => ({
-    name: m.name, depth: m.depth, blob: new Blob([base64Bytes(m.png)], { type: "image/png" }),
+    name: m.name, suffix: m.suffix, depth: m.depth, blob: new Blob([base64Bytes(m.png)], { type: "image/png" }),
   }));
   return { blob: maps[0].blob, maps };
 }

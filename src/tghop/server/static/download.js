@@ -44,8 +44,10 @@ function workingStem() {
   return m ? m.stem : "model";
 }
 
+// Map i's file, as tghop synth names it: the albedo's <base>.png, each other map's <base>_<suffix>.png (the
+// server's suffix: tghop.material_files.map_suffixes; its name where none came).
 function mapFile(shown, i) {
-  return i ? `${shown.base}_${shown.maps[i].name}.png` : `${shown.base}.png`;
+  return i ? `${shown.base}_${shown.maps[i].suffix || shown.maps[i].name}.png` : `${shown.base}.png`;
 }
 
 // One download of every map: a ZIP of the PNGs as tghop synth names them (several downloads at once

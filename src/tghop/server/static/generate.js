@@ -59,7 +59,7 @@ function showPicture(url, what, seed, filename) {
 }
 
 // The maps of the material shown: one radio each (the picture, its tiling and Download PNG follow it),
-// and Download all (the files as tghop synth names them: OUT.png, OUT_<map>.png).
+// and Download all (the files as tghop synth names them: OUT.png, OUT_<suffix>.png: mapFile).
 function renderMaps() {
   const group = $("maps-view"), shown = state.shown;
   group.textContent = "";
