@@ -33,6 +33,9 @@ from tghop.material_files import map_files, map_suffixes
     (["normal", "normal_dx"], ["normal", "normal_dx"]),
     # only a resolution left: the whole name
     (["Rock_1K", "Rock_2K_Normal"], ["Rock_1K", "Normal"]),
+    # a kind's word all share stays: GL and DX alone would be no normal maps to an importer
+    (["Rock_Normal_GL", "Rock_Normal_DX"], ["Normal_GL", "Normal_DX"]),
+    (["rock_wall_nor_gl_2k", "rock_wall_nor_dx_2k"], ["nor_gl", "nor_dx"]),
 ])
 def test_each_map_is_named_by_what_follows_the_prefix_the_maps_share(maps, want):
     # ambientCG's Rock023_2K_NormalGL was written as Rock_Rock023_2K_NormalGL.png: the stale 2K and the source's name
@@ -42,7 +45,7 @@ def test_each_map_is_named_by_what_follows_the_prefix_the_maps_share(maps, want)
 
 @pytest.mark.parametrize("name, want", [
     ("Rock023_2K_NormalGL", "NormalGL"), ("rock_wall_nor_gl_2k", "nor_gl"), ("T_Rock_N", "N"),
-    ("Mat_BaseColor_Normal", "Normal"), ("Rock_Normal_DX", "Normal_DX"),
+    ("Mat_Normal", "Normal"), ("Mat_BaseColor_Normal", "Normal"), ("Rock_Normal_DX", "Normal_DX"),
     # no kind read, or nothing before its word: the whole name
     ("rock_mask", "rock_mask"), ("normal", "normal"), ("RockNormal", "RockNormal"), ("Rock_2K", "Rock_2K"),
 ])

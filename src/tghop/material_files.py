@@ -38,9 +38,11 @@ def map_suffixes(names) -> list:
     ``2K``), and without a resolution at the start or end of what is left. The words shared leave
     at least one word of each name. A single map (no other to share with) drops the words before
     its kind's word (:func:`tghop.material.map_kind`: ``T_Rock_N`` is ``N``, ``rock_nor_gl_2k``
-    ``nor_gl``). A map of which no word is dropped (names that share no word at their start, a
-    single map of no kind read) keeps its whole name, as do a map whose suffix would be empty and
-    maps whose suffixes would be the same in any case.
+    ``nor_gl``). Fewer words are dropped where a map's suffix would lose the kind its name has
+    (``Rock_Normal_GL`` beside ``Rock_Normal_DX`` is ``Normal_GL``, not ``GL``). A map of which no
+    word is dropped (names that share no word at their start, a single map of no kind read) keeps
+    its whole name, as do a map whose suffix would be empty and maps whose suffixes would be the
+    same in any case.
 
     Parameters
     ----------
@@ -67,11 +69,15 @@ def map_suffixes(names) -> list:
     maps = [str(n) for n in list(names)[1:]]
     words = [list(WORD.finditer(n)) for n in maps]
     if len(maps) == 1:
-        starts = [_kind_start(maps[0], words[0])]
+        out = [_suffix(maps[0], words[0], _kind_start(maps[0], words[0]))]
     else:
+        kinds = [map_kind(n + ".png") for n in maps]
         shared = _shared_words(words)
-        starts = [w[shared].start() if shared else 0 for w in words]
-    out = [(start and _trimmed(n, w, start)) or n for n, w, start in zip(maps, words, starts)]
+        while True:  # fewer words dropped where a map would lose its kind's word (Rock_Normal_GL, Rock_Normal_DX)
+            out = [_suffix(n, w, w[shared].start() if shared else 0) for n, w in zip(maps, words)]
+            if not shared or all(k is None or map_kind(s + ".png") == k for s, k in zip(out, kinds)):
+                break
+            shared -= 1
     while True:  # a suffix taken twice: those maps keep their whole names (which check_map_names made distinct)
         seen = {}
         for i, s in enumerate(out):
@@ -129,11 +135,12 @@ def _kind_start(name, words) -> int:
     return 0
 
 
-def _trimmed(name, words, start) -> str:
-    """``name`` from ``start``, without resolution words at either end ("" when only they are left)."""
+def _suffix(name, words, start) -> str:
+    """``name`` from ``start``, without resolution words at either end; the whole name where
+    ``start`` is 0 or only resolutions are left."""
     kept = [w for w in words if w.start() >= start]
     while kept and RESOLUTION.fullmatch(kept[0].group()):
         kept.pop(0)
     while kept and RESOLUTION.fullmatch(kept[-1].group()):
         kept.pop()
-    return name[kept[0].start():kept[-1].end()] if kept else ""
+    return name[kept[0].start():kept[-1].end()] if start and kept else name
