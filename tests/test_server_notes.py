@@ -141,3 +141,53 @@ def test_a_warning_header_is_printable_ascii():
     from tghop.server.routes.images import header_text
 
     assert header_text(["écran: colours converted", "b\u2014c"]) == "?cran: colours converted; b?c"
+
+
+def gif(*frames):
+    """An animated GIF of ``frames`` (uint8 arrays)."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    first, *rest = [Image.fromarray(f) for f in frames]
+    first.save(buf, format="GIF", save_all=True, append_images=rest, duration=100, loop=0)
+    return buf.getvalue()
+
+
+def test_inpaints_and_extends_read_warnings_are_in_the_answers_header(client):
+    # They were dropped: a picture with a colour profile converted, a mask of several frames, said nowhere.
+    model = fit(client, "bricks.png", png(bricks8()))
+    assert done(client, model["job"]) == "done"
+    picture = to_uint8(data.bricks(64, rng=5))[:, :60].copy()
+    hole = np.zeros((64, 60), np.uint8)
+    hole[20:44, 20:40] = 255
+    inpaint, extend = f"/api/models/{model['id']}/inpaint", f"/api/models/{model['id']}/extend"
+    ask = {"image": ("picture.png", png(picture)), "mask": ("mask.png", png(hole)), "seed": (None, "3")}
+    plain = client.post(inpaint, files=ask)
+    assert plain.status_code == 200 and "x-tghop-warning" not in plain.headers, plain.text
+    told = client.post(inpaint, files={**ask, "image": ("photo p3.png", png(picture, icc_profile=P3)),
+                                       "mask": ("mask.gif", gif(hole, 255 - hole))})
+    assert told.status_code == 200, told.text
+    assert told.headers["x-tghop-warning"] == ("photo_p3.png: colours converted to sRGB from its colour profile "
+                                               "'Test P3'; mask.gif: 2 frames (or pages); only the first is read")
+    # A mask's transparent part is said as tghop inpaint says it (an exemplar's words would be wrong here)
+    see_through = np.dstack([hole, hole, hole, np.where(np.arange(60) < 5, 0, 255).astype(np.uint8)[None, :]
+                             .repeat(64, axis=0)])
+    clear = client.post(inpaint, files={**ask, "mask": ("clear.png", png(see_through))})
+    assert clear.status_code == 200 and clear.content == plain.content, clear.text
+    assert clear.headers["x-tghop-warning"] == ("clear.png has transparent pixels, but transparency is not read as "
+                                                "the hole (its white pixels are the hole); paint the hole white on "
+                                                "black")
+    grow = {"image": ("picture.png", png(picture)), "size": (None, "64x120"), "seed": (None, "3")}
+    plain = client.post(extend, files=grow)
+    assert plain.status_code == 200 and "x-tghop-warning" not in plain.headers, plain.text
+    frames = client.post(extend, files={**grow, "image": ("anim.gif", gif(picture, picture[::-1].copy()))})
+    assert frames.status_code == 200, frames.text
+    assert frames.headers["x-tghop-warning"] == "anim.gif: 2 frames (or pages); only the first is read"
+    # A profile's name is the file's: the header is still one line of printable ASCII, each note capped.
+    odd = matrix_profile("Ecran\tlarge " + "x" * 400, (0.5151, 0.2412, -0.0011), (0.2920, 0.6922, 0.0419),
+                         (0.1571, 0.0666, 0.7841))
+    r = client.post(extend, files={**grow, "image": ("odd.png", png(picture, icc_profile=odd))})
+    assert r.status_code == 200, r.text
+    header = r.headers["x-tghop-warning"]
+    assert header.startswith("odd.png: colours converted to sRGB from its colour profile '")
+    assert header.endswith("...") and len(header) <= 300 and all(" " <= c <= "~" for c in header)

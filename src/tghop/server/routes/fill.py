@@ -14,8 +14,16 @@ from ..._errors import TGHopError
 from .. import materials
 from ..requests import RequestError, parse_bool, parse_growth, safe_name
 from ..uploads import MAX_FIT_BYTES, each_file_within, read_body, read_form, read_image
+from .images import WARNING_HEADER, header_text
 
-__all__ = ["fill_png", "inpaint", "extend", "fill_request"]
+__all__ = ["fill_png", "inpaint", "extend", "fill_request", "mask_note"]
+
+
+def mask_note(filename: str) -> str:
+    """The note of a mask ``filename`` with transparent pixels: its alpha channel is not read as the hole (as
+    ``tghop inpaint`` warns of its MASK), its white pixels are."""
+    return (f"{filename} has transparent pixels, but transparency is not read as the hole (its white pixels are "
+            "the hole); paint the hole white on black")
 
 
 def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
@@ -25,7 +33,9 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     PNG's bytes. As ``tghop inpaint`` and ``tghop extend`` do (their code): an alpha channel
     is kept (opaque where filled), and so are 16 bits per channel (a float picture: 16
     bits, the most a PNG holds). A material fills its maps too (``map:<name>`` fields):
-    ``(maps, (h, w))`` (:func:`materials.fill`)."""
+    ``(maps, (h, w))`` (:func:`materials.fill`). Returned with what reading the uploads said (lines,
+    :func:`read_image`'s notes: a colour profile converted, only a first frame read; a mask's transparency,
+    :func:`mask_note`), for the answer's :data:`~tghop.server.routes.images.WARNING_HEADER`."""
     import numpy as np
 
     from ..._errors import HINT_DOWNSCALE_YOURSELF
@@ -39,6 +49,7 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     if uploads and not materials.is_material(model):
         raise RequestError(422, f"model {model_id[:12]} is a texture model; map:<name> fields go with a material")
     picture = mask = None
+    told = []  # what reading the uploads said, in the order read
     for name in ("image",) if grow else ("image", "mask"):
         upload = fields.get(name)
         if not isinstance(upload, tuple):
@@ -50,11 +61,16 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
             raise RequestError(400, f"{filename} is empty; send an image file")
         if name == "image":  # 8-bit stays 8-bit (copied as bytes); an alpha channel is kept apart
             picture, depth = read_image(content, filename, lambda p: load_image(
-                p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True))
+                p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True),
+                notes=told)
             picture, alpha = split_alpha(picture)
-        else:
+        else:  # its alpha apart: a transparent part is said as tghop inpaint says it (not an exemplar's words)
             read = read_image(content, filename, lambda p: load_image(
-                p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF))
+                p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True), notes=told)
+            if read.shape[2] in (2, 4):
+                if (read[..., -1] < 1).any():
+                    told.append(mask_note(filename))
+                read = read[..., :-1]
             mask, mask_name = read.mean(axis=2), filename
     try:
         if grow:
@@ -73,8 +89,8 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
                 return drop_opaque_alpha(image, p.name), bits
 
             return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename: read_image(
-                data, filename, read_map), depth=depth, grow=grow, seed=seed, tile=tile,
-                progress=server.unless_stopping)
+                data, filename, read_map, notes=told), depth=depth, grow=grow, seed=seed, tile=tile,
+                progress=server.unless_stopping), told
         try:
             filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping)
         except MemoryError:
@@ -85,7 +101,7 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     filled = with_alpha(filled, alpha, hole)  # a PNG holds it
     buf = io.BytesIO()
     write_png(buf, to_uint16(filled) if deepest("filled.png", depth) == 16 else to_uint8(filled))
-    return buf.getvalue()
+    return buf.getvalue(), told
 
 
 async def inpaint(server, request):
@@ -128,9 +144,11 @@ async def fill_request(server, request, *, grow: bool):
         seed = int(seed)
     tile = parse_bool("tile", plain["tile"] or "false")
     growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
-    png = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth,
-                                   models=[model_id])
+    png, told = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth,
+                                         models=[model_id])
     headers = {"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"}
+    if told:  # what reading the picture, its mask and maps said, as a guide's (one line, printable ASCII)
+        headers[WARNING_HEADER] = header_text(told)
     if isinstance(png, tuple):  # a material's maps and their size
         body, kind = materials.answer(request.headers.get("accept", ""), *png, seed)
         return Response(body, media_type=kind, headers=headers)

@@ -176,7 +176,8 @@ function maskBlob() {
 }
 
 // POST the editor's picture with the fields of `fields` (and the seed and tile of the inpaint
-// toolbar) to /api/models/{id}/{path}; the answer becomes the result. Returns the seed used.
+// toolbar) to /api/models/{id}/{path}; the answer becomes the result. Returns the seed used and the server's
+// warning of it, or "" (X-Tghop-Warning: what reading the picture or mask said, e.g. a colour profile converted).
 async function sendPicture(path, fields, what, size) {
   const seed = $("inpaint-seed").value.trim();
   const form = new FormData();
@@ -198,7 +199,7 @@ async function sendPicture(path, fields, what, size) {
   const used = response.headers.get("X-Tghop-Seed");
   showResult(URL.createObjectURL(blob), used, blob, what, maps,
              { models: [workingStem()], size, tile: $("inpaint-tile").checked });
-  return used;
+  return [used, response.headers.get("X-Tghop-Warning") || ""];
 }
 
 function onFill() {
@@ -208,9 +209,9 @@ function onFill() {
     if (!mask) { sayInpaint("paint the hole first: drag the brush over the picture", true); return; }
     sayInpaint("filling");
     const img = $("editor-base");
-    const used = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted",
-                                   [img.naturalHeight, img.naturalWidth]);
-    sayInpaint(`filled (seed ${used}): paint again to fill more, or download it`);
+    const [used, warning] = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted",
+                                              [img.naturalHeight, img.naturalWidth]);
+    sayInpaint(withWarning(`filled (seed ${used}): paint again to fill more, or download it`, warning));
   }, sayInpaint);
 }
 
@@ -226,9 +227,10 @@ function onExtend() {
       return;
     }
     sayInpaint("extending");
-    const used = await sendPicture("extend", [["size", `${h}x${w}`], ["anchor", $("extend-anchor").value]],
-                                   "extended", [h, w]);
-    sayInpaint(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`);
+    const [used, warning] = await sendPicture("extend", [["size", `${h}x${w}`], ["anchor", $("extend-anchor").value]],
+                                              "extended", [h, w]);
+    sayInpaint(withWarning(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`,
+                           warning));
   }, sayInpaint);
 }
 
