@@ -500,11 +500,23 @@ def test_a_mask_or_a_guide_painted_elsewhere_is_used_by_keyboard(page):
         page.wait_for_function("(m => m.textContent.startsWith('done') || m.classList.contains('error'))"
                                "(document.getElementById('paint-message'))", timeout=60_000)
         assert page.text_content("#paint-message").startswith("done"), page.text_content("#paint-message")
-        halves[0, 0] = (90, 90, 90)
+        # Soft edges (a blend between the two colours) are read as the server reads them: the same labels
+        from tghop.guides import guide_labels
+
+        soft = halves.copy()
+        soft[:, 19], soft[:, 20], soft[5, 5] = (150, 135, 50), (80, 70, 40), (90, 90, 90)  # a blend, a stray pixel
+        page.evaluate("guide.labels.fill(pickedModels()[0].index)")
+        page.set_input_files("#guide-file", files=[{"name": "soft.png", "mimeType": "image/png", "buffer": png(soft)}])
+        page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('the guide is soft')")
+        want = np.array(picked)[guide_labels(soft, 2)]
+        assert page.evaluate("Array.from(guide.labels)") == want.ravel().tolist()
+        halves[:10, :10] = (90, 90, 90)  # a third flat colour: refused in the server's words
         page.set_input_files("#guide-file", files=[{"name": "three.png", "mimeType": "image/png",
                                                     "buffer": png(halves)}])
         page.wait_for_function("document.getElementById('paint-message').textContent.startsWith("
-                               "'three.png has more flat colours than the 2 models picked')")
+                               "'three.png: the guide has 3 distinct grey levels/colours but 2 models were given')")
+        assert page.errors == ["Failed to load resource: the server responded with a status of 400 (Bad Request)"]
+        page.errors.clear()  # Chromium logs the refusal
     finally:
         chromium.choose_mode(page, "view")
         page.fill("#height", "256")

@@ -191,3 +191,60 @@ def test_inpaints_and_extends_read_warnings_are_in_the_answers_header(client):
     header = r.headers["x-tghop-warning"]
     assert header.startswith("odd.png: colours converted to sRGB from its colour profile '")
     assert header.endswith("...") and len(header) <= 300 and all(" " <= c <= "~" for c in header)
+
+
+def soft_guide(h=48, w=64):
+    """A guide of two flat levels (40 and 200, a diagonal edge) drawn 4 times larger and downscaled: antialiased
+    edges, many blends of the two levels between them."""
+    from PIL import Image
+
+    yy, xx = np.mgrid[: 4 * h, : 4 * w]
+    big = np.where(xx + yy // 2 < 2 * w, 40, 200).astype(np.uint8)
+    big[20:80, 150:230] = 40  # a block of the dark level inside the light
+    return np.asarray(Image.fromarray(big).resize((w, h), Image.BOX))
+
+
+def test_a_guide_with_soft_edges_is_read_as_the_guided_route_reads_it(client):
+    # The page's "Use a guide..." refused one (its blends: more colours than models); the server reads it.
+    from tghop.guides import guide_labels
+
+    soft = soft_guide()
+    assert len(np.unique(soft)) > 2  # soft edges: more grey levels than models
+    r = client.post("/api/guides/labels", json={"guide": base64.b64encode(png(soft)).decode(), "n_models": 2,
+                                                "size": [48, 64]})
+    assert r.status_code == 200, r.text
+    answer = r.json()
+    assert answer["size"] == [48, 64] and answer["notes"] == []
+    labels = np.frombuffer(base64.b64decode(answer["labels"]), np.uint8).reshape(48, 64)
+    assert (labels == guide_labels(soft, 2)).all() and set(np.unique(labels)) == {0, 1}
+    # The same regions a generation through it is given: the guided route's answer is the labels' as a flat guide.
+    a, b = (fit(client, f"{n}.png", png(to_uint8(image))) for n, image in
+            (("bricks", data.bricks(96, rng=3)), ("cells", data.cells(96, rng=4))))
+    assert done(client, a["job"]) == done(client, b["job"]) == "done"
+    ask = {"models": [a["id"], b["id"]], "seed": 3, "n_patches": 400}
+    by_soft = client.post("/api/images/guided", json={**ask, "guide": base64.b64encode(png(soft)).decode()})
+    flat = client.post("/api/images/guided", json={**ask, "guide": base64.b64encode(png(labels * 255)).decode()})
+    assert by_soft.status_code == flat.status_code == 200 and by_soft.content == flat.content
+    # A data: URL (the page's FileReader), a P3 profile said, a guide of the shape scaled (and said), as guided.
+    url = "data:image/png;base64," + base64.b64encode(png(np.dstack([soft] * 3), icc_profile=P3)).decode()
+    told = client.post("/api/guides/labels", json={"guide": url, "n_models": 2, "size": [96, 128]})
+    assert told.status_code == 200, told.text
+    assert told.json()["size"] == [96, 128] and told.json()["notes"] == [
+        "guide.png: colours converted to sRGB from its colour profile 'Test P3'",
+        "the guide was scaled from 48x64 to 96x128, the output's size (nearest neighbour: its regions kept as "
+        "painted)"]
+    # Refused as the guided route refuses: another shape, another count of levels (the page's words: models)
+    shape = client.post("/api/guides/labels", json={"guide": url, "n_models": 2, "size": [48, 48]})
+    assert shape.status_code == 400 and shape.json()["error"].startswith(
+        "the guide is 48x64 but the output is 48x48, of another shape")
+    three = soft.copy()
+    three[:10, :10] = 120
+    count = client.post("/api/guides/labels", json={"guide": base64.b64encode(png(three)).decode(), "n_models": 2})
+    assert count.status_code == 400 and count.json()["error"].startswith(
+        "the guide has 3 grey levels/colours with soft or JPEG edges but 2 models were given"), count.text
+    for body, status, said in (({"n_models": 2}, 400, "no guide"), ({"guide": url}, 422, "n_models must be"),
+                               ({"guide": url, "n_models": 9}, 422, "n_models must be"),
+                               ({"guide": url, "n_models": 2, "seed": 1}, 422, "unknown field 'seed'"),
+                               ({"guide": "not base64!", "n_models": 2}, 400, "guide is not valid base64")):
+        r = client.post("/api/guides/labels", json=body)
+        assert r.status_code == status and said in r.json()["error"], (body, r.text)

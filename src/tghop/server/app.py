@@ -167,6 +167,7 @@ def create_app(cache_dir, max_fits: int | None = None, cache_bytes: int | None =
         Route("/api/models/{id}/extend", _wrap(fill.extend, server), methods=["POST"]),
         Route("/api/images/guided", _wrap(images.guided, server), methods=["POST"]),
         Route("/api/images/morph", _wrap(images.morph, server), methods=["POST"]),
+        Route("/api/guides/labels", _wrap(images.guide_labels_route, server), methods=["POST"]),
         Route("/api/cooc", _wrap(cooc_routes.upload_cooc, server), methods=["POST"]),
         Route("/api/cooc/{id}", _wrap(cooc_routes.cooc_summary, server)),
         Route("/api/cooc/{id}/file", _wrap(cooc_routes.cooc_file, server)),

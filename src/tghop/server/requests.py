@@ -19,7 +19,7 @@ from .._errors import TGHopError
 
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
-           "parse_guided", "parse_morph", "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
+           "parse_guided", "parse_guide_labels", "parse_morph", "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -331,6 +331,28 @@ def parse_guided(body) -> tuple:
     size, seed, settings = parse_generation(body, default_size=None if guide is not None else (256, 256),
                                             what="/api/images/guided")
     return ids, guide, size, seed, transition, settings
+
+
+def parse_guide_labels(body) -> tuple:
+    """The JSON of ``POST /api/guides/labels`` -> ``(guide bytes, n_models, size or None)``: ``guide`` as
+    :func:`parse_guided` takes it, ``n_models`` (1 to :data:`MAX_MODELS`), ``size`` (optional, as a
+    generation's)."""
+    from .._common import MAX_PIXELS, check_size
+
+    if not isinstance(body, dict):
+        raise RequestError(400, "the body must be a JSON object, e.g. {\"guide\": PNG_BASE64, \"n_models\": 2}")
+    unknown = [k for k in body if k not in ("guide", "n_models", "size")]
+    if unknown:
+        raise RequestError(422, f"unknown field {str(unknown[0])[:40]!r}; known: guide, n_models, size")
+    if "guide" not in body:
+        raise RequestError(400, "no guide: give \"guide\", a PNG as a base64 string")
+    guide = decode_guide(body["guide"])
+    try:
+        n_models = _integer("n_models", body.get("n_models"), 1, MAX_MODELS)
+        size = None if body.get("size") is None else check_size(body["size"], limit=MAX_PIXELS, name="size")
+    except TGHopError as exc:
+        raise RequestError(422, str(exc)) from None
+    return guide, n_models, size
 
 
 def parse_morph(body) -> tuple:

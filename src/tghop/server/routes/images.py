@@ -12,11 +12,12 @@ import time
 
 from ..._errors import TGHopError
 from .. import materials
-from ..requests import RequestError, parse_generation, parse_guided, parse_morph
+from ..core import json_response
+from ..requests import RequestError, parse_generation, parse_guide_labels, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
 __all__ = ["header_text", "model_png", "png_response", "generate", "several_png", "same_patches", "guided_png",
-           "guided", "morph_png", "morph", "WARNING_HEADER"]
+           "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route", "WARNING_HEADER"]
 
 #: The answer's header that tells the client what the library warned of (one line, its words; several joined by
 #: "; "): a painted guide scaled to the size asked, what reading it said (a colour profile converted; docs/serve.md).
@@ -129,34 +130,58 @@ def same_patches(models, names) -> None:
                                     f"{p}x{p}; fit them with the same patch_size (a field of POST /api/models)")
 
 
+def read_guide(guide: bytes, n_models: int, size, **words) -> tuple:
+    """A painted guide's PNG bytes -> ``(labels, told)``: its labels as uint8 (grey levels 0, 1, ...; at most 8
+    models), read once by :func:`tghop.guides.guide_labels` (soft or JPEG edges snapped to the flat levels; a
+    guide of another size but the shape of ``size`` scaled to it), and what to tell the client (what reading it
+    said, as :func:`read_image`'s notes; a guide scaled: the library's warning, collected on this thread instead
+    of the server's console). Its refusals are 400 in the library's words (``words``: guide_labels' names)."""
+    import numpy as np
+
+    from ..._errors import collect_warnings
+    from ...guides import guide_labels
+    from ...imageio import load_image
+
+    told = []
+    painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None), notes=told)
+    try:
+        with collect_warnings() as said:
+            labels = guide_labels(painted, n_models, size=size, **words)
+    except TGHopError as exc:  # another count of levels, another shape, a region the scaling loses
+        raise RequestError(400, str(exc)) from None
+    told.extend(str(w) for w in said)
+    return labels.astype(np.uint8), told
+
+
+def guide_label_map(guide: bytes, n_models: int, size) -> dict:
+    """``POST /api/guides/labels``'s answer: the guide's labels as the guided route reads them
+    (:func:`read_guide`), in the page's words (models, and painting the canvas instead of a guide):
+    ``{"size": [h, w], "labels": base64 of the (h, w) uint8 labels row by row, "notes": [...]}``."""
+    import base64
+
+    labels, told = read_guide(guide, n_models, size, input_name="model", no_guide="paint the canvas instead")
+    return {"size": list(labels.shape), "labels": base64.b64encode(labels.tobytes()).decode("ascii"), "notes": told}
+
+
+async def guide_labels_route(server, request):
+    """``POST /api/guides/labels``: a guide painted elsewhere read as :func:`guided` reads it (the page's "Use a
+    guide..."), on a decoding thread (:meth:`~tghop.server.core.Server.decode`)."""
+    guide, n_models, size = parse_guide_labels(await json_body(request, limit=MAX_UPLOAD_BYTES))
+    return json_response(await server.decode(request, guide_label_map, guide, n_models, size))
+
+
 def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     """Several models through a painted guide (its PNG's bytes), or a remix (None): the PNG (a material's
     maps), its size and what to tell the client (what reading the guide said, as :func:`read_image`'s notes; a
     guide scaled to ``size``: the library's warning)."""
-    import numpy as np
-
-    from ..._errors import collect_warnings
     from ...guided import synthesize_guided
-    from ...guides import guide_labels
-    from ...imageio import load_image
 
     models = [server.model(model_id) for model_id in ids]
     materials.same_kind(models, ids)
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
     labels, told = None, []
-    if guide is not None:
-        painted = read_image(guide, "guide.png", lambda p: load_image(p, dtype=None), notes=told)
-        # Its labels read once (they were read here for the check, then again by synthesize_guided: a guide of
-        # another size scaled twice); the library's warning of one scaled to the size, collected on this
-        # thread (it would go to the server's console), is the client's header instead.
-        try:
-            with collect_warnings() as said:
-                labels = guide_labels(painted, len(models), size=size, names=[f"models[{i}]" for i in
-                                                                              range(len(models))])
-        except TGHopError as exc:  # a region that the scaling to the size loses too
-            raise RequestError(400, str(exc)) from None
-        told.extend(str(w) for w in said)
-        labels = labels.astype(np.uint8)  # as grey levels 0, 1, ... (at most 8 models): the same regions
+    if guide is not None:  # its labels read once (a guide of another size was scaled twice when read again)
+        labels, told = read_guide(guide, len(models), size, names=[f"models[{i}]" for i in range(len(models))])
     png, shape = several_png(server, lambda m, rng, dtype: synthesize_guided(
         m, labels, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
         **settings), models, seed)

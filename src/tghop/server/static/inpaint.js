@@ -113,7 +113,7 @@ function onBrushUp() {
 }
 
 // The pixels of an image file as they are (no smoothing), or null (said why with `say`) when the browser cannot read
-// it or it is not h x w: a mask or a guide painted elsewhere, the keyboard's way to one (painting needs a pointer).
+// it or it is not h x w: a mask painted elsewhere, the keyboard's way to one (painting needs a pointer).
 async function filePixels(file, h, w, what, say) {
   let bitmap;
   try {

@@ -116,36 +116,46 @@ function resizeGuide(force) {
   resetBoard(guide, h, w, first ? first.index : 0);
 }
 
-// A guide from a file (filePixels, inpaint.js): its flat colours, sorted dark to light (by their mean, then R, G,
-// B, as the library's guide_labels does), are the picked models in their order.
+// A file's bytes as a data: URL (what the API's guide fields take).
+function dataUrl(file) {
+  return new Promise((resolve, reject) => {
+    const reader = new FileReader();
+    reader.onload = () => resolve(reader.result);
+    reader.onerror = () => reject(new Error(`the browser cannot read ${file.name}`));
+    reader.readAsDataURL(file);
+  });
+}
+
+// A guide from a file, read by the server as Generate's guide is (POST /api/guides/labels: tghop's guide_labels,
+// one rule for both): its flat colours, sorted dark to light, are the picked models in their order; soft or JPEG
+// edges are taken (each pixel of a blend goes to the nearest flat colour), and a guide of the canvas's shape but
+// another size is scaled to it. Refused (another shape, another count of colours) in the server's words.
 async function onGuideFile(file) {
   if (!file) return;
   const picked = pickedModels();
   if (picked.length < 2) { sayPaint("pick 2 to 4 models first: the guide's colours are theirs", true); return; }
   resizeGuide();
   if (!guide.labels) return;
-  const pixels = await filePixels(file, guide.h, guide.w, "guide", sayPaint);
-  if (!pixels) return;
-  const keys = new Uint32Array(pixels.length / 4), colours = new Set();
-  for (let i = 0; i < keys.length; i++) {
-    keys[i] = (pixels[4 * i] << 16) | (pixels[4 * i + 1] << 8) | pixels[4 * i + 2];
-    colours.add(keys[i]);
-    if (colours.size > picked.length) break;
-  }
-  if (colours.size !== picked.length) {
-    sayPaint(`${file.name} has ${colours.size > picked.length ? "more" : "fewer"} flat colours than the ` +
-             `${picked.length} models picked: one colour each, the darkest the first`, true);
+  const [h, w] = [guide.h, guide.w];
+  let answer;
+  try {
+    const body = JSON.stringify({ guide: await dataUrl(file), n_models: picked.length, size: [h, w] });
+    const response = await fetch("/api/guides/labels",
+                                 { method: "POST", headers: { "Content-Type": "application/json" }, body });
+    if (!response.ok) { sayPaint(`${file.name}: ${await errorOf(response)}`, true); return; }
+    answer = await response.json();
+  } catch (e) {
+    sayPaint(`${file.name}: ${e.message}`, true);
     return;
   }
-  const rgb = (k) => [k >> 16, (k >> 8) & 255, k & 255];
-  const order = [...colours].sort((a, b) => {
-    const [x, y] = [rgb(a), rgb(b)], mean = (c) => c[0] + c[1] + c[2];
-    return mean(x) - mean(y) || x[0] - y[0] || x[1] - y[1] || x[2] - y[2];
-  });
-  const label = new Map(order.map((k, j) => [k, picked[j].index]));
-  for (let i = 0; i < keys.length; i++) guide.labels[i] = label.get(keys[i]);
+  if (guide.h !== h || guide.w !== w || answer.size[0] !== h || answer.size[1] !== w) {
+    sayPaint(`the canvas changed while ${file.name} was read: use it again`, true);
+    return;
+  }
+  const labels = base64Bytes(answer.labels);
+  for (let i = 0; i < labels.length; i++) guide.labels[i] = picked[labels[i]].index;
   drawBoard(guide, 0, 0, guide.w, guide.h);
-  sayPaint(`the guide is ${file.name}: Generate, or paint to change it`);
+  sayPaint(withWarning(`the guide is ${file.name}: Generate, or paint to change it`, answer.notes.join("; ")));
 }
 
 // The guide as the API wants it: the picked models' grey levels, darkest for the first (a data: URL).
