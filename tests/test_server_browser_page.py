@@ -9,6 +9,7 @@ Enter, its focus ring seen, its progress and result told; an error an alert, a m
 changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
 off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab."""
 
+import io
 import re
 
 import numpy as np
@@ -477,6 +478,23 @@ def test_a_mask_or_a_guide_painted_elsewhere_is_used_by_keyboard(page):
                                                    "buffer": png(np.zeros((41, 40), np.uint8))}])
         page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('big.png is 41x40')")
         assert "error" in page.get_attribute("#inpaint-message", "class")
+        # What the server says of reading the picture (its colour profile converted) follows the "filled" line
+        from PIL import Image
+        from test_profiles import P3
+
+        buf = io.BytesIO()
+        Image.fromarray(np.random.default_rng(0).integers(0, 256, (40, 40, 3), dtype=np.uint8)).save(
+            buf, format="PNG", icc_profile=P3)
+        page.set_input_files("#picture", files=[{"name": "p3.png", "mimeType": "image/png", "buffer": buf.getvalue()}])
+        page.wait_for_function("editor.name === 'p3.png' && document.getElementById('editor').dataset.ready === '1'")
+        page.set_input_files("#mask-file", files=[{"name": "hole.png", "mimeType": "image/png", "buffer": png(hole)}])
+        page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('the hole is')")
+        page.click("#fill")
+        page.wait_for_function("(m => m.textContent.startsWith('filled') || m.classList.contains('error'))"
+                               "(document.getElementById('inpaint-message'))", timeout=60_000)
+        assert page.text_content("#inpaint-message").endswith(
+            ". Warning: p3.png: colours converted to sRGB from its colour profile 'Test P3'"), \
+            page.text_content("#inpaint-message")
         # Paint: the guide's flat colours, darkest first, are the picked models in their order
         chromium.choose_mode(page, "paint")
         boxes = page.query_selector_all("#paint-models label")
