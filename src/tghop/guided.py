@@ -63,6 +63,7 @@ from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, one_blas_thread, report
 from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
 from .guides import guide_labels
+from .masks import snap_to_levels
 from .material import Material, renormalise
 from .quilting import block_count
 
@@ -491,6 +492,10 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
         for name, normal in zip(first.names_, first.normal_):
             if normal:  # the join's means of unit vectors, unit again
                 maps[name] = renormalise(maps[name]).astype(image.dtype, copy=False)
+        for i, name in enumerate(first.names_):  # a mask map of every material: the join's means at their levels
+            levels = [model.levels_[i] for model in models]
+            if all(lv is not None for lv in levels):
+                maps[name] = snap_to_levels(maps[name], np.unique(np.concatenate(levels), axis=0))
         return {name: _as_dtype(m, dtype) for name, m in maps.items()}
     return _as_dtype(image, dtype, scratch=True)
 

@@ -422,9 +422,9 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
 
     The stacked maps are filled by :func:`inpaint` with the material's joint model (its
     pool, seams and coarse layout); then each map is refined in the hole by its own band
-    statistics, as :meth:`tghop.material.Material.synthesize` refines it, and a normal
-    map's filled pixels are made unit vectors again. Every pixel outside the hole is kept
-    exactly.
+    statistics, as :meth:`tghop.material.Material.synthesize` refines it, a normal
+    map's filled pixels are made unit vectors again and a mask map's its levels again
+    (:mod:`tghop.masks`). Every pixel outside the hole is kept exactly.
 
     Parameters
     ----------
@@ -452,6 +452,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     from collections.abc import Mapping
 
     from .material import Material, renormalise
+    from .masks import snap_to_levels
 
     if not isinstance(material, Material):
         raise TGHopError(f"inpaint_material takes a tghop.material.Material, got {type(material).__name__}; "
@@ -490,6 +491,8 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
             img = refined if alpha is None else img + alpha * (refined - img)
         if material.normal_[i]:
             img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
+        if material.levels_[i] is not None:  # a mask map's own levels (tghop.masks)
+            img[hole] = snap_to_levels(img[hole][None], material.levels_[i])[0]
         out[name] = _into(np.asarray(images[name]), hole, img[hole])
         report(progress, "refine", i + 1, len(names))
     return out

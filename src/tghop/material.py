@@ -41,6 +41,7 @@ from ._arrays import check_dtype
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fit_part, fitted_settings,
                       one_blas_thread, report)
 from .colour import match_histograms
+from .masks import MASK_LEVELS, mask_levels, snap_to_levels
 from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -440,6 +441,9 @@ class Material(BaseEstimator):
         writes each map with unless told otherwise.
     bands_ : list of tghop.refine.BandStatistics
         Each map's own refinement statistics.
+    levels_ : list of ndarray or None
+        Each map's mask levels (:func:`tghop.masks.mask_levels`: a map of at most 4 distinct values,
+        not the albedo or a normal map), to which its output is snapped; None for the others.
     """
 
     def __init__(self, model=None, normal="auto", rng=None):
@@ -591,6 +595,8 @@ class Material(BaseEstimator):
         self.normal_ = [is_normal for _, _, _, is_normal in items]
         self.map_channels_ = [img.shape[2] for _, img, _, _ in items]
         self.depths_ = [depth for _, _, depth, _ in items]
+        self.levels_ = [None if i == 0 or is_normal else mask_levels(img, exclude)
+                        for i, (_, img, _, is_normal) in enumerate(items)]
         self._fitted_params = fitted_settings(self)  # as TGHop's: set_params after fit is refused until a new fit
         return self
 
@@ -685,6 +691,8 @@ class Material(BaseEstimator):
                 img = match_histograms(img, quantiles[part])
             if self.normal_[i]:
                 img = renormalise(img)
+            if self.levels_[i] is not None:  # a mask (metalness 0 and 1) kept one: tghop.masks
+                img = snap_to_levels(img, self.levels_[i])
             out[name] = img.astype(dtype, copy=False)
             report(progress, "maps", i + 1, len(self.names_))
         return out
@@ -712,7 +720,9 @@ class Material(BaseEstimator):
                 for n, c, nm, d in zip(self.names_, self.map_channels_, self.normal_, self.depths_)]
 
     def _state_meta(self) -> dict:
-        return {**self.model_._state_meta(), "material": {"maps": self.map_info(), "params": self._params_meta()}}
+        levels = {n: lv.tolist() for n, lv in zip(self.names_, self.levels_) if lv is not None}
+        return {**self.model_._state_meta(), "material": {"maps": self.map_info(), "params": self._params_meta(),
+                                                           **({"levels": levels} if levels else {})}}
 
     def _params_meta(self) -> dict:
         """The constructor's parameters as given (JSON-ready; rngs as :func:`tghop.settings.recorded_seed`
@@ -768,6 +778,24 @@ class Material(BaseEstimator):
             raise TGHopError("the material's maps do not add up to the model's channels")
         return maps
 
+    @staticmethod
+    def _levels_meta(given, maps):
+        """Each map's mask levels from the metadata (files of tghop 0.56 and before have none), checked."""
+        channels = {m["name"]: m["channels"] for m in maps}
+        if not isinstance(given, dict) or not set(given) <= {m["name"] for m in maps[1:] if not m["normal"]}:
+            raise TGHopError("the material metadata's levels are not a dict of its maps' names (not the albedo's "
+                             "or a normal map's)")
+        out = []
+        for name in channels:
+            lv = given.get(name)
+            arr = None if lv is None else np.asarray(lv, dtype=object)
+            if arr is not None and (arr.shape[1:] != (channels[name],) or not 1 <= len(arr) <= MASK_LEVELS or not all(
+                    isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v <= 1 for v in arr.flat)):
+                raise TGHopError(f"the material metadata's levels of map {name!r} are not 1 to {MASK_LEVELS} values "
+                                 "in [0, 1] of its channels")
+            out.append(None if arr is None else arr.astype(np.float64))
+        return out
+
     @classmethod
     def _array_specs(cls, meta, *, quantised=True):
         """The checks of :mod:`tghop.modelfile`: the joint model's and each map's statistics."""
@@ -792,6 +820,7 @@ class Material(BaseEstimator):
         mat.map_channels_ = [m["channels"] for m in maps]
         mat.normal_ = [m["normal"] for m in maps]
         mat.depths_ = [m["depth"] for m in maps]
+        mat.levels_ = cls._levels_meta(meta["material"].get("levels", {}), maps)
         mat.bands_ = []
         for m in maps:
             prefix = f"material.{m['name']}."

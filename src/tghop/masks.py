@@ -1,0 +1,77 @@
+"""A material's mask maps kept masks: a map whose exemplar holds only a few distinct values (a
+metalness or opacity map of 0 and 1, a cut-out's 0, 0.5 and 1) comes out holding only those values.
+
+The joint model's patches, the map's refinement and its histogram matching all make values between
+a mask's levels at the edges of its elements (docs/choices.md, "Material sets, a second audit"),
+where an engine expects metalness 0 or 1 and an alpha-tested opacity cuts at its own threshold.
+:class:`tghop.material.Material` reads each map's levels at fit (:func:`mask_levels`, at most
+:data:`MASK_LEVELS` distinct pixel values) and moves each pixel of its output to the nearest of them
+(:func:`snap_to_levels`): values move, pixels do not, so the map stays aligned with the others. A
+map of more values (a normal, height or roughness map, a photographed one) is left as it is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["MASK_LEVELS", "mask_levels", "snap_to_levels"]
+
+#: A map whose exemplar holds at most this many distinct pixel values is a mask, snapped to them.
+MASK_LEVELS = 4
+
+
+def mask_levels(image, exclude=None, most: int = MASK_LEVELS):
+    """The distinct pixel values of a map that holds at most ``most`` of them, or None.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        Floats in [0, 1] (a map as :meth:`tghop.material.Material.fit` takes it).
+    exclude : array_like of bool, shape (H, W), optional
+        Pixels not read (those the model does not learn).
+    most : int
+
+    Returns
+    -------
+    ndarray, shape (k, C), k <= most, or None
+        The values, sorted (each a pixel's C channels); None where the map holds more.
+    """
+    arr = np.asarray(image)
+    pixels = arr.reshape(-1, arr.shape[-1]) if exclude is None else arr[~np.asarray(exclude, dtype=bool)]
+    if len(pixels) == 0:
+        return None
+    sample = np.unique(pixels[:: max(1, len(pixels) // 65536)], axis=0)  # more than `most` here: no mask, early
+    if len(sample) > most:
+        return None
+    found = np.zeros(len(pixels), dtype=bool)
+    for level in sample:
+        found |= (pixels == level).all(axis=1)
+    return sample.astype(np.float64) if found.all() else None
+
+
+def snap_to_levels(image, levels, *, out=None):
+    """Each pixel of ``image`` moved to the nearest of ``levels`` (Euclidean over its channels; a
+    tie to the first): the values change, not where they are.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+    levels : array_like, shape (k, C)
+    out : ndarray, shape (H, W, C), optional
+        Where to write (may be ``image``).
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), of ``image``'s dtype
+    """
+    levels = np.asarray(levels, dtype=np.float64)
+    best = np.full(image.shape[:2], np.inf)
+    pick = np.zeros(image.shape[:2], dtype=np.intp)
+    for i, level in enumerate(levels):
+        d = ((image - level.astype(image.dtype)) ** 2).sum(axis=2)
+        closer = d < best
+        best[closer], pick[closer] = d[closer], i
+    if out is None:
+        out = np.empty_like(image)
+    out[...] = levels.astype(image.dtype)[pick]
+    return out
