@@ -101,6 +101,27 @@ def test_a_colour_map_given_after_maps_or_left_out_is_refused_in_one_line(exempl
     assert not (tmp_path / "m.npz").exists()
 
 
+def test_a_material_whose_exemplar_is_named_as_another_kind_and_no_colour_map_is_warned_of(exemplar, maps, tmp_path):
+    # tghop fit Rock_Roughness.png --maps Rock_NormalGL.png fitted the roughness as the colour map without a word.
+    from tghop.imageio import save_image
+
+    save_image(maps["roughness"], tmp_path / "Rock023_2K_Roughness.png")
+    save_image(example_maps(exemplar, convention="OpenGL")["normal"], tmp_path / "Rock023_2K_NormalGL.png")
+    save_image(exemplar, tmp_path / "Rock023_2K_Color.png")
+    res = _cli(["fit", "Rock023_2K_Roughness.png", "--maps", "Rock023_2K_NormalGL.png", "-o", "m.npz", *FAST_CLI],
+               tmp_path)
+    assert res.exit_code == 0 and (tmp_path / "m.npz").exists(), res.output  # fitted as asked (it may have none)
+    said = [line for line in res.output.splitlines() if "as the colour map" in line]
+    assert len(said) == 1, res.output
+    assert ("is named as a roughness map and no --maps as the colour map; it is fitted as the colour map (written to "
+            "OUT); tghop expects the colour map first (named *_Color, *_BaseColor, *_Albedo, *_diff, ...): tghop fit "
+            "Rock_Color.png --maps {0}/Rock023_2K_Roughness.png {0}/Rock023_2K_NormalGL.png, or rename".format(tmp_path)
+            ) in said[0], said
+    res = _cli(["fit", "Rock023_2K_Color.png", "--maps", "Rock023_2K_NormalGL.png", "Rock023_2K_Roughness.png",
+                "-o", "m2.npz", *FAST_CLI], tmp_path)
+    assert res.exit_code == 0 and "colour map" not in res.output, res.output
+
+
 def test_fit_says_which_maps_are_normal_maps_and_that_their_convention_is_kept(exemplar, maps, tmp_path):
     from tghop.imageio import save_image
 

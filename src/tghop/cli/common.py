@@ -550,8 +550,10 @@ def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", al
     """A one-line error where the albedo's file is named as another kind of map
     (:func:`tghop.material.map_kind`) and one of the maps as the colour map (the two swapped), or
     the albedo's file as a normal map and no map as the colour map (the colour map left out: the
-    normal map would be modelled as the albedo's colours, not kept unit vectors). ``command``: the
-    command line up to the maps, ``{}`` where the colour map goes."""
+    normal map would be modelled as the albedo's colours, not kept unit vectors); a one-line warning
+    where the albedo's file is named as another kind (``Rock_Roughness.png``) and no map as the colour
+    map (fitted as the colour map, as asked: a material may have none). ``command``: the command line
+    up to the maps, ``{}`` where the colour map goes."""
     from ..material import ALBEDO, map_kind
 
     kind = map_kind(albedo_path)
@@ -565,6 +567,11 @@ def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", al
     if kind == "normal":
         raise TGHopError(f"{albedo} {albedo_path} is named as a normal map and no {label} as the colour map; give the "
                          f"material's colour map first ({command.format('Rock_Color.png')} {albedo_path} ...)")
+    given = " ".join(str(p) for p in [albedo_path, *paths])
+    warnings.warn(f"{albedo} {albedo_path} is named as a {kind} map and no {label} as the colour map; it is fitted as "
+                  "the colour map (written to OUT); tghop expects the colour map first (named *_Color, *_BaseColor, "
+                  f"*_Albedo, *_diff, ...): {command.format('Rock_Color.png')} {given}, or rename the file if it is "
+                  "the colour map", UserWarning, stacklevel=2)
 
 
 def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
