@@ -177,6 +177,31 @@ def test_a_batch_folder_of_material_sets_is_warned_of_with_the_manifest_line(tmp
         find_work(tmp_path / "bricks", tmp_path / "out")
 
 
+def test_the_manifest_line_a_batch_folder_is_warned_with_is_one_the_manifest_takes(tmp_path):
+    # A folder of an ambientCG set of 10 maps was warned of with a line of 10 maps, which the manifest refused
+    # (at most MAX_MAPS); a name with a comma broke the CSV line.
+    from tghop.batch_plan import find_work
+    from tghop.manifest import MAX_MAPS
+
+    kinds = ("NormalGL", "NormalDX", "Roughness", "Displacement", "AmbientOcclusion", "Metalness", "Opacity",
+             "Emission", "Specular", "ORM")
+    assert len(kinds) > MAX_MAPS
+    for rel in ["Rock,023_2K_Color.jpg"] + [f"Rock,023_2K_{k}.png" for k in kinds]:
+        (tmp_path / rel).write_bytes(b"")  # only the names are read
+    with pytest.warns(UserWarning) as record:
+        find_work(tmp_path, tmp_path / "out")
+    message = str(record[0].message)
+    assert f"(a material takes at most {MAX_MAPS} maps: Rock,023_2K_NormalGL.png, Rock,023_2K_ORM.png left out)" \
+        in message, message
+    line = message.split("e.g. the line ")[1].split(" (a material")[0]
+    (tmp_path / "list.csv").write_text("path,maps\n" + line + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        items = find_work(tmp_path / "list.csv", tmp_path / "out")
+    assert len(items) == 1 and len(items[0]["maps"]) == MAX_MAPS, items
+    assert str(items[0]["path"]).endswith("Rock,023_2K_Color.jpg")
+
+
 def test_a_materials_progress_in_a_log_says_each_map_done_not_stopped(capsys, monkeypatch):
     # A log of `tghop synth MAT.npz -o out.png 2>log` read "maps: stopped at 14 %", "... 28 %", ... at each map.
     import re

@@ -19,7 +19,9 @@ ledger that says what an earlier run finished.
 from __future__ import annotations
 
 import contextlib
+import csv
 import hashlib
+import io
 import json
 import numbers
 import os
@@ -31,7 +33,7 @@ from pathlib import Path
 from ._errors import TGHopError
 from .batch_task import THUMBNAIL_FILE, remove_temporaries
 from .contact_sheet import CONTACT_SHEET
-from .manifest import read_manifest
+from .manifest import MAX_MAPS, read_manifest
 
 __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED", "windows_reserved", "find_work",
            "inputs_sha256", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
@@ -117,13 +119,39 @@ def _warn_material_sets(folder: Path, items) -> None:
         return
     first, files = next(iter(sets.items()))
     albedo = next(rel for kind, rel in files if kind == ALBEDO)
-    maps = ";".join(rel.as_posix() for kind, rel in files if kind not in (None, ALBEDO))
+    maps, left = _manifest_maps([(kind, rel) for kind, rel in files if kind not in (None, ALBEDO)])
+    out = io.StringIO()
+    csv.writer(out, lineterminator="").writerow([albedo.as_posix(), ";".join(maps)])  # a comma in a name quoted
     where = "it" if first == Path(".") else first.as_posix()
     where += f" and {len(sets) - 1} other folder{'s' if len(sets) > 2 else ''}" if len(sets) > 1 else ""
+    limit = (f" (a material takes at most {MAX_MAPS} maps: {', '.join(left[:3])}{', ...' if len(left) > 3 else ''} "
+             "left out)") if left else ""
     warnings.warn(f"{folder}: {where} hold{'s' if len(sets) == 1 else ''} a material's maps by their names, and a "
                   "folder makes each image a texture of its own (maps not aligned, a normal map not kept unit); "
                   "to make whole materials list them in a CSV manifest in this folder (header path,maps), e.g. "
-                  f"the line {albedo.as_posix()},{maps}", stacklevel=4)
+                  f"the line {out.getvalue()}{limit}", stacklevel=4)
+
+
+def _manifest_maps(files):
+    """The maps of a folder's material set that one manifest row can list (``[(kind, rel)]``): paths that
+    hold no ``;`` (the row's separator), each map name once (in any case) and at most :data:`MAX_MAPS`, one of
+    each kind first (:data:`tghop.material.MAP_KINDS`' order), in the folder's order; and those left out."""
+    from .material import MAP_KINDS, map_name
+
+    names, usable, left = set(), [], []
+    for kind, rel in files:
+        name = map_name(rel).lower()
+        if ";" in rel.as_posix() or name in names:
+            left.append(rel.as_posix())
+        else:
+            names.add(name)
+            usable.append((kind, rel))
+    order = list(MAP_KINDS)
+    ranked = sorted(range(len(usable)), key=lambda i: (any(usable[j][0] == usable[i][0] for j in range(i)),
+                                                       order.index(usable[i][0])))
+    keep = set(ranked[:MAX_MAPS])
+    left += [rel.as_posix() for i, (_, rel) in enumerate(usable) if i not in keep]
+    return [rel.as_posix() for i, (_, rel) in enumerate(usable) if i in keep], left
 
 
 #: Names Windows keeps for devices, with or without an extension and in any case (``con``,
