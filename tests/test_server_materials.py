@@ -263,6 +263,29 @@ def test_a_normal_map_that_holds_no_unit_vectors_is_refused_before_a_fit_starts(
     assert_error(r, 400, "n.png: map 'normal' is a normal map by its name but its pixels are not unit vectors")
 
 
+def test_a_normal_map_stored_turned_is_turned_with_its_vectors_or_refused_in_one_line(client, material_id):
+    # Its pixels were turned upright by the EXIF orientation, its vectors not (lit wrong); a quarter turn needs
+    # the map's convention, which a flat map's content does not say.
+    import io
+
+    from PIL import Image
+
+    flat = np.zeros((SIZE, SIZE, 3), np.uint8)
+    flat[...] = (128, 128, 255)
+    exif = Image.Exif()
+    exif[274] = 6
+    buf = io.BytesIO()
+    Image.fromarray(flat).save(buf, format="PNG", exif=exif)
+    r = client.post("/api/models", files={**albedo_file(), "map:normal": ("n.png", buf.getvalue())})
+    assert_error(r, 400, "the map normal (n.png) is stored turned (EXIF orientation 6)")
+    hole = np.zeros((SIZE, SIZE), np.uint8)
+    hole[30:60, 20:70] = 255
+    r = client.post(f"/api/models/{material_id}/inpaint", files={
+        "image": ("p.png", png(to_uint8(data.bricks(SIZE)))), "mask": ("m.png", png(hole)),
+        "map:normal": ("n.png", buf.getvalue()), "map:height": map_files()["map:height"]})
+    assert_error(r, 400, "the map normal (n.png) is stored turned (EXIF orientation 6)")
+
+
 def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client, material_id, tmp_path):
     from tghop.inpaint import inpaint_material
 

@@ -116,7 +116,8 @@ def _thumbnail(image, path):
 def _read_maps(maps, load_image) -> dict:
     """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``); an alpha
     channel that holds data fails the row (:func:`tghop.material.drop_opaque_alpha`)."""
-    from .material import drop_opaque_alpha
+    from .material import drop_opaque_alpha, is_normal_name, normal_convention
+    from .normals import upright_normal_map
 
     out = {}
     for name, file in maps or ():
@@ -124,7 +125,11 @@ def _read_maps(maps, load_image) -> dict:
             raise TGHopError(f"the map {name} ({file}) is {model_file_kind(file)}, not an image; list the map's image")
         image, depth = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True,
                                   keep_alpha=True)
-        out[name] = drop_opaque_alpha(image, f"the map {name} ({file})"), depth
+        image = drop_opaque_alpha(image, f"the map {name} ({file})")
+        if is_normal_name(name):  # stored turned (EXIF): its vectors turned with its pixels
+            image = upright_normal_map(image, file, convention=normal_convention(name),
+                                       label=f"the map {name} ({file})")
+        out[name] = image, depth
     return out
 
 

@@ -8,13 +8,23 @@ mixed slopes agree (``d/dy dh/dx = d/dx dh/dy``), so ``d/dy (n_x / n_z)`` and ``
 correlate by +1 for DirectX's encoding and -1 for OpenGL's; a photographed or painted map less, and
 noise not at all. Measured: builtin bricks' and cells' example maps +-1.00; an ambientCG-style set
 synthesised at 1024x1024, +0.69 (DirectX) and -0.80 (OpenGL); noise -0.01.
+
+A normal map stored turned, with an EXIF orientation (a viewer's "rotate" of a JPEG often only
+sets the tag), is read upright like any image (:func:`tghop.imageio.load_image`); its vectors are
+then turned with its pixels (:func:`upright_normal_map`): a slope to the right of a map turned a
+quarter is a slope down the rows. Mirrors and the half turn negate red or green whatever the
+convention; the quarter turns and transpositions swap red and green, whose signs depend on it (the
+name's, else the stored pixels' :func:`convention_of`; neither: refused in one line).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "convention_of"]
+from ._errors import TGHopError
+from .image_decode import file_header, upright
+
+__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "convention_of", "upright_vectors", "upright_normal_map"]
 
 #: The least correlation, either sign, that decides a normal map's convention by its content.
 CONVENTION_CORRELATION = 0.3
@@ -51,3 +61,85 @@ def convention_of(values):
         return None
     r = float(np.corrcoef(across, down)[0, 1])
     return None if abs(r) < CONVENTION_CORRELATION else "DirectX" if r > 0 else "OpenGL"
+
+
+#: EXIF orientations whose quarter turn or transposition swaps a normal map's red and green.
+TRANSPOSING = (5, 6, 7, 8)
+#: The orientation that turns an upright image back as it was stored (the quarter turns swap).
+STORED = {6: 8, 8: 6}
+
+
+def upright_vectors(values, orientation, convention):
+    """A normal map's vectors turned as :func:`tghop.image_decode.upright` turned its pixels.
+
+    Parameters
+    ----------
+    values : ndarray, shape (H, W, 3)
+        The upright pixels: vectors encoded as ``(n + 1) / 2``, floats in [0, 1] or unsigned
+        integers at their full range.
+    orientation : int
+        The EXIF orientation the pixels were turned by (1-8; another value: none).
+    convention : {"OpenGL", "DirectX"} or None
+        The map's (y up or down the rows); needed only for orientations 5 to 8.
+
+    Returns
+    -------
+    ndarray, the shape and dtype of ``values`` (``values`` itself for orientation 1)
+    """
+    if orientation not in range(2, 9):
+        return values
+    if orientation in TRANSPOSING and convention not in ("OpenGL", "DirectX"):
+        raise TGHopError(f"a normal map turned by EXIF orientation {orientation} needs its convention, 'OpenGL' or "
+                         f"'DirectX', got {convention!r}")
+    full = values.dtype.type(np.iinfo(values.dtype).max if values.dtype.kind == "u" else 1.0)
+    gl = convention == "OpenGL"
+    x, y = (0, False), (1, gl)  # (channel, negated): worked in DirectX's frame, y down the rows as the pixels'
+    if orientation in TRANSPOSING:  # as upright turns the pixels: rows and columns swapped first, then as 1-4
+        x, y = y, x
+        orientation -= 4
+    if orientation in (2, 3):  # columns mirrored
+        x = (x[0], not x[1])
+    if orientation in (3, 4):  # rows mirrored
+        y = (y[0], not y[1])
+    y = (y[0], y[1] != gl)  # back to the map's convention
+    out = values.copy()
+    for i, (c, negated) in enumerate((x, y)):
+        out[..., i] = full - values[..., c] if negated else values[..., c]
+    return out
+
+
+def upright_normal_map(values, path, *, convention=None, label="the normal map"):
+    """A normal map read from ``path`` (:func:`tghop.imageio.load_image`: its pixels turned upright
+    by its EXIF orientation), its vectors turned with them (:func:`upright_vectors`).
+
+    Parameters
+    ----------
+    values : ndarray, shape (H, W, C)
+        As read; a map of other than 3 channels is returned as it is (refused as a normal map later).
+    path : str or os.PathLike
+        The file, whose orientation is read (its header only).
+    convention : {"OpenGL", "DirectX"} or None
+        The map's by its name (:func:`tghop.material.normal_convention`); None: read from its stored
+        pixels' content (:func:`convention_of`) where a quarter turn needs it.
+    label : str
+        How a message names the map (``"--maps rock_nrm.jpg"``).
+
+    Returns
+    -------
+    ndarray
+
+    Raises
+    ------
+    TGHopError
+        A map turned a quarter (orientations 5-8) whose convention neither its name nor its content says.
+    """
+    if values.ndim != 3 or values.shape[2] != 3:
+        return values
+    orientation = file_header(path)[0]
+    if orientation in TRANSPOSING and convention is None:
+        convention = convention_of(upright(values, STORED.get(orientation, orientation)))
+        if convention is None:
+            raise TGHopError(f"{label} is stored turned (EXIF orientation {orientation}) and neither its name nor its "
+                             "content says its convention, so its vectors cannot be turned with its pixels; save it "
+                             "upright, or name it *_NormalGL (green up) or *_NormalDX (green down)")
+    return upright_vectors(values, orientation, convention)

@@ -322,7 +322,8 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..material import drop_opaque_alpha
+    from ..material import drop_opaque_alpha, is_normal_name, normal_convention
+    from ..normals import upright_normal_map
     from ..material_files import map_files
 
     if output == "-":
@@ -359,6 +360,8 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, keep_alpha=True,
                                               too_large_hint=HINT_DOWNSCALE_YOURSELF)
         maps[name] = drop_opaque_alpha(maps[name], f"MAP {path}")
+        if (material.normal_[1 + names.index(name)] if material is not None else is_normal_name(name)):
+            maps[name] = upright_normal_map(maps[name], path, convention=normal_convention(name), label=f"MAP {path}")
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
                              f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")

@@ -52,8 +52,8 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
     content (:func:`tghop.normals.convention_of`), by name."""
     from ..imageio import load_image
-    from ..material import Material, drop_opaque_alpha
-    from ..normals import convention_of
+    from ..material import Material, drop_opaque_alpha, is_normal_name, normal_convention
+    from ..normals import convention_of, upright_normal_map
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
@@ -75,6 +75,9 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     maps, depths = {}, {"albedo": depth}
     for path, name in zip(map_paths, names):
         maps[name], depths[name] = read(path, "--maps")
+        if is_normal_name(name):  # stored turned (EXIF): its vectors turned with its pixels
+            maps[name] = upright_normal_map(maps[name], path, convention=normal_convention(name),
+                                            label=f"--maps {path}")
         if maps[name].shape[:2] != albedo.shape[:2]:  # said here with the files, and the resolutions they are named
             (h, w), (ah, aw) = maps[name].shape[:2], albedo.shape[:2]
             said, own = _resolution_word(path), _resolution_word(spec)

@@ -30,8 +30,8 @@ import secrets
 from ..manifest import MAX_MAPS
 from .requests import RequestError, check_channel_counts, safe_name
 
-__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "check_channels", "material_id",
-           "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
+__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "upright_map", "check_channels",
+           "material_id", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
            "META_PART"]
 
 #: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
@@ -80,8 +80,9 @@ def map_uploads(fields: dict) -> list:
 
 
 def read_maps(uploads, read, albedo_shape) -> tuple:
-    """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename)``
-    returns ``(image, depth)`` (the server's upload reader); a map of another height and
+    """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename, normal)``
+    returns ``(image, depth)`` (the server's upload reader; ``normal``: the map's name where it is a
+    normal map, for :func:`upright_map`, else None); a map of another height and
     width than the albedo's, or a normal map by its name that holds no unit vectors
     (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
     from .._common import check_image
@@ -90,7 +91,7 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
 
     maps, depths = {}, {}
     for name, filename, content in uploads:
-        image, depth = read(content, filename)
+        image, depth = read(content, filename, name if is_normal_name(name) else None)
         if image.shape[:2] != tuple(albedo_shape[:2]):
             h, w = albedo_shape[:2]
             raise RequestError(400, f"the map {name} ({filename}) is {image.shape[0]}x{image.shape[1]} but the "
@@ -102,6 +103,18 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
                 raise RequestError(400, f"{filename}: {exc}") from None
         maps[name], depths[name] = image, depth
     return maps, depths
+
+
+def upright_map(image, path, normal):
+    """A map read from ``path``, with ``normal`` (its name, where it is a normal map) its vectors turned
+    with its pixels where the file is stored turned (:func:`tghop.normals.upright_normal_map`)."""
+    from ..material import normal_convention
+    from ..normals import upright_normal_map
+
+    if normal is None:
+        return image
+    return upright_normal_map(image, path, convention=normal_convention(normal),
+                              label=f"the map {normal} ({path.name})")
 
 
 def check_channels(joint, albedo, maps: dict) -> None:
@@ -218,8 +231,8 @@ def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, ti
     known = ~hole  # grown: the picture as sent is the known rectangle
     shape = picture.shape[:2] if grow is None else (int(known.any(axis=1).sum()), int(known.any(axis=0).sum()))
     maps, depths = {}, {"albedo": depth}
-    for name in names:
-        image, depths[name] = read(given[name][1], given[name][0])
+    for name, normal in zip(names, material.normal_[1:]):
+        image, depths[name] = read(given[name][1], given[name][0], name if normal else None)
         if image.shape[:2] != shape:  # before it is grown: a map of another size would be grown to the same
             raise RequestError(400, f"the map {name} ({given[name][0]}) is {image.shape[0]}x{image.shape[1]} but the "
                                     f"picture is {shape[0]}x{shape[1]}; give maps of its size")

@@ -84,13 +84,13 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
         raise RequestError(400, str(exc)) from None
     with server.generating:
         if materials.is_material(model):  # every map alike
-            def read_map(p):  # a map's alpha is data: refused unless every pixel is opaque
+            def read_map(p, normal):  # a map's alpha is data: refused unless every pixel is opaque
                 image, bits = load_image(p, dtype=None, with_depth=True, keep_alpha=True)
-                return drop_opaque_alpha(image, p.name), bits
+                return materials.upright_map(drop_opaque_alpha(image, p.name), p, normal), bits
 
-            return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename: read_image(
-                data, filename, read_map, notes=told), depth=depth, grow=grow, seed=seed, tile=tile,
-                progress=server.unless_stopping), told
+            return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename, normal: read_image(
+                data, filename, lambda p: read_map(p, normal), notes=told), depth=depth, grow=grow, seed=seed,
+                tile=tile, progress=server.unless_stopping), told
         try:
             filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping)
         except MemoryError:
