@@ -668,7 +668,8 @@ class Material(BaseEstimator):
         Returns
         -------
         dict of str to ndarray
-            ``name -> (H, W, c)`` array in [0, 1], ``"albedo"`` first, in :attr:`names_`'s order.
+            ``name -> (H, W, c)`` array in [0, 1], ``"albedo"`` first, in :attr:`names_`'s order; a
+            mask map (:attr:`levels_`) holds only its exemplar's values (:mod:`tghop.masks`).
         """
         check_is_fitted(self, "model_")
         dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
