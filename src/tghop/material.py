@@ -781,7 +781,7 @@ class Material(BaseEstimator):
 
     @staticmethod
     def _levels_meta(given, maps):
-        """Each map's mask levels from the metadata (files of tghop 0.56 and before have none), checked."""
+        """Each map's mask levels from the metadata (files of tghop 0.55 and before have none), checked."""
         channels = {m["name"]: m["channels"] for m in maps}
         if not isinstance(given, dict) or not set(given) <= {m["name"] for m in maps[1:] if not m["normal"]}:
             raise TGHopError("the material metadata's levels are not a dict of its maps' names (not the albedo's "
