@@ -69,6 +69,18 @@ def test_a_map_that_looks_like_a_normal_map_but_is_not_named_so_is_warned_of(exe
         Material(model=TGHop(**FAST), normal=["rock_bump_nm"], rng=0).fit(exemplar, {"rock_bump_nm": maps["normal"]})
 
 
+def test_a_materials_fit_warns_through_the_threads_collector(exemplar, maps):
+    # Material.fit's warnings went to warnings.warn, past collect_warnings: on a web server's fit thread they
+    # reached the console, not the fit's answer, as every other library warning does since 0.55.
+    from tghop._errors import collect_warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # none issued: each kept by the collector
+        with collect_warnings() as said:
+            Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"rock_bump_nm": maps["normal"]})
+    assert [str(w) for w in said if "looks like a normal map" in str(w)], said
+
+
 def _cli(args, folder):
     from click.testing import CliRunner
 

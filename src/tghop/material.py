@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import numbers
 import re
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -40,6 +39,7 @@ from . import settings
 from ._arrays import check_dtype
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fit_part, fitted_settings,
                       one_blas_thread, report)
+from ._errors import warn
 from .colour import match_histograms
 from .masks import MASK_LEVELS, mask_levels, snap_to_levels
 from .normals import convention_of
@@ -559,14 +559,14 @@ class Material(BaseEstimator):
         for name, img, _, is_normal in items[1:]:
             named, found = normal_convention(name), convention_of(img) if is_normal else None
             if named and found and named != found:
-                warnings.warn(f"map {name!r} is named as {named}'s but its content is {found}'s (green "
-                              f"{'down' if found == 'DirectX' else 'up'}); it comes out as it is, {found}'s: rename "
-                              "it, or flip its green if the name is right", UserWarning, stacklevel=2)
+                warn(f"map {name!r} is named as {named}'s but its content is {found}'s (green "
+                     f"{'down' if found == 'DirectX' else 'up'}); it comes out as it is, {found}'s: rename "
+                     "it, or flip its green if the name is right", UserWarning, stacklevel=2)
         for name, img, _, is_normal in items[1:] if normal == "auto" else ():
             if not is_normal and looks_like_normal_map(img):
-                warnings.warn(f"map {name!r} looks like a normal map but its name does not say so: it is modelled as "
-                              "colours and not renormalised; name it *normal* or *nrm* (or give it in normal) if it "
-                              "is one", UserWarning, stacklevel=2)
+                warn(f"map {name!r} looks like a normal map but its name does not say so: it is modelled as "
+                     "colours and not renormalised; name it *normal* or *nrm* (or give it in normal) if it "
+                     "is one", UserWarning, stacklevel=2)
         stack = np.concatenate([img for _, img, _, _ in items], axis=2)
         if stack.shape[2] == 3 and np.abs(stack[..., 1:] - stack[..., :1]).max() < 1 / 512:
             raise TGHopError("every map equals the grey albedo; there is nothing to model apart from it")
