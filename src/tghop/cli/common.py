@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import sys
+import typing
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
@@ -53,6 +54,17 @@ def stop_message(exc: BaseException):
 LOG_EVERY = 10.0
 
 
+class _Paused(typing.NamedTuple):
+    """A stage :class:`Progress` left unfinished for another, which it may go on after: its state, and when."""
+    stage: str
+    done: int
+    total: int
+    started: float
+    logged: float
+    tenth: int
+    at: float
+
+
 def _seconds(elapsed: float) -> str:
     """A stage's time for a log line: ``0.41 s``, ``12.3 s``, ``2 min 05 s``."""
     if elapsed < 60:
@@ -81,7 +93,7 @@ class Progress:
         self.stage = None
         self.done = 0
         self.lines = None  # lines instead of bars: decided at the first report (stderr a terminal or not)
-        self.paused = None  # a stage left unfinished for another, which may go on: (stage, done, total, started, ...)
+        self.paused = None  # a stage left unfinished for another, which may go on after it: a _Paused
         self.total = self.started = self.logged = self.tenth = self.finished = None
 
     def _line(self, text, when=None):
@@ -95,10 +107,9 @@ class Progress:
 
         now = time.monotonic()
         if stage != self.stage:
-            back = self.paused if self.paused is not None and self.paused[0] == stage else None
+            back = self.paused if self.paused is not None and self.paused.stage == stage else None
             if back is None and self.paused is not None:  # it did not go on after the stage that followed it
-                self._stopped(*self.paused[:4], at=self.paused[6])
-                self.paused = None
+                self._said_paused()
             self._end(pause=back is None)
             if back is not None:  # a stage that goes on after another (a material's "maps" after each map's refine)
                 self.paused = None
@@ -133,6 +144,11 @@ class Progress:
             self.bar.update(done - self.done, current_item=self.note)
             self.done = done
 
+    def _said_paused(self):
+        """The line of the stage left unfinished that did not go on: stopped where it was paused."""
+        p, self.paused = self.paused, None
+        self._stopped(p.stage, p.done, p.total, p.started, at=p.at)
+
     def _stopped(self, stage, done, total, started, at=None):
         import time
 
@@ -151,15 +167,14 @@ class Progress:
         if pause:
             import time
 
-            self.paused = (stage, self.done, self.total, self.started, self.logged, self.tenth, time.monotonic())
+            self.paused = _Paused(stage, self.done, self.total, self.started, self.logged, self.tenth, time.monotonic())
         else:
             self._stopped(stage, self.done, self.total, self.started)
 
     def close(self):
         if self.lines:
             if self.paused is not None:  # began before this stage: said first
-                self._stopped(*self.paused[:4], at=self.paused[6])
-                self.paused = None
+                self._said_paused()
             self._end(pause=False)
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
