@@ -361,6 +361,33 @@ def test_the_fit_seed_is_recorded_and_files_without_one_load(small_model, saved,
         assert np.array_equal(loaded.synthesize((32, 32), rng=1, n_patches=100), expected)
 
 
+def test_a_parts_generator_is_recorded_older_files_load_without_it_and_a_bad_record_is_refused(small_model, saved,
+                                                                                                   tmp_path):
+    from tghop.settings import BIT_GENERATORS, generator_from_record, generator_record
+
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["ichm_rng"]["bit_generator"] == "PCG64" and meta["ichm_rng"]["seed"] == 0
+    loaded = load_model(path)
+    assert loaded.ichm_.rng.bit_generator.state == small_model.ichm_.rng.bit_generator.state
+    for name in BIT_GENERATORS:  # every NumPy bit generator, arrays in its state too (MT19937's key, Philox's)
+        rng = np.random.Generator(getattr(np.random, name)(7))
+        rng.random(3)
+        back = generator_from_record(json.loads(json.dumps(generator_record(rng))))
+        assert type(back.bit_generator) is type(rng.bit_generator) and back.random(4).tolist() == rng.random(4).tolist()
+    assert generator_record(3) is None and generator_record(None) is None and generator_from_record(None) is None
+    old = {k: v for k, v in meta.items() if k != "ichm_rng"}  # files of tghop 0.56 and before
+    old["layout"] = {k: v for k, v in meta["layout"].items() if k not in ("rng", "model_rng")}
+    _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(old))})
+    old_model = load_model(tmp_path / "old.npz")
+    assert old_model.ichm_.rng is None and old_model.layout_.rng is None and old_model.layout_.model_.rng is None
+    for bad in ({"bit_generator": "os.system", "seed": 0, "state": {}}, {"state": 1},
+                {**meta["ichm_rng"], "state": {"bit_generator": "PCG64", "state": "x"}}):
+        _write(tmp_path / "bad.npz", {**arrays, "__meta__": np.array(json.dumps({**meta, "ichm_rng": bad}))})
+        with pytest.raises(ModelFileError, match=r"^.*bad\.npz: invalid tghop model \(the metadata's ichm_rng "):
+            load_model(tmp_path / "bad.npz")
+
+
 def test_a_loaded_models_saabs_have_every_channels_energy_and_older_files_say_why_not(small_model, saved, tmp_path):
     # Saab.energy_ (every channel's, kept or not) was not in model files: a loaded model's Saabs had none, a bare
     # AttributeError. The metadata holds it now (no array, so the format version and older readers are unchanged).

@@ -437,14 +437,25 @@ def test_a_fitted_parts_clone_refitted_on_its_input_learns_it_again(bricks96, mo
         state = (lambda p: p.model_) if isinstance(part, CoarseLayout) else (lambda p: p)
         _assert_same_arrays(state(part)._to_arrays(), state(again)._to_arrays(), where)
     assert given.bit_generator.state == after  # refitting the parts drew nothing from the fit's generator
-    save_model(model, tmp_path / "m.npz")  # the parts' generators are not in the file: loaded, they hold none
+    # Loaded, the parts held rng=None where the fitted ones held their generators: get_params, clone and repr said
+    # otherwise than the fit. The file records each part's generator; a loaded part's clone learns it again too.
+    save_model(model, tmp_path / "m.npz")
     loaded = _fitted_subparts(load_model(tmp_path / "m.npz"), "model")
     assert sorted(loaded) == sorted(parts)
-    assert not [where for where, part in loaded.items()
-                if isinstance(part.get_params().get("rng"), np.random.Generator)]
+    for where, part in loaded.items():
+        theirs = parts[where].get_params(deep=False).get("rng")
+        ours = part.get_params(deep=False).get("rng")
+        if not isinstance(theirs, np.random.Generator):
+            assert ours == theirs, where
+            continue
+        assert isinstance(ours, np.random.Generator) and ours is not theirs, where
+        assert ours.bit_generator.state == theirs.bit_generator.state and repr(part) == repr(parts[where]), where
+    args, kwargs = calls[id(parts["model.ichm_"])]
+    again = sklearn.base.clone(loaded["model.ichm_"]).fit(*args, **kwargs)
+    _assert_same_arrays(parts["model.ichm_"]._to_arrays(), again._to_arrays(), "loaded model.ichm_")
 
 
-def test_a_materials_model_holds_its_own_generator_as_it_was_before_the_fit(bricks96, monkeypatch):
+def test_a_materials_model_holds_its_own_generator_as_it_was_before_the_fit(bricks96, monkeypatch, tmp_path):
     calls = _recording_fits(monkeypatch, TGHop)
     given = np.random.default_rng(6)
     mat = Material(model=TGHop(**{**SMALL, "layout_factor": None}), rng=given).fit(
@@ -456,6 +467,14 @@ def test_a_materials_model_holds_its_own_generator_as_it_was_before_the_fit(bric
                         "material.model_")
     seeded = Material(model=TGHop(**{**SMALL, "layout_factor": None}), rng=3).fit(bricks96)
     assert seeded.model_.rng == 3  # an int seed stays one (the model file records it)
+    from tghop.modelfile import load_model, save_model
+
+    save_model(mat, tmp_path / "m.npz")  # loaded, the joint model held rng=None: it holds the fitted one's generator
+    back = load_model(tmp_path / "m.npz", material=True)
+    assert back.model_.rng.bit_generator.state == mat.model_.rng.bit_generator.state
+    assert repr(back.model_) == repr(mat.model_) and "Generator(PCG64, seed=6" in repr(back.model_)
+    save_model(seeded, tmp_path / "s.npz")
+    assert load_model(tmp_path / "s.npz", material=True).model_.rng == 3
 
 
 

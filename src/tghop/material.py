@@ -723,7 +723,9 @@ class Material(BaseEstimator):
     def _state_meta(self) -> dict:
         levels = {n: lv.tolist() for n, lv in zip(self.names_, self.levels_) if lv is not None}
         return {**self.model_._state_meta(), "material": {"maps": self.map_info(), "params": self._params_meta(),
-                                                           **({"levels": levels} if levels else {})}}
+                                                           **({"levels": levels} if levels else {}),
+                                                           # the joint model's copy of the fit's generator (0.57)
+                                                           "model_rng": settings.generator_record(self.model_.rng)}}
 
     def _params_meta(self) -> dict:
         """The constructor's parameters as given (JSON-ready; rngs as :func:`tghop.settings.recorded_seed`
@@ -811,6 +813,8 @@ class Material(BaseEstimator):
     def _from_state(cls, meta, arrays):
         maps = cls._check_meta(meta)
         model = TGHop._from_state(meta, arrays)
+        if meta["material"].get("model_rng") is not None:  # fitted from a Generator (an int seed: in the params)
+            model.rng = settings.generator_from_record(meta["material"]["model_rng"], "material's model_rng")
         given = meta["material"].get("params")
         if given is None:  # tghop 0.55 and before: rebuilt from the joint model
             mat = cls(model=TGHop(**model.get_params()), normal=[m["name"] for m in maps if m["normal"]])

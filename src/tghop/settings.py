@@ -43,7 +43,8 @@ from typing import Any, Optional, Tuple
 from ._errors import TGHopError
 
 __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "QUALITY", "fit_settings", "generate_settings", "check_settings",
-           "component_params", "numpydoc_parameters", "check_channel_rule", "recorded_seed", "fit_seed"]
+           "component_params", "numpydoc_parameters", "check_channel_rule", "recorded_seed", "fit_seed",
+           "generator_record", "generator_from_record"]
 
 _MISSING = object()
 
@@ -598,6 +599,88 @@ def fit_seed(model):
         The seed the model was fitted with, or None (fitted from a Generator or None).
     """
     return recorded_seed(vars(model).get("_fitted_params", {}).get("rng", model.rng))
+
+
+#: The bit generators whose state a model file may record (:func:`generator_record`): NumPy's own.
+BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
+
+
+def generator_record(rng):
+    """A fitted part's ``rng`` as a model file records it (JSON data): a Generator as its bit
+    generator's name, its seed where :func:`tghop._common.generator_text` shows one, and its state;
+    anything else (an int seed, None) as None (an int seed is in the settings already).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator, int or None
+        A fitted part's copy of the fit's generator, as it was before the part's fit.
+
+    Returns
+    -------
+    dict or None
+        ``{"bit_generator": name, "seed": int or None, "state": ...}`` (arrays in the state as
+        ``{"dtype": ..., "values": [...]}``), or None.
+    """
+    import numpy as np  # here: the command line reads this table without NumPy
+
+    if not isinstance(rng, np.random.Generator) or type(rng.bit_generator).__name__ not in BIT_GENERATORS:
+        return None
+    bits = rng.bit_generator
+    seeds = getattr(bits, "seed_seq", None)
+    entropy = getattr(seeds, "entropy", None)
+    seed = entropy if isinstance(entropy, int) and 0 <= entropy < 2**64 and not tuple(
+        getattr(seeds, "spawn_key", ())) else None
+
+    def data(value):
+        if isinstance(value, dict):
+            return {k: data(v) for k, v in value.items()}
+        if isinstance(value, np.ndarray):
+            return {"dtype": value.dtype.str, "values": value.tolist()}
+        return value.item() if isinstance(value, np.generic) else value
+
+    return {"bit_generator": type(bits).__name__, "seed": seed, "state": data(bits.state)}
+
+
+def generator_from_record(record, what: str = "rng"):
+    """The Generator of :func:`generator_record`'s ``record`` (None: None), in the state it records.
+
+    Parameters
+    ----------
+    record : dict or None
+        As :func:`generator_record` made it (read from a model file's metadata).
+    what : str
+        How the record is named in the error message.
+
+    Returns
+    -------
+    numpy.random.Generator or None
+
+    Raises
+    ------
+    TGHopError
+        A record that is not one (another bit generator, a state NumPy does not take).
+    """
+    import numpy as np
+
+    if record is None:
+        return None
+    if not isinstance(record, dict) or set(record) != {"bit_generator", "seed", "state"} or \
+            record["bit_generator"] not in BIT_GENERATORS or not isinstance(record["state"], dict):
+        raise TGHopError(f"the metadata's {what} is not a generator's record (bit_generator, seed, state)")
+
+    def value(v):
+        if isinstance(v, dict) and set(v) == {"dtype", "values"}:
+            return np.asarray(v["values"], dtype=np.dtype(v["dtype"]))
+        return {k: value(x) for k, x in v.items()} if isinstance(v, dict) else v
+
+    try:
+        kind = getattr(np.random, record["bit_generator"])
+        seed = record["seed"]
+        bits = kind(np.random.SeedSequence(seed) if isinstance(seed, int) and not isinstance(seed, bool) else None)
+        bits.state = value(record["state"])
+    except (TypeError, ValueError, KeyError, OverflowError) as exc:
+        raise TGHopError(f"the metadata's {what} holds a state NumPy does not take ({exc})") from None
+    return np.random.Generator(bits)
 
 
 def file_settings(params: dict) -> dict:

@@ -86,7 +86,7 @@ class TGHop(PatchCodec, BaseEstimator):
     sdr_ : SpatialReduction
     ichm_ : ICHM
         Its ``rng``: a copy of the fit's generator as it was before this part's fit (what refits it;
-        None in a loaded model).
+        a loaded model's holds it too, from the model file; None in files of tghop 0.56 and older).
     exemplar_shape_ : tuple
     exemplar_depth_ : int or None
         Bits per channel of the exemplar's file: 8, 16 or 32 (float), as ``fit``'s ``depth`` says
@@ -329,8 +329,13 @@ class TGHop(PatchCodec, BaseEstimator):
             "hop_dims": self.hops_.dims_,
             "sdr_shape": list(self.sdr_.shape_),
             "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
+            # The fitted parts' copies of the fit's generator, as they were before their fits (0.57): a loaded
+            # model's parts hold them too (get_params, clone, repr as the fitted one's); older files: None.
+            "ichm_rng": settings.generator_record(self.ichm_.rng),
             "layout": None if self.layout_ is None else {
-                "params": {**self.layout_.get_params(), "rng": None}, "model": self.layout_.model_._state_meta()},
+                "params": {**self.layout_.get_params(), "rng": None}, "model": self.layout_.model_._state_meta(),
+                "rng": settings.generator_record(self.layout_.rng),
+                "model_rng": settings.generator_record(self.layout_.model_.rng)},
             # Metadata, not an array (as a hop's saab_energy): the same format version; left out when not known.
             **({} if getattr(self, "exemplar_depth_", None) is None else {"exemplar_depth": self.exemplar_depth_}),
         }
@@ -356,6 +361,7 @@ class TGHop(PatchCodec, BaseEstimator):
             arrays, tuple(int(v) for v in meta["sdr_shape"]))
         model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+        model.ichm_.rng = settings.generator_from_record(meta.get("ichm_rng"), "ichm_rng")
         model.exemplar_depth_ = exemplar_depth(meta.get("exemplar_depth"), what="the metadata's exemplar_depth")
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
         model.classes_ = ColourClasses(model.colour_classes)._from_arrays(arrays) if model.colour_classes else None
@@ -365,9 +371,13 @@ class TGHop(PatchCodec, BaseEstimator):
                           if model.patch_levels else None)
         model.layout_ = None
         if meta.get("layout") is not None:
-            model.layout_ = CoarseLayout(**{"patch_levels": 0, **meta["layout"]["params"]})  # 0.47 and older: 0
+            params = {**meta["layout"]["params"], "rng": settings.generator_from_record(meta["layout"].get("rng"),
+                                                                                      "layout's rng")}
+            model.layout_ = CoarseLayout(**{"patch_levels": 0, **params})  # 0.47 and older: 0
             sub = {k[len("layout."):]: v for k, v in arrays.items() if k.startswith("layout.")}
             model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
+            model.layout_.model_.rng = settings.generator_from_record(meta["layout"].get("model_rng"),
+                                                                      "layout's model_rng")
         model._check_consistent()
         model._fitted_params = fitted_settings(model)
         return model
