@@ -305,6 +305,20 @@ def test_the_progress_in_a_log_is_a_line_per_stage_with_its_time(folder, tmp_pat
     assert names[-1] == "writing" and "quilting" in names and len(set(names)) == len(names), names
 
 
+def test_a_fits_progress_in_a_log_has_a_line_for_every_part_of_its_work(folder, tmp_path):
+    # `tghop fit` in a pipe said nothing of the exemplar's reading and statistics before "hop 1", of the core's
+    # responses after the last hop, nor of the model's write: the stage lines' times did not add up to the fit's.
+    with open(tmp_path / "log", "wb") as log:
+        p = subprocess.run([sys.executable, "-m", "tghop", "fit", "bricks.png", "-o", str(tmp_path / "m.npz"),
+                            *FAST[:-1]], cwd=folder, stderr=log, timeout=300)
+    text = (tmp_path / "log").read_text()
+    assert p.returncode == 0, text
+    names = [m.group(1) for m in map(re.compile(STAGE_LINE).match, text.splitlines()) if m]
+    assert names == ["reading", "exemplar", "hop 1", "hop 2", "core", "SDR", "clusters", "ICA", "CDF codebook",
+                     "saving"], text
+    assert text.splitlines()[-1] == f"model written to {tmp_path / 'm.npz'}"
+
+
 def test_the_progress_in_a_log_says_a_long_stages_tenths_and_where_it_stopped(capsys, monkeypatch):
     import tghop.cli.common as common
 

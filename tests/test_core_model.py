@@ -1210,3 +1210,48 @@ def test_stage_views_of_anything_but_decodes_spaces_is_a_one_line_error(small_mo
             small_model.stage_views(bad)
         assert "\n" not in str(caught.value)
     assert list(small_model.stage_views(tuple(spaces))) == ["core_dc", "S1_dc", "S0"]
+
+
+def test_every_part_of_a_fit_lies_inside_a_reported_stage(bricks96, monkeypatch):
+    # A fit's stage lines missed the work between two stages: the exemplar's checks and statistics before "hop 1"
+    # (about 2 s of a default fit), each hop's Saab fit after its "done", the core responses after the last hop and
+    # the mixing's rounding after "ICA". Each piece of work below is now inside a stage begun and not yet ended.
+    import tghop.core
+    import tghop.hops
+    import tghop.synthesis
+    from tghop.hops import Hop
+    from tghop.refine import BandStatistics
+
+    events = []
+
+    def marked(name, fn):
+        def run(*args, **kwargs):
+            events.append(("work", name))
+            out = fn(*args, **kwargs)
+            events.append(("work", name))
+            return out
+        return run
+
+    for owner, name in ((tghop.synthesis, "patch_origins"), (tghop.synthesis, "channel_quantiles"),
+                        (tghop.synthesis, "fit_patch_statistics"), (tghop.hops, "_core_of"),
+                        (tghop.core, "quantize")):
+        monkeypatch.setattr(owner, name, marked(name, getattr(owner, name)))
+    for cls, name in ((BandStatistics, "fit"), (Hop, "fit_sums")):
+        monkeypatch.setattr(cls, name, marked(f"{cls.__name__}.{name}", getattr(cls, name)))
+    model = TGHop(**{**SMALL, "layout_factor": None})
+    model.fit(bricks96, progress=lambda stage, done, total: events.append((stage, done, total)))
+    open_stage, outside, order = None, [], []
+    for event in events:
+        if event[0] == "work":
+            if open_stage is None:
+                outside.append(event[1])
+            continue
+        stage, done, total = event
+        if stage != open_stage and (not order or order[-1] != stage):
+            order.append(stage)
+        open_stage = stage if done < total else None
+    assert not outside, (outside, events)
+    assert order == ["exemplar", "hop 1", "hop 2", "core", "SDR", "clusters", "ICA", "CDF codebook"], order
+    worked = {e[1] for e in events if e[0] == "work"}
+    assert worked == {"patch_origins", "channel_quantiles", "fit_patch_statistics", "_core_of", "quantize",
+                      "BandStatistics.fit", "Hop.fit_sums"}, worked

@@ -58,11 +58,22 @@ def test_maps_come_out_aligned_and_normal_maps_unit(material, exemplar, maps):
     assert _corr(gx, out["normal"][..., 0]) < -0.6 and _corr(gy, out["normal"][..., 1]) < -0.6
 
 
-def test_a_material_at_a_working_scale_learns_every_map_there(exemplar, maps):
+def test_a_material_at_a_working_scale_learns_every_map_there(exemplar, maps, monkeypatch):
     from tghop.refine import BandStatistics
     from tghop.scale import rescale
 
-    material = Material(model=TGHop(scale=0.75, **FAST), rng=0).fit(exemplar, maps)
+    events, fit = [], BandStatistics.fit  # each map's band statistics came after the joint model's last stage, unsaid
+
+    def marked(*args, **kwargs):
+        events.append("bands")
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(BandStatistics, "fit", marked)
+    material = Material(model=TGHop(scale=0.75, **FAST), rng=0).fit(
+        exemplar, maps, progress=lambda *call: events.append(call))
+    monkeypatch.undo()
+    assert events[-9:] == [("maps", 0, 4), "bands", ("maps", 1, 4), "bands", ("maps", 2, 4), "bands", ("maps", 3, 4),
+                           "bands", ("maps", 4, 4)], events[-12:]
     assert material.model_.exemplar_shape_[:2] == (96, 96)
     height = BandStatistics(n_levels=material.model_.band_levels,
                             n_orientations=material.model_.band_orientations).fit(rescale(maps["height"], 0.75))

@@ -99,7 +99,7 @@ def test_a_fit_reports_progress_and_ends_done(client, fitted):
     shown = {data["stage"] for _, data in stream}  # the stream shows the latest state: some may be skipped
     assert "saving" in shown
     stages = stream[-1][1]["stages"]  # but every stage is listed, in order
-    assert stages[:3] == ["hop 1", "hop 2", "SDR"] and stages[-1] == "saving"
+    assert stages[:5] == ["exemplar", "hop 1", "hop 2", "core", "SDR"] and stages[-1] == "saving"
     assert {"clusters", "ICA", "CDF codebook"} <= set(stages) and shown - {""} <= set(stages)
     for _, data in stream:  # each event's list is a prefix of the final one
         assert data["stages"] == stages[:len(data["stages"])]

@@ -296,12 +296,12 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         n_comp = [m.shape[0] for m in mixing]
         self.n_ica_unconverged_ = sum(not ok for _, _, _, ok in fitted)
         self._fit_residual(residuals, Z.shape[1], groups)
-        report(progress, "ICA", n_clusters, n_clusters)
         # Model files store the mixing matrix (most of the model) as float16 rows with a
         # float32 scale each (a quarter of float64's size); rounding here keeps a fitted
         # model and its saved copy generating the same patches.
         self._set_stored_mixing(*quantize(np.vstack(mixing)))
         self.n_components_ = np.asarray(n_comp, dtype=np.int64)
+        report(progress, "ICA", n_clusters, n_clusters)  # after the mixing's rounding: no work between stages
         report(progress, "CDF codebook", 0, 1)
         self._fit_cdfs(sources, rng)
         self._fit_ranks(sources)

@@ -536,6 +536,8 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
             Top-left corners of the training patches (see
             :func:`tghop.patches.patch_origins`).
         progress : callable, optional
+            ``progress(stage, done, total)``: stages "hop 1", "hop 2", ... (each tile's sums, then
+            the hop's fit on them) and "core" (the patches' core responses, tile by tile).
         tile : int
             Side of the tiles (rounded up to a multiple of ``2**n_hops``).
 
@@ -559,7 +561,8 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         tiles = _tiles(image, origins, patch_size, tile)
         hops, dims = [], [patch_size * patch_size * image.shape[2]]
         for level, rule in enumerate(rules, start=1):
-            report(progress, f"hop {level}", 0, len(tiles))
+            steps = len(tiles) + 1  # each tile's sums, then the hop's Saab fit on them
+            report(progress, f"hop {level}", 0, steps)
             side = patch_size // 2**level
             sums = None
             for i, (crop, local, _) in enumerate(tiles):
@@ -568,11 +571,12 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
                 for blocks, starts in inputs.values():
                     weights = _coverage(blocks.shape[:2], starts, side).ravel()
                     sums = _add_sums(sums, _block_sums(blocks.reshape(-1, blocks.shape[-1]), group, weights))
-                report(progress, f"hop {level}", i + 1, len(tiles))
+                report(progress, f"hop {level}", i + 1, steps)
             try:
                 hop = Hop(n_channels=rule, channelwise=level > 1).fit_sums(sums)
             except TGHopError as exc:
                 raise TGHopError(f"K{level} (n_channels[{level - 1}], --k{level}): {exc}") from None
+            report(progress, f"hop {level}", steps, steps)
             hops.append(hop)
             dims.append(side * side * hop.n_channels_out_)
         side = patch_size // unit
@@ -580,8 +584,10 @@ class HopStack(FourDInputMixin, TransformerMixin, BaseEstimator):
         # channel's maps (tghop.sdr), which then need no second, transposed copy of the core.
         k = hops[-1].n_channels_out_
         core = np.empty((k, len(origins), side, side)).transpose(1, 2, 3, 0)
-        for crop, local, rows in tiles:
+        report(progress, "core", 0, len(tiles))
+        for i, (crop, local, rows) in enumerate(tiles):
             _core_of(crop(), patch_size, local, hops, out=core, rows=rows)
+            report(progress, "core", i + 1, len(tiles))
         self.hops_, self.dims_ = hops, dims  # only now: a failed fit leaves the stack unfitted
         return core
 

@@ -541,6 +541,8 @@ class Material(BaseEstimator):
             map (default: from the arrays' dtypes: 8 for uint8, 16 for uint16, 32 for floats).
             Another depth, or a name that is not a map's, is refused.
         progress : callable, optional
+            ``progress(stage, done, total)``: the joint model's stages (:meth:`TGHop.fit
+            <tghop.synthesis.TGHop.fit>`), then "maps" (each map's band statistics).
 
         Returns
         -------
@@ -587,8 +589,12 @@ class Material(BaseEstimator):
             model.fit(stack, exclude=exclude, progress=progress)
         scale = model.scale  # each map's bands at the joint model's working scale
         ex = None if exclude is None else rescale_mask(np.asarray(exclude, dtype=bool), scale)
-        bands = [BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)
-                 .fit(rescale(img, scale), exclude=ex) for _, img, _, _ in items]
+        bands = []  # stage "maps": each map's own band statistics (work after the joint model's stages)
+        report(progress, "maps", 0, len(items))
+        for _, img, _, _ in items:
+            bands.append(BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)
+                         .fit(rescale(img, scale), exclude=ex))
+            report(progress, "maps", len(bands), len(items))
         # Only now, all together: a fit that fails leaves an earlier fit whole, not its model beside new maps.
         self.model_, self.bands_ = model, bands
         self.names_ = [name for name, _, _, _ in items]

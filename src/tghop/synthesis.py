@@ -227,8 +227,10 @@ class TGHop(PatchCodec, BaseEstimator):
             by default the dtype's (8 for uint8, 16 for uint16; a float array: not known). It
             changes nothing learned.
         progress : callable, optional
-            ``progress(stage, done, total)``; stages "hop 1", "hop 2", ...,
-            "SDR", "clusters", "ICA", "CDF codebook", and "layout" with a ``layout_factor``.
+            ``progress(stage, done, total)``; stages "exemplar" (its checks and statistics), "hop 1",
+            "hop 2", ..., "core" (the training patches' core responses), "SDR", "clusters", "ICA",
+            "CDF codebook", and "layout" with a ``layout_factor``: one after another, each from its
+            first call to its last (``done == total``) covering the fit's work, nothing left between them.
 
         Returns
         -------
@@ -253,6 +255,9 @@ class TGHop(PatchCodec, BaseEstimator):
 
     def _fit(self, image, *, exclude=None, progress=None):
         self.check_settings()  # parameter errors before touching the image
+        # Stage "exemplar": its checks, working scale, training patches' origins and the colour, band and patch
+        # statistics, work before the hops that no stage reported (0.56: missing from the stage lines).
+        report(progress, "exemplar", 0, 1)
         rng = check_rng(self.rng)
         ichm = ICHM(**settings.component_params(self, "ichm"))  # rng: fit_part's copy of the fit's, at its fit
         image = prepare_exemplar(image, channels=None)
@@ -281,6 +286,7 @@ class TGHop(PatchCodec, BaseEstimator):
         self.classes_ = ColourClasses(self.colour_classes).fit(image, self.bands_, exclude=exclude) \
             if self.colour_classes else None
         self.patches_ = fit_patch_statistics(self.patch_levels, image, whitening=self.patch_whitening, exclude=exclude)
+        report(progress, "exemplar", 1, 1)
         # Same result as hops.fit_transform(extract_patches(...)) without cutting patches out.
         self.hops_ = HopStack(n_channels=rules)
         core = self.hops_.fit_image(image, self.patch_size, origins, progress=progress)

@@ -144,6 +144,22 @@ class Progress:
             self.bar.update(done - self.done, current_item=self.note)
             self.done = done
 
+    def took(self, stage, started):
+        """A stage already over, begun at ``started`` (``time.monotonic()``): its line where stderr is
+        no terminal, said only once it succeeded, so that work that fails at once (an input not read)
+        leaves the ``Error:`` line alone; a terminal gets no bar for it."""
+        import time
+
+        if not self.enabled:
+            return
+        if self.lines is None:
+            self.lines = not sys.stderr.isatty()
+        if self.lines:
+            if self.paused is not None:
+                self._said_paused()
+            self._end(pause=False)
+            self._line(f"{stage}: done in {_seconds(time.monotonic() - started)}")
+
     def _said_paused(self):
         """The line of the stage left unfinished that did not go on: stopped where it was paused."""
         p, self.paused = self.paused, None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import time
 from pathlib import Path
 
 import click
@@ -34,6 +35,7 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
     from ..imageio import check_depth
     from ..synthesis import prepare_exemplar
 
+    started = time.monotonic()  # stage "reading": the exemplar read (a built-in one drawn) and its mask
     raw, bits = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True, with_depth=True)
     if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
         warn_written_with_8(deep_warning, spec, output)
@@ -44,6 +46,7 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
     model.check_exemplar_size(image.shape)  # before the mask is read
     mask = None if exclude is None else load_mask(exclude, image.shape, label="--exclude", image_label="the exemplar",
                                                     what="part left out")
+    progress.took("reading", started)
     return model.fit(image, exclude=mask, depth=bits, progress=progress)
 
 
@@ -70,6 +73,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     refuse_albedo_as_map(map_paths, spec, label="--maps", albedo="EXEMPLAR")
     names = map_names(map_paths, label="--maps", albedo="EXEMPLAR")
     refuse_colour_map_out_of_place(spec, map_paths, label="--maps", albedo="EXEMPLAR")
+    started = time.monotonic()  # stage "reading": every map read
     albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
@@ -87,6 +91,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
                              "the albedo's size")
     mask = None if exclude is None else load_mask(exclude, albedo.shape, label="--exclude", image_label="the exemplar",
                                                     what="part left out")
+    progress.took("reading", started)
     params = fit_params(options)
     material = Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
                                                                       progress=progress)
@@ -138,8 +143,10 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         else:
             model = material = fit_exemplar(exemplar, options, exclude=exclude, downscale=downscale,
                                             progress=progress)
-        progress.close()
+        started = time.monotonic()
         save_model(material, output)
+        progress.took("saving", started)
+        progress.close()
     if with_maps:
         click.echo(f"material: {material_summary(material, found)}", err=True)
     click.echo(summary(model), err=True)

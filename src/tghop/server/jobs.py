@@ -32,8 +32,8 @@ FINAL = ("done", "failed", "cancelled")
 
 #: The stages :meth:`tghop.TGHop.fit` reports, in order, and their share of the whole fit
 #: (rough times of a small fit): the progress bar's fraction.
-FIT_STAGES = {"hop 1": 0.15, "hop 2": 0.1, "hop 3": 0.05, "SDR": 0.05, "clusters": 0.15, "ICA": 0.3,
-              "CDF codebook": 0.1, "layout": 0.1, "saving": 0.05}
+FIT_STAGES = {"exemplar": 0.05, "hop 1": 0.1, "hop 2": 0.1, "hop 3": 0.05, "core": 0.05, "SDR": 0.05,
+              "clusters": 0.15, "ICA": 0.3, "CDF codebook": 0.1, "layout": 0.1, "saving": 0.05}
 
 
 #: The stages a generation reports (:meth:`tghop.TGHop.synthesize`, :func:`tghop.inpaint.inpaint`,
