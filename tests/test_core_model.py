@@ -1077,6 +1077,10 @@ def test_ichm_transform_is_the_inverse_of_mix(small_model):
     np.testing.assert_allclose(ichm.mix(*ichm.transform(sampled, labels=sampled_labels)), sampled, rtol=0,
                                atol=1e-10 * np.abs(sampled).max())
     assert np.array_equal(ichm.transform(sampled)[0], ichm.predict(sampled))  # default labels: predict's
+    # scikit-learn's pair: ICHM had transform but no inverse_transform (the README promises both) -- it is mix
+    assert np.array_equal(ichm.inverse_transform(*ichm.transform(sampled, labels=sampled_labels)),
+                          ichm.mix(*ichm.transform(sampled, labels=sampled_labels)))
+    assert ichm.inverse_transform(labels, sources).dtype == np.float64
 
 
 def test_ichm_transform_projects_other_vectors_onto_their_clusters_subspace(small_model, bricks96):

@@ -673,3 +673,22 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
                 q, r = np.linalg.qr(mixing[comp].T)
                 sources.append(np.linalg.solve(r, ((Z[labels == i] - self.means_[i]) @ q).T).T)
         return labels.astype(np.int64, copy=False), sources
+
+    def inverse_transform(self, labels, sources):
+        """Independent components -> vectors: scikit-learn's name for :meth:`mix`, the inverse of
+        :meth:`transform` (``inverse_transform(*transform(Z))`` is ``Z`` projected onto each
+        vector's cluster subspace: ``Z`` itself for vectors in it, such as :meth:`sample`'s).
+
+        Parameters
+        ----------
+        labels : array_like of int, shape (n,)
+            The cluster of each vector, as :meth:`transform` returns them.
+        sources : list of ndarray
+            ``sources[i]``: cluster ``i``'s components, as :meth:`transform` returns them.
+
+        Returns
+        -------
+        Z : ndarray of float64, shape (n, D_r)
+            In the order of ``labels``.
+        """
+        return self.mix(labels, sources)
