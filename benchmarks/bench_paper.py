@@ -9,7 +9,8 @@
 
 Options:
 
-  --out DIR            output folder (default benchmarks/results/paper/)
+  --out DIR            output folder (default benchmarks/results/paper/; with --only,
+                       benchmarks/results/paper-KEYS/, e.g. paper-stages/)
   --quick              3 textures in the quality table (--textures), fewer sweep points
                        (Table 1: settings a, d; Fig. 11: N = 50, 110; Table 5: gamma 0,
                        0.01, 0.1), Ustyuzhaninov in the quality table on brick_wall only at
@@ -30,6 +31,11 @@ Options:
   --workers N          processes for everything after the timing section (default 2)
   --threads N          BLAS / PyTorch threads of the timing section (default 1: on this
                        shared 2-core machine one thread was faster for both methods)
+  --only a,b,...       only these sections (default: all), by their key or the paper's name:
+                       time (table2, table3), params (table4), stages (fig6), settings (table1,
+                       fig8), clusters (fig11), gamma (table5, fig12), fig3, fig7, quality (fig9,
+                       fig10); e.g. --only fig6 reproduces Fig. 6 alone in under a minute (the
+                       paper-setting brick_wall model is fitted, untimed, without "time")
   --tghop MODES        TGHop variants of the quality table (default "paper,default"):
                        "paper" = the paper's Table 4 setting (tghop.synthesis.PAPER_TABLE4)
                        and pipeline (as tghop synth --paper: none of tghop's additions;
@@ -97,6 +103,10 @@ PAPER_TABLE5 = {0: (1408, 3.72), 0.0005: (1226, 3.26), 0.005: (1030, 2.74), 0.01
 #: Table 1 / Fig. 8: setting -> (K1, K2); D1 = 256 K1, D2 = 64 K2 for 32x32 RGB patches.
 SETTINGS = {"a": (10, 32), "b": (6, 12), "c": (5, 8), "d": (3, 3)}
 CLUSTERS = (50, 80, 110, 200)
+#: The sections (``--only``), in the report's order, and the paper's names for each.
+SECTION_NAMES = {"time": ("table2", "table3"), "settings": ("table1", "fig8"), "clusters": ("fig11",),
+                 "gamma": ("table5", "fig12"), "params": ("table4",), "stages": ("fig6",), "fig3": (), "fig7": (),
+                 "quality": ("fig9", "fig10")}
 
 BASELINE_KEYS = {"quilting": "quilting", "crop": "crop", "blurred crop": "blurred-crop", "colour noise": "colour-noise"}
 METRIC_NAMES = ["sifid", "gram", "swd", "cooccurrence", "novelty"]
@@ -696,7 +706,9 @@ def parse_args(argv=None):
                     help="3 textures in the quality table, fewer sweep points, Ustyuzhaninov on brick_wall only at 20 "
                          "iterations, Table 2's timed Ustyuzhaninov run skipped (8 min on 2 cores busy with other "
                          "jobs; explicit options below still win)")
-    ap.add_argument("--out", type=Path, default=RESULTS / "paper", help="output folder (default %(default)s)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help=f"output folder (default {RESULTS / 'paper'}; with --only, {RESULTS / 'paper-KEYS'}: a full "
+                         "run's report is not overwritten)")
     ap.add_argument("--textures", default=None, help="comma-separated exemplars of the quality table (file stems in "
                     "../shared/textures or TGHOP_TEXTURES; default all)")
     ap.add_argument("--ust-textures", default=None, help="exemplars on which Ustyuzhaninov et al. runs in the "
@@ -711,6 +723,10 @@ def parse_args(argv=None):
     ap.add_argument("--workers", type=int, default=2,
                     help="processes for everything after the timing section (default 2)")
     ap.add_argument("--threads", type=int, default=1, help="BLAS / PyTorch threads of the timing section (default 1)")
+    ap.add_argument("--only", default=None,
+                    help="only these sections, comma-separated, by key or the paper's name: "
+                         + ", ".join(f"{k} ({', '.join(v)})" if v else k for k, v in SECTION_NAMES.items())
+                         + "; default all (e.g. --only fig6: Fig. 6 alone, under a minute)")
     ap.add_argument("--tghop", default="paper,default",
                     help="TGHop variants of the quality table: paper, default or paper,default (both)")
     args = ap.parse_args(argv)
@@ -730,6 +746,16 @@ def parse_args(argv=None):
         args.time_ust_skipped = "--quick" if quick else ""
     else:
         args.time_ust_skipped = "" if args.time_ust_iters else "--time-ust-iters 0"
+    args.sections = list(SECTION_NAMES)
+    if args.only is not None:
+        aliases = {alias: key for key, names in SECTION_NAMES.items() for alias in (key, *names)}
+        asked = [a.strip().lower().replace(" ", "").replace(".", "") for a in args.only.split(",") if a.strip()]
+        unknown = [a for a in asked if a not in aliases]
+        if unknown or not asked:
+            ap.error(f"--only takes sections among {', '.join(aliases)}, got {args.only!r}")
+        args.sections = [k for k in SECTION_NAMES if k in {aliases[a] for a in asked}]
+    if args.out is None:
+        args.out = RESULTS / ("paper" if args.only is None else "paper-" + "-".join(args.sections))
     args.modes = [m for m in args.tghop.split(",") if m]
     if not args.modes or any(m not in ("paper", "default") for m in args.modes):
         ap.error(f"--tghop takes paper, default or paper,default, got {args.tghop!r}")
@@ -742,7 +768,9 @@ def parse_args(argv=None):
 def needed_exemplars(args) -> list:
     """Every exemplar a run reads: brick_wall (Tables 1-5, Figs. 6, 7, 8, 11, 12), grass_lawn (Fig. 3),
     the quality table's and the Ustyuzhaninov runs' (in that order, each once)."""
-    names = [BRICK, GRASS] + args.textures.split(",") + args.ust_textures.split(",")
+    chosen = set(getattr(args, "sections", SECTION_NAMES))
+    names = ([BRICK] if chosen - {"fig3", "quality"} else []) + ([GRASS] if "fig3" in chosen else []) + (
+        args.textures.split(",") + args.ust_textures.split(",") if "quality" in chosen else [])
     return [n for n in dict.fromkeys(names) if n]
 
 
@@ -785,11 +813,14 @@ def main(argv=None):
         return 2
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    textures = [t for t in args.textures.split(",") if t]
-    ust_textures = [t for t in args.ust_textures.split(",") if t]
-    log(f"output {out}; {len(textures)} exemplars in the quality table; Ustyuzhaninov on {ust_textures or 'none'} "
-        f"at {args.ust_size}^2 x {args.ust_iters} iterations; Table 2's timed Ustyuzhaninov run: "
-        f"{'skipped by ' + args.time_ust_skipped if args.time_ust_skipped else f'{args.time_ust_iters} iterations'}; "
+    chosen = set(args.sections)
+    textures = [t for t in args.textures.split(",") if t] if "quality" in chosen else []
+    ust_textures = [t for t in args.ust_textures.split(",") if t] if "quality" in chosen else []
+    timed = ("not run" if "time" not in chosen else "skipped by " + args.time_ust_skipped if args.time_ust_skipped
+             else f"{args.time_ust_iters} iterations")
+    quality = (f"{len(textures)} exemplars in the quality table; Ustyuzhaninov on {ust_textures or 'none'} at "
+               f"{args.ust_size}^2 x {args.ust_iters} iterations" if "quality" in chosen else "no quality table")
+    log(f"output {out}; sections: {', '.join(args.sections)}; {quality}; Table 2's timed Ustyuzhaninov run: {timed}; "
         f"quick={args.quick}")
 
     version = git_version()
@@ -799,12 +830,15 @@ def main(argv=None):
     def emit(key, text, payload):
         sections[key] = text
         print(text + "\n", flush=True)
-        write_results_to(out, key, payload)
+        data = write_results_to(out, key, payload)
+        images = [v for v in payload.values() if isinstance(v, str) and v.endswith(".png")]
+        log(f"{key}: written to {', '.join(images + [str(data)])} and {out / 'report.md'}")
         header = (f"# TGHop paper reproduction\n\n`{' '.join(['python benchmarks/bench_paper.py'] + sys.argv[1:])}` "
                   f"({'quick' if args.quick else 'default'} settings). "
                   f"tghop commit {version}. Machine: {os.cpu_count()} CPU cores, shared with other jobs. "
                   "Paper: 12-core i7-5930K (2015).\n\n"
-                  "Here: Tables 1-5 and Figs. 3, 6, 7, 8, 11 and 12. Figs. 9 and 10 (TGHop's images beside the DL "
+                  + (f"Sections of this run (--only): {', '.join(args.sections)}.\n\n" if args.only else "")
+                  + "Here: Tables 1-5 and Figs. 3, 6, 7, 8, 11 and 12. Figs. 9 and 10 (TGHop's images beside the DL "
                   "methods'): the quality section's sheets, with Ustyuzhaninov et al. on its subset; Gatys et al. "
                   "is not run (VGG-19's weights are not shipped). Figs. 1, 2, 4 and 5 are diagrams.\n")
         body = "\n\n".join(sections[k] for k in order if k in sections)
@@ -812,9 +846,16 @@ def main(argv=None):
 
     # 1, 5, 6: in this process, timing first while nothing else of ours runs.
     model = None
+    if "time" not in chosen and chosen & {"params", "stages"}:  # their model, as the timing section fits it
+        from tghop import TGHop
+
+        log("fitting the paper-setting brick_wall model (untimed: the timing section is not run)")
+        model = TGHop(**setting("paper"), rng=0).fit(texture(BRICK))
     for key, title, run in [("time", "Table 2/3", lambda: section_time(args, out)),
                             ("params", "Table 4", lambda: section_params(model)),
                             ("stages", "Fig. 6", lambda: section_stages(model, out))]:
+        if key not in chosen:
+            continue
         try:
             if key != "time" and model is None:
                 raise RuntimeError("no model: the timing section failed")
@@ -833,15 +874,13 @@ def main(argv=None):
         os.environ[var] = "1"
     ctx = multiprocessing.get_context("spawn")
     quality, failed, ust = [], [], []
+    tasks = [(key, fn, args_) for key, fn, args_ in (
+        ("settings", _task_settings, (args.settings, out)), ("clusters", _task_clusters, (args.clusters, out)),
+        ("gamma", _task_gamma, (args.gammas, out)), ("fig7", _task_fig7, (out,)), ("fig3", _task_fig3, (out,)))
+        if key in chosen]
     with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx, initializer=_init_worker,
                              initargs=(_T0,)) as pool:
-        futures = {
-            pool.submit(_call, _task_settings, args.settings, out): ("settings", None),
-            pool.submit(_call, _task_clusters, args.clusters, out): ("clusters", None),
-            pool.submit(_call, _task_gamma, args.gammas, out): ("gamma", None),
-            pool.submit(_call, _task_fig7, out): ("fig7", None),
-            pool.submit(_call, _task_fig3, out): ("fig3", None),
-        }
+        futures = {pool.submit(_call, fn, *args_): (key, None) for key, fn, args_ in tasks}
         for name in ust_textures:  # long runs early, so that they do not finish last alone
             futures[pool.submit(_call, _task_ust, name, args.ust_size, args.ust_iters)] = ("ust", name)
         for name in textures:
@@ -876,11 +915,12 @@ def main(argv=None):
                     quality.append(res)
                 log(f"quality {n_quality}/{len(textures)} done")
 
-    text, payload = md_quality(quality, failed, ust, args.modes)
-    payload["sheets"] = quality_sheets(sorted(quality, key=lambda e: e["texture"]), ust, args.modes, out)
-    methods = [tghop_label(m) for m in args.modes] + list(BASELINE_KEYS)
-    text += f"\nOne sheet per exemplar in `quality/` (exemplar | {' | '.join(methods)} [| Ustyuzhaninov])."
-    emit("quality", text, payload)
+    if "quality" in chosen:
+        text, payload = md_quality(quality, failed, ust, args.modes)
+        payload["sheets"] = quality_sheets(sorted(quality, key=lambda e: e["texture"]), ust, args.modes, out)
+        methods = [tghop_label(m) for m in args.modes] + list(BASELINE_KEYS)
+        text += f"\nOne sheet per exemplar in `quality/` (exemplar | {' | '.join(methods)} [| Ustyuzhaninov])."
+        emit("quality", text, payload)
     total = time.perf_counter() - _T0
     sections["runtime"] = f"Total runtime: {total / 60:.1f} min ({total:.0f} s)."
     emit("runtime", sections["runtime"], {"total_s": total})

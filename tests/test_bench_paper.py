@@ -125,3 +125,18 @@ def test_fig3_follows_the_paper_panels_and_claim(bench):
     text = bench.md_fig3(res)
     assert "significantly improves" in text and "about as it was" not in text
     assert text.index("(a) without SDR") < text.index("(b) with SDR")
+
+
+def test_only_runs_the_sections_named_by_key_or_the_papers_name_and_writes_beside_a_full_runs_report(bench, capsys):
+    # A researcher who wanted one figure ran the whole reproduction (--quick: 5-8 min), and a run's report.md
+    # replaced the full one. --only names sections (fig6, table4, ...); its results go to a folder of their own.
+    args = bench.parse_args(["--only", "fig6,Table 4"])
+    assert args.sections == ["params", "stages"] and args.out == bench.RESULTS / "paper-params-stages"
+    assert bench.needed_exemplars(args) == ["brick_wall"]  # no quality table, no grass_lawn
+    assert bench.parse_args(["--only", "fig3"]).sections == ["fig3"]
+    assert bench.needed_exemplars(bench.parse_args(["--only", "fig3"])) == ["grass_lawn"]
+    assert bench.parse_args(["--textures", "a"]).sections == list(bench.SECTION_NAMES)
+    assert bench.parse_args(["--textures", "a"]).out == bench.RESULTS / "paper"
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--only", "fig99"])
+    assert "--only takes sections among time, table2" in capsys.readouterr().err
