@@ -144,6 +144,28 @@ def test_builtin_exemplar(workdir):
     assert_user_error(r, "unknown built-in exemplar", "bricks")
 
 
+def test_file_named_like_a_builtin(tmp_path):
+    # 0.57: a file named builtin:x.png was refused as an unknown built-in exemplar; a file that is there is
+    # read, and a known name is the built-in exemplar with a warning naming ./builtin:NAME for the file
+    save_image(data.bricks(80, rng=3)[:, :, :1], tmp_path / "builtin:x.png")
+    pixels = (data.bricks(48, rng=3) * 255).astype(np.uint8)
+    Image.fromarray(pixels).save(tmp_path / "builtin:bricks", format="PNG")
+    r = run("fit", "builtin:x.png", "-o", "x.npz", *FAST, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    assert tuple(load_model(tmp_path / "x.npz").exemplar_shape_) == (80, 80, 1)  # the file, not a built-in one
+    from tghop.cli.common import is_builtin, load_exemplar
+
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        assert not is_builtin("builtin:x.png") and not is_builtin("./builtin:bricks") and is_builtin("builtin:nope")
+        with pytest.warns(UserWarning, match=r"give \./builtin:bricks to read the file"):
+            assert load_exemplar("builtin:bricks").shape == (256, 256, 3)
+        assert load_exemplar("./builtin:bricks").shape == (48, 48, 3)
+    finally:
+        os.chdir(cwd)
+
+
 # ------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(
     "args, fragments",

@@ -22,9 +22,9 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, InvalidImageError, TGHopError
 from .._formats import COOC_CHECKPOINT, is_model_file, model_file_kind
 
-__all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_model_file",
-           "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask", "check_stdout",
-           "warn_lost_depth", "warn_written_with_8"]
+__all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
+           "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
+           "check_stdout", "warn_lost_depth", "warn_written_with_8"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -299,9 +299,22 @@ def user_errors(progress=None):
 HINT_DOWNSCALE_OPTION = "pass --downscale to reduce it (or downscale it yourself)"
 
 
+def is_builtin(spec) -> bool:
+    """Whether ``spec`` names a built-in exemplar: ``builtin:NAME`` of a known NAME, or of an unknown
+    one that is no file either (its reader refuses the name). A file named ``builtin:x.png`` is read
+    as that file (0.56 refused it as an unknown built-in exemplar); ``./builtin:bricks`` always names
+    the file, ``builtin:bricks`` the built-in exemplar (:func:`load_exemplar` warns where both exist)."""
+    from ..data import BUILTIN
+
+    spec = os.fspath(spec) if isinstance(spec, os.PathLike) else spec
+    if not isinstance(spec, str) or not spec.startswith("builtin:"):
+        return False
+    return spec.split(":", 1)[1] in BUILTIN or not os.path.lexists(spec)
+
+
 def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False, with_depth=False):
-    """An image file, or ``builtin:NAME`` for a built-in exemplar; with ``with_depth``, and
-    its bits per channel (8 for a built-in one).
+    """An image file, or ``builtin:NAME`` for a built-in exemplar (:func:`is_builtin`); with
+    ``with_depth``, and its bits per channel (8 for a built-in one).
 
     ``has_downscale``: the command has a ``--downscale`` option, so an image over the size
     limit is answered with "pass --downscale"; otherwise with "downscale it first".
@@ -309,7 +322,10 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
     from ..data import builtin
     from ..imageio import load_image
 
-    if spec.startswith("builtin:"):
+    if is_builtin(spec):
+        if os.path.lexists(spec):
+            warnings.warn(f"{spec} is read as the built-in exemplar, though a file of that name is here too; "
+                          f"give ./{spec} to read the file")
         image = builtin(spec.split(":", 1)[1])
         return (image, 8) if with_depth else image
     if is_model_file(spec):
@@ -507,7 +523,7 @@ def check_outputs(outputs, inputs=()):
     """
     def files(pairs):
         return [(label, str(path)) for label, path in pairs
-                if path is not None and str(path) != "-" and not str(path).startswith("builtin:")]
+                if path is not None and str(path) != "-" and not is_builtin(str(path))]
 
     seen = {}
     for label, path in files(inputs):

@@ -6,8 +6,8 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
-from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, numbered, user_errors,
-                     warn_written_with_8, write_materials)
+from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, numbered,
+                     user_errors, warn_written_with_8, write_materials)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -35,7 +35,7 @@ def _read(spec, downscale=None):
     ``downscale``: the command's ``--downscale`` (None: it has none)."""
     from ..synthesis import prepare_exemplar
 
-    if not spec.startswith("builtin:") and (spec.lower().endswith(".npz") or is_model_file(spec)):
+    if not is_builtin(spec) and (spec.lower().endswith(".npz") or is_model_file(spec)):
         from ..modelfile import load_model
 
         return load_model(spec, material=True)  # a material is refused where it cannot go, in the inputs' words
@@ -67,7 +67,7 @@ def _warn_deep(specs, read, labels, output, depth):
     names = [f"{labels} {i}" for i in range(1, len(specs) + 1)] if isinstance(labels, str) else list(labels)
     deep = [(name if isinstance(source, np.ndarray) else f"the exemplar of {name}", spec)
             for name, spec, source in zip(names, specs, read)
-            if (isinstance(source, np.ndarray) and source.dtype != np.uint8 and not spec.startswith("builtin:"))
+            if (isinstance(source, np.ndarray) and source.dtype != np.uint8 and not is_builtin(spec))
             or (getattr(source, "exemplar_depth_", None) or 8) > 8]
     if deep and not depth:
         warn_written_with_8(None, None, output, several=deep)
@@ -89,7 +89,7 @@ def _warn_material_maps(specs, read):
     from ..material import ALBEDO, looks_like_normal_map, map_kind
 
     images = [(i, spec, source) for i, (spec, source) in enumerate(zip(specs, read), start=1)
-              if isinstance(source, np.ndarray) and not spec.startswith("builtin:")]
+              if isinstance(source, np.ndarray) and not is_builtin(spec)]
     named = [(i, spec, map_kind(spec)) for i, spec, _ in images]
     by_content = {i for (i, _, kind), (_, _, source) in zip(named, images)
                   if kind is None and looks_like_normal_map(source)}
@@ -219,7 +219,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
 
     same, models = {}, []  # a file given twice is one model (fitted once): its regions are one synthesis
     for i, (spec, source) in enumerate(zip(sources, read), start=1):
-        key = spec if spec.startswith("builtin:") else os.path.realpath(spec)
+        key = spec if is_builtin(spec) else os.path.realpath(spec)
         if key not in same:
             same[key] = _fitted(source, options, progress, f"SOURCE {i} ({spec})")
         models.append(same[key])

@@ -9,8 +9,8 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
-from .common import (Progress, check_output, check_outputs, is_model_file, load_exemplar, load_mask, map_names,
-                     refuse_albedo_as_map, refuse_colour_map_out_of_place, user_errors, warn_lost_depth)
+from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
+                     map_names, refuse_albedo_as_map, refuse_colour_map_out_of_place, user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -175,7 +175,7 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     if image.startswith("builtin:") and not os.path.exists(image):
         raise TGHopError(f"IMAGE {image} is a built-in exemplar, not a picture file; give a picture as IMAGE "
                          f"(a built-in exemplar goes to --source)")
-    source_is_model = source is not None and not source.startswith("builtin:") and (
+    source_is_model = source is not None and not is_builtin(source) and (
         source.lower().endswith(".npz") or is_model_file(source))
     if scale != 1 and (source is None or source_is_model):
         raise click.UsageError("--scale applies to an exemplar given as --source; "

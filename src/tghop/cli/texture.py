@@ -14,7 +14,7 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map,
+                     is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map,
                      refuse_colour_map_out_of_place, summary,
                      user_errors, warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
@@ -37,7 +37,7 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
 
     started = time.monotonic()  # stage "reading": the exemplar read (a built-in one drawn) and its mask
     raw, bits = load_exemplar(spec, downscale=downscale, dtype=None, has_downscale=True, with_depth=True)
-    if deep_warning and not spec.startswith("builtin:") and raw.dtype.name != "uint8":  # 16-bit or float: floats
+    if deep_warning and not is_builtin(spec) and raw.dtype.name != "uint8":  # 16-bit or float: floats
         warn_written_with_8(deep_warning, spec, output)
     image = prepare_exemplar(raw)
     if output is not None and depth is not None:
@@ -74,7 +74,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     names = map_names(map_paths, label="--maps", albedo="EXEMPLAR")
     refuse_colour_map_out_of_place(spec, map_paths, label="--maps", albedo="EXEMPLAR")
     started = time.monotonic()  # stage "reading": every map read
-    albedo, depth = ((load_exemplar(spec, dtype=None), 8) if spec.startswith("builtin:")
+    albedo, depth = ((load_exemplar(spec, dtype=None), 8) if is_builtin(spec)
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
     for path, name in zip(map_paths, names):
@@ -340,7 +340,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
 
     # A .npz SOURCE is read as a model whatever its bytes ("not a tghop model file", not
     # "not a readable image"); other names as a model when they start like one.
-    from_model = not source.startswith("builtin:") and (source.lower().endswith(".npz") or is_model_file(source))
+    from_model = not is_builtin(source) and (source.lower().endswith(".npz") or is_model_file(source))
     if from_model:
         fit_only = ([s.name for s in BY_NAME.values() if s.when == "fit"] + list(FIT_OPTION_PARAMS)
                     + ["save_model", "downscale"])
