@@ -139,3 +139,76 @@ def test_a_float_colour_tiff_is_converted_too(tmp_path, colours):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert np.allclose(load_image(tmp_path / "plain.tif"), colours / 255, atol=1e-6)
+
+
+def _with_chunk(png, kind, body):
+    """A PNG file's bytes with a chunk inserted after the signature and IHDR."""
+    import zlib
+
+    return png[:33] + struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body)) + png[33:]
+
+
+def _srgb_of_linear(levels):
+    linear = levels / 255.0
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+
+
+def test_a_png_gamma_alone_is_converted_to_srgb(tmp_path, colours):
+    # 0.57: a linear PNG (gAMA 1.0, no sRGB chunk or profile) was read as sRGB, darker than viewers show it
+    from tghop.imageio import write_png
+
+    def png(pixels, *chunks):
+        buffer = io.BytesIO()
+        write_png(buffer, pixels)
+        data = buffer.getvalue()
+        for kind, body in chunks:
+            data = _with_chunk(data, kind, body)
+        return data
+
+    linear = (b"gAMA", struct.pack(">I", 100000))
+    (tmp_path / "linear.png").write_bytes(png(colours, linear))
+    with pytest.warns(UserWarning, match=r"linear.png: colours converted to sRGB from its PNG gamma 1 "):
+        read = load_image(tmp_path / "linear.png", dtype=None)
+    assert np.array_equal(read, np.round(255 * _srgb_of_linear(colours)).astype(np.uint8))
+    grey = colours[..., :1]
+    alpha = np.full_like(grey, 77)
+    (tmp_path / "grey_alpha.png").write_bytes(png(np.concatenate([grey, alpha], axis=2), linear))
+    with pytest.warns(UserWarning, match="PNG gamma 1 "):
+        read = load_image(tmp_path / "grey_alpha.png", dtype=None, keep_alpha=True)
+    assert np.array_equal(read[..., 0], np.round(255 * _srgb_of_linear(grey[..., 0])))
+    assert np.all(read[..., 1] == 77)  # alpha is linear in PNG: kept
+    (tmp_path / "deep.png").write_bytes(png(colours.astype(np.uint16) * 257, linear))  # decoded by tghop itself
+    with pytest.warns(UserWarning, match="deep.png: colours converted to sRGB from its PNG gamma 1 "):
+        assert np.allclose(load_image(tmp_path / "deep.png"), _srgb_of_linear(colours), atol=1e-9)
+    mac = (b"gAMA", struct.pack(">I", 55556))  # an old Mac's 1/1.8
+    (tmp_path / "mac.png").write_bytes(png(colours, mac))
+    with pytest.warns(UserWarning, match="PNG gamma 0.55556 "):
+        assert load_image(tmp_path / "mac.png", dtype=None).mean() > colours.mean() + 5  # lighter, as shown
+
+
+def test_a_png_gamma_of_srgb_or_beside_srgb_leaves_the_pixels_as_they_are(tmp_path, colours):
+    import zlib
+
+    from tghop.imageio import save_image, write_png
+
+    buffer = io.BytesIO()
+    write_png(buffer, colours)
+    plain = buffer.getvalue()
+    cases = {"near.png": [(b"gAMA", struct.pack(">I", 45455))],  # sRGB's, alone (as many writers store it)
+             "old.png": [(b"gAMA", struct.pack(">I", 45000))],  # within libpng's 5 % of it
+             "srgb.png": [(b"gAMA", struct.pack(">I", 100000)), (b"sRGB", b"\0")],  # sRGB's chunk comes first
+             "icc.png": [(b"gAMA", struct.pack(">I", 100000)), (b"iCCP", b"s\0\0" + zlib.compress(SRGB))]}
+    for name, chunks in cases.items():
+        data = plain
+        for kind, body in chunks:
+            data = _with_chunk(data, kind, body)
+        (tmp_path / name).write_bytes(data)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert np.array_equal(load_image(tmp_path / name, dtype=None), colours), name
+    save_image(colours / 255, tmp_path / "own.png")  # tghop's own outputs carry no gAMA: read as written
+    with Image.open(tmp_path / "own.png") as im:
+        assert "gamma" not in im.info
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.array_equal(load_image(tmp_path / "own.png", dtype=None), colours)

@@ -16,7 +16,7 @@ from ._errors import ImageTooLargeError, warn
 from ._formats import TIFF_HINT, warn_frames
 from .depths import RANGE_TOLERANCE
 from .png import decode_png16
-from .profiles import tiff_profile, to_srgb
+from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
 
 __all__ = ["open_image", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
            "transparency_note"]
@@ -334,6 +334,7 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
     if im.mode in ("L", "RGB") and "transparency" in im.info:  # a PNG's transparent colour: an alpha channel
         im = im.convert("LA" if im.mode == "L" else "RGBA")  # (0.55 kept its pixels without a word)
+    gamma = png_gamma(im.info)  # a PNG's gamma (gAMA) alone, not sRGB's: converted below
     im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
@@ -354,6 +355,7 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
             arr = _integer_levels(arr, path)
     else:
         arr = np.asarray(im.convert("RGB"))
+    arr = gamma_to_srgb(arr, gamma, path.name, alpha=arr.ndim == 3 and keep_alpha and has_alpha(mode))
     return upright(arr, orientation), mode
 
 
@@ -367,8 +369,10 @@ def _exif_orientation(im) -> int:
 
 
 def file_header(path):
-    """(EXIF orientation, ICC profile bytes or None) of a file tghop decodes itself (16-bit PNG,
-    TIFF by tifffile), from its header (no pixels decoded); orientation 1 where Pillow cannot open it.
+    """(EXIF orientation, ICC profile bytes or None, PNG gamma or None) of a file tghop decodes itself
+    (16-bit PNG, TIFF by tifffile), from its header (no pixels decoded); orientation 1 where Pillow
+    cannot open it; the gamma of a PNG's gAMA chunk where it is the only word on its colours
+    (:func:`tghop.profiles.png_gamma`).
 
     Parameters
     ----------
@@ -376,13 +380,13 @@ def file_header(path):
 
     Returns
     -------
-    tuple (int, bytes or None)
+    tuple (int, bytes or None, float or None)
     """
     try:
         with open_image(path) as im:
-            return _exif_orientation(im), im.info.get("icc_profile")
+            return _exif_orientation(im), im.info.get("icc_profile"), png_gamma(im.info)
     except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): its own tags, read by tifffile
-        return _tiff_orientation(path), tiff_profile(path)
+        return _tiff_orientation(path), tiff_profile(path), None
 
 
 def _tiff_orientation(path) -> int:

@@ -28,7 +28,7 @@ from .image_decode import (decode_pillow, file_header, has_alpha, open_image, re
                            transparent_share, upright)
 from .output_files import check_output_path, write_atomic, written_file
 from .png import WRITING, write_png
-from .profiles import deep_to_srgb
+from .profiles import deep_to_srgb, gamma_to_srgb
 
 __all__ = ["load_image", "is_image", "save_image", "to_uint8", "to_uint16", "write_atomic", "write_png",
            "check_output_path", "written_file", "check_depth", "deepest", "generation_dtype", "save_images", "DEPTHS"]
@@ -104,8 +104,9 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     try:
         deep = read_deep(path, max_pixels, keep_alpha=True)  # an alpha dropped below, its transparency told
         if deep is not None:
-            (arr, mode, depth), (orientation, profile) = deep, file_header(path)
+            (arr, mode, depth), (orientation, profile, gamma) = deep, file_header(path)
             arr = deep_to_srgb(upright(arr, orientation), profile, path.name)  # a colour profile: sRGB
+            arr = gamma_to_srgb(arr, gamma, path.name, alpha=bool(mode))  # a PNG's gamma alone: sRGB
             hidden = None
             if mode and not keep_alpha:
                 hidden = transparent_share(arr[..., -1])

@@ -8,6 +8,10 @@ texture came out duller or shifted beside the exemplar in any colour-managed vie
 colorimetric: colours outside sRGB are clipped to its gamut) and says so in a warning that
 names the profile.
 
+A PNG that says its gamma (a gAMA chunk) and has neither an sRGB chunk nor an ICC profile, as some
+tools write a linear PNG (gamma 1.0), is converted by that gamma (:func:`gamma_to_srgb`), grey ones
+too, with a warning; a gamma within :data:`GAMMA_TOLERANCE` of sRGB's 1/2.2 is taken as sRGB.
+
 Converted: 8-bit RGB, RGBA (alpha kept as it is), palette and CMYK images whose profile is
 not sRGB, and 16-bit and float colour files, which tghop decodes itself, by the same transform
 sampled on a grid and interpolated (:func:`deep_to_srgb`). Left as they are: images without a
@@ -24,7 +28,7 @@ import numpy as np
 
 from ._errors import warn
 
-__all__ = ["to_srgb", "deep_to_srgb", "tiff_profile"]
+__all__ = ["to_srgb", "deep_to_srgb", "tiff_profile", "png_gamma", "gamma_to_srgb", "GAMMA_TOLERANCE"]
 
 #: Levels per channel of the grid of colours that tells an sRGB profile by what it does.
 _GRID = 17
@@ -210,3 +214,68 @@ def tiff_profile(path):
             return None if tag is None else bytes(tag.value)
     except Exception:  # noqa: BLE001 - not a TIFF, or no tifffile: no profile to apply
         return None
+
+
+#: A PNG gamma (gAMA) whose product with 2.2 is within this of 1 is taken as sRGB, as libpng takes a
+#: gamma correction within 5 % of none as none (its PNG_GAMMA_THRESHOLD): the 0.45455 that most
+#: writers store, beside an sRGB chunk or alone, and the nearby values of older ones.
+GAMMA_TOLERANCE = 0.05
+
+
+def png_gamma(info):
+    """The encoding gamma of a PNG whose gAMA chunk is the only word on its colours (no sRGB chunk, no
+    ICC profile, which the PNG standard puts first) and is not sRGB's (:data:`GAMMA_TOLERANCE`); else
+    None (also for a gamma of 0, which the standard calls an error and libpng ignores).
+
+    Parameters
+    ----------
+    info : dict
+        An open Pillow image's ``info`` (its ``"gamma"``, ``"srgb"`` and ``"icc_profile"``).
+
+    Returns
+    -------
+    float or None
+    """
+    gamma = info.get("gamma")
+    if gamma is None or "srgb" in info or info.get("icc_profile"):
+        return None
+    gamma = float(gamma)
+    return gamma if gamma > 0 and abs(gamma * 2.2 - 1) > GAMMA_TOLERANCE else None
+
+
+def _srgb_encoded(linear):
+    """sRGB's transfer function (IEC 61966-2-1) of linear light in [0, 1]."""
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+
+
+def gamma_to_srgb(arr, gamma, name: str, *, alpha: bool = False):
+    """Pixels stored with the encoding ``gamma`` (``stored = linear ** gamma``; :func:`png_gamma`) in
+    sRGB, as a colour-managed viewer shows them, after a :class:`UserWarning` naming the gamma.
+
+    Parameters
+    ----------
+    arr : ndarray, shape (H, W) or (H, W, C)
+        uint8 levels, or floats in [0, 1].
+    gamma : float or None
+        None: ``arr`` itself, no warning.
+    name : str
+        The image's name in the warning (its file).
+    alpha : bool
+        The last channel is alpha, kept as it is (the PNG standard stores alpha linear).
+
+    Returns
+    -------
+    ndarray of ``arr``'s shape and dtype (float64 for floats)
+    """
+    if gamma is None:
+        return arr
+    warn(f"{name}: colours converted to sRGB from its PNG gamma {gamma:.5g} (a gAMA chunk without an sRGB chunk "
+         f"or colour profile; {'linear light' if abs(gamma - 1) < 1e-3 else 'not sRGB'})", UserWarning, stacklevel=2)
+    out = np.array(arr, dtype=np.uint8 if arr.dtype == np.uint8 else np.float64)
+    colours = out[..., :-1] if alpha else out
+    if out.dtype == np.uint8:
+        table = np.round(255 * _srgb_encoded((np.arange(256) / 255.0) ** (1 / gamma))).astype(np.uint8)
+        colours[...] = table[colours]
+    else:
+        colours[...] = np.clip(_srgb_encoded(np.clip(colours, 0.0, 1.0) ** (1 / gamma)), 0.0, 1.0)
+    return out
