@@ -212,3 +212,19 @@ def test_a_png_gamma_of_srgb_or_beside_srgb_leaves_the_pixels_as_they_are(tmp_pa
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert np.array_equal(load_image(tmp_path / "own.png", dtype=None), colours)
+
+
+def test_a_cmyk_jpeg_without_a_profile_is_said_and_not_inverted(tmp_path):
+    # 0.57: converted by Pillow's formula without a word; Adobe's inverted CMYK JPEGs (Photoshop's, and
+    # Pillow's own: an APP14 marker) come out the right way round
+    cmyk = np.zeros((16, 16, 4), dtype=np.uint8)
+    cmyk[:8, :, 0] = 255  # cyan over white
+    cmyk[8:, 8:, 3] = 128  # half black
+    Image.fromarray(cmyk, "CMYK").save(tmp_path / "print.jpg", quality=95)
+    with Image.open(tmp_path / "print.jpg") as im:
+        assert "adobe" in im.info
+    with pytest.warns(UserWarning, match=r"print.jpg: a CMYK image without a usable colour profile; .* approximate; "
+                                         r"export it as RGB"):
+        read = load_image(tmp_path / "print.jpg", dtype=None).astype(int)
+    assert np.abs(read[2, 2] - (0, 255, 255)).max() <= 3 and np.abs(read[12, 2] - 255).max() <= 3
+    assert np.abs(read[12, 12] - 127).max() <= 3

@@ -336,6 +336,10 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
         im = im.convert("LA" if im.mode == "L" else "RGBA")  # (0.55 kept its pixels without a word)
     gamma = png_gamma(im.info)  # a PNG's gamma (gAMA) alone, not sRGB's: converted below
     im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
+    if im.mode == "CMYK":  # no usable profile: Pillow's formula below, R = (255 - C)(255 - K) / 255, no ink's colour
+        warn(f"{path.name}: a CMYK image without a usable colour profile; its colours are converted to RGB by a "
+             "simple formula and are only approximate; export it as RGB (sRGB) for exact colours", UserWarning,
+             stacklevel=3)
     mode = im.mode
     if mode == "P" and "transparency" in im.info:
         mode = "P+transparency"
