@@ -228,3 +228,28 @@ def test_a_cmyk_jpeg_without_a_profile_is_said_and_not_inverted(tmp_path):
         read = load_image(tmp_path / "print.jpg", dtype=None).astype(int)
     assert np.abs(read[2, 2] - (0, 255, 255)).max() <= 3 and np.abs(read[12, 2] - 255).max() <= 3
     assert np.abs(read[12, 12] - 127).max() <= 3
+
+
+def test_colours_clipped_to_srgb_are_counted_and_said(tmp_path, colours):
+    # 0.57: a wide-gamut photo's saturated colours were clipped to sRGB without a word
+    import zlib
+
+    from tghop.imageio import write_png
+
+    vivid = np.random.default_rng(1).integers(0, 256, size=(96, 128, 3), dtype=np.uint8)  # about 4 in 10 outside sRGB
+    Image.fromarray(vivid).save(tmp_path / "vivid.png", icc_profile=P3)
+    with pytest.warns(UserWarning, match=r"vivid.png: colours converted to sRGB from its colour profile 'Test P3'; "
+                                         r"(3\d|4\d)% of its pixels hold colours outside sRGB, clipped to it"):
+        load_image(tmp_path / "vivid.png", dtype=None)
+    Image.fromarray(colours).save(tmp_path / "muted.png", icc_profile=P3)  # inside both gamuts: not said
+    with pytest.warns(UserWarning) as said:
+        load_image(tmp_path / "muted.png", dtype=None)
+    assert [str(w.message) for w in said] == ["muted.png: colours converted to sRGB from its colour profile 'Test P3'"]
+    buffer = io.BytesIO()
+    write_png(buffer, vivid.astype(np.uint16) * 257)  # 16-bit: measured on 8-bit levels of it
+    body = b"P3\0\0" + zlib.compress(P3)
+    png = buffer.getvalue()
+    (tmp_path / "deep.png").write_bytes(png[:33] + struct.pack(">I", len(body)) + b"iCCP" + body
+                                        + struct.pack(">I", zlib.crc32(b"iCCP" + body)) + png[33:])
+    with pytest.warns(UserWarning, match=r"deep.png: .*'Test P3'; (3\d|4\d)% of its pixels hold colours outside sRGB"):
+        load_image(tmp_path / "deep.png")

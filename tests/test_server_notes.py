@@ -61,7 +61,8 @@ def test_a_fits_notes_tell_what_reading_the_upload_said(client):
     from PIL import Image
 
     p3 = fit(client, "photo p3.png", png(bricks8(), icc_profile=P3))
-    assert p3["notes"] == ["photo_p3.png: colours converted to sRGB from its colour profile 'Test P3'"]
+    assert len(p3["notes"]) == 1  # its reds partly outside sRGB: how many were clipped follows (0.57)
+    assert p3["notes"][0].startswith("photo_p3.png: colours converted to sRGB from its colour profile 'Test P3'")
     frames = [Image.fromarray(bricks8()), Image.fromarray(bricks8()[::-1].copy())]
     buf = io.BytesIO()
     frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=100, loop=0)

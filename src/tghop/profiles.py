@@ -28,12 +28,23 @@ import numpy as np
 
 from ._errors import warn
 
-__all__ = ["to_srgb", "deep_to_srgb", "tiff_profile", "png_gamma", "gamma_to_srgb", "GAMMA_TOLERANCE"]
+__all__ = ["to_srgb", "deep_to_srgb", "tiff_profile", "png_gamma", "gamma_to_srgb", "GAMMA_TOLERANCE", "CLIP_DELTA_E",
+           "CLIP_SHARE"]
 
 #: Levels per channel of the grid of colours that tells an sRGB profile by what it does.
 _GRID = 17
 #: Levels per channel of the table that converts 16-bit and float images: every fifth 8-bit level.
 _TABLE = 52
+#: A colour the conversion to sRGB moves by more than this (CIE76 Delta E, in Lab) counts as clipped:
+#: a difference seen at a glance (one of 1-2 takes a close look side by side), well above the 8-bit
+#: rounding of the measure itself (at most 1.5 on colours inside both gamuts).
+CLIP_DELTA_E = 5.0
+#: The share of an image's pixels clipped (:data:`CLIP_DELTA_E`) from which its conversion's warning
+#: says so: 1 % of a 256x256 output is a 25x25 patch, whole elements (a petal, a stripe) rather than
+#: scattered pixels.
+CLIP_SHARE = 0.01
+#: At most about this many pixels (every k-th row and column) are measured for the share clipped.
+_CLIP_SAMPLE = 1 << 16
 
 
 def _description(profile) -> str:
@@ -89,9 +100,54 @@ def _source(data, mode, name, stacklevel):
     return None if transform is None else (transform, what)
 
 
-def _said(name, what, stacklevel):
-    """The warning that ``name``'s colours were converted (``stacklevel``: as for :func:`_source`)."""
-    warn(f"{name}: colours converted to sRGB from its colour profile {what!r}", UserWarning,
+@functools.lru_cache(maxsize=8)
+def _lab_transforms(data: bytes, mode: str):
+    """(the ICC profile ``data``'s colours to Lab, sRGB's to Lab): LittleCMS transforms, relative
+    colorimetric as :func:`_transform`'s."""
+    from PIL import ImageCms
+
+    lab, intent = ImageCms.createProfile("LAB"), ImageCms.Intent.RELATIVE_COLORIMETRIC
+    source = ImageCms.ImageCmsProfile(io.BytesIO(data))
+    return (ImageCms.buildTransform(source, lab, mode, "LAB", renderingIntent=intent),
+            ImageCms.buildTransform(ImageCms.createProfile("sRGB"), lab, "RGB", "LAB", renderingIntent=intent))
+
+
+def _lab(im, transform):
+    """An 8-bit image's colours in Lab (float: L in [0, 100], a and b signed), by ``transform``."""
+    from PIL import ImageCms
+
+    arr = np.asarray(ImageCms.applyTransform(im, transform)).astype(np.float64)
+    arr[..., 0] *= 100 / 255
+    arr[..., 1:] -= np.where(arr[..., 1:] > 127, 256, 0)  # Pillow's LAB: a and b as signed bytes
+    return arr
+
+
+def _clipped(im, data, transform):
+    """The share of the 8-bit RGB or CMYK image ``im``'s pixels (about :data:`_CLIP_SAMPLE` of them,
+    evenly spread) that ``transform`` to sRGB moves by more than :data:`CLIP_DELTA_E` in Lab: colours
+    outside sRGB, clipped to it; 0 where LittleCMS cannot build the transforms to Lab."""
+    from PIL import Image
+
+    step = max(1, int(np.ceil((im.width * im.height / _CLIP_SAMPLE) ** 0.5)))
+    if step > 1:
+        im = im.resize((max(1, im.width // step), max(1, im.height // step)), Image.Resampling.NEAREST)
+    try:
+        to_lab, srgb_lab = _lab_transforms(bytes(data), im.mode)
+    except Exception:  # noqa: BLE001 - a profile LittleCMS converts to sRGB but not to Lab: not measured
+        return 0.0
+    from PIL import ImageCms
+
+    moved = np.sqrt(((_lab(im, to_lab) - _lab(ImageCms.applyTransform(im, transform), srgb_lab)) ** 2).sum(axis=-1))
+    return float(np.mean(moved > CLIP_DELTA_E))
+
+
+def _said(name, what, stacklevel, clipped=0.0):
+    """The warning that ``name``'s colours were converted (``stacklevel``: as for :func:`_source`), and
+    how many were clipped to sRGB where they are :data:`CLIP_SHARE` or more."""
+    told = "" if clipped < CLIP_SHARE else (
+        f"; {clipped:.0%} of its pixels hold colours outside sRGB, clipped to it: duller in the outputs than "
+        "the file shows (tghop writes sRGB)")
+    warn(f"{name}: colours converted to sRGB from its colour profile {what!r}{told}", UserWarning,
          stacklevel=stacklevel + 1)
 
 
@@ -123,10 +179,11 @@ def to_srgb(im, name: str):
     found = _source(data, "CMYK" if im.mode == "CMYK" else "RGB", name, stacklevel=4)
     if found is None:
         return im
-    out = ImageCms.applyTransform(im.convert("RGB") if im.mode == "RGBA" else im, found[0])
+    colours = im.convert("RGB") if im.mode == "RGBA" else im
+    out = ImageCms.applyTransform(colours, found[0])
     if im.mode == "RGBA":
         out = Image.merge("RGBA", (*out.split(), im.getchannel("A")))
-    _said(name, found[1], stacklevel=4)
+    _said(name, found[1], stacklevel=4, clipped=_clipped(colours, data, found[0]))
     return out
 
 
@@ -188,7 +245,11 @@ def deep_to_srgb(arr, data, name: str):
     for y in range(0, arr.shape[0], rows):
         part = out[y: y + rows, :, :3]
         part[...] = _trilinear(table, part.reshape(-1, 3)).reshape(part.shape)
-    _said(name, found[1], stacklevel=3)
+    from PIL import Image
+
+    step = max(1, int(np.ceil((arr.shape[0] * arr.shape[1] / _CLIP_SAMPLE) ** 0.5)))
+    sample = np.round(np.clip(arr[::step, ::step, :3], 0.0, 1.0) * 255).astype(np.uint8)
+    _said(name, found[1], stacklevel=3, clipped=_clipped(Image.fromarray(sample, "RGB"), data, found[0]))
     return np.clip(out, 0.0, 1.0)
 
 
