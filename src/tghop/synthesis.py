@@ -41,6 +41,7 @@ from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, c
 from ._arrays import forget_fit
 from .codec import PatchCodec
 from .depths import exemplar_depth
+from .masks import mask_levels, snap_to_levels
 from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack
@@ -93,6 +94,12 @@ class TGHop(PatchCodec, BaseEstimator):
         or its dtype (uint8, uint16); None when not known (a float array, a file of tghop 0.55 or
         older). Kept in the model file, so that ``tghop synth MODEL`` warns, as from the exemplar,
         that an image written with 8 bits loses some.
+    exemplar_levels_ : ndarray, shape (2, C), or None
+        The exemplar's two pixel values where it holds no others (a 1-bit scan, line art, a
+        stencil: its pixels left out by ``exclude`` not counted), in [0, 1]; :meth:`synthesize`
+        moves each pixel of its image to the nearer of them, as a material's mask maps are
+        (:mod:`tghop.masks`), so that a black-and-white texture comes out black and white. None
+        for any other exemplar (and in a file of tghop 0.56 or older). Kept in the model file.
     colour_quantiles_ : ndarray, shape (C, 257)
         The exemplar's per-channel quantiles, for colour matching after quilting.
     classes_ : tghop.colour.ColourClasses or None
@@ -263,6 +270,8 @@ class TGHop(PatchCodec, BaseEstimator):
         image = prepare_exemplar(image, channels=None)
         self.check_exemplar_size(image.shape, ichm)  # names the smallest exemplar that works
         exclude = check_exclude(exclude, image.shape)
+        levels = mask_levels(image, exclude, most=2)  # a two-level exemplar's, before any resampling
+        levels = levels / 255.0 if levels is not None and image.dtype == np.uint8 else levels
         if self.scale != 1:  # the working scale: the model sees only the resampled exemplar from here on
             image, exclude = rescale(image, self.scale), rescale_mask(exclude, self.scale)
             image = prepare_exemplar(image, channels=None)  # and checks it again (flat, grey)
@@ -278,6 +287,7 @@ class TGHop(PatchCodec, BaseEstimator):
         ichm._check_params(len(origins))  # fail before the expensive stages
         forget_fit(self, private=("_fitted_params",))  # an earlier fit's state goes now, not on a bad setting
         self.exemplar_shape_ = image.shape
+        self.exemplar_levels_ = levels
         self.n_patches_ = len(origins)
         # Colour quantiles of the pixels kept only (a (n, 1, C) "image" of them).
         self.colour_quantiles_ = channel_quantiles(image if exclude is None else image[~exclude][:, None, :])
@@ -344,6 +354,8 @@ class TGHop(PatchCodec, BaseEstimator):
                 "model_rng": settings.generator_record(self.layout_.model_.rng)},
             # Metadata, not an array (as a hop's saab_energy): the same format version; left out when not known.
             **({} if getattr(self, "exemplar_depth_", None) is None else {"exemplar_depth": self.exemplar_depth_}),
+            **({} if getattr(self, "exemplar_levels_", None) is None
+               else {"exemplar_levels": self.exemplar_levels_.tolist()}),
         }
 
     @classmethod
@@ -369,6 +381,7 @@ class TGHop(PatchCodec, BaseEstimator):
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
         model.ichm_.rng = settings.generator_from_record(meta.get("ichm_rng"), "ichm_rng")
         model.exemplar_depth_ = exemplar_depth(meta.get("exemplar_depth"), what="the metadata's exemplar_depth")
+        model.exemplar_levels_ = _levels(meta.get("exemplar_levels"), model.exemplar_shape_[2])
         model.colour_quantiles_ = arrays["colour.quantiles"].astype(np.float64, copy=False)
         model.classes_ = ColourClasses(model.colour_classes)._from_arrays(arrays) if model.colour_classes else None
         model.bands_ = BandStatistics(n_levels=model.band_levels,
@@ -551,12 +564,16 @@ class TGHop(PatchCodec, BaseEstimator):
             And the dict of stages with ``return_stages``.
         """
         check_is_fitted(self, "ichm_")
-        return generation.synthesize(
+        made = generation.synthesize(
             self, size, rng=rng, n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
             flat_share=flat_share, match_colours=match_colours, layout_weight=layout_weight, refine=refine,
             layout_refine=layout_refine, layout_patch_refine=layout_patch_refine, patch_refine=patch_refine,
             patch_stride=patch_stride, reuse=reuse, pool_per_block=pool_per_block, seam_window=seam_window,
             region=region, own_shares=own_shares, progress=progress, dtype=dtype, return_stages=return_stages)
+        levels = getattr(self, "exemplar_levels_", None)
+        if levels is not None:  # a two-level exemplar's image: its two levels (exemplar_levels_)
+            snap_levels(made[0] if return_stages else made, levels)
+        return made
 
 
 TGHop.__doc__ = TGHop.__doc__.replace("{parameters}", settings.numpydoc_parameters(settings.fit_settings()))
@@ -717,3 +734,27 @@ class CoarseLayout(BaseEstimator):
         check_is_fitted(self, "model_")
         check_keywords(options, layout.coarse_guide, where="guide", exclude=("model", "factor", "size"))
         return layout.coarse_guide(self.model_, self.factor, size, **options)
+
+
+def snap_levels(image, levels):
+    """Move each pixel of ``image`` (H, W, C; floats in [0, 1] or uint8 levels) to the nearer of a
+    two-level exemplar's ``levels`` (:attr:`TGHop.exemplar_levels_`, floats), in place."""
+    if image.dtype == np.uint8:
+        image[...] = snap_to_levels(image.astype(np.float32), np.round(levels * 255))
+    else:
+        snap_to_levels(image, levels, out=image)
+
+
+def _levels(value, channels):
+    """A model file's ``exemplar_levels`` (None, or two lists of ``channels`` values in [0, 1]) as
+    :attr:`TGHop.exemplar_levels_`, or a one-line :class:`TGHopError`."""
+    if value is None:
+        return None
+    try:
+        levels = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        levels = None
+    if levels is None or levels.shape != (2, channels) or not np.all((levels >= 0) & (levels <= 1)):
+        raise TGHopError(f"the metadata's exemplar_levels must be two lists of {channels} values in [0, 1], "
+                         f"got {value!r:.80}; the model file is damaged")
+    return levels
