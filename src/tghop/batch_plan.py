@@ -105,10 +105,10 @@ def _scan_folder(folder: Path, outdir: Path, max_depth=None):
 
 def _warn_material_sets(folder: Path, items) -> None:
     """Warn of the folders whose images are named as one material's maps (a colour map and another
-    kind of map, :func:`tghop.material.map_kind`: ambientCG's ``Rock023_2K_Color.jpg`` beside its
+    kind of map, :func:`tghop.map_names.map_kind`: ambientCG's ``Rock023_2K_Color.jpg`` beside its
     ``Rock023_2K_NormalGL.png``): a folder SOURCE makes each a texture of its own, so the warning gives
     the manifest line that makes them one material."""
-    from .material import ALBEDO, map_kind
+    from .map_names import ALBEDO, map_kind
 
     sets = {}
     for item in items:
@@ -135,8 +135,8 @@ def _warn_material_sets(folder: Path, items) -> None:
 def _manifest_maps(files):
     """The maps of a folder's material set that one manifest row can list (``[(kind, rel)]``): paths that
     hold no ``;`` (the row's separator), each map name once (in any case) and at most :data:`MAX_MAPS`, one of
-    each kind first (:data:`tghop.material.MAP_KINDS`' order), in the folder's order; and those left out."""
-    from .material import MAP_KINDS, map_name
+    each kind first (:data:`tghop.map_names.MAP_KINDS`' order), in the folder's order; and those left out."""
+    from .map_names import MAP_KINDS, map_name
 
     names, usable, left = set(), [], []
     for kind, rel in files:

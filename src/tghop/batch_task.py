@@ -116,7 +116,8 @@ def _thumbnail(image, path):
 def _read_maps(maps, load_image) -> dict:
     """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``); an alpha
     channel that holds data fails the row (:func:`tghop.material.drop_opaque_alpha`)."""
-    from .material import drop_opaque_alpha, is_normal_name, normal_convention
+    from .map_names import is_normal_name, normal_convention
+    from .material import drop_opaque_alpha
     from .normals import upright_normal_map
 
     out = {}

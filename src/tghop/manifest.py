@@ -233,9 +233,9 @@ def parse_maps(value, where, base: Path) -> list:
     """A row's ``maps``: the maps of a whole material whose albedo is the row's ``path``, as
     ``[(name, Path)]``. JSON: an object ``{"normal": "rock_n.png", ...}`` or a list of paths;
     CSV: paths separated by ``;``, each optionally ``name=path``. A map without a name is
-    named by its file (:func:`tghop.material.map_name`, as ``tghop fit --maps``). Relative paths
+    named by its file (:func:`tghop.map_names.map_name`, as ``tghop fit --maps``). Relative paths
     are from ``base`` (the manifest's folder). A name that cannot name a file, a name given twice
-    (without case; ``albedo`` is the exemplar's: :func:`tghop.material.check_map_names`) or more
+    (without case; ``albedo`` is the exemplar's: :func:`tghop.map_names.check_map_names`) or more
     than :data:`MAX_MAPS` maps is refused, naming the line.
 
     Parameters
@@ -253,7 +253,7 @@ def parse_maps(value, where, base: Path) -> list:
         Each map's name and file, in the order given; the files are not opened here.
     """
     # A map's name names its output file (NAME_<map>.png).
-    from .material import MAP_NAME, MapNameClashError, check_map_names, map_name
+    from .map_names import MAP_NAME, MapNameClashError, check_map_names, map_name
 
     if isinstance(value, dict):
         pairs = list(value.items())

@@ -20,7 +20,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from .material import map_kind
+from .map_names import map_kind
 
 __all__ = ["map_files", "map_suffixes", "RESOLUTION"]
 
@@ -37,7 +37,7 @@ def map_suffixes(names) -> list:
     with every other map's name at its start (the material's name, and a resolution such as
     ``2K``), and without a resolution at the start or end of what is left. The words shared leave
     at least one word of each name. A single map (no other to share with) drops the words before
-    its kind's word (:func:`tghop.material.map_kind`: ``T_Rock_N`` is ``N``, ``rock_nor_gl_2k``
+    its kind's word (:func:`tghop.map_names.map_kind`: ``T_Rock_N`` is ``N``, ``rock_nor_gl_2k``
     ``nor_gl``). Fewer words are dropped where a map's suffix would lose the kind its name has
     (``Rock_Normal_GL`` beside ``Rock_Normal_DX`` is ``Normal_GL``, not ``GL``). A map of which no
     word is dropped (names that share no word at their start, a single map of no kind read) keeps
@@ -48,8 +48,8 @@ def map_suffixes(names) -> list:
     ----------
     names : sequence of str
         The material's map names, the albedo's first (:attr:`tghop.material.Material.names_`);
-        each of :data:`tghop.material.MAP_NAME`'s form, no two alike in any case
-        (:func:`tghop.material.check_map_names`).
+        each of :data:`tghop.map_names.MAP_NAME`'s form, no two alike in any case
+        (:func:`tghop.map_names.check_map_names`).
 
     Returns
     -------
@@ -125,7 +125,7 @@ def _shared_words(words) -> int:
 
 def _kind_start(name, words) -> int:
     """Where a single map's kind word starts in ``name`` (the shortest end of it, at a word, that
-    :func:`~tghop.material.map_kind` reads as the whole name's kind), else 0 (the whole name)."""
+    :func:`~tghop.map_names.map_kind` reads as the whole name's kind), else 0 (the whole name)."""
     kind = map_kind(name + ".png")
     if kind is None:
         return 0

@@ -119,7 +119,7 @@ def upright_normal_map(values, path, *, convention=None, label="the normal map")
     path : str or os.PathLike
         The file, whose orientation is read (its header only).
     convention : {"OpenGL", "DirectX"} or None
-        The map's by its name (:func:`tghop.material.normal_convention`); None: read from its stored
+        The map's by its name (:func:`tghop.map_names.normal_convention`); None: read from its stored
         pixels' content (:func:`convention_of`) where a quarter turn needs it.
     label : str
         How a message names the map (``"--maps rock_nrm.jpg"``).

@@ -595,13 +595,13 @@ def refuse_albedo_as_map(paths, albedo_path, *, label: str = "MAP", albedo: str 
 def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", albedo: str = "IMAGE",
                                    command: str = "tghop fit {} --maps") -> None:
     """A one-line error where the albedo's file is named as another kind of map
-    (:func:`tghop.material.map_kind`) and one of the maps as the colour map (the two swapped), or
+    (:func:`tghop.map_names.map_kind`) and one of the maps as the colour map (the two swapped), or
     the albedo's file as a normal map and no map as the colour map (the colour map left out: the
     normal map would be modelled as the albedo's colours, not kept unit vectors); a one-line warning
     where the albedo's file is named as another kind (``Rock_Roughness.png``) and no map as the colour
     map (fitted as the colour map, as asked: a material may have none). ``command``: the command line
     up to the maps, ``{}`` where the colour map goes."""
-    from ..material import ALBEDO, map_kind
+    from ..map_names import ALBEDO, map_kind
 
     kind = map_kind(albedo_path)
     if kind in (None, ALBEDO):
@@ -622,10 +622,10 @@ def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", al
 
 
 def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
-    """The names of the maps in files ``paths`` (:func:`tghop.material.map_name`), or a one-line
+    """The names of the maps in files ``paths`` (:func:`tghop.map_names.map_name`), or a one-line
     error where two are one name (in any case) or one is the albedo's (``label``: what the
     command calls a map, ``albedo``: what it calls the albedo)."""
-    from ..material import MapNameClashError, check_map_names, map_name
+    from ..map_names import MapNameClashError, check_map_names, map_name
 
     names = [map_name(path) for path in paths]
     try:

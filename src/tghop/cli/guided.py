@@ -75,7 +75,7 @@ def _warn_deep(specs, read, labels, output, depth):
 
 def _warn_material_maps(specs, read):
     """One warning where the exemplar images among a remix's SOURCEs (``read``: :func:`_read`'s)
-    look like maps of one material: two kinds or more by their names (:func:`tghop.material.map_kind`:
+    look like maps of one material: two kinds or more by their names (:func:`tghop.map_names.map_kind`:
     ``rock_albedo.png rock_normal.png``), an image of no such name taken as a normal map by its
     content (:func:`tghop.material.looks_like_normal_map`: ``rock.png`` of blue-violet unit vectors),
     or a normal map with one other image of no kind (its albedo, by elimination). The remix makes
@@ -86,7 +86,8 @@ def _warn_material_maps(specs, read):
 
     import numpy as np
 
-    from ..material import ALBEDO, looks_like_normal_map, map_kind
+    from ..map_names import ALBEDO, map_kind
+    from ..material import looks_like_normal_map
 
     images = [(i, spec, source) for i, (spec, source) in enumerate(zip(specs, read), start=1)
               if isinstance(source, np.ndarray) and not is_builtin(spec)]

@@ -322,7 +322,8 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..material import drop_opaque_alpha, is_normal_name, normal_convention
+    from ..map_names import is_normal_name, normal_convention
+    from ..material import drop_opaque_alpha
     from ..normals import upright_normal_map
     from ..material_files import map_files
 

@@ -55,7 +55,8 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
     content (:func:`tghop.normals.convention_of`), by name."""
     from ..imageio import load_image
-    from ..material import Material, drop_opaque_alpha, is_normal_name, normal_convention
+    from ..map_names import is_normal_name, normal_convention
+    from ..material import Material, drop_opaque_alpha
     from ..normals import convention_of, upright_normal_map
     from ..synthesis import TGHop
     from ..fit_options import fit_params
@@ -155,7 +156,7 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
 
 def material_summary(material, found=None) -> str:
     """The maps of ``material``, one line; ``found``: normal maps' conventions by their content, by name."""
-    from ..material import normal_convention
+    from ..map_names import normal_convention
 
     def normal(name, is_normal):  # the convention is the output's too: tghop keeps it
         named, seen = normal_convention(name), (found or {}).get(name)

@@ -52,7 +52,7 @@ def map_uploads(fields: dict) -> list:
     """Take the maps' fields (``map:<name>``) out of a form (a fit's, an inpaint's or an
     extend's): ``[(name, filename, bytes)]`` in the order sent; 400 for a bad name, a name given
     twice (in any case), a map that is not a file or is empty, or more than :data:`MAX_MAPS`."""
-    from ..material import MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names
+    from ..map_names import MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names
 
     named = [(field[len(MAP_FIELD):], field) for field in fields if field.startswith(MAP_FIELD)]
     for name, field in named:
@@ -87,7 +87,8 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
     (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
     from .._common import check_image
     from .._errors import TGHopError
-    from ..material import check_normal_map, is_normal_name
+    from ..map_names import is_normal_name
+    from ..material import check_normal_map
 
     maps, depths = {}, {}
     for name, filename, content in uploads:
@@ -108,7 +109,7 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
 def upright_map(image, path, normal):
     """A map read from ``path``, with ``normal`` (its name, where it is a normal map) its vectors turned
     with its pixels where the file is stored turned (:func:`tghop.normals.upright_normal_map`)."""
-    from ..material import normal_convention
+    from ..map_names import normal_convention
     from ..normals import upright_normal_map
 
     if normal is None:
