@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tghop import TGHop, TGHopError, data
+from tghop.map_names import name_kind
 from tghop.material import Material, example_maps, is_normal_name, map_kind, normal_convention
 
 #: A small, fast joint model (as tests/test_material.py's).
@@ -37,7 +38,15 @@ def test_the_libraries_map_names_are_read_as_their_kind(name, kind):
     # Poly Haven's rock_wall_nor_gl_2k and Unreal's T_Rock_N were no kind: a remix of them was not warned of.
     assert map_kind(name) == kind
     stem = name.rsplit(".", 1)[0]
+    assert name_kind(stem) == kind
     assert is_normal_name(stem) == (kind == "normal")
+
+
+def test_a_maps_name_is_read_whole_as_its_kind_a_dot_no_extension():
+    # tghop.material_files read a map's name (which may hold a '.') as map_kind(name + ".png"): a name is no file's.
+    assert name_kind("Rock.Normal") == "normal" and map_kind("Rock.Normal") is None  # '.Normal': the extension
+    assert name_kind("rock.wall.nor.gl.2k") == "normal" and name_kind("Rock_2K.v2") is None
+    assert name_kind("Rock_ORM") == "packed" and name_kind("bricks") is None and name_kind("gl") is None
 
 
 def test_a_normal_maps_convention_is_read_from_its_name():

@@ -19,7 +19,7 @@ from pathlib import Path
 from ._common import TGHopError
 
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
-           "map_name", "MapNameClashError", "check_map_names", "is_normal_name", "normal_convention"]
+           "name_kind", "map_name", "MapNameClashError", "check_map_names", "is_normal_name", "normal_convention"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -57,16 +57,35 @@ def _kind_words(stem):
     return words
 
 
-def _kind_of(stem):
-    """:func:`map_kind` of a stem (or a map's name, which may hold a ``.``)."""
-    words = _kind_words(stem)
+def name_kind(name):
+    """The kind of a material's map (a key of :data:`MAP_KINDS`) that a map's name, or a file's
+    stem, ends in, or None: :func:`map_kind` of a name that is not a file's, read whole (a map's
+    name may hold a ``.``: ``Rock.Normal`` -> ``"normal"``, where ``map_kind("Rock.Normal")``
+    reads ``.Normal`` as the file's extension and the stem ``Rock`` as no kind).
+
+    Parameters
+    ----------
+    name : str
+        A map's name (:func:`map_name`) or a file's stem.
+
+    Returns
+    -------
+    str or None
+
+    Examples
+    --------
+    >>> from tghop.map_names import name_kind
+    >>> name_kind("rock_wall_nor_gl_2k"), name_kind("Rock.Normal"), name_kind("bricks")
+    ('normal', 'normal', None)
+    """
+    words = _kind_words(name)
     if len(words) > 1 and words[-1] in CONVENTION_WORDS:  # rock_nor_gl_2k, Rock_Normal_DX
         words.pop()
     if not words:
         return None
     last = words[-1]
     for kind, names in MAP_KINDS.items():
-        if last in names or any(len(name) >= 5 and last.endswith(name) for name in names):
+        if last in names or any(len(word) >= 5 and last.endswith(word) for word in names):
             return kind
     return None
 
@@ -77,7 +96,7 @@ def map_kind(path):
     (a trailing resolution, ``2K`` or ``1024``, is passed over, and so is a normal map's convention
     after its name: Poly Haven's ``rock_nor_gl_2k.png``), Unreal's ``T_Rock_N.png`` -> ``"normal"``,
     ``T_Rock_ORM.png`` -> ``"packed"`` (occlusion, roughness and metalness in R, G, B), ``bricks.jpg``
-    -> None.
+    -> None. A map's name, which is no file's, is read by :func:`name_kind`.
 
     Parameters
     ----------
@@ -88,8 +107,7 @@ def map_kind(path):
     -------
     str or None
     """
-    return _kind_of(Path(path).stem)
-
+    return name_kind(Path(path).stem)
 
 
 def map_name(path) -> str:
@@ -173,7 +191,7 @@ def is_normal_name(name: str) -> bool:
         True when ``name`` contains one of the words, anywhere (``"RockNormalGL"`` is one), or ends
         in a normal map's word (``"rock_nor_dx_2k"``, ``"T_Rock_N"``).
     """
-    return any(word in name.lower() for word in NORMAL_WORDS) or _kind_of(name) == "normal"
+    return any(word in name.lower() for word in NORMAL_WORDS) or name_kind(name) == "normal"
 
 
 def normal_convention(name: str):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from .map_names import map_kind
+from .map_names import name_kind
 
 __all__ = ["map_files", "map_suffixes", "RESOLUTION"]
 
@@ -37,7 +37,7 @@ def map_suffixes(names) -> list:
     with every other map's name at its start (the material's name, and a resolution such as
     ``2K``), and without a resolution at the start or end of what is left. The words shared leave
     at least one word of each name. A single map (no other to share with) drops the words before
-    its kind's word (:func:`tghop.map_names.map_kind`: ``T_Rock_N`` is ``N``, ``rock_nor_gl_2k``
+    its kind's word (:func:`tghop.map_names.name_kind`: ``T_Rock_N`` is ``N``, ``rock_nor_gl_2k``
     ``nor_gl``). Fewer words are dropped where a map's suffix would lose the kind its name has
     (``Rock_Normal_GL`` beside ``Rock_Normal_DX`` is ``Normal_GL``, not ``GL``). A map of which no
     word is dropped (names that share no word at their start, a single map of no kind read) keeps
@@ -71,11 +71,11 @@ def map_suffixes(names) -> list:
     if len(maps) == 1:
         out = [_suffix(maps[0], words[0], _kind_start(maps[0], words[0]))]
     else:
-        kinds = [map_kind(n + ".png") for n in maps]
+        kinds = [name_kind(n) for n in maps]
         shared = _shared_words(words)
         while True:  # fewer words dropped where a map would lose its kind's word (Rock_Normal_GL, Rock_Normal_DX)
             out = [_suffix(n, w, w[shared].start() if shared else 0) for n, w in zip(maps, words)]
-            if not shared or all(k is None or map_kind(s + ".png") == k for s, k in zip(out, kinds)):
+            if not shared or all(k is None or name_kind(s) == k for s, k in zip(out, kinds)):
                 break
             shared -= 1
     while True:  # a suffix taken twice: those maps keep their whole names (which check_map_names made distinct)
@@ -125,12 +125,12 @@ def _shared_words(words) -> int:
 
 def _kind_start(name, words) -> int:
     """Where a single map's kind word starts in ``name`` (the shortest end of it, at a word, that
-    :func:`~tghop.map_names.map_kind` reads as the whole name's kind), else 0 (the whole name)."""
-    kind = map_kind(name + ".png")
+    :func:`~tghop.map_names.name_kind` reads as the whole name's kind), else 0 (the whole name)."""
+    kind = name_kind(name)
     if kind is None:
         return 0
     for w in reversed(words[1:]):
-        if map_kind(name[w.start():] + ".png") == kind:
+        if name_kind(name[w.start():]) == kind:
             return w.start()
     return 0
 
