@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from tghop import ModelFileError, TGHop, data
-from tghop.masks import mask_levels, snap_to_levels
+from tghop.masks import channel_levels, mask_levels, snap_channels, snap_to_levels
 from tghop.material import Material, example_maps
 from tghop.modelfile import load_model, save_model
 
@@ -127,3 +127,99 @@ def test_painted_materials_join_their_masks_at_their_levels(material, made):
     for name in ("metalness", "opacity"):
         assert set(np.unique(out[name])) <= set(np.unique(maps[name])), name
     assert len(np.unique(out["roughness"])) > 100
+
+
+@pytest.fixture(scope="module")
+def packed(made):
+    """bricks' albedo, its normal map and an ORM (occlusion and roughness of many values, a metalness of 0 and 1)."""
+    albedo, maps = made
+    orm = np.concatenate([maps["height"], maps["roughness"], maps["metalness"]], axis=2)
+    return albedo, {"normal": maps["normal"], "T_Rock_ORM": orm}
+
+
+@pytest.fixture(scope="module")
+def packed_material(packed):
+    albedo, maps = packed
+    return Material(model=TGHop(**FAST), rng=0).fit(albedo, maps)
+
+
+def test_channel_levels_are_each_channels_few_values_and_snap_moves_only_those():
+    img = np.zeros((20, 30, 3))
+    img[..., 0] = np.linspace(0, 1, 600).reshape(20, 30)  # many values
+    img[5:9, 3:20, 1] = 1.0  # 0 and 1
+    img[..., 2] = 0.25  # one value
+    got = channel_levels(img)
+    assert got[0] is None and got[1].tolist() == [0.0, 1.0] and got[2].tolist() == [0.25]
+    assert mask_levels(img) is None and channel_levels(img[..., :1]) is None
+    soft = np.random.default_rng(0).random((4, 5, 3)).astype(np.float32)
+    out = snap_channels(soft, got)
+    assert out.dtype == np.float32
+    np.testing.assert_array_equal(out[..., 0], soft[..., 0])
+    np.testing.assert_array_equal(out[..., 1], np.where(soft[..., 1] > 0.5, 1.0, 0.0))
+    assert (out[..., 2] == 0.25).all()
+    assert snap_channels(soft, got, out=soft) is soft and np.array_equal(soft, out)
+
+
+def test_a_packed_maps_mask_channel_comes_out_at_its_levels_and_the_rest_as_before(packed_material, packed):
+    # An ORM's metalness of 0 and 1 came out with soft values at its elements' edges: its map has many values,
+    # so it was not a mask map (tghop.masks.mask_levels), and its metalness was not snapped.
+    _, maps = packed
+    mat = packed_material
+    assert mat.levels_ == [None, None, None]
+    assert mat.channel_levels_[:2] == [None, None] and mat.channel_levels_[2][:2] == [None, None]
+    assert mat.channel_levels_[2][2].tolist() == [0.0, 1.0]
+    out = mat.synthesize((160, 160), rng=1)
+    assert set(np.unique(out["T_Rock_ORM"][..., 2])) <= {0.0, 1.0}
+    kept, mat.channel_levels_ = mat.channel_levels_, [None] * 3
+    try:
+        soft = mat.synthesize((160, 160), rng=1)
+    finally:
+        mat.channel_levels_ = kept
+    assert not set(np.unique(soft["T_Rock_ORM"][..., 2])) <= {0.0, 1.0}  # what the snap is for
+    for name in ("albedo", "normal"):
+        np.testing.assert_array_equal(out[name], soft[name], err_msg=name)
+    np.testing.assert_array_equal(out["T_Rock_ORM"][..., :2], soft["T_Rock_ORM"][..., :2])  # occlusion, roughness
+    np.testing.assert_array_equal(out["T_Rock_ORM"][..., 2], np.where(soft["T_Rock_ORM"][..., 2] > 0.5, 1.0, 0.0))
+
+
+def test_a_packed_maps_channel_levels_are_kept_in_the_model_file_and_old_files_load(packed_material, tmp_path):
+    save_model(packed_material, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz", material=True)
+    assert loaded.channel_levels_[2][2].tolist() == [0.0, 1.0] and loaded.channel_levels_[:2] == [None, None]
+    np.testing.assert_array_equal(loaded.synthesize((96, 96), rng=2)["T_Rock_ORM"],
+                                  packed_material.synthesize((96, 96), rng=2)["T_Rock_ORM"])
+    with np.load(tmp_path / "m.npz") as f:
+        arrays = dict(f)
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["material"]["channel_levels"] == {"T_Rock_ORM": [None, None, [0.0, 1.0]]}
+    assert "levels" not in meta["material"]
+    for levels, words in (({"T_Rock_ORM": [None, None, [0.0, 2.0]]}, "channel levels of map 'T_Rock_ORM'"),
+                          ({"T_Rock_ORM": [None, [0.0, 1.0]]}, "channel levels of map 'T_Rock_ORM'"),
+                          ({"T_Rock_ORM": [None, None, 1.0]}, "channel levels of map 'T_Rock_ORM'"),
+                          ({"T_Rock_ORM": [None, None, []]}, "channel levels of map 'T_Rock_ORM'"),
+                          ({"normal": [[0.0], None, None]}, "channel levels are not a dict")):
+        meta["material"]["channel_levels"] = levels
+        np.savez(tmp_path / "bad.npz", **{**arrays, "__meta__": np.array(json.dumps(meta))})
+        with pytest.raises(ModelFileError, match=words):
+            load_model(tmp_path / "bad.npz", material=True)
+    del meta["material"]["channel_levels"]  # a file of tghop 0.56: no channel levels, its maps as they come
+    np.savez(tmp_path / "old.npz", **{**arrays, "__meta__": np.array(json.dumps(meta))})
+    assert load_model(tmp_path / "old.npz", material=True).channel_levels_ == [None] * 3
+
+
+def test_a_packed_maps_hole_and_painted_join_keep_its_mask_channel_at_its_levels(packed_material, packed):
+    from tghop import synthesize_guided
+    from tghop.inpaint import inpaint_material
+
+    albedo, maps = packed
+    hole = np.zeros(albedo.shape[:2], dtype=bool)
+    hole[40:90, 30:100] = True
+    out = inpaint_material(packed_material, {"albedo": albedo, **maps}, hole, rng=0, n_patches=1000)
+    assert set(np.unique(out["T_Rock_ORM"][..., 2][hole])) <= {0.0, 1.0}
+    np.testing.assert_array_equal(out["T_Rock_ORM"][~hole], maps["T_Rock_ORM"][~hole])
+    flipped = Material(model=TGHop(**FAST), rng=0).fit(albedo[:, ::-1], {k: v[:, ::-1] for k, v in maps.items()})
+    guide = np.zeros((64, 96), np.uint8)
+    guide[:, 48:] = 255
+    joined = synthesize_guided([packed_material, flipped], guide, rng=2, transition=16, n_patches=1000)
+    assert set(np.unique(joined["T_Rock_ORM"][..., 2])) <= {0.0, 1.0}
+    assert len(np.unique(joined["T_Rock_ORM"][..., 1])) > 100

@@ -63,7 +63,7 @@ from ._arrays import check_dtype, check_int, check_number
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, one_blas_thread, report
 from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
 from .guides import guide_labels
-from .masks import snap_to_levels
+from .masks import snap_channels, snap_to_levels
 from .material import Material, renormalise
 from .quilting import block_count
 
@@ -496,8 +496,22 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
             levels = [model.levels_[i] for model in models]
             if all(lv is not None for lv in levels):
                 maps[name] = snap_to_levels(maps[name], np.unique(np.concatenate(levels), axis=0))
+                continue
+            per = [_channel_levels(model, i) for model in models]  # a channel that is a mask in every material
+            joint = [None if any(p[c] is None for p in per) else np.unique(np.concatenate([p[c] for p in per]))
+                     for c in range(len(per[0]))]
+            if any(lv is not None for lv in joint):
+                maps[name] = snap_channels(maps[name], joint)
         return {name: _as_dtype(m, dtype) for name, m in maps.items()}
     return _as_dtype(image, dtype, scratch=True)
+
+
+def _channel_levels(material, i):
+    """Each channel's mask levels of a material's map ``i`` (:mod:`tghop.masks`): its pixels' levels
+    column by column, or its channels' own (an ORM's metalness), None for a channel of more values."""
+    if material.levels_[i] is not None:
+        return [np.unique(column) for column in material.levels_[i].T]
+    return material.channel_levels_[i] or [None] * material.map_channels_[i]
 
 
 def _as_dtype(image, dtype, scratch=False):

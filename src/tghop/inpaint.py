@@ -452,7 +452,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     from collections.abc import Mapping
 
     from .material import Material, renormalise
-    from .masks import snap_to_levels
+    from .masks import snap_channels, snap_to_levels
 
     if not isinstance(material, Material):
         raise TGHopError(f"inpaint_material takes a tghop.material.Material, got {type(material).__name__}; "
@@ -493,6 +493,8 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
             img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
         if material.levels_[i] is not None:  # a mask map's own levels (tghop.masks)
             img[hole] = snap_to_levels(img[hole][None], material.levels_[i])[0]
+        elif material.channel_levels_[i] is not None:  # a packed map's mask channel (an ORM's metalness)
+            img[hole] = snap_channels(img[hole][None], material.channel_levels_[i])[0]
         out[name] = _into(np.asarray(images[name]), hole, img[hole])
         report(progress, "refine", i + 1, len(names))
     return out

@@ -7,14 +7,16 @@ where an engine expects metalness 0 or 1 and an alpha-tested opacity cuts at its
 :class:`tghop.material.Material` reads each map's levels at fit (:func:`mask_levels`, at most
 :data:`MASK_LEVELS` distinct pixel values) and moves each pixel of its output to the nearest of them
 (:func:`snap_to_levels`): values move, pixels do not, so the map stays aligned with the others. A
-map of more values (a normal, height or roughness map, a photographed one) is left as it is.
+map of more values (a normal, height or roughness map, a photographed one) is left as it is, but
+for its channels of at most :data:`MASK_LEVELS` values (:func:`channel_levels`: a packed ORM's
+metalness in its blue, a mask map's binary channel), each snapped on its own (:func:`snap_channels`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MASK_LEVELS", "mask_levels", "snap_to_levels"]
+__all__ = ["MASK_LEVELS", "mask_levels", "snap_to_levels", "channel_levels", "snap_channels"]
 
 #: A map whose exemplar holds at most this many distinct pixel values is a mask, snapped to them.
 MASK_LEVELS = 4
@@ -74,4 +76,57 @@ def snap_to_levels(image, levels, *, out=None):
     if out is None:
         out = np.empty_like(image)
     out[...] = levels.astype(image.dtype)[pick]
+    return out
+
+
+def channel_levels(image, exclude=None, most: int = MASK_LEVELS):
+    """Each channel's distinct values where it holds at most ``most`` of them (:func:`mask_levels`
+    of the channel alone), or None where no channel does: the levels of a packed map's binary
+    channel (an ORM's metalness), whose map holds many values (its occlusion and roughness).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        Floats in [0, 1].
+    exclude : array_like of bool, shape (H, W), optional
+        Pixels not read.
+    most : int
+
+    Returns
+    -------
+    list or None
+        C entries, each an ndarray of shape (k,), k <= most, sorted (that channel's levels), or None
+        (a channel of more values); None where every entry would be None.
+    """
+    arr = np.asarray(image)
+    out = []
+    for c in range(arr.shape[-1]):
+        found = mask_levels(arr[..., c:c + 1], exclude, most)
+        out.append(None if found is None else found[:, 0])
+    return out if any(lv is not None for lv in out) else None
+
+
+def snap_channels(image, levels, *, out=None):
+    """Each channel of ``image`` that has levels moved to its nearest level (:func:`snap_to_levels`
+    channel by channel); the channels without are copied as they are.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+    levels : sequence of array_like or None
+        C entries: a channel's levels, shape (k,), or None (the channel is left as it is).
+    out : ndarray, shape (H, W, C), optional
+        Where to write (may be ``image``).
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), of ``image``'s dtype
+    """
+    if out is None:
+        out = np.empty_like(image)
+    if out is not image:
+        out[...] = image
+    for c, lv in enumerate(levels):
+        if lv is not None:
+            out[..., c:c + 1] = snap_to_levels(image[..., c:c + 1], np.asarray(lv, dtype=np.float64)[:, None])
     return out

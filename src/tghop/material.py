@@ -42,7 +42,7 @@ from ._errors import warn
 from .colour import match_histograms
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names,
                         is_normal_name, map_kind, map_name, normal_convention)
-from .masks import MASK_LEVELS, mask_levels, snap_to_levels
+from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_channels, snap_to_levels
 from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -269,6 +269,11 @@ class Material(BaseEstimator):
     levels_ : list of ndarray or None
         Each map's mask levels (:func:`tghop.masks.mask_levels`: a map of at most 4 distinct values,
         not the albedo or a normal map), to which its output is snapped; None for the others.
+    channel_levels_ : list of list or None
+        Where a map of several channels has no mask levels, its channels' own
+        (:func:`tghop.masks.channel_levels`: a channel of at most 4 distinct values, an ORM's
+        metalness), a list of one (k,) array or None per channel, each snapped on its own; None for
+        the other maps.
     """
 
     def __init__(self, model=None, normal="auto", rng=None):
@@ -428,6 +433,9 @@ class Material(BaseEstimator):
         self.depths_ = [depth for _, _, depth, _ in items]
         self.levels_ = [None if i == 0 or is_normal else mask_levels(img, exclude)
                         for i, (_, img, _, is_normal) in enumerate(items)]
+        self.channel_levels_ = [channel_levels(img, exclude) if levels is None and i and not is_normal
+                                and img.shape[2] > 1 else None
+                                for i, ((_, img, _, is_normal), levels) in enumerate(zip(items, self.levels_))]
         self._fitted_params = fitted_settings(self)  # as TGHop's: set_params after fit is refused until a new fit
         return self
 
@@ -500,7 +508,8 @@ class Material(BaseEstimator):
         -------
         dict of str to ndarray
             ``name -> (H, W, c)`` array in [0, 1], ``"albedo"`` first, in :attr:`names_`'s order; a
-            mask map (:attr:`levels_`) holds only its exemplar's values (:mod:`tghop.masks`).
+            mask map (:attr:`levels_`) holds only its exemplar's values, a mask channel
+            (:attr:`channel_levels_`) its own (:mod:`tghop.masks`).
         """
         check_is_fitted(self, "model_")
         dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
@@ -525,6 +534,8 @@ class Material(BaseEstimator):
                 img = renormalise(img)
             if self.levels_[i] is not None:  # a mask (metalness 0 and 1) kept one: tghop.masks
                 img = snap_to_levels(img, self.levels_[i])
+            elif self.channel_levels_[i] is not None:  # a packed map's metalness: its channel kept a mask
+                img = snap_channels(img, self.channel_levels_[i])
             out[name] = img.astype(dtype, copy=False)
             report(progress, "maps", i + 1, len(self.names_))
         return out
@@ -553,8 +564,11 @@ class Material(BaseEstimator):
 
     def _state_meta(self) -> dict:
         levels = {n: lv.tolist() for n, lv in zip(self.names_, self.levels_) if lv is not None}
+        per_channel = {n: [None if c is None else c.tolist() for c in lv]
+                       for n, lv in zip(self.names_, self.channel_levels_) if lv is not None}
         return {**self.model_._state_meta(), "material": {"maps": self.map_info(), "params": self._params_meta(),
                                                            **({"levels": levels} if levels else {}),
+                                                           **({"channel_levels": per_channel} if per_channel else {}),
                                                            # the joint model's copy of the fit's generator (0.57)
                                                            "model_rng": settings.generator_record(self.model_.rng)}}
 
@@ -613,21 +627,41 @@ class Material(BaseEstimator):
         return maps
 
     @staticmethod
-    def _levels_meta(given, maps):
-        """Each map's mask levels from the metadata (files of tghop 0.55 and before have none), checked."""
+    def _levels_meta(given, maps, key="levels"):
+        """Each map's mask levels from the metadata, checked: ``key`` "levels", a map's (k, C) pixel
+        values (files of tghop 0.55 and before have none), or "channel_levels", a list of C, each a
+        channel's (k,) values or None (files of 0.56 and before have none)."""
         channels = {m["name"]: m["channels"] for m in maps}
+        words = key.replace("_", " ")
         if not isinstance(given, dict) or not set(given) <= {m["name"] for m in maps[1:] if not m["normal"]}:
-            raise TGHopError("the material metadata's levels are not a dict of its maps' names (not the albedo's "
+            raise TGHopError(f"the material metadata's {words} are not a dict of its maps' names (not the albedo's "
                              "or a normal map's)")
+
+        def values(lv, width):  # 1 to MASK_LEVELS values in [0, 1] of `width` channels, else None
+            arr = np.asarray(lv, dtype=object)
+            good = arr.shape[1:] == (width,) and 1 <= len(arr) <= MASK_LEVELS and all(
+                isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v <= 1 for v in arr.flat)
+            return arr.astype(np.float64) if good else None
+
         out = []
         for name in channels:
             lv = given.get(name)
-            arr = None if lv is None else np.asarray(lv, dtype=object)
-            if arr is not None and (arr.shape[1:] != (channels[name],) or not 1 <= len(arr) <= MASK_LEVELS or not all(
-                    isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v <= 1 for v in arr.flat)):
-                raise TGHopError(f"the material metadata's levels of map {name!r} are not 1 to {MASK_LEVELS} values "
-                                 "in [0, 1] of its channels")
-            out.append(None if arr is None else arr.astype(np.float64))
+            if lv is None:
+                got = None
+            elif key == "levels":
+                got = values(lv, channels[name])
+            elif isinstance(lv, list) and len(lv) == channels[name] and all(isinstance(e, (list, type(None)))
+                                                                             for e in lv):
+                got = [None if e is None else values([[v] for v in e], 1) for e in lv]
+                got = None if any(g is None and e is not None for g, e in zip(got, lv)) else \
+                    [None if g is None else g[:, 0] for g in got]
+            else:
+                got = None
+            if lv is not None and got is None:
+                whose = "its channels" if key == "levels" else "each of its channels, or null"
+                raise TGHopError(f"the material metadata's {words} of map {name!r} are not 1 to {MASK_LEVELS} values "
+                                 f"in [0, 1] of {whose}")
+            out.append(got)
         return out
 
     @classmethod
@@ -657,6 +691,7 @@ class Material(BaseEstimator):
         mat.normal_ = [m["normal"] for m in maps]
         mat.depths_ = [m["depth"] for m in maps]
         mat.levels_ = cls._levels_meta(meta["material"].get("levels", {}), maps)
+        mat.channel_levels_ = cls._levels_meta(meta["material"].get("channel_levels", {}), maps, "channel_levels")
         mat.bands_ = []
         for m in maps:
             prefix = f"material.{m['name']}."
