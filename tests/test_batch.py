@@ -946,17 +946,48 @@ def test_a_warning_names_its_exemplar(tmp_path):
 
 
 def test_a_folder_s_images_of_other_types_are_said_not_left_out_unsaid(tmp_path):
-    # A studio's folder of .png and .tga: the .tga were skipped without a word, and a rerun said all done.
+    # A studio's folder of .png and .tga: the .tga were skipped without a word, and a rerun said all done
+    # (.tga is read now: an EXR, which tghop does not read, stands for the others).
     src = make_folder(tmp_path / "src", bad=False)
-    Image.new("RGB", (64, 64)).save(src / "sub" / "wall.tga")
-    with pytest.warns(UserWarning, match=r"1 image file of another type skipped \(sub/wall.tga\).*convert them to PNG"):
+    (src / "sub" / "wall.exr").write_bytes(b"\x76\x2f\x31\x01" + bytes(60))
+    with pytest.warns(UserWarning, match=r"1 image file of another type skipped \(sub/wall.exr\).*convert them to PNG"):
         items = batch.find_work(src, tmp_path / "out")
     assert sorted(str(it["rel"]) for it in items) == ["a.png", "sub/a.png"]
     only = tmp_path / "only"
     only.mkdir()
-    Image.new("RGB", (64, 64)).save(only / "wall.tga")
+    (only / "wall.exr").write_bytes(b"\x76\x2f\x31\x01" + bytes(60))
     with pytest.raises(TGHopError, match=r"no image files in this folder .*1 image file of another type skipped"):
         batch.find_work(only, tmp_path / "out2")
+
+
+def test_a_folder_takes_every_image_file_fit_reads_tga_too(tmp_path):
+    # A studio's Unreal exemplars and maps as .tga (and .dds, JPEG 2000) were skipped "of another type, convert them
+    # to PNG", though tghop fit read them: the batch's extensions are now the one list of what tghop reads.
+    from PIL import features
+
+    from tghop._formats import OTHER_IMAGE_SUFFIXES, READ_SUFFIXES
+    from tghop.imageio import load_image
+
+    assert batch.IMAGE_SUFFIXES is READ_SUFFIXES
+    Image.init()
+    opened = {ext for ext, fmt in Image.registered_extensions().items() if fmt in Image.OPEN}
+    assert set(READ_SUFFIXES) - opened <= ({".avif"} if not features.check("avif") else set())  # Pillow < 11.2
+    assert not set(OTHER_IMAGE_SUFFIXES) & opened  # said skipped: none that fit reads
+    src = make_folder(tmp_path / "src", bad=False)
+    rgb = (data.bricks(64, rng=5) * 255).round().astype(np.uint8)
+    (src / "studio").mkdir()
+    for name in ("T_Wall_BC.tga", "T_Wall_N.TGA", "wall.dds", "wall.jp2"):
+        Image.fromarray(rgb).save(src / "studio" / name)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        items = batch.find_work(src, tmp_path / "out")
+    assert not [w for w in said if "another type" in str(w.message)], [str(w.message) for w in said]
+    assert [w for w in said if "a material's maps by their names" in str(w.message)]  # T_Wall_BC and _N: a set
+    taken = sorted(str(it["rel"]) for it in items)
+    assert taken == ["a.png", "studio/T_Wall_BC.tga", "studio/T_Wall_N.TGA", "studio/wall.dds", "studio/wall.jp2",
+                     "sub/a.png"]
+    for item in items:  # and fit reads each
+        assert load_image(item["path"]).shape == (64, 64, 3)
 
 
 def test_jpeg_files_by_other_names_and_bilevel_pnm_are_exemplars(tmp_path):

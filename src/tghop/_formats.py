@@ -1,15 +1,28 @@
 """The image formats tghop writes, by the output's file extension: the one list that
 :mod:`tghop.imageio` writes by and every message and ``--help`` text names (no imports:
-the command line's help is made from it without loading NumPy)."""
+the command line's help is made from it without loading NumPy); and the extensions of the
+files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
-__all__ = ["FORMATS", "DEPTHS", "extensions", "OUTPUT_HELP", "is_model_file", "model_file_kind",
-           "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
+__all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
+           "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
            "why_unreadable", "unread_format", "warn_frames"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
 #: Bits per channel each output format can be written with (32: float32 TIFF).
 DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
+#: The image files tghop reads, by extension (any case): what ``tghop fit`` and every reader
+#: (:func:`tghop.imageio.load_image`: Pillow's formats) read of textures and a material's maps, and so
+#: what a batch takes from a folder (:data:`tghop.batch.IMAGE_SUFFIXES` is this list). .jfif and .jpe:
+#: JPEG files by other names, as a browser saves them; .pbm: the bilevel one of .ppm, .pgm, .pnm; .tga
+#: (Unreal's and many studios' maps), .psd (its merged image), .dds, JPEG 2000 and .ico: Pillow reads
+#: them (a batch skipped them, though fit read them); .avif from Pillow 11.2 (earlier ones, as fit,
+#: refuse it in one line).
+READ_SUFFIXES = (".png", ".jpg", ".jpeg", ".jfif", ".jpe", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm",
+                 ".pgm", ".pbm", ".pnm", ".tga", ".psd", ".dds", ".jp2", ".j2k", ".avif", ".ico")
+#: Other images' extensions, of formats tghop does not read: a batch folder's files of these are
+#: skipped, and said; fit refuses them in one line (:func:`unread_format`).
+OTHER_IMAGE_SUFFIXES = (".exr", ".hdr", ".heic", ".heif", ".jxl", ".raw", ".dng", ".cr2", ".nef", ".arw")
 #: What to install for 16-bit colour and float TIFF files (Pillow reads and writes only grey ones).
 TIFF_HINT = "pip install 'tghop[tiff]'"
 

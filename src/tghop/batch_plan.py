@@ -31,6 +31,7 @@ import warnings
 from pathlib import Path
 
 from ._errors import TGHopError
+from ._formats import OTHER_IMAGE_SUFFIXES, READ_SUFFIXES
 from .batch_task import THUMBNAIL_FILE, remove_temporaries
 from .contact_sheet import CONTACT_SHEET
 from .manifest import MAX_MAPS, read_manifest
@@ -41,13 +42,11 @@ __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED"
            "find_orphans", "prune_orphans"]
 
 
-#: File extensions taken as exemplars when SOURCE is a folder (.jfif and .jpe: JPEG files by other names, as a
-#: browser saves them; .pbm: the bilevel one of .ppm, .pgm, .pnm; these three were skipped as of another type).
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".jfif", ".jpe", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm",
-                  ".pgm", ".pbm", ".pnm")
-#: Other images' extensions: a folder's files of these are skipped, and said (a studio's .tga were left out unsaid).
-OTHER_IMAGE_SUFFIXES = (".tga", ".psd", ".exr", ".hdr", ".dds", ".jp2", ".j2k", ".heic", ".heif",
-                        ".avif", ".jxl", ".ico", ".raw", ".dng", ".cr2", ".nef", ".arw")
+#: File extensions taken as exemplars when SOURCE is a folder: those tghop reads
+#: (:data:`tghop._formats.READ_SUFFIXES`, the one list: .tga, .psd, .dds, JPEG 2000, .avif and .ico were
+#: skipped as of another type though fit read them). Other images' (:data:`OTHER_IMAGE_SUFFIXES`) are
+#: skipped, and said (a studio's .tga were left out unsaid).
+IMAGE_SUFFIXES = READ_SUFFIXES
 #: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
 LEDGER = "batch.jsonl"
 #: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again

@@ -20,7 +20,7 @@ from pathlib import Path
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, InvalidImageError, TGHopError
-from .._formats import COOC_CHECKPOINT, is_model_file, model_file_kind
+from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, is_model_file, model_file_kind
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
@@ -541,10 +541,6 @@ def check_outputs(outputs, inputs=()):
         seen[key] = (label, path, False)
 
 
-#: Image extensions refused as a model's name with their own words.
-_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm")
-
-
 def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", what: str = "model"):
     """Refuse a model (or checkpoint) output that cannot be one, before any work: ``-``
     (a model cannot go to stdout), a name without ``suffix`` (an image extension or none:
@@ -567,8 +563,8 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
         raise ModelFileError(f"{label} {path} is a folder; give a {what} file name in it (e.g. "
                              f"{os.path.join(path, what + suffix)})")
     if ext != suffix:
-        fixed = p.with_suffix(suffix) if ext in _IMAGE_EXTENSIONS else p.with_name(p.name + suffix)
-        why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in _IMAGE_EXTENSIONS
+        fixed = p.with_suffix(suffix) if ext in READ_SUFFIXES else p.with_name(p.name + suffix)
+        why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in READ_SUFFIXES
                else f"a {what} file's name ends in {suffix}")
         raise ModelFileError(f"{label} {path}: {why}; name it {fixed}")
     check_output_path(path, what=what, error=ModelFileError)
