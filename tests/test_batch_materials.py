@@ -195,3 +195,27 @@ def test_a_materials_files_drop_the_prefix_its_maps_share_and_an_earlier_runs_na
     assert again[0]["skipped"] is False and again[0]["outputs"] == first[0]["outputs"]
     assert sorted(p.name for p in (out / "rock").iterdir()) == [
         "exemplar.png", "rock.npz", "rock.png", "rock_h.png", "rock_n.png"]
+
+
+def test_a_rows_path_named_as_another_kind_of_map_is_warned_of_as_fit_warns(tmp_path):
+    # tghop fit Rock_Roughness.png --maps Rock_NormalGL.png warns that a roughness is fitted as the colour map;
+    # the same material as a manifest row was fitted without a word.
+    src = tmp_path / "src"
+    src.mkdir()
+    albedo = data.bricks(64, rng=3)
+    maps = example_maps(albedo, convention="OpenGL")
+    save_image(albedo, src / "Rock_Color.png")
+    save_image(maps["roughness"], src / "Rock_Roughness.png")
+    save_image(maps["normal"], src / "Rock_NormalGL.png")
+    (src / "list.csv").write_text("path,name,maps\n"
+                                  "Rock_Roughness.png,no_colour,Rock_NormalGL.png\n"
+                                  "Rock_Roughness.png,swapped,Rock_Color.png;Rock_NormalGL.png\n"
+                                  "Rock_Color.png,right,Rock_Roughness.png;Rock_NormalGL.png\n")
+    results = batch.run(src / "list.csv", tmp_path / "out", size=SIZE, seed=1, fit=FIT, generate=GEN, workers=1)
+    said = {r["name"]: [w for w in r["warnings"] if "fitted as the material's colour map" in w] for r in results}
+    assert [r["status"] for r in results] == ["ok"] * 3, results
+    assert len(said["no_colour"]) == 1 and "Rock_Roughness.png is named as a roughness map" in said["no_colour"][0]
+    assert "no map of the row is named as the colour map" in said["no_colour"][0]
+    assert len(said["swapped"]) == 1 and "map Rock_Color.png is named as the colour map" in said["swapped"][0]
+    assert said["right"] == []
+    assert {r["name"]: r["warnings"] for r in results} == {r["name"]: r["warnings"] for r in ledger(tmp_path / "out")}

@@ -16,7 +16,7 @@ import threading
 import time
 from pathlib import Path
 
-from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, collect_warnings
+from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, collect_warnings, warn
 from ._formats import is_model_file, model_file_kind
 
 __all__ = ["process_exemplar", "remove_temporaries", "one_line", "task_threads", "STAGE", "THUMBNAIL",
@@ -134,6 +134,25 @@ def _read_maps(maps, load_image) -> dict:
     return out
 
 
+def _warn_colour_map(source, files) -> None:
+    """A manifest row's material whose path (the albedo) is named as another kind of map
+    (:func:`tghop.map_names.colour_map_out_of_place`: ``Rock_Roughness.png``): fitted as given, as
+    ``tghop fit --maps`` fits it, with a warning in the row's ledger line (fit warns or refuses)."""
+    from .map_names import colour_map_out_of_place
+
+    found = colour_map_out_of_place(source, files)
+    if found is None:
+        return
+    kind, colour = found
+    albedo = Path(source).name
+    fix = (f"the row's map {Path(colour).name} is named as the colour map: list it as the row's path and {albedo} "
+           "among its maps" if colour is not None else "no map of the row is named as the colour map: tghop expects "
+           "the colour map as the row's path (named *_Color, *_BaseColor, *_Albedo, *_diff, ...), or rename the "
+           "file if it is the colour map")
+    warn(f"{albedo} is named as a {kind} map and fitted as the material's colour map (the albedo written to the "
+         f"row's NAME files); {fix}", UserWarning)
+
+
 def one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     return text if isinstance(exc, TGHopError) else f"{exc.__class__.__name__}: {text}"
@@ -200,6 +219,8 @@ def process_exemplar(job: dict) -> dict:
             model = model_for(fit, image.shape[2])
             model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
             maps = _read_maps(job.get("maps"), load_image)
+            if maps:  # the colour map out of place by the files' names: fitted as given, said
+                _warn_colour_map(job["source"], [file for _, file in job["maps"]])
             t = time.time()
             if maps:
                 model = Material(model=material_model(fit)).fit(

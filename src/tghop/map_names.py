@@ -19,7 +19,8 @@ from pathlib import Path
 from ._common import TGHopError
 
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
-           "name_kind", "map_name", "MapNameClashError", "check_map_names", "is_normal_name", "normal_convention"]
+           "name_kind", "map_name", "colour_map_out_of_place", "MapNameClashError", "check_map_names",
+           "is_normal_name", "normal_convention"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -128,6 +129,39 @@ def map_name(path) -> str:
     """
     stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
     return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:MAP_NAME_MAX] or "map"
+
+
+def colour_map_out_of_place(albedo, maps):
+    """Whether a material's files, by their names (:func:`map_kind`), give its colour map out of
+    place: the albedo's file (the exemplar, first) named as another kind of map (``Rock_Roughness.png``).
+    ``tghop fit --maps``, ``inpaint``/``extend --maps`` and a batch manifest's row each word what
+    they say of it (refused or warned of).
+
+    Parameters
+    ----------
+    albedo : str or os.PathLike
+        The albedo's file (only its name is read).
+    maps : sequence of str or os.PathLike
+        The maps' files, in the order given.
+
+    Returns
+    -------
+    tuple (str, path or None) or None
+        None where the albedo's file is named as the colour map or as no kind; else the kind it is
+        named as and the first of ``maps`` named as the colour map (None: none is).
+
+    Examples
+    --------
+    >>> from tghop.map_names import colour_map_out_of_place
+    >>> colour_map_out_of_place("Rock_Roughness.png", ["Rock_NormalGL.png"])
+    ('roughness', None)
+    >>> colour_map_out_of_place("Rock_Color.png", ["Rock_NormalGL.png"]) is None
+    True
+    """
+    kind = map_kind(albedo)
+    if kind in (None, ALBEDO):
+        return None
+    return kind, next((path for path in maps if map_kind(path) == ALBEDO), None)
 
 
 class MapNameClashError(TGHopError):

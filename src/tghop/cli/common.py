@@ -597,16 +597,16 @@ def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", al
     where the albedo's file is named as another kind (``Rock_Roughness.png``) and no map as the colour
     map (fitted as the colour map, as asked: a material may have none). ``command``: the command line
     up to the maps, ``{}`` where the colour map goes."""
-    from ..map_names import ALBEDO, map_kind
+    from ..map_names import colour_map_out_of_place
 
-    kind = map_kind(albedo_path)
-    if kind in (None, ALBEDO):
+    found = colour_map_out_of_place(albedo_path, paths)
+    if found is None:
         return
-    colour = [path for path in paths if map_kind(path) == ALBEDO]
-    if colour:
-        others = " ".join(str(p) for p in [albedo_path, *paths] if p != colour[0])
-        raise TGHopError(f"{albedo} {albedo_path} is named as a {kind} map and {label} {colour[0]} as the colour map; "
-                         f"the albedo comes first: {command.format(colour[0])} {others} ...")
+    kind, colour = found
+    if colour is not None:
+        others = " ".join(str(p) for p in [albedo_path, *paths] if p != colour)
+        raise TGHopError(f"{albedo} {albedo_path} is named as a {kind} map and {label} {colour} as the colour map; "
+                         f"the albedo comes first: {command.format(colour)} {others} ...")
     if kind == "normal":
         raise TGHopError(f"{albedo} {albedo_path} is named as a normal map and no {label} as the colour map; give the "
                          f"material's colour map first ({command.format('Rock_Color.png')} {albedo_path} ...)")
