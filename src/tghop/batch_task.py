@@ -149,8 +149,8 @@ def _warn_colour_map(source, files) -> None:
            "among its maps" if colour is not None else "no map of the row is named as the colour map: tghop expects "
            "the colour map as the row's path (named *_Color, *_BaseColor, *_Albedo, *_diff, ...), or rename the "
            "file if it is the colour map")
-    warn(f"{albedo} is named as a {kind} map and fitted as the material's colour map (the albedo written to the "
-         f"row's NAME files); {fix}", UserWarning)
+    warn(f"{albedo} is named as a {kind} map and fitted as the material's colour map (its images' albedo, "
+         f"NAME.png); {fix}", UserWarning)
 
 
 def one_line(exc: BaseException) -> str:
