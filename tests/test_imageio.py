@@ -217,6 +217,12 @@ def test_dropped_alpha_warning_says_how_much_was_transparent(tmp_path, depth, ch
     with pytest.warns(UserWarning) as said:
         load_image(tmp_path / "opaque.png")
     assert [str(w.message) for w in said] == ["opaque.png: alpha channel dropped"]
+    # Its own class (0.57), told apart from a transparent one's without reading its words (the web server did).
+    from tghop import OpaqueAlphaWarning, TransparencyWarning
+
+    assert said[0].category is OpaqueAlphaWarning and said[0].message.name == "opaque.png"
+    with pytest.warns(TransparencyWarning):
+        load_image(tmp_path / "cut.png")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert load_image(tmp_path / "cut.png", keep_alpha=True).shape == (20, 10, channels)

@@ -3,10 +3,11 @@
 __version__ = "0.56.0"
 
 from ._errors import (ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError,
-                      TGHopError)
+                      OpaqueAlphaWarning, TGHopError, TransparencyWarning)
 
 __all__ = ["TGHop", "data", "synthesize_guided", "morph", "ImageTooLargeError", "InvalidImageError",
-           "MissingExtraError", "ModelFileError", "NotFittedError", "TGHopError", "__version__"]
+           "MissingExtraError", "ModelFileError", "NotFittedError", "TGHopError", "TransparencyWarning",
+           "OpaqueAlphaWarning", "__version__"]
 
 
 def __getattr__(name):

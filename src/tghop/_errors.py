@@ -8,8 +8,8 @@ import sys
 import warnings
 
 __all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
-           "NonNumericError", "NotFittedError", "TransparencyWarning", "HINT_DOWNSCALE_YOURSELF", "warn",
-           "collect_warnings"]
+           "NonNumericError", "NotFittedError", "TransparencyWarning", "OpaqueAlphaWarning",
+           "HINT_DOWNSCALE_YOURSELF", "warn", "collect_warnings"]
 
 #: What to do about an image over the pixel limit where no --downscale option is at hand
 #: (the command line's commands without it, the web server's uploads).
@@ -103,6 +103,19 @@ class TransparencyWarning(UserWarning):
     def __init__(self, message: str, name: str = "", share: float = 0.0):
         super().__init__(message)
         self.name, self.share = name, share
+
+
+class OpaqueAlphaWarning(UserWarning):
+    """An image read without its alpha channel had none of its pixels more transparent than opaque
+    (:func:`tghop.imageio.load_image`): "NAME: alpha channel dropped", its colours taken as they show.
+    Its own class so that a caller can tell it from :class:`TransparencyWarning` without reading its
+    words: the web server says nothing of it, and ``warnings.filterwarnings("ignore",
+    category=tghop.OpaqueAlphaWarning)`` silences it alone. ``name``: the file's name. (An alpha channel
+    whose transparency was not measured, of an image downscaled as it was read, is a plain UserWarning.)"""
+
+    def __init__(self, message: str, name: str = ""):
+        super().__init__(message)
+        self.name = name
 
 
 #: The list :func:`collect_warnings` keeps this thread's (this context's) warnings in; None outside it.

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image, report
-from ._errors import TransparencyWarning, warn
+from ._errors import OpaqueAlphaWarning, TransparencyWarning, warn
 from ._formats import DEPTHS, check_tifffile, extensions, unread_format, why_unreadable
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import (decode_pillow, file_header, has_alpha, open_image, read_deep, transparency_note,
@@ -135,7 +135,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
                                 "give a PNG, JPEG or other common image file") from None
     if not keep_alpha and has_alpha(mode):
         said = f"{path.name}: alpha channel dropped{transparency_note(hidden)}"
-        warn(TransparencyWarning(said, path.name, hidden) if hidden else UserWarning(said), stacklevel=2)
+        warn(TransparencyWarning(said, path.name, hidden) if hidden else UserWarning(said) if hidden is None
+             else OpaqueAlphaWarning(said, path.name), stacklevel=2)
     if dtype is None and arr.dtype == np.uint8:
         out = arr[:, :, None] if arr.ndim == 2 else arr
     else:
