@@ -17,7 +17,7 @@ from ._common import TGHopError, check_size
 from ._errors import warn
 
 __all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "LostRegionError", "ASPECT_TOLERANCE",
-           "FEW_LEVELS",
+           "FEW_LEVELS", "RESHAPE",
            "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
 
 #: A guide with more distinct levels than inputs (not soft edges of its levels) and at most
@@ -76,8 +76,12 @@ def scale_labels(labels, size) -> np.ndarray:
     return labels[rows[:, None], cols[None, :]]
 
 
+#: What :func:`guide_labels` says to do about a guide of another shape than the output, by default.
+RESHAPE = "paint the guide at the output's shape, it is scaled to its size (or leave the size out to take the guide's)"
+
+
 def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="give no guide", names=None,
-                 guide_name="the guide", size_name="size") -> np.ndarray:
+                 guide_name="the guide", size_name="size", reshape=RESHAPE, enlarge=None) -> np.ndarray:
     """The region of every pixel of a painted guide, as (H, W) int labels in ``[0, n_models)``.
 
     The rule: the guide's distinct values (grey levels, or colours) sorted from dark to
@@ -112,6 +116,13 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         the server's "models[1]"); default ``input_name`` numbered from 1.
     guide_name, size_name : str
         What that message calls the guide and the size (the CLI's "--guide map.png" and "--size").
+    reshape : str
+        The fix named when the guide is of another shape than ``size`` (:data:`RESHAPE`: paint it at the
+        output's shape, or leave the size out); ``{h}`` and ``{w}`` in it are the guide's height and width
+        (the web page's: set its height and width to the guide's shape).
+    enlarge : str, optional
+        The fix named when the scaling loses a region; default "paint it wider or give a larger
+        ``size_name``".
 
     Returns
     -------
@@ -145,8 +156,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     if scaled and not same_shape(arr.shape, size):
         raise TGHopError(f"the guide is {arr.shape[0]}x{arr.shape[1]} but the output is {size[0]}x{size[1]}, of "
                          f"another shape (width/height {arr.shape[1] / arr.shape[0]:.3g} against "
-                         f"{size[1] / size[0]:.3g}); paint the guide at the output's shape, it is scaled to its size "
-                         "(or leave the size out to take the guide's)")
+                         f"{size[1] / size[0]:.3g}); {reshape.format(h=arr.shape[0], w=arr.shape[1])}")
     if size is None or scaled:  # the labels are made at the guide's own size: within the limit
         check_size(arr.shape[:2], name="the guide's size")
     values, labels = _distinct(arr)
@@ -187,7 +197,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         name = names[gone[0]] if names is not None else f"{input_name} {gone[0] + 1}"
         raise LostRegionError(f"{guide_name}: {name}'s region is gone once the map is scaled from {arr.shape[0]}x"
                               f"{arr.shape[1]} to {size_name} {size[0]}x{size[1]} (it is thinner than a pixel of the "
-                              f"output); paint it wider or give a larger {size_name}")
+                              f"output); {enlarge or f'paint it wider or give a larger {size_name}'}")
     warn(scaled_message(arr.shape, size))
     return scaled
 

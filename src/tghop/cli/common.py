@@ -362,14 +362,6 @@ def _and(names) -> str:
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
-#: A mask's pixels within this of black or white (their channels' mean, and their channels within this of
-#: each other) are black and white; :func:`load_mask` warns where more than MASK_PICTURE_SHARE are not (a
-#: feathered brush's edges: 5 % for a circle of radius 60 blurred by sigma 4, 19 % by sigma 16; a photograph:
-#: 24-100 % of the 44 exemplars).
-MASK_BLACK_WHITE = 0.15
-MASK_PICTURE_SHARE = 0.2
-
-
 def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the image", what: str = "hole"):
     """A mask image as an (H, W) bool array: True where its pixels are white (colour channels'
     mean > 0.5). One line when it cannot be read or is not ``shape``'s size (H, W, ...).
@@ -377,13 +369,12 @@ def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the 
     Its alpha channel is not read: where it has transparent pixels, a warning says so and
     to paint the ``what`` (``"hole"``) white on black (a hole painted as transparency was
     "no white pixel" or "leaves too little" without a word why). A mask that is not black and
-    white (:data:`MASK_PICTURE_SHARE`: a photograph, or IMAGE and MASK swapped) is warned of
-    likewise: its light pixels are the hole."""
+    white (:func:`tghop.inpaint.grey_share` over :data:`tghop.inpaint.MASK_PICTURE_SHARE`: a photograph, or IMAGE
+    and MASK swapped) is warned of likewise: its light pixels are the hole."""
     import warnings
 
-    import numpy as np
-
     from ..imageio import load_image
+    from ..inpaint import MASK_PICTURE_SHARE, grey_share
 
     if is_model_file(path):
         raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image; give a black and white image")
@@ -398,10 +389,7 @@ def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the 
                           "black")
         mask = mask[..., :-1]
     mean = mask.mean(axis=2)
-    sample = mask[::2, ::2]  # every other pixel: a share, at a quarter of the memory of a large mask's
-    black_white = ((np.abs(sample.mean(axis=2) - 0.5) > 0.5 - MASK_BLACK_WHITE)
-                   & (np.ptp(sample, axis=2) <= MASK_BLACK_WHITE))
-    other = 1 - float(black_white.mean())
+    other = grey_share(mask)
     if other > MASK_PICTURE_SHARE:  # a photograph (or IMAGE and MASK swapped): its light pixels were the hole
         order = " (IMAGE comes first, then MASK)" if label == "MASK" else ""
         warnings.warn(f"{label} {path} is not black and white: {other:.0%} of its pixels are grey or coloured "
