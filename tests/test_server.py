@@ -853,7 +853,7 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
     three = half.copy()
     three[:8] = 128
     assert_error(post(guided, json={"models": two, "guide": guide_b64(three)}), 400,
-                 "the guide has 3 distinct grey levels/colours but 2 inputs")
+                 "the guide has 3 distinct grey levels/colours but 2 models")
     assert_error(post(guided, json={"models": two, "guide": guide_b64(half), "size": [48, 48]}), 400,
                  "the guide is 32x48 but the output is 48x48")
     assert_error(post(guided, json={"models": two, "guide": base64.b64encode(png_header(30000, 30000)).decode()}),

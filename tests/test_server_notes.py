@@ -238,6 +238,21 @@ def test_a_guide_with_soft_edges_is_read_as_the_guided_route_reads_it(client):
     shape = client.post("/api/guides/labels", json={"guide": url, "n_models": 2, "size": [48, 48]})
     assert shape.status_code == 400 and shape.json()["error"].startswith(
         "the guide is 48x64 but the output is 48x48, of another shape")
+    # In the page's words: it said "(or leave the size out to take the guide's)", which the page cannot do.
+    assert shape.json()["error"].endswith(
+        "set the height and width above to the guide's shape (e.g. 48 and 64; a guide of the canvas's shape is "
+        "scaled to its size), or paint the guide at the canvas's shape"), shape.text
+    assert "leave" not in shape.json()["error"]
+    # The API's own route may leave the size out, and says so.
+    guided = client.post("/api/images/guided", json={"models": [a["id"], b["id"]], "guide": url, "size": [48, 48]})
+    assert guided.status_code == 400 and "leave the size out" in guided.json()["error"], guided.text
+    # A region the scaling to the canvas loses: the page's height and width, not a size field.
+    thin = np.full((48, 64), 40, np.uint8)
+    thin[:, 31] = 200  # a line one pixel wide, lost at a quarter of the size (columns 2, 6, ..., 62 are read)
+    lost = client.post("/api/guides/labels", json={"guide": base64.b64encode(png(thin)).decode(), "n_models": 2,
+                                                   "size": [12, 16]})
+    assert lost.status_code == 400 and lost.json()["error"].endswith(
+        "paint it wider, or set a larger height and width above"), lost.text
     three = soft.copy()
     three[:10, :10] = 120
     count = client.post("/api/guides/labels", json={"guide": base64.b64encode(png(three)).decode(), "n_models": 2})
@@ -249,3 +264,134 @@ def test_a_guide_with_soft_edges_is_read_as_the_guided_route_reads_it(client):
                                ({"guide": "not base64!", "n_models": 2}, 400, "guide is not valid base64")):
         r = client.post("/api/guides/labels", json=body)
         assert r.status_code == status and said in r.json()["error"], (body, r.text)
+
+
+def test_a_guides_refusals_call_a_model_a_model_in_both_routes(client):
+    # /api/guides/labels said "2 models were given", /api/images/guided "2 inputs were given" of the same thing.
+    a, b = (fit(client, f"{n}.png", png(to_uint8(image))) for n, image in
+            (("bricks", data.bricks(96, rng=3)), ("cells", data.cells(96, rng=4))))
+    assert done(client, a["job"]) == done(client, b["job"]) == "done"
+    three = np.full((32, 48), 0, np.uint8)
+    three[:, 16:] = 128
+    three[:, 32:] = 255
+    guide = base64.b64encode(png(three)).decode()
+    labels = client.post("/api/guides/labels", json={"guide": guide, "n_models": 2})
+    guided = client.post("/api/images/guided", json={"models": [a["id"], b["id"]], "guide": guide})
+    for r in (labels, guided):
+        assert r.status_code == 400, r.text
+        said = r.json()["error"]
+        assert said.startswith("the guide has 3 distinct grey levels/colours but 2 models were given; give one "
+                               "model per level (3 models for 3 levels) or "), said
+        assert "input" not in said
+    assert guided.json()["error"].endswith("or send no guide (a remix): the darkest is the first model")
+
+
+def test_the_servers_words_name_no_command_line_option():
+    # The library's messages name a setting and its option together ("(patch_size, --patch-size)"); the page
+    # and the API have the setting's name alone.
+    from tghop.server.core import error_response
+    from tghop.server.requests import page_words
+
+    said = ("n_clusters=8 needs at least 400 training patches; lower N (n_clusters, --clusters) or the least cluster "
+            "size (min_cluster_size, --min-cluster-size), take more training patches (a smaller stride, --stride, "
+            "or a larger max_patches, --max-patches) or use a larger exemplar")
+    assert page_words(said) == (
+        "n_clusters=8 needs at least 400 training patches; lower N (n_clusters) or the least cluster size "
+        "(min_cluster_size), take more training patches (a smaller stride, or a larger max_patches) or use a "
+        "larger exemplar")
+    assert page_words("K1 (n_channels[0], --k1) is 3") == "K1 (n_channels[0]) is 3"
+    assert page_words("give --tile once") == "give --tile once"  # an option alone, not beside a setting: as it is
+    assert json.loads(error_response(422, "a tileable output (tile, --tile) needs more").body) == {
+        "error": "a tileable output (tile) needs more"}
+
+
+def test_a_generations_refusal_names_the_field_not_the_option(client):
+    # A tileable image lower than a patch: the library's words named "--tile" and "--patch-size".
+    model = fit(client, "bricks.png", png(bricks8()))
+    assert done(client, model["job"]) == "done"
+    r = client.post(f"/api/models/{model['id']}/images", json={"size": [16, 64], "tile": True, "seed": 1})
+    assert r.status_code == 422 and "--" not in r.json()["error"], r.text
+    assert "(tile)" in r.json()["error"] and "(patch_size)" in r.json()["error"], r.text
+
+
+def test_a_mask_that_is_not_black_and_white_is_warned_of(client):
+    # tghop inpaint warned of a picture given as its MASK (its light pixels the hole); the server said nothing.
+    model = fit(client, "bricks.png", png(bricks8()))
+    assert done(client, model["job"]) == "done"
+    picture = to_uint8(data.bricks(64, rng=5))[:, :60].copy()
+    hole = np.zeros((64, 60), np.uint8)
+    hole[20:44, 20:40] = 255
+    inpaint = f"/api/models/{model['id']}/inpaint"
+    ask = {"image": ("picture.png", png(picture)), "seed": (None, "3")}
+    plain = client.post(inpaint, files={**ask, "mask": ("mask.png", png(hole))})
+    assert plain.status_code == 200 and "x-tghop-warning" not in plain.headers, plain.text
+    swapped = client.post(inpaint, files={**ask, "mask": ("photo.png", png(picture))})
+    assert swapped.status_code == 200, swapped.text
+    header = swapped.headers["x-tghop-warning"]
+    assert header.startswith("photo.png is not black and white: ") and header.endswith(
+        " of its pixels are grey or coloured (a picture?), and those lighter than mid-grey are taken as the hole; "
+        "paint the hole white on black (the picture is the field 'image', its mask 'mask')"), header
+    assert "IMAGE" not in header and "--" not in header
+    # A feathered brush's soft edges are not a picture: nothing said.
+    from scipy.ndimage import gaussian_filter
+
+    soft = np.round(gaussian_filter(hole.astype(float), 2)).astype(np.uint8)
+    feathered = client.post(inpaint, files={**ask, "mask": ("soft.png", png(soft))})
+    assert feathered.status_code == 200 and "x-tghop-warning" not in feathered.headers, feathered.headers
+
+
+def test_an_opaque_alpha_dropped_is_told_apart_by_its_class():
+    # read_notes passed over it by its words (": alpha channel dropped"): now by its class, whatever the words.
+    from tghop import OpaqueAlphaWarning, TransparencyWarning
+    from tghop._errors import warn
+    from tghop.server.uploads import read_notes
+
+    notes = []
+    with read_notes(notes):
+        warn(OpaqueAlphaWarning("a.png: alpha channel dropped", "a.png"))
+        warn(OpaqueAlphaWarning("another wording", "b.png"))
+        warn(UserWarning("c.png: alpha channel dropped"))  # not known opaque (a downscaled read): said
+        warn(TransparencyWarning("d.png: ...", "d.png", 0.25))
+    assert notes == ["c.png: alpha channel dropped", "d.png: 25% of its pixels are transparent, and the colours "
+                     "under them are learnt as texture; to leave them out, crop the image to its opaque part"]
+
+
+def test_an_uploaded_models_read_warnings_are_its_notes(client, tmp_path):
+    # A model made by a newer tghop warned on the server's console, and the page said nothing.
+    from tghop import __version__
+
+    model = fit(client, "bricks.png", png(bricks8()))
+    assert done(client, model["job"]) == "done"
+    arrays = dict(np.load(io.BytesIO(client.get(f"/api/models/{model['id']}/file").content)))
+    meta = json.loads(str(arrays["__meta__"]))
+    arrays["__meta__"] = np.array(json.dumps({**meta, "tghop_version": "99.0.0"}))
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    said = (f"newer.npz: made by tghop 99.0.0, newer than this {__version__}, which reads it as a model of its own "
+            "version (what the newer one added is not used); upgrade tghop to use it")
+    up = client.post("/api/models/upload", files={"model": ("newer.npz", buf.getvalue())})
+    assert up.status_code == 200 and up.json()["notes"] == [said], up.text
+    assert "/tmp" not in str(up.json()) and ".upload-" not in str(up.json())
+    # Sent again (the file kept): the same notes, under the name it is sent with now.
+    again = client.post("/api/models/upload", content=buf.getvalue(),
+                        headers={"content-type": "application/octet-stream"})
+    assert again.json()["notes"] == [said.replace("newer.npz", "the upload")]
+
+
+def test_a_caches_read_warnings_are_kept_as_the_files_notes(tmp_path):
+    # What reading an upload warned of (a checkpoint's, a model's) went to the server's console: now its notes,
+    # for the upload's answer, read again for a file kept by an earlier server.
+    from tghop._errors import warn
+    from tghop.server.cache import ModelCache
+
+    def load(path):
+        warn(f"{path}: read with care")
+        return object()
+
+    cache = ModelCache(tmp_path, folder="cooc", suffix=".pt", load=load, what="checkpoint")
+    cid = cache.store(b"a checkpoint", "c.pt", hint="")
+    assert cache.notes(cid, "c.pt") == ["c.pt: read with care"]
+    later = ModelCache(tmp_path, folder="cooc", suffix=".pt", load=load, what="checkpoint")  # a new server
+    assert later.notes(cid, "c.pt") is None
+    assert later.store(b"a checkpoint", "d.pt", hint="") == cid
+    assert later.notes(cid, "d.pt") == ["d.pt: read with care"]

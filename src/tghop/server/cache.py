@@ -17,7 +17,7 @@ from collections import OrderedDict
 from concurrent.futures import Future
 from pathlib import Path
 
-from .._errors import TGHopError
+from .._errors import TGHopError, collect_warnings
 from .requests import RequestError
 from .safety import check_archive
 
@@ -29,6 +29,8 @@ ID = re.compile(r"[0-9a-f]{64}\Z")
 _LOADED = 4
 #: Summaries kept (:meth:`ModelCache.summary`; a few KB each), the last used ones.
 _SUMMARIES = 256
+#: Where a file's path stood in a warning of reading it, kept (:meth:`ModelCache.notes` puts the upload's name there).
+_PATH = "\x00"
 #: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
 DEFAULT_CACHE_BYTES = 2 * 1000**3
 
@@ -76,6 +78,7 @@ class ModelCache:
                 pass
         self._loaded = OrderedDict()
         self._summaries = OrderedDict()
+        self._notes = OrderedDict()  # id -> what reading its file warned of (:meth:`notes`), the last read ones
         self._loading = {}  # id -> the Future of its load under way: callers asking meanwhile wait for it
         self._lock = threading.Lock()
         self.prune()  # the bound may be lower than the last server's
@@ -145,6 +148,8 @@ class ModelCache:
         final = self.path(key)
         if final.is_file():
             self.touch(key)
+            if self.notes(key, filename) is None:  # kept before and not read since: read now, for its notes
+                self.load(key)
             return key
         tmp = None
         try:
@@ -155,7 +160,7 @@ class ModelCache:
             except OSError as exc:
                 raise self._unwritable(exc) from None
             try:
-                loaded = self._load(tmp)
+                loaded = self._read_noting(key, tmp)
             except TGHopError as exc:
                 raise RequestError(400, str(exc).replace(tmp, filename)) from None
             except MemoryError:
@@ -175,6 +180,26 @@ class ModelCache:
                     pass
         self.added(key, loaded)
         return key
+
+    def _read_noting(self, model_id: str, path):
+        """``self._load(path)``, what it warned of kept as the file's notes (:meth:`notes`) instead of issued
+        (this thread's tghop warnings: :func:`tghop._errors.collect_warnings`)."""
+        with collect_warnings() as said:
+            model = self._load(path)
+        with self._lock:
+            self._notes[model_id] = [str(w).replace(str(path), _PATH) for w in said]
+            self._notes.move_to_end(model_id)
+            while len(self._notes) > _SUMMARIES:
+                self._notes.popitem(last=False)
+        return model
+
+    def notes(self, model_id: str, name: str):
+        """What reading the file of ``model_id`` warned of (a model made by a newer tghop, statistics of an old one
+        not used), as the library said it, the file named ``name`` (an upload's); None when it has not been read
+        since the server started (or was read too long ago)."""
+        with self._lock:
+            said = self._notes.get(model_id)
+        return None if said is None else [line.replace(_PATH, name) for line in said]
 
     def _unwritable(self, exc: OSError) -> RequestError:
         """507 for a file the folder cannot take (a full disk, a folder made read-only or removed
@@ -300,7 +325,7 @@ class ModelCache:
         if not path.is_file():
             raise self.missing(model_id)
         try:
-            model = self._load(path)
+            model = self._read_noting(model_id, path)
         except TGHopError:
             if not path.is_file():  # dropped by the bound since (another model added meanwhile)
                 raise self.missing(model_id) from None

@@ -70,11 +70,15 @@ def cooc_cache(cache_dir, max_bytes) -> ModelCache:
                       what="co-occurrence checkpoint", hint=COOC_HINT)
 
 
-def store_checkpoint(cache: ModelCache, content: bytes, filename: str, wanted=None) -> str:
+def store_checkpoint(cache: ModelCache, content: bytes, filename: str, wanted=None) -> tuple:
     """Check an uploaded checkpoint and keep it under its SHA-256 (400 if it is not a good
-    co-occurrence checkpoint; nothing is left in the cache either way): its id. ``wanted``: as
+    co-occurrence checkpoint; nothing is left in the cache either way): ``(id, notes)``, ``notes`` what
+    reading it warned of, as a model upload's (:meth:`~tghop.server.cache.ModelCache.notes`). ``wanted``: as
     :meth:`~tghop.server.cache.ModelCache.store`'s."""
-    return cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'", wanted=wanted)
+    from .uploads import note_line
+
+    cid = cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'", wanted=wanted)
+    return cid, [note_line(line) for line in cache.notes(cid, filename) or []]
 
 
 @functools.lru_cache(maxsize=1)

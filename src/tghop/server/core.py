@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 from . import cooc
 from .cache import DEFAULT_CACHE_BYTES, ModelCache
 from .jobs import FINAL, JOB_ID, FitQueue, GenerationJob
-from .requests import RequestError
+from .requests import RequestError, page_words
 from .uploads import MAX_DECODES, MAX_DECODES_WAITING, Gate
 
 __all__ = ["Server", "json_response", "error_response", "disconnected", "JOB_HEADER"]
@@ -30,10 +30,11 @@ JOB_HEADER = "X-Tghop-Job"
 
 
 def error_response(status: int, message: str, headers: dict | None = None):
-    """``{"error": message}`` (one line) with ``status``."""
+    """``{"error": message}`` (one line, in the page's words: :func:`~tghop.server.requests.page_words`) with
+    ``status``."""
     from starlette.responses import JSONResponse
 
-    return JSONResponse({"error": " ".join(str(message).split())}, status_code=status, headers=headers)
+    return JSONResponse({"error": page_words(message)}, status_code=status, headers=headers)
 
 
 def json_response(data, status: int = 200):
@@ -222,7 +223,8 @@ class Server:
         if job.cancel_requested or dropped or self.stopping.is_set() or isinstance(exc, asyncio.CancelledError):
             job.set_state("cancelled")
         else:
-            job.set_state("failed", error=getattr(exc, "message", None) or str(exc) or type(exc).__name__)
+            said = getattr(exc, "message", None) or str(exc) or type(exc).__name__
+            job.set_state("failed", error=page_words(said))
 
     def generation_job(self, request):
         """The job of a request that names one (:data:`JOB_HEADER`), put in the job table; None without

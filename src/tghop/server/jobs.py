@@ -20,6 +20,8 @@ import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
 
+from .requests import page_words
+
 __all__ = ["JOB_ID", "Cancelled", "QueueFull", "Job", "GenerationJob", "FitQueue", "STATES", "FIT_STAGES",
            "GENERATION_STAGES", "generation_fraction", "unknown_snapshot"]
 
@@ -313,7 +315,7 @@ class FitQueue:
         except Cancelled:
             job._update(state="cancelled")
         except BaseException as exc:  # one line for the client; the thread goes on serving
-            message = str(exc).strip().splitlines()[0] if str(exc).strip() else exc.__class__.__name__
+            message = page_words(str(exc).strip().splitlines()[0]) if str(exc).strip() else exc.__class__.__name__
             if isinstance(exc, MemoryError):
                 message = "out of memory; use a smaller exemplar or fewer training patches"
             job._update(state="failed", error=message)

@@ -19,7 +19,8 @@ from .._errors import TGHopError
 
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
-           "parse_guided", "parse_guide_labels", "parse_morph", "safe_name", "MAX_MODELS", "MAX_TRANSITION"]
+           "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "MAX_MODELS",
+           "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -38,6 +39,18 @@ class RequestError(Exception):
         self.status = status
         self.message = " ".join(str(message).split())
         self.headers = dict(headers or {})
+
+
+#: A command-line option named after the library's name of a setting, in the library's messages ("lower N
+#: (n_clusters, --clusters)", "a smaller stride, --stride, or ..."): the page and the API have the first alone.
+_CLI_OPTION = re.compile(r", --[a-z][a-z0-9-]*(?=[,)])")
+
+
+def page_words(message: str) -> str:
+    """A message of the library told to the page or an API client (an error, a failed job's, a note): one line,
+    without the command-line options it names beside the setting's own name (``(patch_size, --patch-size)``
+    -> ``(patch_size)``), which neither the page nor the API has."""
+    return _CLI_OPTION.sub("", " ".join(str(message).split()))
 
 
 def safe_name(name, default: str) -> str:

@@ -15,13 +15,13 @@ import os
 import tempfile
 from pathlib import Path
 
-from .._errors import ImageTooLargeError, TGHopError, TransparencyWarning, collect_warnings
+from .._errors import ImageTooLargeError, OpaqueAlphaWarning, TGHopError, TransparencyWarning, collect_warnings
 from . import materials
-from .requests import RequestError, check_multipart_end, safe_name
+from .requests import RequestError, check_multipart_end, page_words, safe_name
 
 __all__ = ["MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "DRAIN", "MAX_DECODES", "MAX_DECODES_WAITING", "RETRY_AFTER", "Gate",
-           "read_body", "read_form", "each_file_within", "json_body", "read_image", "read_notes", "depth_note",
-           "MAX_NOTE"]
+           "read_body", "read_form", "each_file_within", "json_body", "read_image", "read_notes", "note_line",
+           "depth_note", "MAX_NOTE"]
 
 #: Largest request body accepted (an exemplar or a model file).
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
@@ -189,7 +189,8 @@ def read_notes(notes: list):
     be read), the first of several frames read: the library's words, which name no option. A partly
     transparent image (:class:`tghop.TransparencyWarning`): the colours under its transparent part are
     learnt as texture, and the fix is the page's (crop it; the command line's names its ``--exclude``,
-    which the page has not). An opaque alpha channel dropped changes no pixel: nothing. Each line at
+    which the page has not). An opaque alpha channel dropped (:class:`tghop.OpaqueAlphaWarning`) changes no
+    pixel: nothing. Each line at
     most :data:`MAX_NOTE` characters. This thread's warnings alone
     (:func:`tghop._errors.collect_warnings`: other threads' warnings, and the process's filters, untouched)."""
     with collect_warnings() as said:
@@ -199,11 +200,18 @@ def read_notes(notes: list):
             told = "under 1%" if w.share < 0.005 else f"{w.share:.0%}"
             line = (f"{w.name}: {told} of its pixels are transparent, and the colours under them are learnt as "
                     "texture; to leave them out, crop the image to its opaque part")
-        elif str(w).endswith(": alpha channel dropped"):  # an opaque one (imageio's words): no pixel changed
+        elif isinstance(w, OpaqueAlphaWarning):  # an opaque alpha channel dropped: no pixel shows otherwise
             continue
         else:
-            line = " ".join(str(w).split())
-        notes.append(line if len(line) <= MAX_NOTE else line[:MAX_NOTE - 3] + "...")
+            line = str(w)
+        notes.append(note_line(line))
+
+
+def note_line(text: str) -> str:
+    """A warning as a line of an upload's notes: one line in the page's words
+    (:func:`~tghop.server.requests.page_words`), at most :data:`MAX_NOTE` characters."""
+    line = page_words(text)
+    return line if len(line) <= MAX_NOTE else line[:MAX_NOTE - 3] + "..."
 
 
 def depth_note(name: str, *, model: bool = False) -> str:

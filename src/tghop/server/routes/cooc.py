@@ -26,9 +26,9 @@ async def upload_cooc(server, request):
         filename, content = upload
     else:
         filename, content = None, body  # no name: messages say "the upload"
-    cid = await server.decode(request, cooc.store_checkpoint, server.cooc, content, safe_name(filename, "the upload"),
-                              server.still_wanted)
-    return json_response({"id": cid})
+    cid, notes = await server.decode(request, cooc.store_checkpoint, server.cooc, content,
+                                     safe_name(filename, "the upload"), server.still_wanted)
+    return json_response({"id": cid, "notes": notes})
 
 
 def checkpoint_id(server, request) -> str:

@@ -16,7 +16,7 @@ from ..requests import RequestError, parse_bool, parse_growth, safe_name
 from ..uploads import MAX_FIT_BYTES, each_file_within, read_body, read_form, read_image
 from .images import WARNING_HEADER, header_text
 
-__all__ = ["fill_png", "inpaint", "extend", "fill_request", "mask_note"]
+__all__ = ["fill_png", "inpaint", "extend", "fill_request", "mask_note", "grey_mask_note"]
 
 
 def mask_note(filename: str) -> str:
@@ -24,6 +24,16 @@ def mask_note(filename: str) -> str:
     ``tghop inpaint`` warns of its MASK), its white pixels are."""
     return (f"{filename} has transparent pixels, but transparency is not read as the hole (its white pixels are "
             "the hole); paint the hole white on black")
+
+
+def grey_mask_note(filename: str, share: float) -> str:
+    """The note of a mask ``filename`` that is not black and white (``share`` of its pixels grey or coloured, over
+    :data:`tghop.inpaint.MASK_PICTURE_SHARE`: a picture, or the picture and its mask swapped), as ``tghop inpaint``
+    warns of its MASK: its pixels lighter than mid-grey are the hole. The fix in the request's words, not the
+    command line's (which names the order of IMAGE and MASK)."""
+    return (f"{filename} is not black and white: {share:.0%} of its pixels are grey or coloured (a picture?), and "
+            "those lighter than mid-grey are taken as the hole; paint the hole white on black (the picture is the "
+            "field 'image', its mask 'mask')")
 
 
 def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
@@ -35,13 +45,15 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     bits, the most a PNG holds). A material fills its maps too (``map:<name>`` fields):
     ``(maps, (h, w))`` (:func:`materials.fill`). Returned with what reading the uploads said (lines,
     :func:`read_image`'s notes: a colour profile converted, only a first frame read; a mask's transparency,
-    :func:`mask_note`), for the answer's :data:`~tghop.server.routes.images.WARNING_HEADER`."""
+    :func:`mask_note`; a mask that is not black and white, :func:`grey_mask_note`), for the answer's
+    :data:`~tghop.server.routes.images.WARNING_HEADER`."""
     import numpy as np
 
     from ..._errors import HINT_DOWNSCALE_YOURSELF
     from ...imageio import deepest, load_image, to_uint8, to_uint16, write_png
     from ...material import drop_opaque_alpha
-    from ...inpaint import check_hole, expand_canvas, require_hole, split_alpha, with_alpha
+    from ...inpaint import MASK_PICTURE_SHARE, check_hole, expand_canvas, grey_share, require_hole, split_alpha
+    from ...inpaint import with_alpha
     from ...inpaint import inpaint as fill_hole
 
     model = server.model(model_id)  # read before, in its turn, when not in memory (fill_request)
@@ -71,6 +83,9 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
                 if (read[..., -1] < 1).any():
                     told.append(mask_note(filename))
                 read = read[..., :-1]
+            grey = grey_share(read)
+            if grey > MASK_PICTURE_SHARE:  # as tghop inpaint warns: its light pixels are the hole
+                told.append(grey_mask_note(filename, grey))
             mask, mask_name = read.mean(axis=2), filename
     try:
         if grow:

@@ -13,11 +13,12 @@ import time
 from ..._errors import TGHopError
 from .. import materials
 from ..core import json_response
-from ..requests import RequestError, parse_generation, parse_guide_labels, parse_guided, parse_morph
+from ..requests import RequestError, page_words, parse_generation, parse_guide_labels, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
 __all__ = ["header_text", "model_png", "png_response", "generate", "several_png", "same_patches", "guided_png",
-           "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route", "WARNING_HEADER"]
+           "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route", "WARNING_HEADER",
+           "PAGE_RESHAPE", "PAGE_ENLARGE"]
 
 #: The answer's header that tells the client what the library warned of (one line, its words; several joined by
 #: "; "): a painted guide scaled to the size asked, what reading it said (a colour profile converted; docs/serve.md).
@@ -27,7 +28,7 @@ WARNING_HEADER = "X-Tghop-Warning"
 def header_text(lines) -> str:
     """``lines`` joined by "; " as a header's value: printable ASCII, any other character "?" (a colour
     profile's name, from the upload, may hold any)."""
-    return "".join(c if " " <= c <= "~" else "?" for c in "; ".join(lines))
+    return "".join(c if " " <= c <= "~" else "?" for c in "; ".join(page_words(line) for line in lines))
 
 
 def model_png(server, model_id: str, size, seed, settings):
@@ -153,13 +154,23 @@ def read_guide(guide: bytes, n_models: int, size, **words) -> tuple:
     return labels.astype(np.uint8), told
 
 
+#: The page's fix of a guide of another shape than its canvas ("Use a guide..."): the page cannot leave the size
+#: out, as the API can; its height and width can take the guide's shape ({h} and {w}: the guide's).
+PAGE_RESHAPE = ("set the height and width above to the guide's shape (e.g. {h} and {w}; a guide of the canvas's "
+                "shape is scaled to its size), or paint the guide at the canvas's shape")
+#: The page's fix of a region that the scaling to the canvas loses.
+PAGE_ENLARGE = "paint it wider, or set a larger height and width above"
+
+
 def guide_label_map(guide: bytes, n_models: int, size) -> dict:
     """``POST /api/guides/labels``'s answer: the guide's labels as the guided route reads them
-    (:func:`read_guide`), in the page's words (models, and painting the canvas instead of a guide):
+    (:func:`read_guide`), in the page's words (models, painting the canvas instead of a guide, and the page's
+    height and width: :data:`PAGE_RESHAPE`, :data:`PAGE_ENLARGE`):
     ``{"size": [h, w], "labels": base64 of the (h, w) uint8 labels row by row, "notes": [...]}``."""
     import base64
 
-    labels, told = read_guide(guide, n_models, size, input_name="model", no_guide="paint the canvas instead")
+    labels, told = read_guide(guide, n_models, size, input_name="model", no_guide="paint the canvas instead",
+                              reshape=PAGE_RESHAPE, enlarge=PAGE_ENLARGE, size_name="the canvas's size")
     return {"size": list(labels.shape), "labels": base64.b64encode(labels.tobytes()).decode("ascii"), "notes": told}
 
 
@@ -181,7 +192,8 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
     labels, told = None, []
     if guide is not None:  # its labels read once (a guide of another size was scaled twice when read again)
-        labels, told = read_guide(guide, len(models), size, names=[f"models[{i}]" for i in range(len(models))])
+        labels, told = read_guide(guide, len(models), size, names=[f"models[{i}]" for i in range(len(models))],
+                                  input_name="model", no_guide="send no guide (a remix)")
     png, shape = several_png(server, lambda m, rng, dtype: synthesize_guided(
         m, labels, size=size, transition=transition, rng=rng, dtype=dtype, progress=server.unless_stopping,
         **settings), models, seed)

@@ -9,7 +9,7 @@ import os
 
 from ..core import json_response
 from ..requests import RequestError, file_stem, safe_name
-from ..uploads import depth_note, read_body, read_form
+from ..uploads import depth_note, note_line, read_body, read_form
 
 __all__ = ["summary", "model_summary", "download_name", "send_file", "model_file", "store_upload", "upload_model"]
 
@@ -88,8 +88,9 @@ async def model_file(server, request):
 def store_upload(server, content: bytes, filename: str) -> tuple:
     """Check an uploaded model file and keep it under its content hash (400 if it is not
     a good tghop model; nothing is left in the cache either way): ``(id, notes)``, ``notes`` what the page
-    tells with it (a texture model fitted on a 16-bit or float exemplar, whose images here are 8-bit, as
-    ``tghop synth`` warns: :func:`tghop.server.uploads.depth_note`)."""
+    tells with it: what reading the file warned of (a model made by a newer tghop; :meth:`ModelCache.notes
+    <tghop.server.cache.ModelCache.notes>`), a texture model fitted on a 16-bit or float exemplar, whose images
+    here are 8-bit, as ``tghop synth`` warns (:func:`tghop.server.uploads.depth_note`)."""
     from ...imageio import is_image
 
     try:
@@ -102,7 +103,8 @@ def store_upload(server, content: bytes, filename: str) -> tuple:
         raise
     model = server.cache.load(model_id)  # in memory once stored (a file kept before: read here, in its turn)
     deep = (getattr(model, "exemplar_depth_", None) or 8) > 8  # a material's maps keep their depths: none
-    return model_id, [depth_note(filename, model=True)] if deep else []
+    read = [note_line(line) for line in server.cache.notes(model_id, filename) or []]
+    return model_id, read + ([depth_note(filename, model=True)] if deep else [])
 
 
 async def upload_model(server, request):

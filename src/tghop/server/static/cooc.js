@@ -38,7 +38,7 @@ async function uploadCooc(file) {
     method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
   });
   if (!response.ok) { sayCooc(await errorOf(response), true); return; }
-  const { id } = await response.json();
+  const { id, notes } = await response.json();  // notes: what reading the file warned of, as a model upload's
   const info = await fetch(`/api/cooc/${id}`);
   if (!info.ok) { sayCooc(await errorOf(info), true); return; }
   cooc.id = id;
@@ -47,8 +47,8 @@ async function uploadCooc(file) {
   cooc.active = 0;
   cooc.picture = null;
   const [h, w] = cooc.info.exemplar_shape;
-  $("cooc-summary").textContent = `${file.name}: exemplar ${h}x${w}, ${cooc.info.crop_size} px crops, ` +
-    `${cooc.info.step} of ${cooc.info.n_steps} steps trained`;
+  $("cooc-summary").textContent = withWarning(`${file.name}: exemplar ${h}x${w}, ${cooc.info.crop_size} px crops, ` +
+    `${cooc.info.step} of ${cooc.info.n_steps} steps trained`, (notes || []).join("; "));
   cooc.stem = modelStem(file.name);  // its name as the server's Content-Disposition gives it (download_name)
   offerDownload($("cooc-download"), `/api/cooc/${id}/file?name=${encodeURIComponent(cooc.stem)}`,
                 `tghop-cooc-${cooc.stem}-${id.slice(0, 12)}.pt`);
