@@ -395,3 +395,16 @@ def test_a_caches_read_warnings_are_kept_as_the_files_notes(tmp_path):
     assert later.notes(cid, "c.pt") is None
     assert later.store(b"a checkpoint", "d.pt", hint="") == cid
     assert later.notes(cid, "d.pt") == ["d.pt: read with care"]
+
+
+def test_a_guided_refinement_of_a_model_without_patch_statistics_names_the_model(client):
+    # The library's words: "needs the patch statistics input 2 lacks ...; fit it again, or leave patch_refine at
+    # None or 0": another word for a model than the route's, and a field the page has not (its quality menu).
+    with_stats = fit(client, "bricks.png", png(bricks8()))
+    without = fit(client, "bricks.png", png(bricks8()), patch_levels="0")
+    assert done(client, with_stats["job"]) == done(client, without["job"]) == "done"
+    r = client.post("/api/images/guided", json={"models": [with_stats["id"], without["id"]], "size": [32, 48],
+                                                "quality": "best", "seed": 1})
+    assert r.status_code == 422 and r.json()["error"] == (
+        "models[1] holds no patch statistics for patch_refine or quality best (fitted with patch_levels 0, or by "
+        "tghop 0.14 or older); fit it again"), r.text

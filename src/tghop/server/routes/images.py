@@ -16,7 +16,7 @@ from ..core import json_response
 from ..requests import RequestError, page_words, parse_generation, parse_guide_labels, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
-__all__ = ["header_text", "model_png", "png_response", "generate", "several_png", "same_patches", "guided_png",
+__all__ = ["header_text", "check_patch_refine", "model_png", "png_response", "generate", "several_png", "same_patches", "guided_png",
            "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route", "WARNING_HEADER",
            "PAGE_RESHAPE", "PAGE_ENLARGE"]
 
@@ -31,6 +31,20 @@ def header_text(lines) -> str:
     return "".join(c if " " <= c <= "~" else "?" for c in "; ".join(page_words(line) for line in lines))
 
 
+def check_patch_refine(model, settings, name: str) -> None:
+    """422 where ``settings`` ask for the patch refinement (``patch_refine``, ``quality`` best) of a ``model`` that
+    has no patch statistics, ``name`` naming it (``this model``, ``models[1]``): a material, or a model fitted
+    without them (as ``tghop synth`` says; the library's words called a guided route's model "input 2")."""
+    if not settings.get("patch_refine"):
+        return
+    if materials.is_material(model):
+        raise RequestError(422, f"patch_refine and quality best do not apply to a material ({name} has no patch "
+                                "statistics); leave them out")
+    if getattr(model, "patches_", None) is None:
+        raise RequestError(422, f"{name} holds no patch statistics for patch_refine or quality best (fitted "
+                                "with patch_levels 0, or by tghop 0.14 or older); fit it again")
+
+
 def model_png(server, model_id: str, size, seed, settings):
     """One model's image as PNG bytes; a material's maps as a list (:func:`materials.encode_maps`)."""
     import numpy as np
@@ -39,12 +53,7 @@ def model_png(server, model_id: str, size, seed, settings):
 
     model = server.model(model_id)  # read before, in its turn, when not in memory (png_response's models)
     material = materials.is_material(model)
-    if settings.get("patch_refine") and material:
-        raise RequestError(422, "patch_refine and quality best do not apply to a material (it has no patch "
-                                "statistics); leave them out")
-    if settings.get("patch_refine") and getattr(model, "patches_", None) is None:  # as tghop synth says
-        raise RequestError(422, "this model holds no patch statistics for patch_refine or quality best (fitted "
-                                "with patch_levels 0, or by tghop 0.14 or older); fit it again")
+    check_patch_refine(model, settings, "this model")
     if material:
         settings = {k: v for k, v in settings.items() if k != "patch_refine"}  # 0 or None: nothing to do
     with server.generating:
@@ -190,6 +199,8 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     models = [server.model(model_id) for model_id in ids]
     materials.same_kind(models, ids)
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
+    for i, model in enumerate(models):
+        check_patch_refine(model, settings, f"models[{i}]")
     labels, told = None, []
     if guide is not None:  # its labels read once (a guide of another size was scaled twice when read again)
         labels, told = read_guide(guide, len(models), size, names=[f"models[{i}]" for i in range(len(models))],
