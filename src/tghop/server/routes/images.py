@@ -16,9 +16,9 @@ from ..core import json_response
 from ..requests import RequestError, page_words, parse_generation, parse_guide_labels, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
-__all__ = ["header_text", "check_patch_refine", "model_png", "png_response", "generate", "several_png", "same_patches", "guided_png",
-           "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route", "WARNING_HEADER",
-           "PAGE_RESHAPE", "PAGE_ENLARGE"]
+__all__ = ["header_text", "check_patch_refine", "model_png", "png_response", "generate", "several_png", "same_patches",
+           "guided_png", "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route",
+           "WARNING_HEADER", "PAGE_RESHAPE", "PAGE_ENLARGE"]
 
 #: The answer's header that tells the client what the library warned of (one line, its words; several joined by
 #: "; "): a painted guide scaled to the size asked, what reading it said (a colour profile converted; docs/serve.md).
