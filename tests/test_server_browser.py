@@ -427,6 +427,41 @@ def test_a_refused_model_file_goes_back_to_the_working_model(page, live_server, 
     page.errors.clear()  # Chromium logs the 400
 
 
+def test_cooc_says_where_a_crop_is_and_how_to_paint_the_edit(page, live_server, tiny_cooc_checkpoint):
+    # After a click the message still said "click on the exemplar to place crop 1", and nothing beside the
+    # edit's board (a block of crop 1's red) said what it was or how to change it.
+    page = page.context.browser.new_page(viewport={"width": 1200, "height": 1200})  # a fresh page, its own state
+    try:
+        page.goto(live_server.url + "/")
+        page.wait_for_selector("body[data-ready='1']")
+        chromium.choose_mode(page, "cooc")
+        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+        page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+        page.wait_for_function("document.getElementById('cooc-guide').width > 0")
+        for canvas, caption, below in (("#cooc-exemplar", "#cooc-exemplar-help", True),
+                                       ("#cooc-guide", "#cooc-guide-help", False)):
+            assert page.is_visible(caption) and page.get_attribute(canvas, "aria-describedby") == caption[1:]
+            c, t = page.locator(canvas).bounding_box(), page.locator(caption).bounding_box()
+            gap = t["y"] - (c["y"] + c["height"]) if below else c["y"] - (t["y"] + t["height"])
+            assert 0 <= gap < 30, (caption, c, t)  # right under the exemplar, right above the board
+        assert "each placed crop is outlined in its colour" in page.text_content("#cooc-exemplar-help")
+        assert "all crop 1 at first): choose a crop above and drag over it to paint" in " ".join(
+            page.text_content("#cooc-guide-help").split())
+        box = page.locator("#cooc-exemplar").bounding_box()
+        for fx, fy, said in ((0.25, 0.25, "crop 1 is at (0, 0), outlined on the exemplar; the next click places crop "
+                                          "2, and the brush paints with it below"),
+                             (0.8, 0.8, "crop 2 is at (32, 32), outlined on the exemplar; the next click places "
+                                          "crop 3, and the brush paints with it below")):
+            page.mouse.click(box["x"] + fx * box["width"], box["y"] + fy * box["height"])
+            assert page.text_content("#cooc-message") == said
+        page.click("label:has(#cooc-crop-0)")  # crop 1 chosen again: a click moves it
+        page.mouse.click(box["x"] + 0.25 * box["width"], box["y"] + 0.8 * box["height"])
+        assert page.text_content("#cooc-message") == ("crop 1 is at (32, 0), outlined on the exemplar; a click moves "
+                                                      "it, and the brush paints with it below")
+    finally:
+        page.close()
+
+
 def test_cooc_mode_says_when_the_server_has_no_pytorch(page, live_server):
     # It asked for a checkpoint, and only the upload's 501 told that none could be used.
     other = page.context.browser.new_page()

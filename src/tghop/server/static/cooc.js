@@ -140,11 +140,15 @@ function onCoocClick(event) {
   const [px, py] = brushPoint(event, $("cooc-exemplar"));
   const { s, crop_size: size, exemplar_shape: [h, w] } = cooc.info;
   const place = (v, n) => Math.max(0, Math.min(Math.floor((v - size / 2) / s), Math.floor(n / s) - size / s)) * s;
-  cooc.crops[cooc.active] = [place(py, h), place(px, w)];
+  const placed = cooc.active, [y, x] = cooc.crops[placed] = [place(py, h), place(px, w)];
   const next = cooc.active + 1;
   if (next < COOC_SLOTS && !cooc.crops[next]) cooc.active = next;
   renderCoocCrops();
   drawCoocExemplar();
+  // Where it went, and what a click or the brush now does (the message said "place crop 1" still).
+  sayCooc(`crop ${placed + 1} is at (${y}, ${x}), outlined on the exemplar; ` + (cooc.active === placed
+    ? `a click moves it, and the brush paints with it below`
+    : `the next click places crop ${cooc.active + 1}, and the brush paints with it below`));
 }
 
 // A new edit board at the edit's size, all crop 1.
