@@ -323,8 +323,8 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert_error(post("/api/models/upload", files={"model": ("cut.npz", good[: len(good) // 2])}), 400,
                  "cut.npz: truncated, corrupt")
     message = assert_error(post("/api/models/upload", files={"model": ("pic.npz", exemplar_png(40))}), 400,
-                           "pic.npz is an image, not a model file; to fit a model from it, POST it to /api/models "
-                           "as the file field 'image'")
+                           "pic.npz is an image, not a model file; to fit a model from it, pick it as the exemplar "
+                           "(the API: POST it to /api/models as the file field 'image')")
     assert "tghop fit" not in message  # a command line's advice means nothing to a web client
     assert_error(post("/api/models/upload", content=exemplar_png(40)), 400, "the upload is an image", "/api/models")
     assert_error(post("/api/models/upload", content=b""), 400, "the upload is empty")

@@ -298,6 +298,15 @@ def test_bad_checkpoints_get_400_and_leave_nothing(client, live_server, tmp_path
                  "not a tghop co-occurrence checkpoint")
     assert not marker.exists()  # weights_only: the pickle's call never ran
     assert_error(client.post("/api/cooc", files={"checkpoint": ("empty.pt", b"")}), 400, "empty.pt is empty")
+    # A texture model's file, loaded as a checkpoint on the page: where it goes there, not the library's words.
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    save_model(TGHop(n_clusters=4, n_codewords=20, stride=8, max_patches=300, layout_factor=None, patch_levels=0,
+                     rng=0).fit(data.bricks(96, rng=1)), tmp_path / "m.npz")
+    assert assert_error(client.post("/api/cooc", files={"checkpoint": ("m.npz", (tmp_path / "m.npz").read_bytes())}),
+                        400) == ("m.npz is a tghop model file, not a co-occurrence checkpoint; open it with \"Continue "
+                                 "from a saved model\" (the API: POST it to /api/models/upload)")
     assert_error(client.post("/api/cooc", files={"model": ("x.pt", b"x")}), 400, "field 'checkpoint'")
     assert_error(client.post("/api/cooc", content=b"\0" * (51 * 1024 * 1024)), 413, "50 MB")
     assert sorted(os.listdir(live_server.cache / "cooc")) == before
@@ -455,3 +464,12 @@ def test_a_morph_and_an_edit_read_the_checkpoint_in_the_decoding_turn(tmp_path, 
     finally:
         server.stop()
     assert state.decoding.holding == 0 and state.decoding.waiting == 0
+
+
+@needs_torch
+def test_a_checkpoint_sent_as_a_model_file_is_told_where_it_goes(client, checkpoint):
+    # The library's words: "a co-occurrence cGAN checkpoint is read by tghop.cooc.load and the 'tghop cooc'
+    # commands", a command line's advice on the page's "Continue from a saved model".
+    r = client.post("/api/models/upload", files={"model": ("tiny.pt", checkpoint[0])})
+    assert assert_error(r, 400) == ("tiny.pt is a co-occurrence checkpoint, not a model file; load it in "
+                                    "Co-occurrence mode (the API: POST it to /api/cooc)")

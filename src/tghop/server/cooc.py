@@ -77,8 +77,26 @@ def store_checkpoint(cache: ModelCache, content: bytes, filename: str, wanted=No
     :meth:`~tghop.server.cache.ModelCache.store`'s."""
     from .uploads import note_line
 
-    cid = cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'", wanted=wanted)
+    try:
+        cid = cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'", wanted=wanted)
+    except RequestError as exc:  # a texture model's file: the loader's advice names the library and the CLI
+        if exc.status == 400 and _is_texture_model(content):
+            raise RequestError(400, f"{filename} is a tghop model file, not a co-occurrence checkpoint; open it "
+                                    "with \"Continue from a saved model\" (the API: POST it to /api/models/upload)"
+                               ) from None
+        raise
     return cid, [note_line(line) for line in cache.notes(cid, filename) or []]
+
+
+def _is_texture_model(content: bytes) -> bool:
+    """Whether ``content`` is a zip archive holding a tghop model's metadata (``__meta__``)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(io.BytesIO(content)) as archive:
+            return "__meta__.npy" in archive.namelist()
+    except (zipfile.BadZipFile, OSError, EOFError, NotImplementedError, ValueError):
+        return False
 
 
 @functools.lru_cache(maxsize=1)

@@ -91,15 +91,20 @@ def store_upload(server, content: bytes, filename: str) -> tuple:
     tells with it: what reading the file warned of (a model made by a newer tghop; :meth:`ModelCache.notes
     <tghop.server.cache.ModelCache.notes>`), a texture model fitted on a 16-bit or float exemplar, whose images
     here are 8-bit, as ``tghop synth`` warns (:func:`tghop.server.uploads.depth_note`)."""
+    from ..._formats import COOC_CHECKPOINT, model_file_kind
     from ...imageio import is_image
 
     try:
         model_id = server.cache.store(content, filename, hint="send a model file written by 'tghop fit'",
                                       wanted=server.still_wanted)
-    except RequestError as exc:  # the loader's advice for an image is a command line's
+    except RequestError as exc:  # the loader's advice for an image or a checkpoint is a command line's
         if exc.status == 400 and is_image(io.BytesIO(content)):
-            raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, POST it "
-                                    "to /api/models as the file field 'image'") from None
+            raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, pick it "
+                                    "as the exemplar (the API: POST it to /api/models as the file field 'image')"
+                               ) from None
+        if exc.status == 400 and model_file_kind(io.BytesIO(content)) == COOC_CHECKPOINT:
+            raise RequestError(400, f"{filename} is a co-occurrence checkpoint, not a model file; load it in "
+                                    "Co-occurrence mode (the API: POST it to /api/cooc)") from None
         raise
     model = server.cache.load(model_id)  # in memory once stored (a file kept before: read here, in its turn)
     deep = (getattr(model, "exemplar_depth_", None) or 8) > 8  # a material's maps keep their depths: none
