@@ -542,3 +542,36 @@ def test_a_mask_or_a_guide_painted_elsewhere_is_used_by_keyboard(page):
         page.fill("#width", "256")
         page.fill("#n_patches", "")
     assert not page.errors, page.errors
+
+
+def test_a_picture_used_as_the_mask_is_warned_of(page, live_server):
+    # "Use a mask" took a photograph's light pixels as the hole without a word (tghop inpaint warns of it).
+    fresh = page.context.browser.new_page(viewport={"width": 1200, "height": 900})
+    try:
+        fresh.goto(live_server.url + "/")
+        fresh.wait_for_selector("body[data-ready='1']")
+        chromium.choose_mode(fresh, "inpaint")
+        picture = np.random.default_rng(0).integers(0, 256, (40, 40, 3), dtype=np.uint8)
+        fresh.set_input_files("#picture", files=[{"name": "p.png", "mimeType": "image/png", "buffer": png(picture)}])
+        fresh.wait_for_function("document.getElementById('editor').dataset.ready === '1' &&"
+                                " document.getElementById('mask').width === 40")
+        hole = np.zeros((40, 40), np.uint8)
+        hole[10:20, 10:30] = 255
+        for name, mask, said in (("photo.png", picture, "the hole is photo.png's white: Fill, or paint to change it. "
+                                  "Warning: photo.png is not black and white: "),
+                                 ("hole.png", hole, "the hole is hole.png's white: Fill, or paint to change it")):
+            fresh.set_input_files("#mask-file", files=[{"name": name, "mimeType": "image/png", "buffer": png(mask)}])
+            fresh.wait_for_function(f"document.getElementById('inpaint-message').textContent.includes({name!r})")
+            message = fresh.text_content("#inpaint-message")
+            if name == "hole.png":
+                assert message == said
+            else:
+                assert message.startswith(said) and message.endswith(
+                    "% of its pixels are grey or coloured (a picture?), and those lighter than mid-grey are taken as "
+                    "the hole; paint the hole white on black"), message
+                from tghop.inpaint import grey_share  # the same share as the library's (and the server's)
+
+                share = round(100 * grey_share(picture / 255.0))
+                assert f"not black and white: {share}% of its pixels" in message, (share, message)
+    finally:
+        fresh.close()

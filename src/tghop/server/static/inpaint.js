@@ -150,7 +150,27 @@ async function onMaskFile(file) {
     if (pixels[i] + pixels[i + 1] + pixels[i + 2] > 1.5 * 255) image.data.set([255, 0, 230, 255], i);  // #ff00e6
   }
   ctx.putImageData(image, 0, 0);
-  sayInpaint(`the hole is ${file.name}'s white: Fill, or paint to change it`);
+  const grey = greyShare(pixels, canvas.width);  // a picture given as the mask: said, as tghop inpaint says it
+  sayInpaint(withWarning(`the hole is ${file.name}'s white: Fill, or paint to change it`, grey > 0.2
+    ? `${file.name} is not black and white: ${Math.round(100 * grey)}% of its pixels are grey or coloured (a ` +
+      "picture?), and those lighter than mid-grey are taken as the hole; paint the hole white on black" : ""));
+}
+
+// The share of a mask's pixels (RGBA bytes, `w` wide; every other one each way) neither black nor white: their
+// channels' mean within 15 % of black or white and their channels within 15 % of each other are, as
+// tghop.inpaint.grey_share reads a mask (over 20 %: a picture, whose light pixels become the hole).
+function greyShare(pixels, w) {
+  const h = pixels.length / (4 * w), near = 0.15 * 255;
+  let n = 0, other = 0;
+  for (let y = 0; y < h; y += 2) {
+    for (let x = 0; x < w; x += 2) {
+      const i = 4 * (y * w + x), r = pixels[i], g = pixels[i + 1], b = pixels[i + 2];
+      const spread = Math.max(r, g, b) - Math.min(r, g, b);
+      if (!(Math.abs((r + g + b) / 3 - 127.5) > 127.5 - near && spread <= near)) other++;
+      n++;
+    }
+  }
+  return n ? other / n : 0;
 }
 
 // The mask as the API wants it: white where painted (more than half opaque), black elsewhere.
