@@ -117,7 +117,16 @@ function onGenerate(event) {
     const { blob, maps } = await withProgress("gen-progress", (headers) => generate(body, state.modelId, headers));
     showResult(URL.createObjectURL(blob), seed, blob, undefined, maps, { models: [workingStem()], ...body });
     sayGenerate("");
+    await reveal($("result"));
   }, sayGenerate);
+}
+
+// Scrolls a picture just shown into view once it is drawn, where it is wholly out of sight (a result below the
+// fold: the page looked as if Generate had done nothing); a picture partly in view stays where it is.
+async function reveal(img) {
+  try { await img.decode(); } catch (e) { return; }  // replaced meanwhile, or not drawn
+  const rect = img.getBoundingClientRect();
+  if (rect.top >= window.innerHeight || rect.bottom <= 0) img.scrollIntoView({ block: "nearest" });
 }
 
 // The strip of seeds is of one model, in View mode: cleared when the working model or the mode changes (it
@@ -199,6 +208,7 @@ function onStrip() {
       caption.setAttribute("aria-hidden", "true");
       figure.append(img, caption);
       strip.append(figure);
+      if (i === 0) reveal(img);  // the strip below the fold (no result shown yet, or a tall one)
     }
     if (!stale()) sayGenerate(STRIP_HINT);
   }, sayGenerate).then(() => {
