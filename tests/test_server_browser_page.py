@@ -8,7 +8,8 @@ saying when its seams are expected; by keyboard and to a screen reader: Generate
 Enter, its focus ring seen, its progress and result told; an error an alert, a mode's said again only when it
 changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
 off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab;
-with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px."""
+with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px;
+Inpaint's Undo (a stroke, Clear, a Fill with its hole)."""
 
 import io
 import re
@@ -622,3 +623,65 @@ def test_the_8_seeds_are_one_row_at_1024_px(page):
         page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
+
+PIXELS = ("i => { const c = document.createElement('canvas'); c.width = i.naturalWidth; c.height = i.naturalHeight;"
+          " const x = c.getContext('2d'); x.drawImage(i, 0, 0);"
+          " return Array.from(x.getImageData(0, 0, c.width, c.height).data); }")
+
+
+def test_inpaint_undoes_a_stroke_a_clear_and_a_fill(page):
+    # There was no undo: a stroke too many meant Clear and painting the hole again, and a fill that came out badly
+    # could not be tried again with another seed without painting its hole again (Fill cleared it).
+    def drag(start, end):  # the mouse over the 48x64 mask, from start to end (x, y in its pixels)
+        box = page.locator("#mask").bounding_box()
+        s = box["width"] / 64
+        page.mouse.move(box["x"] + start[0] * s, box["y"] + start[1] * s)
+        page.mouse.down()
+        page.mouse.move(box["x"] + end[0] * s, box["y"] + end[1] * s, steps=5)
+        page.mouse.up()
+
+    def mask():
+        return np.array(page.eval_on_selector("#mask", "c => Array.from(c.getContext('2d').getImageData("
+                                              "0, 0, c.width, c.height).data.filter((v, k) => k % 4 === 3))")) > 127
+
+    def shown(caption):
+        page.wait_for_function("(c) => document.getElementById('result-caption').textContent === c &&"
+                               " document.getElementById('editor').dataset.ready === '1'", arg=caption, timeout=60_000)
+
+    chromium.choose_mode(page, "view")
+    fit(page, "bricks")
+    page.fill("#height", "48")
+    page.fill("#width", "64")
+    page.fill("#seed", "7")
+    page.fill("#n_patches", "300")
+    page.uncheck("#tile")
+    page.click("#go")
+    shown("result: 48x64, seed 7")
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    picture = page.eval_on_selector("#editor-base", PIXELS)
+    page.locator("#mask").scroll_into_view_if_needed()
+    assert page.is_disabled("#undo")
+    drag((10, 10), (30, 10))
+    one = mask()
+    drag((10, 30), (50, 30))
+    assert (mask() & ~one).any() and one.any()
+    page.click("#undo")
+    assert (mask() == one).all()
+    page.click("#clear")
+    assert not mask().any()
+    page.keyboard.press("Control+z")
+    assert (mask() == one).all()
+    page.fill("#inpaint-seed", "3")
+    page.click("#fill")
+    shown("inpainted: 48x64, seed 3")
+    assert not mask().any() and page.eval_on_selector("#editor-base", PIXELS) != picture
+    page.click("#undo")  # the fill undone: the picture before it, its hole painted, to fill again
+    shown("result: 48x64, seed 7")
+    assert page.eval_on_selector("#editor-base", PIXELS) == picture and (mask() == one).all()
+    assert page.text_content("#inpaint-message") == "fill undone: the picture before it, with its hole"
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-48x64-seed7.png"
+    page.click("#undo")
+    assert not mask().any() and page.is_disabled("#undo")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

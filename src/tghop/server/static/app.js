@@ -109,7 +109,9 @@ async function init() {
     radio.addEventListener("change", () => { if (radio.checked) setMode(radio.value); });
   }
   $("brush").addEventListener("input", () => { $("brush-size").textContent = `${$("brush").value} px`; });
-  $("clear").addEventListener("click", clearMask);
+  $("clear").addEventListener("click", onClear);
+  $("undo").addEventListener("click", undoInpaint);
+  document.addEventListener("keydown", onUndoKey);
   $("fill").addEventListener("click", onFill);
   $("extend-go").addEventListener("click", onExtend);
   $("picture").addEventListener("change", (e) => onPicture(e.target.files[0]));

@@ -11,10 +11,15 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   // setWorking), and the running fit's way back to it (its `undo`, for cancelFit).
   working: null, fitUndo: null,
   // A built-in browsed to by keyboard in the closed menu, fitted once the choice settles ({name, timer}; fit.js).
-  browsed: null };
+  browsed: null,
+  // The result shown, as showResult was given it ({seed, blob, what, name}): what Inpaint's Undo shows again.
+  lastShown: null };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
-const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null };
+// `history`: what Undo goes back to, the latest last (inpaint.js); `pendingMask`: a mask put back once the
+// picture loads.
+const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null, history: [],
+  pendingMask: null };
 
 // The 2d context of a canvas whose pixels are read back (getImageData: the mask at each Fill, the boards and
 // the tiling by the tests): made for it, or Chromium warns that it is slow. The first getContext sets it.
@@ -57,6 +62,7 @@ function updateButtons() {
   // A material fills every map of one of its results: not a picture without maps, nor before its kind is known
   $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob ||
     state.material === null || (state.material && !editor.maps);
+  $("undo").disabled = state.busy || !editor.history.length;
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2 ||
     (typeof paintProblem === "function" && paintProblem() !== "");  // paint.js: a material with a texture model
   $("morph-go").disabled = state.busy || state.models.length < 2 ||

@@ -33,6 +33,7 @@ function showResult(url, seed, blob, what, maps, name) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
   state.resultUrl = url;
+  state.lastShown = { seed, blob, what, name };
   state.resultTiles = Boolean(name && name.tile);  // the tiling's caption says whether its seams are expected
   const base = resultBase(seed, what, name);
   state.shown = maps ? {

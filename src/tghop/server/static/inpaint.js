@@ -15,9 +15,10 @@ function inpaintHint() {
   else sayInpaint("", false, true);
 }
 
-// The picture to paint on: the latest result, or a picture the user chose.
+// The picture to paint on: the latest result, or a picture the user chose (a new picture: nothing to undo).
 // `maps`: a material result's maps (the albedo first), sent with the picture to Fill and Extend.
 function setEditorPicture(blob, name, maps) {
+  editor.history = [];
   editor.maps = maps || null;
   if (editor.url) URL.revokeObjectURL(editor.url);
   editor.blob = blob;
@@ -32,6 +33,10 @@ function setEditorPicture(blob, name, maps) {
     $("extend-height").placeholder = String(h);  // Extend's fields start from the picture's size
     $("extend-width").placeholder = String(w);
     clearMask();
+    if (editor.pendingMask && editor.pendingMask.width === w && editor.pendingMask.height === h) {
+      context2d(canvas).putImageData(editor.pendingMask, 0, 0);  // an undone Fill's hole
+    }
+    editor.pendingMask = null;
     // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on.
     $("editor").style.width = `${Math.max(w, Math.min(3 * w, 640))}px`;
     $("editor").hidden = false;
@@ -52,6 +57,57 @@ function setEditorPicture(blob, name, maps) {
 function clearMask() {
   const canvas = $("mask");
   context2d(canvas).clearRect(0, 0, canvas.width, canvas.height);
+}
+
+// Undo: the mask before each stroke, Clear or mask file; the picture (and the hole painted on it) before each Fill
+// or Extend: a fill that came out badly is tried again (another seed) without painting its hole again.
+const UNDO_STEPS = 20;
+
+function remember(picture) {
+  const canvas = $("mask");
+  if (!canvas.width) return;
+  editor.history.push({ mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture });
+  if (editor.history.length > UNDO_STEPS) editor.history.shift();
+  updateButtons();
+}
+
+function undoInpaint() {
+  if (state.busy) return;
+  const step = editor.history.pop();
+  if (!step) return;
+  if (!step.picture) {
+    context2d($("mask")).putImageData(step.mask, 0, 0);
+    updateButtons();
+    return;
+  }
+  const history = editor.history, p = step.picture;  // the picture before: shown again, its hole painted
+  editor.pendingMask = step.mask;
+  if (p.shown) showResult(URL.createObjectURL(p.blob), p.shown.seed, p.blob, p.shown.what, p.maps, p.shown.name);
+  else setEditorPicture(p.blob, p.name, p.maps);
+  editor.history = history;
+  updateButtons();
+  sayInpaint(`${p.undone} undone: the picture before it, with its hole`);
+}
+
+// Ctrl+Z (Cmd+Z) in Inpaint mode is Undo, but in a text field (the browser's own undo of its text).
+function onUndoKey(event) {
+  if (event.key.toLowerCase() !== "z" || !(event.ctrlKey || event.metaKey) || event.shiftKey || event.altKey) return;
+  if ($("inpaint").hidden || event.target.closest("input:not([type=checkbox]):not([type=range]), select")) return;
+  event.preventDefault();
+  undoInpaint();
+}
+
+function maskPainted() {
+  const canvas = $("mask");
+  if (!canvas.width) return false;
+  const pixels = context2d(canvas).getImageData(0, 0, canvas.width, canvas.height).data;
+  for (let i = 3; i < pixels.length; i += 4) if (pixels[i] > 127) return true;
+  return false;
+}
+
+function onClear() {
+  if (maskPainted()) remember(null);
+  clearMask();
 }
 
 function brushPoint(event, canvas) {
@@ -81,6 +137,7 @@ function paint(from, to) {
 function onBrushDown(event) {
   if (event.button !== 0 || !editor.blob) return;
   event.preventDefault();
+  remember(null);
   $("mask").setPointerCapture(event.pointerId);
   editor.painting = true;
   editor.last = brushPoint(event);
@@ -145,6 +202,7 @@ async function onMaskFile(file) {
   }
   const pixels = await filePixels(file, canvas.height, canvas.width, "mask, white where the hole is", sayInpaint);
   if (!pixels) return;
+  remember(null);
   const ctx = context2d(canvas), image = ctx.createImageData(canvas.width, canvas.height);
   for (let i = 0; i < pixels.length; i += 4) {
     if (pixels[i] + pixels[i + 1] + pixels[i + 2] > 1.5 * 255) image.data.set([255, 0, 230, 255], i);  // #ff00e6
@@ -177,10 +235,7 @@ function greyShare(pixels, w) {
 function maskBlob() {
   const canvas = $("mask");
   const w = canvas.width, h = canvas.height;
-  const pixels = context2d(canvas).getImageData(0, 0, w, h).data;
-  let painted = false;
-  for (let i = 3; i < pixels.length; i += 4) if (pixels[i] > 127) { painted = true; break; }
-  if (!painted) return Promise.resolve(null);
+  if (!maskPainted()) return Promise.resolve(null);
   const out = document.createElement("canvas");
   out.width = w;
   out.height = h;
@@ -217,8 +272,14 @@ async function sendPicture(path, fields, what, size) {
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
   const used = response.headers.get("X-Tghop-Seed");
+  // Undo goes back to this picture (the result shown, or a picture of the user's) and its hole
+  const canvas = $("mask"), history = editor.history;
+  const before = { mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture: {
+    blob: editor.blob, name: editor.name, maps: editor.maps, undone: path === "inpaint" ? "fill" : "extend",
+    shown: state.lastShown && state.lastShown.blob === editor.blob ? state.lastShown : null } };
   showResult(URL.createObjectURL(blob), used, blob, what, maps,
              { models: [workingStem()], size, tile: $("inpaint-tile").checked });
+  editor.history = [...history, before].slice(-UNDO_STEPS);
   return [used, response.headers.get("X-Tghop-Warning") || ""];
 }
 
