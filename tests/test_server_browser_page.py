@@ -9,7 +9,7 @@ Enter, its focus ring seen, its progress and result told; an error an alert, a m
 changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
 off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab;
 with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px;
-Inpaint's Undo (a stroke, Clear, a Fill with its hole)."""
+Inpaint's Undo (a stroke, Clear, a Fill with its hole); the built-in menu on its name's line."""
 
 import io
 import re
@@ -685,3 +685,20 @@ def test_inpaint_undoes_a_stroke_a_clear_and_a_fill(page):
     assert not mask().any() and page.is_disabled("#undo")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+
+def test_the_built_in_menu_wraps_with_its_name(page):
+    # At 1024 px "or a built-in one:" ended the drop zone's first line and its menu began the next, alone.
+    try:
+        for width in (1024, 800, 1200):
+            page.set_viewport_size({"width": width, "height": 700})
+            name, menu = page.evaluate("""(() => {
+              const middle = (r) => (r.top + r.bottom) / 2;
+              const name = [...document.querySelectorAll('#drop span')].find(
+                (s) => s.textContent.trim() === 'or a built-in one:');
+              return [middle(name.getBoundingClientRect()), middle(document.getElementById('builtin')
+                .getBoundingClientRect())]; })()""")
+            assert abs(name - menu) < 4, (width, name, menu)
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
