@@ -9,7 +9,8 @@ Enter, its focus ring seen, its progress and result told; an error an alert, a m
 changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
 off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab;
 with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px;
-Inpaint's Undo (a stroke, Clear, a Fill with its hole); the built-in menu on its name's line."""
+Inpaint's Undo (a stroke, Clear, a Fill with its hole) and Paint's (a stroke, Reset); the built-in menu on its
+name's line."""
 
 import io
 import re
@@ -702,3 +703,43 @@ def test_the_built_in_menu_wraps_with_its_name(page):
             assert abs(name - menu) < 4, (width, name, menu)
     finally:
         page.set_viewport_size({"width": 1200, "height": 1400})
+
+
+def test_paint_undoes_a_stroke_and_a_reset(page):
+    # Paint's guide had Reset only: a stroke of the wrong colour or size meant painting the whole guide again.
+    if page.eval_on_selector_all("#morph-a option", "l => l.length") < 2:  # run alone: no earlier test's fits
+        fit(page, "bricks")
+        fit(page, "cells")
+    page.fill("#height", "48")
+    page.fill("#width", "64")
+    chromium.choose_mode(page, "paint")
+    for box in page.query_selector_all("#paint-models input[type=checkbox]")[:2]:
+        box.check()
+    page.locator("#paint-colours label").nth(1).click()
+    page.locator("#guide").scroll_into_view_if_needed()
+    labels = "Array.from(guide.labels)"
+    blank = page.evaluate(labels)
+    assert page.is_disabled("#paint-undo") and len(set(blank)) == 1
+
+    def drag(y):
+        box = page.locator("#guide").bounding_box()
+        s = box["width"] / 64
+        page.mouse.move(box["x"] + 8 * s, box["y"] + y * s)
+        page.mouse.down()
+        page.mouse.move(box["x"] + 56 * s, box["y"] + y * s, steps=5)
+        page.mouse.up()
+
+    drag(12)
+    one = page.evaluate(labels)
+    drag(36)
+    assert page.evaluate(labels) != one != blank
+    page.click("#paint-undo")
+    assert page.evaluate(labels) == one
+    page.click("#paint-reset")
+    assert page.evaluate(labels) == blank
+    page.keyboard.press("Control+z")
+    assert page.evaluate(labels) == one
+    page.click("#paint-undo")
+    assert page.evaluate(labels) == blank and page.is_disabled("#paint-undo")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

@@ -128,7 +128,8 @@ async function init() {
   $("paint-brush").addEventListener("input", () => {
     $("paint-brush-size").textContent = `${$("paint-brush").value} px`;
   });
-  $("paint-reset").addEventListener("click", () => { resizeGuide(true); sayPaint(""); });
+  $("paint-reset").addEventListener("click", resetGuide);
+  $("paint-undo").addEventListener("click", () => undoBoard(guide));
   for (const id of ["height", "width"]) {
     $(id).addEventListener("change", () => { if (!$("paint").hidden) resizeGuide(); });
   }

@@ -19,7 +19,24 @@ function swatch(index) {
 // Paint mode's guide (labels: indices into state.models) is one; the co-occurrence edit's is another.
 function makeBoard(canvasId, cursorId, brushId, labelOf) {
   return { canvas: canvasId, cursor: cursorId, brush: brushId, labelOf, labels: null, h: 0, w: 0, last: null,
-    painting: false };
+    painting: false, history: [] };
+}
+
+// Undo (Paint's): the labels before each stroke, Reset or guide file, the latest last (UNDO_STEPS: inpaint.js).
+function rememberBoard(b) {
+  if (!b.labels) return;
+  b.history.push(b.labels.slice());
+  if (b.history.length > UNDO_STEPS) b.history.shift();
+  updateButtons();
+}
+
+function undoBoard(b) {
+  const labels = b.history.pop();
+  if (labels && labels.length === b.h * b.w) {
+    b.labels = labels;
+    drawBoard(b, 0, 0, b.w, b.h);
+  }
+  updateButtons();
 }
 
 // A new blank board of h x w pixels, all label `fill`, shown larger when small (up to 4 times, at most 640 px wide).
@@ -27,6 +44,7 @@ function resetBoard(b, h, w, fill) {
   b.h = h;
   b.w = w;
   b.labels = new Uint8Array(h * w).fill(fill);
+  b.history = [];  // a new board (Reset keeps the one before it: paint.js)
   const canvas = $(b.canvas);
   canvas.width = w;
   canvas.height = h;
@@ -78,6 +96,7 @@ function wireBoard(b) {
   canvas.addEventListener("pointerdown", (event) => {
     if (event.button !== 0 || !b.labels) return;
     event.preventDefault();
+    rememberBoard(b);
     canvas.setPointerCapture(event.pointerId);
     b.painting = true;
     b.last = brushPoint(event, canvas);

@@ -63,6 +63,7 @@ function updateButtons() {
   $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob ||
     state.material === null || (state.material && !editor.maps);
   $("undo").disabled = state.busy || !editor.history.length;
+  $("paint-undo").disabled = typeof guide === "undefined" || !guide.history.length;  // paint.js
   $("paint-go").disabled = $("remix-go").disabled = state.busy || pickedModels().length < 2 ||
     (typeof paintProblem === "function" && paintProblem() !== "");  // paint.js: a material with a texture model
   $("morph-go").disabled = state.busy || state.models.length < 2 ||

@@ -89,12 +89,12 @@ function undoInpaint() {
   sayInpaint(`${p.undone} undone: the picture before it, with its hole`);
 }
 
-// Ctrl+Z (Cmd+Z) in Inpaint mode is Undo, but in a text field (the browser's own undo of its text).
+// Ctrl+Z (Cmd+Z) in Inpaint and Paint modes is their Undo, but in a text field (the browser's own undo of its text).
 function onUndoKey(event) {
   if (event.key.toLowerCase() !== "z" || !(event.ctrlKey || event.metaKey) || event.shiftKey || event.altKey) return;
-  if ($("inpaint").hidden || event.target.closest("input:not([type=checkbox]):not([type=range]), select")) return;
+  if (event.target.closest("input:not([type=checkbox]):not([type=range]), select")) return;
+  if (!$("inpaint").hidden) undoInpaint(); else if (!$("paint").hidden) undoBoard(guide); else return;
   event.preventDefault();
-  undoInpaint();
 }
 
 function maskPainted() {

@@ -108,6 +108,17 @@ function brushLabel() {
 }
 
 // A new canvas at the output's size (the height and width of Generate), all the first picked model.
+// Reset: a blank canvas of the output's size, the one before it (and its Undo) kept where it was of that size.
+function resetGuide() {
+  const before = guide.labels, history = guide.history, [h, w] = [guide.h, guide.w];
+  resizeGuide(true);
+  if (before && guide.h === h && guide.w === w) {
+    guide.history = [...history, before].slice(-UNDO_STEPS);
+    updateButtons();
+  }
+  sayPaint("");
+}
+
 function resizeGuide(force) {
   const h = Number($("height").value), w = Number($("width").value);
   if (!(h > 0 && w > 0 && h * w <= 4096 * 4096)) { sayPaint("set a height and width above first", true); return; }
@@ -153,6 +164,7 @@ async function onGuideFile(file) {
     return;
   }
   const labels = base64Bytes(answer.labels);
+  rememberBoard(guide);
   for (let i = 0; i < labels.length; i++) guide.labels[i] = picked[labels[i]].index;
   drawBoard(guide, 0, 0, guide.w, guide.h);
   sayPaint(withWarning(`the guide is ${file.name}: Generate, or paint to change it`, answer.notes.join("; ")));
