@@ -10,7 +10,7 @@ changes; the focus kept where Cancel or No maps turns off; each field shown with
 off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab;
 with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px;
 Inpaint's Undo (a stroke, Clear, a Fill with its hole) and Paint's (a stroke, Reset); the built-in menu on its
-name's line."""
+name's line; a material's files named without its albedo word."""
 
 import io
 import re
@@ -742,4 +742,35 @@ def test_paint_undoes_a_stroke_and_a_reset(page):
     page.click("#paint-undo")
     assert page.evaluate(labels) == blank and page.is_disabled("#paint-undo")
     chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_a_materials_files_are_named_without_its_albedo_word(page, tmp_path):
+    # A material fitted from rock_albedo.png saved its normal map as tghop-rock_albedo-32x40-seed2_normal.png.
+    from tghop import data
+    from tghop.imageio import to_uint8
+    from tghop.material import example_maps
+
+    albedo = data.bricks(64, rng=3)
+    (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(albedo)))
+    (tmp_path / "rock_normal.png").write_bytes(png(to_uint8(example_maps(albedo)["normal"])))
+    page.set_input_files("#maps", [str(tmp_path / "rock_normal.png")])
+    page.set_input_files("#file", str(tmp_path / "rock_albedo.png"))
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " document.getElementById('summary').textContent.startsWith('material ')", timeout=90_000)
+    chromium.choose_mode(page, "view")
+    page.fill("#height", "32")
+    page.fill("#width", "40")
+    page.fill("#seed", "2")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 2'",
+                           timeout=60_000)
+    assert page.get_attribute("#download-png", "download") == "tghop-rock-32x40-seed2.png"
+    page.locator("#maps-view label", has_text="normal").click()
+    page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('result (')")
+    assert page.get_attribute("#download-png", "download") == "tghop-rock-32x40-seed2_normal.png"
+    assert page.get_attribute("#download-model", "download") == f"tghop-rock-{page.evaluate('state.modelId')[:12]}.npz"
+    # A texture's name keeps its words: a picture called "colour swatch" is not a material's albedo
+    assert page.evaluate("[modelStem('rock_albedo.png'), modelStem('Rock023_2K_Color.jpg + 2 maps'),"
+                         " modelStem('albedo.png + 1 map')]") == ["rock_albedo", "Rock023_2K", "albedo"]
     assert not page.errors, page.errors

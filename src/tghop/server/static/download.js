@@ -19,12 +19,18 @@ function fileStem(text) {
 }
 
 // A model's part of a file name, from the page's name of it ("builtin:bricks + 2 maps", "wall.jpg"): "bricks",
-// "wall".
+// "wall". A material's albedo word goes ("rock_albedo.png + 2 maps", "Rock023_2K_Color.jpg + 2 maps": "rock",
+// "Rock023_2K"): its maps' files are named after it (tghop-rock_albedo-256x256-seed1_normal.png was a normal map).
 function modelStem(name) {
-  const plain = String(name || "").replace(/^builtin:/, "").replace(/ \+ \d+ maps?$/, "")
-    .replace(/\.[A-Za-z0-9]+$/, "");
-  return fileStem(plain) || "model";
+  const text = String(name || "").replace(/^builtin:/, "");
+  const material = / \+ \d+ maps?$/.test(text);
+  const plain = text.replace(/ \+ \d+ maps?$/, "").replace(/\.[A-Za-z0-9]+$/, "");
+  const bare = material ? fileStem(plain.replace(ALBEDO_WORD, (word, before) => before.replace(/[-_. ]$/, ""))) : "";
+  return bare || fileStem(plain) || "model";
 }
+
+// An albedo's word in a file's name, with the separator before it (ALBEDO_NAME's words: fit.js).
+const ALBEDO_WORD = /(^|[^a-z])(albedo|diffuse|diff|(base)?colou?r)(?=[^a-z]|$)/i;
 
 // The model file's download: its name as the server's Content-Disposition gives it (routes/models.py,
 // download_name), which wins over the link's own where they differ.
