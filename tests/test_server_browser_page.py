@@ -10,7 +10,8 @@ changes; the focus kept where Cancel or No maps turns off; each field shown with
 off told beside it; each seed of the strip said once; a mask and a guide from files, their choosers reached with Tab;
 with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px;
 Inpaint's Undo (a stroke, Clear, a Fill with its hole) and Paint's (a stroke, Reset); the built-in menu on its
-name's line; a material's files named without its albedo word."""
+name's line; a material's files named without its albedo word;
+a result of several models captioned with them."""
 
 import io
 import re
@@ -773,4 +774,27 @@ def test_a_materials_files_are_named_without_its_albedo_word(page, tmp_path):
     # A texture's name keeps its words: a picture called "colour swatch" is not a material's albedo
     assert page.evaluate("[modelStem('rock_albedo.png'), modelStem('Rock023_2K_Color.jpg + 2 maps'),"
                          " modelStem('albedo.png + 1 map')]") == ["rock_albedo", "Rock023_2K", "albedo"]
+    assert not page.errors, page.errors
+
+
+def test_a_result_of_several_models_names_them(page):
+    # A morph or a painting showed beside the working model's exemplar, captioned "morph: 32x64, seed 4" only, as
+    # if it were of that one model.
+    if page.eval_on_selector_all("#morph-a option", "l => l.length") < 2:  # run alone: no earlier test's fits
+        fit(page, "bricks")
+        fit(page, "cells")
+    fit(page, "bricks")
+    chromium.choose_mode(page, "morph")
+    names = page.eval_on_selector_all("#morph-a option", "l => l.map(o => o.textContent)")
+    page.select_option("#morph-a", str(next(i for i, n in enumerate(names) if n.startswith("builtin:cells"))))
+    page.select_option("#morph-b", str(next(i for i, n in enumerate(names) if n.startswith("builtin:bricks"))))
+    page.fill("#morph-height", "32")
+    page.fill("#morph-width", "64")
+    page.fill("#morph-seed", "4")
+    page.click("#morph-go")
+    page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('morph: 32x64')",
+                           timeout=60_000)
+    assert page.text_content("#result-caption") == "morph: 32x64, seed 4 (cells to bricks)"
+    assert page.text_content("#exemplar-caption") == "exemplar"  # of bricks, the working model
+    chromium.choose_mode(page, "view")
     assert not page.errors, page.errors

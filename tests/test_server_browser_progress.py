@@ -302,7 +302,8 @@ def test_a_guide_the_server_scaled_is_said_with_the_result(page):
         said = paint()
     assert said == SCALED.format(what="guide", h=64, w=96, hh=32, ww=48), said
     assert not page.eval_on_selector("#paint-message", "e => e.classList.contains('error')")
-    page.wait_for_function("document.getElementById('result-caption').textContent === 'painted: 32x48, seed 2'")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'painted: 32x48, seed 2 (' +"
+                           " pickedModels().map((m) => m.stem).join(' + ') + ')'")  # its models named
     assert paint() == "done (seed 2): the result is below"  # painted at the size asked: nothing to warn of
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors

@@ -29,6 +29,8 @@ async function generate(body, id = state.modelId, headers = {}) {
 
 // Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable. `name`: what
 // names its file, {models: their stems, size, tile} (resultBase); the working model's at the size asked for.
+// `name.of`: the models of a result of several ("cells + bricks"), said in its caption (the exemplar beside it
+// is the working model's only).
 function showResult(url, seed, blob, what, maps, name) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
@@ -36,18 +38,20 @@ function showResult(url, seed, blob, what, maps, name) {
   state.lastShown = { seed, blob, what, name };
   state.resultTiles = Boolean(name && name.tile);  // the tiling's caption says whether its seams are expected
   const base = resultBase(seed, what, name);
+  const of = (name && name.of) || "";
   state.shown = maps ? {
-    seed, what, base, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })),
+    seed, what, base, of, maps: maps.map((m, i) => ({ ...m, url: i ? URL.createObjectURL(m.blob) : url })),
   } : null;
   renderMaps();
-  showPicture(url, `${what || "result"}`, seed, `${base}.png`);
+  showPicture(url, `${what || "result"}`, seed, `${base}.png`, of);
   if (blob) setEditorPicture(blob, `${base}.png`, maps);  // a material's maps are filled alike
 }
 
-function showPicture(url, what, seed, filename) {
+function showPicture(url, what, seed, filename, of) {
   const img = $("result");
   img.onload = () => {
-    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}`;
+    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}` +
+      (of ? ` (${of})` : "");
     $("result-caption").hidden = false;
     drawTiled(img);
   };
@@ -74,7 +78,9 @@ function renderMaps() {
     radio.value = m.name;
     radio.checked = i === 0;
     radio.addEventListener("change", () => {
-      if (radio.checked) showPicture(m.url, `${shown.what || "result"} (${m.name})`, shown.seed, mapFile(shown, i));
+      if (radio.checked) {
+        showPicture(m.url, `${shown.what || "result"} (${m.name})`, shown.seed, mapFile(shown, i), shown.of);
+      }
     });
     label.append(radio, ` ${m.name}${m.depth === 16 ? " (16-bit)" : ""}`);
     group.append(label);

@@ -224,7 +224,8 @@ function onPaintGenerate(remix) {
     sayPaint(remix ? "remixing" : "generating");
     const [blob, seed, maps, warning] = await withProgress(
       "paint-progress", (headers) => postImage("/api/images/guided", body, headers));
-    const name = { models: picked.map((m) => m.stem), size: body.size || [guide.h, guide.w], tile: Boolean(body.tile) };
+    const name = { models: picked.map((m) => m.stem), size: body.size || [guide.h, guide.w], tile: Boolean(body.tile),
+      of: picked.map((m) => m.stem).join(" + ") };
     showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps, name);
     sayPaint(withWarning(`done (seed ${seed}): the result is below`, warning));
   }, sayPaint);
@@ -285,7 +286,7 @@ function onMorph() {
     const [blob, seed] = await withProgress("morph-progress",
                                             (headers) => postImage("/api/images/morph", body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "morph", undefined,
-               { models: [a.stem, "to", b.stem], size: body.size, tile: false });
+               { models: [a.stem, "to", b.stem], size: body.size, tile: false, of: `${a.stem} to ${b.stem}` });
     sayMorph(`done (seed ${seed}): the strip is below`);
   }, sayMorph);
 }
