@@ -755,8 +755,10 @@ def test_a_materials_files_are_named_without_its_albedo_word(page, tmp_path):
     albedo = data.bricks(64, rng=3)
     (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(albedo)))
     (tmp_path / "rock_normal.png").write_bytes(png(to_uint8(example_maps(albedo)["normal"])))
+    page.set_input_files("#file", str(tmp_path / "rock_albedo.png"))  # the albedo, then its maps: fitted again
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " document.getElementById('summary').textContent.startsWith('model ')", timeout=90_000)
     page.set_input_files("#maps", [str(tmp_path / "rock_normal.png")])
-    page.set_input_files("#file", str(tmp_path / "rock_albedo.png"))
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"
                            " document.getElementById('summary').textContent.startsWith('material ')", timeout=90_000)
     chromium.choose_mode(page, "view")
