@@ -135,7 +135,8 @@ def test_paint_the_right_half_with_a_second_model_in_firefox(firefox, live_serve
     assert ff.run(COLUMN_COLOURS_JS, "#guide", 48, 96) == [SECOND]
     ff.fill("#paint-seed", "2")
     ff.click("#paint-go")
-    ff.wait_for("document.getElementById('result-caption').textContent === 'painted: 64x96, seed 2'", timeout=60)
+    ff.wait_for("document.getElementById('result-caption').textContent ==="
+                " 'painted: 64x96, seed 2 (my-exemplar + bricks)'", timeout=60)
     assert ff.run("const i = document.getElementById('result'); return [i.naturalHeight, i.naturalWidth]") == [64, 96]
     assert ff.run("return window.__errors") == []
 
