@@ -664,6 +664,10 @@ def test_inpaint_undoes_a_stroke_a_clear_and_a_fill(page):
     picture = page.eval_on_selector("#editor-base", PIXELS)
     page.locator("#mask").scroll_into_view_if_needed()
     assert page.is_disabled("#undo")
+    # Fill on the brush's line at 1200 px and more (Undo pushed it alone onto a line of its own)
+    tops = page.evaluate("['brush', 'fill'].map((id) => document.getElementById(id).closest('.toolbar > *')"
+                         ".getBoundingClientRect()).map((r) => (r.top + r.bottom) / 2)")
+    assert abs(tops[0] - tops[1]) < 8, tops
     drag((10, 10), (30, 10))
     one = mask()
     drag((10, 30), (50, 30))
