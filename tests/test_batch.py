@@ -474,8 +474,11 @@ def test_a_rerun_skips_the_failures_of_the_input_until_it_changes(tmp_path, monk
     assert again["small"]["error"] == first["small"]["error"]  # the earlier record, its reason
     # a changed file is tried again (still no image: a new line), the others are not
     (src / "bad.png").write_bytes(b"still not an image")
-    again = {r["name"]: r for r in run(src, out, workers=1)}
+    counts = []
+    again = {r["name"]: r for r in run(src, out, workers=1, on_result=lambda r, c: counts.append(c))}
     assert [again[n]["skipped"] for n in bad] == [False, True, True] and len(ledger(out)) == 6
+    # on_result's counts: those done before and those failed before apart (0.56 summed them in skipped)
+    assert counts == [{"done": 1, "failed": 1, "running": 0, "total": 1, "skipped": 2, "failed_before": 2}]
     # so is every failure of the input with retry_failed, and with other settings
     again = {r["name"]: r for r in run(src, out, workers=1, retry_failed=True)}
     assert [again[n]["skipped"] for n in bad] == [False] * 3 and again["a"]["skipped"] and len(ledger(out)) == 9
@@ -1048,6 +1051,35 @@ def test_a_rerun_says_what_an_earlier_run_did_before_its_bar(tmp_path):
     assert "failed: bad: " in err and "failed: flat: " in err and "skipped as failed" not in err, err
     code, _, err, _ = invoke(*args, "-q", cwd=tmp_path)
     assert "already done" not in err and "skipped as failed before" in err, err  # -q: the summary alone
+
+
+def test_ctrl_c_in_a_rerun_says_the_whole_batchs_count_too(tmp_path, monkeypatch):
+    # "interrupted after 3 of 50 exemplars" of a rerun read as 3 of the batch done, where an earlier
+    # run had done 1,200 of its 1,250: this run's count alone. Now the whole batch's is said too.
+    from tghop.cli.batch import stopped_line
+
+    plan = {"exemplars": 1250, "done_before": 1200, "failed_before": 0, "to_do": 50}
+    assert stopped_line(plan, {"done": 4, "total": 50}, 1) == \
+        " after 3 made and 1 failed in this run (50 to make); 1,203 of 1,250 exemplars done in all"
+    assert stopped_line({**plan, "done_before": 0}, {"done": 3, "total": 1250}, 0) == " after 3 of 1,250 exemplars"
+    make_folder(tmp_path / "src")
+    args = ["batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--seed", "1", *CLI_FAST]
+    assert invoke(*args, cwd=tmp_path)[0] == 1  # a and sub__a done, bad and flat failed
+    for i in range(3):
+        save_image(data.bricks(64, rng=7 + i), tmp_path / "src" / f"c{i}.png")
+    calls, task = [], batch.process_exemplar
+
+    def ctrl_c_at_the_second(job):
+        calls.append(job["name"])
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return task(job)
+
+    monkeypatch.setattr(batch, "process_exemplar", ctrl_c_at_the_second)
+    code, _, err, exc = invoke(*args, cwd=tmp_path)
+    assert_one_line(code, err, exception=exc)
+    assert err.strip().splitlines()[-1] == "Error: interrupted after 1 made in this run (3 to make); 3 of 7 " \
+        "exemplars done in all; run the same command again to finish the rest", err
 
 
 def _run_cli(args, cwd, block_dask=False, **kw):

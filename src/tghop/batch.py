@@ -173,7 +173,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         own setting (Dask's default: 3). The task itself never raises for bad input.
     progress : callable(stage, done, total), optional
     on_result : callable(record, counts), optional
-        Called with each finished exemplar's record and ``counts`` (done, failed, running, total, skipped).
+        Called with each finished exemplar's record and ``counts``: ``done`` (this run's exemplars
+        finished, ``failed`` among them), ``running``, ``total`` (this run's to make), ``skipped``
+        (done by an earlier run, not made again) and ``failed_before`` (skipped as failed before,
+        :func:`tghop.batch_plan.is_known_failure`; 0.57: 0.56 counted them in ``skipped``, so
+        ``skipped + failed_before`` is 0.56's ``skipped``).
     contact_sheet : bool
         Write ``OUTDIR/index.html`` at the end (also after an interruption).
     task : callable(job) -> record, optional
@@ -297,7 +301,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         if own_client is not None:
             own_client.close()
         raise
-    counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results)}
+    counts = {"done": 0, "failed": 0, "running": 0, "total": len(jobs), "skipped": len(results) - failed_before,
+              "failed_before": failed_before}
     started = {}  # name -> job: handed out, no ledger line yet
 
     def begin(job):

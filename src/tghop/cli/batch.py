@@ -26,7 +26,7 @@ class BatchProgress(Progress):
         super().__init__(enabled, show_eta=True)
         self.note = ""
         self.lines = enabled and not sys.stderr.isatty()  # click draws no bar there: a log showed nothing for hours
-        self.last = None
+        self.last = self.planned = None
         self.failed = self.running = 0
 
     def __call__(self, stage, done, total):
@@ -46,6 +46,7 @@ class BatchProgress(Progress):
     def plan(self, plan):
         """Before the bar, what an earlier run did (the bar counts this run's exemplars alone: a rerun's
         bar of 50 read as the whole batch of 1,250)."""
+        self.planned = plan  # for the line after Ctrl-C, -q too
         if self.enabled and (plan["done_before"] or plan["failed_before"]):
             click.echo(plan_line(plan), err=True)
 
@@ -57,6 +58,21 @@ def plan_line(plan) -> str:
         before += f", {plan['failed_before']:,} skipped as failed before ({RETRY_HINT})"
     to_make = f"{plan['to_do']:,} to make" if plan["to_do"] else "nothing to make"
     return f"{before}; {to_make}"
+
+
+def stopped_line(plan, last, failed) -> str:
+    """Where a stopped run got to, for the line after Ctrl-C: `` after 3 of 50 exemplars`` (this
+    run's ``last`` progress), and where an earlier run did some the whole batch's too: `` after 3
+    made in this run (50 to make); 1,203 of 1,250 exemplars done in all`` (``failed``: how many of
+    this run's failed, said apart); "" before any work."""
+    if not last:
+        return ""
+    if not plan or not (plan["done_before"] or plan["failed_before"]):
+        return f" after {last['done']:,} of {_exemplars(last['total'])}"
+    made = last["done"] - failed
+    failures = f" and {failed:,} failed" if failed else ""
+    return (f" after {made:,} made{failures} in this run ({last['total']:,} to make); "
+            f"{plan['done_before'] + made:,} of {_exemplars(plan['exemplars'])} done in all")
 
 
 @click.command()
@@ -132,8 +148,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         except KeyboardInterrupt as exc:
             progress.close()
             message, code = stop_message(exc)
-            done = progress.last
-            where = f" after {done['done']} of {_exemplars(done['total'])}" if done else ""
+            # this run's count alone read as the whole batch's ("after 3 of 50" of a batch of 1,250 nearly done)
+            where = stopped_line(progress.planned, progress.last, progress.failed)
             fail(f"{message}{where}; run the same command again to finish the rest", code)
     for r in results:  # what the workers warned of (an alpha channel dropped), by exemplar as the failures below
         for message in [] if r.get("skipped") else r.get("warnings") or []:  # (a/x.png and b/x.png: "x.png: ...")
