@@ -508,6 +508,15 @@ def test_a_rerun_skips_the_failures_of_the_input_until_it_changes(tmp_path, monk
     assert r["status"] == "failed" and r["cause"] == "run" and "out of memory" in r["error"]
     (r,) = run(one, tmp_path / "out1", workers=1)
     assert r["status"] == "ok" and not r["skipped"]
+    # so is too little memory to decode the image (tghop's one line for it was the input's, 0.56)
+    from PIL import ImageFile
+
+    with monkeypatch.context() as m:
+        m.setattr(ImageFile.ImageFile, "load", no_memory)  # Pillow's decoding, out of memory
+        (r,) = run(one, tmp_path / "out2", workers=1)
+    assert r["status"] == "failed" and r["cause"] == "run" and "not enough memory to decode" in r["error"], r
+    (r,) = run(one, tmp_path / "out2", workers=1)
+    assert r["status"] == "ok" and not r["skipped"]
 
 
 def test_a_failed_try_in_between_leaves_no_stale_images(tmp_path):
@@ -1082,13 +1091,16 @@ def test_ctrl_c_in_a_rerun_says_the_whole_batchs_count_too(tmp_path, monkeypatch
         "exemplars done in all; run the same command again to finish the rest", err
 
 
-def _run_cli(args, cwd, block_dask=False, **kw):
+def _run_cli(args, cwd, block_dask=False, block=(), **kw):
+    """The command line in a process of its own, where the modules ``block`` names (and with
+    ``block_dask`` Dask's), and those inside them, cannot be imported (not installed)."""
+    block = (*block, *(("dask", "distributed") if block_dask else ()))
     code = ("import sys\n"
             "class Block:\n"
             "    def find_spec(self, name, path=None, target=None):\n"
-            "        if name.split('.')[0] in ('dask', 'distributed'):\n"
+            f"        if any(name == b or name.startswith(b + '.') for b in {block!r}):\n"
             "            raise ImportError(f'No module named {name!r}')\n"
-            f"if {block_dask}:\n"
+            f"if {bool(block)}:\n"
             "    sys.meta_path.insert(0, Block())\n"
             "import tghop.batch\n"
             "from tghop.__main__ import run\n"
@@ -1096,6 +1108,26 @@ def _run_cli(args, cwd, block_dask=False, **kw):
             "run()\n")
     return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=cwd, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, **kw)
+
+
+def test_a_decoder_missing_is_no_fault_of_the_input_and_is_tried_again(tmp_path):
+    # A WebP exemplar read by a Pillow built without WebP failed as "not an image format tghop reads",
+    # cause "input": every rerun skipped it, also once Pillow could read it, until --retry-failed or a
+    # new tghop. Now a library or decoder missing is the run's cause (said as such), tried again.
+    src = tmp_path / "src"
+    src.mkdir()
+    save_image(data.bricks(64, rng=3), src / "a.png")
+    Image.fromarray(np.round(data.cells(64, rng=4) * 255).astype(np.uint8)).save(src / "w.webp", lossless=True)
+    args = ["batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--seed", "1", *CLI_FAST]
+    p = _run_cli(args, tmp_path, block=("PIL._webp",))  # Pillow's WebP library missing: a real failure
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 1, err.decode()
+    (line,) = [line for line in ledger(tmp_path / "out") if line["name"] == "w"]
+    assert line["status"] == "failed" and line["cause"] == "run", line
+    assert "a WebP image, and this Pillow was built without WebP support; install a Pillow" in line["error"]
+    p = _run_cli(args, tmp_path)  # the library there again: tried again, not "skipped as failed before"
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 0 and "2 of 2 exemplars done (1 by an earlier run)" in err.decode(), err.decode()
 
 
 def test_without_dask_one_line_and_workers_1_still_works(tmp_path):

@@ -5,7 +5,7 @@ files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
            "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
-           "why_unreadable", "unread_format", "warn_frames"]
+           "why_unreadable", "unread_format", "missing_decoder", "warn_frames"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -125,6 +125,44 @@ def unread_format(path):
         return "a PDF document"
     if head.lstrip().startswith((b"<svg", b"<?xml")):
         return "an SVG or other XML file"
+    return None
+
+
+#: Formats Pillow reads only where it was built with their library: their first bytes, their
+#: name, and the name of the module or codec :mod:`PIL.features` checks for them.
+_PILLOW_BUILT_WITH = (
+    (lambda head: head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP", "module", "webp"),
+    (lambda head: head[4:8] == b"ftyp" and head[8:12] in (b"avif", b"avis"), "AVIF", "module", "avif"),
+    (lambda head: head.startswith((b"\x00\x00\x00\x0cjP  \r\n\x87\n", b"\xff\x4f\xff\x51")), "JPEG 2000", "codec",
+     "jpg_2000"),
+    (lambda head: head.startswith(b"\xff\xd8\xff"), "JPEG", "codec", "jpg"),
+)
+
+
+def missing_decoder(path, exc=None):
+    """Why this Python cannot read the image at ``path`` though the file may be sound: the name of
+    its format where the installed Pillow was built without that format's library ("WebP": a file
+    of a format tghop reads, told "not an image format tghop reads"), or Pillow's own words for a
+    decoder it lacks (``exc``: ``OSError("decoder jpeg2k not available")``); else None. The cause is
+    outside the file: the same file reads once Pillow has the library."""
+    import re
+
+    if isinstance(exc, OSError) and re.fullmatch(r"decoder \S+ not available", str(exc)):
+        return str(exc)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+    except OSError:
+        return None
+    from PIL import features
+
+    for matches, name, kind, feature in _PILLOW_BUILT_WITH:
+        if not matches(head):
+            continue
+        known = features.modules if kind == "module" else features.codecs
+        if feature in known and not (features.check_module if kind == "module" else features.check_codec)(feature):
+            return f"a {name} image, and this Pillow was built without {name} support"
+        return None
     return None
 
 

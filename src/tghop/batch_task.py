@@ -19,8 +19,8 @@ from pathlib import Path
 from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, collect_warnings, warn
 from ._formats import is_model_file, model_file_kind
 
-__all__ = ["process_exemplar", "remove_temporaries", "one_line", "task_threads", "STAGE", "THUMBNAIL",
-           "THUMBNAIL_FILE"]
+__all__ = ["process_exemplar", "remove_temporaries", "one_line", "outside_the_files", "task_threads", "STAGE",
+           "THUMBNAIL", "THUMBNAIL_FILE"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
@@ -158,6 +158,16 @@ def one_line(exc: BaseException) -> str:
     return text if isinstance(exc, TGHopError) else f"{exc.__class__.__name__}: {text}"
 
 
+def outside_the_files(exc: BaseException) -> bool:
+    """Whether a failure of reading an exemplar has its cause outside its files, so that the same
+    files may pass another time: a library or decoder missing (:class:`~tghop.MissingExtraError`:
+    a WebP file where Pillow was built without WebP, a 16-bit colour TIFF without tifffile), or
+    tghop's one line raised while handling an ``ImportError`` or a ``MemoryError`` ("not enough
+    memory to decode this image")."""
+    cause = exc.__cause__ or exc.__context__  # the latter also where tghop's one line was raised "from None"
+    return isinstance(exc, MissingExtraError) or isinstance(cause, (ImportError, MemoryError))
+
+
 def process_exemplar(job: dict) -> dict:
     """Fit one exemplar and write its model, images and thumbnail (a plain top-level
     function, so that Dask pickles it by reference).
@@ -172,7 +182,8 @@ def process_exemplar(job: dict) -> dict:
 
     Returns what the ledger records: ``status`` ("ok" or "failed"), ``error`` (one line), ``cause`` (of a
     failure: "input" where reading, checking or fitting the exemplar refused it, the same each time for
-    the same files and settings; "run" for what may pass, memory, writing, an unexpected error), ``outputs``,
+    the same files and settings; "run" for what may pass, memory, writing, an unexpected error, a library or
+    decoder missing (0.57: :func:`outside_the_files`; it was "input"), ``outputs``,
     ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (the messages of tghop's own,
     :func:`tghop._errors.collect_warnings`: of this task alone where a worker runs several on threads),
     times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
@@ -267,7 +278,7 @@ def process_exemplar(job: dict) -> dict:
         record["error"] = one_line(exc)
         # The input's (not an image, flat, too small, a bad map): a rerun skips it until its files or
         # settings change (tghop.batch_plan.is_known_failure). Anything else is tried again.
-        input_fault = phase == "input" and isinstance(exc, TGHopError) and not isinstance(exc, MissingExtraError)
+        input_fault = phase == "input" and isinstance(exc, TGHopError) and not outside_the_files(exc)
         record["cause"] = "input" if input_fault else "run"
     finally:  # Ctrl-C (KeyboardInterrupt) and the command's SIGTERM too: they go on once this is done
         if stage is not None:

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from ._common import InvalidImageError, TGHopError, check_image, report
-from ._errors import OpaqueAlphaWarning, TransparencyWarning, warn
-from ._formats import DEPTHS, check_tifffile, extensions, unread_format, why_unreadable
+from ._errors import MissingExtraError, OpaqueAlphaWarning, TransparencyWarning, warn
+from ._formats import DEPTHS, check_tifffile, extensions, missing_decoder, unread_format, why_unreadable
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import (decode_pillow, file_header, has_alpha, open_image, read_deep, transparency_note,
                            transparent_share, upright)
@@ -82,6 +82,16 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
     ndarray, shape (H, W, C), in [0, 1] (0-255 for uint8)
         ``C`` is 1 for greyscale images and 3 for colour ones (2 and 4 with ``keep_alpha``).
     depth : int, only with ``with_depth``
+
+    Raises
+    ------
+    InvalidImageError
+        The file is missing, not an image, truncated, too large, ...: one line naming it.
+    MissingExtraError
+        A file of a format the installed Pillow was built without (WebP, AVIF, JPEG 2000; 0.57:
+        it was "not an image format tghop reads"), or a decoder Pillow lacks, or a colour TIFF of
+        16 or 32 bits without :mod:`tifffile`: the file itself may be sound
+        (:func:`tghop._formats.missing_decoder`).
     """
     from PIL import Image, UnidentifiedImageError  # imported on first use: not needed by `tghop info`
 
@@ -127,6 +137,10 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,
             struct.error, ZeroDivisionError, zlib.error) as exc:
+        lacking = missing_decoder(path, exc)  # the file may be sound: said apart (a batch tries it again)
+        if lacking:
+            raise MissingExtraError(f"{path}: {lacking}; install a Pillow that reads it (pip install --upgrade "
+                                    "pillow) or convert the file to PNG") from None
         known = unread_format(path) if isinstance(exc, UnidentifiedImageError) else None
         if known:
             raise InvalidImageError(f"{path}: {known}, a format tghop does not read; convert it to PNG, TIFF "
