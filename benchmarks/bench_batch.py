@@ -6,6 +6,9 @@ cores, measured against the serial work (issue #29).
     python benchmarks/bench_batch.py --limit 8       # the first 8 (what fits a shared 2-core machine)
     python benchmarks/bench_batch.py --limit 6 --crop 128 --size 128 --scheduler-workers 4
                                                      # centre crops, plus a 4-process cluster via --scheduler
+    python benchmarks/bench_batch.py --limit 4 --no-all-threads --repeat 3
+                                                     # a busy machine: 3 pairs (one thread, cluster) alternated,
+                                                     # each cluster against its own pair's serial pass; medians
 
 Modes, each a `tghop.batch.run` on the same manifest:
 
@@ -159,6 +162,11 @@ def main():
     ap.add_argument("--scheduler-workers", type=int, default=0,
                     help="also: start a local cluster of this many worker processes and run on it by address")
     ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--no-ceiling", action="store_true", help="skip the kernels that measure the machine alone")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="run the one-thread pass and the cluster this many times, alternated (a shared machine's "
+                         "load changes by the minute): each cluster is compared with the serial pass just before "
+                         "it, and the medians over the pairs are reported")
     ap.add_argument("--serial-malloc", choices=("worker", "default"), default="worker",
                     help="glibc malloc settings of the in-process passes: a worker's (tghop.batch.tune_malloc, "
                          "like for like with the cluster) or glibc's defaults")
@@ -176,7 +184,7 @@ def main():
     cores = len(os.sched_getaffinity(0))
     n_workers = args.workers or cores
     load_before = os.getloadavg()
-    ceiling = machine_ceiling(cores) if cores > 1 else {}
+    ceiling = machine_ceiling(cores) if cores > 1 and not args.no_ceiling else {}
     modes = []
     with tempfile.TemporaryDirectory() as tmp:
         if args.crop:
@@ -184,14 +192,19 @@ def main():
         manifest = Path(tmp) / "manifest.csv"
         manifest.write_text("path,name\n" + "".join(f"{files[n]},{n}\n" for n in names))
         kw = dict(count=args.count, size=(args.size, args.size), seed=0)
-        serial = one_mode(manifest, Path(tmp) / "one_thread", workers=1, task=one_thread, **kw)
-        modes.append(("in process, one thread (the serial work)", serial, 1))
-        all_threads = None
-        if not args.no_all_threads:
-            all_threads = one_mode(manifest, Path(tmp) / "in_process", workers=1, **kw)
-            modes.append(("in process, all threads (`--workers 1`)", all_threads, cores))
-        cluster = one_mode(manifest, Path(tmp) / "cluster", workers=args.workers, **kw)
-        modes.append((f"local cluster, {n_workers} workers x 1 thread (the default)", cluster, n_workers))
+        pairs = []
+        for i in range(max(1, args.repeat)):
+            pair = f" (pair {i + 1})" if args.repeat > 1 else ""
+            serial = one_mode(manifest, Path(tmp) / f"one_thread{i}", workers=1, task=one_thread, **kw)
+            modes.append((f"in process, one thread (the serial work){pair}", serial, 1, serial))
+            all_threads = None
+            if not args.no_all_threads:
+                all_threads = one_mode(manifest, Path(tmp) / f"in_process{i}", workers=1, **kw)
+                modes.append((f"in process, all threads (`--workers 1`){pair}", all_threads, cores, serial))
+            cluster = one_mode(manifest, Path(tmp) / f"cluster{i}", workers=args.workers, **kw)
+            modes.append((f"local cluster, {n_workers} workers x 1 thread (the default){pair}", cluster, n_workers,
+                          serial))
+            pairs.append((serial, cluster))
         scheduled = None
         if args.scheduler_workers:
             from tghop import batch
@@ -206,21 +219,21 @@ def main():
                 started.close()
             scheduled["cluster_start_s"] = start_s
             modes.append((f"--scheduler ADDRESS, {args.scheduler_workers} worker processes (started first)",
-                          scheduled, args.scheduler_workers))
+                          scheduled, args.scheduler_workers, serial))
     load_after = os.getloadavg()
 
-    work = serial["task_s"]  # S: the sum of one-thread single-exemplar times
+    work = serial["task_s"]  # S: the sum of one-thread single-exemplar times (the last pair's)
     rows = []
-    for label, m, w in modes:
+    for label, m, w, ref in modes:  # ref: the serial pass of m's pair
         used = min(w, cores)  # more processes than cores: they share the cores
         m["cores_used"] = used
-        m["efficiency"] = work / (used * m["wall_s"])
-        m["speedup_vs_serial"] = serial["wall_s"] / m["wall_s"]
+        m["efficiency"] = ref["task_s"] / (used * m["wall_s"])
+        m["speedup_vs_serial"] = ref["wall_s"] / m["wall_s"]
         for key, by, total in (("task", "task_s_by_exemplar", "task_s"), ("cpu", "cpu_s_by_exemplar", "cpu_s")):
-            base = serial[by]
+            base = ref[by]
             ratios = [m[by][n] / base[n] - 1 for n in base if base[n] and m[by].get(n) and n not in m["failed"]]
             m[f"{key}_overhead_median"] = statistics.median(ratios) if ratios else float("nan")
-            m[f"{key}_overhead_total"] = m[total] / serial[total] - 1
+            m[f"{key}_overhead_total"] = m[total] / ref[total] - 1
         m["core_share"] = m["cpu_s"] / m["task_s"]
         m["idle_s_per_exemplar"] = (used * m["wall_s"] - m["task_s"]) / m["n"]
         rows.append([label, m["wall_s"], m["wall_s"] / m["n"], m["efficiency"],
@@ -234,6 +247,12 @@ def main():
               "idle core-s / exemplar", "peak MB / worker", "fit s (median)", "synth s (median)",
               "kernel CPU s / task (median)", "page faults / task (median)", "failed"]
     crop = f" (centre crops {args.crop}x{args.crop})" if args.crop else ""
+    medians = None
+    if len(pairs) > 1:
+        medians = {key: statistics.median(c[key] for _, c in pairs) for key in
+                   ("efficiency", "task_overhead_median", "cpu_overhead_median", "other_load", "wall_s")}
+        medians["serial_work_s"] = statistics.median(s["task_s"] for s, _ in pairs)
+        medians["serial_other_load"] = statistics.median(s["other_load"] for s, _ in pairs)
     old = ""
     if all_threads is not None:
         old_eff = all_threads["task_s"] / (n_workers * cluster["wall_s"])
@@ -248,6 +267,12 @@ def main():
           f"Serial work S (sum of the one-thread single-exemplar times, in process, malloc settings: "
           f"{args.serial_malloc}): {work:.1f} s ({work / len(names):.2f} s per exemplar).\n\n"
           + markdown_table(header, rows)
+          + (f"\n\nMedians over the {len(pairs)} pairs (each cluster against the serial pass just before it): "
+             f"S {medians['serial_work_s']:.1f} s, cluster wall {medians['wall_s']:.1f} s, **efficiency "
+             f"{medians['efficiency']:.3f}**, a cluster task {medians['task_overhead_median']:+.1%} time "
+             f"({medians['cpu_overhead_median']:+.1%} CPU) against one thread alone (the median exemplar's); "
+             f"other programs {medians['serial_other_load']:.2f} cores during the serial passes, "
+             f"{medians['other_load']:.2f} during the clusters." if medians else "")
           + "\n\nefficiency = S / (cores x wall), cores capped at the machine's; task time vs one thread: each "
             "exemplar's task time in this mode against its one-thread in-process time (the cluster's overhead "
             "per exemplar: serialisation, result transfer, image writes in a worker, two workers sharing memory "
@@ -278,6 +303,8 @@ def main():
                          "serial_work_s": work, "serial_malloc": args.serial_malloc,
                          "load_before": load_before, "load_after": load_after,
                          "argv": sys.argv[1:], "one_thread": serial, "all_threads": all_threads, "cluster": cluster,
+                         "pairs": [{"one_thread": a, "cluster": b} for a, b in pairs] if len(pairs) > 1 else None,
+                         "medians": medians,
                          "scheduler": scheduled, "machine_ceiling": ceiling}, md)
 
 
