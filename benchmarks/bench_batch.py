@@ -163,6 +163,9 @@ def main():
                     help="also: start a local cluster of this many worker processes and run on it by address")
     ap.add_argument("--tag", default="", help="suffix of the result files")
     ap.add_argument("--no-ceiling", action="store_true", help="skip the kernels that measure the machine alone")
+    ap.add_argument("--cluster-config", choices=("quiet", "dask"), default="quiet",
+                    help="Dask's own periodic work in the local cluster: made rarer (tghop.batch.QUIET_CLUSTER, "
+                         "0.57) or as Dask sets it (before)")
     ap.add_argument("--repeat", type=int, default=1,
                     help="run the one-thread pass and the cluster this many times, alternated (a shared machine's "
                          "load changes by the minute): each cluster is compared with the serial pass just before "
@@ -177,6 +180,10 @@ def main():
         from tghop import batch
 
         batch.tune_malloc()
+    if args.cluster_config == "dask":
+        from tghop import batch_dask
+
+        batch_dask.QUIET_CLUSTER.clear()  # local_cluster reads it when it starts the cluster
     names = texture_names()[: args.limit]
     if not names:
         raise SystemExit(f"no textures in {TEXTURES}; set TGHOP_TEXTURES")
@@ -265,7 +272,8 @@ def main():
           f"{cores} cores\n\nLoad average before {load_before[0]:.1f}, after {load_after[0]:.1f} (a shared "
           f"machine: other sessions' work competes with these runs; timings are noisy).\n\n"
           f"Serial work S (sum of the one-thread single-exemplar times, in process, malloc settings: "
-          f"{args.serial_malloc}): {work:.1f} s ({work / len(names):.2f} s per exemplar).\n\n"
+          f"{args.serial_malloc}): {work:.1f} s ({work / len(names):.2f} s per exemplar). Dask's periodic work in "
+          f"the local cluster: {args.cluster_config}.\n\n"
           + markdown_table(header, rows)
           + (f"\n\nMedians over the {len(pairs)} pairs (each cluster against the serial pass just before it): "
              f"S {medians['serial_work_s']:.1f} s, cluster wall {medians['wall_s']:.1f} s, **efficiency "
@@ -301,6 +309,7 @@ def main():
             + (f"-crop{args.crop}" if args.crop else "") + (f"-{args.tag}" if args.tag else ""))
     write_results(name, {"exemplars": names, "crop": args.crop, "count": args.count, "size": args.size, "cores": cores,
                          "serial_work_s": work, "serial_malloc": args.serial_malloc,
+                         "cluster_config": args.cluster_config,
                          "load_before": load_before, "load_after": load_after,
                          "argv": sys.argv[1:], "one_thread": serial, "all_threads": all_threads, "cluster": cluster,
                          "pairs": [{"one_thread": a, "cluster": b} for a, b in pairs] if len(pairs) > 1 else None,

@@ -37,8 +37,8 @@ from pathlib import Path
 
 from . import __version__
 from ._errors import MissingExtraError, TGHopError
-from .batch_dask import (INSTALL_HINT, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE, affinity_cores, connect,
-                         ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
+from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE, affinity_cores,
+                         connect, ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
                          run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_orphans,
                          find_work, inputs_sha256, is_done, is_known_failure, keep_ledger_names, mark_running,
@@ -49,7 +49,8 @@ from .manifest import parse_bool, parse_int, parse_size
 
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
            "inputs_sha256", "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT",
-           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "NAME_MAX", "RUNNING", "tune_malloc", "dask_setup"]
+           "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "NAME_MAX", "RUNNING", "tune_malloc",
+           "dask_setup"]
 
 
 def _settings(item_settings, defaults, fit, generate):

@@ -20,7 +20,8 @@ import warnings
 from ._errors import MissingExtraError, TGHopError
 from .batch_task import one_line
 
-__all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "import_distributed", "local_cluster",
+__all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
+           "local_cluster",
            "worker_environ", "environ_kept", "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc",
            "affinity_cores", "connect", "run_distributed"]
 
@@ -44,6 +45,14 @@ WORKER_ENVIRON = {"MALLOC_ARENA_MAX": "1"}
 #: exemplar runs on one core, so more only share the cores and the memory (a typo's million
 #: worker processes kept the run starting for ever, with Ctrl-C ignored while a cluster starts).
 WORKERS_PER_CORE = 4
+#: Dask's own periodic work in the processes of a local cluster (:func:`local_cluster`), made rarer:
+#: its statistical profiler (a stack sample of the task's thread every 10 ms in each worker), the event
+#: loop's tick (every 20 ms in each process: a metric and a "loop was unresponsive" log line) and the
+#: system monitor (every 500 ms: the dashboard's CPU and network plots). A busy worker's event loop took
+#: about 0.04 cores beside its task, and an idle cluster of 2 workers 0.09-0.10 cores, 0.01 with these:
+#: on 2 cores about 5 % of the machine taken from the tasks (docs/batch.md, "Dask's own periodic work").
+QUIET_CLUSTER = {"distributed.worker.profile.enabled": False, "distributed.admin.tick.interval": "1s",
+                 "distributed.admin.system-monitor.interval": "5s"}
 _MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_MAX": -4}  # glibc's malloc.h
 #: Each WORKER_MALLOC setting's environment variable, and the value Dask puts there (None: none).
 _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("MALLOC_TRIM_THRESHOLD_", "65536")}
@@ -66,7 +75,8 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     scheduler's HTTP server on a free port, a worker's death allowed ``retries`` times per task.
 
     Each worker runs :func:`dask_setup` first (a preload): among others, its ``malloc``
-    keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`).
+    keeps freed memory for reuse (:data:`WORKER_MALLOC`, :data:`WORKER_ENVIRON`). Dask's own
+    periodic work is made rarer (:data:`QUIET_CLUSTER`: no profiler, a tick a second).
 
     The workers' environment (those settings, one BLAS and OpenMP thread) is theirs alone: Dask's
     nanny writes it into this process's ``os.environ`` before it starts each worker, and the values
@@ -84,7 +94,7 @@ def local_cluster(n_workers=None, *, retries=3, memory_limit="auto"):
     # ignores Ctrl-C only once its imports are done; before, each printed a traceback), and a
     # cluster interrupted half-started cannot be closed cleanly. It lasts a few seconds.
     with ctrl_c_ignored(), environ_kept(environ), \
-            dask.config.set({"distributed.scheduler.allowed-failures": int(retries),
+            dask.config.set({**QUIET_CLUSTER, "distributed.scheduler.allowed-failures": int(retries),
                              "distributed.nanny.pre-spawn-environ": environ}):
         # ":0": the scheduler's HTTP server (health, metrics) on a free port; None still took 8787,
         # and a second cluster (another batch, a notebook's) printed Dask's "Port 8787 is already in use".
