@@ -493,3 +493,14 @@ def test_evaluate_no_diversity_leaves_out_the_pairwise_comparison(workdir):
     assert [sorted(line) for line in lines] == [["exemplar", "result", "swd"]] * 2
     r = run("evaluate", *paths, "--metrics", "swd", "-q")  # the default keeps it
     assert "diversity of the 2 results" in r.stdout.decode()
+
+
+@pytest.mark.parametrize("group, first", [((), ["synth", "fit", "info"]), (("cooc",), ["train", "morph", "edit"])])
+def test_help_lists_each_command_on_one_whole_line_in_the_order_of_work(group, first):
+    # `tghop --help` listed the commands by name (baseline first, synth last), each cut after 45 characters
+    # ("Fit every exemplar of SOURCE and write its model and COUNT..."): a newcomer could not tell where to start.
+    out = run(*group, "--help").stdout.decode()
+    rows = out.split("\nCommands:\n")[1].splitlines()
+    assert [row.split()[0] for row in rows[:len(first)]] == first, out
+    assert all(row.startswith("  ") and not row.startswith("   ") and not row.endswith("...") for row in rows), out
+    assert all(len(row) <= 80 for row in rows), out

@@ -75,7 +75,7 @@ def stopped_line(plan, last, failed) -> str:
             f"{plan['done_before'] + made:,} of {_exemplars(plan['exemplars'])} done in all")
 
 
-@click.command()
+@click.command(short_help='Fit many exemplars (a folder or a manifest) and make their images')
 @click.argument("source")
 @click.option("-o", "--outdir", required=True,
               help="Folder for the results: OUTDIR/NAME/ per exemplar, the ledger batch.jsonl, the contact "

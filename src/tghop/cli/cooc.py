@@ -184,7 +184,14 @@ def _mask_labels(mask, n_sources, size):
     return pixels
 
 
-@click.group("cooc")
+class _InOrder(click.Group):
+    """Lists its commands in the order they are used (train first), not by name."""
+
+    def list_commands(self, ctx):
+        return list(self.commands)
+
+
+@click.group("cooc", cls=_InOrder, short_help="The co-occurrence cGAN (needs PyTorch): train, morph, edit")
 def cooc():
     """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
 
@@ -197,7 +204,7 @@ def cooc():
     """
 
 
-@cooc.command()
+@cooc.command(short_help='Train the cGAN on an exemplar and save a checkpoint (.pt)')
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True, help="Checkpoint to write (.pt).")
 @click.option("--paper", is_flag=True,
@@ -263,7 +270,7 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
                    err=True)
 
 
-@cooc.command()
+@cooc.command(short_help="A strip (or grid) whose co-occurrence moves from A's to B's")
 @click.argument("model_file", metavar="MODEL")
 @click.argument("a")
 @click.argument("b")
@@ -308,7 +315,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
         click.echo(f"{what} of {image.shape[0]}x{image.shape[1]} written to {output}", err=True)
 
 
-@cooc.command()
+@cooc.command(short_help='Generate from edited co-occurrence: statistics painted where wanted')
 @click.argument("model_file", metavar="MODEL")
 @click.argument("sources", nargs=-1)
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")

@@ -15,7 +15,7 @@ from .options import QUIET_OPTION, Size, depth_option, scale_option
 __all__ = ["evaluate", "baseline"]
 
 
-@click.command()
+@click.command(short_help='Score result images against their exemplar (texture metrics)')
 @click.argument("exemplar")
 @click.argument("results", nargs=-1, required=True)
 @click.option("--json", "as_json", is_flag=True,
@@ -201,7 +201,7 @@ def check_iterations(name, iterations):
                                  "count", param_hint="'--iterations'")
 
 
-@click.command()
+@click.command(short_help='Make a reference texture with another method, to compare')
 @click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov",
                                            "cooc", "gpdm"]))
 @click.argument("exemplar")

@@ -26,9 +26,11 @@ __all__ = ["OneLineGroup", "main"]
 #: Each command of ``tghop`` and the module of :mod:`tghop.cli` that defines it, imported
 #: when the command is run or listed (:class:`OneLineGroup` ``lazy_commands``): ``tghop
 #: synth`` does not build the options of ``batch``, ``evaluate``, ``cooc`` and the others.
-_COMMANDS = {"synth": "texture", "fit": "texture", "patches": "texture", "clusters": "texture", "info": "texture",
-             "inpaint": "inpaint", "extend": "inpaint", "morph": "guided", "batch": "batch",
-             "evaluate": "evaluation", "baseline": "evaluation", "cooc": "cooc", "serve": "serve"}
+#: In this order ``tghop --help`` lists them: making textures, then editing images, many at once or in a
+#: browser, and last the tools that study and compare.
+_COMMANDS = {"synth": "texture", "fit": "texture", "info": "texture", "patches": "texture",
+             "inpaint": "inpaint", "extend": "inpaint", "morph": "guided", "batch": "batch", "serve": "serve",
+             "evaluate": "evaluation", "clusters": "texture", "baseline": "evaluation", "cooc": "cooc"}
 
 #: The modules each command imports when it runs (besides those of the command line).
 _COMMAND_MODULES = {
@@ -166,7 +168,8 @@ class OneLineGroup(click.Group):
         self.synonyms = dict(synonyms or {})
 
     def list_commands(self, ctx):
-        return sorted({*self.commands, *self.lazy_commands})
+        """The lazy commands in their order (the order of a user's work), then any others by name."""
+        return [*self.lazy_commands, *sorted(set(self.commands) - set(self.lazy_commands))]
 
     def get_command(self, ctx, cmd_name):
         if cmd_name not in self.commands and cmd_name in self.lazy_commands:
@@ -309,7 +312,11 @@ def main():
     """tghop: explainable, fast texture synthesis from one exemplar (TGHop).
 
     \b
-    Quick start:
+    Quick start (synth learns the exemplar's model, then makes the images):
       tghop synth builtin:bricks -o bricks.png --size 512x512
       tghop synth my_texture.jpg -o out.png --count 4 --seed 7 --tile
+    To make many images from one exemplar, learn its model once and reuse it:
+      tghop fit my_texture.jpg -o my_texture.npz
+      tghop synth my_texture.npz -o more.png --count 8
+    Each command's options and examples: tghop COMMAND --help.
     """

@@ -330,7 +330,7 @@ def _check_height(size, source):
                                f"--size {patch}x{size[1]} or taller")
 
 
-@click.command()
+@click.command(short_help='A strip from texture A on the left to texture B on the right')
 @click.argument("source_a", metavar="A")
 @click.argument("source_b", metavar="B")
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")

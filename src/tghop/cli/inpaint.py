@@ -51,7 +51,7 @@ MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} 
              "(tghop fit ALBEDO --maps ...) as --source takes its maps in its order.")
 
 
-@click.command()
+@click.command(short_help="Fill a hole in an image (MASK's white pixels) with its texture")
 @click.argument("image")
 @click.argument("mask")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
@@ -94,7 +94,7 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)
 
 
-@click.command()
+@click.command(short_help='Grow an image beyond its edges with texture that continues it')
 @click.argument("image")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True,

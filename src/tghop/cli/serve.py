@@ -78,7 +78,7 @@ def _bind(host: str, port: int):
     return sock
 
 
-@click.command()
+@click.command(short_help='Start the local web page: fit, generate and download in a browser')
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Address to listen on. Any other than 127.0.0.1, localhost or ::1 lets other machines use the "
                    "server (it has no login): a warning is printed.")

@@ -109,7 +109,7 @@ def _resolution_word(path):
     return found[-1].upper() if found else None
 
 
-@click.command()
+@click.command(short_help='Learn a model from an exemplar and save it (.npz) to reuse')
 @click.argument("exemplar")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
@@ -168,7 +168,7 @@ def material_summary(material, found=None) -> str:
                                             material.normal_))
 
 
-@click.command()
+@click.command(short_help='Write a grid of patches generated from a saved model')
 @click.argument("model_file", metavar="MODEL")
 @click.option("-n", "--count", "n", type=click.IntRange(min=1, max=10000), default=64, show_default=True,
               help="Patches to generate.")
@@ -208,7 +208,7 @@ def patches(model_file, n, output, seed, stages, quiet):
         click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
 
 
-@click.command()
+@click.command(short_help="Map which of a model's clusters each part of an exemplar falls in")
 @click.argument("model_file", metavar="MODEL")
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True,
@@ -243,7 +243,7 @@ def clusters(model_file, exemplar, output, stride, quiet):
     click.echo(f"{used} cluster{'s' if used != 1 else ''} used of {total}; map written to {output}", err=True)
 
 
-@click.command()
+@click.command(short_help='Make texture images from an image, builtin:NAME or saved model(s)')
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
               help=f"{OUTPUT_HELP}); with --count > 1 numbered name_1.png, ...; - writes PNG "
@@ -442,7 +442,7 @@ def _synth_material(material, output, outputs, size, depth, *, rng, progress, ge
     write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)], progress)
 
 
-@click.command()
+@click.command(short_help='Describe a saved model: settings, dimensions, parameter count')
 @click.argument("model_file", metavar="MODEL")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def info(model_file, as_json):
