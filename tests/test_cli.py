@@ -504,3 +504,14 @@ def test_help_lists_each_command_on_one_whole_line_in_the_order_of_work(group, f
     assert [row.split()[0] for row in rows[:len(first)]] == first, out
     assert all(row.startswith("  ") and not row.startswith("   ") and not row.endswith("...") for row in rows), out
     assert all(len(row) <= 80 for row in rows), out
+
+
+@pytest.mark.parametrize("args, example", [(["fit", "builtin:bricks"], "-o bricks.npz"),
+                                           (["fit", "photos/wall.jpg"], "-o wall.npz"),
+                                           (["synth", "builtin:bricks"], "-o out.png"),
+                                           (["batch", "textures"], "-o results"),
+                                           (["cooc", "train", "builtin:bricks"], "-o cooc.pt")])
+def test_a_missing_output_names_what_to_give(args, example):
+    # A newcomer's `tghop fit texture.jpg` said only "Missing option '-o' / '--output'.", not what it takes.
+    r = run(*args)
+    assert_user_error(r, "Missing option '-o'", example, status=2)

@@ -221,7 +221,8 @@ class OneLineGroup(click.Group):
         except click.UsageError as exc:
             command = (exc.ctx.command_path if exc.ctx is not None and exc.ctx.command is not self
                        else self._command_path(sys.argv[1:] if args is None else list(args)))
-            fail(f"{_option_synonym(exc) or exc.format_message()} (see '{command} --help')", exc.exit_code)
+            message = _option_synonym(exc) or _missing_output(exc) or exc.format_message()
+            fail(f"{message} (see '{command} --help')", exc.exit_code)
         except click.ClickException as exc:
             fail(exc.format_message(), exc.exit_code)
         except KeyboardInterrupt as exc:
@@ -289,6 +290,27 @@ def _option_synonym(exc):
     if param not in {p.name for p in exc.ctx.command.params}:
         return None
     return f"No such option '{name}'; {hint}"
+
+
+def _missing_output(exc):
+    """The message of a usage error for a command run without its ``-o``, naming what to give
+    (click's own, "Missing option '-o' / '--output'.", says nothing of what it takes), or None."""
+    param = getattr(exc, "param", None)
+    if not isinstance(exc, click.MissingParameter) or exc.ctx is None or "-o" not in getattr(param, "opts", ()):
+        return None
+    command, exemplar = exc.ctx.command.name, exc.ctx.params.get("exemplar")
+    stem = str(exemplar).split(":", 1)[1] if str(exemplar).startswith("builtin:") else None
+    if command == "fit":
+        from pathlib import Path
+
+        what = f"the model file to write, e.g. -o {stem or (Path(exemplar).stem if exemplar else 'texture')}.npz"
+    elif command == "batch":
+        what = "the folder to write the results into, e.g. -o results"
+    elif command == "train":
+        what = "the checkpoint to write, e.g. -o cooc.pt"
+    else:
+        what = "the image to write, e.g. -o out.png"
+    return f"Missing option '-o': give {what}"
 
 
 #: Other names of the commands' tasks that an artist types (``tghop fill``), with the command to use.
