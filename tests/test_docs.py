@@ -90,3 +90,23 @@ def test_every_command_line_in_the_docs_takes_its_options(path):
         wrong += [f"{' '.join(command)} has no {option}: {line.strip()}" for option in OPTION.findall(line)
                   if option not in known]
     assert not wrong, wrong
+
+
+#: A time or memory figure: ``2.3 s``, ``~12 min``, ``0.6 GB``.
+FIGURE = re.compile(r"\b\d[\d.,]*\s?(?:ms|s|min|minutes|MB|GB)\b")
+#: A version label: ``(0.51)``, ``(2 cores, 0.51)``, ``0.13;``.
+VERSION = re.compile(r"(?<![\w.=-])0\.\d{1,2}(?:\.\d)?(?=[;),])")
+
+
+def test_every_figure_in_the_readmes_command_comments_names_its_version():
+    # The README's `--quality best` said "2.3 s at 256x256 (2 cores)" and the cooc and GPDM lines "about 15 min",
+    # "~12 min", with no word of the version that took them: a newcomer cannot tell a 0.1 figure from a 0.56 one.
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    unlabelled = []
+    for block in re.findall(r"^```sh\n(.*?)^```", text, re.S | re.M):
+        commands = re.split(r"\n(?=\S)", block)  # a command and the comment lines that continue it
+        for command in commands:
+            comment = " ".join(line.split("#", 1)[1] for line in command.splitlines() if "#" in line)
+            if FIGURE.search(comment) and not VERSION.search(comment):
+                unlabelled.append(command.splitlines()[0].strip())
+    assert not unlabelled, unlabelled

@@ -196,7 +196,7 @@ def cooc():
     """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
 
     \b
-    tghop cooc train texture.jpg -o model.pt            (small config: about 15 min on a 2-core CPU)
+    tghop cooc train texture.jpg -o model.pt            (small config: about 15 min on a 2-core CPU, 0.13)
     tghop cooc morph model.pt crop:0,0 crop:128,128 -o strip.png
     tghop cooc morph model.pt crop:0,0 crop:128,128 --grid 5x3 -o grid.png
     tghop cooc edit model.pt crop:0,0 crop:128,128 --size 256x512 -o edit.png
@@ -225,7 +225,7 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
     """Train the co-occurrence cGAN on EXEMPLAR (an image file or builtin:NAME).
 
     The small configuration (the default) trains 5,500 steps in about 15 minutes on a
-    2-core CPU; --max-minutes bounds that, --resume continues a stopped training.
+    2-core CPU (0.13); --max-minutes bounds that, --resume continues a stopped training.
     """
     progress = LossProgress(not quiet)
     with user_errors(progress):

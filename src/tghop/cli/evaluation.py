@@ -230,10 +230,10 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
     colour-noise   noise with the exemplar's colour mean and covariance (worst case)
     quilting       classic image quilting of the exemplar's own patches
     ustyuzhaninov  single-layer random CNN, Gram loss, L-BFGS (needs the metrics extra)
-    cooc           co-occurrence cGAN (Darzi et al.): trains first (about 15 min on a 2-core CPU),
+    cooc           co-occurrence cGAN (Darzi et al.): trains first (about 15 min on a 2-core CPU, 0.13),
                    or --model (a checkpoint of 'tghop cooc train'); metrics extra
     gpdm           GPDM (Elnekave & Weiss): patch sliced-Wasserstein matching, coarse to fine, Adam on the
-                   pixels; 12 levels x 300 steps: ~12 min at 128x128 on 2 busy cores (metrics extra)
+                   pixels; 12 levels x 300 steps: ~12 min at 128x128 on 2 busy cores (0.13; metrics extra)
 
     Sizes whose estimated memory exceeds the memory available are refused at once.
     """

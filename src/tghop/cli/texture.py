@@ -250,8 +250,9 @@ def clusters(model_file, exemplar, output, stride, quiet):
                    "to stdout.")
 @click.option("--size", type=Size(), default="256x256", show_default=True,
               help="Output HEIGHTxWIDTH, height first (1024x768 is 768 pixels wide), or one number for a square. "
-                   "At most 8192x8192 pixels in all (4096x16384 too). Cost on 2 cores: about 0.8 s and 0.2 GB at "
-                   "256x256, 3.8 s and 0.6 GB at 2048x2048, 2.7 minutes and 4.3 GB at 8192x8192.")
+                   "At most 8192x8192 pixels in all (4096x16384 too). Cost on 2 cores (0.39; 8192x8192: 0.14): "
+                   "about 0.8 s and 0.2 GB at 256x256, 3.8 s and 0.6 GB at 2048x2048, 2.7 minutes and 4.3 GB at "
+                   "8192x8192.")
 @click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
               help="Number of images.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
