@@ -253,3 +253,50 @@ def test_colours_clipped_to_srgb_are_counted_and_said(tmp_path, colours):
                                         + struct.pack(">I", zlib.crc32(b"iCCP" + body)) + png[33:])
     with pytest.warns(UserWarning, match=r"deep.png: .*'Test P3'; (3\d|4\d)% of its pixels hold colours outside sRGB"):
         load_image(tmp_path / "deep.png")
+
+
+def linear_png(pixels) -> bytes:
+    """A PNG file's bytes (8 or 16 bits) whose only word on colour is a gAMA chunk of 1.0 (linear)."""
+    from tghop.imageio import write_png
+
+    buffer = io.BytesIO()
+    write_png(buffer, pixels)
+    return _with_chunk(buffer.getvalue(), b"gAMA", struct.pack(">I", 100000))
+
+
+#: A linear-light profile of sRGB's primaries (gamma 1.0), as tools tag data maps.
+LINEAR = matrix_profile("Linear sRGB", (0.4361, 0.2225, 0.0139), (0.3851, 0.7169, 0.0971),
+                        (0.1431, 0.0606, 0.7141), gamma=1.0)
+
+
+def test_a_data_map_is_read_as_stored_its_profile_and_gamma_not_applied(tmp_path, colours):
+    # 0.57: a normal map with a linear gAMA or a P3 or linear profile was converted as colours: vectors off unit length
+    from PIL import PngImagePlugin
+
+    info = PngImagePlugin.PngInfo()
+    info.add(b"gAMA", struct.pack(">I", 100000))
+    Image.fromarray(colours).save(tmp_path / "gamma.png", pnginfo=info)  # Pillow's own gAMA chunk
+    Image.fromarray(colours[..., 0]).save(tmp_path / "grey.png", pnginfo=info)
+    Image.fromarray(colours).save(tmp_path / "p3.png", icc_profile=P3)
+    Image.fromarray(colours).save(tmp_path / "linear.tif", icc_profile=LINEAR)
+    (tmp_path / "deep.png").write_bytes(linear_png(colours.astype(np.uint16) * 257))  # decoded by tghop itself
+    for name in ("gamma.png", "grey.png", "p3.png", "linear.tif", "deep.png"):
+        with pytest.warns(UserWarning, match=f"{name}: colours converted to sRGB"):  # a colour image: converted
+            load_image(tmp_path / name, dtype=None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # read as data: without a word
+            read = load_image(tmp_path / name, as_data=True)
+        want = colours[..., :1] if name == "grey.png" else colours
+        assert np.array_equal(np.round(read * 255), want), name
+    cmyk = Image.fromarray(colours).convert("CMYK")  # no data as stored: converted to RGB as without as_data
+    cmyk.save(tmp_path / "ink.tif")
+    with pytest.warns(UserWarning, match="CMYK"):
+        assert load_image(tmp_path / "ink.tif", dtype=None, as_data=True).shape == colours.shape
+
+
+def test_every_map_but_a_colour_one_is_data():
+    from tghop.map_names import is_data_map
+
+    assert all(is_data_map(n) for n in ("Rock_NormalGL", "rock_nor_gl_2k", "Rock_Roughness", "T_Rock_ORM", "height",
+                                        "Rock_AO", "metalness", "Rock_Specular", "mask", "dirt"))
+    assert not any(is_data_map(n) for n in ("Rock_Emission", "rock_diff_2k", "T_Rock_BC", "albedo"))

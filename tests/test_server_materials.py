@@ -379,3 +379,24 @@ def test_a_materials_maps_say_the_suffix_of_their_files_as_tghop_synth_names_the
     material = SimpleNamespace(names_=names, depths_=[8, 16, 8], normal_=[False, True, False])
     maps = {name: np.full((4, 5, 1 if "Rough" in name else 3), 0.5) for name in names}
     assert [m["suffix"] for m in encode_maps(maps, material)] == [None, "NormalGL", "Roughness"]
+
+
+def test_a_materials_maps_are_read_as_data_in_a_fit_and_a_fill(client, material_id):
+    # 0.57: a normal map with a linear gAMA chunk was converted as colours: its fit refused ("not unit vectors"),
+    # its fill's known pixels changed
+    from test_profiles import linear_png
+
+    maps = example_maps(data.bricks(SIZE, rng=3))
+    normal, height = to_uint8(maps["normal"]), to_uint8(maps["height"][..., 0])
+    fit(client, {**albedo_file(), "map:normal": ("bricks_normal.png", linear_png(normal)),
+                 "map:height": ("height.png", linear_png(height))})
+    hole = np.zeros((SIZE, SIZE), dtype=bool)
+    hole[30:60, 20:70] = True
+    picture, mask = png(to_uint8(data.bricks(SIZE, rng=3))), png(hole.astype(np.uint8) * 255)
+    r = client.post(f"/api/models/{material_id}/inpaint", files={
+        "image": ("p.png", picture), "mask": ("m.png", mask),
+        "map:normal": ("n.png", linear_png(normal)), "map:height": ("h.png", linear_png(height)), "seed": (None, "4")})
+    assert r.status_code == 200, r.text
+    got = {m["name"]: decode(m["png"]) for m in r.json()["maps"]}
+    np.testing.assert_array_equal(got["normal"][~hole], normal[~hole])
+    np.testing.assert_array_equal(got["height"][~hole][..., 0], height[~hole])

@@ -116,7 +116,7 @@ def _thumbnail(image, path):
 def _read_maps(maps, load_image) -> dict:
     """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``); an alpha
     channel that holds data fails the row (:func:`tghop.material.drop_opaque_alpha`)."""
-    from .map_names import is_normal_name, normal_convention
+    from .map_names import is_data_map, is_normal_name, normal_convention
     from .material import drop_opaque_alpha
     from .normals import upright_normal_map
 
@@ -125,7 +125,7 @@ def _read_maps(maps, load_image) -> dict:
         if Path(file).suffix.lower() == ".npz" or is_model_file(file):
             raise TGHopError(f"the map {name} ({file}) is {model_file_kind(file)}, not an image; list the map's image")
         image, depth = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True,
-                                  keep_alpha=True)
+                                  keep_alpha=True, as_data=is_data_map(name))
         image = drop_opaque_alpha(image, f"the map {name} ({file})")
         if is_normal_name(name):  # stored turned (EXIF): its vectors turned with its pixels
             image = upright_normal_map(image, file, convention=normal_convention(name),

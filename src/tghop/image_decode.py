@@ -290,7 +290,7 @@ def _drop_alpha(arr, mode, keep_alpha=False):
     return (arr[..., 0] if arr.ndim == 3 and arr.shape[2] == 1 else arr), mode
 
 
-def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False):
+def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=False, *, as_data=False):
     """Decode an open Pillow image into uint8 (or float for 16-bit) array; return (array, mode).
     With ``keep_alpha`` an image with alpha (or a palette or a transparent colour) is LA or RGBA.
 
@@ -302,6 +302,8 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     downscale : bool, reduce a larger image to ``max_pixels`` (a warning) instead of refusing it
     too_large_hint : str, the advice that ends the error for a larger image
     keep_alpha : bool, keep an alpha channel last
+    as_data : bool, the values as stored: no ICC profile or PNG gamma applied (a material's data map;
+        a CMYK image is converted all the same)
 
     Returns
     -------
@@ -334,8 +336,9 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
     if im.mode in ("L", "RGB") and "transparency" in im.info:  # a PNG's transparent colour: an alpha channel
         im = im.convert("LA" if im.mode == "L" else "RGBA")  # (0.55 kept its pixels without a word)
-    gamma = png_gamma(im.info)  # a PNG's gamma (gAMA) alone, not sRGB's: converted below
-    im = to_srgb(im, path.name)  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
+    gamma = None if as_data else png_gamma(im.info)  # a PNG's gamma (gAMA) alone, not sRGB's: converted below
+    if not as_data or im.mode == "CMYK":  # an ICC profile other than sRGB: its colours converted (tghop.profiles)
+        im = to_srgb(im, path.name)
     if im.mode == "CMYK":  # no usable profile: Pillow's formula below, R = (255 - C)(255 - K) / 255, no ink's colour
         warn(f"{path.name}: a CMYK image without a usable colour profile; its colours are converted to RGB by a "
              "simple formula and are only approximate; export it as RGB (sRGB) for exact colours", UserWarning,

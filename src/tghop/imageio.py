@@ -41,7 +41,7 @@ MAX_IMAGE_PIXELS = 8192 * 8192
 
 def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.float64,
                too_large_hint: str = "pass downscale=True to reduce it (or downscale it yourself)",
-               with_depth: bool = False, keep_alpha: bool = False) -> np.ndarray:
+               with_depth: bool = False, keep_alpha: bool = False, as_data: bool = False) -> np.ndarray:
     """Read an image file as a float array.
 
     Parameters
@@ -76,6 +76,12 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         Keep an alpha channel (no warning) as the last channel, at the colours' depth: ``C``
         is then 2 (grey and alpha) or 4 (RGBA); a palette image with transparency is read
         as RGBA (``tghop inpaint`` writes it back).
+    as_data : bool
+        The file holds data, not colours (a material's normal, height, roughness, metalness, AO or
+        packed map): its values are read as stored, without a word; an ICC profile and a PNG's gamma
+        (gAMA) are not applied (:mod:`tghop.profiles` converts a colour image's), since converting
+        would corrupt them (a normal map's vectors would no longer be unit length). A CMYK image,
+        whose stored values are no data, is converted to RGB as without it.
 
     Returns
     -------
@@ -115,15 +121,18 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         deep = read_deep(path, max_pixels, keep_alpha=True)  # an alpha dropped below, its transparency told
         if deep is not None:
             (arr, mode, depth), (orientation, profile, gamma) = deep, file_header(path)
-            arr = deep_to_srgb(upright(arr, orientation), profile, path.name)  # a colour profile: sRGB
-            arr = gamma_to_srgb(arr, gamma, path.name, alpha=bool(mode))  # a PNG's gamma alone: sRGB
+            arr = upright(arr, orientation)
+            if not as_data:  # a colour image: its profile, else a PNG's gamma alone, converted to sRGB
+                arr = deep_to_srgb(arr, profile, path.name)
+                arr = gamma_to_srgb(arr, gamma, path.name, alpha=bool(mode))
             hidden = None
             if mode and not keep_alpha:
                 hidden = transparent_share(arr[..., -1])
                 arr = arr[..., :-1] if arr.shape[2] > 2 else arr[..., 0]
         else:
             with open_image(path) as im:  # our own limit applies (Pillow's warning of it hidden on the main thread)
-                arr, mode = decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha)
+                arr, mode = decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha,
+                                          as_data=as_data)
                 depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
                 hidden = (None if keep_alpha or not has_alpha(mode) or im.width * im.height > max_pixels
                           else transparent_share(np.asarray((im if "A" in im.getbands() else im.convert("RGBA"))

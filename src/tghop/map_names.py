@@ -20,7 +20,7 @@ from ._common import TGHopError
 
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
            "name_kind", "map_name", "colour_map_out_of_place", "MapNameClashError", "check_map_names",
-           "is_normal_name", "normal_convention"]
+           "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -46,6 +46,10 @@ MAP_KINDS = {
     "emission": ("emission", "emissive"),
     "packed": ("orm", "arm", "rma", "mra"),
 }
+#: The kinds of map (:data:`MAP_KINDS`) that hold colours, read as the albedo is (an ICC profile or a
+#: PNG's gamma converted to sRGB, :mod:`tghop.profiles`): the albedo's and an emission map's, as
+#: Blender's Node Wrangler sets every other map's colour space to Non-Color.
+COLOUR_KINDS = (ALBEDO, "emission")
 #: Words after a normal map's name that say its convention (Poly Haven's ``rock_nor_gl_2k``): passed over.
 CONVENTION_WORDS = {"gl": "OpenGL", "ogl": "OpenGL", "opengl": "OpenGL", "dx": "DirectX", "directx": "DirectX"}
 
@@ -226,6 +230,32 @@ def is_normal_name(name: str) -> bool:
         in a normal map's word (``"rock_nor_dx_2k"``, ``"T_Rock_N"``).
     """
     return any(word in name.lower() for word in NORMAL_WORDS) or name_kind(name) == "normal"
+
+
+def is_data_map(name: str) -> bool:
+    """Whether a material's map of this name holds data rather than colours, and is read with its
+    values as stored (:func:`tghop.imageio.load_image`'s ``as_data``: no ICC profile or PNG gamma
+    applied): every map but one whose name :func:`name_kind` reads as one of :data:`COLOUR_KINDS`
+    (a name of no kind is data too; a normal map's, :func:`is_normal_name`, always). Converted as
+    colours, a normal map's vectors were no longer unit length, and a roughness's, metalness's or
+    height's values no longer what they measure (0.57).
+
+    Parameters
+    ----------
+    name : str
+        A map's name (:func:`map_name`).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from tghop.map_names import is_data_map
+    >>> [is_data_map(n) for n in ("Rock_NormalGL", "rock_rough_2k", "mask", "Rock_Emission")]
+    [True, True, True, False]
+    """
+    return is_normal_name(name) or name_kind(name) not in COLOUR_KINDS
 
 
 def normal_convention(name: str):

@@ -16,7 +16,8 @@ Converted: 8-bit RGB, RGBA (alpha kept as it is), palette and CMYK images whose 
 not sRGB, and 16-bit and float colour files, which tghop decodes itself, by the same transform
 sampled on a grid and interpolated (:func:`deep_to_srgb`). Left as they are: images without a
 profile, with an sRGB one under any name (a profile that maps a grid of colours onto themselves
-within one level), and grey ones.
+within one level), and grey ones. Not converted either: a material's maps other than its colours
+(normal, height, roughness...: data, read as stored, :func:`tghop.imageio.load_image`'s ``as_data``).
 """
 
 from __future__ import annotations

@@ -322,7 +322,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, load_image, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..map_names import is_normal_name, normal_convention
+    from ..map_names import is_data_map, is_normal_name, normal_convention
     from ..material import drop_opaque_alpha
     from ..normals import upright_normal_map
     from ..material_files import map_files
@@ -359,7 +359,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         if is_model_file(path):
             raise TGHopError(f"MAP {path} is {model_file_kind(path)}, not an image; give the map's image")
         maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, keep_alpha=True,
-                                              too_large_hint=HINT_DOWNSCALE_YOURSELF)
+                                              too_large_hint=HINT_DOWNSCALE_YOURSELF, as_data=is_data_map(name))
         maps[name] = drop_opaque_alpha(maps[name], f"MAP {path}")
         if (material.normal_[1 + names.index(name)] if material is not None else is_normal_name(name)):
             maps[name] = upright_normal_map(maps[name], path, convention=normal_convention(name), label=f"MAP {path}")

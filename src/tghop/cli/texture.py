@@ -55,20 +55,20 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
     content (:func:`tghop.normals.convention_of`), by name."""
     from ..imageio import load_image
-    from ..map_names import is_normal_name, normal_convention
+    from ..map_names import is_data_map, is_normal_name, normal_convention
     from ..material import Material, drop_opaque_alpha
     from ..normals import convention_of, upright_normal_map
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
-    def read(path, label):
+    def read(path, label, name=None):
         if is_model_file(path):
             raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image")
         if label == "EXEMPLAR":  # the albedo's alpha is transparency (warned of, as for a texture)
             return load_image(path, dtype=None, downscale=downscale, with_depth=True,
                               too_large_hint=HINT_DOWNSCALE_OPTION)
         image, depth = load_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
-                                  too_large_hint=HINT_DOWNSCALE_OPTION)
+                                  too_large_hint=HINT_DOWNSCALE_OPTION, as_data=is_data_map(name))
         return drop_opaque_alpha(image, f"{label} {path}"), depth
 
     refuse_albedo_as_map(map_paths, spec, label="--maps", albedo="EXEMPLAR")
@@ -79,7 +79,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
                      else read(spec, "EXEMPLAR"))
     maps, depths = {}, {"albedo": depth}
     for path, name in zip(map_paths, names):
-        maps[name], depths[name] = read(path, "--maps")
+        maps[name], depths[name] = read(path, "--maps", name)
         if is_normal_name(name):  # stored turned (EXIF): its vectors turned with its pixels
             maps[name] = upright_normal_map(maps[name], path, convention=normal_convention(name),
                                             label=f"--maps {path}")

@@ -80,19 +80,20 @@ def map_uploads(fields: dict) -> list:
 
 
 def read_maps(uploads, read, albedo_shape) -> tuple:
-    """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename, normal)``
+    """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename, normal, as_data)``
     returns ``(image, depth)`` (the server's upload reader; ``normal``: the map's name where it is a
-    normal map, for :func:`upright_map`, else None); a map of another height and
+    normal map, for :func:`upright_map`, else None; ``as_data``: read its values as stored,
+    :func:`tghop.map_names.is_data_map`); a map of another height and
     width than the albedo's, or a normal map by its name that holds no unit vectors
     (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
     from .._common import check_image
     from .._errors import TGHopError
-    from ..map_names import is_normal_name
+    from ..map_names import is_data_map, is_normal_name
     from ..material import check_normal_map
 
     maps, depths = {}, {}
     for name, filename, content in uploads:
-        image, depth = read(content, filename, name if is_normal_name(name) else None)
+        image, depth = read(content, filename, name if is_normal_name(name) else None, is_data_map(name))
         if image.shape[:2] != tuple(albedo_shape[:2]):
             h, w = albedo_shape[:2]
             raise RequestError(400, f"the map {name} ({filename}) is {image.shape[0]}x{image.shape[1]} but the "
@@ -215,7 +216,8 @@ def answer(accept: str, maps: list, size, seed) -> tuple:
 def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, tile, progress) -> tuple:
     """A material's inpaint or extend: ``picture`` (its albedo, of ``depth`` bits, grown already
     with ``grow``, ``(size, anchor)``, else None) and the maps sent as ``map:<name>`` (``uploads``,
-    as :func:`map_uploads` gives them; ``read(content, filename)`` -> ``(image, depth)``), filled
+    as :func:`map_uploads` gives them; ``read(content, filename, normal, as_data)`` -> ``(image, depth)``,
+    as :func:`read_maps` calls it), filled
     alike in ``hole`` (:func:`tghop.inpaint.inpaint_material`; the albedo's alpha channel kept,
     opaque in the hole): ``(the maps encoded (:func:`encode_maps`), (h, w))``, each at the depth of
     the file sent, as a texture's fill keeps its picture's and ``tghop inpaint --maps`` writes each
@@ -223,6 +225,7 @@ def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, ti
     size than the picture is 400."""
     from .._errors import TGHopError
     from ..inpaint import expand_canvas, inpaint_material, with_alpha
+    from ..map_names import is_data_map
 
     names = material.names_[1:]
     given = {name: (filename, content) for name, filename, content in uploads}
@@ -233,7 +236,7 @@ def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, ti
     shape = picture.shape[:2] if grow is None else (int(known.any(axis=1).sum()), int(known.any(axis=0).sum()))
     maps, depths = {}, {"albedo": depth}
     for name, normal in zip(names, material.normal_[1:]):
-        image, depths[name] = read(given[name][1], given[name][0], name if normal else None)
+        image, depths[name] = read(given[name][1], given[name][0], name if normal else None, is_data_map(name))
         if image.shape[:2] != shape:  # before it is grown: a map of another size would be grown to the same
             raise RequestError(400, f"the map {name} ({given[name][0]}) is {image.shape[0]}x{image.shape[1]} but the "
                                     f"picture is {shape[0]}x{shape[1]}; give maps of its size")

@@ -51,9 +51,9 @@ def prepare_fit(server, fields: dict):
     def read(path):
         return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
 
-    def read_map(path, normal=None):  # a map's alpha is data, not transparency: refused unless every pixel is opaque
+    def read_map(path, normal, as_data):  # a map's alpha is data, not transparency: refused unless all is opaque
         image, depth = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True,
-                                  keep_alpha=True)
+                                  keep_alpha=True, as_data=as_data)
         return materials.upright_map(drop_opaque_alpha(image, path.name), path, normal), depth
 
     upload = fields.pop("image", None)
@@ -95,8 +95,8 @@ def prepare_fit(server, fields: dict):
     params = {k: v for k, v in model.get_params().items()}
     if uploads:
         maps, depths = materials.read_maps(
-            uploads, lambda data, filename, normal: read_image(data, filename, lambda p: read_map(p, normal),
-                                                               notes=notes), image.shape)
+            uploads, lambda data, filename, normal, as_data: read_image(
+                data, filename, lambda p: read_map(p, normal, as_data), notes=notes), image.shape)
         joint = material_model(fit_params(options, api=True))  # channels for the maps too, as fit --maps
         materials.check_channels(joint, image, maps)
         model_id = materials.material_id(content, uploads, joint.get_params(), model_id_for)
