@@ -48,3 +48,18 @@ def test_a_1_bit_file_gives_a_black_and_white_image(tmp_path):
             "--clusters", "8", "--codewords", "40", "--stride", "4")
     assert r.returncode == 0, r.stderr.decode()
     assert set(np.unique(np.asarray(Image.open(tmp_path / "out.png")))) == {0, 255}
+
+
+def test_info_shows_a_two_level_exemplars_levels(tmp_path, small_model):
+    # 0.57: tghop info said nothing of them, though its images are snapped to them
+    two = np.where(black_and_white(), [0.9, 0.2, 0.1], [0.1, 0.3, 0.8])
+    save_model(TGHop(**SMALL).fit(two), tmp_path / "two.npz")
+    save_model(TGHop(**GREY).fit(black_and_white()), tmp_path / "bw.npz")
+    save_model(small_model, tmp_path / "m.npz")
+    said = {name: cli("info", tmp_path / name).stdout.decode() for name in ("two.npz", "bw.npz", "m.npz")}
+    assert "exemplar levels: two only, (0.1, 0.3, 0.8) and (0.9, 0.2, 0.1) (its images are snapped to them)" \
+        in said["two.npz"]
+    assert "exemplar levels: two only, 0 and 1 " in said["bw.npz"]
+    assert "exemplar levels" not in said["m.npz"]
+    as_json = {name: json.loads(cli("info", "--json", tmp_path / name).stdout) for name in ("bw.npz", "m.npz")}
+    assert as_json["bw.npz"]["exemplar_levels"] == [[0.0], [1.0]] and as_json["m.npz"]["exemplar_levels"] is None

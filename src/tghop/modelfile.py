@@ -103,7 +103,9 @@ def info_dict(model, params=None) -> dict:
     dimensions, channels, exemplar shape, parameter count (``params``: its
     :meth:`~tghop.TGHop.n_parameters`, when the caller already has it) and the coarse
     layout's factor (``layout_factor_used``: None without one) and the exemplar's bits per
-    channel (``exemplar_depth``: 8, 16 or 32; None when not recorded). What ``tghop info
+    channel (``exemplar_depth``: 8, 16 or 32; None when not recorded) and a two-level exemplar's
+    two levels (``exemplar_levels``: two lists of a value per channel in [0, 1], its images snapped
+    to them, :attr:`~tghop.TGHop.exemplar_levels_`; None for any other). What ``tghop info
     --json`` prints and the web server's ``GET /api/models/{id}`` answers."""
     if not isinstance(model, TGHop):
         raise TGHopError(f"info_dict: model must be a fitted TGHop (e.g. load_model(path)), got {type(model).__name__}")
@@ -111,11 +113,13 @@ def info_dict(model, params=None) -> dict:
         raise TGHopError(f"info_dict: params must be None or the model's n_parameters() (a dict), "
                          f"got {type(params).__name__}")
     params = model.n_parameters() if params is None else params
+    levels = getattr(model, "exemplar_levels_", None)
     return {"params": {k: v for k, v in model.get_params().items() if k != "rng"},
             "dims": model.dims_, "channels": model.channels_,
             "exemplar_shape": list(model.exemplar_shape_), "n_parameters": params,
             "layout_factor_used": None if model.layout_ is None else int(model.layout_.factor),
-            "fit_seed": fit_seed(model), "exemplar_depth": getattr(model, "exemplar_depth_", None)}
+            "fit_seed": fit_seed(model), "exemplar_depth": getattr(model, "exemplar_depth_", None),
+            "exemplar_levels": None if levels is None else np.asarray(levels, dtype=float).tolist()}
 
 
 def _check_path(path, caller: str, verb: str) -> None:

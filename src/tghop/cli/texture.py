@@ -470,6 +470,10 @@ def info(model_file, as_json):
     bits = "" if bits is None else ", float" if bits == 32 else f", {bits}-bit"
     click.echo(f"exemplar: {h}x{w}{scaled}, {c} channel{'s' if c > 1 else ''}{bits}; {model.n_patches_:,} training "
                f"patches of {model.patch_size}x{model.patch_size} at stride {model.stride}")
+    levels = getattr(model, "exemplar_levels_", None)
+    if levels is not None:  # a two-level exemplar (line art, a 1-bit file): its images hold these two only
+        low, high = (f"{v[0]:.4g}" if len(v) == 1 else "(" + ", ".join(f"{x:.4g}" for x in v) + ")" for v in levels)
+        click.echo(f"exemplar levels: two only, {low} and {high} (its images are snapped to them)")
     seed = info_dict(model, params)["fit_seed"]
     click.echo(f"fit seed: {seed}" if seed is not None else
                "fit seed: not recorded (fitted with a Generator, or by tghop 0.32 or older)")
