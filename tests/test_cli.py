@@ -141,7 +141,9 @@ def test_synth_refine_switch(model_path, workdir):
 
 def test_builtin_exemplar(workdir):
     r = run("fit", "builtin:nope", "-o", workdir / "x.npz")
-    assert_user_error(r, "unknown built-in exemplar", "bricks")
+    assert_user_error(r, "unknown built-in exemplar", "bricks", status=2)  # a usage error (0.56: status 1)
+    r = run("synth", "builtin:nope", "-o", workdir / "x.png", "--size", "32")
+    assert_user_error(r, "unknown built-in exemplar 'nope'; choose one of bricks, cells", status=2)
 
 
 def test_file_named_like_a_builtin(tmp_path):

@@ -317,12 +317,19 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
     ``with_depth``, and its bits per channel (8 for a built-in one).
 
     ``has_downscale``: the command has a ``--downscale`` option, so an image over the size
-    limit is answered with "pass --downscale"; otherwise with "downscale it first".
+    limit is answered with "pass --downscale"; otherwise with "downscale it first". ``builtin:NAME``
+    of an unknown NAME (and no such file) is a :class:`click.UsageError` (exit status 2, 0.57; it was 1),
+    as an unknown ``-o`` extension or option value is.
     """
-    from ..data import builtin
+    from ..data import BUILTIN, builtin
     from ..imageio import load_image
 
     if is_builtin(spec):
+        if spec.split(":", 1)[1] not in BUILTIN:  # a name of no built-in exemplar: a usage error (status 2), as a
+            try:                                   # choice's unknown value
+                builtin(spec.split(":", 1)[1])
+            except TGHopError as exc:
+                raise click.UsageError(str(exc)) from None
         if os.path.lexists(spec):
             warnings.warn(f"{spec} is read as the built-in exemplar, though a file of that name is here too; "
                           f"give ./{spec} to read the file")
