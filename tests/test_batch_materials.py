@@ -197,9 +197,11 @@ def test_a_materials_files_drop_the_prefix_its_maps_share_and_an_earlier_runs_na
         "exemplar.png", "rock.npz", "rock.png", "rock_h.png", "rock_n.png"]
 
 
-def test_a_rows_path_named_as_another_kind_of_map_is_warned_of_as_fit_warns(tmp_path):
-    # tghop fit Rock_Roughness.png --maps Rock_NormalGL.png warns that a roughness is fitted as the colour map;
-    # the same material as a manifest row was fitted without a word.
+def test_a_rows_path_named_as_another_kind_of_map_fails_or_is_warned_of_as_fit_refuses_or_warns(tmp_path):
+    # tghop fit Rock_Roughness.png --maps Rock_NormalGL.png warns that a roughness is fitted as the colour map, and
+    # refuses the colour map given after the maps, or a normal map as EXEMPLAR with no colour map; a manifest row
+    # of either was fitted anyway (a wrong material), with a warning. Now it fails as an input failure: the rest
+    # run, a rerun skips it until the row changes.
     src = tmp_path / "src"
     src.mkdir()
     albedo = data.bricks(64, rng=3)
@@ -207,15 +209,37 @@ def test_a_rows_path_named_as_another_kind_of_map_is_warned_of_as_fit_warns(tmp_
     save_image(albedo, src / "Rock_Color.png")
     save_image(maps["roughness"], src / "Rock_Roughness.png")
     save_image(maps["normal"], src / "Rock_NormalGL.png")
-    (src / "list.csv").write_text("path,name,maps\n"
-                                  "Rock_Roughness.png,no_colour,Rock_NormalGL.png\n"
-                                  "Rock_Roughness.png,swapped,Rock_Color.png;Rock_NormalGL.png\n"
-                                  "Rock_Color.png,right,Rock_Roughness.png;Rock_NormalGL.png\n")
-    results = batch.run(src / "list.csv", tmp_path / "out", size=SIZE, seed=1, fit=FIT, generate=GEN, workers=1)
-    said = {r["name"]: [w for w in r["warnings"] if "fitted as the material's colour map" in w] for r in results}
-    assert [r["status"] for r in results] == ["ok"] * 3, results
-    assert len(said["no_colour"]) == 1 and "Rock_Roughness.png is named as a roughness map" in said["no_colour"][0]
-    assert "no map of the row is named as the colour map" in said["no_colour"][0]
-    assert len(said["swapped"]) == 1 and "map Rock_Color.png is named as the colour map" in said["swapped"][0]
-    assert said["right"] == []
-    assert {r["name"]: r["warnings"] for r in results} == {r["name"]: r["warnings"] for r in ledger(tmp_path / "out")}
+    rows = ["path,name,maps",
+            "Rock_Roughness.png,no_colour,Rock_NormalGL.png",
+            "Rock_Roughness.png,swapped,Rock_Color.png;Rock_NormalGL.png",
+            "Rock_NormalGL.png,normal_first,Rock_Roughness.png",
+            "Rock_Color.png,right,Rock_Roughness.png;Rock_NormalGL.png"]
+    (src / "list.csv").write_text("\n".join(rows) + "\n")
+    args = ("batch", "src/list.csv", "-o", "out", "--workers", "1", "--size", "40x48", "--seed", "1", "-N", "6",
+            "-W", "30", "--stride", "4", "--pool", "300")
+    code, _, err, exc = invoke(*args, cwd=tmp_path)
+    assert code == 1 and isinstance(exc, SystemExit) and "Traceback" not in err, (err, exc)
+    lines = {r["name"]: r for r in ledger(tmp_path / "out")}
+    assert {n: (r["status"], r["cause"]) for n, r in lines.items()} == {
+        "no_colour": ("ok", None), "swapped": ("failed", "input"), "normal_first": ("failed", "input"),
+        "right": ("ok", None)}, lines
+    assert ("failed: swapped: the row's path Rock_Roughness.png is named as a roughness map and its map Rock_Color.png "
+            "as the colour map; the albedo comes first: swap them, Rock_Color.png as the row's path") in err
+    assert "failed: normal_first: the row's path Rock_NormalGL.png is named as a normal map and none of its maps" in err
+    assert "Error: 2 of 4 exemplars failed: swapped, normal_first" in err
+    assert not (tmp_path / "out" / "swapped").exists() and not (tmp_path / "out" / "normal_first").exists()
+    said = [w for w in lines["no_colour"]["warnings"] if "fitted as the material's colour map" in w]
+    assert len(said) == 1 and "Rock_Roughness.png is named as a roughness map" in said[0]
+    assert "no map of the row is named as the colour map" in said[0]
+    assert f"Warning: no_colour: {said[0]}" in err
+    assert lines["right"]["warnings"] == []
+    # A rerun skips both as failed before; the row swapped the right way round is tried again and made
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 1 and "2 skipped as failed before" in err and "failed: swapped" not in err, err
+    rows[2] = "Rock_Color.png,swapped,Rock_Roughness.png;Rock_NormalGL.png"
+    (src / "list.csv").write_text("\n".join(rows) + "\n")
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 1 and "1 skipped as failed before, their input and settings unchanged (normal_first" in err, err
+    again = ledger(tmp_path / "out")
+    assert again[-1]["name"] == "swapped" and again[-1]["status"] == "ok", again[-1]
+    assert len(again) == 5

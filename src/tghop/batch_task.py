@@ -134,10 +134,15 @@ def _read_maps(maps, load_image) -> dict:
     return out
 
 
-def _warn_colour_map(source, files) -> None:
+def _check_colour_map(source, files) -> None:
     """A manifest row's material whose path (the albedo) is named as another kind of map
-    (:func:`tghop.map_names.colour_map_out_of_place`: ``Rock_Roughness.png``): fitted as given, as
-    ``tghop fit --maps`` fits it, with a warning in the row's ledger line (fit warns or refuses)."""
+    (:func:`tghop.map_names.colour_map_out_of_place`) fails or is warned of as ``tghop fit --maps``
+    refuses or warns of it (``files``: the row's maps' files): a map of the row named as the colour
+    map (the two swapped), or the path named as a normal map and no map as the colour map (its
+    vectors would be modelled as the albedo's colours), is a :class:`~tghop.TGHopError` naming the
+    fix (0.56 fitted both without a word); the path named as another kind (``Rock_Roughness.png``)
+    and no map as the colour map is fitted as given, with a warning in the row's ledger line
+    (a material may have no colour map)."""
     from .map_names import colour_map_out_of_place
 
     found = colour_map_out_of_place(source, files)
@@ -145,12 +150,18 @@ def _warn_colour_map(source, files) -> None:
         return
     kind, colour = found
     albedo = Path(source).name
-    fix = (f"the row's map {Path(colour).name} is named as the colour map: list it as the row's path and {albedo} "
-           "among its maps" if colour is not None else "no map of the row is named as the colour map: tghop expects "
-           "the colour map as the row's path (named *_Color, *_BaseColor, *_Albedo, *_diff, ...), or rename the "
-           "file if it is the colour map")
+    if colour is not None:
+        raise TGHopError(f"the row's path {albedo} is named as a {kind} map and its map {Path(colour).name} as the "
+                         f"colour map; the albedo comes first: swap them, {Path(colour).name} as the row's path and "
+                         f"{albedo} among its maps")
+    if kind == "normal":
+        raise TGHopError(f"the row's path {albedo} is named as a normal map and none of its maps as the colour map "
+                         "(a normal map fitted as the albedo is modelled as colours, not unit vectors); give the "
+                         f"material's colour map as the row's path (e.g. Rock_Color.png) and {albedo} among its maps")
     warn(f"{albedo} is named as a {kind} map and fitted as the material's colour map (its images' albedo, "
-         f"NAME.png); {fix}", UserWarning)
+         "NAME.png); no map of the row is named as the colour map: tghop expects the colour map as the row's path "
+         "(named *_Color, *_BaseColor, *_Albedo, *_diff, ...), or rename the file if it is the colour map",
+         UserWarning)
 
 
 def one_line(exc: BaseException) -> str:
@@ -224,14 +235,14 @@ def process_exemplar(job: dict) -> dict:
             if Path(job["source"]).suffix.lower() == ".npz" or is_model_file(job["source"]):
                 kind = model_file_kind(job["source"])
                 raise TGHopError(f"{job['source']} is {kind}, not an image; list the exemplar image")
+            if job.get("maps"):  # the colour map out of place by the files' names: refused or said, as fit does
+                _check_colour_map(job["source"], [file for _, file in job["maps"]])
             raw, depth = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF,
                                     with_depth=True)
             image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])
             model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
             maps = _read_maps(job.get("maps"), load_image)
-            if maps:  # the colour map out of place by the files' names: fitted as given, said
-                _warn_colour_map(job["source"], [file for _, file in job["maps"]])
             t = time.time()
             if maps:
                 model = Material(model=material_model(fit)).fit(
