@@ -481,6 +481,7 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
                   slice(near[1].start - cols.start, near[1].stop - cols.start))
         kept.append(layer[inside].copy() if near[0].stop > near[0].start else layer[:0, :0].copy())
         del layer
+    levels = None if materials else _shared_levels([m for m, layer in zip(models, kept) if layer is not None])
     kept = [np.zeros((0, 0) + image.shape[2:], image.dtype) if layer is None else layer for layer in kept]
     report(progress, "join", 0, 1)
     shows = cut_regions(labels, weights, kept, keep, tile=tile, band=band)
@@ -503,7 +504,19 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
             if any(lv is not None for lv in joint):
                 maps[name] = snap_channels(maps[name], joint)
         return {name: _as_dtype(m, dtype) for name, m in maps.items()}
+    if levels is not None:  # the join's means of two-level layers, at their levels
+        snap_to_levels(image, levels, out=image)
     return _as_dtype(image, dtype, scratch=True)
+
+
+def _shared_levels(models):
+    """The two levels (:attr:`tghop.TGHop.exemplar_levels_`) every one of ``models`` (those in the
+    image) has, or None: where one has none or other levels, the join is left as it is (0.57; each
+    layer is at its own model's levels already, :meth:`tghop.TGHop.synthesize`)."""
+    levels = [getattr(m, "exemplar_levels_", None) for m in models]
+    if not levels or any(lv is None or not np.array_equal(lv, levels[0]) for lv in levels):
+        return None
+    return levels[0]
 
 
 def _channel_levels(material, i):

@@ -29,6 +29,8 @@ an exemplar), chosen so that they continue what surrounds them:
    never change), so that the pixels next to the known ones stay those matched to them.
 5. The patch refinement (:mod:`tghop.patch_refine`, the model's patch statistics) of the
    hole's surroundings, kept in the hole and faded in as the refinement.
+6. With a model of a two-level exemplar (:attr:`tghop.TGHop.exemplar_levels_`: a 1-bit file, line
+   art) each filled pixel goes to the nearer of its two levels, as its images' pixels do (0.57).
 
 With ``tile`` the image is a torus: blocks wrap around its edges and the filled image
 tiles seamlessly when the input does.
@@ -56,6 +58,7 @@ from ._arrays import check_int
 from ._common import TGHopError, check_is_fitted, check_keywords, check_rng, checked_image, one_blas_thread, report
 from .canvas import ANCHORS, expand_canvas
 from .hole_refine import refine_hole, stitch_hole
+from .masks import snap_to_levels
 from .layout import as_layout_progress, downsample, upsample
 from .patches import downsample_mask
 from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
@@ -390,7 +393,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     ndarray, shape of ``image``
         ``image``'s dtype for uint8 and uint16 (known pixels: the same levels; the hole's
         rounded to them: a 16-bit picture stays 16-bit), else float64 (known
-        pixels: the same values).
+        pixels: the same values). A model of a two-level exemplar (:attr:`tghop.TGHop.exemplar_levels_`:
+        a 1-bit file, line art) fills the hole with its two levels only, as its images are (0.57).
     """
     check_is_fitted(model, "ichm_")
     p = int(model.patch_size)
@@ -441,7 +445,11 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         result = refined if alpha is None else filled + alpha * (refined - filled)
     if patch_refine != 0 and getattr(model, "patches_", None) is not None:
         result = _patch_refine_hole(result, hole, model.patches_, patch_refine, tile, alpha, progress)
-    return _into(original, hole, result[hole])
+    values = result[hole]
+    levels = getattr(model, "exemplar_levels_", None)
+    if levels is not None:  # a two-level exemplar's model: the hole at its two levels, as synthesize's images (0.57)
+        values = snap_to_levels(values[None], levels)[0]
+    return _into(original, hole, values)
 
 
 def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, blend=3, progress=None, **options):
@@ -481,7 +489,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     from collections.abc import Mapping
 
     from .material import Material, renormalise
-    from .masks import snap_channels, snap_to_levels
+    from .masks import snap_channels
 
     if not isinstance(material, Material):
         raise TGHopError(f"inpaint_material takes a tghop.material.Material, got {type(material).__name__}; "
