@@ -209,11 +209,13 @@ def test_a_rows_path_named_as_another_kind_of_map_fails_or_is_warned_of_as_fit_r
     save_image(albedo, src / "Rock_Color.png")
     save_image(maps["roughness"], src / "Rock_Roughness.png")
     save_image(maps["normal"], src / "Rock_NormalGL.png")
+    save_image(albedo, src / "Wall_Normal.png")  # a colour map misnamed: renamed, the same bytes, it is made
     rows = ["path,name,maps",
             "Rock_Roughness.png,no_colour,Rock_NormalGL.png",
             "Rock_Roughness.png,swapped,Rock_Color.png;Rock_NormalGL.png",
             "Rock_NormalGL.png,normal_first,Rock_Roughness.png",
-            "Rock_Color.png,right,Rock_Roughness.png;Rock_NormalGL.png"]
+            "Rock_Color.png,right,Rock_Roughness.png;Rock_NormalGL.png",
+            "Wall_Normal.png,misnamed,Rock_Roughness.png"]
     (src / "list.csv").write_text("\n".join(rows) + "\n")
     args = ("batch", "src/list.csv", "-o", "out", "--workers", "1", "--size", "40x48", "--seed", "1", "-N", "6",
             "-W", "30", "--stride", "4", "--pool", "300")
@@ -222,24 +224,26 @@ def test_a_rows_path_named_as_another_kind_of_map_fails_or_is_warned_of_as_fit_r
     lines = {r["name"]: r for r in ledger(tmp_path / "out")}
     assert {n: (r["status"], r["cause"]) for n, r in lines.items()} == {
         "no_colour": ("ok", None), "swapped": ("failed", "input"), "normal_first": ("failed", "input"),
-        "right": ("ok", None)}, lines
+        "right": ("ok", None), "misnamed": ("failed", "input")}, lines
     assert ("failed: swapped: the row's path Rock_Roughness.png is named as a roughness map and its map Rock_Color.png "
             "as the colour map; the albedo comes first: swap them, Rock_Color.png as the row's path") in err
     assert "failed: normal_first: the row's path Rock_NormalGL.png is named as a normal map and none of its maps" in err
-    assert "Error: 2 of 4 exemplars failed: swapped, normal_first" in err
+    assert "Error: 3 of 5 exemplars failed: swapped, normal_first, misnamed" in err
     assert not (tmp_path / "out" / "swapped").exists() and not (tmp_path / "out" / "normal_first").exists()
     said = [w for w in lines["no_colour"]["warnings"] if "fitted as the material's colour map" in w]
     assert len(said) == 1 and "Rock_Roughness.png is named as a roughness map" in said[0]
     assert "no map of the row is named as the colour map" in said[0]
     assert f"Warning: no_colour: {said[0]}" in err
     assert lines["right"]["warnings"] == []
-    # A rerun skips both as failed before; the row swapped the right way round is tried again and made
+    # A rerun skips them as failed before; the row swapped the right way round is tried again and made, and so is
+    # the one whose path was renamed (its bytes, and so the ledger's hash, the same)
     code, _, err, _ = invoke(*args, cwd=tmp_path)
-    assert code == 1 and "2 skipped as failed before" in err and "failed: swapped" not in err, err
+    assert code == 1 and "3 skipped as failed before" in err and "failed: swapped" not in err, err
     rows[2] = "Rock_Color.png,swapped,Rock_Roughness.png;Rock_NormalGL.png"
+    (src / "Wall_Normal.png").rename(src / "Wall_Color.png")
+    rows[5] = "Wall_Color.png,misnamed,Rock_Roughness.png"
     (src / "list.csv").write_text("\n".join(rows) + "\n")
     code, _, err, _ = invoke(*args, cwd=tmp_path)
     assert code == 1 and "1 skipped as failed before, their input and settings unchanged (normal_first" in err, err
-    again = ledger(tmp_path / "out")
-    assert again[-1]["name"] == "swapped" and again[-1]["status"] == "ok", again[-1]
-    assert len(again) == 5
+    again = {r["name"]: r for r in ledger(tmp_path / "out")[5:]}
+    assert {n: r["status"] for n, r in again.items()} == {"swapped": "ok", "misnamed": "ok"}, again

@@ -404,15 +404,18 @@ def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
 def is_known_failure(prev: dict | None, job: dict, version: str) -> bool:
     """Whether ``job`` failed in an earlier run (its last ledger line ``prev``) for a cause in its
     input (``cause`` "input": not an image, flat, too small, a bad map), which a rerun would only
-    repeat: the same inputs (their SHA-256, read), settings and tghop ``version``, and no
-    :data:`RUNNING` file left. A failure of the run's (memory, a lost worker, an interruption, an
-    unexpected error), or of a line written before causes were recorded, is not one: it is tried again."""
+    repeat: the same inputs (their SHA-256, read), settings and tghop ``version``, the same name of
+    the exemplar's file (0.57: a material's row fails by its files' names, a normal map as its path,
+    and a misnamed file renamed holds the same bytes), and no :data:`RUNNING` file left. A failure of
+    the run's (memory, a lost worker, an interruption, an unexpected error), or of a line written
+    before causes were recorded, is not one: it is tried again."""
     if not prev or prev.get("status") != "failed" or prev.get("cause") != "input" or job["sha256"] is None:
         return False
     if os.path.lexists(os.path.join(job["folder"], RUNNING)):
         return False
+    renamed = Path(str(prev.get("source", job["source"]))).name != Path(job["source"]).name
     return prev.get("sha256") == job["sha256"] and prev.get("settings") == job["settings"] \
-        and prev.get("version") == version
+        and prev.get("version") == version and not renamed
 
 
 def _listed_files(rec: dict) -> list:
