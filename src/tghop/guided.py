@@ -253,7 +253,9 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     -------
     ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
         For materials a dict ``name -> (H, W, c)`` array as
-        :meth:`tghop.material.Material.synthesize` gives, each map of that ``dtype``.
+        :meth:`tghop.material.Material.synthesize` gives, each map of that ``dtype``. Where every
+        model in the image has the same two levels (:attr:`tghop.TGHop.exemplar_levels_`), each
+        pixel is at one of them, the joins too (0.57).
     """
     models = _check_models(models, 1 if guide is not None else 2, materials=True)
     transition = check_int(transition, "transition", 0, MAX_TRANSITION)
@@ -316,6 +318,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     Returns
     -------
     ndarray, shape (H, W, C), ``dtype``
+        At the two models' two levels where both have the same (as :func:`synthesize_guided`).
     """
     models = _check_models([model_a, model_b], 2)
     h, w = check_size(size)
