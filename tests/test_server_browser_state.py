@@ -1,7 +1,8 @@
 """What ``tghop serve``'s page keeps when something is refused, in a real browser (Chromium through
 Playwright) against a real uvicorn server: a refused exemplar (not an image, flat, too small) or map
 set, a cancelled fit or a refused model file leaves the working model and its exemplar as they were,
-and "Add maps..." then refits that exemplar; maps added before any exemplar wait for it; nothing empty is
+and "Add maps..." then refits that exemplar; maps added before any exemplar, or of another size than the
+working one's, wait for it; nothing empty is
 shown before there is something to show (the tiling, a model file's exemplar caption); the canvases read
 back are made for it; the built-in the menu shows, picked again, is fitted again; Cancel works before the
 fit's job is known, says "cancelling" until the fit stops, and a reload withdraws the fit; the brush
@@ -101,14 +102,14 @@ def test_a_refused_exemplar_leaves_the_working_model_and_its_exemplar(page, tmp_
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
 
 
-def test_maps_of_another_size_leave_the_working_model(page, tmp_path):
+def test_a_refused_map_set_leaves_the_working_model(page, tmp_path):
     # A map set the server refused lost the working model (the page was left with none) and stayed listed.
     from tghop import data
     from tghop.imageio import to_uint8
 
     height = to_uint8(data.builtin("bricks")[..., 0])
     (tmp_path / "height.png").write_bytes(png(height))
-    (tmp_path / "small_normal.png").write_bytes(png(height[:64, :64]))
+    (tmp_path / "grey_normal.png").write_bytes(png(height))  # a normal map by its name, of 1 channel: refused
     fresh_page(page)
     page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
     assert page.text_content("#maps-list") == "maps: height"
@@ -119,9 +120,9 @@ def test_maps_of_another_size_leave_the_working_model(page, tmp_path):
     summary = page.text_content("#summary")
     assert "maps: albedo, 8-bit; height, 8-bit" in summary
     for listed in ("maps: height", ""):  # a material's maps replaced, then a texture model's maps added
-        page.set_input_files("#maps", str(tmp_path / "small_normal.png"))
+        page.set_input_files("#maps", str(tmp_path / "grey_normal.png"))
         said = wait_said(page, "not added")
-        assert "64x64" in said and "256x256" in said, said
+        assert "grey_normal" in said and "1 channel" in said, said
         assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
         assert page.text_content("#maps-list") == listed
         assert page.is_visible("#maps-clear") == bool(listed)
@@ -134,6 +135,44 @@ def test_maps_of_another_size_leave_the_working_model(page, tmp_path):
             wait_model(page, "model")
             summary = page.text_content("#summary")
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_maps_added_before_their_albedo_wait_for_it(page, tmp_path):
+    # A normal map added while another exemplar's model was working refitted that exemplar with it (400: another
+    # size), and the albedo picked next cleared it ("maps cleared: rock_normal went with builtin:bricks").
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    rock = data.builtin("cells")[:128, :160]
+    (tmp_path / "rock_normal.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
+    (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(rock)))
+    fits = []
+    page.on("request", lambda r: fits.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    fresh_page(page)
+    page.select_option("#builtin", "bricks")
+    wait_model(page, "model")
+    summary, sent = page.text_content("#summary"), len(fits)
+    for step in ("add", "drop", "add"):  # No maps drops maps that wait, the working model kept
+        if step == "add":
+            page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
+            said = wait_said(page, "wait for their albedo")
+            assert "rock_normal is 128x160, not the 256x256 of builtin:bricks" in said, said
+            assert page.text_content("#maps-list") == "maps for the next exemplar: rock_normal"
+        else:
+            page.click("#maps-clear")
+            assert "maps dropped" in wait_said(page, "dropped")
+            assert page.text_content("#maps-list") == "" and page.is_hidden("#maps-clear")
+        assert not page.eval_on_selector("#message", "e => e.classList.contains('error')")
+        assert page.is_enabled("#go") and len(fits) == sent
+        assert page.text_content("#summary") == summary and exemplar_shown(page) == ["bricks.png", True, 256]
+    page.set_input_files("#file", str(tmp_path / "rock_albedo.png"))  # their albedo: a material
+    wait_model(page, "material")
+    assert "exemplar 128x160" in page.text_content("#summary")
+    assert "normal (normal), 16-bit" in page.text_content("#summary")
+    assert page.text_content("#maps-list") == "maps: rock_normal"
+    assert not page.errors, page.errors
 
 
 def cancel_a_fit_of_cells(page):

@@ -44,7 +44,7 @@ function backToWorking(lead, undo, error = true) {
   const working = state.working;
   keepFocus($("cancel"), $("drop"));
   $("fit-status").hidden = true;
-  listMaps(undo.mapFiles);
+  listMaps(undo.mapFiles, undo.held);
   state.source = working ? working.source : null;
   state.pendingName = working ? working.name : null;
   $("builtin").value = (working && working.source && working.source.builtin) || "";
@@ -142,15 +142,70 @@ function mapsProblem(files) {
 }
 
 // The map files chosen (none: a texture model); the exemplar fitted last (the working one, or the one being
-// fitted) is fitted again with them. Refused, the maps chosen before stay. With no exemplar they wait for it.
-function setMapFiles(files) {
-  const undo = { mapFiles: state.mapFiles, maps: true };
+// fitted) is fitted again with them. Refused, the maps chosen before stay. With no exemplar they wait for it, and
+// so do maps of another size than the last exemplar's (their albedo still to come: the order of adding does not
+// matter); "No maps" then drops them, the working model kept.
+async function setMapFiles(files) {
+  const undo = { mapFiles: state.mapFiles, held: state.mapsHeld, maps: true };
   if (!useMapFiles(files)) return;
   const browsed = withdrawBuiltin();  // browsed to by keyboard, waiting: the exemplar these maps go with
+  const source = state.source, chosen = state.mapFiles;
+  if (!browsed && source && !chosen.length && undo.held) {
+    const kept = state.working ? ` (the model of ${state.working.name} stays)` : "";
+    say(`maps dropped: they were waiting for the next exemplar${kept}`);
+    return;
+  }
+  if (!browsed && source && chosen.length) {
+    const other = await otherSize(chosen, state.exemplarUrl);
+    if (state.source !== source || state.mapFiles !== chosen) return;  // another pick or maps meanwhile
+    if (other) { holdMaps(other, source); return; }
+  }
   if (browsed) fitBuiltin(browsed, undo);
-  else if (state.source && state.source.file) fitFile(state.source.file, undo);
-  else if (state.source && state.source.builtin) fitBuiltin(state.source.builtin, undo);
-  else if (state.mapFiles.length) say("pick or drop the albedo (exemplar) now: it is fitted with these maps");
+  else if (source && source.file) fitFile(source.file, undo);
+  else if (source && source.builtin) fitBuiltin(source.builtin, undo);
+  else if (chosen.length) say("pick or drop the albedo (exemplar) now: it is fitted with these maps");
+}
+
+// The height and width of an image (a File, or a URL) as the browser reads it, or null when it cannot.
+async function imageSize(image) {
+  try {
+    if (typeof image !== "string") {
+      const bitmap = await createImageBitmap(image);
+      const size = [bitmap.height, bitmap.width];
+      bitmap.close();
+      return size;
+    }
+    const img = new Image();
+    img.src = image;
+    await img.decode();
+    return [img.naturalHeight, img.naturalWidth];
+  } catch (e) {
+    return null;  // not known here: the server checks it
+  }
+}
+
+// The first map file whose size is not the exemplar's at `url` ({name, size, exemplar}), or null (all of its
+// size, or a size the browser cannot read: the server says).
+async function otherSize(files, url) {
+  const exemplar = url ? await imageSize(url) : null;
+  if (!exemplar) return null;
+  for (const file of files) {
+    const size = await imageSize(file);
+    if (size && (size[0] !== exemplar[0] || size[1] !== exemplar[1])) {
+      return { name: mapName(file.name), size, exemplar };
+    }
+  }
+  return null;
+}
+
+// Maps of another size than the last exemplar's (`other`: otherSize's) are not its: they wait for the next
+// exemplar picked or dropped (their albedo), the working model kept.
+function holdMaps(other, source) {
+  listMaps(state.mapFiles, true);
+  const whose = source.builtin ? `builtin:${source.builtin}` : source.file.name;
+  const kept = state.working ? `; the model of ${state.working.name} stays` : "";
+  say(`${other.name} is ${other.size.join("x")}, not the ${other.exemplar.join("x")} of ${whose}: the maps wait ` +
+      `for their albedo; pick or drop it now (it is fitted with them${kept})`);
 }
 
 // The map files to fit with the next exemplar, listed; false (said, the maps chosen before kept) when
@@ -164,10 +219,13 @@ function useMapFiles(files) {
   return true;
 }
 
-function listMaps(files) {
+// `held`: the maps wait for the next exemplar (state.mapsHeld), and the list says so.
+function listMaps(files, held = false) {
   state.mapFiles = files;
+  state.mapsHeld = Boolean(held && files.length);
   const names = files.map((f) => mapName(f.name));
-  $("maps-list").textContent = names.length ? `maps: ${names.join(", ")}` : "";
+  $("maps-list").textContent = !names.length ? ""
+    : `maps${state.mapsHeld ? " for the next exemplar" : ""}: ${names.join(", ")}`;
   if (!names.length) keepFocus($("maps-clear"), $("maps"));  // No maps, pressed: the focus goes to Add maps
   $("maps-clear").hidden = !names.length;
 }
@@ -179,7 +237,8 @@ function listMaps(files) {
 // exemplar picked again is fitted with them.
 function clearOthersMaps(source, whose) {
   const old = state.source, files = state.mapFiles;
-  if (!files.length || !old || (source && sameSource(old, source))) return;
+  if (state.mapsHeld && source) { listMaps(files); return; }  // waiting for this exemplar: now its maps
+  if (!files.length || !old || state.mapsHeld || (source && sameSource(old, source))) return;
   listMaps([]);
   $("maps-list").textContent = `maps cleared: ${files.map((f) => mapName(f.name)).join(", ")} went with ` +
     `${old.builtin ? `builtin:${old.builtin}` : old.file.name}, not ${whose}`;
@@ -204,7 +263,8 @@ function dropFiles(files) {
   }
   const named = files.filter((f) => ALBEDO_NAME.test(f.name.replace(/\.[^.]*$/, "")));
   const albedo = named.length === 1 ? named[0] : files[0];
-  const maps = files.filter((f) => f !== albedo), undo = { mapFiles: state.mapFiles, name: albedo.name };
+  const maps = files.filter((f) => f !== albedo);
+  const undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: albedo.name };
   if (!useMapFiles(maps)) return;
   fitFile(albedo, undo);
   say(`${files.length} files dropped: ${albedo.name} is the exemplar (the albedo), the others its maps ` +
@@ -340,7 +400,7 @@ async function cancelFit() {
 function fitFile(file, undo) {
   if (!file) return;
   if (!undo) {
-    undo = { mapFiles: state.mapFiles, name: file.name };
+    undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: file.name };
     clearOthersMaps({ file }, "this exemplar's");
   }
   state.source = { file };
@@ -355,7 +415,7 @@ function fitFile(file, undo) {
 function fitBuiltin(name, undo) {
   if (!name) return;
   if (!undo) {
-    undo = { mapFiles: state.mapFiles, name: `builtin:${name}` };
+    undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: `builtin:${name}` };
     clearOthersMaps({ builtin: name }, "this exemplar's");
   }
   state.source = { builtin: name };
@@ -396,7 +456,7 @@ async function uploadModel(file) {
   if (!file) return;
   dropRunningFit();
   const request = ++state.fitRequest;  // a fit whose answer is still on its way is replaced; so is this upload
-  const undo = { mapFiles: state.mapFiles, name: file.name };
+  const undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: file.name };
   clearOthersMaps(null, "the model file's");
   state.source = null;
   $("fit-status").hidden = true;
