@@ -11,7 +11,8 @@ off told beside it; each seed of the strip said once; a mask and a guide from fi
 with a mouse, by eye (0.57): a result that comes below the fold scrolled into view, the 8 seeds one row at 1024 px;
 Inpaint's Undo (a stroke, Clear, a Fill with its hole) and Paint's (a stroke, Reset); the built-in menu on its
 name's line; a material's files named without its albedo word;
-a result of several models captioned with them."""
+a result of several models captioned with them; a Fill of one's own picture undone showing that picture as the
+result; Extend pressed again growing the picture as much again."""
 
 import io
 import re
@@ -692,6 +693,75 @@ def test_inpaint_undoes_a_stroke_a_clear_and_a_fill(page):
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 
+
+
+def own_picture(page, name="mine.png"):
+    """Fit builtin:bricks, go to Inpaint mode and use a 48x64 picture of the user's own there: its pixels (RGB)."""
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    chromium.choose_mode(page, "view")
+    fit(page, "bricks")
+    chromium.choose_mode(page, "inpaint")
+    own = to_uint8(data.bricks(96, rng=4))[:48, :64]
+    page.set_input_files("#picture", files=[{"name": name, "mimeType": "image/png", "buffer": png(own)}])
+    page.wait_for_function("document.getElementById('mask').width === 64 && "
+                           "document.getElementById('editor').dataset.ready === '1'")
+    page.locator("#mask").scroll_into_view_if_needed()
+    return own
+
+
+def result_shown(page, caption):
+    page.wait_for_function("(c) => document.getElementById('result-caption').textContent === c &&"
+                           " document.getElementById('editor').dataset.ready === '1'", arg=caption, timeout=60_000)
+
+
+def test_undoing_a_fill_of_ones_own_picture_shows_that_picture_as_the_result(page):
+    # Undo brought the picture back to paint on, but the result and Download PNG still showed the filled one.
+    own = own_picture(page)
+    box = page.locator("#mask").bounding_box()
+    page.mouse.move(box["x"] + box["width"] * 0.2, box["y"] + box["height"] * 0.5)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.7, box["y"] + box["height"] * 0.5, steps=5)
+    page.mouse.up()
+    page.fill("#inpaint-seed", "2")
+    page.click("#fill")
+    result_shown(page, "inpainted: 48x64, seed 2")
+    page.click("#undo")
+    result_shown(page, "your picture: 48x64 (mine.png)")
+    assert page.text_content("#inpaint-message") == "fill undone: the picture before it, with its hole"
+    assert page.get_attribute("#download-png", "download") == "mine.png"
+    href = page.get_attribute("#download-png", "href")
+    assert href == page.get_attribute("#result", "src")
+    shown = np.array(page.eval_on_selector("#result", PIXELS)).reshape(48, 64, 4)[..., :3]
+    assert (shown == own).all() and page.eval_on_selector("#editor-base", PIXELS) == page.eval_on_selector(
+        "#result", PIXELS)
+    page.click("#fill")  # filled again (the hole came back), and undone again to the same picture
+    result_shown(page, "inpainted: 48x64, seed 2")
+    page.click("#undo")
+    result_shown(page, "your picture: 48x64 (mine.png)")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_extend_pressed_again_grows_the_picture_as_much_again(page):
+    # The grow-to fields kept the size just made, so Extend pressed again was refused until new numbers were typed.
+    own_picture(page, "wall.png")
+    page.fill("#inpaint-seed", "4")
+    page.fill("#extend-height", "")
+    page.fill("#extend-width", "96")
+    page.click("#extend-go")
+    result_shown(page, "extended: 48x96, seed 4")
+    assert [page.input_value("#extend-height"), page.input_value("#extend-width")] == ["48", "128"]
+    assert "Extend again to grow it as much again (to 48x128)" in page.text_content("#inpaint-message")
+    page.click("#extend-go")
+    result_shown(page, "extended: 48x128, seed 4")
+    assert [page.input_value("#extend-height"), page.input_value("#extend-width")] == ["48", "160"]
+    page.click("#undo")  # the extension undone: the fields are its size again, to try it with another seed
+    result_shown(page, "extended: 48x96, seed 4")
+    assert [page.input_value("#extend-height"), page.input_value("#extend-width")] == ["48", "128"]
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
 
 
 def test_the_built_in_menu_wraps_with_its_name(page):

@@ -47,10 +47,12 @@ function showResult(url, seed, blob, what, maps, name) {
   if (blob) setEditorPicture(blob, `${base}.png`, maps);  // a material's maps are filled alike
 }
 
+// `seed` null: a picture of the user's own (no seed said).
 function showPicture(url, what, seed, filename, of) {
   const img = $("result");
   img.onload = () => {
-    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}, seed ${seed}` +
+    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}` +
+      (seed === null ? "" : `, seed ${seed}`) +
       (of ? ` (${of})` : "");
     $("result-caption").hidden = false;
     drawTiled(img);

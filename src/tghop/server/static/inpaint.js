@@ -83,10 +83,28 @@ function undoInpaint() {
   const history = editor.history, p = step.picture;  // the picture before: shown again, its hole painted
   editor.pendingMask = step.mask;
   if (p.shown) showResult(URL.createObjectURL(p.blob), p.shown.seed, p.blob, p.shown.what, p.maps, p.shown.name);
-  else setEditorPicture(p.blob, p.name, p.maps);
+  else {
+    setEditorPicture(p.blob, p.name, p.maps);
+    showOwnPicture(p.blob, p.name);
+  }
+  if (p.grow) [$("extend-height").value, $("extend-width").value] = p.grow;  // that Extend, to try again
   editor.history = history;
   updateButtons();
   sayInpaint(`${p.undone} undone: the picture before it, with its hole`);
+}
+
+// A picture of the user's own that Undo brought back to paint on is the result again too (its tiling and Download
+// PNG, under its own name), not the fill or extension undone.
+function showOwnPicture(blob, name) {
+  if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
+  if (state.shown) for (const m of state.shown.maps) URL.revokeObjectURL(m.url);
+  const url = URL.createObjectURL(blob);
+  state.resultUrl = url;
+  state.lastShown = null;  // not a result: a Fill of it is undone to this again
+  state.resultTiles = false;
+  state.shown = null;
+  renderMaps();
+  showPicture(url, "your picture", null, name, name);
 }
 
 // Ctrl+Z (Cmd+Z) in Inpaint and Paint modes is their Undo, but in a text field (the browser's own undo of its text).
@@ -276,7 +294,8 @@ async function sendPicture(path, fields, what, size) {
   const canvas = $("mask"), history = editor.history;
   const before = { mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture: {
     blob: editor.blob, name: editor.name, maps: editor.maps, undone: path === "inpaint" ? "fill" : "extend",
-    shown: state.lastShown && state.lastShown.blob === editor.blob ? state.lastShown : null } };
+    shown: state.lastShown && state.lastShown.blob === editor.blob ? state.lastShown : null,
+    grow: path === "extend" ? size.map(String) : null } };
   showResult(URL.createObjectURL(blob), used, blob, what, maps,
              { models: [workingStem()], size, tile: $("inpaint-tile").checked });
   editor.history = [...history, before].slice(-UNDO_STEPS);
@@ -310,8 +329,11 @@ function onExtend() {
     sayInpaint("extending");
     const [used, warning] = await sendPicture("extend", [["size", `${h}x${w}`], ["anchor", $("extend-anchor").value]],
                                               "extended", [h, w]);
-    sayInpaint(withWarning(`extended to ${h}x${w} (seed ${used}): paint to fill, extend again, or download it`,
-                           warning));
+    // The fields go on to the next size, grown as much again: Extend pressed again is not refused as the picture's size
+    const next = [2 * Number(h) - ph, 2 * Number(w) - pw].map(String);
+    [$("extend-height").value, $("extend-width").value] = next;
+    sayInpaint(withWarning(`extended to ${h}x${w} (seed ${used}): paint to fill, Extend again to grow it as much ` +
+                           `again (to ${next.join("x")}), or download it`, warning));
   }, sayInpaint);
 }
 
