@@ -213,3 +213,35 @@ def test_delete_stops_a_running_generation(client, models, live_server):
     assert client.get(f"/api/jobs/{job}").json()["state"] == "cancelled"
     r = client.post(f"/api/models/{bricks}/images", json={"size": [16, 16], "seed": 3})
     assert r.status_code == 200  # the thread serves the next request
+
+
+def test_a_fits_bar_counts_the_stages_that_fit_reports(client, live_server):
+    # The bar's whole counted "hop 3" (64x64 patches only) in every fit, whose default has two hops, and gave a
+    # material's "maps" a guessed share beside it: a two-hop fit's bar stood at 0.90 as its last stage began.
+    import numpy as np
+
+    from conftest import png
+    from tghop import data
+    from tghop.imageio import to_uint8
+    from tghop.server.jobs import FIT_STAGES, Job, fit_stages
+
+    job = Job("a" * 64)
+    job.stages = fit_stages(2)
+    for stage in job.stages[:-1]:
+        job.progress(stage, 0, 1)
+        job.progress(stage, 1, 1)
+    job.progress("saving", 0, 1)
+    assert job.fraction() == pytest.approx(1 - FIT_STAGES["saving"] / sum(FIT_STAGES[s] for s in job.stages))
+    # A fit of the server expects the stages it reports: a texture model's, a material's (fast settings: no layout).
+    settings = {**{k: (None, v) for k, v in FAST_FIT.items()}, "max_patches": (None, "1400")}  # fitted nowhere else
+    height = png(to_uint8(np.asarray(data.builtin("cells"))[..., 0]))
+    for maps in ({}, {"map:height": ("height.png", height)}):
+        r = client.post("/api/models", files={"builtin": (None, "cells"), **settings, **maps})
+        assert r.status_code == 202, r.text
+        deadline = time.monotonic() + 120
+        while client.get(f"/api/jobs/{r.json()['job']}").json()["state"] != "done":
+            assert time.monotonic() < deadline, "the fit did not end"
+            time.sleep(0.1)
+        job = live_server.app.state.server.queue.get(r.json()["job"])
+        assert job.stages == tuple(client.get(f"/api/jobs/{job.id}").json()["stages"]), maps
+        assert ("maps" in job.stages) == bool(maps) and "hop 3" not in job.stages

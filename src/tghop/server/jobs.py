@@ -22,7 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from .requests import page_words
 
-__all__ = ["JOB_ID", "Cancelled", "QueueFull", "Job", "GenerationJob", "FitQueue", "STATES", "FIT_STAGES",
+__all__ = ["JOB_ID", "Cancelled", "QueueFull", "Job", "GenerationJob", "FitQueue", "STATES", "FIT_STAGES", "fit_stages",
            "GENERATION_STAGES", "generation_fraction", "unknown_snapshot"]
 
 #: A job's id: 32 hex digits.
@@ -33,9 +33,22 @@ STATES = ("queued", "running", "done", "failed", "cancelled")
 FINAL = ("done", "failed", "cancelled")
 
 #: The stages :meth:`tghop.TGHop.fit` reports, in order, and their share of the whole fit
-#: (rough times of a small fit): the progress bar's fraction.
+#: (rough times of a small fit): the progress bar's fraction. "hop 3" is a fit's of 64x64 patches only, "layout"
+#: one's with an exemplar large enough for its layout, "maps" a material's (:meth:`tghop.material.Material.fit`),
+#: "saving" the server's; a job counts those its fit will report (:func:`fit_stages`).
 FIT_STAGES = {"exemplar": 0.05, "hop 1": 0.1, "hop 2": 0.1, "hop 3": 0.05, "core": 0.05, "SDR": 0.05,
-              "clusters": 0.15, "ICA": 0.3, "CDF codebook": 0.1, "layout": 0.1, "saving": 0.05}
+              "clusters": 0.15, "ICA": 0.3, "CDF codebook": 0.1, "layout": 0.1, "maps": 0.05, "saving": 0.05}
+
+#: The share of a stage not in :data:`FIT_STAGES` (a guess, counted in the whole once it comes).
+OTHER_STAGE = 0.05
+
+
+def fit_stages(n_hops: int, *, material: bool = False) -> tuple:
+    """The stages a fit of ``n_hops`` hops reports, in order, then the server's "saving": a material's
+    "maps" after its joint model's. "layout", which a fit reports only when its exemplar is large enough
+    for the layout (after any working scale), is left out: a job counts it once it comes."""
+    return ("exemplar", *(f"hop {i}" for i in range(1, n_hops + 1)), "core", "SDR", "clusters", "ICA",
+            "CDF codebook", *(("maps",) if material else ()), "saving")
 
 
 #: The stages a generation reports (:meth:`tghop.TGHop.synthesize`, :func:`tghop.inpaint.inpaint`,
@@ -128,6 +141,9 @@ class Job:
         self.future = None
         self.on_cancel = None  # called (on any thread) once the job is asked to stop: a generation's wait ends
         self._seen = []  # stages in the order they came
+        # The stages the fit will report (fit_stages; set before it starts), or None: those of FIT_STAGES but
+        # "layout". Any other that comes (or "layout") is counted in the whole once it comes.
+        self.stages = None
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ reading
@@ -141,9 +157,10 @@ class Job:
             return 1.0
         if not self._seen:
             return 0.0
-        finished = sum(FIT_STAGES.get(s, 0.05) for s in self._seen[:-1])
-        current = FIT_STAGES.get(self.stage, 0.05) * (self.done / self.total if self.total else 0.0)
-        whole = sum(FIT_STAGES.values()) - (0 if "layout" in self._seen else FIT_STAGES["layout"])
+        finished = sum(FIT_STAGES.get(s, OTHER_STAGE) for s in self._seen[:-1])
+        current = FIT_STAGES.get(self.stage, OTHER_STAGE) * (self.done / self.total if self.total else 0.0)
+        expected = self.stages if self.stages is not None else (s for s in FIT_STAGES if s != "layout")
+        whole = sum(FIT_STAGES.get(s, OTHER_STAGE) for s in dict.fromkeys([*expected, *self._seen]))
         return max(0.0, min(0.99, (finished + current) / whole))
 
     def snapshot(self) -> dict:

@@ -11,7 +11,7 @@ import json
 from ..._errors import TGHopError
 from .. import materials
 from ..core import json_response
-from ..jobs import FINAL, JOB_ID, QueueFull, unknown_snapshot
+from ..jobs import FINAL, JOB_ID, QueueFull, fit_stages, unknown_snapshot
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
 from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, depth_note, each_file_within, read_body, read_form, read_image
 
@@ -103,6 +103,7 @@ def prepare_fit(server, fields: dict):
 
         def fit(progress):
             return Material(model=joint).fit(image, maps, depths={"albedo": depth, **depths}, progress=progress)
+        fit.stages = fit_stages(len(joint.check_channels(None)), material=True)
     else:
         model_id = model_id_for(content, params)
         if depth > 8:  # a material's maps keep their depths; a texture model's images are 8-bit
@@ -110,6 +111,7 @@ def prepare_fit(server, fields: dict):
 
         def fit(progress):
             return model.fit(image, depth=depth, progress=progress)  # recorded: its file tells tghop synth
+        fit.stages = fit_stages(len(model.check_channels(image.shape[2])))
     return model_id, (None if server.cache.has(model_id) else fit), notes
 
 
@@ -118,6 +120,7 @@ def fit_work(server, model_id: str, fit):
     from ...modelfile import save_model
 
     def work(job):
+        job.stages = getattr(fit, "stages", None)  # before any progress: the fraction's whole
         model = fit(job.progress)
         job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
         save_model(model, server.cache.path(model_id))
