@@ -6,7 +6,10 @@ Starlette and uvicorn (the ``web`` extra) are imported only when the command run
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -78,6 +81,62 @@ def _bind(host: str, port: int):
     return sock
 
 
+#: The signals that stop the server as Ctrl-C does: gracefully, with the one line "tghop server stopped".
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _server(app):
+    """The uvicorn server of ``tghop serve`` for ``app``: every stop signal, at any moment of its start, its run
+    or its stop and however many come, asks for one graceful stop, the application's shutdown included.
+
+    uvicorn's own handling did otherwise: a second Ctrl-C during the stop (a terminal's, or ``timeout -s INT``,
+    which signals the process and then its group) skipped the application's shutdown (its fit queue and
+    threads), and the signals it had caught were raised again, to the command's handlers, while the event
+    loop still ran: the KeyboardInterrupt then cancelled the application's lifespan, logged with a
+    traceback. SIGHUP (the terminal closed) reached the command's handler in the middle of the loop, with
+    the same traceback.
+    """
+    import uvicorn
+
+    class Server(uvicorn.Server):
+        ignored = frozenset()
+
+        def handle_exit(self, sig, frame):
+            # Not uvicorn's: neither a force_exit that skips the lifespan's shutdown nor a signal to raise
+            # again after the run; an ignored signal (nohup, `tghop serve &` in a script) stays ignored.
+            if sig not in self.ignored:
+                self.should_exit = True
+
+        @contextmanager
+        def stop_signals(self):
+            """From here to the end of the block the stop signals call :meth:`handle_exit` (uvicorn's
+            capture of them does the same while it runs): a Ctrl-C before the run starts makes it stop as
+            soon as it has started. The handlers before are put back at the end (none where this is not
+            the main thread, which alone receives signals)."""
+            self.ignored = set()
+            before = {}
+            if threading.current_thread() is threading.main_thread():
+                for signum in STOP_SIGNALS:
+                    handler = signal.getsignal(signum)
+                    if handler == signal.SIG_IGN:
+                        self.ignored.add(signum)
+                    elif handler is not None:  # None: a handler not set from Python, which could not be put back
+                        before[signum] = signal.signal(signum, self.handle_exit)
+            try:
+                yield
+            finally:
+                for signum, handler in before.items():
+                    signal.signal(signum, handler)
+
+        async def shutdown(self, sockets=None):
+            # Requests still waiting for a generation answer 503 now (JSON): none is left for
+            # uvicorn to cancel when timeout_graceful_shutdown runs out (a traceback, a text 500).
+            app.state.server.stop()
+            await super().shutdown(sockets=sockets)
+
+    return Server(uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on"))
+
+
 @click.command(short_help='Start the local web page: fit, generate and download in a browser')
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Address to listen on. Any other than 127.0.0.1, localhost or ::1 lets other machines use the "
@@ -113,8 +172,6 @@ def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes, de
         require_web(server=True)
         import logging
 
-        import uvicorn
-
         # python-multipart logs a warning of its own for some malformed bodies, which the client is
         # answered (400): the terminal shows the server's address and its end, not the clients' mistakes.
         for name in ("python_multipart", "multipart"):
@@ -123,39 +180,30 @@ def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes, de
         app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host, max_decodes=max_decodes,
                          decodes_waiting=decodes_waiting)
         sock = _bind(host, port)
-    bound = sock.getsockname()[1]
-    shown = f"[{host}]" if ":" in host else host
-    url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::', '') else shown}:{bound}/"
-    if host not in LOOPBACK:  # the addresses whose clients LocalOnly lets in
-        click.echo(f"Warning: listening on {host}: other machines on the network can use this server "
-                   "(it has no login); use --host 127.0.0.1 to keep it to this machine", err=True)
-    click.echo(f"tghop serving on {url} (models in {cache_dir}; Ctrl-C stops it)")
-    sys.stdout.flush()
-    if open_browser:
-        import webbrowser
-
-        webbrowser.open(url)
-    class Server(uvicorn.Server):
-        async def shutdown(self, sockets=None):
-            # Requests still waiting for a generation answer 503 now (JSON): none is left for
-            # uvicorn to cancel when timeout_graceful_shutdown runs out (a traceback, a text 500).
-            app.state.server.stop()
-            await super().shutdown(sockets=sockets)
-
-    config = uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on")
-    server = Server(config)
-    import numpy  # noqa: F401 - their BLAS libraries loaded, so that the limit below reaches them
-    import scipy.linalg  # noqa: F401
-    from threadpoolctl import threadpool_limits
-
+    server = _server(app)
     try:
-        # One BLAS thread for the whole process, held by this thread: generation in the
-        # request threads then gives the same image for the same seed whatever runs beside it
-        # (threadpoolctl's limit is the process's; a request thread's own would come and go).
-        with threadpool_limits(limits=1, user_api="blas"):
-            server.run(sockets=[sock])
-    except KeyboardInterrupt:  # a second Ctrl-C, or SIGTERM through the command's handler
-        pass
+        with server.stop_signals():  # from here on Ctrl-C, SIGTERM and SIGHUP stop the server, once
+            bound = sock.getsockname()[1]
+            shown = f"[{host}]" if ":" in host else host
+            url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::', '') else shown}:{bound}/"
+            if host not in LOOPBACK:  # the addresses whose clients LocalOnly lets in
+                click.echo(f"Warning: listening on {host}: other machines on the network can use this server "
+                           "(it has no login); use --host 127.0.0.1 to keep it to this machine", err=True)
+            click.echo(f"tghop serving on {url} (models in {cache_dir}; Ctrl-C stops it)")
+            sys.stdout.flush()
+            if open_browser:
+                import webbrowser
+
+                webbrowser.open(url)
+            import numpy  # noqa: F401 - their BLAS libraries loaded, so that the limit below reaches them
+            import scipy.linalg  # noqa: F401
+            from threadpoolctl import threadpool_limits
+
+            # One BLAS thread for the whole process, held by this thread: generation in the
+            # request threads then gives the same image for the same seed whatever runs beside it
+            # (threadpoolctl's limit is the process's; a request thread's own would come and go).
+            with threadpool_limits(limits=1, user_api="blas"):
+                server.run(sockets=[sock])
     finally:
         sock.close()
     click.echo("tghop server stopped", err=True)
