@@ -64,6 +64,24 @@ def test_a_running_server_stops_with_one_line(tmp_path, signals):
     _stopped(p, out, err, tmp_path)
 
 
+def test_ctrl_c_held_down_stops_once_to_the_end(tmp_path):
+    # A terminal that sends Ctrl-C again and again: the first stops the server, the others are ignored up to
+    # the end of the process (the command's convention), neither "Error: interrupted" nor, once Python has put
+    # the default action back as its interpreter shuts down, death by the signal (exit status -2).
+    p = _start(tmp_path)
+    try:
+        assert p.stdout.readline() == "go\n"
+        assert p.stdout.readline().startswith("tghop serving on ")
+        for _ in range(6000):
+            if p.poll() is not None:
+                break
+            p.send_signal(signal.SIGINT)
+            time.sleep(0.02)
+    finally:
+        out, err = _finish(p)
+    _stopped(p, out, err, tmp_path)
+
+
 def test_ctrl_c_at_any_moment_of_the_start_is_one_line(tmp_path):
     # Before the address is printed Ctrl-C stops the command as any other's ("Error: interrupted",
     # 130); from then on it stops the server, even before uvicorn has started it ("tghop server stopped", 0).

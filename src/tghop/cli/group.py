@@ -21,7 +21,7 @@ import click
 from .. import __version__
 from .common import Terminated, drop_stdout, fail, os_error_message, output_gone, stop_message
 
-__all__ = ["OneLineGroup", "main"]
+__all__ = ["OneLineGroup", "main", "after_a_stop"]
 
 #: Each command of ``tghop`` and the module of :mod:`tghop.cli` that defines it, imported
 #: when the command is run or listed (:class:`OneLineGroup` ``lazy_commands``): ``tghop
@@ -57,6 +57,14 @@ def _interrupted(signum, frame):
     ``Error: interrupted`` line; held Ctrl-C or a terminal sending several does that.)"""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     raise KeyboardInterrupt
+
+
+def after_a_stop(handler):
+    """The Ctrl-C handler to put back in place of ``handler`` once the command has stopped on a signal
+    it caught itself (``tghop serve``): SIG_IGN where ``handler`` is the command's own
+    (:func:`_interrupted`), which, having stopped the command, would ignore the Ctrl-Cs after it
+    to the end of the process; ``handler`` itself in a program that runs the command line in-process."""
+    return signal.SIG_IGN if handler is _interrupted else handler
 
 
 def _terminated(signum, frame):

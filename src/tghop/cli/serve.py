@@ -16,6 +16,7 @@ import click
 
 from .._errors import TGHopError
 from .common import check_stdout, user_errors
+from .group import after_a_stop
 
 __all__ = ["serve", "default_cache_dir", "ByteSize"]
 
@@ -100,19 +101,21 @@ def _server(app):
 
     class Server(uvicorn.Server):
         ignored = frozenset()
+        signalled = False
 
         def handle_exit(self, sig, frame):
             # Not uvicorn's: neither a force_exit that skips the lifespan's shutdown nor a signal to raise
             # again after the run; an ignored signal (nohup, `tghop serve &` in a script) stays ignored.
             if sig not in self.ignored:
-                self.should_exit = True
+                self.should_exit = self.signalled = True
 
         @contextmanager
         def stop_signals(self):
             """From here to the end of the block the stop signals call :meth:`handle_exit` (uvicorn's
             capture of them does the same while it runs): a Ctrl-C before the run starts makes it stop as
             soon as it has started. The handlers before are put back at the end (none where this is not
-            the main thread, which alone receives signals)."""
+            the main thread, which alone receives signals), the command's Ctrl-C handler as it would be had it
+            stopped the command itself (:func:`~tghop.cli.group.after_a_stop`)."""
             self.ignored = set()
             before = {}
             if threading.current_thread() is threading.main_thread():
@@ -122,9 +125,12 @@ def _server(app):
                         self.ignored.add(signum)
                     elif handler is not None:  # None: a handler not set from Python, which could not be put back
                         before[signum] = signal.signal(signum, self.handle_exit)
+            self.signalled = False
             try:
                 yield
             finally:
+                if self.signalled and signal.SIGINT in before:  # the Ctrl-Cs after the stop are ignored to the end
+                    before[signal.SIGINT] = after_a_stop(before[signal.SIGINT])
                 for signum, handler in before.items():
                     signal.signal(signum, handler)
 
