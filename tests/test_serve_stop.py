@@ -23,9 +23,19 @@ COMMAND = ("import sys\nsys.argv[0] = 'tghop'\nimport tghop\nprint('go', flush=T
            "from tghop.__main__ import run\nsys.exit(run())\n")
 
 
-def _start(tmp_path):
-    return subprocess.Popen([sys.executable, "-c", COMMAND, "serve", "--port", "0", "--cache", str(tmp_path / "cache")],
+def _start(tmp_path, command=COMMAND):
+    return subprocess.Popen([sys.executable, "-c", command, "serve", "--port", "0", "--cache", str(tmp_path / "cache")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _answering(url):
+    for _ in range(600):  # the server answers: uvicorn runs its main loop
+        try:
+            if httpx.get(url + "api", timeout=30).status_code == 200:
+                return
+        except httpx.TransportError:
+            time.sleep(0.05)
+    raise AssertionError("the server never answered")
 
 
 def _finish(p):
@@ -49,16 +59,26 @@ def test_a_running_server_stops_with_one_line(tmp_path, signals):
     p = _start(tmp_path)
     try:
         assert p.stdout.readline() == "go\n"
-        url = p.stdout.readline().split()[3]
-        for _ in range(600):  # the server answers: uvicorn runs its main loop
-            try:
-                if httpx.get(url + "api", timeout=30).status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.05)
+        _answering(p.stdout.readline().split()[3])
         for name in signals:  # each while the server stops (it waits at least 0.1 s for its connections)
             p.send_signal(getattr(signal, name))
             time.sleep(0.03)
+    finally:
+        out, err = _finish(p)
+    _stopped(p, out, err, tmp_path)
+
+
+def test_an_ignored_ctrl_c_stays_ignored(tmp_path):
+    # `tghop serve &` in a script ignores Ctrl-C, as every command does then; uvicorn stopped on it.
+    p = _start(tmp_path, "import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n" + COMMAND)
+    try:
+        assert p.stdout.readline() == "go\n"
+        url = p.stdout.readline().split()[3]
+        _answering(url)
+        p.send_signal(signal.SIGINT)
+        time.sleep(0.5)
+        assert httpx.get(url + "api", timeout=30).status_code == 200
+        p.send_signal(signal.SIGTERM)
     finally:
         out, err = _finish(p)
     _stopped(p, out, err, tmp_path)
