@@ -1,6 +1,6 @@
 """tghop: explainable, fast texture synthesis from one exemplar (TGHop, Lei et al. 2021)."""
 
-__version__ = "0.56.0"
+__version__ = "0.57.0"
 
 from ._errors import (ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError,
                       OpaqueAlphaWarning, TGHopError, TransparencyWarning)
