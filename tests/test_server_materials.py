@@ -231,6 +231,30 @@ def test_bad_maps_are_refused_before_a_fit_starts(client, files, words):
     assert_error(r, 400, *words)
 
 
+@pytest.mark.parametrize("exemplar, maps, words", [
+    # the colour map among the maps, the exemplar another kind: the two swapped (0.57, as tghop fit --maps)
+    ("Rock_Roughness.png", ["Rock_Color", "Rock_NormalGL"],
+     ["the exemplar Rock_Roughness.png is named as a roughness map and the map Rock_Color as the colour map",
+      "send Rock_Color's file as the exemplar and Rock_Roughness.png as a map"]),
+    # a normal map as the exemplar and no colour map: its vectors would be fitted as colours
+    ("rock_nor_gl_2k.png", ["rock_rough"],
+     ["the exemplar rock_nor_gl_2k.png is named as a normal map and no map as the colour map",
+      "send the material's colour map as the exemplar"]),
+])
+def test_a_colour_map_out_of_place_is_refused_before_a_fit_starts(client, exemplar, maps, words):
+    image = to_uint8(data.bricks(SIZE))
+    files = {"image": (exemplar, png(image)), **{f"map:{name}": (f"{name}.png", png(image)) for name in maps}}
+    message = assert_error(client.post("/api/models", files={**files, **{k: (None, v) for k, v in FAST_FIT.items()}}),
+                           400, *words)
+    assert "--maps" not in message and "tghop fit" not in message  # the page's words
+
+
+def test_a_materials_exemplar_named_as_another_map_is_still_fitted_without_a_colour_map(client):
+    # a material may have no colour map (tghop fit --maps warns, and fits it)
+    image = to_uint8(data.bricks(SIZE))
+    assert fit(client, {"image": ("Rock_Roughness.png", png(image)), "map:Rock_Height": ("h.png", png(image))})
+
+
 def test_a_materials_channel_count_out_of_range_is_refused_before_a_fit_starts(client):
     # K1 above what the stacked channels hold (albedo 3 + normal 3 + height 1 = 7: at most 28), as a
     # texture fit's: 422 naming the form field, not the job failing with the command line's --k1

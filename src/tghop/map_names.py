@@ -138,8 +138,8 @@ def map_name(path) -> str:
 def colour_map_out_of_place(albedo, maps):
     """Whether a material's files, by their names (:func:`map_kind`), give its colour map out of
     place: the albedo's file (the exemplar, first) named as another kind of map (``Rock_Roughness.png``).
-    ``tghop fit --maps``, ``inpaint``/``extend --maps`` and a batch manifest's row each word what
-    they say of it (refused or warned of).
+    ``tghop fit --maps``, ``inpaint``/``extend --maps``, a batch manifest's row and the web server's
+    fit with maps each word what they say of it (refused or warned of).
 
     Parameters
     ----------

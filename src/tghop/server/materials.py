@@ -30,9 +30,9 @@ import secrets
 from ..manifest import MAX_MAPS
 from .requests import RequestError, check_channel_counts, safe_name
 
-__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "read_maps", "upright_map", "check_channels",
-           "material_id", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart", "answer", "fill",
-           "META_PART"]
+__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "check_colour_map", "read_maps", "upright_map",
+           "check_channels", "material_id", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart",
+           "answer", "fill", "META_PART"]
 
 #: The multipart answer's first part: the maps' names, depths and normal flags as JSON (a map's
 #: name cannot begin with "_", so no map's part has this name).
@@ -77,6 +77,30 @@ def map_uploads(fields: dict) -> list:
     if len(out) > MAX_MAPS:
         raise RequestError(400, f"{len(out)} maps; a material takes at most {MAX_MAPS}")
     return out
+
+
+def check_colour_map(filename: str, uploads) -> None:
+    """400 where a material's colour map is out of place (:func:`tghop.map_names.colour_map_out_of_place`), as
+    ``tghop fit --maps`` and a batch manifest's row refuse it: the exemplar's file (``filename``, the albedo) named
+    as another kind of map and a map (``uploads``, :func:`map_uploads`) named as the colour map (the two swapped),
+    or the exemplar's file named as a normal map and no map as the colour map (its vectors would be modelled as
+    the albedo's colours). A map's kind is read from its name, which names it here (``f"{name}.png"``: the name
+    read whole, a ``.`` in it not taken for an extension)."""
+    from ..map_names import colour_map_out_of_place
+
+    found = colour_map_out_of_place(filename, [f"{name}.png" for name, _, _ in uploads])
+    if found is None:
+        return
+    kind, colour = found
+    if colour is not None:
+        colour = colour[:-len(".png")]
+        raise RequestError(400, f"the exemplar {filename} is named as a {kind} map and the map {colour} as the colour "
+                                f"map; the albedo comes first: send {colour}'s file as the exemplar and {filename} "
+                                "as a map")
+    if kind == "normal":
+        raise RequestError(400, f"the exemplar {filename} is named as a normal map and no map as the colour map (a "
+                                "normal map fitted as the albedo is modelled as colours, not unit vectors); send the "
+                                f"material's colour map as the exemplar (e.g. Rock_Color.png) and {filename} as a map")
 
 
 def read_maps(uploads, read, albedo_shape) -> tuple:

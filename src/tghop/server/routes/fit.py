@@ -80,6 +80,8 @@ def prepare_fit(server, fields: dict):
         filename, content = upload
         if not content:
             raise RequestError(400, f"{safe_name(filename, 'the upload')} is empty; send an image file")
+        if uploads:  # the colour map out of place: refused as tghop fit --maps refuses it
+            materials.check_colour_map(safe_name(filename, "exemplar"), uploads)
         image, depth = read_image(content, safe_name(filename, "exemplar"), read, notes=notes)
     try:
         image = prepare_exemplar(image)
