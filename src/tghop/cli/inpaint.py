@@ -172,9 +172,9 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     check_outputs([("-o", output)], [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):
         raise TGHopError(f"IMAGE {image} is a model file; give a picture as IMAGE (a model goes to --source)")
-    if image.startswith("builtin:") and not os.path.exists(image):
-        raise TGHopError(f"IMAGE {image} is a built-in exemplar, not a picture file; give a picture as IMAGE "
-                         f"(a built-in exemplar goes to --source)")
+    if image.startswith("builtin:") and not os.path.exists(image):  # the argument's bad value: a usage error (0.57)
+        raise click.UsageError(f"IMAGE {image} is a built-in exemplar, not a picture file; give a picture as IMAGE "
+                               f"(a built-in exemplar goes to --source)")
     source_is_model = source is not None and not is_builtin(source) and (
         source.lower().endswith(".npz") or is_model_file(source))
     if scale != 1 and (source is None or source_is_model):
