@@ -1,6 +1,7 @@
 """Conventions shared by every stage: randomness, progress, image arrays, sizes and the
 small estimator base class; also the errors, which live in :mod:`tghop._errors` and are
-re-exported here.
+re-exported here. The checks of array and number arguments (``check_array``, ``check_int``,
+``check_mask``) are :mod:`tghop._arrays`'s.
 
 Nothing here knows about TGHop itself; each pipeline module imports from here. Nothing
 here imports scikit-learn or SciPy: generating from a saved model, ``tghop info`` and

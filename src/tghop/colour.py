@@ -1,4 +1,6 @@
-"""Colour matching after quilting (our addition to TGHop, on by default).
+"""Colour matching after quilting (our addition to TGHop, on by default): run as the last step of
+:func:`tghop.generation.synthesize` where the patch refinement does not run (large images: region by
+region, :mod:`tghop.regions`; a material's maps: :mod:`tghop.material`).
 
 Generated textures lose contrast and colour saturation: cluster models pull samples
 towards their means, and quilting prefers smooth patches because they match any overlap

@@ -1,4 +1,5 @@
-"""Soft colour co-occurrence statistics (Darzi et al., Eq. 1-2) on NumPy arrays or torch tensors.
+"""Soft colour co-occurrence statistics (Darzi et al., Eq. 1-2) on NumPy arrays or torch tensors (the
+cGAN conditioned on them is :mod:`tghop.cooc`).
 
 After A. Darzi, I. Lang, A. Taklikar, H. Averbuch-Elor, S. Avidan, "Co-occurrence based
 texture synthesis" (``../shared/papers/003_db2109f0a38f9c15.txt``). Two users share these

@@ -1,4 +1,6 @@
-"""The generation pipeline of :meth:`TGHop.synthesize <tghop.synthesis.TGHop.synthesize>`, step by step.
+"""The image pipeline of :meth:`TGHop.synthesize <tghop.synthesis.TGHop.synthesize>`, step by step: from
+a fitted model to an image (new patches are drawn by :mod:`tghop.codec` and decoded by :mod:`tghop.pool`; the
+co-occurrence cGAN's generation is :mod:`tghop.cooc.generation`).
 
 From a fitted model to an image, in order (each step in its own module)::
 

@@ -1,4 +1,5 @@
-"""Several TGHop models in one image: painted regions, a remix, a morph (ours).
+"""Several TGHop models in one image: painted regions, a remix, a morph (ours). A painted guide is read
+into labels by :mod:`tghop.guides`; the regions' layers are joined by :mod:`tghop.composite`.
 
 Every function here makes one image from the *generated* patches of several fitted
 models (never pieces of an exemplar), with the quality steps of

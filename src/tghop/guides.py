@@ -1,5 +1,6 @@
-"""Painted guide maps: the region of every pixel (ours; :func:`tghop.synthesize_guided`, the
-web server's painted guides and the co-occurrence model's painted crops).
+"""Painted guide maps read into labels, the region of every pixel (ours): what :func:`tghop.synthesize_guided`
+(:mod:`tghop.guided`, which paints with the labels), the web server's painted guides and the co-occurrence
+model's painted crops read. Not the coarse guide that quilting follows (:mod:`tghop.layout`).
 
 A guide holds one grey level (or colour) per model, the darkest for the first. A map with
 soft (antialiased) or JPEG edges is read as its flat levels: each pixel of an edge's blend

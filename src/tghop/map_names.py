@@ -1,4 +1,5 @@
-"""The names of a material's maps: the kind of map a file's name says (:func:`map_kind`: albedo,
+"""The names of a material's maps, read from their input files' names (the output files' names are
+:mod:`tghop.material_files`'s): the kind of map a file's name says (:func:`map_kind`: albedo,
 normal, roughness, ... by :data:`MAP_KINDS`), a map's name made from its file's (:func:`map_name`),
 the check that no two maps are named alike (:func:`check_map_names`), and what a normal map's name
 says (:func:`is_normal_name`, :func:`normal_convention`). Names only: no image is read here (a map's

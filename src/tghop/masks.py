@@ -1,4 +1,8 @@
-"""A material's mask maps kept masks: a map whose exemplar holds only a few distinct values (a
+"""Images kept at a few pixel values, each pixel moved to the nearest: a material's mask maps and a
+two-level exemplar's images (:meth:`TGHop.synthesize <tghop.synthesis.TGHop.synthesize>`). Not a hole's
+mask (:func:`tghop.inpaint.check_hole`) nor the pixels left out with ``exclude`` (:func:`tghop.patches.check_exclude`).
+
+A material's mask map stays a mask: a map whose exemplar holds only a few distinct values (a
 metalness or opacity map of 0 and 1, a cut-out's 0, 0.5 and 1) comes out holding only those values.
 
 The joint model's patches, the map's refinement and its histogram matching all make values between

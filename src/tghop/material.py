@@ -1,5 +1,7 @@
 """Whole materials: an albedo and its maps (normal, roughness, height, ...) synthesised
-together, every map aligned with the others as in the exemplar.
+together, every map aligned with the others as in the exemplar. Beside it: :mod:`tghop.map_names`
+(what an input map's file name says), :mod:`tghop.material_files` (the output files' names),
+:mod:`tghop.normals` (a normal map's convention), :mod:`tghop.masks` (mask maps kept at their levels).
 
 How the maps stay aligned: one :class:`~tghop.synthesis.TGHop` model is fitted on the
 stacked channels of all maps (albedo RGB, normal RGB, roughness, ...: an (H, W, C) image

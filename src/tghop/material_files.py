@@ -1,4 +1,5 @@
-"""The files a material's maps are written to (:func:`map_files`): the albedo at the output
+"""The output files a material's maps are written to (:func:`map_files`; what an input map's file name
+says is :mod:`tghop.map_names`'s): the albedo at the output
 itself, ``OUT``, each other map at ``OUT_<suffix>``, its name without the material's name and
 resolution that the maps' names share, as an importer (Blender's Node Wrangler, a game
 engine's) reads a material's files: ``-o Rock.png`` of ``Rock023_2K_NormalGL`` and

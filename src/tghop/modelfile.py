@@ -1,4 +1,5 @@
-"""Model files: a fitted :class:`~tghop.synthesis.TGHop` as arrays plus JSON metadata.
+"""Model files: a fitted :class:`~tghop.synthesis.TGHop` as arrays plus JSON metadata, saved, and
+checked as they are loaded (:func:`load_model`: every array against the specs its part gives).
 
 The file is a NumPy ``.npz`` archive (any file name) read with ``allow_pickle=False``, so
 loading a file cannot run code. It holds:

@@ -1,6 +1,7 @@
 """A normal map's convention read from its content: OpenGL's (green up: Blender, Unity, glTF) or
 DirectX's (green down: Unreal), for telling an artist which one a file holds when its name does not
-say, or says the other (:mod:`tghop.material` keeps a normal map's convention, whichever it is).
+say, or says the other (:mod:`tghop.material` keeps a normal map's convention, whichever it is, and
+checks and renormalises its vectors; what a map's name says is :mod:`tghop.map_names`').
 
 A tangent-space normal map drawn from a height field holds its slopes: ``n_x / n_z = -dh/dx`` and
 ``n_y / n_z = -dh/dy`` with ``y`` down the rows (DirectX) or ``+dh/dy`` (OpenGL). A height field's

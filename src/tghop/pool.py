@@ -1,4 +1,5 @@
-"""The pool of generated patches that quilting reads, made from core-model vectors as it is read.
+"""The pool of generated patches that quilting reads, made from core-model vectors as it is read
+(the vectors are drawn by ``TGHop.sample_vectors``, :mod:`tghop.codec`, with :mod:`tghop.core`'s ICHM).
 
 A 256x256 image places about 100 of a 5,000-patch pool; :class:`GeneratedPool` decodes
 the pool a chunk at a time while quilting prepares its tables, and again for the few

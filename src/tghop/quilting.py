@@ -1,4 +1,6 @@
-"""Image quilting (Efros & Freeman 2001) of a pool of patches into an image of any size.
+"""Image quilting (Efros & Freeman 2001) of a pool of patches into an image of any size, each block
+pasted along a minimum-error cut through its overlap (:func:`min_error_boundary_cut`; a wavefront's cuts
+at once in ``quilt_prepared``); the steps in tone left across the cuts are removed by :mod:`tghop.seams`.
 
 TGHop generates a *pool* of texture patches; :func:`quilt` stitches them into the output
 image. It does not care where the patches come from: any ``(n, P, P, C)`` array works.

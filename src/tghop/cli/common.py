@@ -1,5 +1,6 @@
 """What every command of the ``tghop`` command line shares: progress bars, one-line
-errors, reading exemplars and checking output paths.
+errors (:func:`user_errors`: a :class:`~tghop.TGHopError` to one line and exit status 1),
+reading exemplars and checking output paths.
 
 The commands (:mod:`tghop.cli.texture`, :mod:`tghop.cli.evaluation`,
 :mod:`tghop.cli.cooc`) stand on this module and on :mod:`tghop.cli.options`; the group

@@ -1,4 +1,5 @@
-"""The ``tghop`` command group: every command of the command line, and how it fails.
+"""The ``tghop`` command group: every command of the command line, and how it fails (click's usage
+errors, exit status 2, here; a library error in a command, exit status 1: :func:`tghop.cli.common.user_errors`).
 
 Every command reports bad input as one line on stderr and a non-zero exit status, never
 a traceback, and never leaves a half-written output file. Progress bars go to stderr.

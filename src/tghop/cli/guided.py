@@ -137,7 +137,7 @@ def _fitted(source, options, progress, label):
 
 def _load_guide(path, size, size_given):
     """The guide map as an array, refused when it has not --size's shape (one line); of another
-    size, it is scaled to --size when its labels are read (:func:`tghop.guided.guide_labels`)."""
+    size, it is scaled to --size when its labels are read (:func:`tghop.guides.guide_labels`)."""
     from ..guides import same_shape
     from ..imageio import load_image
 

@@ -1,4 +1,5 @@
-"""Generation from a trained co-occurrence cGAN, and its controls.
+"""Generation from a trained co-occurrence cGAN, and its controls (its networks are
+:mod:`tghop.cooc.networks`; TGHop's own image pipeline is :mod:`tghop.generation`).
 
 :class:`GenerationMixin` holds the methods that make images from the generator; it is mixed
 into :class:`tghop.cooc.model.CoocGAN`, whose statistics and state it uses (``s``,

@@ -210,7 +210,7 @@ def parse_edit(body) -> tuple:
     without labels; at most :data:`MAX_COOC_PIXELS` pixels; None is returned for the labels'
     size); ``crops``: 1 to :data:`MAX_CROPS` positions ``[y, x]``,
     one per label; ``labels``: a PNG of ``size`` as base64, one flat grey level per crop, the
-    darkest for the first (:func:`tghop.guided.guide_labels`; may be left out with one crop);
+    darkest for the first (:func:`tghop.guides.guide_labels`; may be left out with one crop);
     ``boost``: ``[a, b, factor]`` or null (``tghop cooc edit --boost A,B,FACTOR``,
     :func:`tghop.cooc.boost_condition`); ``seed``; ``windows``.
     """
