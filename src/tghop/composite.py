@@ -1,4 +1,5 @@
-"""Painted regions joined along the content: a minimum cut through each edge's band (ours).
+"""Painted regions joined along the content: a minimum cut through each edge's band (ours; quilting's cuts
+between blocks are :mod:`tghop.quilting`'s).
 
 :func:`tghop.synthesize_guided` makes one *layer* per model, the model's own synthesis over
 the box its region reaches, and :func:`cut_regions` says which layer each pixel shows. A

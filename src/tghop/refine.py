@@ -1,4 +1,6 @@
-"""Refinement after stitching: match the exemplar's multi-scale statistics (our addition).
+"""Refinement after stitching: match the exemplar's multi-scale statistics (our addition). This is the band
+refinement; the patch refinement is :mod:`tghop.patch_refine`, a hole's :mod:`tghop.hole_refine`, a large
+image's, region by region, :mod:`tghop.regions`.
 
 Quilted TGHop images are soft: generated patches lose the contrast of fine detail, and
 quilting prefers smooth patches. Heeger & Bergen (1995) synthesise a texture by matching

@@ -1,4 +1,5 @@
-"""``tghop synth A B ... [--guide MAP]`` (several sources in one image) and ``tghop morph``."""
+"""``tghop synth A B ... [--guide MAP]`` (several sources in one image) and ``tghop morph``: the commands over
+:mod:`tghop.guided`."""
 
 from __future__ import annotations
 

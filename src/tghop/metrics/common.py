@@ -1,4 +1,5 @@
-"""What the metrics share: checking a pair of images, progress, patch sizes and samples."""
+"""What the metrics share: checking a pair of images, progress, patch sizes and samples (what every stage of
+the library shares is :mod:`tghop._common`; the commands, :mod:`tghop.cli.common`)."""
 
 from __future__ import annotations
 
