@@ -55,7 +55,11 @@ def wait_model(page, what):
 
 
 def exemplar_shown(page):
-    """The exemplar's picture as shown: [its src's end, loaded, its natural width] (None when hidden)."""
+    """The exemplar's picture as shown: [its src's end, loaded, its natural width] (None when hidden), once it
+    has loaded (a picture put back, as the working model's after a refusal, loads again: under load its
+    ``complete`` was read before it had)."""
+    page.wait_for_function("(() => { const i = document.getElementById('exemplar');"
+                           " return i.hidden || i.complete; })()", timeout=15_000)
     return page.eval_on_selector("#exemplar", "i => i.hidden ? null :"
                                  " [i.getAttribute('src').split('/').pop(), i.complete, i.naturalWidth]")
 
