@@ -4,7 +4,7 @@ the command line's help is made from it without loading NumPy); and the extensio
 files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
-           "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
+           "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile", "tifffile_quietly",
            "why_unreadable", "unread_format", "missing_decoder", "warn_frames"]
 
 #: Output formats chosen by file extension.
@@ -69,6 +69,22 @@ def model_file_kind(path) -> str:
             return COOC_CHECKPOINT if small and b"settings_json" in archive.read(pickles[0]) else "a PyTorch file"
     except (zipfile.BadZipFile, OSError, EOFError, NotImplementedError, ValueError):
         return "a model file"
+
+
+def tifffile_quietly():
+    """:mod:`tifffile`, imported (ImportError where it is not installed), its log kept off stderr: it
+    logs a malformed file's oddities as warnings (``<tifffile.TiffPage 0 @8> incorrect StripOffsets
+    count``), which Python, with no logging set up, prints as lines of their own beside a command's
+    one-line error (0.58). A :class:`logging.NullHandler` on its logger stops that last-resort
+    printing only: an application that sets up logging still gets the records."""
+    import logging
+
+    import tifffile
+
+    logger = logging.getLogger("tifffile")
+    if not any(isinstance(handler, logging.NullHandler) for handler in logger.handlers):
+        logger.addHandler(logging.NullHandler())
+    return tifffile
 
 
 def check_tifffile(path, depth):

@@ -141,7 +141,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise
     except Image.DecompressionBombError:
         raise InvalidImageError(f"{path}: the image header declares too many pixels to decode safely; "
-                                f"tghop reads at most {max_pixels:,} pixels") from None
+                                f"tghop reads at most {max_pixels:,} pixels: downscale it first (or, if it is "
+                                f"smaller, its header is corrupt: save it again)") from None
     except MemoryError:
         raise InvalidImageError(f"{path}: not enough memory to decode this image; downscale it first") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError, IndexError, TypeError,

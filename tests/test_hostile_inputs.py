@@ -1,0 +1,106 @@
+"""Hostile and broken image files made in code (a header declaring 100000x100000 pixels over a few
+bytes of data, a TIFF whose tags disagree): every command gives one ``Error:`` line that names the
+fix, a non-zero exit status, nothing else on the terminal and no output file."""
+
+import io
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from tghop.cli import main
+
+
+def png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def png_declaring(width: int, height: int) -> bytes:
+    """A PNG whose header declares ``width`` x ``height`` RGB pixels, with 1000 bytes of pixel data."""
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", header) + png_chunk(b"IDAT", zlib.compress(b"\0" * 1000))
+            + png_chunk(b"IEND", b""))
+
+
+def jpeg_declaring(side: int) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(buf, format="JPEG")
+    data = bytearray(buf.getvalue())
+    frame = data.find(b"\xff\xc0")  # baseline start of frame: length, precision, height, width
+    data[frame + 5:frame + 9] = struct.pack(">HH", side, side)
+    return bytes(data)
+
+
+def gif_declaring(side: int) -> bytes:
+    buf = io.BytesIO()
+    Image.new("P", (16, 16)).save(buf, format="GIF")
+    data = bytearray(buf.getvalue())
+    data[6:10] = struct.pack("<HH", side, side)  # the logical screen
+    return bytes(data)
+
+
+def tiff_declaring(tmp_path, side: int) -> bytes:
+    """A TIFF of one pixel whose ImageWidth and ImageLength tags say ``side``: its strip tags then
+    disagree with them, which tifffile logs as warnings."""
+    tifffile = pytest.importorskip("tifffile")
+    path = tmp_path / "one.tif"
+    tifffile.imwrite(path, np.zeros((1, 1), np.uint8))
+    data = bytearray(path.read_bytes())
+    first = struct.unpack("<I", data[4:8])[0]
+    for k in range(struct.unpack("<H", data[first:first + 2])[0]):
+        entry = first + 2 + 12 * k
+        tag, kind = struct.unpack("<HH", data[entry:entry + 4])
+        if tag in (256, 257):
+            data[entry + 8:entry + 12] = struct.pack("<HH", side, 0) if kind == 3 else struct.pack("<I", side)
+    return bytes(data)
+
+
+BOMBS = {"bomb.png": lambda tmp: png_declaring(100_000, 100_000), "bomb.jpg": lambda tmp: jpeg_declaring(65_000),
+         "bomb.gif": lambda tmp: gif_declaring(65_535), "bomb.tif": lambda tmp: tiff_declaring(tmp, 60_000)}
+
+
+def one_error_line(result, *fragments):
+    assert result.exit_code not in (0, None) and not isinstance(result.exception, (AssertionError, TypeError))
+    lines = result.output.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), result.output
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def small_model(tmp_path_factory):
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    path = tmp_path_factory.mktemp("model") / "m.npz"
+    save_model(TGHop(n_clusters=2, n_codewords=5, stride=4, max_patches=300, rng=0).fit(data.bricks(64, rng=3)), path)
+    return path
+
+
+@pytest.mark.parametrize("name", sorted(BOMBS))
+@pytest.mark.parametrize("command", ["fit", "synth", "inpaint-image", "inpaint-mask"])
+def test_a_header_declaring_too_many_pixels_is_one_line_naming_the_fix(tmp_path, small_model, monkeypatch, name,
+                                                                      command):
+    """0.57 ended the line at "tghop reads at most 67,108,864 pixels" (no fix), and printed
+    tifffile's logged warnings of the TIFF (``incorrect StripOffsets count``) as lines of their own:
+    with no logging set up (as in a shell; pytest's own handlers taken away), Python's last resort
+    prints them to stderr."""
+    import logging
+
+    monkeypatch.setattr(logging.root, "handlers", [])
+    bomb = tmp_path / name
+    bomb.write_bytes(BOMBS[name](tmp_path))
+    good = tmp_path / "good.png"
+    Image.fromarray((np.random.default_rng(0).random((64, 64, 3)) * 255).astype(np.uint8)).save(good)
+    out = tmp_path / ("out.npz" if command == "fit" else "out.png")
+    args = {"fit": ["fit", str(bomb), "-o", str(out)],
+            "synth": ["synth", str(bomb), "-o", str(out), "--size", "32x32"],
+            "inpaint-image": ["inpaint", str(bomb), str(good), "-o", str(out), "--source", str(small_model)],
+            "inpaint-mask": ["inpaint", str(good), str(bomb), "-o", str(out), "--source", str(small_model)]}[command]
+    result = CliRunner().invoke(main, args + ["-q"])
+    one_error_line(result, f"{name}: the image header declares too many pixels", "downscale it first")
+    assert not out.exists()
