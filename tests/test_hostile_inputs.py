@@ -104,3 +104,71 @@ def test_a_header_declaring_too_many_pixels_is_one_line_naming_the_fix(tmp_path,
     result = CliRunner().invoke(main, args + ["-q"])
     one_error_line(result, f"{name}: the image header declares too many pixels", "downscale it first")
     assert not out.exists()
+
+
+def deflated_bomb(path, unpacked: int, arrays=None):
+    """An .npz archive of ``arrays`` (stored) and one more member, ``bomb``: a float32 array of
+    ``unpacked`` bytes of zeros, deflated (about a thousandth of that in the file)."""
+    import zipfile
+
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, value in (arrays or {}).items():
+            buf = io.BytesIO()
+            np.save(buf, value)
+            archive.writestr(name + ".npy", buf.getvalue())
+        header = f"{{'descr': '<f4', 'fortran_order': False, 'shape': ({unpacked // 4},), }}"
+        header = header + " " * (118 - len(header)) + "\n"
+        info = zipfile.ZipInfo("bomb.npy")
+        info.compress_type = zipfile.ZIP_DEFLATED
+        with archive.open(info, "w", force_zip64=True) as member:
+            member.write(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode())
+            chunk = b"\0" * (1 << 22)
+            for _ in range(unpacked // len(chunk)):
+                member.write(chunk)
+    return path
+
+
+@pytest.mark.parametrize("command", ["info", "synth", "inpaint"])
+def test_a_model_file_that_unpacks_to_far_more_than_its_size_is_refused_before_it_is_unpacked(
+        tmp_path, small_model, monkeypatch, command):
+    """A 200 MB array of zeros deflated into 200 KB: 0.57 unpacked all of it (50 MB of such a file
+    would be 50 GB) before it found an array tghop does not know. save_model stores its arrays
+    uncompressed, so its own files are never near the bound."""
+    with np.load(small_model) as data:
+        arrays = {name: data[name] for name in data.files}
+    bomb = deflated_bomb(tmp_path / "bomb.npz", 200 * 1024**2, arrays)
+    assert bomb.stat().st_size < small_model.stat().st_size + 1024**2
+
+    def unpacked(*args, **kwargs):
+        raise AssertionError("np.load was called on the bomb")
+
+    monkeypatch.setattr(np, "load", unpacked)
+    out = tmp_path / "out.png"
+    good = tmp_path / "good.png"
+    Image.fromarray((np.random.default_rng(0).random((64, 64, 3)) * 255).astype(np.uint8)).save(good)
+    hole = np.zeros((64, 64), np.uint8)
+    hole[20:40, 20:40] = 255
+    Image.fromarray(hole).save(tmp_path / "mask.png")
+    args = {"info": ["info", str(bomb)], "synth": ["synth", str(bomb), "-o", str(out), "--size", "32x32", "-q"],
+            "inpaint": ["inpaint", str(good), str(tmp_path / "mask.png"), "-o", str(out), "--source", str(bomb),
+                        "-q"]}[command]
+    one_error_line(CliRunner().invoke(main, args), "bomb.npz: its arrays unpack to 2", "decompression bomb",
+                   "give a model file tghop wrote")
+    assert not out.exists()
+
+
+def test_a_model_file_deflated_by_another_program_still_loads(tmp_path, small_model):
+    """The bound is on unpacked size over the file's: a model zipped again with deflate (savez_compressed)
+    unpacks to a few times its size and is read as before."""
+    from tghop.modelfile import load_model
+
+    with np.load(small_model) as data:
+        arrays = {name: data[name] for name in data.files}
+    again = tmp_path / "deflated.npz"
+    np.savez_compressed(again, **arrays)
+    assert again.stat().st_size < small_model.stat().st_size
+    model, plain = load_model(again), load_model(small_model)
+    assert model.n_clusters == plain.n_clusters
+    small = deflated_bomb(tmp_path / "small_bomb.npz", 8 * 1024**2)  # under UNPACK_SLACK: NumPy reads it
+    with pytest.raises(Exception, match="not a tghop model file"):
+        load_model(small)
