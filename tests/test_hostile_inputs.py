@@ -152,7 +152,7 @@ def test_a_model_file_that_unpacks_to_far_more_than_its_size_is_refused_before_i
     args = {"info": ["info", str(bomb)], "synth": ["synth", str(bomb), "-o", str(out), "--size", "32x32", "-q"],
             "inpaint": ["inpaint", str(good), str(tmp_path / "mask.png"), "-o", str(out), "--source", str(bomb),
                         "-q"]}[command]
-    one_error_line(CliRunner().invoke(main, args), "bomb.npz: its arrays unpack to 2", "decompression bomb",
+    one_error_line(CliRunner().invoke(main, args), "bomb.npz: its contents unpack to 2", "decompression bomb",
                    "give a model file tghop wrote")
     assert not out.exists()
 
@@ -172,3 +172,23 @@ def test_a_model_file_deflated_by_another_program_still_loads(tmp_path, small_mo
     small = deflated_bomb(tmp_path / "small_bomb.npz", 8 * 1024**2)  # under UNPACK_SLACK: NumPy reads it
     with pytest.raises(Exception, match="not a tghop model file"):
         load_model(small)
+
+
+@pytest.mark.parametrize("verb", ["morph", "edit"])
+def test_a_checkpoint_that_unpacks_to_far_more_than_its_size_is_refused_before_it_is_unpacked(tmp_path, monkeypatch,
+                                                                                             verb):
+    """As a model file: torch.save stores its tensors uncompressed; 0.57 handed such an archive to
+    torch.load, which unpacked what it read of it."""
+    torch = pytest.importorskip("torch")
+    bomb = deflated_bomb(tmp_path / "bomb.pt", 200 * 1024**2)
+
+    def unpacked(*args, **kwargs):
+        raise AssertionError("torch.load was called on the bomb")
+
+    monkeypatch.setattr(torch, "load", unpacked)
+    out = tmp_path / "out.png"
+    args = {"morph": ["cooc", "morph", str(bomb), "crop:0,0", "crop:0,8", "-o", str(out)],
+            "edit": ["cooc", "edit", str(bomb), "-o", str(out)]}[verb]
+    one_error_line(CliRunner().invoke(main, args), "bomb.pt: its contents unpack to 2", "decompression bomb",
+                   "give a checkpoint 'tghop cooc train' wrote")
+    assert not out.exists()

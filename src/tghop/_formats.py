@@ -5,6 +5,7 @@ files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
            "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile", "tifffile_quietly",
+           "MAX_UNPACK_RATIO", "UNPACK_SLACK", "unpacks_too_far",
            "why_unreadable", "unread_format", "missing_decoder", "warn_frames"]
 
 #: Output formats chosen by file extension.
@@ -51,6 +52,36 @@ def is_model_file(path) -> bool:
 
 #: :func:`model_file_kind`'s words for a checkpoint of ``tghop cooc train``.
 COOC_CHECKPOINT = "a co-occurrence cGAN checkpoint"
+
+
+#: The most a model file's or checkpoint's members may unpack to, as a multiple of the file's size
+#: (plus :data:`UNPACK_SLACK` bytes): save_model and torch.save store them uncompressed (1x), and a
+#: model's floats deflated by another program are at most a few times smaller. A zip bomb (deflated
+#: zeros, 1000x: a 1 MB file of 1 GB) is refused from the sizes its directory declares, which NumPy's
+#: and PyTorch's readers do not read past, before any is unpacked (0.57 unpacked it all, and only
+#: then found it was not a model).
+MAX_UNPACK_RATIO = 20
+UNPACK_SLACK = 64 * 1024**2
+
+
+def unpacks_too_far(path) -> str | None:
+    """Why the zip archive at ``path`` is refused unread (its members unpack to more than
+    :data:`MAX_UNPACK_RATIO` times its size plus :data:`UNPACK_SLACK`), in words for
+    "PATH: ...; FIX"; None where it is within that or is not a readable archive (the reader's
+    own error then says what it is)."""
+    import os
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            unpacked = sum(member.file_size for member in archive.infolist())
+        size = os.path.getsize(path)
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, NotImplementedError):
+        return None
+    if unpacked <= MAX_UNPACK_RATIO * size + UNPACK_SLACK:
+        return None
+    return (f"its contents unpack to {unpacked / 1024**2:,.0f} MB from a file of {size / 1024**2:,.1f} MB "
+            "(a decompression bomb?)")
 
 
 def model_file_kind(path) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 from . import __version__
 from ._common import ModelFileError, TGHopError
 from ._errors import warn
-from ._formats import is_model_file
+from ._formats import is_model_file, unpacks_too_far
 from .imageio import check_output_path, write_atomic
 from .material import Material
 from .settings import fit_seed
@@ -129,28 +129,6 @@ def _check_path(path, caller: str, verb: str) -> None:
         raise ModelFileError(f"{caller}: path must be a file name (str or os.PathLike) to {verb}, got {path!r}")
 
 
-#: The most a model file's arrays may unpack to, as a multiple of the file's size (plus
-#: :data:`UNPACK_SLACK` bytes): save_model stores them uncompressed (1x), and a model's floats deflated
-#: by another program are at most a few times smaller. A zip bomb (deflated zeros, 1000x: a 1 MB file
-#: of 1 GB) is refused from the sizes its directory declares, which NumPy's reader does not read past,
-#: before any is unpacked (0.57 unpacked it all, and only then found an array of the wrong shape).
-MAX_UNPACK_RATIO = 20
-UNPACK_SLACK = 64 * 1024**2
-
-
-def _check_unpacked_size(path: Path) -> None:
-    try:
-        with zipfile.ZipFile(path) as archive:
-            unpacked = sum(member.file_size for member in archive.infolist())
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, NotImplementedError):
-        return  # not a readable archive: np.load's error says what it is
-    size = path.stat().st_size
-    if unpacked > MAX_UNPACK_RATIO * size + UNPACK_SLACK:
-        raise ModelFileError(f"{path}: its arrays unpack to {unpacked / 1024**2:,.0f} MB from a file of "
-                             f"{size / 1024**2:,.1f} MB (a decompression bomb?), not a model file tghop wrote "
-                             "(it stores them uncompressed); give a model file tghop wrote, or fit the model again")
-
-
 def _read(path):
     _check_path(path, "load_model", "read the model from")
     path = Path(path)
@@ -158,7 +136,10 @@ def _read(path):
         raise ModelFileError(f"{path}: no such model file; check the path, or fit a model first")
     if path.is_dir():
         raise ModelFileError(f"{path} is a folder, not a model file")
-    _check_unpacked_size(path)
+    bomb = unpacks_too_far(path)
+    if bomb:
+        raise ModelFileError(f"{path}: {bomb}, not a model file tghop wrote (it stores its arrays uncompressed); "
+                             "give a model file tghop wrote, or fit the model again")
     try:
         data = np.load(path, allow_pickle=False)
         if not hasattr(data, "files"):  # a .npy file: np.load gives the array itself
@@ -429,8 +410,8 @@ def load_model(path, *, material=False):
     ------
     ModelFileError
         The file is missing, not a tghop model, corrupt, or of another format version; or an
-        archive whose arrays would unpack to more than :data:`MAX_UNPACK_RATIO` times its size (a
-        decompression bomb; 0.58), refused before any is unpacked.
+        archive whose arrays would unpack to more than 20 times its size (a decompression bomb;
+        0.58: :func:`tghop._formats.unpacks_too_far`), refused before any is unpacked.
     """
     meta, arrays = _read(path)
     if meta["format_version"] == 4 and isinstance(meta.get("params"), dict):

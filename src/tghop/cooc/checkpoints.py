@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .._common import ModelFileError, import_torch
+from .._formats import unpacks_too_far
 from .config import torch_device
 from .networks import build_networks
 
@@ -121,7 +122,8 @@ def read(path, model_class, *, device: str = "auto"):
     Raises
     ------
     ModelFileError
-        Missing file, not a tghop co-occurrence checkpoint, or another format version.
+        Missing file, not a tghop co-occurrence checkpoint, or another format version; or an archive
+        that would unpack to far more than its size (a decompression bomb; 0.58), refused unread.
     TGHopError
         An unknown ``device``, or CUDA where there is none.
     """
@@ -133,6 +135,10 @@ def read(path, model_class, *, device: str = "auto"):
                              f".save(path), or 'tghop cooc train EXEMPLAR -o {path.name}')")
     torch = import_torch("The co-occurrence cGAN")
     torch_device(torch, device)  # a bad device named as such, not as a corrupt file
+    bomb = unpacks_too_far(path)
+    if bomb:
+        raise ModelFileError(f"{path}: {bomb}, not a checkpoint tghop wrote (it stores its tensors uncompressed); "
+                             "give a checkpoint 'tghop cooc train' wrote, or train it again")
     try:
         tensors = torch.load(path, map_location="cpu", weights_only=True)
         settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())
