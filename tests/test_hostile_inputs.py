@@ -192,3 +192,25 @@ def test_a_checkpoint_that_unpacks_to_far_more_than_its_size_is_refused_before_i
     one_error_line(CliRunner().invoke(main, args), "bomb.pt: its contents unpack to 2", "decompression bomb",
                    "give a checkpoint 'tghop cooc train' wrote")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["", " "])
+@pytest.mark.parametrize("command", ["info", "patches", "clusters", "library"])
+def test_an_empty_model_file_name_is_one_line_saying_so(tmp_path, small_model, name, command):
+    """As an empty image or checkpoint name is; 0.57 said "load_model: path must be a file name (str or
+    os.PathLike) to read the model from, got ''", the library's words, naming no fix (and read " " as a file)."""
+    from tghop import ModelFileError
+    from tghop.modelfile import load_model, save_model
+
+    if command == "library":
+        for call in (lambda: load_model(name), lambda: save_model(load_model(small_model), name)):
+            with pytest.raises(ModelFileError, match="^the model's file name is empty; give one$"):
+                call()
+        return
+    out = tmp_path / "out.png"
+    good = tmp_path / "good.png"
+    Image.fromarray((np.random.default_rng(0).random((64, 64, 3)) * 255).astype(np.uint8)).save(good)
+    args = {"info": ["info", name], "patches": ["patches", name, "-o", str(out)],
+            "clusters": ["clusters", name, str(good), "-o", str(out)]}[command]
+    one_error_line(CliRunner().invoke(main, args), "the model's file name is empty; give one")
+    assert not out.exists()

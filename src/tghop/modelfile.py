@@ -125,8 +125,10 @@ def info_dict(model, params=None) -> dict:
 
 def _check_path(path, caller: str, verb: str) -> None:
     """Refuse a ``path`` that is not a str or os.PathLike (None, a number) with one line."""
-    if not isinstance(path, (str, os.PathLike)) or not str(path):
+    if not isinstance(path, (str, os.PathLike)):
         raise ModelFileError(f"{caller}: path must be a file name (str or os.PathLike) to {verb}, got {path!r}")
+    if not os.fsdecode(path).strip():  # as an image's and a checkpoint's (0.57: "path must be a file name")
+        raise ModelFileError("the model's file name is empty; give one")
 
 
 def _read(path):
