@@ -214,3 +214,35 @@ def test_an_empty_model_file_name_is_one_line_saying_so(tmp_path, small_model, n
             "clusters": ["clusters", name, str(good), "-o", str(out)]}[command]
     one_error_line(CliRunner().invoke(main, args), "the model's file name is empty; give one")
     assert not out.exists()
+
+
+def complex_tiff(tmp_path) -> bytes:
+    tifffile = pytest.importorskip("tifffile")
+    tifffile.imwrite(tmp_path / "c.tif", np.ones((16, 16), np.complex64))
+    return (tmp_path / "c.tif").read_bytes()
+
+
+def png_with_bad_header_checksum(tmp_path) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(buf, format="PNG")
+    data = bytearray(buf.getvalue())
+    data[29] ^= 0xFF  # the IHDR chunk's CRC
+    return bytes(data)
+
+
+@pytest.mark.parametrize("name, make, kind", [
+    ("zero_width.png", lambda tmp: png_declaring(0, 64), "PNG"),
+    ("bad_crc.png", png_with_bad_header_checksum, "PNG"),
+    ("garbage.jpg", lambda tmp: b"\xff\xd8\xff" + bytes(range(256)) * 8, "JPEG"),
+    ("complex.tif", complex_tiff, "TIFF"),
+])
+def test_a_file_of_a_format_tghop_reads_that_pillow_cannot_identify_is_called_corrupt(tmp_path, name, make, kind):
+    """0.57 told "not an image format tghop reads" of a PNG whose width is 0 or whose header's checksum
+    fails: the format is one tghop reads, the file is what is wrong."""
+    path = tmp_path / name
+    path.write_bytes(make(tmp_path))
+    out = tmp_path / "out.npz"
+    one_error_line(CliRunner().invoke(main, ["fit", str(path), "-o", str(out), "-q"]),
+                   f"{name}: not a readable image (a {kind} file, but its header is corrupt or of a kind tghop "
+                   "does not read)")
+    assert not out.exists()

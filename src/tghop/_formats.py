@@ -143,8 +143,18 @@ def why_unreadable(path, exc) -> str:
         head = b""
     if not head:
         return "the file is empty"
-    return "a NumPy array file (.npy), not an image" if head.startswith(b"\x93NUMPY") else \
-        "not an image format tghop reads"
+    if head.startswith(b"\x93NUMPY"):
+        return "a NumPy array file (.npy), not an image"
+    for signature, name in _SIGNATURES:  # 0.57: "not an image format tghop reads" of a PNG of width 0
+        if head.startswith(signature) and (name != "WebP" or head[8:12] == b"WEBP"):
+            return f"a {name} file, but its header is corrupt or of a kind tghop does not read"
+    return "not an image format tghop reads"
+
+
+#: The first bytes of the formats tghop reads, for a file Pillow cannot identify: a corrupt header
+#: (a width of 0, a checksum that fails) or an odd kind (complex TIFF samples), not another format.
+_SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"), (b"GIF87a", "GIF"), (b"GIF89a", "GIF"),
+               (b"II*\x00", "TIFF"), (b"MM\x00*", "TIFF"), (b"RIFF", "WebP"))
 
 
 #: ISO base media brands of HEIF images (a phone's photos: .heic, .heif); AVIF ones Pillow reads.
