@@ -246,3 +246,20 @@ def test_a_file_of_a_format_tghop_reads_that_pillow_cannot_identify_is_called_co
                    f"{name}: not a readable image (a {kind} file, but its header is corrupt or of a kind tghop "
                    "does not read)")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("route, field", [("/api/models", "image"), ("/api/models/upload", "model")])
+@pytest.mark.parametrize("filename, words", [
+    ("", "a form field over 1 MB (Part exceeded maximum size of 1024KB.): a file sent without a file name?"),
+    ("x" * 5000 + ".png", "malformed multipart request (Invalid multipart data.)"),
+])
+def test_an_upload_the_multipart_parser_refuses_is_400_naming_what_to_do(live_server, route, field, filename, words):
+    """0.57 answered "malformed multipart request (Part exceeded maximum size of 1024KB.)" of a 2 MB file
+    sent with an empty file name (a field to the parser), and of a file name of 5000 characters, naming no fix."""
+    httpx = pytest.importorskip("httpx")
+    with httpx.Client(base_url=live_server.url, timeout=60) as client:
+        r = client.post(route, files={field: (filename, b"\x89PNG" + bytes(2 * 1024**2))})
+    assert r.status_code == 400, r.text
+    message = r.json()["error"]
+    assert message.startswith(words) and "\n" not in message, message
+    assert "curl -F NAME=@FILE" in message, message

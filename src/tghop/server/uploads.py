@@ -143,7 +143,12 @@ async def read_form(request, body: bytes, fields: str = "a form with an 'image' 
         form = await MultiPartParser(request.headers, stream(), max_files=4 + materials.MAX_MAPS,
                                      max_fields=64).parse()
     except (MultiPartException, ValueError) as exc:
-        raise RequestError(400, f"malformed multipart request ({getattr(exc, 'message', exc)})") from None
+        words = str(getattr(exc, "message", exc))
+        if words.startswith("Part exceeded maximum size"):  # a file part without a file name is a field: 1 MB at most
+            raise RequestError(400, f"a form field over 1 MB ({words}): a file sent without a file name? Send each "
+                                    "file with its file name, as a browser or curl -F NAME=@FILE does") from None
+        raise RequestError(400, f"malformed multipart request ({words}); send the form as a browser or "
+                                "curl -F NAME=@FILE sends it") from None
     out, twice = {}, []
     for name, value in form.multi_items():
         if name in out:
