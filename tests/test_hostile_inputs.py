@@ -85,7 +85,7 @@ def small_model(tmp_path_factory):
 @pytest.mark.parametrize("command", ["fit", "synth", "inpaint-image", "inpaint-mask"])
 def test_a_header_declaring_too_many_pixels_is_one_line_naming_the_fix(tmp_path, small_model, monkeypatch, name,
                                                                       command):
-    """0.57 ended the line at "tghop reads at most 67,108,864 pixels" (no fix), and printed
+    """0.56 ended the line at "tghop reads at most 67,108,864 pixels" (no fix), and printed
     tifffile's logged warnings of the TIFF (``incorrect StripOffsets count``) as lines of their own:
     with no logging set up (as in a shell; pytest's own handlers taken away), Python's last resort
     prints them to stderr."""
@@ -131,7 +131,7 @@ def deflated_bomb(path, unpacked: int, arrays=None):
 @pytest.mark.parametrize("command", ["info", "synth", "inpaint"])
 def test_a_model_file_that_unpacks_to_far_more_than_its_size_is_refused_before_it_is_unpacked(
         tmp_path, small_model, monkeypatch, command):
-    """A 200 MB array of zeros deflated into 200 KB: 0.57 unpacked all of it (50 MB of such a file
+    """A 200 MB array of zeros deflated into 200 KB: 0.56 unpacked all of it (50 MB of such a file
     would be 50 GB) before it found an array tghop does not know. save_model stores its arrays
     uncompressed, so its own files are never near the bound."""
     with np.load(small_model) as data:
@@ -177,7 +177,7 @@ def test_a_model_file_deflated_by_another_program_still_loads(tmp_path, small_mo
 @pytest.mark.parametrize("verb", ["morph", "edit"])
 def test_a_checkpoint_that_unpacks_to_far_more_than_its_size_is_refused_before_it_is_unpacked(tmp_path, monkeypatch,
                                                                                              verb):
-    """As a model file: torch.save stores its tensors uncompressed; 0.57 handed such an archive to
+    """As a model file: torch.save stores its tensors uncompressed; 0.56 handed such an archive to
     torch.load, which unpacked what it read of it."""
     torch = pytest.importorskip("torch")
     bomb = deflated_bomb(tmp_path / "bomb.pt", 200 * 1024**2)
@@ -197,7 +197,7 @@ def test_a_checkpoint_that_unpacks_to_far_more_than_its_size_is_refused_before_i
 @pytest.mark.parametrize("name", ["", " "])
 @pytest.mark.parametrize("command", ["info", "patches", "clusters", "library"])
 def test_an_empty_model_file_name_is_one_line_saying_so(tmp_path, small_model, name, command):
-    """As an empty image or checkpoint name is; 0.57 said "load_model: path must be a file name (str or
+    """As an empty image or checkpoint name is; 0.56 said "load_model: path must be a file name (str or
     os.PathLike) to read the model from, got ''", the library's words, naming no fix (and read " " as a file)."""
     from tghop import ModelFileError
     from tghop.modelfile import load_model, save_model
@@ -237,7 +237,7 @@ def png_with_bad_header_checksum(tmp_path) -> bytes:
     ("complex.tif", complex_tiff, "TIFF"),
 ])
 def test_a_file_of_a_format_tghop_reads_that_pillow_cannot_identify_is_called_corrupt(tmp_path, name, make, kind):
-    """0.57 told "not an image format tghop reads" of a PNG whose width is 0 or whose header's checksum
+    """0.56 told "not an image format tghop reads" of a PNG whose width is 0 or whose header's checksum
     fails: the format is one tghop reads, the file is what is wrong."""
     path = tmp_path / name
     path.write_bytes(make(tmp_path))
@@ -254,7 +254,7 @@ def test_a_file_of_a_format_tghop_reads_that_pillow_cannot_identify_is_called_co
     ("x" * 5000 + ".png", "malformed multipart request (Invalid multipart data.)"),
 ])
 def test_an_upload_the_multipart_parser_refuses_is_400_naming_what_to_do(live_server, route, field, filename, words):
-    """0.57 answered "malformed multipart request (Part exceeded maximum size of 1024KB.)" of a 2 MB file
+    """0.56 answered "malformed multipart request (Part exceeded maximum size of 1024KB.)" of a 2 MB file
     sent with an empty file name (a field to the parser), and of a file name of 5000 characters, naming no fix."""
     httpx = pytest.importorskip("httpx")
     with httpx.Client(base_url=live_server.url, timeout=60) as client:

@@ -4,7 +4,7 @@ the command line's help is made from it without loading NumPy); and the extensio
 files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
-           "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile", "tifffile_quietly",
+           "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
            "MAX_UNPACK_RATIO", "UNPACK_SLACK", "unpacks_too_far",
            "why_unreadable", "unread_format", "missing_decoder", "warn_frames"]
 
@@ -58,7 +58,7 @@ COOC_CHECKPOINT = "a co-occurrence cGAN checkpoint"
 #: (plus :data:`UNPACK_SLACK` bytes): save_model and torch.save store them uncompressed (1x), and a
 #: model's floats deflated by another program are at most a few times smaller. A zip bomb (deflated
 #: zeros, 1000x: a 1 MB file of 1 GB) is refused from the sizes its directory declares, which NumPy's
-#: and PyTorch's readers do not read past, before any is unpacked (0.57 unpacked it all, and only
+#: and PyTorch's readers do not read past, before any is unpacked (0.56 unpacked it all, and only
 #: then found it was not a model).
 MAX_UNPACK_RATIO = 20
 UNPACK_SLACK = 64 * 1024**2
@@ -102,22 +102,6 @@ def model_file_kind(path) -> str:
         return "a model file"
 
 
-def tifffile_quietly():
-    """:mod:`tifffile`, imported (ImportError where it is not installed), its log kept off stderr: it
-    logs a malformed file's oddities as warnings (``<tifffile.TiffPage 0 @8> incorrect StripOffsets
-    count``), which Python, with no logging set up, prints as lines of their own beside a command's
-    one-line error (0.58). A :class:`logging.NullHandler` on its logger stops that last-resort
-    printing only: an application that sets up logging still gets the records."""
-    import logging
-
-    import tifffile
-
-    logger = logging.getLogger("tifffile")
-    if not any(isinstance(handler, logging.NullHandler) for handler in logger.handlers):
-        logger.addHandler(logging.NullHandler())
-    return tifffile
-
-
 def check_tifffile(path, depth):
     """A one-line :class:`~tghop.MissingExtraError` unless :mod:`tifffile` (the tiff extra)
     imports: Pillow writes no colour TIFF of ``depth`` (16 or 32) bits."""
@@ -145,7 +129,7 @@ def why_unreadable(path, exc) -> str:
         return "the file is empty"
     if head.startswith(b"\x93NUMPY"):
         return "a NumPy array file (.npy), not an image"
-    for signature, name in _SIGNATURES:  # 0.57: "not an image format tghop reads" of a PNG of width 0
+    for signature, name in _SIGNATURES:  # 0.56: "not an image format tghop reads" of a PNG of width 0
         if head.startswith(signature) and (name != "WebP" or head[8:12] == b"WEBP"):
             return f"a {name} file, but its header is corrupt or of a kind tghop does not read"
     return "not an image format tghop reads"

@@ -13,7 +13,7 @@ import numpy as np
 
 from ._common import InvalidImageError
 from ._errors import ImageTooLargeError, warn
-from ._formats import TIFF_HINT, tifffile_quietly, warn_frames
+from ._formats import TIFF_HINT, warn_frames
 from .depths import RANGE_TOLERANCE
 from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
@@ -103,7 +103,7 @@ def read_deep(path, max_pixels, keep_alpha=False):
     if head[:4] not in (b"II*\x00", b"MM\x00*"):
         return None
     try:
-        tifffile = tifffile_quietly()
+        import tifffile
     except ImportError:
         with open_image(path) as im:  # grey 16-bit and float TIFF: Pillow; deeper colour ones: refused
             tags = im.tag_v2 if hasattr(im, "tag_v2") else {}
@@ -401,7 +401,7 @@ def _tiff_orientation(path) -> int:
     TIFF, which Pillow cannot open: 0.55 read it as stored, sideways where a viewer shows it upright);
     1 where it has none or cannot be read."""
     try:
-        tifffile = tifffile_quietly()
+        import tifffile
 
         with tifffile.TiffFile(path) as tif:
             tag = tif.pages[0].tags.get(274)

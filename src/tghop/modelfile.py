@@ -127,7 +127,7 @@ def _check_path(path, caller: str, verb: str) -> None:
     """Refuse a ``path`` that is not a str or os.PathLike (None, a number) with one line."""
     if not isinstance(path, (str, os.PathLike)):
         raise ModelFileError(f"{caller}: path must be a file name (str or os.PathLike) to {verb}, got {path!r}")
-    if not os.fsdecode(path).strip():  # as an image's and a checkpoint's (0.57: "path must be a file name")
+    if not os.fsdecode(path).strip():  # as an image's and a checkpoint's (0.56: "path must be a file name")
         raise ModelFileError("the model's file name is empty; give one")
 
 
@@ -413,7 +413,7 @@ def load_model(path, *, material=False):
     ModelFileError
         The file is missing, not a tghop model, corrupt, or of another format version; or an
         archive whose arrays would unpack to more than 20 times its size (a decompression bomb;
-        0.58: :func:`tghop._formats.unpacks_too_far`), refused before any is unpacked.
+        0.57: :func:`tghop._formats.unpacks_too_far`), refused before any is unpacked.
     """
     meta, arrays = _read(path)
     if meta["format_version"] == 4 and isinstance(meta.get("params"), dict):

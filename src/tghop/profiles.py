@@ -28,7 +28,6 @@ import io
 import numpy as np
 
 from ._errors import warn
-from ._formats import tifffile_quietly
 
 __all__ = ["to_srgb", "deep_to_srgb", "tiff_profile", "png_gamma", "gamma_to_srgb", "GAMMA_TOLERANCE", "CLIP_DELTA_E",
            "CLIP_SHARE"]
@@ -270,7 +269,7 @@ def tiff_profile(path):
         None also where the file is not a TIFF or :mod:`tifffile` is not installed.
     """
     try:
-        tifffile = tifffile_quietly()
+        import tifffile
 
         with tifffile.TiffFile(path) as tif:
             tag = tif.pages[0].tags.get(34675)  # InterColorProfile

@@ -123,7 +123,7 @@ def read(path, model_class, *, device: str = "auto"):
     ------
     ModelFileError
         Missing file, not a tghop co-occurrence checkpoint, or another format version; or an archive
-        that would unpack to far more than its size (a decompression bomb; 0.58), refused unread.
+        that would unpack to far more than its size (a decompression bomb; 0.57), refused unread.
     TGHopError
         An unknown ``device``, or CUDA where there is none.
     """
