@@ -119,3 +119,62 @@ def test_cluster_map_holds_one_blas_thread(monkeypatch, small_model):
     assert seen and all(s == {1} for s in seen)
     with threadpool_limits(limits=1, user_api="blas"):
         np.testing.assert_array_equal(explain.cluster_map(small_model, image, stride=4), labels)
+
+
+def _blas_threads():
+    return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def test_overlapping_calls_in_two_threads_hold_one_blas_thread_to_the_last(small_model):
+    # A fit in one thread, a synthesis in another, overlapping: each held one BLAS thread with a limit
+    # of its own, so the first to finish put the process's count back under the other (which went on,
+    # and rounded, on two: a fit in two threads at once gave another model than alone) and the other,
+    # finishing, left the process on one BLAS thread for good. 0.58: the holds are counted process-wide.
+    import threading
+
+    import threadpoolctl
+
+    limiter = None
+    if _blas_threads() == {1}:  # one core: two BLAS threads, so that the process has another count to go back to
+        limiter = threadpool_limits(limits=2, user_api="blas")
+        clear = getattr(threadpoolctl.OpenBLASController, "clear_controlling_thread", None)  # threadpoolctl >= 3.8
+        if clear is not None:
+            clear()  # set from this thread, not held by it: the test's threads may change it
+    try:
+        before = _blas_threads()
+        assert before and before != {1}
+        fit_in, synth_in, fit_go, synth_go = (threading.Event() for _ in range(4))
+        seen, errors = {}, []
+
+        def pause(stage, arrived, go, key):
+            def progress(name, done, total):
+                if name == stage and not arrived.is_set():
+                    arrived.set()
+                    assert go.wait(60)
+                    seen[key] = _blas_threads()
+            return progress
+
+        def run(fn):
+            try:
+                fn()
+            except BaseException as exc:  # noqa: BLE001 (told below)
+                errors.append(exc)
+
+        fitting = threading.Thread(target=run, args=(lambda: TGHop(**SMALL).fit(
+            data.bricks(64, rng=2), progress=pause("hop 1", fit_in, fit_go, "fit")),))
+        making = threading.Thread(target=run, args=(lambda: small_model.synthesize(
+            (48, 48), rng=0, progress=pause("quilting", synth_in, synth_go, "synth")),))
+        fitting.start()
+        assert fit_in.wait(60)
+        making.start()
+        assert synth_in.wait(60)
+        fit_go.set()  # the fit finishes while the synthesis is inside
+        fitting.join(60)
+        synth_go.set()
+        making.join(60)
+        assert not errors
+        assert seen == {"fit": {1}, "synth": {1}}  # 0.57: the synthesis on the process's count
+        assert _blas_threads() == before  # 0.57: one BLAS thread after both
+    finally:
+        if limiter is not None:
+            limiter.restore_original_limits()

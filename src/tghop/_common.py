@@ -16,6 +16,7 @@ import functools
 import inspect
 import math
 import numbers
+import threading
 from typing import Callable, Optional, Union
 
 import numpy as np
@@ -328,8 +329,6 @@ class ProgressCounter:
     """
 
     def __init__(self, progress, stage, total):
-        import threading
-
         self.progress, self.stage, self.total = progress, stage, total
         self.done = 0
         self._lock = threading.Lock()
@@ -747,22 +746,44 @@ class limit_cores:
         return False
 
 
+#: The process's holds of one BLAS thread (:func:`one_blas_thread`): how many are active, in any thread,
+#: and the limiter the first set, which the last to leave restores.
+_BLAS_HOLD = {"count": 0, "limiter": None}
+_BLAS_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def one_blas_thread():
-    """Context manager (and decorator): one BLAS thread while inside
-    (``threadpoolctl.threadpool_limits(limits=1, user_api="blas")``, entered and left in the
-    calling thread).
+    """Context manager (and decorator): one BLAS thread while inside, in every thread of the process.
 
     OpenBLAS's products round differently on more threads, so generating inside it gives the
     same image on a machine of any number of cores (a batch worker's one thread, ``tghop
-    synth``'s all). Its limit is the process's: a caller that generates in several threads at
-    once gets the same images only with the process held at one BLAS thread throughout, as
-    ``tghop serve`` holds it (threadpoolctl lets only one thread at a time change the limit).
+    synth``'s all). Its limit is the process's, so the holds are counted process-wide (0.58): the
+    first sets it (``threadpoolctl.threadpool_limits(limits=1, user_api="blas")``), the last to
+    leave, in whichever thread, puts back what the first found. Until 0.57 each hold set and
+    restored its own, so two threads' calls at once left the later one on the process's threads
+    (other bytes: a fit in two threads gave another model) and the process on one BLAS thread after
+    both. A thread that leaves while another holds on gives up threadpoolctl's control of OpenBLAS's
+    limit (since threadpoolctl 3.8, only the thread that set it first may change it), unless a
+    ``threadpool_limits`` of its own is active.
     """
-    from threadpoolctl import threadpool_limits
+    import threadpoolctl
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _BLAS_LOCK:
+        if not _BLAS_HOLD["count"]:
+            _BLAS_HOLD["limiter"] = threadpoolctl.threadpool_limits(limits=1, user_api="blas")
+        _BLAS_HOLD["count"] += 1
+    try:
         yield
+    finally:
+        with _BLAS_LOCK:
+            _BLAS_HOLD["count"] -= 1
+            if not _BLAS_HOLD["count"]:
+                _BLAS_HOLD.pop("limiter").restore_original_limits()
+                _BLAS_HOLD["limiter"] = None
+            own = getattr(threadpoolctl, "CONTROLLING_THREAD_OWNERSHIP", None)  # threadpoolctl >= 3.8
+            if own is not None and not own.count:
+                threadpoolctl.OpenBLASController.clear_controlling_thread()
 
 
 def in_thread(fn, *args, **kwargs) -> Callable:
@@ -779,7 +800,6 @@ def in_thread(fn, *args, **kwargs) -> Callable:
     if usable_cores() == 1:
         return lambda: fn(*args, **kwargs)
     import contextvars
-    import threading
 
     outcome = {}
 

@@ -248,8 +248,9 @@ class TGHop(PatchCodec, BaseEstimator):
         depth = exemplar_depth(depth, image)
         # One BLAS / OpenMP thread: the model is the same bit for bit on every machine (OpenBLAS's
         # results change with its thread count) and a busy machine is not oversubscribed; ICHM.fit
-        # runs its clusters in threads of its own (usable_cores).
-        with threadpool_limits(limits=1):
+        # runs its clusters in threads of its own (usable_cores). The BLAS limit is one_blas_thread's, counted
+        # process-wide (fits and generation in other threads at once: the same bytes); OpenMP's is the thread's.
+        with one_blas_thread(), threadpool_limits(limits=1, user_api="openmp"):
             try:
                 self._fit(image, exclude=exclude, progress=progress)
             except BaseException:  # a failure once learning began leaves no half-fitted model
