@@ -17,8 +17,8 @@ import numpy as np
 
 from ._errors import NonNumericError, TGHopError
 
-__all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask", "check_width", "forget_fit",
-           "from_levels"]
+__all__ = ["check_array", "check_count", "check_dtype", "check_int", "check_mask", "check_not_path", "check_width",
+           "forget_fit", "from_levels"]
 
 #: Full scale of the integer types read as image levels: ``x / 255`` and ``x / 65535`` lie in [0, 1].
 LEVELS = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
@@ -101,6 +101,27 @@ def from_levels(arr: np.ndarray, dtype=np.float64) -> np.ndarray:
         return arr
     dtype = np.dtype(dtype)
     return np.divide(arr, dtype.type(full), dtype=dtype)
+
+
+def check_not_path(value, name: str) -> None:
+    """Refuse a file name (str, bytes or os.PathLike) given where an image array belongs: a one-line
+    :class:`~tghop.InvalidImageError` naming :func:`tghop.imageio.load_image`. NumPy reads a name as a
+    0-d array of text, which was told as a shape ``()`` or a dtype ``<U9`` (0.57).
+
+    Parameters
+    ----------
+    value : object
+        What was given.
+    name : str
+        How it is called in the message ("exemplar", "the mask").
+    """
+    import os
+
+    if isinstance(value, (str, bytes, os.PathLike)):
+        from ._errors import InvalidImageError
+
+        raise InvalidImageError(f"{name} is a file name ({os.fsdecode(value)!r}), not an image array; read it first: "
+                                "tghop.imageio.load_image(path)")
 
 
 def check_width(arr, name: str, shape: str, expected: tuple, *, who: str | None = None) -> None:

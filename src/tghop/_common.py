@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 
-from ._arrays import LEVELS, from_levels
+from ._arrays import LEVELS, check_not_path, from_levels
 from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: F401
 
 
@@ -416,6 +416,7 @@ def check_image(image, *, min_size: int = 1, name: str = "image", dtype=np.float
         ``C`` is 1 for greyscale or 3 for colour (a fourth, alpha channel is not accepted
         here; :func:`tghop.imageio.load_image` drops it with a warning).
     """
+    check_not_path(image, name)
     arr = np.asarray(image)
     if arr.ndim == 2:
         arr = arr[:, :, None]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import check_not_path
 from ._common import TGHopError, check_size
 
 __all__ = ["expand_canvas", "ANCHORS"]
@@ -51,6 +52,7 @@ def expand_canvas(image, size, *, anchor="center", patch_size=None):
     offset : (int, int)
         The canvas row and column of ``image``'s top-left pixel.
     """
+    check_not_path(image, "the image")
     arr = np.asarray(image)
     if arr.ndim not in (2, 3):
         raise TGHopError(f"image must have shape (H, W) or (H, W, C), got {arr.shape}")

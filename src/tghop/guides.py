@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import check_int
+from ._arrays import check_int, check_not_path
 from ._common import TGHopError, check_size
 from ._errors import warn
 
@@ -143,6 +143,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
     """
     n_models = check_int(n_models, "n_models", 1)
     size = None if size is None else check_size(size, limit=None)
+    check_not_path(guide, "the guide")
     try:
         arr = np.asarray(guide)
     except ValueError:  # ragged nested lists

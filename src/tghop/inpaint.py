@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import check_int
+from ._arrays import check_int, check_not_path
 from ._common import TGHopError, check_is_fitted, check_keywords, check_rng, checked_image, one_blas_thread, report
 from .canvas import ANCHORS, expand_canvas
 from .hole_refine import refine_hole, stitch_hole
@@ -102,6 +102,7 @@ def check_hole(mask, shape) -> np.ndarray:
     -------
     ndarray of bool, shape (H, W): True in the hole (it may be empty: :func:`require_hole` refuses that)
     """
+    check_not_path(mask, "the mask")
     arr = original = np.asarray(mask)
     if arr.dtype.kind not in "biuf":
         raise TGHopError(f"the mask must be numbers or booleans, got dtype {arr.dtype}")
@@ -399,6 +400,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     check_is_fitted(model, "ichm_")
     p = int(model.patch_size)
     n_channels = int(model.exemplar_shape_[2])
+    check_not_path(image, "the image")
     original = np.asarray(image)
     work = _working_image(original, n_channels)
     h, w = work.shape[:2]

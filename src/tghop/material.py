@@ -37,7 +37,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from . import settings
-from ._arrays import check_dtype
+from ._arrays import check_dtype, check_not_path
 from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fit_part, fitted_settings,
                       one_blas_thread, report)
 from ._errors import warn
@@ -336,6 +336,7 @@ class Material(BaseEstimator):
                                  f"({', '.join(names)})")
         out = []
         for name, arr in items:
+            check_not_path(arr, f"map {name!r}")
             raw = np.asarray(arr)
             depth = depths.get(name, _depth_of(raw))
             img = check_image(raw, name=f"map {name!r}")
