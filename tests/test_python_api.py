@@ -30,3 +30,25 @@ def test_a_file_name_where_an_image_belongs_is_told_to_read_it_first(call, name,
         call(small_model, bricks96, hole)
     assert str(caught.value) == (f"{name} is a file name ('texture.png'), not an image array; read it first: "
                                  "tghop.imageio.load_image(path)")
+
+
+def test_tghops_warnings_are_told_at_the_callers_line(small_model, bricks96):
+    # 0.57 told these at guides.py and core.py, the library's own lines: a notebook showed tghop's source
+    # line under the warning, and filterwarnings(module=...) of the caller's module missed them.
+    import warnings
+
+    from conftest import SMALL
+
+    guide = np.zeros((33, 33))
+    guide[:, 16:] = 1
+    picky = tghop.TGHop(**{**SMALL, "reject_threshold": 50.0}).fit(bricks96)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tghop.synthesize_guided([small_model, small_model], guide, size=(48, 48), rng=0, refine=0, patch_refine=0)
+        picky.sample_patches(4, rng=0)
+    assert [str(w.message)[:24] for w in caught] == ["the guide was scaled fro", "ICHM: 4 samples still ha"]
+    assert [w.filename for w in caught] == [__file__, __file__]
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", module=__name__)
+        with pytest.raises(UserWarning, match="samples still have no component"):
+            picky.sample_patches(4, rng=0)

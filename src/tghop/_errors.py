@@ -1,10 +1,11 @@
 """tghop's exception classes, the hint of an image over the pixel limit and how the library warns
-(:func:`warn`, :func:`collect_warnings`). No imports but ``sys``, ``contextvars`` and ``warnings``:
+(:func:`warn`, :func:`collect_warnings`). No imports but ``os``, ``sys``, ``contextvars`` and ``warnings``:
 always loaded, the CLI's --help and --version load only this. The command line turns a
 :class:`TGHopError` into one line and exit status 1 in :func:`tghop.cli.common.user_errors`."""
 
 import contextlib
 import contextvars
+import os
 import sys
 import warnings
 
@@ -123,15 +124,35 @@ class OpaqueAlphaWarning(UserWarning):
 _COLLECTED: contextvars.ContextVar = contextvars.ContextVar("tghop_collected_warnings", default=None)
 
 
-def warn(message, category=UserWarning, stacklevel: int = 1) -> None:
+def warn(message, category=UserWarning, stacklevel: int | None = None) -> None:
     """How the library warns: :func:`warnings.warn` (``stacklevel`` as it takes it, counted from
-    the caller), or, inside :func:`collect_warnings` in this thread, the warning kept in its list
-    (filters not consulted: the collector decides)."""
+    the caller; None: the first frame outside tghop, the user's line that called it, 0.58), or,
+    inside :func:`collect_warnings` in this thread, the warning kept in its list (filters not
+    consulted: the collector decides)."""
     kept = _COLLECTED.get()
     if kept is None:
-        warnings.warn(message, category, stacklevel=stacklevel + 1)
+        warnings.warn(message, category, stacklevel=_callers_level() if stacklevel is None else stacklevel + 1)
     else:
         kept.append(message if isinstance(message, Warning) else category(message))
+
+
+#: tghop's own folder (its subpackages' files too): the frames :func:`warn` passes over.
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def _callers_level() -> int:
+    """The ``stacklevel`` for :func:`warnings.warn` called in :func:`warn` that names the first frame
+    outside tghop and its decorators (``contextlib``'s): the warning is told at the user's line (tghop's
+    path to it differs from call to call), and ``filterwarnings(module=...)`` matches the user's module.
+    2 (:func:`warn`'s caller) where no frame of this thread is outside tghop but ``threading``'s, as in
+    a thread that tghop started."""
+    frame, level = sys._getframe(2), 2  # warn's caller is level 2 for warnings.warn called in warn
+    while frame is not None and (os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE)
+                                 or frame.f_globals.get("__name__") == "contextlib"):
+        frame, level = frame.f_back, level + 1
+    if frame is None or frame.f_globals.get("__name__") == "threading":
+        return 2
+    return level
 
 
 @contextlib.contextmanager
