@@ -52,3 +52,20 @@ def test_tghops_warnings_are_told_at_the_callers_line(small_model, bricks96):
         warnings.filterwarnings("error", module=__name__)
         with pytest.raises(UserWarning, match="samples still have no component"):
             picky.sample_patches(4, rng=0)
+
+
+def test_inpaint_takes_nan_in_the_hole_and_refuses_it_elsewhere(small_model, bricks96):
+    # image[mask] = np.nan is how a NumPy user marks a hole; 0.57 refused it ("contains NaN or
+    # infinite values; clean it first"), though the hole's values are never read.
+    hole = np.zeros(bricks96.shape[:2], dtype=bool)
+    hole[30:60, 25:70] = True
+    marked = bricks96.astype(np.float32)
+    marked[hole] = np.nan
+    marked[hole.nonzero()[0][0], hole.nonzero()[1][0], 1] = np.inf
+    plain = inpaint(small_model, bricks96.astype(np.float32), hole, rng=0, n_patches=300)
+    filled = inpaint(small_model, marked, hole, rng=0, n_patches=300)
+    np.testing.assert_array_equal(filled, plain)
+    assert not np.isfinite(marked[hole]).any()  # the caller's image untouched
+    marked[0, 0, 0] = np.nan  # outside the hole: still refused
+    with pytest.raises(tghop.InvalidImageError, match="contains NaN or infinite values"):
+        inpaint(small_model, marked, hole, rng=0, n_patches=300)

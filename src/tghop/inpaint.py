@@ -241,6 +241,18 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
     return inpaint(model, canvas, hole, rng=rng, tile=tile, progress=progress, **options)
 
 
+def _hole_cleared(image, mask):
+    """A float ``image`` whose NaN and infinite values all lie in the hole of ``mask`` (how a NumPy user
+    marks one: ``image[mask] = np.nan``) with 0 in their place, a copy; any other ``image`` as it is
+    (:func:`_working_image` refuses a NaN outside the hole). The hole's values are never read."""
+    if image.dtype.kind != "f" or image.ndim not in (2, 3) or np.isfinite(image).all():
+        return image
+    bad = ~np.isfinite(image)
+    if not (bad if bad.ndim == 2 else bad.any(axis=2))[~check_hole(mask, image.shape)].any():
+        return np.where(bad, image.dtype.type(0), image)
+    return image
+
+
 def _working_image(image, n_channels):
     """The image as float32 (H, W, n_channels) in [0, 1] (the model's one channel may stand for an
     RGB image's three equal ones: :func:`_into` spreads it back)."""
@@ -341,7 +353,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         image's (a greyscale model fills an RGB image whose channels are equal).
     image : ndarray, shape (H, W) or (H, W, C)
         uint8, uint16 (levels ``v / 65535``, as 16-bit files are read), or float in [0, 1];
-        ``H, W >= model.patch_size``.
+        ``H, W >= model.patch_size``. Its values in the hole are not read: a float image may hold
+        NaN there (0.58; ``image[mask] = np.nan``).
     mask : array_like, shape (H, W) (or (H, W, C))
         The hole: True, or values > 0.5 (uint8: > 127, uint16: > 32767). Any shape, up to the
         whole image.
@@ -401,7 +414,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     p = int(model.patch_size)
     n_channels = int(model.exemplar_shape_[2])
     check_not_path(image, "the image")
-    original = np.asarray(image)
+    original = _hole_cleared(np.asarray(image), mask)
     work = _working_image(original, n_channels)
     h, w = work.shape[:2]
     if h < p or w < p:
