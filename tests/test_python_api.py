@@ -69,3 +69,14 @@ def test_inpaint_takes_nan_in_the_hole_and_refuses_it_elsewhere(small_model, bri
     marked[0, 0, 0] = np.nan  # outside the hole: still refused
     with pytest.raises(tghop.InvalidImageError, match="contains NaN or infinite values"):
         inpaint(small_model, marked, hole, rng=0, n_patches=300)
+
+
+@pytest.mark.parametrize("channels, fix", [(4, "drop its alpha channel first: image[..., :3]"),
+                                           (2, "drop its alpha channel first: image[..., :1]"),
+                                           (5, "convert it to greyscale or RGB first")])
+def test_inpaint_tells_an_image_with_alpha_how_to_drop_it(channels, fix, small_model, bricks96):
+    # 0.57 named the shapes it takes and nothing more ("... or (H, W, 3), got (96, 96, 4)").
+    image = np.ones(bricks96.shape[:2] + (channels,))
+    with pytest.raises(tghop.TGHopError) as caught:
+        inpaint(small_model, image, np.ones(bricks96.shape[:2], dtype=bool))
+    assert str(caught.value) == f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {image.shape}; {fix}"
