@@ -1,4 +1,4 @@
-"""The library as a Python user in a script or a notebook meets it (0.58): what a slip of theirs is told."""
+"""The library as a Python user in a script or a notebook meets it (0.57): what a slip of theirs is told."""
 
 import pathlib
 
@@ -22,7 +22,7 @@ from tghop.material import Material
     (lambda m, b, hole: Material().fit(b, {"height": "texture.png"}), "map 'height'"),
 ])
 def test_a_file_name_where_an_image_belongs_is_told_to_read_it_first(call, name, small_model, bricks96):
-    # NumPy reads a name as a 0-d array of text: 0.57 said "must have shape (H, W) ..., got ()" or
+    # NumPy reads a name as a 0-d array of text: 0.56 said "must have shape (H, W) ..., got ()" or
     # "the mask must be numbers or booleans, got dtype <U11".
     hole = np.zeros(bricks96.shape[:2], dtype=bool)
     hole[30:60, 30:60] = True
@@ -33,7 +33,7 @@ def test_a_file_name_where_an_image_belongs_is_told_to_read_it_first(call, name,
 
 
 def test_tghops_warnings_are_told_at_the_callers_line(small_model, bricks96):
-    # 0.57 told these at guides.py and core.py, the library's own lines: a notebook showed tghop's source
+    # 0.56 told these at guides.py and core.py, the library's own lines: a notebook showed tghop's source
     # line under the warning, and filterwarnings(module=...) of the caller's module missed them.
     import warnings
 
@@ -55,7 +55,7 @@ def test_tghops_warnings_are_told_at_the_callers_line(small_model, bricks96):
 
 
 def test_inpaint_takes_nan_in_the_hole_and_refuses_it_elsewhere(small_model, bricks96):
-    # image[mask] = np.nan is how a NumPy user marks a hole; 0.57 refused it ("contains NaN or
+    # image[mask] = np.nan is how a NumPy user marks a hole; 0.56 refused it ("contains NaN or
     # infinite values; clean it first"), though the hole's values are never read.
     hole = np.zeros(bricks96.shape[:2], dtype=bool)
     hole[30:60, 25:70] = True
@@ -75,7 +75,7 @@ def test_inpaint_takes_nan_in_the_hole_and_refuses_it_elsewhere(small_model, bri
                                            (2, "drop its alpha channel first: image[..., :1]"),
                                            (5, "convert it to greyscale or RGB first")])
 def test_inpaint_tells_an_image_with_alpha_how_to_drop_it(channels, fix, small_model, bricks96):
-    # 0.57 named the shapes it takes and nothing more ("... or (H, W, 3), got (96, 96, 4)").
+    # 0.56 named the shapes it takes and nothing more ("... or (H, W, 3), got (96, 96, 4)").
     image = np.ones(bricks96.shape[:2] + (channels,))
     with pytest.raises(tghop.TGHopError) as caught:
         inpaint(small_model, image, np.ones(bricks96.shape[:2], dtype=bool))

@@ -106,7 +106,7 @@ def from_levels(arr: np.ndarray, dtype=np.float64) -> np.ndarray:
 def check_not_path(value, name: str) -> None:
     """Refuse a file name (str, bytes or os.PathLike) given where an image array belongs: a one-line
     :class:`~tghop.InvalidImageError` naming :func:`tghop.imageio.load_image`. NumPy reads a name as a
-    0-d array of text, which was told as a shape ``()`` or a dtype ``<U9`` (0.57).
+    0-d array of text, which was told as a shape ``()`` or a dtype ``<U9`` (0.56).
 
     Parameters
     ----------

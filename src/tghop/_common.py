@@ -759,9 +759,9 @@ def one_blas_thread():
 
     OpenBLAS's products round differently on more threads, so generating inside it gives the
     same image on a machine of any number of cores (a batch worker's one thread, ``tghop
-    synth``'s all). Its limit is the process's, so the holds are counted process-wide (0.58): the
+    synth``'s all). Its limit is the process's, so the holds are counted process-wide (0.57): the
     first sets it (``threadpoolctl.threadpool_limits(limits=1, user_api="blas")``), the last to
-    leave, in whichever thread, puts back what the first found. Until 0.57 each hold set and
+    leave, in whichever thread, puts back what the first found. Until 0.56 each hold set and
     restored its own, so two threads' calls at once left the later one on the process's threads
     (other bytes: a fit in two threads gave another model) and the process on one BLAS thread after
     both. A thread that leaves while another holds on gives up threadpoolctl's control of OpenBLAS's

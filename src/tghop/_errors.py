@@ -126,7 +126,7 @@ _COLLECTED: contextvars.ContextVar = contextvars.ContextVar("tghop_collected_war
 
 def warn(message, category=UserWarning, stacklevel: int | None = None) -> None:
     """How the library warns: :func:`warnings.warn` (``stacklevel`` as it takes it, counted from
-    the caller; None: the first frame outside tghop, the user's line that called it, 0.58), or,
+    the caller; None: the first frame outside tghop, the user's line that called it, 0.57), or,
     inside :func:`collect_warnings` in this thread, the warning kept in its list (filters not
     consulted: the collector decides)."""
     kept = _COLLECTED.get()

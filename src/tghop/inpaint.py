@@ -357,7 +357,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     image : ndarray, shape (H, W) or (H, W, C)
         uint8, uint16 (levels ``v / 65535``, as 16-bit files are read), or float in [0, 1];
         ``H, W >= model.patch_size``. Its values in the hole are not read: a float image may hold
-        NaN there (0.58; ``image[mask] = np.nan``).
+        NaN there (0.57; ``image[mask] = np.nan``).
     mask : array_like, shape (H, W) (or (H, W, C))
         The hole: True, or values > 0.5 (uint8: > 127, uint16: > 32767). Any shape, up to the
         whole image.
