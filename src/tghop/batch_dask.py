@@ -255,6 +255,24 @@ def connect(scheduler):
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
 
 
+def _lost_scheduler(client, exc, *, dask_call) -> TGHopError | None:
+    """The one-line :class:`~tghop.TGHopError` to raise where ``client`` lost its scheduler (it
+    stopped, or its machine went away, mid-run), else None. Dask's client tries to reconnect for
+    its timeout, then closes itself; meanwhile its calls raise ``OSError`` (a comm closed, "Timed
+    out trying to connect to tcp://..."), which the command said as "cannot write the output:
+    ...", and futures a ``CancelledError`` ("scheduler-connection-lost"). ``dask_call``: ``exc``
+    came from a call of Dask's (handing out, waiting), not from this run's own files."""
+    if client.status == "running" and getattr(exc, "reason", None) != "scheduler-connection-lost" \
+            and not (dask_call and isinstance(exc, OSError)):
+        return None
+    address = getattr(client.scheduler, "address", None) or "its address"
+    # a future's reason names its key (the exemplar's name, SHA-256 and a time): long, and said better below
+    why = one_line(exc) if isinstance(exc, OSError) else "the connection closed and was not regained"
+    return TGHopError(f"lost the Dask scheduler at {address} in the middle of the run ({why}); the "
+                      "exemplars finished are in the ledger, those under way are done again by the next run: "
+                      "start the scheduler and its workers again and run the same command")
+
+
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
@@ -262,6 +280,7 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
     distributed = import_distributed()
     own_cluster = None
     futures = []
+    own_files = [False]  # True while begin or finish writes this run's own files (their OSError is theirs)
     # A worker restarted after a death writes its environment into this process's again (local_cluster).
     kept = environ_kept(worker_environ()) if client is None else contextlib.nullcontext()
     kept.__enter__()
@@ -285,7 +304,9 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 if job is None:
                     break
                 key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
+                own_files[0] = True
                 begin(job)
+                own_files[0] = False
                 fut = client.submit(task, job, key=key, pure=False)
                 by_key[fut.key] = job
                 futures.append(fut)
@@ -298,16 +319,26 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             try:
                 record = fut.result()
             except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
+                lost = _lost_scheduler(client, exc, dask_call=False)  # no failure of this exemplar's
+                if lost is not None:
+                    raise lost from exc
                 record = _died_record(job, exc, retries if own_cluster is not None else None)
             fut.release()
             hand_out()  # before the ledger line: the freed worker starts at once
+            own_files[0] = True
             finish(job, record)
-    except BaseException:
+            own_files[0] = False
+    except BaseException as exc:
+        lost = None
+        if client is not None and isinstance(exc, Exception) and not isinstance(exc, TGHopError):
+            lost = _lost_scheduler(client, exc, dask_call=not own_files[0])
         try:
             if client is not None:
                 client.cancel([f for f in futures if not f.done()])
         except Exception:  # noqa: BLE001 - stopping anyway
             pass
+        if lost is not None:
+            raise lost from exc
         raise
     finally:
         with ctrl_c_ignored():  # a second Ctrl-C must not leave the cluster half-closed

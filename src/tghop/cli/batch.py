@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -138,7 +139,11 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         if workers != 1 or scheduler is not None:
             import logging
 
+            with contextlib.suppress(ImportError):  # first: its import sets its loggers' levels (dask's config)
+                import distributed  # noqa: F401
             logging.getLogger("distributed").setLevel(logging.ERROR)  # workers' deaths are in the ledger
+            # its "Failed to reconnect to scheduler ..., closing client": the run's one line says the scheduler lost
+            logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
         try:
             results = library.run(source, outdir, count=count, size=size, seed=seed, tile=generate.pop("tile"),
                                   fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,

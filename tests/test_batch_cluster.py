@@ -1,0 +1,134 @@
+"""``tghop batch --scheduler`` against a cluster started apart, as a studio runs it: a real
+``dask scheduler`` and ``dask worker`` processes (no LocalCluster of this process), each test's
+own, ended at its end. Exemplars are made in code; the tasks are tiny or stand-ins.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from tghop import batch, data
+from tghop._errors import TGHopError
+from tghop.imageio import save_image
+
+pytest.importorskip("distributed")
+
+
+def _start(args, env=None, cwd=None):
+    """``python -m ARGS`` (or ``-c``) with this folder first on its path: its tasks are this module's functions."""
+    path = os.pathsep.join(p for p in (str(Path(__file__).parent), os.environ.get("PYTHONPATH")) if p)
+    return subprocess.Popen([sys.executable, *(args if args[0] == "-c" else ["-m", *args])], cwd=cwd,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": path, **(env or {})})
+
+
+def _wait_for(p, text):
+    """The line of ``p``'s stderr that holds ``text`` (None where ``p`` ended first)."""
+    for line in p.stderr:
+        if text in line:
+            p.log = []  # the rest of its stderr, drained (a full pipe would block it)
+            threading.Thread(target=lambda: p.log.extend(p.stderr), daemon=True).start()
+            return line
+    return None
+
+
+class Cluster:
+    """A scheduler and worker processes of their own; :meth:`close` ends each by its id."""
+
+    def __init__(self):
+        self.scheduler = _start(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
+                                 "--dashboard-address", ":0"])
+        self.procs = [self.scheduler]
+        line = _wait_for(self.scheduler, "Scheduler at:")
+        assert line, "the scheduler did not start"
+        self.address = line.split("Scheduler at:")[1].strip()
+
+    def worker(self, name, env=None):
+        p = _start(["distributed.cli.dask_worker", self.address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                    "--name", name], env)
+        self.procs.append(p)
+        assert _wait_for(p, "Registered to:"), "the worker did not start"
+        return p
+
+    def close(self):
+        for p in self.procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait(timeout=30)
+
+
+@pytest.fixture
+def cluster():
+    c = Cluster()
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+def make_folder(d, n=2):
+    d.mkdir(parents=True, exist_ok=True)
+    for i in range(n):
+        save_image(data.bricks(48, rng=i), d / f"e{i}.png")
+    return d
+
+
+def ledger(out):
+    return [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+
+
+def slow_task(job):
+    """A task that runs until its worker goes (a stand-in for a long exemplar)."""
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        time.sleep(0.1)
+    return {"status": "failed", "error": "ran out", "cause": "run", "outputs": [], "model": None, "thumbnail": None}
+
+
+def test_a_scheduler_gone_mid_run_is_one_line_and_its_exemplars_are_left_to_the_rerun(tmp_path, cluster):
+    # The scheduler stopped mid-run: Dask's client gave up reconnecting after its timeout and the
+    # command said "cannot write the output: Timed out trying to connect to tcp://..." (an OSError).
+    cluster.worker("w1")
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+
+    def kill_when_handed_out():
+        deadline = time.time() + 120
+        while time.time() < deadline and not list(out.glob("*/.batch-running")):
+            time.sleep(0.1)
+        cluster.scheduler.kill()
+
+    killer = threading.Thread(target=kill_when_handed_out, daemon=True)
+    killer.start()
+    with pytest.raises(TGHopError, match=r"^lost the Dask scheduler at tcp://127\.0\.0\.1:\d+ in the middle of the "
+                                         r"run .*run the same command$"):
+        batch.run(src, out, size=(48, 48), seed=1, scheduler=cluster.address, task=slow_task)
+    killer.join()
+    lines = ledger(out)
+    assert lines and {line["status"] for line in lines} == {"interrupted"}, lines  # done again by the next run
+    assert not list(out.glob("*/.batch-running"))
+
+
+def test_the_command_says_a_lost_scheduler_in_one_line(tmp_path, cluster):
+    # As above, by `tghop batch --scheduler` (its exemplars' task a stand-in): Dask's client logged
+    # "Failed to reconnect to scheduler" and a traceback above the error (its loggers' levels, which
+    # the command lowers, were set again when distributed was imported, after the command's).
+    cluster.worker("w1")
+    make_folder(tmp_path / "src")
+    code = ("import sys, tghop.__main__, tghop.batch, test_batch_cluster; "
+            "tghop.batch.process_exemplar = test_batch_cluster.slow_task; "
+            "sys.argv = ['tghop', *sys.argv[1:]]; tghop.__main__.run()")
+    p = _start(["-c", code, "batch", "src", "-o", "out", "--scheduler", cluster.address, "--size", "48", "--seed",
+                "1", "-q"], cwd=tmp_path)
+    deadline = time.time() + 120
+    while time.time() < deadline and not list((tmp_path / "out").glob("*/.batch-running")):
+        time.sleep(0.1)
+    cluster.scheduler.kill()
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 1, err
+    assert err.startswith("Error: lost the Dask scheduler at tcp://") and err.count("\n") == 1, err
