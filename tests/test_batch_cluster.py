@@ -132,3 +132,48 @@ def test_the_command_says_a_lost_scheduler_in_one_line(tmp_path, cluster):
     _, err = p.communicate(timeout=120)
     assert p.returncode == 1, err
     assert err.startswith("Error: lost the Dask scheduler at tcp://") and err.count("\n") == 1, err
+
+
+def _fake_tghop(d, init, toolz=None):
+    """A folder that shadows tghop on a worker's path (``init``: its ``__init__.py``), and where
+    ``toolz`` is given, that package's installed version as Dask reads it (its metadata)."""
+    (d / "tghop").mkdir(parents=True)
+    (d / "tghop" / "__init__.py").write_text(init)
+    if toolz:
+        (d / f"toolz-{toolz}.dist-info").mkdir()
+        meta = f"Metadata-Version: 2.1\nName: toolz\nVersion: {toolz}\n"
+        (d / f"toolz-{toolz}.dist-info" / "METADATA").write_text(meta)
+    return str(d)
+
+
+def test_workers_without_tghop_or_with_another_are_refused_before_any_work(tmp_path, cluster):
+    # A worker without tghop failed to load every task handed to it and closed itself, and the run
+    # went on without a word; one of another version made its exemplars under this version's ledger
+    # line; Dask's own VersionMismatchWarning (a table) was hidden by the command (no UserWarning).
+    import distributed
+
+    from test_cli_failures import assert_one_line, invoke
+
+    make_folder(tmp_path / "src")
+    cluster.worker("w1")
+    missing = cluster.worker("w2", {"PYTHONPATH": _fake_tghop(
+        tmp_path / "none", "raise ModuleNotFoundError(\"No module named 'tghop'\", name='tghop')")})
+    args = ["batch", "src", "-o", "out", "--scheduler", cluster.address, "--size", "48", "-q"]
+    code, _, err, exc = invoke(*args, cwd=tmp_path)
+    assert_one_line(code, err, "1 of the Dask cluster's 2 workers cannot import tghop (w2 (tcp://", exception=exc)
+    assert "No module named 'tghop'): install tghop " in err
+    assert not (tmp_path / "out").exists()
+    missing.kill()
+    missing.wait(timeout=30)
+    with distributed.Client(cluster.address, timeout="10s") as client:
+        deadline = time.time() + 60
+        while time.time() < deadline and len(client.nthreads()) != 1:
+            time.sleep(0.1)
+        cluster.worker("w3", {"PYTHONPATH": _fake_tghop(tmp_path / "old", "__version__ = '0.1.0'\n", toolz="0.0.1")})
+    code, _, err, exc = invoke(*args, cwd=tmp_path)
+    assert_one_line(code, err, "1 of the Dask cluster's 2 workers runs another tghop than this command's "
+                    f"{batch.__version__} (w3 (tcp://", exception=exc)
+    warning, error = err.splitlines()
+    assert warning.startswith(f"Warning: the Dask cluster at {cluster.address} runs other versions") and \
+        "toolz " in warning and ", 0.0.1 on a worker (tcp://" in warning, err
+    assert not (tmp_path / "out").exists()

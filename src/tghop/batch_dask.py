@@ -23,7 +23,7 @@ from .batch_task import one_line
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
            "local_cluster",
            "worker_environ", "environ_kept", "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc",
-           "affinity_cores", "connect", "run_distributed"]
+           "affinity_cores", "connect", "check_workers_tghop", "run_distributed"]
 
 
 #: What to install for running on Dask.
@@ -241,10 +241,22 @@ def connect(scheduler):
     """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached."""
     distributed = import_distributed()
     try:
-        client = distributed.Client(scheduler, timeout="5s")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            client = distributed.Client(scheduler, timeout="5s")
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
         reason = one_line(exc)
     else:
+        for w in caught:
+            if w.category.__name__ == "VersionMismatchWarning":  # a Warning, not a UserWarning: the command hid it
+                warnings.warn(_mismatch_line(client, scheduler), stacklevel=2)
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        try:
+            check_workers_tghop(client)
+        except TGHopError:
+            client.close()
+            raise
         if not client.nthreads():  # the run would wait without a word
             warnings.warn(f"the Dask scheduler at {scheduler} has no workers yet: the exemplars wait until one joins "
                           f"(start one: dask worker {scheduler} --nthreads 1; docs/batch.md)", stacklevel=2)
@@ -253,6 +265,58 @@ def connect(scheduler):
     # start, its __del__ deadlocks on the loop runner's lock. Collect it now (after the except).
     gc.collect()
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
+
+
+def check_workers_tghop(client) -> None:
+    """A one-line :class:`~tghop.TGHopError` where a worker of ``client``'s cluster has no tghop or
+    another version than this process's: every task of such a worker failed ("No module named
+    'tghop'"), or made its exemplar with another tghop under this version's ledger line. (Workers that
+    join later are not checked.)"""
+    from . import __version__
+
+    # eval, not a function of tghop's: it is pickled by reference, so a worker without tghop could not load it
+    found = client.run(eval, "__import__('tghop').__version__", on_error="return")
+    if not found:
+        return
+    info = client.scheduler_info().get("workers", {})
+    named = {a: (f"{info[a]['name']} ({a})" if info.get(a, {}).get("name") not in (None, a) else a) for a in found}
+    missing = sorted(named[a] for a, v in found.items() if not isinstance(v, str))
+    other = sorted(f"{named[a]}: {v}" for a, v in found.items() if isinstance(v, str) and v != __version__)
+    install = f"install tghop {__version__} on every worker (pip install 'tghop[batch]=={__version__}') and restart it"
+    of = f"of the Dask cluster's {len(found)} worker{'s' if len(found) != 1 else ''}"
+    if missing:
+        raise TGHopError(f"{len(missing)} {of} cannot import tghop "
+                         f"({', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''}; "
+                         f"{one_line(next(v for v in found.values() if not isinstance(v, str)))}): {install}")
+    if other:
+        raise TGHopError(f"{len(other)} {of} {'runs' if len(other) == 1 else 'run'} another tghop than this "
+                         f"command's {__version__} ({', '.join(other[:5])}{' ...' if len(other) > 5 else ''}): "
+                         f"{install} (an exemplar's images and its ledger line are one version's)")
+
+
+def _mismatch_line(client, scheduler) -> str:
+    """Dask's ``VersionMismatchWarning`` (a table of many lines) as one line: each package whose
+    version differs between this process, the scheduler and the workers."""
+    try:
+        versions = client.get_versions()
+    except Exception:  # noqa: BLE001 - said without the details
+        versions = None
+    said = []
+    if versions:
+        own = versions["client"]["packages"]
+        others = [("the scheduler", versions["scheduler"].get("packages") or {})]
+        others += [(f"a worker ({a})", (v or {}).get("packages") or {}) for a, v in sorted(versions["workers"].items())]
+        for package, mine in own.items():
+            theirs = {}
+            for who, packages in others:
+                if package in packages and packages[package] != mine:
+                    theirs.setdefault(packages[package], who)  # the first of each other version
+            if theirs:
+                said.append(f"{package} {mine} here, " + ", ".join(f"{v} on {w}" for v, w in theirs.items()))
+    details = "; ".join(said[:4]) + (" ..." if len(said) > 4 else "") if said else "see client.get_versions()"
+    return (f"the Dask cluster at {scheduler} runs other versions of Python or its packages than this command "
+            f"({details}); Dask may fail to move tasks and results between them: install the same versions "
+            "everywhere (Dask's VersionMismatchWarning)")
 
 
 def _lost_scheduler(client, exc, *, dask_call) -> TGHopError | None:
