@@ -177,3 +177,39 @@ def test_workers_without_tghop_or_with_another_are_refused_before_any_work(tmp_p
     assert warning.startswith(f"Warning: the Dask cluster at {cluster.address} runs other versions") and \
         "toolz " in warning and ", 0.0.1 on a worker (tcp://" in warning, err
     assert not (tmp_path / "out").exists()
+
+
+def quick_task(job):
+    """A task that ends at once, but the first of a run's, which records its process's id and waits
+    for it to be killed (the test kills that worker)."""
+    first = Path(job["folder"]).parent / ".first"
+    try:
+        with open(first, "x") as f:
+            f.write(str(os.getpid()))
+    except FileExistsError:
+        return {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [], "model": None,
+                "thumbnail": None}
+    return slow_task(job)
+
+
+def test_a_worker_killed_mid_run_is_said_and_the_run_ends_on_the_other(tmp_path, cluster):
+    # kill -9 of a worker process mid-run: its exemplar ran again on the other worker and the run
+    # ended as if nothing had happened (the scheduler's log alone said it).
+    workers = [cluster.worker("w1"), cluster.worker("w2")]
+    src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
+
+    def kill_the_first():
+        deadline = time.time() + 120
+        while time.time() < deadline and not (out / ".first").is_file():
+            time.sleep(0.1)
+        time.sleep(0.5)
+        (p,) = [p for p in workers if p.pid == int((out / ".first").read_text())]
+        p.kill()
+
+    killer = threading.Thread(target=kill_the_first, daemon=True)
+    killer.start()
+    with pytest.warns(UserWarning, match=r"^a Dask worker left the cluster mid-run \(w[12] \(tcp://127\.0\.0\.1:\d+\): "
+                                         r"killed, out of memory or stopped\); an exemplar under way on it runs again"):
+        results = batch.run(src, out, size=(48, 48), seed=1, scheduler=cluster.address, task=quick_task)
+    killer.join()
+    assert [r["error"] for r in results] == ["a stand-in"] * 3  # none lost: the killed one's ran again

@@ -319,6 +319,17 @@ def _mismatch_line(client, scheduler) -> str:
             "everywhere (Dask's VersionMismatchWarning)")
 
 
+def _workers_gone(gone, names, local) -> str:
+    """The warning of Dask workers that left the cluster mid-run."""
+    named = ", ".join(str(names[a]) if str(names[a]) == a else f"{names[a]} ({a})" for a in gone[:5])
+    what = "a Dask worker" if len(gone) == 1 else f"{len(gone)} Dask workers"
+    restart = "its nanny starts another" if local else "start another if it was not restarted"
+    return (f"{what} left the cluster mid-run ({named}{' ...' if len(gone) > 5 else ''}: killed, out of memory or "
+            f"stopped); an exemplar under way on {'it' if len(gone) == 1 else 'them'} runs again on another worker, "
+            "up to the scheduler's tries "
+            f"(distributed.scheduler.allowed-failures); the run goes on with the others ({restart})")
+
+
 def _lost_scheduler(client, exc, *, dask_call) -> TGHopError | None:
     """The one-line :class:`~tghop.TGHopError` to raise where ``client`` lost its scheduler (it
     stopped, or its machine went away, mid-run), else None. Dask's client tries to reconnect for
@@ -361,8 +372,18 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         # (one closed by now: its futures were never reported, and the run waited for ever).
         by_key, running = {}, distributed.as_completed(loop=client.loop)
 
+        seen = {}  # the workers at the last hand-out: address -> name
+
         def hand_out():
-            slots = max(1, sum(client.nthreads().values()))  # again each time: a cluster may grow
+            nthreads = client.nthreads()
+            slots = max(1, sum(nthreads.values()))  # again each time: a cluster may grow
+            gone = [a for a in seen if a not in nthreads]
+            if gone:  # a worker killed (the run went on without a word) or stopped
+                warnings.warn(_workers_gone(gone, seen, own_cluster is not None), stacklevel=2)
+            if not seen or gone or set(nthreads) - set(seen):
+                info = client.scheduler_info().get("workers", {})
+                seen.clear()
+                seen.update({a: info.get(a, {}).get("name", a) for a in nthreads})
             while running.count() < slots:
                 job = next(order, None)
                 if job is None:
