@@ -10,7 +10,7 @@ import sys
 import click
 
 from ..fit_options import fit_params
-from .common import Progress, fail, stop_message, user_errors
+from .common import Progress, fail, quiet_tifffile, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
 
 __all__ = ["batch"]
@@ -136,6 +136,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
                                    "--max-depth (the manifest's rows are the exemplars)")
         generate = generation_params(options)
         fit = fit_params(options)
+        quiet_tifffile()  # the exemplars read in this process (one worker); a cluster's workers log as they are set
         if workers != 1 or scheduler is not None:
             import logging
 

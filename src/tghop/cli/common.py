@@ -25,7 +25,8 @@ from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, is_model_file, model_file
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
-           "check_stdout", "warn_lost_depth", "warn_written_with_8"]
+           "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
+           "quiet_tifffile"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -313,6 +314,30 @@ def is_builtin(spec) -> bool:
     return spec.split(":", 1)[1] in BUILTIN or not os.path.lexists(spec)
 
 
+def quiet_tifffile():
+    """:mod:`tifffile`'s log kept off the terminal, the command line's choice as an application (the library
+    leaves other packages' loggers as they are): tifffile logs a malformed TIFF's oddities as warnings
+    (``<tifffile.TiffPage 0 @8> incorrect StripOffsets count``), which Python, with no logging set up, printed
+    as lines of their own beside the command's one-line error (0.56). A :class:`logging.NullHandler` on its
+    logger stops that last-resort printing only: a program that sets up logging still gets them. Called where
+    a command reads image files (:func:`read_image`, ``tghop batch``), not at the command line's start, so
+    that ``--help``, ``info`` and a synthesis from a model load no :mod:`logging`."""
+    import logging
+
+    logger = logging.getLogger("tifffile")
+    if not any(isinstance(handler, logging.NullHandler) for handler in logger.handlers):
+        logger.addHandler(logging.NullHandler())
+
+
+def read_image(path, **kwargs):
+    """:func:`tghop.imageio.load_image` of ``path`` (its keyword arguments), as every command reads an image
+    file: with tifffile's log quieted (:func:`quiet_tifffile`)."""
+    from ..imageio import load_image
+
+    quiet_tifffile()
+    return load_image(path, **kwargs)
+
+
 def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=False, with_depth=False):
     """An image file, or ``builtin:NAME`` for a built-in exemplar (:func:`is_builtin`); with
     ``with_depth``, and its bits per channel (8 for a built-in one).
@@ -323,7 +348,6 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
     as an unknown ``-o`` extension or option value is.
     """
     from ..data import BUILTIN, builtin
-    from ..imageio import load_image
 
     if is_builtin(spec):
         if spec.split(":", 1)[1] not in BUILTIN:  # a name of no built-in exemplar: a usage error (status 2), as a
@@ -341,7 +365,7 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
         hint = (" (a checkpoint goes to 'tghop cooc morph', 'tghop cooc edit' or 'tghop baseline cooc EXEMPLAR "
                 "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else "")
         raise TGHopError(f"{spec} is {kind}, not an image; this command needs an image{hint}")
-    return load_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,
+    return read_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
 
 
@@ -381,12 +405,11 @@ def load_mask(path: str, shape, *, label: str = "MASK", image_label: str = "the 
     and MASK swapped) is warned of likewise: its light pixels are the hole."""
     import warnings
 
-    from ..imageio import load_image
     from ..inpaint import MASK_PICTURE_SHARE, grey_share
 
     if is_model_file(path):
         raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image; give a black and white image")
-    mask = load_image(path, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True)  # the colours as without it
+    mask = read_image(path, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True)  # the colours as without it
     if mask.shape[:2] != tuple(shape[:2]):
         raise TGHopError(f"{label} {path} is {mask.shape[0]}x{mask.shape[1]} but {image_label} is "
                          f"{shape[0]}x{shape[1]}; give a mask of the same size")

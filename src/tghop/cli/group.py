@@ -12,7 +12,6 @@ Running as the ``tghop`` command (:func:`tghop.__main__.run`, the console script
 from __future__ import annotations
 
 import gc
-import logging
 import signal
 import sys
 import threading
@@ -98,17 +97,6 @@ def _redeliver_lost_stops(hook):
         hook(unraisable)
 
     return handle
-
-
-def _quiet_tifffile():
-    """The command line's logging, an application's choice (the library leaves other packages' loggers as
-    they are): :mod:`tifffile` logs a malformed TIFF's oddities as warnings (``<tifffile.TiffPage 0 @8>
-    incorrect StripOffsets count``), which Python, with no logging set up, prints as lines of their own
-    beside a command's one-line error. A :class:`logging.NullHandler` on its logger stops that last-resort
-    printing only: a program that sets up logging and runs the command line in-process still gets them."""
-    logger = logging.getLogger("tifffile")
-    if not any(isinstance(handler, logging.NullHandler) for handler in logger.handlers):
-        logger.addHandler(logging.NullHandler())
 
 
 def _stop_on_signals():
@@ -224,7 +212,6 @@ class OneLineGroup(click.Group):
         that its collections during the run and at exit do not walk them. A program that runs the command line
         in-process keeps its signal handling and its collector as they were.
         """
-        _quiet_tifffile()
         try:
             if as_command:
                 _import_for(self, sys.argv[1:] if args is None else list(args))

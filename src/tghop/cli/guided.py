@@ -8,7 +8,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, numbered,
-                     user_errors, warn_written_with_8, write_materials)
+                     read_image, user_errors, warn_written_with_8, write_materials)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -140,11 +140,10 @@ def _load_guide(path, size, size_given):
     """The guide map as an array, refused when it has not --size's shape (one line); of another
     size, it is scaled to --size when its labels are read (:func:`tghop.guides.guide_labels`)."""
     from ..guides import same_shape
-    from ..imageio import load_image
 
     if is_model_file(path):
         raise TGHopError(f"--guide {path} is {model_file_kind(path)}, not an image; give a painted map")
-    guide = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
+    guide = read_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF)
     if size_given and not same_shape(guide.shape, size):
         raise click.UsageError(f"--guide {path} is {guide.shape[0]}x{guide.shape[1]} but --size is "
                                f"{size[0]}x{size[1]}, another shape; paint the map at the output's shape (it is "

@@ -10,7 +10,8 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
-                     map_names, refuse_albedo_as_map, refuse_colour_map_out_of_place, user_errors, warn_lost_depth)
+                     map_names, refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, user_errors,
+                     warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -165,7 +166,7 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     (without --depth IMAGE's own, as far as the output's format holds it, with a warning
     when that is less; with ``maps`` the caller warns, with the maps), whether --source
     is a saved model and IMAGE's depth."""
-    from ..imageio import check_depth, deepest, load_image
+    from ..imageio import check_depth, deepest
     from ..inpaint import split_alpha
 
     check_output(output, allow_stdout=True, depth=depth)
@@ -181,7 +182,7 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
         raise click.UsageError("--scale applies to an exemplar given as --source; "
                                + ("a saved model keeps the scale it was fitted at" if source else
                                   "IMAGE's own texture is at IMAGE's scale already"))
-    picture, image_depth = load_image(image, dtype=None, with_depth=True, keep_alpha=True,
+    picture, image_depth = read_image(image, dtype=None, with_depth=True, keep_alpha=True,
                                       too_large_hint=HINT_DOWNSCALE_YOURSELF)
     picture, alpha = split_alpha(picture)
     written = check_depth(output, depth or deepest(output, image_depth),
@@ -320,7 +321,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     ``depth``)."""
     import numpy as np
 
-    from ..imageio import check_depth, deepest, load_image, save_images
+    from ..imageio import check_depth, deepest, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
     from ..map_names import is_data_map, is_normal_name, normal_convention
     from ..material import drop_opaque_alpha
@@ -358,7 +359,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
     for name, path, out in zip(names, map_paths, map_files(output, ["albedo", *names])[1:]):
         if is_model_file(path):
             raise TGHopError(f"MAP {path} is {model_file_kind(path)}, not an image; give the map's image")
-        maps[name], depths[name] = load_image(path, dtype=None, with_depth=True, keep_alpha=True,
+        maps[name], depths[name] = read_image(path, dtype=None, with_depth=True, keep_alpha=True,
                                               too_large_hint=HINT_DOWNSCALE_YOURSELF, as_data=is_data_map(name))
         maps[name] = drop_opaque_alpha(maps[name], f"MAP {path}")
         if (material.normal_[1 + names.index(name)] if material is not None else is_normal_name(name)):

@@ -15,7 +15,7 @@ from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map,
-                     refuse_colour_map_out_of_place, summary,
+                     refuse_colour_map_out_of_place, read_image, summary,
                      user_errors, warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
@@ -54,7 +54,6 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
     maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
     content (:func:`tghop.normals.convention_of`), by name."""
-    from ..imageio import load_image
     from ..map_names import is_data_map, is_normal_name, normal_convention
     from ..material import Material, drop_opaque_alpha
     from ..normals import convention_of, upright_normal_map
@@ -65,9 +64,9 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
         if is_model_file(path):
             raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image")
         if label == "EXEMPLAR":  # the albedo's alpha is transparency (warned of, as for a texture)
-            return load_image(path, dtype=None, downscale=downscale, with_depth=True,
+            return read_image(path, dtype=None, downscale=downscale, with_depth=True,
                               too_large_hint=HINT_DOWNSCALE_OPTION)
-        image, depth = load_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
+        image, depth = read_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
                                   too_large_hint=HINT_DOWNSCALE_OPTION, as_data=is_data_map(name))
         return drop_opaque_alpha(image, f"{label} {path}"), depth
 
