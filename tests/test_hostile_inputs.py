@@ -263,3 +263,32 @@ def test_an_upload_the_multipart_parser_refuses_is_400_naming_what_to_do(live_se
     message = r.json()["error"]
     assert message.startswith(words) and "\n" not in message, message
     assert "curl -F NAME=@FILE" in message, message
+
+
+def checkpoint_cut_short(path):
+    """A torch.save layout (archive/data.pkl naming settings_json, then a tensor) without its zip directory."""
+    import zipfile
+
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as archive:
+        archive.writestr("archive/data.pkl", b"\x80\x02}q\x00X\r\x00\x00\x00settings_jsonq\x01" + b"." * 200)
+        archive.writestr("archive/data/0", bytes(4000))
+    path.write_bytes(path.read_bytes()[:3000])
+    return path
+
+
+@pytest.mark.parametrize("command", ["synth", "info", "fit"])
+def test_a_pt_file_that_is_no_image_or_model_names_the_cooc_commands(tmp_path, command):
+    """0.56 said "not a readable image ... give a PNG" or "not a tghop model file ... fit the model
+    again" of random bytes named .pt and of a checkpoint cut short, naming no 'tghop cooc' command."""
+    noise = tmp_path / "x.pt"
+    noise.write_bytes(np.random.default_rng(0).bytes(5000))
+    cut = checkpoint_cut_short(tmp_path / "cut.bin")
+    out = tmp_path / ("o.npz" if command == "fit" else "o.png")
+    for path, said in ((noise, "a .pt or .pth name is a co-occurrence cGAN checkpoint's"),
+                       (cut, "co-occurrence cGAN checkpoint")):
+        args = {"synth": ["synth", str(path), "-o", str(out)], "info": ["info", str(path)],
+                "fit": ["fit", str(path), "-o", str(out)]}[command]
+        result = CliRunner().invoke(main, args)
+        one_error_line(result, path.name, said, "'tghop cooc morph'")
+        assert "fit the model again" not in result.output or path is noise
+        assert not out.exists()

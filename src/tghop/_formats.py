@@ -4,7 +4,7 @@ the command line's help is made from it without loading NumPy); and the extensio
 files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
-           "model_file_kind", "COOC_CHECKPOINT", "TIFF_HINT", "check_tifffile",
+           "model_file_kind", "COOC_CHECKPOINT", "checkpoint_note", "TIFF_HINT", "check_tifffile",
            "MAX_UNPACK_RATIO", "UNPACK_SLACK", "unpacks_too_far",
            "why_unreadable", "unread_format", "missing_decoder", "warn_frames"]
 
@@ -87,8 +87,8 @@ def unpacks_too_far(path) -> str | None:
 def model_file_kind(path) -> str:
     """What the zip archive at ``path`` (:func:`is_model_file`) is, in words for "PATH is ...,
     not an image": :data:`COOC_CHECKPOINT` (``torch.save``'s layout naming the checkpoint's
-    ``settings_json``), "a PyTorch file" (that layout otherwise) or "a model file" (a tghop
-    ``.npz``, or an archive cut short)."""
+    ``settings_json``, also in the first bytes of a checkpoint cut short: 0.57), "a PyTorch file"
+    (that layout otherwise) or "a model file" (a tghop ``.npz``, or another archive cut short)."""
     import zipfile
 
     try:
@@ -99,7 +99,39 @@ def model_file_kind(path) -> str:
             small = pickles[0].file_size < 2**20  # the tensors' names and shapes only
             return COOC_CHECKPOINT if small and b"settings_json" in archive.read(pickles[0]) else "a PyTorch file"
     except (zipfile.BadZipFile, OSError, EOFError, NotImplementedError, ValueError):
+        pass
+    try:  # cut short (no zip directory): torch.save stores its pickle, naming settings_json, near the start
+        if hasattr(path, "read"):
+            path.seek(0)
+            head = path.read(2**20)
+        else:
+            with open(path, "rb") as fh:
+                head = fh.read(2**20)
+    except (OSError, ValueError):
         return "a model file"
+    if head.startswith(b"PK") and b"/data.pkl" in head[:400]:  # the first member's name
+        return COOC_CHECKPOINT if b"settings_json" in head else "a PyTorch file"
+    return "a model file"
+
+
+#: The suffixes of PyTorch's files, which a co-occurrence cGAN checkpoint is named by.
+TORCH_SUFFIXES = (".pt", ".pth")
+
+
+def checkpoint_note(path) -> str:
+    """For "PATH: not a readable image (...)" and "PATH: ... not a tghop model file": where a
+    co-occurrence cGAN checkpoint goes, in words to append ("; ..."), when ``path`` is or looks
+    like one (:func:`model_file_kind`, a checkpoint cut short included) or is named ``.pt``/``.pth``;
+    "" otherwise (0.56 named no ``tghop cooc`` command: "give a PNG, JPEG ..." or "fit the model again")."""
+    import os
+
+    where = "'tghop cooc morph' and 'tghop cooc edit' take those, not this command"
+    kind = model_file_kind(path) if is_model_file(path) else None
+    if kind == COOC_CHECKPOINT:
+        return f"; it looks like a co-occurrence cGAN checkpoint ('tghop cooc train' writes them): {where}"
+    if kind != "a PyTorch file" and os.fsdecode(path).lower().endswith(TORCH_SUFFIXES):  # another's: no note
+        return f"; a .pt or .pth name is a co-occurrence cGAN checkpoint's: {where}"
+    return ""
 
 
 def check_tifffile(path, depth):

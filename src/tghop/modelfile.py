@@ -32,7 +32,7 @@ import numpy as np
 from . import __version__
 from ._common import ModelFileError, TGHopError
 from ._errors import warn
-from ._formats import is_model_file, unpacks_too_far
+from ._formats import COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind, unpacks_too_far
 from .imageio import check_output_path, write_atomic
 from .material import Material
 from .settings import fit_seed
@@ -164,10 +164,13 @@ def _read(path):
         if isinstance(exc, ValueError) and "allow_pickle" in str(exc):  # NumPy's word for "not .npy, not .npz"
             why = ("an array of Python objects, which tghop does not unpickle" if is_model_file(path)
                    else "not a NumPy archive")
-            raise ModelFileError(f"{path}: not a tghop model file ({why}); give a model file tghop wrote") from None
+            raise ModelFileError(f"{path}: not a tghop model file ({why}); give a model file tghop "
+                                 f"wrote{checkpoint_note(path)}") from None
+        note = checkpoint_note(path)  # 0.57: a checkpoint cut short is not told to "fit the model again"
+        looks = is_model_file(path) and model_file_kind(path) == COOC_CHECKPOINT
+        fix = note[2:] if looks else f"fit the model again{note}"
         raise ModelFileError(
-            f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); "
-            "fit the model again"
+            f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); {fix}"
         ) from None
     if "__meta__" not in arrays:
         if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout

@@ -21,7 +21,7 @@ from pathlib import Path
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, InvalidImageError, TGHopError
-from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, is_model_file, model_file_kind
+from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model_file, model_file_kind
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
@@ -363,7 +363,7 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
     if is_model_file(spec):
         kind = model_file_kind(spec)
         hint = (" (a checkpoint goes to 'tghop cooc morph', 'tghop cooc edit' or 'tghop baseline cooc EXEMPLAR "
-                "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else "")
+                "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else checkpoint_note(spec))
         raise TGHopError(f"{spec} is {kind}, not an image; this command needs an image{hint}")
     return read_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
