@@ -377,7 +377,7 @@ CHANGED = {
     "nan generator": (_set("generator_ema.net.1.weight", 0, float("nan")), "generator_ema.net.1.weight has NaN"),
     "inf generator": (_set("generator.net.1.weight", 0, float("inf")), "generator.net.1.weight has NaN"),
     # crops larger than the exemplar: generation tried to allocate an exabyte (a traceback)
-    "huge crops": (lambda raw: {"settings_json": _settings_json(raw, crop_size=2**30)}, "training crops of 1073741824"),
+    "huge crops": (lambda raw: {"settings_json": _settings_json(raw, crop_size=2**12)}, "training crops of 4096"),
     "negative exemplar shape": (lambda raw: {"settings_json": _settings_json(raw, exemplar_shape=[-1, 0, 3])},
                                 "exemplar shape [-1, 0, 3]"),
 }
@@ -425,4 +425,49 @@ def test_an_empty_checkpoint_name_is_said_so(files, tmp_path):
     out = tmp_path / "o.png"
     assert_user_error(invoke("baseline", "cooc", files / "ex.png", "--model", "", "-o", out, "-q"),
                       "the checkpoint's file name is empty")
+    assert not out.exists()
+
+
+def _complex(name):
+    def change(raw):
+        return {name: raw[name].to(torch.complex64)}
+    return change
+
+
+#: (change of the checkpoint's tensors, fragment of the message): 0.56 named only the exception's
+#: class ("(KeyError)", "(RuntimeError)"), or loaded and generated
+DESCRIBED = {
+    "missing tensor": (lambda raw: {k: v for k, v in raw.items() if k != "cond_std_"}, "'cond_std_' is missing"),
+    "missing setting": (lambda raw: {**raw, "settings_json": _drop_setting(raw, "seed")}, "'seed' is missing"),
+    "weight of another shape": (lambda raw: {**raw, "critic.convs.0.weight": raw["critic.convs.0.weight"][:1]},
+                                "size mismatch for convs.0.weight"),
+    "complex generator": (lambda raw: {**raw, **_complex("generator_ema.net.1.weight")(raw)},
+                          "generator_ema.net.1.weight is of type complex64, not real floating point"),
+    "complex statistics": (lambda raw: {**raw, **_complex("centres_")(raw)}, "centres_ is of type complex"),
+    "huge n_clusters": (lambda raw: {**raw, "settings_json": _settings_json(raw, n_clusters=10**9)},
+                        "n_clusters=1,000,000,000 is over 65,536"),
+}
+
+
+def _drop_setting(raw, key):
+    import json
+
+    settings = json.loads(bytes(raw["settings_json"].numpy().tobytes()).decode())
+    del settings[key]
+    return torch.frombuffer(bytearray(json.dumps(settings).encode()), dtype=torch.uint8)
+
+
+@pytest.mark.parametrize("case", sorted(DESCRIBED))
+def test_a_corrupt_checkpoint_says_what_is_wrong_in_words(files, tmp_path, case):
+    from tghop._common import ModelFileError
+
+    change, fragment = DESCRIBED[case]
+    raw = torch.load(files / "m.pt", map_location="cpu", weights_only=True)
+    torch.save(change(raw), tmp_path / "changed.pt")
+    with pytest.raises(ModelFileError, match="corrupt tghop co-occurrence checkpoint") as error:
+        cooc.load(tmp_path / "changed.pt", device="cpu")
+    assert fragment in str(error.value) and "train it again" in str(error.value), str(error.value)
+    out = tmp_path / "o.png"
+    assert_user_error(invoke("cooc", "edit", tmp_path / "changed.pt", files / "ex.png", "--size", "32x32", "-o", out,
+                             "-q"), "changed.pt", fragment)
     assert not out.exists()

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._common import ModelFileError, import_torch
+from .._common import ModelFileError, TGHopError, import_torch
 from .._formats import unpacks_too_far
 from .config import torch_device
 from .networks import build_networks
@@ -158,6 +158,9 @@ def read(path, model_class, *, device: str = "auto"):
              "context": False, **settings["settings"]}  # checkpoints from before these settings
         model = model_class(**p, device=device)
         model.settings_ = model._settings()
+        for name in _INT_SETTINGS:
+            if model.settings_[name] > MAX_INT_SETTING:
+                raise TGHopError(f"setting {name}={model.settings_[name]:,} is over {MAX_INT_SETTING:,}")
         model.exemplar_shape_ = tuple(settings["exemplar_shape"])
         model.exemplar_hash_ = settings["exemplar_hash"]
         model._seed_ = int(settings["seed"])
@@ -187,9 +190,30 @@ def read(path, model_class, *, device: str = "auto"):
     except ModelFileError:
         raise
     except Exception as exc:
-        raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({exc.__class__.__name__}); "
+        raise ModelFileError(f"{path}: corrupt tghop co-occurrence checkpoint ({_what_is_wrong(exc)}); "
                              "train it again") from None
     return model
+
+
+#: The most a checkpoint's integer settings may be on load (0.57; 0.56 took n_clusters=10**9): far
+#: above any that trains in memory, so that only a changed or damaged file is refused.
+MAX_INT_SETTING = 2**16
+_INT_SETTINGS = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "batch_size",
+                 "n_critic", "tiles", "kernel", "gp_every")
+
+
+def _what_is_wrong(exc) -> str:
+    """A corrupt checkpoint's fault in words, where the exception says it: a missing key by name,
+    a setting's own message, the first of PyTorch's load_state_dict lines (a tensor of the wrong
+    shape by name); else the exception's class (0.56 gave the class alone: "(KeyError)")."""
+    if isinstance(exc, KeyError) and exc.args:
+        return f"{exc.args[0]!r} is missing"
+    if isinstance(exc, TGHopError):
+        return str(exc)
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    if isinstance(exc, RuntimeError) and len(lines) > 1 and "state_dict" in lines[0]:
+        return lines[1][:160]
+    return exc.__class__.__name__
 
 
 def _check_state(path, model, torch, tensors) -> None:
@@ -223,7 +247,14 @@ def _check_state(path, model, torch, tensors) -> None:
         corrupt("exemplar_cooc_ has negative values")
     if model.history_.ndim != 2 or model.history_.shape[1] != 5:
         corrupt(f"history_ has shape {model.history_.shape}, not (steps, 5)")
+    for name in _STATISTICS:  # 0.56 took complex or integer ones
+        if getattr(model, name).dtype.kind != "f":
+            corrupt(f"{name} is of type {getattr(model, name).dtype}, not real floating point")
     for key, value in tensors.items():
+        counter = key.endswith(".num_batches_tracked")  # batch norm's count: an integer
+        if key.startswith(("generator.", "generator_ema.", "critic.", "opt_g.", "opt_d.")) and not counter \
+                and not value.is_floating_point():  # 0.56 generated from complex weights
+            corrupt(f"{key} is of type {str(value.dtype).replace('torch.', '')}, not real floating point")
         if key.startswith(("generator.", "generator_ema.")) and value.is_floating_point() \
                 and not bool(torch.isfinite(value).all()):
             corrupt(f"{key} has NaN or infinite values")
