@@ -292,3 +292,31 @@ def test_a_pt_file_that_is_no_image_or_model_names_the_cooc_commands(tmp_path, c
         one_error_line(result, path.name, said, "'tghop cooc morph'")
         assert "fit the model again" not in result.output or path is noise
         assert not out.exists()
+
+
+@pytest.mark.parametrize("case", ["grey and 4 unspecified", "rgb, alpha and 2 unspecified", "rgb and alpha",
+                                  "rgb and 1 unspecified", "rgb and 2 unspecified"])
+def test_a_tiff_s_extra_channels_that_are_not_alpha_are_said_dropped(tmp_path, case):
+    """0.56 dropped them without a word (a multispectral file read as its first band)."""
+    import warnings
+
+    from tghop.imageio import load_image
+
+    tifffile = pytest.importorskip("tifffile")
+    samples, photometric, extras, said = {
+        "grey and 4 unspecified": (5, "minisblack", [0, 0, 0, 0], "4 extra channels that are not alpha dropped; "
+                                   "tghop reads its grey channel only"),
+        "rgb, alpha and 2 unspecified": (6, "rgb", [2, 0, 0], "2 extra channels that are not alpha dropped; tghop "
+                                         "reads its RGB channels and alpha only"),
+        "rgb and alpha": (4, "rgb", [2], None),
+        "rgb and 1 unspecified": (4, "rgb", [0], None),  # RGBX: the common 4th sample, dropped without a word
+        "rgb and 2 unspecified": (5, "rgb", [0, 0], "2 extra channels that are not alpha dropped; tghop "
+                                  "reads its RGB channels only")}[case]
+    path = tmp_path / "many.tif"
+    tifffile.imwrite(path, np.full((16, 16, samples), 200, np.uint8), photometric=photometric, extrasamples=extras)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        image = load_image(path)
+    assert image.shape == (16, 16, 1 if photometric == "minisblack" else 3)
+    dropped = [str(w.message) for w in caught if "extra channel" in str(w.message)]
+    assert dropped == ([f"many.tif: {said}"] if said else []), dropped

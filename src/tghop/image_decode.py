@@ -153,7 +153,14 @@ def read_deep(path, max_pixels, keep_alpha=False):
         arr = arr[:, :, None]
     if arr.ndim != 3 or arr.shape[2] < colours + alpha:
         return None  # an arrangement of samples tghop does not know: Pillow's path
-    arr = arr[:, :, : colours + alpha]  # extra samples that are not alpha are dropped, as Pillow drops them
+    dropped = arr.shape[2] - colours - alpha
+    # Extra samples that are not alpha (a multispectral file): dropped as Pillow drops them, and said (0.57),
+    # except RGB's one 4th sample (RGBX padding, or an alpha its writer did not mark): dropped without a word.
+    if dropped and not (colours == 3 and not alpha and dropped == 1):
+        kept = f"{'its grey channel' if colours == 1 else 'its RGB channels'}{' and alpha' if alpha else ''}"
+        warn(f"{path.name}: {dropped} extra channel{'s' if dropped > 1 else ''} that {'are' if dropped > 1 else 'is'} "
+             f"not alpha dropped; tghop reads {kept} only")
+    arr = arr[:, :, : colours + alpha]
     if inverted:  # min-is-white integer levels
         arr = arr.copy()
         arr[:, :, 0] = np.iinfo(arr.dtype).max - arr[:, :, 0]
