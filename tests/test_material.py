@@ -467,8 +467,22 @@ def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):
 
 
 def test_material_synthesize_refuses_a_bad_dtype_in_one_line(material):
-    with pytest.raises(TGHopError, match=r"^dtype must be float32 or float64 \(e\.g\. numpy\.float32\), got 'junk'$"):
+    told = r"^dtype must be float64, float32 or uint8 \(e\.g\. numpy\.float32\), got 'junk'$"
+    with pytest.raises(TGHopError, match=told):
         material.synthesize(SIZE, rng=1, dtype="junk")
+
+
+def test_material_synthesize_takes_uint8_as_tghop_synthesize_does(material):
+    # 0.56 refused dtype=numpy.uint8 ("float32 or float64"), which synthesize_guided of materials and
+    # TGHop.synthesize take: now each map's floats rounded to 0-255 by to_uint8, a mask map's levels too.
+    from tghop.imageio import to_uint8
+
+    floats = material.synthesize(SIZE, rng=1, **POOL)  # float64: a float32 copy can round a level apart
+    levels = material.synthesize(SIZE, rng=1, dtype=np.uint8, **POOL)
+    assert list(levels) == list(floats)
+    for name, img in levels.items():
+        assert img.dtype == np.uint8 and img.shape == floats[name].shape
+        assert np.array_equal(img, to_uint8(floats[name]).reshape(img.shape)), name
 
 
 def test_map_slices_before_fit_is_not_fitted():

@@ -42,6 +42,7 @@ from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, c
                       one_blas_thread, report)
 from ._errors import warn
 from .colour import match_histograms
+from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names,
                         is_normal_name, map_kind, map_name, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_channels, snap_to_levels
@@ -499,7 +500,10 @@ class Material(BaseEstimator):
             ``progress(stage, done, total)``: the joint model's stages, then each map's
             refinement ("refine", as :func:`tghop.refine.refine` reports it) and a "maps" stage
             after each map (``done`` of ``total`` maps); an exception it raises stops the work.
-        dtype : {numpy.float64, numpy.float32}
+        dtype : {numpy.float64, numpy.float32, numpy.uint8}
+            uint8 (0.57; 0.56 refused it, which :func:`tghop.synthesize_guided` of materials took):
+            each map's float values rounded to 0-255 as :meth:`TGHop.synthesize` rounds them, a
+            16-bit map (:attr:`depths_`) too; keep a float for its 65536 levels.
         **options
             The other generation settings of :meth:`TGHop.synthesize` (``n_patches``,
             ``tolerance``, ``detail``, ``layout_weight``, ...). These, ``refine``,
@@ -510,12 +514,12 @@ class Material(BaseEstimator):
         Returns
         -------
         dict of str to ndarray
-            ``name -> (H, W, c)`` array in [0, 1], ``"albedo"`` first, in :attr:`names_`'s order; a
+            ``name -> (H, W, c)`` array in [0, 1] (uint8: 0 to 255), ``"albedo"`` first, in :attr:`names_`'s order; a
             mask map (:attr:`levels_`) holds only its exemplar's values, a mask channel
             (:attr:`channel_levels_`) its own (:mod:`tghop.masks`).
         """
         check_is_fitted(self, "model_")
-        dtype = check_dtype(dtype, (np.float32, np.float64), "float32 or float64")
+        dtype = check_dtype(dtype, (np.float32, np.float64, np.uint8), "float64, float32 or uint8")
         # The checks of TGHop.synthesize (refine and match_colours are applied here, per map, not by it)
         checked = settings.check_settings(dict(refine=refine, match_colours=match_colours, tile=tile, **options))
         refine, match_colours, tile = checked.pop("refine"), checked.pop("match_colours"), checked.pop("tile")
@@ -539,7 +543,7 @@ class Material(BaseEstimator):
                 img = snap_to_levels(img, self.levels_[i])
             elif self.channel_levels_[i] is not None:  # a packed map's metalness: its channel kept a mask
                 img = snap_channels(img, self.channel_levels_[i])
-            out[name] = img.astype(dtype, copy=False)
+            out[name] = to_uint8(img).reshape(img.shape) if dtype == np.uint8 else img.astype(dtype, copy=False)
             report(progress, "maps", i + 1, len(self.names_))
         return out
 
