@@ -80,3 +80,37 @@ def test_inpaint_tells_an_image_with_alpha_how_to_drop_it(channels, fix, small_m
     with pytest.raises(tghop.TGHopError) as caught:
         inpaint(small_model, image, np.ones(bricks96.shape[:2], dtype=bool))
     assert str(caught.value) == f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {image.shape}; {fix}"
+
+
+@pytest.mark.parametrize("call", [
+    lambda m, b, hole, p: tghop.TGHop(n_clusters=4).fit(b, progress=p),
+    lambda m, b, hole, p: m.synthesize((48, 48), rng=0, progress=p),
+    lambda m, b, hole, p: inpaint(m, b, hole, rng=0, progress=p),
+    lambda m, b, hole, p: extend(m, b, (96, 128), rng=0, progress=p),
+    lambda m, b, hole, p: tghop.synthesize_guided([m, m], size=(48, 48), rng=0, progress=p),
+    lambda m, b, hole, p: tghop.morph(m, m, (48, 96), rng=0, progress=p),
+    lambda m, b, hole, p: Material().fit(b, {"height": b[..., :1]}, progress=p),
+], ids=["fit", "synthesize", "inpaint", "extend", "synthesize_guided", "morph", "Material.fit"])
+def test_a_progress_callback_of_the_wrong_arguments_is_refused_before_any_work(call, small_model, bricks96):
+    # 0.56 let Python's own TypeError ("<lambda>() takes 2 positional arguments but 3 were given") out of
+    # the first report, deep in tghop, after the work before it.
+    hole = np.zeros(bricks96.shape[:2], dtype=bool)
+    hole[30:60, 30:60] = True
+    calls = []
+
+    def two(stage, done):
+        calls.append(stage)
+
+    with pytest.raises(TypeError) as caught:
+        call(small_model, bricks96, hole, two)
+    assert str(caught.value) == ("progress must take three arguments, progress(stage, done, total); "
+                                 "two(stage, done) does not")
+    assert calls == []
+
+
+def test_a_progress_callback_of_star_args_or_defaults_is_taken(small_model):
+    seen = []
+    small_model.synthesize((32, 32), rng=0, progress=lambda *args: seen.append(args))
+    small_model.synthesize((32, 32), rng=0, progress=lambda stage, done, total, extra=None: seen.append(stage))
+    assert {len(args) for args in seen if isinstance(args, tuple)} == {3}
+    assert any(isinstance(stage, str) for stage in seen)

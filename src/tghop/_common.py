@@ -315,6 +315,24 @@ def report(progress: Optional[ProgressCallback], stage: str, done: int, total: i
         progress(stage, int(done), int(total))
 
 
+def check_progress(progress) -> None:
+    """Refuse, before any work, a ``progress`` that cannot be called as ``progress(stage, done, total)`` (0.57; 0.56
+    let Python's own TypeError out of the first report, deep in tghop): one TypeError naming that signature."""
+    if progress is None:
+        return
+    if not callable(progress):
+        report(progress, "", 0, 0)  # its one line naming the type
+    try:
+        signature = inspect.signature(progress)
+    except (TypeError, ValueError):  # a builtin without one: Python tells at the first report
+        return
+    try:
+        signature.bind("stage", 0, 1)
+    except TypeError:
+        raise TypeError(f"progress must take three arguments, progress(stage, done, total); "
+                        f"{getattr(progress, '__name__', type(progress).__name__)}{signature} does not") from None
+
+
 class ProgressCounter:
     """``progress(stage, done, total)`` of steps done in several threads: ``counter(n)`` adds ``n`` steps and
     reports the sum (under a lock, so that the counts reported only grow, from whichever thread did the step).

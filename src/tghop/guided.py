@@ -61,7 +61,7 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
-from ._common import TGHopError, check_is_fitted, check_rng, check_size, one_blas_thread, report
+from ._common import TGHopError, check_is_fitted, check_progress, check_rng, check_size, one_blas_thread, report
 from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
 from .guides import guide_labels
 from .masks import snap_channels, snap_to_levels
@@ -258,6 +258,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         model in the image has the same two levels (:attr:`tghop.TGHop.exemplar_levels_`), each
         pixel is at one of them, the joins too (0.57).
     """
+    check_progress(progress)
     models = _check_models(models, 1 if guide is not None else 2, materials=True)
     transition = check_int(transition, "transition", 0, MAX_TRANSITION)
     k = len(models)
@@ -321,6 +322,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     ndarray, shape (H, W, C), ``dtype``
         At the two models' two levels where both have the same (as :func:`synthesize_guided`).
     """
+    check_progress(progress)
     models = _check_models([model_a, model_b], 2)
     h, w = check_size(size)
     if stations is not None:

@@ -55,7 +55,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_not_path
-from ._common import TGHopError, check_is_fitted, check_keywords, check_rng, checked_image, one_blas_thread, report
+from ._common import (TGHopError, check_is_fitted, check_keywords, check_progress, check_rng, checked_image,
+                      one_blas_thread, report)
 from .canvas import ANCHORS, expand_canvas
 from .hole_refine import refine_hole, stitch_hole
 from .masks import snap_to_levels
@@ -233,6 +234,7 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
         A size smaller than ``image`` or its own, a canvas thinner than ``model``'s patches
         (:func:`tghop.canvas.expand_canvas`), or what :func:`inpaint` refuses.
     """
+    check_progress(progress)
     check_keywords(options, inpaint, where="extend", exclude=("model", "image", "mask", "rng", "tile", "progress"))
     check_is_fitted(model, "ichm_")
     # A canvas thinner than a patch: said as extending this image (inpaint would name the canvas, and inpainting).
@@ -413,6 +415,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         pixels: the same values). A model of a two-level exemplar (:attr:`tghop.TGHop.exemplar_levels_`:
         a 1-bit file, line art) fills the hole with its two levels only, as its images are (0.57).
     """
+    check_progress(progress)
     check_is_fitted(model, "ichm_")
     p = int(model.patch_size)
     n_channels = int(model.exemplar_shape_[2])
@@ -504,6 +507,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         Each map filled, in ``material.names_``'s order: its own shape, uint8 and uint16 kept
         (known pixels the same levels: a 16-bit map stays 16-bit), else float64 (the same values).
     """
+    check_progress(progress)
     from collections.abc import Mapping
 
     from .material import Material, renormalise

@@ -38,8 +38,8 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_not_path
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_rng, fit_part, fitted_settings,
-                      one_blas_thread, report)
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_progress, check_rng, fit_part,
+                      fitted_settings, one_blas_thread, report)
 from ._errors import warn
 from .colour import match_histograms
 from .depths import to_uint8
@@ -390,6 +390,7 @@ class Material(BaseEstimator):
             looks like a normal map by its content (:func:`looks_like_normal_map`) but is not one by
             its name (:func:`is_normal_name`): it is modelled as colours, its output not renormalised.
         """
+        check_progress(progress)
         normal = self._checked_params()
         items = self._maps(albedo, maps, depths, normal)
         for name, img, _, is_normal in items[1:]:
@@ -518,6 +519,7 @@ class Material(BaseEstimator):
             mask map (:attr:`levels_`) holds only its exemplar's values, a mask channel
             (:attr:`channel_levels_`) its own (:mod:`tghop.masks`).
         """
+        check_progress(progress)
         check_is_fitted(self, "model_")
         dtype = check_dtype(dtype, (np.float32, np.float64, np.uint8), "float64, float32 or uint8")
         # The checks of TGHop.synthesize (refine and match_colours are applied here, per map, not by it)

@@ -36,8 +36,8 @@ import textwrap
 import numpy as np
 
 from . import generation, settings
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_rng,
-                      fit_part, fitted_settings, grey_as_rgb, one_blas_thread, report)
+from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_progress,
+                      check_rng, fit_part, fitted_settings, grey_as_rgb, one_blas_thread, report)
 from ._arrays import forget_fit
 from .codec import PatchCodec
 from .depths import exemplar_depth
@@ -243,6 +243,7 @@ class TGHop(PatchCodec, BaseEstimator):
         -------
         self
         """
+        check_progress(progress)
         from threadpoolctl import threadpool_limits
 
         depth = exemplar_depth(depth, image)
@@ -564,6 +565,7 @@ class TGHop(PatchCodec, BaseEstimator):
         ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
             And the dict of stages with ``return_stages``.
         """
+        check_progress(progress)
         check_is_fitted(self, "ichm_")
         made = generation.synthesize(
             self, size, rng=rng, n_patches=n_patches, tile=tile, overlap=overlap, tolerance=tolerance, detail=detail,
