@@ -2,9 +2,11 @@
 clusters on the idle cores, and the model the same bit for bit whatever the counts; one
 BLAS thread for the sampling and for ICHM.predict too."""
 
+import os
 import sys
 
 import numpy as np
+import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from tghop import _common, core, data
@@ -175,6 +177,60 @@ def test_overlapping_calls_in_two_threads_hold_one_blas_thread_to_the_last(small
         assert not errors
         assert seen == {"fit": {1}, "synth": {1}}  # 0.56: the synthesis on the process's count
         assert _blas_threads() == before  # 0.56: one BLAS thread after both
+    finally:
+        if limiter is not None:
+            limiter.restore_original_limits()
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="os.fork is not available here")
+def test_a_child_forked_while_another_thread_holds_one_blas_thread_is_back_on_the_processs_threads():
+    # 0.56 (and 0.57 before register_at_fork): the child inherited the other thread's hold, which no thread of
+    # the child would ever end, so it stayed on one BLAS thread for good (and its next hold never set a limit).
+    import threading
+    import warnings
+
+    import threadpoolctl
+
+    limiter = None
+    if _blas_threads() == {1}:  # one core: two BLAS threads, so that the child has another count to go back to
+        limiter = threadpool_limits(limits=2, user_api="blas")
+        clear = getattr(threadpoolctl.OpenBLASController, "clear_controlling_thread", None)  # threadpoolctl >= 3.8
+        if clear is not None:
+            clear()
+    try:
+        before = _blas_threads()
+        inside, leave = threading.Event(), threading.Event()
+
+        def hold():
+            with _common.one_blas_thread():
+                inside.set()
+                leave.wait(60)
+
+        holder = threading.Thread(target=hold)
+        holder.start()
+        assert inside.wait(60) and _blas_threads() == {1}
+        read, write = os.pipe()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # Python 3.12: forking a process with threads
+            pid = os.fork()
+        if pid == 0:  # the child: report and leave at once
+            try:
+                told = f"{_common._BLAS_HOLD['count']} {sorted(_blas_threads())}"
+                with _common.one_blas_thread():
+                    told += f" {sorted(_blas_threads())}"
+                told += f" {_common._BLAS_HOLD['count']} {sorted(_blas_threads())}"
+            except BaseException as exc:  # noqa: BLE001 (told to the parent)
+                told = repr(exc)
+            os.write(write, told.encode())
+            os._exit(0)
+        os.close(write)
+        os.waitpid(pid, 0)
+        with os.fdopen(read) as pipe:
+            told = pipe.read()
+        leave.set()
+        holder.join(60)
+        assert told == f"0 {sorted(before)} [1] 0 {sorted(before)}"
+        assert _blas_threads() == before
     finally:
         if limiter is not None:
             limiter.restore_original_limits()

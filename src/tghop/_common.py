@@ -16,6 +16,7 @@ import functools
 import inspect
 import math
 import numbers
+import os
 import threading
 from typing import Callable, Optional, Union
 
@@ -52,7 +53,8 @@ __all__ = [
 
 
 from ._arrays import LEVELS, check_not_path, from_levels
-from ._errors import InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError  # noqa: F401
+from ._errors import (InvalidImageError, MissingExtraError, ModelFileError, NotFittedError, TGHopError,  # noqa: F401
+                      check_progress)
 
 
 # ------------------------------------------------------------------ estimators
@@ -313,24 +315,6 @@ def report(progress: Optional[ProgressCallback], stage: str, done: int, total: i
             raise TGHopError(f"progress must be a function progress(stage, done, total) or None, "
                              f"got {type(progress).__name__}")
         progress(stage, int(done), int(total))
-
-
-def check_progress(progress) -> None:
-    """Refuse, before any work, a ``progress`` that cannot be called as ``progress(stage, done, total)`` (0.57; 0.56
-    let Python's own TypeError out of the first report, deep in tghop): one TypeError naming that signature."""
-    if progress is None:
-        return
-    if not callable(progress):
-        report(progress, "", 0, 0)  # its one line naming the type
-    try:
-        signature = inspect.signature(progress)
-    except (TypeError, ValueError):  # a builtin without one: Python tells at the first report
-        return
-    try:
-        signature.bind("stage", 0, 1)
-    except TypeError:
-        raise TypeError(f"progress must take three arguments, progress(stage, done, total); "
-                        f"{getattr(progress, '__name__', type(progress).__name__)}{signature} does not") from None
 
 
 class ProgressCounter:
@@ -769,6 +753,28 @@ class limit_cores:
 #: and the limiter the first set, which the last to leave restores.
 _BLAS_HOLD = {"count": 0, "limiter": None}
 _BLAS_LOCK = threading.Lock()
+_BLAS_OWN = threading.local()  # this thread's holds: the ones a child of os.fork keeps
+
+
+def _blas_holds_after_fork():
+    """In a child of ``os.fork`` only the forking thread's holds go on (0.57; 0.56's child stayed on one BLAS
+    thread)."""
+    global _BLAS_LOCK
+    _BLAS_LOCK, own = threading.Lock(), getattr(_BLAS_OWN, "count", 0)  # the lock: another thread's at the fork
+    if _BLAS_HOLD["count"] > own:
+        _BLAS_HOLD["count"] = own
+        import threadpoolctl  # imported by the hold
+
+        controller = threadpoolctl.OpenBLASController
+        if hasattr(controller, "clear_controlling_thread"):  # threadpoolctl >= 3.8: the holder is not in the child
+            controller.clear_controlling_thread(force=True)
+        if not own:
+            _BLAS_HOLD.pop("limiter").restore_original_limits()
+            _BLAS_HOLD["limiter"] = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_blas_holds_after_fork)
 
 
 @contextlib.contextmanager
@@ -792,11 +798,13 @@ def one_blas_thread():
         if not _BLAS_HOLD["count"]:
             _BLAS_HOLD["limiter"] = threadpoolctl.threadpool_limits(limits=1, user_api="blas")
         _BLAS_HOLD["count"] += 1
+        _BLAS_OWN.count = getattr(_BLAS_OWN, "count", 0) + 1
     try:
         yield
     finally:
         with _BLAS_LOCK:
             _BLAS_HOLD["count"] -= 1
+            _BLAS_OWN.count -= 1
             if not _BLAS_HOLD["count"]:
                 _BLAS_HOLD.pop("limiter").restore_original_limits()
                 _BLAS_HOLD["limiter"] = None

@@ -5,6 +5,7 @@ always loaded, the CLI's --help and --version load only this. The command line t
 
 import contextlib
 import contextvars
+import inspect
 import os
 import sys
 import warnings
@@ -173,3 +174,22 @@ def collect_warnings():
         yield kept
     finally:
         _COLLECTED.reset(token)
+
+
+def check_progress(progress) -> None:
+    """Refuse, before any work, a ``progress`` that cannot be called as ``progress(stage, done, total)`` (0.57; 0.56
+    let Python's own TypeError out of the first report, deep in tghop): one TypeError naming that signature."""
+    if progress is None:
+        return
+    if not callable(progress):
+        raise TGHopError(f"progress must be a function progress(stage, done, total) or None, "
+                         f"got {type(progress).__name__}")
+    try:
+        signature = inspect.signature(progress)
+    except (TypeError, ValueError):  # a builtin without one: Python tells at the first report
+        return
+    try:
+        signature.bind("stage", 0, 1)
+    except TypeError:
+        raise TypeError(f"progress must take three arguments, progress(stage, done, total); "
+                        f"{getattr(progress, '__name__', type(progress).__name__)}{signature} does not") from None
