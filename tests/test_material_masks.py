@@ -223,3 +223,26 @@ def test_a_packed_maps_hole_and_painted_join_keep_its_mask_channel_at_its_levels
     joined = synthesize_guided([packed_material, flipped], guide, rng=2, transition=16, n_patches=1000)
     assert set(np.unique(joined["T_Rock_ORM"][..., 2])) <= {0.0, 1.0}
     assert len(np.unique(joined["T_Rock_ORM"][..., 1])) > 100
+
+
+def test_info_shows_a_materials_mask_levels_and_its_packed_channels(material, packed_material, tmp_path):
+    # 0.56's `tghop info` showed a two-level exemplar's levels but none of a material's masks.
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    save_model(material, tmp_path / "m.npz")
+    save_model(packed_material, tmp_path / "p.npz")
+    runner = CliRunner()
+    text = runner.invoke(main, ["info", str(tmp_path / "m.npz")])
+    assert text.exit_code == 0, text.output
+    assert "mask levels of metalness: 0, 1 (its images are snapped to them)" in text.output
+    assert "mask levels of opacity: 0, 0.5, 1 (its images are snapped to them)" in text.output
+    text = runner.invoke(main, ["info", str(tmp_path / "p.npz")])
+    assert "mask levels of T_Rock_ORM, channel 3: 0, 1 (snapped to them)" in text.output
+    assert "channel 1" not in text.output
+    meta = json.loads(runner.invoke(main, ["info", "--json", str(tmp_path / "m.npz")]).output)["material"]
+    assert meta["levels"] == {"metalness": [[0.0], [1.0]], "opacity": [[0.0], [0.5], [1.0]]}
+    assert "channel_levels" not in meta
+    meta = json.loads(runner.invoke(main, ["info", "--json", str(tmp_path / "p.npz")]).output)["material"]
+    assert meta["channel_levels"] == {"T_Rock_ORM": [None, None, [0.0, 1.0]]}

@@ -457,13 +457,15 @@ def info(model_file, as_json):
     if as_json:
         out = info_dict(model, params)
         if material is not model:
-            out["material"] = {"maps": material.map_info()}
+            out["material"] = {"maps": material.map_info(), **_mask_levels(material, as_json=True)}
         click.echo(json.dumps(out, indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
     click.echo(f"tghop model {model_file}")
     if material is not model:
         click.echo(f"material: {material_summary(material)}")
+        for line in _mask_levels(material):
+            click.echo(line)
     scaled = "" if model.scale == 1 else f" (resampled by --scale {model.scale:g})"
     bits = getattr(model, "exemplar_depth_", None)
     bits = "" if bits is None else ", float" if bits == 32 else f", {bits}-bit"
@@ -483,3 +485,24 @@ def info(model_file, as_json):
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
     for r in rows:
         click.echo(f"  {r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]:>{widths[3]}}")
+
+
+def _mask_levels(material, as_json=False):
+    """A material's mask levels (0.57; 0.56's ``tghop info`` showed none): each mask map's pixel values
+    (``levels_``) and each packed map's mask channels' (``channel_levels_``), to which its images are snapped;
+    as text lines, or (``as_json``) the model file's "levels" and "channel_levels" where there are any."""
+    levels = {n: lv for n, lv in zip(material.names_, material.levels_) if lv is not None}
+    packed = {n: lv for n, lv in zip(material.names_, material.channel_levels_) if lv is not None}
+    if as_json:
+        return {**({"levels": {n: lv.tolist() for n, lv in levels.items()}} if levels else {}),
+                **({"channel_levels": {n: [None if c is None else c.tolist() for c in lv] for n, lv in packed.items()}}
+                   if packed else {})}
+
+    def values(rows):
+        return ", ".join(f"{v[0]:.4g}" if len(v) == 1 else "(" + ", ".join(f"{x:.4g}" for x in v) + ")" for v in rows)
+
+    lines = [f"mask levels of {n}: {values(lv)} (its images are snapped to them)" for n, lv in levels.items()]
+    for n, lv in packed.items():
+        lines += [f"mask levels of {n}, channel {i + 1}: {values([[x] for x in c])} (snapped to them)"
+                  for i, c in enumerate(lv) if c is not None]
+    return lines
