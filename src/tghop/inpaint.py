@@ -511,7 +511,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     from collections.abc import Mapping
 
     from .material import Material, renormalise
-    from .masks import snap_channels
+    from .masks import snap_map
 
     if not isinstance(material, Material):
         raise TGHopError(f"inpaint_material takes a tghop.material.Material, got {type(material).__name__}; "
@@ -550,10 +550,9 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
             img = refined if alpha is None else img + alpha * (refined - img)
         if material.normal_[i]:
             img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
-        if material.levels_[i] is not None:  # a mask map's own levels (tghop.masks)
-            img[hole] = snap_to_levels(img[hole][None], material.levels_[i])[0]
-        elif material.channel_levels_[i] is not None:  # a packed map's mask channel (an ORM's metalness)
-            img[hole] = snap_channels(img[hole][None], material.channel_levels_[i])[0]
+        if material.levels_[i] is not None or material.channel_levels_[i] is not None:
+            # a mask map's own levels, or a packed map's mask channel's (tghop.masks)
+            img[hole] = snap_map(img[hole][None], material.levels_[i], material.channel_levels_[i])[0]
         out[name] = _into(np.asarray(images[name]), hole, img[hole])
         report(progress, "refine", i + 1, len(names))
     return out

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MASK_LEVELS", "mask_levels", "snap_to_levels", "channel_levels", "snap_channels"]
+__all__ = ["MASK_LEVELS", "mask_levels", "snap_to_levels", "channel_levels", "snap_channels", "snap_map"]
 
 #: A map whose exemplar holds at most this many distinct pixel values is a mask, snapped to them.
 MASK_LEVELS = 4
@@ -134,3 +134,26 @@ def snap_channels(image, levels, *, out=None):
         if lv is not None:
             out[..., c:c + 1] = snap_to_levels(image[..., c:c + 1], np.asarray(lv, dtype=np.float64)[:, None])
     return out
+
+
+def snap_map(image, levels, channel_levels):
+    """A material's map kept at its levels: the whole map's (:func:`snap_to_levels`) where it has them,
+    else its mask channels' (:func:`snap_channels`), else ``image`` as it is.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+    levels : array_like, shape (k, C), or None
+        The map's levels (:attr:`tghop.material.Material.levels_`).
+    channel_levels : sequence of array_like or None, or None
+        Its channels' (:attr:`tghop.material.Material.channel_levels_`).
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), of ``image``'s dtype
+    """
+    if levels is not None:
+        return snap_to_levels(image, levels)
+    if channel_levels is not None:
+        return snap_channels(image, channel_levels)
+    return image

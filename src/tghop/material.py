@@ -45,7 +45,7 @@ from .colour import match_histograms
 from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names,
                         is_normal_name, map_kind, map_name, normal_convention)
-from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_channels, snap_to_levels
+from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
 from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -541,10 +541,8 @@ class Material(BaseEstimator):
                 img = match_histograms(img, quantiles[part])
             if self.normal_[i]:
                 img = renormalise(img)
-            if self.levels_[i] is not None:  # a mask (metalness 0 and 1) kept one: tghop.masks
-                img = snap_to_levels(img, self.levels_[i])
-            elif self.channel_levels_[i] is not None:  # a packed map's metalness: its channel kept a mask
-                img = snap_channels(img, self.channel_levels_[i])
+            # a mask (metalness 0 and 1), or a packed map's mask channel, kept one: tghop.masks
+            img = snap_map(img, self.levels_[i], self.channel_levels_[i])
             out[name] = to_uint8(img).reshape(img.shape) if dtype == np.uint8 else img.astype(dtype, copy=False)
             report(progress, "maps", i + 1, len(self.names_))
         return out
