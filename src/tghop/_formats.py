@@ -152,25 +152,41 @@ def why_unreadable(path, exc) -> str:
 
     if not isinstance(exc, UnidentifiedImageError):
         return f"truncated or corrupt: {exc.__class__.__name__}" + (f": {str(exc)[:80]}" if str(exc) else "")
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except OSError:
-        head = b""
+    head = _file_head(path) or b""
     if not head:
         return "the file is empty"
     if head.startswith(b"\x93NUMPY"):
         return "a NumPy array file (.npy), not an image"
-    for signature, name in _SIGNATURES:  # 0.56: "not an image format tghop reads" of a PNG of width 0
-        if head.startswith(signature) and (name != "WebP" or head[8:12] == b"WEBP"):
+    for matches, name, corrupt, _ in _READ_HEADS:  # 0.56: "not an image format tghop reads" of a PNG of width 0
+        if corrupt and matches(head):
             return f"a {name} file, but its header is corrupt or of a kind tghop does not read"
     return "not an image format tghop reads"
 
 
-#: The first bytes of the formats tghop reads, for a file Pillow cannot identify: a corrupt header
-#: (a width of 0, a checksum that fails) or an odd kind (complex TIFF samples), not another format.
-_SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"), (b"GIF87a", "GIF"), (b"GIF89a", "GIF"),
-               (b"II*\x00", "TIFF"), (b"MM\x00*", "TIFF"), (b"RIFF", "WebP"))
+def _file_head(path):
+    """The first 16 bytes of the file at ``path`` (fewer in a shorter one), or None where it cannot be read."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(16)
+    except OSError:
+        return None
+
+
+#: The first bytes of formats tghop reads, each row: whether a file of them is that format
+#: (``matches(head)``), its name, whether :func:`why_unreadable` says a file Pillow cannot identify
+#: is one with a corrupt header (a width of 0, a checksum that fails) or of an odd kind (complex TIFF
+#: samples), not another format; and, for a format Pillow reads only where it was built with its
+#: library, the module or codec :mod:`PIL.features` checks for it (:func:`missing_decoder`).
+_READ_HEADS = (
+    (lambda head: head.startswith(b"\x89PNG\r\n\x1a\n"), "PNG", True, None),
+    (lambda head: head.startswith(b"\xff\xd8\xff"), "JPEG", True, ("codec", "jpg")),
+    (lambda head: head.startswith((b"GIF87a", b"GIF89a")), "GIF", True, None),
+    (lambda head: head.startswith((b"II*\x00", b"MM\x00*")), "TIFF", True, None),
+    (lambda head: head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP", True, ("module", "webp")),
+    (lambda head: head[4:8] == b"ftyp" and head[8:12] in (b"avif", b"avis"), "AVIF", False, ("module", "avif")),
+    (lambda head: head.startswith((b"\x00\x00\x00\x0cjP  \r\n\x87\n", b"\xff\x4f\xff\x51")), "JPEG 2000", False,
+     ("codec", "jpg_2000")),
+)
 
 
 #: ISO base media brands of HEIF images (a phone's photos: .heic, .heif); AVIF ones Pillow reads.
@@ -181,10 +197,8 @@ def unread_format(path):
     """The name of a common image format that Pillow does not read ("a HEIC/HEIF image"), from
     the first bytes of the file at ``path`` (a phone's HEIC photo, a texture artist's EXR or JPEG
     XL were only "not an image format tghop reads"), or None."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except OSError:
+    head = _file_head(path)
+    if head is None:
         return None
     if head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS:
         return "a HEIC/HEIF image"
@@ -201,17 +215,6 @@ def unread_format(path):
     return None
 
 
-#: Formats Pillow reads only where it was built with their library: their first bytes, their
-#: name, and the name of the module or codec :mod:`PIL.features` checks for them.
-_PILLOW_BUILT_WITH = (
-    (lambda head: head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP", "module", "webp"),
-    (lambda head: head[4:8] == b"ftyp" and head[8:12] in (b"avif", b"avis"), "AVIF", "module", "avif"),
-    (lambda head: head.startswith((b"\x00\x00\x00\x0cjP  \r\n\x87\n", b"\xff\x4f\xff\x51")), "JPEG 2000", "codec",
-     "jpg_2000"),
-    (lambda head: head.startswith(b"\xff\xd8\xff"), "JPEG", "codec", "jpg"),
-)
-
-
 def missing_decoder(path, exc=None):
     """Why this Python cannot read the image at ``path`` though the file may be sound: the name of
     its format where the installed Pillow was built without that format's library ("WebP": a file
@@ -222,16 +225,17 @@ def missing_decoder(path, exc=None):
 
     if isinstance(exc, OSError) and re.fullmatch(r"decoder \S+ not available", str(exc)):
         return str(exc)
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except OSError:
+    head = _file_head(path)
+    if head is None:
         return None
     from PIL import features
 
-    for matches, name, kind, feature in _PILLOW_BUILT_WITH:
+    for matches, name, _, built_with in _READ_HEADS:
         if not matches(head):
             continue
+        if built_with is None:
+            return None
+        kind, feature = built_with
         known = features.modules if kind == "module" else features.codecs
         if feature in known and not (features.check_module if kind == "module" else features.check_codec)(feature):
             return f"a {name} image, and this Pillow was built without {name} support"
