@@ -230,9 +230,10 @@ def test_a_rows_path_named_as_another_kind_of_map_fails_or_is_warned_of_as_fit_r
     assert "failed: normal_first: the row's path Rock_NormalGL.png is named as a normal map and none of its maps" in err
     assert "Error: 3 of 5 exemplars failed: swapped, normal_first, misnamed" in err
     assert not (tmp_path / "out" / "swapped").exists() and not (tmp_path / "out" / "normal_first").exists()
-    said = [w for w in lines["no_colour"]["warnings"] if "fitted as the material's colour map" in w]
-    assert len(said) == 1 and "Rock_Roughness.png is named as a roughness map" in said[0]
-    assert "no map of the row is named as the colour map" in said[0]
+    said = [w for w in lines["no_colour"]["warnings"] if "it is fitted as the colour map" in w]
+    assert len(said) == 1 and said[0].startswith(
+        "the row's path Rock_Roughness.png is named as a roughness map and none of its maps as the colour map; it is "
+        "fitted as the colour map (its images' albedo, NAME.png); tghop expects the colour map as the row's path"), said
     assert f"Warning: no_colour: {said[0]}" in err
     assert lines["right"]["warnings"] == []
     # A rerun skips them as failed before; the row swapped the right way round is tried again and made, and so is
@@ -247,3 +248,34 @@ def test_a_rows_path_named_as_another_kind_of_map_fails_or_is_warned_of_as_fit_r
     assert code == 1 and "1 skipped as failed before, their input and settings unchanged (normal_first" in err, err
     again = {r["name"]: r for r in ledger(tmp_path / "out")[5:]}
     assert {n: r["status"] for n, r in again.items()} == {"swapped": "ok", "misnamed": "ok"}, again
+
+
+def test_a_rows_map_named_as_the_colour_map_by_its_given_name_is_the_colour_map_out_of_place():
+    # maps: color=Rock_C.png names the colour map by its name, not its file's: the check read the files only, so
+    # the row (path Rock_Roughness.png) was fitted with a warning that no map is the colour map; a name of no kind
+    # leaves it to the file's name
+    from tghop.batch_task import _check_colour_map
+
+    for maps, shown in (([("color", "src/Rock_C.png"), ("Rock_NormalGL", "src/Rock_NormalGL.png")], "Rock_C.png"),
+                        ([("layer", "src/Rock_Color.png")], "Rock_Color.png")):
+        with pytest.raises(TGHopError, match=rf"^the row's path Rock_Roughness.png is named as a roughness map and its "
+                                             rf"map {shown} as the colour map; the albedo comes first: swap them"):
+            _check_colour_map("src/Rock_Roughness.png", maps)
+    # a name of another kind: not the colour map, whatever its file says
+    with pytest.warns(UserWarning, match="none of its maps as the colour map"):
+        _check_colour_map("src/Rock_Roughness.png", [("height", "src/Rock_Color.png")])
+
+
+def test_a_rows_map_is_read_as_every_reader_reads_a_map(tmp_path):
+    # One reader (tghop.material_files.read_map): a row's missing map named *.npz was "a model file, not an image"
+    # (its extension taken for its content); a model file is still refused by its content, whatever its name.
+    import zipfile
+
+    from tghop.batch_task import _read_maps
+
+    with pytest.raises(TGHopError, match=r"x\.npz: no such file"):
+        _read_maps([("x", tmp_path / "x.npz")])
+    with zipfile.ZipFile(tmp_path / "Rock_Height.png", "w") as archive:  # a zip archive, as np.savez writes
+        archive.writestr("meta.npy", b"")
+    with pytest.raises(TGHopError, match=r"^the map height \(.*Rock_Height.png\) is a model file, not an image"):
+        _read_maps([("height", tmp_path / "Rock_Height.png")])

@@ -78,7 +78,7 @@ def test_inpaint_maps_and_a_batch_row_keep_a_maps_stored_values(tmp_path, height
     Image.fromarray(levels["normal"]).save(tmp_path / "Rock_Emission.png", icc_profile=P3)  # colours: converted
     rows = [(n, tmp_path / f"{n}.png") for n in ("Rock_NormalDX", "Rock_Height", "T_Rock_ORM", "Rock_Emission")]
     with pytest.warns(UserWarning, match="Rock_Emission.png: colours converted") as caught:
-        read = _read_maps(rows, load_image)
+        read = _read_maps(rows)
     assert len(caught) == 1, [str(w.message) for w in caught]
     np.testing.assert_array_equal(read["Rock_NormalDX"][0], levels["normal"])
     np.testing.assert_array_equal(read["Rock_Height"][0][..., 0], levels["height"])

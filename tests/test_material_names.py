@@ -115,7 +115,9 @@ def test_a_colour_map_given_after_maps_or_left_out_is_refused_in_one_line(exempl
             (["fit", "Rock023_2K_Roughness.jpg", "--maps", "Rock023_2K_Color.jpg"],
              "is named as a roughness map and --maps {0}/Rock023_2K_Color.jpg as the colour map"),
             (["fit", "Rock023_2K_NormalGL.png", "--maps", "Rock023_2K_Roughness.jpg"],
-             "is named as a normal map and no --maps as the colour map; give the material's colour map first")):
+             "is named as a normal map and no --maps as the colour map (a normal map fitted as the albedo is modelled "
+             "as colours, not unit vectors); give the material's colour map first (tghop fit Rock_Color.png --maps "
+             "{0}/Rock023_2K_NormalGL.png ...)")):
         res = _cli([*args, "-o", "m.npz"], tmp_path)
         assert res.exit_code == 1 and "Traceback" not in res.output, res.output
         assert res.output.count("\n") == 1 and words.format(tmp_path) in res.output, res.output
@@ -271,7 +273,7 @@ def test_a_maps_alpha_that_holds_data_is_refused_and_an_opaque_one_dropped(exemp
     # Unity's mask map (metal, occlusion, detail, smoothness in A) lost its smoothness with a warning about
     # transparency ("crop it to its opaque part"), and the material came out without it.
     from tghop.batch_task import _read_maps
-    from tghop.imageio import load_image, save_image
+    from tghop.imageio import save_image
 
     save_image(exemplar, tmp_path / "Rock_BaseColor.png")
     packed = np.concatenate([maps["roughness"], maps["height"], maps["roughness"]], axis=2)
@@ -287,7 +289,7 @@ def test_a_maps_alpha_that_holds_data_is_refused_and_an_opaque_one_dropped(exemp
         assert res.exit_code == 1 and res.output.count("\n") == 1 and words in res.output, res.output
         assert "Rock_MaskMap.png" in res.output and "save the alpha as a map of its own" in res.output
     with pytest.raises(TGHopError, match=r"the map mask \(.*Rock_MaskMap.png\) has an alpha channel"):
-        _read_maps([("mask", str(tmp_path / "Rock_MaskMap.png"))], load_image)
+        _read_maps([("mask", str(tmp_path / "Rock_MaskMap.png"))])
     res = _cli(["fit", "Rock_BaseColor.png", "--maps", "Rock_ORM.png", "-o", "m.npz", *FAST_CLI], tmp_path)
     assert res.exit_code == 0 and "Warning" not in res.output, res.output  # an opaque alpha: dropped, no word
     assert "Rock_ORM (3 channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output

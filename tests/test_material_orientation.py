@@ -120,5 +120,5 @@ def test_inpaint_and_a_batch_row_turn_a_turned_normal_maps_vectors(tmp_path):
     (normal,) = [p for p in tmp_path.glob("o*.png") if p.name != "o.png"]
     kept = load_image(normal, dtype=None)[hole == 0].astype(float)
     assert np.abs(kept - want[hole == 0]).max() <= 1, "the known pixels: the upright map's, turned"
-    (image, _), = _read_maps([("Rock_NormalDX", tmp_path / "Rock_NormalDX.png")], load_image).values()
+    (image, _), = _read_maps([("Rock_NormalDX", tmp_path / "Rock_NormalDX.png")]).values()
     assert np.abs(image - want).max() <= 1

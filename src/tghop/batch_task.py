@@ -113,55 +113,34 @@ def _thumbnail(image, path):
     save_image(np.asarray(pil), path)
 
 
-def _read_maps(maps, load_image) -> dict:
-    """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``); an alpha
-    channel that holds data fails the row (:func:`tghop.material.drop_opaque_alpha`)."""
-    from .map_names import is_data_map, is_normal_name, normal_convention
-    from .material import drop_opaque_alpha
-    from .normals import upright_normal_map
+def _read_maps(maps) -> dict:
+    """A material's maps, ``{name: (image, depth)}`` in the order listed (none: ``{}``), each read as
+    every reader of a material's maps reads it (:func:`tghop.material_files.read_map`: an alpha channel
+    that holds data fails the row)."""
+    from .material_files import read_map
 
-    out = {}
-    for name, file in maps or ():
-        if Path(file).suffix.lower() == ".npz" or is_model_file(file):
-            raise TGHopError(f"the map {name} ({file}) is {model_file_kind(file)}, not an image; list the map's image")
-        image, depth = load_image(file, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True,
-                                  keep_alpha=True, as_data=is_data_map(name))
-        image = drop_opaque_alpha(image, f"the map {name} ({file})")
-        if is_normal_name(name):  # stored turned (EXIF): its vectors turned with its pixels
-            image = upright_normal_map(image, file, convention=normal_convention(name),
-                                       label=f"the map {name} ({file})")
-        out[name] = image, depth
-    return out
+    return {name: read_map(file, name, too_large_hint=HINT_DOWNSCALE_YOURSELF) for name, file in maps or ()}
 
 
-def _check_colour_map(source, files) -> None:
-    """A manifest row's material whose path (the albedo) is named as another kind of map
-    (:func:`tghop.map_names.colour_map_out_of_place`) fails or is warned of as ``tghop fit --maps``
-    refuses or warns of it (``files``: the row's maps' files): a map of the row named as the colour
-    map (the two swapped), or the path named as a normal map and no map as the colour map (its
-    vectors would be modelled as the albedo's colours), is a :class:`~tghop.TGHopError` naming the
-    fix (0.56 fitted both without a word); the path named as another kind (``Rock_Roughness.png``)
-    and no map as the colour map is fitted as given, with a warning in the row's ledger line
-    (a material may have no colour map)."""
-    from .map_names import colour_map_out_of_place
+def _check_colour_map(source, maps) -> None:
+    """A manifest row's material whose path (the albedo) is named as another kind of map fails or is
+    warned of as ``tghop fit --maps`` refuses or warns of it (:func:`tghop.map_names.check_colour_map_order`,
+    in a manifest's words; ``maps``: the row's ``[(name, file)]``, a map's kind its name's, as
+    ``color=Rock_C.png`` gives it, else its file's): a map of the row named as the colour map (the two
+    swapped), or the path named as a normal map and no map as the colour map, is a
+    :class:`~tghop.TGHopError` naming the fix (0.56 fitted both without a word); the path named as another
+    kind (``Rock_Roughness.png``) and no map as the colour map is fitted as given, with a warning in the
+    row's ledger line (a material may have no colour map)."""
+    from .map_names import check_colour_map_order
 
-    found = colour_map_out_of_place(source, files)
-    if found is None:
-        return
-    kind, colour = found
-    albedo = Path(source).name
-    if colour is not None:
-        raise TGHopError(f"the row's path {albedo} is named as a {kind} map and its map {Path(colour).name} as the "
-                         f"colour map; the albedo comes first: swap them, {Path(colour).name} as the row's path and "
-                         f"{albedo} among its maps")
-    if kind == "normal":
-        raise TGHopError(f"the row's path {albedo} is named as a normal map and none of its maps as the colour map "
-                         "(a normal map fitted as the albedo is modelled as colours, not unit vectors); give the "
-                         f"material's colour map as the row's path (e.g. Rock_Color.png) and {albedo} among its maps")
-    warn(f"{albedo} is named as a {kind} map and fitted as the material's colour map (its images' albedo, "
-         "NAME.png); no map of the row is named as the colour map: tghop expects the colour map as the row's path "
-         "(named *_Color, *_BaseColor, *_Albedo, *_diff, ...), or rename the file if it is the colour map",
-         UserWarning)
+    said = check_colour_map_order(
+        Path(source).name, [file for _, file in maps], names=[name for name, _ in maps],
+        shown=[Path(file).name for _, file in maps], albedo="the row's path {albedo}", map="its map {colour}",
+        none="none of its maps", swap="swap them, {colour} as the row's path and {albedo} among its maps",
+        first="give the material's colour map as the row's path (e.g. Rock_Color.png) and {albedo} among its maps",
+        written="its images' albedo, NAME.png", expected="as the row's path")
+    if said is not None:
+        warn(said, UserWarning)
 
 
 def one_line(exc: BaseException) -> str:
@@ -236,13 +215,13 @@ def process_exemplar(job: dict) -> dict:
                 kind = model_file_kind(job["source"])
                 raise TGHopError(f"{job['source']} is {kind}, not an image; list the exemplar image")
             if job.get("maps"):  # the colour map out of place by the files' names: refused or said, as fit does
-                _check_colour_map(job["source"], [file for _, file in job["maps"]])
+                _check_colour_map(job["source"], job["maps"])
             raw, depth = load_image(job["source"], dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF,
                                     with_depth=True)
             image = prepare_exemplar(raw)
             model = model_for(fit, image.shape[2])
             model.check_exemplar_size(image.shape)  # the fit's check: names the smallest exemplar that works
-            maps = _read_maps(job.get("maps"), load_image)
+            maps = _read_maps(job.get("maps"))
             t = time.time()
             if maps:
                 model = Material(model=material_model(fit)).fit(

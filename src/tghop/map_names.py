@@ -20,7 +20,8 @@ from pathlib import Path
 from ._common import TGHopError
 
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
-           "name_kind", "map_name", "colour_map_out_of_place", "MapNameClashError", "check_map_names",
+           "name_kind", "map_name", "colour_map_out_of_place", "check_colour_map_order",
+           "COLOUR_MAP_WORDS", "MapNameClashError", "check_map_names",
            "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
@@ -136,11 +137,11 @@ def map_name(path) -> str:
     return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:MAP_NAME_MAX] or "map"
 
 
-def colour_map_out_of_place(albedo, maps):
+def colour_map_out_of_place(albedo, maps, names=None):
     """Whether a material's files, by their names (:func:`map_kind`), give its colour map out of
     place: the albedo's file (the exemplar, first) named as another kind of map (``Rock_Roughness.png``).
-    ``tghop fit --maps``, ``inpaint``/``extend --maps``, a batch manifest's row and the web server's
-    fit with maps each word what they say of it (refused or warned of).
+    :func:`check_colour_map_order` says what it means (refused or warned of), for ``tghop fit --maps``,
+    ``inpaint``/``extend --maps``, a batch manifest's row and the web server's fit with maps.
 
     Parameters
     ----------
@@ -148,6 +149,10 @@ def colour_map_out_of_place(albedo, maps):
         The albedo's file (only its name is read).
     maps : sequence of str or os.PathLike
         The maps' files, in the order given.
+    names : sequence of str or None
+        The maps' names where they are given apart from their files (a manifest's ``color=Rock_C.png``,
+        the web server's ``map:<name>`` fields): a map's kind is its name's (:func:`name_kind`), else, for
+        a name of no kind, its file's. None: the files' names alone.
 
     Returns
     -------
@@ -160,13 +165,106 @@ def colour_map_out_of_place(albedo, maps):
     >>> from tghop.map_names import colour_map_out_of_place
     >>> colour_map_out_of_place("Rock_Roughness.png", ["Rock_NormalGL.png"])
     ('roughness', None)
+    >>> colour_map_out_of_place("Rock_Roughness.png", ["Rock_C.png"], names=["color"])
+    ('roughness', 'Rock_C.png')
     >>> colour_map_out_of_place("Rock_Color.png", ["Rock_NormalGL.png"]) is None
     True
     """
     kind = map_kind(albedo)
     if kind in (None, ALBEDO):
         return None
-    return kind, next((path for path in maps if map_kind(path) == ALBEDO), None)
+    names = [None] * len(maps) if names is None else list(names)
+    return kind, next((path for path, name in zip(maps, names)
+                       if ((name_kind(name) if name else None) or map_kind(path)) == ALBEDO), None)
+
+
+#: The words of :func:`check_colour_map_order`'s messages that a caller may give in its user's terms
+#: (format strings of ``{albedo}``, ``{colour}``, ``{maps}`` and ``{others}``: the albedo's file, the map
+#: named as the colour map, every map, and every file but that map, as the caller shows them): how the
+#: albedo and a map are named, what "no map" is, the fix of each refusal, where the albedo is written and
+#: where the colour map goes (``expected``), and what follows the expected names in a warning (``then``).
+COLOUR_MAP_WORDS = {
+    "albedo": "the exemplar {albedo}",
+    "map": "the map {colour}",
+    "none": "no map",
+    "swap": "give {colour} as the exemplar and {albedo} as a map",
+    "first": "give the material's colour map as the exemplar (e.g. Rock_Color.png) and {albedo} as a map",
+    "written": "its images' albedo",
+    "expected": "as the exemplar",
+    "then": "",
+}
+
+
+def check_colour_map_order(albedo_path, maps, /, *, names=None, shown=None, **words):
+    """Refuse a material whose colour map is out of place by its files' names, or word what to warn
+    of: the one reading (:func:`colour_map_out_of_place`) and the one wording of ``tghop fit --maps``,
+    ``inpaint``/``extend --maps``, a batch manifest's row and the web server's fit, each naming the files
+    and the fix in its user's terms (``words``). Refused, as one line: a map named as the colour map
+    while the albedo's file is named as another kind (the two swapped), and the albedo's file named as a
+    normal map with no map named as the colour map (its vectors would be modelled as the albedo's
+    colours, not kept unit vectors). Warned of: the albedo's file named as another kind
+    (``Rock_Roughness.png``) and no map as the colour map; it is fitted as the colour map, as asked (a
+    material may have none, and a file may be misnamed).
+
+    Parameters
+    ----------
+    albedo_path : str or os.PathLike
+        The albedo's file, as the message shows it (only its name is read).
+    maps : sequence of str or os.PathLike
+        The maps' files, in the order given.
+    names : sequence of str or None
+        As :func:`colour_map_out_of_place`'s: the maps' names where given apart from their files.
+    shown : sequence of str or None
+        How the message shows each map (a file's name without its folder, a request's field); None: ``maps``.
+    **words : str
+        Any of :data:`COLOUR_MAP_WORDS`, in the caller's terms (``albedo="EXEMPLAR {albedo}"``).
+
+    Returns
+    -------
+    str or None
+        The warning's one line (the caller warns, or notes it, in its way), or None: nothing to say.
+
+    Raises
+    ------
+    TGHopError
+        The colour map among the maps, or a normal map as the albedo with no colour map: one line
+        naming the fix.
+
+    Examples
+    --------
+    >>> from tghop.map_names import check_colour_map_order
+    >>> print(check_colour_map_order("Rock_Roughness.png", ["Rock_NormalGL.png"]))  # fitted, with this warning
+    the exemplar Rock_Roughness.png is named as a roughness map and no map as the colour map; it is ...
+    >>> check_colour_map_order("Rock_Roughness.png", ["Rock_Color.png"])
+    Traceback (most recent call last):
+    ...
+    tghop._errors.TGHopError: the exemplar Rock_Roughness.png is named as a roughness map and ... as a map
+    >>> check_colour_map_order("Rock_Color.png", ["Rock_Roughness.png"]) is None
+    True
+    """
+    unknown = set(words) - set(COLOUR_MAP_WORDS)
+    if unknown:
+        raise TypeError(f"check_colour_map_order() got unknown words {sorted(unknown)}; it takes "
+                        f"{', '.join(COLOUR_MAP_WORDS)}")
+    maps = list(maps)
+    found = colour_map_out_of_place(albedo_path, maps, names)
+    if found is None:
+        return None
+    kind, colour = found
+    shown = [str(m) for m in (maps if shown is None else shown)]
+    at = None if colour is None else next(i for i, m in enumerate(maps) if m is colour)
+    values = {"albedo": str(albedo_path), "colour": None if at is None else shown[at], "maps": " ".join(shown),
+              "others": " ".join([str(albedo_path), *(m for i, m in enumerate(shown) if i != at)])}
+    said = {key: text.format(**values) for key, text in {**COLOUR_MAP_WORDS, **words}.items()}
+    if colour is not None:
+        raise TGHopError(f"{said['albedo']} is named as a {kind} map and {said['map']} as the colour map; the albedo "
+                         f"comes first: {said['swap']}")
+    if kind == "normal":
+        raise TGHopError(f"{said['albedo']} is named as a normal map and {said['none']} as the colour map (a normal "
+                         f"map fitted as the albedo is modelled as colours, not unit vectors); {said['first']}")
+    return (f"{said['albedo']} is named as a {kind} map and {said['none']} as the colour map; it is fitted as the "
+            f"colour map ({said['written']}); tghop expects the colour map {said['expected']} (named *_Color, "
+            f"*_BaseColor, *_Albedo, *_diff, ...){said['then']}, or rename the file if it is the colour map")
 
 
 class MapNameClashError(TGHopError):

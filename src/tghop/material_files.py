@@ -1,11 +1,13 @@
-"""The output files a material's maps are written to (:func:`map_files`; what an input map's file name
-says is :mod:`tghop.map_names`'s): the albedo at the output
+"""A material's files: one map read from its file (:func:`read_map`: as data or colours by its
+name, at its depth, its alpha and turn seen to), and the output files a material's maps are written to
+(:func:`map_files`; what an input map's file name says is :mod:`tghop.map_names`'s): the albedo at the output
 itself, ``OUT``, each other map at ``OUT_<suffix>``, its name without the material's name and
 resolution that the maps' names share, as an importer (Blender's Node Wrangler, a game
 engine's) reads a material's files: ``-o Rock.png`` of ``Rock023_2K_NormalGL`` and
 ``Rock023_2K_Roughness`` is ``Rock_NormalGL.png`` and ``Rock_Roughness.png``.
 ``tghop synth``, ``paint``, ``remix``, ``inpaint`` and ``extend --maps``, ``tghop batch`` and the
-web page's downloads all name a material's files by it.
+web page's downloads all name a material's files by it, and ``tghop fit``, ``inpaint`` and ``extend
+--maps``, a batch manifest's row and the web server's fit and fill read each map by :func:`read_map`.
 
 Example
 -------
@@ -23,13 +25,87 @@ from pathlib import Path
 
 from .map_names import name_kind
 
-__all__ = ["map_files", "map_suffixes", "RESOLUTION"]
+__all__ = ["read_map", "map_files", "map_suffixes", "RESOLUTION"]
 
 #: A word of a map's name that is a resolution (``2K``, ``4k``, ``1024``, ``2048x2048``): dropped at
 #: either end of a map's suffix (Poly Haven's ``rock_wall_nor_gl_2k`` is ``nor_gl``).
 RESOLUTION = re.compile(r"\d+[kK]?|\d+[xX]\d+")
 #: The words of a map's name: runs between ``.``, ``_`` and ``-``.
 WORD = re.compile(r"[^._-]+")
+
+
+def read_map(path, name, *, normal=None, label=None, downscale=False, too_large_hint=None) -> tuple:
+    """One map of a material read from its file, as every reader of a material's maps reads it
+    (``tghop fit``, ``inpaint`` and ``extend --maps``, a batch manifest's row, the web server's fit
+    and fill): a model file refused; the values as stored where the map's name says data, converted
+    to sRGB as any colour image where it says colours (:func:`tghop.map_names.is_data_map`); 8-bit
+    kept as uint8, 16-bit and float files as floats, and their depth returned; an alpha channel
+    dropped where every pixel is opaque and refused where it holds data
+    (:func:`tghop.material.drop_opaque_alpha`); a normal map stored turned (an EXIF orientation)
+    read upright with its vectors turned too (:func:`tghop.normals.upright_normal_map`, in the
+    convention its name says, else its content's). Its size and whether a normal map holds unit
+    vectors are the caller's to check (against the albedo: :meth:`tghop.material.Material.fit`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The map's image file.
+    name : str
+        The map's name (:func:`tghop.map_names.map_name`, or the name a manifest, a saved material or a
+        request gives it): it says whether the map holds data or colours, and a normal map's convention.
+    normal : bool or None
+        Whether the map is a normal map; None: as its name says (:func:`tghop.map_names.is_normal_name`).
+        A saved material's maps are normal maps as it says (:attr:`tghop.material.Material.normal_`).
+    label : str or None
+        How a message names the map (``"--maps Rock_N.png"``); None: ``"the map NAME (PATH)"``.
+    downscale : bool
+        As :func:`tghop.imageio.load_image`'s: an image over the pixel limit reduced, with a warning.
+    too_large_hint : str or None
+        As :func:`tghop.imageio.load_image`'s; None: its default.
+
+    Returns
+    -------
+    image : ndarray, shape (H, W, C)
+        uint8 for an 8-bit file, else float64 in [0, 1]; ``C`` 1 or 3 (the alpha dropped).
+    depth : int
+        The file's bits per channel: 8, 16 or 32 (float).
+
+    Raises
+    ------
+    TGHopError
+        One line starting with ``label``: a model file, an alpha channel that holds data, a turned
+        normal map of no convention said or seen; :func:`tghop.imageio.load_image`'s errors (not an
+        image, too large, a decoder missing) name the file.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from tghop import data
+    >>> from tghop.imageio import save_image
+    >>> from tghop.material_files import read_map
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "Rock_Roughness.png"
+    >>> save_image(data.bricks(64)[..., :1], path, depth=16)
+    >>> image, depth = read_map(path, "Rock_Roughness")
+    >>> image.shape, image.dtype.name, depth
+    ((64, 64, 1), 'float64', 16)
+    """
+    from ._errors import TGHopError
+    from ._formats import is_model_file, model_file_kind
+    from .imageio import load_image
+    from .map_names import is_data_map, is_normal_name, normal_convention
+    from .material import drop_opaque_alpha
+    from .normals import upright_normal_map
+
+    label = f"the map {name} ({path})" if label is None else label
+    if is_model_file(path):  # by its first bytes: a zip archive
+        raise TGHopError(f"{label} is {model_file_kind(path)}, not an image; give the map's image")
+    hint = {} if too_large_hint is None else {"too_large_hint": too_large_hint}
+    image, depth = load_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
+                              as_data=is_data_map(name), **hint)
+    image = drop_opaque_alpha(image, label)
+    if is_normal_name(name) if normal is None else normal:  # stored turned (EXIF): its vectors turned with its pixels
+        image = upright_normal_map(image, path, convention=normal_convention(name), label=label)
+    return image, depth
 
 
 def map_suffixes(names) -> list:

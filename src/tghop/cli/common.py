@@ -609,31 +609,22 @@ def refuse_albedo_as_map(paths, albedo_path, *, label: str = "MAP", albedo: str 
 
 def refuse_colour_map_out_of_place(albedo_path, paths, *, label: str = "MAP", albedo: str = "IMAGE",
                                    command: str = "tghop fit {} --maps") -> None:
-    """A one-line error where the albedo's file is named as another kind of map
-    (:func:`tghop.map_names.map_kind`) and one of the maps as the colour map (the two swapped), or
-    the albedo's file as a normal map and no map as the colour map (the colour map left out: the
-    normal map would be modelled as the albedo's colours, not kept unit vectors); a one-line warning
-    where the albedo's file is named as another kind (``Rock_Roughness.png``) and no map as the colour
-    map (fitted as the colour map, as asked: a material may have none). ``command``: the command line
-    up to the maps, ``{}`` where the colour map goes."""
-    from ..map_names import colour_map_out_of_place
+    """The colour map out of place by the files' names (:func:`tghop.map_names.check_colour_map_order`,
+    in the command line's words): a one-line error where the albedo's file is named as another kind of map
+    and one of the maps as the colour map (the two swapped), or the albedo's file as a normal map and no map
+    as the colour map; a one-line warning where the albedo's file is named as another kind
+    (``Rock_Roughness.png``) and no map as the colour map (fitted as the colour map, as asked: a material
+    may have none). ``command``: the command line up to the maps, ``{}`` where the colour map goes."""
+    from ..map_names import check_colour_map_order
 
-    found = colour_map_out_of_place(albedo_path, paths)
-    if found is None:
-        return
-    kind, colour = found
-    if colour is not None:
-        others = " ".join(str(p) for p in [albedo_path, *paths] if p != colour)
-        raise TGHopError(f"{albedo} {albedo_path} is named as a {kind} map and {label} {colour} as the colour map; "
-                         f"the albedo comes first: {command.format(colour)} {others} ...")
-    if kind == "normal":
-        raise TGHopError(f"{albedo} {albedo_path} is named as a normal map and no {label} as the colour map; give the "
-                         f"material's colour map first ({command.format('Rock_Color.png')} {albedo_path} ...)")
-    given = " ".join(str(p) for p in [albedo_path, *paths])
-    warnings.warn(f"{albedo} {albedo_path} is named as a {kind} map and no {label} as the colour map; it is fitted as "
-                  "the colour map (written to OUT); tghop expects the colour map first (named *_Color, *_BaseColor, "
-                  f"*_Albedo, *_diff, ...): {command.format('Rock_Color.png')} {given}, or rename the file if it is "
-                  "the colour map", UserWarning, stacklevel=2)
+    example = command.format("Rock_Color.png")
+    said = check_colour_map_order(
+        albedo_path, paths, albedo=f"{albedo} {{albedo}}", map=f"{label} {{colour}}", none=f"no {label}",
+        swap=command.format("{colour}") + " {others} ...",
+        first=f"give the material's colour map first ({example} {{albedo}} ...)", written="written to OUT",
+        expected="first", then=f": {example} {{albedo}} {{maps}}")
+    if said is not None:
+        warnings.warn(said, UserWarning, stacklevel=2)
 
 
 def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:

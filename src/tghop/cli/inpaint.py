@@ -8,10 +8,10 @@ import os
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
-from .._formats import OUTPUT_HELP, model_file_kind
+from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
-                     map_names, refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, user_errors,
-                     warn_lost_depth)
+                     map_names, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image,
+                     user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -323,10 +323,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
 
     from ..imageio import check_depth, deepest, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
-    from ..map_names import is_data_map, is_normal_name, normal_convention
-    from ..material import drop_opaque_alpha
-    from ..normals import upright_normal_map
-    from ..material_files import map_files
+    from ..material_files import map_files, read_map
 
     if output == "-":
         raise click.UsageError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
@@ -354,16 +351,13 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
                              f"({', '.join(material.names_[1:])}) but {given} {'was' if given == 1 else 'were'} "
                              "given; give its maps after --maps, in that order")
     names = material.names_[1:] if material is not None else map_names(map_paths)
+    quiet_tifffile()
     plan = [("albedo", output, depth_albedo)]
     maps, depths = {}, {}
-    for name, path, out in zip(names, map_paths, map_files(output, ["albedo", *names])[1:]):
-        if is_model_file(path):
-            raise TGHopError(f"MAP {path} is {model_file_kind(path)}, not an image; give the map's image")
-        maps[name], depths[name] = read_image(path, dtype=None, with_depth=True, keep_alpha=True,
-                                              too_large_hint=HINT_DOWNSCALE_YOURSELF, as_data=is_data_map(name))
-        maps[name] = drop_opaque_alpha(maps[name], f"MAP {path}")
-        if (material.normal_[1 + names.index(name)] if material is not None else is_normal_name(name)):
-            maps[name] = upright_normal_map(maps[name], path, convention=normal_convention(name), label=f"MAP {path}")
+    normal = [None] * len(names) if material is None else material.normal_[1:]  # a saved material's: as it says
+    for name, path, out, is_normal in zip(names, map_paths, map_files(output, ["albedo", *names])[1:], normal):
+        maps[name], depths[name] = read_map(path, name, normal=is_normal, label=f"MAP {path}",
+                                            too_large_hint=HINT_DOWNSCALE_YOURSELF)
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
                              f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")

@@ -14,8 +14,8 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, refuse_albedo_as_map,
-                     refuse_colour_map_out_of_place, read_image, summary,
+                     is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, quiet_tifffile,
+                     refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
                      user_errors, warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
@@ -54,34 +54,28 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
     maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
     content (:func:`tghop.normals.convention_of`), by name."""
-    from ..map_names import is_data_map, is_normal_name, normal_convention
-    from ..material import Material, drop_opaque_alpha
-    from ..normals import convention_of, upright_normal_map
+    from ..material import Material
+    from ..material_files import read_map
+    from ..normals import convention_of
     from ..synthesis import TGHop
     from ..fit_options import fit_params
-
-    def read(path, label, name=None):
-        if is_model_file(path):
-            raise TGHopError(f"{label} {path} is {model_file_kind(path)}, not an image")
-        if label == "EXEMPLAR":  # the albedo's alpha is transparency (warned of, as for a texture)
-            return read_image(path, dtype=None, downscale=downscale, with_depth=True,
-                              too_large_hint=HINT_DOWNSCALE_OPTION)
-        image, depth = read_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
-                                  too_large_hint=HINT_DOWNSCALE_OPTION, as_data=is_data_map(name))
-        return drop_opaque_alpha(image, f"{label} {path}"), depth
 
     refuse_albedo_as_map(map_paths, spec, label="--maps", albedo="EXEMPLAR")
     names = map_names(map_paths, label="--maps", albedo="EXEMPLAR")
     refuse_colour_map_out_of_place(spec, map_paths, label="--maps", albedo="EXEMPLAR")
     started = time.monotonic()  # stage "reading": every map read
-    albedo, depth = ((load_exemplar(spec, dtype=None), 8) if is_builtin(spec)
-                     else read(spec, "EXEMPLAR"))
+    if is_builtin(spec):
+        albedo, depth = load_exemplar(spec, dtype=None), 8
+    elif is_model_file(spec):
+        raise TGHopError(f"EXEMPLAR {spec} is {model_file_kind(spec)}, not an image")
+    else:  # the albedo's alpha is transparency (warned of, as for a texture)
+        albedo, depth = read_image(spec, dtype=None, downscale=downscale, with_depth=True,
+                                   too_large_hint=HINT_DOWNSCALE_OPTION)
+    quiet_tifffile()
     maps, depths = {}, {"albedo": depth}
     for path, name in zip(map_paths, names):
-        maps[name], depths[name] = read(path, "--maps", name)
-        if is_normal_name(name):  # stored turned (EXIF): its vectors turned with its pixels
-            maps[name] = upright_normal_map(maps[name], path, convention=normal_convention(name),
-                                            label=f"--maps {path}")
+        maps[name], depths[name] = read_map(path, name, label=f"--maps {path}", downscale=downscale,
+                                            too_large_hint=HINT_DOWNSCALE_OPTION)
         if maps[name].shape[:2] != albedo.shape[:2]:  # said here with the files, and the resolutions they are named
             (h, w), (ah, aw) = maps[name].shape[:2], albedo.shape[:2]
             said, own = _resolution_word(path), _resolution_word(spec)

@@ -30,7 +30,7 @@ import secrets
 from ..manifest import MAX_MAPS
 from .requests import RequestError, check_channel_counts, safe_name
 
-__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "check_colour_map", "read_maps", "upright_map",
+__all__ = ["MAP_FIELD", "MAX_MAPS", "is_material", "map_uploads", "check_colour_map", "read_map", "read_maps",
            "check_channels", "material_id", "same_kind", "patch_size", "encode_maps", "maps_json", "maps_multipart",
            "answer", "fill", "META_PART"]
 
@@ -79,45 +79,54 @@ def map_uploads(fields: dict) -> list:
     return out
 
 
-def check_colour_map(filename: str, uploads) -> None:
-    """400 where a material's colour map is out of place (:func:`tghop.map_names.colour_map_out_of_place`), as
-    ``tghop fit --maps`` and a batch manifest's row refuse it: the exemplar's file (``filename``, the albedo) named
-    as another kind of map and a map (``uploads``, :func:`map_uploads`) named as the colour map (the two swapped),
-    or the exemplar's file named as a normal map and no map as the colour map (its vectors would be modelled as
-    the albedo's colours). A map's kind is read from its name, which names it here (``f"{name}.png"``: the name
-    read whole, a ``.`` in it not taken for an extension)."""
-    from ..map_names import colour_map_out_of_place
+def check_colour_map(filename: str, uploads):
+    """A material's colour map out of place (:func:`tghop.map_names.check_colour_map_order`), as ``tghop fit
+    --maps`` and a batch manifest's row refuse or warn of it, in the page's words: 400 where the exemplar's
+    file (``filename``, the albedo) is named as another kind of map and a map (``uploads``, :func:`map_uploads`)
+    as the colour map (the two swapped), or the exemplar's file as a normal map and no map as the colour map
+    (its vectors would be modelled as the albedo's colours); the note to give (str; else None) where the
+    exemplar's file is named as another kind and no map as the colour map: it is fitted as the colour map,
+    as asked (0.57 said nothing). A map's kind is its name's (its field's, ``map:<name>``), else, a name of
+    no kind, its file's."""
+    from .._errors import TGHopError
+    from ..map_names import check_colour_map_order
 
-    found = colour_map_out_of_place(filename, [f"{name}.png" for name, _, _ in uploads])
-    if found is None:
-        return
-    kind, colour = found
-    if colour is not None:
-        colour = colour[:-len(".png")]
-        raise RequestError(400, f"the exemplar {filename} is named as a {kind} map and the map {colour} as the colour "
-                                f"map; the albedo comes first: send {colour}'s file as the exemplar and {filename} "
-                                "as a map")
-    if kind == "normal":
-        raise RequestError(400, f"the exemplar {filename} is named as a normal map and no map as the colour map (a "
-                                "normal map fitted as the albedo is modelled as colours, not unit vectors); send the "
-                                f"material's colour map as the exemplar (e.g. Rock_Color.png) and {filename} as a map")
+    try:
+        return check_colour_map_order(
+            filename, [file for _, file, _ in uploads], names=[name for name, _, _ in uploads],
+            shown=[name for name, _, _ in uploads], swap="send {colour}'s file as the exemplar and {albedo} as a map",
+            first="send the material's colour map as the exemplar (e.g. Rock_Color.png) and {albedo} as a map")
+    except TGHopError as exc:
+        raise RequestError(400, str(exc)) from None
+
+
+def read_map(read, name: str, filename: str, content: bytes, *, normal=None) -> tuple:
+    """One map sent as ``map:<name>``: ``(image, depth)``, read as every reader of a material's maps
+    reads it (:func:`tghop.material_files.read_map`: as data or colours by ``name``, an alpha that holds
+    data refused, a normal map stored turned read upright with its vectors turned), named ``the map NAME
+    (FILENAME)`` in a message. ``read(content, filename, load)``: the server's upload reader
+    (:func:`tghop.server.uploads.read_image`, its errors 400 or 413); ``normal``: as ``read_map``'s (a
+    saved material's flag; None: by the name)."""
+    from .._errors import HINT_DOWNSCALE_YOURSELF
+    from ..material_files import read_map as read_file
+
+    label = f"the map {name} ({filename})"
+    return read(content, filename, lambda path: read_file(path, name, normal=normal, label=label,
+                                                          too_large_hint=HINT_DOWNSCALE_YOURSELF))
 
 
 def read_maps(uploads, read, albedo_shape) -> tuple:
-    """The maps' images: ``({name: array}, {name: depth})``. ``read(content, filename, normal, as_data)``
-    returns ``(image, depth)`` (the server's upload reader; ``normal``: the map's name where it is a
-    normal map, for :func:`upright_map`, else None; ``as_data``: read its values as stored,
-    :func:`tghop.map_names.is_data_map`); a map of another height and
-    width than the albedo's, or a normal map by its name that holds no unit vectors
-    (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
+    """The maps' images: ``({name: array}, {name: depth})``, each read by :func:`read_map` (``read``: as
+    its). A map of another height and width than the albedo's, or a normal map by its name that holds no
+    unit vectors (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
     from .._common import check_image
     from .._errors import TGHopError
-    from ..map_names import is_data_map, is_normal_name
+    from ..map_names import is_normal_name
     from ..material import check_normal_map
 
     maps, depths = {}, {}
     for name, filename, content in uploads:
-        image, depth = read(content, filename, name if is_normal_name(name) else None, is_data_map(name))
+        image, depth = read_map(read, name, filename, content)
         if image.shape[:2] != tuple(albedo_shape[:2]):
             h, w = albedo_shape[:2]
             raise RequestError(400, f"the map {name} ({filename}) is {image.shape[0]}x{image.shape[1]} but the "
@@ -129,18 +138,6 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
                 raise RequestError(400, f"{filename}: {exc}") from None
         maps[name], depths[name] = image, depth
     return maps, depths
-
-
-def upright_map(image, path, normal):
-    """A map read from ``path``, with ``normal`` (its name, where it is a normal map) its vectors turned
-    with its pixels where the file is stored turned (:func:`tghop.normals.upright_normal_map`)."""
-    from ..map_names import normal_convention
-    from ..normals import upright_normal_map
-
-    if normal is None:
-        return image
-    return upright_normal_map(image, path, convention=normal_convention(normal),
-                              label=f"the map {normal} ({path.name})")
 
 
 def check_channels(joint, albedo, maps: dict) -> None:
@@ -240,8 +237,7 @@ def answer(accept: str, maps: list, size, seed) -> tuple:
 def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, tile, progress) -> tuple:
     """A material's inpaint or extend: ``picture`` (its albedo, of ``depth`` bits, grown already
     with ``grow``, ``(size, anchor)``, else None) and the maps sent as ``map:<name>`` (``uploads``,
-    as :func:`map_uploads` gives them; ``read(content, filename, normal, as_data)`` -> ``(image, depth)``,
-    as :func:`read_maps` calls it), filled
+    as :func:`map_uploads` gives them, each read by :func:`read_map` with ``read``), filled
     alike in ``hole`` (:func:`tghop.inpaint.inpaint_material`; the albedo's alpha channel kept,
     opaque in the hole): ``(the maps encoded (:func:`encode_maps`), (h, w))``, each at the depth of
     the file sent, as a texture's fill keeps its picture's and ``tghop inpaint --maps`` writes each
@@ -249,7 +245,6 @@ def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, ti
     size than the picture is 400."""
     from .._errors import TGHopError
     from ..inpaint import expand_canvas, inpaint_material, with_alpha
-    from ..map_names import is_data_map
 
     names = material.names_[1:]
     given = {name: (filename, content) for name, filename, content in uploads}
@@ -260,7 +255,7 @@ def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, ti
     shape = picture.shape[:2] if grow is None else (int(known.any(axis=1).sum()), int(known.any(axis=0).sum()))
     maps, depths = {}, {"albedo": depth}
     for name, normal in zip(names, material.normal_[1:]):
-        image, depths[name] = read(given[name][1], given[name][0], name if normal else None, is_data_map(name))
+        image, depths[name] = read_map(read, name, given[name][0], given[name][1], normal=bool(normal))
         if image.shape[:2] != shape:  # before it is grown: a map of another size would be grown to the same
             raise RequestError(400, f"the map {name} ({given[name][0]}) is {image.shape[0]}x{image.shape[1]} but the "
                                     f"picture is {shape[0]}x{shape[1]}; give maps of its size")

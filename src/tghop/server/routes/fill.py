@@ -51,7 +51,6 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
 
     from ..._errors import HINT_DOWNSCALE_YOURSELF
     from ...imageio import deepest, load_image, to_uint8, to_uint16, write_png
-    from ...material import drop_opaque_alpha
     from ...inpaint import MASK_PICTURE_SHARE, check_hole, expand_canvas, grey_share, require_hole, split_alpha
     from ...inpaint import with_alpha
     from ...inpaint import inpaint as fill_hole
@@ -99,13 +98,9 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
         raise RequestError(400, str(exc)) from None
     with server.generating:
         if materials.is_material(model):  # every map alike
-            def read_map(p, normal, as_data):  # a map's alpha is data: refused unless every pixel is opaque
-                image, bits = load_image(p, dtype=None, with_depth=True, keep_alpha=True, as_data=as_data)
-                return materials.upright_map(drop_opaque_alpha(image, p.name), p, normal), bits
-
-            return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename, normal, as_data: (
-                read_image(data, filename, lambda p: read_map(p, normal, as_data), notes=told)), depth=depth,
-                grow=grow, seed=seed, tile=tile, progress=server.unless_stopping), told
+            return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename, load: (
+                read_image(data, filename, load, notes=told)), depth=depth, grow=grow, seed=seed, tile=tile,
+                progress=server.unless_stopping), told
         try:
             filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping)
         except MemoryError:

@@ -13,7 +13,8 @@ from .. import materials
 from ..core import json_response
 from ..jobs import FINAL, JOB_ID, QueueFull, fit_stages, unknown_snapshot
 from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
-from ..uploads import MAX_FIT_BYTES, RETRY_AFTER, depth_note, each_file_within, read_body, read_form, read_image
+from ..uploads import (MAX_FIT_BYTES, RETRY_AFTER, depth_note, each_file_within, note_line, read_body, read_form,
+                       read_image)
 
 __all__ = ["model_id_for", "prepare_fit", "fit_work", "create_model", "find_job", "job_state",
            "cancel_job", "job_events", "JOB"]
@@ -43,18 +44,13 @@ def prepare_fit(server, fields: dict):
     from ...data import builtin
     from ...fit_options import build_model, fit_params, material_model
     from ...imageio import load_image
-    from ...material import Material, drop_opaque_alpha
+    from ...material import Material
     from ...synthesis import prepare_exemplar
 
     notes = []
 
     def read(path):
         return load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True)
-
-    def read_map(path, normal, as_data):  # a map's alpha is data, not transparency: refused unless all is opaque
-        image, depth = load_image(path, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True,
-                                  keep_alpha=True, as_data=as_data)
-        return materials.upright_map(drop_opaque_alpha(image, path.name), path, normal), depth
 
     upload = fields.pop("image", None)
     name = fields.pop("builtin", None)
@@ -80,8 +76,9 @@ def prepare_fit(server, fields: dict):
         filename, content = upload
         if not content:
             raise RequestError(400, f"{safe_name(filename, 'the upload')} is empty; send an image file")
-        if uploads:  # the colour map out of place: refused as tghop fit --maps refuses it
-            materials.check_colour_map(safe_name(filename, "exemplar"), uploads)
+        if uploads:  # the colour map out of place: refused or noted as tghop fit --maps refuses or warns of it
+            said = materials.check_colour_map(safe_name(filename, "exemplar"), uploads)
+            notes.extend([] if said is None else [note_line(said)])
         image, depth = read_image(content, safe_name(filename, "exemplar"), read, notes=notes)
     try:
         image = prepare_exemplar(image)
@@ -97,8 +94,7 @@ def prepare_fit(server, fields: dict):
     params = {k: v for k, v in model.get_params().items()}
     if uploads:
         maps, depths = materials.read_maps(
-            uploads, lambda data, filename, normal, as_data: read_image(
-                data, filename, lambda p: read_map(p, normal, as_data), notes=notes), image.shape)
+            uploads, lambda data, filename, load: read_image(data, filename, load, notes=notes), image.shape)
         joint = material_model(fit_params(options, api=True))  # channels for the maps too, as fit --maps
         materials.check_channels(joint, image, maps)
         model_id = materials.material_id(content, uploads, joint.get_params(), model_id_for)
