@@ -804,3 +804,49 @@ def test_a_camera_raw_file_s_preview_is_not_learnt(tmp_path, monkeypatch, tifffi
                                                 r"\(a camera raw file, such as DNG\?\); .* export it as TIFF"):
         load_image(tmp_path / "camera.dng")
     np.testing.assert_array_equal(load_image(tmp_path / "whole.tif", dtype=None), _colourful(24, 32))
+
+
+@pytest.mark.parametrize("ext, mode", [(".qoi", "RGB"), (".sgi", "RGB"), (".sgi", "L"), (".pcx", "RGB"), (".pcx", "L")])
+def test_qoi_sgi_and_pcx_are_read_and_taken_from_a_batch_folder(tmp_path, ext, mode):
+    # Pillow 10 (pyproject's lower bound) reads them, and tghop fit did; a batch folder skipped them without a word
+    # (0.57: "no image files in this folder"), as they were in neither read list.
+    from tghop import batch, data
+    from tghop._formats import READ_SUFFIXES
+
+    rgb = (data.bricks(48, rng=7) * 255).round().astype(np.uint8)
+    pixels = rgb if mode == "RGB" else rgb[..., 0]
+    path = tmp_path / "src" / f"Wall{ext.upper() if mode == 'L' else ext}"  # any case, as every read extension
+    path.parent.mkdir()
+    try:
+        Image.fromarray(pixels, mode).save(path, format={".qoi": "QOI", ".sgi": "SGI", ".pcx": "PCX"}[ext])
+    except (KeyError, OSError, ValueError) as exc:  # QOI is written from Pillow 11.3 on
+        pytest.skip(f"this Pillow does not write {ext}: {exc}")
+    assert ext in READ_SUFFIXES
+    image = load_image(path, dtype=None)
+    want = pixels[..., None] if mode == "L" else pixels
+    np.testing.assert_array_equal(image, want)
+    (item,) = batch.find_work(tmp_path / "src", tmp_path / "out")
+    assert item["path"].name == path.name
+
+
+def test_an_avif_file_and_a_pillow_older_than_11_2_is_one_line_naming_the_upgrade(tmp_path, monkeypatch):
+    # pyproject allows Pillow 10, which has no AVIF plugin: an AVIF exemplar was "not a readable image (not an image
+    # format tghop reads)", though tghop lists .avif among what it reads.
+    from PIL import features
+
+    from tghop._errors import MissingExtraError
+
+    if not features.check("avif"):
+        pytest.skip("this Pillow writes no AVIF")
+    path = tmp_path / "wall.avif"
+    Image.fromarray(np.full((16, 16, 3), 100, np.uint8)).save(path)
+    Image.init()
+    monkeypatch.delitem(Image.OPEN, "AVIF")  # what Pillow 10 and 11.1 have: no plugin, no module named avif
+    monkeypatch.setattr(Image, "ID", [i for i in Image.ID if i != "AVIF"])
+    monkeypatch.delitem(features.modules, "avif")
+    monkeypatch.setattr("PIL.__version__", "11.1.0")
+    with pytest.raises(MissingExtraError) as caught:
+        load_image(path)
+    said = str(caught.value)
+    assert said == (f"{path}: an AVIF image, which Pillow reads from version 11.2 on, and this is Pillow 11.1.0; "
+                    "install a Pillow that reads it (pip install --upgrade pillow) or convert the file to PNG"), said

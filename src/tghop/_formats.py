@@ -17,10 +17,13 @@ DEPTHS = {"PNG": (8, 16), "JPEG": (8,), "TIFF": (8, 16, 32)}
 #: what a batch takes from a folder (:data:`tghop.batch.IMAGE_SUFFIXES` is this list). .jfif and .jpe:
 #: JPEG files by other names, as a browser saves them; .pbm: the bilevel one of .ppm, .pgm, .pnm; .tga
 #: (Unreal's and many studios' maps), .psd (its merged image), .dds, JPEG 2000 and .ico: Pillow reads
-#: them (a batch skipped them, though fit read them); .avif from Pillow 11.2 (earlier ones, as fit,
-#: refuse it in one line).
+#: them (a batch skipped them, though fit read them); .qoi, .sgi and .pcx (0.58: Pillow 10 reads them;
+#: SGI's other extensions, .rgb, .rgba and .bw, are left out: other tools' raw pixel dumps take them too);
+#: .avif from Pillow 11.2 (an earlier one, as fit, refuses it in one line: upgrade Pillow,
+#: :func:`missing_decoder`).
 READ_SUFFIXES = (".png", ".jpg", ".jpeg", ".jfif", ".jpe", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".ppm",
-                 ".pgm", ".pbm", ".pnm", ".tga", ".psd", ".dds", ".jp2", ".j2k", ".avif", ".ico")
+                 ".pgm", ".pbm", ".pnm", ".tga", ".psd", ".dds", ".jp2", ".j2k", ".avif", ".ico", ".qoi", ".sgi",
+                 ".pcx")
 #: Other images' extensions, of formats tghop does not read: a batch folder's files of these are
 #: skipped, and said; fit refuses them in one line (:func:`unread_format`).
 OTHER_IMAGE_SUFFIXES = (".exr", ".hdr", ".heic", ".heif", ".jxl", ".raw", ".dng", ".cr2", ".nef", ".arw")
@@ -177,6 +180,7 @@ def _file_head(path):
 #: is one with a corrupt header (a width of 0, a checksum that fails) or of an odd kind (complex TIFF
 #: samples), not another format; and, for a format Pillow reads only where it was built with its
 #: library, the module or codec :mod:`PIL.features` checks for it (:func:`missing_decoder`).
+#: :data:`_PILLOW_FROM` names the first Pillow that knows a format at all.
 _READ_HEADS = (
     (lambda head: head.startswith(b"\x89PNG\r\n\x1a\n"), "PNG", True, None),
     (lambda head: head.startswith(b"\xff\xd8\xff"), "JPEG", True, ("codec", "jpg")),
@@ -186,7 +190,14 @@ _READ_HEADS = (
     (lambda head: head[4:8] == b"ftyp" and head[8:12] in (b"avif", b"avis"), "AVIF", False, ("module", "avif")),
     (lambda head: head.startswith((b"\x00\x00\x00\x0cjP  \r\n\x87\n", b"\xff\x4f\xff\x51")), "JPEG 2000", False,
      ("codec", "jpg_2000")),
+    (lambda head: head.startswith(b"qoif"), "QOI", True, None),
 )
+
+
+#: The first Pillow version that reads a format of :data:`_READ_HEADS` (by name) that pyproject's lower
+#: bound (``pillow>=10``) does not: an older one has no plugin for it, and :mod:`PIL.features` does not
+#: know its module (AVIF: Pillow 11.2).
+_PILLOW_FROM = {"AVIF": "11.2"}
 
 
 #: ISO base media brands of HEIF images (a phone's photos: .heic, .heif); AVIF ones Pillow reads.
@@ -218,9 +229,10 @@ def unread_format(path):
 def missing_decoder(path, exc=None):
     """Why this Python cannot read the image at ``path`` though the file may be sound: the name of
     its format where the installed Pillow was built without that format's library ("WebP": a file
-    of a format tghop reads, told "not an image format tghop reads"), or Pillow's own words for a
-    decoder it lacks (``exc``: ``OSError("decoder jpeg2k not available")``); else None. The cause is
-    outside the file: the same file reads once Pillow has the library."""
+    of a format tghop reads, told "not an image format tghop reads") or is older than the first that
+    reads it (an AVIF file and Pillow 10 or 11.1: 0.57 said "not an image format tghop reads"), or
+    Pillow's own words for a decoder it lacks (``exc``: ``OSError("decoder jpeg2k not available")``);
+    else None. The cause is outside the file: the same file reads once Pillow has the library."""
     import re
 
     if isinstance(exc, OSError) and re.fullmatch(r"decoder \S+ not available", str(exc)):
@@ -237,10 +249,20 @@ def missing_decoder(path, exc=None):
             return None
         kind, feature = built_with
         known = features.modules if kind == "module" else features.codecs
+        if feature not in known and name in _PILLOW_FROM:  # a Pillow from before the format's plugin
+            import PIL
+
+            return f"{_a(name)} image, which Pillow reads from version {_PILLOW_FROM[name]} on, and this is Pillow " \
+                   f"{PIL.__version__}"
         if feature in known and not (features.check_module if kind == "module" else features.check_codec)(feature):
-            return f"a {name} image, and this Pillow was built without {name} support"
+            return f"{_a(name)} image, and this Pillow was built without {name} support"
         return None
     return None
+
+
+def _a(name) -> str:
+    """``name`` (a format's) with its article: "an AVIF", "a WebP"."""
+    return f"{'an' if name[0] in 'AEFHILMNORSX' else 'a'} {name}"
 
 
 def warn_frames(path, count) -> None:
