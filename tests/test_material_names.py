@@ -340,3 +340,26 @@ def test_maps_of_another_resolutions_download_are_told_so_in_one_line(exemplar, 
         assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
         assert f"--maps {tmp_path / name} is 48x48 but EXEMPLAR {tmp_path}/Rock023_2K_Color.jpg is 96x96{hint}; give " \
                "every map at the albedo's size" in res.output, res.output
+
+
+def test_a_colour_image_under_a_grey_maps_name_is_warned_of(exemplar, maps):
+    # Maps are classed by name only: the colour map saved as Rock_Roughness.png was modelled as a roughness of 3
+    # channels without a word. A map of a kind that holds one value a pixel whose channels differ as a colour
+    # photograph's is warned of (grey maps stored as RGB: spread 0; the 38 colour photographs: 0.061 at least);
+    # a packed map and a specular one (a metal's colour) are not, nor grey ones.
+    from tghop.material import COLOUR_SPREAD, colour_spread
+
+    grey = np.repeat(maps["height"], 3, axis=2)
+    packed = np.concatenate([maps["roughness"], maps["height"], 1 - maps["roughness"]], axis=2)
+    assert colour_spread(grey) == 0 and colour_spread(exemplar) > 2 * COLOUR_SPREAD
+    given = {"Rock_Roughness": exemplar, "Rock_Height": grey, "T_Rock_ORM": packed}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Material(model=TGHop(**FAST)).fit(exemplar, given)
+    said = [str(w.message) for w in caught if "one value a pixel" in str(w.message)]
+    assert len(said) == 1, [str(w.message) for w in caught]
+    assert said[0].startswith("map 'Rock_Roughness' is named as a roughness map, one value a pixel, but its channels "
+                              "differ as a colour image's (mean spread 0."), said
+    from tghop.map_names import SCALAR_KINDS
+
+    assert name_kind("Rock_Specular") not in SCALAR_KINDS and name_kind("T_Rock_ORM") not in SCALAR_KINDS

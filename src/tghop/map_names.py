@@ -22,7 +22,7 @@ from ._common import TGHopError
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
            "name_kind", "map_name", "colour_map_out_of_place", "check_colour_map_order",
            "COLOUR_MAP_WORDS", "MapNameClashError", "check_map_names",
-           "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS"]
+           "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS", "SCALAR_KINDS"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -52,6 +52,10 @@ MAP_KINDS = {
 #: PNG's gamma converted to sRGB, :mod:`tghop.profiles`): the albedo's and an emission map's, as
 #: Blender's Node Wrangler sets every other map's colour space to Non-Color.
 COLOUR_KINDS = (ALBEDO, "emission")
+#: The kinds of map (:data:`MAP_KINDS`) that hold one value a pixel (grey, stored as 1 channel or as 3 equal
+#: ones): :meth:`tghop.material.Material.fit` warns of one whose channels differ as a colour image's (0.58).
+#: Not a specular map (a metal's specular colour is a colour), a packed map or a map of no kind.
+SCALAR_KINDS = ("roughness", "height", "ao", "metallic", "opacity")
 #: Words after a normal map's name that say its convention (Poly Haven's ``rock_nor_gl_2k``): passed over.
 CONVENTION_WORDS = {"gl": "OpenGL", "ogl": "OpenGL", "opengl": "OpenGL", "dx": "DirectX", "directx": "DirectX"}
 

@@ -43,8 +43,8 @@ from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, c
 from ._errors import warn
 from .colour import match_histograms
 from .depths import to_uint8
-from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names,
-                        is_normal_name, map_kind, map_name, normal_convention)
+from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS, MapNameClashError, check_map_names,
+                        is_normal_name, map_kind, map_name, name_kind, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
 from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
@@ -54,7 +54,7 @@ from .synthesis import TGHop, default_channels, prepare_exemplar
 __all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "drop_opaque_alpha", "renormalise",
            "example_maps", "map_name", "check_map_names", "MapNameClashError", "map_kind",
            "looks_like_normal_map", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE",
-           "NORMAL_LOOK_MEAN"]
+           "NORMAL_LOOK_MEAN", "colour_spread", "COLOUR_SPREAD"]
 
 #: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
 NORMAL_TOLERANCE = 0.1
@@ -99,6 +99,36 @@ def looks_like_normal_map(image) -> bool:
     unit_up = (np.abs(length - 1.0) <= 0.15) & (v[:, 2] >= 0.5)
     mean = v.mean(axis=0)
     return bool(unit_up.mean() >= NORMAL_LOOK_SHARE and np.abs(mean[:2] - 0.5).max() <= NORMAL_LOOK_MEAN)
+
+
+#: Mean spread of a map's channels (:func:`colour_spread`) above which a map named as one value a pixel
+#: (:data:`tghop.map_names.SCALAR_KINDS`: roughness, height, ...) is warned of as holding colours (0.58).
+#: Measured: 0 for every grey map stored as RGB, JPEG too (bricks' and cells' example roughness and height
+#: and their luminance, 20 of ../shared/textures' JPEGs made grey; quality 60-95: equal channels encode no
+#: chroma), 0.061 (knit) to 0.607 for its 38 colour photographs (median 0.21); 3 more are grey photos stored
+#: as RGB (0). Half the closest photograph's.
+COLOUR_SPREAD = 0.03
+
+
+def colour_spread(image) -> float:
+    """How far an image's channels are apart: the mean, over every other pixel of every other row, of
+    each pixel's largest channel less its smallest (0 for a grey image stored as RGB; a colour
+    photograph's 0.06-0.6, :data:`COLOUR_SPREAD`).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W, C)
+        Floats in [0, 1]; fewer than 2 channels are 0.
+
+    Returns
+    -------
+    float
+    """
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] < 2 or arr.size == 0:
+        return 0.0
+    v = arr[::2, ::2].astype(np.float64, copy=False)
+    return float((v.max(axis=2) - v.min(axis=2)).mean())
 
 
 def check_normal_map(values, name: str = "normal map"):
@@ -389,6 +419,9 @@ class Material(BaseEstimator):
             other's (:func:`tghop.normals.convention_of`). With ``normal="auto"``, of a map that
             looks like a normal map by its content (:func:`looks_like_normal_map`) but is not one by
             its name (:func:`is_normal_name`): it is modelled as colours, its output not renormalised.
+            Of a map named as one value a pixel (:data:`tghop.map_names.SCALAR_KINDS`: roughness, height,
+            ...) whose channels differ as a colour image's (:func:`colour_spread` over
+            :data:`COLOUR_SPREAD`): the colour map under another name, or a packed map (0.58).
         """
         check_progress(progress)
         normal = self._checked_params()
@@ -404,6 +437,13 @@ class Material(BaseEstimator):
                 warn(f"map {name!r} looks like a normal map but its name does not say so: it is modelled as "
                      "colours and not renormalised; name it *normal* or *nrm* (or give it in normal) if it "
                      "is one", UserWarning, stacklevel=2)
+        for name, img, _, is_normal in items[1:]:  # a colour image under a grey map's name (0.58)
+            kind, spread = name_kind(name), colour_spread(img)
+            if not is_normal and kind in SCALAR_KINDS and spread > COLOUR_SPREAD:
+                warn(f"map {name!r} is named as a {kind} map, one value a pixel, but its channels differ as a colour "
+                     f"image's (mean spread {spread:.2f}; a grey map's is 0): it is modelled as {img.shape[2]} "
+                     "channels, as given; if it is the colour map give it as the albedo, if it packs several maps "
+                     "name it as a packed map (_ORM)", UserWarning, stacklevel=2)
         stack = np.concatenate([img for _, img, _, _ in items], axis=2)
         if stack.shape[2] == 3 and np.abs(stack[..., 1:] - stack[..., :1]).max() < 1 / 512:
             raise TGHopError("every map equals the grey albedo; there is nothing to model apart from it")
