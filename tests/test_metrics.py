@@ -451,3 +451,26 @@ def test_the_exemplar_statistics_are_reused_for_the_next_result_not_recomputed(e
     assert metrics.evaluate(exemplar, references["noise"], metrics=chosen) == first[1]  # the same bits as fresh
     monkeypatch.setattr(common, "_LAST_EXEMPLAR", {}, raising=False)
     assert metrics.evaluate(other, references["crop"], metrics=chosen) == changed
+
+
+@pytest.mark.parametrize("name", list(metrics.METRICS) + ["diversity", "self_repetition", "evaluate"])
+def test_an_8_or_16_bit_image_scores_as_its_floats(name, exemplar, references):
+    # The docstrings said float in [0, 1]; uint8 and uint16 are taken too, as x / 255 and x / 65535 (0.58: said).
+    from tghop.imageio import to_uint8
+
+    def score(ex, res):
+        if name == "diversity":
+            return metrics.diversity(res, ex[:64, :64])
+        if name == "self_repetition":
+            return metrics.self_repetition(res)
+        if name == "evaluate":
+            return tuple(metrics.evaluate(ex, res, metrics=["swd", "cooccurrence", "novelty"]).values())
+        _needs(name)
+        return metrics.METRICS[name].function(ex, res)
+
+    ex8 = to_uint8(exemplar).reshape(exemplar.shape)
+    res8 = to_uint8(references["blurred"]).reshape(references["blurred"].shape)
+    floats = score(ex8 / 255.0, res8 / 255.0)
+    assert score(ex8, res8) == floats
+    assert score(ex8.astype(np.uint16) * 257, res8.astype(np.uint16) * 257) == floats
+    assert score(ex8, res8 / 255.0) == floats  # mixed too

@@ -1,7 +1,8 @@
 """Texture quality metrics: how close a synthesised texture is to its exemplar, and how new.
 
 Every fidelity metric is a function ``metric(exemplar, result, **options) -> float``
-where both images are float ``(H, W, C)`` arrays in [0, 1] (C = 1 or 3; a greyscale
+where both images are ``(H, W, C)`` or ``(H, W)`` arrays, float in [0, 1] or uint8 / uint16
+(scored as x / 255 and x / 65535: an 8-bit image and its floats score alike; C = 1 or 3; a greyscale
 image compared with a colour one is repeated to three channels, so a colour result is
 fairly penalised for colour the exemplar does not have, and vice versa). The two images
 may have different sizes: every metric compares distributions of local statistics, never

@@ -171,7 +171,7 @@ def novelty(exemplar, result, *, patch_size: int = 8, max_patches: int = 2048, s
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1], at least ``patch_size`` on each side.
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535), at least ``patch_size`` on each side.
     patch_size : int
         Side of the compared patches (default 8).
     max_patches : int
@@ -215,7 +215,7 @@ def copied(exemplar, result, *, patch_size: int = 16, threshold: float = 0.03, m
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1], at least ``patch_size`` on each side.
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535), at least ``patch_size`` on each side.
     patch_size : int
         Side of the compared patches (default 16).
     threshold : float
@@ -261,7 +261,7 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
     ----------
     *results : array_like, shape (H, W) or (H, W, C)
         Two or more results, or a single sequence of them: ``diversity(a, b)`` or
-        ``diversity([a, b, c])``.
+        ``diversity([a, b, c])``; each float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535).
     patch_size, max_patches, seed
         As for :func:`novelty`.
     progress : callable, optional
@@ -363,7 +363,7 @@ def copied_textured(exemplar, result, *, patch_size: int = 16, threshold: float 
 
     Parameters
     ----------
-    exemplar, result : array_like, shape (H, W) or (H, W, C), float in [0, 1] (or uint8 / uint16)
+    exemplar, result : array_like, shape (H, W) or (H, W, C), float in [0, 1] (or uint8 / uint16 as x / 255, x / 65535)
         Both at least ``patch_size`` a side; grey and colour are matched as :func:`pair` does.
     patch_size : int
         Window side in pixels.
@@ -440,7 +440,7 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
 
     Parameters
     ----------
-    image : array_like, shape (H, W) or (H, W, C), float in [0, 1] (or uint8 / uint16)
+    image : array_like, shape (H, W) or (H, W, C), float in [0, 1] (or uint8 / uint16 as x / 255, x / 65535)
         At least ``patch_size`` a side; scored in float32.
     patch_size : int
         Window side in pixels, a multiple of 4 (else :class:`~tghop.TGHopError`).

@@ -54,7 +54,8 @@ def sliced_wasserstein(
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1], at least ``patch_size * max(scales)`` on each side.
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535), at least ``patch_size * max(scales)`` on each
+        side.
     patch_size : int
         Side of the patches (default 7).
     scales : sequence of int
@@ -158,7 +159,8 @@ def cooccurrence_distance(
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1], any sizes. The clusters come from the exemplar only.
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535), any sizes. The
+        clusters come from the exemplar only.
     n_clusters : int
         k (paper: 2, 4 or 8 depending on the texture; default 8), at most
         :data:`tghop.cooccurrence.MAX_CLUSTERS` = 32 (memory grows as k**2). Fewer if the

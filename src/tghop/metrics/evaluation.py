@@ -154,7 +154,7 @@ def evaluate(exemplar, result, *, metrics=None, repetition: bool = False, progre
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1]; sizes may differ.
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535); sizes may differ.
     metrics : sequence of str, optional
         Names from :data:`METRICS` (``sifid``, ``gram``, ``swd``, ``cooccurrence``,
         ``novelty``, ``copied``, ``copied_textured``) or :data:`RESULT_METRICS`

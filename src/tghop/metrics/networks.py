@@ -180,7 +180,8 @@ def sifid(exemplar, result, *, before_pool: bool = False, progress=None) -> floa
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1], at least 16 x 16 (64 x 64 or more for a stable value). Greyscale
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535), at least
+        16 x 16 (64 x 64 or more for a stable value). Greyscale
         images are repeated to RGB. No resizing: Inception sees the pixels as they are.
     before_pool : bool
         Use the features just *before* the first max-pool (the 64-channel output of the
@@ -304,7 +305,8 @@ def gram_distance(
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1]. Filter sizes larger than half the smaller side of either image
+        Float in [0, 1], or uint8 / uint16 (scored as x / 255, x / 65535). Filter
+        sizes larger than half the smaller side of either image
         are left out (e.g. 37 and 55 for a 64 x 64 image).
     scales : sequence of odd int
         Filter sizes.
