@@ -114,3 +114,50 @@ def test_a_progress_callback_of_star_args_or_defaults_is_taken(small_model):
     small_model.synthesize((32, 32), rng=0, progress=lambda stage, done, total, extra=None: seen.append(stage))
     assert {len(args) for args in seen if isinstance(args, tuple)} == {3}
     assert any(isinstance(stage, str) for stage in seen)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.uint8])
+def test_an_rgba_exemplar_loses_its_alpha_as_tghop_fit_reads_a_png_with_alpha(dtype, small_model, bricks96):
+    # 0.57 learnt an RGBA array's alpha as a fourth colour channel, without a word, where the command line
+    # drops it (OpaqueAlphaWarning, TransparencyWarning): an (H, W, 4) array is now read as the CLI reads the file.
+    import warnings
+
+    from conftest import SMALL
+
+    from tghop.imageio import to_uint8
+
+    rgb = bricks96 if dtype == np.float64 else to_uint8(bricks96).reshape(bricks96.shape)
+    opaque = np.concatenate([rgb, np.full(rgb.shape[:2] + (1,), 1 if dtype == np.float64 else 255, dtype)], axis=2)
+    with pytest.warns(tghop.OpaqueAlphaWarning, match=r"^exemplar: alpha channel dropped \(an array of 4 channels is "
+                                                      r"read as RGBA; stacked=True models every channel\)$"):
+        model = tghop.TGHop(**SMALL).fit(opaque)
+    plain = small_model if dtype == np.float64 else tghop.TGHop(**SMALL).fit(rgb)
+    assert model.exemplar_shape_ == (96, 96, 3) and model.exemplar_depth_ == plain.exemplar_depth_
+    assert all(np.array_equal(a, plain._to_arrays()[k]) for k, a in model._to_arrays().items())
+    holed = opaque.copy()
+    holed[:48, :, 3] = 0  # half of it transparent
+    with pytest.warns(tghop.TransparencyWarning, match=r"though 50% of its pixels are transparent: .* leave that "
+                                                       rf"part out with exclude=image\[\.\.\., -1\] < "
+                                                       rf"{0.5 if dtype == np.float64 else 128}$") as caught:
+        tghop.TGHop(**{**SMALL, "layout_factor": None}).fit(holed)
+    assert caught[0].message.share == 0.5 and caught[0].filename == __file__
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stacked = tghop.TGHop(**{**SMALL, "layout_factor": None}).fit(opaque, stacked=True)  # as 0.57: 4 channels
+    assert stacked.exemplar_shape_ == (96, 96, 4)
+
+
+def test_a_grey_and_alpha_exemplar_is_grey_and_a_materials_two_channels_stay(bricks96):
+    import warnings
+
+    from conftest import SMALL
+
+    grey = bricks96.mean(axis=2)
+    with pytest.warns(tghop.OpaqueAlphaWarning, match=r"an array of 2 channels is read as grey\+alpha"):
+        model = tghop.TGHop(**{**SMALL, "n_channels": None, "layout_factor": None}).fit(
+            np.stack([grey, np.ones_like(grey)], axis=2))
+    assert model.exemplar_shape_ == (96, 96, 1)
+    with warnings.catch_warnings():  # a grey albedo and a grey map: two channels of data, no alpha
+        warnings.simplefilter("error")
+        mat = Material(tghop.TGHop(**{**SMALL, "n_channels": None})).fit(grey, {"height": bricks96[..., 0]})
+    assert mat.model_.exemplar_shape_ == (96, 96, 2) and mat.model_.layout_.model_.exemplar_shape_[2] == 2

@@ -14,8 +14,10 @@ import math
 import numpy as np
 
 from ._common import TGHopError, check_image, check_texture, grey_as_rgb
+from ._errors import OpaqueAlphaWarning, TransparencyWarning, warn
+from .image_decode import transparent_share
 
-__all__ = ["default_channels", "prepare_exemplar"]
+__all__ = ["default_channels", "prepare_exemplar", "drop_alpha"]
 
 
 def default_channels(patch_size: int, n_colours: int = 3):
@@ -94,3 +96,42 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray
     if grey:
         img = np.ascontiguousarray(img[..., :1])
     return img
+
+
+def drop_alpha(image, *, stacked=False):
+    """The exemplar without its alpha channel, as :func:`tghop.imageio.load_image` reads an image
+    file's (what ``tghop fit`` learns from a PNG with alpha): an array of 2 or 4 channels is grey or
+    RGB with alpha (grey+alpha, RGBA), its last channel dropped with a warning, a
+    :class:`~tghop.OpaqueAlphaWarning` where no pixel is more transparent than opaque, else a
+    :class:`~tghop.TransparencyWarning` saying how much is (the colours under it are learnt as
+    texture) and the ``exclude`` mask that leaves it out. 0.57 learnt the alpha as a fourth colour
+    channel, without a word.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C)
+        The exemplar as given to :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`.
+    stacked : bool
+        The channels are stacked maps (a material's), none of them alpha: ``image`` as given.
+
+    Returns
+    -------
+    array_like
+        ``image`` itself, or a view of it without its last channel.
+    """
+    arr = image if isinstance(image, np.ndarray) else np.asarray(image)
+    if stacked or arr.ndim != 3 or arr.shape[2] not in (2, 4):
+        return image
+    alpha = arr[..., -1]
+    half = {np.dtype(np.uint8): 128, np.dtype(np.uint16): 32768}.get(alpha.dtype, 0.5)
+    share = transparent_share(alpha if alpha.dtype != np.uint16 else alpha / 65535.0)
+    kind = "RGBA" if arr.shape[2] == 4 else "grey+alpha"
+    said = f"exemplar: alpha channel dropped (an array of {arr.shape[2]} channels is read as {kind}"
+    if share:
+        told = "under 1%" if share < 0.005 else f"{share:.0%}"
+        warn(TransparencyWarning(f"{said}), though {told} of its pixels are transparent: the colours under them "
+                                 "are taken as texture; crop it to its opaque part, or leave that part out with "
+                                 f"exclude=image[..., -1] < {half}", "exemplar", share))
+    else:
+        warn(OpaqueAlphaWarning(f"{said}; stacked=True models every channel)", "exemplar"))
+    return arr[..., :-1]

@@ -459,9 +459,9 @@ class Material(BaseEstimator):
         model = TGHop(**params)
         if settings.recorded_seed(params["rng"]) is None:  # an int seed stays one: the model file records it
             # A Generator (None: a fresh one) is drawn from as before; the model keeps a copy of it as it was.
-            model = fit_part(model, check_rng(params["rng"]), stack, exclude=exclude, progress=progress)
+            model = fit_part(model, check_rng(params["rng"]), stack, exclude=exclude, progress=progress, stacked=True)
         else:
-            model.fit(stack, exclude=exclude, progress=progress)
+            model.fit(stack, exclude=exclude, progress=progress, stacked=True)  # 2 or 4 channels: maps, no alpha
         scale = model.scale  # each map's bands at the joint model's working scale
         ex = None if exclude is None else rescale_mask(np.asarray(exclude, dtype=bool), scale)
         bands = []  # stage "maps": each map's own band statistics (work after the joint model's stages)

@@ -46,7 +46,7 @@ from .core import ICHM
 from .sdr import SpatialReduction
 from .hops import Hop, HopStack
 from .colour import ColourClasses, channel_quantiles
-from .exemplar import default_channels, prepare_exemplar
+from .exemplar import default_channels, drop_alpha, prepare_exemplar
 from .patches import check_exclude, check_exemplar_size, downsample_mask, enough_patches, patch_origins
 from . import layout
 from .parameter_count import parameter_groups, table4
@@ -207,7 +207,7 @@ class TGHop(PatchCodec, BaseEstimator):
         check_exemplar_size(shape, ichm, patch_size=self.patch_size, stride=self.stride, max_patches=self.max_patches,
                             scale=self.scale)
 
-    def fit(self, image, y=None, *, exclude=None, depth=None, progress=None):
+    def fit(self, image, y=None, *, exclude=None, depth=None, progress=None, stacked=False):
         """Learn the model from one exemplar.
 
         Parameters
@@ -215,7 +215,13 @@ class TGHop(PatchCodec, BaseEstimator):
         image : ndarray, shape (H, W) or (H, W, C)
             Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3 (or more: the
             stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB
-            is modelled as one channel (see :func:`prepare_exemplar`).
+            is modelled as one channel (see :func:`prepare_exemplar`). C = 2 or 4 is grey or
+            RGB with alpha (an RGBA PNG as ``numpy.asarray(PIL.Image.open(path))`` gives it): the
+            alpha is dropped, with a :class:`~tghop.OpaqueAlphaWarning` (none of it transparent) or
+            a :class:`~tghop.TransparencyWarning` (the colours under the transparent part are learnt
+            as texture: crop them away, or leave them out with ``exclude``), as ``tghop fit`` and
+            :func:`tghop.imageio.load_image` read such a file (0.58; 0.57 learnt the alpha as a
+            colour, without a word; :func:`tghop.exemplar.drop_alpha`).
             A uint8 exemplar of up to :data:`FLOAT_EXEMPLAR_PIXELS` (1024x1024) gives the model
             of its pixels / 255 as floats. Memory depends on the training patches used
             (``max_patches``), not on the exemplar's size: the hops see the image tile by tile,
@@ -238,12 +244,16 @@ class TGHop(PatchCodec, BaseEstimator):
             "hop 2", ..., "core" (the training patches' core responses), "SDR", "clusters", "ICA",
             "CDF codebook", and "layout" with a ``layout_factor``: one after another, each from its
             first call to its last (``done == total``) covering the fit's work, nothing left between them.
+        stacked : bool
+            The channels are stacked maps, none of them alpha (a :class:`~tghop.material.Material`'s
+            joint model): 2 or 4 channels are modelled as they are.
 
         Returns
         -------
         self
         """
         check_progress(progress)
+        image = drop_alpha(image, stacked=stacked)
         from threadpoolctl import threadpool_limits
 
         depth = exemplar_depth(depth, image)
@@ -713,9 +723,9 @@ class CoarseLayout(BaseEstimator):
         # An int seed stays one (the model file records it); a Generator (or None's fresh one) is drawn
         # from as before, the model keeping a copy of it as it was (fit_part).
         if settings.recorded_seed(self.rng) is None:
-            self.model_ = fit_part(model, check_rng(self.rng), small, exclude=small_exclude)
+            self.model_ = fit_part(model, check_rng(self.rng), small, exclude=small_exclude, stacked=True)
         else:
-            self.model_ = model.fit(small, exclude=small_exclude)
+            self.model_ = model.fit(small, exclude=small_exclude, stacked=True)  # the fine model's channels
         return self
 
     def guide(self, size, **options):
