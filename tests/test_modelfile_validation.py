@@ -506,3 +506,104 @@ def test_an_array_of_objects_and_a_file_of_text_are_named_as_such(saved, tmp_pat
     (tmp_path / "notes.npz").write_text("hello\n")
     with pytest.raises(ModelFileError, match=r"notes\.npz: not a tghop model file \(not a NumPy archive\)"):
         load_model(tmp_path / "notes.npz")
+
+
+def _bytes(arrays):
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def test_a_model_goes_into_and_comes_from_a_file_object(small_model, saved, tmp_path):
+    # 0.57 took a path only ("path must be a file name"): a notebook or a web service could not keep a model in memory.
+    import io
+
+    path, arrays = saved
+    buf = io.BytesIO()
+    save_model(small_model, buf)
+    with pytest.raises(ModelFileError, match=r"^the BytesIO given: nothing left to read, it is at its end \(position "
+                                             r"\d+\); seek\(0\) after writing the model into it$"):
+        load_model(buf)
+    buf.seek(0)
+    expected = small_model.synthesize((32, 32), rng=1, n_patches=100)
+    assert np.array_equal(load_model(buf).synthesize((32, 32), rng=1, n_patches=100), expected)
+    assert buf.tell() == 0 and not buf.closed  # left open, at its start
+    with open(tmp_path / "f.npz", "wb") as fh:
+        save_model(small_model, fh)
+    with open(tmp_path / "f.npz", "rb") as fh:
+        assert np.array_equal(load_model(fh).synthesize((32, 32), rng=1, n_patches=100), expected)
+
+    class Stream:  # no seek, no tell: an HTTP body
+        def __init__(self, data):
+            self.read = io.BytesIO(data).read
+
+    assert np.array_equal(load_model(Stream(buf.getvalue())).synthesize((32, 32), rng=1, n_patches=100), expected)
+    after = io.BytesIO()
+    after.write(b"header")
+    save_model(small_model, after)  # written at its position, as np.savez writes
+    after.seek(6)
+    assert load_model(after).dims_ == small_model.dims_
+    with pytest.raises(ModelFileError, match=r"^the BytesIO given is empty; give one a model was written into"):
+        load_model(io.BytesIO())
+    with pytest.raises(ModelFileError, match=r"^load_model: the StringIO given is open in text mode; a model file is "
+                                             r"binary: open it with mode 'rb' \(or give its name\)$"):
+        load_model(io.StringIO("x"))
+    with open(tmp_path / "t.npz", "w") as fh, pytest.raises(ModelFileError, match=r"^save_model: .*t\.npz is open in "
+                                                                                   r"text mode; .* mode 'wb'"):
+        save_model(small_model, fh)
+    with open(path, "rb") as fh, pytest.raises(ModelFileError, match=r"^save_model: cannot write the model into "
+                                                                     r".*m\.npz \(not open for writing\)"):
+        save_model(small_model, fh)
+    fh = open(path, "rb")
+    fh.close()
+    with pytest.raises(ModelFileError, match=r"^load_model: .*m\.npz is closed; give an open file object"):
+        load_model(fh)
+    assert path.read_bytes()[:4] == b"PK\x03\x04"  # the file given to save_model opened for reading is unchanged
+
+
+def test_a_file_objects_model_gets_every_check_a_files_does(saved, tmp_path, monkeypatch):
+    import io
+    import zipfile
+
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    cases = [  # (content, message)
+        (_bytes({**arrays, "__meta__": np.array(json.dumps({**meta, "format_version": 99}))}),
+         r"the BytesIO given: written in model format version 99 \(by tghop .*\), but this tghop .* reads versions"),
+        (_bytes({"weights": np.zeros(3)}), r"the BytesIO given: a NumPy archive but not a tghop model file"),
+        (_bytes({**arrays, "hop1.kernels": np.array([{"a": 1}], dtype=object)}),
+         r"the BytesIO given: not a tghop model file \(an array of Python objects, which tghop does not unpickle\)"),
+        (_bytes({**arrays, "hop1.kernels": arrays["hop1.kernels"][:, :5]}),
+         r"the BytesIO given: hop1\.kernels has shape \(9, 5\) but should be"),
+        (_bytes(arrays)[:50_000], r"the BytesIO given: truncated, corrupt or not a tghop model file"),
+        (_png(tmp_path),
+         r"the BytesIO given is an image, not a model file; fit a model from it first: TGHop\(\)\.fit"),
+    ]
+    for content, message in cases:
+        with pytest.raises(ModelFileError, match="^" + message) as caught:
+            load_model(io.BytesIO(content))
+        assert "\n" not in str(caught.value)
+    bomb = io.BytesIO()
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as archive:
+        with archive.open("zeros.npy", "w", force_zip64=True) as member:
+            for _ in range(80):
+                member.write(bytes(1 << 20))
+
+    def unpacked(*args, **kwargs):
+        raise AssertionError("np.load was called on the bomb")
+
+    monkeypatch.setattr(np, "load", unpacked)
+    with pytest.raises(ModelFileError, match=r"^the BytesIO given: its contents unpack to 80 MB from a file of 0\.1 MB "
+                                             r"\(a decompression bomb\?\), not a model file tghop wrote"):
+        load_model(io.BytesIO(bomb.getvalue()))
+
+
+def _png(tmp_path):
+    """The bytes of a small PNG."""
+    from PIL import Image
+
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(tmp_path / "i.png")
+    return (tmp_path / "i.png").read_bytes()
+

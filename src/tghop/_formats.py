@@ -43,13 +43,16 @@ OUTPUT_HELP = f"Image to write ({extensions()}"
 
 
 def is_model_file(path) -> bool:
-    """True if ``path`` starts like a zip archive (an ``.npz``), which only a model can be
-    among tghop's inputs; a truncated model file still counts (and is then reported as
-    truncated)."""
+    """True if ``path`` (or a binary file object, from its start) starts like a zip archive (an
+    ``.npz``), which only a model can be among tghop's inputs; a truncated model file still counts
+    (and is then reported as truncated)."""
     try:
+        if hasattr(path, "read"):
+            path.seek(0)
+            return path.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
         with open(path, "rb") as fh:
             return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
-    except OSError:
+    except (OSError, ValueError):
         return False
 
 
@@ -68,7 +71,7 @@ UNPACK_SLACK = 64 * 1024**2
 
 
 def unpacks_too_far(path) -> str | None:
-    """Why the zip archive at ``path`` is refused unread (its members unpack to more than
+    """Why the zip archive at ``path`` (or in a binary file object) is refused unread (its members unpack to more than
     :data:`MAX_UNPACK_RATIO` times its size plus :data:`UNPACK_SLACK`), in words for
     "PATH: ...; FIX"; None where it is within that or is not a readable archive (the reader's
     own error then says what it is)."""
@@ -78,7 +81,7 @@ def unpacks_too_far(path) -> str | None:
     try:
         with zipfile.ZipFile(path) as archive:
             unpacked = sum(member.file_size for member in archive.infolist())
-        size = os.path.getsize(path)
+        size = path.seek(0, os.SEEK_END) if hasattr(path, "seek") else os.path.getsize(path)
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, NotImplementedError):
         return None
     if unpacked <= MAX_UNPACK_RATIO * size + UNPACK_SLACK:
@@ -130,9 +133,11 @@ def checkpoint_note(path) -> str:
 
     where = "'tghop cooc morph' and 'tghop cooc edit' take those, not this command"
     kind = model_file_kind(path) if is_model_file(path) else None
+    name = path if isinstance(path, (str, bytes, os.PathLike)) else getattr(path, "name", "")  # a file object's
+    name = os.fsdecode(name) if isinstance(name, (str, bytes, os.PathLike)) else ""
     if kind == COOC_CHECKPOINT:
         return f"; it looks like a co-occurrence cGAN checkpoint ('tghop cooc train' writes them): {where}"
-    if kind != "a PyTorch file" and os.fsdecode(path).lower().endswith(TORCH_SUFFIXES):  # another's: no note
+    if kind != "a PyTorch file" and name.lower().endswith(TORCH_SUFFIXES):  # another's: no note
         return f"; a .pt or .pth name is a co-occurrence cGAN checkpoint's: {where}"
     return ""
 

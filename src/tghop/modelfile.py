@@ -21,6 +21,7 @@ It imports :mod:`tghop.synthesis`, never the other way round.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import zipfile
@@ -63,31 +64,68 @@ READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9, 10)
 
 
 def save_model(model, path) -> None:
-    """Write a fitted model to ``path`` (any name; the file appears whole or not at all).
+    """Write a fitted model to ``path`` (any name; the file appears whole or not at all), or into a
+    binary file object (as :func:`numpy.savez` writes into one).
 
     Parameters
     ----------
     model : tghop.synthesis.TGHop or tghop.material.Material
         Fitted (:class:`~tghop.NotFittedError` before ``fit``).
-    path : str or os.PathLike
-        The file; an ``.npz`` archive of the learned arrays and JSON metadata whatever its name.
+    path : str, os.PathLike or binary file object
+        The file; an ``.npz`` archive of the learned arrays and JSON metadata whatever its name. A file
+        object (``io.BytesIO()``, ``open(name, "wb")``, a web framework's response body; 0.58) gets the
+        whole archive in one ``write`` at its position, made in memory first, and is left open there:
+        ``seek(0)`` before reading it back with :func:`load_model`.
 
     Raises
     ------
     ModelFileError
-        ``path`` cannot be written (a folder, no permission, a missing folder).
+        ``path`` cannot be written (a folder, no permission, a missing folder; a file object open in
+        text mode, closed or not writable).
     """
     if not isinstance(model, (TGHop, Material)):
         raise TGHopError(f"save_model writes a fitted TGHop or Material, got {type(model).__name__}")
-    _check_path(path, "save_model", "write the model to")
+    stream = _is_stream(path, "save_model", "write", "wb")
+    if not stream:
+        _check_path(path, "save_model", "write the model to")
     arrays = model._to_arrays()  # NotFittedError before anything else
     meta = {"format": FORMAT, "tghop_version": __version__, **model._state_meta()}
     new = "material" in meta or any(name.startswith("patch.") or "ichm_iv." in name or "ichm_coupling." in name
                                    or name.endswith("colour.centres") for name in arrays)
     meta["format_version"] = FORMAT_VERSION if new else 3
     arrays["__meta__"] = np.array(json.dumps(meta, default=_json_number))
+    if stream:  # the archive made first, so that a failure writes nothing into it
+        archive = io.BytesIO()
+        np.savez(archive, **arrays)
+        try:
+            path.write(archive.getbuffer())
+        except (OSError, ValueError) as exc:  # io.UnsupportedOperation: opened for reading
+            why = "not open for writing" if isinstance(exc, io.UnsupportedOperation) else exc
+            raise ModelFileError(f"save_model: cannot write the model into {_label(path)} ({why}); give a file "
+                                 "object open for writing in binary mode, or a file name") from None
+        return
     check_output_path(path, what="model", error=ModelFileError)
     write_atomic(path, lambda fh: np.savez(fh, **arrays), what="model", error=ModelFileError)
+
+
+def _is_stream(target, caller: str, verb: str, mode: str) -> bool:
+    """Whether ``target`` is a file object (it has ``verb``, "read" or "write"); one that cannot be
+    one in binary (open in text mode, closed) is a one-line :class:`ModelFileError`."""
+    if isinstance(target, (str, os.PathLike)) or not callable(getattr(target, verb, None)):
+        return False
+    opened = getattr(target, "mode", "b")  # a gzip file's is a number
+    if isinstance(target, io.TextIOBase) or isinstance(opened, str) and "b" not in opened:
+        raise ModelFileError(f"{caller}: {_label(target)} is open in text mode; a model file is binary: "
+                             f"open it with mode {mode!r} (or give its name)")
+    if getattr(target, "closed", False):
+        raise ModelFileError(f"{caller}: {_label(target)} is closed; give an open file object or a file name")
+    return True
+
+
+def _label(stream) -> str:
+    """How messages name a file object: its file's name where it has one, else its type."""
+    name = getattr(stream, "name", None)
+    return os.fsdecode(name) if isinstance(name, (str, bytes, os.PathLike)) else f"the {type(stream).__name__} given"
 
 
 def _json_number(value):
@@ -126,26 +164,66 @@ def info_dict(model, params=None) -> dict:
 def _check_path(path, caller: str, verb: str) -> None:
     """Refuse a ``path`` that is not a str or os.PathLike (None, a number) with one line."""
     if not isinstance(path, (str, os.PathLike)):
-        raise ModelFileError(f"{caller}: path must be a file name (str or os.PathLike) to {verb}, got {path!r}")
+        raise ModelFileError(f"{caller}: path must be a file name (str or os.PathLike) or a binary file object to "
+                             f"{verb}, got {path!r:.80}")
     if not os.fsdecode(path).strip():  # as an image's and a checkpoint's (0.56: "path must be a file name")
         raise ModelFileError("the model's file name is empty; give one")
 
 
+def _opened(stream):
+    """A file object to read a model from, at the archive's start: ``stream`` itself where it can seek
+    and is at 0, else a copy of what it has left (one at its end, or empty, is a one-line error)."""
+    seekable = getattr(stream, "seekable", None)
+    try:
+        start = stream.tell() if callable(seekable) and seekable() else None
+    except (OSError, ValueError):
+        start = None
+    if start is not None and start == stream.seek(0, os.SEEK_END):
+        raise ModelFileError(f"{_label(stream)}: nothing left to read, it is at its end (position {start}); "
+                             "seek(0) after writing the model into it" if start else
+                             f"{_label(stream)} is empty; give one a model was written into (save_model)")
+    if start is not None:
+        stream.seek(start)
+    if start == 0:
+        return stream
+    try:
+        return io.BytesIO(stream.read())
+    except (OSError, ValueError) as exc:
+        raise ModelFileError(f"load_model: cannot read {_label(stream)} ({exc}); give a file object open for "
+                             "reading in binary mode, or a file name") from None
+
+
 def _read(path):
-    _check_path(path, "load_model", "read the model from")
-    path = Path(path)
-    if not path.exists():
-        raise ModelFileError(f"{path}: no such model file; check the path, or fit a model first")
-    if path.is_dir():
-        raise ModelFileError(f"{path} is a folder, not a model file")
+    """The metadata and arrays of the model file at ``path`` (or in the binary file object), its
+    container checked, and how messages name it."""
+    if _is_stream(path, "load_model", "read", "rb"):
+        label, path = _label(path), _opened(path)
+    else:
+        _check_path(path, "load_model", "read the model from")
+        path = label = Path(path)
+        if not path.exists():
+            raise ModelFileError(f"{path}: no such model file; check the path, or fit a model first")
+        if path.is_dir():
+            raise ModelFileError(f"{path} is a folder, not a model file")
+    try:
+        return (*_read_archive(path, label), label)
+    finally:
+        if not isinstance(path, Path) and not path.closed:
+            path.seek(0)  # at its start, as it came (a copy: nobody's)
+
+
+def _read_archive(path, label):
+    """:func:`_read` of a path or a file object at its start (``path``), named ``label`` in messages."""
     bomb = unpacks_too_far(path)
     if bomb:
-        raise ModelFileError(f"{path}: {bomb}, not a model file tghop wrote (it stores its arrays uncompressed); "
+        raise ModelFileError(f"{label}: {bomb}, not a model file tghop wrote (it stores its arrays uncompressed); "
                              "give a model file tghop wrote, or fit the model again")
     try:
+        if not isinstance(path, Path):
+            path.seek(0)
         data = np.load(path, allow_pickle=False)
         if not hasattr(data, "files"):  # a .npy file: np.load gives the array itself
-            raise ModelFileError(f"{path}: a NumPy array file (.npy), not a tghop model file; give a model file "
+            raise ModelFileError(f"{label}: a NumPy array file (.npy), not a tghop model file; give a model file "
                                  "tghop wrote (save_model, 'tghop fit')")
         with data:
             arrays = {name: data[name] for name in data.files}
@@ -158,38 +236,38 @@ def _read(path):
         if is_image(path):
             import shlex  # a name with spaces quoted, so that the command can be pasted as it is
 
-            raise ModelFileError(f"{path} is an image, not a model file; fit a model from it first: "
-                                 f"tghop fit {shlex.quote(str(path))} -o model.npz (or TGHop().fit and "
-                                 "save_model)") from None
+            fix = f"tghop fit {shlex.quote(str(label))} -o model.npz (or TGHop().fit and save_model)" \
+                if isinstance(path, Path) else "TGHop().fit(load_image(...)) and save_model"
+            raise ModelFileError(f"{label} is an image, not a model file; fit a model from it first: {fix}") from None
         if isinstance(exc, ValueError) and "allow_pickle" in str(exc):  # NumPy's word for "not .npy, not .npz"
             why = ("an array of Python objects, which tghop does not unpickle" if is_model_file(path)
                    else "not a NumPy archive")
-            raise ModelFileError(f"{path}: not a tghop model file ({why}); give a model file tghop "
+            raise ModelFileError(f"{label}: not a tghop model file ({why}); give a model file tghop "
                                  f"wrote{checkpoint_note(path)}") from None
         note = checkpoint_note(path)  # 0.57: a checkpoint cut short is not told to "fit the model again"
         looks = is_model_file(path) and model_file_kind(path) == COOC_CHECKPOINT
         fix = note[2:] if looks else f"fit the model again{note}"
         raise ModelFileError(
-            f"{path}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); {fix}"
+            f"{label}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); {fix}"
         ) from None
     if "__meta__" not in arrays:
         if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout
-            raise ModelFileError(f"{path}: a PyTorch checkpoint, not a tghop model file (a co-occurrence cGAN "
+            raise ModelFileError(f"{label}: a PyTorch checkpoint, not a tghop model file (a co-occurrence cGAN "
                                  "checkpoint is read by tghop.cooc.load and the 'tghop cooc' commands)")
-        raise ModelFileError(f"{path}: a NumPy archive but not a tghop model file; give a model file tghop wrote")
+        raise ModelFileError(f"{label}: a NumPy archive but not a tghop model file; give a model file tghop wrote")
     try:
         meta = json.loads(str(arrays.pop("__meta__")))
     except (ValueError, TypeError):
-        raise ModelFileError(f"{path}: corrupt model metadata; fit the model again") from None
+        raise ModelFileError(f"{label}: corrupt model metadata; fit the model again") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise ModelFileError(f"{path}: not a tghop model file; give a model file tghop wrote")
+        raise ModelFileError(f"{label}: not a tghop model file; give a model file tghop wrote")
     version = meta.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool):
-        raise ModelFileError(f"{path}: corrupt model metadata (format_version {version!r} is not an integer); "
+        raise ModelFileError(f"{label}: corrupt model metadata (format_version {version!r} is not an integer); "
                              "fit the model again")
     if version not in READABLE_VERSIONS:
         raise ModelFileError(
-            f"{path}: written in model format version {version} (by tghop {meta.get('tghop_version', '?')}), "
+            f"{label}: written in model format version {version} (by tghop {meta.get('tghop_version', '?')}), "
             f"but this tghop {__version__} reads versions {READABLE_VERSIONS[0]} to {READABLE_VERSIONS[-1]}; "
             "refit the model with this version"
         )
@@ -401,8 +479,12 @@ def load_model(path, *, material=False):
 
     Parameters
     ----------
-    path : str or os.PathLike
-        A file :func:`save_model` (or ``tghop fit``) wrote; read with ``allow_pickle=False``.
+    path : str, os.PathLike or binary file object
+        A file :func:`save_model` (or ``tghop fit``) wrote; read with ``allow_pickle=False``. A file
+        object (``io.BytesIO(data)``, ``open(name, "rb")``, an upload's; 0.58) is read from its position
+        to its end (one that cannot seek, or is not at its start, copied into memory first), with every
+        check a file gets, and left open; one at its end (written into, not rewound) is refused naming
+        ``seek(0)``. Messages name it by its ``name``, else its type ("the BytesIO given").
     material : bool
         Accept a file of a whole material too.
 
@@ -414,11 +496,12 @@ def load_model(path, *, material=False):
     Raises
     ------
     ModelFileError
-        The file is missing, not a tghop model, corrupt, or of another format version; or an
+        The file is missing, not a tghop model, corrupt, or of another format version (a file
+        object: open in text mode, closed or unreadable too); or an
         archive whose arrays would unpack to more than 20 times its size (a decompression bomb;
         0.57: :func:`tghop._formats.unpacks_too_far`), refused before any is unpacked.
     """
-    meta, arrays = _read(path)
+    meta, arrays, path = _read(path)  # path: how messages name it (a file object's name or type)
     if meta["format_version"] == 4 and isinstance(meta.get("params"), dict):
         # tghop 0.14's opt-in patch statistics: replaced by other ones, so left out.
         for name in ("patch.rotations", "patch.quantiles"):
