@@ -607,3 +607,44 @@ def _png(tmp_path):
     Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(tmp_path / "i.png")
     return (tmp_path / "i.png").read_bytes()
 
+
+def test_a_generator_given_as_rng_is_recorded_as_the_fit_began_so_a_loaded_models_clone_fits_it_again(
+        bricks96, saved, tmp_path):
+    # 0.57 loaded a TGHop or Material fitted from a Generator with rng=None: clone(loaded).fit(x) drew fresh entropy.
+    from sklearn.base import clone
+
+    from conftest import SMALL
+    from tghop import TGHop
+    from tghop.material import Material
+
+    def same(a, b):
+        one, other = a._to_arrays(), b._to_arrays()
+        return one.keys() == other.keys() and all(np.array_equal(v, other[k]) for k, v in one.items())
+
+    path, arrays = saved  # an int seed: recorded as it was, no generator (nor the layout model's, its model_rng)
+    meta = json.loads(str(arrays["__meta__"]))
+    assert "fit_rngs" not in meta and "fit_rngs" not in meta["layout"]["model"]
+    gen = np.random.default_rng(5)
+    gen.random(3)  # not at its seed's start
+    start = gen.bit_generator.state
+    model = TGHop(**{**SMALL, "rng": gen}).fit(bricks96)
+    assert model.rng is gen and gen.bit_generator.state != start  # the caller's, advanced (scikit-learn's way)
+    save_model(model, tmp_path / "g.npz")
+    loaded = load_model(tmp_path / "g.npz")
+    assert loaded.rng is not gen and loaded.rng.bit_generator.state == start
+    assert same(clone(loaded).fit(bricks96), model) and loaded.rng.bit_generator.state == start
+    save_model(loaded, tmp_path / "again.npz")  # the record survives a load and a save
+    assert load_model(tmp_path / "again.npz").rng.bit_generator.state == start
+    maps = {"height": bricks96[..., 0]}
+    mat = Material(TGHop(**{**SMALL, "rng": None}), rng=np.random.default_rng(9)).fit(bricks96, maps)
+    save_model(mat, tmp_path / "mat.npz")
+    back = load_model(tmp_path / "mat.npz", material=True)
+    assert back.rng.bit_generator.state == np.random.default_rng(9).bit_generator.state and back.model.rng is None
+    assert same(clone(back).fit(bricks96, maps), mat)
+    meta = json.loads(str(np.load(tmp_path / "g.npz")["__meta__"]))
+    with np.load(tmp_path / "g.npz") as f:
+        g_arrays = {k: f[k] for k in f.files}
+    for bad in ({"model__rng": meta["fit_rngs"]["rng"]}, {"rng": {"state": 1}}, [1]):
+        _write(tmp_path / "bad.npz", {**g_arrays, "__meta__": np.array(json.dumps({**meta, "fit_rngs": bad}))})
+        with pytest.raises(ModelFileError, match=r"bad\.npz: invalid tghop model \(the metadata's fit_rngs"):
+            load_model(tmp_path / "bad.npz")

@@ -424,6 +424,7 @@ class Material(BaseEstimator):
             :data:`COLOUR_SPREAD`): the colour map under another name, or a packed map (0.58).
         """
         check_progress(progress)
+        started = settings.generators_given(self)  # rng, model__rng: Generators as the fit begins (model file)
         normal = self._checked_params()
         items = self._maps(albedo, maps, depths, normal)
         for name, img, _, is_normal in items[1:]:
@@ -482,6 +483,7 @@ class Material(BaseEstimator):
                                 and img.shape[2] > 1 else None
                                 for i, ((_, img, _, is_normal), levels) in enumerate(zip(items, self.levels_))]
         self._fitted_params = fitted_settings(self)  # as TGHop's: set_params after fit is refused until a new fit
+        self._fitted_params.update(started)
         return self
 
     def stacked_channels(self, albedo, maps=None) -> dict:
@@ -613,11 +615,14 @@ class Material(BaseEstimator):
         levels = {n: lv.tolist() for n, lv in zip(self.names_, self.levels_) if lv is not None}
         per_channel = {n: [None if c is None else c.tolist() for c in lv]
                        for n, lv in zip(self.names_, self.channel_levels_) if lv is not None}
-        return {**self.model_._state_meta(), "material": {"maps": self.map_info(), "params": self._params_meta(),
-                                                           **({"levels": levels} if levels else {}),
-                                                           **({"channel_levels": per_channel} if per_channel else {}),
-                                                           # the joint model's copy of the fit's generator (0.57)
-                                                           "model_rng": settings.generator_record(self.model_.rng)}}
+        records = settings.generator_records(vars(self).get("_fitted_params"))  # Generators given (0.58)
+        joint = {k: v for k, v in self.model_._state_meta().items() if k != "fit_rngs"}  # its: model_rng
+        return {**joint, "material": {"maps": self.map_info(), "params": self._params_meta(),
+                                      **({"fit_rngs": records} if records else {}),
+                                      **({"levels": levels} if levels else {}),
+                                      **({"channel_levels": per_channel} if per_channel else {}),
+                                      # the joint model's copy of the fit's generator (0.57)
+                                      "model_rng": settings.generator_record(self.model_.rng)}}
 
     def _params_meta(self) -> dict:
         """The constructor's parameters as given (JSON-ready; rngs as :func:`tghop.settings.recorded_seed`
@@ -745,5 +750,6 @@ class Material(BaseEstimator):
             sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
             mat.bands_.append(BandStatistics(n_levels=model.band_levels,
                                              n_orientations=model.band_orientations)._from_arrays(sub))
-        mat._fitted_params = fitted_settings(mat)
+        started = settings.set_generators(mat, meta["material"].get("fit_rngs"), "material's fit_rngs")
+        mat._fitted_params = {**fitted_settings(mat), **started}
         return mat

@@ -44,7 +44,7 @@ from ._errors import TGHopError
 
 __all__ = ["Setting", "SETTINGS", "BY_NAME", "PAPER", "QUALITY", "fit_settings", "generate_settings", "check_settings",
            "component_params", "numpydoc_parameters", "check_channel_rule", "recorded_seed", "fit_seed",
-           "generator_record", "generator_from_record"]
+           "generator_record", "generator_from_record", "generators_given", "generator_records", "set_generators"]
 
 _MISSING = object()
 
@@ -413,7 +413,7 @@ SETTINGS: Tuple[Setting, ...] = (
             "in pixels). Below 1 for photographs whose elements are larger than about 100 pixels, which "
             "the patches cannot hold whole at 1.", low=0, low_open=True, high=4, paper=1.0),
     Setting("rng", None, "rng", "Randomness of fitting (patch subsampling, K-means, FastICA); model files "
-            "record an int seed (a Generator: not).",
+            "record an int seed, and a Generator as the fit began (0.58: a loaded model's rng then refits it).",
             cli=("--fit-seed",)),
     # ---------------------------------------------------------------- generation time
     Setting("n_patches", 5000, "int", "Generated patches quilted into each image (paper: 5,000-10,000).",
@@ -681,6 +681,88 @@ def generator_from_record(record, what: str = "rng"):
     except (TypeError, ValueError, KeyError, OverflowError) as exc:
         raise TGHopError(f"the metadata's {what} holds a state NumPy does not take ({exc})") from None
     return np.random.Generator(bits)
+
+
+def generators_given(estimator) -> dict:
+    """Copies of the Generators among ``estimator``'s own parameters as they are now (``rng``; a
+    Material's ``model__rng`` too): what a fit that starts now draws from, kept in its
+    ``_fitted_params`` so that :func:`generator_records` writes them to the model file (0.58).
+
+    Parameters
+    ----------
+    estimator : TGHop or Material
+
+    Returns
+    -------
+    dict
+        Parameter name (as ``get_params(deep=True)`` names it) -> a copy of its Generator.
+    """
+    import copy
+
+    import numpy as np
+
+    return {name: copy.deepcopy(value) for name, value in estimator.get_params(deep=True).items()
+            if name.split("__")[-1] == "rng" and isinstance(value, np.random.Generator)}
+
+
+def generator_records(fitted) -> dict:
+    """What a model file records of the Generators a fit started from (0.58; ``fit_rngs``): each of a
+    fitted estimator's own ``rng`` settings (its ``_fitted_params``: ``rng``, a Material's ``model__rng``)
+    that was a Generator, as :func:`generator_record` makes it, as it was when the fit began. Its parts'
+    copies (``ichm_rng``, ...) are recorded by them.
+
+    Parameters
+    ----------
+    fitted : dict or None
+        The estimator's ``_fitted_params``.
+
+    Returns
+    -------
+    dict
+        Parameter name -> record; empty where none was a Generator (an int seed: in the settings).
+    """
+    out = {}
+    for name, value in (fitted or {}).items():
+        record = generator_record(value) if "." not in name and name.split("__")[-1] == "rng" else None
+        if record is not None:
+            out[name] = record
+    return out
+
+
+def set_generators(estimator, records, what: str = "fit_rngs") -> dict:
+    """Give a loaded ``estimator`` the Generators a model file records for its ``rng`` settings
+    (:func:`generator_records`' ``records``; None: none recorded), each in the state its fit began in,
+    so that ``clone(loaded).fit(x)`` fits it again as it was fitted.
+
+    Parameters
+    ----------
+    estimator : TGHop or Material
+        Loaded, not yet given its ``_fitted_params``.
+    records : dict or None
+    what : str
+        How the records are named in an error.
+
+    Returns
+    -------
+    dict
+        Parameter name -> a copy of the Generator set, for the estimator's ``_fitted_params``.
+
+    Raises
+    ------
+    TGHopError
+        Records that are not a dict of ``rng`` settings' generator records.
+    """
+    import copy
+
+    if records is None:
+        return {}
+    params = estimator.get_params(deep=True)
+    if not isinstance(records, dict) or not all(isinstance(n, str) and n in params and n.split("__")[-1] == "rng"
+                                                for n in records):
+        raise TGHopError(f"the metadata's {what} is not a record of the estimator's rng settings")
+    given = {name: generator_from_record(record, f"{what}[{name!r}]") for name, record in records.items()}
+    estimator.set_params(**given)
+    return {name: copy.deepcopy(value) for name, value in given.items()}
 
 
 def file_settings(params: dict) -> dict:

@@ -256,6 +256,8 @@ class TGHop(PatchCodec, BaseEstimator):
         image = drop_alpha(image, stacked=stacked)
         from threadpoolctl import threadpool_limits
 
+        started = settings.generators_given(self)  # a Generator given as rng, as the fit begins: the model file's
+
         depth = exemplar_depth(depth, image)
         # One BLAS / OpenMP thread: the model is the same bit for bit on every machine (OpenBLAS's
         # results change with its thread count) and a busy machine is not oversubscribed; ICHM.fit
@@ -270,6 +272,7 @@ class TGHop(PatchCodec, BaseEstimator):
                 raise
         self.exemplar_depth_ = depth
         self._fitted_params = fitted_settings(self)  # what check_is_fitted holds the settings to
+        self._fitted_params.update(started)  # rng: where the fit began (a Generator's state; its settings' copies)
         return self
 
     def _fit(self, image, *, exclude=None, progress=None):
@@ -346,7 +349,8 @@ class TGHop(PatchCodec, BaseEstimator):
     def _state_meta(self) -> dict:
         """JSON-ready settings and shapes needed, with :meth:`_to_arrays`, to rebuild the model."""
         params = {s.name: getattr(self, s.name) for s in settings.fit_settings()}
-        params["rng"] = settings.fit_seed(self)  # an int seed; a Generator is not data
+        params["rng"] = settings.fit_seed(self)  # an int seed; a Generator: fit_rngs
+        records = settings.generator_records(vars(self).get("_fitted_params"))
         if params["n_channels"] is not None:
             params["n_channels"] = list(params["n_channels"])
         return {
@@ -360,8 +364,11 @@ class TGHop(PatchCodec, BaseEstimator):
             # The fitted parts' copies of the fit's generator, as they were before their fits (0.57): a loaded
             # model's parts hold them too (get_params, clone, repr as the fitted one's); older files: None.
             "ichm_rng": settings.generator_record(self.ichm_.rng),
+            # A Generator given as rng, in the state the fit began in (0.58): clone(loaded).fit(x) fits it again.
+            **({"fit_rngs": records} if records else {}),
             "layout": None if self.layout_ is None else {
-                "params": {**self.layout_.get_params(), "rng": None}, "model": self.layout_.model_._state_meta(),
+                "params": {**self.layout_.get_params(), "rng": None},
+                "model": {k: v for k, v in self.layout_.model_._state_meta().items() if k != "fit_rngs"},  # model_rng
                 "rng": settings.generator_record(self.layout_.rng),
                 "model_rng": settings.generator_record(self.layout_.model_.rng)},
             # Metadata, not an array (as a hop's saab_energy): the same format version; left out when not known.
@@ -409,8 +416,9 @@ class TGHop(PatchCodec, BaseEstimator):
             model.layout_.model_ = cls._from_state(meta["layout"]["model"], sub)
             model.layout_.model_.rng = settings.generator_from_record(meta["layout"].get("model_rng"),
                                                                       "layout's model_rng")
+        started = settings.set_generators(model, meta.get("fit_rngs"))  # a Generator given as rng (0.58)
         model._check_consistent()
-        model._fitted_params = fitted_settings(model)
+        model._fitted_params = {**fitted_settings(model), **started}
         return model
 
     @classmethod
