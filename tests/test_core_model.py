@@ -353,18 +353,33 @@ def test_synthesize_returns_each_steps_image(small_model, dtype):
 
     image, stages = small_model.synthesize((48, 64), rng=2, n_patches=200, dtype=dtype, return_stages=True)
     assert np.array_equal(image, small_model.synthesize((48, 64), rng=2, n_patches=200, dtype=dtype))
-    assert list(stages) == ["guide", "quilt", "seams", "refine", "patch refine"]
+    assert list(stages) == ["guide", "pool", "quilt", "seams", "refine", "patch refine"]  # the pool: 0.58
     assert all(s.shape == (48, 64, 3) and s.dtype == np.float32 and 0 <= s.min() and s.max() <= 1
-               for s in stages.values())
+               for name, s in stages.items() if name != "pool")
     assert not np.array_equal(stages["quilt"], stages["seams"]) and not np.array_equal(stages["seams"],
                                                                                         stages["refine"])
     last = stages["patch refine"]
     np.testing.assert_array_equal(image, to_uint8(last) if dtype == np.uint8 else last)
     _, plain = small_model.synthesize((48, 64), rng=2, n_patches=200, patch_refine=0, seam_window=0,
                                       return_stages=True)
-    assert list(plain) == ["guide", "quilt", "refine", "colour"]
+    assert list(plain) == ["guide", "pool", "quilt", "refine", "colour"]
     assert list(small_model.synthesize((48, 64), rng=2, n_patches=200, layout_weight=0, return_stages=True)[1]) \
-        == ["quilt", "seams", "refine", "patch refine"]
+        == ["pool", "quilt", "seams", "refine", "patch refine"]
+
+
+@pytest.mark.parametrize("n_patches", [200, 40])  # generated as quilting reads it (6 blocks), or whole first
+@pytest.mark.parametrize("layout_weight", [3.0, 0])
+def test_the_patch_pool_an_image_was_quilted_from_comes_with_its_stages(small_model, n_patches, layout_weight):
+    # return_stages gave each step's image but not the pool quilting chose from (up to 30,000 patches).
+    image, stages = small_model.synthesize((48, 64), rng=2, n_patches=n_patches, layout_weight=layout_weight,
+                                           return_stages=True)
+    pool = stages["pool"]
+    assert pool.shape == (n_patches, 32, 32, 3) and pool.dtype == np.float32 and 0 <= pool.min() and pool.max() <= 1
+    # The first block, placed alone, is one of the pool's patches (up to the overlap its neighbours cut into).
+    corner = stages["quilt"][:27, :27]
+    assert np.abs(pool[:, :27, :27] - corner).max(axis=(1, 2, 3)).min() < 1e-5
+    assert np.array_equal(image, small_model.synthesize((48, 64), rng=2, n_patches=n_patches,
+                                                        layout_weight=layout_weight))
 
 
 @pytest.mark.parametrize("as_rgb", [False, True])

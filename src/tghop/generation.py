@@ -22,7 +22,7 @@ from ._arrays import check_dtype
 from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
 from .colour import match_histograms
 from .patch_refine import refine_image, steps_for
-from .pool import pool_size, prepared_pool
+from .pool import GeneratedPool, pool_size, prepared_pool
 from .quilting import GUIDE_SCALE, quilt_prepared
 from .refine import refine as refine_bands
 from .regions import match_regions, n_regions, prepare as prepare_regions
@@ -65,7 +65,7 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
     Returns
     -------
     ndarray, shape (H, W, C), ``dtype``, in [0, 1] (uint8: 0 to 255)
-        And the dict of each step's float32 image with ``return_stages``.
+        And the dict of each step's float32 image with ``return_stages`` (and the pool's patches).
     """
     check_is_fitted(model, "ichm_")
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
@@ -118,6 +118,9 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
                                  flat_share=checked["flat_share"], guide_scale=None)
     report(progress, "patch pool", 1, 1)
     keep("guide", guide)
+    if return_stages:  # the pool quilting drew from, whole (a pool generated as it is read: decoded again)
+        pool = prepared.patches
+        stages["pool"] = pool.all() if isinstance(pool, GeneratedPool) else np.asarray(pool, dtype=np.float32)
     # float32 unless a float64 image is wanted unrefined and unsmoothed (the refinement
     # and the seam removal work in float32; so does quilting's canvas): half the memory.
     wide = np.float64 if dtype == np.float64 and not (refine or checked["seam_window"]) else np.float32

@@ -73,8 +73,18 @@ FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 class TGHop(PatchCodec, BaseEstimator):
     """Texture generation by successive subspace learning (Lei, Zhao, Zhang, Kuo 2021).
 
-    The parameters are the fit-time settings of :data:`tghop.settings.SETTINGS` (one
-    table for the estimator, the model file and the CLI); generation-time settings are
+    Fit it on one exemplar (a float ``(H, W, 3)`` array in [0, 1] or uint8), then make images of
+    any size; keep it in a model file (:func:`tghop.modelfile.save_model`, ``load_model``):
+
+    >>> from tghop import TGHop, data
+    >>> model = TGHop(rng=0).fit(data.bricks())                     # doctest: +SKIP
+    >>> image = model.synthesize((512, 768), rng=7)                 # doctest: +SKIP
+    >>> image, steps = model.synthesize((256, 256), rng=7, return_stages=True)  # doctest: +SKIP
+
+    ``image`` is float ``(512, 768, 3)`` in [0, 1] (``tghop.imageio.save_image`` writes it); ``steps``
+    holds each step's image and the patch pool. The parameters are the fit-time settings of
+    :data:`tghop.settings.SETTINGS` (one table for the estimator, the model file and the CLI; the
+    defaults are tghop's, ``TGHop(**PAPER_TABLE4)`` the paper's); generation-time settings are
     keywords of :meth:`synthesize`.
 
     Parameters
@@ -576,7 +586,12 @@ class TGHop(PatchCodec, BaseEstimator):
             Also return each step's image, to look at: a dict of float32 (H, W, C) arrays in [0, 1]
             in the order made: "guide" (the coarse layout's, with one), "quilt" (as quilted),
             "seams" (seam removal), "refine" (the band refinement; regions too), then "patch
-            refine" or "colour", the last step's (float32; the image itself is ``dtype``).
+            refine" or "colour", the last step's (float32; the image itself is ``dtype``); and,
+            after "guide", "pool" (0.58): the patch pool quilting chose from, float32 (n, P, P, C)
+            in [0, 1], P the patch size and n ``n_patches`` (more from 2048x2048 on, up to
+            30,000: ``pool_per_block``), in the order drawn; not an image (``ndim`` 4). Without
+            ``return_stages`` a small image's pool is never made whole (its patches decoded as
+            quilting reads them): nothing of this costs the default path.
 
         Returns
         -------

@@ -413,7 +413,8 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         if stages:
             image, steps = image
             for name, step in steps.items():
-                save_image(step, staged[i][name], depth=depth or 8)
+                if name in staged[i]:  # the images (not the patch pool, 0.58)
+                    save_image(step, staged[i][name], depth=depth or 8)
         save_image(image, path, depth=depth or 8, progress=progress)
         progress.close()
     if stages:
