@@ -1,4 +1,18 @@
-"""tghop: explainable, fast texture synthesis from one exemplar (TGHop, Lei et al. 2021)."""
+"""tghop: explainable, fast texture synthesis from one exemplar (TGHop, Lei et al. 2021).
+
+Where to start (each has its ``help``; the README's "Python" section shows them together):
+
+* :class:`tghop.TGHop` -- fit one exemplar, then ``synthesize`` images of any size;
+* :mod:`tghop.imageio` -- ``load_image`` and ``save_image`` (PNG, JPEG, 16-bit PNG, float TIFF);
+  :mod:`tghop.data` -- the built-in exemplars (``data.bricks()``);
+* :mod:`tghop.modelfile` -- ``save_model`` and ``load_model`` (a path or a binary file object);
+* :mod:`tghop.inpaint` -- ``inpaint`` (fill a hole) and ``extend`` (grow an image);
+* :func:`tghop.synthesize_guided` and :func:`tghop.morph` -- several models in one image;
+* :mod:`tghop.material` -- ``Material``: an albedo and its maps, aligned;
+* :mod:`tghop.metrics` -- how close a result is to its exemplar, and how new;
+* :mod:`tghop.settings` -- every setting, its default and range, in one table
+  (:data:`tghop.synthesis.PAPER_TABLE4`: the paper's).
+"""
 
 __version__ = "0.57.0"
 

@@ -223,7 +223,7 @@ class TGHop(PatchCodec, BaseEstimator):
         Parameters
         ----------
         image : ndarray, shape (H, W) or (H, W, C)
-            Float in [0, 1] or uint8, ``H, W >= patch_size``; C is 1 or 3 (or more: the
+            Float in [0, 1], uint8 or uint16, ``H, W >= patch_size``; C is 1 or 3 (or more: the
             stacked maps of a material, :mod:`tghop.material`). A grey image stored as RGB
             is modelled as one channel (see :func:`prepare_exemplar`). C = 2 or 4 is grey or
             RGB with alpha (an RGBA PNG as ``numpy.asarray(PIL.Image.open(path))`` gives it): the
