@@ -540,6 +540,13 @@ def test_a_model_goes_into_and_comes_from_a_file_object(small_model, saved, tmp_
             self.read = io.BytesIO(data).read
 
     assert np.array_equal(load_model(Stream(buf.getvalue())).synthesize((32, 32), rng=1, n_patches=100), expected)
+
+    class Seekable:  # read, seek and tell, nothing else
+        def __init__(self, data):
+            inner = io.BytesIO(data)
+            self.read, self.seek, self.tell, self.seekable = inner.read, inner.seek, inner.tell, inner.seekable
+
+    assert load_model(Seekable(buf.getvalue())).dims_ == small_model.dims_
     after = io.BytesIO()
     after.write(b"header")
     save_model(small_model, after)  # written at its position, as np.savez writes

@@ -208,7 +208,7 @@ def _read(path):
     try:
         return (*_read_archive(path, label), label)
     finally:
-        if not isinstance(path, Path) and not path.closed:
+        if not isinstance(path, Path) and not getattr(path, "closed", False):
             path.seek(0)  # at its start, as it came (a copy: nobody's)
 
 
