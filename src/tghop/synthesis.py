@@ -73,8 +73,9 @@ FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 class TGHop(PatchCodec, BaseEstimator):
     """Texture generation by successive subspace learning (Lei, Zhao, Zhang, Kuo 2021).
 
-    Fit it on one exemplar (a float ``(H, W, 3)`` array in [0, 1] or uint8), then make images of
-    any size; keep it in a model file (:func:`tghop.modelfile.save_model`, ``load_model``):
+    Fit it on one exemplar (an ``(H, W, 3)`` or grey ``(H, W)`` array, float in [0, 1], uint8 or
+    uint16), then make images of any size; keep it in a model file (:func:`tghop.modelfile.save_model`,
+    ``load_model``):
 
     >>> from tghop import TGHop, data
     >>> model = TGHop(rng=0).fit(data.bricks())                     # doctest: +SKIP
