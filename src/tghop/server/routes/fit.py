@@ -119,11 +119,12 @@ def fit_work(server, model_id: str, fit):
 
     def work(job):
         job.stages = getattr(fit, "stages", None)  # before any progress: the fraction's whole
-        model = fit(job.progress)
-        job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
-        save_model(model, server.cache.path(model_id))
-        server.cache.added(model_id, model)
-        job.progress("saving", 1, 1, cancellable=False)  # the file is there: the job is done
+        with server.working():  # the last work to end gives the memory back
+            model = fit(job.progress)
+            job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
+            save_model(model, server.cache.path(model_id))
+            server.cache.added(model_id, model)
+            job.progress("saving", 1, 1, cancellable=False)  # the file is there: the job is done
 
     return work
 
