@@ -245,3 +245,38 @@ def test_a_fits_bar_counts_the_stages_that_fit_reports(client, live_server):
         job = live_server.app.state.server.queue.get(r.json()["job"])
         assert job.stages == tuple(client.get(f"/api/jobs/{job.id}").json()["stages"]), maps
         assert ("maps" in job.stages) == bool(maps) and "hop 3" not in job.stages
+
+
+def test_a_fits_bar_never_steps_back_when_its_layout_comes(client, live_server):
+    # "layout" was counted in the whole only once it came (whether the exemplar is large enough for it was the
+    # fit's to decide), and the bar stepped back a little then: 0.88 at the end of "CDF codebook", 0.80 as
+    # "layout" began. The server now knows before the fit whether it makes a layout, and a fraction once told
+    # is never taken back.
+    from tghop.server.jobs import FIT_STAGES, Job, fit_stages
+
+    job = Job("a" * 64)
+    job.stages = fit_stages(2)  # a layout unexpected (a stage of its own that comes): the bar holds, then goes on
+    seen = []
+    for stage in [*job.stages[:-1], "layout", "saving"]:
+        for done in (0, 1):
+            job.progress(stage, done, 1)
+            seen.append(job.fraction())
+    assert seen == sorted(seen) and seen[-1] < 1, seen
+    expected = fit_stages(2, layout=True)
+    assert expected.index("layout") == expected.index("CDF codebook") + 1 and "layout" in FIT_STAGES
+    # Fits of the server expect "layout" exactly when they make one: the layout on (the default factor), at the
+    # exemplar's size, and at a working scale that leaves it too small for one.
+    settings = {k: (None, v) for k, v in FAST_FIT.items() if k != "layout_factor"}
+    for scale, layout in (("1", True), ("0.3", False)):
+        r = client.post("/api/models", files={"builtin": (None, "cells"), **settings, "scale": (None, scale),
+                                              "max_patches": (None, "1300")})
+        assert r.status_code == 202, r.text
+        fractions = []
+        deadline = time.monotonic() + 180
+        while (snap := client.get(f"/api/jobs/{r.json()['job']}").json())["state"] != "done":
+            assert time.monotonic() < deadline, "the fit did not end"
+            fractions.append(snap["progress"])
+            time.sleep(0.05)
+        job = live_server.app.state.server.queue.get(r.json()["job"])
+        assert job.stages == tuple(client.get(f"/api/jobs/{job.id}").json()["stages"]), scale
+        assert ("layout" in job.stages) == layout and fractions == sorted(fractions), (scale, fractions)

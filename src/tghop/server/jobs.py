@@ -43,12 +43,13 @@ FIT_STAGES = {"exemplar": 0.05, "hop 1": 0.1, "hop 2": 0.1, "hop 3": 0.05, "core
 OTHER_STAGE = 0.05
 
 
-def fit_stages(n_hops: int, *, material: bool = False) -> tuple:
-    """The stages a fit of ``n_hops`` hops reports, in order, then the server's "saving": a material's
-    "maps" after its joint model's. "layout", which a fit reports only when its exemplar is large enough
-    for the layout (after any working scale), is left out: a job counts it once it comes."""
+def fit_stages(n_hops: int, *, material: bool = False, layout: bool = False) -> tuple:
+    """The stages a fit of ``n_hops`` hops reports, in order, then the server's "saving": "layout" when the fit
+    will make one (``layout``: its exemplar, after any working scale, is large enough for it; the server reads
+    that before the fit, :func:`tghop.server.routes.fit.prepare_fit`), a material's "maps" after its joint
+    model's."""
     return ("exemplar", *(f"hop {i}" for i in range(1, n_hops + 1)), "core", "SDR", "clusters", "ICA",
-            "CDF codebook", *(("maps",) if material else ()), "saving")
+            "CDF codebook", *(("layout",) if layout else ()), *(("maps",) if material else ()), "saving")
 
 
 #: The stages a generation reports (:meth:`tghop.TGHop.synthesize`, :func:`tghop.inpaint.inpaint`,
@@ -144,6 +145,7 @@ class Job:
         # The stages the fit will report (fit_stages; set before it starts), or None: those of FIT_STAGES but
         # "layout". Any other that comes (or "layout") is counted in the whole once it comes.
         self.stages = None
+        self._reached = 0.0  # the fraction told so far: a stage that was not expected does not take it back
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ reading
@@ -152,7 +154,8 @@ class Job:
         return self.state in FINAL
 
     def fraction(self) -> float:
-        """Progress of the whole fit in [0, 1] (1 when done)."""
+        """Progress of the whole fit in [0, 1] (1 when done). It never goes back: a stage that comes unexpected
+        (not in :attr:`stages`) grows the whole, and the fraction stays where it was until the fit catches up."""
         if self.state == "done":
             return 1.0
         if not self._seen:
@@ -161,7 +164,8 @@ class Job:
         current = FIT_STAGES.get(self.stage, OTHER_STAGE) * (self.done / self.total if self.total else 0.0)
         expected = self.stages if self.stages is not None else (s for s in FIT_STAGES if s != "layout")
         whole = sum(FIT_STAGES.get(s, OTHER_STAGE) for s in dict.fromkeys([*expected, *self._seen]))
-        return max(0.0, min(0.99, (finished + current) / whole))
+        self._reached = max(self._reached, min(0.99, (finished + current) / whole))
+        return self._reached
 
     def snapshot(self) -> dict:
         """The job as JSON-ready data."""

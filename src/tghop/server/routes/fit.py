@@ -16,7 +16,7 @@ from ..requests import RequestError, check_channel_counts, parse_fit_settings, s
 from ..uploads import (MAX_FIT_BYTES, RETRY_AFTER, depth_note, each_file_within, note_line, read_body, read_form,
                        read_image)
 
-__all__ = ["model_id_for", "prepare_fit", "fit_work", "create_model", "find_job", "job_state",
+__all__ = ["model_id_for", "prepare_fit", "makes_layout", "fit_work", "create_model", "find_job", "job_state",
            "cancel_job", "job_events", "JOB"]
 
 #: A job's id: 32 hex digits.
@@ -101,7 +101,7 @@ def prepare_fit(server, fields: dict):
 
         def fit(progress):
             return Material(model=joint).fit(image, maps, depths={"albedo": depth, **depths}, progress=progress)
-        fit.stages = fit_stages(len(joint.check_channels(None)), material=True)
+        fit.stages = fit_stages(len(joint.check_channels(None)), material=True, layout=makes_layout(joint, image))
     else:
         model_id = model_id_for(content, params)
         if depth > 8:  # a material's maps keep their depths; a texture model's images are 8-bit
@@ -109,8 +109,21 @@ def prepare_fit(server, fields: dict):
 
         def fit(progress):
             return model.fit(image, depth=depth, progress=progress)  # recorded: its file tells tghop synth
-        fit.stages = fit_stages(len(model.check_channels(image.shape[2])))
+        fit.stages = fit_stages(len(model.check_channels(image.shape[2])), layout=makes_layout(model, image))
     return model_id, (None if server.cache.has(model_id) else fit), notes
+
+
+def makes_layout(model, image) -> bool:
+    """Whether fitting ``model`` (a TGHop, or a material's joint model) on ``image`` makes a coarse layout, as
+    :meth:`tghop.TGHop.fit` decides it: a ``layout_factor``, and the exemplar, after the working scale, large
+    enough for it. Known before the fit, so that its progress counts "layout" from the start (0.57 counted it
+    once it came, and the bar stepped back)."""
+    from ...scale import scaled_shape
+    from ...synthesis import CoarseLayout
+
+    if not model.layout_factor:
+        return False
+    return bool(CoarseLayout(factor=model.layout_factor).usable_factor(scaled_shape(image.shape, model.scale)))
 
 
 def fit_work(server, model_id: str, fit):
