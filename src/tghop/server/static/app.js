@@ -137,7 +137,11 @@ async function init() {
   $("remix-go").addEventListener("click", () => onPaintGenerate(true));
   $("morph-go").addEventListener("click", onMorph);
   for (const id of ["morph-a", "morph-b"]) $(id).addEventListener("change", morphPicked);
-  $("zoom").addEventListener("change", (e) => document.body.classList.toggle("zoom", e.target.checked));
+  $("zoom").addEventListener("change", (e) => {
+    document.body.classList.toggle("zoom", e.target.checked);
+    exemplarCaption();  // an enlarged exemplar's factor said only while it is enlarged
+  });
+  $("exemplar").addEventListener("load", (e) => enlargeSmall(e.target));
   const drop = $("drop");
   drop.addEventListener("keydown", (e) => {  // Enter or Space on the drop zone itself: the file chooser
     if (e.target === drop && (e.key === "Enter" || e.key === " ")) { e.preventDefault(); $("file").click(); }

@@ -10,16 +10,34 @@ function setExemplar(url) {
   }
   state.exemplarUrl = url;
   const img = $("exemplar");
+  img.classList.remove("enlarged");  // until the new picture's size is known (enlargeSmall)
   if (url) { img.src = url; img.hidden = false; } else { img.removeAttribute("src"); img.hidden = true; }
   exemplarCaption();
 }
 
-// "exemplar" under a picture; a model file's name where a loaded model has none; nothing under nothing.
+// An exemplar smaller than READABLE_SIDE on its longer side is shown enlarged by a whole factor (2 or more), its
+// pixels kept square (pixelated); zoom 1:1 shows it at its size. (At its size a 64x64 exemplar was a thumbnail
+// beside a 256x256 result.)
+const READABLE_SIDE = 256;
+
+function enlargeSmall(img) {
+  const side = Math.max(img.naturalWidth, img.naturalHeight);
+  const factor = side ? Math.floor(READABLE_SIDE / side) : 1;
+  img.classList.toggle("enlarged", factor > 1);
+  img.dataset.factor = String(Math.max(1, factor));
+  img.style.setProperty("--enlarged-width", `${factor * img.naturalWidth}px`);
+  exemplarCaption();
+}
+
+// "exemplar" under a picture (with its size and factor while it is shown enlarged); a model file's name where a loaded
+// model has none; nothing under nothing.
 function exemplarCaption() {
-  const caption = $("exemplar-caption");
+  const caption = $("exemplar-caption"), img = $("exemplar");
   const working = state.working;
   const file = !state.exemplarUrl && state.modelId && working && working.modelId === state.modelId;
-  caption.textContent = state.exemplarUrl ? "exemplar"
+  const enlarged = img.classList.contains("enlarged") && !document.body.classList.contains("zoom") ?
+    ` (${img.naturalHeight}x${img.naturalWidth}, shown ${img.dataset.factor}\u00d7 larger)` : "";
+  caption.textContent = state.exemplarUrl ? `exemplar${enlarged}`
     : file ? `${working.name} (a model file: no picture of its exemplar)` : "";
   caption.hidden = !caption.textContent;
 }
