@@ -65,3 +65,74 @@ def test_a_small_exemplar_is_shown_at_a_readable_size(page, tmp_path):
     chromium.fit_builtin(page, "bricks")
     assert shown_width(page, "#exemplar") == 256 and page.text_content("#exemplar-caption") == "exemplar"
     assert not page.errors, page.errors
+
+
+def generate(page, seed, size=(32, 40), tile=False, refine=""):
+    page.fill("#height", str(size[0]))
+    page.fill("#width", str(size[1]))
+    page.fill("#seed", str(seed))
+    page.fill("#refine", refine)
+    page.set_checked("#tile", tile)
+    page.click("#go")
+    page.wait_for_function("(c) => document.getElementById('result-caption').textContent === c &&"
+                           " document.getElementById('go').textContent === 'Generate'",
+                           arg=f"result: {size[0]}x{size[1]}, seed {seed}", timeout=90_000)
+
+
+def recent(page):
+    """The recent results' captions, the newest first, and the index of the one marked as shown."""
+    captions = page.eval_on_selector_all("#history figcaption", "l => l.map(c => c.textContent)")
+    pressed = page.eval_on_selector_all("#history button", "l => l.map(b => b.getAttribute('aria-pressed'))")
+    return captions, [i for i, p in enumerate(pressed) if p == "true"]
+
+
+def test_the_last_results_are_kept_side_by_side_and_brought_back(page):
+    # Each Generate replaced the result: an artist trying settings could not compare the last few, and a seed
+    # liked was gone once another was made (the 8-seed strip was the only side by side).
+    chromium.choose_mode(page, "view")
+    page.goto(page.url)
+    page.wait_for_selector("body[data-ready='1']")
+    chromium.set_fit_settings(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    assert page.is_hidden("#history-box")
+    generate(page, 1)
+    generate(page, 2, tile=True)
+    generate(page, 3, refine="2")
+    captions, shown = recent(page)
+    assert captions == ["result 32x40, seed 3, 2 refinement rounds (bricks)", "result 32x40, seed 2, tileable (bricks)",
+                        "result 32x40, seed 1 (bricks)"] and shown == [0], captions
+    page.wait_for_function("document.querySelectorAll('#history canvas').length === 3")  # thumbnails, drawn once
+    assert page.eval_on_selector_all("#history canvas", "l => l.map(c => [c.width, c.height])") == [[40, 32]] * 3
+    # Brought back: the result, its tiling, its download, and its settings in Generate's fields.
+    page.click("#history figure[data-index='1'] button")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 2'")
+    assert recent(page) == (captions, [1])
+    assert page.input_value("#seed") == "2" and page.is_checked("#tile") and page.input_value("#refine") == ""
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-32x40-seed2-tile.png"
+    assert "seed 2 shown again" in page.text_content("#gen-message")
+    # Each downloadable as it is: the PNG the server made.
+    link = "#history figure[data-index='2'] a"
+    assert page.get_attribute(link, "download") == "tghop-bricks-32x40-seed1.png"
+    with page.expect_download() as download:
+        page.click(link)
+    assert download.value.suggested_filename == "tghop-bricks-32x40-seed1.png"
+    from PIL import Image
+
+    assert Image.open(download.value.path()).size == (40, 32)
+    # A seed picked from the strip is kept; another pick from the same strip takes its place.
+    page.fill("#seed", "11")
+    page.click("#strip-go")
+    page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' &&"
+                           " document.querySelectorAll('#strip img').length === 8", timeout=120_000)
+    page.click("#strip img[data-seed='12']")
+    page.click("#strip img[data-seed='15']")
+    captions, shown = recent(page)
+    assert captions[:2] == ["result 32x40, seed 15, tileable (bricks)", captions[1]] and len(captions) == 4, captions
+    assert captions[1].startswith("result 32x40, seed 3") and shown == [0]
+    # Bounded: the last 12.
+    for seed in range(20, 31):
+        generate(page, seed)
+    captions, shown = recent(page)
+    assert len(captions) == 12 and captions[0] == "result 32x40, seed 30 (bricks)" and shown == [0], captions
+    assert captions[-1] == "result 32x40, seed 15, tileable (bricks)"
+    assert not page.errors, page.errors

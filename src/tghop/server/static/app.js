@@ -8,6 +8,7 @@
 //   download.js  download links; a material's maps as one ZIP
 //   fit.js       1. Exemplar: the fit of an exemplar and its maps, its progress; a model file
 //   generate.js  2. Generate and 3. Result: generating, the strip of seeds, the result and its tiling
+//   history.js   the recent results side by side (each shown again with a click, downloadable), bounded
 //   inpaint.js   Inpaint mode: the mask brush (or a mask from a file), Fill and Extend
 //   board.js     the palette and the boards painted by hand (Paint's guide, the co-occurrence edit)
 //   paint.js     Paint, Remix and Morph: several of the session's models

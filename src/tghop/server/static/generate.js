@@ -30,8 +30,8 @@ async function generate(body, id = state.modelId, headers = {}) {
 // Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable. `name`: what
 // names its file, {models: their stems, size, tile} (resultBase); the working model's at the size asked for.
 // `name.of`: the models of a result of several ("cells + bricks"), said in its caption (the exemplar beside it
-// is the working model's only).
-function showResult(url, seed, blob, what, maps, name) {
+// is the working model's only). `pick`: the strip run a seed shown was picked from (history.js, keepResult).
+function showResult(url, seed, blob, what, maps, name, pick) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
   state.resultUrl = url;
@@ -45,6 +45,7 @@ function showResult(url, seed, blob, what, maps, name) {
   renderMaps();
   showPicture(url, `${what || "result"}`, seed, `${base}.png`, of);
   if (blob) setEditorPicture(blob, `${base}.png`, maps);  // a material's maps are filled alike
+  keepResult(blob, maps, seed, what, name, pick);  // the recent results, side by side
 }
 
 // `seed` null: a picture of the user's own (no seed said).
@@ -182,12 +183,12 @@ function onStrip() {
     for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
     strip.textContent = "";
     strip.dataset.model = id;
-    const first = Number($("seed").value), stem = workingStem(), tile = $("tile").checked;
+    const first = Number($("seed").value), stem = workingStem(), run = {};  // run: this strip's picks (keepResult)
     const [h, w] = [Number($("height").value), Number($("width").value)];
     for (let i = 0; i < 8; i++) {
-      const seed = first + i;
+      const seed = first + i, body = generation(seed, [h, w]);
       sayGenerate(`seed ${seed} (${i + 1} of 8)`);
-      const answer = await withProgress("gen-progress", (headers) => generate(generation(seed, [h, w]), id, headers),
+      const answer = await withProgress("gen-progress", (headers) => generate(body, id, headers),
                                         { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
       const url = URL.createObjectURL(answer.blob);
       // Its seed said once, as the button's name: the caption (for the eye) and the figure are hidden from a
@@ -207,7 +208,7 @@ function onStrip() {
         img.classList.add("chosen");
         $("seed").value = String(seed);
         showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps,
-                   { models: [stem], size: [h, w], tile });
+                   { models: [stem], ...body }, run);
       });
       img.addEventListener("keydown", (e) => {
         if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }

@@ -1,0 +1,123 @@
+// tghop serve's page, section 3: the last results kept side by side (Generate's, a seed picked from the strip,
+// Paint's, Remix's, Morph's, a Fill or Extend, the co-occurrence model's), each with its settings; a click shows
+// one again as the result (a plain result's settings back in Generate's fields), each downloadable. Bounded: the
+// last HISTORY_MAX, and at most HISTORY_BYTES of their PNGs (a material's maps counted); each kept as its PNG
+// and a thumbnail of at most HISTORY_THUMB px drawn once, not a full-size picture decoded in the page.
+"use strict";
+
+const HISTORY_MAX = 12;
+const HISTORY_BYTES = 256 * 1024 * 1024;
+const HISTORY_THUMB = 120;
+
+// [{blob, maps, seed, what, name, pick, download, thumb}], the newest first; `pick`: the strip run of a seed picked
+// from it (a second pick from the same strip replaces the first: clicking through the 8 seeds keeps one).
+const recent = { entries: [] };
+
+// A result just shown (showResult) kept at the front of the history; one kept already (shown again: Undo, a pick
+// from the history) stays where it is. `pick`: the strip run it was picked from, if it was.
+function keepResult(blob, maps, seed, what, name, pick) {
+  if (!blob || recent.entries.some((e) => e.blob === blob)) { renderHistory(); return; }
+  const front = recent.entries[0];
+  if (pick && front && front.pick === pick) dropEntry(0);
+  const entry = { blob, maps, seed, what, name, pick, download: URL.createObjectURL(blob), thumb: null };
+  recent.entries.unshift(entry);
+  const bytes = (e) => (e.maps ? e.maps.reduce((sum, m) => sum + m.blob.size, 0) : e.blob.size);
+  let total = recent.entries.reduce((sum, e) => sum + bytes(e), 0);
+  while (recent.entries.length > 1 && (recent.entries.length > HISTORY_MAX || total > HISTORY_BYTES)) {
+    total -= bytes(recent.entries[recent.entries.length - 1]);
+    dropEntry(recent.entries.length - 1);
+  }
+  renderHistory();
+  thumbnail(entry);
+}
+
+function dropEntry(i) {
+  const [entry] = recent.entries.splice(i, 1);
+  URL.revokeObjectURL(entry.download);
+  if (entry.thumb) entry.thumb.close();
+}
+
+// The entry's thumbnail (an ImageBitmap of at most HISTORY_THUMB px a side), drawn into its canvas once made.
+async function thumbnail(entry) {
+  try {
+    const full = await createImageBitmap(entry.blob);
+    const scale = Math.min(1, HISTORY_THUMB / Math.max(full.width, full.height));
+    const [w, h] = [Math.max(1, Math.round(full.width * scale)), Math.max(1, Math.round(full.height * scale))];
+    full.close();
+    entry.thumb = await createImageBitmap(entry.blob, { resizeWidth: w, resizeHeight: h, resizeQuality: "medium" });
+  } catch (e) {
+    return;  // not decodable here: the entry shows its caption only
+  }
+  if (recent.entries.includes(entry)) renderHistory(); else entry.thumb.close();
+}
+
+// An entry's settings in words: "result 256x256, seed 3, tileable, quality best (bricks)".
+function settingsText(entry) {
+  const name = entry.name || {}, parts = [];
+  const size = name.size ? ` ${name.size[0]}x${name.size[1]}` : "";
+  parts.push(`${entry.what || "result"}${size}`);
+  if (entry.seed !== null && entry.seed !== undefined) parts.push(`seed ${entry.seed}`);
+  if (name.tile) parts.push("tileable");
+  if (name.refine !== undefined) parts.push(`${name.refine} refinement rounds`);
+  if (name.n_patches !== undefined) parts.push(`patch pool ${name.n_patches}`);
+  if (name.paper) parts.push("the paper's pipeline");
+  if (name.quality) parts.push(`quality ${name.quality}`);
+  const models = name.of || (name.models || []).join(" + ");
+  return parts.join(", ") + (models ? ` (${models})` : "");
+}
+
+// The history's row: one button per entry (its thumbnail and settings; the one shown marked), a download under it.
+function renderHistory() {
+  const row = $("history");
+  row.textContent = "";
+  $("history-box").hidden = !recent.entries.length;
+  const shown = state.lastShown && state.lastShown.blob;
+  recent.entries.forEach((entry, i) => {
+    const figure = document.createElement("figure");
+    const button = document.createElement("button");
+    button.type = "button";
+    button.className = "history-item";
+    const text = settingsText(entry);
+    button.setAttribute("aria-label", `${text}: show it again`);
+    button.setAttribute("aria-pressed", String(entry.blob === shown));
+    if (entry.thumb) {
+      const canvas = document.createElement("canvas");
+      canvas.width = entry.thumb.width;
+      canvas.height = entry.thumb.height;
+      canvas.getContext("2d").drawImage(entry.thumb, 0, 0);
+      button.append(canvas);
+    }
+    button.addEventListener("click", () => showAgain(entry));
+    const caption = document.createElement("figcaption");
+    caption.textContent = text;
+    const link = document.createElement("a");
+    link.href = entry.download;
+    link.textContent = "Download";
+    link.setAttribute("download", `${resultBase(entry.seed, entry.what, fileName(entry.name))}.png`);
+    link.setAttribute("aria-label", `download ${text}`);
+    figure.append(button, caption, link);
+    figure.dataset.index = String(i);
+    row.append(figure);
+  });
+}
+
+// resultBase's fields of an entry's name (a picture of the user's own, filled, has its models and size too).
+function fileName(name) {
+  return { models: (name && name.models) || ["result"], size: (name && name.size) || ["?", "?"],
+    tile: Boolean(name && name.tile) };
+}
+
+// An entry shown again as the result; a plain result's (Generate's, a seed's) settings put back in Generate's fields.
+function showAgain(entry) {
+  const { blob, maps, seed, what, name } = entry;
+  showResult(URL.createObjectURL(blob), seed, blob, what, maps, name);
+  if (what || !name || !name.size) return;
+  [$("height").value, $("width").value] = name.size.map(String);
+  $("seed").value = String(seed);
+  $("tile").checked = Boolean(name.tile);
+  $("refine").value = name.refine === undefined ? "" : String(name.refine);
+  $("n_patches").value = name.n_patches === undefined ? "" : String(name.n_patches);
+  $("paper-gen").checked = Boolean(name.paper);
+  $("quality").value = name.quality || "default";
+  sayGenerate(`seed ${seed} shown again: its settings are back in the fields above`);
+}
