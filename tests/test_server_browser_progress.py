@@ -3,7 +3,8 @@ a long generation shows its progress (a bar that advances before the image comes
 request names: test_server_progress.py); Generate's and 8 seeds' errors are said where the user is; a
 strip of seeds whose model is no longer the working one when it ends is cleared; Morph's fields and
 Paint's mix of a material with a texture model are said on the page, not sent to be refused; the server's
-warning of a guide or label map it scaled (X-Tghop-Warning) is said with the result."""
+warning of a guide or label map it scaled (X-Tghop-Warning) is said with the result; what reading a model file
+kept by an earlier server warned of is said when the model is used (0.58)."""
 
 import json
 
@@ -333,3 +334,57 @@ def test_a_label_map_the_server_scaled_is_said_with_the_result(page, tiny_cooc_c
     page.wait_for_function("document.getElementById('result-caption').textContent === 'cooc-edit: 20x32, seed 2'")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_a_kept_models_read_warnings_are_said_when_it_is_used(page, live_server):
+    # A model file kept by an earlier server (the server restarted on its cache, a tghop of another version) was
+    # read anew at its first use, and the page said nothing of what reading it warned of (a newer tghop's file):
+    # neither when its fit was answered from the cache, nor with its images; only an upload of the file told it.
+    import io
+
+    import numpy as np
+
+    from conftest import LiveServer
+    from tghop import __version__
+
+    fit(page, "cells")
+    model_id = page.evaluate("state.modelId")
+    path = live_server.cache / "models" / f"{model_id}.npz"
+    arrays = dict(np.load(io.BytesIO(path.read_bytes())))
+    arrays["__meta__"] = np.array(json.dumps({**json.loads(str(arrays["__meta__"])), "tghop_version": "97.0.0"}))
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)  # as a newer tghop wrote it
+    newer = (f"model {model_id[:12]}: made by tghop 97.0.0, newer than this {__version__}, which reads it as a "
+             "model of its own version (what the newer one added is not used); upgrade tghop to use it")
+    later = LiveServer(live_server.cache)  # the server started again, on the same cache
+    try:
+        again = page.context.browser.new_page(viewport={"width": 1200, "height": 1400})  # one sync Playwright
+        try:
+            again.errors = []
+            again.on("pageerror", lambda exc: again.errors.append(str(exc)))
+            again.goto(later.url + "/")
+            again.wait_for_selector("body[data-ready='1']", timeout=30_000)
+            chromium.set_fit_settings(again, FAST_FIT)
+            fit(again, "cells")  # answered from the cache: the file read for its summary
+            again.wait_for_function("(n) => document.getElementById('message').textContent.includes(n)", arg=newer,
+                                    timeout=30_000)
+            assert again.text_content("#message") == f"model ready: generate below. {newer}"
+            for seed in ("2", "3"):  # said once: not again with its images
+                again.fill("#height", "32")
+                again.fill("#width", "32")
+                again.fill("#seed", seed)
+                again.click("#go")
+                again.wait_for_function("(c) => document.getElementById('result-caption').textContent === c",
+                                        arg=f"result: 32x32, seed {seed}", timeout=60_000)
+                assert again.text_content("#gen-message") == "", seed
+            # A page that had not asked for its summary (open across the restart) hears of it with its image.
+            again.evaluate("state.notesSaid.clear()")
+            again.fill("#seed", "4")
+            again.click("#go")
+            again.wait_for_function("(c) => document.getElementById('gen-message').textContent === c",
+                                    arg=f"seed 4 done. Warning: {newer}", timeout=60_000)
+            assert not again.errors, again.errors
+        finally:
+            again.close()
+    finally:
+        later.stop()

@@ -408,3 +408,45 @@ def test_a_guided_refinement_of_a_model_without_patch_statistics_names_the_model
     assert r.status_code == 422 and r.json()["error"] == (
         "models[1] holds no patch statistics for patch_refine or quality best (fitted with patch_levels 0, or by "
         "tghop 0.14 or older); fit it again"), r.text
+
+
+def test_a_kept_models_read_warnings_are_told_when_it_is_used(client, live_server):
+    # A model file kept by an earlier server (its cache folder shared, or the server restarted) was read at its
+    # first use, and what reading it warned of (a newer tghop's file) went nowhere: its summary and its images said
+    # nothing, and the page heard of it only when the file was uploaded again.
+    import hashlib
+
+    from tghop import __version__
+
+    model = fit(client, "bricks.png", png(bricks8()), max_patches="1444")  # fitted nowhere else
+    assert done(client, model["job"]) == "done"
+    assert client.get(f"/api/models/{model['id']}").json()["notes"] == []  # this tghop's file: nothing to tell
+    arrays = dict(np.load(io.BytesIO(client.get(f"/api/models/{model['id']}/file").content)))
+    meta = json.loads(str(arrays["__meta__"]))
+    arrays["__meta__"] = np.array(json.dumps({**meta, "tghop_version": "98.0.0"}))
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    kept = hashlib.sha256(buf.getvalue()).hexdigest()
+    (live_server.cache / "models" / f"{kept}.npz").write_bytes(buf.getvalue())  # as an earlier server kept it
+    newer = (f"made by tghop 98.0.0, newer than this {__version__}, which reads it as a model of its own version "
+             "(what the newer one added is not used); upgrade tghop to use it")
+    said = client.get(f"/api/models/{kept}").json()["notes"]
+    assert said == [f"model {kept[:12]}: {newer}"], said
+    for url, body in ((f"/api/models/{kept}/images", {"size": [32, 32], "seed": 1}),
+                      ("/api/images/guided", {"models": [kept, model["id"]], "size": [32, 48], "seed": 1})):
+        r = client.post(url, json=body)
+        assert r.status_code == 200 and r.headers["x-tghop-warning"] == f"model {kept[:12]}: {newer}", r.headers
+    picture = png(to_uint8(data.bricks(48, rng=1)))
+    mask = np.zeros((48, 48), np.uint8)
+    mask[16:32, 16:32] = 255
+    r = client.post(f"/api/models/{kept}/inpaint", files={"image": ("p.png", picture), "mask": ("m.png", png(mask))},
+                    data={"seed": "1"})
+    assert r.status_code == 200 and r.headers["x-tghop-warning"] == f"model {kept[:12]}: {newer}", r.text
+    plain = client.post(f"/api/models/{model['id']}/images", json={"size": [32, 32], "seed": 1})
+    assert plain.status_code == 200 and "x-tghop-warning" not in plain.headers
+    # Uploaded now: its notes name the file, and so do the answers that use it from then on.
+    up = client.post("/api/models/upload", files={"model": ("newer.npz", buf.getvalue())})
+    assert up.json()["id"] == kept and up.json()["notes"] == [f"newer.npz: {newer}"], up.text
+    assert client.get(f"/api/models/{kept}").json()["notes"] == [f"newer.npz: {newer}"]
+    r = client.post(f"/api/models/{kept}/images", json={"size": [32, 32], "seed": 1})
+    assert r.headers["x-tghop-warning"] == f"newer.npz: {newer}"

@@ -79,6 +79,7 @@ class ModelCache:
         self._loaded = OrderedDict()
         self._summaries = OrderedDict()
         self._notes = OrderedDict()  # id -> what reading its file warned of (:meth:`notes`), the last read ones
+        self._names = {}  # id -> the name of its upload, while its notes are kept (:meth:`model_notes`)
         self._loading = {}  # id -> the Future of its load under way: callers asking meanwhile wait for it
         self._lock = threading.Lock()
         self.prune()  # the bound may be lower than the last server's
@@ -150,6 +151,7 @@ class ModelCache:
             self.touch(key)
             if self.notes(key, filename) is None:  # kept before and not read since: read now, for its notes
                 self.load(key)
+            self._name(key, filename)
             return key
         tmp = None
         try:
@@ -179,7 +181,14 @@ class ModelCache:
                 except OSError:
                     pass
         self.added(key, loaded)
+        self._name(key, filename)
         return key
+
+    def _name(self, model_id: str, filename: str) -> None:
+        """The upload's name, for :meth:`model_notes` (kept as long as the file's notes are)."""
+        with self._lock:
+            if model_id in self._notes:
+                self._names[model_id] = filename
 
     def _read_noting(self, model_id: str, path):
         """``self._load(path)``, what it warned of kept as the file's notes (:meth:`notes`) instead of issued
@@ -190,7 +199,7 @@ class ModelCache:
             self._notes[model_id] = [str(w).replace(str(path), _PATH) for w in said]
             self._notes.move_to_end(model_id)
             while len(self._notes) > _SUMMARIES:
-                self._notes.popitem(last=False)
+                self._names.pop(self._notes.popitem(last=False)[0], None)
         return model
 
     def notes(self, model_id: str, name: str):
@@ -199,7 +208,18 @@ class ModelCache:
         since the server started (or was read too long ago)."""
         with self._lock:
             said = self._notes.get(model_id)
+            if said is not None:
+                self._notes.move_to_end(model_id)  # a model in use keeps its notes
         return None if said is None else [line.replace(_PATH, name) for line in said]
+
+    def model_notes(self, model_id: str) -> list:
+        """What reading the file of ``model_id`` warned of, for any answer that uses the model (a generation's
+        warning header, its summary; 0.58: a file kept by an earlier server, read again at its first use, told
+        nothing until it was uploaded again): :meth:`notes`, the file named as it was uploaded (as the upload's
+        notes named it), else ``model <first 12 digits of the id>``; [] when it has not been read here."""
+        with self._lock:
+            name = self._names.get(model_id)
+        return self.notes(model_id, name or f"{self.what} {model_id[:12]}") or []
 
     def _unwritable(self, exc: OSError) -> RequestError:
         """507 for a file the folder cannot take (a full disk, a folder made read-only or removed

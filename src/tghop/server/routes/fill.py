@@ -14,7 +14,7 @@ from ..._errors import TGHopError
 from .. import materials
 from ..requests import RequestError, parse_bool, parse_growth, safe_name
 from ..uploads import MAX_FIT_BYTES, each_file_within, read_body, read_form, read_image
-from .images import WARNING_HEADER, header_text
+from .images import WARNING_HEADER, header_text, models_notes
 
 __all__ = ["fill_png", "inpaint", "extend", "fill_request", "mask_note", "grey_mask_note"]
 
@@ -157,7 +157,8 @@ async def fill_request(server, request, *, grow: bool):
     png, told = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth,
                                          models=[model_id])
     headers = {"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"}
-    if told:  # what reading the picture, its mask and maps said, as a guide's (one line, printable ASCII)
+    told = [*models_notes(server, [model_id]), *told]  # reading the model's file, then the picture, mask and maps
+    if told:  # what reading them said, as a guide's (one line, printable ASCII)
         headers[WARNING_HEADER] = header_text(told)
     if isinstance(png, tuple):  # a material's maps and their size
         body, kind = materials.answer(request.headers.get("accept", ""), *png, seed)

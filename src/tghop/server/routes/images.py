@@ -18,7 +18,7 @@ from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
 
 __all__ = ["header_text", "check_patch_refine", "model_png", "png_response", "generate", "several_png", "same_patches",
            "guided_png", "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route",
-           "WARNING_HEADER", "PAGE_RESHAPE", "PAGE_ENLARGE"]
+           "WARNING_HEADER", "PAGE_RESHAPE", "PAGE_ENLARGE", "models_notes"]
 
 #: The answer's header that tells the client what the library warned of (one line, its words; several joined by
 #: "; "): a painted guide scaled to the size asked, what reading it said (a colour profile converted; docs/serve.md).
@@ -29,6 +29,13 @@ def header_text(lines) -> str:
     """``lines`` joined by "; " as a header's value: printable ASCII, any other character "?" (a colour
     profile's name, from the upload, may hold any)."""
     return "".join(c if " " <= c <= "~" else "?" for c in "; ".join(page_words(line) for line in lines))
+
+
+def models_notes(server, ids) -> list:
+    """What reading the files of the models ``ids`` warned of (a model made by a newer tghop, statistics of an old
+    one not used), told with every image made of them as ``tghop synth`` warns at each run, first in the answer's
+    :data:`WARNING_HEADER` (:meth:`~tghop.server.cache.ModelCache.model_notes`)."""
+    return [line for model_id in dict.fromkeys(ids) for line in server.cache.model_notes(model_id)]
 
 
 def check_patch_refine(model, settings, name: str) -> None:
@@ -86,8 +93,9 @@ async def png_response(server, request, work, *args, seed, models=(), checkpoint
     took = (time.perf_counter() - start) * 1000
     headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Size": f"{size[0]}x{size[1]}",
                "Server-Timing": f"generate;dur={took:.1f}", "Cache-Control": "no-store"}
-    if told and told[0]:
-        headers[WARNING_HEADER] = header_text(told[0])
+    told = [*models_notes(server, models), *(told[0] if told else [])]
+    if told:
+        headers[WARNING_HEADER] = header_text(told)
     if isinstance(png, list):  # a material: every map, as multipart where the client takes it (the page)
         body, kind = materials.answer(request.headers.get("accept", ""), png, size, seed)
         return Response(body, headers=headers, media_type=kind)

@@ -14,7 +14,10 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   // A built-in browsed to by keyboard in the closed menu, fitted once the choice settles ({name, timer}; fit.js).
   browsed: null,
   // The result shown, as showResult was given it ({seed, blob, what, name}): what Inpaint's Undo shows again.
-  lastShown: null };
+  lastShown: null,
+  // What the server said of reading model files (an upload's notes, a summary's, a generation's X-Tghop-Warning)
+  // and the page has said: each said once (unsaid).
+  notesSaid: new Set() };
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 // `history`: what Undo goes back to, the latest last (inpaint.js); `pendingMask`: a mask put back once the
@@ -144,6 +147,13 @@ async function postImage(url, body, headers) {
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
   return [blob, response.headers.get("X-Tghop-Seed"), maps, response.headers.get("X-Tghop-Warning") || ""];
+}
+
+// The notes (lines) not said yet (state.notesSaid), now counted as said.
+function unsaid(notes) {
+  const fresh = notes.filter((note) => note && !state.notesSaid.has(note));
+  for (const note of fresh) state.notesSaid.add(note);
+  return fresh;
 }
 
 // A result's status with the server's warning of it (postImage's) after it, said as the command line says one.

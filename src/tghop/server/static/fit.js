@@ -100,6 +100,10 @@ async function showSummary(id) {
     `${s.n_parameters.total.stored.toLocaleString()} parameters; layout ${s.layout ? "on" : "off"}\n${dims}` +
     (maps ? `\nmaps: ${maps.map((m) => `${m.name}${m.normal ? " (normal)" : ""}, ${m.depth}-bit`).join("; ")}` : "");
   $("summary").hidden = false;
+  // What reading its file warned of (a newer tghop's file), when not said yet: a file kept by an earlier server (the
+  // cache of another tghop, or a restart) is read anew, and its fit or upload said nothing of it (0.57)
+  const notes = unsaid(s.notes || []);
+  if (notes.length) say([$("message").textContent, ...notes].filter(Boolean).join(". "));
   if (state.working && state.working.modelId === id) state.working.material = Boolean(maps);
   const listed = state.models.find((m) => m.id === id);
   if (listed && s.params) listed.patchSize = s.params.patch_size;  // Morph's least height (morphMinimum)
@@ -503,6 +507,7 @@ async function uploadModel(file) {
   setModel(id);
   // `notes`: what the server said of the file (a model of a 16-bit exemplar, whose images here are 8-bit).
   say([`model ${file.name} loaded: generate below`, ...(notes || [])].join(". "));
+  unsaid(notes || []);  // said here: not again with its summary or its images
   await showSummary(id);
   if (state.modelId === id && state.material) say(`material ${file.name} loaded: generate below (every map)`);
 }

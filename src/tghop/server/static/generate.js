@@ -24,7 +24,8 @@ async function generate(body, id = state.modelId, headers = {}) {
     method: "POST", body: JSON.stringify(body), headers: { ...GENERATION_HEADERS, ...headers },
   });
   if (!response.ok) throw new Error(await errorOf(response));
-  return answerOf(response);
+  // X-Tghop-Warning: what reading the model's file warned of (a newer tghop's file), said once (onGenerate)
+  return { ...(await answerOf(response)), warning: response.headers.get("X-Tghop-Warning") || "" };
 }
 
 // Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable. `name`: what
@@ -124,9 +125,11 @@ function onGenerate(event) {
     const seed = Number($("seed").value);
     sayGenerate("generating");
     const body = generation(seed);
-    const { blob, maps } = await withProgress("gen-progress", (headers) => generate(body, state.modelId, headers));
+    const { blob, maps, warning } = await withProgress("gen-progress",
+                                                       (headers) => generate(body, state.modelId, headers));
     showResult(URL.createObjectURL(blob), seed, blob, undefined, maps, { models: [workingStem()], ...body });
-    sayGenerate("");
+    const notes = unsaid([warning]);
+    sayGenerate(notes.length ? withWarning(`seed ${seed} done`, notes[0]) : "");
     await reveal($("result"));
   }, sayGenerate);
 }
