@@ -522,3 +522,63 @@ def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
     wait_model(page, "model")
     assert b"map:" not in fits[-1] and b"bricks" in fits[-1]
     assert not [e for e in page.errors if "status of 400" not in e], page.errors
+
+
+def test_waiting_maps_stay_waiting_when_the_exemplar_they_are_not_of_is_picked_again(page, tmp_path):
+    # Maps waiting for their albedo (another size than the working exemplar's) were sent with that exemplar when it
+    # was picked again (to refit it with other settings, say): refused for their size, and listed as waiting again.
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    rock = data.builtin("cells")[:128, :160]
+    (tmp_path / "rock_normal.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
+    (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(rock)))
+    sent = []
+    page.on("request", lambda r: sent.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
+    wait_said(page, "wait for their albedo")
+    before = len(sent)
+    page.fill("#n_codewords", "42")  # the same exemplar again, with other settings
+    pick_builtin(page, "bricks")
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " document.getElementById('summary').textContent.includes('W=42')", timeout=90_000)
+    assert len(sent) == before + 1 and b"map:" not in sent[-1]  # fitted without them
+    assert not page.eval_on_selector("#message", "e => e.classList.contains('error')"), page.text_content("#message")
+    assert page.text_content("#maps-list") == "maps for the next exemplar: rock_normal"
+    assert "W=42" in page.text_content("#summary")
+    page.fill("#n_codewords", FAST_FIT["n_codewords"])
+    page.set_input_files("#file", str(tmp_path / "rock_albedo.png"))  # their albedo, still: a material
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: rock_normal"
+    assert not page.errors, page.errors
+
+
+def test_an_exemplar_picked_while_the_maps_sizes_are_read_takes_the_maps(page):
+    # Maps added are compared with the working exemplar's size (read by the browser, a few milliseconds): an
+    # exemplar picked meanwhile cleared them ("maps cleared: cells_height went with builtin:bricks") and was fitted
+    # as a texture model.
+    import base64
+
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    height = base64.b64encode(png(to_uint8(data.builtin("cells")[..., 0]))).decode()
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    page.evaluate("""(b64) => {
+      const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+      setMapFiles([new File([bytes], "cells_height.png", { type: "image/png" })]);  // its size being read...
+      fitBuiltin("cells");  // ...when cells is picked
+    }""", height)
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: cells_height"
+    summary = page.text_content("#summary")
+    assert "exemplar 256x256" in summary and "cells_height, 8-bit" in summary, summary
+    assert page.evaluate("state.working.name") == "builtin:cells + 1 maps"
+    assert not page.errors, page.errors

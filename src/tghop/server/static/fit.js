@@ -141,8 +141,13 @@ function fitFields() {
     const value = $(name).value.trim();
     if (value) form.append(name, value);
   }
-  for (const file of state.mapFiles) form.append(`map:${mapName(file.name)}`, file, file.name);
+  for (const file of sentMaps()) form.append(`map:${mapName(file.name)}`, file, file.name);
   return form;
+}
+
+// The maps a fit now sends: those listed, but not while they wait for their albedo (an exemplar of their size).
+function sentMaps() {
+  return state.mapsHeld ? [] : state.mapFiles;
 }
 
 // A map's name from its file's: the stem, as tghop fit --maps names it (other characters as "_").
@@ -168,7 +173,7 @@ function mapsProblem(files) {
 // so do maps of another size than the last exemplar's (their albedo still to come: the order of adding does not
 // matter); "No maps" then drops them, the working model kept.
 async function setMapFiles(files) {
-  const undo = { mapFiles: state.mapFiles, held: state.mapsHeld, maps: true };
+  const undo = { mapFiles: state.mapFiles, held: heldNow(), maps: true };
   if (!useMapFiles(files)) return;
   const browsed = withdrawBuiltin();  // browsed to by keyboard, waiting: the exemplar these maps go with
   const source = state.source, chosen = state.mapFiles;
@@ -178,7 +183,9 @@ async function setMapFiles(files) {
     return;
   }
   if (!browsed && source && chosen.length) {
+    state.mapsChecking = chosen;  // an exemplar picked meanwhile takes them (clearOthersMaps)
     const other = await otherSize(chosen, state.exemplarUrl);
+    if (state.mapsChecking === chosen) state.mapsChecking = null;
     if (state.source !== source || state.mapFiles !== chosen) return;  // another pick or maps meanwhile
     if (other) { holdMaps(other, source); return; }
   }
@@ -223,11 +230,22 @@ async function otherSize(files, url) {
 // Maps of another size than the last exemplar's (`other`: otherSize's) are not its: they wait for the next
 // exemplar picked or dropped (their albedo), the working model kept.
 function holdMaps(other, source) {
-  listMaps(state.mapFiles, true);
-  const whose = source.builtin ? `builtin:${source.builtin}` : source.file.name;
+  listMaps(state.mapFiles, { source, other });
   const kept = state.working ? `; the model of ${state.working.name} stays` : "";
-  say(`${other.name} is ${other.size.join("x")}, not the ${other.exemplar.join("x")} of ${whose}: the maps wait ` +
-      `for their albedo; pick or drop it now (it is fitted with them${kept})`);
+  say(`${heldWhy()}; pick or drop it now (it is fitted with them${kept})`);
+}
+
+// Why the maps listed wait (state.heldOff): "rock_normal is 128x160, not the 256x256 of builtin:bricks: ...".
+function heldWhy() {
+  const { source, other } = state.heldOff;
+  const whose = source.builtin ? `builtin:${source.builtin}` : source.file.name;
+  return `${other.name} is ${other.size.join("x")}, not the ${other.exemplar.join("x")} of ${whose}: the maps ` +
+    "wait for their albedo";
+}
+
+// Whether the maps wait (listMaps's `held`: why, where it is known), for a pick's way back (backToWorking).
+function heldNow() {
+  return state.mapsHeld ? state.heldOff || true : false;
 }
 
 // The map files to fit with the next exemplar, listed; false (said, the maps chosen before kept) when
@@ -241,10 +259,12 @@ function useMapFiles(files) {
   return true;
 }
 
-// `held`: the maps wait for the next exemplar (state.mapsHeld), and the list says so.
+// `held`: the maps wait for the next exemplar (state.mapsHeld), and the list says so; an object: they are not of
+// that exemplar (state.heldOff, holdMaps).
 function listMaps(files, held = false) {
   state.mapFiles = files;
   state.mapsHeld = Boolean(held && files.length);
+  state.heldOff = state.mapsHeld && typeof held === "object" ? held : null;
   const names = files.map((f) => mapName(f.name));
   $("maps-list").textContent = !names.length ? ""
     : `maps${state.mapsHeld ? " for the next exemplar" : ""}: ${names.join(", ")}`;
@@ -259,7 +279,11 @@ function listMaps(files, held = false) {
 // exemplar picked again is fitted with them.
 function clearOthersMaps(source, whose) {
   const old = state.source, files = state.mapFiles;
+  // The exemplar whose size they are not, picked again: fitted without them, the maps waiting on (0.57 sent them,
+  // to be refused for their size)
+  if (state.mapsHeld && source && state.heldOff && sameSource(state.heldOff.source, source)) return;
   if (state.mapsHeld && source) { listMaps(files); return; }  // waiting for this exemplar: now its maps
+  if (source && files.length && state.mapsChecking === files) return;  // added as it was picked: its maps
   if (!files.length || !old || state.mapsHeld || (source && sameSource(old, source))) return;
   listMaps([]);
   $("maps-list").textContent = `maps cleared: ${files.map((f) => mapName(f.name)).join(", ")} went with ` +
@@ -286,7 +310,7 @@ function dropFiles(files) {
   const named = files.filter((f) => ALBEDO_NAME.test(f.name.replace(/\.[^.]*$/, "")));
   const albedo = named.length === 1 ? named[0] : files[0];
   const maps = files.filter((f) => f !== albedo);
-  const undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: albedo.name };
+  const undo = { mapFiles: state.mapFiles, held: heldNow(), name: albedo.name };
   if (!useMapFiles(maps)) return;
   fitFile(albedo, undo);
   say(`${files.length} files dropped: ${albedo.name} is the exemplar (the albedo), the others its maps ` +
@@ -422,30 +446,32 @@ async function cancelFit() {
 function fitFile(file, undo) {
   if (!file) return;
   if (!undo) {
-    undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: file.name };
+    undo = { mapFiles: state.mapFiles, held: heldNow(), name: file.name };
     clearOthersMaps({ file }, "this exemplar's");
   }
   state.source = { file };
-  state.pendingName = file.name + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
+  state.pendingName = file.name + (sentMaps().length ? ` + ${sentMaps().length} maps` : "");
   $("builtin").value = "";
   setExemplar(URL.createObjectURL(file));
   const form = fitFields();
   form.append("image", file, file.name);
   startFit(form, undo);
+  if (state.mapsHeld && state.heldOff) say(`${heldWhy()} (this fit is without them)`);
 }
 
 function fitBuiltin(name, undo) {
   if (!name) return;
   if (!undo) {
-    undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: `builtin:${name}` };
+    undo = { mapFiles: state.mapFiles, held: heldNow(), name: `builtin:${name}` };
     clearOthersMaps({ builtin: name }, "this exemplar's");
   }
   state.source = { builtin: name };
-  state.pendingName = `builtin:${name}` + (state.mapFiles.length ? ` + ${state.mapFiles.length} maps` : "");
+  state.pendingName = `builtin:${name}` + (sentMaps().length ? ` + ${sentMaps().length} maps` : "");
   setExemplar(`/api/builtins/${name}.png`);
   const form = fitFields();
   form.append("builtin", name);
   startFit(form, undo);
+  if (state.mapsHeld && state.heldOff) say(`${heldWhy()} (this fit is without them)`);
 }
 
 // Browsing the closed built-in menu by keyboard (app.js, wireBuiltinMenu: a change per option passed) fits the
@@ -478,7 +504,7 @@ async function uploadModel(file) {
   if (!file) return;
   dropRunningFit();
   const request = ++state.fitRequest;  // a fit whose answer is still on its way is replaced; so is this upload
-  const undo = { mapFiles: state.mapFiles, held: state.mapsHeld, name: file.name };
+  const undo = { mapFiles: state.mapFiles, held: heldNow(), name: file.name };
   clearOthersMaps(null, "the model file's");
   state.source = null;
   $("fit-status").hidden = true;
