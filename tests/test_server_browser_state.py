@@ -113,7 +113,7 @@ def test_a_refused_map_set_leaves_the_working_model(page, tmp_path):
 
     height = to_uint8(data.builtin("bricks")[..., 0])
     (tmp_path / "height.png").write_bytes(png(height))
-    (tmp_path / "grey_normal.png").write_bytes(png(height))  # a normal map by its name, of 1 channel: refused
+    (tmp_path / "bricks_normal.png").write_bytes(png(height))  # a normal map by its name, of 1 channel: refused
     fresh_page(page)
     page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
     assert page.text_content("#maps-list") == "maps: height"
@@ -124,9 +124,9 @@ def test_a_refused_map_set_leaves_the_working_model(page, tmp_path):
     summary = page.text_content("#summary")
     assert "maps: albedo, 8-bit; height, 8-bit" in summary
     for listed in ("maps: height", ""):  # a material's maps replaced, then a texture model's maps added
-        page.set_input_files("#maps", str(tmp_path / "grey_normal.png"))
+        page.set_input_files("#maps", str(tmp_path / "bricks_normal.png"))
         said = wait_said(page, "not added")
-        assert "grey_normal" in said and "1 channel" in said, said
+        assert "bricks_normal" in said and "1 channel" in said, said
         assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
         assert page.text_content("#maps-list") == listed
         assert page.is_visible("#maps-clear") == bool(listed)
@@ -581,4 +581,42 @@ def test_an_exemplar_picked_while_the_maps_sizes_are_read_takes_the_maps(page):
     summary = page.text_content("#summary")
     assert "exemplar 256x256" in summary and "cells_height, 8-bit" in summary, summary
     assert page.evaluate("state.working.name") == "builtin:cells + 1 maps"
+    assert not page.errors, page.errors
+
+
+def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
+    # A same-sized map set of another picture (rock_normal.png added while builtin:bricks worked) refitted bricks with
+    # it, a material of no use, and rock's albedo picked next cleared the maps as bricks' ("maps cleared").
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    rock = data.builtin("cells")
+    (tmp_path / "rock_normal_2k.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
+    (tmp_path / "Rock_Color_2K.png").write_bytes(png(to_uint8(rock)))
+    sent = []
+    page.on("request", lambda r: sent.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    summary, before = page.text_content("#summary"), len(sent)
+    page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))
+    said = wait_said(page, "wait for their albedo")
+    assert said.startswith("rock_normal_2k.png is named for another picture than builtin:bricks"), said
+    assert page.text_content("#maps-list") == "maps for the next exemplar: rock_normal_2k"
+    assert len(sent) == before and page.text_content("#summary") == summary and page.is_enabled("#go")
+    page.set_input_files("#file", str(tmp_path / "Rock_Color_2K.png"))  # their albedo: a material
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: rock_normal_2k"
+    # Named for the exemplar ("bricks normal") or by their kind alone ("normal"), they refit it as before; and the
+    # exemplar picked again takes maps named for another.
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))
+    wait_said(page, "wait for their albedo")
+    pick_builtin(page, "bricks")
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: rock_normal_2k" and page.input_value("#builtin") == "bricks"
     assert not page.errors, page.errors

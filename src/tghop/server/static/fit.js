@@ -188,6 +188,8 @@ async function setMapFiles(files) {
     if (state.mapsChecking === chosen) state.mapsChecking = null;
     if (state.source !== source || state.mapFiles !== chosen) return;  // another pick or maps meanwhile
     if (other) { holdMaps(other, source); return; }
+    const named = namedForAnother(chosen, source);
+    if (named) { holdNamed(named, source); return; }
   }
   if (browsed) fitBuiltin(browsed, undo);
   else if (source && source.file) fitFile(source.file, undo);
@@ -233,6 +235,47 @@ function holdMaps(other, source) {
   listMaps(state.mapFiles, { source, other });
   const kept = state.working ? `; the model of ${state.working.name} stays` : "";
   say(`${heldWhy()}; pick or drop it now (it is fitted with them${kept})`);
+}
+
+// The words a material's map files end in (tghop.map_names.MAP_KINDS but the albedo's), and the albedo's.
+const MAP_WORDS = new Set(["normal", "normalgl", "normaldx", "nrm", "nrml", "nor", "norm", "n", "roughness", "rough",
+  "rgh", "height", "displacement", "disp", "bump", "ao", "occlusion", "ambientocclusion", "metallic", "metalness",
+  "metal", "specular", "spec", "glossiness", "gloss", "opacity", "emission", "emissive", "orm", "arm", "rma", "mra"]);
+const ALBEDO_WORDS = new Set(["albedo", "basecolor", "basecolour", "diffuse", "diff", "color", "colour", "col", "bc"]);
+
+// The picture a file's name says it is of: its stem's words before the last (a trailing resolution, 2k or 1024,
+// and a normal map's convention, gl or dx, passed over) when the last is one of `kinds`, as one lower-case word
+// ("Rock023_2K_NormalGL.png": "rock0232k"); "" when the name says no picture ("normal.png", or "scan.png" where a
+// kind word is `needed`). An exemplar's name without an albedo word is its picture whole ("wall.jpg": "wall").
+function pictureOf(filename, kinds, needed) {
+  const words = filename.replace(/\.[^.]*$/, "").toLowerCase().split(/[^a-z0-9]+/).filter(Boolean);
+  while (words.length > 1 && /^\d+k?$/.test(words[words.length - 1])) words.pop();
+  while (words.length > 1 && /^(gl|ogl|opengl|dx|directx)$/.test(words[words.length - 1])) words.pop();
+  if (words.length > 1 && kinds.has(words[words.length - 1])) words.pop();
+  else if (needed) return "";
+  return words.join("");
+}
+
+// The first map file named for another picture than the exemplar `source` ("rock_normal.png" with builtin:bricks
+// or wall.jpg), or null: every map's name names one picture (a kind word after it) and the exemplar's another, neither
+// holding the other. Maps named by their kind alone ("normal.png") are the exemplar's, as their size says.
+function namedForAnother(files, source) {
+  const pictures = new Set(files.map((f) => pictureOf(f.name, MAP_WORDS, true)));
+  const [picture] = pictures;
+  const exemplar = source.builtin || pictureOf(source.file.name, ALBEDO_WORDS, false);
+  if (pictures.size !== 1 || !picture || !exemplar || picture.includes(exemplar) || exemplar.includes(picture)) {
+    return null;
+  }
+  return files[0];
+}
+
+// Maps named for another picture than the last exemplar's (namedForAnother's `file`) wait for the next exemplar
+// picked or dropped, as maps of another size do; the same exemplar picked again takes them (its name is no proof).
+function holdNamed(file, source) {
+  listMaps(state.mapFiles, true);
+  const whose = source.builtin ? `builtin:${source.builtin}` : source.file.name;
+  say(`${file.name} is named for another picture than ${whose}: the maps wait for their albedo; pick or drop it ` +
+      `now (it is fitted with them; to fit ${whose} with them, pick it again)`);
 }
 
 // Why the maps listed wait (state.heldOff): "rock_normal is 128x160, not the 256x256 of builtin:bricks: ...".
