@@ -383,6 +383,10 @@ def test_a_kept_models_read_warnings_are_said_when_it_is_used(page, live_server)
             again.click("#go")
             again.wait_for_function("(c) => document.getElementById('gen-message').textContent === c",
                                     arg=f"seed 4 done. Warning: {newer}", timeout=60_000)
+            again.evaluate("state.notesSaid.clear()")  # and with the 8 seeds' hint
+            again.click("#strip-go")
+            again.wait_for_function("(c) => document.getElementById('gen-message').textContent === c",
+                                    arg=f"click a seed to pick it. Warning: {newer}", timeout=120_000)
             assert not again.errors, again.errors
         finally:
             again.close()

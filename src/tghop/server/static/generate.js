@@ -151,7 +151,7 @@ function clearStrip() {
   for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
   strip.textContent = "";
   delete strip.dataset.model;
-  if ($("gen-message").textContent === STRIP_HINT) sayGenerate("");
+  if ($("gen-message").textContent.startsWith(STRIP_HINT)) sayGenerate("");
 }
 
 const STRIP_HINT = "click a seed to pick it";
@@ -187,12 +187,14 @@ function onStrip() {
     strip.textContent = "";
     strip.dataset.model = id;
     const first = Number($("seed").value), stem = workingStem(), run = {};  // run: this strip's picks (keepResult)
+    let warned = "";  // what reading the model's file warned of, not said yet (onGenerate), said with the hint
     const [h, w] = [Number($("height").value), Number($("width").value)];
     for (let i = 0; i < 8; i++) {
       const seed = first + i, body = generation(seed, [h, w]);
       sayGenerate(`seed ${seed} (${i + 1} of 8)`);
       const answer = await withProgress("gen-progress", (headers) => generate(body, id, headers),
                                         { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
+      warned = warned || unsaid([answer.warning])[0] || "";
       const url = URL.createObjectURL(answer.blob);
       // Its seed said once, as the button's name: the caption (for the eye) and the figure are hidden from a
       // screen reader, the title's "seed N" replaced by what it does (each was read as "seed N" too)
@@ -223,7 +225,7 @@ function onStrip() {
       strip.append(figure);
       if (i === 0) reveal(img);  // the strip below the fold (no result shown yet, or a tall one)
     }
-    if (!stale()) sayGenerate(STRIP_HINT);
+    if (!stale()) sayGenerate(warned ? withWarning(STRIP_HINT, warned) : STRIP_HINT);
   }, sayGenerate).then(() => {
     if (!stale() || !$("strip").dataset.model) return;
     clearStrip();
