@@ -249,7 +249,7 @@ def test_a_fits_bar_counts_the_stages_that_fit_reports(client, live_server):
 
 def test_a_fits_bar_never_steps_back_when_its_layout_comes(client, live_server):
     # "layout" was counted in the whole only once it came (whether the exemplar is large enough for it was the
-    # fit's to decide), and the bar stepped back a little then: 0.88 at the end of "CDF codebook", 0.80 as
+    # fit's to decide), and the bar stepped back a little then: 0.95 at the end of "CDF codebook", 0.86 as
     # "layout" began. The server now knows before the fit whether it makes a layout, and a fraction once told
     # is never taken back.
     from tghop.server.jobs import FIT_STAGES, Job, fit_stages
