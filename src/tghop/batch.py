@@ -41,8 +41,9 @@ from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MAL
                          connect, ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
                          run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_orphans,
-                         find_work, inputs_sha256, is_done, is_known_failure, keep_ledger_names, mark_running,
-                         open_ledger, prune_orphans, read_ledger, read_ledger_files, remove_stale)
+                         find_work, input_digest, inputs_sha256, is_done, is_known_failure, keep_ledger_names,
+                         mark_running, open_ledger, prune_orphans, read_hashes, read_ledger, read_ledger_files,
+                         remove_stale, write_hashes)
 from .batch_task import process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -268,6 +269,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     keep_ledger_names(items, previous)
     orphans = find_orphans(outdir, earlier_files, [it["name"] for it in items])
     jobs, results, failed_before = [], {}, 0
+    hashes, found = read_hashes(outdir), {}
     for it in items:
         settings = _settings(it["settings"], defaults, fit, generate)
         maps = it.get("maps") or []
@@ -275,7 +277,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             settings["maps"] = [name for name, _ in maps]
         job = {"name": it["name"], "source": str(it["path"]), "folder": str(outdir / it["name"]),
                "maps": [[name, str(file)] for name, file in maps],
-               "sha256": inputs_sha256(it["path"], maps), "settings": settings, "size": settings["size"],
+               "sha256": input_digest(it["path"], maps, hashes, found),  # unchanged files not read again
+               "settings": settings, "size": settings["size"],
                "count": settings["count"], "seed": settings["seed"], "fit": settings["fit"],
                "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1}
         if is_done(previous.get(it["name"]), job, outdir):
@@ -363,6 +366,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             remove_temporaries(job["folder"])
             with contextlib.suppress(OSError):
                 os.rmdir(job["folder"])  # only when empty: a failed exemplar's
+        if outdir.is_dir():
+            write_hashes(outdir, hashes, found, [r.get("source") for r in previous.values()])
         ordered = [results[it["name"]] for it in items if it["name"] in results]
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
             write_contact_sheet(outdir, ordered, total=len(items))

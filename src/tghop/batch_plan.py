@@ -3,7 +3,9 @@ ledger that says what an earlier run finished.
 
 * :func:`find_work` -- the exemplars of a folder (recursively) or a manifest (:mod:`tghop.manifest`),
   each with a unique folder name in OUTDIR (at most :data:`NAME_MAX` characters);
-* :func:`inputs_sha256` -- what the ledger compares to know an exemplar unchanged;
+* :func:`inputs_sha256` -- what the ledger compares to know an exemplar unchanged; :func:`input_digest`
+  takes it from the hashes an earlier run found (:data:`HASHES`, :func:`read_hashes`, :func:`write_hashes`)
+  without reading the files where their size, times and inode (:func:`inputs_stat`) are as they were then;
 * the ledger ``OUTDIR/batch.jsonl`` (:data:`LEDGER`): read (:func:`read_ledger`,
   :func:`read_ledger_files`), opened locked for a run (:func:`open_ledger`), appended to
   (:func:`append_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
@@ -26,6 +28,7 @@ import json
 import numbers
 import os
 import re
+import time
 import unicodedata
 import warnings
 from pathlib import Path
@@ -36,8 +39,9 @@ from .batch_task import THUMBNAIL_FILE, remove_temporaries
 from .contact_sheet import CONTACT_SHEET
 from .manifest import MAX_MAPS, read_manifest
 
-__all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "WINDOWS_RESERVED", "windows_reserved", "find_work",
-           "inputs_sha256", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
+__all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "HASHES", "STAT_MARGIN", "WINDOWS_RESERVED",
+           "windows_reserved", "find_work", "inputs_sha256", "inputs_stat", "input_digest", "read_hashes",
+           "write_hashes", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
            "open_ledger", "append_ledger", "is_done", "is_known_failure", "mark_running", "remove_stale",
            "find_orphans", "prune_orphans"]
 
@@ -56,6 +60,14 @@ RUNNING = ".batch-running"
 #: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
 #: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
 NAME_MAX = 160
+#: In OUTDIR: the SHA-256 a run found for each exemplar's files, with their size, times and inode then
+#: (:func:`input_digest`), so that a rerun need not read unchanged files again. A cache: without it (removed,
+#: unreadable) the files are hashed, as 0.57 hashed them on every run.
+HASHES = ".batch-hashes.json"
+#: Seconds: files changed this recently before a run looked at them (their modification or change time)
+#: are hashed again by the next run (:func:`inputs_stat`): the coarsest timestamps of a common file system
+#: (FAT's 2 s) could give a change right after the look the same times.
+STAT_MARGIN = 2.0
 
 
 # ------------------------------------------------------------------ finding work
@@ -272,6 +284,76 @@ def inputs_sha256(path, maps=()) -> str | None:
             return None
         h.update(f"\0{name}\0{digest}".encode())
     return h.hexdigest()
+
+
+def inputs_stat(path, maps=()) -> list | None:
+    """What a rerun compares before it hashes an exemplar's files (:func:`input_digest`): for its file and
+    each map (``[(name, path)]``), ``[path, size, mtime_ns, ctime_ns, inode]``, as git compares a file
+    with its index. None when a file cannot be looked at, or was changed less than :data:`STAT_MARGIN`
+    seconds ago (its times could stay the same through a change now). No program sets the change time
+    (``touch -d``, ``cp -p`` and ``rsync -t`` set the modification time), and a file written anew under
+    its old name (``rsync``, many editors) has another inode."""
+    now = time.time()
+    out = []
+    for file in [path, *(file for _, file in maps)]:
+        try:
+            st = os.stat(file)
+        except (OSError, ValueError):
+            return None
+        if max(st.st_mtime, st.st_ctime) > now - STAT_MARGIN:
+            return None
+        out.append([str(file), st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino])
+    return out
+
+
+def _hash_key(path, maps) -> str:
+    return "\0".join([str(path), *(f"{name}={file}" for name, file in maps)])
+
+
+def input_digest(path, maps=(), hashes=None, found=None) -> str | None:
+    """:func:`inputs_sha256` of an exemplar's files, taken from ``hashes`` (:func:`read_hashes`: an earlier
+    run's) without reading them where their :func:`inputs_stat` is the one recorded there: a rerun of
+    thousands of exemplars, all done, read every byte of them again to find them unchanged (0.57; gigabytes
+    for a studio's library). ``found`` (a dict): gets the entry for :func:`write_hashes` where the files'
+    stat can be trusted."""
+    key, stat = _hash_key(path, maps), inputs_stat(path, maps)
+    entry = (hashes or {}).get(key)
+    if stat is not None and isinstance(entry, dict) and entry.get("stat") == stat \
+            and isinstance(entry.get("sha256"), str):
+        sha256 = entry["sha256"]
+    else:
+        sha256 = inputs_sha256(path, maps)
+    if found is not None and stat is not None and sha256 is not None:
+        found[key] = {"stat": stat, "sha256": sha256}
+    return sha256
+
+
+def read_hashes(outdir) -> dict:
+    """The hashes an earlier run found (:data:`HASHES`), by the exemplar's files; ``{}`` where there are none
+    or they cannot be read."""
+    try:
+        found = json.loads((Path(outdir) / HASHES).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return found if isinstance(found, dict) else {}
+
+
+def write_hashes(outdir, earlier: dict, found: dict, sources) -> None:
+    """Write :data:`HASHES`: this run's ``found`` (:func:`input_digest`), and the ``earlier`` ones of files
+    that ``sources`` (the ledger's exemplar files) still name, as another SOURCE into the same OUTDIR
+    left them; nothing where that is what the file holds (a rerun of nothing changed writes nothing). A
+    failure to write is no failure of the run: the next run reads the files again."""
+    from .output_files import write_atomic
+
+    sources = set(sources)
+    merged = {k: v for k, v in earlier.items() if k.split("\0", 1)[0] in sources}
+    merged.update(found)
+    if merged == earlier:
+        return
+    text = json.dumps(merged, sort_keys=True, separators=(",", ":"))
+    with contextlib.suppress(OSError, TGHopError):
+        write_atomic(Path(outdir) / HASHES, lambda fh: fh.write(text.encode("utf-8")), what="hashes",
+                     error=TGHopError)
 
 
 def file_sha256(path) -> str | None:
