@@ -4,6 +4,7 @@ stand-ins (no fit): what is tested is the driver's work around them."""
 
 import json
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -110,3 +111,17 @@ def test_hashes_of_another_source_into_the_same_outdir_are_kept(tmp_path, monkey
     (tmp_path / "a" / "a.png").write_bytes(b"A")
     batch.run(tmp_path / "a", out, **run)
     assert sorted(json.loads((out / batch_plan.HASHES).read_text())) == [str(tmp_path / n / f"{n}.png") for n in "ab"]
+
+
+def test_the_contact_sheet_fetches_its_images_as_they_are_scrolled_to(tmp_path):
+    # The sheet of 3,000 exemplars fetched its 5,372 images (thumbnails, and the whole outputs for their
+    # 96-pixel previews) before the page was loaded. Now every image is fetched as it nears the window.
+    from tghop.contact_sheet import write_contact_sheet
+
+    records = [{"name": f"x{i}", "source": f"x{i}.png", "status": "ok", "thumbnail": f"x{i}/exemplar.png",
+                "outputs": [f"x{i}/x{i}_1.png", f"x{i}/x{i}_2.png"], "model": f"x{i}/x{i}.npz", "seconds": 1.0}
+               for i in range(40)]
+    page = write_contact_sheet(tmp_path, records, ledger="batch.jsonl").read_text()
+    images = re.findall(r"<img [^>]*>", page)
+    assert len(images) == 120
+    assert all(' loading="lazy"' in tag for tag in images), images[0]

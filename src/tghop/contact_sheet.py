@@ -16,6 +16,12 @@ __all__ = ["write_contact_sheet", "CONTACT_SHEET"]
 CONTACT_SHEET = "index.html"
 
 
+#: Every image of the sheet is fetched as it comes near the window, not with the page: the sheet of a batch
+#: of thousands fetched all their thumbnails and whole outputs (for 96-pixel previews) before it was
+#: ready (docs/batch.md, "Thousands of exemplars").
+LAZY = ' loading="lazy" decoding="async"'
+
+
 def _href(path: str) -> str:
     return quote(path, safe="/")
 
@@ -32,9 +38,9 @@ def write_contact_sheet(outdir, records, *, total=None, ledger=None) -> Path:
     rows = []
     for r in records:
         esc = html.escape
-        thumb = (f'<img src="{_href(r["thumbnail"])}" alt="{esc(r["name"])}" width="96">'
+        thumb = (f'<img src="{_href(r["thumbnail"])}" alt="{esc(r["name"])}" width="96"{LAZY}>'
                  if r.get("thumbnail") else "")
-        outputs = " ".join(f'<a href="{_href(f)}"><img src="{_href(f)}" alt="{esc(f)}" height="96"></a>'
+        outputs = " ".join(f'<a href="{_href(f)}"><img src="{_href(f)}" alt="{esc(f)}" height="96"{LAZY}></a>'
                            for f in r.get("outputs") or [])
         model = f'<a href="{_href(r["model"])}">model</a>' if r.get("model") else ""
         status = esc(r.get("status", "?")) + (" (earlier run)" if r.get("skipped") else "")
