@@ -11,6 +11,8 @@ import pytest
 
 from tghop import batch, batch_plan
 
+from test_cli_failures import invoke
+
 
 def quick_task(job):
     """A finished exemplar's files without a fit (their bytes do not matter to a rerun)."""
@@ -125,3 +127,49 @@ def test_the_contact_sheet_fetches_its_images_as_they_are_scrolled_to(tmp_path):
     images = re.findall(r"<img [^>]*>", page)
     assert len(images) == 120
     assert all(' loading="lazy"' in tag for tag in images), images[0]
+
+
+def test_the_summary_says_many_failures_and_warnings_alike_on_one_line(tmp_path, monkeypatch):
+    # The summary of 3,000 exemplars listed its 314 failures a line each (three kinds of them), and a
+    # warning every exemplar gave (an alpha channel dropped) would have been 3,000 lines. Now those alike
+    # (the same but for the exemplar's path and numbers) are one line, naming a few of the others.
+    src = tmp_path / "src"
+    for i in range(14):
+        (src / f"d{i % 3}").mkdir(parents=True, exist_ok=True)
+        (src / f"d{i % 3}" / f"x{i:02d}.png").write_bytes(b"x")
+
+    def stand_in(job):
+        i = int(job["name"][-2:])
+        if i < 9:  # "PATH: not a readable image" and "exemplar is 40x40 pixels ..." by turns
+            error = f"{job['source']}: not a readable image" if i % 2 else f"exemplar is {40 + i}x{40 + i} pixels"
+            return {"status": "failed", "error": error, "cause": "input", "outputs": [], "model": None,
+                    "thumbnail": None, "warnings": []}
+        return {**quick_task(job), "warnings": [f"{job['source']}: its alpha channel dropped"]}
+
+    monkeypatch.setattr(batch, "process_exemplar", stand_in)
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "-q", cwd=tmp_path)
+    lines = err.splitlines()
+    warned = [line for line in lines if line.startswith("Warning: ")]
+    assert warned == [f"Warning: d0__x09: {src / 'd0' / 'x09.png'}: its alpha channel dropped (and 4 more like it: "
+                      "d0__x12, d1__x10, d1__x13, d2__x11)"], err  # in the batch's order, d0/ first
+    failed = [line for line in lines if line.startswith("failed: ")]
+    assert failed == [f"failed: d0__x00: exemplar is 40x40 pixels (and 4 more like it: d0__x06, d1__x04, d2__x02, "
+                      f"d2__x08)", f"failed: d0__x03: {src / 'd0' / 'x03.png'}: not a readable image (and 3 more "
+                      "like it: d1__x01, d1__x07, d2__x05)"], err
+    assert code == 1 and lines[-1].startswith("Error: 9 of 14 exemplars failed: d0__x00, d0__x03, "), err
+    from tghop.cli.batch import alike_lines
+
+    many = [({"name": f"n{i}", "source": f"/s/n{i}.png"}, f"/s/n{i}.png: bad") for i in range(8)]
+    assert list(alike_lines(many)) == ["n0: /s/n0.png: bad (and 7 more like it: n1, n2, n3, n4, n5, ...)"]
+    assert list(alike_lines(many[:3])) == ["n0: /s/n0.png: bad", "n1: /s/n1.png: bad", "n2: /s/n2.png: bad"]
+
+
+def test_the_progress_lines_of_a_log_count_in_thousands(capsys):
+    from tghop.cli.batch import BatchProgress
+
+    progress = BatchProgress(True)
+    progress.lines = True  # as into a log
+    progress.result({}, {"failed": 31, "running": 2})
+    progress("exemplars", 300, 3000)
+    # 0.57: "exemplars: 300 of 3000 finished", beside the summary's "2,686 of 3,000 exemplars done"
+    assert capsys.readouterr().err == "exemplars: 300 of 3,000 finished (269 done, 31 failed), 2 running\n"
