@@ -61,6 +61,9 @@ def check_sheet(out, results):
     links = re.findall(r'(?:href|src)="([^"]+)"', page)
     assert links
     for link in links:
+        if link.startswith("#"):  # a failed exemplar's row (0.58)
+            assert f'id="{link[1:]}"' in page, link
+            continue
         assert not link.startswith("/") and (out / link).is_file(), link
     for r in results:
         assert r["name"] in page

@@ -173,3 +173,19 @@ def test_the_progress_lines_of_a_log_count_in_thousands(capsys):
     progress("exemplars", 300, 3000)
     # 0.57: "exemplars: 300 of 3000 finished", beside the summary's "2,686 of 3,000 exemplars done"
     assert capsys.readouterr().err == "exemplars: 300 of 3,000 finished (269 done, 31 failed), 2 running\n"
+
+
+def test_the_contact_sheet_links_its_failures_from_the_top(tmp_path):
+    # Among 3,000 rows the 314 failed ones were found only by scrolling through them all: a folded list of
+    # links above the table now leads to each.
+    from tghop.contact_sheet import write_contact_sheet
+
+    records = [{"name": f"x{i}", "source": f"x{i}.png", "status": "failed" if i % 4 == 1 else "ok",
+                "error": "not an image" if i % 4 == 1 else None} for i in range(1200)]
+    page = write_contact_sheet(tmp_path, records, total=1250).read_text()
+    top = page.split("<table>")[0]
+    assert "<details><summary>The 300 not done</summary>" in top
+    assert re.findall(r'href="#([^"]+)"', top) == [f"x-x{i}" for i in range(1, 1200, 4)]
+    assert all(f'<tr id="x-x{i}" class="failed">' in page for i in range(1, 1200, 4))
+    assert "900 of 1,200 exemplars done, 300 failed. 50 not finished yet" in top  # 0.57: "900 of 1200"
+    assert "<details>" not in write_contact_sheet(tmp_path, records[:1]).read_text()

@@ -26,6 +26,21 @@ def _href(path: str) -> str:
     return quote(path, safe="/")
 
 
+def _anchor(name: str) -> str:
+    """A row's id, by its exemplar's name (a folder name: no space, unique)."""
+    return "x-" + html.escape(name)
+
+
+def _failed_links(records) -> str:
+    """Above the table, a link to each exemplar that failed (or was interrupted), folded: among 3,000 rows
+    their 314 were found only by scrolling through all of them."""
+    failed = [r for r in records if r.get("status") != "ok"]
+    if not failed:
+        return ""
+    links = ", ".join(f'<a href="#{_anchor(r["name"])}">{html.escape(r["name"])}</a>' for r in failed)
+    return f"\n<details><summary>The {len(failed):,} not done</summary><p>{links}</p></details>"
+
+
 def write_contact_sheet(outdir, records, *, total=None, ledger=None) -> Path:
     """``OUTDIR/index.html``: per exemplar its thumbnail, name, source, status (with the
     error), time and outputs (linked, relative paths; no external resources); ``total``
@@ -46,19 +61,19 @@ def write_contact_sheet(outdir, records, *, total=None, ledger=None) -> Path:
         status = esc(r.get("status", "?")) + (" (earlier run)" if r.get("skipped") else "")
         error = f'<div class="error">{esc(r["error"])}</div>' if r.get("error") else ""
         seconds = f"{r['seconds']:.1f} s" if isinstance(r.get("seconds"), (int, float)) else ""
-        rows.append(f'<tr class="{esc(r.get("status", ""))}"><td>{thumb}</td><td><b>{esc(r["name"])}</b><br>'
-                    f'<small>{esc(str(r.get("source", "")))}</small></td><td>{status}{error}</td>'
-                    f"<td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
+        rows.append(f'<tr id="{_anchor(r["name"])}" class="{esc(r.get("status", ""))}"><td>{thumb}</td><td>'
+                    f'<b>{esc(r["name"])}</b><br><small>{esc(str(r.get("source", "")))}</small></td>'
+                    f"<td>{status}{error}</td><td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
     left = (total or 0) - len(records)
-    unfinished = f" {left} not finished yet: run the same command again." if left > 0 else ""
+    unfinished = f" {left:,} not finished yet: run the same command again." if left > 0 else ""
     link = f'Ledger: <a href="{_href(ledger)}">{html.escape(ledger)}</a>.' if ledger else ""
     page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok} of {max(total or 0, len(records))} done</title>
+<html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok:,} of {max(total or 0, len(records)):,} done</title>
 <style>body{{font-family:sans-serif;margin:1em}}table{{border-collapse:collapse}}
 td,th{{border:1px solid #ccc;padding:4px;vertical-align:top}}tr.failed{{background:#fee}}
 .error{{color:#a00;max-width:30em}}img{{image-rendering:pixelated}}</style></head>
-<body><h1>tghop batch</h1><p>{ok} of {len(records)} exemplars done, {len(records) - ok} failed.{unfinished}
-{link}</p>
+<body><h1>tghop batch</h1><p>{ok:,} of {len(records):,} exemplars done, {len(records) - ok:,} failed.{unfinished}
+{link}</p>{_failed_links(records)}
 <table><tr><th>exemplar</th><th>name</th><th>status</th><th>time</th><th>outputs</th><th>model</th></tr>
 {chr(10).join(rows)}
 </table></body></html>
