@@ -148,7 +148,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     outdir : str or Path
         Created if needed. ``OUTDIR/<name>/`` gets ``<name>.npz``, ``<name>.png`` (or ``<name>_1.png``
         ...) and ``exemplar.png`` (a thumbnail); ``OUTDIR/batch.jsonl`` one line per finished
-        exemplar; ``OUTDIR/index.html`` the contact sheet.
+        exemplar; ``OUTDIR/index.html`` the contact sheet; ``OUTDIR/.batch-hashes.json`` the inputs'
+        SHA-256 with their files' size, times and inode, so that a rerun does not read unchanged files
+        again (:func:`tghop.batch_plan.input_digest`; 0.58).
     count, size, seed, tile
         Defaults for every exemplar (a manifest row gives its own). ``seed`` None: a fresh seed each, in the ledger.
     fit : dict
