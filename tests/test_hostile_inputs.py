@@ -309,7 +309,7 @@ def test_a_tiff_s_extra_channels_that_are_not_alpha_are_said_dropped(tmp_path, c
         "rgb, alpha and 2 unspecified": (6, "rgb", [2, 0, 0], "2 extra channels that are not alpha dropped; tghop "
                                          "reads its RGB channels and alpha only"),
         "rgb and alpha": (4, "rgb", [2], None),
-        "rgb and 1 unspecified": (4, "rgb", [0], None),  # RGBX: the common 4th sample, dropped without a word
+        "rgb and 1 unspecified": (4, "rgb", [0], None),  # read as alpha (0.58), said: test_an_unmarked_4th_...
         "rgb and 2 unspecified": (5, "rgb", [0, 0], "2 extra channels that are not alpha dropped; tghop "
                                   "reads its RGB channels only")}[case]
     path = tmp_path / "many.tif"
@@ -320,3 +320,81 @@ def test_a_tiff_s_extra_channels_that_are_not_alpha_are_said_dropped(tmp_path, c
     assert image.shape == (16, 16, 1 if photometric == "minisblack" else 3)
     dropped = [str(w.message) for w in caught if "extra channel" in str(w.message)]
     assert dropped == ([f"many.tif: {said}"] if said else []), dropped
+
+
+def tiff_without_extrasamples(samples) -> bytes:
+    """A little-endian, uncompressed, one-strip RGB TIFF of ``samples`` (H, W, 4) uint8 whose header has
+    no ExtraSamples tag at all (as some writers leave it out: tifffile and Pillow always write it)."""
+    height, width, spp = samples.shape
+    data = samples.tobytes()
+    entries = [(256, 3, 1, width), (257, 3, 1, height), (258, 3, spp, None), (259, 3, 1, 1), (262, 3, 1, 2),
+               (273, 4, 1, None), (277, 3, 1, spp), (278, 3, 1, height), (279, 4, 1, len(data))]
+    ifd_at = 8
+    extra_at = ifd_at + 2 + 12 * len(entries) + 4
+    bits_at, data_at = extra_at, extra_at + 2 * spp
+    out = bytearray(b"II*\x00" + struct.pack("<I", ifd_at) + struct.pack("<H", len(entries)))
+    for tag, kind, count, value in entries:
+        value = bits_at if tag == 258 else data_at if tag == 273 else value
+        packed = struct.pack("<HI", value, 0)[:4] if kind == 3 and count == 1 else struct.pack("<I", value)
+        out += struct.pack("<HHI", tag, kind, count) + packed
+    out += struct.pack("<I", 0) + struct.pack(f"<{spp}H", *([8] * spp)) + data
+    return bytes(out)
+
+
+@pytest.mark.parametrize("how", ["unspecified", "no tag", "unspecified, 0 everywhere", "unspecified, 16-bit"])
+def test_an_unmarked_4th_sample_of_an_rgb_tiff_is_read_as_alpha_and_said(tmp_path, how):
+    """0.57 dropped it without a word, its transparency untold: it is nearly always an alpha channel whose
+    writer left it unmarked (GIMP, libtiff and ImageMagick read it as alpha); 0 everywhere, it is padding."""
+    import warnings
+
+    from tghop.imageio import load_image
+
+    tifffile = pytest.importorskip("tifffile")
+    rng = np.random.default_rng(1)
+    deep = how.endswith("16-bit")
+    samples = rng.integers(0, 65536 if deep else 256, (6, 5, 4)).astype(np.uint16 if deep else np.uint8)
+    samples[..., 3] = 0 if "0 everywhere" in how else samples[..., 3] | 1
+    path = tmp_path / "rgbx.tif"
+    if how == "no tag":
+        path.write_bytes(tiff_without_extrasamples(samples))
+    else:
+        tifffile.imwrite(path, samples, photometric="rgb", extrasamples=["unspecified"])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kept = load_image(path, keep_alpha=True, dtype=None)
+    said = [str(w.message) for w in caught]
+    tag = "no ExtraSamples tag" if how == "no tag" else "ExtraSamples unspecified"
+    expected = samples / 65535.0 if deep else samples
+    if "0 everywhere" in how:
+        assert said == [f"rgbx.tif: its 4th sample, not marked as alpha ({tag}), is 0 everywhere: taken as padding "
+                        "and dropped; tghop reads its RGB channels only"]
+        np.testing.assert_array_equal(kept, samples[..., :3])
+        return
+    assert said == [f"rgbx.tif: its 4th sample, not marked as alpha ({tag}), is read as straight alpha, as GIMP and "
+                    "libtiff read it; save the file with its alpha marked (or without it) to be sure"]
+    np.testing.assert_array_equal(kept, expected)  # straight: colours as stored
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        colours = load_image(path, dtype=None)
+    np.testing.assert_array_equal(colours, expected[..., :3])
+    assert [str(w.message).split(",")[0] for w in caught][-1] == "rgbx.tif: alpha channel dropped"
+
+
+def test_an_unspecified_4th_sample_pillow_drops_is_said_without_tifffile(tmp_path, monkeypatch):
+    """Without tifffile, Pillow reads an RGB TIFF's "unspecified" 4th sample as RGBX padding: said (0.57: silent)."""
+    import sys
+    import warnings
+
+    from tghop.imageio import load_image
+
+    tifffile = pytest.importorskip("tifffile")
+    samples = np.random.default_rng(2).integers(1, 256, (6, 5, 4)).astype(np.uint8)
+    tifffile.imwrite(tmp_path / "rgbx.tif", samples, photometric="rgb", extrasamples=["unspecified"])
+    monkeypatch.setitem(sys.modules, "tifffile", None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        got = load_image(tmp_path / "rgbx.tif", dtype=None)
+    np.testing.assert_array_equal(got, samples[..., :3])
+    assert [str(w.message) for w in caught] == [
+        "rgbx.tif: its 4th sample, not marked as alpha (ExtraSamples unspecified), dropped; tghop reads it as alpha "
+        "with tifffile (pip install 'tghop[tiff]')"]

@@ -153,9 +153,11 @@ def read_deep(path, max_pixels, keep_alpha=False):
         arr = arr[:, :, None]
     if arr.ndim != 3 or arr.shape[2] < colours + alpha:
         return None  # an arrangement of samples tghop does not know: Pillow's path
+    if premultiplied == "unmarked":  # RGB's one 4th sample that ExtraSamples does not call alpha
+        premultiplied = False
+        alpha = _unmarked_alpha(arr[:, :, 3], path, page.extrasamples)
     dropped = arr.shape[2] - colours - alpha
-    # Extra samples that are not alpha (a multispectral file): dropped as Pillow drops them, and said (0.57),
-    # except RGB's one 4th sample (RGBX padding, or an alpha its writer did not mark): dropped without a word.
+    # Extra samples that are not alpha (a multispectral file): dropped as Pillow drops them, and said (0.57).
     if dropped and not (colours == 3 and not alpha and dropped == 1):
         kept = f"{'its grey channel' if colours == 1 else 'its RGB channels'}{' and alpha' if alpha else ''}"
         warn(f"{path.name}: {dropped} extra channel{'s' if dropped > 1 else ''} that {'are' if dropped > 1 else 'is'} "
@@ -172,6 +174,25 @@ def read_deep(path, max_pixels, keep_alpha=False):
     if arr.dtype == np.uint16:
         return arr / 65535.0, mode, 16
     return _float_pixels(arr.astype(np.float64), path), mode, 32
+
+
+def _unmarked_alpha(sample, path, extras):
+    """Whether an RGB TIFF's one 4th sample that no ExtraSamples tag calls alpha (the tag missing, or
+    "unspecified") is read as alpha: 1, said; 0 (dropped, said) where it is 0 everywhere, which as
+    alpha would hide every pixel: padding (RGBX).
+
+    0.57 dropped it without a word. Such a sample is nearly always an alpha channel whose writer left
+    the tag out or wrote "unspecified": GIMP reads it as straight alpha (it asks, straight by default),
+    libtiff's RGBA reader and ImageMagick as alpha, Pillow as alpha where the tag is missing (it drops
+    an "unspecified" one). Straight, not premultiplied: colours are read as stored."""
+    how = "no ExtraSamples tag" if not extras else "ExtraSamples unspecified"
+    if not np.any(sample):
+        warn(f"{path.name}: its 4th sample, not marked as alpha ({how}), is 0 everywhere: taken as padding and "
+             "dropped; tghop reads its RGB channels only")
+        return 0
+    warn(f"{path.name}: its 4th sample, not marked as alpha ({how}), is read as straight alpha, as GIMP and "
+         "libtiff read it; save the file with its alpha marked (or without it) to be sure")
+    return 1
 
 
 def _float_pixels(arr, path):
@@ -249,8 +270,9 @@ def _refuse_deep_tiff(path, photometric, bits):
 
 def _tiff_layout(page, path):
     """How tghop reads a TIFF page itself: ``(colours, alpha, inverted, premultiplied)`` (1 or 3
-    colour samples; whether the next sample is alpha, as its ExtraSamples tag says; min-is-white
-    levels to invert; whether that alpha is associated, the colours multiplied by it), or None for
+    colour samples; whether the next sample is alpha, as its ExtraSamples tag says, or RGB's one 4th
+    sample the tag leaves unmarked; min-is-white levels to invert; whether that alpha is associated,
+    the colours multiplied by it, or "unmarked": :func:`_unmarked_alpha` decides), or None for
     Pillow's path: 8-bit and bilevel TIFF files of other colour kinds (palette, CMYK, YCbCr, LAB,
     min-is-white), which Pillow converts to RGB or grey, and samples
     tifffile gives in no type tghop reads. Refused: a 16-bit or float one of those colour kinds
@@ -270,6 +292,8 @@ def _tiff_layout(page, path):
     extras = tuple(int(e) for e in (page.extrasamples or ()))
     if page.samplesperpixel > colours and extras[:1] == (1,) and dtype == np.uint8:
         return None  # premultiplied alpha: Pillow's path, which divides it out
+    if colours == 3 and page.samplesperpixel == 4 and extras in ((), (0,)):
+        return 3, 1, inverted, "unmarked"  # straight alpha its writer did not mark (read_deep says so)
     alpha = page.samplesperpixel > colours and extras[:1] in ((1,), (2,))  # associated, unassociated
     return colours, int(alpha), inverted, alpha and extras[0] == 1
 
@@ -340,6 +364,10 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     warn_frames(path, getattr(im, "n_frames", 1))
     if int(getattr(im, "tag_v2", {}).get(254, 0) or 0) & 1:  # a TIFF's NewSubfileType: reduced resolution
         _refuse_preview(path)
+    tags = getattr(im, "tag_v2", {})
+    if im.mode == "RGB" and tags.get(277) == 4 and tuple(tags.get(338, ())) == (0,):  # Pillow's RGBX
+        warn(f"{path.name}: its 4th sample, not marked as alpha (ExtraSamples unspecified), dropped; tghop reads "
+             f"it as alpha with tifffile ({TIFF_HINT})", UserWarning, stacklevel=3)
     orientation = _exif_orientation(im)  # after loading: Pillow's TIFF reader applies (and drops) its own
     if im.mode in ("L", "RGB") and "transparency" in im.info:  # a PNG's transparent colour: an alpha channel
         im = im.convert("LA" if im.mode == "L" else "RGBA")  # (0.55 kept its pixels without a word)

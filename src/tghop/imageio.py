@@ -51,8 +51,8 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         Any format Pillow reads, turned or flipped as its EXIF orientation says (as photos
         are shown), in sRGB (:mod:`tghop.profiles`). Palette, CMYK, YCbCr and LAB images (TIFF
         files too) are converted to RGB, bilevel ones to grey; an alpha channel (in TIFF, an
-        extra sample its ExtraSamples tag calls alpha; in PNG, a transparent colour too) is
-        dropped with a warning. 16-bit PNG
+        extra sample its ExtraSamples tag calls alpha, or an RGB file's one 4th sample the tag
+        leaves unmarked, said; in PNG, a transparent colour too) is dropped with a warning. 16-bit PNG
         and TIFF files and float TIFF files are read without loss (16-bit levels ``v`` become
         ``v / 65535``; float values in [0, 1] are kept, others taken as 8-bit or 16-bit levels;
         signed or 32-bit integer values must be levels from 0 to 65535, as must those floats; a
