@@ -398,3 +398,42 @@ def test_an_unspecified_4th_sample_pillow_drops_is_said_without_tifffile(tmp_pat
     assert [str(w.message) for w in caught] == [
         "rgbx.tif: its 4th sample, not marked as alpha (ExtraSamples unspecified), dropped; tghop reads it as alpha "
         "with tifffile (pip install 'tghop[tiff]')"]
+
+
+def test_an_upload_s_unicode_name_stays_readable_and_safe(live_server, small_model):
+    """0.57 made every character outside ASCII "_" in messages and notes ("дом.png" was "___.png") and "-" or
+    nothing in downloads' names. Letters and digits of any script stay; path separators, spaces, control and
+    format characters (a right-to-left override) do not; a download names it in RFC 6266's ``filename*``."""
+    import urllib.parse
+
+    from conftest import FAST_FIT
+
+    httpx = pytest.importorskip("httpx")
+    rgba = np.full((96, 96, 4), 200, np.uint8)
+    rgba[:40, :40, 3] = 0  # transparent: a note naming the file
+    rgba[..., 0] = np.arange(96, dtype=np.uint8)[None, :] * 2
+    buf = io.BytesIO()
+    Image.fromarray(rgba).save(buf, format="PNG")
+    evil = "C:\\x/../Дом\u202e \x07 e\u0301té_01.png"  # Windows and POSIX paths, RLO, BEL, NFD accent
+    with httpx.Client(base_url=live_server.url, timeout=60) as client:
+        r = client.post("/api/models", files={"image": ("дом.png", b"", "image/png")})
+        assert (r.status_code, r.json()["error"]) == (400, "дом.png is empty; send an image file"), r.text
+        form = {k: (None, v) for k, v in FAST_FIT.items()}
+        r = client.post("/api/models", files={"image": (evil, buf.getvalue(), "image/png"), **form})
+        assert r.status_code == 202, r.text
+        client.delete(f"/api/jobs/{r.json()['job']}")
+        notes = [n.split(" of its")[0] for n in r.json()["notes"]]  # httpx sends BEL as %07
+        assert notes == ["Дом___07_été_01.png: 17%"], r.text
+        r = client.post("/api/models/upload", files={"model": ("мой.npz", small_model.read_bytes())})
+        assert r.status_code == 200, r.text
+        model_id = r.json()["id"]
+        for name, plain, utf8 in [("Дом 01", "tghop-01", "tghop-Дом-01"), ("crème brûlée", "tghop-creme-brulee", None),
+                                  ("a\u202eb/../\x00c", "tghop-a-b-..-c", None), ("🙂", "tghop", None)]:
+            got = client.get(f"/api/models/{model_id}/file", params={"name": name})
+            header = got.headers["content-disposition"]
+            expected = f'attachment; filename="{plain}-{model_id[:12]}.npz"'
+            if utf8:
+                expected += f"; filename*=UTF-8''{urllib.parse.quote(utf8, safe='')}-{model_id[:12]}.npz"
+            elif name == "crème brûlée":
+                expected += f"; filename*=UTF-8''tghop-cr%C3%A8me-br%C3%BBl%C3%A9e-{model_id[:12]}.npz"
+            assert header == expected, header

@@ -167,7 +167,9 @@ def test_download_the_model_and_upload_it_back(client, fitted, live_server, tmp_
     # Named as the page names it (?name=, safe characters only), or by the id alone
     assert r.headers["content-disposition"] == f'attachment; filename="tghop-{model_id[:12]}.npz"'
     named = client.get(f"/api/models/{model_id}/file", params={"name": '../My "wall" été\\x'})
-    assert named.headers["content-disposition"] == f'attachment; filename="tghop-My-wall-t-x-{model_id[:12]}.npz"'
+    assert named.headers["content-disposition"] == (
+        f'attachment; filename="tghop-My-wall-ete-x-{model_id[:12]}.npz"; '
+        f"filename*=UTF-8''tghop-My-wall-%C3%A9t%C3%A9-x-{model_id[:12]}.npz")
     as_form = client.post("/api/models/upload", files={"model": ("mine.npz", r.content)})
     assert as_form.status_code == 200 and as_form.json()["id"] == uploaded
     ask = {"size": [48, 80], "seed": 5, "refine": 1, "n_patches": 400}

@@ -874,3 +874,25 @@ def test_a_result_of_several_models_names_them(page):
     assert page.text_content("#exemplar-caption") == "exemplar"  # of bricks, the working model
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_a_model_file_of_a_unicode_name_downloads_under_that_name(page, tmp_path):
+    # 0.57 named "Дом 01.npz"'s download tghop-01-<id>.npz (letters outside ASCII dropped) and an upload's
+    # messages "___ 01.npz": the page and the server's Content-Disposition (RFC 6266 filename*) now keep them
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+    from tghop.server.requests import file_stem
+
+    names = ["Дом 01", "e\u0301té", "日本語の壁", "a/b\\c", "🙂 x", "x" * 30 + "ж" * 30, "𝒜" * 45]
+    assert page.evaluate("(names) => names.map(fileStem)", names) == [file_stem(n) for n in names]
+    path = tmp_path / "Дом 01.npz"
+    save_model(TGHop(n_clusters=2, n_codewords=5, stride=4, max_patches=300, rng=0).fit(data.bricks(64, rng=3)), path)
+    page.set_input_files("#model-file", str(path))
+    page.wait_for_function("document.getElementById('message').textContent === 'model Дом 01.npz loaded: generate "
+                           "below'", timeout=60_000)
+    name = f"tghop-Дом-01-{page.evaluate('state.modelId')[:12]}.npz"
+    assert page.get_attribute("#download-model", "download") == name
+    with page.expect_download() as download:
+        page.click("#download-model")
+    assert download.value.suggested_filename == name
+    assert not page.errors, page.errors

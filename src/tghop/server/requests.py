@@ -13,13 +13,16 @@ from __future__ import annotations
 import base64
 import binascii
 import re
+import unicodedata
+import urllib.parse
 
 from .. import manifest
 from .._errors import TGHopError
 
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
-           "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "MAX_MODELS",
+           "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "file_stem",
+           "content_disposition", "MAX_MODELS",
            "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
@@ -53,20 +56,50 @@ def page_words(message: str) -> str:
     return _CLI_OPTION.sub("", " ".join(str(message).split()))
 
 
+def _name_chars(name) -> str:
+    """``name`` as text in NFC (a Mac sends a name's accents apart: NFD), each character that is no letter, digit
+    or combining mark of any script, nor ``.``, ``_`` or ``-``, as NUL: spaces, punctuation, path separators,
+    control and format characters (a right-to-left override that would show ``gnp.exe`` as ``exe.png``),
+    symbols."""
+    text = unicodedata.normalize("NFC", str(name or ""))
+    return "".join(c if c in "._-" or unicodedata.category(c)[0] in "LNM" else "\0" for c in text)
+
+
 def safe_name(name, default: str) -> str:
-    """An uploaded file's name as it may appear in a message and a temporary file: the
-    last part of the path, only letters, digits, ``.``, ``_`` and ``-``."""
-    base = re.split(r"[\\/]", str(name or ""))[-1]
-    base = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")[:80]
-    return base or default
+    """An uploaded file's name as it may appear in a message and a temporary file: the last part of the path,
+    only letters and digits (of any script, 0.58: 0.57 made "дом.png" "___.png"), their combining marks, ``.``,
+    ``_`` and ``-``, others as ``_``; no leading ``.``; at most 80 characters and 200 bytes of UTF-8 (a file
+    name may have 255), cut before its extension."""
+    base = _name_chars(re.split(r"[\\/]", str(name or ""))[-1]).replace("\0", "_").lstrip(".")
+    stem, dot, ext = base.rpartition(".")
+    if not dot or not stem or len(ext) > 10:
+        stem, ext = base, ""
+    ext = dot + ext if stem != base else ""
+    while stem and (len(stem + ext) > 80 or len((stem + ext).encode()) > 200):
+        stem = stem[:-1]
+    return stem + ext if stem else default
 
 
-def file_stem(name) -> str:
+def file_stem(name, *, ascii_only: bool = False) -> str:
     """A name as part of a download's file name (``?name=`` of a file's download, as the page makes it
-    too): runs of other characters than letters, digits, ``.``, ``_`` and ``-`` as one ``-``, none at
-    either end, at most 40 characters; ``""`` for none."""
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "-", str(name or "")).strip("-._")
+    too): runs of other characters than letters and digits (of any script, 0.58; only ASCII ones with
+    ``ascii_only``, accents dropped: a Content-Disposition's plain ``filename``), their combining marks,
+    ``.``, ``_`` and ``-`` as one ``-``, none at either end, at most 40 characters; ``""`` for none."""
+    if ascii_only:  # accents dropped ("été": "ete"), other letters as any other character
+        name = "".join(c for c in unicodedata.normalize("NFKD", str(name or "")) if not unicodedata.combining(c))
+        text = "".join(c if c.isascii() else "\0" for c in _name_chars(name))
+    else:
+        text = _name_chars(name)
+    stem = re.sub("\0+", "-", text).strip("-._")
     return stem[:40].rstrip("-._")
+
+
+def content_disposition(filename: str, ascii_name: str) -> str:
+    """A download's ``Content-Disposition``: ``filename`` in UTF-8 as RFC 6266's ``filename*`` where it is not
+    ``ascii_name``, the plain ``filename`` (which older clients read) ``ascii_name``."""
+    if filename == ascii_name:
+        return f'attachment; filename="{ascii_name}"'
+    return f"attachment; filename=\"{ascii_name}\"; filename*=UTF-8''{urllib.parse.quote(filename, safe='')}"
 
 
 def check_multipart_end(content_type: str, body: bytes) -> None:

@@ -8,7 +8,7 @@ import io
 import os
 
 from ..core import json_response
-from ..requests import RequestError, file_stem, safe_name
+from ..requests import RequestError, content_disposition, file_stem, safe_name
 from ..uploads import depth_note, note_line, read_body, read_form
 
 __all__ = ["summary", "model_summary", "download_name", "send_file", "model_file", "store_upload", "upload_model"]
@@ -47,11 +47,12 @@ async def model_summary(server, request):
     return json_response({**known, "notes": [note_line(line) for line in server.cache.model_notes(model_id)]})
 
 
-def download_name(file_id: str, suffix: str, *, kind: str = "", name=None) -> str:
+def download_name(file_id: str, suffix: str, *, kind: str = "", name=None, ascii_only: bool = False) -> str:
     """A download's file name: ``tghop``, then ``-kind`` and ``-name`` where given, then
     ``-<first 12 of the id><suffix>``; ``name`` (``?name=``, the page's name of the model: its
-    exemplar's or file's) made safe by :func:`file_stem`."""
-    return "-".join(part for part in ("tghop", kind, file_stem(name), file_id[:12]) if part) + suffix
+    exemplar's or file's) made safe by :func:`file_stem` (in ASCII alone with ``ascii_only``)."""
+    stem = file_stem(name, ascii_only=ascii_only)
+    return "-".join(part for part in ("tghop", kind, stem, file_id[:12]) if part) + suffix
 
 
 def send_file(cache, file_id: str, missing: str, *, kind: str = "", name=None):
@@ -73,8 +74,9 @@ def send_file(cache, file_id: str, missing: str, *, kind: str = "", name=None):
                 yield block
 
     filename = download_name(file_id, path.suffix, kind=kind, name=name)
+    plain = download_name(file_id, path.suffix, kind=kind, name=name, ascii_only=True)
     headers = {"Content-Length": str(os.fstat(handle.fileno()).st_size),
-               "Content-Disposition": f'attachment; filename="{filename}"'}
+               "Content-Disposition": content_disposition(filename, plain)}
     return StreamingResponse(chunks(), media_type="application/octet-stream", headers=headers)
 
 

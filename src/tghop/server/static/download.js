@@ -10,12 +10,13 @@ function offerDownload(link, href, name) {
   link.setAttribute("download", name);
 }
 
-// A name's characters safe in a file's name: runs of other characters than letters, digits, ".", "_" and "-"
-// as one "-", none at either end, at most 40 (the server's Content-Disposition makes the same of ?name=:
-// requests.file_stem).
+// A name's characters safe in a file's name: runs of other characters than letters and digits of any script,
+// their combining marks, ".", "_" and "-" as one "-", none at either end, at most 40 characters (the server's
+// Content-Disposition makes the same of ?name=: requests.file_stem).
 function fileStem(text) {
-  return String(text ?? "").replace(/[^A-Za-z0-9._-]+/g, "-").replace(/^[-._]+|[-._]+$/g, "").slice(0, 40)
-    .replace(/[-._]+$/, "");
+  const kept = String(text ?? "").normalize("NFC").replace(/[^\p{L}\p{N}\p{M}._-]+/gu, "-")
+    .replace(/^[-._]+|[-._]+$/gu, "");
+  return Array.from(kept).slice(0, 40).join("").replace(/[-._]+$/u, "");
 }
 
 // A model's part of a file name, from the page's name of it ("builtin:bricks + 2 maps", "wall.jpg"): "bricks",
