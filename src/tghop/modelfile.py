@@ -33,7 +33,8 @@ import numpy as np
 from . import __version__
 from ._common import ModelFileError, TGHopError
 from ._errors import warn
-from ._formats import COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind, unpacks_too_far
+from ._formats import (COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind, too_many_members,
+                       unpacks_too_far)
 from .imageio import check_output_path, write_atomic
 from .material import Material
 from .settings import fit_seed
@@ -214,6 +215,10 @@ def _read(path):
 
 def _read_archive(path, label):
     """:func:`_read` of a path or a file object at its start (``path``), named ``label`` in messages."""
+    crowded = too_many_members(path)  # from its end record: zipfile would parse the whole directory first
+    if crowded:
+        raise ModelFileError(f"{label}: {crowded}, not a model file tghop wrote; give a model file tghop wrote, "
+                             "or fit the model again")
     bomb = unpacks_too_far(path)
     if bomb:
         raise ModelFileError(f"{label}: {bomb}, not a model file tghop wrote (it stores its arrays uncompressed); "
