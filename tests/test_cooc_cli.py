@@ -377,7 +377,8 @@ CHANGED = {
     "nan generator": (_set("generator_ema.net.1.weight", 0, float("nan")), "generator_ema.net.1.weight has NaN"),
     "inf generator": (_set("generator.net.1.weight", 0, float("inf")), "generator.net.1.weight has NaN"),
     # crops larger than the exemplar: generation tried to allocate an exabyte (a traceback)
-    "huge crops": (lambda raw: {"settings_json": _settings_json(raw, crop_size=2**12)}, "training crops of 4096"),
+    "huge crops": (lambda raw: {"settings_json": _settings_json(raw, crop_size=2**12)},
+                   "crop_size=4,096 x tiles=1: training crops of 4,096 pixels"),
     "negative exemplar shape": (lambda raw: {"settings_json": _settings_json(raw, exemplar_shape=[-1, 0, 3])},
                                 "exemplar shape [-1, 0, 3]"),
 }
@@ -439,13 +440,36 @@ def _complex(name):
 DESCRIBED = {
     "missing tensor": (lambda raw: {k: v for k, v in raw.items() if k != "cond_std_"}, "'cond_std_' is missing"),
     "missing setting": (lambda raw: {**raw, "settings_json": _drop_setting(raw, "seed")}, "'seed' is missing"),
-    "weight of another shape": (lambda raw: {**raw, "critic.convs.0.weight": raw["critic.convs.0.weight"][:1]},
-                                "size mismatch for convs.0.weight"),
+    "weight of another shape": (lambda raw: {**raw, "critic.convs.0.bias": raw["critic.convs.0.bias"][:1]},
+                                "size mismatch for convs.0.bias"),
+    "weight of other widths": (lambda raw: {**raw, "critic.convs.0.weight": raw["critic.convs.0.weight"][:1]},
+                               "d_widths=[4, 8] but critic.convs.0.weight has 1 output channels, not 4"),
     "complex generator": (lambda raw: {**raw, **_complex("generator_ema.net.1.weight")(raw)},
                           "generator_ema.net.1.weight is of type complex64, not real floating point"),
     "complex statistics": (lambda raw: {**raw, **_complex("centres_")(raw)}, "centres_ is of type complex"),
     "huge n_clusters": (lambda raw: {**raw, "settings_json": _settings_json(raw, n_clusters=10**9)},
-                        "n_clusters=1,000,000,000 is over 65,536"),
+                        "n_clusters=1,000,000,000 colours, more than the exemplar's 48x48 pixels"),
+    # 0.57 refused any integer setting over 2**16, a guess (and took kernel=65,535 or patch=60,001: tens of GB
+    # allocated): each is now bounded by what it means (0.58); small values here, harmless on 0.57
+    "n_clusters over the pixels": (lambda raw: {**raw, "settings_json": _settings_json(raw, n_clusters=60_000)},
+                                   "n_clusters=60,000 colours, more than the exemplar's 48x48 pixels"),
+    "crops larger than the exemplar": (lambda raw: {**raw, "settings_json": _settings_json(raw, tiles=2)},
+                                       "crop_size=32 x tiles=2: training crops of 64 pixels, larger than the 48x48 "
+                                       "exemplar they are cut from"),
+    "cells larger than a crop": (lambda raw: {**raw, "settings_json": _settings_json(raw, n_layers=10**6)},
+                                 "n_layers=1,000,000 makes cells of 2**1,000,000 pixels, larger "
+                                 "than crop_size=32"),
+    "patch wider than the exemplar": (lambda raw: {**raw, "settings_json": _settings_json(raw, patch=99)},
+                                      "patch=99 pixels across, more than twice the 48x48 exemplar"),
+    "kernel": (lambda raw: {**raw, "settings_json": _settings_json(raw, kernel=7)},
+               "kernel=7 but the generator's convolutions are 5x5"),
+    "noise channels": (lambda raw: {**raw, "settings_json": _settings_json(raw, noise_channels=5)},
+                       "noise_channels=5 but the generator's first convolution takes 2 noise channels besides "
+                       "the 9 of the condition"),
+    "widths": (lambda raw: {**raw, "settings_json": _settings_json(raw, g_widths=[9, 4])},
+               "g_widths=[9, 4] but generator.net.1.weight has 8 output channels, not 9"),
+    "batch_size": (lambda raw: {**raw, "settings_json": _settings_json(raw, batch_size=10**9)},
+                   "batch_size=1,000,000,000 crops a step, more than the 150,000 steps a training runs at most"),
 }
 
 

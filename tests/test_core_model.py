@@ -596,7 +596,7 @@ def test_load_errors(small_model, tmp_path):
     with zipfile.ZipFile(tmp_path / "net.pt", "w") as z:
         z.writestr("net/data.pkl", b"\x80\x02}q\x00.")
         z.writestr("net/version", b"3")
-    with pytest.raises(ModelFileError, match="PyTorch checkpoint.*tghop cooc"):
+    with pytest.raises(ModelFileError, match=r"a PyTorch file, not a tghop model file \(nor a co-occurrence cGAN "):
         load_model(tmp_path / "net.pt")
     truncated = path.read_bytes()[: path.stat().st_size // 2]
     (tmp_path / "cut.npz").write_bytes(truncated)

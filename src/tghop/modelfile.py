@@ -257,8 +257,16 @@ def _read_archive(path, label):
         ) from None
     if "__meta__" not in arrays:
         if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout
-            raise ModelFileError(f"{label}: a PyTorch checkpoint, not a tghop model file (a co-occurrence cGAN "
-                                 "checkpoint is read by tghop.cooc.load and the 'tghop cooc' commands)")
+            if model_file_kind(path) == COOC_CHECKPOINT:  # 0.57 named "the 'tghop cooc' commands" alone
+                import shlex
+
+                name = shlex.quote(str(label))
+                raise ModelFileError(f"{label}: a co-occurrence cGAN checkpoint, not a tghop model file; generate from "
+                                     f"it with 'tghop cooc edit {name} -o OUT.png' (a texture, as synth makes) or "
+                                     f"'tghop cooc morph {name} A B -o OUT.png' (a morph), in Python with "
+                                     "tghop.cooc.load")
+            raise ModelFileError(f"{label}: a PyTorch file, not a tghop model file (nor a co-occurrence cGAN "
+                                 "checkpoint of 'tghop cooc train'); give a model file tghop wrote")
         raise ModelFileError(f"{label}: a NumPy archive but not a tghop model file; give a model file tghop wrote")
     try:
         meta = json.loads(str(arrays.pop("__meta__")))

@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import io
 import json
+import numbers
 from pathlib import Path
 
 import numpy as np
 
 from .._common import ModelFileError, TGHopError, import_torch
 from .._formats import too_many_members, unpacks_too_far
-from .config import torch_device
+from .config import MAX_STEPS, torch_device
 from .networks import build_networks
 
 __all__ = ["KIND", "FORMAT", "save", "read"]
@@ -160,11 +161,9 @@ def read(path, model_class, *, device: str = "auto"):
     try:
         p = {"tiles": 1, "ema": 0.0, "kernel": 5, "padding": "zeros", "gp_every": 1, "lr_decay": 0.0,
              "context": False, **settings["settings"]}  # checkpoints from before these settings
+        _check_sizes(p, settings["exemplar_shape"], tensors)  # before 2**n_layers is computed or a network built
         model = model_class(**p, device=device)
         model.settings_ = model._settings()
-        for name in _INT_SETTINGS:
-            if model.settings_[name] > MAX_INT_SETTING:
-                raise TGHopError(f"setting {name}={model.settings_[name]:,} is over {MAX_INT_SETTING:,}")
         model.exemplar_shape_ = tuple(settings["exemplar_shape"])
         model.exemplar_hash_ = settings["exemplar_hash"]
         model._seed_ = int(settings["seed"])
@@ -199,11 +198,69 @@ def read(path, model_class, *, device: str = "auto"):
     return model
 
 
-#: The most a checkpoint's integer settings may be on load (0.57; 0.56 took n_clusters=10**9): far
-#: above any that trains in memory, so that only a changed or damaged file is refused.
-MAX_INT_SETTING = 2**16
-_INT_SETTINGS = ("n_clusters", "crop_size", "n_layers", "patch", "window", "noise_channels", "batch_size",
-                 "n_critic", "tiles", "kernel", "gp_every")
+def _whole(value) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+
+
+def _check_sizes(p, shape, tensors) -> None:
+    """A one-line :class:`TGHopError` naming the integer setting of a checkpoint's settings ``p`` that its
+    own contents rule out (0.58; 0.57 refused any over 2**16, a guess, and took n_clusters=60,000 for an
+    exemplar of 4,096 pixels). From what each means, for the exemplar ``shape`` (H, W, C) and the stored
+    ``tensors``: ``n_clusters`` k-means colours of its pixels, at most H*W and at least the centres stored;
+    ``crop_size`` x ``tiles`` the training crops cut from it, at most its smaller side; ``n_layers`` cells of
+    2**n_layers pixels within a crop; ``patch`` and ``window`` squares on it, at most 2*max(H, W) + 1 (one
+    that wide covers the whole exemplar from every pixel); ``noise_channels``, ``kernel`` and the widths what
+    the generator's and critic's stored convolutions hold; ``batch_size``, ``n_critic`` and ``gp_every``
+    (training's alone) at most :data:`~tghop.cooc.config.MAX_STEPS`, the most steps a training runs.
+    Values of the wrong type, and an exemplar shape or tensors that are not there, are left to
+    :func:`~tghop.cooc.config.check_settings` and :func:`_check_state`."""
+    if not (isinstance(shape, (list, tuple)) and len(shape) == 3 and all(_whole(v) and v > 0 for v in shape)):
+        return
+    h, w, _ = shape
+    ints = {name: p.get(name) for name in ("n_clusters", "crop_size", "tiles", "n_layers", "patch", "window",
+                                           "noise_channels", "kernel", "batch_size", "n_critic", "gp_every")}
+    if not all(_whole(v) and v > 0 for v in ints.values()):
+        return
+    crop, tiles, layers = ints["crop_size"], ints["tiles"], ints["n_layers"]
+
+    def refuse(name, why):
+        raise TGHopError(f"{name}={ints[name]:,} {why}")
+
+    centres = tensors.get("centres_")
+    k = int(centres.shape[0]) if centres is not None and centres.ndim == 2 else 0
+    if ints["n_clusters"] > h * w:
+        refuse("n_clusters", f"colours, more than the exemplar's {h}x{w} pixels")
+    if ints["n_clusters"] < k:
+        refuse("n_clusters", f"but {k} colour centres are stored")
+    if crop * tiles > min(h, w):
+        raise TGHopError(f"crop_size={crop:,} x tiles={tiles:,}: training crops of {crop * tiles:,} pixels, larger "
+                         f"than the {h}x{w} exemplar they are cut from")
+    if layers > crop.bit_length() - 1:
+        refuse("n_layers", f"makes cells of 2**{layers:,} pixels, larger than crop_size={crop:,}")
+    for name in ("patch", "window"):
+        if ints[name] > 2 * max(h, w) + 1:
+            refuse(name, f"pixels across, more than twice the {h}x{w} exemplar")
+    for name, meaning in (("batch_size", "crops a step"), ("n_critic", "critic steps a generator step"),
+                          ("gp_every", "critic steps between gradient penalties")):
+        if ints[name] > MAX_STEPS:
+            refuse(name, f"{meaning}, more than the {MAX_STEPS:,} steps a training runs at most")
+    first, cond = tensors.get("generator.net.1.weight"), tensors.get("cond_mean_")
+    if first is not None and first.ndim == 4 and k and cond is not None and cond.shape == (k * k,):  # else _check_state
+        if ints["kernel"] != first.shape[-1]:
+            refuse("kernel", f"but the generator's convolutions are {first.shape[-2]}x{first.shape[-1]}")
+        if ints["noise_channels"] != first.shape[1] - k * k:
+            refuse("noise_channels", f"but the generator's first convolution takes {first.shape[1] - k * k} "
+                                     f"noise channels besides the {k * k} of the condition")
+    for name, key in (("g_widths", "generator.net.{}.weight"), ("d_widths", "critic.convs.{}.weight")):
+        widths = p.get(name)
+        if not isinstance(widths, (list, tuple)) or not all(_whole(v) for v in widths):
+            continue
+        for i, width in enumerate(widths):
+            tensor = key.format(4 * i + 1 if name == "g_widths" else i)
+            stored = tensors.get(tensor)
+            if stored is not None and stored.ndim == 4 and width != stored.shape[0]:
+                raise TGHopError(f"{name}={list(widths)} but {tensor} has {stored.shape[0]} output channels, "
+                                 f"not {width}")
 
 
 def _what_is_wrong(exc) -> str:
