@@ -878,6 +878,48 @@ def test_manifest_errors_name_the_file_alike(tmp_path):
             batch.find_work(bad)
 
 
+@pytest.mark.parametrize("case", ["huge cell", "nul in path", "nul in a map", "nested JSON", "unclosed quote",
+                                  "latin-1", "utf-16", "many columns"])
+def test_an_odd_manifest_is_one_line_naming_its_line(tmp_path, case):
+    """0.57: a cell over the csv module's 131,072 characters, a NUL in a path and JSON nested thousands deep were
+    tracebacks; a quote left open ran the batch on a path of several rows; a file not UTF-8 was the codec's
+    words; a header of 100,000 columns was checked for repeats pairwise (minutes)."""
+    bad = tmp_path / ("m.jsonl" if case == "nested JSON" else "m.csv")
+    data = {"huge cell": b"path,name\na.png," + b"x" * 200_000 + b"\n",
+            "nul in path": b"path,size\na.png\x00,32\n",
+            "nul in a map": b"path,maps\na.png,normal=n\x00.png\n",
+            "nested JSON": b"[" * 100_000 + b"]" * 100_000 + b"\n",
+            "unclosed quote": b'path,size\n"a.png,32\nb.png,16\n',
+            "latin-1": "path,name\na.png,café\n".encode("latin-1"),
+            "utf-16": "path,size\r\na.png,32\r\n".encode("utf-16"),
+            "many columns": (b"path," + b",".join(b"c%d" % i for i in range(100_000)) + b"\na.png" + b",1" * 10
+                             + b"\n")}[case]
+    bad.write_bytes(data)
+    words = {"huge cell": f"{bad} line 2: field larger than field limit (131072) (a quote left open?); close the quote",
+             "nul in path": f"{bad} line 2: the path 'a.png\\x00' holds a NUL character, which no file name can",
+             "nul in a map": f"{bad} line 2: the path 'n\\x00.png' holds a NUL character",
+             "nested JSON": f"{bad} line 1: not a JSON object",
+             "unclosed quote": f"{bad} line 3: the path 'a.png,32\\nb.png,16' holds a line break (a quote left open?)",
+             "latin-1": f"{bad}: cannot read the manifest (not UTF-8 text: byte 0xe9 at 19); save it as UTF-8",
+             "utf-16": f"{bad}: cannot read the manifest (UTF-16 text: byte 0xff at 0); save it as UTF-8",
+             "many columns": f"{bad} line 2: unknown column c0, c1, c2, c3, c4 and 5 more; a manifest gives path"
+             }[case]
+    code, _, err, exc = invoke("batch", str(bad), "-o", str(tmp_path / "out"), "--size", "16", cwd=tmp_path)
+    assert_one_line(code, err, words, exception=exc)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_json_string_or_csv_cell_may_hold_what_splitlines_splits_at(tmp_path):
+    """0.57 split the file at U+2028, form feeds and other breaks str.splitlines knows: a JSON line holding one
+    raw (as json.dumps(ensure_ascii=False) writes it) was "not a JSON object"."""
+    good = tmp_path / "m.jsonl"
+    good.write_text('{"path": "a.png", "name": "x\u2028y"}\n', encoding="utf-8")
+    assert [it["given"] for it in batch.find_work(good)] == ["x\u2028y"]
+    good = tmp_path / "m.csv"
+    good.write_text('path,name\na.png,"x\fy"\n', encoding="utf-8")
+    assert [it["given"] for it in batch.find_work(good)] == ["x\fy"]
+
+
 # ------------------------------------------------------------------ the command line
 def test_cli_end_to_end_in_process(tmp_path):
     src = make_folder(tmp_path / "src")

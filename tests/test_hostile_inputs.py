@@ -493,3 +493,51 @@ def test_an_archive_of_too_many_members_is_refused_from_its_end_record(tmp_path,
         one_error_line(result, f"{path}: {what}, not a model file tghop wrote; give a model file tghop wrote, or fit "
                        "the model again")
     assert not list(tmp_path.glob("o.*"))
+
+
+@pytest.mark.parametrize("command", ["synth", "info"])
+def test_an_intact_checkpoint_given_as_a_model_names_cooc_edit_and_morph_with_it(tiny_cooc_checkpoint, tmp_path,
+                                                                                 command):
+    """0.57 said "a co-occurrence cGAN checkpoint is read by tghop.cooc.load and the 'tghop cooc' commands":
+    which command, and how, was left to find."""
+    import shutil
+
+    path = tmp_path / "my model.pt"
+    shutil.copy(tiny_cooc_checkpoint, path)
+    out = tmp_path / "o.png"
+    args = ["synth", str(path), "-o", str(out)] if command == "synth" else ["info", str(path)]
+    one_error_line(CliRunner().invoke(main, args),
+                   f"{path}: a co-occurrence cGAN checkpoint, not a tghop model file; generate from it with 'tghop "
+                   f"cooc edit '{path}' -o OUT.png' (a texture, as synth makes) or 'tghop cooc morph '{path}' A B -o "
+                   "OUT.png' (a morph), in Python with tghop.cooc.load")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("chunk", [b"iCCP", b"zTXt"])
+def test_a_png_whose_metadata_unpacks_too_far_says_so(tmp_path, chunk):
+    """0.57 said "not a readable image (truncated or corrupt: ValueError: Decompressed data too large for
+    PngImagePlugin.MAX_TEXT_CHUNK); give a PNG, JPEG or other common image file" of a PNG."""
+    buf = io.BytesIO()
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(buf, format="PNG")
+    data = buf.getvalue()
+    bomb = png_chunk(chunk, b"name\x00\x00" + zlib.compress(b"\x00" * 3_000_000, 9))
+    path, out = tmp_path / "meta.png", tmp_path / "o.npz"
+    path.write_bytes(data[:33] + bomb + data[33:])  # after IHDR
+    one_error_line(CliRunner().invoke(main, ["fit", str(path), "-o", str(out)]),
+                   f"{path}: its metadata (a colour profile, iCCP, or text, zTXt/iTXt) unpacks to more than Pillow "
+                   "reads (a decompression bomb, or an outsized profile); save the image again without its metadata")
+    assert not out.exists()
+
+
+def test_a_huge_field_value_is_not_sent_back_whole(live_server):
+    """0.57 answered a 900 KB 'builtin' field or a JSON seed of 500,000 digits with an error quoting it whole."""
+    httpx = pytest.importorskip("httpx")
+    big = "9" * 500_000
+    with httpx.Client(base_url=live_server.url, timeout=60) as client:
+        r = client.post("/api/models", files={"builtin": (None, "x" * 900_000)})
+        assert (r.status_code, r.json()["error"]) == (400, f"unknown built-in exemplar '{'x' * 56}...; choose one of "
+                                                           "bricks, cells"), r.text[:300]
+        for key in ("seed", "refine"):
+            r = client.post(f"/api/models/{'0' * 64}/images", json={"size": [16, 16], key: big})
+            assert r.status_code == 422 and len(r.text) < 300, r.text[:300]
+            assert r.json()["error"].endswith(f", got '{'9' * 57}'..."), r.text[:300]

@@ -126,5 +126,6 @@ def builtin(name: str, size: int = 256, *, rng=0) -> np.ndarray:
     ndarray, shape (size, size, 3), float64 in [0, 1]
     """
     if name not in BUILTIN:
-        raise TGHopError(f"unknown built-in exemplar {name!r}; choose one of {', '.join(sorted(BUILTIN))}")
+        shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."  # 0.57: a 900 KB field whole
+        raise TGHopError(f"unknown built-in exemplar {shown}; choose one of {', '.join(sorted(BUILTIN))}")
     return BUILTIN[name](size, rng=rng)

@@ -152,6 +152,10 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         if lacking:
             raise MissingExtraError(f"{path}: {lacking}; install a Pillow that reads it (pip install --upgrade "
                                     "pillow) or convert the file to PNG") from None
+        if isinstance(exc, ValueError) and "MAX_TEXT_" in str(exc):  # 0.57: "not a readable image ... give a PNG"
+            raise InvalidImageError(f"{path}: its metadata (a colour profile, iCCP, or text, zTXt/iTXt) unpacks to "
+                                    "more than Pillow reads (a decompression bomb, or an outsized profile); save the "
+                                    "image again without its metadata") from None
         known = unread_format(path) if isinstance(exc, UnidentifiedImageError) else None
         if known:
             raise InvalidImageError(f"{path}: {known}, a format tghop does not read; convert it to PNG, TIFF "

@@ -11,6 +11,7 @@ Only the standard library is imported here (and, when called, :func:`tghop._comm
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import re
@@ -278,6 +279,7 @@ def parse_maps(value, where, base: Path) -> list:
             raise TGHopError(f"{where}: the map {_shown(name if name is not None else file)} has no path; "
                              "give each map's image file")
         file = file.strip()
+        _check_path_text(file, where)
         name = map_name(file) if name is None else name
         if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
             raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
@@ -315,23 +317,36 @@ def manifest_rows(path: Path):
     """
     try:
         text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:  # 0.57 gave the codec's words alone
+        kind = "UTF-16 text" if exc.object[:2] in (b"\xff\xfe", b"\xfe\xff") else "not UTF-8 text"
+        raise TGHopError(f"{path}: cannot read the manifest ({kind}: byte 0x{exc.object[exc.start]:02x} at "
+                         f"{exc.start:,}); save it as UTF-8 (a spreadsheet's 'CSV UTF-8')") from None
+    except OSError as exc:
         raise TGHopError(f"{path}: cannot read the manifest ({getattr(exc, 'strerror', None) or exc})") from None
-    if path.suffix.lower() in (".jsonl", ".json", ".ndjson"):
-        for number, line in enumerate(text.splitlines(), 1):
+    if path.suffix.lower() in (".jsonl", ".json", ".ndjson"):  # not splitlines: a JSON string may hold U+2028
+        for number, line in enumerate(text.split("\n"), 1):
             if not line.strip():
                 continue
             try:
                 row = json.loads(line)
-            except ValueError:
+            except (ValueError, RecursionError):  # RecursionError: arrays nested thousands deep
                 raise TGHopError(f"{path} line {number}: not a JSON object; write one "
                                  '{"path": ..., "size": ..., ...} per line') from None
             if not isinstance(row, dict):
                 raise TGHopError(f"{path} line {number}: not a JSON object; write one per line")
             yield number, row
         return
-    reader = csv.reader(text.splitlines())
-    header = [f.strip() for f in next(reader, [])]
+    reader = csv.reader(io.StringIO(text, newline=""))  # as the csv module asks: a quoted cell keeps its breaks
+    try:
+        header = [f.strip() for f in next(reader, [])]
+        yield from _csv_rows(path, reader, header)
+    except csv.Error as exc:  # a cell over the csv module's limit (131,072 characters): 0.57 a traceback
+        raise TGHopError(f"{path} line {reader.line_num}: {exc} (a quote left open?); close the quote, or "
+                         "shorten the cell") from None
+
+
+def _csv_rows(path, reader, header):
+    """:func:`manifest_rows`' CSV rows after the ``header`` line, ``reader`` a :func:`csv.reader`."""
     if "path" not in header:
         other = [d for d in (";", "\t", "|") if len(header) == 1 and "path" in header[0].split(d)]
         if other:  # a spreadsheet's export where the decimal comma is taken (one cell: path;size;count)
@@ -339,9 +354,11 @@ def manifest_rows(path: Path):
                              "cells are separated by commas: save it with commas")
         raise TGHopError(f"{path}: a CSV manifest needs a header line with a 'path' column "
                          f"(and optionally name, maps, {', '.join(ROW_SETTINGS)})")
-    twice = [f for i, f in enumerate(header) if f and f in header[:i]]
-    if twice:
-        raise TGHopError(f"{path}: the header names the column {twice[0]!r} twice; keep one")
+    seen = set()  # 0.57 compared each column with all before it: 100,000 columns ran for minutes
+    for column in header:
+        if column and column in seen:
+            raise TGHopError(f"{path}: the header names the column {_shown(column)} twice; keep one")
+        seen.add(column)
     for cells in reader:
         if not cells:  # a blank line
             continue
@@ -354,6 +371,16 @@ def manifest_rows(path: Path):
             raise TGHopError(f"{path} line {number}: {unnamed[0][:40]!r} is in a column the header does not "
                              "name; name the column or remove the cell")
         yield number, {f: c for f, c in zip(header, cells) if f}
+
+
+def _check_path_text(text, where) -> None:
+    """A one-line :class:`~tghop.TGHopError` for a path no file can have (a NUL: 0.57 a traceback) or that holds
+    a line break (CSV: a quote left open took the next rows into it; 0.57 ran the batch and failed the row)."""
+    if "\0" in text:
+        raise TGHopError(f"{where}: the path {_shown(text)} holds a NUL character, which no file name can; remove it")
+    if "\n" in text or "\r" in text:
+        raise TGHopError(f"{where}: the path {_shown(text)} holds a line break (a quote left open?); close the "
+                         "quote, or remove the break")
 
 
 def read_manifest(path: Path):
@@ -384,7 +411,8 @@ def read_manifest(path: Path):
         where = f"{path} line {number}"  # as manifest_rows names it
         unknown = sorted(k for k in row if k not in ("path", "name", "maps") + ROW_SETTINGS)
         if unknown:
-            shown = ", ".join(k if k and k.strip() == k else repr(k) for k in unknown)
+            shown = ", ".join(k if k and k.strip() == k else _shown(k) for k in unknown[:5])
+            shown += f" and {len(unknown) - 5:,} more" if len(unknown) > 5 else ""
             raise TGHopError(f"{where}: unknown column {shown}; a manifest gives path, name, maps, "
                              f"{', '.join(ROW_SETTINGS)}")
         for key, example in (("path", "textures/a.png"), ("name", "bricks")):
@@ -394,6 +422,7 @@ def read_manifest(path: Path):
         source = (row.get("path") or "").strip()
         if not source:
             raise TGHopError(f"{where}: no path")
+        _check_path_text(source, where)
         file = Path(source) if os.path.isabs(source) else path.parent / source
         name = (row.get("name") or "").strip() or None
         maps = row.get("maps")

@@ -33,14 +33,20 @@ MAX_TRANSITION = 512
 _NOT_FIELDS = ("n_channels", "rng")
 
 
+#: A value quoted in a message (a repr) of over 200 characters, which a message does not show whole: its first
+#: 57 kept. Prose between two quoted names is shorter (a message is one line).
+_LONG_QUOTED = re.compile(r"""(?<![\w'"])(['"])([^'"]{57})[^'"]{144,}\1""")
+
+
 class RequestError(Exception):
     """A bad request: answered with ``status``, ``{"error": message}`` (one line) and ``headers``
-    (e.g. a 503's ``Retry-After``)."""
+    (e.g. a 503's ``Retry-After``). A value the message quotes, over 200 characters, is cut to 57 and
+    ``...`` (0.58: a JSON body's 500 KB seed came back whole in the library's "got '999...'")."""
 
     def __init__(self, status: int, message: str, headers: dict | None = None):
         super().__init__(message)
         self.status = status
-        self.message = " ".join(str(message).split())
+        self.message = _LONG_QUOTED.sub(lambda m: f"{m[1]}{m[2]}{m[1]}...", " ".join(str(message).split()))
         self.headers = dict(headers or {})
 
 
