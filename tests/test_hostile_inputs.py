@@ -541,3 +541,38 @@ def test_a_huge_field_value_is_not_sent_back_whole(live_server):
             r = client.post(f"/api/models/{'0' * 64}/images", json={"size": [16, 16], key: big})
             assert r.status_code == 422 and len(r.text) < 300, r.text[:300]
             assert r.json()["error"].endswith(f", got '{'9' * 57}'..."), r.text[:300]
+
+
+def test_a_jpeg_with_damaged_exif_data_is_said_in_tghop_s_words(tmp_path):
+    """0.57 passed Pillow's "Warning: Corrupt EXIF data.  Expecting to read 12 bytes but only got 4." on, naming
+    no file and not saying that the orientation was then not applied."""
+    im = Image.fromarray((np.random.default_rng(0).random((40, 56, 3)) * 255).astype(np.uint8))
+    exif = im.getexif()
+    exif[0x0112] = 6
+    buf = io.BytesIO()
+    im.save(buf, format="JPEG", exif=exif)
+    data = bytearray(buf.getvalue())
+    at = data.find(b"Exif")
+    data[at + 14:at + 30] = np.random.default_rng(3).bytes(16)  # inside the EXIF block (APP1), the rest intact
+    path = tmp_path / "damaged.jpg"
+    path.write_bytes(bytes(data))
+    result = CliRunner().invoke(main, ["fit", str(path), "-o", str(tmp_path / "o.npz"), "-q"])
+    assert "Corrupt EXIF" not in result.output, result.output
+    assert ("Warning: damaged.jpg: its EXIF data is damaged (Expecting to read 12 bytes but only got 4); its "
+            "orientation is not read: the pixels are taken as stored") in result.output, result.output
+
+
+def test_a_12_bit_jpeg_is_named_as_one(tmp_path):
+    """0.57: "a JPEG file, but its header is corrupt or of a kind tghop does not read" of a 12-bit JPEG (a
+    medical or scientific camera's), which Pillow does not read."""
+    buf = io.BytesIO()
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(buf, format="JPEG")
+    data = bytearray(buf.getvalue())
+    frame = data.find(b"\xff\xc0")
+    data[frame + 1], data[frame + 4] = 0xC1, 12  # extended sequential, 12-bit samples (the header of one)
+    path, out = tmp_path / "deep.jpg", tmp_path / "o.npz"
+    path.write_bytes(bytes(data))
+    one_error_line(CliRunner().invoke(main, ["fit", str(path), "-o", str(out)]),
+                   f"{path}: not a readable image (a 12-bit JPEG, which Pillow does not read, only 8-bit ones: convert "
+                   "it to a 16-bit PNG or TIFF)")
+    assert not out.exists()

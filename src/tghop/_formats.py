@@ -226,10 +226,33 @@ def why_unreadable(path, exc) -> str:
         return "the file is empty"
     if head.startswith(b"\x93NUMPY"):
         return "a NumPy array file (.npy), not an image"
+    bits = _jpeg_bits(path) if head.startswith(b"\xff\xd8\xff") else None
+    if bits not in (None, 8):  # 0.57: "a JPEG file, but its header is corrupt or of a kind tghop does not read"
+        return f"a {bits}-bit JPEG, which Pillow does not read, only 8-bit ones: convert it to a 16-bit PNG or TIFF"
     for matches, name, corrupt, _ in _READ_HEADS:  # 0.56: "not an image format tghop reads" of a PNG of width 0
         if corrupt and matches(head):
             return f"a {name} file, but its header is corrupt or of a kind tghop does not read"
     return "not an image format tghop reads"
+
+
+def _jpeg_bits(path):
+    """The sample precision (bits) a JPEG file's frame header (SOF) declares, from its first 256 KiB; None where
+    none is found there (the markers walked by their lengths)."""
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(256 * 1024)
+    except OSError:
+        return None
+    at = 2
+    while at + 5 <= len(data) and data[at] == 0xFF:
+        marker = data[at + 1]
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):  # a start of frame
+            return data[at + 4]
+        if marker == 0xFF:  # fill byte
+            at += 1
+            continue
+        at += 2 + int.from_bytes(data[at + 2:at + 4], "big")
+    return None
 
 
 def _file_head(path):
