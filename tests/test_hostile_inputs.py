@@ -513,12 +513,16 @@ def test_an_intact_checkpoint_given_as_a_model_names_cooc_edit_and_morph_with_it
     assert not out.exists()
 
 
-@pytest.mark.parametrize("chunk", [b"iCCP", b"zTXt"])
+@pytest.mark.parametrize("chunk", [b"iCCP", b"zTXt", b"iCCP 16-bit"])
 def test_a_png_whose_metadata_unpacks_too_far_says_so(tmp_path, chunk):
     """0.57 said "not a readable image (truncated or corrupt: ValueError: Decompressed data too large for
-    PngImagePlugin.MAX_TEXT_CHUNK); give a PNG, JPEG or other common image file" of a PNG."""
+    PngImagePlugin.MAX_TEXT_CHUNK); give a PNG, JPEG or other common image file" of a PNG, and read a 16-bit one
+    (tghop's own decoder) with its profile dropped without a word."""
     buf = io.BytesIO()
-    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(buf, format="PNG")
+    deep = chunk.endswith(b"16-bit")
+    chunk = chunk[:4]
+    pixels = np.zeros((16, 16), np.uint16) if deep else np.zeros((16, 16, 3), np.uint8)
+    Image.fromarray(pixels).save(buf, format="PNG")
     data = buf.getvalue()
     bomb = png_chunk(chunk, b"name\x00\x00" + zlib.compress(b"\x00" * 3_000_000, 9))
     path, out = tmp_path / "meta.png", tmp_path / "o.npz"

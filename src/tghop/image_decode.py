@@ -19,7 +19,7 @@ from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
 
 __all__ = ["open_image", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
-           "transparency_note"]
+           "transparency_note", "metadata_too_large"]
 
 
 #: Pillow's modes with an alpha channel ("P+transparency": a palette with a transparent entry, as
@@ -438,8 +438,20 @@ def file_header(path):
     try:
         with open_image(path) as im:
             return _exif_orientation(im), im.info.get("icc_profile"), png_gamma(im.info)
+    except ValueError as exc:
+        if "MAX_TEXT_" in str(exc):  # a 16-bit PNG's: refused as an 8-bit one is (0.57 read it, its profile dropped)
+            raise metadata_too_large(path) from None
+        return _tiff_orientation(path), tiff_profile(path), None
     except Exception:  # noqa: BLE001 - not Pillow's (a float colour TIFF): its own tags, read by tifffile
         return _tiff_orientation(path), tiff_profile(path), None
+
+
+def metadata_too_large(path):
+    """The error for an image whose metadata Pillow refuses to unpack (a PNG's colour profile or compressed text
+    over its ``PngImagePlugin.MAX_TEXT_CHUNK``, raised as a ValueError naming it)."""
+    return InvalidImageError(f"{path}: its metadata (a colour profile, iCCP, or text, zTXt/iTXt) unpacks to more "
+                             "than Pillow reads (a decompression bomb, or an outsized profile); save the image again "
+                             "without its metadata")
 
 
 def _tiff_orientation(path) -> int:

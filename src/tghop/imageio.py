@@ -25,8 +25,8 @@ from ._errors import MissingExtraError, OpaqueAlphaWarning, TransparencyWarning,
 from ._formats import (DEPTHS, check_tifffile, checkpoint_note, extensions, missing_decoder, unread_format,
                        why_unreadable)
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
-from .image_decode import (decode_pillow, file_header, has_alpha, open_image, read_deep, transparency_note,
-                           transparent_share, upright)
+from .image_decode import (decode_pillow, file_header, has_alpha, metadata_too_large, open_image, read_deep,
+                           transparency_note, transparent_share, upright)
 from .output_files import check_output_path, write_atomic, written_file
 from .png import WRITING, write_png
 from .profiles import deep_to_srgb, gamma_to_srgb
@@ -153,9 +153,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
             raise MissingExtraError(f"{path}: {lacking}; install a Pillow that reads it (pip install --upgrade "
                                     "pillow) or convert the file to PNG") from None
         if isinstance(exc, ValueError) and "MAX_TEXT_" in str(exc):  # 0.57: "not a readable image ... give a PNG"
-            raise InvalidImageError(f"{path}: its metadata (a colour profile, iCCP, or text, zTXt/iTXt) unpacks to "
-                                    "more than Pillow reads (a decompression bomb, or an outsized profile); save the "
-                                    "image again without its metadata") from None
+            raise metadata_too_large(path) from None
         known = unread_format(path) if isinstance(exc, UnidentifiedImageError) else None
         if known:
             raise InvalidImageError(f"{path}: {known}, a format tghop does not read; convert it to PNG, TIFF "
