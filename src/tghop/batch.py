@@ -37,9 +37,9 @@ from pathlib import Path
 
 from . import __version__
 from ._errors import MissingExtraError, TGHopError
-from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE, affinity_cores,
-                         connect, ctrl_c_deferred, ctrl_c_ignored, dask_setup, import_distributed, local_cluster,
-                         run_distributed, tune_malloc)
+from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE,
+                         SchedulerLostError, affinity_cores, connect, ctrl_c_deferred, ctrl_c_ignored, dask_setup,
+                         import_distributed, local_cluster, run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_orphans,
                          find_work, input_digest, inputs_sha256, is_done, is_known_failure, keep_ledger_names,
                          mark_running, open_ledger, prune_orphans, read_hashes, read_ledger, read_ledger_files,
@@ -51,7 +51,7 @@ from .manifest import parse_bool, parse_int, parse_size
 __all__ = ["run", "find_work", "check_options", "process_exemplar", "read_ledger", "write_contact_sheet",
            "inputs_sha256", "local_cluster", "IMAGE_SUFFIXES", "LEDGER", "CONTACT_SHEET", "INSTALL_HINT",
            "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "NAME_MAX", "RUNNING", "tune_malloc",
-           "dask_setup"]
+           "dask_setup", "SchedulerLostError"]
 
 
 def _settings(item_settings, defaults, fit, generate):
@@ -216,6 +216,16 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         One record per exemplar, in the order of ``source``: the ledger's fields (``name``, ``source``,
         ``sha256``, ``settings``, ``status``, ``error``, ``cause``, ``outputs``, ``model``, ``version``,
         times, ...) and ``skipped`` (True: an earlier run's record, done or a known failure).
+
+    Raises
+    ------
+    SchedulerLostError
+        The Dask scheduler went away mid-run (0.58: a :class:`~tghop.TGHopError` of its own class, so that a
+        caller can tell "run it again" from a refusal; ``tghop batch`` exits with status 3 for it).
+    TGHopError
+        Bad arguments or settings, an OUTDIR that cannot be used, a scheduler that cannot be reached, a Dask
+        worker without this tghop (also one that joins mid-run, 0.58). A bad exemplar is a failed record, not
+        an exception.
 
     Notes
     -----

@@ -23,7 +23,7 @@ from .batch_task import one_line
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
            "local_cluster",
            "worker_environ", "environ_kept", "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc",
-           "affinity_cores", "connect", "check_workers_tghop", "run_distributed"]
+           "affinity_cores", "connect", "check_workers_tghop", "run_distributed", "SchedulerLostError"]
 
 
 #: What to install for running on Dask.
@@ -53,6 +53,15 @@ WORKERS_PER_CORE = 4
 #: on 2 cores about 5 % of the machine taken from the tasks (docs/batch.md, "Dask's own periodic work").
 QUIET_CLUSTER = {"distributed.worker.profile.enabled": False, "distributed.admin.tick.interval": "1s",
                  "distributed.admin.system-monitor.interval": "5s"}
+
+
+class SchedulerLostError(TGHopError):
+    """The Dask scheduler went away in the middle of a batch (stopped, its machine lost): the exemplars
+    finished are in the ledger, and running the same batch again, once the scheduler and its workers are
+    back, does the rest. Its own class so that a caller can tell "run it again" from a failure of the
+    exemplars (``tghop batch`` exits with status 3 for it, 0.58; 0.57 exited 1, as for failed exemplars)."""
+
+
 _MALLOPT = {"M_TRIM_THRESHOLD": -1, "M_MMAP_MAX": -4}  # glibc's malloc.h
 #: Each WORKER_MALLOC setting's environment variable, and the value Dask puts there (None: none).
 _MALLOC_ENV = {"M_MMAP_MAX": ("MALLOC_MMAP_MAX_", None), "M_TRIM_THRESHOLD": ("MALLOC_TRIM_THRESHOLD_", "65536")}
@@ -330,8 +339,8 @@ def _workers_gone(gone, names, local) -> str:
             f"(distributed.scheduler.allowed-failures); the run goes on with the others ({restart})")
 
 
-def _lost_scheduler(client, exc, *, dask_call) -> TGHopError | None:
-    """The one-line :class:`~tghop.TGHopError` to raise where ``client`` lost its scheduler (it
+def _lost_scheduler(client, exc, *, dask_call) -> SchedulerLostError | None:
+    """The one-line :class:`SchedulerLostError` to raise where ``client`` lost its scheduler (it
     stopped, or its machine went away, mid-run), else None. Dask's client tries to reconnect for
     its timeout, then closes itself; meanwhile its calls raise ``OSError`` (a comm closed, "Timed
     out trying to connect to tcp://..."), which the command said as "cannot write the output:
@@ -343,7 +352,7 @@ def _lost_scheduler(client, exc, *, dask_call) -> TGHopError | None:
     address = getattr(client.scheduler, "address", None) or "its address"
     # a future's reason names its key (the exemplar's name, SHA-256 and a time): long, and said better below
     why = one_line(exc) if isinstance(exc, OSError) else "the connection closed and was not regained"
-    return TGHopError(f"lost the Dask scheduler at {address} in the middle of the run ({why}); the "
+    return SchedulerLostError(f"lost the Dask scheduler at {address} in the middle of the run ({why}); the "
                       "exemplars finished are in the ledger, those under way are done again by the next run: "
                       "start the scheduler and its workers again and run the same command")
 

@@ -16,6 +16,9 @@ from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generati
 
 __all__ = ["batch"]
 
+#: The exit status of a run whose Dask scheduler went away mid-run (0.58; 0.57: 1, as for failed exemplars):
+#: nothing to fix in the exemplars, run the same command again once the scheduler is back.
+SCHEDULER_LOST = 3
 #: How to try the known failures again, said wherever they are skipped.
 RETRY_HINT = "--retry-failed tries them again"
 #: The summary's failures (and warnings) alike: up to APART a line each, more on one line naming SHOWN of the
@@ -126,7 +129,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     rerun skips exemplars already done with the same input (maps too) and settings, and
     those whose input failed (not an image, flat, too small) unless it changed or
     --retry-failed is given. Exit status 1 when any exemplar failed, now or before (the
-    ledger and the summary say why).
+    ledger and the summary say why); 3 when the Dask scheduler (--scheduler) went away
+    mid-run: run the same command again once it is back.
     """
     from .. import batch as library
 
@@ -155,6 +159,9 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
                                   progress=progress, on_result=progress.result, prune=prune,
                                   on_orphans=orphans.extend, retry_failed=retry_failed, max_depth=max_depth,
                                   on_plan=progress.plan)
+        except library.SchedulerLostError as exc:  # its own status: "run it again", not "look at the failures"
+            progress.close()
+            fail(str(exc), SCHEDULER_LOST)
         except KeyboardInterrupt as exc:
             progress.close()
             message, code = stop_message(exc)
