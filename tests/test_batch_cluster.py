@@ -182,12 +182,12 @@ def test_workers_without_tghop_or_with_another_are_refused_before_any_work(tmp_p
 
 
 def quick_task(job):
-    """A task that ends at once, but the first of a run's, which records its process's id and waits
-    for it to be killed (the test kills that worker)."""
+    """A task that ends at once, but the first of a run's, which records its process's id and its exemplar
+    and waits for it to be killed (the test kills that worker)."""
     first = Path(job["folder"]).parent / ".first"
     try:
         with open(first, "x") as f:
-            f.write(str(os.getpid()))
+            f.write(f"{os.getpid()} {job['name']}")
     except FileExistsError:
         return {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [], "model": None,
                 "thumbnail": None}
@@ -205,13 +205,19 @@ def test_a_worker_killed_mid_run_is_said_and_the_run_ends_on_the_other(tmp_path,
         while time.time() < deadline and not (out / ".first").is_file():
             time.sleep(0.1)
         time.sleep(0.5)
-        (p,) = [p for p in workers if p.pid == int((out / ".first").read_text())]
+        (p,) = [p for p in workers if p.pid == int((out / ".first").read_text().split()[0])]
         p.kill()
 
     killer = threading.Thread(target=kill_the_first, daemon=True)
     killer.start()
+    # 0.58 names the exemplar it was running (the scheduler's event of the worker's removal); 0.57 said "an
+    # exemplar under way on it runs again ..."
     with pytest.warns(UserWarning, match=r"^a Dask worker left the cluster mid-run \(w[12] \(tcp://127\.0\.0\.1:\d+\): "
-                                         r"killed, out of memory or stopped\); an exemplar under way on it runs again"):
+                                         r"killed, out of memory or stopped\); the exemplar it was running, (e\d), "
+                                         r"runs again on another worker") as caught:
         results = batch.run(src, out, size=(48, 48), seed=1, scheduler=cluster.address, task=quick_task)
     killer.join()
+    named = (out / ".first").read_text().split()[1]
+    assert [str(w.message).split("running, ")[1].split(",")[0] for w in caught if "left the" in str(w.message)] == \
+        [named]
     assert [r["error"] for r in results] == ["a stand-in"] * 3  # none lost: the killed one's ran again

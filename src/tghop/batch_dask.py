@@ -328,15 +328,44 @@ def _mismatch_line(client, scheduler) -> str:
             "everywhere (Dask's VersionMismatchWarning)")
 
 
-def _workers_gone(gone, names, local) -> str:
-    """The warning of Dask workers that left the cluster mid-run."""
+def _workers_gone(gone, names, local, running=None) -> str:
+    """The warning of Dask workers that left the cluster mid-run (``gone``: their addresses; ``names``:
+    address -> the worker's name); ``running``: address -> the names of this run's exemplars it was running
+    (:func:`_running_on`), an address missing where the scheduler did not say."""
+    running = running or {}
+    one = len(gone) == 1
     named = ", ".join(str(names[a]) if str(names[a]) == a else f"{names[a]} ({a})" for a in gone[:5])
-    what = "a Dask worker" if len(gone) == 1 else f"{len(gone)} Dask workers"
+    what = "a Dask worker" if one else f"{len(gone)} Dask workers"
     restart = "its nanny starts another" if local else "start another if it was not restarted"
+    tries = "up to the scheduler's tries (distributed.scheduler.allowed-failures)"
+    if all(a in running for a in gone):
+        lost = sorted(n for a in gone for n in running[a])
+        shown = ", ".join(lost[:5]) + (" ..." if len(lost) > 5 else "")
+        under_way = f"{'it was' if one else 'they were'} running none of this run's exemplars" if not lost else \
+            f"the exemplar {'it was' if one else 'they were'} running, {shown}, runs again on another worker, {tries}" \
+            if len(lost) == 1 else \
+            f"the exemplars {'it was' if one else 'they were'} running, {shown}, run again on other workers, {tries}"
+    else:  # 0.57 said this always: it named no exemplar
+        under_way = f"an exemplar under way on {'it' if one else 'them'} runs again on another worker, {tries}"
     return (f"{what} left the cluster mid-run ({named}{' ...' if len(gone) > 5 else ''}: killed, out of memory or "
-            f"stopped); an exemplar under way on {'it' if len(gone) == 1 else 'them'} runs again on another worker, "
-            "up to the scheduler's tries "
-            f"(distributed.scheduler.allowed-failures); the run goes on with the others ({restart})")
+            f"stopped); {under_way}; the run goes on with the others ({restart})")
+
+
+def _running_on(client, gone, by_key) -> dict:
+    """The names of this run's exemplars (``by_key``: a task's key -> its job) that each worker of ``gone``
+    (addresses) was running when it left: the keys the scheduler's event of its removal lists
+    (``Client.get_events(address)``, the action "remove-worker", its "processing-tasks"). An address of which
+    the scheduler has no such event (its event log trimmed, a scheduler without them) is left out."""
+    found = {}
+    for address in gone:
+        try:
+            events = client.get_events(address)
+        except Exception:  # noqa: BLE001 - the warning is said without the exemplars
+            continue
+        removed = [msg for _, msg in events if isinstance(msg, dict) and msg.get("action") == "remove-worker"]
+        if removed:
+            found[address] = sorted(by_key[k]["name"] for k in removed[-1].get("processing-tasks") or () if k in by_key)
+    return found
 
 
 def _lost_scheduler(client, exc, *, dask_call) -> SchedulerLostError | None:
@@ -388,7 +417,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             slots = max(1, sum(nthreads.values()))  # again each time: a cluster may grow
             gone = [a for a in seen if a not in nthreads]
             if gone:  # a worker killed (the run went on without a word) or stopped
-                warnings.warn(_workers_gone(gone, seen, own_cluster is not None), stacklevel=2)
+                warnings.warn(_workers_gone(gone, seen, own_cluster is not None, _running_on(client, gone, by_key)),
+                              stacklevel=2)
             if not seen or gone or set(nthreads) - set(seen):
                 info = client.scheduler_info().get("workers", {})
                 seen.clear()
