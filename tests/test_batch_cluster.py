@@ -221,3 +221,93 @@ def test_a_worker_killed_mid_run_is_said_and_the_run_ends_on_the_other(tmp_path,
     assert [str(w.message).split("running, ")[1].split(",")[0] for w in caught if "left the" in str(w.message)] == \
         [named]
     assert [r["error"] for r in results] == ["a stand-in"] * 3  # none lost: the killed one's ran again
+
+
+def waiting_task(job):
+    """A task that waits for the file ``.go`` beside the exemplars' folders (the test makes it), then ends."""
+    go = Path(job["folder"]).parent / ".go"
+    deadline = time.time() + 60
+    while time.time() < deadline and not go.exists():
+        time.sleep(0.1)
+    return {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [], "model": None, "thumbnail": None}
+
+
+def test_a_worker_without_tghop_that_joins_mid_run_stops_it_with_one_line(tmp_path, cluster):
+    # Workers were checked once, before any work (0.57): one without tghop that joined later was handed
+    # exemplars, which failed on it. 0.58 checks each worker that joins as the next exemplar is handed out.
+    from test_cli_failures import assert_one_line, invoke
+
+    cluster.worker("w1")
+    src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
+    none = _fake_tghop(tmp_path / "none", "raise ModuleNotFoundError(\"No module named 'tghop'\", name='tghop')")
+
+    def join_late():
+        deadline = time.time() + 120
+        while time.time() < deadline and not list(out.glob("*/.batch-running")):
+            time.sleep(0.1)
+        cluster.worker("w2", {"PYTHONPATH": none})
+        (out / ".go").touch()
+
+    joiner = threading.Thread(target=join_late, daemon=True)
+    joiner.start()
+    code = ("import sys, tghop.__main__, tghop.batch, test_batch_cluster; "
+            "tghop.batch.process_exemplar = test_batch_cluster.waiting_task; "
+            "sys.argv = ['tghop', *sys.argv[1:]]; tghop.__main__.run()")
+    p = _start(["-c", code, "batch", "src", "-o", "out", "--scheduler", cluster.address, "--size", "48", "--seed",
+                "1", "-q"], cwd=tmp_path)
+    _, err = p.communicate(timeout=180)
+    joiner.join()
+    assert p.returncode == 1, err
+    assert err.startswith("Error: 1 Dask worker that joined the cluster mid-run cannot import tghop (w2 (tcp://") and \
+        "No module named 'tghop'): install tghop " in err and err.endswith("the next run does the rest\n") and \
+        err.count("\n") == 1, err
+    lines = ledger(out)
+    # the exemplar that ran on w1 before w2 joined is kept; none ran on w2; none failed for its input
+    assert [line["error"] for line in lines] == ["a stand-in"], lines
+    assert not list(out.glob("*/.batch-running"))
+
+
+def test_a_task_moved_to_a_worker_of_another_tghop_that_joined_mid_run_stops_the_run(tmp_path, cluster):
+    # The worker that ran an exemplar was killed, and the scheduler moved its task to a worker that had
+    # joined since with another tghop, before any hand-out saw it: 0.57 made the exemplar there under this
+    # version's ledger line. 0.58's task checks its worker's version (tghop.batch_task.run_checked). (A
+    # worker whose tghop lacks run_checked, 0.57 and earlier, or that has none, cannot load the task and
+    # closes itself when it gets one: Dask's doing; the task goes to another worker.)
+    import shutil
+
+    import tghop
+
+    first = cluster.worker("w1")
+    src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
+    other = tmp_path / "other"
+    shutil.copytree(Path(tghop.__file__).parent, other / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
+    init = other / "tghop" / "__init__.py"
+    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', '__version__ = "0.1.0"'))
+    assert '__version__ = "0.1.0"' in init.read_text()
+
+    def join_late_and_kill_the_first():
+        deadline = time.time() + 120
+        while time.time() < deadline and not list(out.glob("*/.batch-running")):
+            time.sleep(0.1)
+        cluster.worker("w2", {"PYTHONPATH": os.pathsep.join([str(other), str(Path(__file__).parent)])})
+        first.kill()
+
+    joiner = threading.Thread(target=join_late_and_kill_the_first, daemon=True)
+    joiner.start()
+    with pytest.raises(TGHopError, match=r"^1 Dask worker that joined the cluster mid-run runs another tghop than "
+                                         r"this command's [^ ]+ \(w2 \(tcp://127\.0\.0\.1:\d+\): 0\.1\.0\): install "
+                                         r".*the next run does the rest$"):
+        batch.run(src, out, size=(48, 48), seed=1, scheduler=cluster.address, task=waiting_task)
+    joiner.join()
+    lines = ledger(out)
+    assert [line["status"] for line in lines] == ["interrupted"], lines  # done again by the next run
+
+
+def test_a_task_on_a_worker_of_another_tghop_fails_in_one_line(monkeypatch):
+    # What run_checked does where such a worker could load it (a tghop of 0.58 or later, of another version).
+    from tghop import batch_task
+
+    with pytest.raises(TGHopError, match=r"^the Dask worker [^ ]+:\d+ runs tghop [^ ]+, not this batch's 0\.1\.0: "
+                                         r"install tghop 0\.1\.0 on every worker and restart it$"):
+        batch_task.run_checked(waiting_task, {"folder": "/nonexistent/x"}, "0.1.0")
+    assert batch_task.run_checked(len, [1, 2], batch.__version__) == 2

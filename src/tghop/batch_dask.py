@@ -18,7 +18,7 @@ import time
 import warnings
 
 from ._errors import MissingExtraError, TGHopError
-from .batch_task import one_line
+from .batch_task import one_line, run_checked
 
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
            "local_cluster",
@@ -276,15 +276,16 @@ def connect(scheduler):
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
 
 
-def check_workers_tghop(client) -> None:
+def check_workers_tghop(client, workers=None) -> None:
     """A one-line :class:`~tghop.TGHopError` where a worker of ``client``'s cluster has no tghop or
     another version than this process's: every task of such a worker failed ("No module named
-    'tghop'"), or made its exemplar with another tghop under this version's ledger line. (Workers that
-    join later are not checked.)"""
+    'tghop'"), or made its exemplar with another tghop under this version's ledger line. ``workers``:
+    the addresses of workers that joined the cluster mid-run (0.58), the only ones checked; the error
+    says so, and that the run stopped (:func:`run_distributed`)."""
     from . import __version__
 
     # eval, not a function of tghop's: it is pickled by reference, so a worker without tghop could not load it
-    found = client.run(eval, "__import__('tghop').__version__", on_error="return")
+    found = client.run(eval, "__import__('tghop').__version__", on_error="return", workers=workers)
     if not found:
         return
     info = client.scheduler_info().get("workers", {})
@@ -292,15 +293,19 @@ def check_workers_tghop(client) -> None:
     missing = sorted(named[a] for a, v in found.items() if not isinstance(v, str))
     other = sorted(f"{named[a]}: {v}" for a, v in found.items() if isinstance(v, str) and v != __version__)
     install = f"install tghop {__version__} on every worker (pip install 'tghop[batch]=={__version__}') and restart it"
-    of = f"of the Dask cluster's {len(found)} worker{'s' if len(found) != 1 else ''}"
+    if workers is None:
+        of, stopped = f"of the Dask cluster's {len(found)} worker{'s' if len(found) != 1 else ''}", ""
+    else:
+        of = f"Dask worker{'s' if len(found) != 1 else ''} that joined the cluster mid-run"
+        stopped = "; the run stopped: the exemplars finished are in the ledger, the next run does the rest"
     if missing:
         raise TGHopError(f"{len(missing)} {of} cannot import tghop "
                          f"({', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''}; "
-                         f"{one_line(next(v for v in found.values() if not isinstance(v, str)))}): {install}")
+                         f"{one_line(next(v for v in found.values() if not isinstance(v, str)))}): {install}{stopped}")
     if other:
         raise TGHopError(f"{len(other)} {of} {'runs' if len(other) == 1 else 'run'} another tghop than this "
                          f"command's {__version__} ({', '.join(other[:5])}{' ...' if len(other) > 5 else ''}): "
-                         f"{install} (an exemplar's images and its ledger line are one version's)")
+                         f"{install} (an exemplar's images and its ledger line are one version's){stopped}")
 
 
 def _mismatch_line(client, scheduler) -> str:
@@ -390,7 +395,12 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
     goes to ``begin`` before it is handed out; ``finish`` takes its result."""
+    from . import __version__
+
     distributed = import_distributed()
+    # a --scheduler cluster (connected here by run): its workers were checked before any work (connect), those
+    # that join mid-run are checked as they are seen (a given client's were not checked: they are the caller's)
+    check_joined = client is not None and own_client is client
     own_cluster = None
     futures = []
     own_files = [False]  # True while begin or finish writes this run's own files (their OSError is theirs)
@@ -411,6 +421,7 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         by_key, running = {}, distributed.as_completed(loop=client.loop)
 
         seen = {}  # the workers at the last hand-out: address -> name
+        known = set(client.nthreads()) if check_joined else set()  # every worker checked (connect did these)
 
         def hand_out():
             nthreads = client.nthreads()
@@ -419,6 +430,10 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             if gone:  # a worker killed (the run went on without a word) or stopped
                 warnings.warn(_workers_gone(gone, seen, own_cluster is not None, _running_on(client, gone, by_key)),
                               stacklevel=2)
+            joined = [a for a in nthreads if a not in known]
+            if joined and check_joined:
+                check_workers_tghop(client, joined)
+            known.update(joined)
             if not seen or gone or set(nthreads) - set(seen):
                 info = client.scheduler_info().get("workers", {})
                 seen.clear()
@@ -431,7 +446,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 own_files[0] = True
                 begin(job)
                 own_files[0] = False
-                fut = client.submit(task, job, key=key, pure=False)
+                # run_checked: a worker that joins later, past the check above, may have another tghop or none
+                fut = client.submit(run_checked, task, job, __version__, key=key, pure=False)
                 by_key[fut.key] = job
                 futures.append(fut)
                 running.add(fut)
@@ -446,9 +462,17 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 lost = _lost_scheduler(client, exc, dask_call=False)  # no failure of this exemplar's
                 if lost is not None:
                     raise lost from exc
+                if check_joined and exc.__class__.__name__ != "KilledWorker":
+                    # its worker may have joined since and lack this tghop (run_checked raised, or the task could
+                    # not be loaded there): the run stops with one line, as the check before any work refuses it
+                    check_workers_tghop(client, list(client.nthreads()))
                 record = _died_record(job, exc, retries if own_cluster is not None else None)
             fut.release()
-            hand_out()  # before the ledger line: the freed worker starts at once
+            try:
+                hand_out()  # before the ledger line: the freed worker starts at once
+            except TGHopError:  # a worker that joined without this tghop (check_workers_tghop): the run stops
+                finish(job, record)  # after this exemplar's line: it was made by this tghop
+                raise
             own_files[0] = True
             finish(job, record)
             own_files[0] = False

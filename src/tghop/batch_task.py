@@ -19,8 +19,8 @@ from pathlib import Path
 from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, collect_warnings, warn
 from ._formats import is_model_file, model_file_kind
 
-__all__ = ["process_exemplar", "remove_temporaries", "one_line", "outside_the_files", "task_threads", "STAGE",
-           "THUMBNAIL", "THUMBNAIL_FILE"]
+__all__ = ["process_exemplar", "run_checked", "remove_temporaries", "one_line", "outside_the_files", "task_threads",
+           "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
@@ -285,6 +285,24 @@ def process_exemplar(job: dict) -> dict:
     record["threads"] = job.get("threads")
     record["peak_rss_mb"] = _peak_rss_mb(resource)
     return record
+
+
+def run_checked(task, job: dict, version: str):
+    """``task(job)``, run on a Dask worker only where its tghop is ``version`` (the batch's: the calling
+    process's), else a one-line :class:`~tghop.TGHopError` naming the worker (0.58). What :func:`tghop.batch.run`
+    hands to Dask: a worker that joined the cluster after the check of its workers
+    (:func:`tghop.batch_dask.check_workers_tghop`) may have another tghop, which made its exemplar under this
+    version's ledger line, or none. It cannot run this either (a tghop without it, 0.57 and earlier, or
+    none: the task cannot be loaded there), so such a worker's task fails, and the run stops with one line
+    naming the worker (:func:`tghop.batch_dask.run_distributed`)."""
+    from . import __version__
+
+    if __version__ != version:
+        import socket
+
+        raise TGHopError(f"the Dask worker {socket.gethostname()}:{os.getpid()} runs tghop {__version__}, not this "
+                         f"batch's {version}: install tghop {version} on every worker and restart it")
+    return task(job)
 
 
 def _peak_rss_mb(resource) -> float:
