@@ -1248,6 +1248,24 @@ def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
         assert p.returncode == 0, err
 
 
+def test_a_local_clusters_workers_print_no_tifffile_log_lines(tmp_path):
+    # The command keeps tifffile's log of a malformed TIFF (incorrect StripOffsets count) off the terminal in
+    # its own process (tghop.cli.common.quiet_tifffile, 0.57), but a local cluster's workers read the
+    # exemplars, and with no logging set up there Python's last resort printed each line (0.57). 0.58: the
+    # command has each worker it starts do the same (run's worker_setup); the library sets no logging.
+    pytest.importorskip("distributed")
+    from test_hostile_inputs import tiff_declaring
+
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "bad.tif").write_bytes(tiff_declaring(tmp_path, 100))  # 1 pixel, its tags say 100x100
+    p = _run_cli(["batch", "src", "-o", "out", "--size", "48", "--seed", "1", "--workers", "2", "-q"], tmp_path)
+    _, err = p.communicate(timeout=300)
+    err = err.decode()
+    assert p.returncode == 1 and "failed: bad: " in err, err
+    assert "tifffile" not in err and "StripOffsets" not in err, err
+
+
 # ------------------------------------------------------------------ on Dask
 def _local_cluster():
     """(LocalCluster of 2 worker processes, its Client), closed by the generator's end."""

@@ -138,7 +138,8 @@ def _check_call(outdir, fit, generate, workers, callables) -> None:
 
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
         workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
-        task=None, prune=False, on_orphans=None, retry_failed=False, max_depth=None, on_plan=None):
+        task=None, prune=False, on_orphans=None, retry_failed=False, max_depth=None, on_plan=None,
+        worker_setup=None):
     """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
 
     Parameters
@@ -209,6 +210,13 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         Called once before any work with a dict: ``exemplars`` (all of ``source``), ``done_before``
         (skipped: done by an earlier run), ``failed_before`` (skipped: failed before, input unchanged)
         and ``to_do`` (what this run makes; ``progress``'s total).
+    worker_setup : callable(), optional
+        Run in each worker process of the local cluster this function starts, before its first task,
+        and in one started after a worker's death (``Client.register_worker_callbacks``; 0.58): a
+        program's own choices for its workers, such as logging (``tghop batch`` keeps tifffile's log
+        lines of a malformed TIFF off the terminal there, :func:`tghop.cli.common.quiet_tifffile`, as in
+        its own process). Dask must be able to pickle it (a module's top-level function). Ignored in
+        this process (``workers=1``) and with ``client`` or ``scheduler``: their processes are the caller's.
 
     Returns
     -------
@@ -243,7 +251,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     threads ended), e.g. ``threadpoolctl.threadpool_limits(limits=2, user_api="blas")``.
     """
     _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task,
-                                                  "on_orphans": on_orphans, "on_plan": on_plan})
+                                                  "on_orphans": on_orphans, "on_plan": on_plan,
+                                                  "worker_setup": worker_setup})
     most = WORKERS_PER_CORE * affinity_cores()
     if client is None and scheduler is None and workers is not None and workers > most:
         raise TGHopError(f"the worker processes (workers, --workers): {workers} on this machine's "
@@ -362,7 +371,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             counts["running"] = 0
         elif jobs:
             run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
-                             retries=retries, begin=begin)
+                             retries=retries, begin=begin, worker_setup=worker_setup)
     finally:
         if ledger_file is not None:
             # A second Ctrl-C must not leave a started exemplar without its line; a full disk must not

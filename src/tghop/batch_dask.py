@@ -391,10 +391,12 @@ def _lost_scheduler(client, exc, *, dask_call) -> SchedulerLostError | None:
                       "start the scheduler and its workers again and run the same command")
 
 
-def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin):
+def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
-    goes to ``begin`` before it is handed out; ``finish`` takes its result."""
+    goes to ``begin`` before it is handed out; ``finish`` takes its result. ``worker_setup``: run
+    in each worker of the cluster started here before its first task (and in one that replaces a
+    dead one), none of another cluster's."""
     from . import __version__
 
     distributed = import_distributed()
@@ -411,6 +413,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         if client is None:
             own_cluster = local_cluster(workers, retries=retries)
             client = own_client = distributed.Client(own_cluster)
+            if worker_setup is not None:  # on the workers there now, and on every one that registers later
+                client.register_worker_callbacks(worker_setup)
         # The longest first (a shorter tail), handed out one per free thread as tasks finish:
         # a worker holds only the task it runs. Dask would place every task on a worker at
         # once (tasks of different names are not "root-ish", so it queues none on the

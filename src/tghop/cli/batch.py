@@ -144,7 +144,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
                                    "--max-depth (the manifest's rows are the exemplars)")
         generate = generation_params(options)
         fit = fit_params(options)
-        quiet_tifffile()  # the exemplars read in this process (one worker); a cluster's workers log as they are set
+        quiet_tifffile()  # the exemplars read in this process (one worker); a local cluster's workers: worker_setup
         if workers != 1 or scheduler is not None:
             import logging
 
@@ -158,7 +158,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
                                   fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,
                                   progress=progress, on_result=progress.result, prune=prune,
                                   on_orphans=orphans.extend, retry_failed=retry_failed, max_depth=max_depth,
-                                  on_plan=progress.plan)
+                                  on_plan=progress.plan, worker_setup=quiet_tifffile)
         except library.SchedulerLostError as exc:  # its own status: "run it again", not "look at the failures"
             progress.close()
             fail(str(exc), SCHEDULER_LOST)
