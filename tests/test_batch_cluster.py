@@ -311,3 +311,29 @@ def test_a_task_on_a_worker_of_another_tghop_fails_in_one_line(monkeypatch):
                                          r"install tghop 0\.1\.0 on every worker and restart it$"):
         batch_task.run_checked(waiting_task, {"folder": "/nonexistent/x"}, "0.1.0")
     assert batch_task.run_checked(len, [1, 2], batch.__version__) == 2
+
+
+def test_a_worker_gone_while_it_is_checked_is_no_worker_without_tghop():
+    # A worker that left between the list of workers and the check (killed as a worker joined, a task
+    # failed) answered with its connection's OSError, which read as "cannot import tghop (...; OSError)"
+    # and stopped the run. Now such a worker is not counted; an import error still is.
+    from tghop.batch_dask import check_workers_tghop
+
+    class Client:
+        def __init__(self, answers):
+            self.answers = answers
+
+        def run(self, *args, **kwargs):
+            return self.answers
+
+        def scheduler_info(self):
+            return {"workers": {}}
+
+    gone = OSError("Timed out trying to connect to tcp://127.0.0.1:1")
+    check_workers_tghop(Client({"tcp://a:1": batch.__version__, "tcp://b:1": gone}), ["tcp://a:1", "tcp://b:1"])
+    with pytest.raises(TGHopError, match=r"^1 Dask worker that joined the cluster mid-run cannot import tghop "
+                                         r"\(tcp://c:1; ModuleNotFoundError: No module named 'tghop'\)"):
+        check_workers_tghop(Client({"tcp://b:1": gone, "tcp://c:1": ModuleNotFoundError("No module named 'tghop'"),
+                                    "tcp://d:1": batch.__version__}), ["tcp://b:1", "tcp://c:1", "tcp://d:1"])
+    with pytest.raises(TGHopError, match=r"^2 Dask workers that joined the cluster mid-run run another tghop "):
+        check_workers_tghop(Client({"tcp://e:1": "0.1.0", "tcp://f:1": "0.2.0"}), ["tcp://e:1", "tcp://f:1"])

@@ -293,8 +293,8 @@ def run_checked(task, job: dict, version: str):
     hands to Dask: a worker that joined the cluster after the check of its workers
     (:func:`tghop.batch_dask.check_workers_tghop`) may have another tghop, which made its exemplar under this
     version's ledger line, or none. It cannot run this either (a tghop without it, 0.57 and earlier, or
-    none: the task cannot be loaded there), so such a worker's task fails, and the run stops with one line
-    naming the worker (:func:`tghop.batch_dask.run_distributed`)."""
+    none: the task cannot be loaded there, and Dask's worker closes itself), so such a worker's task fails,
+    and a ``--scheduler`` run stops with one line naming the worker (:func:`tghop.batch_dask.run_distributed`)."""
     from . import __version__
 
     if __version__ != version:
