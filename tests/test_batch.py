@@ -1241,7 +1241,9 @@ def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
     _, err = p.communicate(timeout=60)
     err = err.decode()
     assert "Traceback" not in err and "Exception ignored" not in err, err
-    if p.returncode == 130:  # "after N of M" once the exemplars are counted; before (importing Dask), without
+    if p.returncode == 130 and err.strip() == "Error: interrupted":
+        pass  # before the command read its arguments (Python's and tghop's imports: over 1 s on a loaded machine)
+    elif p.returncode == 130:  # "after N of M" once the exemplars are counted; before (importing Dask), without
         assert_one_line(p.returncode, err, "run the same command again to finish the rest")
         assert re.search(r"Error: interrupted( after \d+ of \d+ exemplars)?; run", err), err
     else:  # every exemplar was done before a Ctrl-C reached the command after the start
