@@ -336,7 +336,7 @@ def fit_any(img, mode):
     8 directions are empty and tghop drops them, but then K2 = 22 > 4 * 4 fails). Returns
     ``(model, fit seconds, note)``; the note says when and why the channels were changed.
     """
-    from tghop._common import TGHopError
+    from tghop._errors import TGHopError
 
     if img.shape[2] == 1:
         return (*fit(img, mode, n_channels=GREY_CHANNELS), f"greyscale: K1, K2 = {GREY_CHANNELS}")

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from tghop import baselines, data
-from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
+from tghop._errors import InvalidImageError, TGHopError
+from tghop._images import MAX_PIXELS
 from tghop.baselines import BASELINES, MissingExtraError
 
 NUMPY_BASELINES = ["crop", "blurred-crop", "colour-noise"]
@@ -229,12 +230,12 @@ def _largest(message):
 @pytest.mark.parametrize("name, asked", [("crop", (40, 40)), ("blurred-crop", (40, 40)), ("colour-noise", (600, 300)),
                                          ("quilting", (600, 300)), ("ustyuzhaninov", (800, 400))])
 def test_sizes_beyond_the_available_memory_are_refused_naming_one_that_fits(name, asked, exemplar, monkeypatch):
-    from tghop import _common, _random_cnn
+    from tghop import _random_cnn, _resources
 
     estimate = baselines.memory_estimate(name, exemplar.shape)
     base = estimate(1, 1)  # the fixed costs (blurred-crop: the blurred exemplar; quilting: the pool)
     avail = base + (estimate(*asked) - base) / 3
-    monkeypatch.setattr(_common, "available_memory", lambda: avail)
+    monkeypatch.setattr(_resources, "available_memory", lambda: avail)
     if name == "ustyuzhaninov":
         pytest.importorskip("torch")
         monkeypatch.setattr(_random_cnn.RandomCNN, "__init__", lambda *a, **k: pytest.fail("work started"))
@@ -247,19 +248,19 @@ def test_sizes_beyond_the_available_memory_are_refused_naming_one_that_fits(name
     assert estimate(h, w) <= avail < estimate(h + 2, w + 2)  # the largest, give or take a pixel of rounding
     monkeypatch.undo()
     if name in NUMPY_BASELINES:  # the size named runs
-        monkeypatch.setattr(_common, "available_memory", lambda: avail)
+        monkeypatch.setattr(_resources, "available_memory", lambda: avail)
         assert BASELINES[name](exemplar, (h, w), rng=0).shape[:2] == (h, w)
 
 
 def test_memory_is_not_checked_where_unknown(exemplar, monkeypatch):
-    from tghop import _common
+    from tghop import _resources
 
-    monkeypatch.setattr(_common, "available_memory", lambda: None)
+    monkeypatch.setattr(_resources, "available_memory", lambda: None)
     assert baselines.colour_noise(exemplar, 64, rng=0).shape == (64, 64, 3)
 
 
 def test_available_memory_reads_the_machine():
-    from tghop._common import available_memory
+    from tghop._resources import available_memory
 
     avail = available_memory()
     assert avail is None or avail > 0
@@ -276,10 +277,10 @@ def test_cli_refuses_a_size_beyond_the_memory_in_one_line(tmp_path, monkeypatch)
     pytest.importorskip("torch")
     from click.testing import CliRunner
 
-    from tghop import _common
+    from tghop import _resources
     from tghop.cli import main
 
-    monkeypatch.setattr(_common, "available_memory", lambda: 2e9)
+    monkeypatch.setattr(_resources, "available_memory", lambda: 2e9)
     out = tmp_path / "u.png"
     result = CliRunner().invoke(main, ["baseline", "ustyuzhaninov", "builtin:bricks", "--size", "8192", "-o", str(out)])
     assert result.exit_code != 0 and not out.exists()
@@ -402,9 +403,9 @@ def test_gpdm_refusals(exemplar, monkeypatch):
     for name, value, wanted in bad:
         with pytest.raises(TGHopError, match=rf"^gpdm: {name} must be {wanted}, got "):
             baselines.gpdm(exemplar, 16, **{name: value})
-    from tghop import _common
+    from tghop import _resources
 
-    monkeypatch.setattr(_common, "available_memory", lambda: 8 * 2**20)  # 8 MB available
+    monkeypatch.setattr(_resources, "available_memory", lambda: 8 * 2**20)  # 8 MB available
     with pytest.raises(TGHopError, match="the gpdm baseline .*64x64 .*of memory but only .*largest size that fits"):
         baselines.gpdm(exemplar, 64)
 

@@ -1538,13 +1538,13 @@ def probe_threads(job):
     """The task, noting how many threads tghop and BLAS may use while it fits."""
     from threadpoolctl import threadpool_info
 
-    from tghop import _common, fit_options
+    from tghop import _resources, fit_options
 
     seen = {}
     original = fit_options.model_for
 
     def model_for(*args, **kwargs):
-        seen["cores"] = _common.usable_cores()
+        seen["cores"] = _resources.usable_cores()
         seen["blas"] = max([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] or [1])
         return original(*args, **kwargs)
 
@@ -1585,7 +1585,7 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path, monkey
     pytest.importorskip("distributed")
     import cloudpickle
 
-    from tghop._common import limit_cores, usable_cores
+    from tghop._resources import limit_cores, usable_cores
 
     with limit_cores(3):
         with limit_cores(1):
@@ -1634,9 +1634,9 @@ def test_default_local_cluster_runs_each_exemplar_on_one_thread(tmp_path, monkey
 def _threads_now():
     from threadpoolctl import threadpool_info
 
-    from tghop import _common
+    from tghop import _resources
 
-    return {"cores": _common.usable_cores(),
+    return {"cores": _resources.usable_cores(),
             "blas": max([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] or [1])}
 
 

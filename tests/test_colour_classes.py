@@ -8,7 +8,7 @@ import pytest
 from tghop.colour import (ColourClasses, channel_quantiles, class_separation, class_shares, colour_classes,
                           match_histograms, mixed_quantiles, share_spread)
 from tghop.refine import BandStatistics
-from tghop._common import TGHopError
+from tghop._errors import TGHopError
 
 
 def two_colours(rng, grey_share, shape=(64, 64), stripes=True):
@@ -183,7 +183,7 @@ def _bad(img):
 
 
 def test_colour_functions_check_their_images(rng):
-    from tghop._common import InvalidImageError, NotFittedError
+    from tghop._errors import InvalidImageError, NotFittedError
     from tghop.colour import match_histograms
 
     img = rng.random((24, 20, 3))

@@ -11,7 +11,7 @@ import pytest
 
 from tghop import cooc, cooccurrence, data
 from tghop.cooc import assembly, networks
-from tghop._common import MissingExtraError, ModelFileError, NotFittedError, TGHopError
+from tghop._errors import MissingExtraError, ModelFileError, NotFittedError, TGHopError
 
 from conftest import TINY_COOC, assert_user_error
 

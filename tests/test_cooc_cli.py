@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tghop import cooc, data
-from tghop._common import TGHopError
+from tghop._errors import TGHopError
 
 from conftest import assert_user_error, cli
 from test_cooc import TINY, _threads, exemplar, tiny_model  # noqa: F401  (the same tiny cGAN and fixtures)
@@ -233,7 +233,7 @@ def test_help_says_what_an_image_stands_for():
 
 # ------------------------------------------------------------------ flat exemplars (item 6)
 def test_flat_exemplar_refused_by_fit_and_cooc_alike(files, tmp_path, monkeypatch):
-    from tghop._common import check_texture
+    from tghop._images import check_texture
     from tghop.synthesis import TGHop
 
     flat = np.full((48, 48, 3), 0.5)
@@ -388,7 +388,7 @@ CHANGED = {
 def test_a_changed_checkpoint_is_refused_at_load_naming_what_changed(files, tmp_path, case):
     # Such files generated nonsense with exit status 0, or failed later with an error naming no
     # file ("a co-occurrence tensor must be finite", "an image to save has NaN"), or a traceback.
-    from tghop._common import ModelFileError
+    from tghop._errors import ModelFileError
 
     change, fragment = CHANGED[case]
     raw = torch.load(files / "m.pt", map_location="cpu", weights_only=True)
@@ -419,7 +419,7 @@ def test_training_crops_beyond_the_memory_are_refused_before_they_are_cut(files,
 
 def test_an_empty_checkpoint_name_is_said_so(files, tmp_path):
     # It said ".: no such checkpoint; ... or 'tghop cooc train EXEMPLAR -o '" (Path("") is the current folder).
-    from tghop._common import ModelFileError
+    from tghop._errors import ModelFileError
 
     with pytest.raises(ModelFileError, match="^the checkpoint's file name is empty; give one$"):
         cooc.load("")
@@ -483,7 +483,7 @@ def _drop_setting(raw, key):
 
 @pytest.mark.parametrize("case", sorted(DESCRIBED))
 def test_a_corrupt_checkpoint_says_what_is_wrong_in_words(files, tmp_path, case):
-    from tghop._common import ModelFileError
+    from tghop._errors import ModelFileError
 
     change, fragment = DESCRIBED[case]
     raw = torch.load(files / "m.pt", map_location="cpu", weights_only=True)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tghop import TGHop
-from tghop._common import TGHopError
+from tghop._errors import TGHopError
 from tghop.core import ICHM
 from tghop.modelfile import load_model, save_model
 from tghop.inpaint import inpaint

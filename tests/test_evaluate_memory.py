@@ -11,7 +11,8 @@ import pytest
 
 from tghop import data, metrics
 from tghop.metrics import common, distributions, evaluation, networks
-from tghop._common import MAX_PIXELS, InvalidImageError, TGHopError
+from tghop._errors import InvalidImageError, TGHopError
+from tghop._images import MAX_PIXELS
 from tghop.imageio import save_image
 
 from conftest import assert_user_error, cli

@@ -5,7 +5,7 @@ import pytest
 from conftest import SMALL, cli
 
 from tghop import data, explain
-from tghop._common import NotFittedError, TGHopError
+from tghop._errors import NotFittedError, TGHopError
 from tghop.explain import cluster_colours, cluster_image, cluster_map
 from tghop.imageio import load_image, save_image
 from tghop.modelfile import save_model

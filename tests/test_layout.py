@@ -345,7 +345,7 @@ def test_an_error_in_the_guides_thread_reaches_the_caller(layout_model, monkeypa
 def test_in_thread_returns_the_result_or_raises_the_error():
     import threading
 
-    from tghop._common import in_thread, limit_cores, usable_cores
+    from tghop._resources import in_thread, limit_cores, usable_cores
 
     main = threading.get_ident()
     if usable_cores() > 1:
@@ -366,7 +366,7 @@ def test_in_thread_returns_the_result_or_raises_the_error():
 def test_one_core_makes_the_same_image_without_the_guides_thread(layout_model, monkeypatch):
     import threading
 
-    from tghop._common import limit_cores, usable_cores
+    from tghop._resources import limit_cores, usable_cores
 
     guide, ran_in = layout_model.layout_.guide, []
 
@@ -450,7 +450,7 @@ def test_upsample_checks_its_factor_and_size(factor, size, message):
 
 
 def test_downsample_and_upsample_check_their_images():
-    from tghop._common import InvalidImageError
+    from tghop._errors import InvalidImageError
 
     img = data.bricks(32)
     nan = img.copy()

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tghop._arrays import from_levels
-from tghop._common import check_image
+from tghop._images import check_image
 
 
 @pytest.mark.parametrize("dtype, full", [(np.uint8, 255), (np.uint16, 65535)])

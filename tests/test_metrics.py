@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tghop import baselines, data, metrics
-from tghop._common import InvalidImageError, TGHopError
+from tghop._errors import InvalidImageError, TGHopError
 from tghop.metrics import MissingExtraError
 
 TORCH_METRICS = [name for name, info in metrics.METRICS.items() if info.needs_torch]
@@ -129,12 +129,12 @@ def test_counts_beyond_the_bounds_are_refused_before_any_work(exemplar, monkeypa
         metrics.sliced_wasserstein(small, small, n_projections=10**9, scales=(1,))
     with pytest.raises(TGHopError, match=r"^n_clusters must be an integer from 1 to 32, got 1000000000$"):
         metrics.cooccurrence_distance(small, small[::-1], n_clusters=10**9)
-    from tghop import _common
+    from tghop import _resources
     from tghop.cooccurrence import fit_colour_clusters
 
     with pytest.raises(TGHopError, match=r"^n_clusters must be an integer from 1 to 32, got 33$"):
         fit_colour_clusters(small, n_clusters=33)
-    monkeypatch.setattr(_common, "available_memory", lambda: 2**20)  # 1 MB available
+    monkeypatch.setattr(_resources, "available_memory", lambda: 2**20)  # 1 MB available
     with pytest.raises(TGHopError, match=r"^sliced_wasserstein: 324 patches on 4,096 projections need about "
                                          r"0\.0[0-9]+ GB of memory but 0\.00105 GB is available; lower "
                                          r"max_patches or n_projections$"):

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from tghop import ModelFileError, TGHopError
-from tghop._common import fitted_settings
+from tghop._estimator import fitted_settings
 from tghop.modelfile import FORMAT_VERSION, load_model, save_model
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tghop import data, settings
-from tghop._common import TGHopError
+from tghop._errors import TGHopError
 from tghop import patch_refine as pr
 from tghop.modelfile import FORMAT_VERSION, ModelFileError, load_model, save_model
 from tghop.synthesis import TGHop
@@ -693,7 +693,7 @@ def test_version_4_files_load_without_their_patch_statistics(patch_model, tmp_pa
 def test_patch_statistics_is_a_scikit_learn_estimator(rng):
     from sklearn.base import clone
 
-    from tghop._common import NotFittedError
+    from tghop._errors import NotFittedError
 
     st = pr.PatchStatistics(n_levels=2)
     assert st.get_params() == {"n_levels": 2, "whitening": 0.0, "rng": 0}
@@ -704,7 +704,7 @@ def test_patch_statistics_is_a_scikit_learn_estimator(rng):
 
 
 def test_patch_statistics_fit_checks_its_image_and_takes_rng():
-    from tghop._common import InvalidImageError
+    from tghop._errors import InvalidImageError
 
     img = data.bricks(40)
     u8 = np.round(img * 255).astype(np.uint8)
@@ -742,7 +742,7 @@ def test_patch_statistics_fits_old_keyword_rng_still_works_with_a_future_warning
 
 
 def test_patch_refine_errors_name_its_own_arguments(patch_model):
-    from tghop._common import InvalidImageError
+    from tghop._errors import InvalidImageError
 
     img, p = np.full((32, 32, 3), 0.5), patch_model.patches_
     for kwargs, message in (({"n_steps": -1}, "^n_steps must be"), ({"stride": 0}, "^stride must be"),

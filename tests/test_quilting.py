@@ -460,7 +460,7 @@ def test_too_many_blocks():
 def test_a_strip_thinner_than_a_patch_is_refused_where_its_canvas_is_above_the_limit(small_model):
     # 1x67108864 is within the pixel limit, but quilting lays it on a 32-pixel-high canvas, 32 times the
     # limit (about 100 GB and half an hour): it was accepted and run.
-    from tghop._common import MAX_PIXELS
+    from tghop._images import MAX_PIXELS
 
     for size in ((1, MAX_PIXELS), (MAX_PIXELS // 2, 2), (16, MAX_PIXELS // 16)):
         for check in (quilting_plan, quilting.block_count):

@@ -8,7 +8,7 @@ from scipy import ndimage
 
 from tghop import _fft as F
 from tghop import data
-from tghop._common import TGHopError
+from tghop._errors import TGHopError
 from tghop.pyramid import laplacian_pyramid, reconstruct
 from tghop.refine import TAIL_LEVELS, BandStatistics, oriented_parts, refine, tail_quantiles
 
@@ -555,7 +555,7 @@ def test_over_relaxed_rounds_move_twice_as_far_and_the_last_round_is_plain(cells
 def test_band_statistics_is_a_scikit_learn_estimator(cells):
     from sklearn.base import clone
 
-    from tghop._common import NotFittedError
+    from tghop._errors import NotFittedError
 
     st = BandStatistics(n_levels=2, n_quantiles=33)
     assert st.get_params() == {"n_levels": 2, "n_orientations": 4, "n_quantiles": 33}
@@ -584,7 +584,7 @@ def _bad_images(img):
 
 
 def test_refine_and_band_statistics_check_their_images(cells):
-    from tghop._common import InvalidImageError
+    from tghop._errors import InvalidImageError
 
     st = BandStatistics(n_levels=2, n_quantiles=33).fit(cells)
     for bad, message in _bad_images(cells):

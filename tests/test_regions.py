@@ -129,7 +129,7 @@ def test_region_setting_is_checked(small_model):
 def test_regions_give_the_same_image_on_any_number_of_cores(small_model):
     # Regions run a core each and are added in a fixed order; refine(threads=1) makes the
     # same numbers as the channels in threads.
-    from tghop._common import limit_cores
+    from tghop._resources import limit_cores
 
     quilt = small_model.synthesize((540, 520), rng=5, refine=0, match_colours=False, seam_window=0,
                                    dtype=np.float32)
@@ -144,7 +144,7 @@ def test_regions_give_the_same_image_on_any_number_of_cores(small_model):
 def test_regions_report_each_round_of_their_refinement(small_model, cores):
     # A large region's refinement takes seconds: the bar moves after each of its rounds (told from the thread
     # that refines it), not only as each region is added; the counts only grow, the total stays, the same image.
-    from tghop._common import limit_cores
+    from tghop._resources import limit_cores
 
     quilt = small_model.synthesize((520, 540), rng=5, refine=0, match_colours=False, seam_window=0, patch_refine=0,
                                    dtype=np.float32)
@@ -167,7 +167,7 @@ def test_regions_stop_starting_once_progress_raises(small_model, monkeypatch):
     import threading
 
     from tghop import regions
-    from tghop._common import limit_cores
+    from tghop._resources import limit_cores
 
     quilt = small_model.synthesize((1024, 1024), rng=5, refine=0, match_colours=False, seam_window=0,
                                    patch_refine=0, dtype=np.float32)

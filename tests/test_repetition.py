@@ -5,7 +5,7 @@ import pytest
 from scipy import ndimage
 
 from tghop import metrics
-from tghop._common import TGHopError
+from tghop._errors import TGHopError
 from tghop.quilting import quilt
 
 

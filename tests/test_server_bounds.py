@@ -127,7 +127,7 @@ def two_model_files(small_model, tmp_path_factory):
     """Two different model files (bytes) of the same size, give or take a few bytes."""
     import copy
 
-    from tghop._common import fitted_settings
+    from tghop._estimator import fitted_settings
     from tghop.modelfile import save_model
 
     folder = tmp_path_factory.mktemp("models")

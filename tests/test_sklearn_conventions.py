@@ -86,7 +86,7 @@ def test_four_d_components_tell_scikit_learn_its_checks_do_not_apply(estimator):
 
 def test_rng_refuses_a_bool_as_every_integer_parameter_does(small_model):
     # True was taken as the seed 1 at fit, but a model file records no seed for it (settings.recorded_seed).
-    from tghop._common import check_rng
+    from tghop._estimator import check_rng
 
     for call in (lambda: check_rng(True), lambda: small_model.sample_patches(2, rng=False),
                  lambda: TGHop(rng=True).fit(np.zeros((40, 40, 3)))):
@@ -494,7 +494,7 @@ def test_a_generators_repr_is_the_same_in_every_fit_run_and_process(bricks96):
     assert one[0] == ("TGHop(gamma=0.01, max_patches=200, n_channels=(9, 22), n_clusters=8, n_codewords=40, "
                       "rng=Generator(PCG64, seed=7), stride=4)")  # before the fit; after it, drawn from:
     assert "model.ichm_: ICHM(n_clusters=8, n_codewords=40, rng=Generator(PCG64, seed=7, advanced))" in shown
-    from tghop._common import generator_text
+    from tghop._estimator import generator_text
 
     assert generator_text(np.random.default_rng()) == "Generator(PCG64)"  # unseeded: no seed to show
     assert generator_text(np.random.default_rng(np.random.SeedSequence(3).spawn(1)[0])) == "Generator(PCG64)"

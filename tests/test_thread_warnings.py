@@ -197,14 +197,14 @@ def test_a_batch_workers_tasks_on_threads_record_their_own_warnings(tmp_path):
 
 
 def test_a_helper_thread_of_tghops_own_warns_into_its_callers_collector(monkeypatch):
-    # synthesize lays its layout out on a thread of its own (_common.in_thread): a warning there
+    # synthesize lays its layout out on a thread of its own (_resources.in_thread): a warning there
     # was the caller's (catch_warnings took every thread's); collected per thread, it went astray.
-    from tghop import _common
+    from tghop import _resources
     from tghop._errors import collect_warnings, warn
 
-    monkeypatch.setattr(_common, "usable_cores", lambda: 2)  # a thread, not the caller's own
+    monkeypatch.setattr(_resources, "usable_cores", lambda: 2)  # a thread, not the caller's own
     with warnings.catch_warnings(record=True) as shown:
         warnings.simplefilter("always")
         with collect_warnings() as said:
-            _common.in_thread(lambda: warn("from the helper") or threading.get_ident())()
+            _resources.in_thread(lambda: warn("from the helper") or threading.get_ident())()
     assert [str(w) for w in said] == ["from the helper"] and not shown

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from tghop import _common, core, data
+from tghop import _resources, core, data
 from tghop.synthesis import TGHop
 
 from conftest import SMALL
@@ -48,9 +48,9 @@ def test_usable_cores_is_the_affinity_mask(monkeypatch):
     import os
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3}, raising=False)
-    assert _common.usable_cores() == 4
+    assert _resources.usable_cores() == 4
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(), raising=False)
-    assert _common.usable_cores() == 1  # never 0
+    assert _resources.usable_cores() == 1  # never 0
 
 
 def test_sampling_holds_one_blas_thread(monkeypatch, small_model):
@@ -202,7 +202,7 @@ def test_a_child_forked_while_another_thread_holds_one_blas_thread_is_back_on_th
         inside, leave = threading.Event(), threading.Event()
 
         def hold():
-            with _common.one_blas_thread():
+            with _resources.one_blas_thread():
                 inside.set()
                 leave.wait(60)
 
@@ -215,10 +215,10 @@ def test_a_child_forked_while_another_thread_holds_one_blas_thread_is_back_on_th
             pid = os.fork()
         if pid == 0:  # the child: report and leave at once
             try:
-                told = f"{_common._BLAS_HOLD['count']} {sorted(_blas_threads())}"
-                with _common.one_blas_thread():
+                told = f"{_resources._BLAS_HOLD['count']} {sorted(_blas_threads())}"
+                with _resources.one_blas_thread():
                     told += f" {sorted(_blas_threads())}"
-                told += f" {_common._BLAS_HOLD['count']} {sorted(_blas_threads())}"
+                told += f" {_resources._BLAS_HOLD['count']} {sorted(_blas_threads())}"
             except BaseException as exc:  # noqa: BLE001 (told to the parent)
                 told = repr(exc)
             os.write(write, told.encode())

@@ -1,8 +1,8 @@
 """Input checks of the scikit-learn-style components (:mod:`tghop.saab`, :mod:`tghop.hops`,
 :mod:`tghop.sdr`, :mod:`tghop.core`): arrays of numbers of a given rank, sample counts, and
 forgetting a fitted state; :func:`check_int`, the library's integer-parameter check; and
-:func:`from_levels`, how every entry point reads 8-bit and 16-bit images. The checks of images,
-output sizes and ``rng`` are :mod:`tghop._common`'s; the errors, :mod:`tghop._errors`'s.
+:func:`from_levels`, how every entry point reads 8-bit and 16-bit images. The checks of images and
+output sizes are :mod:`tghop._images`', ``rng``'s :mod:`tghop._estimator`'s; the errors, :mod:`tghop._errors`'s.
 
 Each check is O(1) or one pass over its input; the fits call them with ``finite=True``,
 the transforms check shapes only.

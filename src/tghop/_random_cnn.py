@@ -6,7 +6,7 @@ synthesises with and that :func:`tghop.metrics.gram_distance` measures with. Bot
 it from here; neither reaches into the other.
 
 Nothing here imports PyTorch: the caller passes the ``torch`` module in (from
-:func:`tghop._common.import_torch`), so importing this module costs only numpy and SciPy.
+:func:`tghop._resources.import_torch`), so importing this module costs only numpy and SciPy.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numbers
 import numpy as np
 from scipy.fft import next_fast_len
 
-from ._common import TGHopError
+from ._errors import TGHopError
 
 __all__ = [
     "USTYUZHANINOV_SCALES",

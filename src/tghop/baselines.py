@@ -25,10 +25,10 @@ Synthesis baselines:
 :data:`BASELINES` maps a name to each of them, for ``tghop baseline NAME``. Every entry
 is called as ``fn(exemplar, size=None, *, rng=None, progress=None)`` and returns a float
 ``(h, w, C)`` image in [0, 1]; ``size=None`` means the exemplar's own size. Sizes are
-checked by :func:`tghop._common.check_size` before any work: above
-:data:`tghop._common.MAX_PIXELS` (8192x8192) they are refused; and so is a size whose
+checked by :func:`tghop._images.check_size` before any work: above
+:data:`tghop._images.MAX_PIXELS` (8192x8192) they are refused; and so is a size whose
 estimated memory (:func:`memory_estimate`, measured peaks plus a margin) exceeds the
-memory available now (:func:`tghop._common.check_memory`, which names the largest size
+memory available now (:func:`tghop._resources.check_memory`, which names the largest size
 that fits).
 
 The random multiscale CNN of :func:`ustyuzhaninov` (:mod:`tghop._random_cnn`) is also the
@@ -45,17 +45,11 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 
 from ._arrays import check_int, check_number
-from ._common import (
-    MissingExtraError,
-    ProgressCallback,
-    TGHopError,
-    check_image,
-    check_memory,
-    check_rng,
-    check_size,
-    import_torch,
-    report,
-)
+from ._errors import MissingExtraError, TGHopError
+from ._estimator import check_rng
+from ._images import check_image, check_size
+from ._progress import ProgressCallback, report
+from ._resources import check_memory, import_torch
 from ._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 
 __all__ = [
@@ -172,7 +166,7 @@ def crop(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] 
     Parameters
     ----------
     exemplar : array_like, shape (H, W) or (H, W, C)
-        Float in [0, 1] (see :func:`tghop._common.check_image`).
+        Float in [0, 1] (see :func:`tghop._images.check_image`).
     size : int or (int, int), optional
         Output height and width, at most the exemplar's; default the exemplar's size
         (the crop is then the exemplar itself).
@@ -239,7 +233,7 @@ def colour_noise(exemplar, size=None, *, rng=None, progress: Optional[ProgressCa
     ----------
     exemplar : array_like, shape (H, W) or (H, W, C)
     size : int or (int, int), optional
-        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
+        Output size (any up to :data:`tghop._images.MAX_PIXELS`); default the exemplar's size.
     rng : int or numpy.random.Generator, optional
     progress : callable, optional
         Accepted for a uniform baseline signature.
@@ -308,7 +302,7 @@ def quilting(
     exemplar : array_like, shape (H, W) or (H, W, C)
         At least ``patch_size`` pixels on each side.
     size : int or (int, int), optional
-        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
+        Output size (any up to :data:`tghop._images.MAX_PIXELS`); default the exemplar's size.
     patch_size : int
         Side of the quilted patches (default 32, TGHop's patch size).
     overlap : int, optional
@@ -380,7 +374,7 @@ def ustyuzhaninov(
     exemplar : array_like, shape (H, W) or (H, W, C)
         Float in [0, 1]; C = 1 synthesises greyscale.
     size : int or (int, int), optional
-        Output size (any up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's size.
+        Output size (any up to :data:`tghop._images.MAX_PIXELS`); default the exemplar's size.
     n_iter : int
         L-BFGS iterations (default :data:`USTYUZHANINOV_N_ITER` = 500; the paper runs
         2,000 function evaluations), at most :data:`USTYUZHANINOV_MAX_ITER` = 20,000.

@@ -33,7 +33,7 @@ _HOLD = {"lock": threading.Lock(), "count": 0, "limit": None, "stack": None}
 @contextlib.contextmanager
 def task_threads(n):
     """Context manager: BLAS (``threadpoolctl``) and tghop's own threads
-    (:func:`tghop._common.limit_cores`) at most ``n`` (None: no limit) while any task of this
+    (:func:`tghop._resources.limit_cores`) at most ``n`` (None: no limit) while any task of this
     process is inside, OpenMP's in the calling thread.
 
     Both limits are the process's, not a thread's: on a worker that runs two tasks at once
@@ -51,7 +51,7 @@ def task_threads(n):
         return
     from threadpoolctl import threadpool_limits
 
-    from ._common import limit_cores
+    from ._resources import limit_cores
 
     with _HOLD["lock"]:
         if _HOLD["count"] == 0:

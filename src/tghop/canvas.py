@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_not_path
-from ._common import TGHopError, check_size
+from ._errors import TGHopError
+from ._images import check_size
 
 __all__ = ["expand_canvas", "ANCHORS"]
 

@@ -19,7 +19,9 @@ import numpy as np
 
 from . import settings
 from ._arrays import LEVELS, check_array, check_dtype, check_width, from_levels
-from ._common import TGHopError, check_is_fitted, check_rng, one_blas_thread
+from ._errors import TGHopError
+from ._estimator import check_is_fitted, check_rng
+from ._resources import one_blas_thread
 from .hops import stage_views
 from .pool import GeneratedPool
 

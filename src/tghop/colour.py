@@ -16,8 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_mask
-from ._common import (BaseEstimator, StoredArrays, TGHopError, check_image, check_is_fitted, checked_image,
-                      usable_cores)
+from ._errors import TGHopError
+from ._estimator import BaseEstimator, StoredArrays, check_is_fitted
+from ._images import check_image, checked_image
+from ._resources import usable_cores
 
 __all__ = ["channel_quantiles", "match_histograms", "N_QUANTILES", "ColourClasses", "colour_classes", "class_labels",
            "class_quantiles", "class_separation", "class_shares", "mixed_quantiles", "share_spread"]

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import TGHopError
+from ._errors import TGHopError
 
 __all__ = ["cut_regions", "join_layers", "layer_boxes", "band_boxes", "in_band", "wraps", "STRAY_COST"]
 

@@ -25,7 +25,9 @@ import math
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_image, import_torch
+from ._errors import TGHopError
+from ._images import check_image
+from ._resources import import_torch
 
 __all__ = ["MAX_CLUSTERS", "fit_colour_clusters", "soft_assign", "spread_pairs", "symmetric_normalised",
            "cooccurrence_matrix", "cooccurrence_tensor"]

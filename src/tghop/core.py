@@ -51,7 +51,10 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, check_count, check_int, check_width, forget_fit
-from ._common import BaseEstimator, TGHopError, check_is_fitted, check_rng, one_blas_thread, usable_cores, report
+from ._errors import TGHopError
+from ._estimator import BaseEstimator, check_is_fitted, check_rng
+from ._progress import report
+from ._resources import one_blas_thread, usable_cores
 from ._errors import warn
 from .coupling import coupled_uniforms, member_ranks
 from .ichm_clusters import (AUTO_CLUSTERS, AUTO_PER_CLUSTER, NORM_DRAWS, NORM_QUANTILES, QUANTILE_STEPS,

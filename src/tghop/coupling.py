@@ -29,7 +29,8 @@ import numbers
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_rng
+from ._errors import TGHopError
+from ._estimator import check_rng
 
 __all__ = ["RANK_LEVELS", "member_ranks", "coupled_uniforms", "normal_cdf", "normal_ppf"]
 
@@ -123,7 +124,7 @@ def coupled_uniforms(ranks, rho, m, rng):
     m : int
         Draws, at least 0.
     rng : None, int or numpy.random.Generator
-        As everywhere in tghop (:func:`tghop._common.check_rng`): a Generator is advanced,
+        As everywhere in tghop (:func:`tghop._estimator.check_rng`): a Generator is advanced,
         an int seed gives the same draws every time, None fresh ones.
 
     Returns

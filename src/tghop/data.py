@@ -9,7 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_rng, check_size
+from ._errors import TGHopError
+from ._estimator import check_rng
+from ._images import check_size
 
 __all__ = ["bricks", "cells", "builtin", "BUILTIN"]
 
@@ -24,7 +26,7 @@ def _smooth_noise(rng, shape, sigma):
 
 def _check_side(size) -> int:
     """``size`` as an int of at least 32 (:func:`tghop._arrays.check_int`) within
-    :data:`tghop._common.MAX_PIXELS` (:func:`tghop._common.check_size`), or a one-line
+    :data:`tghop._images.MAX_PIXELS` (:func:`tghop._images.check_size`), or a one-line
     :class:`TGHopError` before any work."""
     return check_size(check_int(size, "size", 32))[0]
 
@@ -35,7 +37,7 @@ def bricks(size: int = 256, *, rng=0) -> np.ndarray:
     Parameters
     ----------
     size : int
-        Height and width in pixels (at least 32; at most 8192, :func:`tghop._common.check_size`).
+        Height and width in pixels (at least 32; at most 8192, :func:`tghop._images.check_size`).
     rng : int or numpy.random.Generator
 
     Returns
@@ -78,7 +80,7 @@ def cells(size: int = 256, *, rng=0) -> np.ndarray:
     Parameters
     ----------
     size : int
-        Height and width in pixels (at least 32; at most 8192, :func:`tghop._common.check_size`).
+        Height and width in pixels (at least 32; at most 8192, :func:`tghop._images.check_size`).
     rng : int or numpy.random.Generator
 
     Returns

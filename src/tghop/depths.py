@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import InvalidImageError, TGHopError
+from ._errors import InvalidImageError, TGHopError
 from ._formats import DEPTHS, FORMATS, check_tifffile, extensions
 
 __all__ = ["RANGE_TOLERANCE", "output_format", "to_uint8", "to_uint16", "generation_dtype", "check_depth", "deepest",

@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 
-from ._common import TGHopError, check_image, check_texture, grey_as_rgb
+from ._errors import TGHopError
+from ._images import check_image, check_texture, grey_as_rgb
 from ._errors import OpaqueAlphaWarning, TransparencyWarning, warn
 from .image_decode import transparent_share
 

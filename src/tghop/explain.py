@@ -14,7 +14,11 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
-from ._common import TGHopError, check_image, check_is_fitted, one_blas_thread, report
+from ._errors import TGHopError
+from ._estimator import check_is_fitted
+from ._images import check_image
+from ._progress import report
+from ._resources import one_blas_thread
 from .synthesis import TGHop, grey_as_rgb
 
 __all__ = ["cluster_map", "cluster_image", "cluster_colours", "CHUNK", "PALETTE_LEVELS"]

@@ -19,7 +19,11 @@ import numpy as np
 
 from . import layout, settings
 from ._arrays import check_dtype
-from ._common import TGHopError, check_is_fitted, check_rng, check_size, in_thread, report
+from ._errors import TGHopError
+from ._estimator import check_is_fitted, check_rng
+from ._images import check_size
+from ._progress import report
+from ._resources import in_thread
 from .colour import match_histograms
 from .patch_refine import refine_image, steps_for
 from .pool import GeneratedPool, pool_size, prepared_pool

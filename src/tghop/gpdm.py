@@ -17,8 +17,11 @@ from typing import Optional
 import numpy as np
 
 from ._arrays import check_int, check_number
-from ._common import (ProgressCallback, TGHopError, check_image, check_memory, check_rng, check_size, import_torch,
-                      report, usable_cores)
+from ._errors import TGHopError
+from ._estimator import check_rng
+from ._images import check_image, check_size
+from ._progress import ProgressCallback, report
+from ._resources import check_memory, import_torch, usable_cores
 
 __all__ = ["gpdm", "gpdm_levels", "gpdm_memory", "GPDM_MAX_STEPS"]
 
@@ -200,7 +203,7 @@ def gpdm(
     (``benchmarks/results/gpdm*.md``). Memory is dominated by the
     finest level's projections (:func:`gpdm_memory`); sizes whose estimate exceeds this
     machine's memory are refused before any work, as are sizes above
-    :data:`tghop._common.MAX_PIXELS`.
+    :data:`tghop._images.MAX_PIXELS`.
     """
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])

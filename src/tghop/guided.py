@@ -61,7 +61,11 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_int, check_number
-from ._common import TGHopError, check_is_fitted, check_progress, check_rng, check_size, one_blas_thread, report
+from ._errors import TGHopError, check_progress
+from ._estimator import check_is_fitted, check_rng
+from ._images import check_size
+from ._progress import report
+from ._resources import one_blas_thread
 from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
 from .guides import guide_labels
 from .masks import snap_channels, snap_to_levels

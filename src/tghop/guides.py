@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_not_path
-from ._common import TGHopError, check_size
+from ._errors import TGHopError
+from ._images import check_size
 from ._errors import warn
 
 __all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "LostRegionError", "ASPECT_TOLERANCE",
@@ -108,7 +109,7 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
         :data:`ASPECT_TOLERANCE`: :func:`same_shape`) is read at its own size and its labels
         scaled to ``size`` by nearest neighbour (:func:`scale_labels`), with a warning saying
         so; one of another shape is refused (paint it at the output's shape). None: the
-        guide's. The guide's own size is refused above :data:`tghop._common.MAX_PIXELS`.
+        guide's. The guide's own size is refused above :data:`tghop._images.MAX_PIXELS`.
     input_name, no_guide : str
         What the messages call a model and the fix of leaving the guide out (the CLI's
         "SOURCE" and "drop --guide").

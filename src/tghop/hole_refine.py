@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int
-from ._common import report
+from ._progress import report
 from .pyramid import laplacian_pyramid, reconstruct
 from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
 from .seams import SCREENING, SeamSteps, local_means

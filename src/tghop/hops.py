@@ -17,8 +17,10 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, forget_fit
-from ._common import (BaseEstimator, FourDInputMixin, TGHopError, TransformerMixin, check_is_fitted, checked_image,
-                      report)
+from ._errors import TGHopError
+from ._estimator import BaseEstimator, FourDInputMixin, TransformerMixin, check_is_fitted
+from ._images import checked_image
+from ._progress import report
 from .patches import depth_to_space, space_to_depth
 from .saab import Saab, select_channels
 from .settings import check_channel_rule

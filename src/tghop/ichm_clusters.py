@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import TGHopError
+from ._errors import TGHopError
 from .sdr import flip_signs
 from .unsupervised import fast_ica, kmeans
 

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import TGHopError, check_is_fitted
+from ._errors import TGHopError
+from ._estimator import check_is_fitted
 from .coupling import RANK_LEVELS
 from .ichm_clusters import AUTO_CLUSTERS, NORM_QUANTILES
 

@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import InvalidImageError, TGHopError, check_image, report
+from ._errors import InvalidImageError, TGHopError
+from ._images import check_image
+from ._progress import report
 from ._errors import MissingExtraError, OpaqueAlphaWarning, TransparencyWarning, warn
 from ._formats import (DEPTHS, check_tifffile, checkpoint_note, extensions, missing_decoder, unread_format,
                        why_unreadable)

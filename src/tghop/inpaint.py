@@ -55,8 +55,11 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_not_path
-from ._common import (TGHopError, check_is_fitted, check_keywords, check_progress, check_rng, checked_image,
-                      one_blas_thread, report)
+from ._errors import TGHopError, check_progress
+from ._estimator import check_is_fitted, check_keywords, check_rng
+from ._images import checked_image
+from ._progress import report
+from ._resources import one_blas_thread
 from .canvas import ANCHORS, expand_canvas
 from .hole_refine import refine_hole, stitch_hole
 from .masks import snap_to_levels

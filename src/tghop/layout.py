@@ -31,7 +31,10 @@ import math
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, check_size, checked_image, report, usable_cores
+from ._errors import TGHopError
+from ._images import check_size, checked_image
+from ._progress import report
+from ._resources import usable_cores
 
 #: Quilting's detail preference in the coarse guide: 0.5, the fine level's until 0.38. 0.39 raised
 #: the fine level's to 0.8, measured with the guide at 0.5 (docs/choices.md, Quilting).
@@ -97,7 +100,7 @@ def upsample(image, factor: int | None, size, *, wrap: bool = False) -> np.ndarr
         period of the image becomes one period of the output (a tileable 256x256 guide
         from an 86x86 coarse image).
     size : int or (int, int)
-        Output (H, W), at most ``(h * factor, w * factor)`` (:func:`tghop._common.check_size`).
+        Output (H, W), at most ``(h * factor, w * factor)`` (:func:`tghop._images.check_size`).
     wrap : bool
         Treat the image as periodic (for tileable output).
 

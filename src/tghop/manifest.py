@@ -4,7 +4,7 @@ with its own ``name``, ``maps`` (:func:`parse_maps`: the row is a whole material
 albedo) and :data:`ROW_SETTINGS` (:func:`tghop.batch.find_work` reads one).
 
 Every bad row is a one-line :class:`~tghop.TGHopError` naming its line, before any work.
-Only the standard library is imported here (and, when called, :func:`tghop._common.check_size`,
+Only the standard library is imported here (and, when called, :func:`tghop._images.check_size`,
 :func:`tghop._arrays.check_int` and :mod:`tghop.settings`).
 """
 
@@ -71,14 +71,14 @@ def parse_size(value, where):
     Returns
     -------
     list of int
-        ``[height, width]``, within :func:`tghop._common.check_size`'s bounds.
+        ``[height, width]``, within :func:`tghop._images.check_size`'s bounds.
 
     Raises
     ------
     TGHopError
         One line starting with ``where``.
     """
-    from ._common import check_size
+    from ._images import check_size
 
     if isinstance(value, (list, tuple)):
         if len(value) not in (1, 2):

@@ -38,8 +38,11 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_not_path
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_progress, check_rng, fit_part,
-                      fitted_settings, one_blas_thread, report)
+from ._errors import TGHopError, check_progress
+from ._estimator import BaseEstimator, check_is_fitted, check_rng, fit_part, fitted_settings
+from ._images import check_image
+from ._progress import report
+from ._resources import one_blas_thread
 from ._errors import warn
 from .colour import match_histograms
 from .depths import to_uint8

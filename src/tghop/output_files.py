@@ -8,7 +8,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from ._common import InvalidImageError
+from ._errors import InvalidImageError
 
 __all__ = ["written_file", "check_output_path", "write_atomic"]
 

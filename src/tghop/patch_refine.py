@@ -39,8 +39,11 @@ import warnings
 import numpy as np
 
 from ._arrays import check_int, check_mask, check_number
-from ._common import (BaseEstimator, InvalidImageError, TGHopError, check_image, check_is_fitted, check_rng,
-                      checked_image, one_blas_thread, report)
+from ._errors import InvalidImageError, TGHopError
+from ._estimator import BaseEstimator, check_is_fitted, check_rng
+from ._images import check_image, checked_image
+from ._progress import report
+from ._resources import one_blas_thread
 from .patches import clean_windows
 from .pyramid import downsample, upsample
 

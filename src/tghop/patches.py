@@ -12,7 +12,9 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._arrays import check_int
-from ._common import TGHopError, check_image, check_rng
+from ._errors import TGHopError
+from ._estimator import check_rng
+from ._images import check_image
 from .scale import scaled_shape
 
 __all__ = ["extract_patches", "patch_origins", "clean_windows", "check_exclude", "enough_patches",

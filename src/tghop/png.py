@@ -9,7 +9,9 @@ import zlib
 
 import numpy as np
 
-from ._common import InvalidImageError, ProgressCounter, TGHopError, report, usable_cores
+from ._errors import InvalidImageError, TGHopError
+from ._progress import ProgressCounter, report
+from ._resources import usable_cores
 
 __all__ = ["decode_png16", "write_png", "WRITING"]
 

@@ -39,7 +39,10 @@ from typing import Optional, Tuple
 import numpy as np
 
 from ._arrays import LEVELS, check_dtype, check_int, check_number, from_levels
-from ._common import MAX_PIXELS, ProgressCallback, TGHopError, check_rng, check_size, report
+from ._errors import TGHopError
+from ._estimator import check_rng
+from ._images import MAX_PIXELS, check_size
+from ._progress import ProgressCallback, report
 from .seams import SeamSteps
 
 __all__ = [

@@ -36,8 +36,11 @@ import numbers
 import numpy as np
 
 from ._arrays import check_int, check_mask
-from ._common import (BaseEstimator, InvalidImageError, ProgressCounter, StoredArrays, TGHopError, check_image,
-                      check_is_fitted, check_size, checked_image, report, usable_cores)
+from ._errors import InvalidImageError, TGHopError
+from ._estimator import BaseEstimator, StoredArrays, check_is_fitted
+from ._images import check_image, check_size, checked_image
+from ._progress import ProgressCounter, report
+from ._resources import usable_cores
 from ._fft import fft_for
 from .oriented import double_angle, iter_oriented_parts, match_oriented, oriented_parts
 from .patches import clean_windows
@@ -315,7 +318,7 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
         the same numbers in half the memory.
     threads : int, optional
         At most this many cores (channels in threads, FFT workers; None: every core that
-        :func:`~tghop._common.usable_cores` gives). The same numbers either way.
+        :func:`~tghop._resources.usable_cores` gives). The same numbers either way.
     relaxation : float
         In (0, 2]: each round but the last moves the image this many times as far as its
         matching asks (:data:`RELAXATION`; 1: plain rounds).

@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import ProgressCounter, TGHopError, check_size, usable_cores
+from ._errors import TGHopError
+from ._images import check_size
+from ._progress import ProgressCounter
+from ._resources import usable_cores
 from .colour import match_histograms
 from .refine import prepare as prepare_refinement, refine as refine_bands
 

@@ -27,7 +27,8 @@ import math
 import numpy as np
 
 from ._arrays import check_array, check_number, check_width, forget_fit
-from ._common import BaseEstimator, TGHopError, TransformerMixin, check_is_fitted
+from ._errors import TGHopError
+from ._estimator import BaseEstimator, TransformerMixin, check_is_fitted
 from .settings import check_channel_rule
 
 __all__ = ["Saab", "select_channels", "knee_point"]

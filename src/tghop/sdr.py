@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, check_width, forget_fit
-from ._common import BaseEstimator, FourDInputMixin, TGHopError, TransformerMixin, check_is_fitted
+from ._errors import TGHopError
+from ._estimator import BaseEstimator, FourDInputMixin, TransformerMixin, check_is_fitted
 from .settings import BY_NAME as _SETTINGS
 
 __all__ = ["SpatialReduction", "flip_signs"]

@@ -30,7 +30,8 @@ from typing import Tuple
 import numpy as np
 
 from ._arrays import check_int
-from ._common import TGHopError, report
+from ._errors import TGHopError
+from ._progress import report
 from ._fft import fft_for
 
 __all__ = ["SCREENING", "SeamSteps", "local_means", "remove_seams"]

@@ -607,7 +607,7 @@ BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
 
 def generator_record(rng):
     """A fitted part's ``rng`` as a model file records it (JSON data): a Generator as its bit
-    generator's name, its seed where :func:`tghop._common.generator_text` shows one, and its state;
+    generator's name, its seed where :func:`tghop._estimator.generator_text` shows one, and its state;
     anything else (an int seed, None) as None (an int seed is in the settings already).
 
     Parameters

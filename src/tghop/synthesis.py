@@ -36,8 +36,11 @@ import textwrap
 import numpy as np
 
 from . import generation, settings
-from ._common import (BaseEstimator, TGHopError, check_image, check_is_fitted, check_keywords, check_progress,
-                      check_rng, fit_part, fitted_settings, grey_as_rgb, one_blas_thread, report)
+from ._errors import TGHopError, check_progress
+from ._estimator import BaseEstimator, check_is_fitted, check_keywords, check_rng, fit_part, fitted_settings
+from ._images import check_image, grey_as_rgb
+from ._progress import report
+from ._resources import one_blas_thread
 from ._arrays import forget_fit
 from .codec import PatchCodec
 from .depths import exemplar_depth

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import check_rng
+from ._estimator import check_rng
 
 __all__ = ["kmeans", "kmeans_plusplus", "lloyd", "nearest", "fast_ica"]
 

@@ -229,7 +229,7 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
     """
     progress = LossProgress(not quiet)
     with user_errors(progress):
-        from .._common import import_torch
+        from .._resources import import_torch
         from ..cooc import PAPER, SMALL, CoocGAN
 
         from ..cooc.config import MAX_STEPS

@@ -261,7 +261,8 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
         if name == "gpdm":
             kwargs = {"n_steps": iterations} if iterations is not None else {}
         if name == "cooc":
-            from .._common import check_memory, check_size, check_texture, import_torch
+            from .._images import check_size, check_texture
+            from .._resources import check_memory, import_torch
             from ..cooc import SMALL, load
             from ..cooc.model import memory_estimate
 

@@ -307,7 +307,7 @@ def _check_grid(size, grid):
     """The stacked strips within the output size limit (each strip's --size is checked alone)."""
     import math
 
-    from .._common import MAX_PIXELS
+    from .._images import MAX_PIXELS
 
     height, width = size[0] * grid, size[1]
     if height * width > MAX_PIXELS:

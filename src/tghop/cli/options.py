@@ -2,7 +2,7 @@
 and the parameter types of the ``tghop`` command line (sizes, channel rules, float
 ranges that refuse NaN).
 
-Each value is checked by the library's own check (:func:`tghop._common.check_size`,
+Each value is checked by the library's own check (:func:`tghop._images.check_size`,
 :func:`tghop.settings.check_channel_rule`, :meth:`tghop.settings.Setting.check`), so
 the command line and the library refuse the same values with the same words.
 """
@@ -89,13 +89,13 @@ class FloatRange(click.FloatRange):
 
 
 class Size(click.ParamType):
-    """``HxW`` or a single number for a square, at most :data:`tghop._common.MAX_PIXELS`
-    pixels (:func:`tghop._common.check_size`)."""
+    """``HxW`` or a single number for a square, at most :data:`tghop._images.MAX_PIXELS`
+    pixels (:func:`tghop._images.check_size`)."""
 
     name = "HxW"
 
     def convert(self, value, param, ctx):
-        from .._common import check_size
+        from .._images import check_size
         from ..manifest import split_size
 
         if isinstance(value, tuple):

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import check_number
-from .._common import TGHopError
+from .._errors import TGHopError
 from .._limits import MAX_BOOST
 
 __all__ = [

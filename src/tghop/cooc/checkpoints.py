@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._common import ModelFileError, TGHopError, import_torch
+from .._errors import ModelFileError, TGHopError
+from .._resources import import_torch
 from .._formats import too_many_members, unpacks_too_far
 from .config import MAX_STEPS, torch_device
 from .networks import build_networks

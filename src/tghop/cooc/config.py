@@ -13,7 +13,7 @@ import numbers
 
 import numpy as np
 
-from .._common import TGHopError
+from .._errors import TGHopError
 
 __all__ = ["SMALL", "PAPER", "MAX_STEPS", "check_settings", "torch_device"]
 

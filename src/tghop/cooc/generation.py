@@ -28,7 +28,11 @@ from typing import Optional
 import numpy as np
 
 from .._arrays import check_int
-from .._common import ProgressCallback, TGHopError, check_rng, check_size, import_torch, report
+from .._errors import TGHopError
+from .._estimator import check_rng
+from .._images import check_size
+from .._progress import ProgressCallback, report
+from .._resources import import_torch
 from .assembly import (
     FEATHER,
     QUILT_DETAIL,
@@ -297,8 +301,8 @@ class GenerationMixin:
         Parameters
         ----------
         size : int or (int, int)
-            The image (h, w) in pixels it is for (:func:`tghop._common.check_size`: at least 1,
-            at most :data:`tghop._common.MAX_PIXELS`); ``n`` means ``(n, n)``.
+            The image (h, w) in pixels it is for (:func:`tghop._images.check_size`: at least 1,
+            at most :data:`tghop._images.MAX_PIXELS`); ``n`` means ``(n, n)``.
         rng : int or numpy.random.Generator, optional
             The offset's.
 

@@ -22,18 +22,11 @@ from typing import Optional
 import numpy as np
 
 from .._arrays import check_int
-from .._common import (
-    BaseEstimator,
-    NotFittedError,
-    ProgressCallback,
-    TGHopError,
-    check_image,
-    check_memory,
-    check_rng,
-    check_size,
-    check_texture,
-    import_torch,
-)
+from .._errors import NotFittedError, TGHopError
+from .._estimator import BaseEstimator, check_rng
+from .._images import check_image, check_size, check_texture
+from .._progress import ProgressCallback
+from .._resources import check_memory, import_torch
 from ..cooccurrence import cooccurrence_tensor
 from .assembly import QUILT_POOL, check_assembly
 from .checkpoints import read as read_checkpoint
@@ -53,7 +46,7 @@ class CoocGAN(TrainingMixin, GenerationMixin, BaseEstimator):
     :data:`~tghop.cooc.config.PAPER`; ``CoocGAN(**PAPER)`` is the paper's setting. Settings
     are stored as given; :meth:`fit` checks them (:func:`~tghop.cooc.config.check_settings`).
     ``get_params``, ``set_params``, the repr and ``sklearn.base.clone`` are those of every tghop
-    estimator (:class:`tghop._common.BaseEstimator`).
+    estimator (:class:`tghop._estimator.BaseEstimator`).
 
     Parameters
     ----------
@@ -413,7 +406,7 @@ def baseline(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallba
     ----------
     exemplar : array_like, shape (H, W) or (H, W, C)
     size : int or (int, int), optional
-        Output size (any, up to :data:`tghop._common.MAX_PIXELS`); default the exemplar's.
+        Output size (any, up to :data:`tghop._images.MAX_PIXELS`); default the exemplar's.
     rng : int or numpy.random.Generator, optional
         Seeds training (when ``model`` is None) and generation.
     progress : callable, optional

@@ -11,7 +11,7 @@ importing this module does not import PyTorch.
 
 from __future__ import annotations
 
-from .._common import TGHopError
+from .._errors import TGHopError
 
 __all__ = ["build_networks", "average_step", "split_tiles", "join_tiles"]
 

@@ -32,8 +32,11 @@ from typing import Callable, Optional, TypeVar
 
 import numpy as np
 
-from .._common import (ProgressCallback, TGHopError, available_memory, check_image, check_rng, check_texture,
-                       import_torch, report)
+from .._errors import TGHopError
+from .._estimator import check_rng
+from .._images import check_image, check_texture
+from .._progress import ProgressCallback, report
+from .._resources import available_memory, import_torch
 from ..cooccurrence import fit_colour_clusters
 from .networks import average_step, build_networks, join_tiles, split_tiles
 
@@ -97,7 +100,7 @@ class TrainingMixin:
         ----------
         exemplar : array_like, shape (H, W) or (H, W, C)
             Float in [0, 1], at least ``crop_size`` on each side, not flat
-            (:func:`tghop._common.check_texture`).
+            (:func:`tghop._images.check_texture`).
         resume : bool
             Continue a loaded checkpoint (or an earlier fit) up to ``n_steps`` instead of
             starting afresh; the exemplar must be the one it was trained on. Crops are cut

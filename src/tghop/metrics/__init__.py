@@ -42,7 +42,7 @@ crop below colour noise (they weigh fine grain and exact colours heavily), while
 keeps blur between a crop and noise.
 """
 
-from .._common import MissingExtraError
+from .._errors import MissingExtraError
 from .common import PLAIN_MAX_PIXELS
 from .copies import TEXTURED_STD, copied, copied_textured, diversity, novelty, self_repetition
 from .distributions import cooccurrence_distance, sliced_wasserstein

@@ -1,5 +1,5 @@
 """What the metrics share: checking a pair of images, progress, patch sizes and samples (what every stage of
-the library shares is :mod:`tghop._common`; the commands, :mod:`tghop.cli.common`)."""
+the library shares is in :mod:`tghop._images` and :mod:`tghop._progress`; the commands, :mod:`tghop.cli.common`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._arrays import check_int
-from .._common import TGHopError, check_image, grey_as_rgb, report
+from .._errors import TGHopError
+from .._images import check_image, grey_as_rgb
+from .._progress import report
 
 __all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "check_seed", "sample_patches",
            "exemplar_statistics"]

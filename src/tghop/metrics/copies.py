@@ -8,7 +8,8 @@ import itertools
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .._common import TGHopError, check_image
+from .._errors import TGHopError
+from .._images import check_image
 from .._arrays import check_int, check_number
 from .common import pair, counter, check_patch_size, check_seed, sample_patches
 

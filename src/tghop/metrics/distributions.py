@@ -8,7 +8,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from .._common import InvalidImageError, TGHopError, check_texture
+from .._errors import InvalidImageError, TGHopError
+from .._images import check_texture
 from . import common
 from .._arrays import check_int, check_number
 from .common import pair, counter, check_patch_size, check_seed, exemplar_statistics, sample_patches
@@ -118,7 +119,7 @@ def sliced_wasserstein(
 def _check_swd_memory(ex, res, patch_size, dim, n_projections, max_patches):
     """Refuse, before any work, patches and projections of :func:`sliced_wasserstein` (at its
     finest scale, the most patches) whose float64 arrays exceed the memory available."""
-    from .._common import available_memory
+    from .._resources import available_memory
 
     count = min(int(max_patches), *((img.shape[0] - patch_size + 1) * (img.shape[1] - patch_size + 1)
                                     for img in (ex, res)))

@@ -9,7 +9,8 @@ from typing import Callable
 
 import numpy as np
 
-from .._common import MAX_PIXELS, InvalidImageError, MissingExtraError, TGHopError, check_texture
+from .._errors import InvalidImageError, MissingExtraError, TGHopError
+from .._images import MAX_PIXELS, check_texture
 from .._random_cnn import USTYUZHANINOV_SCALES
 from .common import pair
 from .copies import copied, copied_textured, novelty, self_repetition
@@ -108,7 +109,7 @@ def check_sizes(shapes, metrics=None, *, diversity: bool = False, exemplar: str 
     ------
     InvalidImageError
         If an image is not of shape (H, W) or (H, W, C), has more than
-        :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192), or is smaller than a chosen
+        :data:`~tghop._images.MAX_PIXELS` pixels (8192 x 8192), or is smaller than a chosen
         metric needs (saying how large it must be).
     """
     names = _metric_names(metrics)
@@ -176,7 +177,7 @@ def evaluate(exemplar, result, *, metrics=None, repetition: bool = False, progre
     Every metric's memory is bounded whatever the image sizes (see each metric's Notes:
     images above 512 x 512 pixels are scored in strips or tiles, which gives the same
     value up to float rounding; the results of smaller images are unchanged). Images of
-    more than :data:`~tghop._common.MAX_PIXELS` pixels (8192 x 8192) are refused, and so
+    more than :data:`~tghop._images.MAX_PIXELS` pixels (8192 x 8192) are refused, and so
     are images smaller than a chosen metric needs, before any work (:func:`check_sizes`).
 
     Returns

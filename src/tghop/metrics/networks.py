@@ -10,7 +10,10 @@ from pathlib import Path
 import numpy as np
 from scipy import linalg
 
-from .._common import INSTALL_HINT, InvalidImageError, MissingExtraError, check_texture, import_torch, report
+from .._errors import InvalidImageError, MissingExtraError
+from .._images import check_texture
+from .._progress import report
+from .._resources import INSTALL_HINT, import_torch
 from .._random_cnn import USTYUZHANINOV_SCALES, RandomCNN, check_scales, random_filters, to_tensor
 from . import common
 from .._arrays import check_int

@@ -214,7 +214,7 @@ def parse_edit(body) -> tuple:
     ``boost``: ``[a, b, factor]`` or null (``tghop cooc edit --boost A,B,FACTOR``,
     :func:`tghop.cooc.boost_condition`); ``seed``; ``windows``.
     """
-    from .._common import check_size
+    from .._images import check_size
 
     body = _object(body, ("size", "labels", "crops", "boost", "seed", "windows"),
                    '{"size": [256, 256], "crops": [[0, 0], [64, 64]], "labels": "<PNG as base64>", "seed": 1}')

@@ -119,7 +119,7 @@ def read_maps(uploads, read, albedo_shape) -> tuple:
     """The maps' images: ``({name: array}, {name: depth})``, each read by :func:`read_map` (``read``: as
     its). A map of another height and width than the albedo's, or a normal map by its name that holds no
     unit vectors (:func:`tghop.material.check_normal_map`), is refused (400) before a fit job starts."""
-    from .._common import check_image
+    from .._images import check_image
     from .._errors import TGHopError
     from ..map_names import is_normal_name
     from ..material import check_normal_map

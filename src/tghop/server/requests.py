@@ -234,7 +234,7 @@ def parse_growth(size, anchor) -> tuple:
     """``/extend``'s form fields -> ``(size, anchor)``: ``size`` HEIGHTxWIDTH within the
     output limit, ``anchor`` one of :data:`tghop.inpaint.ANCHORS` (empty: ``center``); 422
     otherwise. Whether the size is larger than the picture is the fill's check (400)."""
-    from .._common import MAX_PIXELS, check_size
+    from .._images import MAX_PIXELS, check_size
     from ..inpaint import ANCHORS
 
     pair = manifest.split_size(size or "")
@@ -290,7 +290,7 @@ def parse_generation(body, *, skip=(), default_size=(256, 256), what="images") -
     what : str
         The route's name in the message of a body that is not an object.
     """
-    from .._common import MAX_PIXELS, check_size
+    from .._images import MAX_PIXELS, check_size
     from ..settings import QUALITY, generate_settings
 
     if not isinstance(body, dict):
@@ -389,7 +389,7 @@ def parse_guide_labels(body) -> tuple:
     """The JSON of ``POST /api/guides/labels`` -> ``(guide bytes, n_models, size or None)``: ``guide`` as
     :func:`parse_guided` takes it, ``n_models`` (1 to :data:`MAX_MODELS`), ``size`` (optional, as a
     generation's)."""
-    from .._common import MAX_PIXELS, check_size
+    from .._images import MAX_PIXELS, check_size
 
     if not isinstance(body, dict):
         raise RequestError(400, "the body must be a JSON object, e.g. {\"guide\": PNG_BASE64, \"n_models\": 2}")
