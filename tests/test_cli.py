@@ -174,7 +174,7 @@ def test_file_named_like_a_builtin(tmp_path):
     [
         (["fit", "missing.png", "-o", "m.npz"], ["missing.png", "no such file"]),
         (["fit", "notimage.png", "-o", "m.npz"], ["not a readable image"]),
-        (["fit", "tiny.png", "-o", "m.npz"], ["at least 76x76"]),
+        (["fit", "tiny.png", "-o", "m.npz"], ["at least 48x48"]),
         (["fit", "bricks.png", "-o", "m.npz", "--k1", "13"], ["K1", "at most 12"]),
         (["fit", "bricks.png", "-o", "m.npz", "--k1", "0"], ["--k1"]),
         (["fit", "bricks.png", "-o", "m.npz", "--k2", "5"], ["K2 (n_channels[1], --k2)", "at least 9"]),

@@ -203,8 +203,19 @@ def test_auto_clusters_follow_the_training_vectors():
     assert ICHM(n_clusters=7).clusters_for(12769) == 7
     z = np.random.default_rng(0).standard_normal((2800, 4))
     assert 50 < len(ICHM(n_codewords=20, max_iter=20, rng=0).fit(z).weights_) <= 70
-    with pytest.raises(TGHopError, match=r"n_clusters=50 \(auto\) needs at least 500"):
-        auto.fit(z[:400])
+    with pytest.raises(TGHopError, match=r"n_clusters=8 \(auto\) needs at least 80"):
+        auto.fit(z[:79])
+
+
+def test_auto_clusters_of_few_vectors_are_as_many_as_they_fill():
+    # 0.57 kept N at 50 or more and refused under 500 vectors (an exemplar under 76x76 at stride 2).
+    auto = ICHM()
+    old = [min(100, max(50, n // 40)) for n in range(500, 20001)]
+    assert [auto.clusters_for(n) for n in range(500, 20001)] == old  # from 500: 0.57's N, every one
+    assert [auto.clusters_for(n) for n in (80, 81, 289, 499, 79, 10, 0)] == [8, 8, 28, 49, 8, 8, 8]
+    assert ICHM(min_cluster_size=20).clusters_for(999) == 49 and ICHM(min_cluster_size=20).clusters_for(1000) == 50
+    z = np.random.default_rng(0).standard_normal((289, 4))
+    assert len(ICHM(n_codewords=20, max_iter=20, rng=0).fit(z).weights_) <= 28
 
 
 def test_component_ratio_caps_each_clusters_components():
@@ -404,12 +415,40 @@ def test_three_hops_for_64_patches():
     assert m.sample_patches(3, rng=0).shape == (3, 64, 64, 3)
 
 
+@pytest.mark.parametrize("side, patches, clusters", [(64, 289, 28), (48, 81, 8)])
+def test_a_small_exemplar_fits_and_generates_with_the_defaults(side, patches, clusters, tmp_path):
+    # A game artist's 64x64 or 48x48 tile: 0.57 refused it ("N=50 (auto) clusters of at least 10 need 500;
+    # use an exemplar of at least 76x76 pixels") though --clusters 28 fitted it.
+    from tghop.data import bricks
+    model = TGHop(rng=0).fit(bricks(side))
+    assert model.n_patches_ == patches and model.ichm_.clusters_for(patches) == clusters
+    assert len(model.ichm_.weights_) <= clusters
+    image = model.synthesize((96, 128), rng=3)
+    assert image.shape == (96, 128, 3) and np.isfinite(image).all() and image.std() > 0.02
+    assert np.array_equal(image, model.synthesize((96, 128), rng=3))  # the same seed, the same bytes
+    save_model(model, tmp_path / "m.npz")
+    assert np.array_equal(image, load_model(tmp_path / "m.npz").synthesize((96, 128), rng=3))
+    refit = TGHop(rng=0).fit(bricks(side))
+    assert np.array_equal(image, refit.synthesize((96, 128), rng=3))
+
+
+def test_exemplars_of_76_pixels_and_more_keep_their_automatic_settings():
+    # 76x76 at stride 2 is 529 training patches, N = 50 as in 0.57 (the small-exemplar rule starts below 500).
+    from tghop.data import bricks
+    for side, patches, clusters in ((76, 529, 50), (94, 1024, 50), (158, 4096, 100)):
+        model = TGHop()
+        n = len(range(0, side - 31, 2)) ** 2
+        assert n == patches and ICHM().clusters_for(n) == clusters, side
+    model = TGHop(rng=0, layout_factor=None, n_codewords=20).fit(bricks(76))
+    assert model.n_patches_ == 529 and model.ichm_.clusters_for(529) == 50
+
+
 @pytest.mark.parametrize("side, kwargs, size, fixes", [
-    (31, {}, "76x76", []),  # no patch at all: was "at least 32x32 ... or a smaller patch size"
-    (32, {}, "76x76", []),  # one patch: lowering N or the stride cannot help
-    (40, {}, "76x76", ["N of at most 2"]),
-    (75, {}, "76x76", ["a stride of 1", "N of at most 48"]),
-    (74, {"stride": 3}, "98x98", ["a stride of 1", "N of at most 22"]),
+    (31, {}, "48x48", []),  # no patch at all: was "at least 32x32 ... or a smaller patch size"
+    (32, {}, "48x48", []),  # one patch: lowering N or the stride cannot help
+    (40, {}, "48x48", ["a stride of 1", "N of at most 2"]),  # 0.57: 76x76, auto N at least 50
+    (47, {}, "48x48", ["a stride of 1", "N of at most 6"]),
+    (50, {"stride": 3}, "56x56", ["a stride of 2", "N of at most 4"]),
     (40, {"n_clusters": 4, "min_cluster_size": 20}, "48x48", ["a stride of 1", "N of at most 1"]),
 ])
 def test_a_small_exemplar_names_the_smallest_that_works(side, kwargs, size, fixes):
@@ -462,23 +501,23 @@ def test_stage_views_before_fit_is_not_fitted():
 
 
 def test_bad_settings(bricks96):
-    with pytest.raises(TGHopError, match="at least 76x76"):
+    with pytest.raises(TGHopError, match="at least 48x48"):
         TGHop().fit(bricks96[:20])
     # The least exemplar and stride are found by bisection and within the exemplar's side:
     # counted one pixel or one stride at a time, these took hours and 53 s (a server's thread).
     with pytest.raises(TGHopError, match=r"1 training patch of 32x32 at stride 1000000000, .* at least "
-                                         r"22000000032x22000000032 pixels, or a stride of 1 \(stride"):
+                                         r"8000000032x8000000032 pixels, or a stride of 3 \(stride"):
         TGHop(stride=10**9).fit(bricks96[:60, :60])
-    with pytest.raises(TGHopError, match="needs at least 50000000000000 training patches"):
+    with pytest.raises(TGHopError, match=r"n_clusters=8 \(auto\) needs at least 8000000000000 training patches"):
         TGHop(min_cluster_size=10**12).fit(bricks96[:60, :60])
     # A hop-1 count no exemplar of its channels has: before any patch is cut out, by its name.
     for image, most in ((bricks96, 12), (bricks96[..., :1], 4)):
         with pytest.raises(TGHopError, match=rf"^K1 \(n_channels\[0\], --k1\) is 13, .* has {most}; choose at most "):
             TGHop(n_channels=(13, 22)).fit(image)
     assert TGHop(n_channels=(13, 22)).check_channels() == (13, 22)  # no exemplar yet: any count
-    for stride, side in ((2, 76), (3, 98), (7, 186)):  # (side - 32) / stride + 1 positions a row, 23 of them
+    for stride, side in ((2, 48), (3, 56), (7, 88)):  # (side - 32) / stride + 1 positions a row: 9 (0.57: 23)
         with pytest.raises(TGHopError, match=f"at least {side}x{side} pixels"):
-            TGHop(stride=stride).fit(bricks96[:60, :60])
+            TGHop(stride=stride).fit(bricks96[:40, :40])
     with pytest.raises(TGHopError, match="patch_size must be 32 or 64"):
         TGHop(patch_size=48).fit(bricks96)
     with pytest.raises(TGHopError, match="divisible by 8"):

@@ -57,8 +57,8 @@ from ._progress import report
 from ._resources import one_blas_thread, usable_cores
 from ._errors import warn
 from .coupling import coupled_uniforms, member_ranks
-from .ichm_clusters import (AUTO_CLUSTERS, AUTO_PER_CLUSTER, NORM_DRAWS, NORM_QUANTILES, QUANTILE_STEPS,
-                            cdf_codebook, fit_cluster, histogram_cdfs, match_components, match_norms,
+from .ichm_clusters import (AUTO_CLUSTERS, AUTO_FEWEST, AUTO_PER_CLUSTER, NORM_DRAWS, NORM_QUANTILES,
+                            QUANTILE_STEPS, cdf_codebook, fit_cluster, histogram_cdfs, match_components, match_norms,
                             merge_small_clusters, quantile_table, residual_factors)
 from .ichm_storage import ICHMStorageMixin, quantize
 from .settings import BY_NAME as _SETTINGS
@@ -79,7 +79,8 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
     n_clusters : int or None, default=None
         N, the number of K-means clusters (paper: 50 in Table 4; quality improves up to
         about 100). None: :meth:`clusters_for` the training vectors, one per
-        ``AUTO_PER_CLUSTER`` of them, at least 50 and at most 100.
+        ``AUTO_PER_CLUSTER`` of them, at least 50 and at most 100; from fewer than 50 x
+        ``min_cluster_size`` vectors, one per ``min_cluster_size``, at least ``AUTO_FEWEST`` (8).
     n_codewords : int, default=200
         W, the size of the vector-quantised codebook of CDF shapes.
     n_bins : int, default=256
@@ -198,7 +199,9 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
     def clusters_for(self, n_samples) -> int:
         """N for ``n_samples`` training vectors: ``n_clusters``, or with None one per
         ``AUTO_PER_CLUSTER`` vectors within ``AUTO_CLUSTERS`` (the paper's 50 up to 2,000
-        vectors, 100 from 4,000: a 256x256 exemplar at stride 2 gives 12,769).
+        vectors, 100 from 4,000: a 256x256 exemplar at stride 2 gives 12,769); from fewer than
+        50 x ``min_cluster_size`` vectors, one per ``min_cluster_size``, at least ``AUTO_FEWEST`` (8: from
+        fewer vectors the fit is refused, naming the smallest exemplar; 48x48 at stride 2).
 
         Parameters
         ----------
@@ -212,7 +215,12 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         """
         if self.n_clusters is not None:
             return self.n_clusters
-        return int(min(AUTO_CLUSTERS[1], max(AUTO_CLUSTERS[0], n_samples // AUTO_PER_CLUSTER)))
+        n = int(min(AUTO_CLUSTERS[1], max(AUTO_CLUSTERS[0], n_samples // AUTO_PER_CLUSTER)))
+        # Fewer than 50 x min_cluster_size vectors (a small exemplar's: under 76x76 at stride 2): as many
+        # clusters as they fill, at least AUTO_FEWEST (0.58; 0.57 refused them all; docs/choices.md, ICHM "0.58").
+        if n * self.min_cluster_size > n_samples:
+            n = max(AUTO_FEWEST, int(n_samples) // self.min_cluster_size)
+        return n
 
     def _check_params(self, n_samples):
         for param, label, setting in self._CHECKS:

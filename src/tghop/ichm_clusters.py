@@ -30,13 +30,16 @@ from .sdr import flip_signs
 from .unsupervised import fast_ica, kmeans
 
 __all__ = ["merge_small_clusters", "fit_cluster", "residual_factors", "histogram_cdfs", "cdf_codebook",
-           "quantile_table", "match_components", "match_norms", "AUTO_CLUSTERS", "AUTO_PER_CLUSTER",
+           "quantile_table", "match_components", "match_norms", "AUTO_CLUSTERS", "AUTO_PER_CLUSTER", "AUTO_FEWEST",
            "QUANTILE_STEPS", "NORM_QUANTILES", "NORM_DRAWS"]
 
 #: ``n_clusters=None``: one cluster per AUTO_PER_CLUSTER training vectors, within these bounds
 #: (docs/choices.md, ICHM "0.27").
 AUTO_CLUSTERS = (50, 100)
 AUTO_PER_CLUSTER = 40
+#: ... and from fewer than AUTO_CLUSTERS[0] x min_cluster_size vectors (a small exemplar's), one cluster per
+#: min_cluster_size of them, at least AUTO_FEWEST: fewer vectors are refused (0.58; ICHM "0.58").
+AUTO_FEWEST = 8
 #: Resolution of the tabulated inverse CDFs used for sampling.
 QUANTILE_STEPS = 1024
 #: ``norm_match``: quantiles of the source norms stored per cluster (evenly spaced levels),
