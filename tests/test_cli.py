@@ -517,3 +517,22 @@ def test_a_missing_output_names_what_to_give(args, example):
     # A newcomer's `tghop fit texture.jpg` said only "Missing option '-o' / '--output'.", not what it takes.
     r = run(*args)
     assert_user_error(r, "Missing option '-o'", example, status=2)
+
+
+def test_a_64_or_48_pixel_tile_synthesises_with_no_option(tmp_path):
+    # 0.57: "exemplar is 64x64 pixels, 289 training patches of 32x32 at stride 2, but N=50 (auto) clusters of
+    # at least 10 need 500; use an exemplar of at least 76x76 pixels, ..."; a game artist's tile is often that small.
+    for side in (64, 48):
+        save_image(data.bricks(side, rng=1), tmp_path / f"tile{side}.png")
+        outs = []
+        for k in (1, 2):
+            r = run("synth", tmp_path / f"tile{side}.png", "-o", tmp_path / f"out{side}_{k}.png", "--size", "128x128",
+                    "--seed", "0", "-q")
+            assert r.returncode == 0, r.stderr.decode()
+            outs.append((tmp_path / f"out{side}_{k}.png").read_bytes())
+        assert outs[0] == outs[1]  # the same seed, the same bytes
+        assert Image.open(tmp_path / f"out{side}_1.png").size == (128, 128)
+    save_image(data.bricks(46, rng=1), tmp_path / "tile46.png")
+    r = run("synth", tmp_path / "tile46.png", "-o", tmp_path / "out46.png", "--size", "128x128", "-q")
+    assert_user_error(r, "46x46 pixels", "use an exemplar of at least 48x48 pixels", "--stride", "--clusters")
+    assert not (tmp_path / "out46.png").exists()
