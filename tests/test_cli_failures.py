@@ -90,8 +90,8 @@ CASES = [
     (["fit", "flat.png", "-o", "m.npz"], ["no texture"]),
     (["synth", "flat.png", "-o", "o.png", "--gamma", "0"], ["no texture"]),
     # an exemplar too small for the default settings: the smallest that works, and fixes that do
-    (["synth", "small31.png", "-o", "o.png", "--size", "64"], ["31x31 pixels", "at least 48x48"]),  # not 32x32
-    (["synth", "small.png", "-o", "o.png", "--size", "64"], ["40x40 pixels", "N=8 (auto)", "at least 48x48"]),
+    (["synth", "small31.png", "-o", "o.png", "--size", "64"], ["31x31 pixels", "at least 44x44"]),  # not 32x32
+    (["synth", "small.png", "-o", "o.png", "--size", "64"], ["40x40 pixels", "N=4 (auto)", "at least 44x44"]),
     (["synth", "small32.png", "-o", "o.png", "-N", "1"], ["32x32 pixels, 1 training patch", "at least 38x38"]),
     # a guide of a few levels for one SOURCE wants one SOURCE per level, not flat painting
     (["synth", "model.npz", "--guide", "two_levels.png", "-o", "o.png"],

@@ -29,7 +29,7 @@ def folder(tmp_path_factory, small_model):
     d = tmp_path_factory.mktemp("outputs")
     save_image(data.bricks(72, rng=2), d / "keep.png")
     save_image(data.bricks(72, rng=2), d / "keep_2.png")
-    save_image(data.bricks(72, rng=2)[:44, :44], d / "tiny.png")
+    save_image(data.bricks(72, rng=2)[:40, :40], d / "tiny.png")
     save_model(small_model, d / "model.npz")
     (d / "big.png").write_bytes(png_header(9000, 9000))  # over 64 Mpx, under Pillow's bomb limit
     (d / "garbage.npz").write_bytes(b"not a zip, not an image")
@@ -84,12 +84,12 @@ CASES = [
     (["morph", "big.png", "model.npz", "-o", "o.png"], ["9000x9000", "downscale it first"]),
     (["synth", "model.npz", "model.npz", "--guide", "big.png", "-o", "o.png"], ["9000x9000", "downscale it first"]),
     (["synth", "big.png", "model.npz", "-o", "o.png"], ["9000x9000", "pass --downscale"]),
-    # an exemplar too small for the default fit (tiny.png is 44x44; 0.57 refused keep.png's 72x72 too):
+    # an exemplar too small for the default fit (tiny.png is 40x40; 0.57 refused keep.png's 72x72 too):
     # named, with the fixes the command has
-    (["morph", "model.npz", "tiny.png", "-o", "o.png"], ["B tiny.png is 44x44 pixels, too small", "48x48"]),
+    (["morph", "model.npz", "tiny.png", "-o", "o.png"], ["B tiny.png is 40x40 pixels, too small", "44x44"]),
     (["inpaint", "keep.png", "hole.png", "--source", "tiny.png", "-o", "o.png"],
-     ["--source tiny.png is 44x44 pixels, too small", "48x48"]),
-    (["synth", "model.npz", "tiny.png", "-o", "o.png"], ["SOURCE 2 (tiny.png): exemplar is 44x44", "--stride"]),
+     ["--source tiny.png is 40x40 pixels, too small", "44x44"]),
+    (["synth", "model.npz", "tiny.png", "-o", "o.png"], ["SOURCE 2 (tiny.png): exemplar is 40x40", "--stride"]),
     # empty names and folder-like ones: "" was the current folder (a traceback for fit, a batch run
     # into it), "x.png/" wrote a file x.png, and a file taken for a folder "did not exist"
     (["synth", "model.npz", "-o", "", "--size", "40"], ["the image's file name is empty"]),

@@ -203,8 +203,8 @@ def test_auto_clusters_follow_the_training_vectors():
     assert ICHM(n_clusters=7).clusters_for(12769) == 7
     z = np.random.default_rng(0).standard_normal((2800, 4))
     assert 50 < len(ICHM(n_codewords=20, max_iter=20, rng=0).fit(z).weights_) <= 70
-    with pytest.raises(TGHopError, match=r"n_clusters=8 \(auto\) needs at least 80"):
-        auto.fit(z[:79])
+    with pytest.raises(TGHopError, match=r"n_clusters=4 \(auto\) needs at least 40"):
+        auto.fit(z[:39])
 
 
 def test_auto_clusters_of_few_vectors_are_as_many_as_they_fill():
@@ -212,7 +212,7 @@ def test_auto_clusters_of_few_vectors_are_as_many_as_they_fill():
     auto = ICHM()
     old = [min(100, max(50, n // 40)) for n in range(500, 20001)]
     assert [auto.clusters_for(n) for n in range(500, 20001)] == old  # from 500: 0.57's N, every one
-    assert [auto.clusters_for(n) for n in (80, 81, 289, 499, 79, 10, 0)] == [8, 8, 28, 49, 8, 8, 8]
+    assert [auto.clusters_for(n) for n in (40, 49, 81, 289, 499, 39, 10, 0)] == [4, 4, 8, 28, 49, 4, 4, 4]
     assert ICHM(min_cluster_size=20).clusters_for(999) == 49 and ICHM(min_cluster_size=20).clusters_for(1000) == 50
     z = np.random.default_rng(0).standard_normal((289, 4))
     assert len(ICHM(n_codewords=20, max_iter=20, rng=0).fit(z).weights_) <= 28
@@ -444,11 +444,11 @@ def test_exemplars_of_76_pixels_and_more_keep_their_automatic_settings():
 
 
 @pytest.mark.parametrize("side, kwargs, size, fixes", [
-    (31, {}, "48x48", []),  # no patch at all: was "at least 32x32 ... or a smaller patch size"
-    (32, {}, "48x48", []),  # one patch: lowering N or the stride cannot help
-    (40, {}, "48x48", ["a stride of 1", "N of at most 2"]),  # 0.57: 76x76, auto N at least 50
-    (47, {}, "48x48", ["a stride of 1", "N of at most 6"]),
-    (50, {"stride": 3}, "56x56", ["a stride of 2", "N of at most 4"]),
+    (31, {}, "44x44", []),  # no patch at all: was "at least 32x32 ... or a smaller patch size"
+    (32, {}, "44x44", []),  # one patch: lowering N or the stride cannot help
+    (40, {}, "44x44", ["a stride of 1", "N of at most 2"]),  # 0.57: 76x76, auto N at least 50
+    (43, {}, "44x44", ["a stride of 1", "N of at most 3"]),
+    (48, {"stride": 3}, "50x50", ["a stride of 2", "N of at most 3"]),
     (40, {"n_clusters": 4, "min_cluster_size": 20}, "48x48", ["a stride of 1", "N of at most 1"]),
 ])
 def test_a_small_exemplar_names_the_smallest_that_works(side, kwargs, size, fixes):
@@ -501,21 +501,21 @@ def test_stage_views_before_fit_is_not_fitted():
 
 
 def test_bad_settings(bricks96):
-    with pytest.raises(TGHopError, match="at least 48x48"):
+    with pytest.raises(TGHopError, match="at least 44x44"):
         TGHop().fit(bricks96[:20])
     # The least exemplar and stride are found by bisection and within the exemplar's side:
     # counted one pixel or one stride at a time, these took hours and 53 s (a server's thread).
     with pytest.raises(TGHopError, match=r"1 training patch of 32x32 at stride 1000000000, .* at least "
-                                         r"8000000032x8000000032 pixels, or a stride of 3 \(stride"):
+                                         r"6000000032x6000000032 pixels, or a stride of 4 \(stride"):
         TGHop(stride=10**9).fit(bricks96[:60, :60])
-    with pytest.raises(TGHopError, match=r"n_clusters=8 \(auto\) needs at least 8000000000000 training patches"):
+    with pytest.raises(TGHopError, match=r"n_clusters=4 \(auto\) needs at least 4000000000000 training patches"):
         TGHop(min_cluster_size=10**12).fit(bricks96[:60, :60])
     # A hop-1 count no exemplar of its channels has: before any patch is cut out, by its name.
     for image, most in ((bricks96, 12), (bricks96[..., :1], 4)):
         with pytest.raises(TGHopError, match=rf"^K1 \(n_channels\[0\], --k1\) is 13, .* has {most}; choose at most "):
             TGHop(n_channels=(13, 22)).fit(image)
     assert TGHop(n_channels=(13, 22)).check_channels() == (13, 22)  # no exemplar yet: any count
-    for stride, side in ((2, 48), (3, 56), (7, 88)):  # (side - 32) / stride + 1 positions a row: 9 (0.57: 23)
+    for stride, side in ((2, 44), (3, 50), (7, 74)):  # (side - 32) / stride + 1 positions a row: 7 (0.57: 23)
         with pytest.raises(TGHopError, match=f"at least {side}x{side} pixels"):
             TGHop(stride=stride).fit(bricks96[:40, :40])
     with pytest.raises(TGHopError, match="patch_size must be 32 or 64"):

@@ -226,11 +226,11 @@ def test_cli_bad_options_are_one_line_and_write_nothing(files, args, words, stat
 def test_cli_an_image_too_small_to_fit_on_names_the_least_size_and_source(files, cells):
     # It said "use an exemplar of at least 76x76 pixels, or N of at most 10 (n_clusters, --clusters)":
     # extend and inpaint have no --clusters, and IMAGE is no exemplar.
-    save_image(cells[:44, :44], files / "small.png")  # 0.57 refused 50x50 too (at least 76x76)
+    save_image(cells[:40, :40], files / "small.png")  # 0.57 refused 50x50 too (at least 76x76)
     small = files / "small.png"
     for args in (["extend", small, "--size", "100"], ["inpaint", small, small]):  # its light cells: the hole
         r = cli(*args, "-o", files / "bad.png", "-q")
-        assert_user_error(r, "IMAGE", "small.png is 44x44 pixels, too small to fit a model on (at least 48x48 "
+        assert_user_error(r, "IMAGE", "small.png is 40x40 pixels, too small to fit a model on (at least 44x44 "
                              "pixels); give --source")
         assert "--clusters" not in r.stderr.decode() and not (files / "bad.png").exists()
 

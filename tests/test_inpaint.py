@@ -477,7 +477,7 @@ def test_cli_a_source_exemplar_too_small_names_the_smallest_that_works(files):
     save_image(np.random.default_rng(0).random((31, 31, 3)), files / "small.png")
     r = run("inpaint", files / "cells.png", files / "mask.png", "-o", files / "s.png", "-q",
             "--source", files / "small.png")
-    assert_user_error(r, "31x31 pixels", "at least 48x48")
+    assert_user_error(r, "31x31 pixels", "at least 44x44")
 
 
 def test_a_layout_left_out_for_the_mask_says_so():

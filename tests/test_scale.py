@@ -115,9 +115,9 @@ def test_too_small_at_the_scale_names_the_scale_that_works():
 
 def test_the_least_exemplar_named_at_a_scale_is_the_least_that_fits():
     # At scale 0.5 it said "at least 152x152 pixels", but 151 pixels resample to round(75.5) = 76, as 152 do
-    # (0.57's least, 76x76; from 0.58 48x48: 95 pixels resample to round(47.5) = 48).
+    # (0.57's least, 76x76; from 0.58 44x44: 87 pixels resample to round(43.5) = 44).
     model = TGHop(scale=0.5)
-    with pytest.raises(TGHopError, match="at least 95x95 pixels") as info:
+    with pytest.raises(TGHopError, match="at least 87x87 pixels") as info:
         model.check_exemplar_size((60, 60, 3))
     side = info.value.least_side
     model.check_exemplar_size((side, side, 3))  # the side named is enough

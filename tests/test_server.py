@@ -320,7 +320,7 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert_error(post("/api/models", files={"image": ("flat.png", flat.getvalue())}), 400, "no texture")
     # Too small for the settings: the smallest that works (it said "at least 32x32" to a 40x40 image).
     assert_error(post("/api/models", files={"image": ("small.png", exemplar_png(40))}), 400,
-                 "40x40 pixels", "at least 48x48")
+                 "40x40 pixels", "at least 44x44")
     good = client.get(f"/api/models/{model_id}/file").content
     assert_error(post("/api/models/upload", files={"model": ("cut.npz", good[: len(good) // 2])}), 400,
                  "cut.npz: truncated, corrupt")

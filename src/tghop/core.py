@@ -80,7 +80,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         N, the number of K-means clusters (paper: 50 in Table 4; quality improves up to
         about 100). None: :meth:`clusters_for` the training vectors, one per
         ``AUTO_PER_CLUSTER`` of them, at least 50 and at most 100; from fewer than 50 x
-        ``min_cluster_size`` vectors, one per ``min_cluster_size``, at least ``AUTO_FEWEST`` (8).
+        ``min_cluster_size`` vectors, one per ``min_cluster_size``, at least ``AUTO_FEWEST`` (4).
     n_codewords : int, default=200
         W, the size of the vector-quantised codebook of CDF shapes.
     n_bins : int, default=256
@@ -200,8 +200,8 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         """N for ``n_samples`` training vectors: ``n_clusters``, or with None one per
         ``AUTO_PER_CLUSTER`` vectors within ``AUTO_CLUSTERS`` (the paper's 50 up to 2,000
         vectors, 100 from 4,000: a 256x256 exemplar at stride 2 gives 12,769); from fewer than
-        50 x ``min_cluster_size`` vectors, one per ``min_cluster_size``, at least ``AUTO_FEWEST`` (8: from
-        fewer vectors the fit is refused, naming the smallest exemplar; 48x48 at stride 2).
+        50 x ``min_cluster_size`` vectors, one per ``min_cluster_size``, at least ``AUTO_FEWEST`` (4: from
+        fewer vectors the fit is refused, naming the smallest exemplar; 44x44 at stride 2).
 
         Parameters
         ----------

@@ -39,7 +39,7 @@ AUTO_CLUSTERS = (50, 100)
 AUTO_PER_CLUSTER = 40
 #: ... and from fewer than AUTO_CLUSTERS[0] x min_cluster_size vectors (a small exemplar's), one cluster per
 #: min_cluster_size of them, at least AUTO_FEWEST: fewer vectors are refused (0.58; ICHM "0.58").
-AUTO_FEWEST = 8
+AUTO_FEWEST = 4
 #: Resolution of the tabulated inverse CDFs used for sampling.
 QUANTILE_STEPS = 1024
 #: ``norm_match``: quantiles of the source norms stored per cluster (evenly spaced levels),

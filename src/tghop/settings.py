@@ -338,7 +338,7 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("n_clusters", None, "int",
             "N, K-means clusters in ICHM. auto (None in Python): one per 40 training patches, at least 50 "
             "(the paper's) and at most 100 (from 4,000 patches; a 256x256 exemplar has 12,769); under 500 "
-            "patches (an exemplar under 76x76) one per min_cluster_size, at least 8 (48x48; 0.58).",
+            "patches (an exemplar under 76x76) one per min_cluster_size, at least 4 (44x44; 0.58).",
             low=1, none_ok=True, auto=True, cli=("--clusters", "-N"), cli_high=5000, target="ichm", paper=50),
     Setting("n_codewords", 200, "int", "W, size of the CDF codebook.", low=1, cli=("--codewords", "-W"),
             cli_high=100000, target="ichm", paper=200),
