@@ -235,10 +235,9 @@ def waiting_task(job):
 def test_a_worker_without_tghop_that_joins_mid_run_stops_it_with_one_line(tmp_path, cluster):
     # Workers were checked once, before any work (0.57): one without tghop that joined later was handed
     # exemplars, which failed on it. 0.58 checks each worker that joins as the next exemplar is handed out.
-    from test_cli_failures import assert_one_line, invoke
-
     cluster.worker("w1")
-    src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
+    make_folder(tmp_path / "src", 3)
+    out = tmp_path / "out"
     none = _fake_tghop(tmp_path / "none", "raise ModuleNotFoundError(\"No module named 'tghop'\", name='tghop')")
 
     def join_late():

@@ -153,8 +153,8 @@ def test_the_summary_says_many_failures_and_warnings_alike_on_one_line(tmp_path,
     assert warned == [f"Warning: d0__x09: {src / 'd0' / 'x09.png'}: its alpha channel dropped (and 4 more like it: "
                       "d0__x12, d1__x10, d1__x13, d2__x11)"], err  # in the batch's order, d0/ first
     failed = [line for line in lines if line.startswith("failed: ")]
-    assert failed == [f"failed: d0__x00: exemplar is 40x40 pixels (and 4 more like it: d0__x06, d1__x04, d2__x02, "
-                      f"d2__x08)", f"failed: d0__x03: {src / 'd0' / 'x03.png'}: not a readable image (and 3 more "
+    assert failed == ["failed: d0__x00: exemplar is 40x40 pixels (and 4 more like it: d0__x06, d1__x04, d2__x02, "
+                      "d2__x08)", f"failed: d0__x03: {src / 'd0' / 'x03.png'}: not a readable image (and 3 more "
                       "like it: d1__x01, d1__x07, d2__x05)"], err
     assert code == 1 and lines[-1].startswith("Error: 9 of 14 exemplars failed: d0__x00, d0__x03, "), err
     from tghop.cli.batch import alike_lines

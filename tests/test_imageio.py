@@ -410,8 +410,6 @@ def test_deep_tiffs_alpha_only_where_extrasamples_says_and_refused_kinds(tmp_pat
     levels = rng.integers(0, 65536, (9, 7, 4), dtype=np.uint16)
     tifffile.imwrite(tmp_path / "x.tif", levels, photometric="rgb", extrasamples=["unspecified"])
     tifffile.imwrite(tmp_path / "a.tif", levels, photometric="rgb", extrasamples=["unassalpha"])
-    import warnings
-
     with pytest.warns(UserWarning, match="its 4th sample, not marked as alpha .*read as straight alpha"):
         got = load_image(tmp_path / "x.tif", keep_alpha=True)  # 0.58: an unmarked 4th sample is alpha, said
     np.testing.assert_array_equal(np.round(got * 65535).astype(np.uint16), levels)
