@@ -441,3 +441,12 @@ def test_a_materials_maps_are_read_as_data_in_a_fit_and_a_fill(client, material_
     got = {m["name"]: decode(m["png"]) for m in r.json()["maps"]}
     np.testing.assert_array_equal(got["normal"][~hole], normal[~hole])
     np.testing.assert_array_equal(got["height"][~hole][..., 0], height[~hole])
+
+
+def test_a_fits_warnings_are_told_with_the_models_summary(client):
+    # what Material.fit warns of (a map named as a height map that holds a colour image) went to the server's
+    # console (0.57); 0.58: the model's summary says it, which the page shows when the fit is done
+    image = to_uint8(data.bricks(SIZE, rng=7))
+    model = fit(client, {"image": ("Rock_Color.png", png(image)), "map:Rock_Height": ("h.png", png(image))})
+    notes = client.get(f"/api/models/{model}").json()["notes"]
+    assert [n for n in notes if "named as a height map" in n and "colour image" in n], notes

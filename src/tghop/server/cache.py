@@ -80,6 +80,7 @@ class ModelCache:
         self._summaries = OrderedDict()
         self._notes = OrderedDict()  # id -> what reading its file warned of (:meth:`notes`), the last read ones
         self._names = {}  # id -> the name of its upload, while its notes are kept (:meth:`model_notes`)
+        self._fit_notes = OrderedDict()  # id -> what its fit here warned of (:meth:`fit_notes`), the last ones
         self._loading = {}  # id -> the Future of its load under way: callers asking meanwhile wait for it
         self._lock = threading.Lock()
         self.prune()  # the bound may be lower than the last server's
@@ -211,6 +212,23 @@ class ModelCache:
             if said is not None:
                 self._notes.move_to_end(model_id)  # a model in use keeps its notes
         return None if said is None else [line.replace(_PATH, name) for line in said]
+
+    def fitted(self, model_id: str, said) -> None:
+        """Keep what the fit of ``model_id`` warned of (``said``: the fit's tghop warnings, a map named as a height
+        map that holds colours, say), for :meth:`fit_notes`; the last :data:`_SUMMARIES` fits' are kept."""
+        with self._lock:
+            self._fit_notes.pop(model_id, None)
+            if said:
+                self._fit_notes[model_id] = [str(w) for w in said]
+                while len(self._fit_notes) > _SUMMARIES:
+                    self._fit_notes.popitem(last=False)
+
+    def fit_notes(self, model_id: str) -> list:
+        """What the fit of ``model_id`` in this server warned of (:meth:`fitted`; 0.58: 0.57's fit job let it go
+        to the server's console, and the page said nothing), for its summary only: unlike a file's read warnings
+        (:meth:`model_notes`), not repeated with each image, as ``tghop synth`` does not repeat ``tghop fit``'s."""
+        with self._lock:
+            return list(self._fit_notes.get(model_id, ()))
 
     def model_notes(self, model_id: str) -> list:
         """What reading the file of ``model_id`` warned of, for any answer that uses the model (a generation's

@@ -39,12 +39,14 @@ def summary(server, model_id: str) -> dict:
 async def model_summary(server, request):
     """``GET /api/models/{id}``: the summary kept, or the model loaded in the decoding threads' turn
     (:meth:`~tghop.server.core.Server.decode`: a model may take hundreds of MB while it is read), with ``notes``:
-    what reading its file warned of (:meth:`~tghop.server.cache.ModelCache.model_notes`)."""
+    what reading its file warned of (:meth:`~tghop.server.cache.ModelCache.model_notes`) and what its fit here
+    warned of (:meth:`~tghop.server.cache.ModelCache.fit_notes`)."""
     model_id = request.path_params["id"]
     known = server.cache.summary(model_id)
     if known is None:
         known = await server.decode(request, summary, server, model_id)
-    return json_response({**known, "notes": [note_line(line) for line in server.cache.model_notes(model_id)]})
+    said = server.cache.model_notes(model_id) + server.cache.fit_notes(model_id)
+    return json_response({**known, "notes": [note_line(line) for line in said]})
 
 
 def download_name(file_id: str, suffix: str, *, kind: str = "", name=None, ascii_only: bool = False) -> str:
