@@ -51,11 +51,10 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_array, check_count, check_int, check_width, forget_fit
-from ._errors import TGHopError
+from ._errors import TGHopError, warn
 from ._estimator import BaseEstimator, check_is_fitted, check_rng
 from ._progress import report
 from ._resources import one_blas_thread, usable_cores
-from ._errors import warn
 from .coupling import coupled_uniforms, member_ranks
 from .ichm_clusters import (AUTO_CLUSTERS, AUTO_FEWEST, AUTO_PER_CLUSTER, NORM_DRAWS, NORM_QUANTILES,
                             QUANTILE_STEPS, cdf_codebook, fit_cluster, histogram_cdfs, match_components, match_norms,

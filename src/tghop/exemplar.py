@@ -13,9 +13,8 @@ import math
 
 import numpy as np
 
-from ._errors import TGHopError
+from ._errors import OpaqueAlphaWarning, TGHopError, TransparencyWarning, warn
 from ._images import check_image, check_texture, grey_as_rgb
-from ._errors import OpaqueAlphaWarning, TransparencyWarning, warn
 from .image_decode import transparent_share
 
 __all__ = ["default_channels", "prepare_exemplar", "drop_alpha"]

@@ -14,9 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_not_path
-from ._errors import TGHopError
+from ._errors import TGHopError, warn
 from ._images import check_size
-from ._errors import warn
 
 __all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "LostRegionError", "ASPECT_TOLERANCE",
            "FEW_LEVELS", "RESHAPE",

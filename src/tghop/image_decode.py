@@ -11,8 +11,7 @@ import warnings
 
 import numpy as np
 
-from ._errors import InvalidImageError
-from ._errors import ImageTooLargeError, warn
+from ._errors import ImageTooLargeError, InvalidImageError, warn
 from ._formats import TIFF_HINT, warn_frames
 from .depths import RANGE_TOLERANCE
 from .png import decode_png16

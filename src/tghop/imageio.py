@@ -20,10 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._errors import InvalidImageError, TGHopError
+from ._errors import InvalidImageError, MissingExtraError, OpaqueAlphaWarning, TGHopError, TransparencyWarning, warn
 from ._images import check_image
 from ._progress import report
-from ._errors import MissingExtraError, OpaqueAlphaWarning, TransparencyWarning, warn
 from ._formats import (DEPTHS, check_tifffile, checkpoint_note, extensions, missing_decoder, unread_format,
                        why_unreadable)
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16

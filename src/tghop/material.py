@@ -38,12 +38,11 @@ import numpy as np
 
 from . import settings
 from ._arrays import check_dtype, check_not_path
-from ._errors import TGHopError, check_progress
+from ._errors import TGHopError, check_progress, warn
 from ._estimator import BaseEstimator, check_is_fitted, check_rng, fit_part, fitted_settings
 from ._images import check_image
 from ._progress import report
 from ._resources import one_blas_thread
-from ._errors import warn
 from .colour import match_histograms
 from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS, MapNameClashError, check_map_names,

@@ -31,8 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._errors import ModelFileError, TGHopError
-from ._errors import warn
+from ._errors import ModelFileError, TGHopError, warn
 from ._formats import (COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind, too_many_members,
                        unpacks_too_far)
 from .imageio import check_output_path, write_atomic
