@@ -336,3 +336,13 @@ def test_a_worker_gone_while_it_is_checked_is_no_worker_without_tghop():
                                     "tcp://d:1": batch.__version__}), ["tcp://b:1", "tcp://c:1", "tcp://d:1"])
     with pytest.raises(TGHopError, match=r"^2 Dask workers that joined the cluster mid-run run another tghop "):
         check_workers_tghop(Client({"tcp://e:1": "0.1.0", "tcp://f:1": "0.2.0"}), ["tcp://e:1", "tcp://f:1"])
+
+
+def test_an_exemplar_on_two_workers_that_left_is_named_once():
+    # its first worker killed, its retry's too: both removals list it, and the warning said "running, a, a" (0.58's
+    # first version, seen in CI's warnings)
+    from tghop.batch_dask import _workers_gone
+
+    said = _workers_gone(["tcp://1", "tcp://2"], {"tcp://1": "0", "tcp://2": "1"}, True,
+                         {"tcp://1": ["a"], "tcp://2": ["a"]})
+    assert "the exemplar they were running, a, runs again on another worker" in said, said

@@ -346,7 +346,7 @@ def _workers_gone(gone, names, local, running=None) -> str:
     restart = "its nanny starts another" if local else "start another if it was not restarted"
     tries = "up to the scheduler's tries (distributed.scheduler.allowed-failures)"
     if all(a in running for a in gone):
-        lost = sorted(n for a in gone for n in running[a])
+        lost = sorted({n for a in gone for n in running[a]})  # an exemplar retried on a worker that left too: once
         shown = ", ".join(lost[:5]) + (" ..." if len(lost) > 5 else "")
         under_way = f"{'it was' if one else 'they were'} running none of this run's exemplars" if not lost else \
             f"the exemplar {'it was' if one else 'they were'} running, {shown}, runs again on another worker, {tries}" \
