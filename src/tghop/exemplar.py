@@ -15,7 +15,7 @@ import numpy as np
 
 from ._errors import OpaqueAlphaWarning, TGHopError, TransparencyWarning, warn
 from ._images import check_image, check_texture, grey_as_rgb
-from .image_decode import transparent_share
+from .image_decode import transparency_note, transparent_share
 
 __all__ = ["default_channels", "prepare_exemplar", "drop_alpha"]
 
@@ -128,10 +128,8 @@ def drop_alpha(image, *, stacked=False):
     kind = "RGBA" if arr.shape[2] == 4 else "grey+alpha"
     said = f"exemplar: alpha channel dropped (an array of {arr.shape[2]} channels is read as {kind}"
     if share:
-        told = "under 1%" if share < 0.005 else f"{share:.0%}"
-        warn(TransparencyWarning(f"{said}), though {told} of its pixels are transparent: the colours under them "
-                                 "are taken as texture; crop it to its opaque part, or leave that part out with "
-                                 f"exclude=image[..., -1] < {half}", "exemplar", share))
+        note = transparency_note(share, exclude=f"exclude=image[..., -1] < {half}")
+        warn(TransparencyWarning(f"{said}){note}", "exemplar", share))
     else:
         warn(OpaqueAlphaWarning(f"{said}; stacked=True models every channel)", "exemplar"))
     return arr[..., :-1]

@@ -18,7 +18,7 @@ from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
 
 __all__ = ["open_image", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
-           "transparency_note", "metadata_too_large"]
+           "transparency_note", "share_text", "metadata_too_large"]
 
 
 #: Pillow's modes with an alpha channel ("P+transparency": a palette with a transparent entry, as
@@ -38,17 +38,21 @@ def transparent_share(alpha) -> float:
     return float(np.mean(alpha < (128 if alpha.dtype == np.uint8 else 0.5))) if alpha.size else 0.0
 
 
-def transparency_note(share) -> str:
+def share_text(share) -> str:
+    """A transparent share (:func:`transparent_share`) as the warnings and notes say it: "under 1%" or "37%"."""
+    return "under 1%" if share < 0.005 else f"{share:.0%}"
+
+
+def transparency_note(share, *, exclude="an exclude mask (--exclude MASK, white where it is transparent)") -> str:
     """What follows "alpha channel dropped" in :func:`tghop.imageio.load_image`'s warning: nothing
     for an opaque image (or ``share`` None: not known), else how much was transparent and what to do,
     since the colours under transparent pixels (black, white, whatever the editor left) are then
-    taken as they are, learnt as part of the texture."""
+    taken as they are, learnt as part of the texture; ``exclude``: how the caller's user leaves that
+    part out (the command line's option; :func:`tghop.exemplar.drop_alpha`'s, an ``exclude`` array)."""
     if not share:
         return ""
-    told = "under 1%" if share < 0.005 else f"{share:.0%}"
-    return (f", though {told} of its pixels are transparent: the colours under them are taken as texture; "
-            "crop it to its opaque part, or leave that part out with an exclude mask (--exclude MASK, white "
-            "where it is transparent)")
+    return (f", though {share_text(share)} of its pixels are transparent: the colours under them are taken as "
+            f"texture; crop it to its opaque part, or leave that part out with {exclude}")
 
 
 def open_image(path):

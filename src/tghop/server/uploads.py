@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 from .._errors import ImageTooLargeError, OpaqueAlphaWarning, TGHopError, TransparencyWarning, collect_warnings
+from ..image_decode import share_text
 from . import materials
 from .requests import RequestError, check_multipart_end, page_words, safe_name
 
@@ -202,9 +203,8 @@ def read_notes(notes: list):
         yield
     for w in said:
         if isinstance(w, TransparencyWarning):
-            told = "under 1%" if w.share < 0.005 else f"{w.share:.0%}"
-            line = (f"{w.name}: {told} of its pixels are transparent, and the colours under them are learnt as "
-                    "texture; to leave them out, crop the image to its opaque part")
+            line = (f"{w.name}: {share_text(w.share)} of its pixels are transparent, and the colours under them are "
+                    "learnt as texture; to leave them out, crop the image to its opaque part")
         elif isinstance(w, OpaqueAlphaWarning):  # an opaque alpha channel dropped: no pixel shows otherwise
             continue
         else:
