@@ -74,6 +74,27 @@ def refused_files(tmp_path):
     return [tmp_path / name for name in ("notes.png", "flat.png", "tiny.png")]
 
 
+def posted_fits(page):
+    """The bodies of the fits the page asks for from now on (``POST /api/models``): a list that fills as they are
+    sent."""
+    bodies = []
+    page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    return bodies
+
+
+def rock_files(tmp_path):
+    """``rock_albedo.png`` and ``rock_normal.png`` in ``tmp_path``: a 128x160 picture (another size than the
+    built-ins') and its normal map."""
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    rock = data.builtin("cells")[:128, :160]
+    (tmp_path / "rock_normal.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
+    (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(rock)))
+
+
 def test_a_refused_exemplar_leaves_the_working_model_and_its_exemplar(page, tmp_path):
     # The refused file stayed shown as the exemplar (a broken picture for a text file), the page had no
     # model, and "Add maps..." fitted the refused file again.
@@ -144,16 +165,8 @@ def test_a_refused_map_set_leaves_the_working_model(page, tmp_path):
 def test_maps_added_before_their_albedo_wait_for_it(page, tmp_path):
     # A normal map added while another exemplar's model was working refitted that exemplar with it (400: another
     # size), and the albedo picked next cleared it ("maps cleared: rock_normal went with builtin:bricks").
-    from tghop import data
-    from tghop.imageio import to_uint8, to_uint16
-    from tghop.material import example_maps
-
-    rock = data.builtin("cells")[:128, :160]
-    (tmp_path / "rock_normal.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
-    (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(rock)))
-    fits = []
-    page.on("request", lambda r: fits.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
+    rock_files(tmp_path)
+    fits = posted_fits(page)
     fresh_page(page)
     page.select_option("#builtin", "bricks")
     wait_model(page, "model")
@@ -451,9 +464,7 @@ def test_arrow_keys_on_the_built_in_menu_fit_only_the_option_settled_on(page):
     # Each arrow press on the closed menu (a change per option passed) started a fit of that option, the one
     # before it cancelled: browsing the built-ins by keyboard asked the server for a fit per option.
     fresh_page(page)
-    fits = []
-    page.on("request", lambda r: fits.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
+    fits = posted_fits(page)
     page.focus("#builtin")
     page.keyboard.press("ArrowDown")  # builtin:bricks
     page.keyboard.press("ArrowDown")  # builtin:cells
@@ -491,9 +502,7 @@ def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
     from tghop.imageio import to_uint8
 
     (tmp_path / "height.png").write_bytes(png(to_uint8(data.builtin("bricks")[..., 0])))
-    fits = []
-    page.on("request", lambda r: fits.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
+    fits = posted_fits(page)
     fresh_page(page)
     page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
     page.select_option("#builtin", "bricks")
@@ -527,16 +536,8 @@ def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
 def test_waiting_maps_stay_waiting_when_the_exemplar_they_are_not_of_is_picked_again(page, tmp_path):
     # Maps waiting for their albedo (another size than the working exemplar's) were sent with that exemplar when it
     # was picked again (to refit it with other settings, say): refused for their size, and listed as waiting again.
-    from tghop import data
-    from tghop.imageio import to_uint8, to_uint16
-    from tghop.material import example_maps
-
-    rock = data.builtin("cells")[:128, :160]
-    (tmp_path / "rock_normal.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
-    (tmp_path / "rock_albedo.png").write_bytes(png(to_uint8(rock)))
-    sent = []
-    page.on("request", lambda r: sent.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
+    rock_files(tmp_path)
+    sent = posted_fits(page)
     fresh_page(page)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
@@ -594,9 +595,7 @@ def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
     rock = data.builtin("cells")
     (tmp_path / "rock_normal_2k.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
     (tmp_path / "Rock_Color_2K.png").write_bytes(png(to_uint8(rock)))
-    sent = []
-    page.on("request", lambda r: sent.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
+    sent = posted_fits(page)
     fresh_page(page)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
