@@ -152,8 +152,9 @@ def test_a_model_file_that_unpacks_to_far_more_than_its_size_is_refused_before_i
     args = {"info": ["info", str(bomb)], "synth": ["synth", str(bomb), "-o", str(out), "--size", "32x32", "-q"],
             "inpaint": ["inpaint", str(good), str(tmp_path / "mask.png"), "-o", str(out), "--source", str(bomb),
                         "-q"]}[command]
-    one_error_line(CliRunner().invoke(main, args), "bomb.npz: its contents unpack to 2", "decompression bomb",
-                   "give a model file tghop wrote")
+    one_error_line(CliRunner().invoke(main, args), "bomb.npz: its contents unpack to 2",
+                   "(a decompression bomb?), not a model file tghop wrote; give a model file tghop wrote, or fit the "
+                   "model again")
     assert not out.exists()
 
 
@@ -189,8 +190,9 @@ def test_a_checkpoint_that_unpacks_to_far_more_than_its_size_is_refused_before_i
     out = tmp_path / "out.png"
     args = {"morph": ["cooc", "morph", str(bomb), "crop:0,0", "crop:0,8", "-o", str(out)],
             "edit": ["cooc", "edit", str(bomb), "-o", str(out)]}[verb]
-    one_error_line(CliRunner().invoke(main, args), "bomb.pt: its contents unpack to 2", "decompression bomb",
-                   "give a checkpoint 'tghop cooc train' wrote")
+    one_error_line(CliRunner().invoke(main, args), "bomb.pt: its contents unpack to 2",
+                   "(a decompression bomb?), not a checkpoint tghop wrote; give a checkpoint 'tghop cooc train' "
+                   "wrote, or train it again")
     assert not out.exists()
 
 
@@ -488,7 +490,7 @@ def test_an_archive_of_too_many_members_is_refused_from_its_end_record(tmp_path,
         one_error_line(result, f"{path} is {what}, not an image; this command needs an image")
     elif command == "cooc morph":
         one_error_line(result, f"{path}: {what}, not a checkpoint tghop wrote; give a checkpoint 'tghop cooc train' "
-                       "wrote")
+                       "wrote, or train it again")
     else:
         one_error_line(result, f"{path}: {what}, not a model file tghop wrote; give a model file tghop wrote, or fit "
                        "the model again")

@@ -32,8 +32,8 @@ import numpy as np
 
 from . import __version__
 from ._errors import ModelFileError, TGHopError, warn
-from ._formats import (COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind, too_many_members,
-                       unpacks_too_far)
+from ._archives import check_archive_bounds
+from ._formats import COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind
 from .imageio import check_output_path, write_atomic
 from .material import Material
 from .settings import fit_seed
@@ -214,14 +214,7 @@ def _read(path):
 
 def _read_archive(path, label):
     """:func:`_read` of a path or a file object at its start (``path``), named ``label`` in messages."""
-    crowded = too_many_members(path)  # from its end record: zipfile would parse the whole directory first
-    if crowded:
-        raise ModelFileError(f"{label}: {crowded}, not a model file tghop wrote; give a model file tghop wrote, "
-                             "or fit the model again")
-    bomb = unpacks_too_far(path)
-    if bomb:
-        raise ModelFileError(f"{label}: {bomb}, not a model file tghop wrote (it stores its arrays uncompressed); "
-                             "give a model file tghop wrote, or fit the model again")
+    check_archive_bounds(path, label, "a model file", "give a model file tghop wrote, or fit the model again")
     try:
         if not isinstance(path, Path):
             path.seek(0)
@@ -511,7 +504,7 @@ def load_model(path, *, material=False):
         The file is missing, not a tghop model, corrupt, or of another format version (a file
         object: open in text mode, closed or unreadable too); or an
         archive whose arrays would unpack to more than 20 times its size (a decompression bomb;
-        0.57: :func:`tghop._formats.unpacks_too_far`), refused before any is unpacked.
+        0.57: :func:`tghop._archives.unpacks_too_far`), refused before any is unpacked.
     """
     meta, arrays, path = _read(path)  # path: how messages name it (a file object's name or type)
     if meta["format_version"] == 4 and isinstance(meta.get("params"), dict):

@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ModelFileError, TGHopError
+from .._archives import check_archive_bounds
 from .._resources import import_torch
-from .._formats import too_many_members, unpacks_too_far
 from .config import MAX_STEPS, torch_device
 from .networks import build_networks
 
@@ -137,14 +137,7 @@ def read(path, model_class, *, device: str = "auto"):
                              f".save(path), or 'tghop cooc train EXEMPLAR -o {path.name}')")
     torch = import_torch("The co-occurrence cGAN")
     torch_device(torch, device)  # a bad device named as such, not as a corrupt file
-    crowded = too_many_members(path)  # from its end record: zipfile would parse the whole directory first
-    if crowded:
-        raise ModelFileError(f"{path}: {crowded}, not a checkpoint tghop wrote; give a checkpoint 'tghop cooc "
-                             "train' wrote")
-    bomb = unpacks_too_far(path)
-    if bomb:
-        raise ModelFileError(f"{path}: {bomb}, not a checkpoint tghop wrote (it stores its tensors uncompressed); "
-                             "give a checkpoint 'tghop cooc train' wrote, or train it again")
+    check_archive_bounds(path, path, "a checkpoint", "give a checkpoint 'tghop cooc train' wrote, or train it again")
     try:
         tensors = torch.load(path, map_location="cpu", weights_only=True)
         settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())

@@ -19,7 +19,7 @@ import io
 import json
 import zipfile
 
-from .._formats import MAX_MEMBERS as FILE_MAX_MEMBERS
+from .._archives import MAX_MEMBERS as FILE_MAX_MEMBERS
 from .requests import RequestError
 
 __all__ = ["LocalOnly", "allowed_hosts", "check_archive", "MAX_UNPACKED_BYTES", "MAX_MEMBERS", "LOOPBACK"]
@@ -32,7 +32,7 @@ _ANY = ("", "0.0.0.0", "::")
 #: uncompressed: as large as the file, at most the upload limit of 50 MB).
 MAX_UNPACKED_BYTES = 200 * 1024 * 1024
 #: Most members of an uploaded archive (a model file has a few dozen arrays, a material's a few hundred): the
-#: local files' limit (:data:`tghop._formats.MAX_MEMBERS`).
+#: local files' limit (:data:`tghop._archives.MAX_MEMBERS`).
 MAX_MEMBERS = FILE_MAX_MEMBERS
 
 
