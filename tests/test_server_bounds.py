@@ -14,6 +14,32 @@ from conftest import LiveServer
 from tghop.server.jobs import FitQueue, QueueFull
 
 
+class Held:
+    """``func`` wrapped for a test: its calls held until :attr:`release` is set (only those for which
+    ``hold(*args)`` is true, where given), counted while they run (``inside``; ``peak``, the most at once) and
+    named in order in ``calls`` by ``name(*args)`` (where given)."""
+
+    def __init__(self, func, *, name=None, hold=None):
+        self.func, self.name, self.hold = func, name, hold
+        self.release, self.lock = threading.Event(), threading.Lock()
+        self.inside = self.peak = 0
+        self.calls = []
+
+    def __call__(self, *args, **kwargs):
+        with self.lock:
+            self.inside += 1
+            self.peak = max(self.peak, self.inside)
+            if self.name is not None:
+                self.calls.append(self.name(*args))
+        try:
+            if self.hold is None or self.hold(*args):
+                self.release.wait(60)
+            return self.func(*args, **kwargs)
+        finally:
+            with self.lock:
+                self.inside -= 1
+
+
 def test_finished_jobs_expire_and_their_count_is_bounded():
     queue = FitQueue(1, keep_finished=0.3, max_finished=3)
     try:
@@ -389,21 +415,7 @@ def test_uploads_decoded_at_once_are_bounded_the_next_wait_and_one_more_is_503(t
     buf = io.BytesIO()
     Image.fromarray(np.full((64, 64, 3), 128, np.uint8)).save(buf, format="PNG")  # flat: read, then refused
     flat = buf.getvalue()
-    release, lock = threading.Event(), threading.Lock()
-    inside, peak = [0], [0]
-    prepare = fit.prepare_fit
-
-    def held(server, fields):  # the real preparation (decoding included), held until released
-        with lock:
-            inside[0] += 1
-            peak[0] = max(peak[0], inside[0])
-        try:
-            release.wait(60)
-            return prepare(server, fields)
-        finally:
-            with lock:
-                inside[0] -= 1
-
+    held = Held(fit.prepare_fit)  # the real preparation (decoding included), held until released
     monkeypatch.setattr(fit, "prepare_fit", held)
     live = LiveServer(tmp_path, max_decodes=1, decodes_waiting=1)
     gate = live.app.state.server.decoding
@@ -419,18 +431,18 @@ def test_uploads_decoded_at_once_are_bounded_the_next_wait_and_one_more_is_503(t
             threads.append(threading.Thread(target=post, args=(name, "/api/models"),
                                             kwargs={"files": {"image": (f"{name}.png", flat)}}))
             threads[-1].start()
-            until(lambda: inside[0] == 2 or gate.waiting == 1 if name == "second" else inside[0] == 1)
+            until(lambda: held.inside == 2 or gate.waiting == 1 if name == "second" else held.inside == 1)
         third = httpx.post(f"{live.url}/api/models/upload", content=b"not a model", timeout=60)  # the same bound
         assert third.status_code == 503, third.text
         assert third.headers["retry-after"] == "5" and "the server is busy" in third.json()["error"]
         assert "first" not in answers and "second" not in answers  # still decoding, still waiting
-        release.set()
+        held.release.set()
         for thread in threads:
             thread.join(60)
     finally:
-        release.set()
+        held.release.set()
         live.stop()
-    assert peak[0] == 1  # one decoded at a time; the second waited its turn and was read, not refused
+    assert held.peak == 1  # one decoded at a time; the second waited its turn and was read, not refused
     for name in ("first", "second"):
         answer = answers[name]
         assert answer.status_code == 400 and "has no texture" in answer.json()["error"], answer.text
@@ -507,15 +519,7 @@ def test_an_upload_waiting_for_the_gate_whose_client_went_away_leaves_the_queue_
     buf = io.BytesIO()
     Image.fromarray(np.full((64, 64, 3), 128, np.uint8)).save(buf, format="PNG")  # flat: read, then refused
     flat = buf.getvalue()
-    release, lock, decoded = threading.Event(), threading.Lock(), []
-    prepare = fit.prepare_fit
-
-    def held(server, fields):  # the real preparation, counted by the exemplar's name, held until released
-        with lock:
-            decoded.append(fields["image"][0])
-        release.wait(60)
-        return prepare(server, fields)
-
+    held = Held(fit.prepare_fit, name=lambda server, fields: fields["image"][0])  # counted by the exemplar's name
     monkeypatch.setattr(fit, "prepare_fit", held)
     live = LiveServer(tmp_path, max_decodes=1, decodes_waiting=1)
     gate = live.app.state.server.decoding
@@ -529,7 +533,7 @@ def test_an_upload_waiting_for_the_gate_whose_client_went_away_leaves_the_queue_
     try:
         threads.append(threading.Thread(target=post, args=("first",)))
         threads[-1].start()
-        until(lambda: decoded == ["first.png"])
+        until(lambda: held.calls == ["first.png"])
         request = httpx.Request("POST", f"{live.url}/api/models", files={"image": ("gone.png", flat)})
         raw = (f"POST /api/models HTTP/1.1\r\nHost: {live.url[7:]}\r\n"
                + "".join(f"{k}: {v}\r\n" for k, v in request.headers.items() if k.lower() != "host")
@@ -541,13 +545,13 @@ def test_an_upload_waiting_for_the_gate_whose_client_went_away_leaves_the_queue_
         threads.append(threading.Thread(target=post, args=("next",)))
         threads[-1].start()  # its place: the next waits, not refused
         until(lambda: gate.waiting == 1)
-        release.set()
+        held.release.set()
         for thread in threads:
             thread.join(60)
     finally:
-        release.set()
+        held.release.set()
         live.stop()
-    assert decoded == ["first.png", "next.png"]  # the one whose client went away was never decoded
+    assert held.calls == ["first.png", "next.png"]  # the one whose client went away was never decoded
     for name in ("first", "next"):
         answer = answers[name]
         assert answer.status_code == 400 and "has no texture" in answer.json()["error"], answer.text
@@ -563,22 +567,7 @@ def test_summaries_asked_at_once_load_the_model_in_the_decoding_turn_once(tmp_pa
     from tghop import modelfile
 
     ids = _in_cache_folder(tmp_path, two_model_files)
-    release, lock = threading.Event(), threading.Lock()
-    inside, peak, loads = [0], [0], []
-    load = modelfile.load_model
-
-    def held(path, **kwargs):  # the real loading, counted, held until every request is in
-        with lock:
-            inside[0] += 1
-            peak[0] = max(peak[0], inside[0])
-            loads.append(path.name[:64] if hasattr(path, "name") else str(path))
-        try:
-            release.wait(60)
-            return load(path, **kwargs)
-        finally:
-            with lock:
-                inside[0] -= 1
-
+    held = Held(modelfile.load_model, name=lambda path: path.name[:64])  # the real loading, until every request is in
     monkeypatch.setattr(modelfile, "load_model", held)
     live = LiveServer(tmp_path, max_decodes=1, decodes_waiting=16)
     gate = live.app.state.server.decoding
@@ -592,22 +581,22 @@ def test_summaries_asked_at_once_load_the_model_in_the_decoding_turn_once(tmp_pa
         for thread in threads:
             thread.start()
         deadline = time.monotonic() + 30
-        while inside[0] + gate.waiting < len(threads):  # all in: loading, or waiting their turn
+        while held.inside + gate.waiting < len(threads):  # all in: loading, or waiting their turn
             assert time.monotonic() < deadline
             time.sleep(0.01)
-        release.set()
+        held.release.set()
         for thread in threads:
             thread.join(60)
         assert [a.status_code for a in answers] == [200] * 8, [a.text for a in answers]
-        assert peak[0] == 1 and sorted(loads) == sorted(ids)  # one at a time, each model once
+        assert held.peak == 1 and sorted(held.calls) == sorted(ids)  # one at a time, each model once
         assert {a.json()["id"] for a in answers} == set(ids)
         again = httpx.get(f"{live.url}/api/models/{ids[0]}", timeout=60)
-        assert again.json() == next(a.json() for a in answers if a.json()["id"] == ids[0]) and len(loads) == 2
+        assert again.json() == next(a.json() for a in answers if a.json()["id"] == ids[0]) and len(held.calls) == 2
         (tmp_path / "models" / f"{ids[0]}.npz").unlink()
         gone = httpx.get(f"{live.url}/api/models/{ids[0]}", timeout=60)
         assert gone.status_code == 404 and "no model" in gone.json()["error"], gone.text
     finally:
-        release.set()
+        held.release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
 
@@ -767,22 +756,7 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
     ids = [hashlib.sha256(two_model_files[0]).hexdigest(), hashlib.sha256(two_model_files[1]).hexdigest(),
            "c" * 64, "d" * 64]
     _in_cache_folder(tmp_path, two_model_files * 2, ids)
-    release, lock = threading.Event(), threading.Lock()
-    inside, peak, loads = [0], [0], []
-    load = modelfile.load_model
-
-    def held(path, **kwargs):  # the real loading, counted, held until released
-        with lock:
-            inside[0] += 1
-            peak[0] = max(peak[0], inside[0])
-            loads.append(path.name[:64])
-        try:
-            release.wait(60)
-            return load(path, **kwargs)
-        finally:
-            with lock:
-                inside[0] -= 1
-
+    held = Held(modelfile.load_model, name=lambda path: path.name[:64])  # the real loading, held until released
     monkeypatch.setattr(modelfile, "load_model", held)
     live = LiveServer(tmp_path, max_fits=4, max_decodes=1, decodes_waiting=1)
     gate = live.app.state.server.decoding
@@ -796,7 +770,7 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
     try:
         threads.append(threading.Thread(target=post, args=(ids[0],)))
         threads[-1].start()
-        until(lambda: inside[0] == 1 and gate.holding == 1)  # the first model read, holding the turn
+        until(lambda: held.inside == 1 and gate.holding == 1)  # the first model read, holding the turn
         request = httpx.Request("POST", f"{live.url}/api/models/{ids[3]}/images", json=ask)
         raw = (f"POST /api/models/{ids[3]}/images HTTP/1.1\r\nHost: {live.url[7:]}\r\n"
                + "".join(f"{k}: {v}\r\n" for k, v in request.headers.items() if k.lower() != "host")
@@ -811,42 +785,29 @@ def test_generations_read_models_not_in_memory_in_the_decoding_turn_and_one_more
         third = httpx.post(f"{live.url}/api/models/{ids[2]}/images", json=ask, timeout=60)
         assert third.status_code == 503, third.text
         assert third.headers["retry-after"] == "5" and "the server is busy" in third.json()["error"]
-        assert inside[0] == 1 and not answers  # still reading the first, the second waiting
-        release.set()
+        assert held.inside == 1 and not answers  # still reading the first, the second waiting
+        held.release.set()
         for thread in threads:
             thread.join(60)
         assert [answers[m].status_code for m in ids[:2]] == [200, 200], [answers[m].text for m in ids[:2]]
-        assert peak[0] == 1 and loads == ids[:2]  # one read at a time; neither the gone one's nor the refused one's
+        assert held.peak == 1 and held.calls == ids[:2]  # one read at a time; not the gone one's nor the refused one's
         again = httpx.post(f"{live.url}/api/models/{ids[2]}/images", json=ask, timeout=60)
         assert again.status_code == 200 and again.content == answers[ids[0]].content  # its turn now: the same file
     finally:
-        release.set()
+        held.release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
 
 
 def _held_loads(monkeypatch, held_ids):
-    """The library's model loading, held (until the returned event is set) for the ids in ``held_ids`` (a set
-    the test may fill later) and counted: (release, the ids loaded in order, the number being loaded now)."""
+    """The library's model loading, held (until ``release`` is set) for the ids in ``held_ids`` (a set the test
+    may fill later) and counted: a :class:`Held` (``calls``: the ids loaded in order)."""
     from tghop import modelfile
 
-    release, lock, loads, inside = threading.Event(), threading.Lock(), [], [0]
-    load = modelfile.load_model
-
-    def held(path, **kwargs):
-        with lock:
-            loads.append(path.name[:64])
-            inside[0] += 1
-        try:
-            if path.name[:64] in held_ids:
-                release.wait(60)
-            return load(path, **kwargs)
-        finally:
-            with lock:
-                inside[0] -= 1
-
+    held = Held(modelfile.load_model, name=lambda path: path.name[:64],
+                hold=lambda path: path.name[:64] in held_ids)
     monkeypatch.setattr(modelfile, "load_model", held)
-    return release, loads, inside
+    return held
 
 
 def test_a_generation_cancelled_while_it_waits_to_read_its_model_leaves_the_queue_at_once(
@@ -859,7 +820,7 @@ def test_a_generation_cancelled_while_it_waits_to_read_its_model_leaves_the_queu
     import uuid
 
     ids = _in_cache_folder(tmp_path, two_model_files)
-    release, loads, inside = _held_loads(monkeypatch, {ids[0]})
+    held = _held_loads(monkeypatch, {ids[0]})
     live = LiveServer(tmp_path, max_fits=2, max_decodes=1, decodes_waiting=1)
     gate = live.app.state.server.decoding
     ask, job, answers = {"size": [16, 16], "seed": 1, "n_patches": 100}, uuid.uuid4().hex, {}
@@ -872,7 +833,7 @@ def test_a_generation_cancelled_while_it_waits_to_read_its_model_leaves_the_queu
                threading.Thread(target=post, args=(ids[1], {"X-Tghop-Job": job}))]
     try:
         threads[0].start()
-        until(lambda: inside[0] == 1 and gate.holding == 1)  # the first model read, holding the only turn
+        until(lambda: held.inside == 1 and gate.holding == 1)  # the first model read, holding the only turn
         threads[1].start()
         until(lambda: gate.waiting == 1)  # the second waits its turn
         assert httpx.delete(f"{live.url}/api/jobs/{job}").status_code == 200
@@ -881,12 +842,12 @@ def test_a_generation_cancelled_while_it_waits_to_read_its_model_leaves_the_queu
         assert cancelled.status_code == 409 and "cancelled" in cancelled.json()["error"], cancelled.text
         assert httpx.get(f"{live.url}/api/jobs/{job}").json()["state"] == "cancelled"
         assert ids[0] not in answers and gate.holding == 1  # the first still reading, in its turn
-        release.set()
+        held.release.set()
         threads[0].join(60)
         assert answers[ids[0]].status_code == 200, answers[ids[0]].text
-        assert loads == ids[:1]  # the cancelled one's model never read
+        assert held.calls == ids[:1]  # the cancelled one's model never read
     finally:
-        release.set()
+        held.release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
 
@@ -947,7 +908,7 @@ def test_a_generation_waiting_for_or_reading_its_model_holds_no_generation_threa
 
     ids = _in_cache_folder(tmp_path, two_model_files + two_model_files[:1], ["a" * 64, "b" * 64, "c" * 64])
     held_ids = set()
-    release, loads, inside = _held_loads(monkeypatch, held_ids)
+    held = _held_loads(monkeypatch, held_ids)
     live = LiveServer(tmp_path, max_fits=2, max_decodes=1)
     gate = live.app.state.server.decoding
     ask, answers = {"size": [16, 16], "seed": 1, "n_patches": 100}, {}
@@ -958,22 +919,22 @@ def test_a_generation_waiting_for_or_reading_its_model_holds_no_generation_threa
     threads = [threading.Thread(target=post, args=(model_id,)) for model_id in ids]
     try:
         post(ids[2])  # read now: in memory
-        assert answers.pop(ids[2]).status_code == 200 and loads == ids[2:]
+        assert answers.pop(ids[2]).status_code == 200 and held.calls == ids[2:]
         held_ids.update(ids[:2])
         threads[0].start()
-        until(lambda: inside[0] == 1 and gate.holding == 1)  # one model read (held), in the only turn...
+        until(lambda: held.inside == 1 and gate.holding == 1)  # one model read (held), in the only turn...
         threads[1].start()
         until(lambda: gate.waiting == 1)  # ...the other waiting: as many as there are generation threads
         threads[2].start()
         until(lambda: ids[2] in answers, seconds=20)  # the model in memory is made meanwhile
         assert answers[ids[2]].status_code == 200, answers[ids[2]].text
         assert not answers.keys() & ids[:2] and gate.waiting == 1  # the others still reading and waiting
-        release.set()
+        held.release.set()
         for thread in threads:
             thread.join(60)
         assert [answers[m].status_code for m in ids] == [200] * 3
     finally:
-        release.set()
+        held.release.set()
         live.stop()
     assert gate.holding == 0 and gate.waiting == 0
 
