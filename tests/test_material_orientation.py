@@ -30,17 +30,22 @@ def _stored(path, height, orientation, convention):
     img.save(path, exif=exif, **({"quality": 95} if str(path).endswith(".jpg") else {}))
 
 
+def _read_upright(path, height, orientation, convention, named):
+    """The normal map of ``height`` stored at ``path`` turned by EXIF ``orientation``, read and turned upright
+    (its convention given where ``named``, else read from its content), in [0, 1], and the map it should be."""
+    _stored(path, height, orientation, convention)
+    read = load_image(path, dtype=None)
+    want = example_maps(height, convention=convention)["normal"]
+    assert read.shape == want.shape
+    return upright_normal_map(read, path, convention=convention if named else None) / 255.0, want
+
+
 @pytest.mark.parametrize("orientation", range(1, 9))
 @pytest.mark.parametrize("convention", ["DirectX", "OpenGL"])
 @pytest.mark.parametrize("named", [True, False])
 def test_a_turned_normal_maps_vectors_turn_with_its_pixels(tmp_path, height, orientation, convention, named):
     # The pixels were turned upright but red and green (the x and y slopes) were not: lit wrong.
-    path = tmp_path / "rock_normal.png"
-    _stored(path, height, orientation, convention)
-    read = load_image(path, dtype=None)
-    want = example_maps(height, convention=convention)["normal"]
-    assert read.shape == want.shape
-    got = upright_normal_map(read, path, convention=convention if named else None) / 255.0
+    got, want = _read_upright(tmp_path / "rock_normal.png", height, orientation, convention, named)
     assert np.abs(got - want).max() <= 1 / 255 + 1e-9, (orientation, convention)
 
 
@@ -50,12 +55,7 @@ def test_a_turned_normal_maps_vectors_turn_with_its_pixels(tmp_path, height, ori
 def test_a_turned_jpeg_normal_maps_vectors_turn_with_its_pixels(tmp_path, height, orientation, convention, named):
     # Normal maps are often JPEG (ambientCG's, a viewer's "rotate" of one sets only the EXIF tag): the orientation
     # of its APP1 segment, as a PNG's eXIf chunk, and its convention read from content JPEG's blocks have blurred.
-    path = tmp_path / "rock_normal.jpg"
-    _stored(path, height, orientation, convention)
-    read = load_image(path, dtype=None)
-    want = example_maps(height, convention=convention)["normal"]
-    assert read.shape == want.shape
-    got = upright_normal_map(read, path, convention=convention if named else None) / 255.0
+    got, want = _read_upright(tmp_path / "rock_normal.jpg", height, orientation, convention, named)
     # JPEG's own loss (4:2:0 chroma at quality 95): 0.013 on average, up to 0.094 at the bricks' edges, at each
     # orientation alike; vectors left unturned were off by 0.041 to 0.093 on average (red or green mirrored, swapped)
     error = np.abs(got - want)
