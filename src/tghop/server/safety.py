@@ -7,8 +7,9 @@ safety"):
   browser) is refused with 403 and one line, before its body is read;
 * :func:`check_archive`: an uploaded model file (``.npz``) or checkpoint (``.pt``), both ZIP
   archives, is refused (400) when its members would unpack to more than
-  :data:`MAX_UNPACKED_BYTES` or it has more than :data:`MAX_MEMBERS`, before NumPy or PyTorch
-  reads it (a deflated member of zeros unpacks about 1,000 times larger).
+  :data:`MAX_UNPACKED_BYTES` or it has more than :data:`MAX_MEMBERS` or too large a directory
+  (:mod:`tghop._archives`, the local files' check), before NumPy or PyTorch reads it (a deflated
+  member of zeros unpacks about 1,000 times larger).
 
 Only the standard library is imported.
 """
@@ -19,7 +20,7 @@ import io
 import json
 import zipfile
 
-from .._archives import MAX_MEMBERS as FILE_MAX_MEMBERS
+from .._archives import MAX_MEMBERS as FILE_MAX_MEMBERS, too_many_members
 from .requests import RequestError
 
 __all__ = ["LocalOnly", "allowed_hosts", "check_archive", "MAX_UNPACKED_BYTES", "MAX_MEMBERS", "LOOPBACK"]
@@ -99,15 +100,16 @@ class LocalOnly:
 
 
 def check_archive(content: bytes, filename: str, what: str) -> None:
-    """400 when ``content`` is a ZIP archive with more than :data:`MAX_MEMBERS` members or members
-    that unpack to more than :data:`MAX_UNPACKED_BYTES` (a decompression bomb); anything else
-    (not an archive: the loader's error says what it is) passes. ``what``: the kind of file, as
-    the message names it. The sizes are those the archive declares, which Python's and PyTorch's
-    readers do not read past."""
-    # Each member has a central directory entry beginning with this signature: counted before the
-    # directory is parsed (a 50 MB one of empty members holds a million, 3 s and 700 MB to parse).
-    if content.count(b"PK\x01\x02") > MAX_MEMBERS:
-        raise RequestError(400, f"{filename} is an archive of more than {MAX_MEMBERS:,} members, not a {what}")
+    """400 when ``content`` is a ZIP archive with more than :data:`MAX_MEMBERS` members or a larger
+    directory than a model file's or checkpoint's (:func:`tghop._archives.too_many_members`, the local
+    files' check and words, from the archive's end record: a 50 MB directory of empty members holds a
+    million, 3 s and 700 MB to parse) or members that unpack to more than :data:`MAX_UNPACKED_BYTES` (a
+    decompression bomb); anything else (not an archive: the loader's error says what it is) passes.
+    ``what``: the kind of file, as the message names it. The sizes are those the archive declares, which
+    Python's and PyTorch's readers do not read past."""
+    crowded = too_many_members(io.BytesIO(content))
+    if crowded:  # 0.58 counted the directory's entry signatures in the whole body, in words of its own
+        raise RequestError(400, f"{filename} is {crowded}, not a {what}; send a {what} tghop wrote")
     try:
         with zipfile.ZipFile(io.BytesIO(content)) as archive:
             members = archive.infolist()
