@@ -392,3 +392,15 @@ def test_every_documented_signature_lists_all_its_parameters():
                 stale = [p for p in documented if p not in params and p not in ("args", "kwargs")]
                 forgotten += [f"{name}.{qualname}: {p}" for p in missing + [f"no {q}" for q in stale]]
     assert not forgotten, forgotten
+
+
+def test_the_error_modules_docstring_names_every_module_it_imports():
+    # tghop._errors is all that --help and --version load, and its docstring lists what it imports: it said "No
+    # imports but os, sys, contextvars and warnings" while it imported contextlib and inspect too.
+    tree = ast.parse(MODULES[f"{PACKAGE}._errors"].read_text())
+    imported = {alias.name.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.Import)
+                for alias in node.names}
+    imported |= {node.module.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                 and node.level == 0 and node.module != "__future__"}
+    doc = ast.get_docstring(tree)
+    assert imported and not [m for m in sorted(imported) if f"``{m}``" not in doc], sorted(imported)

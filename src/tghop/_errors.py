@@ -1,6 +1,7 @@
 """tghop's exception classes, the hint of an image over the pixel limit and how the library warns
-(:func:`warn`, :func:`collect_warnings`). No imports but ``os``, ``sys``, ``contextvars`` and ``warnings``:
-always loaded, the CLI's --help and --version load only this. The command line turns a
+(:func:`warn`, :func:`collect_warnings`). Only the standard library's small modules are imported (``contextlib``,
+``contextvars``, ``inspect``, ``os``, ``sys``, ``warnings``): always loaded, the CLI's --help and --version load
+only this. The command line turns a
 :class:`TGHopError` into one line and exit status 1 in :func:`tghop.cli.common.user_errors`."""
 
 import contextlib

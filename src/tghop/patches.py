@@ -1,7 +1,10 @@
 """Stage 0: source patches, and the 2x2 block reshaping every hop uses.
 
-The data flow of tghop: ``patches`` -> ``hops`` (``saab``) -> ``core`` -> back through
-``hops`` -> ``quilting``; :mod:`tghop.synthesis` drives it.
+Where the patches go: a fit (:meth:`tghop.synthesis.TGHop.fit`) takes them through the hops
+(:mod:`tghop.hops`, each a :mod:`tghop.saab` transform) and the spatial reduction (:mod:`tghop.sdr`) to the core
+model (:mod:`tghop.core`, ICHM), which learns their distribution. Generation goes the other way: new core vectors
+back through the inverse SDR and hops to patches (:mod:`tghop.codec`, :mod:`tghop.pool`), which quilting
+(:mod:`tghop.quilting`) stitches into an image; :func:`tghop.generation.synthesize` runs those steps in order.
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ the target quantile at the mid-rank of its values (a rank table, linear time, no
 each value then takes its nearest entry. :func:`tail_quantiles` gives the stored
 quantiles exponential tails, so that a lone outlier of the exemplar does not become many.
 
-Users: the refinement (:mod:`tghop.refine`, :mod:`tghop.oriented`), the inpainting's
-refinement of a hole (:mod:`tghop.inpaint`) and the guided synthesis (:mod:`tghop.guided`).
+Users: the band refinement (:mod:`tghop.refine`, :mod:`tghop.oriented`), and through it the refinement
+of a hole (:mod:`tghop.hole_refine`) and every synthesis that refines (guided ones and materials too).
 """
 
 from __future__ import annotations

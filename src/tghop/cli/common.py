@@ -2,11 +2,11 @@
 errors (:func:`user_errors`: a :class:`~tghop.TGHopError` to one line and exit status 1),
 reading exemplars and checking output paths.
 
-The commands (:mod:`tghop.cli.texture`, :mod:`tghop.cli.evaluation`,
-:mod:`tghop.cli.cooc`) stand on this module and on :mod:`tghop.cli.options`; the group
-(:mod:`tghop.cli.group`) stands on them. Heavy modules (NumPy's linear algebra users,
-Pillow, scikit-learn, SciPy) are imported inside the functions that need them, so
-``--help``, ``--version`` and ``info`` answer at once.
+The commands' modules (:mod:`tghop.cli.texture`, :mod:`tghop.cli.guided`, :mod:`tghop.cli.inpaint`,
+:mod:`tghop.cli.evaluation`, :mod:`tghop.cli.cooc`, :mod:`tghop.cli.batch`, :mod:`tghop.cli.serve`)
+stand on this module and on :mod:`tghop.cli.options`; the group (:mod:`tghop.cli.group`) stands on them.
+Heavy modules (NumPy's linear algebra users, Pillow, scikit-learn, SciPy) are imported inside the
+functions that need them, so ``--help``, ``--version`` and ``info`` answer at once.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ safety"):
   (:mod:`tghop._archives`, the local files' check), before NumPy or PyTorch reads it (a deflated
   member of zeros unpacks about 1,000 times larger).
 
-Only the standard library is imported.
+Only the standard library is imported, besides tghop's own small modules (no Starlette, no NumPy).
 """
 
 from __future__ import annotations
