@@ -455,6 +455,53 @@ def test_prepare_tabulates_what_refine_needs(cells):
         refine_module.prepare((0, 5), st)
 
 
+def test_the_oriented_windows_kept_are_bounded_in_bytes():
+    # 0.58 kept the last 16 band shapes whatever their size (an lru_cache of 16): 16 first bands of the largest
+    # images a server makes (a tileable strip of 67 Mpx refined whole, 268 MB each) would have held 4.3 GB for
+    # good. Now the tables kept take at most MAX_WINDOW_BYTES, the least recently used dropped first.
+    import gc
+    import weakref
+
+    from tghop import oriented
+
+    oriented.double_angle.cache_clear()
+    f32 = np.dtype(np.float32)
+    made = []
+    try:
+        for extra in range(6):  # six bands of 2048 x (2048 + 2 * extra): about 16.8 MB each, 100 MB in all
+            made += [weakref.ref(m) for m in oriented.double_angle(2048, 2048 + 2 * extra, f32)]
+        gc.collect()
+        alive = sum(ref().nbytes for ref in made if ref() is not None)
+        assert 3 * 16 * 1024**2 < alive <= 64 * 1024**2  # 0.58: all six, 100 MB
+        assert oriented.MAX_WINDOW_BYTES == 64 * 1024**2
+        assert oriented.double_angle.cache_info().nbytes == alive
+        # The most recently used stay: the last band's tables are found again, the first's made again.
+        last = oriented.double_angle(2048, 2058, f32)
+        assert oriented.double_angle(2048, 2058, f32) is last
+        misses = oriented.double_angle.cache_info().misses
+        first = oriented.double_angle(2048, 2048, f32)
+        assert oriented.double_angle.cache_info().misses == misses + 1
+        assert np.array_equal(first[0], oriented._double_angle(2048, 2048, f32)[0])
+    finally:
+        oriented.double_angle.cache_clear()
+
+
+def test_oriented_windows_over_the_bound_are_made_for_their_call_alone(monkeypatch):
+    # A band whose tables alone take more than the bound is refined as before, its tables made at each call.
+    from tghop import oriented
+
+    oriented.double_angle.cache_clear()
+    monkeypatch.setattr(oriented, "MAX_WINDOW_BYTES", 100_000)
+    band = np.random.default_rng(0).random((3, 256, 256)).astype(np.float32)
+    parts = oriented.oriented_parts(band, 4, axes=(1, 2))
+    small = oriented.double_angle(64, 64, np.dtype(np.float32))
+    again = oriented.oriented_parts(band, 4, axes=(1, 2))
+    info = oriented.double_angle.cache_info()
+    assert (info.kept, info.nbytes) == (1, small[0].nbytes * 2) and info.misses == 3
+    assert all(np.array_equal(a, b) for a, b in zip(parts, again))
+    oriented.double_angle.cache_clear()
+
+
 @pytest.mark.parametrize("shape, axes", [((64, 70), (0, 1)), ((3, 33, 40), (1, 2)), ((2, 17, 5), (1, 2))])
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_pocketfft_without_scipy_fft_gives_scipy_fft_numbers(shape, axes, dtype, rng):

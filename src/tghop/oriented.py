@@ -14,14 +14,31 @@ and sums them: for a large band in one pass a chunk at a time, without band-size
 
 from __future__ import annotations
 
-import functools
+import collections
+import threading
 
 import numpy as np
 
 from ._fft import fft_for
 from .quantiles import apply_matching, match_quantiles, matching_map, strided_subset
 
-__all__ = ["double_angle", "iter_oriented_parts", "match_oriented", "oriented_parts"]
+__all__ = ["double_angle", "iter_oriented_parts", "match_oriented", "oriented_parts", "MAX_WINDOW_BYTES",
+           "WindowsInfo"]
+
+#: The most bytes the oriented windows kept between calls take (:func:`double_angle`'s tables, the least recently
+#: used dropped first; 0.58 kept the last 16 band shapes whatever their size). One band's tables take 4 bytes a
+#: pixel of the band (float32): 0.26 MB at 256x256, 4.2 MB at 1024x1024, 9.4 MB for a 1535x1535 region's first
+#: band (12.6 MB its four), 268 MB for the first band of the largest image (67 Mpx: a tileable strip, refined
+#: whole), where 16 such shapes held 4.3 GB. A band's tables over the bound are made for each call, not kept
+#: (a band of over 16 Mpx; each call then costs as much as the first).
+MAX_WINDOW_BYTES = 64 * 1024**2
+
+#: :func:`double_angle`'s ``cache_info()``: calls answered from the kept tables, tables made, tables kept, their
+#: bytes, and the bound (:data:`MAX_WINDOW_BYTES`).
+WindowsInfo = collections.namedtuple("WindowsInfo", "hits misses kept nbytes max_bytes")
+_windows: collections.OrderedDict = collections.OrderedDict()  # (h, w, dtype) -> (cos2, sin2), oldest first
+_windows_lock = threading.Lock()  # generations on several threads (tghop serve) share the tables
+_windows_counts = [0, 0]  # hits, misses
 
 
 def _irfft2(fft, spectrum, shape, axes, threads):
@@ -38,7 +55,6 @@ def _irfft2(fft, spectrum, shape, axes, threads):
     return fft.irfft(half, n=shape[1], axis=axes[1], overwrite_x=True, **threads)
 
 
-@functools.lru_cache(maxsize=16)
 def double_angle(h, w, dtype):
     """``cos(2 theta)`` and ``sin(2 theta)`` over the rfft2 grid (``theta``: the frequency's
     direction).
@@ -46,8 +62,10 @@ def double_angle(h, w, dtype):
     The oriented windows ``cos^2(theta - k pi / n) * 2 / n`` are
     ``(1 + cos(2 k pi / n) cos(2 theta) + sin(2 k pi / n) sin(2 theta)) / n``, so every part
     is a combination of the band and of its two filtered versions: two inverse transforms
-    for any number of orientations. Cached: every round of :func:`tghop.refine.refine` and
-    every channel uses the same few shapes (:func:`tghop.refine.prepare` makes them ahead).
+    for any number of orientations. Kept for the next call: every round of :func:`tghop.refine.refine`
+    and every channel uses the same few shapes (:func:`tghop.refine.prepare` makes them ahead); the
+    least recently used go first once the tables kept take more than :data:`MAX_WINDOW_BYTES`
+    (``double_angle.cache_info()``: :class:`WindowsInfo`; ``double_angle.cache_clear()`` drops them).
 
     Parameters
     ----------
@@ -61,6 +79,41 @@ def double_angle(h, w, dtype):
     cos2, sin2 : ndarray, shape (h, w // 2 + 1), ``dtype``
         Read-only; at the origin ``theta`` counts as 0.
     """
+    key = (int(h), int(w), np.dtype(dtype))
+    with _windows_lock:
+        found = _windows.get(key)
+        _windows_counts[found is None] += 1
+        if found is not None:
+            _windows.move_to_end(key)
+            return found
+    out = _double_angle(*key)
+    size = out[0].nbytes + out[1].nbytes
+    with _windows_lock:
+        if size <= MAX_WINDOW_BYTES:
+            _windows[key] = out
+            while sum(a.nbytes + b.nbytes for a, b in _windows.values()) > MAX_WINDOW_BYTES:
+                _windows.popitem(last=False)
+    return out
+
+
+def _windows_info() -> WindowsInfo:
+    with _windows_lock:
+        return WindowsInfo(*_windows_counts, len(_windows), sum(a.nbytes + b.nbytes for a, b in _windows.values()),
+                           MAX_WINDOW_BYTES)
+
+
+def _windows_clear() -> None:
+    with _windows_lock:
+        _windows.clear()
+        _windows_counts[:] = [0, 0]
+
+
+double_angle.cache_info = _windows_info
+double_angle.cache_clear = _windows_clear
+
+
+def _double_angle(h, w, dtype):
+    """:func:`double_angle`'s tables, made."""
     fy = np.fft.fftfreq(h)[:, None]
     fx = np.fft.rfftfreq(w)[None, :]
     # cos 2theta = (fx^2 - fy^2) / r^2 and sin 2theta = 2 fx fy / r^2: no trigonometry
