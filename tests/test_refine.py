@@ -487,7 +487,8 @@ def test_the_oriented_windows_kept_are_bounded_in_bytes():
 
 
 def test_oriented_windows_over_the_bound_are_made_for_their_call_alone(monkeypatch):
-    # A band whose tables alone take more than the bound is refined as before, its tables made at each call.
+    # A band whose tables alone take more than the bound is refined as before, its tables made at each call
+    # outside a refinement's rounds (windows_held: below).
     from tghop import oriented
 
     oriented.double_angle.cache_clear()
@@ -499,6 +500,32 @@ def test_oriented_windows_over_the_bound_are_made_for_their_call_alone(monkeypat
     info = oriented.double_angle.cache_info()
     assert (info.kept, info.nbytes) == (1, small[0].nbytes * 2) and info.misses == 3
     assert all(np.array_equal(a, b) for a, b in zip(parts, again))
+    oriented.double_angle.cache_clear()
+
+
+@pytest.mark.parametrize("where", ["refine", "refine_hole"])
+def test_a_refinement_makes_each_bands_oriented_windows_once_whatever_their_size(cells, monkeypatch, where):
+    # A band's tables over the bound (a large picture's fill, a tileable strip refined whole) are not kept between
+    # calls, but a refinement's rounds (and its channels) use them again: each band's are made once per refinement,
+    # not once a round, and they are gone when it ends. The images are the same as with every table kept.
+    from tghop import oriented
+    from tghop.hole_refine import refine_hole
+
+    st = BandStatistics().fit(cells)
+    img = _blurred(cells)[:70, :90] * 0.8 + 0.1
+    hole = np.zeros(img.shape[:2], bool)
+    hole[20:50, 30:60] = True
+
+    def run():
+        oriented.double_angle.cache_clear()
+        out = refine(img, st, n_iter=3) if where == "refine" else refine_hole(img, hole, st, n_iter=3)
+        return out, oriented.double_angle.cache_info()
+
+    kept, kept_info = run()
+    monkeypatch.setattr(oriented, "MAX_WINDOW_BYTES", 100)  # every band's tables over it
+    made, info = run()
+    assert info.misses == kept_info.misses == st.band_quantiles_.shape[0]  # 0.58's bound: one a band and round
+    assert (info.kept, info.nbytes) == (0, 0) and np.array_equal(made, kept)
     oriented.double_angle.cache_clear()
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from ._arrays import check_int
 from ._progress import report
+from .oriented import windows_held
 from .pyramid import laplacian_pyramid, reconstruct
 from .refine import match_quantiles, oriented_parts, tailed_band_quantiles
 from .seams import SCREENING, SeamSteps, local_means
@@ -203,21 +204,22 @@ def refine_hole(image, hole, stats, *, n_iter=5, tile=False, progress=None):
     band_levels, band_q = tailed_band_quantiles(stats.band_quantiles_)
     c = dec.shape[0]
     report(progress, "refine", 0, n_iter)
-    for done in range(1, n_iter + 1):
-        bands = laplacian_pyramid(dec, band_q.shape[0], mode=mode, axes=(1, 2))
-        for i, band in enumerate(bands[:-1]):
-            where = _level_mask(hole, i, band.shape[1:])
-            parts = oriented_parts(band, stats.n_orientations, axes=(1, 2))
-            new = band.copy()
-            new[:, where] = 0.0
-            for j, part in enumerate(parts):
-                for k in range(c):
-                    new[k][where] += _match_values(part[k][where], band_q[i, j, k], band_levels).astype(new.dtype)
-            bands[i] = new
-        dec = reconstruct(bands, mode=mode, axes=(1, 2)).astype(np.float32)
-        for k in range(c):
-            dec[k][hole] = _match_values(dec[k][hole], stats.pixel_quantiles_[k], levels)
-        dec[:, ~hole] = outside[:, ~hole]
-        report(progress, "refine", done, n_iter)
+    with windows_held():  # each band's oriented windows made once, not once a round, whatever their size
+        for done in range(1, n_iter + 1):
+            bands = laplacian_pyramid(dec, band_q.shape[0], mode=mode, axes=(1, 2))
+            for i, band in enumerate(bands[:-1]):
+                where = _level_mask(hole, i, band.shape[1:])
+                parts = oriented_parts(band, stats.n_orientations, axes=(1, 2))
+                new = band.copy()
+                new[:, where] = 0.0
+                for j, part in enumerate(parts):
+                    for k in range(c):
+                        new[k][where] += _match_values(part[k][where], band_q[i, j, k], band_levels).astype(new.dtype)
+                bands[i] = new
+            dec = reconstruct(bands, mode=mode, axes=(1, 2)).astype(np.float32)
+            for k in range(c):
+                dec[k][hole] = _match_values(dec[k][hole], stats.pixel_quantiles_[k], levels)
+            dec[:, ~hole] = outside[:, ~hole]
+            report(progress, "refine", done, n_iter)
     colours = stats.from_decorrelated(np.ascontiguousarray(np.moveaxis(dec, 0, 2)))
     return np.clip(colours, 0.0, 1.0).astype(np.float32)

@@ -15,6 +15,7 @@ and sums them: for a large band in one pass a chunk at a time, without band-size
 from __future__ import annotations
 
 import collections
+import contextlib
 import threading
 
 import numpy as np
@@ -23,14 +24,14 @@ from ._fft import fft_for
 from .quantiles import apply_matching, match_quantiles, matching_map, strided_subset
 
 __all__ = ["double_angle", "iter_oriented_parts", "match_oriented", "oriented_parts", "MAX_WINDOW_BYTES",
-           "WindowsInfo"]
+           "WindowsInfo", "windows_held"]
 
 #: The most bytes the oriented windows kept between calls take (:func:`double_angle`'s tables, the least recently
 #: used dropped first; 0.58 kept the last 16 band shapes whatever their size). One band's tables take 4 bytes a
 #: pixel of the band (float32): 0.26 MB at 256x256, 4.2 MB at 1024x1024, 9.4 MB for a 1535x1535 region's first
 #: band (12.6 MB its four), 268 MB for the first band of the largest image (67 Mpx: a tileable strip, refined
-#: whole), where 16 such shapes held 4.3 GB. A band's tables over the bound are made for each call, not kept
-#: (a band of over 16 Mpx; each call then costs as much as the first).
+#: whole; a large picture's fill), where 16 such shapes held 4.3 GB. While a refinement runs (:func:`windows_held`)
+#: the tables it uses stay whatever their size, so that no round makes them again.
 MAX_WINDOW_BYTES = 64 * 1024**2
 
 #: :func:`double_angle`'s ``cache_info()``: calls answered from the kept tables, tables made, tables kept, their
@@ -39,6 +40,8 @@ WindowsInfo = collections.namedtuple("WindowsInfo", "hits misses kept nbytes max
 _windows: collections.OrderedDict = collections.OrderedDict()  # (h, w, dtype) -> (cos2, sin2), oldest first
 _windows_lock = threading.Lock()  # generations on several threads (tghop serve) share the tables
 _windows_counts = [0, 0]  # hits, misses
+_held: dict = {}  # (h, w, dtype) -> tables, kept while any windows_held block is open (on any thread)
+_holding = [0]  # windows_held blocks open
 
 
 def _irfft2(fft, spectrum, shape, axes, threads):
@@ -53,6 +56,23 @@ def _irfft2(fft, spectrum, shape, axes, threads):
         return np.fft.irfft2(spectrum, s=shape, axes=axes)
     half = fft.ifft(spectrum, axis=axes[0], overwrite_x=True, **threads)
     return fft.irfft(half, n=shape[1], axis=axes[1], overwrite_x=True, **threads)
+
+
+@contextlib.contextmanager
+def windows_held():
+    """While the block runs, :func:`double_angle` keeps every table it gives, whatever its size (then only the
+    bound of :data:`MAX_WINDOW_BYTES` holds): around the rounds of one refinement, its channels on any thread
+    (:func:`tghop.refine.refine`, :func:`tghop.hole_refine.refine_hole`), so that a band whose tables are over
+    the bound has them made once, not once a round and channel. They go when the last block open ends."""
+    with _windows_lock:
+        _holding[0] += 1
+    try:
+        yield
+    finally:
+        with _windows_lock:
+            _holding[0] -= 1
+            if not _holding[0]:
+                _held.clear()
 
 
 def double_angle(h, w, dtype):
@@ -81,19 +101,22 @@ def double_angle(h, w, dtype):
     """
     key = (int(h), int(w), np.dtype(dtype))
     with _windows_lock:
-        found = _windows.get(key)
-        _windows_counts[found is None] += 1
-        if found is not None:
+        found = _held.get(key, _windows.get(key))
+        if key in _windows:
             _windows.move_to_end(key)
-            return found
-    out = _double_angle(*key)
-    size = out[0].nbytes + out[1].nbytes
+        _windows_counts[found is None] += 1
+    if found is None:
+        found = _double_angle(*key)
+        size = found[0].nbytes + found[1].nbytes
+        with _windows_lock:
+            if size <= MAX_WINDOW_BYTES:
+                _windows[key] = found
+                while sum(a.nbytes + b.nbytes for a, b in _windows.values()) > MAX_WINDOW_BYTES:
+                    _windows.popitem(last=False)
     with _windows_lock:
-        if size <= MAX_WINDOW_BYTES:
-            _windows[key] = out
-            while sum(a.nbytes + b.nbytes for a, b in _windows.values()) > MAX_WINDOW_BYTES:
-                _windows.popitem(last=False)
-    return out
+        if _holding[0]:
+            _held[key] = found
+    return found
 
 
 def _windows_info() -> WindowsInfo:

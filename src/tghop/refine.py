@@ -42,7 +42,7 @@ from ._images import check_image, check_size, checked_image
 from ._progress import ProgressCounter, report
 from ._resources import usable_cores
 from ._fft import fft_for
-from .oriented import double_angle, iter_oriented_parts, match_oriented, oriented_parts
+from .oriented import double_angle, iter_oriented_parts, match_oriented, oriented_parts, windows_held
 from .patches import clean_windows
 from .pyramid import laplacian_pyramid, reconstruct
 from .quantiles import (TAIL_LEVELS, match_quantiles, strided_subset, tail_quantiles, tailed_band_quantiles,
@@ -377,29 +377,32 @@ def refine(image, stats, *, n_iter=5, tile=False, first_level=0, progress=None, 
     pixels = image.shape[0] * image.shape[1]
     workers = min(n_channels, max(1, _REFINE_MEMORY // (_CHANNEL_ARRAYS * 4 * pixels)))
     cores = usable_cores() if threads is None else max(1, min(int(threads), usable_cores()))
-    if workers > 1 and cores > 1 and pixels >= _THREADED_PIXELS:
-        from concurrent.futures import ThreadPoolExecutor, as_completed
+    with windows_held():  # each band's oriented windows made once a refinement (not a round), whatever their size
+        if workers > 1 and cores > 1 and pixels >= _THREADED_PIXELS:
+            from concurrent.futures import ThreadPoolExecutor, as_completed
 
-        # Progress: after each round of each channel, from the channel's thread (a channel's rounds of a large
-        # image take a while); the counter keeps the counts growing.
-        advance = ProgressCounter(progress, "refine", total)
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            for future in as_completed([pool.submit(one, k, on_round=lambda r: advance(1)) for k in range(n_channels)]):
-                future.result()
-    elif pixels < _THREADED_PIXELS:
-        # A small image: all channels at once, stacked (one NumPy call per step instead of
-        # one per channel, whose call overhead dominates on small arrays; the same
-        # numbers).
-        stack = np.stack([take(k) for k in range(n_channels)])
-        results[:] = _refine_channel(stack, q, pixel_q, n_iter=n_iter, mode=mode,
-                                     first_level=first_level, relaxation=relaxation,
-                                     on_round=lambda r: report(progress, "refine", r * n_channels, total))
-    else:
-        # One channel at a time (too large for several at once, or one core): a large
-        # image's Fourier transforms then use every core.
-        fft_workers = cores
-        for k in range(n_channels):
-            one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total), fft_workers=fft_workers)
+            # Progress: after each round of each channel, from the channel's thread (a channel's rounds of a large
+            # image take a while); the counter keeps the counts growing.
+            advance = ProgressCounter(progress, "refine", total)
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                futures = [pool.submit(one, k, on_round=lambda r: advance(1)) for k in range(n_channels)]
+                for future in as_completed(futures):
+                    future.result()
+        elif pixels < _THREADED_PIXELS:
+            # A small image: all channels at once, stacked (one NumPy call per step instead of
+            # one per channel, whose call overhead dominates on small arrays; the same
+            # numbers).
+            stack = np.stack([take(k) for k in range(n_channels)])
+            results[:] = _refine_channel(stack, q, pixel_q, n_iter=n_iter, mode=mode,
+                                         first_level=first_level, relaxation=relaxation,
+                                         on_round=lambda r: report(progress, "refine", r * n_channels, total))
+        else:
+            # One channel at a time (too large for several at once, or one core): a large
+            # image's Fourier transforms then use every core.
+            fft_workers = cores
+            for k in range(n_channels):
+                one(k, on_round=lambda r, k=k: report(progress, "refine", k * n_iter + r, total),
+                    fft_workers=fft_workers)
     return _colours(stats, results, dtype)
 
 
