@@ -12,7 +12,7 @@ takes in order; the words on the arrows are tghop's modules)::
     ICHM.sample -> z -> inverse SDR -> inverse hops -> patches (pool)
         --quilting, following the guide--> image --seams--> seams removed
         --refine (regions, by region, for a large image)--> band statistics matched
-        --colour--> colour histograms matched --patch_refine--> image
+        --patch_refine (images of up to 1280x1280), else colour--> image
 
 Here: the estimator :class:`TGHop` (settings, fit, model-file state, sizes) and
 :class:`CoarseLayout`, the small TGHop a fine one owns. Elsewhere: TGHop's methods between
