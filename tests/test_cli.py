@@ -97,6 +97,17 @@ def test_synth_stages_writes_each_steps_image(model_path, workdir):
         assert r.returncode == status and message in r.stderr.decode(), r.stderr.decode()  # 2: a usage error
 
 
+def test_synth_stages_where_the_colour_matching_is_the_last_step(model_path, workdir):
+    # 0.58 wrote OUT_quilt, OUT_seams and OUT_refine, then failed ("must be floats in [0, 1]") on the colour
+    # matching's step: every image over 1280x1280, --patch-refine 0, a model fitted with --paper.
+    r = run("synth", model_path, "-o", workdir / "co.png", "--size", "48x64", "--pool", "300", "--seed", "4",
+            "--patch-refine", "0", "--stages", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert sorted(p.name for p in workdir.glob("co_*.png")) == ["co_colour.png", "co_quilt.png", "co_refine.png",
+                                                               "co_seams.png"]
+    assert np.array_equal(np.asarray(Image.open(workdir / "co_colour.png")), np.asarray(Image.open(workdir / "co.png")))
+
+
 def test_synth_from_model_numbered_and_tiled(model_path, workdir):
     r = run("synth", model_path, "-o", workdir / "out.png", "--size", "70x90", "--count", "2", "--seed", "5",
             "--tile", "--pool", "500", "-q")

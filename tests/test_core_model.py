@@ -378,6 +378,20 @@ def test_synthesize_returns_each_steps_image(small_model, dtype):
         == ["pool", "quilt", "seams", "refine", "patch refine"]
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.uint8])
+def test_the_colour_matchings_step_is_an_image_in_0_1_whatever_the_dtype(small_model, dtype):
+    # Where the colour matching is the last step (no patch refinement: above 1280x1280, patch_refine=0, a model
+    # fitted with --paper), 0.58 kept its uint8 image's levels 0-255 as the "colour" step, so tghop synth
+    # --stages failed after writing the other steps.
+    from tghop.imageio import to_uint8
+
+    image, stages = small_model.synthesize((48, 64), rng=2, n_patches=200, patch_refine=0, dtype=dtype,
+                                           return_stages=True)
+    colour = stages["colour"]
+    assert colour.dtype == np.float32 and 0 <= colour.min() and colour.max() <= 1 and colour.max() > 0.5
+    np.testing.assert_array_equal(to_uint8(colour) if dtype == np.uint8 else colour, image.astype(colour.dtype))
+
+
 @pytest.mark.parametrize("n_patches", [200, 40])  # generated as quilting reads it (6 blocks), or whole first
 @pytest.mark.parametrize("layout_weight", [3.0, 0])
 def test_the_patch_pool_an_image_was_quilted_from_comes_with_its_stages(small_model, n_patches, layout_weight):

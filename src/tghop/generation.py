@@ -94,9 +94,11 @@ def synthesize(model, size, *, rng, n_patches, tile, overlap, tolerance, detail,
     rng = check_rng(rng)
     stages = {}
 
-    def keep(name, img):  # a copy of this step's image (return_stages)
+    def keep(name, img):  # a copy of this step's image (return_stages), in [0, 1] (a uint8 one's levels / 255)
         if return_stages and img is not None:
             stages[name] = np.array(img, dtype=np.float32)
+            if img.dtype == np.uint8:  # the colour matching's 8-bit image (dtype uint8: tghop synth's)
+                stages[name] /= 255
 
     guide = None
     if layout_weight and layout.follows_guide(model.layout_, size, tile=tile):
