@@ -253,7 +253,7 @@ def test_mix_by_cluster_rows_are_each_samples_own_mixture(small_model):
         np.testing.assert_allclose(z[position[j]], expected, rtol=1e-10, atol=1e-12)
     assert np.array_equal(labels[np.argsort(position)], np.sort(labels))  # grouped by cluster
     np.testing.assert_array_equal(ichm.mix(labels, sources), z[position])
-    with pytest.raises(TGHopError, match="do not match"):
+    with pytest.raises(TGHopError, match=r"mix: sources\[\d+\] must have shape"):
         ichm.mix_by_cluster(labels[1:], sources)
 
 
@@ -1201,6 +1201,29 @@ def test_inspection_refuses_bad_shapes_and_labels(small_model):
             small_model.encode(x)
     with pytest.raises(TGHopError, match=re.escape("patches must have shape (n, P, P, C), got (32, 32, 3)")):
         small_model.encode(np.zeros((32, 32, 3)))
+
+
+def test_inverse_transform_refuses_bad_sources_and_labels_in_one_line(small_model):
+    # 0.58: sources of the wrong width failed in NumPy's words ("matmul: Input operand 1 has a mismatch in its core
+    # dimension 0, ..."), float labels in a raw TypeError ("Cannot cast array data ...") and negative ones in a raw
+    # ValueError from bincount.
+    ichm = small_model.ichm_
+    labels, sources = ichm.transform(small_model.encode(small_model.sample_patches(6, rng=0)))
+    i = int(labels[0])
+    narrow = [s[:, :1] if k == i else s for k, s in enumerate(sources)]
+    n, k, c = len(ichm.means_), int((labels == i).sum()), int(ichm.n_components_[i])
+    for args, words in (((labels, narrow), f"mix: sources[{i}] must have shape ({k}, {c})"),
+                        ((labels.astype(float), sources), f"mix: labels must be a 1-D array of cluster indices from 0 "
+                                                          f"to {n - 1} (integers), got an array of shape (6,) and type "
+                                                          "float64"),
+                        ((np.where(labels == i, -1, labels), sources), "mix: labels must be a 1-D array"),
+                        ((labels[None], sources), "mix: labels must be a 1-D array"),
+                        ((labels, sources[:-1]), f"mix: sources must be a list of {n} arrays, one per cluster")):
+        for call in (ichm.inverse_transform, ichm.mix):
+            with pytest.raises(TGHopError, match=re.escape(words)) as info:
+                call(*args)
+            assert "\n" not in str(info.value)
+    np.testing.assert_array_equal(ichm.inverse_transform(labels, sources), ichm.mix(labels, sources))
 
 
 @pytest.mark.parametrize("chunk", [-1, 0, 2.5, True, "8"])

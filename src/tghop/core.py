@@ -100,7 +100,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
     max_iter : int, default=200
         FastICA iterations per cluster.
     tol : float, default=1e-3
-        FastICA's convergence tolerance (scikit-learn's default and the paper's: 1e-4).
+        FastICA's convergence tolerance (``--paper``: scikit-learn's default, 1e-4; the paper names none).
     residual : bool, default=False
         Model the residual of the per-cluster PCA by a Gaussian per group of dimensions
         (``groups`` of :meth:`fit`) and add a draw of it to every sample (ours).
@@ -588,11 +588,17 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         check_is_fitted(self, "means_")
         mixing = self.mixing_ if mixing is None else mixing
         means = self.means_ if means is None else means
-        labels = np.asarray(labels)
-        counts = np.bincount(labels, minlength=len(sources)) if len(labels) else np.zeros(len(sources), dtype=int)
-        if len(counts) != len(sources) or any(len(s) != k for s, k in zip(sources, counts)):
-            raise TGHopError(f"mix: source rows per cluster {[len(s) for s in sources]} do not match the "
-                             f"labels' counts {counts.tolist()}")
+        labels = self._check_labels(labels, None, "mix")
+        n_clusters = len(self.means_)
+        if not isinstance(sources, (list, tuple)) or len(sources) != n_clusters:
+            got = f"a {type(sources).__name__} of {len(sources)}" if hasattr(sources, "__len__") else repr(sources)
+            raise TGHopError(f"mix: sources must be a list of {n_clusters} arrays, one per cluster (as transform and "
+                             f"sample_sources return them), got {got}")
+        counts = np.bincount(labels, minlength=n_clusters)
+        for i, (s, k, c) in enumerate(zip(sources, counts, self.n_components_)):
+            if np.shape(s) != (k, c):  # a wrong width failed in the matrix product, in NumPy's words (0.58)
+                raise TGHopError(f"mix: sources[{i}] must have shape ({k}, {c}): cluster {i}'s {k} vectors in labels "
+                                 f"by its {c} components (n_components_[{i}]), got {np.shape(s)}")
         out = np.empty((len(labels), mixing.shape[1]), dtype=mixing.dtype)
         start = 0
         with one_blas_thread():  # the same vectors for a seed on any number of cores (OpenBLAS rounds by its threads)
@@ -614,6 +620,18 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         d = self.means_.shape[1]
         check_width(Z, "Z", f"(n, D_r) = (n, {d})", (d,))
         return Z
+
+    def _check_labels(self, labels, n, where):
+        """``labels`` as int64 cluster indices in [0, N), ``n`` of them (None: any number); else one line."""
+        labels, n_clusters = np.asarray(labels), len(self.means_)
+        if labels.size == 0 and labels.ndim == 1:  # [] is float64: no index, and none is wrong
+            labels = labels.astype(np.int64)
+        if labels.ndim != 1 or (n is not None and len(labels) != n) or labels.dtype.kind not in "iu" or (
+                len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
+            count = "a 1-D array of" if n is None else n
+            raise TGHopError(f"{where}: labels must be {count} cluster indices from 0 to {n_clusters - 1} (integers), "
+                             f"got an array of shape {labels.shape} and type {labels.dtype}")
+        return labels.astype(np.int64, copy=False)
 
     def predict(self, Z, *, chunk=4096):
         """The cluster of each vector: the nearest of :attr:`means_` in Euclidean distance.
@@ -665,16 +683,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
             cluster ``i`` in their order in ``labels``, as :meth:`sample_sources` returns them.
         """
         Z = self._check_vectors(Z)
-        n_clusters = len(self.means_)
-        if labels is None:
-            labels = self.predict(Z)
-        labels = np.asarray(labels)
-        if labels.size == 0 and labels.ndim == 1:  # [] is float64: no index, and none is wrong
-            labels = labels.astype(np.int64)
-        if labels.shape != (len(Z),) or labels.dtype.kind not in "iu" or (
-                len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
-            raise TGHopError(f"labels must be {len(Z)} cluster indices from 0 to {n_clusters - 1}, got an array of "
-                             f"shape {labels.shape} and type {labels.dtype}")
+        labels = self._check_labels(self.predict(Z) if labels is None else labels, len(Z), "transform")
         mixing, sources = self.mixing_, []
         with one_blas_thread():  # as in fit: threaded BLAS only slows many small matrices
             for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
