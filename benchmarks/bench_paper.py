@@ -513,7 +513,7 @@ def section_time(args, out):
 
     rows2 = table2_rows(args, ust, with_a, without)
     text = (f"## Table 2: time of one 256x256 brick_wall image (this machine, {args.threads} thread(s); "
-            "paper: 12-core i7-5930K + Titan X GPU for the DL methods)\n\n")
+            "paper: the 12 CPUs (6 cores, 12 threads) of an i7-5930K + a GTX Titan X GPU for the DL methods)\n\n")
     text += markdown_table(["method", "time here (s)", "factor here", "paper (s)", "factor paper"], rows2)
     if ust:
         text += (f"\n\nUstyuzhaninov measured: {ust['iterations']} L-BFGS iterations ({ust['evaluations']} loss "
@@ -836,7 +836,7 @@ def main(argv=None):
         header = (f"# TGHop paper reproduction\n\n`{' '.join(['python benchmarks/bench_paper.py'] + sys.argv[1:])}` "
                   f"({'quick' if args.quick else 'default'} settings). "
                   f"tghop commit {version}. Machine: {os.cpu_count()} CPU cores, shared with other jobs. "
-                  "Paper: 12-core i7-5930K (2015).\n\n"
+                  "Paper: the 12 CPUs (6 cores, 12 threads) of an i7-5930K.\n\n"
                   + (f"Sections of this run (--only): {', '.join(args.sections)}.\n\n" if args.only else "")
                   + "Here: Tables 1-5 and Figs. 3, 6, 7, 8, 11 and 12. Figs. 9 and 10 (TGHop's images beside the DL "
                   "methods'): the quality section's sheets, with Ustyuzhaninov et al. on its subset; Gatys et al. "

@@ -374,8 +374,8 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("ica_max_iter", 200, "int", "FastICA iterations per cluster at most.", low=1,
             cli=("--ica-iterations",), target="ichm.max_iter"),
     Setting("ica_tol", 1e-3, "float",
-            "FastICA stops when no unmixing direction changes by more than this (paper, as scikit-learn's "
-            "default: 1e-4; 1e-3 halves the fitting time of ICA at the same measured quality).",
+            "FastICA stops when no unmixing direction changes by more than this (--paper: scikit-learn's "
+            "default 1e-4; the paper names none; 1e-3 halves ICA's fitting time at the same measured quality).",
             low=0, low_open=True, cli=("--ica-tol",), target="ichm.tol", paper=1e-4),
     Setting("residual", False, "bool",
             "Also model the detail each cluster's PCA drops, as a Gaussian per core channel, and add a "
