@@ -426,6 +426,11 @@ def test_three_hops_for_64_patches():
     # the paper's Fig. 7: "three-stage c/w Saab transforms on 64 x 64 patches, whose core subspace
     # dimensions are ... 4032" (8 x 8 x 63; 0.49.1 kept 40 channels, a core of 2,560)
     assert m.dims_["D0"] == 64 * 64 * 3 and m.dims_["D3"] == 4032
+    # Table 4's c/w rows of both hops (0.58 wrote hop 2's formula alone, 4*K1*K2 + K1, beside the count of both)
+    k1, k2, k3 = m.channels_
+    stage2 = m.n_parameters()["transform stage 2"]
+    assert stage2["formula"] == "4*K1*K2 + K1 + 4*K2*K3 + K2"
+    assert stage2["paper"] == 4 * k1 * k2 + k1 + 4 * k2 * k3 + k2
     assert m.sample_patches(3, rng=0).shape == (3, 64, 64, 3)
 
 

@@ -84,8 +84,10 @@ def table4(dims, channels, n_colours, n_bins, sdr_shape, stored, n_classes=None)
     block = sdr_shape[0] * sdr_shape[1]
     paper = {
         "transform stage 1": (f"{4 * c_in}*K1 + 1", 4 * c_in * k1 + 1),
-        # Per c/w hop, the paper's 4 * K_parent * K_child + K_parent (two hops: 4 K1 K2 + K1).
-        "transform stage 2": ("4*K1*K2 + K1", sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
+        # Per c/w hop, the paper's 4 * K_parent * K_child + K_parent (two hops: 4 K1 K2 + K1; three: the formula
+        # said 4*K1*K2 + K1 of a count that held hop 3's too, 0.58).
+        "transform stage 2": (" + ".join(f"4*K{i}*K{i + 1} + K{i}" for i in range(1, len(k))),
+                              sum(4 * a * b + a for a, b in zip(k[:-1], k[1:]))),
         "core SDR": (f"{block}*D_r", block * d_r),
         "core ICHM (i)": ("N", n),
         "core ICHM (ii)": ("F*D_r", f * d_r),
