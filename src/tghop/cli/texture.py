@@ -168,7 +168,8 @@ def material_summary(material, found=None) -> str:
 @click.option("-o", "--output", required=True, help=f"Grid i{OUTPUT_HELP[1:]}; - for PNG on stdout).")
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed (same seed, same patches).")
 @click.option("--stages", is_flag=True,
-              help="Also write OUTPUT_stages: per sample the core DC map, the S1 DC map and the patch (paper Fig. 6).")
+              help="Also write OUTPUT_stages: per sample the core DC map, the S1 DC map (64x64 patches: S2's "
+                   "between them) and the patch (paper Fig. 6).")
 @QUIET_OPTION
 def patches(model_file, n, output, seed, stages, quiet):
     """Generate N patches from a saved MODEL and write them as a grid image."""
