@@ -70,6 +70,7 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import os
+import shlex
 import sys
 import time
 import traceback
@@ -475,7 +476,7 @@ def section_time(args, out):
         stages = timer.finish()
         log(f"Table 3: analysis {fit_s:.1f} s")
         gens, quilts = [], []
-        for seed in range(4):  # the first image pays the one-off folding of the decoder
+        for seed in range(4):  # the first image pays for the float32 mixing matrix and the inverse-CDF table
             rng = np.random.default_rng(seed)
             t = time.perf_counter()
             pool = model.sample_patches(10_000, rng=rng, dtype=np.float32)
@@ -528,7 +529,8 @@ def section_time(args, out):
     text += "\n\n## Table 3: the three processes of TGHop\n\n"
     text += markdown_table(["process", "time here (s)", "paper (s)"], [
         ["analysis (fit, forward path)", fit_s, PAPER_TABLE3["analysis"]],
-        ["generation of 10,000 patches, first image (includes folding the decoder once)", gen_first,
+        ["generation of 10,000 patches, first image (includes the float32 mixing matrix and inverse-CDF table, "
+         "made once)", gen_first,
          PAPER_TABLE3["generation"]],
         ["generation of 10,000 patches, later images (median of 3)", gen_warm, PAPER_TABLE3["generation"]],
         ["quilting 256x256 (median of 4)", q, PAPER_TABLE3["quilting"]]])
@@ -797,8 +799,15 @@ def git_version() -> str:
         return "unknown"
 
 
+def command_line(argv) -> str:
+    """The command that made a run, as a shell reads it back: each argument quoted where it must be (an empty
+    ``--ust-textures ""`` was written as nothing, so the report's command took the next option for its value)."""
+    return shlex.join(["python", "benchmarks/bench_paper.py", *argv])
+
+
 def main(argv=None):
     warnings.filterwarnings("ignore")
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(argv)
     # Every exemplar is looked for before any work or output: one missing (no ../shared/textures
     # beside a fresh checkout) stopped the run at its first fit, or a worker's, minutes in.
@@ -833,7 +842,7 @@ def main(argv=None):
         data = write_results_to(out, key, payload)
         images = [v for v in payload.values() if isinstance(v, str) and v.endswith(".png")]
         log(f"{key}: written to {', '.join(images + [str(data)])} and {out / 'report.md'}")
-        header = (f"# TGHop paper reproduction\n\n`{' '.join(['python benchmarks/bench_paper.py'] + sys.argv[1:])}` "
+        header = (f"# TGHop paper reproduction\n\n`{command_line(argv)}` "
                   f"({'quick' if args.quick else 'default'} settings). "
                   f"tghop commit {version}. Machine: {os.cpu_count()} CPU cores, shared with other jobs. "
                   "Paper: the 12 CPUs (6 cores, 12 threads) of an i7-5930K.\n\n"

@@ -140,3 +140,14 @@ def test_only_runs_the_sections_named_by_key_or_the_papers_name_and_writes_besid
     with pytest.raises(SystemExit):
         bench.parse_args(["--only", "fig99"])
     assert "--only takes sections among time, table2" in capsys.readouterr().err
+
+
+def test_the_reports_command_line_runs_again_as_written(bench):
+    # `--ust-textures ""` (the README's quick run) was written as `--ust-textures  --out DIR`: pasted back, the run
+    # took "--out" for its exemplars.
+    import shlex
+
+    argv = ["--quick", "--ust-textures", "", "--out", "/tmp/a b"]
+    line = bench.command_line(argv)
+    assert line == "python benchmarks/bench_paper.py --quick --ust-textures '' --out '/tmp/a b'"
+    assert shlex.split(line)[2:] == argv
