@@ -151,3 +151,13 @@ def test_the_reports_command_line_runs_again_as_written(bench):
     line = bench.command_line(argv)
     assert line == "python benchmarks/bench_paper.py --quick --ust-textures '' --out '/tmp/a b'"
     assert shlex.split(line)[2:] == argv
+
+
+def test_table1_says_how_many_hop2_channels_sdr_keeps(bench):
+    # With gamma 0.01, setting (a) (K2 = 32) and Fig. 7's K2 = 27 made the same model and the same scores: the
+    # five extra hop-2 channels keep no SDR component. The table gave no hint of why.
+    dims = {"D0": 3072, "D1": 2560, "D2": 2048, "D_r": 920, "F": 2500}
+    res = {"sheet": "fig8_settings.png",
+           "rows": [{"setting": "a", "K1": 10, "K2": 32, "K2_kept": 21, "dims": dims, "fit_s": 1.0, "scores": {}}]}
+    text = bench.md_settings(res)
+    assert "| setting | K1 | K2 | K2 kept |" in text and "| (a) | 10 | 32 | 21 |" in text
