@@ -421,8 +421,8 @@ SETTINGS: Tuple[Setting, ...] = (
             when="generate", low=1, high=10_000_000, cli=("--pool",), cli_high=200_000),
     Setting("tile", False, "bool", "Make the output wrap around seamlessly (tileable; under 94 px a side at layout "
             "factor 3, 63 at 2, without the layout's guide: tghop.layout.guide_fits).", when="generate"),
-    Setting("overlap", None, "int", "Quilting overlap in pixels (None: patch_size // 6).", when="generate",
-            low=1, none_ok=True),
+    Setting("overlap", None, "int", "Quilting overlap in pixels (None: patch_size / 6, rounded: 5 at 32, 11 at 64).",
+            when="generate", low=1, none_ok=True),
     Setting("tolerance", 0.1, "float",
             "Quilting picks among pool patches within (1 + tolerance) of the best match.",
             when="generate", low=0, high=1e6),
