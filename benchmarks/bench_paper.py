@@ -280,7 +280,7 @@ def _task_gamma(gammas, out):
     return {"rows": rows, "sheet": save_png(sheet, out / "fig12_gamma.png")}
 
 
-#: Fig. 7's channels: the "typical setting" of the paper's section 4.2 (K1=10, K2=27: a core of 8 x 8 x 27 =
+#: Fig. 7's channels: the "typical setting" of the paper's section IV.B (K1=10, K2=27: a core of 8 x 8 x 27 =
 #: 1,728) for 32x32 patches, and a third hop of 63 for 64x64 ones (8 x 8 x 63 = 4,032, the paper's figure).
 FIG7_CHANNELS = {32: (10, 27), 64: (10, 27, 63)}
 FIG7_PAPER_CORE = {32: 1728, 64: 4032}
@@ -452,7 +452,7 @@ def md_fig7(res) -> str:
              FIG7_PAPER_CORE.get(r["patch_size"], ""), r["dims"]["D_r"], r["fit_s"]] + fmt_scores(r["scores"])
             for r in res["rows"]]
     text = ("## Fig. 7: 32x32 (two hops) vs 64x64 (three hops) patches on brick_wall\n\n"
-            "The paper's channels: K1=10, K2=27 (its section 4.2) and K3=63, so that the cores are its 1,728 and "
+            "The paper's channels: K1=10, K2=27 (its section IV.B) and K3=63, so that the cores are its 1,728 and "
             "4,032 dimensions. Stitched from a 5,000-patch pool as in the paper; metrics of the seed-1 image.\n\n")
     text += markdown_table(["patch", "K per hop", "dims", "paper's core", "D_r", "fit (s)"] + METRIC_NAMES, rows)
     return text + f"\n\nSheet: `{Path(res['sheet']).name}`"
