@@ -619,3 +619,31 @@ def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
     wait_model(page, "material")
     assert page.text_content("#maps-list") == "maps: rock_normal_2k" and page.input_value("#builtin") == "bricks"
     assert not page.errors, page.errors
+
+
+def test_waiting_maps_of_another_size_than_the_new_exemplar_are_dropped_not_sent(page, tmp_path):
+    # Maps waiting for their albedo (added before any exemplar, or of another size than the working one's) were sent
+    # with whatever exemplar was picked next: a normal click sequence the server refused, naming the sizes
+    # ("... is 128x160, not the exemplar's 256x256"). Another size than the new exemplar's: they are dropped, said
+    # on the page, and it is fitted as a texture model; of its size they make the material (the tests above).
+    rock_files(tmp_path)
+    sent = posted_fits(page)
+    for first in ("bricks", None):  # waiting beside a working model, and before any exemplar
+        fresh_page(page)
+        if first:
+            pick_builtin(page, first)
+            wait_model(page, "model")
+        page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
+        wait_said(page, "wait for their albedo" if first else "pick or drop the albedo")
+        before = len(sent)
+        pick_builtin(page, "cells")
+        said = wait_said(page, "builtin:cells")  # dropped, or (0.58) refused
+        assert not page.eval_on_selector("#message", "e => e.classList.contains('error')"), said
+        assert said.startswith("maps dropped: rock_normal is 128x160, not the 256x256 of builtin:cells"), said
+        assert len(sent) == before + 1 and b"map:" not in sent[-1] and b"cells" in sent[-1]
+        page.wait_for_function("state.working && state.working.name === 'builtin:cells'", timeout=90_000)
+        wait_model(page, "model")
+        assert page.text_content("#maps-list").startswith("maps dropped: rock_normal (128x160)")
+        assert page.is_hidden("#maps-clear") and page.is_enabled("#go")
+        assert page.evaluate("state.working.name") == "builtin:cells"
+    assert not page.errors, page.errors

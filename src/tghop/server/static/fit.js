@@ -319,15 +319,17 @@ function listMaps(files, held = false) {
 // (state.source, the last exemplar: the working one or the one being fitted): they are that material's, not
 // the new one's, and are cleared, the list saying so (`whose`: whose maps they are not). A refused or cancelled
 // pick lists them again (backToWorking). Maps listed with no exemplar yet wait for the one picked; the same
-// exemplar picked again is fitted with them.
+// exemplar picked again is fitted with them. The maps the new exemplar takes unchecked, which fitSource compares
+// with its size, or null.
 function clearOthersMaps(source, whose) {
   const old = state.source, files = state.mapFiles;
   // The exemplar whose size they are not, picked again: fitted without them, the maps waiting on (0.57 sent them,
   // to be refused for their size)
-  if (state.mapsHeld && source && state.heldOff && sameSource(state.heldOff.source, source)) return;
-  if (state.mapsHeld && source) { listMaps(files); return; }  // waiting for this exemplar: now its maps
-  if (source && files.length && state.mapsChecking === files) return;  // added as it was picked: its maps
-  if (!files.length || !old || state.mapsHeld || (source && sameSource(old, source))) return;
+  if (state.mapsHeld && source && state.heldOff && sameSource(state.heldOff.source, source)) return null;
+  if (state.mapsHeld && source) { listMaps(files); return files; }  // waiting for this exemplar: now its maps
+  if (source && files.length && state.mapsChecking === files) return files;  // added as it was picked: its maps
+  if (source && files.length && !old) return files;  // added before any exemplar: this one's
+  if (!files.length || !old || state.mapsHeld || (source && sameSource(old, source))) return null;
   listMaps([]);
   $("maps-list").textContent = `maps cleared: ${files.map((f) => mapName(f.name)).join(", ")} went with ` +
     `${old.builtin ? `builtin:${old.builtin}` : old.file.name}, not ${whose}`;
@@ -488,33 +490,53 @@ async function cancelFit() {
 // `undo` given: a refit with other maps (setMapFiles) or a material dropped (dropFiles); else a pick.
 function fitFile(file, undo) {
   if (!file) return;
-  if (!undo) {
-    undo = { mapFiles: state.mapFiles, held: heldNow(), name: file.name };
-    clearOthersMaps({ file }, "this exemplar's");
-  }
-  state.source = { file };
-  state.pendingName = file.name + (sentMaps().length ? ` + ${sentMaps().length} maps` : "");
   $("builtin").value = "";
-  setExemplar(URL.createObjectURL(file));
-  const form = fitFields();
-  form.append("image", file, file.name);
-  startFit(form, undo);
-  if (state.mapsHeld && state.heldOff) say(`${heldWhy()} (this fit is without them)`);
+  fitSource({ file }, URL.createObjectURL(file), file.name, undo, (form) => form.append("image", file, file.name));
 }
 
 function fitBuiltin(name, undo) {
   if (!name) return;
+  const append = (form) => form.append("builtin", name);
+  fitSource({ builtin: name }, `/api/builtins/${name}.png`, `builtin:${name}`, undo, append);
+}
+
+// The exemplar `source` (shown from `url`, named `label`) fitted, `append` adding it to the fit's fields. A pick
+// (`undo` not given) that takes maps whose size was not compared with it (maps waiting for their albedo, or being
+// read: clearOthersMaps) compares them first (a few milliseconds): of another size, they are no maps of it and are
+// dropped, the page saying so, and it is fitted as a texture model (0.58 sent them, and the server refused the fit,
+// naming the sizes).
+async function fitSource(source, url, label, undo, append) {
+  let taken = null;
   if (!undo) {
-    undo = { mapFiles: state.mapFiles, held: heldNow(), name: `builtin:${name}` };
-    clearOthersMaps({ builtin: name }, "this exemplar's");
+    undo = { mapFiles: state.mapFiles, held: heldNow(), name: label };
+    taken = clearOthersMaps(source, "this exemplar's");
   }
-  state.source = { builtin: name };
-  state.pendingName = `builtin:${name}` + (sentMaps().length ? ` + ${sentMaps().length} maps` : "");
-  setExemplar(`/api/builtins/${name}.png`);
+  state.source = source;
+  setExemplar(url);
+  let dropped = null;
+  if (taken) {
+    dropped = await otherSize(taken, url);
+    if (state.source !== source || state.mapFiles !== taken) return;  // another pick, or other maps, meanwhile
+    if (dropped) dropMaps(dropped, label);
+  }
+  state.pendingName = label + (sentMaps().length ? ` + ${sentMaps().length} maps` : "");
   const form = fitFields();
-  form.append("builtin", name);
+  append(form);
   startFit(form, undo);
-  if (state.mapsHeld && state.heldOff) say(`${heldWhy()} (this fit is without them)`);
+  if (dropped) {
+    say(`maps dropped: ${dropped.name} is ${dropped.size.join("x")}, not the ${dropped.exemplar.join("x")} ` +
+    `of ${label}, so they are not its maps; ${label} is fitted as a texture model (add its own maps to make a ` +
+    "material, or pick their albedo and add them again)");
+  } else if (state.mapsHeld && state.heldOff) say(`${heldWhy()} (this fit is without them)`);
+}
+
+// Maps of another size than the exemplar just picked (`other`: otherSize's), which it took: dropped, the list saying
+// so until maps are added again.
+function dropMaps(other, label) {
+  const names = state.mapFiles.map((f) => mapName(f.name)).join(", ");
+  listMaps([]);
+  $("maps-list").textContent = `maps dropped: ${names} (${other.size.join("x")}) are not of the ` +
+    `${other.exemplar.join("x")} of ${label}`;
 }
 
 // Browsing the closed built-in menu by keyboard (app.js, wireBuiltinMenu: a change per option passed) fits the
