@@ -136,3 +136,60 @@ def test_the_last_results_are_kept_side_by_side_and_brought_back(page):
     assert len(captions) == 12 and captions[0] == "result 32x40, seed 30 (bricks)" and shown == [0], captions
     assert captions[-1] == "result 32x40, seed 15, tileable (bricks)"
     assert not page.errors, page.errors
+
+
+def test_the_recent_results_outlive_a_reload_and_a_materials_downloads_every_map(page, tmp_path):
+    # The recent results were the page's only: a reload (or the browser closed) forgot them all; and a material's
+    # entry downloaded its albedo alone, its maps lost unless it was shown again for "Download all maps".
+    import zipfile
+
+    from tghop import data
+    from tghop.imageio import to_uint8
+    from tghop.material import example_maps
+
+    height = tmp_path / "bricks_height.png"
+    height.write_bytes(png(to_uint8(example_maps(data.builtin("bricks"))["height"][..., 0])))
+    page.goto(page.url)
+    page.wait_for_selector("body[data-ready='1']")
+    if page.is_visible("#history-box"):
+        page.click("#history-forget")  # the test before's
+    assert page.is_hidden("#history-box")
+    chromium.set_fit_settings(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 4, tile=True)
+    page.set_input_files("#maps", str(height))  # bricks again, a material
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')", timeout=90_000)
+    generate(page, 5)
+    before, _ = recent(page)
+    assert before == ["result 32x40, seed 5 (bricks)", "result 32x40, seed 4, tileable (bricks)"], before
+    page.wait_for_function("recent.entries.every((e) => e.key !== null)")  # stored (a few milliseconds)
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    page.wait_for_function("document.querySelectorAll('#history canvas').length === 2", timeout=60_000)
+    assert recent(page) == (before, [])
+    # A material's entry: every map, one ZIP
+    link = "#history figure[data-index='0'] a"
+    assert page.get_attribute(link, "download") == "tghop-bricks-32x40-seed5.zip"
+    with page.expect_download() as download:
+        page.click(link)
+    assert download.value.suggested_filename == "tghop-bricks-32x40-seed5.zip"
+    download.value.save_as(tmp_path / "maps.zip")
+    with zipfile.ZipFile(tmp_path / "maps.zip") as archive:
+        assert archive.testzip() is None
+        assert archive.namelist() == ["tghop-bricks-32x40-seed5.png", "tghop-bricks-32x40-seed5_height.png"]
+    # Shown again from the store, with its settings
+    page.click("#history figure[data-index='1'] button")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 4'")
+    assert page.input_value("#seed") == "4" and page.is_checked("#tile")
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-32x40-seed4-tile.png"
+    page.click("#history figure[data-index='0'] button")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 5'")
+    assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == ["albedo", "bricks_height"]
+    # Forgotten on asking, across a reload too
+    page.click("#history-forget")
+    assert page.is_hidden("#history-box")
+    assert page.evaluate("storeDo('readonly', (store) => store.count())") == 0
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    assert page.is_hidden("#history-box")
+    assert not page.errors, page.errors

@@ -102,6 +102,7 @@ async function init() {
   $("maps").addEventListener("change", (e) => setMapFiles(e.target.files));
   $("maps-clear").addEventListener("click", () => setMapFiles([]));
   $("download-maps").addEventListener("click", downloadMaps);
+  $("history-forget").addEventListener("click", forgetHistory);
   $("cancel").addEventListener("click", cancelFit);
   $("gen-form").addEventListener("submit", onGenerate);
   $("strip-go").addEventListener("click", onStrip);
@@ -160,6 +161,7 @@ async function init() {
     if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
   });
   window.addEventListener("pagehide", onPageHide);
+  await restoreHistory();  // the recent results of before a reload
   document.body.dataset.ready = "1";
 }
 

@@ -61,11 +61,15 @@ function mapFile(shown, i) {
 // made browsers ask leave for each).
 async function downloadMaps() {
   const shown = state.shown;
-  if (!shown) return;
-  const zip = await zipOf(shown.maps.map((m, i) => ({ name: mapFile(shown, i), blob: m.blob })));
+  if (shown) await downloadZip(shown.base, shown.maps);
+}
+
+// The maps of a result whose files are named from `base` (mapFile) saved as one ZIP, `base`.zip.
+async function downloadZip(base, maps) {
+  const zip = await zipOf(maps.map((m, i) => ({ name: mapFile({ base, maps }, i), blob: m.blob })));
   const link = document.createElement("a");
   link.href = URL.createObjectURL(zip);
-  link.download = `${shown.base}.zip`;
+  link.download = `${base}.zip`;
   document.body.append(link);
   link.click();
   link.remove();

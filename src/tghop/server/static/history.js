@@ -2,15 +2,17 @@
 // Paint's, Remix's, Morph's, a Fill or Extend, the co-occurrence model's), each with its settings; a click shows
 // one again as the result (a plain result's settings back in Generate's fields), each downloadable. Bounded: the
 // last HISTORY_MAX, and at most HISTORY_BYTES of their PNGs (a material's maps counted); each kept as its PNG
-// and a thumbnail of at most HISTORY_THUMB px drawn once, not a full-size picture decoded in the page.
+// and a thumbnail of at most HISTORY_THUMB px drawn once, not a full-size picture decoded in the page. Kept across a
+// reload too (0.59): each entry's PNGs and settings in the browser's IndexedDB (this address's), the same bounds.
 "use strict";
 
 const HISTORY_MAX = 12;
 const HISTORY_BYTES = 256 * 1024 * 1024;
 const HISTORY_THUMB = 120;
 
-// [{blob, maps, seed, what, name, pick, download, thumb}], the newest first; `pick`: the strip run of a seed picked
-// from it (a second pick from the same strip replaces the first: clicking through the 8 seeds keeps one).
+// [{blob, maps, seed, what, name, pick, download, thumb, key}], the newest first (`key`: its record's in the store);
+// `pick`: the strip run of a seed picked from it (a second pick from the same strip replaces the first: clicking
+// through the 8 seeds keeps one).
 const recent = { entries: [] };
 
 // A result just shown (showResult) kept at the front of the history; one kept already (shown again: Undo, a pick
@@ -19,8 +21,9 @@ function keepResult(blob, maps, seed, what, name, pick) {
   if (!blob || recent.entries.some((e) => e.blob === blob)) { renderHistory(); return; }
   const front = recent.entries[0];
   if (pick && front && front.pick === pick) dropEntry(0);
-  const entry = { blob, maps, seed, what, name, pick, download: URL.createObjectURL(blob), thumb: null };
+  const entry = { blob, maps, seed, what, name, pick, download: URL.createObjectURL(blob), thumb: null, key: null };
   recent.entries.unshift(entry);
+  storeEntry(entry);
   const bytes = (e) => (e.maps ? e.maps.reduce((sum, m) => sum + m.blob.size, 0) : e.blob.size);
   let total = recent.entries.reduce((sum, e) => sum + bytes(e), 0);
   while (recent.entries.length > 1 && (recent.entries.length > HISTORY_MAX || total > HISTORY_BYTES)) {
@@ -35,6 +38,87 @@ function dropEntry(i) {
   const [entry] = recent.entries.splice(i, 1);
   URL.revokeObjectURL(entry.download);
   if (entry.thumb) entry.thumb.close();
+  entry.dropped = true;
+  if (entry.key !== null) storeDo("readwrite", (store) => store.delete(entry.key));
+}
+
+// The browser's store of the recent results (IndexedDB "tghop", its object store "recent": one record an entry, its
+// key growing with each). Where the browser has none, or refuses it (a private window may), the page keeps them
+// until it is left, as 0.58 did.
+const HISTORY_DB = "tghop", HISTORY_STORE = "recent";
+let historyDb = null;
+
+function openHistoryDb() {
+  return new Promise((resolve) => {
+    let request;
+    try {
+      request = indexedDB.open(HISTORY_DB, 1);
+    } catch (e) {
+      resolve(null);
+      return;
+    }
+    request.onupgradeneeded = () => request.result.createObjectStore(HISTORY_STORE, { autoIncrement: true });
+    request.onsuccess = () => resolve(request.result);
+    request.onerror = () => resolve(null);
+    request.onblocked = () => resolve(null);
+  });
+}
+
+// `work(store)` in a transaction of `mode`; its request's result (null when there is no store or it fails).
+function storeDo(mode, work) {
+  if (!historyDb) return Promise.resolve(null);
+  return new Promise((resolve) => {
+    try {
+      const tx = historyDb.transaction(HISTORY_STORE, mode);
+      const request = work(tx.objectStore(HISTORY_STORE));
+      tx.oncomplete = () => resolve(request.result);
+      tx.onerror = tx.onabort = () => resolve(null);
+    } catch (e) {
+      resolve(null);
+    }
+  });
+}
+
+// An entry kept in the store: its PNGs (a material's every map) and settings; not its strip run (this page's).
+async function storeEntry(entry) {
+  const maps = entry.maps ? entry.maps.map((m) => ({ name: m.name, suffix: m.suffix, depth: m.depth, blob: m.blob }))
+    : null;
+  const record = { blob: entry.blob, maps, seed: entry.seed, what: entry.what, name: entry.name };
+  const key = await storeDo("readwrite", (store) => store.add(record));
+  entry.key = key;
+  if (entry.dropped && key !== null) storeDo("readwrite", (store) => store.delete(key));  // dropped meanwhile
+}
+
+// The entries kept by the page before a reload, shown again (the newest first); the store's older records, beyond
+// the bounds, removed. Called once, when the page starts.
+async function restoreHistory() {
+  historyDb = await openHistoryDb();
+  const keys = await storeDo("readonly", (store) => store.getAllKeys());
+  const records = await storeDo("readonly", (store) => store.getAll());
+  if (!keys || !records) return;
+  const restored = [];
+  let total = 0;
+  for (let i = records.length - 1; i >= 0; i--) {
+    const r = records[i];
+    const size = r.maps ? r.maps.reduce((sum, m) => sum + m.blob.size, 0) : r.blob.size;
+    if (restored.length >= HISTORY_MAX || (restored.length && total + size > HISTORY_BYTES)) {
+      storeDo("readwrite", (store) => store.delete(keys[i]));
+      continue;
+    }
+    total += size;
+    restored.push({ ...r, pick: null, download: URL.createObjectURL(r.blob), thumb: null, key: keys[i] });
+  }
+  recent.entries.push(...restored);  // after any made while the store opened (the newest)
+  renderHistory();
+  for (const entry of restored) thumbnail(entry);
+}
+
+// Every entry forgotten, here and in the store (the "Forget" button).
+function forgetHistory() {
+  while (recent.entries.length) dropEntry(0);
+  storeDo("readwrite", (store) => store.clear());
+  renderHistory();
+  keepFocus($("history-forget"), $("go"));
 }
 
 // The entry's thumbnail (an ImageBitmap of at most HISTORY_THUMB px a side), drawn into its canvas once made.
@@ -91,10 +175,15 @@ function renderHistory() {
     const caption = document.createElement("figcaption");
     caption.textContent = text;
     const link = document.createElement("a");
+    const base = resultBase(entry.seed, entry.what, fileName(entry.name));
     link.href = entry.download;
-    link.textContent = "Download";
-    link.setAttribute("download", `${resultBase(entry.seed, entry.what, fileName(entry.name))}.png`);
-    link.setAttribute("aria-label", `download ${text}`);
+    link.textContent = entry.maps ? "Download (.zip)" : "Download";
+    // A material's: every map, in one ZIP as Download all maps makes it (0.58 saved its albedo only)
+    link.setAttribute("download", entry.maps ? `${base}.zip` : `${base}.png`);
+    link.setAttribute("aria-label", `download ${text}${entry.maps ? ", every map (a ZIP)" : ""}`);
+    if (entry.maps) {
+      link.addEventListener("click", (e) => { e.preventDefault(); downloadZip(base, entry.maps); });
+    }
     figure.append(button, caption, link);
     figure.dataset.index = String(i);
     row.append(figure);
