@@ -647,3 +647,48 @@ def test_waiting_maps_of_another_size_than_the_new_exemplar_are_dropped_not_sent
         assert page.is_hidden("#maps-clear") and page.is_enabled("#go")
         assert page.evaluate("state.working.name") == "builtin:cells"
     assert not page.errors, page.errors
+
+
+def test_the_pages_take_on_maps_of_the_exemplars_size_is_said_and_one_click_from_undone(page, tmp_path):
+    # Whether maps of the exemplar's size were its own or another picture's was guessed from the files' names, and a
+    # wrong guess had no way back but picking the exemplar again, or adding the maps again once their albedo was
+    # picked ("maps cleared: normal went with builtin:bricks"). The page says what it took them for, and a button
+    # gives them to the exemplar shown.
+    from tghop import data
+    from tghop.imageio import to_uint16
+    from tghop.material import example_maps
+
+    normal = png(to_uint16(example_maps(data.builtin("cells"))["normal"]))
+    (tmp_path / "rock_normal_2k.png").write_bytes(normal)
+    (tmp_path / "normal.png").write_bytes(normal)
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    assert page.is_hidden("#maps-use")
+    page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))  # named for another picture: waiting
+    assert 'press "Use them with builtin:bricks"' in wait_said(page, "wait for their albedo")
+    assert page.text_content("#maps-use") == "Use them with builtin:bricks"
+    page.click("#maps-use")  # they are bricks' after all
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: rock_normal_2k" and page.is_hidden("#maps-use")
+    # Named by their kind alone, they refit the exemplar, said; the next exemplar picked (of their size) clears them,
+    # and offers them to it.
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    page.set_input_files("#maps", str(tmp_path / "normal.png"))
+    assert "fitting builtin:bricks with normal, maps of its size" in wait_said(page, "fitting builtin:bricks")
+    wait_model(page, "material")
+    pick_builtin(page, "cells")
+    page.wait_for_function("state.working && state.working.name === 'builtin:cells'", timeout=90_000)
+    wait_model(page, "model")
+    assert page.text_content("#maps-list").startswith("maps cleared: normal went with builtin:bricks")
+    page.wait_for_selector("#maps-use:not([hidden])", timeout=15_000)
+    assert page.text_content("#maps-use") == "Use them with builtin:cells"
+    page.focus("#maps-use")
+    page.keyboard.press("Enter")  # by keyboard too
+    page.wait_for_function("state.working.name === 'builtin:cells + 1 maps'", timeout=90_000)
+    wait_model(page, "material")
+    assert page.text_content("#maps-list") == "maps: normal" and page.is_hidden("#maps-use")
+    assert page.evaluate("document.activeElement.id") == "maps"
+    assert not page.errors, page.errors

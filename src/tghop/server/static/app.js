@@ -101,6 +101,7 @@ async function init() {
   $("model-file").addEventListener("change", (e) => { uploadModel(e.target.files[0]); e.target.value = ""; });
   $("maps").addEventListener("change", (e) => setMapFiles(e.target.files));
   $("maps-clear").addEventListener("click", () => setMapFiles([]));
+  $("maps-use").addEventListener("click", useOfferedMaps);
   $("download-maps").addEventListener("click", downloadMaps);
   $("history-forget").addEventListener("click", forgetHistory);
   $("cancel").addEventListener("click", cancelFit);

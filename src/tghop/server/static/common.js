@@ -8,8 +8,10 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   // fitted (refitted when the maps change), and the maps of the result shown (section 3).
   // `mapsHeld`: the maps listed wait for the next exemplar (none yet, or theirs is another size than the last one's);
   // `heldOff`: the exemplar they are not of ({source, other}: holdMaps), picked again without them; `mapsChecking`:
-  // maps added whose size is being read (setMapFiles), which an exemplar picked meanwhile takes.
-  mapFiles: [], mapsHeld: false, heldOff: null, mapsChecking: null, source: null, material: false, shown: null,
+  // maps added whose size is being read (setMapFiles), which an exemplar picked meanwhile takes; `mapsOffer`: maps
+  // "Use them with ..." gives the exemplar shown (fit.js, offerMaps).
+  mapFiles: [], mapsHeld: false, heldOff: null, mapsChecking: null, mapsOffer: null, source: null, material: false,
+  shown: null,
   // The working model, what a refused or cancelled fit or a refused model file goes back to (fit.js,
   // setWorking), and the running fit's way back to it (its `undo`, for cancelFit).
   working: null, fitUndo: null,

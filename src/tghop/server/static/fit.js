@@ -195,6 +195,11 @@ async function setMapFiles(files) {
   else if (source && source.file) fitFile(source.file, undo);
   else if (source && source.builtin) fitBuiltin(source.builtin, undo);
   else if (chosen.length) say("pick or drop the albedo (exemplar) now: it is fitted with these maps");
+  if (!browsed && source && chosen.length) {  // what the page took them for, said (another pick offers them to it)
+    const whose = source.builtin ? `builtin:${source.builtin}` : source.file.name;
+    say(`fitting ${whose} with ${chosen.map((f) => mapName(f.name)).join(", ")}, maps of its size; if they are ` +
+      "another picture's, pick that picture: the maps are then one click from it");
+  }
 }
 
 // The height and width of an image (a File, or a URL) as the browser reads it, or null when it cannot.
@@ -270,12 +275,34 @@ function namedForAnother(files, source) {
 }
 
 // Maps named for another picture than the last exemplar's (namedForAnother's `file`) wait for the next exemplar
-// picked or dropped, as maps of another size do; the same exemplar picked again takes them (its name is no proof).
+// picked or dropped, as maps of another size do; the same exemplar picked again takes them (its name is no proof),
+// and so does "Use them with ..." (offerMaps: a name is a guess, which one click undoes).
 function holdNamed(file, source) {
   listMaps(state.mapFiles, true);
   const whose = source.builtin ? `builtin:${source.builtin}` : source.file.name;
+  offerMaps(state.mapFiles, whose);
   say(`${file.name} is named for another picture than ${whose}: the maps wait for their albedo; pick or drop it ` +
-      `now (it is fitted with them; to fit ${whose} with them, pick it again)`);
+      `now (it is fitted with them), or press "Use them with ${whose}" if they are its maps`);
+}
+
+// The choice the page made for maps of the exemplar's size, from their names or the order of the clicks, undone in
+// one click (0.59): "Use them with NAME" refits the exemplar shown (`whose`) with `files`. Any other change of the
+// maps (listMaps) takes the offer back.
+function offerMaps(files, whose) {
+  state.mapsOffer = files;
+  $("maps-use").textContent = `Use them with ${whose}`;
+  $("maps-use").hidden = false;
+}
+
+// "Use them with ...", pressed: the maps offered are the exemplar's, fitted with it (the one being fitted or the
+// working one); refused or cancelled, the maps before come back (backToWorking).
+function useOfferedMaps() {
+  const files = state.mapsOffer, source = state.source;
+  if (!files || !source) return;
+  const undo = { mapFiles: state.mapFiles, held: heldNow(), maps: true };
+  listMaps(files);
+  keepFocus($("maps-use"), $("maps"));
+  if (source.file) fitFile(source.file, undo); else fitBuiltin(source.builtin, undo);
 }
 
 // Why the maps listed wait (state.heldOff): "rock_normal is 128x160, not the 256x256 of builtin:bricks: ...".
@@ -305,6 +332,9 @@ function useMapFiles(files) {
 // `held`: the maps wait for the next exemplar (state.mapsHeld), and the list says so; an object: they are not of
 // that exemplar (state.heldOff, holdMaps).
 function listMaps(files, held = false) {
+  state.mapsOffer = null;  // a choice of the page's, undone by "Use them with ..." (offerMaps): taken back
+  if (document.activeElement === $("maps-use")) $("maps").focus();
+  $("maps-use").hidden = true;
   state.mapFiles = files;
   state.mapsHeld = Boolean(held && files.length);
   state.heldOff = state.mapsHeld && typeof held === "object" ? held : null;
@@ -313,6 +343,7 @@ function listMaps(files, held = false) {
     : `maps${state.mapsHeld ? " for the next exemplar" : ""}: ${names.join(", ")}`;
   if (!names.length) keepFocus($("maps-clear"), $("maps"));  // No maps, pressed: the focus goes to Add maps
   $("maps-clear").hidden = !names.length;
+  return files;
 }
 
 // Another exemplar picked or a model file loaded (`source` null) than the one the maps listed go with
@@ -330,9 +361,23 @@ function clearOthersMaps(source, whose) {
   if (source && files.length && state.mapsChecking === files) return files;  // added as it was picked: its maps
   if (source && files.length && !old) return files;  // added before any exemplar: this one's
   if (!files.length || !old || state.mapsHeld || (source && sameSource(old, source))) return null;
-  listMaps([]);
+  const cleared = listMaps([]);
   $("maps-list").textContent = `maps cleared: ${files.map((f) => mapName(f.name)).join(", ")} went with ` +
     `${old.builtin ? `builtin:${old.builtin}` : old.file.name}, not ${whose}`;
+  if (source) offerIfSized(files, source, cleared);
+  return null;
+}
+
+// Maps cleared by the pick of `source` offered to it (offerMaps) when they are of its size: the page took them for
+// the last exemplar's, from the order of the clicks; maps added for the picture picked next are one click from it.
+async function offerIfSized(files, source, cleared) {
+  const exemplar = await imageSize(source.builtin ? `/api/builtins/${source.builtin}.png` : source.file);
+  for (const file of files) {
+    const size = exemplar && await imageSize(file);
+    if (!size || size[0] !== exemplar[0] || size[1] !== exemplar[1]) return;
+  }
+  if (state.mapFiles !== cleared || !state.source || !sameSource(state.source, source)) return;
+  offerMaps(files, source.builtin ? `builtin:${source.builtin}` : source.file.name);
 }
 
 // Whether two exemplars are the same: a built-in's name, or a file's name, size and date.
