@@ -48,6 +48,18 @@ def served_page(url):
             browser.close()
 
 
+def load_empty(page):
+    """The page loaded again as on a first visit: what it keeps across a reload (0.59: its working model and recent
+    results, in the browser's IndexedDB) forgotten first."""
+    page.evaluate("""() => new Promise((done) => {
+      if (historyDb) historyDb.close();
+      const request = indexedDB.deleteDatabase("tghop");
+      request.onsuccess = request.onerror = request.onblocked = () => done();
+    })""")
+    page.goto(page.url)
+    page.wait_for_selector("body[data-ready='1']")
+
+
 def set_fit_settings(page, values):
     """Open the page's fit settings, turn the coarse-to-fine layout off and fill the fields of
     ``values`` (``{field id: text}``: the tests' fast fit, ``conftest.FAST_FIT``)."""

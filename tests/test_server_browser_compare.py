@@ -90,8 +90,7 @@ def test_the_last_results_are_kept_side_by_side_and_brought_back(page):
     # Each Generate replaced the result: an artist trying settings could not compare the last few, and a seed
     # liked was gone once another was made (the 8-seed strip was the only side by side).
     chromium.choose_mode(page, "view")
-    page.goto(page.url)
-    page.wait_for_selector("body[data-ready='1']")
+    chromium.load_empty(page)
     chromium.set_fit_settings(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")
     assert page.is_hidden("#history-box")
@@ -149,10 +148,7 @@ def test_the_recent_results_outlive_a_reload_and_a_materials_downloads_every_map
 
     height = tmp_path / "bricks_height.png"
     height.write_bytes(png(to_uint8(example_maps(data.builtin("bricks"))["height"][..., 0])))
-    page.goto(page.url)
-    page.wait_for_selector("body[data-ready='1']")
-    if page.is_visible("#history-box"):
-        page.click("#history-forget")  # the test before's
+    chromium.load_empty(page)
     assert page.is_hidden("#history-box")
     chromium.set_fit_settings(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")

@@ -6,7 +6,8 @@ working one's, wait for it; nothing empty is
 shown before there is something to show (the tiling, a model file's exemplar caption); the canvases read
 back are made for it; the built-in the menu shows, picked again, is fitted again; Cancel works before the
 fit's job is known, says "cancelling" until the fit stops, and a reload withdraws the fit; the brush
-colour focused by keyboard shows it."""
+colour focused by keyboard shows it; waiting maps of another size than the next exemplar are dropped, not sent; the
+page's take on same-sized maps is said and undone in one click; a reload keeps the working model (0.59)."""
 
 
 import pytest
@@ -31,8 +32,7 @@ def page(live_server):
 
 def fresh_page(page):
     """The page again (no exemplar, no maps), with the fast fit settings."""
-    page.goto(page.url)
-    page.wait_for_selector("body[data-ready='1']")
+    chromium.load_empty(page)
     page.errors.clear()  # the refusals of the test before (Chromium logs each 400)
     chromium.set_fit_settings(page, FAST_FIT)
 
@@ -643,6 +643,8 @@ def test_waiting_maps_of_another_size_than_the_new_exemplar_are_dropped_not_sent
         assert len(sent) == before + 1 and b"map:" not in sent[-1] and b"cells" in sent[-1]
         page.wait_for_function("state.working && state.working.name === 'builtin:cells'", timeout=90_000)
         wait_model(page, "model")
+        said = wait_said(page, "model ready")  # said again when the fit ends (the message then changes)
+        assert "ready: generate below. maps dropped: rock_normal is 128x160, not the 256x256 of builtin:cells" in said
         assert page.text_content("#maps-list").startswith("maps dropped: rock_normal (128x160)")
         assert page.is_hidden("#maps-clear") and page.is_enabled("#go")
         assert page.evaluate("state.working.name") == "builtin:cells"
@@ -692,3 +694,45 @@ def test_the_pages_take_on_maps_of_the_exemplars_size_is_said_and_one_click_from
     assert page.text_content("#maps-list") == "maps: normal" and page.is_hidden("#maps-use")
     assert page.evaluate("document.activeElement.id") == "maps"
     assert not page.errors, page.errors
+
+
+def test_a_reload_keeps_the_working_model(page, tmp_path):
+    # A reload (or the browser closed and opened again) left the page empty: the model, still in the server's cache,
+    # had to be fitted again (seconds, minutes with the default settings) before another image could be made.
+    from tghop import data
+    from tghop.imageio import to_uint8
+    from tghop.material import example_maps
+
+    height = tmp_path / "bricks_height.png"
+    height.write_bytes(png(to_uint8(example_maps(data.builtin("bricks"))["height"][..., 0])))
+    fresh_page(page)
+    pick_builtin(page, "bricks")
+    wait_model(page, "model")
+    page.set_input_files("#maps", str(height))
+    wait_model(page, "material")
+    summary, model = page.text_content("#summary"), page.evaluate("state.modelId")
+    sent = posted_fits(page)
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    said = wait_said(page, "is back")
+    assert said == "the model of builtin:bricks + 1 maps is back (kept across the reload): generate below", said
+    page.wait_for_function("(s) => document.getElementById('summary').textContent === s", arg=summary)
+    assert page.evaluate("state.modelId") == model and page.is_enabled("#go")
+    assert exemplar_shown(page) == ["bricks.png", True, 256] and page.input_value("#builtin") == "bricks"
+    assert page.text_content("#maps-list") == "maps: bricks_height"
+    page.fill("#height", "32")
+    page.fill("#width", "40")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('result: 32x40')",
+                           timeout=90_000)
+    assert page.eval_on_selector_all("#maps-view input", "l => l.map(i => i.value)") == ["albedo", "bricks_height"]
+    assert not sent  # nothing fitted again
+    # A model the server no longer has (its cache bounded): said, the page empty
+    page.evaluate("(id) => storeDo('readwrite', (s) => s.put({ modelId: id, name: 'builtin:cells', material: false,"
+                  " builtin: 'cells', file: null, maps: [] }, 'working'), 'page')", "f" * len(model))
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    said = wait_said(page, "no longer on the server")
+    assert said.startswith("the model of builtin:cells is no longer on the server"), said
+    assert page.is_disabled("#go") and exemplar_shown(page) is None
+    assert not [e for e in page.errors if "404" not in e], page.errors

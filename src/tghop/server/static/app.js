@@ -163,6 +163,7 @@ async function init() {
   });
   window.addEventListener("pagehide", onPageHide);
   await restoreHistory();  // the recent results of before a reload
+  await restoreWorking();  // and its working model
   document.body.dataset.ready = "1";
 }
 

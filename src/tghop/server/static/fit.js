@@ -42,13 +42,14 @@ function exemplarCaption() {
   caption.hidden = !caption.textContent;
 }
 
-// The working model: {source, exemplarUrl, modelId, material, name}, or null (none). A refused or cancelled
+// The working model: {source, exemplarUrl, modelId, material, name, maps}, or null (none). A refused or cancelled
 // fit and a refused model file go back to it (the page as it was before that pick); a fit that ends or a
 // model file loaded replaces it.
 function setWorking(working) {
   if (!working || $("strip").dataset.model !== working.modelId) clearStrip();  // an earlier model's seeds
   const old = state.working && state.working.exemplarUrl;
   state.working = working;
+  keepWorking(working);  // across a reload too (history.js)
   if (old && old.startsWith("blob:") && old !== state.exemplarUrl && !(working && working.exemplarUrl === old)) {
     URL.revokeObjectURL(old);
   }
@@ -432,10 +433,10 @@ function onPageHide() {
   }
 }
 
-// `undo`: how to go back when the fit is refused or cancelled (backToWorking).
-async function startFit(form, undo) {
+// `undo`: how to go back when the fit is refused or cancelled (backToWorking); `note`: said with "model ready".
+async function startFit(form, undo, note = "") {
   dropRunningFit();
-  const attempt = { source: state.source, exemplarUrl: state.exemplarUrl, name: state.pendingName };
+  const attempt = { source: state.source, exemplarUrl: state.exemplarUrl, name: state.pendingName, maps: sentMaps() };
   const request = ++state.fitRequest;  // a later fit or upload, or a Cancel, meanwhile replaces this one
   state.fitUndo = undo;  // for a Cancel (cancelFit)
   setModel(null);
@@ -468,7 +469,7 @@ async function startFit(form, undo) {
   }
   state.job = job;
   $("fit-status").dataset.job = job;  // for scripts and tests: GET /api/jobs/{job}
-  follow(id, job, material, attempt, undo, notes || []);
+  follow(id, job, material, attempt, undo, [note, ...(notes || [])].filter(Boolean));
 }
 
 // `notes`: what the server said of the upload (a transparent part learnt as texture, a colour profile converted,
@@ -567,12 +568,13 @@ async function fitSource(source, url, label, undo, append) {
   state.pendingName = label + (sentMaps().length ? ` + ${sentMaps().length} maps` : "");
   const form = fitFields();
   append(form);
-  startFit(form, undo);
-  if (dropped) {
-    say(`maps dropped: ${dropped.name} is ${dropped.size.join("x")}, not the ${dropped.exemplar.join("x")} ` +
-    `of ${label}, so they are not its maps; ${label} is fitted as a texture model (add its own maps to make a ` +
-    "material, or pick their albedo and add them again)");
-  } else if (state.mapsHeld && state.heldOff) say(`${heldWhy()} (this fit is without them)`);
+  // What became of the maps, said while it fits and again with "model ready"
+  const note = dropped ? `maps dropped: ${dropped.name} is ${dropped.size.join("x")}, not the ` +
+    `${dropped.exemplar.join("x")} of ${label}, so they are not its maps; ${label} is fitted as a texture model (add ` +
+    "its own maps to make a material, or pick their albedo and add them again)"
+    : state.mapsHeld && state.heldOff ? `${heldWhy()} (this fit is without them)` : "";
+  startFit(form, undo, note);
+  if (note) say(note);
 }
 
 // Maps of another size than the exemplar just picked (`other`: otherSize's), which it took: dropped, the list saying

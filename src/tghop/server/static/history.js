@@ -43,9 +43,9 @@ function dropEntry(i) {
 }
 
 // The browser's store of the recent results (IndexedDB "tghop", its object store "recent": one record an entry, its
-// key growing with each). Where the browser has none, or refuses it (a private window may), the page keeps them
-// until it is left, as 0.58 did.
-const HISTORY_DB = "tghop", HISTORY_STORE = "recent";
+// key growing with each) and of the working model ("page", its record "working"). Where the browser has none, or
+// refuses it (a private window may), the page keeps them until it is left, as 0.58 did.
+const HISTORY_DB = "tghop", HISTORY_STORE = "recent", PAGE_STORE = "page";
 let historyDb = null;
 
 function openHistoryDb() {
@@ -57,20 +57,24 @@ function openHistoryDb() {
       resolve(null);
       return;
     }
-    request.onupgradeneeded = () => request.result.createObjectStore(HISTORY_STORE, { autoIncrement: true });
+    request.onupgradeneeded = () => {
+      request.result.createObjectStore(HISTORY_STORE, { autoIncrement: true });
+      request.result.createObjectStore(PAGE_STORE);
+    };
     request.onsuccess = () => resolve(request.result);
     request.onerror = () => resolve(null);
     request.onblocked = () => resolve(null);
   });
 }
 
-// `work(store)` in a transaction of `mode`; its request's result (null when there is no store or it fails).
-function storeDo(mode, work) {
+// `work(store)` in a transaction of `mode` on `name` (the recent results'); its request's result (null when there is
+// no store or it fails).
+function storeDo(mode, work, name = HISTORY_STORE) {
   if (!historyDb) return Promise.resolve(null);
   return new Promise((resolve) => {
     try {
-      const tx = historyDb.transaction(HISTORY_STORE, mode);
-      const request = work(tx.objectStore(HISTORY_STORE));
+      const tx = historyDb.transaction(name, mode);
+      const request = work(tx.objectStore(name));
       tx.oncomplete = () => resolve(request.result);
       tx.onerror = tx.onabort = () => resolve(null);
     } catch (e) {
@@ -209,4 +213,43 @@ function showAgain(entry) {
   $("paper-gen").checked = Boolean(name.paper);
   $("quality").value = name.quality || "default";
   sayGenerate(`seed ${seed} shown again: its settings are back in the fields above`);
+}
+
+// The working model kept across a reload too (0.59: a reload left the page empty, the model still in the server's
+// cache but to be fitted again): its id, name and kind, its exemplar (a built-in's name, or the file picked) and the
+// maps it was fitted with; a model file's has no exemplar. Kept at each change of the working model (setWorking).
+function keepWorking(working) {
+  const record = working && working.modelId ? {
+    modelId: working.modelId, name: working.name, material: working.material,
+    builtin: (working.source && working.source.builtin) || null, file: (working.source && working.source.file) || null,
+    maps: working.maps || [],
+  } : null;
+  storeDo("readwrite", (store) => (record ? store.put(record, "working") : store.delete("working")), PAGE_STORE);
+}
+
+// The working model of before the reload made the working one again, when the server still has it (its cache may
+// have dropped it) and nothing was picked meanwhile; said. Called once, when the page starts.
+async function restoreWorking() {
+  const kept = await storeDo("readonly", (store) => store.get("working"), PAGE_STORE);
+  if (!kept || state.source || state.modelId) return;
+  const response = await fetch(`/api/models/${kept.modelId}`).catch(() => null);
+  if (state.source || state.modelId || state.working) return;  // picked meanwhile
+  if (!response || !response.ok) {
+    if (response && response.status === 404) {
+      say(`the model of ${kept.name} is no longer on the server (its cache dropped it): pick its exemplar again`);
+    }
+    return;
+  }
+  const source = kept.builtin ? { builtin: kept.builtin } : kept.file ? { file: kept.file } : null;
+  const url = kept.builtin ? `/api/builtins/${kept.builtin}.png` : kept.file ? URL.createObjectURL(kept.file) : null;
+  state.source = source;
+  state.pendingName = kept.name;
+  $("builtin").value = kept.builtin || "";
+  setExemplar(url);
+  listMaps(kept.maps || []);
+  setWorking({ source, exemplarUrl: url, modelId: kept.modelId, material: kept.material, name: kept.name,
+    maps: kept.maps || [] });
+  setModel(kept.modelId, kept.material);
+  say(`the model of ${kept.name} is back (kept across the reload): generate below`);
+  showSummary(kept.modelId);
 }
