@@ -860,6 +860,17 @@ def test_a_model_file_in_a_manifest_is_named_as_one(tmp_path):
     assert failed["error"] == f"{out / first['model']} is a model file, not an image; list the exemplar image"
 
 
+def test_a_missing_or_misnamed_npz_exemplar_is_worded_for_what_it_is(tmp_path):
+    # 0.58 took any exemplar named *.npz for a model file: a missing x.npz failed as Python's FileNotFoundError
+    # (cause run), a PNG saved as y.npz was "a model file". The content decides, as tghop fit reads it.
+    save_image(data.bricks(64, rng=3), tmp_path / "y.png")
+    (tmp_path / "y.png").rename(tmp_path / "y.npz")
+    (tmp_path / "m.csv").write_text("path\nx.npz\ny.npz\n")
+    missing, image = run(tmp_path / "m.csv", tmp_path / "out", workers=1)
+    assert missing["error"] == f"{tmp_path / 'x.npz'}: no such file; check the path" and missing["cause"] == "input"
+    assert image["status"] == "ok", image["error"]
+
+
 def test_names_a_manifest_gives_are_kept_and_clashes_refused(tmp_path):
     m = tmp_path / "m.csv"
     m.write_text("path,name\nx.png,Tom\ny.png,\nz.png,y\nsub/w.png,my tex\n")
