@@ -71,15 +71,76 @@ def test_inpaint_takes_nan_in_the_hole_and_refuses_it_elsewhere(small_model, bri
         inpaint(small_model, marked, hole, rng=0, n_patches=300)
 
 
-@pytest.mark.parametrize("channels, fix", [(4, "drop its alpha channel first: image[..., :3]"),
-                                           (2, "drop its alpha channel first: image[..., :1]"),
-                                           (5, "convert it to greyscale or RGB first")])
-def test_inpaint_tells_an_image_with_alpha_how_to_drop_it(channels, fix, small_model, bricks96):
-    # 0.56 named the shapes it takes and nothing more ("... or (H, W, 3), got (96, 96, 4)").
-    image = np.ones(bricks96.shape[:2] + (channels,))
-    with pytest.raises(tghop.TGHopError) as caught:
-        inpaint(small_model, image, np.ones(bricks96.shape[:2], dtype=bool))
-    assert str(caught.value) == f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {image.shape}; {fix}"
+def _rgba(image, alpha_value=None):
+    """``image`` (uint8 RGB) with an alpha channel: a ramp (partly transparent), or ``alpha_value`` everywhere."""
+    h, w = image.shape[:2]
+    alpha = ((np.arange(h)[:, None] * 3 + np.arange(w)) % 256).astype(np.uint8) if alpha_value in (None, "ramp") else \
+        np.full((h, w), alpha_value, dtype=np.uint8)
+    return np.concatenate([image, alpha[..., None]], axis=2)
+
+
+def test_inpaint_and_extend_keep_an_arrays_alpha_as_tghop_inpaint_keeps_a_files(small_model, bricks96):
+    # 0.58 refused an RGBA array ("drop its alpha channel first") where fit drops one with a warning and
+    # tghop inpaint keeps a file's: the one rule now (0.59): the colours filled, the alpha kept outside the
+    # hole, opaque in it (extend: where the image grew).
+    rgb = np.round(bricks96 * 255).astype(np.uint8)
+    image = _rgba(rgb)
+    hole = np.zeros(rgb.shape[:2], dtype=bool)
+    hole[30:60, 25:70] = True
+    filled = inpaint(small_model, image, hole, rng=0, n_patches=300)
+    assert filled.shape == image.shape and filled.dtype == np.uint8
+    np.testing.assert_array_equal(filled[..., :3], inpaint(small_model, rgb, hole, rng=0, n_patches=300))
+    np.testing.assert_array_equal(filled[~hole][:, 3], image[~hole][:, 3])
+    assert (filled[hole][:, 3] == 255).all()
+    grown = extend(small_model, image, (96, 128), rng=0, n_patches=300)
+    assert grown.shape == (96, 128, 4)
+    np.testing.assert_array_equal(grown[..., :3], extend(small_model, rgb, (96, 128), rng=0, n_patches=300))
+    np.testing.assert_array_equal(grown[:, 16:112, 3], image[..., 3])
+    assert (grown[:, :16, 3] == 255).all() and (grown[:, 112:, 3] == 255).all()
+    with pytest.raises(tghop.TGHopError) as caught:  # still refused: 5 channels, grey+alpha to a colour model
+        inpaint(small_model, np.ones(rgb.shape[:2] + (5,)), hole)
+    assert str(caught.value).endswith("got (96, 96, 5); convert it to greyscale or RGB first")
+    with pytest.raises(tghop.TGHopError, match="^the model is in colour but the image is greyscale"):
+        inpaint(small_model, image[..., 2:], hole)
+
+
+@pytest.mark.parametrize("where", ["Material.fit", "synthesize_guided", "metrics"])
+def test_an_arrays_alpha_is_dropped_with_fits_warnings_wherever_an_image_enters(where, small_model, bricks96):
+    # 0.58: fit dropped an RGBA array's alpha with a warning, but Material.fit and the metrics refused one ("must
+    # have shape ... (H, W, 3)") and synthesize_guided read a guide's alpha as a colour of its own. Now each drops
+    # it as fit does: OpaqueAlphaWarning, or TransparencyWarning with its share, naming the image; the same result.
+    import warnings
+
+    rgb = np.round(bricks96 * 255).astype(np.uint8)
+    guide = np.zeros((48, 48, 3), dtype=np.uint8)
+    guide[:, 24:] = 255
+
+    def run(alpha):
+        if where == "Material.fit":
+            given = rgb if alpha is None else _rgba(rgb, alpha)
+            mat = Material(model=tghop.TGHop(**{**SMALL, "layout_factor": None})).fit(given, {"height": rgb[..., :1]})
+            return mat.synthesize((40, 40), rng=1)["albedo"]
+        if where == "synthesize_guided":
+            given = guide if alpha is None else _rgba(guide, alpha)
+            return tghop.synthesize_guided([small_model, small_model], given, rng=0, refine=0, patch_refine=0)
+        given = rgb if alpha is None else _rgba(rgb, alpha)
+        return metrics.sliced_wasserstein(given, rgb[::-1], seed=0)
+
+    from conftest import SMALL
+
+    plain = run(None)
+    name = {"Material.fit": "albedo", "synthesize_guided": "the guide", "metrics": "exemplar"}[where]
+    for alpha, category in [(255, tghop.OpaqueAlphaWarning), ("ramp", tghop.TransparencyWarning)]:
+        if where == "synthesize_guided" and alpha == "ramp":
+            alpha = 0  # a guide's alpha ramp would be two colours' worth of regions: transparent everywhere
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            got = run(alpha)
+        said = [w for w in caught if issubclass(w.category, (tghop.OpaqueAlphaWarning, tghop.TransparencyWarning))]
+        assert len(said) == 1 and issubclass(said[0].category, category), [str(w.message) for w in caught]
+        assert str(said[0].message).startswith(f"{name}: alpha channel dropped (an array of 4 channels is read as RGBA")
+        assert said[0].filename == __file__
+        np.testing.assert_array_equal(got, plain)
 
 
 @pytest.mark.parametrize("call", [
@@ -161,3 +222,23 @@ def test_a_grey_and_alpha_exemplar_is_grey_and_a_materials_two_channels_stay(bri
         warnings.simplefilter("error")
         mat = Material(tghop.TGHop(**{**SMALL, "n_channels": None})).fit(grey, {"height": bricks96[..., 0]})
     assert mat.model_.exemplar_shape_ == (96, 96, 2) and mat.model_.layout_.model_.exemplar_shape_[2] == 2
+
+
+def test_inpaint_material_keeps_an_albedos_alpha_as_inpaint_does(bricks96):
+    # 0.58: "map albedo: image must have shape ...; drop its alpha channel first"; tghop inpaint --maps keeps it.
+    from conftest import SMALL
+    from tghop.inpaint import inpaint_material
+
+    rgb = np.round(bricks96 * 255).astype(np.uint8)
+    height = rgb[..., :1]
+    mat = Material(model=tghop.TGHop(**{**SMALL, "layout_factor": None})).fit(rgb, {"height": height})
+    hole = np.zeros(rgb.shape[:2], dtype=bool)
+    hole[30:60, 25:70] = True
+    image = _rgba(rgb)
+    filled = inpaint_material(mat, {"albedo": image, "height": height}, hole, rng=0, n_patches=300)
+    plain = inpaint_material(mat, {"albedo": rgb, "height": height}, hole, rng=0, n_patches=300)
+    assert filled["albedo"].shape == image.shape
+    np.testing.assert_array_equal(filled["albedo"][..., :3], plain["albedo"])
+    np.testing.assert_array_equal(filled["height"], plain["height"])
+    np.testing.assert_array_equal(filled["albedo"][~hole][:, 3], image[~hole][:, 3])
+    assert (filled["albedo"][hole][:, 3] == 255).all()

@@ -98,14 +98,19 @@ def prepare_exemplar(image, *, min_size: int = 1, channels=(1, 3)) -> np.ndarray
     return img
 
 
-def drop_alpha(image, *, stacked=False):
+def drop_alpha(image, *, stacked=False, name="exemplar", exclude="exclude=image[..., -1] < {half}",
+               keep="stacked=True models every channel"):
     """The exemplar without its alpha channel, as :func:`tghop.imageio.load_image` reads an image
     file's (what ``tghop fit`` learns from a PNG with alpha): an array of 2 or 4 channels is grey or
     RGB with alpha (grey+alpha, RGBA), its last channel dropped with a warning, a
     :class:`~tghop.OpaqueAlphaWarning` where no pixel is more transparent than opaque, else a
     :class:`~tghop.TransparencyWarning` saying how much is (the colours under it are learnt as
     texture) and the ``exclude`` mask that leaves it out. 0.57 learnt the alpha as a fourth colour
-    channel, without a word.
+    channel, without a word. The one rule of every call an image array enters where no alpha is
+    kept (0.59): :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`, the albedo of
+    :meth:`tghop.material.Material.fit`, a painted guide (:func:`tghop.guides.guide_labels`) and the
+    metrics' images (:func:`tghop.metrics.common.pair`), each naming its image (``name``) and its fix;
+    :func:`tghop.inpaint.inpaint` and :func:`~tghop.inpaint.extend` keep it (:func:`tghop.inpaint.split_alpha`).
 
     Parameters
     ----------
@@ -113,6 +118,13 @@ def drop_alpha(image, *, stacked=False):
         The exemplar as given to :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`.
     stacked : bool
         The channels are stacked maps (a material's), none of them alpha: ``image`` as given.
+    name : str
+        How the warning names the image (``"albedo"``, ``"result"``).
+    exclude : str or None
+        How the caller leaves the transparent part out (``{half}``: the alpha's mid level, 0.5, 128 or
+        32768); None: cropping it is the one fix said.
+    keep : str or None
+        How the caller keeps every channel, said in the opaque image's warning; None: nothing.
 
     Returns
     -------
@@ -126,10 +138,10 @@ def drop_alpha(image, *, stacked=False):
     half = {np.dtype(np.uint8): 128, np.dtype(np.uint16): 32768}.get(alpha.dtype, 0.5)
     share = transparent_share(alpha if alpha.dtype != np.uint16 else alpha / 65535.0)
     kind = "RGBA" if arr.shape[2] == 4 else "grey+alpha"
-    said = f"exemplar: alpha channel dropped (an array of {arr.shape[2]} channels is read as {kind}"
+    said = f"{name}: alpha channel dropped (an array of {arr.shape[2]} channels is read as {kind}"
     if share:
-        note = transparency_note(share, exclude=f"exclude=image[..., -1] < {half}")
-        warn(TransparencyWarning(f"{said}){note}", "exemplar", share))
+        note = transparency_note(share, exclude=None if exclude is None else exclude.format(half=half))
+        warn(TransparencyWarning(f"{said}){note}", name, share))
     else:
-        warn(OpaqueAlphaWarning(f"{said}; stacked=True models every channel)", "exemplar"))
+        warn(OpaqueAlphaWarning(f"{said}{'' if keep is None else '; ' + keep})", name))
     return arr[..., :-1]

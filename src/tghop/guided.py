@@ -60,13 +60,14 @@ import warnings
 import numpy as np
 
 from . import settings
-from ._arrays import check_dtype, check_int, check_number
+from ._arrays import check_dtype, check_int, check_not_path, check_number
 from ._errors import TGHopError, check_progress
 from ._estimator import check_is_fitted, check_rng
 from ._images import check_size
 from ._progress import report
 from ._resources import one_blas_thread
 from .composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes, wraps
+from .exemplar import drop_alpha
 from .guides import guide_labels
 from .masks import snap_channels, snap_to_levels
 from .material import Material, renormalise
@@ -232,7 +233,9 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         once (the same object) paints its regions as one synthesis, with no join between them.
     guide : array_like, shape (H, W) or (H, W, C), optional
         One grey level (or colour) per model, the darkest for the first
-        (:func:`guide_labels`). None: a remix (``size`` needed) of the models' textures.
+        (:func:`guide_labels`). None: a remix (``size`` needed) of the models' textures. Of 2 or 4
+        channels, grey or RGB with alpha: the alpha dropped with :meth:`tghop.TGHop.fit`'s warnings
+        (:func:`tghop.exemplar.drop_alpha`, 0.59), as a guide's file is read.
     size : (int, int), optional
         Output (height, width); default the guide's size. A guide of another size but the
         output's shape (aspect ratios within 2 %) is scaled to it by nearest neighbour, with a
@@ -273,7 +276,9 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         size = check_size(size)
     else:
         size = None if size is None else check_size(size)
-        labels = guide_labels(guide, k, size=size)
+        check_not_path(guide, "the guide")
+        # RGBA or grey+alpha: the alpha dropped with fit's warnings, as a guide's file is read (0.59)
+        labels = guide_labels(drop_alpha(guide, name="the guide", exclude=None, keep=None), k, size=size)
         size = labels.shape
     # The quilt's checks (a size, tile or overlap it refuses) before any work: the random regions and their
     # weights took 45 s at 33554432x2, whose canvas quilting refuses.

@@ -48,11 +48,13 @@ def transparency_note(share, *, exclude="an exclude mask (--exclude MASK, white 
     for an opaque image (or ``share`` None: not known), else how much was transparent and what to do,
     since the colours under transparent pixels (black, white, whatever the editor left) are then
     taken as they are, learnt as part of the texture; ``exclude``: how the caller's user leaves that
-    part out (the command line's option; :func:`tghop.exemplar.drop_alpha`'s, an ``exclude`` array)."""
+    part out (the command line's option; :func:`tghop.exemplar.drop_alpha`'s, an ``exclude`` array), None:
+    cropping is the one fix (a metric's image, a guide: 0.59)."""
     if not share:
         return ""
+    other = "" if exclude is None else f", or leave that part out with {exclude}"
     return (f", though {share_text(share)} of its pixels are transparent: the colours under them are taken as "
-            f"texture; crop it to its opaque part, or leave that part out with {exclude}")
+            f"texture; crop it to its opaque part{other}")
 
 
 def open_image(path):

@@ -213,7 +213,8 @@ def extend(model, image, size, *, anchor="center", rng=None, tile=False, progres
     model : tghop.TGHop
         Fitted, e.g. on ``image`` itself.
     image : ndarray, shape (H, W) or (H, W, C)
-        uint8, uint16, or float in [0, 1].
+        uint8, uint16, or float in [0, 1]; an alpha channel (2 or 4 channels) kept as it is, opaque
+        where the image grew (:func:`inpaint`'s rule, 0.59).
     size : int or (int, int)
         The result's (height, width): at least ``image``'s, larger in one.
     anchor : str
@@ -362,7 +363,9 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     image : ndarray, shape (H, W) or (H, W, C)
         uint8, uint16 (levels ``v / 65535``, as 16-bit files are read), or float in [0, 1];
         ``H, W >= model.patch_size``. Its values in the hole are not read: a float image may hold
-        NaN there (0.57; ``image[mask] = np.nan``).
+        NaN there (0.57; ``image[mask] = np.nan``). Of 2 or 4 channels (and a model of 1 or 3), grey
+        or RGB with alpha: its colours filled, its alpha kept outside the hole and opaque in it, as
+        ``tghop inpaint`` keeps a file's (0.59; 0.58 refused such an array).
     mask : array_like, shape (H, W) (or (H, W, C))
         The hole: True, or values > 0.5 (uint8: > 127, uint16: > 32767). Any shape, up to the
         whole image.
@@ -412,7 +415,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
 
     Returns
     -------
-    ndarray, shape of ``image``
+    ndarray, shape of ``image`` (its alpha channel too)
         ``image``'s dtype for uint8 and uint16 (known pixels: the same levels; the hole's
         rounded to them: a 16-bit picture stays 16-bit), else float64 (known
         pixels: the same values). A model of a two-level exemplar (:attr:`tghop.TGHop.exemplar_levels_`:
@@ -423,7 +426,15 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     p = int(model.patch_size)
     n_channels = int(model.exemplar_shape_[2])
     check_not_path(image, "the image")
-    original = _hole_cleared(np.asarray(image), mask)
+    given = np.asarray(image)
+    if given.ndim == 3 and given.shape[2] in (2, 4) and given.shape[2] != n_channels:  # RGBA: as tghop inpaint (0.59)
+        colours, alpha = split_alpha(given)
+        filled = inpaint(model, colours, mask, rng=rng, tile=tile, n_patches=n_patches, tolerance=tolerance,
+                         detail=detail, flat_share=flat_share, layout_weight=layout_weight, order=order,
+                         seam_window=seam_window, refine=refine, patch_refine=patch_refine, blend=blend,
+                         progress=progress)
+        return with_alpha(filled, alpha, check_hole(mask, given.shape[:2]))
+    original = _hole_cleared(given, mask)
     work = _working_image(original, n_channels)
     h, w = work.shape[:2]
     if h < p or w < p:
@@ -494,7 +505,8 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     images : dict of str to ndarray
         Each map of ``material.names_`` (the albedo first) -> (H, W) or (H, W, C) uint8, uint16
         or float in [0, 1] (as :func:`inpaint` takes them), all of one height and width; a map's
-        channels are the material's (a grey map may come as three equal channels).
+        channels are the material's (a grey map may come as three equal channels), with an alpha
+        channel or without: one is kept outside the hole and opaque in it, as :func:`inpaint` keeps it (0.59).
     mask : array_like, shape (H, W)
         The hole, as :func:`inpaint` takes it.
     rng, tile, refine, blend, progress
@@ -527,9 +539,12 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         given = ", ".join(map(str, images)) if isinstance(images, Mapping) else type(images).__name__
         raise TGHopError(f"images must be a dict of the material's maps, {', '.join(names)}; got {given}")
     refine, blend = check_int(refine, "refine", 0, where="inpaint_material"), check_int(blend, "blend", 0)
-    works = []
+    works, given, alphas = [], {}, {}
     for name, c in zip(names, material.map_channels_):
         arr = np.asarray(images[name])
+        if arr.ndim == 3 and arr.shape[2] in (2, 4) and arr.shape[2] != c:  # with alpha: kept, as inpaint's (0.59)
+            arr, alphas[name] = split_alpha(arr)
+        given[name] = arr
         try:
             work = _working_image(arr, c)
         except TGHopError as exc:
@@ -556,7 +571,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         if material.levels_[i] is not None or material.channel_levels_[i] is not None:
             # a mask map's own levels, or a packed map's mask channel's (tghop.masks)
             img[hole] = snap_map(img[hole][None], material.levels_[i], material.channel_levels_[i])[0]
-        out[name] = _into(np.asarray(images[name]), hole, img[hole])
+        out[name] = with_alpha(_into(given[name], hole, img[hole]), alphas.get(name), hole)
         report(progress, "refine", i + 1, len(names))
     return out
 

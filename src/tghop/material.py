@@ -51,6 +51,7 @@ from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
 from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
+from .exemplar import drop_alpha
 from .synthesis import TGHop, default_channels, prepare_exemplar
 
 __all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "drop_opaque_alpha", "renormalise",
@@ -371,6 +372,8 @@ class Material(BaseEstimator):
         for name, arr in items:
             check_not_path(arr, f"map {name!r}")
             raw = np.asarray(arr)
+            if name == ALBEDO and raw.ndim == 3 and raw.shape[2] in (2, 4):  # RGBA: fit warns as it drops it (0.59)
+                raw = raw[..., :-1]
             depth = depths.get(name, _depth_of(raw))
             img = check_image(raw, name=f"map {name!r}")
             is_normal = is_normal_name(name) if normal == "auto" else name in normal
@@ -395,7 +398,9 @@ class Material(BaseEstimator):
         Parameters
         ----------
         albedo : ndarray, shape (H, W) or (H, W, C)
-            The exemplar (float in [0, 1], uint8 or uint16).
+            The exemplar (float in [0, 1], uint8 or uint16). Of 2 or 4 channels, grey or RGB with alpha:
+            the alpha is dropped with :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`'s warnings
+            (:func:`tghop.exemplar.drop_alpha`; 0.58 refused it).
         maps : dict of str to ndarray, optional
             Name -> map of the same H and W (any of 1 or 3 channels, any depth). Names
             name the maps' files (:func:`tghop.material_files.map_files`). A list or another type
@@ -428,6 +433,8 @@ class Material(BaseEstimator):
         check_progress(progress)
         started = settings.generators_given(self)  # rng, model__rng: Generators as the fit begins (model file)
         normal = self._checked_params()
+        check_not_path(albedo, "map 'albedo'")
+        albedo = drop_alpha(albedo, name="albedo", exclude="exclude=albedo[..., -1] < {half}", keep=None)  # as fit
         items = self._maps(albedo, maps, depths, normal)
         for name, img, _, is_normal in items[1:]:
             named, found = normal_convention(name), convention_of(img) if is_normal else None

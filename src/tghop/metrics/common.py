@@ -10,9 +10,10 @@ from numpy.lib.stride_tricks import sliding_window_view
 from .._arrays import check_int
 from .._errors import TGHopError
 from .._images import check_image, grey_as_rgb
+from ..exemplar import drop_alpha
 from .._progress import report
 
-__all__ = ["PLAIN_MAX_PIXELS", "pair", "counter", "check_patch_size", "check_seed", "sample_patches",
+__all__ = ["PLAIN_MAX_PIXELS", "pair", "without_alpha", "counter", "check_patch_size", "check_seed", "sample_patches",
            "exemplar_statistics"]
 
 
@@ -30,7 +31,8 @@ def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray
     Parameters
     ----------
     exemplar, result : array_like, shape (H, W) or (H, W, C), C in {1, 3}
-        Float in [0, 1], or uint8 / uint16 (rescaled); the two sizes may differ.
+        Float in [0, 1], or uint8 / uint16 (rescaled); the two sizes may differ. C of 2 or 4: grey or
+        RGB with alpha, the alpha dropped with a warning (:func:`without_alpha`).
     min_size : int
         Smallest height and width accepted (a smaller image: :class:`~tghop.InvalidImageError`).
 
@@ -39,8 +41,8 @@ def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray
     exemplar, result : ndarray, shape (H, W, C), float64 in [0, 1]
         The same C for both: 1 when both are grey, else 3.
     """
-    ex = check_image(exemplar, min_size=min_size, name="exemplar")
-    res = check_image(result, min_size=min_size, name="result")
+    ex = check_image(without_alpha(exemplar, "exemplar"), min_size=min_size, name="exemplar")
+    res = check_image(without_alpha(result, "result"), min_size=min_size, name="result")
     if ex.shape[2] != 1 or res.shape[2] != 1:
         if all(a.shape[2] == 1 or grey_as_rgb(a) for a in (ex, res)):
             ex, res = ex[..., :1], res[..., :1]
@@ -48,6 +50,15 @@ def pair(exemplar, result, *, min_size: int = 1) -> tuple[np.ndarray, np.ndarray
             ex, res = (np.repeat(a, 3, axis=2) if a.shape[2] == 1 else a for a in (ex, res))
     return ex, res
 
+
+
+def without_alpha(image, name: str):
+    """An image a metric scores without its alpha channel: an array of 2 or 4 channels is grey or RGB with
+    alpha, dropped with the warnings of :meth:`tghop.TGHop.fit` (:func:`tghop.exemplar.drop_alpha`:
+    :class:`~tghop.OpaqueAlphaWarning`, or :class:`~tghop.TransparencyWarning` with its share), as ``tghop
+    evaluate`` reads an image file with alpha (0.59; 0.58 refused such an array). ``name``: the image's, in the
+    warning."""
+    return drop_alpha(image, name=name, exclude=None, keep=None)
 
 
 #: kind -> (key, value): the statistics of the last exemplar each metric computed (:func:`exemplar_statistics`).

@@ -11,7 +11,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from .._errors import TGHopError
 from .._images import check_image
 from .._arrays import check_int, check_number
-from .common import pair, counter, check_patch_size, check_seed, sample_patches
+from .common import pair, counter, check_patch_size, check_seed, sample_patches, without_alpha
 
 __all__ = ["novelty", "copied", "diversity", "TEXTURED_STD", "copied_textured", "self_repetition"]
 
@@ -285,6 +285,7 @@ def diversity(*results, patch_size: int = 8, max_patches: int = 2048, seed: int 
     # Each result is checked here, before any long work, and converted to float64 again when a pair
     # needs it: at most two converted results are held at once, not all of them (many large results).
     names = [f"result {i + 1}" for i in range(len(results))]
+    results = [without_alpha(r, name) for r, name in zip(results, names)]  # RGBA: the alpha dropped, told (0.59)
     shapes = [check_image(r, min_size=patch_size, name=name).shape for r, name in zip(results, names)]
     to_rgb = len({shape[2] for shape in shapes}) > 1
 
@@ -470,7 +471,7 @@ def self_repetition(image, *, patch_size: int = 16, threshold: float = 0.03, min
     threshold = check_number(threshold, "threshold", positive=True)
     max_windows, min_std = check_int(max_windows, "max_windows"), check_number(min_std, "min_std")
     region, search = check_int(region, "region"), check_int(search, "search")
-    img = check_image(image, min_size=patch_size, name="image", dtype=np.float32)
+    img = check_image(without_alpha(image, "image"), min_size=patch_size, name="image", dtype=np.float32)
     h, w = img.shape[:2]
     region = min(region, search)  # the sampled windows lie in the search area
 
