@@ -271,28 +271,64 @@ def test_inpaint_and_extend_refuse_the_colour_map_after_maps_as_fit_does(exempla
 
 def test_a_maps_alpha_that_holds_data_is_refused_and_an_opaque_one_dropped(exemplar, maps, tmp_path):
     # Unity's mask map (metal, occlusion, detail, smoothness in A) lost its smoothness with a warning about
-    # transparency ("crop it to its opaque part"), and the material came out without it.
+    # transparency ("crop it to its opaque part"), and the material came out without it. 0.57-0.58 refused it;
+    # since 0.59 a map named as a packing with a map in A keeps it (the next test); any other map's is refused.
     from tghop.batch_task import _read_maps
     from tghop.imageio import save_image
 
     save_image(exemplar, tmp_path / "Rock_BaseColor.png")
     packed = np.concatenate([maps["roughness"], maps["height"], maps["roughness"]], axis=2)
-    save_image(np.concatenate([packed, 1 - maps["roughness"]], axis=2), tmp_path / "Rock_MaskMap.png")
+    save_image(np.concatenate([packed, 1 - maps["roughness"]], axis=2), tmp_path / "Rock_Roughness.png")
     save_image(np.concatenate([packed, np.ones_like(packed[..., :1])], axis=2), tmp_path / "Rock_ORM.png")
     mask = np.zeros(exemplar.shape[:2])
     mask[30:50, 30:50] = 1
     save_image(mask, tmp_path / "hole.png")
-    words = "has an alpha channel that holds data (100% of its pixels not opaque: a mask map's smoothness"
-    for args in (["fit", "Rock_BaseColor.png", "--maps", "Rock_MaskMap.png", "-o", "m.npz", *FAST_CLI],
-                 ["inpaint", "Rock_BaseColor.png", "hole.png", "--maps", "Rock_MaskMap.png", "-o", "o.png"]):
+    words = "has an alpha channel that holds data (100% of its pixels not opaque: a smoothness, an opacity?)"
+    for args in (["fit", "Rock_BaseColor.png", "--maps", "Rock_Roughness.png", "-o", "m.npz", *FAST_CLI],
+                 ["inpaint", "Rock_BaseColor.png", "hole.png", "--maps", "Rock_Roughness.png", "-o", "o.png"]):
         res = _cli(args, tmp_path)
         assert res.exit_code == 1 and res.output.count("\n") == 1 and words in res.output, res.output
-        assert "Rock_MaskMap.png" in res.output and "save the alpha as a map of its own" in res.output
-    with pytest.raises(TGHopError, match=r"the map mask \(.*Rock_MaskMap.png\) has an alpha channel"):
-        _read_maps([("mask", str(tmp_path / "Rock_MaskMap.png"))])
+        assert "Rock_Roughness.png" in res.output and "save the alpha as a map of its own" in res.output
+    with pytest.raises(TGHopError, match=r"the map mask \(.*Rock_Roughness.png\) has an alpha channel"):
+        _read_maps([("mask", str(tmp_path / "Rock_Roughness.png"))])
     res = _cli(["fit", "Rock_BaseColor.png", "--maps", "Rock_ORM.png", "-o", "m.npz", *FAST_CLI], tmp_path)
     assert res.exit_code == 0 and "Warning" not in res.output, res.output  # an opaque alpha: dropped, no word
     assert "Rock_ORM (3 channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output
+
+
+@pytest.mark.parametrize("name, unused", [("Rock_MaskMap", None), ("Rock_Metallic", 0.0),
+                                          ("Rock_MetallicSmoothness", "copy")])
+def test_a_packing_with_a_map_in_its_alpha_keeps_it_as_its_fourth_channel(name, unused, exemplar, maps, tmp_path):
+    # HDRP's mask map (R metallic, G occlusion, B detail mask, A smoothness) and Unity's metallic-smoothness
+    # (metalness in R, smoothness in A, G and B unused: zero or copies of R) were refused (0.57-0.58: "save the
+    # alpha as a map of its own"), or, given without their alpha, warned of as colours under a metalness's name.
+    # Since 0.59 the alpha is a 4th channel, modelled with the others and written back as the file's alpha.
+    from tghop.imageio import load_image, save_image
+
+    metal = (maps["height"] > np.quantile(maps["height"], 0.6)).astype(np.float64)
+    smooth = 1 - maps["roughness"]
+    if unused is None:
+        packed = np.concatenate([metal, maps["height"], maps["roughness"], smooth], axis=2)
+    else:
+        rest = metal if unused == "copy" else np.full_like(metal, unused)
+        packed = np.concatenate([metal, rest, rest, smooth], axis=2)
+    save_image(exemplar, tmp_path / "Rock_BaseColor.png")
+    save_image(packed, tmp_path / f"{name}.png")
+    res = _cli(["fit", "Rock_BaseColor.png", "--maps", f"{name}.png", "-o", "m.npz", *FAST_CLI], tmp_path)
+    assert res.exit_code == 0 and "Warning" not in res.output, res.output
+    assert f"{name} (4 channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output
+    res = _cli(["synth", "m.npz", "-o", "out.png", "--size", "64x64", "--seed", "1", "-q"], tmp_path)
+    assert res.exit_code == 0, res.output
+    (written,) = [p for p in tmp_path.glob("out_*.png")]
+    made = load_image(written, keep_alpha=True)
+    assert made.shape == (64, 64, 4) and made[..., 3].std() > 0.02  # the smoothness, not an opaque alpha
+    assert set(np.unique(made[..., 0])) <= {0.0, 1.0}  # the metalness a mask channel, snapped to 0 and 1
+    if unused == 0.0:
+        assert (made[..., 1:3] == 0).all()  # the unused channels as given
+    with warnings.catch_warnings(record=True) as caught:  # without its alpha: no colour warning (G, B unused)
+        warnings.simplefilter("always")
+        Material(model=TGHop(**FAST)).fit(exemplar, {name: packed[..., :3]})
+    assert not [str(w.message) for w in caught if "one value a pixel" in str(w.message)]
 
 
 def test_a_normal_maps_convention_is_read_from_its_content():

@@ -22,7 +22,8 @@ from ._errors import TGHopError
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
            "name_kind", "map_name", "colour_map_out_of_place", "check_colour_map_order",
            "COLOUR_MAP_WORDS", "MapNameClashError", "check_map_names",
-           "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS", "SCALAR_KINDS"]
+           "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS", "SCALAR_KINDS", "ALPHA_KINDS",
+           "keeps_alpha"]
 
 #: The name of the first map (the exemplar itself, written to ``-o``'s file).
 ALBEDO = "albedo"
@@ -46,8 +47,14 @@ MAP_KINDS = {
     "specular": ("specular", "spec", "glossiness", "gloss"),
     "opacity": ("opacity",),
     "emission": ("emission", "emissive"),
-    "packed": ("orm", "arm", "rma", "mra"),
+    "packed": ("orm", "arm", "rma", "mra", "maskmap", "metallicsmoothness"),
 }
+#: The kinds of map (:data:`MAP_KINDS`) whose alpha channel holds a map of its own by their packing, kept as a
+#: 4th channel where it holds data (0.59): a packed map (HDRP's ``_MaskMap``: metallic, AO, detail mask and
+#: smoothness in R, G, B, A; an ORM or ARM with a 4th map) and a metallic map (Unity's metallic-smoothness:
+#: ``_Metallic`` or ``_MetallicSmoothness``, metalness in R, smoothness in A). Every other map's alpha that holds
+#: data is refused (:func:`tghop.material.drop_opaque_alpha`).
+ALPHA_KINDS = ("packed", "metallic")
 #: The kinds of map (:data:`MAP_KINDS`) that hold colours, read as the albedo is (an ICC profile or a
 #: PNG's gamma converted to sRGB, :mod:`tghop.profiles`): the albedo's and an emission map's, as
 #: Blender's Node Wrangler sets every other map's colour space to Non-Color.
@@ -359,6 +366,29 @@ def is_data_map(name: str) -> bool:
     [True, True, True, False]
     """
     return is_normal_name(name) or name_kind(name) not in COLOUR_KINDS
+
+
+def keeps_alpha(name: str) -> bool:
+    """Whether a material's map of this name keeps an alpha channel that holds data as a channel of its own
+    (:data:`ALPHA_KINDS`: Unity's metallic-smoothness, HDRP's mask map, a packed map; 0.59), where any other
+    map's is refused (:func:`tghop.material.drop_opaque_alpha`). A normal map's never.
+
+    Parameters
+    ----------
+    name : str
+        A map's name (:func:`map_name`).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from tghop.map_names import keeps_alpha
+    >>> [keeps_alpha(n) for n in ("Rock_Metallic", "Rock_MaskMap", "T_Rock_ORM", "Rock_Roughness")]
+    [True, True, True, False]
+    """
+    return not is_normal_name(name) and name_kind(name) in ALPHA_KINDS
 
 
 def normal_convention(name: str):

@@ -46,7 +46,7 @@ from ._resources import one_blas_thread
 from .colour import match_histograms
 from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS, MapNameClashError, check_map_names,
-                        is_normal_name, map_kind, map_name, name_kind, normal_convention)
+                        is_normal_name, keeps_alpha, map_kind, map_name, name_kind, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
 from .normals import convention_of
 from .refine import BandStatistics, refine as refine_bands
@@ -57,7 +57,7 @@ from .synthesis import TGHop, default_channels, prepare_exemplar
 __all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "drop_opaque_alpha", "renormalise",
            "example_maps", "map_name", "check_map_names", "MapNameClashError", "map_kind",
            "looks_like_normal_map", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE",
-           "NORMAL_LOOK_MEAN", "colour_spread", "COLOUR_SPREAD"]
+           "NORMAL_LOOK_MEAN", "colour_spread", "COLOUR_SPREAD", "one_value_a_pixel"]
 
 #: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
 NORMAL_TOLERANCE = 0.1
@@ -154,11 +154,12 @@ def check_normal_map(values, name: str = "normal map"):
                          "as (n + 1) / 2, or rename it if it is not one")
 
 
-def drop_opaque_alpha(image, name: str):
+def drop_opaque_alpha(image, name: str, *, keep=False):
     """A map read with its alpha channel (``load_image(..., keep_alpha=True)``) without it, where
-    every pixel is opaque; a map whose alpha holds data (a Unity mask map's smoothness, a packed
-    map's height or opacity) is refused in one line (:class:`TGHopError`): a material's map has 1
-    or 3 channels, and the alpha was dropped with a warning about transparency, the output without it.
+    every pixel is opaque; a map whose alpha holds data is kept whole where ``keep`` (its name says a
+    packing with a map in A, :func:`tghop.map_names.keeps_alpha`: Unity's metallic-smoothness, HDRP's mask
+    map; 0.59), else refused in one line (:class:`TGHopError`): a material's map has 1 or 3 channels
+    (4: such a packing), and the alpha was dropped with a warning about transparency, the output without it.
 
     Parameters
     ----------
@@ -166,6 +167,8 @@ def drop_opaque_alpha(image, name: str):
         C of 2 or 4: the alpha last (uint8, uint16 or float in [0, 1]); another C is returned as it is.
     name : str
         How the message names the map (``"--maps rock_mask.png"``).
+    keep : bool
+        An RGBA map whose alpha holds data is a packing's 4 channels: returned as it is.
 
     Returns
     -------
@@ -177,11 +180,24 @@ def drop_opaque_alpha(image, name: str):
     alpha = arr[..., -1]
     full = np.iinfo(arr.dtype).max if arr.dtype.kind == "u" else 1.0
     share = float(np.mean(alpha < full))
+    if share > 0 and keep and arr.shape[2] == 4:
+        return arr
     if share > 0:
         raise TGHopError(f"{name} has an alpha channel that holds data ({share:.0%} of its pixels not opaque: a "
-                         "mask map's smoothness, an opacity?), and a material's map has 1 or 3 channels; save the "
-                         "alpha as a map of its own and the map without it")
+                         "smoothness, an opacity?), and a material's map has 1 or 3 channels; name it as a packing "
+                         "that holds a map in A (_MaskMap, _MetallicSmoothness, _ORM), or save the alpha as a map "
+                         "of its own and the map without it")
     return arr[..., :-1]
+
+
+def one_value_a_pixel(image) -> bool:
+    """Whether a map's channels hold one value a pixel: every channel that varies (by 1/512 or more) equal to
+    the others that do, within 1/512; a constant channel is the packing's unused one (Unity's metallic map:
+    metalness in R, G and B zero or copies of it; 0.59). What :meth:`Material.fit` warns of where a map named as
+    one value a pixel holds more (:func:`colour_spread`)."""
+    arr = np.asarray(image)[::2, ::2]
+    varying = [c for c in range(arr.shape[2]) if np.ptp(arr[..., c]) >= 1 / 512] if arr.size else []
+    return all(np.abs(arr[..., c] - arr[..., varying[0]]).max() < 1 / 512 for c in varying[1:])
 
 
 def renormalise(values, out=None):
@@ -375,7 +391,10 @@ class Material(BaseEstimator):
             if name == ALBEDO and raw.ndim == 3 and raw.shape[2] in (2, 4):  # RGBA: fit warns as it drops it (0.59)
                 raw = raw[..., :-1]
             depth = depths.get(name, _depth_of(raw))
-            img = check_image(raw, name=f"map {name!r}")
+            packed = name != ALBEDO and keeps_alpha(name)  # Unity's metallic-smoothness, HDRP's mask map (0.59)
+            if name != ALBEDO:  # an alpha: dropped where opaque, kept by a packing, else refused (as read_map)
+                raw = drop_opaque_alpha(raw, f"map {name!r}", keep=packed)
+            img = check_image(raw, name=f"map {name!r}", channels=(1, 3, 4) if packed else (1, 3))
             is_normal = is_normal_name(name) if normal == "auto" else name in normal
             if is_normal:  # before a grey map is made one channel: a normal map keeps its three, checked
                 check_normal_map(img, name)
@@ -404,7 +423,10 @@ class Material(BaseEstimator):
         maps : dict of str to ndarray, optional
             Name -> map of the same H and W (any of 1 or 3 channels, any depth). Names
             name the maps' files (:func:`tghop.material_files.map_files`). A list or another type
-            is refused.
+            is refused. A map's alpha channel (2 or 4 channels) is dropped where every pixel is opaque;
+            one that holds data is a 4th channel where the name says such a packing
+            (:func:`tghop.map_names.keeps_alpha`: ``_Metallic``, ``_MetallicSmoothness``, ``_MaskMap``, ``_ORM``;
+            0.59), else refused (:func:`drop_opaque_alpha`, as ``fit --maps`` reads a file).
         exclude : array_like of bool, shape (H, W), optional
             Pixels not to learn (:meth:`TGHop.fit`).
         depths : dict of str to int, optional
@@ -449,7 +471,9 @@ class Material(BaseEstimator):
                      "is one", UserWarning, stacklevel=2)
         for name, img, _, is_normal in items[1:]:  # a colour image under a grey map's name (0.58)
             kind, spread = name_kind(name), colour_spread(img)
-            if not is_normal and kind in SCALAR_KINDS and spread > COLOUR_SPREAD:
+            # not Unity's metallic-smoothness (4 channels) or its metalness in R alone (G, B constant or copies; 0.59)
+            if not is_normal and kind in SCALAR_KINDS and spread > COLOUR_SPREAD and img.shape[2] < 4 and \
+                    not one_value_a_pixel(img):
                 warn(f"map {name!r} is named as a {kind} map, one value a pixel, but its channels differ as a colour "
                      f"image's (mean spread {spread:.2f}; a grey map's is 0): it is modelled as {img.shape[2]} "
                      "channels, as given; if it is the colour map give it as the albedo, if it packs several maps "
@@ -679,9 +703,10 @@ class Material(BaseEstimator):
             name, c, depth = m["name"], m["channels"], m["depth"]
             if not isinstance(name, str) or not MAP_NAME.fullmatch(name) or name.lower() in names:
                 raise TGHopError(f"the material metadata has a bad or repeated map name {name!r}")
-            if c not in (1, 3) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
-                    m["normal"] and c != 3):
-                raise TGHopError(f"the material metadata's map {name!r} is not of 1 or 3 channels and 8, 16 or 32 bits")
+            if c not in (1, 3, 4) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
+                    m["normal"] and c != 3):  # 4: a packing with a map in A (0.59)
+                raise TGHopError(f"the material metadata's map {name!r} is not of 1, 3 or 4 channels and 8, 16 or 32 "
+                                 "bits")
             names.append(name.lower())
         if sum(m["channels"] for m in maps) != meta["exemplar_shape"][2]:
             raise TGHopError("the material's maps do not add up to the model's channels")

@@ -40,9 +40,10 @@ def read_map(path, name, *, normal=None, label=None, downscale=False, too_large_
     and fill): a model file refused; the values as stored where the map's name says data, converted
     to sRGB as any colour image where it says colours (:func:`tghop.map_names.is_data_map`); 8-bit
     kept as uint8, 16-bit and float files as floats, and their depth returned; an alpha channel
-    dropped where every pixel is opaque and refused where it holds data
-    (:func:`tghop.material.drop_opaque_alpha`); a normal map stored turned (an EXIF orientation)
-    read upright with its vectors turned too (:func:`tghop.normals.upright_normal_map`, in the
+    dropped where every pixel is opaque and refused where it holds data, unless the name says a packing
+    with a map in A (Unity's metallic-smoothness, HDRP's mask map: kept;
+    :func:`tghop.material.drop_opaque_alpha`); a normal map stored turned (an EXIF orientation) read
+    upright with its vectors turned too (:func:`tghop.normals.upright_normal_map`, in the
     convention its name says, else its content's). Its size and whether a normal map holds unit
     vectors are the caller's to check (against the albedo: :meth:`tghop.material.Material.fit`).
 
@@ -66,7 +67,8 @@ def read_map(path, name, *, normal=None, label=None, downscale=False, too_large_
     Returns
     -------
     image : ndarray, shape (H, W, C)
-        uint8 for an 8-bit file, else float64 in [0, 1]; ``C`` 1 or 3 (the alpha dropped).
+        uint8 for an 8-bit file, else float64 in [0, 1]; ``C`` 1 or 3 (the alpha dropped), or 4 where the
+        alpha holds data and the name says a packing with a map in A (:func:`tghop.map_names.keeps_alpha`, 0.59).
     depth : int
         The file's bits per channel: 8, 16 or 32 (float).
 
@@ -92,7 +94,7 @@ def read_map(path, name, *, normal=None, label=None, downscale=False, too_large_
     from ._errors import TGHopError
     from ._formats import is_model_file, model_file_kind
     from .imageio import load_image
-    from .map_names import is_data_map, is_normal_name, normal_convention
+    from .map_names import is_data_map, is_normal_name, keeps_alpha, normal_convention
     from .material import drop_opaque_alpha
     from .normals import upright_normal_map
 
@@ -102,7 +104,7 @@ def read_map(path, name, *, normal=None, label=None, downscale=False, too_large_
     hint = {} if too_large_hint is None else {"too_large_hint": too_large_hint}
     image, depth = load_image(path, dtype=None, downscale=downscale, with_depth=True, keep_alpha=True,
                               as_data=is_data_map(name), **hint)
-    image = drop_opaque_alpha(image, label)
+    image = drop_opaque_alpha(image, label, keep=keeps_alpha(name))  # a packing's map in A kept (0.59)
     if is_normal_name(name) if normal is None else normal:  # stored turned (EXIF): its vectors turned with its pixels
         image = upright_normal_map(image, path, convention=normal_convention(name), label=label)
     return image, depth
