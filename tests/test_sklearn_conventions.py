@@ -499,3 +499,17 @@ def test_a_generators_repr_is_the_same_in_every_fit_run_and_process(bricks96):
     assert generator_text(np.random.default_rng()) == "Generator(PCG64)"  # unseeded: no seed to show
     assert generator_text(np.random.default_rng(np.random.SeedSequence(3).spawn(1)[0])) == "Generator(PCG64)"
     assert repr(Material(rng=np.random.default_rng(2))) == "Material(rng=Generator(PCG64, seed=2))"
+
+
+def test_a_scikit_learn_users_random_state_is_told_it_is_rng(small_model):
+    # 0.58 named the type alone ("got RandomState") and listed rng among the valid parameters without a word;
+    # a RandomState, SeedSequence or BitGenerator is what numpy.random.default_rng takes.
+    for given in (np.random.RandomState(0), np.random.SeedSequence(0), np.random.PCG64(0)):
+        with pytest.raises(TGHopError, match=r"got (RandomState|SeedSequence|PCG64); give "
+                                             r"numpy.random.default_rng\(rng\) of it, or an int seed$"):
+            small_model.sample_patches(2, rng=given)
+    with pytest.raises(TGHopError, match=r"^invalid parameter 'random_state' for TGHop; scikit-learn's random_state is "
+                                         r"tghop's rng; valid: "):
+        TGHop().set_params(random_state=0)
+    with pytest.raises(TGHopError, match=r"^invalid parameter 'random_state' for Saab; valid: "):  # no rng: no hint
+        Saab().set_params(random_state=0)

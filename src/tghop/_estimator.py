@@ -91,7 +91,10 @@ class BaseEstimator:
         for key, value in params.items():
             name, _, sub = key.partition("__")
             if name not in valid:
-                raise TGHopError(f"invalid parameter {name!r} for {type(self).__name__}; valid: {', '.join(valid)}")
+                hint = "; scikit-learn's random_state is tghop's rng" if name == "random_state" and "rng" in valid \
+                    else ""  # 0.59
+                raise TGHopError(f"invalid parameter {name!r} for {type(self).__name__}{hint}; valid: "
+                                 f"{', '.join(valid)}")
             if sub:
                 nested.setdefault(name, {})[sub] = value
             else:
@@ -299,7 +302,10 @@ def check_rng(rng: RngLike) -> np.random.Generator:
         if rng is not None and int(rng) < 0:
             raise TGHopError(f"seed must be a non-negative integer, got {rng}")
         return np.random.default_rng(None if rng is None else int(rng))
-    raise TGHopError(f"rng must be None, an int seed or numpy.random.Generator, got {type(rng).__name__}")
+    fix = ""  # 0.59: the fix for what scikit-learn's users hold (random_state=RandomState(0)), which default_rng takes
+    if isinstance(rng, (np.random.RandomState, np.random.SeedSequence, np.random.BitGenerator)):
+        fix = "; give numpy.random.default_rng(rng) of it, or an int seed"
+    raise TGHopError(f"rng must be None, an int seed or numpy.random.Generator, got {type(rng).__name__}{fix}")
 
 
 def fit_part(part, rng: np.random.Generator, *args, **kwargs):

@@ -138,7 +138,17 @@ FLAT_SPREAD = 1 / 1024
 def grey_as_rgb(image) -> bool:
     """Whether a float (H, W, C) image in [0, 1] is a grey one stored as RGB: three channels within
     1/512 (half an 8-bit level) of each other, which :func:`tghop.synthesis.prepare_exemplar` models
-    as one, and :func:`tghop.metrics.common.pair` compares as one."""
+    as one, and :func:`tghop.metrics.common.pair` compares as one.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        Floats in [0, 1] (not checked); C other than 3 is never one.
+
+    Returns
+    -------
+    bool
+    """
     return image.shape[2] == 3 and bool(np.abs(image[..., 1:] - image[..., :1]).max() < 1 / 512)
 
 

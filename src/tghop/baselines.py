@@ -479,7 +479,25 @@ def ustyuzhaninov(
 
 
 def cooc(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] = None, **options) -> np.ndarray:
-    """The co-occurrence cGAN of Darzi et al.: see :func:`tghop.cooc.baseline` (needs PyTorch)."""
+    """The co-occurrence cGAN of Darzi et al.: see :func:`tghop.cooc.baseline` (needs PyTorch).
+
+    Parameters
+    ----------
+    exemplar : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], or uint8 / uint16.
+    size : int or (int, int), optional
+        Output (height, width); default the exemplar's.
+    rng : int or numpy.random.Generator, optional
+        Same seed, same image.
+    progress : callable, optional
+        ``progress(stage, done, total)``.
+    **options
+        Further keywords of :func:`tghop.cooc.baseline`.
+
+    Returns
+    -------
+    ndarray, shape (h, w, C), float64 in [0, 1]
+    """
     from .cooc import baseline
 
     return baseline(exemplar, size, rng=rng, progress=progress, **options)
@@ -494,6 +512,25 @@ def gpdm(exemplar, size=None, *, rng=None, progress: Optional[ProgressCallback] 
     the output's pixels are optimised by Adam (``n_steps`` = 300 per level) to lower the
     sliced Wasserstein distance between its 7 x 7 patches and the exemplar's (64 random
     projections per step). Needs PyTorch; minutes on a CPU at 128 x 128.
+
+    Parameters
+    ----------
+    exemplar : array_like, shape (H, W) or (H, W, C)
+        Float in [0, 1], or uint8 / uint16.
+    size : int or (int, int), optional
+        Output (height, width); default the exemplar's.
+    rng : int or numpy.random.Generator, optional
+        Same seed, same image.
+    progress : callable, optional
+        ``progress(stage, done, total)``.
+    n_steps, n_projections, patch_size, scale_factor, coarsest, lr
+        As :func:`tghop.gpdm.gpdm`.
+    **options
+        Further keywords of :func:`tghop.gpdm.gpdm`.
+
+    Returns
+    -------
+    ndarray, shape (h, w, C), float64 in [0, 1]
     """
     from .gpdm import gpdm as run
 

@@ -373,6 +373,11 @@ def morph_labels(size, *, rng=None, scale=MORPH_BLOB * 32) -> np.ndarray:
     scale : float
         Size of the blobs in pixels (positive); the field is drawn on a grid of ``scale // 4``
         pixels, smoothed and interpolated linearly up to ``size``.
+
+    Returns
+    -------
+    ndarray, shape (height, width)
+        0 where A's texture goes, 1 where B's.
     """
     from scipy import ndimage
 

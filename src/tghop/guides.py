@@ -55,14 +55,38 @@ class LostRegionError(TGHopError):
 def same_shape(shape, size) -> bool:
     """Whether a guide of ``shape`` (H, W, ...) has the shape of an output of ``size`` (H, W):
     their aspect ratios within :data:`ASPECT_TOLERANCE` of each other, so that it is scaled to it
-    (:func:`guide_labels`); ``tghop synth --guide`` and ``tghop cooc edit --mask`` ask it first."""
+    (:func:`guide_labels`); ``tghop synth --guide`` and ``tghop cooc edit --mask`` ask it first.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The guide's ``(H, W, ...)``.
+    size : (int, int)
+        The output's (height, width).
+
+    Returns
+    -------
+    bool
+    """
     h, w = int(shape[0]), int(shape[1])
     return max(w * size[0], size[1] * h) <= (1 + ASPECT_TOLERANCE) * min(w * size[0], size[1] * h)
 
 
 def scaled_message(shape, size) -> str:
     """What :func:`guide_labels` warns of a guide of ``shape`` (H, W, ...) scaled to ``size``
-    (h, w); the web server tells its clients the same words (docs/serve.md)."""
+    (h, w); the web server tells its clients the same words (docs/serve.md).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The guide's ``(H, W, ...)``.
+    size : (int, int)
+        The output's (height, width).
+
+    Returns
+    -------
+    str
+    """
     return (f"the guide was scaled from {shape[0]}x{shape[1]} to {size[0]}x{size[1]}, the output's size (nearest "
             "neighbour: its regions kept as painted)")
 
@@ -70,7 +94,19 @@ def scaled_message(shape, size) -> str:
 def scale_labels(labels, size) -> np.ndarray:
     """A label map (H, W) scaled to ``size`` (h, w) by nearest neighbour: each pixel takes the
     label under its centre, so that the labels stay the ones painted (no blend of two regions
-    becomes a third) and a map scaled by whole factors keeps every edge where it was painted."""
+    becomes a third) and a map scaled by whole factors keeps every edge where it was painted.
+
+    Parameters
+    ----------
+    labels : ndarray, shape (H, W) or (H, W, C)
+    size : (int, int)
+        The result's (height, width).
+
+    Returns
+    -------
+    ndarray, shape (h, w) or (h, w, C)
+        ``labels``' dtype.
+    """
     h, w = labels.shape[:2]
     rows = (2 * np.arange(size[0], dtype=np.int64) + 1) * h // (2 * size[0])
     cols = (2 * np.arange(size[1], dtype=np.int64) + 1) * w // (2 * size[1])

@@ -194,7 +194,26 @@ def one_value_a_pixel(image) -> bool:
     """Whether a map's channels hold one value a pixel: every channel that varies (by 1/512 or more) equal to
     the others that do, within 1/512; a constant channel is the packing's unused one (Unity's metallic map:
     metalness in R, G and B zero or copies of it; 0.59). What :meth:`Material.fit` warns of where a map named as
-    one value a pixel holds more (:func:`colour_spread`)."""
+    one value a pixel holds more (:func:`colour_spread`).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W, C)
+        Floats in [0, 1] (every other pixel of every other row is read).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from tghop.material import one_value_a_pixel
+    >>> metal = np.linspace(0, 1, 16).reshape(4, 4, 1)
+    >>> one_value_a_pixel(np.concatenate([metal, 0 * metal, 0 * metal], axis=2)), one_value_a_pixel(np.dstack(
+    ...     [metal, 1 - metal, metal]))
+    (True, False)
+    """
     arr = np.asarray(image)[::2, ::2]
     varying = [c for c in range(arr.shape[2]) if np.ptp(arr[..., c]) >= 1 / 512] if arr.size else []
     return all(np.abs(arr[..., c] - arr[..., varying[0]]).max() < 1 / 512 for c in varying[1:])

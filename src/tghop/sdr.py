@@ -22,7 +22,18 @@ __all__ = ["SpatialReduction", "flip_signs"]
 
 
 def flip_signs(components):
-    """Make the entry of largest magnitude of each row positive (deterministic PCA)."""
+    """Make the entry of largest magnitude of each row positive (deterministic PCA).
+
+    Parameters
+    ----------
+    components : ndarray, shape (k, d)
+        PCA components, one a row.
+
+    Returns
+    -------
+    ndarray, shape (k, d)
+        A new array: each row times the sign of its entry of largest magnitude.
+    """
     pivot = np.argmax(np.abs(components), axis=1)
     return components * np.sign(components[np.arange(len(components)), pivot])[:, None]
 
