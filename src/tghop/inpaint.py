@@ -266,10 +266,9 @@ def _working_image(image, n_channels):
     if arr.ndim == 2:
         arr = arr[:, :, None]
     if arr.ndim != 3 or arr.shape[2] not in (1, 3, n_channels):  # n_channels: a material's stacked maps
-        c = arr.shape[2] if arr.ndim == 3 else 0
-        fix = f"drop its alpha channel first: image[..., :{c - 1}]" if c in (2, 4) else \
-            "convert it to greyscale or RGB first"
-        raise TGHopError(f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {np.asarray(image).shape}; {fix}")
+        # (2 or 4 channels never come here: inpaint and inpaint_material set an alpha apart first, 0.59)
+        raise TGHopError(f"image must have shape (H, W), (H, W, 1) or (H, W, 3), got {np.asarray(image).shape}; "
+                         "convert it to greyscale or RGB first")
     arr = checked_image(arr, "inpaint", integers=tuple(LEVELS), empty=False)
     work = arr.astype(np.float32) / np.float32(LEVELS[arr.dtype]) if arr.dtype in LEVELS else arr.astype(np.float32)
     c = work.shape[2]

@@ -330,7 +330,7 @@ class Material(BaseEstimator):
         ``"albedo"`` first, then the maps in the order given.
     map_channels_ : list of int
         Channels of each map (a grey map stored as RGB becomes one channel; a normal map
-        keeps its three).
+        keeps its three; a packing with a map in its alpha, four: :func:`tghop.map_names.keeps_alpha`).
     normal_ : list of bool
     depths_ : list of int
         Bits per channel of each map as given (8, 16, or 32 for float): what ``tghop synth``
@@ -555,7 +555,8 @@ class Material(BaseEstimator):
         Returns
         -------
         dict of str to int
-            Map name -> its channels in the joint model (1 or 3), ``"albedo"`` first.
+            Map name -> its channels in the joint model (1 or 3; 4: a packing with a map in A, 0.59), ``"albedo"``
+            first.
         """
         return {name: img.shape[2] for name, img, _, _ in self._maps(albedo, maps, None, self._checked_params())}
 
