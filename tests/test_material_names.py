@@ -297,7 +297,7 @@ def test_a_maps_alpha_that_holds_data_is_refused_and_an_opaque_one_dropped(exemp
 
 
 @pytest.mark.parametrize("name, unused", [("Rock_MaskMap", None), ("Rock_Metallic", 0.0),
-                                          ("Rock_MetallicSmoothness", "copy")])
+                                          ("Rock_MetallicSmoothness", "copy"), ("T_Rock_Metal", "grey")])
 def test_a_packing_with_a_map_in_its_alpha_keeps_it_as_its_fourth_channel(name, unused, exemplar, maps, tmp_path):
     # HDRP's mask map (R metallic, G occlusion, B detail mask, A smoothness) and Unity's metallic-smoothness
     # (metalness in R, smoothness in A, G and B unused: zero or copies of R) were refused (0.57-0.58: "save the
@@ -309,6 +309,8 @@ def test_a_packing_with_a_map_in_its_alpha_keeps_it_as_its_fourth_channel(name, 
     smooth = 1 - maps["roughness"]
     if unused is None:
         packed = np.concatenate([metal, maps["height"], maps["roughness"], smooth], axis=2)
+    elif unused == "grey":  # saved as grey and alpha (LA): metalness and smoothness
+        packed = np.concatenate([metal, smooth], axis=2)
     else:
         rest = metal if unused == "copy" else np.full_like(metal, unused)
         packed = np.concatenate([metal, rest, rest, smooth], axis=2)
@@ -316,18 +318,19 @@ def test_a_packing_with_a_map_in_its_alpha_keeps_it_as_its_fourth_channel(name, 
     save_image(packed, tmp_path / f"{name}.png")
     res = _cli(["fit", "Rock_BaseColor.png", "--maps", f"{name}.png", "-o", "m.npz", *FAST_CLI], tmp_path)
     assert res.exit_code == 0 and "Warning" not in res.output, res.output
-    assert f"{name} (4 channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output
+    channels = 2 if unused == "grey" else 4
+    assert f"{name} ({channels} channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output
     res = _cli(["synth", "m.npz", "-o", "out.png", "--size", "64x64", "--seed", "1", "-q"], tmp_path)
     assert res.exit_code == 0, res.output
     (written,) = [p for p in tmp_path.glob("out_*.png")]
     made = load_image(written, keep_alpha=True)
-    assert made.shape == (64, 64, 4) and made[..., 3].std() > 0.02  # the smoothness, not an opaque alpha
+    assert made.shape == (64, 64, channels) and made[..., -1].std() > 0.02  # the smoothness, not an opaque alpha
     assert set(np.unique(made[..., 0])) <= {0.0, 1.0}  # the metalness a mask channel, snapped to 0 and 1
     if unused == 0.0:
         assert (made[..., 1:3] == 0).all()  # the unused channels as given
     with warnings.catch_warnings(record=True) as caught:  # without its alpha: no colour warning (G, B unused)
         warnings.simplefilter("always")
-        Material(model=TGHop(**FAST)).fit(exemplar, {name: packed[..., :3]})
+        Material(model=TGHop(**FAST)).fit(exemplar, {name: packed[..., :-1] if unused == "grey" else packed[..., :3]})
     assert not [str(w.message) for w in caught if "one value a pixel" in str(w.message)]
 
 

@@ -168,7 +168,7 @@ def drop_opaque_alpha(image, name: str, *, keep=False):
     name : str
         How the message names the map (``"--maps rock_mask.png"``).
     keep : bool
-        An RGBA map whose alpha holds data is a packing's 4 channels: returned as it is.
+        A map whose alpha holds data is a packing's channels (RGBA, or grey and alpha): returned as it is.
 
     Returns
     -------
@@ -180,7 +180,7 @@ def drop_opaque_alpha(image, name: str, *, keep=False):
     alpha = arr[..., -1]
     full = np.iinfo(arr.dtype).max if arr.dtype.kind == "u" else 1.0
     share = float(np.mean(alpha < full))
-    if share > 0 and keep and arr.shape[2] == 4:
+    if share > 0 and keep:  # RGBA, or grey and alpha (a metalness and its smoothness saved as LA)
         return arr
     if share > 0:
         raise TGHopError(f"{name} has an alpha channel that holds data ({share:.0%} of its pixels not opaque: a "
@@ -330,7 +330,7 @@ class Material(BaseEstimator):
         ``"albedo"`` first, then the maps in the order given.
     map_channels_ : list of int
         Channels of each map (a grey map stored as RGB becomes one channel; a normal map
-        keeps its three; a packing with a map in its alpha, four: :func:`tghop.map_names.keeps_alpha`).
+        keeps its three; a packing with a map in its alpha, four or two: :func:`tghop.map_names.keeps_alpha`).
     normal_ : list of bool
     depths_ : list of int
         Bits per channel of each map as given (8, 16, or 32 for float): what ``tghop synth``
@@ -413,7 +413,7 @@ class Material(BaseEstimator):
             packed = name != ALBEDO and keeps_alpha(name)  # Unity's metallic-smoothness, HDRP's mask map (0.59)
             if name != ALBEDO:  # an alpha: dropped where opaque, kept by a packing, else refused (as read_map)
                 raw = drop_opaque_alpha(raw, f"map {name!r}", keep=packed)
-            img = check_image(raw, name=f"map {name!r}", channels=(1, 3, 4) if packed else (1, 3))
+            img = check_image(raw, name=f"map {name!r}", channels=(1, 2, 3, 4) if packed else (1, 3))
             is_normal = is_normal_name(name) if normal == "auto" else name in normal
             if is_normal:  # before a grey map is made one channel: a normal map keeps its three, checked
                 check_normal_map(img, name)
@@ -491,7 +491,7 @@ class Material(BaseEstimator):
         for name, img, _, is_normal in items[1:]:  # a colour image under a grey map's name (0.58)
             kind, spread = name_kind(name), colour_spread(img)
             # not Unity's metallic-smoothness (4 channels) or its metalness in R alone (G, B constant or copies; 0.59)
-            if not is_normal and kind in SCALAR_KINDS and spread > COLOUR_SPREAD and img.shape[2] < 4 and \
+            if not is_normal and kind in SCALAR_KINDS and spread > COLOUR_SPREAD and img.shape[2] in (1, 3) and \
                     not one_value_a_pixel(img):
                 warn(f"map {name!r} is named as a {kind} map, one value a pixel, but its channels differ as a colour "
                      f"image's (mean spread {spread:.2f}; a grey map's is 0): it is modelled as {img.shape[2]} "
@@ -555,8 +555,8 @@ class Material(BaseEstimator):
         Returns
         -------
         dict of str to int
-            Map name -> its channels in the joint model (1 or 3; 4: a packing with a map in A, 0.59), ``"albedo"``
-            first.
+            Map name -> its channels in the joint model (1 or 3; 2 or 4: a packing with a map in A, 0.59),
+            ``"albedo"`` first.
         """
         return {name: img.shape[2] for name, img, _, _ in self._maps(albedo, maps, None, self._checked_params())}
 
@@ -723,9 +723,9 @@ class Material(BaseEstimator):
             name, c, depth = m["name"], m["channels"], m["depth"]
             if not isinstance(name, str) or not MAP_NAME.fullmatch(name) or name.lower() in names:
                 raise TGHopError(f"the material metadata has a bad or repeated map name {name!r}")
-            if c not in (1, 3, 4) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
-                    m["normal"] and c != 3):  # 4: a packing with a map in A (0.59)
-                raise TGHopError(f"the material metadata's map {name!r} is not of 1, 3 or 4 channels and 8, 16 or 32 "
+            if c not in (1, 2, 3, 4) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
+                    m["normal"] and c != 3):  # 2 and 4: a packing with a map in A (0.59)
+                raise TGHopError(f"the material metadata's map {name!r} is not of 1 to 4 channels and 8, 16 or 32 "
                                  "bits")
             names.append(name.lower())
         if sum(m["channels"] for m in maps) != meta["exemplar_shape"][2]:
