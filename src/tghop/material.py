@@ -159,7 +159,7 @@ def drop_opaque_alpha(image, name: str, *, keep=False):
     every pixel is opaque; a map whose alpha holds data is kept whole where ``keep`` (its name says a
     packing with a map in A, :func:`tghop.map_names.keeps_alpha`: Unity's metallic-smoothness, HDRP's mask
     map; 0.59), else refused in one line (:class:`TGHopError`): a material's map has 1 or 3 channels
-    (4: such a packing), and the alpha was dropped with a warning about transparency, the output without it.
+    (2 or 4: such a packing), and the alpha was dropped with a warning about transparency, the output without it.
 
     Parameters
     ----------
@@ -440,7 +440,7 @@ class Material(BaseEstimator):
             the alpha is dropped with :meth:`TGHop.fit <tghop.synthesis.TGHop.fit>`'s warnings
             (:func:`tghop.exemplar.drop_alpha`; 0.58 refused it).
         maps : dict of str to ndarray, optional
-            Name -> map of the same H and W (any of 1 or 3 channels, any depth). Names
+            Name -> map of the same H and W (1 or 3 channels, any depth). Names
             name the maps' files (:func:`tghop.material_files.map_files`). A list or another type
             is refused. A map's alpha channel (2 or 4 channels) is dropped where every pixel is opaque;
             one that holds data is a 4th channel where the name says such a packing

@@ -108,7 +108,8 @@ def _resolution_word(path):
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
 @click.option("--maps", "with_maps", is_flag=True,
               help="Fit a whole material: the images after EXEMPLAR (the albedo) are its maps, of its size "
-                   "(normal, roughness, height, ...: any depth, 1 or 3 channels), each named by its file stem; "
+                   "(normal, roughness, height, ...: any depth, 1 or 3 channels; _MaskMap, _Metallic, _ORM keep an "
+                   "alpha that holds data), each named by its file stem; "
                    "a map named *normal* or *nrm*, or ending in _nor_gl, _nor_dx or _N, is a normal map (unit "
                    "vectors, kept so, in its own convention: DirectX stays DirectX). The colour map comes first.")
 @model_options
