@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tghop import batch, data
+from tghop import batch, batch_plan, data
 from tghop._errors import TGHopError
 from tghop.imageio import save_image
 
@@ -370,11 +370,11 @@ def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypat
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
     append, calls = batch.append_ledger, []
 
-    def full_after_one(fh, record):
+    def full_after_one(fh, record, **kw):
         calls.append(record["status"])
         if len(calls) > 1:
             raise OSError(errno.ENOSPC, "No space left on device")
-        append(fh, record)
+        append(fh, record, **kw)
 
     monkeypatch.setattr(batch, "append_ledger", full_after_one)
     with pytest.raises(OSError, match="No space left"):
@@ -393,8 +393,8 @@ def test_a_ctrl_c_right_after_a_line_is_written_leaves_that_exemplar_done(tmp_pa
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
     append = batch.append_ledger
 
-    def ctrl_c_after_the_line(fh, record):
-        append(fh, record)
+    def ctrl_c_after_the_line(fh, record, **kw):
+        append(fh, record, **kw)
         signal.raise_signal(signal.SIGINT)  # Ctrl-C as the line reaches the disk
 
     monkeypatch.setattr(batch, "append_ledger", ctrl_c_after_the_line)
@@ -404,6 +404,98 @@ def test_a_ctrl_c_right_after_a_line_is_written_leaves_that_exemplar_done(tmp_pa
     assert [line["status"] for line in ledger(out)] == ["ok"]
     assert not list(out.rglob(batch.RUNNING))
     assert [r["skipped"] for r in run(src, out, workers=1)] == [True, False]  # the first is not redone
+
+
+CRASH_AT_SYNC = """
+import os, signal, sys
+from tghop import batch
+
+sync, calls = batch.sync_ledger, []
+
+def sync_then_note(fh):
+    calls.append(1)
+    if len(calls) == int(sys.argv[3]):
+        os.kill(os.getpid(), signal.SIGKILL)  # the group's lines written, not yet synced
+    sync(fh)
+    with open(sys.argv[4], "a") as note:
+        note.write(f"{os.path.getsize(fh.name)}\\n")  # what a power loss would keep
+
+batch.sync_ledger = sync_then_note
+batch.run(sys.argv[1], sys.argv[2], size=(48, 48), seed=1, fit=dict(n_clusters=6, n_codewords=30, stride=4),
+          generate=dict(n_patches=300), workers=1)
+"""
+
+
+def test_a_crash_before_the_ledger_sync_leaves_exactly_those_exemplars_to_redo(tmp_path):
+    # 0.59 syncs the ledger once per group of lines (the exemplars that came back together), not per line. A kill
+    # of the driver loses no line written; a crash of the machine can lose the lines written since the last sync,
+    # so the RUNNING files of a group are removed only once its lines are synced: the rerun redoes exactly the
+    # exemplars whose lines were lost, though an earlier line of theirs, with the same settings, says done.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    run(src, out, workers=1)
+    for name in ("a", "sub__a"):  # as a killed run leaves them: this run redoes both
+        (out / name / batch.RUNNING).touch()
+    script, notes = tmp_path / "crash.py", tmp_path / "synced.txt"
+    script.write_text(CRASH_AT_SYNC)
+    p = subprocess.run([sys.executable, str(script), str(src), str(out), "2", str(notes)], capture_output=True,
+                       timeout=600)
+    assert p.returncode == -signal.SIGKILL, p.stderr.decode()
+    lines = ledger(out)
+    assert [line["name"] for line in lines] == ["a", "sub__a", "a", "sub__a"]  # the kill lost no line written
+    assert not (out / "a" / batch.RUNNING).exists() and (out / "sub__a" / batch.RUNNING).exists()
+    with open(out / "batch.jsonl", "r+b") as fh:  # a power loss: the lines after the last sync gone
+        fh.truncate(int(notes.read_text().split()[-1]))
+    assert [line["name"] for line in ledger(out)] == ["a", "sub__a", "a"]
+    assert [r["skipped"] for r in run(src, out, workers=1)] == [True, False]
+    assert not list(out.rglob(batch.RUNNING))
+
+
+def stand_in(job):
+    """A task that makes nothing: a failed record at once."""
+    return {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [], "model": None,
+            "thumbnail": None, "seed_used": job.get("seed"), "started": None, "seconds": None}
+
+
+def test_a_run_compacts_a_ledger_of_many_superseded_lines(tmp_path, monkeypatch):
+    # 0.58's ledger only grew: each exemplar made again (new settings, a retry) added a line after its old ones.
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    monkeypatch.setattr(batch_plan, "COMPACT_MIN", 4)
+    for seed in (1, 2, 3):
+        batch.run(src, out, size=(48, 48), seed=seed, fit=FIT, generate=GEN, workers=1, task=stand_in)
+    lines = ledger(out)
+    # 12 lines: 8 superseded, at least COMPACT_MIN and as many as the 4 kept
+    assert [(line["name"], line["seed_used"]) for line in lines] == [(n, 3) for n in ("a", "bad", "flat", "sub__a")]
+    assert not list(out.glob(".batch.jsonl.*"))
+
+
+def test_compacting_keeps_what_the_ledger_says_and_a_kill_loses_nothing(tmp_path):
+    out = tmp_path / "out"
+    (out / "a").mkdir(parents=True)
+    recs = [{"name": "a", "status": "ok", "outputs": ["a/a_1.png", "a/a_2.png"], "model": "a/a.npz"},
+            {"name": "b", "status": "ok", "outputs": ["b/b.png"], "model": "b/b.npz"},
+            {"name": "a", "status": "failed", "outputs": [], "model": None},  # lists none: the files above stay
+            *({"name": "b", "status": "ok", "outputs": ["b/b.png"], "model": "b/b.npz", "seed_used": i}
+              for i in range(6)),
+            {"name": "gone", "status": "ok", "outputs": ["gone/g.png"], "model": "gone/g.npz"}]
+    text = "".join(json.dumps(r) + "\n" for r in recs) + '{"name": "a", "status": "o'  # torn by a crash
+    (out / "batch.jsonl").write_text(text)
+    before = batch_plan.read_ledger_files(out)
+    script = tmp_path / "compact.py"
+    script.write_text("import os, signal, sys\nfrom tghop import batch_plan\nreplace = os.replace\n"
+                      "def killed(a, b):\n    if sys.argv[2] == 'after':\n        replace(a, b)\n"
+                      "    os.kill(os.getpid(), signal.SIGKILL)\n"
+                      "os.replace = killed\nbatch_plan.COMPACT_MIN = 2\nbatch_plan.compact_ledger(sys.argv[1])\n")
+    # killed before its move: the old ledger, byte for byte, and a temporary file beside it
+    p = subprocess.run([sys.executable, str(script), str(out), "before"], capture_output=True, timeout=120)
+    assert p.returncode == -signal.SIGKILL, p.stderr.decode()
+    assert (out / "batch.jsonl").read_text() == text and len(list(out.glob(".batch.jsonl.*.tmp"))) == 1
+    # killed right after its move: the new ledger, whole
+    p = subprocess.run([sys.executable, str(script), str(out), "after"], capture_output=True, timeout=120)
+    assert p.returncode == -signal.SIGKILL, p.stderr.decode()
+    assert batch_plan.read_ledger_files(out) == before and not list(out.glob(".batch.jsonl.*"))  # the temporary too
+    kept = ledger(out)
+    assert [(r["name"], r["status"]) for r in kept] == [("a", "ok"), ("a", "failed"), ("b", "ok"), ("gone", "ok")]
+    assert kept[2]["seed_used"] == 5
 
 
 # ------------------------------------------------------------------ in process

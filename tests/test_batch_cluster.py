@@ -346,3 +346,64 @@ def test_an_exemplar_on_two_workers_that_left_is_named_once():
     said = _workers_gone(["tcp://1", "tcp://2"], {"tcp://1": "0", "tcp://2": "1"}, True,
                          {"tcp://1": ["a"], "tcp://2": ["a"]})
     assert "the exemplar they were running, a, runs again on another worker" in said, said
+
+
+def pretend_another_tghop():
+    """Run in a worker (``Client.run``): its tghop says another version, as one installed apart would."""
+    import tghop
+
+    tghop.__version__ = "0.0.1"
+
+
+@pytest.fixture
+def local():
+    """A real LocalCluster of this process (one worker process) and a client of it: a program's own cluster,
+    given to ``tghop.batch.run(client=...)``."""
+    import distributed
+
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=50)
+    client = distributed.Client(cluster)
+    try:
+        yield cluster, client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def test_a_given_clients_workers_are_checked_before_any_work(tmp_path, local):
+    # 0.58 checked a --scheduler cluster's workers but not those of a client given to run (client=): a worker of
+    # another tghop made its exemplars under this version's ledger line. 0.59 checks them as --scheduler's.
+    cluster, client = local
+    client.run(pretend_another_tghop)
+    src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
+    with pytest.raises(TGHopError, match=r"^1 of the Dask cluster's 1 worker runs another tghop than this "
+                                         r"command's [^ ]+ \(0 \(tcp://127\.0\.0\.1:\d+\): 0\.0\.1\): install "):
+        batch.run(src, out, size=(48, 48), seed=1, client=client, task=waiting_task)
+    assert not out.exists()  # before any work
+    assert client.submit(sum, [1, 2], pure=False).result(timeout=30) == 3  # the caller's client is not closed
+
+
+def test_a_given_clients_worker_of_another_tghop_that_joins_mid_run_stops_it(tmp_path, local):
+    cluster, client = local
+    src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
+    first = set(client.nthreads())
+
+    def join_late():
+        deadline = time.time() + 120
+        while time.time() < deadline and not list(out.glob("*/.batch-running")):
+            time.sleep(0.1)
+        cluster.scale(2)
+        client.wait_for_workers(2, timeout=120)
+        client.run(pretend_another_tghop, workers=[a for a in client.nthreads() if a not in first])
+        (out / ".go").touch()
+
+    joiner = threading.Thread(target=join_late, daemon=True)
+    joiner.start()
+    with pytest.raises(TGHopError, match=r"^1 Dask worker that joined the cluster mid-run runs another tghop "
+                                         r"than this command's [^ ]+ \(1 \(tcp://127\.0\.0\.1:\d+\): 0\.0\.1\): "
+                                         r"install .*the next run does the rest$"):
+        batch.run(src, out, size=(48, 48), seed=1, client=client, task=waiting_task)
+    joiner.join()
+    assert [line["error"] for line in ledger(out)] == ["a stand-in"]  # made before the worker joined
+    assert not list(out.glob("*/.batch-running"))

@@ -3,7 +3,8 @@
 :func:`run` finds the work (every image of a folder, or the rows of a manifest: :mod:`tghop.manifest`),
 skips what a previous run finished (the ledger ``OUTDIR/batch.jsonl``: one JSON line per finished
 exemplar with its input's SHA-256, its settings and its outputs; ``interrupted`` for one under way when
-a run stops), runs :func:`process_exemplar` for the
+a run stops; synced per group of exemplars that came back together, and compacted at a run's end where
+many lines are superseded, :func:`tghop.batch_plan.compact_ledger`, 0.59), runs :func:`process_exemplar` for the
 rest, in this process (``workers=1``), on a local ``dask.distributed`` cluster of worker processes (the
 default), or on a given :class:`distributed.Client`, and writes an HTML contact sheet ``OUTDIR/index.html``.
 
@@ -38,12 +39,12 @@ from pathlib import Path
 from . import __version__
 from ._errors import MissingExtraError, TGHopError
 from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MALLOC, WORKERS_PER_CORE,
-                         SchedulerLostError, affinity_cores, connect, ctrl_c_deferred, ctrl_c_ignored, dask_setup,
-                         import_distributed, local_cluster, run_distributed, tune_malloc)
-from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, find_orphans,
-                         find_work, input_digest, inputs_sha256, is_done, is_known_failure, keep_ledger_names,
-                         mark_running, open_ledger, prune_orphans, read_hashes, read_ledger, read_ledger_files,
-                         remove_stale, write_hashes)
+                         SchedulerLostError, affinity_cores, check_cluster, connect, ctrl_c_deferred, ctrl_c_ignored,
+                         dask_setup, import_distributed, local_cluster, run_distributed, tune_malloc)
+from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, compact_ledger,
+                         find_orphans, find_work, input_digest, inputs_sha256, is_done, is_known_failure,
+                         keep_ledger_names, mark_running, open_ledger, prune_orphans, read_hashes, read_ledger,
+                         read_ledger_files, remove_stale, sync_ledger, write_hashes)
 from .batch_task import process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -167,7 +168,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         given one) each exemplar runs on one thread (BLAS's and tghop's own), the longest first.
         At most :data:`WORKERS_PER_CORE` per usable core. Ignored when ``client`` or ``scheduler`` is given.
     client : distributed.Client, optional
-        Run on this client's cluster.
+        Run on this client's cluster (left open). Its workers are checked as ``scheduler``'s are (0.59; 0.58
+        checked none): before any work, every one must import this tghop, and one that joins mid-run with
+        another or none stops the run (:func:`tghop.batch_dask.check_cluster`).
     scheduler : str, optional
         The address of a running dask.distributed scheduler to connect to (``tcp://host:8786``, as
         ``tghop batch --scheduler``).
@@ -313,6 +316,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     try:
         if jobs and scheduler is not None and client is None:
             client = own_client = connect(scheduler)  # before OUTDIR is made: no empty OUTDIR when it fails
+        elif jobs and client is not None:
+            check_cluster(client)  # connect's checks of the workers (0.59: a given client's too)
         try:
             outdir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -334,25 +339,36 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         mark_running(job, True)  # before the task can move any file into place
         started[job["name"]] = job
 
-    def finish(job, record):
-        rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
-               "version": __version__, **record}
-        rec["finished"] = time.time()
-        with ctrl_c_deferred():  # the line and its RUNNING file's removal as one (else a rerun redoes it)
-            append_ledger(ledger_file, rec)
-            started.pop(job["name"], None)
-            mark_running(job, False)
-        if rec["status"] == "ok":
-            remove_stale(outdir, earlier_files.get(job["name"], ()), rec)
-        results[job["name"]] = {**rec, "skipped": False}
-        counts["done"] += 1
-        counts["failed"] += rec["status"] != "ok"
-        if counts["done"] == counts["total"]:
-            counts["running"] = 0
-        if on_result is not None:  # first: a progress bar shows the counts it sets
-            on_result(results[job["name"]], dict(counts))
-        if progress is not None:
-            progress("exemplars", counts["done"], counts["total"])
+    def finish(done):
+        """Record ``done``, the (job, record) pairs of the exemplars that came back together: their
+        lines written, then synced once (0.59; 0.58 synced each line), and only then their RUNNING files
+        removed, so that a crash of the machine before the sync leaves those files and a rerun redoes
+        exactly the exemplars whose lines it lost (a kill of this process loses no line written)."""
+        recs = []
+        with ctrl_c_deferred():  # the lines and their RUNNING files' removal as one (else a rerun redoes them)
+            for job, record in done:
+                rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
+                       "settings": job["settings"], "version": __version__, **record}
+                rec["finished"] = time.time()
+                append_ledger(ledger_file, rec, sync=False)
+                recs.append((job, rec))
+            sync_ledger(ledger_file)
+            for job, _ in recs:
+                started.pop(job["name"], None)
+                mark_running(job, False)
+        for job, rec in recs:
+            results[job["name"]] = {**rec, "skipped": False}
+        for job, rec in recs:
+            if rec["status"] == "ok":
+                remove_stale(outdir, earlier_files.get(job["name"], ()), rec)
+            counts["done"] += 1
+            counts["failed"] += rec["status"] != "ok"
+            if counts["done"] == counts["total"]:
+                counts["running"] = 0
+            if on_result is not None:  # first: a progress bar shows the counts it sets
+                on_result(results[job["name"]], dict(counts))
+            if progress is not None:
+                progress("exemplars", counts["done"], counts["total"])
 
     if on_plan is not None:  # once OUTDIR and its ledger are ready: a refused run says no plan
         on_plan({"exemplars": len(items), "done_before": len(results) - failed_before,
@@ -367,7 +383,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             for job in jobs:
                 counts["running"] = 1
                 begin(job)
-                finish(job, task(job))
+                finish([(job, task(job))])
             counts["running"] = 0
         elif jobs:
             run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
@@ -381,6 +397,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                     append_ledger(ledger_file, {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
                                                  "settings": job["settings"], **_interrupted_record(job)})
                     mark_running(job, False)  # the line says it now
+                # superseded lines dropped where they are many (0.59), while the lock is held: atomic
+                known = set(previous) | {name for name, r in results.items() if not r["skipped"]}
+                compact_ledger(outdir, known=len(known))
             with contextlib.suppress(OSError):  # every line was flushed when appended
                 ledger_file.close()
         for job in jobs:

@@ -23,7 +23,7 @@ from .batch_task import one_line, run_checked
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
            "local_cluster",
            "worker_environ", "environ_kept", "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc",
-           "affinity_cores", "connect", "check_workers_tghop", "run_distributed", "SchedulerLostError"]
+           "affinity_cores", "connect", "check_cluster", "check_workers_tghop", "run_distributed", "SchedulerLostError"]
 
 
 #: What to install for running on Dask.
@@ -262,18 +262,27 @@ def connect(scheduler):
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         try:
-            check_workers_tghop(client)
+            check_cluster(client, scheduler)
         except TGHopError:
             client.close()
             raise
-        if not client.nthreads():  # the run would wait without a word
-            warnings.warn(f"the Dask scheduler at {scheduler} has no workers yet: the exemplars wait until one joins "
-                          f"(start one: dask worker {scheduler} --nthreads 1; docs/batch.md)", stacklevel=2)
         return client
     # The half-started Client is in a reference cycle: collected later, inside a LocalCluster's
     # start, its __del__ deadlocks on the loop runner's lock. Collect it now (after the except).
     gc.collect()
     raise TGHopError(f"cannot reach the Dask scheduler at {scheduler} ({reason})")
+
+
+def check_cluster(client, address=None, stacklevel=2) -> None:
+    """What a run checks of a cluster it did not start, before any work: every worker imports this tghop
+    (:func:`check_workers_tghop`), and a warning where it has no worker yet (the run would wait without a
+    word). For ``tghop batch --scheduler`` (:func:`connect`) and, since 0.59, a client given to
+    :func:`tghop.batch.run` (0.58 checked neither its workers at the start nor those that joined mid-run)."""
+    check_workers_tghop(client)
+    if not client.nthreads():
+        address = address or getattr(client.scheduler, "address", None) or "ADDRESS"
+        warnings.warn(f"the Dask scheduler at {address} has no workers yet: the exemplars wait until one joins "
+                      f"(start one: dask worker {address} --nthreads 1; docs/batch.md)", stacklevel=stacklevel + 1)
 
 
 def check_workers_tghop(client, workers=None) -> None:
@@ -393,18 +402,50 @@ def _lost_scheduler(client, exc, *, dask_call) -> SchedulerLostError | None:
                       "start the scheduler and its workers again and run the same command")
 
 
+def _results(client, group, by_key, retries, check_joined):
+    """The (job, record) of each future of ``group`` (done; ``by_key``: a task's key -> its job): the
+    results of those finished in one gather, a record of :func:`_died_record` for a task that failed (its
+    worker killed on every try); a lost scheduler raises :class:`SchedulerLostError`. ``retries``: the
+    local cluster's (None: another's); ``check_joined``: a failure other than a killed worker checks the
+    workers' tghop first."""
+    finished = [fut for fut in group if fut.status == "finished"]
+    try:  # one round trip for the group, where each result was one (Future.result)
+        values = dict(zip([f.key for f in finished], client.gather(finished))) if finished else {}
+    except Exception:  # noqa: BLE001 - taken one by one below, as 0.58 did, which says what failed
+        values = {}
+    out = []
+    for fut in group:
+        if fut.key in values:
+            out.append((by_key[fut.key], values[fut.key]))
+            continue
+        try:
+            record = fut.result()
+        except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
+            lost = _lost_scheduler(client, exc, dask_call=False)  # no failure of this exemplar's
+            if lost is not None:
+                raise lost from exc
+            if check_joined and exc.__class__.__name__ != "KilledWorker":
+                # its worker may have joined since and lack this tghop (run_checked raised, or the task could
+                # not be loaded there): the run stops with one line, as the check before any work refuses it
+                check_workers_tghop(client, list(client.nthreads()))
+            record = _died_record(by_key[fut.key], exc, retries)
+        out.append((by_key[fut.key], record))
+    return out
+
+
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
-    goes to ``begin`` before it is handed out; ``finish`` takes its result. ``worker_setup``: run
+    goes to ``begin`` before it is handed out; ``finish`` takes a list of the (job, record) pairs that came
+    back together (0.59; 0.58 gave it one job and its record). ``worker_setup``: run
     in each worker of the cluster started here before its first task (and in one that replaces a
     dead one), none of another cluster's."""
     from . import __version__
 
     distributed = import_distributed()
-    # a --scheduler cluster (connected here by run): its workers were checked before any work (connect), those
-    # that join mid-run are checked as they are seen (a given client's were not checked: they are the caller's)
-    check_joined = client is not None and own_client is client
+    # a cluster not started here (--scheduler, or a given client since 0.59): its workers were checked before any
+    # work (check_cluster), those that join mid-run are checked as they are seen
+    check_joined = client is not None
     own_cluster = None
     futures = []
     own_files = [False]  # True while begin or finish writes this run's own files (their OSError is theirs)
@@ -444,43 +485,37 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 info = client.scheduler_info().get("workers", {})
                 seen.clear()
                 seen.update({a: info.get(a, {}).get("name", a) for a in nthreads})
-            while running.count() < slots:
-                job = next(order, None)
-                if job is None:
-                    break
-                key = f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}"
+            now = [job for _, job in zip(range(slots - running.count()), order)]
+            keys = [f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}" for job in now]
+            for job in now:
                 own_files[0] = True
                 begin(job)
                 own_files[0] = False
+            if now:  # one message to the scheduler for them all (0.59: client.submit each)
                 # run_checked: a worker that joins later, past the check above, may have another tghop or none
-                fut = client.submit(run_checked, task, job, __version__, key=key, pure=False)
-                by_key[fut.key] = job
-                futures.append(fut)
-                running.add(fut)
+                new = client.map(run_checked, [task] * len(now), now, [__version__] * len(now), key=keys, pure=False)
+                by_key.update({fut.key: job for fut, job in zip(new, now)})
+                futures.extend(new)
+                running.update(new)
             counts["running"] = running.count()
 
         hand_out()
-        for fut in running:
-            job = by_key[fut.key]
+        while not running.is_empty():
+            # What came back since the last group, taken together (0.59; 0.58 took one result at a time): one
+            # gather of their results, one look at the workers (hand_out) and one sync of their ledger lines
+            # (finish) for the group; each a round trip or a disk's flush, which per exemplar bounded a large
+            # cluster to tens of exemplars a second (docs/batch.md, "The driver's cost per exemplar").
+            group = running.next_batch(block=True)
+            done = _results(client, group, by_key, retries if own_cluster is not None else None, check_joined)
+            for fut in group:
+                fut.release()
             try:
-                record = fut.result()
-            except Exception as exc:  # noqa: BLE001 - KilledWorker, or a task that raised every time
-                lost = _lost_scheduler(client, exc, dask_call=False)  # no failure of this exemplar's
-                if lost is not None:
-                    raise lost from exc
-                if check_joined and exc.__class__.__name__ != "KilledWorker":
-                    # its worker may have joined since and lack this tghop (run_checked raised, or the task could
-                    # not be loaded there): the run stops with one line, as the check before any work refuses it
-                    check_workers_tghop(client, list(client.nthreads()))
-                record = _died_record(job, exc, retries if own_cluster is not None else None)
-            fut.release()
-            try:
-                hand_out()  # before the ledger line: the freed worker starts at once
+                hand_out()  # before the ledger lines: the freed workers start at once
             except TGHopError:  # a worker that joined without this tghop (check_workers_tghop): the run stops
-                finish(job, record)  # after this exemplar's line: it was made by this tghop
+                finish(done)  # after these exemplars' lines: they were made by this tghop
                 raise
             own_files[0] = True
-            finish(job, record)
+            finish(done)
             own_files[0] = False
     except BaseException as exc:
         lost = None

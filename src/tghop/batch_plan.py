@@ -8,7 +8,7 @@ ledger that says what an earlier run finished.
   without reading the files where their size, times and inode (:func:`inputs_stat`) are as they were then;
 * the ledger ``OUTDIR/batch.jsonl`` (:data:`LEDGER`): read (:func:`read_ledger`,
   :func:`read_ledger_files`), opened locked for a run (:func:`open_ledger`), appended to
-  (:func:`append_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
+  (:func:`append_ledger`, synced by :func:`sync_ledger`), compacted (:func:`compact_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
   keeps the names it had, :func:`is_known_failure` an exemplar whose input failed before and is
   unchanged, :func:`remove_stale` deletes the files a new line no longer lists, and
   :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out;
@@ -42,8 +42,8 @@ from .manifest import MAX_MAPS, read_manifest
 __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "HASHES", "STAT_MARGIN", "WINDOWS_RESERVED",
            "windows_reserved", "find_work", "inputs_sha256", "inputs_stat", "input_digest", "read_hashes",
            "write_hashes", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
-           "open_ledger", "append_ledger", "is_done", "is_known_failure", "mark_running", "remove_stale",
-           "find_orphans", "prune_orphans"]
+           "open_ledger", "append_ledger", "sync_ledger", "compact_ledger", "COMPACT_MIN", "is_done",
+           "is_known_failure", "mark_running", "remove_stale", "find_orphans", "prune_orphans"]
 
 
 #: File extensions taken as exemplars when SOURCE is a folder: those tghop reads
@@ -60,6 +60,10 @@ RUNNING = ".batch-running"
 #: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
 #: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
 NAME_MAX = 160
+#: The fewest superseded ledger lines (an exemplar made again writes a line after its earlier ones) for which
+#: a run compacts the ledger (:func:`compact_ledger`; 0.59), which it does where they are as many as the lines
+#: kept too (a ledger of 1.8 KB a line: 1.8 MB dropped at least).
+COMPACT_MIN = 1000
 #: In OUTDIR: the SHA-256 a run found for each exemplar's files, with their size, times and inode then
 #: (:func:`input_digest`), so that a rerun need not read unchanged files again. A cache: without it (removed,
 #: unreadable) the files are hashed, as 0.57 hashed them on every run.
@@ -460,12 +464,84 @@ def open_ledger(outdir: Path):
     return fh
 
 
-def append_ledger(fh, record: dict):
-    """Write ``record`` as one JSON line to the open ledger ``fh`` and make it durable (flush, fsync)."""
+def append_ledger(fh, record: dict, sync: bool = True):
+    """Write ``record`` as one JSON line to the open ledger ``fh`` and hand it to the system (flush: a
+    kill of this process loses it no more), and make it durable (``sync``: :func:`sync_ledger`); without
+    ``sync`` the caller syncs a group of lines at once (0.59: :func:`tghop.batch.run` syncs the lines of
+    the exemplars that came back together once, before their :data:`RUNNING` files are removed)."""
     line = json.dumps(record, sort_keys=True, allow_nan=False, default=str) + "\n"
     fh.write(line)
     fh.flush()
+    if sync:
+        sync_ledger(fh)
+
+
+def sync_ledger(fh) -> None:
+    """Make the lines written to the open ledger ``fh`` durable (``fsync``): a machine's crash or power
+    loss keeps them."""
+    fh.flush()
     os.fsync(fh.fileno())
+
+
+def compact_ledger(outdir: Path, known: int = 0) -> int:
+    """Rewrite the ledger without its superseded lines where they are many (0.59; 0.58's only grew, a line
+    per exemplar made again): at least :data:`COMPACT_MIN`, and as many as the lines kept, so that a ledger
+    is rewritten at most once per as many lines as it holds. Kept: each exemplar's last line, and each earlier
+    line that lists a file no later kept line of its exemplar lists (:func:`read_ledger_files` reads the same
+    records and files from the new ledger: :func:`remove_stale` and :func:`prune_orphans` still find every
+    file a run made); dropped: the others, and lines torn by a crash. Called by a run while it holds the
+    ledger's lock, as its last step; ``known``: exemplars known to have a line (none read where the ledger
+    holds fewer than ``known + COMPACT_MIN`` lines). The new ledger is written and synced beside the old one
+    and moved over it (``os.replace``), its folder synced: a kill or a crash at any point leaves the old
+    ledger or the new one, whole; a temporary file left by one is removed by the next call. Returns the lines
+    dropped (0: nothing rewritten)."""
+    from .output_files import write_atomic
+
+    path = Path(outdir) / LEDGER
+    for left in Path(outdir).glob(f".{LEDGER}.*.tmp"):  # a compaction killed before its move
+        with contextlib.suppress(OSError):
+            left.unlink()
+    try:
+        lines = path.read_bytes().split(b"\n")
+    except OSError:
+        return 0
+    if len(lines) - known < COMPACT_MIN:
+        return 0
+    keep, covered = [], {}
+    for i in range(len(lines) - 1, -1, -1):  # the last line of each exemplar first
+        try:
+            rec = json.loads(lines[i])
+        except ValueError:
+            continue  # a torn line (or an empty one): read_ledger_files skips it too
+        if not isinstance(rec, dict) or not isinstance(rec.get("name"), str):
+            continue
+        try:
+            files = {f for f in _listed_files(rec) if isinstance(f, str)}
+        except TypeError:  # a hand-edited line's odd fields: kept as it is
+            files = None
+        seen = covered.get(rec["name"])
+        if seen is None or files is None or files - seen:
+            keep.append(i)
+            covered.setdefault(rec["name"], set()).update(files or ())
+    dropped = sum(1 for line in lines if line.strip()) - len(keep)
+    if dropped < max(COMPACT_MIN, len(keep)):
+        return 0
+
+    def write(fh):
+        fh.writelines(lines[i] + b"\n" for i in reversed(keep))
+        fh.flush()
+        os.fsync(fh.fileno())  # the new ledger's lines on the disk before it replaces the old
+
+    try:
+        write_atomic(path, write, what="ledger", error=TGHopError)
+        fd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(fd)  # the move itself
+        finally:
+            os.close(fd)
+    except (OSError, TGHopError):  # not compacted: the ledger is as it was, the next run tries again
+        return 0
+    return dropped
 
 
 def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
