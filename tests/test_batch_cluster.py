@@ -384,26 +384,39 @@ def test_a_given_clients_workers_are_checked_before_any_work(tmp_path, local):
     assert client.submit(sum, [1, 2], pure=False).result(timeout=30) == 3  # the caller's client is not closed
 
 
-def test_a_given_clients_worker_of_another_tghop_that_joins_mid_run_stops_it(tmp_path, local):
-    cluster, client = local
+def test_a_given_clients_worker_of_another_tghop_that_joins_mid_run_stops_it(tmp_path, cluster):
+    # The client of a cluster started apart (a program's own Client(address)); a worker that joins it mid-run
+    # with another tghop stops the run, as with --scheduler (0.58 checked none of a given client's workers).
+    import shutil
+
+    import distributed
+
+    import tghop
+
+    cluster.worker("w1")
     src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
-    first = set(client.nthreads())
+    other = tmp_path / "other"
+    shutil.copytree(Path(tghop.__file__).parent, other / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
+    init = other / "tghop" / "__init__.py"
+    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', '__version__ = "0.1.0"'))
 
     def join_late():
         deadline = time.time() + 120
         while time.time() < deadline and not list(out.glob("*/.batch-running")):
             time.sleep(0.1)
-        cluster.scale(2)
-        client.wait_for_workers(2, timeout=120)
-        client.run(pretend_another_tghop, workers=[a for a in client.nthreads() if a not in first])
+        cluster.worker("w2", {"PYTHONPATH": os.pathsep.join([str(other), str(Path(__file__).parent)])})
         (out / ".go").touch()
 
-    joiner = threading.Thread(target=join_late, daemon=True)
-    joiner.start()
-    with pytest.raises(TGHopError, match=r"^1 Dask worker that joined the cluster mid-run runs another tghop "
-                                         r"than this command's [^ ]+ \(1 \(tcp://127\.0\.0\.1:\d+\): 0\.0\.1\): "
-                                         r"install .*the next run does the rest$"):
-        batch.run(src, out, size=(48, 48), seed=1, client=client, task=waiting_task)
-    joiner.join()
+    client = distributed.Client(cluster.address, timeout="30s")
+    try:
+        joiner = threading.Thread(target=join_late, daemon=True)
+        joiner.start()
+        with pytest.raises(TGHopError, match=r"^1 Dask worker that joined the cluster mid-run runs another tghop "
+                                             r"than this command's [^ ]+ \(w2 \(tcp://127\.0\.0\.1:\d+\): 0\.1\.0\): "
+                                             r"install .*the next run does the rest$"):
+            batch.run(src, out, size=(48, 48), seed=1, client=client, task=waiting_task)
+        joiner.join()
+    finally:
+        client.close()
     assert [line["error"] for line in ledger(out)] == ["a stand-in"]  # made before the worker joined
     assert not list(out.glob("*/.batch-running"))
