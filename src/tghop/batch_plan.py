@@ -8,7 +8,8 @@ ledger that says what an earlier run finished.
   without reading the files where their size, times and inode (:func:`inputs_stat`) are as they were then;
 * the ledger ``OUTDIR/batch.jsonl`` (:data:`LEDGER`): read (:func:`read_ledger`,
   :func:`read_ledger_files`), opened locked for a run (:func:`open_ledger`), appended to
-  (:func:`append_ledger`, synced by :func:`sync_ledger`), compacted (:func:`compact_ledger`); :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
+  (:func:`append_ledger`, synced by :func:`sync_ledger`), compacted (:func:`compact_ledger`);
+  :func:`is_done` tells an exemplar a rerun skips, :func:`keep_ledger_names`
   keeps the names it had, :func:`is_known_failure` an exemplar whose input failed before and is
   unchanged, :func:`remove_stale` deletes the files a new line no longer lists, and
   :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out;
