@@ -452,6 +452,43 @@ def test_painted_materials_of_the_same_maps_in_another_order_are_told_so(materia
     assert not list(tmp_path.glob("o*.png"))
 
 
+def test_materials_of_one_library_naming_paint_together(exemplar, maps, tmp_path, monkeypatch):
+    # 0.58 matched painted materials' maps by their whole names, which hold each material's own name, so
+    # two sets of one naming (Stone_NormalGL, Stone_Height beside Gravel_NormalGL, Gravel_Height) were
+    # refused as "other maps" by synth, synthesize_guided and the page. They are matched by the suffixes
+    # their output files take (tghop.material_files.map_keys), the first material's names kept.
+    from tghop import synthesize_guided
+    from tghop.server.materials import same_kind
+
+    cells = data.cells(128, rng=3)
+    cell_maps = example_maps(cells)
+    stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_Normal": maps["normal"],
+                                                                "Stone_Height": maps["height"]})
+    gravel = Material(model=TGHop(**FAST), rng=0).fit(cells, {"Gravel_normal": cell_maps["normal"],
+                                                              "Gravel_Height": cell_maps["height"]})
+    guide = np.repeat([[0.0, 1.0]], 48, axis=0).repeat(32, axis=1)
+    out = synthesize_guided([stone, gravel], guide, rng=1, **POOL)
+    assert list(out) == stone.names_
+    same_kind([stone, gravel], ["a" * 16, "b" * 16])  # the page's paint: no 422
+    save_model(stone, tmp_path / "stone.npz")
+    save_model(gravel, tmp_path / "gravel.npz")
+    save_image(guide, tmp_path / "g.png")
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(main, ["synth", "stone.npz", "gravel.npz", "--guide", "g.png", "-o", "wall.png",
+                                    "--seed", "1", "--pool", "1000", "-q"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in tmp_path.glob("wall*.png")) == ["wall.png", "wall_Height.png", "wall_Normal.png"]
+    # Other maps are still refused, saying how maps are matched
+    rough = Material(model=TGHop(**FAST), rng=0).fit(cells, {"Gravel_Normal": cell_maps["normal"],
+                                                             "Gravel_Roughness": cell_maps["roughness"]})
+    save_model(rough, tmp_path / "rough.npz")
+    res = CliRunner().invoke(main, ["synth", "stone.npz", "rough.npz", "-o", "o.png", "--size", "48x64", "-q"])
+    assert res.exit_code == 1 and res.output.count("Error:") == 1, res.output
+    assert "named alike after the name their maps share" in res.output, res.output
+    with pytest.raises(TGHopError, match="give materials with the same maps"):
+        synthesize_guided([stone, rough], guide, rng=1, **POOL)
+
+
 def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):
     # A second fit on other maps that fails (too little texture outside the mask) used to leave the new
     # maps' names and channels beside the earlier joint model: synthesize then broke on a shape mismatch.

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from .map_names import name_kind
 
-__all__ = ["read_map", "map_files", "map_suffixes", "RESOLUTION"]
+__all__ = ["read_map", "map_files", "map_suffixes", "map_keys", "RESOLUTION"]
 
 #: A word of a map's name that is a resolution (``2K``, ``4k``, ``1024``, ``2048x2048``): dropped at
 #: either end of a map's suffix (Poly Haven's ``rock_wall_nor_gl_2k`` is ``nor_gl``).
@@ -191,6 +191,33 @@ def map_files(path, names) -> list:
     p = Path(path)
     return [str(path) if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}"))
             for suffix in map_suffixes(names)]
+
+
+def map_keys(names) -> list:
+    """Which maps a material has, as painted and remixed materials are matched (``tghop synth A.npz
+    B.npz``, :func:`tghop.synthesize_guided`, the web page's paint): each map's suffix
+    (:func:`map_suffixes`, what its output file adds to the name) in lower case, the albedo left out.
+    Two sets of one library's naming are then the same maps (0.59): ``Stone_NormalGL`` and
+    ``Gravel_NormalGL`` are both ``normalgl``, where their whole names (0.58) never matched.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The material's map names, the albedo's first (:attr:`tghop.material.Material.names_`).
+
+    Returns
+    -------
+    list of str
+        A key per map but the albedo, in ``names``' order.
+
+    Examples
+    --------
+    >>> from tghop.material_files import map_keys
+    >>> map_keys(["albedo", "Stone_NormalGL", "Stone_Roughness"]) == map_keys(["albedo", "Gravel_NormalGL",
+    ...                                                                        "Gravel_roughness"])
+    True
+    """
+    return [suffix.lower() for suffix in map_suffixes(names)[1:]]
 
 
 def _shared_words(words) -> int:

@@ -279,16 +279,20 @@ def _check_mixable(labels, read, options):
         return source.exemplar_shape_[2], source.patch_size
 
     first, label1 = read[0], labels[0]
-    if hasattr(first, "names_"):  # all materials (_same_kind): the same maps, in the same order
+    if hasattr(first, "names_"):  # all materials (_same_kind): the same maps (by their files' suffixes), in order
+        from ..material_files import map_keys
+
         for label, source in zip(labels[1:], read[1:]):
-            if (source.names_, source.map_channels_) == (first.names_, first.map_channels_):
+            keys, keys1 = map_keys(source.names_), map_keys(first.names_)
+            if (keys, source.map_channels_) == (keys1, first.map_channels_):
                 continue
             mine, theirs = ", ".join(source.names_[1:]), ", ".join(first.names_[1:])
-            if sorted(source.names_) == sorted(first.names_) and source.names_ != first.names_:
+            if sorted(keys) == sorted(keys1) and keys != keys1:
                 raise TGHopError(f"{label} has its maps in another order ({mine}) than {label1} ({theirs}); fit it "
                                  f"again with its maps after --maps in {label1}'s order")
             raise TGHopError(f"{label} has the maps {mine} but {label1} has {theirs}; give materials with the same "
-                             "maps (of the same channels)")
+                             "maps (of the same channels), named alike after the name their maps share "
+                             "(Stone_NormalGL and Gravel_NormalGL are both NormalGL)")
         return
     channels1, patch1 = shape(first)
     for label, source in zip(labels[1:], read[1:]):

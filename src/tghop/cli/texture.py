@@ -276,7 +276,8 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     texture; without it, random regions of each (a remix). A saved material (tghop fit
     EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned (the
     material's name and resolution its maps' names share dropped: Rock023_2K_NormalGL as
-    OUTPUT_NormalGL); several materials with the same maps are painted or remixed alike.
+    OUTPUT_NormalGL); several materials with the same maps (by those names: Stone_NormalGL and
+    Gravel_NormalGL are both NormalGL) are painted or remixed alike.
     """
     from ..imageio import check_depth
 

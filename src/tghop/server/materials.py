@@ -166,6 +166,8 @@ def material_id(albedo_content: bytes, uploads, settings: dict, model_id_for) ->
 def same_kind(models, ids) -> None:
     """Models to paint or remix together: all texture models, or all materials with the same maps;
     else 422 naming ``models[i]`` and the start of its id (as the page lists each model)."""
+    from ..material_files import map_keys  # maps matched by their files' suffixes: Stone_Normal is Gravel_Normal
+
     def named(i):
         return f"models[{i}] ({ids[i][:8]})"
 
@@ -175,7 +177,8 @@ def same_kind(models, ids) -> None:
             kinds = ("a texture model", "a material") if first else ("a material", "a texture model")
             raise RequestError(422, f"{named(i)} is {kinds[0]} but {named(0)} is {kinds[1]}; paint or remix "
                                     "all materials (with the same maps) or all texture models")
-        if first and (model.names_, model.map_channels_) != (models[0].names_, models[0].map_channels_):
+        if first and (map_keys(model.names_), model.map_channels_) != (map_keys(models[0].names_),
+                                                                     models[0].map_channels_):
             raise RequestError(422, f"{named(i)} has the maps {', '.join(model.names_)} but {named(0)} has "
                                     f"{', '.join(models[0].names_)}; paint or remix materials with the same maps")
 
