@@ -729,6 +729,37 @@ def test_a_remix_of_one_materials_maps_is_warned_of(exemplars, tmp_path):
     assert r.returncode == 0 and "Warning" not in r.stderr.decode(), r.stderr.decode()
 
 
+def test_a_colour_guide_says_which_colour_paints_which_source(models, tmp_path):
+    # An ID map of pure red, green and blue (one mean) is ranked blue, green, red by the rule "dark to light
+    # (mean, then R, G, B)": 0.58 painted it without a word, so a painter could only guess which texture
+    # went where. synth now says it in one line (0.59), each colour as painted; a grey guide says nothing.
+    from tghop.guides import label_colours
+
+    save_model(models[0], tmp_path / "a.npz")
+    save_model(models[1], tmp_path / "b.npz")
+    guide = np.zeros((48, 96, 3), dtype=np.uint8)
+    guide[:, :48] = (255, 0, 0)
+    guide[:, 48:] = (0, 0, 255)
+    Image.fromarray(guide).save(tmp_path / "ids.png")
+    fast = ["-q", "--pool", "400", "--refine", "1"]
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "ids.png", "-o", "out.png", "--seed", "1", *fast], tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    assert ("Note: --guide ids.png paints SOURCE 1 (a.npz) where it is #0000ff, SOURCE 2 (b.npz) where it is "
+            "#ff0000 (its colours ranked dark to light by their mean, then R, G, B)") in r.stderr.decode()
+    out = np.asarray(Image.open(tmp_path / "out.png"))
+    assert out[:, :40, 2].mean() > out[:, 56:, 2].mean()  # blue cells (SOURCE 2) where it is red
+    Image.fromarray(guide[..., 0]).save(tmp_path / "grey.png")
+    r = _run(["synth", "a.npz", "b.npz", "--guide", "grey.png", "-o", "grey_out.png", *fast], tmp_path)
+    assert r.returncode == 0 and "Note:" not in r.stderr.decode(), r.stderr.decode()
+    # The colours as painted, also from a soft (blurred) 16-bit guide scaled to another size
+    labels = guide_labels(guide, 2)
+    assert label_colours(guide, labels) == [(0, 0, 255), (255, 0, 0)]
+    soft = np.asarray(Image.fromarray(guide).filter(ImageFilter.GaussianBlur(2))).astype(np.uint16) * 257
+    with pytest.warns(UserWarning, match="scaled from 48x96 to 96x192"):
+        scaled = guide_labels(soft, 2, size=(96, 192))
+    assert label_colours(soft, scaled) == [(0, 0, 255), (255, 0, 0)]
+
+
 def test_a_guide_of_the_outputs_shape_is_scaled_to_its_size(models, tmp_path):
     # A guide of another size than the output was refused; an artist paints a small one and expects it scaled.
     small = np.zeros((24, 32), dtype=np.uint8)

@@ -17,7 +17,8 @@ from ._arrays import check_int, check_not_path
 from ._errors import TGHopError, warn
 from ._images import check_size
 
-__all__ = ["guide_labels", "same_shape", "scale_labels", "scaled_message", "LostRegionError", "ASPECT_TOLERANCE",
+__all__ = ["guide_labels", "label_colours", "same_shape", "scale_labels", "scaled_message",
+           "LostRegionError", "ASPECT_TOLERANCE",
            "FEW_LEVELS", "RESHAPE",
            "SNAP_DISTANCE", "SNAP_SHARE", "SNAP_BLOCK", "SNAP_FLAT", "SNAP_FLAT_SHARE", "SNAP_TIE"]
 
@@ -238,6 +239,41 @@ def guide_labels(guide, n_models, *, size=None, input_name="input", no_guide="gi
                               f"output); {enlarge or f'paint it wider or give a larger {size_name}'}")
     warn(scaled_message(arr.shape, size))
     return scaled
+
+
+def label_colours(guide, labels) -> list:
+    """The colour painted for each label of :func:`guide_labels`, as 8-bit ``(r, g, b)`` (a grey
+    guide's ``(v, v, v)``): the median of its pixels, so that a soft or JPEG edge's blends do not move
+    it; None for a label no pixel has. What ``tghop synth --guide`` tells of a colour guide (0.59):
+    which colour is which SOURCE, where "dark to light" (mean, then R, G, B) is no order a painter sees.
+
+    Parameters
+    ----------
+    guide : array_like, shape (H, W) or (H, W, C)
+        The guide as read (uint8, uint16 or floats, as :func:`guide_labels` takes it).
+    labels : ndarray of int, shape (h, w)
+        Its labels, at its size or scaled to another (:func:`scale_labels`: each pixel's under its centre).
+
+    Returns
+    -------
+    list
+        ``(r, g, b)`` ints in 0-255 or None, one per label from 0 to ``labels.max()``.
+    """
+    arr = np.asarray(guide)
+    arr = arr.reshape(arr.shape[0], arr.shape[1], -1)[..., :3]
+    if arr.shape[2] < 3:
+        arr = np.repeat(arr[..., :1], 3, axis=2)
+    labels = np.asarray(labels)
+    if labels.shape != arr.shape[:2]:  # the guide's pixel under each label's centre
+        arr = scale_labels(arr, labels.shape)
+    step = max(1, int(np.sqrt(labels.size / 1e6)))  # about a million pixels are enough for a median
+    arr, labels = arr[::step, ::step].reshape(-1, 3), labels[::step, ::step].ravel()
+    full = _full_scale(arr)
+    out = []
+    for k in range(int(labels.max()) + 1):
+        mine = arr[labels == k]
+        out.append(tuple(int(round(float(v) / full * 255)) for v in np.median(mine, axis=0)) if len(mine) else None)
+    return out
 
 
 def _dark_to_light(values, tie):

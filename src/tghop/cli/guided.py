@@ -21,7 +21,8 @@ DEFAULT_TRANSITION = 32
 MAX_TRANSITION = 4096
 
 GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or colour) per SOURCE, the darkest "
-              "for the first, the next darker for the second, ...; each region becomes that SOURCE's texture "
+              "for the first, the next darker for the second, ... (colours by their channels' mean, then R, G, B: "
+              "a Note line says which colour is which SOURCE); each region becomes that SOURCE's texture "
               "(or material: every map), made as one SOURCE's image with the same options. Soft (antialiased) or "
               "JPEG edges are taken. The output takes its size; with --size, a map of the output's shape (aspect "
               "ratio within 2 %) is scaled to it, nearest neighbour (a warning says so). Without --guide "
@@ -151,6 +152,22 @@ def _load_guide(path, size, size_given):
     return guide
 
 
+def _tell_colours(path, guide, labels, sources):
+    """One line naming each colour of a colour guide's SOURCE (0.59): the rule, dark to light by the
+    channels' mean, then R, G, B, puts pure red, green and blue (of one mean) in an order no painter sees."""
+    import numpy as np
+
+    from ..guides import label_colours
+
+    if guide.ndim < 3 or guide.shape[2] < 3 or np.ptp(guide[..., :3], axis=2).max() == 0:
+        return  # grey: darkest first, as the help says
+    colours = label_colours(guide, labels)
+    told = ", ".join(f"SOURCE {i} ({spec}) where it is #{r:02x}{g:02x}{b:02x}" for i, (spec, colour) in
+                     enumerate(zip(sources, colours), start=1) if colour is not None for r, g, b in [colour])
+    click.echo(f"Note: --guide {path} paints {told} (its colours ranked dark to light by their mean, then R, G, "
+               "B)", err=True)
+
+
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
                   progress, generation, options, depth=None):
     """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors)."""
@@ -185,6 +202,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
                                   guide_name=f"--guide {guide}", size_name="--size")
         except LostRegionError as exc:
             raise click.UsageError(str(exc)) from None
+        _tell_colours(guide, painted, labels, sources)
         # its regions as grey levels 0, 1, ...: the same regions, read again at once (a soft map's levels took
         # seconds at 4096x4096)
         painted = labels.astype(np.uint8) if len(sources) < 256 else labels
