@@ -589,6 +589,24 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
     check_output_path(path, what=what, error=ModelFileError)
 
 
+def draw_seed(seed):
+    """``(seed, drawn)``: --seed as given, or one drawn from the system's entropy where none was (0.59), so
+    that :func:`tell_seed` can say it: an image made without --seed could not be made again (at another
+    depth, with --stages, once more after an edit elsewhere)."""
+    if seed is not None:
+        return seed, False
+    import numpy as np
+
+    return int(np.random.SeedSequence().generate_state(1)[0]), True
+
+
+def tell_seed(seed, drawn, what="the same image"):
+    """After a run without --seed, one line giving the seed drawn (:func:`draw_seed`) and the option that
+    makes ``what`` again; nothing where --seed was given."""
+    if drawn:
+        click.echo(f"seed {seed} drawn (no --seed given): --seed {seed} makes {what} again", err=True)
+
+
 def numbered(path: str, count: int):
     p = Path(path)
     width = len(str(count))

@@ -8,7 +8,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, numbered,
-                     read_image, user_errors, warn_written_with_8, write_materials)
+                     draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -361,7 +361,8 @@ def _check_height(size, source):
 @click.option("--grid", type=click.IntRange(min=1, max=64), default=1, show_default=True,
               help="Strips of consecutive seeds stacked top to bottom (a grid of seeds).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
-              help="Seed: the same seed gives the same strip; without it every run differs.")
+              help="Seed: the same seed gives the same strip; without it every run differs (the seed drawn is "
+                   "said after it).")
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
               help="No longer applies (accepted with a warning, and ignored).")
 @depth_option("8")
@@ -377,6 +378,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     from ..imageio import check_depth, generation_dtype, save_image
 
     progress = Progress(not quiet)
+    seed, drawn = draw_seed(seed)
     with user_errors(progress):
         check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
@@ -394,9 +396,10 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
             click.echo(f"Warning: --{STATIONS_GONE}", err=True)
         rows = []
         for row in range(grid):
-            rng = np.random.default_rng(None if seed is None else seed + row)
+            rng = np.random.default_rng(seed + row)
             rows.append(make_strip(model_a, model_b, size, rng=rng, progress=progress, dtype=generation_dtype(depth)))
             progress.close()
         save_image(np.concatenate(rows, axis=0), output, depth=depth or 8, progress=progress)
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)
+    tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")

@@ -11,7 +11,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image,
-                     user_errors, warn_lost_depth)
+                     draw_seed, tell_seed, user_errors, warn_lost_depth)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -31,7 +31,8 @@ def _fill_options(fitted_on: str, tile_help: str):
         scale_option("With an exemplar as --source: fit it at this working scale (0.25 for a photo of the "
                      "material four times closer than IMAGE)."),
         click.option("--seed", type=click.IntRange(min=0), default=None,
-                     help="Seed: the same seed gives the same image; without it every run differs."),
+                     help="Seed: the same seed gives the same image; without it every run differs (the seed "
+                          "drawn is said after it)."),
         click.option("--tile", is_flag=True, help=tile_help),
         depth_option("IMAGE's, as far as the output's format holds it"),
         QUIET_OPTION,
@@ -77,10 +78,12 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
     from ..inpaint import require_hole
 
     progress = Progress(not quiet)
+    seed, drawn = draw_seed(seed)
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "MASK")
         if with_maps:
             _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, mask=mask)
+            tell_seed(seed, drawn, "the same fill")
             return
         picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[("MASK", mask)])
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
@@ -93,6 +96,7 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
     if output != "-":
         filled = int(hole.sum())
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)
+    tell_seed(seed, drawn, "the same fill")
 
 
 @click.command(short_help='Grow an image beyond its edges with texture that continues it')
@@ -118,11 +122,13 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
     from ..inpaint import expand_canvas
 
     progress = Progress(not quiet)
+    seed, drawn = draw_seed(seed)
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "IMAGE")
         if with_maps:
             _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress,
                            grow=(size, anchor.lower()))
+            tell_seed(seed, drawn, "the same fill")
             return
         picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[])
         canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
@@ -136,6 +142,7 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}, written to {output}",
                    err=True)
+    tell_seed(seed, drawn, "the same fill")
 
 
 def _warn_untileable(tile, shape, size, image):

@@ -16,7 +16,7 @@ from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
-                     user_errors, warn_written_with_8, write_materials)
+                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -249,9 +249,11 @@ def clusters(model_file, exemplar, output, stride, quiet):
                    "about 0.8 s and 0.2 GB at 256x256, 3.8 s and 0.6 GB at 2048x2048, 2.7 minutes and 4.3 GB at "
                    "8192x8192.")
 @click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
-              help="Number of images.")
+              help="Number of images, drawn one after another from --seed's stream: image k is the same in any "
+                   "--count of k or more with that seed (--count 2 --seed 5's name_2.png is --count 3's).")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
-              help="Seed of generation: the same seed gives the same image; without it every run differs.")
+              help="Seed of generation: the same seed gives the same image; without it every run differs (the seed "
+                   "drawn is said after it, to make the image again).")
 @click.option("--save-model", type=click.Path(dir_okay=False), default=None,
               help="When SOURCE is an image, also save the fitted model here (NAME.npz).")
 @click.option("--guide", metavar="MAP", default=None, help=GUIDE_HELP)
@@ -282,6 +284,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     from ..imageio import check_depth
 
     progress = Progress(not quiet)
+    seed, drawn = draw_seed(seed)
     with user_errors(progress):
         if maps_given:
             raise click.UsageError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... "
@@ -302,6 +305,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
                                           exclude, downscale, progress, generation_params(options), options, depth)
             if outputs is None:  # materials: it said what it wrote
+                tell_seed(seed, drawn, "the same material" if count == 1 else "the same materials")
                 return
             from_model = True  # nothing saved
         elif given_options(ctx, ["transition"]):
@@ -310,12 +314,14 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             outputs, from_model = _synth_one(ctx, sources[0], output, size, count, seed, save_model, exclude,
                                              downscale, progress, options, depth, stages)
             if outputs is None:  # a material: it said what it wrote
+                tell_seed(seed, drawn, "the same material" if count == 1 else "the same materials")
                 return
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
         if save_model is not None and not from_model:
             click.echo(f"model written to {save_model}", err=True)
+    tell_seed(seed, drawn, "the same image" if count == 1 else "the same images")
 
 
 #: The steps ``synth --stages`` writes, as ``TGHop.synthesize(return_stages=True)`` names them.
