@@ -126,6 +126,25 @@ def test_synth_writes_a_materials_maps_as_an_importer_reads_them(material_set):
         np.testing.assert_allclose(got, np.squeeze(want[name]) if got.ndim == 2 else want[name], atol=0.5 / 255)
 
 
+def test_an_output_named_as_the_colour_map_leaves_its_colour_word_out_of_the_maps(material_set):
+    # 0.58: -o Rock_Color.png wrote Rock_Color_NormalGL.png, a name an importer reads as both a colour map and
+    # a normal map; the maps now leave the colour word out (0.59), --count's numbered sets too.
+    d = material_set
+    (d / "colour").mkdir()
+    _cli("synth", "mat.npz", "-o", "colour/Rock_Color.png", "--size", "48x48", "--seed", "1", "--count", "2",
+         *FAST_CLI[-1:], cwd=d)
+    assert sorted(p.name for p in (d / "colour").iterdir()) == [
+        "Rock_1_NormalGL.png", "Rock_1_Roughness.png", "Rock_2_NormalGL.png", "Rock_2_Roughness.png",
+        "Rock_Color_1.png", "Rock_Color_2.png"]
+    names = ["albedo", "Rock023_2K_NormalGL", "Rock023_2K_Roughness"]
+    assert map_files("T_Rock_BC.tga", names)[1:] == ["T_Rock_NormalGL.tga", "T_Rock_Roughness.tga"]
+    assert map_files("x/rock_diff_2k.png", names)[1:] == ["x/rock_2k_NormalGL.png", "x/rock_2k_Roughness.png"]
+    assert map_files("color.png", names)[1:] == ["color_NormalGL.png", "color_Roughness.png"]  # one word: kept
+    # a map whose file would then be the albedo's own keeps the whole output name
+    assert map_files("Rock_Color.png", ["albedo", "a_Color", "a_Height"]) == [
+        "Rock_Color.png", "Rock_Color_Color.png", "Rock_Color_Height.png"]
+
+
 @pytest.mark.parametrize("command", [["inpaint", AMBIENTCG[0], "mask.png"],
                                      ["extend", AMBIENTCG[0], "--size", "96x112"]])
 def test_inpaint_and_extend_with_maps_name_the_files_alike(material_set, command):

@@ -173,8 +173,10 @@ def map_files(path, names) -> list:
     first name), else ``<stem>_<suffix><ext>`` beside it (:func:`map_suffixes`: ``Rock.png`` of the
     maps ``Rock023_2K_NormalGL`` and ``Rock023_2K_Roughness`` is ``Rock_NormalGL.png`` and
     ``Rock_Roughness.png``; of maps named ``normal`` and ``height``, ``Rock_normal.png`` and
-    ``Rock_height.png``). The one naming of a material's files: ``tghop synth`` (and ``paint``,
-    ``remix``), ``inpaint`` and ``extend --maps``, ``tghop batch`` and the web page's downloads.
+    ``Rock_height.png``; ``Rock_Color.png``'s, ``Rock_NormalGL.png``: a colour map's word at the
+    end of ``path``'s stem, or before a number or resolution, is left out of its maps' names, 0.59).
+    The one naming of a material's files: ``tghop synth`` (and ``paint``, ``remix``), ``inpaint``
+    and ``extend --maps``, ``tghop batch`` and the web page's downloads.
 
     Parameters
     ----------
@@ -189,8 +191,25 @@ def map_files(path, names) -> list:
         A file path per name, in ``names``' order (nothing is created or checked).
     """
     p = Path(path)
-    return [str(path) if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}"))
-            for suffix in map_suffixes(names)]
+    suffixes = map_suffixes(names)
+    for stem in (_without_colour_word(p.stem), p.stem):  # -o Rock_Color.png: Rock_NormalGL.png (0.59)
+        files = [str(path) if suffix is None else str(p.with_name(f"{stem}_{suffix}{p.suffix}")) for suffix in suffixes]
+        if str(path) not in files[1:]:
+            return files
+    return files
+
+
+def _without_colour_word(stem) -> str:
+    """An output name without the colour map's word at its end (``Rock_Color``, ``T_Rock_BC``,
+    ``rock_albedo``: ``Rock``, ``T_Rock``, ``rock``; before a number, as ``--count`` numbers the
+    files, or a resolution: ``Rock_Color_2`` is ``Rock_2``, ``rock_diff_2k`` ``rock_2k``), which its
+    maps' files leave out (0.58 wrote ``Rock_Color_NormalGL.png``, a name an importer reads as a
+    colour map and a normal map); a name of one word, or without such a word there, as it is."""
+    words = list(WORD.finditer(stem))
+    at = len(words) - (2 if len(words) > 2 and RESOLUTION.fullmatch(words[-1].group()) else 1)
+    if at < 1 or name_kind(words[at].group()) != "albedo":
+        return stem
+    return stem[:words[at - 1].end()] + stem[words[at].end():]
 
 
 def map_keys(names) -> list:
