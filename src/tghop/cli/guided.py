@@ -162,6 +162,8 @@ def _tell_colours(path, guide, labels, sources):
     if guide.ndim < 3 or guide.shape[2] < 3 or np.ptp(guide[..., :3], axis=2).max() == 0:
         return  # grey: darkest first, as the help says
     colours = label_colours(guide, labels)
+    if all(colour is None or max(colour) - min(colour) <= 2 for colour in colours):
+        return  # grey levels saved in colour (a JPEG's chroma noise)
     told = ", ".join(f"SOURCE {i} ({spec}) where it is #{r:02x}{g:02x}{b:02x}" for i, (spec, colour) in
                      enumerate(zip(sources, colours), start=1) if colour is not None for r, g, b in [colour])
     click.echo(f"Note: --guide {path} paints {told} (its colours ranked dark to light by their mean, then R, G, "
