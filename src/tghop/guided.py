@@ -230,8 +230,10 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     Parameters
     ----------
     models : sequence of tghop.TGHop, or of tghop.material.Material
-        Fitted, with the same patch size and colour channels; materials with the same maps
-        (every map is painted alike: the join follows all of them). A model given more than
+        Fitted, with the same patch size and colour channels; materials with the same maps, in one
+        order (matched by :func:`tghop.material_files.map_keys`: ``Stone_NormalGL`` is
+        ``Gravel_NormalGL``; the result is keyed by the first material's names; every map is painted
+        alike: the join follows all of them). A model given more than
         once (the same object) paints its regions as one synthesis, with no join between them.
     guide : array_like, shape (H, W) or (H, W, C), optional
         One grey level (or colour) per model, the darkest for the first
