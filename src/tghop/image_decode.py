@@ -1,7 +1,7 @@
 """Decoding image files into arrays, for :func:`tghop.imageio.load_image`: Pillow's path
 (:func:`decode_pillow`: any format, downscaled on request, colour profiles and EXIF orientation applied)
-and tghop's own for what Pillow would not read whole (:func:`read_deep`: 16-bit PNG, and TIFF files
-through :mod:`tifffile`: 16-bit and float, alpha, min-is-white, premultiplied)."""
+and tghop's own for what Pillow would not read whole (:func:`read_deep`: 16-bit PNG, TIFF files
+through :mod:`tifffile`: 16-bit and float, alpha, min-is-white, premultiplied, and 32-bit BMP: :mod:`tghop.bmp`)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import numpy as np
 from ._errors import ImageTooLargeError, InvalidImageError, warn
 from ._formats import TIFF_HINT, warn_frames
 from .depths import RANGE_TOLERANCE
+from .bmp import read_bmp
 from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
 
@@ -90,7 +91,8 @@ def open_image(path):
 
 
 def read_deep(path, max_pixels, keep_alpha=False):
-    """16-bit PNG and TIFF files and float TIFF files that Pillow would not read whole:
+    """16-bit PNG and TIFF files and float TIFF files that Pillow would not read whole, and 32-bit BMP
+    files (:mod:`tghop.bmp`: their 4th byte alpha only where the header's mask says so):
     ``(array, mode, depth)`` with the array float64 in [0, 1] (uint8 for an 8-bit TIFF read
     by tifffile), or None for every other file (Pillow reads it: TIFF files too, but grey and RGB
     ones tifffile decodes, :func:`_tiff_layout`). ``mode`` is "RGBA" or "LA" when the file has
@@ -109,6 +111,12 @@ def read_deep(path, max_pixels, keep_alpha=False):
     """
     with open(path, "rb") as fh:
         head = fh.read(33)
+    if head[:2] == b"BM":  # 32-bit (and masked 16-bit) BMP: its 4th byte as the header says (0.59)
+        found = read_bmp(path, max_pixels)
+        if found is None:
+            return None
+        arr, mode = _drop_alpha(*found, keep_alpha)
+        return arr, mode, 8 if arr.dtype == np.uint8 else 16
     if head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) >= 33 and head[24] == 16:
         width, height = struct.unpack(">II", head[16:24])
         if width * height > max_pixels:  # too large: Pillow's path (its errors)

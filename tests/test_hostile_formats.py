@@ -1,0 +1,129 @@
+"""Odd and damaged image files written byte by byte in code: 32-bit BMP files whose 4th byte is alpha
+or padding as their header says (:mod:`tghop.bmp`), image files cut short named by their format, and
+manifests and model files whose JSON repeats a key."""
+
+import struct
+import warnings
+
+import numpy as np
+import pytest
+
+from tghop import InvalidImageError
+from tghop.imageio import load_image
+
+
+def bmp_bytes(rgba, *, header=40, compression=0, masks=None, bits=32, top_down=False):
+    """A BMP of ``rgba`` (H, W, 4 uint8) written byte by byte: each pixel packed by ``masks`` (r, g, b, a;
+    BI_RGB's layout, blue lowest and the 4th byte highest, where None), in a ``header``-byte info header
+    (its masks at 40-56 when it is that long, else, for BI_BITFIELDS or BI_ALPHABITFIELDS, after it)."""
+    height, width, _ = rgba.shape
+    masks = masks or (0xFF0000, 0xFF00, 0xFF, 0xFF000000)
+    pixels = np.zeros((height, width), np.uint64)
+    for channel, mask in enumerate(masks):
+        if mask:
+            shift = (mask & -mask).bit_length() - 1
+            top = mask >> shift
+            pixels |= ((rgba[..., channel].astype(np.uint64) * top + 127) // 255) << np.uint64(shift)
+    rows = pixels.astype("<u4" if bits == 32 else "<u2")
+    stride = (bits * width + 31) // 32 * 4
+    data = b"".join(row.tobytes().ljust(stride, b"\0") for row in (rows if top_down else rows[::-1]))
+    info = struct.pack("<IiiHHIIiiII", header, width, -height if top_down else height, 1, bits, compression,
+                       len(data), 2835, 2835, 0, 0)
+    if header > 40:
+        info = (info + struct.pack("<IIII", *masks))[:header].ljust(header, b"\0")
+    elif compression in (3, 6):
+        info += struct.pack("<IIII" if compression == 6 else "<III", *masks[:4 if compression == 6 else 3])
+    offset = 14 + len(info)
+    return b"BM" + struct.pack("<IHHI", offset + len(data), 0, 0, offset) + info + data
+
+
+def texture(alpha_top=255, alpha_bottom=0):
+    """A 4x5 RGBA image: distinct colours, its top two rows ``alpha_top``, the others ``alpha_bottom``."""
+    rgba = np.zeros((4, 5, 4), np.uint8)
+    rgba[..., 0] = 200
+    rgba[..., 1] = np.arange(5) * 40
+    rgba[..., 2] = np.arange(4)[:, None] * 60
+    rgba[..., 3] = alpha_bottom
+    rgba[:2, :, 3] = alpha_top
+    return rgba
+
+
+def read(path, **options):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        arr = load_image(path, dtype=None, **options)
+    return arr, [str(w.message) for w in caught]
+
+
+V5_ALPHA = (0xFF0000, 0xFF00, 0xFF, 0xFF000000)
+
+
+@pytest.mark.parametrize("header, compression, masks, alpha", [
+    (40, 0, None, False),  # BI_RGB: "the high byte in each DWORD is not used"
+    (124, 0, (0xFF0000, 0xFF00, 0xFF, 0), False),  # a V5 header whose alpha mask is 0
+    (124, 0, V5_ALPHA, True),  # a V5 header's alpha mask names it (Pillow ignored it)
+    (108, 3, V5_ALPHA, True),  # BI_BITFIELDS, alpha in the mask
+    (40, 3, (0xFF0000, 0xFF00, 0xFF, 0), False),  # BI_BITFIELDS after a 40-byte header: no alpha mask
+    (124, 3, (0xFF, 0xFF00, 0xFF0000, 0xFF000000), True),  # R, G, B, A in byte order
+    (108, 3, (0xFF00, 0xFF0000, 0xFF000000, 0xFF), True),  # A, R, G, B: Pillow "Unsupported BMP bitfields layout"
+    (40, 6, V5_ALPHA, True),  # BI_ALPHABITFIELDS: Pillow "Unsupported BMP compression (6)"
+    (124, 3, (0x3FF00000, 0xFFC00, 0x3FF, 0xC0000000), True),  # 10-10-10-2
+])
+def test_a_32_bit_bmp_s_4th_byte_is_alpha_only_where_its_header_s_mask_says_so(tmp_path, header, compression, masks,
+                                                                              alpha):
+    path = tmp_path / "t.bmp"
+    rgba = texture()
+    path.write_bytes(bmp_bytes(rgba, header=header, compression=compression, masks=masks))
+    arr, said = read(path, keep_alpha=True)
+    if arr.dtype == np.uint8:
+        arr = arr.astype(np.float64) / 255.0
+    assert arr.shape == (4, 5, 4 if alpha else 3)
+    np.testing.assert_allclose(arr[..., :3], rgba[..., :3] / 255.0, atol=0.002)
+    if alpha:
+        np.testing.assert_allclose(arr[..., 3], rgba[..., 3] / 255.0, atol=0.34)
+    assert not said
+    arr, said = read(path)  # without keep_alpha: dropped and said, as for a PNG
+    assert arr.shape[2] == 3
+    assert [s for s in said if "alpha channel dropped" in s] == (["t.bmp: alpha channel dropped, though 50% of its "
+                                                                  "pixels are transparent: the colours under them are "
+                                                                  "taken as texture; crop it to its opaque part, or "
+                                                                  "leave that part out with an exclude mask "
+                                                                  "(--exclude MASK, white where it is transparent)"]
+                                                                 if alpha else [])
+
+
+@pytest.mark.parametrize("top_down", [False, True])
+def test_an_alpha_mask_whose_bytes_are_0_everywhere_is_padding_and_said(tmp_path, top_down):
+    path = tmp_path / "pad.bmp"
+    rgba = texture(0, 0)
+    path.write_bytes(bmp_bytes(rgba, header=124, compression=3, masks=V5_ALPHA, top_down=top_down))
+    arr, said = read(path, keep_alpha=True)
+    np.testing.assert_array_equal(arr, rgba[..., :3])
+    assert said == ["pad.bmp: its 4th byte, marked as alpha by the header's alpha mask, is 0 everywhere: taken as "
+                    "padding and ignored, as browsers read it (as alpha it would hide every pixel)"]
+
+
+def test_a_16_bit_bmp_with_an_alpha_mask_keeps_its_alpha(tmp_path):
+    path = tmp_path / "argb4444.bmp"
+    rgba = texture()
+    path.write_bytes(bmp_bytes(rgba, header=124, compression=3, masks=(0xF00, 0xF0, 0xF, 0xF000), bits=16))
+    arr, said = read(path, keep_alpha=True)
+    assert arr.shape == (4, 5, 4) and not said
+    np.testing.assert_allclose(arr / 255.0, rgba / 255.0, atol=1 / 30)
+
+
+@pytest.mark.parametrize("masks", [(0xFF0000, 0xFF00, 0xF0F, 0), (0xFF0000, 0xFFFF00, 0xFF, 0), (0, 0xFF00, 0xFF, 0)])
+def test_bmp_masks_that_are_no_separate_runs_of_bits_are_one_line(tmp_path, masks):
+    path = tmp_path / "odd.bmp"
+    path.write_bytes(bmp_bytes(texture(), header=124, compression=3, masks=masks))
+    with pytest.raises(InvalidImageError, match=r"odd\.bmp: a BMP whose colour masks .* are not separate runs of "
+                                                r"bits; save it again"):
+        load_image(path)
+
+
+def test_a_32_bit_bmp_cut_short_is_named_a_damaged_bmp(tmp_path):
+    path = tmp_path / "cut.bmp"
+    path.write_bytes(bmp_bytes(texture(), header=124, compression=3, masks=V5_ALPHA)[:-30])
+    with pytest.raises(InvalidImageError, match=r"cut\.bmp: a damaged BMP: its pixels are cut short \(50 of 80 "
+                                                r"bytes\); save or download it again"):
+        load_image(path)
