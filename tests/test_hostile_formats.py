@@ -127,3 +127,51 @@ def test_a_32_bit_bmp_cut_short_is_named_a_damaged_bmp(tmp_path):
     with pytest.raises(InvalidImageError, match=r"cut\.bmp: a damaged BMP: its pixels are cut short \(50 of 80 "
                                                 r"bytes\); save or download it again"):
         load_image(path)
+
+
+def saved(fmt, **options):
+    """A 48x40 noise image in Pillow's ``fmt``, as bytes."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    rgb = (np.random.default_rng(0).random((40, 48, 3)) * 255).astype(np.uint8)
+    Image.fromarray(rgb).save(buf, format=fmt, **options)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("suffix, fmt, name", [
+    ("png", "PNG", "a PNG"), ("jpg", "JPEG", "a JPEG"), ("tif", "TIFF", "a TIFF"), ("webp", "WEBP", "a WebP"),
+    ("qoi", "QOI", "a QOI"), ("tga", "TGA", "a TGA"), ("bmp", "BMP", "a BMP"), ("gif", "GIF", "a GIF"),
+    ("ppm", "PPM", "a PNM"), ("sgi", "SGI", "an SGI"), ("pcx", "PCX", "a PCX"), ("dds", "DDS", "a DDS"),
+])
+def test_an_image_cut_short_is_named_a_damaged_file_of_its_format(tmp_path, suffix, fmt, name):
+    """0.58: "not a readable image (truncated or corrupt: OSError: image file is truncated ...); give a PNG, JPEG
+    or other common image file", no format named, and another file asked for."""
+    if fmt == "WEBP":
+        from PIL import features
+
+        if not features.check_module("webp"):
+            pytest.skip("this Pillow reads no WebP")
+    path = tmp_path / f"cut.{suffix}"
+    blob = saved(fmt)
+    path.write_bytes(blob[: len(blob) // 2])
+    with pytest.raises(InvalidImageError) as error:
+        load_image(path)
+    said = str(error.value)
+    assert said.startswith(f"{path}: not a readable image ({name} file, ") and "\n" not in said, said
+    assert said.endswith("; save or download it again"), said
+
+
+def test_a_tga_whose_header_is_damaged_is_named_by_its_extension(tmp_path):
+    """TGA has no signature: 0.58 said "not an image format tghop reads" of one whose header Pillow refused."""
+    path = tmp_path / "damaged.tga"
+    blob = bytearray(saved("TGA"))
+    blob[1] = 7  # a colour map type no TGA has
+    path.write_bytes(bytes(blob))
+    with pytest.raises(InvalidImageError) as error:
+        load_image(path)
+    assert str(error.value) == (f"{path}: not a readable image (named as a TGA file, but Pillow cannot read its "
+                                "header as one: damaged, or another kind of file renamed); save or download it "
+                                "again, or give a PNG, JPEG or other common image file")

@@ -680,14 +680,17 @@ def test_an_unreadable_image_says_why_in_words(tmp_path):
     (tmp_path / "empty.png").write_bytes(b"")
     np.save(tmp_path / "array.npy", np.zeros((4, 4)))
     (tmp_path / "notes.png").write_text("hello")
-    for name, why in (("cut.png", "(truncated or corrupt: OSError: image file is truncated)"),
-                      ("empty.png", "(the file is empty)"),
-                      ("array.npy", "(a NumPy array file (.npy), not an image)"),
-                      ("notes.png", "(not an image format tghop reads)")):
+    other = "give a PNG, JPEG or other common image file"
+    (tmp_path / "notes.txt").write_text("hello")
+    for name, why in (("cut.png", "(a PNG file, cut short (image file is truncated)); save or download it again"),
+                      ("empty.png", f"(the file is empty); {other}"),
+                      ("array.npy", f"(a NumPy array file (.npy), not an image); {other}"),
+                      ("notes.png", "(named as a PNG file, but Pillow cannot read its header as one: damaged, or "
+                                    f"another kind of file renamed); save or download it again, or {other}"),
+                      ("notes.txt", f"(not an image format tghop reads); {other}")):
         with pytest.raises(InvalidImageError) as error:
             load_image(tmp_path / name)
-        assert str(error.value) == f"{tmp_path / name}: not a readable image {why}; give a PNG, JPEG or other " \
-                                   "common image file", str(error.value)
+        assert str(error.value) == f"{tmp_path / name}: not a readable image {why}", str(error.value)
 
 
 @pytest.mark.parametrize("name, head, said", [

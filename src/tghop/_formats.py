@@ -5,7 +5,7 @@ files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
            "model_file_kind", "COOC_CHECKPOINT", "checkpoint_note", "TIFF_HINT", "check_tifffile",
-           "why_unreadable", "unread_format", "missing_decoder", "warn_frames"]
+           "why_unreadable", "unreadable", "unread_format", "missing_decoder", "warn_frames"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -131,22 +131,100 @@ def check_tifffile(path, depth):
 def why_unreadable(path, exc) -> str:
     """Why Pillow could not read the image at ``path`` (raising ``exc``), in a few words: the
     exception's class name alone ("OSError") did not say that a download was cut short."""
+    return _unreadable(path, exc)[0]
+
+
+def unreadable(path, exc) -> str:
+    """What follows "PATH: " where Pillow could not read the image at ``path`` (raising ``exc``):
+    "not a readable image (WHY); FIX", WHY as :func:`why_unreadable` says it, FIX another file for one
+    that is no image, the file again for a damaged one (0.58: "give a PNG, JPEG or other common image
+    file" of a PNG cut short). A file of a format tghop reads that Pillow gave up on partway is named
+    a damaged file of the format Pillow found in its header ("a TGA file, cut short (...)"; 0.58:
+    "truncated or corrupt: OSError: ...", no format named), one whose header Pillow could not read a
+    file of that format by its signature, or, with none (TGA), by its extension."""
+    why, fix = _unreadable(path, exc)
+    return f"not a readable image ({why}); {fix}"
+
+
+_AGAIN, _OTHER = "save or download it again", "give a PNG, JPEG or other common image file"
+_EITHER = f"{_AGAIN}, or {_OTHER}"
+
+
+def _unreadable(path, exc):
+    """``(why, fix)`` for :func:`unreadable`."""
     from PIL import UnidentifiedImageError
 
     if not isinstance(exc, UnidentifiedImageError):
-        return f"truncated or corrupt: {exc.__class__.__name__}" + (f": {str(exc)[:80]}" if str(exc) else "")
+        words = " ".join(str(exc).split())[:100] or exc.__class__.__name__
+        name = _pillow_format(path) or _signature_format(path) or _SUFFIX_FORMATS.get(_suffix(path))
+        if name is None:
+            return f"truncated or corrupt: {exc.__class__.__name__}: {words}", _EITHER
+        cut = isinstance(exc, EOFError) or any(sign in words.lower() for sign in _CUT_SHORT)
+        return f"{_a(name)} file, {'cut short' if cut else 'damaged'} ({words})", _AGAIN
     head = _file_head(path) or b""
     if not head:
-        return "the file is empty"
+        return "the file is empty", _OTHER
     if head.startswith(b"\x93NUMPY"):
-        return "a NumPy array file (.npy), not an image"
+        return "a NumPy array file (.npy), not an image", _OTHER
     bits = _jpeg_bits(path) if head.startswith(b"\xff\xd8\xff") else None
     if bits not in (None, 8):  # 0.57: "a JPEG file, but its header is corrupt or of a kind tghop does not read"
-        return f"a {bits}-bit JPEG, which Pillow does not read, only 8-bit ones: convert it to a 16-bit PNG or TIFF"
-    for matches, name, corrupt, _ in _READ_HEADS:  # 0.56: "not an image format tghop reads" of a PNG of width 0
-        if corrupt and matches(head):
-            return f"a {name} file, but its header is corrupt or of a kind tghop does not read"
-    return "not an image format tghop reads"
+        return (f"a {bits}-bit JPEG, which Pillow does not read, only 8-bit ones: convert it to a 16-bit PNG or "
+                "TIFF"), _OTHER
+    for matches, name, _, _ in _READ_HEADS:  # 0.56: "not an image format tghop reads" of a PNG of width 0
+        if matches(head):  # a decoder Pillow lacks was said before (missing_decoder): the file is at fault
+            return f"{_a(name)} file, but its header is corrupt or of a kind tghop does not read", _EITHER
+    named = _SUFFIX_FORMATS.get(_suffix(path))
+    if named:  # 0.58: "not an image format tghop reads" of a damaged TGA (no signature: its name alone says it)
+        return (f"named as {_a(named)} file, but Pillow cannot read its header as one: damaged, or another kind of "
+                "file renamed"), _EITHER
+    return "not an image format tghop reads", _OTHER
+
+
+def _suffix(path) -> str:
+    """The extension of ``path`` in lower case (".tga")."""
+    import os
+
+    return os.path.splitext(os.fsdecode(path))[1].lower()
+
+
+#: The signatures of formats tghop reads beyond :data:`_READ_HEADS`, for a file Pillow stopped reading in its header.
+_MORE_HEADS = ((b"BM", "BMP"), (b"8BPS", "PSD"), (b"DDS ", "DDS"), (b"\x00\x00\x01\x00", "ICO"), (b"\x01\xda", "SGI"),
+               (b"P1", "PNM"), (b"P2", "PNM"), (b"P3", "PNM"), (b"P4", "PNM"), (b"P5", "PNM"), (b"P6", "PNM"))
+
+
+def _signature_format(path):
+    """The format whose signature starts the file at ``path`` ("JPEG"), of those tghop reads; None for none."""
+    head = _file_head(path) or b""
+    for matches, name, _, _ in _READ_HEADS:
+        if matches(head):
+            return name
+    return next((name for start, name in _MORE_HEADS if head.startswith(start)), None)
+
+
+#: Pillow's words (lower case) for a file whose data ends early.
+_CUT_SHORT = ("truncated", "not enough image data", "incomplete", "expected to read", "broken data stream",
+              "buffer is not large enough", "ran out of data", "premature end")
+
+#: Pillow's format names that read better otherwise.
+_PILLOW_NAMES = {"WEBP": "WebP", "JPEG2000": "JPEG 2000", "PPM": "PNM", "MPO": "JPEG"}
+
+#: The formats of :data:`READ_SUFFIXES` by extension, for a file whose first bytes no signature of theirs
+#: matches (TGA has none).
+_SUFFIX_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".jfif": "JPEG", ".jpe": "JPEG", ".bmp": "BMP",
+                   ".gif": "GIF", ".tif": "TIFF", ".tiff": "TIFF", ".webp": "WebP", ".ppm": "PNM", ".pgm": "PNM",
+                   ".pbm": "PNM", ".pnm": "PNM", ".tga": "TGA", ".psd": "PSD", ".dds": "DDS", ".jp2": "JPEG 2000",
+                   ".j2k": "JPEG 2000", ".avif": "AVIF", ".ico": "ICO", ".qoi": "QOI", ".sgi": "SGI", ".pcx": "PCX"}
+
+
+def _pillow_format(path):
+    """The format Pillow finds in the header of the file at ``path`` ("TGA", "WebP"), or None where it finds none."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            return _PILLOW_NAMES.get(im.format, im.format) if im.format else None
+    except Exception:  # noqa: BLE001 - any failure: no format named
+        return None
 
 
 def _jpeg_bits(path):

@@ -23,8 +23,7 @@ import numpy as np
 from ._errors import InvalidImageError, MissingExtraError, OpaqueAlphaWarning, TGHopError, TransparencyWarning, warn
 from ._images import check_image
 from ._progress import report
-from ._formats import (DEPTHS, check_tifffile, checkpoint_note, extensions, missing_decoder, unread_format,
-                       why_unreadable)
+from ._formats import DEPTHS, check_tifffile, checkpoint_note, extensions, missing_decoder, unread_format, unreadable
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import (decode_pillow, file_header, has_alpha, metadata_too_large, open_image, read_deep,
                            transparency_note, transparent_share, upright)
@@ -159,8 +158,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         if known:
             raise InvalidImageError(f"{path}: {known}, a format tghop does not read; convert it to PNG, TIFF "
                                     "or JPEG first") from None
-        raise InvalidImageError(f"{path}: not a readable image ({why_unreadable(path, exc)}); "
-                                f"give a PNG, JPEG or other common image file{checkpoint_note(path)}") from None
+        raise InvalidImageError(f"{path}: {unreadable(path, exc)}{checkpoint_note(path)}") from None
     if not keep_alpha and has_alpha(mode):
         said = f"{path.name}: alpha channel dropped{transparency_note(hidden)}"
         warn(TransparencyWarning(said, path.name, hidden) if hidden else UserWarning(said) if hidden is None
