@@ -175,3 +175,33 @@ def test_a_tga_whose_header_is_damaged_is_named_by_its_extension(tmp_path):
     assert str(error.value) == (f"{path}: not a readable image (named as a TGA file, but Pillow cannot read its "
                                 "header as one: damaged, or another kind of file renamed); save or download it "
                                 "again, or give a PNG, JPEG or other common image file")
+
+
+@pytest.mark.parametrize("line, key", [
+    ('{"path": "a.png", "size": "512x512", "size": "64x64"}', "'size'"),
+    ('{"path": "a.png", "maps": {"normal": "n.png", "normal": "m.png"}}', "'normal'"),  # at any depth
+])
+def test_a_manifest_row_that_repeats_a_key_is_refused_naming_it(tmp_path, line, key):
+    """0.58 kept the last value of a repeated key without a word (json.loads)."""
+    from tghop import TGHopError
+    from tghop.manifest import read_manifest
+
+    (tmp_path / "a.png").write_bytes(saved("PNG"))
+    manifest = tmp_path / "m.jsonl"
+    manifest.write_text('{"path": "a.png"}\n' + line + "\n")
+    with pytest.raises(TGHopError) as error:
+        read_manifest(manifest)
+    assert str(error.value) == (f"{manifest} line 2: the key {key} is given twice; keep one (a JSON reader keeps "
+                                "the last without a word)")
+
+
+def test_a_model_file_whose_metadata_repeats_a_key_is_refused_naming_it(tmp_path):
+    from tghop import ModelFileError
+    from tghop.modelfile import load_model
+
+    path = tmp_path / "m.npz"
+    np.savez(path, __meta__=np.array('{"format": "tghop-model", "format_version": 9, "format_version": 1}'))
+    with pytest.raises(ModelFileError) as error:
+        load_model(path)
+    assert str(error.value) == f"{path}: corrupt model metadata (the key 'format_version' is given twice); fit the " \
+                               "model again"

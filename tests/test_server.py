@@ -347,6 +347,8 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert_error(post(images, json={"size": [64, 64], "layout_patch_refine": -1}), 422, "layout_patch_refine must be")
     assert_error(post(images, content=b"[" * 100_000 + b"]" * 100_000), 400, "not JSON")  # nested too deep
     assert_error(post(images, content=b"{not json"), 400, "not JSON")
+    assert_error(post(images, content=b'{"size": [64, 64], "size": [96, 96]}'), 400,  # 0.58: the last one, silently
+                 "the body gives the key 'size' twice; send each key once")
     # 404: no such model, job, or path; never a file outside the static folder and the cache
     missing = "0" * 64
     assert_error(client.get(f"/api/models/{missing}"), 404, "no model")

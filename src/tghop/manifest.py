@@ -18,6 +18,7 @@ import re
 from pathlib import Path
 
 from ._errors import TGHopError
+from ._json import RepeatedKeyError, loads_unique
 
 __all__ = ["ROW_SETTINGS", "read_manifest", "manifest_rows", "row_settings", "parse_size", "parse_bool", "parse_int",
            "parse_scale", "parse_maps", "split_size", "MAX_MAPS"]
@@ -328,7 +329,10 @@ def manifest_rows(path: Path):
             if not line.strip():
                 continue
             try:
-                row = json.loads(line)
+                row = loads_unique(line)
+            except RepeatedKeyError as exc:  # 0.58 kept the last value without a word
+                raise TGHopError(f"{path} line {number}: the key {_shown(exc.key)} is given twice; keep one (a JSON "
+                                 "reader keeps the last without a word)") from None
             except (ValueError, RecursionError):  # RecursionError: arrays nested thousands deep
                 raise TGHopError(f"{path} line {number}: not a JSON object; write one "
                                  '{"path": ..., "size": ..., ...} per line') from None

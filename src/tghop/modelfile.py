@@ -34,6 +34,7 @@ from . import __version__
 from ._errors import ModelFileError, TGHopError, warn
 from ._archives import check_archive_bounds
 from ._formats import COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind
+from ._json import RepeatedKeyError, loads_unique
 from .imageio import check_output_path, write_atomic
 from .material import Material
 from .settings import fit_seed
@@ -261,8 +262,11 @@ def _read_archive(path, label):
                                  "checkpoint of 'tghop cooc train'); give a model file tghop wrote")
         raise ModelFileError(f"{label}: a NumPy archive but not a tghop model file; give a model file tghop wrote")
     try:
-        meta = json.loads(str(arrays.pop("__meta__")))
-    except (ValueError, TypeError):
+        meta = loads_unique(str(arrays.pop("__meta__")))
+    except RepeatedKeyError as exc:  # 0.58 kept the last value without a word
+        raise ModelFileError(f"{label}: corrupt model metadata (the key {exc.key[:60]!r} is given twice); fit the "
+                             "model again") from None
+    except (ValueError, TypeError, RecursionError):
         raise ModelFileError(f"{label}: corrupt model metadata; fit the model again") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise ModelFileError(f"{label}: not a tghop model file; give a model file tghop wrote")

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import os
 import tempfile
 from pathlib import Path
 
 from .._errors import ImageTooLargeError, OpaqueAlphaWarning, TGHopError, TransparencyWarning, collect_warnings
+from .._json import RepeatedKeyError, loads_unique
 from ..image_decode import share_text
 from . import materials
 from .requests import RequestError, check_multipart_end, page_words, safe_name
@@ -178,7 +178,9 @@ async def json_body(request, limit: int = 1024 * 1024):
     """The request's body as JSON (400 when it is not JSON; 413 over ``limit`` bytes)."""
     body = await read_body(request, limit=limit)
     try:
-        return json.loads(body or b"{}")
+        return loads_unique(body or b"{}")
+    except RepeatedKeyError as exc:  # 0.58 took the last value without a word
+        raise RequestError(400, f"the body gives the key {exc.key[:60]!r} twice; send each key once") from None
     except (ValueError, RecursionError):  # RecursionError: nested deeper than the parser goes
         raise RequestError(400, "the body is not JSON; send e.g. {\"size\": [256, 256], \"seed\": 1}") from None
 
