@@ -128,21 +128,23 @@ def check_tifffile(path, depth):
         raise MissingExtraError(f"{path}: writing a {depth}-bit colour TIFF needs tifffile: {TIFF_HINT}") from None
 
 
-def why_unreadable(path, exc) -> str:
+def why_unreadable(path, exc, found=None) -> str:
     """Why Pillow could not read the image at ``path`` (raising ``exc``), in a few words: the
-    exception's class name alone ("OSError") did not say that a download was cut short."""
-    return _unreadable(path, exc)[0]
+    exception's class name alone ("OSError") did not say that a download was cut short. ``found``: the
+    format Pillow found in its header (``Image.format``), where it opened it."""
+    return _unreadable(path, exc, found)[0]
 
 
-def unreadable(path, exc) -> str:
-    """What follows "PATH: " where Pillow could not read the image at ``path`` (raising ``exc``):
+def unreadable(path, exc, found=None) -> str:
+    """What follows "PATH: " where Pillow could not read the image at ``path`` (raising ``exc``; ``found``:
+    the format Pillow found in its header, where it opened it):
     "not a readable image (WHY); FIX", WHY as :func:`why_unreadable` says it, FIX another file for one
     that is no image, the file again for a damaged one (0.58: "give a PNG, JPEG or other common image
     file" of a PNG cut short). A file of a format tghop reads that Pillow gave up on partway is named
     a damaged file of the format Pillow found in its header ("a TGA file, cut short (...)"; 0.58:
     "truncated or corrupt: OSError: ...", no format named), one whose header Pillow could not read a
     file of that format by its signature, or, with none (TGA), by its extension."""
-    why, fix = _unreadable(path, exc)
+    why, fix = _unreadable(path, exc, found)
     return f"not a readable image ({why}); {fix}"
 
 
@@ -150,13 +152,13 @@ _AGAIN, _OTHER = "save or download it again", "give a PNG, JPEG or other common 
 _EITHER = f"{_AGAIN}, or {_OTHER}"
 
 
-def _unreadable(path, exc):
+def _unreadable(path, exc, found):
     """``(why, fix)`` for :func:`unreadable`."""
     from PIL import UnidentifiedImageError
 
     if not isinstance(exc, UnidentifiedImageError):
         words = " ".join(str(exc).split())[:100] or exc.__class__.__name__
-        name = _pillow_format(path) or _signature_format(path) or _SUFFIX_FORMATS.get(_suffix(path))
+        name = _PILLOW_NAMES.get(found, found) or _signature_format(path) or _SUFFIX_FORMATS.get(_suffix(path))
         if name is None:
             return f"truncated or corrupt: {exc.__class__.__name__}: {words}", _EITHER
         cut = isinstance(exc, EOFError) or any(sign in words.lower() for sign in _CUT_SHORT)
@@ -214,17 +216,6 @@ _SUFFIX_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".jfif": "JPE
                    ".gif": "GIF", ".tif": "TIFF", ".tiff": "TIFF", ".webp": "WebP", ".ppm": "PNM", ".pgm": "PNM",
                    ".pbm": "PNM", ".pnm": "PNM", ".tga": "TGA", ".psd": "PSD", ".dds": "DDS", ".jp2": "JPEG 2000",
                    ".j2k": "JPEG 2000", ".avif": "AVIF", ".ico": "ICO", ".qoi": "QOI", ".sgi": "SGI", ".pcx": "PCX"}
-
-
-def _pillow_format(path):
-    """The format Pillow finds in the header of the file at ``path`` ("TGA", "WebP"), or None where it finds none."""
-    from PIL import Image
-
-    try:
-        with Image.open(path) as im:
-            return _PILLOW_NAMES.get(im.format, im.format) if im.format else None
-    except Exception:  # noqa: BLE001 - any failure: no format named
-        return None
 
 
 def _jpeg_bits(path):

@@ -118,6 +118,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         raise InvalidImageError(f"{path}: no such file; check the path")
     if path.is_dir():
         raise InvalidImageError(f"{path} is a folder, not an image; give an image file")
+    found = None
     try:
         deep = read_deep(path, max_pixels, keep_alpha=True)  # an alpha dropped below, its transparency told
         if deep is not None:
@@ -132,6 +133,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
                 arr = arr[..., :-1] if arr.shape[2] > 2 else arr[..., 0]
         else:
             with open_image(path) as im:  # our own limit applies (Pillow's warning of it hidden on the main thread)
+                found = im.format  # named if it fails partway (0.58: "truncated or corrupt: OSError: ...")
                 arr, mode = decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha,
                                           as_data=as_data)
                 depth = 32 if im.mode == "F" else 16 if arr.dtype != np.uint8 else 8
@@ -158,7 +160,7 @@ def load_image(path, *, max_pixels=MAX_IMAGE_PIXELS, downscale=False, dtype=np.f
         if known:
             raise InvalidImageError(f"{path}: {known}, a format tghop does not read; convert it to PNG, TIFF "
                                     "or JPEG first") from None
-        raise InvalidImageError(f"{path}: {unreadable(path, exc)}{checkpoint_note(path)}") from None
+        raise InvalidImageError(f"{path}: {unreadable(path, exc, found)}{checkpoint_note(path)}") from None
     if not keep_alpha and has_alpha(mode):
         said = f"{path.name}: alpha channel dropped{transparency_note(hidden)}"
         warn(TransparencyWarning(said, path.name, hidden) if hidden else UserWarning(said) if hidden is None
