@@ -205,3 +205,47 @@ def test_a_model_file_whose_metadata_repeats_a_key_is_refused_naming_it(tmp_path
         load_model(path)
     assert str(error.value) == f"{path}: corrupt model metadata (the key 'format_version' is given twice); fit the " \
                                "model again"
+
+
+#: An EXIF block whose first directory says it holds 5 entries and holds 1 (the orientation, 6): Pillow stops
+#: at the second and warns "Corrupt EXIF data. Expecting to read 12 bytes but only got 0."
+DAMAGED_EXIF = (b"Exif\x00\x00MM\x00*" + struct.pack(">IH", 8, 5) + b"\x01\x12\x00\x03\x00\x00\x00\x01\x00\x06\x00\x00")
+
+
+@pytest.mark.parametrize("fmt, suffix", [("JPEG", "jpg"), ("PNG", "png"), ("WEBP", "webp")])
+@pytest.mark.parametrize("where", ["main thread", "another thread"])
+def test_a_damaged_exif_block_is_said_in_tghop_s_words_on_every_thread(tmp_path, fmt, suffix, where):
+    """0.58 said it in tghop's words on the main thread alone, and of a JPEG alone: a server's upload or a batch
+    worker's exemplar (read on other threads) and a PNG's eXIf chunk gave Pillow's "Corrupt EXIF data. ...", naming
+    no file. No filter or handler of the process may change (``warnings.catch_warnings`` is process-wide)."""
+    import threading
+
+    from PIL import features
+
+    from tghop._errors import collect_warnings
+
+    if fmt == "WEBP" and not features.check_module("webp"):
+        pytest.skip("this Pillow reads no WebP")
+    path = tmp_path / f"damaged.{suffix}"
+    path.write_bytes(saved(fmt, exif=DAMAGED_EXIF))
+    kept, shown = [], []
+
+    def read():
+        with collect_warnings() as collected:  # as the server and a batch worker read
+            load_image(path)
+        kept.extend(str(w) for w in collected)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = lambda message, *args, **kwargs: shown.append(str(message))
+        before = (list(warnings.filters), warnings.showwarning)
+        if where == "main thread":
+            read()
+        else:
+            reader = threading.Thread(target=read)
+            reader.start()
+            reader.join()
+        after = (list(warnings.filters), warnings.showwarning)
+    assert kept == ["damaged.%s: its EXIF data is damaged (Expecting to read 12 bytes but only got 0); its "
+                    "orientation is not read: the pixels are taken as stored" % suffix]
+    assert shown == [] and before == after

@@ -221,9 +221,9 @@ def _cost(job) -> float:
     for a larger exemplar: its header's pixels, capped at 4 MP) plus a tenth of a fit per 512x512
     output pixels (in one thread a fit takes about 11 s, a 512x512 image about 1 s; docs/choices.md)."""
     try:
-        from PIL import Image
+        from .image_decode import open_image  # a damaged EXIF block said once, by the task that reads it
 
-        with Image.open(job["source"]) as img:
+        with open_image(job["source"], say=False) as img:
             pixels = img.size[0] * img.size[1]
     except Exception:  # noqa: BLE001 - not an image: it fails at once, last is fine
         return 0.0

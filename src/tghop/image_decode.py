@@ -5,6 +5,8 @@ through :mod:`tifffile`: 16-bit and float, alpha, min-is-white, premultiplied, a
 
 from __future__ import annotations
 
+import io
+import os
 import struct
 import threading
 import warnings
@@ -18,8 +20,8 @@ from .bmp import read_bmp
 from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
 
-__all__ = ["open_image", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha", "transparent_share",
-           "transparency_note", "share_text", "metadata_too_large"]
+__all__ = ["open_image", "exif_damage", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha",
+           "transparent_share", "transparency_note", "share_text", "metadata_too_large"]
 
 
 #: Pillow's modes with an alpha channel ("P+transparency": a palette with a transparent entry, as
@@ -58,9 +60,10 @@ def transparency_note(share, *, exclude="an exclude mask (--exclude MASK, white 
             f"texture; crop it to its opaque part{other}")
 
 
-def open_image(path):
+def open_image(path, *, say=True):
     """``PIL.Image.open(path)`` (the header read, no pixels decoded; the caller closes it, e.g.
-    ``with``), less Pillow's DecompressionBombWarning on the main thread.
+    ``with``), less Pillow's DecompressionBombWarning on the main thread, and a JPEG's damaged EXIF
+    block said in tghop's words in every thread (``say``: said at all).
 
     Pillow warns of a header over its ``Image.MAX_IMAGE_PIXELS`` as it opens one; tghop's own limit
     applies instead (:func:`decode_pillow` refuses or downscales before decoding). Hiding the warning
@@ -69,25 +72,89 @@ def open_image(path):
     a batch worker's tasks) Pillow's warning of such a header goes to the console as Pillow says it; the
     image is then refused or downscaled in tghop's words all the same (on the server, a 413: tghop's
     64 Mpx limit is below Pillow's 89 Mpx warning threshold). On the main thread Pillow's other warnings
-    are passed on, its "Corrupt EXIF data" in tghop's words naming the file (0.58).
+    are passed on.
+
+    A JPEG whose EXIF block Pillow would warn of ("Corrupt EXIF data", as it parses it on opening) is
+    found first (:func:`exif_damage`) and opened from a copy in memory whose block Pillow does not
+    take for EXIF: tghop's warning alone, in every thread, with no filter or handler of the process
+    changed (0.58: tghop's words on the main thread, Pillow's on the others).
     """
     from PIL import Image
 
+    source = _hide_damaged_exif(path, say)
     if threading.current_thread() is not threading.main_thread():
-        return Image.open(path)
+        return Image.open(source)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        im = Image.open(path)
-    for w in caught:  # the others passed on; a damaged EXIF block in tghop's words (0.57: Pillow's, no file named)
+        im = Image.open(source)
+    for w in caught:  # the others passed on; a damaged EXIF block :func:`exif_damage` missed in tghop's words
         text = " ".join(str(w.message).split())
         if issubclass(w.category, Image.DecompressionBombWarning):
             continue
         if text.startswith("Corrupt EXIF data"):
-            warn(f"{getattr(path, 'name', path)}: its EXIF data is damaged ({text[18:].strip().rstrip('.')}); its "
-                 "orientation is not read: the pixels are taken as stored")
+            if say:
+                _warn_exif(getattr(path, "name", path), text[18:])
         else:
             warn(w.message, w.category)
     return im
+
+
+def _warn_exif(path, why):
+    """Say that the EXIF block of the image at ``path`` is damaged (``why``, Pillow's words for it)."""
+    import os
+
+    warn(f"{os.path.basename(os.fsdecode(path))}: its EXIF data is damaged ({why.strip().rstrip('.')}); its "
+         "orientation is not read: the pixels are taken as stored")
+
+
+def exif_damage(exif):
+    """Why Pillow cannot read the EXIF block ``exif`` (bytes, "Exif\\0\\0" first or not) whole, in its
+    words ("Expecting to read 12 bytes but only got 4": its first directory runs past the block's end,
+    where Pillow stops and warns "Corrupt EXIF data"), or None where it can (or refuses it without a
+    word: a block that is no TIFF header)."""
+    if exif[:6] == b"Exif\x00\x00":
+        exif = exif[6:]
+    if len(exif) < 8 or exif[:4] not in (b"II*\x00", b"MM\x00*"):
+        return None
+    order = "<" if exif[:2] == b"II" else ">"
+    offset = struct.unpack(order + "I", exif[4:8])[0]
+    left = max(0, len(exif) - offset)
+    if left < 2:
+        return f"Expecting to read 2 bytes but only got {left}"
+    count = struct.unpack(order + "H", exif[offset:offset + 2])[0]
+    left -= 2
+    if left < 12 * count:
+        return f"Expecting to read 12 bytes but only got {left % 12}"
+    if left - 12 * count < 4:
+        return f"Expecting to read 4 bytes but only got {left - 12 * count}"
+    return None
+
+
+def _hide_damaged_exif(path, say):
+    """``path`` itself, or, for a JPEG file whose EXIF block (APP1) :func:`exif_damage` finds damaged, the
+    file's bytes in memory with that block renamed so that Pillow leaves it unparsed (said, with ``say``)."""
+    if not isinstance(path, (str, bytes, os.PathLike)):
+        return path
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 20)  # the APP segments come first, each at most 64 KiB
+            at = 2 if head[:3] == b"\xff\xd8\xff" else len(head)
+            while at + 4 <= len(head) and head[at] == 0xFF and head[at + 1] not in (0xD9, 0xDA):
+                length = int.from_bytes(head[at + 2:at + 4], "big")
+                block = head[at + 4:at + 2 + length]
+                if head[at + 1] == 0xE1 and block[:6] == b"Exif\x00\x00" and at + 2 + length <= len(head):
+                    why = exif_damage(block)
+                    if why is None:
+                        return path
+                    if say:
+                        _warn_exif(path, why)
+                    data = bytearray(head + fh.read())
+                    data[at + 4:at + 8] = b"Exi_"  # no longer "Exif": Pillow keeps the segment as an unknown one
+                    return io.BytesIO(bytes(data))
+                at += 2 + length
+    except OSError:  # Pillow's own error follows
+        pass
+    return path
 
 
 def read_deep(path, max_pixels, keep_alpha=False):
@@ -428,6 +495,11 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
 def _exif_orientation(im) -> int:
     """An open Pillow image's EXIF orientation (tag 0x0112): 1 (as stored) when it has none or
     a damaged EXIF block."""
+    exif = im.info.get("exif")
+    why = exif_damage(exif) if isinstance(exif, bytes) and im.format != "JPEG" else None
+    if why:  # a PNG's or WebP's, which Pillow parses here (a JPEG's: open_image): tghop's words in every thread
+        _warn_exif(getattr(im, "filename", "") or "the image", why)
+        return 1
     try:
         return int(im.getexif().get(0x0112, 1))
     except Exception:  # noqa: BLE001 - a damaged EXIF block: the pixels as stored
