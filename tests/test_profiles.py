@@ -300,3 +300,14 @@ def test_every_map_but_a_colour_one_is_data():
     assert all(is_data_map(n) for n in ("Rock_NormalGL", "rock_nor_gl_2k", "Rock_Roughness", "T_Rock_ORM", "height",
                                         "Rock_AO", "metalness", "Rock_Specular", "mask", "dirt"))
     assert not any(is_data_map(n) for n in ("Rock_Emission", "rock_diff_2k", "T_Rock_BC", "albedo"))
+
+
+def test_a_profile_for_other_colours_is_named_so(tmp_path, colours):
+    """0.58 said "its colour profile could not be read" of a readable Lab profile on an RGB image."""
+    from PIL import ImageCms
+
+    lab = ImageCms.ImageCmsProfile(ImageCms.createProfile("LAB")).tobytes()
+    Image.fromarray(colours).save(tmp_path / "lab.png", icc_profile=lab)
+    with pytest.warns(UserWarning, match="lab.png: its colour profile is for Lab colours, not RGB ones as the "
+                                         "image's; colours taken as sRGB"):
+        assert np.array_equal(load_image(tmp_path / "lab.png", dtype=None), colours)

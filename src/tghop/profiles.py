@@ -95,10 +95,23 @@ def _source(data, mode, name, stacklevel):
     try:
         transform, what = _transform(bytes(data), mode)
     except Exception:  # noqa: BLE001 - a damaged profile, or one for other colours than the image's
-        warn(f"{name}: its colour profile could not be read; colours taken as sRGB", UserWarning,
-             stacklevel=stacklevel + 1)
+        warn(f"{name}: {_unusable(data, mode)}; colours taken as sRGB", UserWarning, stacklevel=stacklevel + 1)
         return None
     return None if transform is None else (transform, what)
+
+
+def _unusable(data, mode) -> str:
+    """Why the ICC profile ``data`` cannot convert an image of ``mode`` to sRGB, in words: damaged, or
+    made for other colours than the image's (0.58 said "could not be read" of a Lab profile too)."""
+    from PIL import ImageCms
+
+    try:
+        space = ImageCms.ImageCmsProfile(io.BytesIO(bytes(data))).profile.xcolor_space.strip()
+    except Exception:  # noqa: BLE001 - LittleCMS cannot read it
+        return "its colour profile could not be read"
+    if space and space.upper() != mode.upper():
+        return f"its colour profile is for {space} colours, not {mode} ones as the image's"
+    return "its colour profile could not be used"
 
 
 @functools.lru_cache(maxsize=8)
