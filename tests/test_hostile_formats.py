@@ -249,3 +249,72 @@ def test_a_damaged_exif_block_is_said_in_tghop_s_words_on_every_thread(tmp_path,
     assert kept == ["damaged.%s: its EXIF data is damaged (Expecting to read 12 bytes but only got 0); its "
                     "orientation is not read: the pixels are taken as stored" % suffix]
     assert shown == [] and before == after
+
+
+def zero_width_bmp(tmp_path):
+    blob = bytearray(saved("BMP"))
+    blob[18:22] = struct.pack("<i", 0)
+    return bytes(blob)
+
+
+def tiff_cut_in_its_directory(tmp_path):
+    blob = saved("TIFF")
+    first = struct.unpack("<I", blob[4:8])[0]
+    return blob[:first + 20]  # its first directory's count and a few entries: Pillow warned "Corrupt EXIF data"
+
+
+def one_pixel_png(tmp_path):
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (1, 1), (200, 30, 40)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("name, make, said", [
+    ("zero_width.bmp", zero_width_bmp, "zero_width.bmp: not a readable image (a BMP file, but its header is corrupt "
+                                       "or of a kind tghop does not read); save or download it again, or give a PNG"),
+    ("cut.tif", tiff_cut_in_its_directory, "cut.tif: not a readable image (a TIFF file, cut short: its first "
+                                           "directory ends past the file's end); save or download it again"),
+    ("dot.png", one_pixel_png, "the exemplar is 1x1 pixels, too small to hold a texture; give a larger image"),
+])
+def test_the_fuzz_round_s_odd_files_are_one_line_naming_their_problem(tmp_path, name, make, said):
+    """The 0.59 fuzz round's findings: 0.58 said "named ... not a readable image" of a BMP whose width is 0
+    (its signature said BMP), warned "Corrupt EXIF data" (Pillow's words, as a damaged EXIF block on the main
+    thread) of a TIFF cut short in its tags, and called a 1x1 image flat. Every one: one line, exit status 1,
+    no warning, no file written."""
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    path, out = tmp_path / name, tmp_path / "out.npz"
+    path.write_bytes(make(tmp_path))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = CliRunner().invoke(main, ["fit", str(path), "-o", str(out), "-q"])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 1 and len(lines) == 1 and said in lines[0], result.output
+    assert not caught and not out.exists()
+
+
+def test_is_image_says_nothing_of_a_damaged_exif_block_on_any_thread(tmp_path):
+    """The server asks is_image of an upload it could not read as a model (from memory, on a thread): 0.58 let
+    Pillow's "Corrupt EXIF data" reach the console."""
+    import io
+    import threading
+
+    from tghop.imageio import is_image
+
+    blob = saved("JPEG", exif=DAMAGED_EXIF)
+    (tmp_path / "d.jpg").write_bytes(blob)
+    answers, shown = [], []
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = lambda message, *args, **kwargs: shown.append(str(message))
+        reader = threading.Thread(target=lambda: answers.extend([is_image(io.BytesIO(blob)),
+                                                                 is_image(tmp_path / "d.jpg")]))
+        reader.start()
+        reader.join()
+    assert answers == [True, True] and shown == []

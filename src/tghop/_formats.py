@@ -176,6 +176,8 @@ def _unreadable(path, exc, found):
         if matches(head):  # a decoder Pillow lacks was said before (missing_decoder): the file is at fault
             return f"{_a(name)} file, but its header is corrupt or of a kind tghop does not read", _EITHER
     named = _SUFFIX_FORMATS.get(_suffix(path))
+    if named and named == next((name for start, name in _MORE_HEADS if head.startswith(start)), None):
+        return f"{_a(named)} file, but its header is corrupt or of a kind tghop does not read", _EITHER  # a BMP's
     if named:  # 0.58: "not an image format tghop reads" of a damaged TGA (no signature: its name alone says it)
         return (f"named as {_a(named)} file, but Pillow cannot read its header as one: damaged, or another kind of "
                 "file renamed"), _EITHER

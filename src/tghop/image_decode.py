@@ -81,6 +81,7 @@ def open_image(path, *, say=True):
     """
     from PIL import Image
 
+    _check_tiff_directory(path)
     source = _hide_damaged_exif(path, say)
     if threading.current_thread() is not threading.main_thread():
         return Image.open(source)
@@ -130,31 +131,66 @@ def exif_damage(exif):
     return None
 
 
-def _hide_damaged_exif(path, say):
-    """``path`` itself, or, for a JPEG file whose EXIF block (APP1) :func:`exif_damage` finds damaged, the
-    file's bytes in memory with that block renamed so that Pillow leaves it unparsed (said, with ``say``)."""
+def _check_tiff_directory(path):
+    """Refuse a TIFF file whose first directory (its tags) runs past the file's end, in one line: Pillow
+    warns "Corrupt EXIF data" of it as it opens it (to the console on a thread other than the main one, or
+    0.58's main thread reworded it as a damaged EXIF block) before failing."""
     if not isinstance(path, (str, bytes, os.PathLike)):
-        return path
+        return
     try:
         with open(path, "rb") as fh:
-            head = fh.read(1 << 20)  # the APP segments come first, each at most 64 KiB
-            at = 2 if head[:3] == b"\xff\xd8\xff" else len(head)
-            while at + 4 <= len(head) and head[at] == 0xFF and head[at + 1] not in (0xD9, 0xDA):
-                length = int.from_bytes(head[at + 2:at + 4], "big")
-                block = head[at + 4:at + 2 + length]
-                if head[at + 1] == 0xE1 and block[:6] == b"Exif\x00\x00" and at + 2 + length <= len(head):
-                    why = exif_damage(block)
-                    if why is None:
-                        return path
-                    if say:
-                        _warn_exif(path, why)
-                    data = bytearray(head + fh.read())
-                    data[at + 4:at + 8] = b"Exi_"  # no longer "Exif": Pillow keeps the segment as an unknown one
-                    return io.BytesIO(bytes(data))
-                at += 2 + length
-    except OSError:  # Pillow's own error follows
+            head = fh.read(8)
+            if head[:4] not in (b"II*\x00", b"MM\x00*"):
+                return
+            order = "<" if head[:2] == b"II" else ">"
+            fh.seek(struct.unpack(order + "I", head[4:8])[0])
+            count = fh.read(2)
+            entries = struct.unpack(order + "H", count)[0] if len(count) == 2 else -1
+            short = entries < 0 or len(fh.read(12 * entries + 4)) < 12 * entries + 4
+    except (OSError, struct.error, ValueError):
+        return
+    if short:
+        raise InvalidImageError(f"{path}: not a readable image (a TIFF file, cut short: its first directory ends "
+                                "past the file's end); save or download it again")
+
+
+def _hide_damaged_exif(path, say):
+    """``path`` itself, or, for a JPEG file (a path, or a binary file object from where it stands) whose EXIF
+    block (APP1) :func:`exif_damage` finds damaged, the file's bytes in memory with that block renamed so
+    that Pillow leaves it unparsed (said, with ``say``)."""
+    try:
+        if isinstance(path, (str, bytes, os.PathLike)):
+            with open(path, "rb") as fh:
+                return _without_damaged_exif(fh, path, say) or path
+        if hasattr(path, "read") and hasattr(path, "seek"):
+            start = path.tell()
+            try:
+                return _without_damaged_exif(path, getattr(path, "name", "the image"), say) or path
+            finally:
+                path.seek(start)
+    except (OSError, ValueError):  # Pillow's own error follows
         pass
     return path
+
+
+def _without_damaged_exif(fh, name, say):
+    """:func:`_hide_damaged_exif`'s copy of the file open as ``fh``, or None where it needs none."""
+    head = fh.read(1 << 20)  # the APP segments come first, each at most 64 KiB
+    at = 2 if head[:3] == b"\xff\xd8\xff" else len(head)
+    while at + 4 <= len(head) and head[at] == 0xFF and head[at + 1] not in (0xD9, 0xDA):
+        length = int.from_bytes(head[at + 2:at + 4], "big")
+        block = head[at + 4:at + 2 + length]
+        if head[at + 1] == 0xE1 and block[:6] == b"Exif\x00\x00" and at + 2 + length <= len(head):
+            why = exif_damage(block)
+            if why is None:
+                return None
+            if say:
+                _warn_exif(name, why)
+            data = bytearray(head + fh.read())
+            data[at + 4:at + 8] = b"Exi_"  # no longer "Exif": Pillow keeps the segment as an unknown one
+            return io.BytesIO(bytes(data))
+        at += 2 + length
+    return None
 
 
 def read_deep(path, max_pixels, keep_alpha=False):

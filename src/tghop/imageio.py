@@ -188,7 +188,7 @@ def is_image(path) -> bool:
     from PIL import Image
 
     try:
-        with Image.open(path):
+        with open_image(path, say=False):  # no warning of a damaged EXIF block, on any thread (0.58: Pillow's)
             return True
     except Image.DecompressionBombError:
         return True
