@@ -103,6 +103,22 @@ def test_an_alpha_mask_whose_bytes_are_0_everywhere_is_padding_and_said(tmp_path
                     "padding and ignored, as browsers read it (as alpha it would hide every pixel)"]
 
 
+def test_an_os2_header_s_fields_after_40_bytes_are_no_masks(tmp_path):
+    """OS/2's 64-byte BITMAPCOREHEADER2 holds halftoning fields where a V3 header's alpha mask lies."""
+    path = tmp_path / "os2.bmp"
+    rgba = texture()
+    blob = bytearray(bmp_bytes(rgba, header=64))
+    blob[66:70] = struct.pack("<I", 0x12345)  # its halftoning sizes: no mask
+    path.write_bytes(bytes(blob))
+    from PIL import Image
+
+    with Image.open(path) as im:
+        expected = np.asarray(im.convert("RGB"))
+    arr, said = read(path, keep_alpha=True)
+    np.testing.assert_array_equal(arr, expected)
+    assert not said
+
+
 def test_a_16_bit_bmp_with_an_alpha_mask_keeps_its_alpha(tmp_path):
     path = tmp_path / "argb4444.bmp"
     rgba = texture()

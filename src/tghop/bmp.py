@@ -31,7 +31,7 @@ def _header(head):
     """``(width, height, bits, compression, (r, g, b, a) masks)`` of a BMP file's first bytes (at
     least 70), or None for a file tghop leaves to Pillow (an OS/2 header, another depth or compression)."""
     size = struct.unpack("<I", head[14:18])[0]
-    if size < 40 or len(head) < 70:
+    if size < 40 or size == 64 or len(head) < 70:  # 64: OS/2's BITMAPCOREHEADER2, other fields after 40 bytes
         return None
     width, height, _, bits, compression = struct.unpack("<iiHHI", head[18:34])
     if bits not in (16, 32) or compression not in (_BI_RGB, _BI_BITFIELDS, _BI_ALPHABITFIELDS):
