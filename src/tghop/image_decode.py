@@ -175,8 +175,11 @@ def _hide_damaged_exif(path, say):
 
 def _without_damaged_exif(fh, name, say):
     """:func:`_hide_damaged_exif`'s copy of the file open as ``fh``, or None where it needs none."""
-    head = fh.read(1 << 20)  # the APP segments come first, each at most 64 KiB
-    at = 2 if head[:3] == b"\xff\xd8\xff" else len(head)
+    head = fh.read(3)
+    if head != b"\xff\xd8\xff":  # not a JPEG
+        return None
+    head += fh.read(1 << 20)  # the APP segments come first, each at most 64 KiB
+    at = 2
     while at + 4 <= len(head) and head[at] == 0xFF and head[at + 1] not in (0xD9, 0xDA):
         length = int.from_bytes(head[at + 2:at + 4], "big")
         block = head[at + 4:at + 2 + length]
