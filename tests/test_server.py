@@ -310,6 +310,12 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert_error(post("/api/models", files={"image": ("bomb.png", png_header(30000, 30000))}), 400,
                  "bomb.png", "too many pixels")
     assert_error(post("/api/models", files={"image": ("notes.txt", b"hello")}), 400, "notes.txt: not a readable image")
+    from PIL import Image
+
+    cut = io.BytesIO()  # 0.58: "(truncated or corrupt: OSError: ...); give a PNG, JPEG or other common image file"
+    Image.frombytes("RGB", (64, 64), bytes(range(256)) * 48).save(cut, format="TGA")
+    assert_error(post("/api/models", files={"image": ("cut.tga", cut.getvalue()[:5000])}), 400,
+                 "cut.tga: not a readable image (a TGA file, cut short (", "; save or download it again")
     assert_error(post("/api/models", files={"n_clusters": (None, "8")}), 400, "no exemplar")
     assert_error(post("/api/models", data={"builtin": "bricks"}), 400, "multipart")
     assert_error(post("/api/models", files={"builtin": (None, "marble")}), 400, "unknown built-in exemplar")
