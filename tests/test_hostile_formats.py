@@ -334,3 +334,19 @@ def test_is_image_says_nothing_of_a_damaged_exif_block_on_any_thread(tmp_path):
         reader.start()
         reader.join()
     assert answers == [True, True] and shown == []
+
+
+@pytest.mark.parametrize("fmt, suffix, name", [("AVIF", "avif", "an AVIF"), ("JPEG2000", "jp2", "a JPEG 2000")])
+def test_an_avif_or_jpeg_2000_cut_in_its_header_is_named_by_its_signature(tmp_path, fmt, suffix, name):
+    """0.58 said "not an image format tghop reads" of them (a format it reads) where Pillow has the decoder."""
+    from PIL import features
+
+    if not (features.check_module("avif") if fmt == "AVIF" else features.check_codec("jpg_2000")):
+        pytest.skip(f"this Pillow reads no {fmt}")
+    path = tmp_path / f"cut.{suffix}"
+    path.write_bytes(saved(fmt)[:40])
+    with pytest.raises(InvalidImageError) as error:
+        load_image(path)
+    assert str(error.value).startswith(f"{path}: not a readable image ({name} file, "), str(error.value)
+    assert str(error.value).endswith("; save or download it again") or "save or download it again, or" in \
+        str(error.value), str(error.value)

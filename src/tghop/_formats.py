@@ -172,7 +172,7 @@ def _unreadable(path, exc, found):
     if bits not in (None, 8):  # 0.57: "a JPEG file, but its header is corrupt or of a kind tghop does not read"
         return (f"a {bits}-bit JPEG, which Pillow does not read, only 8-bit ones: convert it to a 16-bit PNG or "
                 "TIFF"), _OTHER
-    for matches, name, _, _ in _READ_HEADS:  # 0.56: "not an image format tghop reads" of a PNG of width 0
+    for matches, name, _ in _READ_HEADS:  # 0.56: "not an image format tghop reads" of a PNG of width 0
         if matches(head):  # a decoder Pillow lacks was said before (missing_decoder): the file is at fault
             return f"{_a(name)} file, but its header is corrupt or of a kind tghop does not read", _EITHER
     named = _SUFFIX_FORMATS.get(_suffix(path))
@@ -199,7 +199,7 @@ _MORE_HEADS = ((b"BM", "BMP"), (b"8BPS", "PSD"), (b"DDS ", "DDS"), (b"\x00\x00\x
 def _signature_format(path):
     """The format whose signature starts the file at ``path`` ("JPEG"), of those tghop reads; None for none."""
     head = _file_head(path) or b""
-    for matches, name, _, _ in _READ_HEADS:
+    for matches, name, _ in _READ_HEADS:
         if matches(head):
             return name
     return next((name for start, name in _MORE_HEADS if head.startswith(start)), None)
@@ -250,21 +250,22 @@ def _file_head(path):
 
 
 #: The first bytes of formats tghop reads, each row: whether a file of them is that format
-#: (``matches(head)``), its name, whether :func:`why_unreadable` says a file Pillow cannot identify
-#: is one with a corrupt header (a width of 0, a checksum that fails) or of an odd kind (complex TIFF
-#: samples), not another format; and, for a format Pillow reads only where it was built with its
-#: library, the module or codec :mod:`PIL.features` checks for it (:func:`missing_decoder`).
+#: (``matches(head)``), its name (:func:`unreadable` calls a file Pillow cannot identify that starts
+#: so one of that format with a corrupt header: a width of 0, a checksum that fails, complex TIFF
+#: samples, an AVIF or JPEG 2000 cut short, which 0.58 called "not an image format tghop reads"); and,
+#: for a format Pillow reads only where it was built with its library, the module or codec
+#: :mod:`PIL.features` checks for it (:func:`missing_decoder`, asked first).
 #: :data:`_PILLOW_FROM` names the first Pillow that knows a format at all.
 _READ_HEADS = (
-    (lambda head: head.startswith(b"\x89PNG\r\n\x1a\n"), "PNG", True, None),
-    (lambda head: head.startswith(b"\xff\xd8\xff"), "JPEG", True, ("codec", "jpg")),
-    (lambda head: head.startswith((b"GIF87a", b"GIF89a")), "GIF", True, None),
-    (lambda head: head.startswith((b"II*\x00", b"MM\x00*")), "TIFF", True, None),
-    (lambda head: head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP", True, ("module", "webp")),
-    (lambda head: head[4:8] == b"ftyp" and head[8:12] in (b"avif", b"avis"), "AVIF", False, ("module", "avif")),
-    (lambda head: head.startswith((b"\x00\x00\x00\x0cjP  \r\n\x87\n", b"\xff\x4f\xff\x51")), "JPEG 2000", False,
+    (lambda head: head.startswith(b"\x89PNG\r\n\x1a\n"), "PNG", None),
+    (lambda head: head.startswith(b"\xff\xd8\xff"), "JPEG", ("codec", "jpg")),
+    (lambda head: head.startswith((b"GIF87a", b"GIF89a")), "GIF", None),
+    (lambda head: head.startswith((b"II*\x00", b"MM\x00*")), "TIFF", None),
+    (lambda head: head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP", ("module", "webp")),
+    (lambda head: head[4:8] == b"ftyp" and head[8:12] in (b"avif", b"avis"), "AVIF", ("module", "avif")),
+    (lambda head: head.startswith((b"\x00\x00\x00\x0cjP  \r\n\x87\n", b"\xff\x4f\xff\x51")), "JPEG 2000",
      ("codec", "jpg_2000")),
-    (lambda head: head.startswith(b"qoif"), "QOI", True, None),
+    (lambda head: head.startswith(b"qoif"), "QOI", None),
 )
 
 
@@ -316,7 +317,7 @@ def missing_decoder(path, exc=None):
         return None
     from PIL import features
 
-    for matches, name, _, built_with in _READ_HEADS:
+    for matches, name, built_with in _READ_HEADS:
         if not matches(head):
             continue
         if built_with is None:
