@@ -350,3 +350,36 @@ def test_an_avif_or_jpeg_2000_cut_in_its_header_is_named_by_its_signature(tmp_pa
     assert str(error.value).startswith(f"{path}: not a readable image ({name} file, "), str(error.value)
     assert str(error.value).endswith("; save or download it again") or "save or download it again, or" in \
         str(error.value), str(error.value)
+
+
+#: An EXIF block whose first directory is whole, the orientation (6) first, then a description whose value lies
+#: past the block's end: Pillow skips it warning "Truncated File Read" (or "Tag data larger than file").
+VALUE_PAST_END = (b"Exif\x00\x00MM\x00*" + struct.pack(">IH", 8, 2)
+                  + b"\x01\x12\x00\x03\x00\x00\x00\x01\x00\x06\x00\x00"
+                  + struct.pack(">HHII", 0x010E, 2, 40, 4000) + b"\x00\x00\x00\x00")
+
+
+@pytest.mark.parametrize("fmt, suffix", [("JPEG", "jpg"), ("PNG", "png"), ("WEBP", "webp")])
+@pytest.mark.parametrize("where", ["main thread", "another thread"])
+def test_an_exif_value_past_the_block_s_end_is_passed_over_without_pillow_s_warning(tmp_path, fmt, suffix, where):
+    """0.58 passed Pillow's warning on (main thread) or let it reach the console (other threads); the value is of
+    no use to tghop, and the orientation beside it is still applied."""
+    import threading
+
+    from PIL import features
+
+    if fmt == "WEBP" and not features.check_module("webp"):
+        pytest.skip("this Pillow reads no WebP")
+    path = tmp_path / f"past.{suffix}"
+    path.write_bytes(saved(fmt, exif=VALUE_PAST_END))
+    shapes, shown = [], []
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = lambda message, *args, **kwargs: shown.append(str(message))
+        if where == "main thread":
+            shapes.append(load_image(path).shape)
+        else:
+            reader = threading.Thread(target=lambda: shapes.append(load_image(path).shape))
+            reader.start()
+            reader.join()
+    assert shapes == [(48, 40, 3)] and shown == []  # 40x48 stored, orientation 6: turned

@@ -154,6 +154,41 @@ def _check_tiff_directory(path):
                                 "past the file's end); save or download it again")
 
 
+#: Bytes a value of each TIFF field type Pillow reads (an entry of another type it passes over without a word).
+_FIELD_BYTES = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8, 13: 4, 16: 8, 17: 8, 18: 8}
+
+
+def _values_past_end(tiff):
+    """Where (offsets in ``tiff``, an EXIF block less "Exif\\0\\0", whose first directory
+    :func:`exif_damage` found whole) the directory's entries are whose values lie past the block's end, or
+    whose values' sizes add up to more than it holds: Pillow skips each with a warning ("Tag data larger than
+    file", "Truncated File Read", the latter ending the directory there), on any thread. None is the
+    orientation, whose value is in its entry."""
+    order = "<" if tiff[:2] == b"II" else ">"
+    start = struct.unpack(order + "I", tiff[4:8])[0]
+    count = struct.unpack(order + "H", tiff[start:start + 2])[0]
+    total, found = 0, []
+    for entry in range(start + 2, start + 2 + 12 * count, 12):
+        _, kind, values, at = struct.unpack(order + "HHII", tiff[entry:entry + 12])
+        size = values * _FIELD_BYTES.get(kind, 0)
+        if size > 4:
+            total += size
+            if total > len(tiff) or at + size > len(tiff):
+                found.append(entry)
+    return found
+
+
+def _orientation_entry(tiff):
+    """The orientation (tag 274) an EXIF block's first directory (whole: :func:`exif_damage`) holds, or 1."""
+    order = "<" if tiff[:2] == b"II" else ">"
+    start = struct.unpack(order + "I", tiff[4:8])[0]
+    for entry in range(start + 2, start + 2 + 12 * struct.unpack(order + "H", tiff[start:start + 2])[0], 12):
+        tag, kind = struct.unpack(order + "HH", tiff[entry:entry + 4])
+        if tag == 274 and kind == 3:
+            return struct.unpack(order + "H", tiff[entry + 8:entry + 10])[0]
+    return 1
+
+
 def _hide_damaged_exif(path, say):
     """``path`` itself, or, for a JPEG file (a path, or a binary file object from where it stands) whose EXIF
     block (APP1) :func:`exif_damage` finds damaged, the file's bytes in memory with that block renamed so
@@ -185,12 +220,17 @@ def _without_damaged_exif(fh, name, say):
         block = head[at + 4:at + 2 + length]
         if head[at + 1] == 0xE1 and block[:6] == b"Exif\x00\x00" and at + 2 + length <= len(head):
             why = exif_damage(block)
-            if why is None:
+            past = [] if why or block[6:10] not in (b"II*\x00", b"MM\x00*") else _values_past_end(block[6:])
+            if why is None and not past:
                 return None
-            if say:
+            if why and say:
                 _warn_exif(name, why)
             data = bytearray(head + fh.read())
-            data[at + 4:at + 8] = b"Exi_"  # no longer "Exif": Pillow keeps the segment as an unknown one
+            if why:
+                data[at + 4:at + 8] = b"Exi_"  # no longer "Exif": Pillow keeps the segment as an unknown one
+            for entry in past:  # a value past the block's end (no word: the orientation is read all the same)
+                kind = at + 4 + 6 + entry + 2
+                data[kind:kind + 2] = b"\x00\x00"  # a field type Pillow passes over without a word
             return io.BytesIO(bytes(data))
         at += 2 + length
     return None
@@ -539,6 +579,10 @@ def _exif_orientation(im) -> int:
     if why:  # a PNG's or WebP's, which Pillow parses here (a JPEG's: open_image): tghop's words in every thread
         _warn_exif(getattr(im, "filename", "") or "the image", why)
         return 1
+    tiff = exif[6:] if isinstance(exif, bytes) and exif[:6] == b"Exif\x00\x00" else exif
+    if im.format != "JPEG" and isinstance(tiff, bytes) and tiff[:4] in (b"II*\x00", b"MM\x00*") \
+            and _values_past_end(tiff):  # Pillow would warn of each; the orientation read here, without a word
+        return _orientation_entry(tiff)
     try:
         return int(im.getexif().get(0x0112, 1))
     except Exception:  # noqa: BLE001 - a damaged EXIF block: the pixels as stored
