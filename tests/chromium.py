@@ -62,8 +62,10 @@ def load_empty(page):
 
 def set_fit_settings(page, values):
     """Open the page's fit settings, turn the coarse-to-fine layout off and fill the fields of
-    ``values`` (``{field id: text}``: the tests' fast fit, ``conftest.FAST_FIT``)."""
-    page.click("#fit-settings summary")
+    ``values`` (``{field id: text}``: the tests' fast fit, ``conftest.FAST_FIT``). Open already (0.59: kept open across
+    a reload), they are left open."""
+    if not page.eval_on_selector("#fit-settings", "d => d.open"):
+        page.click("#fit-settings summary")
     page.uncheck("#layout")
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
         page.fill(f"#{name}", values[name])

@@ -174,8 +174,9 @@ def test_the_recent_results_outlive_a_reload_and_a_materials_downloads_every_map
         assert archive.testzip() is None
         assert archive.namelist() == ["tghop-bricks-32x40-seed5.png", "tghop-bricks-32x40-seed5_height.png"]
     # Shown again from the store, with its settings
-    page.click("#history figure[data-index='1'] button")
-    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 4'")
+    page.click("#history figure[data-index='1'] button")  # the texture model's, beside the material (0.59: said)
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 4"
+                           " (made with builtin:bricks, not builtin:bricks + 1 maps)'")
     assert page.input_value("#seed") == "4" and page.is_checked("#tile")
     assert page.get_attribute("#download-png", "download") == "tghop-bricks-32x40-seed4-tile.png"
     page.click("#history figure[data-index='0'] button")

@@ -263,8 +263,9 @@ def fresh_page(page):
 
 
 #: JavaScript (a function of [[base64 bytes, file name], ...]): drop the files on the drop area at once,
-#: as a drag of several files from the desktop does; returns the message said at once.
-DROP_FILES_JS = """(files) => {
+#: as a drag of several files from the desktop does; returns the message said (0.59: once the page has read the
+#: files' sizes, a few milliseconds).
+DROP_FILES_JS = """async (files) => {
   const transfer = new DataTransfer();
   for (const [data, name] of files) {
     const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0));
@@ -274,7 +275,11 @@ DROP_FILES_JS = """(files) => {
   for (const type of ['dragover', 'drop']) {
     area.dispatchEvent(new DragEvent(type, { bubbles: true, cancelable: true, dataTransfer: transfer }));
   }
-  return document.getElementById('message').textContent;
+  const message = document.getElementById('message');
+  for (let i = 0; i < 500 && !message.textContent.includes('files dropped'); i++) {
+    await new Promise((done) => setTimeout(done, 20));
+  }
+  return message.textContent;
 }"""
 
 

@@ -27,7 +27,7 @@ function setMode(mode) {
   $("morph").hidden = mode !== "morph";
   $("cooc").hidden = mode !== "cooc";
   if (mode === "cooc") coocShown();
-  if (inpaint) inpaintHint();
+  if (inpaint) { inpaintHint(); showEditor(); }
   if (mode === "paint") {
     resizeGuide();
     if (state.models.length < 2) sayPaint(PAINT_HINT); else paintPicked();
@@ -162,7 +162,9 @@ async function init() {
     if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
   });
   window.addEventListener("pagehide", onPageHide);
+  wireKeptFields();  // Generate's fields and the fit settings kept across a reload (history.js)
   await restoreHistory();  // the recent results of before a reload
+  await restoreFields();  // the fields
   await restoreWorking();  // and its working model
   document.body.dataset.ready = "1";
 }

@@ -19,6 +19,8 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   browsed: null,
   // The result shown, as showResult was given it ({seed, blob, what, name}): what Inpaint's Undo shows again.
   lastShown: null,
+  // The result's caption's parts ({what, seed, of}: showPicture), put together by resultCaption (generate.js).
+  caption: null,
   // What the server said of reading model files (an upload's notes, a summary's, a generation's X-Tghop-Warning)
   // and the page has said: each said once (unsaid).
   notesSaid: new Set() };

@@ -40,6 +40,7 @@ function exemplarCaption() {
   caption.textContent = state.exemplarUrl ? `exemplar${enlarged}`
     : file ? `${working.name} (a model file: no picture of its exemplar)` : "";
   caption.hidden = !caption.textContent;
+  resultCaption();  // whether the result beside it is of its model
 }
 
 // The working model: {source, exemplarUrl, modelId, material, name, maps}, or null (none). A refused or cancelled
@@ -178,6 +179,18 @@ async function setMapFiles(files) {
   if (!useMapFiles(files)) return;
   const browsed = withdrawBuiltin();  // browsed to by keyboard, waiting: the exemplar these maps go with
   const source = state.source, chosen = state.mapFiles;
+  if (browsed && chosen.length) {  // compared with it first, as with a source (0.58 sent them unchecked)
+    state.mapsChecking = chosen;  // a pick meanwhile takes them (clearOthersMaps), and compares them itself
+    const other = await otherSize(chosen, `/api/builtins/${browsed}.png`);
+    if (state.browsed && state.mapsChecking === chosen) return;  // browsed on meanwhile: the one settled on takes them
+    if (state.mapsChecking === chosen) state.mapsChecking = null;
+    if (state.source !== source || state.mapFiles !== chosen) return;  // another pick or maps meanwhile
+    if (other) {  // they wait for their albedo, and the built-in is fitted without them, said (fitSource)
+      listMaps(chosen, { source: { builtin: browsed }, other });
+      fitBuiltin(browsed);
+      return;
+    }
+  }
   if (!browsed && source && !chosen.length && undo.held) {
     const kept = state.working ? ` (the model of ${state.working.name} stays)` : "";
     say(`maps dropped: they were waiting for the next exemplar${kept}`);
@@ -391,8 +404,10 @@ function sameSource(a, b) {
 const ALBEDO_NAME = /(^|[^a-z])(albedo|diff|diffuse|(base)?colou?r)([^a-z]|$)/i;
 
 // Several files dropped at once are a material: the exemplar (its albedo) is the one named like an
-// albedo when exactly one is, else the first; the others are its maps. A model file goes on its own.
-function dropFiles(files) {
+// albedo when exactly one is, else the first; the others are its maps. A model file goes on its own. A map of another
+// size than the albedo's (as the browser reads them) refuses the drop, said, nothing used (0.58 sent them, and the
+// server refused the fit naming the sizes).
+async function dropFiles(files) {
   const model = files.find((f) => /\.(npz|pt)$/i.test(f.name));
   if (model) {
     say(`${files.length} files dropped: drop the model file ${model.name} on its own (nothing was used)`, true);
@@ -401,6 +416,15 @@ function dropFiles(files) {
   const named = files.filter((f) => ALBEDO_NAME.test(f.name.replace(/\.[^.]*$/, "")));
   const albedo = named.length === 1 ? named[0] : files[0];
   const maps = files.filter((f) => f !== albedo);
+  const request = state.fitRequest, source = state.source;
+  const other = await otherSize(maps, albedo);
+  if (request !== state.fitRequest || source !== state.source) return;  // another pick meanwhile
+  if (other) {
+    const sizes = `${other.size.join("x")}, not the ${other.exemplar.join("x")} of ${albedo.name}`;
+    say(`${files.length} files dropped: ${other.name} is ${sizes}, the albedo; a material's maps are of its albedo's ` +
+        "size (nothing was used)", true);
+    return;
+  }
   const undo = { mapFiles: state.mapFiles, held: heldNow(), name: albedo.name };
   if (!useMapFiles(maps)) return;
   fitFile(albedo, undo);

@@ -52,11 +52,9 @@ function showResult(url, seed, blob, what, maps, name, pick) {
 // `seed` null: a picture of the user's own (no seed said).
 function showPicture(url, what, seed, filename, of) {
   const img = $("result");
+  state.caption = { what, seed, of };
   img.onload = () => {
-    $("result-caption").textContent = `${what}: ${img.naturalHeight}x${img.naturalWidth}` +
-      (seed === null ? "" : `, seed ${seed}`) +
-      (of ? ` (${of})` : "");
-    $("result-caption").hidden = false;
+    resultCaption();
     drawTiled(img);
   };
   img.src = url;
@@ -65,6 +63,28 @@ function showPicture(url, what, seed, filename, of) {
   link.href = url;
   link.setAttribute("download", filename);
   link.hidden = false;
+}
+
+// The result's caption: what it is, its size and seed, and the models of a result of several; a result of one model
+// that is not the one the exemplar beside it goes with (another exemplar picked since, or an older result shown again)
+// names it (0.59: "result: 256x256, seed 1 (made with builtin:bricks, not builtin:cells)"; 0.58 said nothing, and the
+// cells exemplar stood beside a bricks result). Said again when the model changes (exemplarCaption).
+function resultCaption() {
+  const img = $("result"), parts = state.caption;
+  if (!parts || img.hidden || !img.complete || !img.naturalWidth) return;
+  const name = state.lastShown && state.lastShown.name, now = state.pendingName;
+  const other = !parts.of && name && name.model && name.model !== state.modelId ?
+    ` (made with ${name.by}${now && now !== name.by ? `, not ${now}` : ""})` : "";
+  $("result-caption").textContent = `${parts.what}: ${img.naturalHeight}x${img.naturalWidth}` +
+    (parts.seed === null ? "" : `, seed ${parts.seed}`) + (parts.of ? ` (${parts.of})` : other);
+  $("result-caption").hidden = false;
+}
+
+// What a result of the model `id` keeps of it (showResult's `name`): its id and name, for resultCaption.
+function madeBy(id) {
+  const working = state.working && state.working.modelId === id ? state.working.name : null;
+  const listed = state.models.find((m) => m.id === id);
+  return { model: id, by: working || (listed ? listed.name : "another model") };
 }
 
 // The maps of the material shown: one radio each (the picture, its tiling and Download PNG follow it),
@@ -127,7 +147,8 @@ function onGenerate(event) {
     const body = generation(seed);
     const { blob, maps, warning } = await withProgress("gen-progress",
                                                        (headers) => generate(body, state.modelId, headers));
-    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps, { models: [workingStem()], ...body });
+    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps,
+               { models: [workingStem()], ...body, ...madeBy(state.modelId) });
     const notes = unsaid([warning]);
     sayGenerate(notes.length ? withWarning(`seed ${seed} done`, notes[0]) : "");
     await reveal($("result"));
@@ -187,6 +208,7 @@ function onStrip() {
     strip.textContent = "";
     strip.dataset.model = id;
     const first = Number($("seed").value), stem = workingStem(), run = {};  // run: this strip's picks (keepResult)
+    const made = madeBy(id);
     let warned = "";  // what reading the model's file warned of, not said yet (onGenerate), said with the hint
     const [h, w] = [Number($("height").value), Number($("width").value)];
     for (let i = 0; i < 8; i++) {
@@ -212,8 +234,9 @@ function onStrip() {
         for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
         img.classList.add("chosen");
         $("seed").value = String(seed);
+        keepFields();  // across a reload (history.js)
         showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps,
-                   { models: [stem], ...body }, run);
+                   { models: [stem], ...body, ...made }, run);
       });
       img.addEventListener("keydown", (e) => {
         if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }

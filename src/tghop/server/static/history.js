@@ -212,6 +212,7 @@ function showAgain(entry) {
   $("n_patches").value = name.n_patches === undefined ? "" : String(name.n_patches);
   $("paper-gen").checked = Boolean(name.paper);
   $("quality").value = name.quality || "default";
+  keepFields();
   sayGenerate(`seed ${seed} shown again: its settings are back in the fields above`);
 }
 
@@ -225,6 +226,46 @@ function keepWorking(working) {
     maps: working.maps || [],
   } : null;
   storeDo("readwrite", (store) => (record ? store.put(record, "working") : store.delete("working")), PAGE_STORE);
+}
+
+// Generate's fields and the fit settings (their values, and whether the settings are open) kept across a reload too
+// (0.59: they went back to their defaults while the model and the results came back, so that the next Generate made
+// a 256x256 of seed 1 whatever the artist had set), in the page's store (record "fields"), at each change.
+const KEPT_FIELDS = ["height", "width", "seed", "refine", "n_patches", "tile", "paper-gen", "quality",
+  "layout", "paper-fit", "scale", "n_clusters", "n_codewords", "stride", "max_patches"];
+// `touched`: a field changed before the store answered (restoreFields), which it does not overwrite.
+const keptFields = { restored: false, touched: false };
+
+function keepFields() {
+  if (!keptFields.restored) keptFields.touched = true;
+  const record = { open: $("fit-settings").open };
+  for (const id of KEPT_FIELDS) record[id] = $(id).type === "checkbox" ? $(id).checked : $(id).value;
+  storeDo("readwrite", (store) => store.put(record, "fields"), PAGE_STORE);
+}
+
+// Each field's change kept (keepFields); a value the page sets itself (a recent result shown again, a seed picked)
+// is kept by its setter.
+function wireKeptFields() {
+  for (const id of KEPT_FIELDS) {
+    $(id).addEventListener("input", keepFields);
+    $(id).addEventListener("change", keepFields);
+  }
+  $("fit-settings").addEventListener("toggle", keepFields);
+}
+
+// The fields of before the reload put back (each of the kind it is: a value a menu lacks is left). Called once, when
+// the page starts, after the store has opened.
+async function restoreFields() {
+  const kept = await storeDo("readonly", (store) => store.get("fields"), PAGE_STORE);
+  keptFields.restored = true;
+  if (!kept || keptFields.touched) return;
+  for (const id of KEPT_FIELDS) {
+    const el = $(id), value = kept[id];
+    if (el.type === "checkbox" && typeof value === "boolean") el.checked = value;
+    else if (el.type !== "checkbox" && typeof value === "string" &&
+             (el.tagName !== "SELECT" || [...el.options].some((o) => o.value === value))) el.value = value;
+  }
+  if (typeof kept.open === "boolean") $("fit-settings").open = kept.open;
 }
 
 // The working model of before the reload made the working one again, when the server still has it (its cache may

@@ -37,9 +37,8 @@ function setEditorPicture(blob, name, maps) {
       context2d(canvas).putImageData(editor.pendingMask, 0, 0);  // an undone Fill's hole
     }
     editor.pendingMask = null;
-    // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on.
-    $("editor").style.width = `${Math.max(w, Math.min(3 * w, 640))}px`;
     $("editor").hidden = false;
+    sizeEditor();
     $("editor").dataset.ready = "1";
   };
   img.onerror = () => {
@@ -52,6 +51,31 @@ function setEditorPicture(blob, name, maps) {
   img.src = editor.url;
   updateButtons();
   inpaintHint();
+}
+
+// Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on; while Inpaint is shown, no
+// larger than lets the mode's row, its tools and the whole picture be seen at once (a picture shown at its size stays
+// so). 0.58 showed a 256x256 result 640 px high under the tools: at 1024x700 its lower part was below the fold.
+function sizeEditor() {
+  const box = $("editor"), img = $("editor-base"), w = img.naturalWidth, h = img.naturalHeight;
+  if (!w || !h) return;
+  let width = Math.min(3 * w, 640);
+  if (!$("inpaint").hidden) {
+    const above = box.getBoundingClientRect().top - $("modes-row").getBoundingClientRect().top;
+    width = Math.min(width, Math.floor((window.innerHeight - above - EDITOR_MARGIN) * w / h));
+  }
+  box.style.width = `${Math.max(w, width)}px`;
+}
+
+// Pixels left under the picture to paint on (its border, and a little of the page).
+const EDITOR_MARGIN = 12;
+
+// Inpaint chosen: the picture to paint on sized (sizeEditor) and brought into view with the mode's row and the tools
+// above it, where it is not wholly in view (0.58 left it below the fold, to be scrolled to before painting).
+function showEditor() {
+  sizeEditor();
+  const box = $("editor").hidden ? $("inpaint") : $("editor"), rect = box.getBoundingClientRect();
+  if (rect.top < 0 || rect.bottom > window.innerHeight) $("modes-row").scrollIntoView({ block: "start" });
 }
 
 function clearMask() {
@@ -298,7 +322,7 @@ async function sendPicture(path, fields, what, size) {
     shown: state.lastShown && state.lastShown.blob === editor.blob ? state.lastShown : null,
     grow: path === "extend" ? size.map(String) : null } };
   showResult(URL.createObjectURL(blob), used, blob, what, maps,
-             { models: [workingStem()], size, tile: $("inpaint-tile").checked });
+             { models: [workingStem()], size, tile: $("inpaint-tile").checked, ...madeBy(state.modelId) });
   editor.history = [...history, before].slice(-UNDO_STEPS);
   return [used, response.headers.get("X-Tghop-Warning") || ""];
 }

@@ -1,0 +1,203 @@
+"""``tghop serve``'s page used as an artist uses it, in a real browser (Chromium through Playwright) against a real
+uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do;
+maps of another size than their albedo are refused on the page, not sent (dropped at once with it, or added while a
+built-in browsed to by keyboard waits); a result shown beside another model's exemplar names its model; Inpaint
+shows its picture whole with its tools at 1024x700."""
+
+import pytest
+
+import chromium
+
+if chromium.missing():
+    pytest.skip(chromium.missing(), allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed: pip install -e '.[web-test]'")
+
+from conftest import FAST_FIT, png  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def page(live_server):
+    with chromium.served_page(live_server.url + "/") as page:
+        yield page
+
+
+def fresh_page(page):
+    """The page as on a first visit (nothing kept), with the fast fit settings."""
+    chromium.load_empty(page)
+    page.errors.clear()
+    chromium.set_fit_settings(page, FAST_FIT)
+
+
+def posted_fits(page):
+    """The bodies of the fits the page asks for from now on (``POST /api/models``), a list that fills as they go."""
+    bodies = []
+    page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    return bodies
+
+
+def wait_said(page, fragment, timeout=90_000):
+    try:
+        page.wait_for_function("(f) => document.getElementById('message').textContent.includes(f)", arg=fragment,
+                               timeout=timeout)
+    except sync_api.TimeoutError:
+        raise AssertionError(f"{fragment!r} never said: {page.text_content('#message')!r}") from None
+    return page.text_content("#message")
+
+
+def generate(page, seed, size=(32, 40)):
+    page.fill("#height", str(size[0]))
+    page.fill("#width", str(size[1]))
+    page.fill("#seed", str(seed))
+    page.click("#go")
+    page.wait_for_function("(s) => document.getElementById('result-caption').textContent.includes(s) &&"
+                           " document.getElementById('go').textContent === 'Generate'", arg=f"seed {seed}",
+                           timeout=90_000)
+
+
+def rock_files():
+    """[[base64 PNG, name]] of a 128x160 albedo (another size than the built-ins') and its normal map."""
+    import base64
+
+    from tghop import data
+    from tghop.imageio import to_uint8, to_uint16
+    from tghop.material import example_maps
+
+    rock = data.builtin("cells")[:128, :160]
+    files = {"rock_albedo.png": png(to_uint8(rock)), "rock_normal.png": png(to_uint16(example_maps(rock)["normal"]))}
+    return [[base64.b64encode(b).decode(), name] for name, b in files.items()]
+
+
+#: JavaScript (a function of [[base64 bytes, file name], ...]): File objects of them.
+FILES_JS = """(files) => files.map(([data, name]) =>
+  new File([Uint8Array.from(atob(data), (c) => c.charCodeAt(0))], name, { type: "image/png" }))"""
+
+
+def test_a_reload_keeps_generates_fields_and_the_fit_settings(page):
+    # A reload brought the model and the recent results back, but Generate's fields and the fit settings went back to
+    # their defaults: the next Generate made a 256x256 of seed 1, untiled, and the next fit the default settings.
+    fresh_page(page)
+    page.fill("#height", "48")
+    page.fill("#width", "64")
+    page.fill("#seed", "7")
+    page.fill("#refine", "2")
+    page.check("#tile")
+    page.select_option("#quality", "best")
+    page.fill("#scale", "0.5")
+    kept = "(r) => r && r.seed === '7' && r.scale === '0.5' && r.quality === 'best' && r.tile === true && r.open"
+    for _ in range(100):  # kept at each change (a few milliseconds)
+        if page.evaluate(f"storeDo('readonly', (s) => s.get('fields'), 'page').then({kept})"):
+            break
+        page.wait_for_timeout(50)
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    values = page.evaluate("""() => Object.fromEntries(["height", "width", "seed", "refine", "n_patches", "tile",
+      "paper-gen", "quality", "layout", "scale", "n_clusters", "n_codewords", "stride", "max_patches"].map((id) => {
+        const e = document.getElementById(id);
+        return [id, e.type === "checkbox" ? e.checked : e.value];
+      }))""")
+    assert values == {"height": "48", "width": "64", "seed": "7", "refine": "2", "n_patches": "", "tile": True,
+                      "paper-gen": False, "quality": "best", "layout": False, "scale": "0.5", "n_clusters": "8",
+                      "n_codewords": "40", "stride": "4", "max_patches": "1500"}, values
+    assert page.eval_on_selector("#fit-settings", "d => d.open")  # the settings shown as they were left
+    chromium.load_empty(page)  # forgotten with the rest
+    assert page.input_value("#height") == "256" and page.input_value("#seed") == "1" and not page.is_checked("#tile")
+    assert page.is_checked("#layout") and page.input_value("#n_clusters") == ""
+    assert not page.errors, page.errors
+
+
+def test_maps_of_another_size_than_their_albedo_are_refused_on_the_page(page):
+    # Dropping an albedo and a map of another size at once, or adding maps while a built-in browsed to by keyboard
+    # waited, sent the maps unchecked: the server refused the fit, naming the sizes (a 400 in the console).
+    import base64
+
+    from tghop import data
+    from tghop.imageio import to_uint8
+
+    fresh_page(page)
+    sent = posted_fits(page)
+    rock = rock_files()
+    wall = [[base64.b64encode(png(to_uint8(data.bricks(96)))).decode(), "wall_color.png"],
+            [rock[1][0], "wall_normal.png"]]  # the normal map of a 128x160 picture
+    page.evaluate(f"""(files) => {{
+      const transfer = new DataTransfer();
+      for (const file of ({FILES_JS})(files)) transfer.items.add(file);
+      const area = document.getElementById("drop");
+      for (const type of ["dragover", "drop"]) {{
+        area.dispatchEvent(new DragEvent(type, {{ bubbles: true, cancelable: true, dataTransfer: transfer }}));
+      }}
+    }}""", wall)
+    said = wait_said(page, "files dropped")
+    assert said == ("2 files dropped: wall_normal is 128x160, not the 96x96 of wall_color.png, the albedo; "
+                    "a material's maps are of its albedo's size (nothing was used)"), said
+    assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
+    assert not sent and page.is_hidden("#fit-status") and page.text_content("#maps-list") == ""
+    # Maps added while a built-in browsed to by keyboard waits (fitted once the choice settles): of another size than
+    # it, they wait for their albedo, and the built-in is fitted without them.
+    page.evaluate(f"""(files) => {{
+      fitBuiltinSoon("bricks");  // ArrowDown on the closed menu...
+      setMapFiles(({FILES_JS})(files).slice(1));  // ...and maps added before it settles
+    }}""", rock)
+    said = wait_said(page, "this fit is without them")
+    assert said == "rock_normal is 128x160, not the 256x256 of builtin:bricks: the maps wait for their albedo " \
+                   "(this fit is without them)", said
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " document.getElementById('summary').textContent.startsWith('model ')", timeout=90_000)
+    assert len(sent) == 1 and b"map:" not in sent[0] and b"bricks" in sent[0]
+    assert page.text_content("#maps-list") == "maps for the next exemplar: rock_normal"
+    assert page.evaluate("state.working.name") == "builtin:bricks"
+    assert not page.errors, page.errors  # no refusal: nothing was sent to be refused
+
+
+def test_a_result_beside_another_models_exemplar_names_its_model(page):
+    # Another exemplar picked and fitted left the last result beside it, its caption naming no model: the cells
+    # exemplar stood beside a bricks result, as if cells' model had made it.
+    fresh_page(page)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 1)
+    assert page.text_content("#result-caption") == "result: 32x40, seed 1"
+    page.select_option("#builtin", "cells")  # said from the moment the cells exemplar is shown
+    page.wait_for_function("document.getElementById('result-caption').textContent ==="
+                           " 'result: 32x40, seed 1 (made with builtin:bricks, not builtin:cells)'", timeout=10_000)
+    page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"
+                           " state.working.name === 'builtin:cells' && !document.getElementById('summary').hidden",
+                           timeout=90_000)
+    assert page.text_content("#result-caption") == "result: 32x40, seed 1 (made with builtin:bricks, not builtin:cells)"
+    generate(page, 2)  # cells' own: nothing to say
+    assert page.text_content("#result-caption") == "result: 32x40, seed 2"
+    page.click("#history figure[data-index='1'] button")  # bricks' shown again beside cells
+    page.wait_for_function("document.getElementById('result-caption').textContent ==="
+                           " 'result: 32x40, seed 1 (made with builtin:bricks, not builtin:cells)'")
+    chromium.fit_builtin(page, "bricks")  # its model working again: no more said
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 1'")
+    assert not page.errors, page.errors
+
+
+def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
+    # At 1024x700 the picture to paint on (a 256x256 result shown 640 px high) began below the fold when Inpaint was
+    # chosen: the artist had to scroll to paint, and could not see the brush's tools and the whole picture at once.
+    fresh_page(page)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 3, size=(256, 256))
+    page.set_viewport_size({"width": 1024, "height": 700})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "inpaint")
+        page.wait_for_selector("#editor[data-ready='1']")
+        boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#brush", "#fill", "#mask")}
+        for selector, box in boxes.items():
+            assert box["y"] >= 0 and box["y"] + box["height"] <= 700, (selector, box)
+        assert boxes["#mask"]["height"] >= 256  # never smaller than the picture itself
+        stroke = boxes["#mask"]  # painting where the pointer is, at the size shown
+        page.mouse.move(stroke["x"] + 10, stroke["y"] + stroke["height"] / 2)
+        page.mouse.down()
+        page.mouse.move(stroke["x"] + stroke["width"] - 10, stroke["y"] + stroke["height"] / 2, steps=5)
+        page.mouse.up()
+        row = page.eval_on_selector("#mask", "c => { const d = c.getContext('2d').getImageData(0, 128, 256, 1).data;"
+                                    " return [d[4 * 20 + 3], d[4 * 128 + 3], d[4 * 236 + 3]]; }")
+        assert all(alpha > 127 for alpha in row), row
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
