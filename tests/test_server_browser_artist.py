@@ -2,7 +2,7 @@
 uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do;
 maps of another size than their albedo are refused on the page, not sent (dropped at once with it, or added while a
 built-in browsed to by keyboard waits); a result shown beside another model's exemplar names its model; Inpaint
-shows its picture whole with its tools at 1024x700."""
+shows its picture whole with its tools at 1024x700, and so does Paint its canvas."""
 
 import pytest
 
@@ -197,6 +197,36 @@ def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
         row = page.eval_on_selector("#mask", "c => { const d = c.getContext('2d').getImageData(0, 128, 256, 1).data;"
                                     " return [d[4 * 20 + 3], d[4 * 128 + 3], d[4 * 236 + 3]]; }")
         assert all(alpha > 127 for alpha in row), row
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
+
+
+def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
+    # At 1024x700 Paint's canvas (a 256x256 output shown 640 px high) began low under Paint's tools when the mode was
+    # chosen: two thirds of it below the fold, the artist scrolling between the brush colours and the canvas.
+    fresh_page(page)
+    chromium.fit_builtin(page, "bricks")
+    chromium.fit_builtin(page, "cells")
+    page.fill("#height", "256")
+    page.fill("#width", "256")
+    page.set_viewport_size({"width": 1024, "height": 700})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "paint")
+        boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#paint-colours", "#paint-go", "#guide")}
+        for selector, box in boxes.items():
+            assert box["y"] >= 0 and box["y"] + box["height"] <= 700, (selector, box)
+        assert boxes["#guide"]["height"] >= 256
+        page.locator("#paint-colours label").nth(1).click()  # cells' colour, across the middle
+        box = boxes["#guide"]
+        page.mouse.move(box["x"] + 10, box["y"] + box["height"] / 2)
+        page.mouse.down()
+        page.mouse.move(box["x"] + box["width"] - 10, box["y"] + box["height"] / 2, steps=5)
+        page.mouse.up()
+        row = page.evaluate("[20, 128, 236].map((x) => guide.labels[128 * 256 + x])")
+        assert row == [1, 1, 1] and page.evaluate("guide.labels[0]") == 0, row
         chromium.choose_mode(page, "view")
     finally:
         page.set_viewport_size({"width": 1200, "height": 1400})

@@ -30,6 +30,8 @@ function setMode(mode) {
   if (inpaint) { inpaintHint(); showEditor(); }
   if (mode === "paint") {
     resizeGuide();
+    sizeGuide();  // sized for the window now that it is shown, and brought into view
+    intoView($("guide-box"));
     if (state.models.length < 2) sayPaint(PAINT_HINT); else paintPicked();
   }
   if (mode === "morph" && state.models.length < 2) sayMorph(MORPH_HINT);

@@ -174,6 +174,23 @@ function showStage(bar, label, text) {
   bar.setAttribute("aria-valuetext", text);
 }
 
+// The widest a picture of w x h to paint on (Inpaint's, Paint's), in `box`, may be shown for the mode's row, the tools
+// between it and the picture, and the whole picture to be seen in the window at once (0.59; PAINT_MARGIN under it).
+function roomFor(box, w, h) {
+  const above = box.getBoundingClientRect().top - $("modes-row").getBoundingClientRect().top;
+  return Math.floor((window.innerHeight - above - PAINT_MARGIN) * w / h);
+}
+
+// Pixels left under a picture to paint on (its border, and a little of the page).
+const PAINT_MARGIN = 12;
+
+// A mode chosen: `box` (its picture to paint on) brought into view with the mode's row at the top, where it is not
+// wholly in view.
+function intoView(box) {
+  const rect = box.getBoundingClientRect();
+  if (rect.top < 0 || rect.bottom > window.innerHeight) $("modes-row").scrollIntoView({ block: "start" });
+}
+
 // A new job id for a generation: 32 hex digits (the request's X-Tghop-Job header; docs/serve.md, "Jobs").
 function newJobId() {
   return [...crypto.getRandomValues(new Uint8Array(16))].map((b) => b.toString(16).padStart(2, "0")).join("");

@@ -54,28 +54,20 @@ function setEditorPicture(blob, name, maps) {
 }
 
 // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on; while Inpaint is shown, no
-// larger than lets the mode's row, its tools and the whole picture be seen at once (a picture shown at its size stays
-// so). 0.58 showed a 256x256 result 640 px high under the tools: at 1024x700 its lower part was below the fold.
+// larger than lets the mode's row, its tools and the whole picture be seen at once (roomFor; a picture shown at its
+// size stays so). 0.58 showed a 256x256 result 640 px high under the tools: at 1024x700 it ran below the fold.
 function sizeEditor() {
   const box = $("editor"), img = $("editor-base"), w = img.naturalWidth, h = img.naturalHeight;
   if (!w || !h) return;
-  let width = Math.min(3 * w, 640);
-  if (!$("inpaint").hidden) {
-    const above = box.getBoundingClientRect().top - $("modes-row").getBoundingClientRect().top;
-    width = Math.min(width, Math.floor((window.innerHeight - above - EDITOR_MARGIN) * w / h));
-  }
-  box.style.width = `${Math.max(w, width)}px`;
+  const room = $("inpaint").hidden ? Infinity : roomFor(box, w, h);
+  box.style.width = `${Math.max(w, Math.min(3 * w, 640, room))}px`;
 }
 
-// Pixels left under the picture to paint on (its border, and a little of the page).
-const EDITOR_MARGIN = 12;
-
 // Inpaint chosen: the picture to paint on sized (sizeEditor) and brought into view with the mode's row and the tools
-// above it, where it is not wholly in view (0.58 left it below the fold, to be scrolled to before painting).
+// above it (0.58 left it below the fold, to be scrolled to before painting).
 function showEditor() {
   sizeEditor();
-  const box = $("editor").hidden ? $("inpaint") : $("editor"), rect = box.getBoundingClientRect();
-  if (rect.top < 0 || rect.bottom > window.innerHeight) $("modes-row").scrollIntoView({ block: "start" });
+  intoView($("editor").hidden ? $("inpaint") : $("editor"));
 }
 
 function clearMask() {

@@ -125,6 +125,16 @@ function resizeGuide(force) {
   if (!force && guide.labels && guide.h === h && guide.w === w) return;
   const first = pickedModels()[0];
   resetBoard(guide, h, w, first ? first.index : 0);
+  sizeGuide();
+}
+
+// The guide shown no larger (board.js enlarges a small one up to 4 times, 640 px) than lets the mode's row, Paint's
+// tools and the whole canvas be seen at once while Paint is shown (roomFor; 0.59: at 1024x700 a 256x256 canvas ran
+// 640 px below the fold under the tools). A canvas shown at its size stays so.
+function sizeGuide() {
+  const canvas = $("guide"), w = canvas.width, h = canvas.height;
+  if ($("paint").hidden || !w || !h) return;
+  canvas.style.width = `${Math.max(w, Math.min(4 * w, 640, roomFor($("guide-box"), w, h)))}px`;
 }
 
 // A file's bytes as a data: URL (what the API's guide fields take).
