@@ -60,3 +60,41 @@ def test_count_draws_its_images_one_after_another_from_the_seed(folder):
                 *GEN, cwd=folder)
         assert r.returncode == 0, r.stderr.decode()
     assert (folder / "c1.png").read_bytes() == (folder / "c2_1.png").read_bytes()
+
+
+@pytest.mark.parametrize("args", [
+    ["inpaint", "photo.png", "hole.png", "--source", "a.npz"],
+    ["inpaint", "big.png", "bighole.png"],  # fitted on the photo once: fills 2 and 3 are drawn after fill 1
+    ["extend", "photo.png", "--size", "64x96", "--source", "a.npz"],
+])
+def test_fill_count_numbers_its_files_as_synth_and_fill_k_is_any_counts(folder, args):
+    from PIL import Image
+
+    if not (folder / "big.png").exists():
+        hole = np.zeros((128, 128), dtype=np.uint8)
+        hole[50:74, 40:80] = 255
+        Image.fromarray(hole).save(folder / "bighole.png")
+        Image.fromarray((data.bricks(128, rng=2) * 255).round().astype(np.uint8)).save(folder / "big.png")
+    # 0.58 had no --count on inpaint or extend (the README's way round: fit once with --exclude, then a run per
+    # --seed); 0.59's fills one after another from one fit, image k the same in any --count of k or more.
+    for count in (1, 3):
+        r = cli(*args, "--count", str(count), "-o", f"f{count}.png", "--seed", "4", "-q", cwd=folder)
+        assert r.returncode == 0, r.stderr.decode()
+    r = cli(*args, "--count", "2", "-o", "f2.png", "--seed", "4", cwd=folder)
+    assert r.returncode == 0 and "f2_1.png ... f2_2.png" in r.stderr.decode(), r.stderr.decode()
+    assert sorted(p.name for p in folder.glob("f3*.png")) == ["f3_1.png", "f3_2.png", "f3_3.png"]
+    assert (folder / "f1.png").read_bytes() == (folder / "f3_1.png").read_bytes()
+    assert (folder / "f2_2.png").read_bytes() == (folder / "f3_2.png").read_bytes()
+    assert len({(folder / f"f3_{k}.png").read_bytes() for k in (1, 2, 3)}) == 3  # three fills to pick from
+    for p in folder.glob("f*.png"):
+        p.unlink()
+
+
+def test_fill_count_to_stdout_or_over_an_input_is_refused_before_any_work(folder):
+    r = cli("inpaint", "photo.png", "hole.png", "--source", "a.npz", "--count", "2", "-o", "-", cwd=folder)
+    assert r.returncode == 2 and "--count > 1 cannot write to stdout" in r.stderr.decode(), r.stderr.decode()
+    (folder / "g").mkdir(exist_ok=True)
+    (folder / "g" / "x_2.png").write_bytes((folder / "photo.png").read_bytes())
+    r = cli("inpaint", "g/x_2.png", "hole.png", "--source", "a.npz", "--count", "2", "-o", "g/x.png", cwd=folder)
+    assert r.returncode == 1 and "would overwrite IMAGE" in r.stderr.decode(), r.stderr.decode()
+    assert sorted(p.name for p in (folder / "g").iterdir()) == ["x_2.png"]

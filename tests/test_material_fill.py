@@ -223,3 +223,17 @@ def test_cli_bad_input_with_maps_is_one_line_and_writes_nothing(folder, monkeypa
     text = result.output.strip()
     assert "\n" not in text and "Traceback" not in text and words in text, text
     assert sorted(p.name for p in folder.rglob("*")) == before
+
+
+def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, picture, monkeypatch):
+    # --count on inpaint/extend --maps (0.59): one fit, a set per fill, numbered as synth's (out_2_h.png)
+    _saved_material(tmp_path, picture, monkeypatch)
+    maps = ["--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed", "3"]
+    for args in (["inpaint", "wall.png", "mask.png", *maps], ["extend", "wall.png", *maps, "--size", "128x160"]):
+        code, out = run(*args, "-o", "one.png")
+        assert code == 0, out
+        code, out = run(*args, "-o", "two.png", "--count", "2")
+        assert code == 0 and "(and 1 more set)" in out, out
+        for name in ("", "_wall_normal", "_h"):
+            assert (tmp_path / f"one{name}.png").read_bytes() == (tmp_path / f"two_1{name}.png").read_bytes()
+            assert (tmp_path / f"two_1{name}.png").read_bytes() != (tmp_path / f"two_2{name}.png").read_bytes()

@@ -10,9 +10,9 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
-                     map_names, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image,
-                     draw_seed, tell_seed, user_errors, warn_lost_depth)
-from .options import QUIET_OPTION, Size, depth_option, scale_option
+                     map_names, numbered, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
+                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth)
+from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
 
@@ -23,7 +23,7 @@ ANCHOR_CHOICES = ("center", "top", "bottom", "left", "right", "top-left", "top-r
 
 def _fill_options(fitted_on: str, tile_help: str):
     """The options ``inpaint`` and ``extend`` share, after their own: --source (instead of
-    fitting on ``fitted_on``), --scale, --seed, --tile (``tile_help``), --depth and -q."""
+    fitting on ``fitted_on``), --scale, --seed, --count, --tile (``tile_help``), --depth and -q."""
     options = [
         click.option("--source", default=None, metavar="EXEMPLAR_OR_MODEL",
                      help="Fit on this exemplar (an image or builtin:NAME) or use this saved model (.npz) instead "
@@ -33,6 +33,10 @@ def _fill_options(fitted_on: str, tile_help: str):
         click.option("--seed", type=click.IntRange(min=0), default=None,
                      help="Seed: the same seed gives the same image; without it every run differs (the seed "
                           "drawn is said after it)."),
+        click.option("--count", type=click.IntRange(min=1, max=MAX_COUNT), default=1, show_default=True,
+                     help="Number of fills to pick from, numbered name_1.png, ... (a material's maps too: "
+                          "name_1_NormalGL.png): the model is fitted once, and fill k is the same in any --count of "
+                          "k or more with that seed (fill 1 is --count 1's)."),
         click.option("--tile", is_flag=True, help=tile_help),
         depth_option("IMAGE's, as far as the output's format holds it"),
         QUIET_OPTION,
@@ -62,7 +66,7 @@ MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} 
                    "to stdout).")
 @click.option("--maps", "with_maps", is_flag=True, help=MAPS_HELP.format(after="MASK", what="filled in the same hole"))
 @_fill_options("the part of IMAGE outside the hole", "IMAGE wraps around: the fill continues across its edges.")
-def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile, quiet, depth):
+def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, count, tile, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
     With --maps, the same hole in every map of a whole material. A MASK that is not black and
@@ -81,22 +85,25 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
     seed, drawn = draw_seed(seed)
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "MASK")
+        outputs = _outputs(output, count)
         if with_maps:
-            _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, mask=mask)
-            tell_seed(seed, drawn, "the same fill")
+            _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, mask=mask)
+            tell_seed(seed, drawn, _same(count))
             return
-        picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[("MASK", mask)])
+        picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth,
+                                                          others=[("MASK", mask)])
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
         _warn_most(hole, mask, image)
         model, rng = _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                             too_little=f"MASK {mask} leaves too little of IMAGE {image} to fit a model on",
                             fix="paint a smaller hole")
-        _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, output, depth)
+        _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth)
     if output != "-":
         filled = int(hole.sum())
-        click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled, written to {output}", err=True)
-    tell_seed(seed, drawn, "the same fill")
+        click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled{_times(count)}, written to "
+                   f"{_where(outputs)}", err=True)
+    tell_seed(seed, drawn, _same(count))
 
 
 @click.command(short_help='Grow an image beyond its edges with texture that continues it')
@@ -112,7 +119,7 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, tile
                                       "downwards, center evenly all round.")
 @_fill_options("IMAGE", "The result tiles seamlessly: the fill continues across its edges (where IMAGE spans the "
                         "whole height or width, IMAGE must tile there itself: it is kept as it is).")
-def extend(image, map_paths, output, with_maps, size, anchor, source, scale, seed, tile, quiet, depth):
+def extend(image, map_paths, output, with_maps, size, anchor, source, scale, seed, count, tile, quiet, depth):
     """Grow IMAGE to --size: IMAGE stays as it is at --anchor, and the new area is filled
     with texture that continues it (outpainting). With --maps, every map of a whole material.
 
@@ -125,12 +132,13 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
     seed, drawn = draw_seed(seed)
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "IMAGE")
+        outputs = _outputs(output, count)
         if with_maps:
-            _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress,
+            _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress,
                            grow=(size, anchor.lower()))
-            tell_seed(seed, drawn, "the same fill")
+            tell_seed(seed, drawn, _same(count))
             return
-        picture, alpha, depth, source_is_model, _ = _open(image, output, source, scale, depth, others=[])
+        picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth, others=[])
         canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
         _warn_untileable(tile, picture.shape, size, image)
         if alpha is not None:
@@ -138,11 +146,36 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         model, rng = _model(picture, None, image, source, source_is_model, scale, seed, progress,
                             too_little=f"IMAGE {image} is too small to fit a model on", fix="give a larger IMAGE",
                             grown=size)
-        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, output, depth)
+        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth)
     if output != "-":
-        click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}, written to {output}",
-                   err=True)
-    tell_seed(seed, drawn, "the same fill")
+        click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
+                   f"to {_where(outputs)}", err=True)
+    tell_seed(seed, drawn, _same(count))
+
+
+def _outputs(output, count):
+    """The files of ``count`` fills: -o's own for one, else numbered as ``synth --count`` numbers them
+    (``out_1.png``, ...); ``-o -`` (stdout) takes one."""
+    if count == 1:
+        return [output]
+    if output == "-":
+        raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
+    return numbered(output, count)
+
+
+def _times(count):
+    """" N times" after what was done, for a --count above 1."""
+    return "" if count == 1 else f" {count} times"
+
+
+def _where(outputs):
+    """The files written, the first and the last of several."""
+    return outputs[0] if len(outputs) == 1 else f"{outputs[0]} ... {outputs[-1]}"
+
+
+def _same(count):
+    """What --seed makes again (:func:`~tghop.cli.common.tell_seed`)."""
+    return "the same fill" if count == 1 else "the same fills"
 
 
 def _warn_untileable(tile, shape, size, image):
@@ -167,8 +200,9 @@ def _check_maps(map_paths, with_maps, last):
         raise click.UsageError("--maps without maps; give the map images after it")
 
 
-def _open(image, output, source, scale, depth, *, others, maps=False):
-    """Check the outputs and options shared by inpaint and extend, and read IMAGE: its
+def _open(image, outputs, source, scale, depth, *, others, maps=False):
+    """Check the outputs (-o's, or --count's numbered files) and options shared by inpaint and extend, and
+    read IMAGE: its
     colours (8-bit stays 8-bit), its alpha channel apart (or None), the output's depth
     (without --depth IMAGE's own, as far as the output's format holds it, with a warning
     when that is less; with ``maps`` the caller warns, with the maps), whether --source
@@ -176,8 +210,11 @@ def _open(image, output, source, scale, depth, *, others, maps=False):
     from ..imageio import check_depth, deepest
     from ..inpaint import split_alpha
 
+    output = outputs[0]
     check_output(output, allow_stdout=True, depth=depth)
-    check_outputs([("-o", output)], [("IMAGE", image)] + others + [("--source", source)])
+    for path in outputs[1:] if len(outputs) > 1 else ():  # --count's numbered files, each before any work
+        check_output(path)
+    check_outputs([("-o", path) for path in outputs], [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):
         raise TGHopError(f"IMAGE {image} is a model file; give a picture as IMAGE (a model goes to --source)")
     if image.startswith("builtin:") and not os.path.exists(image):  # the argument's bad value: a usage error (0.57)
@@ -276,15 +313,17 @@ def _check_channels(picture, n_channels, image, source):
                          "exemplar or model as --source, or leave --source out to fit on IMAGE")
 
 
-def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, output, depth):
-    """Fill ``hole`` of ``picture`` with ``model`` and write it with its alpha channel."""
+def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth):
+    """Fill ``hole`` of ``picture`` with ``model`` and write it with its alpha channel, once per file of
+    ``outputs``, each fill drawn after the one before from ``rng`` (--count)."""
     from ..imageio import save_image
     from ..inpaint import inpaint as fill
 
-    result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
-    progress.close()
-    save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
-    progress.close()
+    for output in outputs:
+        result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
+        progress.close()
+        save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
+        progress.close()
 
 
 def _check_size(image, shape, p, whose, grown=None):
@@ -321,17 +360,18 @@ def _with_alpha(result, alpha, hole, image, output):
     return with_alpha(result, alpha, hole)
 
 
-def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, progress, *, mask=None, grow=None):
+def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, *, mask=None, grow=None):
     """``inpaint --maps`` (``mask``) or ``extend --maps`` (``grow``: ``(size, anchor)``): IMAGE
     and its maps filled alike (:func:`tghop.inpaint.inpaint_material`) and written together,
     OUT and OUT_<suffix>.EXT (:func:`tghop.material_files.map_files`), each at its file's depth (or
-    ``depth``)."""
+    ``depth``); once per file of ``outputs`` (--count's numbered files: a set each, one fit)."""
     import numpy as np
 
     from ..imageio import check_depth, deepest, save_images
     from ..inpaint import expand_canvas, inpaint_material, require_hole
     from ..material_files import map_files, read_map
 
+    output = outputs[0]
     if output == "-":
         raise click.UsageError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
     if source is not None and not (source.lower().endswith(".npz") or is_model_file(source)):
@@ -342,7 +382,7 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
         command = "tghop inpaint {} MASK --maps" if grow is None else "tghop extend {} --maps"
         refuse_colour_map_out_of_place(image, map_paths, command=command)
     others = ([] if mask is None else [("MASK", mask)]) + [("MAP", m) for m in map_paths]
-    picture, alpha, depth_albedo, _, image_depth = _open(image, output, source, scale, depth, others=others,
+    picture, alpha, depth_albedo, _, image_depth = _open(image, outputs, source, scale, depth, others=others,
                                                          maps=True)
     material = None
     if source is not None:
@@ -359,21 +399,26 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
                              "given; give its maps after --maps, in that order")
     names = material.names_[1:] if material is not None else map_names(map_paths)
     quiet_tifffile()
-    plan = [("albedo", output, depth_albedo)]
     maps, depths = {}, {}
     normal = [None] * len(names) if material is None else material.normal_[1:]  # a saved material's: as it says
-    for name, path, out, is_normal in zip(names, map_paths, map_files(output, ["albedo", *names])[1:], normal):
+    for name, path, is_normal in zip(names, map_paths, normal):
         maps[name], depths[name] = read_map(path, name, normal=is_normal, label=f"MAP {path}",
                                             too_large_hint=HINT_DOWNSCALE_YOURSELF)
         if maps[name].shape[:2] != picture.shape[:2]:
             raise TGHopError(f"MAP {path} is {maps[name].shape[0]}x{maps[name].shape[1]} but IMAGE {image} is "
                              f"{picture.shape[0]}x{picture.shape[1]}; give maps of IMAGE's size, aligned with it")
-        plan.append((name, out, check_depth(out, depth or deepest(out, depths[name]))))
-    for _, out, _ in plan[1:]:
-        check_output(out)
-    check_outputs([("-o", out) for _, out, _ in plan], [("IMAGE", image), ("--source", source)] + others)
+    plans = []  # a set of files per output: OUT and OUT_<suffix> (--count's out_2.png, out_2_NormalGL.png)
+    for out_albedo in outputs:
+        plan = [("albedo", out_albedo, depth_albedo)]
+        for name, out in zip(names, map_files(out_albedo, ["albedo", *names])[1:]):
+            plan.append((name, out, check_depth(out, depth or deepest(out, depths[name]))))
+        for _, out, _ in plan[1:]:
+            check_output(out)
+        plans.append(plan)
+    check_outputs([("-o", out) for plan in plans for _, out, _ in plan],
+                  [("IMAGE", image), ("--source", source)] + others)
     own = {"albedo": image_depth, **depths}
-    warn_lost_depth([(name, own[name], d) for name, _, d in plan], output, depth, "map")
+    warn_lost_depth([(name, own[name], d) for name, _, d in plans[0]], output, depth, "map")
     if grow is not None:
         canvas, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
         _warn_untileable(tile, picture.shape, grow[0], image)
@@ -391,15 +436,18 @@ def _fill_material(image, map_paths, output, source, scale, seed, tile, depth, p
                                  progress)
     _check_size(image, picture.shape, material.model_.patch_size,
                 " of --source's material" if source is not None else "", None if grow is None else grow[0])
-    filled = inpaint_material(material, images, hole, rng=rng, tile=tile, progress=progress,
-                              **({"order": "raster"} if grow is not None else {}))
-    progress.close()
-    filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, output)
-    save_images([(filled[name], out, d) for name, out, d in plan], progress=progress)
-    progress.close()
+    for plan in plans:  # each set drawn after the one before from rng: set k is any --count's k-th
+        filled = inpaint_material(material, images, hole, rng=rng, tile=tile, progress=progress,
+                                  **({"order": "raster"} if grow is not None else {}))
+        progress.close()
+        filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, plan[0][1])
+        save_images([(filled[name], out, d) for name, out, d in plan], progress=progress)
+        progress.close()
     what = (f"{int(hole.sum()):,} pixels filled" if grow is None
             else f"{picture.shape[0]}x{picture.shape[1]} extended to {grow[0][0]}x{grow[0][1]}")
-    click.echo(f"{what} in {len(plan)} maps, written to {', '.join(out for _, out, _ in plan)}", err=True)
+    more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
+    click.echo(f"{what} in {len(plans[0])} maps, written to {', '.join(out for _, out, _ in plans[0])}{more}",
+               err=True)
 
 
 def _fit_material(picture, maps, depths, depth_albedo, hole, image, rng, progress):
