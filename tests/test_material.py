@@ -1,6 +1,8 @@
 """Whole materials (issue #27, item 5): an albedo and its maps synthesised together, aligned."""
 
+import json
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -484,9 +486,78 @@ def test_materials_of_one_library_naming_paint_together(exemplar, maps, tmp_path
     save_model(rough, tmp_path / "rough.npz")
     res = CliRunner().invoke(main, ["synth", "stone.npz", "rough.npz", "-o", "o.png", "--size", "48x64", "-q"])
     assert res.exit_code == 1 and res.output.count("Error:") == 1, res.output
-    assert "named alike after the name their maps share" in res.output, res.output
+    assert "matched by their kinds (NormalGL and nor_gl are both a normal map)" in res.output, res.output
     with pytest.raises(TGHopError, match="give materials with the same maps"):
         synthesize_guided([stone, rough], guide, rng=1, **POOL)
+
+
+def test_materials_of_two_libraries_namings_paint_together_by_kind(exemplar, maps, tmp_path, monkeypatch):
+    # 0.59 before this matched maps by their files' suffixes: ambientCG's Stone_NormalGL beside Poly Haven's
+    # gravel_nor_gl_2k was refused as other maps. Each map's kind is matched where the material has one of it.
+    from tghop import synthesize_guided
+    from tghop.server.materials import same_kind
+
+    cells = data.cells(128, rng=3)
+    cell_maps = example_maps(cells, convention="OpenGL")
+    gl = example_maps(exemplar, convention="OpenGL")
+    stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_NormalGL": gl["normal"],
+                                                                "Stone_Roughness": gl["roughness"]})
+    gravel = Material(model=TGHop(**FAST), rng=0).fit(cells, {"gravel_nor_gl_2k": cell_maps["normal"],
+                                                              "gravel_rough_2k": cell_maps["roughness"]})
+    guide = np.repeat([[0.0, 1.0]], 48, axis=0).repeat(32, axis=1)
+    assert list(synthesize_guided([stone, gravel], guide, rng=1, **POOL)) == stone.names_
+    same_kind([stone, gravel], ["a" * 16, "b" * 16])  # the page's paint: no 422
+    save_model(stone, tmp_path / "stone.npz")
+    save_model(gravel, tmp_path / "gravel.npz")
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(main, ["synth", "stone.npz", "gravel.npz", "-o", "wall.png", "--size", "48x64",
+                                    "--seed", "1", "--pool", "1000", "-q"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in tmp_path.glob("wall*.png")) == ["wall.png", "wall_NormalGL.png",
+                                                                   "wall_Roughness.png"]
+
+
+def test_normal_maps_of_two_conventions_are_painted_in_the_first_ones(exemplar, tmp_path):
+    # 0.58 did not record a normal map's convention: two maps named only "normal", one OpenGL's and one
+    # DirectX's, were painted together silently, one region's slopes upside down. The convention (the content's,
+    # else the name's) is recorded and kept in the model file; where two meet, the later material's map is
+    # flipped to the first's, with a warning saying which and how to paint in the other.
+    from tghop import synthesize_guided
+    from tghop.normals import convention_of
+
+    cells = data.cells(128, rng=3)
+    gl = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"normal": example_maps(exemplar, convention="OpenGL")[
+        "normal"]})
+    dx = Material(model=TGHop(**FAST), rng=0).fit(cells, {"normal": example_maps(cells)["normal"]})
+    assert (gl.conventions_, dx.conventions_) == ([None, "OpenGL"], [None, "DirectX"])
+    save_model(dx, tmp_path / "dx.npz")
+    assert load_model(tmp_path / "dx.npz", material=True).conventions_ == [None, "DirectX"]
+    res = CliRunner().invoke(main, ["info", str(tmp_path / "dx.npz")])  # 0.58 said nothing of a map named "normal"
+    assert res.exit_code == 0 and "normal map, DirectX by its content, kept)" in res.output, res.output
+    with np.load(tmp_path / "dx.npz") as f:
+        arrays = dict(f)
+    meta = json.loads(str(arrays["__meta__"]))
+    meta["material"]["conventions"] = {"normal": "up"}
+    np.savez(tmp_path / "bad.npz", **{**arrays, "__meta__": np.array(json.dumps(meta))})
+    with pytest.raises(ModelFileError, match="conventions are not a dict of its normal maps' names"):
+        load_model(tmp_path / "bad.npz", material=True)
+    del meta["material"]["conventions"]  # a file of 0.58: the name's convention (none said by "normal")
+    np.savez(tmp_path / "old.npz", **{**arrays, "__meta__": np.array(json.dumps(meta))})
+    assert load_model(tmp_path / "old.npz", material=True).conventions_ == [None, None]
+    guide = np.repeat([[0.0, 1.0]], 128, axis=0).repeat(128, axis=1)
+    for first, second, want, other in ((gl, dx, "OpenGL", "DirectX"), (dx, gl, "DirectX", "OpenGL")):
+        said = f"input 2's normal map 'normal' ({other}) is in the other convention than input 1's ({want}); its green"
+        with pytest.warns(UserWarning, match=re.escape(said)):
+            out = synthesize_guided([first, second], guide, rng=1, **POOL)["normal"]
+        assert convention_of(out[:, :112]) == want and convention_of(out[:, 144:]) == want
+        n = out * 2 - 1
+        np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-5)
+    # a map of no convention known (a model file of 0.58 named only "normal") is painted as it is, without a word
+    dx.conventions_ = [None, None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = synthesize_guided([gl, dx], guide, rng=1, **POOL)["normal"]
+    assert convention_of(out[:, 144:]) == "DirectX"
 
 
 def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):

@@ -154,3 +154,24 @@ def test_inpaint_and_extend_with_maps_name_the_files_alike(material_set, command
     _cli(*command, "--maps", *AMBIENTCG[1:], "--source", "mat.npz", "-o", f"{folder}/Fill.png", "--seed", "2",
          *FAST_CLI[-1:], cwd=d)
     assert sorted(p.name for p in (d / folder).iterdir()) == ["Fill.png", "Fill_NormalGL.png", "Fill_Roughness.png"]
+
+
+@pytest.mark.parametrize("one, other, same", [
+    # 0.58 (and 0.59 before this) matched by suffixes alone: ambientCG's NormalGL beside Poly Haven's nor_gl was refused
+    (["Stone_NormalGL", "Stone_Roughness"], ["gravel_nor_gl_2k", "gravel_rough_2k"], True),
+    (["Stone_Normal", "Stone_Displacement"], ["T_Gravel_N", "T_Gravel_Height"], True),
+    (["T_Rock_ORM"], ["rock_arm_2k"], True),  # the same packing
+    # two normal maps each: matched by the convention each name says
+    (["Rock_NormalGL", "Rock_NormalDX"], ["rock_nor_gl_2k", "rock_nor_dx_2k"], True),
+    (["Rock_NormalGL", "Rock_NormalDX"], ["rock_nor_dx_2k", "rock_nor_gl_2k"], False),  # another order
+    # other kinds, or kinds a material has twice (no one map of the kind to match), stay apart
+    (["Rock_Normal", "Rock_Roughness"], ["Rock_Normal", "Rock_Height"], False),
+    (["Rock_Specular"], ["Rock_Gloss"], False),
+    (["T_Rock_ORM"], ["T_Rock_RMA"], False),
+    (["Rock_Height", "Rock_Displacement"], ["Gravel_Height", "Gravel_Bump"], False),
+    (["Rock_Height", "Rock_Displacement"], ["Gravel_Height", "Gravel_Displacement"], True),  # by their suffixes
+])
+def test_map_keys_match_maps_by_kind_across_namings(one, other, same):
+    from tghop.material_files import map_keys
+
+    assert (map_keys(["albedo", *one]) == map_keys(["albedo", *other])) is same

@@ -72,6 +72,7 @@ from .guides import guide_labels
 from .masks import snap_channels, snap_to_levels
 from .material import Material, renormalise
 from .material_files import map_keys
+from .normals import convention_flips, flip_green
 from .quilting import block_count
 
 __all__ = ["synthesize_guided", "morph", "morph_labels", "guide_labels", "region_weights", "random_labels",
@@ -232,8 +233,10 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     models : sequence of tghop.TGHop, or of tghop.material.Material
         Fitted, with the same patch size and colour channels; materials with the same maps, in one
         order (matched by :func:`tghop.material_files.map_keys`: ``Stone_NormalGL`` is
-        ``Gravel_NormalGL``; the result is keyed by the first material's names; every map is painted
-        alike: the join follows all of them). A model given more than
+        ``Gravel_NormalGL`` and ``gravel_nor_gl_2k``; the result is keyed by the first material's names;
+        every map is painted alike: the join follows all of them; a normal map recorded in the other
+        convention than the first material's, :attr:`~tghop.material.Material.conventions_`, is flipped to
+        the first's with a warning, 0.59). A model given more than
         once (the same object) paints its regions as one synthesis, with no join between them.
     guide : array_like, shape (H, W) or (H, W, C), optional
         One grey level (or colour) per model, the darkest for the first
@@ -290,9 +293,11 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
                 overlap=overlap, tile=tile)
     if guide is None:
         labels = random_labels(size, k, rng=rng, tile=tile)
+    flips = convention_flips(models) if isinstance(models[0], Material) else None  # warned of by input (0.59)
     models, labels = _one_region_per_model(models, labels)
     weights = region_weights(labels, len(models), transition, tile=tile)
-    return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, n_patches=n_patches, tile=tile,
+    return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, flips=flips, n_patches=n_patches,
+                    tile=tile,
                     overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                     match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
                     layout_weight=layout_weight, layout_refine=layout_refine, layout_patch_refine=layout_patch_refine,
@@ -463,9 +468,10 @@ def _one_region_per_model(models, labels):
     return [models[index.tolist().index(j)] for j in range(len(first))], index[labels]
 
 
-def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generation):
+def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None, **generation):
     """Painted regions: each model's own synthesis over the box its region reaches (a layer),
-    joined by :func:`tghop.composite.cut_regions`; (H, W, C) ``dtype``."""
+    joined by :func:`tghop.composite.cut_regions`; (H, W, C) ``dtype``. ``flips``: materials' normal maps
+    made the first's convention (:func:`tghop.normals.convention_flips`)."""
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(generation, tile=tile))  # refused before any layer is made
     materials = isinstance(models[0], Material)
@@ -497,6 +503,8 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, **generatio
                                  tile=wraps((rows, cols), labels.shape, tile), progress=staged, dtype=dtype_layers,
                                  **generation)
         if materials:  # the maps stacked: the join follows them all and is the same in every map
+            for name in (flips or {}).get(id(model), ()):  # in the first's convention (0.59)
+                layer[name] = flip_green(layer[name])
             layer = np.concatenate(list(layer.values()), axis=2)
         if image is None:
             image = np.empty(labels.shape + layer.shape[2:], dtype=layer.dtype)

@@ -20,7 +20,7 @@ from pathlib import Path
 from ._errors import TGHopError
 
 __all__ = ["ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_WORDS", "CONVENTION_WORDS", "map_kind",
-           "name_kind", "map_name", "colour_map_out_of_place", "check_colour_map_order",
+           "name_kind", "kind_key", "map_name", "colour_map_out_of_place", "check_colour_map_order",
            "COLOUR_MAP_WORDS", "MapNameClashError", "check_map_names",
            "is_normal_name", "normal_convention", "is_data_map", "COLOUR_KINDS", "SCALAR_KINDS", "ALPHA_KINDS",
            "keeps_alpha"]
@@ -96,16 +96,59 @@ def name_kind(name):
     >>> name_kind("rock_wall_nor_gl_2k"), name_kind("Rock.Normal"), name_kind("bricks")
     ('normal', 'normal', None)
     """
+    return _kind_word(name)[0]
+
+
+def _kind_word(name):
+    """``(kind, word)``: :func:`name_kind`'s kind and the word of :data:`MAP_KINDS` it read, or (None, None)."""
     words = _kind_words(name)
     if len(words) > 1 and words[-1] in CONVENTION_WORDS:  # rock_nor_gl_2k, Rock_Normal_DX
         words.pop()
     if not words:
-        return None
+        return None, None
     last = words[-1]
     for kind, names in MAP_KINDS.items():
-        if last in names or any(len(word) >= 5 and last.endswith(word) for word in names):
-            return kind
-    return None
+        if last in names:
+            return kind, last
+        word = next((word for word in names if len(word) >= 5 and last.endswith(word)), None)
+        if word is not None:
+            return kind, word
+    return None, None
+
+
+#: Words of one kind (:data:`MAP_KINDS`) whose maps hold other values, each matched apart by :func:`kind_key`
+#: (a packing's other words are each their own): glossiness is not a specular colour, and Poly Haven's ARM is an
+#: ORM (occlusion, roughness, metalness in R, G, B) where an RMA or HDRP's mask map packs others.
+KIND_SENSES = {"gloss": "glossiness", "glossiness": "glossiness", "arm": "orm"}
+
+
+def kind_key(name):
+    """What a map of this name holds, as two materials' maps are matched by their kinds when they are
+    painted or remixed together (:func:`tghop.material_files.map_keys`, 0.59): its kind (:func:`name_kind`:
+    ``Stone_NormalGL`` and Poly Haven's ``gravel_nor_gl_2k`` are both ``"normal"``, ``_Rough`` and
+    ``_Roughness`` both ``"roughness"``), a packed map's packing after it (``"packed orm"``: ORM and ARM
+    alike) and a glossiness map apart from a specular one (:data:`KIND_SENSES`); None for a name of no kind.
+
+    Parameters
+    ----------
+    name : str
+        A map's name (:func:`map_name`).
+
+    Returns
+    -------
+    str or None
+
+    Examples
+    --------
+    >>> from tghop.map_names import kind_key
+    >>> kind_key("Rock_NormalGL"), kind_key("rock_arm_2k"), kind_key("T_Rock_ORM"), kind_key("Rock_Gloss")
+    ('normal', 'packed orm', 'packed orm', 'glossiness')
+    """
+    kind, word = _kind_word(name)
+    sense = KIND_SENSES.get(word, word)
+    if kind == "packed":
+        return f"packed {sense}"
+    return sense if kind == "specular" and sense == "glossiness" else kind
 
 
 def map_kind(path):

@@ -332,6 +332,11 @@ class Material(BaseEstimator):
         Channels of each map (a grey map stored as RGB becomes one channel; a normal map
         keeps its three; a packing with a map in its alpha, four or two: :func:`tghop.map_names.keeps_alpha`).
     normal_ : list of bool
+    conventions_ : list of str or None
+        Each normal map's convention, ``"OpenGL"`` or ``"DirectX"``: its content's
+        (:func:`tghop.normals.convention_of`), else its name's (:func:`normal_convention`), else None (0.59;
+        a model file of 0.58 or before: its name's); None for the other maps. Painted or remixed materials
+        whose normal maps differ in it are made one (:func:`tghop.synthesize_guided`).
     depths_ : list of int
         Bits per channel of each map as given (8, 16, or 32 for float): what ``tghop synth``
         writes each map with unless told otherwise.
@@ -477,8 +482,10 @@ class Material(BaseEstimator):
         check_not_path(albedo, "map 'albedo'")
         albedo = drop_alpha(albedo, name="albedo", exclude="exclude=albedo[..., -1] < {half}", keep=None)  # as fit
         items = self._maps(albedo, maps, depths, normal)
+        conventions = [None]
         for name, img, _, is_normal in items[1:]:
             named, found = normal_convention(name), convention_of(img) if is_normal else None
+            conventions.append((found or named) if is_normal else None)  # what comes out: its content's (0.59)
             if named and found and named != found:
                 warn(f"map {name!r} is named as {named}'s but its content is {found}'s (green "
                      f"{'down' if found == 'DirectX' else 'up'}); it comes out as it is, {found}'s: rename "
@@ -527,6 +534,7 @@ class Material(BaseEstimator):
         self.model_, self.bands_ = model, bands
         self.names_ = [name for name, _, _, _ in items]
         self.normal_ = [is_normal for _, _, _, is_normal in items]
+        self.conventions_ = conventions
         self.map_channels_ = [img.shape[2] for _, img, _, _ in items]
         self.depths_ = [depth for _, _, depth, _ in items]
         self.levels_ = [None if i == 0 or is_normal else mask_levels(img, exclude)
@@ -674,6 +682,7 @@ class Material(BaseEstimator):
                                       **({"fit_rngs": records} if records else {}),
                                       **({"levels": levels} if levels else {}),
                                       **({"channel_levels": per_channel} if per_channel else {}),
+                                      "conventions": {n: c for n, c in zip(self.names_, self.conventions_) if c},
                                       # the joint model's copy of the fit's generator (0.57)
                                       "model_rng": settings.generator_record(self.model_.rng)}}
 
@@ -731,6 +740,18 @@ class Material(BaseEstimator):
         if sum(m["channels"] for m in maps) != meta["exemplar_shape"][2]:
             raise TGHopError("the material's maps do not add up to the model's channels")
         return maps
+
+    @staticmethod
+    def _conventions_meta(given, maps):
+        """Each normal map's convention from the metadata, checked (0.59); a file of 0.58 or before has none:
+        a normal map's name's (:func:`normal_convention`), as :meth:`fit` records where its content says none."""
+        if given is None:
+            return [normal_convention(m["name"]) if m["normal"] else None for m in maps]
+        normals = {m["name"] for m in maps if m["normal"]}
+        if not isinstance(given, dict) or not set(given) <= normals or not set(given.values()) <= {"OpenGL", "DirectX"}:
+            raise TGHopError("the material metadata's conventions are not a dict of its normal maps' names to 'OpenGL' "
+                             "or 'DirectX'")
+        return [given.get(m["name"]) for m in maps]
 
     @staticmethod
     def _levels_meta(given, maps, key="levels"):
@@ -795,6 +816,7 @@ class Material(BaseEstimator):
         mat.names_ = [m["name"] for m in maps]
         mat.map_channels_ = [m["channels"] for m in maps]
         mat.normal_ = [m["normal"] for m in maps]
+        mat.conventions_ = cls._conventions_meta(meta["material"].get("conventions"), maps)
         mat.depths_ = [m["depth"] for m in maps]
         mat.levels_ = cls._levels_meta(meta["material"].get("levels", {}), maps)
         mat.channel_levels_ = cls._levels_meta(meta["material"].get("channel_levels", {}), maps, "channel_levels")

@@ -23,7 +23,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from .map_names import name_kind
+from .map_names import kind_key, name_kind, normal_convention
 
 __all__ = ["read_map", "map_files", "map_suffixes", "map_keys", "RESOLUTION"]
 
@@ -214,10 +214,15 @@ def _without_colour_word(stem) -> str:
 
 def map_keys(names) -> list:
     """Which maps a material has, as painted and remixed materials are matched (``tghop synth A.npz
-    B.npz``, :func:`tghop.synthesize_guided`, the web page's paint): each map's suffix
-    (:func:`map_suffixes`, what its output file adds to the name) in lower case, the albedo left out.
-    Two sets of one library's naming are then the same maps (0.59): ``Stone_NormalGL`` and
-    ``Gravel_NormalGL`` are both ``normalgl``, where their whole names (0.58) never matched.
+    B.npz``, :func:`tghop.synthesize_guided`, the web page's paint): each map's kind where its name says
+    one that no other map of the material has (:func:`tghop.map_names.kind_key`: ``kind normal``), else a
+    normal map's kind and the convention its name says where that is the material's only one of both
+    (ambientCG's ``NormalGL`` beside ``NormalDX``: ``kind normal opengl``), else its suffix
+    (:func:`map_suffixes`, what its output file adds to the name) in lower case; the albedo left out. Two
+    sets of one library's naming are then the same maps (0.59): ``Stone_NormalGL`` and ``Gravel_NormalGL``
+    are both ``normalgl``, where their whole names (0.58) never matched; and so are two libraries' namings
+    (0.59): ``Stone_NormalGL`` and Poly Haven's ``gravel_nor_gl_2k`` are both a normal map, ``_Roughness``
+    and ``_rough`` a roughness map (a map's name has no space, so a kind is no suffix).
 
     Parameters
     ----------
@@ -232,11 +237,24 @@ def map_keys(names) -> list:
     Examples
     --------
     >>> from tghop.material_files import map_keys
-    >>> map_keys(["albedo", "Stone_NormalGL", "Stone_Roughness"]) == map_keys(["albedo", "Gravel_NormalGL",
-    ...                                                                        "Gravel_roughness"])
+    >>> map_keys(["albedo", "Stone_NormalGL", "Stone_Roughness"]) == map_keys(["albedo", "gravel_nor_gl_2k",
+    ...                                                                        "gravel_rough_2k"])
     True
+    >>> map_keys(["albedo", "Rock_NormalGL", "Rock_NormalDX", "Rock_Mask"])
+    ['kind normal opengl', 'kind normal directx', 'mask']
     """
-    return [suffix.lower() for suffix in map_suffixes(names)[1:]]
+    maps = list(names)[1:]
+    kinds = [kind_key(n) for n in maps]
+    said = [(k, normal_convention(n)) if k == "normal" else (k, None) for k, n in zip(kinds, maps)]
+    keys = []
+    for suffix, kind, (_, convention) in zip(map_suffixes(names)[1:], kinds, said):
+        if kind is not None and kinds.count(kind) == 1:
+            keys.append(f"kind {kind}")
+        elif convention is not None and said.count((kind, convention)) == 1:
+            keys.append(f"kind {kind} {convention.lower()}")
+        else:
+            keys.append(suffix.lower())
+    return keys
 
 
 def _shared_words(words) -> int:

@@ -25,7 +25,8 @@ import numpy as np
 from ._errors import TGHopError
 from .image_decode import file_header, upright
 
-__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "convention_of", "upright_vectors", "upright_normal_map"]
+__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "convention_of", "upright_vectors", "upright_normal_map",
+           "convention_flips", "flip_green"]
 
 #: The least correlation, either sign, that decides a normal map's convention by its content.
 CONVENTION_CORRELATION = 0.3
@@ -144,3 +145,36 @@ def upright_normal_map(values, path, *, convention=None, label="the normal map")
                              "content says its convention, so its vectors cannot be turned with its pixels; save it "
                              "upright, or name it *_NormalGL (green up) or *_NormalDX (green down)")
     return upright_vectors(values, orientation, convention)
+
+
+def convention_flips(materials):
+    """Which normal maps of painted or remixed materials are flipped to the first one's convention (0.59):
+    ``{id(material): [map names]}`` for every one of ``materials`` whose normal map is recorded in the other
+    convention than the first material's map in its place (:attr:`tghop.material.Material.conventions_`, from
+    its content or name; a map of no convention known is left as it is), with one warning for each saying
+    which and how to paint in the other. 0.58 painted an OpenGL map beside a DirectX one silently, the
+    slopes of one region upside down in the result."""
+    import warnings
+
+    first = materials[0]
+    theirs = getattr(first, "conventions_", None) or [None] * len(first.names_)
+    out = {}
+    for i, mat in enumerate(materials[1:], start=2):
+        mine = getattr(mat, "conventions_", None) or [None] * len(mat.names_)
+        flipped = [(name, own, want) for name, own, want, normal in zip(mat.names_, mine, theirs, mat.normal_)
+                   if normal and own and want and own != want]
+        if flipped and id(mat) not in out:
+            said = ", ".join(f"{name!r} ({own})" for name, own, _ in flipped)
+            warnings.warn(f"input {i}'s normal map {said} is in the other convention than input 1's "
+                          f"({flipped[0][2]}); its green is flipped, so that the painted map is "
+                          f"{flipped[0][2]}'s throughout (give a {flipped[0][1]} material first to paint in "
+                          f"{flipped[0][1]}'s)", UserWarning, stacklevel=3)
+        out.setdefault(id(mat), [name for name, _, _ in flipped])
+    return out
+
+
+def flip_green(values):
+    """A normal map's pixels (H, W, 3) in [0, 1] in the other convention: green (y) inverted, a new array."""
+    out = np.array(values, copy=True)
+    out[..., 1] = 1 - out[..., 1]
+    return out

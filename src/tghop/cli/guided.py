@@ -311,8 +311,8 @@ def _check_mixable(labels, read, options):
                 raise TGHopError(f"{label} has its maps in another order ({mine}) than {label1} ({theirs}); fit it "
                                  f"again with its maps after --maps in {label1}'s order")
             raise TGHopError(f"{label} has the maps {mine} but {label1} has {theirs}; give materials with the same "
-                             "maps (of the same channels), named alike after the name their maps share "
-                             "(Stone_NormalGL and Gravel_NormalGL are both NormalGL)")
+                             "maps (of the same channels), matched by their kinds (NormalGL and nor_gl are both a "
+                             "normal map) or else by the names after the name their maps share")
         return
     channels1, patch1 = shape(first)
     for label, source in zip(labels[1:], read[1:]):

@@ -278,8 +278,8 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     texture; without it, random regions of each (a remix). A saved material (tghop fit
     EXEMPLAR --maps ...) writes OUTPUT and OUTPUT_<map> for each of its maps, aligned (the
     material's name and resolution its maps' names share dropped: Rock023_2K_NormalGL as
-    OUTPUT_NormalGL); several materials with the same maps (by those names: Stone_NormalGL and
-    Gravel_NormalGL are both NormalGL) are painted or remixed alike.
+    OUTPUT_NormalGL); several materials with the same maps (by their kinds: Stone_NormalGL and
+    gravel_nor_gl_2k are both a normal map; else by those names) are painted or remixed alike.
     """
     from ..imageio import check_depth
 
@@ -461,13 +461,15 @@ def info(model_file, as_json):
     if as_json:
         out = info_dict(model, params)
         if material is not model:
-            out["material"] = {"maps": material.map_info(), **_mask_levels(material, as_json=True)}
+            out["material"] = {"maps": material.map_info(), **_mask_levels(material, as_json=True),
+                               "conventions": {n: c for n, c in zip(material.names_, material.conventions_) if c}}
         click.echo(json.dumps(out, indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
     click.echo(f"tghop model {model_file}")
     if material is not model:
-        click.echo(f"material: {material_summary(material)}")
+        recorded = dict(zip(material.names_, material.conventions_))  # a name's, else the content's at fit (0.59)
+        click.echo(f"material: {material_summary(material, recorded)}")
         for line in _mask_levels(material):
             click.echo(line)
     scaled = "" if model.scale == 1 else f" (resampled by --scale {model.scale:g})"
