@@ -425,8 +425,8 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, s
                                 (["mat.npz", "cells.npz", "--quality", "best"], "do not apply to materials", 2)):
         res = run("synth", *args, "-o", str(tmp_path / "o.png"), "--size", "48x64", "-q")
         assert res.exit_code == status and words in res.output and "Traceback" not in res.output, res.output
-    res = run("morph", "mat.npz", "cells.npz", "-o", str(tmp_path / "o.png"), "-q")
-    assert res.exit_code == 1 and "a morph takes texture models" in res.output, res.output
+    res = run("morph", "mat.npz", "plain.npz", "-o", str(tmp_path / "o.png"), "-q")  # two materials: since 0.59
+    assert res.exit_code == 1 and "is a material but B" in res.output, res.output
     with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
         load_model(tmp_path / "mat.npz")
     assert not (tmp_path / "o.png").exists()
@@ -558,6 +558,35 @@ def test_normal_maps_of_two_conventions_are_painted_in_the_first_ones(exemplar, 
         warnings.simplefilter("error")
         out = synthesize_guided([gl, dx], guide, rng=1, **POOL)["normal"]
     assert convention_of(out[:, 144:]) == "DirectX"
+
+
+def test_two_materials_morph_every_map_alike(exemplar, maps, tmp_path, monkeypatch):
+    # 0.58 refused a morph of materials ("a morph takes texture models or exemplars"): a game artist's strip from
+    # one ground to another came without its maps. Two materials with the same maps morph as they paint.
+    from tghop import morph
+
+    cells = data.cells(128, rng=3)
+    cell_maps = example_maps(cells)
+    stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_Normal": maps["normal"],
+                                                                "Stone_Height": maps["height"]})
+    gravel = Material(model=TGHop(**FAST), rng=0).fit(cells, {"gravel_nor": cell_maps["normal"],
+                                                              "gravel_disp": cell_maps["height"]})
+    strip = morph(stone, gravel, (48, 160), rng=1, **POOL)
+    assert list(strip) == stone.names_ and strip["Stone_Height"].shape == (48, 160, 1)
+    np.testing.assert_allclose(np.linalg.norm(strip["Stone_Normal"] * 2 - 1, axis=2), 1.0, atol=1e-5)
+    save_model(stone, tmp_path / "stone.npz")
+    save_model(gravel, tmp_path / "gravel.npz")
+    save_model(TGHop(**FAST).fit(cells), tmp_path / "tex.npz")
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(main, ["morph", "stone.npz", "gravel.npz", "-o", "strip.png", "--size", "48x160",
+                                    "--grid", "2", "--seed", "1", "-q"])
+    assert res.exit_code == 0, res.output
+    assert "1 material of 96x160 written to strip.png, strip_Normal.png, strip_Height.png" in res.output
+    assert load_image("strip_Height.png").shape == (96, 160, 1)
+    res = CliRunner().invoke(main, ["morph", "stone.npz", "tex.npz", "-o", "mixed.png", "--size", "48x160", "-q"])
+    assert res.exit_code == 1 and "A stone.npz is a material but B tex.npz is not; morph two materials" in \
+        res.output, res.output
+    assert not list(tmp_path.glob("mixed*"))
 
 
 def test_a_failed_refit_leaves_the_earlier_material_whole(exemplar, maps):

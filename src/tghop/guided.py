@@ -319,7 +319,9 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
 
     Parameters
     ----------
-    model_a, model_b : tghop.TGHop
+    model_a, model_b : tghop.TGHop, or tghop.material.Material
+        Two texture models, or two materials with the same maps (0.59; as :func:`synthesize_guided` takes
+        them: every map morphed alike, the result a dict of maps keyed by A's names).
     size : (int, int)
         (height, width) of the strip.
     stations : optional
@@ -338,23 +340,27 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     Returns
     -------
     ndarray, shape (H, W, C), ``dtype``
-        At the two models' two levels where both have the same (as :func:`synthesize_guided`).
+        At the two models' two levels where both have the same (as :func:`synthesize_guided`); for
+        materials a dict ``name -> (H, W, c)`` array, as :func:`synthesize_guided` gives.
     """
     check_progress(progress)
-    models = _check_models([model_a, model_b], 2)
+    models = _check_models([model_a, model_b], 2, materials=True)  # materials too (0.59)
     h, w = check_size(size)
     if stations is not None:
         warnings.warn(STATIONS_GONE, FutureWarning, stacklevel=3)
     rng = check_rng(rng)
-    p = int(models[0].patch_size)
+    materials = isinstance(models[0], Material)
+    p = int((models[0].model_ if materials else models[0]).patch_size)
     if h < p:  # up to about a blob (MORPH_BLOB patches) the regions are whole columns: A's half, then B's
         raise TGHopError(f"a morph strip must be at least {p} px tall (the models' patch size; a lower one cannot "
                          f"mix the two textures by position), got {h}x{w}; give a height of {p} or more")
     block_count((h, w), p, overlap=overlap, tile=False)  # the quilt's refusals before any work
     labels = morph_labels((h, w), rng=rng, scale=MORPH_BLOB * p)
+    flips = convention_flips(models) if materials else None
     models, labels = _one_region_per_model(models, labels)
     weights = region_weights(labels, len(models), DEFAULT_TRANSITION)
-    return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, tile=False, n_patches=n_patches,
+    return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, tile=False, flips=flips,
+                    n_patches=n_patches,
                     overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                     match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
                     layout_weight=layout_weight, layout_refine=layout_refine, layout_patch_refine=layout_patch_refine,

@@ -269,16 +269,18 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
 
 
 def _same_kind(specs, read, label):
-    """Refuse materials mixed with textures (or with exemplar images, which fit texture models), and
-    a material where the command takes textures only (``label`` "A"/"B": a morph), in one line."""
+    """Refuse materials mixed with textures (or with exemplar images, which fit texture models), in one
+    line (``label`` "A"/"B": a morph's, two materials since 0.59, "SOURCE": a paint's or remix's)."""
     import numpy as np
 
     whole = [hasattr(r, "names_") for r in read]
-    if not any(whole):
+    if not any(whole) or all(whole):
         return
     first = whole.index(True)
     if label != "SOURCE":
-        raise TGHopError(f"{label} {specs[first]} is a material; a morph takes texture models or exemplars")
+        other = "B" if label == "A" else "A"
+        raise TGHopError(f"{label} {specs[first]} is a material but {other} {specs[1 - first]} is not; morph two "
+                         "materials (fit each with 'tghop fit ALBEDO --maps ...') or two textures")
     for i, (spec, r, w) in enumerate(zip(specs, read, whole), start=1):
         if not w:
             what = "an exemplar image" if isinstance(r, np.ndarray) else "a texture model"
@@ -347,7 +349,7 @@ def _check_height(size, source):
     import numpy as np
 
     patch = build_model({}, n_colours=source.shape[2]).patch_size if isinstance(source, np.ndarray) \
-        else source.patch_size
+        else getattr(source, "model_", source).patch_size  # a material's: its joint model's (0.59)
     if size[0] < patch:
         raise click.UsageError(f"--size {size[0]}x{size[1]}: a morph strip must be at least {patch} px tall (the "
                                "patch size; a lower one cannot mix the two textures by position); give "
@@ -372,7 +374,8 @@ def _check_height(size, source):
 def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     """A strip from texture A on the left to texture B on the right (A and B: exemplars,
     builtin:NAME or saved models); every column mixes regions of the two, with organic outlines, in its
-    proportion."""
+    proportion. Two saved materials with the same maps (tghop fit ALBEDO --maps ...) morph every map
+    alike: OUTPUT and OUTPUT_<map>, as synth writes a material."""
     import numpy as np
 
     from ..guided import STATIONS_GONE
@@ -396,6 +399,11 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
                                                                                      f"B {source_b}")
         if stations is not None:  # (the library's FutureWarning is not among the warnings shown)
             click.echo(f"Warning: --{STATIONS_GONE}", err=True)
+        if hasattr(model_a, "names_"):  # two materials (0.59): every map morphed alike, OUT and OUT_<suffix>
+            _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, [("A", source_a),
+                                                                                           ("B", source_b)])
+            tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
+            return
         rows = []
         for row in range(grid):
             rng = np.random.default_rng(seed + row)
@@ -405,3 +413,21 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)
     tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
+
+
+def _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, inputs):
+    """``morph`` of two materials: ``grid`` strips of every map, stacked, written as ``synth`` writes a
+    material (:func:`~tghop.cli.common.write_materials`: OUT and OUT_<suffix> for each of A's maps)."""
+    import numpy as np
+
+    from ..guided import morph as make_strip
+
+    def make():
+        rows = []
+        for row in range(grid):
+            rows.append(make_strip(model_a, model_b, size, rng=np.random.default_rng(seed + row), progress=progress,
+                                   dtype=np.float32))
+            progress.close()
+        return {name: np.concatenate([r[name] for r in rows], axis=0) for name in rows[0]}
+
+    write_materials(model_a, output, [output], (size[0] * grid, size[1]), depth, make, inputs, progress)
