@@ -573,13 +573,13 @@ def test_help_shows_each_paper_value_in_the_command_lines_words():
 
 
 def test_help_gives_the_word_an_option_takes_for_none():
-    # The settings table's help says "(None: patch_size // 6)", Python's word; the command line takes
+    # The settings table's help says "(None: patch_size / 6, ...)", Python's word; the command line takes
     # none (or auto), so --help says that.
     for command in ("synth", "fit", "inpaint", "batch"):
         flat = " ".join(CliRunner().invoke(main, [command, "--help"]).stdout.split())
         assert "None:" not in flat, command
     flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())
-    assert "Quilting overlap in pixels (none: patch_size // 6)" in flat
+    assert "Quilting overlap in pixels (none: patch_size / 6, rounded" in flat
     assert "(none: the whole image at once" in flat
 
 
