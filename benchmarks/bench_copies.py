@@ -16,10 +16,14 @@ half B and reports:
 - **tghop / whole**: the outputs against the whole exemplar (``bench_quality.py``'s number).
 
 An output that pastes exemplar pieces scores far above "natural"; one that makes new texture
-scores about as its own exemplar's halves do.
+scores about as its own exemplar's halves do. ``--threshold`` and ``--patch-size`` score at
+other settings than the metric's defaults (RMS 0.03, 16x16): a verbatim piece still counts at
+RMS 0.015, or over 32x32 windows (a quilting block), where a smooth window's natural twins no
+longer do (0.59, docs/choices.md, Metrics and baselines).
 
     python benchmarks/bench_copies.py --tag s50
     python benchmarks/bench_copies.py --models /tmp/models clouds_192 blue_bubbles leopard
+    python benchmarks/bench_copies.py --threshold 0.015 --tag strict clouds_192 orange_blobs
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ from _common import markdown_table, texture_names, write_results
 HEADER = ["texture", "natural", "natural, blurred", "tghop / half", "tghop / whole", "tghop / half over natural"]
 
 
-def score(name, models, seeds, blur, fit_seed):
+def score(name, models, seeds, blur, fit_seed, threshold=0.03, patch_size=16):
     from scipy.ndimage import gaussian_filter
 
     from bench_quality import prepare
@@ -52,11 +56,12 @@ def score(name, models, seeds, blur, fit_seed):
     model = load_model(path) if path and path.exists() else TGHop(rng=fit_seed).fit(ex)
     outputs = [model.synthesize((256, 256), rng=s) for s in range(seeds)]
     smooth = (lambda img: gaussian_filter(img, (blur, blur, 0))) if blur > 0 else (lambda img: img)
+    copied = partial(copied_textured, threshold=threshold, patch_size=patch_size)
     return name, {
-        "natural": float(np.mean([copied_textured(a, b), copied_textured(b, a)])),
-        "natural_blurred": float(np.mean([copied_textured(a, smooth(b)), copied_textured(b, smooth(a))])),
-        "tghop_half": float(np.mean([copied_textured(ref, out) for ref in (a, b) for out in outputs])),
-        "tghop_whole": float(np.mean([copied_textured(ex, out) for out in outputs])),
+        "natural": float(np.mean([copied(a, b), copied(b, a)])),
+        "natural_blurred": float(np.mean([copied(a, smooth(b)), copied(b, smooth(a))])),
+        "tghop_half": float(np.mean([copied(ref, out) for ref in (a, b) for out in outputs])),
+        "tghop_whole": float(np.mean([copied(ex, out) for out in outputs])),
     }
 
 
@@ -67,6 +72,8 @@ def main(argv=None):
     ap.add_argument("--fit-seed", type=int, default=0)
     ap.add_argument("--seeds", type=int, default=2, help="outputs per exemplar (seeds 0, 1, ...)")
     ap.add_argument("--blur", type=float, default=0.8, help="Gaussian sigma of 'natural, blurred' in pixels")
+    ap.add_argument("--threshold", type=float, default=0.03, help="RMS below which a window is a copy")
+    ap.add_argument("--patch-size", type=int, default=16, help="window side in pixels")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--tag", default="")
     args = ap.parse_args(argv)
@@ -75,7 +82,8 @@ def main(argv=None):
         raise SystemExit("no textures: pass names or put exemplars in ../shared/textures (TGHOP_TEXTURES)")
     t = time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
-        one = partial(score, models=args.models, seeds=args.seeds, blur=args.blur, fit_seed=args.fit_seed)
+        one = partial(score, models=args.models, seeds=args.seeds, blur=args.blur, fit_seed=args.fit_seed,
+                      threshold=args.threshold, patch_size=args.patch_size)
         rows = dict(pool.map(one, names))
     table = []
     for name in names:
@@ -83,7 +91,8 @@ def main(argv=None):
         ratio = r["tghop_half"] / r["natural"] if r["natural"] > 0 else (float("inf") if r["tghop_half"] else 1.0)
         table.append([name, r["natural"], r["natural_blurred"], r["tghop_half"], r["tghop_whole"], ratio])
     md = (f"## copied_textured: tghop against its exemplar's halves ({args.seeds} outputs of 256x256 each, "
-          f"blur sigma {args.blur:g})\n\n" + markdown_table(HEADER, table))
+          f"blur sigma {args.blur:g}, {args.patch_size}x{args.patch_size} windows within RMS {args.threshold:g})"
+          f"\n\n" + markdown_table(HEADER, table))
     print(md)
     print(f"\n{time.perf_counter() - t:.0f} s")
     write_results(f"copies{'-' + args.tag if args.tag else ''}", {"args": vars(args), "rows": rows}, md)
