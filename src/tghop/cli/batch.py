@@ -11,7 +11,7 @@ import sys
 import click
 
 from ..fit_options import fit_params
-from .common import Progress, fail, quiet_tifffile, stop_message, user_errors
+from .common import Progress, examples, fail, quiet_tifffile, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
 
 __all__ = ["batch"]
@@ -83,7 +83,12 @@ def stopped_line(plan, last, failed) -> str:
             f"{plan['done_before'] + made:,} of {_exemplars(plan['exemplars'])} done in all")
 
 
-@click.command(short_help='Fit many exemplars (a folder or a manifest) and make their images')
+@click.command(short_help='Fit many exemplars (a folder or a manifest) and make their images', epilog=examples(
+    "# every image under textures/: its model and two 512x512 images, all cores",
+    "tghop batch textures/ -o results --count 2 --size 512 --seed 1",
+    "# a manifest (CSV with a path column), in this process, without Dask",
+    "tghop batch list.csv -o results --workers 1",
+    "# then open results/index.html: every exemplar's thumbnail and images"))
 @click.argument("source")
 @click.option("-o", "--outdir", required=True,
               help="Folder for the results: OUTDIR/NAME/ per exemplar, the ledger batch.jsonl, the contact "

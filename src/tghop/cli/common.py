@@ -26,7 +26,7 @@ from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
            "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
-           "quiet_tifffile"]
+           "quiet_tifffile", "examples"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -727,3 +727,11 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
     click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
                f"{written}{more}", err=True)
+
+
+def examples(*lines: str) -> str:
+    """A command's ``Examples:`` (its help's epilog, the last lines ``--help`` prints), kept line for line:
+    each command as it is typed, each ``# ...`` line saying what the command under it does. A newcomer
+    pastes them: a comment on a command's own line in parentheses (``cooc train ... (small config ...)``,
+    0.58) stops the shell. tests/test_help_examples.py runs those whose inputs are built in."""
+    return "\b\nExamples:\n" + "\n".join(f"  {line}" for line in lines)

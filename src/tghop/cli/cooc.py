@@ -196,11 +196,13 @@ def cooc():
     """Co-occurrence cGAN (Darzi et al.): train, morph, edit. Needs: pip install 'tghop[metrics]'.
 
     \b
-    tghop cooc train texture.jpg -o model.pt            (small config: about 15 min on a 2-core CPU, 0.13)
-    tghop cooc morph model.pt crop:0,0 crop:128,128 -o strip.png
-    tghop cooc morph model.pt crop:0,0 crop:128,128 --grid 5x3 -o grid.png
-    tghop cooc edit model.pt crop:0,0 crop:128,128 --size 256x512 -o edit.png
-    tghop baseline cooc texture.jpg --model model.pt -o out.png --size 512x512
+    Examples:
+      # the small config: about 15 min on a 2-core CPU (0.13)
+      tghop cooc train texture.jpg -o model.pt
+      tghop cooc morph model.pt crop:0,0 crop:128,128 -o strip.png
+      tghop cooc morph model.pt crop:0,0 crop:128,128 --grid 5x3 -o grid.png
+      tghop cooc edit model.pt crop:0,0 crop:128,128 --size 256x512 -o edit.png
+      tghop baseline cooc texture.jpg --model model.pt -o out.png --size 512x512
     """
 
 

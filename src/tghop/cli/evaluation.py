@@ -9,13 +9,17 @@ import click
 
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, check_stdout, fail, load_exemplar, stop_message,
-                     user_errors, warn_written_with_8)
+                     user_errors, warn_written_with_8, examples)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["evaluate", "baseline"]
 
 
-@click.command(short_help='Score result images against their exemplar (texture metrics)')
+@click.command(short_help='Score result images against their exemplar (texture metrics)', epilog=examples(
+    "# two results scored against the exemplar, and their diversity",
+    "tghop evaluate builtin:bricks out_1.png out_2.png",
+    "# many results: a JSON line each, without the pairwise diversity",
+    "tghop evaluate texture.jpg out_*.png --no-diversity --json > scores.jsonl"))
 @click.argument("exemplar")
 @click.argument("results", nargs=-1, required=True)
 @click.option("--json", "as_json", is_flag=True,
@@ -201,7 +205,11 @@ def check_iterations(name, iterations):
                                  "count", param_hint="'--iterations'")
 
 
-@click.command(short_help='Make a reference texture with another method, to compare')
+@click.command(short_help='Make a reference texture with another method, to compare', epilog=examples(
+    "# classic image quilting of the exemplar's own patches",
+    "tghop baseline quilting builtin:bricks -o quilted.png --seed 0",
+    "# a random crop of the exemplar: the best case a method can reach",
+    "tghop baseline crop texture.jpg -o crop.png --size 128"))
 @click.argument("name", type=click.Choice(["crop", "blurred-crop", "colour-noise", "quilting", "ustyuzhaninov",
                                            "cooc", "gpdm"]))
 @click.argument("exemplar")

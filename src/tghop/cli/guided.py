@@ -8,7 +8,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, numbered,
-                     draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials)
+                     draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials, examples)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -356,7 +356,11 @@ def _check_height(size, source):
                                f"--size {patch}x{size[1]} or taller")
 
 
-@click.command(short_help='A strip from texture A on the left to texture B on the right')
+@click.command(short_help='A strip from texture A on the left to texture B on the right', epilog=examples(
+    "# the bricks model (see tghop fit --help) turning into the built-in cells",
+    "tghop morph bricks.npz builtin:cells -o strip.png --seed 1",
+    "# from saved models: 4 strips of 256x1024, consecutive seeds, stacked",
+    "tghop morph bricks.npz cells.npz -o grid.png --size 256x1024 --grid 4"))
 @click.argument("source_a", metavar="A")
 @click.argument("source_b", metavar="B")
 @click.option("-o", "--output", required=True, help=f"{OUTPUT_HELP}; - writes PNG to stdout).")

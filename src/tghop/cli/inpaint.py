@@ -11,7 +11,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, numbered, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
-                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth)
+                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples)
 from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -57,7 +57,11 @@ MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} 
              "(tghop fit ALBEDO --maps ...) as --source takes its maps in its order.")
 
 
-@click.command(short_help="Fill a hole in an image (MASK's white pixels) with its texture")
+@click.command(short_help="Fill a hole in an image (MASK's white pixels) with its texture", epilog=examples(
+    "# fill hole.png's white pixels in photo.png; every other pixel is kept",
+    "tghop inpaint photo.png hole.png -o filled.png --seed 1",
+    "# ... with the texture of a saved model instead of the photo's own",
+    "tghop inpaint photo.png hole.png -o filled.png --source bricks.npz"))
 @click.argument("image")
 @click.argument("mask")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
@@ -106,7 +110,11 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
     tell_seed(seed, drawn, _same(count))
 
 
-@click.command(short_help='Grow an image beyond its edges with texture that continues it')
+@click.command(short_help='Grow an image beyond its edges with texture that continues it', epilog=examples(
+    "# photo.png grown to 512 high and 1536 wide, kept as it is at the left",
+    "tghop extend photo.png -o wider.png --size 512x1536 --anchor left",
+    "# photo.png in the centre of a larger seamless tile",
+    "tghop extend photo.png -o big.png --size 1024x1024 --tile"))
 @click.argument("image")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True,

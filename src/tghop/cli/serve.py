@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .common import check_stdout, user_errors
+from .common import check_stdout, examples, user_errors
 from .group import after_a_stop
 
 __all__ = ["serve", "default_cache_dir", "ByteSize"]
@@ -143,7 +143,11 @@ def _server(app):
     return Server(uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=2, lifespan="on"))
 
 
-@click.command(short_help='Start the local web page: fit, generate and download in a browser')
+@click.command(short_help='Start the local web page: fit, generate and download in a browser', epilog=examples(
+    "# then open the address it prints, http://127.0.0.1:8000/",
+    "tghop serve",
+    "# a free port, the page opened in your browser, models kept under ./models",
+    "tghop serve --port 0 --open --cache ./models"))
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Address to listen on. Any other than 127.0.0.1, localhost or ::1 lets other machines use the "
                    "server (it has no login): a warning is printed.")

@@ -16,7 +16,7 @@ from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
-                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials)
+                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -102,7 +102,13 @@ def _resolution_word(path):
     return found[-1].upper() if found else None
 
 
-@click.command(short_help='Learn a model from an exemplar and save it (.npz) to reuse')
+@click.command(short_help='Learn a model from an exemplar and save it (.npz) to reuse', epilog=examples(
+    "# learn the built-in bricks exemplar's model once; synth, info ... reuse it",
+    "tghop fit builtin:bricks -o bricks.npz",
+    "# your own image with the paper's settings (Table 4)",
+    "tghop fit texture.jpg -o paper.npz --paper",
+    "# a whole material: the colour map first, then its maps, kept aligned",
+    "tghop fit albedo.png --maps normal.png roughness.png -o mat.npz"))
 @click.argument("exemplar")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
@@ -162,7 +168,9 @@ def material_summary(material, found=None) -> str:
                                             material.normal_))
 
 
-@click.command(short_help='Write a grid of patches generated from a saved model')
+@click.command(short_help='Write a grid of patches generated from a saved model', epilog=examples(
+    "# 64 generated patches in a grid, and the paper's Fig. 6 views of them",
+    "tghop patches bricks.npz -n 64 -o patches.png --stages"))
 @click.argument("model_file", metavar="MODEL")
 @click.option("-n", "--count", "n", type=click.IntRange(min=1, max=10000), default=64, show_default=True,
               help="Patches to generate.")
@@ -203,7 +211,9 @@ def patches(model_file, n, output, seed, stages, quiet):
         click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
 
 
-@click.command(short_help="Map which of a model's clusters each part of an exemplar falls in")
+@click.command(short_help="Map which of a model's clusters each part of an exemplar falls in", epilog=examples(
+    "# the bricks exemplar beside its map of the model's clusters",
+    "tghop clusters bricks.npz builtin:bricks -o clusters.png"))
 @click.argument("model_file", metavar="MODEL")
 @click.argument("exemplar")
 @click.option("-o", "--output", required=True,
@@ -238,7 +248,15 @@ def clusters(model_file, exemplar, output, stride, quiet):
     click.echo(f"{used} cluster{'s' if used != 1 else ''} used of {total}; map written to {output}", err=True)
 
 
-@click.command(short_help='Make texture images from an image, builtin:NAME or saved model(s)')
+@click.command(short_help='Make texture images from an image, builtin:NAME or saved model(s)', epilog=examples(
+    "# a 512x512 texture of the built-in bricks exemplar; same seed, same image",
+    "tghop synth builtin:bricks -o bricks.png --size 512x512 --seed 1",
+    "# 2 images from a saved model, 256 high and 512 wide: out_1.png, out_2.png",
+    "tghop synth bricks.npz -o out.png --size 256x512 --count 2 --seed 7",
+    "# your own image: a seamless tile, its model kept to make more",
+    "tghop synth texture.jpg -o tile.png --tile --save-model texture.npz",
+    "# two textures painted by map.png: one grey level each, the darkest first",
+    "tghop synth bricks.npz texture.npz --guide map.png -o painted.png"))
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
               help=f"{OUTPUT_HELP}); with --count > 1 numbered name_1.png, ...; - writes PNG "
@@ -446,7 +464,9 @@ def _synth_material(material, output, outputs, size, depth, *, rng, progress, ge
     write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)], progress)
 
 
-@click.command(short_help='Describe a saved model: settings, dimensions, parameter count')
+@click.command(short_help='Describe a saved model: settings, dimensions, parameter count', epilog=examples(
+    "tghop info bricks.npz",
+    "tghop info bricks.npz --json"))
 @click.argument("model_file", metavar="MODEL")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def info(model_file, as_json):

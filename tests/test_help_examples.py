@@ -1,0 +1,99 @@
+"""Each command's ``--help`` ends with examples (0.59; ``tghop --help`` promised them, and 0.58's commands
+had none but ``cooc``'s), and those are commands a newcomer can paste: the shell reads them, their options
+exist, and those whose inputs are built in (builtin:bricks, or a file an example before them writes) run as
+written."""
+
+import re
+import shlex
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from conftest import cli
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+#: The commands as ``tghop --help`` lists them, in the order their examples make each other's inputs.
+ORDER = ["fit", "synth", "info", "patches", "clusters", "inpaint", "extend", "morph", "evaluate", "baseline", "batch",
+         "serve", "cooc"]
+OPTION = re.compile(r"(?<![\w-])(--[a-z][\w-]*)")
+#: Options whose value is a file the command writes, not one it reads.
+WRITES = {"-o", "--output", "--save-model", "--cache"}
+#: An argument that names a file to read.
+FILE = re.compile(r"[^\s:]+\.(png|jpg|jpeg|tif|tiff|npz|pt|csv)|[\w./-]+/")
+
+
+def _help(*command):
+    result = cli(*command, "--help")
+    assert result.returncode == 0, result.stderr
+    return result.stdout.decode()
+
+
+def _examples(command):
+    """The example lines of ``tghop COMMAND --help`` (comments left out)."""
+    text = _help(command)
+    assert "\nExamples:\n" in text or "\n  Examples:\n" in text, f"tghop {command} --help has no examples"
+    block = re.split(r"^ *Examples:\n", text, flags=re.M)[1]
+    lines = []
+    for line in block.splitlines():
+        if not line.startswith("    ") or not line.strip():
+            break
+        lines.append(line)
+    return lines
+
+
+def test_every_command_is_listed_with_examples():
+    listed = re.findall(r"^  ([a-z]+)  ", _help().split("Commands:")[1], re.M)
+    assert sorted(listed) == sorted(ORDER)
+    assert "tghop COMMAND --help" in _help()
+
+
+@pytest.mark.parametrize("command", ORDER)
+def test_every_example_is_a_line_the_shell_reads_with_options_its_command_takes(command):
+    lines = _examples(command)
+    commands = [line.strip() for line in lines if not line.strip().startswith("#")]
+    assert commands, f"tghop {command} --help: no example command"
+    for line in lines:
+        assert len(line) <= 80, f"wider than a terminal: {line!r}"
+    for line in commands:
+        # 0.58's cooc train example ended "(small config: about 15 min ...)": pasted, bash stops on the "(".
+        checked = subprocess.run(["bash", "-n", "-c", line], capture_output=True, text=True)
+        assert checked.returncode == 0, f"{line!r}: {checked.stderr}"
+        words = shlex.split(line.split(" #")[0])
+        assert words[0] == "tghop", line
+        named = words[1:3] if words[1] == "cooc" else words[1:2]
+        assert words[1] == command or (command == "cooc" and words[1] == "baseline"), line
+        known = set(OPTION.findall(_help(*named)))
+        assert not set(OPTION.findall(line)) - known, f"{line!r}: {sorted(set(OPTION.findall(line)) - known)}"
+
+
+def _inputs(words):
+    """The files an example reads (its arguments that name a file, but the outputs)."""
+    return [word for before, word in zip([""] + words, words)
+            if before not in WRITES and not word.startswith("-") and FILE.fullmatch(word)]
+
+
+@pytest.mark.timeout(900)  # three fits and eight commands: half a minute on 2 idle cores, minutes on busy ones
+def test_the_examples_whose_inputs_are_built_in_run_as_written(tmp_path):
+    # What a newcomer pastes from the help after `pip install .`: the built-in exemplar's model, images of it,
+    # its summary, patches, clusters and a baseline. Left out: an example of their own files (texture.jpg), the
+    # server, a batch, the cGAN's and the scores (SIFID's network alone takes minutes on a busy machine).
+    ran = []
+    for command in ORDER:
+        for line in _examples(command):
+            line = line.strip()
+            if line.startswith("#"):
+                continue
+            words = shlex.split(line)
+            if (">" in line or "*" in line or command in ("serve", "cooc", "batch", "evaluate")
+                    or not all((tmp_path / name).exists() for name in _inputs(words))):
+                continue
+            result = cli(*words[1:], cwd=tmp_path)
+            assert result.returncode == 0, f"{line}: {result.stderr.decode()[-600:]}"
+            ran.append(line)
+    # The README's set-up line is one of them: it runs here as it does after its `pip install .`.
+    first = re.search(r"^```sh\npip install \. && (tghop .*)$", README.read_text(encoding="utf-8"), re.M).group(1)
+    assert {first, "tghop fit builtin:bricks -o bricks.npz", "tghop info bricks.npz",
+            "tghop clusters bricks.npz builtin:bricks -o clusters.png"} <= set(ran), ran
+    assert {command for command in ORDER if any(line.split()[1] == command for line in ran)} >= {
+        "fit", "synth", "info", "patches", "clusters", "morph", "baseline"}, ran
