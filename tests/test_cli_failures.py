@@ -456,6 +456,29 @@ def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):
     assert shlex.split(command) == ["tghop", "fit", "my wall ü.png", "-o", "model.npz"]
 
 
+@pytest.mark.parametrize("args, fragment", [
+    (["synth", "bricks", "-o", "x.png"], "bricks: no such file; the built-in exemplar is builtin:bricks"),
+    (["fit", "cells", "-o", "c.npz"], "cells: no such file; the built-in exemplar is builtin:cells"),
+    (["synth", "builtin:bricks", "cells", "-o", "x.png"], "the built-in exemplar is builtin:cells"),
+    (["synth", "builtin:bricks", "-o", "x.png", "--size", "512", "512"],
+     "512: no such file; --size takes one value, HEIGHTxWIDTH (--size 512x1024: 1024 wide)"),
+])
+def test_a_newcomers_slip_is_told_what_was_meant(tmp_path, args, fragment):
+    # 0.58 said "bricks: no such file; check the path" to a built-in exemplar's name without builtin:, and
+    # the same of the second number of `--size 512 512`, which click takes for a SOURCE.
+    code, _, err, exc = invoke(*args, cwd=tmp_path)
+    assert_one_line(code, err, fragment, exception=exc)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_number_is_no_size_slip_where_the_command_has_no_size(tmp_path):
+    code, _, err, exc = invoke("fit", "512", "-o", "m.npz", cwd=tmp_path)
+    assert_one_line(code, err, "512: no such file; check the path", exception=exc)
+    (tmp_path / "bricks").mkdir()  # a folder of that name is there: it is read, and refused as a folder
+    code, _, err, exc = invoke("synth", "bricks", "-o", "x.png", cwd=tmp_path)
+    assert_one_line(code, err, "bricks is a folder", exception=exc)
+
+
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
 def test_an_image_to_a_terminal_is_refused(folder):
     # `-o -` without a redirection drew the PNG's bytes in the terminal as garbage, exit status 0.

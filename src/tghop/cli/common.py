@@ -365,8 +365,26 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
         hint = (" (a checkpoint goes to 'tghop cooc morph', 'tghop cooc edit' or 'tghop baseline cooc EXEMPLAR "
                 "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else checkpoint_note(spec))
         raise TGHopError(f"{spec} is {kind}, not an image; this command needs an image{hint}")
+    _refuse_a_slip(spec, BUILTIN)
     return read_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,
                       too_large_hint=HINT_DOWNSCALE_OPTION if has_downscale else HINT_DOWNSCALE_YOURSELF)
+
+
+def _refuse_a_slip(spec, builtins):
+    """An exemplar ``spec`` that is no file but a newcomer's slip, refused saying what was meant (0.59; 0.58 said
+    only "no such file; check the path"): a built-in exemplar's name without ``builtin:`` (``tghop synth bricks``),
+    or a number, the second of ``--size 512 512``, which click takes for one more SOURCE."""
+    import re
+
+    name = os.fspath(spec)
+    if os.path.lexists(name):
+        return
+    if name in builtins:
+        raise InvalidImageError(f"{name}: no such file; the built-in exemplar is builtin:{name}")
+    context = click.get_current_context(silent=True)
+    if re.fullmatch(r"\d+", name) and context is not None and any(p.name == "size" for p in context.command.params):
+        raise InvalidImageError(f"{name}: no such file; --size takes one value, HEIGHTxWIDTH (--size 512x1024: 1024 "
+                                "wide), or one number for a square")
 
 
 def warn_written_with_8(label: str, spec: str, output=None, *, several=()):
