@@ -471,6 +471,19 @@ def test_a_newcomers_slip_is_told_what_was_meant(tmp_path, args, fragment):
     assert not list(tmp_path.iterdir())
 
 
+def test_a_missing_source_is_named_before_the_guides_levels_are_counted(tmp_path):
+    # The README's `tghop synth a.npz b.npz --guide map.png` pasted with a map of 3 levels and no a.npz: 0.58 said
+    # "the guide has 3 distinct grey levels/colours but 2 SOURCEs were given", and only then that a.npz was missing.
+    levels = np.zeros((64, 96, 3))
+    levels[:, 32:64], levels[:, 64:] = 0.5, 1.0
+    save_image(levels, tmp_path / "map.png")
+    code, _, err, exc = invoke("synth", "a.npz", "b.npz", "--guide", "map.png", "-o", "x.png", cwd=tmp_path)
+    assert_one_line(code, err, "a.npz: no such model file", exception=exc)
+    code, _, err, exc = invoke("synth", "builtin:bricks", "bricks", "--guide", "map.png", "-o", "x.png", cwd=tmp_path)
+    assert_one_line(code, err, "bricks: no such file; the built-in exemplar is builtin:bricks", exception=exc)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map.png"]
+
+
 def test_a_number_is_no_size_slip_where_the_command_has_no_size(tmp_path):
     code, _, err, exc = invoke("fit", "512", "-o", "m.npz", cwd=tmp_path)
     assert_one_line(code, err, "512: no such file; check the path", exception=exc)

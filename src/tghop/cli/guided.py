@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import os
+
 import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
@@ -193,6 +195,9 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         check_output(path)
     check_outputs([("-o", path) for path in outputs],
                   [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
+    for spec in sources:  # a SOURCE that is no file is named first (0.58 counted the guide's levels against it)
+        if not is_builtin(spec) and not os.path.lexists(spec):
+            _read(spec, downscale)
     painted = None
     if guide is not None:  # read and checked (size, levels) before anything is fitted
         painted = _load_guide(guide, size, size_given)
@@ -236,7 +241,6 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
                                  "with 'tghop fit'")
         if any(isinstance(source, np.ndarray) for source in read):
             refuse_patch_refine_without_statistics(ctx, generation, build_model(dict(options)))
-    import os
 
     same, models = {}, []  # a file given twice is one model (fitted once): its regions are one synthesis
     for i, (spec, source) in enumerate(zip(sources, read), start=1):
