@@ -342,21 +342,59 @@ def test_synthesize_checks_its_settings_as_tghop_does(material):
                           ({"refine_maps": "no"}, "refine_maps must be True or False, got 'no'"),
                           ({"n_patches": 0}, "n_patches must be"),
                           ({"no_such_setting": 1}, "unknown setting 'no_such_setting'"),
-                          ({"patch_refine": 5}, "patch_refine does not apply to materials")):
+                          ({"patch_refine": -1}, "patch_refine must be")):
         with pytest.raises(TGHopError, match=re.escape(words)):
             material.synthesize(SIZE, rng=1, **kwargs)
 
 
-def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp_path):
-    """Review 58, item 8: the options typed are named, not the library's patch_refine."""
-    save_model(material, tmp_path / "mat.npz")
+def test_the_albedo_is_patch_refined_the_maps_kept_and_a_material_without_statistics_refuses_it(exemplar, maps,
+                                                                                                   material, tmp_path):
+    """0.59: a material's albedo is patch-refined with its own statistics (0.58 refused patch_refine for a
+    material, and its albedo came out blockier than the texture's); the other maps are 0.58's, the model file
+    keeps the statistics; a material fitted with patch_levels 0 (as every material of 0.58) refuses it."""
+    assert material.albedo_patches() is not None and material.albedo_patches().directions_.shape[-1] == 5 * 5 * 3
+    auto, off = material.synthesize(SIZE, rng=1, **POOL), material.synthesize(SIZE, rng=1, patch_refine=0, **POOL)
+    assert np.abs(auto["albedo"] - off["albedo"]).mean() > 1e-3
+    assert all(np.array_equal(auto[k], off[k]) for k in auto if k != "albedo")
+    more = material.synthesize(SIZE, rng=1, patch_refine=4, patch_stride=1, **POOL)
+    assert not np.array_equal(more["albedo"], auto["albedo"]) and np.array_equal(more["height"], auto["height"])
+    save_model(material, tmp_path / "m.npz")
+    loaded = load_model(tmp_path / "m.npz", material=True)
+    again = loaded.synthesize(SIZE, rng=1, **POOL)
+    assert all(np.array_equal(auto[k], again[k]) for k in auto)
+    import json
+
+    with np.load(tmp_path / "m.npz") as f:  # the file's statistics checked as a texture model's are
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["__meta__"]))
+    assert meta["material"]["patch_levels"] == 4 and "material_patch.patch.directions" in arrays
+    for change, words in (({"patch_levels": 1.5}, "patch_levels is not a whole number"),
+                          ({"patch_levels": 1}, "material_patch.patch.directions has 4 entries along axis 0")):
+        with open(tmp_path / "bad.npz", "wb") as fh:
+            np.savez(fh, **{**arrays, "__meta__": np.array(json.dumps({**meta, "material": {**meta["material"],
+                                                                                             **change}}))})
+        with pytest.raises(ModelFileError, match=words):
+            load_model(tmp_path / "bad.npz", material=True)
+    old = Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps)
+    assert old.albedo_patches() is None
+    plain = old.synthesize(SIZE, rng=1, **POOL)
+    assert all(np.array_equal(plain[k], off[k]) for k in plain)  # the same joint model; the albedo as 0.58's
+    with pytest.raises(TGHopError, match="patch_refine=2 needs the albedo's patch statistics"):
+        old.synthesize(SIZE, rng=1, patch_refine=2, **POOL)
+
+
+def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_options(exemplar, maps, tmp_path):
+    """Review 58, item 8: the options typed are named, not the library's patch_refine (0.59: a material fitted
+    without patch statistics, as 0.58 fitted every material)."""
+    save_model(Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps), tmp_path / "mat.npz")
     runner = CliRunner()
-    for args, words in ((["--quality", "best"], "Error: --quality best does not apply to a material"),
-                        (["--patch-refine", "5"], "Error: --patch-refine does not apply to a material"),
+    for args, words in ((["--quality", "best"], "Error: --quality best does not apply to this material"),
+                        (["--patch-refine", "5"], "Error: --patch-refine does not apply to this material"),
                         (["--quality", "best", "--patch-refine", "5"], "--quality best and --patch-refine do not"),
                         # --patch-stride was silently ignored (a material has no patch refinement)
-                        (["--patch-stride", "3"], "Error: --patch-stride does not apply to a material (it has no "
-                                                  "patch statistics); drop it"),
+                        (["--patch-stride", "3"], "Error: --patch-stride does not apply to this material (it has no "
+                                                  "patch statistics: fitted by tghop 0.58 or older, or with "
+                                                  "--patch-levels 0); fit it again, or drop it"),
                         (["--patch-refine", "5", "--patch-stride", "3"], "--patch-refine and --patch-stride do not"),
                         (["--stages"], "Error: --stages applies to a texture model, not a material; drop it"),
                         (["-o", "-"], "Error: a material writes a file per map; give -o a file name")):
@@ -366,6 +404,21 @@ def test_cli_refuses_patch_refinement_of_a_material_by_its_options(material, tmp
         assert words in res.output and "patch_refine" not in res.output, res.output
         assert res.output.strip().count("\n") == 0
     assert not list(tmp_path.glob("*.png"))
+
+
+
+def test_cli_patch_refines_a_materials_albedo(material, tmp_path):
+    """0.59: synth MAT --patch-refine N (and --quality best) refine the albedo; 0.58 refused them for a material."""
+    save_model(material, tmp_path / "mat.npz")
+    out = {}
+    for steps in ("0", "3"):
+        res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / f"o{steps}.png"),
+                                        "--size", "64", "--seed", "1", "-q", "--patch-refine", steps])
+        assert res.exit_code == 0, res.output
+        out[steps] = {p.name[2:]: load_image(p) for p in tmp_path.glob(f"o{steps}*.png")}
+    assert set(out["3"]) == {".png", "_normal.png", "_roughness.png", "_height.png"}
+    assert not np.array_equal(out["0"][".png"], out["3"][".png"])
+    assert all(np.array_equal(out["0"][k], out["3"][k]) for k in out["3"] if k != ".png")
 
 
 @pytest.fixture(scope="module")

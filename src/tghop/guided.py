@@ -482,8 +482,8 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
     checked = settings.check_settings(dict(generation, tile=tile))  # refused before any layer is made
     materials = isinstance(models[0], Material)
     if materials and checked["patch_refine"]:
-        raise TGHopError("patch_refine does not apply to materials (their joint models have no patch statistics); "
-                         "leave it at 0 or None")
+        raise TGHopError("patch_refine does not apply to materials painted or remixed (their joint models have no "
+                         "patch statistics; Material.synthesize refines an albedo alone); leave it at 0 or None")
     for i, model in enumerate(models, start=1):
         if checked["patch_refine"] and getattr(model, "patches_", None) is None:
             raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics input {i} lacks "

@@ -486,7 +486,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     return _into(original, hole, values)
 
 
-def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, blend=3, progress=None, **options):
+def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, blend=3, patch_refine=None,
+                     progress=None, **options):
     """Fill the same hole in every map of a whole material's picture (its albedo and maps,
     aligned) with the material's texture: one fill of the maps stacked, as the material
     generates them, so that what is filled in each map belongs with the others.
@@ -510,10 +511,12 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         The hole, as :func:`inpaint` takes it.
     rng, tile, refine, blend, progress
         As :func:`inpaint` (``refine``: each map's rounds; progress: "refine" counts maps).
+    patch_refine : int or None
+        As :func:`inpaint`'s, of the albedo's hole alone with the material's albedo statistics
+        (:meth:`~tghop.material.Material.albedo_patches`; 0.59: a material of 0.58 has none, above 0 refused).
     **options
         Further keywords of :func:`inpaint` (``n_patches``, ``tolerance``, ``detail``,
-        ``flat_share``, ``layout_weight``, ``order``, ``seam_window``); a material has no
-        patch statistics, so no ``patch_refine``.
+        ``flat_share``, ``layout_weight``, ``order``, ``seam_window``).
 
     Returns
     -------
@@ -538,6 +541,8 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         given = ", ".join(map(str, images)) if isinstance(images, Mapping) else type(images).__name__
         raise TGHopError(f"images must be a dict of the material's maps, {', '.join(names)}; got {given}")
     refine, blend = check_int(refine, "refine", 0, where="inpaint_material"), check_int(blend, "blend", 0)
+    patch_refine = check_settings(dict(patch_refine=patch_refine))["patch_refine"]
+    stats = material.albedo_patches(patch_refine)
     works, given, alphas = [], {}, {}
     for name, c in zip(names, material.map_channels_):
         arr = np.asarray(images[name])
@@ -557,7 +562,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     filled = inpaint(material.model_, stack, hole, rng=rng, tile=tile, refine=0, patch_refine=0, progress=progress,
                      **options).astype(np.float32)
     alpha = None
-    if refine and blend and hole.any():
+    if (refine or stats is not None) and blend and hole.any():
         alpha = np.clip(_distance_to_known(hole, tile) / (blend + 1), 0.0, 1.0).astype(np.float32)[..., None]
     out = {}
     for i, (name, part) in enumerate(zip(names, material.map_slices())):
@@ -565,6 +570,8 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         if refine and hole.any():
             refined = refine_hole(img, hole, material.bands_[i], n_iter=refine, tile=tile)
             img = refined if alpha is None else img + alpha * (refined - img)
+        if i == 0 and patch_refine != 0 and stats is not None and hole.any():  # as inpaint's last step (0.59)
+            img = _patch_refine_hole(img, hole, stats, patch_refine, tile, alpha, progress)
         if material.normal_[i]:
             img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
         if material.levels_[i] is not None or material.channel_levels_[i] is not None:

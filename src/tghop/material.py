@@ -10,8 +10,10 @@ one joint distribution; quilting then chooses each block's patch and its cut onc
 every map (the choice and the cuts are the same for all channels by construction). After
 quilting each map is refined (band statistics of its own, :mod:`tghop.refine`) and
 colour-matched (each channel to its own exemplar histogram, :mod:`tghop.colour`) on its
-own: a map's values are never matched to another map's. A normal map is renormalised to
-unit vectors at the end. The measurement behind these choices (against a model per map,
+own: a map's values are never matched to another map's. Up to a texture's sizes the albedo
+is then patch-refined (:mod:`tghop.patch_refine`) with its own patch statistics in place of its
+colour matching (0.59; refined with every map's channels together, its SIFID was worse: docs/choices.md).
+A normal map is renormalised to unit vectors at the end. The measurement behind these choices (against a model per map,
 and with the maps left unrefined) is in docs/choices.md, "Whole materials".
 
 A map is a normal map when its name contains "normal" or "nrm" (any case), or when it is
@@ -49,6 +51,7 @@ from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS,
                         is_normal_name, keeps_alpha, map_kind, map_name, name_kind, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
 from .normals import convention_of
+from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
 from .exemplar import drop_alpha
@@ -70,6 +73,8 @@ NORMAL_LOOK_SHARE = 0.9
 NORMAL_LOOK_MEAN = 0.1
 #: Bits per channel a map's file may have (what a model file accepts).
 DEPTHS = (8, 16, 32)
+#: The albedo's patch statistics' arrays in a model file (0.59): no map's ``material.<name>.`` prefix.
+PATCH_PREFIX = "material_patch."
 #: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
 REFINE_MAPS = settings.Setting("refine_maps", True, "bool", "Refine the maps other than the albedo too.",
                                when="generate", cli=None)
@@ -342,6 +347,8 @@ class Material(BaseEstimator):
         writes each map with unless told otherwise.
     bands_ : list of tghop.refine.BandStatistics
         Each map's own refinement statistics.
+    patches_ : tghop.patch_refine.PatchStatistics or None
+        The albedo's alone, for its patch refinement (0.59; None: ``patch_levels`` 0, or a file of 0.58).
     levels_ : list of ndarray or None
         Each map's mask levels (:func:`tghop.masks.mask_levels`: a map of at most 4 distinct values,
         not the albedo or a normal map), to which its output is snapped; None for the others.
@@ -511,7 +518,8 @@ class Material(BaseEstimator):
         params = base.get_params()
         if self.rng is not None:
             params["rng"] = self.rng
-        params["patch_levels"] = 0  # the patch refinement does not apply to materials
+        patch_levels, whitening = params["patch_levels"], params["patch_whitening"]  # the albedo's alone (0.59)
+        params["patch_levels"] = 0  # the joint model's: none (refining all maps together did not help)
         given = params.get("n_channels")
         if given is not None and any(k is None for k in given):  # some given (--k1 alone): the rest by default
             defaults = default_channels(params["patch_size"], stack.shape[2])
@@ -530,8 +538,9 @@ class Material(BaseEstimator):
             bands.append(BandStatistics(n_levels=model.band_levels, n_orientations=model.band_orientations)
                          .fit(rescale(img, scale), exclude=ex))
             report(progress, "maps", len(bands), len(items))
+        patches = fit_patch_statistics(patch_levels, rescale(items[0][1], scale), whitening=whitening, exclude=ex)
         # Only now, all together: a fit that fails leaves an earlier fit whole, not its model beside new maps.
-        self.model_, self.bands_ = model, bands
+        self.model_, self.bands_, self.patches_ = model, bands, patches
         self.names_ = [name for name, _, _, _ in items]
         self.normal_ = [is_normal for _, _, _, is_normal in items]
         self.conventions_ = conventions
@@ -612,8 +621,9 @@ class Material(BaseEstimator):
             The other generation settings of :meth:`TGHop.synthesize` (``n_patches``,
             ``tolerance``, ``detail``, ``layout_weight``, ...). These, ``refine``,
             ``match_colours`` and ``tile`` are checked as :meth:`TGHop.synthesize` checks them
-            (:mod:`tghop.settings`), ``refine_maps`` as a boolean; ``patch_refine`` above 0 is
-            refused (the joint model has no patch statistics).
+            (:mod:`tghop.settings`), ``refine_maps`` as a boolean. ``patch_refine`` (None: by the size, as a
+            texture's) patch-refines the albedo with :attr:`patches_` in place of its colour matching (0.59;
+            a material of 0.58 has none: above 0 refused, None skips it); the other maps are as in 0.58.
 
         Returns
         -------
@@ -629,18 +639,21 @@ class Material(BaseEstimator):
         checked = settings.check_settings(dict(refine=refine, match_colours=match_colours, tile=tile, **options))
         refine, match_colours, tile = checked.pop("refine"), checked.pop("match_colours"), checked.pop("tile")
         refine_maps = REFINE_MAPS.check(refine_maps)
-        if checked.get("patch_refine"):
-            raise TGHopError("patch_refine does not apply to materials (their joint model has no patch "
-                             "statistics); leave it at 0 or None")
+        patch_refine = checked.pop("patch_refine", None)
+        stats = self.albedo_patches(patch_refine)
+        stride = checked.pop("patch_stride", settings.BY_NAME["patch_stride"].default)
         stack = self.model_.synthesize(size, rng=check_rng(rng), tile=tile, refine=0, match_colours=False,
                                        progress=progress, dtype=np.float32, **checked)
+        n_steps = steps_for(patch_refine, stack.shape[:2]) if stats is not None else 0
         quantiles = self.model_.colour_quantiles_
         out = {}
         for i, (name, part) in enumerate(zip(self.names_, self.map_slices())):
             img = np.ascontiguousarray(stack[..., part])
             if refine and (refine_maps or i == 0):
                 img = refine_bands(img, self.bands_[i], n_iter=refine, tile=tile, dtype=np.float32, progress=progress)
-            if match_colours:
+            if i == 0 and n_steps:  # the albedo's last step, as a texture's (in place of its colour matching)
+                img = refine_image(img, stats, n_steps=n_steps, stride=stride, tile=tile, progress=progress)
+            elif match_colours:
                 img = match_histograms(img, quantiles[part])
             if self.normal_[i]:
                 img = renormalise(img)
@@ -650,12 +663,25 @@ class Material(BaseEstimator):
             report(progress, "maps", i + 1, len(self.names_))
         return out
 
+    def albedo_patches(self, patch_refine=None):
+        """The albedo's patch statistics (:attr:`patches_`; None: a material of tghop 0.58 or fitted with
+        ``patch_levels`` 0), checked against a ``patch_refine`` above 0 (:class:`TGHopError`)."""
+        check_is_fitted(self, "model_")
+        stats = vars(self).get("patches_")
+        if patch_refine and stats is None:
+            raise TGHopError(f"patch_refine={patch_refine} needs the albedo's patch statistics, which this material "
+                             "lacks (fitted by tghop 0.58 or older, or with patch_levels=0); fit it again, or leave "
+                             "patch_refine at None or 0")
+        return stats
+
     # ------------------------------------------------------------- model files
     def _to_arrays(self) -> dict:
         check_is_fitted(self, "model_")
         out = self.model_._to_arrays()
         for name, bands in zip(self.names_, self.bands_):
             out.update({f"material.{name}.{k}": v for k, v in bands._to_arrays().items()})
+        if self.albedo_patches() is not None:  # 0.59
+            out.update({f"{PATCH_PREFIX}{k}": v for k, v in self.patches_._to_arrays().items()})
         return out
 
     def map_info(self) -> list:
@@ -683,6 +709,8 @@ class Material(BaseEstimator):
                                       **({"levels": levels} if levels else {}),
                                       **({"channel_levels": per_channel} if per_channel else {}),
                                       "conventions": {n: c for n, c in zip(self.names_, self.conventions_) if c},
+                                      **({"patch_levels": len(self.patches_.directions_)} if self.albedo_patches()
+                                         is not None else {}),
                                       # the joint model's copy of the fit's generator (0.57)
                                       "model_rng": settings.generator_record(self.model_.rng)}}
 
@@ -799,7 +827,17 @@ class Material(BaseEstimator):
         stats = BandStatistics(n_levels=params.get("band_levels", 4), n_orientations=params.get("band_orientations", 4))
         for m in cls._check_meta(meta):
             groups.append((f"material.{m['name']}.", stats._array_specs(m["channels"])))
-        return groups
+        levels = cls._patch_levels(meta)
+        return groups + ([(PATCH_PREFIX, PatchStatistics(levels)._array_specs(meta["material"]["maps"][0]["channels"],
+                                                                              meta))] if levels else [])
+
+    @staticmethod
+    def _patch_levels(meta):
+        """The albedo's patch statistics' levels from the metadata (0.59; None: none), checked."""
+        levels = meta["material"].get("patch_levels")
+        if levels is not None and (not isinstance(levels, int) or isinstance(levels, bool) or not 1 <= levels <= 16):
+            raise TGHopError("the material metadata's patch_levels is not a whole number from 1 to 16")
+        return levels
 
     @classmethod
     def _from_state(cls, meta, arrays):
@@ -820,6 +858,9 @@ class Material(BaseEstimator):
         mat.depths_ = [m["depth"] for m in maps]
         mat.levels_ = cls._levels_meta(meta["material"].get("levels", {}), maps)
         mat.channel_levels_ = cls._levels_meta(meta["material"].get("channel_levels", {}), maps, "channel_levels")
+        levels = cls._patch_levels(meta)
+        mat.patches_ = PatchStatistics(levels)._from_arrays(
+            {k[len(PATCH_PREFIX):]: v for k, v in arrays.items() if k.startswith(PATCH_PREFIX)}) if levels else None
         mat.bands_ = []
         for m in maps:
             prefix = f"material.{m['name']}."

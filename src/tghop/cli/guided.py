@@ -251,8 +251,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<suffix>, ...
         if generation["patch_refine"]:
-            raise click.UsageError("--patch-refine and --quality best do not apply to materials (they have no patch "
-                                   "statistics); drop them")
+            raise click.UsageError("--patch-refine and --quality best do not apply to materials painted or remixed "
+                                   "(their joint models have no patch statistics); drop them")
 
         def make():
             maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,

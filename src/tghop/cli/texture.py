@@ -389,14 +389,17 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         if hasattr(model, "names_"):  # a whole material: every map, written together
             if stages:
                 raise click.UsageError("--stages applies to a texture model, not a material; drop it")
-            stride = given_options(ctx, ["patch_stride"])  # would be ignored: a material has no patch refinement
-            if generation["patch_refine"] or stride:  # refused here by the options typed, not the library's keyword
+            stride = given_options(ctx, ["patch_stride"])  # would be ignored without the albedo's patch statistics
+            # refused here by the options typed, not the library's keyword: a material fitted by 0.58 or with
+            # --patch-levels 0 (0.59 patch-refines a material's albedo)
+            if (generation["patch_refine"] or stride) and model.albedo_patches() is None:
                 typed = (["--quality best"] if ctx.params.get("quality") == "best" else []) + given_options(
                     ctx, ["patch_refine", "patch_stride"])
                 typed = typed or ["--patch-refine"]
                 several = len(typed) > 1
-                raise click.UsageError(f"{' and '.join(typed)} {'do' if several else 'does'} not apply to a material "
-                                       f"(it has no patch statistics); drop {'them' if several else 'it'}")
+                raise click.UsageError(f"{' and '.join(typed)} {'do' if several else 'does'} not apply to this "
+                                       "material (it has no patch statistics: fitted by tghop 0.58 or older, or with "
+                                       f"--patch-levels 0); fit it again, or drop {'them' if several else 'it'}")
             _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
                             source=source)
             return None, True
