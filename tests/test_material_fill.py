@@ -89,9 +89,11 @@ def test_16_bit_maps_are_filled_and_kept_at_16_bits(material, picture):
         assert not np.array_equal(out[name][hole], deep[name][hole])
     n = out["normal"][hole] / 65535.0 * 2 - 1
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-4)
-    # The fill of the 8-bit albedo and float maps, but for the maps' 16-bit rounding (levels / 65535, not 255)
-    eight = inpaint_material(material, images, hole, rng=1, n_patches=1500)
-    assert np.abs(out["albedo"][hole] / 257.0 - eight["albedo"][hole]).mean() < 0.5
+    # The fill of the 8-bit albedo and float maps, but for the maps' 16-bit rounding (levels / 65535, not 255);
+    # without the albedo's patch refinement (0.59), whose steps of a fixed size follow such differences' signs
+    deep0, eight = (inpaint_material(material, im, hole, rng=1, n_patches=1500, patch_refine=0)
+                    for im in (deep, images))
+    assert np.abs(deep0["albedo"][hole] / 257.0 - eight["albedo"][hole]).mean() < 0.5
 
 
 @pytest.mark.parametrize("change, words", [
