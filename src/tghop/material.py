@@ -7,13 +7,11 @@ How the maps stay aligned: one :class:`~tghop.synthesis.TGHop` model is fitted o
 stacked channels of all maps (albedo RGB, normal RGB, roughness, ...: an (H, W, C) image
 of C channels), so every generated patch carries all maps at once, drawn together from
 one joint distribution; quilting then chooses each block's patch and its cut once, for
-every map (the choice and the cuts are the same for all channels by construction). After
-quilting each map is refined (band statistics of its own, :mod:`tghop.refine`) and
-colour-matched (each channel to its own exemplar histogram, :mod:`tghop.colour`) on its
-own: a map's values are never matched to another map's. Up to a texture's sizes the albedo
-is then patch-refined (:mod:`tghop.patch_refine`) with its own patch statistics in place of its
-colour matching (0.59; refined with every map's channels together, its SIFID was worse: docs/choices.md).
-A normal map is renormalised to unit vectors at the end. The measurement behind these choices (against a model per map,
+every map (the choice and the cuts are the same for all channels by construction). After quilting each map is refined
+(band statistics of its own, :mod:`tghop.refine`) and colour-matched (each channel to its own exemplar histogram,
+:mod:`tghop.colour`) on its own: a map's values are never matched to another map's. Up to a texture's sizes the albedo
+is then patch-refined (:mod:`tghop.patch_refine`) with its own statistics in place of its colour matching (0.59). A
+normal map is renormalised to unit vectors at the end. The measurement behind these choices (against a model per map,
 and with the maps left unrefined) is in docs/choices.md, "Whole materials".
 
 A map is a normal map when its name contains "normal" or "nrm" (any case), or when it is
@@ -639,8 +637,7 @@ class Material(BaseEstimator):
         checked = settings.check_settings(dict(refine=refine, match_colours=match_colours, tile=tile, **options))
         refine, match_colours, tile = checked.pop("refine"), checked.pop("match_colours"), checked.pop("tile")
         refine_maps = REFINE_MAPS.check(refine_maps)
-        patch_refine = checked.pop("patch_refine", None)
-        stats = self.albedo_patches(patch_refine)
+        stats = self.albedo_patches(patch_refine := checked.pop("patch_refine", None))
         stride = checked.pop("patch_stride", settings.BY_NAME["patch_stride"].default)
         stack = self.model_.synthesize(size, rng=check_rng(rng), tile=tile, refine=0, match_colours=False,
                                        progress=progress, dtype=np.float32, **checked)
@@ -664,8 +661,17 @@ class Material(BaseEstimator):
         return out
 
     def albedo_patches(self, patch_refine=None):
-        """The albedo's patch statistics (:attr:`patches_`; None: a material of tghop 0.58 or fitted with
-        ``patch_levels`` 0), checked against a ``patch_refine`` above 0 (:class:`TGHopError`)."""
+        """The albedo's patch statistics (:attr:`patches_`), checked against ``patch_refine``.
+
+        Parameters
+        ----------
+        patch_refine : int or None
+            Above 0 where there are none (a material of tghop 0.58, or fitted with ``patch_levels`` 0): TGHopError.
+
+        Returns
+        -------
+        tghop.patch_refine.PatchStatistics or None
+        """
         check_is_fitted(self, "model_")
         stats = vars(self).get("patches_")
         if patch_refine and stats is None:
@@ -827,17 +833,11 @@ class Material(BaseEstimator):
         stats = BandStatistics(n_levels=params.get("band_levels", 4), n_orientations=params.get("band_orientations", 4))
         for m in cls._check_meta(meta):
             groups.append((f"material.{m['name']}.", stats._array_specs(m["channels"])))
-        levels = cls._patch_levels(meta)
-        return groups + ([(PATCH_PREFIX, PatchStatistics(levels)._array_specs(meta["material"]["maps"][0]["channels"],
-                                                                              meta))] if levels else [])
-
-    @staticmethod
-    def _patch_levels(meta):
-        """The albedo's patch statistics' levels from the metadata (0.59; None: none), checked."""
-        levels = meta["material"].get("patch_levels")
+        levels = meta["material"].get("patch_levels")  # the albedo's patch statistics (0.59)
         if levels is not None and (not isinstance(levels, int) or isinstance(levels, bool) or not 1 <= levels <= 16):
             raise TGHopError("the material metadata's patch_levels is not a whole number from 1 to 16")
-        return levels
+        return groups + ([(PATCH_PREFIX, PatchStatistics(levels)._array_specs(meta["material"]["maps"][0]["channels"],
+                                                                              meta))] if levels else [])
 
     @classmethod
     def _from_state(cls, meta, arrays):
@@ -858,7 +858,7 @@ class Material(BaseEstimator):
         mat.depths_ = [m["depth"] for m in maps]
         mat.levels_ = cls._levels_meta(meta["material"].get("levels", {}), maps)
         mat.channel_levels_ = cls._levels_meta(meta["material"].get("channel_levels", {}), maps, "channel_levels")
-        levels = cls._patch_levels(meta)
+        levels = meta["material"].get("patch_levels")  # checked by _array_specs
         mat.patches_ = PatchStatistics(levels)._from_arrays(
             {k[len(PATCH_PREFIX):]: v for k, v in arrays.items() if k.startswith(PATCH_PREFIX)}) if levels else None
         mat.bands_ = []
