@@ -2,6 +2,8 @@
 
 They let the CLI, the tests and the README gallery run on any machine. Each function
 returns a float ``(H, W, 3)`` image in [0, 1] and is deterministic for a given ``rng``.
+:func:`example_maps` makes a material's maps (normal, roughness, height) from an albedo for the
+same uses (also ``tghop.material.example_maps``).
 """
 
 from __future__ import annotations
@@ -11,9 +13,9 @@ import numpy as np
 from ._arrays import check_int
 from ._errors import TGHopError
 from ._estimator import check_rng
-from ._images import check_size
+from ._images import check_image, check_size
 
-__all__ = ["bricks", "cells", "builtin", "BUILTIN"]
+__all__ = ["bricks", "cells", "builtin", "BUILTIN", "example_maps"]
 
 
 def _smooth_noise(rng, shape, sigma):
@@ -131,3 +133,54 @@ def builtin(name: str, size: int = 256, *, rng=0) -> np.ndarray:
         shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."  # 0.57: a 900 KB field whole
         raise TGHopError(f"unknown built-in exemplar {shown}; choose one of {', '.join(sorted(BUILTIN))}")
     return BUILTIN[name](size, rng=rng)
+
+
+def _blur(x, sigma):
+    """A separable Gaussian blur of an (H, W) array (reflecting edges), without SciPy."""
+    r = max(1, int(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    k /= k.sum()
+    for axis in (0, 1):
+        pad = [(r, r) if a == axis else (0, 0) for a in range(2)]
+        x = np.apply_along_axis(lambda v: np.convolve(v, k, mode="valid"), axis, np.pad(x, pad, mode="reflect"))
+    return x
+
+
+def example_maps(albedo, *, strength=8.0, convention="DirectX"):
+    """Maps made from an albedo's luminance, for tests, benchmarks and demonstrations:
+    ``{"normal": (H, W, 3), "roughness": (H, W, 1), "height": (H, W, 1)}``, float in [0, 1].
+
+    The height is the luminance blurred (sigma 1.5 px), the normal map its slope
+    (``(-strength dh/dx, -strength dh/dy, 1)`` normalised, encoded as ``(n + 1) / 2``, ``y`` down
+    the rows: the DirectX convention, green down; ``convention="OpenGL"``: green up, the map for
+    Blender, Unity and glTF), the roughness one minus the luminance blurred more (sigma 3 px).
+
+    Parameters
+    ----------
+    albedo : array_like, shape (H, W) or (H, W, C), C in {1, 3}
+        Float in [0, 1], or uint8 / uint16 (rescaled); a bad shape, dtype or range raises
+        :class:`~tghop.InvalidImageError`.
+    strength : float
+        Slope of the normal map per unit of height (larger: steeper normals).
+    convention : {"DirectX", "OpenGL"}
+        The normal map's: green down (a bump's upper edge dark in green; Unreal) or up (Blender,
+        Unity). DirectX by default, as tghop made them before this choice was given.
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``"normal"`` (H, W, 3), ``"roughness"`` (H, W, 1), ``"height"`` (H, W, 1), float64 in [0, 1].
+    """
+    if convention not in ("DirectX", "OpenGL"):
+        raise TGHopError(f"convention must be 'DirectX' or 'OpenGL' (a normal map's green down or up), "
+                         f"got {convention!r}")
+    img = check_image(albedo, name="albedo")
+    lum = img.mean(axis=2)
+    height = _blur(lum, 1.5)
+    gy, gx = np.gradient(height)
+    if convention == "OpenGL":
+        gy = -gy
+    n = np.stack([-strength * gx, -strength * gy, np.ones_like(height)], axis=2)
+    n /= np.linalg.norm(n, axis=2, keepdims=True)
+    return {"normal": (n + 1.0) / 2.0, "roughness": np.clip(1.0 - _blur(lum, 3.0), 0.0, 1.0)[..., None],
+            "height": np.clip(height, 0.0, 1.0)[..., None]}

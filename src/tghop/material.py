@@ -41,6 +41,7 @@ from ._arrays import check_dtype, check_not_path
 from ._errors import TGHopError, check_progress, warn
 from ._estimator import BaseEstimator, check_is_fitted, check_rng, fit_part, fitted_settings
 from ._images import check_image
+from .data import example_maps  # made from an albedo for tests and demonstrations; tghop.material's name too
 from ._progress import report
 from ._resources import one_blas_thread
 from .colour import match_histograms
@@ -250,57 +251,6 @@ def renormalise(values, out=None):
         return np.clip(n, 0.0, 1.0)
     out[...] = np.clip(n, 0.0, 1.0)
     return out
-
-
-def _blur(x, sigma):
-    """A separable Gaussian blur of an (H, W) array (reflecting edges), without SciPy."""
-    r = max(1, int(3 * sigma))
-    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
-    k /= k.sum()
-    for axis in (0, 1):
-        pad = [(r, r) if a == axis else (0, 0) for a in range(2)]
-        x = np.apply_along_axis(lambda v: np.convolve(v, k, mode="valid"), axis, np.pad(x, pad, mode="reflect"))
-    return x
-
-
-def example_maps(albedo, *, strength=8.0, convention="DirectX"):
-    """Maps made from an albedo's luminance, for tests, benchmarks and demonstrations:
-    ``{"normal": (H, W, 3), "roughness": (H, W, 1), "height": (H, W, 1)}``, float in [0, 1].
-
-    The height is the luminance blurred (sigma 1.5 px), the normal map its slope
-    (``(-strength dh/dx, -strength dh/dy, 1)`` normalised, encoded as ``(n + 1) / 2``, ``y`` down
-    the rows: the DirectX convention, green down; ``convention="OpenGL"``: green up, the map for
-    Blender, Unity and glTF), the roughness one minus the luminance blurred more (sigma 3 px).
-
-    Parameters
-    ----------
-    albedo : array_like, shape (H, W) or (H, W, C), C in {1, 3}
-        Float in [0, 1], or uint8 / uint16 (rescaled); a bad shape, dtype or range raises
-        :class:`~tghop.InvalidImageError`.
-    strength : float
-        Slope of the normal map per unit of height (larger: steeper normals).
-    convention : {"DirectX", "OpenGL"}
-        The normal map's: green down (a bump's upper edge dark in green; Unreal) or up (Blender,
-        Unity). DirectX by default, as tghop made them before this choice was given.
-
-    Returns
-    -------
-    dict of str to ndarray
-        ``"normal"`` (H, W, 3), ``"roughness"`` (H, W, 1), ``"height"`` (H, W, 1), float64 in [0, 1].
-    """
-    if convention not in ("DirectX", "OpenGL"):
-        raise TGHopError(f"convention must be 'DirectX' or 'OpenGL' (a normal map's green down or up), "
-                         f"got {convention!r}")
-    img = check_image(albedo, name="albedo")
-    lum = img.mean(axis=2)
-    height = _blur(lum, 1.5)
-    gy, gx = np.gradient(height)
-    if convention == "OpenGL":
-        gy = -gy
-    n = np.stack([-strength * gx, -strength * gy, np.ones_like(height)], axis=2)
-    n /= np.linalg.norm(n, axis=2, keepdims=True)
-    return {"normal": (n + 1.0) / 2.0, "roughness": np.clip(1.0 - _blur(lum, 3.0), 0.0, 1.0)[..., None],
-            "height": np.clip(height, 0.0, 1.0)[..., None]}
 
 
 def _depth_of(arr) -> int:
