@@ -144,12 +144,33 @@ def test_a_bad_map_is_recorded_and_the_rest_finish(tmp_path):
         assert not (tmp_path / "out" / name).exists()
 
 
-def test_quality_best_with_a_material_is_refused_before_any_work(tmp_path):
+def test_quality_best_patch_refines_a_materials_albedo_and_leaves_its_maps(tmp_path):
+    # 0.58 refused it ("a material (maps) has no patch statistics"); 0.59 fits the albedo's (Material.patches_)
+    src = make_material(tmp_path / "src")
+    (src / "list.csv").write_text("path,maps\nrock.png,rock_n.png;rock_h.png\n")
+    made = {}
+    for steps in (0, 8):
+        out = tmp_path / f"out{steps}"
+        results = batch.run(src / "list.csv", out, size=SIZE, seed=1, fit=FIT, generate={**GEN, "patch_refine": steps},
+                            workers=1)
+        assert [r["status"] for r in results] == ["ok"]
+        made[steps] = {f: pixels(out / "rock" / f"rock{f}.png")[0] for f in ("", "_n", "_h")}
+    assert not np.array_equal(made[0][""], made[8][""])  # the albedo refined
+    for f in ("_n", "_h"):  # the other maps as without it, bit for bit
+        assert np.array_equal(made[0][f], made[8][f])
+    code, _, err, exc = invoke("batch", "src/list.csv", "-o", "out", "--quality", "best", "--workers", "1", "-q",
+                               "--clusters", "6", "--codewords", "30", "--stride", "4",
+                               "--size", "40x48", cwd=tmp_path)
+    assert code == 0, err
+    assert [r["status"] for r in ledger(tmp_path / "out")] == ["ok"]
+
+
+def test_quality_best_without_patch_statistics_is_refused_before_any_work(tmp_path):
     src = make_material(tmp_path / "src")
     (src / "list.csv").write_text("path,maps\nrock.png,rock_n.png\n")
-    code, _, err, exc = invoke("batch", "src/list.csv", "-o", "out", "--quality", "best", "--workers", "1", "-q",
-                               cwd=tmp_path)
-    assert_one_line(code, err, "line 2: a material (maps) has no patch statistics", exception=exc)
+    code, _, err, exc = invoke("batch", "src/list.csv", "-o", "out", "--quality", "best", "--patch-levels", "0",
+                               "--workers", "1", "-q", cwd=tmp_path)
+    assert_one_line(code, err, "need the patch statistics that patch_levels 0 leaves out", exception=exc)
     assert not (tmp_path / "out").exists()
 
 

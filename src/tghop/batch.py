@@ -91,10 +91,9 @@ def check_options(items, defaults, fit, generate) -> None:
     model.check_settings()  # what TGHop.fit checks first
     checked = check_settings(generate)
     overlap = checked.get("overlap")
-    material = next((it for it in items if it.get("maps")), None)
-    if material is not None and checked.get("patch_refine"):
-        raise TGHopError(f"{material.get('where')}: a material (maps) has no patch statistics for --quality best or "
-                         "--patch-refine; drop them, or batch the materials apart")
+    if checked.get("patch_refine") and not model.patch_levels:  # a material's albedo too (0.58 refused materials)
+        raise TGHopError("--quality best and --patch-refine need the patch statistics that patch_levels 0 leaves out "
+                         "of the fit; give patch_levels above 0 (--patch-levels), or drop them")
     seen = set()
     for it in items:
         own = it["settings"]
