@@ -28,14 +28,15 @@ def png(pixels) -> bytes:
     return buf.getvalue()
 
 
-def save_material(path):
-    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``."""
+def save_material(path, **settings):
+    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``; ``settings``: more of
+    the joint model's (``patch_levels=0``: no patch statistics of the albedo, as a material of tghop 0.58)."""
     from tghop import TGHop, data
     from tghop.material import Material, example_maps
     from tghop.modelfile import save_model
 
     albedo = data.bricks(64)
-    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None, **settings)
     save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
 
 

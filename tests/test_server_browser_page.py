@@ -348,9 +348,10 @@ def test_a_fit_that_ends_with_the_focus_on_cancel_leaves_it_on_generate(page):
     assert not page.errors, page.errors
 
 
-def load_material(page, tmp_path):
-    """The small material of conftest's save_material, loaded as the working model from its file."""
-    save_material(tmp_path / "wall material.npz")
+def load_material(page, tmp_path, **settings):
+    """The small material of conftest's save_material (``settings``: more of its fit's), loaded as the working
+    model from its file."""
+    save_material(tmp_path / "wall material.npz", **settings)
     page.set_input_files("#model-file", str(tmp_path / "wall material.npz"))
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
 
@@ -369,9 +370,15 @@ def test_why_quality_is_off_is_told_beside_it(page, tmp_path):
     quality.to_have_accessible_description(re.compile("Off until the page knows whether the model is a material"))
     assert page.eval_on_selector("#quality-off", box) == [1, 1]
     assert page.eval_on_selector("#quality-help", box) == shown
-    load_material(page, tmp_path)
+    load_material(page, tmp_path)  # 0.59: a material's albedo has patch statistics, and quality applies to it
+    assert page.is_enabled("#quality") and page.is_hidden("#quality-off")
+    quality.not_to_have_accessible_description(re.compile("Off "))
+    (tmp_path / "old").mkdir()
+    load_material(page, tmp_path / "old", patch_levels=0)  # as a material of 0.58: none
+    why = ("Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with paper settings); "
+           "fit it again for quality best.")
+    sync_api.expect(page.locator("#quality-off")).to_have_text(why)  # once its summary came (after a material)
     assert page.is_disabled("#quality")
-    why = "Off now: the model is a material, which has no patch statistics."
     assert page.is_visible("#quality-off") and page.text_content("#quality-off") == why
     assert page.eval_on_selector("#quality-off", box)[0] > 100
     quality.to_have_accessible_description(re.compile(re.escape(why)))

@@ -170,12 +170,38 @@ def test_a_material_file_uploads_and_paints(client, material_id):
     assert len(remix.json()["maps"]) == 3
 
 
+def test_quality_best_patch_refines_a_materials_albedo(client, material_id, tmp_path):
+    # 0.58 refused it for every material ("a material has no patch statistics"); 0.59 fits the albedo's
+    from conftest import save_material
+
+    assert client.get(f"/api/models/{material_id}").json()["material"]["patch_levels"] > 0
+    url, ask = f"/api/models/{material_id}/images", {"size": [48, 48], "seed": 3}
+    made = {}
+    for quality in ("default", "best"):
+        r = client.post(url, json={**ask, "quality": quality})
+        assert r.status_code == 200, r.text
+        made[quality] = {m["name"]: decode(m["png"]) for m in r.json()["maps"]}
+    assert not np.array_equal(made["default"]["albedo"], made["best"]["albedo"])
+    for name in ("normal", "height"):  # the other maps as the default's, bit for bit
+        assert np.array_equal(made["default"][name], made["best"][name])
+    # A material without them (tghop 0.58's, or fitted with patch_levels 0): refused naming the refit
+    save_material(tmp_path / "old.npz", patch_levels=0)
+    r = client.post("/api/models/upload", content=(tmp_path / "old.npz").read_bytes(),
+                    headers={"Content-Type": "application/octet-stream"})
+    old = r.json()["id"]
+    assert client.get(f"/api/models/{old}").json()["material"]["patch_levels"] == 0
+    for bad in ({"quality": "best"}, {"patch_refine": 4}):
+        assert_error(client.post(f"/api/models/{old}/images", json={"size": [32, 32], **bad}), 422,
+                     "is a material without patch statistics of its albedo", "fit it again")
+    assert client.post(f"/api/models/{old}/images", json={"size": [32, 32]}).status_code == 200
+    # Painted or remixed materials: the library refines no painted albedo
+    assert_error(client.post("/api/images/guided", json={"models": [material_id, material_id], "size": [32, 32],
+                                                         "quality": "best"}),
+                 422, "do not apply to materials painted or remixed")
+
+
 def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     plain = fit(client, albedo_file())
-    assert_error(client.post(f"/api/models/{material_id}/images", json={"size": [32, 32], "quality": "best"}),
-                 422, "do not apply to a material")
-    assert_error(client.post(f"/api/models/{material_id}/images", json={"size": [32, 32], "patch_refine": 4}),
-                 422, "do not apply to a material")
     picture = png(to_uint8(data.bricks(48)))
     mask = np.zeros((48, 48), dtype=np.uint8)
     mask[10:30, 10:30] = 255

@@ -38,15 +38,23 @@ def models_notes(server, ids) -> list:
     return [line for model_id in dict.fromkeys(ids) for line in server.cache.model_notes(model_id)]
 
 
-def check_patch_refine(model, settings, name: str) -> None:
+def check_patch_refine(model, settings, name: str, *, painted=False) -> None:
     """422 where ``settings`` ask for the patch refinement (``patch_refine``, ``quality`` best) of a ``model`` that
-    has no patch statistics, ``name`` naming it (``this model``, ``models[1]``): a material, or a model fitted
-    without them (as ``tghop synth`` says; the library's words called a guided route's model "input 2")."""
+    has no patch statistics, ``name`` naming it (``this model``, ``models[1]``): a model fitted without them (as
+    ``tghop synth`` says; the library's words called a guided route's model "input 2"), a material whose albedo has
+    none (fitted by tghop 0.58: 0.59 patch-refines a material's albedo), or a material ``painted`` (a paint or a
+    remix: the library refines no painted material's albedo)."""
     if not settings.get("patch_refine"):
         return
     if materials.is_material(model):
-        raise RequestError(422, f"patch_refine and quality best do not apply to a material ({name} has no patch "
-                                "statistics); leave them out")
+        if painted:
+            raise RequestError(422, f"patch_refine and quality best do not apply to materials painted or remixed "
+                                    f"({name} is one); leave them out")
+        if model.albedo_patches() is None:
+            raise RequestError(422, f"{name} is a material without patch statistics of its albedo for patch_refine "
+                                    "or quality best (fitted by tghop 0.58 or older, or with patch_levels 0); fit it "
+                                    "again")
+        return
     if getattr(model, "patches_", None) is None:
         raise RequestError(422, f"{name} holds no patch statistics for patch_refine or quality best (fitted "
                                 "with patch_levels 0, or by tghop 0.14 or older); fit it again")
@@ -60,9 +68,7 @@ def model_png(server, model_id: str, size, seed, settings):
 
     model = server.model(model_id)  # read before, in its turn, when not in memory (png_response's models)
     material = materials.is_material(model)
-    check_patch_refine(model, settings, "this model")
-    if material:
-        settings = {k: v for k, v in settings.items() if k != "patch_refine"}  # 0 or None: nothing to do
+    check_patch_refine(model, settings, "this model")  # a material's albedo is refined by it too (0.59)
     with server.generating:
         try:
             image = model.synthesize(size, rng=seed, dtype=np.float32 if material else np.uint8,
@@ -208,7 +214,7 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     materials.same_kind(models, ids)
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
     for i, model in enumerate(models):
-        check_patch_refine(model, settings, f"models[{i}]")
+        check_patch_refine(model, settings, f"models[{i}]", painted=True)
     labels, told = None, []
     if guide is not None:  # its labels read once (a guide of another size was scaled twice when read again)
         labels, told = read_guide(guide, len(models), size, names=[f"models[{i}]" for i in range(len(models))],

@@ -109,25 +109,29 @@ async function showSummary(id) {
   if (state.working && state.working.modelId === id) state.working.material = Boolean(maps);
   const listed = state.models.find((m) => m.id === id);
   if (listed && s.params) listed.patchSize = s.params.patch_size;  // Morph's least height (morphMinimum)
-  setMaterial(Boolean(maps));
+  setMaterial(Boolean(maps), maps ? Boolean(s.material.patch_levels) : null);
 }
 
-// A material has no patch statistics: the quality preset does not apply to it. `on` null: not known yet
-// (an uploaded file until its summary comes): the menu is off too, as best would be a 422 for a material.
-function setMaterial(on) {
+// The quality preset applies to a material's albedo (0.59), where the material has the albedo's patch statistics
+// (`patches`: its summary's patch_levels above 0; false: a material of tghop 0.58, or fitted with paper's settings;
+// null: not known yet, on as a fit here makes them). `on` null: not known yet (an uploaded file until its summary
+// comes): the menu is off too, as best would be a 422 for a material without them.
+function setMaterial(on, patches = null) {
   state.material = on;
   const listed = state.models.find((m) => m.id === state.modelId);
   if (listed && on !== null) listed.material = on;  // Morph takes texture models only (morphProblem)
-  $("quality").disabled = on !== false;
-  $("quality").title = on ? "a material has no patch statistics: quality best does not apply"
+  const bare = on === true && patches === false;
+  $("quality").disabled = on === null || bare;
+  $("quality").title = bare ? "this material's albedo has no patch statistics (fitted by tghop 0.58): fit it again"
     : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
   // Why it is off, in its help too (which a screen reader reads with it): a title is a mouse's only, and a control
-  // turned off is not reached with Tab. Shown for a material; for the moments of a fit or an upload, to a screen
-  // reader only (shown, the help grew a line and shrank back with each fit).
+  // turned off is not reached with Tab. Shown for a material without statistics; for the moments of a fit or an
+  // upload, to a screen reader only (shown, the help grew a line and shrank back with each fit).
   const off = $("quality-off");
-  off.textContent = on ? "Off now: the model is a material, which has no patch statistics."
+  off.textContent = bare ? "Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with "
+    + "paper settings); fit it again for quality best."
     : on === null ? "Off until the page knows whether the model is a material (its summary)." : "";
-  off.hidden = on === false;
+  off.hidden = !bare && on !== null;
   off.classList.toggle("to-screen-readers", on === null);
   updateButtons();
   if (!$("inpaint").hidden) inpaintHint();  // Fill and Extend may have changed
