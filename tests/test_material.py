@@ -383,6 +383,33 @@ def test_the_albedo_is_patch_refined_the_maps_kept_and_a_material_without_statis
         old.synthesize(SIZE, rng=1, patch_refine=2, **POOL)
 
 
+def test_a_material_with_albedo_patches_is_format_version_11_and_others_keep_theirs(exemplar, maps, material,
+                                                                                    tmp_path):
+    """0.59: a material's albedo patch statistics (material_patch.*) make its file format version 11, so that tghop
+    0.58 (which reads 2 to 10) refuses it by its version, "by tghop ..., a newer tghop ...", rather than as "an
+    edited file or another program's" by the unknown array; a material without them stays 10 (0.58 reads it); a
+    version above this tghop's says to upgrade."""
+    import json
+
+    from tghop.modelfile import FORMAT_VERSION, READABLE_VERSIONS, WITHOUT_MATERIAL_PATCHES
+
+    def version(model, name):
+        save_model(model, tmp_path / name)
+        with np.load(tmp_path / name) as f:
+            return json.loads(str(f["__meta__"]))["format_version"], {k: f[k] for k in f.files}
+
+    got, arrays = version(material, "m.npz")
+    assert got == FORMAT_VERSION == 11 and WITHOUT_MATERIAL_PATCHES == 10
+    assert version(Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps), "old.npz")[0] == 10
+    assert version(TGHop(**FAST).fit(exemplar), "plain.npz")[0] == 10 and READABLE_VERSIONS[-1] == 11
+    meta = json.loads(str(arrays["__meta__"]))
+    with open(tmp_path / "newer.npz", "wb") as fh:
+        np.savez(fh, **{**arrays, "__meta__": np.array(json.dumps({**meta, "format_version": 12}))})
+    with pytest.raises(ModelFileError, match=r"version 12 \(by tghop .*, a newer tghop\).*upgrade tghop to read it, "
+                                             "or refit the model"):
+        load_model(tmp_path / "newer.npz", material=True)
+
+
 def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_options(exemplar, maps, tmp_path):
     """Review 58, item 8: the options typed are named, not the library's patch_refine (0.59: a material fitted
     without patch statistics, as 0.58 fitted every material)."""

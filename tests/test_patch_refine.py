@@ -8,7 +8,7 @@ import pytest
 from tghop import data, settings
 from tghop._errors import TGHopError
 from tghop import patch_refine as pr
-from tghop.modelfile import FORMAT_VERSION, ModelFileError, load_model, save_model
+from tghop.modelfile import WITHOUT_MATERIAL_PATCHES, ModelFileError, load_model, save_model
 from tghop.synthesis import TGHop
 
 from conftest import SMALL
@@ -574,7 +574,7 @@ def test_fit_is_unchanged_by_the_statistics(patch_model):
 def test_model_file_round_trip(patch_model, tmp_path):
     save_model(patch_model, tmp_path / "m.npz")
     with np.load(tmp_path / "m.npz") as f:
-        assert json.loads(str(f["__meta__"]))["format_version"] == FORMAT_VERSION
+        assert json.loads(str(f["__meta__"]))["format_version"] == WITHOUT_MATERIAL_PATCHES
         assert np.array_equal(f["patch.levels"], pr.quantile_levels().astype(np.float32))
     loaded = load_model(tmp_path / "m.npz")
     assert np.array_equal(loaded.synthesize((64, 64), rng=4, patch_refine=3),

@@ -36,14 +36,14 @@ from ._archives import check_archive_bounds
 from ._formats import COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind
 from ._json import RepeatedKeyError, loads_unique
 from .imageio import check_output_path, write_atomic
-from .material import Material
+from .material import PATCH_PREFIX as MATERIAL_PATCH_PREFIX, Material
 from .settings import fit_seed
 from .synthesis import TGHop
 
 __all__ = ["save_model", "load_model", "FORMAT", "FORMAT_VERSION", "info_dict"]
 
 FORMAT = "tghop-model"
-FORMAT_VERSION = 10  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
+FORMAT_VERSION = 11  # 2: refinement statistics (refine.*); 3: float16 mixing rows with a scale each;
 # 4: tghop 0.14's patch refinement statistics (patch.rotations, patch.quantiles: 5x5 patches on
 # random rotations; read without them, with a warning); 5: the sliced Wasserstein statistics
 # (patch.directions, patch.quantiles) and whole materials (below); 6: their quantiles' levels
@@ -53,15 +53,21 @@ FORMAT_VERSION = 10  # 2: refinement statistics (refine.*); 3: float16 mixing ro
 # read as coupling 0); 9: colour classes (colour.centres, colour.shares, colour.class_quantiles,
 # refine.class_quantiles, colour.separation, colour.share_spread; setting colour_classes; older
 # files read as colour_classes 0); 10: the coarse layout model's patch statistics (layout.patch.*;
-# layout parameter patch_levels; older files read as 0, their guide not patch-refined); files
-# without patch statistics, norm quantiles, ranks, colour classes or a material are written as
-# version 3, which older tghop reads
+# layout parameter patch_levels; older files read as 0, their guide not patch-refined); 11 (0.59): a
+# material's albedo patch statistics (material_patch.*, material.patch_levels), so that tghop 0.58 and
+# before refuse such a material by its version (made by a newer tghop) rather than by an unknown array.
+# A file is written in the lowest version that holds what it has: with material_patch.*, 11; other
+# files with patch statistics, norm quantiles, ranks, colour classes or a material, 10 (a texture
+# model's bytes as 0.58 wrote them, which 0.58 reads); files without any of these, 3
 #: Files of whole materials (:class:`tghop.material.Material`: the maps in the metadata,
 #: each map's statistics as material.<name>.*) are version 5 or later, so that an older tghop
 #: refuses them by their version.
 MATERIAL_VERSION = 5
 #: Versions this tghop reads (version 2 files hold the mixing matrix in float32).
-READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9, 10)
+READABLE_VERSIONS = (2, 3, 4, 5, 6, 7, 8, 9, 10, 11)
+#: The version of a file with patch statistics (or another of version 4-10's additions) and no material_patch.*:
+#: what tghop 0.48-0.58 wrote and read.
+WITHOUT_MATERIAL_PATCHES = 10
 
 
 def save_model(model, path) -> None:
@@ -93,7 +99,8 @@ def save_model(model, path) -> None:
     meta = {"format": FORMAT, "tghop_version": __version__, **model._state_meta()}
     new = "material" in meta or any(name.startswith("patch.") or "ichm_iv." in name or "ichm_coupling." in name
                                    or name.endswith("colour.centres") for name in arrays)
-    meta["format_version"] = FORMAT_VERSION if new else 3
+    patched = any(name.startswith(MATERIAL_PATCH_PREFIX) for name in arrays)  # a material's albedo's (0.59)
+    meta["format_version"] = FORMAT_VERSION if patched else WITHOUT_MATERIAL_PATCHES if new else 3
     arrays["__meta__"] = np.array(json.dumps(meta, default=_json_number))
     if stream:  # the archive made first, so that a failure writes nothing into it
         archive = io.BytesIO()
@@ -275,10 +282,13 @@ def _read_archive(path, label):
         raise ModelFileError(f"{label}: corrupt model metadata (format_version {version!r} is not an integer); "
                              "fit the model again")
     if version not in READABLE_VERSIONS:
+        newer = version > READABLE_VERSIONS[-1]  # 0.59: said so (0.58 told only to refit)
         raise ModelFileError(
-            f"{label}: written in model format version {version} (by tghop {meta.get('tghop_version', '?')}), "
-            f"but this tghop {__version__} reads versions {READABLE_VERSIONS[0]} to {READABLE_VERSIONS[-1]}; "
-            "refit the model with this version"
+            f"{label}: written in model format version {version} (by tghop {meta.get('tghop_version', '?')}"
+            f"{', a newer tghop' if newer else ''}), but this tghop {__version__} reads versions "
+            f"{READABLE_VERSIONS[0]} to {READABLE_VERSIONS[-1]}; "
+            + ("upgrade tghop to read it, or refit the model with this version" if newer else
+               "refit the model with this version")
         )
     return meta, arrays
 
@@ -479,7 +489,7 @@ def _check_arrays(path, groups, arrays):
 
 def load_model(path, *, material=False):
     """Read a model written by :func:`save_model`: a :class:`~tghop.synthesis.TGHop`, or,
-    with ``material``, a :class:`~tghop.material.Material` too (format version 5 or 6; without
+    with ``material``, a :class:`~tghop.material.Material` too (format version 5 or later; without
     ``material`` such a file is refused with a one-line error, so that no caller is handed
     a material where it expects a plain model).
 
