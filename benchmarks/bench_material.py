@@ -25,6 +25,17 @@ machine). A sheet of every map (exemplar and the joint output of the first seed)
 written to benchmarks/results/material_sheet.png (not committed).
 
     python benchmarks/bench_material.py brick_wall knit bark hexagon_tiles --seeds 3
+
+``--albedo-refine`` (0.59) measures the albedo's patch refinement instead (docs/choices.md, Whole
+materials, "The albedo patch-refined"): per texture a plain texture model and a material of the crop
+(both ``rng=0``, default settings), and for each seed the texture's image, the material's albedo
+without the patch refinement (``patch_refine=0``: 0.58's output, the joint model being the same) and
+with it (the default); the albedo's SIFID against the crop, the height's correlation with the albedo's
+brightness (the crop's too), the normal map's largest length error, generation times; means over the
+seeds, and a mean row. Written to benchmarks/results/material_albedo.json and .md. The docs' table:
+
+    python benchmarks/bench_material.py brick_wall knit bark hexagon_tiles stone_wall_256 grass_lawn \
+        leopard --albedo-refine --seeds 2
 """
 
 from __future__ import annotations
@@ -118,18 +129,110 @@ def per_map(material_maps, size, seed, fit_kw):
     return out
 
 
-def main():
+#: The columns of ``--albedo-refine``'s rows: the albedo's SIFID of each output.
+ALBEDO_WAYS = ("texture (plain)", "material 0.58", "material 0.59")
+
+
+def height_brightness(maps) -> float:
+    """The correlation of a material's height with its albedo's brightness (the channels' mean)."""
+    return float(np.corrcoef(maps["albedo"].mean(axis=2).ravel(), maps["height"][..., 0].ravel())[0, 1])
+
+
+def albedo_refine_row(ex, size, seeds, *, fit=None, score=None) -> dict:
+    """``--albedo-refine`` for one exemplar ``ex`` (the crop): a plain texture model and a material of
+    :func:`tghop.material.example_maps` (height as 16 bits), both ``rng=0`` with the settings ``fit``
+    (None: the defaults), each seed's texture image, material albedo with ``patch_refine=0`` (0.58's) and
+    with the default patch refinement (0.59), scored by ``score(exemplar, image)`` (None:
+    :func:`tghop.metrics.sifid`). Returns the means over ``seeds`` of each way's score
+    (:data:`ALBEDO_WAYS`), the height-brightness correlations (``corr 0.58``, ``corr 0.59`` and the crop's
+    ``corr crop``), the normal map's largest length error of the refined output (``normal error``), the
+    generation seconds (``synth 0.58``, ``synth 0.59``) and the fit seconds (``fit plain``, ``fit material``)."""
     from tghop import TGHop
-    from tghop.imageio import save_image
     from tghop.material import Material, example_maps
 
+    if score is None:
+        from tghop.metrics import sifid as score
+    fit = fit or {}
+    maps = example_maps(ex)
+    maps["height"] = np.round(maps["height"] * 65535).astype(np.uint16)  # a 16-bit map
+    crop = {"albedo": ex, "height": maps["height"] / 65535.0}
+    t = time.perf_counter()
+    plain = TGHop(rng=0, **fit).fit(ex)
+    fit_plain = time.perf_counter() - t
+    t = time.perf_counter()
+    material = Material(model=TGHop(rng=0, **fit) if fit else None, rng=0).fit(ex, maps)
+    fit_material = time.perf_counter() - t
+    got = {}
+    for seed in seeds:
+        texture_image = plain.synthesize(size, rng=seed)
+        t = time.perf_counter()
+        before = material.synthesize(size, rng=seed, patch_refine=0)
+        t_before = time.perf_counter() - t
+        t = time.perf_counter()
+        after = material.synthesize(size, rng=seed)
+        t_after = time.perf_counter() - t
+        for way, image in zip(ALBEDO_WAYS, (texture_image, before["albedo"], after["albedo"])):
+            got.setdefault(way, []).append(float(score(ex, image)))
+        got.setdefault("corr 0.58", []).append(height_brightness(before))
+        got.setdefault("corr 0.59", []).append(height_brightness(after))
+        got.setdefault("normal error", []).append(
+            float(np.abs(np.linalg.norm(after["normal"] * 2 - 1, axis=2) - 1).max()))
+        got.setdefault("synth 0.58", []).append(t_before)
+        got.setdefault("synth 0.59", []).append(t_after)
+    row = {k: float(np.mean(v)) for k, v in got.items()}
+    row["normal error"] = float(np.max(got["normal error"]))
+    row.update({"corr crop": height_brightness(crop), "fit plain": fit_plain, "fit material": fit_material})
+    return row
+
+
+def albedo_refine_table(rows: dict) -> str:
+    """The markdown table of docs/choices.md ("The albedo patch-refined") from ``{texture: row}`` of
+    :func:`albedo_refine_row`, with a mean row of the scores."""
+    header = ["exemplar", *ALBEDO_WAYS, "correlation 0.58 / 0.59 (crop)", "synth s 0.58 / 0.59"]
+    lines = [[name, *(f"{r[w]:.2f}" for w in ALBEDO_WAYS),
+              f"{r['corr 0.58']:.3f} / {r['corr 0.59']:.3f} ({r['corr crop']:.3f})",
+              f"{r['synth 0.58']:.1f} / {r['synth 0.59']:.1f}"] for name, r in rows.items()]
+    lines.append(["mean", *(f"{np.mean([r[w] for r in rows.values()]):.2f}" for w in ALBEDO_WAYS), "", ""])
+    return markdown_table(header, lines)
+
+
+def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("textures", nargs="+")
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--crop", type=int, default=256, help="exemplar crop side (0: whole)")
     ap.add_argument("--sifid", action="store_true", help="also the albedo's SIFID (needs the metrics extra)")
-    args = ap.parse_args()
+    ap.add_argument("--albedo-refine", action="store_true",
+                    help="the albedo's patch refinement (0.59) against 0.58's material and the plain texture: "
+                         "SIFID (needs the metrics extra), seeds 0 to --seeds - 1")
+    return ap.parse_args(argv)
+
+
+def albedo_refine_main(args):
+    size, seeds, rows = (args.size, args.size), list(range(args.seeds)), {}
+    for name in args.textures:
+        ex = texture(name)
+        if args.crop:
+            ex = ex[: args.crop, : args.crop]
+        rows[name] = albedo_refine_row(ex, size, seeds)
+        print(name, {k: round(v, 3) for k, v in rows[name].items()}, flush=True)
+    md = (f"The material albedo's patch refinement (0.59): albedo SIFID against the {args.crop}x{args.crop} crop, "
+          f"{args.size}x{args.size}, seeds 0-{args.seeds - 1}, means (benchmarks/bench_material.py "
+          "--albedo-refine)\n\n" + albedo_refine_table(rows))
+    write_results("material_albedo", [{"texture": k, **v, "size": args.size, "seeds": seeds} for k, v in rows.items()],
+                  md)
+    print(md)
+
+
+def main():
+    from tghop import TGHop
+    from tghop.imageio import save_image
+    from tghop.material import Material, example_maps
+
+    args = parse_args()
+    if args.albedo_refine:
+        return albedo_refine_main(args)
     size = (args.size, args.size)
     rows, payload, sheet = [], [], None
     for name in args.textures:
