@@ -174,9 +174,9 @@ def test_cli_synth_of_several_sources_warns_once_naming_the_deep_ones(tmp_path):
     from tghop import data
     from tghop.cli import main
 
-    save_image(data.bricks()[:96, :96], tmp_path / "a.png", depth=16)
-    save_image(data.cells(96, rng=0), tmp_path / "b.png")
-    save_image(data.cells(96, rng=1), tmp_path / "c.tif", depth=32)
+    save_image(data.bricks()[:64, :64], tmp_path / "a.png", depth=16)
+    save_image(data.cells(64, rng=0), tmp_path / "b.png")
+    save_image(data.cells(64, rng=1), tmp_path / "c.tif", depth=32)
     fast = ["--size", "48", "--seed", "1", "-q", "--max-patches", "1000", "--clusters", "10", "--pool", "400",
             "--refine", "1"]
     sources = [str(tmp_path / n) for n in ("a.png", "b.png", "c.tif")]
