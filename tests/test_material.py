@@ -645,7 +645,7 @@ def test_two_materials_morph_every_map_alike(exemplar, maps, tmp_path, monkeypat
     # one ground to another came without its maps. Two materials with the same maps morph as they paint.
     from tghop import morph
 
-    cells = data.cells(128, rng=3)
+    cells = data.cells(64, rng=3)
     cell_maps = example_maps(cells)
     stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_Normal": maps["normal"],
                                                                 "Stone_Height": maps["height"]})
