@@ -450,7 +450,7 @@ def test_cli_patch_refines_a_materials_albedo(material, tmp_path):
 
 @pytest.fixture(scope="module")
 def second():
-    cells = data.cells(128, rng=3)
+    cells = data.cells(64, rng=3)
     return Material(model=TGHop(**FAST), rng=0).fit(cells, example_maps(cells))
 
 
@@ -515,7 +515,7 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, s
 def test_painted_materials_of_the_same_maps_in_another_order_are_told_so(material, tmp_path, monkeypatch):
     # They were refused as "input 2's maps are albedo, height, normal, roughness but input 1's are albedo,
     # normal, roughness, height (or their channels differ); give materials with the same maps": the same maps.
-    cells = data.cells(128, rng=3)
+    cells = data.cells(64, rng=3)
     maps = example_maps(cells)
     reordered = Material(model=TGHop(**FAST), rng=0).fit(cells, {k: maps[k] for k in ("height", "normal",
                                                                                        "roughness")})
@@ -542,7 +542,7 @@ def test_materials_of_one_library_naming_paint_together(exemplar, maps, tmp_path
     from tghop import synthesize_guided
     from tghop.server.materials import same_kind
 
-    cells = data.cells(128, rng=3)
+    cells = data.cells(64, rng=3)
     cell_maps = example_maps(cells)
     stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_Normal": maps["normal"],
                                                                 "Stone_Height": maps["height"]})
@@ -577,7 +577,7 @@ def test_materials_of_two_libraries_namings_paint_together_by_kind(exemplar, map
     from tghop import synthesize_guided
     from tghop.server.materials import same_kind
 
-    cells = data.cells(128, rng=3)
+    cells = data.cells(64, rng=3)
     cell_maps = example_maps(cells, convention="OpenGL")
     gl = example_maps(exemplar, convention="OpenGL")
     stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_NormalGL": gl["normal"],
@@ -605,7 +605,7 @@ def test_normal_maps_of_two_conventions_are_painted_in_the_first_ones(exemplar, 
     from tghop import synthesize_guided
     from tghop.normals import convention_of
 
-    cells = data.cells(128, rng=3)
+    cells = data.cells(64, rng=3)
     gl = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"normal": example_maps(exemplar, convention="OpenGL")[
         "normal"]})
     dx = Material(model=TGHop(**FAST), rng=0).fit(cells, {"normal": example_maps(cells)["normal"]})
