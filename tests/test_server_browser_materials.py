@@ -52,7 +52,7 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     summary = page.text_content("#summary")
     assert summary.startswith("material ")
     assert "maps: albedo, 8-bit; bricks_normal (normal), 16-bit; bricks_height, 8-bit" in summary
-    page.wait_for_function("document.getElementById('quality').disabled")
+    page.wait_for_function("!document.getElementById('quality').disabled")  # 0.59: the albedo takes best (0.58: off)
 
     page.fill("#height", "64")
     page.fill("#width", "80")
@@ -352,7 +352,9 @@ def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
             assert time.monotonic() < deadline, "the page never asked for the model's summary"
             page.wait_for_timeout(20)
         assert page.is_hidden("#summary")
-        assert page.is_disabled("#quality") and page.is_enabled("#go")
+        # a material fitted here has its albedo's patch statistics (0.59): quality at once, as a texture's (0.58: off
+        # until its summary came, then off for a material)
+        assert page.is_enabled("#quality") and page.is_enabled("#go")
         page.click("#maps-clear")  # a texture fit: quality at once
         page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'"
                                " && document.getElementById('summary').hidden", timeout=90_000)

@@ -348,11 +348,11 @@ def test_a_fit_that_ends_with_the_focus_on_cancel_leaves_it_on_generate(page):
     assert not page.errors, page.errors
 
 
-def load_material(page, tmp_path, **settings):
+def load_material(page, tmp_path, name="wall material.npz", **settings):
     """The small material of conftest's save_material (``settings``: more of its fit's), loaded as the working
-    model from its file."""
-    save_material(tmp_path / "wall material.npz", **settings)
-    page.set_input_files("#model-file", str(tmp_path / "wall material.npz"))
+    model from its file ``name``."""
+    save_material(tmp_path / name, **settings)
+    page.set_input_files("#model-file", str(tmp_path / name))
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
 
 
@@ -373,8 +373,8 @@ def test_why_quality_is_off_is_told_beside_it(page, tmp_path):
     load_material(page, tmp_path)  # 0.59: a material's albedo has patch statistics, and quality applies to it
     assert page.is_enabled("#quality") and page.is_hidden("#quality-off")
     quality.not_to_have_accessible_description(re.compile("Off "))
-    (tmp_path / "old").mkdir()
-    load_material(page, tmp_path / "old", patch_levels=0)  # as a material of 0.58: none
+    # as a material of 0.58: none (named apart: the page keeps it, and later tests pick "wall material" by name)
+    load_material(page, tmp_path, "old material.npz", patch_levels=0)
     why = ("Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with paper settings); "
            "fit it again for quality best.")
     sync_api.expect(page.locator("#quality-off")).to_have_text(why)  # once its summary came (after a material)
