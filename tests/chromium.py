@@ -60,6 +60,16 @@ def load_empty(page):
     page.wait_for_selector("body[data-ready='1']")
 
 
+def load_fresh(page, fit_settings, *, clear_errors=True):
+    """:func:`load_empty`, then :func:`set_fit_settings` of ``fit_settings``: the page as on a first visit, ready to
+    fit fast. ``clear_errors``: the errors collected so far forgotten (the refusals of the test before: Chromium logs
+    each 4xx response as a console error)."""
+    load_empty(page)
+    if clear_errors:
+        page.errors.clear()
+    set_fit_settings(page, fit_settings)
+
+
 def set_fit_settings(page, values):
     """Open the page's fit settings, turn the coarse-to-fine layout off and fill the fields of
     ``values`` (``{field id: text}``: the tests' fast fit, ``conftest.FAST_FIT``). Open already (0.59: kept open across

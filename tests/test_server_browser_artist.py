@@ -22,13 +22,6 @@ def page(live_server):
         yield page
 
 
-def fresh_page(page):
-    """The page as on a first visit (nothing kept), with the fast fit settings."""
-    chromium.load_empty(page)
-    page.errors.clear()
-    chromium.set_fit_settings(page, FAST_FIT)
-
-
 def posted_fits(page):
     """The bodies of the fits the page asks for from now on (``POST /api/models``), a list that fills as they go."""
     bodies = []
@@ -77,7 +70,7 @@ FILES_JS = """(files) => files.map(([data, name]) =>
 def test_a_reload_keeps_generates_fields_and_the_fit_settings(page):
     # A reload brought the model and the recent results back, but Generate's fields and the fit settings went back to
     # their defaults: the next Generate made a 256x256 of seed 1, untiled, and the next fit the default settings.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     page.fill("#height", "48")
     page.fill("#width", "64")
     page.fill("#seed", "7")
@@ -115,7 +108,7 @@ def test_maps_of_another_size_than_their_albedo_are_refused_on_the_page(page):
     from tghop import data
     from tghop.imageio import to_uint8
 
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     sent = posted_fits(page)
     rock = rock_files()
     wall = [[base64.b64encode(png(to_uint8(data.bricks(96)))).decode(), "wall_color.png"],
@@ -153,7 +146,7 @@ def test_maps_of_another_size_than_their_albedo_are_refused_on_the_page(page):
 def test_a_result_beside_another_models_exemplar_names_its_model(page):
     # Another exemplar picked and fitted left the last result beside it, its caption naming no model: the cells
     # exemplar stood beside a bricks result, as if cells' model had made it.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")
     generate(page, 1)
     assert page.text_content("#result-caption") == "result: 32x40, seed 1"
@@ -177,7 +170,7 @@ def test_a_result_beside_another_models_exemplar_names_its_model(page):
 def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
     # At 1024x700 the picture to paint on (a 256x256 result shown 640 px high) began below the fold when Inpaint was
     # chosen: the artist had to scroll to paint, and could not see the brush's tools and the whole picture at once.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")
     generate(page, 3, size=(256, 256))
     page.set_viewport_size({"width": 1024, "height": 700})
@@ -206,7 +199,7 @@ def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
 def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
     # At 1024x700 Paint's canvas (a 256x256 output shown 640 px high) began low under Paint's tools when the mode was
     # chosen: two thirds of it below the fold, the artist scrolling between the brush colours and the canvas.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")
     chromium.fit_builtin(page, "cells")
     page.fill("#height", "256")

@@ -256,12 +256,6 @@ def test_maps_added_while_a_fit_runs_fit_the_material(page, tmp_path):
     assert "maps: albedo, 8-bit; normal (normal), 16-bit" in page.text_content("#summary")
 
 
-def fresh_page(page):
-    """The page again (no exemplar, no maps), with the fast fit settings."""
-    chromium.load_empty(page)
-    chromium.set_fit_settings(page, FAST_FIT)
-
-
 #: JavaScript (a function of [[base64 bytes, file name], ...]): drop the files on the drop area at once,
 #: as a drag of several files from the desktop does; returns the message said (0.59: once the page has read the
 #: files' sizes, a few milliseconds).
@@ -290,7 +284,7 @@ def test_several_files_dropped_at_once_are_a_material(page):
     from tghop.imageio import to_uint8, to_uint16
     from tghop.material import example_maps
 
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT, clear_errors=False)
     albedo = data.bricks(96)
     maps = example_maps(albedo)
     files = {"rock_normal.png": png(to_uint16(maps["normal"])), "rock_color.png": png(to_uint8(albedo)),
@@ -307,7 +301,7 @@ def test_several_files_dropped_at_once_are_a_material(page):
     assert "maps: albedo, 8-bit; rock_normal (normal), 16-bit; rock_height, 8-bit" in summary
     assert page.eval_on_selector("#exemplar", "i => i.complete && i.naturalWidth") == 96
     # None named like an albedo: the first is the exemplar
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT, clear_errors=False)
     said = page.evaluate(DROP_FILES_JS, [[d, name.replace("_color", "_base")] for d, name in dropped[1:]])
     assert said.startswith("2 files dropped: rock_base.png is the exemplar (the albedo), the others its maps "
                            "(rock_height)"), said
@@ -330,7 +324,7 @@ def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
     from tghop.material import example_maps
     from tghop.modelfile import save_model
 
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT, clear_errors=False)
     held = []
 
     def hold(route):

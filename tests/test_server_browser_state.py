@@ -30,13 +30,6 @@ def page(live_server):
         yield page
 
 
-def fresh_page(page):
-    """The page again (no exemplar, no maps), with the fast fit settings."""
-    chromium.load_empty(page)
-    page.errors.clear()  # the refusals of the test before (Chromium logs each 400)
-    chromium.set_fit_settings(page, FAST_FIT)
-
-
 def wait_said(page, fragment, timeout=90_000):
     try:
         page.wait_for_function("(f) => document.getElementById('message').textContent.includes(f)", arg=fragment,
@@ -103,7 +96,7 @@ def test_a_refused_exemplar_leaves_the_working_model_and_its_exemplar(page, tmp_
     from tghop.material import example_maps
 
     bad = refused_files(tmp_path)
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#file", str(bad[0]))  # nothing before it: the page is empty again
     page.wait_for_function("document.getElementById('message').classList.contains('error')", timeout=30_000)
     assert exemplar_shown(page) is None and page.is_hidden("#fit-status") and page.is_disabled("#go")
@@ -135,7 +128,7 @@ def test_a_refused_map_set_leaves_the_working_model(page, tmp_path):
     height = to_uint8(data.builtin("bricks")[..., 0])
     (tmp_path / "height.png").write_bytes(png(height))
     (tmp_path / "bricks_normal.png").write_bytes(png(height))  # a normal map by its name, of 1 channel: refused
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
     assert page.text_content("#maps-list") == "maps: height"
     assert "pick or drop the albedo (exemplar) now" in page.text_content("#message")
@@ -167,7 +160,7 @@ def test_maps_added_before_their_albedo_wait_for_it(page, tmp_path):
     # size), and the albedo picked next cleared it ("maps cleared: rock_normal went with builtin:bricks").
     rock_files(tmp_path)
     fits = posted_fits(page)
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     page.select_option("#builtin", "bricks")
     wait_model(page, "model")
     summary, sent = page.text_content("#summary"), len(fits)
@@ -210,7 +203,7 @@ def cancel_a_fit_of_cells(page):
 def test_a_cancelled_fit_goes_back_to_the_working_model(page):
     # Cancel left no model (Generate off, no summary) and the cancelled exemplar shown, though the model
     # before that pick was working.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     said = cancel_a_fit_of_cells(page)  # nothing before it: the page is empty again
     assert said == "fit cancelled (builtin:cells was not used; no model yet)"
     assert exemplar_shown(page) is None and page.is_disabled("#go") and page.is_hidden("#summary")
@@ -240,7 +233,7 @@ def test_a_refused_model_file_goes_back_to_the_working_model(page, tmp_path):
     (tmp_path / "broken.npz").write_bytes(b"PK\x03\x04 not a model")
     save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
                .fit(data.bricks(64)), tmp_path / "saved.npz")
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#model-file", str(tmp_path / "broken.npz"))  # nothing before it: the empty page
     said = wait_said(page, "was not used")
     assert "not a tghop model file" in said and said.endswith("(broken.npz was not used; no model yet)"), said
@@ -278,7 +271,7 @@ def test_nothing_empty_before_a_result_and_a_model_files_caption(page, tmp_path)
 
     save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
                .fit(data.bricks(64)), tmp_path / "saved bricks.npz")
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     assert page.is_hidden("#tiled-title") and page.is_hidden("#tiled-box")
     assert page.is_hidden("#exemplar-caption") and page.is_hidden("#result-caption")
     page.set_input_files("#model-file", str(tmp_path / "saved bricks.npz"))
@@ -300,7 +293,7 @@ def test_the_canvases_read_back_are_made_for_it(page):
     # Chromium warned "Multiple readback operations using getImageData are faster with the
     # willReadFrequently attribute set to true" (the mask read at each Fill, the tests' reads).
     if not page.query_selector("#tiled[data-ready='1']"):  # run alone
-        fresh_page(page)
+        chromium.load_fresh(page, FAST_FIT)
         page.select_option("#builtin", "bricks")
         wait_model(page, "model")
         page.click("#go")
@@ -341,7 +334,7 @@ def test_the_built_in_shown_picked_again_is_fitted_again(page, tmp_path):
     from tghop.imageio import to_uint8
 
     (tmp_path / "height.png").write_bytes(png(to_uint8(data.builtin("bricks")[..., 0])))
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     summary = page.text_content("#summary")
@@ -372,7 +365,7 @@ def test_the_built_in_shown_picked_again_is_fitted_again(page, tmp_path):
 def test_a_cancel_before_the_fit_started_is_not_ignored(page):
     # Cancel clicked while the exemplar was still being sent did nothing: the fit ran on and its model
     # replaced the working one.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     summary = page.text_content("#summary")
@@ -394,7 +387,7 @@ def test_a_cancel_before_the_fit_started_is_not_ignored(page):
 def test_cancel_says_cancelling_until_the_fit_stops(page):
     # After Cancel the stage went on showing the fit's progress ("hop 2 26 %", then "ICA 56 %") until the
     # fit stopped at its next progress report: the cancel looked ignored.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
         page.fill(f"#{name}", "")
     page.select_option("#builtin", "cells")
@@ -415,7 +408,7 @@ def test_cancel_says_cancelling_until_the_fit_stops(page):
 def test_the_focused_brush_colour_shows_its_focus(page):
     # The brush colours (radios hidden in their labels) showed no focus: Tab reached the chosen one,
     # which looked the same with the focus or without.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     for name in ("bricks", "cells"):
         page.select_option("#builtin", name)
         wait_model(page, "model")
@@ -436,13 +429,13 @@ def test_the_focused_brush_colour_shows_its_focus(page):
 
 def test_an_option_in_the_text_is_not_broken_at_its_hyphens(page):
     # "the paper's settings (--paper)" broke "--paper" after its first hyphen at 1200 px.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     assert page.eval_on_selector("#fit-settings code", "c => c.getClientRects().length") == 1
 
 
 def test_a_reload_withdraws_the_running_fit(page):
     # A reload left the page's fit running on the server for no page (its generations are stopped).
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
         page.fill(f"#{name}", "")
     page.fill("#max_patches", "19999")  # a model no other test fits: its own job
@@ -463,7 +456,7 @@ def test_a_reload_withdraws_the_running_fit(page):
 def test_arrow_keys_on_the_built_in_menu_fit_only_the_option_settled_on(page):
     # Each arrow press on the closed menu (a change per option passed) started a fit of that option, the one
     # before it cancelled: browsing the built-ins by keyboard asked the server for a fit per option.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     fits = posted_fits(page)
     page.focus("#builtin")
     page.keyboard.press("ArrowDown")  # builtin:bricks
@@ -503,7 +496,7 @@ def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
 
     (tmp_path / "height.png").write_bytes(png(to_uint8(data.builtin("bricks")[..., 0])))
     fits = posted_fits(page)
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
     page.select_option("#builtin", "bricks")
     wait_model(page, "material")
@@ -538,7 +531,7 @@ def test_waiting_maps_stay_waiting_when_the_exemplar_they_are_not_of_is_picked_a
     # was picked again (to refit it with other settings, say): refused for their size, and listed as waiting again.
     rock_files(tmp_path)
     sent = posted_fits(page)
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
@@ -569,7 +562,7 @@ def test_an_exemplar_picked_while_the_maps_sizes_are_read_takes_the_maps(page):
     from tghop.imageio import to_uint8
 
     height = base64.b64encode(png(to_uint8(data.builtin("cells")[..., 0]))).decode()
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.evaluate("""(b64) => {
@@ -596,7 +589,7 @@ def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
     (tmp_path / "rock_normal_2k.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
     (tmp_path / "Rock_Color_2K.png").write_bytes(png(to_uint8(rock)))
     sent = posted_fits(page)
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     summary, before = page.text_content("#summary"), len(sent)
@@ -610,7 +603,7 @@ def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
     assert page.text_content("#maps-list") == "maps: rock_normal_2k"
     # Named for the exemplar ("bricks normal") or by their kind alone ("normal"), they refit it as before; and the
     # exemplar picked again takes maps named for another.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))
@@ -629,7 +622,7 @@ def test_waiting_maps_of_another_size_than_the_new_exemplar_are_dropped_not_sent
     rock_files(tmp_path)
     sent = posted_fits(page)
     for first in ("bricks", None):  # waiting beside a working model, and before any exemplar
-        fresh_page(page)
+        chromium.load_fresh(page, FAST_FIT)
         if first:
             pick_builtin(page, first)
             wait_model(page, "model")
@@ -663,7 +656,7 @@ def test_the_pages_take_on_maps_of_the_exemplars_size_is_said_and_one_click_from
     normal = png(to_uint16(example_maps(data.builtin("cells"))["normal"]))
     (tmp_path / "rock_normal_2k.png").write_bytes(normal)
     (tmp_path / "normal.png").write_bytes(normal)
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     assert page.is_hidden("#maps-use")
@@ -675,7 +668,7 @@ def test_the_pages_take_on_maps_of_the_exemplars_size_is_said_and_one_click_from
     assert page.text_content("#maps-list") == "maps: rock_normal_2k" and page.is_hidden("#maps-use")
     # Named by their kind alone, they refit the exemplar, said; the next exemplar picked (of their size) clears them,
     # and offers them to it.
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(tmp_path / "normal.png"))
@@ -705,7 +698,7 @@ def test_a_reload_keeps_the_working_model(page, tmp_path):
 
     height = tmp_path / "bricks_height.png"
     height.write_bytes(png(to_uint8(example_maps(data.builtin("bricks"))["height"][..., 0])))
-    fresh_page(page)
+    chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(height))
