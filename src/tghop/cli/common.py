@@ -625,6 +625,16 @@ def tell_seed(seed, drawn, what="the same image"):
         click.echo(f"seed {seed} drawn (no --seed given): --seed {seed} makes {what} again", err=True)
 
 
+def count_outputs(output: str, count: int) -> list:
+    """The files of ``count`` images (``--count``): -o's own for one, else numbered (:func:`numbered`:
+    ``out_1.png``, ...); ``-o -`` (stdout) takes one only, else a usage error."""
+    if count == 1:
+        return [output]
+    if output == "-":
+        raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
+    return numbered(output, count)
+
+
 def numbered(path: str, count: int):
     p = Path(path)
     width = len(str(count))

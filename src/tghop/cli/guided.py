@@ -9,7 +9,7 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
-from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, numbered,
+from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, count_outputs,
                      draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials, examples)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
@@ -190,7 +190,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     if guide is None and len(sources) < 2:
         raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
     size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
-    outputs = [output] if count == 1 else numbered(output, count)
+    outputs = count_outputs(output, count)
     for path in outputs if count > 1 else ():
         check_output(path)
     check_outputs([("-o", path) for path in outputs],

@@ -10,7 +10,7 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
-                     map_names, numbered, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
+                     map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
                      read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples)
 from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
@@ -89,7 +89,7 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
     seed, drawn = draw_seed(seed)
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "MASK")
-        outputs = _outputs(output, count)
+        outputs = count_outputs(output, count)
         if with_maps:
             _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, mask=mask)
             tell_seed(seed, drawn, _same(count))
@@ -140,7 +140,7 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
     seed, drawn = draw_seed(seed)
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "IMAGE")
-        outputs = _outputs(output, count)
+        outputs = count_outputs(output, count)
         if with_maps:
             _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress,
                            grow=(size, anchor.lower()))
@@ -159,16 +159,6 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
                    f"to {_where(outputs)}", err=True)
     tell_seed(seed, drawn, _same(count))
-
-
-def _outputs(output, count):
-    """The files of ``count`` fills: -o's own for one, else numbered as ``synth --count`` numbers them
-    (``out_1.png``, ...); ``-o -`` (stdout) takes one."""
-    if count == 1:
-        return [output]
-    if output == "-":
-        raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
-    return numbered(output, count)
 
 
 def _times(count):
@@ -220,7 +210,7 @@ def _open(image, outputs, source, scale, depth, *, others, maps=False):
 
     output = outputs[0]
     check_output(output, allow_stdout=True, depth=depth)
-    for path in outputs[1:] if len(outputs) > 1 else ():  # --count's numbered files, each before any work
+    for path in outputs[1:]:  # --count's numbered files, each before any work
         check_output(path)
     check_outputs([("-o", path) for path in outputs], [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):

@@ -14,7 +14,7 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
-                     is_builtin, is_model_file, load_exemplar, load_mask, map_names, numbered, quiet_tifffile,
+                     is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
                      draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
@@ -310,8 +310,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
                                    "each map")
         check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
-        if output == "-" and count > 1:
-            raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
+        count_outputs(output, count)  # -o - with --count above 1 refused before any work
         if stages and output == "-":
             raise click.UsageError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's "
                                    "image, so give -o a file name (e.g. -o out.png) or drop --stages")
@@ -373,7 +372,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                                    f"saved model; refit with 'tghop fit' or drop {'them' if several else 'it'}")
     generation = generation_params(options)
     # Every output checked before the fit and before the first image is written.
-    outputs = [output] if count == 1 else numbered(output, count)
+    outputs = count_outputs(output, count)
     staged = [_stage_paths(path) for path in outputs] if stages else []
     if count > 1:
         for path in outputs:
