@@ -70,6 +70,7 @@ class GenerationMixin:
     """Generation and the controls, for :class:`tghop.cooc.model.CoocGAN` (see the module's docstring)."""
 
     def _check_cond(self, cond) -> np.ndarray:
+        self._check_fitted()  # the morphs read cond_mean_ first: an AttributeError before fit (0.59)
         k2 = len(self.cond_mean_)
         cond = np.asarray(cond, dtype=np.float64)
         if cond.ndim != 3 or cond.shape[0] != k2:

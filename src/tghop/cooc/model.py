@@ -336,6 +336,10 @@ class CoocGAN(TrainingMixin, GenerationMixin, BaseEstimator):
         ----------
         path : str or os.PathLike
             The ``.pt`` file to write.
+
+        Returns
+        -------
+        None
         """
         save_checkpoint(self, path)
 
