@@ -1,8 +1,9 @@
 """scikit-learn's estimator checks on the components that follow its conventions (Saab), and the
 one-line messages that keep tghop's wording beside the phrases those checks look for.
 
-Hop, HopStack and SpatialReduction take (n, H, W, C) arrays, which their tags say, so that
-scikit-learn's checks (which feed 2-D arrays) skip them; ICHM's ``transform`` returns
+Hop, HopStack and SpatialReduction take (n, H, W, C) arrays, and TGHop, CoarseLayout, Material, the statistics of
+the steps after quilting and CoocGAN one (H, W, C) image, which their tags say, so that scikit-learn's checks (which
+feed 2-D arrays) skip them; ICHM's ``transform`` returns
 ``(labels, sources)``, not a transformer's array, and it is not checked. Every component (TGHop, its parts,
 CoarseLayout, Material) is held below to the conventions those checks would look at: a constructor that stores its
 parameters, clone and set_params, learned state ending in ``_``, NotFittedError from every public method before fit.
@@ -127,6 +128,23 @@ COMPONENTS = _components()
 NO_FIT_NEEDED = {"ICHM": {"clusters_for"}, "TGHop": {"check_channels", "check_exemplar_size", "check_settings"},
                  "CoarseLayout": {"fits", "usable_factor"}, "Material": {"stacked_channels"},
                  "CoocGAN": {"s"}}  # s: the downsampling factor its n_layers give
+
+
+#: The components whose input is a 2-D array (n_samples, n_features), on which scikit-learn's checks run.
+TWO_D_INPUT = {"Saab", "ICHM"}
+
+
+@pytest.mark.parametrize("cls", [c for c in COMPONENTS if c.__name__ not in TWO_D_INPUT], ids=lambda c: c.__name__)
+def test_components_of_images_tell_scikit_learn_its_checks_do_not_apply(cls):
+    # check_estimator(TGHop()) (and of CoarseLayout, Material, BandStatistics, ColourClasses, PatchStatistics, CoocGAN)
+    # ran 41 checks on 2-D arrays and failed 28 or 29 of them ("fit() takes 2 positional arguments but 3 were given",
+    # "expected a fitted model, got ndarray ..."): their tags said they take (n_samples, n_features) arrays.
+    with pytest.warns(SkipTestWarning, match="Can't test estimator"):
+        results = check_estimator(cls(), on_fail=None)
+    assert [r["check_name"] for r in results if r["status"] != "passed"] == []
+    tags = cls().__sklearn_tags__().input_tags
+    assert not tags.two_d_array
+    assert tags.three_d_array == (cls.__name__ not in ("Hop", "HopStack", "SpatialReduction"))  # those: 4-D
 
 
 def _fitted_parts(model):

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._arrays import check_int, check_mask
 from ._errors import TGHopError
-from ._estimator import BaseEstimator, StoredArrays, check_is_fitted
+from ._estimator import BaseEstimator, ImageInputMixin, StoredArrays, check_is_fitted
 from ._images import check_image, checked_image
 from ._resources import usable_cores
 
@@ -414,7 +414,7 @@ def mixed_quantiles(class_q, shares) -> np.ndarray:
     return out
 
 
-class ColourClasses(StoredArrays, BaseEstimator):
+class ColourClasses(ImageInputMixin, StoredArrays, BaseEstimator):
     """The exemplar's colours in a few classes, each with its own histograms (ours).
 
     Parameters

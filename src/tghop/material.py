@@ -39,7 +39,7 @@ import numpy as np
 from . import settings
 from ._arrays import check_dtype, check_not_path
 from ._errors import TGHopError, check_progress, warn
-from ._estimator import BaseEstimator, check_is_fitted, check_rng, fit_part, fitted_settings
+from ._estimator import BaseEstimator, ImageInputMixin, check_is_fitted, check_rng, fit_part, fitted_settings
 from ._images import check_image
 from .data import example_maps  # made from an albedo for tests and demonstrations; tghop.material's name too
 from ._progress import report
@@ -257,7 +257,7 @@ def _depth_of(arr) -> int:
     return 8 if arr.dtype == np.uint8 else 16 if arr.dtype == np.uint16 else 32
 
 
-class Material(BaseEstimator):
+class Material(ImageInputMixin, BaseEstimator):
     """An albedo and its maps, modelled together (see the module's notes).
 
     Parameters

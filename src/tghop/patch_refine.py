@@ -40,7 +40,7 @@ import numpy as np
 
 from ._arrays import check_int, check_mask, check_number
 from ._errors import InvalidImageError, TGHopError
-from ._estimator import BaseEstimator, check_is_fitted, check_rng
+from ._estimator import BaseEstimator, ImageInputMixin, check_is_fitted, check_rng
 from ._images import check_image, checked_image
 from ._progress import report
 from ._resources import one_blas_thread
@@ -199,7 +199,7 @@ def _columns(img, p, stride=1):
     return out.reshape(c * p * p, -1)
 
 
-class PatchStatistics(BaseEstimator):
+class PatchStatistics(ImageInputMixin, BaseEstimator):
     """The exemplar's patch projections per pyramid level, for :func:`patch_refine`.
 
     Parameters

@@ -37,7 +37,7 @@ import numpy as np
 
 from ._arrays import check_int, check_mask
 from ._errors import InvalidImageError, TGHopError
-from ._estimator import BaseEstimator, StoredArrays, check_is_fitted
+from ._estimator import BaseEstimator, ImageInputMixin, StoredArrays, check_is_fitted
 from ._images import check_image, check_size, checked_image
 from ._progress import ProgressCounter, report
 from ._resources import usable_cores
@@ -124,7 +124,7 @@ def prepare(size, stats):
         h, w = (h + 1) // 2, (w + 1) // 2
 
 
-class BandStatistics(StoredArrays, BaseEstimator):
+class BandStatistics(ImageInputMixin, StoredArrays, BaseEstimator):
     """What the refinement learns from the exemplar.
 
     Parameters

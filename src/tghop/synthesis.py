@@ -37,7 +37,8 @@ import numpy as np
 
 from . import generation, settings
 from ._errors import TGHopError, check_progress
-from ._estimator import BaseEstimator, check_is_fitted, check_keywords, check_rng, fit_part, fitted_settings
+from ._estimator import (BaseEstimator, ImageInputMixin, check_is_fitted, check_keywords, check_rng, fit_part,
+                         fitted_settings)
 from ._images import check_image, grey_as_rgb
 from ._progress import report
 from ._resources import one_blas_thread
@@ -73,7 +74,7 @@ DEFAULT_POOL = settings.BY_NAME["n_patches"].default
 FLOAT_EXEMPLAR_PIXELS = 1024 * 1024
 
 
-class TGHop(PatchCodec, BaseEstimator):
+class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
     """Texture generation by successive subspace learning (Lei, Zhao, Zhang, Kuo 2021).
 
     Fit it on one exemplar (an ``(H, W, 3)`` or grey ``(H, W)`` array, float in [0, 1], uint8 or
@@ -621,7 +622,7 @@ TGHop.synthesize.__doc__ = TGHop.synthesize.__doc__.replace(  # the generation s
     "{settings}", textwrap.indent(settings.numpydoc_parameters(settings.generate_settings()), "    "))
 
 
-class CoarseLayout(BaseEstimator):
+class CoarseLayout(ImageInputMixin, BaseEstimator):
     """The coarse layout of :class:`TGHop` (ours): a small TGHop model of the exemplar
     downsampled by ``factor``, whose quilted images guide the fine level above patch scale.
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from .._arrays import check_int
 from .._errors import NotFittedError, TGHopError
-from .._estimator import BaseEstimator, check_rng
+from .._estimator import BaseEstimator, ImageInputMixin, check_rng
 from .._images import check_image, check_size, check_texture
 from .._progress import ProgressCallback
 from .._resources import check_memory, import_torch
@@ -39,7 +39,7 @@ from .training import TrainingMixin
 __all__ = ["CoocGAN", "load", "baseline", "memory_estimate", "check_noise"]
 
 
-class CoocGAN(TrainingMixin, GenerationMixin, BaseEstimator):
+class CoocGAN(ImageInputMixin, TrainingMixin, GenerationMixin, BaseEstimator):
     """Co-occurrence conditional GAN of Darzi et al. (texture from local statistics and noise).
 
     Parameters are those of :data:`~tghop.cooc.config.SMALL` (the defaults) and
