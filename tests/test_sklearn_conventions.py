@@ -147,6 +147,36 @@ def test_components_of_images_tell_scikit_learn_its_checks_do_not_apply(cls):
     assert tags.three_d_array == (cls.__name__ not in ("Hop", "HopStack", "SpatialReduction"))  # those: 4-D
 
 
+#: The second argument of ``fit`` where it is not scikit-learn's ``y``: the maps that go with a material's albedo, the
+#: band statistics the colour classes are measured in (a part fitted by TGHop.fit, never alone in a pipeline).
+FIT_SECOND = {"Material": "maps", "ColourClasses": "bands"}
+
+
+@pytest.mark.parametrize("cls", COMPONENTS, ids=lambda c: c.__name__)
+def test_fit_takes_y_as_scikit_learn_passes_it(cls):
+    # BandStatistics.fit, PatchStatistics.fit and CoocGAN.fit took the image alone: fit(X, None), as a scikit-learn
+    # Pipeline calls it, was "fit() takes 2 positional arguments but 3 were given".
+    import inspect
+
+    params = list(inspect.signature(cls.fit).parameters.values())[1:]
+    second = params[1] if len(params) > 1 else None
+    assert second is not None and second.kind is second.POSITIONAL_OR_KEYWORD
+    assert second.name == FIT_SECOND.get(cls.__name__, "y")
+    if second.name == "y":
+        assert second.default is None
+
+
+def test_the_steps_statistics_fit_the_same_with_y_none(bricks96):
+    from tghop.patch_refine import PatchStatistics
+    from tghop.refine import BandStatistics
+
+    for make in (lambda: BandStatistics(), lambda: PatchStatistics(n_levels=1, rng=0)):
+        one, two = make().fit(bricks96), make().fit(bricks96, None)
+        assert sorted(vars(one)) == sorted(vars(two))
+        assert all(np.array_equal(np.asarray(vars(one)[k], dtype=object), np.asarray(vars(two)[k], dtype=object))
+                   for k in vars(one) if isinstance(vars(one)[k], np.ndarray))
+
+
 def _fitted_parts(model):
     hop = model.hops_.hops_[1]
     return {"TGHop": model, "HopStack": model.hops_, "Hop": hop, "Saab": hop.saabs_[0], "SpatialReduction": model.sdr_,

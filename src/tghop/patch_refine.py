@@ -234,7 +234,7 @@ class PatchStatistics(ImageInputMixin, BaseEstimator):
         self.whitening = whitening
         self.rng = rng
 
-    def fit(self, image, *, exclude=None, rng=_NOT_GIVEN):
+    def fit(self, image, y=None, *, exclude=None, rng=_NOT_GIVEN):
         """Learn from the exemplar; returns self.
 
         Parameters
@@ -244,6 +244,8 @@ class PatchStatistics(ImageInputMixin, BaseEstimator):
             at least PATCH pixels a side. Measured in parts of at most 1024x1024 pixels, one at
             a time (:func:`_parts`): the whole of it up to 3072 pixels a side, else 3 x 3
             parts spread over it.
+        y : None
+            Ignored (scikit-learn's signature: a Pipeline passes it; 0.59 took the image alone).
         exclude : ndarray, shape (H, W), bool, optional
             Patches touching these pixels (at each level: touching pixels reached by them)
             are left out.

@@ -152,7 +152,7 @@ class BandStatistics(ImageInputMixin, StoredArrays, BaseEstimator):
         self.n_orientations = n_orientations
         self.n_quantiles = n_quantiles
 
-    def fit(self, exemplar, *, exclude=None):
+    def fit(self, exemplar, y=None, *, exclude=None):
         """Learn the exemplar's colour axes and its band and pixel distributions.
 
         Exemplars larger than _FIT_SIDE (1024) squared are measured on up to four crops of
@@ -163,6 +163,8 @@ class BandStatistics(ImageInputMixin, StoredArrays, BaseEstimator):
         ----------
         exemplar : ndarray, shape (H, W, C)
             Float in [0, 1], or uint8 (read as x / 255; uint16 as x / 65535).
+        y : None
+            Ignored (scikit-learn's signature: a Pipeline passes it; 0.59 took the image alone).
         exclude : array_like of bool, shape (H, W), optional
             Pixels left out (a sample mask). The colour axes and pixel quantiles come from
             the other pixels; excluded pixels are set to the mean colour before the pyramid,

@@ -91,7 +91,7 @@ class TrainingMixin:
             raise TGHopError(f"{what}: this exemplar is not the one the model was trained on; {fix}")
 
     # ------------------------------------------------------------------ the loop
-    def fit(self: _Self, exemplar, *, resume: bool = False, max_seconds: Optional[float] = None,
+    def fit(self: _Self, exemplar, y=None, *, resume: bool = False, max_seconds: Optional[float] = None,
             progress: Optional[ProgressCallback] = None,
             log: Optional[Callable[[int, dict], None]] = None) -> _Self:
         """Train on one exemplar.
@@ -101,6 +101,8 @@ class TrainingMixin:
         exemplar : array_like, shape (H, W) or (H, W, C)
             Float in [0, 1], at least ``crop_size`` on each side, not flat
             (:func:`tghop._images.check_texture`).
+        y : None
+            Ignored (scikit-learn's signature: a Pipeline passes it; 0.59 took the image alone).
         resume : bool
             Continue a loaded checkpoint (or an earlier fit) up to ``n_steps`` instead of
             starting afresh; the exemplar must be the one it was trained on. Crops are cut
