@@ -127,3 +127,23 @@ def test_painted_images_of_two_level_models_keep_their_levels_where_all_share_th
     image = synthesize_guided([a, grey_white], guide, rng=1)
     assert _off_levels(image, [[0.0], [0.5], [1.0]]) > 0  # the join's means, not snapped to any of the levels
     assert _off_levels(image[:, :48], a.exemplar_levels_) == 0 and _off_levels(image[:, 80:], [[0.5], [1.0]]) == 0
+
+
+def test_the_snap_to_two_levels_is_the_last_step_return_stages_gives(tmp_path):
+    # 0.59's stages ended with the patch refinement's (or colour matching's) image, in greys, where the image returned
+    # (and synth --stages' OUTPUT) was snapped to the exemplar's two levels: no step showed that snap.
+    model = TGHop(**GREY).fit(black_and_white())
+    for dtype in (np.float64, np.uint8):
+        image, steps = model.synthesize((64, 80), rng=1, return_stages=True, dtype=dtype)
+        assert list(steps)[-1] == "levels"
+        assert steps["levels"].dtype == np.float32
+        np.testing.assert_array_equal(steps["levels"], image / 255 if dtype == np.uint8 else image)
+        before = steps[list(steps)[-2]]
+        assert len(np.unique(before)) > 2 and set(np.unique(steps["levels"])) == {0.0, 1.0}
+    assert "levels" not in TGHop(**SMALL).fit(data.bricks(96)).synthesize((48, 48), rng=1, return_stages=True)[1]
+    save_model(model, tmp_path / "bw.npz")
+    r = cli("synth", tmp_path / "bw.npz", "-o", tmp_path / "out.png", "--size", "64", "--seed", "0", "--stages")
+    assert r.returncode == 0, r.stderr.decode()
+    assert "out_levels.png" in r.stderr.decode()
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "out_levels.png")),
+                                  np.asarray(Image.open(tmp_path / "out.png")))

@@ -591,7 +591,8 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
             Also return each step's image, to look at: a dict of float32 (H, W, C) arrays in [0, 1]
             in the order made: "guide" (the coarse layout's, with one), "quilt" (as quilted),
             "seams" (seam removal), "refine" (the band refinement; regions too), then "patch
-            refine" or "colour", the last step's (float32; the image itself is ``dtype``); and,
+            refine" or "colour", the last step's (float32; the image itself is ``dtype``), and after it,
+            for a two-level exemplar (:attr:`exemplar_levels_`), "levels": the image snapped to them (0.60); and,
             after "guide", "pool" (0.58): the patch pool quilting chose from, float32 (n, P, P, C)
             in [0, 1], P the patch size and n ``n_patches`` (more from 2048x2048 on, up to
             30,000: ``pool_per_block``), in the order drawn; not an image (``ndim`` 4). Without
@@ -613,7 +614,10 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
             region=region, own_shares=own_shares, progress=progress, dtype=dtype, return_stages=return_stages)
         levels = getattr(self, "exemplar_levels_", None)
         if levels is not None:  # a two-level exemplar's image: its two levels (exemplar_levels_)
-            snap_levels(made[0] if return_stages else made, levels)
+            image = made[0] if return_stages else made
+            snap_levels(image, levels)
+            if return_stages:  # a step too, the last (0.60): the image returned, as float32 in [0, 1]
+                made[1]["levels"] = (image / 255 if image.dtype == np.uint8 else image).astype(np.float32)
         return made
 
 

@@ -284,7 +284,8 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--downscale", is_flag=True, help=DOWNSCALE_HELP)
 @click.option("--stages", is_flag=True,
               help="Also write each step's image beside OUTPUT, at its depth: OUTPUT_guide (the coarse layout's), "
-                   "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself).")
+                   "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself; "
+                   "a two-level exemplar's: then _levels, snapped to them).")
 @QUIET_OPTION
 @click.option("--maps", "maps_given", is_flag=True, hidden=True)  # fit's: said so (click offered --gamma, --paper)
 @click.pass_context
@@ -342,7 +343,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
 
 
 #: The steps ``synth --stages`` writes, as ``TGHop.synthesize(return_stages=True)`` names them.
-STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour")
+STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour", "levels")
 
 
 def _stage_paths(path):
