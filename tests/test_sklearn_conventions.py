@@ -217,6 +217,17 @@ def test_a_fitted_component_keeps_its_learned_state_in_trailing_underscores_and_
     assert not changed, changed
 
 
+def test_a_fitted_material_keeps_its_learned_state_in_trailing_underscores_and_clones_unfitted(bricks96):
+    # The test above takes TGHop's parts; a Material (its model_ a TGHop of the stacked maps) was not held to it.
+    mat = Material(model=TGHop(**{**SMALL, "layout_factor": None}), rng=0).fit(bricks96, {"height": bricks96[..., 0]})
+    params = mat.get_params(deep=False)
+    learned = [k for k in vars(mat) if k not in params]
+    assert learned and all(k.endswith("_") or k.startswith("_") for k in learned), learned
+    assert mat.model is not mat.model_ and not any(k.endswith("_") for k in vars(mat.model))  # the given one unfitted
+    fresh = sklearn.base.clone(mat)
+    assert sorted(vars(fresh)) == sorted(params) and repr(fresh) == repr(mat)
+
+
 def test_scikit_learns_check_is_fitted_agrees_with_tghops(small_model):
     # scikit-learn's check_is_fitted took a TGHop whose settings changed after fit (set_params) as fitted, where
     # every method of it raised NotFittedError: it looked at the learned state alone.
