@@ -46,8 +46,9 @@ Options:
 Sections (each a Markdown table in DIR/report.md, data in DIR/<section>.json, images PNG):
 
 1. Table 2/3 -- time of one 256x256 brick_wall image: analysis, generation of the
-   10,000-patch pool, quilting (Table 3: wall and CPU time, 0.60); Ustyuzhaninov et al. timed in the same run (measured and
-   extrapolated to the paper's 100 iterations; not with --quick or --time-ust-iters 0);
+   10,000-patch pool, quilting (Table 3: wall and CPU time, 0.60); Ustyuzhaninov et al. timed in
+   the same run (measured and extrapolated to the paper's 100 iterations; not with --quick or
+   --time-ust-iters 0);
    ratios next to the paper's.
 2. Table 1 / Fig. 8 -- four (K1, K2) dimension settings: dims, patches, metrics.
 3. Fig. 11 -- N = 50, 80, 110, 200 clusters: patches, metrics, fit time, parameters.
