@@ -475,8 +475,37 @@ def test_painted_materials_share_one_join_in_every_map(material, second):
     assert all(v.dtype == np.uint8 for v in eight.values())
     with pytest.raises(TGHopError, match="input 2 is not a material but input 1 is; give all materials"):
         synthesize_guided([material, material.model_], guide, **POOL)
-    with pytest.raises(TGHopError, match="patch_refine does not apply to materials"):
-        synthesize_guided([material, second], guide, patch_refine=2, **POOL)
+
+
+def test_painted_materials_patch_refine_each_albedo_by_its_own_statistics(material, second):
+    """0.60: patch_refine (quality best) of painted or remixed materials refines each layer's albedo with its own
+    material's patch statistics (0.59 refused it above 0); the other maps are those without it, bit for bit."""
+    import copy
+
+    from tghop import synthesize_guided
+
+    guide = np.zeros((64, 96), np.uint8)
+    guide[:, 48:] = 255
+    best = dict(patch_refine=3, patch_stride=1, **POOL)
+    out = synthesize_guided([material, second], guide, rng=2, transition=16, **best)
+    off = synthesize_guided([material, second], guide, rng=2, transition=16, patch_refine=0, **POOL)
+    rng = np.random.default_rng(2)
+    seeds = [np.random.default_rng(rng.integers(0, 2**63 - 1)) for _ in range(2)]
+    a = material.synthesize((64, 57), rng=seeds[0], **best)  # each half's box, refined by its own material
+    b = second.synthesize((64, 57), rng=seeds[1], **best)
+    for name in out:  # away from the band every map is its material's own
+        np.testing.assert_allclose(out[name][:, :38], a[name][:, :38], atol=1e-12)
+        np.testing.assert_allclose(out[name][:, 58:], b[name][:, 19:], atol=1e-12)
+    for half in (np.s_[:, :38], np.s_[:, 58:]):
+        assert np.abs(out["albedo"][half] - off["albedo"][half]).max() > 0.01
+    assert all(np.array_equal(out[name], off[name]) for name in out if name != "albedo")
+    np.testing.assert_allclose(np.linalg.norm(out["normal"] * 2 - 1, axis=2), 1.0, atol=1e-6)
+    old = copy.copy(second)  # tghop 0.58's material, or one fitted with patch_levels 0
+    old.patches_ = None
+    with pytest.raises(TGHopError, match="patch_refine=2 needs the albedo's patch statistics input 2 lacks"):
+        synthesize_guided([material, old], guide, patch_refine=2, **POOL)
+    remix = synthesize_guided([material, old], None, size=(48, 48), rng=1, **POOL)  # auto: refined where it can be
+    assert list(remix) == material.names_
 
 
 def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, second, tmp_path):
@@ -500,16 +529,42 @@ def test_a_material_where_a_plain_model_is_needed_says_what_takes_it(material, s
     assert res.exit_code == 0, res.output
     for name in ("p", "p_normal", "p_roughness", "p_height"):
         assert load_image(tmp_path / f"{name}.png").shape[:2] == (48, 64)
-    for args, words, status in ((["mat.npz", "plain.npz"], "SOURCE 2 (" + str(tmp_path / "plain.npz") + ") is a "
-                                 "texture model but SOURCE 1", 1),
-                                (["mat.npz", "cells.npz", "--quality", "best"], "do not apply to materials", 2)):
-        res = run("synth", *args, "-o", str(tmp_path / "o.png"), "--size", "48x64", "-q")
-        assert res.exit_code == status and words in res.output and "Traceback" not in res.output, res.output
+    res = run("synth", "mat.npz", "plain.npz", "-o", str(tmp_path / "o.png"), "--size", "48x64", "-q")
+    assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+    assert "SOURCE 2 (" + str(tmp_path / "plain.npz") + ") is a texture model but SOURCE 1" in res.output, res.output
     res = run("morph", "mat.npz", "plain.npz", "-o", str(tmp_path / "o.png"), "-q")  # two materials: since 0.59
     assert res.exit_code == 1 and "is a material but B" in res.output, res.output
     with pytest.raises(ModelFileError, match=r"load_model\(path, material=True\)"):
         load_model(tmp_path / "mat.npz")
     assert not (tmp_path / "o.png").exists()
+
+
+def test_cli_patch_refines_painted_materials_albedos(material, second, tmp_path, monkeypatch):
+    """0.60: synth A.npz B.npz --guide (or a remix) with --patch-refine N or --quality best refines each region's
+    albedo by its own material (0.59 refused them as a usage error); a material without the statistics is named."""
+    import copy
+
+    old = copy.copy(second)
+    old.patches_ = None
+    for name, m in (("mat", material), ("cells", second), ("old", old)):
+        save_model(m, tmp_path / f"{name}.npz")
+    save_image(np.repeat([[0.0, 1.0]], 48, axis=0).repeat(32, axis=1), tmp_path / "g.png")
+    monkeypatch.chdir(tmp_path)
+    out = {}
+    for steps in ("0", "3"):
+        res = CliRunner().invoke(main, ["synth", "mat.npz", "cells.npz", "--guide", "g.png", "-o", f"p{steps}.png",
+                                        "--seed", "1", "--pool", "1000", "-q", "--patch-refine", steps])
+        assert res.exit_code == 0, res.output
+        out[steps] = {p.name[2:]: load_image(p) for p in tmp_path.glob(f"p{steps}*.png")}
+    assert set(out["3"]) == {".png", "_normal.png", "_roughness.png", "_height.png"}
+    assert not np.array_equal(out["0"][".png"], out["3"][".png"])
+    assert all(np.array_equal(out["0"][k], out["3"][k]) for k in out["3"] if k != ".png")
+    res = CliRunner().invoke(main, ["synth", "mat.npz", "old.npz", "-o", "r.png", "--size", "48x64", "-q",
+                                    "--quality", "best"])
+    assert res.exit_code == 1 and "Traceback" not in res.output, res.output
+    assert "SOURCE 2 (old.npz) is a material without patch statistics of its albedo for --patch-refine or " \
+           "--quality best" in res.output, res.output
+    assert not list(tmp_path.glob("r*.png"))
 
 
 def test_painted_materials_of_the_same_maps_in_another_order_are_told_so(material, tmp_path, monkeypatch):

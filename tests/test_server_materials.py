@@ -194,10 +194,17 @@ def test_quality_best_patch_refines_a_materials_albedo(client, material_id, tmp_
         assert_error(client.post(f"/api/models/{old}/images", json={"size": [32, 32], **bad}), 422,
                      "is a material without patch statistics of its albedo", "fit it again")
     assert client.post(f"/api/models/{old}/images", json={"size": [32, 32]}).status_code == 200
-    # Painted or remixed materials: the library refines no painted albedo
-    assert_error(client.post("/api/images/guided", json={"models": [material_id, material_id], "size": [32, 32],
-                                                         "quality": "best"}),
-                 422, "do not apply to materials painted or remixed")
+    # Painted or remixed materials (0.60; 0.59: a 422): each albedo refined by its own material, the other maps kept
+    remixed = {}
+    for quality in ("default", "best"):
+        r = client.post("/api/images/guided", json={"models": [material_id, material_id], "size": [32, 32],
+                                                    "seed": 3, "quality": quality})
+        assert r.status_code == 200, r.text
+        remixed[quality] = {m["name"]: decode(m["png"]) for m in r.json()["maps"]}
+    assert not np.array_equal(remixed["default"]["albedo"], remixed["best"]["albedo"])
+    assert all(np.array_equal(remixed["default"][name], remixed["best"][name]) for name in ("normal", "height"))
+    assert_error(client.post("/api/images/guided", json={"models": [old, old], "size": [32, 32], "quality": "best"}),
+                 422, "models[0] is a material without patch statistics of its albedo")
 
 
 def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):

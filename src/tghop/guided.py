@@ -258,7 +258,9 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         As :meth:`tghop.TGHop.synthesize`, for each model's layer (its synthesis over the
         box its region reaches).
     layout_weight, layout_refine, layout_patch_refine, patch_refine, patch_stride, region, own_shares, seam_window
-        As :meth:`tghop.TGHop.synthesize`, for each layer.
+        As :meth:`tghop.TGHop.synthesize`, for each layer. Of materials, ``patch_refine`` refines each layer's
+        albedo with its own material's statistics (:meth:`tghop.material.Material.synthesize`; 0.60: 0.59
+        refused it above 0, its None refined them already); a material without them is refused above 0.
     progress : callable, optional
         Each layer's stages of :meth:`tghop.TGHop.synthesize` named with the layer's
         number, e.g. "quilting 2/3"; then "join".
@@ -481,14 +483,12 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(generation, tile=tile))  # refused before any layer is made
     materials = isinstance(models[0], Material)
-    if materials and checked["patch_refine"]:
-        raise TGHopError("patch_refine does not apply to materials painted or remixed (their joint models have no "
-                         "patch statistics; Material.synthesize refines an albedo alone); leave it at 0 or None")
-    for i, model in enumerate(models, start=1):
+    for i, model in enumerate(models, start=1):  # a material's: its albedo's, each layer refined by its own (0.60)
         if checked["patch_refine"] and getattr(model, "patches_", None) is None:
-            raise TGHopError(f"patch_refine={checked['patch_refine']} needs the patch statistics input {i} lacks "
-                             "(fitted with patch_levels=0, or by tghop 0.14 or older); fit it again, or leave "
-                             "patch_refine at None or 0")
+            whose = "the albedo's patch statistics" if materials else "the patch statistics"
+            old = "by tghop 0.58 or older" if materials else "by tghop 0.14 or older"
+            raise TGHopError(f"patch_refine={checked['patch_refine']} needs {whose} input {i} lacks (fitted with "
+                             f"patch_levels=0, or {old}); fit it again, or leave patch_refine at None or 0")
     k = len(models)
     boxes = layer_boxes(weights, tile=tile)
     # Each layer's pixels of its own region go to the image as it is made; only the part the join

@@ -231,7 +231,13 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     _check_mixable([f"SOURCE {i} ({spec})" for i, spec in enumerate(sources, start=1)], read, options)
     _check_channels(output, depth, read)
     _warn_deep(sources, read, "SOURCE", output, depth)
-    if generation["patch_refine"] and not hasattr(read[0], "names_"):  # before any fit (materials: refused below)
+    if generation["patch_refine"] and hasattr(read[0], "names_"):  # each albedo by its own statistics (0.60)
+        for i, (spec, source) in enumerate(zip(sources, read), start=1):
+            if source.albedo_patches() is None:
+                raise TGHopError(f"SOURCE {i} ({spec}) is a material without patch statistics of its albedo for "
+                                 "--patch-refine or --quality best (fitted by tghop 0.58 or older, or with "
+                                 "--patch-levels 0); fit it again with 'tghop fit'")
+    elif generation["patch_refine"]:  # before any fit
         from .options import refuse_patch_refine_without_statistics
 
         for i, (spec, source) in enumerate(zip(sources, read), start=1):
@@ -250,10 +256,6 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         models.append(same[key])
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<suffix>, ...
-        if generation["patch_refine"]:
-            raise click.UsageError("--patch-refine and --quality best do not apply to materials painted or remixed "
-                                   "(their joint models have no patch statistics); drop them")
-
         def make():
             maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
                                      dtype=np.float32, **generation)

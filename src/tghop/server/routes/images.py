@@ -38,18 +38,14 @@ def models_notes(server, ids) -> list:
     return [line for model_id in dict.fromkeys(ids) for line in server.cache.model_notes(model_id)]
 
 
-def check_patch_refine(model, settings, name: str, *, painted=False) -> None:
+def check_patch_refine(model, settings, name: str) -> None:
     """422 where ``settings`` ask for the patch refinement (``patch_refine``, ``quality`` best) of a ``model`` that
     has no patch statistics, ``name`` naming it (``this model``, ``models[1]``): a model fitted without them (as
-    ``tghop synth`` says; the library's words called a guided route's model "input 2"), a material whose albedo has
-    none (fitted by tghop 0.58: 0.59 patch-refines a material's albedo), or a material ``painted`` (a paint or a
-    remix: the library refines no painted material's albedo)."""
+    ``tghop synth`` says; the library's words called a guided route's model "input 2"), or a material whose albedo
+    has none (fitted by tghop 0.58: 0.59 patch-refines a material's albedo; 0.60 a painted or remixed one's too)."""
     if not settings.get("patch_refine"):
         return
     if materials.is_material(model):
-        if painted:
-            raise RequestError(422, f"patch_refine and quality best do not apply to materials painted or remixed "
-                                    f"({name} is one); leave them out")
         if model.albedo_patches() is None:
             raise RequestError(422, f"{name} is a material without patch statistics of its albedo for patch_refine "
                                     "or quality best (fitted by tghop 0.58 or older, or with patch_levels 0); fit it "
@@ -214,7 +210,7 @@ def guided_png(server, ids, guide, size, transition, settings, seed) -> tuple:
     materials.same_kind(models, ids)
     same_patches(models, [f"models[{i}]" for i in range(len(models))])
     for i, model in enumerate(models):
-        check_patch_refine(model, settings, f"models[{i}]", painted=True)
+        check_patch_refine(model, settings, f"models[{i}]")
     labels, told = None, []
     if guide is not None:  # its labels read once (a guide of another size was scaled twice when read again)
         labels, told = read_guide(guide, len(models), size, names=[f"models[{i}]" for i in range(len(models))],
