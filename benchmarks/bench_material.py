@@ -36,6 +36,18 @@ seeds, and a mean row. Written to benchmarks/results/material_albedo.json and .m
 
     python benchmarks/bench_material.py brick_wall knit bark hexagon_tiles stone_wall_256 grass_lawn \
         leopard --albedo-refine --seeds 2
+
+``--painted`` (0.60) measures it in painted materials: the textures taken in pairs (A B C D: A beside B,
+C beside D), each a material as above (``rng=0``), painted half and half (A left, B right,
+``synthesize_guided``, the default transition) at ``--size``; for each seed the image without the patch
+refinement (``patch_refine=0``), with the default (None: by the size, what 0.59 painted already) and with
+``--quality best``'s (0.59 refused it for painted materials); each region's albedo, the columns more than
+half the transition from the edge, scored against its own material's crop (SIFID), the normal map's largest
+length error and whether the other maps are those without the refinement, bit for bit. Written to
+benchmarks/results/material_painted.json and .md:
+
+    python benchmarks/bench_material.py brick_wall knit bark stone_wall_256 grass_lawn leopard --painted \
+        --seeds 2
 """
 
 from __future__ import annotations
@@ -196,6 +208,78 @@ def albedo_refine_table(rows: dict) -> str:
     return markdown_table(header, lines)
 
 
+#: The columns of ``--painted``'s rows: the settings each painted image is made with (0.60).
+PAINTED_WAYS = {"unrefined": {"patch_refine": 0}, "default": {}, "best": {"patch_refine": 90, "patch_stride": 1}}
+
+
+def painted_row(ex_a, ex_b, size, seeds, *, fit=None, score=None, transition=32) -> dict:
+    """``--painted`` for one pair of crops: materials of ``ex_a`` and ``ex_b`` (as :func:`albedo_refine_row`
+    makes them, with the settings ``fit``) painted half and half at ``size`` by each of :data:`PAINTED_WAYS`,
+    each region's albedo (its columns farther than ``transition / 2`` from the edge) scored against its own crop
+    by ``score(exemplar, image)`` (None: :func:`tghop.metrics.sifid`). Returns the means over ``seeds`` of
+    ``"<way> A"`` and ``"<way> B"``, the normal map's largest length error (``normal error``), whether every
+    map but the albedo is the unrefined one's bit for bit in every way (``maps kept``) and the mean seconds of
+    each way (``"<way> s"``)."""
+    from tghop import TGHop, synthesize_guided
+    from tghop.material import Material, example_maps
+
+    if score is None:
+        from tghop.metrics import sifid as score
+    materials = []
+    for ex in (ex_a, ex_b):
+        maps = example_maps(ex)
+        maps["height"] = np.round(maps["height"] * 65535).astype(np.uint16)  # a 16-bit map
+        materials.append(Material(model=TGHop(rng=0, **fit) if fit else None, rng=0).fit(ex, maps))
+    h, w = size
+    guide = np.zeros((h, w), np.uint8)
+    guide[:, w // 2:] = 255
+    half = transition // 2
+    regions = ((ex_a, np.s_[:, :w // 2 - half]), (ex_b, np.s_[:, w // 2 + half:]))
+    got, kept, error = {}, True, 0.0
+    for seed in seeds:
+        made = {}
+        for way, settings in PAINTED_WAYS.items():
+            t = time.perf_counter()
+            made[way] = synthesize_guided(materials, guide, rng=seed, transition=transition, **settings)
+            got.setdefault(f"{way} s", []).append(time.perf_counter() - t)
+            for side, (ex, part) in zip("AB", regions):
+                got.setdefault(f"{way} {side}", []).append(float(score(ex, made[way]["albedo"][part])))
+            error = max(error, float(np.abs(np.linalg.norm(made[way]["normal"] * 2 - 1, axis=2) - 1).max()))
+            kept = kept and all(np.array_equal(made[way][k], made["unrefined"][k]) for k in made[way] if k != "albedo")
+    row = {k: float(np.mean(v)) for k, v in got.items()}
+    row.update({"normal error": error, "maps kept": kept})
+    return row
+
+
+def painted_table(rows: dict) -> str:
+    """The markdown table of docs/choices.md ("Painted materials", 0.60) from ``{"A / B": row}`` of
+    :func:`painted_row`, with a mean row of the scores."""
+    header = ["A / B", *(f"{way} A / B" for way in PAINTED_WAYS), "normal error", "maps kept",
+              "synth s " + " / ".join(PAINTED_WAYS)]
+    lines = [[pair, *(f"{r[f'{w} A']:.2f} / {r[f'{w} B']:.2f}" for w in PAINTED_WAYS), f"{r['normal error']:.1e}",
+              "yes" if r["maps kept"] else "no", " / ".join(f"{r[f'{w} s']:.1f}" for w in PAINTED_WAYS)]
+             for pair, r in rows.items()]
+    lines.append(["mean", *(f"{np.mean([(r[f'{w} A'] + r[f'{w} B']) / 2 for r in rows.values()]):.2f}"
+                            for w in PAINTED_WAYS), "", "", ""])
+    return markdown_table(header, lines)
+
+
+def painted_main(args):
+    if len(args.textures) % 2:
+        raise SystemExit("--painted takes the textures in pairs (A B C D: A beside B, C beside D)")
+    size, seeds, rows = (args.size, args.size), list(range(args.seeds)), {}
+    crops = {name: texture(name)[: args.crop or None, : args.crop or None] for name in args.textures}
+    for a, b in zip(args.textures[::2], args.textures[1::2]):
+        rows[f"{a} / {b}"] = painted_row(crops[a], crops[b], size, seeds)
+        print(a, b, {k: round(v, 3) for k, v in rows[f"{a} / {b}"].items()}, flush=True)
+    md = (f"Painted materials' albedos patch-refined (0.60): each region's albedo SIFID against its own "
+          f"{args.crop}x{args.crop} crop, A left and B right of {args.size}x{args.size}, seeds 0-{args.seeds - 1}, "
+          "means (benchmarks/bench_material.py --painted)\n\n" + painted_table(rows))
+    write_results("material_painted", [{"pair": k, **v, "size": args.size, "seeds": seeds} for k, v in rows.items()],
+                  md)
+    print(md)
+
+
 def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("textures", nargs="+")
@@ -206,6 +290,9 @@ def parse_args(argv=None):
     ap.add_argument("--albedo-refine", action="store_true",
                     help="the albedo's patch refinement (0.59) against 0.58's material and the plain texture: "
                          "SIFID (needs the metrics extra), seeds 0 to --seeds - 1")
+    ap.add_argument("--painted", action="store_true",
+                    help="the albedo's patch refinement of materials painted half and half (0.60), the textures in "
+                         "pairs: each region's SIFID (needs the metrics extra), seeds 0 to --seeds - 1")
     return ap.parse_args(argv)
 
 
@@ -233,6 +320,8 @@ def main():
     args = parse_args()
     if args.albedo_refine:
         return albedo_refine_main(args)
+    if args.painted:
+        return painted_main(args)
     size = (args.size, args.size)
     rows, payload, sheet = [], [], None
     for name in args.textures:

@@ -37,3 +37,23 @@ def test_albedo_refine_rows_compare_the_texture_and_the_material_before_and_afte
     table = bench.albedo_refine_table({"bricks": row, "again": row})
     assert table.splitlines()[0].startswith("| exemplar | texture (plain) | material 0.58 | material 0.59 |")
     assert table.splitlines()[-1].startswith(f"| mean | {row['texture (plain)']:.2f} |")
+
+
+def test_painted_rows_score_each_regions_albedo_by_its_own_crop(bench):
+    """0.60's ``--painted``: materials painted half and half, unrefined, by default and with quality best."""
+    assert bench.parse_args(["bricks", "cells", "--painted"]).painted
+    a, b = data.bricks(64), data.cells(64, rng=3)
+    scored = []
+
+    def score(exemplar, image):  # the region's mean distance from its exemplar's mean colour
+        assert image.shape == (48, 16, 3) and (exemplar is a) == (len(scored) % 2 == 0)
+        scored.append(image)
+        return float(np.abs(image.mean(axis=(0, 1)) - exemplar.mean(axis=(0, 1))).mean())
+
+    row = bench.painted_row(a, b, (48, 64), [0], fit=FIT, score=score, transition=32)
+    assert len(scored) == 6 and {f"{w} {s}" for w in bench.PAINTED_WAYS for s in "AB"} <= set(row)
+    assert not np.array_equal(scored[0], scored[4]) and not np.array_equal(scored[1], scored[5])  # best refines both
+    assert row["maps kept"] and row["normal error"] < 1e-3
+    table = bench.painted_table({"bricks / cells": row})
+    assert table.splitlines()[0].startswith("| A / B | unrefined A / B | default A / B | best A / B |")
+    assert table.splitlines()[-1].startswith("| mean |")
