@@ -348,6 +348,48 @@ def test_a_normal_maps_convention_is_read_from_its_content():
     assert convention_of(np.tile([0.5, 0.5, 1.0], (8, 8, 1))) is None  # flat
 
 
+def test_a_mirrored_normal_map_is_told_apart_by_the_height_map_and_has_no_convention(exemplar, maps):
+    """0.60: a normal map mirrored left to right (its pixels, red not negated) read as the other convention with
+    full confidence (the mixed slopes cannot tell it from that convention's map of the surface inside out), and a
+    paint beside a material of its own convention flipped its green. The material's height map is a second cue:
+    where the normal map's slopes run against it, its content says no convention, and nothing is flipped; without
+    one, the ambient occlusion (an ORM's red) is the cue."""
+    from tghop import synthesize_guided
+    from tghop.normals import convention_of, surface_map
+
+    normal, height = maps["normal"], maps["height"]
+    assert convention_of(normal[:, ::-1]) == "OpenGL"  # alone: indistinguishable
+    gl = example_maps(exemplar, convention="OpenGL")
+    assert convention_of(normal, height) == "DirectX" and convention_of(gl["normal"], gl["height"][..., 0]) == "OpenGL"
+    assert convention_of(normal, (height * 65535).round().astype(np.uint16)) == "DirectX"
+    assert convention_of(normal[::-1], height[::-1]) == "OpenGL"  # upside down: an OpenGL map of that surface
+    for mirrored, h in ((normal[:, ::-1], height[:, ::-1]), (normal[::-1, ::-1], height[::-1, ::-1]), (normal,
+                                                                                                       1 - height)):
+        assert convention_of(mirrored, h) is None  # mirrored, turned a half, the height inverted: unsure
+    occlusion = np.clip(1 + 4 * (height[..., 0] - np.mean(height)), 0, 1)  # dark in the creases
+    assert convention_of(normal[:, ::-1], occlusion[:, ::-1]) is None
+    orm = np.concatenate([height, maps["roughness"], height > 0.5], axis=2)
+    r = maps["roughness"]
+    for given, want in (([("T_Rock_ORM", orm)], orm[..., 0]), ([("Rock_MaskMap", orm[..., ::-1])], orm[..., 1]),
+                        ([("r", r), ("Rock_AO", r), ("Rock_Height", height)], height[..., 0]),
+                        ([("Rock_AO", r), ("T_Rock_ORM", orm)], r[..., 0])):
+        np.testing.assert_array_equal(surface_map(given), want)
+    assert surface_map([("Rock_Roughness", r), ("Rock_Height", orm)]) is None  # a height of 3 channels: none
+    noise = np.random.default_rng(0).random(height.shape)
+    assert convention_of(normal, noise) == "DirectX"  # a height it does not follow says nothing
+    with pytest.raises(TGHopError, match="height must be the normal map's 96x96 pixels of one channel"):
+        convention_of(normal, height[:48])
+    mirrored = Material(model=TGHop(**FAST), rng=0).fit(exemplar[:, ::-1], {k: v[:, ::-1] for k, v in maps.items()})
+    assert mirrored.conventions_ == [None, None, None, None]
+    own = Material(model=TGHop(**FAST), rng=0).fit(exemplar, maps)
+    assert own.conventions_ == [None, "DirectX", None, None]
+    guide = np.zeros((48, 64), np.uint8)
+    guide[:, 32:] = 255
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # 0.59: "input 2's normal map 'normal' (OpenGL) is in the other convention"
+        synthesize_guided([own, mirrored], guide, rng=1, n_patches=800, patch_refine=0)
+
+
 def test_a_normal_map_named_as_one_convention_but_holding_the_other_is_warned_of(exemplar, maps, tmp_path):
     # A map named NormalGL that holds DirectX's green (a mislabelled export) came out lit upside down, unsaid.
     gl = example_maps(exemplar, convention="OpenGL")["normal"]

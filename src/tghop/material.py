@@ -49,7 +49,7 @@ from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS, MapNameClashError, check_map_names,
                         is_normal_name, keeps_alpha, map_kind, map_name, name_kind, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
-from .normals import convention_of
+from .normals import convention_of, surface_map
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -287,9 +287,11 @@ class Material(ImageInputMixin, BaseEstimator):
     normal_ : list of bool
     conventions_ : list of str or None
         Each normal map's convention, ``"OpenGL"`` or ``"DirectX"``: its content's
-        (:func:`tghop.normals.convention_of`), else its name's (:func:`normal_convention`), else None (0.59;
-        a model file of 0.58 or before: its name's); None for the other maps. Painted or remixed materials
-        whose normal maps differ in it are made one (:func:`tghop.synthesize_guided`).
+        (:func:`tghop.normals.convention_of`; 0.60: none where its slopes run against the height map's, or the
+        occlusion's, :func:`tghop.normals.surface_map`, as a mirrored map's do), else its name's
+        (:func:`normal_convention`), else None (0.59; a model file of 0.58 or before: its name's); None for the
+        other maps. Painted or remixed materials whose normal maps differ in it are made one
+        (:func:`tghop.synthesize_guided`).
     depths_ : list of int
         Bits per channel of each map as given (8, 16, or 32 for float): what ``tghop synth``
         writes each map with unless told otherwise.
@@ -438,8 +440,10 @@ class Material(ImageInputMixin, BaseEstimator):
         albedo = drop_alpha(albedo, name="albedo", exclude="exclude=albedo[..., -1] < {half}", keep=None)  # as fit
         items = self._maps(albedo, maps, depths, normal)
         conventions = [None]
+        # a height map (or the occlusion) a second cue: a normal map whose slopes run against it has none (0.60)
+        height = surface_map((name, img) for name, img, _, is_normal in items[1:] if not is_normal)
         for name, img, _, is_normal in items[1:]:
-            named, found = normal_convention(name), convention_of(img) if is_normal else None
+            named, found = normal_convention(name), convention_of(img, height) if is_normal else None
             conventions.append((found or named) if is_normal else None)  # what comes out: its content's (0.59)
             if named and found and named != found:
                 warn(f"map {name!r} is named as {named}'s but its content is {found}'s (green "

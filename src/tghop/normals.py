@@ -10,6 +10,16 @@ correlate by +1 for DirectX's encoding and -1 for OpenGL's; a photographed or pa
 noise not at all. Measured: builtin bricks' and cells' example maps +-1.00; an ambientCG-style set
 synthesised at 1024x1024, +0.69 (DirectX) and -0.80 (OpenGL); noise -0.01.
 
+That cue cannot tell a map mirrored left to right (its pixels, red not negated) from the other convention's
+map of the surface turned inside out: both hold ``(+dh/dx, -dh/dy)``, and both read +-1.00. A material's
+height map is a second cue (0.60): ``n_x / n_z = -dh/dx`` in either convention, so where the normal map's
+slopes across the rows run against the height's (a mirrored map, a half turn, a height inverted), the
+content says no convention (None: the name's is kept, and a paint flips nothing); where the height's slopes
+down the rows say the other convention than the mixed slopes, neither. A height the normal map does not
+follow (correlations under :data:`CONVENTION_CORRELATION`) says nothing; without a height map, the ambient
+occlusion (dark in the creases) is the cue (:func:`surface_map`). A mirrored map with neither is still read
+as the other convention: nothing in it tells the two apart.
+
 A normal map stored turned, with an EXIF orientation (a viewer's "rotate" of a JPEG often only
 sets the tag), is read upright like any image (:func:`tghop.imageio.load_image`); its vectors are
 then turned with its pixels (:func:`upright_normal_map`): a slope to the right of a map turned a
@@ -24,9 +34,10 @@ import numpy as np
 
 from ._errors import TGHopError
 from .image_decode import file_header, upright
+from .map_names import kind_key
 
-__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "convention_of", "upright_vectors", "upright_normal_map",
-           "convention_flips", "flip_green"]
+__all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "AO_CHANNEL", "convention_of", "surface_map", "upright_vectors",
+           "upright_normal_map", "convention_flips", "flip_green"]
 
 #: The least correlation, either sign, that decides a normal map's convention by its content.
 CONVENTION_CORRELATION = 0.3
@@ -34,15 +45,19 @@ CONVENTION_CORRELATION = 0.3
 SAMPLE_PIXELS = 1 << 20
 
 
-def convention_of(values):
+def convention_of(values, height=None):
     """The convention a normal map's content is in: ``"DirectX"``, ``"OpenGL"`` or None (not clear:
-    a correlation below :data:`CONVENTION_CORRELATION`, a flat map).
+    a correlation below :data:`CONVENTION_CORRELATION`, a flat map; or, with ``height``, slopes that run
+    against the height's: see the module's notes, 0.60).
 
     Parameters
     ----------
     values : array_like, shape (H, W, 3)
         Unit vectors encoded as ``(n + 1) / 2``: floats in [0, 1], or unsigned integers at their
         full range (8 or 16 bits).
+    height : array_like, shape (H, W) or (H, W, 1), optional
+        The material's height map (white high; floats or unsigned integers), or its ambient occlusion
+        (:func:`surface_map`), the second cue; another shape is refused (:class:`TGHopError`).
 
     Returns
     -------
@@ -51,18 +66,69 @@ def convention_of(values):
     arr = np.asarray(values)
     if arr.ndim != 3 or arr.shape[2] != 3 or min(arr.shape[:2]) < 3:
         return None
+    h = None if height is None else np.asarray(height)
+    if h is not None and (h.shape[:2] != arr.shape[:2] or h.ndim not in (2, 3) or h.shape[2:] not in ((), (1,))):
+        raise TGHopError(f"height must be the normal map's {arr.shape[0]}x{arr.shape[1]} pixels of one channel, "
+                         f"got shape {h.shape}")
     step = max(1, int(np.ceil(np.sqrt(arr.shape[0] * arr.shape[1] / SAMPLE_PIXELS))))
     scale = np.iinfo(arr.dtype).max if arr.dtype.kind == "u" else 1.0
     n = arr[::step, ::step].astype(np.float64) * (2.0 / scale) - 1.0  # a large map read every step-th pixel
     if min(n.shape[:2]) < 3:
         return None
     nz = np.maximum(n[..., 2], 0.05)  # a slope's steepness bounded: a few sideways vectors do not decide
-    across = np.gradient(n[..., 0] / nz, axis=0).ravel()
-    down = np.gradient(n[..., 1] / nz, axis=1).ravel()
-    if across.std() == 0 or down.std() == 0:
+    sx, sy = n[..., 0] / nz, n[..., 1] / nz
+    r = _correlation(np.gradient(sx, axis=0), np.gradient(sy, axis=1))
+    found = None if r is None or abs(r) < CONVENTION_CORRELATION else "DirectX" if r > 0 else "OpenGL"
+    if found is None or h is None:
+        return found
+    h = h.reshape(h.shape[:2])[::step, ::step].astype(np.float64)  # its scale and offset change no correlation
+    rx = _correlation(sx, -np.gradient(h, axis=1))  # +1 in either convention
+    ry = _correlation(sy, -np.gradient(h, axis=0))  # +1 DirectX's (y down the rows), -1 OpenGL's
+    if rx is not None and rx <= -CONVENTION_CORRELATION:  # mirrored, turned a half, or the height inverted
         return None
-    r = float(np.corrcoef(across, down)[0, 1])
-    return None if abs(r) < CONVENTION_CORRELATION else "DirectX" if r > 0 else "OpenGL"
+    if ry is not None and abs(ry) >= CONVENTION_CORRELATION and (ry > 0) != (found == "DirectX"):
+        return None
+    return found
+
+
+#: The channel of each packing (:func:`tghop.map_names.kind_key`) that holds the ambient occlusion: an ORM's (and
+#: Poly Haven's ARM's) red, HDRP's mask map's green, an RMA's and an MRA's blue.
+AO_CHANNEL = {"packed orm": 0, "packed maskmap": 1, "packed rma": 2, "packed mra": 2}
+
+
+def surface_map(maps):
+    """A material's map that shows its surface's shape, the second cue of :func:`convention_of` (0.60): its
+    height map (white high), else its ambient occlusion (dark in the creases: its slopes follow the height's,
+    0.64-0.85 on builtin bricks' and cells' example maps), else a packing's occlusion (:data:`AO_CHANNEL`).
+
+    Parameters
+    ----------
+    maps : iterable of (str, ndarray)
+        Each map's name and pixels (H, W, C), the normal maps left out; a height or occlusion map of more
+        than one channel is passed over.
+
+    Returns
+    -------
+    ndarray, shape (H, W), or None
+    """
+    maps = list(maps)
+    for want in ("height", "ao"):
+        for name, img in maps:
+            if kind_key(name) == want and img.shape[2] == 1:
+                return img[..., 0]
+    for name, img in maps:
+        channel = AO_CHANNEL.get(kind_key(name))
+        if channel is not None and img.shape[2] > channel:
+            return img[..., channel]
+    return None
+
+
+def _correlation(a, b):
+    """The correlation of two arrays' values, or None where either is constant."""
+    a, b = a.ravel(), b.ravel()
+    if a.std() == 0 or b.std() == 0:
+        return None
+    return float(np.corrcoef(a, b)[0, 1])
 
 
 #: EXIF orientations whose quarter turn or transposition swaps a normal map's red and green.

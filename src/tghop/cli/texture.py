@@ -53,10 +53,9 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
 def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
     maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
-    content (:func:`tghop.normals.convention_of`), by name."""
+    content (:attr:`tghop.material.Material.conventions_`, where its name says none), by name."""
     from ..material import Material
     from ..material_files import read_map
-    from ..normals import convention_of
     from ..synthesis import TGHop
     from ..fit_options import fit_params
 
@@ -89,8 +88,9 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     params = fit_params(options)
     material = Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
                                                                       progress=progress)
-    found = {name: convention_of(maps[name]) for name, is_normal in zip(material.names_, material.normal_)
-             if is_normal and name in maps}
+    # its content's where its name says none (the material's own reading, a height map its second cue: 0.60)
+    found = {name: convention for name, convention, is_normal in zip(material.names_, material.conventions_,
+                                                                     material.normal_) if is_normal}
     return material, found
 
 
