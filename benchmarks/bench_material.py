@@ -43,7 +43,8 @@ C beside D), each a material as above (``rng=0``), painted half and half (A left
 refinement (``patch_refine=0``), with the default (None: by the size, what 0.59 painted already) and with
 ``--quality best``'s (0.59 refused it for painted materials); each region's albedo, the columns more than
 half the transition from the edge, scored against its own material's crop (SIFID), the normal map's largest
-length error and whether the other maps are those without the refinement, bit for bit. Written to
+length error, whether the other maps are those without the refinement on those columns, bit for bit, and the
+share of the band's pixels where they are not (the one join follows every map, the albedo too). Written to
 benchmarks/results/material_painted.json and .md:
 
     python benchmarks/bench_material.py brick_wall knit bark stone_wall_256 grass_lawn leopard --painted \
@@ -218,8 +219,9 @@ def painted_row(ex_a, ex_b, size, seeds, *, fit=None, score=None, transition=32)
     each region's albedo (its columns farther than ``transition / 2`` from the edge) scored against its own crop
     by ``score(exemplar, image)`` (None: :func:`tghop.metrics.sifid`). Returns the means over ``seeds`` of
     ``"<way> A"`` and ``"<way> B"``, the normal map's largest length error (``normal error``), whether every
-    map but the albedo is the unrefined one's bit for bit in every way (``maps kept``) and the mean seconds of
-    each way (``"<way> s"``)."""
+    map but the albedo is the unrefined one's bit for bit in every way on the regions' columns (``maps kept``),
+    the share of the band's pixels where they are not (``"<way> band moved"``: the one join follows the albedo
+    too) and the mean seconds of each way (``"<way> s"``)."""
     from tghop import TGHop, synthesize_guided
     from tghop.material import Material, example_maps
 
@@ -245,7 +247,13 @@ def painted_row(ex_a, ex_b, size, seeds, *, fit=None, score=None, transition=32)
             for side, (ex, part) in zip("AB", regions):
                 got.setdefault(f"{way} {side}", []).append(float(score(ex, made[way]["albedo"][part])))
             error = max(error, float(np.abs(np.linalg.norm(made[way]["normal"] * 2 - 1, axis=2) - 1).max()))
-            kept = kept and all(np.array_equal(made[way][k], made["unrefined"][k]) for k in made[way] if k != "albedo")
+            for name in made[way]:  # the other maps: the same away from the join, which follows the albedo too
+                if name != "albedo":
+                    kept = kept and all(np.array_equal(made[way][name][part], made["unrefined"][name][part])
+                                        for _, part in regions)
+                    band = made[way][name][:, w // 2 - half:w // 2 + half] != \
+                        made["unrefined"][name][:, w // 2 - half:w // 2 + half]
+                    got.setdefault(f"{way} band moved", []).append(float(band.any(axis=2).mean()))
     row = {k: float(np.mean(v)) for k, v in got.items()}
     row.update({"normal error": error, "maps kept": kept})
     return row
@@ -254,13 +262,14 @@ def painted_row(ex_a, ex_b, size, seeds, *, fit=None, score=None, transition=32)
 def painted_table(rows: dict) -> str:
     """The markdown table of docs/choices.md ("Painted materials", 0.60) from ``{"A / B": row}`` of
     :func:`painted_row`, with a mean row of the scores."""
+    moved = [w for w in PAINTED_WAYS if w != "unrefined"]
     header = ["A / B", *(f"{way} A / B" for way in PAINTED_WAYS), "normal error", "maps kept",
-              "synth s " + " / ".join(PAINTED_WAYS)]
+              "band moved " + " / ".join(moved), "synth s " + " / ".join(PAINTED_WAYS)]
     lines = [[pair, *(f"{r[f'{w} A']:.2f} / {r[f'{w} B']:.2f}" for w in PAINTED_WAYS), f"{r['normal error']:.1e}",
-              "yes" if r["maps kept"] else "no", " / ".join(f"{r[f'{w} s']:.1f}" for w in PAINTED_WAYS)]
-             for pair, r in rows.items()]
+              "yes" if r["maps kept"] else "no", " / ".join(f"{r[f'{w} band moved']:.0%}" for w in moved),
+              " / ".join(f"{r[f'{w} s']:.1f}" for w in PAINTED_WAYS)] for pair, r in rows.items()]
     lines.append(["mean", *(f"{np.mean([(r[f'{w} A'] + r[f'{w} B']) / 2 for r in rows.values()]):.2f}"
-                            for w in PAINTED_WAYS), "", "", ""])
+                            for w in PAINTED_WAYS), "", "", "", ""])
     return markdown_table(header, lines)
 
 

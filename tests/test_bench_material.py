@@ -53,7 +53,7 @@ def test_painted_rows_score_each_regions_albedo_by_its_own_crop(bench):
     row = bench.painted_row(a, b, (48, 64), [0], fit=FIT, score=score, transition=32)
     assert len(scored) == 6 and {f"{w} {s}" for w in bench.PAINTED_WAYS for s in "AB"} <= set(row)
     assert not np.array_equal(scored[0], scored[4]) and not np.array_equal(scored[1], scored[5])  # best refines both
-    assert row["maps kept"] and row["normal error"] < 1e-3
+    assert row["maps kept"] and row["normal error"] < 1e-3 and 0 <= row["best band moved"] <= 1
     table = bench.painted_table({"bricks / cells": row})
     assert table.splitlines()[0].startswith("| A / B | unrefined A / B | default A / B | best A / B |")
     assert table.splitlines()[-1].startswith("| mean |")
