@@ -98,8 +98,9 @@ AO_CHANNEL = {"packed orm": 0, "packed maskmap": 1, "packed rma": 2, "packed mra
 
 def surface_map(maps):
     """A material's map that shows its surface's shape, the second cue of :func:`convention_of` (0.60): its
-    height map (white high), else its ambient occlusion (dark in the creases: its slopes follow the height's,
-    0.64-0.85 on builtin bricks' and cells' example maps), else a packing's occlusion (:data:`AO_CHANNEL`).
+    height map (white high), else its ambient occlusion (dark in the creases: its slopes follow the height's; an
+    occlusion made from builtin bricks' and cells' example heights read 0.64-0.85), else a packing's occlusion
+    (:data:`AO_CHANNEL`).
 
     Parameters
     ----------
