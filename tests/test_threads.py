@@ -234,3 +234,50 @@ def test_a_child_forked_while_another_thread_holds_one_blas_thread_is_back_on_th
     finally:
         if limiter is not None:
             limiter.restore_original_limits()
+
+
+_FIT_IN_A_PROCESS = """
+import sys
+import numpy as np
+from threadpoolctl import threadpool_info
+from tghop import data
+from tghop.material import Material, example_maps
+from tghop.modelfile import save_model
+from tghop.synthesis import TGHop
+
+threads = {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+if threads != {int(sys.argv[2])}:
+    print("blas threads", threads)
+    sys.exit(3)
+settings = dict(n_clusters=6, n_codewords=30, stride=4, rng=0)
+albedo = data.bricks(64, rng=3)
+save_model(TGHop(**settings).fit(albedo), sys.argv[1] + "-texture.npz")
+material = Material(model=TGHop(**settings)).fit(albedo, example_maps(albedo))
+save_model(material, sys.argv[1] + "-material.npz")
+"""
+
+
+def test_a_models_files_are_the_same_bytes_fitted_on_one_blas_thread_or_two(tmp_path):
+    # A batch worker fits on one BLAS thread, tghop fit and batch --workers 1 on the machine's. 0.59's material
+    # fitted its albedo's patch statistics outside the fit's one BLAS thread: patch.quantiles 8e-7 apart, which the
+    # patch refinement carried into the albedo's pixels. Each count in a process of its own (OpenBLAS's own
+    # setting, as a Dask worker's nanny sets it), every array compared.
+    import subprocess
+
+    import tghop
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(os.path.dirname(tghop.__file__)),
+                                                        os.environ.get("PYTHONPATH", "")]))
+    for n in (1, 2):
+        env.update({"OPENBLAS_NUM_THREADS": str(n), "OMP_NUM_THREADS": str(n)})
+        done = subprocess.run([sys.executable, "-c", _FIT_IN_A_PROCESS, str(tmp_path / f"t{n}"), str(n)], env=env,
+                              capture_output=True, text=True, timeout=600)
+        if done.returncode == 3:
+            pytest.skip(f"OpenBLAS does not run {n} threads here ({done.stdout.strip()})")
+        assert done.returncode == 0, done.stderr
+    for kind in ("texture", "material"):
+        one, two = np.load(tmp_path / f"t1-{kind}.npz"), np.load(tmp_path / f"t2-{kind}.npz")
+        assert sorted(one.files) == sorted(two.files)
+        assert "material_patch.patch.quantiles" in one.files or kind == "texture"
+        for name in one.files:
+            assert np.array_equal(one[name], two[name]), (kind, name)

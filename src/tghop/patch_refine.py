@@ -234,6 +234,9 @@ class PatchStatistics(ImageInputMixin, BaseEstimator):
         self.whitening = whitening
         self.rng = rng
 
+    # One BLAS thread: OpenBLAS's products round by its thread count (0.59's material fitted its albedo's outside
+    # TGHop.fit's hold: the quantiles 8e-7 apart on two threads and on a batch worker's one)
+    @one_blas_thread()
     def fit(self, image, y=None, *, exclude=None, rng=_NOT_GIVEN):
         """Learn from the exemplar; returns self.
 
