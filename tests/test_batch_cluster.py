@@ -420,3 +420,60 @@ def test_a_given_clients_worker_of_another_tghop_that_joins_mid_run_stops_it(tmp
         client.close()
     assert [line["error"] for line in ledger(out)] == ["a stand-in"]  # made before the worker joined
     assert not list(out.glob("*/.batch-running"))
+
+
+@pytest.mark.parametrize("processes", [False, True])
+def test_a_worker_of_another_tghop_that_joins_a_given_clients_local_cluster_from_elsewhere_stops_the_run(
+        tmp_path, processes):
+    # A program's own LocalCluster (its workers threads of this process, or processes its nannies start with this
+    # interpreter) given as client=: 0.59 checked none of the workers that joined it mid-run, so one started apart
+    # against its scheduler with another tghop was handed exemplars, each failed there (run_checked), and the run
+    # went on. Now only the cluster's own workers (its worker_spec's names: restarts, scale) are left unchecked.
+    import shutil
+
+    import distributed
+
+    import tghop
+
+    src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
+    other = tmp_path / "other"
+    shutil.copytree(Path(tghop.__file__).parent, other / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
+    init = other / "tghop" / "__init__.py"
+    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', '__version__ = "0.1.0"'))
+    # tcp: threads' default is inproc://, which no worker of another process can join
+    local = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=processes, dashboard_address=":0",
+                                     silence_logs=50, protocol="tcp://")
+    client = distributed.Client(local)
+    joiner_procs = []
+
+    def join_late():
+        deadline = time.time() + 120
+        while time.time() < deadline and not list(out.glob("*/.batch-running")):
+            time.sleep(0.1)
+        p = _start(["distributed.cli.dask_worker", local.scheduler_address, "--nthreads", "1", "--no-nanny",
+                    "--no-dashboard", "--name", "w2"],
+                   {"PYTHONPATH": os.pathsep.join([str(other), str(Path(__file__).parent)])})
+        joiner_procs.append(p)
+        assert _wait_for(p, "Registered to:"), "the worker did not start"
+        (out / ".go").touch()
+
+    try:
+        joiner = threading.Thread(target=join_late, daemon=True)
+        joiner.start()
+        with pytest.raises(TGHopError, match=r"^1 Dask worker that joined the cluster mid-run runs another tghop "
+                                             r"than this command's [^ ]+ \(w2 \(tcp://127\.0\.0\.1:\d+\): 0\.1\.0\): "
+                                             r"install .*the next run does the rest$"):
+            batch.run(src, out, size=(48, 48), seed=1, client=client, task=waiting_task)
+        joiner.join()
+        assert [line["error"] for line in ledger(out)] == ["a stand-in"]  # made before the worker joined
+        # the cluster's own workers (a restart's, scale's) are not asked: a LocalCluster lost them (docs/batch.md)
+        from tghop.batch_dask import _own_workers
+
+        its_own, names = _own_workers(client), {a: w["name"] for a, w in client.scheduler_info()["workers"].items()}
+        assert sorted(str(names[a]) for a in names if its_own(a)) == ["0"] and len(names) == 2, names
+    finally:
+        for p in joiner_procs:
+            p.kill()
+            p.wait(timeout=30)
+        client.close()
+        local.close()

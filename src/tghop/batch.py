@@ -169,8 +169,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     client : distributed.Client, optional
         Run on this client's cluster (left open). Its workers are checked as ``scheduler``'s are (0.59; 0.58
         checked none): before any work, every one must import this tghop, and one that joins mid-run with
-        another or none stops the run (:func:`tghop.batch_dask.check_cluster`), but for the workers that join
-        a cluster object of this process (``client.cluster``, a LocalCluster: its own restarts).
+        another or none stops the run (:func:`tghop.batch_dask.check_cluster`), but for those a cluster object
+        of this process (``client.cluster``, a LocalCluster) starts itself: its restarts, its ``scale`` (0.60; 0.59
+        checked no worker that joined such a cluster, one started elsewhere against its scheduler too).
     scheduler : str, optional
         The address of a running dask.distributed scheduler to connect to (``tcp://host:8786``, as
         ``tghop batch --scheduler``).

@@ -406,8 +406,8 @@ def _results(client, group, by_key, retries, check_joined):
     """The (job, record) of each future of ``group`` (done; ``by_key``: a task's key -> its job): the
     results of those finished in one gather, a record of :func:`_died_record` for a task that failed (its
     worker killed on every try); a lost scheduler raises :class:`SchedulerLostError`. ``retries``: the
-    local cluster's (None: another's); ``check_joined``: a failure other than a killed worker checks the
-    workers' tghop first."""
+    local cluster's (None: another's); ``check_joined``: called with the workers' addresses where a task failed
+    other than by a killed worker, to check their tghop first (None: no check)."""
     finished = [fut for fut in group if fut.status == "finished"]
     try:  # one round trip for the group, where each result was one (Future.result)
         values = dict(zip([f.key for f in finished], client.gather(finished))) if finished else {}
@@ -424,13 +424,34 @@ def _results(client, group, by_key, retries, check_joined):
             lost = _lost_scheduler(client, exc, dask_call=False)  # no failure of this exemplar's
             if lost is not None:
                 raise lost from exc
-            if check_joined and exc.__class__.__name__ != "KilledWorker":
+            if check_joined is not None and exc.__class__.__name__ != "KilledWorker":
                 # its worker may have joined since and lack this tghop (run_checked raised, or the task could
                 # not be loaded there): the run stops with one line, as the check before any work refuses it
-                check_workers_tghop(client, list(client.nthreads()))
+                check_joined(list(client.nthreads()))
             record = _died_record(by_key[fut.key], exc, retries)
         out.append((by_key[fut.key], record))
     return out
+
+
+def _own_workers(client):
+    """``its_own(address)``: whether the worker at ``address`` is one that ``client``'s cluster object of this
+    process, a ``LocalCluster``, started itself (a name of its ``worker_spec``: its first workers, those of its
+    ``scale``, a nanny's restart of one of them), all with this interpreter; False for every worker of another
+    client's cluster, and for one that joined a LocalCluster's scheduler from elsewhere (``dask worker ADDRESS``)."""
+    distributed = import_distributed()
+    cluster = getattr(client, "cluster", None)
+    if not isinstance(cluster, distributed.LocalCluster):
+        return lambda address: False
+
+    def its_own(address):
+        try:  # the cluster's own record, kept by its event loop's thread: copied, not iterated
+            info = dict(cluster.scheduler_info.get("workers", {})).get(address) or \
+                client.scheduler_info().get("workers", {}).get(address) or {}
+            return "name" in info and info["name"] in set(cluster.worker_spec)
+        except (AttributeError, RuntimeError, TypeError):  # a name unknown: the worker is checked
+            return False
+
+    return its_own
 
 
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None):
@@ -444,11 +465,18 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
 
     distributed = import_distributed()
     # a cluster not started here (--scheduler, or a given client since 0.59): its workers were checked before any
-    # work (check_cluster), those that join mid-run are checked as they are seen; but for a given client of a
-    # cluster object of this process (client.cluster, a LocalCluster), whose nannies start each worker that joins
-    # with this interpreter (a restart of one of its own): with the check, a test's LocalCluster whose workers
-    # were killed again and again lost them all in 3 of 6 runs, none in 3 without it (docs/batch.md)
-    check_joined = client is not None and (own_client is client or getattr(client, "cluster", None) is None)
+    # work (check_cluster), those that join mid-run are checked as they are seen, but for the workers a given
+    # client's LocalCluster of this process starts itself (its_own), as a restart of one of its own: with the
+    # check, a test's LocalCluster whose workers were killed again and again lost them all in 3 of 6 runs, none in 3
+    # without it (docs/batch.md). 0.59 left every worker of such a cluster unchecked, one that joined its
+    # scheduler from elsewhere too (another tghop's: each task failed on it, and the run went on).
+    its_own = _own_workers(client) if client is not None and own_client is not client else (lambda address: False)
+
+    def check_joined(addresses):
+        others = [a for a in addresses if not its_own(a)]
+        if others:
+            check_workers_tghop(client, others)
+
     own_cluster = None
     futures = []
     own_files = [False]  # True while begin or finish writes this run's own files (their OSError is theirs)
@@ -471,7 +499,7 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         by_key, running = {}, distributed.as_completed(loop=client.loop)
 
         seen = {}  # the workers at the last hand-out: address -> name
-        known = set(client.nthreads()) if check_joined else set()  # every worker checked (connect did these)
+        known = set(client.nthreads()) if own_cluster is None else set()  # every worker checked (check_cluster)
 
         def hand_out():
             nthreads = client.nthreads()
@@ -481,8 +509,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 warnings.warn(_workers_gone(gone, seen, own_cluster is not None, _running_on(client, gone, by_key)),
                               stacklevel=2)
             joined = [a for a in nthreads if a not in known]
-            if joined and check_joined:
-                check_workers_tghop(client, joined)
+            if joined and own_cluster is None:
+                check_joined(joined)
             known.update(joined)
             if not seen or gone or set(nthreads) - set(seen):
                 info = client.scheduler_info().get("workers", {})
@@ -509,7 +537,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             # (finish) for the group; each a round trip or a disk's flush, which per exemplar bounded a large
             # cluster to tens of exemplars a second (docs/batch.md, "The driver's cost per exemplar").
             group = running.next_batch(block=True)
-            done = _results(client, group, by_key, retries if own_cluster is not None else None, check_joined)
+            done = _results(client, group, by_key, retries if own_cluster is not None else None,
+                            None if own_cluster is not None else check_joined)
             for fut in group:
                 fut.release()
             try:
