@@ -1385,7 +1385,10 @@ def _local_cluster():
         cluster = distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
                                            dashboard_address=":0", silence_logs=logging.CRITICAL)
     client = distributed.Client(cluster)
-    yield cluster, client
+    # Read as a worker is removed: the tests kill workers, and under load a restart took over the 15 s after
+    # which Dask closes its nanny for good (the cluster lost every worker; since 0.60 the run says so)
+    with dask.config.set({"distributed.deploy.lost-worker-timeout": "120s"}):
+        yield cluster, client
     client.close()
     cluster.close()
 

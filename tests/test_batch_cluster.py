@@ -477,3 +477,44 @@ def test_a_worker_of_another_tghop_that_joins_a_given_clients_local_cluster_from
             p.wait(timeout=30)
         client.close()
         local.close()
+
+
+def dying_task(job):
+    os._exit(1)  # the worker process dies mid-task, every time
+
+
+def test_a_local_cluster_that_loses_every_worker_for_good_stops_the_run_with_one_line(tmp_path):
+    # Dask's LocalCluster closes a nanny whose worker died where none of its name registered again within
+    # distributed.deploy.lost-worker-timeout (15 s): on a busy machine a restart is slower, and a test whose tasks
+    # killed its workers waited for ever once the last was gone (0.59). Here the timeout is 0: the first death loses
+    # the cluster's one worker, and the run stops with one line.
+    import cloudpickle
+    import dask
+    import distributed
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    src, out = make_folder(tmp_path / "src", 2), tmp_path / "out"
+    local = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                     silence_logs=50)
+    client = distributed.Client(local)
+    said = []
+
+    def run():
+        try:
+            batch.run(src, out, size=(48, 48), seed=1, client=client, task=dying_task)
+        except TGHopError as exc:
+            said.append(str(exc))
+
+    try:
+        with dask.config.set({"distributed.deploy.lost-worker-timeout": "0s"}):
+            runner = threading.Thread(target=run, daemon=True)
+            runner.start()
+            runner.join(timeout=120)
+        assert not runner.is_alive(), "the run waits for ever on a cluster without workers"
+        assert len(said) == 1 and said[0].startswith("the local Dask cluster lost every worker for good"), said
+        assert "the next run does the rest" in said[0]
+        # the exemplar under way (one worker: one at a time) is redone by the next run
+        assert [line["status"] for line in ledger(out)] == ["interrupted"], ledger(out)
+    finally:
+        client.close()
+        local.close()

@@ -454,6 +454,50 @@ def _own_workers(client):
     return its_own
 
 
+def _workers_lost(client, own_cluster, had_workers):
+    """``lost()``: whether the run's cluster, a ``LocalCluster`` of this process (``own_cluster``, or a given
+    client's), has lost every worker for good: it had some (``had_workers``: at the first hand-out, or since), none
+    is registered now, and none of its nannies (or thread workers) is left, none adding (not adaptive): a cluster
+    started without workers and scaled up later is waited for, as before. Dask's LocalCluster closes a nanny whose
+    worker died where no worker of its name registered again within ``distributed.deploy.lost-worker-timeout``
+    (15 s): a restart slower than that (a busy machine) loses the worker, and with the last one the run waited for
+    ever (0.59). Another cluster's workers may join later: ``lost()`` is then always False."""
+    distributed = import_distributed()
+    cluster = own_cluster if own_cluster is not None else getattr(client, "cluster", None)
+    if not isinstance(cluster, distributed.LocalCluster):
+        return lambda: False
+    had = [had_workers]
+
+    def lost():
+        try:
+            if client.nthreads():
+                had[0] = True
+                return False
+            return had[0] and not cluster.workers and getattr(cluster, "_adaptive", None) is None
+        except Exception:  # noqa: BLE001 - a cluster closing: the wait goes on as before
+            return False
+
+    return lost
+
+
+def _next_group(running, lost, every=2.0):
+    """``running.next_batch(block=True)`` (an ``as_completed``), but looking every ``every`` seconds whether the
+    cluster ``lost()`` its workers for good, twice in a row: then a one-line :class:`~tghop.TGHopError`."""
+    looks = 0
+    while not running.has_ready():
+        looks = looks + 1 if lost() else 0
+        if looks >= 2:
+            raise TGHopError("the local Dask cluster lost every worker for good (each killed, by the system when out "
+                             "of memory or by a task, and not started again within Dask's "
+                             "distributed.deploy.lost-worker-timeout, as on a busy machine); the run stopped: the "
+                             "exemplars finished are in the ledger, the next run does the rest (fewer workers per "
+                             "machine or a smaller size use less memory)")
+        with running.thread_condition:  # notified once a result is queued: looked at again under its lock
+            if not running.has_ready():
+                running.thread_condition.wait(timeout=every)
+    return running.next_batch(block=False)
+
+
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
@@ -531,12 +575,13 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             counts["running"] = running.count()
 
         hand_out()
+        lost = _workers_lost(client, own_cluster, bool(seen))
         while not running.is_empty():
             # What came back since the last group, taken together (0.59; 0.58 took one result at a time): one
             # gather of their results, one look at the workers (hand_out) and one sync of their ledger lines
             # (finish) for the group; each a round trip or a disk's flush, which per exemplar bounded a large
             # cluster to tens of exemplars a second (docs/batch.md, "The driver's cost per exemplar").
-            group = running.next_batch(block=True)
+            group = _next_group(running, lost)
             done = _results(client, group, by_key, retries if own_cluster is not None else None,
                             None if own_cluster is not None else check_joined)
             for fut in group:
