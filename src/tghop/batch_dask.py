@@ -485,16 +485,18 @@ def _next_group(running, lost, every=2.0):
     cluster ``lost()`` its workers for good, twice in a row: then a one-line :class:`~tghop.TGHopError`."""
     looks = 0
     while not running.has_ready():
-        looks = looks + 1 if lost() else 0
+        with running.thread_condition:  # notified once a result is queued: looked at again under its lock
+            if not running.has_ready():
+                running.thread_condition.wait(timeout=every)
+        if running.has_ready():
+            break
+        looks = looks + 1 if lost() else 0  # only after a wait without a result: no round trip per group
         if looks >= 2:
             raise TGHopError("the local Dask cluster lost every worker for good (each killed, by the system when out "
                              "of memory or by a task, and not started again within Dask's "
                              "distributed.deploy.lost-worker-timeout, as on a busy machine); the run stopped: the "
                              "exemplars finished are in the ledger, the next run does the rest (fewer workers per "
                              "machine or a smaller size use less memory)")
-        with running.thread_condition:  # notified once a result is queued: looked at again under its lock
-            if not running.has_ready():
-                running.thread_condition.wait(timeout=every)
     return running.next_batch(block=False)
 
 
@@ -510,10 +512,10 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
     distributed = import_distributed()
     # a cluster not started here (--scheduler, or a given client since 0.59): its workers were checked before any
     # work (check_cluster), those that join mid-run are checked as they are seen, but for the workers a given
-    # client's LocalCluster of this process starts itself (its_own), as a restart of one of its own: with the
-    # check, a test's LocalCluster whose workers were killed again and again lost them all in 3 of 6 runs, none in 3
-    # without it (docs/batch.md). 0.59 left every worker of such a cluster unchecked, one that joined its
-    # scheduler from elsewhere too (another tghop's: each task failed on it, and the run went on).
+    # client's LocalCluster of this process starts itself with this interpreter (its_own: a restart, scale), whose
+    # check was suspected of losing a test's cluster every worker (Dask's lost-worker-timeout does so without it:
+    # _next_group). 0.59 left every worker of such a cluster unchecked, one that joined its scheduler from
+    # elsewhere too (another tghop's: each task failed on it, and the run went on).
     its_own = _own_workers(client) if client is not None and own_client is not client else (lambda address: False)
 
     def check_joined(addresses):
