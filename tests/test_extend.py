@@ -278,3 +278,31 @@ def test_cli_tile_warns_where_the_image_spans_the_whole_height_or_width(files):
         assert r.returncode == 0, r.stderr.decode()
         lines = [line for line in r.stderr.decode().splitlines() if line.startswith("Warning")]
         assert lines == ([f"Warning: --tile: IMAGE {files / 'cells.png'} {words}"] if words else []), lines
+
+
+def test_a_block_is_centred_on_each_edge_of_the_grown_picture():
+    # 0.59 put extend's blocks every step from 0: a 256 px picture at 64 of a 384 px canvas met the block at 54
+    # (10 of its columns on the picture), and the cut between it and the block before lay 6-10 px outside the old
+    # edge, a band busier than the fill around it (the seam an artist saw on stone). Now a block is centred on each
+    # of the picture's edges, half on it, and the blocks between are spread evenly at most a step apart. A hole
+    # inside the picture (inpaint's order) keeps 0.59's grid.
+    from tghop.inpaint import _fill_order
+
+    p, step = 32, 27
+    hole = np.ones((384, 384), dtype=bool)
+    hole[64:320, 64:320] = False
+    blocks = _fill_order(hole, p, step, tile=False, order="raster")
+    xs, ys = sorted({x for _, x in blocks}), sorted({y for y, _ in blocks})
+    for grid in (xs, ys):
+        assert {64 - p // 2, 320 - p // 2} <= set(grid), grid
+        assert grid[0] == 0 and grid[-1] == 384 - p and max(np.diff(grid)) <= step
+    covered = np.zeros_like(hole)
+    for y, x in blocks:
+        covered[y:y + p, x:x + p] = True
+    assert covered[hole].all()
+    square = np.zeros((256, 256), dtype=bool)
+    square[64:192, 64:192] = True
+    assert {x for _, x in _fill_order(square, p, step, tile=False)} == {54, 81, 108, 135, 162, 189}
+    left = np.ones((128, 384), dtype=bool)
+    left[:, :256] = False  # grown to the right (anchor "left"): one edge, at 256
+    assert 256 - p // 2 in {x for _, x in _fill_order(left, p, step, tile=False, order="raster")}

@@ -324,15 +324,35 @@ def _into(original, hole, values):
     return out
 
 
-def _grid(n, p, step, tile):
+def _grid(n, p, step, tile, edges=()):
     """Block positions along one axis: every ``step`` from 0, the last one at ``n - p``
     (inside the image); with ``tile`` evenly around the torus, at most ``step`` apart (every
     ``step`` left the block across the edge overlapping the first by up to ``p - 1`` pixels,
-    where the seams are cut in ``p - step``)."""
+    where the seams are cut in ``p - step``). ``edges`` (without ``tile``): positions of a grown
+    picture's edges along this axis (:func:`_picture_edges`): a block is centred on each, half of it
+    on the picture, and the blocks between are spread evenly, at most ``step`` apart (0.60;
+    docs/choices.md, Inpainting "the blocks across a grown picture's edge")."""
     if tile:
         k = -(-n // step)
         return np.unique(np.round(np.arange(k) * (n / k)).astype(np.int64))
-    return np.unique(np.minimum(np.arange(0, max(n - p, 0) + step, step), n - p))
+    centred = {e - p // 2 for e in edges if 0 < e - p // 2 < n - p}
+    if not centred:
+        return np.unique(np.minimum(np.arange(0, max(n - p, 0) + step, step), n - p))
+    fixed = sorted({0, n - p} | centred)
+    out = [np.array(fixed[:1])]
+    for a, b in zip(fixed[:-1], fixed[1:]):
+        k = -(-(b - a) // step)
+        out.append(a + np.round(np.arange(1, k + 1) * ((b - a) / k)).astype(np.int64))
+    return np.unique(np.concatenate(out))
+
+
+def _picture_edges(hole, axis):
+    """The edges along ``axis`` (0: rows, 1: columns) of the known pixels' extent that lie inside the image: a
+    grown picture's (:func:`extend`); none where the known pixels reach both ends of the axis (a hole inside them)."""
+    inside = np.flatnonzero((~hole).any(axis=1 - axis))
+    if not inside.size:
+        return ()
+    return tuple(e for e in (int(inside[0]), int(inside[-1]) + 1) if 0 < e < hole.shape[axis])
 
 
 def _distance_to_known(hole, tile):
@@ -393,7 +413,9 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     order : {"edge", "raster"}
         The blocks from the hole's edge inwards ("edge"), or row by row as quilting places
         them ("raster", what :func:`extend` takes: better where the hole surrounds the known
-        pixels, worse for a hole inside them; docs/choices.md, Inpainting "0.46").
+        pixels, worse for a hole inside them; docs/choices.md, Inpainting "0.46"); row by row,
+        a block is centred on each edge of the known pixels' extent that lies inside the image
+        (a grown picture's edges, 0.60).
     seam_window : int
         Remove the steps in tone across the fill's seams, between its blocks and at the hole's
         edge, in the gradient domain (:func:`tghop.hole_refine.stitch_hole`, the known pixels held), each seam
@@ -628,9 +650,11 @@ def _fill_order(hole, p, step, tile, order="edge", distance=None):
     offsets = np.arange(p)
     distance = _distance_to_known(hole, tile) if distance is None else distance
     blocks = []
-    for y in _grid(h, p, step, tile).tolist():
+    # Row by row (extend's order), a block centred on each edge of the picture (0.60)
+    edges = (_picture_edges(hole, 0), _picture_edges(hole, 1)) if order == "raster" and not tile else ((), ())
+    for y in _grid(h, p, step, tile, edges[0]).tolist():
         rows = (y + offsets) % h
-        for x in _grid(w, p, step, tile).tolist():
+        for x in _grid(w, p, step, tile, edges[1]).tolist():
             cols = (x + offsets) % w
             inside = hole[np.ix_(rows, cols)]
             if inside.any():
