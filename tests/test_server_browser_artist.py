@@ -1,5 +1,6 @@
 """``tghop serve``'s page used as an artist uses it, in a real browser (Chromium through Playwright) against a real
-uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do;
+uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do, and
+(0.60) so does the result shown;
 maps of another size than their albedo are refused on the page, not sent (dropped at once with it, or added while a
 built-in browsed to by keyboard waits); a result shown beside another model's exemplar names its model; Inpaint
 shows its picture whole with its tools at 1024x700, and so does Paint its canvas."""
@@ -223,4 +224,39 @@ def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
         chromium.choose_mode(page, "view")
     finally:
         page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
+
+
+def stored(page, key, check, store="page"):
+    """Wait until the page's store holds ``key`` (of ``store``) as ``check`` (a JavaScript function of it) says: each
+    is written at its change, a few milliseconds after it."""
+    for _ in range(100):
+        if page.evaluate(f"storeDo('readonly', (s) => s.get({key!r}), {store!r}).then({check})"):
+            return
+        page.wait_for_timeout(50)
+    raise AssertionError(f"{key!r} never stored as {check}")
+
+
+def test_a_reload_shows_the_result_shown_before_it(page):
+    # 0.59 kept the recent results across a reload, but the result beside the exemplar was empty after it: the last
+    # result (or the one shown again from Recent results) was only a thumbnail there, its tiling gone.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 4)
+    generate(page, 5)
+    page.click("#history figure[data-index='1'] button")  # seed 4 shown again: that is what stays shown
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 4'")
+    stored(page, "shown", "(k) => k === recent.entries[1].key")
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 32x40, seed 4'",
+                           timeout=10_000)
+    assert page.is_visible("#result") and page.is_visible("#tiled") and page.is_visible("#download-png")
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-32x40-seed4.png"
+    pressed = page.eval_on_selector_all("#history .history-item", "b => b.map((e) => e.getAttribute('aria-pressed'))")
+    assert pressed == ["false", "true"], pressed
+    assert page.evaluate("editor.blob === state.lastShown.blob")  # Inpaint paints on it, as before the reload
+    assert page.input_value("#seed") == "4"  # the fields as the click on seed 4 left them (kept)
+    chromium.load_empty(page)  # forgotten with the rest: nothing shown
+    assert page.is_hidden("#result")
     assert not page.errors, page.errors

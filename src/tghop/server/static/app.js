@@ -168,6 +168,7 @@ async function init() {
   await restoreHistory();  // the recent results of before a reload
   await restoreFields();  // the fields
   await restoreWorking();  // and its working model
+  await restoreShown();  // and the result shown, beside its exemplar
   document.body.dataset.ready = "1";
 }
 

@@ -18,7 +18,9 @@ const recent = { entries: [] };
 // A result just shown (showResult) kept at the front of the history; one kept already (shown again: Undo, a pick
 // from the history) stays where it is. `pick`: the strip run it was picked from, if it was.
 function keepResult(blob, maps, seed, what, name, pick) {
-  if (!blob || recent.entries.some((e) => e.blob === blob)) { renderHistory(); return; }
+  const kept = blob && recent.entries.find((e) => e.blob === blob);
+  if (kept) keepShown(kept);
+  if (!blob || kept) { renderHistory(); return; }
   const front = recent.entries[0];
   if (pick && front && front.pick === pick) dropEntry(0);
   const entry = { blob, maps, seed, what, name, pick, download: URL.createObjectURL(blob), thumb: null, key: null };
@@ -91,6 +93,26 @@ async function storeEntry(entry) {
   const key = await storeDo("readwrite", (store) => store.add(record));
   entry.key = key;
   if (entry.dropped && key !== null) storeDo("readwrite", (store) => store.delete(key));  // dropped meanwhile
+  else if (state.lastShown && state.lastShown.blob === entry.blob) keepShown(entry);  // shown still: kept so
+}
+
+// Which entry is the result shown (its key, the page's record "shown"; null: none of them, a picture of one's own), so
+// that a reload shows it again beside the exemplar (0.60; 0.59 left it in Recent results only, the result empty). An
+// entry whose key has not come yet is kept by storeEntry.
+function keepShown(entry) {
+  if (entry && entry.key === null) return;
+  const key = entry ? entry.key : null;
+  storeDo("readwrite", (store) => store.put(key, "shown"), PAGE_STORE);
+}
+
+// The result shown before the reload shown again (as a click on its entry shows it, Generate's fields left as they were
+// kept); with no record of it (a store of 0.59), the newest. Called once, when the page starts, after its working
+// model: the caption says whether that model made it.
+async function restoreShown() {
+  const key = await storeDo("readonly", (store) => store.get("shown"), PAGE_STORE);
+  if (state.resultUrl || !recent.entries.length) return;  // something shown meanwhile, or nothing kept
+  const entry = key === undefined ? recent.entries[0] : recent.entries.find((e) => e.key === key);
+  if (entry) showResult(URL.createObjectURL(entry.blob), entry.seed, entry.blob, entry.what, entry.maps, entry.name);
 }
 
 // The entries kept by the page before a reload, shown again (the newest first); the store's older records, beyond
@@ -121,6 +143,7 @@ async function restoreHistory() {
 function forgetHistory() {
   while (recent.entries.length) dropEntry(0);
   storeDo("readwrite", (store) => store.clear());
+  keepShown(null);
   renderHistory();
   keepFocus($("history-forget"), $("go"));
 }

@@ -122,6 +122,7 @@ function showOwnPicture(blob, name) {
   renderMaps();
   showPicture(url, "your picture", null, name, name);
   renderHistory();  // no recent result is the one shown now
+  keepShown(null);  // nor after a reload
 }
 
 // Ctrl+Z (Cmd+Z) in Inpaint and Paint modes is their Undo, but in a text field (the browser's own undo of its text).
