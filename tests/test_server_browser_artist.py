@@ -260,3 +260,32 @@ def test_a_reload_shows_the_result_shown_before_it(page):
     chromium.load_empty(page)  # forgotten with the rest: nothing shown
     assert page.is_hidden("#result")
     assert not page.errors, page.errors
+
+
+def test_generate_again_with_the_same_settings_and_seed_keeps_one_recent_entry(page):
+    # Generate pressed again with the same model, settings and seed added a second entry of the same image to Recent
+    # results (0.59), pushing an older result out of the 12 for nothing.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 6)
+    generate(page, 7)
+    generate(page, 6)  # seed 6 again: its entry, now the first
+    texts = page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)")
+    assert texts == ["result 32x40, seed 6 (bricks)", "result 32x40, seed 7 (bricks)"], texts
+    assert page.text_content("#gen-message") == ("seed 6 done: the same model, settings and seed as a recent result, "
+                                                 "the same image (one entry, now the first)")
+    pressed = page.eval_on_selector_all("#history .history-item", "b => b.map((e) => e.getAttribute('aria-pressed'))")
+    assert pressed == ["true", "false"], pressed
+    page.check("#tile")  # another setting: another image, another entry
+    generate(page, 6)
+    assert page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)") == [
+        "result 32x40, seed 6, tileable (bricks)", "result 32x40, seed 6 (bricks)", "result 32x40, seed 7 (bricks)"]
+    assert page.text_content("#gen-message") == ""
+    page.uncheck("#tile")
+    page.reload()  # the entry replaced is gone from the store too
+    page.wait_for_selector("body[data-ready='1']")
+    page.wait_for_function("document.querySelectorAll('#history figcaption').length === 3")
+    generate(page, 7)  # the same as an entry kept across the reload
+    assert page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)") == [
+        "result 32x40, seed 7 (bricks)", "result 32x40, seed 6, tileable (bricks)", "result 32x40, seed 6 (bricks)"]
+    assert not page.errors, page.errors

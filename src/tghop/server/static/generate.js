@@ -31,7 +31,8 @@ async function generate(body, id = state.modelId, headers = {}) {
 // Shows a result; a material's (`maps`) with a choice of the map shown, each map downloadable. `name`: what
 // names its file, {models: their stems, size, tile} (resultBase); the working model's at the size asked for.
 // `name.of`: the models of a result of several ("cells + bricks"), said in its caption (the exemplar beside it
-// is the working model's only). `pick`: the strip run a seed shown was picked from (history.js, keepResult).
+// is the working model's only). `pick`: the strip run a seed shown was picked from (history.js, keepResult). Whether
+// it took the place of a recent result of the same model, settings and seed (keepResult).
 function showResult(url, seed, blob, what, maps, name, pick) {
   if (state.resultUrl) URL.revokeObjectURL(state.resultUrl);
   if (state.shown) for (const m of state.shown.maps) if (m.url !== url) URL.revokeObjectURL(m.url);
@@ -46,7 +47,7 @@ function showResult(url, seed, blob, what, maps, name, pick) {
   renderMaps();
   showPicture(url, `${what || "result"}`, seed, `${base}.png`, of);
   if (blob) setEditorPicture(blob, `${base}.png`, maps);  // a material's maps are filled alike
-  keepResult(blob, maps, seed, what, name, pick);  // the recent results, side by side
+  return keepResult(blob, maps, seed, what, name, pick);  // the recent results, side by side
 }
 
 // `seed` null: a picture of the user's own (no seed said).
@@ -147,10 +148,13 @@ function onGenerate(event) {
     const body = generation(seed);
     const { blob, maps, warning } = await withProgress("gen-progress",
                                                        (headers) => generate(body, state.modelId, headers));
-    showResult(URL.createObjectURL(blob), seed, blob, undefined, maps,
-               { models: [workingStem()], ...body, ...madeBy(state.modelId) });
+    const again = showResult(URL.createObjectURL(blob), seed, blob, undefined, maps,
+                             { models: [workingStem()], ...body, ...madeBy(state.modelId) });
     const notes = unsaid([warning]);
-    sayGenerate(notes.length ? withWarning(`seed ${seed} done`, notes[0]) : "");
+    // The same as a recent result: said, its entry now the first (0.59 added a second one)
+    const same = again ? `seed ${seed} done: the same model, settings and seed as a recent result, the same image ` +
+      "(one entry, now the first)" : "";
+    sayGenerate(notes.length ? withWarning(same || `seed ${seed} done`, notes[0]) : same);
     await reveal($("result"));
   }, sayGenerate);
 }

@@ -16,11 +16,16 @@ const HISTORY_THUMB = 120;
 const recent = { entries: [] };
 
 // A result just shown (showResult) kept at the front of the history; one kept already (shown again: Undo, a pick
-// from the history) stays where it is. `pick`: the strip run it was picked from, if it was.
+// from the history) stays where it is. `pick`: the strip run it was picked from, if it was. A plain result of the same
+// model, settings and seed as an entry (Generate pressed again) takes that entry's place at the front (0.60; 0.59 kept
+// both): whether it did.
 function keepResult(blob, maps, seed, what, name, pick) {
   const kept = blob && recent.entries.find((e) => e.blob === blob);
   if (kept) keepShown(kept);
-  if (!blob || kept) { renderHistory(); return; }
+  if (!blob || kept) { renderHistory(); return false; }
+  const same = sameAs(what, seed, name);
+  const again = same === null ? -1 : recent.entries.findIndex((e) => sameAs(e.what, e.seed, e.name) === same);
+  if (again >= 0) dropEntry(again);
   const front = recent.entries[0];
   if (pick && front && front.pick === pick) dropEntry(0);
   const entry = { blob, maps, seed, what, name, pick, download: URL.createObjectURL(blob), thumb: null, key: null };
@@ -34,6 +39,16 @@ function keepResult(blob, maps, seed, what, name, pick) {
   }
   renderHistory();
   thumbnail(entry);
+  return again >= 0;
+}
+
+// What makes a plain result (Generate's, a seed picked from the strip) the same as another: its model, its seed and
+// every setting sent, which give the same bytes (docs/serve.md); null for the rest (a painted guide, a fill: what made
+// them is not all in their settings).
+function sameAs(what, seed, name) {
+  if (what || !name || !name.model) return null;
+  const { models, by, ...settings } = name;  // names, not settings
+  return JSON.stringify([seed, Object.entries(settings).sort()]);
 }
 
 function dropEntry(i) {
