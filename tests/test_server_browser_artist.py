@@ -1,6 +1,7 @@
 """``tghop serve``'s page used as an artist uses it, in a real browser (Chromium through Playwright) against a real
 uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do, and
-(0.60) so does the result shown;
+(0.60) so do the result shown and the modes' fields (a result generated again with the same settings and seed is
+kept once);
 maps of another size than their albedo are refused on the page, not sent (dropped at once with it, or added while a
 built-in browsed to by keyboard waits); a result shown beside another model's exemplar names its model; Inpaint
 shows its picture whole with its tools at 1024x700, and so does Paint its canvas."""
@@ -288,4 +289,42 @@ def test_generate_again_with_the_same_settings_and_seed_keeps_one_recent_entry(p
     generate(page, 7)  # the same as an entry kept across the reload
     assert page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)") == [
         "result 32x40, seed 7 (bricks)", "result 32x40, seed 6, tileable (bricks)", "result 32x40, seed 6 (bricks)"]
+    assert not page.errors, page.errors
+
+
+#: The modes' fields kept across a reload (0.60), each with a value other than its default: Paint's, Morph's, Inpaint's
+#: and Extend's, Co-occurrence's, the brushes' sizes.
+MODE_FIELDS = {"paint-brush": "40", "transition": "12", "paint-seed": "9", "morph-height": "64", "morph-width": "300",
+               "morph-seed": "4", "brush": "30", "inpaint-seed": "8", "inpaint-tile": True, "extend-height": "300",
+               "extend-width": "320", "extend-anchor": "top-left", "cooc-length": "12", "cooc-morph-seed": "5",
+               "cooc-height": "96", "cooc-width": "160", "cooc-brush": "20", "cooc-boost-a": "1", "cooc-boost-b": "2",
+               "cooc-boost-factor": "3", "cooc-edit-seed": "6"}
+
+#: JavaScript: the values of the fields named (a checkbox's checked state).
+FIELD_VALUES_JS = """(ids) => Object.fromEntries(ids.map((id) => {
+  const e = document.getElementById(id);
+  return [id, e.type === "checkbox" ? e.checked : e.value];
+}))"""
+
+
+def test_a_reload_keeps_the_modes_fields(page):
+    # Generate's fields and the fit settings came back after a reload (0.59), but Paint's, Morph's, Inpaint's and
+    # Co-occurrence's went back to their defaults: a seed, a transition, a morph's size, a brush set for the work.
+    chromium.load_fresh(page, FAST_FIT)
+    defaults = page.evaluate(FIELD_VALUES_JS, list(MODE_FIELDS))
+    page.evaluate("""(values) => { for (const [id, value] of Object.entries(values)) {  // as typed, each its event
+      const e = document.getElementById(id);
+      if (e.type === "checkbox") e.checked = value; else e.value = value;
+      e.dispatchEvent(new Event(e.type === "checkbox" || e.tagName === "SELECT" ? "change" : "input"));
+    } }""", MODE_FIELDS)
+    stored(page, "fields", "(r) => r && r['cooc-edit-seed'] === '6' && r['inpaint-tile'] === true")
+    page.reload()
+    page.wait_for_selector("body[data-ready='1']")
+    assert page.evaluate(FIELD_VALUES_JS, list(MODE_FIELDS)) == MODE_FIELDS
+    # The brushes' sizes said beside them as they are
+    assert [page.text_content(f"#{i}-size") for i in ("paint-brush", "brush", "cooc-brush")] == ["40 px", "30 px",
+                                                                                                  "20 px"]
+    chromium.load_empty(page)  # forgotten with the rest
+    assert page.evaluate(FIELD_VALUES_JS, list(MODE_FIELDS)) == defaults
+    assert defaults["paint-seed"] == "1" and defaults["extend-height"] == "" and defaults["inpaint-tile"] is False
     assert not page.errors, page.errors

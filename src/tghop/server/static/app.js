@@ -164,7 +164,7 @@ async function init() {
     if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
   });
   window.addEventListener("pagehide", onPageHide);
-  wireKeptFields();  // Generate's fields and the fit settings kept across a reload (history.js)
+  wireKeptFields();  // Generate's fields, the fit settings and the modes' kept across a reload (history.js)
   await restoreHistory();  // the recent results of before a reload
   await restoreFields();  // the fields
   await restoreWorking();  // and its working model

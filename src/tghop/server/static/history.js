@@ -268,9 +268,15 @@ function keepWorking(working) {
 
 // Generate's fields and the fit settings (their values, and whether the settings are open) kept across a reload too
 // (0.59: they went back to their defaults while the model and the results came back, so that the next Generate made
-// a 256x256 of seed 1 whatever the artist had set), in the page's store (record "fields"), at each change.
+// a 256x256 of seed 1 whatever the artist had set), in the page's store (record "fields"), at each change; and the
+// modes' fields (0.60; 0.59 put them back to their defaults): Paint's, Morph's (not A and B: the page's models),
+// Inpaint's and Extend's, Co-occurrence's, and the brushes' sizes. Not Inpaint's erase (a tool, as the mask is).
 const KEPT_FIELDS = ["height", "width", "seed", "refine", "n_patches", "tile", "paper-gen", "quality",
-  "layout", "paper-fit", "scale", "n_clusters", "n_codewords", "stride", "max_patches"];
+  "layout", "paper-fit", "scale", "n_clusters", "n_codewords", "stride", "max_patches",
+  "paint-brush", "transition", "paint-seed", "morph-height", "morph-width", "morph-seed",
+  "brush", "inpaint-seed", "inpaint-tile", "extend-height", "extend-width", "extend-anchor",
+  "cooc-length", "cooc-morph-seed", "cooc-height", "cooc-width", "cooc-brush", "cooc-boost-a", "cooc-boost-b",
+  "cooc-boost-factor", "cooc-edit-seed"];
 // `touched`: a field changed before the store answered (restoreFields), which it does not overwrite.
 const keptFields = { restored: false, touched: false };
 
@@ -302,6 +308,7 @@ async function restoreFields() {
     if (el.type === "checkbox" && typeof value === "boolean") el.checked = value;
     else if (el.type !== "checkbox" && typeof value === "string" &&
              (el.tagName !== "SELECT" || [...el.options].some((o) => o.value === value))) el.value = value;
+    if (el.type === "range") el.dispatchEvent(new Event("input"));  // its size said beside it ("24 px")
   }
   if (typeof kept.open === "boolean") $("fit-settings").open = kept.open;
 }

@@ -103,7 +103,10 @@ function undoInpaint() {
     setEditorPicture(p.blob, p.name, p.maps);
     showOwnPicture(p.blob, p.name);
   }
-  if (p.grow) [$("extend-height").value, $("extend-width").value] = p.grow;  // that Extend, to try again
+  if (p.grow) {  // that Extend, to try again
+    [$("extend-height").value, $("extend-width").value] = p.grow;
+    keepFields();  // across a reload too (history.js)
+  }
   editor.history = history;
   updateButtons();
   sayInpaint(`${p.undone} undone: the picture before it, with its hole`);
@@ -350,6 +353,7 @@ function onExtend() {
     // The fields go on to the next size, grown as much again: Extend pressed again is not refused as the picture's size
     const next = [2 * Number(h) - ph, 2 * Number(w) - pw].map(String);
     [$("extend-height").value, $("extend-width").value] = next;
+    keepFields();
     sayInpaint(withWarning(`extended to ${h}x${w} (seed ${used}): paint to fill, Extend again to grow it as much ` +
                            `again (to ${next.join("x")}), or download it`, warning));
   }, sayInpaint);
