@@ -1,10 +1,11 @@
 """``tghop serve``'s page used as an artist uses it, in a real browser (Chromium through Playwright) against a real
 uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do, and
 (0.60) so do the result shown and the modes' fields (a result generated again with the same settings and seed is
-kept once);
+kept once); Fill makes fills to pick from (0.60, as tghop inpaint --count);
 maps of another size than their albedo are refused on the page, not sent (dropped at once with it, or added while a
 built-in browsed to by keyboard waits); a result shown beside another model's exemplar names its model; Inpaint
-shows its picture whole with its tools at 1024x700, and so does Paint its canvas."""
+shows its picture whole with its tools at 1024x700, and so does Paint its canvas, and (0.60) Co-occurrence its
+edit's."""
 
 import pytest
 
@@ -283,6 +284,7 @@ def test_generate_again_with_the_same_settings_and_seed_keeps_one_recent_entry(p
         "result 32x40, seed 6, tileable (bricks)", "result 32x40, seed 6 (bricks)", "result 32x40, seed 7 (bricks)"]
     assert page.text_content("#gen-message") == ""
     page.uncheck("#tile")
+    stored(page, "fields", "(r) => r && r.tile === false")  # kept (a few milliseconds) before the reload
     page.reload()  # the entry replaced is gone from the store too
     page.wait_for_selector("body[data-ready='1']")
     page.wait_for_function("document.querySelectorAll('#history figcaption').length === 3")
@@ -295,7 +297,8 @@ def test_generate_again_with_the_same_settings_and_seed_keeps_one_recent_entry(p
 #: The modes' fields kept across a reload (0.60), each with a value other than its default: Paint's, Morph's, Inpaint's
 #: and Extend's, Co-occurrence's, the brushes' sizes.
 MODE_FIELDS = {"paint-brush": "40", "transition": "12", "paint-seed": "9", "morph-height": "64", "morph-width": "300",
-               "morph-seed": "4", "brush": "30", "inpaint-seed": "8", "inpaint-tile": True, "extend-height": "300",
+               "morph-seed": "4", "brush": "30", "inpaint-seed": "8", "inpaint-count": "3", "inpaint-tile": True,
+               "extend-height": "300",
                "extend-width": "320", "extend-anchor": "top-left", "cooc-length": "12", "cooc-morph-seed": "5",
                "cooc-height": "96", "cooc-width": "160", "cooc-brush": "20", "cooc-boost-a": "1", "cooc-boost-b": "2",
                "cooc-boost-factor": "3", "cooc-edit-seed": "6"}
@@ -327,4 +330,89 @@ def test_a_reload_keeps_the_modes_fields(page):
     chromium.load_empty(page)  # forgotten with the rest
     assert page.evaluate(FIELD_VALUES_JS, list(MODE_FIELDS)) == defaults
     assert defaults["paint-seed"] == "1" and defaults["extend-height"] == "" and defaults["inpaint-tile"] is False
+    assert not page.errors, page.errors
+
+
+def test_the_cooc_edit_shows_its_canvas_whole_with_the_crops_at_1024x700(page, tiny_cooc_checkpoint):
+    # At 1024x700 the co-occurrence edit's canvas (128x192, shown 640 px wide) began 700 px under the mode's row when a
+    # checkpoint was loaded (0.59): the artist scrolled between the crops placed on the exemplar and the canvas.
+    chromium.load_empty(page)
+    page.set_viewport_size({"width": 1024, "height": 700})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "cooc")
+        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+        page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+        selectors = ("#cooc-message", "#cooc-crops", "#cooc-exemplar", "#cooc-edit-go", "#cooc-guide")
+
+        def in_view():
+            boxes = {s: page.locator(s).bounding_box() for s in selectors}
+            for selector, box in boxes.items():
+                assert box["y"] >= 0 and box["y"] + box["height"] <= 700, (selector, box)
+            assert boxes["#cooc-guide"]["height"] >= 128  # never smaller than the canvas itself
+            return boxes
+
+        in_view()
+        page.click("#cooc-exemplar", position={"x": 20, "y": 20})  # crop 1 placed
+        assert page.text_content("#cooc-message").startswith("crop 1 is at (0, 0)")  # said in view
+        page.click("label:has(#cooc-crop-1)")  # crop 2's colour, painted across the middle
+        box = in_view()["#cooc-guide"]
+        page.mouse.move(box["x"] + 5, box["y"] + box["height"] / 2)
+        page.mouse.down()
+        page.mouse.move(box["x"] + box["width"] - 5, box["y"] + box["height"] / 2, steps=5)
+        page.mouse.up()
+        row = page.evaluate("[10, 96, 182].map((x) => coocBoard.labels[64 * 192 + x])")
+        assert row == [1, 1, 1] and page.evaluate("coocBoard.labels[0]") == 0, row
+        chromium.choose_mode(page, "view")  # the mode chosen again, from the top: in view again
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "cooc")
+        in_view()
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
+
+
+def test_fill_with_a_count_makes_fills_to_pick_from(page):
+    # tghop inpaint --count N made fills to pick from (0.59); the page's Fill made one at a time, a seed typed between.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 2, size=(64, 64))
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    box = page.locator("#mask").bounding_box()  # a hole across the middle
+    page.mouse.move(box["x"] + 10, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] - 10, box["y"] + box["height"] / 2, steps=5)
+    page.mouse.up()
+    page.fill("#inpaint-count", "9")  # said, not sent
+    page.click("#fill")
+    assert page.text_content("#inpaint-message") == "fills 9 is more than 8: give a number from 1 to 8"
+    page.fill("#inpaint-seed", "4")
+    page.fill("#inpaint-count", "3")
+    page.click("#fill")
+    page.wait_for_function("document.getElementById('fill').textContent === 'Fill' &&"
+                           " document.querySelectorAll('#strip img').length === 3", timeout=120_000)
+    assert page.text_content("#inpaint-message") == ("3 fills (seeds 4, 5, 6) under the picture: click one to pick it "
+                                                     "(fill 1 is shown); Undo goes back to the picture before")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 4'")
+    page.click("#strip img[data-seed='6']")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 6'")
+    bytes_of = "async (url) => [...new Uint8Array(await (await fetch(url)).arrayBuffer())].join(',')"
+    third = page.evaluate(bytes_of, page.get_attribute("#strip img[data-seed='6']", "src"))
+    captions = page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)")
+    assert captions == ["inpainted 64x64, seed 6 (bricks)", "result 64x64, seed 2 (bricks)"], captions  # one pick
+    page.click("#undo")  # back to the picture before the fills, its hole painted
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x64, seed 2'")
+    assert page.evaluate("maskPainted()")
+    page.fill("#inpaint-count", "1")
+    page.fill("#inpaint-seed", "6")
+    page.click("#fill")  # a Fill of seed 6 alone: the strip's third, and the strip gone
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 6'"
+                           " && document.getElementById('fill').textContent === 'Fill'", timeout=120_000)
+    assert page.evaluate("document.querySelectorAll('#strip img').length") == 0
+    assert page.evaluate(bytes_of, page.get_attribute("#result", "src")) == third  # the strip's fill of seed 6
+    captions = page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)")
+    assert captions[0] == "inpainted 64x64, seed 6 (bricks)"
+    chromium.choose_mode(page, "view")
     assert not page.errors, page.errors

@@ -1,7 +1,7 @@
 """A whole material on ``tghop serve``'s page in a real browser (Chromium through Playwright)
 against a real uvicorn server: add two maps (one 16-bit), pick builtin:bricks as the albedo,
 generate, switch the map shown, download every map (the 16-bit one still 16-bit), pick one of
-8 seeds, and drop the maps again (a texture model)."""
+8 seeds, and drop the maps again (a texture model); two materials morphed (0.60)."""
 
 import os
 import time
@@ -203,8 +203,10 @@ def test_fill_a_hole_in_every_map_of_a_material_result(page, tmp_path):
     page.select_option("#builtin", "bricks")
     # The material's summary and Generate on: a summary of the model before the pick (the test before left a
     # working model, which the maps may have refitted) said "material" while the pick's fit still ran, under
-    # load for longer than a click waits.
-    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ') &&"
+    # load for longer than a click waits; so did that model's Generate, before the pick's fit began (its maps'
+    # sizes compared first): the pick's model is waited for by its name.
+    page.wait_for_function("state.working && state.working.name === 'builtin:bricks + 2 maps' &&"
+                           " document.getElementById('summary').textContent.startsWith('material ') &&"
                            " !document.getElementById('go').disabled", timeout=90_000)
     page.fill("#height", "64")
     page.fill("#width", "80")
@@ -346,9 +348,15 @@ def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
             assert time.monotonic() < deadline, "the page never asked for the model's summary"
             page.wait_for_timeout(20)
         assert page.is_hidden("#summary")
-        # a material fitted here has its albedo's patch statistics (0.59): quality at once, as a texture's (0.58: off
-        # until its summary came, then off for a material)
-        assert page.is_enabled("#quality") and page.is_enabled("#go")
+        # a material fitted here has its albedo's patch statistics unless fitted with patch_levels 0: quality and
+        # Generate off until its summary says (0.60; 0.59 turned quality on at the fit's end, and best pressed then was
+        # a 422 for a material without them)
+        assert page.is_disabled("#quality") and page.is_disabled("#go") and page.is_disabled("#strip-go")
+        assert page.text_content("#quality-off") == ("Off until the page knows whether this material's albedo has "
+                                                     "patch statistics (its summary).")
+        held.pop(0).continue_()
+        page.wait_for_selector("#summary:not([hidden])")
+        assert page.is_enabled("#quality") and page.is_enabled("#go")  # it has them
         page.click("#maps-clear")  # a texture fit: quality at once
         page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'"
                                " && document.getElementById('summary').hidden", timeout=90_000)
@@ -365,3 +373,73 @@ def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
     finally:
         page.unroute("**/api/models/*")
     assert not [e for e in page.errors if "status of 4" not in e], page.errors
+
+
+def test_a_material_fitted_without_patch_statistics_never_offers_quality_best(page, tmp_path):
+    # A material fitted on the page with patch_levels 0 (no patch statistics of its albedo) had the quality menu on
+    # from the fit's end until its summary came (0.59): best picked then was a 422.
+    from tghop import data
+    from tghop.imageio import to_uint16
+    from tghop.material import example_maps
+
+    chromium.load_fresh(page, FAST_FIT)
+    page.select_option("#quality", "best")  # the artist's choice, kept: sent only where it applies
+    page.evaluate("""() => {
+      const plain = fitFields;  // the fit asked with patch_levels 0, which the page has no field for
+      fitFields = () => { const form = plain(); form.append("patch_levels", "0"); return form; };
+      window.qualityOn = [];  // the menu's every change, from now on
+      new MutationObserver(() => qualityOn.push(!document.getElementById("quality").disabled))
+        .observe(document.getElementById("quality"), { attributes: true, attributeFilter: ["disabled"] });
+    }""")
+    (tmp_path / "normal.png").write_bytes(png(to_uint16(example_maps(data.builtin("bricks"))["normal"])))
+    page.set_input_files("#maps", [str(tmp_path / "normal.png")])
+    page.select_option("#builtin", "bricks")
+    wait_fitted(page)
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+    assert page.is_disabled("#quality") and page.text_content("#quality-off").startswith(
+        "Off now: this material's albedo has no patch statistics")
+    assert True not in page.evaluate("qualityOn"), page.evaluate("qualityOn")  # never on since the fit began
+    page.fill("#height", "32")
+    page.fill("#width", "32")
+    page.click("#go")  # quality best left out, as it does not apply: no 422
+    page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('result: 32x32')",
+                           timeout=90_000)
+    assert page.text_content("#gen-message") == ""
+    assert not page.errors, page.errors
+
+
+def test_two_materials_morph_on_the_page_every_map(page, tmp_path):
+    # Morph was off with a material as A or B (0.59), though tghop morph took two materials with the same maps: now
+    # the page morphs them, every map of the strip shown and downloadable; a material with a texture model is said.
+    chromium.load_fresh(page, FAST_FIT)
+    save_material(tmp_path / "wall.npz")
+    save_material(tmp_path / "plaster.npz", gamma=0.02)  # another model of the same maps
+    for name in ("wall", "plaster"):
+        page.set_input_files("#model-file", str(tmp_path / f"{name}.npz"))
+        page.wait_for_function("(n) => document.getElementById('summary').textContent.startsWith('material ') &&"
+                               " state.working && state.working.name === n", arg=f"{name}.npz")
+    chromium.fit_builtin(page, "bricks")  # a texture model
+    chromium.choose_mode(page, "morph")
+    page.select_option("#morph-a", "0")
+    page.select_option("#morph-b", "2")
+    assert page.is_disabled("#morph-go")
+    assert page.text_content("#morph-message").startswith("A, wall.npz (") and "a texture model: morph two " \
+        "materials (with the same maps) or two texture models" in page.text_content("#morph-message")
+    page.select_option("#morph-b", "1")
+    assert page.is_enabled("#morph-go") and page.text_content("#morph-message") == ""
+    page.fill("#morph-height", "32")
+    page.fill("#morph-width", "96")
+    page.click("#morph-go")
+    page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('morph: 32x96')",
+                           timeout=90_000)
+    assert page.text_content("#result-caption") == "morph: 32x96, seed 1 (wall to plaster)"
+    shown = page.eval_on_selector_all("#maps-view input", "l => l.map((r) => r.value)")
+    assert shown == ["albedo", "height"], shown
+    assert page.is_visible("#download-maps")
+    assert page.get_attribute("#download-png", "download") == "tghop-wall-to-plaster-morph-32x96-seed1.png"
+    page.locator("#maps-view label", has_text="height").click()  # the height map's strip shown
+    page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('morph (height)')")
+    entry = page.evaluate("recent.entries[0].maps.map((m) => m.name)")
+    assert entry == ["albedo", "height"], entry  # kept whole in Recent results
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

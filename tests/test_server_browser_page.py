@@ -2,8 +2,8 @@
 real uvicorn server: form controls in the page's font; downloads named for what they are (model, size,
 seed, tileable), the model file's as the server's Content-Disposition names it; the strip of seeds cleared
 when the mode or the working model changes; a size the browser's own check refuses said in the status;
-Morph off, and said why, with a material as A or B; each field of the settings beside its name; at a
-phone's 400 px the summary wrapped in its box and each progress label on one line; the tiling's caption
+Morph off, and said why, with a material and a texture model as A and B; each field of the settings beside its
+name; at a phone's 400 px the summary wrapped in its box and each progress label on one line; the tiling's caption
 saying when its seams are expected; by keyboard and to a screen reader: Generate reached with Tab, started with
 Enter, its focus ring seen, its progress and result told; an error an alert, a mode's said again only when it
 changes; the focus kept where Cancel or No maps turns off; each field shown with a name of its own; why quality is
@@ -114,7 +114,8 @@ def test_a_size_the_browser_refuses_is_said_in_the_status(page):
 
 
 def test_morph_is_off_and_says_why_with_a_material(page, tmp_path):
-    # Morph stayed on with a material as A or B, and the server's 422 said "a is a material..." (the API's name).
+    # Morph stayed on with a material as A or B, and the server's 422 said "a is a material..." (the API's name);
+    # since 0.60 two materials morph, a material with a texture model is said on the page.
     if page.eval_on_selector_all("#morph-a option", "l => l.length") < 2:  # run alone: no earlier test's fits
         fit(page, "bricks")
         fit(page, "cells")
@@ -130,8 +131,8 @@ def test_morph_is_off_and_says_why_with_a_material(page, tmp_path):
     page.select_option("#morph-b", str(material))
     assert page.is_disabled("#morph-go")
     said = page.text_content("#morph-message")
-    assert said.startswith(f"B, {names[material]}, is a material: a morph goes between two texture models; "
-                           "pick a texture model as B"), said
+    assert said == (f"B, {names[material]}, is a material and A, {names[0]}, a texture model: morph two materials "
+                    "(with the same maps) or two texture models; pick another A or B"), said
     page.select_option("#morph-a", str(material))
     page.select_option("#morph-b", "0")
     assert page.is_disabled("#morph-go") and page.text_content("#morph-message").startswith("A, wall material.npz")

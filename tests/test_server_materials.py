@@ -225,13 +225,13 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     assert_error(client.post(f"/api/models/{plain}/inpaint", files={
         "image": ("p.png", picture), "mask": ("m.png", png(mask)), "map:height": ("h.png", picture)}),
         422, "is a texture model; map:<name> fields go with a material")
-    # In a person's words (the page's A and B, the id's start as the page lists the model; what to do), not
-    # the API's field name ("a is a material")
+    # A morph of a material with a texture model, in a person's words (the page's A and B, the id's start as the
+    # page lists the model; what to do), not the API's field name ("a is a material")
     assert_error(client.post("/api/images/morph", json={"a": material_id, "b": plain, "size": [32, 64]}),
-                 422, f"A ({material_id[:8]}) is a material (albedo, normal, height), and a morph goes between two "
-                 "texture models: pick a texture model as A (fit one from the material's albedo alone")
+                 422, f"B ({plain[:8]}) is a texture model but A ({material_id[:8]}) is a material; morph two "
+                 "materials (with the same maps) or two texture models")
     assert_error(client.post("/api/images/morph", json={"a": plain, "b": material_id, "size": [32, 64]}),
-                 422, f"B ({material_id[:8]}) is a material", "pick a texture model as B")
+                 422, f"B ({material_id[:8]}) is a material but A ({plain[:8]}) is a texture model")
     # Named as the request and the page name them (models[i], the start of the id)
     assert_error(client.post("/api/images/guided", json={"models": [material_id, plain], "size": [32, 32]}),
                  422, f"models[1] ({plain[:8]}) is a texture model but models[0] ({material_id[:8]}) is a material")
@@ -243,6 +243,37 @@ def test_materials_with_other_maps_are_not_painted_together(client, material_id)
     other = fit(client, {**albedo_file(), "map:normal": map_files()["map:normal"]})
     assert_error(client.post("/api/images/guided", json={"models": [material_id, other], "size": [32, 32]}),
                  422, f"models[1] ({other[:8]}) has the maps albedo, normal but models[0]", "the same maps")
+    assert_error(client.post("/api/images/morph", json={"a": material_id, "b": other, "size": [32, 64]}),
+                 422, f"B ({other[:8]}) has the maps albedo, normal but A ({material_id[:8]}) has albedo, normal, "
+                 "height; morph materials with the same maps")
+
+
+def test_two_materials_morph_every_map_as_the_library_morphs_them(client, material_id, tmp_path):
+    # 0.59's tghop morph took two materials, but the server refused them (422: "a morph goes between two texture
+    # models"): every map of the strip, as the library makes it from the downloaded files, bit for bit.
+    from tghop.guided import morph
+    from tghop.imageio import to_uint8 as u8, to_uint16 as u16
+
+    other = fit(client, {"image": ("cells.png", png(to_uint8(data.builtin("cells")[:SIZE, :SIZE]))),
+                         **map_files(data.builtin("cells")[:SIZE, :SIZE])})
+    r = client.post("/api/images/morph", json={"a": material_id, "b": other, "size": [32, 96], "seed": 2,
+                                               "refine": 2})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"].startswith("application/json") and r.headers["x-tghop-seed"] == "2"
+    body = r.json()
+    assert body["size"] == [32, 96] and [m["name"] for m in body["maps"]] == ["albedo", "normal", "height"]
+    got = {m["name"]: decode(m["png"]) for m in body["maps"]}
+    models = []
+    for name, model_id in (("a", material_id), ("b", other)):
+        (tmp_path / f"{name}.npz").write_bytes(client.get(f"/api/models/{model_id}/file").content)
+        models.append(load_model(tmp_path / f"{name}.npz", material=True))
+    want = morph(*models, (32, 96), rng=2, refine=2, dtype=np.float32)
+    np.testing.assert_array_equal(got["albedo"], u8(want["albedo"]))
+    np.testing.assert_array_equal(got["normal"], u16(want["normal"]))
+    np.testing.assert_array_equal(got["height"][..., 0], u8(want["height"]))
+    r = client.post("/api/images/morph", json={"a": material_id, "b": other, "size": [32, 96], "seed": 2,
+                                               "refine": 2}, headers={"Accept": "multipart/form-data"})
+    assert list(multipart_parts(r)) == ["_meta", "albedo", "normal", "height"]  # as the page asks for it
 
 
 @pytest.mark.parametrize("files, words", [

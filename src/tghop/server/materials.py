@@ -163,24 +163,25 @@ def material_id(albedo_content: bytes, uploads, settings: dict, model_id_for) ->
     return model_id_for(digest.digest(), {**settings, "material": [name for name, _, _ in uploads]})
 
 
-def same_kind(models, ids) -> None:
-    """Models to paint or remix together: all texture models, or all materials with the same maps;
-    else 422 naming ``models[i]`` and the start of its id (as the page lists each model)."""
+def same_kind(models, ids, names=None, verb="paint or remix", every="all") -> None:
+    """Models to paint or remix (``verb``) together: all texture models, or all materials with the same maps;
+    else 422 naming ``models[i]`` (or ``names[i]``: a morph's A and B) and the start of its id (as the page lists
+    each model). ``every``: "all", or "two" (a morph's)."""
     from ..material_files import map_keys  # maps matched by their files' suffixes: Stone_Normal is Gravel_Normal
 
     def named(i):
-        return f"models[{i}] ({ids[i][:8]})"
+        return f"{names[i] if names else f'models[{i}]'} ({ids[i][:8]})"
 
     first = is_material(models[0])
     for i, model in enumerate(models[1:], start=1):
         if is_material(model) != first:
             kinds = ("a texture model", "a material") if first else ("a material", "a texture model")
-            raise RequestError(422, f"{named(i)} is {kinds[0]} but {named(0)} is {kinds[1]}; paint or remix "
-                                    "all materials (with the same maps) or all texture models")
+            raise RequestError(422, f"{named(i)} is {kinds[0]} but {named(0)} is {kinds[1]}; {verb} "
+                                    f"{every} materials (with the same maps) or {every} texture models")
         if first and (map_keys(model.names_), model.map_channels_) != (map_keys(models[0].names_),
                                                                      models[0].map_channels_):
             raise RequestError(422, f"{named(i)} has the maps {', '.join(model.names_)} but {named(0)} has "
-                                    f"{', '.join(models[0].names_)}; paint or remix materials with the same maps")
+                                    f"{', '.join(models[0].names_)}; {verb} materials with the same maps")
 
 
 def patch_size(model) -> int:

@@ -232,18 +232,15 @@ async def guided(server, request):
 
 
 def morph_png(server, ids, size, stations, settings, seed) -> tuple:
-    """A morph from model ``ids[0]`` to ``ids[1]`` (texture models of one patch size); ``stations`` (no longer
-    applies) is told in the answer's warning header, not passed on (the library's warning would go to the
-    server's console)."""
+    """A morph from model ``ids[0]`` to ``ids[1]`` (texture models, or materials with the same maps since 0.60, as
+    ``tghop morph`` takes them: every map morphed alike; of one patch size); ``stations`` (no longer applies) is told
+    in the answer's warning header, not passed on (the library's warning would go to the server's console)."""
     from ...guided import STATIONS_GONE
     from ...guided import morph as morph_strip
 
     models = [server.model(model_id) for model_id in ids]
-    for label, model_id, model in zip(["A", "B"], ids, models):
-        if materials.is_material(model):  # in a person's words: the page's A and B, the model as it lists it
-            raise RequestError(422, f"{label} ({model_id[:8]}) is a material ({', '.join(model.names_)}), and a "
-                                    "morph goes between two texture models: pick a texture model as "
-                                    f"{label} (fit one from the material's albedo alone, without its maps)")
+    # In a person's words: the page's A and B, each model as it lists it (0.59 refused every material)
+    materials.same_kind(models, ids, names=["A", "B"], verb="morph", every="two")
     same_patches(models, ["a", "b"])
     png, shape = several_png(server, lambda m, rng, dtype: morph_strip(
         m[0], m[1], size, rng=rng, dtype=dtype, progress=server.unless_stopping, **settings), models, seed)

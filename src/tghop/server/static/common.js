@@ -12,6 +12,8 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
   // "Use them with ..." gives the exemplar shown (fit.js, offerMaps).
   mapFiles: [], mapsHeld: false, heldOff: null, mapsChecking: null, mapsOffer: null, source: null, material: false,
   shown: null,
+  // Whether the material's albedo has patch statistics (its summary's patch_levels; null: not known yet): setMaterial.
+  patches: null,
   // The working model, what a refused or cancelled fit or a refused model file goes back to (fit.js,
   // setWorking), and the running fit's way back to it (its `undo`, for cancelFit).
   working: null, fitUndo: null,
@@ -67,8 +69,10 @@ async function errorOf(response) {
 }
 
 function updateButtons() {
-  // Not while the model's kind is unknown (state.material null): its summary says whether quality applies
-  $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId || state.material === null;
+  // Not while the model's kind is unknown (state.material null), nor whether a material's albedo has patch statistics
+  // (state.patches null): its summary says whether quality applies (setMaterial)
+  $("go").disabled = $("strip-go").disabled = state.busy || !state.modelId || state.material === null ||
+    (state.material === true && state.patches === null);
   // A material fills every map of one of its results: not a picture without maps, nor before its kind is known
   $("fill").disabled = $("extend-go").disabled = state.busy || !state.modelId || !editor.blob ||
     state.material === null || (state.material && !editor.maps);
@@ -174,21 +178,22 @@ function showStage(bar, label, text) {
   bar.setAttribute("aria-valuetext", text);
 }
 
-// The widest a picture of w x h to paint on (Inpaint's, Paint's), in `box`, may be shown for the mode's row, the tools
-// between it and the picture, and the whole picture to be seen in the window at once (0.59; PAINT_MARGIN under it).
-function roomFor(box, w, h) {
-  const above = box.getBoundingClientRect().top - $("modes-row").getBoundingClientRect().top;
+// The widest a picture of w x h to paint on (Inpaint's, Paint's, Co-occurrence's edit), in `box`, may be shown for
+// the mode's row (or `from`), the tools between it and the picture, and the whole picture to be seen in the window at
+// once (0.59; PAINT_MARGIN under it).
+function roomFor(box, w, h, from = $("modes-row")) {
+  const above = box.getBoundingClientRect().top - from.getBoundingClientRect().top;
   return Math.floor((window.innerHeight - above - PAINT_MARGIN) * w / h);
 }
 
 // Pixels left under a picture to paint on (its border, and a little of the page).
 const PAINT_MARGIN = 12;
 
-// A mode chosen: `box` (its picture to paint on) brought into view with the mode's row at the top, where it is not
-// wholly in view.
-function intoView(box) {
+// A mode chosen: `box` (its picture to paint on) brought into view with the mode's row (or `from`) at the top, where
+// it is not wholly in view.
+function intoView(box, from = $("modes-row")) {
   const rect = box.getBoundingClientRect();
-  if (rect.top < 0 || rect.bottom > window.innerHeight) $("modes-row").scrollIntoView({ block: "start" });
+  if (rect.top < 0 || rect.bottom > window.innerHeight) from.scrollIntoView({ block: "start" });
 }
 
 // A new job id for a generation: 32 hex digits (the request's X-Tghop-Job header; docs/serve.md, "Jobs").

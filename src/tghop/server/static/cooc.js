@@ -26,7 +26,24 @@ function coocShown() {
     sayCooc("this server has no PyTorch, which co-occurrence models need: install it there " +
             "(pip install 'tghop[metrics]') and start tghop serve again", true);
   } else if (!cooc.id) sayCooc("load a co-occurrence checkpoint (a .pt file of tghop cooc train)");
-  else resizeCoocBoard();
+  else {
+    resizeCoocBoard();
+    showCoocBoard();
+  }
+}
+
+// The edit's canvas sized and brought into view with the tools above it (0.60; 0.59 left it below the fold, as
+// Paint's and Inpaint's pictures were before 0.59), when the work opens (a checkpoint loaded, the mode chosen with
+// one) and when a canvas of a new size is made: from the mode's message (where a crop went), the crops (the colours
+// to place and paint with) and the exemplar down, where the window has room for the canvas at its size under them
+// (at 1024x700 a 64x64 exemplar's, a 128x192 canvas); else from the edit's heading. Enlarged up to 4 times, 640 px,
+// only as far as the window shows it whole (never below its size).
+function showCoocBoard() {
+  const canvas = $("cooc-guide"), box = $("cooc-guide-box"), w = canvas.width, h = canvas.height;
+  if ($("cooc").hidden || $("cooc-work").hidden || !w || !h) return;
+  const from = roomFor(box, w, h, $("cooc-message")) >= w ? $("cooc-message") : $("cooc-edit-title");
+  canvas.style.width = `${Math.max(w, Math.min(4 * w, 640, roomFor(box, w, h, from)))}px`;
+  intoView(box, from);
 }
 
 async function uploadCooc(file) {
@@ -57,10 +74,11 @@ async function uploadCooc(file) {
   $("cooc-picture-button").hidden = Boolean(cooc.info.builtin);
   renderCoocCrops();
   resizeCoocBoard(true);
+  drawCoocExemplar();  // its size shown, so that the edit's canvas is sized and placed under it (showCoocBoard)
+  showCoocBoard();
   if (cooc.info.builtin) {
     showCoocPicture(`/api/builtins/${cooc.info.builtin}.png`, `builtin:${cooc.info.builtin}`);
   } else {
-    drawCoocExemplar();
     sayCooc("click on the exemplar to place crop 1 (pick the exemplar's image to see it)");
   }
   updateButtons();
@@ -218,7 +236,13 @@ function initCooc() {
     $("cooc-brush-size").textContent = `${$("cooc-brush").value} px`;
   });
   $("cooc-reset").addEventListener("click", () => { resizeCoocBoard(true); sayCooc(""); });
-  for (const id of ["cooc-height", "cooc-width"]) $(id).addEventListener("change", () => resizeCoocBoard());
+  for (const id of ["cooc-height", "cooc-width"]) {
+    $(id).addEventListener("change", () => {
+      const [h, w] = [coocBoard.h, coocBoard.w];
+      resizeCoocBoard();
+      if (coocBoard.h !== h || coocBoard.w !== w) showCoocBoard();  // a new canvas: sized and in view
+    });
+  }
   $("cooc-morph-go").addEventListener("click", onCoocMorph);
   $("cooc-edit-go").addEventListener("click", onCoocEdit);
 }

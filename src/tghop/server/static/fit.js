@@ -113,26 +113,31 @@ async function showSummary(id) {
 }
 
 // The quality preset applies to a material's albedo (0.59), where the material has the albedo's patch statistics
-// (`patches`: its summary's patch_levels above 0; false: a material of tghop 0.58, or fitted with paper's settings;
-// null: not known yet, on as a fit here makes them). `on` null: not known yet (an uploaded file until its summary
-// comes): the menu is off too, as best would be a 422 for a material without them.
+// (`patches`: its summary's patch_levels above 0; false: a material of tghop 0.58, or fitted with paper's settings or
+// patch_levels 0; null: not known yet). `on` null: not known yet (an uploaded file until its summary comes). Not known,
+// the menu is off, and so are Generate and 8 seeds (updateButtons), as best would be a 422 for a material without them:
+// a material fitted here too, until its summary comes (0.60; 0.59 turned the menu on at the fit's end, and best
+// pressed before the summary came was a 422 for one fitted with patch_levels 0).
 function setMaterial(on, patches = null) {
   state.material = on;
+  state.patches = on === true ? patches : null;
   const listed = state.models.find((m) => m.id === state.modelId);
   if (listed && on !== null) listed.material = on;  // Morph takes texture models only (morphProblem)
-  const bare = on === true && patches === false;
-  $("quality").disabled = on === null || bare;
+  const bare = on === true && patches === false, unknown = on === null || (on === true && patches === null);
+  $("quality").disabled = unknown || bare;
   $("quality").title = bare ? "this material's albedo has no patch statistics (fitted by tghop 0.58): fit it again"
-    : on === null ? "off until the page knows whether the model is a material (its summary)" : "";
+    : on === null ? "off until the page knows whether the model is a material (its summary)"
+    : unknown ? "off until the page knows whether this material's albedo has patch statistics (its summary)" : "";
   // Why it is off, in its help too (which a screen reader reads with it): a title is a mouse's only, and a control
   // turned off is not reached with Tab. Shown for a material without statistics; for the moments of a fit or an
   // upload, to a screen reader only (shown, the help grew a line and shrank back with each fit).
   const off = $("quality-off");
   off.textContent = bare ? "Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with "
     + "paper settings); fit it again for quality best."
-    : on === null ? "Off until the page knows whether the model is a material (its summary)." : "";
-  off.hidden = !bare && on !== null;
-  off.classList.toggle("to-screen-readers", on === null);
+    : on === null ? "Off until the page knows whether the model is a material (its summary)."
+    : unknown ? "Off until the page knows whether this material's albedo has patch statistics (its summary)." : "";
+  off.hidden = !bare && !unknown;
+  off.classList.toggle("to-screen-readers", unknown);
   updateButtons();
   if (!$("inpaint").hidden) inpaintHint();  // Fill and Extend may have changed
   if (!$("morph").hidden && state.models.length > 1) morphPicked();  // so may Morph
@@ -523,7 +528,11 @@ function follow(id, job, material, attempt, undo, notes) {
       setWorking({ ...attempt, modelId: id, material });
       setModel(id, material);
       say(["model ready: generate below", ...notes].join(". "));
-      showSummary(id);
+      const summary = showSummary(id);
+      // A material's Generate waits for its summary (setMaterial): the focus goes on to it then
+      if (focused && $("go").disabled) {
+        summary.then(() => { if (document.activeElement === $("drop")) $("go").focus(); });
+      }
     } else if (snap.state === "cancelled") {
       backToWorking("fit cancelled", undo, false);
     } else {

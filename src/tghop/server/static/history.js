@@ -274,7 +274,7 @@ function keepWorking(working) {
 const KEPT_FIELDS = ["height", "width", "seed", "refine", "n_patches", "tile", "paper-gen", "quality",
   "layout", "paper-fit", "scale", "n_clusters", "n_codewords", "stride", "max_patches",
   "paint-brush", "transition", "paint-seed", "morph-height", "morph-width", "morph-seed",
-  "brush", "inpaint-seed", "inpaint-tile", "extend-height", "extend-width", "extend-anchor",
+  "brush", "inpaint-seed", "inpaint-count", "inpaint-tile", "extend-height", "extend-width", "extend-anchor",
   "cooc-length", "cooc-morph-seed", "cooc-height", "cooc-width", "cooc-brush", "cooc-boost-a", "cooc-boost-b",
   "cooc-boost-factor", "cooc-edit-seed"];
 // `touched`: a field changed before the store answered (restoreFields), which it does not overwrite.

@@ -289,11 +289,11 @@ function maskBlob() {
   return new Promise((resolve) => out.toBlob(resolve, "image/png"));
 }
 
-// POST the editor's picture with the fields of `fields` (and the seed and tile of the inpaint
-// toolbar) to /api/models/{id}/{path}; the answer becomes the result. Returns the seed used and the server's
-// warning of it, or "" (X-Tghop-Warning: what reading the picture or mask said, e.g. a colour profile converted).
-async function sendPicture(path, fields, what, size) {
-  const seed = $("inpaint-seed").value.trim();
+// POST the editor's picture with the fields of `fields` (and `seed`, "" for a random one, and the tile of the inpaint
+// toolbar) to /api/models/{id}/{path}: the answer, {blob, maps, used: the seed used, warning: the server's warning of
+// it, or "" (X-Tghop-Warning: what reading the picture or mask said, e.g. a colour profile converted)}. `progress`:
+// withProgress's options (the part of the bar it fills).
+async function askPicture(path, fields, seed, progress) {
   const form = new FormData();
   form.append("image", editor.blob, editor.name);
   for (const [name, value, filename] of fields) {  // a file takes its name; a plain value has none
@@ -307,31 +307,101 @@ async function sendPicture(path, fields, what, size) {
   const url = `/api/models/${state.modelId}/${path}`;
   const response = await withProgress("inpaint-progress", (headers) => busyFetch(url, {
     method: "POST", body: form, headers: { Accept: GENERATION_HEADERS.Accept, ...headers },
-  }));
+  }), progress);
   if (!response.ok) throw new Error(await errorOf(response));
   const { blob, maps } = await answerOf(response);
-  const used = response.headers.get("X-Tghop-Seed");
-  // Undo goes back to this picture (the result shown, or a picture of the user's) and its hole
-  const canvas = $("mask"), history = editor.history;
-  const before = { mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture: {
+  return { blob, maps, used: response.headers.get("X-Tghop-Seed"), warning: response.headers.get("X-Tghop-Warning")
+    || "" };
+}
+
+// What Undo goes back to from a Fill or Extend of the picture now in the editor: that picture (the result shown, or a
+// picture of the user's) and its hole.
+function stepBefore(path, size) {
+  const canvas = $("mask");
+  return { mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture: {
     blob: editor.blob, name: editor.name, maps: editor.maps, undone: path === "inpaint" ? "fill" : "extend",
     shown: state.lastShown && state.lastShown.blob === editor.blob ? state.lastShown : null,
     grow: path === "extend" ? size.map(String) : null } };
-  showResult(URL.createObjectURL(blob), used, blob, what, maps,
-             { models: [workingStem()], size, tile: $("inpaint-tile").checked, ...madeBy(state.modelId) });
+}
+
+// A fill or extension (askPicture's answer) shown as the result, Undo going back to `before` after `history` (the
+// steps before it). `pick`: a fills strip's run (keepResult: a second pick from it takes the first's place).
+function showFilled(answer, what, size, before, history, pick) {
+  showResult(URL.createObjectURL(answer.blob), answer.used, answer.blob, what, answer.maps,
+             { models: [workingStem()], size, tile: $("inpaint-tile").checked, ...madeBy(state.modelId) }, pick);
   editor.history = [...history, before].slice(-UNDO_STEPS);
-  return [used, response.headers.get("X-Tghop-Warning") || ""];
+  updateButtons();  // Undo (a pick from a fills strip comes after its Fill)
+}
+
+// The editor's picture sent to `path` with `fields`, the answer shown as the result: the seed used and the server's
+// warning of it (askPicture).
+async function sendPicture(path, fields, what, size) {
+  const answer = await askPicture(path, fields, $("inpaint-seed").value.trim());
+  showFilled(answer, what, size, stepBefore(path, size), editor.history);
+  return [answer.used, answer.warning];
+}
+
+// Fill with a count above 1 (0.60; tghop inpaint --count's fills to pick from): `count` fills of the same hole, of
+// seeds s, s + 1, ... (each as a Fill of that seed makes it; random ones without a seed), in the strip under the
+// picture, one bar for them all; fill 1 shown, a click on another shows it instead, Undo from any going back to the
+// picture before with its hole. The strip goes as the 8 seeds' does (another mode or model) and at the next Fill.
+async function fillStrip(mask, count, size) {
+  const first = $("inpaint-seed").value.trim(), before = stepBefore("inpaint", size), history = editor.history;
+  const strip = $("strip"), run = {}, seeds = [];  // run: this strip's picks (keepResult)
+  strip.dataset.model = state.modelId;
+  const pick = (answer, img) => {
+    for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
+    img.classList.add("chosen");
+    showFilled(answer, "inpainted", size, before, history, run);
+  };
+  let warned = "", shown = null;  // shown: fill 1 ([answer, its img]), shown once all have come
+  for (let k = 0; k < count; k++) {
+    sayInpaint(`fill ${k + 1} of ${count}`);
+    const answer = await askPicture("inpaint", [["mask", mask, "mask.png"]], first === "" ? "" : String(+first + k),
+                                    { from: k / count, to: (k + 1) / count, label: `fill ${k + 1}: ` });
+    warned = warned || answer.warning;
+    seeds.push(answer.used);
+    const figure = document.createElement("figure"), img = document.createElement("img");
+    figure.setAttribute("role", "none");  // its seed said once, as the button's name (onStrip's seeds alike)
+    img.src = URL.createObjectURL(answer.blob);
+    img.alt = `fill ${k + 1}, seed ${answer.used}`;
+    img.title = `fill ${k + 1}, seed ${answer.used}: click to pick`;
+    img.setAttribute("aria-description", "shows it as the result");
+    img.dataset.seed = answer.used;
+    img.tabIndex = 0;
+    img.setAttribute("role", "button");
+    img.addEventListener("click", () => pick(answer, img));
+    img.addEventListener("keydown", (e) => {
+      if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
+    });
+    const caption = document.createElement("figcaption");
+    caption.textContent = `seed ${answer.used}`;
+    caption.setAttribute("aria-hidden", "true");
+    figure.append(img, caption);
+    strip.append(figure);
+    shown = shown || [answer, img];
+  }
+  pick(...shown);
+  return [seeds, warned];
 }
 
 function onFill() {
   if (!state.modelId || !editor.blob) return;
+  const count = $("inpaint-count");
+  if (!count.checkValidity()) { sayInpaint(fieldProblem(count), true); count.focus(); return; }  // said, not sent
   withBusy($("fill"), async () => {
     const mask = await maskBlob();
     if (!mask) { sayInpaint("paint the hole first: drag the brush over the picture", true); return; }
+    clearStrip();  // the fills of a picture before
+    const img = $("editor-base"), size = [img.naturalHeight, img.naturalWidth];
+    if (Number(count.value) > 1) {
+      const [seeds, warning] = await fillStrip(mask, Number(count.value), size);
+      sayInpaint(withWarning(`${seeds.length} fills (seeds ${seeds.join(", ")}) under the picture: click one to pick ` +
+        "it (fill 1 is shown); Undo goes back to the picture before", warning));
+      return;
+    }
     sayInpaint("filling");
-    const img = $("editor-base");
-    const [used, warning] = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted",
-                                              [img.naturalHeight, img.naturalWidth]);
+    const [used, warning] = await sendPicture("inpaint", [["mask", mask, "mask.png"]], "inpainted", size);
     sayInpaint(withWarning(`filled (seed ${used}): paint again to fill more, or download it`, warning));
   }, sayInpaint);
 }
@@ -339,6 +409,7 @@ function onFill() {
 function onExtend() {
   if (!state.modelId || !editor.blob) return;
   withBusy($("extend-go"), async () => {
+    clearStrip();  // the fills of a picture before
     const img = $("editor-base");
     const [ph, pw] = [img.naturalHeight, img.naturalWidth];
     const h = $("extend-height").value.trim() || String(ph);

@@ -241,16 +241,17 @@ function onPaintGenerate(remix) {
   }, sayPaint);
 }
 
-// A morph goes between two texture models: why the A and B picked cannot be morphed (a material), or "".
+// A morph goes between two texture models, or two materials with the same maps (0.60, as tghop morph takes them: every
+// map morphed alike; 0.59 took texture models only): why the A and B picked cannot be morphed (a material with a
+// texture model; kinds not known yet, and the maps, are left to the server), or "".
 function morphProblem() {
-  for (const [label, id] of [["A", "morph-a"], ["B", "morph-b"]]) {
-    const m = state.models[Number($(id).value)];
-    if (m && m.material) {
-      return `${label}, ${m.name}, is a material: a morph goes between two texture models; pick a texture ` +
-             `model as ${label} (fit one from the material's albedo alone, without its maps)`;
-    }
+  const [a, b] = ["morph-a", "morph-b"].map((id) => state.models[Number($(id).value)]);
+  if (!a || !b || typeof a.material !== "boolean" || typeof b.material !== "boolean" || a.material === b.material) {
+    return "";
   }
-  return "";
+  const [material, texture] = a.material ? [["A", a], ["B", b]] : [["B", b], ["A", a]];
+  return `${material[0]}, ${material[1].name}, is a material and ${texture[0]}, ${texture[1].name}, a texture ` +
+         "model: morph two materials (with the same maps) or two texture models; pick another A or B";
 }
 
 // The patch size of a model whose summary has not come (the fit's default): the page fits no other.
@@ -269,7 +270,7 @@ function morphMinimum() {
 function morphPicked() {
   morphMinimum();
   const problem = morphProblem(), shown = $("morph-message").textContent;
-  if (problem) sayMorph(problem, true, true); else if (shown.includes(", is a material: ")) sayMorph("");
+  if (problem) sayMorph(problem, true, true); else if (shown.includes(", is a material and ")) sayMorph("");
   updateButtons();
 }
 
@@ -293,9 +294,9 @@ function onMorph() {
     const one = generation(null);
     for (const name of ["refine", "n_patches", "paper"]) if (name in one) body[name] = one[name];
     sayMorph("morphing");
-    const [blob, seed] = await withProgress("morph-progress",
-                                            (headers) => postImage("/api/images/morph", body, headers));
-    showResult(URL.createObjectURL(blob), seed, blob, "morph", undefined,
+    const [blob, seed, maps] = await withProgress("morph-progress",
+                                                  (headers) => postImage("/api/images/morph", body, headers));
+    showResult(URL.createObjectURL(blob), seed, blob, "morph", maps,  // two materials': every map (0.60)
                { models: [a.stem, "to", b.stem], size: body.size, tile: false, of: `${a.stem} to ${b.stem}` });
     sayMorph(`done (seed ${seed}): the strip is below`);
   }, sayMorph);
