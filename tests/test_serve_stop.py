@@ -124,3 +124,24 @@ def test_ctrl_c_at_any_moment_of_the_start_is_one_line(tmp_path):
             assert p.returncode == 130 and err.strip() == "Error: interrupted", (delay, p.returncode, err)
             seen.add("interrupted")
     assert "stopped" in seen, seen
+
+
+def test_an_upload_s_malformed_tiff_leaves_the_terminal_alone(tmp_path):
+    """tifffile logs a malformed TIFF's oddities, and Pillow warned of its directory from the server's threads:
+    0.59 printed "<TiffTag.fromfile> raised TiffFileError(...)" and "UserWarning: Truncated File Read" beside the
+    server's address. The client is answered; the terminal shows the address and the stop."""
+    from test_hostile_tiff import tiff_bytes
+
+    p = _start(tmp_path)
+    try:
+        assert p.stdout.readline() == "go\n"
+        url = p.stdout.readline().split()[3]
+        _answering(url)
+        blob = tiff_bytes(extra=[(270, 2, 40, ("at", 100000))])  # a description whose value lies past the end
+        answer = httpx.post(url + "api/models", files={"image": ("damaged.tif", blob, "image/tiff")},
+                            headers={"Origin": url.rstrip("/")}, timeout=120)
+        assert answer.status_code == 400 and "10x12 pixels" in answer.json()["error"], answer.text  # too small
+        p.send_signal(signal.SIGTERM)
+    finally:
+        out, err = _finish(p)
+    assert err.strip().splitlines() == ["tghop server stopped"], err

@@ -19,6 +19,7 @@ from .depths import RANGE_TOLERANCE
 from .bmp import read_bmp
 from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
+from .tiff_tags import quiet_copy
 
 __all__ = ["open_image", "exif_damage", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha",
            "transparent_share", "transparency_note", "share_text", "metadata_too_large"]
@@ -77,12 +78,14 @@ def open_image(path, *, say=True):
     A JPEG whose EXIF block Pillow would warn of ("Corrupt EXIF data", as it parses it on opening) is
     found first (:func:`exif_damage`) and opened from a copy in memory whose block Pillow does not
     take for EXIF: tghop's warning alone, in every thread, with no filter or handler of the process
-    changed (0.58: tghop's words on the main thread, Pillow's on the others).
+    changed (0.58: tghop's words on the main thread, Pillow's on the others). A TIFF whose tag directories
+    Pillow would warn of is opened alike from a copy it reads without a word (:func:`tghop.tiff_tags.quiet_copy`,
+    0.60; 0.59: Pillow's words on threads other than the main one); one whose first directory is cut short
+    is refused in one line.
     """
     from PIL import Image
 
-    _check_tiff_directory(path)
-    source = _hide_damaged_exif(path, say)
+    source = quiet_copy(path) or _hide_damaged_exif(path, say)
     if threading.current_thread() is not threading.main_thread():
         return Image.open(source)
     with warnings.catch_warnings(record=True) as caught:
@@ -129,29 +132,6 @@ def exif_damage(exif):
     if left - 12 * count < 4:
         return f"Expecting to read 4 bytes but only got {left - 12 * count}"
     return None
-
-
-def _check_tiff_directory(path):
-    """Refuse a TIFF file whose first directory (its tags) runs past the file's end, in one line: Pillow
-    warns "Corrupt EXIF data" of it as it opens it (to the console on a thread other than the main one, or
-    0.58's main thread reworded it as a damaged EXIF block) before failing."""
-    if not isinstance(path, (str, bytes, os.PathLike)):
-        return
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(8)
-            if head[:4] not in (b"II*\x00", b"MM\x00*"):
-                return
-            order = "<" if head[:2] == b"II" else ">"
-            fh.seek(struct.unpack(order + "I", head[4:8])[0])
-            count = fh.read(2)
-            entries = struct.unpack(order + "H", count)[0] if len(count) == 2 else -1
-            short = entries < 0 or len(fh.read(12 * entries + 4)) < 12 * entries + 4
-    except (OSError, struct.error, ValueError):
-        return
-    if short:
-        raise InvalidImageError(f"{path}: not a readable image (a TIFF file, cut short: its first directory ends "
-                                "past the file's end); save or download it again")
 
 
 #: Bytes a value of each TIFF field type Pillow reads (an entry of another type it passes over without a word).

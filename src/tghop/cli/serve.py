@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
-from .common import check_stdout, examples, user_errors
+from .common import check_stdout, examples, quiet_tifffile, user_errors
 from .group import after_a_stop
 
 __all__ = ["serve", "default_cache_dir", "ByteSize"]
@@ -186,6 +186,7 @@ def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes, de
         # answered (400): the terminal shows the server's address and its end, not the clients' mistakes.
         for name in ("python_multipart", "multipart"):
             logging.getLogger(name).setLevel(logging.ERROR)
+        quiet_tifffile()  # an upload's malformed TIFF: a 400 or a note, not tifffile's log lines (0.59: printed)
         cache_dir = Path(cache) if cache else default_cache_dir()
         app = create_app(cache_dir, max_fits=max_fits, cache_bytes=cache_size, host=host, max_decodes=max_decodes,
                          decodes_waiting=decodes_waiting)
