@@ -1911,3 +1911,15 @@ def test_a_model_records_its_exemplars_depth(tmp_path):
     by = {r["name"]: r for r in run(tmp_path / "img", tmp_path / "out", workers=1)}
     assert {name: load_model(tmp_path / "out" / r["model"]).exemplar_depth_ for name, r in by.items()} == {
         "deep": 16, "flat": 8}
+
+
+def test_a_hand_edited_ledger_line_repeating_a_key_or_nested_deep_is_skipped_as_a_torn_one(tmp_path):
+    # 0.59 read the ledger with json.loads: a line giving "status" twice counted as its last value (here "ok": the
+    # exemplar passed over), and a line of arrays nested thousands deep stopped the run with a RecursionError.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    assert [r["status"] for r in run(src, out, workers=1)] == ["ok", "ok"]
+    lines = (out / "batch.jsonl").read_text().splitlines()
+    edited = [line.replace("{", '{"status": "failed", ', 1) if json.loads(line)["name"] == "a" else line
+              for line in lines]
+    (out / "batch.jsonl").write_text("\n".join(edited + ["[" * 100_000]) + "\n")
+    assert {r["name"]: r["skipped"] for r in run(src, out, workers=1)} == {"a": False, "sub__a": True}

@@ -223,6 +223,28 @@ def test_a_model_file_whose_metadata_repeats_a_key_is_refused_naming_it(tmp_path
                                "model again"
 
 
+def test_a_checkpoint_whose_settings_repeat_a_key_is_refused_naming_it(tiny_cooc_checkpoint, tmp_path):
+    """0.59 read a co-occurrence checkpoint's settings with json.loads: the last value of a repeated key, without a
+    word (here a crop size the networks were not built for, then the real one)."""
+    import json
+
+    import torch
+
+    from tghop import ModelFileError, cooc
+
+    tensors = torch.load(tiny_cooc_checkpoint, map_location="cpu", weights_only=True)
+    text = bytes(tensors["settings_json"].numpy().tobytes()).decode()
+    assert text.startswith("{") and '"kind"' in text
+    text = '{"kind": "another", ' + text[1:]  # the real "kind" after it
+    json.loads(text)  # a JSON reader takes it, the last "kind" winning
+    tensors["settings_json"] = torch.frombuffer(bytearray(text.encode()), dtype=torch.uint8)
+    path = tmp_path / "edited.pt"
+    torch.save(tensors, path)
+    with pytest.raises(ModelFileError) as error:
+        cooc.load(path)
+    assert str(error.value) == f"{path}: corrupt checkpoint settings (the key 'kind' is given twice); train it again"
+
+
 #: An EXIF block whose first directory says it holds 5 entries and holds 1 (the orientation, 6): Pillow stops
 #: at the second and warns "Corrupt EXIF data. Expecting to read 12 bytes but only got 0."
 DAMAGED_EXIF = (b"Exif\x00\x00MM\x00*" + struct.pack(">IH", 8, 5) + b"\x01\x12\x00\x03\x00\x00\x00\x01\x00\x06\x00\x00")

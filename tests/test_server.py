@@ -1067,3 +1067,11 @@ def test_a_fit_of_a_partly_transparent_upload_says_so(client):
     assert fits[1]["notes"] == [] and fit_with(client, **FAST_FIT).json()["notes"] == []
     for fit in fits:
         assert events(client, fit["job"])[-1][1]["state"] == "done"
+
+
+@pytest.mark.parametrize("query", ["/api/models/{id}/file?name=a&name=b", "/api/jobs/{job}?expected=0&expected=1",
+                                   "/api/cooc/{cid}/file?name=a&name=b"])
+def test_a_query_parameter_given_twice_is_refused(client, query):
+    """0.59 took the last (the download named after "b") without a word, where a form field given twice is a 400."""
+    path = query.format(id="0" * 64, job="0" * 32, cid="0" * 64)
+    assert_error(client.get(path), 400, f"the query parameter {query.split('?')[1].split('=')[0]!r} is given twice")

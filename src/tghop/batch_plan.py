@@ -35,6 +35,7 @@ import warnings
 from pathlib import Path
 
 from ._errors import TGHopError
+from ._json import loads_unique
 from ._formats import OTHER_IMAGE_SUFFIXES, READ_SUFFIXES
 from .batch_task import THUMBNAIL_FILE, remove_temporaries
 from .contact_sheet import CONTACT_SHEET
@@ -337,8 +338,8 @@ def read_hashes(outdir) -> dict:
     """The hashes an earlier run found (:data:`HASHES`), by the exemplar's files; ``{}`` where there are none
     or they cannot be read."""
     try:
-        found = json.loads((Path(outdir) / HASHES).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        found = loads_unique((Path(outdir) / HASHES).read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):  # a key given twice too: the files read again (0.59: its last)
         return {}
     return found if isinstance(found, dict) else {}
 
@@ -390,9 +391,9 @@ def read_ledger_files(outdir):
         return records, files
     for line in text.splitlines():
         try:
-            rec = json.loads(line)
-        except ValueError:
-            continue  # a line torn by a crash
+            rec = loads_unique(line)
+        except (ValueError, RecursionError):  # a line torn by a crash; hand-edited: a key given twice (0.59 took its
+            continue  # last value), arrays nested thousands deep (0.59: a traceback)
         if isinstance(rec, dict) and isinstance(rec.get("name"), str):
             records[rec["name"]] = rec
             with contextlib.suppress(TypeError):  # a hand-edited line's odd fields list nothing
@@ -511,8 +512,8 @@ def compact_ledger(outdir: Path, known: int = 0) -> int:
     keep, covered = [], {}
     for i in range(len(lines) - 1, -1, -1):  # the last line of each exemplar first
         try:
-            rec = json.loads(lines[i])
-        except ValueError:
+            rec = loads_unique(lines[i])
+        except (ValueError, RecursionError):
             continue  # a torn line (or an empty one): read_ledger_files skips it too
         if not isinstance(rec, dict) or not isinstance(rec.get("name"), str):
             continue

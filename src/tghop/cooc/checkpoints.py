@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ModelFileError, TGHopError
+from .._json import RepeatedKeyError, loads_unique
 from .._archives import check_archive_bounds
 from .._resources import import_torch
 from .config import MAX_STEPS, torch_device
@@ -140,7 +141,10 @@ def read(path, model_class, *, device: str = "auto"):
     check_archive_bounds(path, path, "a checkpoint", "give a checkpoint 'tghop cooc train' wrote, or train it again")
     try:
         tensors = torch.load(path, map_location="cpu", weights_only=True)
-        settings = json.loads(bytes(tensors["settings_json"].numpy().tobytes()).decode())
+        settings = loads_unique(bytes(tensors["settings_json"].numpy().tobytes()).decode())
+    except RepeatedKeyError as exc:  # 0.59 kept the last value without a word
+        raise ModelFileError(f"{path}: corrupt checkpoint settings (the key {exc.key[:60]!r} is given twice); train "
+                             "it again") from None
     except Exception:
         raise ModelFileError(f"{path}: not a tghop co-occurrence checkpoint (one is written by CoocGAN.save or "
                              "'tghop cooc train')") from None

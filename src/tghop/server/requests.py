@@ -22,7 +22,7 @@ from .._errors import TGHopError
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
            "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "file_stem",
-           "content_disposition", "MAX_MODELS",
+           "content_disposition", "query_value", "MAX_MODELS",
            "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
@@ -48,6 +48,15 @@ class RequestError(Exception):
         self.status = status
         self.message = _LONG_QUOTED.sub(lambda m: f"{m[1]}{m[2]}{m[1]}...", " ".join(str(message).split()))
         self.headers = dict(headers or {})
+
+
+def query_value(request, key: str, default=None):
+    """The query parameter ``key`` of ``request`` (``default`` where it has none); 400 where it is given twice,
+    as a form field is (0.59 took the last of ``?name=a&name=b`` without a word)."""
+    values = request.query_params.getlist(key)
+    if len(values) > 1:
+        raise RequestError(400, f"the query parameter {key!r} is given twice; send it once")
+    return values[0] if values else default
 
 
 #: A command-line option named after the library's name of a setting, in the library's messages ("lower N

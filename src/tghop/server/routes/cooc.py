@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from .. import cooc
 from ..core import json_response
-from ..requests import RequestError, safe_name
+from ..requests import RequestError, query_value, safe_name
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_body, read_form, read_image
 from .images import png_response
 from .models import send_file
@@ -53,7 +53,7 @@ async def cooc_file(server, request):
     """``GET /api/cooc/{id}/file``: the checkpoint as uploaded."""
     cid = checkpoint_id(server, request)
     return send_file(server.cooc, cid, f"no co-occurrence checkpoint {cid}; {cooc.COOC_HINT}", kind="cooc",
-                     name=request.query_params.get("name"))
+                     name=query_value(request, "name"))
 
 
 async def cooc_morph(server, request):

@@ -12,7 +12,7 @@ from ..._errors import TGHopError, collect_warnings
 from .. import materials
 from ..core import json_response
 from ..jobs import FINAL, JOB_ID, QueueFull, fit_stages, unknown_snapshot
-from ..requests import RequestError, check_channel_counts, parse_fit_settings, safe_name
+from ..requests import RequestError, check_channel_counts, parse_fit_settings, query_value, safe_name
 from ..uploads import (MAX_FIT_BYTES, RETRY_AFTER, depth_note, each_file_within, note_line, read_body, read_form,
                        read_image)
 
@@ -178,7 +178,7 @@ async def job_state(server, request):
     generation naming this job: the page's poll), a well-formed id not in the table is 200 and state ``unknown``
     (:func:`~tghop.server.jobs.unknown_snapshot`), not 404: its request may not be read as far as its header yet
     (a body on its way, a request waiting for the event loop)."""
-    expected = request.query_params.get("expected", "0").strip().lower()
+    expected = query_value(request, "expected", "0").strip().lower()
     if expected not in ("0", "1", "false", "true"):
         raise RequestError(400, f"expected must be 1 or 0, got {expected[:40]!r}")
     try:

@@ -8,7 +8,7 @@ import io
 import os
 
 from ..core import json_response
-from ..requests import RequestError, content_disposition, file_stem, safe_name
+from ..requests import RequestError, content_disposition, file_stem, query_value, safe_name
 from ..uploads import depth_note, note_line, read_body, read_form
 
 __all__ = ["summary", "model_summary", "download_name", "send_file", "model_file", "store_upload", "upload_model"]
@@ -95,7 +95,7 @@ async def model_file(server, request):
     its file, ``tghop-<name>-<id>.npz``)."""
     model_id = request.path_params["id"]
     return send_file(server.cache, model_id, f"no model {model_id}; fit one with POST /api/models",
-                     name=request.query_params.get("name"))
+                     name=query_value(request, "name"))
 
 
 def store_upload(server, content: bytes, filename: str) -> tuple:
