@@ -253,3 +253,33 @@ def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, picture, monkeyp
         for name in ("", "_wall_normal", "_h"):
             assert (tmp_path / f"one{name}.png").read_bytes() == (tmp_path / f"two_1{name}.png").read_bytes()
             assert (tmp_path / f"two_1{name}.png").read_bytes() != (tmp_path / f"two_2{name}.png").read_bytes()
+
+
+@pytest.mark.parametrize("command", ["inpaint", "extend"])
+def test_cli_fill_refuses_a_saved_material_s_maps_given_in_another_order_by_their_names(tmp_path, picture,
+                                                                                        monkeypatch, command):
+    # A saved material takes its maps in its order, whatever their names: 0.59 filled its roughness map from the
+    # height map given in its place (both grey) without a word, and failed on a grey map where its normal map goes
+    # with "the model is in colour but the image is greyscale; fit the model on a greyscale exemplar".
+    monkeypatch.chdir(tmp_path)
+    images, hole = picture
+    save_image(images["albedo"], tmp_path / "wall.png")
+    save_image(hole.astype(float), tmp_path / "mask.png")
+    save_image(images["roughness"], tmp_path / "wall_roughness.png")
+    save_image(images["height"], tmp_path / "wall_height.png")
+    mat = Material(model=TGHop(**FAST), rng=0).fit(
+        images["albedo"], {"wall_roughness": images["roughness"], "wall_height": images["height"]}, exclude=hole)
+    save_model(mat, tmp_path / "mat.npz")
+    where = ["mask.png"] if command == "inpaint" else []
+    grow = [] if command == "inpaint" else ["--size", "160x160"]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    result = CliRunner().invoke(main, [command, "wall.png", *where, "--maps", "wall_height.png", "wall_roughness.png",
+                                       "--source", "mat.npz", "-o", "o.png", *grow, "-q"])
+    assert result.exit_code == 1 and result.output.strip() == (
+        "Error: MAP wall_height.png is named as a height map, but --source mat.npz's map 'wall_roughness', a "
+        "roughness map, goes there: the maps are taken in the material's order; give them as wall_roughness, "
+        "wall_height"), result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    result = CliRunner().invoke(main, [command, "wall.png", *where, "--maps", "wall_roughness.png", "wall_height.png",
+                                       "--source", "mat.npz", "-o", "o.png", *grow, "-q", "--seed", "1"])
+    assert result.exit_code == 0 and (tmp_path / "o_height.png").exists(), result.output

@@ -145,6 +145,21 @@ def test_a_material_whose_exemplar_is_named_as_another_kind_and_no_colour_map_is
     assert res.exit_code == 0 and "colour map" not in res.output, res.output
 
 
+def test_fit_says_the_convention_that_comes_out_where_the_name_says_the_other(exemplar, maps, tmp_path):
+    """0.59 warned that a map named OpenGL's has DirectX's content and comes out DirectX's, then summed the material
+    up as "normal map, OpenGL convention kept": the name's, not what the file records and synth writes."""
+    from tghop.imageio import save_image
+    from tghop.modelfile import load_model
+
+    save_image(exemplar, tmp_path / "Stone_Color.png")
+    save_image(maps["normal"], tmp_path / "Stone_NormalGL.png")  # example_maps' normal map is DirectX's
+    res = _cli(["fit", "Stone_Color.png", "--maps", "Stone_NormalGL.png", "-o", "m.npz", *FAST_CLI], tmp_path)
+    assert res.exit_code == 0, res.output
+    assert "Stone_NormalGL (3 channels, 8-bit, normal map, DirectX by its content (its name says OpenGL), kept)" \
+        in res.output, res.output
+    assert load_model(tmp_path / "m.npz", material=True).conventions_[1] == "DirectX"
+
+
 def test_fit_says_which_maps_are_normal_maps_and_that_their_convention_is_kept(exemplar, maps, tmp_path):
     from tghop.imageio import save_image
 

@@ -54,7 +54,8 @@ MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} 
              "height, ...: of IMAGE's size, aligned), {what} alike; each written as OUT_<map>.EXT at its depth (the "
              "prefix the maps' names share dropped: Rock023_2K_NormalGL as OUT_NormalGL). "
              "Without --source the material is fitted on them (each map named by its file stem); a saved material "
-             "(tghop fit ALBEDO --maps ...) as --source takes its maps in its order.")
+             "(tghop fit ALBEDO --maps ...) as --source takes its maps in its order (files whose names say its maps' "
+             "kinds in another order are refused).")
 
 
 @click.command(short_help="Fill a hole in an image (MASK's white pixels) with its texture", epilog=examples(
@@ -395,6 +396,7 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
             raise TGHopError(f"--source {source} is a material of {n} map{'s' if n != 1 else ''} "
                              f"({', '.join(material.names_[1:])}) but {given} {'was' if given == 1 else 'were'} "
                              "given; give its maps after --maps, in that order")
+        _refuse_reordered(map_paths, material, source)
     names = material.names_[1:] if material is not None else map_names(map_paths)
     quiet_tifffile()
     maps, depths = {}, {}
@@ -446,6 +448,24 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
     click.echo(f"{what} in {len(plans[0])} maps, written to {', '.join(out for _, out, _ in plans[0])}{more}",
                err=True)
+
+
+def _refuse_reordered(map_paths, material, source):
+    """A one-line error where the MAP files' names say the kinds of --source's maps in another order (0.60): they
+    are taken in the material's order whatever their names, so 0.59 filled its roughness map from a height map
+    given in its place, or failed on a grey map where its normal map goes ("the model is in colour but the image
+    is greyscale; fit the model on a greyscale exemplar"). Names of no kind, or kinds the material lacks: as given."""
+    from ..map_names import kind_key, map_name
+
+    given = [kind_key(map_name(path)) for path in map_paths]
+    theirs = [kind_key(name) for name in material.names_[1:]]
+    if None in given or given == theirs or sorted(given) != sorted(theirs):
+        return
+    path, kind, name, other = next((p, g, n, t) for p, g, n, t in zip(map_paths, given, material.names_[1:], theirs)
+                                   if g != t)
+    order = ", ".join(material.names_[1:])
+    raise TGHopError(f"MAP {path} is named as a {kind} map, but --source {source}'s map {name!r}, a {other} map, goes "
+                     f"there: the maps are taken in the material's order; give them as {order}")
 
 
 def _fit_material(picture, maps, depths, depth_albedo, hole, image, rng, progress):

@@ -158,14 +158,19 @@ def material_summary(material, found=None) -> str:
     """The maps of ``material``, one line; ``found``: normal maps' conventions by their content, by name."""
     from ..map_names import normal_convention
 
-    def normal(name, is_normal):  # the convention is the output's too: tghop keeps it
-        named, seen = normal_convention(name), (found or {}).get(name)
-        said = f", {named} convention kept" if named else f", {seen} by its content, kept" if seen else ""
+    kept = getattr(material, "conventions_", None) or [None] * len(material.names_)
+
+    def normal(name, is_normal, convention):  # the convention is the output's too: tghop keeps it
+        named, seen = normal_convention(name), convention or (found or {}).get(name)
+        if seen and named and seen != named:  # what comes out, as fit's warning says (0.59 said the name's here)
+            said = f", {seen} by its content (its name says {named}), kept"
+        else:
+            said = f", {named} convention kept" if named else f", {seen} by its content, kept" if seen else ""
         return ", normal map" + said if is_normal else ""
 
-    return ", ".join(f"{n} ({c} channel{'s' if c > 1 else ''}, {d}-bit{normal(n, nm)})"
-                     for n, c, d, nm in zip(material.names_, material.map_channels_, material.depths_,
-                                            material.normal_))
+    return ", ".join(f"{n} ({c} channel{'s' if c > 1 else ''}, {d}-bit{normal(n, nm, cv)})"
+                     for n, c, d, nm, cv in zip(material.names_, material.map_channels_, material.depths_,
+                                                material.normal_, kept))
 
 
 @click.command(short_help='Write a grid of patches generated from a saved model', epilog=examples(
