@@ -211,6 +211,31 @@ def test_a_manifest_row_that_repeats_a_key_is_refused_naming_it(tmp_path, line, 
                                 "the last without a word)")
 
 
+@pytest.mark.parametrize("maps, said", [
+    # 0.59 took it, fitted the material, then failed writing its file: "... cannot write the image there (File name
+    # too long)" (300), or wrote a map's file named longer than the command line and the page ever name one (100)
+    ({"n" * 300: "n.png"}, "is 300 characters, more than the 64 a map's name may have (it names the map's file); "
+                           "shorten it"),
+    ({"n" * 100: "n.png"}, "is 100 characters, more than the 64"),
+    # 0.59: "the map 'normal' has no path", of an object holding one
+    ({"normal": {"path": "n.png"}}, "the file of the map 'normal' must be a path (a string), not a JSON object"),
+    ({"normal": 3}, "the file of the map 'normal' must be a path (a string), not a number"),
+])
+def test_a_manifest_row_s_map_name_too_long_or_file_not_a_path_is_refused_before_any_fit(tmp_path, maps, said):
+    import json
+
+    from tghop import TGHopError
+    from tghop.manifest import read_manifest
+
+    (tmp_path / "a.png").write_bytes(saved("PNG"))
+    (tmp_path / "n.png").write_bytes(saved("PNG"))
+    manifest = tmp_path / "m.jsonl"
+    manifest.write_text(json.dumps({"path": "a.png", "maps": maps}) + "\n")
+    with pytest.raises(TGHopError) as error:
+        read_manifest(manifest)
+    assert str(error.value).startswith(f"{manifest} line 1: ") and said in str(error.value), str(error.value)
+
+
 def test_a_model_file_whose_metadata_repeats_a_key_is_refused_naming_it(tmp_path):
     from tghop import ModelFileError
     from tghop.modelfile import load_model
@@ -221,6 +246,30 @@ def test_a_model_file_whose_metadata_repeats_a_key_is_refused_naming_it(tmp_path
         load_model(path)
     assert str(error.value) == f"{path}: corrupt model metadata (the key 'format_version' is given twice); fit the " \
                                "model again"
+
+
+def test_a_model_file_whose_array_header_declares_far_more_than_it_holds_names_that_array(tmp_path):
+    """A member's .npy header declaring 49 TB (an edited or hostile file) made NumPy fail to allocate it: 0.59 said
+    "cannot read it: MemoryError", which reads as the machine's shortage, not the file's damage."""
+    import io
+    import zipfile
+
+    from tghop import ModelFileError
+    from tghop.modelfile import load_model
+
+    header = "{'descr': '<f4', 'fortran_order': False, 'shape': (3, 32, 32, 4000000000), }".ljust(117) + "\n"
+    meta = io.BytesIO()
+    np.lib.format.write_array(meta, np.array('{"format": "tghop-model", "format_version": 11}'))
+    path = tmp_path / "m.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("__meta__.npy", meta.getvalue())
+        archive.writestr("material_patch.patch.directions.npy", b"\x93NUMPY\x01\x00" + struct.pack("<H", 118)
+                         + header.encode() + b"\0" * 1000)
+    with pytest.raises(ModelFileError) as error:
+        load_model(path)
+    assert str(error.value) == (f"{path}: truncated, corrupt or not a tghop model file (its array "
+                                "'material_patch.patch.directions' declares shape (3, 32, 32, 4000000000) of float32, "
+                                "49 TB, but holds 1,000 bytes); fit the model again")
 
 
 def test_a_checkpoint_whose_settings_repeat_a_key_is_refused_naming_it(tiny_cooc_checkpoint, tmp_path):

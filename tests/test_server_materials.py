@@ -280,6 +280,8 @@ def test_two_materials_morph_every_map_as_the_library_morphs_them(client, materi
     ({"map:normal": ("n.png", png(np.zeros((SIZE, SIZE + 8, 3), dtype=np.uint8)))},
      ["the map normal (n.png) is 96x104", "albedo is 96x96"]),
     ({"map:my map": ("n.png", b"x")}, ["the map name 'my map'"]),
+    # 0.59: "must be letters, digits, '.', '_' or '-', ..." of a name of letters alone, over 64 of them
+    ({"map:" + "n" * 300: ("n.png", b"x")}, ["is 300 characters, more than the 64 a map's name may have", "shorten"]),
     ({"map:Albedo": ("n.png", b"x")}, ["two maps are named 'Albedo' (or a map is named albedo); name each map once"]),
     ({"map:normal": ("n.png", b"x"), "map:Normal": ("m.png", b"x")}, ["two maps are named 'Normal' (or a map"]),
     ({"map:normal": (None, "text")}, ["'map:normal' must be a file upload"]),

@@ -10,7 +10,7 @@ in each, in other words). :func:`tghop._formats.model_file_kind` names an archiv
 from ._errors import ModelFileError
 
 __all__ = ["MAX_UNPACK_RATIO", "UNPACK_SLACK", "MAX_MEMBERS", "MAX_DIRECTORY_BYTES", "zip_directory",
-           "too_many_members", "unpacks_too_far", "check_archive_bounds"]
+           "too_many_members", "unpacks_too_far", "check_archive_bounds", "array_declaring_more"]
 
 #: The most a model file's or checkpoint's members may unpack to, as a multiple of the file's size
 #: (plus :data:`UNPACK_SLACK` bytes): save_model and torch.save store them uncompressed (1x), and a
@@ -109,3 +109,43 @@ def check_archive_bounds(path, label, what: str, fix: str) -> None:
     why = too_many_members(path) or unpacks_too_far(path)
     if why:
         raise ModelFileError(f"{label}: {why}, not {what} tghop wrote; {fix}")
+
+
+def array_declaring_more(path):
+    """Why NumPy could not allocate an array of the model file at ``path`` (a path or a binary file object, left
+    at its start), in words: "its array NAME declares shape (3, 32, 32, 4000000000) of float32, 49 TB, but holds
+    1,000 bytes" for the first ``.npy`` member whose header declares more bytes than the member holds (0.59 said
+    "cannot read it: MemoryError", which reads as the machine's shortage); None where none does."""
+    import zipfile
+
+    import numpy as np
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for info in archive.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                                   else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = read_header(member, max_header_size=10000)
+                    holds = info.file_size - member.tell()
+                declares = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                if declares > holds:
+                    return (f"its array {info.filename[:-4][:60]!r} declares shape {shape} of {dtype}, "
+                            f"{_bytes(declares)}, but holds {holds:,} bytes")
+    except Exception:  # noqa: BLE001 - any other damage: the reader's own words stand
+        return None
+    finally:
+        if hasattr(path, "seek"):
+            path.seek(0)
+    return None
+
+
+def _bytes(n) -> str:
+    """``n`` bytes in words: "49 TB", "3.2 GB", "12 MB", "900 bytes"."""
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= size:
+            return f"{n / size:.2g} {unit}" if n < 10 * size else f"{n / size:,.0f} {unit}"
+    return f"{n:,} bytes"

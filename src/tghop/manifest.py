@@ -35,6 +35,12 @@ def _shown(value, most: int = 60) -> str:
     return text if len(text) <= most else text[: most - 3] + "..."
 
 
+def _json_kind(value) -> str:
+    """What a JSON value is, in words ("a JSON object", "a number", ...), for a message."""
+    return {dict: "a JSON object", list: "a JSON list", bool: "true or false", type(None): "null"}.get(
+        type(value), "a number")
+
+
 def split_size(text, *, signed=False):
     """``HxW`` text (or ``H*W``, ``H,W``; ``N``: a square) -> ``(height, width)`` ints,
     unchecked; None where it is not one. ``signed``: a minus sign is read too (the command
@@ -255,7 +261,7 @@ def parse_maps(value, where, base: Path) -> list:
         Each map's name and file, in the order given; the files are not opened here.
     """
     # A map's name names its output file (NAME_<map>.png).
-    from .map_names import MAP_NAME, MapNameClashError, check_map_names, map_name
+    from .map_names import MAP_NAME, MAP_NAME_MAX, MapNameClashError, check_map_names, map_name
 
     if isinstance(value, dict):
         pairs = list(value.items())
@@ -276,6 +282,9 @@ def parse_maps(value, where, base: Path) -> list:
                          "empty for a texture")
     out = []
     for name, file in pairs:
+        if file is not None and not isinstance(file, str):  # 0.59: "has no path" of {"normal": {"path": ...}}
+            raise TGHopError(f"{where}: the file of the map {_shown(name if name is not None else file)} must be a "
+                             f"path (a string), not {_json_kind(file)}; give each map's image file")
         if not isinstance(file, str) or not file.strip():
             raise TGHopError(f"{where}: the map {_shown(name if name is not None else file)} has no path; "
                              "give each map's image file")
@@ -285,6 +294,9 @@ def parse_maps(value, where, base: Path) -> list:
         if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
             raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
                              "'_', '-' and '.' (name=path in CSV)")
+        if len(name) > MAP_NAME_MAX:  # 0.59 fitted it, then failed writing its file ("File name too long")
+            raise TGHopError(f"{where}: the map name {_shown(name)} is {len(name)} characters, more than the "
+                             f"{MAP_NAME_MAX} a map's name may have (it names the map's file); shorten it")
         out.append((name, Path(file) if os.path.isabs(file) else base / file))
     try:
         check_map_names([name for name, _ in out])

@@ -32,7 +32,7 @@ import numpy as np
 
 from . import __version__
 from ._errors import ModelFileError, TGHopError, warn
-from ._archives import check_archive_bounds
+from ._archives import array_declaring_more, check_archive_bounds
 from ._formats import COOC_CHECKPOINT, checkpoint_note, is_model_file, model_file_kind
 from ._json import RepeatedKeyError, loads_unique
 from .imageio import check_output_path, write_atomic
@@ -252,9 +252,9 @@ def _read_archive(path, label):
         note = checkpoint_note(path)  # 0.57: a checkpoint cut short is not told to "fit the model again"
         looks = is_model_file(path) and model_file_kind(path) == COOC_CHECKPOINT
         fix = note[2:] if looks else f"fit the model again{note}"
-        raise ModelFileError(
-            f"{label}: truncated, corrupt or not a tghop model file (cannot read it: {exc.__class__.__name__}); {fix}"
-        ) from None
+        why = (isinstance(exc, MemoryError) and array_declaring_more(path)) or \
+            f"cannot read it: {exc.__class__.__name__}"
+        raise ModelFileError(f"{label}: truncated, corrupt or not a tghop model file ({why}); {fix}") from None
     if "__meta__" not in arrays:
         if any(name.endswith("data.pkl") for name in arrays):  # torch.save's zip layout
             if model_file_kind(path) == COOC_CHECKPOINT:  # 0.57 named "the 'tghop cooc' commands" alone

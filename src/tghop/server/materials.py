@@ -56,7 +56,11 @@ def map_uploads(fields: dict) -> list:
 
     named = [(field[len(MAP_FIELD):], field) for field in fields if field.startswith(MAP_FIELD)]
     for name, field in named:
-        if len(name) > MAP_NAME_MAX or not MAP_NAME.fullmatch(name):
+        if len(name) > MAP_NAME_MAX and MAP_NAME.fullmatch(name):  # 0.59 said its characters were wrong
+            raise RequestError(400, f"the map name {name[:40] + '...'!r} (field 'map:...') is {len(name)} characters, "
+                                    f"more than the {MAP_NAME_MAX} a map's name may have (it names the map's file); "
+                                    "shorten it")
+        if not MAP_NAME.fullmatch(name):
             raise RequestError(400, f"the map name {name[:40]!r} (field {field[:44]!r}) must be letters, digits, "
                                     "'.', '_' or '-', starting with a letter or digit (it names the map's file)")
     try:
