@@ -108,7 +108,9 @@ async function zipOf(files) {
     entry.setUint32(0, 0x02014b50, true);  // central directory header
     entry.setUint16(4, 20, true);  // made by: version 2.0
     for (const [view, at] of [[local, 4], [entry, 6]]) {
-      view.setUint16(at, 20, true);  // needed: version 2.0; flags 0, method 0 (stored), time 0 follow
+      view.setUint16(at, 20, true);  // needed: version 2.0; then the flags, method 0 (stored), time 0
+      view.setUint16(at + 2, 0x800, true);  // bit 11: the name is UTF-8 (a model's stem keeps any script's letters;
+      // without it unzip programs read it as code page 437, 0.59's "Gr├╢├ƒe")
       view.setUint16(at + 8, 0x21, true);  // date 1980-01-01
       view.setUint32(at + 10, crc, true);
       view.setUint32(at + 14, data.length, true);  // sizes, compressed and not
