@@ -454,3 +454,32 @@ def test_an_exif_value_past_the_block_s_end_is_passed_over_without_pillow_s_warn
             reader.start()
             reader.join()
     assert shapes == [(48, 40, 3)] and shown == []  # 40x48 stored, orientation 6: turned
+
+
+@pytest.mark.parametrize("members, kind", [
+    (["tghop-rock-64x64-seed3.png", "tghop-rock-64x64-seed3_normal.png", "tghop-rock-64x64-seed3_height.png"],
+     "a ZIP archive of 3 images (tghop-rock-64x64-seed3.png, tghop-rock-64x64-seed3_normal.png, ...; the page's "
+     "'Download all maps' saves one: unzip it and give its images)"),
+    ([], "an empty ZIP archive"),
+])
+def test_a_zip_of_images_given_as_a_model_or_an_image_is_named_as_one(tmp_path, members, kind):
+    """The page's "Download all maps" ZIP given back: 0.59 called it "a NumPy archive but not a tghop model file" as
+    a model and "a model file, not an image" as an exemplar."""
+    import zipfile
+
+    from click.testing import CliRunner
+
+    from tghop import ModelFileError
+    from tghop.cli import main
+    from tghop.modelfile import load_model
+
+    path = tmp_path / "maps.zip"
+    with zipfile.ZipFile(path, "w") as archive:
+        for name in members:
+            archive.writestr(name, saved("PNG"))
+    with pytest.raises(ModelFileError) as error:
+        load_model(path)
+    assert str(error.value) == f"{path}: {kind}, not a tghop model file; give a model file tghop wrote"
+    result = CliRunner().invoke(main, ["fit", str(path), "-o", str(tmp_path / "m.npz"), "-q"])
+    assert result.exit_code == 1 and result.output.strip() == (f"Error: {path} is {kind}, not an image; this command "
+                                                               "needs an image"), result.output

@@ -76,7 +76,7 @@ def model_file_kind(path) -> str:
         with zipfile.ZipFile(path) as archive:
             pickles = [info for info in archive.infolist() if info.filename.endswith("/data.pkl")]
             if not pickles:
-                return "a model file"
+                return _other_archive(archive.namelist()) or "a model file"
             small = pickles[0].file_size < 2**20  # the tensors' names and shapes only
             return COOC_CHECKPOINT if small and b"settings_json" in archive.read(pickles[0]) else "a PyTorch file"
     except (zipfile.BadZipFile, OSError, EOFError, NotImplementedError, ValueError):
@@ -93,6 +93,23 @@ def model_file_kind(path) -> str:
     if head.startswith(b"PK") and b"/data.pkl" in head[:400]:  # the first member's name
         return COOC_CHECKPOINT if b"settings_json" in head else "a PyTorch file"
     return "a model file"
+
+
+def _other_archive(names) -> str | None:
+    """:func:`model_file_kind`'s words for a zip archive of no NumPy arrays (``names``: its members'), else None:
+    one of images, as the web page's "Download all maps" saves a material's (0.59 called it "a model file", and
+    the model readers "a NumPy archive"), or of other files."""
+    import os
+
+    files = [n for n in names if not n.endswith("/")]
+    if any(n.endswith(".npy") for n in files):
+        return None
+    images = [n for n in files if os.path.splitext(n)[1].lower() in READ_SUFFIXES]
+    if images and len(images) == len(files):
+        shown = ", ".join(os.path.basename(n)[:60] for n in images[:2]) + (", ..." if len(images) > 2 else "")
+        return (f"a ZIP archive of {len(images)} image{'s' if len(images) > 1 else ''} ({shown}; the page's "
+                "'Download all maps' saves one: unzip it and give its images)")
+    return "a ZIP archive of other files than a model's arrays" if files else "an empty ZIP archive"
 
 
 #: The suffixes of PyTorch's files, which a co-occurrence cGAN checkpoint is named by.

@@ -267,7 +267,9 @@ def _read_archive(path, label):
                                      "tghop.cooc.load")
             raise ModelFileError(f"{label}: a PyTorch file, not a tghop model file (nor a co-occurrence cGAN "
                                  "checkpoint of 'tghop cooc train'); give a model file tghop wrote")
-        raise ModelFileError(f"{label}: a NumPy archive but not a tghop model file; give a model file tghop wrote")
+        kind = model_file_kind(path)  # 0.59 called a ZIP of images (the page's maps) "a NumPy archive"
+        what = f"{kind}, not" if kind.startswith(("a ZIP", "an empty ZIP")) else "a NumPy archive but not"
+        raise ModelFileError(f"{label}: {what} a tghop model file; give a model file tghop wrote")
     try:
         meta = loads_unique(str(arrays.pop("__meta__")))
     except RepeatedKeyError as exc:  # 0.58 kept the last value without a word
