@@ -86,6 +86,7 @@ DAMAGED = {
     "a colour profile past the end": dict(extra=[(34675, 7, 500, ("at", 100000))]),
     "two values of a one-value tag": dict(replace={259: (3, 2, [1, 1])}),  # "Metadata Warning, tag 259 had ..."
     "three values of a one-value tag": dict(replace={277: (3, 3, [3, 3, 3])}),  # out of the entry
+    "two values of the width": dict(replace={256: (3, 2, [WIDTH, WIDTH])}),  # tifffile: NumPy's ValueError (0.59)
     "an Exif directory past the end": dict(extra=[(34665, 4, 1, [100000])]),  # "Corrupt EXIF data" (on load)
     "a GPS directory past the end": dict(extra=[(34853, 4, 1, [100000])]),
     "a next directory past the end": dict(next_offset=100000),  # "Corrupt EXIF data" as the pages are counted

@@ -282,6 +282,8 @@ def read_deep(path, max_pixels, keep_alpha=False):
             _check_wide_integers(page, path, max_pixels)
             return None
         shape = page.shape
+        if not all(isinstance(n, (int, np.integer)) for n in shape):  # a size tag of several values (0.59: NumPy's
+            return None  # words, "setting an array element with a sequence"): Pillow's path takes the first
         if int(np.prod(shape[:2] if page.axes.startswith("YX") else shape[-2:])) > max_pixels:
             return None  # Pillow's path: its size error (or downscaling)
         try:
