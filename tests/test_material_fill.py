@@ -100,7 +100,11 @@ def test_16_bit_maps_are_filled_and_kept_at_16_bits(material, picture):
     (lambda im: {k: v for k, v in im.items() if k != "height"}, "dict of the material's maps, albedo, normal"),
     (lambda im: {**im, "height": im["height"][:100]}, "map height is 100x128 but the albedo is 128x128"),
     (lambda im: {**im, "roughness": np.repeat(im["roughness"], 3, axis=2) * [1, 0.5, 0.2]},
-     "map roughness: the model is greyscale but the image has colour"),
+     "map roughness: the material's map is greyscale but the image given for it has colour; give that map's own "
+     r"image \(two maps swapped\?\)"),
+    # 0.59: "the model is in colour but the image is greyscale; fit the model on a greyscale exemplar"
+    (lambda im: {**im, "normal": im["height"]}, "map normal: the material's map is in colour but the image given for "
+                                                "it is greyscale; give that map's own image"),
 ])
 def test_bad_maps_are_refused_naming_them(material, picture, change, words):
     images, hole = picture

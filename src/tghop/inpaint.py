@@ -574,6 +574,10 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         try:
             work = _working_image(arr, c)
         except TGHopError as exc:
+            mismatch = channel_mismatch(arr, c) if arr.ndim in (2, 3) and name != names[0] else None
+            if mismatch:  # 0.59 told to "fit the model on a greyscale exemplar", of a map given another's image
+                raise TGHopError(f"map {name}: the material's map is {mismatch[0]} but the image given for it "
+                                 f"{mismatch[1]}; give that map's own image (two maps swapped?)") from None
             raise TGHopError(f"map {name}: {exc}") from None
         if works and work.shape[:2] != works[0].shape[:2]:
             raise TGHopError(f"map {name} is {work.shape[0]}x{work.shape[1]} but the albedo is "
