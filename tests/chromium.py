@@ -27,25 +27,70 @@ def launch(playwright):
     return playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
 
 
-@contextlib.contextmanager
-def served_page(url):
-    """A page of the headless browser at ``url`` (tghop serve's page), ready (its body's
-    ``data-ready``); ``page.errors`` collects its JavaScript errors and console errors."""
-    from playwright import sync_api
+#: The test session's one browser (:func:`shared_browser`): "manager" (Playwright's, started) and "browser".
+_SHARED = {}
 
-    with sync_api.sync_playwright() as p:
-        browser = launch(p)
+
+def shared_browser():
+    """The headless browser the browser test files share, started at its first use: Playwright's driver and
+    Chromium started once, not once a file; each file's page has a context of its own (:func:`served_page`).
+    :func:`close_shared` ends it (conftest's hook, after the last of those files in a row): while it runs,
+    Playwright's sync API marks its event loop as the thread's running one, which ``asyncio.run`` refuses."""
+    if "browser" not in _SHARED or not _SHARED["browser"].is_connected():
+        close_shared()
+        from playwright import sync_api
+
+        manager = sync_api.sync_playwright()
+        playwright = manager.__enter__()
         try:
-            page = browser.new_page(viewport={"width": 1200, "height": 1400}, accept_downloads=True)
-            errors = []
-            page.on("pageerror", lambda exc: errors.append(str(exc)))
-            page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
-            page.goto(url)
-            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
-            page.errors = errors
-            yield page
-        finally:
+            _SHARED["browser"] = launch(playwright)
+        except BaseException:
+            manager.__exit__(None, None, None)
+            raise
+        _SHARED["manager"] = manager
+    return _SHARED["browser"]
+
+
+def close_shared():
+    """:func:`shared_browser`'s browser and Playwright's driver ended (nothing where none runs)."""
+    browser, manager = _SHARED.pop("browser", None), _SHARED.pop("manager", None)
+    try:
+        if browser is not None and browser.is_connected():
             browser.close()
+    finally:
+        if manager is not None:
+            manager.__exit__(None, None, None)
+
+
+@contextlib.contextmanager
+def served_page(url, browser=None):
+    """A page of the headless browser at ``url`` (tghop serve's page), ready (its body's
+    ``data-ready``); ``page.errors`` collects its JavaScript errors and console errors. ``browser``: a
+    launched one (the tests': :func:`shared_browser`), the page in a context of its own (its storage, its
+    IndexedDB, its downloads) closed at the end; None: a browser of its own, closed at the end."""
+    if browser is None:
+        from playwright import sync_api
+
+        with sync_api.sync_playwright() as p:
+            own = launch(p)
+            try:
+                with served_page(url, own) as page:
+                    yield page
+            finally:
+                own.close()
+        return
+    context = browser.new_context(viewport={"width": 1200, "height": 1400}, accept_downloads=True)
+    try:
+        page = context.new_page()
+        errors = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+        page.goto(url)
+        page.wait_for_selector("body[data-ready='1']", timeout=30_000)
+        page.errors = errors
+        yield page
+    finally:
+        context.close()
 
 
 def load_empty(page):

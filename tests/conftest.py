@@ -17,6 +17,15 @@ for _sig, _default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGH
     if signal.getsignal(_sig) == signal.SIG_IGN:
         signal.signal(_sig, _default)
 
+@pytest.hookimpl(trylast=True)
+def pytest_runtest_teardown(item, nextitem):
+    """The browser test files' one Chromium (chromium.shared_browser) ended once the next test is of a file without
+    it (after that file's page fixture closed its page): while it runs, asyncio.run in this thread is refused."""
+    shared = sys.modules.get("chromium")
+    if shared is not None and getattr(getattr(nextitem, "module", None), "chromium", None) is not shared:
+        shared.close_shared()
+
+
 def png(pixels) -> bytes:
     """``pixels`` (an (H, W, C) or (H, W) array, as :func:`tghop.imageio.write_png` takes) as a PNG file's bytes."""
     import io

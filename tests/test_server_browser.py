@@ -32,7 +32,7 @@ COOC_SCREENSHOT = os.environ.get("TGHOP_COOC_SCREENSHOT", "/tmp/tghop-cooc-page.
 
 @pytest.fixture(scope="module")
 def page(live_server):
-    with chromium.served_page(live_server.url + "/") as page:
+    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
         yield page
 
 

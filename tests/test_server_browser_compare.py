@@ -18,7 +18,7 @@ from conftest import FAST_FIT, png  # noqa: E402
 
 @pytest.fixture(scope="module")
 def page(live_server):
-    with chromium.served_page(live_server.url + "/") as page:
+    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
         chromium.set_fit_settings(page, FAST_FIT)
         yield page
 

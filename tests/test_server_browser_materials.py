@@ -24,7 +24,7 @@ SCREENSHOT = os.environ.get("TGHOP_MATERIAL_SCREENSHOT", "/tmp/tghop-material-pa
 
 @pytest.fixture(scope="module")
 def page(live_server):
-    with chromium.served_page(live_server.url + "/") as page:
+    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
         yield page
 
 

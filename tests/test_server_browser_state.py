@@ -24,7 +24,7 @@ from conftest import FAST_FIT, png  # noqa: E402
 
 @pytest.fixture(scope="module")
 def page(live_server):
-    with chromium.served_page(live_server.url + "/") as page:
+    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
         page.warnings = []
         page.on("console", lambda msg: page.warnings.append(msg.text) if msg.type == "warning" else None)
         yield page
