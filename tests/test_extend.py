@@ -198,6 +198,18 @@ def test_cli_with_a_model_gives_the_same_image_for_the_same_seed(files, cells):
     assert np.array_equal(a, b) and np.array_equal(a[16:112, 16:112], cells)
 
 
+def test_cli_grows_the_image_as_the_librarys_extend_does(files, cells):
+    # 0.59's tghop extend filled a texture's new area from the edge inwards, as a hole (tghop.inpaint.inpaint's
+    # default), not row by row as tghop.inpaint.extend does: another, worse image for the same model and seed
+    from tghop.modelfile import load_model
+
+    r = cli("extend", files / "cells.png", "--source", files / "model.npz", "--size", "128x160", "--seed", "3", "-q",
+            "-o", files / "lib.png")
+    assert r.returncode == 0, r.stderr.decode()
+    ours = extend(load_model(files / "model.npz"), cells, (128, 160), rng=3)
+    assert np.array_equal(np.asarray(Image.open(files / "lib.png")), ours)
+
+
 def test_cli_keeps_the_alpha_channel_and_makes_the_new_area_opaque(files, cells):
     alpha = ((np.arange(96)[:, None] + 2 * np.arange(96)) % 256).astype(np.uint8)[..., None]
     pixels = np.concatenate([cells, alpha], axis=2)

@@ -155,7 +155,7 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         model, rng = _model(picture, None, image, source, source_is_model, scale, seed, progress,
                             too_little=f"IMAGE {image} is too small to fit a model on", fix="give a larger IMAGE",
                             grown=size)
-        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth)
+        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth, order="raster")
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
                    f"to {_where(outputs)}", err=True)
@@ -312,14 +312,16 @@ def _check_channels(picture, n_channels, image, source):
                          "exemplar or model as --source, or leave --source out to fit on IMAGE")
 
 
-def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth):
+def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth, order="edge"):
     """Fill ``hole`` of ``picture`` with ``model`` and write it with its alpha channel, once per file of
-    ``outputs``, each fill drawn after the one before from ``rng`` (--count)."""
+    ``outputs``, each fill drawn after the one before from ``rng`` (--count). ``order``: the fill's
+    (:func:`tghop.inpaint.inpaint`): "raster" for extend, as :func:`tghop.inpaint.extend` takes (0.60; 0.59's
+    ``tghop extend`` of a texture filled from the edge inwards, as a hole)."""
     from ..imageio import save_image
     from ..inpaint import inpaint as fill
 
     for output in outputs:
-        result = fill(model, picture, hole, rng=rng, tile=tile, progress=progress)
+        result = fill(model, picture, hole, rng=rng, tile=tile, order=order, progress=progress)
         progress.close()
         save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
         progress.close()

@@ -102,7 +102,8 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
                 read_image(data, filename, load, notes=told)), depth=depth, grow=grow, seed=seed, tile=tile,
                 progress=server.unless_stopping), told
         try:
-            filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping)
+            filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping,
+                               order="edge" if grow is None else "raster")  # as tghop.inpaint.extend grows (0.60)
         except MemoryError:
             raise RequestError(413, "out of memory; send a smaller picture") from None
         except TGHopError as exc:
