@@ -17,6 +17,7 @@ for _sig, _default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGH
     if signal.getsignal(_sig) == signal.SIG_IGN:
         signal.signal(_sig, _default)
 
+
 @pytest.hookimpl(trylast=True)
 def pytest_runtest_teardown(item, nextitem):
     """The browser test files' one Chromium (chromium.shared_browser) ended once the next test is of a file without
@@ -24,6 +25,67 @@ def pytest_runtest_teardown(item, nextitem):
     shared = sys.modules.get("chromium")
     if shared is not None and getattr(getattr(nextitem, "module", None), "chromium", None) is not shared:
         shared.close_shared()
+
+
+# The whole suite (`python -m pytest`, the README's and CI's command, which collects pyproject's testpaths) runs on
+# pytest-xdist's workers, one per usable core up to PARALLEL_WORKERS; a run naming files or folders, `-n 0`,
+# `-p no:xdist` or `--pdb` runs in this process as before. Each test file runs whole on one worker, in its own order
+# (module fixtures are made once; the browser files' tests share their page's state), and the files of one
+# TOGETHER group run one after another on one worker. docs/choices.md, "The test suite".
+PARALLEL_WORKERS = 2
+
+_BROWSERS = ("test_server_browser.py", "test_server_browser_artist.py", "test_server_browser_compare.py",
+             "test_server_browser_materials.py", "test_server_browser_page.py", "test_server_browser_progress.py",
+             "test_server_browser_state.py", "test_server_firefox.py")
+_DASK = ("test_batch.py", "test_batch_cluster.py", "test_batch_materials.py")
+
+#: Files that must not run at the same time as each other (file name -> group name): one browser at a time, as the
+#: page's waits were set for; one Dask cluster of worker processes at a time (their heartbeats and the tests' waits).
+TOGETHER = {**dict.fromkeys(_BROWSERS, "browsers"), **dict.fromkeys(_DASK, "dask")}
+
+#: The files that take longest, started first so that no worker is left with a long one at the end (a file not
+#: named here goes after them, in the usual order; a stale list only balances the workers less well).
+SLOW_FIRST = (*_DASK, "test_material.py", *_BROWSERS, "test_material_fill.py", "test_material_masks.py",
+              "test_material_names.py", "test_help_examples.py", "test_core_model.py", "test_extend.py")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config):
+    import os
+
+    if not config.pluginmanager.has_plugin("xdist") or hasattr(config, "workerinput"):
+        return
+    whole_suite = config.args_source == pytest.Config.ArgsSource.TESTPATHS
+    if whole_suite and config.option.numprocesses is None and not config.getoption("usepdb"):
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        config.option.numprocesses = min(cores, PARALLEL_WORKERS)
+    if config.option.numprocesses and config.option.dist == "no":  # -n N alone too: files kept whole
+        # Not --dist loadgroup and xdist_group marks: xdist 3.8 tags a test's id with its group through
+        # Item._nodeid, which pytest 9 no longer reads (every test was scheduled alone).
+        config.option.dist = "loadfile"
+        config.option.loadscopereorder = False  # SLOW_FIRST's order, not the files' test counts
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """--dist loadfile with TOGETHER's files in one unit of work each."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class FileGroups(LoadFileScheduling):
+        def _split_scope(self, nodeid):
+            file = nodeid.split("::", 1)[0]
+            return TOGETHER.get(file.rsplit("/", 1)[-1], file)
+
+    return FileGroups(config, log)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    if hasattr(config, "workerinput"):  # the order that each worker's collection sends, for the scheduler
+        rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+        items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 def png(pixels) -> bytes:
