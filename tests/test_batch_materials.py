@@ -62,7 +62,7 @@ def test_a_rows_maps_are_named_and_found_beside_the_manifest(tmp_path, value, wa
     ("n=a.png;N=b.png", ["two maps are named 'N'"]),
     ("normal=", ["the map 'normal' has no path"]),
     (3, ["maps 3 must be paths separated by"]),
-    ({"normal": 5}, ["the map 'normal' has no path"]),
+    ({"normal": 5}, ["the file of the map 'normal' must be a path (a string), not a number"]),
     (";".join(f"m{i}.png" for i in range(MAX_MAPS + 1)), [f"a material takes at most {MAX_MAPS}"]),
     (" ; ;", ["maps ' ; ;' lists no file"]),
 ])

@@ -69,7 +69,8 @@ function backToWorking(lead, undo, error = true) {
   state.pendingName = working ? working.name : null;
   $("builtin").value = (working && working.source && working.source.builtin) || "";
   setExemplar(working ? working.exemplarUrl : null);
-  setModel(working ? working.modelId : null, working ? working.material : false);
+  // A material's patch statistics as its summary said them (null: not known yet): Generate stays on (0.60)
+  setModel(working ? working.modelId : null, working ? working.material : false, working ? working.patches : null);
   const kept = working ? `the model of ${working.name} stays` : "no model yet";
   say(`${lead} (${undo.maps ? "the maps were not added" : `${undo.name} was not used`}; ${kept})`, error);
   if (working) showSummary(working.modelId);
@@ -77,9 +78,9 @@ function backToWorking(lead, undo, error = true) {
 
 // `material`: whether the model is a material, when known (a fit's: it sent maps); else null until
 // its summary says (an uploaded file).
-function setModel(id, material = null) {
+function setModel(id, material = null, patches = null) {
   state.modelId = id;
-  setMaterial(material);
+  setMaterial(material, patches);
   if (id) addSessionModel(id, state.pendingName);
   updateButtons();
   exemplarCaption();
@@ -106,7 +107,10 @@ async function showSummary(id) {
   // cache of another tghop, or a restart) is read anew, and its fit or upload said nothing of it (0.57)
   const notes = unsaid(s.notes || []);
   if (notes.length) say([$("message").textContent, ...notes].filter(Boolean).join(". "));
-  if (state.working && state.working.modelId === id) state.working.material = Boolean(maps);
+  if (state.working && state.working.modelId === id) {
+    state.working.material = Boolean(maps);
+    state.working.patches = maps ? Boolean(s.material.patch_levels) : null;
+  }
   const listed = state.models.find((m) => m.id === id);
   if (listed && s.params) listed.patchSize = s.params.patch_size;  // Morph's least height (morphMinimum)
   setMaterial(Boolean(maps), maps ? Boolean(s.material.patch_levels) : null);
