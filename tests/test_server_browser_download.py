@@ -17,7 +17,7 @@ sync_api = pytest.importorskip("playwright.sync_api",
 
 @pytest.fixture(scope="module")
 def page(live_server):
-    with chromium.served_page(live_server.url + "/") as page:
+    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
         yield page
 
 

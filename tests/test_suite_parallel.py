@@ -79,3 +79,17 @@ def test_on_a_worker_the_slow_files_come_first(monkeypatch):
     items = [_Item(f"tests/{name}") for name in names]
     conftest.pytest_collection_modifyitems(_Config(), items)  # in one process: the usual order
     assert [i.path.name for i in items] == names
+
+
+def test_every_file_that_drives_a_browser_or_starts_a_dask_cluster_is_in_its_group():
+    # A browser file left out of TOGETHER runs beside the others on the second worker, with a browser of its own
+    # (0.60's first ZIP-download file was); likewise a file of Dask clusters beside test_batch's
+    here = Path(__file__).parent
+    for path in sorted(here.glob("test_*.py")):
+        if path.name == Path(__file__).name:
+            continue
+        text = path.read_text(encoding="utf-8")
+        if "\nimport chromium" in text or "\nimport marionette" in text:
+            assert conftest.TOGETHER.get(path.name) == "browsers", path.name
+        if "LocalCluster" in text or "tghop.batch_dask" in text:
+            assert conftest.TOGETHER.get(path.name) == "dask", path.name
