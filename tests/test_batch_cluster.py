@@ -38,6 +38,27 @@ def _wait_for(p, text):
     return None
 
 
+def _until_running(out, seconds=120):
+    """Wait (at most ``seconds``) until an exemplar of the batch writing into ``out`` has been handed out."""
+    deadline = time.time() + seconds
+    while time.time() < deadline and not list(out.glob("*/.batch-running")):
+        time.sleep(0.1)
+
+
+def _tghop_of_version(d, version="0.1.0"):
+    """A copy of this tghop in ``d`` that says it is ``version``: the PYTHONPATH of a worker that runs it (this
+    folder after it, for the tasks of this module)."""
+    import shutil
+
+    import tghop
+
+    shutil.copytree(Path(tghop.__file__).parent, d / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
+    init = d / "tghop" / "__init__.py"
+    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', f'__version__ = "{version}"'))
+    assert f'__version__ = "{version}"' in init.read_text()
+    return os.pathsep.join([str(d), str(Path(__file__).parent)])
+
+
 class Cluster:
     """A scheduler and worker processes of their own; :meth:`close` ends each by its id."""
 
@@ -99,9 +120,7 @@ def test_a_scheduler_gone_mid_run_is_one_line_and_its_exemplars_are_left_to_the_
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"
 
     def kill_when_handed_out():
-        deadline = time.time() + 120
-        while time.time() < deadline and not list(out.glob("*/.batch-running")):
-            time.sleep(0.1)
+        _until_running(out)
         cluster.scheduler.kill()
 
     killer = threading.Thread(target=kill_when_handed_out, daemon=True)
@@ -127,9 +146,7 @@ def test_the_command_says_a_lost_scheduler_in_one_line(tmp_path, cluster):
             "sys.argv = ['tghop', *sys.argv[1:]]; tghop.__main__.run()")
     p = _start(["-c", code, "batch", "src", "-o", "out", "--scheduler", cluster.address, "--size", "48", "--seed",
                 "1", "-q"], cwd=tmp_path)
-    deadline = time.time() + 120
-    while time.time() < deadline and not list((tmp_path / "out").glob("*/.batch-running")):
-        time.sleep(0.1)
+    _until_running((tmp_path / "out"))
     cluster.scheduler.kill()
     _, err = p.communicate(timeout=120)
     assert p.returncode == 3, err
@@ -241,9 +258,7 @@ def test_a_worker_without_tghop_that_joins_mid_run_stops_it_with_one_line(tmp_pa
     none = _fake_tghop(tmp_path / "none", "raise ModuleNotFoundError(\"No module named 'tghop'\", name='tghop')")
 
     def join_late():
-        deadline = time.time() + 120
-        while time.time() < deadline and not list(out.glob("*/.batch-running")):
-            time.sleep(0.1)
+        _until_running(out)
         cluster.worker("w2", {"PYTHONPATH": none})
         (out / ".go").touch()
 
@@ -272,23 +287,13 @@ def test_a_task_moved_to_a_worker_of_another_tghop_that_joined_mid_run_stops_the
     # version's ledger line. 0.58's task checks its worker's version (tghop.batch_task.run_checked). (A
     # worker whose tghop lacks run_checked, 0.57 and earlier, or that has none, cannot load the task and
     # closes itself when it gets one: Dask's doing; the task goes to another worker.)
-    import shutil
-
-    import tghop
-
     first = cluster.worker("w1")
     src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
-    other = tmp_path / "other"
-    shutil.copytree(Path(tghop.__file__).parent, other / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
-    init = other / "tghop" / "__init__.py"
-    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', '__version__ = "0.1.0"'))
-    assert '__version__ = "0.1.0"' in init.read_text()
+    other = _tghop_of_version(tmp_path / "other")
 
     def join_late_and_kill_the_first():
-        deadline = time.time() + 120
-        while time.time() < deadline and not list(out.glob("*/.batch-running")):
-            time.sleep(0.1)
-        cluster.worker("w2", {"PYTHONPATH": os.pathsep.join([str(other), str(Path(__file__).parent)])})
+        _until_running(out)
+        cluster.worker("w2", {"PYTHONPATH": other})
         first.kill()
 
     joiner = threading.Thread(target=join_late_and_kill_the_first, daemon=True)
@@ -387,24 +392,15 @@ def test_a_given_clients_workers_are_checked_before_any_work(tmp_path, local):
 def test_a_given_clients_worker_of_another_tghop_that_joins_mid_run_stops_it(tmp_path, cluster):
     # The client of a cluster started apart (a program's own Client(address)); a worker that joins it mid-run
     # with another tghop stops the run, as with --scheduler (0.58 checked none of a given client's workers).
-    import shutil
-
     import distributed
-
-    import tghop
 
     cluster.worker("w1")
     src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
-    other = tmp_path / "other"
-    shutil.copytree(Path(tghop.__file__).parent, other / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
-    init = other / "tghop" / "__init__.py"
-    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', '__version__ = "0.1.0"'))
+    other = _tghop_of_version(tmp_path / "other")
 
     def join_late():
-        deadline = time.time() + 120
-        while time.time() < deadline and not list(out.glob("*/.batch-running")):
-            time.sleep(0.1)
-        cluster.worker("w2", {"PYTHONPATH": os.pathsep.join([str(other), str(Path(__file__).parent)])})
+        _until_running(out)
+        cluster.worker("w2", {"PYTHONPATH": other})
         (out / ".go").touch()
 
     client = distributed.Client(cluster.address, timeout="30s")
@@ -429,17 +425,10 @@ def test_a_worker_of_another_tghop_that_joins_a_given_clients_local_cluster_from
     # interpreter) given as client=: 0.59 checked none of the workers that joined it mid-run, so one started apart
     # against its scheduler with another tghop was handed exemplars, each failed there (run_checked), and the run
     # went on. Now only the cluster's own workers (its worker_spec's names: restarts, scale) are left unchecked.
-    import shutil
-
     import distributed
 
-    import tghop
-
     src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
-    other = tmp_path / "other"
-    shutil.copytree(Path(tghop.__file__).parent, other / "tghop", ignore=shutil.ignore_patterns("__pycache__"))
-    init = other / "tghop" / "__init__.py"
-    init.write_text(init.read_text().replace(f'__version__ = "{tghop.__version__}"', '__version__ = "0.1.0"'))
+    other = _tghop_of_version(tmp_path / "other")
     # tcp: threads' default is inproc://, which no worker of another process can join
     local = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=processes, dashboard_address=":0",
                                      silence_logs=50, protocol="tcp://")
@@ -447,12 +436,10 @@ def test_a_worker_of_another_tghop_that_joins_a_given_clients_local_cluster_from
     joiner_procs = []
 
     def join_late():
-        deadline = time.time() + 120
-        while time.time() < deadline and not list(out.glob("*/.batch-running")):
-            time.sleep(0.1)
+        _until_running(out)
         p = _start(["distributed.cli.dask_worker", local.scheduler_address, "--nthreads", "1", "--no-nanny",
                     "--no-dashboard", "--name", "w2"],
-                   {"PYTHONPATH": os.pathsep.join([str(other), str(Path(__file__).parent)])})
+                   {"PYTHONPATH": other})
         joiner_procs.append(p)
         assert _wait_for(p, "Registered to:"), "the worker did not start"
         (out / ".go").touch()
