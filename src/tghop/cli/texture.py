@@ -52,8 +52,7 @@ def fit_exemplar(spec, options, *, exclude, downscale, progress, deep_warning=No
 
 def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     """A :class:`tghop.material.Material` fitted on exemplar ``spec`` (the albedo) and the
-    maps in ``map_paths`` (named by their file stems), and each normal map's convention by its
-    content (:attr:`tghop.material.Material.conventions_`, where its name says none), by name."""
+    maps in ``map_paths`` (named by their file stems)."""
     from ..material import Material
     from ..material_files import read_map
     from ..synthesis import TGHop
@@ -88,10 +87,7 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     params = fit_params(options)
     material = Material(model=TGHop(**params), rng=params["rng"]).fit(albedo, maps, exclude=mask, depths=depths,
                                                                       progress=progress)
-    # its content's where its name says none (the material's own reading, a height map its second cue: 0.60)
-    found = {name: convention for name, convention, is_normal in zip(material.names_, material.conventions_,
-                                                                     material.normal_) if is_normal}
-    return material, found
+    return material
 
 
 def _resolution_word(path):
@@ -138,8 +134,8 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar), ("--exclude", exclude)]
                       + [("--maps", m) for m in map_paths])
         if with_maps:
-            material, found = fit_material(exemplar, map_paths, options, exclude=exclude, downscale=downscale,
-                                           progress=progress)
+            material = fit_material(exemplar, map_paths, options, exclude=exclude, downscale=downscale,
+                                    progress=progress)
             model = material.model_
         else:
             model = material = fit_exemplar(exemplar, options, exclude=exclude, downscale=downscale,
@@ -149,19 +145,20 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         progress.took("saving", started)
         progress.close()
     if with_maps:
-        click.echo(f"material: {material_summary(material, found)}", err=True)
+        click.echo(f"material: {material_summary(material)}", err=True)
     click.echo(summary(model), err=True)
     click.echo(f"{'material' if with_maps else 'model'} written to {output}", err=True)
 
 
-def material_summary(material, found=None) -> str:
-    """The maps of ``material``, one line; ``found``: normal maps' conventions by their content, by name."""
+def material_summary(material) -> str:
+    """The maps of ``material``, one line, each normal map with the convention it comes out in
+    (:attr:`tghop.material.Material.conventions_`: its content's, else its name's)."""
     from ..map_names import normal_convention
 
     kept = getattr(material, "conventions_", None) or [None] * len(material.names_)
 
-    def normal(name, is_normal, convention):  # the convention is the output's too: tghop keeps it
-        named, seen = normal_convention(name), convention or (found or {}).get(name)
+    def normal(name, is_normal, seen):  # the convention is the output's too: tghop keeps it
+        named = normal_convention(name)
         if seen and named and seen != named:  # what comes out, as fit's warning says (0.59 said the name's here)
             said = f", {seen} by its content (its name says {named}), kept"
         else:
@@ -496,8 +493,7 @@ def info(model_file, as_json):
     h, w, c = model.exemplar_shape_
     click.echo(f"tghop model {model_file}")
     if material is not model:
-        recorded = dict(zip(material.names_, material.conventions_))  # a name's, else the content's at fit (0.59)
-        click.echo(f"material: {material_summary(material, recorded)}")
+        click.echo(f"material: {material_summary(material)}")
         for line in _mask_levels(material):
             click.echo(line)
     scaled = "" if model.scale == 1 else f" (resampled by --scale {model.scale:g})"
