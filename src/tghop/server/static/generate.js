@@ -181,6 +181,36 @@ function clearStrip() {
 
 const STRIP_HINT = "click a seed to pick it";
 
+// A picture of the strip to pick from (the 8 seeds', a Fill's with a count), `url` its image: `name` its button's
+// name (alt, and its title with what a click does), `seed` its caption; a click, Enter or Space marks it chosen and
+// calls `onPick`. Its seed said once, as the button's name: the caption (for the eye) and the figure are hidden from
+// a screen reader, the title's "seed N" replaced by what it does (each was read as "seed N" too). Returns the img.
+function addToStrip(strip, url, name, seed, onPick) {
+  const figure = document.createElement("figure"), img = document.createElement("img");
+  figure.setAttribute("role", "none");
+  img.src = url;
+  img.alt = name;
+  img.title = `${name}: click to pick`;
+  img.setAttribute("aria-description", "shows it as the result");
+  img.dataset.seed = String(seed);
+  img.tabIndex = 0;  // Enter or Space picks it too
+  img.setAttribute("role", "button");
+  img.addEventListener("click", () => {
+    for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
+    img.classList.add("chosen");
+    onPick();
+  });
+  img.addEventListener("keydown", (e) => {
+    if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
+  });
+  const caption = document.createElement("figcaption");
+  caption.textContent = `seed ${seed}`;
+  caption.setAttribute("aria-hidden", "true");
+  figure.append(img, caption);
+  strip.append(figure);
+  return img;
+}
+
 // The browser's own check of Generate's fields (a size over its max, an empty seed) refuses with a bubble only:
 // the status says what is wrong now, not what an earlier action left there ("stopped"). `invalid`, caught for
 // the first field refused.
@@ -221,35 +251,12 @@ function onStrip() {
       const answer = await withProgress("gen-progress", (headers) => generate(body, id, headers),
                                         { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
       warned = warned || unsaid([answer.warning])[0] || "";
-      const url = URL.createObjectURL(answer.blob);
-      // Its seed said once, as the button's name: the caption (for the eye) and the figure are hidden from a
-      // screen reader, the title's "seed N" replaced by what it does (each was read as "seed N" too)
-      const figure = document.createElement("figure");
-      figure.setAttribute("role", "none");
-      const img = document.createElement("img");
-      img.src = url;
-      img.alt = `seed ${seed}`;
-      img.title = `seed ${seed}: click to pick`;
-      img.setAttribute("aria-description", "shows it as the result");
-      img.dataset.seed = String(seed);
-      img.tabIndex = 0;  // Enter or Space picks it too
-      img.setAttribute("role", "button");
-      img.addEventListener("click", async () => {
-        for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
-        img.classList.add("chosen");
+      const img = addToStrip(strip, URL.createObjectURL(answer.blob), `seed ${seed}`, seed, () => {
         $("seed").value = String(seed);
         keepFields();  // across a reload (history.js)
         showResult(URL.createObjectURL(answer.blob), seed, answer.blob, undefined, answer.maps,
                    { models: [stem], ...body, ...made }, run);
       });
-      img.addEventListener("keydown", (e) => {
-        if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
-      });
-      const caption = document.createElement("figcaption");
-      caption.textContent = `seed ${seed}`;
-      caption.setAttribute("aria-hidden", "true");
-      figure.append(img, caption);
-      strip.append(figure);
       if (i === 0) reveal(img);  // the strip below the fold (no result shown yet, or a tall one)
     }
     if (!stale()) sayGenerate(warned ? withWarning(STRIP_HINT, warned) : STRIP_HINT);

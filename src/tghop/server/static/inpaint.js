@@ -349,39 +349,19 @@ async function fillStrip(mask, count, size) {
   const first = $("inpaint-seed").value.trim(), before = stepBefore("inpaint", size), history = editor.history;
   const strip = $("strip"), run = {}, seeds = [];  // run: this strip's picks (keepResult)
   strip.dataset.model = state.modelId;
-  const pick = (answer, img) => {
-    for (const other of strip.querySelectorAll("img")) other.classList.remove("chosen");
-    img.classList.add("chosen");
-    showFilled(answer, "inpainted", size, before, history, run);
-  };
-  let warned = "", shown = null;  // shown: fill 1 ([answer, its img]), shown once all have come
+  const pick = (answer) => showFilled(answer, "inpainted", size, before, history, run);
+  let warned = "", shown = null;  // shown: fill 1's picture, picked once all have come
   for (let k = 0; k < count; k++) {
     sayInpaint(`fill ${k + 1} of ${count}`);
     const answer = await askPicture("inpaint", [["mask", mask, "mask.png"]], first === "" ? "" : String(+first + k),
                                     { from: k / count, to: (k + 1) / count, label: `fill ${k + 1}: ` });
     warned = warned || answer.warning;
     seeds.push(answer.used);
-    const figure = document.createElement("figure"), img = document.createElement("img");
-    figure.setAttribute("role", "none");  // its seed said once, as the button's name (onStrip's seeds alike)
-    img.src = URL.createObjectURL(answer.blob);
-    img.alt = `fill ${k + 1}, seed ${answer.used}`;
-    img.title = `fill ${k + 1}, seed ${answer.used}: click to pick`;
-    img.setAttribute("aria-description", "shows it as the result");
-    img.dataset.seed = answer.used;
-    img.tabIndex = 0;
-    img.setAttribute("role", "button");
-    img.addEventListener("click", () => pick(answer, img));
-    img.addEventListener("keydown", (e) => {
-      if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
-    });
-    const caption = document.createElement("figcaption");
-    caption.textContent = `seed ${answer.used}`;
-    caption.setAttribute("aria-hidden", "true");
-    figure.append(img, caption);
-    strip.append(figure);
-    shown = shown || [answer, img];
+    const img = addToStrip(strip, URL.createObjectURL(answer.blob), `fill ${k + 1}, seed ${answer.used}`,
+                           answer.used, () => pick(answer));
+    shown = shown || img;
   }
-  pick(...shown);
+  shown.click();  // fill 1, marked chosen
   return [seeds, warned];
 }
 
