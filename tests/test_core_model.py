@@ -555,8 +555,9 @@ def test_save_load_identical_output(small_model, tmp_path):
     assert loaded.dims_ == small_model.dims_
     assert loaded.n_parameters() == small_model.n_parameters()
     patches = small_model.sample_patches(20, rng=4)  # inspection needs nothing the file lacks
-    (labels, sources), (labels2, sources2) = (m.ichm_.transform(m.encode(patches)) for m in (small_model, loaded))
+    (labels, sources), (labels2, sources2) = (m.ichm_.unmix(m.encode(patches)) for m in (small_model, loaded))
     assert np.array_equal(labels, labels2) and all(np.array_equal(a, b) for a, b in zip(sources, sources2))
+    assert loaded.ichm_.n_iter_ == small_model.ichm_.n_iter_ >= 1  # FastICA's most iterations (0.61), in the file
     with zipfile.ZipFile(path) as zf:  # arrays plus JSON, no pickled objects
         assert all(name.endswith(".npy") for name in zf.namelist())
 
@@ -1136,39 +1137,64 @@ def test_encode_gives_the_fits_vectors_and_predict_its_clusters(bricks96, monkey
     np.testing.assert_array_equal(model.ichm_.predict(z, chunk=7), labels)  # chunked the same
 
 
-def test_ichm_transform_is_the_inverse_of_mix(small_model):
+def test_ichm_unmix_is_the_inverse_of_mix(small_model):
     ichm = small_model.ichm_
     labels, sources = ichm.sample_sources(200, rng=5)
     z = ichm.mix(labels, sources)
-    back_labels, back = ichm.transform(z, labels=labels)
+    back_labels, back = ichm.unmix(z, labels=labels)
     np.testing.assert_array_equal(back_labels, labels)
     assert [s.shape for s in back] == [s.shape for s in sources]
     for s, t in zip(back, sources):  # the sources themselves (the mixing rows are independent)
         np.testing.assert_allclose(s, t, rtol=0, atol=1e-9 * np.abs(t).max())
     np.testing.assert_allclose(ichm.mix(back_labels, back), z, rtol=0, atol=1e-10 * np.abs(z).max())
     sampled, sampled_labels = ichm.sample(100, rng=6)  # as sample gives them: exact in their own clusters
-    np.testing.assert_allclose(ichm.mix(*ichm.transform(sampled, labels=sampled_labels)), sampled, rtol=0,
+    np.testing.assert_allclose(ichm.mix(*ichm.unmix(sampled, labels=sampled_labels)), sampled, rtol=0,
                                atol=1e-10 * np.abs(sampled).max())
-    assert np.array_equal(ichm.transform(sampled)[0], ichm.predict(sampled))  # default labels: predict's
-    # scikit-learn's pair: ICHM had transform but no inverse_transform (the README promises both) -- it is mix
-    assert np.array_equal(ichm.inverse_transform(*ichm.transform(sampled, labels=sampled_labels)),
-                          ichm.mix(*ichm.transform(sampled, labels=sampled_labels)))
-    assert ichm.inverse_transform(labels, sources).dtype == np.float64
+    assert np.array_equal(ichm.unmix(sampled)[0], ichm.predict(sampled))  # default labels: predict's
 
 
-def test_ichm_transform_projects_other_vectors_onto_their_clusters_subspace(small_model, bricks96):
+def test_ichm_transform_is_one_array_of_clusters_and_components_and_inverse_transform_mixes_it(small_model):
+    # 0.60's transform returned (labels, sources), so scikit-learn's check_estimator stopped at "ICHM seems to be a
+    # Transformer" and a Pipeline could not pass it on: that pair is unmix's now; transform's one row per vector is
+    # its cluster one-hot, then its components in the F columns of the components (zeros in other clusters' blocks).
+    ichm = small_model.ichm_
+    sampled, sampled_labels = ichm.sample(100, rng=6)
+    n, f = len(ichm.means_), ichm.n_cdfs_
+    codes = ichm.transform(sampled, labels=sampled_labels)
+    assert codes.shape == (100, n + f) and codes.dtype == np.float64
+    np.testing.assert_array_equal(codes[:, :n], np.eye(n)[sampled_labels])
+    labels, sources = ichm.unmix(sampled, labels=sampled_labels)
+    for i, comp in enumerate(ichm._blocks()):  # column n + f: the component whose CDF is cdf_index_[f]
+        np.testing.assert_array_equal(codes[labels == i][:, n + comp.start:n + comp.stop], sources[i])
+        rest = np.ones(f, bool)
+        rest[comp] = False
+        assert not codes[labels == i][:, n:][:, rest].any()
+    np.testing.assert_allclose(ichm.inverse_transform(codes), ichm.mix(labels, sources), rtol=0,
+                               atol=1e-12 * np.abs(sampled).max())
+    np.testing.assert_allclose(ichm.inverse_transform(codes), sampled, rtol=0, atol=1e-10 * np.abs(sampled).max())
+    np.testing.assert_array_equal(ichm.transform(sampled)[:, :n].argmax(axis=1), ichm.predict(sampled))
+    with pytest.warns(FutureWarning, match=r"inverse_transform\(labels, sources\) is mix\(labels, sources\) since "
+                                           r"0\.61 .*; call mix"):
+        old = ichm.inverse_transform(labels, sources)  # 0.60's call, kept a while
+    np.testing.assert_array_equal(old, ichm.mix(labels, sources))
+    with pytest.raises(TGHopError, match=re.escape(f"X must have shape (n, N + F) = (n, {n + f}) (transform's rows) "
+                                                   f"for this fitted model, got (2, {f})")):
+        ichm.inverse_transform(np.zeros((2, f)))
+
+
+def test_ichm_unmix_projects_other_vectors_onto_their_clusters_subspace(small_model, bricks96):
     from tghop.patches import extract_patches
 
     ichm = small_model.ichm_
     z = small_model.encode(extract_patches(bricks96, 32, stride=3))
-    labels, sources = ichm.transform(z)
+    labels, sources = ichm.unmix(z)
     kept = ichm.mix(labels, sources)
     assert np.abs(kept - z).max() > 1e-3 * np.abs(z).max()  # training-like vectors leave the subspace
     blocks = ichm._blocks()
     for i in range(len(ichm.means_)):  # what is dropped is orthogonal to the cluster's mixing rows
         rows = ichm.mixing_[blocks[i]]
         np.testing.assert_allclose((z - kept)[labels == i] @ rows.T, 0, atol=1e-9 * np.abs(z).max())
-    again = ichm.mix(*ichm.transform(kept, labels=labels))  # a projection: idempotent
+    again = ichm.mix(*ichm.unmix(kept, labels=labels))  # a projection: idempotent
     np.testing.assert_allclose(again, kept, rtol=0, atol=1e-10 * np.abs(z).max())
 
 
@@ -1189,7 +1215,7 @@ def test_encode_inverts_decode_before_its_clip(small_model, rng):
 
 def test_inspection_refuses_bad_shapes_and_labels(small_model):
     ichm, d = small_model.ichm_, small_model.dims_["D_r"]
-    for call in (ichm.predict, ichm.transform):
+    for call in (ichm.predict, ichm.unmix, ichm.transform):
         for z, words in ((np.zeros((2, d + 1)), f"Z must have shape (n, D_r) = (n, {d}) for this fitted model, "
                           f"got (2, {d + 1})"), (np.zeros(d), f"Z must have shape (n, D_r), got ({d},)"),
                          (np.full((2, d), np.nan), "Z contains NaN or infinite values")):
@@ -1199,7 +1225,7 @@ def test_inspection_refuses_bad_shapes_and_labels(small_model):
     n = len(ichm.means_)
     for labels in ([0], [0, n], [0.0, 1.0], [-1, 0]):
         with pytest.raises(TGHopError, match=rf"labels must be 2 cluster indices from 0 to {n - 1}"):
-            ichm.transform(np.zeros((2, d)), labels=np.array(labels))
+            ichm.unmix(np.zeros((2, d)), labels=np.array(labels))
     for x in (np.zeros((2, 16, 16, 3)), np.zeros((2, 32, 32, 1))):
         with pytest.raises(TGHopError, match=re.escape(f"patches must have shape (n, 32, 32, 3) for this fitted "
                                                        f"model, got {x.shape}")):
@@ -1213,7 +1239,7 @@ def test_inverse_transform_refuses_bad_sources_and_labels_in_one_line(small_mode
     # dimension 0, ..."), float labels in a raw TypeError ("Cannot cast array data ...") and negative ones in a raw
     # ValueError from bincount.
     ichm = small_model.ichm_
-    labels, sources = ichm.transform(small_model.encode(small_model.sample_patches(6, rng=0)))
+    labels, sources = ichm.unmix(small_model.encode(small_model.sample_patches(6, rng=0)))
     i = int(labels[0])
     narrow = [s[:, :1] if k == i else s for k, s in enumerate(sources)]
     n, k, c = len(ichm.means_), int((labels == i).sum()), int(ichm.n_components_[i])
@@ -1224,11 +1250,9 @@ def test_inverse_transform_refuses_bad_sources_and_labels_in_one_line(small_mode
                         ((np.where(labels == i, -1, labels), sources), "mix: labels must be a 1-D array"),
                         ((labels[None], sources), "mix: labels must be a 1-D array"),
                         ((labels, sources[:-1]), f"mix: sources must be a list of {n} arrays, one per cluster")):
-        for call in (ichm.inverse_transform, ichm.mix):
-            with pytest.raises(TGHopError, match=re.escape(words)) as info:
-                call(*args)
-            assert "\n" not in str(info.value)
-    np.testing.assert_array_equal(ichm.inverse_transform(labels, sources), ichm.mix(labels, sources))
+        with pytest.raises(TGHopError, match=re.escape(words)) as info:
+            ichm.mix(*args)
+        assert "\n" not in str(info.value)
 
 
 @pytest.mark.parametrize("chunk", [-1, 0, 2.5, True, "8"])
@@ -1242,14 +1266,16 @@ def test_predict_checks_chunk(small_model, chunk):
     np.testing.assert_array_equal(small_model.ichm_.predict(z, chunk=2), small_model.ichm_.predict(z))
 
 
-def test_transform_takes_an_empty_labels_list_for_no_vectors(small_model):
+def test_unmix_takes_an_empty_labels_list_for_no_vectors(small_model):
     # review 60: [] became a float array and was refused
     d = small_model.ichm_.means_.shape[1]
-    labels, sources = small_model.ichm_.transform(np.zeros((0, d)), labels=[])
+    assert small_model.ichm_.transform(np.zeros((0, d)), labels=[]).shape == (0, len(small_model.ichm_.means_)
+                                                                               + small_model.ichm_.n_cdfs_)
+    labels, sources = small_model.ichm_.unmix(np.zeros((0, d)), labels=[])
     assert labels.shape == (0,) and labels.dtype == np.int64
     assert [s.shape for s in sources] == [(0, k) for k in small_model.ichm_.n_components_]
     with pytest.raises(TGHopError, match="labels must be 2 cluster indices"):
-        small_model.ichm_.transform(np.zeros((2, d)), labels=[])
+        small_model.ichm_.unmix(np.zeros((2, d)), labels=[])
 
 
 def test_encode_reads_uint8_as_its_floats(small_model, bricks96):

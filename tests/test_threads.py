@@ -93,7 +93,7 @@ def test_predict_holds_one_blas_thread(monkeypatch, small_model):
     z, _ = small_model.ichm_.sample(500, rng=3)
     with threadpool_limits(limits=2, user_api="blas"):
         labels = small_model.ichm_.predict(z, chunk=128)
-        transformed, _ = small_model.ichm_.transform(z)
+        transformed, _ = small_model.ichm_.unmix(z)
         assert {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"} <= {2}  # restored after
     assert len(seen) == 2 and all(s == {1} for s in seen)
     np.testing.assert_array_equal(transformed, labels)

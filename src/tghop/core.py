@@ -5,7 +5,7 @@
 of dimension ``D_r``; ``ICHM`` learns the distribution of ``z`` and samples new vectors.
 
 Where its parts are: this module holds ``ICHM``'s settings and its steps (``fit``; drawing,
-``sample_sources`` / ``sample`` / ``mix``; inspecting, ``predict`` / ``transform``).
+``sample_sources`` / ``sample`` / ``mix``; inspecting, ``predict`` / ``unmix`` / ``transform``).
 :mod:`tghop.ichm_clusters` holds the per-cluster work those steps call, as functions of arrays
 (merging small clusters, PCA + FastICA, the residual Gaussian, histogram CDFs and their
 codebook, inverse-CDF and norm matching of draws); :mod:`tghop.ichm_storage` how the fitted
@@ -52,7 +52,7 @@ import numpy as np
 
 from ._arrays import check_array, check_count, check_int, check_width, forget_fit
 from ._errors import TGHopError, warn
-from ._estimator import BaseEstimator, check_is_fitted, check_rng
+from ._estimator import BaseEstimator, TransformerMixin, check_is_fitted, check_rng
 from ._progress import report
 from ._resources import one_blas_thread, usable_cores
 from .coupling import coupled_uniforms, member_ranks
@@ -70,7 +70,7 @@ __all__ = ["ICHM", "fast_ica", "AUTO_CLUSTERS", "AUTO_PER_CLUSTER", "QUANTILE_ST
 _CACHES = ("_stored_mixing", "_mixing", "_mixing32", "_ranks", "_quantiles")
 
 
-class ICHM(ICHMStorageMixin, BaseEstimator):
+class ICHM(ICHMStorageMixin, TransformerMixin, BaseEstimator):
     """Independent-components histogram matching: a mixture of per-cluster ICA models.
 
     Parameters
@@ -136,6 +136,9 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         Range of each component (the CDF's bin structure spans it).
     codebook_ : ndarray, shape (W, n_bins)
         Quantised CDF shapes: the CDF at the right edge of each bin (last value 1).
+    n_iter_ : int
+        The most FastICA iterations any cluster ran (scikit-learn's ``FastICA.n_iter_``; 0.61: a model
+        file of 0.60 or older does not record it, 0).
     n_ica_unconverged_ : int
         Clusters whose FastICA hit ``max_iter`` (sampling stays exact for them; the
         components are just less independent).
@@ -265,8 +268,13 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
 
     def _fit(self, Z, groups, progress):
         Z = check_array(Z, "Z", "(n_samples, D_r)", ndim=2, min_rows=0)
+        # In the words scikit-learn's checks look for too (0.61), as Saab's
         if Z.shape[1] < 1:
-            raise TGHopError(f"Z must have shape (n_samples, D_r) with D_r >= 1, got {Z.shape}")
+            raise TGHopError(f"ICHM needs vectors of dimension D_r >= 1: found 0 feature(s) (shape={Z.shape}) while a "
+                             "minimum of 1 is required; give Z of shape (n_samples, D_r) with D_r >= 1")
+        if Z.shape[0] == 1:
+            raise TGHopError(f"ICHM needs more than one vector: found 1 sample(s) (shape={Z.shape}); give Z at least "
+                             f"min_cluster_size ({self.min_cluster_size}) rows per cluster")
         self._check_params(Z.shape[0])
         self._quantiles = None  # derived from the codebook: never reuse a previous fit's
         rng = check_rng(self.rng)
@@ -284,7 +292,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         def one(i):
             members = Z[labels == i]
             mean = members.mean(axis=0)
-            return (mean, *self._fit_cluster(members - mean, np.random.default_rng(seeds[i])))
+            return (mean, *self._fit_cluster(members - mean, np.random.default_rng(seeds[i]), return_n_iter=True))
 
         from concurrent.futures import ThreadPoolExecutor  # not at module level: loading a model needs none
 
@@ -294,10 +302,11 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         # once); as many at once as there are idle cores: on a busy machine more only compete.
         workers = max(1, min(n_clusters, usable_cores()))
         with one_blas_thread(), ThreadPoolExecutor(max_workers=workers) as pool:
-            fitted = []
+            fitted, n_iters = [], []
             for i, result in enumerate(pool.map(one, range(n_clusters))):
                 report(progress, "ICA", i, n_clusters)
                 fitted.append(result[:4])
+                n_iters.append(result[-1])
                 if residuals is not None:
                     residuals.append(result[4])
         self.means_ = np.array([mean for mean, _, _, _ in fitted])
@@ -305,6 +314,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         sources = [s for _, _, s, _ in fitted]
         n_comp = [m.shape[0] for m in mixing]
         self.n_ica_unconverged_ = sum(not ok for _, _, _, ok in fitted)
+        self.n_iter_ = max(n_iters, default=0)  # scikit-learn's FastICA's (deflation): the most any cluster ran
         self._fit_residual(residuals, Z.shape[1], groups)
         # Model files store the mixing matrix (most of the model) as float16 rows with a
         # float32 scale each (a quarter of float64's size); rounding here keeps a fitted
@@ -324,11 +334,11 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         labels, centres = kmeans(Z, self.clusters_for(len(Z)), rng)  # float32: it only routes samples
         return merge_small_clusters(Z, labels, centres, self.min_cluster_size)
 
-    def _fit_cluster(self, centred, rng):
+    def _fit_cluster(self, centred, rng, return_n_iter=False):
         """:func:`tghop.ichm_clusters.fit_cluster` with this model's settings."""
         return fit_cluster(centred, rng, energy=self.cluster_energy, max_components=self.max_cluster_components,
                            max_ratio=self.max_component_ratio, max_iter=self.max_iter, tol=self.tol,
-                           residual=self.residual)
+                           residual=self.residual, return_n_iter=return_n_iter)
 
     def _fit_residual(self, residuals, d_r, groups):
         """The Gaussian of the residuals ``(n_i, D_r)`` of all clusters (empty without ``residual``)."""
@@ -552,7 +562,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         sources : list of ndarray
             ``sources[i]`` has shape (count of label i, n_components_[i]), cluster ``i``'s
             vectors in their order in ``labels`` (as :meth:`sample_sources` and
-            :meth:`transform` return them).
+            :meth:`unmix` return them).
         mixing : ndarray, shape (F, D_r), optional
             Default :attr:`mixing_`; a caller may pass it in another dtype (float32 for
             generation, :meth:`mixing_as`).
@@ -592,7 +602,7 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         n_clusters = len(self.means_)
         if not isinstance(sources, (list, tuple)) or len(sources) != n_clusters:
             got = f"a {type(sources).__name__} of {len(sources)}" if hasattr(sources, "__len__") else repr(sources)
-            raise TGHopError(f"mix: sources must be a list of {n_clusters} arrays, one per cluster (as transform and "
+            raise TGHopError(f"mix: sources must be a list of {n_clusters} arrays, one per cluster (as unmix and "
                              f"sample_sources return them), got {got}")
         counts = np.bincount(labels, minlength=n_clusters)
         for i, (s, k, c) in enumerate(zip(sources, counts, self.n_components_)):
@@ -618,7 +628,10 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         check_is_fitted(self, "means_")
         Z = check_array(Z, "Z", "(n, D_r)", ndim=2, min_rows=0)
         d = self.means_.shape[1]
-        check_width(Z, "Z", f"(n, D_r) = (n, {d})", (d,))
+        if Z.shape[1] != d:  # in scikit-learn's words too, whose X is Z here (0.61)
+            raise TGHopError(f"Z must have shape (n, D_r) = (n, {d}) for this fitted model, got {Z.shape} (in "
+                             f"scikit-learn's words, X has {Z.shape[1]} features, but ICHM is expecting {d} features "
+                             "as input)")
         return Z
 
     def _check_labels(self, labels, n, where):
@@ -659,11 +672,12 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
         with one_blas_thread():  # the same labels on any number of cores (OpenBLAS rounds by its threads)
             return nearest(Z, self.means_, chunk=chunk)
 
-    def transform(self, Z, *, labels=None):
-        """The independent components of each vector in its cluster: the inverse of :meth:`mix`.
+    def unmix(self, Z, *, labels=None):
+        """The independent components of each vector in its cluster: the inverse of :meth:`mix`
+        (0.61; 0.60's :meth:`transform` gave these).
 
         Cluster ``i``'s components of ``z`` are ``(z - means_[i]) @ pinv(mixing_[block i])``
-        (through a QR decomposition of the block), so ``mix(*transform(Z))`` is each ``z``
+        (through a QR decomposition of the block), so ``mix(*unmix(Z))`` is each ``z``
         projected orthogonally onto its cluster's affine subspace (its mean plus the row
         space of its mixing rows: its kept PCA components): ``Z`` itself, to float
         precision, for vectors in that subspace, such as :meth:`sample`'s with their own
@@ -683,8 +697,8 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
             cluster ``i`` in their order in ``labels``, as :meth:`sample_sources` returns them.
         """
         Z = self._check_vectors(Z)
-        labels = self._check_labels(self.predict(Z) if labels is None else labels, len(Z), "transform")
-        mixing, sources = self.mixing_, []
+        labels = self._check_labels(self.predict(Z) if labels is None else labels, len(Z), "unmix")
+        mixing, sources = self._mixing_uncached(), []
         with one_blas_thread():  # as in fit: threaded BLAS only slows many small matrices
             for i, comp in enumerate(self._blocks()):  # a cluster of no components gives (m, 0) sources
                 # mixing[comp].T = Q R: the least-squares s of s @ mixing[comp] = z - mean is ((z - mean) Q) R^-T
@@ -693,21 +707,57 @@ class ICHM(ICHMStorageMixin, BaseEstimator):
                 sources.append(np.linalg.solve(r, ((Z[labels == i] - self.means_[i]) @ q).T).T)
         return labels.astype(np.int64, copy=False), sources
 
-    def inverse_transform(self, labels, sources):
-        """Independent components -> vectors: scikit-learn's name for :meth:`mix`, the inverse of
-        :meth:`transform` (``inverse_transform(*transform(Z))`` is ``Z`` projected onto each
-        vector's cluster subspace: ``Z`` itself for vectors in it, such as :meth:`sample`'s).
+    def transform(self, Z, *, labels=None):
+        """Each vector as one row of numbers (scikit-learn's transform; 0.61): its cluster, one-hot, in the
+        first N columns, then its independent components (:meth:`unmix`'s) in the F columns of the
+        components, its own cluster's block (column ``N + f`` is the component whose CDF is ``cdf_index_[f]``),
+        zeros in the other clusters' blocks. :meth:`inverse_transform` of it is :meth:`mix` of :meth:`unmix`'s.
+
+        0.60's ``transform`` returned ``(labels, sources)``, which :meth:`unmix` returns now (scikit-learn's
+        checks and pipelines take a transformer's output to be one array).
 
         Parameters
         ----------
-        labels : array_like of int, shape (n,)
-            The cluster of each vector, as :meth:`transform` returns them.
-        sources : list of ndarray
-            ``sources[i]``: cluster ``i``'s components, as :meth:`transform` returns them.
+        Z : array_like, shape (n, D_r)
+        labels : array_like of int, shape (n,), optional
+            The cluster of each vector; None: :meth:`predict`'s.
+
+        Returns
+        -------
+        codes : ndarray of float64, shape (n, N + F)
+            Float64: (N + F) x 8 bytes a vector (51 KB for N = 100, F = 6,289); :meth:`unmix` keeps only its own.
+        """
+        labels, sources = self.unmix(Z, labels=labels)
+        n_clusters = len(self.means_)
+        codes = np.zeros((len(labels), n_clusters + self.n_cdfs_))
+        codes[np.arange(len(labels)), labels] = 1.0
+        for i, (s, comp) in enumerate(zip(sources, self._blocks())):
+            codes[np.flatnonzero(labels == i), n_clusters + comp.start:n_clusters + comp.stop] = s
+        return codes
+
+    def inverse_transform(self, X, sources=None):
+        """:meth:`transform`'s rows back to vectors: ``X[:, :N] @ means_ + X[:, N:] @ mixing_``, one
+        matrix product (:meth:`mix` of the same labels and components, to float precision).
+
+        Parameters
+        ----------
+        X : array_like, shape (n, N + F)
+            As :meth:`transform` returns it.
+        sources : list of ndarray, optional
+            Deprecated (a FutureWarning; 0.60's call): ``inverse_transform(labels, sources)``, :meth:`mix`'s.
 
         Returns
         -------
         Z : ndarray of float64, shape (n, D_r)
-            In the order of ``labels``.
         """
-        return self.mix(labels, sources)
+        check_is_fitted(self, "means_")
+        if sources is not None:
+            warn("ICHM.inverse_transform(labels, sources) is mix(labels, sources) since 0.61 (inverse_transform "
+                 "takes transform's one array); call mix", FutureWarning)
+            return self.mix(X, sources)
+        n_clusters = len(self.means_)
+        X = check_array(X, "X", f"(n, N + F) = (n, {n_clusters + self.n_cdfs_})", ndim=2, min_rows=0)
+        check_width(X, "X", f"(n, N + F) = (n, {n_clusters + self.n_cdfs_}) (transform's rows)",
+                    (n_clusters + self.n_cdfs_,))
+        with one_blas_thread():  # the same vectors on any number of cores
+            return X[:, :n_clusters] @ self.means_ + X[:, n_clusters:] @ self._mixing_uncached()

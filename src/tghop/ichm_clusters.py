@@ -81,7 +81,7 @@ def merge_small_clusters(Z, labels, centres, min_size):
     return labels
 
 
-def fit_cluster(centred, rng, *, energy, max_components, max_ratio, max_iter, tol, residual=False):
+def fit_cluster(centred, rng, *, energy, max_components, max_ratio, max_iter, tol, residual=False, return_n_iter=False):
     """PCA-whiten one cluster's members and run FastICA on them.
 
     PCA keeps the fewest components that reach ``energy`` of the variance, at most
@@ -107,6 +107,8 @@ def fit_cluster(centred, rng, *, energy, max_components, max_ratio, max_iter, to
         FastICA's tolerance.
     residual : bool, default=False
         Also return what the kept components miss of each member.
+    return_n_iter : bool, default=False
+        Also return FastICA's iterations, last (0.61).
 
     Returns
     -------
@@ -118,6 +120,8 @@ def fit_cluster(centred, rng, *, energy, max_components, max_ratio, max_iter, to
         Whether FastICA converged within ``max_iter``.
     residual : ndarray of float32, shape (n, D_r)
         Only with ``residual``: ``centred`` less its projection on the kept components.
+    n_iter : int
+        Only with ``return_n_iter``: FastICA's iterations.
     """
     n, d = centred.shape
     gram = n <= d
@@ -130,13 +134,14 @@ def fit_cluster(centred, rng, *, energy, max_components, max_ratio, max_iter, to
     std = np.sqrt(var[:k])
     basis = flip_signs((vecs[:, :k].T @ centred) / np.sqrt(vals[:k])[:, None] if gram else vecs[:, :k].T)
     white = centred @ basis.T / std
-    unmix, converged = fast_ica(white, max_iter=max_iter, tol=tol, rng=rng)
+    unmix, converged, n_iter = fast_ica(white, max_iter=max_iter, tol=tol, rng=rng, return_n_iter=True)
     sources = white @ unmix.T
     # z - mean = white * std @ basis = sources @ inv(unmix).T * std @ basis
     mixing = np.linalg.inv(unmix).T @ (std[:, None] * basis)
+    out = (mixing, sources, converged)
     if residual:  # what the kept components miss (basis rows are orthonormal)
-        return mixing, sources, converged, (centred - (centred @ basis.T) @ basis).astype(np.float32)
-    return mixing, sources, converged
+        out += ((centred - (centred @ basis.T) @ basis).astype(np.float32),)
+    return out + (n_iter,) if return_n_iter else out
 
 
 def residual_factors(residuals, d_r, groups=None):

@@ -375,7 +375,7 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
             "hops": [hop._state_meta() for hop in self.hops_.hops_],
             "hop_dims": self.hops_.dims_,
             "sdr_shape": list(self.sdr_.shape_),
-            "ica_unconverged": int(self.ichm_.n_ica_unconverged_),
+            "ica_unconverged": int(self.ichm_.n_ica_unconverged_), "ica_n_iter": int(self.ichm_.n_iter_),
             # The fitted parts' copies of the fit's generator, as they were before their fits (0.57): a loaded
             # model's parts hold them too (get_params, clone, repr as the fitted one's); older files: None.
             "ichm_rng": settings.generator_record(self.ichm_.rng),
@@ -413,6 +413,7 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
             arrays, tuple(int(v) for v in meta["sdr_shape"]))
         model.ichm_ = ICHM(**settings.component_params(model, "ichm"))._from_arrays(arrays)
         model.ichm_.n_ica_unconverged_ = int(meta.get("ica_unconverged", 0))
+        model.ichm_.n_iter_ = int(meta.get("ica_n_iter", 0))  # 0.61
         model.ichm_.rng = settings.generator_from_record(meta.get("ichm_rng"), "ichm_rng")
         model.exemplar_depth_ = exemplar_depth(meta.get("exemplar_depth"), what="the metadata's exemplar_depth")
         model.exemplar_levels_ = _levels(meta.get("exemplar_levels"), model.exemplar_shape_[2])

@@ -207,7 +207,7 @@ def _orthonormal(w, tol=0.01) -> bool:
     return bool(np.abs(np.einsum("ij,ij->i", w, w) - 1.0).max() <= tol)
 
 
-def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
+def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None, return_n_iter=False):
     """Symmetric FastICA (Hyvarinen 1999) with the logcosh contrast on whitened data.
 
     Parameters
@@ -219,16 +219,20 @@ def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
         Stop when every unmixing direction changes by less than this.
     rng : int or numpy.random.Generator, optional
         Initial rotation.
+    return_n_iter : bool, default=False
+        Also return the iterations run (0.61; scikit-learn's ``fastica`` has it).
 
     Returns
     -------
     unmix : ndarray, shape (k, k)
         Orthogonal matrix; the independent components are ``white @ unmix.T``.
     converged : bool
+    n_iter : int, only with ``return_n_iter``
+        Iterations run (1 for one component: nothing to iterate).
     """
     n, k = white.shape
     if k == 1:
-        return np.ones((1, 1)), True
+        return (np.ones((1, 1)), True, 1)[:3 if return_n_iter else 2]
 
     def decorrelate(w):
         vals, vecs = np.linalg.eigh(w @ w.T)
@@ -239,8 +243,8 @@ def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
     w = good = decorrelate(check_rng(rng).standard_normal((k, k))).astype(np.float32)
     x = np.asarray(white, dtype=np.float32)
     xt = np.ascontiguousarray(x.T)
-    converged = False
-    for _ in range(int(max_iter)):
+    converged, n_iter = False, 0
+    for n_iter in range(1, int(max_iter) + 1):
         g = np.tanh(w @ xt)
         w_new = decorrelate(g @ x / n - (1.0 - g**2).mean(axis=1)[:, None] * w)
         if not np.isfinite(w_new).all():
@@ -256,5 +260,5 @@ def fast_ica(white, *, max_iter=200, tol=1e-4, rng=None):
     if not _orthonormal(out):
         # A singular update (few samples in many dimensions) blew a direction up and the
         # iterations ended there: the last orthogonal iterate instead, unconverged.
-        return decorrelate(good.astype(np.float64)), False
-    return out, converged
+        return (decorrelate(good.astype(np.float64)), False, n_iter)[:3 if return_n_iter else 2]
+    return (out, converged, n_iter)[:3 if return_n_iter else 2]
