@@ -307,6 +307,35 @@ def test_an_empty_exclude_mask_gives_the_same_model(cells):
         TGHop(rng=0, **FAST).fit(cells, exclude=np.zeros((5, 5), bool))
 
 
+def test_return_stages_gives_each_steps_picture_and_the_last_is_the_result(model, cells, square, small_model,
+                                                                           bricks96):
+    # 0.60: synthesize(return_stages=True) showed each step of a synthesis, but an inpainting's steps (its coarse
+    # fill, quilt, seams, refinements) could not be looked at.
+    laid = small_model  # with a coarse layout: its fill is the step "guide"
+    assert laid.layout_ is not None
+    for m, picture in ((laid, to_uint8(bricks96)), (model, cells.astype(np.uint16) * np.uint16(257)),
+                       (model, cells / 255.0)):
+        out, stages = inpaint(m, picture, square, rng=1, return_stages=True, **POOL)
+        assert np.array_equal(out, inpaint(m, picture, square, rng=1, **POOL))  # the same fill
+        names = [k for k in stages if k != "pool"]
+        want = ["quilt", "seams", "refine", "patch refine"]
+        assert names == (["guide"] if m is laid else []) + want
+        top = {np.uint8: 255, np.uint16: 65535}.get(picture.dtype.type, 1)
+        known = (picture[~square] / top).astype(np.float32)
+        for name in names:
+            assert stages[name].dtype == np.float32 and stages[name].shape == picture.shape
+            assert np.array_equal(stages[name][~square], known)  # the picture's own pixels in every step
+        assert np.array_equal(stages[names[-1]], (out / top).astype(np.float32))  # the last step is the result
+        assert not np.array_equal(stages["quilt"], stages["seams"]) and not np.array_equal(stages["seams"],
+                                                                                          stages["refine"])
+        assert stages["pool"].shape == (POOL["n_patches"], m.patch_size, m.patch_size, 3)
+    no_steps = inpaint(model, cells, square, rng=1, seam_window=0, refine=0, patch_refine=0, n_patches=600,
+                       return_stages=True)[1]
+    assert [k for k in no_steps if k != "pool"] == ["quilt"]
+    grown, steps = extend(model, cells, (96, 128), anchor="left", rng=1, return_stages=True, **POOL)
+    assert np.array_equal(steps["patch refine"], grown / np.float32(255)) and steps["quilt"].shape == (96, 128, 3)
+
+
 # ---------------------------------------------------------------- command line
 def run(*args):
     return cli(*args)  # in this process: the same exit status and output, no interpreter to start
@@ -332,6 +361,34 @@ def test_cli_without_source_fits_on_the_image(files):
     src, out = (np.asarray(Image.open(files / n)) for n in ("cells.png", "out.png"))
     hole = np.asarray(Image.open(files / "mask.png")) > 127
     assert np.array_equal(out[~hole], src[~hole]) and not np.array_equal(out[hole], src[hole])
+
+
+def test_cli_stages_writes_each_steps_picture_the_last_the_output(files):
+    # 0.60: synth --stages wrote each step's image; inpaint and extend had no such option.
+    src = np.asarray(Image.open(files / "cells.png"))
+    for command, args in (("inpaint", (files / "mask.png",)), ("extend", ("--size", "96x128", "--anchor", "left"))):
+        out = files / f"st_{command}.png"
+        r = run(command, files / "cells.png", *args, "--source", files / "model.npz", "-o", out, "--seed", "3",
+                "--stages", "-q")
+        assert r.returncode == 0, r.stderr.decode()
+        steps = ["quilt", "seams", "refine", "patch-refine"]
+        said = f"steps written beside it: {', '.join(f'st_{command}_{s}.png' for s in steps)}\n"
+        assert said in r.stderr.decode()
+        pictures = [np.asarray(Image.open(files / f"st_{command}_{s}.png")) for s in steps]
+        result = np.asarray(Image.open(out))
+        assert np.array_equal(pictures[-1], result) and not np.array_equal(pictures[0], result)
+        kept = (slice(None), slice(0, 96)) if command == "extend" else ~(np.asarray(Image.open(files / "mask.png"))
+                                                                         > 127)
+        assert all(np.array_equal(p[kept], src[kept] if command == "inpaint" else src) for p in pictures)
+        again = files / f"plain_{command}.png"  # the same fill without --stages
+        assert run(command, files / "cells.png", *args, "--source", files / "model.npz", "-o", again, "--seed", "3",
+                   "-q").returncode == 0
+        assert np.array_equal(np.asarray(Image.open(again)), result)
+    r = run("inpaint", files / "cells.png", files / "mask.png", "-o", "-", "--stages", "-q")
+    assert_user_error(r, "--stages needs a file name", status=2)
+    r = run("extend", files / "cells.png", files / "mask.png", "--maps", "--size", "96x128", "-o", files / "m.png",
+            "--stages", "-q")
+    assert_user_error(r, "--stages applies to a picture's fill, not a material's maps; drop it", status=2)
 
 
 def test_cli_with_a_model_and_tile(files):

@@ -26,7 +26,7 @@ from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
            "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
-           "quiet_tifffile", "examples"]
+           "quiet_tifffile", "examples", "STAGES", "stage_paths"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -633,6 +633,17 @@ def count_outputs(output: str, count: int) -> list:
     if output == "-":
         raise click.UsageError("--count > 1 cannot write to stdout; give a file name with -o")
     return numbered(output, count)
+
+
+#: The steps ``--stages`` writes (synth, inpaint, extend), as ``TGHop.synthesize(return_stages=True)`` and
+#: :func:`tghop.inpaint.inpaint` name them.
+STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour", "levels")
+
+
+def stage_paths(path):
+    """``OUT_<step>.png`` for each of :data:`STAGES` beside the output ``path``."""
+    path = Path(path)
+    return {name: str(path.with_name(f"{path.stem}_{name.replace(' ', '-')}{path.suffix}")) for name in STAGES}
 
 
 def numbered(path: str, count: int):

@@ -11,7 +11,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
-                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples)
+                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples, stage_paths)
 from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -38,6 +38,10 @@ def _fill_options(fitted_on: str, tile_help: str):
                           "name_1_NormalGL.png): the model is fitted once, and fill k is the same in any --count of "
                           "k or more with that seed (fill 1 is --count 1's)."),
         click.option("--tile", is_flag=True, help=tile_help),
+        click.option("--stages", is_flag=True,
+                     help="Also write each step's picture beside OUTPUT, at its depth (0.61): OUTPUT_guide (the coarse "
+                          "layout's fill, where the model has one), _quilt, _seams, _refine, _patch-refine (the last "
+                          "step's: the result itself; a two-level exemplar's: then _levels). Not with --maps."),
         depth_option("IMAGE's, as far as the output's format holds it"),
         QUIET_OPTION,
     ]
@@ -71,7 +75,7 @@ MAPS_HELP = ("IMAGE is the albedo of a whole material: the images after {after} 
                    "to stdout).")
 @click.option("--maps", "with_maps", is_flag=True, help=MAPS_HELP.format(after="MASK", what="filled in the same hole"))
 @_fill_options("the part of IMAGE outside the hole", "IMAGE wraps around: the fill continues across its edges.")
-def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, count, tile, quiet, depth):
+def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, count, tile, stages, quiet, depth):
     """Fill the white pixels of MASK (an image of IMAGE's size; white: its channels' mean
     above mid-grey) with texture that continues IMAGE around them; every other pixel is kept.
     With --maps, the same hole in every map of a whole material. A MASK that is not black and
@@ -91,19 +95,20 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "MASK")
         outputs = count_outputs(output, count)
+        staged = _check_stages(stages, output, with_maps, outputs)
         if with_maps:
             _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, mask=mask)
             tell_seed(seed, drawn, _same(count))
             return
         picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth,
-                                                          others=[("MASK", mask)])
+                                                          others=[("MASK", mask)], staged=staged)
         hole = load_mask(mask, picture.shape, label="MASK", image_label=f"IMAGE {image}")
         require_hole(hole, f"MASK {mask}")  # before any fit: nothing would change
         _warn_most(hole, mask, image)
         model, rng = _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                             too_little=f"MASK {mask} leaves too little of IMAGE {image} to fit a model on",
                             fix="paint a smaller hole")
-        _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth)
+        _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth, staged=staged)
     if output != "-":
         filled = int(hole.sum())
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled{_times(count)}, written to "
@@ -128,7 +133,8 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
                                       "downwards, center evenly all round.")
 @_fill_options("IMAGE", "The result tiles seamlessly: the fill continues across its edges (where IMAGE spans the "
                         "whole height or width, IMAGE must tile there itself: it is kept as it is).")
-def extend(image, map_paths, output, with_maps, size, anchor, source, scale, seed, count, tile, quiet, depth):
+def extend(image, map_paths, output, with_maps, size, anchor, source, scale, seed, count, tile, stages, quiet,
+           depth):
     """Grow IMAGE to --size: IMAGE stays as it is at --anchor, and the new area is filled
     with texture that continues it (outpainting). With --maps, every map of a whole material.
 
@@ -142,12 +148,14 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
     with user_errors(progress):
         _check_maps(map_paths, with_maps, "IMAGE")
         outputs = count_outputs(output, count)
+        staged = _check_stages(stages, output, with_maps, outputs)
         if with_maps:
             _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress,
                            grow=(size, anchor.lower()))
             tell_seed(seed, drawn, _same(count))
             return
-        picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth, others=[])
+        picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth, others=[],
+                                                          staged=staged)
         canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
         _warn_untileable(tile, picture.shape, size, image)
         if alpha is not None:
@@ -155,7 +163,8 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         model, rng = _model(picture, None, image, source, source_is_model, scale, seed, progress,
                             too_little=f"IMAGE {image} is too small to fit a model on", fix="give a larger IMAGE",
                             grown=size)
-        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth, order="raster")
+        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth, order="raster",
+                        staged=staged)
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
                    f"to {_where(outputs)}", err=True)
@@ -199,7 +208,20 @@ def _check_maps(map_paths, with_maps, last):
         raise click.UsageError("--maps without maps; give the map images after it")
 
 
-def _open(image, outputs, source, scale, depth, *, others, maps=False):
+def _check_stages(stages, output, with_maps, outputs):
+    """--stages' files for each of ``outputs`` (:func:`~tghop.cli.common.stage_paths`; [] without it), or a usage
+    error where it cannot apply: -o - (no name to put them beside) or --maps."""
+    if not stages:
+        return []
+    if output == "-":
+        raise click.UsageError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's "
+                               "image, so give -o a file name (e.g. -o out.png) or drop --stages")
+    if with_maps:
+        raise click.UsageError("--stages applies to a picture's fill, not a material's maps; drop it")
+    return [stage_paths(path) for path in outputs]
+
+
+def _open(image, outputs, source, scale, depth, *, others, maps=False, staged=()):
     """Check the outputs (-o's, or --count's numbered files) and options shared by inpaint and extend, and
     read IMAGE: its
     colours (8-bit stays 8-bit), its alpha channel apart (or None), the output's depth
@@ -211,9 +233,11 @@ def _open(image, outputs, source, scale, depth, *, others, maps=False):
 
     output = outputs[0]
     check_output(output, allow_stdout=True, depth=depth)
-    for path in outputs[1:]:  # --count's numbered files, each before any work
+    steps = [path for paths in staged for path in paths.values()]  # --stages' files
+    for path in outputs[1:] + steps:  # --count's numbered files, each before any work
         check_output(path)
-    check_outputs([("-o", path) for path in outputs], [("IMAGE", image)] + others + [("--source", source)])
+    check_outputs([("-o", path) for path in outputs] + [("--stages", path) for path in steps],
+                  [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):
         raise TGHopError(f"IMAGE {image} is a model file; give a picture as IMAGE (a model goes to --source)")
     if image.startswith("builtin:") and not os.path.exists(image):  # the argument's bad value: a usage error (0.57)
@@ -312,19 +336,31 @@ def _check_channels(picture, n_channels, image, source):
                          "exemplar or model as --source, or leave --source out to fit on IMAGE")
 
 
-def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth, order="edge"):
+def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth, order="edge", staged=()):
     """Fill ``hole`` of ``picture`` with ``model`` and write it with its alpha channel, once per file of
     ``outputs``, each fill drawn after the one before from ``rng`` (--count). ``order``: the fill's
     (:func:`tghop.inpaint.inpaint`): "raster" for extend, as :func:`tghop.inpaint.extend` takes (0.60; 0.59's
-    ``tghop extend`` of a texture filled from the edge inwards, as a hole)."""
+    ``tghop extend`` of a texture filled from the edge inwards, as a hole). ``staged``: --stages' files of each
+    output (:func:`~tghop.cli.common.stage_paths`), each step's picture written there, without the alpha channel."""
+    from pathlib import Path
+
     from ..imageio import save_image
     from ..inpaint import inpaint as fill
 
-    for output in outputs:
-        result = fill(model, picture, hole, rng=rng, tile=tile, order=order, progress=progress)
+    for i, output in enumerate(outputs):
+        result = fill(model, picture, hole, rng=rng, tile=tile, order=order, progress=progress,
+                      return_stages=bool(staged))
         progress.close()
+        if staged:
+            result, steps = result
+            for name, step in steps.items():
+                if name in staged[i]:  # the pictures (not the patch pool)
+                    save_image(step, staged[i][name], depth=depth)
         save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
         progress.close()
+    if staged:
+        written = ", ".join(Path(p).name for p in staged[0].values() if Path(p).exists())
+        click.echo(f"steps written beside {'it' if len(outputs) == 1 else 'each'}: {written}", err=True)
 
 
 def _check_size(image, shape, p, whose, grown=None):

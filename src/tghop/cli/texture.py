@@ -16,7 +16,7 @@ from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
-                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples)
+                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples, stage_paths)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -344,16 +344,6 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     tell_seed(seed, drawn, "the same image" if count == 1 else "the same images")
 
 
-#: The steps ``synth --stages`` writes, as ``TGHop.synthesize(return_stages=True)`` names them.
-STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour", "levels")
-
-
-def _stage_paths(path):
-    """``OUT_<step>.png`` for each of :data:`STAGES` beside the output ``path``."""
-    path = Path(path)
-    return {name: str(path.with_name(f"{path.stem}_{name.replace(' ', '-')}{path.suffix}")) for name in STAGES}
-
-
 def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options, depth,
                stages=False):
     """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
@@ -376,7 +366,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     generation = generation_params(options)
     # Every output checked before the fit and before the first image is written.
     outputs = count_outputs(output, count)
-    staged = [_stage_paths(path) for path in outputs] if stages else []
+    staged = [stage_paths(path) for path in outputs] if stages else []
     if count > 1:
         for path in outputs:
             check_output(path)
