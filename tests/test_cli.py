@@ -91,10 +91,15 @@ def test_synth_stages_writes_each_steps_image(model_path, workdir):
     assert not np.array_equal(steps["quilt"], steps["seams"]) and not np.array_equal(steps["refine"], image)
     run("synth", model_path, "-o", workdir / "plain.png", "--size", "48x64", "--pool", "300", "--seed", "4", "-q")
     assert np.array_equal(np.asarray(Image.open(workdir / "plain.png")), image)  # --stages changes nothing
-    for args, message, status in ((["-o", "-"], "--stages needs a file name", 2),
-                                  ([model_path, "-o", workdir / "two.png"], "--stages applies to one SOURCE", 2)):
-        r = run("synth", model_path, *args, "--stages")
-        assert r.returncode == status and message in r.stderr.decode(), r.stderr.decode()  # 2: a usage error
+    r = run("synth", model_path, "-o", "-", "--stages")
+    assert r.returncode == 2 and "--stages needs a file name" in r.stderr.decode(), r.stderr.decode()  # usage error
+    # A remix's steps (0.60: "--stages applies to one SOURCE"): the regions, the layers before the join, the image.
+    r = run("synth", model_path, model_path, "-o", workdir / "two.png", "--size", "48x64", "--pool", "300",
+            "--seed", "4", "--stages", "-q")
+    assert r.returncode == 0 and "steps written beside it: two_regions.png, two_layers.png, two_join.png" in \
+        r.stderr.decode(), r.stderr.decode()
+    assert np.array_equal(np.asarray(Image.open(workdir / "two_join.png")), np.asarray(Image.open(workdir / "two.png")))
+    assert np.asarray(Image.open(workdir / "two_regions.png")).shape == (48, 64)
 
 
 def test_synth_stages_where_the_colour_matching_is_the_last_step(model_path, workdir):

@@ -201,7 +201,6 @@ def test_set_and_options_of_another_baseline_are_usage_errors(folder, monkeypatc
 
 
 @pytest.mark.parametrize("args, fragments", [
-    (["synth", "model.npz", "model.npz", "-o", "o.png", "--stages"], ["--stages applies to one SOURCE"]),
     (["synth", "model.npz", "-o", "o.png", "--transition", "8"], ["--transition applies to several SOURCEs"]),
     (["synth", "model.npz", "model.npz", "-o", "o.png", "--save-model", "m.npz"], ["--save-model takes one exemplar"]),
     (["synth", "model.npz", "model.npz", "-o", "o.png", "--exclude", "two_levels.png"], ["--exclude takes one"]),

@@ -228,6 +228,34 @@ def test_region_weights_blend_over_the_transition():
     assert set(np.unique(region_weights(labels, 2, 0))) == {0.0, 1.0}
 
 
+def test_return_stages_gives_the_regions_the_layers_before_the_join_and_the_result(models, exemplars):
+    # 0.60: a painted image's steps (its regions, each model's layer, the join) could not be looked at.
+    guide = np.zeros((96, 192), dtype=np.uint8)
+    guide[:, 96:] = 255
+    for dtype in (np.float64, np.uint8):
+        out, stages = tghop.synthesize_guided(models, guide, transition=16, rng=4, dtype=dtype, return_stages=True,
+                                              **GEN)
+        assert np.array_equal(out, tghop.synthesize_guided(models, guide, transition=16, rng=4, dtype=dtype, **GEN))
+        assert list(stages) == ["regions", "layers", "join"]
+        assert np.array_equal(stages["regions"], (guide > 0).astype(np.float32))
+        top = np.float32(255 if dtype == np.uint8 else 1)
+        assert np.array_equal(stages["join"], (out / top).astype(np.float32))  # the last is the result
+        layers = stages["layers"]
+        assert layers.dtype == np.float32 and layers.shape == out.shape
+        away = np.r_[0:80, 112:192]  # away from the band, the join keeps each region's own layer
+        np.testing.assert_allclose(layers[:, away], stages["join"][:, away], atol=0.5 / 255 if top > 1 else 1e-7)
+        assert np.abs(layers[:, 88:104] - stages["join"][:, 88:104]).max() > 0.05  # the join changed the edge
+    material_stages = tghop.synthesize_guided([_as_material(m, e) for m, e in zip(models, exemplars)], guide,
+                                              transition=16, rng=4, return_stages=True, **GEN)[1]
+    assert list(material_stages["layers"]) == list(material_stages["join"]) == ["albedo", "height"]
+
+
+def _as_material(model, exemplar):
+    from tghop.material import Material
+
+    return Material(model=TGHop(rng=0, **FAST), rng=0).fit(exemplar, {"height": exemplar.mean(axis=2)})
+
+
 def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):
     a, b = exemplars
     guide = np.zeros((96, 192), dtype=np.uint8)

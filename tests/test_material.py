@@ -423,7 +423,6 @@ def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_op
                                                   "patch statistics: fitted by tghop 0.58 or older, or with "
                                                   "--patch-levels 0); fit it again, or drop it"),
                         (["--patch-refine", "5", "--patch-stride", "3"], "--patch-refine and --patch-stride do not"),
-                        (["--stages"], "Error: --stages applies to a texture model, not a material; drop it"),
                         (["-o", "-"], "Error: a material writes a file per map; give -o a file name")):
         res = runner.invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size", "64",
                                    "-q", *args])
@@ -432,6 +431,27 @@ def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_op
         assert res.output.strip().count("\n") == 0
     assert not list(tmp_path.glob("*.png"))
 
+
+
+def test_cli_stages_of_a_material_writes_each_steps_maps_the_last_its_output(material, tmp_path):
+    # 0.60 refused synth MAT --stages ("applies to a texture model, not a material").
+    save_model(material, tmp_path / "mat.npz")
+    res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size",
+                                    "64", "--seed", "1", "-q", "--stages"])
+    assert res.exit_code == 0, res.output
+    assert ("steps written beside it, each with its maps: o_quilt.png, o_seams.png, o_refine.png, o_patch-refine.png, "
+            "o_colour.png, o_maps.png") in res.output
+    maps = [""] + [f"_{name}" for name in material.names_[1:]]  # o.png, o_normal.png, ...
+    steps = ["", "_quilt", "_seams", "_refine", "_patch-refine", "_colour", "_maps"]
+    assert sorted(p.name for p in tmp_path.glob("o*.png")) == sorted(f"o{s}{m}.png" for s in steps for m in maps)
+    for m in maps:  # the last step's maps are those written
+        assert np.array_equal(load_image(tmp_path / f"o_maps{m}.png"), load_image(tmp_path / f"o{m}.png")), m
+    assert not np.array_equal(load_image(tmp_path / "o_quilt.png"), load_image(tmp_path / "o.png"))
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(plain / "o.png"), "--size", "64",
+                                    "--seed", "1", "-q"])
+    assert res.exit_code == 0 and np.array_equal(load_image(plain / "o.png"), load_image(tmp_path / "o.png"))
 
 
 def test_cli_patch_refines_a_materials_albedo(material, tmp_path):
@@ -757,6 +777,26 @@ def test_material_synthesize_takes_uint8_as_tghop_synthesize_does(material):
     for name, img in levels.items():
         assert img.dtype == np.uint8 and img.shape == floats[name].shape
         assert np.array_equal(img, to_uint8(floats[name]).reshape(img.shape)), name
+
+
+def test_material_return_stages_gives_every_maps_steps_and_the_last_is_the_result(material):
+    # 0.60: a texture's synthesize(return_stages=True) showed each step, a material's had no such keyword: the joint
+    # quilt of all maps and each map's refinement and colour matching could not be looked at.
+    for dtype in (np.float32, np.uint8):
+        out, stages = material.synthesize(SIZE, rng=1, dtype=dtype, return_stages=True, **POOL)
+        plain = material.synthesize(SIZE, rng=1, dtype=dtype, **POOL)
+        assert all(np.array_equal(out[name], plain[name]) for name in plain)  # the same maps
+        steps = [k for k in stages if k != "pool"]
+        assert steps == ["quilt", "seams", "refine", "patch refine", "colour", "maps"]
+        for step in steps:
+            assert list(stages[step]) == list(out), step
+            assert all(stages[step][n].dtype == np.float32 and stages[step][n].shape == out[n].shape for n in out)
+        top = np.float32(255 if dtype == np.uint8 else 1)
+        assert all(np.array_equal(stages["maps"][n], (out[n] / top).astype(np.float32)) for n in out)  # the result
+        assert not np.array_equal(stages["quilt"]["albedo"], stages["seams"]["albedo"])
+        assert np.array_equal(stages["patch refine"]["normal"], stages["refine"]["normal"])  # the albedo's step alone
+        assert not np.array_equal(stages["colour"]["normal"], stages["refine"]["normal"])
+        assert stages["pool"].shape[1:] == (material.model_.patch_size,) * 2 + (sum(material.map_channels_),)
 
 
 def test_map_slices_before_fit_is_not_fitted():

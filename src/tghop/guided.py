@@ -225,7 +225,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
                       detail=0.8, flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5,
                       layout_weight=3.0, layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2,
-                      region=1024, own_shares=1.0, seam_window=9, progress=None, dtype=np.float64):
+                      region=1024, own_shares=1.0, seam_window=9, progress=None, dtype=np.float64, return_stages=False):
     """One image from several fitted models: painted regions, or a remix without a guide.
 
     Parameters
@@ -265,6 +265,8 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         Each layer's stages of :meth:`tghop.TGHop.synthesize` named with the layer's
         number, e.g. "quilting 2/3"; then "join".
     dtype : {numpy.float64, numpy.float32, numpy.uint8}
+    return_stages : bool
+        Also return each step's image (0.61), as :meth:`tghop.TGHop.synthesize` does.
 
     Returns
     -------
@@ -273,6 +275,11 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         :meth:`tghop.material.Material.synthesize` gives, each map of that ``dtype``. Where every
         model in the image has the same two levels (:attr:`tghop.TGHop.exemplar_levels_`), each
         pixel is at one of them, the joins too (0.57).
+    stages : dict, only with ``return_stages``
+        float32 images in [0, 1] (of materials: dicts of maps, as the result): ``"regions"`` (the labels,
+        region ``i`` at ``i / (k - 1)``, (H, W)), ``"layers"`` (each region its own model's synthesis, before the
+        join: the hard edges the join removes), ``"join"`` (the result; uint8: levels / 255; two-level models':
+        at their levels).
     """
     check_progress(progress)
     models = _check_models(models, 1 if guide is not None else 2, materials=True)
@@ -299,6 +306,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     models, labels = _one_region_per_model(models, labels)
     weights = region_weights(labels, len(models), transition, tile=tile)
     return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, flips=flips, n_patches=n_patches,
+                    return_stages=return_stages,
                     tile=tile,
                     overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                     match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
@@ -476,10 +484,11 @@ def _one_region_per_model(models, labels):
     return [models[index.tolist().index(j)] for j in range(len(first))], index[labels]
 
 
-def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None, **generation):
+def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None, return_stages=False, **generation):
     """Painted regions: each model's own synthesis over the box its region reaches (a layer),
     joined by :func:`tghop.composite.cut_regions`; (H, W, C) ``dtype``. ``flips``: materials' normal maps
-    made the first's convention (:func:`tghop.normals.convention_flips`)."""
+    made the first's convention (:func:`tghop.normals.convention_flips`). ``return_stages``: also the
+    steps' images (:func:`synthesize_guided`'s)."""
     dtype = check_dtype(dtype, (np.float64, np.float32, np.uint8), "float64, float32 or uint8")
     checked = settings.check_settings(dict(generation, tile=tile))  # refused before any layer is made
     materials = isinstance(models[0], Material)
@@ -521,6 +530,8 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
         del layer
     levels = None if materials else _shared_levels([m for m, layer in zip(models, kept) if layer is not None])
     kept = [np.zeros((0, 0) + image.shape[2:], image.dtype) if layer is None else layer for layer in kept]
+    stages = {"regions": (labels / max(k - 1, 1)).astype(np.float32), "layers": image.astype(np.float32)} \
+        if return_stages else None
     report(progress, "join", 0, 1)
     shows = cut_regions(labels, weights, kept, keep, tile=tile, band=band)
     image = join_layers(shows, kept, keep, tile=tile, out=image)
@@ -541,10 +552,18 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
                      for c in range(len(per[0]))]
             if any(lv is not None for lv in joint):
                 maps[name] = snap_channels(maps[name], joint)
-        return {name: _as_dtype(m, dtype) for name, m in maps.items()}
-    if levels is not None:  # the join's means of two-level layers, at their levels
-        snap_to_levels(image, levels, out=image)
-    return _as_dtype(image, dtype, scratch=True)
+        out = {name: _as_dtype(m, dtype) for name, m in maps.items()}
+    else:
+        if levels is not None:  # the join's means of two-level layers, at their levels
+            snap_to_levels(image, levels, out=image)
+        out = _as_dtype(image, dtype, scratch=not return_stages)
+    if not return_stages:
+        return out
+    as_float = (lambda a: a / np.float32(255) if a.dtype == np.uint8 else a.astype(np.float32))
+    stages["join"] = {n: as_float(m) for n, m in out.items()} if materials else as_float(out)
+    if materials:  # the layers cut into the first material's maps, as the result
+        stages["layers"] = {n: stages["layers"][..., part] for n, part in zip(models[0].names_, models[0].map_slices())}
+    return out, stages
 
 
 def _shared_levels(models):

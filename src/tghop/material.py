@@ -546,7 +546,7 @@ class Material(ImageInputMixin, BaseEstimator):
     # ------------------------------------------------------------- generation
     @one_blas_thread()  # the same image with any number of threads or concurrent callers
     def synthesize(self, size, *, rng=None, refine=5, match_colours=True, tile=False, refine_maps=True,
-                   progress=None, dtype=np.float64, **options):
+                   progress=None, dtype=np.float64, return_stages=False, **options):
         """Generate every map of the material, aligned.
 
         Parameters
@@ -576,6 +576,8 @@ class Material(ImageInputMixin, BaseEstimator):
             (:mod:`tghop.settings`), ``refine_maps`` as a boolean. ``patch_refine`` (None: by the size, as a
             texture's) patch-refines the albedo with :attr:`patches_` in place of its colour matching (0.59;
             a material of 0.58 has none: above 0 refused, None skips it); the other maps are as in 0.58.
+        return_stages : bool
+            Also return each step's maps (0.61), as :meth:`TGHop.synthesize` does its image's.
 
         Returns
         -------
@@ -583,6 +585,11 @@ class Material(ImageInputMixin, BaseEstimator):
             ``name -> (H, W, c)`` array in [0, 1] (uint8: 0 to 255), ``"albedo"`` first, in :attr:`names_`'s order; a
             mask map (:attr:`levels_`) holds only its exemplar's values, a mask channel
             (:attr:`channel_levels_`) its own (:mod:`tghop.masks`).
+        stages : dict, only with ``return_stages``
+            Step -> ``{name: (H, W, c) float32}``, every map after each step that ran, in order: the joint model's
+            (``"guide"``, ``"quilt"``, ``"seams"``; ``"pool"`` its (n, P, P, channels) patches, whole), ``"refine"``,
+            ``"patch refine"`` (the albedo's), ``"colour"``, ``"maps"`` (normals at unit length, masks snapped: the
+            result, uint8 as levels / 255); a map a step leaves alone as the step before left it.
         """
         check_progress(progress)
         check_is_fitted(self, "model_")
@@ -594,7 +601,12 @@ class Material(ImageInputMixin, BaseEstimator):
         stats = self.albedo_patches(patch_refine := checked.pop("patch_refine", None))
         stride = checked.pop("patch_stride", settings.BY_NAME["patch_stride"].default)
         stack = self.model_.synthesize(size, rng=check_rng(rng), tile=tile, refine=0, match_colours=False,
-                                       progress=progress, dtype=np.float32, **checked)
+                                       progress=progress, dtype=np.float32, return_stages=return_stages, **checked)
+        stack, steps = stack if return_stages else (stack, {})  # the joint model's steps, then each map's (0.61)
+        steps = {k: v if k == "pool" else dict(zip(self.names_, (v[..., p] for p in self.map_slices())))
+                 for k, v in steps.items()}
+        keep = (lambda step, name, img: steps.setdefault(step, {}).__setitem__(name, img.astype(np.float32))
+                if return_stages else None)
         n_steps = steps_for(patch_refine, stack.shape[:2]) if stats is not None else 0
         quantiles = self.model_.colour_quantiles_
         out = {}
@@ -602,17 +614,24 @@ class Material(ImageInputMixin, BaseEstimator):
             img = np.ascontiguousarray(stack[..., part])
             if refine and (refine_maps or i == 0):
                 img = refine_bands(img, self.bands_[i], n_iter=refine, tile=tile, dtype=np.float32, progress=progress)
+                keep("refine", name, img)
             if i == 0 and n_steps:  # the albedo's last step, as a texture's (in place of its colour matching)
                 img = refine_image(img, stats, n_steps=n_steps, stride=stride, tile=tile, progress=progress)
+                keep("patch refine", name, img)
             elif match_colours:
                 img = match_histograms(img, quantiles[part])
+                keep("colour", name, img)
             if self.normal_[i]:
                 img = renormalise(img)
             # a mask (metalness 0 and 1), or a packed map's mask channel, kept one: tghop.masks
             img = snap_map(img, self.levels_[i], self.channel_levels_[i])
             out[name] = to_uint8(img).reshape(img.shape) if dtype == np.uint8 else img.astype(dtype, copy=False)
+            keep("maps", name, out[name] / np.float32(255) if dtype == np.uint8 else out[name])
             report(progress, "maps", i + 1, len(self.names_))
-        return out
+        ordered, last, own = {}, {}, ("refine", "patch refine", "colour", "maps")  # a map a step left: as before it
+        for step in [k for k in steps if k not in own] + [k for k in own if k in steps]:
+            ordered[step] = steps[step] if step == "pool" else (last := {**last, **steps[step]})
+        return (out, ordered) if return_stages else out
 
     def albedo_patches(self, patch_refine=None):
         """The albedo's patch statistics (:attr:`patches_`), checked against ``patch_refine``.

@@ -26,7 +26,7 @@ from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
            "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
-           "quiet_tifffile", "examples", "STAGES", "stage_paths"]
+           "quiet_tifffile", "examples", "STAGES", "MATERIAL_STAGES", "stage_paths"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -638,12 +638,14 @@ def count_outputs(output: str, count: int) -> list:
 #: The steps ``--stages`` writes (synth, inpaint, extend), as ``TGHop.synthesize(return_stages=True)`` and
 #: :func:`tghop.inpaint.inpaint` name them.
 STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour", "levels")
+#: A material's (``Material.synthesize(return_stages=True)``; 0.61): "maps" its last, the maps written.
+MATERIAL_STAGES = ("guide", "quilt", "seams", "refine", "patch refine", "colour", "maps")
 
 
-def stage_paths(path):
-    """``OUT_<step>.png`` for each of :data:`STAGES` beside the output ``path``."""
+def stage_paths(path, names=STAGES):
+    """``OUT_<step>.png`` for each step of ``names`` beside the output ``path``."""
     path = Path(path)
-    return {name: str(path.with_name(f"{path.stem}_{name.replace(' ', '-')}{path.suffix}")) for name in STAGES}
+    return {name: str(path.with_name(f"{path.stem}_{name.replace(' ', '-')}{path.suffix}")) for name in names}
 
 
 def numbered(path: str, count: int):
@@ -741,24 +743,49 @@ def warn_lost_depth(items, path, depth, noun=None):
                   "to keep them")
 
 
-def write_materials(material, output, outputs, size, depth, make, inputs, progress=None):
+def _material_stages(material, output, plan):
+    """``{step: [(name, path, depth)]}`` of --stages for a material written to ``output`` (``plan``:
+    :func:`material_outputs`'): OUT_<step>.EXT for the albedo, OUT_<step>_<suffix>.EXT for each other map, at
+    ``plan``'s depths (not :func:`tghop.material_files.map_files`, whose colour word would take OUT_colour's
+    maps for OUT's)."""
+    from ..material_files import map_suffixes
+
+    out = {}
+    for step, path in stage_paths(output, MATERIAL_STAGES).items():
+        p = Path(path)
+        out[step] = [(name, path if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}")), d)
+                     for (name, _, d), suffix in zip(plan, map_suffixes(material.names_))]
+    return out
+
+
+def write_materials(material, output, outputs, size, depth, make, inputs, progress=None, stages=False):
     """Materials' maps, OUT, OUT_<suffix>, ... for each path of ``outputs``: all checked before any
     work (``inputs``: ``(label, path)`` pairs that no output may be), each set made by ``make()``
     (a dict of maps, ``material``'s names) and written together (all or none); then one line
     says what was written. ``material`` names the maps and their depths; ``progress`` (a
-    :class:`Progress`) shows each set's write."""
+    :class:`Progress`) shows each set's write. ``stages`` (0.61): ``make()`` gives ``(maps, steps)``
+    (``Material.synthesize(return_stages=True)``'s), each step's maps written as OUT_<step>, OUT_<step>_<suffix>."""
     from ..imageio import save_images
 
     if output == "-":
         raise click.UsageError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
     plans = [material_outputs(material, path, depth) for path in outputs]
+    staged = [_material_stages(material, path, plan) for path, plan in zip(outputs, plans)] if stages else [{}] * len(
+        outputs)
+    steps_planned = [("--stages", path) for steps in staged for plan in steps.values() for _, path, _ in plan]
     for plan in plans:
         for _, path, _ in plan:
             check_output(path)
-    check_outputs([("-o", path) for plan in plans for _, path, _ in plan], inputs)
+    for _, path in steps_planned:
+        check_output(path)
+    check_outputs([("-o", path) for plan in plans for _, path, _ in plan] + steps_planned, inputs)
     warn_lost_depth([(name, own, d) for (name, _, d), own in zip(plans[0], material.depths_)], output, depth, "map")
-    for plan in plans:
+    for plan, steps_plan in zip(plans, staged):
         maps = make()
+        if stages:
+            maps, steps = maps
+            save_images([(steps[step][name], path, d) for step, step_plan in steps_plan.items() if step in steps
+                         for name, path, d in step_plan], progress=progress)
         save_images([(maps[name], path, d) for name, path, d in plan], progress=progress)
         if progress is not None:
             progress.close()

@@ -10,11 +10,15 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, count_outputs,
-                     draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials, examples)
+                     draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials, examples,
+                     stage_paths)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
 __all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION", "MAX_TRANSITION"]
+
+#: The steps ``synth --stages`` writes of a painted or remixed image (``synthesize_guided(return_stages=True)``).
+GUIDED_STAGES = ("regions", "layers", "join")
 
 #: :data:`tghop.guided.DEFAULT_TRANSITION`, here so that ``tghop --help`` imports no NumPy
 #: (tests/test_guided.py checks that the two agree).
@@ -173,8 +177,9 @@ def _tell_colours(path, guide, labels, sources):
 
 
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
-                  progress, generation, options, depth=None):
-    """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors)."""
+                  progress, generation, options, depth=None, stages=False):
+    """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors); ``stages``: --stages,
+    OUT_regions, OUT_layers and OUT_join beside each image (0.61; textures: a material's is refused)."""
     import numpy as np
 
     from ..guided import guide_labels, synthesize_guided
@@ -191,9 +196,10 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
     size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
     outputs = count_outputs(output, count)
-    for path in outputs if count > 1 else ():
+    staged = [stage_paths(path, GUIDED_STAGES) for path in outputs] if stages else []
+    for path in (outputs if count > 1 else []) + [p for paths in staged for p in paths.values()]:
         check_output(path)
-    check_outputs([("-o", path) for path in outputs],
+    check_outputs([("-o", path) for path in outputs] + [("--stages", p) for paths in staged for p in paths.values()],
                   [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
     for spec in sources:  # a SOURCE that is no file is named first (0.58 counted the guide's levels against it)
         if not is_builtin(spec) and not os.path.lexists(spec):
@@ -256,6 +262,9 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         models.append(same[key])
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<suffix>, ...
+        if stages:
+            raise click.UsageError("--stages applies to painted or remixed textures, not materials (0.61); drop it")
+
         def make():
             maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
                                      dtype=np.float32, **generation)
@@ -265,12 +274,19 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         write_materials(models[0], output, outputs, size, depth, make,
                         [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)], progress)
         return None, size
-    for path in outputs:
+    for i, path in enumerate(outputs):
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
-                                  dtype=generation_dtype(depth), **generation)
+                                  dtype=generation_dtype(depth), return_stages=stages, **generation)
         progress.close()
+        if stages:
+            image, steps = image
+            for name, step in steps.items():
+                save_image(step, staged[i][name], depth=depth or 8)
         save_image(image, path, depth=depth or 8, progress=progress)
         progress.close()
+    if stages:
+        click.echo(f"steps written beside {'it' if count == 1 else 'each'}: "
+                   f"{', '.join(os.path.basename(p) for p in staged[0].values())}", err=True)
     return outputs, size
 
 

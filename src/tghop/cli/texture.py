@@ -16,7 +16,8 @@ from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
-                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples, stage_paths)
+                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples, stage_paths,
+                     MATERIAL_STAGES)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -287,7 +288,10 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--stages", is_flag=True,
               help="Also write each step's image beside OUTPUT, at its depth: OUTPUT_guide (the coarse layout's), "
                    "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself; "
-                   "a two-level exemplar's: then _levels, snapped to them).")
+                   "a two-level exemplar's: then _levels, snapped to them). A material's (0.61): each step's maps, "
+                   "OUTPUT_quilt, OUTPUT_quilt_<map>, ..., its last _maps (the maps written). Several SOURCEs or "
+                   "--guide (0.61): _regions (the labels as grey levels), _layers (each region its own texture) and "
+                   "_join (the image).")
 @QUIET_OPTION
 @click.option("--maps", "maps_given", is_flag=True, hidden=True)  # fit's: said so (click offered --gamma, --paper)
 @click.pass_context
@@ -320,10 +324,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
 
-            if stages:
-                raise click.UsageError("--stages applies to one SOURCE; drop it with several or with --guide")
             outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
-                                          exclude, downscale, progress, generation_params(options), options, depth)
+                                          exclude, downscale, progress, generation_params(options), options, depth,
+                                          stages=stages)
             if outputs is None:  # materials: it said what it wrote
                 tell_seed(seed, drawn, "the same material" if count == 1 else "the same materials")
                 return
@@ -379,8 +382,6 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     if from_model:
         model = load_model(source, material=True)
         if hasattr(model, "names_"):  # a whole material: every map, written together
-            if stages:
-                raise click.UsageError("--stages applies to a texture model, not a material; drop it")
             stride = given_options(ctx, ["patch_stride"])  # would be ignored without the albedo's patch statistics
             # refused here by the options typed, not the library's keyword: a material fitted by 0.58 or with
             # --patch-levels 0 (0.59 patch-refines a material's albedo)
@@ -393,7 +394,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                                        "material (it has no patch statistics: fitted by tghop 0.58 or older, or with "
                                        f"--patch-levels 0); fit it again, or drop {'them' if several else 'it'}")
             _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
-                            source=source)
+                            source=source, stages=stages)
             return None, True
         check_depth(output, depth or 8, channels=model.exemplar_shape_[2])
         if not depth and (getattr(model, "exemplar_depth_", None) or 8) > 8:  # as from the exemplar (fit_exemplar)
@@ -445,18 +446,24 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     return outputs, from_model
 
 
-def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source):
-    """``synth`` from a material: OUT, OUT_<suffix>, ... for each image (:func:`~tghop.cli.common.write_materials`)."""
+def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source, stages=False):
+    """``synth`` from a material: OUT, OUT_<suffix>, ... for each image (:func:`~tghop.cli.common.write_materials`);
+    with ``stages`` each step's maps too (0.61)."""
     import numpy as np
 
     rng = np.random.default_rng(rng)
 
     def make():
-        maps = material.synthesize(size, rng=rng, progress=progress, dtype=np.float32, **generation)
+        maps = material.synthesize(size, rng=rng, progress=progress, dtype=np.float32, return_stages=stages,
+                                   **generation)
         progress.close()
         return maps
 
-    write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)], progress)
+    write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)], progress, stages=stages)
+    if stages:
+        written = ", ".join(Path(p).name for p in stage_paths(outputs[0], MATERIAL_STAGES).values() if Path(p).exists())
+        click.echo(f"steps written beside {'it' if len(outputs) == 1 else 'each'}, each with its maps: {written}",
+                   err=True)
 
 
 @click.command(short_help='Describe a saved model: settings, dimensions, parameter count', epilog=examples(
