@@ -250,6 +250,26 @@ def test_return_stages_gives_the_regions_the_layers_before_the_join_and_the_resu
     assert list(material_stages["layers"]) == list(material_stages["join"]) == ["albedo", "height"]
 
 
+def test_cli_stages_of_painted_materials_writes_each_steps_maps(models, exemplars, tmp_path):
+    # 0.60: "--stages applies to one SOURCE"; each map of the layers before the join, and the join, as the maps.
+    from tghop.imageio import load_image
+
+    for i, (m, e) in enumerate(zip(models, exemplars)):
+        save_model(_as_material(m, e), tmp_path / f"m{i}.npz")
+    guide = np.zeros((96, 192), dtype=np.uint8)
+    guide[:, 96:] = 255
+    Image.fromarray(guide).save(tmp_path / "map.png")
+    r = cli("synth", tmp_path / "m0.npz", tmp_path / "m1.npz", "--guide", tmp_path / "map.png", "-o",
+            tmp_path / "p.png", "--pool", "500", "--refine", "2", "--seed", "4", "--stages", "-q")
+    assert r.returncode == 0, r.stderr.decode()
+    assert "steps written beside it, each with its maps: p_regions.png, p_layers.png, p_join.png" in r.stderr.decode()
+    assert sorted(p.name for p in tmp_path.glob("p*.png")) == sorted(
+        ["p.png", "p_height.png", "p_regions.png", "p_layers.png", "p_layers_height.png", "p_join.png",
+         "p_join_height.png"])
+    for m in ("", "_height"):  # the join's maps are those written
+        assert np.array_equal(load_image(tmp_path / f"p_join{m}.png"), load_image(tmp_path / f"p{m}.png"))
+
+
 def _as_material(model, exemplar):
     from tghop.material import Material
 

@@ -743,7 +743,7 @@ def warn_lost_depth(items, path, depth, noun=None):
                   "to keep them")
 
 
-def _material_stages(material, output, plan):
+def _material_stages(material, output, plan, names):
     """``{step: [(name, path, depth)]}`` of --stages for a material written to ``output`` (``plan``:
     :func:`material_outputs`'): OUT_<step>.EXT for the albedo, OUT_<step>_<suffix>.EXT for each other map, at
     ``plan``'s depths (not :func:`tghop.material_files.map_files`, whose colour word would take OUT_colour's
@@ -751,7 +751,7 @@ def _material_stages(material, output, plan):
     from ..material_files import map_suffixes
 
     out = {}
-    for step, path in stage_paths(output, MATERIAL_STAGES).items():
+    for step, path in stage_paths(output, names).items():
         p = Path(path)
         out[step] = [(name, path if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}")), d)
                      for (name, _, d), suffix in zip(plan, map_suffixes(material.names_))]
@@ -764,14 +764,16 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     (a dict of maps, ``material``'s names) and written together (all or none); then one line
     says what was written. ``material`` names the maps and their depths; ``progress`` (a
     :class:`Progress`) shows each set's write. ``stages`` (0.61): ``make()`` gives ``(maps, steps)``
-    (``Material.synthesize(return_stages=True)``'s), each step's maps written as OUT_<step>, OUT_<step>_<suffix>."""
+    (``Material.synthesize(return_stages=True)``'s), each step's maps written as OUT_<step>, OUT_<step>_<suffix>;
+    True: the steps :data:`MATERIAL_STAGES`, or a tuple of others (a painting's)."""
     from ..imageio import save_images
 
     if output == "-":
         raise click.UsageError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
     plans = [material_outputs(material, path, depth) for path in outputs]
-    staged = [_material_stages(material, path, plan) for path, plan in zip(outputs, plans)] if stages else [{}] * len(
-        outputs)
+    names = stages if isinstance(stages, tuple) else MATERIAL_STAGES
+    staged = [_material_stages(material, path, plan, names) for path, plan in zip(outputs, plans)] if stages else [
+        {}] * len(outputs)
     steps_planned = [("--stages", path) for steps in staged for plan in steps.values() for _, path, _ in plan]
     for plan in plans:
         for _, path, _ in plan:
@@ -784,8 +786,10 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
         maps = make()
         if stages:
             maps, steps = maps
-            save_images([(steps[step][name], path, d) for step, step_plan in steps_plan.items() if step in steps
-                         for name, path, d in step_plan], progress=progress)
+            save_images([(steps[step][name] if isinstance(steps[step], dict) else steps[step], path, d)
+                         for step, step_plan in steps_plan.items() if step in steps
+                         for name, path, d in (step_plan if isinstance(steps[step], dict) else step_plan[:1])],
+                        progress=progress)  # a step of one image (a painting's regions): at OUT_<step> alone
         save_images([(maps[name], path, d) for name, path, d in plan], progress=progress)
         if progress is not None:
             progress.close()

@@ -179,7 +179,7 @@ def _tell_colours(path, guide, labels, sources):
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
                   progress, generation, options, depth=None, stages=False):
     """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors); ``stages``: --stages,
-    OUT_regions, OUT_layers and OUT_join beside each image (0.61; textures: a material's is refused)."""
+    OUT_regions, OUT_layers and OUT_join beside each image (0.61; materials': OUT_layers_<map>, ... too)."""
     import numpy as np
 
     from ..guided import guide_labels, synthesize_guided
@@ -262,17 +262,19 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         models.append(same[key])
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<suffix>, ...
-        if stages:
-            raise click.UsageError("--stages applies to painted or remixed textures, not materials (0.61); drop it")
-
         def make():
             maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
-                                     dtype=np.float32, **generation)
+                                     dtype=np.float32, return_stages=stages, **generation)
             progress.close()
             return maps
 
         write_materials(models[0], output, outputs, size, depth, make,
-                        [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)], progress)
+                        [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)], progress,
+                        stages=GUIDED_STAGES if stages else False)
+        if stages:
+            click.echo(f"steps written beside {'it' if count == 1 else 'each'}, each with its maps: "
+                       f"{', '.join(os.path.basename(p) for p in stage_paths(outputs[0], GUIDED_STAGES).values())}",
+                       err=True)
         return None, size
     for i, path in enumerate(outputs):
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
