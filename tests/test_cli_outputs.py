@@ -132,6 +132,20 @@ def test_an_output_may_replace_a_file_that_is_not_an_input(folder):
     os.unlink(folder / "victim.png")
 
 
+@pytest.mark.parametrize("command", ["synth", "extend", "inpaint"])
+def test_count_writes_its_numbered_files_beside_a_folder_named_as_o(folder, tmp_path, command):
+    # --count 2 -o out.png writes out_1.png and out_2.png, never out.png: 0.60's synth refused a folder named
+    # out.png ("is a folder") where inpaint and extend, which check the files they write, did not (0.61: alike)
+    (tmp_path / "out.png").mkdir()
+    args = {"synth": ["synth", folder / "model.npz", "--size", "40"],
+            "extend": ["extend", folder / "keep.png", "--size", "80x80", "--source", folder / "model.npz"],
+            "inpaint": ["inpaint", folder / "keep.png", folder / "hole.png", "--source", folder / "model.npz"]}
+    code, _, err, _ = invoke(*args[command], "-o", "out.png", "--count", "2", "--seed", "0", "-q", cwd=tmp_path)
+    assert code == 0, err
+    assert sorted(os.listdir(tmp_path)) == ["out.png", "out_1.png", "out_2.png"]
+    assert (tmp_path / "out.png").is_dir()
+
+
 def test_an_output_that_is_a_symbolic_link_is_written_through_it(folder, tmp_path):
     # -o link.png replaced the link with a file; now the link stays and its target gets the image
     # (a model through --save-model alike). A link into a missing folder is refused before any work.

@@ -315,9 +315,11 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             raise click.UsageError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... "
                                    "-o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> for "
                                    "each map")
-        check_output(output, allow_stdout=True, depth=depth)
-        check_depth(output, depth or 8)
-        count_outputs(output, count)  # -o - with --count above 1 refused before any work
+        # The files written are checked (0.61): with --count above 1 the numbered ones, not -o's own name (a
+        # folder named out.png refused out_1.png, out_2.png), as inpaint and extend check them; -o - refused.
+        first = count_outputs(output, count)[0]
+        check_output(first, allow_stdout=True, depth=depth)
+        check_depth(first, depth or 8)
         if stages and output == "-":
             raise click.UsageError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's "
                                    "image, so give -o a file name (e.g. -o out.png) or drop --stages")
