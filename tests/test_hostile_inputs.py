@@ -582,3 +582,28 @@ def test_a_12_bit_jpeg_is_named_as_one(tmp_path):
                    f"{path}: not a readable image (a 12-bit JPEG, which Pillow does not read, only 8-bit ones: convert "
                    "it to a 16-bit PNG or TIFF)")
     assert not out.exists()
+
+
+def test_a_size_refused_or_downscaled_is_said_height_first(tmp_path):
+    """Sizes are HEIGHTxWIDTH everywhere, as --size takes them: 0.60 said an image over the pixel limit, one
+    downscaled to it and one too thin to hold a texture width first ("the image is 9000x8000" of one 8000
+    high and 9000 wide)."""
+    import warnings
+
+    from tghop.imageio import load_image
+
+    wide = tmp_path / "wide.png"
+    wide.write_bytes(png_declaring(9000, 8000))  # 72 Mpx, over the 64 Mpx tghop reads
+    result = CliRunner().invoke(main, ["fit", str(wide), "-o", str(tmp_path / "m.npz"), "-q"])
+    one_error_line(result, "wide.png: the image is 8000x9000 pixels, more than the 67,108,864 tghop reads")
+    photo = tmp_path / "photo.png"
+    Image.fromarray(np.zeros((40, 90, 3), np.uint8)).save(photo)  # 40 high, 90 wide
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        image = load_image(photo, max_pixels=900, downscale=True)
+    assert image.shape[:2] == (20, 45)
+    assert "photo.png: 40x90 pixels downscaled to 20x45" in str(caught[0].message)
+    line = tmp_path / "line.png"
+    Image.fromarray(np.full((1, 30, 3), 128, np.uint8)).save(line)  # 1 high, 30 wide, one grey
+    result = CliRunner().invoke(main, ["fit", str(line), "-o", str(tmp_path / "m.npz"), "-q"])
+    one_error_line(result, "the exemplar is 1x30 pixels, too small to hold a texture")

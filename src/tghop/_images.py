@@ -169,7 +169,7 @@ def check_texture(image, *, name: str = "exemplar") -> None:
     else:
         spread = float(img.reshape(-1, img.shape[-1]).std(axis=0).max()) if img.size else 0.0
     if not spread >= FLAT_SPREAD and min(img.shape[:2]) < 2:  # 0.58 called a 1x1 image flat
-        raise TGHopError(f"the {name} is {img.shape[1]}x{img.shape[0]} pixels, too small to hold a texture; give a "
+        raise TGHopError(f"the {name} is {img.shape[0]}x{img.shape[1]} pixels, too small to hold a texture; give a "
                          "larger image with a visible pattern")
     if not spread >= FLAT_SPREAD:
         raise TGHopError(

@@ -500,12 +500,12 @@ def decode_pillow(im, path, max_pixels, downscale, too_large_hint, keep_alpha=Fa
     if width * height > max_pixels:
         if not downscale:
             raise ImageTooLargeError(
-                f"{path}: the image is {width}x{height} pixels, more than the {max_pixels:,} tghop reads; "
+                f"{path}: the image is {height}x{width} pixels, more than the {max_pixels:,} tghop reads; "
                 f"{too_large_hint}")
         factor = (width * height / max_pixels) ** 0.5
         size = (max(1, int(width / factor)), max(1, int(height / factor)))
         im.draft(im.mode, size)  # JPEG: decode at reduced size directly
-        warn(f"{path.name}: {width}x{height} pixels downscaled to {size[0]}x{size[1]} "
+        warn(f"{path.name}: {height}x{width} pixels downscaled to {size[1]}x{size[0]} "
              f"(at most {max_pixels:,} pixels)", UserWarning, stacklevel=3)
         if im.size != size:
             small = im.resize(size, resample=1, reducing_gap=2.0)  # 1 = LANCZOS
