@@ -410,6 +410,26 @@ def test_a_material_with_albedo_patches_is_format_version_11_and_others_keep_the
         load_model(tmp_path / "newer.npz", material=True)
 
 
+@pytest.mark.parametrize("keep_levels", [True, False])
+def test_a_material_whose_albedo_patches_say_format_version_10_is_refused(material, tmp_path, keep_levels):
+    """material_patch.* came with format version 11 (0.59), and a version holds a fixed set of arrays: 0.60 read a file
+    saying 10 that held them (and material.patch_levels) as if it were 11. Refused, naming both versions."""
+    import json
+
+    save_model(material, tmp_path / "m.npz")
+    with np.load(tmp_path / "m.npz") as f:
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["__meta__"]))
+    meta["format_version"] = 10
+    if not keep_levels:  # the arrays alone: 0.60 named the first as unknown, without the version it belongs to
+        del meta["material"]["patch_levels"]
+    with open(tmp_path / "v10.npz", "wb") as fh:
+        np.savez(fh, **{**arrays, "__meta__": np.array(json.dumps(meta))})
+    with pytest.raises(ModelFileError, match=r"v10.npz: invalid tghop model \(the albedo's patch statistics "
+                                             r"\(material_patch.\*\) in format version 10; they are version 11's"):
+        load_model(tmp_path / "v10.npz", material=True)
+
+
 def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_options(exemplar, maps, tmp_path):
     """Review 58, item 8: the options typed are named, not the library's patch_refine (0.59: a material fitted
     without patch statistics, as 0.58 fitted every material)."""

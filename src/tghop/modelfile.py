@@ -548,6 +548,11 @@ def load_model(path, *, material=False):
         if kind is Material and meta["format_version"] < MATERIAL_VERSION:
             raise TGHopError(f"a material in format version {meta['format_version']}; materials are version "
                              f"{MATERIAL_VERSION}")
+        if kind is Material and meta["format_version"] < FORMAT_VERSION and (
+                "patch_levels" in meta["material"] or any(n.startswith(MATERIAL_PATCH_PREFIX) for n in arrays)):
+            # 0.60 read them: a version holds a fixed set of arrays, and these came with 11 (0.59)
+            raise TGHopError(f"the albedo's patch statistics (material_patch.*) in format version "
+                             f"{meta['format_version']}; they are version {FORMAT_VERSION}'s, so the file was edited")
         groups = kind._array_specs(meta, quantised=quantised)
     except TGHopError as exc:
         raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
