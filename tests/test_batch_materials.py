@@ -58,8 +58,9 @@ def test_a_rows_maps_are_named_and_found_beside_the_manifest(tmp_path, value, wa
 
 @pytest.mark.parametrize("value, words", [
     ("my map=a.png", ["the map name 'my map' cannot name a file"]),
-    ("albedo=a.png", ["two maps are named 'albedo'"]),
-    ("n=a.png;N=b.png", ["two maps are named 'N'"]),
+    ("albedo=a.png", ["a map is named 'albedo', the albedo's name; give each map its own name, e.g. normal="]),
+    # 0.60: "two maps are named 'N' (or a map is named albedo, ...)", not a word of case
+    ("n=a.png;N=b.png", ["two maps are named 'n' and 'N', which differ only in case", "not only in case"]),
     ("normal=", ["the map 'normal' has no path"]),
     (3, ["maps 3 must be paths separated by"]),
     ({"normal": 5}, ["the file of the map 'normal' must be a path (a string), not a number"]),

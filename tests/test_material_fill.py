@@ -196,6 +196,7 @@ def folder(tmp_path_factory, picture):
     _write(d, picture)
     (d / "sub").mkdir()
     save_image(picture[0]["height"], d / "sub" / "h.png")
+    save_image(picture[0]["height"], d / "sub" / "H.png")
     save_image(picture[0]["height"], d / "sub" / "albedo.png")
     save_image(picture[0]["height"][:64], d / "small.png")
     two = Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {
@@ -218,7 +219,9 @@ def folder(tmp_path_factory, picture):
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "wall_normal.png", "--source", "one.npz", "-o", "o.png"],
      "a material of 1 map (h) but 2 were given;"),
     (["inpaint", "wall.png", "mask.png", "--maps", "small.png", "-o", "o.png"], "MAP small.png is 64x128"),
-    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/h.png", "-o", "o.png"], "two maps are named 'h'"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/h.png", "-o", "o.png"], "two maps are named 'h':"),
+    (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/H.png", "-o", "o.png"],
+     "two maps are named 'h' and 'H', which differ only in case (one file name where case is ignored): the file "),
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "tex.npz", "-o", "o.png"],
      "--source tex.npz is a texture model"),
     (["extend", "wall.png", "h.png", "--size", "200x200", "-o", "o.png"], "an argument too many after IMAGE"),

@@ -282,8 +282,11 @@ def test_two_materials_morph_every_map_as_the_library_morphs_them(client, materi
     ({"map:my map": ("n.png", b"x")}, ["the map name 'my map'"]),
     # 0.59: "must be letters, digits, '.', '_' or '-', ..." of a name of letters alone, over 64 of them
     ({"map:" + "n" * 300: ("n.png", b"x")}, ["is 300 characters, more than the 64 a map's name may have", "shorten"]),
-    ({"map:Albedo": ("n.png", b"x")}, ["two maps are named 'Albedo' (or a map is named albedo); name each map once"]),
-    ({"map:normal": ("n.png", b"x"), "map:Normal": ("m.png", b"x")}, ["two maps are named 'Normal' (or a map"]),
+    ({"map:Albedo": ("n.png", b"x")}, ["a map is named 'Albedo', the albedo's name in another case; give each map "
+                                       "its own name (fields map:NAME)"]),
+    # 0.60: "two maps are named 'Normal' (or a map is named albedo); name each map once", not a word of case
+    ({"map:normal": ("n.png", b"x"), "map:Normal": ("m.png", b"x")},
+     ["two maps are named 'normal' and 'Normal', which differ only in case", "not only in case (fields map:NAME)"]),
     ({"map:normal": (None, "text")}, ["'map:normal' must be a file upload"]),
     ({"map:normal": ("n.png", b"")}, ["the map normal (n.png) is empty"]),
     ({"map:normal": ("n.png", b"not an image")}, ["n.png"]),

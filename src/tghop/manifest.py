@@ -301,8 +301,7 @@ def parse_maps(value, where, base: Path) -> list:
     try:
         check_map_names([name for name, _ in out])
     except MapNameClashError as exc:
-        raise TGHopError(f"{where}: two maps are named {exc.name!r} (or a map is named albedo, the exemplar's "
-                         "name); name each map once, e.g. normal=rock_n.png") from None
+        raise TGHopError(f"{where}: {exc.clash}; {exc.fix}, e.g. normal=rock_n.png") from None
     if len(out) > MAX_MAPS:
         raise TGHopError(f"{where}: {len(out)} maps; a material takes at most {MAX_MAPS}")
     return out

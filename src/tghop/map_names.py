@@ -324,8 +324,10 @@ def check_colour_map_order(albedo_path, maps, /, *, names=None, shown=None, **wo
 class MapNameClashError(TGHopError):
     """Two maps of a material named alike (in any case), or a map named as the albedo
     (:func:`check_map_names`). Its ``name`` (as given), ``index`` (that name's place in the names
-    checked) and ``albedo`` (True: the name is the albedo's, else an earlier map's) let a caller
-    word the message its user reads, naming what was given (a manifest's line, a command's
+    checked), ``albedo`` (True: the name is the albedo's, else an earlier map's), ``other`` (the
+    earlier name, or "albedo"), ``clash`` (the clash in words: "two maps are named 'n' and 'N', which
+    differ only in case ...", 0.61; 0.60 said "two maps are named 'N'" of those) and ``fix`` let a
+    caller word the message its user reads, naming what was given (a manifest's line, a command's
     files, a request's fields)."""
 
 
@@ -353,18 +355,28 @@ def check_map_names(names) -> None:
     >>> check_map_names(["normal", "Normal"])
     Traceback (most recent call last):
     ...
-    tghop.map_names.MapNameClashError: two maps are named 'Normal' (in any case); give each map its own name
+    tghop.map_names.MapNameClashError: two maps are named 'normal' and 'Normal', which differ only in case (one \
+file name where case is ignored); give each map its own name, not only in case
     """
-    seen = set()
+    seen = {}
     for index, name in enumerate(names):
         key = name.lower()
         if key == ALBEDO or key in seen:
             albedo = key == ALBEDO
-            exc = MapNameClashError(f"a map is named {name!r}, the albedo's name; give each map its own name" if albedo
-                                    else f"two maps are named {name!r} (in any case); give each map its own name")
-            exc.name, exc.index, exc.albedo = name, index, albedo
+            other = ALBEDO if albedo else seen[key]
+            if albedo:  # a name kept for the albedo (OUT's own file), in any case
+                clash = f"a map is named {name!r}, the albedo's name{'' if name == ALBEDO else ' in another case'}"
+                fix = "give each map its own name"
+            elif other == name:
+                clash, fix = f"two maps are named {name!r}", "give each map its own name"
+            else:
+                clash = (f"two maps are named {other!r} and {name!r}, which differ only in case (one file name "
+                         "where case is ignored)")
+                fix = "give each map its own name, not only in case"
+            exc = MapNameClashError(f"{clash}; {fix}")
+            exc.name, exc.index, exc.albedo, exc.other, exc.clash, exc.fix = name, index, albedo, other, clash, fix
             raise exc
-        seen.add(key)
+        seen[key] = name
 
 
 def is_normal_name(name: str) -> bool:

@@ -358,7 +358,7 @@ class Material(ImageInputMixin, BaseEstimator):
         try:
             check_map_names(names[1:])
         except MapNameClashError as exc:
-            raise TGHopError(f"two maps are named {exc.name!r}; give each map its own name") from None
+            raise TGHopError(str(exc)) from None
         depths = self._checked_depths(depths, names)
         if normal != "auto":
             unknown = set(normal) - set(names)

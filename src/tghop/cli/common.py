@@ -700,8 +700,7 @@ def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
         if exc.albedo:
             raise TGHopError(f"{label} {paths[exc.index]} is named {name!r}, the name of {albedo} itself (written to "
                              "OUT, the other maps beside it); rename the file") from None
-        raise TGHopError(f"two maps are named {name!r} (the file stem names the map and its output file); "
-                         "rename one") from None
+        raise TGHopError(f"{exc.clash}: the file stem names the map and its output file; rename one") from None
     return names
 
 

@@ -66,8 +66,7 @@ def map_uploads(fields: dict) -> list:
     try:
         check_map_names([name for name, _ in named])
     except MapNameClashError as exc:
-        raise RequestError(400, f"two maps are named {exc.name!r} (or a map is named albedo); name each map "
-                                "once") from None
+        raise RequestError(400, f"{exc.clash}; {exc.fix} (fields map:NAME)") from None
     out = []
     for name, field in named:
         value = fields.pop(field)
