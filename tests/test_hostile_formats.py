@@ -456,6 +456,51 @@ def test_an_exif_value_past_the_block_s_end_is_passed_over_without_pillow_s_warn
     assert shapes == [(48, 40, 3)] and shown == []  # 40x48 stored, orientation 6: turned
 
 
+@pytest.mark.parametrize("kind", [5, 17, 18])
+@pytest.mark.parametrize("fmt, suffix", [("JPEG", "jpg"), ("PNG", "png")])
+def test_an_exif_value_past_the_end_of_a_type_pillow_reads_or_not_keeps_the_orientation_without_a_word(
+        tmp_path, fmt, suffix, kind):
+    """The check of an EXIF block's values counts the field types Pillow reads, as the TIFF reader does (0.61: one
+    table, tghop.tiff_tags.FIELD_BYTES; 0.60's own copy also counted 17 and 18, which Pillow passes over without a
+    word): whatever the type, the orientation is applied and nothing is said, as in 0.60."""
+    from tghop import image_decode, tiff_tags
+
+    assert kind in image_decode.FIELD_BYTES or kind in (17, 18)
+    assert image_decode.FIELD_BYTES is tiff_tags.FIELD_BYTES
+    exif = bytearray(VALUE_PAST_END)
+    exif[6 + 10 + 12 + 2:6 + 10 + 12 + 4] = struct.pack(">H", kind)  # the description's field type
+    path = tmp_path / f"past.{suffix}"
+    path.write_bytes(saved(fmt, exif=bytes(exif)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert load_image(path).shape == (48, 40, 3)
+    assert [str(w.message) for w in caught] == []
+
+
+def test_a_file_object_is_looked_into_from_where_it_stands_and_put_back(tmp_path):
+    """A TIFF's tags and a JPEG's EXIF block are looked into before Pillow opens a file object (0.61: one dispatch,
+    _formats.read_as_it_stands, where quiet_copy and the EXIF check had a copy each): from where it stands, put
+    back there, named by its name."""
+    import io
+
+    from tghop.image_decode import open_image
+    from tghop.tiff_tags import quiet_copy
+
+    jpeg = bytearray(saved("JPEG", exif=b"Exif\x00\x00MM\x00*" + struct.pack(">IH", 8, 9)))  # 9 entries, none there
+    stream = io.BytesIO(b"junk" + bytes(jpeg))
+    stream.seek(4)
+    stream.name = "streamed.jpg"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with open_image(stream) as im:
+            assert im.size == (48, 40)
+    assert [str(w.message)[:44] for w in caught] == ["streamed.jpg: its EXIF data is damaged (Expe"]
+    tiff = io.BytesIO(b"junk" + saved("TIFF"))
+    tiff.seek(4)
+    assert quiet_copy(tiff) is None and tiff.tell() == 4
+    assert quiet_copy(123) is None  # neither a path nor a file object: left to Pillow
+
+
 @pytest.mark.parametrize("members, kind", [
     (["tghop-rock-64x64-seed3.png", "tghop-rock-64x64-seed3_normal.png", "tghop-rock-64x64-seed3_height.png"],
      "a ZIP archive of 3 images (tghop-rock-64x64-seed3.png, tghop-rock-64x64-seed3_normal.png, ...; the page's "

@@ -5,7 +5,7 @@ files it reads (:data:`READ_SUFFIXES`: what a batch takes from a folder)."""
 
 __all__ = ["FORMATS", "DEPTHS", "READ_SUFFIXES", "OTHER_IMAGE_SUFFIXES", "extensions", "OUTPUT_HELP", "is_model_file",
            "model_file_kind", "COOC_CHECKPOINT", "checkpoint_note", "TIFF_HINT", "check_tifffile",
-           "why_unreadable", "unreadable", "unread_format", "missing_decoder", "warn_frames"]
+           "why_unreadable", "unreadable", "unread_format", "missing_decoder", "warn_frames", "read_as_it_stands"]
 
 #: Output formats chosen by file extension.
 FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
@@ -53,6 +53,25 @@ def is_model_file(path) -> bool:
             return fh.read(4) in (b"PK\x03\x04", b"PK\x05\x06")
     except (OSError, ValueError):
         return False
+
+
+def read_as_it_stands(source, read):
+    """``read(fh, name)`` on ``source``: a path (opened, and closed after), or a binary file object from where it
+    stands (put back there after; ``name`` its ``name`` or "the image"); None for anything else. The one
+    dispatch of the readers that look into an image file before Pillow does (:func:`tghop.tiff_tags.quiet_copy`,
+    the damaged EXIF block's check of :mod:`tghop.image_decode`); each catches its own errors."""
+    import os
+
+    if isinstance(source, (str, bytes, os.PathLike)):
+        with open(source, "rb") as fh:
+            return read(fh, source)
+    if hasattr(source, "read") and hasattr(source, "seek"):
+        start = source.tell()
+        try:
+            return read(source, getattr(source, "name", None) or "the image")
+        finally:
+            source.seek(start)
+    return None
 
 
 #: :func:`model_file_kind`'s words for a checkpoint of ``tghop cooc train``.

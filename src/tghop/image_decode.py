@@ -14,12 +14,12 @@ import warnings
 import numpy as np
 
 from ._errors import ImageTooLargeError, InvalidImageError, warn
-from ._formats import TIFF_HINT, warn_frames
+from ._formats import TIFF_HINT, read_as_it_stands, warn_frames
 from .depths import RANGE_TOLERANCE
 from .bmp import read_bmp
 from .png import decode_png16
 from .profiles import gamma_to_srgb, png_gamma, tiff_profile, to_srgb
-from .tiff_tags import quiet_copy
+from .tiff_tags import FIELD_BYTES, quiet_copy
 
 __all__ = ["open_image", "exif_damage", "read_deep", "decode_pillow", "file_header", "upright", "has_alpha",
            "transparent_share", "transparency_note", "share_text", "metadata_too_large"]
@@ -134,10 +134,6 @@ def exif_damage(exif):
     return None
 
 
-#: Bytes a value of each TIFF field type Pillow reads (an entry of another type it passes over without a word).
-_FIELD_BYTES = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8, 13: 4, 16: 8, 17: 8, 18: 8}
-
-
 def _values_past_end(tiff):
     """Where (offsets in ``tiff``, an EXIF block less "Exif\\0\\0", whose first directory
     :func:`exif_damage` found whole) the directory's entries are whose values lie past the block's end, or
@@ -150,7 +146,7 @@ def _values_past_end(tiff):
     total, found = 0, []
     for entry in range(start + 2, start + 2 + 12 * count, 12):
         _, kind, values, at = struct.unpack(order + "HHII", tiff[entry:entry + 12])
-        size = values * _FIELD_BYTES.get(kind, 0)
+        size = values * FIELD_BYTES.get(kind, 0)  # Pillow's types alone: it passes over 17 and 18 without a word
         if size > 4:
             total += size
             if total > len(tiff) or at + size > len(tiff):
@@ -174,18 +170,9 @@ def _hide_damaged_exif(path, say):
     block (APP1) :func:`exif_damage` finds damaged, the file's bytes in memory with that block renamed so
     that Pillow leaves it unparsed (said, with ``say``)."""
     try:
-        if isinstance(path, (str, bytes, os.PathLike)):
-            with open(path, "rb") as fh:
-                return _without_damaged_exif(fh, path, say) or path
-        if hasattr(path, "read") and hasattr(path, "seek"):
-            start = path.tell()
-            try:
-                return _without_damaged_exif(path, getattr(path, "name", "the image"), say) or path
-            finally:
-                path.seek(start)
+        return read_as_it_stands(path, lambda fh, name: _without_damaged_exif(fh, name, say)) or path
     except (OSError, ValueError):  # Pillow's own error follows
-        pass
-    return path
+        return path
 
 
 def _without_damaged_exif(fh, name, say):

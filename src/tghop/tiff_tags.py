@@ -17,8 +17,9 @@ import os
 import struct
 
 from ._errors import InvalidImageError
+from ._formats import read_as_it_stands
 
-__all__ = ["quiet_copy", "directory_cut_short"]
+__all__ = ["quiet_copy", "directory_cut_short", "FIELD_BYTES"]
 
 #: Bytes a value of each field type Pillow reads takes (an entry of another type it passes over without a word).
 FIELD_BYTES = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8, 13: 4, 16: 8}
@@ -49,20 +50,11 @@ def quiet_copy(source):
     Pillow reads them without one (see the module's text). Raises :class:`~tghop.InvalidImageError` for a first
     directory cut short; an unreadable file is left to Pillow (None)."""
     try:
-        if isinstance(source, (str, bytes, os.PathLike)):
-            with open(source, "rb") as fh:
-                return _copy(fh, source)
-        if hasattr(source, "read") and hasattr(source, "seek"):
-            start = source.tell()
-            try:
-                return _copy(source, getattr(source, "name", None) or "the image")
-            finally:
-                source.seek(start)
+        return read_as_it_stands(source, _copy)
     except InvalidImageError:
         raise
     except (OSError, ValueError, struct.error):  # unreadable: Pillow's error follows
-        pass
-    return None
+        return None
 
 
 def _copy(fh, name):
