@@ -92,6 +92,13 @@ def test_a_fit_with_maps_is_a_material_named_by_its_maps(client, material_id):
         {"name": "normal", "channels": 3, "normal": True, "depth": 16},
         {"name": "height", "channels": 1, "normal": False, "depth": 8}]
     assert summary["exemplar_shape"][:2] == [SIZE, SIZE]
+    # the levels of its albedo's patch statistics (the page's quality switch), as the file's metadata says them
+    # (0.61: one count, Material.albedo_patch_levels, where the server had its own copy)
+    import io
+
+    saved = load_model(io.BytesIO(client.get(f"/api/models/{material_id}/file").content), material=True)
+    assert summary["material"]["patch_levels"] == saved.albedo_patch_levels() == saved._state_meta()["material"][
+        "patch_levels"] == len(saved.patches_.directions_) > 0
     # The joint model's channels are the defaults for its 7 stacked channels, as tghop fit --maps gives
     # (K1 = 3 per channel), not those of a 3-colour exemplar (9)
     assert summary["exemplar_shape"][2] == 7 and summary["channels"][0] == 21

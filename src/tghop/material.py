@@ -633,6 +633,12 @@ class Material(ImageInputMixin, BaseEstimator):
             ordered[step] = steps[step] if step == "pool" else (last := {**last, **steps[step]})
         return (out, ordered) if return_stages else out
 
+    def albedo_patch_levels(self) -> int:
+        """The levels of the albedo's patch statistics (0.59), as the file's metadata and the page's quality switch
+        say them: 0 where there are none (a material of tghop 0.58, or fitted with ``patch_levels`` 0)."""
+        stats = self.albedo_patches()
+        return 0 if stats is None else len(stats.directions_)
+
     def albedo_patches(self, patch_refine=None):
         """The albedo's patch statistics (:attr:`patches_`), checked against ``patch_refine``.
 
@@ -688,8 +694,8 @@ class Material(ImageInputMixin, BaseEstimator):
                                       **({"levels": levels} if levels else {}),
                                       **({"channel_levels": per_channel} if per_channel else {}),
                                       "conventions": {n: c for n, c in zip(self.names_, self.conventions_) if c},
-                                      **({"patch_levels": len(self.patches_.directions_)} if self.albedo_patches()
-                                         is not None else {}),
+                                      **({"patch_levels": self.albedo_patch_levels()}
+                                         if self.albedo_patch_levels() else {}),
                                       # the joint model's copy of the fit's generator (0.57)
                                       "model_rng": settings.generator_record(self.model_.rng)}}
 

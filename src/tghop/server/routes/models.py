@@ -31,17 +31,10 @@ def summary(server, model_id: str) -> dict:
     model = getattr(loaded, "model_", loaded)  # a material's joint model
     made = {"id": model_id, "file_bytes": file_bytes,
             "layout": model.layout_ is not None, **info_dict(model),
-            **({"material": {"maps": loaded.map_info(), "patch_levels": patch_levels(loaded)}}
+            **({"material": {"maps": loaded.map_info(), "patch_levels": loaded.albedo_patch_levels()}}
                if model is not loaded else {})}
     server.cache.keep_summary(model_id, made)
     return made
-
-
-def patch_levels(material) -> int:
-    """The levels of a material's albedo patch statistics (0.59; 0: none, a material of 0.58 or fitted with
-    ``patch_levels`` 0): whether the page's quality switch applies to it."""
-    stats = material.albedo_patches()
-    return 0 if stats is None else len(stats.directions_)
 
 
 async def model_summary(server, request):
