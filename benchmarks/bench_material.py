@@ -273,20 +273,28 @@ def painted_table(rows: dict) -> str:
     return markdown_table(header, lines)
 
 
+def table_main(args, flag, groups, row, table, name, key, title):
+    """``flag``'s run (--albedo-refine, --painted): ``row(*crops, size, seeds)`` for each group of textures (one
+    texture, or a pair A B) cropped to --crop, printed as it is made; then the rows written to results/``name``
+    (``key``: what names a row) and printed as ``table(rows)`` under ``title`` (what comes before the seeds)."""
+    size, seeds, rows = (args.size, args.size), list(range(args.seeds)), {}
+    crops = {n: texture(n)[: args.crop or None, : args.crop or None] for group in groups for n in group}
+    for group in groups:
+        label = " / ".join(group)
+        rows[label] = row(*[crops[n] for n in group], size, seeds)
+        print(*group, {k: round(v, 3) for k, v in rows[label].items()}, flush=True)
+    md = f"{title}, seeds 0-{args.seeds - 1}, means (benchmarks/bench_material.py {flag})\n\n" + table(rows)
+    write_results(name, [{key: k, **v, "size": args.size, "seeds": seeds} for k, v in rows.items()], md)
+    print(md)
+
+
 def painted_main(args):
     if len(args.textures) % 2:
         raise SystemExit("--painted takes the textures in pairs (A B C D: A beside B, C beside D)")
-    size, seeds, rows = (args.size, args.size), list(range(args.seeds)), {}
-    crops = {name: texture(name)[: args.crop or None, : args.crop or None] for name in args.textures}
-    for a, b in zip(args.textures[::2], args.textures[1::2]):
-        rows[f"{a} / {b}"] = painted_row(crops[a], crops[b], size, seeds)
-        print(a, b, {k: round(v, 3) for k, v in rows[f"{a} / {b}"].items()}, flush=True)
-    md = (f"Painted materials' albedos patch-refined (0.60): each region's albedo SIFID against its own "
-          f"{args.crop}x{args.crop} crop, A left and B right of {args.size}x{args.size}, seeds 0-{args.seeds - 1}, "
-          "means (benchmarks/bench_material.py --painted)\n\n" + painted_table(rows))
-    write_results("material_painted", [{"pair": k, **v, "size": args.size, "seeds": seeds} for k, v in rows.items()],
-                  md)
-    print(md)
+    table_main(args, "--painted", list(zip(args.textures[::2], args.textures[1::2])), painted_row, painted_table,
+               "material_painted", "pair",
+               f"Painted materials' albedos patch-refined (0.60): each region's albedo SIFID against its own "
+               f"{args.crop}x{args.crop} crop, A left and B right of {args.size}x{args.size}")
 
 
 def parse_args(argv=None):
@@ -306,19 +314,9 @@ def parse_args(argv=None):
 
 
 def albedo_refine_main(args):
-    size, seeds, rows = (args.size, args.size), list(range(args.seeds)), {}
-    for name in args.textures:
-        ex = texture(name)
-        if args.crop:
-            ex = ex[: args.crop, : args.crop]
-        rows[name] = albedo_refine_row(ex, size, seeds)
-        print(name, {k: round(v, 3) for k, v in rows[name].items()}, flush=True)
-    md = (f"The material albedo's patch refinement (0.59): albedo SIFID against the {args.crop}x{args.crop} crop, "
-          f"{args.size}x{args.size}, seeds 0-{args.seeds - 1}, means (benchmarks/bench_material.py "
-          "--albedo-refine)\n\n" + albedo_refine_table(rows))
-    write_results("material_albedo", [{"texture": k, **v, "size": args.size, "seeds": seeds} for k, v in rows.items()],
-                  md)
-    print(md)
+    table_main(args, "--albedo-refine", [(name,) for name in args.textures], albedo_refine_row, albedo_refine_table,
+               "material_albedo", "texture", f"The material albedo's patch refinement (0.59): albedo SIFID against the "
+               f"{args.crop}x{args.crop} crop, {args.size}x{args.size}")
 
 
 def main():

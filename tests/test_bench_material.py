@@ -57,3 +57,35 @@ def test_painted_rows_score_each_regions_albedo_by_its_own_crop(bench):
     table = bench.painted_table({"bricks / cells": row})
     assert table.splitlines()[0].startswith("| A / B | unrefined A / B | default A / B | best A / B |")
     assert table.splitlines()[-1].startswith("| mean |")
+
+
+@pytest.mark.parametrize("flag", ["--albedo-refine", "--painted"])
+def test_the_two_tables_runs_crop_score_write_and_print_alike(bench, monkeypatch, capsys, flag):
+    """--albedo-refine and --painted: one loop (0.61; two copies before), a row per texture (per pair) of the
+    textures cropped to --crop, printed as it is made, then written with the table under its own title."""
+    painted = flag == "--painted"
+    args = bench.parse_args(["bricks", "cells", flag, "--seeds", "2", "--crop", "40", "--size", "48"])
+    monkeypatch.setattr(bench, "texture", lambda name: getattr(data, name)(64))
+    got = []
+
+    def row(*given):  # (textures..., size, seeds): their shapes, for the row
+        *crops, size, seeds = given
+        assert all(c.shape == (40, 40, 3) for c in crops) and size == (48, 48) and seeds == [0, 1]
+        return {"score": float(len(crops)) + 0.12345}
+
+    monkeypatch.setattr(bench, "painted_row" if painted else "albedo_refine_row", row)
+    monkeypatch.setattr(bench, "painted_table" if painted else "albedo_refine_table", lambda rows: f"| {list(rows)} |")
+    monkeypatch.setattr(bench, "write_results", lambda name, payload, md: got.append((name, payload, md)))
+    (bench.painted_main if painted else bench.albedo_refine_main)(args)
+    [(name, payload, md)] = got
+    key = "pair" if painted else "texture"
+    rows = [("bricks / cells", 2.12345)] if painted else [("bricks", 1.12345), ("cells", 1.12345)]
+    assert name == ("material_painted" if painted else "material_albedo")
+    assert payload == [{key: k, "score": v, "size": 48, "seeds": [0, 1]} for k, v in rows]
+    title = ("Painted materials' albedos patch-refined (0.60): each region's albedo SIFID against its own 40x40 "
+             "crop, A left and B right of 48x48" if painted else
+             "The material albedo's patch refinement (0.59): albedo SIFID against the 40x40 crop, 48x48")
+    assert md == f"{title}, seeds 0-1, means (benchmarks/bench_material.py {flag})\n\n| {[k for k, _ in rows]} |"
+    out = capsys.readouterr().out
+    assert out.startswith("bricks cells {'score': 2.123}\n" if painted else
+                          "bricks {'score': 1.123}\ncells {'score': 1.123}\n") and out.endswith(md + "\n")
