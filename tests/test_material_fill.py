@@ -197,6 +197,8 @@ def folder(tmp_path_factory, picture):
     (d / "sub").mkdir()
     save_image(picture[0]["height"], d / "sub" / "h.png")
     save_image(picture[0]["height"], d / "sub" / "H.png")
+    for end in "ab":  # two stems alike in their first 64 characters
+        save_image(picture[0]["height"], d / "sub" / f"{'h' * 70}{end}.png")
     save_image(picture[0]["height"], d / "sub" / "albedo.png")
     save_image(picture[0]["height"][:64], d / "small.png")
     two = Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {
@@ -222,6 +224,9 @@ def folder(tmp_path_factory, picture):
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/h.png", "-o", "o.png"], "two maps are named 'h':"),
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "sub/H.png", "-o", "o.png"],
      "two maps are named 'h' and 'H', which differ only in case (one file name where case is ignored): the file "),
+    (["inpaint", "wall.png", "mask.png", "--maps", f"sub/{'h' * 70}a.png", f"sub/{'h' * 70}b.png", "-o", "o.png"],
+     f"the maps' files sub/{'h' * 70}a.png and sub/{'h' * 70}b.png give one name, '{'h' * 64}' (a map's name is its "
+     "file stem's first 64 characters); give files whose stems differ in their first 64 characters"),
     (["inpaint", "wall.png", "mask.png", "--maps", "h.png", "--source", "tex.npz", "-o", "o.png"],
      "--source tex.npz is a texture model"),
     (["extend", "wall.png", "h.png", "--size", "200x200", "-o", "o.png"], "an argument too many after IMAGE"),

@@ -280,7 +280,7 @@ def parse_maps(value, where, base: Path) -> list:
     if not pairs and isinstance(value, str):  # only separators: a slip (an empty cell is a texture)
         raise TGHopError(f"{where}: maps {_shown(value)} lists no file; give the maps' files, or leave the cell "
                          "empty for a texture")
-    out = []
+    out, named_by = [], []  # named_by: the file that names each map (None: named in the manifest)
     for name, file in pairs:
         if file is not None and not isinstance(file, str):  # 0.59: "has no path" of {"normal": {"path": ...}}
             raise TGHopError(f"{where}: the file of the map {_shown(name if name is not None else file)} must be a "
@@ -290,6 +290,7 @@ def parse_maps(value, where, base: Path) -> list:
                              "give each map's image file")
         file = file.strip()
         _check_path_text(file, where)
+        named_by.append(file if name is None else None)
         name = map_name(file) if name is None else name
         if not isinstance(name, str) or not MAP_NAME.fullmatch(name):
             raise TGHopError(f"{where}: the map name {_shown(name)} cannot name a file; use letters, digits, "
@@ -299,9 +300,11 @@ def parse_maps(value, where, base: Path) -> list:
                              f"{MAP_NAME_MAX} a map's name may have (it names the map's file); shorten it")
         out.append((name, Path(file) if os.path.isabs(file) else base / file))
     try:
-        check_map_names([name for name, _ in out])
+        check_map_names([name for name, _ in out], named_by)
     except MapNameClashError as exc:
-        raise TGHopError(f"{where}: {exc.clash}; {exc.fix}, e.g. normal=rock_n.png") from None
+        fix = (f"name each map, e.g. normal=rock_n.png, or {exc.fix}" if exc.cut
+               else f"{exc.fix}, e.g. normal=rock_n.png")
+        raise TGHopError(f"{where}: {exc.clash}; {fix}") from None
     if len(out) > MAX_MAPS:
         raise TGHopError(f"{where}: {len(out)} maps; a material takes at most {MAX_MAPS}")
     return out

@@ -14,6 +14,7 @@ Example
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -187,8 +188,13 @@ def map_name(path) -> str:
     str
         The map's name, 1 to 64 characters of ``[A-Za-z0-9._-]``, starting with a letter or digit.
     """
+    return _whole_name(path)[:MAP_NAME_MAX] or "map"
+
+
+def _whole_name(path) -> str:
+    """:func:`map_name` before it is cut to :data:`MAP_NAME_MAX` characters (and without its "map")."""
     stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem)
-    return re.sub(r"^[^A-Za-z0-9]+", "", stem)[:MAP_NAME_MAX] or "map"
+    return re.sub(r"^[^A-Za-z0-9]+", "", stem)
 
 
 def colour_map_out_of_place(albedo, maps, names=None):
@@ -326,12 +332,13 @@ class MapNameClashError(TGHopError):
     (:func:`check_map_names`). Its ``name`` (as given), ``index`` (that name's place in the names
     checked), ``albedo`` (True: the name is the albedo's, else an earlier map's), ``other`` (the
     earlier name, or "albedo"), ``clash`` (the clash in words: "two maps are named 'n' and 'N', which
-    differ only in case ...", 0.61; 0.60 said "two maps are named 'N'" of those) and ``fix`` let a
+    differ only in case ...", 0.61; 0.60 said "two maps are named 'N'" of those), ``fix`` and ``cut`` (two
+    files' stems alike in the first :data:`MAP_NAME_MAX` characters, the names cut from them) let a
     caller word the message its user reads, naming what was given (a manifest's line, a command's
     files, a request's fields)."""
 
 
-def check_map_names(names) -> None:
+def check_map_names(names, files=None) -> None:
     """Refuse names of a material's maps that name two maps alike, or a map as the albedo, in
     any case: each name names its map's file (:func:`tghop.material_files.map_files`; the albedo's
     is ``OUT`` itself), so two would be one file, on a file system that ignores case too.
@@ -343,6 +350,9 @@ def check_map_names(names) -> None:
     names : sequence of str
         The maps' names (the albedo's not among them), in the order given; their form is
         not checked here (:data:`MAP_NAME`).
+    files : sequence of (str, os.PathLike or None), optional
+        Each map's file where its name is the file's (:func:`map_name`; None where it was named otherwise):
+        two files whose stems differ only past :data:`MAP_NAME_MAX` characters are said so (``cut``; 0.61).
 
     Raises
     ------
@@ -363,8 +373,14 @@ file name where case is ignored); give each map its own name, not only in case
         key = name.lower()
         if key == ALBEDO or key in seen:
             albedo = key == ALBEDO
-            other = ALBEDO if albedo else seen[key]
-            if albedo:  # a name kept for the albedo (OUT's own file), in any case
+            other, at = (ALBEDO, None) if albedo else seen[key]
+            pair = [files[i] for i in (at, index)] if files is not None and at is not None else [None, None]
+            cut = None not in pair and len({_whole_name(f).lower() for f in pair}) == 2
+            if cut:  # 0.60: "two maps are named 'X'" of two files whose stems differ past the 64th character
+                clash = (f"the maps' files {os.fsdecode(pair[0])} and {os.fsdecode(pair[1])} give one name, {name!r} "
+                         f"(a map's name is its file stem's first {MAP_NAME_MAX} characters)")
+                fix = f"give files whose stems differ in their first {MAP_NAME_MAX} characters"
+            elif albedo:  # a name kept for the albedo (OUT's own file), in any case
                 clash = f"a map is named {name!r}, the albedo's name{'' if name == ALBEDO else ' in another case'}"
                 fix = "give each map its own name"
             elif other == name:
@@ -375,8 +391,9 @@ file name where case is ignored); give each map its own name, not only in case
                 fix = "give each map its own name, not only in case"
             exc = MapNameClashError(f"{clash}; {fix}")
             exc.name, exc.index, exc.albedo, exc.other, exc.clash, exc.fix = name, index, albedo, other, clash, fix
+            exc.cut = cut
             raise exc
-        seen[key] = name
+        seen[key] = (name, index)
 
 
 def is_normal_name(name: str) -> bool:

@@ -694,12 +694,14 @@ def map_names(paths, *, label: str = "MAP", albedo: str = "IMAGE") -> list:
 
     names = [map_name(path) for path in paths]
     try:
-        check_map_names(names)
+        check_map_names(names, paths)
     except MapNameClashError as exc:
         name = exc.name
         if exc.albedo:
             raise TGHopError(f"{label} {paths[exc.index]} is named {name!r}, the name of {albedo} itself (written to "
                              "OUT, the other maps beside it); rename the file") from None
+        if exc.cut:
+            raise TGHopError(f"{exc.clash}; {exc.fix}") from None
         raise TGHopError(f"{exc.clash}: the file stem names the map and its output file; rename one") from None
     return names
 
