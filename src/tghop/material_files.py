@@ -25,7 +25,7 @@ from pathlib import Path
 
 from .map_names import kind_key, name_kind, normal_convention
 
-__all__ = ["read_map", "map_files", "map_suffixes", "map_keys", "RESOLUTION"]
+__all__ = ["read_map", "map_files", "map_suffixes", "map_keys", "maps_compared", "RESOLUTION"]
 
 #: A word of a map's name that is a resolution (``2K``, ``4k``, ``1024``, ``2048x2048``): dropped at
 #: either end of a map's suffix (Poly Haven's ``rock_wall_nor_gl_2k`` is ``nor_gl``).
@@ -255,6 +255,19 @@ def map_keys(names) -> list:
         else:
             keys.append(suffix.lower())
     return keys
+
+
+def maps_compared(material, first) -> str:
+    """How ``material``'s maps compare with ``first``'s (two fitted materials), as painted, remixed and morphed
+    materials are matched (:func:`map_keys` and each map's channels, in order): "same", "order" (the same maps in
+    another order, which the command line and the server say so: 0.60's server said "has the maps ... but ...
+    has ...", naming the same maps twice) or "other"."""
+    mine, theirs = list(zip(map_keys(material.names_), material.map_channels_[1:])), list(zip(
+        map_keys(first.names_), first.map_channels_[1:]))
+    if mine == theirs and material.map_channels_[0] == first.map_channels_[0]:
+        return "same"
+    return "order" if sorted(mine) == sorted(theirs) and material.map_channels_[0] == first.map_channels_[0] \
+        else "other"
 
 
 def _shared_words(words) -> int:

@@ -326,14 +326,14 @@ def _check_mixable(labels, read, options):
 
     first, label1 = read[0], labels[0]
     if hasattr(first, "names_"):  # all materials (_same_kind): the same maps (by their files' suffixes), in order
-        from ..material_files import map_keys
+        from ..material_files import maps_compared
 
         for label, source in zip(labels[1:], read[1:]):
-            keys, keys1 = map_keys(source.names_), map_keys(first.names_)
-            if (keys, source.map_channels_) == (keys1, first.map_channels_):
+            compared = maps_compared(source, first)
+            if compared == "same":
                 continue
             mine, theirs = ", ".join(source.names_[1:]), ", ".join(first.names_[1:])
-            if sorted(keys) == sorted(keys1) and keys != keys1:
+            if compared == "order":
                 raise TGHopError(f"{label} has its maps in another order ({mine}) than {label1} ({theirs}); fit it "
                                  f"again with its maps after --maps in {label1}'s order")
             raise TGHopError(f"{label} has the maps {mine} but {label1} has {theirs}; give materials with the same "
