@@ -220,11 +220,18 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     mask = np.zeros((48, 48), dtype=np.uint8)
     mask[10:30, 10:30] = 255
     # A material's fill needs its maps, all of them and no others; a texture model's takes none
+    # (0.61: which one is wrong, said first; 0.60 said the list alone, also of a map named in another case)
     assert_error(client.post(f"/api/models/{material_id}/inpaint", files={
-        "image": ("p.png", picture), "mask": ("m.png", png(mask))}), 400, "this material's maps are normal, height")
+        "image": ("p.png", picture), "mask": ("m.png", png(mask))}), 400,
+        "the map 'normal' was not sent; this material's maps are normal, height")
     assert_error(client.post(f"/api/models/{material_id}/extend", files={
         "image": ("p.png", picture), "size": (None, "64x64"), "map:normal": ("n.png", picture),
-        "map:rough": ("r.png", picture)}), 400, "this material's maps are normal, height")
+        "map:rough": ("r.png", picture)}), 400, "map:rough is no map of this material; this material's maps are "
+        "normal, height")
+    assert_error(client.post(f"/api/models/{material_id}/extend", files={
+        "image": ("p.png", picture), "size": (None, "64x64"), "map:Normal": ("n.png", picture),
+        "map:height": ("h.png", picture)}), 400, "map:Normal names its map 'normal' in another case (a field's name "
+        "is matched as it is); this material's maps are normal, height")
     strip = png(to_uint8(data.bricks(48))[:8])  # an 8x48 picture grown to 8x96: thinner than a patch
     assert_error(client.post(f"/api/models/{material_id}/extend", files={
         "image": ("p.png", strip), "size": (None, "8x96"), "map:normal": ("n.png", strip),

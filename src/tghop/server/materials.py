@@ -261,8 +261,18 @@ def fill(material, picture, alpha, hole, uploads, read, *, depth, grow, seed, ti
     names = material.names_[1:]
     given = {name: (filename, content) for name, filename, content in uploads}
     if sorted(given) != sorted(names):
-        raise RequestError(400, f"this material's maps are {', '.join(names)}; send each of them, and no other, as "
-                                "the file field map:<name> beside the picture (its albedo)")
+        missing = {n.lower(): n for n in names if n not in given}
+        unknown = [n for n in given if n not in names]
+        # 0.60 said the maps' list alone of a map named in another case (map:Normal for normal) or not sent
+        if unknown and unknown[0].lower() in missing:
+            said = (f"map:{unknown[0]} names its map {missing[unknown[0].lower()]!r} in another case (a field's name "
+                    "is matched as it is); ")
+        elif unknown:
+            said = f"map:{unknown[0]} is no map of this material; "
+        else:
+            said = f"the map {next(iter(missing.values()))!r} was not sent; "
+        raise RequestError(400, f"{said}this material's maps are {', '.join(names)}; send each of them, and no "
+                                "other, as the file field map:<name> beside the picture (its albedo)")
     known = ~hole  # grown: the picture as sent is the known rectangle
     shape = picture.shape[:2] if grow is None else (int(known.any(axis=1).sum()), int(known.any(axis=0).sum()))
     maps, depths = {}, {"albedo": depth}
