@@ -662,7 +662,13 @@ def test_extend_grows_the_picture_as_tghop_extend_does(client, fitted, to_fill, 
     strip = png_of(np.full((8, 50, 3), 128, np.uint8))  # the library's words, naming extending (not inpainting)
     assert_error(post(url, files={**ask, "image": ("strip.png", strip), "size": (None, "8x400")}), 400,
                  "the image (8x50) extended to 8x400 is thinner than the 32x32 patches", "at least 32x400")
-    assert_error(post(url, files={k: v for k, v in ask.items() if k != "size"}), 422, "size must be HEIGHTxWIDTH")
+    # 0.60: "size must be HEIGHTxWIDTH in pixels, e.g. 512x1024, got ''" of no size, and "size, anchor, seed, tile:
+    # plain fields, not files" of one sent as a file
+    assert_error(post(url, files={k: v for k, v in ask.items() if k != "size"}), 422,
+                 "the field 'size' is missing: send the size to grow the picture to, HEIGHTxWIDTH")
+    assert_error(post(url, files={**ask, "size": (None, "big")}), 422, "size must be HEIGHTxWIDTH", "got 'big'")
+    assert_error(post(url, files={**ask, "seed": ("seed.txt", b"3")}), 422,
+                 "the field 'seed' is sent as a file; send it as a plain field (text)")
     assert_error(post(url, files={**ask, "size": (None, "9000x9000")}), 422, "size")
     assert_error(post(url, files={**ask, "anchor": (None, "middle")}), 422, "anchor must be one of center, top")
     assert_error(post(url, files={**ask, "mask": ("m.png", image)}), 422, "unknown field 'mask'")

@@ -335,7 +335,7 @@ def _check_mixable(labels, read, options):
             mine, theirs = ", ".join(source.names_[1:]), ", ".join(first.names_[1:])
             if compared == "order":
                 raise TGHopError(f"{label} has its maps in another order ({mine}) than {label1} ({theirs}); fit it "
-                                 f"again with its maps after --maps in {label1}'s order")
+                                 f"again with its maps after --maps in that order: {theirs}")
             raise TGHopError(f"{label} has the maps {mine} but {label1} has {theirs}; give materials with the same "
                              "maps (of the same channels), matched by their kinds (NormalGL and nor_gl are both a "
                              "normal map) or else by the names after the name their maps share")

@@ -246,7 +246,10 @@ def parse_growth(size, anchor) -> tuple:
     from .._images import MAX_PIXELS, check_size
     from ..inpaint import ANCHORS
 
-    pair = manifest.split_size(size or "")
+    if size is None or not size.strip():  # 0.60: "size must be HEIGHTxWIDTH ..., got ''"
+        raise RequestError(422, "the field 'size' is missing: send the size to grow the picture to, HEIGHTxWIDTH in "
+                                "pixels, e.g. 512x1024")
+    pair = manifest.split_size(size)
     if pair is None:
         raise RequestError(422, f"size must be HEIGHTxWIDTH in pixels, e.g. 512x1024, got {(size or '')[:40]!r}")
     try:

@@ -144,8 +144,9 @@ async def fill_request(server, request, *, grow: bool):
         raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)} (and a material's "
                                 "map:<name>)")
     plain = {k: fields.get(k) for k in names if k not in ("image", "mask")}
-    if any(isinstance(v, tuple) for v in plain.values()):
-        raise RequestError(422, f"{', '.join(plain)}: plain fields, not files")
+    files = [k for k, v in plain.items() if isinstance(v, tuple)]
+    if files:  # 0.60 named every plain field ("size, anchor, seed, tile: plain fields, not files")
+        raise RequestError(422, f"the field {files[0]!r} is sent as a file; send it as a plain field (text)")
     seed = (plain["seed"] or "").strip()
     if seed == "":
         seed = secrets.randbelow(2**31)
