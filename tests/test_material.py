@@ -435,6 +435,34 @@ def test_a_material_whose_albedo_patches_say_format_version_10_is_refused(materi
         load_model(tmp_path / "v10.npz", material=True)
 
 
+@pytest.mark.parametrize("new, said", [
+    ("h" * 70, "the material metadata has a bad map name 'hhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhhh...' (letters, "
+               "digits, '.', '_' or '-', at most 64)"),
+    ("Normal", "the material metadata's map names clash: two maps are named 'normal' and 'Normal', which differ only "
+               "in case (one file name where case is ignored)"),
+    ("Albedo", "the material metadata's map names clash: a map is named 'Albedo', the albedo's name in another case"),
+])
+def test_a_material_file_whose_map_names_were_edited_says_what_is_wrong(material, tmp_path, new, said):
+    """0.60 read a map name of 70 characters (a file of tghop cuts them to 64, as they name files) and said "a bad or
+    repeated map name 'Normal'" of two names alike but for case, or of a map named as the albedo."""
+    import json
+
+    save_model(material, tmp_path / "m.npz")
+    with np.load(tmp_path / "m.npz") as f:
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["__meta__"]))
+    old = meta["material"]["maps"][-1]["name"]  # the last map, renamed, its statistics with it
+    meta["material"]["maps"][-1]["name"] = new
+    for part in ("levels", "channel_levels", "conventions"):
+        if old in meta["material"].get(part, {}):
+            meta["material"][part][new] = meta["material"][part].pop(old)
+    arrays = {k.replace(f"material.{old}.", f"material.{new}."): v for k, v in arrays.items()}
+    with open(tmp_path / "edited.npz", "wb") as fh:
+        np.savez(fh, **{**arrays, "__meta__": np.array(json.dumps(meta))})
+    with pytest.raises(ModelFileError, match=re.escape(f"edited.npz: invalid tghop model ({said}); fit the model")):
+        load_model(tmp_path / "edited.npz", material=True)
+
+
 def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_options(exemplar, maps, tmp_path):
     """Review 58, item 8: the options typed are named, not the library's patch_refine (0.59: a material fitted
     without patch statistics, as 0.58 fitted every material)."""

@@ -741,10 +741,19 @@ class Material(ImageInputMixin, BaseEstimator):
         if not isinstance(maps, list) or not maps:
             raise TGHopError("the material metadata lists no maps")
         names = []
-        for m in maps:
+        for i, m in enumerate(maps):
             name, c, depth = m["name"], m["channels"], m["depth"]
-            if not isinstance(name, str) or not MAP_NAME.fullmatch(name) or name.lower() in names:
-                raise TGHopError(f"the material metadata has a bad or repeated map name {name!r}")
+            # 0.60 took a name of any length (a file's map names are cut to 64)
+            if not isinstance(name, str) or not MAP_NAME.fullmatch(name) or len(name) > MAP_NAME_MAX:
+                shown = repr(name[:40] + "...") if isinstance(name, str) and len(name) > 40 else repr(name)[:60]
+                raise TGHopError(f"the material metadata has a bad map name {shown} (letters, digits, '.', '_' or "
+                                 f"'-', at most {MAP_NAME_MAX})")
+            if name.lower() in names:  # 0.60: "a bad or repeated map name", not which clash
+                try:
+                    check_map_names([m["name"] for m in maps[1:i + 1]])
+                except MapNameClashError as exc:
+                    raise TGHopError(f"the material metadata's map names clash: {exc.clash}") from None
+                raise TGHopError(f"the material metadata names two maps {name!r} (in any case)")
             if c not in (1, 2, 3, 4) or depth not in (8, 16, 32) or not isinstance(m["normal"], bool) or (
                     m["normal"] and c != 3):  # 2 and 4: a packing with a map in A (0.59)
                 raise TGHopError(f"the material metadata's map {name!r} is not of 1 to 4 channels and 8, 16 or 32 "
