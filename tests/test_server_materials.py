@@ -260,11 +260,13 @@ def test_materials_with_other_maps_are_not_painted_together(client, material_id)
     assert_error(client.post("/api/images/morph", json={"a": material_id, "b": other, "size": [32, 64]}),
                  422, f"B ({other[:8]}) has the maps albedo, normal but A ({material_id[:8]}) has albedo, normal, "
                  "height; morph materials with the same maps")
-    # the same maps in another order: 0.60 said "B has the maps albedo, height, normal but A has albedo, normal, height"
+    # the same maps in another order: 0.60 said "B has the maps albedo, height, normal but A has albedo, normal,
+    # height"
     files = map_files()
     turned = fit(client, {**albedo_file(), "map:height": files["map:height"], "map:normal": files["map:normal"]})
     for route, body, who in (("morph", {"a": material_id, "b": turned, "size": [32, 64]}, ("B", "A")),
-                             ("guided", {"models": [material_id, turned], "size": [32, 32]}, ("models[1]", "models[0]"))):
+                             ("guided", {"models": [material_id, turned], "size": [32, 32]},
+                              ("models[1]", "models[0]"))):
         assert_error(client.post(f"/api/images/{route}", json=body), 422,
                      f"{who[0]} ({turned[:8]}) has its maps in another order (height, normal) than {who[1]} "
                      f"({material_id[:8]}) (normal, height); fit it again with its maps (the fields map:NAME) in that "
