@@ -49,7 +49,8 @@ from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS, MapNameClashError, check_map_names,
                         is_normal_name, keeps_alpha, map_kind, map_name, name_kind, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
-from .normals import convention_of, surface_map
+from .normals import (NORMAL_LOOK_MEAN, NORMAL_LOOK_SHARE, NORMAL_TOLERANCE, check_normal_map, convention_of,
+                      looks_like_normal_map, renormalise, surface_map)
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
@@ -61,15 +62,6 @@ __all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map"
            "looks_like_normal_map", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE",
            "NORMAL_LOOK_MEAN", "colour_spread", "COLOUR_SPREAD", "one_value_a_pixel"]
 
-#: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
-NORMAL_TOLERANCE = 0.1
-#: An image whose pixels, all but this share, are unit vectors facing up (``2 v - 1`` of length
-#: within 0.15 of 1, blue at least 0.5) and whose mean red and green lie within
-#: NORMAL_LOOK_MEAN of 0.5 (its slopes cancel out) is a normal map by its content
-#: (:func:`looks_like_normal_map`). Of the 44 exemplars, the closest photograph had 95 % of such
-#: pixels (water_caustics: mean red 0.04); the next 71 %.
-NORMAL_LOOK_SHARE = 0.9
-NORMAL_LOOK_MEAN = 0.1
 #: Bits per channel a map's file may have (what a model file accepts).
 DEPTHS = (8, 16, 32)
 #: The albedo's patch statistics' arrays in a model file (0.59): no map's ``material.<name>.`` prefix.
@@ -77,35 +69,6 @@ PATCH_PREFIX = "material_patch."
 #: ``Material.synthesize``'s own setting, checked as the settings table checks its booleans.
 REFINE_MAPS = settings.Setting("refine_maps", True, "bool", "Refine the maps other than the albedo too.",
                                when="generate", cli=None)
-
-
-def looks_like_normal_map(image) -> bool:
-    """Whether an image's content is a tangent-space normal map (whatever its name): at least
-    :data:`NORMAL_LOOK_SHARE` of its pixels unit vectors encoded as ``(n + 1) / 2`` facing up
-    (blue at least 0.5), and its mean red and green within :data:`NORMAL_LOOK_MEAN` of 0.5: the
-    blue-violet of a normal map, mean about (0.5, 0.5, 1). ``tghop synth`` warns by it, as by
-    :func:`tghop.map_names.map_kind`, of a remix of a material's maps.
-
-    Parameters
-    ----------
-    image : array_like, shape (H, W, C)
-        Floats in [0, 1], or unsigned integers at their full range (8 or 16 bits); only an image of
-        3 channels can be one (every other pixel of every other row is read).
-
-    Returns
-    -------
-    bool
-    """
-    arr = np.asarray(image)
-    if arr.ndim != 3 or arr.shape[2] != 3 or arr.size == 0 or arr.dtype.kind not in "uf":
-        return False
-    v = arr[::2, ::2].reshape(-1, 3).astype(np.float64)
-    if arr.dtype.kind == "u":
-        v /= np.iinfo(arr.dtype).max
-    length = np.linalg.norm(v * 2.0 - 1.0, axis=1)
-    unit_up = (np.abs(length - 1.0) <= 0.15) & (v[:, 2] >= 0.5)
-    mean = v.mean(axis=0)
-    return bool(unit_up.mean() >= NORMAL_LOOK_SHARE and np.abs(mean[:2] - 0.5).max() <= NORMAL_LOOK_MEAN)
 
 
 #: Mean spread of a map's channels (:func:`colour_spread`) above which a map named as one value a pixel
@@ -136,26 +99,6 @@ def colour_spread(image) -> float:
         return 0.0
     v = arr[::2, ::2].astype(np.float64, copy=False)
     return float((v.max(axis=2) - v.min(axis=2)).mean())
-
-
-def check_normal_map(values, name: str = "normal map"):
-    """Refuse a "normal map" that does not hold unit vectors (one-line :class:`TGHopError`).
-
-    Parameters
-    ----------
-    values : ndarray, shape (H, W, 3), float in [0, 1]
-        Vectors encoded as ``(n + 1) / 2``.
-    name : str
-    """
-    if values.shape[2] != 3:
-        raise TGHopError(f"map {name!r} is a normal map by its name but has {values.shape[2]} channel"
-                         f"{'s' if values.shape[2] != 1 else ''}, not 3; rename it if it is not a normal map")
-    length = np.linalg.norm(values[::2, ::2].reshape(-1, 3) * 2.0 - 1.0, axis=1)
-    median = float(np.median(length))
-    if abs(median - 1.0) > NORMAL_TOLERANCE:
-        raise TGHopError(f"map {name!r} is a normal map by its name but its pixels are not unit vectors "
-                         f"(median length {median:.2f}, not 1 +- {NORMAL_TOLERANCE}); give a normal map encoded "
-                         "as (n + 1) / 2, or rename it if it is not one")
 
 
 def drop_opaque_alpha(image, name: str, *, keep=False):
@@ -221,36 +164,6 @@ def one_value_a_pixel(image) -> bool:
     arr = np.asarray(image)[::2, ::2]
     varying = [c for c in range(arr.shape[2]) if np.ptp(arr[..., c]) >= 1 / 512] if arr.size else []
     return all(np.abs(arr[..., c] - arr[..., varying[0]]).max() < 1 / 512 for c in varying[1:])
-
-
-def renormalise(values, out=None):
-    """Normal map values (H, W, 3) in [0, 1] -> the same directions as unit vectors, encoded
-    as ``(n + 1) / 2`` (a zero vector becomes (0, 0, 1), straight up).
-
-    Parameters
-    ----------
-    values : array_like, shape (H, W, 3), float in [0, 1]
-        Vectors encoded as ``(n + 1) / 2``, of any length (computed in float64).
-    out : ndarray, shape (H, W, 3), optional
-        Where to write the result (it may be ``values`` itself); None: a new float64 array.
-
-    Returns
-    -------
-    ndarray, shape (H, W, 3), float in [0, 1]
-        ``out`` when given, else a new float64 array.
-    """
-    n = np.asarray(values, dtype=np.float64) * 2.0 - 1.0
-    length = np.linalg.norm(n, axis=2, keepdims=True)
-    flat = length[..., 0] < 1e-6
-    n[flat] = (0.0, 0.0, 1.0)
-    length[flat] = 1.0
-    n /= length
-    n += 1.0
-    n *= 0.5
-    if out is None:
-        return np.clip(n, 0.0, 1.0)
-    out[...] = np.clip(n, 0.0, 1.0)
-    return out
 
 
 def _depth_of(arr) -> int:

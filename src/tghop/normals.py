@@ -26,6 +26,10 @@ then turned with its pixels (:func:`upright_normal_map`): a slope to the right o
 quarter is a slope down the rows. Mirrors and the half turn negate red or green whatever the
 convention; the quarter turns and transpositions swap red and green, whose signs depend on it (the
 name's, else the stored pixels' :func:`convention_of`; neither: refused in one line).
+
+Here too, what a normal map is to tghop (0.61; :mod:`tghop.material` gives the same names): its content told
+from a photograph's (:func:`looks_like_normal_map`), the check of its unit vectors (:func:`check_normal_map`)
+and their renormalisation after synthesis (:func:`renormalise`).
 """
 
 from __future__ import annotations
@@ -37,7 +41,8 @@ from .image_decode import file_header, upright
 from .map_names import kind_key
 
 __all__ = ["CONVENTION_CORRELATION", "SAMPLE_PIXELS", "AO_CHANNEL", "convention_of", "surface_map", "upright_vectors",
-           "upright_normal_map", "convention_flips", "flip_green"]
+           "upright_normal_map", "convention_flips", "flip_green", "NORMAL_TOLERANCE", "NORMAL_LOOK_SHARE",
+           "NORMAL_LOOK_MEAN", "looks_like_normal_map", "check_normal_map", "renormalise"]
 
 #: The least correlation, either sign, that decides a normal map's convention by its content.
 CONVENTION_CORRELATION = 0.3
@@ -244,4 +249,94 @@ def flip_green(values):
     """A normal map's pixels (H, W, 3) in [0, 1] in the other convention: green (y) inverted, a new array."""
     out = np.array(values, copy=True)
     out[..., 1] = 1 - out[..., 1]
+    return out
+
+
+#: A normal map's vectors (``2 v - 1``) must have a median length within this of 1.
+NORMAL_TOLERANCE = 0.1
+#: An image whose pixels, all but this share, are unit vectors facing up (``2 v - 1`` of length
+#: within 0.15 of 1, blue at least 0.5) and whose mean red and green lie within
+#: NORMAL_LOOK_MEAN of 0.5 (its slopes cancel out) is a normal map by its content
+#: (:func:`looks_like_normal_map`). Of the 44 exemplars, the closest photograph had 95 % of such
+#: pixels (water_caustics: mean red 0.04); the next 71 %.
+NORMAL_LOOK_SHARE = 0.9
+NORMAL_LOOK_MEAN = 0.1
+
+
+def looks_like_normal_map(image) -> bool:
+    """Whether an image's content is a tangent-space normal map (whatever its name): at least
+    :data:`NORMAL_LOOK_SHARE` of its pixels unit vectors encoded as ``(n + 1) / 2`` facing up
+    (blue at least 0.5), and its mean red and green within :data:`NORMAL_LOOK_MEAN` of 0.5: the
+    blue-violet of a normal map, mean about (0.5, 0.5, 1). ``tghop synth`` warns by it, as by
+    :func:`tghop.map_names.map_kind`, of a remix of a material's maps.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W, C)
+        Floats in [0, 1], or unsigned integers at their full range (8 or 16 bits); only an image of
+        3 channels can be one (every other pixel of every other row is read).
+
+    Returns
+    -------
+    bool
+    """
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] != 3 or arr.size == 0 or arr.dtype.kind not in "uf":
+        return False
+    v = arr[::2, ::2].reshape(-1, 3).astype(np.float64)
+    if arr.dtype.kind == "u":
+        v /= np.iinfo(arr.dtype).max
+    length = np.linalg.norm(v * 2.0 - 1.0, axis=1)
+    unit_up = (np.abs(length - 1.0) <= 0.15) & (v[:, 2] >= 0.5)
+    mean = v.mean(axis=0)
+    return bool(unit_up.mean() >= NORMAL_LOOK_SHARE and np.abs(mean[:2] - 0.5).max() <= NORMAL_LOOK_MEAN)
+
+
+def check_normal_map(values, name: str = "normal map"):
+    """Refuse a "normal map" that does not hold unit vectors (one-line :class:`TGHopError`).
+
+    Parameters
+    ----------
+    values : ndarray, shape (H, W, 3), float in [0, 1]
+        Vectors encoded as ``(n + 1) / 2``.
+    name : str
+    """
+    if values.shape[2] != 3:
+        raise TGHopError(f"map {name!r} is a normal map by its name but has {values.shape[2]} channel"
+                         f"{'s' if values.shape[2] != 1 else ''}, not 3; rename it if it is not a normal map")
+    length = np.linalg.norm(values[::2, ::2].reshape(-1, 3) * 2.0 - 1.0, axis=1)
+    median = float(np.median(length))
+    if abs(median - 1.0) > NORMAL_TOLERANCE:
+        raise TGHopError(f"map {name!r} is a normal map by its name but its pixels are not unit vectors "
+                         f"(median length {median:.2f}, not 1 +- {NORMAL_TOLERANCE}); give a normal map encoded "
+                         "as (n + 1) / 2, or rename it if it is not one")
+
+
+def renormalise(values, out=None):
+    """Normal map values (H, W, 3) in [0, 1] -> the same directions as unit vectors, encoded
+    as ``(n + 1) / 2`` (a zero vector becomes (0, 0, 1), straight up).
+
+    Parameters
+    ----------
+    values : array_like, shape (H, W, 3), float in [0, 1]
+        Vectors encoded as ``(n + 1) / 2``, of any length (computed in float64).
+    out : ndarray, shape (H, W, 3), optional
+        Where to write the result (it may be ``values`` itself); None: a new float64 array.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float in [0, 1]
+        ``out`` when given, else a new float64 array.
+    """
+    n = np.asarray(values, dtype=np.float64) * 2.0 - 1.0
+    length = np.linalg.norm(n, axis=2, keepdims=True)
+    flat = length[..., 0] < 1e-6
+    n[flat] = (0.0, 0.0, 1.0)
+    length[flat] = 1.0
+    n /= length
+    n += 1.0
+    n *= 0.5
+    if out is None:
+        return np.clip(n, 0.0, 1.0)
+    out[...] = np.clip(n, 0.0, 1.0)
     return out
