@@ -73,7 +73,7 @@ def main(argv=None):
         stats.sort_stats("tottime").print_stats(8)
         stats.sort_stats("cumulative").print_stats(
             r"\((result|gather|nthreads|scheduler_info|submit|map|append_ledger|sync_ledger|mark_running|finish|"
-            r"hand_out|remove_stale|_cost|run_distributed|next_batch|__next__)\)")
+            r"hand_out|remove_stale|_cost|run_distributed|_next_group|get)\)")
         print(out.getvalue())
     return 0
 

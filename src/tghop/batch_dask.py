@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import gc
 import os
+import queue
 import signal
 import threading
 import time
@@ -435,7 +436,7 @@ def _results(client, group, by_key, retries, check_joined):
 
 def _own_workers(client):
     """``its_own(address)``: whether the worker at ``address`` is one that ``client``'s cluster object of this
-    process, a ``LocalCluster``, started itself (a name of its ``worker_spec``: its first workers, those of its
+    process, a ``LocalCluster``, started itself (a name of its ``plan``: its first workers, those of its
     ``scale``, a nanny's restart of one of them), all with this interpreter; False for every worker of another
     client's cluster, and for one that joined a LocalCluster's scheduler from elsewhere (``dask worker ADDRESS``)."""
     distributed = import_distributed()
@@ -447,7 +448,7 @@ def _own_workers(client):
         try:  # the cluster's own record, kept by its event loop's thread: copied, not iterated
             info = dict(cluster.scheduler_info.get("workers", {})).get(address) or \
                 client.scheduler_info().get("workers", {}).get(address) or {}
-            return "name" in info and info["name"] in set(cluster.worker_spec)
+            return "name" in info and info["name"] in cluster.plan  # the names it means to run (its worker_spec's)
         except (AttributeError, RuntimeError, TypeError):  # a name unknown: the worker is checked
             return False
 
@@ -457,39 +458,53 @@ def _own_workers(client):
 def _workers_lost(client, own_cluster, had_workers):
     """``lost()``: whether the run's cluster, a ``LocalCluster`` of this process (``own_cluster``, or a given
     client's), has lost every worker for good: it had some (``had_workers``: at the first hand-out, or since), none
-    is registered now, and none of its nannies (or thread workers) is left, none adding (not adaptive): a cluster
-    started without workers and scaled up later is waited for, as before. Dask's LocalCluster closes a nanny whose
-    worker died where no worker of its name registered again within ``distributed.deploy.lost-worker-timeout``
-    (15 s): a restart slower than that (a busy machine) loses the worker, and with the last one the run waited for
-    ever (0.59). Another cluster's workers may join later: ``lost()`` is then always False."""
+    is registered now, the cluster still plans some (``cluster.plan``, the workers it means to have: empty once
+    scaled to zero, by ``adapt`` or by hand, whose cluster is waited for as before) and keeps none of them
+    (``cluster.requested``: its nannies, or thread workers, started and not closed). Dask's LocalCluster closes a
+    nanny whose worker died where no worker of its name registered again within
+    ``distributed.deploy.lost-worker-timeout`` (15 s): a restart slower than that (a busy machine) loses the worker,
+    and with the last one the run waited for ever (0.59). An adaptive cluster starts such workers again itself
+    (its next look finds ``plan`` and ``requested`` apart), which the run waits for as long as Dask's timeout: the
+    first look that finds the cluster so is the time kept. Another cluster's workers may join later: ``lost()`` is
+    then always False. Public state alone (0.61; 0.60 read the cluster's private ``_adaptive``)."""
     distributed = import_distributed()
+    import dask
+
     cluster = own_cluster if own_cluster is not None else getattr(client, "cluster", None)
     if not isinstance(cluster, distributed.LocalCluster):
         return lambda: False
-    had = [had_workers]
+    had, since = [had_workers], [None]
 
     def lost():
         try:
             if client.nthreads():
-                had[0] = True
+                had[0], since[0] = True, None
                 return False
-            return had[0] and not cluster.workers and getattr(cluster, "_adaptive", None) is None
+            if not (had[0] and cluster.plan and not cluster.requested):
+                since[0] = None
+                return False
         except Exception:  # noqa: BLE001 - a cluster closing: the wait goes on as before
             return False
+        now = time.monotonic()
+        since[0] = now if since[0] is None else since[0]
+        patience = dask.utils.parse_timedelta(dask.config.get("distributed.deploy.lost-worker-timeout"), default="s")
+        return now - since[0] >= patience
 
     return lost
 
 
-def _next_group(running, lost, every=2.0):
-    """``running.next_batch(block=True)`` (an ``as_completed``), but looking every ``every`` seconds whether the
-    cluster ``lost()`` its workers for good, twice in a row: then a one-line :class:`~tghop.TGHopError`."""
+def _next_group(finished, lost, every=2.0):
+    """The futures that finished since the last call (``finished``: a queue each future is put into once done, by
+    ``Future.add_done_callback``), waiting for the first: looking every ``every`` seconds without one whether the
+    cluster ``lost()`` its workers for good, twice in a row, then a one-line :class:`~tghop.TGHopError`. (0.60 waited
+    on ``as_completed``'s undocumented ``thread_condition``; 0.61 on a queue of its own, Dask's documented callback.)"""
     looks = 0
-    while not running.has_ready():
-        with running.thread_condition:  # notified once a result is queued: looked at again under its lock
-            if not running.has_ready():
-                running.thread_condition.wait(timeout=every)
-        if running.has_ready():
+    while True:
+        try:
+            group = [finished.get(timeout=every)]
             break
+        except queue.Empty:
+            pass
         looks = looks + 1 if lost() else 0  # only after a wait without a result: no round trip per group
         if looks >= 2:
             raise TGHopError("the local Dask cluster lost every worker for good (each killed, by the system when out "
@@ -497,7 +512,10 @@ def _next_group(running, lost, every=2.0):
                              "distributed.deploy.lost-worker-timeout, as on a busy machine); the run stopped: the "
                              "exemplars finished are in the ledger, the next run does the rest (fewer workers per "
                              "machine or a smaller size use less memory)")
-    return running.next_batch(block=False)
+    with contextlib.suppress(queue.Empty):
+        while True:
+            group.append(finished.get_nowait())
+    return group
 
 
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None):
@@ -540,9 +558,10 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         # once (tasks of different names are not "root-ish", so it queues none on the
         # scheduler), and a worker's death would count against the tasks waiting on it too.
         order = iter(sorted(jobs, key=_cost, reverse=True))
-        # This client's loop: as_completed would take the default client's, which may be another
-        # (one closed by now: its futures were never reported, and the run waited for ever).
-        by_key, running = {}, distributed.as_completed(loop=client.loop)
+        # Each future put into `finished` once done (Future.add_done_callback: in Dask's callback thread, on the
+        # future's own client's loop; as_completed would take the default client's, which may be another, one closed
+        # by now: its futures were never reported, and the run waited for ever). `running`: handed out, not taken.
+        by_key, running, finished = {}, set(), queue.SimpleQueue()
 
         seen = {}  # the workers at the last hand-out: address -> name
         known = set(client.nthreads()) if own_cluster is None else set()  # every worker checked (check_cluster)
@@ -562,7 +581,7 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 info = client.scheduler_info().get("workers", {})
                 seen.clear()
                 seen.update({a: info.get(a, {}).get("name", a) for a in nthreads})
-            now = [job for _, job in zip(range(slots - running.count()), order)]
+            now = [job for _, job in zip(range(slots - len(running)), order)]
             keys = [f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}" for job in now]
             for job in now:
                 own_files[0] = True
@@ -574,16 +593,19 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 by_key.update({fut.key: job for fut, job in zip(new, now)})
                 futures.extend(new)
                 running.update(new)
-            counts["running"] = running.count()
+                for fut in new:
+                    fut.add_done_callback(finished.put)
+            counts["running"] = len(running)
 
         hand_out()
         lost = _workers_lost(client, own_cluster, bool(seen))
-        while not running.is_empty():
+        while running:
             # What came back since the last group, taken together (0.59; 0.58 took one result at a time): one
             # gather of their results, one look at the workers (hand_out) and one sync of their ledger lines
             # (finish) for the group; each a round trip or a disk's flush, which per exemplar bounded a large
             # cluster to tens of exemplars a second (docs/batch.md, "The driver's cost per exemplar").
-            group = _next_group(running, lost)
+            group = _next_group(finished, lost)
+            running.difference_update(group)
             done = _results(client, group, by_key, retries if own_cluster is not None else None,
                             None if own_cluster is not None else check_joined)
             for fut in group:
