@@ -505,3 +505,53 @@ def test_a_local_cluster_that_loses_every_worker_for_good_stops_the_run_with_one
     finally:
         client.close()
         local.close()
+
+
+def instant_task(job):
+    return {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [], "model": None, "thumbnail": None}
+
+
+def test_an_adaptive_local_cluster_scaled_to_zero_is_not_lost_and_dasks_private_state_is_not_read(tmp_path,
+                                                                                                   monkeypatch):
+    # The run's look for a cluster that lost every worker, and its wait for results, use Dask's documented API alone
+    # (0.61): 0.60 read LocalCluster's private `_adaptive` and waited on as_completed's undocumented
+    # `thread_condition`. An adaptive cluster scaled to zero plans no worker: not lost, whatever Dask's timeout.
+    import inspect
+
+    import dask
+    import distributed
+
+    from tghop.batch_dask import _workers_lost
+
+    touched = []
+
+    def recording(cls):
+        class Recording(cls):
+            def __getattribute__(self, name):
+                if (name == "thread_condition" or name.startswith("_") and not name.startswith("__")) and \
+                        inspect.currentframe().f_back.f_globals.get("__name__") == "tghop.batch_dask":
+                    touched.append(f"{cls.__name__}.{name}")
+                return super().__getattribute__(name)
+        return Recording
+
+    monkeypatch.setattr(distributed, "as_completed", recording(distributed.as_completed))
+    local = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0",
+                                     silence_logs=50)
+    local.__class__ = recording(type(local))
+    client = distributed.Client(local)
+    try:
+        src, out = make_folder(tmp_path / "src", 3), tmp_path / "out"
+        assert [r["error"] for r in batch.run(src, out, size=(48, 48), seed=1, client=client, task=instant_task)] == \
+            ["a stand-in"] * 3
+        local.adapt(minimum=0, maximum=1, interval="100ms", wait_count=1)
+        deadline = time.time() + 60
+        while client.nthreads() and time.time() < deadline:
+            time.sleep(0.1)
+        assert not client.nthreads(), "the adaptive cluster did not scale to zero"
+        lost = _workers_lost(client, None, True)  # it had workers
+        with dask.config.set({"distributed.deploy.lost-worker-timeout": "0s"}):
+            assert [lost() for _ in range(3)] == [False] * 3
+        assert touched == []
+    finally:
+        client.close()
+        local.close()
