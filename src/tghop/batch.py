@@ -45,7 +45,7 @@ from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledge
                          find_orphans, find_work, input_digest, inputs_sha256, is_done, is_known_failure,
                          keep_ledger_names, mark_running, open_ledger, prune_orphans, read_hashes, read_ledger,
                          read_ledger_files, remove_stale, sync_ledger, write_hashes)
-from .batch_task import process_exemplar, remove_temporaries
+from .batch_task import disk_full, process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
 
@@ -328,6 +328,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
         if jobs or (prune and orphans):
             ledger_file = open_ledger(outdir)  # locked: pruning too waits for no other run
+        # The inputs' hashes as soon as they are known (0.61; 0.60 wrote them at the end, so that after a kill -9 or
+        # a lost machine the next run read every byte of every exemplar again: hours of a studio's library).
+        write_hashes(outdir, hashes, found, [r.get("source") for r in previous.values()])
     except BaseException:
         if own_client is not None:
             own_client.close()
@@ -347,13 +350,19 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         exactly the exemplars whose lines it lost (a kill of this process loses no line written)."""
         recs = []
         with ctrl_c_deferred():  # the lines and their RUNNING files' removal as one (else a rerun redoes them)
-            for job, record in done:
-                rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
-                       "settings": job["settings"], "version": __version__, **record}
-                rec["finished"] = time.time()
-                append_ledger(ledger_file, rec, sync=False)
-                recs.append((job, rec))
-            sync_ledger(ledger_file)
+            try:
+                for job, record in done:
+                    rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
+                           "settings": job["settings"], "version": __version__, **record}
+                    rec["finished"] = time.time()
+                    append_ledger(ledger_file, rec, sync=False)
+                    recs.append((job, rec))
+                sync_ledger(ledger_file)
+            except OSError as exc:  # 0.60: "cannot write the output: ...", which said neither what nor what next
+                why = exc.strerror or exc.__class__.__name__
+                raise TGHopError(f"{outdir / LEDGER}: cannot add to the ledger ({why}"
+                                 f"{'; free some space' if disk_full(exc) else ''}); the run stopped: "
+                                 f"{_WHAT_NEXT}") from None
             for job, _ in recs:
                 started.pop(job["name"], None)
                 mark_running(job, False)
@@ -370,6 +379,10 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                 on_result(results[job["name"]], dict(counts))
             if progress is not None:
                 progress("exemplars", counts["done"], counts["total"])
+        full = [rec for _, rec in recs if rec.get("disk_full")]
+        if full:  # 0.60 went on: every exemplar after it was fitted, then failed alike (thousands, in a studio's run)
+            raise TGHopError(f"the disk of {outdir} is full ({full[0]['name']}: {full[0]['error']}); the run stopped: "
+                             f"{_WHAT_NEXT}; free some space first")
 
     if on_plan is not None:  # once OUTDIR and its ledger are ready: a refused run says no plan
         on_plan({"exemplars": len(items), "done_before": len(results) - failed_before,
@@ -407,12 +420,15 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             remove_temporaries(job["folder"])
             with contextlib.suppress(OSError):
                 os.rmdir(job["folder"])  # only when empty: a failed exemplar's
-        if outdir.is_dir():
-            write_hashes(outdir, hashes, found, [r.get("source") for r in previous.values()])
         ordered = [results[it["name"]] for it in items if it["name"] in results]
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
             write_contact_sheet(outdir, ordered, total=len(items))
     return ordered
+
+
+#: What a run stopped by its disk says of its work (:func:`run`'s ``finish``).
+_WHAT_NEXT = ("the exemplars recorded are in the ledger, those under way or not recorded are done again by the next "
+              "run (the same command)")
 
 
 def _report_orphans(outdir, names, kept, on_orphans) -> None:

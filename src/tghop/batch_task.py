@@ -19,8 +19,8 @@ from pathlib import Path
 from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, collect_warnings, warn
 from ._formats import is_model_file, model_file_kind
 
-__all__ = ["process_exemplar", "run_checked", "remove_temporaries", "one_line", "outside_the_files", "task_threads",
-           "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
+__all__ = ["process_exemplar", "run_checked", "remove_temporaries", "one_line", "outside_the_files", "disk_full",
+           "task_threads", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
@@ -158,6 +158,20 @@ def outside_the_files(exc: BaseException) -> bool:
     return isinstance(exc, MissingExtraError) or isinstance(cause, (ImportError, MemoryError))
 
 
+def disk_full(exc: BaseException) -> bool:
+    """Whether ``exc``, or an error it was raised from or while handling (tghop's one line of a write,
+    :func:`tghop.output_files.write_atomic`'s, is raised "from None" while handling the system's), is a full disk
+    or quota (``ENOSPC``, ``EDQUOT``): every exemplar after it would fail alike (0.61, :func:`tghop.batch.run`)."""
+    import errno
+
+    seen = 0
+    while exc is not None and seen < 8:
+        if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
+            return True
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return False
+
+
 def process_exemplar(job: dict) -> dict:
     """Fit one exemplar and write its model, images and thumbnail (a plain top-level
     function, so that Dask pickles it by reference).
@@ -270,6 +284,8 @@ def process_exemplar(job: dict) -> dict:
         # settings change (tghop.batch_plan.is_known_failure). Anything else is tried again.
         input_fault = phase == "input" and isinstance(exc, TGHopError) and not outside_the_files(exc)
         record["cause"] = "input" if input_fault else "run"
+        if disk_full(exc):  # the run stops: every exemplar after it would fit, then fail alike (tghop.batch.run)
+            record.update(cause="run", disk_full=True)
     finally:  # Ctrl-C (KeyboardInterrupt) and the command's SIGTERM too: they go on once this is done
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
