@@ -1,0 +1,102 @@
+"""What a studio's long batch meets and must not lose work to (0.61): a full disk (the tasks' files or the ledger)
+stops the run at once with one line, and a driver killed outright (kill -9) leaves the inputs' hashes, so that
+the rerun reads no unchanged exemplar again. In process (``workers=1``): the driver's side is the same on Dask.
+"""
+
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tghop import batch, batch_plan, data
+from tghop._errors import TGHopError
+from tghop.imageio import save_image
+
+FIT = dict(n_clusters=6, n_codewords=30, stride=4)
+GEN = dict(n_patches=300)
+
+
+def make_folder(d, n=3):
+    d.mkdir(parents=True, exist_ok=True)
+    for i in range(n):
+        save_image(data.bricks(64, rng=i), d / f"e{i}.png")
+    return d
+
+
+def ledger(out):
+    return [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+
+
+def run(src, out, **kw):
+    return batch.run(src, out, size=(32, 32), seed=1, fit=FIT, generate=GEN, workers=1, **kw)
+
+
+def no_space(*args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def test_a_full_disk_stops_the_run_at_once_and_the_rerun_does_the_rest(tmp_path, monkeypatch):
+    # 0.60 went on after a task's files met a full disk: every exemplar after it was fitted, then failed alike (a
+    # studio's thousands, each a fit's time), and the run ended "done" with them all failed. Now the first stops it.
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    tried = []
+    monkeypatch.setattr(np, "savez", lambda *a, **k: (tried.append(1), no_space()))  # the model's file, as written
+    with pytest.raises(TGHopError, match=r"^the disk of .*out is full \(e\d: .*No space left on device.*\); the run "
+                                         r"stopped: the exemplars recorded are in the ledger, .*free some space "
+                                         r"first$"):
+        run(src, out)
+    assert len(tried) == 1
+    lines = ledger(out)
+    assert [(line["status"], line["cause"]) for line in lines] == [("failed", "run")], lines  # tried again next run
+    assert not list(out.rglob(".batch-running")) and not list(out.rglob("*.tmp"))
+    monkeypatch.undo()
+    assert [r["status"] for r in run(src, out)] == ["ok"] * 3
+    assert sorted(line["name"] for line in ledger(out) if line["status"] == "ok") == ["e0", "e1", "e2"]
+
+
+def test_a_full_disk_for_the_ledger_stops_the_run_in_one_line_and_loses_no_exemplar(tmp_path, monkeypatch):
+    # 0.60 said "cannot write the output: No space left on device; ...", naming neither the ledger nor the rerun.
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    monkeypatch.setattr(batch, "append_ledger", no_space)
+    with pytest.raises(TGHopError, match=r"^.*out/batch\.jsonl: cannot add to the ledger \(No space left on device; "
+                                         r"free some space\); the run stopped: .* done again by the next run"):
+        run(src, out)
+    made = [p.parent.name for p in out.rglob(".batch-running")]
+    assert len(made) == 1, made  # the exemplar whose line was not written: the rerun does it again
+    monkeypatch.undo()
+    results = run(src, out)
+    assert [r["skipped"] for r in results] == [False] * 3 and [r["status"] for r in results] == ["ok"] * 3
+
+
+def killing_task(job):
+    """The driver killed outright (kill -9) as its first exemplar runs, in process."""
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_driver_killed_outright_leaves_the_inputs_hashes_for_the_rerun(tmp_path, monkeypatch):
+    # 0.60 wrote .batch-hashes.json at the run's end only: after a kill -9 (or the out-of-memory killer, a lost
+    # machine) the rerun read every byte of every exemplar again, hours of a studio's library. Now it is written
+    # as soon as the plan is made, before any exemplar runs.
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    time.sleep(batch_plan.STAT_MARGIN + 0.1)  # files changed within it are not taken on trust
+    code = ("import sys; from tghop import batch; import test_batch_resume as t; "
+            "batch.run(sys.argv[1], sys.argv[2], workers=1, task=t.killing_task)")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(Path(__file__).parent),
+                                                                   os.environ.get("PYTHONPATH")) if p)}
+    p = subprocess.run([sys.executable, "-c", code, str(src), str(out)], env=env, capture_output=True, timeout=300)
+    assert p.returncode == -signal.SIGKILL, p.stderr[-2000:]
+    hashes = json.loads((out / batch_plan.HASHES).read_text())
+    assert sorted(Path(k).name for k in hashes) == ["e0.png", "e1.png", "e2.png"]
+    reads = []
+    monkeypatch.setattr(batch_plan, "file_sha256", lambda path: reads.append(path))
+    plan = []
+    run(src, out, task=lambda job: {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [],
+                                    "model": None, "thumbnail": None}, on_plan=plan.append)
+    assert reads == [] and plan[0]["to_do"] == 3  # none read again; the killed one too is done again
