@@ -377,7 +377,7 @@ def test_a_full_disk_at_the_ledger_still_ends_the_run_tidily(tmp_path, monkeypat
         append(fh, record, **kw)
 
     monkeypatch.setattr(batch, "append_ledger", full_after_one)
-    with pytest.raises(OSError, match="No space left"):
+    with pytest.raises(TGHopError, match=r"batch\.jsonl: cannot add to the ledger \(No space left"):  # 0.60: OSError
         run(src, out, workers=1)
     assert calls == ["ok", "ok", "interrupted"]  # the second's line, then its "interrupted" one: both refused
     assert [line["name"] for line in ledger(out)] == ["a"]
