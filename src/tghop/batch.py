@@ -389,6 +389,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                  "failed_before": failed_before, "to_do": len(jobs)})
     if progress is not None and jobs:
         progress("exemplars", 0, len(jobs))
+    stopped = False  # by an exception: the contact sheet's own failure (a full disk) must not hide its line
     try:
         if orphans:  # before the work: a long run's log says it at its start
             _report_orphans(outdir, orphans, prune_orphans(outdir, orphans, earlier_files) if prune else None,
@@ -402,6 +403,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         elif jobs:
             run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
                              retries=retries, begin=begin, worker_setup=worker_setup)
+    except BaseException:
+        stopped = True
+        raise
     finally:
         if ledger_file is not None:
             # A second Ctrl-C must not leave a started exemplar without its line; a full disk must not
@@ -422,7 +426,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                 os.rmdir(job["folder"])  # only when empty: a failed exemplar's
         ordered = [results[it["name"]] for it in items if it["name"] in results]
         if contact_sheet and ordered:  # nothing finished, now or before (e.g. no scheduler): no empty page
-            write_contact_sheet(outdir, ordered, total=len(items))
+            try:
+                write_contact_sheet(outdir, ordered, total=len(items))
+            except (OSError, TGHopError):
+                if not stopped:  # 0.60: "index.html: writing the contact sheet failed ...", in place of the stop's
+                    raise
     return ordered
 
 
