@@ -48,6 +48,12 @@ def test_a_full_disk_stops_the_run_at_once_and_the_rerun_does_the_rest(tmp_path,
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"
     tried = []
     monkeypatch.setattr(np, "savez", lambda *a, **k: (tried.append(1), no_space()))  # the model's file, as written
+    sheet = batch.write_contact_sheet
+
+    def no_space_for_the_sheet(*args, **kwargs):  # the contact sheet's failure hid the stop's line (0.60)
+        raise TGHopError("index.html: writing the contact sheet failed (No space left on device); nothing was written")
+
+    monkeypatch.setattr(batch, "write_contact_sheet", no_space_for_the_sheet)
     with pytest.raises(TGHopError, match=r"^the disk of .*out is full \(e\d: .*No space left on device.*\); the run "
                                          r"stopped: the exemplars recorded are in the ledger, .*free some space "
                                          r"first$"):
@@ -57,6 +63,7 @@ def test_a_full_disk_stops_the_run_at_once_and_the_rerun_does_the_rest(tmp_path,
     assert [(line["status"], line["cause"]) for line in lines] == [("failed", "run")], lines  # tried again next run
     assert not list(out.rglob(".batch-running")) and not list(out.rglob("*.tmp"))
     monkeypatch.undo()
+    assert batch.write_contact_sheet is sheet
     assert [r["status"] for r in run(src, out)] == ["ok"] * 3
     assert sorted(line["name"] for line in ledger(out) if line["status"] == "ok") == ["e0", "e1", "e2"]
 
