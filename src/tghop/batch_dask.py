@@ -469,6 +469,7 @@ def _workers_lost(client, own_cluster, had_workers):
     then always False. Public state alone (0.61; 0.60 read the cluster's private ``_adaptive``)."""
     distributed = import_distributed()
     import dask
+    from dask.utils import parse_timedelta
 
     cluster = own_cluster if own_cluster is not None else getattr(client, "cluster", None)
     if not isinstance(cluster, distributed.LocalCluster):
@@ -487,7 +488,7 @@ def _workers_lost(client, own_cluster, had_workers):
             return False
         now = time.monotonic()
         since[0] = now if since[0] is None else since[0]
-        patience = dask.utils.parse_timedelta(dask.config.get("distributed.deploy.lost-worker-timeout"), default="s")
+        patience = parse_timedelta(dask.config.get("distributed.deploy.lost-worker-timeout"), default="s")
         return now - since[0] >= patience
 
     return lost
