@@ -555,3 +555,32 @@ def test_an_adaptive_local_cluster_scaled_to_zero_is_not_lost_and_dasks_private_
     finally:
         client.close()
         local.close()
+
+
+def test_a_local_cluster_without_its_workers_is_lost_only_after_dasks_lost_worker_timeout():
+    # Its plan names a worker, and neither the scheduler nor the cluster keeps one (Dask closed it for good): lost,
+    # but not before the time Dask gives a restart (an adaptive cluster starts a lost worker again itself: 0.60 never
+    # looked at one). Public state alone: LocalCluster.plan and .requested, the scheduler's workers.
+    import dask
+    import distributed
+
+    from tghop.batch_dask import _workers_lost
+
+    local = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0",
+                                     silence_logs=50)
+    client = distributed.Client(local)
+    try:
+        lost = _workers_lost(client, None, False)
+        assert not lost()  # it has its worker
+        with dask.config.set({"distributed.deploy.lost-worker-timeout": "0s"}):
+            client.retire_workers()  # the cluster's plan keeps the worker's name
+            deadline = time.time() + 60
+            while (client.nthreads() or local.requested) and time.time() < deadline:
+                time.sleep(0.1)
+            assert local.plan and not local.requested and not client.nthreads()
+            with dask.config.set({"distributed.deploy.lost-worker-timeout": "1h"}):
+                assert not lost()
+            assert lost()
+    finally:
+        client.close()
+        local.close()
