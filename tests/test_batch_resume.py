@@ -107,3 +107,29 @@ def test_a_driver_killed_outright_leaves_the_inputs_hashes_for_the_rerun(tmp_pat
     run(src, out, task=lambda job: {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [],
                                     "model": None, "thumbnail": None}, on_plan=plan.append)
     assert reads == [] and plan[0]["to_do"] == 3  # none read again; the killed one too is done again
+
+
+def full_disk_task(job):
+    """A stand-in task whose files met a full disk, as process_exemplar records it."""
+    return {"status": "failed", "error": f"{job['folder']}/x.npz: writing the model failed (No space left on device)",
+            "cause": "run", "disk_full": True, "outputs": [], "model": None, "thumbnail": None}
+
+
+def test_a_full_disk_on_a_dask_worker_stops_the_run_too(tmp_path):
+    # The driver's side of it on Dask: the run stops at the first such record, the exemplars handed out meanwhile
+    # recorded "interrupted" (their tasks may still finish), the rest not started.
+    distributed = pytest.importorskip("distributed")
+    src, out = make_folder(tmp_path / "src", 6), tmp_path / "out"
+    local = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0",
+                                     silence_logs=50)
+    client = distributed.Client(local)
+    try:
+        with pytest.raises(TGHopError, match=r"^the disk of .*out is full \(e\d: .*No space left on device\)\); "
+                                             r"the run stopped: "):
+            batch.run(src, out, size=(32, 32), seed=1, client=client, task=full_disk_task)
+    finally:
+        client.close()
+        local.close()
+    lines = ledger(out)
+    assert [line["status"] for line in lines][0] == "failed" and len(lines) <= 2, lines
+    assert len({line["name"] for line in lines}) == len(lines) and not list(out.rglob(".batch-running"))
