@@ -236,8 +236,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         caller can tell "run it again" from a refusal; ``tghop batch`` exits with status 3 for it).
     TGHopError
         Bad arguments or settings, an OUTDIR that cannot be used, a scheduler that cannot be reached, a Dask
-        worker without this tghop (also one that joins mid-run, 0.58). A bad exemplar is a failed record, not
-        an exception.
+        worker without this tghop (also one that joins mid-run, 0.58), a full disk under OUTDIR (0.61: the run stops at
+        the first exemplar whose files met it, or at a ledger line that could not be written). A bad exemplar is a
+        failed record, not an exception.
 
     Notes
     -----

@@ -188,7 +188,8 @@ def process_exemplar(job: dict) -> dict:
     failure: "input" where reading, checking or fitting the exemplar refused it, the same each time for
     the same files and settings; "run" for what may pass, memory, writing, an unexpected error, a library or
     decoder missing (0.57: :func:`outside_the_files`; it was "input"), ``outputs``,
-    ``model`` and ``thumbnail`` (relative to OUTDIR), ``seed_used``, ``warnings`` (the messages of tghop's own,
+    ``model`` and ``thumbnail`` (relative to OUTDIR), ``disk_full`` (True only where its files met a full disk:
+    :func:`disk_full`, the run then stops; 0.61), ``seed_used``, ``warnings`` (the messages of tghop's own,
     :func:`tghop._errors.collect_warnings`: of this task alone where a worker runs several on threads),
     times (``seconds``, ``cpu_seconds`` of the whole process and ``sys_seconds``, the kernel's part of
     them, with its ``page_faults``; ``fit_seconds``, ``synth_seconds``), ``threads``, the worker and
