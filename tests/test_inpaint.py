@@ -169,6 +169,27 @@ def test_a_block_is_matched_most_on_the_pixels_beside_the_hole():
     assert out[:, 12:14].max() == 0.0 and np.allclose(out[:, 14:20], 0.7)
 
 
+@pytest.mark.parametrize("order, fill", [("edge", 0.1), ("raster", 0.5)])
+def test_a_block_is_matched_on_the_known_pixels_near_those_it_fills(order, fill):
+    # 0.60 matched a block over all its known pixels: beside a hole's edge up to 27 of its 32 columns, which a
+    # blended patch matches loosely everywhere better than a sharp one matches them, so fills of stones came out
+    # as a quilt of faint blocks (docs/choices.md, Inpainting "the known pixels matched in a band"). Now only the
+    # known pixels within an overlap of those to fill count, as quilting matches its overlap strips. Row by row
+    # (extend's order) a block still matches all its known pixels: half a block on a grown picture's edge (0.60).
+    image = np.zeros((32, 40, 1), np.float32)
+    image[:, 0:27:2], image[:, 1:27:2] = 0.2, 0.8  # far from the hole: stripes
+    image[:, 27:32] = 0.1  # beside it: a dark element that should carry on into it
+    hole = np.zeros((32, 40), bool)
+    hole[:, 32:] = True  # its one block holds columns 8 to 39: 24 known columns, 8 to fill
+    blend = np.full((32, 32, 1), 0.5, np.float32)  # 0.3 off every stripe, 0.4 off the element
+    sharp = np.full((32, 32, 1), 0.1, np.float32)  # the element exactly, the stripes in the other phase
+    sharp[:, 0:19:2], sharp[:, 1:19:2] = 0.8, 0.2
+    out = inpaint(_TwoPatches(blend, sharp), image, hole, rng=0, detail=0.0, flat_share=0.0, tolerance=0.0,
+                  seam_window=0, refine=0, patch_refine=0, order=order)
+    assert np.array_equal(out[~hole], image[~hole])
+    assert np.allclose(out[hole], fill)  # a hole's in 0.60: the blend's 0.5
+
+
 def test_odd_shapes_holes_at_the_border_and_nearly_everything(model, cells):
     yy, xx = np.mgrid[:96, :96]
     shapes = {

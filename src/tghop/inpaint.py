@@ -8,8 +8,9 @@ an exemplar), chosen so that they continue what surrounds them:
 2. Blocks of ``P x P`` on the quilting grid (step ``P - overlap``) that touch the hole are
    filled from the hole's edge inwards (smallest distance to a known pixel first). Each
    takes a pool patch whose squared error over the block's *known* pixels (the image's
-   own and those filled before; the image's within ``RIM_MATCH_WIDTH`` of the hole count
-   ``RIM_MATCH_WEIGHT`` times) is within ``1 + tolerance`` of the best, preferring
+   own and those filled before, within ``MATCH_BAND`` overlaps of its pixels to fill in a hole; the image's
+   within ``RIM_MATCH_WIDTH`` of the hole count ``RIM_MATCH_WEIGHT`` times) is within ``1 + tolerance`` of the
+   best, preferring
    detailed ones as quilting does (``detail``); the error of every pool patch is one
    matrix-vector product. It is pasted on the block's hole pixels only, along
    minimum-error boundary cuts (:func:`tghop.quilting.boundary_cut_mask`) through the
@@ -84,6 +85,13 @@ COARSE_PATCHES = 4000
 #: fill's pixels meet the image's without a cut (docs/choices.md, Inpainting "the rim in the matching").
 RIM_MATCH_WIDTH = 3
 RIM_MATCH_WEIGHT = 4.0
+
+#: A hole's block (``order`` "edge") counts its known pixels only within ``MATCH_BAND`` overlaps (8-neighbour steps) of
+#: its pixels still to fill, as quilting matches its overlap strips; 0: all its known pixels (0.60). Matched over a
+#: block's whole known part (up to 27 of 32 columns beside a hole's edge), the best patches were the blended ones,
+#: and a fill of large elements came out as a quilt of faint blocks (0.61; docs/choices.md, Inpainting "matched in a
+#: band"). Row by row (:func:`extend`) a block is matched on all of them, half a block on a grown picture's edge (0.60).
+MATCH_BAND = 1
 
 #: The integer images filled, each kept at its depth: its levels' top (``v / top`` is the value in [0, 1],
 #: as :func:`tghop.imageio.load_image` reads 16-bit files); a mask's hole is above half of it.
@@ -739,6 +747,8 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
     ``distance``: the hole's :func:`_distance_to_known`. ``tables``: the pool's rows (n, P*P*C),
     their squared norms per pixel (n, P*P), gradient energies (n,) and error factors (n,) or None.
     ``guide``: None, or an (H, W, C) coarse fill and its weight (:func:`inpaint`'s ``layout_weight``)."""
+    from scipy.ndimage import maximum_filter
+
     h, w, c = work.shape
     flat, squares, energy, factor = tables
     overlap = default_overlap(p)
@@ -749,6 +759,7 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
     owner = np.full((h, w), -1, dtype=np.int32)  # the block each hole pixel was pasted from last
     offsets = np.arange(p)
     rim = _rim_weights(hole, tile)
+    band = MATCH_BAND * overlap if order == "edge" else 0
     if guide is not None:  # the pool's box means, as quilting compares them with its guide
         guide, guide_weight = guide
         # The guide counts from nothing at the hole's edge to whole a patch side inside it:
@@ -765,6 +776,8 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
         old = canvas[window]  # (P, P, C)
         have = known[window]  # pixels with a value: the image's and those filled before
         weight = np.where(have, rim[window], np.float32(0.0))
+        if band and not have.all():  # the known pixels near those to fill, as quilting's overlap strips (0.61)
+            weight = np.where(maximum_filter(~have, size=2 * band + 1, mode="constant"), weight, np.float32(0.0))
         err = None
         if weight.any():
             target = (old * weight[..., None]).ravel()
@@ -778,7 +791,7 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
             boxes = guide[window].reshape(q, s, q, s, c).mean(axis=(1, 3), dtype=np.float32)
             term = (low_squares @ share.ravel() - 2.0 * (low @ (share * boxes).ravel())
                     + float((share * boxes * boxes).sum()))
-            scale = guide_weight * max(float(have.sum()), p * overlap) / (q * q)
+            scale = guide_weight * max(float(np.count_nonzero(weight)), p * overlap) / (q * q)
             err = scale * term if err is None else err + scale * term
         if err is not None and factor is not None:
             err = err * factor
