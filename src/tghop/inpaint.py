@@ -425,7 +425,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         them ("raster", what :func:`extend` takes: better where the hole surrounds the known
         pixels, worse for a hole inside them; docs/choices.md, Inpainting "0.46"); row by row,
         a block is centred on each edge of the known pixels' extent that lies inside the image
-        (a grown picture's edges, 0.60).
+        (a grown picture's edges, 0.60) and matched on all its known pixels; from the edge, on
+        those within an overlap of its pixels to fill (:data:`MATCH_BAND`, 0.61).
     seam_window : int
         Remove the steps in tone across the fill's seams, between its blocks and at the hole's
         edge, in the gradient domain (:func:`tghop.hole_refine.stitch_hole`, the known pixels held), each seam
