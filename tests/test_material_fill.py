@@ -3,6 +3,8 @@
 pixels kept exactly, the maps' fills aligned as the material's own images are, normal maps
 unit vectors, and each bad input one line with no file written."""
 
+import shutil
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -35,13 +37,22 @@ def material(picture):
     return Material(model=TGHop(**FAST), rng=0).fit(images["albedo"], maps, exclude=hole)
 
 
+@pytest.fixture(scope="module")
+def filled(material, picture):
+    """The picture's hole filled by :func:`material` (seed 1), patch-refined and not: read by several tests, made
+    once (the tests only read them)."""
+    images, hole = picture
+    return {refine: inpaint_material(material, images, hole, rng=1, n_patches=1500, **refine_arg)
+            for refine, refine_arg in ((True, {}), (False, {"patch_refine": 0}))}
+
+
 def _corr(a, b):
     return float(np.corrcoef(np.ravel(a), np.ravel(b))[0, 1])
 
 
-def test_every_map_is_filled_alike_and_the_rest_kept(material, picture):
+def test_every_map_is_filled_alike_and_the_rest_kept(material, picture, filled):
     images, hole = picture
-    out = inpaint_material(material, images, hole, rng=1, n_patches=1500)
+    out = filled[True]
     assert list(out) == ["albedo", "normal", "roughness", "height"]
     assert out["albedo"].dtype == np.uint8 and out["height"].dtype == np.float64
     for name, image in images.items():
@@ -61,13 +72,12 @@ def test_every_map_is_filled_alike_and_the_rest_kept(material, picture):
         np.testing.assert_array_equal(again[name], out[name])
 
 
-def test_the_albedos_fill_is_patch_refined_the_maps_kept(material, picture):
+def test_the_albedos_fill_is_patch_refined_the_maps_kept(material, picture, filled):
     """0.59: the albedo's hole is patch-refined with the material's albedo statistics, as inpaint refines a
     texture's (0.58 refused patch_refine for a material); the other maps' fills are as without it, the known
     pixels kept; a material fitted without the statistics (as 0.58 fitted every one) refuses it."""
     images, hole = picture
-    auto = inpaint_material(material, images, hole, rng=1, n_patches=1500)
-    off = inpaint_material(material, images, hole, rng=1, n_patches=1500, patch_refine=0)
+    auto, off = filled[True], filled[False]
     assert np.abs(auto["albedo"][hole].astype(float) - off["albedo"][hole]).mean() > 0.3  # 8-bit levels
     np.testing.assert_array_equal(auto["albedo"][~hole], images["albedo"][~hole])
     assert all(np.array_equal(auto[k], off[k]) for k in auto if k != "albedo")
@@ -77,7 +87,7 @@ def test_the_albedos_fill_is_patch_refined_the_maps_kept(material, picture):
         inpaint_material(old, images, hole, patch_refine=4)
 
 
-def test_16_bit_maps_are_filled_and_kept_at_16_bits(material, picture):
+def test_16_bit_maps_are_filled_and_kept_at_16_bits(material, picture, filled):
     # As Material.fit takes them (and inpaint a 16-bit picture): levels / 65535, the result uint16
     images, hole = picture
     deep = {**images, "albedo": images["albedo"].astype(np.uint16) * np.uint16(257),
@@ -91,8 +101,7 @@ def test_16_bit_maps_are_filled_and_kept_at_16_bits(material, picture):
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-4)
     # The fill of the 8-bit albedo and float maps, but for the maps' 16-bit rounding (levels / 65535, not 255);
     # without the albedo's patch refinement (0.59), whose steps of a fixed size follow such differences' signs
-    deep0, eight = (inpaint_material(material, im, hole, rng=1, n_patches=1500, patch_refine=0)
-                    for im in (deep, images))
+    deep0, eight = inpaint_material(material, deep, hole, rng=1, n_patches=1500, patch_refine=0), filled[False]
     assert np.abs(deep0["albedo"][hole] / 257.0 - eight["albedo"][hole]).mean() < 0.5
 
 
@@ -127,19 +136,28 @@ def run(*args):
     return result.exit_code, result.output
 
 
-def _saved_material(tmp_path, picture, monkeypatch):
-    """The picture's files in tmp_path (the working folder) and its material, fitted around the hole, as mat.npz."""
-    monkeypatch.chdir(tmp_path)
-    _write(tmp_path, picture)
+@pytest.fixture(scope="module")
+def saved_material(picture, tmp_path_factory):
+    """The picture's material of two maps (wall_normal, h), fitted around the hole, saved once: a model file."""
     images, hole = picture
     mat = Material(model=TGHop(**FAST), rng=0).fit(
         images["albedo"], {"wall_normal": images["normal"], "h": images["height"]}, exclude=hole)
-    save_model(mat, tmp_path / "mat.npz")
-    return images, hole
+    path = tmp_path_factory.mktemp("saved") / "mat.npz"
+    save_model(mat, path)
+    return path
 
 
-def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
-    images, hole = _saved_material(tmp_path, picture, monkeypatch)
+@pytest.fixture
+def in_saved(tmp_path, picture, saved_material, monkeypatch):
+    """The picture's files in tmp_path (the working folder) and a copy of :func:`saved_material` there, as mat.npz."""
+    monkeypatch.chdir(tmp_path)
+    _write(tmp_path, picture)
+    shutil.copyfile(saved_material, tmp_path / "mat.npz")
+    return picture
+
+
+def test_cli_inpaint_and_extend_with_maps(tmp_path, in_saved):
+    images, hole = in_saved
     code, out = run("inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png",
                     "--source", "mat.npz", "-o", "out.png", "--seed", "3")
     assert code == 0, out
@@ -158,10 +176,9 @@ def test_cli_inpaint_and_extend_with_maps(tmp_path, picture, monkeypatch):
     assert load_image("big_h.png").shape == (SIZE, 192, 1)
 
 
-def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, picture,
-                                                                                       monkeypatch):
+def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, in_saved):
     # A 16-bit map written as JPEG lost its depth without a word: one warning names it (as synth's).
-    images, hole = _saved_material(tmp_path, picture, monkeypatch)
+    images, hole = in_saved
     args = ["inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed",
             "3"]
     code, out = run(*args, "-o", "out.jpg")
@@ -253,9 +270,8 @@ def test_cli_bad_input_with_maps_is_one_line_and_writes_nothing(folder, monkeypa
     assert sorted(p.name for p in folder.rglob("*")) == before
 
 
-def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, picture, monkeypatch):
+def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, in_saved):
     # --count on inpaint/extend --maps (0.59): one fit, a set per fill, numbered as synth's (out_2_h.png)
-    _saved_material(tmp_path, picture, monkeypatch)
     maps = ["--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed", "3"]
     for args in (["inpaint", "wall.png", "mask.png", *maps], ["extend", "wall.png", *maps, "--size", "128x160"]):
         code, out = run(*args, "-o", "one.png")
@@ -267,9 +283,21 @@ def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, picture, monkeyp
             assert (tmp_path / f"two_1{name}.png").read_bytes() != (tmp_path / f"two_2{name}.png").read_bytes()
 
 
+@pytest.fixture(scope="module")
+def rough_then_height(picture, tmp_path_factory):
+    """The picture's material of its roughness then its height map, fitted around the hole, saved once."""
+    images, hole = picture
+    mat = Material(model=TGHop(**FAST), rng=0).fit(
+        images["albedo"], {"wall_roughness": images["roughness"], "wall_height": images["height"]}, exclude=hole)
+    path = tmp_path_factory.mktemp("rough") / "mat.npz"
+    save_model(mat, path)
+    return path
+
+
 @pytest.mark.parametrize("command", ["inpaint", "extend"])
 def test_cli_fill_refuses_a_saved_material_s_maps_given_in_another_order_by_their_names(tmp_path, picture,
-                                                                                        monkeypatch, command):
+                                                                                        monkeypatch, command,
+                                                                                        rough_then_height):
     # A saved material takes its maps in its order, whatever their names: 0.59 filled its roughness map from the
     # height map given in its place (both grey) without a word, and failed on a grey map where its normal map goes
     # with "the model is in colour but the image is greyscale; fit the model on a greyscale exemplar".
@@ -279,9 +307,7 @@ def test_cli_fill_refuses_a_saved_material_s_maps_given_in_another_order_by_thei
     save_image(hole.astype(float), tmp_path / "mask.png")
     save_image(images["roughness"], tmp_path / "wall_roughness.png")
     save_image(images["height"], tmp_path / "wall_height.png")
-    mat = Material(model=TGHop(**FAST), rng=0).fit(
-        images["albedo"], {"wall_roughness": images["roughness"], "wall_height": images["height"]}, exclude=hole)
-    save_model(mat, tmp_path / "mat.npz")
+    shutil.copyfile(rough_then_height, tmp_path / "mat.npz")
     where = ["mask.png"] if command == "inpaint" else []
     grow = [] if command == "inpaint" else ["--size", "160x160"]
     before = sorted(p.name for p in tmp_path.iterdir())
