@@ -1443,6 +1443,72 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     assert not (tmp_path / "out3" / "index.html").exists()  # nothing finished: no empty contact sheet
 
 
+def _worker_threads(dask_worker):
+    """How many of the worker's threads run a task (``Worker.active_threads``)."""
+    return len(dask_worker.active_threads)
+
+
+def _wait_idle(client, timeout=60):
+    """Until the cluster runs nothing: a task already running when its client cancelled it
+    goes on to its end on the worker (Dask cannot stop a running thread), and until it ends,
+    its files are still staged (``.partial.*.tmp``). The scheduler forgets a task whose client
+    left while its worker still runs it, so the workers are asked as well."""
+    def busy():
+        return any(client.processing().values()) or any(client.run(_worker_threads).values())
+
+    deadline = time.time() + timeout
+    while time.time() < deadline and busy():
+        time.sleep(0.1)
+    assert not busy()
+
+
+def test_ctrl_c_with_a_scheduler_address_leaves_the_cluster_running(tmp_path, cluster):
+    # Ctrl-C to `python -m tghop batch --scheduler ADDRESS` alone (the cluster is not in its
+    # process group): it stops with one line, the cluster lives on, and a rerun finishes.
+    # Before the tests below that kill the module cluster's workers (its nannies can take minutes to bring
+    # one back on a loaded machine): the same two workers are asked for afterwards.
+    n_more = 6
+    _, client = cluster
+    workers = set(client.scheduler_info()["workers"])
+    src = make_folder(tmp_path / "src", bad=False)
+    for i in range(n_more):  # enough that the batch is still under way when the first line is written
+        save_image(data.bricks(64, rng=7 + i), src / f"c{i}.png")
+    args = [sys.executable, "-m", "tghop", "batch", "src", "-o", "out", "--scheduler", cluster[0].scheduler_address,
+            "--size", "48", "--seed", "1", *CLI_FAST]
+    out = tmp_path / "out"
+    p = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 60
+    while (time.time() < deadline and p.poll() is None
+           and not ((out / "batch.jsonl").exists() and (out / "batch.jsonl").read_text().endswith("\n"))):
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err.decode()
+    assert_one_line(p.returncode, err.decode(), "interrupted after", "run the same command again")
+    lines = [line for line in ledger(out) if line["status"] != "interrupted"]  # those under way: done again
+    done = len(lines)
+    assert 1 <= done < n_more + 2 and len({line["name"] for line in lines}) == done
+    _wait_idle(client)
+    assert not leftovers(out)
+    # the scheduler and both workers survive the client's Ctrl-C: the same two (a restarted
+    # worker would have another address), given time to answer on a loaded machine
+    deadline = time.time() + 60
+    while time.time() < deadline and set(client.scheduler_info()["workers"]) != workers:
+        time.sleep(0.2)
+    assert set(client.scheduler_info()["workers"]) == workers
+    assert client.submit(sum, [1, 2], pure=False).result(timeout=30) == 3
+    code, _, err, _ = invoke(*args[3:], cwd=tmp_path)  # the rerun: the command in this process
+    assert code == 0, err
+    assert f"{n_more + 2} of {n_more + 2} exemplars done ({done} by an earlier run)" in err
+    lines = [line for line in ledger(out) if line["status"] != "interrupted"]
+    names = sorted(line["name"] for line in lines)
+    assert names == sorted(["a", "sub__a"] + [f"c{i}" for i in range(n_more)])  # each exactly once
+    assert all(line["status"] == "ok" for line in lines)
+    for line in lines:
+        assert all((out / f).is_file() for f in line["outputs"] + [line["model"]])
+    assert not leftovers(out)
+
+
 def _partial_file(job):
     """What a worker killed in the middle of write_atomic leaves: a temporary file."""
     folder = Path(job["folder"])
@@ -1538,81 +1604,6 @@ def test_with_no_retries_a_dying_worker_fails_only_its_own_exemplar(tmp_path):
     results = run(src, out, workers=2, retries=0, task=crash_on_a)
     assert [r["status"] for r in results] == ["failed", "ok", "ok", "ok"], results
     assert "died on every try" in results[0]["error"] and "; 1 try on" in results[0]["error"]
-    assert not leftovers(out)
-
-
-def _worker_threads(dask_worker):
-    """How many of the worker's threads run a task (``Worker.active_threads``)."""
-    return len(dask_worker.active_threads)
-
-
-def _wait_idle(client, timeout=60):
-    """Until the cluster runs nothing: a task already running when its client cancelled it
-    goes on to its end on the worker (Dask cannot stop a running thread), and until it ends,
-    its files are still staged (``.partial.*.tmp``). The scheduler forgets a task whose client
-    left while its worker still runs it, so the workers are asked as well."""
-    def busy():
-        return any(client.processing().values()) or any(client.run(_worker_threads).values())
-
-    deadline = time.time() + timeout
-    while time.time() < deadline and busy():
-        time.sleep(0.1)
-    assert not busy()
-
-
-@pytest.fixture
-def own_cluster():
-    """A LocalCluster of 2 worker processes for one test: the module's cluster has had workers
-    killed by earlier tests, and a nanny on a loaded machine can take minutes to bring one back
-    (seen once: 1 of 2 workers after 120 s)."""
-    for cluster, client in _local_cluster():
-        client.wait_for_workers(2, timeout=120)
-        yield cluster, client
-
-
-def test_ctrl_c_with_a_scheduler_address_leaves_the_cluster_running(tmp_path, own_cluster):
-    # Ctrl-C to `python -m tghop batch --scheduler ADDRESS` alone (the cluster is not in its
-    # process group): it stops with one line, the cluster lives on, and a rerun finishes.
-    cluster = own_cluster
-    n_more = 12
-    _, client = cluster
-    workers = set(client.scheduler_info()["workers"])
-    src = make_folder(tmp_path / "src", bad=False)
-    for i in range(n_more):  # enough that the batch is still under way when the first line is written
-        save_image(data.bricks(64, rng=7 + i), src / f"c{i}.png")
-    args = [sys.executable, "-m", "tghop", "batch", "src", "-o", "out", "--scheduler", cluster[0].scheduler_address,
-            "--size", "48", "--seed", "1", *CLI_FAST]
-    out = tmp_path / "out"
-    p = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.time() + 60
-    while (time.time() < deadline and p.poll() is None
-           and not ((out / "batch.jsonl").exists() and (out / "batch.jsonl").read_text().endswith("\n"))):
-        time.sleep(0.05)
-    p.send_signal(signal.SIGINT)
-    _, err = p.communicate(timeout=60)
-    assert p.returncode == 130, err.decode()
-    assert_one_line(p.returncode, err.decode(), "interrupted after", "run the same command again")
-    lines = [line for line in ledger(out) if line["status"] != "interrupted"]  # those under way: done again
-    done = len(lines)
-    assert 1 <= done < n_more + 2 and len({line["name"] for line in lines}) == done
-    _wait_idle(client)
-    assert not leftovers(out)
-    # the scheduler and both workers survive the client's Ctrl-C: the same two (a restarted
-    # worker would have another address), given time to answer on a loaded machine
-    deadline = time.time() + 60
-    while time.time() < deadline and set(client.scheduler_info()["workers"]) != workers:
-        time.sleep(0.2)
-    assert set(client.scheduler_info()["workers"]) == workers
-    assert client.submit(sum, [1, 2], pure=False).result(timeout=30) == 3
-    p = subprocess.run(args, cwd=tmp_path, capture_output=True, timeout=120)
-    assert p.returncode == 0, p.stderr.decode()
-    assert f"{n_more + 2} of {n_more + 2} exemplars done ({done} by an earlier run)" in p.stderr.decode()
-    lines = [line for line in ledger(out) if line["status"] != "interrupted"]
-    names = sorted(line["name"] for line in lines)
-    assert names == sorted(["a", "sub__a"] + [f"c{i}" for i in range(n_more)])  # each exactly once
-    assert all(line["status"] == "ok" for line in lines)
-    for line in lines:
-        assert all((out / f).is_file() for f in line["outputs"] + [line["model"]])
     assert not leftovers(out)
 
 
