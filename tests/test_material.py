@@ -37,6 +37,12 @@ def material(exemplar, maps):
     return Material(model=TGHop(**FAST), rng=0).fit(exemplar, maps)
 
 
+@pytest.fixture(scope="module")
+def old_material(exemplar, maps):
+    """:func:`material` without the albedo's patch statistics (``patch_levels=0``), as 0.58 fitted every one."""
+    return Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps)
+
+
 def _corr(a, b):
     return float(np.corrcoef(np.ravel(a), np.ravel(b))[0, 1])
 
@@ -85,11 +91,11 @@ def test_a_material_at_a_working_scale_learns_every_map_there(exemplar, maps, mo
     np.testing.assert_allclose(lengths, 1.0, atol=1e-6)
 
 
-def test_channel_counts_not_given_are_the_stacked_channels_defaults(exemplar, maps):
+def test_channel_counts_not_given_are_the_stacked_channels_defaults(exemplar, maps, material):
     # 3 + 3 + 1 + 1 stacked channels: K2 by default 22 * 8 / 3 -> 59, with K1 given (tghop fit --k1 alone)
-    material = Material(model=TGHop(n_channels=(20, None), **FAST), rng=0).fit(exemplar, maps)
-    assert material.model_.channels_ == [20, 59]
-    assert Material(model=TGHop(**FAST), rng=0).fit(exemplar, maps).model_.channels_ == [24, 59]
+    k1 = Material(model=TGHop(n_channels=(20, None), **FAST), rng=0).fit(exemplar, maps)
+    assert k1.model_.channels_ == [20, 59]
+    assert material.model_.channels_ == [24, 59]  # the module's, of FAST
 
 
 @pytest.mark.parametrize("path, name", [("Rock Normal.png", "Rock_Normal"), ("a/b/rock_n.png", "rock_n"),
@@ -352,8 +358,9 @@ def test_synthesize_checks_its_settings_as_tghop_does(material):
             material.synthesize(SIZE, rng=1, **kwargs)
 
 
-def test_the_albedo_is_patch_refined_the_maps_kept_and_a_material_without_statistics_refuses_it(exemplar, maps,
-                                                                                                   material, tmp_path):
+def test_the_albedo_is_patch_refined_the_maps_kept_and_a_material_without_statistics_refuses_it(material,
+                                                                                                   old_material,
+                                                                                                   tmp_path):
     """0.59: a material's albedo is patch-refined with its own statistics (0.58 refused patch_refine for a
     material, and its albedo came out blockier than the texture's); the other maps are 0.58's, the model file
     keeps the statistics; a material fitted with patch_levels 0 (as every material of 0.58) refuses it."""
@@ -380,7 +387,7 @@ def test_the_albedo_is_patch_refined_the_maps_kept_and_a_material_without_statis
                                                                                              **change}}))})
         with pytest.raises(ModelFileError, match=words):
             load_model(tmp_path / "bad.npz", material=True)
-    old = Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps)
+    old = old_material
     assert old.albedo_patches() is None
     plain = old.synthesize(SIZE, rng=1, **POOL)
     assert all(np.array_equal(plain[k], off[k]) for k in plain)  # the same joint model; the albedo as 0.58's
@@ -388,8 +395,8 @@ def test_the_albedo_is_patch_refined_the_maps_kept_and_a_material_without_statis
         old.synthesize(SIZE, rng=1, patch_refine=2, **POOL)
 
 
-def test_a_material_with_albedo_patches_is_format_version_11_and_others_keep_theirs(exemplar, maps, material,
-                                                                                    tmp_path):
+def test_a_material_with_albedo_patches_is_format_version_11_and_others_keep_theirs(exemplar, material,
+                                                                                    old_material, tmp_path):
     """0.59: a material's albedo patch statistics (material_patch.*) make its file format version 11, so that tghop
     0.58 (which reads 2 to 10) refuses it by its version, "by tghop ..., a newer tghop ...", rather than as "an
     edited file or another program's" by the unknown array; a material without them stays 10 (0.58 reads it); a
@@ -405,7 +412,7 @@ def test_a_material_with_albedo_patches_is_format_version_11_and_others_keep_the
 
     got, arrays = version(material, "m.npz")
     assert got == FORMAT_VERSION == 11 and WITHOUT_MATERIAL_PATCHES == 10
-    assert version(Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps), "old.npz")[0] == 10
+    assert version(old_material, "old.npz")[0] == 10
     assert version(TGHop(**FAST).fit(exemplar), "plain.npz")[0] == 10 and READABLE_VERSIONS[-1] == 11
     meta = json.loads(str(arrays["__meta__"]))
     with open(tmp_path / "newer.npz", "wb") as fh:
@@ -463,10 +470,10 @@ def test_a_material_file_whose_map_names_were_edited_says_what_is_wrong(material
         load_model(tmp_path / "edited.npz", material=True)
 
 
-def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_options(exemplar, maps, tmp_path):
+def test_cli_refuses_patch_refinement_of_a_material_without_statistics_by_its_options(old_material, tmp_path):
     """Review 58, item 8: the options typed are named, not the library's patch_refine (0.59: a material fitted
     without patch statistics, as 0.58 fitted every material)."""
-    save_model(Material(model=TGHop(**FAST, patch_levels=0), rng=0).fit(exemplar, maps), tmp_path / "mat.npz")
+    save_model(old_material, tmp_path / "mat.npz")
     runner = CliRunner()
     for args, words in ((["--quality", "best"], "Error: --quality best does not apply to this material"),
                         (["--patch-refine", "5"], "Error: --patch-refine does not apply to this material"),
@@ -898,7 +905,8 @@ def test_a_normal_map_is_recognised_by_its_content():
     assert not looks_like_normal_map(mostly)
 
 
-def test_a_loaded_materials_parameters_are_the_fitted_ones_and_its_clone_fits_the_same(exemplar, maps, tmp_path):
+def test_a_loaded_materials_parameters_are_the_fitted_ones_and_its_clone_fits_the_same(exemplar, maps, material,
+                                                                                         tmp_path):
     # A loaded Material's parameters were rebuilt from its joint model: model__patch_levels 0 (what fit gives the
     # joint model), rng moved onto the model, normal the list of maps found normal instead of "auto" or the name given.
     import json
@@ -906,8 +914,8 @@ def test_a_loaded_materials_parameters_are_the_fitted_ones_and_its_clone_fits_th
     from sklearn.base import clone
 
     partial = TGHop(**FAST, n_channels=(20, None), rng=4)  # K2 by default at fit (--k1 alone)
-    for given in (dict(model=TGHop(**FAST), rng=0), dict(model=partial, normal="normal")):
-        mat = Material(**given).fit(exemplar, maps)
+    # the first: the module's, Material(model=TGHop(**FAST), rng=0)
+    for mat in (material, Material(model=partial, normal="normal").fit(exemplar, maps)):
         save_model(mat, tmp_path / "m.npz")
         loaded = load_model(tmp_path / "m.npz", material=True)
         assert repr(loaded) == repr(mat)
