@@ -19,6 +19,12 @@ def patch_model():
     return TGHop(**SMALL, patch_levels=3).fit(data.cells(96, rng=3))
 
 
+@pytest.fixture(scope="module")
+def plain_model():
+    """:func:`patch_model` fitted without patch statistics (``patch_levels=0``), once for the tests that read it."""
+    return TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
+
+
 def _rows(img):
     """Every 7x7 patch of an (H, W, C) image as rows (n, C * 49)."""
     return pr._columns(img.transpose(2, 0, 1), pr.PATCH).T
@@ -36,7 +42,7 @@ def _patch_swd(img, stats):
     return np.array(out)
 
 
-def test_statistics_shapes_and_directions(patch_model):
+def test_statistics_shapes_and_directions(patch_model, plain_model):
     st = patch_model.patches_
     d = pr.PATCH * pr.PATCH * 3
     assert st.directions_.shape == (3, pr.SETS, pr.DIRECTIONS, d)
@@ -50,7 +56,7 @@ def test_statistics_shapes_and_directions(patch_model):
     assert np.allclose(st.quantiles_[0, 1, 5], np.quantile(proj, pr.quantile_levels()), atol=1e-5)
     assert np.array_equal(st.levels_, pr.quantile_levels().astype(np.float32))
     # Stored unless switched off: then no arrays, no parameters.
-    plain = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
+    plain = plain_model
     assert plain.patches_ is None and not any(k.startswith("patch.") for k in plain._to_arrays())
     assert plain.n_parameters()["patch refinement (ours)"]["stored"] == 0
     assert (patch_model.n_parameters()["patch refinement (ours)"]["stored"]
@@ -552,10 +558,10 @@ def test_paper_pipeline_is_unaffected():
         refine.parse("off")
 
 
-def test_model_without_statistics_refuses_a_number_of_steps_and_skips_auto():
+def test_model_without_statistics_refuses_a_number_of_steps_and_skips_auto(plain_model):
     # A number of steps asked of a model without patch statistics did nothing, without a word
     # (tghop synth and the server refuse it).
-    model = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
+    model = plain_model
     with pytest.raises(TGHopError, match=r"patch_refine=3 needs the patch statistics this model lacks \(fitted with "
                                          r"patch_levels=0"):
         model.synthesize((48, 48), rng=1, patch_refine=3)
@@ -563,9 +569,9 @@ def test_model_without_statistics_refuses_a_number_of_steps_and_skips_auto():
                           model.synthesize((48, 48), rng=1, patch_refine=0))
 
 
-def test_fit_is_unchanged_by_the_statistics(patch_model):
+def test_fit_is_unchanged_by_the_statistics(patch_model, plain_model):
     # Nor the coarse layout model's, whose own statistics only its guide's patch refinement reads.
-    plain = TGHop(**SMALL, patch_levels=0).fit(data.cells(96, rng=3))
+    plain = plain_model
     assert plain.layout_.model_.patches_ is None and patch_model.layout_.model_.patches_ is not None
     assert np.array_equal(plain.synthesize((64, 64), rng=3),
                           patch_model.synthesize((64, 64), rng=3, patch_refine=0, layout_patch_refine=0))
