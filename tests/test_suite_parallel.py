@@ -93,3 +93,10 @@ def test_every_file_that_drives_a_browser_or_starts_a_dask_cluster_is_in_its_gro
             assert conftest.TOGETHER.get(path.name) == "browsers", path.name
         if "LocalCluster" in text or "tghop.batch_dask" in text:
             assert conftest.TOGETHER.get(path.name) == "dask", path.name
+
+
+def test_the_files_named_to_start_first_or_run_together_exist():
+    # A name misspelt or of a file since renamed would be passed over without a word: that file would start late.
+    here = Path(__file__).parent
+    assert [name for name in (*conftest.SLOW_FIRST, *conftest.TOGETHER) if not (here / name).is_file()] == []
+    assert len(set(conftest.SLOW_FIRST)) == len(conftest.SLOW_FIRST)
