@@ -292,22 +292,31 @@ def test_fit_records_the_depth_it_is_told_or_its_dtypes():
             TGHop(**fast).fit(image, depth=bad)
 
 
-def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
-    from click.testing import CliRunner
-
+@pytest.fixture(scope="module")
+def bricks_model(tmp_path_factory):
+    """(96x96 bricks, the path of a small model fitted on them), saved once for the CLI tests that read it."""
     from tghop import TGHop, data
-    from tghop.cli import main
     from tghop.modelfile import save_model
 
     exemplar = data.bricks()[:96, :96]
-    save_model(TGHop(max_patches=1000, n_clusters=10, layout_factor=None, rng=0).fit(exemplar), tmp_path / "m.npz")
+    path = tmp_path_factory.mktemp("depth") / "m.npz"
+    save_model(TGHop(max_patches=1000, n_clusters=10, layout_factor=None, rng=0).fit(exemplar), path)
+    return exemplar, path
+
+
+def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path, bricks_model):
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+
+    exemplar, model = bricks_model
     levels = np.round(exemplar * 65535).astype(np.uint16) ^ np.uint16(5)  # low bits an 8-bit file cannot hold
     save_image(levels / 65535.0, tmp_path / "in.png", depth=16)
     hole = np.zeros((96, 96))
     hole[30:60, 30:60] = 1
     save_image(hole, tmp_path / "hole.png")
     res = CliRunner().invoke(main, ["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png"),
-                                    "-o", str(tmp_path / "out.png"), "--source", str(tmp_path / "m.npz"),
+                                    "-o", str(tmp_path / "out.png"), "--source", str(model),
                                     "--seed", "1", "-q"])
     assert res.exit_code == 0, res.output
     image, depth = load_image(tmp_path / "out.png", with_depth=True)
@@ -316,16 +325,13 @@ def test_cli_inpaint_keeps_a_16bit_image_16bit(tmp_path):
     assert depth == 16 and np.array_equal(out[keep], levels[keep])  # every known pixel, all 16 bits
 
 
-def test_cli_inpaint_and_extend_warn_that_a_16bit_image_is_written_8bit_as_jpeg(tmp_path):
+def test_cli_inpaint_and_extend_warn_that_a_16bit_image_is_written_8bit_as_jpeg(tmp_path, bricks_model):
     # They keep IMAGE's depth as far as the output's format holds it: a JPEG output lost it without a word.
     from click.testing import CliRunner
 
-    from tghop import TGHop, data
     from tghop.cli import main
-    from tghop.modelfile import save_model
 
-    exemplar = data.bricks()[:96, :96]
-    save_model(TGHop(max_patches=1000, n_clusters=10, layout_factor=None, rng=0).fit(exemplar), tmp_path / "m.npz")
+    exemplar, model = bricks_model
     save_image(exemplar, tmp_path / "in.png", depth=16)
     hole = np.zeros((96, 96))
     hole[30:60, 30:60] = 1
@@ -336,7 +342,7 @@ def test_cli_inpaint_and_extend_warn_that_a_16bit_image_is_written_8bit_as_jpeg(
                     ["extend", str(tmp_path / "in.png"), "--size", "96x128"]):
         for name, warned in (("o.jpg", [warning]), ("o.png", []), ("d.jpg", [])):
             depth = ["--depth", "8"] if name == "d.jpg" else []  # asked for: no warning
-            res = CliRunner().invoke(main, [*command, "-o", str(tmp_path / name), "--source", str(tmp_path / "m.npz"),
+            res = CliRunner().invoke(main, [*command, "-o", str(tmp_path / name), "--source", str(model),
                                             "--seed", "1", "-q", *depth])
             assert res.exit_code == 0, res.output
             assert [line for line in res.output.splitlines() if line.startswith("Warning")] == warned, command
