@@ -29,12 +29,22 @@ def summary(server, model_id: str) -> dict:
         raise server.cache.missing(model_id) from None
     loaded = server.cache.load(model_id)  # 404 when the file went since
     model = getattr(loaded, "model_", loaded)  # a material's joint model
+    levels = patch_levels(loaded)
     made = {"id": model_id, "file_bytes": file_bytes,
-            "layout": model.layout_ is not None, **info_dict(model),
-            **({"material": {"maps": loaded.map_info(), "patch_levels": loaded.albedo_patch_levels()}}
-               if model is not loaded else {})}
+            "layout": model.layout_ is not None, **info_dict(model), "patch_levels": levels,
+            **({"material": {"maps": loaded.map_info(), "patch_levels": levels}} if model is not loaded else {})}
     server.cache.keep_summary(model_id, made)
     return made
+
+
+def patch_levels(model) -> int:
+    """The levels of the patch statistics a texture model holds, or a material's albedo (0.59 a material's; 0.61 a
+    texture model's too; 0: none, a model fitted with ``patch_levels`` 0 (the paper's settings), a texture model of
+    tghop 0.14 or a material of 0.58): whether the page's quality switch applies to it."""
+    if hasattr(model, "albedo_patch_levels"):  # a material: the count its file's metadata says too
+        return model.albedo_patch_levels()
+    stats = getattr(model, "patches_", None)  # none on a model of tghop 0.14 and older
+    return 0 if stats is None else len(stats.directions_)
 
 
 async def model_summary(server, request):

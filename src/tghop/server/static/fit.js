@@ -107,37 +107,44 @@ async function showSummary(id) {
   // cache of another tghop, or a restart) is read anew, and its fit or upload said nothing of it (0.57)
   const notes = unsaid(s.notes || []);
   if (notes.length) say([$("message").textContent, ...notes].filter(Boolean).join(". "));
+  // Its patch statistics (a texture model's own, 0.61; a material's albedo's): a server of 0.60 said a material's only
+  const levels = "patch_levels" in s ? s.patch_levels : maps ? s.material.patch_levels : null;
+  const patches = levels === null ? null : Boolean(levels);
   if (state.working && state.working.modelId === id) {
     state.working.material = Boolean(maps);
-    state.working.patches = maps ? Boolean(s.material.patch_levels) : null;
+    state.working.patches = patches;
   }
   const listed = state.models.find((m) => m.id === id);
   if (listed && s.params) listed.patchSize = s.params.patch_size;  // Morph's least height (morphMinimum)
-  setMaterial(Boolean(maps), maps ? Boolean(s.material.patch_levels) : null);
+  setMaterial(Boolean(maps), patches);
 }
 
-// The quality preset applies to a material's albedo (0.59), where the material has the albedo's patch statistics
-// (`patches`: its summary's patch_levels above 0; false: a material of tghop 0.58, or fitted with paper's settings or
-// patch_levels 0; null: not known yet). `on` null: not known yet (an uploaded file until its summary comes). Not known,
-// the menu is off, and so are Generate and 8 seeds (updateButtons), as best would be a 422 for a material without them:
-// a material fitted here too, until its summary comes (0.60; 0.59 turned the menu on at the fit's end, and best
-// pressed before the summary came was a 422 for one fitted with patch_levels 0).
+// The quality preset applies where the model has patch statistics (`patches`: its summary's patch_levels above 0;
+// false: fitted with the paper's settings or patch_levels 0, a texture model of tghop 0.14, a material of 0.58; null:
+// not known yet): a texture model's own (0.61: 0.60 offered best to one fitted with the paper's settings, a 422), a
+// material's albedo's (0.59). `on` null: not known yet (an uploaded file until its summary comes). Not known, the menu
+// is off, and so are Generate and 8 seeds (updateButtons), as best would be a 422 for a model without them: a material
+// fitted here too, until its summary comes (0.60; 0.59 turned the menu on at the fit's end, and best pressed before
+// the summary came was a 422 for one fitted with patch_levels 0); a texture model fitted here is known at its fit's
+// end (fitPatches).
 function setMaterial(on, patches = null) {
   state.material = on;
-  state.patches = on === true ? patches : null;
+  state.patches = on === null ? null : patches;
   const listed = state.models.find((m) => m.id === state.modelId);
   if (listed && on !== null) listed.material = on;  // Morph takes texture models only (morphProblem)
-  const bare = on === true && patches === false, unknown = on === null || (on === true && patches === null);
+  if (listed && on !== null && patches !== null) listed.patches = patches;  // Paint's and Remix's quality
+  const bare = on !== null && patches === false, unknown = on === null || (on === true && patches === null);
+  const why = on ? "this material's albedo has no patch statistics (fitted by tghop 0.58, or with paper settings)"
+    : "this model has no patch statistics (fitted with the paper's settings, or patch_levels 0)";
   $("quality").disabled = unknown || bare;
-  $("quality").title = bare ? "this material's albedo has no patch statistics (fitted by tghop 0.58): fit it again"
+  $("quality").title = bare ? `${why}: fit it again`
     : on === null ? "off until the page knows whether the model is a material (its summary)"
     : unknown ? "off until the page knows whether this material's albedo has patch statistics (its summary)" : "";
   // Why it is off, in its help too (which a screen reader reads with it): a title is a mouse's only, and a control
   // turned off is not reached with Tab. Shown for a material without statistics; for the moments of a fit or an
   // upload, to a screen reader only (shown, the help grew a line and shrank back with each fit).
   const off = $("quality-off");
-  off.textContent = bare ? "Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with "
-    + "paper settings); fit it again for quality best."
+  off.textContent = bare ? `Off now: ${why}; fit it again${on ? "" : " without them"} for quality best.`
     : on === null ? "Off until the page knows whether the model is a material (its summary)."
     : unknown ? "Off until the page knows whether this material's albedo has patch statistics (its summary)." : "";
   off.hidden = !bare && !unknown;
@@ -158,6 +165,12 @@ function fitFields() {
   }
   for (const file of sentMaps()) form.append(`map:${mapName(file.name)}`, file, file.name);
   return form;
+}
+
+// Whether a texture model fitted with `form` has patch statistics: not with the paper's settings (their patch_levels
+// 0) nor patch_levels 0 (the API's field, which the page has not).
+function fitPatches(form) {
+  return form.get("paper") !== "true" && form.get("patch_levels") !== "0";
 }
 
 // The maps a fit now sends: those listed, but not while they wait for their albedo (an exemplar of their size).
@@ -500,6 +513,7 @@ async function startFit(form, undo, note = "") {
   }
   const { id, job, notes } = await response.json();
   const material = [...form.keys()].some((k) => k.startsWith("map:"));  // a fit with maps makes a material
+  attempt.patches = material ? null : fitPatches(form);  // a material's: its summary says (setMaterial)
   if (request !== state.fitRequest) {  // replaced or cancelled while its answer came: withdrawn, as dropRunningFit does
     fetch(`/api/jobs/${job}`, { method: "DELETE" }).catch(() => {});
     return;
@@ -530,7 +544,7 @@ function follow(id, job, material, attempt, undo, notes) {
     if (snap.state === "done") {
       $("progress").value = 1;
       setWorking({ ...attempt, modelId: id, material });
-      setModel(id, material);
+      setModel(id, material, attempt.patches);
       say(["model ready: generate below", ...notes].join(". "));
       const summary = showSummary(id);
       // A material's Generate waits for its summary (setMaterial): the focus goes on to it then
