@@ -12,7 +12,8 @@ with a mouse, by eye (0.57): a result that comes below the fold scrolled into vi
 Inpaint's Undo (a stroke, Clear, a Fill with its hole) and Paint's (a stroke, Reset); the built-in menu on its
 name's line; a material's files named without its albedo word;
 a result of several models captioned with them; a Fill of one's own picture undone showing that picture as the
-result; Extend pressed again growing the picture as much again."""
+result; Extend pressed again growing the picture as much again; (0.61) a texture model without patch statistics
+never offering quality best."""
 
 import io
 import re
@@ -903,4 +904,52 @@ def test_a_model_file_of_a_unicode_name_downloads_under_that_name(page, tmp_path
     with page.expect_download() as download:
         page.click("#download-model")
     assert download.value.suggested_filename == name
+    assert not page.errors, page.errors
+
+
+def test_a_texture_model_without_patch_statistics_never_offers_quality_best(page, tmp_path):
+    # A texture model fitted with the paper's settings (patch_levels 0) was offered quality best (0.60), and
+    # Generate with it was a 422, "this model holds no patch statistics ...": the menu is off for it now, said why.
+    from tghop import TGHop, data
+    from tghop.modelfile import save_model
+
+    why = ("Off now: this model has no patch statistics (fitted with the paper's settings, or patch_levels 0); fit it "
+           "again without them for quality best.")
+    page.select_option("#quality", "best")  # the artist's choice, kept: sent only where it applies
+    page.evaluate("""() => {
+      window.qualityOn = [];  // the menu's every change, from now on
+      new MutationObserver(() => qualityOn.push(!document.getElementById("quality").disabled))
+        .observe(document.getElementById("quality"), { attributes: true, attributeFilter: ["disabled"] });
+    }""")
+    if not page.eval_on_selector("#fit-settings", "d => d.open"):
+        page.click("#fit-settings summary")
+    page.check("#paper-fit")
+    try:
+        fit(page, "cells")
+        assert page.is_disabled("#quality") and page.text_content("#quality-off") == why
+        assert page.is_visible("#quality-off")
+        assert True not in page.evaluate("qualityOn"), page.evaluate("qualityOn")  # never on since the fit began
+        page.fill("#height", "32")
+        page.fill("#width", "32")
+        page.fill("#seed", "3")
+        page.click("#go")  # quality best left out, as it does not apply: no 422
+        page.wait_for_function("document.getElementById('result-caption').textContent.startsWith('result: 32x32')"
+                               " && document.getElementById('go').textContent === 'Generate'", timeout=90_000)
+        assert page.text_content("#gen-message") == ""
+    finally:
+        page.uncheck("#paper-fit")
+    # An uploaded file of such a model: off once its summary says so
+    path = tmp_path / "flat.npz"
+    save_model(TGHop(n_clusters=2, n_codewords=5, stride=4, max_patches=300, patch_levels=0, layout_factor=None,
+                     rng=0).fit(data.bricks(64, rng=3)), path)
+    fit(page, "bricks")  # with them: on
+    assert page.is_enabled("#quality") and page.is_hidden("#quality-off")
+    page.set_input_files("#model-file", str(path))
+    page.wait_for_function("document.getElementById('summary').textContent.startsWith('model ') &&"
+                           " document.getElementById('quality-off').textContent.startsWith('Off now')", timeout=60_000)
+    assert page.is_disabled("#quality") and page.text_content("#quality-off") == why
+    assert page.is_enabled("#go")
+    fit(page, "bricks")
+    assert page.is_enabled("#quality") and page.input_value("#quality") == "best"
+    page.select_option("#quality", "default")
     assert not page.errors, page.errors
