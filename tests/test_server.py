@@ -675,6 +675,49 @@ def test_extend_grows_the_picture_as_tghop_extend_does(client, fitted, to_fill, 
     assert_error(post(url, files={"size": (None, "96x120")}), 400, "no image")
 
 
+def test_fill_k_is_tghop_inpaint_counts_kth_fill(client, fitted, to_fill, live_server, tmp_path):
+    # 0.60's page numbered a strip's fills by seed (s, s + 1, ...), each a Fill of its own seed, where tghop inpaint
+    # --seed s --count N draws N fills from one generator and names them out_1.png ... out_N.png: the field fill k
+    # (0.61) is the command's k-th, from fill k - 1's generator when the server kept it, else drawn again.
+    import numpy as np
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from tghop.cli import main
+
+    model_id, _, _ = fitted
+    image, mask, _ = to_fill
+    url = f"/api/models/{model_id}/inpaint"
+    ask = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png"),
+           "seed": (None, "5")}
+    fills, states, went_on = [], live_server.app.state.server.fill_states, []
+    states.after = lambda key, k, after=states.after: went_on.append(after(key, k)) or went_on[-1]
+    try:
+        for k in (1, 2, 3):
+            r = client.post(url, files={**ask, "fill": (None, str(k))})
+            assert r.status_code == 200, r.text
+            assert r.headers["x-tghop-seed"] == "5" and r.headers["x-tghop-fill"] == str(k)
+            fills.append(r.content)
+    finally:
+        del states.after
+    assert [j for j, _ in went_on] == [0, 1, 2]  # each from the fill before's generator: one fill each
+    assert len(set(fills)) == 3 and client.post(url, files=ask).content == fills[0]  # fill 1 is a plain fill's
+    (tmp_path / "in.png").write_bytes(image)
+    (tmp_path / "hole.png").write_bytes(mask)
+    model_file = str(live_server.cache / "models" / f"{model_id}.npz")
+    cli = CliRunner().invoke(main, ["inpaint", str(tmp_path / "in.png"), str(tmp_path / "hole.png"), "--seed", "5",
+                                    "--count", "3", "-q", "--source", model_file, "-o", str(tmp_path / "out.png")])
+    assert cli.exit_code == 0, cli.output
+    for k, body in enumerate(fills, start=1):
+        assert (np.asarray(Image.open(tmp_path / f"out_{k}.png")) == decoded(body)).all(), k  # the command's pixels
+    # the same picture in other bytes (another PNG writer's): no fill of it kept, fill 3 drawn after 1 and 2 again
+    other = png_of(decoded(image))
+    assert other != image
+    again = client.post(url, files={**ask, "image": ("again.png", other, "image/png"), "fill": (None, "3")})
+    assert again.status_code == 200 and (decoded(again.content) == decoded(fills[2])).all()
+    for bad in ("0", "9", "x", "1.5"):
+        assert_error(client.post(url, files={**ask, "fill": (None, bad)}), 422, "fill must be an integer from 1 to 8")
+
 # ------------------------------------------------------------------ quality, several models
 @pytest.fixture(scope="module")
 def second(client):

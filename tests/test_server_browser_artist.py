@@ -375,6 +375,7 @@ def test_the_cooc_edit_shows_its_canvas_whole_with_the_crops_at_1024x700(page, t
 
 def test_fill_with_a_count_makes_fills_to_pick_from(page):
     # tghop inpaint --count N made fills to pick from (0.59); the page's Fill made one at a time, a seed typed between.
+    # 0.61: they are the command's, fill k of seed s (0.60: seeds s, s + 1, ..., named by seed), named as it names them.
     chromium.load_fresh(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")
     generate(page, 2, size=(64, 64))
@@ -393,26 +394,34 @@ def test_fill_with_a_count_makes_fills_to_pick_from(page):
     page.click("#fill")
     page.wait_for_function("document.getElementById('fill').textContent === 'Fill' &&"
                            " document.querySelectorAll('#strip img').length === 3", timeout=120_000)
-    assert page.text_content("#inpaint-message") == ("3 fills (seeds 4, 5, 6) under the picture: click one to pick it "
-                                                     "(fill 1 is shown); Undo goes back to the picture before")
-    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 4'")
-    page.click("#strip img[data-seed='6']")
-    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 6'")
+    assert page.text_content("#inpaint-message") == (
+        "3 fills of seed 4 under the picture, as tghop inpaint --seed 4 --count 3 makes them: click one to pick it "
+        "(fill 1 is shown); Undo goes back to the picture before")
+    assert page.eval_on_selector_all("#strip figcaption", "f => f.map((e) => e.textContent)") == [
+        "fill 1", "fill 2", "fill 3"]
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 4, "
+                           "fill 1'")
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-inpainted-64x64-seed4_1.png"
+    page.click("#strip figure:nth-child(3) img")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 4, "
+                           "fill 3'")
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-inpainted-64x64-seed4_3.png"  # out_3.png
     bytes_of = "async (url) => [...new Uint8Array(await (await fetch(url)).arrayBuffer())].join(',')"
-    third = page.evaluate(bytes_of, page.get_attribute("#strip img[data-seed='6']", "src"))
+    first = page.evaluate(bytes_of, page.get_attribute("#strip figure:nth-child(1) img", "src"))
     captions = page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)")
-    assert captions == ["inpainted 64x64, seed 6 (bricks)", "result 64x64, seed 2 (bricks)"], captions  # one pick
+    assert captions == ["inpainted 64x64, seed 4, fill 3 (bricks)", "result 64x64, seed 2 (bricks)"], captions
+    assert page.get_attribute("#history figure a", "download") == "tghop-bricks-inpainted-64x64-seed4_3.png"
     page.click("#undo")  # back to the picture before the fills, its hole painted
     page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x64, seed 2'")
     assert page.evaluate("maskPainted()")
     page.fill("#inpaint-count", "1")
-    page.fill("#inpaint-seed", "6")
-    page.click("#fill")  # a Fill of seed 6 alone: the strip's third, and the strip gone
-    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 6'"
+    page.click("#fill")  # a Fill of seed 4 alone: the strip's first (fill 1 of --count is --count 1's), the strip gone
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 4'"
                            " && document.getElementById('fill').textContent === 'Fill'", timeout=120_000)
     assert page.evaluate("document.querySelectorAll('#strip img').length") == 0
-    assert page.evaluate(bytes_of, page.get_attribute("#result", "src")) == third  # the strip's fill of seed 6
+    assert page.evaluate(bytes_of, page.get_attribute("#result", "src")) == first
+    assert page.get_attribute("#download-png", "download") == "tghop-bricks-inpainted-64x64-seed4.png"
     captions = page.eval_on_selector_all("#history figcaption", "f => f.map((e) => e.textContent)")
-    assert captions[0] == "inpainted 64x64, seed 6 (bricks)"
+    assert captions[0] == "inpainted 64x64, seed 4 (bricks)"
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors

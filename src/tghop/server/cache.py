@@ -21,7 +21,7 @@ from .._errors import TGHopError, collect_warnings
 from .requests import RequestError
 from .safety import check_archive
 
-__all__ = ["ModelCache", "DEFAULT_CACHE_BYTES", "ID"]
+__all__ = ["ModelCache", "FillStates", "DEFAULT_CACHE_BYTES", "ID"]
 
 #: An id: 64 hex digits.
 ID = re.compile(r"[0-9a-f]{64}\Z")
@@ -33,6 +33,39 @@ _SUMMARIES = 256
 _PATH = "\x00"
 #: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
 DEFAULT_CACHE_BYTES = 2 * 1000**3
+
+
+class FillStates:
+    """Where the fills of one request's hole stand (0.61): fill k of a seed is the k-th drawn from one generator, as
+    ``tghop inpaint --count`` draws them; kept here, the generator's state after each fill of the last
+    :attr:`KEPT` requests (``key``: a hash of the model, the picture, its mask or growth, maps, seed and tile), so
+    that fill k of a page's strip goes on from fill k - 1's, not from the seed again (each fill redrawn: k fills
+    for the k-th). A state not kept is only slower: the fills before are drawn again."""
+
+    #: States kept (a few hundred bytes each), the last used ones.
+    KEPT = 64
+
+    def __init__(self):
+        self._states = OrderedDict()
+        self._lock = threading.Lock()
+
+    def after(self, key: str, k: int):
+        """``(j, state)``: the latest fill ``j`` below ``k`` whose generator's state is kept, or ``(0, None)``."""
+        with self._lock:
+            for j in range(k - 1, 0, -1):
+                state = self._states.get((key, j))
+                if state is not None:
+                    self._states.move_to_end((key, j))
+                    return j, state
+        return 0, None
+
+    def keep(self, key: str, k: int, state: dict) -> None:
+        """Keep the generator's ``state`` after fill ``k`` of ``key``."""
+        with self._lock:
+            self._states[(key, k)] = state
+            self._states.move_to_end((key, k))
+            while len(self._states) > self.KEPT:
+                self._states.popitem(last=False)
 
 
 def _load_model(path):

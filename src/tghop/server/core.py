@@ -20,9 +20,10 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 
 from . import cooc
-from .cache import DEFAULT_CACHE_BYTES, ModelCache
+from .cache import DEFAULT_CACHE_BYTES, FillStates, ModelCache
 from .jobs import FINAL, JOB_ID, FitQueue, GenerationJob
 from .requests import RequestError, page_words
+
 from .uploads import MAX_DECODES, MAX_DECODES_WAITING, Gate
 
 __all__ = ["Server", "json_response", "error_response", "disconnected", "release_memory", "JOB_HEADER"]
@@ -111,6 +112,9 @@ class Server:
         # The running request's flags on its thread: .dropped, .job and .read on a generation thread
         # (unless_stopping, model), .left on a decoding thread (still_wanted)
         self._work = threading.local()
+        # Where a fill's sequence of the same request stands (cache.FillStates: fill k of a seed, as tghop
+        # inpaint --count draws it, goes on from fill k - 1's generator, not from the seed again)
+        self.fill_states = FillStates()
 
     async def decode(self, request, work, *args):
         """``work(*args)`` on a decoding thread once :attr:`decoding` lets it in (503 when too many wait); a request

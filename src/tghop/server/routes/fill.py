@@ -2,10 +2,11 @@
 ``image``, ``mask``, ``seed``, ``tile``) or a picture grown to a larger canvas (``POST
 /api/models/{id}/extend``, ``image``, ``size``, ``anchor``, ``seed``, ``tile``), with a model's
 texture, as ``tghop inpaint`` and ``tghop extend`` do; a material's maps come along as ``map:<name>``
-fields (docs/serve.md)."""
+fields, and ``fill`` k asks for the k-th fill of the seed, as ``--count`` numbers them (docs/serve.md)."""
 
 from __future__ import annotations
 
+import hashlib
 import io
 import re
 import secrets
@@ -16,7 +17,11 @@ from ..requests import RequestError, parse_bool, parse_growth, safe_name
 from ..uploads import MAX_FIT_BYTES, each_file_within, read_body, read_form, read_image
 from .images import WARNING_HEADER, header_text, models_notes
 
-__all__ = ["fill_png", "inpaint", "extend", "fill_request", "mask_note", "grey_mask_note"]
+__all__ = ["fill_png", "inpaint", "extend", "fill_request", "mask_note", "grey_mask_note", "fill_key", "MAX_FILL"]
+
+#: The most a request's ``fill`` k may be (the page's strip of fills: 1 to 8): fill k of a seed not kept in
+#: :class:`~tghop.server.cache.FillStates` draws the k - 1 before it again.
+MAX_FILL = 8
 
 
 def mask_note(filename: str) -> str:
@@ -36,7 +41,18 @@ def grey_mask_note(filename: str, share: float) -> str:
             "field 'image', its mask 'mask')")
 
 
-def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
+def fill_key(model_id: str, fields: dict, seed: int, tile: bool, grow) -> str:
+    """What makes the fills of two requests one sequence (:class:`~tghop.server.cache.FillStates`): the model, the
+    picture, its mask or growth, the maps (names and bytes), the seed and tile."""
+    digest = hashlib.sha256(f"{model_id}\0{seed}\0{tile}\0{grow}".encode())
+    for name in sorted(k for k in fields if k not in ("fill", "seed", "tile", "size", "anchor")):
+        value = fields[name]
+        content = value[1] if isinstance(value, tuple) else str(value).encode()
+        digest.update(b"\0" + name.encode() + b"\0" + hashlib.sha256(content).digest())
+    return digest.hexdigest()
+
+
+def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow, k: int = 1):
     """Read the picture and its mask (``grow`` None) or grow the picture to ``grow``'s
     ``(size, anchor)`` (:func:`tghop.inpaint.expand_canvas`), and fill the mask's white
     pixels or the new area with the model's texture (:func:`tghop.inpaint.inpaint`): the
@@ -46,7 +62,9 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
     ``(maps, (h, w))`` (:func:`materials.fill`). Returned with what reading the uploads said (lines,
     :func:`read_image`'s notes: a colour profile converted, only a first frame read; a mask's transparency,
     :func:`mask_note`; a mask that is not black and white, :func:`grey_mask_note`), for the answer's
-    :data:`~tghop.server.routes.images.WARNING_HEADER`."""
+    :data:`~tghop.server.routes.images.WARNING_HEADER`. ``k``: the k-th fill drawn from the seed's generator, as
+    ``tghop inpaint --count`` numbers its fills (0.61), from fill k - 1's where :attr:`Server.fill_states` keeps it,
+    else from the seed, the fills before drawn again and dropped."""
     import numpy as np
 
     from ..._errors import HINT_DOWNSCALE_YOURSELF
@@ -96,18 +114,29 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow):
             require_hole(hole, f"the mask {mask_name}")  # as tghop inpaint: nothing would change
     except TGHopError as exc:
         raise RequestError(400, str(exc)) from None
+    key = fill_key(model_id, fields, seed, tile, grow)
+    done, state = server.fill_states.after(key, k)
+    rng = np.random.default_rng(seed)
+    if state is not None:
+        rng.bit_generator.state = state
     with server.generating:
-        if materials.is_material(model):  # every map alike
-            return materials.fill(model, picture, alpha, hole, uploads, lambda data, filename, load: (
-                read_image(data, filename, load, notes=told)), depth=depth, grow=grow, seed=seed, tile=tile,
-                progress=server.unless_stopping), told
-        try:
-            filled = fill_hole(model, picture, hole, rng=seed, tile=tile, progress=server.unless_stopping,
-                               order="edge" if grow is None else "raster")  # as tghop.inpaint.extend grows (0.60)
-        except MemoryError:
-            raise RequestError(413, "out of memory; send a smaller picture") from None
-        except TGHopError as exc:
-            raise RequestError(400, str(exc)) from None
+        for j in range(done + 1, k + 1):  # the fills before k not kept: drawn again, and dropped
+            progress = server.unless_stopping if j == k else (lambda *_: server.unless_stopping())
+            if materials.is_material(model):  # every map alike
+                filled = materials.fill(model, picture, alpha, hole, uploads, lambda data, filename, load: (
+                    read_image(data, filename, load, notes=told if j == k else [])), depth=depth, grow=grow,
+                    seed=rng, tile=tile, progress=progress)
+            else:
+                try:
+                    filled = fill_hole(model, picture, hole, rng=rng, tile=tile, progress=progress,
+                                       order="edge" if grow is None else "raster")  # as tghop.inpaint.extend (0.60)
+                except MemoryError:
+                    raise RequestError(413, "out of memory; send a smaller picture") from None
+                except TGHopError as exc:
+                    raise RequestError(400, str(exc)) from None
+            server.fill_states.keep(key, j, rng.bit_generator.state)
+    if materials.is_material(model):
+        return filled, told
     server.unless_stopping("encoding", 0, 1)
     filled = with_alpha(filled, alpha, hole)  # a PNG holds it
     buf = io.BytesIO()
@@ -134,11 +163,11 @@ async def fill_request(server, request, *, grow: bool):
     server.cache.path(model_id)  # 404 for a malformed id before the body is read
     # A material's picture comes with its maps: as much in all as its fit
     body = await read_body(request, MAX_FIT_BYTES, what="the upload (the picture and its maps together)")
-    names = ("image", "size", "anchor", "seed", "tile") if grow else ("image", "mask", "seed", "tile")
+    names = ("image", "size", "anchor", "seed", "tile", "fill") if grow else ("image", "mask", "seed", "tile", "fill")
     fields = each_file_within(await read_form(
         request, body, "the file field 'image' and the fields 'size' (HEIGHTxWIDTH) and optionally 'anchor', "
-        "'seed' and 'tile'" if grow else "the file fields 'image' and 'mask', white where to fill; optionally "
-        "the fields 'seed' and 'tile'"))
+        "'seed', 'tile' and 'fill'" if grow else "the file fields 'image' and 'mask', white where to fill; "
+        "optionally the fields 'seed', 'tile' and 'fill'"))
     unknown = [k for k in fields if k not in names and not k.startswith(materials.MAP_FIELD)]
     if unknown:
         raise RequestError(422, f"unknown field {unknown[0]!r}; known: {', '.join(names)} (and a material's "
@@ -155,10 +184,14 @@ async def fill_request(server, request, *, grow: bool):
     else:
         seed = int(seed)
     tile = parse_bool("tile", plain["tile"] or "false")
+    k = (plain["fill"] or "1").strip()
+    if not re.fullmatch(r"[0-9]{1,2}", k) or not 1 <= int(k) <= MAX_FILL:
+        raise RequestError(422, f"fill must be an integer from 1 to {MAX_FILL} (the k-th fill of the seed, as tghop "
+                                f"inpaint --count numbers them), got {k[:40]!r}")
     growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
-    png, told = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth,
+    png, told = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth, int(k),
                                          models=[model_id])
-    headers = {"X-Tghop-Seed": str(seed), "Cache-Control": "no-store"}
+    headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Fill": k, "Cache-Control": "no-store"}
     told = [*models_notes(server, [model_id]), *told]  # reading the model's file, then the picture, mask and maps
     if told:  # what reading them said, as a guide's (one line, printable ASCII)
         headers[WARNING_HEADER] = header_text(told)

@@ -29,9 +29,9 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
 // The inpaint editor: its picture (a blob of its own, so that it outlives the result's URL)
 // and the brush's last point while painting.
 // `history`: what Undo goes back to, the latest last (inpaint.js); `pendingMask`: a mask put back once the
-// picture loads.
+// picture loads; `fills`: the last strip of fills' run (inpaint.js, fillStrip: whether it is still coming).
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null, history: [],
-  pendingMask: null };
+  pendingMask: null, fills: null };
 
 // The 2d context of a canvas whose pixels are read back (getImageData: the mask at each Fill, the boards and
 // the tiling by the tests): made for it, or Chromium warns that it is slow. The first getContext sets it.

@@ -39,10 +39,11 @@ function modelDownload(id, stem) {
   return [`/api/models/${id}/file?name=${encodeURIComponent(stem)}`, `tghop-${stem}-${id.slice(0, 12)}.npz`];
 }
 
-// A result's file name, without ".png": tghop-<model(s)>[-<what>]-<H>x<W>-seed<N>[-tile] (`models`: their stems).
-function resultBase(seed, what, { models, size, tile }) {
+// A result's file name, without ".png": tghop-<model(s)>[-<what>]-<H>x<W>-seed<N>[-tile][_<k>] (`models`: their
+// stems; `fill` k: a strip's fill k of the seed, numbered as tghop inpaint --count numbers OUT_k.png, 0.61).
+function resultBase(seed, what, { models, size, tile, fill }) {
   const parts = ["tghop", ...models, ...(what ? [what] : []), `${size[0]}x${size[1]}`, `seed${fileStem(seed)}`];
-  return parts.join("-") + (tile ? "-tile" : "");
+  return parts.join("-") + (tile ? "-tile" : "") + (fill ? `_${fill}` : "");
 }
 
 // The working model's stem (its name in state.models), "model" for none.

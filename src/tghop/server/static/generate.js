@@ -77,7 +77,8 @@ function resultCaption() {
   const other = !parts.of && name && name.model && name.model !== state.modelId ?
     ` (made with ${name.by}${now && now !== name.by ? `, not ${now}` : ""})` : "";
   $("result-caption").textContent = `${parts.what}: ${img.naturalHeight}x${img.naturalWidth}` +
-    (parts.seed === null ? "" : `, seed ${parts.seed}`) + (parts.of ? ` (${parts.of})` : other);
+    (parts.seed === null ? "" : `, seed ${parts.seed}`) + (name && name.fill ? `, fill ${name.fill}` : "") +
+    (parts.of ? ` (${parts.of})` : other);
   $("result-caption").hidden = false;
 }
 
@@ -172,7 +173,11 @@ async function reveal(img) {
 // Its hint goes with it (it asked to click seeds no longer shown).
 function clearStrip() {
   if (state.busyButton === $("strip-go")) return;
-  const strip = $("strip");
+  const strip = $("strip"), fills = editor.fills;
+  if (fills && fills.running && !fills.dropped) {  // a Fill's strip still coming: stopped (fillStrip)
+    fills.dropped = true;
+    if (state.abort) state.abort.abort();
+  }
   for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
   strip.textContent = "";
   delete strip.dataset.model;
@@ -182,10 +187,11 @@ function clearStrip() {
 const STRIP_HINT = "click a seed to pick it";
 
 // A picture of the strip to pick from (the 8 seeds', a Fill's with a count), `url` its image: `name` its button's
-// name (alt, and its title with what a click does), `seed` its caption; a click, Enter or Space marks it chosen and
-// calls `onPick`. Its seed said once, as the button's name: the caption (for the eye) and the figure are hidden from
-// a screen reader, the title's "seed N" replaced by what it does (each was read as "seed N" too). Returns the img.
-function addToStrip(strip, url, name, seed, onPick) {
+// name (alt, and its title with what a click does), `seed` its caption (`caption`: another, a fill's "fill 2"); a
+// click, Enter or Space marks it chosen and calls `onPick`. Its seed said once, as the button's name: the caption (for
+// the eye) and the figure are hidden from a screen reader, the title's "seed N" replaced by what it does (each was
+// read as "seed N" too). Returns the img.
+function addToStrip(strip, url, name, seed, onPick, caption = `seed ${seed}`) {
   const figure = document.createElement("figure"), img = document.createElement("img");
   figure.setAttribute("role", "none");
   img.src = url;
@@ -203,10 +209,10 @@ function addToStrip(strip, url, name, seed, onPick) {
   img.addEventListener("keydown", (e) => {
     if (e.key === "Enter" || e.key === " ") { e.preventDefault(); img.click(); }
   });
-  const caption = document.createElement("figcaption");
-  caption.textContent = `seed ${seed}`;
-  caption.setAttribute("aria-hidden", "true");
-  figure.append(img, caption);
+  const under = document.createElement("figcaption");
+  under.textContent = caption;
+  under.setAttribute("aria-hidden", "true");
+  figure.append(img, under);
   strip.append(figure);
   return img;
 }

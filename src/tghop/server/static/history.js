@@ -183,6 +183,7 @@ function settingsText(entry) {
   const size = name.size ? ` ${name.size[0]}x${name.size[1]}` : "";
   parts.push(`${entry.what || "result"}${size}`);
   if (entry.seed !== null && entry.seed !== undefined) parts.push(`seed ${entry.seed}`);
+  if (name.fill) parts.push(`fill ${name.fill}`);  // a strip's fill k of the seed (tghop inpaint --count's)
   if (name.tile) parts.push("tileable");
   if (name.refine !== undefined) parts.push(`${name.refine} refinement rounds`);
   if (name.n_patches !== undefined) parts.push(`patch pool ${name.n_patches}`);
@@ -235,7 +236,7 @@ function renderHistory() {
 // resultBase's fields of an entry's name (a picture of the user's own, filled, has its models and size too).
 function fileName(name) {
   return { models: (name && name.models) || ["result"], size: (name && name.size) || ["?", "?"],
-    tile: Boolean(name && name.tile) };
+    tile: Boolean(name && name.tile), fill: name && name.fill };
 }
 
 // An entry shown again as the result; a plain result's (Generate's, a seed's) settings put back in Generate's fields.

@@ -292,8 +292,9 @@ function maskBlob() {
 // POST the editor's picture with the fields of `fields` (and `seed`, "" for a random one, and the tile of the inpaint
 // toolbar) to /api/models/{id}/{path}: the answer, {blob, maps, used: the seed used, warning: the server's warning of
 // it, or "" (X-Tghop-Warning: what reading the picture or mask said, e.g. a colour profile converted)}. `progress`:
-// withProgress's options (the part of the bar it fills).
-async function askPicture(path, fields, seed, progress) {
+// withProgress's options (the part of the bar it fills). `model`: {id, material}, the working model's by default (a
+// strip of fills keeps the one it began with: a fit started meanwhile leaves the page without one until it ends).
+async function askPicture(path, fields, seed, progress, model = { id: state.modelId, material: state.material }) {
   const form = new FormData();
   form.append("image", editor.blob, editor.name);
   for (const [name, value, filename] of fields) {  // a file takes its name; a plain value has none
@@ -301,10 +302,10 @@ async function askPicture(path, fields, seed, progress) {
   }
   if (seed !== "") form.append("seed", seed);
   form.append("tile", $("inpaint-tile").checked ? "true" : "false");
-  if (state.material && editor.maps) {  // a material's result: every map filled alike
+  if (model.material && editor.maps) {  // a material's result: every map filled alike
     for (const m of editor.maps.slice(1)) form.append(`map:${m.name}`, m.blob, `${m.name}.png`);
   }
-  const url = `/api/models/${state.modelId}/${path}`;
+  const url = `/api/models/${model.id}/${path}`;
   const response = await withProgress("inpaint-progress", (headers) => busyFetch(url, {
     method: "POST", body: form, headers: { Accept: GENERATION_HEADERS.Accept, ...headers },
   }), progress);
@@ -325,10 +326,13 @@ function stepBefore(path, size) {
 }
 
 // A fill or extension (askPicture's answer) shown as the result, Undo going back to `before` after `history` (the
-// steps before it). `pick`: a fills strip's run (keepResult: a second pick from it takes the first's place).
+// steps before it). `pick`: a fills strip's run (keepResult: a second pick from it takes the first's place), whose
+// `fill` k numbers the answer's file as tghop inpaint --count numbers fill k (OUT_k.png) and `model` its model.
 function showFilled(answer, what, size, before, history, pick) {
+  const model = pick ? pick.model : { id: state.modelId, stem: workingStem() };
   showResult(URL.createObjectURL(answer.blob), answer.used, answer.blob, what, answer.maps,
-             { models: [workingStem()], size, tile: $("inpaint-tile").checked, ...madeBy(state.modelId) }, pick);
+             { models: [model.stem], size, tile: $("inpaint-tile").checked,
+               ...(answer.fill ? { fill: answer.fill } : {}), ...madeBy(model.id) }, pick);
   editor.history = [...history, before].slice(-UNDO_STEPS);
   updateButtons();  // Undo (a pick from a fills strip comes after its Fill)
 }
@@ -341,28 +345,43 @@ async function sendPicture(path, fields, what, size) {
   return [answer.used, answer.warning];
 }
 
-// Fill with a count above 1 (0.60; tghop inpaint --count's fills to pick from): `count` fills of the same hole, of
-// seeds s, s + 1, ... (each as a Fill of that seed makes it; random ones without a seed), in the strip under the
-// picture, one bar for them all; fill 1 shown, a click on another shows it instead, Undo from any going back to the
-// picture before with its hole. The strip goes as the 8 seeds' does (another mode or model) and at the next Fill.
+// Fill with a count above 1 (tghop inpaint --count's fills to pick from): `count` fills of the same hole, as
+// tghop inpaint --seed s --count N makes them (0.61): fill k is the k-th drawn from seed s (the server's field fill;
+// fill 1 is a Fill of seed s), downloaded as OUT_k.png names it (0.60 made seeds s, s + 1, ..., named by seed); without
+// a seed, fill 1's drawn seed goes on. In the strip under the picture, one bar for them all; fill 1 shown, a click on
+// another shows it instead, Undo from any going back to the picture before with its hole. The strip goes as the 8
+// seeds' does (another mode or model) and at the next Fill: while its fills are still coming that stops them
+// (clearStrip; 0.60 went on adding them to the strip cleared, of the new model once one was fitted).
 async function fillStrip(mask, count, size) {
-  const first = $("inpaint-seed").value.trim(), before = stepBefore("inpaint", size), history = editor.history;
-  const strip = $("strip"), run = {}, seeds = [];  // run: this strip's picks (keepResult)
-  strip.dataset.model = state.modelId;
+  const before = stepBefore("inpaint", size), history = editor.history;
+  const model = { id: state.modelId, material: state.material, stem: workingStem() };
+  const strip = $("strip"), run = { model, running: true };  // run: this strip's picks (keepResult)
+  strip.dataset.model = model.id;
+  editor.fills = run;
   const pick = (answer) => showFilled(answer, "inpainted", size, before, history, run);
-  let warned = "", shown = null;  // shown: fill 1's picture, picked once all have come
-  for (let k = 0; k < count; k++) {
-    sayInpaint(`fill ${k + 1} of ${count}`);
-    const answer = await askPicture("inpaint", [["mask", mask, "mask.png"]], first === "" ? "" : String(+first + k),
-                                    { from: k / count, to: (k + 1) / count, label: `fill ${k + 1}: ` });
-    warned = warned || answer.warning;
-    seeds.push(answer.used);
-    const img = addToStrip(strip, URL.createObjectURL(answer.blob), `fill ${k + 1}, seed ${answer.used}`,
-                           answer.used, () => pick(answer));
-    shown = shown || img;
+  let seed = $("inpaint-seed").value.trim(), warned = "", shown = null;  // shown: fill 1's, picked once all came
+  let k = 1;
+  try {
+    for (; k <= count; k++) {
+      sayInpaint(`fill ${k} of ${count}`);
+      const answer = await askPicture("inpaint", [["mask", mask, "mask.png"], ["fill", String(k)]], seed,
+                                      { from: (k - 1) / count, to: k / count, label: `fill ${k}: ` }, model);
+      if (run.dropped) throw new DOMException("the strip was cleared", "AbortError");
+      seed = answer.used;
+      answer.fill = k;
+      warned = warned || answer.warning;
+      const img = addToStrip(strip, URL.createObjectURL(answer.blob), `fill ${k} of seed ${seed}`, seed,
+                             () => pick(answer), `fill ${k}`);
+      shown = shown || img;
+    }
+  } catch (e) {
+    if (!run.dropped) throw e;  // stopped by its button, or an error: said as any Fill's
+    return [null, `the fills stopped at fill ${k} of ${count}: another mode or model was chosen, and their strip went`];
+  } finally {
+    run.running = false;
   }
   shown.click();  // fill 1, marked chosen
-  return [seeds, warned];
+  return [seed, warned];
 }
 
 function onFill() {
@@ -375,9 +394,11 @@ function onFill() {
     clearStrip();  // the fills of a picture before
     const img = $("editor-base"), size = [img.naturalHeight, img.naturalWidth];
     if (Number(count.value) > 1) {
-      const [seeds, warning] = await fillStrip(mask, Number(count.value), size);
-      sayInpaint(withWarning(`${seeds.length} fills (seeds ${seeds.join(", ")}) under the picture: click one to pick ` +
-        "it (fill 1 is shown); Undo goes back to the picture before", warning));
+      const [seed, warning] = await fillStrip(mask, Number(count.value), size);
+      if (seed === null) { sayInpaint(warning); return; }  // cleared while they came (clearStrip)
+      sayInpaint(withWarning(`${count.value} fills of seed ${seed} under the picture, as tghop inpaint --seed ` +
+        `${seed} --count ${count.value} makes them: click one to pick it (fill 1 is shown); Undo goes back to the ` +
+        "picture before", warning));
       return;
     }
     sayInpaint("filling");
