@@ -310,6 +310,64 @@ FIELD_VALUES_JS = """(ids) => Object.fromEntries(ids.map((id) => {
 }))"""
 
 
+def stroke_across(page):
+    """Paint a hole across the middle of Inpaint's picture."""
+    box = page.locator("#mask").bounding_box()
+    page.mouse.move(box["x"] + 10, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] - 10, box["y"] + box["height"] / 2, steps=5)
+    page.mouse.up()
+
+
+def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(page):
+    # 0.60 went on adding the fills to the strip that another mode had cleared, and once another exemplar's fit ended
+    # it asked for the rest of them of that model (askPicture read the working model at each fill).
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "cells")  # in the server's cache: picked again below, it is the working model at once
+    chromium.fit_builtin(page, "bricks")
+    bricks = page.evaluate("state.modelId")
+    generate(page, 5, size=(64, 64))
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    stroke_across(page)
+    page.fill("#inpaint-seed", "4")
+    page.fill("#inpaint-count", "3")
+    page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {
+      for (const c of changes) window.stripImages += [...c.addedNodes].filter((n) => n.querySelector).length;
+    }).observe(document.getElementById('strip'), { childList: true }); }""")
+    with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
+        page.click("#fill")
+        answers.send_next()  # fill 1
+        page.wait_for_function("document.querySelectorAll('#strip img').length === 1", timeout=60_000)
+        answers.wait()  # fill 2's, held while View is chosen
+        chromium.choose_mode(page, "view")
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill'", timeout=30_000)
+        answers.release()
+    page.wait_for_timeout(300)
+    assert page.evaluate("window.stripImages") == 1 and len(answers.urls) == 2  # fill 3 never asked for
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    assert page.text_content("#inpaint-message") == ("the fills stopped at fill 2 of 3: another mode or model was "
+                                                     "chosen, and their strip went")
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    if not page.evaluate("maskPainted()"):
+        stroke_across(page)
+    with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
+        page.click("#fill")
+        answers.send_next()
+        page.wait_for_function("document.querySelectorAll('#strip img').length === 1", timeout=60_000)
+        answers.wait()  # fill 2's, held while cells becomes the working model
+        page.select_option("#builtin", "cells")
+        page.wait_for_function("state.working.name === 'builtin:cells'"
+                               " && document.getElementById('fill').textContent === 'Fill'", timeout=30_000)
+        answers.release()
+    page.wait_for_timeout(300)
+    assert page.evaluate("window.stripImages") == 2 and len(answers.urls) == 2
+    assert all(f"/api/models/{bricks}/inpaint" in url for url in answers.urls), answers.urls  # none of cells
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    chromium.choose_mode(page, "view")
+    assert not [e for e in page.errors if "status of 4" not in e], page.errors
+
 def test_a_reload_keeps_the_modes_fields(page):
     # Generate's fields and the fit settings came back after a reload (0.59), but Paint's, Morph's, Inpaint's and
     # Co-occurrence's went back to their defaults: a seed, a transition, a morph's size, a brush set for the work.
