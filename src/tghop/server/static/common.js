@@ -180,10 +180,10 @@ function showStage(bar, label, text) {
 
 // The widest a picture of w x h to paint on (Inpaint's, Paint's, Co-occurrence's edit), in `box`, may be shown for
 // the mode's row (or `from`), the tools between it and the picture, and the whole picture to be seen in the window at
-// once (0.59; PAINT_MARGIN under it).
-function roomFor(box, w, h, from = $("modes-row")) {
+// once (0.59; PAINT_MARGIN under it), and `below` pixels under it (Inpaint's strip of fills, 0.61).
+function roomFor(box, w, h, from = $("modes-row"), below = 0) {
   const above = box.getBoundingClientRect().top - from.getBoundingClientRect().top;
-  return Math.floor((window.innerHeight - above - PAINT_MARGIN) * w / h);
+  return Math.floor((window.innerHeight - above - PAINT_MARGIN - below) * w / h);
 }
 
 // Pixels left under a picture to paint on (its border, and a little of the page).

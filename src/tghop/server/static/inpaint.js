@@ -55,11 +55,15 @@ function setEditorPicture(blob, name, maps) {
 
 // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on; while Inpaint is shown, no
 // larger than lets the mode's row, its tools and the whole picture be seen at once (roomFor; a picture shown at its
-// size stays so). 0.58 showed a 256x256 result 640 px high under the tools: at 1024x700 it ran below the fold.
+// size stays so), and the strip of fills under it where there is one (0.61: at 1024x700 a 128x192 result filled the
+// window, the fills to pick from below the fold). 0.58 showed a 256x256 result 640 px high under the tools: at
+// 1024x700 it ran below the fold.
 function sizeEditor() {
   const box = $("editor"), img = $("editor-base"), w = img.naturalWidth, h = img.naturalHeight;
   if (!w || !h) return;
-  const room = $("inpaint").hidden ? Infinity : roomFor(box, w, h);
+  const strip = $("strip"), fills = strip.childElementCount ? strip.getBoundingClientRect().bottom
+    - box.getBoundingClientRect().bottom : 0;  // the strip and the gap above it
+  const room = $("inpaint").hidden ? Infinity : roomFor(box, w, h, $("modes-row"), Math.max(0, fills));
   box.style.width = `${Math.max(w, Math.min(3 * w, 640, room))}px`;
 }
 
@@ -373,6 +377,11 @@ async function fillStrip(mask, count, size) {
       const img = addToStrip(strip, URL.createObjectURL(answer.blob), `fill ${k} of seed ${seed}`, seed,
                              () => pick(answer), `fill ${k}`);
       shown = shown || img;
+      if (!$("inpaint").hidden) {  // the picture made room for the strip under it (a second row, on a phone)
+        await img.decode().catch(() => {});  // its height known
+        sizeEditor();
+        if (k === 1) intoView(strip);
+      }
     }
   } catch (e) {
     if (!run.dropped) throw e;  // stopped by its button, or an error: said as any Fill's
