@@ -368,6 +368,33 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     chromium.choose_mode(page, "view")
     assert not [e for e in page.errors if "status of 4" not in e], page.errors
 
+def test_a_strip_of_fills_is_seen_with_its_picture_at_1024x700(page):
+    # At 1024x700 a 128x192 result filled the window to paint on, and the fills to pick from came under it, below the
+    # fold: "3 fills ... under the picture: click one to pick it", of which the artist saw none.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 3, size=(128, 192))
+    page.set_viewport_size({"width": 1024, "height": 700})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "inpaint")
+        page.wait_for_selector("#editor[data-ready='1']")
+        stroke_across(page)
+        page.fill("#inpaint-seed", "2")
+        page.fill("#inpaint-count", "3")
+        page.click("#fill")
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill' &&"
+                               " document.querySelectorAll('#strip img').length === 3", timeout=120_000)
+        page.wait_for_function("[...document.querySelectorAll('#strip img')].every((i) => i.complete)")
+        boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#fill", "#mask", "#strip")}
+        for selector, box in boxes.items():
+            assert box["y"] >= 0 and box["y"] + box["height"] <= 700, (selector, box)
+        assert boxes["#mask"]["height"] >= 128  # never smaller than the picture itself
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
+
 def test_a_reload_keeps_the_modes_fields(page):
     # Generate's fields and the fit settings came back after a reload (0.59), but Paint's, Morph's, Inpaint's and
     # Co-occurrence's went back to their defaults: a seed, a transition, a morph's size, a brush set for the work.
