@@ -222,6 +222,12 @@ function paintPicked() {
 function onPaintGenerate(remix) {
   const picked = pickedModels();
   if (picked.length < 2 || paintProblem()) return;
+  const bare = severalSettings({}).quality === "best" && picked.find((m) => m.patches === false);
+  if (bare) {  // said, not sent (0.60: the server's 422 named it "models[0]", a name the page shows nowhere)
+    sayPaint(`${bare.name} has no patch statistics for quality best (fitted with the paper's settings): choose ` +
+             "quality default above, or unpick it", true);
+    return;
+  }
   withBusy($(remix ? "remix-go" : "paint-go"), async () => {
     const body = severalSettings({ models: picked.map((m) => m.id), seed: Number($("paint-seed").value) });
     if (remix) {
