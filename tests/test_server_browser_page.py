@@ -953,3 +953,40 @@ def test_a_texture_model_without_patch_statistics_never_offers_quality_best(page
     assert page.is_enabled("#quality") and page.input_value("#quality") == "best"
     page.select_option("#quality", "default")
     assert not page.errors, page.errors
+
+
+def test_paint_with_a_model_without_patch_statistics_and_quality_best_says_which(page):
+    # Remix (or Paint's Generate) of a model fitted with the paper's settings and quality best was the server's 422,
+    # "models[0] holds no patch statistics ...": a name the page shows nowhere. Said on the page now, naming the model.
+    if not page.eval_on_selector("#fit-settings", "d => d.open"):
+        page.click("#fit-settings summary")
+    page.check("#paper-fit")
+    try:
+        fit(page, "cells")
+    finally:
+        page.uncheck("#paper-fit")
+    flat = page.evaluate("state.modelId")
+    fit(page, "bricks")
+    page.select_option("#quality", "best")
+    page.fill("#height", "32")
+    page.fill("#width", "32")
+    chromium.choose_mode(page, "paint")
+    names = page.evaluate("state.models.map((m) => m.id)")
+    bricks = page.evaluate("state.modelId")
+    for box in page.query_selector_all("#paint-models input"):  # cells (paper) and bricks picked, no other
+        wanted = names[int(box.get_attribute("data-index"))] in (flat, bricks)
+        if box.is_checked() != wanted:
+            box.click()
+    sent = []
+    page.on("request", lambda r: sent.append(r.url) if r.url.endswith("/api/images/guided") else None)
+    page.click("#remix-go")
+    name = page.evaluate("(id) => state.models.find((m) => m.id === id).name", flat)
+    assert page.text_content("#paint-message") == (f"{name} has no patch statistics for quality best (fitted with "
+                                                   "the paper's settings): choose quality default above, or unpick it")
+    page.select_option("#quality", "default")
+    page.click("#remix-go")
+    page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('done')",
+                           timeout=90_000)
+    assert len(sent) == 1  # the remix of default quality only
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
