@@ -297,17 +297,20 @@ function maskBlob() {
 // toolbar) to /api/models/{id}/{path}: the answer, {blob, maps, used: the seed used, warning: the server's warning of
 // it, or "" (X-Tghop-Warning: what reading the picture or mask said, e.g. a colour profile converted)}. `progress`:
 // withProgress's options (the part of the bar it fills). `model`: {id, material}, the working model's by default (a
-// strip of fills keeps the one it began with: a fit started meanwhile leaves the page without one until it ends).
-async function askPicture(path, fields, seed, progress, model = { id: state.modelId, material: state.material }) {
+// strip of fills keeps the one it began with: a fit started meanwhile leaves the page without one until it ends);
+// `picture`: {blob, name, maps}, the editor's by default (a strip's, the one it began with: a fill picked while the
+// others come is the editor's picture then, and 0.60 filled the rest of the strip in it).
+async function askPicture(path, fields, seed, progress, model = { id: state.modelId, material: state.material },
+                          picture = editor) {
   const form = new FormData();
-  form.append("image", editor.blob, editor.name);
+  form.append("image", picture.blob, picture.name);
   for (const [name, value, filename] of fields) {  // a file takes its name; a plain value has none
     if (filename === undefined) form.append(name, value); else form.append(name, value, filename);
   }
   if (seed !== "") form.append("seed", seed);
   form.append("tile", $("inpaint-tile").checked ? "true" : "false");
-  if (model.material && editor.maps) {  // a material's result: every map filled alike
-    for (const m of editor.maps.slice(1)) form.append(`map:${m.name}`, m.blob, `${m.name}.png`);
+  if (model.material && picture.maps) {  // a material's result: every map filled alike
+    for (const m of picture.maps.slice(1)) form.append(`map:${m.name}`, m.blob, `${m.name}.png`);
   }
   const url = `/api/models/${model.id}/${path}`;
   const response = await withProgress("inpaint-progress", (headers) => busyFetch(url, {
@@ -359,6 +362,7 @@ async function sendPicture(path, fields, what, size) {
 async function fillStrip(mask, count, size) {
   const before = stepBefore("inpaint", size), history = editor.history;
   const model = { id: state.modelId, material: state.material, stem: workingStem() };
+  const picture = { blob: editor.blob, name: editor.name, maps: editor.maps };  // each fill's, whatever is picked
   const strip = $("strip"), run = { model, running: true };  // run: this strip's picks (keepResult)
   strip.dataset.model = model.id;
   editor.fills = run;
@@ -369,7 +373,7 @@ async function fillStrip(mask, count, size) {
     for (; k <= count; k++) {
       sayInpaint(`fill ${k} of ${count}`);
       const answer = await askPicture("inpaint", [["mask", mask, "mask.png"], ["fill", String(k)]], seed,
-                                      { from: (k - 1) / count, to: k / count, label: `fill ${k}: ` }, model);
+                                      { from: (k - 1) / count, to: k / count, label: `fill ${k}: ` }, model, picture);
       if (run.dropped) throw new DOMException("the strip was cleared", "AbortError");
       seed = answer.used;
       answer.fill = k;
