@@ -368,6 +368,39 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     chromium.choose_mode(page, "view")
     assert not [e for e in page.errors if "status of 4" not in e], page.errors
 
+def image_part(body: bytes) -> bytes:
+    """The file field 'image' of a multipart body, as sent."""
+    boundary = body.split(b"\r\n", 1)[0]
+    part = next(p for p in body.split(boundary) if b'name="image"' in p.split(b"\r\n\r\n", 1)[0])
+    return part.split(b"\r\n\r\n", 1)[1]
+
+
+def test_a_fill_picked_while_the_strip_still_comes_leaves_the_rest_of_the_strip_as_it_was(page):
+    # A fill picked from the strip becomes the picture to paint on: 0.60 sent it as the picture of the fills still to
+    # come, which were then fills of a fill (and, 0.61, not tghop inpaint --count's fill k).
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 6, size=(64, 64))
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    stroke_across(page)
+    page.fill("#inpaint-seed", "9")
+    page.fill("#inpaint-count", "3")
+    bodies = []
+    page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.url.endswith("/inpaint") else None)
+    with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
+        page.click("#fill")
+        answers.send_next()  # fill 1
+        page.wait_for_function("document.querySelectorAll('#strip img').length === 1", timeout=60_000)
+        page.click("#strip img")  # picked while fills 2 and 3 come
+        page.wait_for_function("document.getElementById('result-caption').textContent.endsWith('fill 1')")
+        answers.release()
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill' &&"
+                               " document.querySelectorAll('#strip img').length === 3", timeout=120_000)
+    assert len(bodies) == 3 and len({image_part(b) for b in bodies}) == 1  # the picture the strip began with
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
 def test_a_strip_of_fills_is_seen_with_its_picture_at_1024x700(page):
     # At 1024x700 a 128x192 result filled the window to paint on, and the fills to pick from came under it, below the
     # fold: "3 fills ... under the picture: click one to pick it", of which the artist saw none.
