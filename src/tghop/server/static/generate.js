@@ -247,6 +247,7 @@ function onStrip() {
     for (const old of strip.querySelectorAll("img")) URL.revokeObjectURL(old.src);
     strip.textContent = "";
     strip.dataset.model = id;
+    strip.setAttribute("aria-label", "eight seeds to pick from");  // a strip of fills names itself (fillStrip)
     const first = Number($("seed").value), stem = workingStem(), run = {};  // run: this strip's picks (keepResult)
     const made = madeBy(id);
     let warned = "";  // what reading the model's file warned of, not said yet (onGenerate), said with the hint
