@@ -398,6 +398,8 @@ def test_a_fill_picked_while_the_strip_still_comes_leaves_the_rest_of_the_strip_
         page.wait_for_function("document.getElementById('fill').textContent === 'Fill' &&"
                                " document.querySelectorAll('#strip img').length === 3", timeout=120_000)
     assert len(bodies) == 3 and len({image_part(b) for b in bodies}) == 1  # the picture the strip began with
+    # its name to a screen reader: its own, not the 8 seeds' (0.60: "eight seeds to pick from")
+    sync_api.expect(page.locator("#strip")).to_have_accessible_name("3 fills to pick from")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 
