@@ -251,9 +251,11 @@ function onStrip() {
     const first = Number($("seed").value), stem = workingStem(), run = {};  // run: this strip's picks (keepResult)
     const made = madeBy(id);
     let warned = "";  // what reading the model's file warned of, not said yet (onGenerate), said with the hint
-    const [h, w] = [Number($("height").value), Number($("width").value)];
+    // Every seed of the settings as they were when the strip began (0.61: 0.60 read the fields again at each seed, and
+    // tileable or quality changed while the strip ran made the rest of it with them, a strip of mixed settings)
+    const settings = generation(first, [Number($("height").value), Number($("width").value)]);
     for (let i = 0; i < 8; i++) {
-      const seed = first + i, body = generation(seed, [h, w]);
+      const seed = first + i, body = { ...settings, seed };
       sayGenerate(`seed ${seed} (${i + 1} of 8)`);
       const answer = await withProgress("gen-progress", (headers) => generate(body, id, headers),
                                         { from: i / 8, to: (i + 1) / 8, label: `seed ${seed}: ` });
