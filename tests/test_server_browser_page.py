@@ -990,3 +990,38 @@ def test_paint_with_a_model_without_patch_statistics_and_quality_best_says_which
     assert len(sent) == 1  # the remix of default quality only
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_the_8_seeds_keep_the_settings_they_began_with(page):
+    # The strip read Generate's fields again at each seed: tileable (or the size, quality ...) changed while it ran made
+    # the rest of its seeds with them, a strip of mixed settings under one set of fields.
+    import json
+
+    fit(page, "bricks")
+    page.fill("#height", "32")
+    page.fill("#width", "32")
+    page.fill("#n_patches", "300")
+    page.fill("#seed", "50")
+    page.uncheck("#tile")
+    bodies = []
+    page.on("request", lambda r: bodies.append(json.loads(r.post_data)) if r.method == "POST" and r.url.endswith(
+        "/images") else None)
+    try:
+        with chromium.HeldAnswers(page) as answers:
+            page.click("#strip-go")
+            answers.send_next()  # seed 50
+            page.wait_for_function("document.querySelectorAll('#strip img').length === 1", timeout=60_000)
+            page.check("#tile")  # changed while the strip runs
+            page.fill("#height", "40")
+            answers.release()
+            page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' &&"
+                                   " document.querySelectorAll('#strip img').length === 8", timeout=120_000)
+        assert [b["seed"] for b in bodies] == list(range(50, 58))
+        assert all({**b, "seed": 0} == {**bodies[0], "seed": 0} for b in bodies), bodies
+        assert not bodies[0]["tile"] and bodies[0]["size"] == [32, 32]
+    finally:
+        page.uncheck("#tile")
+        page.fill("#height", "256")
+        page.fill("#width", "256")
+        page.fill("#n_patches", "")
+    assert not page.errors, page.errors
