@@ -305,5 +305,6 @@ function onMorph() {
     showResult(URL.createObjectURL(blob), seed, blob, "morph", maps,  // two materials': every map (0.60)
                { models: [a.stem, "to", b.stem], size: body.size, tile: false, of: `${a.stem} to ${b.stem}` });
     sayMorph(`done (seed ${seed}): the strip is below`);
+    await reveal($("result"));  // scrolled to where wholly out of sight (0.61: a narrow window's was below the fold)
   }, sayMorph);
 }
