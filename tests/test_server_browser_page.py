@@ -1025,3 +1025,28 @@ def test_the_8_seeds_keep_the_settings_they_began_with(page):
         page.fill("#width", "256")
         page.fill("#n_patches", "")
     assert not page.errors, page.errors
+
+
+def test_a_morph_below_the_fold_of_a_narrow_window_is_scrolled_into_view(page):
+    # In a window 400 px wide the strip comes under the exemplar: Morph said "done (seed 1): the strip is below" and
+    # showed nothing of it, as Generate's result was before 0.57.
+    fit(page, "cells")
+    fit(page, "bricks")
+    page.set_viewport_size({"width": 400, "height": 800})
+    try:
+        chromium.choose_mode(page, "morph")
+        page.fill("#morph-height", "32")
+        page.fill("#morph-width", "96")
+        page.fill("#morph-seed", "2")
+        page.evaluate("document.getElementById('modes-row').scrollIntoView({ block: 'start' })")  # as an artist reads
+        page.click("#morph-go")
+        page.wait_for_function("document.getElementById('morph-message').textContent.startsWith('done')"
+                               " && document.getElementById('result-caption').textContent.startsWith('morph')",
+                               timeout=90_000)
+        page.wait_for_timeout(300)  # scrolled once the picture is drawn
+        box = page.locator("#result").bounding_box()
+        assert box["y"] < 800 and box["y"] + box["height"] > 0, box  # in sight
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
