@@ -61,17 +61,31 @@ function setEditorPicture(blob, name, maps) {
 function sizeEditor() {
   const box = $("editor"), img = $("editor-base"), w = img.naturalWidth, h = img.naturalHeight;
   if (!w || !h) return;
-  const strip = $("strip"), fills = strip.childElementCount ? strip.getBoundingClientRect().bottom
-    - box.getBoundingClientRect().bottom : 0;  // the strip and the gap above it
-  const room = $("inpaint").hidden ? Infinity : roomFor(box, w, h, $("modes-row"), Math.max(0, fills));
+  const room = $("inpaint").hidden ? Infinity : roomFor(box, w, h, editorTop(), stripBelow());
   box.style.width = `${Math.max(w, Math.min(3 * w, 640, room))}px`;
 }
 
+// The height of the strip of fills under the picture and the gap above it (0: none).
+function stripBelow() {
+  const strip = $("strip");
+  if (!strip.childElementCount) return 0;
+  return Math.max(0, strip.getBoundingClientRect().bottom - $("editor").getBoundingClientRect().bottom);
+}
+
+// What is seen above the picture to paint on: from the mode's row, or (0.61) from the brush's tools where the window
+// has no room for the picture at its size under the row and the mode's help (a narrow window: 400x800 left the
+// picture below the fold, the help, the tools and the Extend row above it).
+function editorTop() {
+  const box = $("editor"), img = $("editor-base"), w = img.naturalWidth, h = img.naturalHeight;
+  if (!w || !h || roomFor(box, w, h, $("modes-row"), stripBelow()) >= w) return $("modes-row");
+  return $("brush").closest(".toolbar");
+}
+
 // Inpaint chosen: the picture to paint on sized (sizeEditor) and brought into view with the mode's row and the tools
-// above it (0.58 left it below the fold, to be scrolled to before painting).
+// above it (0.58 left it below the fold, to be scrolled to before painting), or the tools only (editorTop).
 function showEditor() {
   sizeEditor();
-  intoView($("editor").hidden ? $("inpaint") : $("editor"));
+  if ($("editor").hidden) intoView($("inpaint")); else intoView($("editor"), editorTop());
 }
 
 function clearMask() {
@@ -386,7 +400,7 @@ async function fillStrip(mask, count, size) {
       if (!$("inpaint").hidden) {  // the picture made room for the strip under it (a second row, on a phone)
         await img.decode().catch(() => {});  // its height known
         sizeEditor();
-        if (k === 1) intoView(strip);
+        if (k === 1) intoView(strip, editorTop());
       }
     }
   } catch (e) {
