@@ -199,6 +199,27 @@ def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
     assert not page.errors, page.errors
 
 
+def test_inpaint_shows_its_picture_with_the_brushs_tools_in_a_narrow_window(page):
+    # At 400x800 the mode's row, its help, the tools and the Extend row took the window, and the picture to paint on
+    # began below the fold: chosen, Inpaint showed no picture.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 3, size=(128, 192))
+    page.set_viewport_size({"width": 400, "height": 800})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "inpaint")
+        page.wait_for_selector("#editor[data-ready='1']")
+        page.wait_for_timeout(300)
+        for selector in ("#brush", "#fill", "#mask"):
+            box = page.locator(selector).bounding_box()
+            assert box["y"] >= 0 and box["y"] + box["height"] <= 800, (selector, box)
+        assert page.locator("#mask").bounding_box()["height"] >= 128  # never smaller than the picture itself
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
+
 def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
     # At 1024x700 Paint's canvas (a 256x256 output shown 640 px high) began low under Paint's tools when the mode was
     # chosen: two thirds of it below the fold, the artist scrolling between the brush colours and the canvas.
