@@ -449,6 +449,15 @@ def test_a_materials_hole_is_filled_in_every_map_as_the_library_fills_it(client,
     want = inpaint_material(load_model(path, material=True), {"albedo": albedo, **read}, hole, rng=4)
     np.testing.assert_array_equal(got["albedo"], want["albedo"])
     np.testing.assert_array_equal(got["normal"], to_uint16(want["normal"]))
+    # fill 2 (0.61): the second drawn from seed 4's generator, as tghop inpaint --maps --seed 4 --count 2 draws it
+    rng = np.random.default_rng(4)
+    second = [inpaint_material(load_model(path, material=True), {"albedo": albedo, **read}, hole, rng=rng)
+              for _ in range(2)][1]
+    r = client.post(f"/api/models/{material_id}/inpaint", files={**files, "seed": (None, "4"), "fill": (None, "2")})
+    assert r.status_code == 200 and r.headers["x-tghop-fill"] == "2", r.text
+    got = {m["name"]: decode(m["png"]) for m in r.json()["maps"]}
+    np.testing.assert_array_equal(got["albedo"], second["albedo"])
+    np.testing.assert_array_equal(got["normal"], to_uint16(second["normal"]))
     # Grown (extend): the picture kept at its anchor in every map, as multipart to the page
     r = client.post(f"/api/models/{material_id}/extend", headers={"Accept": "multipart/form-data"}, files={
         "image": files["image"], "map:normal": files["map:normal"], "map:height": files["map:height"],
