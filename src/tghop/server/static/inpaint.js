@@ -409,6 +409,7 @@ async function fillStrip(mask, count, size) {
   } finally {
     run.running = false;
   }
+  if (run.dropped) return [null, "the fills' strip went: another mode or model was chosen"];  // as the last came
   shown.click();  // fill 1, marked chosen
   return [seed, warned];
 }
