@@ -386,6 +386,35 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     assert page.evaluate("window.stripImages") == 2 and len(answers.urls) == 2
     assert all(f"/api/models/{bricks}/inpaint" in url for url in answers.urls), answers.urls  # none of cells
     assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    # The mode changed as the last fill came (its thumbnail still decoding): no fill picked into the strip gone
+    chromium.fit_builtin(page, "bricks")
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    if not page.evaluate("maskPainted()"):
+        stroke_across(page)
+    page.fill("#inpaint-count", "2")
+    page.evaluate("""() => {
+      const decode = window.plainDecode = HTMLImageElement.prototype.decode;
+      window.decodes = [];  // the strip's thumbnails' decodes, held until the test lets each go
+      HTMLImageElement.prototype.decode = function () {
+        if (!this.closest("#strip")) return decode.call(this);
+        return new Promise((done) => decodes.push(() => decode.call(this).then(done, done)));
+      };
+    }""")
+    caption = page.text_content("#result-caption")
+    try:
+        page.click("#fill")
+        page.wait_for_function("decodes.length === 1", timeout=60_000)
+        page.evaluate("() => { decodes.shift()(); }")
+        page.wait_for_function("decodes.length === 1", timeout=60_000)  # the last fill's
+        chromium.choose_mode(page, "view")
+        page.evaluate("() => { decodes.shift()(); }")
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill'", timeout=30_000)
+    finally:
+        page.evaluate("() => { HTMLImageElement.prototype.decode = plainDecode; }")  # the browser's own again
+    assert page.text_content("#result-caption") == caption  # fill 1 not picked
+    assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
+    assert page.text_content("#inpaint-message") == "the fills' strip went: another mode or model was chosen"
     chromium.choose_mode(page, "view")
     assert not [e for e in page.errors if "status of 4" not in e], page.errors
 
