@@ -195,6 +195,9 @@ def test_fill_a_hole_in_every_map_of_a_material_result(page, tmp_path):
     from tghop.material import example_maps
 
     page.locator("label", has=page.locator("#mode-view")).click()
+    # The fast fit: the reload of a test before put the fields back to the defaults, a whole fit of a material
+    # with its layout (the group's longest fit, for a test of Fill)
+    chromium.set_fit_settings(page, FAST_FIT)
     maps = example_maps(data.builtin("bricks"))
     (tmp_path / "normal.png").write_bytes(png(to_uint16(maps["normal"])))
     (tmp_path / "height.png").write_bytes(png(to_uint8(maps["height"][..., 0])))
