@@ -101,16 +101,54 @@ def png(pixels) -> bytes:
     return buf.getvalue()
 
 
-def save_material(path, **settings):
-    """A small material (64x64 bricks and their height map), fitted fast, saved at ``path``; ``settings``: more of
-    the joint model's (``patch_levels=0``: no patch statistics of the albedo, as a material of tghop 0.58)."""
-    from tghop import TGHop, data
-    from tghop.material import Material, example_maps
-    from tghop.modelfile import save_model
+#: The small model files of :func:`save_material` and :func:`save_texture`, fitted once a test session: (kind,
+#: settings) -> the file's bytes. The tests only read them (an upload, a load); np.savez stamps a file with the
+#: time it was written, so two saves of one model are now the same bytes, one model id on a server.
+_MODEL_FILES = {}
 
-    albedo = data.bricks(64)
-    fast = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None, **settings)
-    save_model(Material(model=TGHop(**fast), rng=0).fit(albedo, {"height": example_maps(albedo)["height"]}), path)
+#: The small models' fast settings (:func:`save_material`, :func:`save_texture`).
+_SMALL_FIT = dict(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
+
+
+def _saved(path, key, make):
+    """``make(path)`` saves a model at ``path``: its bytes kept under ``key`` (fitted the first time only)."""
+    from pathlib import Path
+
+    path = Path(path)
+    if key not in _MODEL_FILES:
+        make(path)
+        _MODEL_FILES[key] = path.read_bytes()
+    else:
+        path.write_bytes(_MODEL_FILES[key])
+
+
+def save_material(path, **settings):
+    """A small material (64x64 bricks and their height map), fitted fast (once a session for each ``settings``),
+    saved at ``path``; ``settings``: more of the joint model's (``patch_levels=0``: no patch statistics of the
+    albedo, as a material of tghop 0.58)."""
+
+    def make(path):
+        from tghop import TGHop, data
+        from tghop.material import Material, example_maps
+        from tghop.modelfile import save_model
+
+        albedo = data.bricks(64)
+        save_model(Material(model=TGHop(**_SMALL_FIT, **settings), rng=0).fit(
+            albedo, {"height": example_maps(albedo)["height"]}), path)
+
+    _saved(path, ("material", tuple(sorted(settings.items()))), make)
+
+
+def save_texture(path):
+    """A small texture model of 64x64 bricks, fitted fast (once a session), saved at ``path``."""
+
+    def make(path):
+        from tghop import TGHop, data
+        from tghop.modelfile import save_model
+
+        save_model(TGHop(**_SMALL_FIT).fit(data.bricks(64)), path)
+
+    _saved(path, ("texture",), make)
 
 
 def cli(*args, cwd=None, stdin=None):

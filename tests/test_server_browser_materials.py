@@ -16,7 +16,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT, png, save_material  # noqa: E402
+from conftest import FAST_FIT, png, save_material, save_texture  # noqa: E402
 
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_MATERIAL_SCREENSHOT", "/tmp/tghop-material-page.png")
@@ -324,10 +324,9 @@ def test_several_files_dropped_at_once_are_a_material(page):
 def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
     # The quality menu was offered from the fit's end until the summary said "material": a quick pick of
     # best gave a one-line 422. Summaries are held here to see the page in between.
-    from tghop import TGHop, data
+    from tghop import data
     from tghop.imageio import to_uint16
     from tghop.material import example_maps
-    from tghop.modelfile import save_model
 
     chromium.load_fresh(page, FAST_FIT, clear_errors=False)
     held = []
@@ -339,8 +338,7 @@ def test_the_quality_menu_and_generate_wait_for_the_models_kind(page, tmp_path):
             route.continue_()
 
     (tmp_path / "normal.png").write_bytes(png(to_uint16(example_maps(data.builtin("bricks"))["normal"])))
-    save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-               .fit(data.bricks(64)), tmp_path / "texture.npz")
+    save_texture(tmp_path / "texture.npz")
     page.route("**/api/models/*", hold)
     try:
         page.set_input_files("#maps", [str(tmp_path / "normal.png")])

@@ -19,7 +19,7 @@ if chromium.missing():
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed: pip install -e '.[web-test]'")
 
-from conftest import FAST_FIT, png  # noqa: E402
+from conftest import FAST_FIT, png, save_texture  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -227,12 +227,8 @@ def test_a_cancelled_fit_goes_back_to_the_working_model(page):
 
 def test_a_refused_model_file_goes_back_to_the_working_model(page, tmp_path):
     # A model file the server refused left no model, though the model before it was working.
-    from tghop import TGHop, data
-    from tghop.modelfile import save_model
-
     (tmp_path / "broken.npz").write_bytes(b"PK\x03\x04 not a model")
-    save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-               .fit(data.bricks(64)), tmp_path / "saved.npz")
+    save_texture(tmp_path / "saved.npz")
     chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#model-file", str(tmp_path / "broken.npz"))  # nothing before it: the empty page
     said = wait_said(page, "was not used")
@@ -266,11 +262,7 @@ def test_a_refused_model_file_goes_back_to_the_working_model(page, tmp_path):
 def test_nothing_empty_before_a_result_and_a_model_files_caption(page, tmp_path):
     # The 3x3 tiling's heading and empty canvas showed before any result; a model file left the caption
     # "exemplar" under no picture.
-    from tghop import TGHop, data
-    from tghop.modelfile import save_model
-
-    save_model(TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None)
-               .fit(data.bricks(64)), tmp_path / "saved bricks.npz")
+    save_texture(tmp_path / "saved bricks.npz")
     chromium.load_fresh(page, FAST_FIT)
     assert page.is_hidden("#tiled-title") and page.is_hidden("#tiled-box")
     assert page.is_hidden("#exemplar-caption") and page.is_hidden("#result-caption")
