@@ -22,6 +22,18 @@ def missing():
     return f"no Chromium at {CHROMIUM} ({INSTALL})"
 
 
+def require():
+    """Skip the test file importing this (at its import, ``allow_module_level``) where there is no Chromium or no
+    Playwright, saying which and the fix; else ``playwright.sync_api``. conftest's ``page`` fixture is the file's
+    page (:func:`served_page` in :func:`shared_browser`)."""
+    import pytest
+
+    if missing():
+        pytest.skip(missing(), allow_module_level=True)
+    return pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed: pip install -e '.[web-test]'")
+
+
 def launch(playwright):
     """The headless browser, from a started ``playwright.sync_api.sync_playwright()``."""
     return playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
@@ -142,6 +154,28 @@ def fit_builtin(page, name):
                            " document.getElementById('summary').textContent.startsWith('model ')",
                            arg=name, timeout=90_000)
     page.wait_for_selector("#summary:not([hidden])")
+
+
+def wait_said(page, fragment, timeout=90_000):
+    """Wait until the page's message says ``fragment``; the message. AssertionError naming what it says
+    instead after ``timeout`` milliseconds."""
+    from playwright import sync_api
+
+    try:
+        page.wait_for_function("(f) => document.getElementById('message').textContent.includes(f)", arg=fragment,
+                               timeout=timeout)
+    except sync_api.TimeoutError:
+        raise AssertionError(f"{fragment!r} never said: {page.text_content('#message')!r}") from None
+    return page.text_content("#message")
+
+
+def posted_fits(page):
+    """The bodies of the fits the page asks for from now on (``POST /api/models``): a list that fills as they are
+    sent."""
+    bodies = []
+    page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
+        "/api/models") else None)
+    return bodies
 
 
 class HeldAnswers:

@@ -354,6 +354,17 @@ def live_server(tmp_path_factory):
     server.stop()
 
 
+@pytest.fixture(scope="module")
+def page(live_server):
+    """tghop serve's page (:func:`live_server`'s) in the browser test files' one headless Chromium
+    (``tests/chromium.py``): one page a test file, in a browser context of its own; its tests share its state. A
+    file that calls ``chromium.require()`` at its import is skipped where there is no Chromium or Playwright."""
+    import chromium
+
+    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
+        yield page
+
+
 #: Fit settings that make a fit of a built-in exemplar take a few seconds (form fields).
 FAST_FIT = {"n_clusters": "8", "n_codewords": "40", "stride": "4", "max_patches": "1500", "layout_factor": "none"}
 

@@ -9,31 +9,19 @@ image on the drop area, cancel a fit, upload a saved model (:mod:`browser_source
 import io
 import os
 
-import pytest
-
 import chromium
+from browser_cooc import cooc_steps
+from browser_source import cancel_steps, drop_steps, upload_steps
+from conftest import CLICK_TO_RESULT_JS, FAST_FIT
+from marionette import FILL_JS
 
-if chromium.missing():
-    pytest.skip(chromium.missing(), allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="Playwright is not installed: pip install -e '.[web-test]'")
-
-from browser_cooc import cooc_steps  # noqa: E402
-from browser_source import cancel_steps, drop_steps, upload_steps  # noqa: E402
-from conftest import CLICK_TO_RESULT_JS, FAST_FIT  # noqa: E402
-from marionette import FILL_JS  # noqa: E402
+chromium.require()
 
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_SCREENSHOT", "/tmp/tghop-serve-page.png")
 INPAINT_SCREENSHOT = os.environ.get("TGHOP_INPAINT_SCREENSHOT", "/tmp/tghop-inpaint-page.png")
 PAINT_SCREENSHOT = os.environ.get("TGHOP_PAINT_SCREENSHOT", "/tmp/tghop-paint-page.png")
 COOC_SCREENSHOT = os.environ.get("TGHOP_COOC_SCREENSHOT", "/tmp/tghop-cooc-page.png")
-
-
-@pytest.fixture(scope="module")
-def page(live_server):
-    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
-        yield page
 
 
 def fit_bricks(page):

@@ -7,39 +7,10 @@ built-in browsed to by keyboard waits); a result shown beside another model's ex
 shows its picture whole with its tools at 1024x700, and so does Paint its canvas, and (0.60) Co-occurrence its
 edit's."""
 
-import pytest
-
 import chromium
+from conftest import FAST_FIT, png
 
-if chromium.missing():
-    pytest.skip(chromium.missing(), allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="Playwright is not installed: pip install -e '.[web-test]'")
-
-from conftest import FAST_FIT, png  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def page(live_server):
-    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
-        yield page
-
-
-def posted_fits(page):
-    """The bodies of the fits the page asks for from now on (``POST /api/models``), a list that fills as they go."""
-    bodies = []
-    page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
-    return bodies
-
-
-def wait_said(page, fragment, timeout=90_000):
-    try:
-        page.wait_for_function("(f) => document.getElementById('message').textContent.includes(f)", arg=fragment,
-                               timeout=timeout)
-    except sync_api.TimeoutError:
-        raise AssertionError(f"{fragment!r} never said: {page.text_content('#message')!r}") from None
-    return page.text_content("#message")
+chromium.require()
 
 
 def generate(page, seed, size=(32, 40)):
@@ -112,7 +83,7 @@ def test_maps_of_another_size_than_their_albedo_are_refused_on_the_page(page):
     from tghop.imageio import to_uint8
 
     chromium.load_fresh(page, FAST_FIT)
-    sent = posted_fits(page)
+    sent = chromium.posted_fits(page)
     rock = rock_files()
     wall = [[base64.b64encode(png(to_uint8(data.bricks(96)))).decode(), "wall_color.png"],
             [rock[1][0], "wall_normal.png"]]  # the normal map of a 128x160 picture
@@ -124,7 +95,7 @@ def test_maps_of_another_size_than_their_albedo_are_refused_on_the_page(page):
         area.dispatchEvent(new DragEvent(type, {{ bubbles: true, cancelable: true, dataTransfer: transfer }}));
       }}
     }}""", wall)
-    said = wait_said(page, "files dropped")
+    said = chromium.wait_said(page, "files dropped")
     assert said == ("2 files dropped: wall_normal is 128x160, not the 96x96 of wall_color.png, the albedo; "
                     "a material's maps are of its albedo's size (nothing was used)"), said
     assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
@@ -135,7 +106,7 @@ def test_maps_of_another_size_than_their_albedo_are_refused_on_the_page(page):
       fitBuiltinSoon("bricks");  // ArrowDown on the closed menu...
       setMapFiles(({FILES_JS})(files).slice(1));  // ...and maps added before it settles
     }}""", rock)
-    said = wait_said(page, "this fit is without them")
+    said = chromium.wait_said(page, "this fit is without them")
     assert said == "rock_normal is 128x160, not the 256x256 of builtin:bricks: the maps wait for their albedo " \
                    "(this fit is without them)", said
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done' &&"

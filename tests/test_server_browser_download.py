@@ -5,20 +5,9 @@ import io
 import struct
 import zipfile
 
-import pytest
-
 import chromium
 
-if chromium.missing():
-    pytest.skip(chromium.missing(), allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="Playwright is not installed: pip install -e '.[web-test]'")
-
-
-@pytest.fixture(scope="module")
-def page(live_server):
-    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
-        yield page
+chromium.require()
 
 
 def zip_of(page, files):

@@ -7,25 +7,13 @@ import os
 import time
 import zipfile
 
-import pytest
-
 import chromium
+from conftest import FAST_FIT, png, save_material, save_texture
 
-if chromium.missing():
-    pytest.skip(chromium.missing(), allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="Playwright is not installed: pip install -e '.[web-test]'")
-
-from conftest import FAST_FIT, png, save_material, save_texture  # noqa: E402
+chromium.require()
 
 #: Where the test leaves a screenshot of the page (to look at).
 SCREENSHOT = os.environ.get("TGHOP_MATERIAL_SCREENSHOT", "/tmp/tghop-material-page.png")
-
-
-@pytest.fixture(scope="module")
-def page(live_server):
-    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
-        yield page
 
 
 def wait_fitted(page):

@@ -11,20 +11,16 @@ import json
 import pytest
 
 import chromium
+from conftest import FAST_FIT, save_material
 
-if chromium.missing():
-    pytest.skip(chromium.missing(), allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="Playwright is not installed: pip install -e '.[web-test]'")
-
-from conftest import FAST_FIT, save_material  # noqa: E402
+chromium.require()
 
 
 @pytest.fixture(scope="module")
-def page(live_server):
-    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
-        chromium.set_fit_settings(page, FAST_FIT)
-        yield page
+def page(page):
+    """conftest's page, the fast fit's settings in its fields."""
+    chromium.set_fit_settings(page, FAST_FIT)
+    return page
 
 
 fit = chromium.fit_builtin  # builtin:NAME fitted with the fast settings

@@ -13,30 +13,17 @@ page's take on same-sized maps is said and undone in one click; a reload keeps t
 import pytest
 
 import chromium
+from conftest import FAST_FIT, png, save_texture
 
-if chromium.missing():
-    pytest.skip(chromium.missing(), allow_module_level=True)
-sync_api = pytest.importorskip("playwright.sync_api",
-                               reason="Playwright is not installed: pip install -e '.[web-test]'")
-
-from conftest import FAST_FIT, png, save_texture  # noqa: E402
+chromium.require()
 
 
 @pytest.fixture(scope="module")
-def page(live_server):
-    with chromium.served_page(live_server.url + "/", chromium.shared_browser()) as page:
-        page.warnings = []
-        page.on("console", lambda msg: page.warnings.append(msg.text) if msg.type == "warning" else None)
-        yield page
-
-
-def wait_said(page, fragment, timeout=90_000):
-    try:
-        page.wait_for_function("(f) => document.getElementById('message').textContent.includes(f)", arg=fragment,
-                               timeout=timeout)
-    except sync_api.TimeoutError:
-        raise AssertionError(f"{fragment!r} never said: {page.text_content('#message')!r}") from None
-    return page.text_content("#message")
+def page(page):
+    """conftest's page, its console's warnings collected in ``page.warnings``."""
+    page.warnings = []
+    page.on("console", lambda msg: page.warnings.append(msg.text) if msg.type == "warning" else None)
+    return page
 
 
 def wait_model(page, what):
@@ -65,15 +52,6 @@ def refused_files(tmp_path):
     (tmp_path / "flat.png").write_bytes(png(np.full((64, 64, 3), 128, np.uint8)))
     (tmp_path / "tiny.png").write_bytes(png(np.random.default_rng(1).integers(0, 255, (4, 4, 3), np.uint8)))
     return [tmp_path / name for name in ("notes.png", "flat.png", "tiny.png")]
-
-
-def posted_fits(page):
-    """The bodies of the fits the page asks for from now on (``POST /api/models``): a list that fills as they are
-    sent."""
-    bodies = []
-    page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.method == "POST" and r.url.endswith(
-        "/api/models") else None)
-    return bodies
 
 
 def rock_files(tmp_path):
@@ -105,7 +83,7 @@ def test_a_refused_exemplar_leaves_the_working_model_and_its_exemplar(page, tmp_
     summary = page.text_content("#summary")
     for path in bad:
         page.set_input_files("#file", str(path))
-        said = wait_said(page, "builtin:bricks")  # the model kept is named
+        said = chromium.wait_said(page, "builtin:bricks")  # the model kept is named
         assert path.name in said and page.eval_on_selector("#message", "e => e.classList.contains('error')"), said
         assert exemplar_shown(page) == ["bricks.png", True, 256]
         assert page.is_enabled("#go") and page.is_visible("#download-model")
@@ -139,7 +117,7 @@ def test_a_refused_map_set_leaves_the_working_model(page, tmp_path):
     assert "maps: albedo, 8-bit; height, 8-bit" in summary
     for listed in ("maps: height", ""):  # a material's maps replaced, then a texture model's maps added
         page.set_input_files("#maps", str(tmp_path / "bricks_normal.png"))
-        said = wait_said(page, "not added")
+        said = chromium.wait_said(page, "not added")
         assert "bricks_normal" in said and "1 channel" in said, said
         assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
         assert page.text_content("#maps-list") == listed
@@ -159,7 +137,7 @@ def test_maps_added_before_their_albedo_wait_for_it(page, tmp_path):
     # A normal map added while another exemplar's model was working refitted that exemplar with it (400: another
     # size), and the albedo picked next cleared it ("maps cleared: rock_normal went with builtin:bricks").
     rock_files(tmp_path)
-    fits = posted_fits(page)
+    fits = chromium.posted_fits(page)
     chromium.load_fresh(page, FAST_FIT)
     page.select_option("#builtin", "bricks")
     wait_model(page, "model")
@@ -167,12 +145,12 @@ def test_maps_added_before_their_albedo_wait_for_it(page, tmp_path):
     for step in ("add", "drop", "add"):  # No maps drops maps that wait, the working model kept
         if step == "add":
             page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
-            said = wait_said(page, "wait for their albedo")
+            said = chromium.wait_said(page, "wait for their albedo")
             assert "rock_normal is 128x160, not the 256x256 of builtin:bricks" in said, said
             assert page.text_content("#maps-list") == "maps for the next exemplar: rock_normal"
         else:
             page.click("#maps-clear")
-            assert "maps dropped" in wait_said(page, "dropped")
+            assert "maps dropped" in chromium.wait_said(page, "dropped")
             assert page.text_content("#maps-list") == "" and page.is_hidden("#maps-clear")
         assert not page.eval_on_selector("#message", "e => e.classList.contains('error')")
         assert page.is_enabled("#go") and len(fits) == sent
@@ -197,7 +175,7 @@ def cancel_a_fit_of_cells(page):
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'cancelled'", timeout=60_000)
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
         page.fill(f"#{name}", FAST_FIT[name])
-    return wait_said(page, "fit cancelled (")
+    return chromium.wait_said(page, "fit cancelled (")
 
 
 def test_a_cancelled_fit_goes_back_to_the_working_model(page):
@@ -231,7 +209,7 @@ def test_a_refused_model_file_goes_back_to_the_working_model(page, tmp_path):
     save_texture(tmp_path / "saved.npz")
     chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#model-file", str(tmp_path / "broken.npz"))  # nothing before it: the empty page
-    said = wait_said(page, "was not used")
+    said = chromium.wait_said(page, "was not used")
     assert "not a tghop model file" in said and said.endswith("(broken.npz was not used; no model yet)"), said
     assert page.eval_on_selector("#message", "e => e.classList.contains('error')")
     assert exemplar_shown(page) is None and page.is_disabled("#go") and page.is_hidden("#summary")
@@ -239,18 +217,18 @@ def test_a_refused_model_file_goes_back_to_the_working_model(page, tmp_path):
     wait_model(page, "model")
     summary = page.text_content("#summary")
     page.set_input_files("#model-file", str(tmp_path / "broken.npz"))  # an exemplar's model before it
-    said = wait_said(page, "was not used")
+    said = chromium.wait_said(page, "was not used")
     assert said.endswith("(broken.npz was not used; the model of builtin:bricks stays)"), said
     assert exemplar_shown(page) == ["bricks.png", True, 256] and page.input_value("#builtin") == "bricks"
     page.wait_for_selector("#summary:not([hidden])")
     assert page.text_content("#summary") == summary
     assert page.is_enabled("#go") and page.is_visible("#download-model")
     page.set_input_files("#model-file", str(tmp_path / "saved.npz"))  # a model file's model before it
-    wait_said(page, "model saved.npz loaded")
+    chromium.wait_said(page, "model saved.npz loaded")
     page.wait_for_selector("#summary:not([hidden])")
     summary = page.text_content("#summary")
     page.set_input_files("#model-file", str(tmp_path / "broken.npz"))
-    said = wait_said(page, "was not used")
+    said = chromium.wait_said(page, "was not used")
     assert said.endswith("(broken.npz was not used; the model of saved.npz stays)"), said
     assert exemplar_shown(page) is None and "saved.npz" in page.text_content("#exemplar-caption")
     page.wait_for_selector("#summary:not([hidden])")
@@ -335,7 +313,7 @@ def test_the_built_in_shown_picked_again_is_fitted_again(page, tmp_path):
     page.set_input_files("#maps", str(tmp_path / "height.png"))
     page.wait_for_function("document.getElementById('stage').textContent.endsWith('%')", timeout=60_000)
     page.click("#cancel")
-    assert wait_said(page, "fit cancelled (") == ("fit cancelled (the maps were not added;"
+    assert chromium.wait_said(page, "fit cancelled (") == ("fit cancelled (the maps were not added;"
                                                   " the model of builtin:bricks stays)")
     assert page.input_value("#builtin") == "bricks" and page.text_content("#maps-list") == ""
     for name in ("n_clusters", "n_codewords", "stride", "max_patches"):
@@ -367,7 +345,7 @@ def test_a_cancel_before_the_fit_started_is_not_ignored(page):
           s.dispatchEvent(new Event("change", { bubbles: true }));
           document.getElementById("cancel").click();  // before the server answered
         }""")
-    assert wait_said(page, "fit cancelled (", timeout=10_000) == ("fit cancelled (builtin:cells was not used;"
+    assert chromium.wait_said(page, "fit cancelled (", timeout=10_000) == ("fit cancelled (builtin:cells was not used;"
                                                                   " the model of builtin:bricks stays)")
     assert page.input_value("#builtin") == "bricks" and page.is_hidden("#fit-status")
     page.wait_for_selector("#summary:not([hidden])")
@@ -449,7 +427,7 @@ def test_arrow_keys_on_the_built_in_menu_fit_only_the_option_settled_on(page):
     # Each arrow press on the closed menu (a change per option passed) started a fit of that option, the one
     # before it cancelled: browsing the built-ins by keyboard asked the server for a fit per option.
     chromium.load_fresh(page, FAST_FIT)
-    fits = posted_fits(page)
+    fits = chromium.posted_fits(page)
     page.focus("#builtin")
     page.keyboard.press("ArrowDown")  # builtin:bricks
     page.keyboard.press("ArrowDown")  # builtin:cells
@@ -487,13 +465,13 @@ def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
     from tghop.imageio import to_uint8
 
     (tmp_path / "height.png").write_bytes(png(to_uint8(data.builtin("bricks")[..., 0])))
-    fits = posted_fits(page)
+    fits = chromium.posted_fits(page)
     chromium.load_fresh(page, FAST_FIT)
     page.set_input_files("#maps", str(tmp_path / "height.png"))  # no exemplar yet: they wait for it
     page.select_option("#builtin", "bricks")
     wait_model(page, "material")
     page.set_input_files("#file", str(refused_files(tmp_path)[0]))  # refused: the maps listed again
-    assert "bricks" in wait_said(page, "notes.png")
+    assert "bricks" in chromium.wait_said(page, "notes.png")
     assert page.text_content("#maps-list") == "maps: height" and page.is_visible("#maps-clear")
     pick_builtin(page, "bricks")  # the same exemplar again: fitted with its maps
     page.wait_for_selector("#fit-status:not([hidden])", timeout=10_000)
@@ -510,7 +488,7 @@ def test_a_new_exemplar_clears_the_maps_of_the_last_one(page, tmp_path):
     model = tmp_path / "cells.npz"  # a model file loaded: the maps listed are not its own either
     model.write_bytes(page.request.get(page.url.rstrip("/") + page.get_attribute("#download-model", "href")).body())
     page.set_input_files("#model-file", str(model))
-    assert "loaded" in wait_said(page, "loaded: generate below")
+    assert "loaded" in chromium.wait_said(page, "loaded: generate below")
     assert page.text_content("#maps-list") == "maps cleared: height went with builtin:cells, not the model file's"
     page.select_option("#builtin", "bricks")
     wait_model(page, "model")
@@ -522,12 +500,12 @@ def test_waiting_maps_stay_waiting_when_the_exemplar_they_are_not_of_is_picked_a
     # Maps waiting for their albedo (another size than the working exemplar's) were sent with that exemplar when it
     # was picked again (to refit it with other settings, say): refused for their size, and listed as waiting again.
     rock_files(tmp_path)
-    sent = posted_fits(page)
+    sent = chromium.posted_fits(page)
     chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
-    wait_said(page, "wait for their albedo")
+    chromium.wait_said(page, "wait for their albedo")
     before = len(sent)
     page.fill("#n_codewords", "42")  # the same exemplar again, with other settings
     pick_builtin(page, "bricks")
@@ -580,13 +558,13 @@ def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
     rock = data.builtin("cells")
     (tmp_path / "rock_normal_2k.png").write_bytes(png(to_uint16(example_maps(rock)["normal"])))
     (tmp_path / "Rock_Color_2K.png").write_bytes(png(to_uint8(rock)))
-    sent = posted_fits(page)
+    sent = chromium.posted_fits(page)
     chromium.load_fresh(page, FAST_FIT)
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     summary, before = page.text_content("#summary"), len(sent)
     page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))
-    said = wait_said(page, "wait for their albedo")
+    said = chromium.wait_said(page, "wait for their albedo")
     assert said.startswith("rock_normal_2k.png is named for another picture than builtin:bricks"), said
     assert page.text_content("#maps-list") == "maps for the next exemplar: rock_normal_2k"
     assert len(sent) == before and page.text_content("#summary") == summary and page.is_enabled("#go")
@@ -599,7 +577,7 @@ def test_maps_named_for_another_picture_wait_for_it(page, tmp_path):
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))
-    wait_said(page, "wait for their albedo")
+    chromium.wait_said(page, "wait for their albedo")
     pick_builtin(page, "bricks")
     wait_model(page, "material")
     assert page.text_content("#maps-list") == "maps: rock_normal_2k" and page.input_value("#builtin") == "bricks"
@@ -612,23 +590,23 @@ def test_waiting_maps_of_another_size_than_the_new_exemplar_are_dropped_not_sent
     # ("... is 128x160, not the exemplar's 256x256"). Another size than the new exemplar's: they are dropped, said
     # on the page, and it is fitted as a texture model; of its size they make the material (the tests above).
     rock_files(tmp_path)
-    sent = posted_fits(page)
+    sent = chromium.posted_fits(page)
     for first in ("bricks", None):  # waiting beside a working model, and before any exemplar
         chromium.load_fresh(page, FAST_FIT)
         if first:
             pick_builtin(page, first)
             wait_model(page, "model")
         page.set_input_files("#maps", str(tmp_path / "rock_normal.png"))
-        wait_said(page, "wait for their albedo" if first else "pick or drop the albedo")
+        chromium.wait_said(page, "wait for their albedo" if first else "pick or drop the albedo")
         before = len(sent)
         pick_builtin(page, "cells")
-        said = wait_said(page, "builtin:cells")  # dropped, or (0.58) refused
+        said = chromium.wait_said(page, "builtin:cells")  # dropped, or (0.58) refused
         assert not page.eval_on_selector("#message", "e => e.classList.contains('error')"), said
         assert said.startswith("maps dropped: rock_normal is 128x160, not the 256x256 of builtin:cells"), said
         assert len(sent) == before + 1 and b"map:" not in sent[-1] and b"cells" in sent[-1]
         page.wait_for_function("state.working && state.working.name === 'builtin:cells'", timeout=90_000)
         wait_model(page, "model")
-        said = wait_said(page, "model ready")  # said again when the fit ends (the message then changes)
+        said = chromium.wait_said(page, "model ready")  # said again when the fit ends (the message then changes)
         assert "ready: generate below. maps dropped: rock_normal is 128x160, not the 256x256 of builtin:cells" in said
         assert page.text_content("#maps-list").startswith("maps dropped: rock_normal (128x160)")
         assert page.is_hidden("#maps-clear") and page.is_enabled("#go")
@@ -653,7 +631,7 @@ def test_the_pages_take_on_maps_of_the_exemplars_size_is_said_and_one_click_from
     wait_model(page, "model")
     assert page.is_hidden("#maps-use")
     page.set_input_files("#maps", str(tmp_path / "rock_normal_2k.png"))  # named for another picture: waiting
-    assert 'press "Use them with builtin:bricks"' in wait_said(page, "wait for their albedo")
+    assert 'press "Use them with builtin:bricks"' in chromium.wait_said(page, "wait for their albedo")
     assert page.text_content("#maps-use") == "Use them with builtin:bricks"
     page.click("#maps-use")  # they are bricks' after all
     wait_model(page, "material")
@@ -664,7 +642,7 @@ def test_the_pages_take_on_maps_of_the_exemplars_size_is_said_and_one_click_from
     pick_builtin(page, "bricks")
     wait_model(page, "model")
     page.set_input_files("#maps", str(tmp_path / "normal.png"))
-    assert "fitting builtin:bricks with normal, maps of its size" in wait_said(page, "fitting builtin:bricks")
+    assert "fitting builtin:bricks with normal, maps of its size" in chromium.wait_said(page, "fitting builtin:bricks")
     wait_model(page, "material")
     pick_builtin(page, "cells")
     page.wait_for_function("state.working && state.working.name === 'builtin:cells'", timeout=90_000)
@@ -696,10 +674,10 @@ def test_a_reload_keeps_the_working_model(page, tmp_path):
     page.set_input_files("#maps", str(height))
     wait_model(page, "material")
     summary, model = page.text_content("#summary"), page.evaluate("state.modelId")
-    sent = posted_fits(page)
+    sent = chromium.posted_fits(page)
     page.reload()
     page.wait_for_selector("body[data-ready='1']")
-    said = wait_said(page, "is back")
+    said = chromium.wait_said(page, "is back")
     assert said == "the model of builtin:bricks + 1 maps is back (kept across the reload): generate below", said
     page.wait_for_function("(s) => document.getElementById('summary').textContent === s", arg=summary)
     assert page.evaluate("state.modelId") == model and page.is_enabled("#go")
@@ -717,7 +695,7 @@ def test_a_reload_keeps_the_working_model(page, tmp_path):
                   " builtin: 'cells', file: null, maps: [] }, 'working'), 'page')", "f" * len(model))
     page.reload()
     page.wait_for_selector("body[data-ready='1']")
-    said = wait_said(page, "no longer on the server")
+    said = chromium.wait_said(page, "no longer on the server")
     assert said.startswith("the model of builtin:cells is no longer on the server"), said
     assert page.is_disabled("#go") and exemplar_shown(page) is None
     assert not [e for e in page.errors if "404" not in e], page.errors
