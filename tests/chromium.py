@@ -3,6 +3,7 @@ Playwright: used by the ``test_server_browser*.py`` tests and by
 ``scripts/make_gallery.py serve`` (the README's screenshot of ``tghop serve``'s page)."""
 
 import contextlib
+import functools
 import os
 import time
 
@@ -11,6 +12,10 @@ CHROMIUM = os.environ.get("TGHOP_CHROMIUM", "/usr/bin/chromium")
 #: Headless, no GPU, nothing fetched in the background.
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+#: How often a page of :func:`served_page` evaluates a ``wait_for_function`` condition, in milliseconds, unless the
+#: call says: Playwright's default, each animation frame, had headless Chromium draw frames for the whole wait,
+#: about five times the browser's CPU of a look every 20 ms (docs/choices.md, "The test suite on CI's two cores").
+POLL_MS = 20
 #: Why there is no browser to drive, when :func:`missing` says so.
 INSTALL = "install it: apt-get install chromium; or set TGHOP_CHROMIUM"
 
@@ -94,6 +99,7 @@ def served_page(url, browser=None):
     context = browser.new_context(viewport={"width": 1200, "height": 1400}, accept_downloads=True)
     try:
         page = context.new_page()
+        page.wait_for_function = functools.partial(page.wait_for_function, polling=POLL_MS)
         errors = []
         page.on("pageerror", lambda exc: errors.append(str(exc)))
         page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
