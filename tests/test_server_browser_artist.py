@@ -10,7 +10,7 @@ edit's."""
 import chromium
 from conftest import FAST_FIT, png
 
-chromium.require()
+sync_api = chromium.require()
 
 
 def generate(page, seed, size=(32, 40)):
