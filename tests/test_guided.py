@@ -492,6 +492,58 @@ def test_morph_stations_are_accepted_with_a_warning(models):
         assert np.array_equal(strip, tghop.morph(models[0], models[1], (32, 96), stations=5, **kw))
 
 
+def test_morph_return_stages_gives_the_regions_the_layers_and_the_join_the_last_its_result(models, exemplars):
+    # 0.60: a morph had no return_stages (its regions, each model's layer before the join could not be looked at).
+    kw = dict(rng=1, n_patches=200, refine=0, seam_window=0)
+    for dtype in (np.float64, np.uint8):
+        out, stages = tghop.morph(models[0], models[1], (32, 96), dtype=dtype, return_stages=True, **kw)
+        assert np.array_equal(out, tghop.morph(models[0], models[1], (32, 96), dtype=dtype, **kw))
+        assert list(stages) == ["regions", "layers", "join"]
+        assert np.array_equal(stages["regions"], guided.morph_labels((32, 96), rng=1, scale=guided.MORPH_BLOB * 32))
+        assert stages["regions"][:, 0].max() == 0 and stages["regions"][:, -1].min() == 1  # A's left, B's right
+        top = np.float32(255 if dtype == np.uint8 else 1)
+        assert np.array_equal(stages["join"], (out / top).astype(np.float32))
+        assert stages["layers"].dtype == np.float32 and stages["layers"].shape == out.shape
+        assert not np.array_equal(stages["layers"], stages["join"])
+    materials = [_as_material(m, e) for m, e in zip(models, exemplars)]
+    maps, stages = tghop.morph(*materials, (32, 96), return_stages=True, **kw)
+    assert list(stages["layers"]) == list(stages["join"]) == list(maps) == ["albedo", "height"]
+    assert all(np.array_equal(stages["join"][n], maps[n].astype(np.float32)) for n in maps)
+
+
+def test_cli_morph_stages_writes_each_steps_picture_stacked_as_the_grid(models, exemplars, tmp_path):
+    # 0.60: morph had no --stages. A strip's regions, its layers before the join and the join (its output).
+    from tghop.imageio import load_image
+
+    save_model(models[0], tmp_path / "a.npz")
+    save_model(models[1], tmp_path / "b.npz")
+    args = ["--size", "32x96", "--grid", "2", "--seed", "1", "-q"]
+    r = _run(["morph", "a.npz", "b.npz", "-o", "plain.png", *args], tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    r = _run(["morph", "a.npz", "b.npz", "-o", "m.png", "--stages", *args], tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    assert "steps written beside it: m_regions.png, m_layers.png, m_join.png" in r.stderr.decode()
+    out = load_image(tmp_path / "m.png")
+    assert np.array_equal(out, load_image(tmp_path / "plain.png"))  # --stages changes nothing
+    assert np.array_equal(load_image(tmp_path / "m_join.png"), out)
+    assert load_image(tmp_path / "m_layers.png").shape == out.shape == (64, 96, 3)
+    regions = load_image(tmp_path / "m_regions.png")
+    assert regions.shape[:2] == (64, 96) and regions[:, 0].max() == 0 and regions[:, -1].min() == 1  # both strips
+    r = _run(["morph", "a.npz", "b.npz", "-o", "-", "--stages", *args], tmp_path)
+    assert r.returncode == 2 and "--stages needs a file name" in r.stderr.decode() and not r.stdout
+
+    for i, (m, e) in enumerate(zip(models, exemplars)):
+        save_model(_as_material(m, e), tmp_path / f"m{i}.npz")
+    r = _run(["morph", "m0.npz", "m1.npz", "-o", "s.png", "--stages", *args], tmp_path)
+    assert r.returncode == 0, r.stderr.decode()
+    assert "steps written beside it, each with its maps: s_regions.png, s_layers.png, s_join.png" in r.stderr.decode()
+    assert sorted(p.name for p in tmp_path.glob("s*.png")) == sorted(
+        ["s.png", "s_height.png", "s_regions.png", "s_layers.png", "s_layers_height.png", "s_join.png",
+         "s_join_height.png"])
+    for m in ("", "_height"):  # the join's maps are those written
+        assert np.array_equal(load_image(tmp_path / f"s_join{m}.png"), load_image(tmp_path / f"s{m}.png"))
+
+
 def test_a_remix_the_quilt_refuses_is_refused_before_any_work(models, monkeypatch):
     # 33554432x2 (within the pixel limit, its canvas 16 times above it): 45 s of random regions and their weights,
     # then the refusal; a tileable 7x900 remix, or an overlap above half a patch, likewise.

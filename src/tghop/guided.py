@@ -319,7 +319,8 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
 def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
           n_patches=settings.BY_NAME["n_patches"].default, overlap=None, tolerance=0.1, detail=0.8,
           flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5, layout_weight=3.0,
-          layout_refine=3, layout_patch_refine=None, seam_window=9, progress=None, dtype=np.float64):
+          layout_refine=3, layout_patch_refine=None, seam_window=9, progress=None, dtype=np.float64,
+          return_stages=False):
     """A strip from ``model_a``'s texture on the left to ``model_b``'s on the right.
 
     Column ``x`` is at ``t = x / (W - 1)`` of the way: a share ``t`` of its pixels are B's
@@ -346,12 +347,17 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         Each layer's stages of :meth:`tghop.TGHop.synthesize` named with the layer's number,
         e.g. "quilting 2/2"; then "join" (as :func:`synthesize_guided`).
     dtype : {numpy.float64, numpy.float32, numpy.uint8}
+    return_stages : bool
+        Also return each step's image (0.61), as :func:`synthesize_guided` does.
 
     Returns
     -------
     ndarray, shape (H, W, C), ``dtype``
         At the two models' two levels where both have the same (as :func:`synthesize_guided`); for
         materials a dict ``name -> (H, W, c)`` array, as :func:`synthesize_guided` gives.
+    stages : dict, only with ``return_stages``
+        As :func:`synthesize_guided`'s: ``"regions"`` (A's at 0, B's at 1), ``"layers"`` (each region its own
+        model's synthesis, before the join), ``"join"`` (the result).
     """
     check_progress(progress)
     models = _check_models([model_a, model_b], 2, materials=True)  # materials too (0.59)
@@ -370,7 +376,7 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
     models, labels = _one_region_per_model(models, labels)
     weights = region_weights(labels, len(models), DEFAULT_TRANSITION)
     return _layered(models, labels, weights, rng=rng, progress=progress, dtype=dtype, tile=False, flips=flips,
-                    n_patches=n_patches,
+                    n_patches=n_patches, return_stages=return_stages,
                     overlap=overlap, tolerance=tolerance, detail=detail, flat_share=flat_share, refine=refine,
                     match_colours=match_colours, reuse=reuse, pool_per_block=pool_per_block,
                     layout_weight=layout_weight, layout_refine=layout_refine, layout_patch_refine=layout_patch_refine,

@@ -397,9 +397,13 @@ def _check_height(size, source):
                    "said after it).")
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
               help="No longer applies (accepted with a warning, and ignored).")
+@click.option("--stages", is_flag=True,
+              help="Also write each step's picture beside OUTPUT: OUTPUT_regions (A's black, B's white), "
+                   "OUTPUT_layers (each region its own texture, before the join) and OUTPUT_join (OUTPUT itself); "
+                   "of materials each map's too (OUTPUT_layers_<map>, ...); with --grid, each step's strips stacked.")
 @depth_option("8")
 @QUIET_OPTION
-def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
+def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth, quiet):
     """A strip from texture A on the left to texture B on the right (A and B: exemplars,
     builtin:NAME or saved models); every column mixes regions of the two, with organic outlines, in its
     proportion. Two saved materials with the same maps (tghop fit ALBEDO --maps ...) morph every map
@@ -413,9 +417,16 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
     progress = Progress(not quiet)
     seed, drawn = draw_seed(seed)
     with user_errors(progress):
+        if stages and output == "-":
+            raise click.UsageError("--stages needs a file name: it writes OUTPUT_regions and the others next to -o's "
+                                   "image, so give -o a file name (e.g. -o strip.png) or drop --stages")
         check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
-        check_outputs([("-o", output)], [("A", source_a), ("B", source_b)])
+        staged = stage_paths(output, GUIDED_STAGES) if stages else {}
+        for path in staged.values():
+            check_output(path)
+        check_outputs([("-o", output)] + [("--stages", path) for path in staged.values()],
+                      [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)
         read_a, read_b = _read(source_a), _read(source_b)
         _same_kind([source_a, source_b], [read_a, read_b], "A" if hasattr(read_a, "names_") else "B")
@@ -429,23 +440,53 @@ def morph(source_a, source_b, output, size, grid, seed, stations, depth, quiet):
             click.echo(f"Warning: --{STATIONS_GONE}", err=True)
         if hasattr(model_a, "names_"):  # two materials (0.59): every map morphed alike, OUT and OUT_<suffix>
             _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, [("A", source_a),
-                                                                                           ("B", source_b)])
+                                                                                           ("B", source_b)], stages)
+            _tell_stages(staged, ", each with its maps")
             tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
             return
         rows = []
         for row in range(grid):
             rng = np.random.default_rng(seed + row)
-            rows.append(make_strip(model_a, model_b, size, rng=rng, progress=progress, dtype=generation_dtype(depth)))
+            rows.append(make_strip(model_a, model_b, size, rng=rng, progress=progress, dtype=generation_dtype(depth),
+                                   return_stages=stages))
             progress.close()
-        save_image(np.concatenate(rows, axis=0), output, depth=depth or 8, progress=progress)
+        image, steps = _stacked(rows, stages)
+        for name, step in steps.items():
+            save_image(step, staged[name], depth=depth or 8)
+        save_image(image, output, depth=depth or 8, progress=progress)
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)
+    _tell_stages(staged)
     tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
 
 
-def _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, inputs):
+def _stacked(rows, stages):
+    """``grid`` strips (``rows``: :func:`tghop.guided.morph`'s results; with ``stages``, ``(strip, steps)`` pairs)
+    stacked top to bottom: ``(strips, steps)``, each step stacked alike (a material's step and result: dicts of
+    maps); steps ``{}`` without ``stages``."""
+    import numpy as np
+
+    def stack(parts):
+        if isinstance(parts[0], dict):
+            return {name: np.concatenate([p[name] for p in parts], axis=0) for name in parts[0]}
+        return np.concatenate(parts, axis=0)
+
+    if not stages:
+        return stack(rows), {}
+    return stack([r[0] for r in rows]), {name: stack([r[1][name] for r in rows]) for name in rows[0][1]}
+
+
+def _tell_stages(staged, each=""):
+    """The line naming --stages' files (``staged``: their paths; none without --stages)."""
+    if staged:
+        click.echo(f"steps written beside it{each}: {', '.join(os.path.basename(p) for p in staged.values())}",
+                   err=True)
+
+
+def _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, inputs, stages=False):
     """``morph`` of two materials: ``grid`` strips of every map, stacked, written as ``synth`` writes a
-    material (:func:`~tghop.cli.common.write_materials`: OUT and OUT_<suffix> for each of A's maps)."""
+    material (:func:`~tghop.cli.common.write_materials`: OUT and OUT_<suffix> for each of A's maps); with
+    ``stages`` (0.61) each step's maps too, OUT_<step> and OUT_<step>_<suffix>."""
     import numpy as np
 
     from ..guided import morph as make_strip
@@ -454,8 +495,10 @@ def _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress
         rows = []
         for row in range(grid):
             rows.append(make_strip(model_a, model_b, size, rng=np.random.default_rng(seed + row), progress=progress,
-                                   dtype=np.float32))
+                                   dtype=np.float32, return_stages=stages))
             progress.close()
-        return {name: np.concatenate([r[name] for r in rows], axis=0) for name in rows[0]}
+        maps, steps = _stacked(rows, stages)
+        return (maps, steps) if stages else maps
 
-    write_materials(model_a, output, [output], (size[0] * grid, size[1]), depth, make, inputs, progress)
+    write_materials(model_a, output, [output], (size[0] * grid, size[1]), depth, make, inputs, progress,
+                    stages=GUIDED_STAGES if stages else False)
