@@ -72,6 +72,31 @@ def test_every_map_is_filled_alike_and_the_rest_kept(material, picture, filled):
         np.testing.assert_array_equal(again[name], out[name])
 
 
+def test_return_stages_gives_every_maps_steps_and_the_last_is_the_result(material, picture, filled):
+    # 0.60: inpaint(return_stages=True) showed a picture's fill step by step; inpaint_material had no such keyword.
+    images, hole = picture
+    out, stages = inpaint_material(material, images, hole, rng=1, n_patches=1500, return_stages=True)
+    for name in out:  # the same fill with and without the steps
+        np.testing.assert_array_equal(out[name], filled[True][name])
+    assert [k for k in stages if k != "pool"] == ["quilt", "seams", "refine", "patch refine", "maps"]
+    for step in ("quilt", "seams", "refine", "patch refine", "maps"):
+        assert list(stages[step]) == list(out), step
+        for name, image in images.items():
+            pic = stages[step][name]
+            assert pic.dtype == np.float32 and pic.shape == image.shape, (step, name)
+            top = np.float32(255 if image.dtype == np.uint8 else 1)
+            assert np.array_equal(pic[~hole], (image[~hole] / top).astype(np.float32)), (step, name)  # kept
+    for name in out:  # the last step is the result
+        top = np.float32(255 if out[name].dtype == np.uint8 else 1)
+        assert np.array_equal(stages["maps"][name], (out[name] / top).astype(np.float32)), name
+    assert not np.array_equal(stages["quilt"]["albedo"], stages["seams"]["albedo"])
+    assert not np.array_equal(stages["seams"]["height"], stages["refine"]["height"])
+    assert np.array_equal(stages["patch refine"]["height"], stages["refine"]["height"])  # the albedo's step alone
+    assert not np.array_equal(stages["patch refine"]["albedo"], stages["refine"]["albedo"])
+    assert stages["pool"].shape[1:] == (material.model_.patch_size,) * 2 + (sum(material.map_channels_),)
+    assert inpaint_material(material, images, np.zeros_like(hole), rng=1, return_stages=True)[1] == {}
+
+
 def test_the_albedos_fill_is_patch_refined_the_maps_kept(material, picture, filled):
     """0.59: the albedo's hole is patch-refined with the material's albedo statistics, as inpaint refines a
     texture's (0.58 refused patch_refine for a material); the other maps' fills are as without it, the known
@@ -174,6 +199,30 @@ def test_cli_inpaint_and_extend_with_maps(tmp_path, in_saved):
     assert big.shape == (SIZE, 192, 3)
     np.testing.assert_array_equal(big[:, :SIZE], images["albedo"])
     assert load_image("big_h.png").shape == (SIZE, 192, 1)
+
+
+def test_cli_stages_with_maps_writes_each_steps_maps_the_last_the_output(tmp_path, in_saved):
+    # 0.60 refused it ("--stages applies to a picture's fill, not a material's maps; drop it").
+    images, hole = in_saved
+    maps = ("--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed", "3")
+    for command, args in (("inpaint", ("mask.png",)), ("extend", ("--size", "128x192", "--anchor", "left"))):
+        code, out = run(command, "wall.png", *args, *maps, "-o", f"{command}.png", "--stages")
+        assert code == 0, out
+        steps = ["quilt", "seams", "refine", "patch-refine", "maps"]
+        assert (f"steps written beside it, each with its maps: {', '.join(f'{command}_{s}.png' for s in steps)}"
+                in out)
+        for step in steps:
+            for m in ("", "_wall_normal", "_h"):
+                assert (tmp_path / f"{command}_{step}{m}.png").exists(), (step, m)
+        for m in ("", "_wall_normal", "_h"):  # the last step's maps are those written
+            assert np.array_equal(load_image(f"{command}_maps{m}.png", dtype=None),
+                                  load_image(f"{command}{m}.png", dtype=None)), m
+        assert not np.array_equal(load_image(f"{command}_quilt.png"), load_image(f"{command}.png"))
+        code, out = run(command, "wall.png", *args, *maps, "-o", f"plain_{command}.png")  # the same without it
+        assert code == 0, out
+        for m in ("", "_wall_normal", "_h"):
+            assert np.array_equal(load_image(f"plain_{command}{m}.png", dtype=None),
+                                  load_image(f"{command}{m}.png", dtype=None)), m
 
 
 def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, in_saved):

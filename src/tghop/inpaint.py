@@ -552,7 +552,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
 
 
 def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, blend=3, patch_refine=None,
-                     progress=None, **options):
+                     progress=None, return_stages=False, **options):
     """Fill the same hole in every map of a whole material's picture (its albedo and maps,
     aligned) with the material's texture: one fill of the maps stacked, as the material
     generates them, so that what is filled in each map belongs with the others.
@@ -579,6 +579,8 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     patch_refine : int or None
         As :func:`inpaint`'s, of the albedo's hole alone with the material's albedo statistics
         (:meth:`~tghop.material.Material.albedo_patches`; 0.59: a material of 0.58 has none, above 0 refused).
+    return_stages : bool
+        Also return each step's maps (0.61), as :meth:`tghop.material.Material.synthesize` does.
     **options
         Further keywords of :func:`inpaint` (``n_patches``, ``tolerance``, ``detail``,
         ``flat_share``, ``layout_weight``, ``order``, ``seam_window``).
@@ -588,11 +590,17 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     dict of str to ndarray
         Each map filled, in ``material.names_``'s order: its own shape, uint8 and uint16 kept
         (known pixels the same levels: a 16-bit map stays 16-bit), else float64 (the same values).
+    stages : dict, only with ``return_stages``
+        Step -> ``{name: picture}``, every map after each step that ran, in order, as :func:`inpaint`'s (its hole as
+        the step left it, rounded to the map's levels, its other pixels its own; float32 in [0, 1], no alpha): the
+        joint model's ``"guide"``, ``"quilt"``, ``"seams"`` (``"pool"``: its patches of all channels, whole), then
+        ``"refine"``, ``"patch refine"`` (the albedo's) and ``"maps"`` (the result); a map a step leaves alone as
+        the step before left it. Empty for an empty hole.
     """
     check_progress(progress)
     from collections.abc import Mapping
 
-    from .material import Material, renormalise
+    from .material import Material, carry_steps, renormalise
     from .masks import snap_map
 
     if not isinstance(material, Material):
@@ -629,7 +637,18 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
     hole = check_hole(mask, works[0].shape[:2])
     stack = np.concatenate(works, axis=2)
     filled = inpaint(material.model_, stack, hole, rng=rng, tile=tile, refine=0, patch_refine=0, progress=progress,
-                     **options).astype(np.float32)
+                     return_stages=return_stages, **options)
+    filled, steps = filled if return_stages else (filled, {})
+    filled = filled.astype(np.float32)
+
+    def picture(name, img):  # a step's map (H, W, c) as inpaint's steps are: float32 in [0, 1], rounded to its levels
+        whole = _into(given[name], hole, img[hole])
+        return whole.astype(np.float32) / np.float32(LEVELS.get(whole.dtype, 1))
+
+    steps = {k: v if k == "pool" else {n: picture(n, v[..., part]) for n, part in zip(names, material.map_slices())}
+             for k, v in steps.items()}
+    keep = (lambda step, name, img: steps.setdefault(step, {}).__setitem__(name, picture(name, img))
+            if return_stages and hole.any() else None)
     alpha = None
     if (refine or stats is not None) and blend and hole.any():
         alpha = np.clip(_distance_to_known(hole, tile) / (blend + 1), 0.0, 1.0).astype(np.float32)[..., None]
@@ -639,16 +658,19 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
         if refine and hole.any():
             refined = refine_hole(img, hole, material.bands_[i], n_iter=refine, tile=tile)
             img = refined if alpha is None else img + alpha * (refined - img)
+            keep("refine", name, img)
         if i == 0 and patch_refine != 0 and stats is not None and hole.any():  # as inpaint's last step (0.59)
             img = _patch_refine_hole(img, hole, stats, patch_refine, tile, alpha, progress)
+            keep("patch refine", name, img)
         if material.normal_[i]:
             img[hole] = renormalise(img[hole][None])[0]  # (k, 3) pixels as one row
         if material.levels_[i] is not None or material.channel_levels_[i] is not None:
             # a mask map's own levels, or a packed map's mask channel's (tghop.masks)
             img[hole] = snap_map(img[hole][None], material.levels_[i], material.channel_levels_[i])[0]
         out[name] = with_alpha(_into(given[name], hole, img[hole]), alphas.get(name), hole)
+        keep("maps", name, img)
         report(progress, "refine", i + 1, len(names))
-    return out
+    return (out, carry_steps(steps, ("refine", "patch refine", "maps"))) if return_stages else out
 
 
 def _patch_refine_hole(image, hole, stats, n_steps, tile, alpha, progress):

@@ -60,7 +60,7 @@ from .synthesis import TGHop, default_channels, prepare_exemplar
 __all__ = ["Material", "is_normal_name", "normal_convention", "check_normal_map", "drop_opaque_alpha", "renormalise",
            "example_maps", "map_name", "check_map_names", "MapNameClashError", "map_kind",
            "looks_like_normal_map", "ALBEDO", "MAP_NAME", "MAP_NAME_MAX", "MAP_KINDS", "NORMAL_LOOK_SHARE",
-           "NORMAL_LOOK_MEAN", "colour_spread", "COLOUR_SPREAD", "one_value_a_pixel"]
+           "NORMAL_LOOK_MEAN", "colour_spread", "COLOUR_SPREAD", "one_value_a_pixel", "carry_steps"]
 
 #: Bits per channel a map's file may have (what a model file accepts).
 DEPTHS = (8, 16, 32)
@@ -164,6 +164,16 @@ def one_value_a_pixel(image) -> bool:
     arr = np.asarray(image)[::2, ::2]
     varying = [c for c in range(arr.shape[2]) if np.ptp(arr[..., c]) >= 1 / 512] if arr.size else []
     return all(np.abs(arr[..., c] - arr[..., varying[0]]).max() < 1 / 512 for c in varying[1:])
+
+
+def carry_steps(steps, own):
+    """A material's steps in order (:meth:`Material.synthesize`'s and :func:`tghop.inpaint.inpaint_material`'s
+    ``stages``): ``steps`` (step -> ``{name: map}``, or ``"pool"`` -> its patches) with the joint model's first,
+    then each map's of ``own`` in that order, each step's dict holding every map (one it left alone as before it)."""
+    ordered, last = {}, {}
+    for step in [k for k in steps if k not in own] + [k for k in own if k in steps]:
+        ordered[step] = steps[step] if step == "pool" else (last := {**last, **steps[step]})
+    return ordered
 
 
 def _depth_of(arr) -> int:
@@ -541,10 +551,7 @@ class Material(ImageInputMixin, BaseEstimator):
             out[name] = to_uint8(img).reshape(img.shape) if dtype == np.uint8 else img.astype(dtype, copy=False)
             keep("maps", name, out[name] / np.float32(255) if dtype == np.uint8 else out[name])
             report(progress, "maps", i + 1, len(self.names_))
-        ordered, last, own = {}, {}, ("refine", "patch refine", "colour", "maps")  # a map a step left: as before it
-        for step in [k for k in steps if k not in own] + [k for k in own if k in steps]:
-            ordered[step] = steps[step] if step == "pool" else (last := {**last, **steps[step]})
-        return (out, ordered) if return_stages else out
+        return (out, carry_steps(steps, ("refine", "patch refine", "colour", "maps"))) if return_stages else out
 
     def albedo_patch_levels(self) -> int:
         """The levels of the albedo's patch statistics (0.59), as the file's metadata and the page's quality switch

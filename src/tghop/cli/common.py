@@ -26,7 +26,8 @@ from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
            "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
-           "quiet_tifffile", "examples", "STAGES", "MATERIAL_STAGES", "stage_paths"]
+           "quiet_tifffile", "examples", "STAGES", "MATERIAL_STAGES", "stage_paths",
+           "material_stage_files"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -744,18 +745,18 @@ def warn_lost_depth(items, path, depth, noun=None):
                   "to keep them")
 
 
-def _material_stages(material, output, plan, names):
+def material_stage_files(output, plan, names):
     """``{step: [(name, path, depth)]}`` of --stages for a material written to ``output`` (``plan``:
-    :func:`material_outputs`'): OUT_<step>.EXT for the albedo, OUT_<step>_<suffix>.EXT for each other map, at
-    ``plan``'s depths (not :func:`tghop.material_files.map_files`, whose colour word would take OUT_colour's
-    maps for OUT's)."""
+    :func:`material_outputs`', ``(name, path, depth)`` of each map, the albedo first): OUT_<step>.EXT for the albedo,
+    OUT_<step>_<suffix>.EXT for each other map, at ``plan``'s depths (not :func:`tghop.material_files.map_files`,
+    whose colour word would take OUT_colour's maps for OUT's); ``names``: the steps."""
     from ..material_files import map_suffixes
 
     out = {}
     for step, path in stage_paths(output, names).items():
         p = Path(path)
         out[step] = [(name, path if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}")), d)
-                     for (name, _, d), suffix in zip(plan, map_suffixes(material.names_))]
+                     for (name, _, d), suffix in zip(plan, map_suffixes([name for name, _, _ in plan]))]
     return out
 
 
@@ -773,7 +774,7 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
         raise click.UsageError("a material writes a file per map; give -o a file name (e.g. -o out.png)")
     plans = [material_outputs(material, path, depth) for path in outputs]
     names = stages if isinstance(stages, tuple) else MATERIAL_STAGES
-    staged = [_material_stages(material, path, plan, names) for path, plan in zip(outputs, plans)] if stages else [
+    staged = [material_stage_files(path, plan, names) for path, plan in zip(outputs, plans)] if stages else [
         {}] * len(outputs)
     steps_planned = [("--stages", path) for steps in staged for plan in steps.values() for _, path, _ in plan]
     for plan in plans:

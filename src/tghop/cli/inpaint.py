@@ -11,7 +11,8 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
-                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples, stage_paths)
+                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples, stage_paths,
+                     material_stage_files, MATERIAL_STAGES)
 from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -19,6 +20,9 @@ __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
 #: ``--anchor``'s values: :data:`tghop.inpaint.ANCHORS` (not imported: the command line
 #: starts without NumPy; a test checks that the two agree).
 ANCHOR_CHOICES = ("center", "top", "bottom", "left", "right", "top-left", "top-right", "bottom-left", "bottom-right")
+#: The steps --stages writes of a material's fill (:func:`tghop.inpaint.inpaint_material`'s; 0.61): a material's
+#: without its colour matching, which a fill has none of; "maps" the last, the maps written.
+FILL_STAGES = tuple(step for step in MATERIAL_STAGES if step != "colour")
 
 
 def _fill_options(fitted_on: str, tile_help: str):
@@ -41,7 +45,8 @@ def _fill_options(fitted_on: str, tile_help: str):
         click.option("--stages", is_flag=True,
                      help="Also write each step's picture beside OUTPUT, at its depth (0.61): OUTPUT_guide (the coarse "
                           "layout's fill, where the model has one), _quilt, _seams, _refine, _patch-refine (the last "
-                          "step's: the result itself; a two-level exemplar's: then _levels). Not with --maps."),
+                          "step's: the result itself; a two-level exemplar's: then _levels). With --maps each map's "
+                          "too (OUTPUT_quilt_<map>, ...), the last OUTPUT_maps*: the maps written."),
         depth_option("IMAGE's, as far as the output's format holds it"),
         QUIET_OPTION,
     ]
@@ -97,7 +102,8 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
         outputs = count_outputs(output, count)
         staged = _check_stages(stages, output, with_maps, outputs)
         if with_maps:
-            _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, mask=mask)
+            _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, mask=mask,
+                           stages=stages)
             tell_seed(seed, drawn, _same(count))
             return
         picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth,
@@ -151,7 +157,7 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         staged = _check_stages(stages, output, with_maps, outputs)
         if with_maps:
             _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress,
-                           grow=(size, anchor.lower()))
+                           grow=(size, anchor.lower()), stages=stages)
             tell_seed(seed, drawn, _same(count))
             return
         picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth, others=[],
@@ -209,16 +215,15 @@ def _check_maps(map_paths, with_maps, last):
 
 
 def _check_stages(stages, output, with_maps, outputs):
-    """--stages' files for each of ``outputs`` (:func:`~tghop.cli.common.stage_paths`; [] without it), or a usage
-    error where it cannot apply: -o - (no name to put them beside) or --maps."""
+    """--stages' files for each of ``outputs`` (:func:`~tghop.cli.common.stage_paths`; [] without it, or with --maps,
+    whose files :func:`_fill_material` names), or a usage error where it cannot apply: -o - (no name to put them
+    beside)."""
     if not stages:
         return []
     if output == "-":
         raise click.UsageError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's "
                                "image, so give -o a file name (e.g. -o out.png) or drop --stages")
-    if with_maps:
-        raise click.UsageError("--stages applies to a picture's fill, not a material's maps; drop it")
-    return [stage_paths(path) for path in outputs]
+    return [] if with_maps else [stage_paths(path) for path in outputs]
 
 
 def _open(image, outputs, source, scale, depth, *, others, maps=False, staged=()):
@@ -397,11 +402,15 @@ def _with_alpha(result, alpha, hole, image, output):
     return with_alpha(result, alpha, hole)
 
 
-def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, *, mask=None, grow=None):
+def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, progress, *, mask=None, grow=None,
+                   stages=False):
     """``inpaint --maps`` (``mask``) or ``extend --maps`` (``grow``: ``(size, anchor)``): IMAGE
     and its maps filled alike (:func:`tghop.inpaint.inpaint_material`) and written together,
     OUT and OUT_<suffix>.EXT (:func:`tghop.material_files.map_files`), each at its file's depth (or
-    ``depth``); once per file of ``outputs`` (--count's numbered files: a set each, one fit)."""
+    ``depth``); once per file of ``outputs`` (--count's numbered files: a set each, one fit). ``stages``
+    (--stages, 0.61): each step's maps too, OUT_<step>.EXT and OUT_<step>_<suffix>.EXT, without alpha."""
+    from pathlib import Path
+
     import numpy as np
 
     from ..imageio import check_depth, deepest, save_images
@@ -453,7 +462,11 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
         for _, out, _ in plan[1:]:
             check_output(out)
         plans.append(plan)
-    check_outputs([("-o", out) for plan in plans for _, out, _ in plan],
+    staged = [material_stage_files(out, plan, FILL_STAGES) for out, plan in zip(outputs, plans)] if stages else []
+    steps_planned = [("--stages", out) for steps in staged for plan in steps.values() for _, out, _ in plan]
+    for _, out in steps_planned:
+        check_output(out)
+    check_outputs([("-o", out) for plan in plans for _, out, _ in plan] + steps_planned,
                   [("IMAGE", image), ("--source", source)] + others)
     own = {"albedo": image_depth, **depths}
     warn_lost_depth([(name, own[name], d) for name, _, d in plans[0]], output, depth, "map")
@@ -474,10 +487,14 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
                                  progress)
     _check_size(image, picture.shape, material.model_.patch_size,
                 " of --source's material" if source is not None else "", None if grow is None else grow[0])
-    for plan in plans:  # each set drawn after the one before from rng: set k is any --count's k-th
+    for k, plan in enumerate(plans):  # each set drawn after the one before from rng: set k is any --count's k-th
         filled = inpaint_material(material, images, hole, rng=rng, tile=tile, progress=progress,
-                                  **({"order": "raster"} if grow is not None else {}))
+                                  return_stages=stages, **({"order": "raster"} if grow is not None else {}))
         progress.close()
+        if stages:
+            filled, steps = filled
+            save_images([(steps[step][name], out, d) for step, step_plan in staged[k].items() if step in steps
+                         for name, out, d in step_plan], progress=progress)
         filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, plan[0][1])
         save_images([(filled[name], out, d) for name, out, d in plan], progress=progress)
         progress.close()
@@ -486,6 +503,10 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
     click.echo(f"{what} in {len(plans[0])} maps, written to {', '.join(out for _, out, _ in plans[0])}{more}",
                err=True)
+    if stages:
+        written = [Path(steps[0][1]).name for steps in staged[0].values() if Path(steps[0][1]).exists()]
+        click.echo(f"steps written beside {'it' if len(plans) == 1 else 'each'}, each with its maps: "
+                   f"{', '.join(written)}", err=True)
 
 
 def _refuse_reordered(map_paths, material, source):
