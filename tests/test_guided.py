@@ -276,6 +276,27 @@ def _as_material(model, exemplar):
     return Material(model=TGHop(rng=0, **FAST), rng=0).fit(exemplar, {"height": exemplar.mean(axis=2)})
 
 
+def test_materials_whose_map_is_a_normal_map_in_one_alone_are_other_maps_everywhere(models, exemplars, tmp_path):
+    # 0.60: the library (synthesize_guided, morph) compared painted materials' maps with its own copy of the
+    # comparison, with their normal flags; the command line and the server (material_files.maps_compared) compared
+    # them without: synth of two such saved materials passed its check, then the library refused them as "input 2".
+    from tghop.material import Material
+    from tghop.material_files import maps_compared
+
+    a = Material(model=TGHop(rng=0, **FAST), rng=0).fit(exemplars[0], {"swirl": exemplars[0][::-1]})
+    b = copy.deepcopy(a)
+    b.normal_ = [False, True]  # its swirl map a normal map (as fit's normal=["swirl"] makes it)
+    assert maps_compared(copy.deepcopy(a), a) == "same" and maps_compared(b, a) == "other"
+    with pytest.raises(TGHopError, match="input 2's maps are albedo, swirl but input 1's are albedo, swirl"):
+        tghop.synthesize_guided([a, b], size=(48, 64), rng=1, **GEN)
+    save_model(a, tmp_path / "a.npz")
+    save_model(b, tmp_path / "b.npz")
+    r = cli("synth", tmp_path / "a.npz", tmp_path / "b.npz", "-o", tmp_path / "o.png", "--size", "48x64", "-q")
+    assert r.returncode == 1 and "SOURCE 2 (" in r.stderr.decode() and "has the maps swirl but SOURCE 1 (" in \
+        r.stderr.decode(), r.stderr.decode()
+    assert not list(tmp_path.glob("o*.png"))
+
+
 def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):
     a, b = exemplars
     guide = np.zeros((96, 192), dtype=np.uint8)

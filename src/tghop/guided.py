@@ -71,7 +71,7 @@ from .exemplar import drop_alpha
 from .guides import guide_labels
 from .masks import snap_channels, snap_to_levels
 from .material import Material, renormalise
-from .material_files import map_keys
+from .material_files import maps_compared
 from .normals import convention_flips, flip_green
 from .quilting import block_count
 
@@ -193,9 +193,8 @@ def _check_models(models, minimum=1, materials=False):
                              f"input 1 is{'' if whole[0] else ' not'}; give all materials or all texture models")
         for m in models:
             check_is_fitted(m, "model_")
-        for i, m in enumerate(models[1:], start=2):  # maps matched by their files' suffixes (Stone_Normal, Normal)
-            if (map_keys(m.names_), m.map_channels_, m.normal_) != (map_keys(models[0].names_),
-                                                                    models[0].map_channels_, models[0].normal_):
+        for i, m in enumerate(models[1:], start=2):  # maps matched by their kinds or suffixes (Stone_Normal, Normal)
+            if maps_compared(m, models[0]) != "same":  # as the command line and the server compare them (0.61)
                 raise TGHopError(f"input {i}'s maps are {', '.join(m.names_)} but input 1's are "
                                  f"{', '.join(models[0].names_)} (or their channels differ); give materials with the "
                                  "same maps")

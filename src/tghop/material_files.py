@@ -259,15 +259,18 @@ def map_keys(names) -> list:
 
 def maps_compared(material, first) -> str:
     """How ``material``'s maps compare with ``first``'s (two fitted materials), as painted, remixed and morphed
-    materials are matched (:func:`map_keys` and each map's channels, in order): "same", "order" (the same maps in
-    another order, which the command line and the server say so: 0.60's server said "has the maps ... but ...
-    has ...", naming the same maps twice) or "other"."""
-    mine, theirs = list(zip(map_keys(material.names_), material.map_channels_[1:])), list(zip(
-        map_keys(first.names_), first.map_channels_[1:]))
-    if mine == theirs and material.map_channels_[0] == first.map_channels_[0]:
-        return "same"
-    return "order" if sorted(mine) == sorted(theirs) and material.map_channels_[0] == first.map_channels_[0] \
-        else "other"
+    materials are matched (:func:`map_keys`, each map's channels and its normal flag, in order; the albedo's
+    channels): "same", "order" (the same maps in another order, which the command line and the server say so:
+    0.60's server said "has the maps ... but ... has ...", naming the same maps twice) or "other". The one
+    comparison of the library (:func:`tghop.synthesize_guided`, :func:`tghop.morph`), the command line and the
+    server (0.61: the last two did not compare the normal flags, which the library refused after them)."""
+    def maps(m):
+        return list(zip(map_keys(m.names_), m.map_channels_[1:], m.normal_[1:]))
+
+    mine, theirs = maps(material), maps(first)
+    if material.map_channels_[0] != first.map_channels_[0]:
+        return "other"
+    return "same" if mine == theirs else "order" if sorted(mine) == sorted(theirs) else "other"
 
 
 def _shared_words(words) -> int:
