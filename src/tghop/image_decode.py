@@ -105,8 +105,6 @@ def open_image(path, *, say=True):
 
 def _warn_exif(path, why):
     """Say that the EXIF block of the image at ``path`` is damaged (``why``, Pillow's words for it)."""
-    import os
-
     warn(f"{os.path.basename(os.fsdecode(path))}: its EXIF data is damaged ({why.strip().rstrip('.')}); its "
          "orientation is not read: the pixels are taken as stored")
 

@@ -49,8 +49,8 @@ from .depths import to_uint8
 from .map_names import (ALBEDO, MAP_KINDS, MAP_NAME, MAP_NAME_MAX, SCALAR_KINDS, MapNameClashError, check_map_names,
                         is_normal_name, keeps_alpha, map_kind, map_name, name_kind, normal_convention)
 from .masks import MASK_LEVELS, channel_levels, mask_levels, snap_map
-from .normals import (NORMAL_LOOK_MEAN, NORMAL_LOOK_SHARE, NORMAL_TOLERANCE, check_normal_map, convention_of,
-                      looks_like_normal_map, renormalise, surface_map)
+from .normals import (NORMAL_LOOK_MEAN, NORMAL_LOOK_SHARE, check_normal_map, convention_of, looks_like_normal_map,
+                      renormalise, surface_map)
 from .patch_refine import PatchStatistics, fit_patch_statistics, refine_image, steps_for
 from .refine import BandStatistics, refine as refine_bands
 from .scale import rescale, rescale_mask
