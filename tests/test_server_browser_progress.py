@@ -4,7 +4,7 @@ request names: test_server_progress.py); Generate's and 8 seeds' errors are said
 strip of seeds whose model is no longer the working one when it ends is cleared; Morph's fields and
 Paint's mix of a material with a texture model are said on the page, not sent to be refused; the server's
 warning of a guide or label map it scaled (X-Tghop-Warning) is said with the result; what reading a model file
-kept by an earlier server warned of is said when the model is used (0.58)."""
+kept by an earlier server warned of is said when the model is used (0.58); Morph says where its strip is (0.61)."""
 
 import json
 
@@ -170,6 +170,28 @@ def test_morphs_fields_are_checked_on_the_page(page):
     page.wait_for_function("document.getElementById('morph-message').textContent.startsWith('done (seed 1)')",
                            timeout=60_000)
     assert len(sent) == 1
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_morph_says_where_its_strip_is(page):
+    # 0.60 said "the strip is below" in a wide window too, where the strip sits beside the exemplar.
+    fit(page, "cells")
+    fit(page, "bricks")
+    chromium.choose_mode(page, "morph")
+    page.fill("#morph-height", "32")
+    page.fill("#morph-width", "64")
+    try:
+        for seed, width, where in ((3, 1200, "beside"), (4, 400, "under")):
+            page.set_viewport_size({"width": width, "height": 800})
+            page.fill("#morph-seed", str(seed))
+            page.click("#morph-go")
+            said = page.wait_for_function("document.getElementById('morph-message').textContent.startsWith('done')"
+                                          " && document.getElementById('morph-message').textContent",
+                                          timeout=60_000).json_value()
+            assert said == f"done (seed {seed}): the strip is {where} the exemplar", said
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 

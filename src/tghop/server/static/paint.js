@@ -304,7 +304,16 @@ function onMorph() {
                                                   (headers) => postImage("/api/images/morph", body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "morph", maps,  // two materials': every map (0.60)
                { models: [a.stem, "to", b.stem], size: body.size, tile: false, of: `${a.stem} to ${b.stem}` });
-    sayMorph(`done (seed ${seed}): the strip is below`);
     await reveal($("result"));  // scrolled to where wholly out of sight (0.61: a narrow window's was below the fold)
+    const place = placeBy($("result"), $("exemplar"));  // 0.60 said "the strip is below" beside the exemplar too
+    sayMorph(`done (seed ${seed}): the strip is ${place ? `${place} the exemplar` : "below"}`);
   }, sayMorph);
+}
+
+// Where `el` is shown from `ref`: "beside" it (a row of their own: the result and the exemplar in a wide window) or
+// "under" it (a narrow window); null where `ref` is not shown.
+function placeBy(el, ref) {
+  const a = el.getBoundingClientRect(), b = ref.getBoundingClientRect();
+  if (ref.hidden || !b.height) return null;
+  return a.top < b.bottom - 1 ? "beside" : "under";
 }
