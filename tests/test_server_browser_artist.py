@@ -1,7 +1,7 @@
 """``tghop serve``'s page used as an artist uses it, in a real browser (Chromium through Playwright) against a real
 uvicorn server (0.59): Generate's fields and the fit settings outlive a reload as the model and the results do, and
 (0.60) so do the result shown and the modes' fields (a result generated again with the same settings and seed is
-kept once); Fill makes fills to pick from (0.60, as tghop inpaint --count);
+kept once); Fill makes fills to pick from (0.60, as tghop inpaint --count; a strip stopped shows fill 1, 0.61);
 maps of another size than their albedo are refused on the page, not sent (dropped at once with it, or added while a
 built-in browsed to by keyboard waits); a result shown beside another model's exemplar names its model; Inpaint
 shows its picture whole with its tools at 1024x700, and so does Paint its canvas, and (0.60) Co-occurrence its
@@ -423,6 +423,38 @@ def test_a_fill_picked_while_the_strip_still_comes_leaves_the_rest_of_the_strip_
     sync_api.expect(page.locator("#strip")).to_have_accessible_name("3 fills to pick from")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+def test_a_strip_of_fills_stopped_shows_the_first_fill_that_came(page):
+    # Stop pressed while fill 3 of 3 came kept fills 1 and 2 in the strip but showed neither as the result, "stopped"
+    # said alone (0.60): a finished strip shows fill 1.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, 7, size=(64, 64))
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    stroke_across(page)
+    page.fill("#inpaint-seed", "5")
+    page.fill("#inpaint-count", "3")
+    with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
+        page.click("#fill")
+        answers.send_next()  # fill 1
+        answers.send_next()  # fill 2
+        page.wait_for_function("document.querySelectorAll('#strip img').length === 2", timeout=60_000)
+        answers.wait()  # fill 3's, held while Stop is pressed
+        page.click("#fill")  # it reads Stop
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill'", timeout=30_000)
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 5, "
+                           "fill 1'", timeout=10_000)
+    assert page.text_content("#inpaint-message") == (
+        "stopped at fill 3 of 3: fills 1 and 2 are under the picture, fill 1 shown (click one to pick it); Undo goes "
+        "back to the picture before")
+    assert page.eval_on_selector_all("#strip img", "l => l.map((i) => i.classList.contains('chosen'))") == [
+        True, False]
+    page.click("#strip figure:nth-child(2) img")
+    page.wait_for_function("document.getElementById('result-caption').textContent.endsWith('fill 2')")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
 
 def test_a_strip_of_fills_is_seen_with_its_picture_at_1024x700(page):
     # At 1024x700 a 128x192 result filled the window to paint on, and the fills to pick from came under it, below the

@@ -404,7 +404,13 @@ async function fillStrip(mask, count, size) {
       }
     }
   } catch (e) {
-    if (!run.dropped) throw e;  // stopped by its button, or an error: said as any Fill's
+    if (!run.dropped && e.name === "AbortError" && shown) {  // stopped by its button: the fills that came kept, fill 1
+      shown.click();  // shown as a finished strip's is (0.60 showed none of them, "stopped" said alone)
+      const came = k === 2 ? "fill 1 is" : `fills 1 ${k === 3 ? "and" : "to"} ${k - 1} are`;
+      return [null, withWarning(`stopped at fill ${k} of ${count}: ${came} under the picture, fill 1 shown (click ` +
+                                "one to pick it); Undo goes back to the picture before", warned)];
+    }
+    if (!run.dropped) throw e;  // stopped before any came, or an error: said as any Fill's
     return [null, `the fills stopped at fill ${k} of ${count}: another mode or model was chosen, and their strip went`];
   } finally {
     run.running = false;
@@ -425,7 +431,7 @@ function onFill() {
     const img = $("editor-base"), size = [img.naturalHeight, img.naturalWidth];
     if (Number(count.value) > 1) {
       const [seed, warning] = await fillStrip(mask, Number(count.value), size);
-      if (seed === null) { sayInpaint(warning); return; }  // cleared while they came (clearStrip)
+      if (seed === null) { sayInpaint(warning); return; }  // cleared while they came (clearStrip), or stopped
       sayInpaint(withWarning(`${count.value} fills of seed ${seed} under the picture, as tghop inpaint --seed ` +
         `${seed} --count ${count.value} makes them: click one to pick it (fill 1 is shown); Undo goes back to the ` +
         "picture before", warning));
