@@ -4,7 +4,8 @@ request names: test_server_progress.py); Generate's and 8 seeds' errors are said
 strip of seeds whose model is no longer the working one when it ends is cleared; Morph's fields and
 Paint's mix of a material with a texture model are said on the page, not sent to be refused; the server's
 warning of a guide or label map it scaled (X-Tghop-Warning) is said with the result; what reading a model file
-kept by an earlier server warned of is said when the model is used (0.58); Morph says where its strip is (0.61)."""
+kept by an earlier server warned of is said when the model is used (0.58); Morph says where its strip is, and Paint's
+result is a click away from its canvas at 1024x700 (0.61)."""
 
 import json
 
@@ -287,9 +288,11 @@ def halved(page, pattern, default=None):
     return routed()
 
 
-#: The status said with a result, with the server's warning of the guide (or label map) scaled.
-SCALED = ("done (seed 2): the result is below. Warning: the {what} was scaled from {h}x{w} to {hh}x{ww}, the "
-          "output's size (nearest neighbour: its regions kept as painted)")
+#: The status said with a painted result (0.61: its thumbnail beside the canvas), and the server's warning of the guide
+#: (or label map) scaled that follows a result's status.
+PAINTED = "done (seed 2): the result is below, its thumbnail beside the canvas (click it to go there)"
+SCALED = (". Warning: the {what} was scaled from {h}x{w} to {hh}x{ww}, the output's size (nearest neighbour: its "
+          "regions kept as painted)")
 
 
 def test_a_guide_the_server_scaled_is_said_with_the_result(page):
@@ -321,12 +324,61 @@ def test_a_guide_the_server_scaled_is_said_with_the_result(page):
 
     with halved(page, "**/api/images/guided", default=(64, 96)):
         said = paint()
-    assert said == SCALED.format(what="guide", h=64, w=96, hh=32, ww=48), said
+    assert said == PAINTED + SCALED.format(what="guide", h=64, w=96, hh=32, ww=48), said
     assert not page.eval_on_selector("#paint-message", "e => e.classList.contains('error')")
     page.wait_for_function("document.getElementById('result-caption').textContent === 'painted: 32x48, seed 2 (' +"
                            " pickedModels().map((m) => m.stem).join(' + ') + ')'")  # its models named
-    assert paint() == "done (seed 2): the result is below"  # painted at the size asked: nothing to warn of
+    assert paint() == PAINTED  # painted at the size asked: nothing to warn of
     chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_paints_result_is_a_click_away_from_its_canvas_at_1024x700(page):
+    # At 1024x700 Paint's and Remix's result came under the canvas, out of sight: "done (seed 2): the result is below",
+    # the artist scrolling down to it and back up to paint again (0.60).
+    chromium.choose_mode(page, "view")
+    fit(page, "cells")
+    fit(page, "bricks")
+    page.fill("#height", "128")
+    page.fill("#width", "128")
+    page.fill("#n_patches", "300")
+    page.set_viewport_size({"width": 1024, "height": 700})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "paint")
+        for box in page.locator("#paint-models input").all():
+            box.uncheck()
+        for name in ("builtin:bricks", "builtin:cells"):
+            page.locator("#paint-models label", has_text=name).locator("input").check()
+        page.evaluate("""() => { resizeGuide(); const [a, b] = pickedModels();
+          for (let i = 0; i < guide.labels.length; i++) guide.labels[i] = i % guide.w < 64 ? a.index : b.index; }""")
+        page.fill("#paint-seed", "2")
+        for button in ("#paint-go", "#remix-go"):
+            page.evaluate("() => { document.getElementById('paint-message').textContent = ''; }")
+            page.click(button)
+            said = page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('done')"
+                                          " && document.getElementById('paint-message').textContent",
+                                          timeout=120_000).json_value()
+            assert said == PAINTED, said
+            assert not page.evaluate(IN_VIEW_JS, "result")  # under the canvas
+            for seen in ("guide", "paint-result-img"):
+                assert page.evaluate(IN_VIEW_JS, seen), seen
+            thumb, canvas = (page.locator(s).bounding_box() for s in ("#paint-result-img", "#guide"))
+            assert thumb["x"] > canvas["x"] + canvas["width"] and thumb["y"] < canvas["y"] + canvas["height"]
+            assert page.eval_on_selector("#paint-result-img", "i => i.naturalWidth") == 128
+        page.click("#paint-result-go")
+        page.wait_for_function(IN_VIEW_JS, arg="result", timeout=5_000)
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.choose_mode(page, "view")
+        page.fill("#seed", "3")
+        page.click("#go")  # another result: the thumbnail goes with the one it is of
+        page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 128x128, seed 3'",
+                               timeout=60_000)
+        chromium.choose_mode(page, "paint")
+        assert page.is_hidden("#paint-result")
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
 
@@ -350,7 +402,8 @@ def test_a_label_map_the_server_scaled_is_said_with_the_result(page, tiny_cooc_c
         said = page.wait_for_function("document.getElementById('cooc-message').textContent.startsWith('done')"
                                       " && document.getElementById('cooc-message').textContent",
                                       timeout=120_000).json_value()
-    assert said == SCALED.format(what="label map", h=40, w=64, hh=20, ww=32), said
+    assert said == "done (seed 2): the result is below" + SCALED.format(what="label map", h=40, w=64, hh=20,
+                                                                        ww=32), said
     page.wait_for_function("document.getElementById('result-caption').textContent === 'cooc-edit: 20x32, seed 2'")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors

@@ -139,6 +139,7 @@ async function init() {
     $(id).addEventListener("change", () => { if (!$("paint").hidden) resizeGuide(); });
   }
   $("paint-go").addEventListener("click", () => onPaintGenerate(false));
+  $("paint-result-go").addEventListener("click", goToPainted);
   $("remix-go").addEventListener("click", () => onPaintGenerate(true));
   $("morph-go").addEventListener("click", onMorph);
   for (const id of ["morph-a", "morph-b"]) $(id).addEventListener("change", morphPicked);

@@ -64,6 +64,7 @@ function showPicture(url, what, seed, filename, of) {
   link.href = url;
   link.setAttribute("download", filename);
   link.hidden = false;
+  if (typeof followResult === "function") followResult();  // paint.js: Paint's thumbnail of its result
 }
 
 // The result's caption: what it is, its size and seed, and the models of a result of several; a result of one model

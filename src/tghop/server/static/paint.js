@@ -243,8 +243,33 @@ function onPaintGenerate(remix) {
     const name = { models: picked.map((m) => m.stem), size: body.size || [guide.h, guide.w], tile: Boolean(body.tile),
       of: picked.map((m) => m.stem).join(" + ") };
     showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps, name);
-    sayPaint(withWarning(`done (seed ${seed}): the result is below`, warning));
+    showPainted(blob);
+    const place = placeBy($("paint-result"), $("guide-box"));
+    const thumb = `its thumbnail ${place ? `${place} the canvas ` : ""}(click it to go there)`;
+    sayPaint(withWarning(`done (seed ${seed}): the result is below, ${thumb}`, warning));
+    await reveal($("paint-result-img"));  // under the canvas in a narrow window
   }, sayPaint);
+}
+
+// Paint's and Remix's last result as a thumbnail beside the canvas (0.61: it came below the canvas only, out of sight
+// at 1024x700, "the result is below"); a click on it scrolls to the result. Shown while that result is the one shown.
+const painted = { blob: null, url: null };
+
+function showPainted(blob) {
+  if (painted.url) URL.revokeObjectURL(painted.url);
+  painted.blob = blob;
+  painted.url = URL.createObjectURL(blob);
+  $("paint-result-img").src = painted.url;
+  followResult();
+}
+
+// Called whenever the result shown changes (showPicture): the thumbnail goes with the result it is of.
+function followResult() {
+  $("paint-result").hidden = !painted.blob || !state.lastShown || state.lastShown.blob !== painted.blob;
+}
+
+function goToPainted() {
+  $("result").scrollIntoView({ block: "nearest" });
 }
 
 // A morph goes between two texture models, or two materials with the same maps (0.60, as tghop morph takes them: every
