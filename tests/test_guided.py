@@ -640,6 +640,17 @@ def _run(args, cwd):
     return cli(*args, cwd=cwd)  # in this process: the same exit status and output, no interpreter to start
 
 
+def test_cli_stages_to_stdout_of_several_sources_names_their_first_step(tmp_path):
+    # It said "it writes OUTPUT_quilt" of a paint or remix (0.61 before this fix), whose steps are OUTPUT_regions,
+    # _layers, _join; refused before any SOURCE is read.
+    for extra in (["b.npz"], ["--guide", "map.png"], ["b.npz", "--guide", "map.png"]):
+        r = _run(["synth", "a.npz", *extra, "-o", "-", "--stages"], tmp_path)
+        err = r.stderr.decode()
+        assert r.returncode == 2 and "it writes OUTPUT_regions and the others" in err and not r.stdout, err
+    r = _run(["synth", "a.npz", "-o", "-", "--stages"], tmp_path)
+    assert r.returncode == 2 and "it writes OUTPUT_quilt and the others" in r.stderr.decode()
+
+
 def test_cli_guided_synth_and_morph(models, tmp_path):
     save_model(models[0], tmp_path / "a.npz")
     save_model(models[1], tmp_path / "b.npz")

@@ -320,8 +320,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         first = count_outputs(output, count)[0]
         check_output(first, allow_stdout=True, depth=depth)
         check_depth(first, depth or 8)
-        if stages and output == "-":
-            raise click.UsageError("--stages needs a file name: it writes OUTPUT_quilt and the others next to -o's "
+        if stages and output == "-":  # several SOURCEs' steps are OUTPUT_regions, _layers, _join (0.61)
+            first_step = "OUTPUT_regions" if len(sources) > 1 or guide is not None else "OUTPUT_quilt"
+            raise click.UsageError(f"--stages needs a file name: it writes {first_step} and the others next to -o's "
                                    "image, so give -o a file name (e.g. -o out.png) or drop --stages")
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
