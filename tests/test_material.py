@@ -514,6 +514,22 @@ def test_cli_stages_of_a_material_writes_each_steps_maps_the_last_its_output(mat
     assert res.exit_code == 0 and np.array_equal(load_image(plain / "o.png"), load_image(tmp_path / "o.png"))
 
 
+def test_cli_stages_of_a_material_with_a_map_named_as_a_step_say_so(material, tmp_path):
+    # A map named 'quilt' is written as o_quilt.png, the albedo's quilt step's name: it was refused as "-o and
+    # --stages: one would be written over the other; give each its own name", which no -o can do.
+    import copy
+
+    named = copy.deepcopy(material)
+    named.names_ = [("quilt" if name == "roughness" else name) for name in named.names_]
+    save_model(named, tmp_path / "mat.npz")
+    res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size",
+                                    "64", "--seed", "1", "-q", "--stages"])
+    assert res.exit_code == 1 and "Traceback" not in res.output and res.output.strip().count("\n") == 0, res.output
+    assert (f"Error: map quilt is written as {tmp_path / 'o_quilt.png'}, the name --stages gives the quilt step's "
+            "albedo; drop --stages, or give that map's file another name") in res.output, res.output
+    assert not list(tmp_path.glob("*.png"))  # nothing made
+
+
 def test_cli_patch_refines_a_materials_albedo(material, tmp_path):
     """0.59: synth MAT --patch-refine N (and --quality best) refine the albedo; 0.58 refused them for a material."""
     save_model(material, tmp_path / "mat.npz")

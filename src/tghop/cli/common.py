@@ -757,6 +757,13 @@ def material_stage_files(output, plan, names):
         p = Path(path)
         out[step] = [(name, path if suffix is None else str(p.with_name(f"{p.stem}_{suffix}{p.suffix}")), d)
                      for (name, _, d), suffix in zip(plan, map_suffixes([name for name, _, _ in plan]))]
+    written = {path: name for name, path, _ in plan}  # a map named as a step (Rock_quilt: OUT_quilt): said so
+    for step, files in out.items():
+        for name, path, _ in files:
+            if path in written:
+                raise TGHopError(f"map {written[path]} is written as {path}, the name --stages gives the {step} "
+                                 f"step's {name}; drop --stages, or give that map's file another name (a saved "
+                                 "material's: fit it again)")
     return out
 
 
