@@ -514,6 +514,14 @@ def test_cli_stages_of_a_material_writes_each_steps_maps_the_last_its_output(mat
     assert res.exit_code == 0 and np.array_equal(load_image(plain / "o.png"), load_image(tmp_path / "o.png"))
 
 
+def test_synth_help_names_every_step_a_material_writes():
+    # It named OUTPUT_quilt first and _maps last: a material with a layout writes OUTPUT_guide first, and each
+    # material writes OUTPUT_colour (after _patch-refine), which it did not name.
+    text = " ".join(CliRunner().invoke(main, ["synth", "--help"]).output.split())
+    said = text[text.index("A material's (0.61)"):text.index("Several SOURCEs or --guide (0.61)")]
+    assert "OUTPUT_guide, OUTPUT_guide_<map>, where it has a layout" in said and "_colour after _patch-refine" in said
+
+
 def test_cli_stages_of_a_material_with_a_map_named_as_a_step_say_so(material, tmp_path):
     # A map named 'quilt' is written as o_quilt.png, the albedo's quilt step's name: it was refused as "-o and
     # --stages: one would be written over the other; give each its own name", which no -o can do.

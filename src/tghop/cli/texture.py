@@ -288,8 +288,9 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--stages", is_flag=True,
               help="Also write each step's image beside OUTPUT, at its depth: OUTPUT_guide (the coarse layout's), "
                    "_quilt, _seams, _refine, then _patch-refine or _colour (the last step's: the image itself; "
-                   "a two-level exemplar's: then _levels, snapped to them). A material's (0.61): each step's maps, "
-                   "OUTPUT_quilt, OUTPUT_quilt_<map>, ..., its last _maps (the maps written). Several SOURCEs or "
+                   "a two-level exemplar's: then _levels, snapped to them). A material's (0.61): each step's maps "
+                   "(OUTPUT_guide, OUTPUT_guide_<map>, where it has a layout, OUTPUT_quilt, OUTPUT_quilt_<map>, ...), "
+                   "_colour after _patch-refine, its last _maps (the maps written). Several SOURCEs or "
                    "--guide (0.61): _regions (the labels as grey levels), _layers (each region its own texture) and "
                    "_join (the image).")
 @QUIET_OPTION
