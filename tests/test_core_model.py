@@ -1226,6 +1226,10 @@ def test_inspection_refuses_bad_shapes_and_labels(small_model):
     for labels in ([0], [0, n], [0.0, 1.0], [-1, 0]):
         with pytest.raises(TGHopError, match=rf"labels must be 2 cluster indices from 0 to {n - 1}"):
             ichm.unmix(np.zeros((2, d)), labels=np.array(labels))
+    for labels, low, high in (([0, n], 0, n), ([-1, 0], -1, 0)):  # it said "got an array of shape (2,) and type
+        with pytest.raises(TGHopError, match=re.escape(f"from 0 to {n - 1} (integers), got indices from {low} to "
+                                                       f"{high}")):  # int64", as if those were wrong
+            ichm.unmix(np.zeros((2, d)), labels=np.array(labels))
     for x in (np.zeros((2, 16, 16, 3)), np.zeros((2, 32, 32, 1))):
         with pytest.raises(TGHopError, match=re.escape(f"patches must have shape (n, 32, 32, 3) for this fitted "
                                                        f"model, got {x.shape}")):

@@ -642,8 +642,11 @@ class ICHM(ICHMStorageMixin, TransformerMixin, BaseEstimator):
         if labels.ndim != 1 or (n is not None and len(labels) != n) or labels.dtype.kind not in "iu" or (
                 len(labels) and not 0 <= labels.min() <= labels.max() < n_clusters):
             count = "a 1-D array of" if n is None else n
+            got = f"an array of shape {labels.shape} and type {labels.dtype}"
+            if labels.ndim == 1 and labels.dtype.kind in "iu" and (n is None or len(labels) == n):
+                got = f"indices from {labels.min()} to {labels.max()}"  # the range is what is wrong: said (0.61)
             raise TGHopError(f"{where}: labels must be {count} cluster indices from 0 to {n_clusters - 1} (integers), "
-                             f"got an array of shape {labels.shape} and type {labels.dtype}")
+                             f"got {got}")
         return labels.astype(np.int64, copy=False)
 
     def predict(self, Z, *, chunk=4096):
