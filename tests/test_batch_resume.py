@@ -56,9 +56,11 @@ def test_a_full_disk_stops_the_run_at_once_and_the_rerun_does_the_rest(tmp_path,
     monkeypatch.setattr(batch, "write_contact_sheet", no_space_for_the_sheet)
     with pytest.raises(TGHopError, match=r"^the disk of .*out is full \(e\d: .*No space left on device.*\); the run "
                                          r"stopped: the exemplars recorded are in the ledger, .*free some space "
-                                         r"first$"):
+                                         r"first$") as stop:
         run(src, out)
     assert len(tried) == 1
+    # the model's file named where it goes (0.60: in the task's hidden folder, out/e0/.partial.x.tmp/e0.npz)
+    assert f"{out}/e0/e0.npz: writing the model failed" in str(stop.value) and ".partial" not in str(stop.value)
     lines = ledger(out)
     assert [(line["status"], line["cause"]) for line in lines] == [("failed", "run")], lines  # tried again next run
     assert not list(out.rglob(".batch-running")) and not list(out.rglob("*.tmp"))

@@ -281,6 +281,8 @@ def process_exemplar(job: dict) -> dict:
         record["cause"] = "run"
     except Exception as exc:  # noqa: BLE001 - one exemplar's failure is recorded, the batch goes on
         record["error"] = one_line(exc)
+        if stage is not None:  # a file named where it goes, not in the hidden folder (0.60: .../.partial.x.tmp/N.npz)
+            record["error"] = record["error"].replace(f"{stage}{os.sep}", f"{folder}{os.sep}")
         # The input's (not an image, flat, too small, a bad map): a rerun skips it until its files or
         # settings change (tghop.batch_plan.is_known_failure). Anything else is tried again.
         input_fault = phase == "input" and isinstance(exc, TGHopError) and not outside_the_files(exc)
