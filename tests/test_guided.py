@@ -281,20 +281,39 @@ def test_materials_whose_map_is_a_normal_map_in_one_alone_are_other_maps_everywh
     # comparison, with their normal flags; the command line and the server (material_files.maps_compared) compared
     # them without: synth of two such saved materials passed its check, then the library refused them as "input 2".
     from tghop.material import Material
-    from tghop.material_files import maps_compared
+    from tghop.material_files import maps_compared, maps_refused
 
     a = Material(model=TGHop(rng=0, **FAST), rng=0).fit(exemplars[0], {"swirl": exemplars[0][::-1]})
     b = copy.deepcopy(a)
     b.normal_ = [False, True]  # its swirl map a normal map (as fit's normal=["swirl"] makes it)
     assert maps_compared(copy.deepcopy(a), a) == "same" and maps_compared(b, a) == "other"
-    with pytest.raises(TGHopError, match="input 2's maps are albedo, swirl but input 1's are albedo, swirl"):
+    # the map that differs named, and the fix, in one wording (0.60 named every map twice: "input 2's maps are
+    # albedo, swirl but input 1's are albedo, swirl", "SOURCE 2 (b.npz) has the maps swirl but SOURCE 1 has swirl")
+    with pytest.raises(TGHopError, match=r"^input 2's map swirl is a normal map but input 1's swirl is not; fit them "
+                                         r"with the same normal maps \(Material's normal; with 'auto', a map named "
+                                         r"\*normal\*"):
         tghop.synthesize_guided([a, b], size=(48, 64), rng=1, **GEN)
     save_model(a, tmp_path / "a.npz")
     save_model(b, tmp_path / "b.npz")
     r = cli("synth", tmp_path / "a.npz", tmp_path / "b.npz", "-o", tmp_path / "o.png", "--size", "48x64", "-q")
-    assert r.returncode == 1 and "SOURCE 2 (" in r.stderr.decode() and "has the maps swirl but SOURCE 1 (" in \
-        r.stderr.decode(), r.stderr.decode()
+    said = r.stderr.decode()
+    assert r.returncode == 1 and f"SOURCE 2 ({tmp_path / 'b.npz'})'s map swirl is a normal map but SOURCE 1 (" \
+        in said, said
+    assert "; fit them with the same normal maps (a map named *normal* or *nrm*" in said and said.count("swirl") == 2
     assert not list(tmp_path.glob("o*.png"))
+    from tghop.server.materials import same_kind
+    from tghop.server.requests import RequestError
+
+    with pytest.raises(RequestError, match=r"^models\[1\] \(bbbbbbbb\)'s map swirl is a normal map but models\[0\] "
+                                           r"\(aaaaaaaa\)'s swirl is not; fit them with the same normal maps"):
+        same_kind([a, b], ["a" * 16, "b" * 16])
+    c = copy.deepcopy(a)  # its swirl of one channel: that map named, its channels said
+    c.map_channels_ = [3, 1]
+    assert maps_refused(c, a, "input 2", "input 1") == "input 2's map swirl has 1 channel but input 1's swirl has " \
+        "3; give materials whose maps have the same channels"
+    c.map_channels_ = [1, 3]
+    assert maps_refused(c, a, "input 2", "input 1") == "input 2's albedo is greyscale but input 1's is in colour; " \
+        "give materials whose albedos are all in colour or all greyscale"
 
 
 def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):

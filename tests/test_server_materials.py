@@ -256,10 +256,10 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
 def test_materials_with_other_maps_are_not_painted_together(client, material_id):
     other = fit(client, {**albedo_file(), "map:normal": map_files()["map:normal"]})
     assert_error(client.post("/api/images/guided", json={"models": [material_id, other], "size": [32, 32]}),
-                 422, f"models[1] ({other[:8]}) has the maps albedo, normal but models[0]", "the same maps")
+                 422, f"models[1] ({other[:8]}) has the maps normal but models[0]", "the same maps")
     assert_error(client.post("/api/images/morph", json={"a": material_id, "b": other, "size": [32, 64]}),
-                 422, f"B ({other[:8]}) has the maps albedo, normal but A ({material_id[:8]}) has albedo, normal, "
-                 "height; morph materials with the same maps")
+                 422, f"B ({other[:8]}) has the maps normal but A ({material_id[:8]}) has normal, height; give "
+                 "materials with the same maps, matched by their kinds")
     # the same maps in another order: 0.60 said "B has the maps albedo, height, normal but A has albedo, normal,
     # height"
     files = map_files()

@@ -71,7 +71,7 @@ from .exemplar import drop_alpha
 from .guides import guide_labels
 from .masks import snap_channels, snap_to_levels
 from .material import Material, renormalise
-from .material_files import maps_compared
+from .material_files import NORMAL_BY_NAME, maps_refused
 from .normals import convention_flips, flip_green
 from .quilting import block_count
 
@@ -194,10 +194,10 @@ def _check_models(models, minimum=1, materials=False):
         for m in models:
             check_is_fitted(m, "model_")
         for i, m in enumerate(models[1:], start=2):  # maps matched by their kinds or suffixes (Stone_Normal, Normal)
-            if maps_compared(m, models[0]) != "same":  # as the command line and the server compare them (0.61)
-                raise TGHopError(f"input {i}'s maps are {', '.join(m.names_)} but input 1's are "
-                                 f"{', '.join(models[0].names_)} (or their channels differ); give materials with the "
-                                 "same maps")
+            refused = maps_refused(m, models[0], f"input {i}", "input 1", given="in Material.fit's maps",
+                                   normal_by="Material's normal; with 'auto', " + NORMAL_BY_NAME)
+            if refused:  # as the command line and the server say it (0.61)
+                raise TGHopError(refused)
         _check_models([m.model_ for m in models])
         return models
     for m in models:

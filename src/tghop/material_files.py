@@ -25,7 +25,8 @@ from pathlib import Path
 
 from .map_names import kind_key, name_kind, normal_convention
 
-__all__ = ["read_map", "map_files", "map_suffixes", "map_keys", "maps_compared", "RESOLUTION"]
+__all__ = ["read_map", "map_files", "map_suffixes", "map_keys", "maps_compared", "maps_refused", "RESOLUTION",
+           "NORMAL_BY_NAME"]
 
 #: A word of a map's name that is a resolution (``2K``, ``4k``, ``1024``, ``2048x2048``): dropped at
 #: either end of a map's suffix (Poly Haven's ``rock_wall_nor_gl_2k`` is ``nor_gl``).
@@ -271,6 +272,46 @@ def maps_compared(material, first) -> str:
     if material.map_channels_[0] != first.map_channels_[0]:
         return "other"
     return "same" if mine == theirs else "order" if sorted(mine) == sorted(theirs) else "other"
+
+
+NORMAL_BY_NAME = "a map named *normal* or *nrm*, or ending in _nor_gl, _nor_dx or _N, is a normal map"
+
+
+def maps_refused(material, first, label, label1, given="after --maps", normal_by=NORMAL_BY_NAME) -> str:
+    """Why ``material`` cannot be painted, remixed or morphed with ``first`` (:func:`maps_compared`), one line
+    naming the two as the caller does (``label``, ``label1``: "SOURCE 2 (b.npz)", "input 2") and the fix, in one
+    wording for the library, the command line and the server; "" where their maps are the same. ``given``: where the
+    caller's user gives a material's maps ("after --maps", "as the fields map:NAME"); ``normal_by``: what makes a
+    map a normal map there. A map that is a normal map in one material alone, or of other channels, is named (0.60
+    named every map of both, the same lists twice: "has the maps swirl but ... has swirl")."""
+    if maps_compared(material, first) == "same":
+        return ""
+
+    def say(m):
+        return "in colour" if m.map_channels_[0] > 1 else "greyscale"
+
+    if material.map_channels_[0] != first.map_channels_[0]:
+        return (f"{label}'s albedo is {say(material)} but {label1}'s is {say(first)}; give materials whose albedos "
+                "are all in colour or all greyscale")
+    mine, theirs = map_keys(material.names_), map_keys(first.names_)
+    names, names1 = ", ".join(material.names_[1:]), ", ".join(first.names_[1:])
+    if sorted(mine) != sorted(theirs):
+        return (f"{label} has the maps {names} but {label1} has {names1}; give materials with the same maps, matched "
+                "by their kinds (NormalGL and nor_gl are both a normal map) or else by the names after the name "
+                "their maps share")
+    for i, key in enumerate(mine, start=1):
+        j = theirs.index(key) + 1
+        a, b = material.names_[i], first.names_[j]
+        if material.normal_[i] != first.normal_[j]:
+            said = ("is a normal map but", "is not") if material.normal_[i] else ("is not a normal map but", "is")
+            return (f"{label}'s map {a} {said[0]} {label1}'s {b} {said[1]}; fit them with the same normal maps "
+                    f"({normal_by})")
+        if material.map_channels_[i] != first.map_channels_[j]:
+            c, c1 = material.map_channels_[i], first.map_channels_[j]
+            return (f"{label}'s map {a} has {c} channel{'s' if c > 1 else ''} but {label1}'s {b} has {c1}; give "
+                    "materials whose maps have the same channels")
+    return (f"{label} has its maps in another order ({names}) than {label1} ({names1}); fit it again with its maps "
+            f"{given} in that order: {names1}")
 
 
 def _shared_words(words) -> int:

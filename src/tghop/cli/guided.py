@@ -325,20 +325,13 @@ def _check_mixable(labels, read, options):
         return source.exemplar_shape_[2], source.patch_size
 
     first, label1 = read[0], labels[0]
-    if hasattr(first, "names_"):  # all materials (_same_kind): the same maps (by their files' suffixes), in order
-        from ..material_files import maps_compared
+    if hasattr(first, "names_"):  # all materials (_same_kind): the same maps (by their kinds or suffixes), in order
+        from ..material_files import maps_refused
 
         for label, source in zip(labels[1:], read[1:]):
-            compared = maps_compared(source, first)
-            if compared == "same":
-                continue
-            mine, theirs = ", ".join(source.names_[1:]), ", ".join(first.names_[1:])
-            if compared == "order":
-                raise TGHopError(f"{label} has its maps in another order ({mine}) than {label1} ({theirs}); fit it "
-                                 f"again with its maps after --maps in that order: {theirs}")
-            raise TGHopError(f"{label} has the maps {mine} but {label1} has {theirs}; give materials with the same "
-                             "maps (of the same channels), matched by their kinds (NormalGL and nor_gl are both a "
-                             "normal map) or else by the names after the name their maps share")
+            refused = maps_refused(source, first, label, label1, given="after --maps")
+            if refused:
+                raise TGHopError(refused)
         return
     channels1, patch1 = shape(first)
     for label, source in zip(labels[1:], read[1:]):

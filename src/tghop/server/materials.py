@@ -170,7 +170,7 @@ def same_kind(models, ids, names=None, verb="paint or remix", every="all") -> No
     """Models to paint or remix (``verb``) together: all texture models, or all materials with the same maps;
     else 422 naming ``models[i]`` (or ``names[i]``: a morph's A and B) and the start of its id (as the page lists
     each model). ``every``: "all", or "two" (a morph's)."""
-    from ..material_files import maps_compared  # maps matched by their kinds or suffixes: Stone_Normal, Gravel_Normal
+    from ..material_files import maps_refused  # maps matched by their kinds or suffixes: Stone_Normal, Gravel_Normal
 
     def named(i):
         return f"{names[i] if names else f'models[{i}]'} ({ids[i][:8]})"
@@ -181,15 +181,9 @@ def same_kind(models, ids, names=None, verb="paint or remix", every="all") -> No
             kinds = ("a texture model", "a material") if first else ("a material", "a texture model")
             raise RequestError(422, f"{named(i)} is {kinds[0]} but {named(0)} is {kinds[1]}; {verb} "
                                     f"{every} materials (with the same maps) or {every} texture models")
-        compared = maps_compared(model, models[0]) if first else "same"
-        if compared == "order":  # 0.60: "has the maps albedo, height, normal but ... has albedo, normal, height"
-            theirs = ", ".join(models[0].names_[1:])
-            raise RequestError(422, f"{named(i)} has its maps in another order ({', '.join(model.names_[1:])}) than "
-                                    f"{named(0)} ({theirs}); fit it again with its maps (the fields map:NAME) in "
-                                    f"that order: {theirs}")
-        if compared == "other":
-            raise RequestError(422, f"{named(i)} has the maps {', '.join(model.names_)} but {named(0)} has "
-                                    f"{', '.join(models[0].names_)}; {verb} materials with the same maps")
+        refused = maps_refused(model, models[0], named(i), named(0), given="(the fields map:NAME)") if first else ""
+        if refused:  # 0.60: "has the maps albedo, height, normal but ... has albedo, normal, height", in another order
+            raise RequestError(422, refused)
 
 
 def patch_size(model) -> int:
