@@ -248,7 +248,16 @@ function onPaintGenerate(remix) {
     const thumb = `its thumbnail ${place ? `${place} the canvas ` : ""}(click it to go there)`;
     sayPaint(withWarning(`done (seed ${seed}): the result is below, ${thumb}`, warning));
     await reveal($("paint-result-img"));  // under the canvas in a narrow window
-  }, sayPaint);
+  }, (text, isError) => sayPaint(pickedNamed(text, picked), isError));
+}
+
+// The server's message with each "models[i] (id's start)" it names said as the page names the model picked: its
+// name (0.61; 0.60 showed "models[1] (3f2a91c0) has the maps ...", a name the page shows nowhere).
+function pickedNamed(text, picked) {
+  return text.replace(/models\[(\d+)\](?: \(([0-9a-f]{8})\))?/g, (whole, i, id) => {
+    const m = picked[Number(i)];
+    return m && (!id || m.id.startsWith(id)) ? `${m.name} (${m.id.slice(0, 8)})` : whole;
+  });
 }
 
 // Paint's and Remix's last result as a thumbnail beside the canvas (0.61: it came below the canvas only, out of sight
