@@ -373,8 +373,8 @@ def test_why_quality_is_off_is_told_beside_it(page, tmp_path):
     quality.not_to_have_accessible_description(re.compile("Off "))
     # as a material of 0.58: none (named apart: the page keeps it, and later tests pick "wall material" by name)
     load_material(page, tmp_path, "old material.npz", patch_levels=0)
-    why = ("Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with paper settings); "
-           "fit it again for quality best.")
+    why = ("Off now: this material's albedo has no patch statistics (fitted by tghop 0.58, or with the paper's "
+           "settings); fit it again with the paper's settings off (Fit settings) for quality best.")
     sync_api.expect(page.locator("#quality-off")).to_have_text(why)  # once its summary came (after a material)
     assert page.is_disabled("#quality")
     assert page.is_visible("#quality-off") and page.text_content("#quality-off") == why
@@ -909,8 +909,9 @@ def test_a_texture_model_without_patch_statistics_never_offers_quality_best(page
     from tghop import TGHop, data
     from tghop.modelfile import save_model
 
-    why = ("Off now: this model has no patch statistics (fitted with the paper's settings, or patch_levels 0); fit it "
-           "again without them for quality best.")
+    # 0.60's "fit it again without them" read as without patch statistics; "patch_levels 0" is no field of the page
+    why = ("Off now: this model has no patch statistics (fitted with the paper's settings, or by tghop fit "
+           "--patch-levels 0); fit it again with the paper's settings off (Fit settings) for quality best.")
     page.select_option("#quality", "best")  # the artist's choice, kept: sent only where it applies
     page.evaluate("""() => {
       window.qualityOn = [];  // the menu's every change, from now on

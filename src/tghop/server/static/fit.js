@@ -134,17 +134,20 @@ function setMaterial(on, patches = null) {
   if (listed && on !== null) listed.material = on;  // Morph takes texture models only (morphProblem)
   if (listed && on !== null && patches !== null) listed.patches = patches;  // Paint's and Remix's quality
   const bare = on !== null && patches === false, unknown = on === null || (on === true && patches === null);
-  const why = on ? "this material's albedo has no patch statistics (fitted by tghop 0.58, or with paper settings)"
-    : "this model has no patch statistics (fitted with the paper's settings, or patch_levels 0)";
+  // The fix in the page's words (0.60's "fit it again without them" read as without patch statistics, and
+  // "patch_levels 0" is no field of the page)
+  const why = on ? "this material's albedo has no patch statistics (fitted by tghop 0.58, or with the paper's settings)"
+    : "this model has no patch statistics (fitted with the paper's settings, or by tghop fit --patch-levels 0)";
+  const fix = "fit it again with the paper's settings off (Fit settings)";
   $("quality").disabled = unknown || bare;
-  $("quality").title = bare ? `${why}: fit it again`
+  $("quality").title = bare ? `${why}: ${fix}`
     : on === null ? "off until the page knows whether the model is a material (its summary)"
     : unknown ? "off until the page knows whether this material's albedo has patch statistics (its summary)" : "";
   // Why it is off, in its help too (which a screen reader reads with it): a title is a mouse's only, and a control
   // turned off is not reached with Tab. Shown for a material without statistics; for the moments of a fit or an
   // upload, to a screen reader only (shown, the help grew a line and shrank back with each fit).
   const off = $("quality-off");
-  off.textContent = bare ? `Off now: ${why}; fit it again${on ? "" : " without them"} for quality best.`
+  off.textContent = bare ? `Off now: ${why}; ${fix} for quality best.`
     : on === null ? "Off until the page knows whether the model is a material (its summary)."
     : unknown ? "Off until the page knows whether this material's albedo has patch statistics (its summary)." : "";
   off.hidden = !bare && !unknown;
