@@ -3,6 +3,7 @@ on textures made in code."""
 
 import copy
 import os
+import types
 
 import numpy as np
 import pytest
@@ -314,6 +315,12 @@ def test_materials_whose_map_is_a_normal_map_in_one_alone_are_other_maps_everywh
     c.map_channels_ = [1, 3]
     assert maps_refused(c, a, "input 2", "input 1") == "input 2's albedo is greyscale but input 1's is in colour; " \
         "give materials whose albedos are all in colour or all greyscale"
+    two = [types.SimpleNamespace(names_=["albedo", *n], map_channels_=[3, 3, 1], normal_=[False] * 3)
+           for n in (["swirl", "height"], ["height", "swirl"])]
+    two[1].map_channels_ = [3, 1, 3]  # its maps in another order: named once each, the order to fit in said
+    assert maps_refused(two[1], two[0], "input 2", "input 1", given="(Material.fit's maps)") == "input 2 has its " \
+        "maps in another order (height, swirl) than input 1 (swirl, height); fit it again with its maps " \
+        "(Material.fit's maps) in that order: swirl, height"
 
 
 def test_each_region_is_its_exemplars_texture_and_same_seed_same_image(models, exemplars, monkeypatch):

@@ -194,7 +194,7 @@ def _check_models(models, minimum=1, materials=False):
         for m in models:
             check_is_fitted(m, "model_")
         for i, m in enumerate(models[1:], start=2):  # maps matched by their kinds or suffixes (Stone_Normal, Normal)
-            refused = maps_refused(m, models[0], f"input {i}", "input 1", given="in Material.fit's maps",
+            refused = maps_refused(m, models[0], f"input {i}", "input 1", given="(Material.fit's maps)",
                                    normal_by="Material's normal; with 'auto', " + NORMAL_BY_NAME)
             if refused:  # as the command line and the server say it (0.61)
                 raise TGHopError(refused)
