@@ -555,7 +555,13 @@ class Material(ImageInputMixin, BaseEstimator):
 
     def albedo_patch_levels(self) -> int:
         """The levels of the albedo's patch statistics (0.59), as the file's metadata and the page's quality switch
-        say them: 0 where there are none (a material of tghop 0.58, or fitted with ``patch_levels`` 0)."""
+        say them.
+
+        Returns
+        -------
+        int
+            0 where there are none (a material of tghop 0.58, or fitted with ``patch_levels`` 0).
+        """
         stats = self.albedo_patches()
         return 0 if stats is None else len(stats.directions_)
 
