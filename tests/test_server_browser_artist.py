@@ -7,6 +7,8 @@ built-in browsed to by keyboard waits); a result shown beside another model's ex
 shows its picture whole with its tools at 1024x700, and so does Paint its canvas, and (0.60) Co-occurrence its
 edit's."""
 
+import contextlib
+
 import chromium
 from conftest import FAST_FIT, png
 
@@ -21,6 +23,30 @@ def generate(page, seed, size=(32, 40)):
     page.wait_for_function("(s) => document.getElementById('result-caption').textContent.includes(s) &&"
                            " document.getElementById('go').textContent === 'Generate'", arg=f"seed {seed}",
                            timeout=90_000)
+
+
+def bricks_result(page, seed, size):
+    """A fresh page with builtin:bricks fitted (the fast settings) and its result of ``seed`` at ``size`` shown."""
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    generate(page, seed, size=size)
+
+
+def choose_inpaint(page):
+    """Inpaint chosen, its picture ready to paint on."""
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+
+
+@contextlib.contextmanager
+def window(page, width, height):
+    """The page in a window of ``width`` x ``height``, scrolled to its top; back to the tests' 1200x1400 after."""
+    page.set_viewport_size({"width": width, "height": height})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        yield
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
 
 
 def rock_files():
@@ -144,14 +170,9 @@ def test_a_result_beside_another_models_exemplar_names_its_model(page):
 def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
     # At 1024x700 the picture to paint on (a 256x256 result shown 640 px high) began below the fold when Inpaint was
     # chosen: the artist had to scroll to paint, and could not see the brush's tools and the whole picture at once.
-    chromium.load_fresh(page, FAST_FIT)
-    chromium.fit_builtin(page, "bricks")
-    generate(page, 3, size=(256, 256))
-    page.set_viewport_size({"width": 1024, "height": 700})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
-        chromium.choose_mode(page, "inpaint")
-        page.wait_for_selector("#editor[data-ready='1']")
+    bricks_result(page, 3, (256, 256))
+    with window(page, 1024, 700):
+        choose_inpaint(page)
         boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#brush", "#fill", "#mask")}
         for selector, box in boxes.items():
             assert box["y"] >= 0 and box["y"] + box["height"] <= 700, (selector, box)
@@ -165,30 +186,21 @@ def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
                                     " return [d[4 * 20 + 3], d[4 * 128 + 3], d[4 * 236 + 3]]; }")
         assert all(alpha > 127 for alpha in row), row
         chromium.choose_mode(page, "view")
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
 
 def test_inpaint_shows_its_picture_with_the_brushs_tools_in_a_narrow_window(page):
     # At 400x800 the mode's row, its help, the tools and the Extend row took the window, and the picture to paint on
     # began below the fold: chosen, Inpaint showed no picture.
-    chromium.load_fresh(page, FAST_FIT)
-    chromium.fit_builtin(page, "bricks")
-    generate(page, 3, size=(128, 192))
-    page.set_viewport_size({"width": 400, "height": 800})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
-        chromium.choose_mode(page, "inpaint")
-        page.wait_for_selector("#editor[data-ready='1']")
+    bricks_result(page, 3, (128, 192))
+    with window(page, 400, 800):
+        choose_inpaint(page)
         page.wait_for_timeout(300)
         for selector in ("#brush", "#fill", "#mask"):
             box = page.locator(selector).bounding_box()
             assert box["y"] >= 0 and box["y"] + box["height"] <= 800, (selector, box)
         assert page.locator("#mask").bounding_box()["height"] >= 128  # never smaller than the picture itself
         chromium.choose_mode(page, "view")
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
 def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
@@ -199,9 +211,7 @@ def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
     chromium.fit_builtin(page, "cells")
     page.fill("#height", "256")
     page.fill("#width", "256")
-    page.set_viewport_size({"width": 1024, "height": 700})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
+    with window(page, 1024, 700):
         chromium.choose_mode(page, "paint")
         boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#paint-colours", "#paint-go", "#guide")}
         for selector, box in boxes.items():
@@ -216,8 +226,6 @@ def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
         row = page.evaluate("[20, 128, 236].map((x) => guide.labels[128 * 256 + x])")
         assert row == [1, 1, 1] and page.evaluate("guide.labels[0]") == 0, row
         chromium.choose_mode(page, "view")
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
 
@@ -319,8 +327,7 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     chromium.fit_builtin(page, "bricks")
     bricks = page.evaluate("state.modelId")
     generate(page, 5, size=(64, 64))
-    chromium.choose_mode(page, "inpaint")
-    page.wait_for_selector("#editor[data-ready='1']")
+    choose_inpaint(page)
     stroke_across(page)
     page.fill("#inpaint-seed", "4")
     page.fill("#inpaint-count", "3")
@@ -340,8 +347,7 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
     assert page.text_content("#inpaint-message") == ("the fills stopped at fill 2 of 3: another mode or model was "
                                                      "chosen, and their strip went")
-    chromium.choose_mode(page, "inpaint")
-    page.wait_for_selector("#editor[data-ready='1']")
+    choose_inpaint(page)
     if not page.evaluate("maskPainted()"):
         stroke_across(page)
     with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
@@ -359,8 +365,7 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     assert page.eval_on_selector_all("#strip img", "l => l.length") == 0
     # The mode changed as the last fill came (its thumbnail still decoding): no fill picked into the strip gone
     chromium.fit_builtin(page, "bricks")
-    chromium.choose_mode(page, "inpaint")
-    page.wait_for_selector("#editor[data-ready='1']")
+    choose_inpaint(page)
     if not page.evaluate("maskPainted()"):
         stroke_across(page)
     page.fill("#inpaint-count", "2")
@@ -399,11 +404,8 @@ def image_part(body: bytes) -> bytes:
 def test_a_fill_picked_while_the_strip_still_comes_leaves_the_rest_of_the_strip_as_it_was(page):
     # A fill picked from the strip becomes the picture to paint on: 0.60 sent it as the picture of the fills still to
     # come, which were then fills of a fill (and, 0.61, not tghop inpaint --count's fill k).
-    chromium.load_fresh(page, FAST_FIT)
-    chromium.fit_builtin(page, "bricks")
-    generate(page, 6, size=(64, 64))
-    chromium.choose_mode(page, "inpaint")
-    page.wait_for_selector("#editor[data-ready='1']")
+    bricks_result(page, 6, (64, 64))
+    choose_inpaint(page)
     stroke_across(page)
     page.fill("#inpaint-seed", "9")
     page.fill("#inpaint-count", "3")
@@ -427,11 +429,8 @@ def test_a_fill_picked_while_the_strip_still_comes_leaves_the_rest_of_the_strip_
 def test_a_strip_of_fills_stopped_shows_the_first_fill_that_came(page):
     # Stop pressed while fill 3 of 3 came kept fills 1 and 2 in the strip but showed neither as the result, "stopped"
     # said alone (0.60): a finished strip shows fill 1.
-    chromium.load_fresh(page, FAST_FIT)
-    chromium.fit_builtin(page, "bricks")
-    generate(page, 7, size=(64, 64))
-    chromium.choose_mode(page, "inpaint")
-    page.wait_for_selector("#editor[data-ready='1']")
+    bricks_result(page, 7, (64, 64))
+    choose_inpaint(page)
     stroke_across(page)
     page.fill("#inpaint-seed", "5")
     page.fill("#inpaint-count", "3")
@@ -459,14 +458,9 @@ def test_a_strip_of_fills_stopped_shows_the_first_fill_that_came(page):
 def test_a_strip_of_fills_is_seen_with_its_picture_at_1024x700(page):
     # At 1024x700 a 128x192 result filled the window to paint on, and the fills to pick from came under it, below the
     # fold: "3 fills ... under the picture: click one to pick it", of which the artist saw none.
-    chromium.load_fresh(page, FAST_FIT)
-    chromium.fit_builtin(page, "bricks")
-    generate(page, 3, size=(128, 192))
-    page.set_viewport_size({"width": 1024, "height": 700})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
-        chromium.choose_mode(page, "inpaint")
-        page.wait_for_selector("#editor[data-ready='1']")
+    bricks_result(page, 3, (128, 192))
+    with window(page, 1024, 700):
+        choose_inpaint(page)
         stroke_across(page)
         page.fill("#inpaint-seed", "2")
         page.fill("#inpaint-count", "3")
@@ -479,8 +473,6 @@ def test_a_strip_of_fills_is_seen_with_its_picture_at_1024x700(page):
             assert box["y"] >= 0 and box["y"] + box["height"] <= 700, (selector, box)
         assert boxes["#mask"]["height"] >= 128  # never smaller than the picture itself
         chromium.choose_mode(page, "view")
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
 def test_a_reload_keeps_the_modes_fields(page):
@@ -510,9 +502,7 @@ def test_the_cooc_edit_shows_its_canvas_whole_with_the_crops_at_1024x700(page, t
     # At 1024x700 the co-occurrence edit's canvas (128x192, shown 640 px wide) began 700 px under the mode's row when a
     # checkpoint was loaded (0.59): the artist scrolled between the crops placed on the exemplar and the canvas.
     chromium.load_empty(page)
-    page.set_viewport_size({"width": 1024, "height": 700})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
+    with window(page, 1024, 700):
         chromium.choose_mode(page, "cooc")
         page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
         page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
@@ -541,19 +531,14 @@ def test_the_cooc_edit_shows_its_canvas_whole_with_the_crops_at_1024x700(page, t
         chromium.choose_mode(page, "cooc")
         in_view()
         chromium.choose_mode(page, "view")
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
 
 
 def test_fill_with_a_count_makes_fills_to_pick_from(page):
     # tghop inpaint --count N made fills to pick from (0.59); the page's Fill made one at a time, a seed typed between.
     # 0.61: they are the command's, fill k of seed s (0.60: seeds s, s + 1, ..., named by seed), named as it names them.
-    chromium.load_fresh(page, FAST_FIT)
-    chromium.fit_builtin(page, "bricks")
-    generate(page, 2, size=(64, 64))
-    chromium.choose_mode(page, "inpaint")
-    page.wait_for_selector("#editor[data-ready='1']")
+    bricks_result(page, 2, (64, 64))
+    choose_inpaint(page)
     box = page.locator("#mask").bounding_box()  # a hole across the middle
     page.mouse.move(box["x"] + 10, box["y"] + box["height"] / 2)
     page.mouse.down()
